@@ -1,0 +1,16 @@
+"""contact: Signorini and obstacle problems by semismooth Newton on DOLFINx.
+
+    scene = contact.load_scene("configs/signorini_square.yaml")
+    result = contact.solve(scene, method="fb")
+"""
+try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before dolfinx/petsc4py
+    import dolfinx_solver  # noqa: F401
+except ImportError:  # a conda / Debian DOLFINx needs nothing
+    pass
+
+from .config import ConfigError  # noqa: E402
+from .scene import Scene, load_scene  # noqa: E402
+from .solver import Result, solve  # noqa: E402
+
+__all__ = ["ConfigError", "Scene", "load_scene", "Result", "solve"]
+__version__ = "0.1.0"

@@ -1,0 +1,72 @@
+"""Command line:  contact run SCENE.yaml [-o OUTDIR] [--set key.path=value ...]
+
+Exit codes: 0 solved and written; 1 the solver did not converge (nothing written);
+2 bad input (one line on stderr naming the key or file).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+from .config import ConfigError
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
+    sub = p.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="solve one scene and write its output folder")
+    run.add_argument("scene", help="scene YAML file (see configs/)")
+    run.add_argument("-o", "--output", help="output folder (default: results/<scene name>)")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scene key, e.g. --set solver.method=min (repeatable)")
+    run.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+    return p
+
+
+def _say(comm: MPI.Comm, *args, **kw) -> None:
+    if comm.rank == 0:
+        print(*args, **kw, flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    comm = MPI.COMM_WORLD
+    try:
+        return _run(args, comm)
+    except ConfigError as err:
+        if comm.rank == 0:
+            print(f"contact: error: {err}", file=sys.stderr, flush=True)
+        return 2
+
+
+def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from . import load_scene, solve
+    from .report import write_run
+
+    t0 = time.perf_counter()
+    overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
+    scene = load_scene(args.scene, overrides, comm=comm)
+    outdir = Path(args.output or scene.cfg["output"]["dir"] or Path("results") / scene.name)
+    method = scene.cfg["solver"]["method"]
+    _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
+               f"{comm.size} MPI rank(s)")
+    result = solve(scene)
+    _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations, "
+               f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
+    if not result.converged:
+        if comm.rank == 0:
+            print(f"contact: error: solver {method} did not converge ({result.reason}) after "
+                  f"{result.iterations} iterations, last |Phi| = {result.residual:.3e}; nothing written",
+                  file=sys.stderr, flush=True)
+        return 1
+    write_run(outdir, scene, result, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ (solution.xdmf, summary.json, history.csv, solution.png)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

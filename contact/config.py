@@ -1,0 +1,330 @@
+"""Scene configuration: YAML → validated, defaulted plain dict.
+
+Every check runs before any mesh is built or any solve starts, and every failure is a
+:class:`ConfigError` whose message is one line ``<key path>: <what is wrong>``, e.g.
+``solver.method: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls``.
+
+The schema is data (:data:`SCENE`): nested :class:`Field` s.  A scene describes only what it
+needs; everything else has a default that works.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import yaml
+
+from . import expressions
+
+SOLVER_METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
+_REQUIRED = object()
+
+
+class ConfigError(ValueError):
+    """Invalid scene or study input; ``str(err)`` is the one-line message for the user."""
+
+
+@dataclass(frozen=True)
+class Field:
+    """One key of the schema.
+
+    ``kind`` is one of ``str int float number bool expr dict list any``; ``schema`` gives
+    the keys of a ``dict`` (``None`` = free-form mapping whose values follow ``item``);
+    ``check`` returns an error text or ``None``.
+    """
+
+    kind: str
+    default: Any = _REQUIRED
+    choices: tuple | None = None
+    check: Callable[[Any], str | None] | None = None
+    schema: Mapping[str, "Field"] | None = None
+    item: "Field | None" = None
+    doc: str = ""
+
+
+def _positive(v: Any) -> str | None:
+    return None if v > 0 else f"must be > 0, got {v}"
+
+
+def _nonnegative(v: Any) -> str | None:
+    return None if v >= 0 else f"must be >= 0, got {v}"
+
+
+def _open_unit(v: Any) -> str | None:
+    return None if 0 < v < 1 else f"must lie in (0, 1), got {v}"
+
+
+def _half_open_unit(v: Any) -> str | None:
+    return None if 0 < v <= 1 else f"must lie in (0, 1], got {v}"
+
+
+def _c_value(v: Any) -> str | None:
+    if v == "auto":
+        return None
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return f"must be 'auto' or a positive number, got {v!r}"
+    return _positive(v)
+
+
+def _cells(v: Any) -> str | None:
+    items = v if isinstance(v, list) else [v]
+    if not items or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items):
+        return f"must be a positive integer or a list of positive integers, got {v!r}"
+    return None
+
+
+def _point_list(v: Any) -> str | None:
+    ok = isinstance(v, list) and len(v) == 2 and all(
+        isinstance(p, list) and 2 <= len(p) <= 3 and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)
+        for p in v) and len(v[0]) == len(v[1])
+    if not ok:
+        return f"must be two points [[x0, y0(, z0)], [x1, y1(, z1)]], got {v!r}"
+    if any(b <= a for a, b in zip(v[0], v[1])):
+        return f"the second corner must exceed the first in every coordinate, got {v!r}"
+    return None
+
+
+EXPR = Field("expr", "0")
+
+BOUNDARY = Field("dict", schema={
+    "role": Field("str", choices=("dirichlet", "neumann", "contact"),
+                  doc="what the part is: Dirichlet (u = u_D), Neumann (flux t) or contact"),
+    "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
+    "tag": Field("int", None, doc="gmsh physical tag of the facets"),
+})
+
+SCENE: dict[str, Field] = {
+    "name": Field("str", None),
+    "mesh": Field("dict", schema={
+        "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh")),
+        "corners": Field("list", None, check=_point_list),
+        "cells": Field("any", 16, check=_cells),
+        "diagonal": Field("str", "right", choices=("left", "right", "crossed", "left/right", "right/left")),
+        "file": Field("str", None),
+        "degree": Field("int", 1, choices=(1, 2)),
+    }),
+    "boundaries": Field("dict", schema=None, item=BOUNDARY),
+    "model": Field("dict", schema={
+        "type": Field("str", "signorini", choices=("signorini", "obstacle")),
+        "bound": Field("str", "upper", choices=("upper", "lower"),
+                       doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
+    }),
+    "constants": Field("dict", schema=None, item=Field("number")),
+    "data": Field("dict", schema={
+        "f": EXPR, "k": Field("expr", "1"), "u_D": EXPR, "t": EXPR, "t_C": EXPR,
+        "g": EXPR, "psi": EXPR, "exact": Field("expr", None),
+    }),
+    "solver": Field("dict", schema={
+        "method": Field("str", "fb", choices=SOLVER_METHODS),
+        "mu": Field("number", 0.5, check=_open_unit),
+        "c": Field("any", "auto", check=_c_value),
+        "line_search": Field("str", "basic", choices=("basic", "bt")),
+        "rtol": Field("number", 1e-10, check=_nonnegative),
+        "atol": Field("number", 1e-12, check=_nonnegative),
+        "max_it": Field("int", 50, check=_positive),
+        "u0": Field("expr", "0"),
+        "petsc_options": Field("dict", schema=None, item=Field("any")),
+    }),
+    "output": Field("dict", schema={
+        "dir": Field("str", None),
+        "xdmf": Field("bool", True),
+        "png": Field("bool", True),
+        "verbose": Field("bool", True),
+    }),
+}
+
+
+def _typename(v: Any) -> str:
+    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
+            int: "an integer", float: "a number", type(None): "empty"}.get(type(v), type(v).__name__)
+
+
+def _validate(value: Any, spec: Field, path: str, constants: Mapping[str, float]) -> Any:
+    kind = spec.kind
+    if kind == "float" or kind == "number":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{path}: expected a number, got {_typename(value)} {value!r}")
+        if not math.isfinite(value):
+            raise ConfigError(f"{path}: must be finite, got {value}")
+        value = float(value)
+    elif kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{path}: expected an integer, got {_typename(value)} {value!r}")
+    elif kind == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"{path}: expected a string, got {_typename(value)} {value!r}")
+    elif kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(f"{path}: expected true or false, got {_typename(value)} {value!r}")
+    elif kind == "list":
+        if not isinstance(value, list):
+            raise ConfigError(f"{path}: expected a list, got {_typename(value)} {value!r}")
+    elif kind == "expr":
+        try:
+            expressions.parse(value, constants)
+        except expressions.ExpressionError as err:
+            raise ConfigError(f"{path}: {err}") from None
+        value = str(value)
+    elif kind == "dict":
+        if value is None:
+            value = {}
+        if not isinstance(value, dict):
+            raise ConfigError(f"{path}: expected a mapping, got {_typename(value)} {value!r}")
+        value = _validate_mapping(value, spec, path, constants)
+    if spec.choices is not None and value not in spec.choices:
+        raise ConfigError(f"{path}: {value!r} is not one of {', '.join(map(str, spec.choices))}")
+    if spec.check is not None and (problem := spec.check(value)):
+        raise ConfigError(f"{path}: {problem}")
+    return value
+
+
+def _validate_mapping(data: Mapping, spec: Field, path: str, constants: Mapping[str, float]) -> dict:
+    prefix = f"{path}." if path else ""
+    out = {}
+    if spec.schema is None:  # free-form mapping: every value follows spec.item
+        for key, val in data.items():
+            if not isinstance(key, str):
+                raise ConfigError(f"{prefix}{key}: keys must be strings")
+            out[key] = _validate(val, spec.item, prefix + key, constants) if spec.item else val
+        return out
+    for key in data:
+        if key not in spec.schema:
+            raise ConfigError(f"{prefix}{key}: unknown key (expected one of {', '.join(spec.schema)})")
+    for key, sub in spec.schema.items():
+        if key in data and data[key] is not None:
+            out[key] = _validate(data[key], sub, prefix + key, constants)
+        elif sub.default is _REQUIRED:
+            if sub.kind == "dict":
+                out[key] = _validate({}, sub, prefix + key, constants)
+            else:
+                raise ConfigError(f"{prefix}{key}: required key is missing")
+        else:
+            out[key] = copy.deepcopy(sub.default)
+    return out
+
+
+def read_yaml(path: str | Path) -> dict:
+    """Read a YAML mapping from ``path``; a missing file or bad YAML is a ConfigError."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{p}: no such file")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise ConfigError(f"{p}: malformed YAML{where}: {problem}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{p}: expected a mapping of sections at the top level, got {_typename(data)}")
+    return data
+
+
+def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
+    """Apply ``--set a.b.c=value`` overrides; ``value`` is parsed as YAML (so 1e-8 is a number)."""
+    data = copy.deepcopy(data)
+    for item in overrides:
+        if "=" not in item:
+            raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE")
+        key, raw = item.split("=", 1)
+        try:
+            value = yaml.safe_load(raw)
+        except yaml.YAMLError:
+            value = raw
+        node = data
+        parts = key.strip().split(".")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f"--set {key}: {part} is not a section")
+        node[parts[-1]] = value
+    return data
+
+
+def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None = None) -> dict:
+    """Validate a raw scene mapping; return the completed config (defaults filled in).
+
+    Cross-key rules checked here: mesh keys that fit the mesh type, a mesh file that
+    exists, boundary parts with exactly one of ``where``/``tag`` (``tag`` only for gmsh
+    meshes), at least one contact part for Signorini, ``c`` > 0, and data keys that fit
+    the model (``g`` for Signorini, ``psi`` for obstacles).
+    """
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"scene: expected a mapping, got {_typename(data)}")
+    if isinstance(data.get("model"), str):  # short form  model: signorini
+        data = {**data, "model": {"type": data["model"]}}
+    raw_constants = data.get("constants") or {}
+    constants = _validate(raw_constants, SCENE["constants"], "constants", {})
+    for key in constants:
+        if key in expressions.COORDINATES + expressions.HELPERS + expressions.FUNCTIONS or not key.isidentifier():
+            raise ConfigError(f"constants.{key}: is not a usable constant name")
+    cfg = _validate_mapping(data, Field("dict", schema=SCENE), "", constants)
+    cfg["name"] = cfg["name"] or name or "scene"
+    cfg["_base_dir"] = str(Path(base_dir).resolve())
+
+    mesh = cfg["mesh"]
+    allowed = {"rectangle": {"corners", "cells", "diagonal"}, "unit_square": {"cells", "diagonal"},
+               "box": {"corners", "cells"}, "lshape": {"cells", "diagonal"}, "gmsh": {"file"}}[mesh["type"]]
+    for key in ("corners", "file"):
+        if mesh[key] is not None and key not in allowed:
+            raise ConfigError(f"mesh.{key}: not used by mesh type {mesh['type']!r}")
+    if mesh["type"] == "gmsh":
+        if mesh["file"] is None:
+            raise ConfigError("mesh.file: required for mesh type 'gmsh'")
+        path = Path(mesh["file"])
+        path = path if path.is_absolute() else Path(cfg["_base_dir"]) / path
+        if not path.is_file():
+            raise ConfigError(f"mesh.file: no such file {str(path)!r}")
+        mesh["file"] = str(path)
+    dims = {"rectangle": 2, "unit_square": 2, "lshape": 2, "box": 3}.get(mesh["type"])
+    if mesh["type"] in ("rectangle", "box"):
+        if mesh["corners"] is None:
+            mesh["corners"] = [[0.0] * dims, [1.0] * dims]
+        if len(mesh["corners"][0]) != dims:
+            raise ConfigError(f"mesh.corners: a {mesh['type']} needs {dims}D points")
+    if dims is not None:
+        cells = mesh["cells"] if isinstance(mesh["cells"], list) else [mesh["cells"]] * (1 if mesh["type"] == "lshape" else dims)
+        want = 1 if mesh["type"] == "lshape" else dims
+        if len(cells) != want:
+            raise ConfigError(f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got {mesh['cells']!r}")
+        mesh["cells"] = cells
+
+    if not cfg["boundaries"]:
+        raise ConfigError("boundaries: at least one boundary part is required")
+    for bname, part in cfg["boundaries"].items():
+        if (part["where"] is None) == (part["tag"] is None):
+            raise ConfigError(f"boundaries.{bname}: give exactly one of 'where' or 'tag'")
+        if part["tag"] is not None and mesh["type"] != "gmsh":
+            raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: gmsh)")
+        if part["where"] is not None:
+            try:
+                expressions.parse(part["where"], constants)
+            except expressions.ExpressionError as err:
+                raise ConfigError(f"boundaries.{bname}.where: {err}") from None
+    roles = [p["role"] for p in cfg["boundaries"].values()]
+    model = cfg["model"]["type"]
+    if model == "signorini" and "contact" not in roles:
+        raise ConfigError("boundaries: a signorini scene needs a part with role: contact")
+    if model == "obstacle" and "contact" in roles:
+        raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a contact part")
+    given = set(data.get("data") or {})
+    if model == "signorini" and "psi" in given:
+        raise ConfigError("data.psi: only for model type obstacle (Signorini uses data.g)")
+    if model == "obstacle" and ({"g", "t_C"} & given):
+        raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini (obstacles use data.psi)")
+    if cfg["model"]["bound"] != "upper" and model == "signorini":
+        raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
+    cfg["constants"] = constants
+    return cfg
+
+
+def load_config(source: str | Path | Mapping, overrides: list[str] | tuple[str, ...] = ()) -> dict:
+    """Read (if a path), apply ``--set`` overrides and validate a scene."""
+    if isinstance(source, Mapping):
+        return validate_scene(apply_overrides(dict(source), overrides))
+    path = Path(source)
+    data = apply_overrides(read_yaml(path), overrides)
+    return validate_scene(data, base_dir=path.parent, name=path.stem)

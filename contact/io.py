@@ -1,0 +1,98 @@
+"""Output: an atomically written result folder with XDMF, JSON and CSV files.
+
+``atomic_folder`` gives a temporary sibling directory; only when everything inside was
+written does rank 0 rename it to the requested name.  After a failure there is either
+no folder or the previous complete one — never a half-written folder.
+"""
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable, Iterator, Mapping
+
+from mpi4py import MPI
+
+from dolfinx import fem
+from dolfinx.io import XDMFFile
+
+
+@contextlib.contextmanager
+def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Iterator[Path]:
+    """Yield a temporary directory that becomes ``outdir`` on success (collective)."""
+    outdir = Path(outdir).resolve()
+    tmp = None
+    if comm.rank == 0:
+        outdir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = tempfile.mkdtemp(prefix=f".{outdir.name}.partial-", dir=outdir.parent)
+    tmp = Path(comm.bcast(tmp, root=0))
+    ok = False
+    try:
+        yield tmp
+        ok = True
+    finally:
+        ok = comm.allreduce(ok, op=MPI.LAND)
+        if comm.rank == 0:
+            if ok:
+                old = None
+                if outdir.exists():
+                    old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")
+                    outdir.rename(old)
+                tmp.rename(outdir)
+                if old is not None:
+                    shutil.rmtree(old, ignore_errors=True)
+            else:
+                shutil.rmtree(tmp, ignore_errors=True)
+        comm.barrier()
+
+
+def write_xdmf(path: str | Path, functions: Iterable[fem.Function], t: float = 0.0) -> None:
+    """Write the mesh once and each function (interpolated to P1 if of higher degree)."""
+    functions = list(functions)
+    msh = functions[0].function_space.mesh
+    with XDMFFile(msh.comm, str(path), "w") as xdmf:
+        xdmf.write_mesh(msh)
+        for fn in functions:
+            xdmf.write_function(_to_mesh_degree(fn), t)
+
+
+def _to_mesh_degree(fn: fem.Function) -> fem.Function:
+    """XDMF stores nodal values on the mesh geometry: interpolate P2 data to P1."""
+    V = fn.function_space
+    if V.element.basix_element.degree == V.mesh.geometry.cmap.degree:
+        return fn
+    shape = V.value_shape if hasattr(V, "value_shape") else ()
+    W = fem.functionspace(V.mesh, ("Lagrange", V.mesh.geometry.cmap.degree, shape))
+    out = fem.Function(W, name=fn.name)
+    out.interpolate(fn)
+    return out
+
+
+def write_json(path: str | Path, data: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    if comm.rank == 0:
+        Path(path).write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
+
+
+def write_csv(path: str | Path, rows: list[Mapping[str, Any]], comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """Rows of dicts to CSV (header from the union of keys, in first-seen order)."""
+    if comm.rank != 0:
+        return
+    keys: list[str] = []
+    for row in rows:
+        keys += [k for k in row if k not in keys]
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _jsonable(obj: Any) -> Any:
+    if hasattr(obj, "item"):
+        return obj.item()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

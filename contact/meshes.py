@@ -1,0 +1,144 @@
+"""Meshes and boundary parts of a scene.
+
+Built-in meshes need nothing but DOLFINx: ``rectangle``/``unit_square`` and ``box``
+(structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], SPEC §7 D, built from
+NumPy arrays).  Only ``gmsh`` scenes import gmsh, to read a ``.msh`` file with physical
+tags.  Boundary parts become one facet ``MeshTags`` whose values are the part ids.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+import basix.ufl
+import dolfinx
+import ufl
+from dolfinx import mesh as dmesh
+
+from . import expressions
+from .config import ConfigError
+
+_DIAGONALS = {"left": dmesh.DiagonalType.left, "right": dmesh.DiagonalType.right,
+              "crossed": dmesh.DiagonalType.crossed, "left/right": dmesh.DiagonalType.left_right,
+              "right/left": dmesh.DiagonalType.right_left}
+
+
+@dataclass
+class Boundary:
+    """Facet tags of the scene's boundary parts: ``ids[name]`` is the tag value of a part,
+    ``roles[name]`` its role (dirichlet, neumann, contact)."""
+
+    tags: dmesh.MeshTags
+    ids: dict[str, int]
+    roles: dict[str, str]
+
+    def ids_with_role(self, role: str) -> tuple[int, ...]:
+        return tuple(self.ids[n] for n, r in self.roles.items() if r == role)
+
+    def facets(self, role: str) -> np.ndarray:
+        """Local facet indices of all parts with ``role``."""
+        ids = self.ids_with_role(role)
+        return np.sort(self.tags.indices[np.isin(self.tags.values, ids)]).astype(np.int32)
+
+
+def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
+    """The mesh described by ``cfg['mesh']``; for gmsh files also their facet tags."""
+    m = cfg["mesh"]
+    kind = m["type"]
+    if kind in ("rectangle", "unit_square"):
+        corners = m["corners"] if kind == "rectangle" else [[0.0, 0.0], [1.0, 1.0]]
+        return dmesh.create_rectangle(comm, [np.array(c, dtype=float) for c in corners], m["cells"],
+                                      cell_type=dmesh.CellType.triangle,
+                                      diagonal=_DIAGONALS[m["diagonal"]]), None
+    if kind == "box":
+        return dmesh.create_box(comm, [np.array(c, dtype=float) for c in m["corners"]], m["cells"],
+                                cell_type=dmesh.CellType.tetrahedron), None
+    if kind == "lshape":
+        return lshape(comm, m["cells"][0], m["diagonal"]), None
+    return _read_gmsh(m["file"], comm)
+
+
+def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
+    """Structured triangulation of (−1,1)² ∖ [0,1]×[−1,0] with ``n`` cells per unit length."""
+    if comm.rank == 0:
+        h = 1.0 / n
+        i, j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
+        i, j = i.ravel(), j.ravel()
+        keep = ~((i >= n) & (j < n))  # drop the squares of the cut quadrant x > 0, y < 0
+        i, j = i[keep], j[keep]
+        vid = lambda a, b: a * (2 * n + 1) + b  # noqa: E731
+        v00, v10, v01, v11 = vid(i, j), vid(i + 1, j), vid(i, j + 1), vid(i + 1, j + 1)
+        if diagonal in ("left", "right/left"):
+            tris = np.vstack([np.c_[v00, v10, v01], np.c_[v10, v11, v01]])
+        else:
+            tris = np.vstack([np.c_[v00, v10, v11], np.c_[v00, v11, v01]])
+        used, cells = np.unique(tris, return_inverse=True)
+        X = np.c_[(used // (2 * n + 1)) * h - 1.0, (used % (2 * n + 1)) * h - 1.0]
+        cells = cells.reshape(-1, 3).astype(np.int64)
+    else:
+        X, cells = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+    element = ufl.Mesh(basix.ufl.element("Lagrange", "triangle", 1, shape=(2,)))
+    return dmesh.create_mesh(comm, cells, element, X,
+                             partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+
+
+def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
+    from dolfinx.io import gmsh as gmshio  # imports the gmsh module: only for .msh scenes
+
+    try:
+        data = gmshio.read_from_msh(path, comm, 0)
+    except Exception as err:  # gmsh reports parse errors as generic exceptions
+        raise ConfigError(f"mesh.file: cannot read {path!r} as a gmsh mesh: {err}") from None
+    return data.mesh, data.facet_tags
+
+
+def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None = None) -> Boundary:
+    """Mark every boundary part of ``cfg['boundaries']`` on the exterior facets.
+
+    A ``where`` predicate selects exterior facets all of whose vertices satisfy it; a
+    ``tag`` selects the gmsh physical facet group.  A part selecting no facet anywhere, an
+    unknown tag, or two parts sharing a facet are ConfigErrors.  Exterior facets left
+    unmarked carry the natural condition k ∂u/∂n = 0.
+    """
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    exterior = dmesh.exterior_facet_indices(msh.topology)
+    comm = msh.comm
+    file_ids = set()
+    if file_tags is not None:
+        file_ids = set(int(v) for v in np.concatenate(comm.allgather(np.unique(file_tags.values))))
+    next_id = max(file_ids, default=0) + 1
+    ids, roles, chunks = {}, {}, []
+    for name, part in cfg["boundaries"].items():
+        if part["tag"] is not None:
+            if file_tags is None or part["tag"] not in file_ids:
+                known = ", ".join(map(str, sorted(file_ids))) or "none"
+                raise ConfigError(f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh file (facet tags: {known})")
+            pid = part["tag"]
+            facets = file_tags.indices[file_tags.values == pid]
+        else:
+            pid = next_id
+            next_id += 1
+            pred = expressions.to_numpy(part["where"], cfg["constants"])
+            facets = dmesh.locate_entities_boundary(msh, tdim - 1, lambda x: pred(x).astype(bool))
+            facets = np.intersect1d(facets, exterior)
+        if comm.allreduce(len(facets), op=MPI.SUM) == 0:
+            what = f"where {part['where']!r}" if part["tag"] is None else f"tag {part['tag']}"
+            raise ConfigError(f"boundaries.{name}: {what} selects no boundary facet")
+        ids[name], roles[name] = pid, part["role"]
+        chunks.append((facets.astype(np.int32), np.full(len(facets), pid, dtype=np.int32), name))
+    all_facets = np.concatenate([c[0] for c in chunks])
+    uniq, counts = np.unique(all_facets, return_counts=True)
+    shared = comm.allreduce(int(np.sum(counts > 1)), op=MPI.SUM)
+    if shared:
+        dup = uniq[counts > 1]
+        names = [c[2] for c in chunks if np.isin(c[0], dup).any()] if len(dup) else []
+        names = comm.allreduce(names, op=MPI.SUM)
+        pair = " and ".join(sorted(set(names))[:2]) or "two parts"
+        raise ConfigError(f"boundaries: {pair} share {shared} facet(s); parts must not overlap")
+    values = np.concatenate([c[1] for c in chunks])
+    order = np.argsort(all_facets)
+    tags = dmesh.meshtags(msh, tdim - 1, all_facets[order], values[order])
+    return Boundary(tags, ids, roles)

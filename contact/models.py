@@ -1,0 +1,180 @@
+"""Scalar Signorini and obstacle models: forms, Dirichlet data and the nodal constraint set.
+
+Weak form (SPEC §1.1), P1 (or P2) Lagrange u_h with u_h = u_D on Γ_D:
+
+    a(u, v) = ∫_Ω k ∇u·∇v dx,     L(v) = ∫_Ω f v dx + ∫_{Γ_N} t v ds + ∫_{Γ_C} t_C v ds,
+
+assembled once into K (Dirichlet rows replaced by identity rows, lifted load b) so that
+R(u) = K u − b is the discrete residual.  The complementarity conditions act on a set of
+nodes (SPEC §2):
+
+    R_i = w_i λ_i,   σ(g_i − u_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − u_i) λ_i = 0,
+
+with lumped weights w_i = ∫ φ_i over Γ_C (Signorini: the contact nodes not on the closure
+of Γ_D) or over Ω (obstacle: every free node), and σ = +1 for u ≤ g, −1 for u ≥ ψ.
+λ_i is the nodal multiplier density: the contact flux k ∂u/∂n − t_C (Signorini) or
+−div(k∇u) − f (obstacle).  Units: with u in [U], k in [K], lengths in [L], λ is in
+[K·U/L] on Γ_C and [K·U/L²] in Ω.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+import ufl
+from dolfinx import fem
+
+from . import expressions
+from .scene import Scene
+
+
+@dataclass
+class Constraint:
+    """The nodal complementarity set: owned local DoF indices with bound, weight and sign."""
+
+    dofs: np.ndarray  # owned local indices into the PETSc vector
+    g: np.ndarray     # bound g_i (Signorini gap) or ψ_i (obstacle) at those DoFs
+    w: np.ndarray     # lumped weights w_i > 0
+    sign: float       # σ = +1: u ≤ g ; σ = −1: u ≥ ψ
+
+    def global_size(self, comm: MPI.Comm) -> int:
+        return comm.allreduce(len(self.dofs), op=MPI.SUM)
+
+
+@dataclass
+class DiscreteProblem:
+    """Everything the solver needs: K u − b = w λ on the constraint set, = 0 elsewhere."""
+
+    V: fem.FunctionSpace
+    u_h: fem.Function
+    bcs: list
+    K: PETSc.Mat
+    b: PETSc.Vec
+    constraint: Constraint
+    c: float                      # NCP scaling of the multiplier (units of gap/λ)
+    data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
+    assembly_time: float = 0.0
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """out = R(x) = K x − b."""
+        self.K.mult(x, out)
+        out.axpy(-1.0, self.b)
+
+    def bound_function(self) -> fem.Function:
+        """g (or ψ) interpolated into V."""
+        return self.data["g_h"]
+
+
+def _coefficient(text: str, scene: Scene) -> Any:
+    """UFL data: a ``fem.Constant`` when the expression is constant, else a UFL expression."""
+    consts = scene.cfg["constants"]
+    if expressions.is_constant(text, consts):
+        value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
+        return fem.Constant(scene.mesh, PETSc.ScalarType(value))
+    return expressions.to_ufl(text, scene.mesh, consts)
+
+
+def _interpolate(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
+    fn = fem.Function(V)
+    fn.interpolate(expressions.to_numpy(text, scene.cfg["constants"]))
+    return fn
+
+
+def _lumped_weights(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
+    """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed)."""
+    v = ufl.TestFunction(V)
+    w = dolfinx.fem.petsc.assemble_vector(fem.form(v * measure))
+    w.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    out = w.array.copy()
+    w.destroy()
+    return out
+
+
+def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
+    """Assemble the scalar Signorini or obstacle problem of ``scene`` (SPEC §1.1–1.2, §2)."""
+    import time
+
+    t0 = time.perf_counter()
+    cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
+    degree = degree or cfg["mesh"]["degree"]
+    data = cfg["data"]
+    V = fem.functionspace(msh, ("Lagrange", degree))
+    tdim = msh.topology.dim
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    k, f = _coefficient(data["k"], scene), _coefficient(data["f"], scene)
+    t, t_C = _coefficient(data["t"], scene), _coefficient(data["t_C"], scene)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
+    dx = ufl.Measure("dx", domain=msh)
+
+    # a(u, v) = ∫ k ∇u·∇v dx
+    a = fem.form(k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx)
+    # L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} + ⟨t_C, v⟩_{Γ_C}
+    L = f * v * dx
+    for i in bnd.ids_with_role("neumann"):
+        L += t * v * ds(i)
+    for i in bnd.ids_with_role("contact"):
+        L += t_C * v * ds(i)
+    L = fem.form(L)
+
+    # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
+    u_D = _interpolate(V, data["u_D"], scene)
+    dirichlet_dofs = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
+    bcs = [fem.dirichletbc(u_D, dirichlet_dofs)]
+
+    K = dolfinx.fem.petsc.assemble_matrix(a, bcs=bcs)
+    K.assemble()
+    b = dolfinx.fem.petsc.assemble_vector(L)
+    dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    dolfinx.fem.petsc.set_bc(b, bcs)
+
+    # The constraint set and its lumped weights w_i = ∫ φ_i (Γ_C or Ω).
+    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    if cfg["model"]["type"] == "signorini":
+        contact = bnd.ids_with_role("contact")
+        candidates = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("contact"))
+        measure = ds(contact)
+        bound_text, sign = data["g"], 1.0
+    else:
+        candidates = np.arange(n_owned, dtype=np.int32)
+        measure = dx
+        bound_text, sign = data["psi"], 1.0 if cfg["model"]["bound"] == "upper" else -1.0
+    dofs = np.setdiff1d(candidates[candidates < n_owned], dirichlet_dofs).astype(np.int32)
+    w = _lumped_weights(V, measure)[dofs]
+    if np.any(w <= 0):
+        raise ValueError(f"non-positive lumped weights on {int(np.sum(w <= 0))} constrained DoFs "
+                         f"(degree {degree} basis functions that integrate to zero); use mesh.degree: 1")
+    g_h = _interpolate(V, bound_text, scene)
+    constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
+
+    c = cfg["solver"]["c"]
+    if c == "auto":
+        c = auto_scaling(msh, k, cfg["model"]["type"])
+    u_h = fem.Function(V, name="u_h")
+    return DiscreteProblem(V, u_h, bcs, K, b, constraint, float(c),
+                           data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
+                                 "exact": data["exact"]},
+                           assembly_time=time.perf_counter() - t0)
+
+
+def auto_scaling(msh: Any, k: Any, model: str) -> float:
+    """Default NCP scaling c = L^m / k̄ (units of gap per multiplier).
+
+    L is the diameter of the mesh's bounding box and k̄ = ∫ k dx / |Ω|.  λ scales like
+    k̄ u / L on Γ_C (m = 1) and like k̄ u / L² in Ω (m = 2), so c λ is a length like the gap
+    and neither mesh size nor the material's scale changes the balance of the two.
+    """
+    comm = msh.comm
+    x = msh.geometry.x[:, : msh.geometry.dim]
+    lo = comm.allreduce(x.min(axis=0) if len(x) else np.full(x.shape[1], np.inf), op=MPI.MIN)
+    hi = comm.allreduce(x.max(axis=0) if len(x) else np.full(x.shape[1], -np.inf), op=MPI.MAX)
+    diam = float(np.linalg.norm(hi - lo))
+    one = fem.Constant(msh, PETSc.ScalarType(1.0))
+    area = comm.allreduce(fem.assemble_scalar(fem.form(one * ufl.dx(domain=msh))), op=MPI.SUM)
+    kbar = comm.allreduce(fem.assemble_scalar(fem.form(k * ufl.dx(domain=msh))), op=MPI.SUM) / area
+    return diam ** (1 if model == "signorini" else 2) / kbar

@@ -1,0 +1,77 @@
+"""Pictures a user can look at without ParaView (pyvista, off-screen)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfinx import fem, plot
+
+
+def _gather_grid(fn: fem.Function):
+    """The function on a pyvista grid on rank 0 (``None`` elsewhere): each rank sends its part."""
+    import pyvista
+
+    V = fn.function_space
+    topology, cell_types, x = plot.vtk_mesh(V)
+    values = fn.x.array[: x.shape[0]].real.copy()
+    parts = V.mesh.comm.gather((topology, cell_types, x, values), root=0)
+    if V.mesh.comm.rank != 0:
+        return None
+    grids = []
+    for top, types, xx, vals in parts:
+        if len(types) == 0:
+            continue
+        g = pyvista.UnstructuredGrid(top, types, xx)
+        g.point_data[fn.name] = vals
+        grids.append(g)
+    grid = grids[0] if len(grids) == 1 else grids[0].merge(grids[1:])
+    return grid
+
+
+def _quiet_vtk() -> None:
+    """VTK warns on stderr when there is no X display before it falls back to off-screen."""
+    import vtk
+
+    vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)
+    vtk.vtkObject.GlobalWarningDisplayOff()
+
+
+def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None,
+                  title: str = "") -> None:
+    """u_h coloured over the mesh (warped in 2D), active contact nodes as red points."""
+    import pyvista
+
+    pyvista.OFF_SCREEN = True
+    _quiet_vtk()
+    comm = u_h.function_space.mesh.comm
+    grid = _gather_grid(u_h)
+    pts = None
+    if active is not None:
+        V = active.function_space
+        n = V.dofmap.index_map.size_local
+        X = V.tabulate_dof_coordinates()[:n]
+        local = X[active.x.array[:n] > 0.5]
+        gathered = comm.gather(local, root=0)
+        pts = np.vstack(gathered) if comm.rank == 0 else None
+    if comm.rank != 0:
+        return
+    gdim = u_h.function_space.mesh.geometry.dim
+    plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 900))
+    show_edges = grid.n_cells <= 20000
+    plotter.add_mesh(grid, scalars=u_h.name, cmap="viridis", show_edges=show_edges,
+                     edge_color="#555555", line_width=0.5,
+                     scalar_bar_args={"title": u_h.name, "vertical": True})
+    if pts is not None and len(pts):
+        plotter.add_points(pyvista.PolyData(pts), color="red", point_size=8,
+                           render_points_as_spheres=True, label=f"active nodes ({len(pts)})")
+        plotter.add_legend(bcolor="white", size=(0.25, 0.06), loc="lower left")
+    if title:
+        plotter.add_title(title, font_size=12)
+    if gdim == 2:
+        plotter.view_xy()
+    else:
+        plotter.view_isometric()
+    plotter.screenshot(str(path))
+    plotter.close()

@@ -1,0 +1,59 @@
+"""The output folder of one run: XDMF, summary.json, history.csv, solution.png."""
+from __future__ import annotations
+
+import platform
+from pathlib import Path
+from typing import Any
+
+from . import io, plots
+from .errors import energy_error
+from .scene import Scene
+from .solver import Result
+
+
+def summary(scene: Scene, result: Result, wall: float | None = None) -> dict[str, Any]:
+    """The run's figures: sizes, solver outcome, timings (seconds) and errors if known."""
+    con = result.problem.constraint
+    comm = scene.comm
+    out = {
+        "scene": scene.name,
+        "model": scene.cfg["model"]["type"],
+        "method": result.method,
+        "dofs": result.dofs,
+        "cells": scene.mesh.topology.index_map(scene.mesh.topology.dim).size_global,
+        "degree": result.problem.V.element.basix_element.degree,
+        "mpi_ranks": comm.size,
+        "converged": result.converged,
+        "reason": result.reason,
+        "newton_iterations": result.iterations,
+        "final_residual": result.residual,
+        "constrained_nodes": con.global_size(comm),
+        "active_nodes": result.n_active,
+        "c": result.problem.c,
+        "line_search": result.options.get("line_search"),
+        "time_assembly": result.timings["assembly"],
+        "time_linear_solve": result.timings["solve"],
+        "time_other": result.timings["other"],
+        "time_total": wall if wall is not None else result.timings["total"],
+        "host": platform.node(),
+    }
+    exact = scene.cfg["data"]["exact"]
+    if exact is not None:
+        out["error_energy"] = energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
+    return out
+
+
+def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
+    """Write the complete output folder atomically; return the summary."""
+    comm = scene.comm
+    info = summary(scene, result, wall)
+    out_cfg = scene.cfg["output"]
+    with io.atomic_folder(outdir, comm) as tmp:
+        if out_cfg["xdmf"]:
+            io.write_xdmf(tmp / "solution.xdmf", [result.u_h, result.lmbda_h, result.gap, result.active])
+        io.write_csv(tmp / "history.csv", result.history, comm)
+        if out_cfg["png"]:
+            plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
+                                title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
+        io.write_json(tmp / "summary.json", info, comm)
+    return info

@@ -1,0 +1,279 @@
+"""Semismooth Newton for the nodal complementarity problem, and PETSc's VI baselines.
+
+With R(u) = K u − b and the constraint set of :class:`contact.models.Constraint`, the
+multiplier is eliminated (SPEC §4, implementation note): on a constrained node i
+
+    a_i = σ (g_i − u_i)  [gap],     b_i = −σ c R_i / w_i  [c × multiplier density],
+
+and the nonsmooth equation is Φ(u) = 0 with
+
+    Φ_i = −σ (w_i / c) φ(a_i, b_i)   on constrained rows,    Φ_i = R_i   elsewhere.
+
+The factor −σ w_i / c is a constant row scaling of SPEC's Φ_i = φ(a_i, b_i): it does not
+change the zeros or the Newton steps, but it gives every row the units of R (a force), so
+that ‖Φ‖ and the merit ½‖Φ‖² mix no units, and an inactive row is exactly R_i.  An element
+of the generalized Jacobian is then
+
+    H = diag(s) K + diag(d),   s_i = ∂_b φ,  d_i = (w_i / c) ∂_a φ  (constrained rows),
+                               s_i = 1,      d_i = 0                (other rows),
+
+built from the assembled K by one ``MatDiagonalScale`` and one ``MatDiagonalSet`` per
+iteration; the sparsity pattern never changes, so a direct solver reuses its symbolic
+factorization.  ``vinewtonrsls`` / ``vinewtonssls`` solve the same discrete problem as the
+bound-constrained VI  l ≤ u ≤ u_max,  F(u) = K u − b  (PETSc.INFINITY where unbounded).
+"""
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfinx import fem
+
+from . import ncp
+from .config import SCENE, ConfigError, _validate
+from .models import DiscreteProblem, scalar_problem
+from .scene import Scene
+
+DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+_REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+_counter = itertools.count()
+
+
+@dataclass
+class Result:
+    """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere)."""
+
+    u_h: fem.Function
+    lmbda_h: fem.Function
+    gap: fem.Function
+    active: fem.Function
+    history: list[dict]
+    converged: bool
+    reason: str
+    iterations: int
+    residual: float
+    method: str
+    n_active: int
+    timings: dict
+    problem: DiscreteProblem
+    options: dict = field(default_factory=dict)
+
+    @property
+    def dofs(self) -> int:
+        V = self.u_h.function_space
+        return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+
+def solver_options(scene: Scene, **overrides: Any) -> dict:
+    """The scene's ``solver`` section with keyword overrides, validated like the YAML."""
+    raw = {**scene.cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
+    return _validate(raw, SCENE["solver"], "solver", scene.cfg["constants"])
+
+
+class _Complementarity:
+    """Vectorised nodal quantities a_i, b_i for an iterate (no loop over DoFs)."""
+
+    def __init__(self, problem: DiscreteProblem):
+        self.p = problem
+        self.R = problem.b.duplicate()
+        con = problem.constraint
+        self.dofs, self.g, self.w, self.sign, self.c = con.dofs, con.g, con.w, con.sign, problem.c
+
+    def pair(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(a, b, R) at x: gap a = σ(g − u), scaled multiplier b = −σ c R / w, residual R."""
+        self.p.residual(x, self.R)
+        r = self.R.array_r
+        u = x.array_r[self.dofs]
+        a = self.sign * (self.g - u)
+        b = -self.sign * self.c * r[self.dofs] / self.w
+        return a, b, r
+
+    def active(self, x: PETSc.Vec) -> np.ndarray:
+        """Active nodes: scaled multiplier exceeds the gap, b_i > a_i (ties inactive)."""
+        a, b, _ = self.pair(x)
+        return b > a
+
+
+def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | None = None,
+          u0: fem.Function | None = None, verbose: bool | None = None, **options: Any) -> Result:
+    """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
+
+    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
+    override the scene's ``solver`` section (``mu``, ``c``, ``line_search``, ``rtol``,
+    ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
+    ``u0`` is an initial guess (default: the scene's ``solver.u0``, zero by default).
+    """
+    t_start = time.perf_counter()
+    opts = solver_options(scene, method=method, **options)
+    method = opts["method"]
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    problem = problem or scalar_problem(scene)
+    comm = scene.comm
+    timers = {"assembly": problem.assembly_time, "solve": 0.0}
+    cp = _Complementarity(problem)
+
+    # Initial guess with the Dirichlet values in place.
+    x = problem.b.duplicate()
+    if u0 is None:
+        from .models import _interpolate
+        u0 = _interpolate(problem.V, opts["u0"], scene)
+    x.array_w[:] = u0.x.petsc_vec.array_r
+    dolfinx_set_bc(x, problem.bcs)
+
+    snes = PETSc.SNES().create(comm)
+    prefix = f"contact{next(_counter)}_"
+    snes.setOptionsPrefix(prefix)
+    petsc_opts = {**DEFAULT_PETSC_OPTIONS, **{str(k): v for k, v in opts["petsc_options"].items()}}
+    F = problem.b.duplicate()
+    state = {"t_jac": None, "dir_norm": np.nan}
+
+    if method in ncp.METHODS:
+        mu = opts["mu"]
+        J = problem.K.duplicate(copy=True)
+        s_vec, d_vec = problem.b.duplicate(), problem.b.duplicate()
+
+        def residual(snes, x, f):
+            t0 = time.perf_counter()
+            a, b, _ = cp.pair(x)
+            cp.R.copy(f)
+            f.array_w[cp.dofs] = -cp.sign * (cp.w / cp.c) * ncp.phi(a, b, method, mu)
+            timers["assembly"] += time.perf_counter() - t0
+
+        def jacobian(snes, x, J_, P):
+            t0 = time.perf_counter()
+            a, b, _ = cp.pair(x)
+            da, db = ncp.dphi(a, b, method, mu)
+            s_vec.set(1.0)
+            d_vec.set(0.0)
+            s_vec.array_w[cp.dofs] = db
+            d_vec.array_w[cp.dofs] = (cp.w / cp.c) * da
+            problem.K.copy(P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            P.diagonalScale(L=s_vec)
+            P.setDiagonal(d_vec, addv=PETSc.InsertMode.ADD_VALUES)
+            now = time.perf_counter()
+            timers["assembly"] += now - t0
+            state["t_jac"] = now
+
+        snes.setType("newtonls")
+        snes.setFunction(residual, F)
+        snes.setJacobian(jacobian, J)
+        petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
+    else:
+        def residual(snes, x, f):
+            t0 = time.perf_counter()
+            problem.residual(x, f)
+            timers["assembly"] += time.perf_counter() - t0
+
+        def jacobian(snes, x, J_, P):
+            # vinewtonssls scales the Jacobian in place: hand it a fresh copy of K each time
+            t0 = time.perf_counter()
+            problem.K.copy(P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            state["t_jac"] = now = time.perf_counter()
+            timers["assembly"] += now - t0
+
+        snes.setType(method)
+        snes.setFunction(residual, F)
+        snes.setJacobian(jacobian, problem.K.duplicate(copy=True))
+        lower, upper = problem.b.duplicate(), problem.b.duplicate()
+        lower.set(PETSc.NINFINITY)
+        upper.set(PETSc.INFINITY)
+        con = problem.constraint
+        (upper if con.sign > 0 else lower).array_w[con.dofs] = con.g
+        snes.setVariableBounds(lower, upper)
+
+    def post_solve(ksp, rhs, sol):
+        if state["t_jac"] is not None:
+            timers["solve"] += time.perf_counter() - state["t_jac"]
+            state["t_jac"] = None
+        state["dir_norm"] = sol.norm()
+
+    snes.getKSP().setPostSolve(post_solve)
+    snes.setTolerances(rtol=opts["rtol"], atol=opts["atol"], stol=0.0, max_it=opts["max_it"])
+    snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
+    history: list[dict] = []
+    prev = {"x": x.duplicate(), "active": None}
+
+    def monitor(snes, its, fnorm):
+        xk = snes.getSolution()
+        active = cp.active(xk)
+        n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
+        changed = 0 if prev["active"] is None else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
+        step = np.nan
+        if its > 0:
+            prev["x"].axpy(-1.0, xk)
+            dn = state["dir_norm"]
+            step = prev["x"].norm() / dn if dn > 0 else 0.0
+        xk.copy(prev["x"])
+        prev["active"] = active
+        row = {"iteration": its, "residual": float(fnorm), "step": float(step),
+               "active": n_active, "changed": changed}
+        history.append(row)
+        if verbose and comm.rank == 0:
+            st = "    -" if its == 0 else f"{step:5.2f}"
+            print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
+                  f"active {n_active:7d}  changed {changed:6d}", flush=True)
+
+    snes.setMonitor(monitor)
+    popts = PETSc.Options()
+    for key, val in petsc_opts.items():
+        popts[prefix + key] = _petsc_value(val)
+    try:
+        snes.setFromOptions()
+    finally:
+        for key in petsc_opts:
+            popts.delValue(prefix + key)
+    snes.solve(None, x)
+    reason_code = snes.getConvergedReason()
+    result = _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code)
+    for obj in (snes, F, x, prev["x"]):
+        obj.destroy()
+    return result
+
+
+def _petsc_value(val: Any) -> str:
+    if isinstance(val, bool):
+        return "true" if val else "false"
+    return "" if val is None else str(val)
+
+
+def dolfinx_set_bc(x: PETSc.Vec, bcs: list) -> None:
+    """Insert Dirichlet values into the owned entries of x."""
+    for bc in bcs:
+        bc.set(x.array_w)
+
+
+def _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code) -> Result:
+    """Copy the iterate into functions: u_h, λ_h = R/w, gap g − u_h, active 0/1."""
+    V = problem.V
+    u_h = problem.u_h
+    u_h.x.petsc_vec.array_w[:] = x.array_r
+    u_h.x.scatter_forward()
+    a, b, r = cp.pair(x)
+    lmbda = fem.Function(V, name="lambda_h")
+    lmbda.x.array[:] = 0.0
+    lmbda.x.array[cp.dofs] = r[cp.dofs] / cp.w
+    lmbda.x.scatter_forward()
+    active_fn = fem.Function(V, name="active")
+    active_fn.x.array[:] = 0.0
+    active_fn.x.array[cp.dofs] = (b > a).astype(float)
+    active_fn.x.scatter_forward()
+    gap = fem.Function(V, name="gap")
+    gap.x.array[:] = problem.bound_function().x.array - u_h.x.array
+    comm = scene.comm
+    total = time.perf_counter() - t_start
+    timers = {"assembly": timers["assembly"], "solve": timers["solve"]}
+    timers["other"] = max(total + problem.assembly_time - timers["assembly"] - timers["solve"], 0.0)
+    timers["total"] = total + problem.assembly_time
+    converged = reason_code > 0
+    return Result(u_h=u_h, lmbda_h=lmbda, gap=gap, active=active_fn, history=history,
+                  converged=converged, reason=_REASONS.get(reason_code, str(reason_code)),
+                  iterations=snes.getIterationNumber(),
+                  residual=history[-1]["residual"] if history else float("nan"),
+                  method=method, n_active=comm.allreduce(int((b > a).sum()), op=MPI.SUM),
+                  timings=timers, problem=problem, options=opts)
