@@ -8,6 +8,7 @@ try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before do
 except ImportError:  # a conda / Debian DOLFINx needs nothing
     pass
 
+from . import expressions  # noqa: E402
 from .config import ConfigError  # noqa: E402
 from .scene import Scene, load_scene  # noqa: E402
 from .solver import Result, solve  # noqa: E402

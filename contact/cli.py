@@ -9,14 +9,22 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import NoReturn
 
 from mpi4py import MPI
 
 from .config import ConfigError
 
 
+class _Parser(argparse.ArgumentParser):
+    """Usage errors are one line on stderr with exit code 2, like bad scene input."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"contact: error: {message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
+    p = _Parser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve one scene and write its output folder")
     run.add_argument("scene", help="scene YAML file (see configs/)")

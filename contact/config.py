@@ -64,7 +64,7 @@ def _half_open_unit(v: Any) -> str | None:
 def _c_value(v: Any) -> str | None:
     if v == "auto":
         return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         return f"must be 'auto' or a positive number, got {v!r}"
     return _positive(v)
 
@@ -82,9 +82,17 @@ def _point_list(v: Any) -> str | None:
         for p in v) and len(v[0]) == len(v[1])
     if not ok:
         return f"must be two points [[x0, y0(, z0)], [x1, y1(, z1)]], got {v!r}"
+    if not all(math.isfinite(c) for p in v for c in p):
+        return f"coordinates must be finite, got {v!r}"
     if any(b <= a for a, b in zip(v[0], v[1])):
         return f"the second corner must exceed the first in every coordinate, got {v!r}"
     return None
+
+
+def _petsc_value(v: Any) -> str | None:
+    if v is None or isinstance(v, (str, int, float)):  # None: a flag option without value
+        return None
+    return f"must be a string, number or boolean, got {_typename(v)} {v!r}"
 
 
 EXPR = Field("expr", "0")
@@ -122,11 +130,11 @@ SCENE: dict[str, Field] = {
         "mu": Field("number", 0.5, check=_open_unit),
         "c": Field("any", "auto", check=_c_value),
         "line_search": Field("str", "basic", choices=("basic", "bt")),
-        "rtol": Field("number", 1e-10, check=_nonnegative),
+        "rtol": Field("number", 1e-12, check=_nonnegative),
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
         "u0": Field("expr", "0"),
-        "petsc_options": Field("dict", schema=None, item=Field("any")),
+        "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "output": Field("dict", schema={
         "dir": Field("str", None),
@@ -212,7 +220,11 @@ def read_yaml(path: str | Path) -> dict:
     if not p.is_file():
         raise ConfigError(f"{p}: no such file")
     try:
-        data = yaml.safe_load(p.read_text())
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
@@ -230,6 +242,8 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
         if "=" not in item:
             raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE")
         key, raw = item.split("=", 1)
+        if not all(key.strip().split(".")):
+            raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE, the key path has an empty part")
         try:
             value = yaml.safe_load(raw)
         except yaml.YAMLError:
@@ -268,8 +282,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     mesh = cfg["mesh"]
     allowed = {"rectangle": {"corners", "cells", "diagonal"}, "unit_square": {"cells", "diagonal"},
                "box": {"corners", "cells"}, "lshape": {"cells", "diagonal"}, "gmsh": {"file"}}[mesh["type"]]
-    for key in ("corners", "file"):
-        if mesh[key] is not None and key not in allowed:
+    given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
+    for key in SCENE["mesh"].schema:
+        if key in given and key not in allowed | {"type", "degree"}:
             raise ConfigError(f"mesh.{key}: not used by mesh type {mesh['type']!r}")
     if mesh["type"] == "gmsh":
         if mesh["file"] is None:
@@ -317,6 +332,10 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini (obstacles use data.psi)")
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
+    if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] == "box"):
+        where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
+        raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
+                          "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights vanish); use 1")
     cfg["constants"] = constants
     return cfg
 

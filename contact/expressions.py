@@ -47,8 +47,11 @@ def parse(text: str | int | float, constants: Mapping[str, float] = {}) -> ast.E
     except SyntaxError as err:
         raise ExpressionError(f"cannot parse {source!r}: {err.msg}") from None
     names = set(COORDINATES) | set(HELPERS) | set(BUILTIN_CONSTANTS) | set(constants)
+    called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
         _check_node(node, names, source)
+        if isinstance(node, ast.Name) and node.id in FUNCTIONS and node.id not in names and id(node) not in called:
+            raise ExpressionError(f"{node.id!r} is a function, call it with arguments in {source!r}")
     return tree
 
 
@@ -79,8 +82,9 @@ class _Backend:
     """Operations of one target (UFL or NumPy) used by :func:`_translate`."""
 
     def __init__(self, ops: dict[str, Callable], cond: Callable, logic: dict[type, Callable],
-                 compare: dict[type, Callable]):
+                 compare: dict[type, Callable], number: Callable = float):
         self.ops, self.cond, self.logic, self.compare = ops, cond, logic, compare
+        self.number = number
 
 
 def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -> Any:
@@ -88,7 +92,7 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
         if isinstance(node, ast.Expression):
             return go(node.body)
         if isinstance(node, ast.Constant):
-            return float(node.value)
+            return be.number(node.value)
         if isinstance(node, ast.Name):
             if node.id not in symbols:
                 raise ExpressionError(f"{node.id!r} is a function, call it with arguments")
@@ -136,14 +140,15 @@ def to_numpy(text: str | float, constants: Mapping[str, float] = {}) -> Callable
         cond=np.where,
         logic={ast.And: np.logical_and, ast.Or: np.logical_or, ast.Not: np.logical_not},
         compare={ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater,
-                 ast.GtE: np.greater_equal})
+                 ast.GtE: np.greater_equal},
+        number=np.float64)
 
     def f(x: np.ndarray) -> np.ndarray:
         X = np.asarray(x, dtype=float)
         symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0])
         symbols["r"] = np.hypot(symbols["x"], symbols["y"])
         symbols["theta"] = np.arctan2(symbols["y"], symbols["x"])
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             val = _translate(tree, symbols, be)
         return np.broadcast_to(np.asarray(val, dtype=float), X[0].shape).copy()
 
@@ -165,7 +170,7 @@ def to_ufl(text: str | float, mesh: Any, constants: Mapping[str, float] = {}) ->
         ops={"sin": ufl.sin, "cos": ufl.cos, "tan": ufl.tan, "exp": ufl.exp, "log": ufl.ln,
              "sqrt": ufl.sqrt, "atan2": ufl.atan2, "abs": abs, "min": ufl.min_value,
              "max": ufl.max_value, "sinh": ufl.sinh, "cosh": ufl.cosh, "tanh": ufl.tanh,
-             "asinh": lambda a: ufl.ln(a + ufl.sqrt(a * a + 1))},
+             "asinh": lambda a: ufl.sign(a) * ufl.ln(abs(a) + ufl.sqrt(a * a + 1))},
         cond=ufl.conditional,
         logic={ast.And: ufl.And, ast.Or: ufl.Or, ast.Not: ufl.Not},
         compare={ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge})

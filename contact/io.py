@@ -42,6 +42,9 @@ def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Iterat
                 if outdir.exists():
                     old = outdir.with_name(f".{outdir.name}.old-{os.getpid()}")
                     outdir.rename(old)
+                umask = os.umask(0)
+                os.umask(umask)
+                tmp.chmod(0o777 & ~umask)  # mkdtemp makes 0700; give the folder the usual mode
                 tmp.rename(outdir)
                 if old is not None:
                     shutil.rmtree(old, ignore_errors=True)
@@ -96,3 +99,22 @@ def _jsonable(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def gather_nodal(fn: fem.Function) -> tuple:
+    """(coordinates, values) of all owned DoFs of a scalar P-k function on rank 0, sorted
+    lexicographically by coordinate (so serial and parallel runs compare entry by entry);
+    ``(None, None)`` on other ranks."""
+    import numpy as np
+
+    V = fn.function_space
+    n = V.dofmap.index_map.size_local
+    X = V.tabulate_dof_coordinates()[:n]
+    vals = fn.x.array[:n]
+    parts = V.mesh.comm.gather((X, vals), root=0)
+    if V.mesh.comm.rank != 0:
+        return None, None
+    X = np.vstack([p[0] for p in parts])
+    vals = np.concatenate([p[1] for p in parts])
+    order = np.lexsort(np.round(X, 12).T[::-1])
+    return X[order], vals[order]

@@ -85,12 +85,31 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
 
 
 def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    from dolfinx.io import gmsh as gmshio  # imports the gmsh module: only for .msh scenes
+    """Read ``path`` on rank 0 (gmsh's own terminal output off: a bad file is one
+    ConfigError line, raised on every rank) and distribute the mesh."""
+    import gmsh  # only for .msh scenes
+    from dolfinx.io import gmsh as gmshio
 
+    problem = None
+    if comm.rank == 0:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("scene")
+        try:
+            gmsh.merge(path)
+        except Exception as err:  # gmsh reports parse errors as generic exceptions
+            problem = str(err) or "unreadable file"
+    problem = comm.bcast(problem, root=0)
     try:
-        data = gmshio.read_from_msh(path, comm, 0)
-    except Exception as err:  # gmsh reports parse errors as generic exceptions
-        raise ConfigError(f"mesh.file: cannot read {path!r} as a gmsh mesh: {err}") from None
+        if problem is None:
+            data = gmshio.model_to_mesh(gmsh.model, comm, 0)
+    except Exception as err:  # e.g. no physical groups (raised on every rank)
+        problem = str(err)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
+    if problem is not None:
+        raise ConfigError(f"mesh.file: cannot read {path!r} as a gmsh mesh: {' '.join(problem.split())}")
     return data.mesh, data.facet_tags
 
 

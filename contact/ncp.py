@@ -34,26 +34,34 @@ _BIACTIVE = 1.0 - 1.0 / np.sqrt(2.0)
 
 
 def phi_fb(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """φ_FB(a, b) = a + b − √(a² + b²), evaluated without cancellation.
+    """φ_FB(a, b) = a + b − √(a² + b²), evaluated without cancellation or overflow.
 
-    Where a + b > 0 the algebraically equal form 2ab / (a + b + r) is used, which keeps
-    full relative accuracy when a and b are both large and positive.
+    Where a + b > 0 the algebraically equal form 2ab / (a + b + r) is used, written with
+    lo = min(a, b), hi = max(a, b), q = lo / hi ∈ (−1, 1] as 2 lo / (1 + q + √(1 + q²)):
+    full relative accuracy from the smallest subnormal to the largest float.
     """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    r = np.hypot(a, b)
-    s = a + b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        stable = 2.0 * a * (b / (s + r))  # b/(a+b+r) ∈ [0, 1): no overflow/underflow
-    return np.where(s > 0, stable, s - r)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        q = np.where(hi > 0, lo / np.where(hi > 0, hi, 1.0), 0.0)
+        stable = 2.0 * lo / (1.0 + q + np.sqrt(1.0 + q * q))
+        plain = a + b - np.hypot(a, b)  # a + b ≤ 0: no cancellation
+    return np.where(a + b > 0, stable, plain)
 
 
 def dphi_fb(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Element (∂_a φ, ∂_b φ) of the generalized derivative of φ_FB (see module doc)."""
+    """Element (∂_a φ, ∂_b φ) of the generalized derivative of φ_FB (see module doc).
+
+    a/r and b/r are formed after scaling by m = max(|a|, |b|), so neither subnormal nor
+    huge operands lose the direction (a, b)/r.
+    """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    r = np.hypot(a, b)
-    safe = np.where(r > 0, r, 1.0)
-    da = np.where(r > 0, 1.0 - a / safe, _BIACTIVE)
-    db = np.where(r > 0, 1.0 - b / safe, _BIACTIVE)
+    m = np.maximum(np.abs(a), np.abs(b))
+    safe = np.where(m > 0, m, 1.0)
+    an, bn = a / safe, b / safe
+    r = np.hypot(an, bn)
+    da = np.where(m > 0, 1.0 - an / np.where(m > 0, r, 1.0), _BIACTIVE)
+    db = np.where(m > 0, 1.0 - bn / np.where(m > 0, r, 1.0), _BIACTIVE)
     return da, db
 
 

@@ -29,7 +29,7 @@ def summary(scene: Scene, result: Result, wall: float | None = None) -> dict[str
         "final_residual": result.residual,
         "constrained_nodes": con.global_size(comm),
         "active_nodes": result.n_active,
-        "c": result.problem.c,
+        "c": result.options.get("c"),
         "line_search": result.options.get("line_search"),
         "time_assembly": result.timings["assembly"],
         "time_linear_solve": result.timings["solve"],

@@ -224,7 +224,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     for key, val in petsc_opts.items():
         popts[prefix + key] = _petsc_value(val)
     try:
-        snes.setFromOptions()
+        _set_from_options(snes)
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
@@ -234,6 +234,24 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     for obj in (snes, F, x, prev["x"]):
         obj.destroy()
     return result
+
+
+def _set_from_options(snes: PETSc.SNES) -> None:
+    """setFromOptions + setUp; a bad PETSc option becomes a one-line ConfigError."""
+    PETSc.Sys.pushErrorHandler("python")  # raise, do not print PETSc's trace
+    try:
+        snes.setFromOptions()
+        snes.getKSP().setFromOptions()
+        snes.getKSP().getPC().setFromOptions()
+    except PETSc.Error as err:
+        raise ConfigError(f"solver.petsc_options: PETSc rejected the options ({_petsc_message(err)})") from None
+    finally:
+        PETSc.Sys.popErrorHandler()
+
+
+def _petsc_message(err: PETSc.Error) -> str:
+    lines = [ln.split("]", 1)[-1].strip() for ln in str(err).strip().splitlines()]
+    return lines[-1] if lines else f"error code {err.ierr}"
 
 
 def _petsc_value(val: Any) -> str:

@@ -1,0 +1,49 @@
+"""Solve scenes with several methods and save gathered nodal results (run under mpirun).
+
+    python tests/solve_methods.py OUT.npz SCENE.yaml [SCENE.yaml ...] [--set k=v ...]
+
+For every scene and method the npz holds X (coordinates), u, lambda, gap (nodal values
+sorted by coordinate) and the iteration count; tests compare them across methods and
+across MPI sizes.
+"""
+import sys
+
+import numpy as np
+
+import contact
+from contact.io import gather_nodal
+from contact.models import scalar_problem
+
+METHODS = ("fb", "min", "blend", "vinewtonrsls")
+
+
+def main(argv):
+    out, rest = argv[0], argv[1:]
+    scenes = [a for a in rest if a.endswith(".yaml")]
+    overrides = [a.split("=", 1)[1] if a.startswith("--set=") else a for a in rest if not a.endswith(".yaml")]
+    data = {}
+    for path in scenes:
+        scene = contact.load_scene(path, overrides=[o for o in overrides if o != "--set"])
+        problem = scalar_problem(scene)
+        for m in METHODS:
+            r = contact.solve(scene, method=m, problem=problem, verbose=False, max_it=200)
+            key = f"{scene.name}/{m}"
+            X, u = gather_nodal(r.u_h)
+            _, lam = gather_nodal(r.lmbda_h)
+            _, gap = gather_nodal(r.gap)
+            con = problem.constraint
+            # complementarity residual min(σ(g - u), -σ c λ) on the constraint set, scaled
+            a = con.sign * (con.g - r.u_h.x.array[con.dofs])
+            b = -con.sign * problem.c * r.lmbda_h.x.array[con.dofs]
+            comp = scene.comm.allreduce(float(np.max(np.abs(np.minimum(a, b)), initial=0.0)), op=max)
+            scale = scene.comm.allreduce(float(np.max(np.abs(con.g), initial=0.0)), op=max) + 1.0
+            if scene.comm.rank == 0:
+                data[key + "/X"], data[key + "/u"] = X, u
+                data[key + "/lambda"], data[key + "/gap"] = lam, gap
+                data[key + "/info"] = np.array([r.converged, r.iterations, comp / scale, r.n_active])
+    if contact.solver.MPI.COMM_WORLD.rank == 0:
+        np.savez(out, **data)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,66 @@
+"""Every semismooth method agrees with PETSc's vinewtonrsls on the same mesh, in serial
+and on 2 MPI ranks, and serial and parallel answers agree (issue #2)."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ["signorini_square", "signorini_free_boundary", "obstacle_membrane"]
+SCRIPT = ROOT / "tests" / "solve_methods.py"
+MPIRUN = Path(sys.executable).parent / "mpirun"
+
+
+def _run(tmp_path_factory, nproc: int) -> dict:
+    out = tmp_path_factory.mktemp(f"np{nproc}") / "res.npz"
+    cmd = [sys.executable, str(SCRIPT), str(out)] + [str(ROOT / "configs" / f"{s}.yaml") for s in SCENES]
+    if nproc > 1:
+        cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
+    subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return dict(np.load(out))
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    return _run(tmp_path_factory, 1)
+
+
+@pytest.fixture(scope="module")
+def parallel(tmp_path_factory):
+    return _run(tmp_path_factory, 2)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("method", ["fb", "min", "blend"])
+@pytest.mark.parametrize("which", ["serial", "parallel"])
+def test_method_agrees_with_vinewtonrsls(request, which, scene, method):
+    res = request.getfixturevalue(which)
+    info, ref = res[f"{scene}/{method}/info"], res[f"{scene}/vinewtonrsls/info"]
+    assert info[0] == 1 and ref[0] == 1, f"not converged: {method} {info}, rsls {ref}"
+    assert np.array_equal(res[f"{scene}/{method}/X"], res[f"{scene}/vinewtonrsls/X"])
+    diff = np.max(np.abs(res[f"{scene}/{method}/u"] - res[f"{scene}/vinewtonrsls/u"]))
+    assert diff <= 1e-8, f"max nodal difference {diff:.3e}"
+    assert info[3] == ref[3], "active sets differ"
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("method", ["fb", "min", "blend", "vinewtonrsls"])
+@pytest.mark.parametrize("which", ["serial", "parallel"])
+def test_complementarity_holds_nodewise(request, which, scene, method):
+    comp = request.getfixturevalue(which)[f"{scene}/{method}/info"][2]
+    assert comp <= 1e-8, f"|min(g - u, -c lambda)| = {comp:.3e}"
+
+
+@pytest.mark.parametrize("scene", SCENES)
+@pytest.mark.parametrize("method", ["fb", "min", "blend", "vinewtonrsls"])
+def test_serial_and_parallel_agree(serial, parallel, scene, method):
+    key = f"{scene}/{method}"
+    assert np.allclose(serial[key + "/X"], parallel[key + "/X"], atol=1e-12)
+    for field in ("u", "lambda"):
+        scale = max(np.max(np.abs(serial[f"{key}/{field}"])), 1.0)
+        diff = np.max(np.abs(serial[f"{key}/{field}"] - parallel[f"{key}/{field}"]))
+        assert diff <= 1e-8 * scale, f"{field}: serial vs 2 ranks differ by {diff:.3e}"
+    assert serial[key + "/info"][3] == parallel[key + "/info"][3]
