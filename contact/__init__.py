@@ -2,6 +2,7 @@
 
     scene = contact.load_scene("configs/signorini_square.yaml")
     result = contact.solve(scene, method="fb")
+    levels = contact.adapt(scene, strategy="dorfler", theta=0.5)   # SOLVE-ESTIMATE-MARK-REFINE
 """
 try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before dolfinx/petsc4py
     import dolfinx_solver  # noqa: F401
@@ -12,6 +13,9 @@ from . import expressions  # noqa: E402
 from .config import ConfigError  # noqa: E402
 from .scene import Scene, load_scene  # noqa: E402
 from .solver import Result, solve  # noqa: E402
+from .estimate import Estimate, estimate  # noqa: E402
+from .adapt import AdaptResult, adapt, mark, refine  # noqa: E402
 
-__all__ = ["ConfigError", "Scene", "load_scene", "Result", "solve"]
+__all__ = ["ConfigError", "Scene", "load_scene", "Result", "solve", "Estimate", "estimate",
+           "AdaptResult", "adapt", "mark", "refine"]
 __version__ = "0.1.0"

@@ -45,6 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     comm = MPI.COMM_WORLD
     try:
         return _run(args, comm)
+    except _Failed:
+        return 1
     except ConfigError as err:
         if comm.rank == 0:
             print(f"contact: error: {err}", file=sys.stderr, flush=True)
@@ -62,6 +64,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     method = scene.cfg["solver"]["method"]
     _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
                f"{comm.size} MPI rank(s)")
+    if scene.cfg.get("adapt"):
+        return _run_adaptive(scene, outdir, comm, t0)
     result = solve(scene)
     _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations, "
                f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
@@ -74,6 +78,35 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     write_run(outdir, scene, result, wall=time.perf_counter() - t0)
     _say(comm, f"contact: wrote {outdir}/ (solution.xdmf, summary.json, history.csv, solution.png)")
     return 0
+
+
+def _run_adaptive(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
+    from . import io
+    from .adapt import adapt, format_table
+    from .report import level_writer, write_adaptive
+
+    a = scene.cfg["adapt"]
+    _say(comm, f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
+               f"at most {a['max_levels']} levels / {a['max_dofs']} DoFs")
+    with io.atomic_folder(outdir, comm) as tmp:
+        result = adapt(scene, on_level=level_writer(tmp, scene))
+        last = result.levels[-1].result
+        if not last.converged:
+            if comm.rank == 0:
+                print(f"contact: error: solver did not converge on level {len(result.levels) - 1} "
+                      f"({last.reason}), last |Phi| = {last.residual:.3e}; nothing written",
+                      file=sys.stderr, flush=True)
+            raise _Failed()
+        write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: stopped: {result.stop}")
+    _say(comm, format_table(result.rows))
+    _say(comm, f"contact: wrote {outdir}/ (level_*.xdmf for ParaView, convergence.csv, "
+               f"convergence.png, mesh_level_*.png, solution.png, summary.json)")
+    return 0
+
+
+class _Failed(Exception):
+    """A run that failed after its message was printed (the output folder is discarded)."""
 
 
 if __name__ == "__main__":

@@ -136,6 +136,18 @@ SCENE: dict[str, Field] = {
         "u0": Field("expr", "0"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
+    "adapt": Field("dict", None, schema={
+        "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform")),
+        "theta": Field("number", 0.5, check=_half_open_unit),
+        "tol": Field("number", 0.0, check=_nonnegative),
+        "max_dofs": Field("int", 200000, check=_positive),
+        "max_levels": Field("int", 8, check=_positive),
+        "nested": Field("bool", True),
+        "newton_rtol": Field("number", 1e-10, check=_positive,
+                             doc="Newton's relative tolerance inside the loop: the algebraic error "
+                                 "only has to be small against the discretization error"),
+        "pictures": Field("int", 3, check=_nonnegative),
+    }),
     "output": Field("dict", schema={
         "dir": Field("str", None),
         "xdmf": Field("bool", True),

@@ -53,14 +53,18 @@ def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Iterat
         comm.barrier()
 
 
-def write_xdmf(path: str | Path, functions: Iterable[fem.Function], t: float = 0.0) -> None:
-    """Write the mesh once and each function (interpolated to P1 if of higher degree)."""
+def write_xdmf(path: str | Path, functions: Iterable[fem.Function], t: float = 0.0,
+               cells: Iterable[fem.Function] = ()) -> None:
+    """Write the mesh once, each nodal function (interpolated to P1 if of higher degree)
+    and each cellwise (DG0) function such as η_T."""
     functions = list(functions)
     msh = functions[0].function_space.mesh
     with XDMFFile(msh.comm, str(path), "w") as xdmf:
         xdmf.write_mesh(msh)
         for fn in functions:
             xdmf.write_function(_to_mesh_degree(fn), t)
+        for fn in cells:
+            xdmf.write_function(fn, t)
 
 
 def _to_mesh_degree(fn: fem.Function) -> fem.Function:

@@ -25,10 +25,14 @@ _DIAGONALS = {"left": dmesh.DiagonalType.left, "right": dmesh.DiagonalType.right
               "right/left": dmesh.DiagonalType.right_left}
 
 
+NATURAL = "(natural)"  # name of the part of unmarked exterior facets
+
+
 @dataclass
 class Boundary:
     """Facet tags of the scene's boundary parts: ``ids[name]`` is the tag value of a part,
-    ``roles[name]`` its role (dirichlet, neumann, contact)."""
+    ``roles[name]`` its role (dirichlet, neumann, contact, or natural for the exterior
+    facets no part selects: k ∂u/∂n = 0)."""
 
     tags: dmesh.MeshTags
     ids: dict[str, int]
@@ -157,6 +161,13 @@ def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None 
         names = comm.allreduce(names, op=MPI.SUM)
         pair = " and ".join(sorted(set(names))[:2]) or "two parts"
         raise ConfigError(f"boundaries: {pair} share {shared} facet(s); parts must not overlap")
+    # Exterior facets of no part: the natural condition k ∂u/∂n = 0, tagged so that the
+    # estimator sees them as Neumann edges with t = 0.
+    free = np.setdiff1d(exterior, all_facets).astype(np.int32)
+    if comm.allreduce(len(free), op=MPI.SUM):
+        ids[NATURAL], roles[NATURAL] = next_id, "natural"
+        all_facets = np.concatenate([all_facets, free])
+        chunks.append((free, np.full(len(free), next_id, dtype=np.int32), NATURAL))
     values = np.concatenate([c[1] for c in chunks])
     order = np.argsort(all_facets)
     tags = dmesh.meshtags(msh, tdim - 1, all_facets[order], values[order])

@@ -75,3 +75,52 @@ def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | No
         plotter.view_isometric()
     plotter.screenshot(str(path))
     plotter.close()
+
+
+def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "") -> None:
+    """The mesh (all edges) coloured by u_h: shows where adaptive refinement went."""
+    import pyvista
+
+    pyvista.OFF_SCREEN = True
+    _quiet_vtk()
+    grid = _gather_grid(u_h)
+    if u_h.function_space.mesh.comm.rank != 0:
+        return
+    plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 900))
+    plotter.add_mesh(grid, scalars=u_h.name, cmap="viridis", show_edges=True, edge_color="black",
+                     line_width=0.4, scalar_bar_args={"title": u_h.name, "vertical": True})
+    if title:
+        plotter.add_title(title, font_size=12)
+    if u_h.function_space.mesh.geometry.dim == 2:
+        plotter.view_xy()
+    else:
+        plotter.view_isometric()
+    plotter.screenshot(str(path))
+    plotter.close()
+
+
+def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> None:
+    """η (and the error, where known) against DoFs on log–log axes with N^{-1/2}, N^{-1/3}."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    N = np.array([r["dofs"] for r in rows], dtype=float)
+    eta = np.array([r["eta"] for r in rows], dtype=float)
+    fig, ax = plt.subplots(figsize=(7, 5))
+    ax.loglog(N, eta, "o-", label="estimator η")
+    errors = [r["error"] for r in rows]
+    if all(e != "" for e in errors):
+        ax.loglog(N, np.array(errors, dtype=float), "s-", label="error ‖u − u_h‖_E")
+    for p, style in ((0.5, "k--"), (1.0 / 3.0, "k:")):
+        ref = eta[0] * (N / N[0]) ** (-p)
+        ax.loglog(N, ref, style, lw=1, label=f"N^(-{'1/2' if p == 0.5 else '1/3'})")
+    ax.set_xlabel("degrees of freedom N")
+    ax.set_ylabel("energy norm")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

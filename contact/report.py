@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 import platform
+
+import numpy as np
 from pathlib import Path
 from typing import Any
 
 from . import io, plots
+from .adapt import AdaptResult, Level, format_table
 from .errors import energy_error
 from .scene import Scene
 from .solver import Result
@@ -57,3 +60,44 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
                                 title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
         io.write_json(tmp / "summary.json", info, comm)
     return info
+
+
+def level_writer(tmp: Path, scene: Scene):
+    """Callback for :func:`contact.adapt.adapt`: XDMF of level K (u_h, λ_h, active, η_T)."""
+    def write(level: Level) -> None:
+        r = level.result
+        if scene.cfg["output"]["xdmf"]:
+            io.write_xdmf(tmp / f"level_{level.index:03d}.xdmf", [r.u_h, r.lmbda_h, r.gap, r.active],
+                          cells=[level.estimate.eta_T])
+    return write
+
+
+def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None) -> dict:
+    """After the loop: convergence.csv/.png, mesh pictures, and the final level's files."""
+    comm = scene.comm
+    rows = adaptive.rows
+    io.write_csv(tmp / "convergence.csv", rows, comm)
+    last = adaptive.levels[-1]
+    info = summary(last.scene, last.result, wall)
+    info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
+                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy")})
+    io.write_csv(tmp / "history.csv", last.result.history, comm)
+    if scene.cfg["output"]["png"]:
+        if comm.rank == 0:
+            plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")
+        for lv in picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3)):
+            plots.plot_mesh(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
+                            title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs")
+        plots.plot_solution(tmp / "solution.png", last.result.u_h, last.result.active,
+                            title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
+    io.write_json(tmp / "summary.json", info, comm)
+    return info
+
+
+def picture_levels(adaptive: AdaptResult, count: int) -> list[Level]:
+    """``count`` levels spread from the first to the last."""
+    n = len(adaptive.levels)
+    if count <= 0 or n == 0:
+        return []
+    idx = sorted(set(int(round(i)) for i in np.linspace(0, n - 1, min(count, n))))
+    return [adaptive.levels[i] for i in idx]

@@ -39,7 +39,7 @@ def one(scene: str, cells: int, method: str, extra: list[str]) -> dict:
             "seconds_solve": round(r.timings["total"], 3),
             "seconds_per_iteration": round(r.timings["total"] / max(r.iterations, 1), 3),
             "linear_solve_seconds": round(r.timings["solve"], 3),
-            "peak_rss_mib": round(rss, 1), "c": r.problem.c}
+            "peak_rss_mib": round(rss, 1), "c": r.options["c"]}
 
 
 def main() -> None:

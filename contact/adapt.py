@@ -1,0 +1,251 @@
+"""MARK and REFINE, and the adaptive loop SOLVE → ESTIMATE → MARK → REFINE (SPEC §6).
+
+The pieces are plain functions so a user can write their own loop in a few lines::
+
+    scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+    for level in range(6):
+        result = contact.solve(scene)
+        est = contact.estimate(scene, result)
+        cells = contact.mark(est.eta_T, "dorfler", theta=0.5)
+        scene, u0 = contact.refine(scene, cells, result.u_h)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from .config import SCENE, _validate
+from .errors import energy_error
+from .estimate import TERMS, Estimate, estimate
+from .meshes import Boundary
+from .models import scalar_problem
+from .scene import Scene
+from .solver import Result, solve
+
+STRATEGIES = ("dorfler", "maximum", "uniform")
+
+
+def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COMM_WORLD) -> float:
+    """Global threshold τ of Dörfler (bulk) marking: the set {η_T² ≥ τ} is the smallest set
+    M with Σ_M η_T² ≥ θ Σ_T η_T² (ties at τ are all included).
+
+    The owned indicators of all ranks are gathered on rank 0, sorted once there and τ is
+    broadcast: every rank marks against the same global threshold (no per-rank sorting).
+    """
+    parts = comm.gather(np.asarray(eta_sq, dtype=float), root=0)
+    tau = None
+    if comm.rank == 0:
+        values = np.sort(np.concatenate(parts))[::-1]
+        cumulative = np.cumsum(values)
+        if len(values) == 0 or cumulative[-1] <= 0:
+            tau = np.inf
+        else:
+            k = int(np.searchsorted(cumulative, theta * cumulative[-1] * (1 - 1e-14)))
+            tau = float(values[min(k, len(values) - 1)])
+    return comm.bcast(tau, root=0)
+
+
+def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> np.ndarray:
+    """Owned local cell indices to refine.
+
+    * ``dorfler``: smallest set with Σ_M η_T² ≥ θ Σ η_T² (global threshold);
+    * ``maximum``: η_T ≥ θ max_T η_T (global maximum);
+    * ``uniform``: every cell.
+    """
+    W = eta_T.function_space
+    comm = W.mesh.comm
+    n_owned = W.dofmap.index_map.size_local
+    eta = eta_T.x.array[:n_owned]
+    if strategy == "uniform":
+        return np.arange(n_owned, dtype=np.int32)
+    if strategy == "maximum":
+        top = comm.allreduce(float(eta.max(initial=0.0)), op=MPI.MAX)
+        return np.flatnonzero(eta >= theta * top).astype(np.int32)
+    if strategy == "dorfler":
+        tau = dorfler_threshold(eta**2, theta, comm)
+        return np.flatnonzero(eta**2 >= tau).astype(np.int32)
+    raise ValueError(f"unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+
+
+def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
+           ) -> tuple[Scene, fem.Function | None]:
+    """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
+    boundary tags to the new mesh, and interpolate ``u_h`` onto it (nested iteration)."""
+    msh = scene.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_entities(1)
+    edges = dmesh.compute_incident_entities(msh.topology, cells.astype(np.int32), tdim, 1)
+    new, parent_cell, parent_facet = dmesh.refine(msh, edges, option=dmesh.RefinementOption.parent_cell_and_facet)
+    new.topology.create_entities(tdim - 1)
+    new.topology.create_connectivity(tdim - 1, tdim)
+    tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
+    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)))
+    u0 = None
+    if u_h is not None:
+        V = fem.functionspace(new, u_h.function_space.ufl_element())
+        u0 = fem.Function(V, name="u0")
+        n_cells = new.topology.index_map(tdim).size_local + new.topology.index_map(tdim).num_ghosts
+        all_cells = np.arange(n_cells, dtype=np.int32)
+        u0.interpolate_nonmatching(u_h, all_cells, fem.create_interpolation_data(V, u_h.function_space, all_cells))
+    return child, u0
+
+
+def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray,
+                        parent_facet: np.ndarray) -> dmesh.MeshTags:
+    """Facet tags on the refined mesh: a child facet inherits the tag of the parent facet it
+    lies in.  (``dolfinx.mesh.transfer_meshtag`` refuses ghosted meshes, and the estimator's
+    interior-facet integrals need ghosts; this is the same rule, vectorised in NumPy.)
+
+    ``parent_facet[c * nf + j]`` is the parent cell's local facet containing local facet j
+    of child cell c, or −1 for facets inside the parent; c counts cells in the order they
+    were created, which the new mesh's ``original_cell_index`` maps to its own numbering.
+    """
+    old = tags.topology
+    tdim = new.topology.dim
+    old_c2f = old.connectivity(tdim, tdim - 1)
+    new.topology.create_connectivity(tdim, tdim - 1)
+    new_c2f = new.topology.connectivity(tdim, tdim - 1)
+    nf = len(new_c2f.links(0)) if new_c2f.num_nodes else tdim + 1
+    old_value = np.full(old.index_map(tdim - 1).size_local + old.index_map(tdim - 1).num_ghosts, -1, dtype=np.int32)
+    old_value[tags.indices] = tags.values
+    n_new = len(parent_cell)
+    pf = np.asarray(parent_facet, dtype=np.int64).reshape(n_new, nf)
+    n_local = new.topology.index_map(tdim).size_local
+    offset = new.comm.exscan(n_new) or 0  # global creation index -> this rank's list
+    created = np.array(new.topology.original_cell_index[:n_local], dtype=np.int64) - offset
+    ok = (created >= 0) & (created < n_new)
+    cells, created = np.flatnonzero(ok), created[ok]
+    child, local = np.nonzero(pf[created] >= 0)
+    parents = old_c2f.array.reshape(-1, nf)[parent_cell[created[child]], pf[created[child], local]]
+    values = old_value[parents]
+    new_facets = new_c2f.array.reshape(-1, nf)[cells[child], local]
+    keep = values >= 0
+    facets, first = np.unique(new_facets[keep], return_index=True)
+    return dmesh.meshtags(new, tdim - 1, facets.astype(np.int32), values[keep][first].astype(np.int32))
+
+
+@dataclass
+class Level:
+    """One level of the adaptive loop."""
+
+    index: int
+    scene: Scene
+    result: Result
+    estimate: Estimate
+    error: float | None
+    seconds: dict[str, float]
+
+    def row(self) -> dict[str, Any]:
+        msh = self.scene.mesh
+        row = {"level": self.index, "dofs": self.result.dofs,
+               "cells": msh.topology.index_map(msh.topology.dim).size_global,
+               "eta": self.estimate.eta}
+        row.update({f"eta_{k}": float(np.sqrt(max(v, 0.0))) for k, v in self.estimate.terms.items()})
+        row["error"] = self.error if self.error is not None else ""
+        row["effectivity"] = self.estimate.eta / self.error if self.error else ""
+        row.update({"newton_iterations": self.result.iterations, "converged": self.result.converged,
+                    "active_nodes": self.result.n_active})
+        row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
+        return row
+
+
+@dataclass
+class AdaptResult:
+    levels: list[Level] = field(default_factory=list)
+    stop: str = ""
+
+    @property
+    def rows(self) -> list[dict]:
+        return [lv.row() for lv in self.levels]
+
+
+def adapt_options(scene: Scene, **overrides: Any) -> dict:
+    """The scene's ``adapt`` section (defaults if absent) with keyword overrides, validated."""
+    raw = {**(scene.cfg.get("adapt") or {}), **{k: v for k, v in overrides.items() if v is not None}}
+    return _validate(raw, SCENE["adapt"], "adapt", scene.cfg["constants"])
+
+
+def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], None] | None = None,
+          verbose: bool | None = None, **options: Any) -> AdaptResult:
+    """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
+    budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
+    called after each level is estimated (used by the CLI to write output as it goes)."""
+    opts = adapt_options(scene, **options)
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    comm = scene.comm
+    out, u0 = AdaptResult(), None
+    exact = scene.cfg["data"]["exact"]
+    for index in range(opts["max_levels"]):
+        seconds = {}
+        t0 = time.perf_counter()
+        problem = scalar_problem(scene)
+        result = solve(scene, method=method, problem=problem, u0=u0 if opts["nested"] else None,
+                       verbose=False, rtol=opts["newton_rtol"])
+        seconds["solve"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        est = estimate(scene, result)
+        error = energy_error(result.u_h, exact, problem.data["k"], scene.cfg["constants"]) if exact else None
+        seconds["estimate"] = time.perf_counter() - t0
+        level = Level(index, scene, result, est, error, seconds)
+        out.levels.append(level)
+        if on_level is not None:
+            t0 = time.perf_counter()
+            on_level(level)
+            seconds["output"] = time.perf_counter() - t0
+        if verbose and comm.rank == 0:
+            _print_row(level, header=index == 0)
+        if not result.converged:
+            out.stop = f"solver did not converge on level {index} ({result.reason})"
+            break
+        if est.eta <= opts["tol"]:
+            out.stop = f"eta = {est.eta:.3e} <= tol = {opts['tol']:.3e}"
+            break
+        if index + 1 >= opts["max_levels"]:
+            out.stop = f"reached max_levels = {opts['max_levels']}"
+            break
+        t0 = time.perf_counter()
+        cells = mark(est.eta_T, opts["strategy"], opts["theta"])
+        seconds["mark"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None)
+        seconds["refine"] = time.perf_counter() - t0
+        new_dofs = fem.functionspace(new_scene.mesh, ("Lagrange", scene.cfg["mesh"]["degree"])).dofmap.index_map.size_global
+        if new_dofs > opts["max_dofs"]:
+            out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
+            break
+        scene, u0 = new_scene, new_u0
+    return out
+
+
+_COLUMNS = ("level", "dofs", "eta", "error", "effectivity", "newton_iterations", "active_nodes")
+
+
+def format_table(rows: list[dict]) -> str:
+    """The convergence table as fixed-width text."""
+    lines = [_header()]
+    lines += [_format(r) for r in rows]
+    return "\n".join(lines)
+
+
+def _header() -> str:
+    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} {'active':>7s} {'solve s':>8s}"
+
+
+def _format(r: dict) -> str:
+    err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
+    eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
+    return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {r['newton_iterations']:6d} "
+            f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}")
+
+
+def _print_row(level: Level, header: bool) -> None:
+    if header:
+        print(_header(), flush=True)
+    print(_format(level.row()), flush=True)

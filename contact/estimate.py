@@ -1,0 +1,103 @@
+"""Residual a posteriori error estimator (SPEC §5) as DG0 indicator forms.
+
+With w a DG0 test function, one assembly of the form below gives every η_T²:
+
+    η_T² = h_T² ‖f + div(k∇u_h)‖²_T                               volume
+         + Σ_{E ⊂ ∂T interior} ½ h_E ‖[k ∂u_h/∂n]‖²_E                jump
+         + Σ_{E ⊂ ∂T ∩ Γ_N} h_E ‖t − k ∂u_h/∂n‖²_E                   neumann  (t = 0 on
+                                                                     unmarked facets)
+         + Σ_{E ⊂ ∂T ∩ Γ_C} ( h_E ‖λ_h + t_C − k ∂u_h/∂n‖²_E         consistency
+                              + ‖λ_h⁺‖²_E                            sign (λ⁺ = max(λ, 0))
+                              + ∫_E min(λ_h, 0)(u_h − g) ds )        complementarity (≥ 0)
+
+For the obstacle problem (constraint σ(u − ψ) ≤ 0 in Ω, λ = −div(k∇u) − f) the same
+terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sign term is
+h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
+the cell diameter, h_E the facet size.  η = (Σ_T η_T²)^{1/2}.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+import ufl
+from dolfinx import fem, la
+
+from .scene import Scene
+from .solver import Result
+
+TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
+
+
+@dataclass
+class Estimate:
+    """η_T as a DG0 function, the global η, and the global total Σ_T of each term."""
+
+    eta_T: fem.Function
+    eta: float
+    terms: dict[str, float]
+
+
+def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
+    """The six terms as UFL forms linear in a DG0 test function (SPEC §5)."""
+    msh = scene.mesh
+    p = result.problem
+    u_h, lmbda_h = result.u_h, result.lmbda_h
+    k, f, t, t_C, g = (p.data[key] for key in ("k", "f", "t", "t_C", "g_h"))
+    ds, bnd = p.data["ds"], scene.boundary
+    W = fem.functionspace(msh, ("DG", 0))
+    w = ufl.TestFunction(W)
+    n = ufl.FacetNormal(msh)
+    h_T = ufl.CellDiameter(msh)
+    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
+    sigma = p.constraint.sign
+    flux = k * ufl.grad(u_h)                       # k ∇u_h
+    zero = fem.Constant(msh, 0.0) * w * dx
+    obstacle = scene.cfg["model"]["type"] == "obstacle"
+
+    residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
+    terms = {"volume": h_T**2 * residual**2 * w * dx,
+             # ½ h_E ‖[k ∂u_h/∂n]‖²_E to each of the two cells of an interior facet
+             "jump": 0.5 * ufl.avg(h_E) * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
+             "neumann": zero, "consistency": zero, "sign": zero, "complementarity": zero}
+    for i in bnd.ids_with_role("neumann"):
+        terms["neumann"] += h_E * (t - ufl.dot(flux, n)) ** 2 * w * ds(i)
+    for i in bnd.ids_with_role("natural"):
+        terms["neumann"] += h_E * ufl.dot(flux, n) ** 2 * w * ds(i)
+    if obstacle:
+        terms["sign"] = h_T**2 * ufl.max_value(sigma * lmbda_h, 0) ** 2 * w * dx
+        terms["complementarity"] = ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g) * w * dx
+    else:
+        for i in bnd.ids_with_role("contact"):
+            terms["consistency"] += h_E * (lmbda_h + t_C - ufl.dot(flux, n)) ** 2 * w * ds(i)
+            terms["sign"] += ufl.max_value(lmbda_h, 0) ** 2 * w * ds(i)
+            terms["complementarity"] += ufl.min_value(lmbda_h, 0) * (u_h - g) * w * ds(i)
+    return terms
+
+
+def _assemble_cellwise(form: ufl.Form, W: fem.FunctionSpace) -> la.Vector:
+    vec = fem.assemble_vector(fem.form(form))
+    vec.scatter_reverse(la.InsertMode.add)   # interior facets on rank boundaries
+    vec.scatter_forward()
+    return vec
+
+
+def estimate(scene: Scene, result: Result) -> Estimate:
+    """Assemble η_T² once as one DG0 form; also return each term's global total."""
+    terms = indicator_terms(scene, result)
+    total = sum(terms.values())
+    W = total.arguments()[0].ufl_function_space()
+    eta_sq = _assemble_cellwise(total, W)
+    eta_T = fem.Function(W, name="eta_T")
+    eta_T.x.array[:] = np.sqrt(np.maximum(eta_sq.array, 0.0))
+    comm = scene.comm
+    n_owned = W.dofmap.index_map.size_local
+    eta = float(np.sqrt(comm.allreduce(float(np.sum(eta_sq.array[:n_owned])), op=MPI.SUM)))
+    one = fem.Constant(scene.mesh, 1.0)
+    w = total.arguments()[0]
+    totals = {name: comm.allreduce(fem.assemble_scalar(fem.form(ufl.replace(form, {w: one}))), op=MPI.SUM)
+              for name, form in terms.items()}
+    return Estimate(eta_T, eta, totals)

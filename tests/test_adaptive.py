@@ -1,0 +1,89 @@
+"""The adaptive loop (issue #3): serial and 2-rank runs agree level by level, the CLI writes
+the per-level XDMF, convergence.csv/.png and mesh pictures, and uniform refinement is the
+same loop with every cell marked."""
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contact
+from contact.adapt import adapt
+
+ROOT = Path(__file__).resolve().parents[1]
+MPIRUN = Path(sys.executable).parent / "mpirun"
+ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
+
+
+def _levels(tmp_path, nproc, method="fb", strategy="dorfler", levels=6):
+    out = tmp_path / f"levels_{nproc}_{method}_{strategy}.json"
+    cmd = [sys.executable, str(ROOT / "tests" / "adapt_levels.py"), str(out),
+           str(ROOT / "configs" / "signorini_free_boundary.yaml"), method, strategy, str(levels)]
+    if nproc > 1:
+        cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
+    subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env=ENV)
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize("strategy", ["dorfler", "maximum"])
+def test_two_ranks_give_same_levels_as_serial(tmp_path, strategy):
+    serial, parallel = _levels(tmp_path, 1, strategy=strategy), _levels(tmp_path, 2, strategy=strategy)
+    assert len(serial) == len(parallel) == 6
+    for s, p in zip(serial, parallel):
+        assert s["dofs"] == p["dofs"] and s["cells"] == p["cells"], (s, p)
+        assert abs(s["eta"] - p["eta"]) <= 1e-8 * s["eta"], (s["eta"], p["eta"])
+        assert abs(s["error"] - p["error"]) <= 1e-8 * s["error"]
+        assert s["active_nodes"] == p["active_nodes"]
+
+
+def test_adaptive_loop_converges_on_problem_A():
+    """Dörfler on SPEC problem A: error ~ N^{-1/2} and a steady effectivity (small version of
+    the benchmark in demos/bench_adaptive.py)."""
+    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    rows = adapt(scene, method="min", max_levels=9, verbose=False).rows
+    N = np.array([r["dofs"] for r in rows], dtype=float)
+    err = np.array([r["error"] for r in rows])
+    eff = np.array([r["effectivity"] for r in rows])
+    r = -np.polyfit(np.log(N[-5:]), np.log(err[-5:]), 1)[0]
+    assert r >= 0.45, f"rate {r:.3f}"
+    assert eff[-5:].max() / eff[-5:].min() <= 2.0
+    assert np.all(np.diff(N) > 0) and np.all(np.diff(err) < 0)
+    assert all(r["newton_iterations"] <= 5 for r in rows[2:])  # min with nested iteration
+
+
+def test_uniform_is_the_same_loop_with_every_cell_marked():
+    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    rows = adapt(scene, method="min", strategy="uniform", max_levels=3, verbose=False).rows
+    cells = [r["cells"] for r in rows]
+    assert cells[1] == 4 * cells[0] and cells[2] == 4 * cells[1]
+
+
+def test_cli_writes_adaptive_folder(tmp_path):
+    out = tmp_path / "adaptive"
+    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(ROOT / "configs" / "lshape_corner.yaml"),
+                           "-o", str(out), "--set", "adapt.max_levels=4", "--set", "adapt.pictures=2"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=ENV)
+    assert proc.returncode == 0, proc.stderr
+    names = {p.name for p in out.iterdir()}
+    for k in range(4):
+        assert f"level_{k:03d}.xdmf" in names and f"level_{k:03d}.h5" in names
+        assert 'Name="eta_T"' in (out / f"level_{k:03d}.xdmf").read_text()
+    assert {"convergence.csv", "convergence.png", "mesh_level_0.png", "mesh_level_3.png",
+            "summary.json", "solution.png", "history.csv"} <= names
+    rows = list(csv.DictReader(open(out / "convergence.csv")))
+    assert len(rows) == 4
+    for key in ("dofs", "cells", "eta", "eta_volume", "eta_jump", "eta_neumann", "eta_consistency",
+                "eta_sign", "eta_complementarity", "error", "effectivity", "newton_iterations",
+                "seconds_solve", "seconds_estimate", "seconds_mark", "seconds_refine", "seconds_output"):
+        assert key in rows[0], key
+    eta = [float(r["eta"]) for r in rows]
+    terms = [sum(float(r[f"eta_{t}"]) ** 2 for t in ("volume", "jump", "neumann", "consistency", "sign", "complementarity"))
+             for r in rows]
+    assert np.allclose(np.array(eta) ** 2, terms, rtol=1e-10)
+    assert "level" in proc.stdout and "convergence.png" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["levels"] == 4 and summary["dofs"] == int(rows[-1]["dofs"])
