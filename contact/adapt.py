@@ -147,7 +147,7 @@ class Level:
         row = {"level": self.index, "dofs": self.result.dofs,
                "cells": msh.topology.index_map(msh.topology.dim).size_global,
                "eta": self.estimate.eta}
-        row.update({f"eta_{k}": float(np.sqrt(max(v, 0.0))) for k, v in self.estimate.terms.items()})
+        row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})  # Σ_T of each term
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
         row.update({"newton_iterations": self.result.iterations, "converged": self.result.converged,

@@ -143,7 +143,7 @@ SCENE: dict[str, Field] = {
         "max_dofs": Field("int", 200000, check=_positive),
         "max_levels": Field("int", 8, check=_positive),
         "nested": Field("bool", True),
-        "newton_rtol": Field("number", 1e-10, check=_positive,
+        "newton_rtol": Field("number", 1e-6, check=_positive,
                              doc="Newton's relative tolerance inside the loop: the algebraic error "
                                  "only has to be small against the discretization error"),
         "pictures": Field("int", 3, check=_nonnegative),
