@@ -10,21 +10,25 @@ from dolfinx import fem, plot
 
 
 def _gather_grid(fn: fem.Function):
-    """The function on a pyvista grid on rank 0 (``None`` elsewhere): each rank sends its part."""
+    """The function on a pyvista grid on rank 0 (``None`` elsewhere): each rank sends its
+    part.  The grid also carries the cell data ``log10 h`` (cell diameter)."""
     import pyvista
 
     V = fn.function_space
+    msh = V.mesh
     topology, cell_types, x = plot.vtk_mesh(V)
     values = fn.x.array[: x.shape[0]].real.copy()
-    parts = V.mesh.comm.gather((topology, cell_types, x, values), root=0)
-    if V.mesh.comm.rank != 0:
+    sizes = np.log10(msh.h(msh.topology.dim, np.arange(len(cell_types), dtype=np.int32)))
+    parts = msh.comm.gather((topology, cell_types, x, values, sizes), root=0)
+    if msh.comm.rank != 0:
         return None
     grids = []
-    for top, types, xx, vals in parts:
+    for top, types, xx, vals, hs in parts:
         if len(types) == 0:
             continue
         g = pyvista.UnstructuredGrid(top, types, xx)
         g.point_data[fn.name] = vals
+        g.cell_data["log10 h"] = hs
         grids.append(g)
     grid = grids[0] if len(grids) == 1 else grids[0].merge(grids[1:])
     return grid
@@ -77,8 +81,9 @@ def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | No
     plotter.close()
 
 
-def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "") -> None:
-    """The mesh (all edges) coloured by u_h: shows where adaptive refinement went."""
+def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = 20000) -> None:
+    """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
+    ``max_edges`` cells, where edges would paint everything black) and u_h."""
     import pyvista
 
     pyvista.OFF_SCREEN = True
@@ -86,15 +91,21 @@ def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "") -> None:
     grid = _gather_grid(u_h)
     if u_h.function_space.mesh.comm.rank != 0:
         return
-    plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 900))
-    plotter.add_mesh(grid, scalars=u_h.name, cmap="viridis", show_edges=True, edge_color="black",
-                     line_width=0.4, scalar_bar_args={"title": u_h.name, "vertical": True})
-    if title:
-        plotter.add_title(title, font_size=12)
-    if u_h.function_space.mesh.geometry.dim == 2:
-        plotter.view_xy()
+    plotter = pyvista.Plotter(off_screen=True, window_size=(1800, 800), shape=(1, 2))
+    plotter.subplot(0, 0)
+    if grid.n_cells <= max_edges:
+        plotter.add_mesh(grid, color="white", show_edges=True, edge_color="black", line_width=0.5)
+        plotter.add_text("mesh", font_size=12)
     else:
-        plotter.view_isometric()
+        plotter.add_mesh(grid, scalars="log10 h", cmap="magma", show_edges=False,
+                         scalar_bar_args={"title": "log10 h_T", "vertical": True})
+        plotter.add_text("cell size log10 h_T", font_size=12)
+    plotter.view_xy() if u_h.function_space.mesh.geometry.dim == 2 else plotter.view_isometric()
+    plotter.subplot(0, 1)
+    plotter.add_mesh(grid.copy(), scalars=u_h.name, cmap="viridis", show_edges=False,
+                     scalar_bar_args={"title": u_h.name, "vertical": True})
+    plotter.add_text(title or u_h.name, font_size=12)
+    plotter.view_xy() if u_h.function_space.mesh.geometry.dim == 2 else plotter.view_isometric()
     plotter.screenshot(str(path))
     plotter.close()
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import make_square_msh
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -204,27 +205,7 @@ CASES = {
 @pytest.fixture(scope="module")
 def square_msh(tmp_path_factory) -> Path:
     """A gmsh mesh of the unit square: facet groups bottom 1, top 2, sides 3; surface 10."""
-    gmsh = pytest.importorskip("gmsh")
-    path = tmp_path_factory.mktemp("gmsh") / "square.msh"
-    gmsh.initialize(interruptible=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("square")
-        surface = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
-        gmsh.model.occ.synchronize()
-        groups: dict[str, list[int]] = {"bottom": [], "top": [], "sides": []}
-        for dim, tag in gmsh.model.getBoundary([(2, surface)], oriented=False):
-            _, y, _ = gmsh.model.occ.getCenterOfMass(dim, tag)
-            groups["bottom" if y < 1e-8 else "top" if y > 1 - 1e-8 else "sides"].append(tag)
-        for tag, name in ((1, "bottom"), (2, "top"), (3, "sides")):
-            gmsh.model.addPhysicalGroup(1, groups[name], tag, name=name)
-        gmsh.model.addPhysicalGroup(2, [surface], 10, name="body")
-        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.25)
-        gmsh.model.mesh.generate(2)
-        gmsh.write(str(path))
-    finally:
-        gmsh.finalize()
-    return path
+    return make_square_msh(tmp_path_factory.mktemp("gmsh") / "square.msh", size=0.25)
 
 
 def _contact(tmp: Path, *args: str) -> subprocess.CompletedProcess:

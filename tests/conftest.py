@@ -1,0 +1,28 @@
+"""Shared test helpers."""
+from pathlib import Path
+
+
+def make_square_msh(path: Path, size: float) -> Path:
+    """Write a gmsh mesh of the unit square with facet groups bottom 1, top 2, sides 3 and
+    the surface group 10 (mesh size ``size``)."""
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("square")
+        surface = gmsh.model.occ.addRectangle(0, 0, 0, 1, 1)
+        gmsh.model.occ.synchronize()
+        groups: dict[str, list[int]] = {"bottom": [], "top": [], "sides": []}
+        for dim, tag in gmsh.model.getBoundary([(2, surface)], oriented=False):
+            _, y, _ = gmsh.model.occ.getCenterOfMass(dim, tag)
+            groups["bottom" if y < 1e-8 else "top" if y > 1 - 1e-8 else "sides"].append(tag)
+        for tag, name in ((1, "bottom"), (2, "top"), (3, "sides")):
+            gmsh.model.addPhysicalGroup(1, groups[name], tag, name=name)
+        gmsh.model.addPhysicalGroup(2, [surface], 10, name="body")
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+    return path
