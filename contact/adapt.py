@@ -25,9 +25,8 @@ from .config import SCENE, _validate
 from .errors import energy_error
 from .estimate import TERMS, Estimate, estimate
 from .meshes import Boundary
-from .models import scalar_problem
 from .scene import Scene
-from .solver import Result, solve
+from .solver import Result, build_problem, solve
 
 STRATEGIES = ("dorfler", "maximum", "uniform")
 
@@ -46,6 +45,8 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
         cumulative = np.cumsum(values)
         if len(values) == 0 or cumulative[-1] <= 0:
             tau = np.inf
+        elif theta >= 1.0:
+            tau = float(values[-1])  # everything
         else:
             k = int(np.searchsorted(cumulative, theta * cumulative[-1] * (1 - 1e-14)))
             tau = float(values[min(k, len(values) - 1)])
@@ -185,7 +186,7 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
     for index in range(opts["max_levels"]):
         seconds = {}
         t0 = time.perf_counter()
-        problem = scalar_problem(scene)
+        problem = build_problem(scene)
         result = solve(scene, method=method, problem=problem, u0=u0 if opts["nested"] else None,
                        verbose=False, rtol=opts["newton_rtol"])
         seconds["solve"] = time.perf_counter() - t0

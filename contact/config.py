@@ -96,10 +96,12 @@ def _petsc_value(v: Any) -> str | None:
 
 
 EXPR = Field("expr", "0")
+EXPRS = Field("exprs", "0", doc="an expression, or a list of them (one per component) for elasticity")
 
 BOUNDARY = Field("dict", schema={
-    "role": Field("str", choices=("dirichlet", "neumann", "contact"),
-                  doc="what the part is: Dirichlet (u = u_D), Neumann (flux t) or contact"),
+    "role": Field("str", choices=("dirichlet", "neumann", "contact", "symmetry"),
+                  doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact, or "
+                      "symmetry (elasticity: zero normal displacement on a plane x_k = const)"),
     "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
     "tag": Field("int", None, doc="gmsh physical tag of the facets"),
 })
@@ -107,28 +109,42 @@ BOUNDARY = Field("dict", schema={
 SCENE: dict[str, Field] = {
     "name": Field("str", None),
     "mesh": Field("dict", schema={
-        "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh")),
+        "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh",
+                                                   "quarter_disk", "sphere_octant")),
         "corners": Field("list", None, check=_point_list),
         "cells": Field("any", 16, check=_cells),
         "diagonal": Field("str", "right", choices=("left", "right", "crossed", "left/right", "right/left")),
         "file": Field("str", None),
         "degree": Field("int", 1, choices=(1, 2)),
+        "radius": Field("number", None, doc="quarter_disk / sphere_octant: radius R"),
+        "h": Field("number", None, doc="quarter_disk / sphere_octant: mesh size away from contact"),
+        "h_contact": Field("number", None, doc="quarter_disk / sphere_octant: mesh size at the contact point"),
+        "zone": Field("number", None, doc="quarter_disk / sphere_octant: radius of the fine zone"),
     }),
     "boundaries": Field("dict", schema=None, item=BOUNDARY),
     "model": Field("dict", schema={
-        "type": Field("str", "signorini", choices=("signorini", "obstacle")),
+        "type": Field("str", "signorini", choices=("signorini", "obstacle", "elasticity")),
         "bound": Field("str", "upper", choices=("upper", "lower"),
                        doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
+        "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
+        "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
+                    doc="elasticity: Poisson's ratio"),
+    }),
+    "obstacle": Field("dict", None, schema={
+        "type": Field("str", "plane", choices=("plane",)),
+        "point": Field("list", None, doc="a point of the rigid plane"),
+        "normal": Field("list", None, doc="the plane's outward normal, pointing towards the body"),
     }),
     "constants": Field("dict", schema=None, item=Field("number")),
     "data": Field("dict", schema={
-        "f": EXPR, "k": Field("expr", "1"), "u_D": EXPR, "t": EXPR, "t_C": EXPR,
+        "f": EXPRS, "k": Field("expr", "1"), "u_D": EXPRS, "t": EXPRS, "t_C": EXPR,
         "g": EXPR, "psi": EXPR, "exact": Field("expr", None),
     }),
     "solver": Field("dict", schema={
         "method": Field("str", "fb", choices=SOLVER_METHODS),
         "mu": Field("number", 0.5, check=_open_unit),
         "c": Field("any", "auto", check=_c_value),
+        "kappa": Field("number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"),
         "line_search": Field("str", "basic", choices=("basic", "bt")),
         "rtol": Field("number", 1e-12, check=_nonnegative),
         "atol": Field("number", 1e-12, check=_nonnegative),
@@ -143,7 +159,7 @@ SCENE: dict[str, Field] = {
         "max_dofs": Field("int", 200000, check=_positive),
         "max_levels": Field("int", 8, check=_positive),
         "nested": Field("bool", True),
-        "newton_rtol": Field("number", 1e-6, check=_positive,
+        "newton_rtol": Field("number", 1e-10, check=_positive,
                              doc="Newton's relative tolerance inside the loop: the algebraic error "
                                  "only has to be small against the discretization error"),
         "pictures": Field("int", 3, check=_nonnegative),
@@ -182,7 +198,11 @@ def _validate(value: Any, spec: Field, path: str, constants: Mapping[str, float]
     elif kind == "list":
         if not isinstance(value, list):
             raise ConfigError(f"{path}: expected a list, got {_typename(value)} {value!r}")
-    elif kind == "expr":
+    elif kind == "exprs" and isinstance(value, list):
+        if not value:
+            raise ConfigError(f"{path}: expected an expression or a non-empty list of them")
+        value = [_validate(item, EXPR, f"{path}[{i}]", constants) for i, item in enumerate(value)]
+    elif kind in ("expr", "exprs"):
         try:
             expressions.parse(value, constants)
         except expressions.ExpressionError as err:
@@ -293,7 +313,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
 
     mesh = cfg["mesh"]
     allowed = {"rectangle": {"corners", "cells", "diagonal"}, "unit_square": {"cells", "diagonal"},
-               "box": {"corners", "cells"}, "lshape": {"cells", "diagonal"}, "gmsh": {"file"}}[mesh["type"]]
+               "box": {"corners", "cells"}, "lshape": {"cells", "diagonal"}, "gmsh": {"file"},
+               "quarter_disk": {"radius", "h", "h_contact", "zone"},
+               "sphere_octant": {"radius", "h", "h_contact", "zone"}}[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
     for key in SCENE["mesh"].schema:
         if key in given and key not in allowed | {"type", "degree"}:
@@ -324,8 +346,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     for bname, part in cfg["boundaries"].items():
         if (part["where"] is None) == (part["tag"] is None):
             raise ConfigError(f"boundaries.{bname}: give exactly one of 'where' or 'tag'")
-        if part["tag"] is not None and mesh["type"] != "gmsh":
-            raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: gmsh)")
+        if part["tag"] is not None and mesh["type"] not in ("gmsh", "quarter_disk", "sphere_octant"):
+            raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: gmsh, "
+                              "quarter_disk or sphere_octant)")
         if part["where"] is not None:
             try:
                 expressions.parse(part["where"], constants)
@@ -333,23 +356,74 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                 raise ConfigError(f"boundaries.{bname}.where: {err}") from None
     roles = [p["role"] for p in cfg["boundaries"].values()]
     model = cfg["model"]["type"]
-    if model == "signorini" and "contact" not in roles:
-        raise ConfigError("boundaries: a signorini scene needs a part with role: contact")
+    if model in ("signorini", "elasticity") and "contact" not in roles:
+        raise ConfigError(f"boundaries: a {model} scene needs a part with role: contact")
     if model == "obstacle" and "contact" in roles:
         raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a contact part")
     given = set(data.get("data") or {})
+    if model == "elasticity" and ({"k", "g", "psi", "t_C", "exact"} & given):
+        raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C', 'exact'} & given)[0]}: not used by model type elasticity")
+    if model != "elasticity" and cfg.get("obstacle"):
+        raise ConfigError("obstacle: only for model type elasticity (scalar models use data.g / data.psi)")
+    if model != "elasticity" and (cfg["model"]["E"] is not None):
+        raise ConfigError("model.E: only for model type elasticity")
     if model == "signorini" and "psi" in given:
         raise ConfigError("data.psi: only for model type obstacle (Signorini uses data.g)")
     if model == "obstacle" and ({"g", "t_C"} & given):
         raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini (obstacles use data.psi)")
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
-    if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] == "box"):
+    _check_vector_data(cfg, data, model)
+    if model == "elasticity":
+        _check_elasticity(cfg, roles)
+    elif "symmetry" in roles:
+        raise ConfigError("boundaries: role symmetry is for elasticity scenes")
+    if mesh["type"] in ("quarter_disk", "sphere_octant"):
+        for key in ("radius", "h", "h_contact", "zone"):
+            if mesh[key] is None:
+                raise ConfigError(f"mesh.{key}: required for mesh type {mesh['type']!r}")
+    if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
         raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
                           "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights vanish); use 1")
     cfg["constants"] = constants
     return cfg
+
+
+def _check_vector_data(cfg: dict, raw: Mapping, model: str) -> None:
+    """Vector data (lists) only for elasticity; a single expression there means every
+    component (so the default "0" is the zero vector)."""
+    for key in ("f", "u_D", "t"):
+        value = cfg["data"][key]
+        if isinstance(value, list) and model != "elasticity":
+            raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
+        if model == "elasticity" and not isinstance(value, list):
+            cfg["data"][key] = [value] * _gdim(cfg)
+
+
+def _gdim(cfg: dict) -> int:
+    kind = cfg["mesh"]["type"]
+    if kind in ("box", "sphere_octant"):
+        return 3
+    if kind == "gmsh":
+        return 3  # refined when the mesh is read; checked again there
+    return 2
+
+
+def _check_elasticity(cfg: dict, roles: list[str]) -> None:
+    if cfg["model"]["E"] is None:
+        raise ConfigError("model.E: required for model type elasticity (Young's modulus)")
+    if "contact" not in roles:
+        raise ConfigError("boundaries: an elasticity scene needs a part with role: contact")
+    obstacle = cfg.get("obstacle")
+    if not obstacle or obstacle["point"] is None or obstacle["normal"] is None:
+        raise ConfigError("obstacle: an elasticity scene needs obstacle.point and obstacle.normal")
+    for key in ("point", "normal"):
+        vec = obstacle[key]
+        if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in vec):
+            raise ConfigError(f"obstacle.{key}: expected a list of numbers, got {vec!r}")
+    if not any(obstacle["normal"]):
+        raise ConfigError("obstacle.normal: must not be the zero vector")
 
 
 def load_config(source: str | Path | Mapping, overrides: list[str] | tuple[str, ...] = ()) -> dict:

@@ -8,12 +8,17 @@ With w a DG0 test function, one assembly of the form below gives every η_T²:
                                                                      unmarked facets)
          + Σ_{E ⊂ ∂T ∩ Γ_C} ( h_E ‖λ_h + t_C − k ∂u_h/∂n‖²_E         consistency
                               + ‖λ_h⁺‖²_E                            sign (λ⁺ = max(λ, 0))
-                              + ∫_E min(λ_h, 0)(u_h − g) ds )        complementarity (≥ 0)
+                              + ∫_E |min(λ_h, 0)(u_h − g)| ds )      complementarity
 
 For the obstacle problem (constraint σ(u − ψ) ≤ 0 in Ω, λ = −div(k∇u) − f) the same
 terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sign term is
 h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
 the cell diameter, h_E the facet size.  η = (Σ_T η_T²)^{1/2}.
+
+The complementarity integrand is taken in absolute value: it equals SPEC's
+min(λ_h, 0)(u_h − g) ≥ 0 whenever u_h ≤ g, and stays a non-negative indicator (instead of
+making Σ η_T² negative) for an infeasible u_h, e.g. between nodes for P2 or after a solve
+that did not converge.
 """
 from __future__ import annotations
 
@@ -41,7 +46,9 @@ class Estimate:
 
 
 def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """The six terms as UFL forms linear in a DG0 test function (SPEC §5)."""
+    """The terms as UFL forms linear in a DG0 test function (SPEC §5)."""
+    if scene.cfg["model"]["type"] == "elasticity":
+        return elasticity_terms(scene, result)
     msh = scene.mesh
     p = result.problem
     u_h, lmbda_h = result.u_h, result.lmbda_h
@@ -69,12 +76,52 @@ def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         terms["neumann"] += h_E * ufl.dot(flux, n) ** 2 * w * ds(i)
     if obstacle:
         terms["sign"] = h_T**2 * ufl.max_value(sigma * lmbda_h, 0) ** 2 * w * dx
-        terms["complementarity"] = ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g) * w * dx
+        terms["complementarity"] = abs(ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g)) * w * dx
     else:
         for i in bnd.ids_with_role("contact"):
             terms["consistency"] += h_E * (lmbda_h + t_C - ufl.dot(flux, n)) ** 2 * w * ds(i)
             terms["sign"] += ufl.max_value(lmbda_h, 0) ** 2 * w * ds(i)
-            terms["complementarity"] += ufl.min_value(lmbda_h, 0) * (u_h - g) * w * ds(i)
+            terms["complementarity"] += abs(ufl.min_value(lmbda_h, 0) * (u_h - g)) * w * ds(i)
+    return terms
+
+
+def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
+    """SPEC §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
+    n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
+
+        h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
+
+    (consistency, tangential — frictionless —, sign, complementarity)."""
+    from .elasticity import stress
+
+    msh = scene.mesh
+    p = result.problem
+    u_h, lam = result.u_h, result.lmbda_h
+    f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
+    W = fem.functionspace(msh, ("DG", 0))
+    w = ufl.TestFunction(W)
+    n = ufl.FacetNormal(msh)
+    n_c = ufl.as_vector(np.asarray(p.data["n"], dtype=float).tolist())
+    h_T = ufl.CellDiameter(msh)
+    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
+    sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
+    T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
+    zero = fem.Constant(msh, 0.0) * w * dx
+    terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
+             "jump": 0.5 * ufl.avg(h_E) * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n)) * (w("+") + w("-")) * dS,
+             "neumann": zero, "consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
+    for i in bnd.ids_with_role("neumann"):
+        terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
+    for i in bnd.ids_with_role("natural"):
+        terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
+    Tn = ufl.dot(T, n_c)
+    Tt = T - Tn * n_c
+    for i in bnd.ids_with_role("contact"):
+        terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+        terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
+        terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
+        terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
     return terms
 
 

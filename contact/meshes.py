@@ -61,6 +61,11 @@ def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[dmesh.Mesh, 
                                 cell_type=dmesh.CellType.tetrahedron), None
     if kind == "lshape":
         return lshape(comm, m["cells"][0], m["diagonal"]), None
+    if kind in ("quarter_disk", "sphere_octant"):  # gmsh, built from the parameters
+        from . import geometry
+
+        build = geometry.quarter_disk if kind == "quarter_disk" else geometry.sphere_octant
+        return build(comm, m["radius"], m["h"], m["h_contact"], m["zone"])
     return _read_gmsh(m["file"], comm)
 
 

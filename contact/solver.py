@@ -70,6 +70,16 @@ class Result:
         return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
 
 
+def build_problem(scene: Scene) -> DiscreteProblem:
+    """The discrete problem of the scene's model (elasticity code is imported only for
+    elasticity scenes)."""
+    if scene.cfg["model"]["type"] == "elasticity":
+        from .elasticity import elasticity_problem
+
+        return elasticity_problem(scene)
+    return scalar_problem(scene)
+
+
 def solver_options(scene: Scene, **overrides: Any) -> dict:
     """The scene's ``solver`` section with keyword overrides, validated like the YAML."""
     raw = {**scene.cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
@@ -113,7 +123,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     opts = solver_options(scene, method=method, **options)
     method = opts["method"]
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
-    problem = problem or scalar_problem(scene)
+    problem = problem or build_problem(scene)
     comm = scene.comm
     timers = {"assembly": problem.assembly_time, "solve": 0.0}
     cp = _Complementarity(problem)
@@ -136,6 +146,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     if method in ncp.METHODS:
         mu = opts["mu"]
         J = problem.K.duplicate(copy=True)
+        _attach_near_nullspace(problem, J)
         s_vec, d_vec = problem.b.duplicate(), problem.b.duplicate()
 
         def residual(snes, x, f):
@@ -179,7 +190,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
 
         snes.setType(method)
         snes.setFunction(residual, F)
-        snes.setJacobian(jacobian, problem.K.duplicate(copy=True))
+        J = problem.K.duplicate(copy=True)
+        _attach_near_nullspace(problem, J)
+        snes.setJacobian(jacobian, J)
         lower, upper = problem.b.duplicate(), problem.b.duplicate()
         lower.set(PETSc.NINFINITY)
         upper.set(PETSc.INFINITY)
@@ -236,6 +249,12 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     return result
 
 
+def _attach_near_nullspace(problem: DiscreteProblem, J: PETSc.Mat) -> None:
+    """Rigid-body modes for GAMG on elasticity (kept by J across its re-copies)."""
+    if problem.near_nullspace is not None:
+        J.setNearNullSpace(problem.near_nullspace)
+
+
 def _set_from_options(snes: PETSc.SNES) -> None:
     """setFromOptions + setUp; a bad PETSc option becomes a one-line ConfigError."""
     PETSc.Sys.pushErrorHandler("python")  # raise, do not print PETSc's trace
@@ -267,22 +286,12 @@ def dolfinx_set_bc(x: PETSc.Vec, bcs: list) -> None:
 
 
 def _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code) -> Result:
-    """Copy the iterate into functions: u_h, λ_h = R/w, gap g − u_h, active 0/1."""
-    V = problem.V
+    """Copy the iterate into functions: u_h, and λ_h, the gap and the active set."""
     u_h = problem.u_h
     u_h.x.petsc_vec.array_w[:] = x.array_r
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
-    lmbda = fem.Function(V, name="lambda_h")
-    lmbda.x.array[:] = 0.0
-    lmbda.x.array[cp.dofs] = r[cp.dofs] / cp.w
-    lmbda.x.scatter_forward()
-    active_fn = fem.Function(V, name="active")
-    active_fn.x.array[:] = 0.0
-    active_fn.x.array[cp.dofs] = (b > a).astype(float)
-    active_fn.x.scatter_forward()
-    gap = fem.Function(V, name="gap")
-    gap.x.array[:] = problem.bound_function().x.array - u_h.x.array
+    lmbda, gap, active_fn = problem.outputs(r, b > a)
     comm = scene.comm
     total = time.perf_counter() - t_start
     timers = {"assembly": timers["assembly"], "solve": timers["solve"]}

@@ -12,7 +12,7 @@ import numpy as np
 
 import contact
 from contact.io import gather_nodal
-from contact.models import scalar_problem
+from contact.solver import build_problem
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls")
 
@@ -24,7 +24,7 @@ def main(argv):
     data = {}
     for path in scenes:
         scene = contact.load_scene(path, overrides=[o for o in overrides if o != "--set"])
-        problem = scalar_problem(scene)
+        problem = build_problem(scene)
         for m in METHODS:
             r = contact.solve(scene, method=m, problem=problem, verbose=False, max_it=200)
             key = f"{scene.name}/{m}"

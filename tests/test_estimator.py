@@ -500,9 +500,6 @@ def test_p1_effectivity_is_stable(problem_A):
     assert eta2 < 0.6 * eta1             # O(h): ≈ 0.51
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: λ_h = 0 at the contact node on the closure of "
-                   "Γ_D gives an O(1) consistency residual on the adjacent contact edge, "
-                   "O(h^2) in η² — for P2 it dominates and the effectivity grows like h^(-1/2)")
 def test_p2_effectivity_is_stable(problem_A):
     (eta1, err1, _), (eta2, err2, _) = problem_A[2]
     assert (eta2 / err2) / (eta1 / err1) < 1.05   # observed 15.0 → 18.2 (→ 23.3 → 31.2)

@@ -1,0 +1,153 @@
+"""Gmsh geometries for Hertz contact validation, built from parameters (no ``.msh`` file).
+
+``quarter_disk`` (2D triangles) and ``sphere_octant`` (3D tetrahedra) are the parts of a
+disk / ball of radius R resting on the plane y = 0 / z = 0 at the contact point (the
+origin) that symmetry leaves to compute.  Both are built by gmsh on rank 0 and distributed
+over ``comm`` by ``dolfinx.io.gmsh.model_to_mesh``; they return ``(mesh, facet_tags)`` like
+a ``.msh`` scene does, with physical facet tags
+
+    1 = curved (contact) surface, 2 = flat top (y = R / z = R),
+    3 = symmetry axis / plane x = 0, 4 = symmetry plane y = 0 (3D only),
+
+and cell tag 10.  The mesh size is ``h_contact`` within distance ``zone`` of the contact
+point, grows linearly with slope ``GRADING`` beyond it, and is ``h`` everywhere else
+(gmsh Distance + Threshold fields; sizes from points, curvature and boundary are off, so
+the field alone sets the size).  Elements are linear; tetrahedra get gmsh's Netgen
+optimisation too.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+from mpi4py import MPI
+
+from dolfinx import mesh as dmesh
+
+from .config import ConfigError
+
+CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
+GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h
+
+
+def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
+                 zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
+    """Triangulation of {x ≥ 0, y ≤ R} ∩ disk((0, R), R): the arc from (0, 0) to (R, R)
+    (tag 1, contact), the top y = R (tag 2) and the axis x = 0 (tag 3); surface tag 10."""
+    radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
+
+    def build(gmsh):
+        occ, R = gmsh.model.occ, radius
+        bottom, centre = occ.addPoint(0, 0, 0), occ.addPoint(0, R, 0)
+        corner = occ.addPoint(R, R, 0)
+        arc = occ.addCircleArc(bottom, centre, corner)
+        top = occ.addLine(corner, centre)
+        axis = occ.addLine(centre, bottom)
+        surface = occ.addPlaneSurface([occ.addCurveLoop([arc, top, axis])])
+        occ.synchronize()
+        for tag, curve, name in ((CONTACT, arc, "contact"), (TOP, top, "top"), (AXIS, axis, "axis")):
+            gmsh.model.addPhysicalGroup(1, [curve], tag, name=name)
+        gmsh.model.addPhysicalGroup(2, [surface], BODY, name="body")
+        _size_field(gmsh, bottom, h, h_contact, zone)
+        gmsh.model.mesh.generate(2)
+
+    return _build(comm, "quarter_disk", 2, build)
+
+
+def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
+                  zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
+    """Tetrahedra of {x ≥ 0, y ≥ 0, z ≤ R} ∩ ball((0, 0, R), R): the spherical surface
+    (tag 1, contact), the top z = R (tag 2), the planes x = 0 (tag 3) and y = 0 (tag 4);
+    volume tag 10."""
+    radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
+
+    def build(gmsh):
+        occ, R = gmsh.model.occ, radius
+        # latitude −π/2..0 (lower hemisphere), longitude 0..π/2 (x, y ≥ 0): the south pole,
+        # a vertex of the model, is the contact point (0, 0, 0)
+        volume = occ.addSphere(0, 0, R, R, -1, -math.pi / 2, 0, math.pi / 2)
+        occ.synchronize()
+        groups: dict[int, list[int]] = {CONTACT: [], TOP: [], AXIS: [], PLANE_Y: []}
+        tol = 1e-8 * R
+        for _, face in gmsh.model.getBoundary([(3, volume)], oriented=False):
+            x, y, z = occ.getCenterOfMass(2, face)
+            kind = (TOP if abs(z - R) < tol else AXIS if abs(x) < tol
+                    else PLANE_Y if abs(y) < tol else CONTACT)
+            groups[kind].append(face)
+        if any(len(faces) != 1 for faces in groups.values()):
+            raise RuntimeError(f"unexpected faces of the sphere octant: {groups}")
+        pole = [p for _, p in gmsh.model.getEntities(0)
+                if max(abs(c) for c in gmsh.model.getValue(0, p, [])) < tol]
+        if len(pole) != 1:
+            raise RuntimeError("the sphere octant has no vertex at the contact point")
+        for tag, name in ((CONTACT, "contact"), (TOP, "top"), (AXIS, "x0"), (PLANE_Y, "y0")):
+            gmsh.model.addPhysicalGroup(2, groups[tag], tag, name=name)
+        gmsh.model.addPhysicalGroup(3, [volume], BODY, name="body")
+        _size_field(gmsh, pole[0], h, h_contact, zone)
+        gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)  # worst tet quality 0.25 -> 0.4
+        gmsh.model.mesh.generate(3)
+
+    return _build(comm, "sphere_octant", 3, build)
+
+
+def _check(radius, h, h_contact, zone) -> tuple[float, float, float, float]:
+    """The four parameters as floats; a ConfigError naming the first bad one."""
+    values = {"radius": radius, "h": h, "h_contact": h_contact, "zone": zone}
+    for name, value in values.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"mesh.{name}: must be a number, got {value!r}")
+        if not math.isfinite(value) or value <= 0:
+            raise ConfigError(f"mesh.{name}: must be > 0, got {value:g}")
+    if h_contact > h:
+        raise ConfigError(f"mesh.h_contact: must be <= mesh.h ({h:g}), got {h_contact:g}")
+    if zone >= radius:
+        raise ConfigError(f"mesh.zone: must be < mesh.radius ({radius:g}), got {zone:g}")
+    return float(radius), float(h), float(h_contact), float(zone)
+
+
+def _size_field(gmsh, point: int, h: float, h_contact: float, zone: float) -> None:
+    """Size h_contact within ``zone`` of model vertex ``point``, growing linearly (slope
+    GRADING) up to h; the field alone sets the size."""
+    field = gmsh.model.mesh.field
+    distance = field.add("Distance")
+    field.setNumbers(distance, "PointsList", [point])
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", h_contact)
+    field.setNumber(threshold, "SizeMax", h)
+    field.setNumber(threshold, "DistMin", zone)
+    field.setNumber(threshold, "DistMax", zone + (h - h_contact) / GRADING)
+    field.setAsBackgroundMesh(threshold)
+    for option in ("MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary"):
+        gmsh.option.setNumber(f"Mesh.{option}", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+
+
+def _build(comm: MPI.Comm, name: str, gdim: int,
+           build: Callable) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
+    """Run ``build(gmsh)`` on rank 0 (gmsh's terminal output off) and distribute the mesh;
+    a failure is one ConfigError line, raised on every rank."""
+    import gmsh  # only for these geometries
+    from dolfinx.io import gmsh as gmshio
+
+    problem = None
+    if comm.rank == 0:
+        gmsh.initialize(interruptible=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add(name)
+        try:
+            build(gmsh)
+        except Exception as err:
+            problem = str(err) or type(err).__name__
+    problem = comm.bcast(problem, root=0)
+    try:
+        if problem is None:
+            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim)
+    except Exception as err:
+        problem = str(err)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
+    if problem is not None:
+        raise ConfigError(f"mesh: gmsh cannot build the {name}: {' '.join(problem.split())}")
+    return data.mesh, data.facet_tags

@@ -1,0 +1,164 @@
+"""Gmsh geometries for Hertz contact validation (contact.geometry): measures of the body
+and of each tagged part, every exterior facet tagged by the right part, the mesh graded
+down to h_contact near the contact point, argument errors as one-line ConfigErrors, and
+the same mesh on 1 and 2 MPI ranks."""
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ufl
+
+import contact  # noqa: F401  (must precede dolfinx)
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from contact.config import ConfigError
+from contact.geometry import GRADING, quarter_disk, sphere_octant
+
+ROOT = Path(__file__).resolve().parents[1]
+MPIRUN = Path(sys.executable).parent / "mpirun"
+
+# small meshes; radius ≠ 1 so that a missing factor R shows
+DISK = dict(radius=2.0, h=0.2, h_contact=0.02, zone=0.3)
+OCTANT = dict(radius=1.5, h=0.2, h_contact=0.03, zone=0.25)
+
+
+def _R2(R):  # (expected measure of the body, of each tag) for the quarter disk
+    return math.pi * R**2 / 4, {1: math.pi * R / 2, 2: R, 3: R}
+
+
+def _R3(R):
+    return math.pi * R**3 / 6, {1: math.pi * R**2 / 2, 2: math.pi * R**2 / 4,
+                                3: math.pi * R**2 / 4, 4: math.pi * R**2 / 4}
+
+
+CASES = {"quarter_disk": (quarter_disk, DISK, _R2), "sphere_octant": (sphere_octant, OCTANT, _R3)}
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def case(request):
+    build, params, expected = CASES[request.param]
+    msh, tags = build(MPI.COMM_WORLD, **params)
+    return msh, tags, params, expected(params["radius"])
+
+
+def _sum(comm, value):
+    return comm.allreduce(value, op=MPI.SUM)
+
+
+def test_measures(case):
+    msh, tags, params, (body, parts) = case
+    comm, tdim = msh.comm, msh.topology.dim
+    assert msh.geometry.dim == tdim and msh.topology.cell_type == (
+        dmesh.CellType.triangle if tdim == 2 else dmesh.CellType.tetrahedron)
+    assert [c.degree for c in msh.geometry.cmaps] == [1]
+    one = fem.Constant(msh, 1.0)
+    volume = _sum(comm, fem.assemble_scalar(fem.form(one * ufl.dx)))
+    assert volume == pytest.approx(body, rel=1e-2)
+    assert volume < body  # inscribed polygon / polyhedron
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+    for tag, exact in parts.items():
+        measure = _sum(comm, fem.assemble_scalar(fem.form(one * ds(tag))))
+        # flat parts are exact up to their curved edge; the curved part is inscribed
+        assert measure == pytest.approx(exact, rel=1e-2), tag
+    flat_top = _sum(comm, fem.assemble_scalar(fem.form(one * ds(2))))
+    if tdim == 2:
+        assert flat_top == pytest.approx(params["radius"], rel=1e-12)
+
+
+def test_every_exterior_facet_tagged_by_its_part(case):
+    msh, tags, params, (_, parts) = case
+    tdim, R = msh.topology.dim, params["radius"]
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    exterior = dmesh.exterior_facet_indices(msh.topology)
+    assert np.array_equal(np.unique(tags.indices), np.sort(tags.indices)), "a facet tagged twice"
+    assert np.array_equal(np.sort(tags.indices), exterior)
+    assert set(np.unique(tags.values)) <= set(parts)
+    assert set(np.concatenate(msh.comm.allgather(np.unique(tags.values)))) == set(parts)
+    # the vertices of each part lie on its surface
+    centre = np.zeros(3)
+    centre[tdim - 1] = R
+    for tag in parts:
+        facets = tags.indices[tags.values == tag]
+        x = msh.geometry.x[dmesh.entities_to_geometry(msh, tdim - 1, facets).ravel()]
+        on = {1: np.abs(np.linalg.norm(x - centre, axis=1) - R), 2: np.abs(x[:, tdim - 1] - R),
+              3: np.abs(x[:, 0]), 4: np.abs(x[:, 1])}[tag]
+        assert np.all(on < 1e-8 * R), tag
+    # and the body lies in the part of the disk / ball it should
+    x = msh.geometry.x
+    assert np.all(np.linalg.norm(x - centre, axis=1) <= R * (1 + 1e-10))
+    assert np.all(x[:, :tdim - 1] >= -1e-12) and np.all(x[:, tdim - 1] <= R * (1 + 1e-12))
+
+
+def test_graded_towards_contact_point(case):
+    msh, _, params, _ = case
+    comm, tdim = msh.comm, msh.topology.dim
+    cells = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
+    h = msh.h(tdim, cells)
+    r = np.linalg.norm(dmesh.compute_midpoints(msh, tdim, cells), axis=1)
+    near, far = r < params["zone"], r > params["zone"]
+    mean = lambda sel: _sum(comm, h[sel].sum()) / _sum(comm, int(sel.sum()))  # noqa: E731
+    assert mean(near) < mean(far) / 3
+    # the cell diameter (longest edge) is a modest multiple of the requested size
+    assert params["h_contact"] < mean(near) < 2 * params["h_contact"]
+    coarse = r > params["zone"] + (params["h"] - params["h_contact"]) / GRADING
+    assert params["h"] < mean(coarse) < 2 * params["h"]
+    assert comm.allreduce(h.max(), op=MPI.MAX) < 2.5 * params["h"]  # tets: a few long edges
+
+
+@pytest.mark.parametrize("build", [quarter_disk, sphere_octant])
+@pytest.mark.parametrize("key, value, message", [
+    ("radius", 0.0, "mesh.radius: must be > 0, got 0"),
+    ("h", -1, "mesh.h: must be > 0, got -1"),
+    ("h_contact", -1, "mesh.h_contact: must be > 0, got -1"),
+    ("zone", float("nan"), "mesh.zone: must be > 0, got nan"),
+    ("h", "fine", "mesh.h: must be a number, got 'fine'"),
+    ("h_contact", 0.5, "mesh.h_contact: must be <= mesh.h (0.1), got 0.5"),
+    ("zone", 1.0, "mesh.zone: must be < mesh.radius (1), got 1"),
+])
+def test_bad_arguments(build, key, value, message):
+    params = dict(radius=1, h=0.1, h_contact=0.01, zone=0.2)
+    params[key] = value
+    with pytest.raises(ConfigError) as err:
+        build(MPI.COMM_WORLD, **params)
+    assert str(err.value) == message
+
+
+SCRIPT = f"""
+import json, contact, ufl
+from mpi4py import MPI
+from dolfinx import fem
+from contact.geometry import quarter_disk
+msh, tags = quarter_disk(MPI.COMM_WORLD, **{DISK!r})
+one = fem.Constant(msh, 1.0)
+area = msh.comm.allreduce(fem.assemble_scalar(fem.form(one * ufl.dx)), op=MPI.SUM)
+arc = msh.comm.allreduce(fem.assemble_scalar(fem.form(
+    one * ufl.Measure("ds", domain=msh, subdomain_data=tags)(1))), op=MPI.SUM)
+local = msh.topology.index_map(2).size_local
+counts = msh.comm.gather(local, root=0)
+if msh.comm.rank == 0:
+    print(json.dumps({{"cells": msh.topology.index_map(2).size_global, "counts": counts,
+                      "area": area, "arc": arc}}))
+"""
+
+
+@pytest.mark.mpi
+def test_quarter_disk_same_on_two_ranks():
+    serial, tags = quarter_disk(MPI.COMM_WORLD, **DISK)
+    one = fem.Constant(serial, 1.0)
+    area = fem.assemble_scalar(fem.form(one * ufl.dx))
+    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, "-c", SCRIPT], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["cells"] == serial.topology.index_map(2).size_global
+    assert len(out["counts"]) == 2 and min(out["counts"]) > 0 and sum(out["counts"]) == out["cells"]
+    assert out["area"] == pytest.approx(area, rel=1e-12)
+    assert out["arc"] == pytest.approx(math.pi * DISK["radius"] / 2, rel=1e-2)
