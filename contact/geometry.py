@@ -25,6 +25,7 @@ from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
 from .config import ConfigError
+from .meshes import gmsh_to_mesh
 
 CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
 GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h
@@ -51,7 +52,7 @@ def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
         _size_field(gmsh, bottom, h, h_contact, zone)
         gmsh.model.mesh.generate(2)
 
-    return _build(comm, "quarter_disk", 2, build)
+    return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the quarter_disk", gdim=2)
 
 
 def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
@@ -87,7 +88,7 @@ def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
         gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)  # worst tet quality 0.25 -> 0.4
         gmsh.model.mesh.generate(3)
 
-    return _build(comm, "sphere_octant", 3, build)
+    return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_octant", gdim=3)
 
 
 def _check(radius, h, h_contact, zone) -> tuple[float, float, float, float]:
@@ -121,33 +122,3 @@ def _size_field(gmsh, point: int, h: float, h_contact: float, zone: float) -> No
     for option in ("MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary"):
         gmsh.option.setNumber(f"Mesh.{option}", 0)
     gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-
-
-def _build(comm: MPI.Comm, name: str, gdim: int,
-           build: Callable) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
-    """Run ``build(gmsh)`` on rank 0 (gmsh's terminal output off) and distribute the mesh;
-    a failure is one ConfigError line, raised on every rank."""
-    import gmsh  # only for these geometries
-    from dolfinx.io import gmsh as gmshio
-
-    problem = None
-    if comm.rank == 0:
-        gmsh.initialize(interruptible=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add(name)
-        try:
-            build(gmsh)
-        except Exception as err:
-            problem = str(err) or type(err).__name__
-    problem = comm.bcast(problem, root=0)
-    try:
-        if problem is None:
-            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim)
-    except Exception as err:
-        problem = str(err)
-    finally:
-        if comm.rank == 0:
-            gmsh.finalize()
-    if problem is not None:
-        raise ConfigError(f"mesh: gmsh cannot build the {name}: {' '.join(problem.split())}")
-    return data.mesh, data.facet_tags

@@ -94,31 +94,38 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
 
 
 def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    """Read ``path`` on rank 0 (gmsh's own terminal output off: a bad file is one
-    ConfigError line, raised on every rank) and distribute the mesh."""
-    import gmsh  # only for .msh scenes
+    return gmsh_to_mesh(comm, lambda gmsh: gmsh.merge(path), f"mesh.file: cannot read {path!r} as a gmsh mesh")
+
+
+def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None
+                 ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
+    """Run ``build(gmsh)`` on rank 0 (gmsh's terminal output off) and distribute the mesh
+    with its physical groups; the geometric dimension is the model's unless given.  Any
+    failure is one ConfigError line ``<error>: <gmsh's message>``, raised on every rank."""
+    import gmsh  # only for gmsh scenes
     from dolfinx.io import gmsh as gmshio
 
     problem = None
     if comm.rank == 0:
-        gmsh.initialize()
+        gmsh.initialize(interruptible=False)
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("scene")
         try:
-            gmsh.merge(path)
-        except Exception as err:  # gmsh reports parse errors as generic exceptions
-            problem = str(err) or "unreadable file"
-    problem = comm.bcast(problem, root=0)
+            build(gmsh)
+            gdim = gdim or gmsh.model.getDimension()
+        except Exception as err:  # gmsh reports its errors as generic exceptions
+            problem = str(err) or type(err).__name__
+    problem, gdim = comm.bcast((problem, gdim), root=0)
     try:
         if problem is None:
-            data = gmshio.model_to_mesh(gmsh.model, comm, 0)
+            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim)
     except Exception as err:  # e.g. no physical groups (raised on every rank)
         problem = str(err)
     finally:
         if comm.rank == 0:
             gmsh.finalize()
     if problem is not None:
-        raise ConfigError(f"mesh.file: cannot read {path!r} as a gmsh mesh: {' '.join(problem.split())}")
+        raise ConfigError(f"{error}: {' '.join(problem.split())}")
     return data.mesh, data.facet_tags
 
 
