@@ -22,7 +22,7 @@ import dolfinx.fem.petsc
 from dolfinx import fem
 
 from .scene import Scene
-from .solver import Result
+from .solver import Result, owned_residual
 
 
 def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float, float]:
@@ -50,7 +50,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     con = p.constraint
     k, n = p.data["k"], np.asarray(p.data["n"])
     copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
-    lam = p.lambda_sign * _owned_residual(result)[con.dofs] / con.w
+    lam = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
     force = copies * comm.allreduce(float(np.sum(con.w * -lam)), op=MPI.SUM)
 
     # reaction on the Dirichlet boundary, component k
@@ -84,17 +84,6 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
             "hertz_a": a_H, "hertz_p0": p0_H, "a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0,
             "a_over_R": a / R, "symmetric_copies": copies, "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
             "pressure_profile": _profile(comm, rho, -lam)}
-
-
-def _owned_residual(result: Result) -> np.ndarray:
-    p = result.problem
-    x = p.b.duplicate()
-    x.array_w[:] = result.u_h.x.petsc_vec.array_r
-    r = p.b.duplicate()
-    p.residual(x, r)
-    out = r.array_r.copy()
-    x.destroy(), r.destroy()
-    return out
 
 
 def _output_index(problem, dofs: np.ndarray) -> np.ndarray:

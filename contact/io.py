@@ -106,15 +106,16 @@ def _jsonable(obj: Any) -> Any:
 
 
 def gather_nodal(fn: fem.Function) -> tuple:
-    """(coordinates, values) of all owned DoFs of a scalar P-k function on rank 0, sorted
+    """(coordinates, values) of all owned nodes of a P-k function (values (n, bs) for
+    vector functions) on rank 0, sorted
     lexicographically by coordinate (so serial and parallel runs compare entry by entry);
     ``(None, None)`` on other ranks."""
     import numpy as np
 
     V = fn.function_space
-    n = V.dofmap.index_map.size_local
+    n, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
     X = V.tabulate_dof_coordinates()[:n]
-    vals = fn.x.array[:n]
+    vals = fn.x.array[: n * bs].reshape(n, bs) if bs > 1 else fn.x.array[:n]
     parts = V.mesh.comm.gather((X, vals), root=0)
     if V.mesh.comm.rank != 0:
         return None, None

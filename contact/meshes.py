@@ -118,7 +118,8 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None
     problem, gdim = comm.bcast((problem, gdim), root=0)
     try:
         if problem is None:
-            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim)
+            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
+                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
     except Exception as err:  # e.g. no physical groups (raised on every rank)
         problem = str(err)
     finally:

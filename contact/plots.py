@@ -17,7 +17,9 @@ def _gather_grid(fn: fem.Function):
     V = fn.function_space
     msh = V.mesh
     topology, cell_types, x = plot.vtk_mesh(V)
-    values = fn.x.array[: x.shape[0]].real.copy()
+    bs = V.dofmap.index_map_bs
+    values = fn.x.array[: x.shape[0] * bs].real.reshape(x.shape[0], bs)
+    values = values[:, 0].copy() if bs == 1 else np.linalg.norm(values, axis=1)  # |u| for vectors
     sizes = np.log10(msh.h(msh.topology.dim, np.arange(len(cell_types), dtype=np.int32)))
     parts = msh.comm.gather((topology, cell_types, x, values, sizes), root=0)
     if msh.comm.rank != 0:
@@ -132,6 +134,33 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_pressure(path: str | Path, res: dict, title: str = "") -> None:
+    """Computed contact pressure −λ_n against the in-plane distance from the first point of
+    contact, with the Hertz profile p0 √(1 − ρ²/a²) for the computed total force."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    prof = np.asarray(res["pressure_profile"])
+    a_H, p0_H = res["hertz_a"], res["hertz_p0"]
+    a = res.get("contact_half_width", res.get("contact_radius"))
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    keep = prof[:, 0] <= 2.0 * a_H
+    ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label="computed −λ_n (nodal)")
+    rho = np.linspace(0, a_H, 200)
+    ax.plot(rho, p0_H * np.sqrt(1 - (rho / a_H) ** 2), "k-", label=f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")
+    ax.axvline(a, color="C1", ls="--", lw=1, label=f"computed a = {a:.4g} ({100 * res['a_error']:+.1f}%)")
+    ax.set_xlabel("distance from the first point of contact ρ")
+    ax.set_ylabel("contact pressure")
+    ax.set_title(title + f"\npeak {res['peak_pressure']:.4g} ({100 * res['p0_error']:+.1f}% vs Hertz)")
+    ax.grid(alpha=0.3)
+    ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -40,6 +40,10 @@ def summary(scene: Scene, result: Result, wall: float | None = None) -> dict[str
         "time_total": wall if wall is not None else result.timings["total"],
         "host": platform.node(),
     }
+    if scene.cfg["model"]["type"] == "elasticity":
+        from .hertz import contact_resultants
+
+        out.update({k: v for k, v in contact_resultants(scene, result).items() if k != "pressure_profile"})
     exact = scene.cfg["data"]["exact"]
     if exact is not None:
         out["error_energy"] = energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
@@ -53,13 +57,35 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     out_cfg = scene.cfg["output"]
     with io.atomic_folder(outdir, comm) as tmp:
         if out_cfg["xdmf"]:
-            io.write_xdmf(tmp / "solution.xdmf", [result.u_h, result.lmbda_h, result.gap, result.active])
+            io.write_xdmf(tmp / "solution.xdmf", [result.u_h, result.lmbda_h, result.gap, result.active],
+                          cells=cell_fields(scene, result))
         io.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg["png"]:
             plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
                                 title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
+            write_pressure_plot(tmp / "pressure.png", scene, result)
         io.write_json(tmp / "summary.json", info, comm)
     return info
+
+
+def cell_fields(scene: Scene, result: Result) -> list:
+    """Cellwise output fields: the von Mises stress for elasticity."""
+    if scene.cfg["model"]["type"] != "elasticity":
+        return []
+    from .elasticity import von_mises
+
+    return [von_mises(result.u_h, result.problem.data["mu"], result.problem.data["lmbda_L"])]
+
+
+def write_pressure_plot(path: Path, scene: Scene, result: Result) -> None:
+    """Elasticity: pressure.png, the computed contact pressure with the Hertz profile."""
+    if scene.cfg["model"]["type"] != "elasticity":
+        return
+    from .hertz import contact_resultants
+
+    res = contact_resultants(scene, result)
+    if scene.comm.rank == 0:
+        plots.plot_pressure(path, res, title=f"{scene.name}: contact pressure ({result.dofs} DoFs)")
 
 
 def level_writer(tmp: Path, scene: Scene):
@@ -68,7 +94,7 @@ def level_writer(tmp: Path, scene: Scene):
         r = level.result
         if scene.cfg["output"]["xdmf"]:
             io.write_xdmf(tmp / f"level_{level.index:03d}.xdmf", [r.u_h, r.lmbda_h, r.gap, r.active],
-                          cells=[level.estimate.eta_T])
+                          cells=[level.estimate.eta_T, *cell_fields(level.scene, r)])
     return write
 
 
@@ -90,6 +116,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
                             title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs")
         plots.plot_solution(tmp / "solution.png", last.result.u_h, last.result.active,
                             title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
+        write_pressure_plot(tmp / "pressure.png", last.scene, last.result)
     io.write_json(tmp / "summary.json", info, comm)
     return info
 

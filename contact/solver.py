@@ -273,6 +273,18 @@ def _petsc_message(err: PETSc.Error) -> str:
     return lines[-1] if lines else f"error code {err.ierr}"
 
 
+def owned_residual(result: Result) -> np.ndarray:
+    """R(u_h) = K u_h − b at the solution, owned entries."""
+    p = result.problem
+    x, r = p.b.duplicate(), p.b.duplicate()
+    x.array_w[:] = result.u_h.x.petsc_vec.array_r
+    p.residual(x, r)
+    out = r.array_r.copy()
+    x.destroy()
+    r.destroy()
+    return out
+
+
 def _petsc_value(val: Any) -> str:
     if isinstance(val, bool):
         return "true" if val else "false"

@@ -12,7 +12,7 @@ import numpy as np
 
 import contact
 from contact.io import gather_nodal
-from contact.solver import build_problem
+from contact.solver import build_problem, owned_residual
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls")
 
@@ -34,7 +34,7 @@ def main(argv):
             con = problem.constraint
             # complementarity residual min(σ(g - u), -σ c λ) on the constraint set, scaled
             a = con.sign * (con.g - r.u_h.x.array[con.dofs])
-            b = -con.sign * problem.c * r.lmbda_h.x.array[con.dofs]
+            b = -con.sign * problem.c * owned_residual(r)[con.dofs] / con.w
             comp = scene.comm.allreduce(float(np.max(np.abs(np.minimum(a, b)), initial=0.0)), op=max)
             scale = scene.comm.allreduce(float(np.max(np.abs(con.g), initial=0.0)), op=max) + 1.0
             if scene.comm.rank == 0:

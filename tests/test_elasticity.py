@@ -1,0 +1,93 @@
+"""Elastic contact against a rigid plane (issue #4): every method agrees with vinewtonrsls,
+1 and 2 MPI ranks agree, the contact force equals the reaction, GAMG with the rigid-body
+near-nullspace matches the direct solver, and bad elasticity input is a one-line error."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contact
+from contact.hertz import contact_resultants, hertz
+from contact.solver import build_problem
+
+ROOT = Path(__file__).resolve().parents[1]
+MPIRUN = Path(sys.executable).parent / "mpirun"
+SMALL = ["mesh.h=0.2", "mesh.h_contact=0.02", "mesh.zone=0.2", "output.verbose=false"]
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", SMALL)
+
+
+@pytest.fixture(scope="module")
+def reference(scene):
+    problem = build_problem(scene)
+    r = contact.solve(scene, method="vinewtonrsls", problem=problem)
+    assert r.converged
+    return problem, r.u_h.x.array.copy(), r.lmbda_h.x.array.copy(), r.n_active
+
+
+@pytest.mark.parametrize("method", ["fb", "min", "blend"])
+def test_methods_agree_with_vinewtonrsls(scene, reference, method):
+    problem, u_ref, lam_ref, n_ref = reference
+    r = contact.solve(scene, method=method, problem=problem)
+    assert r.converged and r.iterations <= 15
+    assert np.max(np.abs(r.u_h.x.array - u_ref)) <= 1e-8
+    assert np.max(np.abs(r.lmbda_h.x.array - lam_ref)) <= 1e-8 * np.max(np.abs(lam_ref))
+    assert r.n_active == n_ref > 0
+
+
+def test_force_balance_and_hertz_sanity(scene):
+    r = contact.solve(scene, method="min")
+    res = contact_resultants(scene, r)
+    assert res["force_balance_error"] < 1e-8
+    assert res["contact_force"] > 0 and res["symmetric_copies"] == 2
+    # Hertz relations hold for the values reported, and a coarse mesh is already close
+    a_H, p0_H = hertz(1.0, 1.0, 0.3, res["contact_force"], 2)
+    assert np.isclose(a_H, res["hertz_a"]) and np.isclose(p0_H, res["hertz_p0"])
+    assert abs(res["a_error"]) < 0.15 and abs(res["p0_error"]) < 0.15
+    assert np.all(r.lmbda_h.x.array <= 1e-12), "compressive pressure only"
+
+
+def test_gamg_with_rigid_body_modes_matches_direct(scene, reference):
+    problem, u_ref, _, _ = reference
+    assert problem.near_nullspace is not None
+    r = contact.solve(scene, method="fb", problem=problem,
+                      petsc_options={"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-12})
+    assert r.converged
+    assert np.max(np.abs(r.u_h.x.array - u_ref)) <= 1e-8
+
+
+def test_serial_and_two_ranks_agree(tmp_path):
+    script = ROOT / "tests" / "solve_methods.py"
+    scene = str(ROOT / "configs" / "hertz_2d.yaml")
+    out1, out2 = tmp_path / "s.npz", tmp_path / "p.npz"
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    args = [scene] + [f"--set={o}" for o in SMALL]
+    subprocess.run([sys.executable, str(script), str(out1), *args], check=True, timeout=300, env=env)
+    subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script), str(out2), *args], check=True,
+                   timeout=300, env=env)
+    s, p = dict(np.load(out1)), dict(np.load(out2))
+    for method in ("fb", "min", "blend", "vinewtonrsls"):
+        key = f"hertz_2d/{method}"
+        assert np.allclose(s[key + "/X"], p[key + "/X"], atol=1e-12)
+        assert np.max(np.abs(s[key + "/u"] - p[key + "/u"])) <= 1e-8
+        assert np.max(np.abs(s[key + "/lambda"] - p[key + "/lambda"])) <= 1e-8 * np.max(np.abs(s[key + "/lambda"]))
+        assert s[key + "/info"][3] == p[key + "/info"][3]
+
+
+@pytest.mark.parametrize("override,message", [
+    ("model.E=-1", "model.E: must be > 0"),
+    ("model.nu=0.5", "model.nu: must lie in [0, 0.5)"),
+    ("obstacle.normal=[1,1]", "obstacle.normal: only coordinate-aligned normals"),
+    ("obstacle.normal=[0,0]", "obstacle.normal: must not be the zero vector"),
+    ("data.g=0", "data.g: not used by model type elasticity"),
+])
+def test_bad_elasticity_input(override, message):
+    with pytest.raises(contact.ConfigError, match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)")):
+        scene = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", SMALL + [override])
+        build_problem(scene)
