@@ -1,6 +1,6 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, run the test suite
-# make bench — speed benchmark of the semismooth Newton methods (writes bench/*.csv)
+# make bench — the benchmarks (Newton methods at 512², adaptivity, Hertz); writes bench/
 SHELL := /bin/bash
 VENV  ?= .venv
 PY    := $(VENV)/bin/python
@@ -27,6 +27,8 @@ test: venv
 
 bench: venv
 	$(VENV)/bin/python demos/bench_newton.py --cells 512 --out bench/newton_512.csv
+	$(VENV)/bin/python demos/bench_adaptive.py --out bench/adaptive
+	$(VENV)/bin/python demos/bench_hertz.py --out bench/hertz
 
 clean:
 	rm -rf results bench .pytest_cache
