@@ -373,7 +373,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini (obstacles use data.psi)")
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
-    _check_vector_data(cfg, data, model)
+    _check_vector_data(cfg, model)
     if model == "elasticity":
         _check_elasticity(cfg, roles)
     elif "symmetry" in roles:
@@ -390,24 +390,12 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     return cfg
 
 
-def _check_vector_data(cfg: dict, raw: Mapping, model: str) -> None:
-    """Vector data (lists) only for elasticity; a single expression there means every
-    component (so the default "0" is the zero vector)."""
+def _check_vector_data(cfg: dict, model: str) -> None:
+    """Vector data (lists) only for elasticity (where a single expression means every
+    component, so the default "0" is the zero vector)."""
     for key in ("f", "u_D", "t"):
-        value = cfg["data"][key]
-        if isinstance(value, list) and model != "elasticity":
+        if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
-        if model == "elasticity" and not isinstance(value, list):
-            cfg["data"][key] = [value] * _gdim(cfg)
-
-
-def _gdim(cfg: dict) -> int:
-    kind = cfg["mesh"]["type"]
-    if kind in ("box", "sphere_octant"):
-        return 3
-    if kind == "gmsh":
-        return 3  # refined when the mesh is read; checked again there
-    return 2
 
 
 def _check_elasticity(cfg: dict, roles: list[str]) -> None:

@@ -89,11 +89,12 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2)."""
     t0 = time.perf_counter()
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
-    model, data, obstacle = cfg["model"], cfg["data"], cfg["obstacle"]
+    model, data, obstacle = cfg["model"], cfg["data"], cfg["obstacle"]  # data: f, u_D, t below
     gdim, tdim = msh.geometry.dim, msh.topology.dim
-    for key in ("f", "u_D", "t"):
-        if len(data[key]) != gdim:
-            raise ConfigError(f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(data[key])}")
+    data = {key: (data[key] if isinstance(data[key], list) else [data[key]] * gdim) for key in ("f", "u_D", "t")}
+    for key, texts in data.items():
+        if len(texts) != gdim:
+            raise ConfigError(f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}")
     degree = cfg["mesh"]["degree"]
     V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)

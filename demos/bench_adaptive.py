@@ -12,7 +12,6 @@ summary CSV; prints a table.
 from __future__ import annotations
 
 import argparse
-import csv
 import time
 from pathlib import Path
 
@@ -81,10 +80,7 @@ def main() -> None:
     dor = next(r for r in summary if r["problem"] == "D" and r["strategy"] == "dorfler")
     print(f"problem D: DoFs to reach energy error 1e-2: uniform {uni['dofs_to_error_1e-2']}, "
           f"Dörfler {dor['dofs_to_error_1e-2']}, ratio {uni['dofs_to_error_1e-2'] / dor['dofs_to_error_1e-2']:.1f}")
-    with open(out / "summary.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(summary[0]))
-        w.writeheader()
-        w.writerows(summary)
+    write_csv(out / "summary.csv", summary)
     print(f"wrote {out}/summary.csv")
 
 

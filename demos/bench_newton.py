@@ -11,7 +11,6 @@ memory (max RSS) is its own.  Prints a table and writes CSV.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import resource
@@ -19,6 +18,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+from contact.io import write_csv
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
 
@@ -84,10 +85,7 @@ def main() -> None:
               ", ".join(f"{r['method']} {r['speedup_vs_vinewtonrsls']:.2f}x" for r in rows))
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    with open(out, "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    write_csv(out, rows)
     print(f"wrote {out}")
 
 
