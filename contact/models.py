@@ -81,23 +81,20 @@ class DiscreteProblem:
         0/1 active set.  ``r`` is the owned residual at the solution (already in u_h),
         ``active`` the mask over the constrained DoFs."""
         V, con = self.V, self.constraint
-        full = lambda: np.zeros(V.dofmap.index_map.size_local * V.dofmap.index_map_bs  # noqa: E731
-                                + V.dofmap.index_map.num_ghosts * V.dofmap.index_map_bs)
-        lam, act = full(), full()
-        lam[con.dofs] = self.lambda_sign * r[con.dofs] / con.w
-        act[con.dofs] = active.astype(float)
         S = self.output_space or V
-        fields = []
-        for name, values in (("lambda_h", lam), ("active", act)):
+
+        def nodal(name: str, values: np.ndarray) -> fem.Function:
             fn = fem.Function(V)
-            fn.x.array[:] = values
+            fn.x.array[con.dofs] = values
             fn.x.scatter_forward()
             if name == "lambda_h":
                 self._extend_to_ends(fn)
             out = fem.Function(S, name=name)
             out.x.array[:] = fn.x.array if self.output_map is None else fn.x.array[self.output_map]
-            fields.append(out)
-        lmbda, active_fn = fields
+            return out
+
+        lmbda = nodal("lambda_h", self.lambda_sign * r[con.dofs] / con.w)
+        active_fn = nodal("active", active.astype(float))
         u = self.u_h.x.array if self.output_map is None else self.u_h.x.array[self.output_map]
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
