@@ -1,4 +1,5 @@
 """Command line:  contact run SCENE.yaml [-o OUTDIR] [--set key.path=value ...]
+               contact study STUDY.yaml [-o OUTDIR]
 
 Exit codes: 0 solved and written; 1 the solver did not converge (nothing written);
 2 bad input (one line on stderr naming the key or file).
@@ -32,6 +33,11 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene key, e.g. --set solver.method=min (repeatable)")
     run.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+    study = sub.add_parser("study", help="run a parameter study (a sweep over methods, meshes, ...) "
+                                         "and write study.csv and speed_accuracy.png")
+    study.add_argument("study", help="study YAML file (see configs/studies/)")
+    study.add_argument("-o", "--output", help="output folder (default: results/studies/<study name>)")
+    study.add_argument("-q", "--quiet", action="store_true", help="no per-run progress")
     return p
 
 
@@ -44,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     comm = MPI.COMM_WORLD
     try:
-        return _run(args, comm)
+        return _study(args, comm) if args.command == "study" else _run(args, comm)
     except _Failed:
         return 1
     except ConfigError as err:
@@ -102,6 +108,16 @@ def _run_adaptive(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
     _say(comm, format_table(result.rows))
     _say(comm, f"contact: wrote {outdir}/ (level_*.xdmf for ParaView, convergence.csv, "
                f"convergence.png, mesh_level_*.png, solution.png, summary.json)")
+    return 0
+
+
+def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
+    from .study import load_study, run_study
+
+    study = load_study(args.study)
+    outdir = Path(args.output) if args.output else Path("results") / "studies" / study.name
+    run_study(study, outdir, comm=comm, verbose=not args.quiet)
     return 0
 
 

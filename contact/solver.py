@@ -37,7 +37,7 @@ from dolfinx import fem
 
 from . import ncp
 from .config import SCENE, ConfigError, _validate
-from .models import DiscreteProblem, scalar_problem
+from .models import DiscreteProblem, nodal_scaling, scalar_problem
 from .scene import Scene
 
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
@@ -124,6 +124,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     method = opts["method"]
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     problem = problem or build_problem(scene)
+    con = problem.constraint  # the NCP scaling follows the options of this solve
+    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
+                 else float(opts["c"]))
     comm = scene.comm
     timers = {"assembly": problem.assembly_time, "solve": 0.0}
     cp = _Complementarity(problem)

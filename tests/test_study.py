@@ -1,0 +1,226 @@
+"""The study runner (issue 5): ``contact study STUDY.yaml`` runs a sweep and writes
+study.csv / study.json / speed_accuracy.png; failing runs are rows, bad study files fail
+before anything runs (exit 2, one line); 2 MPI ranks give the serial iteration counts."""
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+SQUARE = ROOT / "configs" / "signorini_square.yaml"
+FREE = ROOT / "configs" / "signorini_free_boundary.yaml"
+MPIRUN = Path(sys.executable).parent / "mpirun"
+PREFIX = "contact: error: "
+ENV = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
+TINY_COLUMNS = ["run", "method", "line_search", "repeat", "dofs", "levels", "newton_iterations",
+                "newton_iterations_total", "converged", "reason", "eta", "seconds", "peak_rss_mib",
+                "ranks", "pareto", "failure"]
+
+
+def _study(cwd: Path, *args: str, nproc: int = 1) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "contact.cli", "study", *args]
+    if nproc > 1:
+        cmd = [str(MPIRUN), "-n", str(nproc), *cmd]
+    return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=300)
+
+
+def _rows(folder: Path) -> tuple[list[str], list[dict]]:
+    with open(folder / "study.csv", newline="") as fh:
+        reader = csv.DictReader(fh)
+        return list(reader.fieldnames), list(reader)
+
+
+def _tiny(tmp_path_factory, nproc: int) -> tuple[subprocess.CompletedProcess, Path]:
+    tmp = tmp_path_factory.mktemp(f"tiny_np{nproc}")
+    out = tmp / "out"
+    proc = _study(tmp, str(ROOT / "configs" / "studies" / "tiny.yaml"), "-o", str(out), nproc=nproc)
+    assert proc.returncode == 0, proc.stderr + proc.stdout
+    return proc, out
+
+
+@pytest.fixture(scope="module")
+def tiny_serial(tmp_path_factory):
+    return _tiny(tmp_path_factory, 1)
+
+
+def test_tiny_study_end_to_end(tiny_serial) -> None:
+    proc, out = tiny_serial
+    assert sorted(p.name for p in out.iterdir()) == ["speed_accuracy.png", "study.csv", "study.json"]
+    assert (out / "speed_accuracy.png").stat().st_size > 10_000
+    assert sorted(p.name for p in out.parent.iterdir()) == ["out"]  # no .partial / .old left over
+    assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
+
+    columns, rows = _rows(out)
+    assert columns == TINY_COLUMNS
+    assert [(r["run"], r["method"], r["line_search"]) for r in rows] == [
+        ("1", "fb", "basic"), ("2", "min", "basic"), ("3", "vinewtonrsls", "basic")]
+    for r in rows:
+        assert r["converged"] == "True" and r["failure"] == "" and r["reason"].startswith("converged")
+        assert r["dofs"] == "289" and r["levels"] == "1" and r["ranks"] == "1"
+        assert 1 <= int(r["newton_iterations"]) == int(r["newton_iterations_total"]) <= 50
+        assert float(r["seconds"]) > 0 and float(r["peak_rss_mib"]) > 10
+    etas = [float(r["eta"]) for r in rows]  # the same discrete solution, so the same η
+    assert max(etas) - min(etas) < 1e-8 * etas[0]
+    assert any(r["pareto"] == "True" for r in rows)
+
+    saved = json.loads((out / "study.json").read_text())
+    assert saved["name"] == "tiny" and saved["runs"] == 3 and saved["set"] == ["mesh.cells=[16,16]"]
+    assert saved["axes"] == {"method": ["fb", "min", "vinewtonrsls"], "line_search": ["basic"]}
+    assert saved["base_scene"]["mesh"]["cells"] == [16, 16]
+
+    progress = [ln for ln in proc.stdout.splitlines() if ln.startswith("[")]
+    assert len(progress) == 3
+    assert progress[0].startswith("[1/3] method=fb line_search=basic → converged, ")
+    assert "(ETA " in progress[0] and "(ETA " not in progress[-1]
+
+
+@pytest.mark.mpi
+def test_tiny_study_two_ranks_same_iterations(tiny_serial, tmp_path_factory) -> None:
+    _, serial = tiny_serial
+    proc, parallel = _tiny(tmp_path_factory, 2)
+    assert sum(ln.startswith("[") for ln in proc.stdout.splitlines()) == 3  # progress from rank 0 only
+    _, s_rows = _rows(serial)
+    _, p_rows = _rows(parallel)
+    key = ("method", "dofs", "newton_iterations", "converged", "reason")
+    assert [tuple(r[k] for k in key) for r in p_rows] == [tuple(r[k] for k in key) for r in s_rows]
+    assert {r["ranks"] for r in p_rows} == {"2"}
+    for s, p in zip(s_rows, p_rows):
+        assert math.isclose(float(s["eta"]), float(p["eta"]), rel_tol=1e-8)
+
+
+def test_failing_runs_are_rows(tmp_path: Path) -> None:
+    """max_it = 1 cannot converge and u0 = 1/0 gives NaN: those runs are failure rows, the
+    others converge, the study exits 0."""
+    study = {"name": "failing", "scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
+             "axes": {"method": ["fb", "min"], "max_it": [1, 50], "u0": ["0", "1/0"]}}
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
+    proc = _study(tmp_path, "study.yaml", "-o", "out")
+    assert proc.returncode == 0, proc.stderr + proc.stdout
+    columns, rows = _rows(tmp_path / "out")
+    assert columns[:4] == ["run", "method", "max_it", "u0"] and columns[-1] == "failure"
+    assert len(rows) == 8
+    for r in rows:
+        ok = r["max_it"] == "50" and r["u0"] == "0"
+        assert (r["converged"] == "True") == ok, r
+        assert (r["failure"] == "") == ok, r
+        if r["u0"] == "1/0":
+            assert r["reason"] == "diverged_function_nanorinf" and "did not converge" in r["failure"]
+        elif r["max_it"] == "1":
+            assert r["reason"] == "diverged_max_it" and r["newton_iterations"] == "1"
+            assert r["failure"].startswith("did not converge (diverged_max_it) after 1 Newton iterations")
+        if not ok:
+            assert r["eta"] == "" and r["pareto"] == "False"
+    assert "FAILED (diverged_max_it), 1 its" in proc.stdout
+    assert (tmp_path / "out" / "speed_accuracy.png").is_file()
+
+
+def test_exceptions_are_rows(monkeypatch) -> None:
+    """A run that raises (a ConfigError from an impossible combination or anything else)
+    is a failure row; the next run still happens."""
+    import contact.solver
+    from contact.config import ConfigError
+    from contact.study import run_study
+
+    real = contact.solver.solve
+
+    def fake(scene, *args, **kw):
+        method = scene.cfg["solver"]["method"]
+        if method == "min":
+            raise ConfigError("solver.method: min cannot do this")
+        if method == "blend":
+            raise RuntimeError("boom\nsecond line")
+        return real(scene, *args, **kw)
+
+    monkeypatch.setattr(contact.solver, "solve", fake)
+    rows = run_study({"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
+                      "axes": {"method": ["min", "blend", "fb"]}}, verbose=False)
+    assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [
+        ("min", False, "solver.method: min cannot do this"),
+        ("blend", False, "RuntimeError: boom second line"),
+        ("fb", True, "")]
+    assert rows[0]["dofs"] == "" and rows[0]["seconds"] >= 0
+
+
+def test_adaptive_and_single_runs_with_exact_solution() -> None:
+    """Problem A (exact solution known): one solve against two uniform levels; level
+    refines the base mesh uniformly (4× the cells per level in 2D)."""
+    from contact.study import run_study
+
+    rows = run_study({"scene": str(FREE), "set": ["mesh.cells=[8,4]"], "adapt": {"max_levels": 2},
+                      "axes": {"strategy": ["none", "uniform"], "level": [0, 1]}}, verbose=False)
+    by = {(r["strategy"], r["level"]): r for r in rows}
+    assert all(r["converged"] and r["failure"] == "" for r in rows)
+    assert by["none", 0]["levels"] == 1 and by["none", 0]["stop"] == "single solve"
+    assert by["uniform", 0]["levels"] == 2 and "max_levels" in by["uniform", 0]["stop"]
+    # two uniform levels from level 0 = one solve at level 1
+    assert by["uniform", 0]["dofs"] == by["none", 1]["dofs"] == 153
+    assert math.isclose(by["uniform", 0]["error"], by["none", 1]["error"], rel_tol=1e-6)
+    assert by["uniform", 0]["newton_iterations_total"] > by["uniform", 0]["newton_iterations"]
+    assert by["none", 1]["error"] < by["none", 0]["error"] < by["none", 0]["eta"] * 10
+    assert all(r["eta"] > 0 for r in rows)
+
+
+def test_shipped_studies_validate() -> None:
+    from contact.study import load_study
+
+    tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
+    assert len(tiny.runs()) == 3 and not tiny.has_exact
+    methods = load_study(ROOT / "configs" / "studies" / "methods_free_boundary.yaml")
+    assert len(methods.runs()) == 10 and methods.has_exact and methods.adapt == {"max_levels": 6}
+
+
+def test_pareto_front() -> None:
+    from contact.study import pareto_front
+
+    pts = [(1.0, 1.0), (2.0, 0.5), (3.0, 0.5), (0.5, 1.0 + 1e-12), (1.0, 2.0), (math.nan, 0.1), (4.0, 0.1)]
+    assert pareto_front(pts) == [False, True, False, True, False, False, True]
+
+
+BAD = {
+    "unknown_key": ("colour: unknown key (expected one of name, scene, set, axes, adapt, repeat)",
+                    {"colour": "red"}),
+    "unknown_axis": ("axes.solver: unknown axis (expected one of method, mu, c,", {"axes": {"solver": ["fb"]}}),
+    "bad_method": ("axes.method[1]: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls",
+                   {"axes": {"method": ["fb", "fbb"]}}),
+    "bad_c": ("axes.c[0]: must be > 0, got -1", {"axes": {"c": [-1, "auto"]}}),
+    "bad_linear_solver": ("axes.linear_solver[0]: 'lu' is not one of direct, gamg", {"axes": {"linear_solver": ["lu"]}}),
+    "bad_u0": ("axes.u0[0]: unknown name 'foo'", {"axes": {"u0": ["foo"]}}),
+    "axis_not_list": ("axes.method: expected a non-empty list of values, got a string 'fb'", {"axes": {"method": "fb"}}),
+    "axis_duplicate": ("axes.level[1]: 1 is listed twice", {"axes": {"level": [1, 1]}}),
+    "bad_strategy": ("adapt.strategy: 'best' is not one of none, uniform, dorfler, maximum",
+                     {"adapt": {"strategy": "best"}}),
+    "repeat_string": ("repeat: expected an integer, got a string 'twice'", {"repeat": "twice"}),
+    "missing_scene_key": ("scene: required key is missing", {"scene": None}),
+    "missing_scene_file": ("scene: no such file '{tmp}/nope.yaml'", {"scene": "nope.yaml"}),
+    "set_not_string": ("set[0]: expected a string KEY.PATH=VALUE, got an integer 3", {"set": [3]}),
+    "set_bad_scene_key": ("scene.solver.metod: unknown key", {"set": ["solver.metod=fb"]}),
+    "malformed_yaml": ("{study}: malformed YAML (line 2, column 13): mapping values are not allowed", "name: x\naxes: method: [fb]\n"),
+}
+
+
+@pytest.mark.parametrize("expect,content", list(BAD.values()), ids=list(BAD))
+def test_bad_study_fails_before_running(expect: str, content, tmp_path: Path) -> None:
+    tmp_path = tmp_path.resolve()
+    study_file = tmp_path / "study.yaml"
+    if isinstance(content, str):
+        study_file.write_text(content)
+    else:
+        study = {"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "axes": {"method": ["fb"]}, **content}
+        study = {k: v for k, v in study.items() if v is not None}
+        study_file.write_text(yaml.safe_dump(study, sort_keys=False))
+    before = sorted(tmp_path.rglob("*"))
+    proc = _study(tmp_path, str(study_file), "-o", str(tmp_path / "out"))
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2, proc.stderr + proc.stdout
+    assert "Traceback" not in proc.stderr + proc.stdout and not proc.stdout.strip()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith(PREFIX + expect.format(tmp=tmp_path, study=study_file)), lines[0]
+    assert sorted(tmp_path.rglob("*")) == before  # no output folder, nothing else either
