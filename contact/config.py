@@ -131,9 +131,11 @@ SCENE: dict[str, Field] = {
                     doc="elasticity: Poisson's ratio"),
     }),
     "obstacle": Field("dict", None, schema={
-        "type": Field("str", "plane", choices=("plane",)),
-        "point": Field("list", None, doc="a point of the rigid plane"),
-        "normal": Field("list", None, doc="the plane's outward normal, pointing towards the body"),
+        "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
+        "point": Field("list", None, doc="plane: a point of the rigid plane"),
+        "normal": Field("list", None, doc="plane: its outward normal, pointing towards the body"),
+        "center": Field("list", None, doc="circle / sphere: the centre"),
+        "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
     }),
     "constants": Field("dict", schema=None, item=Field("number")),
     "data": Field("dict", schema={
@@ -404,13 +406,20 @@ def _check_elasticity(cfg: dict, roles: list[str]) -> None:
     if "contact" not in roles:
         raise ConfigError("boundaries: an elasticity scene needs a part with role: contact")
     obstacle = cfg.get("obstacle")
-    if not obstacle or obstacle["point"] is None or obstacle["normal"] is None:
-        raise ConfigError("obstacle: an elasticity scene needs obstacle.point and obstacle.normal")
-    for key in ("point", "normal"):
+    if not obstacle:
+        raise ConfigError("obstacle: an elasticity scene needs a rigid obstacle (type plane, circle or sphere)")
+    keys = ("point", "normal") if obstacle["type"] == "plane" else ("center", "radius")
+    for key in keys:
+        if obstacle[key] is None:
+            raise ConfigError(f"obstacle.{key}: required for an obstacle of type {obstacle['type']}")
+    for key in ("point", "normal", "center", "radius"):
+        if obstacle[key] is not None and key not in keys:
+            raise ConfigError(f"obstacle.{key}: not used by an obstacle of type {obstacle['type']}")
+    for key in keys[:2] if obstacle["type"] == "plane" else ("center",):
         vec = obstacle[key]
         if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in vec):
             raise ConfigError(f"obstacle.{key}: expected a list of numbers, got {vec!r}")
-    if not any(obstacle["normal"]):
+    if obstacle["type"] == "plane" and not any(obstacle["normal"]):
         raise ConfigError("obstacle.normal: must not be the zero vector")
 
 

@@ -122,46 +122,142 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
     K, b = assemble_system(a, L, bcs)
 
-    # Contact: u·n ≤ g with n = −ν a coordinate direction: a bound on the component u_k.
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
+    if obstacle["type"] == "plane":
+        contact = _plane_contact(scene, V, K, b, fixed, ds)
+    else:
+        contact = _curved_contact(scene, V, K, b, fixed, ds)
+        K, b = contact.pop("K"), contact.pop("b")
+    con = contact.pop("constraint")
+    c = cfg["solver"]["c"]
+    c = nodal_scaling(K, con.dofs, con.w, cfg["solver"]["kappa"]) if c == "auto" else float(c)
+    u_h = fem.Function(V, name="u_h")
+    data = {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None,
+            # residual without Dirichlet rows, for reaction forces: a(u_h, v) − L(v)
+            "reaction_form": fem.form(ufl.action(a_ufl, u_h) - L_ufl), **contact.pop("data")}
+    return DiscreteProblem(V, u_h, bcs, K, b, con, c, data=data, **contact,
+                           near_nullspace=rigid_body_modes(V, contact.get("basis")),
+                           assembly_time=time.perf_counter() - t0)
+
+
+def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
+    """For component k: its collapsed space S, the S → V map, and the (V-DoF, S-DoF) pairs
+    on the contact facets."""
+    S, s_to_v = V.sub(k).collapse()
+    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    tdim = V.mesh.topology.dim
+    v_dofs, s_dofs = fem.locate_dofs_topological((V.sub(k), S), tdim - 1, facets)
+    return S, s_to_v, v_dofs, s_dofs
+
+
+def _plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
+    """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
+    σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
+    obstacle, gdim = scene.cfg["obstacle"], scene.mesh.geometry.dim
     nu_o = np.asarray(obstacle["normal"], dtype=float)
     nu_o = nu_o / np.linalg.norm(nu_o)
     p = np.asarray(obstacle["point"], dtype=float)
     if len(nu_o) != gdim or len(p) != gdim:
         raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
     k, n_k = _axis(-nu_o, "obstacle.normal")
-    Q, q_to_v = V.sub(k).collapse()
-    q_to_v = np.asarray(q_to_v, dtype=np.int32).ravel()
-    facets = bnd.facets("contact")
-    v_dofs, q_dofs = fem.locate_dofs_topological((V.sub(k), Q), tdim - 1, facets)
-    fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
+    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, scene.boundary.facets("contact"))
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
     keep = (v_dofs < n_owned) & ~np.isin(v_dofs, fixed)
-    dofs, qd = v_dofs[keep].astype(np.int32), q_dofs[keep]
-    w = lumped_weights(Q, ds(bnd.ids_with_role("contact")))[qd]
-    X = Q.tabulate_dof_coordinates()[:, :gdim]
-    gap = (X - p) @ nu_o                                    # g(x) = (x − p)·ν
-    bound_q = fem.Function(Q, name="bound")
-    bound_q.x.array[:] = n_k * gap
-    constraint = Constraint(dofs, n_k * gap[qd], w, n_k)
-    c = cfg["solver"]["c"]
-    c = nodal_scaling(K, dofs, w, cfg["solver"]["kappa"]) if c == "auto" else float(c)
-    u_h = fem.Function(V, name="u_h")
-    X_ufl = ufl.SpatialCoordinate(msh)
-    return DiscreteProblem(
-        V, u_h, bcs, K, b, constraint, c,
-        data={"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "n": -nu_o, "k": k,
-              "g_ufl": ufl.dot(X_ufl - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())),
-              "exact": None,
-              # residual without Dirichlet rows, for reaction forces: a(u_h, v) − L(v)
-              "reaction_form": fem.form(ufl.action(a_ufl, u_h) - L_ufl)},
-        output_space=Q, output_map=q_to_v, output_bound=bound_q, lambda_sign=n_k,
-        near_nullspace=rigid_body_modes(V),
-        assembly_time=time.perf_counter() - t0)
+    dofs, sd = v_dofs[keep].astype(np.int32), s_dofs[keep]
+    w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
+    gap = (S.tabulate_dof_coordinates()[:, :gdim] - p) @ nu_o     # g(x) = (x − p)·ν
+    bound = fem.Function(S, name="bound")
+    bound.x.array[:] = n_k * gap
+    X = ufl.SpatialCoordinate(scene.mesh)
+    return {"constraint": Constraint(dofs, n_k * gap[sd], w, n_k),
+            "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": n_k,
+            "data": {"n": -nu_o, "n_ufl": ufl.as_vector((-nu_o).tolist()),
+                     "g_ufl": ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist()))}}
 
 
-def rigid_body_modes(V: fem.FunctionSpace) -> PETSc.NullSpace:
+def _curved_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
+    """Rigid circle (2D) or sphere (3D) of centre c and radius R_o, the body outside it:
+    n(x) = (c − x)/|c − x| and g(x) = |x − c| − R_o vary from node to node.  Each contact
+    node's displacement is rotated to its own axes (n, t[, t2]): u = Q x with Q orthogonal
+    block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, and u·n ≤ g becomes the bound x_{i,0} ≤ g_i on
+    one unknown, as for a plane.  Contact nodes with a Dirichlet or symmetry condition on
+    some component cannot be rotated and are refused (or, when fully fixed, left out)."""
+    obstacle, msh = scene.cfg["obstacle"], scene.mesh
+    gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
+    want = "circle" if gdim == 2 else "sphere"
+    if obstacle["type"] != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
+    centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
+    if len(centre) != gdim:
+        raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
+    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, 0, scene.boundary.facets("contact"))
+    n_owned_nodes = V.dofmap.index_map.size_local
+    nodes = v_dofs // bs
+    node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
+    partial = node_fixed.any(axis=1) & ~node_fixed.all(axis=1)
+    if msh.comm.allreduce(int(partial.sum())):
+        raise ConfigError("obstacle: contact nodes with a symmetry or partial Dirichlet condition "
+                          "cannot be rotated to the obstacle's normal; use a plane obstacle there")
+    keep = (nodes < n_owned_nodes) & ~node_fixed.all(axis=1)
+    nodes, sd = nodes[keep], s_dofs[keep]
+    Xs = S.tabulate_dof_coordinates()[:, :gdim]
+    dist = np.linalg.norm(Xs - centre, axis=1)
+    if msh.comm.allreduce(int(np.sum(dist[sd] < R_o * (1 - 1e-12)))):
+        raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
+    normals = (centre - Xs[sd]) / dist[sd, None]             # n = (c − x)/|c − x|
+    Q = _rotation(V, K, nodes, normals)
+    Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
+    bt = b.duplicate()
+    Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
+    w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
+    bound = fem.Function(S, name="bound")
+    bound.x.array[:] = dist - R_o
+    X = ufl.SpatialCoordinate(msh)
+    c_ufl = ufl.as_vector(centre.tolist())
+    first = _closest(msh.comm, Xs[sd], dist[sd])
+    return {"K": Kt, "b": bt, "basis": Q,
+            "constraint": Constraint((nodes * bs).astype(np.int32), (dist - R_o)[sd], w, 1.0),
+            "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
+            "data": {"n": (centre - first) / np.linalg.norm(centre - first), "normals": normals,
+                     "n_ufl": (c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
+                     "g_ufl": ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o}}
+
+
+def _closest(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    local = (float(dist.min()), X[np.argmin(dist)].tolist()) if len(dist) else (np.inf, None)
+    return np.asarray(min(comm.allgather(local), key=lambda t: t[0])[1])
+
+
+def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
+    """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
+    bs = V.dofmap.index_map_bs
+    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, nnz=(bs, 0), comm=K.comm)
+    lo, hi = Q.getOwnershipRange()
+    local_nodes = (hi - lo) // bs
+    blocks = np.tile(np.eye(bs), (local_nodes, 1, 1))
+    for node, n in zip(nodes, normals):
+        blocks[node] = _frame(n)
+    rows = (lo // bs + np.arange(local_nodes)).astype(PETSc.IntType)
+    for i, blk in zip(rows, blocks):  # one bs×bs block per owned node
+        Q.setValuesBlocked([i], [i], blk.ravel())
+    Q.assemble()
+    return Q
+
+
+def _frame(n: np.ndarray) -> np.ndarray:
+    """Columns n, t (, t2): an orthonormal frame whose first axis is n."""
+    if len(n) == 2:
+        return np.array([[n[0], -n[1]], [n[1], n[0]]])
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1)
+    return np.column_stack([n, t1, np.cross(n, t1)])
+
+
+def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None) -> PETSc.NullSpace:
     """Near-nullspace of elasticity for GAMG: gdim translations and the infinitesimal
-    rotations (1 in 2D, 3 in 3D), orthonormalised."""
+    rotations (1 in 2D, 3 in 3D), in the solver's unknowns (Qᵀ m when rotated),
+    orthonormalised."""
     msh = V.mesh
     gdim = msh.geometry.dim
     n_local = V.dofmap.index_map.size_local
@@ -179,6 +275,10 @@ def rigid_body_modes(V: fem.FunctionSpace) -> PETSc.NullSpace:
     for m in modes:
         vec = PETSc.Vec().createMPI((n_local * gdim, PETSc.DECIDE), comm=msh.comm)
         vec.array[:] = m.ravel()
+        if rotation is not None:
+            rotated = vec.duplicate()
+            rotation.multTranspose(vec, rotated)
+            vec = rotated
         for prev in basis:  # modified Gram–Schmidt
             vec.axpy(-vec.dot(prev), prev)
         vec.normalize()

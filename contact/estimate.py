@@ -101,7 +101,7 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     W = fem.functionspace(msh, ("DG", 0))
     w = ufl.TestFunction(W)
     n = ufl.FacetNormal(msh)
-    n_c = ufl.as_vector(np.asarray(p.data["n"], dtype=float).tolist())
+    n_c = p.data["n_ufl"]                                   # normal towards the obstacle
     h_T = ufl.CellDiameter(msh)
     h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
     dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)

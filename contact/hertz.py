@@ -48,10 +48,13 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     comm = scene.comm
     p = result.problem
     con = p.constraint
-    k, n = p.data["k"], np.asarray(p.data["n"])
+    n = np.asarray(p.data["n"])          # contact normal at the first point of contact
+    k = int(np.argmax(np.abs(n)))        # the reaction's component along it
     copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
     lam = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
-    force = copies * comm.allreduce(float(np.sum(con.w * -lam)), op=MPI.SUM)
+    # total force along the first contact normal: Σ w_i |λ_n,i| (n_i · n), n_i the nodal normals
+    along = p.data["normals"] @ n if "normals" in p.data else np.ones(len(con.dofs))
+    force = copies * comm.allreduce(float(np.sum(con.w * -lam * along)), op=MPI.SUM)
 
     # reaction on the Dirichlet boundary, component k
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
@@ -65,7 +68,10 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     # ρ: in-plane distance of each constrained node from the first point of contact
     V = p.V
     X = V.tabulate_dof_coordinates()[con.dofs // V.dofmap.index_map_bs, : scene.mesh.geometry.dim]
-    gap = con.sign * (con.g - result.u_h.x.array[con.dofs])
+    unknowns = p.b.duplicate()
+    p.to_unknowns(result.u_h.x.petsc_vec, unknowns)
+    gap = con.sign * (con.g - unknowns.array_r[con.dofs])
+    unknowns.destroy()
     origin = _first_contact_point(comm, X, con.g * con.sign)
     rel = X - origin
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)

@@ -67,6 +67,7 @@ class DiscreteProblem:
     output_bound: fem.Function | None = None   # the bound (g, ψ or n_k g) on S
     lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
     near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
+    basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
 
@@ -75,11 +76,25 @@ class DiscreteProblem:
         self.K.mult(x, out)
         out.axpy(-1.0, self.b)
 
-    def outputs(self, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
+    def to_unknowns(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
+        """x = Qᵀ u (the solver's unknowns from displacements; a copy when Q = I)."""
+        if self.basis is None:
+            u.copy(x)
+        else:
+            self.basis.multTranspose(u, x)
+
+    def to_displacement(self, x: PETSc.Vec, u: PETSc.Vec) -> None:
+        """u = Q x."""
+        if self.basis is None:
+            x.copy(u)
+        else:
+            self.basis.mult(x, u)
+
+    def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
         """Nodal fields on the output space S: the multiplier λ_h (λ_i = ±R_i / w_i on the
         constrained DoFs, 0 elsewhere), the gap σ(bound − u) (≥ 0 when feasible) and the
-        0/1 active set.  ``r`` is the owned residual at the solution (already in u_h),
-        ``active`` the mask over the constrained DoFs."""
+        0/1 active set.  ``x`` and ``r`` are the owned unknowns and residual at the
+        solution, ``active`` the mask over the constrained DoFs."""
         V, con = self.V, self.constraint
         S = self.output_space or V
 
@@ -95,7 +110,10 @@ class DiscreteProblem:
 
         lmbda = nodal("lambda_h", self.lambda_sign * r[con.dofs] / con.w)
         active_fn = nodal("active", active.astype(float))
-        u = self.u_h.x.array if self.output_map is None else self.u_h.x.array[self.output_map]
+        unknowns = fem.Function(V)
+        unknowns.x.array[: len(x)] = x
+        unknowns.x.scatter_forward()
+        u = unknowns.x.array if self.output_map is None else unknowns.x.array[self.output_map]
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
         return lmbda, gap, active_fn

@@ -140,7 +140,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     if u0 is None:
         from .models import _interpolate
         u0 = _interpolate(problem.V, opts["u0"], scene)
-    x.array_w[:] = u0.x.petsc_vec.array_r
+    problem.to_unknowns(u0.x.petsc_vec, x)
     dolfinx_set_bc(x, problem.bcs)
 
     snes = PETSc.SNES().create(comm)
@@ -288,10 +288,10 @@ def _petsc_message(err: PETSc.Error) -> str:
 
 
 def owned_residual(result: Result) -> np.ndarray:
-    """R(u_h) = K u_h − b at the solution, owned entries."""
+    """R = K x − b at the solution (x = Qᵀ u_h, the solver's unknowns), owned entries."""
     p = result.problem
     x, r = p.b.duplicate(), p.b.duplicate()
-    x.array_w[:] = result.u_h.x.petsc_vec.array_r
+    p.to_unknowns(result.u_h.x.petsc_vec, x)
     p.residual(x, r)
     out = r.array_r.copy()
     x.destroy()
@@ -314,10 +314,10 @@ def dolfinx_set_bc(x: PETSc.Vec, bcs: list) -> None:
 def _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code) -> Result:
     """Copy the iterate into functions: u_h, and λ_h, the gap and the active set."""
     u_h = problem.u_h
-    u_h.x.petsc_vec.array_w[:] = x.array_r
+    problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
-    lmbda, gap, active_fn = problem.outputs(r, b > a)
+    lmbda, gap, active_fn = problem.outputs(x.array_r, r, b > a)
     comm = scene.comm
     total = time.perf_counter() - t_start
     timers = {"assembly": timers["assembly"], "solve": timers["solve"]}

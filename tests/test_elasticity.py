@@ -91,3 +91,39 @@ def test_bad_elasticity_input(override, message):
     with pytest.raises(contact.ConfigError, match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)")):
         scene = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", SMALL + [override])
         build_problem(scene)
+
+
+@pytest.fixture(scope="module")
+def indentation():
+    scene = contact.load_scene(ROOT / "configs" / "indentation_2d.yaml",
+                               ["mesh.cells=[80,40]", "output.verbose=false"])
+    problem = build_problem(scene)
+    ref = contact.solve(scene, method="vinewtonrsls", problem=problem)
+    assert ref.converged
+    return scene, problem, ref.u_h.x.array.copy(), ref.n_active
+
+
+@pytest.mark.parametrize("method", ["fb", "min", "blend"])
+def test_circular_obstacle_agrees_with_vinewtonrsls(indentation, method):
+    """A rigid circle: per-node rotated unknowns, same discrete problem for every solver."""
+    scene, problem, u_ref, n_ref = indentation
+    assert problem.basis is not None
+    r = contact.solve(scene, method=method, problem=problem)
+    assert r.converged
+    assert np.max(np.abs(r.u_h.x.array - u_ref)) <= 1e-8
+    assert r.n_active == n_ref > 0
+
+
+def test_circular_obstacle_is_respected_and_balanced(indentation):
+    scene, problem, _, _ = indentation
+    r = contact.solve(scene, method="min", problem=problem)
+    res = contact_resultants(scene, r)
+    assert res["min_gap"] >= -1e-10, "no node penetrates the circle"
+    assert res["force_balance_error"] < 1e-8
+    assert abs(res["a_error"]) < 0.05 and abs(res["p0_error"]) < 0.05
+    # physical displacement of a node on the circle: |x + u - c| = R_o at active nodes
+    X = r.u_h.function_space.tabulate_dof_coordinates()[:, :2]
+    u = r.u_h.x.array.reshape(-1, 2)
+    act = r.active.x.array > 0.5
+    dist = np.linalg.norm(X[act] + u[act] - np.array([0.0, 5.0]), axis=1)
+    assert np.all(np.abs(dist - 5.0) < 1e-4)   # linearised contact: second-order gap error
