@@ -127,3 +127,22 @@ def test_circular_obstacle_is_respected_and_balanced(indentation):
     act = r.active.x.array > 0.5
     dist = np.linalg.norm(X[act] + u[act] - np.array([0.0, 5.0]), axis=1)
     assert np.all(np.abs(dist - 5.0) < 1e-4)   # linearised contact: second-order gap error
+
+
+def test_spherical_obstacle_3d_agrees_with_vinewtonrsls():
+    scene = contact.load_scene({
+        "name": "sphere_indenter", "constants": {"R": 5.0, "delta": 0.01},
+        "mesh": {"type": "box", "corners": [[-1, -1, -1], [1, 1, 0]], "cells": [12, 12, 6]},
+        "boundaries": {"top": {"role": "contact", "where": "z > -1e-10"},
+                       "bottom": {"role": "dirichlet", "where": "z < -1 + 1e-10"}},
+        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+        "obstacle": {"type": "sphere", "center": [0.0, 0.0, 5.0], "radius": 5.0},
+        "data": {"u_D": ["0", "0", "delta"]}, "output": {"verbose": False}})
+    problem = build_problem(scene)
+    ref = contact.solve(scene, method="vinewtonrsls", problem=problem).u_h.x.array.copy()
+    for method in ("fb", "min"):
+        r = contact.solve(scene, method=method, problem=problem)
+        assert r.converged and r.n_active > 0
+        assert np.max(np.abs(r.u_h.x.array - ref)) <= 1e-8
+        res = contact_resultants(scene, r)
+        assert res["force_balance_error"] < 1e-8 and res["min_gap"] >= -1e-10
