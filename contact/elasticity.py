@@ -6,10 +6,13 @@
 
 with n the unit normal towards the obstacle and g ≥ 0 the initial gap along n.  For a
 rigid plane through p with outward normal ν (pointing from the obstacle to the body),
-n = −ν and g(x) = (x − p)·ν.  When n is a coordinate direction ±e_k, u·n ≤ g is a bound on
-the single component u_k (σ = n_k, bound n_k g), so the nodal complementarity problem has
-exactly the structure of the scalar models and every solver applies unchanged; the
-multiplier λ_n,i = σ R_i / w_i is the contact pressure (negative in compression).
+n = −ν and g(x) = (x − p)·ν; for a rigid circle/sphere (centre c, radius R_o, the body
+outside) n = (c − x)/|c − x| and g = |x − c| − R_o.  When n is a coordinate direction ±e_k,
+u·n ≤ g is a bound on the single component u_k (σ = n_k, bound n_k g); otherwise each
+contact node's displacement is rotated to its (n, t) axes so that it is a bound on one
+unknown again.  Either way the nodal complementarity problem has exactly the structure of
+the scalar models and every solver applies unchanged; the multiplier λ_n,i = σ R_i / w_i
+is the contact pressure (negative in compression).
 Units: E and stresses in Pa (or any consistent unit), lengths in m, forces per unit
 thickness in N/m in 2D.
 """
@@ -60,14 +63,6 @@ def _vector(texts: list[str], scene: Scene):
 def _vector_numpy(texts: list[str], scene: Scene):
     fns = [expressions.to_numpy(t, scene.cfg["constants"]) for t in texts]
     return lambda x: np.vstack([f(x) for f in fns])
-
-
-def _axis(normal: np.ndarray, what: str) -> tuple[int, float]:
-    """(k, n_k) when ``normal`` is ±e_k; ConfigError otherwise."""
-    k = int(np.argmax(np.abs(normal)))
-    if abs(abs(normal[k]) - 1.0) > 1e-12:
-        raise ConfigError(f"{what}: only coordinate-aligned normals are supported so far, got {normal.tolist()}")
-    return k, float(np.sign(normal[k]))
 
 
 def _facet_normal_axis(scene: Scene, name: str) -> int:
@@ -127,7 +122,7 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
         contact = _plane_contact(scene, V, K, b, fixed, ds)
     else:
         contact = _curved_contact(scene, V, K, b, fixed, ds)
-        K, b = contact.pop("K"), contact.pop("b")
+    K, b = contact.pop("K", K), contact.pop("b", b)
     con = contact.pop("constraint")
     c = cfg["solver"]["c"]
     c = nodal_scaling(K, con.dofs, con.w, cfg["solver"]["kappa"]) if c == "auto" else float(c)
@@ -159,7 +154,15 @@ def _plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     p = np.asarray(obstacle["point"], dtype=float)
     if len(nu_o) != gdim or len(p) != gdim:
         raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
-    k, n_k = _axis(-nu_o, "obstacle.normal")
+    k = int(np.argmax(np.abs(nu_o)))
+    if abs(abs(nu_o[k]) - 1.0) > 1e-12:  # a tilted plane: rotate the contact nodes
+        X = ufl.SpatialCoordinate(scene.mesh)
+        return _rotated_contact(scene, V, K, b, fixed, ds,
+                                normal=lambda x: np.tile(-nu_o, (len(x), 1)),
+                                gap=lambda x: (x - p) @ nu_o,
+                                n_ufl=ufl.as_vector((-nu_o).tolist()),
+                                g_ufl=ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))
+    n_k = float(np.sign(-nu_o[k]))
     S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, scene.boundary.facets("contact"))
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
     keep = (v_dofs < n_owned) & ~np.isin(v_dofs, fixed)
@@ -177,53 +180,64 @@ def _plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
 
 def _curved_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid circle (2D) or sphere (3D) of centre c and radius R_o, the body outside it:
-    n(x) = (c − x)/|c − x| and g(x) = |x − c| − R_o vary from node to node.  Each contact
-    node's displacement is rotated to its own axes (n, t[, t2]): u = Q x with Q orthogonal
-    block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, and u·n ≤ g becomes the bound x_{i,0} ≤ g_i on
-    one unknown, as for a plane.  Contact nodes with a Dirichlet or symmetry condition on
-    some component cannot be rotated and are refused (or, when fully fixed, left out)."""
+    n(x) = (c − x)/|c − x| and g(x) = |x − c| − R_o vary from node to node."""
     obstacle, msh = scene.cfg["obstacle"], scene.mesh
-    gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
+    gdim = msh.geometry.dim
     want = "circle" if gdim == 2 else "sphere"
     if obstacle["type"] != want:
         raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
     centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
     if len(centre) != gdim:
         raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
+    X = ufl.SpatialCoordinate(msh)
+    c_ufl = ufl.as_vector(centre.tolist())
+    return _rotated_contact(
+        scene, V, K, b, fixed, ds,
+        normal=lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
+        gap=lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
+        n_ufl=(c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
+        g_ufl=ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o)
+
+
+def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl) -> dict:
+    """Contact along a normal n(x) that is not a coordinate direction: each contact node's
+    displacement is rotated to its own axes (n, t[, t2]): u = Q x with Q orthogonal
+    block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, and u·n ≤ g becomes the bound x_{i,0} ≤ g_i on
+    one unknown, as for a coordinate plane.  ``normal``/``gap`` map node coordinates to n
+    and g.  Contact nodes with a Dirichlet or symmetry condition on some component cannot
+    be rotated and are refused (fully fixed ones are left out)."""
+    msh = scene.mesh
+    gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
     S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, 0, scene.boundary.facets("contact"))
-    n_owned_nodes = V.dofmap.index_map.size_local
     nodes = v_dofs // bs
     node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
     partial = node_fixed.any(axis=1) & ~node_fixed.all(axis=1)
     if msh.comm.allreduce(int(partial.sum())):
         raise ConfigError("obstacle: contact nodes with a symmetry or partial Dirichlet condition "
-                          "cannot be rotated to the obstacle's normal; use a plane obstacle there")
-    keep = (nodes < n_owned_nodes) & ~node_fixed.all(axis=1)
+                          "cannot be rotated to the obstacle's normal")
+    keep = (nodes < V.dofmap.index_map.size_local) & ~node_fixed.all(axis=1)
     nodes, sd = nodes[keep], s_dofs[keep]
     Xs = S.tabulate_dof_coordinates()[:, :gdim]
-    dist = np.linalg.norm(Xs - centre, axis=1)
-    if msh.comm.allreduce(int(np.sum(dist[sd] < R_o * (1 - 1e-12)))):
+    g_all = gap(Xs)
+    if msh.comm.allreduce(int(np.sum(g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs)))))) ):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
-    normals = (centre - Xs[sd]) / dist[sd, None]             # n = (c − x)/|c − x|
+    normals = normal(Xs[sd])
     Q = _rotation(V, K, nodes, normals)
     Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
     bt = b.duplicate()
     Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
     w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
     bound = fem.Function(S, name="bound")
-    bound.x.array[:] = dist - R_o
-    X = ufl.SpatialCoordinate(msh)
-    c_ufl = ufl.as_vector(centre.tolist())
-    first = _closest(msh.comm, Xs[sd], dist[sd])
+    bound.x.array[:] = g_all
+    first = _closest(msh.comm, Xs[sd], g_all[sd])
     return {"K": Kt, "b": bt, "basis": Q,
-            "constraint": Constraint((nodes * bs).astype(np.int32), (dist - R_o)[sd], w, 1.0),
+            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0),
             "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
-            "data": {"n": (centre - first) / np.linalg.norm(centre - first), "normals": normals,
-                     "n_ufl": (c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
-                     "g_ufl": ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o}}
+            "data": {"n": normal(first[None, :])[0], "normals": normals, "n_ufl": n_ufl, "g_ufl": g_ufl}}
 
 
 def _closest(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """The point of X with the smallest ``dist`` over all ranks (the first point of contact)."""
     local = (float(dist.min()), X[np.argmin(dist)].tolist()) if len(dist) else (np.inf, None)
     return np.asarray(min(comm.allgather(local), key=lambda t: t[0])[1])
 
