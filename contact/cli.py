@@ -57,6 +57,14 @@ def main(argv: list[str] | None = None) -> int:
         if comm.rank == 0:
             print(f"contact: error: {err}", file=sys.stderr, flush=True)
         return 2
+    except Exception:
+        if comm.size == 1:
+            raise
+        import traceback  # a bug on one rank must not leave the others waiting forever
+
+        traceback.print_exc()
+        comm.Abort(1)
+        raise
 
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
