@@ -23,7 +23,7 @@ from dolfinx import mesh as dmesh
 
 from .config import SCENE, _validate
 from .errors import energy_error
-from .estimate import TERMS, Estimate, estimate
+from .estimate import Estimate, estimate
 from .meshes import Boundary
 from .scene import Scene
 from .solver import Result, build_problem, solve
@@ -217,15 +217,15 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         t0 = time.perf_counter()
         new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None)
         seconds["refine"] = time.perf_counter() - t0
-        new_dofs = fem.functionspace(new_scene.mesh, ("Lagrange", scene.cfg["mesh"]["degree"])).dofmap.index_map.size_global
+        # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
+        V_next = new_u0.function_space if new_u0 is not None else \
+            fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+        new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
             break
         scene, u0 = new_scene, new_u0
     return out
-
-
-_COLUMNS = ("level", "dofs", "eta", "error", "effectivity", "newton_iterations", "active_nodes")
 
 
 def format_table(rows: list[dict]) -> str:

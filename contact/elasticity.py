@@ -30,7 +30,7 @@ from dolfinx import fem
 
 from . import expressions
 from .config import ConfigError
-from .models import Constraint, DiscreteProblem, assemble_system, lumped_weights, nodal_scaling
+from .models import Constraint, DiscreteProblem, assemble_system, lumped_weights
 from .scene import Scene
 
 
@@ -124,13 +124,11 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
         contact = _curved_contact(scene, V, K, b, fixed, ds)
     K, b = contact.pop("K", K), contact.pop("b", b)
     con = contact.pop("constraint")
-    c = cfg["solver"]["c"]
-    c = nodal_scaling(K, con.dofs, con.w, cfg["solver"]["kappa"]) if c == "auto" else float(c)
     u_h = fem.Function(V, name="u_h")
     data = {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None,
             # residual without Dirichlet rows, for reaction forces: a(u_h, v) − L(v)
             "reaction_form": fem.form(ufl.action(a_ufl, u_h) - L_ufl), **contact.pop("data")}
-    return DiscreteProblem(V, u_h, bcs, K, b, con, c, data=data, **contact,
+    return DiscreteProblem(V, u_h, bcs, K, b, con, data=data, **contact,
                            near_nullspace=rigid_body_modes(V, contact.get("basis")),
                            assembly_time=time.perf_counter() - t0)
 

@@ -45,6 +45,16 @@ class Estimate:
     terms: dict[str, float]
 
 
+def _cellwise(msh):
+    """What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
+    diameter), h_E (facet size), dx, dS, and a zero form to start sums from."""
+    w = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
+    dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
+    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    zero = fem.Constant(msh, 0.0) * w * dx
+    return w, ufl.FacetNormal(msh), ufl.CellDiameter(msh), h_E, dx, dS, zero
+
+
 def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     """The terms as UFL forms linear in a DG0 test function (SPEC §5)."""
     if scene.cfg["model"]["type"] == "elasticity":
@@ -54,15 +64,9 @@ def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     u_h, lmbda_h = result.u_h, result.lmbda_h
     k, f, t, t_C, g = (p.data[key] for key in ("k", "f", "t", "t_C", "g_h"))
     ds, bnd = p.data["ds"], scene.boundary
-    W = fem.functionspace(msh, ("DG", 0))
-    w = ufl.TestFunction(W)
-    n = ufl.FacetNormal(msh)
-    h_T = ufl.CellDiameter(msh)
-    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
-    dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
+    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     sigma = p.constraint.sign
     flux = k * ufl.grad(u_h)                       # k ∇u_h
-    zero = fem.Constant(msh, 0.0) * w * dx
     obstacle = scene.cfg["model"]["type"] == "obstacle"
 
     residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
@@ -98,16 +102,10 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     p = result.problem
     u_h, lam = result.u_h, result.lmbda_h
     f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
-    W = fem.functionspace(msh, ("DG", 0))
-    w = ufl.TestFunction(W)
-    n = ufl.FacetNormal(msh)
+    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     n_c = p.data["n_ufl"]                                   # normal towards the obstacle
-    h_T = ufl.CellDiameter(msh)
-    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
-    dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
     sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
     T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
-    zero = fem.Constant(msh, 0.0) * w * dx
     terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
              "jump": 0.5 * ufl.avg(h_E) * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n)) * (w("+") + w("-")) * dS,
              "neumann": zero, "consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}

@@ -18,7 +18,6 @@ optimisation too.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 from mpi4py import MPI
 

@@ -19,7 +19,6 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx.fem.petsc
-from dolfinx import fem
 
 from .scene import Scene
 from .solver import Result, owned_residual
@@ -51,7 +50,8 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     n = np.asarray(p.data["n"])          # contact normal at the first point of contact
     k = int(np.argmax(np.abs(n)))        # the reaction's component along it
     copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
-    lam = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
+    raw = owned_residual(result)[con.dofs] / con.w      # R_i / w_i
+    lam = p.lambda_sign * raw                             # λ_n,i
     # total force along the first contact normal: Σ w_i |λ_n,i| (n_i · n), n_i the nodal normals
     along = p.data["normals"] @ n if "normals" in p.data else np.ones(len(con.dofs))
     force = copies * comm.allreduce(float(np.sum(con.w * -lam * along)), op=MPI.SUM)
@@ -75,7 +75,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     origin = _first_contact_point(comm, X, con.g * con.sign)
     rel = X - origin
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
-    active = result.active.x.array[_output_index(p, con.dofs)] > 0.5
+    active = -con.sign * p.c * raw > gap                  # the solver's rule: b_i > a_i
     last_active = comm.allreduce(float(rho[active].max(initial=0.0)), op=MPI.MAX)
     first_free = comm.allreduce(float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN)
     a = 0.5 * (last_active + first_free) if np.isfinite(first_free) else last_active
@@ -90,15 +90,6 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
             "hertz_a": a_H, "hertz_p0": p0_H, "a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0,
             "a_over_R": a / R, "symmetric_copies": copies, "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
             "pressure_profile": _profile(comm, rho, -lam)}
-
-
-def _output_index(problem, dofs: np.ndarray) -> np.ndarray:
-    """Index of V-DoFs in the output space S (inverse of the S → V map)."""
-    if problem.output_map is None:
-        return dofs
-    inverse = np.full(int(problem.output_map.max()) + 1, -1, dtype=np.int64)
-    inverse[problem.output_map] = np.arange(len(problem.output_map))
-    return inverse[dofs]
 
 
 def _first_contact_point(comm: MPI.Comm, X: np.ndarray, gap0: np.ndarray) -> np.ndarray:

@@ -13,7 +13,6 @@ import numpy as np
 from mpi4py import MPI
 
 import basix.ufl
-import dolfinx
 import ufl
 from dolfinx import mesh as dmesh
 

@@ -57,7 +57,7 @@ class DiscreteProblem:
     K: PETSc.Mat
     b: PETSc.Vec
     constraint: Constraint
-    c: np.ndarray | float         # NCP scaling of the multiplier (gap per λ), nodal or one number
+    c: np.ndarray | float | None = None  # NCP scaling (gap per λ), nodal or one number; set by solve()
     end_dofs: np.ndarray | None = None       # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
     end_neighbours: np.ndarray | None = None # the nearest constrained DoF of each (local index)
     # Output of nodal fields on a scalar space S (S = V for scalar models; the contact
@@ -238,13 +238,11 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     g_h = _interpolate(V, bound_text, scene)
     constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
 
-    c = cfg["solver"]["c"]
-    c = nodal_scaling(K, dofs, w, cfg["solver"]["kappa"]) if c == "auto" else float(c)
     u_h = fem.Function(V, name="u_h")
     ends = {}
     if cfg["model"]["type"] == "signorini":
         ends = dict(zip(("end_dofs", "end_neighbours"), _contact_ends(V, owned, candidates, dirichlet_dofs)))
-    return DiscreteProblem(V, u_h, bcs, K, b, constraint, c, **ends,
+    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends,
                            data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
                                  "exact": data["exact"]},
                            assembly_time=time.perf_counter() - t0)

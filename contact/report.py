@@ -2,20 +2,30 @@
 from __future__ import annotations
 
 import platform
-
-import numpy as np
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from . import io, plots
-from .adapt import AdaptResult, Level, format_table
+from .adapt import AdaptResult, Level
 from .errors import energy_error
 from .scene import Scene
 from .solver import Result
 
 
-def summary(scene: Scene, result: Result, wall: float | None = None) -> dict[str, Any]:
-    """The run's figures: sizes, solver outcome, timings (seconds) and errors if known."""
+def resultants(scene: Scene, result: Result) -> dict | None:
+    """Contact resultants and Hertz values of an elasticity run (None for scalar models)."""
+    if scene.cfg["model"]["type"] != "elasticity":
+        return None
+    from .hertz import contact_resultants
+
+    return contact_resultants(scene, result)
+
+
+def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None) -> dict[str, Any]:
+    """The run's figures: sizes, solver outcome, timings (seconds), errors if known, and the
+    contact resultants ``res`` of an elasticity run."""
     con = result.problem.constraint
     comm = scene.comm
     out = {
@@ -40,10 +50,8 @@ def summary(scene: Scene, result: Result, wall: float | None = None) -> dict[str
         "time_total": wall if wall is not None else result.timings["total"],
         "host": platform.node(),
     }
-    if scene.cfg["model"]["type"] == "elasticity":
-        from .hertz import contact_resultants
-
-        out.update({k: v for k, v in contact_resultants(scene, result).items() if k != "pressure_profile"})
+    if res is not None:
+        out.update({k: v for k, v in res.items() if k != "pressure_profile"})
     exact = scene.cfg["data"]["exact"]
     if exact is not None:
         out["error_energy"] = energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
@@ -53,7 +61,8 @@ def summary(scene: Scene, result: Result, wall: float | None = None) -> dict[str
 def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
     """Write the complete output folder atomically; return the summary."""
     comm = scene.comm
-    info = summary(scene, result, wall)
+    res = resultants(scene, result)
+    info = summary(scene, result, wall, res)
     out_cfg = scene.cfg["output"]
     with io.atomic_folder(outdir, comm) as tmp:
         if out_cfg["xdmf"]:
@@ -63,7 +72,7 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
         if out_cfg["png"]:
             plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
                                 title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
-            write_pressure_plot(tmp / "pressure.png", scene, result)
+            write_pressure_plot(tmp / "pressure.png", scene, result, res)
         io.write_json(tmp / "summary.json", info, comm)
     return info
 
@@ -77,14 +86,9 @@ def cell_fields(scene: Scene, result: Result) -> list:
     return [von_mises(result.u_h, result.problem.data["mu"], result.problem.data["lmbda_L"])]
 
 
-def write_pressure_plot(path: Path, scene: Scene, result: Result) -> None:
+def write_pressure_plot(path: Path, scene: Scene, result: Result, res: dict | None) -> None:
     """Elasticity: pressure.png, the computed contact pressure with the Hertz profile."""
-    if scene.cfg["model"]["type"] != "elasticity":
-        return
-    from .hertz import contact_resultants
-
-    res = contact_resultants(scene, result)
-    if scene.comm.rank == 0:
+    if res is not None and scene.comm.rank == 0:
         plots.plot_pressure(path, res, title=f"{scene.name}: contact pressure ({result.dofs} DoFs)")
 
 
@@ -104,7 +108,8 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     rows = adaptive.rows
     io.write_csv(tmp / "convergence.csv", rows, comm)
     last = adaptive.levels[-1]
-    info = summary(last.scene, last.result, wall)
+    res = resultants(last.scene, last.result)
+    info = summary(last.scene, last.result, wall, res)
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
                  "strategy": (scene.cfg.get("adapt") or {}).get("strategy")})
     io.write_csv(tmp / "history.csv", last.result.history, comm)
@@ -116,7 +121,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
                             title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs")
         plots.plot_solution(tmp / "solution.png", last.result.u_h, last.result.active,
                             title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
-        write_pressure_plot(tmp / "pressure.png", last.scene, last.result)
+        write_pressure_plot(tmp / "pressure.png", last.scene, last.result, res)
     io.write_json(tmp / "summary.json", info, comm)
     return info
 

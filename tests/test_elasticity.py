@@ -170,3 +170,10 @@ def test_tilted_plane_agrees_with_vinewtonrsls():
         top = X[:, 1] > -1e-10
         dist = (X[top] + r.u_h.x.array.reshape(-1, 2)[top] - np.array([-1.0, 0.0])) @ nu
         assert dist.min() >= -1e-10
+
+
+def test_adaptive_dof_budget_counts_vector_dofs(scene):
+    """max_dofs bounds the displacement DoFs (gdim per node), not the mesh nodes."""
+    levels = contact.adapt(scene, method="min", max_levels=6, max_dofs=4000, verbose=False).levels
+    assert all(lv.result.dofs <= 4000 for lv in levels)
+    assert levels[-1].result.dofs > 2000, "the budget, not the level count, stopped the loop"

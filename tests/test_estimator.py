@@ -218,7 +218,6 @@ def test_consistency_term_and_all_terms_for_linear_u(signorini):
     assert est.terms["neumann"] == pytest.approx(1.0, rel=1e-12)
     assert est.terms["sign"] == 0.0
     scene, result, dofs, x = signorini
-    g_h = result.problem.data["g_h"]
     # ∫_0^1 −4.5 (−1 + x − g_h) dx with g_h the P1 interpolant of 0.1 + 2(x − ½)² (trapezoidal sum)
     xs = np.linspace(0.0, 1.0, N2 + 1)
     diff = -1 + xs - (0.1 + 2 * (xs - 0.5) ** 2)
