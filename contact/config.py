@@ -89,6 +89,12 @@ def _point_list(v: Any) -> str | None:
     return None
 
 
+def _expression_list(v: Any) -> str | None:
+    if not isinstance(v, list):
+        return f"expected a list of expressions, one per coordinate, got {_typename(v)} {v!r}"
+    return None
+
+
 def _petsc_value(v: Any) -> str | None:
     if v is None or isinstance(v, (str, int, float)):  # None: a flag option without value
         return None
@@ -120,6 +126,13 @@ SCENE: dict[str, Field] = {
         "h": Field("number", None, doc="quarter_disk / sphere_octant: mesh size away from contact"),
         "h_contact": Field("number", None, doc="quarter_disk / sphere_octant: mesh size at the contact point"),
         "zone": Field("number", None, doc="quarter_disk / sphere_octant: radius of the fine zone"),
+        "map": Field("exprs", None, check=_expression_list,
+                     doc="rectangle / unit_square / box / lshape: new vertex coordinates "
+                         "[x', y'(, z')] as expressions in the built mesh's x, y, z (lengths in "
+                         "the scene's length unit, one per coordinate), applied before the "
+                         "boundary parts are tagged (their 'where' sees mapped coordinates); "
+                         "a map that inverts or flattens a cell is an error. Not for gmsh "
+                         "meshes: shape those in gmsh, which meshes the shape it is given"),
     }),
     "boundaries": Field("dict", schema=None, item=BOUNDARY),
     "model": Field("dict", schema={
@@ -296,9 +309,11 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     """Validate a raw scene mapping; return the completed config (defaults filled in).
 
     Cross-key rules checked here: mesh keys that fit the mesh type, a mesh file that
-    exists, boundary parts with exactly one of ``where``/``tag`` (``tag`` only for gmsh
-    meshes), at least one contact part for Signorini, ``c`` > 0, and data keys that fit
-    the model (``g`` for Signorini, ``psi`` for obstacles).
+    exists, one ``mesh.map`` expression per coordinate (whether the map inverts cells is
+    checked on the mesh: :func:`contact.meshes.map_geometry`), boundary parts with exactly
+    one of ``where``/``tag`` (``tag`` only for gmsh meshes), at least one contact part for
+    Signorini, ``c`` > 0, and data keys that fit the model (``g`` for Signorini, ``psi``
+    for obstacles).
     """
     if not isinstance(data, Mapping):
         raise ConfigError(f"scene: expected a mapping, got {_typename(data)}")
@@ -314,8 +329,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     cfg["_base_dir"] = str(Path(base_dir).resolve())
 
     mesh = cfg["mesh"]
-    allowed = {"rectangle": {"corners", "cells", "diagonal"}, "unit_square": {"cells", "diagonal"},
-               "box": {"corners", "cells"}, "lshape": {"cells", "diagonal"}, "gmsh": {"file"},
+    allowed = {"rectangle": {"corners", "cells", "diagonal", "map"}, "unit_square": {"cells", "diagonal", "map"},
+               "box": {"corners", "cells", "map"}, "lshape": {"cells", "diagonal", "map"},
+               "gmsh": {"file"},
                "quarter_disk": {"radius", "h", "h_contact", "zone"},
                "sphere_octant": {"radius", "h", "h_contact", "zone"}}[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
@@ -342,6 +358,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         if len(cells) != want:
             raise ConfigError(f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got {mesh['cells']!r}")
         mesh["cells"] = cells
+    if mesh["map"] is not None and len(mesh["map"]) != dims:
+        raise ConfigError(f"mesh.map: expected {dims} expressions for a {dims}D mesh, "
+                          f"got {len(mesh['map'])}")
 
     if not cfg["boundaries"]:
         raise ConfigError("boundaries: at least one boundary part is required")

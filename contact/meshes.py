@@ -3,7 +3,9 @@
 Built-in meshes need nothing but DOLFINx: ``rectangle``/``unit_square`` and ``box``
 (structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], SPEC §7 D, built from
 NumPy arrays).  Only ``gmsh`` scenes import gmsh, to read a ``.msh`` file with physical
-tags.  Boundary parts become one facet ``MeshTags`` whose values are the part ids.
+tags.  A built-in mesh may be deformed by ``mesh.map`` (:func:`map_geometry`) before its
+boundary parts are tagged.  Boundary parts become one facet ``MeshTags`` whose values are
+the part ids.
 """
 from __future__ import annotations
 
@@ -47,7 +49,66 @@ class Boundary:
 
 
 def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    """The mesh described by ``cfg['mesh']``; for gmsh files also their facet tags."""
+    """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given); for gmsh
+    files also their facet tags."""
+    msh, tags = _built_mesh(cfg, comm)
+    if cfg["mesh"].get("map") is not None:
+        map_geometry(msh, cfg["mesh"]["map"], cfg["constants"])
+    return msh, tags
+
+
+def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] = {},
+                 key: str = "mesh.map", tol: float = 1e-12) -> None:
+    """Move every geometry node x of ``msh`` to Φ(x) = (exprs[0], exprs[1](, exprs[2]))(x).
+
+    The expressions are in the coordinates x, y, z of the mesh as built and give the new
+    coordinates in the same length unit.  Each rank maps its owned and ghost nodes with the
+    same formula, so the partition stays consistent.  The map must keep every cell's
+    orientation: with J_T = det(x'_1 − x'_0, …)/det(x_1 − x_0, …) the cell's (mean)
+    Jacobian determinant of Φ, every cell needs J_T > tol · max_T |J_T| (counted over all
+    ranks).  Non-finite coordinates (e.g. ``log(x)`` at x = 0), inverted (J_T < 0) or
+    flattened (J_T ≈ 0) cells raise one ConfigError line on every rank, naming ``key``.
+    """
+    comm, gdim = msh.comm, msh.geometry.dim
+    X = msh.geometry.x
+    old = X.T.copy()
+    new = np.array([expressions.to_numpy(e, constants)(old) for e in exprs])
+    n_owned = msh.geometry.index_map().size_local
+    for i, coord in enumerate(new):
+        bad = comm.allreduce(int(np.sum(~np.isfinite(coord[:n_owned]))), op=MPI.SUM)
+        if bad:
+            total = msh.geometry.index_map().size_global
+            raise ConfigError(f"{key}[{i}]: not a finite number at {bad} of {total} vertices")
+    before = _signed_volumes(msh)
+    X[:, :gdim] = new.T
+    jac = _signed_volumes(msh) / before
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    scale = comm.allreduce(float(np.max(np.abs(jac[:owned]), initial=0.0)), op=MPI.MAX)
+    bad = np.flatnonzero(jac[:owned] <= tol * scale)
+    n_bad = comm.allreduce(len(bad), op=MPI.SUM)
+    if n_bad:
+        first = [old[:gdim, _geometry_nodes(msh)[bad[0]]].mean(axis=1)] if len(bad) else []
+        where = next(p for p in comm.allgather(first) if p)[0]
+        at = ", ".join(f"{c} = {v:.4g}" for c, v in zip("xyz", where))
+        total = msh.topology.index_map(msh.topology.dim).size_global
+        raise ConfigError(f"{key}: the map inverts or flattens {n_bad} of {total} cells (Jacobian "
+                          f"determinant ≤ 0), e.g. the cell at {at} (unmapped)")
+
+
+def _geometry_nodes(msh: dmesh.Mesh) -> np.ndarray:
+    """The vertex geometry nodes of each cell (local cells, ghosts included)."""
+    return msh.geometry.dofmaps[0][:, : msh.topology.dim + 1]
+
+
+def _signed_volumes(msh: dmesh.Mesh) -> np.ndarray:
+    """det(x_1 − x_0, …, x_d − x_0) of each simplex (d! times its signed volume)."""
+    gdim = msh.geometry.dim
+    P = msh.geometry.x[_geometry_nodes(msh)][:, :, :gdim]
+    return np.linalg.det(P[:, 1:] - P[:, :1])
+
+
+def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
+    """The mesh of ``cfg['mesh']`` as built, before any map."""
     m = cfg["mesh"]
     kind = m["type"]
     if kind in ("rectangle", "unit_square"):
