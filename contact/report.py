@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mpi4py import MPI
 
 from . import io, plots
 from .adapt import AdaptResult, Level
@@ -23,9 +24,28 @@ def resultants(scene: Scene, result: Result) -> dict | None:
     return contact_resultants(scene, result)
 
 
+def active_measure(result: Result) -> float:
+    """The measure of the discrete contact (active) set,
+
+        |A_h| = Σ_{i ∈ A} w_i,    w_i = ∫ φ_i  (the lumped weights of the constraint set),
+
+    summed over the owned constrained nodes of every MPI rank, with A the active nodes by
+    the solver's rule (``result.active_mask``).  w_i is integrated over Ω for obstacle
+    scenes, so |A_h| is an area in 2D (m², a volume in 3D), and over Γ_C for Signorini and
+    elasticity scenes, so it is a length in 2D (m, an area in 3D) — of the modelled part
+    only when symmetry planes cut the body.  With every constrained node active it is
+    |Ω| (obstacle) or |Γ_C| (Signorini) less the weight of the nodes on the closure of
+    Γ_D, which carry no constraint.  For a contact disc of radius a, sqrt(|A_h|/π) ≈ a."""
+    con = result.problem.constraint
+    local = float(np.sum(con.w[result.active_mask]))
+    return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
 def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None) -> dict[str, Any]:
-    """The run's figures: sizes, solver outcome, timings (seconds), errors if known, and the
-    contact resultants ``res`` of an elasticity run."""
+    """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
+    ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
+    Signorini / elasticity), timings (seconds), errors if known, and the contact
+    resultants ``res`` of an elasticity run."""
     con = result.problem.constraint
     comm = scene.comm
     out = {
@@ -42,6 +62,7 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "final_residual": result.residual,
         "constrained_nodes": con.global_size(comm),
         "active_nodes": result.n_active,
+        "active_measure": active_measure(result),
         "c": result.options.get("c"),
         "line_search": result.options.get("line_search"),
         "time_assembly": result.timings["assembly"],

@@ -51,7 +51,9 @@ _counter = itertools.count()
 
 @dataclass
 class Result:
-    """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere)."""
+    """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
+    ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
+    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show."""
 
     u_h: fem.Function
     lmbda_h: fem.Function
@@ -66,6 +68,7 @@ class Result:
     n_active: int
     timings: dict
     problem: DiscreteProblem
+    active_mask: np.ndarray
     options: dict = field(default_factory=dict)
 
     @property
@@ -321,7 +324,8 @@ def _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start,
     problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
-    lmbda, gap, active_fn = problem.outputs(x.array_r, r, b > a)
+    active = b > a
+    lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     comm = scene.comm
     timers["total"] = time.perf_counter() - t_start
     timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"], 0.0)
@@ -330,5 +334,5 @@ def _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start,
                   converged=converged, reason=_REASONS.get(reason_code, str(reason_code)),
                   iterations=snes.getIterationNumber(),
                   residual=history[-1]["residual"] if history else float("nan"),
-                  method=method, n_active=comm.allreduce(int((b > a).sum()), op=MPI.SUM),
-                  timings=timers, problem=problem, options=opts)
+                  method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
+                  timings=timers, problem=problem, active_mask=active, options=opts)
