@@ -1,4 +1,5 @@
-"""Parameter studies: one scene, a cartesian product of solver / refinement settings.
+"""Parameter studies: one scene (or a few named variants of it), a cartesian product of
+solver / refinement settings, one CSV row per run and the charts that compare them.
 
 A study file (``configs/studies/*.yaml``)::
 
@@ -8,23 +9,35 @@ A study file (``configs/studies/*.yaml``)::
     axes:                                # the cartesian product is the list of runs
       method: [fb, min, vinewtonrsls]
       line_search: [basic]
+    cases:                               # optional: named variants, crossed with the axes
+      far guess: {u0: "10"}              #   any axis value, and/or
+      obtuse:    {scene: ../obtuse_square.yaml, set: [mesh.cells=[32,32]]}
     adapt: {max_levels: 6}               # options of adaptive runs (see below)
+    charts: [speed_accuracy]             # which charts to draw (:data:`CHARTS`)
     repeat: 1                            # run every combination this many times
 
 Axes (:data:`AXES`): ``method``, ``mu``, ``c`` (number or ``auto``), ``kappa``,
 ``line_search``, ``max_it``, ``u0`` (initial-guess expression) set the scene's ``solver``
 keys; ``linear_solver`` is ``direct`` (the default MUMPS LU) or ``gamg`` (BiCGStab + GAMG,
 ``ksp_rtol`` 1e-10); ``strategy`` is ``none`` (one solve) or an adaptive marking strategy
-(``uniform``, ``dorfler``, ``maximum``) with ``theta``; ``level`` refines the base mesh
+(``uniform``, ``dorfler``, ``maximum``) with ``theta`` and ``nested`` (start each level
+from the previous solution, or cold from ``u0``); ``level`` refines the base mesh
 uniformly that many times before solving (``contact.refine`` with every cell marked, so it
 works for every mesh type, gmsh files included).  Without a ``strategy`` axis a run is
 adaptive when the study's ``adapt.strategy`` or the scene's ``adapt`` section says so.
 
-Every run is one row of ``study.csv``: the swept values, DoFs, Newton iterations (for
-adaptive runs on the final level and summed over the levels), converged, the SNES reason,
-the energy error (scenes with ``data.exact``), η of the final solution, the wall time and
-the peak memory.  A run that raises or does not converge is a row with
-``converged=False`` and the reason in ``failure``; the study goes on.
+A case fixes some axis values and may swap the scene (its own file and ``set``); the runs
+are every case × every combination of the axes, and each row names its ``case``.
+
+Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton iterations
+(for adaptive runs on the final level and summed over the levels), converged, the SNES
+reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
+with ``data.exact``; relative errors of the Hertz half-width/radius and peak pressure for
+elastic contact against a plane with a radius), η, the measure of the active set, the wall
+time and the peak memory.  Every level of every run is one row of ``levels.csv``, with the
+wall time since the start of the run (the x axis of speed-against-accuracy charts).  A run
+that raises or does not converge is a row with ``converged=False`` and the reason in
+``failure``; the study goes on.
 
 Validation uses the scene schema's machinery (:class:`contact.config.Field`), so a bad
 study file fails before anything runs with one line ``<key path>: <problem>``.
@@ -53,6 +66,9 @@ LINEAR_SOLVERS: dict[str, dict] = {
     "gamg": {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10},
 }
 STRATEGIES = ("none", "uniform", "dorfler", "maximum")
+CHARTS = ("speed_accuracy", "stability", "iterations")
+#: outcome classes of a run, in the order of the stability map's legend
+OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
 
 _SOLVER = SCENE["solver"].schema
 _ADAPT = SCENE["adapt"].schema
@@ -69,9 +85,11 @@ AXES: dict[str, Field] = {
     "linear_solver": Field("str", choices=tuple(LINEAR_SOLVERS)),
     "strategy": Field("str", choices=STRATEGIES),
     "theta": _ADAPT["theta"],
+    "nested": _ADAPT["nested"],
     "level": Field("int", check=_nonnegative, doc="uniform refinements of the base mesh"),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0")
+_ADAPT_AXES = ("theta", "nested")
 
 
 def _optional(f: Field, **changes: Any) -> Field:
@@ -84,11 +102,20 @@ def _scene_ref(v: Any) -> str | None:
     return f"expected a path to a scene YAML file (or a scene mapping), got {_typename(v)} {v!r}"
 
 
+def _charts(v: list) -> str | None:
+    bad = [c for c in v if c not in CHARTS]
+    if bad:
+        return f"unknown chart {bad[0]!r} (expected some of {', '.join(CHARTS)})"
+    return None
+
+
 STUDY: dict[str, Field] = {
     "name": Field("str", None),
     "scene": Field("any", check=_scene_ref, doc="scene YAML, relative to the study file"),
     "set": Field("list", [], doc="overrides of the base scene, as contact run --set"),
     "axes": Field("any", None, doc="axis name -> list of values (validated by AXES)"),
+    "cases": Field("dict", None, schema=None, item=Field("dict", schema=None),
+                   doc="label -> {scene, set, <axis>: value}: named variants crossed with the axes"),
     "adapt": Field("dict", None, schema={
         "strategy": _optional(_ADAPT["strategy"], choices=STRATEGIES),
         "theta": _optional(_ADAPT["theta"]),
@@ -98,15 +125,28 @@ STUDY: dict[str, Field] = {
         "nested": _optional(_ADAPT["nested"]),
         "newton_rtol": _optional(_ADAPT["newton_rtol"]),
     }),
+    "charts": Field("list", ["speed_accuracy"], check=_charts, doc=f"some of {', '.join(CHARTS)}"),
     "repeat": Field("int", 1, check=_positive),
+    "warmup": Field("bool", True, doc="solve each case once, untimed, before the timed runs"),
 }
 
 
 @dataclass
+class Case:
+    """A named variant of the study's scene: its raw mapping (``set`` applied), its
+    validated config and the axis values it fixes."""
+
+    label: str | None
+    raw: dict = field(repr=False)
+    cfg: dict = field(repr=False)
+    params: dict = field(default_factory=dict)
+
+
+@dataclass
 class Study:
-    """A validated study: the base scene (raw mapping, ``set`` applied, validated once) and
-    the axes.  ``runs()`` lists the parameter combinations (cartesian product, in the order
-    of the axes as written; the last axis varies fastest)."""
+    """A validated study: the base scene, its cases (one unnamed case when the study has
+    none) and the axes.  ``runs()`` lists the parameter combinations: every case, then the
+    cartesian product of the axes in the order written (the last axis varies fastest)."""
 
     name: str
     scene: str                      # absolute path of the scene file, or "<inline>"
@@ -114,16 +154,39 @@ class Study:
     axes: dict[str, list]
     adapt: dict[str, Any]           # only the keys given
     repeat: int
-    base_raw: dict = field(repr=False)   # raw scene mapping with `set` applied
-    base_cfg: dict = field(repr=False)   # its validated config
+    cases: dict[str | None, Case] = field(repr=False)
+    charts: list[str] = field(default_factory=lambda: ["speed_accuracy"])
+    warmup: bool = True
 
     @property
+    def base_cfg(self) -> dict:
+        return next(iter(self.cases.values())).cfg
+
+    @property
+    def named_cases(self) -> bool:
+        return None not in self.cases
+
+    @functools.cached_property
     def has_exact(self) -> bool:
-        return bool(self.base_cfg["data"].get("exact"))
+        """Whether some case knows its exact solution (then rows carry the energy error)."""
+        return any(bool(c.cfg["data"].get("exact")) for c in self.cases.values())
+
+    @functools.cached_property
+    def has_hertz(self) -> bool:
+        """Whether some case is elastic contact with a Hertz radius (then rows carry the
+        relative errors of a and p0)."""
+        return any(_hertz_scene(c.cfg) for c in self.cases.values())
+
+    @property
+    def accuracy(self) -> str:
+        """The column the speed-against-accuracy chart plots."""
+        return "error" if self.has_exact else "hertz_error" if self.has_hertz else "eta"
 
     def runs(self) -> list[dict[str, Any]]:
         names = list(self.axes)
-        return [dict(zip(names, combo)) for combo in itertools.product(*(self.axes[n] for n in names))]
+        combos = [dict(zip(names, combo)) for combo in itertools.product(*(self.axes[n] for n in names))]
+        head = (lambda label: {"case": label}) if self.named_cases else (lambda label: {})
+        return [{**head(label), **combo} for label in self.cases for combo in combos]
 
     @functools.cached_property
     def adaptive_possible(self) -> bool:
@@ -132,9 +195,52 @@ class Study:
 
     def as_dict(self) -> dict[str, Any]:
         cfg = {k: v for k, v in self.base_cfg.items() if not k.startswith("_")}
-        return {"name": self.name, "scene": self.scene, "set": self.set, "axes": self.axes,
-                "adapt": self.adapt, "repeat": self.repeat, "runs": len(self.runs()) * self.repeat,
-                "base_scene": cfg}
+        out = {"name": self.name, "scene": self.scene, "set": self.set, "axes": self.axes,
+               "adapt": self.adapt, "charts": self.charts, "repeat": self.repeat,
+               "runs": len(self.runs()) * self.repeat, "base_scene": cfg}
+        if self.named_cases:
+            out["cases"] = {label: {**c.params, "scene": c.cfg.get("name")} for label, c in self.cases.items()}
+        return out
+
+
+def _hertz_scene(cfg: Mapping) -> bool:
+    return (cfg["model"]["type"] == "elasticity" and (cfg.get("obstacle") or {}).get("type", "plane") == "plane"
+            and bool(cfg["mesh"].get("radius") or cfg["constants"].get("R")))
+
+
+def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple[dict, dict, str]:
+    """Read a scene reference (a path relative to ``base_dir``, or a mapping), apply the
+    ``set`` overrides, make a relative mesh file absolute and validate: (raw, cfg, label).
+    Errors name the study key ``path``."""
+    if isinstance(ref, dict):
+        raw, scene_name, scene_dir, label = copy.deepcopy(ref), None, base_dir, "<inline>"
+    else:
+        scene_path = Path(ref).expanduser()
+        scene_path = (scene_path if scene_path.is_absolute() else Path(base_dir) / scene_path).resolve()
+        if not scene_path.is_file():
+            raise ConfigError(f"{path}scene: no such file {str(scene_path)!r}")
+        raw, scene_name, scene_dir, label = (read_yaml(scene_path), scene_path.stem,
+                                             scene_path.parent, str(scene_path))
+    if not isinstance(sets, list):
+        raise ConfigError(f"{path}set: expected a list of KEY.PATH=VALUE strings, got {_typename(sets)} {sets!r}")
+    for i, item in enumerate(sets):
+        if not isinstance(item, str) or "=" not in item:
+            raise ConfigError(f"{path}set[{i}]: expected a string KEY.PATH=VALUE, got {_typename(item)} {item!r}")
+        try:
+            raw = apply_overrides(raw, [item])
+        except ConfigError as err:
+            raise ConfigError(f"{path}set[{i}]: {str(err).removeprefix('--set ')}") from None
+    if isinstance(raw.get("mesh"), dict) and isinstance(raw["mesh"].get("file"), str):
+        mesh_file = Path(raw["mesh"]["file"])
+        if not mesh_file.is_absolute():
+            raw["mesh"]["file"] = str((Path(scene_dir) / mesh_file).resolve())
+    if not raw.get("name"):
+        raw["name"] = scene_name or "scene"
+    try:
+        cfg = load_config(raw)
+    except ConfigError as err:  # the key path inside the scene, after `set`
+        raise ConfigError(f"{path}scene.{err}") from None
+    return raw, cfg, label
 
 
 def load_study(source: str | Path | Mapping | Study) -> Study:
@@ -149,40 +255,36 @@ def load_study(source: str | Path | Mapping | Study) -> Study:
         path = Path(source)
         data, base_dir, stem = read_yaml(path), path.parent, path.stem
     st = _validate_mapping(data, Field("dict", schema=STUDY), "", {})
-
-    # the base scene: read, apply `set`, make it location-independent, validate once
-    ref = st["scene"]
-    if isinstance(ref, dict):
-        raw, scene_name, scene_dir, scene_label = copy.deepcopy(ref), None, base_dir, "<inline>"
-    else:
-        scene_path = Path(ref).expanduser()
-        scene_path = (scene_path if scene_path.is_absolute() else Path(base_dir) / scene_path).resolve()
-        if not scene_path.is_file():
-            raise ConfigError(f"scene: no such file {str(scene_path)!r}")
-        raw, scene_name, scene_dir, scene_label = (read_yaml(scene_path), scene_path.stem,
-                                                   scene_path.parent, str(scene_path))
-    for i, item in enumerate(st["set"]):
-        if not isinstance(item, str) or "=" not in item:
-            raise ConfigError(f"set[{i}]: expected a string KEY.PATH=VALUE, got {_typename(item)} {item!r}")
-        try:
-            raw = apply_overrides(raw, [item])
-        except ConfigError as err:
-            raise ConfigError(f"set[{i}]: {str(err).removeprefix('--set ')}") from None
-    if isinstance(raw.get("mesh"), dict) and isinstance(raw["mesh"].get("file"), str):
-        mesh_file = Path(raw["mesh"]["file"])
-        if not mesh_file.is_absolute():
-            raw["mesh"]["file"] = str((Path(scene_dir) / mesh_file).resolve())
-    if not raw.get("name"):
-        raw["name"] = scene_name or "scene"
-    try:
-        base_cfg = load_config(raw)
-    except ConfigError as err:  # the key path inside the scene, after `set`
-        raise ConfigError(f"scene.{err}") from None
-
+    base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "")
     axes = _validate_axes(st["axes"], base_cfg["constants"])
+    cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
+    if st["cases"]:
+        cases = {name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes)
+                 for name, spec in st["cases"].items()}
     adapt = {k: v for k, v in st["adapt"].items() if v is not None} if st["adapt"] else {}
-    return Study(name=st["name"] or stem or "study", scene=scene_label, set=list(st["set"]), axes=axes,
-                 adapt=adapt, repeat=st["repeat"], base_raw=raw, base_cfg=base_cfg)
+    return Study(name=st["name"] or stem or "study", scene=label, set=list(st["set"]), axes=axes,
+                 adapt=adapt, repeat=st["repeat"], cases=cases, charts=list(st["charts"]),
+                 warmup=st["warmup"])
+
+
+def _validate_case(name: str, spec: dict, st: dict, base_raw: dict, base_cfg: dict, base_dir: Path,
+                   axes: dict) -> Case:
+    path = f"cases.{name}."
+    raw, cfg = base_raw, base_cfg
+    if "scene" in spec or "set" in spec:  # the case's own scene (default: the study's), then its `set`
+        ref = spec.get("scene", st["scene"])
+        sets = ([] if "scene" in spec else list(st["set"])) + list(spec.get("set") or [])
+        raw, cfg, _ = _read_scene(ref, sets, base_dir, path)
+    params = {}
+    for key, value in spec.items():
+        if key in ("scene", "set"):
+            continue
+        if key not in AXES:
+            raise ConfigError(f"{path}{key}: unknown key (expected scene, set or an axis: {', '.join(AXES)})")
+        if key in axes:
+            raise ConfigError(f"{path}{key}: is also an axis of the study; set it in one place")
+        params[key] = _validate(value, AXES[key], path + key, cfg["constants"])
+    return Case(name, raw, cfg, params)
 
 
 def _validate_axes(axes: Any, constants: Mapping[str, float]) -> dict[str, list]:
@@ -205,6 +307,22 @@ def _validate_axes(axes: Any, constants: Mapping[str, float]) -> dict[str, list]
 
 
 # --------------------------------------------------------------------------------- running
+def outcome(row: Mapping[str, Any]) -> str:
+    """The class of a run for the stability map, from its SNES reason: ``converged``;
+    ``max iterations`` (the iteration limit, e.g. an active set that cycles); ``stalled``
+    (no step reduces the merit ½‖Φ‖²: line search failure, local minimum of the merit);
+    ``diverged`` (NaN/Inf, a failed linear solve, any other divergence); ``error`` (the run
+    raised, e.g. bad options)."""
+    reason = str(row.get("reason") or "")
+    if row.get("converged") is True or reason.startswith("converged"):
+        return "converged"
+    if reason == "diverged_max_it":
+        return "max iterations"
+    if reason in ("diverged_line_search", "diverged_local_min", "diverged_tr_delta"):
+        return "stalled"
+    return "diverged" if reason.startswith("diverged") else "error"
+
+
 def _peak_rss_mib(comm: MPI.Comm) -> float:
     """Peak resident memory in MiB summed over the ranks.
 
@@ -233,7 +351,9 @@ def _one_line(text: str) -> str:
 def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]:
     """The run's raw scene, its number of uniform refinements and its adaptive options
     (``None``: one solve)."""
-    raw = copy.deepcopy(study.base_raw)
+    case = study.cases[params.get("case")]
+    params = {**case.params, **params}
+    raw = copy.deepcopy(case.raw)
     solver = raw["solver"] = dict(raw.get("solver") or {})
     raw["output"] = {**(raw.get("output") or {}), "verbose": False}
     for key in _SOLVER_AXES:
@@ -242,12 +362,11 @@ def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | No
     if "linear_solver" in params:
         solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
     adapt = dict(study.adapt)
-    if "theta" in params:
-        adapt["theta"] = params["theta"]
+    adapt.update({k: params[k] for k in _ADAPT_AXES if k in params})
     strategy = adapt.pop("strategy", None)
     strategy = params.get("strategy", strategy)
     if strategy is None:
-        adaptive = study.base_cfg.get("adapt") is not None
+        adaptive = case.cfg.get("adapt") is not None
     else:
         adaptive = strategy != "none"
         if adaptive:
@@ -255,17 +374,47 @@ def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | No
     return raw, params.get("level", 0), (adapt if adaptive else None)
 
 
-def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
-    """Build the scene for ``params``, solve (or run the adaptive loop) and return the row's
-    figures (without the swept values).  Never raises for a failing run.
+def _figures(study: Study, scene, result, eta: float | None, error: float | None) -> dict[str, Any]:
+    """The accuracy figures of one converged solve: energy error, Hertz errors, η, and the
+    measure of the active set (Σ w_i over active nodes: a length or an area)."""
+    from .report import active_measure
+
+    out: dict[str, Any] = {}
+    if study.has_exact:
+        out["error"] = "" if error is None else error
+    if study.has_hertz:
+        out.update(a_error="", p0_error="", hertz_error="")
+        if _hertz_scene(scene.cfg):
+            from .hertz import contact_resultants
+
+            h = contact_resultants(scene, result)
+            out.update(a_error=h["a_error"], p0_error=h["p0_error"],
+                       hertz_error=max(abs(h["a_error"]), abs(h["p0_error"])))
+    out["eta"] = "" if eta is None else eta
+    out["active_measure"] = active_measure(result)
+    return out
+
+
+def _empty_figures(study: Study) -> dict[str, Any]:
+    out: dict[str, Any] = {"error": ""} if study.has_exact else {}
+    if study.has_hertz:
+        out.update(a_error="", p0_error="", hertz_error="")
+    return {**out, "eta": "", "active_measure": ""}
+
+
+def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD
+            ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Build the scene for ``params``, solve (or run the adaptive loop); return the row's
+    figures (without the swept values) and one row per level.  Never raises for a failing
+    run.
 
     ``seconds`` is the wall time (maximum over ranks) of building the scene, the uniform
     refinements and the solve or the whole adaptive loop (which estimates on every level);
-    for a single solve the final η / error evaluation is not included.  The first run of a
-    study also pays for any JIT compilation not yet in the FFCx cache (use ``repeat: 2``).
-    Under MPI a failure is caught on every rank alike as long as it is collective (bad
-    options, divergence, an error raised by all ranks); an exception on one rank only would
-    leave the others waiting in the next collective call, as in any MPI program."""
+    for a single solve the final η / error evaluation is not included.  A level row's
+    ``seconds`` is the time from the start of the run to the end of that level.  The first
+    run of a study also pays for any JIT compilation not yet in the FFCx cache (use
+    ``repeat: 2``).  Under MPI a failure is caught on every rank alike as long as it is
+    collective (bad options, divergence, an error raised by all ranks)."""
     from .adapt import adapt
     from .errors import energy_error
     from .estimate import estimate
@@ -273,10 +422,8 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     from .solver import solve
 
     out: dict[str, Any] = {"dofs": "", "levels": "", "newton_iterations": "", "newton_iterations_total": "",
-                           "converged": False, "reason": ""}
-    if study.has_exact:
-        out["error"] = ""
-    out["eta"] = ""
+                           "converged": False, "reason": "", **_empty_figures(study)}
+    levels: list[dict[str, Any]] = []
     comm.barrier()
     t0 = time.perf_counter()
     failure = ""
@@ -291,30 +438,37 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
                        newton_iterations_total=result.iterations, converged=bool(result.converged),
                        reason=result.reason)
             if result.converged:
-                out["eta"] = estimate(scene, result).eta
                 exact = scene.cfg["data"]["exact"]
-                if exact:
-                    out["error"] = energy_error(result.u_h, exact, result.problem.data["k"],
-                                                scene.cfg["constants"])
+                error = (energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
+                         if exact else None)
+                out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
                 failure = (f"did not converge ({result.reason}) after {result.iterations} Newton "
                            f"iterations, last |Phi| = {result.residual:.3e}")
+            levels.append({"level": 0, **{k: out[k] for k in ("dofs", "newton_iterations", "converged", "reason")},
+                           **{k: out[k] for k in _empty_figures(study)}, "seconds": seconds})
             if study.adaptive_possible:
                 out["stop"] = "single solve"
         else:
-            res = adapt(scene, verbose=False, **adapt_opts)
+            def on_level(lv) -> None:
+                row = {"level": lv.index, "dofs": lv.result.dofs, "newton_iterations": lv.result.iterations,
+                       "converged": bool(lv.result.converged), "reason": lv.result.reason}
+                row.update(_figures(study, lv.scene, lv.result, lv.estimate.eta, lv.error)
+                           if lv.result.converged else _empty_figures(study))
+                row["seconds"] = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+                levels.append(row)
+
+            res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
             seconds = time.perf_counter() - t0
-            last = res.levels[-1]
+            last = levels[-1]
             its = [lv.result.iterations for lv in res.levels]
             converged = all(lv.result.converged for lv in res.levels)
-            out.update(dofs=last.result.dofs, levels=len(res.levels), newton_iterations=its[-1],
-                       newton_iterations_total=sum(its), converged=converged, reason=last.result.reason)
+            out.update(dofs=last["dofs"], levels=len(res.levels), newton_iterations=its[-1],
+                       newton_iterations_total=sum(its), converged=converged, reason=last["reason"])
             if converged:
-                out["eta"] = last.estimate.eta
-                if study.has_exact and last.error is not None:
-                    out["error"] = last.error
+                out.update({k: last[k] for k in _empty_figures(study)})
             else:
-                failure = f"{res.stop}, last |Phi| = {last.result.residual:.3e}"
+                failure = f"{res.stop}, last |Phi| = {res.levels[-1].result.residual:.3e}"
             out["stop"] = res.stop
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         seconds = time.perf_counter() - t0
@@ -322,11 +476,14 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
         failure = str(err) if isinstance(err, ConfigError) else f"{type(err).__name__}: {err}"
         if study.adaptive_possible:
             out.setdefault("stop", "")
+    out["outcome"] = "error" if failure and not out["reason"] else outcome(out)
     out["seconds"] = round(comm.allreduce(seconds, op=MPI.MAX), 4)
     out["peak_rss_mib"] = _peak_rss_mib(comm)
     out["ranks"] = comm.size
     out["failure"] = _one_line(failure)
-    return out
+    for row in levels:
+        row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
+    return out, levels
 
 
 def _label(params: Mapping[str, Any]) -> str:
@@ -355,20 +512,36 @@ def _progress(k: int, n: int, params: Mapping[str, Any], row: Mapping[str, Any],
     return f"[{k}/{n}] {_label(params)} → {what}, {_duration(row['seconds'])}{tail}"
 
 
-def iter_study(study: Study, comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True) -> Iterator[dict]:
-    """Run the study's combinations one by one and yield each finished row."""
+def _warm_up(study: Study, comm: MPI.Comm) -> None:
+    """Run the first combination of every case once, untimed, on its base mesh (two levels
+    when adaptive, so the estimator and refinement are compiled too): the just-in-time
+    compilation of the forms (FFCx/ffcx cache misses) is then not charged to the first
+    timed run."""
+    runs = study.runs()
+    for label in study.cases:
+        params = next(p for p in runs if p.get("case") == label)
+        warm = dataclasses.replace(study, adapt={**study.adapt, "max_levels": 2}, warmup=False)
+        run_one(warm, {**params, "level": 0}, comm)
+
+
+def iter_study(study: Study, comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True
+               ) -> Iterator[tuple[dict, list[dict]]]:
+    """Run the study's combinations one by one; yield each finished row with its level rows
+    (which repeat the run number and swept values)."""
     combos = [(params, rep) for params in study.runs() for rep in range(1, study.repeat + 1)]
     n = len(combos)
+    if study.warmup:
+        _warm_up(study, comm)
     spent = 0.0
     for k, (params, rep) in enumerate(combos, start=1):
         t0 = time.perf_counter()
-        figures = run_one(study, params, comm)
+        figures, levels = run_one(study, params, comm)
         spent += comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         row = {"run": k, **params, "repeat": rep, **figures}
         if verbose and comm.rank == 0:
             label = {**params, **({"repeat": rep} if study.repeat > 1 else {})}
             print(_progress(k, n, label, row, spent / k * (n - k)), flush=True)
-        yield row
+        yield row, [{"run": k, **params, "repeat": rep, **lv} for lv in levels]
 
 
 def pareto_front(points: list[tuple[float, float]], rtol: float = 1e-6) -> list[bool]:
@@ -386,91 +559,51 @@ def pareto_front(points: list[tuple[float, float]], rtol: float = 1e-6) -> list[
             for i, p in enumerate(points)]
 
 
-def _mark_pareto(rows: list[dict], key: str) -> None:
-    pts = [(float(r["seconds"]), float(r[key])) if r["converged"] and r[key] != "" else (math.nan, math.nan)
+def mark_pareto(rows: list[dict], key: str) -> None:
+    """Add the ``pareto`` column (before ``failure`` when there is one): on the front of
+    (seconds, ``key``) among the converged rows."""
+    pts = [(float(r["seconds"]), float(r[key])) if r["converged"] and r.get(key, "") != "" else (math.nan, math.nan)
            for r in rows]
     for row, on in zip(rows, pareto_front(pts)):
-        failure = row.pop("failure")
+        failure = row.pop("failure", None)
         row["pareto"] = bool(on)
-        row["failure"] = failure   # keep the failure text the last column
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def plot_speed_accuracy(path: str | Path, study: Study, rows: list[dict]) -> None:
-    """Error (η without an exact solution) against wall time, log–log: one marker and
-    colour per combination of the non-numeric axes (numeric axes such as ``level`` or
-    ``theta`` vary along each curve), Pareto front (not dominated in both) circled and
-    joined by a dashed step line.  Failed runs are left out (their count is in the title)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    key = "error" if study.has_exact else "eta"
-    categorical = [a for a, vals in study.axes.items() if not all(_is_number(v) for v in vals)]
-    numeric = [a for a in study.axes if a not in categorical]
-    good = [r for r in rows if r["converged"] and r[key] != "" and float(r[key]) > 0 and float(r["seconds"]) > 0]
-    groups: dict[tuple, list[dict]] = {}
-    for r in good:
-        groups.setdefault(tuple(r[a] for a in categorical), []).append(r)
-    fig, ax = plt.subplots(figsize=(8, 5.5))
-    markers = "osD^v<>pPX*h"
-    for i, (gkey, members) in enumerate(groups.items()):
-        members.sort(key=lambda r: (tuple(r[a] for a in numeric), r["seconds"]))
-        t = [float(r["seconds"]) for r in members]
-        e = [float(r[key]) for r in members]
-        label = ", ".join(f"{a}={v}" for a, v in zip(categorical, gkey)) or "runs"
-        ax.loglog(t, e, marker=markers[i % len(markers)], color=f"C{i % 10}", ls="-" if len(t) > 1 else "none",
-                  lw=1, ms=6, label=label)
-    front = sorted(((float(r["seconds"]), float(r[key])) for r in good if r.get("pareto")))
-    if front:
-        ft, fe = zip(*front)
-        ax.loglog(ft, fe, "o", ms=13, mfc="none", mec="k", mew=1.2, label="Pareto front")
-        ax.step(ft, fe, where="post", color="k", ls="--", lw=0.8)
-    if not good:
-        ax.text(0.5, 0.5, "no converged run", transform=ax.transAxes, ha="center", va="center")
-    ax.set_xlabel("wall time per run [s]")
-    ax.set_ylabel("energy error ‖u − u_h‖_E" if key == "error" else "estimator η")
-    failed = sum(1 for r in rows if not r["converged"])
-    title = f"study {study.name}: {len(rows)} runs" + (f" ({failed} failed, not shown)" if failed else "")
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    if good:
-        ax.legend(fontsize=8, loc="best")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        if failure is not None:
+            row["failure"] = failure   # keep the failure text the last column
 
 
 def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = None, *,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True) -> list[dict]:
-    """Validate and run a study (YAML path, mapping or :class:`Study`); return its rows.
+              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True) -> tuple[list[dict], list[dict]]:
+    """Validate and run a study (YAML path, mapping or :class:`Study`); return its rows and
+    its level rows.
 
     Collective: call it on every rank.  With ``outdir`` the folder is written atomically
-    (``contact.io.atomic_folder``) with ``study.csv``, ``study.json`` (the validated study)
-    and ``speed_accuracy.png``; with ``outdir=None`` nothing is written.  Bad input raises
-    :class:`ConfigError` before any run; failing runs are rows with ``converged=False``
-    and a ``failure`` text.  Progress (one line per run, with an ETA) goes to rank 0's
-    stdout when ``verbose``."""
-    from . import io
+    (``contact.io.atomic_folder``) with ``study.csv``, ``levels.csv``, ``study.json`` (the
+    validated study) and the study's charts (``<chart>.png``, see :mod:`contact.charts`);
+    with ``outdir=None`` nothing is written.  Bad input raises :class:`ConfigError` before
+    any run; failing runs are rows with ``converged=False`` and a ``failure`` text.
+    Progress (one line per run, with an ETA) goes to rank 0's stdout when ``verbose``."""
+    from . import charts, io
 
     study = load_study(source)
     n = len(study.runs()) * study.repeat
     if verbose and comm.rank == 0:
         print(f"contact: study {study.name!r}: {n} run(s) on {study.scene}, {comm.size} MPI rank(s)", flush=True)
-    rows = list(iter_study(study, comm, verbose))
-    _mark_pareto(rows, "error" if study.has_exact else "eta")
+    rows, level_rows = [], []
+    for row, levels in iter_study(study, comm, verbose):
+        rows.append(row)
+        level_rows += levels
+    mark_pareto(rows, study.accuracy)
+    mark_pareto(level_rows, study.accuracy)
     if outdir is not None:
         with io.atomic_folder(outdir, comm) as tmp:
             io.write_csv(tmp / "study.csv", rows, comm)
+            io.write_csv(tmp / "levels.csv", level_rows, comm)
             io.write_json(tmp / "study.json", study.as_dict(), comm)
             if comm.rank == 0:
-                plot_speed_accuracy(tmp / "speed_accuracy.png", study, rows)
+                for chart in study.charts:
+                    charts.DRAW[chart](tmp / f"{chart}.png", study, rows, level_rows)
         if verbose and comm.rank == 0:
             ok = sum(1 for r in rows if r["converged"])
-            print(f"contact: {ok}/{n} runs converged; wrote {outdir}/ (study.csv, study.json, "
-                  f"speed_accuracy.png)", flush=True)
-    return rows
+            files = ", ".join(["study.csv", "levels.csv", "study.json", *(f"{c}.png" for c in study.charts)])
+            print(f"contact: {ok}/{n} runs converged; wrote {outdir}/ ({files})", flush=True)
+    return rows, level_rows

@@ -1,6 +1,7 @@
 """The study runner (issue 5): ``contact study STUDY.yaml`` runs a sweep and writes
-study.csv / study.json / speed_accuracy.png; failing runs are rows, bad study files fail
-before anything runs (exit 2, one line); 2 MPI ranks give the serial iteration counts."""
+study.csv / levels.csv / study.json and its charts; failing runs are rows classified by
+outcome, bad study files fail before anything runs (exit 2, one line); 2 MPI ranks give
+the serial iteration counts."""
 from __future__ import annotations
 
 import csv
@@ -21,8 +22,8 @@ MPIRUN = Path(sys.executable).parent / "mpirun"
 PREFIX = "contact: error: "
 ENV = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
 TINY_COLUMNS = ["run", "method", "line_search", "repeat", "dofs", "levels", "newton_iterations",
-                "newton_iterations_total", "converged", "reason", "eta", "seconds", "peak_rss_mib",
-                "ranks", "pareto", "failure"]
+                "newton_iterations_total", "converged", "reason", "eta", "active_measure", "outcome",
+                "seconds", "peak_rss_mib", "ranks", "pareto", "failure"]
 
 
 def _study(cwd: Path, *args: str, nproc: int = 1) -> subprocess.CompletedProcess:
@@ -53,7 +54,8 @@ def tiny_serial(tmp_path_factory):
 
 def test_tiny_study_end_to_end(tiny_serial) -> None:
     proc, out = tiny_serial
-    assert sorted(p.name for p in out.iterdir()) == ["speed_accuracy.png", "study.csv", "study.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["levels.csv", "speed_accuracy.png", "study.csv",
+                                                     "study.json"]
     assert (out / "speed_accuracy.png").stat().st_size > 10_000
     assert sorted(p.name for p in out.parent.iterdir()) == ["out"]  # no .partial / .old left over
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
@@ -64,6 +66,7 @@ def test_tiny_study_end_to_end(tiny_serial) -> None:
         ("1", "fb", "basic"), ("2", "min", "basic"), ("3", "vinewtonrsls", "basic")]
     for r in rows:
         assert r["converged"] == "True" and r["failure"] == "" and r["reason"].startswith("converged")
+        assert r["outcome"] == "converged"
         assert r["dofs"] == "289" and r["levels"] == "1" and r["ranks"] == "1"
         assert 1 <= int(r["newton_iterations"]) == int(r["newton_iterations_total"]) <= 50
         assert float(r["seconds"]) > 0 and float(r["peak_rss_mib"]) > 10
@@ -140,13 +143,14 @@ def test_exceptions_are_rows(monkeypatch) -> None:
         return real(scene, *args, **kw)
 
     monkeypatch.setattr(contact.solver, "solve", fake)
-    rows = run_study({"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
-                      "axes": {"method": ["min", "blend", "fb"]}}, verbose=False)
+    rows, _ = run_study({"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "warmup": False,
+                         "axes": {"method": ["min", "blend", "fb"]}}, verbose=False)
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [
         ("min", False, "solver.method: min cannot do this"),
         ("blend", False, "RuntimeError: boom second line"),
         ("fb", True, "")]
     assert rows[0]["dofs"] == "" and rows[0]["seconds"] >= 0
+    assert [r["outcome"] for r in rows] == ["error", "error", "converged"]
 
 
 def test_adaptive_and_single_runs_with_exact_solution() -> None:
@@ -154,8 +158,8 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
     refines the base mesh uniformly (4× the cells per level in 2D)."""
     from contact.study import run_study
 
-    rows = run_study({"scene": str(FREE), "set": ["mesh.cells=[8,4]"], "adapt": {"max_levels": 2},
-                      "axes": {"strategy": ["none", "uniform"], "level": [0, 1]}}, verbose=False)
+    rows, levels = run_study({"scene": str(FREE), "set": ["mesh.cells=[8,4]"], "adapt": {"max_levels": 2},
+                              "axes": {"strategy": ["none", "uniform"], "level": [0, 1]}}, verbose=False)
     by = {(r["strategy"], r["level"]): r for r in rows}
     assert all(r["converged"] and r["failure"] == "" for r in rows)
     assert by["none", 0]["levels"] == 1 and by["none", 0]["stop"] == "single solve"
@@ -166,15 +170,30 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
     assert by["uniform", 0]["newton_iterations_total"] > by["uniform", 0]["newton_iterations"]
     assert by["none", 1]["error"] < by["none", 0]["error"] < by["none", 0]["eta"] * 10
     assert all(r["eta"] > 0 for r in rows)
+    # levels.csv: one row per level, the last one of a run equal to the run's row
+    assert [(lv["run"], lv["level"]) for lv in levels] == [(1, 0), (2, 0), (3, 0), (3, 1), (4, 0), (4, 1)]
+    for r in rows:
+        mine = [lv for lv in levels if lv["run"] == r["run"]]
+        assert mine[-1]["dofs"] == r["dofs"] and mine[-1]["error"] == r["error"]
+        assert [lv["seconds"] for lv in mine] == sorted(lv["seconds"] for lv in mine) and mine[-1]["seconds"] <= r["seconds"]
+    adaptive = [lv for lv in levels if lv["run"] == 3]
+    assert adaptive[1]["dofs"] > adaptive[0]["dofs"] and adaptive[1]["error"] < adaptive[0]["error"]
 
 
 def test_shipped_studies_validate() -> None:
+    """Every study file `make bench` runs validates; the stability study crosses its cases
+    (all seven stress cases (a)–(g)) with the five methods."""
     from contact.study import load_study
 
     tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
     assert len(tiny.runs()) == 3 and not tiny.has_exact
-    methods = load_study(ROOT / "configs" / "studies" / "methods_free_boundary.yaml")
-    assert len(methods.runs()) == 10 and methods.has_exact and methods.adapt == {"max_levels": 6}
+    for path in sorted((ROOT / "configs" / "studies").glob("*.yaml")):
+        assert load_study(path).runs(), path
+    stab = load_study(ROOT / "configs" / "studies" / "stability.yaml")
+    assert stab.axes["method"] == ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]
+    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefg"}
+    assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
+    assert load_study(ROOT / "configs" / "studies" / "speed_accuracy_hertz.yaml").accuracy == "hertz_error"
 
 
 def test_pareto_front() -> None:
@@ -185,7 +204,7 @@ def test_pareto_front() -> None:
 
 
 BAD = {
-    "unknown_key": ("colour: unknown key (expected one of name, scene, set, axes, adapt, repeat)",
+    "unknown_key": ("colour: unknown key (expected one of name, scene, set, axes, cases, adapt, charts, repeat, warmup)",
                     {"colour": "red"}),
     "unknown_axis": ("axes.solver: unknown axis (expected one of method, mu, c,", {"axes": {"solver": ["fb"]}}),
     "bad_method": ("axes.method[1]: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls",
@@ -202,6 +221,16 @@ BAD = {
     "missing_scene_file": ("scene: no such file '{tmp}/nope.yaml'", {"scene": "nope.yaml"}),
     "set_not_string": ("set[0]: expected a string KEY.PATH=VALUE, got an integer 3", {"set": [3]}),
     "set_bad_scene_key": ("scene.solver.metod: unknown key", {"set": ["solver.metod=fb"]}),
+    "unknown_chart": ("charts: unknown chart 'pie' (expected some of speed_accuracy, stability, iterations)",
+                      {"charts": ["speed_accuracy", "pie"]}),
+    "case_not_mapping": ("cases.far: expected a mapping, got a string 'u0=10'", {"cases": {"far": "u0=10"}}),
+    "case_unknown_key": ("cases.far.colour: unknown key (expected scene, set or an axis: method,",
+                         {"cases": {"far": {"colour": 1}}}),
+    "case_is_axis": ("cases.far.method: is also an axis of the study; set it in one place",
+                     {"cases": {"far": {"method": "min"}}}),
+    "case_bad_value": ("cases.far.u0: unknown name 'foo'", {"cases": {"far": {"u0": "foo"}}}),
+    "case_missing_scene": ("cases.far.scene: no such file '{tmp}/nope.yaml'", {"cases": {"far": {"scene": "nope.yaml"}}}),
+    "case_bad_set": ("cases.far.scene.solver.metod: unknown key", {"cases": {"far": {"set": ["solver.metod=fb"]}}}),
     "malformed_yaml": ("{study}: malformed YAML (line 2, column 13): mapping values are not allowed", "name: x\naxes: method: [fb]\n"),
 }
 
@@ -224,3 +253,46 @@ def test_bad_study_fails_before_running(expect: str, content, tmp_path: Path) ->
     assert len(lines) == 1, proc.stderr
     assert lines[0].startswith(PREFIX + expect.format(tmp=tmp_path, study=study_file)), lines[0]
     assert sorted(tmp_path.rglob("*")) == before  # no output folder, nothing else either
+
+
+def test_outcome_classes() -> None:
+    from contact.study import outcome
+
+    assert outcome({"converged": True, "reason": "converged_fnorm_abs"}) == "converged"
+    assert outcome({"converged": False, "reason": "diverged_max_it"}) == "max iterations"
+    assert outcome({"converged": False, "reason": "diverged_line_search"}) == "stalled"
+    assert outcome({"converged": False, "reason": "diverged_local_min"}) == "stalled"
+    assert outcome({"converged": False, "reason": "diverged_function_nanorinf"}) == "diverged"
+    assert outcome({"converged": False, "reason": "diverged_linear_solve"}) == "diverged"
+    assert outcome({"converged": False, "reason": ""}) == "error"
+
+
+def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
+    """Named cases are crossed with the axes (case first, method fastest), each row names
+    its case and outcome; a case may swap the scene; the stability map and the
+    iterations-per-level chart are drawn; nested iteration needs fewer Newton steps than a
+    cold start on the finer levels of problem A."""
+    from contact.study import run_study
+
+    study = {"name": "cases", "scene": str(FREE), "set": ["mesh.cells=[8,4]"],
+             "axes": {"method": ["fb", "min"]},
+             "cases": {"nested": {"strategy": "uniform", "nested": True},
+                       "cold": {"strategy": "uniform", "nested": False},
+                       "one step": {"strategy": "none", "max_it": 1},
+                       "square": {"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "strategy": "none"}},
+             "adapt": {"max_levels": 3}, "charts": ["stability", "iterations", "speed_accuracy"]}
+    rows, levels = run_study(study, tmp_path / "out", verbose=False)
+    assert [(r["case"], r["method"]) for r in rows] == [
+        (c, m) for c in ("nested", "cold", "one step", "square") for m in ("fb", "min")]
+    outcomes = {(r["case"], r["method"]): r["outcome"] for r in rows}
+    assert outcomes == {**{(c, m): "converged" for c in ("nested", "cold", "square") for m in ("fb", "min")},
+                        ("one step", "fb"): "max iterations", ("one step", "min"): "max iterations"}
+    assert {r["dofs"] for r in rows if r["case"] == "square"} == {81}
+    its = {(lv["case"], lv["method"], lv["level"]): lv["newton_iterations"] for lv in levels}
+    for m in ("fb", "min"):
+        assert its["nested", m, 0] == its["cold", m, 0]           # the same first level
+        assert its["nested", m, 2] < its["cold", m, 2]             # warm start pays on level 2
+    for chart in ("stability", "iterations", "speed_accuracy"):
+        assert (tmp_path / "out" / f"{chart}.png").stat().st_size > 10_000
+    header = (tmp_path / "out" / "levels.csv").read_text().splitlines()[0].split(",")
+    assert header[:4] == ["run", "case", "method", "repeat"] and "level" in header
