@@ -1,6 +1,6 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, run the test suite
-# make bench — the benchmarks (Newton methods at 512², adaptivity, Hertz); writes bench/
+# make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, ~25 min)
 SHELL := /bin/bash
 VENV  ?= .venv
 PY    := $(VENV)/bin/python
@@ -26,9 +26,7 @@ test: venv
 	$(VENV)/bin/python -m pytest -q tests
 
 bench: venv
-	$(VENV)/bin/python demos/bench_newton.py --cells 512 --out bench/newton_512.csv
-	$(VENV)/bin/python demos/bench_adaptive.py --out bench/adaptive
-	$(VENV)/bin/python demos/bench_hertz.py --out bench/hertz
+	$(VENV)/bin/python demos/run_bench.py
 
 clean:
 	rm -rf results bench .pytest_cache

@@ -1,0 +1,81 @@
+"""`make bench`: every benchmark and every shipped study, then the report demos/RESULTS.md.
+
+The steps, each in its own process and timed (demos/results/timings.csv); every CSV and
+chart goes to demos/results/ (committed with the report, so its numbers can be checked):
+
+1. ``demos/bench_newton.py --cells 512`` — the Newton methods on the 512² square (issue 2);
+2. ``demos/bench_adaptive.py`` — rates and effectivity of the adaptive loop (issue 3);
+3. ``demos/bench_hertz.py`` — Hertz 2D/3D, every method, direct and GAMG (issue 4);
+4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
+   file (speed against accuracy, stability map, iterations per level, peer problems);
+5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
+
+    python demos/run_bench.py                 # everything (about 25 minutes on 2 cores)
+    python demos/run_bench.py --only studies  # steps 4 and 5
+    python demos/run_bench.py --only report   # step 5 on the existing CSVs
+
+Studies run serially, one process each, so their timings do not disturb one another.
+"""
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PY = sys.executable
+CONTACT = str(Path(PY).parent / "contact")
+STEPS = {
+    "newton": [[PY, "demos/bench_newton.py", "--cells", "512", "--out", "demos/results/newton_512.csv"]],
+    "adaptive": [[PY, "demos/bench_adaptive.py", "--out", "demos/results/adaptive"]],
+    "hertz": [[PY, "demos/bench_hertz.py", "--out", "demos/results/hertz"]],
+    "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
+                for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
+    "report": [[PY, "demos/make_results.py"]],
+}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", nargs="+", choices=list(STEPS), help="run only these steps (in this order)")
+    args = ap.parse_args()
+    steps = args.only or list(STEPS)
+    if "studies" in steps and "report" not in steps:
+        steps.append("report")
+    (ROOT / "demos" / "results").mkdir(exist_ok=True)
+    timings = ROOT / "demos" / "results" / "timings.csv"
+    rows = _read(timings)
+    t_all = time.perf_counter()
+    for step in steps:
+        for cmd in STEPS[step]:
+            label = " ".join(Path(c).name if i == 0 else c for i, c in enumerate(cmd))
+            print(f"\n=== {label}", flush=True)
+            t0 = time.perf_counter()
+            proc = subprocess.run(cmd, cwd=ROOT)
+            seconds = time.perf_counter() - t0
+            rows[label] = f"{seconds:.1f}"
+            _write(timings, rows)
+            if proc.returncode != 0:
+                print(f"run_bench: {label!r} failed with exit code {proc.returncode}", file=sys.stderr)
+                return proc.returncode
+            print(f"=== {label}: {seconds:.1f} s", flush=True)
+    print(f"\nrun_bench: {', '.join(steps)} done in {(time.perf_counter() - t_all) / 60:.1f} min; "
+          f"timings in {timings.relative_to(ROOT)}", flush=True)
+    return 0
+
+
+def _read(path: Path) -> dict[str, str]:
+    if not path.is_file():
+        return {}
+    lines = path.read_text().splitlines()[1:]
+    return dict(line.rsplit(",", 1) for line in lines if "," in line)
+
+
+def _write(path: Path, rows: dict[str, str]) -> None:
+    path.write_text("step,seconds\n" + "".join(f"{k},{v}\n" for k, v in rows.items()))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
