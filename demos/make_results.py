@@ -127,12 +127,19 @@ def _curves(levels: list[dict], key: str) -> dict[tuple, list[dict]]:
     return out
 
 
-def speed_accuracy(name: str, title: str, key: str, what: str) -> str:
+def _open(heading: str, name: str, chart: str) -> tuple[list[dict] | None, list[dict] | None, list[str]]:
+    """A section on study ``name``: its rows, level rows and the heading lines with the
+    chart embedded (or the "not available" line, then the rows are None)."""
     runs, levels = study(name)
-    out = [f"### {title}", ""]
+    if not runs or not levels:
+        return None, None, [heading, "", missing(f"demos/results/{name}")]
+    return runs, levels, [heading, "", f"![{name} {chart}](results/{name}/{chart}.png)", ""]
+
+
+def speed_accuracy(name: str, title: str, key: str, what: str) -> str:
+    runs, levels, out = _open(f"### {title}", name, "speed_accuracy")
     if not levels:
-        return "\n".join(out) + "\n" + missing(f"demos/results/{name}")
-    out += [f"![speed against accuracy, {title}](results/{name}/speed_accuracy.png)", ""]
+        return "\n".join(out)
     curves = _curves(levels, key)
     # the accuracy every curve reaches, and the time/DoFs each needs for it
     target = max(min(abs(r[key]) for r in c) for c in curves.values())
@@ -181,12 +188,10 @@ def _explain(case: str, method: str, what: str) -> str:
 
 
 def stability() -> str:
-    runs, _ = study("stability")
-    out = ["## 3. Stability map: where the methods fail", ""]
+    runs, _, out = _open("## 3. Stability map: where the methods fail", "stability", "stability")
     if not runs:
-        return "\n".join(out) + "\n" + missing("demos/results/stability")
-    out += ["![stability map](results/stability/stability.png)", "",
-            "[`configs/studies/stability.yaml`](../configs/studies/stability.yaml): one cold solve per "
+        return "\n".join(out)
+    out += ["[`configs/studies/stability.yaml`](../configs/studies/stability.yaml): one cold solve per "
             "cell, at most 100 Newton iterations, the lecture-notes square (32² cells) unless the case "
             "names its own scene. Cell colour = outcome class from the SNES reason "
             "(`contact.study.outcome`), number = Newton iterations.", ""]
@@ -243,12 +248,11 @@ def stability() -> str:
 
 
 def iterations() -> str:
-    runs, levels = study("iterations_levels")
-    out = ["## 4. Newton iterations against the refinement level", ""]
+    runs, levels, out = _open("## 4. Newton iterations against the refinement level", "iterations_levels",
+                              "iterations")
     if not levels:
-        return "\n".join(out) + "\n" + missing("demos/results/iterations_levels")
-    out += ["![iterations per level](results/iterations_levels/iterations.png)", "",
-            "Problem A, uniform refinement from 16 × 8 cells "
+        return "\n".join(out)
+    out += ["Problem A, uniform refinement from 16 × 8 cells "
             "([`configs/studies/iterations_levels.yaml`](../configs/studies/iterations_levels.yaml)); "
             "Newton iterations on each level:", ""]
     n_levels = max(r["level"] for r in levels) + 1
