@@ -14,6 +14,7 @@ and is called on one rank.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable
 
@@ -101,7 +102,7 @@ def speed_accuracy(path: str | Path, study: Study, rows: list[dict], level_rows:
             and float(r["seconds"]) > 0]
     cat, num = _categorical(study), _numeric(study)
     colour_of, style_of = _encodings(study, cat)
-    fig, (ax_t, ax_n) = plt.subplots(1, 2, figsize=(13, 5.5), sharey=True)
+    fig, (ax_t, ax_n) = plt.subplots(1, 2, figsize=(13, 6.5), sharey=True)
     for gkey, members in _groups(good, cat).items():
         members.sort(key=lambda r: (tuple(r[a] for a in num), r["run"], r["level"]))
         ls, marker = style_of(gkey)
@@ -111,7 +112,7 @@ def speed_accuracy(path: str | Path, study: Study, rows: list[dict], level_rows:
             runs = _groups(members, ["run"]) if any(r["level"] for r in members) else {(): members}
             for j, part in enumerate(runs.values()):
                 ax.loglog([float(r[x]) for r in part], [float(r[key]) for r in part],
-                          label=_label(cat, gkey) if (ax is ax_t and j == 0) else None, **style)
+                          label=" / ".join(map(str, gkey)) if (ax is ax_t and j == 0) else None, **style)
     front = sorted((float(r["seconds"]), float(r[key])) for r in good if r.get("pareto"))
     if front:
         ft, fe = zip(*front)
@@ -126,9 +127,13 @@ def speed_accuracy(path: str | Path, study: Study, rows: list[dict], level_rows:
     failed = sum(1 for r in rows if not r["converged"])
     fig.suptitle(f"study {study.name}: accuracy against time and DoFs, {len(rows)} runs"
                  + (f" ({failed} failed, not shown)" if failed else ""))
-    if good:
-        ax_t.legend(fontsize=7, loc="best")
-    fig.tight_layout()
+    handles, labels = ax_t.get_legend_handles_labels()
+    rows_of_legend = math.ceil(len(labels) / 5)
+    bottom = min(0.06 + 0.035 * rows_of_legend, 0.5) if handles else 0.0
+    if handles:
+        fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8, frameon=False,
+                   title=" / ".join(cat) if cat else None, title_fontsize=8)
+    fig.tight_layout(rect=(0, bottom, 1, 1))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
