@@ -24,6 +24,7 @@ from dolfinx import mesh as dmesh
 from .config import SCENE, _validate
 from .errors import energy_error
 from .estimate import Estimate, estimate
+from .geometry import curved_boundary
 from .meshes import Boundary
 from .scene import Scene
 from .solver import Result, build_problem, solve
@@ -78,7 +79,13 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
 def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
            ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
-    boundary tags to the new mesh, and interpolate ``u_h`` onto it (nested iteration)."""
+    boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
+    move the vertices on a curved boundary onto the exact surface
+    (:func:`contact.geometry.curved_boundary`; other meshes keep dolfinx's midpoints).
+
+    The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
+    them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
+    the surface shifts by at most the sagitta h²/(8R) of the old edge)."""
     msh = scene.mesh
     tdim = msh.topology.dim
     msh.topology.create_entities(1)
@@ -95,6 +102,9 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
         n_cells = new.topology.index_map(tdim).size_local + new.topology.index_map(tdim).num_ghosts
         all_cells = np.arange(n_cells, dtype=np.int32)
         u0.interpolate_nonmatching(u_h, all_cells, fem.create_interpolation_data(V, u_h.function_space, all_cells))
+    surface = curved_boundary(scene.cfg)
+    if surface is not None:
+        surface.snap(new, tags)
     return child, u0
 
 

@@ -14,17 +14,26 @@ point, grows linearly with slope ``GRADING`` beyond it, and is ``h`` everywhere 
 (gmsh Distance + Threshold fields; sizes from points, curvature and boundary are off, so
 the field alone sets the size).  Elements are linear; tetrahedra get gmsh's Netgen
 optimisation too.
+
+Refinement (``dolfinx.mesh.refine``) puts new vertices at edge midpoints, which keeps the
+coarse polygon / polyhedron; :func:`curved_boundary` gives the exact surface of tag 1 of
+these scenes, whose :meth:`CurvedBoundary.snap` moves the vertices of the refined mesh's
+tag-1 facets back onto it (as deal.II's manifolds do), so the discrete body converges to
+the disk / ball and the contact pressure to Hertz's instead of peaking at the kinks.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
+import numpy as np
 from mpi4py import MPI
 
+from dolfinx import la
 from dolfinx import mesh as dmesh
 
 from .config import ConfigError
-from .meshes import gmsh_to_mesh
+from .meshes import collapsed_cells, gmsh_to_mesh, signed_volumes
 
 CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
 GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h
@@ -88,6 +97,76 @@ def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
         gmsh.model.mesh.generate(3)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_octant", gdim=3)
+
+
+@dataclass(frozen=True)
+class CurvedBoundary:
+    """The exact surface S = {x : |x − c| = R} (a circle in 2D, a sphere in 3D) on which
+    the facets tagged ``tag`` lie; c = ``centre`` and R = ``radius`` in the mesh's length
+    unit."""
+
+    centre: tuple[float, ...]
+    radius: float
+    tag: int = CONTACT
+
+    def project(self, x: np.ndarray) -> np.ndarray:
+        """The radial projection π(x) = c + R (x − c) / |x − c| of points ``x`` (n, gdim)
+        onto S (same length unit; x = c has none).  A plane through c is mapped into itself
+        (the component of x − c normal to it stays 0), so the arc's ends on the axis / top
+        and the sphere's edges on the symmetry planes and the top stay on those planes."""
+        c = np.asarray(self.centre, dtype=float)
+        d = x - c
+        return c + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+
+    def snap(self, msh: dmesh.Mesh, tags: dmesh.MeshTags, tol: float = 1e-12) -> int:
+        """Move every geometry node of a facet tagged ``tag`` to π(x) (collective); return
+        the number of nodes moved over all ranks.
+
+        A rank may hold a node (owned or ghost) without holding a tagged facet through it,
+        so the ranks first agree on the set of nodes (a flag summed onto the owner and sent
+        back to the ghosts); each owner projects its nodes and the ghosts receive the
+        owner's coordinates, so every rank holds bit-identical coordinates.  Raises
+        RuntimeError if the move inverts or flattens a cell (cell Jacobian determinant
+        J_T ≤ tol · max J_T, :func:`contact.meshes.collapsed_cells`), e.g. a coarse mesh
+        whose cells are thinner than the sagitta h²/(8R) of its boundary edges.
+        """
+        tdim, gdim = msh.topology.dim, msh.geometry.dim
+        msh.topology.create_connectivity(tdim - 1, tdim)
+        nodes = dmesh.entities_to_geometry(msh, tdim - 1, tags.find(self.tag)).ravel()
+        imap = msh.geometry.index_map()
+        flag = la.vector(imap)
+        flag.array[nodes] = 1.0
+        flag.scatter_reverse(la.InsertMode.add)
+        flag.scatter_forward()
+        on = np.flatnonzero(flag.array > 0)
+        owned = on[on < imap.size_local]
+        X = msh.geometry.x
+        coords = la.vector(imap, gdim)
+        xs = coords.array.reshape(-1, gdim)
+        xs[:] = X[:, :gdim]
+        xs[owned] = self.project(xs[owned])
+        coords.scatter_forward()
+        before = signed_volumes(msh)
+        X[on, :gdim] = xs[on]
+        _, n_bad = collapsed_cells(msh, before, tol)
+        if n_bad:
+            total = msh.topology.index_map(tdim).size_global
+            raise RuntimeError(f"snapping the refined mesh to the curved boundary (tag {self.tag}) "
+                               f"inverts or flattens {n_bad} of {total} cells")
+        return msh.comm.allreduce(len(owned), op=MPI.SUM)
+
+
+def curved_boundary(cfg: dict) -> CurvedBoundary | None:
+    """The curved surface of the scene's mesh (validated config ``cfg``): for
+    ``quarter_disk`` the circle of radius R about (0, R), for ``sphere_octant`` the sphere
+    of radius R about (0, 0, R), tag 1 (CONTACT) in both; ``None`` for every other mesh
+    (its refinement is left as dolfinx makes it)."""
+    m = cfg["mesh"]
+    centres = {"quarter_disk": 2, "sphere_octant": 3}
+    if m["type"] not in centres:
+        return None
+    R = float(m["radius"])
+    return CurvedBoundary(centre=(0.0,) * (centres[m["type"]] - 1) + (R,), radius=R)
 
 
 def _check(radius, h, h_contact, zone) -> tuple[float, float, float, float]:

@@ -79,13 +79,9 @@ def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] 
         if bad:
             total = msh.geometry.index_map().size_global
             raise ConfigError(f"{key}[{i}]: not a finite number at {bad} of {total} vertices")
-    before = _signed_volumes(msh)
+    before = signed_volumes(msh)
     X[:, :gdim] = new.T
-    jac = _signed_volumes(msh) / before
-    owned = msh.topology.index_map(msh.topology.dim).size_local
-    scale = comm.allreduce(float(np.max(np.abs(jac[:owned]), initial=0.0)), op=MPI.MAX)
-    bad = np.flatnonzero(jac[:owned] <= tol * scale)
-    n_bad = comm.allreduce(len(bad), op=MPI.SUM)
+    bad, n_bad = collapsed_cells(msh, before, tol)
     if n_bad:
         first = [old[:gdim, _geometry_nodes(msh)[bad[0]]].mean(axis=1)] if len(bad) else []
         where = next(p for p in comm.allgather(first) if p)[0]
@@ -100,11 +96,27 @@ def _geometry_nodes(msh: dmesh.Mesh) -> np.ndarray:
     return msh.geometry.dofmaps[0][:, : msh.topology.dim + 1]
 
 
-def _signed_volumes(msh: dmesh.Mesh) -> np.ndarray:
-    """det(x_1 − x_0, …, x_d − x_0) of each simplex (d! times its signed volume)."""
+def signed_volumes(msh: dmesh.Mesh) -> np.ndarray:
+    """det(x_1 − x_0, …, x_d − x_0) of each simplex (d! times its signed volume, in the
+    mesh's length unit to the power d), local cells with ghosts."""
     gdim = msh.geometry.dim
     P = msh.geometry.x[_geometry_nodes(msh)][:, :, :gdim]
     return np.linalg.det(P[:, 1:] - P[:, :1])
+
+
+def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12) -> tuple[np.ndarray, int]:
+    """The owned cells a move of the geometry nodes inverted or flattened, and their number
+    over all ranks (collective).
+
+    ``before`` is :func:`signed_volumes` before the move; with J_T = det_after / det_before
+    the cell's (mean) Jacobian determinant of the move, a cell is bad if
+    J_T ≤ tol · max_T |J_T| (maximum over all ranks).
+    """
+    jac = signed_volumes(msh) / before
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    scale = msh.comm.allreduce(float(np.max(np.abs(jac[:owned]), initial=0.0)), op=MPI.MAX)
+    bad = np.flatnonzero(jac[:owned] <= tol * scale)
+    return bad, msh.comm.allreduce(len(bad), op=MPI.SUM)
 
 
 def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
