@@ -95,17 +95,51 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
     child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)))
-    u0 = None
-    if u_h is not None:
-        V = fem.functionspace(new, u_h.function_space.ufl_element())
-        u0 = fem.Function(V, name="u0")
-        n_cells = new.topology.index_map(tdim).size_local + new.topology.index_map(tdim).num_ghosts
-        all_cells = np.arange(n_cells, dtype=np.int32)
-        u0.interpolate_nonmatching(u_h, all_cells, fem.create_interpolation_data(V, u_h.function_space, all_cells))
+    u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     surface = curved_boundary(scene.cfg)
     if surface is not None:
         surface.snap(new, tags)
     return child, u0
+
+
+def created_cells(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
+    """(owned local cells of the refined mesh, their index in this rank's creation order).
+
+    ``dolfinx.mesh.refine`` lists per-child data (``parent_cell``, ``parent_facet``) in the
+    order the cells were created; ``original_cell_index`` maps that global creation order to
+    the new mesh's own numbering.  Cells not created on this rank are left out."""
+    n_local = new.topology.index_map(new.topology.dim).size_local
+    offset = new.comm.exscan(n_created) or 0  # global creation index -> this rank's list
+    created = np.array(new.topology.original_cell_index[:n_local], dtype=np.int64) - offset
+    ok = (created >= 0) & (created < n_created)
+    return np.flatnonzero(ok), created[ok]
+
+
+def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.Function:
+    """u_h on the refined mesh ``new`` (same element): every child cell lies in its parent,
+    so a node x of child cell c takes u_h evaluated in parent(c) — exact for the nested
+    Lagrange spaces of refinement (u0 = u_h as functions), with no point search.
+
+    If some owned DoF lies in no owned child cell (a partition corner case), the general
+    ``interpolate_nonmatching`` (a point search through the old mesh) is used instead."""
+    V = fem.functionspace(new, u_h.function_space.ufl_element())
+    u0 = fem.Function(V, name="u0")
+    cells, created = created_cells(new, len(parent_cell))
+    cell_dofs = V.dofmap.list[cells]
+    dofs, first = np.unique(cell_dofs.ravel(), return_index=True)
+    n_owned = V.dofmap.index_map.size_local
+    if new.comm.allreduce(int(np.count_nonzero(dofs < n_owned)) < n_owned, op=MPI.LOR):
+        tdim = new.topology.dim
+        all_cells = np.arange(new.topology.index_map(tdim).size_local + new.topology.index_map(tdim).num_ghosts,
+                              dtype=np.int32)
+        u0.interpolate_nonmatching(u_h, all_cells, fem.create_interpolation_data(V, u_h.function_space, all_cells))
+        return u0
+    parents = np.repeat(parent_cell[created], cell_dofs.shape[1])[first].astype(np.int32)
+    values = u_h.eval(V.tabulate_dof_coordinates()[dofs], parents)       # (n, bs)
+    bs = V.dofmap.index_map_bs
+    u0.x.array[(dofs[:, None] * bs + np.arange(bs)).ravel()] = values.reshape(len(dofs), bs).ravel()
+    u0.x.scatter_forward()
+    return u0
 
 
 def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray,
@@ -128,11 +162,7 @@ def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.n
     old_value[tags.indices] = tags.values
     n_new = len(parent_cell)
     pf = np.asarray(parent_facet, dtype=np.int64).reshape(n_new, nf)
-    n_local = new.topology.index_map(tdim).size_local
-    offset = new.comm.exscan(n_new) or 0  # global creation index -> this rank's list
-    created = np.array(new.topology.original_cell_index[:n_local], dtype=np.int64) - offset
-    ok = (created >= 0) & (created < n_new)
-    cells, created = np.flatnonzero(ok), created[ok]
+    cells, created = created_cells(new, n_new)
     child, local = np.nonzero(pf[created] >= 0)
     parents = old_c2f.array.reshape(-1, nf)[parent_cell[created[child]], pf[created[child], local]]
     values = old_value[parents]

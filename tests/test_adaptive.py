@@ -115,3 +115,16 @@ def test_coarse_hertz_cylinder_peak_pressure_converges_under_refinement():
           on_level=lambda level: p0.append(contact_resultants(level.scene, level.result)["p0_error"]))
     assert len(p0) == 3 and max(map(abs, p0)) < 0.01, p0
     assert abs(p0[2] - p0[1]) < 0.5 * abs(p0[1] - p0[0]), p0
+
+
+@pytest.mark.parametrize("nproc", [1, 2])
+def test_prolong_equals_nonmatching_interpolation(nproc):
+    """Nested iteration's prolongation by parent-cell evaluation equals dolfinx's general
+    interpolate_nonmatching (scalar P1, P2, vector P1; owned and ghost entries)."""
+    cmd = [sys.executable, str(ROOT / "tests" / "prolong_check.py")]
+    if nproc > 1:
+        cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr
+    assert float(proc.stdout.split("max difference")[1]) < 1e-12
