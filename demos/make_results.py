@@ -276,11 +276,12 @@ def iterations() -> str:
             "about two per level, min by one: the active-set search of §3 (g)); with nested iteration the "
             "count after the first level is flat — 1 for min and vinewtonrsls (the interpolated active set "
             "is already right or one step away), 2–4 for fb and blend (the superlinear tail of a smooth "
-            "NCP). Wall time tells a different story: "
+            "NCP). Wall time of the whole six-level run: "
             + ", ".join(f"{m} {g(seconds.get((m, True)))} s nested vs {g(seconds.get((m, False)))} s cold"
                         for m in METHODS if (m, True) in seconds)
-            + ". The interpolation of u_h onto the refined mesh (`interpolate_nonmatching`, a point search) "
-            "costs more than the Newton steps it saves at these sizes."]
+            + f" — nested iteration is faster for {sum(seconds[m, True] < seconds[m, False] for m in METHODS if (m, True) in seconds and (m, False) in seconds)} "
+            "of the five methods. The prolongation of u_h to the refined mesh evaluates it in each child's "
+            "parent cell (`contact.adapt.prolong`, no point search), so it costs little next to a solve."]
     return "\n".join(out) + "\n"
 
 
