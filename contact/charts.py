@@ -187,11 +187,12 @@ def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: lis
     methods = study.axes.get("method", [None])
     other = [a for a in _categorical(study) if a not in ("method", "nested")]
     fig, ax = plt.subplots(figsize=(8, 5.5))
+    combos = list(_groups(level_rows, other))  # one marker per combination of the other axes
     for (run,), members in _groups(level_rows, ["run"]).items():
         r0 = members[0]
         m = methods.index(r0.get("method")) if r0.get("method") in methods else 0
         nested = r0.get("nested", study.adapt.get("nested", True))
-        marker = MARKERS[list(_groups(level_rows, other)).index(tuple(r0[a] for a in other)) % len(MARKERS)]
+        marker = MARKERS[combos.index(tuple(r0[a] for a in other)) % len(MARKERS)]
         ok = [r for r in members if r["newton_iterations"] != ""]
         label = ", ".join([str(r0.get("method", "runs")), "nested" if nested else "cold start",
                            *(f"{a}={r0[a]}" for a in other)])

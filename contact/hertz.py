@@ -34,12 +34,19 @@ def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float,
     return a, 3.0 * force / (2.0 * np.pi * a**2)
 
 
+def hertz_radius(cfg: dict) -> float | None:
+    """R of a validated scene config: the mesh radius of a built-in Hertz geometry, else
+    the constant ``R``; None when neither is given (no Hertz values)."""
+    R = cfg["mesh"].get("radius") or cfg["constants"].get("R")
+    return None if R is None else float(R)
+
+
 def radius_of(scene: Scene) -> float:
-    """R: the mesh radius of a built-in Hertz geometry, else the constant ``R``."""
-    R = scene.cfg["mesh"].get("radius") or scene.cfg["constants"].get("R")
+    """R of :func:`hertz_radius`; a ValueError without one."""
+    R = hertz_radius(scene.cfg)
     if R is None:
         raise ValueError("Hertz values need mesh.radius or a constant R")
-    return float(R)
+    return R
 
 
 def contact_resultants(scene: Scene, result: Result) -> dict:
@@ -75,7 +82,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     origin = _first_contact_point(comm, X, con.g * con.sign)
     rel = X - origin
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
-    active = -con.sign * p.c * raw > gap                  # the solver's rule: b_i > a_i
+    active = result.active_mask                           # the solver's rule: b_i > a_i
     last_active = comm.allreduce(float(rho[active].max(initial=0.0)), op=MPI.MAX)
     first_free = comm.allreduce(float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN)
     a = 0.5 * (last_active + first_free) if np.isfinite(first_free) else last_active

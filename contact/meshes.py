@@ -57,7 +57,7 @@ def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[dmesh.Mesh, 
     return msh, tags
 
 
-def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] = {},
+def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] | None = None,
                  key: str = "mesh.map", tol: float = 1e-12) -> None:
     """Move every geometry node x of ``msh`` to Φ(x) = (exprs[0], exprs[1](, exprs[2]))(x).
 
@@ -72,7 +72,7 @@ def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] 
     comm, gdim = msh.comm, msh.geometry.dim
     X = msh.geometry.x
     old = X.T.copy()
-    new = np.array([expressions.to_numpy(e, constants)(old) for e in exprs])
+    new = np.array([expressions.to_numpy(e, constants or {})(old) for e in exprs])
     n_owned = msh.geometry.index_map().size_local
     for i, coord in enumerate(new):
         bad = comm.allreduce(int(np.sum(~np.isfinite(coord[:n_owned]))), op=MPI.SUM)

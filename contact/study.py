@@ -204,8 +204,11 @@ class Study:
 
 
 def _hertz_scene(cfg: Mapping) -> bool:
+    """Elastic contact against a plane with a known radius R (:func:`contact.hertz.hertz_radius`)."""
+    from .hertz import hertz_radius
+
     return (cfg["model"]["type"] == "elasticity" and (cfg.get("obstacle") or {}).get("type", "plane") == "plane"
-            and bool(cfg["mesh"].get("radius") or cfg["constants"].get("R")))
+            and hertz_radius(cfg) is not None)
 
 
 def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple[dict, dict, str]:
