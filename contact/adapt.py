@@ -191,7 +191,8 @@ class Level:
         row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})  # Σ_T of each term
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
-        row.update({"newton_iterations": self.result.iterations, "converged": self.result.converged,
+        row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
+                    "converged": self.result.converged,
                     "active_nodes": self.result.n_active})
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
         return row

@@ -141,7 +141,7 @@ def speed_accuracy(path: str | Path, study: Study, rows: list[dict], level_rows:
 def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> None:
     """Rows: the cases (or combinations of the axes other than ``method``); columns: the
     methods.  Colour: :func:`contact.study.outcome`; label: Newton iterations (summed over
-    the levels of an adaptive run)."""
+    the levels of an adaptive run), ``+p`` for p active-set polishing solves."""
     from matplotlib.patches import Patch
 
     from .study import OUTCOMES
@@ -161,8 +161,7 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
             r = cells.get((lk, m))
             what = r["outcome"] if r else "error"
             ax.add_patch(plt.Rectangle((j, i), 1, 1, facecolor=OUTCOME_COLOURS[what], edgecolor="white", lw=2))
-            text = "—" if r is None else (str(r["newton_iterations_total"]) if r["newton_iterations_total"] != ""
-                                          else "err")
+            text = "—" if r is None else _solves_label(r)
             ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", fontsize=9)
     ax.set_xlim(0, len(methods))
     ax.set_ylim(len(labels), 0)
@@ -174,15 +173,28 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
         side.set_visible(False)
     ax.legend(handles=[Patch(color=OUTCOME_COLOURS[o], label=o) for o in OUTCOMES],
               loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(OUTCOMES), fontsize=8, frameon=False)
-    ax.set_title(f"study {study.name}: outcome and Newton iterations", pad=22)
+    ax.set_title(f"study {study.name}: outcome and Newton iterations (+ polishing solves)", pad=22)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
+def _solves_label(r: dict) -> str:
+    """'n' Newton iterations, or 'n+p' with p polishing solves; 'err' if the run raised."""
+    if r["newton_iterations_total"] == "":
+        return "err"
+    p = r.get("polish_solves_total") or 0
+    return f"{r['newton_iterations_total']}+{p}" if int(p) else str(r["newton_iterations_total"])
+
+
+def _linear_solves(r: dict) -> int:
+    return int(r["newton_iterations"]) + int(r.get("polish_solves") or 0)
+
+
 def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> None:
-    """Newton iterations per level: colour = method, solid = nested iteration, dashed =
-    cold start; other non-numeric axes get their own marker."""
+    """Linear solves per level (Newton steps + active-set polishing solves): colour =
+    method, solid = nested iteration, dashed = cold start; other non-numeric axes get their
+    own marker."""
     plt = _pyplot()
     methods = study.axes.get("method", [None])
     other = [a for a in _categorical(study) if a not in ("method", "nested")]
@@ -197,15 +209,15 @@ def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: lis
         label = ", ".join([str(r0.get("method", "runs")), "nested" if nested else "cold start",
                            *(f"{a}={r0[a]}" for a in other)])
         shift = 0.06 * (m - (len(methods) - 1) / 2)  # side by side where counts coincide
-        ax.plot([r["level"] + shift for r in ok], [int(r["newton_iterations"]) for r in ok], color=f"C{m % 10}",
+        ax.plot([r["level"] + shift for r in ok], [_linear_solves(r) for r in ok], color=f"C{m % 10}",
                 ls="-" if nested else "--", marker=marker, ms=5, lw=1.2, label=label)
         for r in ok:
             if not r["converged"]:
-                ax.plot(r["level"] + shift, int(r["newton_iterations"]), "x", color="k", ms=9)
+                ax.plot(r["level"] + shift, _linear_solves(r), "x", color="k", ms=9)
     from matplotlib.ticker import MaxNLocator
 
     ax.set_xlabel("refinement level")
-    ax.set_ylabel("Newton iterations on the level")
+    ax.set_ylabel("linear solves on the level (Newton steps + polishing)")
     ax.set_ylim(bottom=0)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))

@@ -81,7 +81,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if scene.cfg.get("adapt"):
         return _run_adaptive(scene, outdir, comm, t0)
     result = solve(scene)
-    _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations, "
+    polished = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
+    _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations{polished}, "
                f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
     if not result.converged:
         if comm.rank == 0:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -21,6 +22,23 @@ from . import expressions
 
 SOLVER_METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
 _REQUIRED = object()
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML 1.1 safe loader that also reads 1e6, 1E-3, 2.5e+4 as floats (YAML 1.2 / Python
+    notation; PyYAML alone returns the string '1e6', which a number field would reject)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|[0-9][0-9_]*[eE][-+]?[0-9]+
+                   |\.[0-9_]+(?:[eE][-+]?[0-9]+)?|\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."))
+
+
+def load_yaml(text: str) -> Any:
+    """Parse YAML text safely (no Python objects), with Python's float notation."""
+    return yaml.load(text, Loader=_Loader)
 
 
 class ConfigError(ValueError):
@@ -161,6 +179,7 @@ SCENE: dict[str, Field] = {
         "c": Field("any", "auto", check=_c_value),
         "kappa": Field("number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"),
         "line_search": Field("str", "basic", choices=("basic", "bt")),
+        "polish": Field("bool", True, doc="fb / blend: active-set polishing (one extra linear solve once the active set settles)"),
         "rtol": Field("number", 1e-12, check=_nonnegative),
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
@@ -267,7 +286,7 @@ def read_yaml(path: str | Path) -> dict:
     if not p.is_file():
         raise ConfigError(f"{p}: no such file")
     try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+        data = load_yaml(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError as err:
         raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
     except OSError as err:
@@ -292,7 +311,7 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
         if not all(key.strip().split(".")):
             raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE, the key path has an empty part")
         try:
-            value = yaml.safe_load(raw)
+            value = load_yaml(raw)
         except yaml.YAMLError:
             value = raw
         node = data

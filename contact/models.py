@@ -256,11 +256,15 @@ def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 
     move node i by: the NCP compares two lengths of the same discrete origin, the gap and
     the local correction.  Scaling k (or E) scales R and K_ii alike, so it cancels; on any
     mesh the two parts of a Jacobian row  (K_ii/κ) ∂_aφ e_i + ∂_bφ K_i  keep the size of K's
-    own rows, which keeps Krylov + GAMG working.  Measured (fb, Newton iterations): with
-    nested iteration on SPEC problem A, κ = 1 needs 2–3 per level, κ = 100 needs 5–6; from
-    u = 0 on signorini_square at 256², κ = 1 needs 19 and κ ≥ 100 needs 14 (a large κ makes
-    the first step predict contact wherever the load pushes).  min is insensitive to κ
-    after its first step.
+    own rows, which keeps Krylov + GAMG working.  Measured (fb with polishing, Newton steps +
+    polishing solves): with nested iteration on SPEC problem A, κ = 1 needs 1+1 per level and
+    κ = 100 2+1 (min: 1 against 4); from u = 0 on signorini_square at 512², κ = 1 needs 17+1
+    and κ = 100 10+1 (a large κ makes the first step predict contact wherever the load
+    pushes, and the retreat is fast).  A cold start on a fine mesh corrects smooth modes,
+    which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
+    for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from
+    u = 0: 148 s against 45 s).  Hence κ = 1 by default; the cold-start scene
+    signorini_square sets κ = 100.
     """
     diag = K.getDiagonal()
     out = kappa * w / diag.array_r[dofs]

@@ -59,6 +59,8 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "converged": result.converged,
         "reason": result.reason,
         "newton_iterations": result.iterations,
+        "polish_solves": result.polish_solves,
+        "linear_solves": result.linear_solves,
         "final_residual": result.residual,
         "constrained_nodes": con.global_size(comm),
         "active_nodes": result.n_active,

@@ -30,7 +30,8 @@ A case fixes some axis values and may swap the scene (its own file and ``set``);
 are every case × every combination of the axes, and each row names its ``case``.
 
 Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton iterations
-(for adaptive runs on the final level and summed over the levels), converged, the SNES
+and active-set polishing solves (for adaptive runs on the final level and summed over the
+levels), converged, the SNES
 reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
 with ``data.exact``; relative errors of the Hertz half-width/radius and peak pressure for
 elastic contact against a plane with a radius), η, the measure of the active set, the wall
@@ -425,6 +426,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     from .solver import solve
 
     out: dict[str, Any] = {"dofs": "", "levels": "", "newton_iterations": "", "newton_iterations_total": "",
+                           "polish_solves": "", "polish_solves_total": "",
                            "converged": False, "reason": "", **_empty_figures(study)}
     levels: list[dict[str, Any]] = []
     comm.barrier()
@@ -438,7 +440,8 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
             result = solve(scene, verbose=False)
             seconds = time.perf_counter() - t0
             out.update(dofs=result.dofs, levels=1, newton_iterations=result.iterations,
-                       newton_iterations_total=result.iterations, converged=bool(result.converged),
+                       newton_iterations_total=result.iterations, polish_solves=result.polish_solves,
+                       polish_solves_total=result.polish_solves, converged=bool(result.converged),
                        reason=result.reason)
             if result.converged:
                 exact = scene.cfg["data"]["exact"]
@@ -448,14 +451,16 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
             else:
                 failure = (f"did not converge ({result.reason}) after {result.iterations} Newton "
                            f"iterations, last |Phi| = {result.residual:.3e}")
-            levels.append({"level": 0, **{k: out[k] for k in ("dofs", "newton_iterations", "converged", "reason")},
+            levels.append({"level": 0, **{k: out[k] for k in ("dofs", "newton_iterations", "polish_solves",
+                                                              "converged", "reason")},
                            **{k: out[k] for k in _empty_figures(study)}, "seconds": seconds})
             if study.adaptive_possible:
                 out["stop"] = "single solve"
         else:
             def on_level(lv) -> None:
                 row = {"level": lv.index, "dofs": lv.result.dofs, "newton_iterations": lv.result.iterations,
-                       "converged": bool(lv.result.converged), "reason": lv.result.reason}
+                       "polish_solves": lv.result.polish_solves, "converged": bool(lv.result.converged),
+                       "reason": lv.result.reason}
                 row.update(_figures(study, lv.scene, lv.result, lv.estimate.eta, lv.error)
                            if lv.result.converged else _empty_figures(study))
                 row["seconds"] = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
@@ -465,9 +470,11 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
             seconds = time.perf_counter() - t0
             last = levels[-1]
             its = [lv.result.iterations for lv in res.levels]
+            polish = [lv.result.polish_solves for lv in res.levels]
             converged = all(lv.result.converged for lv in res.levels)
             out.update(dofs=last["dofs"], levels=len(res.levels), newton_iterations=its[-1],
-                       newton_iterations_total=sum(its), converged=converged, reason=last["reason"])
+                       newton_iterations_total=sum(its), polish_solves=polish[-1],
+                       polish_solves_total=sum(polish), converged=converged, reason=last["reason"])
             if converged:
                 out.update({k: last[k] for k in _empty_figures(study)})
             else:

@@ -15,6 +15,9 @@ from contact.io import gather_nodal
 from contact.solver import build_problem, owned_residual
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls")
+# variants: key -> (method, solver options); pure FB / blend Newton without active-set polishing
+VARIANTS = {**{m: (m, {}) for m in METHODS}, "fb-nopolish": ("fb", {"polish": False}),
+            "blend-nopolish": ("blend", {"polish": False})}
 
 
 def main(argv):
@@ -25,9 +28,9 @@ def main(argv):
     for path in scenes:
         scene = contact.load_scene(path, overrides=[o for o in overrides if o != "--set"])
         problem = build_problem(scene)
-        for m in METHODS:
-            r = contact.solve(scene, method=m, problem=problem, verbose=False, max_it=200)
-            key = f"{scene.name}/{m}"
+        for name, (m, opts) in VARIANTS.items():
+            r = contact.solve(scene, method=m, problem=problem, verbose=False, max_it=200, **opts)
+            key = f"{scene.name}/{name}"
             X, u = gather_nodal(r.u_h)
             _, lam = gather_nodal(r.lmbda_h)
             _, gap = gather_nodal(r.gap)
@@ -40,7 +43,7 @@ def main(argv):
             if scene.comm.rank == 0:
                 data[key + "/X"], data[key + "/u"] = X, u
                 data[key + "/lambda"], data[key + "/gap"] = lam, gap
-                data[key + "/info"] = np.array([r.converged, r.iterations, comp / scale, r.n_active])
+                data[key + "/info"] = np.array([r.converged, r.iterations, comp / scale, r.n_active, r.polish_solves])
     if contact.solver.MPI.COMM_WORLD.rank == 0:
         np.savez(out, **data)
 

@@ -40,7 +40,7 @@ def parallel(tmp_path_factory):
 
 
 @pytest.mark.parametrize("scene", SCENES)
-@pytest.mark.parametrize("method", ["fb", "min", "blend"])
+@pytest.mark.parametrize("method", ["fb", "min", "blend", "fb-nopolish", "blend-nopolish"])
 @pytest.mark.parametrize("which", ["serial", "parallel"])
 def test_method_agrees_with_vinewtonrsls(request, which, scene, method):
     assert_agrees_with_vinewtonrsls(request.getfixturevalue(which), scene, method)
@@ -57,7 +57,7 @@ def assert_agrees_with_vinewtonrsls(res: dict, scene: str, method: str) -> None:
 
 
 @pytest.mark.parametrize("scene", SCENES)
-@pytest.mark.parametrize("method", ["fb", "min", "blend", "vinewtonrsls"])
+@pytest.mark.parametrize("method", ["fb", "min", "blend", "vinewtonrsls", "fb-nopolish"])
 @pytest.mark.parametrize("which", ["serial", "parallel"])
 def test_complementarity_holds_nodewise(request, which, scene, method):
     comp = request.getfixturevalue(which)[f"{scene}/{method}/info"][2]

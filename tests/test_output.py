@@ -46,7 +46,7 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     for name in FIELDS:
         assert f'Name="{name}"' in xdmf
     summary = json.loads((out / "summary.json").read_text())
-    for key in ("dofs", "mpi_ranks", "method", "newton_iterations", "final_residual", "reason",
+    for key in ("dofs", "mpi_ranks", "method", "newton_iterations", "polish_solves", "final_residual", "reason",
                 "active_nodes", "time_assembly", "time_linear_solve", "time_other"):
         assert key in summary, key
     assert summary["dofs"] == n_vertices and summary["mpi_ranks"] == nproc
@@ -55,7 +55,10 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     assert np.all(lam[active == 1] < 0), "active nodes carry a compressive multiplier λ < 0"
     rows = list(csv.DictReader(open(out / "history.csv")))
     assert len(rows) == summary["newton_iterations"] + 1
-    assert list(rows[0]) == ["iteration", "residual", "step", "active", "changed"]
+    assert list(rows[0]) == ["iteration", "residual", "step", "active", "changed", "polished"]
+    polished = sum(r["polished"] == "True" for r in rows)
+    assert polished <= summary["polish_solves"]
+    assert summary["linear_solves"] == summary["newton_iterations"] + summary["polish_solves"]
     assert int(rows[-1]["active"]) == summary["active_nodes"]
     png = (out / "solution.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000

@@ -22,7 +22,8 @@ MPIRUN = Path(sys.executable).parent / "mpirun"
 PREFIX = "contact: error: "
 ENV = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
 TINY_COLUMNS = ["run", "method", "line_search", "repeat", "dofs", "levels", "newton_iterations",
-                "newton_iterations_total", "converged", "reason", "eta", "active_measure", "outcome",
+                "newton_iterations_total", "polish_solves", "polish_solves_total",
+                "converged", "reason", "eta", "active_measure", "outcome",
                 "seconds", "peak_rss_mib", "ranks", "pareto", "failure"]
 
 

@@ -1,0 +1,95 @@
+"""Active-set polishing (``solver.polish``, :class:`contact.solver._Polisher`): it changes
+how fast FB / blend Newton converges, never what it converges to."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contact
+from contact.solver import _Complementarity, _Polisher, build_problem
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return contact.load_scene(ROOT / "configs" / "signorini_square.yaml",
+                              overrides=["mesh.cells=[96,96]", "solver.kappa=1", "output.verbose=false"])
+
+
+@pytest.mark.parametrize("method", ["fb", "blend"])
+def test_polish_same_solution_fewer_linear_solves(scene, method):
+    """Same discrete solution (1e-10) and active set; fewer linear solves in all."""
+    problem = build_problem(scene)
+    pure = contact.solve(scene, method=method, problem=problem, polish=False)
+    u_pure = pure.u_h.x.array.copy()
+    pol = contact.solve(scene, method=method, problem=problem, polish=True)
+    assert pure.converged and pol.converged
+    assert pure.polish_solves == 0 and pol.polish_solves >= 1
+    assert pol.linear_solves == pol.iterations + pol.polish_solves
+    assert pol.linear_solves < pure.linear_solves, (pol.linear_solves, pure.linear_solves)
+    assert np.max(np.abs(pol.u_h.x.array - u_pure)) <= 1e-10
+    assert pol.n_active == pure.n_active
+    assert any(row["polished"] for row in pol.history)
+    assert not any(row["polished"] for row in pure.history)
+
+
+def test_min_is_never_polished(scene):
+    """A Newton step of φ_min already is the polishing step: no second solve."""
+    r = contact.solve(scene, method="min", polish=True)
+    assert r.converged and r.polish_solves == 0
+
+
+def _state(scene, method="fb"):
+    problem = build_problem(scene)
+    problem.c = contact.models.nodal_scaling(problem.K, problem.constraint.dofs, problem.constraint.w,
+                                             contact.solver.solver_options(scene)["kappa"])
+    cp = _Complementarity(problem)
+    timers = {"solve": 0.0, "assembly": 0.0}
+    pol = _Polisher(cp, method, 0.5, "test_polish_", timers)
+    pol.ksp.setType("preonly")
+    pol.ksp.getPC().setType("lu")
+    x = problem.b.duplicate()
+    x.set(0.0)
+    contact.solver.dolfinx_set_bc(x, problem.bcs)
+    return problem, cp, pol, x
+
+
+def test_polisher_waits_while_the_active_set_moves(scene):
+    """A step that changes the active set is left alone, and no solve is spent."""
+    ref = contact.solve(scene, method="min")
+    problem, cp, pol, x = _state(scene)  # x: u = 0, nothing active
+    sol = x.duplicate()
+    problem.to_unknowns(ref.u_h.x.petsc_vec, sol)
+    y = x - sol  # the step x -> W = x - y lands on the solution, whose active set differs
+    assert not cp.active(x).any() and ref.active_mask.any()
+    before = y.array.copy()
+    pol(x, y)
+    assert pol.solves == 0 and not pol.accepted
+    assert np.array_equal(y.array, before)
+    pol.destroy()
+
+
+def test_polisher_lands_on_the_active_set_solution(scene):
+    """From an iterate with the final active set, the polished step hits the solution."""
+    ref = contact.solve(scene, method="min")
+    problem, cp, pol, x = _state(scene)
+    # perturb the solution slightly, off the contact nodes only: the active set stays
+    u = ref.u_h.copy()
+    free = np.setdiff1d(np.arange(u.x.array.size), cp.dofs)
+    u.x.array[free] *= 1.0 + 1e-3
+    problem.to_unknowns(u.x.petsc_vec, x)
+    contact.solver.dolfinx_set_bc(x, problem.bcs)
+    assert np.array_equal(cp.active(x), ref.active_mask)
+    y = problem.b.duplicate()
+    y.set(0.0)  # a Newton step that goes nowhere: W = x
+    pol(x, y)
+    assert pol.solves == 1 and pol.accepted
+    P = x.copy()
+    P.axpy(-1.0, y)
+    n = ref.u_h.x.petsc_vec.getLocalSize()
+    assert np.max(np.abs(P.array_r[:n] - ref.u_h.x.array[:n])) <= 1e-10
+    pol.destroy()
