@@ -157,44 +157,50 @@ class _Polisher:
     φ; each attempt costs one linear solve, counted in ``solves``.
     """
 
-    def __init__(self, cp: "_Complementarity", method: str, mu: float, prefix: str, timers: dict):
+    def __init__(self, cp: "_Complementarity", method: str, mu: float, ksp: PETSc.KSP, timers: dict):
         problem = cp.p
-        self.cp, self.method, self.mu, self.timers = cp, method, mu, timers
+        self.cp, self.method, self.mu, self.ksp, self.timers = cp, method, mu, ksp, timers
         self.H = problem.K.duplicate(copy=True)
         _attach_near_nullspace(problem, self.H)
-        self.ksp = PETSc.KSP().create(problem.b.getComm())
-        self.ksp.setOptionsPrefix(prefix)
         self.W, self.FW, self.FP, self.dP = (problem.b.duplicate() for _ in range(4))
-        self.solves, self.accepted = 0, False
+        self.solves, self.accepted, self.taken = 0, False, None
+        self.done = 0.0  # ‖Φ‖ at which SNES stops: a Newton point below it needs no polishing
 
     def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         cp, W = self.cp, self.W
-        self.accepted = False
+        self.accepted, self.taken = False, None
         x.copy(W)
         W.axpy(-1.0, y)
         comm = x.getComm().tompi4py()
         if not comm.allreduce(bool(np.array_equal(cp.active(x), cp.active(W))), op=MPI.LAND):
             return
         t0 = time.perf_counter()
+        cp.phi(W, self.FW, self.method, self.mu)
+        if self.FW.norm() <= self.done:
+            self.timers["assembly"] += time.perf_counter() - t0
+            return
+        self.taken = y.norm()
         cp.phi(x, self.FP, "min", self.mu)
         cp.jacobian(x, self.H, "min", self.mu)
+        # the Newton solver's own KSP: one factorization alive at a time (memory), then J back
+        A, P = self.ksp.getOperators()
         self.ksp.setOperators(self.H)
         t1 = time.perf_counter()
         self.ksp.solve(self.FP, self.dP)
         t2 = time.perf_counter()
+        self.ksp.setOperators(A, P)
         self.solves += 1
-        cp.phi(W, self.FW, self.method, self.mu)
         x.copy(W)
         W.axpy(-1.0, self.dP)  # W = P
         cp.phi(W, self.FP, self.method, self.mu)
         if self.FP.norm() < self.FW.norm():
             self.dP.copy(y)
-            self.accepted = True
+            self.accepted, self.taken = True, self.dP.norm()
         self.timers["solve"] += t2 - t1
         self.timers["assembly"] += (t1 - t0) + (time.perf_counter() - t2)
 
     def destroy(self) -> None:
-        for obj in (self.ksp, self.H, self.W, self.FW, self.FP, self.dP):
+        for obj in (self.H, self.W, self.FW, self.FP, self.dP):
             obj.destroy()
 
 
@@ -260,7 +266,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         snes.setJacobian(jacobian, J)
         petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
         if opts["polish"] and method != "min":
-            polisher = _Polisher(cp, method, mu, prefix + "polish_", timers)
+            polisher = _Polisher(cp, method, mu, snes.getKSP(), timers)
             snes.setLineSearchPreCheck(polisher)
     else:
         def residual(snes, x, f):
@@ -307,8 +313,11 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         step = np.nan
         if its > 0:
             prev["x"].axpy(-1.0, xk)
-            dn = state["dir_norm"]
+            polished = polisher is not None and polisher.taken is not None
+            dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
             step = prev["x"].norm() / dn if dn > 0 else 0.0
+        elif polisher is not None:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
+            polisher.done = max(opts["atol"], opts["rtol"] * fnorm)
         xk.copy(prev["x"])
         prev["active"] = active
         row = {"iteration": its, "residual": float(fnorm), "step": float(step),
@@ -321,18 +330,13 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
 
     snes.setMonitor(monitor)
     popts = PETSc.Options()
-    linear = {k: v for k, v in petsc_opts.items() if not k.startswith("snes_")}
     for key, val in petsc_opts.items():
         popts[prefix + key] = _petsc_value(val)
-    for key, val in linear.items():
-        popts[prefix + "polish_" + key] = _petsc_value(val)
     try:
-        _set_from_options(snes, polisher.ksp if polisher else None)
+        _set_from_options(snes)
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
-        for key in linear:
-            popts.delValue(prefix + "polish_" + key)
     snes.solve(None, x)
     reason_code = snes.getConvergedReason()
     result = _finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
@@ -357,15 +361,13 @@ def _attach_near_nullspace(problem: DiscreteProblem, J: PETSc.Mat) -> None:
         J.setNearNullSpace(problem.near_nullspace)
 
 
-def _set_from_options(snes: PETSc.SNES, ksp_p: PETSc.KSP | None = None) -> None:
+def _set_from_options(snes: PETSc.SNES) -> None:
     """setFromOptions + setUp; a bad PETSc option becomes a one-line ConfigError."""
     PETSc.Sys.pushErrorHandler("python")  # raise, do not print PETSc's trace
     try:
         snes.setFromOptions()
         snes.getKSP().setFromOptions()
         snes.getKSP().getPC().setFromOptions()
-        if ksp_p is not None:
-            ksp_p.setFromOptions()
     except PETSc.Error as err:
         raise ConfigError(f"solver.petsc_options: PETSc rejected the options ({_petsc_message(err)})") from None
     finally:

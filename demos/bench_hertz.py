@@ -41,7 +41,7 @@ def main() -> None:
             for lv in res.levels:
                 h = contact_resultants(lv.scene, lv.result)
                 row = {"scene": name, "method": method, "level": lv.index, "dofs": lv.result.dofs,
-                       "newton": lv.result.iterations, "a_error": round(h["a_error"], 5),
+                       "newton": lv.result.iterations, "polish": lv.result.polish_solves, "a_error": round(h["a_error"], 5),
                        "p0_error": round(h["p0_error"], 5), "a_over_R": round(h["a_over_R"], 4),
                        "force_balance": h["force_balance_error"], "seconds_solve": round(lv.seconds["solve"], 2)}
                 levels.append(row)
@@ -49,7 +49,7 @@ def main() -> None:
             print(f"{name} {method}: {len(res.levels)} levels in {wall:.1f} s", flush=True)
         last = res.levels[-1]
         problem = build_problem(last.scene)
-        for method in ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls"):
+        for method in ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish"):
             for start in ("cold", "nested"):
                 if name == "hertz_3d" and not args.full and (
                         method == "vinewtonssls" or (start == "cold" and method.startswith("vi"))):
@@ -59,11 +59,12 @@ def main() -> None:
                     if solver == "gamg" and (start == "nested" or method != "fb"):
                         continue  # the linear-solver comparison needs one method (keeps make bench < 30 min)
                     t0 = time.perf_counter()
-                    r = contact.solve(last.scene, method=method, problem=problem, u0=u0, verbose=False,
-                                      max_it=100, petsc_options=opts)
+                    r = contact.solve(last.scene, method=method.removesuffix("-nopolish"), problem=problem,
+                                      u0=u0, verbose=False, max_it=100, petsc_options=opts,
+                                      polish=not method.endswith("-nopolish"))
                     row = {"scene": name, "method": method, "start": start, "linear_solver": solver,
                            "dofs": r.dofs, "converged": r.converged, "reason": r.reason,
-                           "newton": r.iterations, "seconds": round(time.perf_counter() - t0, 2)}
+                           "newton": r.iterations, "polish": r.polish_solves, "seconds": round(time.perf_counter() - t0, 2)}
                     finals.append(row)
                     print(row, flush=True)
     write_csv(out / "levels.csv", levels)

@@ -62,6 +62,18 @@ def pct(x) -> str:
     return "–" if x in ("", None) else f"{100 * x:+.2f} %"
 
 
+def solves(r: dict, total: bool = False) -> int:
+    """Linear solves of a run or level: Newton iterations + active-set polishing solves."""
+    n, p = ("newton_iterations_total", "polish_solves_total") if total else ("newton_iterations", "polish_solves")
+    return int(r[n]) + int(r.get(p) or 0)
+
+
+def its_text(r: dict, total: bool = False) -> str:
+    """'n' Newton iterations, or 'n+p' with p polishing solves."""
+    n, p = ("newton_iterations_total", "polish_solves_total") if total else ("newton_iterations", "polish_solves")
+    return f"{r[n]}+{r[p]}" if r.get(p) not in (None, "", 0) else str(r[n])
+
+
 def missing(what: str) -> str:
     return f"*Not available: {what} was not found — run `make bench`.*\n"
 
@@ -89,7 +101,10 @@ def header() -> str:
         "level's solution interpolated onto the refined mesh. fb = Fischer–Burmeister, min = the "
         "min function (the primal–dual active set method), blend = μ φ_FB + (1 − μ) φ_min with "
         "μ = 0.5; vinewtonrsls / vinewtonssls are PETSc's reduced-space and semismooth VI solvers "
-        "on the same discrete problem.",
+        "on the same discrete problem. fb and blend polish the active set (`solver.polish`, the "
+        "default): once a Newton step leaves the active set unchanged, the linear problem of that set "
+        "is solved once more and replaces the Newton point if ‖Φ‖ is smaller; such solves are counted "
+        "separately (n+p = n Newton steps + p polishing solves), never hidden in n.",
     ]
     if timing:
         out += ["", f"`make bench` took {total / 60:.1f} minutes:", "",
@@ -102,20 +117,27 @@ def newton_512() -> str:
     out = ["## 1. Newton methods on the 512 × 512 square (cold start)", ""]
     if not data:
         return "\n".join(out) + "\n" + missing("newton_512.csv")
-    out += ["`configs/signorini_square.yaml` at 512² cells, every method in its own process "
-            "(`demos/bench_newton.py --cells 512`):", "",
-            table(["method", "DoFs", "Newton its", "seconds", "s / it", "peak MiB", "speed-up vs vinewtonrsls"],
-                  [[r["method"], r["dofs"], r["iterations"], g(r["seconds"]), g(r["seconds_per_iteration"]),
-                    g(r["peak_rss_mib"], 4), r["speedup_vs_vinewtonrsls"]] for r in data]), ""]
+    out += ["`configs/signorini_square.yaml` (κ = 100, set in the scene) at 512² cells, every method "
+            "in its own process (`demos/bench_newton.py --cells 512`); *polish* = active-set polishing "
+            "solves (`solver.polish`, on by default for fb and blend), *-nopolish* = the pure Newton "
+            "method:", "",
+            table(["method", "DoFs", "Newton its", "polish", "seconds", "s / solve", "peak MiB",
+                   "speed-up vs vinewtonrsls"],
+                  [[r["method"], r["dofs"], r["iterations"], r.get("polish", ""), g(r["seconds"]),
+                    g(r["seconds_per_iteration"]), g(r["peak_rss_mib"], 4), r["speedup_vs_vinewtonrsls"]]
+                   for r in data]), ""]
     by = {r["method"]: r for r in data}
-    if "fb" in by and "min" in by:
-        out += [f"min needs {by['min']['iterations']} iterations and fb {by['fb']['iterations']}: both "
-                "share the active-set phase (the first step overshoots the contact zone, and the excess "
-                "roughly halves per iteration — log₂(1/h) iterations), after which min is exact in one "
-                "step while fb needs a superlinear tail of 4–5 steps at the nodes next to the free "
-                "boundary, where both the gap and the multiplier are small and φ_FB is curved. The VI "
-                "solvers change the active set by only a few nodes per iteration, so their counts grow "
-                "with the number of nodes that must switch (§3, case (g))."]
+    if "fb-nopolish" in by and "min" in by:
+        out += [f"min needs {by['min']['iterations']} iterations and pure fb {by['fb-nopolish']['iterations']}: "
+                "both share the active-set phase (the first step overshoots the contact zone, and the "
+                "excess roughly halves per iteration — log₂(1/h) iterations), after which min is exact in "
+                "one step while fb needs a superlinear tail of 3–4 steps at the nodes next to the free "
+                "boundary, where both the gap and the multiplier are small and φ_FB is curved (from "
+                "b = −a/2 a Newton step of φ_FB only shrinks b to 0.15 b). Polishing replaces that tail: once "
+                "a step leaves the active set unchanged, the linear problem of that set is solved once "
+                f"more, and fb finishes in {by['fb']['iterations']} steps + {by['fb'].get('polish', '?')} "
+                "polishing solve(s). The VI solvers change the active set by only a few nodes per "
+                "iteration, so their counts grow with the number of nodes that must switch (§3, case (g))."]
     return "\n".join(out) + "\n"
 
 
@@ -189,6 +211,22 @@ def _explain(case: str, method: str, what: str) -> str:
     return "**not yet explained** (new since this report's text was written)"
 
 
+def _line_search_verdict(its: dict) -> str:
+    """What backtracking did to fb and min in case (d), read from the counts."""
+    said = []
+    for m in ("fb", "min"):
+        plain, bt = its.get(("(d) plain Newton", m)), its.get(("(d) line search bt", m))
+        if plain and bt:
+            d = solves(bt) - solves(plain)
+            said.append(f"{m} {'saves' if d < 0 else 'costs'} {abs(d)} linear solve{'s' if abs(d) != 1 else ''}"
+                        if d else f"{m} needs as many")
+    return ("With backtracking " + " and ".join(said) + ". A full semismooth Newton step is often right about "
+            "the active set even when it raises ‖Φ‖ (the residual of newly active nodes jumps), and "
+            "backtracking shortens exactly those steps; where the full step overshoots the contact zone "
+            "(a large κ predicts contact wherever the load pushes), shortening it can help instead. Plain "
+            "Newton is the default.") if said else ""
+
+
 def stability() -> str:
     runs, _, out = _open("## 3. Stability map: where the methods fail", "stability", "stability")
     if not runs:
@@ -196,16 +234,17 @@ def stability() -> str:
     out += ["[`configs/studies/stability.yaml`](../configs/studies/stability.yaml): one cold solve per "
             "cell, at most 100 Newton iterations, the lecture-notes square (32² cells) unless the case "
             "names its own scene. Cell colour = outcome class from the SNES reason "
-            "(`contact.study.outcome`), number = Newton iterations.", ""]
+            "(`contact.study.outcome`), number = Newton iterations, + active-set polishing solves for fb "
+            "and blend (n+p); the ranges below count linear solves (Newton steps + polishing).", ""]
     its = {(r["case"], r["method"]): r for r in runs}
     cases = list(dict.fromkeys(r["case"] for r in runs))
 
     def cell(case: str, method: str) -> str:
         r = its.get((case, method))
-        return "–" if r is None else str(r["newton_iterations"]) + ("" if r["converged"] else f" ({r['outcome']})")
+        return "–" if r is None else its_text(r) + ("" if r["converged"] else f" ({r['outcome']})")
 
     def span(prefix: str, method: str) -> str:
-        vals = [its[c, method]["newton_iterations"] for c in cases if c.startswith(prefix) and (c, method) in its]
+        vals = [solves(its[c, method]) for c in cases if c.startswith(prefix) and (c, method) in its]
         return f"{min(vals)}–{max(vals)}" if len(set(vals)) > 1 else str(vals[0]) if vals else "–"
 
     fails = [r for r in runs if not r["converged"]]
@@ -228,14 +267,10 @@ def stability() -> str:
         "weighs the multiplier against the gap; min is nearly insensitive (its active set is the same "
         "for any c once the iterate is feasible), fb pays for a small c (the gap dominates φ_FB and the "
         "multiplier is resolved late). The VI solvers do not use c (identical rows).",
-        f"* **(d) plain Newton vs backtracking** on ½‖Φ‖²: fb {its.get(('(d) plain Newton', 'fb'), {}).get('newton_iterations', '–')} "
-        f"→ {its.get(('(d) line search bt', 'fb'), {}).get('newton_iterations', '–')}, min "
-        f"{its.get(('(d) plain Newton', 'min'), {}).get('newton_iterations', '–')} → "
-        f"{its.get(('(d) line search bt', 'min'), {}).get('newton_iterations', '–')} iterations. The merit "
-        "line search *slows* semismooth Newton here: the full step is right about the active set even when "
-        "it increases ‖Φ‖ (the residual of the newly active nodes jumps), and backtracking shortens exactly "
-        "those steps. Plain Newton is the default for this reason. The VI solvers keep PETSc's own line "
-        "search in both rows.",
+        f"* **(d) plain Newton vs backtracking** on ½‖Φ‖²: fb {cell('(d) plain Newton', 'fb')} "
+        f"→ {cell('(d) line search bt', 'fb')}, min {cell('(d) plain Newton', 'min')} → "
+        f"{cell('(d) line search bt', 'min')} iterations. " + _line_search_verdict(its) + " The VI "
+        "solvers keep PETSc's own line search in both rows.",
         f"* **(e) obtuse mesh** (`configs/obtuse_square.yaml`, every triangle has a 135° angle, K is not "
         f"an M-matrix): {', '.join(f'{m} {span('(e)', m)}' for m in METHODS)}. Convergence "
         "proofs of the active-set method from any start use the M-matrix property; here it is lost, yet no "
@@ -270,26 +305,51 @@ def iterations() -> str:
         return "\n".join(out)
     out += ["Problem A, uniform refinement from 16 × 8 cells "
             "([`configs/studies/iterations_levels.yaml`](../configs/studies/iterations_levels.yaml)); "
-            "Newton iterations on each level:", ""]
+            "Newton iterations on each level (+ polishing solves, fb and blend):", ""]
     n_levels = max(r["level"] for r in levels) + 1
     dofs = {r["level"]: r["dofs"] for r in levels}
     body = []
     for r in runs:
         mine = sorted((lv for lv in levels if lv["run"] == r["run"]), key=lambda lv: lv["level"])
         body.append([r["method"], "nested" if r["nested"] else "cold",
-                     *[lv["newton_iterations"] for lv in mine], g(r["seconds"])])
+                     *[its_text(lv) for lv in mine], g(r["seconds"])])
     out += [table(["method", "start", *[f"L{k} ({dofs.get(k, '?')})" for k in range(n_levels)], "run s"], body), ""]
     seconds = {(r["method"], r["nested"]): r["seconds"] for r in runs}
-    out += ["From a cold start every method needs more iterations on finer meshes (fb and blend grow by "
-            "about two per level, min by one: the active-set search of §3 (g)); with nested iteration the "
-            "count after the first level is flat — 1 for min and vinewtonrsls (the interpolated active set "
-            "is already right or one step away), 2–4 for fb and blend (the superlinear tail of a smooth "
-            "NCP). Wall time of the whole six-level run: "
+    def flat(method: str, nested: bool) -> str:
+        vals = sorted({solves(lv) for r in runs if r["method"] == method and r["nested"] == nested
+                       for lv in levels if lv["run"] == r["run"] and lv["level"] > 0})
+        return "–" if not vals else str(vals[0]) if len(vals) == 1 else f"{vals[0]}–{vals[-1]}"
+
+    out += ["Linear solves per level after the first, nested: "
+            + ", ".join(f"{m} {flat(m, True)}" for m in METHODS) + "; cold: "
+            + ", ".join(f"{m} {flat(m, False)}" for m in METHODS) + ". From a cold start every method "
+            "needs more on finer meshes (the active-set search of §3 (g)); with nested iteration the count "
+            "is flat — the interpolated active set is already right or one step away, and for fb and blend "
+            "the polishing solve replaces the superlinear tail of a smooth NCP. Wall time of the whole "
+            "six-level run: "
             + ", ".join(f"{m} {g(seconds.get((m, True)))} s nested vs {g(seconds.get((m, False)))} s cold"
                         for m in METHODS if (m, True) in seconds)
             + f" — nested iteration is faster for {sum(seconds[m, True] < seconds[m, False] for m in METHODS if (m, True) in seconds and (m, False) in seconds)} "
             "of the five methods. The prolongation of u_h to the refined mesh evaluates it in each child's "
             "parent cell (`contact.adapt.prolong`, no point search), so it costs little next to a solve."]
+    return "\n".join(out) + "\n"
+
+
+def hertz_methods() -> str:
+    """Every method on the final Hertz meshes, cold and nested (demos/bench_hertz.py)."""
+    out = ["## 6. Hertz: the methods on the final adaptive meshes", ""]
+    data = rows(RES / "hertz" / "final_mesh_methods.csv")
+    if not data:
+        return "\n".join(out) + "\n" + missing("demos/results/hertz/final_mesh_methods.csv")
+    out += ["`demos/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
+            "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
+            "solution (nested); linear solver = the scene default (MUMPS in 2D, BiCGStab + GAMG in 3D) "
+            "or GAMG. Newton its + polishing solves; the 3D VI runs from a cold start and vinewtonssls "
+            "in 3D only with `--full` (they took minutes).", "",
+            table(["scene", "method", "start", "linear solver", "DoFs", "Newton its", "seconds"],
+                  [[r["scene"], r["method"], r["start"], "default" if r["linear_solver"] == "direct" else r["linear_solver"],
+                    r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r.get("polish")}),
+                    g(r["seconds"])] for r in data])]
     return "\n".join(out) + "\n"
 
 
@@ -301,7 +361,7 @@ def peers() -> str:
         for r in runs:
             radius = math.sqrt(r["active_measure"] / math.pi) if r["active_measure"] != "" else ""
             body.append([r["method"], r["level"], r["dofs"], g(r["error"]), g(radius, 5),
-                         g(radius - EX9_RADIUS if radius != "" else "", 2), r["newton_iterations"], g(r["seconds"])])
+                         g(radius - EX9_RADIUS if radius != "" else "", 2), its_text(r), g(r["seconds"])])
         out += ["[`configs/peers/petsc_ex9.yaml`](../configs/peers/petsc_ex9.yaml): f = 0, the spherical-cap "
                 "obstacle, Dirichlet data from the exact solution; on the one-diagonal mesh P1 gives exactly "
                 "ex9's 5-point matrix, and the nodal errors on 17², 9² and 33² grids equal the ones in PETSc's "
@@ -322,7 +382,7 @@ def peers() -> str:
                 f"iterations as \"Newton iteration 0\" … \"18\", i.e. {STEP41_SOLVES} linear solves, ending with "
                 "5399 constrained DoFs.", "",
                 table(["method", "Newton its (linear solves)", "active nodes", "seconds"],
-                      [[r["method"], r["newton_iterations"], round(r["active_measure"] / (2 / 128) ** 2)
+                      [[r["method"], its_text(r), round(r["active_measure"] / (2 / 128) ** 2)
                         if r["active_measure"] != "" else "–", g(r["seconds"])] for r in runs]),
                 "", "min is the same primal–dual active set method and needs about as many solves as deal.II "
                 "(the active set differs by a few nodes at the stair edges because Q1 and P1 are different "
@@ -357,6 +417,7 @@ def main() -> None:
         stability(),
         iterations(),
         peers(),
+        hertz_methods(),
     ]
     args.out.write_text("\n".join(parts))
     print(f"make_results: wrote {args.out}")

@@ -276,3 +276,13 @@ def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
     assert all((out / name).stat().st_size > 0 for name in ("solution.h5", "summary.json", "solution.png"))
     # the atomic write leaves no hidden .out.partial-*/.out.old-* sibling behind
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]
+
+
+@pytest.mark.parametrize("text, value", [("1e6", 1e6), ("1E-3", 1e-3), ("-2.5e+4", -2.5e4), ("3", 3),
+                                         ("1.0", 1.0), ("1e6x", "1e6x"), ("fb", "fb")])
+def test_yaml_reads_exponent_floats(text: str, value: Any) -> None:
+    """`--set solver.kappa=1e6` and `kappa: 1e6` are numbers (PyYAML alone reads a string)."""
+    from contact.config import apply_overrides, load_yaml
+
+    assert load_yaml(f"k: {text}") == {"k": value}
+    assert apply_overrides({}, [f"solver.kappa={text}"]) == {"solver": {"kappa": value}}

@@ -9,6 +9,7 @@ import pytest
 
 import contact
 from contact.solver import _Complementarity, _Polisher, build_problem
+from petsc4py import PETSc
 
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,9 +50,11 @@ def _state(scene, method="fb"):
                                              contact.solver.solver_options(scene)["kappa"])
     cp = _Complementarity(problem)
     timers = {"solve": 0.0, "assembly": 0.0}
-    pol = _Polisher(cp, method, 0.5, "test_polish_", timers)
-    pol.ksp.setType("preonly")
-    pol.ksp.getPC().setType("lu")
+    ksp = PETSc.KSP().create(problem.b.getComm())
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.setOperators(problem.K)  # stands in for the Newton solver's KSP and its Jacobian
+    pol = _Polisher(cp, method, 0.5, ksp, timers)
     x = problem.b.duplicate()
     x.set(0.0)
     contact.solver.dolfinx_set_bc(x, problem.bcs)
@@ -88,8 +91,22 @@ def test_polisher_lands_on_the_active_set_solution(scene):
     y.set(0.0)  # a Newton step that goes nowhere: W = x
     pol(x, y)
     assert pol.solves == 1 and pol.accepted
+    assert pol.ksp.getOperators()[0] == problem.K  # the Newton solver's operator is put back
     P = x.copy()
     P.axpy(-1.0, y)
     n = ref.u_h.x.petsc_vec.getLocalSize()
     assert np.max(np.abs(P.array_r[:n] - ref.u_h.x.array[:n])) <= 1e-10
+    pol.destroy()
+
+
+def test_no_polishing_when_the_newton_point_already_converged(scene):
+    """A Newton point with ‖Φ‖ below SNES's stopping value is not polished (no wasted solve)."""
+    ref = contact.solve(scene, method="min")
+    problem, cp, pol, x = _state(scene)
+    problem.to_unknowns(ref.u_h.x.petsc_vec, x)
+    y = problem.b.duplicate()
+    y.set(0.0)  # W = x = the solution
+    pol.done = 1e-10
+    pol(x, y)
+    assert pol.solves == 0 and not pol.accepted and pol.taken is None
     pol.destroy()
