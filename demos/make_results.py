@@ -381,7 +381,7 @@ def peers() -> str:
                 "(the same 16641 nodes as their Q1 mesh). deal.II reports its primal–dual active set "
                 f"iterations as \"Newton iteration 0\" … \"18\", i.e. {STEP41_SOLVES} linear solves, ending with "
                 "5399 constrained DoFs.", "",
-                table(["method", "Newton its (linear solves)", "active nodes", "seconds"],
+                table(["method", "Newton its (+ polishing)", "active nodes", "seconds"],
                       [[r["method"], its_text(r), round(r["active_measure"] / (2 / 128) ** 2)
                         if r["active_measure"] != "" else "–", g(r["seconds"])] for r in runs]),
                 "", "min is the same primal–dual active set method and needs about as many solves as deal.II "
