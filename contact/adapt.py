@@ -283,7 +283,8 @@ def _header() -> str:
 def _format(r: dict) -> str:
     err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
     eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
-    return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {r['newton_iterations']:6d} "
+    its = f"{r['newton_iterations']}+{r['polish_solves']}" if r.get("polish_solves") else str(r["newton_iterations"])
+    return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
             f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}")
 
 
