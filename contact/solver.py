@@ -209,8 +209,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
 
     ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
-    override the scene's ``solver`` section (``mu``, ``c``, ``line_search``, ``rtol``,
-    ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
+    override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
+    ``polish``, ``rtol``, ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
     ``u0`` is an initial guess (default: the scene's ``solver.u0``, zero by default).
     """
     opts = solver_options(scene, method=method, **options)

@@ -8,7 +8,7 @@ the default; each polishing solve is counted in ``polish``); ``fb-nopolish`` and
 that the peak memory (max RSS) is its own.  Prints a table and writes CSV.
 
     python demos/bench_newton.py --cells 512 --out bench/newton_512.csv
-    mpirun -n 2 python demos/bench_newton.py --cells 512 --out bench/newton_512_np2.csv
+    python demos/bench_newton.py --cells 512 --np 2 --out bench/newton_512_np2.csv
 """
 from __future__ import annotations
 
@@ -55,6 +55,7 @@ def main() -> None:
     ap.add_argument("--methods", default=",".join(METHODS))
     ap.add_argument("--set", dest="extra", action="append", default=[], help="scene override")
     ap.add_argument("--out", default="bench/newton.csv")
+    ap.add_argument("--np", type=int, default=1, help="MPI ranks for each solve (mpirun -n NP)")
     ap.add_argument("--one", help=argparse.SUPPRESS)  # internal: run one method, print JSON
     args = ap.parse_args()
     if args.one:
@@ -63,7 +64,7 @@ def main() -> None:
         if MPI.COMM_WORLD.rank == 0:
             print("ROW " + json.dumps(row), flush=True)
         return
-    launcher = []
+    launcher = [str(Path(sys.executable).parent / "mpirun"), "-n", str(args.np)] if args.np > 1 else []
     if "PMI_SIZE" in os.environ or "OMPI_COMM_WORLD_SIZE" in os.environ:
         sys.exit("run the benchmark driver serially; use --np N to give each solve N ranks")
     rows = []
