@@ -151,10 +151,12 @@ class _Polisher:
     point P.  If ‖Φ(P)‖ < ‖Φ(W)‖ the step is replaced by x → P.  Then once the Newton
     iterates of φ_FB have identified A, one extra linear solve finishes the job, instead of
     FB's slow approach to nodes with a small gap and a small multiplier (from (a, b) with
-    |b| = a/2, a Newton step of φ_FB on one node only shrinks b by 0.15).  The idea is the
+    |b| = a/2, a Newton step of φ_FB on one node only shrinks b to 0.15 b).  The idea is the
     active-set identification of Facchinei, Fischer and Kanzow (SIAM J. Optim. 9, 1998),
     and the solution polishing of QP solvers (OSQP).  Φ, and so the solution, are those of
-    φ; each attempt costs one linear solve, counted in ``solves``.
+    φ; each attempt costs one linear solve, counted in ``solves``.  No attempt is made when
+    W already meets SNES's stopping test (``done``).  The solve borrows the Newton solver's
+    KSP and gives it back its operators, so only one factorization is alive at a time.
     """
 
     def __init__(self, cp: "_Complementarity", method: str, mu: float, ksp: PETSc.KSP, timers: dict):
