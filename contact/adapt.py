@@ -27,7 +27,7 @@ from .estimate import Estimate, estimate
 from .geometry import curved_boundary
 from .meshes import Boundary
 from .scene import Scene
-from .solver import Result, build_problem, solve
+from .solver import Result, build_problem, solve, solves_text
 
 STRATEGIES = ("dorfler", "maximum", "uniform")
 
@@ -283,7 +283,7 @@ def _header() -> str:
 def _format(r: dict) -> str:
     err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
     eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
-    its = f"{r['newton_iterations']}+{r['polish_solves']}" if r.get("polish_solves") else str(r["newton_iterations"])
+    its = solves_text(r["newton_iterations"], r["polish_solves"])
     return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
             f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}")
 

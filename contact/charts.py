@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
 
+from .solver import solves_text
+
 if TYPE_CHECKING:
     from .study import Study
 
@@ -183,8 +185,7 @@ def _solves_label(r: dict) -> str:
     """'n' Newton iterations, or 'n+p' with p polishing solves; 'err' if the run raised."""
     if r["newton_iterations_total"] == "":
         return "err"
-    p = r.get("polish_solves_total") or 0
-    return f"{r['newton_iterations_total']}+{p}" if int(p) else str(r["newton_iterations_total"])
+    return solves_text(r["newton_iterations_total"], int(r.get("polish_solves_total") or 0))
 
 
 def _linear_solves(r: dict) -> int:

@@ -415,7 +415,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
     _check_vector_data(cfg, model)
     if model == "elasticity":
-        _check_elasticity(cfg, roles)
+        _check_elasticity(cfg)
     elif "symmetry" in roles:
         raise ConfigError("boundaries: role symmetry is for elasticity scenes")
     if mesh["type"] in ("quarter_disk", "sphere_octant"):
@@ -438,11 +438,9 @@ def _check_vector_data(cfg: dict, model: str) -> None:
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
 
 
-def _check_elasticity(cfg: dict, roles: list[str]) -> None:
+def _check_elasticity(cfg: dict) -> None:
     if cfg["model"]["E"] is None:
         raise ConfigError("model.E: required for model type elasticity (Young's modulus)")
-    if "contact" not in roles:
-        raise ConfigError("boundaries: an elasticity scene needs a part with role: contact")
     obstacle = cfg.get("obstacle")
     if not obstacle:
         raise ConfigError("obstacle: an elasticity scene needs a rigid obstacle (type plane, circle or sphere)")

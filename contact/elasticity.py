@@ -65,11 +65,10 @@ def _vector_numpy(texts: list[str], scene: Scene):
     return lambda x: np.vstack([f(x) for f in fns])
 
 
-def _facet_normal_axis(scene: Scene, name: str) -> int:
-    """The axis k of the plane x_k = const that holds the facets of part ``name``."""
+def _facet_normal_axis(scene: Scene, name: str, facets: np.ndarray) -> int:
+    """The axis k of the plane x_k = const that holds ``facets``, those of part ``name``."""
     msh = scene.mesh
     tdim = msh.topology.dim
-    facets = scene.boundary.tags.indices[scene.boundary.tags.values == scene.boundary.ids[name]]
     nodes = dolfinx.mesh.entities_to_geometry(msh, tdim - 1, facets).ravel()
     x = msh.geometry.x[nodes, :tdim]
     lo = np.min(np.vstack(msh.comm.allgather(x.min(axis=0) if len(x) else np.full(tdim, np.inf))), axis=0)
@@ -111,8 +110,8 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     bcs = [fem.dirichletbc(u_D, fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet")))]
     for name, role in bnd.roles.items():
         if role == "symmetry":
-            k = _facet_normal_axis(scene, name)
             facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
+            k = _facet_normal_axis(scene, name, facets)
             dofs = fem.locate_dofs_topological(V.sub(k), tdim - 1, facets)
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
     K, b = assemble_system(a, L, bcs)
@@ -153,13 +152,13 @@ def _plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     if len(nu_o) != gdim or len(p) != gdim:
         raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
     k = int(np.argmax(np.abs(nu_o)))
+    X = ufl.SpatialCoordinate(scene.mesh)
+    n_ufl = ufl.as_vector((-nu_o).tolist())                                       # n = −ν
+    g_ufl = ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist()))  # g = (x − p)·ν
     if abs(abs(nu_o[k]) - 1.0) > 1e-12:  # a tilted plane: rotate the contact nodes
-        X = ufl.SpatialCoordinate(scene.mesh)
         return _rotated_contact(scene, V, K, b, fixed, ds,
                                 normal=lambda x: np.tile(-nu_o, (len(x), 1)),
-                                gap=lambda x: (x - p) @ nu_o,
-                                n_ufl=ufl.as_vector((-nu_o).tolist()),
-                                g_ufl=ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))
+                                gap=lambda x: (x - p) @ nu_o, n_ufl=n_ufl, g_ufl=g_ufl)
     n_k = float(np.sign(-nu_o[k]))
     S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, scene.boundary.facets("contact"))
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
@@ -169,11 +168,9 @@ def _plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     gap = (S.tabulate_dof_coordinates()[:, :gdim] - p) @ nu_o     # g(x) = (x − p)·ν
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = n_k * gap
-    X = ufl.SpatialCoordinate(scene.mesh)
     return {"constraint": Constraint(dofs, n_k * gap[sd], w, n_k),
             "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": n_k,
-            "data": {"n": -nu_o, "n_ufl": ufl.as_vector((-nu_o).tolist()),
-                     "g_ufl": ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist()))}}
+            "data": {"n": -nu_o, "n_ufl": n_ufl, "g_ufl": g_ufl}}
 
 
 def _curved_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
@@ -227,14 +224,14 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = g_all
-    first = _closest(msh.comm, Xs[sd], g_all[sd])
+    first = first_contact_point(msh.comm, Xs[sd], g_all[sd])
     return {"K": Kt, "b": bt, "basis": Q,
             "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0),
             "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
             "data": {"n": normal(first[None, :])[0], "normals": normals, "n_ufl": n_ufl, "g_ufl": g_ufl}}
 
 
-def _closest(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
+def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """The point of X with the smallest ``dist`` over all ranks (the first point of contact)."""
     local = (float(dist.min()), X[np.argmin(dist)].tolist()) if len(dist) else (np.inf, None)
     return np.asarray(min(comm.allgather(local), key=lambda t: t[0])[1])
@@ -249,9 +246,11 @@ def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np
     blocks = np.tile(np.eye(bs), (local_nodes, 1, 1))
     for node, n in zip(nodes, normals):
         blocks[node] = _frame(n)
-    rows = (lo // bs + np.arange(local_nodes)).astype(PETSc.IntType)
-    for i, blk in zip(rows, blocks):  # one bs×bs block per owned node
-        Q.setValuesBlocked([i], [i], blk.ravel())
+    # CSR of the owned rows: row (node, i) holds columns (node, 0 … bs−1), values blocks[node, i, :]
+    indptr = np.arange(0, local_nodes * bs * bs + 1, bs, dtype=PETSc.IntType)
+    cols = lo + np.arange(local_nodes * bs, dtype=PETSc.IntType).reshape(local_nodes, 1, bs)
+    indices = np.broadcast_to(cols, (local_nodes, bs, bs)).ravel()
+    Q.setValuesCSR(indptr, indices, blocks.ravel())
     Q.assemble()
     return Q
 

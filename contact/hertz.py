@@ -20,6 +20,7 @@ from petsc4py import PETSc
 
 import dolfinx.fem.petsc
 
+from .elasticity import first_contact_point
 from .scene import Scene
 from .solver import Result, owned_residual
 
@@ -79,7 +80,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     p.to_unknowns(result.u_h.x.petsc_vec, unknowns)
     gap = con.sign * (con.g - unknowns.array_r[con.dofs])
     unknowns.destroy()
-    origin = _first_contact_point(comm, X, con.g * con.sign)
+    origin = first_contact_point(comm, X, con.g * con.sign)
     rel = X - origin
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     active = result.active_mask                           # the solver's rule: b_i > a_i
@@ -97,13 +98,6 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
             "hertz_a": a_H, "hertz_p0": p0_H, "a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0,
             "a_over_R": a / R, "symmetric_copies": copies, "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
             "pressure_profile": _profile(comm, rho, -lam)}
-
-
-def _first_contact_point(comm: MPI.Comm, X: np.ndarray, gap0: np.ndarray) -> np.ndarray:
-    """The constrained node with the smallest initial gap (the first point of contact)."""
-    local = (float(gap0.min()), X[np.argmin(gap0)].tolist()) if len(gap0) else (np.inf, None)
-    best = min(comm.allgather(local), key=lambda t: t[0])
-    return np.asarray(best[1])
 
 
 def _profile(comm: MPI.Comm, rho: np.ndarray, pressure: np.ndarray) -> list[list[float]]:

@@ -1,11 +1,13 @@
 """Hertz validation (issue #4 figures): the adaptive loop on configs/hertz_2d.yaml and
 configs/hertz_3d.yaml for fb and min — per level DoFs, Newton iterations, contact
 half-width/radius and peak pressure against Hertz for the computed force, seconds — then,
-on the final mesh of each, every method from a cold start and from the nested guess, and
-the direct solver against Krylov + GAMG (rigid-body near-nullspace) for fb.  Writes CSV.
+on the final mesh of the fb run, every method from a cold start and from the nested guess
+with the scene's default linear solver (MUMPS in 2D, BiCGStab + GAMG with the rigid-body
+near-nullspace in 3D), and fb from a cold start with the other one.  Writes CSV.
 
     python demos/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
-    python demos/bench_hertz.py --full ...               (+ VI solvers cold on the 3D mesh)
+    python demos/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
+                                                          on the 3D mesh)
 """
 from __future__ import annotations
 
@@ -16,27 +18,30 @@ from pathlib import Path
 import contact
 from contact.hertz import contact_resultants
 from contact.io import write_csv
-from contact.solver import build_problem
+from contact.solver import (DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, build_problem,
+                            default_linear_solver, method_variant)
 
-GAMG = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
+LINEAR_SOLVERS = {"direct": DEFAULT_PETSC_OPTIONS, "gamg": ELASTICITY_3D_PETSC_OPTIONS}
+METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="bench/hertz")
     ap.add_argument("--full", action="store_true",
-                    help="also the PETSc VI solvers from a cold start, and vinewtonssls nested, on the final "
-                         "3D mesh (vinewtonssls took over 6 minutes cold and over 4 nested there, "
-                         "vinewtonrsls 136 s cold; left out of make bench)")
+                    help="also the PETSc VI solvers from a cold start, vinewtonssls nested, and fb with "
+                         "MUMPS on the final 3D mesh (vinewtonssls took over 6 minutes cold and over 4 "
+                         "nested there, vinewtonrsls 136 s cold, MUMPS 219 s; left out of make bench)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     levels, finals = [], []
     for name in ("hertz_2d", "hertz_3d"):
+        runs = {}
         for method in ("fb", "min"):
             scene = contact.load_scene(f"configs/{name}.yaml", ["output.verbose=false"])
             t0 = time.perf_counter()
-            res = contact.adapt(scene, method=method, verbose=False)
+            runs[method] = res = contact.adapt(scene, method=method, verbose=False)
             wall = time.perf_counter() - t0
             for lv in res.levels:
                 h = contact_resultants(lv.scene, lv.result)
@@ -47,21 +52,23 @@ def main() -> None:
                 levels.append(row)
                 print(row, flush=True)
             print(f"{name} {method}: {len(res.levels)} levels in {wall:.1f} s", flush=True)
-        last = res.levels[-1]
+        last = runs["fb"].levels[-1]
         problem = build_problem(last.scene)
-        for method in ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish"):
+        nested = _previous_guess(runs["fb"])
+        default = next(k for k, v in LINEAR_SOLVERS.items() if v == default_linear_solver(problem))
+        full_3d = name != "hertz_3d" or args.full
+        for method in METHODS:
             for start in ("cold", "nested"):
-                if name == "hertz_3d" and not args.full and (
-                        method == "vinewtonssls" or (start == "cold" and method.startswith("vi"))):
+                if not full_3d and (method == "vinewtonssls" or (start == "cold" and method.startswith("vi"))):
                     continue
-                u0 = None if start == "cold" else _previous_guess(res)
-                for solver, opts in (("direct", {}), ("gamg", GAMG)):
-                    if solver == "gamg" and (start == "nested" or method != "fb"):
-                        continue  # the linear-solver comparison needs one method (keeps make bench < 30 min)
+                solvers = [default]
+                if method == "fb" and start == "cold" and full_3d:  # the linear-solver comparison
+                    solvers += [k for k in LINEAR_SOLVERS if k != default]
+                for solver in solvers:
+                    m, variant = method_variant(method)
                     t0 = time.perf_counter()
-                    r = contact.solve(last.scene, method=method.removesuffix("-nopolish"), problem=problem,
-                                      u0=u0, verbose=False, max_it=100, petsc_options=opts,
-                                      polish=not method.endswith("-nopolish"))
+                    r = contact.solve(last.scene, method=m, problem=problem, u0=nested if start == "nested" else None,
+                                      verbose=False, max_it=100, petsc_options=LINEAR_SOLVERS[solver], **variant)
                     row = {"scene": name, "method": method, "start": start, "linear_solver": solver,
                            "dofs": r.dofs, "converged": r.converged, "reason": r.reason,
                            "newton": r.iterations, "polish": r.polish_solves, "seconds": round(time.perf_counter() - t0, 2)}

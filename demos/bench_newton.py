@@ -29,13 +29,13 @@ METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish", 
 def one(scene: str, cells: int, method: str, extra: list[str]) -> dict:
     """Solve once (in this process) and return the figures."""
     import contact
+    from contact.solver import method_variant
     from mpi4py import MPI
 
     t0 = time.perf_counter()
-    name, pure = method.removesuffix("-nopolish"), method.endswith("-nopolish")
-    s = contact.load_scene(scene, [f"mesh.cells=[{cells},{cells}]", "solver.max_it=200", *extra,
-                                   *(["solver.polish=false"] if pure else [])])
-    r = contact.solve(s, method=name, verbose=False)
+    name, variant = method_variant(method)
+    s = contact.load_scene(scene, [f"mesh.cells=[{cells},{cells}]", "solver.max_it=200", *extra])
+    r = contact.solve(s, method=name, verbose=False, **variant)
     wall = time.perf_counter() - t0
     rss = MPI.COMM_WORLD.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.SUM) / 1024
     return {"method": method, "cells": cells, "dofs": r.dofs, "ranks": MPI.COMM_WORLD.size,

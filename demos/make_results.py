@@ -62,16 +62,16 @@ def pct(x) -> str:
     return "–" if x in ("", None) else f"{100 * x:+.2f} %"
 
 
-def solves(r: dict, total: bool = False) -> int:
+def solves(r: dict) -> int:
     """Linear solves of a run or level: Newton iterations + active-set polishing solves."""
-    n, p = ("newton_iterations_total", "polish_solves_total") if total else ("newton_iterations", "polish_solves")
-    return int(r[n]) + int(r.get(p) or 0)
+    return int(r["newton_iterations"]) + int(r.get("polish_solves") or 0)
 
 
-def its_text(r: dict, total: bool = False) -> str:
-    """'n' Newton iterations, or 'n+p' with p polishing solves."""
-    n, p = ("newton_iterations_total", "polish_solves_total") if total else ("newton_iterations", "polish_solves")
-    return f"{r[n]}+{r[p]}" if r.get(p) not in (None, "", 0) else str(r[n])
+def its_text(r: dict) -> str:
+    """'n' Newton iterations, or 'n+p' with p polishing solves (as contact.solver.solves_text;
+    this script reads CSVs only and does not import the package)."""
+    p = r.get("polish_solves")
+    return f"{r['newton_iterations']}+{p}" if p not in (None, "", 0) else str(r["newton_iterations"])
 
 
 def missing(what: str) -> str:
@@ -343,11 +343,12 @@ def hertz_methods() -> str:
         return "\n".join(out) + "\n" + missing("demos/results/hertz/final_mesh_methods.csv")
     out += ["`demos/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
             "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
-            "solution (nested); linear solver = the scene default (MUMPS in 2D, BiCGStab + GAMG in 3D) "
-            "or GAMG. Newton its + polishing solves; the 3D VI runs from a cold start and vinewtonssls "
-            "in 3D only with `--full` (they took minutes).", "",
+            "solution (nested), with the scene's default linear solver (direct = MUMPS LU in 2D, gamg = "
+            "BiCGStab + GAMG in 3D), and fb from a cold start also with the other one. Newton its + "
+            "polishing solves; the 3D VI runs from a cold start, vinewtonssls and MUMPS in 3D only with "
+            "`--full` (they took minutes).", "",
             table(["scene", "method", "start", "linear solver", "DoFs", "Newton its", "seconds"],
-                  [[r["scene"], r["method"], r["start"], "default" if r["linear_solver"] == "direct" else r["linear_solver"],
+                  [[r["scene"], r["method"], r["start"], r["linear_solver"],
                     r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r.get("polish")}),
                     g(r["seconds"])] for r in data])]
     return "\n".join(out) + "\n"

@@ -12,12 +12,10 @@ import numpy as np
 
 import contact
 from contact.io import gather_nodal
-from contact.solver import build_problem, owned_residual
+from contact.solver import build_problem, method_variant, owned_residual
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls")
-# variants: key -> (method, solver options); pure FB / blend Newton without active-set polishing
-VARIANTS = {**{m: (m, {}) for m in METHODS}, "fb-nopolish": ("fb", {"polish": False}),
-            "blend-nopolish": ("blend", {"polish": False})}
+VARIANTS = METHODS + ("fb-nopolish", "blend-nopolish")  # pure FB / blend Newton, no polishing
 
 
 def main(argv):
@@ -28,7 +26,8 @@ def main(argv):
     for path in scenes:
         scene = contact.load_scene(path, overrides=[o for o in overrides if o != "--set"])
         problem = build_problem(scene)
-        for name, (m, opts) in VARIANTS.items():
+        for name in VARIANTS:
+            m, opts = method_variant(name)
             r = contact.solve(scene, method=m, problem=problem, verbose=False, max_it=200, **opts)
             key = f"{scene.name}/{name}"
             X, u = gather_nodal(r.u_h)
