@@ -8,6 +8,8 @@ near-nullspace in 3D), and fb from a cold start with the other one.  Writes CSV.
     python demos/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
     python demos/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
                                                           on the 3D mesh)
+    python demos/bench_hertz.py --set solver.kappa=100 --out bench/hertz_kappa100
+                                                         (scene overrides, as contact run --set)
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default="bench/hertz")
+    ap.add_argument("--set", dest="extra", action="append", default=[], help="scene override KEY=VALUE")
     ap.add_argument("--full", action="store_true",
                     help="also the PETSc VI solvers from a cold start, vinewtonssls nested, and fb with "
                          "MUMPS on the final 3D mesh (vinewtonssls took over 6 minutes cold and over 4 "
@@ -39,7 +42,7 @@ def main() -> None:
     for name in ("hertz_2d", "hertz_3d"):
         runs = {}
         for method in ("fb", "min"):
-            scene = contact.load_scene(f"configs/{name}.yaml", ["output.verbose=false"])
+            scene = contact.load_scene(f"configs/{name}.yaml", ["output.verbose=false", *args.extra])
             t0 = time.perf_counter()
             runs[method] = res = contact.adapt(scene, method=method, verbose=False)
             wall = time.perf_counter() - t0
