@@ -12,7 +12,7 @@ except ImportError:  # a conda / Debian DOLFINx needs nothing
 from . import expressions  # noqa: E402
 from .config import ConfigError  # noqa: E402
 from .scene import Scene, load_scene  # noqa: E402
-from .solver import Result, solve  # noqa: E402
+from .solvers import Result, solve  # noqa: E402
 from .estimate import Estimate, estimate  # noqa: E402
 from .adapt import AdaptResult, adapt, mark, refine  # noqa: E402
 

@@ -27,7 +27,8 @@ from .estimate import Estimate, estimate
 from .geometry import curved_boundary
 from .meshes import Boundary
 from .scene import Scene
-from .solver import Result, build_problem, solve, solves_text
+from .models import build_problem
+from .solvers import Result, solve, solves_text
 
 STRATEGIES = ("dorfler", "maximum", "uniform")
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
 
-from .solver import solves_text
+from .solvers import solves_text
 
 if TYPE_CHECKING:
     from .study import Study

@@ -32,7 +32,7 @@ import ufl
 from dolfinx import fem, la
 
 from .scene import Scene
-from .solver import Result
+from .solvers import Result
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
 
@@ -97,7 +97,7 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
 
     (consistency, tangential — frictionless —, sign, complementarity)."""
-    from .elasticity import stress
+    from .models.elasticity import stress
 
     msh = scene.mesh
     p = result.problem

@@ -20,9 +20,9 @@ from petsc4py import PETSc
 
 import dolfinx.fem.petsc
 
-from .elasticity import first_contact_point
+from .models.obstacles import first_contact_point
 from .scene import Scene
-from .solver import Result, owned_residual
+from .solvers import Result, owned_residual
 
 
 def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float, float]:

@@ -12,7 +12,7 @@ from . import io, plots
 from .adapt import AdaptResult, Level
 from .errors import energy_error
 from .scene import Scene
-from .solver import Result
+from .solvers import Result
 
 
 def resultants(scene: Scene, result: Result) -> dict | None:
@@ -104,7 +104,7 @@ def cell_fields(scene: Scene, result: Result) -> list:
     """Cellwise output fields: the von Mises stress for elasticity."""
     if scene.cfg["model"]["type"] != "elasticity":
         return []
-    from .elasticity import von_mises
+    from .models.elasticity import von_mises
 
     return [von_mises(result.u_h, result.problem.data["mu"], result.problem.data["lmbda_L"])]
 

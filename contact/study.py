@@ -61,7 +61,7 @@ from mpi4py import MPI
 
 from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate,
                      _validate_mapping, apply_overrides, load_config, read_yaml)
-from .solver import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
+from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
     "direct": DEFAULT_PETSC_OPTIONS,      # preonly + LU (MUMPS), also for 3D elasticity
@@ -424,7 +424,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     from .errors import energy_error
     from .estimate import estimate
     from .scene import load_scene
-    from .solver import solve
+    from .solvers import solve
 
     out: dict[str, Any] = {"dofs": "", "levels": "", "newton_iterations": "", "newton_iterations_total": "",
                            "polish_solves": "", "polish_solves_total": "",

@@ -20,8 +20,9 @@ from pathlib import Path
 import contact
 from contact.hertz import contact_resultants
 from contact.io import write_csv
-from contact.solver import (DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, build_problem,
-                            default_linear_solver, method_variant)
+from contact.models import build_problem
+from contact.solvers import (DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, default_linear_solver,
+                             method_variant)
 
 LINEAR_SOLVERS = {"direct": DEFAULT_PETSC_OPTIONS, "gamg": ELASTICITY_3D_PETSC_OPTIONS}
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish")

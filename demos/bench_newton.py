@@ -29,7 +29,7 @@ METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish", 
 def one(scene: str, cells: int, method: str, extra: list[str]) -> dict:
     """Solve once (in this process) and return the figures."""
     import contact
-    from contact.solver import method_variant
+    from contact.solvers import method_variant
     from mpi4py import MPI
 
     t0 = time.perf_counter()

@@ -68,7 +68,7 @@ def solves(r: dict) -> int:
 
 
 def its_text(r: dict) -> str:
-    """'n' Newton iterations, or 'n+p' with p polishing solves (as contact.solver.solves_text;
+    """'n' Newton iterations, or 'n+p' with p polishing solves (as contact.solvers.solves_text;
     this script reads CSVs only and does not import the package)."""
     p = r.get("polish_solves")
     return f"{r['newton_iterations']}+{p}" if p not in (None, "", 0) else str(r["newton_iterations"])

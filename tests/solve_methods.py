@@ -9,10 +9,12 @@ across MPI sizes.
 import sys
 
 import numpy as np
+from mpi4py import MPI
 
 import contact
 from contact.io import gather_nodal
-from contact.solver import build_problem, method_variant, owned_residual
+from contact.models import build_problem
+from contact.solvers import method_variant, owned_residual
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls")
 VARIANTS = METHODS + ("fb-nopolish", "blend-nopolish")  # pure FB / blend Newton, no polishing
@@ -43,7 +45,7 @@ def main(argv):
                 data[key + "/X"], data[key + "/u"] = X, u
                 data[key + "/lambda"], data[key + "/gap"] = lam, gap
                 data[key + "/info"] = np.array([r.converged, r.iterations, comp / scale, r.n_active, r.polish_solves])
-    if contact.solver.MPI.COMM_WORLD.rank == 0:
+    if MPI.COMM_WORLD.rank == 0:
         np.savez(out, **data)
 
 

@@ -11,7 +11,7 @@ import pytest
 
 import contact
 from contact.hertz import contact_resultants, hertz
-from contact.solver import build_problem
+from contact.models import build_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"

@@ -6,7 +6,7 @@ import pytest
 from conftest import make_square_msh
 
 import contact
-from contact.models import scalar_problem
+from contact.models.scalar import scalar_problem
 
 
 def _scene(msh, boundaries):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import contact
-from contact.models import scalar_problem
+from contact.models.scalar import scalar_problem
 
 GAMG = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
 

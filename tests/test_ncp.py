@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import contact  # noqa: F401  (sets up dolfinx_solver before dolfinx is imported)
-from contact import ncp
+from contact.solvers import ncp
 
 MUS = (0.3, 0.5, 0.7)
 CASES = [("fb", 0.5), ("min", 0.5)] + [("blend", mu) for mu in MUS]

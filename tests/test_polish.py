@@ -1,4 +1,4 @@
-"""Active-set polishing (``solver.polish``, :class:`contact.solver._Polisher`): it changes
+"""Active-set polishing (``solver.polish``, :class:`contact.solvers.polish.Polisher`): it changes
 how fast FB / blend Newton converges, never what it converges to."""
 from __future__ import annotations
 
@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 import contact
-from contact.solver import _Complementarity, _Polisher, build_problem
+from contact.models import build_problem
+from contact.models.problem import nodal_scaling
+from contact.solvers.newton import Complementarity
+from contact.solvers.options import solver_options
+from contact.solvers.polish import Polisher
+from contact.solvers.solve import set_dirichlet
 from petsc4py import PETSc
 
 
@@ -46,18 +51,18 @@ def test_min_is_never_polished(scene):
 
 def _state(scene, method="fb"):
     problem = build_problem(scene)
-    problem.c = contact.models.nodal_scaling(problem.K, problem.constraint.dofs, problem.constraint.w,
-                                             contact.solver.solver_options(scene)["kappa"])
-    cp = _Complementarity(problem)
+    problem.c = nodal_scaling(problem.K, problem.constraint.dofs, problem.constraint.w,
+                              solver_options(scene)["kappa"])
+    cp = Complementarity(problem)
     timers = {"solve": 0.0, "assembly": 0.0}
     ksp = PETSc.KSP().create(problem.b.getComm())
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
     ksp.setOperators(problem.K)  # stands in for the Newton solver's KSP and its Jacobian
-    pol = _Polisher(cp, method, 0.5, ksp, timers)
+    pol = Polisher(cp, method, 0.5, ksp, timers)
     x = problem.b.duplicate()
     x.set(0.0)
-    contact.solver.dolfinx_set_bc(x, problem.bcs)
+    set_dirichlet(x, problem.bcs)
     return problem, cp, pol, x
 
 
@@ -85,7 +90,7 @@ def test_polisher_lands_on_the_active_set_solution(scene):
     free = np.setdiff1d(np.arange(u.x.array.size), cp.dofs)
     u.x.array[free] *= 1.0 + 1e-3
     problem.to_unknowns(u.x.petsc_vec, x)
-    contact.solver.dolfinx_set_bc(x, problem.bcs)
+    set_dirichlet(x, problem.bcs)
     assert np.array_equal(cp.active(x), ref.active_mask)
     y = problem.b.duplicate()
     y.set(0.0)  # a Newton step that goes nowhere: W = x

@@ -19,7 +19,8 @@ import pytest
 
 import contact
 from contact.errors import energy_error
-from contact.solver import build_problem, owned_residual
+from contact.models import build_problem
+from contact.solvers import owned_residual
 
 ROOT = Path(__file__).resolve().parents[1]
 OBTUSE = ROOT / "configs" / "obtuse_square.yaml"

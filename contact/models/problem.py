@@ -1,20 +1,16 @@
-"""Scalar Signorini and obstacle models: forms, Dirichlet data and the nodal constraint set.
+"""The discrete contact problem every model produces and every solver consumes.
 
-Weak form (SPEC §1.1), P1 (or P2) Lagrange u_h with u_h = u_D on Γ_D:
-
-    a(u, v) = ∫_Ω k ∇u·∇v dx,     L(v) = ∫_Ω f v dx + ∫_{Γ_N} t v ds + ∫_{Γ_C} t_C v ds,
-
-assembled once into K (Dirichlet rows replaced by identity rows, lifted load b) so that
-R(u) = K u − b is the discrete residual.  The complementarity conditions act on a set of
+A model assembles, once per mesh, the stiffness matrix K (Dirichlet rows and columns
+replaced by identity) and the lifted load b, so that R(x) = K x − b is the discrete
+residual in the solver's unknowns x (x = Qᵀ u when a change of basis u = Q x rotates
+contact nodes to their (n, t) axes).  The complementarity conditions act on a set of
 nodes (SPEC §2):
 
-    R_i = w_i λ_i,   σ(g_i − u_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − u_i) λ_i = 0,
+    R_i = w_i λ_i,   σ(g_i − x_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − x_i) λ_i = 0,
 
-with lumped weights w_i = ∫ φ_i over Γ_C (Signorini: the contact nodes not on the closure
-of Γ_D) or over Ω (obstacle: every free node), and σ = +1 for u ≤ g, −1 for u ≥ ψ.
-λ_i is the nodal multiplier density: the contact flux k ∂u/∂n − t_C (Signorini) or
-−div(k∇u) − f (obstacle).  Units: with u in [U], k in [K], lengths in [L], λ is in
-[K·U/L] on Γ_C and [K·U/L²] in Ω.
+with lumped weights w_i = ∫ φ_i over Γ_C (Signorini, elasticity: the contact nodes not on
+the closure of Γ_D) or over Ω (obstacle: every free node), and σ = +1 for x ≤ g, −1 for
+x ≥ ψ.  λ_i is the nodal multiplier density (a flux or a pressure).
 """
 from __future__ import annotations
 
@@ -29,9 +25,8 @@ import dolfinx.fem.petsc
 import ufl
 from dolfinx import fem
 
-from . import expressions
-from .config import ConfigError
-from .scene import Scene
+from .. import expressions
+from ..scene import Scene
 
 
 @dataclass
@@ -132,7 +127,7 @@ class DiscreteProblem:
         return self.output_bound if self.output_bound is not None else self.data["g_h"]
 
 
-def _contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray,
+def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray,
                   dirichlet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Owned contact DoFs that are Dirichlet DoFs too, and for each the nearest contact DoF
     that is not (owned or ghost).  A loop over the few ends only."""
@@ -145,7 +140,7 @@ def _contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarra
     return ends, np.asarray(nearest, dtype=np.int32)
 
 
-def _coefficient(text: str, scene: Scene) -> Any:
+def coefficient(text: str, scene: Scene) -> Any:
     """UFL data: a ``fem.Constant`` when the expression is constant, else a UFL expression."""
     consts = scene.cfg["constants"]
     if expressions.is_constant(text, consts):
@@ -154,7 +149,7 @@ def _coefficient(text: str, scene: Scene) -> Any:
     return expressions.to_ufl(text, scene.mesh, consts)
 
 
-def _interpolate(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
+def interpolate_expression(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
     """``text`` interpolated into V; for a vector space the expression is every component."""
     fn = fem.Function(V)
     f = expressions.to_numpy(text, scene.cfg["constants"])
@@ -183,69 +178,6 @@ def lumped_weights(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
     out = w.array.copy()
     w.destroy()
     return out
-
-
-def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
-    """Assemble the scalar Signorini or obstacle problem of ``scene`` (SPEC §1.1–1.2, §2)."""
-    import time
-
-    t0 = time.perf_counter()
-    cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
-    degree = degree or cfg["mesh"]["degree"]
-    data = cfg["data"]
-    V = fem.functionspace(msh, ("Lagrange", degree))
-    tdim = msh.topology.dim
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    k, f = _coefficient(data["k"], scene), _coefficient(data["f"], scene)
-    t, t_C = _coefficient(data["t"], scene), _coefficient(data["t_C"], scene)
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
-    dx = ufl.Measure("dx", domain=msh)
-
-    # a(u, v) = ∫ k ∇u·∇v dx
-    a = fem.form(k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx)
-    # L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} + ⟨t_C, v⟩_{Γ_C}
-    L = f * v * dx
-    for i in bnd.ids_with_role("neumann"):
-        L += t * v * ds(i)
-    for i in bnd.ids_with_role("contact"):
-        L += t_C * v * ds(i)
-    L = fem.form(L)
-
-    # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
-    u_D = _interpolate(V, data["u_D"], scene)
-    dirichlet_dofs = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
-    bcs = [fem.dirichletbc(u_D, dirichlet_dofs)]
-
-    K, b = assemble_system(a, L, bcs)
-
-    # The constraint set and its lumped weights w_i = ∫ φ_i (Γ_C or Ω).
-    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-    if cfg["model"]["type"] == "signorini":
-        contact = bnd.ids_with_role("contact")
-        candidates = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("contact"))
-        measure = ds(contact)
-        bound_text, sign = data["g"], 1.0
-    else:
-        candidates = np.arange(n_owned, dtype=np.int32)
-        measure = dx
-        bound_text, sign = data["psi"], 1.0 if cfg["model"]["bound"] == "upper" else -1.0
-    owned = candidates[candidates < n_owned]
-    dofs = np.setdiff1d(owned, dirichlet_dofs).astype(np.int32)
-    w = lumped_weights(V, measure)[dofs]
-    if msh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
-        raise ConfigError(f"mesh.degree: {degree} gives constrained DoFs with lumped weight ∫ φ_i = 0 "
-                         "on this mesh; use mesh.degree: 1")
-    g_h = _interpolate(V, bound_text, scene)
-    constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
-
-    u_h = fem.Function(V, name="u_h")
-    ends = {}
-    if cfg["model"]["type"] == "signorini":
-        ends = dict(zip(("end_dofs", "end_neighbours"), _contact_ends(V, owned, candidates, dirichlet_dofs)))
-    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends,
-                           data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
-                                 "exact": data["exact"]},
-                           assembly_time=time.perf_counter() - t0)
 
 
 def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 1.0) -> np.ndarray:

@@ -1,0 +1,31 @@
+"""Models: a scene's mesh and data → the discrete contact problem (K, b, constraint set).
+
+* :mod:`.problem` — :class:`DiscreteProblem` and :class:`Constraint`, the interface to
+  the solvers, and what every model shares (assembly, lumped weights, the NCP scaling);
+* :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
+* :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
+  :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x).
+
+A scene imports only its own model: a scalar scene never loads the elasticity modules.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from .problem import Constraint, DiscreteProblem
+
+if TYPE_CHECKING:
+    from ..scene import Scene
+
+__all__ = ["Constraint", "DiscreteProblem", "build_problem"]
+
+
+def build_problem(scene: "Scene") -> DiscreteProblem:
+    """The discrete problem of the scene's model."""
+    if scene.cfg["model"]["type"] == "elasticity":
+        from .elasticity import elasticity_problem
+
+        return elasticity_problem(scene)
+    from .scalar import scalar_problem
+
+    return scalar_problem(scene)

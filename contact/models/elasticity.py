@@ -1,0 +1,175 @@
+"""Linear elasticity against a rigid obstacle, frictionless (SPEC §1.3).
+
+    σ(u) = 2μ ε(u) + λ_L tr ε(u) I   (plane strain in 2D),   −div σ(u) = f in Ω,
+    u = u_D on Γ_D,   σ n = t on Γ_N,   u·n_s = 0 on symmetry planes,
+    u·n ≤ g,  λ_n := σ_nn(u) ≤ 0,  λ_n (u·n − g) = 0,  σ_nt(u) = 0   on Γ_C,
+
+with n the unit normal towards the obstacle and g ≥ 0 the initial gap along n
+(:mod:`contact.models.obstacles` turns u·n ≤ g into a bound on one unknown per contact
+node).  The nodal complementarity problem then has exactly the structure of the scalar
+models and every solver applies unchanged; the multiplier λ_n,i = σ R_i / w_i is the
+contact pressure (negative in compression).
+Units: E and stresses in Pa (or any consistent unit), lengths in m, forces per unit
+thickness in N/m in 2D.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+import ufl
+from dolfinx import fem
+
+from .. import expressions
+from ..config import ConfigError
+from ..scene import Scene
+from .obstacles import curved_contact, plane_contact
+from .problem import DiscreteProblem, assemble_system
+
+
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé parameters (μ, λ_L) of Young's modulus E and Poisson's ratio ν."""
+    return E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+
+def epsilon(u):
+    """ε(u) = sym ∇u."""
+    return ufl.sym(ufl.grad(u))
+
+
+def stress(u, mu: float, lmbda_L: float):
+    """σ(u) = 2μ ε(u) + λ_L tr ε(u) I (plane strain when 2D)."""
+    eps = epsilon(u)
+    return 2.0 * mu * eps + lmbda_L * ufl.tr(eps) * ufl.Identity(len(u))
+
+
+def _vector(texts: list[str], scene: Scene):
+    """Vector data: a ``fem.Constant`` when every component is constant (so a zero load
+    still gives a non-empty form), else a UFL vector of the expressions."""
+    consts = scene.cfg["constants"]
+    if all(expressions.is_constant(t, consts) for t in texts):
+        values = [float(expressions.to_numpy(t, consts)(np.zeros((3, 1)))[0]) for t in texts]
+        return fem.Constant(scene.mesh, np.array(values, dtype=PETSc.ScalarType))
+    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts) for t in texts])
+
+
+def _vector_numpy(texts: list[str], scene: Scene):
+    fns = [expressions.to_numpy(t, scene.cfg["constants"]) for t in texts]
+    return lambda x: np.vstack([f(x) for f in fns])
+
+
+def _facet_normal_axis(scene: Scene, name: str, facets: np.ndarray) -> int:
+    """The axis k of the plane x_k = const that holds ``facets``, those of part ``name``."""
+    msh = scene.mesh
+    tdim = msh.topology.dim
+    nodes = dolfinx.mesh.entities_to_geometry(msh, tdim - 1, facets).ravel()
+    x = msh.geometry.x[nodes, :tdim]
+    lo = np.min(np.vstack(msh.comm.allgather(x.min(axis=0) if len(x) else np.full(tdim, np.inf))), axis=0)
+    hi = np.max(np.vstack(msh.comm.allgather(x.max(axis=0) if len(x) else np.full(tdim, -np.inf))), axis=0)
+    axes = np.flatnonzero(hi - lo < 1e-10 * max(1.0, float(np.max(np.abs(hi)))))
+    if len(axes) != 1:
+        raise ConfigError(f"boundaries.{name}: a symmetry part must lie in one plane x_k = const")
+    return int(axes[0])
+
+
+def elasticity_problem(scene: Scene) -> DiscreteProblem:
+    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2)."""
+    t0 = time.perf_counter()
+    cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
+    model, data, obstacle = cfg["model"], cfg["data"], cfg["obstacle"]  # data: f, u_D, t below
+    gdim, tdim = msh.geometry.dim, msh.topology.dim
+    data = {key: (data[key] if isinstance(data[key], list) else [data[key]] * gdim) for key in ("f", "u_D", "t")}
+    for key, texts in data.items():
+        if len(texts) != gdim:
+            raise ConfigError(f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}")
+    degree = cfg["mesh"]["degree"]
+    V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    mu, lmbda_L = lame(model["E"], model["nu"])
+    f, t = _vector(data["f"], scene), _vector(data["t"], scene)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
+    dx = ufl.Measure("dx", domain=msh)
+
+    # a(u, v) = ∫ σ(u) : ε(v) dx,   L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds
+    a_ufl = ufl.inner(stress(u, mu, lmbda_L), epsilon(v)) * dx
+    L_ufl = ufl.inner(f, v) * dx
+    for i in bnd.ids_with_role("neumann"):
+        L_ufl += ufl.inner(t, v) * ds(i)
+    a, L = fem.form(a_ufl), fem.form(L_ufl)
+
+    # Dirichlet: u = u_D on Γ_D;  symmetry: u_k = 0 on a plane x_k = const.
+    u_D = fem.Function(V)
+    u_D.interpolate(_vector_numpy(data["u_D"], scene))
+    bcs = [fem.dirichletbc(u_D, fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet")))]
+    for name, role in bnd.roles.items():
+        if role == "symmetry":
+            facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
+            k = _facet_normal_axis(scene, name, facets)
+            dofs = fem.locate_dofs_topological(V.sub(k), tdim - 1, facets)
+            bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
+    K, b = assemble_system(a, L, bcs)
+
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
+    if obstacle["type"] == "plane":
+        contact = plane_contact(scene, V, K, b, fixed, ds)
+    else:
+        contact = curved_contact(scene, V, K, b, fixed, ds)
+    K, b = contact.pop("K", K), contact.pop("b", b)
+    con = contact.pop("constraint")
+    u_h = fem.Function(V, name="u_h")
+    data = {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None,
+            # residual without Dirichlet rows, for reaction forces: a(u_h, v) − L(v)
+            "reaction_form": fem.form(ufl.action(a_ufl, u_h) - L_ufl), **contact.pop("data")}
+    return DiscreteProblem(V, u_h, bcs, K, b, con, data=data, **contact,
+                           near_nullspace=rigid_body_modes(V, contact.get("basis")),
+                           assembly_time=time.perf_counter() - t0)
+
+
+def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None) -> PETSc.NullSpace:
+    """Near-nullspace of elasticity for GAMG: gdim translations and the infinitesimal
+    rotations (1 in 2D, 3 in 3D), in the solver's unknowns (Qᵀ m when rotated),
+    orthonormalised."""
+    msh = V.mesh
+    gdim = msh.geometry.dim
+    n_local = V.dofmap.index_map.size_local
+    X = V.tabulate_dof_coordinates()[:n_local, :gdim]
+    modes = []
+    for i in range(gdim):
+        m = np.zeros((n_local, gdim))
+        m[:, i] = 1.0
+        modes.append(m)
+    for i, j in [(0, 1)] if gdim == 2 else [(0, 1), (1, 2), (2, 0)]:
+        m = np.zeros((n_local, gdim))
+        m[:, i], m[:, j] = -X[:, j], X[:, i]
+        modes.append(m)
+    basis = []
+    for m in modes:
+        vec = PETSc.Vec().createMPI((n_local * gdim, PETSc.DECIDE), comm=msh.comm)
+        vec.array[:] = m.ravel()
+        if rotation is not None:
+            rotated = vec.duplicate()
+            rotation.multTranspose(vec, rotated)
+            vec = rotated
+        for prev in basis:  # modified Gram–Schmidt
+            vec.axpy(-vec.dot(prev), prev)
+        vec.normalize()
+        basis.append(vec)
+    return PETSc.NullSpace().create(vectors=basis, comm=msh.comm)
+
+
+def von_mises(u_h: fem.Function, mu: float, lmbda_L: float) -> fem.Function:
+    """Cellwise (DG0) von Mises stress √(3/2 s:s), s the deviator of the 3D stress; in
+    plane strain σ_zz = λ_L tr ε (ε_zz = 0) is included."""
+    msh = u_h.function_space.mesh
+    sig = stress(u_h, mu, lmbda_L)
+    if msh.geometry.dim == 2:
+        szz = lmbda_L * ufl.tr(epsilon(u_h))
+        sig = ufl.as_matrix([[sig[0, 0], sig[0, 1], 0], [sig[1, 0], sig[1, 1], 0], [0, 0, szz]])
+    dev = sig - ufl.tr(sig) / 3 * ufl.Identity(3)
+    W = fem.functionspace(msh, ("DG", 0))
+    out = fem.Function(W, name="von_mises")
+    out.interpolate(fem.Expression(ufl.sqrt(1.5 * ufl.inner(dev, dev)), W.element.interpolation_points))
+    return out

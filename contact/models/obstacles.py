@@ -1,0 +1,157 @@
+"""Rigid obstacles (plane, circle, sphere) as nodal constraint sets of the elastic model
+(SPEC §1.3), and the change of basis u = Q x that rotates contact nodes to their axes.
+
+For a rigid plane through p with outward normal ν (pointing from the obstacle to the body),
+n = −ν and g(x) = (x − p)·ν; for a rigid circle/sphere (centre c, radius R_o, the body
+outside) n = (c − x)/|c − x| and g = |x − c| − R_o.  When n is a coordinate direction ±e_k,
+u·n ≤ g is a bound on the single component u_k (σ = n_k, bound n_k g); otherwise each
+contact node's displacement is rotated to its (n, t) axes, u = Q x with Q orthogonal and
+block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, so that it is a bound on one unknown again.
+Each function returns the pieces of :class:`contact.models.problem.DiscreteProblem` that
+the obstacle determines (constraint, output space, basis, contact data).
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import ufl
+from dolfinx import fem
+
+from ..config import ConfigError
+from ..scene import Scene
+from .problem import Constraint, lumped_weights
+
+
+def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
+    """For component k: its collapsed space S, the S → V map, and the (V-DoF, S-DoF) pairs
+    on the contact facets."""
+    S, s_to_v = V.sub(k).collapse()
+    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    tdim = V.mesh.topology.dim
+    v_dofs, s_dofs = fem.locate_dofs_topological((V.sub(k), S), tdim - 1, facets)
+    return S, s_to_v, v_dofs, s_dofs
+
+
+def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
+    """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
+    σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
+    obstacle, gdim = scene.cfg["obstacle"], scene.mesh.geometry.dim
+    nu_o = np.asarray(obstacle["normal"], dtype=float)
+    nu_o = nu_o / np.linalg.norm(nu_o)
+    p = np.asarray(obstacle["point"], dtype=float)
+    if len(nu_o) != gdim or len(p) != gdim:
+        raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
+    k = int(np.argmax(np.abs(nu_o)))
+    X = ufl.SpatialCoordinate(scene.mesh)
+    n_ufl = ufl.as_vector((-nu_o).tolist())                                       # n = −ν
+    g_ufl = ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist()))  # g = (x − p)·ν
+    if abs(abs(nu_o[k]) - 1.0) > 1e-12:  # a tilted plane: rotate the contact nodes
+        return _rotated_contact(scene, V, K, b, fixed, ds,
+                                normal=lambda x: np.tile(-nu_o, (len(x), 1)),
+                                gap=lambda x: (x - p) @ nu_o, n_ufl=n_ufl, g_ufl=g_ufl)
+    n_k = float(np.sign(-nu_o[k]))
+    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, scene.boundary.facets("contact"))
+    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    keep = (v_dofs < n_owned) & ~np.isin(v_dofs, fixed)
+    dofs, sd = v_dofs[keep].astype(np.int32), s_dofs[keep]
+    w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
+    gap = (S.tabulate_dof_coordinates()[:, :gdim] - p) @ nu_o     # g(x) = (x − p)·ν
+    bound = fem.Function(S, name="bound")
+    bound.x.array[:] = n_k * gap
+    return {"constraint": Constraint(dofs, n_k * gap[sd], w, n_k),
+            "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": n_k,
+            "data": {"n": -nu_o, "n_ufl": n_ufl, "g_ufl": g_ufl}}
+
+
+def curved_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
+    """Rigid circle (2D) or sphere (3D) of centre c and radius R_o, the body outside it:
+    n(x) = (c − x)/|c − x| and g(x) = |x − c| − R_o vary from node to node."""
+    obstacle, msh = scene.cfg["obstacle"], scene.mesh
+    gdim = msh.geometry.dim
+    want = "circle" if gdim == 2 else "sphere"
+    if obstacle["type"] != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
+    centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
+    if len(centre) != gdim:
+        raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
+    X = ufl.SpatialCoordinate(msh)
+    c_ufl = ufl.as_vector(centre.tolist())
+    return _rotated_contact(
+        scene, V, K, b, fixed, ds,
+        normal=lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
+        gap=lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
+        n_ufl=(c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
+        g_ufl=ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o)
+
+
+def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl) -> dict:
+    """Contact along a normal n(x) that is not a coordinate direction: each contact node's
+    displacement is rotated to its own axes (n, t[, t2]): u = Q x with Q orthogonal
+    block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, and u·n ≤ g becomes the bound x_{i,0} ≤ g_i on
+    one unknown, as for a coordinate plane.  ``normal``/``gap`` map node coordinates to n
+    and g.  Contact nodes with a Dirichlet or symmetry condition on some component cannot
+    be rotated and are refused (fully fixed ones are left out)."""
+    msh = scene.mesh
+    gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
+    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, 0, scene.boundary.facets("contact"))
+    nodes = v_dofs // bs
+    node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
+    partial = node_fixed.any(axis=1) & ~node_fixed.all(axis=1)
+    if msh.comm.allreduce(int(partial.sum())):
+        raise ConfigError("obstacle: contact nodes with a symmetry or partial Dirichlet condition "
+                          "cannot be rotated to the obstacle's normal")
+    keep = (nodes < V.dofmap.index_map.size_local) & ~node_fixed.all(axis=1)
+    nodes, sd = nodes[keep], s_dofs[keep]
+    Xs = S.tabulate_dof_coordinates()[:, :gdim]
+    g_all = gap(Xs)
+    if msh.comm.allreduce(int(np.sum(g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs)))))) ):
+        raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
+    normals = normal(Xs[sd])
+    Q = _rotation(V, K, nodes, normals)
+    Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
+    bt = b.duplicate()
+    Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
+    w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
+    bound = fem.Function(S, name="bound")
+    bound.x.array[:] = g_all
+    first = first_contact_point(msh.comm, Xs[sd], g_all[sd])
+    return {"K": Kt, "b": bt, "basis": Q,
+            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0),
+            "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
+            "data": {"n": normal(first[None, :])[0], "normals": normals, "n_ufl": n_ufl, "g_ufl": g_ufl}}
+
+
+def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """The point of X with the smallest ``dist`` over all ranks (the first point of contact)."""
+    local = (float(dist.min()), X[np.argmin(dist)].tolist()) if len(dist) else (np.inf, None)
+    return np.asarray(min(comm.allgather(local), key=lambda t: t[0])[1])
+
+
+def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
+    """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
+    bs = V.dofmap.index_map_bs
+    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, nnz=(bs, 0), comm=K.comm)
+    lo, hi = Q.getOwnershipRange()
+    local_nodes = (hi - lo) // bs
+    blocks = np.tile(np.eye(bs), (local_nodes, 1, 1))
+    for node, n in zip(nodes, normals):
+        blocks[node] = _frame(n)
+    # CSR of the owned rows: row (node, i) holds columns (node, 0 … bs−1), values blocks[node, i, :]
+    indptr = np.arange(0, local_nodes * bs * bs + 1, bs, dtype=PETSc.IntType)
+    cols = lo + np.arange(local_nodes * bs, dtype=PETSc.IntType).reshape(local_nodes, 1, bs)
+    indices = np.broadcast_to(cols, (local_nodes, bs, bs)).ravel()
+    Q.setValuesCSR(indptr, indices, blocks.ravel())
+    Q.assemble()
+    return Q
+
+
+def _frame(n: np.ndarray) -> np.ndarray:
+    """Columns n, t (, t2): an orthonormal frame whose first axis is n."""
+    if len(n) == 2:
+        return np.array([[n[0], -n[1]], [n[1], n[0]]])
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1)
+    return np.column_stack([n, t1, np.cross(n, t1)])

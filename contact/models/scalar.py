@@ -1,0 +1,86 @@
+"""Scalar Signorini and obstacle models (SPEC §1.1–1.2): forms, Dirichlet data and the
+nodal constraint set.
+
+Weak form, P1 (or P2) Lagrange u_h with u_h = u_D on Γ_D:
+
+    a(u, v) = ∫_Ω k ∇u·∇v dx,     L(v) = ∫_Ω f v dx + ∫_{Γ_N} t v ds + ∫_{Γ_C} t_C v ds,
+
+assembled once into K and the lifted load b (:func:`contact.models.problem.assemble_system`).
+λ_i is the contact flux k ∂u/∂n − t_C (Signorini) or −div(k∇u) − f (obstacle).  Units:
+with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²] in Ω.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+import ufl
+from dolfinx import fem
+
+from ..config import ConfigError
+from ..scene import Scene
+from .problem import (Constraint, DiscreteProblem, coefficient, contact_ends, interpolate_expression,
+                      assemble_system, lumped_weights)
+
+
+def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
+    """Assemble the scalar Signorini or obstacle problem of ``scene`` (SPEC §1.1–1.2, §2)."""
+    t0 = time.perf_counter()
+    cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
+    degree = degree or cfg["mesh"]["degree"]
+    data = cfg["data"]
+    V = fem.functionspace(msh, ("Lagrange", degree))
+    tdim = msh.topology.dim
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    k, f = coefficient(data["k"], scene), coefficient(data["f"], scene)
+    t, t_C = coefficient(data["t"], scene), coefficient(data["t_C"], scene)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
+    dx = ufl.Measure("dx", domain=msh)
+
+    # a(u, v) = ∫ k ∇u·∇v dx
+    a = fem.form(k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx)
+    # L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} + ⟨t_C, v⟩_{Γ_C}
+    L = f * v * dx
+    for i in bnd.ids_with_role("neumann"):
+        L += t * v * ds(i)
+    for i in bnd.ids_with_role("contact"):
+        L += t_C * v * ds(i)
+    L = fem.form(L)
+
+    # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
+    u_D = interpolate_expression(V, data["u_D"], scene)
+    dirichlet_dofs = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
+    bcs = [fem.dirichletbc(u_D, dirichlet_dofs)]
+
+    K, b = assemble_system(a, L, bcs)
+
+    # The constraint set and its lumped weights w_i = ∫ φ_i (Γ_C or Ω).
+    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    if cfg["model"]["type"] == "signorini":
+        contact = bnd.ids_with_role("contact")
+        candidates = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("contact"))
+        measure = ds(contact)
+        bound_text, sign = data["g"], 1.0
+    else:
+        candidates = np.arange(n_owned, dtype=np.int32)
+        measure = dx
+        bound_text, sign = data["psi"], 1.0 if cfg["model"]["bound"] == "upper" else -1.0
+    owned = candidates[candidates < n_owned]
+    dofs = np.setdiff1d(owned, dirichlet_dofs).astype(np.int32)
+    w = lumped_weights(V, measure)[dofs]
+    if msh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
+        raise ConfigError(f"mesh.degree: {degree} gives constrained DoFs with lumped weight ∫ φ_i = 0 "
+                         "on this mesh; use mesh.degree: 1")
+    g_h = interpolate_expression(V, bound_text, scene)
+    constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
+
+    u_h = fem.Function(V, name="u_h")
+    ends = {}
+    if cfg["model"]["type"] == "signorini":
+        ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
+    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends,
+                           data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
+                                 "exact": data["exact"]},
+                           assembly_time=time.perf_counter() - t0)

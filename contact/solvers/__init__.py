@@ -1,0 +1,18 @@
+"""Solvers of the discrete contact problem (SPEC §3–4, §8).
+
+* :mod:`.ncp` — complementarity functions φ (fb, min, blend) and their generalized
+  derivatives;
+* :mod:`.newton` — semismooth Newton on Φ(x) = 0 through PETSc SNES, with the
+  generalized-Jacobian callback; :mod:`.polish` — active-set polishing of its steps;
+* :mod:`.vi` — PETSc's VI solvers (vinewtonrsls, vinewtonssls) as baselines;
+* :mod:`.linear` — the linear solver of each step;
+* :mod:`.options` — the ``solver`` section and PETSc options;
+* :mod:`.solve` — one solve end to end; :mod:`.result` — its outcome.
+"""
+from .linear import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, default_linear_solver
+from .options import method_variant, solver_options
+from .result import Result, owned_residual, solves_text
+from .solve import solve
+
+__all__ = ["DEFAULT_PETSC_OPTIONS", "ELASTICITY_3D_PETSC_OPTIONS", "Result", "default_linear_solver",
+           "method_variant", "owned_residual", "solve", "solver_options", "solves_text"]

@@ -1,0 +1,113 @@
+"""Semismooth Newton for the nodal complementarity problem (SPEC §3–4).
+
+With R(x) = K x − b and the constraint set of :class:`contact.models.Constraint`, the
+multiplier is eliminated (SPEC §4, implementation note): on a constrained node i
+
+    a_i = σ (g_i − x_i)  [gap],     b_i = −σ c_i R_i / w_i  [c × multiplier density],
+
+and the nonsmooth equation is Φ(x) = 0 with
+
+    Φ_i = −σ (w_i / c_i) φ(a_i, b_i)   on constrained rows,    Φ_i = R_i   elsewhere.
+
+The factor −σ w_i / c_i is a constant row scaling of SPEC's Φ_i = φ(a_i, b_i): it does
+not change the zeros or the Newton steps, but it gives every row the units of R (a force),
+so that ‖Φ‖ and the merit ½‖Φ‖² mix no units, and an inactive row is exactly R_i.  An
+element of the generalized Jacobian is then
+
+    H = diag(s) K + diag(d),   s_i = ∂_b φ,  d_i = (w_i / c_i) ∂_a φ  (constrained rows),
+                               s_i = 1,      d_i = 0                  (other rows),
+
+built from the assembled K by one ``MatDiagonalScale`` and one ``MatDiagonalSet`` per
+iteration; the sparsity pattern never changes, so a direct solver reuses its symbolic
+factorization.  The Newton iteration itself is PETSc's SNES ``newtonls`` with these two
+callbacks (line search ``basic`` = plain Newton, or ``bt``).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..models import DiscreteProblem
+from . import ncp
+from .linear import attach_near_nullspace
+from .polish import Polisher
+
+
+class Complementarity:
+    """Vectorised nodal quantities a_i, b_i for an iterate (no loop over DoFs)."""
+
+    def __init__(self, problem: DiscreteProblem):
+        self.p = problem
+        self.R = problem.b.duplicate()
+        con = problem.constraint
+        self.dofs, self.g, self.w, self.sign, self.c = con.dofs, con.g, con.w, con.sign, problem.c
+        self.s, self.d = problem.b.duplicate(), problem.b.duplicate()  # Jacobian scalings
+
+    def pair(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(a, b, R) at x: gap a = σ(g − u), scaled multiplier b = −σ c R / w, residual R."""
+        self.p.residual(x, self.R)
+        r = self.R.array_r
+        u = x.array_r[self.dofs]
+        a = self.sign * (self.g - u)
+        b = -self.sign * self.c * r[self.dofs] / self.w
+        return a, b, r
+
+    def active(self, x: PETSc.Vec) -> np.ndarray:
+        """Active nodes: scaled multiplier exceeds the gap, b_i > a_i (ties inactive)."""
+        a, b, _ = self.pair(x)
+        return b > a
+
+    def phi(self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float) -> tuple[np.ndarray, np.ndarray]:
+        """f = Φ(x): R on free rows, −σ (w/c) φ(a, b) on constrained rows; returns (a, b)."""
+        a, b, _ = self.pair(x)
+        self.R.copy(f)
+        f.array_w[self.dofs] = -self.sign * (self.w / self.c) * ncp.phi(a, b, method, mu)
+        return a, b
+
+    def jacobian(self, a: np.ndarray, b: np.ndarray, H: PETSc.Mat, method: str, mu: float) -> None:
+        """H = diag(s) K + diag(d), the generalized-Jacobian element of Φ at the pair (a, b)."""
+        da, db = ncp.dphi(a, b, method, mu)
+        self.s.set(1.0)
+        self.d.set(0.0)
+        self.s.array_w[self.dofs] = db
+        self.d.array_w[self.dofs] = (self.w / self.c) * da
+        self.p.K.copy(H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        H.diagonalScale(L=self.s)
+        H.setDiagonal(self.d, addv=PETSc.InsertMode.ADD_VALUES)
+
+
+def setup_newton(snes: PETSc.SNES, problem: DiscreteProblem, cp: Complementarity, opts: dict,
+                 timers: dict, state: dict, petsc_opts: dict) -> tuple[PETSc.Mat, Polisher | None]:
+    """Make ``snes`` semismooth Newton on Φ of ``opts['method']`` ∈ {fb, min, blend}:
+    residual Φ and Jacobian H callbacks, the line search, and (fb / blend with
+    ``opts['polish']``) active-set polishing as the line-search pre-check.  Time spent in
+    the callbacks is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of
+    the Jacobian (the linear solve's clock starts there).  Returns (J, polisher)."""
+    method, mu = opts["method"], opts["mu"]
+    J = problem.K.duplicate(copy=True)
+    attach_near_nullspace(problem, J)
+
+    def residual(snes, x, f):
+        t0 = time.perf_counter()
+        cp.phi(x, f, method, mu)
+        timers["assembly"] += time.perf_counter() - t0
+
+    def jacobian(snes, x, J_, P):
+        t0 = time.perf_counter()
+        a, b, _ = cp.pair(x)
+        cp.jacobian(a, b, P, method, mu)
+        now = time.perf_counter()
+        timers["assembly"] += now - t0
+        state["t_jac"] = now
+
+    snes.setType("newtonls")
+    snes.setFunction(residual, problem.b.duplicate())
+    snes.setJacobian(jacobian, J)
+    petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
+    polisher = None
+    if opts["polish"] and method != "min":
+        polisher = Polisher(cp, method, mu, snes.getKSP(), timers)
+        snes.setLineSearchPreCheck(polisher)
+    return J, polisher

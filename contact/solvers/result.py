@@ -1,0 +1,88 @@
+"""The outcome of one solve: :class:`Result`, built by :func:`finish` from the final
+iterate (u_h, the multiplier λ_h, the gap, the active set, the iteration history)."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfinx import fem
+
+from ..models import DiscreteProblem
+
+REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+
+
+@dataclass
+class Result:
+    """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
+    ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
+    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show."""
+
+    u_h: fem.Function
+    lmbda_h: fem.Function
+    gap: fem.Function
+    active: fem.Function
+    history: list[dict]
+    converged: bool
+    reason: str
+    iterations: int
+    residual: float
+    method: str
+    n_active: int
+    timings: dict
+    problem: DiscreteProblem
+    active_mask: np.ndarray
+    options: dict = field(default_factory=dict)
+    polish_solves: int = 0
+
+    @property
+    def linear_solves(self) -> int:
+        """Newton steps plus active-set polishing solves: the linear systems solved."""
+        return self.iterations + self.polish_solves
+
+    @property
+    def dofs(self) -> int:
+        V = self.u_h.function_space
+        return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+
+def solves_text(newton: int, polish: int) -> str:
+    """'n' Newton iterations, or 'n+p' with p active-set polishing solves (tables, charts)."""
+    return f"{newton}+{polish}" if polish else str(newton)
+
+
+def owned_residual(result: Result) -> np.ndarray:
+    """R = K x − b at the solution (x = Qᵀ u_h, the solver's unknowns), owned entries."""
+    p = result.problem
+    x, r = p.b.duplicate(), p.b.duplicate()
+    p.to_unknowns(result.u_h.x.petsc_vec, x)
+    p.residual(x, r)
+    out = r.array_r.copy()
+    x.destroy()
+    r.destroy()
+    return out
+
+
+def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code) -> Result:
+    """Copy the iterate into functions: u_h, and λ_h, the gap and the active set.  Timings
+    count from ``t_start`` (shifted back by the assembly when this solve built the problem)."""
+    u_h = problem.u_h
+    problem.to_displacement(x, u_h.x.petsc_vec)
+    u_h.x.scatter_forward()
+    a, b, r = cp.pair(x)
+    active = b > a
+    lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
+    comm = scene.comm
+    timers["total"] = time.perf_counter() - t_start
+    timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"], 0.0)
+    converged = reason_code > 0
+    return Result(u_h=u_h, lmbda_h=lmbda, gap=gap, active=active_fn, history=history,
+                  converged=converged, reason=REASONS.get(reason_code, str(reason_code)),
+                  iterations=snes.getIterationNumber(),
+                  residual=history[-1]["residual"] if history else float("nan"),
+                  method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
+                  timings=timers, problem=problem, active_mask=active, options=opts)

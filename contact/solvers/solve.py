@@ -1,0 +1,129 @@
+"""One contact solve: the scene's discrete problem, an initial guess, a PETSc SNES
+(semismooth Newton on an NCP function, or one of PETSc's VI solvers) with a monitor that
+records the history, and the :class:`~contact.solvers.result.Result`."""
+from __future__ import annotations
+
+import itertools
+import time
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfinx import fem
+
+from ..models import DiscreteProblem, build_problem
+from ..models.problem import interpolate_expression, nodal_scaling
+from ..scene import Scene
+from . import ncp
+from .linear import default_linear_solver
+from .newton import Complementarity, setup_newton
+from .options import petsc_value, set_from_options, solver_options
+from .result import Result, finish
+from .vi import setup_vi
+
+_counter = itertools.count()
+
+
+def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | None = None,
+          u0: fem.Function | None = None, verbose: bool | None = None, **options: Any) -> Result:
+    """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
+
+    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
+    override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
+    ``polish``, ``rtol``, ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
+    ``u0`` is an initial guess (default: the scene's ``solver.u0``, zero by default).
+    """
+    opts = solver_options(scene, method=method, **options)
+    method = opts["method"]
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    built_here = problem is None
+    problem = problem or build_problem(scene)
+    t_start = time.perf_counter()
+    con = problem.constraint  # the NCP scaling follows the options of this solve
+    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
+                 else float(opts["c"]))
+    comm = scene.comm
+    # the problem's assembly counts once: in the solve that built it
+    built = problem.assembly_time if built_here else 0.0
+    timers = {"assembly": built, "solve": 0.0}
+    cp = Complementarity(problem)
+
+    # Initial guess with the Dirichlet values in place.
+    x = problem.b.duplicate()
+    if u0 is None:
+        u0 = interpolate_expression(problem.V, opts["u0"], scene)
+    problem.to_unknowns(u0.x.petsc_vec, x)
+    set_dirichlet(x, problem.bcs)
+
+    snes = PETSc.SNES().create(comm)
+    prefix = f"contact{next(_counter)}_"
+    snes.setOptionsPrefix(prefix)
+    petsc_opts = {**default_linear_solver(problem), **{str(k): v for k, v in opts["petsc_options"].items()}}
+    state = {"t_jac": None, "dir_norm": np.nan}
+    polisher = None
+    if method in ncp.METHODS:
+        J, polisher = setup_newton(snes, problem, cp, opts, timers, state, petsc_opts)
+    else:
+        J = setup_vi(snes, problem, method, timers, state)
+
+    def post_solve(ksp, rhs, sol):
+        if state["t_jac"] is not None:
+            timers["solve"] += time.perf_counter() - state["t_jac"]
+            state["t_jac"] = None
+        state["dir_norm"] = sol.norm()
+
+    snes.getKSP().setPostSolve(post_solve)
+    snes.setTolerances(rtol=opts["rtol"], atol=opts["atol"], stol=0.0, max_it=opts["max_it"])
+    snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
+    history: list[dict] = []
+    prev = {"x": x.duplicate(), "active": None}
+
+    def monitor(snes, its, fnorm):
+        xk = snes.getSolution()
+        active = cp.active(xk)
+        n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
+        changed = 0 if prev["active"] is None else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
+        step = np.nan
+        if its > 0:
+            prev["x"].axpy(-1.0, xk)
+            polished = polisher is not None and polisher.taken is not None
+            dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
+            step = prev["x"].norm() / dn if dn > 0 else 0.0
+        elif polisher is not None:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
+            polisher.done = max(opts["atol"], opts["rtol"] * fnorm)
+        xk.copy(prev["x"])
+        prev["active"] = active
+        row = {"iteration": its, "residual": float(fnorm), "step": float(step),
+               "active": n_active, "changed": changed, "polished": its > 0 and polisher is not None and polisher.accepted}
+        history.append(row)
+        if verbose and comm.rank == 0:
+            st = "    -" if its == 0 else f"{step:5.2f}"
+            print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
+                  f"active {n_active:7d}  changed {changed:6d}{'  polished' if row['polished'] else ''}", flush=True)
+
+    snes.setMonitor(monitor)
+    popts = PETSc.Options()
+    for key, val in petsc_opts.items():
+        popts[prefix + key] = petsc_value(val)
+    try:
+        set_from_options(snes)
+    finally:
+        for key in petsc_opts:
+            popts.delValue(prefix + key)
+    snes.solve(None, x)
+    reason_code = snes.getConvergedReason()
+    result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
+    if polisher is not None:
+        result.polish_solves = polisher.solves
+        polisher.destroy()
+    for obj in (snes, x, prev["x"], J):
+        obj.destroy()
+    return result
+
+
+def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:
+    """Insert Dirichlet values into the owned entries of x."""
+    for bc in bcs:
+        bc.set(x.array_w)
