@@ -95,7 +95,8 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
-    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)))
+    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
+                  parent=(scene, parent_cell))
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     surface = curved_boundary(scene.cfg)
     if surface is not None:

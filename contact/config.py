@@ -87,6 +87,12 @@ def _c_value(v: Any) -> str | None:
     return _positive(v)
 
 
+def _sequence(v: Any) -> str | None:
+    if v in ("auto", "off") or (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+        return None
+    return f"must be auto, off or a number of coarser levels >= 0, got {v!r}"
+
+
 def _cells(v: Any) -> str | None:
     items = v if isinstance(v, list) else [v]
     if not items or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items):
@@ -184,6 +190,12 @@ SCENE: dict[str, Field] = {
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
         "u0": Field("expr", "0"),
+        "linear": Field("str", "auto", choices=("auto", "direct", "gamg", "bcgs"),
+                        doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
+                            "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and dimension)"),
+        "inexact": Field("bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"),
+        "sequence": Field("any", "auto", check=_sequence,
+                          doc="grid sequencing of a single solve: auto, off, or the number of coarser levels"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "adapt": Field("dict", None, schema={

@@ -143,11 +143,15 @@ def to_numpy(text: str | float, constants: Mapping[str, float] = {}) -> Callable
                  ast.GtE: np.greater_equal},
         number=np.float64)
 
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+
     def f(x: np.ndarray) -> np.ndarray:
         X = np.asarray(x, dtype=float)
         symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0])
-        symbols["r"] = np.hypot(symbols["x"], symbols["y"])
-        symbols["theta"] = np.arctan2(symbols["y"], symbols["x"])
+        if "r" in names:  # only what the expression uses (interpolation evaluates millions of points)
+            symbols["r"] = np.hypot(symbols["x"], symbols["y"])
+        if "theta" in names:
+            symbols["theta"] = np.arctan2(symbols["y"], symbols["x"])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             val = _translate(tree, symbols, be)
         return np.broadcast_to(np.asarray(val, dtype=float), X[0].shape).copy()

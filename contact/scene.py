@@ -6,7 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Optional
+
+import numpy as np
 
 from mpi4py import MPI
 
@@ -23,6 +25,9 @@ class Scene:
     cfg: dict
     mesh: dmesh.Mesh
     boundary: Boundary
+    #: for a scene made by :func:`contact.refine`: (the scene it was refined from, the parent
+    #: cell of each new cell) — the coarser meshes grid sequencing solves on first
+    parent: Optional[tuple["Scene", np.ndarray]] = None
 
     @property
     def name(self) -> str:

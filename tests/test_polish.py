@@ -12,6 +12,7 @@ from contact.models import build_problem
 from contact.models.problem import nodal_scaling
 from contact.solvers.newton import Complementarity
 from contact.solvers.options import solver_options
+from contact.solvers.linear import AssembledSystem
 from contact.solvers.polish import Polisher
 from contact.solvers.solve import set_dirichlet
 from petsc4py import PETSc
@@ -59,7 +60,7 @@ def _state(scene, method="fb"):
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
     ksp.setOperators(problem.K)  # stands in for the Newton solver's KSP and its Jacobian
-    pol = Polisher(cp, method, 0.5, ksp, timers)
+    pol = Polisher(cp, method, 0.5, AssembledSystem(problem, ksp), timers)
     x = problem.b.duplicate()
     x.set(0.0)
     set_dirichlet(x, problem.bcs)
@@ -96,7 +97,7 @@ def test_polisher_lands_on_the_active_set_solution(scene):
     y.set(0.0)  # a Newton step that goes nowhere: W = x
     pol(x, y)
     assert pol.solves == 1 and pol.accepted
-    assert pol.ksp.getOperators()[0] == problem.K  # the Newton solver's operator is put back
+    assert pol.system.ksp.getOperators()[0] == problem.K  # the Newton solver's operator is put back
     P = x.copy()
     P.axpy(-1.0, y)
     n = ref.u_h.x.petsc_vec.getLocalSize()

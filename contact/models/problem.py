@@ -150,11 +150,19 @@ def coefficient(text: str, scene: Scene) -> Any:
 
 
 def interpolate_expression(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
-    """``text`` interpolated into V; for a vector space the expression is every component."""
+    """``text`` interpolated into the Lagrange space V; for a vector space the expression is
+    every component.  Lagrange interpolation is evaluation at the DoF points, so the
+    expression is evaluated once per DoF point (not once per cell and point, as
+    ``Function.interpolate`` does), and a constant is just assigned."""
     fn = fem.Function(V)
-    f = expressions.to_numpy(text, scene.cfg["constants"])
+    consts = scene.cfg["constants"]
+    f = expressions.to_numpy(text, consts)
     bs = V.dofmap.index_map_bs
-    fn.interpolate(f if bs == 1 else (lambda x: np.tile(f(x), (bs, 1))))
+    if expressions.is_constant(text, consts):
+        fn.x.array[:] = f(np.zeros((3, 1)))[0]
+    else:
+        values = f(V.tabulate_dof_coordinates().T)
+        fn.x.array[:] = np.repeat(values, bs)
     return fn
 
 

@@ -1,28 +1,133 @@
-"""The linear solver of each Newton step: PETSc options chosen by problem kind.
+"""The linear solver of each Newton step (``solver.linear``) and the Newton systems.
 
-MUMPS LU, except BiCGStab + GAMG with the rigid-body near-nullspace for 3D elasticity.
-Measured on the final hertz_3d mesh (185679 DoFs, fb from u = 0, 16 Newton steps each):
-87 s against 219 s for MUMPS; in 2D (hertz_2d, 13650 DoFs) MUMPS is faster (0.30 s
-against 0.46 s).  ``solver.petsc_options`` overrides any of these keys.
+* ``direct`` — MUMPS LU of the assembled H = diag(s) K + diag(d) (:class:`AssembledSystem`);
+* ``gamg``   — the symmetric reduction of H (:mod:`.reduced`), CG + GAMG on the SPD system,
+  GAMG's interpolation reused across Newton steps, inexact Newton (``solver.inexact``);
+* ``bcgs``   — BiCGStab + GAMG on the assembled H (the generic Krylov path, also for
+  non-symmetric laws);
+* ``auto``   — :func:`choose_linear`: MUMPS for small 2D problems, ``gamg`` otherwise.
+
+``solver.petsc_options`` go to the KSP that does the work: SNES's for ``direct`` / ``bcgs``,
+the reduced system's inner KSP for ``gamg``.  With ``auto``, petsc_options naming a
+``ksp_type`` or ``pc_type`` select the assembled path with exactly those options (as before
+``solver.linear`` existed).
 """
 from __future__ import annotations
 
 from petsc4py import PETSc
 
 from ..models import DiscreteProblem
+from .reduced import REDUCED_PETSC_OPTIONS, ReducedSystem
 
+LINEAR = ("auto", "direct", "gamg", "bcgs")
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
+ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
+
+#: ``auto`` uses MUMPS for 2D problems below this many DoFs (measured: demos/bench/bench_linear.py)
+DIRECT_MAX_DOFS_2D = 40_000
+#: ... and for 3D problems below this many
+DIRECT_MAX_DOFS_3D = 0
 
 
-def default_linear_solver(problem: DiscreteProblem) -> dict:
-    """MUMPS LU, except Krylov + GAMG for 3D elasticity (faster there; see the figures above)."""
-    if problem.near_nullspace is not None and problem.V.mesh.geometry.dim == 3:
-        return dict(ELASTICITY_3D_PETSC_OPTIONS)
-    return dict(DEFAULT_PETSC_OPTIONS)
+def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
+    """The linear solver of ``solver.linear`` (``auto`` resolved by size and dimension)."""
+    if linear != "auto":
+        return linear
+    if petsc_options and ({"ksp_type", "pc_type"} & set(petsc_options)):
+        return "direct"  # the user's options on the assembled H, as they always applied
+    V = problem.V
+    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    limit = DIRECT_MAX_DOFS_2D if V.mesh.geometry.dim == 2 else DIRECT_MAX_DOFS_3D
+    return "direct" if dofs < limit else "gamg"
+
+
+def default_linear_solver(problem: DiscreteProblem, linear: str = "auto") -> dict:
+    """The default PETSc options of the solver ``choose_linear`` picks."""
+    kind = choose_linear(problem, linear)
+    return dict(REDUCED_PETSC_OPTIONS if kind == "gamg" else ASSEMBLED_PETSC_OPTIONS[kind])
 
 
 def attach_near_nullspace(problem: DiscreteProblem, J: PETSc.Mat) -> None:
     """Rigid-body modes for GAMG on elasticity (kept by J across its re-copies)."""
     if problem.near_nullspace is not None:
         J.setNearNullSpace(problem.near_nullspace)
+
+
+class AssembledSystem:
+    """H = diag(s) K + diag(d) assembled (K's pattern: a direct solver reuses its symbolic
+    factorization) and solved by SNES's own KSP with the PETSc options as given.  Works for
+    any law that can write H into a matrix of K's pattern."""
+
+    def __init__(self, problem: DiscreteProblem, ksp: PETSc.KSP | None = None):
+        self.K = problem.K
+        self.J = problem.K.duplicate(copy=True)
+        attach_near_nullspace(problem, self.J)
+        self._problem = problem
+        self.ksp = ksp         # SNES's KSP (:meth:`configure`)
+        self.H = None          # the polishing system's matrix, made when first needed
+        self.krylov_iterations = 0
+        self.stop = 0.0
+
+    def configure(self, snes: PETSc.SNES, prefix: str) -> None:
+        self.ksp = snes.getKSP()
+
+    def set_options(self) -> None:
+        """SNES's KSP reads the options itself (same prefix)."""
+
+    def set_law(self, s: PETSc.Vec, d: PETSc.Vec, H: PETSc.Mat | None = None) -> None:
+        """H (default: SNES's Jacobian J) = diag(s) K + diag(d)."""
+        H = self.J if H is None else H
+        self.K.copy(H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        H.diagonalScale(L=s)
+        H.setDiagonal(d, addv=PETSc.InsertMode.ADD_VALUES)
+
+    def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = H⁻¹ F for another law (polishing) with SNES's own KSP, whose operators are put
+        back afterwards: one factorization alive at a time (memory)."""
+        if self.H is None:
+            self.H = self.K.duplicate(copy=True)
+            attach_near_nullspace(self._problem, self.H)
+        self.set_law(s, d, self.H)
+        A, P = self.ksp.getOperators()
+        self.ksp.setOperators(self.H)
+        self.ksp.solve(F, y)
+        self.krylov_iterations += self.ksp.getIterationNumber()
+        self.ksp.setOperators(A, P)
+
+    def count(self, ksp: PETSc.KSP) -> None:
+        """Add the Krylov iterations of SNES's last linear solve."""
+        self.krylov_iterations += ksp.getIterationNumber()
+
+    def destroy(self) -> None:
+        for obj in (self.J, self.H):
+            if obj is not None:
+                obj.destroy()
+
+
+class ReducedNewtonSystem(ReducedSystem):
+    """:class:`.reduced.ReducedSystem` with the interface of :class:`AssembledSystem`."""
+
+    def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = True):
+        super().__init__(problem.K, problem.near_nullspace, prefix, forcing)
+
+    def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = H⁻¹ F for another law (polishing).  The Newton law stays the one the
+        matrix-free J applies; the next Newton step rebuilds its own A."""
+        s_newton, d_newton = self.s.copy(), self.d.copy()
+        self.set_law(s, d)
+        self.solve(F, y)
+        s_newton.copy(self.s)
+        d_newton.copy(self.d)
+        s_newton.destroy()
+        d_newton.destroy()
+
+    def count(self, ksp: PETSc.KSP) -> None:
+        """The inner solves count themselves."""
+
+
+def newton_system(problem: DiscreteProblem, kind: str, prefix: str, forcing: bool = True):
+    """The Newton system object of linear solver ``kind`` (``direct``, ``gamg``, ``bcgs``)."""
+    if kind == "gamg":
+        return ReducedNewtonSystem(problem, prefix, forcing)
+    return AssembledSystem(problem)

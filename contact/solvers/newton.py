@@ -17,10 +17,11 @@ element of the generalized Jacobian is then
     H = diag(s) K + diag(d),   s_i = ∂_b φ,  d_i = (w_i / c_i) ∂_a φ  (constrained rows),
                                s_i = 1,      d_i = 0                  (other rows),
 
-built from the assembled K by one ``MatDiagonalScale`` and one ``MatDiagonalSet`` per
-iteration; the sparsity pattern never changes, so a direct solver reuses its symbolic
-factorization.  The Newton iteration itself is PETSc's SNES ``newtonls`` with these two
-callbacks (line search ``basic`` = plain Newton, or ``bt``).
+a diagonal law (s, d): :mod:`.linear` either assembles H from K (one ``MatDiagonalScale``
+and one ``MatDiagonalSet`` per iteration; the sparsity pattern never changes, so a direct
+solver reuses its symbolic factorization) or solves the equivalent symmetric positive
+definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
+``newtonls`` with these two callbacks (line search ``basic`` = plain Newton, or ``bt``).
 """
 from __future__ import annotations
 
@@ -31,7 +32,6 @@ from petsc4py import PETSc
 
 from ..models import DiscreteProblem
 from . import ncp
-from .linear import attach_near_nullspace
 from .polish import Polisher
 
 
@@ -66,28 +66,28 @@ class Complementarity:
         f.array_w[self.dofs] = -self.sign * (self.w / self.c) * ncp.phi(a, b, method, mu)
         return a, b
 
-    def jacobian(self, a: np.ndarray, b: np.ndarray, H: PETSc.Mat, method: str, mu: float) -> None:
-        """H = diag(s) K + diag(d), the generalized-Jacobian element of Φ at the pair (a, b)."""
+    def law(self, a: np.ndarray, b: np.ndarray, method: str, mu: float) -> tuple[PETSc.Vec, PETSc.Vec]:
+        """The diagonal law of the generalized-Jacobian element at the pair (a, b):
+        H = diag(s) K + diag(d), s_i = ∂_b φ, d_i = (w_i / c_i) ∂_a φ on constrained rows,
+        s_i = 1, d_i = 0 elsewhere.  Returns (s, d) (owned by this object)."""
         da, db = ncp.dphi(a, b, method, mu)
         self.s.set(1.0)
         self.d.set(0.0)
         self.s.array_w[self.dofs] = db
         self.d.array_w[self.dofs] = (self.w / self.c) * da
-        self.p.K.copy(H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-        H.diagonalScale(L=self.s)
-        H.setDiagonal(self.d, addv=PETSc.InsertMode.ADD_VALUES)
+        return self.s, self.d
 
 
-def setup_newton(snes: PETSc.SNES, problem: DiscreteProblem, cp: Complementarity, opts: dict,
-                 timers: dict, state: dict, petsc_opts: dict) -> tuple[PETSc.Mat, Polisher | None]:
+def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, timers: dict,
+                 state: dict, petsc_opts: dict) -> Polisher | None:
     """Make ``snes`` semismooth Newton on Φ of ``opts['method']`` ∈ {fb, min, blend}:
-    residual Φ and Jacobian H callbacks, the line search, and (fb / blend with
-    ``opts['polish']``) active-set polishing as the line-search pre-check.  Time spent in
-    the callbacks is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of
-    the Jacobian (the linear solve's clock starts there).  Returns (J, polisher)."""
+    residual Φ and Jacobian callbacks (the Jacobian callback hands the law (s, d) to the
+    Newton ``system`` of :mod:`.linear`, which builds its operator), the line search, and
+    (fb / blend with ``opts['polish']``) active-set polishing as the line-search pre-check.
+    Time spent in the callbacks is added to ``timers['assembly']``; ``state['t_jac']``
+    marks the end of the Jacobian (the linear solve's clock starts there).  Returns the
+    polisher or None."""
     method, mu = opts["method"], opts["mu"]
-    J = problem.K.duplicate(copy=True)
-    attach_near_nullspace(problem, J)
 
     def residual(snes, x, f):
         t0 = time.perf_counter()
@@ -97,17 +97,17 @@ def setup_newton(snes: PETSc.SNES, problem: DiscreteProblem, cp: Complementarity
     def jacobian(snes, x, J_, P):
         t0 = time.perf_counter()
         a, b, _ = cp.pair(x)
-        cp.jacobian(a, b, P, method, mu)
+        system.set_law(*cp.law(a, b, method, mu))
         now = time.perf_counter()
         timers["assembly"] += now - t0
         state["t_jac"] = now
 
     snes.setType("newtonls")
-    snes.setFunction(residual, problem.b.duplicate())
-    snes.setJacobian(jacobian, J)
+    snes.setFunction(residual, cp.p.b.duplicate())
+    snes.setJacobian(jacobian, system.J)
     petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
     polisher = None
     if opts["polish"] and method != "min":
-        polisher = Polisher(cp, method, mu, snes.getKSP(), timers)
+        polisher = Polisher(cp, method, mu, system, timers)
         snes.setLineSearchPreCheck(polisher)
-    return J, polisher
+    return polisher

@@ -24,13 +24,16 @@ def method_variant(name: str) -> tuple[str, dict]:
     return name, {}
 
 
-def set_from_options(snes: PETSc.SNES) -> None:
-    """setFromOptions + setUp; a bad PETSc option becomes a one-line ConfigError."""
+def set_from_options(snes: PETSc.SNES, *inner: PETSc.KSP) -> None:
+    """setFromOptions of SNES, its KSP and PC and the ``inner`` KSPs; a bad PETSc option
+    becomes a one-line ConfigError."""
     PETSc.Sys.pushErrorHandler("python")  # raise, do not print PETSc's trace
     try:
         snes.setFromOptions()
         snes.getKSP().setFromOptions()
         snes.getKSP().getPC().setFromOptions()
+        for ksp in inner:
+            ksp.setFromOptions()
     except PETSc.Error as err:
         raise ConfigError(f"solver.petsc_options: PETSc rejected the options ({petsc_message(err)})") from None
     finally:

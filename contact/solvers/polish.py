@@ -8,8 +8,6 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .linear import attach_near_nullspace
-
 if TYPE_CHECKING:
     from .newton import Complementarity
 
@@ -27,15 +25,15 @@ class Polisher:
     active-set identification of Facchinei, Fischer and Kanzow (SIAM J. Optim. 9, 1998),
     and the solution polishing of QP solvers (OSQP).  Φ, and so the solution, are those of
     φ; each attempt costs one linear solve, counted in ``solves``.  No attempt is made when
-    W already meets SNES's stopping test (``done``).  The solve borrows the Newton solver's
-    KSP and gives it back its operators, so only one factorization is alive at a time.
+    W already meets SNES's stopping test (``done``).  The solve is the Newton system's
+    (:mod:`.linear`) with the law of φ_min: the assembled path borrows SNES's KSP and gives
+    it back its operators (one factorization alive at a time), the reduced path rebuilds
+    its SPD operator.
     """
 
-    def __init__(self, cp: "Complementarity", method: str, mu: float, ksp: PETSc.KSP, timers: dict):
+    def __init__(self, cp: "Complementarity", method: str, mu: float, system, timers: dict):
         problem = cp.p
-        self.cp, self.method, self.mu, self.ksp, self.timers = cp, method, mu, ksp, timers
-        self.H = problem.K.duplicate(copy=True)
-        attach_near_nullspace(problem, self.H)
+        self.cp, self.method, self.mu, self.system, self.timers = cp, method, mu, system, timers
         self.W, self.FW, self.FP, self.dP = (problem.b.duplicate() for _ in range(4))
         self.solves, self.accepted, self.taken = 0, False, None
         self.done = 0.0  # ‖Φ‖ at which SNES stops: a Newton point below it needs no polishing
@@ -53,14 +51,10 @@ class Polisher:
             self.timers["assembly"] += time.perf_counter() - t0
             return
         self.taken = y.norm()
-        cp.jacobian(a, b, self.H, "min", self.mu)
-        # the Newton solver's own KSP: one factorization alive at a time (memory), then J back
-        A, P = self.ksp.getOperators()
-        self.ksp.setOperators(self.H)
+        s, d = cp.law(a, b, "min", self.mu)
         t1 = time.perf_counter()
-        self.ksp.solve(self.FP, self.dP)
+        self.system.solve_law(s, d, self.FP, self.dP)
         t2 = time.perf_counter()
-        self.ksp.setOperators(A, P)
         self.solves += 1
         x.copy(W)
         W.axpy(-1.0, self.dP)  # W = P
@@ -72,7 +66,7 @@ class Polisher:
         self.timers["assembly"] += (t1 - t0) + (time.perf_counter() - t2)
 
     def destroy(self) -> None:
-        for obj in (self.H, self.W, self.FW, self.FP, self.dP):
+        for obj in (self.W, self.FW, self.FP, self.dP):
             obj.destroy()
 
 

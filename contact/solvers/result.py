@@ -38,11 +38,25 @@ class Result:
     active_mask: np.ndarray
     options: dict = field(default_factory=dict)
     polish_solves: int = 0
+    linear: str = ""              # the linear solver used (direct, gamg, bcgs)
+    krylov_iterations: int = 0    # Krylov iterations of all linear solves (0 for direct)
+    sequence: list = field(default_factory=list)   # coarse levels of grid sequencing (CoarseLevel)
+    sequence_note: str = ""       # why there are fewer coarse levels than asked, or none
 
     @property
     def linear_solves(self) -> int:
         """Newton steps plus active-set polishing solves: the linear systems solved."""
         return self.iterations + self.polish_solves
+
+    @property
+    def coarse_linear_solves(self) -> int:
+        """Linear solves (Newton steps + polishing) on the coarse levels of grid sequencing."""
+        return sum(lv.linear_solves for lv in self.sequence)
+
+    @property
+    def weighted_linear_solves(self) -> float:
+        """All linear solves, each weighted by its level's DoFs / the fine DoFs."""
+        return self.linear_solves + sum(lv.linear_solves * lv.dofs for lv in self.sequence) / self.dofs
 
     @property
     def dofs(self) -> int:
@@ -78,7 +92,7 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     comm = scene.comm
     timers["total"] = time.perf_counter() - t_start
-    timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"], 0.0)
+    timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0)
     converged = reason_code > 0
     return Result(u_h=u_h, lmbda_h=lmbda, gap=gap, active=active_fn, history=history,
                   converged=converged, reason=REASONS.get(reason_code, str(reason_code)),

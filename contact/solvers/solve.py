@@ -16,9 +16,10 @@ from dolfinx import fem
 from ..models import DiscreteProblem, build_problem
 from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene
-from . import ncp
-from .linear import default_linear_solver
+from . import ncp, sequencing
+from .linear import ASSEMBLED_PETSC_OPTIONS, choose_linear, newton_system
 from .newton import Complementarity, setup_newton
+from .reduced import REDUCED_PETSC_OPTIONS, ReducedSystem
 from .options import petsc_value, set_from_options, solver_options
 from .result import Result, finish
 from .vi import setup_vi
@@ -32,8 +33,11 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
 
     ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
     override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
-    ``polish``, ``rtol``, ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
-    ``u0`` is an initial guess (default: the scene's ``solver.u0``, zero by default).
+    ``polish``, ``rtol``, ``atol``, ``max_it``, ``linear``, ``inexact``, ``sequence``,
+    ``petsc_options``).  ``problem`` reuses an assembled problem, ``u0`` is an initial guess;
+    without one, grid sequencing (``sequence``, :mod:`.sequencing`) solves coarser meshes
+    first when it pays, and the coarsest level (or a cold start) begins from the scene's
+    ``solver.u0`` (zero by default).
     """
     opts = solver_options(scene, method=method, **options)
     method = opts["method"]
@@ -50,8 +54,13 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     timers = {"assembly": built, "solve": 0.0}
     cp = Complementarity(problem)
 
-    # Initial guess with the Dirichlet values in place.
+    # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
     x = problem.b.duplicate()
+    levels, note = [], ""
+    if u0 is None:
+        t0 = time.perf_counter()
+        u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
+        timers["coarse"] = time.perf_counter() - t0
     if u0 is None:
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
     problem.to_unknowns(u0.x.petsc_vec, x)
@@ -60,15 +69,25 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     snes = PETSc.SNES().create(comm)
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
-    petsc_opts = {**default_linear_solver(problem), **{str(k): v for k, v in opts["petsc_options"].items()}}
+    user = {str(k): v for k, v in opts["petsc_options"].items()}
     state = {"t_jac": None, "dir_norm": np.nan}
-    polisher = None
+    polisher, system = None, None
     if method in ncp.METHODS:
-        J, polisher = setup_newton(snes, problem, cp, opts, timers, state, petsc_opts)
-    else:
+        linear = choose_linear(problem, opts["linear"], user)
+        defaults = REDUCED_PETSC_OPTIONS if linear == "gamg" else ASSEMBLED_PETSC_OPTIONS[linear]
+        petsc_opts = {**defaults, **user}
+        system = newton_system(problem, linear, prefix, forcing=opts["inexact"])
+        system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
+        polisher = setup_newton(snes, cp, system, opts, timers, state, petsc_opts)
+        J = system.J
+    else:  # the VI baselines keep PETSc's own linear algebra on K (options as for the assembled path)
+        linear = "bcgs" if opts["linear"] == "bcgs" else "direct"
+        petsc_opts = {**ASSEMBLED_PETSC_OPTIONS[linear], **user}
         J = setup_vi(snes, problem, method, timers, state)
 
     def post_solve(ksp, rhs, sol):
+        if system is not None:
+            system.count(ksp)
         if state["t_jac"] is not None:
             timers["solve"] += time.perf_counter() - state["t_jac"]
             state["t_jac"] = None
@@ -91,8 +110,12 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             polished = polisher is not None and polisher.taken is not None
             dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
             step = prev["x"].norm() / dn if dn > 0 else 0.0
-        elif polisher is not None:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
-            polisher.done = max(opts["atol"], opts["rtol"] * fnorm)
+        else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
+            done = max(opts["atol"], opts["rtol"] * fnorm)
+            if polisher is not None:
+                polisher.done = done
+            if system is not None:
+                system.stop = done
         xk.copy(prev["x"])
         prev["active"] = active
         row = {"iteration": its, "residual": float(fnorm), "step": float(step),
@@ -108,18 +131,29 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     for key, val in petsc_opts.items():
         popts[prefix + key] = petsc_value(val)
     try:
-        set_from_options(snes)
+        set_from_options(snes, *([system.ksp] if isinstance(system, ReducedSystem) else []))
+        if system is not None:
+            system.set_options()
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
     snes.solve(None, x)
     reason_code = snes.getConvergedReason()
     result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
+    result.linear = linear
+    result.sequence, result.sequence_note = levels, note
     if polisher is not None:
         result.polish_solves = polisher.solves
         polisher.destroy()
-    for obj in (snes, x, prev["x"], J):
+    if system is not None:
+        result.krylov_iterations = system.krylov_iterations
+        system.destroy()
+    else:
+        result.krylov_iterations = snes.getLinearSolveIterations()
+    for obj in (snes, x, prev["x"]):
         obj.destroy()
+    if system is None:
+        J.destroy()
     return result
 
 
