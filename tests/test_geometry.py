@@ -20,7 +20,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from contact.adapt import refine
+from contact.adapt import refine, refine_partitioner
 from contact.config import ConfigError
 from contact.geometry import CONTACT, GRADING, CurvedBoundary, curved_boundary, quarter_disk, sphere_octant
 from snap_levels import SCENES, load, main, near_contact, refinements
@@ -233,6 +233,7 @@ def test_other_meshes_are_refined_as_dolfinx_does():
     child, _ = refine(scene, cells)
     msh.topology.create_entities(1)
     plain, _, _ = dmesh.refine(msh, dmesh.compute_incident_entities(msh.topology, cells, 2, 1),
+                               partitioner=refine_partitioner(msh),
                                option=dmesh.RefinementOption.parent_cell_and_facet)
     assert np.array_equal(child.mesh.geometry.x, plain.geometry.x)
 

@@ -68,5 +68,6 @@ class Polisher:
     def destroy(self) -> None:
         for obj in (self.W, self.FW, self.FP, self.dP):
             obj.destroy()
+        self.system = self.cp = None
 
 

@@ -24,14 +24,20 @@ Rows with s_i ≤ ``FIXED`` · d_i / K_ii are treated as fixed: there d_i / s_i 
 and dropping their couplings changes y_i by a relative O(FIXED), below round-off.
 
 Inexact Newton: the Krylov solve of step k stops at the relative residual η_k of
-Eisenstat and Walker (SIAM J. Sci. Comput. 17, 1996, choice 2),
+Eisenstat and Walker (SIAM J. Sci. Comput. 17, 1996, choice 2), bounded by the Newton
+residual itself,
 
-    η_k = γ (‖Φ_k‖ / ‖Φ_{k−1}‖)^α,   γ = 0.9, α = 2,   η_0 = ETA_MAX,
-    safeguard η_k ≥ γ η_{k−1}^α when that exceeds 0.1,   η_k ≤ ETA_MAX,
+    η_k = min(γ (‖Φ_k‖ / ‖Φ_{k−1}‖)^α, ETA_MAX, ‖Φ_k‖ / ‖Φ_0‖),   γ = 0.9, α = 2,
+    η_0 = ETA_MAX,   safeguard η_k ≥ γ η_{k−1}^α when that exceeds 0.1,
+
+and η_k ≤ η_{k−1} / 10 after a step that did not halve ‖Φ‖: a semismooth Newton method
+whose loose steps do not pay (fb can wander on them) becomes the exact method step by step,
 
 and never below what SNES's stopping test needs: the residual of the linear model is the
-next ‖Φ‖ (when the law does not change), so the solve stops once ‖r‖ ≤ ``stop`` / 10
-(``stop`` = max(atol, rtol ‖Φ_0‖), set by the solver).  With ``forcing=False`` every
+next ‖Φ‖ (when the law does not change), so the solve stops once ‖r‖ ≤ ``stop`` / 20
+(``stop`` = max(atol, rtol ‖Φ_0‖), set by the solver).  When a Newton step has the law of
+the step before (min's active set settled), Φ is linear on the piece the iterates are in,
+and the step is solved to that stopping value at once: one more step ends the iteration.  With ``forcing=False`` every
 solve runs to ``rtol`` (:data:`EXACT_RTOL`, or the user's ``ksp_rtol``).
 
 This applies to diagonal laws only; a block law (friction, H = B K + D) uses the
@@ -39,17 +45,24 @@ assembled system of :mod:`.linear`.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
-FIXED = 1e-14     # s_i ≤ FIXED d_i / K_ii: the row is eliminated
+FIXED = 1e-8      # s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
 ETA_MAX = 0.1     # the loosest forcing term
+POOR_PROGRESS = 0.5  # ‖Φ_k‖ > 0.5 ‖Φ_{k−1}‖: the next forcing term is at most a tenth of the last
 GAMMA, ALPHA = 0.9, 2.0
 EXACT_RTOL = 1e-10
+LAG_MIN_ITS = 5     # a lagged preconditioner may always take this many iterations more
 
 #: PETSc options of the inner solve (``solver.petsc_options`` override them)
+#: (``pc_use_amat false``: GAMG's smoothers use P, not the operator A that changes under a
+#: lagged preconditioner — with A their Chebyshev bounds would not fit and CG breaks down)
 REDUCED_PETSC_OPTIONS = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "pc_type": "gamg",
-                         "pc_gamg_reuse_interpolation": True, "ksp_rtol": EXACT_RTOL}
+                         "pc_gamg_reuse_interpolation": True, "pc_use_amat": False, "ksp_rtol": EXACT_RTOL}
 
 
 class ReducedSystem:
@@ -63,30 +76,39 @@ class ReducedSystem:
     def __init__(self, K: PETSc.Mat, near_nullspace: PETSc.NullSpace | None, prefix: str,
                  forcing: bool = True):
         self.K = K
-        self.A = K.duplicate(copy=True)
+        self.A = K.duplicate(copy=True)   # the reduced operator
+        self.P = K.duplicate(copy=True)   # the matrix GAMG was last built from (= A, or an earlier A)
         if near_nullspace is not None:
-            self.A.setNearNullSpace(near_nullspace)
+            self.P.setNearNullSpace(near_nullspace)
         self.Kdiag = K.getDiagonal()
         self.s, self.d = K.createVecLeft(), K.createVecLeft()
         self.p, self.y_fixed, self.r, self.work = (K.createVecLeft() for _ in range(4))
         self.ksp = PETSc.KSP().create(K.getComm())
         self.ksp.setOptionsPrefix(prefix)
-        self.ksp.setOperators(self.A)
+        self.ksp.setOperators(self.A, self.P)
         self.forcing = forcing
         self.stop = 0.0                  # SNES's stopping value of ‖Φ‖ (set by the solver)
         self.previous = None             # ‖Φ‖ and η of the last Newton solve
+        self._held = self._newton = None  # the law A holds, the law of the last Newton solve
         self.krylov_iterations = 0
+        self.log: list[dict] = []        # one entry per inner solve: rtol, iterations, seconds
         self.fixed_rows = 0
         self.fixed = np.zeros(K.getLocalSize()[0], dtype=bool)
-        self._rtol = EXACT_RTOL
+        self._rtol, self._max_it = EXACT_RTOL, 10000
         self.last_reason = 0
+        self.lag = True
+        self._fresh_rate, self._lag_ok, self._lagged = None, False, False
+        self.rebuilds = 0                # lagged solves that had to rebuild GAMG midway
+        self._setup, self._per_it = 0.0, 1.0  # CPU seconds of the last setup, of one iteration
         m, n = K.getSizes()
         self.J = PETSc.Mat().createPython((m, n), context=_MatrixFreeH(self), comm=K.getComm())
         self.J.setUp()
 
     def set_options(self) -> None:
-        """Take the inner KSP's tolerance after it has read the options database."""
-        self._rtol = self.ksp.getTolerances()[0]
+        """Take the inner KSP's tolerance after it has read the options database, and the
+        lagging switch ``reduced_lag_pc`` (default true)."""
+        self._rtol, _, _, self._max_it = self.ksp.getTolerances()
+        self.lag = PETSc.Options(self.ksp.getOptionsPrefix()).getBool("reduced_lag_pc", True)
 
     def configure(self, snes: PETSc.SNES, prefix: str) -> None:
         """Make SNES's KSP one application of :meth:`solve` (preonly + a Python PC); its
@@ -99,10 +121,14 @@ class ReducedSystem:
         pc.setPythonContext(_ApplyInverse(self))
 
     def set_law(self, s: PETSc.Vec, d: PETSc.Vec) -> None:
-        """Build A for the law (s, d) (the Newton step's or a polishing step's)."""
+        """Build A for the law (s, d) (the Newton step's or a polishing step's).  A law
+        equal to the one A holds leaves A, and so GAMG's setup, untouched."""
         s.copy(self.s)
         d.copy(self.d)
         sa, da = self.s.array_r, self.d.array_r
+        if self._same(self._held, sa, da):
+            return
+        self._held = (sa.copy(), da.copy())
         fixed = sa <= FIXED * da / np.maximum(np.abs(self.Kdiag.array_r), np.finfo(float).tiny)
         self.fixed = fixed
         self.fixed_rows = int(fixed.sum())
@@ -114,7 +140,19 @@ class ReducedSystem:
         with np.errstate(divide="ignore", invalid="ignore"):
             diag[:] = np.where(fixed, 1.0, da / np.where(fixed, 1.0, sa))
         self.A.setDiagonal(self.work, addv=PETSc.InsertMode.ADD_VALUES)
-        self.ksp.setOperators(self.A)
+        # lag the preconditioner (GAMG of an earlier A, kept in P) while it converges well
+        self._lagged = self.lag and self._fresh_rate is not None and self._lag_ok
+        if not self._lagged:
+            self._rebuild()
+        self.ksp.setOperators(self.A, self.P)
+
+    def _rebuild(self) -> None:
+        """P = A: GAMG is set up again at the next solve (Galerkin products; the
+        interpolation is reused with ``pc_gamg_reuse_interpolation``)."""
+        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.ksp.setOperators(self.A, self.P)
+        self.ksp.getPC().setReusePreconditioner(False)
+        self._lagged = False
 
     def solve(self, F: PETSc.Vec, y: PETSc.Vec, newton: bool = False) -> None:
         """y = H⁻¹ F for the current law; ``newton`` marks a Newton step (forcing applies)."""
@@ -128,29 +166,105 @@ class ReducedSystem:
             r[:] = np.where(fixed, yx, fa / np.where(fixed, 1.0, sa) - self.work.array_r)
         rtol = self._rtol
         if newton and self.forcing:
-            rtol = self._forcing(F.norm())
+            # the law of the last Newton step again: the linear model is exact on this piece
+            # of Φ, so solve to SNES's stopping value at once (atol below) instead of forcing
+            same = self._same(self._newton, sa, da)
+            rtol = self._rtol if same else self._forcing(F.norm())
+            self._newton = (sa.copy(), da.copy())
         atol = 0.05 * self.stop                                    # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
-        self.ksp.setTolerances(rtol=rtol, atol=atol)
-        self.ksp.solve(self.r, y)
-        self.krylov_iterations += self.ksp.getIterationNumber()
-        self.last_reason = self.ksp.getConvergedReason()
+        t0 = time.perf_counter()
+        r0 = self.r.norm()
+        its = self._krylov(y, rtol, atol, r0)
+        self.krylov_iterations += its
+        self.log.append({"rtol": rtol, "iterations": its, "seconds": time.perf_counter() - t0,
+                         "reason": self.last_reason, "fixed_rows": self.fixed_rows})
+
+    def _krylov(self, y: PETSc.Vec, rtol: float, atol: float, r0: float) -> int:
+        """The Krylov solve A y = r; returns the iterations.
+
+        A lagged preconditioner (GAMG of an earlier A) is worth its extra iterations while
+        they cost less than rebuilding it: with S the measured setup time, t the time of one
+        iteration and ρ the convergence rate per iteration of the last fresh setup, a lagged
+        solve may take the iterations a fresh one would (log(target/‖r‖)/log ρ) plus
+        S / t.  Past that GAMG is rebuilt and the solve goes on from where it stopped; a
+        lagged solve that used more than half of that margin ends the lagging."""
+        ksp = self.ksp
+        lagged = self._lagged
+        ksp.getPC().setReusePreconditioner(lagged)
+        max_it, expected = self._max_it, 0.0
+        if lagged and r0 > 0:
+            target = max(rtol * r0, atol, np.finfo(float).tiny)
+            expected = np.log(min(target / r0, 1.0)) / np.log(self._fresh_rate)
+            max_it = int(np.ceil(expected + self._setup / self._per_it)) + LAG_MIN_ITS
+        ksp.setTolerances(rtol=rtol, atol=atol, max_it=max_it)
+        t0 = time.process_time()
+        if not lagged:
+            ksp.setUp()
+        t1 = time.process_time()
+        ksp.solve(self.r, y)
+        t2 = time.process_time()
+        its = ksp.getIterationNumber()
+        self.last_reason = ksp.getConvergedReason()
+        comm = self.K.getComm().tompi4py()  # timings decide max_it: every rank must agree
+        if its:
+            self._per_it = comm.allreduce(max((t2 - t1) / its, 1e-9), op=MPI.MAX)
+        if not lagged:
+            self._setup = comm.allreduce(t1 - t0, op=MPI.MAX)
+            self._fresh(its, r0)
+        elif self.last_reason == PETSc.KSP.ConvergedReason.DIVERGED_MAX_IT:
+            start = ksp.getResidualNorm()
+            self._rebuild()
+            self.rebuilds += 1
+            ksp.setInitialGuessNonzero(True)
+            ksp.setTolerances(rtol=rtol, atol=atol, max_it=self._max_it)
+            try:
+                t0 = time.process_time()
+                ksp.setUp()
+                self._setup = comm.allreduce(time.process_time() - t0, op=MPI.MAX)
+                ksp.solve(self.r, y)
+            finally:
+                ksp.setInitialGuessNonzero(False)
+            n = ksp.getIterationNumber()
+            self.last_reason = ksp.getConvergedReason()
+            self._fresh(n, start)
+            its += n
+        elif (its - expected) * self._per_it > 0.5 * self._setup:
+            self._lag_ok = False
+        self._lagged = self.lag and self._lag_ok  # the next solve with this A may lag too
+        return its
+
+    def _fresh(self, its: int, r0: float) -> None:
+        """Record the convergence rate per iteration of a freshly set up preconditioner."""
+        if its > 0 and r0 > 0:
+            rate = (self.ksp.getResidualNorm() / r0) ** (1.0 / its)
+            self._fresh_rate = min(max(rate, 1e-6), 0.99)
+        self._lag_ok = self._fresh_rate is not None
+
+    def _same(self, law, sa: np.ndarray, da: np.ndarray) -> bool:
+        """Whether (sa, da) equals ``law`` on every rank (collective)."""
+        local = law is not None and np.array_equal(law[0], sa) and np.array_equal(law[1], da)
+        return bool(self.K.getComm().tompi4py().allreduce(local, op=MPI.LAND))
 
     def _forcing(self, fnorm: float) -> float:
+        """η_k of this Newton step (module doc)."""
         if self.previous is None:
-            eta = ETA_MAX
+            eta, self._f0 = ETA_MAX, fnorm
         else:
             f_old, eta_old = self.previous
-            eta = GAMMA * (fnorm / f_old) ** ALPHA if f_old > 0 else ETA_MAX
+            ratio = fnorm / f_old if f_old > 0 else 1.0
+            eta = GAMMA * ratio**ALPHA
             safe = GAMMA * eta_old**ALPHA
             if safe > 0.1:
                 eta = max(eta, safe)
-            eta = min(eta, ETA_MAX)
+            eta = min(eta, ETA_MAX, fnorm / self._f0 if self._f0 > 0 else ETA_MAX)
+            if ratio > POOR_PROGRESS:  # inexact steps that do not pay: towards exact Newton
+                eta = min(eta, eta_old * 0.1)
         eta = max(eta, self._rtol)
         self.previous = (fnorm, eta)
         return eta
 
     def destroy(self) -> None:
-        for obj in (self.A, self.Kdiag, self.s, self.d, self.p, self.y_fixed, self.r, self.work,
+        for obj in (self.A, self.P, self.Kdiag, self.s, self.d, self.p, self.y_fixed, self.r, self.work,
                     self.ksp, self.J):
             obj.destroy()
 

@@ -40,6 +40,7 @@ class Result:
     polish_solves: int = 0
     linear: str = ""              # the linear solver used (direct, gamg, bcgs)
     krylov_iterations: int = 0    # Krylov iterations of all linear solves (0 for direct)
+    krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve
     sequence: list = field(default_factory=list)   # coarse levels of grid sequencing (CoarseLevel)
     sequence_note: str = ""       # why there are fewer coarse levels than asked, or none
 

@@ -13,9 +13,9 @@ levels that cost a fraction of one fine step each.  The levels, coarsest first:
   (:class:`GridTransfer`: P1, exact for nested levels where the coarse mesh's diagonals
   line up, a second-order accurate guess otherwise, and the same on every MPI rank);
 * ``quarter_disk`` / ``sphere_octant``: gmsh with mesh sizes h·2^k and h_contact·2^k,
-  carried over by ``interpolate_nonmatching``;
-* a scene made by :func:`contact.refine`: the scenes it was refined from (every second
-  one in 2D, the ancestors whose DoFs fall by ≥ 4× in 2D / 8× in 3D), carried over by
+  carried over by locating the fine DoF points in the coarse mesh (:func:`point_transfer`);
+* a scene made by :func:`contact.refine`: the scenes it was refined from (those whose
+  DoFs fall by ≥ 4× from one chosen level to the next), carried over by
   the exact prolongation of nested refinement (:func:`contact.adapt.prolong`);
 * a user's ``.msh`` file (and P2 on a built-in mesh): no coarser mesh — a cold start,
   reported in ``Result.sequence_note``.
@@ -39,11 +39,13 @@ from mpi4py import MPI
 from dolfinx import fem
 
 from ..config import ConfigError
+from ..models import build_problem
 from ..scene import Scene
 
-AUTO_MIN_DOFS = 20_000    # measured: below this the coarse levels cost more than they save
+AUTO_MIN_DOFS = 4_000     # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many DoFs
 COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
+ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
 BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
 
 
@@ -90,8 +92,8 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     floor = COARSEST_DOFS if wanted is None else 1
     ratio = 2 ** dim
 
-    if scene.parent is not None:
-        chain = _ancestors(scene, ratio, floor, bs)[:limit]
+    if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
+        chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [(lambda s=s: s) for s in reversed(chain)], ""
     kind = scene.cfg["mesh"]["type"]
     if degree != 1 and kind in BUILT_IN:
@@ -161,11 +163,13 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
         t0 = time.perf_counter()
         try:
             coarse = build()
+            problem = build_problem(coarse)
         except ConfigError as err:  # e.g. a boundary part too thin for the coarse mesh
             note = f"grid sequencing: coarse level {k} skipped ({err})"
             continue
-        u0 = None if u is None else transfer(u, prev, coarse)
-        r = solve(coarse, u0=u0, verbose=False, sequence="off", rtol=COARSE_RTOL, **coarse_opts)
+        u0 = None if u is None else transfer(u, prev, coarse, problem.V)
+        r = solve(coarse, problem=problem, u0=u0, verbose=False, sequence="off", rtol=COARSE_RTOL,
+                  **coarse_opts)
         levels.append(CoarseLevel(r.dofs, r.iterations, r.polish_solves, r.krylov_iterations, r.linear,
                                   time.perf_counter() - t0, bool(r.converged)))
         if verbose and scene.comm.rank == 0:
@@ -189,13 +193,7 @@ def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace |
         return _prolong_chain(u, coarse, fine, V)
     if fine.cfg["mesh"]["type"] in BUILT_IN:
         return GridTransfer(coarse).apply(u, fine, V)
-    out = fem.Function(V)
-    cells = np.arange(fine.mesh.topology.index_map(fine.mesh.topology.dim).size_local, dtype=np.int32)
-    h = fine.cfg["mesh"].get("h") or 1.0
-    out.interpolate_nonmatching(u, cells, fem.create_interpolation_data(V, u.function_space, cells,
-                                                                         padding=0.1 * h))
-    out.x.scatter_forward()
-    return out
+    return point_transfer(u, V)
 
 
 def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
@@ -286,7 +284,7 @@ def _dof_positions(scene: Scene, V: fem.FunctionSpace) -> np.ndarray:
     node_pos = _node_positions(scene)
     n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     node_of_dof = np.empty(n_dofs, dtype=np.int64)
-    node_of_dof[V.dofmap.list.ravel()] = msh.geometry.dofmap[:, : dim + 1].ravel()
+    node_of_dof[V.dofmap.list.ravel()] = msh.geometry.dofmaps[0][:, : dim + 1].ravel()
     return node_pos[node_of_dof]
 
 
@@ -323,6 +321,92 @@ def _lshape_vertices(n: int) -> np.ndarray:
     i, j = i[keep], j[keep]
     corners = np.concatenate([a * (2 * n + 1) + b for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1))])
     return np.unique(corners)
+
+
+def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
+    """The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
+    point of V in u's mesh (for meshes of one geometry that are not nested, e.g. gmsh
+    meshes of two sizes).
+
+    Every rank gathers the coarse cells (vertex coordinates and nodal values: a coarse
+    level is a fraction of the fine one) and sorts them into a uniform grid of buckets of
+    about one cell each; a point is tested against the cells of its bucket by barycentric
+    coordinates (NumPy, no per-point Python) and takes the interpolant of the cell where
+    its smallest barycentric coordinate is largest — the containing cell, or for a point
+    just outside a curved boundary's coarse polygon the nearest one (linear
+    extrapolation).  ``interpolate_nonmatching`` does the same through a collision search
+    per point and is orders of magnitude slower here (44 s for 1M points)."""
+    Vc = u.function_space
+    msh, comm = Vc.mesh, V.mesh.comm
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    bs = Vc.dofmap.index_map_bs
+    n_cells = msh.topology.index_map(tdim).size_local
+    dofs = Vc.dofmap.list[:n_cells]
+    X = Vc.tabulate_dof_coordinates()[:, :gdim]
+    verts = X[dofs]                                                     # (cells, tdim+1, gdim)
+    vals = u.x.array.reshape(-1, bs)[dofs]                              # (cells, tdim+1, bs)
+    if comm.size > 1:
+        verts = np.concatenate(comm.allgather(verts))
+        vals = np.concatenate(comm.allgather(vals))
+    points = V.tabulate_dof_coordinates()[:, :gdim]
+    inv = np.linalg.inv(np.transpose(verts[:, 1:] - verts[:, :1], (0, 2, 1)))  # barycentric maps
+    cell = _locate(verts, inv, points)
+    lam = _barycentric(verts, inv, cell, points)
+    out = fem.Function(V)
+    out.x.array[:] = np.einsum("pv,pvb->pb", lam, vals[cell]).ravel()
+    return out
+
+
+def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
+    simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``."""
+    dp = points - verts[cells, 0]
+    inv_c = inv[cells]
+    lam = sum(inv_c[:, :, j] * dp[:, j, None] for j in range(dp.shape[1]))
+    return np.column_stack([1.0 - lam.sum(axis=1), lam])
+
+
+def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1) -> np.ndarray:
+    """For each point the index of the simplex (of ``verts``) that contains it, or the one
+    it is least outside of among those whose bounding box, grown by ``grow`` buckets, holds
+    it (points no box holds are located again with boxes grown by one more bucket)."""
+    lo_c, hi_c = verts.min(axis=1), verts.max(axis=1)
+    lo, hi = np.minimum(lo_c.min(axis=0), points.min(axis=0)), np.maximum(hi_c.max(axis=0), points.max(axis=0))
+    dim = verts.shape[2]
+    size = max(0.5 * float(np.mean(hi_c - lo_c)), 1e-300)  # half a cell: fewer candidates per point
+    shape = np.maximum(np.ceil((hi - lo) / size).astype(np.int64), 1)
+    # every cell into the buckets its box (one bucket wider each side) overlaps
+    first = np.clip(np.floor((lo_c - lo) / size - grow).astype(np.int64), 0, shape - 1)
+    last = np.clip(np.floor((hi_c - lo) / size + grow).astype(np.int64), 0, shape - 1)
+    span = last - first + 1
+    count = np.prod(span, axis=1)
+    cell_of = np.repeat(np.arange(len(verts)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    offset = np.empty((len(cell_of), dim), dtype=np.int64)
+    for axis in range(dim - 1, -1, -1):
+        k, offset[:, axis] = np.divmod(k, span[cell_of, axis])
+    bucket = np.ravel_multi_index(tuple((first[cell_of] + offset).T), shape)
+    order = np.argsort(bucket, kind="stable")
+    bucket, cell_of = bucket[order], cell_of[order]
+    start = np.searchsorted(bucket, np.arange(np.prod(shape) + 1))
+    # candidates of every point, tested all at once
+    pb = np.ravel_multi_index(tuple(np.clip(np.floor((points - lo) / size).astype(np.int64), 0, shape - 1).T), shape)
+    n_cand = start[pb + 1] - start[pb]
+    point_of = np.repeat(np.arange(len(points)), n_cand)
+    j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
+    cand = cell_of[start[pb][point_of] + j]
+    lost = np.flatnonzero(n_cand == 0)
+    if len(lost) and grow >= 4:  # pragma: no cover - the coarse mesh covers the fine one
+        raise RuntimeError("grid sequencing: a point of the fine mesh lies far outside the coarse mesh")
+    score = _barycentric(verts, inv, cand, points[point_of]).min(axis=1)
+    group = np.cumsum(n_cand) - n_cand                       # point_of is sorted: one group a point
+    best = np.maximum.reduceat(score, group)
+    hit = np.flatnonzero(score >= best[point_of])
+    chosen = np.empty(len(points), dtype=np.int64)
+    chosen[point_of[hit[::-1]]] = cand[hit[::-1]]             # the first best candidate of each point
+    if len(lost):
+        chosen[lost] = _locate(verts, inv, points[lost], grow + 1.0)
+    return chosen
 
 
 def weighted_solves(levels: list[CoarseLevel], fine_dofs: int) -> float:

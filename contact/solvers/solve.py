@@ -17,9 +17,9 @@ from ..models import DiscreteProblem, build_problem
 from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene
 from . import ncp, sequencing
-from .linear import ASSEMBLED_PETSC_OPTIONS, choose_linear, newton_system
+from .linear import ASSEMBLED_PETSC_OPTIONS, choose_linear, newton_system, petsc_defaults
 from .newton import Complementarity, setup_newton
-from .reduced import REDUCED_PETSC_OPTIONS, ReducedSystem
+from .reduced import ReducedSystem
 from .options import petsc_value, set_from_options, solver_options
 from .result import Result, finish
 from .vi import setup_vi
@@ -74,8 +74,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     polisher, system = None, None
     if method in ncp.METHODS:
         linear = choose_linear(problem, opts["linear"], user)
-        defaults = REDUCED_PETSC_OPTIONS if linear == "gamg" else ASSEMBLED_PETSC_OPTIONS[linear]
-        petsc_opts = {**defaults, **user}
+        petsc_opts = {**petsc_defaults(problem, linear), **user}
         system = newton_system(problem, linear, prefix, forcing=opts["inexact"])
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
         polisher = setup_newton(snes, cp, system, opts, timers, state, petsc_opts)
@@ -147,6 +146,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         polisher.destroy()
     if system is not None:
         result.krylov_iterations = system.krylov_iterations
+        result.krylov_log = getattr(system, "log", [])
         system.destroy()
     else:
         result.krylov_iterations = snes.getLinearSolveIterations()
