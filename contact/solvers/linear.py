@@ -106,7 +106,7 @@ class AssembledSystem:
         self.ksp.setOperators(self.H)
         self.ksp.solve(F, y)
         self.krylov_iterations += self.ksp.getIterationNumber()
-        self.ksp.setOperators(A, P)
+        self.ksp.setOperators(A or self.J, P or self.J)
 
     def count(self, ksp: PETSc.KSP) -> None:
         """Add the Krylov iterations of SNES's last linear solve."""

@@ -57,10 +57,12 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
     x = problem.b.duplicate()
     levels, note = [], ""
+    guess = u0 is not None
     if u0 is None:
         t0 = time.perf_counter()
         u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
         timers["coarse"] = time.perf_counter() - t0
+    guess = guess or u0 is not None
     if u0 is None:
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
     problem.to_unknowns(u0.x.petsc_vec, x)
@@ -110,15 +112,16 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
             step = prev["x"].norm() / dn if dn > 0 else 0.0
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
-            done = max(opts["atol"], opts["rtol"] * fnorm)
+            done = state.get("stop") or max(opts["atol"], opts["rtol"] * fnorm)
             if polisher is not None:
                 polisher.done = done
             if system is not None:
                 system.stop = done
         xk.copy(prev["x"])
         prev["active"] = active
+        polished = polisher is not None and (polisher.accepted if its > 0 else polisher.initial_accepted)
         row = {"iteration": its, "residual": float(fnorm), "step": float(step),
-               "active": n_active, "changed": changed, "polished": its > 0 and polisher is not None and polisher.accepted}
+               "active": n_active, "changed": changed, "polished": polished}
         history.append(row)
         if verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
@@ -136,6 +139,12 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
+    if polisher is not None and guess:
+        # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
+        stop = max(opts["atol"], opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
+        polisher.initial(x, stop)
+        state["stop"] = stop
+        snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
     snes.solve(None, x)
     reason_code = snes.getConvergedReason()
     result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
@@ -155,6 +164,15 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     if system is None:
         J.destroy()
     return result
+
+
+def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:
+    """‖Φ(x)‖."""
+    f = x.duplicate()
+    cp.phi(x, f, method, mu)
+    out = f.norm()
+    f.destroy()
+    return out
 
 
 def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:
