@@ -28,7 +28,9 @@ Eisenstat and Walker (SIAM J. Sci. Comput. 17, 1996, choice 2), bounded by the N
 residual itself,
 
     η_k = min(γ (‖Φ_k‖ / ‖Φ_{k−1}‖)^α, ETA_MAX, ‖Φ_k‖ / ‖Φ_0‖),   γ = 0.9, α = 2,
-    η_0 = ETA_MAX,   safeguard η_k ≥ γ η_{k−1}^α when that exceeds 0.1,
+    η_0 = ETA_MAX (from a guess — nested or sequenced — η_0 as for an exact solve: the guess
+    usually has the final active set, so the first step ends the iteration),
+    safeguard η_k ≥ γ η_{k−1}^α when that exceeds 0.1,
 
 and η_k ≤ η_{k−1} / 10 after a step that did not halve ‖Φ‖: a semismooth Newton method
 whose loose steps do not pay (fb can wander on them) becomes the exact method step by step,
@@ -89,6 +91,7 @@ class ReducedSystem:
         self.forcing = forcing
         self.stop = 0.0                  # SNES's stopping value of ‖Φ‖ (set by the solver)
         self.previous = None             # ‖Φ‖ and η of the last Newton solve
+        self.guess = False               # the iteration starts from a guess: first step exact
         self._held = self._newton = None  # the law A holds, the law of the last Newton solve
         self.krylov_iterations = 0
         self.log: list[dict] = []        # one entry per inner solve: rtol, iterations, seconds
@@ -99,6 +102,7 @@ class ReducedSystem:
         self.lag = True
         self._fresh_rate, self._lag_ok, self._lagged = None, False, False
         self.rebuilds = 0                # lagged solves that had to rebuild GAMG midway
+        self.restarts = 0                # solves started over with a new GAMG after a breakdown
         self._setup, self._per_it = 0.0, 1.0  # CPU seconds of the last setup, of one iteration
         m, n = K.getSizes()
         self.J = PETSc.Mat().createPython((m, n), context=_MatrixFreeH(self), comm=K.getComm())
@@ -230,8 +234,27 @@ class ReducedSystem:
             its += n
         elif (its - expected) * self._per_it > 0.5 * self._setup:
             self._lag_ok = False
+        if self.last_reason < 0 and self.last_reason != PETSc.KSP.ConvergedReason.DIVERGED_MAX_IT:
+            its += self._start_over(y, rtol, atol, r0)
         self._lagged = self.lag and self._lag_ok  # the next solve with this A may lag too
         return its
+
+    def _start_over(self, y: PETSc.Vec, rtol: float, atol: float, r0: float) -> int:
+        """After a breakdown (CG sees an indefinite preconditioner: a hierarchy whose reused
+        interpolation and smoother bounds no longer fit A), set GAMG up from scratch — new
+        aggregates, interpolation and Chebyshev bounds — and solve again from zero."""
+        ksp = self.ksp
+        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        ksp.getPC().reset()
+        ksp.setOperators(self.A, self.P)
+        ksp.getPC().setReusePreconditioner(False)
+        ksp.setTolerances(rtol=rtol, atol=atol, max_it=self._max_it)
+        ksp.solve(self.r, y)
+        self.restarts += 1
+        n = ksp.getIterationNumber()
+        self.last_reason = ksp.getConvergedReason()
+        self._fresh(n, r0)
+        return n
 
     def _fresh(self, its: int, r0: float) -> None:
         """Record the convergence rate per iteration of a freshly set up preconditioner."""
@@ -247,8 +270,8 @@ class ReducedSystem:
 
     def _forcing(self, fnorm: float) -> float:
         """η_k of this Newton step (module doc)."""
-        if self.previous is None:
-            eta, self._f0 = ETA_MAX, fnorm
+        if self.previous is None:  # a good guess (nested, sequenced) is on its final piece of Φ
+            eta, self._f0 = (self._rtol if self.guess else ETA_MAX), fnorm
         else:
             f_old, eta_old = self.previous
             ratio = fnorm / f_old if f_old > 0 else 1.0

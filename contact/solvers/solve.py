@@ -139,6 +139,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
+    if isinstance(system, ReducedSystem):
+        system.guess = guess
     if polisher is not None and guess:
         # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
         stop = max(opts["atol"], opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))

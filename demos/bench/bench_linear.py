@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import contact
-from contact.io import write_csv
+from common import save_csv
 
 CASES = [  # (scene, overrides per size)
     ("configs/signorini_square.yaml", [[f"mesh.cells=[{n},{n}]"] for n in (32, 64, 128, 256, 512)]),
@@ -61,10 +61,7 @@ def main() -> None:
                 rows.append(row)
                 print(f"{row['scene']:>18s} {row['dofs']:8d} {linear:>7s} {r.iterations:3d}+{r.polish_solves:<1d} "
                       f"{row['wall_s']:8.3f} {row['cpu_s']:8.3f}", flush=True)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    write_csv(out, rows)
-    print(f"wrote {out}")
+    save_csv(args.out, rows)
 
 
 if __name__ == "__main__":

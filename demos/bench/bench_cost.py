@@ -1,0 +1,143 @@
+"""Benchmark: the cost of a contact solve measured in linear solves (issue 11).
+
+What it shows: for each mesh, the wall (and CPU) time of one contact solve — everything
+after the scene's mesh exists: assembly, the coarse levels of grid sequencing, the Newton
+steps on the mesh asked for — divided by the time of ONE CG + GAMG solve of the stiffness
+matrix K (PETSc defaults, rtol 1e-8, from zero, GAMG setup included; with the rigid-body
+near-nullspace for elasticity), measured in the same process, alternating, ``--repeat``
+times (medians).  With and without grid sequencing, per method.  Also the Newton steps and
+polishing solves on the finest mesh, the linear solves of all levels weighted by their
+DoFs (the work in units of one fine solve), and the largest nodal difference to the answer
+of the solver as it was before issue 11 (a cold start with MUMPS, and κ = 100 for the
+square; BiCGStab + GAMG in 3D).
+
+    python demos/bench/bench_cost.py square --cells 128 256 512 1024 --out demos/results/cost/square.csv
+    python demos/bench/bench_cost.py hertz3d --out demos/results/cost/hertz3d.csv
+    mpirun -n 2 python demos/bench/bench_cost.py hertz3d --max-dofs 1300000 --out demos/results/cost/hertz3d_1M_np2.csv
+
+``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
+``hertz3d`` runs configs/hertz_3d.yaml's adaptive loop (up to ``--max-dofs``) and
+measures on its final mesh, whose coarser levels are the loop's earlier meshes.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import contact
+from common import save_csv
+from contact.io import gather_nodal
+from contact.models import build_problem
+
+
+def one_linear_solve(scene) -> tuple[float, float, int]:
+    """(wall s, CPU s, iterations) of one CG + GAMG solve of K, rtol 1e-8, from zero."""
+    p = build_problem(scene)
+    if p.near_nullspace is not None:
+        p.K.setNearNullSpace(p.near_nullspace)
+    ksp = PETSc.KSP().create(scene.comm)
+    ksp.setOperators(p.K)
+    ksp.setType("cg")
+    ksp.getPC().setType("gamg")
+    ksp.setTolerances(rtol=1e-8)
+    x = p.b.duplicate()
+    x.set(0.0)
+    scene.comm.barrier()
+    t0, c0 = time.perf_counter(), time.process_time()
+    ksp.solve(p.b, x)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    its = ksp.getIterationNumber()
+    for obj in (ksp, x, p.K, p.b):
+        obj.destroy()
+    return max_over_ranks(wall), max_over_ranks(cpu), its
+
+
+def max_over_ranks(value: float) -> float:
+    return MPI.COMM_WORLD.allreduce(value, op=MPI.MAX)
+
+
+def contact_solve(scene, method: str, sequence: str, **options):
+    MPI.COMM_WORLD.barrier()
+    t0, c0 = time.perf_counter(), time.process_time()
+    r = contact.solve(scene, method=method, sequence=sequence, verbose=False, **options)
+    return max_over_ranks(time.perf_counter() - t0), max_over_ranks(time.process_time() - c0), r
+
+
+def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: int,
+            reference: dict) -> list[dict]:
+    """Rows for one scene: every method × sequencing setting, ``repeat`` alternations of
+    one linear solve and one contact solve."""
+    rows = []
+    say = MPI.COMM_WORLD.rank == 0
+    contact_solve(scene, methods[0], "auto")  # warm-up: JIT compilation, first-touch
+    _, u_ref = gather_nodal(contact.solve(scene, verbose=False, **reference).u_h)
+    for method in methods:
+        for sequence in sequences:
+            refs, runs = [], []
+            for _ in range(repeat):
+                refs.append(one_linear_solve(scene))
+                runs.append(contact_solve(scene, method, sequence))
+            r = runs[-1][2]
+            _, u = gather_nodal(r.u_h)
+            diff = float(np.max(np.abs(u - u_ref))) if say else float("nan")
+            ref_wall = statistics.median(w for w, _, _ in refs)
+            ref_cpu = statistics.median(c for _, c, _ in refs)
+            wall = statistics.median(w for w, _, _ in runs)
+            cpu = statistics.median(c for _, c, _ in runs)
+            row = {"case": case, "dofs": r.dofs, "ranks": MPI.COMM_WORLD.size, "method": method,
+                   "sequence": sequence, "levels": len(r.sequence) + 1,
+                   "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
+                   "coarse_solves": r.coarse_linear_solves, "newton": r.iterations, "polish": r.polish_solves,
+                   "weighted_solves": round(r.weighted_linear_solves, 3), "krylov": r.krylov_iterations,
+                   "linear": r.linear, "converged": r.converged,
+                   "ref_its": refs[-1][2], "ref_wall_s": round(ref_wall, 3), "solve_wall_s": round(wall, 3),
+                   "ratio_wall": round(wall / ref_wall, 3), "ref_cpu_s": round(ref_cpu, 3),
+                   "solve_cpu_s": round(cpu, 3), "ratio_cpu": round(cpu / ref_cpu, 3),
+                   "ratio_wall_runs": " ".join(f"{w / rw:.2f}" for (w, _, _), (rw, _, _) in zip(runs, refs)),
+                   "max_diff_vs_before": diff, "repeat": repeat}
+            rows.append(row)
+            if say:
+                print(f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine {r.iterations}+{r.polish_solves} "
+                      f"coarse {row['coarse_solves']:3d} weighted {row['weighted_solves']:5.2f}  "
+                      f"ref {ref_wall:6.2f} s  solve {wall:7.2f} s  ratio {row['ratio_wall']:5.2f} "
+                      f"(cpu {row['ratio_cpu']:5.2f})  diff {diff:.1e}", flush=True)
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("case", choices=("square", "hertz3d"))
+    ap.add_argument("--cells", type=int, nargs="+", default=[128, 256, 512, 1024])
+    ap.add_argument("--methods", default="fb,min")
+    ap.add_argument("--sequence", default="auto,off", help="sequencing settings to compare")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--max-dofs", type=int, default=300000, help="hertz3d: DoF budget of the adaptive loop")
+    ap.add_argument("--out", default="bench/cost.csv")
+    args = ap.parse_args()
+    methods, sequences = args.methods.split(","), args.sequence.split(",")
+    rows = []
+    if args.case == "square":
+        before = {"method": "fb", "linear": "direct", "sequence": "off", "kappa": 100.0, "max_it": 200}
+        for n in args.cells:
+            scene = contact.load_scene("configs/signorini_square.yaml", [f"mesh.cells=[{n},{n}]", "output.verbose=false"])
+            rows += measure("square", scene, methods, sequences, args.repeat, before)
+    else:
+        scene = contact.load_scene("configs/hertz_3d.yaml", ["output.verbose=false",
+                                                             f"adapt.max_dofs={args.max_dofs}", "adapt.max_levels=20"])
+        t0 = time.perf_counter()
+        res = contact.adapt(scene, verbose=False)
+        if MPI.COMM_WORLD.rank == 0:
+            print(f"hertz_3d adaptive loop: {[lv.result.dofs for lv in res.levels]} DoFs, "
+                  f"{time.perf_counter() - t0:.1f} s", flush=True)
+        before = {"method": "fb", "linear": "bcgs", "sequence": "off", "max_it": 200}
+        rows += measure("hertz3d", res.levels[-1].scene, methods, sequences, args.repeat, before)
+    save_csv(args.out, rows)
+
+
+if __name__ == "__main__":
+    main()
