@@ -18,13 +18,13 @@ from typing import Any, Callable
 import numpy as np
 from mpi4py import MPI
 
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 
 from .config import SCENE, _validate
 from .errors import energy_error
 from .estimate import Estimate, estimate
-from .geometry import curved_boundary
+from .geometry import curved_boundaries
 from .meshes import Boundary
 from .scene import Scene
 from .models import build_problem
@@ -82,7 +82,8 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
     move the vertices on a curved boundary onto the exact surface
-    (:func:`contact.geometry.curved_boundary`; other meshes keep dolfinx's midpoints).
+    (:func:`contact.geometry.curved_boundaries`, facets found by the mesh's own tags; other
+    meshes keep dolfinx's midpoints).
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
@@ -95,11 +96,13 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
-    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)))
+    bodies = None if scene.bodies is None else transfer_cell_tags(scene.bodies, new, parent_cell)
+    surfaces = None if scene.surfaces is None else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
+    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
+                  bodies, surfaces)
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
-    surface = curved_boundary(scene.cfg)
-    if surface is not None:
-        surface.snap(new, tags)
+    for surface in curved_boundaries(scene.cfg):   # the mesh's own tags of its curved surfaces
+        surface.snap(new, tags if surfaces is None else surfaces)
     return child, u0
 
 
@@ -141,6 +144,21 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     u0.x.array[(dofs[:, None] * bs + np.arange(bs)).ravel()] = values.reshape(len(dofs), bs).ravel()
     u0.x.scatter_forward()
     return u0
+
+
+def transfer_cell_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray) -> dmesh.MeshTags:
+    """Cell tags on the refined mesh, on every local cell (ghosts included): a child cell
+    inherits its parent's value (the owners set theirs, the ghosts receive them)."""
+    tdim = new.topology.dim
+    old_value = np.zeros(tags.topology.index_map(tdim).size_local + tags.topology.index_map(tdim).num_ghosts)
+    old_value[tags.indices] = tags.values
+    imap = new.topology.index_map(tdim)
+    vec = la.vector(imap, 1)
+    cells, created = created_cells(new, len(parent_cell))
+    vec.array[cells] = old_value[parent_cell[created]]
+    vec.scatter_forward()
+    n_all = imap.size_local + imap.num_ghosts
+    return dmesh.meshtags(new, tdim, np.arange(n_all, dtype=np.int32), np.rint(vec.array[:n_all]).astype(np.int32))
 
 
 def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray,

@@ -123,18 +123,44 @@ EXPR = Field("expr", "0")
 EXPRS = Field("exprs", "0", doc="an expression, or a list of them (one per component) for elasticity")
 
 BOUNDARY = Field("dict", schema={
-    "role": Field("str", choices=("dirichlet", "neumann", "contact", "symmetry"),
-                  doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact, or "
-                      "symmetry (elasticity: zero normal displacement on a plane x_k = const)"),
+    "role": Field("str", choices=("dirichlet", "neumann", "contact", "symmetry", "interface"),
+                  doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact (with the "
+                      "rigid obstacle), symmetry (elasticity: zero normal displacement on a plane "
+                      "x_k = const), or interface (a slave or master surface of a contact pair)"),
     "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
-    "tag": Field("int", None, doc="gmsh physical tag of the facets"),
+    "tag": Field("int", None, doc="gmsh physical tag of the facets (with where: those satisfying it)"),
+    "body": Field("str", None, doc="only the facets of this body (a name of the bodies section)"),
+})
+
+BODY = Field("dict", schema={
+    "tag": Field("int", None, doc="the body's cells: a cell tag of the mesh (gmsh physical volume "
+                                  "or surface; block number 1, 2, … of mesh type blocks)"),
+    "where": Field("str", None, doc="the body's cells: predicate in x, y, z on the cell midpoints"),
+    "E": Field("number", check=_positive, doc="Young's modulus of the body"),
+    "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
+                doc="Poisson's ratio of the body"),
+})
+
+PAIR = Field("dict", schema={
+    "slave": Field("str", doc="boundary part (role interface) carrying the multiplier"),
+    "master": Field("str", doc="boundary part (role interface) of another body"),
+    "search": Field("number", None, check=_positive,
+                    doc="largest normal distance between a slave facet and a master facet it is "
+                        "paired with (default: the diameter of the two surfaces' bounding box); "
+                        "a slave node with no master facet within it is an error"),
+})
+
+BLOCK = Field("dict", schema={
+    "corners": Field("list", check=_point_list, doc="two opposite corners of the block"),
+    "cells": Field("any", check=_cells, doc="cells per direction"),
 })
 
 SCENE: dict[str, Field] = {
     "name": Field("str", None),
     "mesh": Field("dict", schema={
         "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh",
-                                                   "quarter_disk", "sphere_octant")),
+                                                   "quarter_disk", "sphere_octant", "blocks", "half_disks",
+                                                   "sphere_on_block")),
         "corners": Field("list", None, check=_point_list),
         "cells": Field("any", 16, check=_cells),
         "diagonal": Field("str", "right", choices=("left", "right", "crossed", "left/right", "right/left")),
@@ -144,6 +170,10 @@ SCENE: dict[str, Field] = {
         "h": Field("number", None, doc="quarter_disk / sphere_octant: mesh size away from contact"),
         "h_contact": Field("number", None, doc="quarter_disk / sphere_octant: mesh size at the contact point"),
         "zone": Field("number", None, doc="quarter_disk / sphere_octant: radius of the fine zone"),
+        "radius2": Field("number", None, doc="half_disks: radius of the lower disk (default: radius)"),
+        "block": Field("list", None, doc="sphere_on_block: [half-width, depth] of the block"),
+        "blocks": Field("list", None, doc="blocks: a list of {corners, cells}, one body each "
+                                          "(cell tags 1, 2, …), meshed independently"),
         "map": Field("exprs", None, check=_expression_list,
                      doc="rectangle / unit_square / box / lshape: new vertex coordinates "
                          "[x', y'(, z')] as expressions in the built mesh's x, y, z (lengths in "
@@ -161,6 +191,8 @@ SCENE: dict[str, Field] = {
         "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
                     doc="elasticity: Poisson's ratio"),
     }),
+    "bodies": Field("dict", None, schema=None, item=BODY),
+    "pairs": Field("list", None, doc="contact pairs between bodies: [{slave, master, search}]"),
     "obstacle": Field("dict", None, schema={
         "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
         "point": Field("list", None, doc="plane: a point of the rigid plane"),
@@ -183,7 +215,8 @@ SCENE: dict[str, Field] = {
         "rtol": Field("number", 1e-12, check=_nonnegative),
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
-        "u0": Field("expr", "0"),
+        "u0": Field("exprs", "0", doc="initial guess: an expression (every component), or one per "
+                                      "component for elasticity"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "adapt": Field("dict", None, schema={
@@ -352,7 +385,10 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                "box": {"corners", "cells", "map"}, "lshape": {"cells", "diagonal", "map"},
                "gmsh": {"file"},
                "quarter_disk": {"radius", "h", "h_contact", "zone"},
-               "sphere_octant": {"radius", "h", "h_contact", "zone"}}[mesh["type"]]
+               "sphere_octant": {"radius", "h", "h_contact", "zone"},
+               "blocks": {"blocks", "diagonal"},
+               "half_disks": {"radius", "radius2", "h", "h_contact", "zone"},
+               "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"}}[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
     for key in SCENE["mesh"].schema:
         if key in given and key not in allowed | {"type", "degree"}:
@@ -377,6 +413,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         if len(cells) != want:
             raise ConfigError(f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got {mesh['cells']!r}")
         mesh["cells"] = cells
+    if mesh["type"] == "blocks":
+        dims = _check_blocks(mesh)
     if mesh["map"] is not None and len(mesh["map"]) != dims:
         raise ConfigError(f"mesh.map: expected {dims} expressions for a {dims}D mesh, "
                           f"got {len(mesh['map'])}")
@@ -384,11 +422,11 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if not cfg["boundaries"]:
         raise ConfigError("boundaries: at least one boundary part is required")
     for bname, part in cfg["boundaries"].items():
-        if (part["where"] is None) == (part["tag"] is None):
-            raise ConfigError(f"boundaries.{bname}: give exactly one of 'where' or 'tag'")
-        if part["tag"] is not None and mesh["type"] not in ("gmsh", "quarter_disk", "sphere_octant"):
-            raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: gmsh, "
-                              "quarter_disk or sphere_octant)")
+        if part["where"] is None and part["tag"] is None:
+            raise ConfigError(f"boundaries.{bname}: give 'where' or 'tag' (or both: the tag's facets where it holds)")
+        if part["tag"] is not None and mesh["type"] not in GMSH_MESHES:
+            raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: "
+                              f"{', '.join(GMSH_MESHES)})")
         if part["where"] is not None:
             try:
                 expressions.parse(part["where"], constants)
@@ -396,7 +434,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                 raise ConfigError(f"boundaries.{bname}.where: {err}") from None
     roles = [p["role"] for p in cfg["boundaries"].values()]
     model = cfg["model"]["type"]
-    if model in ("signorini", "elasticity") and "contact" not in roles:
+    if model == "signorini" and "contact" not in roles or model == "elasticity" and not (
+            "contact" in roles or cfg["pairs"]):
         raise ConfigError(f"boundaries: a {model} scene needs a part with role: contact")
     if model == "obstacle" and "contact" in roles:
         raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a contact part")
@@ -415,13 +454,21 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
     _check_vector_data(cfg, model)
     if model == "elasticity":
+        _check_bodies(cfg, constants)
         _check_elasticity(cfg)
-    elif "symmetry" in roles:
-        raise ConfigError("boundaries: role symmetry is for elasticity scenes")
-    if mesh["type"] in ("quarter_disk", "sphere_octant"):
-        for key in ("radius", "h", "h_contact", "zone"):
+    else:
+        for key in ("bodies", "pairs"):
+            if cfg[key]:
+                raise ConfigError(f"{key}: only for model type elasticity")
+        if "symmetry" in roles or "interface" in roles:
+            role = "symmetry" if "symmetry" in roles else "interface"
+            raise ConfigError(f"boundaries: role {role} is for elasticity scenes")
+    if mesh["type"] in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
+        for key in ("radius", "h", "h_contact", "zone") + (("block",) if mesh["type"] == "sphere_on_block" else ()):
             if mesh[key] is None:
                 raise ConfigError(f"mesh.{key}: required for mesh type {mesh['type']!r}")
+    if mesh["degree"] == 2 and cfg["pairs"]:
+        raise ConfigError("mesh.degree: contact pairs (mortar) are implemented for P1; use 1")
     if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
         raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
@@ -430,20 +477,93 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     return cfg
 
 
+GMSH_MESHES = ("gmsh", "quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")
+
+
+def _check_blocks(mesh: dict) -> int:
+    """Mesh type blocks: a list of at least one {corners, cells} of one dimension; returns it."""
+    blocks = mesh["blocks"]
+    if not blocks:
+        raise ConfigError("mesh.blocks: required for mesh type 'blocks' (a list of {corners, cells})")
+    dims = None
+    for i, raw in enumerate(blocks):
+        block = _validate(raw, BLOCK, f"mesh.blocks[{i}]", {})
+        d = len(block["corners"][0])
+        cells = block["cells"] if isinstance(block["cells"], list) else [block["cells"]] * d
+        if len(cells) != d:
+            raise ConfigError(f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got {block['cells']!r}")
+        if dims not in (None, d):
+            raise ConfigError(f"mesh.blocks[{i}].corners: every block needs {dims}D points")
+        dims = d
+        blocks[i] = {"corners": block["corners"], "cells": cells}
+    if dims == 3 and mesh["diagonal"] != "right":
+        raise ConfigError("mesh.diagonal: not used by 3D blocks")
+    if dims == 2 and mesh["diagonal"] not in ("left", "right"):
+        raise ConfigError(f"mesh.diagonal: blocks take left or right, got {mesh['diagonal']!r}")
+    return dims
+
+
+def _check_bodies(cfg: dict, constants: Mapping[str, float]) -> None:
+    """bodies (each with exactly one of tag / where), boundary parts' ``body``, and pairs:
+    slave and master parts of role interface, of different bodies, each part in one pair."""
+    bodies, parts, pairs = cfg["bodies"] or {}, cfg["boundaries"], cfg["pairs"]
+    for name, body in bodies.items():
+        if (body["where"] is None) == (body["tag"] is None):
+            raise ConfigError(f"bodies.{name}: give exactly one of 'where' or 'tag'")
+        if body["where"] is not None:
+            try:
+                expressions.parse(body["where"], constants)
+            except expressions.ExpressionError as err:
+                raise ConfigError(f"bodies.{name}.where: {err}") from None
+    if bodies and cfg["model"]["E"] is not None:
+        raise ConfigError("model.E: a scene with bodies gives E (and nu) per body")
+    for pname, part in parts.items():
+        if part["body"] is not None and part["body"] not in bodies:
+            known = ", ".join(bodies) or "none"
+            raise ConfigError(f"boundaries.{pname}.body: {part['body']!r} is not a body (bodies: {known})")
+    if pairs and not bodies:
+        raise ConfigError("pairs: contact pairs need a bodies section (one material per body)")
+    used: dict[str, str] = {}
+    for i, raw in enumerate(pairs or []):
+        pair = _validate(raw, PAIR, f"pairs[{i}]", constants)
+        pairs[i] = pair
+        for side in ("slave", "master"):
+            name = pair[side]
+            if name not in parts:
+                raise ConfigError(f"pairs[{i}].{side}: {name!r} is not a boundary part")
+            if parts[name]["role"] != "interface":
+                raise ConfigError(f"pairs[{i}].{side}: boundary part {name!r} needs role: interface")
+            if name in used:
+                raise ConfigError(f"pairs[{i}].{side}: boundary part {name!r} is already the {used[name]}")
+            used[name] = f"{side} of pairs[{i}]"
+    for pname, part in parts.items():
+        if part["role"] == "interface" and pname not in used:
+            raise ConfigError(f"boundaries.{pname}: a part with role interface must be the slave or "
+                              "master of a contact pair (pairs)")
+
+
 def _check_vector_data(cfg: dict, model: str) -> None:
     """Vector data (lists) only for elasticity (where a single expression means every
     component, so the default "0" is the zero vector)."""
     for key in ("f", "u_D", "t"):
         if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
+    if isinstance(cfg["solver"]["u0"], list) and model != "elasticity":
+        raise ConfigError("solver.u0: a list of components is only for model type elasticity")
 
 
 def _check_elasticity(cfg: dict) -> None:
-    if cfg["model"]["E"] is None:
+    if cfg["model"]["E"] is None and not cfg["bodies"]:
         raise ConfigError("model.E: required for model type elasticity (Young's modulus)")
     obstacle = cfg.get("obstacle")
+    contact_parts = [n for n, p in cfg["boundaries"].items() if p["role"] == "contact"]
+    if obstacle and not contact_parts:
+        raise ConfigError("obstacle: needs a boundary part with role: contact (the surface it touches)")
+    if not obstacle and cfg["pairs"] and not contact_parts:
+        return
     if not obstacle:
-        raise ConfigError("obstacle: an elasticity scene needs a rigid obstacle (type plane, circle or sphere)")
+        raise ConfigError("obstacle: an elasticity scene needs a rigid obstacle (type plane, circle or "
+                          "sphere) or contact pairs between bodies (pairs)")
     keys = ("point", "normal") if obstacle["type"] == "plane" else ("center", "radius")
     for key in keys:
         if obstacle[key] is None:

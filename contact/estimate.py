@@ -104,7 +104,7 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     u_h, lam = result.u_h, result.lmbda_h
     f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
-    n_c = p.data["n_ufl"]                                   # normal towards the obstacle
+    n_c = p.data.get("n_ufl")                               # normal towards the obstacle
     sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
     T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
     terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
@@ -114,6 +114,10 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
     for i in bnd.ids_with_role("natural"):
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
+    if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
+        from .interface import interface_terms
+
+        return {**terms, **interface_terms(scene, result, w, n, h_E, T)}
     Tn = ufl.dot(T, n_c)
     Tt = T - Tn * n_c
     for i in bnd.ids_with_role("contact"):

@@ -27,7 +27,11 @@ from .solvers import Result, owned_residual
 
 def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float, float]:
     """(a, p0) of Hertz theory for a cylinder (dim 2, force per thickness) or a sphere."""
-    Es = E / (1.0 - nu**2)
+    return hertz_values(R, E / (1.0 - nu**2), force, dim)
+
+
+def hertz_values(R: float, Es: float, force: float, dim: int) -> tuple[float, float]:
+    """(a, p0) of Hertz theory for the effective radius R and contact modulus E*."""
     if dim == 2:
         a = 2.0 * np.sqrt(R * force / (np.pi * Es))
         return a, 2.0 * force / (np.pi * a)
@@ -38,7 +42,11 @@ def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float,
 def hertz_radius(cfg: dict) -> float | None:
     """R of a validated scene config: the mesh radius of a built-in Hertz geometry, else
     the constant ``R``; None when neither is given (no Hertz values)."""
-    R = cfg["mesh"].get("radius") or cfg["constants"].get("R")
+    m = cfg["mesh"]
+    if m["type"] == "half_disks":  # two cylinders: 1/R = 1/R1 + 1/R2
+        R1, R2 = float(m["radius"]), float(m.get("radius2") or m["radius"])
+        return R1 * R2 / (R1 + R2)
+    R = m.get("radius") or cfg["constants"].get("R")
     return None if R is None else float(R)
 
 
@@ -51,7 +59,12 @@ def radius_of(scene: Scene) -> float:
 
 
 def contact_resultants(scene: Scene, result: Result) -> dict:
-    """Half-width/radius, peak pressure, contact force and reaction, and the Hertz values."""
+    """Half-width/radius, peak pressure, contact force and reaction, and the Hertz values
+    (for a scene with contact pairs: :func:`contact.interface.interface_resultants`)."""
+    if scene.cfg.get("pairs"):
+        from .interface import interface_resultants
+
+        return interface_resultants(scene, result)
     comm = scene.comm
     p = result.problem
     con = p.constraint
@@ -83,10 +96,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     origin = first_contact_point(comm, X, con.g * con.sign)
     rel = X - origin
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
-    active = result.active_mask                           # the solver's rule: b_i > a_i
-    last_active = comm.allreduce(float(rho[active].max(initial=0.0)), op=MPI.MAX)
-    first_free = comm.allreduce(float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN)
-    a = 0.5 * (last_active + first_free) if np.isfinite(first_free) else last_active
+    a = contact_extent(comm, rho, result.active_mask)     # the solver's rule: b_i > a_i
     p0 = comm.allreduce(float(np.max(-lam, initial=0.0)), op=MPI.MAX)
     model = scene.cfg["model"]
     dim = scene.mesh.geometry.dim
@@ -98,6 +108,14 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
             "hertz_a": a_H, "hertz_p0": p0_H, "a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0,
             "a_over_R": a / R, "symmetric_copies": copies, "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
             "pressure_profile": _profile(comm, rho, -lam)}
+
+
+def contact_extent(comm: MPI.Comm, rho: np.ndarray, active: np.ndarray) -> float:
+    """Half-width / radius of the contact set: the midpoint between the last active node and
+    the first inactive one beyond it, in the distance ρ from the first point of contact."""
+    last_active = comm.allreduce(float(rho[active].max(initial=0.0)), op=MPI.MAX)
+    first_free = comm.allreduce(float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN)
+    return 0.5 * (last_active + first_free) if np.isfinite(first_free) else last_active
 
 
 def _profile(comm: MPI.Comm, rho: np.ndarray, pressure: np.ndarray) -> list[list[float]]:

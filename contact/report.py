@@ -89,8 +89,7 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     out_cfg = scene.cfg["output"]
     with io.atomic_folder(outdir, comm) as tmp:
         if out_cfg["xdmf"]:
-            io.write_xdmf(tmp / "solution.xdmf", [result.u_h, result.lmbda_h, result.gap, result.active],
-                          cells=cell_fields(scene, result))
+            io.write_xdmf(tmp / "solution.xdmf", nodal_fields(scene, result), cells=cell_fields(scene, result))
         io.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg["png"]:
             plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
@@ -100,13 +99,26 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     return info
 
 
+def nodal_fields(scene: Scene, result: Result) -> list:
+    """Nodal output fields: u_h, λ_h, the gap and the active set; with contact pairs also
+    the pressure seen by the master surfaces (``lambda_master``)."""
+    fields = [result.u_h, result.lmbda_h, result.gap, result.active]
+    if scene.cfg.get("pairs"):
+        from .interface import master_pressure
+
+        fields.append(master_pressure(result))
+    return fields
+
+
 def cell_fields(scene: Scene, result: Result) -> list:
-    """Cellwise output fields: the von Mises stress for elasticity."""
+    """Cellwise output fields: the von Mises stress for elasticity, and the ``body`` number
+    of each cell in a scene with bodies."""
     if scene.cfg["model"]["type"] != "elasticity":
         return []
     from .models.elasticity import von_mises
 
-    return [von_mises(result.u_h, result.problem.data["mu"], result.problem.data["lmbda_L"])]
+    p = result.problem.data
+    return [von_mises(result.u_h, p["mu"], p["lmbda_L"])] + ([p["body"]] if "body" in p else [])
 
 
 def write_pressure_plot(path: Path, scene: Scene, result: Result, res: dict | None) -> None:
@@ -120,7 +132,7 @@ def level_writer(tmp: Path, scene: Scene):
     def write(level: Level) -> None:
         r = level.result
         if scene.cfg["output"]["xdmf"]:
-            io.write_xdmf(tmp / f"level_{level.index:03d}.xdmf", [r.u_h, r.lmbda_h, r.gap, r.active],
+            io.write_xdmf(tmp / f"level_{level.index:03d}.xdmf", nodal_fields(level.scene, r),
                           cells=[level.estimate.eta_T, *cell_fields(level.scene, r)])
     return write
 

@@ -13,7 +13,7 @@ from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
 from .config import load_config
-from .meshes import Boundary, build_mesh, tag_boundaries
+from .meshes import Boundary, build_mesh, tag_bodies, tag_boundaries
 
 
 @dataclass
@@ -23,6 +23,8 @@ class Scene:
     cfg: dict
     mesh: dmesh.Mesh
     boundary: Boundary
+    bodies: dmesh.MeshTags | None = None  # cell tags k + 1 of the k-th body (scenes with bodies)
+    surfaces: dmesh.MeshTags | None = None  # the mesh's own facet tags (gmsh groups), carried by refinement
 
     @property
     def name(self) -> str:
@@ -41,5 +43,6 @@ def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tu
     Raises :class:`contact.ConfigError` with a one-line message on any bad input.
     """
     cfg = load_config(source, overrides)
-    msh, file_tags = build_mesh(cfg, comm)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
+    msh, file_tags, cell_tags = build_mesh(cfg, comm)
+    bodies = tag_bodies(msh, cfg, cell_tags)
+    return Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags, bodies), bodies, file_tags)

@@ -21,6 +21,7 @@ from dolfinx import fem
 
 from ..config import ConfigError
 from ..scene import Scene
+from .basis import change_of_basis, frame
 from .problem import Constraint, lumped_weights
 
 
@@ -132,26 +133,6 @@ def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.n
 def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
     """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
     bs = V.dofmap.index_map_bs
-    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, nnz=(bs, 0), comm=K.comm)
-    lo, hi = Q.getOwnershipRange()
-    local_nodes = (hi - lo) // bs
-    blocks = np.tile(np.eye(bs), (local_nodes, 1, 1))
-    for node, n in zip(nodes, normals):
-        blocks[node] = _frame(n)
-    # CSR of the owned rows: row (node, i) holds columns (node, 0 … bs−1), values blocks[node, i, :]
-    indptr = np.arange(0, local_nodes * bs * bs + 1, bs, dtype=PETSc.IntType)
-    cols = lo + np.arange(local_nodes * bs, dtype=PETSc.IntType).reshape(local_nodes, 1, bs)
-    indices = np.broadcast_to(cols, (local_nodes, bs, bs)).ravel()
-    Q.setValuesCSR(indptr, indices, blocks.ravel())
-    Q.assemble()
+    Q, Q_inv = change_of_basis(V, K, nodes, np.array([frame(n) for n in normals]).reshape(-1, bs, bs))
+    Q_inv.destroy()  # = Qᵀ for rotations
     return Q
-
-
-def _frame(n: np.ndarray) -> np.ndarray:
-    """Columns n, t (, t2): an orthonormal frame whose first axis is n."""
-    if len(n) == 2:
-        return np.array([[n[0], -n[1]], [n[1], n[0]]])
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(n, helper)
-    t1 /= np.linalg.norm(t1)
-    return np.column_stack([n, t1, np.cross(n, t1)])

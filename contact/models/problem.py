@@ -26,6 +26,7 @@ import ufl
 from dolfinx import fem
 
 from .. import expressions
+from ..config import ConfigError
 from ..scene import Scene
 
 
@@ -63,6 +64,8 @@ class DiscreteProblem:
     lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
     near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
     basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
+    basis_inverse: PETSc.Mat | None = None  # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
+    output_nodes: np.ndarray | None = None  # output-space DoFs where the gap is defined (None: all)
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
 
@@ -72,8 +75,11 @@ class DiscreteProblem:
         out.axpy(-1.0, self.b)
 
     def to_unknowns(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
-        """x = Qᵀ u (the solver's unknowns from displacements; a copy when Q = I)."""
-        if self.basis is None:
+        """x = Q⁻¹ u (the solver's unknowns from displacements; Qᵀ u for a rotation, a copy
+        when Q = I)."""
+        if self.basis_inverse is not None:
+            self.basis_inverse.mult(u, x)
+        elif self.basis is None:
             u.copy(x)
         else:
             self.basis.multTranspose(u, x)
@@ -111,6 +117,10 @@ class DiscreteProblem:
         u = unknowns.x.array if self.output_map is None else unknowns.x.array[self.output_map]
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
+        if self.output_nodes is not None:  # the gap is defined on the contact nodes only
+            keep = np.zeros(len(gap.x.array), dtype=bool)
+            keep[self.output_nodes] = True
+            gap.x.array[~keep] = 0.0
         return lmbda, gap, active_fn
 
     def _extend_to_ends(self, lmbda: fem.Function) -> None:
@@ -149,12 +159,16 @@ def coefficient(text: str, scene: Scene) -> Any:
     return expressions.to_ufl(text, scene.mesh, consts)
 
 
-def interpolate_expression(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
-    """``text`` interpolated into V; for a vector space the expression is every component."""
+def interpolate_expression(V: fem.FunctionSpace, text: str | list[str], scene: Scene) -> fem.Function:
+    """``text`` interpolated into V; for a vector space one expression is every component,
+    a list gives one per component."""
     fn = fem.Function(V)
-    f = expressions.to_numpy(text, scene.cfg["constants"])
     bs = V.dofmap.index_map_bs
-    fn.interpolate(f if bs == 1 else (lambda x: np.tile(f(x), (bs, 1))))
+    texts = text if isinstance(text, list) else [text] * bs
+    if len(texts) != bs:
+        raise ConfigError(f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}")
+    fns = [expressions.to_numpy(t, scene.cfg["constants"]) for t in texts]
+    fn.interpolate(lambda x: np.vstack([f(x) for f in fns]) if bs > 1 else fns[0](x))
     return fn
 
 

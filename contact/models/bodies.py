@@ -1,0 +1,146 @@
+"""Several elastic bodies in one mesh, in contact through mortar pairs (SPEC §1.5).
+
+The bodies are the disconnected components of one DOLFINx mesh, told apart by the cell
+tags of :func:`contact.meshes.tag_bodies`; one vector P1 space carries them all, so the
+elastic assembly of :mod:`contact.models.elasticity` applies unchanged with Lamé
+parameters that are DG0 functions (E_k, ν_k of body k).  Each pair of ``pairs`` couples a
+slave surface to a master surface (:mod:`contact.models.mortar`); with the change of
+basis u = Q x of :mod:`contact.models.basis`,
+
+    K̃ = Qᵀ K Q,   b̃ = Qᵀ b,   x_{i,n} ≤ g_i  (slave node i),   λ_i = R̃_i / D_ii,
+
+where the Dirichlet and symmetry conditions are imposed again on the unknowns x (a master
+node's fixed component is coupled into the slave rows; ``zeroRowsColumns`` with the
+prescribed values lifts it), so every solver applies unchanged: the problem is a bound on
+single unknowns.  Units: E in Pa (any consistent unit), λ a pressure, D_ii a length (2D)
+or an area (3D).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from dolfinx import fem, la
+
+from ..scene import Scene
+from . import mortar
+from .basis import change_of_basis
+from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
+from .problem import Constraint, DiscreteProblem, contact_ends
+
+
+def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
+    """DG0 Lamé parameters μ, λ_L of each cell's body and the DG0 ``body`` number (1, 2, …
+    in the order of the bodies section; the output tells the bodies apart by it)."""
+    msh, tags = scene.mesh, scene.bodies
+    W = fem.functionspace(msh, ("DG", 0))
+    mu, lmbda_L, body = (fem.Function(W, name=name) for name in ("mu", "lmbda_L", "body"))
+    values = [lame(b["E"], b["nu"]) for b in scene.cfg["bodies"].values()]
+    k = tags.values - 1
+    dofs = W.dofmap.list[tags.indices].ravel()
+    mu.x.array[dofs] = np.array([v[0] for v in values])[k]
+    lmbda_L.x.array[dofs] = np.array([v[1] for v in values])[k]
+    body.x.array[dofs] = tags.values
+    return mu, lmbda_L, body
+
+
+def bodies_problem(scene: Scene) -> DiscreteProblem:
+    """The frictionless multi-body contact problem of ``scene``: elasticity with one
+    material per body, mortar pairs as the change of basis u = Q x."""
+    t0 = time.perf_counter()
+    if scene.cfg.get("obstacle"):
+        from ..config import ConfigError
+
+        raise ConfigError("obstacle: a rigid obstacle together with contact pairs is not supported yet")
+    mu, lmbda_L, body = materials(scene)
+    system = elastic_system(scene, mu, lmbda_L)
+    V, K, b = system.V, system.K, system.b
+    bs = V.dofmap.index_map_bs
+    mortar.check_disjoint(scene, V)
+    couplings = [mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.cfg["pairs"]))]
+
+    nodes = np.concatenate([c.nodes for c in couplings])
+    offsets = np.cumsum([0] + [len(c.nodes) for c in couplings])
+    frames = np.concatenate([c.frames for c in couplings])
+    projectors = np.concatenate([c.projectors for c in couplings])
+    coupling = (np.concatenate([c.rows + o for c, o in zip(couplings, offsets)]),
+                np.concatenate([c.cols for c in couplings]), np.concatenate([c.c for c in couplings]))
+    Q, Q_inv = change_of_basis(V, K, nodes, frames.reshape(-1, bs, bs), coupling, projectors)
+    Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
+    bt = b.duplicate()
+    Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
+    bcs = dirichlet_on_unknowns(V, system.bcs, nodes, frames, [a for c in couplings for a in c.absolute], Kt, bt)
+
+    u_h = fem.Function(V, name="u_h")
+    S, s_to_v = V.sub(0).collapse()
+    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    v_to_s = np.empty(len(s_to_v), dtype=np.int32)
+    v_to_s[s_to_v // bs] = np.arange(len(s_to_v), dtype=np.int32)
+    gap = np.concatenate([c.gap for c in couplings])
+    on = la.vector(V.dofmap.index_map, 2)                    # (slave marker, bound) per node
+    on.array.reshape(-1, 2)[nodes] = np.c_[np.ones(len(nodes)), gap]
+    on.scatter_forward()
+    marker, bound_nodes = on.array.reshape(-1, 2).T
+    bound = fem.Function(S, name="bound")
+    bound.x.array[:] = bound_nodes[s_to_v // bs]
+    slave_nodes = np.flatnonzero(marker > 0)
+    ends = np.concatenate([c.ends for c in couplings])
+    end_dofs, end_neighbours = contact_ends(V, (ends * bs).astype(np.int32),
+                                            np.concatenate([slave_nodes, ends]) * bs, ends * bs)
+    con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in couplings]), 1.0)
+    data = {**system.data, "reaction_form": reaction_form(system, u_h), "u_bcs": system.bcs,
+            "body": body, "couplings": couplings, "normals": np.concatenate([c.normals for c in couplings])}
+    return DiscreteProblem(V, u_h, bcs, Kt, bt, con, data=data, end_dofs=end_dofs, end_neighbours=end_neighbours,
+                           output_space=S, output_map=s_to_v, output_bound=bound, lambda_sign=1.0,
+                           basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
+                           near_nullspace=rigid_body_modes(V, inverse=Q_inv),
+                           assembly_time=time.perf_counter() - t0)
+
+
+def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, frames: np.ndarray,
+                          absolute: list, Kt: PETSc.Mat, bt: PETSc.Vec) -> list:
+    """The Dirichlet and symmetry conditions as conditions on the unknowns x = Q⁻¹ u, imposed
+    on K̃ and b̃ (rows and columns identity, the prescribed values lifted into b̃), and
+    returned as one DirichletBC on x for the solvers' initial guess.
+
+    A fixed component u_k of a slave node whose frame keeps e_k as its axis 1 + m
+    (``absolute``) is the unknown x_{1+m} = ±u_k; every other fixed DoF keeps its index
+    (Q's row there is the identity).  Only owned DoFs are listed."""
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local * bs
+    values = fem.Function(V)
+    for bc in bcs:
+        bc.set(values.x.array)
+    fixed = np.unique(np.concatenate([bc.dof_indices()[0] for bc in bcs]))
+    fixed = fixed[fixed < n_owned]
+    x_values = np.zeros(n_owned)
+    is_fixed = np.zeros(n_owned, dtype=bool)
+    is_fixed[fixed] = True
+    x_values[fixed] = values.x.array[fixed]
+    for node, R, axes in zip(nodes, frames, absolute):
+        if not axes:
+            continue
+        block = slice(node * bs, node * bs + bs)
+        u_fixed = np.where(is_fixed[block], values.x.array[block], 0.0)
+        is_fixed[block] = False
+        x_values[block] = 0.0
+        for m in range(len(axes)):
+            is_fixed[node * bs + 1 + m] = True
+            x_values[node * bs + 1 + m] = R[:, 1 + m] @ u_fixed
+    dofs = np.flatnonzero(is_fixed).astype(np.int32)
+    xbar = bt.duplicate()
+    xbar.set(0.0)
+    xbar.array_w[dofs] = x_values[dofs]
+    lo = bt.getOwnershipRange()[0]
+    Kt.zeroRowsColumns((lo + dofs).astype(PETSc.IntType), diag=1.0, x=xbar, b=bt)
+    xbar.destroy()
+    g = fem.Function(V)
+    g.x.array[dofs] = x_values[dofs]
+    return [fem.dirichletbc(g, dofs)]
+
+
+def body_field(problem: DiscreteProblem) -> fem.Function:
+    """The DG0 ``body`` number of each cell (1, 2, … in the order of the bodies section)."""
+    return problem.data["body"]

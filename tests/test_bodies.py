@@ -1,0 +1,224 @@
+"""Two deformable bodies in contact through mortar pairs with dual multipliers (issue 13):
+the contact patch test in 2D and 3D (serial and 2 ranks), every NCP method against
+vinewtonrsls, serial = 2 ranks on a Hertz scene, the slave/master choice, the adaptive
+loop on two bodies, the multi-body meshes, and one-line errors for bad pairs."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import contact
+from contact.config import ConfigError
+from contact.interface import master_pressure
+from contact.models import build_problem
+from contact.report import resultants
+
+ROOT = Path(__file__).resolve().parents[1]
+MPIRUN = Path(sys.executable).parent / "mpirun"
+SCRIPT = ROOT / "tests" / "bodies_run.py"
+PATCH_2D, PATCH_3D = ROOT / "configs" / "two_body_patch_2d.yaml", ROOT / "configs" / "two_body_patch_3d.yaml"
+HERTZ_2D = ROOT / "configs" / "two_body_hertz_2d.yaml"
+COARSE_2D = ["mesh.h=2.0", "mesh.h_contact=0.1", "mesh.zone=1.0", "output.verbose=false"]
+P = 0.01  # the patch tests' applied pressure
+
+
+def run(tmp_path, scene, nproc, *args):
+    out = tmp_path / f"np{nproc}.npz"
+    cmd = [sys.executable, str(SCRIPT), str(out), str(scene), *args]
+    if nproc > 1:
+        cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
+    subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return dict(np.load(out))
+
+
+@pytest.fixture(scope="module")
+def patch_2d():
+    scene = contact.load_scene(PATCH_2D, ["output.verbose=false"])
+    return scene, build_problem(scene)
+
+
+@pytest.mark.parametrize("method", ["fb", "min", "blend", "vinewtonrsls"])
+def test_patch_2d_pressure_is_exact_at_every_slave_node(patch_2d, method):
+    """Non-matching meshes (31 against 10 interface cells), two materials: λ_i = −p at every
+    slave node and λ^m_j = −p at every master node to 1e-8 relative, forces balance."""
+    scene, problem = patch_2d
+    r = contact.solve(scene, method=method, problem=problem, verbose=False)
+    assert r.converged
+    lam = r.lmbda_h.x.array[problem.output_nodes]
+    assert len(lam) == 32 and r.n_active == 32
+    assert np.max(np.abs(lam + P)) <= 1e-8 * P
+    lam_m = master_pressure(r).x.array
+    master = np.abs(lam_m) > 0
+    assert master.sum() == 11 and np.max(np.abs(lam_m[master] + P)) <= 1e-8 * P
+    res = resultants(scene, r)
+    assert res["interface_balance_error"] < 1e-10
+    assert res["contact_force"] == pytest.approx(2 * P, rel=1e-10)  # p × width, mirrored at x = 0
+
+
+def test_patch_2d_estimator_vanishes(patch_2d):
+    """The discrete solution is the exact uniform stress: every indicator term, on both
+    sides of the interface, is round-off."""
+    scene, problem = patch_2d
+    r = contact.solve(scene, method="min", problem=problem, verbose=False)
+    est = contact.estimate(scene, r)
+    assert {"consistency", "consistency_master", "tangential", "complementarity"} <= set(est.terms)
+    assert est.eta < 1e-9
+
+
+def test_patch_3d_pressure_is_exact_at_every_slave_node():
+    scene = contact.load_scene(PATCH_3D, ["output.verbose=false"])
+    problem = build_problem(scene)
+    for method in ("min", "vinewtonrsls"):
+        r = contact.solve(scene, method=method, problem=problem, verbose=False)
+        lam = r.lmbda_h.x.array[problem.output_nodes]
+        assert r.converged and len(lam) == 14 * 14 == r.n_active
+        assert np.max(np.abs(lam + P)) <= 1e-6 * P, method
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("scene, tol", [(PATCH_2D, 1e-8), (PATCH_3D, 1e-6)], ids=["2d", "3d"])
+def test_patch_on_two_ranks_equals_serial(tmp_path, scene, tol):
+    s = run(tmp_path, scene, 1, "--methods=fb,vinewtonrsls")
+    p = run(tmp_path, scene, 2, "--methods=fb,vinewtonrsls")
+    for method in ("fb", "vinewtonrsls"):
+        for res in (s, p):
+            assert res[f"{method}/info"][0] == 1
+            assert np.max(np.abs(res[f"{method}/lambda"] + P)) <= tol * P
+            assert np.max(np.abs(res[f"{method}/lambda_master"] + P)) <= tol * P
+        assert np.allclose(s[f"{method}/Xs"], p[f"{method}/Xs"], atol=1e-14)
+        assert np.max(np.abs(s[f"{method}/u"] - p[f"{method}/u"])) <= tol * np.max(np.abs(s[f"{method}/u"]))
+
+
+@pytest.fixture(scope="module")
+def hertz_runs(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("hertz2d")
+    args = [f"--set={o}" for o in COARSE_2D]
+    return run(tmp, HERTZ_2D, 1, *args), run(tmp, HERTZ_2D, 2, *args)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("which", [0, 1], ids=["serial", "2 ranks"])
+@pytest.mark.parametrize("method", ["fb", "min", "blend"])
+def test_hertz_2d_methods_agree_with_vinewtonrsls(hertz_runs, which, method):
+    res = hertz_runs[which]
+    info, ref = res[f"{method}/info"], res["vinewtonrsls/info"]
+    assert info[0] == 1 and ref[0] == 1 and info[2] == ref[2] > 5
+    assert np.max(np.abs(res[f"{method}/u"] - res["vinewtonrsls/u"])) <= 1e-8
+    lam, lam_ref = res[f"{method}/lambda"], res["vinewtonrsls/lambda"]
+    assert np.max(np.abs(lam - lam_ref)) <= 1e-8 * np.max(np.abs(lam_ref))
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", ["fb", "min", "vinewtonrsls"])
+def test_hertz_2d_serial_equals_two_ranks(hertz_runs, method):
+    s, p = hertz_runs
+    assert np.allclose(s[f"{method}/X"], p[f"{method}/X"], atol=1e-12)
+    assert np.max(np.abs(s[f"{method}/u"] - p[f"{method}/u"])) <= 1e-8
+    assert np.max(np.abs(s[f"{method}/lambda"] - p[f"{method}/lambda"])) <= 1e-8 * np.max(np.abs(s[f"{method}/lambda"]))
+    assert s[f"{method}/info"][2] == p[f"{method}/info"][2]
+    assert s[f"{method}/info"][4] < 1e-10 and p[f"{method}/info"][4] < 1e-10   # action = reaction
+
+
+def test_slave_and_master_swapped_agree_within_discretization_error():
+    """Which surface carries the multiplier changes the discrete problem, not the answer:
+    the contact force and the peak pressure move by less than the mesh's Hertz error."""
+    base = contact.load_scene(HERTZ_2D, COARSE_2D)
+    swapped = contact.load_scene(HERTZ_2D, COARSE_2D + [  # the lower arc is the slave now, the narrower one
+        "boundaries.slave.where=abs(x) < 3 and y < 1", "boundaries.master.where=abs(x) < 2 and y > -1",
+        "pairs=[{slave: master, master: slave}]"])
+    figures = []
+    for scene in (base, swapped):
+        r = contact.solve(scene, method="min", verbose=False)
+        assert r.converged
+        figures.append(resultants(scene, r))
+    a, b = figures
+    assert abs(b["contact_force"] / a["contact_force"] - 1) < 0.01
+    assert abs(b["peak_pressure"] / a["peak_pressure"] - 1) < 0.03
+    assert max(abs(a["p0_error"]), abs(b["p0_error"])) < 0.05
+
+
+def test_adaptive_two_bodies_refines_both_and_recouples():
+    """Two Dörfler levels: both bodies refined (cells of each body multiply), the body tags
+    and the curved arcs carried over, the coupling rebuilt with the same force balance."""
+    scene = contact.load_scene(HERTZ_2D, COARSE_2D)
+    out = contact.adapt(scene, max_levels=3, verbose=False)
+    assert len(out.levels) == 3 and all(lv.result.converged for lv in out.levels)
+    counts = []
+    for lv in out.levels:
+        tags = lv.scene.bodies
+        n_owned = lv.scene.mesh.topology.index_map(2).size_local
+        counts.append([MPI.COMM_WORLD.allreduce(int(np.sum(tags.values[:n_owned] == k))) for k in (1, 2)])
+        res = resultants(lv.scene, lv.result)
+        assert res["interface_balance_error"] < 1e-10 and res["mortar_coverage"] > 0.999
+        # every vertex of the refined arcs lies on its circle (R = 8 about (0, ±8))
+        X = lv.scene.mesh.geometry.x[:, :2]
+        for tag, centre in ((1, (0.0, 8.0)), (3, (0.0, -8.0))):
+            facets = lv.scene.surfaces.find(tag)
+            from dolfinx.mesh import entities_to_geometry
+            nodes = entities_to_geometry(lv.scene.mesh, 1, facets).ravel()
+            assert np.allclose(np.linalg.norm(X[nodes] - centre, axis=1), 8.0, rtol=1e-12)
+    assert counts[2][0] > counts[0][0] and counts[2][1] > counts[0][1]
+    assert out.levels[-1].estimate.eta < out.levels[0].estimate.eta
+
+
+def test_blocks_mesh_has_disconnected_bodies():
+    scene = contact.load_scene(PATCH_2D, ["output.verbose=false"])
+    msh = scene.mesh
+    n_owned = msh.topology.index_map(2).size_local
+    counts = [MPI.COMM_WORLD.allreduce(int(np.sum(scene.bodies.values[:n_owned] == k))) for k in (1, 2)]
+    assert counts == [2 * 10 * 5, 2 * 31 * 15]
+    # no vertex is shared by the two bodies: the interface has two copies of its corners
+    X = msh.geometry.x[:, :2]
+    corner = np.flatnonzero(np.linalg.norm(X - [1.0, 0.5], axis=1) < 1e-12)
+    assert MPI.COMM_WORLD.allreduce(len(corner)) >= 2
+
+
+def _scene(**changes):
+    import yaml
+    cfg = yaml.safe_load(PATCH_2D.read_text())
+    for key, value in changes.items():
+        node = cfg
+        *path, last = key.split(".")
+        for part in path:
+            node = node[part]
+        node[last] = value
+    return cfg
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"pairs": [{"slave": "slave", "master": "slave"}]}, "pairs[0].master: boundary part 'slave' is already the slave"),
+    ({"pairs": [{"slave": "slave", "master": "top"}]}, "pairs[0].master: boundary part 'top' needs role: interface"),
+    ({"pairs": [{"slave": "slave", "master": "nowhere"}]}, "pairs[0].master: 'nowhere' is not a boundary part"),
+    ({"boundaries.slave.body": "middle"}, "boundaries.slave.body: 'middle' is not a body"),
+    ({"bodies.upper": {"E": 1.0}}, "bodies.upper: give exactly one of 'where' or 'tag'"),
+    ({"bodies.upper": {"tag": 7, "E": 1.0}}, "bodies.upper.tag: tag 7 does not exist in the mesh"),
+    ({"bodies.upper": {"where": "y > 0.4", "E": 1.0}}, "bodies.upper: 20 of its cells belong to an earlier body"),
+    ({"bodies.upper": {"where": "y > 2", "E": 1.0}}, "bodies.upper: where 'y > 2' selects no cell"),
+    ({"model.E": 1.0}, "model.E: a scene with bodies gives E (and nu) per body"),
+    ({"pairs": [{"slave": "slave", "master": "master", "search": 1e-3}],
+      "mesh.blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                      {"corners": [[0.5, 0.5], [1.5, 1]], "cells": [31, 15]}]},
+     "pairs[0].slave: 16 slave node(s) of 'slave', e.g. at ("),
+    ({"mesh.blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                      {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]}],
+      "boundaries.slave": {"role": "interface", "where": "abs(y - 0.5) < 1e-10 and x < 0.5", "body": "upper"},
+      "boundaries.master": {"role": "interface", "where": "abs(y - 0.5) < 1e-10 and x > 0.4", "body": "upper"}},
+     "boundaries: master and slave share"),
+])
+def test_bad_pairs_are_one_line_errors(changes, message):
+    with pytest.raises(ConfigError) as err:
+        scene = contact.load_scene(_scene(**changes))
+        build_problem(scene)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith(message), text
+
+
+def test_a_node_both_slave_and_master_is_refused():
+    # the upper block's right side as the master: its corner (1, 0.5) is a slave node too
+    cfg = _scene(**{"boundaries.master": {"role": "interface", "where": "abs(x - 1) < 1e-10", "body": "upper"}})
+    with pytest.raises(ConfigError, match="both a slave and a master|slave or master node of another"):
+        build_problem(contact.load_scene(cfg))
