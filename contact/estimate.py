@@ -114,17 +114,19 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
     for i in bnd.ids_with_role("natural"):
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
+    if n_c is not None:  # the rigid obstacle's contact parts
+        Tn = ufl.dot(T, n_c)
+        Tt = T - Tn * n_c
+        for i in bnd.ids_with_role("contact"):
+            terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+            terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
+            terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
+            terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
     if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
         from .interface import interface_terms
 
-        return {**terms, **interface_terms(scene, result, w, n, h_E, T)}
-    Tn = ufl.dot(T, n_c)
-    Tt = T - Tn * n_c
-    for i in bnd.ids_with_role("contact"):
-        terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
-        terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
-        terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
-        terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+        for key, form in interface_terms(scene, result, w, n, h_E, T).items():
+            terms[key] = terms.get(key, zero) + form
     return terms
 
 

@@ -155,7 +155,13 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
 
     def build(gmsh):
         occ, R = gmsh.model.occ, radius
-        sphere = occ.addSphere(0, 0, R, R, -1, -math.pi / 2, 0, math.pi / 2)
+        # the ball turned about the x-axis so that the contact point lies on the equator of
+        # its parametrisation, not at a pole (regular surface triangles where the contact
+        # pressure is measured), then cut to the octant x, y ≥ 0, z ≤ R
+        ball = occ.addSphere(0, 0, R, R)
+        occ.rotate([(3, ball)], 0, 0, R, 1, 0, 0, math.pi / 2)
+        cut, _ = occ.intersect([(3, ball)], [(3, occ.addBox(0, 0, 0, R, R, R))])
+        sphere = cut[0][1]
         box = occ.addBox(0, 0, -H, W, W, H)
         occ.synchronize()
         tol = 1e-8 * max(R, W, H)

@@ -138,12 +138,12 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     free_res = np.where(fixed, 0.0, residual)
 
     con = p.constraint
-    nodes = con.dofs // bs
+    slaves = slice(0, p.data["pair_nodes"])         # the slave nodes (an obstacle's nodes follow)
+    nodes = con.dofs[slaves] // bs
     X = V.tabulate_dof_coordinates()[nodes, :gdim]
-    origin = first_contact_point(comm, X, con.g)
-    normals = p.data["normals"]
-    n0 = normals[np.argmin(np.linalg.norm(X - origin, axis=1))] if len(nodes) else None
-    n0 = np.asarray(next(v for v in comm.allgather(None if n0 is None else n0.tolist()) if v is not None))
+    origin = first_contact_point(comm, X, con.g[slaves])
+    normals = p.data["normals"][slaves]
+    n0 = np.asarray(interface_normal(comm, X, normals, origin))
 
     from .models.mortar import _part_facets, surface_facets
     F_s, F_m = np.zeros(gdim), np.zeros(gdim)
@@ -164,13 +164,13 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
             dofs = dofs[dofs < n_owned]
             reactions[name] = comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM).tolist()
 
-    lam = con.sign * (result.lmbda_h.x.array[_s_of(p, nodes)])       # λ_i at the constrained nodes
+    lam = con.sign * (result.lmbda_h.x.array[_s_of(p, nodes)])       # λ_i at the slave nodes
     copies = 2 ** len(_symmetry_axes(scene, X))
-    force = copies * comm.allreduce(float(np.sum(con.w * -lam * (normals @ n0))), op=MPI.SUM)
+    force = copies * comm.allreduce(float(np.sum(con.w[slaves] * -lam * (normals @ n0))), op=MPI.SUM)
     balance = abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300)
     rel = X - origin
     rho = np.linalg.norm(rel - np.outer(rel @ n0, n0), axis=1)
-    a = contact_extent(comm, rho, result.active_mask)
+    a = contact_extent(comm, rho, result.active_mask[slaves])
     p0 = comm.allreduce(float(np.max(-lam, initial=0.0)), op=MPI.MAX)
     out = {"contact_half_width" if gdim == 2 else "contact_radius": a, "peak_pressure": p0,
            "contact_force": force, "interface_force_slave": F_s.tolist(), "interface_force_master": F_m.tolist(),
@@ -179,6 +179,10 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
            "mortar_coverage": min(c.coverage for c in p.data["couplings"]),
            "min_gap": comm.allreduce(float(np.min(result.gap.x.array[p.output_nodes], initial=np.inf)), op=MPI.MIN),
            "pressure_profile": _profile(comm, rho, -lam)}
+    rigid = slice(p.data["pair_nodes"], None)
+    if scene.cfg.get("obstacle"):  # Σ_i w_i λ_i n_i over the obstacle's contact nodes (a vector)
+        lam_o = result.lmbda_h.x.array[_s_of(p, con.dofs[rigid] // bs)]
+        out["obstacle_force"] = comm.allreduce((con.w[rigid] * lam_o) @ p.data["normals"][rigid], op=MPI.SUM).tolist()
     R = hertz_radius(scene.cfg)
     if R is not None:
         bodies = scene.cfg["bodies"]
@@ -219,3 +223,45 @@ def _symmetry_axes(scene: Scene, X: np.ndarray) -> set[int]:
             axes.add(k)
     return axes
 
+
+
+def slave_table(scene: Scene, result: Result) -> list[dict]:
+    """One row per slave node (all ranks, on rank 0; empty elsewhere), sorted by ``s``:
+    coordinates, ``s`` the signed distance from the first point of contact along the
+    surface's tangent (2D) or the in-plane distance from it (3D), the pressure λ_n (≤ 0 in
+    compression), the gap g_i − x_i,n and the 0/1 active flag — the rows of contact.csv."""
+    from .models.obstacles import first_contact_point
+
+    comm = scene.comm
+    p = result.problem
+    bs = p.V.dofmap.index_map_bs
+    gdim = scene.mesh.geometry.dim
+    con = p.constraint
+    slaves = slice(0, p.data["pair_nodes"])
+    nodes = con.dofs[slaves] // bs
+    X = p.V.tabulate_dof_coordinates()[nodes, :gdim]
+    s_dofs = _s_of(p, nodes)
+    origin = first_contact_point(comm, X, con.g[slaves])
+    n0 = np.asarray(interface_normal(comm, X, p.data["normals"][slaves], origin))
+    rel = X - origin
+    tangential = rel - np.outer(rel @ n0, n0)
+    if gdim == 2:
+        s = tangential @ np.array([-n0[1], n0[0]])
+    else:
+        s = np.linalg.norm(tangential, axis=1)
+    cols = np.c_[X, s, result.lmbda_h.x.array[s_dofs], result.gap.x.array[s_dofs],
+                 result.active_mask[slaves].astype(float)]
+    parts = comm.gather(cols, root=0)
+    if comm.rank != 0:
+        return []
+    data = np.vstack(parts)
+    data = data[np.argsort(data[:, gdim])]
+    names = list("xyz"[:gdim]) + ["s", "lambda_n", "gap", "active"]
+    return [{k: (int(v) if k == "active" else float(v)) for k, v in zip(names, row)} for row in data]
+
+
+def interface_normal(comm: MPI.Comm, X: np.ndarray, normals: np.ndarray, origin: np.ndarray) -> list[float]:
+    """The slave normal at the node nearest to ``origin`` (the same on every rank)."""
+    local = (float(np.min(np.linalg.norm(X - origin, axis=1))), normals[np.argmin(np.linalg.norm(X - origin, axis=1))].tolist()) \
+        if len(X) else (np.inf, None)
+    return min(comm.allgather(local), key=lambda t: t[0])[1]

@@ -91,12 +91,22 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
         if out_cfg["xdmf"]:
             io.write_xdmf(tmp / "solution.xdmf", nodal_fields(scene, result), cells=cell_fields(scene, result))
         io.write_csv(tmp / "history.csv", result.history, comm)
+        write_contact_table(tmp, scene, result)
         if out_cfg["png"]:
             plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
                                 title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
             write_pressure_plot(tmp / "pressure.png", scene, result, res)
         io.write_json(tmp / "summary.json", info, comm)
     return info
+
+
+def write_contact_table(tmp: Path, scene: Scene, result: Result) -> None:
+    """contact.csv of a scene with contact pairs: one row per slave node
+    (:func:`contact.interface.slave_table`)."""
+    if scene.cfg.get("pairs"):
+        from .interface import slave_table
+
+        io.write_csv(tmp / "contact.csv", slave_table(scene, result), scene.comm)
 
 
 def nodal_fields(scene: Scene, result: Result) -> list:
@@ -148,6 +158,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
                  "strategy": (scene.cfg.get("adapt") or {}).get("strategy")})
     io.write_csv(tmp / "history.csv", last.result.history, comm)
+    write_contact_table(tmp, last.scene, last.result)
     if scene.cfg["output"]["png"]:
         if comm.rank == 0:
             plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")

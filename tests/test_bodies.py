@@ -222,3 +222,125 @@ def test_a_node_both_slave_and_master_is_refused():
     cfg = _scene(**{"boundaries.master": {"role": "interface", "where": "abs(x - 1) < 1e-10", "body": "upper"}})
     with pytest.raises(ConfigError, match="both a slave and a master|slave or master node of another"):
         build_problem(contact.load_scene(cfg))
+
+
+STACK = ROOT / "configs" / "two_body_stack_2d.yaml"
+
+
+def test_pair_and_rigid_obstacle_in_one_scene():
+    """A block on a wider block on a rigid floor: the force through the pair, the floor's
+    force and the reaction on the pushed top balance; every method agrees with vinewtonrsls;
+    the estimator has both the obstacle's and the pair's terms."""
+    scene = contact.load_scene(STACK, ["output.verbose=false"])
+    problem = build_problem(scene)
+    ref = contact.solve(scene, method="vinewtonrsls", problem=problem, verbose=False)
+    res = resultants(scene, ref)
+    F_pair, F_floor, F_top = res["interface_force_slave"][1], res["obstacle_force"][1], res["reactions"]["top"][1]
+    assert F_pair > 0 and abs(F_floor / F_pair - 1) < 1e-10 and abs(F_top / F_pair + 1) < 1e-10
+    assert res["interface_balance_error"] < 1e-10
+    for method in ("fb", "min", "blend"):
+        r = contact.solve(scene, method=method, problem=problem, verbose=False)
+        assert r.converged and r.n_active == ref.n_active
+        assert np.max(np.abs(r.u_h.x.array - ref.u_h.x.array)) <= 1e-8 * np.max(np.abs(ref.u_h.x.array))
+    est = contact.estimate(scene, ref)
+    assert est.terms["consistency_master"] > 0 and est.terms["consistency"] > 0
+
+
+def test_three_blocks_two_pairs_patch_test():
+    """Two interfaces in series (three blocks, three mesh sizes): the uniform pressure crosses
+    both pairs exactly."""
+    cfg = _scene(**{
+        "mesh.blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                        {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]},
+                        {"corners": [[0, 1], [1, 1.5]], "cells": [7, 4]}],
+        "bodies": {"lower": {"tag": 1, "E": 1.0, "nu": 0.3}, "upper": {"tag": 2, "E": 3.0, "nu": 0.2},
+                   "cap": {"tag": 3, "E": 2.0, "nu": 0.25}},
+        "boundaries.top": {"role": "neumann", "where": "y > 1.5 - 1e-10"},
+        "boundaries.slave2": {"role": "interface", "where": "abs(y - 1) < 1e-10", "body": "upper"},
+        "boundaries.master2": {"role": "interface", "where": "abs(y - 1) < 1e-10", "body": "cap"},
+        "pairs": [{"slave": "slave", "master": "master"}, {"slave": "slave2", "master": "master2"}],
+        "solver.u0": ["0", "-1e-4 * (y > 0.5 - 1e-10) - 1e-4 * (y > 1 - 1e-10)"]})
+    scene = contact.load_scene(cfg)
+    r = contact.solve(scene, method="min", verbose=False)
+    lam = r.lmbda_h.x.array[r.problem.output_nodes]
+    assert r.converged and len(lam) == 32 + 32 == r.n_active
+    assert np.max(np.abs(lam + P)) <= 1e-8 * P
+
+
+def test_gmsh_file_with_one_physical_surface_per_body(tmp_path):
+    """A .msh file with two physical surfaces (the bodies) and tagged curves: bodies by tag,
+    the pair by facet tags."""
+    import gmsh
+
+    path = tmp_path / "two.msh"
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        occ = gmsh.model.occ
+        lower, upper = occ.addRectangle(0, 0, 0, 1, 0.5), occ.addRectangle(0, 0.5, 0, 1, 0.5)
+        occ.synchronize()
+        curves = {}
+        for surface in (lower, upper):
+            for _, c in gmsh.model.getBoundary([(2, surface)], oriented=False):
+                x, y, _ = occ.getCenterOfMass(1, c)
+                curves[(surface, round(x, 3), round(y, 3))] = c
+        tags = {"bottom": (lower, 0.5, 0.0), "master": (lower, 0.5, 0.5), "slave": (upper, 0.5, 0.5),
+                "top": (upper, 0.5, 1.0)}
+        for k, (name, key) in enumerate(tags.items(), start=1):
+            gmsh.model.addPhysicalGroup(1, [curves[key]], k, name=name)
+        gmsh.model.addPhysicalGroup(2, [lower], 11, name="lower")
+        gmsh.model.addPhysicalGroup(2, [upper], 12, name="upper")
+        gmsh.model.mesh.setSize(gmsh.model.getEntities(0), 0.1)
+        gmsh.model.mesh.setSize(gmsh.model.getBoundary([(2, upper)], recursive=True), 0.037)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+    cfg = {"mesh": {"type": "gmsh", "file": str(path)},
+           "bodies": {"lower": {"tag": 11, "E": 1.0}, "upper": {"tag": 12, "E": 3.0, "nu": 0.2}},
+           "boundaries": {"bottom": {"role": "dirichlet", "tag": 1}, "top": {"role": "neumann", "tag": 4},
+                          "master": {"role": "interface", "tag": 2}, "slave": {"role": "interface", "tag": 3}},
+           "pairs": [{"slave": "slave", "master": "master"}], "model": {"type": "elasticity"},
+           "data": {"t": ["0", f"-{P}"]}, "solver": {"u0": ["0", "-1e-4 * (y > 0.5 - 1e-10)"]},
+           "output": {"verbose": False}}
+    scene = contact.load_scene(cfg)
+    r = contact.solve(scene, method="min")
+    lam = r.lmbda_h.x.array[r.problem.output_nodes]
+    assert r.converged and r.n_active == len(lam) > 20
+    # the bottom is clamped (not a roller): the stress is not uniform near the corners, but the
+    # total force is p × width and it crosses the interface unchanged
+    res = resultants(scene, r)
+    assert res["interface_force_slave"][1] == pytest.approx(P, rel=1e-10)
+    assert res["interface_balance_error"] < 1e-10
+
+
+def test_cli_run_writes_both_bodies_and_the_slave_table(tmp_path):
+    """contact run on the patch test: the XDMF holds u_h, λ_h, lambda_master and the DG0
+    body number, contact.csv one row per slave node, summary.json the interface forces."""
+    import csv
+    import json
+
+    import h5py
+
+    out = tmp_path / "patch"
+    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(PATCH_2D), "-o", str(out), "-q"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    with h5py.File(out / "solution.h5") as h5:
+        assert {"u_h", "lambda_h", "lambda_master", "gap", "active", "body", "von_mises"} <= set(h5["Function"])
+    rows = list(csv.DictReader(open(out / "contact.csv")))
+    assert len(rows) == 32 and all(abs(float(r["lambda_n"]) + P) < 1e-8 * P for r in rows)
+    info = json.loads((out / "summary.json").read_text())
+    assert info["interface_balance_error"] < 1e-10 and info["interface_force_slave"][1] == pytest.approx(P)
+
+
+def test_readme_two_body_example_validates():
+    import re
+
+    import yaml
+
+    from contact.config import validate_scene
+
+    section = (ROOT / "README.md").read_text().split("## Two bodies in contact", 1)[1]
+    cfg = validate_scene(yaml.safe_load(re.search(r"```yaml\n(.*?)```", section, re.S).group(1)))
+    assert cfg["pairs"][0]["slave"] == "slave" and cfg["bodies"]["upper"]["E"] == 3.0

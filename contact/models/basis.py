@@ -45,6 +45,37 @@ def frame(n: np.ndarray, fixed_axes: tuple[int, ...] = ()) -> np.ndarray:
     return np.column_stack([n, t1, np.cross(n, t1)])
 
 
+def node_frames(n: np.ndarray, fixed: np.ndarray, bs: int) -> tuple:
+    """Frames of contact nodes with normals ``n`` (k, gdim; any length) and components
+    ``fixed`` (k, bs; bool) held by a symmetry condition: the normal loses the fixed
+    components (the mirror image holds the other half) and is normalised; the frame is
+    R = [n, e_k (fixed k) …, completion], the fixed axes absolute, the others relative
+    (projector P onto them).  Returns (normals, frames, projectors, absolute axes per node,
+    and a mask of nodes whose normal lay mostly along fixed components)."""
+    n = np.array(n, dtype=float)
+    length = np.linalg.norm(n, axis=1)
+    n[fixed] = 0.0
+    norm = np.linalg.norm(n, axis=1)
+    bad = norm <= 0.5 * length
+    n /= np.where(norm > 0, norm, 1.0)[:, None]
+    frames = np.zeros((len(n), bs, bs))
+    projectors = np.zeros((len(n), bs, bs))
+    absolute = []
+    for i in range(len(n)):
+        axes = tuple(int(k) for k in np.flatnonzero(fixed[i]))
+        if bad[i]:
+            R = np.eye(bs)
+        elif len(axes) <= 1:
+            R = frame(n[i], axes)
+        else:  # 3D, two fixed axes: n is the third coordinate axis
+            R = np.column_stack([n[i], np.eye(3)[axes[0]], np.eye(3)[axes[1]]])
+        frames[i] = R
+        relative = [0] + list(range(1 + len(axes), bs))
+        projectors[i] = R[:, relative] @ R[:, relative].T
+        absolute.append(axes)
+    return n, frames, projectors, absolute, bad
+
+
 def change_of_basis(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, frames: np.ndarray,
                     coupling: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
                     projectors: np.ndarray | None = None) -> tuple[PETSc.Mat, PETSc.Mat]:

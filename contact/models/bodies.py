@@ -18,15 +18,17 @@ or an area (3D).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from dolfinx import fem, la
 
 from ..scene import Scene
 from . import mortar
-from .basis import change_of_basis
+from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
 from .problem import Constraint, DiscreteProblem, contact_ends
 
@@ -50,35 +52,34 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     """The frictionless multi-body contact problem of ``scene``: elasticity with one
     material per body, mortar pairs as the change of basis u = Q x."""
     t0 = time.perf_counter()
-    if scene.cfg.get("obstacle"):
-        from ..config import ConfigError
-
-        raise ConfigError("obstacle: a rigid obstacle together with contact pairs is not supported yet")
     mu, lmbda_L, body = materials(scene)
     system = elastic_system(scene, mu, lmbda_L)
     V, K, b = system.V, system.K, system.b
     bs = V.dofmap.index_map_bs
     mortar.check_disjoint(scene, V)
-    couplings = [mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.cfg["pairs"]))]
+    couplings = [mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.cfg["pairs"] or []))]
+    rigid = obstacle_nodes(scene, V, system) if scene.cfg.get("obstacle") else None
+    sets = couplings + ([rigid] if rigid is not None else [])
 
-    nodes = np.concatenate([c.nodes for c in couplings])
+    nodes = np.concatenate([c.nodes for c in sets]).astype(np.int32)
     offsets = np.cumsum([0] + [len(c.nodes) for c in couplings])
-    frames = np.concatenate([c.frames for c in couplings])
-    projectors = np.concatenate([c.projectors for c in couplings])
-    coupling = (np.concatenate([c.rows + o for c, o in zip(couplings, offsets)]),
-                np.concatenate([c.cols for c in couplings]), np.concatenate([c.c for c in couplings]))
-    Q, Q_inv = change_of_basis(V, K, nodes, frames.reshape(-1, bs, bs), coupling, projectors)
+    frames = np.concatenate([c.frames for c in sets]).reshape(-1, bs, bs)
+    projectors = np.concatenate([c.projectors for c in sets]).reshape(-1, bs, bs)
+    coupling = (np.concatenate([c.rows + o for c, o in zip(couplings, offsets)] + [np.zeros(0, int)]),
+                np.concatenate([c.cols for c in couplings] + [np.zeros(0, int)]),
+                np.concatenate([c.c for c in couplings] + [np.zeros(0)]))
+    Q, Q_inv = change_of_basis(V, K, nodes, frames, coupling, projectors)
     Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
     bt = b.duplicate()
     Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
-    bcs = dirichlet_on_unknowns(V, system.bcs, nodes, frames, [a for c in couplings for a in c.absolute], Kt, bt)
+    bcs = dirichlet_on_unknowns(V, system.bcs, nodes, frames, [a for c in sets for a in c.absolute], Kt, bt)
 
     u_h = fem.Function(V, name="u_h")
     S, s_to_v = V.sub(0).collapse()
     s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
     v_to_s = np.empty(len(s_to_v), dtype=np.int32)
     v_to_s[s_to_v // bs] = np.arange(len(s_to_v), dtype=np.int32)
-    gap = np.concatenate([c.gap for c in couplings])
+    gap = np.concatenate([c.gap for c in sets])
     on = la.vector(V.dofmap.index_map, 2)                    # (slave marker, bound) per node
     on.array.reshape(-1, 2)[nodes] = np.c_[np.ones(len(nodes)), gap]
     on.scatter_forward()
@@ -86,17 +87,63 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = bound_nodes[s_to_v // bs]
     slave_nodes = np.flatnonzero(marker > 0)
-    ends = np.concatenate([c.ends for c in couplings])
+    ends = np.concatenate([c.ends for c in sets]).astype(np.int32)
     end_dofs, end_neighbours = contact_ends(V, (ends * bs).astype(np.int32),
                                             np.concatenate([slave_nodes, ends]) * bs, ends * bs)
-    con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in couplings]), 1.0)
+    con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in sets]), 1.0)
     data = {**system.data, "reaction_form": reaction_form(system, u_h), "u_bcs": system.bcs,
-            "body": body, "couplings": couplings, "normals": np.concatenate([c.normals for c in couplings])}
+            "body": body, "couplings": couplings, "normals": np.concatenate([c.normals for c in sets]),
+            "frames": frames, "pair_nodes": int(offsets[-1]),  # the first pair_nodes constrained nodes are slave nodes
+            **(rigid.data if rigid is not None else {})}
     return DiscreteProblem(V, u_h, bcs, Kt, bt, con, data=data, end_dofs=end_dofs, end_neighbours=end_neighbours,
                            output_space=S, output_map=s_to_v, output_bound=bound, lambda_sign=1.0,
                            basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
                            near_nullspace=rigid_body_modes(V, inverse=Q_inv),
                            assembly_time=time.perf_counter() - t0)
+
+
+@dataclass
+class ObstacleNodes:
+    """The rigid obstacle's contact nodes in a multi-body scene (owned, constrained), with
+    the fields a mortar :class:`~contact.models.mortar.Coupling` has for its slave nodes."""
+
+    nodes: np.ndarray
+    D: np.ndarray            # lumped weights w_i = ∫_{Γ_C} φ_i ds
+    normals: np.ndarray
+    frames: np.ndarray
+    projectors: np.ndarray
+    absolute: list
+    gap: np.ndarray
+    ends: np.ndarray
+    data: dict
+
+
+def obstacle_nodes(scene: Scene, V: fem.FunctionSpace, system) -> ObstacleNodes:
+    """The obstacle's contact nodes rotated to their (n, t) frames (symmetry-fixed
+    components kept as absolute axes, as for slave nodes), none of them a node of a pair."""
+    from ..config import ConfigError
+    from .obstacles import _contact_nodes, first_contact_point, obstacle_shape
+    from .problem import lumped_weights
+
+    normal, gap_of, n_ufl, g_ufl = obstacle_shape(scene)
+    bs, gdim, comm = V.dofmap.index_map_bs, scene.mesh.geometry.dim, scene.comm
+    S, _, v_dofs, s_dofs = _contact_nodes(V, 0, scene.boundary.facets("contact"))
+    nodes = v_dofs // bs
+    owned = nodes < V.dofmap.index_map.size_local
+    nodes, s_dofs = nodes[owned], s_dofs[owned]
+    fixed = np.isin(nodes[:, None] * bs + np.arange(bs), system.fixed)
+    full = fixed.all(axis=1)
+    X = S.tabulate_dof_coordinates()[:, :gdim]
+    g = gap_of(X[s_dofs])
+    if comm.allreduce(int(np.sum(g[~full] < -1e-12 * max(1.0, float(np.max(np.abs(X), initial=0.0))))), op=MPI.SUM):
+        raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
+    n, frames, projectors, absolute, bad = node_frames(normal(X[s_dofs[~full]]), fixed[~full], bs)
+    if comm.allreduce(int(bad.sum()), op=MPI.SUM):
+        raise ConfigError("obstacle: a contact node has a symmetry condition along the obstacle's normal")
+    w = lumped_weights(S, system.data["ds"](scene.boundary.ids_with_role("contact")))[s_dofs[~full]]
+    first = first_contact_point(comm, X[s_dofs], g)
+    return ObstacleNodes(nodes[~full], w, n, frames, projectors, absolute, g[~full], nodes[full],
+                         {"n": normal(first[None, :])[0], "n_ufl": n_ufl, "g_ufl": g_ufl})
 
 
 def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, frames: np.ndarray,

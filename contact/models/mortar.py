@@ -43,7 +43,7 @@ from dolfinx import fem, la
 from ..config import ConfigError
 from ..scene import Scene
 from . import overlap
-from .basis import frame as basis_frame
+from .basis import node_frames
 
 FACING = 0.0  # a master facet is paired only if n_S · n_M < FACING (the surfaces face each other)
 CHUNK = 256   # slave facets per vectorised candidate search
@@ -192,19 +192,27 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
     """No node may be a slave node twice or both a slave and a master node (Q would not be
     unit triangular); a one-line ConfigError otherwise.  Checked on the surfaces, before
     any coupling is computed."""
-    comm, imap = scene.comm, V.dofmap.index_map
-    owned = np.zeros((imap.size_local, 2), dtype=int)   # per owned node: (slave parts, master parts) through it
-    for pair in scene.cfg["pairs"]:
-        for column, side in enumerate(("slave", "master")):
-            flag = la.vector(imap, 1)
-            flag.array[np.unique(surface_facets(V, _part_facets(scene.boundary, pair[side])).nodes)] = 1.0
-            flag.scatter_reverse(la.InsertMode.add)
-            owned[:, column] += flag.array[: imap.size_local] > 0
-    bad = np.flatnonzero((owned[:, 0] > 1) | ((owned[:, 0] > 0) & (owned[:, 1] > 0)))
+    comm, imap, bnd = scene.comm, V.dofmap.index_map, scene.boundary
+    owned = np.zeros((imap.size_local, 3), dtype=int)   # per owned node: slave, master, obstacle parts through it
+
+    def count(column: int, facets: np.ndarray) -> None:
+        flag = la.vector(imap, 1)
+        flag.array[np.unique(surface_facets(V, facets).nodes)] = 1.0
+        flag.scatter_reverse(la.InsertMode.add)
+        owned[:, column] += flag.array[: imap.size_local] > 0
+
+    for pair in scene.cfg["pairs"] or []:
+        count(0, _part_facets(bnd, pair["slave"]))
+        count(1, _part_facets(bnd, pair["master"]))
+    if bnd.ids_with_role("contact"):
+        count(2, bnd.facets("contact"))
+    bad = np.flatnonzero((owned[:, 0] > 1) | ((owned[:, 0] > 0) & (owned[:, 1] > 0))
+                         | ((owned[:, 2] > 0) & (owned[:, :2].sum(axis=1) > 0)))
     if comm.allreduce(len(bad), op=MPI.SUM):
         where = _first_point(comm, V, bad)
         raise ConfigError(f"pairs: the node at {where} is both a slave and a master node (or a slave node of "
-                          "two pairs); a node may be the slave of one pair only, and never a master node too")
+                          "two pairs, or on a pair and on the obstacle's contact part); a node may be the "
+                          "slave of one pair only, and never a master or obstacle contact node too")
 
 
 def _part_facets(bnd, name: str) -> np.ndarray:
@@ -299,32 +307,14 @@ def _to_owners(comm: MPI.Comm, imap, rows_local: np.ndarray, *columns: np.ndarra
 
 
 def _frames(comm, V, nsum: np.ndarray, fixed: np.ndarray, Xs: np.ndarray, key: str):
-    """Unit normals n_i (mirror-symmetric: the components fixed by symmetry removed), frames
-    R_i = [n_i, e_k (fixed k) …, completion] and projectors onto the relative axes."""
-    n = nsum.copy()
-    n[fixed] = 0.0
-    norm = np.linalg.norm(n, axis=1)
-    bad = norm <= 0.5 * np.linalg.norm(nsum, axis=1)
+    """Frames of the slave nodes from the summed facet normals (:func:`basis.node_frames`);
+    a node whose normal lies mostly along a component fixed by symmetry is an error."""
+    normals, frames, projectors, absolute, bad = node_frames(nsum, fixed, V.dofmap.index_map_bs)
     if comm.allreduce(int(bad.sum()), op=MPI.SUM):
         where = _first_point(comm, V, np.flatnonzero(bad), Xs)
         raise ConfigError(f"{key}.slave: the slave node at {where} has a symmetry condition along its "
                           "contact normal")
-    n /= np.where(norm > 0, norm, 1.0)[:, None]
-    bs = V.dofmap.index_map_bs
-    frames = np.zeros((len(n), bs, bs))
-    projectors = np.zeros((len(n), bs, bs))
-    absolute = []
-    for i in range(len(n)):
-        axes = tuple(int(k) for k in np.flatnonzero(fixed[i]))
-        if len(axes) <= 1:
-            R = basis_frame(n[i], axes)
-        else:  # 3D, two fixed axes: n is the third coordinate axis
-            R = np.column_stack([n[i], np.eye(3)[axes[0]], np.eye(3)[axes[1]]])
-        frames[i] = R
-        relative = [0] + list(range(1 + len(axes), bs))
-        projectors[i] = R[:, relative] @ R[:, relative].T
-        absolute.append(axes)
-    return n, frames, projectors, absolute
+    return normals, frames, projectors, absolute
 
 
 def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray) -> PETSc.Mat:
