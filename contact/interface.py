@@ -145,11 +145,11 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     normals = p.data["normals"][slaves]
     n0 = np.asarray(interface_normal(comm, X, normals, origin))
 
-    from .models.mortar import _part_facets, surface_facets
+    from .models.mortar import part_facets, surface_facets
     F_s, F_m = np.zeros(gdim), np.zeros(gdim)
     for index, pair in enumerate(scene.cfg["pairs"]):
         for side, F in (("slave", F_s), ("master", F_m)):
-            facets = surface_facets(V, _part_facets(scene.boundary, pair[side]))
+            facets = surface_facets(V, part_facets(scene.boundary, pair[side]))
             mark = la.vector(V.dofmap.index_map, 1)
             mark.array[np.unique(facets.nodes)] = 1.0
             mark.scatter_reverse(la.InsertMode.add)
@@ -164,7 +164,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
             dofs = dofs[dofs < n_owned]
             reactions[name] = comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM).tolist()
 
-    lam = con.sign * (result.lmbda_h.x.array[_s_of(p, nodes)])       # λ_i at the slave nodes
+    lam = con.sign * (result.lmbda_h.x.array[output_dofs(p, nodes)])       # λ_i at the slave nodes
     copies = 2 ** len(_symmetry_axes(scene, X))
     force = copies * comm.allreduce(float(np.sum(con.w[slaves] * -lam * (normals @ n0))), op=MPI.SUM)
     balance = abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300)
@@ -181,7 +181,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
            "pressure_profile": _profile(comm, rho, -lam)}
     rigid = slice(p.data["pair_nodes"], None)
     if scene.cfg.get("obstacle"):  # Σ_i w_i λ_i n_i over the obstacle's contact nodes (a vector)
-        lam_o = result.lmbda_h.x.array[_s_of(p, con.dofs[rigid] // bs)]
+        lam_o = result.lmbda_h.x.array[output_dofs(p, con.dofs[rigid] // bs)]
         out["obstacle_force"] = comm.allreduce((con.w[rigid] * lam_o) @ p.data["normals"][rigid], op=MPI.SUM).tolist()
     R = hertz_radius(scene.cfg)
     if R is not None:
@@ -193,8 +193,8 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     return out
 
 
-def _s_of(problem, nodes: np.ndarray) -> np.ndarray:
-    """Output-space DoFs of local nodes."""
+def output_dofs(problem, nodes: np.ndarray) -> np.ndarray:
+    """The output-space DoFs (of λ_h, the gap) of local nodes."""
     bs = problem.V.dofmap.index_map_bs
     s_of_node = np.empty(len(problem.output_map), dtype=np.int64)
     s_of_node[problem.output_map // bs] = np.arange(len(problem.output_map))
@@ -240,7 +240,7 @@ def slave_table(scene: Scene, result: Result) -> list[dict]:
     slaves = slice(0, p.data["pair_nodes"])
     nodes = con.dofs[slaves] // bs
     X = p.V.tabulate_dof_coordinates()[nodes, :gdim]
-    s_dofs = _s_of(p, nodes)
+    s_dofs = output_dofs(p, nodes)
     origin = first_contact_point(comm, X, con.g[slaves])
     n0 = np.asarray(interface_normal(comm, X, p.data["normals"][slaves], origin))
     rel = X - origin

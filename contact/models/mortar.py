@@ -114,8 +114,8 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     pair = scene.cfg["pairs"][index]
     comm, bnd = scene.comm, scene.boundary
     key = f"pairs[{index}]"
-    slave = surface_facets(V, _part_facets(bnd, pair["slave"]))
-    master = surface_facets(V, _part_facets(bnd, pair["master"]))
+    slave = surface_facets(V, part_facets(bnd, pair["slave"]))
+    master = surface_facets(V, part_facets(bnd, pair["master"]))
     gdim = slave.X.shape[2]
     search = pair["search"] or _diameter(comm, slave, master)
     remote = _gather_master(comm, slave, master, search)
@@ -138,21 +138,8 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     np.add.at(w_master.array, master.nodes.ravel(), np.repeat(m_measure / nv, nv))
     w_master.scatter_reverse(la.InsertMode.add)
     w_master.scatter_forward()
-
-    # M rows on the owners of the slave nodes
-    rows_local = np.repeat(slave.nodes[s_idx], nv, axis=1).ravel()             # (p, a, b) → slave a
-    cols = np.tile(remote.gnodes[m_idx], (1, nv)).ravel()                        # … master b
-    Xcol = np.tile(remote.X[m_idx], (1, nv, 1)).reshape(-1, gdim)
-    rows_g, cols, vals, Xcol = _to_owners(comm, imap, rows_local, cols, M_loc.ravel(), Xcol)
-    first = imap.local_range[0]
-    M_rows = rows_g - first
-    # combine duplicates (the same (i, j) from several facets)
-    key_ij, inverse = np.unique(np.c_[M_rows, cols], axis=0, return_inverse=True)
-    inverse = inverse.ravel()
-    M_vals = np.bincount(inverse, weights=vals, minlength=len(key_ij))
-    X_of = np.zeros((len(key_ij), gdim))
-    X_of[inverse] = Xcol
-    M_rows, cols = key_ij[:, 0], key_ij[:, 1]
+    M_rows, cols, M_vals, X_of = _owned_rows(comm, imap, slave.nodes[s_idx], remote.gnodes[m_idx],
+                                             remote.X[m_idx], M_loc)
 
     n_owned = imap.size_local
     D_owned = D[:n_owned]
@@ -188,6 +175,26 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
                     coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN), search=search)
 
 
+def _owned_rows(comm: MPI.Comm, imap, slave_nodes: np.ndarray, master_gnodes: np.ndarray,
+                master_X: np.ndarray, M_loc: np.ndarray) -> tuple:
+    """The entries M_ij of this rank's owned slave rows from the local pair integrals
+    M_loc (P, nv, nv) of slave facets with local ``slave_nodes`` (P, nv) against master
+    facets with global ``master_gnodes`` and coordinates ``master_X``: each entry goes to the
+    owner of its slave node, duplicates (i, j) from several facets are summed.  Returns
+    (local row, global column, value, the column's coordinates)."""
+    nv = M_loc.shape[1]
+    gdim = master_X.shape[2]
+    rows_local = np.repeat(slave_nodes, nv, axis=1).ravel()                 # (p, a, b) → slave a …
+    cols = np.tile(master_gnodes, (1, nv)).ravel()                           # … and master b
+    Xcol = np.tile(master_X, (1, nv, 1)).reshape(-1, gdim)
+    rows_g, cols, vals, Xcol = _to_owners(comm, imap, rows_local, cols, M_loc.ravel(), Xcol)
+    key_ij, inverse = np.unique(np.c_[rows_g - imap.local_range[0], cols], axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    X_of = np.zeros((len(key_ij), gdim))
+    X_of[inverse] = Xcol
+    return key_ij[:, 0], key_ij[:, 1], np.bincount(inverse, weights=vals, minlength=len(key_ij)), X_of
+
+
 def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
     """No node may be a slave node twice or both a slave and a master node (Q would not be
     unit triangular); a one-line ConfigError otherwise.  Checked on the surfaces, before
@@ -202,8 +209,8 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
         owned[:, column] += flag.array[: imap.size_local] > 0
 
     for pair in scene.cfg["pairs"] or []:
-        count(0, _part_facets(bnd, pair["slave"]))
-        count(1, _part_facets(bnd, pair["master"]))
+        count(0, part_facets(bnd, pair["slave"]))
+        count(1, part_facets(bnd, pair["master"]))
     if bnd.ids_with_role("contact"):
         count(2, bnd.facets("contact"))
     bad = np.flatnonzero((owned[:, 0] > 1) | ((owned[:, 0] > 0) & (owned[:, 1] > 0))
@@ -215,7 +222,8 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
                           "slave of one pair only, and never a master or obstacle contact node too")
 
 
-def _part_facets(bnd, name: str) -> np.ndarray:
+def part_facets(bnd, name: str) -> np.ndarray:
+    """The facets of boundary part ``name`` (sorted local indices)."""
     return np.sort(bnd.tags.indices[bnd.tags.values == bnd.ids[name]]).astype(np.int32)
 
 
