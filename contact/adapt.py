@@ -83,6 +83,8 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
     move the vertices on a curved boundary onto the exact surface
     (:func:`contact.geometry.curved_boundary`; other meshes keep dolfinx's midpoints).
+    The refined scene keeps the pseudo-time, and the functions of ``scene.history`` (a
+    load step's state from the previous step) are prolonged with u_h.
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
@@ -95,7 +97,9 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
-    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)))
+    history = {name: prolong(fn, new, parent_cell) for name, fn in scene.history.items()}
+    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
+                  time=scene.time, history=history)
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     surface = curved_boundary(scene.cfg)
     if surface is not None:

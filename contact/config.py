@@ -21,6 +21,8 @@ import yaml
 from . import expressions
 
 SOLVER_METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
+FRICTION_LAWS = ("none", "tresca", "coulomb")
+FRICTION_FORMS = ("projection", "hsw")
 _REQUIRED = object()
 
 
@@ -119,6 +121,14 @@ def _petsc_value(v: Any) -> str | None:
     return f"must be a string, number or boolean, got {_typename(v)} {v!r}"
 
 
+def _times(v: Any) -> str | None:
+    if not v or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) for t in v):
+        return f"expected a non-empty list of numbers, got {v!r}"
+    if v[0] <= 0 or any(b <= a for a, b in zip(v, v[1:])):
+        return f"the pseudo-times must be > 0 and strictly increasing, got {v!r}"
+    return None
+
+
 EXPR = Field("expr", "0")
 EXPRS = Field("exprs", "0", doc="an expression, or a list of them (one per component) for elasticity")
 
@@ -197,6 +207,32 @@ SCENE: dict[str, Field] = {
                              doc="Newton's relative tolerance inside the loop: the algebraic error "
                                  "only has to be small against the discretization error"),
         "pictures": Field("int", 3, check=_nonnegative),
+    }),
+    "friction": Field("dict", None, schema={
+        "law": Field("str", "none", choices=FRICTION_LAWS,
+                     doc="none (frictionless), tresca (given slip threshold) or coulomb"),
+        "coefficient": Field("number", None, check=_nonnegative,
+                             doc="coulomb: the friction coefficient F (dimensionless)"),
+        "threshold": Field("expr", None,
+                           doc="tresca: the slip threshold s(x, t) >= 0, a stress (the unit of E)"),
+        "c_t": Field("any", "auto", check=_c_value,
+                     doc="tangential NCP scaling, stress per length: auto (nodal, "
+                         "c_t,i = K_tt,i / (kappa_t w_i)) or a number"),
+        "kappa_t": Field("number", 1.0, check=_positive, doc="factor of c_t: auto"),
+        "form": Field("str", "hsw", choices=FRICTION_FORMS,
+                      doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth max form)"),
+        "coulomb": Field("str", "ssn", choices=("ssn", "fixed_point"),
+                         doc="coulomb: full semismooth Newton, or the fixed point on the normal "
+                             "pressure (a sequence of Tresca problems)"),
+        "fixed_point_rtol": Field("number", 1e-10, check=_positive,
+                                  doc="fixed point: stop when |rho_new - rho| <= rtol |rho|"),
+        "fixed_point_max_it": Field("int", 100, check=_positive),
+    }),
+    "load": Field("dict", None, schema={
+        "steps": Field("int", None, check=_positive, doc="N equal steps t = 1/N, 2/N, ..., 1"),
+        "times": Field("list", None, check=_times, doc="the pseudo-times of the steps, increasing, > 0"),
+        "adapt": Field("str", "end", choices=("each", "end"),
+                       doc="with an adapt section: the adaptive loop at every step, or only at the last"),
     }),
     "output": Field("dict", schema={
         "dir": Field("str", None),
@@ -341,7 +377,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     raw_constants = data.get("constants") or {}
     constants = _validate(raw_constants, SCENE["constants"], "constants", {})
     for key in constants:
-        if key in expressions.COORDINATES + expressions.HELPERS + expressions.FUNCTIONS or not key.isidentifier():
+        if (key in expressions.COORDINATES + expressions.HELPERS + expressions.FUNCTIONS + (expressions.TIME,)
+                or not key.isidentifier()):
             raise ConfigError(f"constants.{key}: is not a usable constant name")
     cfg = _validate_mapping(data, Field("dict", schema=SCENE), "", constants)
     cfg["name"] = cfg["name"] or name or "scene"
@@ -414,6 +451,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
     _check_vector_data(cfg, model)
+    _check_time(cfg)
+    _check_friction(cfg, data)
     if model == "elasticity":
         _check_elasticity(cfg)
     elif "symmetry" in roles:
@@ -436,6 +475,46 @@ def _check_vector_data(cfg: dict, model: str) -> None:
     for key in ("f", "u_D", "t"):
         if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
+
+
+def _check_time(cfg: dict) -> None:
+    """The pseudo-time t is for data only (the mesh and its parts are fixed along a load
+    path); ``load`` takes steps or times, not both."""
+    constants = cfg["constants"]
+    for key, texts in (("mesh.map", cfg["mesh"]["map"] or []),
+                       *((f"boundaries.{n}.where", [p["where"]]) for n, p in cfg["boundaries"].items())):
+        if any(t is not None and expressions.uses_time(t, constants) for t in texts):
+            raise ConfigError(f"{key}: the pseudo-time t is only for data expressions (the mesh is fixed)")
+    load = cfg.get("load")
+    if load is not None:
+        if (load["steps"] is None) == (load["times"] is None):
+            raise ConfigError("load: give exactly one of 'steps' or 'times'")
+        if load["steps"] is not None:
+            load["times"] = [(k + 1) / load["steps"] for k in range(load["steps"])]
+        load["times"] = [float(t) for t in load["times"]]
+
+
+def _check_friction(cfg: dict, data: Mapping) -> None:
+    """Friction needs elastic contact, and the keys of its law (Tresca: a threshold;
+    Coulomb: a coefficient); PETSc's VI solvers cannot solve it."""
+    fr = cfg.get("friction")
+    if fr is None:
+        return
+    given = {k for k, v in (data.get("friction") or {}).items() if v is not None}
+    law = fr["law"]
+    if law != "none" and cfg["model"]["type"] != "elasticity":
+        raise ConfigError(f"friction.law: {law} friction needs model type elasticity "
+                          f"(a {cfg['model']['type']} scene has no tangential direction)")
+    need = {"tresca": "threshold", "coulomb": "coefficient"}.get(law)
+    if need is not None and fr[need] is None:
+        raise ConfigError(f"friction.{need}: required for friction law {law}")
+    unused = sorted(given - {"law", need} - ({"c_t", "kappa_t", "form"} if law != "none" else set())
+                    - ({"coulomb", "fixed_point_rtol", "fixed_point_max_it"} if law == "coulomb" else set()))
+    if unused:
+        raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")
+    if law != "none" and cfg["solver"]["method"] not in ("fb", "min", "blend"):
+        raise ConfigError(f"solver.method: {cfg['solver']['method']} cannot solve frictional contact "
+                          f"(friction.law: {law}); use fb, min or blend")
 
 
 def _check_elasticity(cfg: dict) -> None:

@@ -9,11 +9,15 @@ A checked expression is then *translated* to one of two back ends:
 * :func:`to_numpy` gives a vectorised ``callable(x) -> ndarray`` with ``x`` of shape
   ``(3, n)``, used for interpolation into finite element spaces (the DOLFINx convention).
 
-Grammar: numbers, the names ``x y z r theta pi e`` and user constants, ``+ - * / **``,
+Grammar: numbers, the names ``x y z r theta t pi e`` and user constants, ``+ - * / **``,
 unary ``-``/``+``, comparisons ``< <= > >=``, ``and``/``or``/``not``, the conditional
 ``a if cond else b``, and the functions ``sin cos tan exp log sqrt atan2 abs min max
 sinh cosh tanh asinh``.  ``r = sqrt(x² + y²)`` and ``theta = atan2(y, x) ∈ (-π, π]``
-are polar helpers about the origin.
+are polar helpers about the origin.  ``t`` is the pseudo-time of a quasi-static load path
+(``load:`` section; t = 1 at the end of the path and for a scene without one): the back
+ends take its value (a number, or a UFL object such as a ``fem.Constant`` so that a form
+is compiled once for all steps) as the keyword ``t``.  It is a reserved name, never a
+user constant.
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ FUNCTIONS = ("sin", "cos", "tan", "exp", "log", "sqrt", "atan2", "abs", "min", "
 _ARITY = {"atan2": 2, "min": 2, "max": 2}
 COORDINATES = ("x", "y", "z")
 HELPERS = ("r", "theta")
+TIME = "t"   # the pseudo-time of a load path
 BUILTIN_CONSTANTS = {"pi": math.pi, "e": math.e}
 
 
@@ -46,7 +51,7 @@ def parse(text: str | int | float, constants: Mapping[str, float] = {}) -> ast.E
         tree = ast.parse(source, mode="eval")
     except SyntaxError as err:
         raise ExpressionError(f"cannot parse {source!r}: {err.msg}") from None
-    names = set(COORDINATES) | set(HELPERS) | set(BUILTIN_CONSTANTS) | set(constants)
+    names = set(COORDINATES) | set(HELPERS) | {TIME} | set(BUILTIN_CONSTANTS) | set(constants)
     called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
         _check_node(node, names, source)
@@ -129,8 +134,10 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
     return go(tree)
 
 
-def to_numpy(text: str | float, constants: Mapping[str, float] = {}) -> Callable[[np.ndarray], np.ndarray]:
-    """Vectorised ``f(x)`` for ``x`` of shape ``(3, n)`` (DOLFINx interpolation convention)."""
+def to_numpy(text: str | float, constants: Mapping[str, float] = {}, t: float = 1.0
+             ) -> Callable[[np.ndarray], np.ndarray]:
+    """Vectorised ``f(x)`` for ``x`` of shape ``(3, n)`` (DOLFINx interpolation convention),
+    at pseudo-time ``t``."""
     tree = parse(text, constants)
     be = _Backend(
         ops={"sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log,
@@ -145,7 +152,8 @@ def to_numpy(text: str | float, constants: Mapping[str, float] = {}) -> Callable
 
     def f(x: np.ndarray) -> np.ndarray:
         X = np.asarray(x, dtype=float)
-        symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0])
+        symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0],
+                       t=np.float64(t))
         symbols["r"] = np.hypot(symbols["x"], symbols["y"])
         symbols["theta"] = np.arctan2(symbols["y"], symbols["x"])
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -155,15 +163,16 @@ def to_numpy(text: str | float, constants: Mapping[str, float] = {}) -> Callable
     return f
 
 
-def to_ufl(text: str | float, mesh: Any, constants: Mapping[str, float] = {}) -> Any:
-    """UFL expression of ``text`` in the spatial coordinates of ``mesh``."""
+def to_ufl(text: str | float, mesh: Any, constants: Mapping[str, float] = {}, t: Any = 1.0) -> Any:
+    """UFL expression of ``text`` in the spatial coordinates of ``mesh``; ``t`` is the
+    pseudo-time (a number, or a ``fem.Constant`` to keep one compiled form for all steps)."""
     import ufl
 
     tree = parse(text, constants)
     X = ufl.SpatialCoordinate(mesh)
     gdim = mesh.geometry.dim
     xs = [X[i] if i < gdim else 0.0 for i in range(3)]
-    symbols = dict(BUILTIN_CONSTANTS, **constants, x=xs[0], y=xs[1], z=xs[2])
+    symbols = dict(BUILTIN_CONSTANTS, **constants, x=xs[0], y=xs[1], z=xs[2], t=t)
     symbols["r"] = ufl.sqrt(xs[0] ** 2 + xs[1] ** 2)
     symbols["theta"] = ufl.atan2(xs[1], xs[0])
     be = _Backend(
@@ -179,6 +188,13 @@ def to_ufl(text: str | float, mesh: Any, constants: Mapping[str, float] = {}) ->
 
 
 def is_constant(text: str | float, constants: Mapping[str, float] = {}) -> bool:
-    """True when the expression uses no coordinate (so it can be a ``fem.Constant``)."""
+    """True when the expression uses neither a coordinate nor the pseudo-time ``t`` (so it
+    can be a ``fem.Constant`` fixed once)."""
     tree = parse(text, constants)
-    return not any(isinstance(n, ast.Name) and n.id in COORDINATES + HELPERS for n in ast.walk(tree))
+    return not any(isinstance(n, ast.Name) and n.id in COORDINATES + HELPERS + (TIME,) for n in ast.walk(tree))
+
+
+def uses_time(text: str | float, constants: Mapping[str, float] = {}) -> bool:
+    """True when the expression uses the pseudo-time ``t``."""
+    tree = parse(text, constants)
+    return any(isinstance(n, ast.Name) and n.id == TIME for n in ast.walk(tree))

@@ -4,7 +4,9 @@
   the solvers, and what every model shares (assembly, lumped weights, the NCP scaling);
 * :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
 * :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
-  :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x).
+  :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
+* :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
+  unknowns, thresholds, c_t (only a frictional scene imports it).
 
 A scene imports only its own model: a scalar scene never loads the elasticity modules.
 """
@@ -25,7 +27,12 @@ def build_problem(scene: "Scene") -> DiscreteProblem:
     if scene.cfg["model"]["type"] == "elasticity":
         from .elasticity import elasticity_problem
 
-        return elasticity_problem(scene)
+        problem = elasticity_problem(scene)
+        if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+            from .friction import friction_set
+
+            problem.friction = friction_set(scene, problem)
+        return problem
     from .scalar import scalar_problem
 
     return scalar_problem(scene)

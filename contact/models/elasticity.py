@@ -53,11 +53,11 @@ def _vector(texts: list[str], scene: Scene):
     if all(expressions.is_constant(t, consts) for t in texts):
         values = [float(expressions.to_numpy(t, consts)(np.zeros((3, 1)))[0]) for t in texts]
         return fem.Constant(scene.mesh, np.array(values, dtype=PETSc.ScalarType))
-    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts) for t in texts])
+    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts, t=scene.t_constant) for t in texts])
 
 
 def _vector_numpy(texts: list[str], scene: Scene):
-    fns = [expressions.to_numpy(t, scene.cfg["constants"]) for t in texts]
+    fns = [expressions.to_numpy(t, scene.cfg["constants"], t=scene.time) for t in texts]
     return lambda x: np.vstack([f(x) for f in fns])
 
 

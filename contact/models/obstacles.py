@@ -21,7 +21,7 @@ from dolfinx import fem
 
 from ..config import ConfigError
 from ..scene import Scene
-from .problem import Constraint, lumped_weights
+from .problem import Constraint, NodeBlockMatrix, lumped_weights
 
 
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
@@ -131,20 +131,11 @@ def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.n
 
 def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
     """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
-    bs = V.dofmap.index_map_bs
-    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, nnz=(bs, 0), comm=K.comm)
-    lo, hi = Q.getOwnershipRange()
-    local_nodes = (hi - lo) // bs
-    blocks = np.tile(np.eye(bs), (local_nodes, 1, 1))
+    Q = NodeBlockMatrix(K, V.dofmap.index_map_bs)
+    blocks = Q.identity()
     for node, n in zip(nodes, normals):
         blocks[node] = _frame(n)
-    # CSR of the owned rows: row (node, i) holds columns (node, 0 … bs−1), values blocks[node, i, :]
-    indptr = np.arange(0, local_nodes * bs * bs + 1, bs, dtype=PETSc.IntType)
-    cols = lo + np.arange(local_nodes * bs, dtype=PETSc.IntType).reshape(local_nodes, 1, bs)
-    indices = np.broadcast_to(cols, (local_nodes, bs, bs)).ravel()
-    Q.setValuesCSR(indptr, indices, blocks.ravel())
-    Q.assemble()
-    return Q
+    return Q.set(blocks)
 
 
 def _frame(n: np.ndarray) -> np.ndarray:

@@ -65,6 +65,7 @@ class DiscreteProblem:
     basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
+    friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""
@@ -127,6 +128,33 @@ class DiscreteProblem:
         return self.output_bound if self.output_bound is not None else self.data["g_h"]
 
 
+class NodeBlockMatrix:
+    """An AIJ matrix with the row layout of ``layout`` and one dense bs×bs block per owned
+    node (bs = the vector block size): the pattern of the rotation Q (u = Q x) and of the
+    friction law's B and D (H = B K + D).  ``set(blocks)`` writes all blocks, an array
+    (local nodes, bs, bs), in one CSR call; the pattern never changes, so products with it
+    can reuse their symbolic phase."""
+
+    def __init__(self, layout: PETSc.Mat, bs: int):
+        lo, hi = layout.getOwnershipRange()
+        self.bs, self.local_nodes = bs, (hi - lo) // bs
+        n = self.local_nodes
+        # row (node, i) holds columns (node, 0 … bs−1)
+        self.indptr = np.arange(0, n * bs * bs + 1, bs, dtype=PETSc.IntType)
+        cols = lo + np.arange(n * bs, dtype=PETSc.IntType).reshape(n, 1, bs)
+        self.indices = np.broadcast_to(cols, (n, bs, bs)).ravel().copy()
+        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)
+
+    def identity(self) -> np.ndarray:
+        """Identity blocks, (local nodes, bs, bs)."""
+        return np.tile(np.eye(self.bs), (self.local_nodes, 1, 1))
+
+    def set(self, blocks: np.ndarray) -> PETSc.Mat:
+        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())
+        self.mat.assemble()
+        return self.mat
+
+
 def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray,
                   dirichlet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Owned contact DoFs that are Dirichlet DoFs too, and for each the nearest contact DoF
@@ -141,18 +169,20 @@ def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray
 
 
 def coefficient(text: str, scene: Scene) -> Any:
-    """UFL data: a ``fem.Constant`` when the expression is constant, else a UFL expression."""
+    """UFL data: a ``fem.Constant`` when the expression is constant (in space and in the
+    pseudo-time t), else a UFL expression (t enters as ``scene.t_constant``)."""
     consts = scene.cfg["constants"]
     if expressions.is_constant(text, consts):
         value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
         return fem.Constant(scene.mesh, PETSc.ScalarType(value))
-    return expressions.to_ufl(text, scene.mesh, consts)
+    return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
 
 
 def interpolate_expression(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
-    """``text`` interpolated into V; for a vector space the expression is every component."""
+    """``text`` interpolated into V at the scene's pseudo-time; for a vector space the
+    expression is every component."""
     fn = fem.Function(V)
-    f = expressions.to_numpy(text, scene.cfg["constants"])
+    f = expressions.to_numpy(text, scene.cfg["constants"], t=scene.time)
     bs = V.dofmap.index_map_bs
     fn.interpolate(f if bs == 1 else (lambda x: np.tile(f(x), (bs, 1))))
     return fn

@@ -88,26 +88,35 @@ def setup_newton(snes: PETSc.SNES, problem: DiscreteProblem, cp: Complementarity
     method, mu = opts["method"], opts["mu"]
     J = problem.K.duplicate(copy=True)
     attach_near_nullspace(problem, J)
+    set_newton(snes, problem, J, lambda x, f: cp.phi(x, f, method, mu),
+               lambda x, P: cp.jacobian(*cp.pair(x)[:2], P, method, mu), opts, timers, state, petsc_opts)
+    polisher = None
+    if opts["polish"] and method != "min":
+        polisher = Polisher(cp, method, mu, snes.getKSP(), timers)
+        snes.setLineSearchPreCheck(polisher)
+    return J, polisher
 
+
+def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, jacobian, opts: dict,
+               timers: dict, state: dict, petsc_opts: dict) -> None:
+    """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
+    ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
+    both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
+    (the linear solve's clock starts there).  Line search ``opts['line_search']`` unless the
+    PETSc options say otherwise."""
     def residual(snes, x, f):
         t0 = time.perf_counter()
-        cp.phi(x, f, method, mu)
+        phi(x, f)
         timers["assembly"] += time.perf_counter() - t0
 
-    def jacobian(snes, x, J_, P):
+    def jac(snes, x, J_, P):
         t0 = time.perf_counter()
-        a, b, _ = cp.pair(x)
-        cp.jacobian(a, b, P, method, mu)
+        jacobian(x, P)
         now = time.perf_counter()
         timers["assembly"] += now - t0
         state["t_jac"] = now
 
     snes.setType("newtonls")
     snes.setFunction(residual, problem.b.duplicate())
-    snes.setJacobian(jacobian, J)
+    snes.setJacobian(jac, J)
     petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
-    polisher = None
-    if opts["polish"] and method != "min":
-        polisher = Polisher(cp, method, mu, snes.getKSP(), timers)
-        snes.setLineSearchPreCheck(polisher)
-    return J, polisher

@@ -38,6 +38,7 @@ class Result:
     active_mask: np.ndarray
     options: dict = field(default_factory=dict)
     polish_solves: int = 0
+    friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
 
     @property
     def linear_solves(self) -> int:

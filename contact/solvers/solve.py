@@ -14,6 +14,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from ..models import DiscreteProblem, build_problem
+from ..config import ConfigError
 from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene
 from . import ncp
@@ -40,6 +41,16 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     built_here = problem is None
     problem = problem or build_problem(scene)
+    friction = problem.friction
+    if friction is not None:
+        if method not in ncp.METHODS:
+            raise ConfigError(f"solver.method: {method} cannot solve frictional contact "
+                              f"(friction.law: {friction.law}); use fb, min or blend")
+        from .friction import (FrictionalComplementarity, coulomb_fixed_point, friction_fields,
+                               setup_friction_newton, status_counts)
+
+        if friction.law == "coulomb" and friction.coulomb == "fixed_point":
+            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, method=method, **options)
     t_start = time.perf_counter()
     con = problem.constraint  # the NCP scaling follows the options of this solve
     problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
@@ -48,7 +59,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # the problem's assembly counts once: in the solve that built it
     built = problem.assembly_time if built_here else 0.0
     timers = {"assembly": built, "solve": 0.0}
-    cp = Complementarity(problem)
+    cp = Complementarity(problem) if friction is None else FrictionalComplementarity(problem)
 
     # Initial guess with the Dirichlet values in place.
     x = problem.b.duplicate()
@@ -63,7 +74,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     petsc_opts = {**default_linear_solver(problem), **{str(k): v for k, v in opts["petsc_options"].items()}}
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher = None
-    if method in ncp.METHODS:
+    if friction is not None:   # the block law H = B K + D (no polishing)
+        J = setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts)
+    elif method in ncp.METHODS:
         J, polisher = setup_newton(snes, problem, cp, opts, timers, state, petsc_opts)
     else:
         J = setup_vi(snes, problem, method, timers, state)
@@ -97,11 +110,17 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         prev["active"] = active
         row = {"iteration": its, "residual": float(fnorm), "step": float(step),
                "active": n_active, "changed": changed, "polished": its > 0 and polisher is not None and polisher.accepted}
+        extra = ""
+        if friction is not None:
+            counts = status_counts(comm, cp.status(xk))
+            row.update(stick=counts["stick"], slip=counts["slip"])
+            extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         history.append(row)
         if verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
-                  f"active {n_active:7d}  changed {changed:6d}{'  polished' if row['polished'] else ''}", flush=True)
+                  f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
+                  flush=True)
 
     snes.setMonitor(monitor)
     popts = PETSc.Options()
@@ -115,6 +134,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     snes.solve(None, x)
     reason_code = snes.getConvergedReason()
     result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
+    if friction is not None:
+        result.friction = friction_fields(problem, cp, x)
+        cp.destroy()
     if polisher is not None:
         result.polish_solves = polisher.solves
         polisher.destroy()
