@@ -220,21 +220,21 @@ def adapt_options(scene: Scene, **overrides: Any) -> dict:
 
 
 def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], None] | None = None,
-          verbose: bool | None = None, **options: Any) -> AdaptResult:
+          verbose: bool | None = None, u0: fem.Function | None = None, **options: Any) -> AdaptResult:
     """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
-    called after each level is estimated (used by the CLI to write output as it goes)."""
+    called after each level is estimated (used by the CLI to write output as it goes);
+    ``u0`` is the first level's initial guess (a load step's previous solution)."""
     opts = adapt_options(scene, **options)
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     comm = scene.comm
-    out, u0 = AdaptResult(), None
+    out = AdaptResult()
     exact = scene.cfg["data"]["exact"]
     for index in range(opts["max_levels"]):
         seconds = {}
         t0 = time.perf_counter()
         problem = build_problem(scene)
-        result = solve(scene, method=method, problem=problem, u0=u0 if opts["nested"] else None,
-                       verbose=False, rtol=opts["newton_rtol"])
+        result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"])
         seconds["solve"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         est = estimate(scene, result)

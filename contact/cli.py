@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+
+import numpy as np
 import time
 from pathlib import Path
 from typing import NoReturn
@@ -78,6 +80,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     method = scene.cfg["solver"]["method"]
     _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
                f"{comm.size} MPI rank(s)")
+    if scene.cfg.get("load") or (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        return _run_steps(scene, outdir, comm, t0)
     if scene.cfg.get("adapt"):
         return _run_adaptive(scene, outdir, comm, t0)
     result = solve(scene)
@@ -117,6 +121,34 @@ def _run_adaptive(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
     _say(comm, format_table(result.rows))
     _say(comm, f"contact: wrote {outdir}/ (level_*.xdmf for ParaView, convergence.csv, "
                f"convergence.png, mesh_level_*.png, solution.png, summary.json)")
+    return 0
+
+
+def _run_steps(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
+    """A load path (or a frictional scene, one step at t = 1): per-step output."""
+    from . import io
+    from .loadreport import StepWriter
+    from .solvers.loadpath import run_load_path
+
+    with io.atomic_folder(outdir, comm) as tmp:
+        writer = StepWriter(tmp, scene)
+        path = run_load_path(scene, on_step=writer)
+        for s in path.steps:
+            fr = s.result.friction
+            counts = "" if fr is None else "  " + "  ".join(
+                f"{name} {comm.allreduce(int(np.sum(fr['status'] == code)))}"
+                for code, name in enumerate(("separated", "stick", "slip")))
+            _say(comm, f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
+                       f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}")
+        if not path.converged:
+            last = path.steps[-1].result
+            if comm.rank == 0:
+                print(f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; nothing written",
+                      file=sys.stderr, flush=True)
+            raise _Failed()
+        writer.finish(path, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ (step_*.xdmf for ParaView, contact_step_*.csv, steps.csv, "
+               f"contact.csv, traction.png, summary.json, solution.png)")
     return 0
 
 

@@ -163,3 +163,55 @@ def plot_pressure(path: str | Path, res: dict, title: str = "") -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_traction(path: str | Path, steps: list[tuple[float, list[dict]]], title: str = "",
+                  references: list[tuple[int, np.ndarray, np.ndarray, str]] = ()) -> None:
+    """Contact tractions along Γ_C (rows of :func:`contact.surface.surface_rows`), one curve
+    per load step coloured by the pseudo-time t: the pressure −λ_n (top) and the tangential
+    traction λ_t (2D, along the position's tangent) or |λ_t| (3D) (bottom), with the
+    friction bound ±ρ of the last step dashed (where λ_t reaches it, the node slips) and
+    slipping nodes of the last step marked.  ``references``: (panel 0 | 1, x, y, label)
+    curves such as the Hertz pressure or an exact traction."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = steps[-1][1]
+    three_d = "lambda_t_norm" in rows[0] and "lambda_t" not in rows[0]
+    key = "lambda_t_norm" if three_d else "lambda_t"
+    style = dict(marker=".", ls="none", ms=3) if three_d else dict(marker=".", ms=3, lw=1)
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    cmap = plt.get_cmap("viridis")
+    t_max = max(t for t, _ in steps)
+    for t, rs in steps:
+        x = np.array([r["position"] for r in rs])
+        colour = cmap(t / t_max if len(steps) > 1 else 0.0)
+        label = f"t = {t:g}" if len(steps) <= 8 or t == t_max else None
+        axes[0].plot(x, [-r["lambda_n"] for r in rs], color=colour, label=label, **style)
+        if key in rs[0]:
+            axes[1].plot(x, [r[key] for r in rs], color=colour, label=label, **style)
+    x = np.array([r["position"] for r in rows])
+    if key in rows[0]:
+        bound = np.array([r["bound"] for r in rows])
+        order = np.argsort(x)
+        axes[1].plot(x[order], bound[order], "k--", lw=1, label="friction bound ±ρ")
+        if not three_d:
+            axes[1].plot(x[order], -bound[order], "k--", lw=1)
+        slip = np.array([r["status"] == "slip" for r in rows])
+        axes[1].plot(x[slip], np.array([r[key] for r in rows])[slip], "o", mfc="none", mec="C3", ms=6,
+                     label=f"slipping at t = {t_max:g}")
+    for panel, rx, ry, label in references:
+        axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
+    axes[0].set_ylabel("pressure −λ_n")
+    axes[1].set_ylabel("|λ_t|" if three_d else "tangential traction λ_t")
+    axes[1].set_xlabel("distance from the first contact point in the tangent plane" if three_d
+                       else "position along Γ_C")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

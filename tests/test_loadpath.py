@@ -1,0 +1,97 @@
+"""Quasi-static load paths (issue 12): the pseudo-time t in expressions, 1 step = 10 steps of a
+proportional stick-only loading, slip accumulating over the steps of a pulled block, warm
+starts, and the per-step output folder of `contact run`."""
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contact
+from contact import expressions
+from contact.solvers.loadpath import load_times, run_load_path
+
+from test_friction import BLOCK, block, coulomb
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_pseudo_time_in_expressions():
+    f = expressions.to_numpy("0.01*t + x", t=0.5)
+    assert np.allclose(f(np.array([[1.0, 2.0], [0, 0], [0, 0]])), [1.005, 2.005])
+    assert expressions.uses_time("2*t") and not expressions.uses_time("x")
+    assert not expressions.is_constant("2*t") and expressions.is_constant("2")
+    assert load_times(block("load.steps=4").cfg) == [0.25, 0.5, 0.75, 1.0]
+    assert load_times(block("load.times=[0.1, 0.5, 2]").cfg) == [0.1, 0.5, 2.0]
+    assert load_times(block().cfg) == [1.0]
+
+
+def test_proportional_stick_loading_does_not_depend_on_the_steps():
+    """F = 1 and a small drag: every node sticks at every step, the problem is linear in t,
+    and 10 steps end where 1 step does (warm starts: 1 Newton step after the first)."""
+    sets = [*coulomb(1.0), 'data.u_D=["0.002*t", "-0.01*t"]']
+    one = run_load_path(block(*sets))
+    ten = run_load_path(block(*sets, "load.steps=10"))
+    assert one.converged and ten.converged and len(ten.steps) == 10
+    for step in ten.steps:
+        assert np.all(step.result.friction["status"] == 1)
+    assert [s.result.iterations for s in ten.steps][1:] == [1] * 9
+    u1, u10 = one.steps[-1].result.u_h.x.array, ten.steps[-1].result.u_h.x.array
+    assert np.max(np.abs(u1 - u10)) <= 1e-8 * np.max(np.abs(u1))
+
+
+def test_pulled_block_slip_accumulates_over_the_steps():
+    """Pressed, then dragged by 0.05: stick → partial slip → full sliding.  After the first
+    step (which also presses the block, so the front edge slides outward) slip increments
+    point along the drag, add up to the one-step slip, and once sliding each step slips by the
+    drag increment (the block translates rigidly at the bottom); Coulomb's force law holds."""
+    sets = [*coulomb(0.3), 'data.u_D=["0.05*t", "-0.01"]']
+    path = run_load_path(block(*sets, "load.steps=10"))
+    one = run_load_path(block(*sets)).steps[-1].result
+    assert path.converged
+    slips = np.array([s.result.friction["slip"][:, 0] for s in path.steps])
+    assert np.all(slips[1:] >= -1e-12) and slips[1:].sum() > 0.03          # along the drag
+    assert np.all(slips[0, -2:] < 0)         # step 1 also presses: the front edge expands outward
+    counts = [np.bincount(s.result.friction["status"], minlength=3) for s in path.steps]
+    assert counts[0][1] > 0 and counts[-1][1] == 0                    # sticks first, slides at the end
+    assert np.allclose(slips.sum(axis=0), one.friction["slip"][:, 0], atol=1e-12)
+    assert np.allclose(slips[-1], 0.005, rtol=1e-8)
+    assert max(s.result.iterations for s in path.steps) <= 10
+    f = path.steps[-1].result.friction
+    assert abs(np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))
+
+
+def test_run_writes_every_step(tmp_path):
+    """`contact run` of a 3-step Coulomb drag: per-step XDMF and contact CSV, steps.csv with the
+    resultants (contact force = −reaction, tangential = F × normal when sliding), summary.json
+    with the steps, traction.png."""
+    import yaml
+
+    scene = {**BLOCK, "data": {"u_D": ["0.05*t", "-0.01"]}, "friction": {"law": "coulomb", "coefficient": 0.3},
+             "load": {"steps": 3}, "output": {"verbose": False}}
+    path = tmp_path / "drag.yaml"
+    path.write_text(yaml.safe_dump(scene))
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(path), "-o", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    names = {p.name for p in out.iterdir()}
+    assert {"steps.csv", "summary.json", "contact.csv", "traction.png", "solution.png", "history.csv"} <= names
+    assert {f"step_00{k}.xdmf" for k in (1, 2, 3)} | {f"contact_step_00{k}.csv" for k in (1, 2, 3)} <= names
+    steps = list(csv.DictReader(open(out / "steps.csv")))
+    assert [float(s["time"]) for s in steps] == pytest.approx([1 / 3, 2 / 3, 1.0])
+    for s in steps:
+        for ax in "xy":
+            assert float(s[f"contact_force_{ax}"]) == pytest.approx(-float(s[f"reaction_force_{ax}"]), abs=1e-12)
+    last = steps[-1]
+    assert float(last["friction_ratio"]) == pytest.approx(0.3, rel=1e-8) and int(last["stick_nodes"]) == 0
+    rows = list(csv.DictReader(open(out / "contact.csv")))
+    assert len(rows) == 41 and {r["status"] for r in rows} <= {"slip", "separated"}
+    xs = [float(r["position"]) for r in rows]
+    assert xs == sorted(xs) and xs[0] == pytest.approx(-1.0) and xs[-1] == pytest.approx(1.0)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps_total"] == 3 and len(summary["steps"]) == 3 and summary["friction"] == "coulomb"
+    assert summary["newton_iterations_max_per_step"] <= 10
