@@ -22,7 +22,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from .config import SCENE, _validate
-from .errors import energy_error
+from .errors import solution_error
 from .estimate import Estimate, estimate
 from .geometry import curved_boundary
 from .meshes import Boundary
@@ -229,7 +229,6 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()
-    exact = scene.cfg["data"]["exact"]
     for index in range(opts["max_levels"]):
         seconds = {}
         t0 = time.perf_counter()
@@ -238,7 +237,7 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         seconds["solve"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         est = estimate(scene, result)
-        error = energy_error(result.u_h, exact, problem.data["k"], scene.cfg["constants"]) if exact else None
+        error = solution_error(scene, result)
         seconds["estimate"] = time.perf_counter() - t0
         level = Level(index, scene, result, est, error, seconds)
         out.levels.append(level)

@@ -181,7 +181,9 @@ SCENE: dict[str, Field] = {
     "constants": Field("dict", schema=None, item=Field("number")),
     "data": Field("dict", schema={
         "f": EXPRS, "k": Field("expr", "1"), "u_D": EXPRS, "t": EXPRS, "t_C": EXPR,
-        "g": EXPR, "psi": EXPR, "exact": Field("expr", None),
+        "g": EXPR, "psi": EXPR,
+        "exact": Field("exprs", None, doc="the exact solution, if known (one expression per component "
+                                         "for elasticity): reports the energy error"),
     }),
     "solver": Field("dict", schema={
         "method": Field("str", "fb", choices=SOLVER_METHODS),
@@ -438,8 +440,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if model == "obstacle" and "contact" in roles:
         raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a contact part")
     given = set(data.get("data") or {})
-    if model == "elasticity" and ({"k", "g", "psi", "t_C", "exact"} & given):
-        raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C', 'exact'} & given)[0]}: not used by model type elasticity")
+    if model == "elasticity" and ({"k", "g", "psi", "t_C"} & given):
+        raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C'} & given)[0]}: not used by model type elasticity")
     if model != "elasticity" and cfg.get("obstacle"):
         raise ConfigError("obstacle: only for model type elasticity (scalar models use data.g / data.psi)")
     if model != "elasticity" and (cfg["model"]["E"] is not None):
@@ -472,7 +474,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
 def _check_vector_data(cfg: dict, model: str) -> None:
     """Vector data (lists) only for elasticity (where a single expression means every
     component, so the default "0" is the zero vector)."""
-    for key in ("f", "u_D", "t"):
+    for key in ("f", "u_D", "t", "exact"):
         if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
 

@@ -11,6 +11,11 @@ With w a DG0 test function, one assembly per term of the form below gives every 
                               + ‖λ_h⁺‖²_E                            sign (λ⁺ = max(λ, 0))
                               + ∫_E |min(λ_h, 0)(u_h − g)| ds )      complementarity
 
+Elasticity replaces k∂u/∂n by the traction σ(u_h)n and adds the frictionless tangential
+term h_E ‖σ_t(u_h)‖²_E on Γ_C; with friction (Hild & Lleras, SIAM J. Numer. Anal. 47, 2009)
+that term becomes h_E ‖λ_t − σ_t(u_h)‖²_E and two terms join: ‖(|λ_t| − ρ)⁺‖²_E (friction
+bound) and ∫_E |ρ |s_t| + λ_t·s_t| ds (slip; ≥ 0 and zero when the law holds pointwise).
+
 For the obstacle problem (constraint σ(u − ψ) ≤ 0 in Ω, λ = −div(k∇u) − f) the same
 terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sign term is
 h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
@@ -116,12 +121,41 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
     Tn = ufl.dot(T, n_c)
     Tt = T - Tn * n_c
+    friction = friction_data(scene, result) if result.friction is not None else None
+    if friction is not None:   # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
+        lam_t, rho, slip = friction
+        Tt = Tt - lam_t
+        terms.update(friction_bound=zero, slip=zero)
     for i in bnd.ids_with_role("contact"):
         terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
         terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
         terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
         terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+        if friction is not None:
+            norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
+            terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)
+            terms["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
     return terms
+
+
+def friction_data(scene: Scene, result: Result):
+    """UFL data of the friction terms (SPEC §1.4, Hild–Lleras) on Γ_C: the tangential
+    multiplier λ_t (P1 vector of the nodal λ_t,i), the bound ρ (Tresca: the threshold
+    expression s(x, t); Coulomb: F·(−λ_n,h)⁺) and the slip s_t = (I − n nᵀ)(u_h − u_prev)."""
+    from .surface import surface_functions
+
+    p = result.problem
+    lam_t = surface_functions(result)[0]
+    cfg = scene.cfg["friction"]
+    if cfg["law"] == "coulomb":
+        rho = cfg["coefficient"] * ufl.max_value(-result.lmbda_h, 0)
+    else:
+        from . import expressions
+
+        rho = expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
+    n_c = p.data["n_ufl"]
+    du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
+    return lam_t, rho, du - ufl.dot(du, n_c) * n_c
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:

@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 from . import io, plots
 from .adapt import AdaptResult, Level
-from .errors import energy_error
+from .errors import solution_error
 from .scene import Scene
 from .solvers import Result
 
@@ -75,9 +75,9 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
     }
     if res is not None:
         out.update({k: v for k, v in res.items() if k != "pressure_profile"})
-    exact = scene.cfg["data"]["exact"]
-    if exact is not None:
-        out["error_energy"] = energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
+    error = solution_error(scene, result)
+    if error is not None:
+        out["error_energy"] = error
     return out
 
 

@@ -421,7 +421,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     ``repeat: 2``).  Under MPI a failure is caught on every rank alike as long as it is
     collective (bad options, divergence, an error raised by all ranks)."""
     from .adapt import adapt
-    from .errors import energy_error
+    from .errors import solution_error
     from .estimate import estimate
     from .scene import load_scene
     from .solvers import solve
@@ -445,9 +445,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
                        polish_solves_total=result.polish_solves, converged=bool(result.converged),
                        reason=result.reason)
             if result.converged:
-                exact = scene.cfg["data"]["exact"]
-                error = (energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
-                         if exact else None)
+                error = solution_error(scene, result)
                 out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
                 failure = (f"did not converge ({result.reason}) after {result.iterations} Newton "
