@@ -171,7 +171,8 @@ def plot_traction(path: str | Path, steps: list[tuple[float, list[dict]]], title
     per load step coloured by the pseudo-time t: the pressure −λ_n (top) and the tangential
     traction λ_t (2D, along the position's tangent) or |λ_t| (3D) (bottom), with the
     friction bound ±ρ of the last step dashed (where λ_t reaches it, the node slips) and
-    slipping nodes of the last step marked.  ``references``: (panel 0 | 1, x, y, label)
+    slipping nodes of the last step marked (zoomed on the contact zone when it is less than
+    half of Γ_C).  ``references``: (panel 0 | 1, x, y, label)
     curves such as the Hertz pressure or an exact traction."""
     import matplotlib
 
@@ -188,7 +189,7 @@ def plot_traction(path: str | Path, steps: list[tuple[float, list[dict]]], title
     for t, rs in steps:
         x = np.array([r["position"] for r in rs])
         colour = cmap(t / t_max if len(steps) > 1 else 0.0)
-        label = f"t = {t:g}" if len(steps) <= 8 or t == t_max else None
+        label = f"t = {t:g}" if len(steps) <= 8 or t in (steps[0][0], t_max) else None
         axes[0].plot(x, [-r["lambda_n"] for r in rs], color=colour, label=label, **style)
         if key in rs[0]:
             axes[1].plot(x, [r[key] for r in rs], color=colour, label=label, **style)
@@ -204,6 +205,12 @@ def plot_traction(path: str | Path, steps: list[tuple[float, list[dict]]], title
                      label=f"slipping at t = {t_max:g}")
     for panel, rx, ry, label in references:
         axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
+    lam_n = np.array([r["lambda_n"] for r in rows])
+    pressed = lam_n < -1e-9 * np.max(np.abs(lam_n), initial=0.0)
+    if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):   # a small contact zone: zoom on it
+        lo, hi = x[pressed].min(), x[pressed].max()
+        pad = 0.3 * max(hi - lo, 1e-12)
+        axes[1].set_xlim(lo - pad if not three_d else 0.0, hi + pad)
     axes[0].set_ylabel("pressure −λ_n")
     axes[1].set_ylabel("|λ_t|" if three_d else "tangential traction λ_t")
     axes[1].set_xlabel("distance from the first contact point in the tangent plane" if three_d

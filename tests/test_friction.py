@@ -173,6 +173,34 @@ def test_coulomb_newton_equals_fixed_point_2d():
     assert {1, 2} <= set(ssn.friction["status"].tolist())                  # stick and slip
 
 
+#: a box [−½, ½]² × [0, ¼] pressed onto the plane z = 0 (top moved by (0.001, 0.0005, −0.005)):
+#: partial slip for F = 0.3
+BOX = {"name": "box", "mesh": {"type": "box", "corners": [[-0.5, -0.5, 0], [0.5, 0.5, 0.25]], "cells": [8, 8, 4]},
+       "boundaries": {"bottom": {"role": "contact", "where": "z < 1e-10"},
+                      "top": {"role": "dirichlet", "where": "z > 0.25 - 1e-10"}},
+       "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+       "obstacle": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]},
+       "data": {"u_D": ["0.001", "0.0005", "-0.005"]}, "friction": {"law": "coulomb", "coefficient": 0.3},
+       "output": {"verbose": False}}
+
+
+def test_coulomb_newton_equals_fixed_point_3d():
+    """3D partial slip (2 tangential unknowns per node): full Newton (hsw) and the fixed point
+    agree; every slipping node is on the cone |λ_t| = F|λ_n|, every sticking node inside."""
+    ssn = contact.solve(contact.load_scene(BOX))
+    fp = contact.solve(contact.load_scene(BOX, ["friction.coulomb=fixed_point"]))
+    assert ssn.converged and fp.converged and ssn.iterations <= 10
+    u = ssn.u_h.x.array
+    assert np.max(np.abs(u - fp.u_h.x.array)) <= 1e-8 * np.max(np.abs(u))
+    f = ssn.friction
+    status, cone = f["status"], 0.3 * np.abs(f["lambda_n"])
+    norm_t = np.linalg.norm(f["lambda_t"], axis=1)
+    assert (status == 1).sum() > 20 and (status == 2).sum() > 20
+    assert np.allclose(norm_t[status == 2], cone[status == 2], rtol=1e-9)
+    assert np.all(norm_t[status == 1] < cone[status == 1])
+    assert np.all(np.einsum("ij,ij->i", f["lambda_t"], f["slip"])[status == 2] < 0)   # opposes the slip
+
+
 # ------------------------------------------------------------------- F = 0 is frictionless
 HERTZ_SMALL = {"hertz_2d": ["mesh.h=0.2", "mesh.h_contact=0.02", "mesh.zone=0.2"],
                "hertz_3d": ["mesh.h=0.3", "mesh.h_contact=0.03", "mesh.zone=0.2"]}

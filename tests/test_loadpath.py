@@ -95,3 +95,34 @@ def test_run_writes_every_step(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["steps_total"] == 3 and len(summary["steps"]) == 3 and summary["friction"] == "coulomb"
     assert summary["newton_iterations_max_per_step"] <= 10
+
+
+MPIRUN = Path(sys.executable).parent / "mpirun"
+
+
+@pytest.mark.parametrize("scene,sets", [
+    ("friction_block_2d.yaml", ["mesh.cells=[40,10]"]),
+    ("friction_cylinder_2d.yaml", ["mesh.cells=[64,16]", "load.steps=4"]),
+])
+def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
+    """The whole load path (stick, partial slip, sliding) on 1 and 2 MPI ranks: the same
+    displacements, tractions, slips (to 1e-8) and statuses."""
+    import os
+
+    script, path = ROOT / "tests" / "friction_run.py", str(ROOT / "configs" / scene)
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    args = [f"--set={s}" for s in sets]
+    s, p = tmp_path / "s.npz", tmp_path / "p.npz"
+    subprocess.run([sys.executable, str(script), str(s), path, *args], check=True, timeout=300, env=env)
+    subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script), str(p), path, *args],
+                   check=True, timeout=300, env=env)
+    s, p = dict(np.load(s)), dict(np.load(p))
+    assert s["converged"].all() and p["converged"].all()
+    assert np.allclose(s["X"], p["X"], atol=1e-12)
+    assert np.max(np.abs(s["u"] - p["u"])) <= 1e-8 * np.max(np.abs(s["u"]))
+    cols = list(s["columns"])
+    for name in ("lambda_n", "lambda_t", "slip"):
+        a, b = s["surface"][:, cols.index(name)], p["surface"][:, cols.index(name)]
+        assert np.max(np.abs(a - b)) <= 1e-8 * np.max(np.abs(a)), name
+    assert np.array_equal(s["status"], p["status"])
+    assert s["its"].max() <= 10 and p["its"].max() <= 10   # (round-off may change a count)
