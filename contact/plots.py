@@ -180,6 +180,8 @@ def plot_traction(path: str | Path, steps: list[tuple[float, list[dict]]], title
     import matplotlib.pyplot as plt
 
     rows = steps[-1][1]
+    if "z" in rows[0] and "lambda_t_norm" in rows[0]:
+        return plot_traction_map(path, rows, title, t=steps[-1][0])
     three_d = "lambda_t_norm" in rows[0] and "lambda_t" not in rows[0]
     key = "lambda_t_norm" if three_d else "lambda_t"
     style = dict(marker=".", ls="none", ms=3) if three_d else dict(marker=".", ms=3, lw=1)
@@ -219,6 +221,43 @@ def plot_traction(path: str | Path, steps: list[tuple[float, list[dict]]], title
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     axes[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_traction_map(path: str | Path, rows: list[dict], title: str = "", t: float = 1.0) -> None:
+    """3D friction: the contact surface seen along the obstacle's normal (the coordinate of
+    least spread dropped), left the pressure −λ_n, right the tangential traction λ_t as arrows
+    coloured by the status (stick / slip), separated nodes grey."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    X = np.array([[r["x"], r["y"], r["z"]] for r in rows])
+    keep = [i for i in range(3) if i != int(np.argmin(np.ptp(X, axis=0)))]
+    P = X[:, keep]
+    lam_t = np.array([[r[f"lambda_t_{a}"] for a in "xyz"] for r in rows])[:, keep]
+    status = np.array([r["status"] for r in rows])
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    sc = axes[0].scatter(P[:, 0], P[:, 1], c=[-r["lambda_n"] for r in rows], s=12, cmap="viridis")
+    fig.colorbar(sc, ax=axes[0], label="pressure −λ_n")
+    axes[0].set_title("contact pressure")
+    for name, colour in (("stick", "C0"), ("slip", "C3")):
+        m = status == name
+        axes[1].quiver(P[m, 0], P[m, 1], lam_t[m, 0], lam_t[m, 1], color=colour, label=f"{name} ({m.sum()})",
+                       angles="xy", scale_units="xy", scale=np.max(np.abs(lam_t)) / (0.06 * np.ptp(P)) or 1.0)
+    m = status == "separated"
+    axes[1].plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
+    axes[1].set_title(f"tangential traction λ_t at t = {t:g}")
+    axes[1].legend(loc="upper right", fontsize=8)
+    labels = ["xyz"[i] for i in keep]
+    for ax in axes:
+        ax.set_aspect("equal")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

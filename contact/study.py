@@ -74,6 +74,7 @@ OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
 
 _SOLVER = SCENE["solver"].schema
 _ADAPT = SCENE["adapt"].schema
+_FRICTION = SCENE["friction"].schema
 
 #: axis name -> the Field each of its values is validated with
 AXES: dict[str, Field] = {
@@ -89,9 +90,24 @@ AXES: dict[str, Field] = {
     "theta": _ADAPT["theta"],
     "nested": _ADAPT["nested"],
     "level": Field("int", check=_nonnegative, doc="uniform refinements of the base mesh"),
+    "friction": _FRICTION["law"],
+    "coefficient": _FRICTION["coefficient"],
+    "threshold": _FRICTION["threshold"],
+    "c_t": _FRICTION["c_t"],
+    "kappa_t": _FRICTION["kappa_t"],
+    "friction_form": _FRICTION["form"],
+    "coulomb": _FRICTION["coulomb"],
+    "steps": Field("int", check=_positive, doc="load steps (load.steps)"),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0")
 _ADAPT_AXES = ("theta", "nested")
+#: friction axes -> keys of the scene's friction section
+_FRICTION_AXES = {"friction": "law", "coefficient": "coefficient", "threshold": "threshold", "c_t": "c_t",
+                  "kappa_t": "kappa_t", "friction_form": "form", "coulomb": "coulomb"}
+#: friction keys each law uses (the others are dropped when an axis switches the law)
+_LAW_KEYS = {"none": {"law"}, "tresca": {"law", "threshold", "c_t", "kappa_t", "form"},
+             "coulomb": {"law", "coefficient", "c_t", "kappa_t", "form", "coulomb", "fixed_point_rtol",
+                         "fixed_point_max_it"}}
 
 
 def _optional(f: Field, **changes: Any) -> Field:
@@ -321,7 +337,7 @@ def outcome(row: Mapping[str, Any]) -> str:
     reason = str(row.get("reason") or "")
     if row.get("converged") is True or reason.startswith("converged"):
         return "converged"
-    if reason == "diverged_max_it":
+    if reason.startswith("diverged") and reason.endswith("max_it"):   # Newton's or the fixed point's limit
         return "max iterations"
     if reason in ("diverged_line_search", "diverged_local_min", "diverged_tr_delta"):
         return "stalled"
@@ -366,6 +382,13 @@ def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | No
             solver[key] = params[key]
     if "linear_solver" in params:
         solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
+    if any(axis in params for axis in _FRICTION_AXES):
+        friction = {**(raw.get("friction") or {}),
+                    **{key: params[axis] for axis, key in _FRICTION_AXES.items() if axis in params}}
+        law = friction.get("law", "none")
+        raw["friction"] = {k: v for k, v in friction.items() if k in _LAW_KEYS.get(law, friction)}
+    if "steps" in params:
+        raw["load"] = {**{k: v for k, v in (raw.get("load") or {}).items() if k != "times"}, "steps": params["steps"]}
     adapt = dict(study.adapt)
     adapt.update({k: params[k] for k in _ADAPT_AXES if k in params})
     strategy = adapt.pop("strategy", None)
@@ -437,7 +460,9 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
         raw, level, adapt_opts = _plan(study, params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
-        if adapt_opts is None:
+        if _path_scene(scene.cfg):
+            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, t0)
+        elif adapt_opts is None:
             result = solve(scene, verbose=False)
             seconds = time.perf_counter() - t0
             out.update(dofs=result.dofs, levels=1, newton_iterations=result.iterations,
@@ -493,6 +518,50 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     for row in levels:
         row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
     return out, levels
+
+
+def _path_scene(cfg: Mapping) -> bool:
+    """A load path or a frictional scene: solved step by step (:mod:`contact.solvers.loadpath`)."""
+    return bool(cfg.get("load")) or (cfg.get("friction") or {}).get("law", "none") != "none"
+
+
+def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, t0: float) -> tuple[float, str]:
+    """Run a load path for :func:`run_one`: one level row per step; the run's row has the last
+    step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
+    friction, the friction ratio and the stick / slip measures) of the last step.  Returns
+    (seconds, failure text)."""
+    from .errors import solution_error
+    from .estimate import estimate
+    from .solvers.loadpath import run_load_path
+    from .surface import surface_figures
+
+    def on_step(step) -> None:
+        r = step.result
+        levels.append({"level": step.index - 1, "step": step.index, "time": step.time, "dofs": r.dofs,
+                       "newton_iterations": r.iterations, "polish_solves": 0, "converged": bool(r.converged),
+                       "reason": r.reason, **_empty_figures(study), "seconds": time.perf_counter() - t0})
+
+    path = run_load_path(scene, verbose=False, on_step=on_step, adaptive=adapt_opts is not None,
+                         adapt_options=adapt_opts)
+    seconds = time.perf_counter() - t0
+    last, its = path.steps[-1], [s.result.iterations for s in path.steps]
+    out.update(dofs=last.result.dofs, levels=len(path.steps), newton_iterations=its[-1],
+               newton_iterations_total=sum(its), polish_solves=0, polish_solves_total=0,
+               converged=path.converged, reason=last.result.reason, max_step_iterations=max(its))
+    if study.adaptive_possible:
+        out["stop"] = path.stop
+    if not path.converged:
+        return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
+    est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
+    figures = _figures(study, last.scene, last.result, est.eta, solution_error(last.scene, last.result))
+    if last.result.friction is not None:
+        surface = surface_figures(last.scene, last.result)
+        figures.update({k: surface[k] for k in ("friction_ratio", "stick_measure", "slip_measure")})
+        if "fixed_point_iterations" in last.result.friction:
+            figures["fixed_point_iterations"] = last.result.friction["fixed_point_iterations"]
+    out.update(figures)
+    levels[-1].update(figures)
+    return seconds, ""
 
 
 def _label(params: Mapping[str, Any]) -> str:

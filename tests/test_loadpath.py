@@ -126,3 +126,28 @@ def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
         assert np.max(np.abs(a - b)) <= 1e-8 * np.max(np.abs(a)), name
     assert np.array_equal(s["status"], p["status"])
     assert s["its"].max() <= 10 and p["its"].max() <= 10   # (round-off may change a count)
+
+
+def test_study_sweeps_friction_axes_and_steps():
+    """`contact study` axes for friction: the tangential form, F, the Coulomb solver and the
+    number of load steps; a load path is one row with its total and per-step Newton iterations,
+    the friction ratio and the stick measure (one level row per step)."""
+    from contact.study import load_study, run_study
+
+    study = {"name": "friction", "scene": str(ROOT / "configs" / "friction_block_2d.yaml"),
+             "set": ["mesh.cells=[20,6]"], "warmup": False,
+             "axes": {"steps": [1, 5], "coefficient": [0.3]},
+             "cases": {"hsw": {"friction_form": "hsw"}, "projection": {"friction_form": "projection"},
+                       "fixed point": {"coulomb": "fixed_point"}, "frictionless": {"friction": "none"}}}
+    assert len(load_study(study).runs()) == 4 * 2
+    rows, levels = run_study(study, verbose=False)
+    assert all(r["converged"] for r in rows)
+    for r in rows:
+        assert r["levels"] == r["steps"]
+        assert r["max_step_iterations"] <= (40 if r["case"] == "fixed point" else 10)   # (all inner solves)
+        assert r["newton_iterations_total"] == sum(lv["newton_iterations"] for lv in levels if lv["run"] == r["run"])
+        if r["case"] != "frictionless":
+            assert r["friction_ratio"] == pytest.approx(0.3, rel=1e-8)        # sliding at t = 1
+        else:
+            assert "friction_ratio" not in r or r["friction_ratio"] == ""
+    assert {r["fixed_point_iterations"] for r in rows if r["case"] == "fixed point"} != {""}

@@ -183,7 +183,7 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
 
 def test_shipped_studies_validate() -> None:
     """Every study file `make bench` runs validates; the stability study crosses its cases
-    (all seven stress cases (a)–(g)) with the five methods."""
+    (the seven stress cases (a)–(g) and the friction cases (h)–(j)) with the five methods."""
     from contact.study import load_study
 
     tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
@@ -192,7 +192,7 @@ def test_shipped_studies_validate() -> None:
         assert load_study(path).runs(), path
     stab = load_study(ROOT / "configs" / "studies" / "stability.yaml")
     assert stab.axes["method"] == ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]
-    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefg"}
+    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghij"}
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
     assert load_study(ROOT / "configs" / "studies" / "speed_accuracy_hertz.yaml").accuracy == "hertz_error"
 

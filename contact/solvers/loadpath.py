@@ -61,17 +61,20 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
 
 
 def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[Step], None] | None = None,
-                  verbose: bool | None = None, adapt_options: dict | None = None, **options: Any) -> LoadPath:
+                  verbose: bool | None = None, adaptive: bool | None = None, adapt_options: dict | None = None,
+                  **options: Any) -> LoadPath:
     """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
     after every step (the CLI writes its output there).  Stops at the first step that does
-    not converge.  ``adapt_options`` override the scene's ``adapt`` section; ``options``
-    are solver options as for :func:`contact.solve`."""
+    not converge.  ``adaptive``: run the adaptive loop (default: when the scene has an
+    ``adapt`` section), with ``adapt_options`` overriding that section; ``options`` are
+    solver options as for :func:`contact.solve`."""
     from ..adapt import adapt
 
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     times = load_times(scene.cfg)
     mode = (scene.cfg.get("load") or {}).get("adapt", "end")
-    adaptive = scene.cfg.get("adapt") is not None or adapt_options is not None
+    if adaptive is None:
+        adaptive = scene.cfg.get("adapt") is not None
     comm = scene.comm
     out, u_prev = LoadPath(), None
     for k, t in enumerate(times, start=1):
