@@ -132,14 +132,17 @@ def _run_steps(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
 
     with io.atomic_folder(outdir, comm) as tmp:
         writer = StepWriter(tmp, scene)
-        path = run_load_path(scene, on_step=writer)
-        for s in path.steps:
+
+        def on_step(s) -> None:   # one line per step as it finishes, then its files
             fr = s.result.friction
             counts = "" if fr is None else "  " + "  ".join(
                 f"{name} {comm.allreduce(int(np.sum(fr['status'] == code)))}"
                 for code, name in enumerate(("separated", "stick", "slip")))
             _say(comm, f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
                        f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}")
+            writer(s)
+
+        path = run_load_path(scene, on_step=on_step)
         if not path.converged:
             last = path.steps[-1].result
             if comm.rank == 0:

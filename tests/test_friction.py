@@ -248,3 +248,22 @@ def test_drag_across_a_symmetry_plane_is_refused():
     sets = HERTZ_SMALL["hertz_2d"] + coulomb(0.3) + ["data.u_D=[\"0.01\", \"-delta\"]"]
     with pytest.raises(contact.ConfigError, match=r"data.u_D\[0\]: moves nodes of a symmetry plane across it"):
         build_problem(contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", sets))
+
+
+def test_curved_obstacle_uses_the_rotated_frames():
+    """A rigid circle indenting a block (rotated (n, t) unknowns per node): the frames are
+    orthonormal to the nodal normals, Newton = fixed point, slipping nodes are on the cone."""
+    sets = ["mesh.cells=[40,20]", *coulomb(0.3), "output.verbose=false", 'data.u_D=["0.002", "delta"]']
+    path = ROOT / "configs" / "indentation_2d.yaml"
+    problem = build_problem(contact.load_scene(path, sets))
+    frames, normals = problem.friction.frames, problem.data["normals"]
+    assert np.max(np.abs(np.einsum("ni,nim->nm", normals, frames))) < 1e-14
+    assert np.allclose(np.linalg.norm(frames, axis=1), 1.0)
+    ssn = contact.solve(contact.load_scene(path, sets))
+    fp = contact.solve(contact.load_scene(path, sets + ["friction.coulomb=fixed_point"]))
+    assert ssn.converged and fp.converged
+    assert np.max(np.abs(ssn.u_h.x.array - fp.u_h.x.array)) <= 1e-8 * np.max(np.abs(ssn.u_h.x.array))
+    f = ssn.friction
+    slip = f["status"] == 2
+    assert slip.sum() >= 2 and (f["status"] == 1).sum() >= 2
+    assert np.allclose(np.abs(f["lambda_t"][slip, 0]), 0.3 * np.abs(f["lambda_n"][slip]), rtol=1e-9)

@@ -151,3 +151,26 @@ def test_study_sweeps_friction_axes_and_steps():
         else:
             assert "friction_ratio" not in r or r["friction_ratio"] == ""
     assert {r["fixed_point_iterations"] for r in rows if r["case"] == "fixed point"} != {""}
+
+
+@pytest.mark.parametrize("mode", ["each", "end"])
+def test_adaptive_loop_each_step_or_at_the_end(mode):
+    """load.adapt: `each` refines at every step and continues on the previous step's final mesh
+    (u_prev prolonged with it); `end` solves the first steps on the scene's mesh and refines at
+    the last.  Either way the block ends sliding (Coulomb's force law on the refined mesh)."""
+    sets = [*coulomb(0.3), 'data.u_D=["0.05*t", "-0.01"]', "mesh.cells=[20,6]", "load.steps=2",
+            f"load.adapt={mode}", "adapt.max_levels=3", "adapt.strategy=dorfler"]
+    path = run_load_path(block(*sets))
+    assert path.converged and len(path.steps) == 2
+    first, last = path.steps
+    base = block(*sets)
+    n_base = contact.solve(base).dofs
+    if mode == "each":
+        assert len(first.levels) == 3 and first.result.dofs > n_base
+        assert last.levels[0].result.dofs == first.result.dofs and last.result.dofs > first.result.dofs
+    else:
+        assert first.levels == [] and first.result.dofs == n_base
+        assert len(last.levels) == 3 and last.result.dofs > n_base
+    assert "u_prev" in last.scene.history
+    f = last.result.friction
+    assert abs(np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))

@@ -24,6 +24,11 @@ with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns 
   discrete origin, as the normal ``c: auto`` compares two lengths
   (:func:`contact.models.problem.nodal_scaling`); scaling E scales both, so it cancels.
 
+Two bodies.  The tangential unknowns are read in the solver's unknowns x of the change of
+basis u = Q x, and the frames from Q's diagonal node blocks; with the mortar basis of SPEC
+§1.5, whose slave unknowns are relative displacements (slave minus the mortar-projected
+master), x_t − x_t^prev is the relative slip and the same rows apply unchanged.
+
 Symmetry planes.  A contact node on a symmetry plane x_k = const has u_k = 0: that
 tangential component is not free, it sticks by symmetry, and friction acts on the node's
 other tangential components (none in 2D).  This is exact when the loading is symmetric
@@ -86,9 +91,7 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         frames = np.broadcast_to(np.eye(gdim)[:, t_comps], (len(nodes), gdim, len(t_comps))).copy()
     else:                            # rotated frames [n t (t2)]: the columns of Q's node blocks
         n_comp, t_comps = 0, np.arange(1, bs, dtype=np.int32)
-        _, _, values = problem.basis.getValuesCSR()
-        blocks = values.reshape(-1, bs, bs)          # u_node = F x_node, F = [n t (t2)]
-        frames = blocks[nodes][:, :, t_comps]
+        frames = node_blocks(problem.basis, bs)[nodes][:, :, t_comps]
     tangent = (nodes[:, None] * bs + t_comps[None, :]).astype(np.int32)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in problem.bcs])
     free = ~np.isin(tangent, fixed)
@@ -113,6 +116,19 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
                        x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
                        form=cfg["form"], coulomb=cfg["coulomb"],
                        fixed_point_rtol=cfg["fixed_point_rtol"], fixed_point_max_it=cfg["fixed_point_max_it"])
+
+
+def node_blocks(Q: PETSc.Mat, bs: int) -> np.ndarray:
+    """The diagonal bs×bs block of every owned node of Q (local nodes, bs, bs): for the
+    rotation u = Q x the node's frame F = [n t (t2)] (u_node = F x_node).  Entries outside
+    the node's own block (a mortar basis couples slave and master nodes) are ignored."""
+    lo, hi = Q.getOwnershipRange()
+    indptr, cols, values = Q.getValuesCSR()
+    rows = np.repeat(np.arange(hi - lo), np.diff(indptr))
+    own = cols // bs == (lo + rows) // bs
+    blocks = np.zeros(((hi - lo) // bs, bs, bs))
+    blocks[rows[own] // bs, rows[own] % bs, cols[own] % bs] = values[own]
+    return blocks
 
 
 def previous_tangential(problem: DiscreteProblem, tangent: np.ndarray, u_prev: fem.Function | None) -> np.ndarray:

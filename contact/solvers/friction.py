@@ -46,10 +46,11 @@ projection's element 2-cycles: from a frictionless initial guess the projection 
 every node between sliding left and right (the linear all-slip problem it solves moves the
 block the other way), HSW's element turns such a node back to stick (Newton steps from the
 frictionless solution of a partial-slip drag: hsw 8, projection no convergence in 50).
-A node with |z| ≥ (1 − 10⁻⁸) ρ, ρ > 0, counts as slipping (``SLIP_TIE``): a node that ended
+A node with |z| ≥ (1 − 10⁻¹¹) ρ, ρ > 0, counts as slipping (``SLIP_TIE``): a node that ended
 the previous load step on the friction bound starts the next one (s = 0, z = μ_t^prev)
 sliding on in the same direction.  With the exact tie rule round-off in |μ_t^prev| − ρ
-decided, and a steadily sliding block took 8 Newton steps per load step instead of 1.  For Coulomb,
+decided, and a steadily sliding block took 8 Newton steps per load step instead of 1
+(10⁻⁸, 10⁻¹⁰, 10⁻¹¹ and 10⁻¹² all give 1; the tie moves λ_t by at most 10⁻¹¹ ρ).  For Coulomb,
 dρ = F·[ξ > 0] (dμ_n + σ dx_n / c) couples the tangential rows to the node's normal row
 ([ξ > 0]: 0 at ξ = 0).  With dμ_t = −dR_t / w and ds = dx_t, every contact node contributes
 a small block to
@@ -81,7 +82,7 @@ from .newton import Complementarity, set_newton
 
 FORMS = ("projection", "hsw")
 SEPARATED, STICK, SLIP = 0, 1, 2
-SLIP_TIE = 1e-8   # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
+SLIP_TIE = 1e-11   # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
 STATUS_NAMES = {SEPARATED: "separated", STICK: "stick", SLIP: "slip"}
 
 
