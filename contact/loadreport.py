@@ -107,10 +107,13 @@ def _flat(row: dict[str, Any]) -> dict[str, Any]:
 
 
 def reference_curves(scene: Scene, rows: list[dict] | None) -> list:
-    """Reference curves of the traction plot: the Hertz pressure for the computed force
-    when the scene is a Hertz scene (elastic body with a radius against a plane)."""
+    """Reference curves of the traction plot: the exact tractions of a declared exact
+    solution (``data.exact``, 2D), and the Hertz pressure for the computed force when the
+    scene is a Hertz scene (elastic body with a radius against a plane)."""
     if not rows or scene.comm.rank != 0:
         return []
+    if scene.cfg["data"]["exact"] is not None:
+        return exact_tractions(scene, rows)
     from .hertz import hertz, hertz_radius
 
     cfg = scene.cfg
@@ -128,3 +131,40 @@ def reference_curves(scene: Scene, rows: list[dict] | None) -> list:
         grid = np.linspace(0, 1, 101)
     a, p0 = hertz(R, cfg["model"]["E"], cfg["model"]["nu"], force, dim)
     return [(0, a * grid, p0 * np.sqrt(np.maximum(1 - grid**2, 0)), f"Hertz (a = {a:.3g}, p0 = {p0:.3g})")]
+
+
+def exact_tractions(scene: Scene, rows: list[dict], h: float = 1e-6) -> list:
+    """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
+    nodes (σ by central differences of ``data.exact`` with step h, n the obstacle's normal at
+    the node, t_0 as in :mod:`contact.surface`)."""
+    from . import expressions
+    from .models.elasticity import lame
+
+    cfg = scene.cfg
+    exact = cfg["data"]["exact"]
+    if scene.mesh.geometry.dim != 2 or not isinstance(exact, list):
+        return []
+    rows = sorted(rows, key=lambda r: r["position"])
+    X = np.array([[r["x"], r["y"], 0.0] for r in rows]).T
+    u = [expressions.to_numpy(e, cfg["constants"], t=scene.time) for e in exact]
+    grad = np.empty((X.shape[1], 2, 2))
+    for j in range(2):
+        e = np.zeros((3, 1))
+        e[j] = h
+        for i in range(2):
+            grad[:, i, j] = (u[i](X + e) - u[i](X - e)) / (2 * h)
+    mu, lmbda = lame(cfg["model"]["E"], cfg["model"]["nu"])
+    eps = 0.5 * (grad + grad.transpose(0, 2, 1))
+    sigma = 2 * mu * eps + lmbda * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
+    obstacle = cfg["obstacle"]
+    if obstacle["type"] == "plane":
+        n = np.tile(-np.asarray(obstacle["normal"], float) / np.linalg.norm(obstacle["normal"]), (X.shape[1], 1))
+    else:
+        d = np.asarray(obstacle["center"], float)[:, None] - X[:2]
+        n = (d / np.linalg.norm(d, axis=0)).T
+    T = np.einsum("nij,nj->ni", sigma, n)
+    lam_n = np.einsum("ni,ni->n", T, n)
+    n0 = n[int(np.argmin([abs(r["position"]) for r in rows]))]
+    lam_t = (T - lam_n[:, None] * n) @ np.array([-n0[1], n0[0]])
+    x = np.array([r["position"] for r in rows])
+    return [(0, x, -lam_n, "exact solution"), (1, x, lam_t, "exact solution")]

@@ -5,8 +5,8 @@ coordinates, its position along Γ_C, the contact pressure λ_n,i ≤ 0 (stress)
 and for friction the tangential traction λ_t,i on the body (stress, a vector in global
 axes), the friction bound ρ_i, the slip increment s_t,i of the load step (length) and the
 status separated / stick / slip.  Position: in 2D the signed distance from the first point
-of contact x_0 (smallest initial gap; the centre of the nodes that share it, e.g. of a flat
-face on a plane) along the tangent t_0 = (−n_y, n_x) of the obstacle's normal there
+of contact x_0 (smallest initial gap; the w-weighted centre of the nodes that share it, e.g.
+of a flat face on a plane) along the tangent t_0 = (−n_y, n_x) of the obstacle's normal there
 (for a plane y = 0 with the body above: the x coordinate); in 3D the distance from x_0 in
 the tangent plane.
 
@@ -41,7 +41,7 @@ def nodal_surface(scene: Scene, result: Result) -> dict:
     gdim, bs = scene.mesh.geometry.dim, p.V.dofmap.index_map_bs
     X = p.V.tabulate_dof_coordinates()[con.dofs // bs, :gdim]
     n0 = np.asarray(p.data["n"], dtype=float)
-    rel = X - contact_origin(comm, X, con.sign * con.g)
+    rel = X - contact_origin(comm, X, con.sign * con.g, con.w)
     if gdim == 2:
         position = rel @ np.array([-n0[1], n0[0]])
     else:
@@ -61,14 +61,15 @@ def nodal_surface(scene: Scene, result: Result) -> dict:
     return out
 
 
-def contact_origin(comm: MPI.Comm, X: np.ndarray, gap: np.ndarray) -> np.ndarray:
-    """The first point of contact: the node of smallest initial gap, or the centroid of all
-    nodes that share it (a flat face on a plane: its centre), over all ranks."""
+def contact_origin(comm: MPI.Comm, X: np.ndarray, gap: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The first point of contact: the node of smallest initial gap, or the w-weighted
+    centroid Σ w_i x_i / Σ w_i of all nodes that share it (a flat face on a plane: its centre,
+    whatever the mesh), over all ranks."""
     lowest = comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)
     scale = max(1.0, comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX))
-    tied = X[gap <= lowest + 1e-12 * scale]
-    total = comm.allreduce(tied.sum(axis=0) if len(tied) else np.zeros(X.shape[1]), op=MPI.SUM)
-    return total / comm.allreduce(len(tied), op=MPI.SUM)
+    tied = gap <= lowest + 1e-12 * scale
+    total = comm.allreduce(w[tied] @ X[tied] if tied.any() else np.zeros(X.shape[1]), op=MPI.SUM)
+    return total / comm.allreduce(float(w[tied].sum()), op=MPI.SUM)
 
 
 def surface_rows(scene: Scene, result: Result) -> list[dict] | None:

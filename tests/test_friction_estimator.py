@@ -15,6 +15,7 @@ from dolfinx import fem
 from contact import expressions
 from contact.errors import solution_error
 from contact.models.elasticity import lame, stress
+from contact.loadreport import exact_tractions
 from contact.surface import surface_rows
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -81,6 +82,15 @@ def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
     rates = -np.diff(np.log(errors)) / np.diff(np.log(dofs))
     assert np.all(rates > 0.48), rates                      # O(h) = O(N^{-1/2})
     assert errors[-1] < 0.017
+    # the nodal multipliers against the exact tractions (the reference curves of traction.png)
+    rows = surface_rows(scene, r)
+    if scene.comm.rank == 0:
+        (_, x, p_exact, _), (_, _, t_exact, _) = exact_tractions(scene, rows)
+        rows = sorted(rows, key=lambda q: q["position"])
+        assert np.allclose(x, [q["position"] for q in rows]) and x[0] == pytest.approx(-0.5)
+        assert np.max(np.abs(p_exact + np.array([q["lambda_n"] for q in rows]))) < 0.02 * np.max(p_exact)
+        assert np.max(np.abs(t_exact - np.array([q["lambda_t"] for q in rows]))) < 0.02 * np.max(np.abs(t_exact))
+        assert np.allclose(t_exact, -0.5 * lame(1.0, 0.3)[0], rtol=1e-6)          # λ_t = −μα
 
 
 def test_dorfler_adaptive_rate_and_effectivity_band():
