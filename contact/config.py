@@ -498,19 +498,22 @@ def _check_time(cfg: dict) -> None:
 
 def _check_friction(cfg: dict, data: Mapping) -> None:
     """Friction needs elastic contact, and the keys of its law (Tresca: a threshold;
-    Coulomb: a coefficient); PETSc's VI solvers cannot solve it."""
+    Coulomb: a coefficient, and not the other law's keys); PETSc's VI solvers cannot solve it.
+    ``law: none`` ignores the other keys."""
     fr = cfg.get("friction")
     if fr is None:
         return
     given = {k for k, v in (data.get("friction") or {}).items() if v is not None}
     law = fr["law"]
-    if law != "none" and cfg["model"]["type"] != "elasticity":
+    if law == "none":   # frictionless: the other keys are ignored (--set friction.law=none switches it off)
+        return
+    if cfg["model"]["type"] != "elasticity":
         raise ConfigError(f"friction.law: {law} friction needs model type elasticity "
                           f"(a {cfg['model']['type']} scene has no tangential direction)")
     need = {"tresca": "threshold", "coulomb": "coefficient"}.get(law)
     if need is not None and fr[need] is None:
         raise ConfigError(f"friction.{need}: required for friction law {law}")
-    unused = sorted(given - {"law", need} - ({"c_t", "kappa_t", "form"} if law != "none" else set())
+    unused = sorted(given - {"law", need, "c_t", "kappa_t", "form"}
                     - ({"coulomb", "fixed_point_rtol", "fixed_point_max_it"} if law == "coulomb" else set()))
     if unused:
         raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")

@@ -12,6 +12,8 @@ Writes, into ``--out``:
 * ``forms.csv`` — the tangential forms (hsw, projection) with the normal NCPs fb / min /
   blend on four scenes, one step from a cold start and from the frictionless solution;
 * ``steps.csv`` — Newton iterations per load step against the number of steps;
+* ``cost.csv`` — milliseconds per Newton step in Φ / H (block against diagonal) and in the
+  linear solve;
 * ``manufactured.csv`` — the manufactured Tresca solution: uniform and Dörfler refinement,
   error, η and effectivity per level;
 * ``traction_block_2d.png``, ``traction_cylinder_2d.png``, ``traction_box_3d.png``.
@@ -29,6 +31,7 @@ import numpy as np
 import contact
 from contact import io
 from contact.errors import solution_error
+from contact.models import build_problem
 from contact.plots import plot_traction
 from contact.surface import surface_figures, surface_rows
 
@@ -81,6 +84,30 @@ def coulomb_vs_fixed_point(quick: bool) -> list[dict]:
               f"{row['fixed_point_iterations']} Tresca solves / {fp.iterations} Newton its {t_fp:.2f} s, "
               f"difference {row['u_difference']:.1e}", flush=True)
         rows.append(row)
+    return rows
+
+
+# ------------------------------------------------------------------ cost of the block Jacobian
+def jacobian_cost(quick: bool) -> list[dict]:
+    """Time per Newton step in the callbacks (Φ and H: for friction H = B K + D by one sparse
+    product and one axpy, frictionless H = diag(s) K + diag(d)) and in the linear solve, for the
+    frictionless law, Coulomb with F = 0 (the block path on the same equations) and F = 0.3."""
+    cases = {"block_2d": ("friction_block_2d", ["load.steps=1", "mesh.cells=[160,40]" if quick else "mesh.cells=[320,80]"]),
+             "hertz_3d": ("hertz_3d", [])}
+    rows = []
+    for label, (name, sets) in cases.items():
+        for law, extra in (("frictionless", ["friction.law=none"]),
+                           ("coulomb F=0", ["friction.law=coulomb", "friction.coefficient=0"]),
+                           ("coulomb F=0.3", ["friction.law=coulomb", "friction.coefficient=0.3"])):
+            sc = scene(name, *sets, *extra, "solver.method=min")
+            problem = build_problem(sc)
+            r = contact.solve(sc, problem=problem)
+            n = max(r.iterations, 1)
+            rows.append({"scene": label, "law": law, "dofs": r.dofs, "newton_iterations": r.iterations,
+                         "callbacks_ms_per_step": round(1e3 * r.timings["assembly"] / n, 2),
+                         "linear_solve_ms_per_step": round(1e3 * r.timings["solve"] / n, 2)})
+            print(f"cost: {label} {law}: {rows[-1]['callbacks_ms_per_step']} ms callbacks, "
+                  f"{rows[-1]['linear_solve_ms_per_step']} ms linear solve per Newton step", flush=True)
     return rows
 
 
@@ -245,6 +272,7 @@ def main() -> None:
     write(out / "steps.csv", step_rows)
     write(out / "acceptance.csv", acceptance(args.quick, cvf, mms, step_rows))
     write(out / "forms.csv", forms(args.quick))
+    write(out / "cost.csv", jacobian_cost(args.quick))
     pictures(out, args.quick)
     print(f"bench_friction: {time.perf_counter() - t0:.0f} s", flush=True)
 
