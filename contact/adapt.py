@@ -253,6 +253,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if index + 1 >= opts["max_levels"]:
             out.stop = f"reached max_levels = {opts['max_levels']}"
             break
+        if opts["strategy"] == "none":
+            out.stop = "strategy none: one solve"
+            break
         t0 = time.perf_counter()
         cells = mark(est.eta_T, opts["strategy"], opts["theta"])
         seconds["mark"] = time.perf_counter() - t0

@@ -138,28 +138,47 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     plt.close(fig)
 
 
-def plot_pressure(path: str | Path, res: dict, title: str = "") -> None:
-    """Computed contact pressure −λ_n against the in-plane distance from the first point of
-    contact, with the Hertz profile p0 √(1 − ρ²/a²) for the computed total force."""
+def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, title: str = "") -> None:
+    """The contact pressure −λ_n (elasticity) or flux −λ (scalar) at the contact nodes along
+    Γ_C: against the arc length s (2D) or the distance r from the first point of contact
+    (3D), active nodes filled; with a declared reference (``comparison``,
+    :class:`contact.reference.Comparison`) against its position axis, with its curves."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    name = "contact pressure −λ_n" if value == "lambda_n" else "contact flux −λ"
+    if comparison is not None:
+        prof = comparison.profile
+        reach = max([c[0].max() for c in comparison.curves] + [m[0] for m in comparison.marks] + [0.0])
+        keep = prof[:, 0] <= 2.0 * reach if reach > 0 else slice(None)
+        ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label=f"computed {name} (nodal)")
+        for x, y, label in comparison.curves:
+            ax.plot(x, y, "k-", label=label)
+        for x, label in comparison.marks:
+            ax.axvline(x, color="C1", ls="--", lw=1, label=label)
+        ax.set_xlabel(comparison.xlabel)
+        extra = ", ".join(f"{k} {100 * v:+.2f}%" for k, v in comparison.errors.items())
+        title = f"{title}\n{extra}" if extra else title
+    else:
+        pos = "s" if "s" in table else "r"
+        x, y, act = table[pos], -table[value], table["active"] > 0
+        ax.plot(x, y, "-", color="C0", lw=0.8, alpha=0.6)
+        ax.plot(x[act], y[act], "o", ms=3.5, color="C3", label=f"active ({int(act.sum())} nodes)")
+        ax.plot(x[~act], y[~act], "o", ms=3.5, mfc="none", color="C0", label=f"inactive ({int((~act).sum())})")
+        ax.set_xlabel("arc length s along Γ_C (scene length unit)" if pos == "s"
+                      else "distance r from the first point of contact (scene length unit)")
+    ax.set_ylabel(name)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    prof = np.asarray(res["pressure_profile"])
-    a_H, p0_H = res["hertz_a"], res["hertz_p0"]
-    a = res.get("contact_half_width", res.get("contact_radius"))
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    keep = prof[:, 0] <= 2.0 * a_H
-    ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label="computed −λ_n (nodal)")
-    rho = np.linspace(0, a_H, 200)
-    ax.plot(rho, p0_H * np.sqrt(1 - (rho / a_H) ** 2), "k-", label=f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")
-    ax.axvline(a, color="C1", ls="--", lw=1, label=f"computed a = {a:.4g} ({100 * res['a_error']:+.1f}%)")
-    ax.set_xlabel("distance from the first point of contact ρ")
-    ax.set_ylabel("contact pressure")
-    ax.set_title(title + f"\npeak {res['peak_pressure']:.4g} ({100 * res['p0_error']:+.1f}% vs Hertz)")
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return plt
