@@ -66,13 +66,23 @@ def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     """r, theta about the first point of contact in the plane ⟂ n (collective)."""
     p = result.problem
     con = p.constraint
-    n = np.asarray(p.data["n"], dtype=float) if "n" in p.data else _mean_normal(scene)
+    n = contact_normal(scene, result)
     origin = first_contact_point(scene.comm, X, con.sign * con.g)
     t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(n, t1)
     rel = X - origin
     return {"r": np.hypot(rel @ t1, rel @ t2), "theta": np.arctan2(rel @ t2, rel @ t1)}
+
+
+def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
+    """The unit normal from the body towards the obstacle (collective): elasticity, the
+    contact normal at the first point of contact; scalar Signorini, the mean outward normal
+    of Γ_C; None for an obstacle in Ω."""
+    p = result.problem
+    if p.in_domain:
+        return None
+    return np.asarray(p.data["n"], dtype=float) if "n" in p.data else _mean_normal(scene)
 
 
 def _mean_normal(scene: Scene) -> np.ndarray:

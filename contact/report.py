@@ -113,6 +113,21 @@ def cell_fields(scene: Scene, result: Result) -> list:
     return [von_mises(result.u_h, result.problem.data["mu"], result.problem.data["lmbda_L"])]
 
 
+def _view_normal(scene: Scene, result: Result):
+    """The direction 3D pictures look along (from the obstacle's side), None in 2D."""
+    if scene.mesh.geometry.dim != 3:
+        return None
+    from .contactdata import contact_normal
+
+    return contact_normal(scene, result)
+
+
+def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
+    """solution.png: u_h with the active set (3D: and the contact zone with λ_h)."""
+    plots.plot_solution(path, result.u_h, result.active, title=title, lmbda=result.lmbda_h,
+                        normal=_view_normal(scene, result))
+
+
 def write_contact(folder: Path, scene: Scene, result: Result, comparison: Comparison | None) -> None:
     """``contact.csv`` (:mod:`contact.contactdata`) and, for a contact boundary Γ_C (not an
     obstacle in Ω), ``pressure.png`` (collective)."""
@@ -139,8 +154,8 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
             write_vtu(tmp / "solution.vtu", point_fields(result), cell_fields(scene, result))
         io.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg["png"]:
-            plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
-                                title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
+            plot_solution(tmp / "solution.png", scene, result,
+                          title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
         write_contact(tmp, scene, result, comparison)
         _finish(tmp, info, comm)
     return info
@@ -217,9 +232,10 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
             plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")
         for lv in picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3)):
             plots.plot_mesh(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
-                            title=f"level {lv.index}, {lv.result.dofs} DoFs")
-        plots.plot_solution(tmp / "solution.png", last.result.u_h, last.result.active,
-                            title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
+                            title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                            normal=_view_normal(lv.scene, lv.result), active=lv.result.active)
+        plot_solution(tmp / "solution.png", last.scene, last.result,
+                      title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
     write_contact(tmp, last.scene, last.result, comparison)
     _finish(tmp, info, comm)
     return info
