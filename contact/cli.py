@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import NoReturn
 
@@ -50,8 +51,19 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints them."""
+    from .surfaces import ContactWarning
+
+    if issubclass(category, ContactWarning):
+        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    warnings.showwarning = _one_line_warning
     comm = MPI.COMM_WORLD
     try:
         return _study(args, comm) if args.command == "study" else _run(args, comm)

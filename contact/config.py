@@ -107,6 +107,12 @@ def _point_list(v: Any) -> str | None:
     return None
 
 
+def _numbers(v: Any, lengths: tuple[int, ...]) -> str | None:
+    ok = len(v) in lengths and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                                   for c in v)
+    return None if ok else f"expected {' or '.join(map(str, lengths))} finite numbers, got {v!r}"
+
+
 def _expression_list(v: Any) -> str | None:
     if not isinstance(v, list):
         return f"expected a list of expressions, one per coordinate, got {_typename(v)} {v!r}"
@@ -128,6 +134,13 @@ BOUNDARY = Field("dict", schema={
                       "symmetry (elasticity: zero normal displacement on a plane x_k = const)"),
     "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
     "tag": Field("int", None, doc="gmsh physical tag of the facets"),
+    "surface": Field("dict", None, schema={
+        "type": Field("str", choices=("circle", "sphere", "cylinder")),
+        "center": Field("list", check=lambda v: _numbers(v, (2, 3))),
+        "radius": Field("number", check=_positive),
+        "axis": Field("list", None, check=lambda v: _numbers(v, (3,))),
+    }, doc="the exact curve / surface the part lies on (circle 2D; sphere, cylinder 3D): "
+           "refinement moves the part's new vertices onto it"),
 })
 
 SCENE: dict[str, Field] = {

@@ -30,7 +30,6 @@ import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
-from .models.obstacles import first_contact_point
 from .scene import Scene
 from .solvers import Result, owned_residual
 
@@ -64,6 +63,8 @@ def contact_columns(scene: Scene, result: Result) -> Table:
 
 def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     """r, theta about the first point of contact in the plane ⟂ n (collective)."""
+    from .models.obstacles import first_contact_point
+
     p = result.problem
     con = p.constraint
     n = contact_normal(scene, result)
