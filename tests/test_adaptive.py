@@ -44,7 +44,7 @@ def test_two_ranks_give_same_levels_as_serial(tmp_path, strategy):
 
 def test_adaptive_loop_converges_on_problem_A():
     """Dörfler on SPEC problem A: error ~ N^{-1/2} and a steady effectivity (small version of
-    the benchmark in demos/bench_adaptive.py)."""
+    the benchmark in demos/bench/bench_adaptive.py)."""
     scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
     rows = adapt(scene, method="min", max_levels=9, verbose=False).rows
     N = np.array([r["dofs"] for r in rows], dtype=float)

@@ -223,7 +223,7 @@ def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 
     which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
     for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from
     u = 0: 130 s against 45 s, 10 steps either way; nested 5 steps against 3 —
-    ``python demos/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
+    ``python demos/bench/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
     cold-start scene signorini_square sets κ = 100.
     """
     diag = K.getDiagonal()

@@ -5,10 +5,10 @@ on the final mesh of the fb run, every method from a cold start and from the nes
 with the scene's default linear solver (MUMPS in 2D, BiCGStab + GAMG with the rigid-body
 near-nullspace in 3D), and fb from a cold start with the other one.  Writes CSV.
 
-    python demos/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
-    python demos/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
+    python demos/bench/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
+    python demos/bench/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
                                                           on the 3D mesh)
-    python demos/bench_hertz.py --set solver.kappa=100 --out bench/hertz_kappa100
+    python demos/bench/bench_hertz.py --set solver.kappa=100 --out bench/hertz_kappa100
                                                          (scene overrides, as contact run --set)
 """
 from __future__ import annotations
