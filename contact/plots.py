@@ -36,6 +36,20 @@ def _triangulation(grid):
     return mtri.Triangulation(grid.points[:, 0], grid.points[:, 1], cells)
 
 
+def _aspect(grid) -> float:
+    """Height over width of a 2D grid, kept within [0.3, 1.2] for the figure size."""
+    width, height = np.ptp(grid.points[:, :2], axis=0)
+    return float(np.clip(height / width, 0.3, 1.2)) if width > 0 else 1.0
+
+
+def _colorbar(fig, mappable, ax, label: str) -> None:
+    """A colour bar as tall as the axes, its label beside the ticks."""
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+    cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
+    fig.colorbar(mappable, cax=cax, label=label)
+
+
 def _axes_2d(ax, title: str) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("x (scene length unit)")
@@ -62,15 +76,16 @@ def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | No
         return _solution_3d(path, grid, u_h, lmbda, normal, title)
     plt = _pyplot()
     tri = _triangulation(grid)
-    fig, ax = plt.subplots(figsize=(8.5, 6.5))
+    fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
     shade = ax.tripcolor(tri, _magnitude(grid.point_data[u_h.name]), shading="gouraud", cmap="viridis")
     if grid.n_cells <= MAX_EDGES:
         ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
     pts = _active_points(grid)
     if len(pts):
-        ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3, label=f"active nodes ({len(pts)})")
+        ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3 if len(pts) < 300 else 1.2, alpha=0.8,
+                label=f"active nodes ({len(pts)})")
         ax.legend(loc="best", fontsize=8)
-    fig.colorbar(shade, ax=ax, shrink=0.8, label=_field_label(u_h))
+    _colorbar(fig, shade, ax, _field_label(u_h))
     _axes_2d(ax, title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -89,7 +104,7 @@ def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: i
         return _mesh_3d(path, grid, title, normal)
     plt = _pyplot()
     tri = _triangulation(grid)
-    fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 6))
+    fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
     if grid.n_cells <= max_edges:
         ax_m.triplot(tri, color="k", lw=0.3)
         _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
@@ -97,10 +112,10 @@ def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: i
         xy = grid.points[tri.triangles][:, :, :2]
         h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
         shade = ax_m.tripcolor(tri, facecolors=np.log10(h), cmap="magma")
-        fig.colorbar(shade, ax=ax_m, shrink=0.8, label="cell size log10 h_T")
+        _colorbar(fig, shade, ax_m, "cell size log10 h_T")
         _axes_2d(ax_m, f"cell size: {grid.n_cells} cells")
     shade = ax_u.tripcolor(tri, _magnitude(grid.point_data[u_h.name]), shading="gouraud", cmap="viridis")
-    fig.colorbar(shade, ax=ax_u, shrink=0.8, label=_field_label(u_h))
+    _colorbar(fig, shade, ax_u, _field_label(u_h))
     _axes_2d(ax_u, _field_label(u_h))
     fig.suptitle(title)
     fig.tight_layout()
