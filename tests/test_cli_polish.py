@@ -59,3 +59,8 @@ def test_adapt_none_in_python_is_one_level():
     res = contact.adapt(scene, strategy="none")
     assert len(res.levels) == 1 and res.stop == "strategy none: one solve"
     assert contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["adapt=none"]).cfg["adapt"] is None
+
+
+def test_output_xdmf_is_a_one_line_error_naming_the_replacement():
+    with pytest.raises(contact.ConfigError, match=r"^output.xdmf: XDMF output was replaced by VTK files .*use output.vtk$"):
+        contact.load_scene(ROOT / "configs" / "signorini_square.yaml", ["output.xdmf=true"])
