@@ -163,8 +163,9 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
 
 def _finish(tmp: Path, info: dict, comm: MPI.Comm) -> None:
     """Write summary.json, listing every file of the folder (itself included)."""
-    names = sorted(p.name for p in tmp.iterdir()) if comm.rank == 0 else None
-    info["files"] = sorted(set(comm.bcast(names, root=0)) | {"summary.json"})
+    names = [p.name for p in tmp.iterdir()] if comm.rank == 0 else None
+    natural = lambda name: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]  # noqa: E731
+    info["files"] = sorted(set(comm.bcast(names, root=0)) | {"summary.json"}, key=natural)
     io.write_json(tmp / "summary.json", info, comm)
 
 

@@ -171,7 +171,7 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     assert its == [int(r["newton_iterations"]) for r in conv]
     assert [levels.count(k) for k in range(3)] == [n + 1 for n in its]
     assert summary["dofs_per_level"] == [int(r["dofs"]) for r in conv]
-    assert summary["files"] == sorted(files)
+    assert set(summary["files"]) == set(files)
     wrote = proc.stdout.splitlines()[-1]
     assert "solution_000…002.vtu" in wrote and all(n in wrote for n in files if not n.endswith(".vtu"))
     headers = [line for line in proc.stdout.splitlines() if line.split()[:2] == ["level", "DoFs"]]
