@@ -24,8 +24,8 @@ from dolfinx import mesh as dmesh
 from .config import SCENE, _validate
 from .errors import solution_error
 from .estimate import Estimate, estimate
-from .geometry import curved_boundary
 from .meshes import Boundary
+from .surfaces import boundary_surfaces, warn_undeclared_curves
 from .scene import Scene
 from .models import build_problem
 from .solvers import Result, solve, solves_text
@@ -81,8 +81,10 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
            ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
-    move the vertices on a curved boundary onto the exact surface
-    (:func:`contact.geometry.curved_boundary`; other meshes keep dolfinx's midpoints).
+    move the vertices of a curved boundary part onto its exact surface
+    (:func:`contact.surfaces.boundary_surfaces`: the built-in Hertz meshes and parts that
+    declare a ``surface``; other parts keep dolfinx's midpoints — a gmsh contact part that
+    looks curved gets a one-line warning).
     The refined scene keeps the pseudo-time, and the functions of ``scene.history`` (a
     load step's state from the previous step) are prolonged with u_h.
 
@@ -101,8 +103,8 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
                   time=scene.time, history=history)
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
-    surface = curved_boundary(scene.cfg)
-    if surface is not None:
+    warn_undeclared_curves(scene)
+    for surface in boundary_surfaces(scene):
         surface.snap(new, tags)
     return child, u0
 
@@ -255,6 +257,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             break
         if index + 1 >= opts["max_levels"]:
             out.stop = f"reached max_levels = {opts['max_levels']}"
+            break
+        if opts["strategy"] == "none":
+            out.stop = "strategy none: one solve"
             break
         t0 = time.perf_counter()
         cells = mark(est.eta_T, opts["strategy"], opts["theta"])

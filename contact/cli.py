@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 import time
+import warnings
 from pathlib import Path
 from typing import NoReturn
 
@@ -28,6 +29,7 @@ class _Parser(argparse.ArgumentParser):
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
+    p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve one scene and write its output folder")
     run.add_argument("scene", help="scene YAML file (see configs/)")
@@ -39,6 +41,9 @@ def _parser() -> argparse.ArgumentParser:
                                          "and write study.csv and speed_accuracy.png")
     study.add_argument("study", help="study YAML file (see configs/studies/)")
     study.add_argument("-o", "--output", help="output folder (default: results/studies/<study name>)")
+    study.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a key of the study's scene (after the study's own 'set'), "
+                            "e.g. --set mesh.cells=[32,32] (repeatable)")
     study.add_argument("-q", "--quiet", action="store_true", help="no per-run progress")
     return p
 
@@ -48,8 +53,19 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints them."""
+    from .surfaces import ContactWarning
+
+    if issubclass(category, ContactWarning):
+        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    warnings.showwarning = _one_line_warning
     comm = MPI.COMM_WORLD
     try:
         return _study(args, comm) if args.command == "study" else _run(args, comm)
@@ -71,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from . import load_scene, solve
-    from .report import write_run
+    from .report import files_text, write_run
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
@@ -94,15 +110,15 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
                   f"{result.iterations} iterations, last |Phi| = {result.residual:.3e}; nothing written",
                   file=sys.stderr, flush=True)
         return 1
-    write_run(outdir, scene, result, wall=time.perf_counter() - t0)
-    _say(comm, f"contact: wrote {outdir}/ (solution.xdmf, summary.json, history.csv, solution.png)")
+    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return 0
 
 
 def _run_adaptive(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
     from . import io
     from .adapt import adapt, format_table
-    from .report import level_writer, write_adaptive
+    from .report import files_text, level_writer, write_adaptive
 
     a = scene.cfg["adapt"]
     _say(comm, f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
@@ -116,11 +132,11 @@ def _run_adaptive(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
                       f"({last.reason}), last |Phi| = {last.residual:.3e}; nothing written",
                       file=sys.stderr, flush=True)
             raise _Failed()
-        write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0)
+        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0)
     _say(comm, f"contact: stopped: {result.stop}")
-    _say(comm, format_table(result.rows))
-    _say(comm, f"contact: wrote {outdir}/ (level_*.xdmf for ParaView, convergence.csv, "
-               f"convergence.png, mesh_level_*.png, solution.png, summary.json)")
+    if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
+        _say(comm, format_table(result.rows))
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return 0
 
 
@@ -128,6 +144,7 @@ def _run_steps(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
     """A load path (or a frictional scene, one step at t = 1): per-step output."""
     from . import io
     from .loadreport import StepWriter
+    from .report import files_text
     from .solvers.loadpath import run_load_path
 
     with io.atomic_folder(outdir, comm) as tmp:
@@ -149,9 +166,8 @@ def _run_steps(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
                 print(f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; nothing written",
                       file=sys.stderr, flush=True)
             raise _Failed()
-        writer.finish(path, wall=time.perf_counter() - t0)
-    _say(comm, f"contact: wrote {outdir}/ (step_*.xdmf for ParaView, contact_step_*.csv, steps.csv, "
-               f"contact.csv, traction.png, summary.json, solution.png)")
+        info = writer.finish(path, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return 0
 
 
@@ -159,10 +175,16 @@ def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
     from .study import load_study, run_study
 
-    study = load_study(args.study)
+    study = load_study(args.study, overrides=args.overrides)
     outdir = Path(args.output) if args.output else Path("results") / "studies" / study.name
     run_study(study, outdir, comm=comm, verbose=not args.quiet)
     return 0
+
+
+def _version() -> str:
+    from . import __version__
+
+    return f"contact {__version__}"
 
 
 class _Failed(Exception):

@@ -1,20 +1,22 @@
 """The output folder of a load path (``load:``) or a frictional run, step by step.
 
-Per step k (files numbered 001, 002, …):
+Per step k (numbered 000, 001, …):
 
-* ``step_00k.xdmf`` — u_h, λ_n (``lambda_h``), the gap, the active set and, with friction,
-  λ_t and the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off
-  Γ_C) and the friction bound ρ; cellwise the von Mises stress (and η_T when the step ran
-  the adaptive loop).  ParaView opens the numbered files as one series over the steps;
-* ``contact_step_00k.csv`` — one row per contact node along Γ_C
-  (:func:`contact.surface.surface_rows`: position, λ_n, λ_t, gap, slip, bound, status).
+* ``solution_00k.vtu`` in the series ``solution.pvd`` (time value t_k; each step may have its
+  own mesh) — u_h, λ_n (``lambda_h``), the gap, the active set and, with friction, λ_t and
+  the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off Γ_C) and
+  the friction bound ρ; cellwise the von Mises stress (and η_T after an adaptive step);
+* ``contact_step_00k.csv`` — one row per contact node along Γ_C (:mod:`contact.contactdata`
+  with the friction columns of :mod:`contact.surface`: s or r, λ_n, λ_t, gap, slip, bound,
+  status).
 
 After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations, the
 resultants and zone measures of :func:`contact.surface.surface_figures`, η), ``summary.json``
-(the run, with the same figures per step under ``steps``), ``contact.csv`` (the last
-step's surface), ``traction.png`` (λ_n and λ_t along Γ_C, every step), ``solution.png``,
-``history.csv`` (the last step's Newton iterations) and, when steps ran the adaptive loop,
-``convergence.csv`` (one row per level, with its step).
+(the run, with the same figures per step under ``steps``), ``contact.csv`` and
+``pressure.png`` of the last step (:func:`contact.report.write_contact`), ``traction.png``
+(λ_n and λ_t along Γ_C at every step, with the declared reference's or the exact solution's
+curves), ``solution.png``, ``history.csv`` (every step's Newton iterations) and, when steps
+ran the adaptive loop, ``convergence.csv`` (one row per level, with its step).
 """
 from __future__ import annotations
 
@@ -25,11 +27,14 @@ from typing import Any
 import numpy as np
 
 from . import io, plots
+from .contactdata import Table, contact_table, write_table
 from .estimate import estimate
-from .report import cell_fields
+from .reference import compare
+from .report import _finish, cell_fields, plot_solution, point_fields, write_contact
 from .scene import Scene
+from .series import Series
 from .solvers.loadpath import LoadPath, Step
-from .surface import surface_figures, surface_functions, surface_rows
+from .surface import surface_figures, surface_functions
 
 
 class StepWriter:
@@ -38,30 +43,36 @@ class StepWriter:
 
     def __init__(self, tmp: Path, scene: Scene):
         self.tmp, self.scene = tmp, scene
+        self.series = Series(tmp, "solution", scene.comm)
         self.rows: list[dict[str, Any]] = []
-        self.surfaces: list[tuple[float, list[dict]]] = []
+        self.tables: list[tuple[float, Table]] = []
         self.levels: list[dict[str, Any]] = []
+        self.history: list[dict[str, Any]] = []
 
     def __call__(self, step: Step) -> None:
         r, scene, k = step.result, step.scene, step.index
+        self.history += [{"step": k, **h} for h in r.history]
         if not r.converged:
             return
         est = step.levels[-1].estimate if step.levels else estimate(scene, r)
         row = {"step": k, "time": step.time, "dofs": r.dofs, "newton_iterations": r.iterations,
                "converged": r.converged, "reason": r.reason, "eta": est.eta, "seconds": round(step.seconds, 4)}
-        if r.friction is not None and "fixed_point_iterations" in r.friction:
-            row["fixed_point_iterations"] = r.friction["fixed_point_iterations"]
-        row.update(surface_figures(scene, r))
+        table = contact_table(scene, r)
+        if r.friction is not None:
+            if "fixed_point_iterations" in r.friction:
+                row["fixed_point_iterations"] = r.friction["fixed_point_iterations"]
+            row.update(surface_figures(scene, r, table))
+        else:
+            row["contact_force"] = r.contact_force
         self.rows.append(row)
-        for lv in step.levels:
-            self.levels.append({"step": k, "time": step.time, **lv.row()})
-        rows = surface_rows(scene, r)
-        self.surfaces.append((step.time, rows))
-        io.write_csv(self.tmp / f"contact_step_{k:03d}.csv", rows or [], scene.comm)
-        if scene.cfg["output"]["xdmf"]:
-            nodal = [r.u_h, r.lmbda_h, r.gap, r.active] + (surface_functions(r) if r.friction is not None else [])
-            io.write_xdmf(self.tmp / f"step_{k:03d}.xdmf", nodal, t=step.time,
-                          cells=[*cell_fields(scene, r), *([est.eta_T] if step.levels else [])])
+        self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
+        self.tables.append((step.time, table))
+        if scene.comm.rank == 0:
+            write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
+        if scene.cfg["output"]["vtk"]:
+            nodal = point_fields(r) + (surface_functions(r) if r.friction is not None else [])
+            self.series.write(step.time, nodal, [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])],
+                              field_data={"step": k, "dofs": r.dofs})
 
     def finish(self, path: LoadPath, wall: float | None = None) -> dict[str, Any]:
         """The run's files after the last step; returns the summary."""
@@ -69,29 +80,48 @@ class StepWriter:
         last = path.steps[-1]
         r = last.result
         io.write_csv(tmp / "steps.csv", [_flat(row) for row in self.rows], comm)
-        io.write_csv(tmp / "contact.csv", self.surfaces[-1][1] or [], comm)
-        io.write_csv(tmp / "history.csv", r.history, comm)
+        io.write_csv(tmp / "history.csv", self.history, comm)
         if self.levels:
             io.write_csv(tmp / "convergence.csv", self.levels, comm)
+        comparison = compare(last.scene, r)
+        write_contact(tmp, last.scene, r, comparison)
         friction = (self.scene.cfg.get("friction") or {}).get("law", "none")
+        its = [s["newton_iterations"] for s in self.rows]
         info = {"scene": self.scene.name, "model": self.scene.cfg["model"]["type"], "method": r.method,
                 "friction": friction, "steps_total": len(path.steps), "stop": path.stop,
                 "dofs": r.dofs, "mpi_ranks": comm.size, "converged": path.converged,
-                "newton_iterations": sum(s["newton_iterations"] for s in self.rows),
-                "newton_iterations_max_per_step": max(s["newton_iterations"] for s in self.rows),
+                "newton_iterations": sum(its), "newton_iterations_max_per_step": max(its),
                 "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
                 "host": platform.node(), "steps": self.rows}
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
-        io.write_json(tmp / "summary.json", info, comm)
+        if comparison is not None:
+            info["reference"] = self.scene.cfg["reference"]["type"]
+            info.update(comparison.values)
         if self.scene.cfg["output"]["png"]:
+            origin, t0 = first_contact(last.scene, r)
             if comm.rank == 0:
-                plots.plot_traction(tmp / "traction.png", self.surfaces,
+                plots.plot_traction(tmp / "traction.png", self.tables,
                                     title=f"{self.scene.name}: contact tractions ({r.dofs} DoFs)",
-                                    references=reference_curves(last.scene, self.surfaces[-1][1]))
-            plots.plot_solution(tmp / "solution.png", r.u_h, r.active,
-                                title=f"{self.scene.name}: u_h at t = {last.time:g} ({r.dofs} DoFs)")
+                                    references=reference_curves(last.scene, self.tables[-1][1], comparison,
+                                                                origin, t0))
+            plot_solution(tmp / "solution.png", last.scene, r,
+                          title=f"{self.scene.name}: u_h at t = {last.time:g} ({r.dofs} DoFs)")
+        _finish(tmp, info, comm)
         return info
+
+
+def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
+    """The first point of contact (smallest initial gap, over all ranks; collective) and, in
+    2D, the tangent t_0 of the position's sign convention."""
+    from .models.obstacles import first_contact_point
+    from .surface import tangent_2d
+
+    p = result.problem
+    con = p.constraint
+    gdim = scene.mesh.geometry.dim
+    X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
+    return first_contact_point(scene.comm, X, con.sign * con.g), (tangent_2d(result) if gdim == 2 else None)
 
 
 def _flat(row: dict[str, Any]) -> dict[str, Any]:
@@ -106,46 +136,37 @@ def _flat(row: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def reference_curves(scene: Scene, rows: list[dict] | None) -> list:
-    """Reference curves of the traction plot: the exact tractions of a declared exact
-    solution (``data.exact``, 2D), and the Hertz pressure for the computed force when the
-    scene is a Hertz scene (elastic body with a radius against a plane)."""
-    if not rows or scene.comm.rank != 0:
+def reference_curves(scene: Scene, table: Table | None, comparison=None, origin: np.ndarray | None = None,
+                     t0: np.ndarray | None = None) -> list:
+    """Reference curves of the traction plot (rank 0): the exact tractions of a declared
+    exact solution (``data.exact``, 2D), or the pressure of a declared reference
+    (``reference:``, e.g. Hertz for the computed force) on both sides of the first point of
+    contact ``origin`` (2D; in 3D against r)."""
+    if table is None or scene.comm.rank != 0:
         return []
     if scene.cfg["data"]["exact"] is not None:
-        return exact_tractions(scene, rows)
-    from .hertz import hertz, hertz_radius
-
-    cfg = scene.cfg
-    R = hertz_radius(cfg)
-    if R is None or (cfg.get("obstacle") or {}).get("type") != "plane":
+        return exact_tractions(scene, table, t0)
+    if comparison is None or not comparison.curves:
         return []
-    dim = scene.mesh.geometry.dim
-    lam = np.array([r["lambda_n"] for r in rows])
-    w = np.array([r["weight"] for r in rows])
-    copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
-    force = copies * float(np.sum(-w * lam))
-    if dim == 2 and copies == 1:       # a full cylinder: the profile on both sides
-        grid = np.linspace(-1, 1, 201)
-    else:
-        grid = np.linspace(0, 1, 101)
-    a, p0 = hertz(R, cfg["model"]["E"], cfg["model"]["nu"], force, dim)
-    return [(0, a * grid, p0 * np.sqrt(np.maximum(1 - grid**2, 0)), f"Hertz (a = {a:.3g}, p0 = {p0:.3g})")]
+    if "s" not in table:
+        return [(0, x, y, label) for x, y, label in comparison.curves]
+    X = np.c_[table["x"], table["y"]]
+    s0 = float(table["s"][int(np.argmin(np.linalg.norm(X - origin[:2], axis=1)))])
+    return [(0, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label) for x, y, label in comparison.curves]
 
 
-def exact_tractions(scene: Scene, rows: list[dict], h: float = 1e-6) -> list:
+def exact_tractions(scene: Scene, table: Table, t0: np.ndarray, h: float = 1e-6) -> list:
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
-    nodes (σ by central differences of ``data.exact`` with step h, n the obstacle's normal at
-    the node, t_0 as in :mod:`contact.surface`)."""
+    nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
+    obstacle's normal at the node, t_0 of :func:`contact.surface.tangent_2d`)."""
     from . import expressions
     from .models.elasticity import lame
 
     cfg = scene.cfg
     exact = cfg["data"]["exact"]
-    if scene.mesh.geometry.dim != 2 or not isinstance(exact, list):
+    if scene.mesh.geometry.dim != 2 or not isinstance(exact, list) or "s" not in table:
         return []
-    rows = sorted(rows, key=lambda r: r["position"])
-    X = np.array([[r["x"], r["y"], 0.0] for r in rows]).T
+    X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
     u = [expressions.to_numpy(e, cfg["constants"], t=scene.time) for e in exact]
     grad = np.empty((X.shape[1], 2, 2))
     for j in range(2):
@@ -164,7 +185,5 @@ def exact_tractions(scene: Scene, rows: list[dict], h: float = 1e-6) -> list:
         n = (d / np.linalg.norm(d, axis=0)).T
     T = np.einsum("nij,nj->ni", sigma, n)
     lam_n = np.einsum("ni,ni->n", T, n)
-    n0 = n[int(np.argmin([abs(r["position"]) for r in rows]))]
-    lam_t = (T - lam_n[:, None] * n) @ np.array([-n0[1], n0[0]])
-    x = np.array([r["position"] for r in rows])
-    return [(0, x, -lam_n, "exact solution"), (1, x, lam_t, "exact solution")]
+    lam_t = (T - lam_n[:, None] * n) @ t0
+    return [(0, table["s"], -lam_n, "exact solution"), (1, table["s"], lam_t, "exact solution")]

@@ -66,6 +66,10 @@ def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tu
     ``overrides`` are ``"key.path=value"`` strings as given to ``contact run --set``.
     Raises :class:`contact.ConfigError` with a one-line message on any bad input.
     """
+    from .surfaces import boundary_surfaces
+
     cfg = load_config(source, overrides)
     msh, file_tags = build_mesh(cfg, comm)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
+    scene = Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
+    boundary_surfaces(scene)  # a declared surface that does not fit the mesh is bad input now
+    return scene

@@ -25,22 +25,28 @@
 # (a sequence of problems with a given bound) giving the same solution; and a picture of
 # the tractions along $\Gamma_C$ at every step.
 #
-# Run it with `python demos/demo_friction.py` (about 10 s); `--cells 40 10` makes it smaller.
+# Run it with `python demos/demo_friction.py [N]` (N × N/4 cells, N = 80 by default; a few
+# seconds, also under `mpirun -n 2`).  It prints the steps, Coulomb's force law at full
+# sliding and the fixed-point check, and writes `demo_friction.png`.
 
 # +
-import argparse
-from pathlib import Path
+import sys
 
 import numpy as np
+from mpi4py import MPI
 
 import contact
+from contact.contactdata import contact_table
 from contact.plots import plot_traction
-from contact.surface import surface_figures, surface_rows
+from contact.surface import surface_figures
 
-parser = argparse.ArgumentParser(description="Coulomb friction demo: a block pressed and dragged")
-parser.add_argument("--cells", type=int, nargs=2, default=[80, 20], help="mesh cells in x and y")
-parser.add_argument("--out", default="results/demo_friction", help="folder of traction.png")
-args = parser.parse_args()
+N = int(sys.argv[1]) if len(sys.argv) > 1 else 80
+comm = MPI.COMM_WORLD
+
+
+def say(*args):
+    if comm.rank == 0:
+        print(*args, flush=True)
 # -
 
 # ## The scene
@@ -54,7 +60,7 @@ args = parser.parse_args()
 scene_data = {
     "name": "demo_friction",
     "constants": {"delta": 0.01, "drag": 0.04},
-    "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 0.5]], "cells": args.cells},
+    "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 0.5]], "cells": [N, N // 4]},
     "boundaries": {"bottom": {"role": "contact", "where": "y < 1e-10"},
                    "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"}},
     "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
@@ -78,16 +84,15 @@ scene = contact.load_scene(scene_data)
 
 # +
 path = contact.run_load_path(scene)
-print(" step     t  Newton   stick   slip   F_t / F_n")
+say(" step     t  Newton   stick   slip   F_t / F_n")
 for step in path.steps:
     fig = surface_figures(step.scene, step.result)
-    print(f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
-          f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}")
-last = path.steps[-1].result
-fig = surface_figures(path.steps[-1].scene, last)
-print(f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
-      f"the support's reaction balances the contact force to "
-      f"{abs(fig['reaction_force'][0] + fig['contact_force'][0]):.1e}")
+    say(f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
+        f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}")
+fig = surface_figures(path.steps[-1].scene, path.steps[-1].result)
+say(f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
+    f"the support's reaction balances the contact force to "
+    f"{abs(fig['reaction_force'][0] + fig['contact_force'][0]):.1e}")
 # -
 
 # ## An independent check: the fixed point on the pressure
@@ -98,30 +103,28 @@ print(f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f}
 # in one step here (from u = 0 to t = 1) and reach the same solution.
 
 # +
-sliding = contact.load_scene({**scene_data, "load": {"steps": 1}})
-newton = contact.solve(sliding)
+newton = contact.solve(contact.load_scene({**scene_data, "load": {"steps": 1}}))
 fixed = contact.solve(contact.load_scene({**scene_data, "load": {"steps": 1},
                                           "friction": {"law": "coulomb", "coefficient": 0.3,
                                                        "coulomb": "fixed_point"}}))
-diff = np.max(np.abs(newton.u_h.x.array - fixed.u_h.x.array)) / np.max(np.abs(newton.u_h.x.array))
-print(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
-      f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton iterations); "
-      f"max |u_newton - u_fixed| / max |u| = {diff:.1e}")
+diff = comm.allreduce(float(np.max(np.abs(newton.u_h.x.array - fixed.u_h.x.array))), op=MPI.MAX)
+diff /= comm.allreduce(float(np.max(np.abs(newton.u_h.x.array))), op=MPI.MAX)
+say(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
+    f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton iterations); "
+    f"max |u_newton - u_fixed| / max |u| = {diff:.1e}")
 # -
 
 # ## The tractions along Γ_C
 #
-# `traction.png`: the pressure $-\lambda_n$ and the tangential traction $\lambda_t$ along
-# the bottom at every step (colour = $t$), the friction bound $\pm\rho$ of the last step
-# dashed, slipping nodes circled.  `contact run configs/friction_block_2d.yaml` writes the
-# same picture with per-step XDMF and CSV files.
+# `demo_friction.png`: the pressure $-\lambda_n$ and the tangential traction $\lambda_t$
+# along the bottom (against the arc length s from its left end) at every step (colour = $t$),
+# the friction bound $\pm\rho$ of the last step dashed, slipping nodes circled.
+# `contact run configs/friction_block_2d.yaml` writes the same picture as `traction.png`,
+# with the VTK series of the steps and a contact CSV per step.
 
 # +
-out = Path(args.out)
-if scene.comm.rank == 0:
-    out.mkdir(parents=True, exist_ok=True)
-rows = [(step.time, surface_rows(step.scene, step.result)) for step in path.steps]
-if scene.comm.rank == 0:
-    plot_traction(out / "traction.png", rows, title="demo_friction: tractions along the bottom")
-    print(f"wrote {out / 'traction.png'}")
+tables = [(step.time, contact_table(step.scene, step.result)) for step in path.steps]
+if comm.rank == 0:
+    plot_traction("demo_friction.png", tables, title="demo_friction: tractions along the bottom")
+say("wrote demo_friction.png")
 # -

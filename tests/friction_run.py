@@ -14,7 +14,8 @@ from mpi4py import MPI
 import contact
 from contact.io import gather_nodal
 from contact.solvers.loadpath import run_load_path
-from contact.surface import STATUS, surface_rows
+from contact.contactdata import contact_table
+from contact.surface import STATUS
 
 
 def main(argv):
@@ -24,13 +25,15 @@ def main(argv):
     run = run_load_path(scene)
     last = run.steps[-1]
     X, u = gather_nodal(last.result.u_h)
-    rows = surface_rows(last.scene, last.result)
+    table = contact_table(last.scene, last.result)
     if MPI.COMM_WORLD.rank == 0:
-        cols = [k for k in rows[0] if k != "status"]
+        order = np.lexsort([np.round(table[c], 12) for c in "zyx" if c in table])   # rank-independent
+        table = {k: np.asarray(v)[order] for k, v in table.items()}
+        cols = [k for k in table if k != "status"]
         np.savez(out, X=X, u=u, its=np.array([s.result.iterations for s in run.steps]),
                  converged=np.array([s.result.converged for s in run.steps]),
-                 surface=np.array([[r[k] for k in cols] for r in rows]), columns=np.array(cols),
-                 status=np.array([STATUS.index(r["status"]) for r in rows]))
+                 surface=np.column_stack([np.asarray(table[k], dtype=float) for k in cols]), columns=np.array(cols),
+                 status=np.array([STATUS.index(v) for v in table["status"]]))
 
 
 if __name__ == "__main__":

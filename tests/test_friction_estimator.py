@@ -15,8 +15,9 @@ from dolfinx import fem
 from contact import expressions
 from contact.errors import solution_error
 from contact.models.elasticity import lame, stress
+from contact.contactdata import contact_table
 from contact.loadreport import exact_tractions
-from contact.surface import surface_rows
+from contact.surface import tangent_2d
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "configs" / "friction_tresca_manufactured.yaml"
@@ -60,11 +61,10 @@ def test_manufactured_data_are_those_of_the_exact_solution():
 
 
 def _status_exact(scene, result, distance):
-    rows = surface_rows(scene, result)
+    table = contact_table(scene, result)
     if scene.comm.rank != 0:
         return True
-    x = np.array([r["x"] for r in rows])
-    status = np.array([r["status"] for r in rows])
+    x, status = table["x"], table["status"]
     far = np.abs(x - 0.5) >= distance
     return bool(np.all(status[far & (x < 0.5)] == "stick") and np.all(status[far & (x > 0.5)] == "slip")
                 and far.sum() >= 0.6 * len(x))
@@ -83,13 +83,12 @@ def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
     assert np.all(rates > 0.48), rates                      # O(h) = O(N^{-1/2})
     assert errors[-1] < 0.017
     # the nodal multipliers against the exact tractions (the reference curves of traction.png)
-    rows = surface_rows(scene, r)
+    table = contact_table(scene, r)
     if scene.comm.rank == 0:
-        (_, x, p_exact, _), (_, _, t_exact, _) = exact_tractions(scene, rows)
-        rows = sorted(rows, key=lambda q: q["position"])
-        assert np.allclose(x, [q["position"] for q in rows]) and x[0] == pytest.approx(-0.5)
-        assert np.max(np.abs(p_exact + np.array([q["lambda_n"] for q in rows]))) < 0.02 * np.max(p_exact)
-        assert np.max(np.abs(t_exact - np.array([q["lambda_t"] for q in rows]))) < 0.02 * np.max(np.abs(t_exact))
+        (_, s, p_exact, _), (_, _, t_exact, _) = exact_tractions(scene, table, tangent_2d(r))
+        assert np.allclose(s, table["x"]) and s[0] == pytest.approx(0.0)     # the arc length along y = 0
+        assert np.max(np.abs(p_exact + table["lambda_n"])) < 0.02 * np.max(p_exact)
+        assert np.max(np.abs(t_exact - table["lambda_t"])) < 0.02 * np.max(np.abs(t_exact))
         assert np.allclose(t_exact, -0.5 * lame(1.0, 0.3)[0], rtol=1e-6)          # λ_t = −μα
 
 

@@ -65,9 +65,11 @@ def test_pulled_block_slip_accumulates_over_the_steps():
 
 
 def test_run_writes_every_step(tmp_path):
-    """`contact run` of a 3-step Coulomb drag: per-step XDMF and contact CSV, steps.csv with the
-    resultants (contact force = −reaction, tangential = F × normal when sliding), summary.json
-    with the steps, traction.png."""
+    """`contact run` of a 3-step Coulomb drag: the VTK series solution.pvd over the steps (read
+    back with pyvista: λ_t, slip, status, bound per step), a contact CSV per step, steps.csv with
+    the resultants (contact force = −reaction, tangential = F × normal when sliding),
+    summary.json with the steps, contact.csv, pressure.png and traction.png."""
+    import pyvista
     import yaml
 
     scene = {**BLOCK, "data": {"u_D": ["0.05*t", "-0.01"]}, "friction": {"law": "coulomb", "coefficient": 0.3},
@@ -79,8 +81,15 @@ def test_run_writes_every_step(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
-    assert {"steps.csv", "summary.json", "contact.csv", "traction.png", "solution.png", "history.csv"} <= names
-    assert {f"step_00{k}.xdmf" for k in (1, 2, 3)} | {f"contact_step_00{k}.csv" for k in (1, 2, 3)} <= names
+    assert {"steps.csv", "summary.json", "contact.csv", "pressure.png", "traction.png", "solution.png",
+            "history.csv", "solution.pvd"} <= names
+    assert {f"solution_00{k}.vtu" for k in (0, 1, 2)} | {f"contact_step_00{k}.csv" for k in (0, 1, 2)} <= names
+    reader = pyvista.get_reader(str(out / "solution.pvd"))
+    assert reader.time_values == pytest.approx([1 / 3, 2 / 3, 1.0])
+    reader.set_active_time_value(reader.time_values[-1])
+    grid = reader.read()[0]
+    assert {"u_h", "lambda_h", "lambda_t", "slip", "status", "bound"} <= set(grid.point_data.keys())
+    assert set(np.unique(grid.point_data["status"])) <= {-1.0, 0.0, 2.0}     # off Γ_C, separated, slip
     steps = list(csv.DictReader(open(out / "steps.csv")))
     assert [float(s["time"]) for s in steps] == pytest.approx([1 / 3, 2 / 3, 1.0])
     for s in steps:
@@ -90,11 +99,12 @@ def test_run_writes_every_step(tmp_path):
     assert float(last["friction_ratio"]) == pytest.approx(0.3, rel=1e-8) and int(last["stick_nodes"]) == 0
     rows = list(csv.DictReader(open(out / "contact.csv")))
     assert len(rows) == 41 and {r["status"] for r in rows} <= {"slip", "separated"}
-    xs = [float(r["position"]) for r in rows]
-    assert xs == sorted(xs) and xs[0] == pytest.approx(-1.0) and xs[-1] == pytest.approx(1.0)
+    s_ = [float(r["s"]) for r in rows]
+    assert s_ == sorted(s_) and s_[0] == pytest.approx(0.0) and s_[-1] == pytest.approx(2.0)
+    assert {"lambda_t", "slip", "bound", "lambda_t_norm", "slip_norm", "weight"} <= set(rows[0])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["steps_total"] == 3 and len(summary["steps"]) == 3 and summary["friction"] == "coulomb"
-    assert summary["newton_iterations_max_per_step"] <= 10
+    assert summary["newton_iterations_max_per_step"] <= 10 and "solution.pvd" in summary["files"]
 
 
 MPIRUN = Path(sys.executable).parent / "mpirun"

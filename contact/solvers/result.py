@@ -20,7 +20,9 @@ REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if 
 class Result:
     """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
     ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
-    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show."""
+    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show.
+    ``contact_force`` is the resultant contact force summed over all ranks
+    (:meth:`contact.models.DiscreteProblem.contact_force`), the same number on every rank."""
 
     u_h: fem.Function
     lmbda_h: fem.Function
@@ -38,6 +40,7 @@ class Result:
     active_mask: np.ndarray
     options: dict = field(default_factory=dict)
     polish_solves: int = 0
+    contact_force: float = 0.0
     friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
 
     @property
@@ -86,4 +89,5 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
                   iterations=snes.getIterationNumber(),
                   residual=history[-1]["residual"] if history else float("nan"),
                   method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
-                  timings=timers, problem=problem, active_mask=active, options=opts)
+                  timings=timers, problem=problem, active_mask=active, options=opts,
+                  contact_force=problem.contact_force(r))

@@ -33,7 +33,8 @@ from contact import io
 from contact.errors import solution_error
 from contact.models import build_problem
 from contact.plots import plot_traction
-from contact.surface import surface_figures, surface_rows
+from contact.contactdata import contact_table
+from contact.surface import surface_figures
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = ROOT / "configs"
@@ -179,9 +180,8 @@ def manufactured(quick: bool) -> tuple[list[dict], dict]:
     eff = [r["effectivity"] for r in ada]
     # stick / slip status on the finest adaptive mesh, away from the transition x0 = 0.5
     lv = run.levels[-1]
-    srows = surface_rows(lv.scene, lv.result)
-    x = np.array([q["x"] for q in srows])
-    status = np.array([q["status"] for q in srows])
+    table = contact_table(lv.scene, lv.result)
+    x, status = table["x"], table["status"]
     far = np.abs(x - 0.5) >= 0.1
     wrong = int(np.sum(far & (x < 0.5) & (status != "stick")) + np.sum(far & (x > 0.5) & (status != "slip")))
     summary = {"uniform_rate": rate_u, "adaptive_rate": rate_a, "effectivity_band": max(eff) / min(eff),
@@ -250,7 +250,7 @@ def pictures(out: Path, quick: bool) -> None:
                        ("friction_box_3d", ["mesh.cells=[8,8,4]"] if quick else [])):
         sc = scene(name, *sets)
         path = contact.run_load_path(sc)
-        data = [(s.time, surface_rows(s.scene, s.result)) for s in path.steps]
+        data = [(s.time, contact_table(s.scene, s.result)) for s in path.steps]
         target = out / f"traction_{name.removeprefix('friction_')}.png"
         plot_traction(target, data, title=f"{name}: contact tractions ({path.steps[-1].result.dofs} DoFs)")
         print(f"wrote {target}", flush=True)
