@@ -168,7 +168,3 @@ def tangential_vector(fs: FrictionSet, values: np.ndarray) -> np.ndarray:
     """Nodal tangential components (n, m) → vectors in global axes (n, gdim): Σ_j v_j t_j."""
     return np.einsum("nij,nj->ni", fs.frames, np.where(fs.free, values, 0.0))
 
-
-def as_petsc_array(values: np.ndarray) -> np.ndarray:
-    """A contiguous float array in PETSc's scalar type."""
-    return np.ascontiguousarray(values, dtype=PETSc.ScalarType)

@@ -35,6 +35,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
     ``polish``, ``rtol``, ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
     ``u0`` is an initial guess (default: the scene's ``solver.u0``, zero by default).
+    A frictional scene (``friction.law`` tresca / coulomb; fb, min or blend only) adds the
+    tangential rows of :mod:`contact.solvers.friction` (no polishing) and returns the nodal
+    friction fields in ``Result.friction``; ``friction.coulomb: fixed_point`` solves a
+    sequence of Tresca problems instead (:func:`~contact.solvers.friction.coulomb_fixed_point`).
     """
     opts = solver_options(scene, method=method, **options)
     method = opts["method"]
