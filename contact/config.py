@@ -107,6 +107,18 @@ def _point_list(v: Any) -> str | None:
     return None
 
 
+def folder_name(v: str) -> str | None:
+    """A name that becomes one folder (``results/<name>``): no path separator, not ``.``,
+    no ``..``, at most 100 characters."""
+    if not v.strip():
+        return "must not be empty"
+    if any(c in v for c in "/\\\0") or ".." in v or v.strip() == ".":
+        return f"must be a plain folder name (no '/', '\\' or '..'), got {v!r}"
+    if len(v) > 100:
+        return f"must be at most 100 characters, got {len(v)}"
+    return None
+
+
 def _expression_list(v: Any) -> str | None:
     if not isinstance(v, list):
         return f"expected a list of expressions, one per coordinate, got {_typename(v)} {v!r}"
@@ -131,7 +143,7 @@ BOUNDARY = Field("dict", schema={
 })
 
 SCENE: dict[str, Field] = {
-    "name": Field("str", None),
+    "name": Field("str", None, check=folder_name, doc="the default output folder results/<name>"),
     "mesh": Field("dict", schema={
         "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh",
                                                    "quarter_disk", "sphere_octant")),

@@ -125,8 +125,11 @@ def level_writer(tmp: Path, scene: Scene):
     return write
 
 
-def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None) -> dict:
-    """After the loop: convergence.csv/.png, mesh pictures, and the final level's files."""
+def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
+                   failure: dict | None = None) -> dict:
+    """After the loop: convergence.csv/.png, mesh pictures, and the final level's files.
+    ``failure`` (a run that failed on the level after the last of ``adaptive``) is added
+    to summary.json: ``converged: false``, ``failed_level``, ``failed_reason``."""
     comm = scene.comm
     rows = adaptive.rows
     io.write_csv(tmp / "convergence.csv", rows, comm)
@@ -134,7 +137,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     res = resultants(last.scene, last.result)
     info = summary(last.scene, last.result, wall, res)
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
-                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy")})
+                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy"), **(failure or {})})
     io.write_csv(tmp / "history.csv", last.result.history, comm)
     if scene.cfg["output"]["png"]:
         if comm.rank == 0:

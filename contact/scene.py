@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 from dolfinx import mesh as dmesh
 
-from .config import load_config
+from .config import ConfigError, load_config
 from .meshes import Boundary, build_mesh, tag_boundaries
 
 
@@ -40,6 +40,16 @@ def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tu
     ``overrides`` are ``"key.path=value"`` strings as given to ``contact run --set``.
     Raises :class:`contact.ConfigError` with a one-line message on any bad input.
     """
-    cfg = load_config(source, overrides)
+    if isinstance(source, bool) or not isinstance(source, (str, Path, Mapping)):
+        raise ConfigError(f"source: expected a scene file path or a mapping, got {type(source).__name__}")
+    if isinstance(overrides, (str, bytes)) or not isinstance(overrides, (list, tuple)) \
+            or not all(isinstance(o, str) for o in overrides):
+        raise ConfigError(f"overrides: expected a list of 'key.path=value' strings, got {overrides!r:.80}")
+    return build_scene(load_config(source, overrides), comm)
+
+
+def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
+    """The scene of a validated config (:func:`contact.config.load_config`): its mesh and
+    tagged boundary."""
     msh, file_tags = build_mesh(cfg, comm)
     return Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))

@@ -59,7 +59,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 from mpi4py import MPI
 
-from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate,
+from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate, folder_name,
                      _validate_mapping, apply_overrides, load_config, read_yaml)
 from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
@@ -112,7 +112,7 @@ def _charts(v: list) -> str | None:
 
 
 STUDY: dict[str, Field] = {
-    "name": Field("str", None),
+    "name": Field("str", None, check=folder_name),
     "scene": Field("any", check=_scene_ref, doc="scene YAML, relative to the study file"),
     "set": Field("list", [], doc="overrides of the base scene, as contact run --set"),
     "axes": Field("any", None, doc="axis name -> list of values (validated by AXES)"),
@@ -583,7 +583,8 @@ def mark_pareto(rows: list[dict], key: str) -> None:
 
 
 def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = None, *,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True) -> tuple[list[dict], list[dict]]:
+              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True,
+              label: str | None = None) -> tuple[list[dict], list[dict]]:
     """Validate and run a study (YAML path, mapping or :class:`Study`); return its rows and
     its level rows.
 
@@ -596,6 +597,8 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     from . import charts, io
 
     study = load_study(source)
+    if outdir is not None:  # refuse a folder it may not write before any run (ConfigError)
+        io.check_output(outdir, label or f"outdir {outdir}", comm)
     n = len(study.runs()) * study.repeat
     if verbose and comm.rank == 0:
         print(f"contact: study {study.name!r}: {n} run(s) on {study.scene}, {comm.size} MPI rank(s)", flush=True)
@@ -606,7 +609,7 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     mark_pareto(rows, study.accuracy)
     mark_pareto(level_rows, study.accuracy)
     if outdir is not None:
-        with io.atomic_folder(outdir, comm) as tmp:
+        with io.atomic_folder(outdir, comm, label) as tmp:
             io.write_csv(tmp / "study.csv", rows, comm)
             io.write_csv(tmp / "levels.csv", level_rows, comm)
             io.write_json(tmp / "study.json", study.as_dict(), comm)

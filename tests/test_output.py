@@ -32,7 +32,7 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     proc = _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[24,20]"], nproc)
     assert proc.returncode == 0, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["solution.xdmf", "solution.h5", "summary.json", "history.csv", "solution.png"])
+        [".contact-result", "solution.xdmf", "solution.h5", "summary.json", "history.csv", "solution.png"])
     n_vertices = 25 * 21
     with h5py.File(out / "solution.h5") as h5:
         assert h5["Mesh/mesh/geometry"].shape == (n_vertices, 2)

@@ -55,8 +55,8 @@ def tiny_serial(tmp_path_factory):
 
 def test_tiny_study_end_to_end(tiny_serial) -> None:
     proc, out = tiny_serial
-    assert sorted(p.name for p in out.iterdir()) == ["levels.csv", "speed_accuracy.png", "study.csv",
-                                                     "study.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".contact-result", "levels.csv", "speed_accuracy.png",
+                                                     "study.csv", "study.json"]
     assert (out / "speed_accuracy.png").stat().st_size > 10_000
     assert sorted(p.name for p in out.parent.iterdir()) == ["out"]  # no .partial / .old left over
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr

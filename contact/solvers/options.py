@@ -7,6 +7,7 @@ from typing import Any
 from petsc4py import PETSc
 
 from ..config import SCENE, ConfigError, _validate
+from ..failures import petsc_message
 from ..scene import Scene
 
 
@@ -35,11 +36,6 @@ def set_from_options(snes: PETSc.SNES) -> None:
         raise ConfigError(f"solver.petsc_options: PETSc rejected the options ({petsc_message(err)})") from None
     finally:
         PETSc.Sys.popErrorHandler()
-
-
-def petsc_message(err: PETSc.Error) -> str:
-    lines = [ln.split("]", 1)[-1].strip() for ln in str(err).strip().splitlines()]
-    return lines[-1] if lines else f"error code {err.ierr}"
 
 
 def petsc_value(val: Any) -> str:
