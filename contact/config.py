@@ -36,9 +36,67 @@ _Loader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+MAX_FILE_BYTES = 1_000_000  # a scene or study file
+MAX_YAML_NODES = 100_000    # nodes of a YAML document with its aliases expanded
+
+
+class YAMLTooLarge(yaml.YAMLError):
+    """A YAML document beyond the limits (aliases expanding too far, nesting too deep)."""
+
+
 def load_yaml(text: str) -> Any:
-    """Parse YAML text safely (no Python objects), with Python's float notation."""
-    return yaml.load(text, Loader=_Loader)
+    """Parse YAML text safely (no Python objects), with Python's float notation.
+
+    A document whose aliases expand to more than :data:`MAX_YAML_NODES` nodes (a "billion
+    laughs" bomb: a few hundred bytes that stand for 10⁹ list items), a recursive alias or
+    nesting too deep for the parser raise :class:`YAMLTooLarge` before anything is built.
+    """
+    loader = _Loader(text)
+    try:
+        try:
+            node = loader.get_single_node()
+        except RecursionError:
+            raise YAMLTooLarge("the YAML document is nested too deeply") from None
+        if node is None:
+            return None
+        _check_expansion(node, MAX_YAML_NODES)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def _check_expansion(root: yaml.Node, limit: int) -> None:
+    """Count the nodes of the document as its consumers see it (each alias expanded), one
+    visit per distinct node (sizes memoized), iteratively; refuse cycles and > limit."""
+    def children(node: yaml.Node) -> list:
+        if isinstance(node, yaml.SequenceNode):
+            return node.value
+        if isinstance(node, yaml.MappingNode):
+            return [n for pair in node.value for n in pair]
+        return []
+
+    size: dict[int, int] = {}
+    open_nodes: set[int] = set()  # the current path from the root
+    stack = [(root, False)]
+    while stack:
+        node, finished = stack.pop()
+        key = id(node)
+        if finished:
+            open_nodes.discard(key)
+            size[key] = 1 + sum(size[id(c)] for c in children(node))
+            if size[key] > limit:
+                raise YAMLTooLarge(f"the YAML document expands to more than {limit} nodes "
+                                   "(aliases * of anchors & repeat whole subtrees)")
+            continue
+        if key in size:
+            continue
+        open_nodes.add(key)
+        stack.append((node, True))
+        for child in children(node):
+            if id(child) in open_nodes:
+                raise YAMLTooLarge("the YAML document has a recursive alias (an anchor used inside itself)")
+            if id(child) not in size:
+                stack.append((child, False))
 
 
 class ConfigError(ValueError):
@@ -170,8 +228,8 @@ SCENE: dict[str, Field] = {
         "bound": Field("str", "upper", choices=("upper", "lower"),
                        doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
         "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
-        "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
-                    doc="elasticity: Poisson's ratio"),
+        "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
+                    doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 < ν < 1/2)"),
     }),
     "obstacle": Field("dict", None, schema={
         "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
@@ -298,11 +356,16 @@ def read_yaml(path: str | Path) -> dict:
     if not p.is_file():
         raise ConfigError(f"{p}: no such file")
     try:
+        if (size := p.stat().st_size) > MAX_FILE_BYTES:
+            raise ConfigError(f"{p}: the file has {size} bytes, more than the limit of {MAX_FILE_BYTES} "
+                              "for a scene or study (put meshes and data in files of their own)")
         data = load_yaml(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError as err:
         raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
     except OSError as err:
         raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
+    except YAMLTooLarge as err:
+        raise ConfigError(f"{p}: {err}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""

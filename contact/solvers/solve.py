@@ -13,6 +13,7 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
+from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
 from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene
@@ -53,7 +54,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # Initial guess with the Dirichlet values in place.
     x = problem.b.duplicate()
     if u0 is None:
+        check_data(scene, data_items("solver.u0", opts["u0"]))
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
+    else:
+        check_guess(u0, problem)
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
 
@@ -121,6 +125,21 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     for obj in (snes, x, prev["x"], J):
         obj.destroy()
     return result
+
+
+def check_guess(u0: Any, problem: DiscreteProblem) -> None:
+    """An initial guess must be a function in the problem's space (same mesh object,
+    element and layout); else one ValueError line on every rank."""
+    V = problem.V
+    if not isinstance(u0, fem.Function):
+        raise ValueError(f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}")
+    W = u0.function_space
+    local = W.mesh is not V.mesh or W.ufl_element() != V.ufl_element() or \
+        W.dofmap.index_map.size_local * W.dofmap.index_map_bs != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    if V.mesh.comm.allreduce(bool(local), op=MPI.LOR):
+        where = "another mesh" if W.mesh is not V.mesh else "another function space"
+        raise ValueError(f"u0: lives on {where} than the scene's problem; interpolate it first "
+                         "(contact.refine returns the guess on the refined mesh)")
 
 
 def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:
