@@ -7,7 +7,6 @@ import time
 from pathlib import Path
 
 import pytest
-import yaml
 from clirun import contact, error_lines, small_scene
 
 import contact as ct
