@@ -31,6 +31,9 @@ from .models import build_problem
 from .solvers import Result, solve, solves_text
 
 STRATEGIES = ("dorfler", "maximum", "uniform")
+#: indicators within this relative distance of the marking threshold count as equal to it
+#: (mirror-image cells differ by round-off that depends on the partition)
+MARK_RTOL = 1e-10
 
 
 def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COMM_WORLD) -> float:
@@ -58,10 +61,16 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
 def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> np.ndarray:
     """Owned local cell indices to refine.
 
-    * ``dorfler``: smallest set with Σ_M η_T² ≥ θ Σ η_T² (global threshold);
-    * ``maximum``: η_T ≥ θ max_T η_T (global maximum);
+    * ``dorfler``: smallest set with Σ_M η_T² ≥ θ Σ η_T² (global threshold τ), θ ∈ (0, 1];
+    * ``maximum``: η_T ≥ θ max_T η_T (global maximum), θ ∈ (0, 1];
     * ``uniform``: every cell.
+
+    Values within a relative :data:`MARK_RTOL` (1e-10) below the threshold are marked too:
+    cells that are equal up to round-off (symmetric ones, whose η_T differ by ~1e-16
+    depending on how the partition summed them) are treated alike, so the refined meshes
+    are the same on any number of MPI ranks.
     """
+    _check_mark_args(eta_T, strategy, theta)
     W = eta_T.function_space
     comm = W.mesh.comm
     n_owned = W.dofmap.index_map.size_local
@@ -70,11 +79,18 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
         return np.arange(n_owned, dtype=np.int32)
     if strategy == "maximum":
         top = comm.allreduce(float(eta.max(initial=0.0)), op=MPI.MAX)
-        return np.flatnonzero(eta >= theta * top).astype(np.int32)
-    if strategy == "dorfler":
-        tau = dorfler_threshold(eta**2, theta, comm)
-        return np.flatnonzero(eta**2 >= tau).astype(np.int32)
-    raise ValueError(f"unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+        return np.flatnonzero(eta >= theta * top * (1 - MARK_RTOL)).astype(np.int32)
+    tau = dorfler_threshold(eta**2, theta, comm)
+    return np.flatnonzero(eta**2 >= tau * (1 - MARK_RTOL)).astype(np.int32)
+
+
+def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
+    if not isinstance(eta_T, fem.Function):
+        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got {type(eta_T).__name__}")
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+    if isinstance(theta, bool) or not isinstance(theta, (int, float)) or not 0 < theta <= 1:
+        raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")
 
 
 def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None

@@ -145,6 +145,12 @@ def _c_value(v: Any) -> str | None:
     return _positive(v)
 
 
+def _max_dofs(v: Any) -> str | None:
+    if v == "auto" or isinstance(v, int) and not isinstance(v, bool) and v > 0:
+        return None
+    return f"must be 'auto' or a positive integer, got {v!r}"
+
+
 def _cells(v: Any) -> str | None:
     items = v if isinstance(v, list) else [v]
     if not items or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items):
@@ -254,6 +260,9 @@ SCENE: dict[str, Field] = {
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
         "u0": Field("expr", "0"),
+        "max_dofs": Field("any", "auto", check=_max_dofs,
+                          doc="DoF budget of one solve: auto (sized to this machine's memory, see "
+                              "contact/budget.py) or a positive integer"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "adapt": Field("dict", None, schema={

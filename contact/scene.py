@@ -13,7 +13,7 @@ from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
 from .config import ConfigError, load_config
-from .meshes import Boundary, build_mesh, tag_boundaries
+from .meshes import Boundary, build_mesh, mesh_dimension, tag_boundaries
 
 
 @dataclass
@@ -51,5 +51,21 @@ def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tu
 def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     """The scene of a validated config (:func:`contact.config.load_config`): its mesh and
     tagged boundary."""
+    from .budget import check_dofs, estimate_dofs
+
+    check_dofs(cfg, estimate_dofs(cfg), "mesh.cells", f"{cfg['mesh']['cells']} cells give")
+    gdim = mesh_dimension(cfg)  # None: a gmsh file, known once read
+    if gdim is not None:
+        _check_solver(cfg, gdim, comm)
     msh, file_tags = build_mesh(cfg, comm)
+    if gdim is None:
+        _check_solver(cfg, msh.geometry.dim, comm)
     return Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
+
+
+def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:
+    """The scene's PETSc options work with the model's default linear solver."""
+    from .solvers.linear import default_options
+    from .solvers.options import check_petsc_options
+
+    check_petsc_options(cfg["solver"]["petsc_options"], default_options(cfg["model"]["type"], gdim), comm)

@@ -20,7 +20,7 @@ REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if 
 class Result:
     """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
     ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
-    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show."""
+    solver's rule b_i − a_i > τ at the solution (``Complementarity.active_set``), the set ``active`` and ``n_active`` show."""
 
     u_h: fem.Function
     lmbda_h: fem.Function
@@ -74,7 +74,7 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
-    active = b > a
+    active = cp.active_set(a, b)
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     comm = scene.comm
     timers["total"] = time.perf_counter() - t_start

@@ -20,7 +20,7 @@ from ..scene import Scene
 from . import ncp
 from .linear import default_linear_solver
 from .newton import Complementarity, setup_newton
-from .options import petsc_value, set_from_options, solver_options
+from .options import check_petsc_options, petsc_value, set_from_options, solver_options
 from .result import Result, finish
 from .vi import setup_vi
 
@@ -65,6 +65,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
     petsc_opts = {**default_linear_solver(problem), **{str(k): v for k, v in opts["petsc_options"].items()}}
+    if options.get("petsc_options"):  # the scene's own were checked when it was loaded
+        check_petsc_options(opts["petsc_options"], default_linear_solver(problem), comm)
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher = None
     if method in ncp.METHODS:
