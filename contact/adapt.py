@@ -21,12 +21,13 @@ from mpi4py import MPI
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 
+from .budget import max_dofs
 from .config import SCENE, _validate
 from .errors import energy_error
 from .estimate import Estimate, estimate
 from .geometry import curved_boundary
 from .meshes import Boundary
-from .scene import Scene
+from .scene import Scene, require_scene
 from .models import build_problem
 from .solvers import Result, solve, solves_text
 
@@ -102,11 +103,19 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
-    the surface shifts by at most the sagitta h²/(8R) of the old edge)."""
+    the surface shifts by at most the sagitta h²/(8R) of the old edge).
+
+    ``cells`` are owned local cell indices (as :func:`mark` returns them); anything else,
+    or a ``u_h`` on another mesh, is a ValueError (on every rank)."""
+    require_scene(scene)
+    cells = _owned_cells(scene, cells)
+    if u_h is not None and (not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh):
+        raise ValueError("u_h: expected a dolfinx.fem.Function on the scene's mesh (e.g. result.u_h of "
+                         "contact.solve on this scene)")
     msh = scene.mesh
     tdim = msh.topology.dim
     msh.topology.create_entities(1)
-    edges = dmesh.compute_incident_entities(msh.topology, cells.astype(np.int32), tdim, 1)
+    edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
     new, parent_cell, parent_facet = dmesh.refine(msh, edges, option=dmesh.RefinementOption.parent_cell_and_facet)
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
@@ -117,6 +126,22 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     if surface is not None:
         surface.snap(new, tags)
     return child, u0
+
+
+def _owned_cells(scene: Scene, cells: Any) -> np.ndarray:
+    """``cells`` as int32 owned local cell indices; ValueError (collective) otherwise."""
+    arr = np.asarray(cells)
+    comm = scene.comm
+    n_owned = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
+        problem = f"expected a 1D array of integer cell indices, got {arr.dtype} with shape {arr.shape}"
+    else:
+        bad = arr[(arr < 0) | (arr >= n_owned)]
+        problem = f"{len(bad)} index(es) outside the owned cells 0 … {n_owned - 1}, e.g. {bad[0]}" if len(bad) else None
+    problems = [p for p in comm.allgather(problem) if p]
+    if problems:
+        raise ValueError(f"cells: {problems[0]} (owned local cell indices, as contact.mark returns them)")
+    return arr.astype(np.int32)
 
 
 def created_cells(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
@@ -236,6 +261,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
     """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
     called after each level is estimated (used by the CLI to write output as it goes)."""
+    require_scene(scene)
+    if on_level is not None and not callable(on_level):
+        raise ValueError(f"on_level: expected a function of one Level, got {type(on_level).__name__}")
     opts = adapt_options(scene, **options)
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     comm = scene.comm
@@ -281,6 +309,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
+            break
+        if new_dofs > (budget := max_dofs(scene.cfg)):  # the memory budget of one solve
+            out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
         scene, u0 = new_scene, new_u0
     return out

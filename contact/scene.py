@@ -33,6 +33,12 @@ class Scene:
         return self.mesh.comm
 
 
+def require_scene(scene: Any) -> None:
+    """ValueError unless ``scene`` is a :class:`Scene` (argument check of the public API)."""
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}")
+
+
 def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tuple[str, ...] = (),
                comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     """Read and validate a scene (YAML path or dict), build its mesh and tag its boundary.

@@ -61,6 +61,7 @@ from mpi4py import MPI
 
 from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate, folder_name,
                      _validate_mapping, apply_overrides, load_config, read_yaml)
+from .failures import describe, one_line
 from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -349,10 +350,6 @@ def _refine_uniformly(scene, times: int):
     return scene
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
 def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]:
     """The run's raw scene, its number of uniform refinements and its adaptive options
     (``None``: one solve)."""
@@ -484,14 +481,14 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         seconds = time.perf_counter() - t0
         out["converged"] = False
-        failure = str(err) if isinstance(err, ConfigError) else f"{type(err).__name__}: {err}"
+        failure = str(err) if isinstance(err, ConfigError) else describe(err)
         if study.adaptive_possible:
             out.setdefault("stop", "")
     out["outcome"] = "error" if failure and not out["reason"] else outcome(out)
     out["seconds"] = round(comm.allreduce(seconds, op=MPI.MAX), 4)
     out["peak_rss_mib"] = _peak_rss_mib(comm)
     out["ranks"] = comm.size
-    out["failure"] = _one_line(failure)
+    out["failure"] = one_line(failure)  # one line, at most failures.MAX_LINE characters
     for row in levels:
         row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
     return out, levels

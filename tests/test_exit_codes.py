@@ -151,3 +151,29 @@ def test_petsc_options_checked_in_the_api(options: dict, expect: str) -> None:
     with pytest.raises(ct.ConfigError, match=expect):
         ct.load_scene(str(ROOT / "configs" / "signorini_square.yaml"),
                       ["mesh.cells=[4,4]", f"solver.petsc_options={options}"])
+
+
+@pytest.mark.parametrize("ranks", [0, 2])
+def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ranks: int) -> None:
+    """Cold starts (nested: false) need 2, 4, 5 Newton steps on the uniform levels 0, 1, 2
+    of the 4×4 square; with max_it = 4 level 2 fails.  Defect 6: the two finished levels
+    are written as a complete folder, marked as failed, exit code 1."""
+    import csv
+    import json
+
+    small_scene(tmp_path / "scene.yaml", cells=4, solver__max_it=4,
+                adapt={"strategy": "uniform", "max_levels": 4, "nested": False})
+    proc = contact(tmp_path, "run", "scene.yaml", "-o", "out", "-q", ranks=ranks)
+    assert proc.returncode == 1, proc.stderr
+    assert error_lines(proc)[-1].startswith("contact: error: solver did not converge on level 2 (diverged_max_it)")
+    assert "kept levels 0-1 in out/" in error_lines(proc)[-1]
+    out = tmp_path / "out"
+    names = {p.name for p in out.iterdir()}
+    assert {"level_000.xdmf", "level_001.xdmf", "convergence.csv", "summary.json", ".contact-result"} <= names
+    assert "level_002.xdmf" not in names
+    rows = list(csv.DictReader(open(out / "convergence.csv")))
+    assert [int(r["dofs"]) for r in rows] == [25, 81]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["converged"] is False and summary["failed_level"] == 2 and summary["levels"] == 2
+    assert summary["failed_reason"] == "diverged_max_it"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]  # no temporaries left

@@ -16,7 +16,7 @@ from dolfinx import fem
 from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
 from ..models.problem import interpolate_expression, nodal_scaling
-from ..scene import Scene
+from ..scene import Scene, require_scene
 from . import ncp
 from .linear import default_linear_solver
 from .newton import Complementarity, setup_newton
@@ -36,6 +36,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     ``polish``, ``rtol``, ``atol``, ``max_it``, ``petsc_options``).  ``problem`` reuses an assembled problem,
     ``u0`` is an initial guess (default: the scene's ``solver.u0``, zero by default).
     """
+    require_scene(scene)
+    if problem is not None and problem.V.mesh is not scene.mesh:
+        raise ValueError("problem: was built for another scene's mesh")
     opts = solver_options(scene, method=method, **options)
     method = opts["method"]
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
