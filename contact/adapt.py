@@ -310,7 +310,7 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
             break
-        if new_dofs > (budget := max_dofs(scene.cfg)):  # the memory budget of one solve
+        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):  # memory budget of one solve
             out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
         scene, u0 = new_scene, new_u0

@@ -6,14 +6,26 @@ before any mesh exists (:func:`estimate_dofs`), and from the mesh itself otherwi
 files and the parametric Hertz bodies: :func:`mesh_dofs`, before assembly).  A scene with
 N > ``solver.max_dofs`` is bad input: exit code 2 naming the key, with a hint.
 
-``solver.max_dofs: auto`` (the default) is
+``solver.max_dofs: auto`` (the default) is the largest N whose predicted peak memory stays
+within MEMORY_FRACTION (1/2) of this machine's physical memory.  The prediction is the
+peak resident memory of one serial solve with the default linear solvers, measured by
+``demos/bench/bench_memory.py`` (2 cores, 24 GiB; peak RSS / DoFs at the largest size):
 
-    max_dofs = MEMORY_FRACTION × (physical memory of this machine) / BYTES_PER_DOF,
+=====================================  =========  ======================  ==============
+kind (default linear solver)           N          peak                    bytes per DoF
+=====================================  =========  ======================  ==============
+scalar 2D (MUMPS LU)                   1 050 625  2773 MiB                2767
+elasticity 2D (MUMPS LU)                 526 338  1734 MiB                3455
+elasticity 3D (BiCGStab + GAMG)        1 029 000  3468 MiB                3534
+scalar 3D (MUMPS LU)                     117 649  1760 MiB                15 684, ∝ N^{1/3}
+=====================================  =========  ======================  ==============
 
-with BYTES_PER_DOF the peak resident memory per DoF of one solve with the default linear
-solvers, measured by ``demos/bench/bench_memory.py`` (the largest of its kinds; see the
-README).  Under MPI, N counts the DoFs of all ranks and the memory is this machine's: on a
-cluster of several nodes, set ``solver.max_dofs`` yourself.
+so memory(N) = BYTES_PER_DOF · N (3600 B, rounded up from the first three), except for a
+direct (LU / Cholesky) solve in 3D, whose fill-in grows like N^{4/3} (nested dissection):
+memory(N) = BYTES_PER_DOF_3D_DIRECT · N · (N / N_REF_3D_DIRECT)^{1/3}.  On a 24 GiB machine
+that allows 3.6 M DoFs (1024² scalar and 1 M-DoF 3D elasticity fit), and 0.5 M DoFs for a 3D
+direct solve.  Under MPI, N counts the DoFs of all ranks and the memory is this machine's:
+on a cluster of several nodes, set ``solver.max_dofs`` yourself.
 """
 from __future__ import annotations
 
@@ -22,8 +34,10 @@ from typing import Any
 
 from .config import ConfigError
 
-BYTES_PER_DOF = 3000        # measured peak bytes per DoF (demos/bench/bench_memory.py)
-MEMORY_FRACTION = 0.5       # of the physical memory one solve may plan to use
+BYTES_PER_DOF = 3600              # 2D, and iterative solvers in 3D (bench_memory.py)
+BYTES_PER_DOF_3D_DIRECT = 15700   # a 3D direct solve at N_REF_3D_DIRECT DoFs ...
+N_REF_3D_DIRECT = 117649          # ... growing like N^{1/3} per DoF
+MEMORY_FRACTION = 0.5             # of the physical memory one solve may plan to use
 
 
 def physical_memory() -> int:
@@ -34,15 +48,33 @@ def physical_memory() -> int:
         return 8 * 2**30
 
 
-def default_max_dofs() -> int:
-    """``solver.max_dofs: auto`` on this machine (see the module doc)."""
-    return int(MEMORY_FRACTION * physical_memory() / BYTES_PER_DOF)
+def direct_3d(cfg: dict, gdim: int) -> bool:
+    """Whether the scene's linear solver is a direct factorization of a 3D problem."""
+    from .solvers.linear import default_options
+
+    options = {**default_options(cfg["model"]["type"], gdim), **cfg["solver"]["petsc_options"]}
+    return gdim == 3 and str(options.get("pc_type")) in ("lu", "cholesky")
 
 
-def max_dofs(cfg: dict) -> int:
+def predicted_memory(dofs: int, direct3d: bool) -> float:
+    """Predicted peak bytes of one solve with ``dofs`` DoFs (see the module doc)."""
+    if direct3d:
+        return BYTES_PER_DOF_3D_DIRECT * dofs * (dofs / N_REF_3D_DIRECT) ** (1.0 / 3.0)
+    return BYTES_PER_DOF * dofs
+
+
+def default_max_dofs(direct3d: bool = False) -> int:
+    """``solver.max_dofs: auto`` on this machine: memory(N) ≤ MEMORY_FRACTION × memory."""
+    budget = MEMORY_FRACTION * physical_memory()
+    if direct3d:  # B N^{4/3} / N_ref^{1/3} ≤ budget
+        return int((budget * N_REF_3D_DIRECT ** (1.0 / 3.0) / BYTES_PER_DOF_3D_DIRECT) ** 0.75)
+    return int(budget / BYTES_PER_DOF)
+
+
+def max_dofs(cfg: dict, gdim: int) -> int:
     """The scene's DoF budget: ``solver.max_dofs``, or :func:`default_max_dofs` for auto."""
     value = cfg["solver"].get("max_dofs", "auto")
-    return default_max_dofs() if value == "auto" else int(value)
+    return default_max_dofs(direct_3d(cfg, gdim)) if value == "auto" else int(value)
 
 
 def estimate_dofs(cfg: dict) -> int | None:
@@ -82,12 +114,14 @@ def mesh_dofs(msh: Any, degree: int, components: int) -> int:
     return nodes * components
 
 
-def check_dofs(cfg: dict, dofs: int | None, key: str, what: str) -> None:
+def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: str) -> None:
     """ConfigError ``<key>: <what> N DoFs, more than solver.max_dofs = M …`` when N > M."""
-    limit = max_dofs(cfg)
-    if dofs is None or dofs <= limit:
+    if dofs is None or gdim is None:
         return
-    gib = dofs * BYTES_PER_DOF / 2**30
-    raise ConfigError(f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (about {gib:.1f} GiB at "
-                      f"{BYTES_PER_DOF} bytes per DoF; this machine has {physical_memory() / 2**30:.0f} GiB); "
-                      f"use a coarser mesh, or --set solver.max_dofs={dofs} if it fits")
+    limit = max_dofs(cfg, gdim)
+    if dofs <= limit:
+        return
+    gib = predicted_memory(dofs, direct_3d(cfg, gdim)) / 2**30
+    raise ConfigError(f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (predicted peak memory "
+                      f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use a coarser mesh, "
+                      f"or --set solver.max_dofs={dofs} if it fits")

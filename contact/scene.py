@@ -59,8 +59,8 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     tagged boundary."""
     from .budget import check_dofs, estimate_dofs
 
-    check_dofs(cfg, estimate_dofs(cfg), "mesh.cells", f"{cfg['mesh']['cells']} cells give")
     gdim = mesh_dimension(cfg)  # None: a gmsh file, known once read
+    check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{cfg['mesh']['cells']} cells give")
     if gdim is not None:
         _check_solver(cfg, gdim, comm)
     msh, file_tags = build_mesh(cfg, comm)

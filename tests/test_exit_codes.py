@@ -177,3 +177,15 @@ def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ra
     assert summary["converged"] is False and summary["failed_level"] == 2 and summary["levels"] == 2
     assert summary["failed_reason"] == "diverged_max_it"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]  # no temporaries left
+
+
+def test_readme_documents_the_exit_codes() -> None:
+    from contact import failures
+
+    text = (ROOT / "README.md").read_text()
+    rows = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ") and
+            line.split("|")[1].strip() in ("0", "1", "2", "3")}
+    assert set(rows) == {"0", "1", "2", "3"}
+    assert "solved" in rows[str(failures.SOLVED)] and "did not converge" in rows[str(failures.NOT_CONVERGED)]
+    assert "bad input" in rows[str(failures.BAD_INPUT)] and "internal error" in rows[str(failures.INTERNAL)]
+    assert "--debug" in text and "CONTACT_DEBUG=1" in text

@@ -26,7 +26,7 @@ def build_problem(scene: "Scene") -> DiscreteProblem:
 
     cfg, msh = scene.cfg, scene.mesh
     components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1
-    check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), "mesh", "the mesh gives")
+    check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
     if scene.cfg["model"]["type"] == "elasticity":
         from .elasticity import elasticity_problem
 
