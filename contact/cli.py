@@ -23,7 +23,7 @@ from mpi4py import MPI
 from . import failures
 from .config import ConfigError
 
-AGREE_SECONDS = 2.0  # how long a failing rank waits for the others to fail too (MPI)
+AGREE_SECONDS = 5.0  # how long a failing rank waits for the others to fail too (MPI)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -26,10 +26,12 @@ def contact(cwd: Path, *args: str, ranks: int = 0, env: dict | None = None, pref
 
 
 def small_scene(path: Path, cells: int = 8, **changes) -> Path:
-    """configs/signorini_square.yaml on a ``cells`` × ``cells`` mesh, with dotted-key
-    ``changes`` (``data__f="1"`` sets data.f), written to ``path``."""
+    """configs/signorini_square.yaml on a ``cells`` × ``cells`` mesh without pictures (they
+    take most of a small run's time), with dotted-key ``changes`` (``data__f="1"`` sets
+    data.f), written to ``path``."""
     scene = copy.deepcopy(yaml.safe_load((ROOT / "configs" / "signorini_square.yaml").read_text()))
     scene["mesh"]["cells"] = [cells, cells]
+    scene.setdefault("output", {})["png"] = False
     for key, value in changes.items():
         node, parts = scene, key.split("__")
         for part in parts[:-1]:

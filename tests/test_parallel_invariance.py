@@ -29,9 +29,9 @@ if MPI.COMM_WORLD.rank == 0:
 
 @pytest.fixture(scope="module")
 def lshape_runs(tmp_path_factory) -> dict[int, list[dict]]:
-    """configs/lshape_corner.yaml, 6 adaptive levels, by the CLI on 1 and 3 ranks."""
+    """configs/lshape_corner.yaml, 6 adaptive levels, by the CLI on 1, 3 and 4 ranks."""
     out = {}
-    for ranks in (1, 3):
+    for ranks in (1, 3, 4):
         folder = tmp_path_factory.mktemp(f"lshape{ranks}")
         proc = contact(folder, "run", str(ROOT / "configs" / "lshape_corner.yaml"), "-o", "out", "-q",
                        "--set", "adapt.max_levels=6", "--set", "output.png=false", ranks=ranks)
@@ -40,14 +40,16 @@ def lshape_runs(tmp_path_factory) -> dict[int, list[dict]]:
     return out
 
 
-def test_lshape_adaptive_meshes_identical_on_1_and_3_ranks(lshape_runs) -> None:
-    one, three = lshape_runs[1], lshape_runs[3]
-    assert len(one) == len(three) == 6
-    assert [int(r["dofs"]) for r in one] == [int(r["dofs"]) for r in three]
-    assert [int(r["cells"]) for r in one] == [int(r["cells"]) for r in three]
-    eta1, eta3 = (np.array([float(r["eta"]) for r in rows]) for rows in (one, three))
-    np.testing.assert_allclose(eta3, eta1, rtol=1e-10, atol=0)
-    # the level the partition used to change (80 DoFs on 4 ranks against 78 on 1)
+@pytest.mark.parametrize("ranks", [3, 4])
+def test_lshape_adaptive_meshes_identical_on_any_number_of_ranks(lshape_runs, ranks: int) -> None:
+    one, many = lshape_runs[1], lshape_runs[ranks]
+    assert len(one) == len(many) == 6
+    assert [int(r["dofs"]) for r in one] == [int(r["dofs"]) for r in many]
+    assert [int(r["cells"]) for r in one] == [int(r["cells"]) for r in many]
+    eta1, eta_n = (np.array([float(r["eta"]) for r in rows]) for rows in (one, many))
+    np.testing.assert_allclose(eta_n, eta1, rtol=1e-10, atol=0)
+    # the level the partition used to change (80 DoFs on 4 ranks against 78 on 1): the
+    # two mirror-image cells at the threshold are now marked together
     assert int(one[1]["dofs"]) == 80
 
 
