@@ -25,8 +25,8 @@ from .budget import max_dofs
 from .config import SCENE, _validate
 from .errors import energy_error
 from .estimate import Estimate, estimate
-from .geometry import curved_boundary
 from .meshes import Boundary
+from .surfaces import boundary_surfaces, warn_undeclared_curves
 from .scene import Scene, require_scene
 from .models import build_problem
 from .solvers import Result, solve, solves_text
@@ -98,8 +98,10 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
            ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
-    move the vertices on a curved boundary onto the exact surface
-    (:func:`contact.geometry.curved_boundary`; other meshes keep dolfinx's midpoints).
+    move the vertices of a curved boundary part onto its exact surface
+    (:func:`contact.surfaces.boundary_surfaces`: the built-in Hertz meshes and parts that
+    declare a ``surface``; other parts keep dolfinx's midpoints — a gmsh contact part that
+    looks curved gets a one-line warning).
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
@@ -122,8 +124,8 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
     child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)))
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
-    surface = curved_boundary(scene.cfg)
-    if surface is not None:
+    warn_undeclared_curves(scene)
+    for surface in boundary_surfaces(scene):
         surface.snap(new, tags)
     return child, u0
 
@@ -296,6 +298,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             break
         if index + 1 >= opts["max_levels"]:
             out.stop = f"reached max_levels = {opts['max_levels']}"
+            break
+        if opts["strategy"] == "none":
+            out.stop = "strategy none: one solve"
             break
         t0 = time.perf_counter()
         cells = mark(est.eta_T, opts["strategy"], opts["theta"])

@@ -15,6 +15,7 @@ import os
 import sys
 import time
 import traceback
+import warnings
 from pathlib import Path
 from typing import NoReturn
 
@@ -38,6 +39,7 @@ _DEBUG_HELP = "print the traceback of an internal error (also: environment CONTA
 
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
+    p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve one scene and write its output folder")
     run.add_argument("scene", help="scene YAML file (see configs/)")
@@ -50,6 +52,9 @@ def _parser() -> argparse.ArgumentParser:
                                          "and write study.csv and speed_accuracy.png")
     study.add_argument("study", help="study YAML file (see configs/studies/)")
     study.add_argument("-o", "--output", help="output folder (default: results/studies/<study name>)")
+    study.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a key of the study's scene (after the study's own 'set'), "
+                            "e.g. --set mesh.cells=[32,32] (repeatable)")
     study.add_argument("-q", "--quiet", action="store_true", help="no per-run progress")
     study.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
     return p
@@ -60,8 +65,19 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints them."""
+    from .surfaces import ContactWarning
+
+    if issubclass(category, ContactWarning):
+        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    warnings.showwarning = _one_line_warning
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
@@ -106,7 +122,7 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from . import io, solve
     from .config import load_config
-    from .report import write_run
+    from .report import files_text, write_run
     from .scene import build_scene
 
     t0 = time.perf_counter()
@@ -130,8 +146,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
                   f"{result.iterations} iterations, last |Phi| = {result.residual:.3e}; nothing written",
                   file=sys.stderr, flush=True)
         return failures.NOT_CONVERGED
-    write_run(outdir, scene, result, wall=time.perf_counter() - t0)
-    _say(comm, f"contact: wrote {outdir}/ (solution.xdmf, summary.json, history.csv, solution.png)")
+    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED
 
 
@@ -152,7 +168,7 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
     from . import io
     from .adapt import AdaptResult, adapt, format_table
-    from .report import level_writer, write_adaptive
+    from .report import files_text, level_writer, write_adaptive
 
     a = scene.cfg["adapt"]
     _say(comm, f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
@@ -172,11 +188,11 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
-        write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed)
+        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: stopped: {result.stop}")
-    _say(comm, format_table(result.rows))
-    _say(comm, f"contact: wrote {outdir}/ (level_*.xdmf for ParaView, convergence.csv, "
-               f"convergence.png, mesh_level_*.png, solution.png, summary.json)")
+    if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
+        _say(comm, format_table(result.rows))
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED
 
 
@@ -184,11 +200,17 @@ def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
     from .study import load_study, run_study
 
-    study = load_study(args.study)
+    study = load_study(args.study, overrides=args.overrides)
     outdir = Path(args.output) if args.output else Path("results") / "studies" / study.name
     label = f"-o {args.output}" if args.output else f"output folder {outdir} (from name {study.name!r})"
     run_study(study, outdir, comm=comm, verbose=not args.quiet, label=label)
     return failures.SOLVED
+
+
+def _version() -> str:
+    from . import __version__
+
+    return f"contact {__version__}"
 
 
 class _Failed(Exception):

@@ -183,6 +183,12 @@ def folder_name(v: str) -> str | None:
     return None
 
 
+def _numbers(v: Any, lengths: tuple[int, ...]) -> str | None:
+    ok = len(v) in lengths and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                                   for c in v)
+    return None if ok else f"expected {' or '.join(map(str, lengths))} finite numbers, got {v!r}"
+
+
 def _expression_list(v: Any) -> str | None:
     if not isinstance(v, list):
         return f"expected a list of expressions, one per coordinate, got {_typename(v)} {v!r}"
@@ -204,6 +210,13 @@ BOUNDARY = Field("dict", schema={
                       "symmetry (elasticity: zero normal displacement on a plane x_k = const)"),
     "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
     "tag": Field("int", None, doc="gmsh physical tag of the facets"),
+    "surface": Field("dict", None, schema={
+        "type": Field("str", choices=("circle", "sphere", "cylinder")),
+        "center": Field("list", check=lambda v: _numbers(v, (2, 3))),
+        "radius": Field("number", check=_positive),
+        "axis": Field("list", None, check=lambda v: _numbers(v, (3,))),
+    }, doc="the exact curve / surface the part lies on (circle 2D; sphere, cylinder 3D): "
+           "refinement moves the part's new vertices onto it"),
 })
 
 SCENE: dict[str, Field] = {
@@ -244,6 +257,13 @@ SCENE: dict[str, Field] = {
         "center": Field("list", None, doc="circle / sphere: the centre"),
         "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
     }),
+    "reference": Field("dict", None, schema={
+        "type": Field("str", choices=("hertz",),
+                      doc="the reference solution the results are compared with (SPEC §7): hertz"),
+        "radius": Field("number", None, check=_positive,
+                        doc="hertz: the radius R of the curved body (default: mesh.radius of a "
+                            "quarter_disk / sphere_octant)"),
+    }, doc="optional: a declared reference solution; only then are its values and errors reported"),
     "constants": Field("dict", schema=None, item=Field("number")),
     "data": Field("dict", schema={
         "f": EXPRS, "k": Field("expr", "1"), "u_D": EXPRS, "t": EXPRS, "t_C": EXPR,
@@ -266,7 +286,8 @@ SCENE: dict[str, Field] = {
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "adapt": Field("dict", None, schema={
-        "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform")),
+        "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform", "none"),
+                          doc="none: one solve on the given mesh (as if there were no adapt section)"),
         "theta": Field("number", 0.5, check=_half_open_unit),
         "tol": Field("number", 0.0, check=_nonnegative),
         "max_dofs": Field("int", 200000, check=_positive),
@@ -279,7 +300,8 @@ SCENE: dict[str, Field] = {
     }),
     "output": Field("dict", schema={
         "dir": Field("str", None),
-        "xdmf": Field("bool", True),
+        "vtk": Field("bool", True, doc="write the fields as VTK: solution.vtu (one solve) or the "
+                                         "series solution.pvd (adaptive levels)"),
         "png": Field("bool", True),
         "verbose": Field("bool", True),
     }),
@@ -420,6 +442,11 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     """
     if not isinstance(data, Mapping):
         raise ConfigError(f"scene: expected a mapping, got {_typename(data)}")
+    if isinstance(data.get("output"), Mapping) and "xdmf" in data["output"]:
+        raise ConfigError("output.xdmf: XDMF output was replaced by VTK files (solution.vtu, solution.pvd) "
+                          "that ParaView and pyvista open; use output.vtk")
+    if data.get("adapt") == "none":  # adapt: none  =  no adaptive loop
+        data = {**data, "adapt": None}
     if isinstance(data.get("model"), str):  # short form  model: signorini
         data = {**data, "model": {"type": data["model"]}}
     raw_constants = data.get("constants") or {}
@@ -429,6 +456,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
             raise ConfigError(f"constants.{key}: is not a usable constant name")
     cfg = _validate_mapping(data, Field("dict", schema=SCENE), "", constants)
     cfg["name"] = cfg["name"] or name or "scene"
+    if cfg["adapt"] is not None and cfg["adapt"]["strategy"] == "none":
+        cfg["adapt"] = None
     cfg["_base_dir"] = str(Path(base_dir).resolve())
 
     mesh = cfg["mesh"]
@@ -506,6 +535,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         for key in ("radius", "h", "h_contact", "zone"):
             if mesh[key] is None:
                 raise ConfigError(f"mesh.{key}: required for mesh type {mesh['type']!r}")
+    if cfg.get("reference"):
+        _check_reference(cfg)
     if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
         raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
@@ -520,6 +551,20 @@ def _check_vector_data(cfg: dict, model: str) -> None:
     for key in ("f", "u_D", "t"):
         if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
+
+
+def _check_reference(cfg: dict) -> None:
+    """A declared reference fits the scene: Hertz needs elastic contact and a radius (given,
+    or the radius of a built-in quarter_disk / sphere_octant, filled in here)."""
+    ref = cfg["reference"]
+    if ref["type"] == "hertz":
+        if cfg["model"]["type"] != "elasticity":
+            raise ConfigError("reference.type: hertz needs model type elasticity")
+        if ref["radius"] is None:
+            if cfg["mesh"]["type"] not in ("quarter_disk", "sphere_octant"):
+                raise ConfigError("reference.radius: required for type hertz (the radius R of the "
+                                  "curved body) unless the mesh is a quarter_disk or sphere_octant")
+            ref["radius"] = float(cfg["mesh"]["radius"])
 
 
 def _check_elasticity(cfg: dict) -> None:

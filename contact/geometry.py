@@ -101,22 +101,31 @@ def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
 
 @dataclass(frozen=True)
 class CurvedBoundary:
-    """The exact surface S = {x : |x − c| = R} (a circle in 2D, a sphere in 3D) on which
-    the facets tagged ``tag`` lie; c = ``centre`` and R = ``radius`` in the mesh's length
+    """The exact surface on which the facets tagged ``tag`` lie: S = {x : |x − c| = R} (a
+    circle in 2D, a sphere in 3D) or, with an ``axis`` a, the cylinder of points at distance
+    R from the line c + t a (3D); c = ``centre`` and R = ``radius`` in the mesh's length
     unit."""
 
     centre: tuple[float, ...]
     radius: float
     tag: int = CONTACT
+    axis: tuple[float, ...] | None = None
 
     def project(self, x: np.ndarray) -> np.ndarray:
         """The radial projection π(x) = c + R (x − c) / |x − c| of points ``x`` (n, gdim)
-        onto S (same length unit; x = c has none).  A plane through c is mapped into itself
-        (the component of x − c normal to it stays 0), so the arc's ends on the axis / top
-        and the sphere's edges on the symmetry planes and the top stay on those planes."""
+        onto S (same length unit; x = c has none); for a cylinder the component along the
+        axis is kept, π(x) = c + ((x − c)·a) a + R d / |d| with d = x − c − ((x − c)·a) a.
+        A plane through c (containing the axis) is mapped into itself (the component of
+        x − c normal to it stays 0), so the arc's ends on the axis / top and the sphere's
+        edges on the symmetry planes and the top stay on those planes."""
         c = np.asarray(self.centre, dtype=float)
         d = x - c
-        return c + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+        along = 0.0
+        if self.axis is not None:
+            a = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
+            along = np.outer(d @ a, a)
+            d = d - along
+        return c + along + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
 
     def snap(self, msh: dmesh.Mesh, tags: dmesh.MeshTags, tol: float = 1e-12) -> int:
         """Move every geometry node of a facet tagged ``tag`` to π(x) (collective); return

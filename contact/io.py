@@ -1,4 +1,4 @@
-"""Output: an atomically written result folder with XDMF, JSON and CSV files.
+"""Output: an atomically written result folder with JSON and CSV files (VTK: :mod:`contact.series`).
 
 ``atomic_folder`` gives a temporary sibling directory; only when everything inside was
 written does rank 0 move it to the requested name.  After a failure there is either no
@@ -36,12 +36,11 @@ import socket
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Iterable, Iterator, Mapping
+from typing import Any, Iterator, Mapping
 
 from mpi4py import MPI
 
 from dolfinx import fem
-from dolfinx.io import XDMFFile
 
 from .config import ConfigError
 
@@ -263,32 +262,6 @@ def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: st
             _on_root(comm, commit, label)
         elif comm.rank == 0:
             shutil.rmtree(tmp, ignore_errors=True)
-
-
-def write_xdmf(path: str | Path, functions: Iterable[fem.Function], t: float = 0.0,
-               cells: Iterable[fem.Function] = ()) -> None:
-    """Write the mesh once, each nodal function (interpolated to P1 if of higher degree)
-    and each cellwise (DG0) function such as η_T."""
-    functions = list(functions)
-    msh = functions[0].function_space.mesh
-    with XDMFFile(msh.comm, str(path), "w") as xdmf:
-        xdmf.write_mesh(msh)
-        for fn in functions:
-            xdmf.write_function(_to_mesh_degree(fn), t)
-        for fn in cells:
-            xdmf.write_function(fn, t)
-
-
-def _to_mesh_degree(fn: fem.Function) -> fem.Function:
-    """XDMF stores nodal values on the mesh geometry: interpolate P2 data to P1."""
-    V = fn.function_space
-    if V.element.basix_element.degree == V.mesh.geometry.cmap.degree:
-        return fn
-    shape = V.value_shape if hasattr(V, "value_shape") else ()
-    W = fem.functionspace(V.mesh, ("Lagrange", V.mesh.geometry.cmap.degree, shape))
-    out = fem.Function(W, name=fn.name)
-    out.interpolate(fn)
-    return out
 
 
 def write_json(path: str | Path, data: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD) -> None:

@@ -56,8 +56,10 @@ def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tu
 
 def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     """The scene of a validated config (:func:`contact.config.load_config`): its mesh and
-    tagged boundary."""
+    tagged boundary.  Before the mesh is built: the DoF budget (from the mesh parameters)
+    and the PETSc options; after: the declared boundary surfaces."""
     from .budget import check_dofs, estimate_dofs
+    from .surfaces import boundary_surfaces
 
     gdim = mesh_dimension(cfg)  # None: a gmsh file, known once read
     check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{cfg['mesh']['cells']} cells give")
@@ -66,7 +68,9 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     msh, file_tags = build_mesh(cfg, comm)
     if gdim is None:
         _check_solver(cfg, msh.geometry.dim, comm)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
+    scene = Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
+    boundary_surfaces(scene)  # a declared surface that does not fit the mesh is bad input now
+    return scene
 
 
 def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:

@@ -33,8 +33,8 @@ Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton i
 and active-set polishing solves (for adaptive runs on the final level and summed over the
 levels), converged, the SNES
 reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
-with ``data.exact``; relative errors of the Hertz half-width/radius and peak pressure for
-elastic contact against a plane with a radius), η, the measure of the active set, the wall
+with ``data.exact``; the relative errors of a declared ``reference``, e.g. Hertz's
+``a_error``, ``p0_error`` and their largest magnitude ``hertz_error``), η, the measure of the active set, the wall
 time and the peak memory.  Every level of every run is one row of ``levels.csv``, with the
 wall time since the start of the run (the x axis of speed-against-accuracy charts).  A run
 that raises or does not converge is a row with ``converged=False`` and the reason in
@@ -175,15 +175,22 @@ class Study:
         return any(bool(c.cfg["data"].get("exact")) for c in self.cases.values())
 
     @functools.cached_property
-    def has_hertz(self) -> bool:
-        """Whether some case is elastic contact with a Hertz radius (then rows carry the
-        relative errors of a and p0)."""
-        return any(_hertz_scene(c.cfg) for c in self.cases.values())
+    def reference_columns(self) -> tuple[str, ...]:
+        """The relative-error columns of the references the cases declare
+        (:func:`contact.reference.error_columns`, e.g. a_error, p0_error, hertz_error)."""
+        from .reference import error_columns
+
+        cols: list[str] = []
+        for c in self.cases.values():
+            cols += [k for k in error_columns(c.cfg) if k not in cols]
+        return tuple(cols)
 
     @property
     def accuracy(self) -> str:
-        """The column the speed-against-accuracy chart plots."""
-        return "error" if self.has_exact else "hertz_error" if self.has_hertz else "eta"
+        """The column the speed-against-accuracy chart plots: the energy error, else a
+        declared reference's combined error (``<type>_error``), else η."""
+        combined = [k for k in self.reference_columns if k.removesuffix("_error") in _reference_types()]
+        return "error" if self.has_exact else combined[0] if combined else "eta"
 
     def runs(self) -> list[dict[str, Any]]:
         names = list(self.axes)
@@ -206,18 +213,18 @@ class Study:
         return out
 
 
-def _hertz_scene(cfg: Mapping) -> bool:
-    """Elastic contact against a plane with a known radius R (:func:`contact.hertz.hertz_radius`)."""
-    from .hertz import hertz_radius
+def _reference_types() -> tuple[str, ...]:
+    from .reference import REFERENCES
 
-    return (cfg["model"]["type"] == "elasticity" and (cfg.get("obstacle") or {}).get("type", "plane") == "plane"
-            and hertz_radius(cfg) is not None)
+    return tuple(REFERENCES)
 
 
-def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple[dict, dict, str]:
+def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str, extra: tuple[str, ...] = ()
+                ) -> tuple[dict, dict, str]:
     """Read a scene reference (a path relative to ``base_dir``, or a mapping), apply the
-    ``set`` overrides, make a relative mesh file absolute and validate: (raw, cfg, label).
-    Errors name the study key ``path``."""
+    ``set`` overrides, then the command line's ``extra`` ones (``contact study --set``), make
+    a relative mesh file absolute and validate: (raw, cfg, label).  Errors name the study
+    key ``path`` (or the --set item)."""
     if isinstance(ref, dict):
         raw, scene_name, scene_dir, label = copy.deepcopy(ref), None, base_dir, "<inline>"
     else:
@@ -236,6 +243,7 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple
             raw = apply_overrides(raw, [item])
         except ConfigError as err:
             raise ConfigError(f"{path}set[{i}]: {str(err).removeprefix('--set ')}") from None
+    raw = apply_overrides(raw, list(extra))
     if isinstance(raw.get("mesh"), dict) and isinstance(raw["mesh"].get("file"), str):
         mesh_file = Path(raw["mesh"]["file"])
         if not mesh_file.is_absolute():
@@ -249,11 +257,14 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple
     return raw, cfg, label
 
 
-def load_study(source: str | Path | Mapping | Study) -> Study:
+def load_study(source: str | Path | Mapping | Study, overrides: list[str] | tuple[str, ...] = ()) -> Study:
     """Read (if a path) and validate a study; raise :class:`ConfigError` (one line) on bad
     input.  A relative ``scene`` path is taken relative to the study file (to the current
-    directory for a mapping)."""
+    directory for a mapping).  ``overrides`` (``contact study --set``) apply to the scene of
+    every case, after the study's and the case's own ``set``."""
     if isinstance(source, Study):
+        if overrides:
+            raise ValueError("load_study: overrides need a study file or mapping, not a Study")
         return source
     if isinstance(source, Mapping):
         data, base_dir, stem = dict(source), Path.cwd(), None
@@ -261,26 +272,27 @@ def load_study(source: str | Path | Mapping | Study) -> Study:
         path = Path(source)
         data, base_dir, stem = read_yaml(path), path.parent, path.stem
     st = _validate_mapping(data, Field("dict", schema=STUDY), "", {})
-    base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "")
+    extra = tuple(overrides)
+    base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "", extra)
     axes = _validate_axes(st["axes"], base_cfg["constants"])
     cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
     if st["cases"]:
-        cases = {name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes)
+        cases = {name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes, extra)
                  for name, spec in st["cases"].items()}
     adapt = {k: v for k, v in st["adapt"].items() if v is not None} if st["adapt"] else {}
-    return Study(name=st["name"] or stem or "study", scene=label, set=list(st["set"]), axes=axes,
+    return Study(name=st["name"] or stem or "study", scene=label, set=list(st["set"]) + list(extra), axes=axes,
                  adapt=adapt, repeat=st["repeat"], cases=cases, charts=list(st["charts"]),
                  warmup=st["warmup"])
 
 
 def _validate_case(name: str, spec: dict, st: dict, base_raw: dict, base_cfg: dict, base_dir: Path,
-                   axes: dict) -> Case:
+                   axes: dict, extra: tuple[str, ...] = ()) -> Case:
     path = f"cases.{name}."
     raw, cfg = base_raw, base_cfg
     if "scene" in spec or "set" in spec:  # the case's own scene (default: the study's), then its `set`
         ref = spec.get("scene", st["scene"])
         sets = ([] if "scene" in spec else list(st["set"])) + list(spec.get("set") or [])
-        raw, cfg, _ = _read_scene(ref, sets, base_dir, path)
+        raw, cfg, _ = _read_scene(ref, sets, base_dir, path, extra)
     params = {}
     for key, value in spec.items():
         if key in ("scene", "set"):
@@ -384,14 +396,11 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     out: dict[str, Any] = {}
     if study.has_exact:
         out["error"] = "" if error is None else error
-    if study.has_hertz:
-        out.update(a_error="", p0_error="", hertz_error="")
-        if _hertz_scene(scene.cfg):
-            from .hertz import contact_resultants
+    out.update({k: "" for k in study.reference_columns})
+    if scene.cfg.get("reference"):
+        from .reference import compare, error_values
 
-            h = contact_resultants(scene, result)
-            out.update(a_error=h["a_error"], p0_error=h["p0_error"],
-                       hertz_error=max(abs(h["a_error"]), abs(h["p0_error"])))
+        out.update(error_values(scene.cfg, compare(scene, result)))
     out["eta"] = "" if eta is None else eta
     out["active_measure"] = active_measure(result)
     return out
@@ -399,8 +408,7 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
 
 def _empty_figures(study: Study) -> dict[str, Any]:
     out: dict[str, Any] = {"error": ""} if study.has_exact else {}
-    if study.has_hertz:
-        out.update(a_error="", p0_error="", hertz_error="")
+    out.update({k: "" for k in study.reference_columns})
     return {**out, "eta": "", "active_measure": ""}
 
 

@@ -118,7 +118,7 @@ def newton_512() -> str:
     if not data:
         return "\n".join(out) + "\n" + missing("newton_512.csv")
     out += ["`configs/signorini_square.yaml` (κ = 100, set in the scene) at 512² cells, every method "
-            "in its own process (`demos/bench_newton.py --cells 512`); *polish* = active-set polishing "
+            "in its own process (`demos/bench/bench_newton.py --cells 512`); *polish* = active-set polishing "
             "solves (`solver.polish`, on by default for fb and blend), *-nopolish* = the pure Newton "
             "method:", "",
             table(["method", "DoFs", "Newton its", "polish", "seconds", "s / solve", "peak MiB",
@@ -336,12 +336,12 @@ def iterations() -> str:
 
 
 def hertz_methods() -> str:
-    """Every method on the final Hertz meshes, cold and nested (demos/bench_hertz.py)."""
+    """Every method on the final Hertz meshes, cold and nested (demos/bench/bench_hertz.py)."""
     out = ["## 6. Hertz: the methods on the final adaptive meshes", ""]
     data = rows(RES / "hertz" / "final_mesh_methods.csv")
     if not data:
         return "\n".join(out) + "\n" + missing("demos/results/hertz/final_mesh_methods.csv")
-    out += ["`demos/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
+    out += ["`demos/bench/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
             "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
             "solution (nested), with the scene's default linear solver (direct = MUMPS LU in 2D, gamg = "
             "BiCGStab + GAMG in 3D), and fb from a cold start also with the other one. Newton its + "

@@ -169,8 +169,9 @@ def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ra
     assert "kept levels 0-1 in out/" in error_lines(proc)[-1]
     out = tmp_path / "out"
     names = {p.name for p in out.iterdir()}
-    assert {"level_000.xdmf", "level_001.xdmf", "convergence.csv", "summary.json", ".contact-result"} <= names
-    assert "level_002.xdmf" not in names
+    assert {"solution_000.vtu", "solution_001.vtu", "solution.pvd", "convergence.csv", "summary.json",
+            ".contact-result"} <= names
+    assert "solution_002.vtu" not in names and "solution_002.vtu" not in (out / "solution.pvd").read_text()
     rows = list(csv.DictReader(open(out / "convergence.csv")))
     assert [int(r["dofs"]) for r in rows] == [25, 81]
     summary = json.loads((out / "summary.json").read_text())

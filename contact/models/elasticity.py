@@ -125,7 +125,8 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     data = {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None,
             # residual without Dirichlet rows, for reaction forces: a(u_h, v) − L(v)
             "reaction_form": fem.form(ufl.action(a_ufl, u_h) - L_ufl), **contact.pop("data")}
-    return DiscreteProblem(V, u_h, bcs, K, b, con, data=data, **contact,
+    copies = 2 ** sum(role == "symmetry" for role in bnd.roles.values())
+    return DiscreteProblem(V, u_h, bcs, K, b, con, data=data, **contact, symmetric_copies=copies,
                            near_nullspace=rigid_body_modes(V, contact.get("basis")),
                            assembly_time=time.perf_counter() - t0)
 

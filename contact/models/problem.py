@@ -65,6 +65,8 @@ class DiscreteProblem:
     basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
+    in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
+    symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""
@@ -85,11 +87,33 @@ class DiscreteProblem:
         else:
             self.basis.mult(x, u)
 
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """p_i = −σ R_i / w_i ≥ 0 on the constrained DoFs (owned residual ``r``): the contact
+        pressure −λ_n of elasticity, the flux −σλ_i into the obstacle of scalar models."""
+        con = self.constraint
+        return -con.sign * r[con.dofs] / con.w
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """The resultant contact force over all ranks (collective),
+
+            F = m Σ_i w_i p_i (n_i · n),
+
+        p_i from :meth:`pressure`, n_i the nodal contact normals and n the one at the first
+        point of contact (n_i · n = 1 against a plane, and for scalar models), m the
+        symmetric copies the modelled part stands for.  Units: force per unit thickness in
+        2D elasticity (N/m), force in 3D (N); ∫ flux over Γ_C (or Ω) for scalar models."""
+        con = self.constraint
+        along = self.data["normals"] @ self.data["n"] if "normals" in self.data else 1.0
+        local = float(np.sum(con.w * self.pressure(r) * along))
+        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
     def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
         """Nodal fields on the output space S: the multiplier λ_h (λ_i = ±R_i / w_i on the
         constrained DoFs, 0 elsewhere), the gap σ(bound − u) (≥ 0 when feasible) and the
         0/1 active set.  ``x`` and ``r`` are the owned unknowns and residual at the
-        solution, ``active`` the mask over the constrained DoFs."""
+        solution, ``active`` the mask over the constrained DoFs.  The gap is NaN off the
+        constrained DoFs of a contact boundary Γ_C (g − u inside Ω is no gap); for an
+        obstacle (constraint in Ω) it is ψ − u everywhere."""
         V, con = self.V, self.constraint
         S = self.output_space or V
 
@@ -111,6 +135,9 @@ class DiscreteProblem:
         u = unknowns.x.array if self.output_map is None else unknowns.x.array[self.output_map]
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
+        if not self.in_domain:
+            on = nodal("on", np.ones(len(con.dofs)))
+            gap.x.array[on.x.array < 0.5] = np.nan
         return lmbda, gap, active_fn
 
     def _extend_to_ends(self, lmbda: fem.Function) -> None:
@@ -196,7 +223,7 @@ def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 
     which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
     for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from
     u = 0: 130 s against 45 s, 10 steps either way; nested 5 steps against 3 —
-    ``python demos/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
+    ``python demos/bench/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
     cold-start scene signorini_square sets κ = 100.
     """
     diag = K.getDiagonal()

@@ -82,7 +82,7 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     ends = {}
     if cfg["model"]["type"] == "signorini":
         ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
-    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends,
+    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends, in_domain=cfg["model"]["type"] == "obstacle",
                            data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
                                  "exact": data["exact"]},
                            assembly_time=time.perf_counter() - t0)
