@@ -38,9 +38,67 @@ _Loader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+MAX_FILE_BYTES = 1_000_000  # a scene or study file
+MAX_YAML_NODES = 100_000    # nodes of a YAML document with its aliases expanded
+
+
+class YAMLTooLarge(yaml.YAMLError):
+    """A YAML document beyond the limits (aliases expanding too far, nesting too deep)."""
+
+
 def load_yaml(text: str) -> Any:
-    """Parse YAML text safely (no Python objects), with Python's float notation."""
-    return yaml.load(text, Loader=_Loader)
+    """Parse YAML text safely (no Python objects), with Python's float notation.
+
+    A document whose aliases expand to more than :data:`MAX_YAML_NODES` nodes (a "billion
+    laughs" bomb: a few hundred bytes that stand for 10⁹ list items), a recursive alias or
+    nesting too deep for the parser raise :class:`YAMLTooLarge` before anything is built.
+    """
+    loader = _Loader(text)
+    try:
+        try:
+            node = loader.get_single_node()
+        except RecursionError:
+            raise YAMLTooLarge("the YAML document is nested too deeply") from None
+        if node is None:
+            return None
+        _check_expansion(node, MAX_YAML_NODES)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def _check_expansion(root: yaml.Node, limit: int) -> None:
+    """Count the nodes of the document as its consumers see it (each alias expanded), one
+    visit per distinct node (sizes memoized), iteratively; refuse cycles and > limit."""
+    def children(node: yaml.Node) -> list:
+        if isinstance(node, yaml.SequenceNode):
+            return node.value
+        if isinstance(node, yaml.MappingNode):
+            return [n for pair in node.value for n in pair]
+        return []
+
+    size: dict[int, int] = {}
+    open_nodes: set[int] = set()  # the current path from the root
+    stack = [(root, False)]
+    while stack:
+        node, finished = stack.pop()
+        key = id(node)
+        if finished:
+            open_nodes.discard(key)
+            size[key] = 1 + sum(size[id(c)] for c in children(node))
+            if size[key] > limit:
+                raise YAMLTooLarge(f"the YAML document expands to more than {limit} nodes "
+                                   "(aliases * of anchors & repeat whole subtrees)")
+            continue
+        if key in size:
+            continue
+        open_nodes.add(key)
+        stack.append((node, True))
+        for child in children(node):
+            if id(child) in open_nodes:
+                raise YAMLTooLarge("the YAML document has a recursive alias (an anchor used inside itself)")
+            if id(child) not in size:
+                stack.append((child, False))
 
 
 class ConfigError(ValueError):
@@ -89,6 +147,12 @@ def _c_value(v: Any) -> str | None:
     return _positive(v)
 
 
+def _max_dofs(v: Any) -> str | None:
+    if v == "auto" or isinstance(v, int) and not isinstance(v, bool) and v > 0:
+        return None
+    return f"must be 'auto' or a positive integer, got {v!r}"
+
+
 def _cells(v: Any) -> str | None:
     items = v if isinstance(v, list) else [v]
     if not items or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items):
@@ -106,6 +170,18 @@ def _point_list(v: Any) -> str | None:
         return f"coordinates must be finite, got {v!r}"
     if any(b <= a for a, b in zip(v[0], v[1])):
         return f"the second corner must exceed the first in every coordinate, got {v!r}"
+    return None
+
+
+def folder_name(v: str) -> str | None:
+    """A name that becomes one folder (``results/<name>``): no path separator, not ``.``,
+    no ``..``, at most 100 characters."""
+    if not v.strip():
+        return "must not be empty"
+    if any(c in v for c in "/\\\0") or ".." in v or v.strip() == ".":
+        return f"must be a plain folder name (no '/', '\\' or '..'), got {v!r}"
+    if len(v) > 100:
+        return f"must be at most 100 characters, got {len(v)}"
     return None
 
 
@@ -154,7 +230,7 @@ BOUNDARY = Field("dict", schema={
 })
 
 SCENE: dict[str, Field] = {
-    "name": Field("str", None),
+    "name": Field("str", None, check=folder_name, doc="the default output folder results/<name>"),
     "mesh": Field("dict", schema={
         "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh",
                                                    "quarter_disk", "sphere_octant")),
@@ -181,8 +257,8 @@ SCENE: dict[str, Field] = {
         "bound": Field("str", "upper", choices=("upper", "lower"),
                        doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
         "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
-        "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
-                    doc="elasticity: Poisson's ratio"),
+        "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
+                    doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 < ν < 1/2)"),
     }),
     "obstacle": Field("dict", None, schema={
         "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
@@ -216,6 +292,9 @@ SCENE: dict[str, Field] = {
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
         "u0": Field("expr", "0"),
+        "max_dofs": Field("any", "auto", check=_max_dofs,
+                          doc="DoF budget of one solve: auto (sized to this machine's memory, see "
+                              "contact/budget.py) or a positive integer"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "adapt": Field("dict", None, schema={
@@ -346,11 +425,16 @@ def read_yaml(path: str | Path) -> dict:
     if not p.is_file():
         raise ConfigError(f"{p}: no such file")
     try:
+        if (size := p.stat().st_size) > MAX_FILE_BYTES:
+            raise ConfigError(f"{p}: the file has {size} bytes, more than the limit of {MAX_FILE_BYTES} "
+                              "for a scene or study (put meshes and data in files of their own)")
         data = load_yaml(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError as err:
         raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
     except OSError as err:
         raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
+    except YAMLTooLarge as err:
+        raise ConfigError(f"{p}: {err}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""

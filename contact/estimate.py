@@ -36,7 +36,7 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem, la
 
-from .scene import Scene
+from .scene import Scene, require_scene
 from .solvers import Result
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
@@ -167,7 +167,11 @@ def _assemble_cellwise(form: ufl.Form) -> la.Vector:
 
 def estimate(scene: Scene, result: Result) -> Estimate:
     """Assemble each term of η_T² once as a DG0 vector; η_T² is their sum, and each term's
-    global total Σ_T is the sum of its owned entries."""
+    global total Σ_T is the sum of its owned entries.  ``result`` must be a solve of this
+    scene (on its mesh), else a ValueError."""
+    require_scene(scene)
+    if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
+        raise ValueError("result: expected the contact.Result of contact.solve on this scene (same mesh)")
     terms = indicator_terms(scene, result)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())

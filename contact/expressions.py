@@ -18,6 +18,14 @@ are polar helpers about the origin.  ``t`` is the pseudo-time of a quasi-static 
 ends take its value (a number, or a UFL object such as a ``fem.Constant`` so that a form
 is compiled once for all steps) as the keyword ``t``.  It is a reserved name, never a
 user constant.
+
+Limits (hostile or mistaken input fails in one line instead of exhausting the stack or
+the memory): at most :data:`MAX_LENGTH` characters and :data:`MAX_DEPTH` levels of
+nesting of the syntax tree (``x+x+…+x`` with n terms nests n levels).  Every constant
+subexpression is evaluated once when parsing, in floating point: one that cannot be
+evaluated (``1/0``, ``log(-1)``), overflows (``2**10000``), is complex (``(-1)**0.5``,
+``(-8)**(1/3)``) or not finite is an error naming it.  Data that depend on x, y, z are
+checked on the mesh where they are used (:mod:`contact.checks`).
 """
 from __future__ import annotations
 
@@ -34,6 +42,8 @@ COORDINATES = ("x", "y", "z")
 HELPERS = ("r", "theta")
 TIME = "t"   # the pseudo-time of a load path
 BUILTIN_CONSTANTS = {"pi": math.pi, "e": math.e}
+MAX_LENGTH = 10_000   # characters of one expression
+MAX_DEPTH = 100       # nesting levels of its syntax tree
 
 
 class ExpressionError(ValueError):
@@ -47,17 +57,93 @@ def parse(text: str | int | float, constants: Mapping[str, float] = {}) -> ast.E
     source = str(text).strip()
     if not source:
         raise ExpressionError("empty expression")
+    if len(source) > MAX_LENGTH:
+        raise ExpressionError(f"the expression has {len(source)} characters, more than the limit of {MAX_LENGTH}")
+    shown = source if len(source) <= 80 else source[:60] + "…"  # in messages
     try:
         tree = ast.parse(source, mode="eval")
     except SyntaxError as err:
-        raise ExpressionError(f"cannot parse {source!r}: {err.msg}") from None
+        raise ExpressionError(f"cannot parse {shown!r}: {err.msg}") from None
+    except (RecursionError, MemoryError) as err:
+        raise ExpressionError(f"cannot parse {shown!r}: nested too deeply ({type(err).__name__})") from None
+    except ValueError as err:
+        raise ExpressionError(f"cannot parse {shown!r}: {err}") from None
+    if (depth := _depth(tree)) > MAX_DEPTH:
+        raise ExpressionError(f"the expression nests {depth} levels deep, more than the limit of {MAX_DEPTH}")
     names = set(COORDINATES) | set(HELPERS) | {TIME} | set(BUILTIN_CONSTANTS) | set(constants)
     called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
-        _check_node(node, names, source)
+        _check_node(node, names, shown)
         if isinstance(node, ast.Name) and node.id in FUNCTIONS and node.id not in names and id(node) not in called:
-            raise ExpressionError(f"{node.id!r} is a function, call it with arguments in {source!r}")
+            raise ExpressionError(f"{node.id!r} is a function, call it with arguments in {shown!r}")
+    _fold(tree.body, {**BUILTIN_CONSTANTS, **constants}, shown)
     return tree
+
+
+def _depth(tree: ast.AST) -> int:
+    """Nesting depth of a syntax tree (iterative: safe for any depth)."""
+    deepest, stack = 0, [(tree, 1)]
+    while stack:
+        node, d = stack.pop()
+        deepest = max(deepest, d)
+        stack.extend((child, d + 1) for child in ast.iter_child_nodes(node))
+    return deepest
+
+
+_MATH = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+         "sqrt": math.sqrt, "atan2": math.atan2, "abs": abs, "min": min, "max": max,
+         "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh, "asinh": math.asinh}
+_FLOAT_OPS = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
+              ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b,
+              ast.Lt: lambda a, b: a < b, ast.LtE: lambda a, b: a <= b, ast.Gt: lambda a, b: a > b,
+              ast.GtE: lambda a, b: a >= b}
+
+
+def _fold(node: ast.AST, values: Mapping[str, float], source: str) -> float | None:
+    """The value of ``node`` if it is constant (no coordinate in it), else None; raise
+    ExpressionError for a constant subexpression without a finite real value."""
+    if isinstance(node, ast.Constant):
+        return _finite(node, lambda: float(node.value), source)
+    if isinstance(node, ast.Name):
+        return values.get(node.id)
+    children = [_fold(c, values, source) for c in ast.iter_child_nodes(node)
+                if isinstance(c, ast.expr) and not (isinstance(node, ast.Call) and c is node.func)]
+    if any(v is None for v in children):
+        return None
+    if isinstance(node, ast.BinOp):
+        return _finite(node, lambda: _FLOAT_OPS[type(node.op)](*children), source)
+    if isinstance(node, ast.UnaryOp):
+        (v,) = children
+        return float(not v) if isinstance(node.op, ast.Not) else -v if isinstance(node.op, ast.USub) else v
+    if isinstance(node, ast.Call):
+        return _finite(node, lambda: _MATH[node.func.id](*children), source)
+    if isinstance(node, ast.Compare):
+        pairs = zip(children, children[1:])
+        return float(all(_FLOAT_OPS[type(op)](a, b) for op, (a, b) in zip(node.ops, pairs)))
+    if isinstance(node, ast.BoolOp):
+        return float(all(children) if isinstance(node.op, ast.And) else any(children))
+    if isinstance(node, ast.IfExp):
+        test, body, orelse = children
+        return body if test else orelse
+    return None
+
+
+def _finite(node: ast.AST, evaluate: Callable[[], Any], source: str) -> float:
+    sub = ast.unparse(node)
+    where = "" if sub.replace(" ", "") == source.replace(" ", "") else f" in {source!r}"
+    try:
+        value = evaluate()
+    except ZeroDivisionError:
+        raise ExpressionError(f"{sub} divides by zero{where}") from None
+    except OverflowError:
+        raise ExpressionError(f"{sub} overflows (too large for a float){where}") from None
+    except (ValueError, TypeError):
+        raise ExpressionError(f"{sub} is undefined (math domain error){where}") from None
+    if isinstance(value, complex):
+        raise ExpressionError(f"{sub} is not a real number{where}")
+    if not math.isfinite(value):
+        raise ExpressionError(f"{sub} is not a finite number{where}")
+    return float(value)
 
 
 _ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.BoolOp, ast.Compare, ast.IfExp,
@@ -67,6 +153,7 @@ _ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.BoolOp, ast.Compare, ast
 
 
 def _check_node(node: ast.AST, names: set[str], source: str) -> None:
+    """Refuse a node outside the grammar (``source``, as shown in messages)."""
     if not isinstance(node, _ALLOWED):
         raise ExpressionError(f"{type(node).__name__.lower()} is not allowed in {source!r}")
     if isinstance(node, ast.Constant) and (isinstance(node.value, bool)

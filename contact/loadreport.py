@@ -74,8 +74,9 @@ class StepWriter:
             self.series.write(step.time, nodal, [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])],
                               field_data={"step": k, "dofs": r.dofs})
 
-    def finish(self, path: LoadPath, wall: float | None = None) -> dict[str, Any]:
-        """The run's files after the last step; returns the summary."""
+    def finish(self, path: LoadPath, wall: float | None = None, failure: dict | None = None) -> dict[str, Any]:
+        """The run's files after the last (converged) step; ``failure`` (``converged:
+        false``, the failed step) goes into summary.json.  Returns the summary."""
         tmp, comm = self.tmp, self.scene.comm
         last = path.steps[-1]
         r = last.result
@@ -95,6 +96,7 @@ class StepWriter:
                 "host": platform.node(), "steps": self.rows}
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
+        info.update(failure or {})
         if comparison is not None:
             info["reference"] = self.scene.cfg["reference"]["type"]
             info.update(comparison.values)

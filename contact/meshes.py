@@ -48,6 +48,12 @@ class Boundary:
         return np.sort(self.tags.indices[np.isin(self.tags.values, ids)]).astype(np.int32)
 
 
+def mesh_dimension(cfg: dict) -> int | None:
+    """The geometric dimension of the scene's mesh, from its type (None for a gmsh file)."""
+    return {"rectangle": 2, "unit_square": 2, "lshape": 2, "quarter_disk": 2,
+            "box": 3, "sphere_octant": 3}.get(cfg["mesh"]["type"])
+
+
 def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
     """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given); for gmsh
     files also their facet tags."""

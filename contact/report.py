@@ -209,9 +209,12 @@ def level_writer(tmp: Path, scene: Scene):
     return write
 
 
-def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None) -> dict:
+def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
+                   failure: dict | None = None) -> dict:
     """After the loop: convergence.csv/.png, history.csv of every level, mesh pictures, and
-    the final level's summary, solution.png, contact.csv and pressure.png."""
+    the final level's summary, solution.png, contact.csv and pressure.png.  ``failure`` (a
+    run that failed on the level after the last of ``adaptive``) is added to summary.json:
+    ``converged: false``, ``failed_level``, ``failed_reason``."""
     comm = scene.comm
     rows = adaptive.rows
     io.write_csv(tmp / "convergence.csv", rows, comm)
@@ -225,7 +228,8 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
                  "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
                  "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
                  "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
-                 "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels)})
+                 "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
+                 **(failure or {})})
     io.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
                                        for h in lv.result.history], comm)
     if scene.cfg["output"]["png"]:

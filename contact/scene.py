@@ -12,8 +12,8 @@ from mpi4py import MPI
 
 from dolfinx import mesh as dmesh
 
-from .config import load_config
-from .meshes import Boundary, build_mesh, tag_boundaries
+from .config import ConfigError, load_config
+from .meshes import Boundary, build_mesh, mesh_dimension, tag_boundaries
 
 
 @dataclass
@@ -59,6 +59,12 @@ class Scene:
         return self.mesh.comm
 
 
+def require_scene(scene: Any) -> None:
+    """ValueError unless ``scene`` is a :class:`Scene` (argument check of the public API)."""
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}")
+
+
 def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tuple[str, ...] = (),
                comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     """Read and validate a scene (YAML path or dict), build its mesh and tag its boundary.
@@ -66,10 +72,36 @@ def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tu
     ``overrides`` are ``"key.path=value"`` strings as given to ``contact run --set``.
     Raises :class:`contact.ConfigError` with a one-line message on any bad input.
     """
+    if isinstance(source, bool) or not isinstance(source, (str, Path, Mapping)):
+        raise ConfigError(f"source: expected a scene file path or a mapping, got {type(source).__name__}")
+    if isinstance(overrides, (str, bytes)) or not isinstance(overrides, (list, tuple)) \
+            or not all(isinstance(o, str) for o in overrides):
+        raise ConfigError(f"overrides: expected a list of 'key.path=value' strings, got {overrides!r:.80}")
+    return build_scene(load_config(source, overrides), comm)
+
+
+def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
+    """The scene of a validated config (:func:`contact.config.load_config`): its mesh and
+    tagged boundary.  Before the mesh is built: the DoF budget (from the mesh parameters)
+    and the PETSc options; after: the declared boundary surfaces."""
+    from .budget import check_dofs, estimate_dofs
     from .surfaces import boundary_surfaces
 
-    cfg = load_config(source, overrides)
+    gdim = mesh_dimension(cfg)  # None: a gmsh file, known once read
+    check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{cfg['mesh']['cells']} cells give")
+    if gdim is not None:
+        _check_solver(cfg, gdim, comm)
     msh, file_tags = build_mesh(cfg, comm)
+    if gdim is None:
+        _check_solver(cfg, msh.geometry.dim, comm)
     scene = Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags))
     boundary_surfaces(scene)  # a declared surface that does not fit the mesh is bad input now
     return scene
+
+
+def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:
+    """The scene's PETSc options work with the model's default linear solver."""
+    from .solvers.linear import default_options
+    from .solvers.options import check_petsc_options
+
+    check_petsc_options(cfg["solver"]["petsc_options"], default_options(cfg["model"]["type"], gdim), comm)

@@ -59,8 +59,9 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 from mpi4py import MPI
 
-from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate,
+from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate, folder_name,
                      _validate_mapping, apply_overrides, load_config, read_yaml)
+from .failures import describe, one_line
 from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -128,7 +129,7 @@ def _charts(v: list) -> str | None:
 
 
 STUDY: dict[str, Field] = {
-    "name": Field("str", None),
+    "name": Field("str", None, check=folder_name),
     "scene": Field("any", check=_scene_ref, doc="scene YAML, relative to the study file"),
     "set": Field("list", [], doc="overrides of the base scene, as contact run --set"),
     "axes": Field("any", None, doc="axis name -> list of values (validated by AXES)"),
@@ -377,10 +378,6 @@ def _refine_uniformly(scene, times: int):
     return scene
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
 def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]:
     """The run's raw scene, its number of uniform refinements and its adaptive options
     (``None``: one solve)."""
@@ -515,14 +512,14 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         seconds = time.perf_counter() - t0
         out["converged"] = False
-        failure = str(err) if isinstance(err, ConfigError) else f"{type(err).__name__}: {err}"
+        failure = str(err) if isinstance(err, ConfigError) else describe(err)
         if study.adaptive_possible:
             out.setdefault("stop", "")
     out["outcome"] = "error" if failure and not out["reason"] else outcome(out)
     out["seconds"] = round(comm.allreduce(seconds, op=MPI.MAX), 4)
     out["peak_rss_mib"] = _peak_rss_mib(comm)
     out["ranks"] = comm.size
-    out["failure"] = _one_line(failure)
+    out["failure"] = one_line(failure)  # one line, at most failures.MAX_LINE characters
     for row in levels:
         row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
     return out, levels
@@ -658,7 +655,8 @@ def mark_pareto(rows: list[dict], key: str) -> None:
 
 
 def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = None, *,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True) -> tuple[list[dict], list[dict]]:
+              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True,
+              label: str | None = None) -> tuple[list[dict], list[dict]]:
     """Validate and run a study (YAML path, mapping or :class:`Study`); return its rows and
     its level rows.
 
@@ -671,6 +669,8 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     from . import charts, io
 
     study = load_study(source)
+    if outdir is not None:  # refuse a folder it may not write before any run (ConfigError)
+        io.check_output(outdir, label or f"outdir {outdir}", comm)
     n = len(study.runs()) * study.repeat
     if verbose and comm.rank == 0:
         print(f"contact: study {study.name!r}: {n} run(s) on {study.scene}, {comm.size} MPI rank(s)", flush=True)
@@ -681,7 +681,7 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     mark_pareto(rows, study.accuracy)
     mark_pareto(level_rows, study.accuracy)
     if outdir is not None:
-        with io.atomic_folder(outdir, comm) as tmp:
+        with io.atomic_folder(outdir, comm, label) as tmp:
             io.write_csv(tmp / "study.csv", rows, comm)
             io.write_csv(tmp / "levels.csv", level_rows, comm)
             io.write_json(tmp / "study.json", study.as_dict(), comm)

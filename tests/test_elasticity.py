@@ -85,7 +85,7 @@ def test_serial_and_two_ranks_agree(tmp_path):
 
 @pytest.mark.parametrize("override,message", [
     ("model.E=-1", "model.E: must be > 0"),
-    ("model.nu=0.5", "model.nu: must lie in [0, 0.5)"),
+    ("model.nu=0.5", "model.nu: must lie in (-1, 0.5)"),
     ("obstacle.normal=[0,0]", "obstacle.normal: must not be the zero vector"),
     ("data.g=0", "data.g: not used by model type elasticity"),
 ])

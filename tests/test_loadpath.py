@@ -186,3 +186,24 @@ def test_adaptive_loop_each_step_or_at_the_end(mode):
     assert "u_prev" in last.scene.history
     f = last.result.friction
     assert abs(np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))
+
+
+def test_run_keeps_the_steps_before_a_failing_one(tmp_path):
+    """A step that does not converge (data that blow up at t = 1): exit 1, one line, and the
+    folder holds the converged first step with converged false and failed_step 2."""
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(ROOT / "configs" / "friction_block_2d.yaml"),
+                           "-o", str(out), "-q", "--set", 'data.u_D=["0", "-0.01*t*(1 if t < 0.6 else 1e200)"]',
+                           "--set", "load.times=[0.5, 1.0]", "--set", "load.steps=null", "--set", "mesh.cells=[20,6]"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1
+    assert proc.stderr.count("\n") == 1 and "step 2 (t = 1) did not converge" in proc.stderr and "kept step 1" in proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["converged"] is False and summary["failed_step"] == 2 and summary["steps_total"] == 1
+    assert (out / "solution_000.vtu").is_file() and not (out / "solution_001.vtu").exists()
+
+
+def test_data_checked_at_every_step():
+    """Data that depend on t are checked at each step's t: a one-line error naming the step."""
+    with pytest.raises(contact.ConfigError, match=r"data.u_D\[0\] \(at t = 0.25\): not a finite number"):
+        run_load_path(block('data.u_D=["log(t - 0.35)", "-0.01"]', "load.steps=4"))

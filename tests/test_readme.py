@@ -62,7 +62,7 @@ def _table_files(section: str) -> set[str]:
     table = re.search(r"\| file \| contents \|\n\|---\|---\|\n((?:\|.*\n)+)", section).group(1)
     names = set()
     for row in table.splitlines():
-        names |= set(re.findall(r"`([\w.]+)`", row.split("|")[1]))
+        names |= set(re.findall(r"`([\w.-]+)`", row.split("|")[1]))
     return names
 
 

@@ -23,7 +23,12 @@ __all__ = ["Constraint", "DiscreteProblem", "build_problem"]
 
 
 def build_problem(scene: "Scene") -> DiscreteProblem:
-    """The discrete problem of the scene's model."""
+    """The discrete problem of the scene's model (within the DoF budget, else ConfigError)."""
+    from ..budget import check_dofs, mesh_dofs
+
+    cfg, msh = scene.cfg, scene.mesh
+    components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1
+    check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
     if scene.cfg["model"]["type"] == "elasticity":
         from .elasticity import elasticity_problem
 

@@ -24,6 +24,7 @@ import ufl
 from dolfinx import fem
 
 from .. import expressions
+from ..checks import check_scene_data
 from ..config import ConfigError
 from ..scene import Scene
 from .obstacles import curved_contact, plane_contact
@@ -78,6 +79,7 @@ def _facet_normal_axis(scene: Scene, name: str, facets: np.ndarray) -> int:
 def elasticity_problem(scene: Scene) -> DiscreteProblem:
     """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2)."""
     t0 = time.perf_counter()
+    check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
     model, data, obstacle = cfg["model"], cfg["data"], cfg["obstacle"]  # data: f, u_D, t below
     gdim, tdim = msh.geometry.dim, msh.topology.dim

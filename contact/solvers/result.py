@@ -20,9 +20,10 @@ REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if 
 class Result:
     """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
     ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
-    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show.
-    ``contact_force`` is the resultant contact force summed over all ranks
-    (:meth:`contact.models.DiscreteProblem.contact_force`), the same number on every rank."""
+    solver's rule b_i − a_i > τ at the solution (``Complementarity.active_set``), the set
+    ``active`` and ``n_active`` show.  ``contact_force`` is the resultant contact force
+    summed over all ranks (:meth:`contact.models.DiscreteProblem.contact_force`), the same
+    number on every rank."""
 
     u_h: fem.Function
     lmbda_h: fem.Function
@@ -78,7 +79,7 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
-    active = b > a
+    active = cp.active_set(a, b)
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     comm = scene.comm
     timers["total"] = time.perf_counter() - t_start

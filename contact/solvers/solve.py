@@ -13,14 +13,15 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
+from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
 from ..config import ConfigError
 from ..models.problem import interpolate_expression, nodal_scaling
-from ..scene import Scene
+from ..scene import Scene, require_scene
 from . import ncp
 from .linear import default_linear_solver
 from .newton import Complementarity, setup_newton
-from .options import petsc_value, set_from_options, solver_options
+from .options import check_petsc_options, petsc_value, set_from_options, solver_options
 from .result import Result, finish
 from .vi import setup_vi
 
@@ -40,6 +41,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     friction fields in ``Result.friction``; ``friction.coulomb: fixed_point`` solves a
     sequence of Tresca problems instead (:func:`~contact.solvers.friction.coulomb_fixed_point`).
     """
+    require_scene(scene)
+    if problem is not None and problem.V.mesh is not scene.mesh:
+        raise ValueError("problem: was built for another scene's mesh")
     opts = solver_options(scene, method=method, **options)
     method = opts["method"]
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
@@ -68,7 +72,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # Initial guess with the Dirichlet values in place.
     x = problem.b.duplicate()
     if u0 is None:
+        check_data(scene, data_items("solver.u0", opts["u0"]))
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
+    else:
+        check_guess(u0, problem)
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
 
@@ -76,6 +83,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
     petsc_opts = {**default_linear_solver(problem), **{str(k): v for k, v in opts["petsc_options"].items()}}
+    if options.get("petsc_options"):  # the scene's own were checked when it was loaded
+        check_petsc_options(opts["petsc_options"], default_linear_solver(problem), comm)
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher = None
     if friction is not None:   # the block law H = B K + D (no polishing)
@@ -147,6 +156,21 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     for obj in (snes, x, prev["x"], J):
         obj.destroy()
     return result
+
+
+def check_guess(u0: Any, problem: DiscreteProblem) -> None:
+    """An initial guess must be a function in the problem's space (same mesh object,
+    element and layout); else one ValueError line on every rank."""
+    V = problem.V
+    if not isinstance(u0, fem.Function):
+        raise ValueError(f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}")
+    W = u0.function_space
+    local = W.mesh is not V.mesh or W.ufl_element() != V.ufl_element() or \
+        W.dofmap.index_map.size_local * W.dofmap.index_map_bs != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    if V.mesh.comm.allreduce(bool(local), op=MPI.LOR):
+        where = "another mesh" if W.mesh is not V.mesh else "another function space"
+        raise ValueError(f"u0: lives on {where} than the scene's problem; interpolate it first "
+                         "(contact.refine returns the guess on the refined mesh)")
 
 
 def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:
