@@ -21,6 +21,8 @@ import yaml
 from . import expressions
 
 SOLVER_METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
+FRICTION_LAWS = ("none", "tresca", "coulomb")
+FRICTION_FORMS = ("projection", "hsw")
 _REQUIRED = object()
 
 
@@ -36,9 +38,67 @@ _Loader.add_implicit_resolver(
     list("-+0123456789."))
 
 
+MAX_FILE_BYTES = 1_000_000  # a scene or study file
+MAX_YAML_NODES = 100_000    # nodes of a YAML document with its aliases expanded
+
+
+class YAMLTooLarge(yaml.YAMLError):
+    """A YAML document beyond the limits (aliases expanding too far, nesting too deep)."""
+
+
 def load_yaml(text: str) -> Any:
-    """Parse YAML text safely (no Python objects), with Python's float notation."""
-    return yaml.load(text, Loader=_Loader)
+    """Parse YAML text safely (no Python objects), with Python's float notation.
+
+    A document whose aliases expand to more than :data:`MAX_YAML_NODES` nodes (a "billion
+    laughs" bomb: a few hundred bytes that stand for 10⁹ list items), a recursive alias or
+    nesting too deep for the parser raise :class:`YAMLTooLarge` before anything is built.
+    """
+    loader = _Loader(text)
+    try:
+        try:
+            node = loader.get_single_node()
+        except RecursionError:
+            raise YAMLTooLarge("the YAML document is nested too deeply") from None
+        if node is None:
+            return None
+        _check_expansion(node, MAX_YAML_NODES)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+def _check_expansion(root: yaml.Node, limit: int) -> None:
+    """Count the nodes of the document as its consumers see it (each alias expanded), one
+    visit per distinct node (sizes memoized), iteratively; refuse cycles and > limit."""
+    def children(node: yaml.Node) -> list:
+        if isinstance(node, yaml.SequenceNode):
+            return node.value
+        if isinstance(node, yaml.MappingNode):
+            return [n for pair in node.value for n in pair]
+        return []
+
+    size: dict[int, int] = {}
+    open_nodes: set[int] = set()  # the current path from the root
+    stack = [(root, False)]
+    while stack:
+        node, finished = stack.pop()
+        key = id(node)
+        if finished:
+            open_nodes.discard(key)
+            size[key] = 1 + sum(size[id(c)] for c in children(node))
+            if size[key] > limit:
+                raise YAMLTooLarge(f"the YAML document expands to more than {limit} nodes "
+                                   "(aliases * of anchors & repeat whole subtrees)")
+            continue
+        if key in size:
+            continue
+        open_nodes.add(key)
+        stack.append((node, True))
+        for child in children(node):
+            if id(child) in open_nodes:
+                raise YAMLTooLarge("the YAML document has a recursive alias (an anchor used inside itself)")
+            if id(child) not in size:
+                stack.append((child, False))
 
 
 class ConfigError(ValueError):
@@ -87,6 +147,12 @@ def _c_value(v: Any) -> str | None:
     return _positive(v)
 
 
+def _max_dofs(v: Any) -> str | None:
+    if v == "auto" or isinstance(v, int) and not isinstance(v, bool) and v > 0:
+        return None
+    return f"must be 'auto' or a positive integer, got {v!r}"
+
+
 def _cells(v: Any) -> str | None:
     items = v if isinstance(v, list) else [v]
     if not items or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items):
@@ -107,6 +173,24 @@ def _point_list(v: Any) -> str | None:
     return None
 
 
+def folder_name(v: str) -> str | None:
+    """A name that becomes one folder (``results/<name>``): no path separator, not ``.``,
+    no ``..``, at most 100 characters."""
+    if not v.strip():
+        return "must not be empty"
+    if any(c in v for c in "/\\\0") or ".." in v or v.strip() == ".":
+        return f"must be a plain folder name (no '/', '\\' or '..'), got {v!r}"
+    if len(v) > 100:
+        return f"must be at most 100 characters, got {len(v)}"
+    return None
+
+
+def _numbers(v: Any, lengths: tuple[int, ...]) -> str | None:
+    ok = len(v) in lengths and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+                                   for c in v)
+    return None if ok else f"expected {' or '.join(map(str, lengths))} finite numbers, got {v!r}"
+
+
 def _expression_list(v: Any) -> str | None:
     if not isinstance(v, list):
         return f"expected a list of expressions, one per coordinate, got {_typename(v)} {v!r}"
@@ -117,6 +201,14 @@ def _petsc_value(v: Any) -> str | None:
     if v is None or isinstance(v, (str, int, float)):  # None: a flag option without value
         return None
     return f"must be a string, number or boolean, got {_typename(v)} {v!r}"
+
+
+def _times(v: Any) -> str | None:
+    if not v or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) for t in v):
+        return f"expected a non-empty list of numbers, got {v!r}"
+    if v[0] <= 0 or any(b <= a for a, b in zip(v, v[1:])):
+        return f"the pseudo-times must be > 0 and strictly increasing, got {v!r}"
+    return None
 
 
 EXPR = Field("expr", "0")
@@ -130,6 +222,13 @@ BOUNDARY = Field("dict", schema={
     "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
     "tag": Field("int", None, doc="gmsh physical tag of the facets (with where: those satisfying it)"),
     "body": Field("str", None, doc="only the facets of this body (a name of the bodies section)"),
+    "surface": Field("dict", None, schema={
+        "type": Field("str", choices=("circle", "sphere", "cylinder")),
+        "center": Field("list", check=lambda v: _numbers(v, (2, 3))),
+        "radius": Field("number", check=_positive),
+        "axis": Field("list", None, check=lambda v: _numbers(v, (3,))),
+    }, doc="the exact curve / surface the part lies on (circle 2D; sphere, cylinder 3D): "
+           "refinement moves the part's new vertices onto it"),
 })
 
 BODY = Field("dict", schema={
@@ -137,7 +236,7 @@ BODY = Field("dict", schema={
                                   "or surface; block number 1, 2, … of mesh type blocks)"),
     "where": Field("str", None, doc="the body's cells: predicate in x, y, z on the cell midpoints"),
     "E": Field("number", check=_positive, doc="Young's modulus of the body"),
-    "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
+    "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
                 doc="Poisson's ratio of the body"),
 })
 
@@ -156,7 +255,7 @@ BLOCK = Field("dict", schema={
 })
 
 SCENE: dict[str, Field] = {
-    "name": Field("str", None),
+    "name": Field("str", None, check=folder_name, doc="the default output folder results/<name>"),
     "mesh": Field("dict", schema={
         "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh",
                                                    "quarter_disk", "sphere_octant", "blocks", "half_disks",
@@ -171,6 +270,8 @@ SCENE: dict[str, Field] = {
         "h_contact": Field("number", None, doc="quarter_disk / sphere_octant: mesh size at the contact point"),
         "zone": Field("number", None, doc="quarter_disk / sphere_octant: radius of the fine zone"),
         "radius2": Field("number", None, doc="half_disks: radius of the lower disk (default: radius)"),
+        "overlap": Field("number", None, doc="half_disks: the lower disk moved up by this much (the "
+                                             "bodies interpenetrate: an interference load)"),
         "block": Field("list", None, doc="sphere_on_block: [half-width, depth] of the block"),
         "blocks": Field("list", None, doc="blocks: a list of {corners, cells}, one body each "
                                           "(cell tags 1, 2, …), meshed independently"),
@@ -188,8 +289,8 @@ SCENE: dict[str, Field] = {
         "bound": Field("str", "upper", choices=("upper", "lower"),
                        doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
         "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
-        "nu": Field("number", 0.3, check=lambda v: None if 0 <= v < 0.5 else f"must lie in [0, 0.5), got {v}",
-                    doc="elasticity: Poisson's ratio"),
+        "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
+                    doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 < ν < 1/2)"),
     }),
     "bodies": Field("dict", None, schema=None, item=BODY),
     "pairs": Field("list", None, doc="contact pairs between bodies: [{slave, master, search}]"),
@@ -200,10 +301,20 @@ SCENE: dict[str, Field] = {
         "center": Field("list", None, doc="circle / sphere: the centre"),
         "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
     }),
+    "reference": Field("dict", None, schema={
+        "type": Field("str", choices=("hertz", "cattaneo_mindlin"),
+                      doc="the reference solution the results are compared with (SPEC §7): hertz, or "
+                          "cattaneo_mindlin (partial slip of two similar bodies, Coulomb friction)"),
+        "radius": Field("number", None, check=_positive,
+                        doc="hertz: the radius R of the curved body (default: mesh.radius of a "
+                            "quarter_disk / sphere_octant)"),
+    }, doc="optional: a declared reference solution; only then are its values and errors reported"),
     "constants": Field("dict", schema=None, item=Field("number")),
     "data": Field("dict", schema={
         "f": EXPRS, "k": Field("expr", "1"), "u_D": EXPRS, "t": EXPRS, "t_C": EXPR,
-        "g": EXPR, "psi": EXPR, "exact": Field("expr", None),
+        "g": EXPR, "psi": EXPR,
+        "exact": Field("exprs", None, doc="the exact solution, if known (one expression per component "
+                                         "for elasticity): reports the energy error"),
     }),
     "solver": Field("dict", schema={
         "method": Field("str", "fb", choices=SOLVER_METHODS),
@@ -217,10 +328,14 @@ SCENE: dict[str, Field] = {
         "max_it": Field("int", 50, check=_positive),
         "u0": Field("exprs", "0", doc="initial guess: an expression (every component), or one per "
                                       "component for elasticity"),
+        "max_dofs": Field("any", "auto", check=_max_dofs,
+                          doc="DoF budget of one solve: auto (sized to this machine's memory, see "
+                              "contact/budget.py) or a positive integer"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "adapt": Field("dict", None, schema={
-        "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform")),
+        "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform", "none"),
+                          doc="none: one solve on the given mesh (as if there were no adapt section)"),
         "theta": Field("number", 0.5, check=_half_open_unit),
         "tol": Field("number", 0.0, check=_nonnegative),
         "max_dofs": Field("int", 200000, check=_positive),
@@ -231,9 +346,36 @@ SCENE: dict[str, Field] = {
                                  "only has to be small against the discretization error"),
         "pictures": Field("int", 3, check=_nonnegative),
     }),
+    "friction": Field("dict", None, schema={
+        "law": Field("str", "none", choices=FRICTION_LAWS,
+                     doc="none (frictionless), tresca (given slip threshold) or coulomb"),
+        "coefficient": Field("number", None, check=_nonnegative,
+                             doc="coulomb: the friction coefficient F (dimensionless)"),
+        "threshold": Field("expr", None,
+                           doc="tresca: the slip threshold s(x, t) >= 0, a stress (the unit of E)"),
+        "c_t": Field("any", "auto", check=_c_value,
+                     doc="tangential NCP scaling, stress per length: auto (nodal, "
+                         "c_t,i = K_tt,i / (kappa_t w_i)) or a number"),
+        "kappa_t": Field("number", 1.0, check=_positive, doc="factor of c_t: auto"),
+        "form": Field("str", "hsw", choices=FRICTION_FORMS,
+                      doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth max form)"),
+        "coulomb": Field("str", "ssn", choices=("ssn", "fixed_point"),
+                         doc="coulomb: full semismooth Newton, or the fixed point on the normal "
+                             "pressure (a sequence of Tresca problems)"),
+        "fixed_point_rtol": Field("number", 1e-10, check=_positive,
+                                  doc="fixed point: stop when |rho_new - rho| <= rtol |rho|"),
+        "fixed_point_max_it": Field("int", 100, check=_positive),
+    }),
+    "load": Field("dict", None, schema={
+        "steps": Field("int", None, check=_positive, doc="N equal steps t = 1/N, 2/N, ..., 1"),
+        "times": Field("list", None, check=_times, doc="the pseudo-times of the steps, increasing, > 0"),
+        "adapt": Field("str", "end", choices=("each", "end"),
+                       doc="with an adapt section: the adaptive loop at every step, or only at the last"),
+    }),
     "output": Field("dict", schema={
         "dir": Field("str", None),
-        "xdmf": Field("bool", True),
+        "vtk": Field("bool", True, doc="write the fields as VTK: solution.vtu (one solve) or the "
+                                         "series solution.pvd (adaptive levels)"),
         "png": Field("bool", True),
         "verbose": Field("bool", True),
     }),
@@ -319,11 +461,16 @@ def read_yaml(path: str | Path) -> dict:
     if not p.is_file():
         raise ConfigError(f"{p}: no such file")
     try:
+        if (size := p.stat().st_size) > MAX_FILE_BYTES:
+            raise ConfigError(f"{p}: the file has {size} bytes, more than the limit of {MAX_FILE_BYTES} "
+                              "for a scene or study (put meshes and data in files of their own)")
         data = load_yaml(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError as err:
         raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
     except OSError as err:
         raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
+    except YAMLTooLarge as err:
+        raise ConfigError(f"{p}: {err}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
@@ -369,15 +516,23 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     """
     if not isinstance(data, Mapping):
         raise ConfigError(f"scene: expected a mapping, got {_typename(data)}")
+    if isinstance(data.get("output"), Mapping) and "xdmf" in data["output"]:
+        raise ConfigError("output.xdmf: XDMF output was replaced by VTK files (solution.vtu, solution.pvd) "
+                          "that ParaView and pyvista open; use output.vtk")
+    if data.get("adapt") == "none":  # adapt: none  =  no adaptive loop
+        data = {**data, "adapt": None}
     if isinstance(data.get("model"), str):  # short form  model: signorini
         data = {**data, "model": {"type": data["model"]}}
     raw_constants = data.get("constants") or {}
     constants = _validate(raw_constants, SCENE["constants"], "constants", {})
     for key in constants:
-        if key in expressions.COORDINATES + expressions.HELPERS + expressions.FUNCTIONS or not key.isidentifier():
+        if (key in expressions.COORDINATES + expressions.HELPERS + expressions.FUNCTIONS + (expressions.TIME,)
+                or not key.isidentifier()):
             raise ConfigError(f"constants.{key}: is not a usable constant name")
     cfg = _validate_mapping(data, Field("dict", schema=SCENE), "", constants)
     cfg["name"] = cfg["name"] or name or "scene"
+    if cfg["adapt"] is not None and cfg["adapt"]["strategy"] == "none":
+        cfg["adapt"] = None
     cfg["_base_dir"] = str(Path(base_dir).resolve())
 
     mesh = cfg["mesh"]
@@ -387,7 +542,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                "quarter_disk": {"radius", "h", "h_contact", "zone"},
                "sphere_octant": {"radius", "h", "h_contact", "zone"},
                "blocks": {"blocks", "diagonal"},
-               "half_disks": {"radius", "radius2", "h", "h_contact", "zone"},
+               "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap"},
                "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"}}[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
     for key in SCENE["mesh"].schema:
@@ -440,8 +595,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if model == "obstacle" and "contact" in roles:
         raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a contact part")
     given = set(data.get("data") or {})
-    if model == "elasticity" and ({"k", "g", "psi", "t_C", "exact"} & given):
-        raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C', 'exact'} & given)[0]}: not used by model type elasticity")
+    if model == "elasticity" and ({"k", "g", "psi", "t_C"} & given):
+        raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C'} & given)[0]}: not used by model type elasticity")
     if model != "elasticity" and cfg.get("obstacle"):
         raise ConfigError("obstacle: only for model type elasticity (scalar models use data.g / data.psi)")
     if model != "elasticity" and (cfg["model"]["E"] is not None):
@@ -453,6 +608,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
     _check_vector_data(cfg, model)
+    _check_time(cfg)
+    _check_friction(cfg, data)
     if model == "elasticity":
         _check_bodies(cfg, constants)
         _check_elasticity(cfg)
@@ -469,6 +626,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                 raise ConfigError(f"mesh.{key}: required for mesh type {mesh['type']!r}")
     if mesh["degree"] == 2 and cfg["pairs"]:
         raise ConfigError("mesh.degree: contact pairs (mortar) are implemented for P1; use 1")
+    if cfg.get("reference"):
+        _check_reference(cfg)
     if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
         raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
@@ -545,11 +704,76 @@ def _check_bodies(cfg: dict, constants: Mapping[str, float]) -> None:
 def _check_vector_data(cfg: dict, model: str) -> None:
     """Vector data (lists) only for elasticity (where a single expression means every
     component, so the default "0" is the zero vector)."""
-    for key in ("f", "u_D", "t"):
+    for key in ("f", "u_D", "t", "exact"):
         if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
     if isinstance(cfg["solver"]["u0"], list) and model != "elasticity":
         raise ConfigError("solver.u0: a list of components is only for model type elasticity")
+
+
+def _check_time(cfg: dict) -> None:
+    """The pseudo-time t is for data only (the mesh and its parts are fixed along a load
+    path); ``load`` takes steps or times, not both."""
+    constants = cfg["constants"]
+    for key, texts in (("mesh.map", cfg["mesh"]["map"] or []),
+                       *((f"boundaries.{n}.where", [p["where"]]) for n, p in cfg["boundaries"].items())):
+        if any(t is not None and expressions.uses_time(t, constants) for t in texts):
+            raise ConfigError(f"{key}: the pseudo-time t is only for data expressions (the mesh is fixed)")
+    load = cfg.get("load")
+    if load is not None:
+        if (load["steps"] is None) == (load["times"] is None):
+            raise ConfigError("load: give exactly one of 'steps' or 'times'")
+        if load["steps"] is not None:
+            load["times"] = [(k + 1) / load["steps"] for k in range(load["steps"])]
+        load["times"] = [float(t) for t in load["times"]]
+
+
+def _check_friction(cfg: dict, data: Mapping) -> None:
+    """Friction needs elastic contact, and the keys of its law (Tresca: a threshold;
+    Coulomb: a coefficient, and not the other law's keys); PETSc's VI solvers cannot solve it.
+    ``law: none`` ignores the other keys."""
+    fr = cfg.get("friction")
+    if fr is None:
+        return
+    given = {k for k, v in (data.get("friction") or {}).items() if v is not None}
+    law = fr["law"]
+    if law == "none":   # frictionless: the other keys are ignored (--set friction.law=none switches it off)
+        return
+    if cfg["model"]["type"] != "elasticity":
+        raise ConfigError(f"friction.law: {law} friction needs model type elasticity "
+                          f"(a {cfg['model']['type']} scene has no tangential direction)")
+    need = {"tresca": "threshold", "coulomb": "coefficient"}.get(law)
+    if need is not None and fr[need] is None:
+        raise ConfigError(f"friction.{need}: required for friction law {law}")
+    unused = sorted(given - {"law", need, "c_t", "kappa_t", "form"}
+                    - ({"coulomb", "fixed_point_rtol", "fixed_point_max_it"} if law == "coulomb" else set()))
+    if unused:
+        raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")
+    if law != "none" and cfg["solver"]["method"] not in ("fb", "min", "blend"):
+        raise ConfigError(f"solver.method: {cfg['solver']['method']} cannot solve frictional contact "
+                          f"(friction.law: {law}); use fb, min or blend")
+
+
+def _check_reference(cfg: dict) -> None:
+    """A declared reference fits the scene: Hertz needs elastic contact and a radius (given,
+    or the radius of a built-in quarter_disk / sphere_octant / sphere_on_block, the effective
+    radius R1 R2 / (R1 + R2) of half_disks, filled in here).  With contact pairs the radius is
+    the effective one, 1/R = 1/R1 + 1/R2, and E* comes from the two bodies of the first pair."""
+    ref = cfg["reference"]
+    if ref["type"] == "cattaneo_mindlin" and (cfg.get("friction") or {}).get("law") != "coulomb":
+        raise ConfigError("reference.type: cattaneo_mindlin needs Coulomb friction (friction.law: coulomb)")
+    if ref["type"] in ("hertz", "cattaneo_mindlin"):
+        if cfg["model"]["type"] != "elasticity":
+            raise ConfigError(f"reference.type: {ref['type']} needs model type elasticity")
+        mesh = cfg["mesh"]
+        if ref["radius"] is None:
+            if mesh["type"] not in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
+                raise ConfigError(f"reference.radius: required for type {ref['type']} (the radius R of the "
+                                  "curved body, the effective radius of two) unless the mesh is a "
+                                  "quarter_disk, sphere_octant, half_disks or sphere_on_block")
+            R1 = float(mesh["radius"])
+            R2 = float(mesh["radius2"] or R1) if mesh["type"] == "half_disks" else None
+            ref["radius"] = R1 if R2 is None else R1 * R2 / (R1 + R2)
 
 
 def _check_elasticity(cfg: dict) -> None:

@@ -106,22 +106,26 @@ FIRST_BODY, SECOND_BODY = 1, 2
 
 
 def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contact: float,
-               zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
+               zone: float, overlap: float = 0.0) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """Two half-disks touching at the origin, meshed independently (2D triangles): the upper
     one {|x − (0, R1)| ≤ R1, y ≤ R1} (cell tag 1; arc tag 1, top y = R1 tag 2) and the lower
-    one {|x − (0, −R2)| ≤ R2, y ≥ −R2} (cell tag 2; arc tag 3, bottom y = −R2 tag 4).  The
-    mesh size is ``h_contact`` within ``zone`` of the contact point, ``h`` far from it
-    (lengths in the scene's unit).  Returns (mesh, facet tags, cell tags)."""
+    one {|x − (0, d − R2)| ≤ R2, y ≥ d − R2} (cell tag 2; arc tag 3, bottom tag 4), moved up
+    by d = ``overlap`` (≥ 0: the bodies interpenetrate by d at x = 0, an interference that
+    loads them without a prescribed displacement).  The mesh size is ``h_contact`` within
+    ``zone`` of the contact point, ``h`` far from it (lengths in the scene's unit).  Returns
+    (mesh, facet tags, cell tags)."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
     radius2, *_ = _check(radius2, h, h_contact, zone, "radius2")
+    if not (isinstance(overlap, (int, float)) and not isinstance(overlap, bool) and 0 <= overlap < 0.1 * min(radius, radius2)):
+        raise ConfigError(f"mesh.overlap: must be a number in [0, 0.1 × radius), got {overlap!r}")
 
     def build(gmsh):
         occ = gmsh.model.occ
         contacts, surfaces, arcs, flats = [], [], [], []
-        for R, s in ((radius, 1.0), (radius2, -1.0)):   # upper (centre (0, R1)), lower (centre (0, −R2))
-            p0 = occ.addPoint(0, 0, 0)
-            centre = occ.addPoint(0, s * R, 0)
-            left, right = occ.addPoint(-R, s * R, 0), occ.addPoint(R, s * R, 0)
+        for R, s, y0 in ((radius, 1.0, 0.0), (radius2, -1.0, overlap)):   # upper (centre (0, R1)), lower (centre (0, d − R2))
+            p0 = occ.addPoint(0, y0, 0)
+            centre = occ.addPoint(0, y0 + s * R, 0)
+            left, right = occ.addPoint(-R, y0 + s * R, 0), occ.addPoint(R, y0 + s * R, 0)
             arc_l, arc_r = occ.addCircleArc(left, centre, p0), occ.addCircleArc(p0, centre, right)
             flat = occ.addLine(right, left)
             surfaces.append(occ.addPlaneSurface([occ.addCurveLoop([arc_l, arc_r, flat])]))
@@ -197,22 +201,31 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
 
 @dataclass(frozen=True)
 class CurvedBoundary:
-    """The exact surface S = {x : |x − c| = R} (a circle in 2D, a sphere in 3D) on which
-    the facets tagged ``tag`` lie; c = ``centre`` and R = ``radius`` in the mesh's length
+    """The exact surface on which the facets tagged ``tag`` lie: S = {x : |x − c| = R} (a
+    circle in 2D, a sphere in 3D) or, with an ``axis`` a, the cylinder of points at distance
+    R from the line c + t a (3D); c = ``centre`` and R = ``radius`` in the mesh's length
     unit."""
 
     centre: tuple[float, ...]
     radius: float
     tag: int = CONTACT
+    axis: tuple[float, ...] | None = None
 
     def project(self, x: np.ndarray) -> np.ndarray:
         """The radial projection π(x) = c + R (x − c) / |x − c| of points ``x`` (n, gdim)
-        onto S (same length unit; x = c has none).  A plane through c is mapped into itself
-        (the component of x − c normal to it stays 0), so the arc's ends on the axis / top
-        and the sphere's edges on the symmetry planes and the top stay on those planes."""
+        onto S (same length unit; x = c has none); for a cylinder the component along the
+        axis is kept, π(x) = c + ((x − c)·a) a + R d / |d| with d = x − c − ((x − c)·a) a.
+        A plane through c (containing the axis) is mapped into itself (the component of
+        x − c normal to it stays 0), so the arc's ends on the axis / top and the sphere's
+        edges on the symmetry planes and the top stay on those planes."""
         c = np.asarray(self.centre, dtype=float)
         d = x - c
-        return c + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+        along = 0.0
+        if self.axis is not None:
+            a = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
+            along = np.outer(d @ a, a)
+            d = d - along
+        return c + along + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
 
     def snap(self, msh: dmesh.Mesh, tags: dmesh.MeshTags, tol: float = 1e-12) -> int:
         """Move every geometry node of a facet tagged ``tag`` to π(x) (collective); return
@@ -252,19 +265,20 @@ class CurvedBoundary:
         return msh.comm.allreduce(len(owned), op=MPI.SUM)
 
 
-def curved_boundaries(cfg: dict) -> list[CurvedBoundary]:
-    """Every curved surface of the scene's built-in mesh: :func:`curved_boundary`'s, or the
-    two arcs of ``half_disks`` (tags 1 and 3) and the sphere of ``sphere_on_block`` (tag 1)."""
+def builder_surfaces(cfg: dict) -> list[CurvedBoundary]:
+    """The curved surfaces of the two-body builders, by the mesh's own facet tags: the two
+    arcs of ``half_disks`` (tags 1 and 3) and the sphere of ``sphere_on_block`` (tag 1);
+    empty for every other mesh."""
     m = cfg["mesh"]
     if m["type"] == "half_disks":
         R1 = float(m["radius"])
         R2 = float(m["radius2"] or R1)
-        return [CurvedBoundary((0.0, R1), R1, UPPER_ARC), CurvedBoundary((0.0, -R2), R2, LOWER_ARC)]
+        d = float(m.get("overlap") or 0.0)
+        return [CurvedBoundary((0.0, R1), R1, UPPER_ARC), CurvedBoundary((0.0, d - R2), R2, LOWER_ARC)]
     if m["type"] == "sphere_on_block":
         R = float(m["radius"])
         return [CurvedBoundary((0.0, 0.0, R), R, SPHERE)]
-    single = curved_boundary(cfg)
-    return [] if single is None else [single]
+    return []
 
 
 def curved_boundary(cfg: dict) -> CurvedBoundary | None:

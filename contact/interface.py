@@ -20,10 +20,10 @@ from petsc4py import PETSc
 import dolfinx.fem.petsc
 import ufl
 from dolfinx import fem, la
-from dolfinx import mesh as dmesh
 
+from .resultants import nodal_gap
 from .scene import Scene
-from .solvers import Result
+from .solvers import Result, owned_residual
 
 
 def master_pressure(result: Result) -> fem.Function:
@@ -63,7 +63,9 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     term.  T = σ(u_h) n, n the outward normal of the facet's own body."""
     p = result.problem
     ds, bnd = p.data["ds"], scene.boundary
-    lam, gap = result.lmbda_h, result.gap
+    lam = result.lmbda_h
+    gap = result.gap.copy()                 # the nodal gap, NaN off the constrained nodes → 0
+    gap.x.array[np.isnan(gap.x.array)] = 0.0
     lam_m = master_pressure(result)
     Tn = ufl.dot(T, n)
     Tt = T - Tn * n
@@ -105,21 +107,20 @@ def pair_bodies(scene: Scene, index: int) -> list[str]:
 
 
 def interface_resultants(scene: Scene, result: Result) -> dict:
-    """Forces and Hertz figures of a multi-body solve (pair 0 for the Hertz values).
+    """The forces of a multi-body solve (collective):
 
-    * ``interface_force_slave`` / ``_master``: Σ over the pair's owned nodes of the residual
-      a(u_h, v) − L(v) (the force each body's surface needs from the other; the DoFs with a
-      Dirichlet or symmetry condition left out), summed over all pairs; their sum vanishes
-      when action equals reaction: ``interface_balance_error`` = |F_s·n0 + F_m·n0| / |F_s·n0|
-      along the normal n0 at the first point of contact;
+    * ``interface_force_slave`` / ``_master``: Σ over the surfaces' owned nodes of the
+      residual a(u_h, v) − L(v) (the force each body's surface needs from the other; the
+      DoFs with a Dirichlet or symmetry condition left out), summed over all pairs; their
+      sum vanishes when action equals reaction: ``interface_balance_error`` =
+      |F_s·n + F_m·n| / |F_s·n| along the normal n at the first point of contact;
     * ``reactions``: per Dirichlet part, Σ of the residual over its DoFs (a vector);
-    * ``contact_force`` P = copies × Σ_i D_ii |λ_i| (n_i·n0) (copies = 2^symmetry planes),
-      the half-width (2D) / radius (3D) of the active set around the first point of contact,
-      the peak pressure max |λ_i|, and with a Hertz radius the Hertz values for E* of the
-      two bodies (``hertz_a``, ``hertz_p0``, ``a_error``, ``p0_error``)."""
-    from .hertz import _profile, contact_extent, hertz_radius, hertz_values
-    from .models.obstacles import first_contact_point
+    * ``contact_force`` (:attr:`Result.contact_force`: m Σ_i D_ii p_i (n_i·n), m the
+      symmetric copies), ``peak_pressure`` max_i p_i on the slave nodes, ``min_gap``,
+      ``mortar_coverage`` (min_i Σ_j M_ij / D_ii) and, with a rigid obstacle too,
+      ``obstacle_force`` Σ_i w_i λ_i n_i (the obstacle's force on the body, a vector).
 
+    The Hertz values come from a declared ``reference`` (:mod:`contact.reference`)."""
     comm = scene.comm
     p = result.problem
     V = p.V
@@ -134,20 +135,12 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     for bc in p.data["u_bcs"]:
         dofs = bc.dof_indices()[0]
         fixed[dofs[dofs < n_owned * bs]] = True
-    fixed = fixed.reshape(-1, bs)
-    free_res = np.where(fixed, 0.0, residual)
-
-    con = p.constraint
-    slaves = slice(0, p.data["pair_nodes"])         # the slave nodes (an obstacle's nodes follow)
-    nodes = con.dofs[slaves] // bs
-    X = V.tabulate_dof_coordinates()[nodes, :gdim]
-    origin = first_contact_point(comm, X, con.g[slaves])
-    normals = p.data["normals"][slaves]
-    n0 = np.asarray(interface_normal(comm, X, normals, origin))
+    free_res = np.where(fixed.reshape(-1, bs), 0.0, residual)
+    n0 = np.asarray(p.data["n"])
 
     from .models.mortar import part_facets, surface_facets
     F_s, F_m = np.zeros(gdim), np.zeros(gdim)
-    for index, pair in enumerate(scene.cfg["pairs"]):
+    for pair in scene.cfg["pairs"] or []:
         for side, F in (("slave", F_s), ("master", F_m)):
             facets = surface_facets(V, part_facets(scene.boundary, pair[side]))
             mark = la.vector(V.dofmap.index_map, 1)
@@ -164,32 +157,20 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
             dofs = dofs[dofs < n_owned]
             reactions[name] = comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM).tolist()
 
-    lam = con.sign * (result.lmbda_h.x.array[output_dofs(p, nodes)])       # λ_i at the slave nodes
-    copies = 2 ** len(_symmetry_axes(scene, X))
-    force = copies * comm.allreduce(float(np.sum(con.w[slaves] * -lam * (normals @ n0))), op=MPI.SUM)
-    balance = abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300)
-    rel = X - origin
-    rho = np.linalg.norm(rel - np.outer(rel @ n0, n0), axis=1)
-    a = contact_extent(comm, rho, result.active_mask[slaves])
-    p0 = comm.allreduce(float(np.max(-lam, initial=0.0)), op=MPI.MAX)
-    out = {"contact_half_width" if gdim == 2 else "contact_radius": a, "peak_pressure": p0,
-           "contact_force": force, "interface_force_slave": F_s.tolist(), "interface_force_master": F_m.tolist(),
-           "interface_balance_error": balance, "reactions": reactions,
-           "contact_normal": n0.tolist(), "symmetric_copies": copies,
-           "mortar_coverage": min(c.coverage for c in p.data["couplings"]),
-           "min_gap": comm.allreduce(float(np.min(result.gap.x.array[p.output_nodes], initial=np.inf)), op=MPI.MIN),
-           "pressure_profile": _profile(comm, rho, -lam)}
-    rigid = slice(p.data["pair_nodes"], None)
-    if scene.cfg.get("obstacle"):  # Σ_i w_i λ_i n_i over the obstacle's contact nodes (a vector)
-        lam_o = result.lmbda_h.x.array[output_dofs(p, con.dofs[rigid] // bs)]
-        out["obstacle_force"] = comm.allreduce((con.w[rigid] * lam_o) @ p.data["normals"][rigid], op=MPI.SUM).tolist()
-    R = hertz_radius(scene.cfg)
-    if R is not None:
-        bodies = scene.cfg["bodies"]
-        E_star = effective_modulus([(bodies[b]["E"], bodies[b]["nu"]) for b in pair_bodies(scene, 0)])
-        a_H, p0_H = hertz_values(R, E_star, force, gdim)
-        out.update({"hertz_radius": R, "hertz_E_star": E_star, "hertz_a": a_H, "hertz_p0": p0_H,
-                    "a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0, "a_over_R": a / R})
+    con = p.constraint
+    slaves, rigid = slice(0, p.data["pair_nodes"]), slice(p.data["pair_nodes"], None)
+    pressure = p.pressure(owned_residual(result))
+    gap = nodal_gap(result)
+    out = {"contact_force": result.contact_force, "peak_pressure": comm.allreduce(
+               float(np.max(pressure[slaves], initial=0.0)), op=MPI.MAX),
+           "interface_force_slave": F_s.tolist(), "interface_force_master": F_m.tolist(),
+           "interface_balance_error": abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300),
+           "reactions": reactions, "contact_normal": n0.tolist(), "symmetric_copies": p.symmetric_copies,
+           "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
+           "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)}
+    if scene.cfg.get("obstacle"):
+        out["obstacle_force"] = comm.allreduce((con.w[rigid] * -pressure[rigid]) @ p.data["normals"][rigid],
+                                               op=MPI.SUM).tolist()
     return out
 
 
@@ -199,69 +180,3 @@ def output_dofs(problem, nodes: np.ndarray) -> np.ndarray:
     s_of_node = np.empty(len(problem.output_map), dtype=np.int64)
     s_of_node[problem.output_map // bs] = np.arange(len(problem.output_map))
     return s_of_node[nodes]
-
-
-def _symmetry_axes(scene: Scene, X: np.ndarray) -> set[int]:
-    """The coordinate axes k of the symmetry planes x_k = c that pass through a contact node
-    (rows of X, this rank's): the planes that mirror the contact zone, each counted once
-    however many bodies it cuts (a support plane away from the interface is not one)."""
-    from .models.elasticity import _facet_normal_axis
-
-    bnd, msh, comm = scene.boundary, scene.mesh, scene.comm
-    tdim = msh.topology.dim
-    scale = comm.allreduce(float(np.max(np.abs(msh.geometry.x), initial=0.0)), op=MPI.MAX)
-    axes = set()
-    for name, role in bnd.roles.items():
-        if role != "symmetry":
-            continue
-        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
-        k = _facet_normal_axis(scene, name, facets)
-        nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets[:1]).ravel()
-        local = float(msh.geometry.x[nodes[0], k]) if len(nodes) else np.nan
-        c = next(v for v in comm.allgather(local) if not np.isnan(v))
-        if comm.allreduce(bool(np.any(np.abs(X[:, k] - c) <= 1e-10 * max(scale, 1.0))), op=MPI.LOR):
-            axes.add(k)
-    return axes
-
-
-
-def slave_table(scene: Scene, result: Result) -> list[dict]:
-    """One row per slave node (all ranks, on rank 0; empty elsewhere), sorted by ``s``:
-    coordinates, ``s`` the signed distance from the first point of contact along the
-    surface's tangent (2D) or the in-plane distance from it (3D), the pressure λ_n (≤ 0 in
-    compression), the gap g_i − x_i,n and the 0/1 active flag — the rows of contact.csv."""
-    from .models.obstacles import first_contact_point
-
-    comm = scene.comm
-    p = result.problem
-    bs = p.V.dofmap.index_map_bs
-    gdim = scene.mesh.geometry.dim
-    con = p.constraint
-    slaves = slice(0, p.data["pair_nodes"])
-    nodes = con.dofs[slaves] // bs
-    X = p.V.tabulate_dof_coordinates()[nodes, :gdim]
-    s_dofs = output_dofs(p, nodes)
-    origin = first_contact_point(comm, X, con.g[slaves])
-    n0 = np.asarray(interface_normal(comm, X, p.data["normals"][slaves], origin))
-    rel = X - origin
-    tangential = rel - np.outer(rel @ n0, n0)
-    if gdim == 2:
-        s = tangential @ np.array([-n0[1], n0[0]])
-    else:
-        s = np.linalg.norm(tangential, axis=1)
-    cols = np.c_[X, s, result.lmbda_h.x.array[s_dofs], result.gap.x.array[s_dofs],
-                 result.active_mask[slaves].astype(float)]
-    parts = comm.gather(cols, root=0)
-    if comm.rank != 0:
-        return []
-    data = np.vstack(parts)
-    data = data[np.argsort(data[:, gdim])]
-    names = list("xyz"[:gdim]) + ["s", "lambda_n", "gap", "active"]
-    return [{k: (int(v) if k == "active" else float(v)) for k, v in zip(names, row)} for row in data]
-
-
-def interface_normal(comm: MPI.Comm, X: np.ndarray, normals: np.ndarray, origin: np.ndarray) -> list[float]:
-    """The slave normal at the node nearest to ``origin`` (the same on every rank)."""
-    local = (float(np.min(np.linalg.norm(X - origin, axis=1))), normals[np.argmin(np.linalg.norm(X - origin, axis=1))].tolist()) \
-        if len(X) else (np.inf, None)
-    return min(comm.allgather(local), key=lambda t: t[0])[1]

@@ -48,6 +48,15 @@ class Boundary:
         return np.sort(self.tags.indices[np.isin(self.tags.values, ids)]).astype(np.int32)
 
 
+def mesh_dimension(cfg: dict) -> int | None:
+    """The geometric dimension of the scene's mesh, from its type (None for a gmsh file)."""
+    mesh = cfg["mesh"]
+    if mesh["type"] == "blocks":
+        return len(mesh["blocks"][0]["corners"][0])
+    return {"rectangle": 2, "unit_square": 2, "lshape": 2, "quarter_disk": 2, "half_disks": 2,
+            "box": 3, "sphere_octant": 3, "sphere_on_block": 3}.get(mesh["type"])
+
+
 def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
                ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
     """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given), its facet
@@ -146,7 +155,8 @@ def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags |
         from . import geometry
 
         if kind == "half_disks":
-            return geometry.half_disks(comm, m["radius"], m["radius2"] or m["radius"], m["h"], m["h_contact"], m["zone"])
+            return geometry.half_disks(comm, m["radius"], m["radius2"] or m["radius"], m["h"], m["h_contact"], m["zone"],
+                                       m["overlap"] or 0.0)
         return geometry.sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
     return _read_gmsh(m["file"], comm)
 

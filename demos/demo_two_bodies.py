@@ -32,6 +32,7 @@ from mpi4py import MPI
 
 import contact
 from contact.interface import interface_resultants, master_pressure
+from contact.reference import compare
 from contact.io import gather_nodal
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 6
@@ -98,6 +99,7 @@ scene = contact.load_scene({
                    "slave": {"role": "interface", "where": "abs(x) < 2 and y < 1", "body": "upper"},
                    "master": {"role": "interface", "where": "abs(x) < 3 and y > -1", "body": "lower"}},
     "pairs": [{"slave": "slave", "master": "master"}],
+    "reference": {"type": "hertz"},     # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
     "model": {"type": "elasticity"},
     "data": {"u_D": ["0", f"-{delta} * (y > 0)"]},
     "output": {"verbose": False},
@@ -125,12 +127,14 @@ say(f"\nforce on the slave surface {F_s:.6f}, on the master surface {F_m:.6f} "
 #
 # For the force P per unit thickness, two cylinders of radius R_c are Hertz's cylinder of
 # the effective radius R = R_c / 2 on a rigid plane with E* = E / (2(1 − ν²)):
-# a = 2 √(R P / (π E*)), p0 = 2 P / (π a) (`interface_resultants` computes them for the
-# declared bodies).
+# a = 2 √(R P / (π E*)), p0 = 2 P / (π a): the scene declares `reference: {type: hertz}`,
+# whose radius defaults to the effective one of the two half-disks, and E* comes from the
+# two bodies of the pair.
 
-say(f"half-width a = {res['contact_half_width']:.5f} (Hertz {res['hertz_a']:.5f}, "
-    f"{100 * res['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} "
-    f"(Hertz {res['hertz_p0']:.5f}, {100 * res['p0_error']:+.2f}%), a/R_c = {res['contact_half_width'] / Rc:.3f}")
+hz = compare(scene, result).values
+say(f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, "
+    f"{100 * hz['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} "
+    f"(Hertz {hz['hertz_p0']:.5f}, {100 * hz['p0_error']:+.2f}%), a/R_c = {hz['contact_half_width'] / Rc:.3f}")
 
 # ## What you see
 #
@@ -171,7 +175,7 @@ if comm.rank == 0:
     axes[0].set_title(f"two cylinders, displacement × {scale:g}")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[1].set_title(f"the contact zone: non-matching meshes ({result.dofs} DoFs)")
-    a_H, p0_H = res["hertz_a"], res["hertz_p0"]
+    a_H, p0_H = hz["hertz_a"], hz["hertz_p0"]
     near = np.abs(X[:, 0]) <= 2 * a_H
     slave, master = near & (lam_s != 0), near & (lam_m != 0)
     axes[2].plot(X[slave, 0], -lam_s[slave], "o", ms=3, label="slave nodes: −λ_i")

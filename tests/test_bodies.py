@@ -15,6 +15,7 @@ import contact
 from contact.config import ConfigError
 from contact.interface import master_pressure
 from contact.models import build_problem
+from contact.reference import compare
 from contact.report import resultants
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -134,7 +135,7 @@ def test_slave_and_master_swapped_agree_within_discretization_error():
     for scene in (base, swapped):
         r = contact.solve(scene, method="min", verbose=False)
         assert r.converged
-        figures.append(resultants(scene, r))
+        figures.append({**resultants(scene, r), **compare(scene, r).values})
     a, b = figures
     assert abs(b["contact_force"] / a["contact_force"] - 1) < 0.01
     assert abs(b["peak_pressure"] / a["peak_pressure"] - 1) < 0.03
@@ -315,19 +316,21 @@ def test_gmsh_file_with_one_physical_surface_per_body(tmp_path):
 
 
 def test_cli_run_writes_both_bodies_and_the_slave_table(tmp_path):
-    """contact run on the patch test: the XDMF holds u_h, λ_h, lambda_master and the DG0
+    """contact run on the patch test: solution.vtu holds u_h, λ_h, lambda_master and the DG0
     body number, contact.csv one row per slave node, summary.json the interface forces."""
     import csv
     import json
 
-    import h5py
+    import pyvista
 
     out = tmp_path / "patch"
     proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(PATCH_2D), "-o", str(out), "-q"],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    with h5py.File(out / "solution.h5") as h5:
-        assert {"u_h", "lambda_h", "lambda_master", "gap", "active", "body", "von_mises"} <= set(h5["Function"])
+    grid = pyvista.read(out / "solution.vtu")
+    assert {"u_h", "lambda_h", "lambda_master", "gap", "active"} <= set(grid.point_data)
+    assert {"body", "von_mises"} <= set(grid.cell_data)
+    assert sorted(np.unique(grid.cell_data["body"])) == [1, 2]
     rows = list(csv.DictReader(open(out / "contact.csv")))
     assert len(rows) == 32 and all(abs(float(r["lambda_n"]) + P) < 1e-8 * P for r in rows)
     info = json.loads((out / "summary.json").read_text())

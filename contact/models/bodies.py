@@ -25,7 +25,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from dolfinx import fem, la
+from dolfinx import mesh as dmesh
 
+from ..checks import check_scene_data
 from ..scene import Scene
 from . import mortar
 from .basis import change_of_basis, node_frames
@@ -52,6 +54,7 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     """The frictionless multi-body contact problem of ``scene``: elasticity with one
     material per body, mortar pairs as the change of basis u = Q x."""
     t0 = time.perf_counter()
+    check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     mu, lmbda_L, body = materials(scene)
     system = elastic_system(scene, mu, lmbda_L)
     V, K, b = system.V, system.K, system.b
@@ -91,15 +94,66 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     end_dofs, end_neighbours = contact_ends(V, (ends * bs).astype(np.int32),
                                             np.concatenate([slave_nodes, ends]) * bs, ends * bs)
     con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in sets]), 1.0)
-    data = {**system.data, "reaction_form": reaction_form(system, u_h), "u_bcs": system.bcs,
-            "body": body, "couplings": couplings, "normals": np.concatenate([c.normals for c in sets]),
-            "frames": frames, "pair_nodes": int(offsets[-1]),  # the first pair_nodes constrained nodes are slave nodes
-            **(rigid.data if rigid is not None else {})}
-    return DiscreteProblem(V, u_h, bcs, Kt, bt, con, data=data, end_dofs=end_dofs, end_neighbours=end_neighbours,
-                           output_space=S, output_map=s_to_v, output_bound=bound, lambda_sign=1.0,
-                           basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
-                           near_nullspace=rigid_body_modes(V, inverse=Q_inv),
-                           assembly_time=time.perf_counter() - t0)
+    normals = np.concatenate([c.normals for c in sets])
+    pair_nodes = int(offsets[-1])      # the first pair_nodes constrained nodes are slave nodes
+    X = V.tabulate_dof_coordinates()[nodes, : scene.mesh.geometry.dim]
+    on_pairs = slice(0, pair_nodes) if couplings else slice(None)
+    data = {**system.data, **(rigid.data if rigid is not None else {}),
+            "reaction_form": reaction_form(system, u_h), "u_bcs": system.bcs,
+            "body": body, "couplings": couplings, "normals": normals, "frames": frames, "pair_nodes": pair_nodes,
+            # the contact normal at the first point of contact (of the pairs, if any)
+            "n": first_contact_normal(scene.comm, X[on_pairs], gap[on_pairs], normals[on_pairs])}
+    return BodiesProblem(V, u_h, bcs, Kt, bt, con, data=data, end_dofs=end_dofs, end_neighbours=end_neighbours,
+                         output_space=S, output_map=s_to_v, output_bound=bound, lambda_sign=1.0,
+                         basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
+                         symmetric_copies=2 ** len(symmetry_axes(scene, X[on_pairs])),
+                         near_nullspace=rigid_body_modes(V, inverse=Q_inv),
+                         assembly_time=time.perf_counter() - t0)
+
+
+class BodiesProblem(DiscreteProblem):
+    """The multi-body problem: its contact force is the one the pairs transmit (the slave
+    nodes' pressures; an obstacle's nodes, if any, are left out)."""
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """F = m Σ_{slave i} D_ii p_i (n_i · n) over all ranks (collective): p_i = −λ_i the
+        interface pressure, n the normal at the first point of contact, m the symmetric
+        copies (:meth:`DiscreteProblem.contact_force` over all nodes without pairs)."""
+        if not self.data["couplings"]:
+            return super().contact_force(r)
+        on = slice(0, self.data["pair_nodes"])
+        local = float(np.sum(self.constraint.w[on] * self.pressure(r)[on] * (self.data["normals"][on] @ self.data["n"])))
+        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
+def first_contact_normal(comm: MPI.Comm, X: np.ndarray, gap: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """The contact normal of the node with the smallest initial gap, over all ranks (the
+    same on every rank)."""
+    local = (float(gap.min()), normals[np.argmin(gap)].tolist()) if len(gap) else (np.inf, None)
+    return np.asarray(min(comm.allgather(local), key=lambda t: t[0])[1])
+
+
+def symmetry_axes(scene: Scene, X: np.ndarray) -> set[int]:
+    """The coordinate axes k of the symmetry planes x_k = c that pass through a contact node
+    (rows of X, this rank's): the planes that mirror the contact zone, each counted once
+    however many bodies it cuts (a support plane away from the interface is not one)."""
+    from .elasticity import _facet_normal_axis
+
+    bnd, msh, comm = scene.boundary, scene.mesh, scene.comm
+    tdim = msh.topology.dim
+    scale = comm.allreduce(float(np.max(np.abs(msh.geometry.x), initial=0.0)), op=MPI.MAX)
+    axes = set()
+    for name, role in bnd.roles.items():
+        if role != "symmetry":
+            continue
+        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
+        k = _facet_normal_axis(scene, name, facets)
+        nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets[:1]).ravel()
+        local = float(msh.geometry.x[nodes[0], k]) if len(nodes) else np.nan
+        c = next(v for v in comm.allgather(local) if not np.isnan(v))
+        if comm.allreduce(bool(np.any(np.abs(X[:, k] - c) <= 1e-10 * max(scale, 1.0))), op=MPI.LOR):
+            axes.add(k)
+    return axes
 
 
 @dataclass

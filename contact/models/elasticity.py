@@ -25,6 +25,7 @@ import ufl
 from dolfinx import fem
 
 from .. import expressions
+from ..checks import check_scene_data
 from ..config import ConfigError
 from ..scene import Scene
 from .obstacles import curved_contact, plane_contact
@@ -54,11 +55,11 @@ def _vector(texts: list[str], scene: Scene):
     if all(expressions.is_constant(t, consts) for t in texts):
         values = [float(expressions.to_numpy(t, consts)(np.zeros((3, 1)))[0]) for t in texts]
         return fem.Constant(scene.mesh, np.array(values, dtype=PETSc.ScalarType))
-    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts) for t in texts])
+    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts, t=scene.t_constant) for t in texts])
 
 
 def _vector_numpy(texts: list[str], scene: Scene):
-    fns = [expressions.to_numpy(t, scene.cfg["constants"]) for t in texts]
+    fns = [expressions.to_numpy(t, scene.cfg["constants"], t=scene.time) for t in texts]
     return lambda x: np.vstack([f(x) for f in fns])
 
 
@@ -146,6 +147,7 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
 
         return bodies_problem(scene)
     t0 = time.perf_counter()
+    check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     model, obstacle = scene.cfg["model"], scene.cfg["obstacle"]
     system = elastic_system(scene, *lame(model["E"], model["nu"]))
     V, K, b, fixed, ds = system.V, system.K, system.b, system.fixed, system.data["ds"]
@@ -157,7 +159,8 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     con = contact.pop("constraint")
     u_h = fem.Function(V, name="u_h")
     data = {**system.data, "reaction_form": reaction_form(system, u_h), **contact.pop("data")}
-    return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact,
+    copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
+    return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact, symmetric_copies=copies,
                            near_nullspace=rigid_body_modes(V, contact.get("basis")),
                            assembly_time=time.perf_counter() - t0)
 

@@ -9,8 +9,12 @@ slave facet normals onto Γ_m (:mod:`contact.models.overlap`),
 
 (Σ_k M_ik = D_ii where master facets cover the support of φ_i; dividing by the covered
 part keeps rigid translations exact at the ends of a partly covered slave surface).  Each
-slave node i gets the averaged unit normal n_i of its facets (towards the master) and the
-weighted gap
+slave node i gets the common normal n_i = (n_i^s − n_i^m)/|n_i^s − n_i^m|, the bisector of
+its own averaged facet normal n_i^s (towards the master) and the reversed master normal
+n_i^m = Σ_j c_ij n_j^m at its projection — the normal of the deformed interface of two
+elastically similar bodies (flat between two equal cylinders, where the slave normal is
+tilted by x/R: measured along it, the normal approach would look like a tangential slip
+of the order of the approach times x/R, which friction would resist) — and the weighted gap
 
     g_i = n_i · (Σ_j c_ij X_j − X_i)     (X the reference coordinates),
 
@@ -61,6 +65,7 @@ class Facets:
     nodes: np.ndarray    # (F, nv) local node indices (blocks of V's DoFs)
     gnodes: np.ndarray   # (F, nv) global node indices
     normals: np.ndarray  # (F, gdim) unit normals out of the body
+    vertex_normals: np.ndarray | None = None  # (F, nv, gdim) the surface's nodal normals at the vertices
 
 
 @dataclass
@@ -118,6 +123,8 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     master = surface_facets(V, part_facets(bnd, pair["master"]))
     gdim = slave.X.shape[2]
     search = pair["search"] or _diameter(comm, slave, master)
+    imap = V.dofmap.index_map
+    master.vertex_normals = _vertex_normals(imap, master, gdim)
     remote = _gather_master(comm, slave, master, search)
 
     # pairs (slave facet, master facet) whose overlap is non-empty, facing and within reach
@@ -127,7 +134,6 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     keep = (meas > 0) & facing & (np.abs(dist) <= search)
     s_idx, m_idx, M_loc = s_idx[keep], m_idx[keep], M_loc[keep]
 
-    imap = V.dofmap.index_map
     nv = slave.nodes.shape[1]
     # nodal sums over the slave facets (D_ii, Σ |F| n_F) and the master facets (∫ φ_j^m)
     measure = overlap.facet_measures(slave.X) if len(slave.X) else np.zeros(0)
@@ -138,8 +144,9 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     np.add.at(w_master.array, master.nodes.ravel(), np.repeat(m_measure / nv, nv))
     w_master.scatter_reverse(la.InsertMode.add)
     w_master.scatter_forward()
-    M_rows, cols, M_vals, X_of = _owned_rows(comm, imap, slave.nodes[s_idx], remote.gnodes[m_idx],
-                                             remote.X[m_idx], M_loc)
+    M_rows, cols, M_vals, attrs = _owned_rows(comm, imap, slave.nodes[s_idx], remote.gnodes[m_idx],
+                                              np.concatenate([remote.X, remote.vertex_normals], axis=2)[m_idx], M_loc)
+    X_of, N_of = attrs[:, :gdim], attrs[:, gdim:]
 
     n_owned = imap.size_local
     D_owned = D[:n_owned]
@@ -165,8 +172,13 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     Xs = V.tabulate_dof_coordinates()[:n_owned, :gdim][nodes]
     target = np.zeros((len(nodes), gdim))
     np.add.at(target, rows, c[:, None] * X_of[use])                                # Σ_j c_ij X_j
-
-    normals, frames, projectors, absolute = _frames(comm, V, nsum.reshape(-1, gdim)[nodes], fixed_comp, Xs, key)
+    n_master = np.zeros((len(nodes), gdim))
+    np.add.at(n_master, rows, c[:, None] * N_of[use])                              # Σ_j c_ij n_j^m
+    n_slave = nsum.reshape(-1, gdim)[nodes]
+    n_slave = n_slave / np.linalg.norm(n_slave, axis=1, keepdims=True)
+    n_master /= np.maximum(np.linalg.norm(n_master, axis=1, keepdims=True), 1e-300)
+    # the common normal: the bisector of the slave normal and the reversed master normal
+    normals, frames, projectors, absolute = _frames(comm, V, n_slave - n_master, fixed_comp, Xs, key)
     gap = np.einsum("nd,nd->n", normals, target - Xs)
     M = _node_matrix(V, M_rows, cols, M_vals)
     return Coupling(nodes=nodes.astype(np.int32), D=D_owned[nodes], normals=normals, frames=frames,
@@ -179,9 +191,10 @@ def _owned_rows(comm: MPI.Comm, imap, slave_nodes: np.ndarray, master_gnodes: np
                 master_X: np.ndarray, M_loc: np.ndarray) -> tuple:
     """The entries M_ij of this rank's owned slave rows from the local pair integrals
     M_loc (P, nv, nv) of slave facets with local ``slave_nodes`` (P, nv) against master
-    facets with global ``master_gnodes`` and coordinates ``master_X``: each entry goes to the
-    owner of its slave node, duplicates (i, j) from several facets are summed.  Returns
-    (local row, global column, value, the column's coordinates)."""
+    facets with global ``master_gnodes`` and per-vertex data ``master_X`` (P, nv, k; the
+    coordinates and the nodal normals): each entry goes to the owner of its slave node,
+    duplicates (i, j) from several facets are summed.  Returns (local row, global column,
+    value, the column's data)."""
     nv = M_loc.shape[1]
     gdim = master_X.shape[2]
     rows_local = np.repeat(slave_nodes, nv, axis=1).ravel()                 # (p, a, b) → slave a …
@@ -253,12 +266,23 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
     for b in boxes:
         sel = np.zeros(len(master.X), dtype=bool) if b is None else \
             np.all((lo <= b[1]) & (hi >= b[0]), axis=1)
-        send.append((master.X[sel], master.gnodes[sel], master.normals[sel]))
+        send.append((master.X[sel], master.gnodes[sel], master.normals[sel], master.vertex_normals[sel]))
     recv = comm.alltoall(send)
     nv = slave.X.shape[1] if len(slave.X) else master.X.shape[1] if len(master.X) else gdim
     X = np.concatenate([r[0] for r in recv]).reshape(-1, nv, gdim)
     return Facets(X, np.zeros((len(X), nv), np.int32), np.concatenate([r[1] for r in recv]).reshape(-1, nv),
-                  np.concatenate([r[2] for r in recv]).reshape(-1, gdim))
+                  np.concatenate([r[2] for r in recv]).reshape(-1, gdim),
+                  np.concatenate([r[3] for r in recv]).reshape(-1, nv, gdim))
+
+
+def _vertex_normals(imap, side: Facets, gdim: int) -> np.ndarray:
+    """The surface's unit nodal normals (measure-weighted facet normals summed over all
+    ranks) at the vertices of its facets, (F, nv, gdim)."""
+    nv = side.nodes.shape[1]
+    measure = overlap.facet_measures(side.X) if len(side.X) else np.zeros(0)
+    nsum = _nodal_sum(imap, side.nodes, np.repeat((measure[:, None] * side.normals)[:, None, :], nv, axis=1), gdim)
+    N = nsum.reshape(-1, gdim)[side.nodes]
+    return N / np.maximum(np.linalg.norm(N, axis=-1, keepdims=True), 1e-300)
 
 
 def _candidates(slave: Facets, master: Facets, search: float) -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,8 @@ from dolfinx import fem
 
 from ..config import ConfigError
 from ..scene import Scene
-from .basis import change_of_basis, frame
-from .problem import Constraint, lumped_weights
+from .basis import frame
+from .problem import Constraint, NodeBlockMatrix, lumped_weights
 
 
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
@@ -141,7 +141,8 @@ def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.n
 
 def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
     """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
-    bs = V.dofmap.index_map_bs
-    Q, Q_inv = change_of_basis(V, K, nodes, np.array([frame(n) for n in normals]).reshape(-1, bs, bs))
-    Q_inv.destroy()  # = Qᵀ for rotations
-    return Q
+    Q = NodeBlockMatrix(K, V.dofmap.index_map_bs)
+    blocks = Q.identity()
+    for node, n in zip(nodes, normals):
+        blocks[node] = frame(n)
+    return Q.set(blocks)

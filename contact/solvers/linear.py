@@ -17,7 +17,14 @@ ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol"
 
 def default_linear_solver(problem: DiscreteProblem) -> dict:
     """MUMPS LU, except Krylov + GAMG for 3D elasticity (faster there; see the figures above)."""
-    if problem.near_nullspace is not None and problem.V.mesh.geometry.dim == 3:
+    model = "elasticity" if problem.near_nullspace is not None else "scalar"
+    return default_options(model, problem.V.mesh.geometry.dim)
+
+
+def default_options(model: str, gdim: int) -> dict:
+    """The default PETSc options of a model type (``elasticity`` or another) in ``gdim``
+    dimensions, known before the problem is built (for checking the user's options)."""
+    if model == "elasticity" and gdim == 3:
         return dict(ELASTICITY_3D_PETSC_OPTIONS)
     return dict(DEFAULT_PETSC_OPTIONS)
 

@@ -36,6 +36,7 @@ from mpi4py import MPI
 import contact
 from contact.interface import output_dofs, interface_resultants, master_pressure
 from contact.models import build_problem
+from contact.reference import compare
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "demos" / "results" / "two_bodies"
@@ -104,7 +105,7 @@ def cylinders(max_dofs: int) -> None:
     rows, start = [], time.perf_counter()
 
     def on_level(level):
-        res = interface_resultants(level.scene, level.result)
+        res = {**interface_resultants(level.scene, level.result), **compare(level.scene, level.result).values}
         rows.append({"level": level.index, "dofs": level.result.dofs, "newton": level.result.iterations,
                      "polish": level.result.polish_solves, "seconds_solve": round(level.seconds["solve"], 3),
                      "seconds_total": round(time.perf_counter() - start, 2), "eta": level.estimate.eta,
@@ -150,7 +151,7 @@ def swap(label: str, path: Path, mesh: list[str], parts: list[str], csv_name: st
         t0 = time.perf_counter()
         r = contact.solve(scene, method="min", verbose=False)
         seconds = time.perf_counter() - t0
-        res = interface_resultants(scene, r)
+        res = {**interface_resultants(scene, r), **compare(scene, r).values}
         X, pressure = slave_pressure(r)
         rho = np.linalg.norm(X[:, :-1], axis=1) if X.shape[1] == 3 and label == "3d" else np.abs(X[:, 0])
         order = np.argsort(rho)
@@ -178,7 +179,7 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
         t0 = time.perf_counter()
         r = contact.solve(scene, method="fb", verbose=False)
         seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-        res = interface_resultants(scene, r)
+        res = {**interface_resultants(scene, r), **compare(scene, r).values}
         X, pressure = slave_pressure(r)
         rho = np.hypot(X[:, 0], X[:, 1])
         hertz = res["hertz_p0"] * np.sqrt(np.maximum(0.0, 1 - (rho / res["hertz_a"]) ** 2))
