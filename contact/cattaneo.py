@@ -75,7 +75,11 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     profile = np.vstack(comm.gather(np.c_[rho, q_h], root=0) or [np.zeros((0, 2))])
     profile = profile[np.argsort(profile[:, 0])] if comm.rank == 0 else np.zeros((0, 2))
     r = np.linspace(0.0, a_H, 300)
+    # the sign of λ_t as computed (2D: along the tangent t0 = (−n_y, n_x) of the plots)
+    force = comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM)
+    sign = float(np.sign(force @ np.array([-n[1], n[0]]))) if dim == 2 else 1.0
     return Comparison(values, errors, profile, xlabel="distance ρ from the first point of contact",
-                      curves=[(r, traction(r, a_H, c_over_a * a_H, p0_H, F),
-                               f"Cattaneo–Mindlin q: c/a = {c_over_a:.3f} (Q/FP = {ratio:.3f})")],
+                      curves=[(r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")],
+                      traction_curves=[(r, sign * traction(r, a_H, c_over_a * a_H, p0_H, F),
+                                        f"Cattaneo–Mindlin: c/a = {c_over_a:.3f} (Q/FP = {ratio:.3f})")],
                       marks=[(c_h, f"computed c = {c_h:.4g} (c/a {c_h / a_h:.3f})")])

@@ -148,13 +148,14 @@ def reference_curves(scene: Scene, table: Table | None, comparison=None, origin:
         return []
     if scene.cfg["data"]["exact"] is not None:
         return exact_tractions(scene, table, t0)
-    if comparison is None or not comparison.curves:
+    if comparison is None or not (comparison.curves or comparison.traction_curves):
         return []
+    curves = [(0, *c) for c in comparison.curves] + [(1, *c) for c in comparison.traction_curves]
     if "s" not in table:
-        return [(0, x, y, label) for x, y, label in comparison.curves]
+        return curves
     X = np.c_[table["x"], table["y"]]
     s0 = float(table["s"][int(np.argmin(np.linalg.norm(X - origin[:2], axis=1)))])
-    return [(0, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label) for x, y, label in comparison.curves]
+    return [(panel, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label) for panel, x, y, label in curves]
 
 
 def exact_tractions(scene: Scene, table: Table, t0: np.ndarray, h: float = 1e-6) -> list:

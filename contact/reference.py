@@ -24,8 +24,10 @@ class Comparison:
     ``values``: figures for summary.json (reference values, computed counterparts, relative
     errors); ``errors``: the relative errors a study charts (name -> value);
     ``profile``: (n, 2) computed (position, pressure) at the contact nodes, rank 0 only
-    (empty elsewhere); ``curves``: reference curves ``(x, y, label)``; ``marks``: vertical
-    lines ``(x, label)``; ``xlabel``: the position axis of the plot."""
+    (empty elsewhere); ``curves``: reference curves ``(x, y, label)`` of the pressure;
+    ``traction_curves``: the same of the tangential traction (its sign as computed, for the
+    traction plot of a frictional load path); ``marks``: vertical lines ``(x, label)``;
+    ``xlabel``: the position axis of the plot."""
 
     values: dict[str, float]
     errors: dict[str, float]
@@ -33,6 +35,7 @@ class Comparison:
     xlabel: str
     curves: list[tuple[np.ndarray, np.ndarray, str]] = field(default_factory=list)
     marks: list[tuple[float, str]] = field(default_factory=list)
+    traction_curves: list[tuple[np.ndarray, np.ndarray, str]] = field(default_factory=list)
 
 
 def _hertz(scene: Scene, result: Result, ref: dict) -> Comparison:

@@ -537,6 +537,77 @@ def friction() -> str:
     return "\n".join(out) + "\n"
 
 
+def two_bodies() -> str:
+    """Section 8: two deformable bodies, mortar coupling (demos/bench/bench_two_bodies.py)."""
+    out = ["## 8. Two bodies in contact: mortar coupling with dual multipliers", ""]
+    folder = RES / "two_bodies"
+    patch = rows(folder / "patch.csv")
+    if not patch:
+        return "\n".join(out) + "\n" + missing("two_bodies/patch.csv (demos/bench/bench_two_bodies.py)")
+    out += ["[`demos/bench/bench_two_bodies.py`](bench/bench_two_bodies.py). **Contact patch test** "
+            "(`configs/two_body_patch_{2d,3d}.yaml`: two blocks of different materials, mesh-size ratio ≥ 3, "
+            "no interface node aligned but the corners, uniform pressure p on top): the largest deviation of "
+            "the interface pressure from −p over the slave nodes (λ_i) and over the master nodes (λ^m_j), "
+            "relative to p:", "",
+            table(["dim", "method", "DoFs", "Newton its", "seconds", "slave max |λ + p| / p", "master max |λ + p| / p"],
+                  [[r["dim"], r["method"], r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                    g(r["seconds"]), g(r["slave_error"], 2), g(r["master_error"], 2)] for r in patch]), "",
+            "(3D: the default linear solver is BiCGStab + GAMG with rtol 1e-10, which bounds the agreement.)", ""]
+    levels = rows(folder / "cylinders_levels.csv") or []
+    if levels:
+        out += ["**Two cylinders, Hertz** (`configs/two_body_hertz_2d.yaml`: R_c = 8, E = 200, ν = 0.3; "
+                "effective radius R = R_c/2, E* = E / (2(1 − ν²))), Dörfler θ = 0.5, fb with nested iteration:", "",
+                table(["level", "DoFs", "Newton its", "solve s", "η", "a error", "p0 error", "a / R_c", "force balance"],
+                      [[r["level"], r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds_solve"]), g(r["eta"]), pct(r["a_error"]), pct(r["p0_error"]), g(r["a_over_Rc"]),
+                        g(r["balance"], 2)] for r in levels]), ""]
+    methods = rows(folder / "cylinders_methods.csv") or []
+    if methods:
+        out += ["Every method on the final mesh, from u = 0 (cold) and from the previous level's solution "
+                "(nested); the largest nodal difference to vinewtonrsls from u = 0:", "",
+                table(["method", "start", "Newton its", "seconds", "max |u − u_rsls|"],
+                      [[r["method"], r["start"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds"]), g(r["max_diff_to_vinewtonrsls"], 2)] for r in methods]), ""]
+    swaps = (rows(folder / "slave_master.csv") or []) + (rows(folder / "slave_master_3d.csv") or [])
+    if swaps:
+        out += ["Which surface is the slave (same meshes, the other surface as slave): the contact force, "
+                "half-width / radius and peak pressure, and the relative L² difference of the two pressure "
+                "profiles over [0, a]:", "",
+                table(["case", "slave", "DoFs", "force", "a", "p0", "a error", "p0 error", "profiles differ by"],
+                      [[r["case"], r["slave"], r["dofs"], g(r["force"], 6), g(r["a"], 5), g(r["p0"], 5), pct(r["a_error"]),
+                        pct(r["p0_error"]), g(r["profile_L2_difference"], 2)] for r in swaps]), ""]
+    out += [speed_accuracy("speed_accuracy_two_bodies", "Two cylinders: speed against accuracy, every method",
+                           "hertz_error", "Hertz error",
+                           "The study `configs/studies/speed_accuracy_two_bodies.yaml`: Newton iterations and "
+                           "times per level in its levels.csv, as for every other scene.")]
+    sphere = rows(folder / "sphere.csv") or []
+    if sphere:
+        out += ["**A sphere on a block** (`configs/two_body_hertz_3d.yaml`, the quarter x, y ≥ 0; gmsh meshes "
+                "of decreasing h_contact at the contact point, no refinement: nodal pressures on tetrahedra "
+                "refined by `dolfinx.mesh.refine` scatter by a few per cent about Hertz's, as the rigid-plane "
+                "`hertz_3d` does, while gmsh's own fine meshes give smooth ones), `mpirun -n 2`, fb from u = 0, "
+                "BiCGStab + GAMG:", "",
+                table(["h_contact", "DoFs", "ranks", "Newton its", "seconds", "radius error", "p0 error",
+                       "rms of p − p_Hertz (r < 0.8 a)", "a / R"],
+                      [[r["h_contact"], r["dofs"], r["ranks"], its_text({"newton_iterations": r["newton"],
+                                                                          "polish_solves": r["polish"]}),
+                        g(r["seconds"]), pct(r["a_error"]), pct(r["p0_error"]), f"{100 * r['pressure_rms']:.2f} %",
+                        g(r["a_over_R"])]
+                       for r in sphere]), ""]
+    cm = rows(folder / "cattaneo.csv") or []
+    if cm:
+        out += ["**Cattaneo–Mindlin partial slip** (`configs/two_body_cattaneo_2d.yaml`: the two cylinders with "
+                "Coulomb F = 0.3, P from an interference, then Q as a body force of the upper one at constant P): "
+                "the stick zone c/a against √(1 − Q/(F P)) and the relative L² error of the tangential traction:", "",
+                table(["h_contact", "DoFs", "Q/(F P)", "Newton its", "c/a", "theory", "c/a error", "q L² error"],
+                      [[r["h_contact"], r["dofs"], g(r["Q_over_FP"], 4), r["newton"], g(r["c_over_a"], 4),
+                        g(r["c_over_a_theory"], 4), pct(r["c_error"]), g(r["q_error"], 3)]
+                       for r in cm if r["Q_over_FP"] > 0.01]), "",
+                "Computed against analytic tangential traction on the finer mesh:", "",
+                "![Cattaneo–Mindlin: computed and analytic tangential traction](results/two_bodies/cattaneo_traction.png)", ""]
+    return "\n".join(out) + "\n"
+
+
 def main() -> None:
     global RES
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -564,6 +635,7 @@ def main() -> None:
         peers(),
         hertz_methods(),
         friction(),
+        two_bodies(),
     ]
     args.out.write_text("\n".join(parts))
     print(f"make_results: wrote {args.out}")

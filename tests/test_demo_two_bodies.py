@@ -1,5 +1,6 @@
 """demos/demo_two_bodies.py runs as written at a small size and prints its key figures:
-the patch test's pressure exact on both sides, action = reaction, Hertz's a and p0."""
+the patch test's pressure exact on both sides, action = reaction, Hertz's a and p0, the
+Cattaneo–Mindlin stick zones."""
 import os
 import re
 import subprocess
@@ -24,4 +25,7 @@ def test_demo_two_bodies(tmp_path):
     assert _number(r"balance error (\S+)\)", out) < 1e-10
     assert abs(_number(r"peak pressure p0 = \S+ \(Hertz \S+, (\S+)%\)", out)) < 2.0
     assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 4.0
+    ratios = [float(m) for m in re.findall(r"Q/\(F P\) = (\S+):", out)]
+    errors = [float(m) for m in re.findall(r"Cattaneo–Mindlin \S+, (\S+)%\)", out)]
+    assert ratios == [0.25, 0.5, 0.75] and all(abs(e) < 6.0 for e in errors)   # a coarse 7.6k-DoF mesh
     assert (tmp_path / "demo_two_bodies.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

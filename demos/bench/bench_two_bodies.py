@@ -3,6 +3,7 @@
     python demos/bench/bench_two_bodies.py patch                 # patch tests 2D / 3D, every method
     python demos/bench/bench_two_bodies.py cylinders             # two cylinders, adaptive, methods, slave/master
     mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
+    python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
 
 Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
 
@@ -20,7 +21,13 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
 * ``sphere.csv`` — a sphere on a block (quarter model), gmsh meshes of decreasing
   ``h_contact`` (no refinement: gmsh's own meshes give smoother nodal pressures than
   refined ones), on the ranks it runs on: DoFs, Newton iterations, seconds, a and p0
-  errors, and the rms deviation of the nodal pressure from Hertz's within 0.8 a.
+  errors, and the rms deviation of the nodal pressure from Hertz's within 0.8 a (rows are
+  merged by mesh size and rank count, so a run of one more size keeps the others);
+* ``cattaneo.csv`` — two cylinders with Coulomb friction F = 0.3, the load path of
+  ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
+  ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
+  tangential traction; ``cattaneo_traction.csv`` and ``cattaneo_traction.png`` the computed
+  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh.
 """
 from __future__ import annotations
 
@@ -50,7 +57,14 @@ def say(*args):
         print(*args, flush=True)
 
 
-def write(name: str, rows: list[dict]) -> None:
+def write(name: str, rows: list[dict], key: tuple[str, ...] = ()) -> None:
+    """Rows to OUT/name; with ``key``, the rows of an existing file with other key values
+    are kept (a run of one more mesh size adds its rows)."""
+    if comm.rank == 0 and key and (OUT / name).is_file():
+        with open(OUT / name) as fh:
+            old = [r for r in csv.DictReader(fh)
+                   if tuple(str(r[k]) for k in key) not in {tuple(str(n[k]) for k in key) for n in rows}]
+        rows = sorted(old + [{k: str(v) for k, v in r.items()} for r in rows], key=lambda r: [float(r[k]) for k in key])
     if comm.rank == 0 and rows:
         OUT.mkdir(parents=True, exist_ok=True)
         with open(OUT / name, "w", newline="") as fh:
@@ -192,7 +206,7 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
         say(f"h_contact {h_contact}: {r.dofs} DoFs, {r.iterations}+{r.polish_solves} its, {seconds:.1f} s, "
             f"a {100 * res['a_error']:+.2f}%, p0 {100 * res['p0_error']:+.2f}%, rms {100 * rms:.2f}%")
     table(rows)
-    write("sphere.csv", rows)
+    write("sphere.csv", rows, key=("h_contact", "ranks"))
     if swap_size is not None:
         swap("3d", ROOT / "configs" / "two_body_hertz_3d.yaml", [f"mesh.h_contact={swap_size}"],
              # the block's top becomes the slave: the sphere's part must now cover it
@@ -200,20 +214,86 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
              "slave_master_3d.csv")
 
 
+def cattaneo(sizes: list[float]) -> None:
+    from contact.cattaneo import traction
+    from contact.solvers.loadpath import run_load_path
+
+    rows, profiles = [], None
+    for h_contact in sizes:
+        scene = contact.load_scene(ROOT / "configs" / "two_body_cattaneo_2d.yaml", QUIET + [f"mesh.h_contact={h_contact}"])
+        t0 = time.perf_counter()
+        path = run_load_path(scene, verbose=False)
+        seconds = time.perf_counter() - t0
+        profiles = []
+        for step in path.steps:
+            r, v = step.result, compare(step.scene, step.result).values
+            rows.append({"h_contact": h_contact, "dofs": r.dofs, "t": step.time, "newton": r.iterations,
+                         "seconds_path": round(seconds, 2), "Q_over_FP": v["Q_over_FP"], "c_over_a": v["c_over_a"],
+                         "c_over_a_theory": v["c_over_a_theory"], "c_error": v["c_error"], "q_error": v["q_error"],
+                         "a_error": v["contact_half_width"] / v["hertz_a"] - 1.0})
+            p = r.problem
+            on = slice(0, p.data["pair_nodes"])
+            X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // p.V.dofmap.index_map_bs]
+            lam_t = np.vstack(comm.allgather(r.friction["lambda_t_vec"][on]))
+            profiles.append((v, np.concatenate(comm.allgather(X[:, 0])), np.linalg.norm(lam_t, axis=1)))
+    say("two cylinders, Coulomb F = 0.3: Cattaneo–Mindlin partial slip")
+    table(rows)
+    write("cattaneo.csv", rows)
+    F = 0.3
+    out = []
+    for v, x, q in profiles[1:]:   # the finest mesh, Q > 0
+        order = np.argsort(x)
+        c = v["c_over_a_theory"] * v["hertz_a"]
+        exact = traction(np.abs(x[order]), v["hertz_a"], c, v["hertz_p0"], F)
+        out += [{"Q_over_FP": round(v["Q_over_FP"], 4), "x": xi, "q_h": qi, "q": ei}
+                for xi, qi, ei in zip(x[order], q[order], exact)]
+    write("cattaneo_traction.csv", out)
+    if comm.rank == 0:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(8, 4.6))
+        for k, (v, x, q) in enumerate(profiles[1:]):
+            order = np.argsort(x)
+            a = v["hertz_a"]
+            xs = np.linspace(-a, a, 600)
+            ax.plot(xs, traction(np.abs(xs), a, v["c_over_a_theory"] * a, v["hertz_p0"], F), "-", color=f"C{k}", lw=1,
+                    label=f"Cattaneo–Mindlin, Q/(F P) = {v['Q_over_FP']:.2f} (c/a = {v['c_over_a_theory']:.3f})")
+            near = np.abs(x[order]) <= 1.3 * a
+            ax.plot(x[order][near], q[order][near], "o", ms=2.5, color=f"C{k}",
+                    label=f"computed |λ_t| (c/a = {v['c_over_a']:.3f}, L² error {100 * v['q_error']:.1f}%)")
+        v = profiles[-1][0]
+        xs = np.linspace(-v["hertz_a"], v["hertz_a"], 600)
+        ax.plot(xs, F * v["hertz_p0"] * np.sqrt(1 - (xs / v["hertz_a"]) ** 2), "k--", lw=0.8, label="F p(x) (Hertz)")
+        ax.set_xlabel("x (along the contact)")
+        ax.set_ylabel("tangential traction")
+        ax.set_title(f"two cylinders, Coulomb F = {F}, {path.steps[-1].result.dofs} DoFs")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="lower center")
+        fig.tight_layout()
+        fig.savefig(OUT / "cattaneo_traction.png", dpi=100)
+        print(f"wrote {OUT / 'cattaneo_traction.png'}", flush=True)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("part", choices=("patch", "cylinders", "sphere"))
+    parser.add_argument("part", choices=("patch", "cylinders", "sphere", "cattaneo"))
     parser.add_argument("--max-dofs", type=int, default=100000, help="cylinders: DoF budget of the adaptive run")
-    parser.add_argument("--h-contact", type=float, nargs="+", default=[0.01, 0.005, 0.0035],
-                        help="sphere: gmsh mesh sizes at the contact point")
+    parser.add_argument("--h-contact", type=float, nargs="+", default=None,
+                        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01): "
+                             "gmsh mesh sizes at the contact point")
     parser.add_argument("--swap", type=float, default=None, help="sphere: h_contact of the slave/master comparison")
     args = parser.parse_args(argv)
     if args.part == "patch":
         patch()
     elif args.part == "cylinders":
         cylinders(args.max_dofs)
+    elif args.part == "cattaneo":
+        cattaneo(args.h_contact or [0.02, 0.01])
     else:
-        sphere(args.h_contact, args.swap)
+        sphere(args.h_contact or [0.01, 0.005, 0.0035], args.swap)
 
 
 if __name__ == "__main__":
