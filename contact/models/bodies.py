@@ -12,8 +12,11 @@ basis u = Q x of :mod:`contact.models.basis`,
 where the Dirichlet and symmetry conditions are imposed again on the unknowns x (a master
 node's fixed component is coupled into the slave rows; ``zeroRowsColumns`` with the
 prescribed values lifts it), so every solver applies unchanged: the problem is a bound on
-single unknowns.  Units: E in Pa (any consistent unit), λ a pressure, D_ii a length (2D)
-or an area (3D).
+single unknowns.  A rigid obstacle may take part too (its contact nodes rotated to their
+(n, t) frames, :func:`obstacle_nodes`), and friction (:mod:`contact.models.friction`) acts on
+the tangential unknowns of the same frames: for a slave node, its slip relative to the
+master.  Units: E in Pa (any consistent unit), λ a pressure, D_ii a length (2D) or an area
+(3D).
 """
 from __future__ import annotations
 
@@ -51,8 +54,8 @@ def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
 
 
 def bodies_problem(scene: Scene) -> DiscreteProblem:
-    """The frictionless multi-body contact problem of ``scene``: elasticity with one
-    material per body, mortar pairs as the change of basis u = Q x."""
+    """The multi-body contact problem of ``scene``: elasticity with one material per body,
+    mortar pairs (and a rigid obstacle's nodes) as the change of basis u = Q x."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     mu, lmbda_L, body = materials(scene)
@@ -240,8 +243,3 @@ def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, fr
     g = fem.Function(V)
     g.x.array[dofs] = x_values[dofs]
     return [fem.dirichletbc(g, dofs)]
-
-
-def body_field(problem: DiscreteProblem) -> fem.Function:
-    """The DG0 ``body`` number of each cell (1, 2, … in the order of the bodies section)."""
-    return problem.data["body"]
