@@ -3,6 +3,7 @@
     scene = contact.load_scene("configs/signorini_square.yaml")
     result = contact.solve(scene, method="fb")
     levels = contact.adapt(scene, strategy="dorfler", theta=0.5)   # SOLVE-ESTIMATE-MARK-REFINE
+    path = contact.run_load_path(scene)        # quasi-static steps (load: section), e.g. friction
 """
 try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before dolfinx/petsc4py
     import dolfinx_solver  # noqa: F401
@@ -15,7 +16,8 @@ from .scene import Scene, load_scene  # noqa: E402
 from .solvers import Result, solve  # noqa: E402
 from .estimate import Estimate, estimate  # noqa: E402
 from .adapt import AdaptResult, adapt, mark, refine  # noqa: E402
+from .solvers.loadpath import LoadPath, run_load_path  # noqa: E402
 
 __all__ = ["ConfigError", "Scene", "load_scene", "Result", "solve", "Estimate", "estimate",
-           "AdaptResult", "adapt", "mark", "refine"]
+           "AdaptResult", "adapt", "mark", "refine", "LoadPath", "run_load_path"]
 __version__ = "0.1.0"

@@ -18,19 +18,24 @@ from typing import Any, Callable
 import numpy as np
 from mpi4py import MPI
 
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 
+from .budget import max_dofs
 from .config import SCENE, _validate
-from .errors import energy_error
+from .errors import solution_error
 from .estimate import Estimate, estimate
-from .geometry import curved_boundary
+from .geometry import builder_surfaces
 from .meshes import Boundary
-from .scene import Scene
+from .surfaces import boundary_surfaces, warn_undeclared_curves
+from .scene import Scene, require_scene
 from .models import build_problem
 from .solvers import Result, solve, solves_text
 
 STRATEGIES = ("dorfler", "maximum", "uniform")
+#: indicators within this relative distance of the marking threshold count as equal to it
+#: (mirror-image cells differ by round-off that depends on the partition)
+MARK_RTOL = 1e-10
 
 
 def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COMM_WORLD) -> float:
@@ -58,10 +63,16 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
 def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> np.ndarray:
     """Owned local cell indices to refine.
 
-    * ``dorfler``: smallest set with Σ_M η_T² ≥ θ Σ η_T² (global threshold);
-    * ``maximum``: η_T ≥ θ max_T η_T (global maximum);
+    * ``dorfler``: smallest set with Σ_M η_T² ≥ θ Σ η_T² (global threshold τ), θ ∈ (0, 1];
+    * ``maximum``: η_T ≥ θ max_T η_T (global maximum), θ ∈ (0, 1];
     * ``uniform``: every cell.
+
+    Values within a relative :data:`MARK_RTOL` (1e-10) below the threshold are marked too:
+    cells that are equal up to round-off (symmetric ones, whose η_T differ by ~1e-16
+    depending on how the partition summed them) are treated alike, so the refined meshes
+    are the same on any number of MPI ranks.
     """
+    _check_mark_args(eta_T, strategy, theta)
     W = eta_T.function_space
     comm = W.mesh.comm
     n_owned = W.dofmap.index_map.size_local
@@ -70,38 +81,66 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
         return np.arange(n_owned, dtype=np.int32)
     if strategy == "maximum":
         top = comm.allreduce(float(eta.max(initial=0.0)), op=MPI.MAX)
-        return np.flatnonzero(eta >= theta * top).astype(np.int32)
-    if strategy == "dorfler":
-        tau = dorfler_threshold(eta**2, theta, comm)
-        return np.flatnonzero(eta**2 >= tau).astype(np.int32)
-    raise ValueError(f"unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+        return np.flatnonzero(eta >= theta * top * (1 - MARK_RTOL)).astype(np.int32)
+    tau = dorfler_threshold(eta**2, theta, comm)
+    return np.flatnonzero(eta**2 >= tau * (1 - MARK_RTOL)).astype(np.int32)
+
+
+def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
+    if not isinstance(eta_T, fem.Function):
+        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got {type(eta_T).__name__}")
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+    if isinstance(theta, bool) or not isinstance(theta, (int, float)) or not 0 < theta <= 1:
+        raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")
 
 
 def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
            ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
-    move the vertices on a curved boundary onto the exact surface
-    (:func:`contact.geometry.curved_boundary`; other meshes keep dolfinx's midpoints).
+    move the vertices of a curved boundary part onto its exact surface
+    (:func:`contact.surfaces.boundary_surfaces`: the built-in Hertz meshes and parts that
+    declare a ``surface``; other parts keep dolfinx's midpoints — a gmsh contact part that
+    looks curved gets a one-line warning).
+    The refined scene keeps the pseudo-time, and the functions of ``scene.history`` (a
+    load step's state from the previous step) are prolonged with u_h.
+    The two-body builders (``half_disks``, ``sphere_on_block``) snap their curved surfaces by
+    the mesh's own facet tags (``scene.surfaces``), whatever parts the scene cut them into,
+    and the body tags (``scene.bodies``) follow the cells.
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
-    the surface shifts by at most the sagitta h²/(8R) of the old edge)."""
+    the surface shifts by at most the sagitta h²/(8R) of the old edge).
+
+    ``cells`` are owned local cell indices (as :func:`mark` returns them); anything else,
+    or a ``u_h`` on another mesh, is a ValueError (on every rank)."""
+    require_scene(scene)
+    cells = _owned_cells(scene, cells)
+    if u_h is not None and (not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh):
+        raise ValueError("u_h: expected a dolfinx.fem.Function on the scene's mesh (e.g. result.u_h of "
+                         "contact.solve on this scene)")
     msh = scene.mesh
     tdim = msh.topology.dim
     msh.topology.create_entities(1)
-    edges = dmesh.compute_incident_entities(msh.topology, cells.astype(np.int32), tdim, 1)
+    edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
     new, parent_cell, parent_facet = dmesh.refine(msh, edges, partitioner=refine_partitioner(msh),
                                                   option=dmesh.RefinementOption.parent_cell_and_facet)
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
+    history = {name: prolong(fn, new, parent_cell) for name, fn in scene.history.items()}
+    bodies = None if scene.bodies is None else transfer_cell_tags(scene.bodies, new, parent_cell)
+    surfaces = None if scene.surfaces is None else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
     child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
+                  time=scene.time, history=history, bodies=bodies, surfaces=surfaces,
                   parent=(scene, parent_cell))
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
-    surface = curved_boundary(scene.cfg)
-    if surface is not None:
+    warn_undeclared_curves(scene)
+    for surface in boundary_surfaces(scene):
         surface.snap(new, tags)
+    for surface in builder_surfaces(scene.cfg):   # by the mesh's own tags of its curved surfaces
+        surface.snap(new, surfaces)
     return child, u0
 
 
@@ -127,6 +166,22 @@ def refine_partitioner(msh: dmesh.Mesh):
     if msh.comm.size == 1:
         return None
     return dmesh.IdentityPartitionerPlaceholder()
+
+
+def _owned_cells(scene: Scene, cells: Any) -> np.ndarray:
+    """``cells`` as int32 owned local cell indices; ValueError (collective) otherwise."""
+    arr = np.asarray(cells)
+    comm = scene.comm
+    n_owned = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
+        problem = f"expected a 1D array of integer cell indices, got {arr.dtype} with shape {arr.shape}"
+    else:
+        bad = arr[(arr < 0) | (arr >= n_owned)]
+        problem = f"{len(bad)} index(es) outside the owned cells 0 … {n_owned - 1}, e.g. {bad[0]}" if len(bad) else None
+    problems = [p for p in comm.allgather(problem) if p]
+    if problems:
+        raise ValueError(f"cells: {problems[0]} (owned local cell indices, as contact.mark returns them)")
+    return arr.astype(np.int32)
 
 
 def created_cells(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
@@ -167,6 +222,21 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     u0.x.array[(dofs[:, None] * bs + np.arange(bs)).ravel()] = values.reshape(len(dofs), bs).ravel()
     u0.x.scatter_forward()
     return u0
+
+
+def transfer_cell_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray) -> dmesh.MeshTags:
+    """Cell tags on the refined mesh, on every local cell (ghosts included): a child cell
+    inherits its parent's value (the owners set theirs, the ghosts receive them)."""
+    tdim = new.topology.dim
+    old_value = np.zeros(tags.topology.index_map(tdim).size_local + tags.topology.index_map(tdim).num_ghosts)
+    old_value[tags.indices] = tags.values
+    imap = new.topology.index_map(tdim)
+    vec = la.vector(imap, 1)
+    cells, created = created_cells(new, len(parent_cell))
+    vec.array[cells] = old_value[parent_cell[created]]
+    vec.scatter_forward()
+    n_all = imap.size_local + imap.num_ghosts
+    return dmesh.meshtags(new, tdim, np.arange(n_all, dtype=np.int32), np.rint(vec.array[:n_all]).astype(np.int32))
 
 
 def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray,
@@ -242,29 +312,32 @@ def adapt_options(scene: Scene, **overrides: Any) -> dict:
 
 
 def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], None] | None = None,
-          verbose: bool | None = None, **options: Any) -> AdaptResult:
+          verbose: bool | None = None, u0: fem.Function | None = None, **options: Any) -> AdaptResult:
     """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
-    called after each level is estimated (used by the CLI to write output as it goes)."""
+    called after each level is estimated (used by the CLI to write output as it goes);
+    ``u0`` is the first level's initial guess (a load step's previous solution)."""
+    require_scene(scene)
+    if on_level is not None and not callable(on_level):
+        raise ValueError(f"on_level: expected a function of one Level, got {type(on_level).__name__}")
     opts = adapt_options(scene, **options)
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     comm = scene.comm
-    out, u0 = AdaptResult(), None
-    exact = scene.cfg["data"]["exact"]
+    out = AdaptResult()
     for index in range(opts["max_levels"]):
         seconds = {}
         t0 = time.perf_counter()
         problem = build_problem(scene)
         seconds["assembly"] = problem.assembly_time
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-        result = solve(scene, method=method, problem=problem, u0=u0 if opts["nested"] else None,
-                       verbose=False, rtol=opts["newton_rtol"], sequence=None if opts["nested"] else "off")
+        result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
+                       sequence=None if opts["nested"] else "off")
         seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        error = energy_error(result.u_h, exact, problem.data["k"], scene.cfg["constants"]) if exact else None
+        error = solution_error(scene, result)
         seconds["error"] = time.perf_counter() - t0
         level = Level(index, scene, result, est, error, seconds)
         out.levels.append(level)
@@ -283,6 +356,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if index + 1 >= opts["max_levels"]:
             out.stop = f"reached max_levels = {opts['max_levels']}"
             break
+        if opts["strategy"] == "none":
+            out.stop = "strategy none: one solve"
+            break
         t0 = time.perf_counter()
         cells = mark(est.eta_T, opts["strategy"], opts["theta"])
         seconds["mark"] = time.perf_counter() - t0
@@ -299,6 +375,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
+            break
+        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):  # memory budget of one solve
+            out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
         scene, u0 = new_scene, new_u0
     return out

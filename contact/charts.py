@@ -6,8 +6,9 @@
   Pareto front (points no other point beats in both time and accuracy) is circled.
 * :func:`stability` — the stability map: cases (or combinations of the other axes) ×
   methods, each cell coloured by the run's outcome and labelled with its Newton iterations.
-* :func:`iterations` — Newton iterations against the refinement level, one colour per
-  method, solid for nested iteration and dashed for a cold start.
+* :func:`iterations` — linear solves against the refinement level, one colour per
+  method, solid for nested iteration and dashed for cold starts (adaptive runs from u0 on
+  every level, or single solves along a ``level`` axis).
 
 Every function has the signature ``(path, study, rows, level_rows)`` (see :data:`DRAW`)
 and is called on one rank.
@@ -192,35 +193,68 @@ def _linear_solves(r: dict) -> int:
     return int(r["newton_iterations"]) + int(r.get("polish_solves") or 0)
 
 
-def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> None:
-    """Linear solves per level (Newton steps + active-set polishing solves): colour =
-    method, solid = nested iteration, dashed = cold start; other non-numeric axes get their
-    own marker."""
-    plt = _pyplot()
-    methods = study.axes.get("method", [None])
+def _iteration_curves(study: Study, rows: list[dict], level_rows: list[dict]) -> dict[str, list[dict]]:
+    """The curves of :func:`iterations`: label -> points ``{x, y, converged, method,
+    nested, marker_key}`` sorted by x.
+
+    x is the refinement level of the mesh solved on: the ``level`` axis value (uniform
+    refinements of the base mesh) plus the level of the adaptive loop.  An adaptive run is
+    one curve, nested or cold start as it was run; single solves (one per value of a
+    ``level`` axis) are joined along that axis into one curve per combination of the other
+    axes, each solve a cold start from u0."""
+    from .study import _plan
+
+    keys = (["case"] if study.named_cases else []) + list(study.axes)
+    plans = {r["run"]: _plan(study, {k: r[k] for k in keys if k in r}) for r in rows}
     other = [a for a in _categorical(study) if a not in ("method", "nested")]
-    fig, ax = plt.subplots(figsize=(8, 5.5))
-    combos = list(_groups(level_rows, other))  # one marker per combination of the other axes
+    curves: dict[str, list[dict]] = {}
     for (run,), members in _groups(level_rows, ["run"]).items():
         r0 = members[0]
-        m = methods.index(r0.get("method")) if r0.get("method") in methods else 0
-        nested = r0.get("nested", study.adapt.get("nested", True))
-        marker = MARKERS[combos.index(tuple(r0[a] for a in other)) % len(MARKERS)]
-        ok = [r for r in members if r["newton_iterations"] != ""]
-        label = ", ".join([str(r0.get("method", "runs")), "nested" if nested else "cold start",
-                           *(f"{a}={r0[a]}" for a in other)])
-        shift = 0.06 * (m - (len(methods) - 1) / 2)  # side by side where counts coincide
-        ax.plot([r["level"] + shift for r in ok], [_linear_solves(r) for r in ok], color=f"C{m % 10}",
-                ls="-" if nested else "--", marker=marker, ms=5, lw=1.2, label=label)
-        for r in ok:
-            if not r["converged"]:
-                ax.plot(r["level"] + shift, _linear_solves(r), "x", color="k", ms=9)
+        _, base, adapt_opts = plans[run]
+        adaptive = adapt_opts is not None
+        nested = bool(r0.get("nested", study.adapt.get("nested", True))) if adaptive else False
+        kind = ("nested" if nested else "cold start") if adaptive else "single solves (cold)"
+        label = ", ".join([str(r0.get("method", "runs")), kind, *(f"{a}={r0[a]}" for a in other)])
+        if adaptive and any(c.get("run") != run for c in curves.get(label, [])):
+            label += f", run {run}"  # repeats of one adaptive combination stay separate curves
+        for r in members:
+            if r["newton_iterations"] != "":
+                curves.setdefault(label, []).append(
+                    {"x": base + int(r["level"]), "y": _linear_solves(r), "run": run,
+                     "converged": bool(r["converged"]), "method": r0.get("method"), "nested": nested,
+                     "marker_key": tuple(r0[a] for a in other)})
+    return {k: sorted(v, key=lambda p: p["x"]) for k, v in curves.items()}
+
+
+def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> dict[str, list[dict]]:
+    """Linear solves per refinement level (Newton steps + active-set polishing solves):
+    colour = method, solid = nested iteration, dashed = cold start (an adaptive run from
+    u0 on every level, or single solves along a ``level`` axis); other non-numeric axes
+    get their own marker.  Returns the curves drawn (:func:`_iteration_curves`)."""
     from matplotlib.ticker import MaxNLocator
 
-    ax.set_xlabel("refinement level")
+    plt = _pyplot()
+    methods = study.axes.get("method", [None])
+    curves = _iteration_curves(study, rows, level_rows)
+    combos = sorted({p["marker_key"] for pts in curves.values() for p in pts}, key=str)
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for label, pts in curves.items():
+        m = methods.index(pts[0]["method"]) if pts[0]["method"] in methods else 0
+        marker = MARKERS[combos.index(pts[0]["marker_key"]) % len(MARKERS)]
+        shift = 0.06 * (m - (len(methods) - 1) / 2)  # side by side where counts coincide
+        xs = [p["x"] + shift for p in pts]
+        ax.plot(xs, [p["y"] for p in pts], color=f"C{m % 10}", ls="-" if pts[0]["nested"] else "--",
+                marker=marker, ms=5, lw=1.2, label=label)
+        for x, p in zip(xs, pts):
+            if not p["converged"]:
+                ax.plot(x, p["y"], "x", color="k", ms=9)
+    levels = sorted({p["x"] for pts in curves.values() for p in pts})
+    ax.set_xlabel("refinement level (uniform refinements of the base mesh + adaptive level)")
     ax.set_ylabel("linear solves on the level (Newton steps + polishing)")
     ax.set_ylim(bottom=0)
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    if levels:
+        ax.set_xlim(levels[0] - 0.4, levels[-1] + 0.4)
+        ax.set_xticks(levels)
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="upper left", ncol=2)
@@ -228,6 +262,7 @@ def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: lis
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+    return curves
 
 
 DRAW: dict[str, Callable[[Path, Any, list, list], None]] = {

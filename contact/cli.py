@@ -1,20 +1,31 @@
-"""Command line:  contact run SCENE.yaml [-o OUTDIR] [--set key.path=value ...]
-               contact study STUDY.yaml [-o OUTDIR]
+"""Command line:  contact run SCENE.yaml [-o OUTDIR] [--set key.path=value ...] [--debug]
+               contact study STUDY.yaml [-o OUTDIR] [--debug]
 
-Exit codes: 0 solved and written; 1 the solver did not converge (nothing written);
-2 bad input (one line on stderr naming the key or file).
+Exit codes (:mod:`contact.failures`): 0 solved and written; 1 the solver did not converge
+(an adaptive run keeps its completed levels); 2 bad input (one line on stderr naming the
+key, file or option); 3 internal error (one line; ``--debug`` or ``CONTACT_DEBUG=1`` adds
+the traceback).  Under MPI a failure raised on every rank is reported once by rank 0; a
+failure on some ranks only is reported by each of them and ends the job with
+``MPI_Abort`` and the same exit code (the other ranks would wait forever).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+import traceback
+import warnings
 from pathlib import Path
 from typing import NoReturn
 
+import numpy as np
 from mpi4py import MPI
 
+from . import failures
 from .config import ConfigError
+
+AGREE_SECONDS = 5.0  # how long a failing rank waits for the others to fail too (MPI)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -24,8 +35,12 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"contact: error: {message} (see {self.prog} --help)\n")
 
 
+_DEBUG_HELP = "print the traceback of an internal error (also: environment CONTACT_DEBUG=1)"
+
+
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
+    p.add_argument("--version", action="version", version=_version())
     sub = p.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="solve one scene and write its output folder")
     run.add_argument("scene", help="scene YAML file (see configs/)")
@@ -33,11 +48,16 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene key, e.g. --set solver.method=min (repeatable)")
     run.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+    run.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
     study = sub.add_parser("study", help="run a parameter study (a sweep over methods, meshes, ...) "
                                          "and write study.csv and speed_accuracy.png")
     study.add_argument("study", help="study YAML file (see configs/studies/)")
     study.add_argument("-o", "--output", help="output folder (default: results/studies/<study name>)")
+    study.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a key of the study's scene (after the study's own 'set'), "
+                            "e.g. --set mesh.cells=[32,32] (repeatable)")
     study.add_argument("-q", "--quiet", action="store_true", help="no per-run progress")
+    study.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
     return p
 
 
@@ -46,40 +66,79 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints them."""
+    from .surfaces import ContactWarning
+
+    if issubclass(category, ContactWarning):
+        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    warnings.showwarning = _one_line_warning
     comm = MPI.COMM_WORLD
+    debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
+    agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     try:
         return _study(args, comm) if args.command == "study" else _run(args, comm)
     except _Failed:
-        return 1
+        return failures.NOT_CONVERGED
     except ConfigError as err:
-        if comm.rank == 0:
-            print(f"contact: error: {err}", file=sys.stderr, flush=True)
-        return 2
-    except Exception:
-        if comm.size == 1:
-            raise
-        import traceback  # a bug on one rank must not leave the others waiting forever
+        return _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
+    except Exception as err:  # noqa: BLE001 - MemoryError, PETSc errors, bugs: one line, exit 3
+        head, tail = "contact: internal error: ", "" if debug else " (rerun with --debug for the traceback)"
+        what = failures.describe(err, failures.MAX_LINE - len(head) - len(tail) - 10)
+        return _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
+    finally:
+        if agree is not None:
+            agree.Free()
 
+
+def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: bool) -> int:
+    """Report a failure in one line (capped, :func:`contact.failures.one_line`) and return
+    its exit code.  Under MPI the failing ranks first wait up to AGREE_SECONDS for every
+    rank to fail (a non-blocking barrier on a communicator used for nothing else): then
+    rank 0 alone reports and all return ``code``; otherwise each failing rank reports with
+    its rank and calls MPI_Abort(code), which ends the job with that exit code."""
+    if debug:
         traceback.print_exc()
-        comm.Abort(1)
-        raise
+    if agree is None:
+        print(failures.one_line(line), file=sys.stderr, flush=True)
+        return code
+    request, start = agree.Ibarrier(), time.monotonic()
+    while not request.Test():
+        if time.monotonic() - start > AGREE_SECONDS:
+            line = line.replace("contact:", f"contact (rank {comm.rank}):", 1)
+            print(failures.one_line(line), file=sys.stderr, flush=True)
+            comm.Abort(code)
+        time.sleep(0.01)
+    if comm.rank == 0:
+        print(failures.one_line(line), file=sys.stderr, flush=True)
+    return code
 
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from . import load_scene, solve
-    from .report import write_run
+    from . import io, solve
+    from .config import load_config
+    from .report import files_text, write_run
+    from .scene import build_scene
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
-    scene = load_scene(args.scene, overrides, comm=comm)
-    outdir = Path(args.output or scene.cfg["output"]["dir"] or Path("results") / scene.name)
+    cfg = load_config(args.scene, overrides)
+    outdir, label = _output_folder(args.output, cfg)
+    io.check_output(outdir, label, comm)  # before meshing and solving
+    scene = build_scene(cfg, comm)
     method = scene.cfg["solver"]["method"]
     _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
                f"{comm.size} MPI rank(s)")
+    if scene.cfg.get("load") or (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        return _run_steps(scene, outdir, label, comm, t0)
     if scene.cfg.get("adapt"):
-        return _run_adaptive(scene, outdir, comm, t0)
+        return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
     polished = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
     _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations{polished}, "
@@ -89,49 +148,116 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
             print(f"contact: error: solver {method} did not converge ({result.reason}) after "
                   f"{result.iterations} iterations, last |Phi| = {result.residual:.3e}; nothing written",
                   file=sys.stderr, flush=True)
-        return 1
-    write_run(outdir, scene, result, wall=time.perf_counter() - t0)
-    _say(comm, f"contact: wrote {outdir}/ (solution.xdmf, summary.json, history.csv, solution.png)")
-    return 0
+        return failures.NOT_CONVERGED
+    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
+    return failures.SOLVED
 
 
-def _run_adaptive(scene, outdir: Path, comm: MPI.Comm, t0: float) -> int:
+def _output_folder(option: str | None, cfg: dict) -> tuple[Path, str]:
+    """The output folder and how it was chosen (for messages): ``-o``, ``output.dir``
+    (relative to the current directory), or ``results/<name>``."""
+    if option:
+        return Path(option), f"-o {option}"
+    if cfg["output"]["dir"]:
+        return Path(cfg["output"]["dir"]), f"output.dir {cfg['output']['dir']}"
+    path = Path("results") / cfg["name"]
+    return path, f"output folder {path} (from name {cfg['name']!r})"
+
+
+def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
+    """The adaptive loop, writing into one atomic folder.  If the solver fails on level
+    k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
+    ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
     from . import io
-    from .adapt import adapt, format_table
-    from .report import level_writer, write_adaptive
+    from .adapt import AdaptResult, adapt, format_table
+    from .report import files_text, level_writer, write_adaptive
 
     a = scene.cfg["adapt"]
     _say(comm, f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
                f"at most {a['max_levels']} levels / {a['max_dofs']} DoFs")
-    with io.atomic_folder(outdir, comm) as tmp:
-        result = adapt(scene, on_level=level_writer(tmp, scene))
+    with io.atomic_folder(outdir, comm, label) as tmp:
+        write_level = level_writer(tmp, scene)
+        result = adapt(scene, on_level=lambda lv: write_level(lv) if lv.result.converged else None)
         last = result.levels[-1].result
+        failed = None
         if not last.converged:
+            k = len(result.levels) - 1
+            kept = f"kept levels 0-{k - 1} in {outdir}/ (summary.json: converged false)" if k else "nothing written"
             if comm.rank == 0:
-                print(f"contact: error: solver did not converge on level {len(result.levels) - 1} "
-                      f"({last.reason}), last |Phi| = {last.residual:.3e}; nothing written",
-                      file=sys.stderr, flush=True)
-            raise _Failed()
-        write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0)
+                print(f"contact: error: solver did not converge on level {k} ({last.reason}), "
+                      f"last |Phi| = {last.residual:.3e}; {kept}", file=sys.stderr, flush=True)
+            if k == 0:
+                raise _Failed()
+            failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
+            result = AdaptResult(result.levels[:-1], stop=result.stop)
+        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: stopped: {result.stop}")
-    _say(comm, format_table(result.rows))
-    _say(comm, f"contact: wrote {outdir}/ (level_*.xdmf for ParaView, convergence.csv, "
-               f"convergence.png, mesh_level_*.png, solution.png, summary.json)")
-    return 0
+    if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
+        _say(comm, format_table(result.rows))
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
+    return failures.NOT_CONVERGED if failed else failures.SOLVED
+
+
+def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
+    """A load path (or a frictional scene, one step at t = 1), writing into one atomic
+    folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
+    folder is complete for them, summary.json has ``converged: false`` and
+    ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
+    from . import io
+    from .loadreport import StepWriter
+    from .report import files_text
+    from .solvers.loadpath import LoadPath, run_load_path
+
+    with io.atomic_folder(outdir, comm, label) as tmp:
+        writer = StepWriter(tmp, scene)
+
+        def on_step(s) -> None:   # one line per step as it finishes, then its files
+            fr = s.result.friction
+            counts = "" if fr is None else "  " + "  ".join(
+                f"{name} {comm.allreduce(int(np.sum(fr['status'] == code)))}"
+                for code, name in enumerate(("separated", "stick", "slip")))
+            _say(comm, f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
+                       f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}")
+            writer(s)
+
+        path = run_load_path(scene, on_step=on_step)
+        failed = None
+        if not path.converged:
+            k, last = len(path.steps), path.steps[-1].result
+            steps = "step 1" if k == 2 else f"steps 1-{k - 1}"
+            kept = f"kept {steps} in {outdir}/ (summary.json: converged false)" if k > 1 else "nothing written"
+            if comm.rank == 0:
+                print(f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; {kept}",
+                      file=sys.stderr, flush=True)
+            if k == 1:
+                raise _Failed()
+            failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
+            path = LoadPath(path.steps[:-1], stop=path.stop)
+        info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
+    return failures.NOT_CONVERGED if failed else failures.SOLVED
 
 
 def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
     from .study import load_study, run_study
 
-    study = load_study(args.study)
+    study = load_study(args.study, overrides=args.overrides)
     outdir = Path(args.output) if args.output else Path("results") / "studies" / study.name
-    run_study(study, outdir, comm=comm, verbose=not args.quiet)
-    return 0
+    label = f"-o {args.output}" if args.output else f"output folder {outdir} (from name {study.name!r})"
+    run_study(study, outdir, comm=comm, verbose=not args.quiet, label=label)
+    return failures.SOLVED
+
+
+def _version() -> str:
+    from . import __version__
+
+    return f"contact {__version__}"
 
 
 class _Failed(Exception):
-    """A run that failed after its message was printed (the output folder is discarded)."""
+    """A run that did not converge, after its message was printed (exit code 1)."""
 
 
 if __name__ == "__main__":

@@ -11,6 +11,11 @@ With w a DG0 test function, one assembly per term of the form below gives every 
                               + ‖λ_h⁺‖²_E                            sign (λ⁺ = max(λ, 0))
                               + ∫_E |min(λ_h, 0)(u_h − g)| ds )      complementarity
 
+Elasticity replaces k∂u/∂n by the traction σ(u_h)n and adds the frictionless tangential
+term h_E ‖σ_t(u_h)‖²_E on Γ_C; with friction (Hild & Lleras, SIAM J. Numer. Anal. 47, 2009)
+that term becomes h_E ‖λ_t − σ_t(u_h)‖²_E and two terms join: ‖(|λ_t| − ρ)⁺‖²_E (friction
+bound) and ∫_E |ρ |s_t| + λ_t·s_t| ds (slip; ≥ 0 and zero when the law holds pointwise).
+
 For the obstacle problem (constraint σ(u − ψ) ≤ 0 in Ω, λ = −div(k∇u) − f) the same
 terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sign term is
 h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
@@ -31,7 +36,7 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem, la
 
-from .scene import Scene
+from .scene import Scene, require_scene
 from .solvers import Result
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
@@ -104,7 +109,7 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     u_h, lam = result.u_h, result.lmbda_h
     f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
-    n_c = p.data["n_ufl"]                                   # normal towards the obstacle
+    n_c = p.data.get("n_ufl")                               # normal towards the obstacle
     sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
     T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
     terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
@@ -114,14 +119,49 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
     for i in bnd.ids_with_role("natural"):
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
-    Tn = ufl.dot(T, n_c)
-    Tt = T - Tn * n_c
-    for i in bnd.ids_with_role("contact"):
-        terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
-        terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
-        terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
-        terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+    friction = friction_data(scene, result) if result.friction is not None and n_c is not None else None
+    if n_c is not None:  # the rigid obstacle's contact parts
+        Tn = ufl.dot(T, n_c)
+        Tt = T - Tn * n_c
+        if friction is not None:   # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
+            lam_t, rho, slip = friction
+            Tt = Tt - lam_t
+            terms.update(friction_bound=zero, slip=zero)
+        for i in bnd.ids_with_role("contact"):
+            terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+            terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
+            terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
+            terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+            if friction is not None:
+                norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
+                terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)
+                terms["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+    if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
+        from .interface import interface_terms
+
+        for key, form in interface_terms(scene, result, w, n, h_E, T).items():
+            terms[key] = terms.get(key, zero) + form
     return terms
+
+
+def friction_data(scene: Scene, result: Result):
+    """UFL data of the friction terms (SPEC §1.4, Hild–Lleras) on Γ_C: the tangential
+    multiplier λ_t (P1 vector of the nodal λ_t,i), the bound ρ (Tresca: the threshold
+    expression s(x, t); Coulomb: F·(−λ_n,h)⁺) and the slip s_t = (I − n nᵀ)(u_h − u_prev)."""
+    from .surface import surface_functions
+
+    p = result.problem
+    lam_t = surface_functions(result)[0]
+    cfg = scene.cfg["friction"]
+    if cfg["law"] == "coulomb":
+        rho = cfg["coefficient"] * ufl.max_value(-result.lmbda_h, 0)
+    else:
+        from . import expressions
+
+        rho = expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
+    n_c = p.data["n_ufl"]
+    du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
+    return lam_t, rho, du - ufl.dot(du, n_c) * n_c
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:
@@ -133,7 +173,11 @@ def _assemble_cellwise(form: ufl.Form) -> la.Vector:
 
 def estimate(scene: Scene, result: Result) -> Estimate:
     """Assemble each term of η_T² once as a DG0 vector; η_T² is their sum, and each term's
-    global total Σ_T is the sum of its owned entries."""
+    global total Σ_T is the sum of its owned entries.  ``result`` must be a solve of this
+    scene (on its mesh), else a ValueError."""
+    require_scene(scene)
+    if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
+        raise ValueError("result: expected the contact.Result of contact.solve on this scene (same mesh)")
     terms = indicator_terms(scene, result)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())

@@ -99,24 +99,133 @@ def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_octant", gdim=3)
 
 
+# two-body builders: facet tags of the curved surfaces and cell tags of the bodies
+UPPER_ARC, UPPER_TOP, LOWER_ARC, LOWER_BOTTOM = 1, 2, 3, 4
+SPHERE, SPHERE_TOP, BLOCK_TOP, BLOCK_BOTTOM, SYM_X, SYM_Y, BLOCK_SIDES = 1, 2, 3, 4, 5, 6, 7
+FIRST_BODY, SECOND_BODY = 1, 2
+
+
+def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contact: float,
+               zone: float, overlap: float = 0.0) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
+    """Two half-disks touching at the origin, meshed independently (2D triangles): the upper
+    one {|x − (0, R1)| ≤ R1, y ≤ R1} (cell tag 1; arc tag 1, top y = R1 tag 2) and the lower
+    one {|x − (0, d − R2)| ≤ R2, y ≥ d − R2} (cell tag 2; arc tag 3, bottom tag 4), moved up
+    by d = ``overlap`` (≥ 0: the bodies interpenetrate by d at x = 0, an interference that
+    loads them without a prescribed displacement).  The mesh size is ``h_contact`` within
+    ``zone`` of the contact point, ``h`` far from it (lengths in the scene's unit).  Returns
+    (mesh, facet tags, cell tags)."""
+    radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
+    radius2, *_ = _check(radius2, h, h_contact, zone, "radius2")
+    if not (isinstance(overlap, (int, float)) and not isinstance(overlap, bool) and 0 <= overlap < 0.1 * min(radius, radius2)):
+        raise ConfigError(f"mesh.overlap: must be a number in [0, 0.1 × radius), got {overlap!r}")
+
+    def build(gmsh):
+        occ = gmsh.model.occ
+        contacts, surfaces, arcs, flats = [], [], [], []
+        for R, s, y0 in ((radius, 1.0, 0.0), (radius2, -1.0, overlap)):   # upper (centre (0, R1)), lower (centre (0, d − R2))
+            p0 = occ.addPoint(0, y0, 0)
+            centre = occ.addPoint(0, y0 + s * R, 0)
+            left, right = occ.addPoint(-R, y0 + s * R, 0), occ.addPoint(R, y0 + s * R, 0)
+            arc_l, arc_r = occ.addCircleArc(left, centre, p0), occ.addCircleArc(p0, centre, right)
+            flat = occ.addLine(right, left)
+            surfaces.append(occ.addPlaneSurface([occ.addCurveLoop([arc_l, arc_r, flat])]))
+            contacts.append(p0)
+            arcs.append([arc_l, arc_r])
+            flats.append(flat)
+        occ.synchronize()
+        for tag, curves, name in ((UPPER_ARC, arcs[0], "upper_arc"), (UPPER_TOP, [flats[0]], "upper_top"),
+                                  (LOWER_ARC, arcs[1], "lower_arc"), (LOWER_BOTTOM, [flats[1]], "lower_bottom")):
+            gmsh.model.addPhysicalGroup(1, curves, tag, name=name)
+        gmsh.model.addPhysicalGroup(2, [surfaces[0]], FIRST_BODY, name="upper")
+        gmsh.model.addPhysicalGroup(2, [surfaces[1]], SECOND_BODY, name="lower")
+        _size_field(gmsh, contacts, h, h_contact, zone)
+        gmsh.model.mesh.generate(2)
+
+    return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
+
+
+def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_contact: float,
+                    zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
+    """A sphere of radius R resting on an elastic block at the origin, the quarter x, y ≥ 0
+    of both (3D tetrahedra, meshed independently): the octant of the sphere's lower half
+    (cell tag 1; spherical surface tag 1, top z = R tag 2) and the block [0, W]² × [−H, 0]
+    for ``block`` = [W, H] (cell tag 2; top z = 0 tag 3, bottom z = −H tag 4, sides x = W and
+    y = W tag 7); the symmetry planes x = 0 (tag 5) and y = 0 (tag 6) of both bodies.  Mesh
+    size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it."""
+    radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
+    if not (isinstance(block, list) and len(block) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in block)):
+        raise ConfigError(f"mesh.block: must be [half-width, depth] with positive numbers, got {block!r}")
+    W, H = float(block[0]), float(block[1])
+
+    def build(gmsh):
+        occ, R = gmsh.model.occ, radius
+        # the ball turned about the x-axis so that the contact point lies on the equator of
+        # its parametrisation, not at a pole (regular surface triangles where the contact
+        # pressure is measured), then cut to the octant x, y ≥ 0, z ≤ R
+        ball = occ.addSphere(0, 0, R, R)
+        occ.rotate([(3, ball)], 0, 0, R, 1, 0, 0, math.pi / 2)
+        cut, _ = occ.intersect([(3, ball)], [(3, occ.addBox(0, 0, 0, R, R, R))])
+        sphere = cut[0][1]
+        box = occ.addBox(0, 0, -H, W, W, H)
+        occ.synchronize()
+        tol = 1e-8 * max(R, W, H)
+        groups: dict[int, list[int]] = {k: [] for k in (SPHERE, SPHERE_TOP, BLOCK_TOP, BLOCK_BOTTOM, SYM_X, SYM_Y, BLOCK_SIDES)}
+        for volume, top, bottom in ((sphere, SPHERE_TOP, None), (box, BLOCK_TOP, BLOCK_BOTTOM)):
+            for _, face in gmsh.model.getBoundary([(3, volume)], oriented=False):
+                x, y, z = occ.getCenterOfMass(2, face)
+                if abs(x) < tol:
+                    kind = SYM_X
+                elif abs(y) < tol:
+                    kind = SYM_Y
+                elif volume == sphere:
+                    kind = SPHERE_TOP if abs(z - R) < tol else SPHERE
+                else:
+                    kind = top if abs(z) < tol else bottom if abs(z + H) < tol else BLOCK_SIDES
+                groups[kind].append(face)
+        names = {SPHERE: "sphere", SPHERE_TOP: "sphere_top", BLOCK_TOP: "block_top", BLOCK_BOTTOM: "block_bottom",
+                 SYM_X: "x0", SYM_Y: "y0", BLOCK_SIDES: "block_sides"}
+        for tag, faces in groups.items():
+            gmsh.model.addPhysicalGroup(2, faces, tag, name=names[tag])
+        gmsh.model.addPhysicalGroup(3, [sphere], FIRST_BODY, name="sphere")
+        gmsh.model.addPhysicalGroup(3, [box], SECOND_BODY, name="block")
+        origin = [p for _, p in gmsh.model.getEntities(0)
+                  if max(abs(c) for c in gmsh.model.getValue(0, p, [])) < tol]
+        if len(origin) != 2:
+            raise RuntimeError("the sphere and the block need a vertex each at the contact point")
+        _size_field(gmsh, origin, h, h_contact, zone)
+        gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
+        gmsh.model.mesh.generate(3)
+
+    return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_on_block", gdim=3, cells=True)
+
+
 @dataclass(frozen=True)
 class CurvedBoundary:
-    """The exact surface S = {x : |x − c| = R} (a circle in 2D, a sphere in 3D) on which
-    the facets tagged ``tag`` lie; c = ``centre`` and R = ``radius`` in the mesh's length
+    """The exact surface on which the facets tagged ``tag`` lie: S = {x : |x − c| = R} (a
+    circle in 2D, a sphere in 3D) or, with an ``axis`` a, the cylinder of points at distance
+    R from the line c + t a (3D); c = ``centre`` and R = ``radius`` in the mesh's length
     unit."""
 
     centre: tuple[float, ...]
     radius: float
     tag: int = CONTACT
+    axis: tuple[float, ...] | None = None
 
     def project(self, x: np.ndarray) -> np.ndarray:
         """The radial projection π(x) = c + R (x − c) / |x − c| of points ``x`` (n, gdim)
-        onto S (same length unit; x = c has none).  A plane through c is mapped into itself
-        (the component of x − c normal to it stays 0), so the arc's ends on the axis / top
-        and the sphere's edges on the symmetry planes and the top stay on those planes."""
+        onto S (same length unit; x = c has none); for a cylinder the component along the
+        axis is kept, π(x) = c + ((x − c)·a) a + R d / |d| with d = x − c − ((x − c)·a) a.
+        A plane through c (containing the axis) is mapped into itself (the component of
+        x − c normal to it stays 0), so the arc's ends on the axis / top and the sphere's
+        edges on the symmetry planes and the top stay on those planes."""
         c = np.asarray(self.centre, dtype=float)
         d = x - c
-        return c + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+        along = 0.0
+        if self.axis is not None:
+            a = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
+            along = np.outer(d @ a, a)
+            d = d - along
+        return c + along + self.radius * d / np.linalg.norm(d, axis=1, keepdims=True)
 
     def snap(self, msh: dmesh.Mesh, tags: dmesh.MeshTags, tol: float = 1e-12) -> int:
         """Move every geometry node of a facet tagged ``tag`` to π(x) (collective); return
@@ -156,6 +265,22 @@ class CurvedBoundary:
         return msh.comm.allreduce(len(owned), op=MPI.SUM)
 
 
+def builder_surfaces(cfg: dict) -> list[CurvedBoundary]:
+    """The curved surfaces of the two-body builders, by the mesh's own facet tags: the two
+    arcs of ``half_disks`` (tags 1 and 3) and the sphere of ``sphere_on_block`` (tag 1);
+    empty for every other mesh."""
+    m = cfg["mesh"]
+    if m["type"] == "half_disks":
+        R1 = float(m["radius"])
+        R2 = float(m["radius2"] or R1)
+        d = float(m.get("overlap") or 0.0)
+        return [CurvedBoundary((0.0, R1), R1, UPPER_ARC), CurvedBoundary((0.0, d - R2), R2, LOWER_ARC)]
+    if m["type"] == "sphere_on_block":
+        R = float(m["radius"])
+        return [CurvedBoundary((0.0, 0.0, R), R, SPHERE)]
+    return []
+
+
 def curved_boundary(cfg: dict) -> CurvedBoundary | None:
     """The curved surface of the scene's mesh (validated config ``cfg``): for
     ``quarter_disk`` the circle of radius R about (0, R), for ``sphere_octant`` the sphere
@@ -169,9 +294,9 @@ def curved_boundary(cfg: dict) -> CurvedBoundary | None:
     return CurvedBoundary(centre=(0.0,) * (centres[m["type"]] - 1) + (R,), radius=R)
 
 
-def _check(radius, h, h_contact, zone) -> tuple[float, float, float, float]:
+def _check(radius, h, h_contact, zone, radius_key: str = "radius") -> tuple[float, float, float, float]:
     """The four parameters as floats; a ConfigError naming the first bad one."""
-    values = {"radius": radius, "h": h, "h_contact": h_contact, "zone": zone}
+    values = {radius_key: radius, "h": h, "h_contact": h_contact, "zone": zone}
     for name, value in values.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"mesh.{name}: must be a number, got {value!r}")
@@ -180,16 +305,16 @@ def _check(radius, h, h_contact, zone) -> tuple[float, float, float, float]:
     if h_contact > h:
         raise ConfigError(f"mesh.h_contact: must be <= mesh.h ({h:g}), got {h_contact:g}")
     if zone >= radius:
-        raise ConfigError(f"mesh.zone: must be < mesh.radius ({radius:g}), got {zone:g}")
+        raise ConfigError(f"mesh.zone: must be < mesh.{radius_key} ({radius:g}), got {zone:g}")
     return float(radius), float(h), float(h_contact), float(zone)
 
 
-def _size_field(gmsh, point: int, h: float, h_contact: float, zone: float) -> None:
-    """Size h_contact within ``zone`` of model vertex ``point``, growing linearly (slope
-    GRADING) up to h; the field alone sets the size."""
+def _size_field(gmsh, point: int | list[int], h: float, h_contact: float, zone: float) -> None:
+    """Size h_contact within ``zone`` of model vertex ``point`` (or of any of a list of
+    them), growing linearly (slope GRADING) up to h; the field alone sets the size."""
     field = gmsh.model.mesh.field
     distance = field.add("Distance")
-    field.setNumbers(distance, "PointsList", [point])
+    field.setNumbers(distance, "PointsList", point if isinstance(point, list) else [point])
     threshold = field.add("Threshold")
     field.setNumber(threshold, "InField", distance)
     field.setNumber(threshold, "SizeMin", h_contact)

@@ -48,13 +48,24 @@ class Boundary:
         return np.sort(self.tags.indices[np.isin(self.tags.values, ids)]).astype(np.int32)
 
 
-def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given); for gmsh
-    files also their facet tags."""
-    msh, tags = _built_mesh(cfg, comm)
+def mesh_dimension(cfg: dict) -> int | None:
+    """The geometric dimension of the scene's mesh, from its type (None for a gmsh file)."""
+    mesh = cfg["mesh"]
+    if mesh["type"] == "blocks":
+        return len(mesh["blocks"][0]["corners"][0])
+    return {"rectangle": 2, "unit_square": 2, "lshape": 2, "quarter_disk": 2, "half_disks": 2,
+            "box": 3, "sphere_octant": 3, "sphere_on_block": 3}.get(mesh["type"])
+
+
+def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
+               ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
+    """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given), its facet
+    tags (gmsh files and builders) and cell tags (gmsh physical volumes / surfaces, the
+    block numbers of mesh type blocks), ``None`` where the mesh has none."""
+    msh, tags, *cells = _built_mesh(cfg, comm)
     if cfg["mesh"].get("map") is not None:
         map_geometry(msh, cfg["mesh"]["map"], cfg["constants"])
-    return msh, tags
+    return msh, tags, (cells[0] if cells else None)
 
 
 def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] | None = None,
@@ -138,6 +149,15 @@ def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags |
 
         build = geometry.quarter_disk if kind == "quarter_disk" else geometry.sphere_octant
         return build(comm, m["radius"], m["h"], m["h_contact"], m["zone"])
+    if kind == "blocks":
+        return blocks(comm, m["blocks"], m["diagonal"])
+    if kind in ("half_disks", "sphere_on_block"):  # two gmsh bodies, built from the parameters
+        from . import geometry
+
+        if kind == "half_disks":
+            return geometry.half_disks(comm, m["radius"], m["radius2"] or m["radius"], m["h"], m["h_contact"], m["zone"],
+                                       m["overlap"] or 0.0)
+        return geometry.sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
     return _read_gmsh(m["file"], comm)
 
 
@@ -165,15 +185,64 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
                              partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
 
 
-def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    return gmsh_to_mesh(comm, lambda gmsh: gmsh.merge(path), f"mesh.file: cannot read {path!r} as a gmsh mesh")
+def blocks(comm: MPI.Comm, specs: list[dict], diagonal: str = "right"
+           ) -> tuple[dmesh.Mesh, None, dmesh.MeshTags]:
+    """Structured blocks meshed independently into one mesh (disconnected components, no
+    shared nodes, so their meshes need not match where they touch): triangles (2D, each
+    rectangle split along its ``diagonal``, left or right) or tetrahedra (3D, six per box,
+    Kuhn's subdivision along the main diagonal).  Built on rank 0 and distributed; the cell
+    tag of block k (in the order given) is k + 1."""
+    gdim = len(specs[0]["corners"][0])
+    if comm.rank == 0:
+        points, cells, offset = [], [], 0
+        for spec in specs:
+            X, T = _structured(np.asarray(spec["corners"], dtype=float), spec["cells"], diagonal)
+            points.append(X)
+            cells.append(T + offset)
+            offset += len(X)
+        counts = [len(T) for T in cells]
+        X, cells = np.vstack(points), np.vstack(cells).astype(np.int64)
+    else:
+        X, cells, counts = np.zeros((0, gdim)), np.zeros((0, gdim + 1), dtype=np.int64), None
+    counts = comm.bcast(counts, root=0)
+    shape = "triangle" if gdim == 2 else "tetrahedron"
+    element = ufl.Mesh(basix.ufl.element("Lagrange", shape, 1, shape=(gdim,)))
+    msh = dmesh.create_mesh(comm, cells, element, X,
+                            partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+    tdim = msh.topology.dim
+    n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    original = np.asarray(msh.topology.original_cell_index[:n_all])
+    block = np.searchsorted(np.cumsum(counts), original, side="right") + 1
+    return msh, None, dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), block.astype(np.int32))
 
 
-def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None
-                 ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
+def _structured(corners: np.ndarray, n: list[int], diagonal: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and simplices of one structured block with ``n`` cells per direction."""
+    axes = [np.linspace(lo, hi, k + 1) for lo, hi, k in zip(corners[0], corners[1], n)]
+    X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(n))
+    ijk = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1).reshape(-1, len(n))
+    strides = np.cumprod([1] + [k + 1 for k in n[::-1]])[::-1][1:]    # vertex (i, j[, k]) → index
+    corner = lambda *offs: (ijk + np.array(offs)) @ strides  # noqa: E731
+    if len(n) == 2:
+        v00, v10, v01, v11 = corner(0, 0), corner(1, 0), corner(0, 1), corner(1, 1)
+        if diagonal == "left":
+            return X, np.vstack([np.c_[v00, v10, v01], np.c_[v10, v11, v01]])
+        return X, np.vstack([np.c_[v00, v10, v11], np.c_[v00, v11, v01]])
+    v = {b: corner(b & 1, (b >> 1) & 1, (b >> 2) & 1) for b in range(8)}  # vertex b = i + 2j + 4k
+    tets = ((0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7))
+    return X, np.vstack([np.c_[tuple(v[b] for b in t)] for t in tets])
+
+
+def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
+    return gmsh_to_mesh(comm, lambda gmsh: gmsh.merge(path), f"mesh.file: cannot read {path!r} as a gmsh mesh",
+                        cells=True)
+
+
+def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cells: bool = False):
     """Run ``build(gmsh)`` on rank 0 (gmsh's terminal output off) and distribute the mesh
-    with its physical groups; the geometric dimension is the model's unless given.  Any
-    failure is one ConfigError line ``<error>: <gmsh's message>``, raised on every rank."""
+    with its physical groups; the geometric dimension is the model's unless given.  Returns
+    (mesh, facet tags), and the cell tags too if ``cells``.  Any failure is one ConfigError
+    line ``<error>: <gmsh's message>``, raised on every rank."""
     import gmsh  # only for gmsh scenes
     from dolfinx.io import gmsh as gmshio
 
@@ -199,14 +268,64 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None
             gmsh.finalize()
     if problem is not None:
         raise ConfigError(f"{error}: {' '.join(problem.split())}")
-    return data.mesh, data.facet_tags
+    return (data.mesh, data.facet_tags, data.cell_tags) if cells else (data.mesh, data.facet_tags)
 
 
-def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None = None) -> Boundary:
+def tag_bodies(msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = None) -> dmesh.MeshTags | None:
+    """Cell tags of the scene's ``bodies`` (value k + 1 for the k-th body, on every local
+    cell, ghosts included), or None for a scene without bodies.  A body takes the cells of
+    a mesh cell tag (``tag``) or those whose midpoint satisfies ``where``.  A body with no
+    cell, an unknown tag, a cell in two bodies or in none is a ConfigError."""
+    bodies = cfg.get("bodies")
+    if not bodies:
+        return None
+    comm, tdim = msh.comm, msh.topology.dim
+    n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    file_ids = set()
+    if cell_tags is not None:
+        file_ids = set(int(v) for v in np.concatenate(comm.allgather(np.unique(cell_tags.values))))
+    midpoints = None
+    n_owned = msh.topology.index_map(tdim).size_local
+    value = np.zeros(n_all, dtype=np.int32)
+    for k, (name, body) in enumerate(bodies.items()):
+        if body["tag"] is not None:
+            if body["tag"] not in file_ids:
+                known = ", ".join(map(str, sorted(file_ids))) or "none"
+                raise ConfigError(f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell tags: {known})")
+            cells = cell_tags.indices[cell_tags.values == body["tag"]]
+        else:
+            if midpoints is None:
+                midpoints = dmesh.compute_midpoints(msh, tdim, np.arange(n_all, dtype=np.int32))
+            pred = expressions.to_numpy(body["where"], cfg["constants"])
+            cells = np.flatnonzero(pred(midpoints.T).astype(bool))
+        if comm.allreduce(int(np.count_nonzero(cells < n_owned)), op=MPI.SUM) == 0:
+            what = f"where {body['where']!r}" if body["tag"] is None else f"tag {body['tag']}"
+            raise ConfigError(f"bodies.{name}: {what} selects no cell")
+        twice = comm.allreduce(int(np.count_nonzero(value[cells[cells < n_owned]])), op=MPI.SUM)
+        if twice:
+            raise ConfigError(f"bodies.{name}: {twice} of its cells belong to an earlier body too")
+        value[cells] = k + 1
+    orphans = comm.allreduce(int(np.count_nonzero(value[:n_owned] == 0)), op=MPI.SUM)
+    if orphans:
+        raise ConfigError(f"bodies: {orphans} cells belong to no body (each cell needs a material)")
+    return dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), value)
+
+
+def body_facets(msh: dmesh.Mesh, bodies: dmesh.MeshTags, body: int, facets: np.ndarray) -> np.ndarray:
+    """The exterior ``facets`` whose cell belongs to body number ``body`` (1-based)."""
+    tdim = msh.topology.dim
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    first_cell = f2c.array[f2c.offsets[facets]]
+    return facets[bodies.values[first_cell] == body]
+
+
+def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None = None,
+                   bodies: dmesh.MeshTags | None = None) -> Boundary:
     """Mark every boundary part of ``cfg['boundaries']`` on the exterior facets.
 
     A ``where`` predicate selects exterior facets all of whose vertices satisfy it; a
-    ``tag`` selects the gmsh physical facet group.  A part selecting no facet anywhere, an
+    ``tag`` selects the gmsh physical facet group (with ``where`` too: those of its facets
+    that satisfy it); ``body`` keeps only the facets of that body's cells (``bodies``: :func:`tag_bodies`).  A part selecting no facet anywhere, an
     unknown tag, or two parts sharing a facet are ConfigErrors.  Exterior facets left
     unmarked carry the natural condition k ∂u/∂n = 0.
     """
@@ -220,20 +339,27 @@ def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None 
     next_id = max(file_ids, default=0) + 1
     ids, roles, chunks = {}, {}, []
     for name, part in cfg["boundaries"].items():
+        facets = exterior
         if part["tag"] is not None:
             if file_tags is None or part["tag"] not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
                 raise ConfigError(f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh file (facet tags: {known})")
-            pid = part["tag"]
-            facets = file_tags.indices[file_tags.values == pid]
+            facets = file_tags.indices[file_tags.values == part["tag"]]
+        if part["where"] is not None:
+            pred = expressions.to_numpy(part["where"], cfg["constants"])
+            located = dmesh.locate_entities_boundary(msh, tdim - 1, lambda x: pred(x).astype(bool))
+            facets = np.intersect1d(facets, located)
+        if part.get("body") is not None:
+            facets = body_facets(msh, bodies, list(cfg["bodies"]).index(part["body"]) + 1, facets)
+        if part["tag"] is not None and part["where"] is None and part.get("body") is None:
+            pid = part["tag"]           # the whole gmsh group keeps its tag
         else:
             pid = next_id
             next_id += 1
-            pred = expressions.to_numpy(part["where"], cfg["constants"])
-            facets = dmesh.locate_entities_boundary(msh, tdim - 1, lambda x: pred(x).astype(bool))
-            facets = np.intersect1d(facets, exterior)
         if comm.allreduce(len(facets), op=MPI.SUM) == 0:
-            what = f"where {part['where']!r}" if part["tag"] is None else f"tag {part['tag']}"
+            what = " and ".join(([f"tag {part['tag']}"] if part["tag"] is not None else [])
+                                + ([f"where {part['where']!r}"] if part["where"] is not None else []))
+            what += f" on body {part['body']}" if part.get("body") is not None else ""
             raise ConfigError(f"boundaries.{name}: {what} selects no boundary facet")
         ids[name], roles[name] = pid, part["role"]
         chunks.append((facets.astype(np.int32), np.full(len(facets), pid, dtype=np.int32), name))

@@ -1,39 +1,129 @@
-"""Pictures a user can look at without ParaView (pyvista, off-screen)."""
+"""Pictures a user can look at without ParaView.
+
+2D fields are drawn with matplotlib (axes in the scene's length unit, colour bars with their
+title beside the ticks); 3D fields with pyvista off-screen, seen from the obstacle's side so
+that the contact zone is in view.  Every function is collective (the fields are gathered on
+rank 0 with :func:`contact.series.gather_grid`) and draws on rank 0.
+"""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
-from dolfinx import fem, plot
+from dolfinx import fem
+
+from .series import gather_grid
+
+MAX_EDGES = 20000   # cells above which mesh edges would paint everything black
 
 
-def _gather_grid(fn: fem.Function):
-    """The function on a pyvista grid on rank 0 (``None`` elsewhere): each rank sends its
-    part.  The grid also carries the cell data ``log10 h`` (cell diameter)."""
-    import pyvista
+def _magnitude(values: np.ndarray) -> np.ndarray:
+    return values if values.ndim == 1 else np.linalg.norm(values, axis=1)
 
-    V = fn.function_space
-    msh = V.mesh
-    topology, cell_types, x = plot.vtk_mesh(V)
-    bs = V.dofmap.index_map_bs
-    values = fn.x.array[: x.shape[0] * bs].real.reshape(x.shape[0], bs)
-    values = values[:, 0].copy() if bs == 1 else np.linalg.norm(values, axis=1)  # |u| for vectors
-    sizes = np.log10(msh.h(msh.topology.dim, np.arange(len(cell_types), dtype=np.int32)))
-    parts = msh.comm.gather((topology, cell_types, x, values, sizes), root=0)
-    if msh.comm.rank != 0:
-        return None
-    grids = []
-    for top, types, xx, vals, hs in parts:
-        if len(types) == 0:
-            continue
-        g = pyvista.UnstructuredGrid(top, types, xx)
-        g.point_data[fn.name] = vals
-        g.cell_data["log10 h"] = hs
-        grids.append(g)
-    grid = grids[0] if len(grids) == 1 else grids[0].merge(grids[1:])
-    return grid
 
+def _field_label(fn: fem.Function) -> str:
+    return f"{fn.name} magnitude" if fn.function_space.dofmap.index_map_bs > 1 else fn.name
+
+
+def _triangulation(grid):
+    """matplotlib's Triangulation of a 2D grid's cells (their vertices: P2 cells are drawn
+    on their corners)."""
+    import matplotlib.tri as mtri
+
+    cells = next(iter(grid.cells_dict.values()))[:, :3]
+    return mtri.Triangulation(grid.points[:, 0], grid.points[:, 1], cells)
+
+
+def _aspect(grid) -> float:
+    """Height over width of a 2D grid, kept within [0.3, 1.2] for the figure size."""
+    width, height = np.ptp(grid.points[:, :2], axis=0)
+    return float(np.clip(height / width, 0.3, 1.2)) if width > 0 else 1.0
+
+
+def _colorbar(fig, mappable, ax, label: str) -> None:
+    """A colour bar as tall as the axes, its label beside the ticks."""
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+    cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
+    fig.colorbar(mappable, cax=cax, label=label)
+
+
+def _axes_2d(ax, title: str) -> None:
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (scene length unit)")
+    ax.set_ylabel("y")
+    ax.set_title(title, fontsize=10)
+
+
+def _active_points(grid) -> np.ndarray:
+    return grid.points[grid.point_data["active"] > 0.5] if "active" in grid.point_data else np.zeros((0, 3))
+
+
+def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
+                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> None:
+    """u_h (|u_h| for vectors) over the domain with the active contact nodes in red.
+
+    3D: two views — the whole body, and the contact zone seen from the obstacle's side
+    (``normal``: the direction from the body towards the obstacle) coloured by the contact
+    pressure −λ_h when ``lmbda`` is given."""
+    fields = [f for f in (u_h, active, lmbda) if f is not None]
+    grid = gather_grid(fields)
+    if grid is None:
+        return
+    if u_h.function_space.mesh.geometry.dim == 3:
+        return _solution_3d(path, grid, u_h, lmbda, normal, title)
+    plt = _pyplot()
+    tri = _triangulation(grid)
+    fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
+    shade = ax.tripcolor(tri, _magnitude(grid.point_data[u_h.name]), shading="gouraud", cmap="viridis")
+    if grid.n_cells <= MAX_EDGES:
+        ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
+    pts = _active_points(grid)
+    if len(pts):
+        ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3 if len(pts) < 300 else 1.2, alpha=0.8,
+                label=f"active nodes ({len(pts)})")
+        ax.legend(loc="best", fontsize=8)
+    _colorbar(fig, shade, ax, _field_label(u_h))
+    _axes_2d(ax, title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
+              normal: Sequence[float] | None = None, active: fem.Function | None = None) -> None:
+    """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
+    ``max_edges`` cells) and u_h.  3D: the surface mesh seen from the obstacle's side
+    (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
+    grid = gather_grid([u_h] + ([active] if active is not None else []))
+    if grid is None:
+        return
+    if u_h.function_space.mesh.geometry.dim == 3:
+        return _mesh_3d(path, grid, title, normal)
+    plt = _pyplot()
+    tri = _triangulation(grid)
+    fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
+    if grid.n_cells <= max_edges:
+        ax_m.triplot(tri, color="k", lw=0.3)
+        _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
+    else:
+        xy = grid.points[tri.triangles][:, :, :2]
+        h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
+        shade = ax_m.tripcolor(tri, facecolors=np.log10(h), cmap="magma")
+        _colorbar(fig, shade, ax_m, "cell size log10 h_T")
+        _axes_2d(ax_m, f"cell size: {grid.n_cells} cells")
+    shade = ax_u.tripcolor(tri, _magnitude(grid.point_data[u_h.name]), shading="gouraud", cmap="viridis")
+    _colorbar(fig, shade, ax_u, _field_label(u_h))
+    _axes_2d(ax_u, _field_label(u_h))
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------- 3D (pyvista)
 
 def _quiet_vtk() -> None:
     """VTK warns on stderr when there is no X display before it falls back to off-screen."""
@@ -43,81 +133,117 @@ def _quiet_vtk() -> None:
     vtk.vtkObject.GlobalWarningDisplayOff()
 
 
-def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None,
-                  title: str = "") -> None:
-    """u_h coloured over the mesh (warped in 2D), active contact nodes as red points."""
+def _plotter(shape=(1, 2), size=(1800, 850)):
     import pyvista
 
     pyvista.OFF_SCREEN = True
     _quiet_vtk()
-    comm = u_h.function_space.mesh.comm
-    grid = _gather_grid(u_h)
-    pts = None
-    if active is not None:
-        V = active.function_space
-        n = V.dofmap.index_map.size_local
-        X = V.tabulate_dof_coordinates()[:n]
-        local = X[active.x.array[:n] > 0.5]
-        gathered = comm.gather(local, root=0)
-        pts = np.vstack(gathered) if comm.rank == 0 else None
-    if comm.rank != 0:
-        return
-    gdim = u_h.function_space.mesh.geometry.dim
-    plotter = pyvista.Plotter(off_screen=True, window_size=(1200, 900))
-    show_edges = grid.n_cells <= 20000
-    plotter.add_mesh(grid, scalars=u_h.name, cmap="viridis", show_edges=show_edges,
-                     edge_color="#555555", line_width=0.5,
-                     scalar_bar_args={"title": u_h.name, "vertical": True})
-    if pts is not None and len(pts):
-        plotter.add_points(pyvista.PolyData(pts), color="red", point_size=8,
-                           render_points_as_spheres=True, label=f"active nodes ({len(pts)})")
-        plotter.add_legend(bcolor="white", size=(0.25, 0.06), loc="lower left")
+    return pyvista.Plotter(off_screen=True, window_size=size, shape=shape, border=False)
+
+
+def _bar(title: str) -> dict:
+    """A horizontal colour bar under the view: title above the bar, tick labels below."""
+    return {"title": title, "vertical": False, "position_x": 0.2, "position_y": 0.05, "width": 0.6,
+            "height": 0.07, "fmt": "%.3g", "n_labels": 5, "title_font_size": 16, "label_font_size": 14,
+            "color": "black"}
+
+
+def _add_mesh(plotter, mesh, **kw) -> None:
+    """add_mesh with the colour bar's tick labels under the bar and its title above it (VTK
+    puts both on one side, where they overlap)."""
+    plotter.add_mesh(mesh, **kw)
+    args = kw.get("scalar_bar_args", {})
+    if args.get("title") in plotter.scalar_bars:
+        bar = plotter.scalar_bars[args["title"]]
+        bar.SetTextPositionToPrecedeScalarBar()
+        bar.SetTitle("")
+        plotter.add_text(args["title"], position=(args["position_x"], args["position_y"] + args["height"] + 0.01),
+                         viewport=True, font_size=11, color="black")
+
+
+def _look_from(plotter, focus: np.ndarray, normal: np.ndarray, extent: float, tilt: float = 35.0) -> None:
+    """Camera on the obstacle's side of ``focus`` (``normal`` points from the body to the
+    obstacle), tilted by ``tilt`` degrees for depth, parallel projection showing ``extent``
+    around it."""
+    n = normal / np.linalg.norm(normal)
+    side = np.cross(n, [0.0, 0.0, 1.0] if abs(n[2]) < 0.9 else [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    direction = np.cos(np.radians(tilt)) * n + np.sin(np.radians(tilt)) * side
+    up = np.cross(side, n)
+    plotter.camera.focal_point = focus
+    plotter.camera.position = focus + 10.0 * extent * direction
+    plotter.camera.up = up
+    plotter.enable_parallel_projection()
+    plotter.camera.parallel_scale = extent
+
+
+def _contact_view(grid, normal) -> tuple[np.ndarray, np.ndarray, float]:
+    """(focus, view normal, extent): the active nodes' centre and spread (the whole body
+    if none is active), seen along ``normal`` (default −z)."""
+    n = np.asarray(normal if normal is not None else (0.0, 0.0, -1.0), dtype=float)
+    pts = _active_points(grid)
+    size = float(np.linalg.norm(np.ptp(grid.points, axis=0)))
+    if len(pts) == 0:
+        return grid.center, n, 0.6 * size
+    focus = pts.mean(axis=0)
+    spread = float(np.max(np.linalg.norm(pts - focus, axis=1)))
+    return focus, n, min(max(2.0 * spread, 0.02 * size), 0.6 * size)
+
+
+def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
+    import pyvista
+
+    p = _plotter()
+    label = _field_label(u_h)
+    grid.point_data["shown"] = _magnitude(grid.point_data[u_h.name])
+    p.subplot(0, 0)
+    _add_mesh(p, grid.copy(), scalars="shown", cmap="viridis", show_edges=grid.n_cells <= MAX_EDGES,
+              edge_color="#555555", line_width=0.5, scalar_bar_args=_bar(label))
+    focus, n, extent = _contact_view(grid, normal)
+    _look_from(p, grid.center, n, 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0))))
+    p.add_text(f"{label}, whole body seen from the obstacle's side", position="upper_edge", font_size=11)
+    p.subplot(0, 1)
+    surface = grid.extract_surface()
+    if lmbda is not None:
+        surface.point_data["pressure"] = np.abs(surface.point_data[lmbda.name])
+        _add_mesh(p, surface, scalars="pressure", cmap="YlOrRd", show_edges=True, edge_color="#999999",
+                  line_width=0.5, scalar_bar_args=_bar(f"contact pressure -{lmbda.name}"))
+    else:
+        _add_mesh(p, surface, scalars="shown", cmap="viridis", show_edges=True, scalar_bar_args=_bar(label))
+    pts = _active_points(grid)
+    if len(pts):
+        p.add_points(pyvista.PolyData(pts), color="#1f4fff", point_size=7, render_points_as_spheres=True)
+    p.add_text(f"contact zone seen from the obstacle: {len(pts)} active nodes (blue)", position="upper_edge",
+               font_size=11)
+    _look_from(p, focus, n, extent, tilt=0.0)
+    _save(p, path, title)
+
+
+def _mesh_3d(path, grid, title, normal) -> None:
+    p = _plotter()
+    focus, n, extent = _contact_view(grid, normal)
+    whole = 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0)))
+    surface = grid.extract_surface()
+    for col, (centre, scale, text) in enumerate(((grid.center, whole, "surface mesh seen from the obstacle's side"),
+                                                 (focus, extent, "contact zone seen from the obstacle"))):
+        p.subplot(0, col)
+        p.add_mesh(surface.copy(), color="white", show_edges=True, edge_color="black", line_width=0.4)
+        p.add_text(text, position="upper_edge", font_size=11)
+        _look_from(p, centre, n, scale, tilt=35.0 if col == 0 else 0.0)
+    _save(p, path, title)
+
+
+def _save(plotter, path, title: str) -> None:
     if title:
-        plotter.add_title(title, font_size=12)
-    if gdim == 2:
-        plotter.view_xy()
-    else:
-        plotter.view_isometric()
-    plotter.screenshot(str(path))
-    plotter.close()
-
-
-def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = 20000) -> None:
-    """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
-    ``max_edges`` cells, where edges would paint everything black) and u_h."""
-    import pyvista
-
-    pyvista.OFF_SCREEN = True
-    _quiet_vtk()
-    grid = _gather_grid(u_h)
-    if u_h.function_space.mesh.comm.rank != 0:
-        return
-    plotter = pyvista.Plotter(off_screen=True, window_size=(1800, 800), shape=(1, 2))
-    plotter.subplot(0, 0)
-    if grid.n_cells <= max_edges:
-        plotter.add_mesh(grid, color="white", show_edges=True, edge_color="black", line_width=0.5)
-        plotter.add_text("mesh", font_size=12)
-    else:
-        plotter.add_mesh(grid, scalars="log10 h", cmap="magma", show_edges=False,
-                         scalar_bar_args={"title": "log10 h_T", "vertical": True})
-        plotter.add_text("cell size log10 h_T", font_size=12)
-    plotter.view_xy() if u_h.function_space.mesh.geometry.dim == 2 else plotter.view_isometric()
-    plotter.subplot(0, 1)
-    plotter.add_mesh(grid.copy(), scalars=u_h.name, cmap="viridis", show_edges=False,
-                     scalar_bar_args={"title": u_h.name, "vertical": True})
-    plotter.add_text(title or u_h.name, font_size=12)
-    plotter.view_xy() if u_h.function_space.mesh.geometry.dim == 2 else plotter.view_isometric()
+        plotter.subplot(0, 0)
+        plotter.add_text(title, position="lower_left", font_size=10)
     plotter.screenshot(str(path))
     plotter.close()
 
 
 def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> None:
     """η (and the error, where known) against DoFs on log–log axes with N^{-1/2}, N^{-1/3}."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     N = np.array([r["dofs"] for r in rows], dtype=float)
     eta = np.array([r["eta"] for r in rows], dtype=float)
     fig, ax = plt.subplots(figsize=(7, 5))
@@ -138,28 +264,133 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     plt.close(fig)
 
 
-def plot_pressure(path: str | Path, res: dict, title: str = "") -> None:
-    """Computed contact pressure −λ_n against the in-plane distance from the first point of
-    contact, with the Hertz profile p0 √(1 − ρ²/a²) for the computed total force."""
+def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, title: str = "") -> None:
+    """The contact pressure −λ_n (elasticity) or flux −λ (scalar) at the contact nodes along
+    Γ_C: against the arc length s (2D) or the distance r from the first point of contact
+    (3D), active nodes filled; with a declared reference (``comparison``,
+    :class:`contact.reference.Comparison`) against its position axis, with its curves."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    name = "contact pressure −λ_n" if value == "lambda_n" else "contact flux −λ"
+    if comparison is not None:
+        prof = comparison.profile
+        reach = max([c[0].max() for c in comparison.curves] + [m[0] for m in comparison.marks] + [0.0])
+        keep = prof[:, 0] <= 2.0 * reach if reach > 0 else slice(None)
+        ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label=f"computed {name} (nodal)")
+        for x, y, label in comparison.curves:
+            ax.plot(x, y, "k-", label=label)
+        for x, label in comparison.marks:
+            ax.axvline(x, color="C1", ls="--", lw=1, label=label)
+        ax.set_xlabel(comparison.xlabel)
+        extra = ", ".join(f"{k} {100 * v:+.2f}%" for k, v in comparison.errors.items())
+        title = f"{title}\n{extra}" if extra else title
+    else:
+        pos = "s" if "s" in table else "r"
+        x, y, act = table[pos], -table[value], table["active"] > 0
+        ax.plot(x, y, "-", color="C0", lw=0.8, alpha=0.6)
+        ax.plot(x[act], y[act], "o", ms=3.5, color="C3", label=f"active ({int(act.sum())} nodes)")
+        ax.plot(x[~act], y[~act], "o", ms=3.5, mfc="none", color="C0", label=f"inactive ({int((~act).sum())})")
+        ax.set_xlabel("arc length s along Γ_C (scene length unit)" if pos == "s"
+                      else "distance r from the first point of contact (scene length unit)")
+    ax.set_ylabel(name)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    prof = np.asarray(res["pressure_profile"])
-    a_H, p0_H = res["hertz_a"], res["hertz_p0"]
-    a = res.get("contact_half_width", res.get("contact_radius"))
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    keep = prof[:, 0] <= 2.0 * a_H
-    ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label="computed −λ_n (nodal)")
-    rho = np.linspace(0, a_H, 200)
-    ax.plot(rho, p0_H * np.sqrt(1 - (rho / a_H) ** 2), "k-", label=f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")
-    ax.axvline(a, color="C1", ls="--", lw=1, label=f"computed a = {a:.4g} ({100 * res['a_error']:+.1f}%)")
-    ax.set_xlabel("distance from the first point of contact ρ")
-    ax.set_ylabel("contact pressure")
-    ax.set_title(title + f"\npeak {res['peak_pressure']:.4g} ({100 * res['p0_error']:+.1f}% vs Hertz)")
-    ax.grid(alpha=0.3)
-    ax.legend()
+    return plt
+
+
+def plot_traction(path: str | Path, steps: list[tuple[float, dict]], title: str = "",
+                  references: Sequence[tuple[int, np.ndarray, np.ndarray, str]] = ()) -> None:
+    """Contact tractions along Γ_C, one curve per load step coloured by the pseudo-time t
+    (``steps``: (t, contact table of :mod:`contact.contactdata` with the friction columns)):
+    the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its component along
+    t_0) against the arc length s, with the friction bound ±ρ of the last step dashed (where
+    λ_t reaches it the node slips) and the slipping nodes of the last step circled, zoomed on
+    the contact zone when it is less than half of Γ_C.  3D: :func:`plot_traction_map`.
+    ``references``: (panel 0 | 1, x, y, label) curves such as the Hertz pressure or an exact
+    traction."""
+    table = steps[-1][1]
+    if "s" not in table:
+        return plot_traction_map(path, table, title, t=steps[-1][0])
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    cmap = plt.get_cmap("viridis")
+    t_max = max(t for t, _ in steps)
+    friction = "lambda_t" in table
+    for t, tab in steps:
+        colour = cmap(t / t_max if len(steps) > 1 else 0.0)
+        label = f"t = {t:g}" if len(steps) <= 8 or t in (steps[0][0], t_max) else None
+        axes[0].plot(tab["s"], -np.asarray(tab["lambda_n"]), ".-", color=colour, ms=3, lw=1, label=label)
+        if friction:
+            axes[1].plot(tab["s"], tab["lambda_t"], ".-", color=colour, ms=3, lw=1, label=label)
+    x = np.asarray(table["s"])
+    if friction:
+        bound = np.asarray(table["bound"])
+        axes[1].plot(x, bound, "k--", lw=1, label="friction bound ±ρ")
+        axes[1].plot(x, -bound, "k--", lw=1)
+        slip = np.asarray(table["status"]) == "slip"
+        axes[1].plot(x[slip], np.asarray(table["lambda_t"])[slip], "o", mfc="none", mec="C3", ms=6,
+                     label=f"slipping at t = {t_max:g}")
+    for panel, rx, ry, label in references:
+        axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
+    lam_n = np.asarray(table["lambda_n"])
+    pressed = lam_n < -1e-9 * np.max(np.abs(lam_n), initial=0.0)
+    if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):   # a small contact zone: zoom on it
+        lo, hi = x[pressed].min(), x[pressed].max()
+        pad = 0.3 * max(hi - lo, 1e-12)
+        axes[1].set_xlim(lo - pad, hi + pad)
+    axes[0].set_ylabel("pressure −λ_n")
+    axes[1].set_ylabel("tangential traction λ_t")
+    axes[1].set_xlabel("arc length s along Γ_C (scene length unit)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float = 1.0) -> None:
+    """3D friction: the contact surface seen along the obstacle's normal (the coordinate of
+    least spread dropped), left the pressure −λ_n, right the tangential traction λ_t as arrows
+    coloured by the status (stick / slip), separated nodes grey."""
+    plt = _pyplot()
+    X = np.c_[table["x"], table["y"], table["z"]]
+    keep = [i for i in range(3) if i != int(np.argmin(np.ptp(X, axis=0)))]
+    P = X[:, keep]
+    lam_t = np.c_[table["lambda_t_x"], table["lambda_t_y"], table["lambda_t_z"]][:, keep]
+    status = np.asarray(table["status"])
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
+    fig.colorbar(sc, ax=axes[0], label="pressure −λ_n")
+    axes[0].set_title("contact pressure")
+    scale = float(np.max(np.abs(lam_t), initial=0.0)) / (0.06 * float(np.ptp(P))) or 1.0
+    for name, colour in (("stick", "C0"), ("slip", "C3")):
+        m = status == name
+        axes[1].quiver(P[m, 0], P[m, 1], lam_t[m, 0], lam_t[m, 1], color=colour, label=f"{name} ({m.sum()})",
+                       angles="xy", scale_units="xy", scale=scale)
+    m = status == "separated"
+    axes[1].plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
+    axes[1].set_title(f"tangential traction λ_t at t = {t:g}")
+    axes[1].legend(loc="upper right", fontsize=8)
+    labels = ["xyz"[i] for i in keep]
+    for ax in axes:
+        ax.set_aspect("equal")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+    fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

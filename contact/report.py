@@ -1,7 +1,17 @@
-"""The output folder of one run: XDMF, summary.json, history.csv, solution.png."""
+"""The output folder of one run.
+
+A single solve writes ``solution.vtu`` (u_h, λ_h, gap, active; von Mises for elasticity),
+``summary.json``, ``history.csv``, ``solution.png`` and, for a contact scene,
+``contact.csv`` and ``pressure.png``.  An adaptive run writes the levels as the series
+``solution.pvd`` + ``solution_KKK.vtu`` (time value = level; η_T added as cell data),
+``convergence.csv`` / ``.png``, ``mesh_level_K.png`` and the final level's
+``solution.png``, ``contact.csv`` and ``pressure.png``; its ``history.csv`` lists the Newton
+iterations of every level (column ``level``).
+"""
 from __future__ import annotations
 
 import platform
+import re
 from pathlib import Path
 from typing import Any
 
@@ -10,16 +20,24 @@ from mpi4py import MPI
 
 from . import io, plots
 from .adapt import AdaptResult, Level
-from .errors import energy_error
+from .errors import solution_error
+from .reference import Comparison, compare
 from .scene import Scene
+from .series import Series, write_vtu
 from .solvers import Result
 
 
 def resultants(scene: Scene, result: Result) -> dict | None:
-    """Contact resultants and Hertz values of an elasticity run (None for scalar models)."""
+    """Contact force, reaction, balance, peak pressure of an elasticity run (None for
+    scalar models; :mod:`contact.resultants`; with contact pairs the forces on both sides
+    of each interface and the reactions, :func:`contact.interface.interface_resultants`)."""
     if scene.cfg["model"]["type"] != "elasticity":
         return None
-    from .hertz import contact_resultants
+    if scene.cfg.get("pairs"):
+        from .interface import interface_resultants
+
+        return interface_resultants(scene, result)
+    from .resultants import contact_resultants
 
     return contact_resultants(scene, result)
 
@@ -41,11 +59,12 @@ def active_measure(result: Result) -> float:
     return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
-def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None) -> dict[str, Any]:
+def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
+            comparison: Comparison | None = None) -> dict[str, Any]:
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
     ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
-    Signorini / elasticity), timings (seconds), errors if known, and the contact
-    resultants ``res`` of an elasticity run."""
+    Signorini / elasticity), the contact force, timings (seconds), errors if known, the
+    contact resultants ``res`` of an elasticity run and the values of a declared reference."""
     con = result.problem.constraint
     comm = scene.comm
     out = {
@@ -62,90 +81,190 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "polish_solves": result.polish_solves,
         "linear_solves": result.linear_solves,
         "final_residual": result.residual,
+        "linear_solver": result.linear,
+        "krylov_iterations": result.krylov_iterations,
+        "sequence": [{"dofs": lv.dofs, "newton_iterations": lv.newton_iterations,
+                      "polish_solves": lv.polish_solves, "linear": lv.linear,
+                      "seconds": lv.seconds, "converged": lv.converged} for lv in result.sequence],
+        "weighted_linear_solves": result.weighted_linear_solves,
         "constrained_nodes": con.global_size(comm),
         "active_nodes": result.n_active,
         "active_measure": active_measure(result),
+        "contact_force": result.contact_force,
         "c": result.options.get("c"),
         "line_search": result.options.get("line_search"),
         "time_assembly": result.timings["assembly"],
         "time_linear_solve": result.timings["solve"],
         "time_other": result.timings["other"],
+        "time_sequence": result.timings.get("coarse", 0.0),
         "time_total": wall if wall is not None else result.timings["total"],
         "host": platform.node(),
     }
+    if result.sequence_note:
+        out["sequence_note"] = result.sequence_note
     if res is not None:
-        out.update({k: v for k, v in res.items() if k != "pressure_profile"})
-    exact = scene.cfg["data"]["exact"]
-    if exact is not None:
-        out["error_energy"] = energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
+        out.update(res)
+    if comparison is not None:
+        out["reference"] = scene.cfg["reference"]["type"]
+        out.update(comparison.values)
+    error = solution_error(scene, result)
+    if error is not None:
+        out["error_energy"] = error
     return out
 
 
-def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
-    """Write the complete output folder atomically; return the summary."""
-    comm = scene.comm
-    res = resultants(scene, result)
-    info = summary(scene, result, wall, res)
-    out_cfg = scene.cfg["output"]
-    with io.atomic_folder(outdir, comm) as tmp:
-        if out_cfg["xdmf"]:
-            io.write_xdmf(tmp / "solution.xdmf", [result.u_h, result.lmbda_h, result.gap, result.active],
-                          cells=cell_fields(scene, result))
-        io.write_csv(tmp / "history.csv", result.history, comm)
-        if out_cfg["png"]:
-            plots.plot_solution(tmp / "solution.png", result.u_h, result.active,
-                                title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
-            write_pressure_plot(tmp / "pressure.png", scene, result, res)
-        io.write_json(tmp / "summary.json", info, comm)
-    return info
+def point_fields(result: Result) -> list:
+    """The nodal output fields: u_h, λ_h, the gap (on Γ_C only) and the active set; with
+    contact pairs also the pressure the master surfaces see (``lambda_master``)."""
+    fields = [result.u_h, result.lmbda_h, result.gap, result.active]
+    if result.problem.data.get("couplings"):
+        from .interface import master_pressure
+
+        fields.append(master_pressure(result))
+    return fields
 
 
 def cell_fields(scene: Scene, result: Result) -> list:
-    """Cellwise output fields: the von Mises stress for elasticity."""
+    """Cellwise output fields: the von Mises stress for elasticity, and the ``body`` number
+    of each cell in a scene with bodies."""
     if scene.cfg["model"]["type"] != "elasticity":
         return []
     from .models.elasticity import von_mises
 
-    return [von_mises(result.u_h, result.problem.data["mu"], result.problem.data["lmbda_L"])]
+    data = result.problem.data
+    return [von_mises(result.u_h, data["mu"], data["lmbda_L"])] + ([data["body"]] if "body" in data else [])
 
 
-def write_pressure_plot(path: Path, scene: Scene, result: Result, res: dict | None) -> None:
-    """Elasticity: pressure.png, the computed contact pressure with the Hertz profile."""
-    if res is not None and scene.comm.rank == 0:
-        plots.plot_pressure(path, res, title=f"{scene.name}: contact pressure ({result.dofs} DoFs)")
+def _view_normal(scene: Scene, result: Result):
+    """The direction 3D pictures look along (from the obstacle's side), None in 2D."""
+    if scene.mesh.geometry.dim != 3:
+        return None
+    from .contactdata import contact_normal
+
+    return contact_normal(scene, result)
+
+
+def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
+    """solution.png: u_h with the active set (3D: and the contact zone with λ_h)."""
+    plots.plot_solution(path, result.u_h, result.active, title=title, lmbda=result.lmbda_h,
+                        normal=_view_normal(scene, result))
+
+
+def write_contact(folder: Path, scene: Scene, result: Result, comparison: Comparison | None) -> None:
+    """``contact.csv`` (:mod:`contact.contactdata`) and, for a contact boundary Γ_C (not an
+    obstacle in Ω), ``pressure.png`` (collective)."""
+    from .contactdata import contact_table, value_name, write_table
+
+    table = contact_table(scene, result)
+    if scene.comm.rank != 0:
+        return
+    write_table(folder / "contact.csv", table)
+    if scene.cfg["output"]["png"] and not result.problem.in_domain:
+        plots.plot_pressure(folder / "pressure.png", table, value_name(scene), comparison,
+                            title=f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)")
+
+
+def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
+    """Write the complete output folder atomically; return the summary (with ``files``)."""
+    comm = scene.comm
+    res = resultants(scene, result)
+    comparison = compare(scene, result)
+    info = summary(scene, result, wall, res, comparison)
+    out_cfg = scene.cfg["output"]
+    with io.atomic_folder(outdir, comm) as tmp:
+        if out_cfg["vtk"]:
+            write_vtu(tmp / "solution.vtu", point_fields(result), cell_fields(scene, result))
+        io.write_csv(tmp / "history.csv", result.history, comm)
+        if out_cfg["png"]:
+            plot_solution(tmp / "solution.png", scene, result,
+                          title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
+        write_contact(tmp, scene, result, comparison)
+        _finish(tmp, info, comm)
+    return info
+
+
+def _finish(tmp: Path, info: dict, comm: MPI.Comm) -> None:
+    """Write summary.json, listing every file of the folder (itself included)."""
+    names = [p.name for p in tmp.iterdir()] if comm.rank == 0 else None
+    natural = lambda name: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]  # noqa: E731
+    info["files"] = sorted(set(comm.bcast(names, root=0)) | {"summary.json"}, key=natural)
+    io.write_json(tmp / "summary.json", info, comm)
+
+
+def files_text(names: list[str]) -> str:
+    """File names for one line: a numbered run ``x_000.vtu … x_011.vtu`` is shown as
+    ``x_000…011.vtu``."""
+    runs: dict[tuple[str, str], list[str]] = {}
+    out: list[str] = []
+    for name in names:
+        m = re.fullmatch(r"(.*_)(\d{3,})(\.\w+)", name)
+        if m:
+            key = (m.group(1), m.group(3))
+            if key not in runs:
+                out.append(f"\0{len(runs)}")
+                runs[key] = []
+            runs[key].append(m.group(2))
+        else:
+            out.append(name)
+    keys = list(runs)
+    text = []
+    for item in out:
+        if item.startswith("\0"):
+            (stem, ext) = keys[int(item[1:])]
+            nums = runs[(stem, ext)]
+            text.append(f"{stem}{nums[0]}{ext}" if len(nums) == 1 else f"{stem}{nums[0]}…{nums[-1]}{ext}")
+        else:
+            text.append(item)
+    return ", ".join(text)
 
 
 def level_writer(tmp: Path, scene: Scene):
-    """Callback for :func:`contact.adapt.adapt`: XDMF of level K (u_h, λ_h, active, η_T)."""
+    """Callback for :func:`contact.adapt.adapt`: level K as step K of the series
+    ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell fields)."""
+    series = Series(tmp, "solution", scene.comm)
+
     def write(level: Level) -> None:
         r = level.result
-        if scene.cfg["output"]["xdmf"]:
-            io.write_xdmf(tmp / f"level_{level.index:03d}.xdmf", [r.u_h, r.lmbda_h, r.gap, r.active],
-                          cells=[level.estimate.eta_T, *cell_fields(level.scene, r)])
+        if scene.cfg["output"]["vtk"]:
+            series.write(level.index, point_fields(r), [level.estimate.eta_T, *cell_fields(level.scene, r)],
+                         field_data={"level": level.index, "dofs": r.dofs, "eta": level.estimate.eta})
     return write
 
 
-def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None) -> dict:
-    """After the loop: convergence.csv/.png, mesh pictures, and the final level's files."""
+def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
+                   failure: dict | None = None) -> dict:
+    """After the loop: convergence.csv/.png, history.csv of every level, mesh pictures, and
+    the final level's summary, solution.png, contact.csv and pressure.png.  ``failure`` (a
+    run that failed on the level after the last of ``adaptive``) is added to summary.json:
+    ``converged: false``, ``failed_level``, ``failed_reason``."""
     comm = scene.comm
     rows = adaptive.rows
     io.write_csv(tmp / "convergence.csv", rows, comm)
     last = adaptive.levels[-1]
     res = resultants(last.scene, last.result)
-    info = summary(last.scene, last.result, wall, res)
+    comparison = compare(last.scene, last.result)
+    info = summary(last.scene, last.result, wall, res, comparison)
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
-                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy")})
-    io.write_csv(tmp / "history.csv", last.result.history, comm)
+                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
+                 "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
+                 "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
+                 "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
+                 "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
+                 "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
+                 **(failure or {})})
+    io.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
+                                       for h in lv.result.history], comm)
     if scene.cfg["output"]["png"]:
         if comm.rank == 0:
             plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")
         for lv in picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3)):
             plots.plot_mesh(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
-                            title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs")
-        plots.plot_solution(tmp / "solution.png", last.result.u_h, last.result.active,
-                            title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
-        write_pressure_plot(tmp / "pressure.png", last.scene, last.result, res)
-    io.write_json(tmp / "summary.json", info, comm)
+                            title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                            normal=_view_normal(lv.scene, lv.result), active=lv.result.active)
+        plot_solution(tmp / "solution.png", last.scene, last.result,
+                      title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
+    write_contact(tmp, last.scene, last.result, comparison)
+    _finish(tmp, info, comm)
     return info
 
 

@@ -33,8 +33,8 @@ Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton i
 and active-set polishing solves (for adaptive runs on the final level and summed over the
 levels), converged, the SNES
 reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
-with ``data.exact``; relative errors of the Hertz half-width/radius and peak pressure for
-elastic contact against a plane with a radius), η, the measure of the active set, the wall
+with ``data.exact``; the relative errors of a declared ``reference``, e.g. Hertz's
+``a_error``, ``p0_error`` and their largest magnitude ``hertz_error``), η, the measure of the active set, the wall
 time and the peak memory.  Every level of every run is one row of ``levels.csv``, with the
 wall time since the start of the run (the x axis of speed-against-accuracy charts).  A run
 that raises or does not converge is a row with ``converged=False`` and the reason in
@@ -59,8 +59,9 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 from mpi4py import MPI
 
-from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate,
+from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate, folder_name,
                      _validate_mapping, apply_overrides, load_config, read_yaml)
+from .failures import describe, one_line
 from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -74,6 +75,7 @@ OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
 
 _SOLVER = SCENE["solver"].schema
 _ADAPT = SCENE["adapt"].schema
+_FRICTION = SCENE["friction"].schema
 
 #: axis name -> the Field each of its values is validated with
 AXES: dict[str, Field] = {
@@ -89,9 +91,24 @@ AXES: dict[str, Field] = {
     "theta": _ADAPT["theta"],
     "nested": _ADAPT["nested"],
     "level": Field("int", check=_nonnegative, doc="uniform refinements of the base mesh"),
+    "friction": _FRICTION["law"],
+    "coefficient": _FRICTION["coefficient"],
+    "threshold": _FRICTION["threshold"],
+    "c_t": _FRICTION["c_t"],
+    "kappa_t": _FRICTION["kappa_t"],
+    "friction_form": _FRICTION["form"],
+    "coulomb": _FRICTION["coulomb"],
+    "steps": Field("int", check=_positive, doc="load steps (load.steps)"),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0")
 _ADAPT_AXES = ("theta", "nested")
+#: friction axes -> keys of the scene's friction section
+_FRICTION_AXES = {"friction": "law", "coefficient": "coefficient", "threshold": "threshold", "c_t": "c_t",
+                  "kappa_t": "kappa_t", "friction_form": "form", "coulomb": "coulomb"}
+#: friction keys each law uses (the others are dropped when an axis switches the law)
+_LAW_KEYS = {"none": {"law"}, "tresca": {"law", "threshold", "c_t", "kappa_t", "form"},
+             "coulomb": {"law", "coefficient", "c_t", "kappa_t", "form", "coulomb", "fixed_point_rtol",
+                         "fixed_point_max_it"}}
 
 
 def _optional(f: Field, **changes: Any) -> Field:
@@ -112,7 +129,7 @@ def _charts(v: list) -> str | None:
 
 
 STUDY: dict[str, Field] = {
-    "name": Field("str", None),
+    "name": Field("str", None, check=folder_name),
     "scene": Field("any", check=_scene_ref, doc="scene YAML, relative to the study file"),
     "set": Field("list", [], doc="overrides of the base scene, as contact run --set"),
     "axes": Field("any", None, doc="axis name -> list of values (validated by AXES)"),
@@ -174,15 +191,22 @@ class Study:
         return any(bool(c.cfg["data"].get("exact")) for c in self.cases.values())
 
     @functools.cached_property
-    def has_hertz(self) -> bool:
-        """Whether some case is elastic contact with a Hertz radius (then rows carry the
-        relative errors of a and p0)."""
-        return any(_hertz_scene(c.cfg) for c in self.cases.values())
+    def reference_columns(self) -> tuple[str, ...]:
+        """The relative-error columns of the references the cases declare
+        (:func:`contact.reference.error_columns`, e.g. a_error, p0_error, hertz_error)."""
+        from .reference import error_columns
+
+        cols: list[str] = []
+        for c in self.cases.values():
+            cols += [k for k in error_columns(c.cfg) if k not in cols]
+        return tuple(cols)
 
     @property
     def accuracy(self) -> str:
-        """The column the speed-against-accuracy chart plots."""
-        return "error" if self.has_exact else "hertz_error" if self.has_hertz else "eta"
+        """The column the speed-against-accuracy chart plots: the energy error, else a
+        declared reference's combined error (``<type>_error``), else η."""
+        combined = [k for k in self.reference_columns if k.removesuffix("_error") in _reference_types()]
+        return "error" if self.has_exact else combined[0] if combined else "eta"
 
     def runs(self) -> list[dict[str, Any]]:
         names = list(self.axes)
@@ -205,18 +229,18 @@ class Study:
         return out
 
 
-def _hertz_scene(cfg: Mapping) -> bool:
-    """Elastic contact against a plane with a known radius R (:func:`contact.hertz.hertz_radius`)."""
-    from .hertz import hertz_radius
+def _reference_types() -> tuple[str, ...]:
+    from .reference import REFERENCES
 
-    return (cfg["model"]["type"] == "elasticity" and (cfg.get("obstacle") or {}).get("type", "plane") == "plane"
-            and hertz_radius(cfg) is not None)
+    return tuple(REFERENCES)
 
 
-def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple[dict, dict, str]:
+def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str, extra: tuple[str, ...] = ()
+                ) -> tuple[dict, dict, str]:
     """Read a scene reference (a path relative to ``base_dir``, or a mapping), apply the
-    ``set`` overrides, make a relative mesh file absolute and validate: (raw, cfg, label).
-    Errors name the study key ``path``."""
+    ``set`` overrides, then the command line's ``extra`` ones (``contact study --set``), make
+    a relative mesh file absolute and validate: (raw, cfg, label).  Errors name the study
+    key ``path`` (or the --set item)."""
     if isinstance(ref, dict):
         raw, scene_name, scene_dir, label = copy.deepcopy(ref), None, base_dir, "<inline>"
     else:
@@ -235,6 +259,7 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple
             raw = apply_overrides(raw, [item])
         except ConfigError as err:
             raise ConfigError(f"{path}set[{i}]: {str(err).removeprefix('--set ')}") from None
+    raw = apply_overrides(raw, list(extra))
     if isinstance(raw.get("mesh"), dict) and isinstance(raw["mesh"].get("file"), str):
         mesh_file = Path(raw["mesh"]["file"])
         if not mesh_file.is_absolute():
@@ -248,11 +273,14 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str) -> tuple
     return raw, cfg, label
 
 
-def load_study(source: str | Path | Mapping | Study) -> Study:
+def load_study(source: str | Path | Mapping | Study, overrides: list[str] | tuple[str, ...] = ()) -> Study:
     """Read (if a path) and validate a study; raise :class:`ConfigError` (one line) on bad
     input.  A relative ``scene`` path is taken relative to the study file (to the current
-    directory for a mapping)."""
+    directory for a mapping).  ``overrides`` (``contact study --set``) apply to the scene of
+    every case, after the study's and the case's own ``set``."""
     if isinstance(source, Study):
+        if overrides:
+            raise ValueError("load_study: overrides need a study file or mapping, not a Study")
         return source
     if isinstance(source, Mapping):
         data, base_dir, stem = dict(source), Path.cwd(), None
@@ -260,26 +288,27 @@ def load_study(source: str | Path | Mapping | Study) -> Study:
         path = Path(source)
         data, base_dir, stem = read_yaml(path), path.parent, path.stem
     st = _validate_mapping(data, Field("dict", schema=STUDY), "", {})
-    base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "")
+    extra = tuple(overrides)
+    base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "", extra)
     axes = _validate_axes(st["axes"], base_cfg["constants"])
     cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
     if st["cases"]:
-        cases = {name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes)
+        cases = {name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes, extra)
                  for name, spec in st["cases"].items()}
     adapt = {k: v for k, v in st["adapt"].items() if v is not None} if st["adapt"] else {}
-    return Study(name=st["name"] or stem or "study", scene=label, set=list(st["set"]), axes=axes,
+    return Study(name=st["name"] or stem or "study", scene=label, set=list(st["set"]) + list(extra), axes=axes,
                  adapt=adapt, repeat=st["repeat"], cases=cases, charts=list(st["charts"]),
                  warmup=st["warmup"])
 
 
 def _validate_case(name: str, spec: dict, st: dict, base_raw: dict, base_cfg: dict, base_dir: Path,
-                   axes: dict) -> Case:
+                   axes: dict, extra: tuple[str, ...] = ()) -> Case:
     path = f"cases.{name}."
     raw, cfg = base_raw, base_cfg
     if "scene" in spec or "set" in spec:  # the case's own scene (default: the study's), then its `set`
         ref = spec.get("scene", st["scene"])
         sets = ([] if "scene" in spec else list(st["set"])) + list(spec.get("set") or [])
-        raw, cfg, _ = _read_scene(ref, sets, base_dir, path)
+        raw, cfg, _ = _read_scene(ref, sets, base_dir, path, extra)
     params = {}
     for key, value in spec.items():
         if key in ("scene", "set"):
@@ -321,7 +350,7 @@ def outcome(row: Mapping[str, Any]) -> str:
     reason = str(row.get("reason") or "")
     if row.get("converged") is True or reason.startswith("converged"):
         return "converged"
-    if reason == "diverged_max_it":
+    if reason.startswith("diverged") and reason.endswith("max_it"):   # Newton's or the fixed point's limit
         return "max iterations"
     if reason in ("diverged_line_search", "diverged_local_min", "diverged_tr_delta"):
         return "stalled"
@@ -349,10 +378,6 @@ def _refine_uniformly(scene, times: int):
     return scene
 
 
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
 def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]:
     """The run's raw scene, its number of uniform refinements and its adaptive options
     (``None``: one solve)."""
@@ -366,6 +391,13 @@ def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | No
             solver[key] = params[key]
     if "linear_solver" in params:
         solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
+    if any(axis in params for axis in _FRICTION_AXES):
+        friction = {**(raw.get("friction") or {}),
+                    **{key: params[axis] for axis, key in _FRICTION_AXES.items() if axis in params}}
+        law = friction.get("law", "none")
+        raw["friction"] = {k: v for k, v in friction.items() if k in _LAW_KEYS.get(law, friction)}
+    if "steps" in params:
+        raw["load"] = {**{k: v for k, v in (raw.get("load") or {}).items() if k != "times"}, "steps": params["steps"]}
     adapt = dict(study.adapt)
     adapt.update({k: params[k] for k in _ADAPT_AXES if k in params})
     strategy = adapt.pop("strategy", None)
@@ -387,14 +419,11 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     out: dict[str, Any] = {}
     if study.has_exact:
         out["error"] = "" if error is None else error
-    if study.has_hertz:
-        out.update(a_error="", p0_error="", hertz_error="")
-        if _hertz_scene(scene.cfg):
-            from .hertz import contact_resultants
+    out.update({k: "" for k in study.reference_columns})
+    if scene.cfg.get("reference"):
+        from .reference import compare, error_values
 
-            h = contact_resultants(scene, result)
-            out.update(a_error=h["a_error"], p0_error=h["p0_error"],
-                       hertz_error=max(abs(h["a_error"]), abs(h["p0_error"])))
+        out.update(error_values(scene.cfg, compare(scene, result)))
     out["eta"] = "" if eta is None else eta
     out["active_measure"] = active_measure(result)
     return out
@@ -402,8 +431,7 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
 
 def _empty_figures(study: Study) -> dict[str, Any]:
     out: dict[str, Any] = {"error": ""} if study.has_exact else {}
-    if study.has_hertz:
-        out.update(a_error="", p0_error="", hertz_error="")
+    out.update({k: "" for k in study.reference_columns})
     return {**out, "eta": "", "active_measure": ""}
 
 
@@ -421,7 +449,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     ``repeat: 2``).  Under MPI a failure is caught on every rank alike as long as it is
     collective (bad options, divergence, an error raised by all ranks)."""
     from .adapt import adapt
-    from .errors import energy_error
+    from .errors import solution_error
     from .estimate import estimate
     from .scene import load_scene
     from .solvers import solve
@@ -437,7 +465,9 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
         raw, level, adapt_opts = _plan(study, params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
-        if adapt_opts is None:
+        if _path_scene(scene.cfg):
+            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, t0)
+        elif adapt_opts is None:
             result = solve(scene, verbose=False)
             seconds = time.perf_counter() - t0
             out.update(dofs=result.dofs, levels=1, newton_iterations=result.iterations,
@@ -445,9 +475,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
                        polish_solves_total=result.polish_solves, converged=bool(result.converged),
                        reason=result.reason)
             if result.converged:
-                exact = scene.cfg["data"]["exact"]
-                error = (energy_error(result.u_h, exact, result.problem.data["k"], scene.cfg["constants"])
-                         if exact else None)
+                error = solution_error(scene, result)
                 out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
                 failure = (f"did not converge ({result.reason}) after {result.iterations} Newton "
@@ -484,17 +512,61 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         seconds = time.perf_counter() - t0
         out["converged"] = False
-        failure = str(err) if isinstance(err, ConfigError) else f"{type(err).__name__}: {err}"
+        failure = str(err) if isinstance(err, ConfigError) else describe(err)
         if study.adaptive_possible:
             out.setdefault("stop", "")
     out["outcome"] = "error" if failure and not out["reason"] else outcome(out)
     out["seconds"] = round(comm.allreduce(seconds, op=MPI.MAX), 4)
     out["peak_rss_mib"] = _peak_rss_mib(comm)
     out["ranks"] = comm.size
-    out["failure"] = _one_line(failure)
+    out["failure"] = one_line(failure)  # one line, at most failures.MAX_LINE characters
     for row in levels:
         row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
     return out, levels
+
+
+def _path_scene(cfg: Mapping) -> bool:
+    """A load path or a frictional scene: solved step by step (:mod:`contact.solvers.loadpath`)."""
+    return bool(cfg.get("load")) or (cfg.get("friction") or {}).get("law", "none") != "none"
+
+
+def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, t0: float) -> tuple[float, str]:
+    """Run a load path for :func:`run_one`: one level row per step; the run's row has the last
+    step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
+    friction, the friction ratio and the stick / slip measures) of the last step.  Returns
+    (seconds, failure text)."""
+    from .errors import solution_error
+    from .estimate import estimate
+    from .solvers.loadpath import run_load_path
+    from .surface import surface_figures
+
+    def on_step(step) -> None:
+        r = step.result
+        levels.append({"level": step.index - 1, "step": step.index, "time": step.time, "dofs": r.dofs,
+                       "newton_iterations": r.iterations, "polish_solves": 0, "converged": bool(r.converged),
+                       "reason": r.reason, **_empty_figures(study), "seconds": time.perf_counter() - t0})
+
+    path = run_load_path(scene, verbose=False, on_step=on_step, adaptive=adapt_opts is not None,
+                         adapt_options=adapt_opts)
+    seconds = time.perf_counter() - t0
+    last, its = path.steps[-1], [s.result.iterations for s in path.steps]
+    out.update(dofs=last.result.dofs, levels=len(path.steps), newton_iterations=its[-1],
+               newton_iterations_total=sum(its), polish_solves=0, polish_solves_total=0,
+               converged=path.converged, reason=last.result.reason, max_step_iterations=max(its))
+    if study.adaptive_possible:
+        out["stop"] = path.stop
+    if not path.converged:
+        return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
+    est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
+    figures = _figures(study, last.scene, last.result, est.eta, solution_error(last.scene, last.result))
+    if last.result.friction is not None:
+        surface = surface_figures(last.scene, last.result)
+        figures.update({k: surface[k] for k in ("friction_ratio", "stick_measure", "slip_measure")})
+        if "fixed_point_iterations" in last.result.friction:
+            figures["fixed_point_iterations"] = last.result.friction["fixed_point_iterations"]
+    out.update(figures)
+    levels[-1].update(figures)
+    return seconds, ""
 
 
 def _label(params: Mapping[str, Any]) -> str:
@@ -583,7 +655,8 @@ def mark_pareto(rows: list[dict], key: str) -> None:
 
 
 def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = None, *,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True) -> tuple[list[dict], list[dict]]:
+              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True,
+              label: str | None = None) -> tuple[list[dict], list[dict]]:
     """Validate and run a study (YAML path, mapping or :class:`Study`); return its rows and
     its level rows.
 
@@ -596,6 +669,8 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     from . import charts, io
 
     study = load_study(source)
+    if outdir is not None:  # refuse a folder it may not write before any run (ConfigError)
+        io.check_output(outdir, label or f"outdir {outdir}", comm)
     n = len(study.runs()) * study.repeat
     if verbose and comm.rank == 0:
         print(f"contact: study {study.name!r}: {n} run(s) on {study.scene}, {comm.size} MPI rank(s)", flush=True)
@@ -606,7 +681,7 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     mark_pareto(rows, study.accuracy)
     mark_pareto(level_rows, study.accuracy)
     if outdir is not None:
-        with io.atomic_folder(outdir, comm) as tmp:
+        with io.atomic_folder(outdir, comm, label) as tmp:
             io.write_csv(tmp / "study.csv", rows, comm)
             io.write_csv(tmp / "levels.csv", level_rows, comm)
             io.write_json(tmp / "study.json", study.as_dict(), comm)

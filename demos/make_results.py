@@ -49,8 +49,11 @@ def study(name: str) -> tuple[list[dict] | None, list[dict] | None]:
 
 
 def table(header: list[str], body: list[list]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in body]
+    def cell(c) -> str:
+        return str(c).replace("|", "\\|")   # a literal | (e.g. |F_t|) must not end the cell
+
+    lines = ["| " + " | ".join(cell(h) for h in header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cell(c) for c in r) + " |" for r in body]
     return "\n".join(lines)
 
 
@@ -118,7 +121,7 @@ def newton_512() -> str:
     if not data:
         return "\n".join(out) + "\n" + missing("newton_512.csv")
     out += ["`configs/signorini_square.yaml` (κ = 100, set in the scene) at 512² cells, every method "
-            "in its own process (`demos/bench_newton.py --cells 512`); *polish* = active-set polishing "
+            "in its own process (`demos/bench/bench_newton.py --cells 512`); *polish* = active-set polishing "
             "solves (`solver.polish`, on by default for fb and blend), *-nopolish* = the pure Newton "
             "method:", "",
             table(["method", "DoFs", "Newton its", "polish", "seconds", "s / solve", "peak MiB",
@@ -190,6 +193,16 @@ def speed_accuracy(name: str, title: str, key: str, what: str, note: str = "") -
     return "\n".join(out) + "\n"
 
 
+_PROJECTION_CYCLE = (
+    "the projection (Alart–Curnier) form's generalized Jacobian makes a sliding node's row the linear "
+    "equation μ_t = ρ ẑ with the direction ẑ of the current z = μ_t + c_t s_t; with a large c_t (the "
+    "nodal default c_t = K_tt/w on a fine mesh) z follows the slip, the linear all-slip problem moves "
+    "the surface the other way, and the iterates 2-cycle between sliding left and right. HSW's "
+    "element (with its projected multiplier) turns such nodes back to stick; so do a 100 times "
+    "smaller c_t (kappa_t = 100) or backtracking")
+_CYCLE_SHORT = "the projection form's 2-cycle between sliding one way and the other (see (h)–(j) above)"
+FRICTION_CASES = ("(h)", "(i)", "(j)")
+
 EXPLAIN = {
     # (case prefix, method or "*", outcome) -> why
     ("(g)", "vinewtonrsls", "max iterations"):
@@ -201,6 +214,9 @@ EXPLAIN = {
         "the semismooth VI method uses the FB function with PETSc's default line search on ½‖Φ‖²; "
         "the merit line search shortens the steps far from the solution, so the iteration count "
         "grows with the mesh (compare fb with plain Newton, which is mesh-robust here)",
+    ("(i) cylinder projection", "*", "max iterations"): _CYCLE_SHORT,
+    ("(j) box 3D projection", "*", "max iterations"): _CYCLE_SHORT,
+    ("(h)", "*", "max iterations"): _CYCLE_SHORT,
 }
 
 
@@ -227,6 +243,48 @@ def _line_search_verdict(its: dict) -> str:
             "Newton is the default.") if said else ""
 
 
+def _friction_rows(its: dict, cases: list[str]) -> str:
+    """The paragraph on the friction cases (h)–(j) of the stability map."""
+    friction = [c for c in cases if c.startswith(FRICTION_CASES)]
+    if not friction:
+        return "* **(h)–(j) friction**: not in this run."
+    newton = [m for m in ("fb", "min", "blend")]
+
+    def span(select) -> str:
+        vals = [its[c, m]["newton_iterations"] for c in friction if select(c) for m in newton
+                if (c, m) in its and its[c, m]["converged"]]
+        return f"{min(vals)}–{max(vals)}" if vals else "–"
+
+    def failed(select) -> list[str]:
+        return [f"{c} / {m}" for c in friction if select(c) for m in newton
+                if (c, m) in its and not its[c, m]["converged"]]
+
+    hsw = lambda c: c.endswith(" hsw")                                      # noqa: E731
+    proj = lambda c: c.endswith(" projection")                              # noqa: E731
+    fixed = lambda c: c.endswith(" fixed point")                            # noqa: E731
+    cured = lambda c: "projection kappa_t" in c or c.endswith("projection bt")  # noqa: E731
+    fp = [its[c, m].get("fixed_point_iterations") for c in friction if fixed(c) for m in newton
+          if (c, m) in its and its[c, m]["converged"]]
+    fp = [v for v in fp if v not in ("", None)]
+    ratios = [its[c, m]["newton_iterations"] / its[c.replace(" fixed point", " hsw"), m]["newton_iterations"]
+              for c in friction if fixed(c) for m in newton
+              if (c, m) in its and its[c, m]["converged"] and its.get((c.replace(" fixed point", " hsw"), m), {}).get("converged")]
+    bad_proj, bad_hsw = failed(proj), failed(hsw)
+    return (
+        "* **(h)–(j) Coulomb friction** (one cold step; the block stick- or slip-dominated with F = 0.1 … "
+        "1.0, the cylinder and the 3D box with F = 0.3): full semismooth Newton with the default hsw form "
+        f"converges in {span(hsw)} iterations with fb, min and blend"
+        + (f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere") + "; the projection form in "
+        f"{span(proj)} where it converges, and it fails on {len(bad_proj)} of "
+        f"{sum(1 for c in friction if proj(c)) * len(newton)} runs ({', '.join(bad_proj) or 'none'}): "
+        f"{_PROJECTION_CYCLE} ({span(cured)} iterations). The fixed point on the pressure (a Tresca problem per iteration, hsw "
+        f"inside) converges everywhere it is run here in {min(fp) if fp else '–'}–{max(fp) if fp else '–'} "
+        f"Tresca solves ({span(fixed)} Newton steps in all, "
+        + (f"{min(ratios):.1f}–{max(ratios):.1f} times the full Newton method's" if ratios else "–")
+        + "); being a fixed point of the pressure it is a contraction only for small enough F. min vs fb vs "
+        "blend for the normal part changes the counts by a few steps, never the outcome.")
+
+
 def stability() -> str:
     runs, _, out = _open("## 3. Stability map: where the methods fail", "stability", "stability")
     if not runs:
@@ -248,7 +306,12 @@ def stability() -> str:
         return f"{min(vals)}–{max(vals)}" if len(set(vals)) > 1 else str(vals[0]) if vals else "–"
 
     fails = [r for r in runs if not r["converged"]]
-    out += [f"{len(runs) - len(fails)} of {len(runs)} runs converge. What each row shows:", ""]
+    not_applicable = [r for r in fails if r["case"].startswith(FRICTION_CASES) and r["method"].startswith("vi")]
+    fails = [r for r in fails if r not in not_applicable]
+    na = (f" ({len(not_applicable)} friction runs of the VI solvers are errors by design: PETSc's VI solvers "
+          "take bounds on single unknowns, friction is not one)") if not_applicable else ""
+    out += [f"{len(runs) - len(fails) - len(not_applicable)} of {len(runs)} runs converge{na}. "
+            "What each row shows:", ""]
     out += [
         f"* **(a) biactive** (`configs/biactive.yaml`, u = y², every contact node has u = g and λ = 0 on "
         f"the crossed mesh): {', '.join(f'{m} {cell('(a) biactive', m)}' for m in METHODS)} "
@@ -283,6 +346,7 @@ def stability() -> str:
         f"{span('(g)', 'vinewtonssls')}. No method is mesh-independent from a cold start: the active-set "
         "search costs about log₂(1/h) iterations for min/fb/blend (each step halves the overshoot) and "
         "O(1/h) for the VI solvers. Nested iteration removes this (§4).",
+        _friction_rows(its, cases),
     ]
     slow = [r for r in runs if r["converged"] and r["newton_iterations"] > 50]
     if slow:
@@ -336,12 +400,12 @@ def iterations() -> str:
 
 
 def hertz_methods() -> str:
-    """Every method on the final Hertz meshes, cold and nested (demos/bench_hertz.py)."""
+    """Every method on the final Hertz meshes, cold and nested (demos/bench/bench_hertz.py)."""
     out = ["## 6. Hertz: the methods on the final adaptive meshes", ""]
     data = rows(RES / "hertz" / "final_mesh_methods.csv")
     if not data:
         return "\n".join(out) + "\n" + missing("demos/results/hertz/final_mesh_methods.csv")
-    out += ["`demos/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
+    out += ["`demos/bench/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
             "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
             "solution (nested), with the scene's default linear solver (direct = MUMPS LU in 2D, gamg = "
             "BiCGStab + GAMG in 3D), and fb from a cold start also with the other one. Newton its + "
@@ -393,6 +457,157 @@ def peers() -> str:
     return "\n".join(out) + "\n"
 
 
+def friction() -> str:
+    """Section 7: the friction benchmark (demos/bench/bench_friction.py)."""
+    out = ["## 7. Friction: Tresca and Coulomb by semismooth Newton", ""]
+    folder = RES / "friction"
+    acc = rows(folder / "acceptance.csv")
+    if not acc:
+        return "\n".join(out) + "\n" + missing("friction/acceptance.csv (demos/bench/bench_friction.py)")
+    out += ["[`demos/bench/bench_friction.py`](bench/bench_friction.py) on the shipped friction scenes "
+            "(`configs/friction_*.yaml`). The acceptance figures of issue 12:", "",
+            table(["item", "value", "target", "met"],
+                  [[r["item"], g(r["value"], 3), r["target"], "yes" if r["met"] else "**no**"] for r in acc]), ""]
+    cvf = rows(folder / "coulomb_vs_fixed_point.csv") or []
+    if cvf:
+        out += ["Coulomb by full semismooth Newton (hsw) against the fixed point on the pressure (a Tresca "
+                "problem per iteration), one step with partial slip, both with `solver.atol` 1e-15 (with the "
+                "default 1e-12 on ‖Φ‖ they agree to that tolerance: 2e-9 in u, 1.4e-8 in λ_t on the box):", "",
+                table(["case", "DoFs", "stick / slip nodes", "Newton: its, s", "fixed point: iterations, Newton its, s",
+                       "max |Δu| / max |u|"],
+                      [[r["case"], r["dofs"], f"{r['stick_nodes']} / {r['slip_nodes']}",
+                        f"{r['newton_iterations']}, {g(r['newton_seconds'])}",
+                        f"{r['fixed_point_iterations']}, {r['fixed_point_newton_iterations']}, {g(r['fixed_point_seconds'])}",
+                        g(r["u_difference"], 2)] for r in cvf]), ""]
+    forms = rows(folder / "forms.csv") or []
+    if forms:
+        keys = list(dict.fromkeys((r["case"], r["start"]) for r in forms))
+        body = []
+        for case, start in keys:
+            cells = []
+            for form in ("hsw", "projection"):
+                for m in ("fb", "min", "blend"):
+                    r = next(x for x in forms if (x["case"], x["start"], x["form"], x["method"]) == (case, start, form, m))
+                    cells.append(str(r["newton_iterations"]) if r["converged"] else "**fail**")
+            body.append([case, start] + cells)
+        ok = {f: sum(1 for r in forms if r["form"] == f and r["converged"]) for f in ("hsw", "projection")}
+        n = {f: sum(1 for r in forms if r["form"] == f) for f in ("hsw", "projection")}
+        out += ["The tangential form (the default): Newton iterations of one step from u = 0 (cold) and from the "
+                "frictionless solution (every node starts sliding), at most 100 (**fail**: no convergence):", "",
+                table(["scene", "start", "hsw fb", "hsw min", "hsw blend", "projection fb", "projection min",
+                       "projection blend"], body), "",
+                f"hsw converges in {ok['hsw']} of {n['hsw']} runs, the projection form in {ok['projection']} of "
+                f"{n['projection']}: its failures are the 2-cycle of §3 ({_PROJECTION_CYCLE}). Hence "
+                "`friction.form: hsw` by default; the projection form stays selectable.", ""]
+    steps = rows(folder / "steps.csv") or []
+    if steps:
+        scenes = list(dict.fromkeys(r["scene"] for r in steps))
+        ns = sorted({r["steps"] for r in steps})
+        body = [[sc] + [next((f"{r['max_step_iterations']} / {r['total_iterations']}" + ("" if r["converged"] else " fail")
+                             for r in steps if r["scene"] == sc and r["steps"] == n), "–") for n in ns] for sc in scenes]
+        out += ["Newton iterations per load step against the number of steps (max per step / total), warm "
+                "starts from the previous step:", "",
+                table(["scene"] + [f"{n} step{'s' if n > 1 else ''}" for n in ns], body), "",
+                "Fewer, larger steps cost more iterations per step (a cold first step has to find the contact "
+                "zone and the stick zone at once), but within 10 down to a single step on these scenes; more "
+                "steps cost more iterations in total (2–3 per step once the state changes slowly). The load "
+                "path changes the answer where nodes slip (the cylinder's final tangential force with 1 step "
+                "and with 40 steps: " + ", ".join(f"{g(r['friction_ratio'], 4)}" for r in steps
+                                                  if r["scene"] == "cylinder_2d" and r["steps"] in (ns[0], ns[-1]))
+                + " × |F_n|), and not for a proportional stick-only loading (acceptance table).", ""]
+    mms = rows(folder / "manufactured.csv") or []
+    if mms:
+        out += ["The manufactured Tresca solution (`configs/friction_tresca_manufactured.yaml`: exact stick zone "
+                "x < 0.5 and slip zone x > 0.5 on Γ_C), energy error, η with the Hild–Lleras friction terms and "
+                "the effectivity per level:", "",
+                table(["refinement", "level", "DoFs", "error", "η", "η / error", "Newton its"],
+                      [[r["strategy"], r["level"], r["dofs"], g(r["error"]), g(r["eta"]), g(r["effectivity"], 3),
+                        r["newton_iterations"]] for r in mms]), ""]
+    cost = rows(folder / "cost.csv") or []
+    if cost:
+        out += ["Cost of the block Jacobian (milliseconds per Newton step; min for the normal part, the default "
+                "linear solver: MUMPS in 2D, BiCGStab + GAMG in 3D): the callbacks evaluate Φ and build H — "
+                "H = diag(s) K + diag(d) without friction, H = B K + D (one sparse product, one axpy) with it; "
+                "Coulomb with F = 0 solves the frictionless equations through the block path:", "",
+                table(["scene", "law", "DoFs", "Newton its", "Φ and H, ms/step", "linear solve, ms/step"],
+                      [[r["scene"], r["law"], r["dofs"], r["newton_iterations"], r["callbacks_ms_per_step"],
+                        r["linear_solve_ms_per_step"]] for r in cost]), ""]
+    out += ["Traction pictures: [block](results/friction/traction_block_2d.png), "
+            "[cylinder](results/friction/traction_cylinder_2d.png), [3D box](results/friction/traction_box_3d.png)."]
+    return "\n".join(out) + "\n"
+
+
+def two_bodies() -> str:
+    """Section 8: two deformable bodies, mortar coupling (demos/bench/bench_two_bodies.py)."""
+    out = ["## 8. Two bodies in contact: mortar coupling with dual multipliers", ""]
+    folder = RES / "two_bodies"
+    patch = rows(folder / "patch.csv")
+    if not patch:
+        return "\n".join(out) + "\n" + missing("two_bodies/patch.csv (demos/bench/bench_two_bodies.py)")
+    out += ["[`demos/bench/bench_two_bodies.py`](bench/bench_two_bodies.py). **Contact patch test** "
+            "(`configs/two_body_patch_{2d,3d}.yaml`: two blocks of different materials, mesh-size ratio ≥ 3, "
+            "no interface node aligned but the corners, uniform pressure p on top): the largest deviation of "
+            "the interface pressure from −p over the slave nodes (λ_i) and over the master nodes (λ^m_j), "
+            "relative to p:", "",
+            table(["dim", "method", "DoFs", "Newton its", "seconds", "slave max |λ + p| / p", "master max |λ + p| / p"],
+                  [[r["dim"], r["method"], r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                    g(r["seconds"]), g(r["slave_error"], 2), g(r["master_error"], 2)] for r in patch]), "",
+            "(3D: the default linear solver is BiCGStab + GAMG with rtol 1e-10, which bounds the agreement.)", ""]
+    levels = rows(folder / "cylinders_levels.csv") or []
+    if levels:
+        out += ["**Two cylinders, Hertz** (`configs/two_body_hertz_2d.yaml`: R_c = 8, E = 200, ν = 0.3; "
+                "effective radius R = R_c/2, E* = E / (2(1 − ν²))), Dörfler θ = 0.5, fb with nested iteration:", "",
+                table(["level", "DoFs", "Newton its", "solve s", "η", "a error", "p0 error", "a / R_c", "force balance"],
+                      [[r["level"], r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds_solve"]), g(r["eta"]), pct(r["a_error"]), pct(r["p0_error"]), g(r["a_over_Rc"]),
+                        g(r["balance"], 2)] for r in levels]), ""]
+    methods = rows(folder / "cylinders_methods.csv") or []
+    if methods:
+        out += ["Every method on the final mesh, from u = 0 (cold) and from the previous level's solution "
+                "(nested); the largest nodal difference to vinewtonrsls from u = 0:", "",
+                table(["method", "start", "Newton its", "seconds", "max |u − u_rsls|"],
+                      [[r["method"], r["start"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds"]), g(r["max_diff_to_vinewtonrsls"], 2)] for r in methods]), ""]
+    swaps = (rows(folder / "slave_master.csv") or []) + (rows(folder / "slave_master_3d.csv") or [])
+    if swaps:
+        out += ["Which surface is the slave (same meshes, the other surface as slave): the contact force, "
+                "half-width / radius and peak pressure, and the relative L² difference of the two pressure "
+                "profiles over [0, a]:", "",
+                table(["case", "slave", "DoFs", "force", "a", "p0", "a error", "p0 error", "profiles differ by"],
+                      [[r["case"], r["slave"], r["dofs"], g(r["force"], 6), g(r["a"], 5), g(r["p0"], 5), pct(r["a_error"]),
+                        pct(r["p0_error"]), g(r["profile_L2_difference"], 2)] for r in swaps]), ""]
+    out += [speed_accuracy("speed_accuracy_two_bodies", "Two cylinders: speed against accuracy, every method",
+                           "hertz_error", "Hertz error",
+                           "The study `configs/studies/speed_accuracy_two_bodies.yaml`: Newton iterations and "
+                           "times per level in its levels.csv, as for every other scene.")]
+    sphere = rows(folder / "sphere.csv") or []
+    if sphere:
+        out += ["**A sphere on a block** (`configs/two_body_hertz_3d.yaml`, the quarter x, y ≥ 0; gmsh meshes "
+                "of decreasing h_contact at the contact point, no refinement: nodal pressures on tetrahedra "
+                "refined by `dolfinx.mesh.refine` scatter by a few per cent about Hertz's, as the rigid-plane "
+                "`hertz_3d` does, while gmsh's own fine meshes give smooth ones), `mpirun -n 2`, fb from u = 0, "
+                "BiCGStab + GAMG:", "",
+                table(["h_contact", "DoFs", "ranks", "Newton its", "seconds", "radius error", "p0 error",
+                       "rms of p − p_Hertz (r < 0.8 a)", "a / R"],
+                      [[r["h_contact"], r["dofs"], r["ranks"], its_text({"newton_iterations": r["newton"],
+                                                                          "polish_solves": r["polish"]}),
+                        g(r["seconds"]), pct(r["a_error"]), pct(r["p0_error"]), f"{100 * r['pressure_rms']:.2f} %",
+                        g(r["a_over_R"])]
+                       for r in sphere]), ""]
+    cm = rows(folder / "cattaneo.csv") or []
+    if cm:
+        out += ["**Cattaneo–Mindlin partial slip** (`configs/two_body_cattaneo_2d.yaml`: the two cylinders with "
+                "Coulomb F = 0.3, P from an interference, then Q as a body force of the upper one at constant P): "
+                "the stick zone c/a against √(1 − Q/(F P)) and the relative L² error of the tangential traction:", "",
+                table(["h_contact", "DoFs", "Q/(F P)", "Newton its", "c/a", "theory", "c/a error", "q L² error"],
+                      [[r["h_contact"], r["dofs"], g(r["Q_over_FP"], 4), r["newton"], g(r["c_over_a"], 4),
+                        g(r["c_over_a_theory"], 4), pct(r["c_error"]), g(r["q_error"], 3)]
+                       for r in cm if r["Q_over_FP"] > 0.01]), "",
+                "Computed against analytic tangential traction on the finer mesh:", "",
+                "![Cattaneo–Mindlin: computed and analytic tangential traction](results/two_bodies/cattaneo_traction.png)", ""]
+    return "\n".join(out) + "\n"
+
+
 def main() -> None:
     global RES
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -419,6 +634,8 @@ def main() -> None:
         iterations(),
         peers(),
         hertz_methods(),
+        friction(),
+        two_bodies(),
     ]
     args.out.write_text("\n".join(parts))
     print(f"make_results: wrote {args.out}")

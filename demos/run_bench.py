@@ -3,9 +3,15 @@
 The steps, each in its own process and timed (demos/results/timings.csv); every CSV and
 chart goes to demos/results/ (committed with the report, so its numbers can be checked):
 
-1. ``demos/bench_newton.py --cells 512`` — the Newton methods on the 512² square (issue 2);
-2. ``demos/bench_adaptive.py`` — rates and effectivity of the adaptive loop (issue 3);
-3. ``demos/bench_hertz.py`` — Hertz 2D/3D, every method, direct and GAMG (issue 4);
+1. ``demos/bench/bench_newton.py --cells 512`` — the Newton methods on the 512² square (issue 2);
+2. ``demos/bench/bench_adaptive.py`` — rates and effectivity of the adaptive loop (issue 3);
+3. ``demos/bench/bench_hertz.py`` — Hertz 2D/3D, every method, direct and GAMG (issue 4);
+   ``demos/bench/bench_memory.py`` — peak memory per DoF, the figures of ``solver.max_dofs:
+   auto`` (issue 10; about 12 minutes);
+   ``demos/bench/bench_friction.py`` — friction (issue 12, about 5 minutes);
+   ``demos/bench/bench_two_bodies.py`` — two bodies (issue 13): patch tests, two cylinders,
+   Cattaneo–Mindlin, and the sphere on a block on 2 MPI ranks (about 8 minutes; its
+   508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map, iterations per level, peer problems);
 5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
@@ -28,9 +34,14 @@ ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 CONTACT = str(Path(PY).parent / "contact")
 STEPS = {
-    "newton": [[PY, "demos/bench_newton.py", "--cells", "512", "--out", "demos/results/newton_512.csv"]],
-    "adaptive": [[PY, "demos/bench_adaptive.py", "--out", "demos/results/adaptive"]],
-    "hertz": [[PY, "demos/bench_hertz.py", "--out", "demos/results/hertz"]],
+    "newton": [[PY, "demos/bench/bench_newton.py", "--cells", "512", "--out", "demos/results/newton_512.csv"]],
+    "adaptive": [[PY, "demos/bench/bench_adaptive.py", "--out", "demos/results/adaptive"]],
+    "hertz": [[PY, "demos/bench/bench_hertz.py", "--out", "demos/results/hertz"]],
+    "memory": [[PY, "demos/bench/bench_memory.py", "--out", "demos/results/memory.csv"]],
+    "friction": [[PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"]],
+    "two_bodies": [[PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")]
+                  + [[str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
+                      "--h-contact", "0.01", "0.005", "0.0035", "--swap", "0.005"]],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
     "report": [[PY, "demos/make_results.py"]],

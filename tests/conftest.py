@@ -26,3 +26,29 @@ def make_square_msh(path: Path, size: float) -> Path:
     finally:
         gmsh.finalize()
     return path
+
+
+def make_quarter_disk_msh(path: Path, radius: float = 1.0, h: float = 0.15, h_contact: float = 0.02) -> Path:
+    """Write a gmsh mesh of the quarter {x ≥ 0, y ≤ R} of the disk of radius R about (0, R)
+    — a user's mesh of the Hertz cylinder: facet groups arc 1 (through the origin), top 2,
+    axis x = 0 3, surface 10; mesh size ``h_contact`` at the origin growing to ``h``."""
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("disk")
+        occ, R = gmsh.model.occ, radius
+        bottom, centre, corner = occ.addPoint(0, 0, 0, h_contact), occ.addPoint(0, R, 0, h), occ.addPoint(R, R, 0, h)
+        arc = occ.addCircleArc(bottom, centre, corner)
+        top, axis = occ.addLine(corner, centre), occ.addLine(centre, bottom)
+        surface = occ.addPlaneSurface([occ.addCurveLoop([arc, top, axis])])
+        occ.synchronize()
+        for tag, curve in ((1, arc), (2, top), (3, axis)):
+            gmsh.model.addPhysicalGroup(1, [curve], tag)
+        gmsh.model.addPhysicalGroup(2, [surface], 10)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()
+    return path

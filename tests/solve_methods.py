@@ -37,7 +37,10 @@ def main(argv):
             _, gap = gather_nodal(r.gap)
             con = problem.constraint
             # complementarity residual min(σ(g - u), -σ c λ) on the constraint set, scaled
-            a = con.sign * (con.g - r.u_h.x.array[con.dofs])
+            x = problem.b.duplicate()
+            problem.to_unknowns(r.u_h.x.petsc_vec, x)          # the solver's unknowns (x = Q⁻¹ u)
+            a = con.sign * (con.g - x.array_r[con.dofs])
+            x.destroy()
             b = -con.sign * problem.c * owned_residual(r)[con.dofs] / con.w
             comp = scene.comm.allreduce(float(np.max(np.abs(np.minimum(a, b)), initial=0.0)), op=max)
             scale = scene.comm.allreduce(float(np.max(np.abs(con.g), initial=0.0)), op=max) + 1.0

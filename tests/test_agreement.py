@@ -39,9 +39,21 @@ def parallel(tmp_path_factory):
     return run_methods(tmp_path_factory, 2)
 
 
+@pytest.fixture(scope="module")
+def serial_gamg(tmp_path_factory):
+    """The Newton steps on the reduced SPD system by CG + GAMG (issue 11's default for large
+    problems), the VI baseline by BiCGStab + GAMG on K."""
+    return run_methods(tmp_path_factory, 1, overrides=("--set", "solver.linear=gamg"))
+
+
+@pytest.fixture(scope="module")
+def parallel_gamg(tmp_path_factory):
+    return run_methods(tmp_path_factory, 2, overrides=("--set", "solver.linear=gamg"))
+
+
 @pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("method", ["fb", "min", "blend", "fb-nopolish", "blend-nopolish"])
-@pytest.mark.parametrize("which", ["serial", "parallel"])
+@pytest.mark.parametrize("which", ["serial", "parallel", "serial_gamg", "parallel_gamg"])
 def test_method_agrees_with_vinewtonrsls(request, which, scene, method):
     assert_agrees_with_vinewtonrsls(request.getfixturevalue(which), scene, method)
 

@@ -271,6 +271,36 @@ def test_min_element_off_ties():
     np.testing.assert_array_equal(db, [0, 1, 0, 1, 0, 0, 1])
 
 
+# ties within a tolerance: the element must not depend on the sign of round-off
+ROUNDOFF = [(0.0, 1e-17), (0.0, -1e-17), (1e-17, 0.0), (-1e-17, 0.0), (3e-18, -2e-18), (0.0, 0.0)]
+
+
+@pytest.mark.parametrize("method,mu", CASES, ids=CASE_IDS)
+def test_kinks_within_tolerance_take_the_documented_element(method, mu):
+    """Pairs within τ = 1e-12 of a kink (here round-off around (0, 0)) all get the element
+    of the exact kink: (0, 0) for FB, the tie for min, their blend — whatever the signs."""
+    a, b = np.array(ROUNDOFF).T
+    da, db = ncp.dphi(a, b, method, mu, tol=1e-12)
+    want = ncp.dphi(0.0, 0.0, method, mu)
+    np.testing.assert_array_equal(da, np.full(len(a), float(want[0])))
+    np.testing.assert_array_equal(db, np.full(len(a), float(want[1])))
+    assert not ncp.active_min(a, b, tol=1e-12).any()
+    # without the tolerance the signs decide: (0, +1e-17) is active, (0, -1e-17) is not
+    assert list(ncp.active_min(a[:2], b[:2])) == [True, False]
+    if method == "fb":
+        np.testing.assert_allclose(ncp.dphi(a[:2], b[:2], "fb")[1], [0.0, 2.0])
+
+
+@pytest.mark.parametrize("method,mu", CASES, ids=CASE_IDS)
+def test_tolerance_leaves_resolved_pairs_alone(method, mu):
+    rng = np.random.default_rng(11)
+    a, b = rng.normal(size=400), rng.normal(size=400)
+    keep = (np.hypot(a, b) > 1e-6) & (np.abs(a - b) > 1e-6)
+    exact, tolerant = ncp.dphi(a, b, method, mu), ncp.dphi(a, b, method, mu, tol=1e-12)
+    np.testing.assert_array_equal(exact[0][keep], tolerant[0][keep])
+    np.testing.assert_array_equal(exact[1][keep], tolerant[1][keep])
+
+
 @pytest.mark.parametrize("mu", MUS)
 def test_blend_element_at_kinks(mu):
     t = _ties(np.random.default_rng(8))

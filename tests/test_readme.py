@@ -1,8 +1,12 @@
-"""The Python example in README.md runs as written."""
+"""README.md as a user reads it: the Python examples run as written (and print global values
+under mpirun), the output tables list what runs write, the pyvista snippets load results,
+and the dolfinx import note is true."""
 import re
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -31,3 +35,78 @@ def test_readme_study_example_validates(monkeypatch):
     study = load_study(yaml.safe_load(block))
     assert study.axes["method"] == ["fb", "min", "vinewtonrsls"] and set(study.cases) == {"cold far", "obtuse"}
     assert len(study.runs()) == 2 * 3 * 3 and study.charts == ["speed_accuracy", "stability"]
+
+
+def test_readme_python_example_prints_global_values_under_mpirun(tmp_path):
+    """Under mpirun -n 2 each rank prints exactly the serial output (global values)."""
+    text = (ROOT / "README.md").read_text()
+    code = re.search(r"```python\n(.*?)```", text.split("## Python API", 1)[1], re.S).group(1)
+    # each rank's stdout to its own file (mpirun may interleave the two streams mid-line)
+    to_file = f"import os, sys; sys.stdout = open(r'{tmp_path}/out' + os.environ.get('PMI_RANK', 's'), 'w')\n"
+    mpirun = Path(sys.executable).parent / "mpirun"
+    serial = subprocess.run([sys.executable, "-c", to_file + code], cwd=ROOT, capture_output=True, text=True,
+                            timeout=300)
+    par = subprocess.run([str(mpirun), "-n", "2", sys.executable, "-c", to_file + code], cwd=ROOT,
+                         capture_output=True, text=True, timeout=300)
+    assert serial.returncode == 0 and par.returncode == 0, par.stderr
+
+    def printed(name: str) -> list[str]:   # without the Newton progress lines
+        return [ln for ln in (tmp_path / name).read_text().splitlines() if not ln.startswith("  ")]
+
+    assert printed("out0") == printed("out1") == printed("outs")
+    assert any(ln.startswith("contact force ") for ln in printed("outs"))
+
+
+def _table_files(section: str) -> set[str]:
+    """The file names in the first column of the first table of a README section."""
+    table = re.search(r"\| file \| contents \|\n\|---\|---\|\n((?:\|.*\n)+)", section).group(1)
+    names = set()
+    for row in table.splitlines():
+        names |= set(re.findall(r"`([\w.-]+)`", row.split("|")[1]))
+    return names
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """results/square (one solve) and results/demo (an adaptive run) in a scratch folder."""
+    cwd = tmp_path_factory.mktemp("readme")
+    for scene, out, sets in (("signorini_square.yaml", "square", ["mesh.cells=[12,10]"]),
+                             ("signorini_free_boundary.yaml", "demo", ["adapt.max_levels=2"])):
+        proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(ROOT / "configs" / scene),
+                               "-o", str(cwd / "results" / out), "-q", *(f"--set={s}" for s in sets)],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+    return cwd
+
+
+def test_readme_output_tables_match_what_runs_write(results):
+    text = (ROOT / "README.md").read_text()
+    single = _table_files(text.split("## Running a scene", 1)[1])
+    assert single == {p.name for p in (results / "results" / "square").iterdir()}
+    adaptive = _table_files(text.split("## Adaptive refinement", 1)[1])
+    written = {p.name for p in (results / "results" / "demo").iterdir()}
+    numbered = {n for n in written if re.fullmatch(r"(solution_\d{3}\.vtu|mesh_level_\d+\.png)", n)}
+    assert {"solution_000.vtu", "solution_001.vtu"} <= adaptive | numbered
+    assert adaptive - {"solution_000.vtu", "solution_001.vtu", "mesh_level_K.png"} == written - numbered
+
+
+def test_readme_pyvista_snippets_load_results(results):
+    text = (ROOT / "README.md").read_text()
+    for section in ("## Running a scene", "## Adaptive refinement"):
+        code = re.search(r"```python\n(.*?)```", text.split(section, 1)[1], re.S).group(1)
+        assert len(code.strip().splitlines()) == 3
+        proc = subprocess.run([sys.executable, "-c", code + "\nprint('loaded', grid.n_points)"], cwd=results,
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0 and "loaded" in proc.stdout, proc.stderr
+
+
+def test_readme_says_how_to_import_dolfinx():
+    """With the PyPI wheel a bare `import dolfinx` fails and `import dolfinx_solver` first
+    works, as the README says."""
+    text = (ROOT / "README.md").read_text()
+    assert "`import dolfinx_solver`" in text and "libmpi.so.12" in text
+    bare = subprocess.run([sys.executable, "-c", "import dolfinx"], capture_output=True, text=True, timeout=120)
+    first = subprocess.run([sys.executable, "-c", "import dolfinx_solver, dolfinx; print(dolfinx.__version__)"],
+                           capture_output=True, text=True, timeout=120)
+    assert bare.returncode != 0 and "libmpi.so.12" in bare.stderr
+    assert first.returncode == 0 and first.stdout.startswith("0.11")

@@ -20,7 +20,7 @@ def _report(results: Path, out: Path) -> str:
 def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
-    assert text.count("*Not available:") == 9  # §1, A, D, Hertz, §3, §4, ex9, step-41, §6
+    assert text.count("*Not available:") == 11  # §1, A, D, Hertz, §3, §4, ex9, step-41, §6, §7 friction, §8 two bodies
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -41,3 +41,17 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     assert f"fb {min(fb)}–{max(fb)}" in section
     failed = [r for r in rows if not r["converged"]]
     assert failed and all(f"| {r['case']} | {r['method']} | max iterations | 2 |" in section for r in failed)
+
+
+def test_bench_scripts_live_in_demos_bench_and_run_bench_finds_them() -> None:
+    """`make bench` (demos/run_bench.py) runs the benchmark scripts from demos/bench/."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("run_bench", ROOT / "demos" / "run_bench.py")
+    run_bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(run_bench)
+    scripts = [cmd[1] for step in ("newton", "adaptive", "hertz") for cmd in run_bench.STEPS[step]]
+    assert scripts == [f"demos/bench/bench_{name}.py" for name in ("newton", "adaptive", "hertz")]
+    for script in scripts:
+        proc = subprocess.run([sys.executable, script, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0 and "usage:" in proc.stdout, proc.stderr

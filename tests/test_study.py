@@ -55,8 +55,8 @@ def tiny_serial(tmp_path_factory):
 
 def test_tiny_study_end_to_end(tiny_serial) -> None:
     proc, out = tiny_serial
-    assert sorted(p.name for p in out.iterdir()) == ["levels.csv", "speed_accuracy.png", "study.csv",
-                                                     "study.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".contact-result", "levels.csv", "speed_accuracy.png",
+                                                     "study.csv", "study.json"]
     assert (out / "speed_accuracy.png").stat().st_size > 10_000
     assert sorted(p.name for p in out.parent.iterdir()) == ["out"]  # no .partial / .old left over
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
@@ -101,10 +101,10 @@ def test_tiny_study_two_ranks_same_iterations(tiny_serial, tmp_path_factory) -> 
 
 
 def test_failing_runs_are_rows(tmp_path: Path) -> None:
-    """max_it = 1 cannot converge and u0 = 1/0 gives NaN: those runs are failure rows, the
-    others converge, the study exits 0."""
+    """max_it = 1 cannot converge and u0 = 1/x is infinite at x = 0 (bad input, found
+    before the solve): those runs are failure rows, the others converge, the study exits 0."""
     study = {"name": "failing", "scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
-             "axes": {"method": ["fb", "min"], "max_it": [1, 50], "u0": ["0", "1/0"]}}
+             "axes": {"method": ["fb", "min"], "max_it": [1, 50], "u0": ["0", "1/x"]}}
     (tmp_path / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     proc = _study(tmp_path, "study.yaml", "-o", "out")
     assert proc.returncode == 0, proc.stderr + proc.stdout
@@ -115,8 +115,9 @@ def test_failing_runs_are_rows(tmp_path: Path) -> None:
         ok = r["max_it"] == "50" and r["u0"] == "0"
         assert (r["converged"] == "True") == ok, r
         assert (r["failure"] == "") == ok, r
-        if r["u0"] == "1/0":
-            assert r["reason"] == "diverged_function_nanorinf" and "did not converge" in r["failure"]
+        if r["u0"] == "1/x":
+            assert r["reason"] == "" and r["outcome"] == "error"
+            assert r["failure"] == "solver.u0: not a finite number at 9 of 81 nodes, e.g. at x = 0, y = 0"
         elif r["max_it"] == "1":
             assert r["reason"] == "diverged_max_it" and r["newton_iterations"] == "1"
             assert r["failure"].startswith("did not converge (diverged_max_it) after 1 Newton iterations")
@@ -183,7 +184,7 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
 
 def test_shipped_studies_validate() -> None:
     """Every study file `make bench` runs validates; the stability study crosses its cases
-    (all seven stress cases (a)–(g)) with the five methods."""
+    (the seven stress cases (a)–(g) and the friction cases (h)–(j)) with the five methods."""
     from contact.study import load_study
 
     tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
@@ -192,7 +193,7 @@ def test_shipped_studies_validate() -> None:
         assert load_study(path).runs(), path
     stab = load_study(ROOT / "configs" / "studies" / "stability.yaml")
     assert stab.axes["method"] == ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]
-    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefg"}
+    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghij"}
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
     assert load_study(ROOT / "configs" / "studies" / "speed_accuracy_hertz.yaml").accuracy == "hertz_error"
 

@@ -4,7 +4,9 @@
   the solvers, and what every model shares (assembly, lumped weights, the NCP scaling);
 * :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
 * :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
-  :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x).
+  :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
+* :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
+  unknowns, thresholds, c_t (only a frictional scene imports it).
 
 A scene imports only its own model: a scalar scene never loads the elasticity modules.
 """
@@ -21,11 +23,21 @@ __all__ = ["Constraint", "DiscreteProblem", "build_problem"]
 
 
 def build_problem(scene: "Scene") -> DiscreteProblem:
-    """The discrete problem of the scene's model."""
+    """The discrete problem of the scene's model (within the DoF budget, else ConfigError)."""
+    from ..budget import check_dofs, mesh_dofs
+
+    cfg, msh = scene.cfg, scene.mesh
+    components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1
+    check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
     if scene.cfg["model"]["type"] == "elasticity":
         from .elasticity import elasticity_problem
 
-        return elasticity_problem(scene)
+        problem = elasticity_problem(scene)
+        if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+            from .friction import friction_set
+
+            problem.friction = friction_set(scene, problem)
+        return problem
     from .scalar import scalar_problem
 
     return scalar_problem(scene)

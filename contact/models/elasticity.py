@@ -15,6 +15,7 @@ thickness in N/m in 2D.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from petsc4py import PETSc
@@ -24,6 +25,7 @@ import ufl
 from dolfinx import fem
 
 from .. import expressions
+from ..checks import check_scene_data
 from ..config import ConfigError
 from ..scene import Scene
 from .obstacles import curved_contact, plane_contact
@@ -53,11 +55,11 @@ def _vector(texts: list[str], scene: Scene):
     if all(expressions.is_constant(t, consts) for t in texts):
         values = [float(expressions.to_numpy(t, consts)(np.zeros((3, 1)))[0]) for t in texts]
         return fem.Constant(scene.mesh, np.array(values, dtype=PETSc.ScalarType))
-    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts) for t in texts])
+    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts, t=scene.t_constant) for t in texts])
 
 
 def _vector_numpy(texts: list[str], scene: Scene):
-    fns = [expressions.to_numpy(t, scene.cfg["constants"]) for t in texts]
+    fns = [expressions.to_numpy(t, scene.cfg["constants"], t=scene.time) for t in texts]
     return lambda x: np.vstack([f(x) for f in fns])
 
 
@@ -75,11 +77,28 @@ def _facet_normal_axis(scene: Scene, name: str, facets: np.ndarray) -> int:
     return int(axes[0])
 
 
-def elasticity_problem(scene: Scene) -> DiscreteProblem:
-    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2)."""
-    t0 = time.perf_counter()
+@dataclass
+class ElasticSystem:
+    """Linear elasticity on the scene's mesh before any contact: the space, the forms, the
+    Dirichlet and symmetry conditions, K (their rows and columns identity) and the lifted
+    load b, shared by the rigid-obstacle and the multi-body models."""
+
+    V: fem.FunctionSpace
+    a_ufl: ufl.Form
+    L_ufl: ufl.Form
+    bcs: list
+    K: PETSc.Mat
+    b: PETSc.Vec
+    fixed: np.ndarray   # local DoFs with a Dirichlet or symmetry condition
+    data: dict          # f, t, ds, mu, lmbda_L, exact (None) and the reaction form
+
+
+def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
+    """Assemble linear elasticity with Lamé parameters ``mu``, ``lmbda_L`` (numbers, or DG0
+    functions for several bodies): a(u, v) = ∫ σ(u) : ε(v) dx, L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds,
+    u = u_D on Γ_D and u_k = 0 on each symmetry plane x_k = const."""
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
-    model, data, obstacle = cfg["model"], cfg["data"], cfg["obstacle"]  # data: f, u_D, t below
+    data = cfg["data"]
     gdim, tdim = msh.geometry.dim, msh.topology.dim
     data = {key: (data[key] if isinstance(data[key], list) else [data[key]] * gdim) for key in ("f", "u_D", "t")}
     for key, texts in data.items():
@@ -88,7 +107,6 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     degree = cfg["mesh"]["degree"]
     V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    mu, lmbda_L = lame(model["E"], model["nu"])
     f, t = _vector(data["f"], scene), _vector(data["t"], scene)
     ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
     dx = ufl.Measure("dx", domain=msh)
@@ -111,8 +129,28 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
             dofs = fem.locate_dofs_topological(V.sub(k), tdim - 1, facets)
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
     K, b = assemble_system(a, L, bcs)
-
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
+    return ElasticSystem(V, a_ufl, L_ufl, bcs, K, b, fixed,
+                         {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None})
+
+
+def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
+    """The residual without Dirichlet rows, a(u_h, v) − L(v), for reaction forces."""
+    return fem.form(ufl.action(system.a_ufl, u_h) - system.L_ufl)
+
+
+def elasticity_problem(scene: Scene) -> DiscreteProblem:
+    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2); a
+    scene with ``bodies`` is the multi-body model of :mod:`contact.models.bodies`."""
+    if scene.cfg.get("bodies"):
+        from .bodies import bodies_problem
+
+        return bodies_problem(scene)
+    t0 = time.perf_counter()
+    check_scene_data(scene)  # every datum finite where it is used (ConfigError)
+    model, obstacle = scene.cfg["model"], scene.cfg["obstacle"]
+    system = elastic_system(scene, *lame(model["E"], model["nu"]))
+    V, K, b, fixed, ds = system.V, system.K, system.b, system.fixed, system.data["ds"]
     if obstacle["type"] == "plane":
         contact = plane_contact(scene, V, K, b, fixed, ds)
     else:
@@ -120,18 +158,18 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     K, b = contact.pop("K", K), contact.pop("b", b)
     con = contact.pop("constraint")
     u_h = fem.Function(V, name="u_h")
-    data = {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None,
-            # residual without Dirichlet rows, for reaction forces: a(u_h, v) − L(v)
-            "reaction_form": fem.form(ufl.action(a_ufl, u_h) - L_ufl), **contact.pop("data")}
-    return DiscreteProblem(V, u_h, bcs, K, b, con, data=data, **contact,
+    data = {**system.data, "reaction_form": reaction_form(system, u_h), **contact.pop("data")}
+    copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
+    return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact, symmetric_copies=copies,
                            near_nullspace=rigid_body_modes(V, contact.get("basis")),
                            assembly_time=time.perf_counter() - t0)
 
 
-def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None) -> PETSc.NullSpace:
+def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None,
+                     inverse: PETSc.Mat | None = None) -> PETSc.NullSpace:
     """Near-nullspace of elasticity for GAMG: gdim translations and the infinitesimal
-    rotations (1 in 2D, 3 in 3D), in the solver's unknowns (Qᵀ m when rotated),
-    orthonormalised."""
+    rotations (1 in 2D, 3 in 3D), in the solver's unknowns (Q⁻¹ m: Qᵀ m for a rotation,
+    ``inverse`` m for a general change of basis), orthonormalised."""
     msh = V.mesh
     gdim = msh.geometry.dim
     n_local = V.dofmap.index_map.size_local
@@ -149,9 +187,9 @@ def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None) ->
     for m in modes:
         vec = PETSc.Vec().createMPI((n_local * gdim, PETSc.DECIDE), comm=msh.comm)
         vec.array[:] = m.ravel()
-        if rotation is not None:
+        if rotation is not None or inverse is not None:
             rotated = vec.duplicate()
-            rotation.multTranspose(vec, rotated)
+            (inverse.mult if inverse is not None else rotation.multTranspose)(vec, rotated)
             vec = rotated
         for prev in basis:  # modified Gram–Schmidt
             vec.axpy(-vec.dot(prev), prev)

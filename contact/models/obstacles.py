@@ -21,7 +21,8 @@ from dolfinx import fem
 
 from ..config import ConfigError
 from ..scene import Scene
-from .problem import Constraint, lumped_weights
+from .basis import frame
+from .problem import Constraint, NodeBlockMatrix, lumped_weights
 
 
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
@@ -34,23 +35,47 @@ def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
     return S, s_to_v, v_dofs, s_dofs
 
 
+def obstacle_shape(scene: Scene) -> tuple:
+    """(normal, gap, n_ufl, g_ufl) of the scene's obstacle: ``normal``/``gap`` map node
+    coordinates (n, gdim) to the unit normals n (towards the obstacle) and the initial gaps
+    g, the UFL expressions are the same for forms.  Plane: n = −ν, g = (x − p)·ν; circle /
+    sphere: n = (c − x)/|c − x|, g = |x − c| − R_o."""
+    obstacle, msh = scene.cfg["obstacle"], scene.mesh
+    gdim = msh.geometry.dim
+    X = ufl.SpatialCoordinate(msh)
+    if obstacle["type"] == "plane":
+        nu_o = np.asarray(obstacle["normal"], dtype=float)
+        nu_o = nu_o / np.linalg.norm(nu_o)
+        p = np.asarray(obstacle["point"], dtype=float)
+        if len(nu_o) != gdim or len(p) != gdim:
+            raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
+        return (lambda x: np.tile(-nu_o, (len(x), 1)), lambda x: (x - p) @ nu_o,
+                ufl.as_vector((-nu_o).tolist()),                                       # n = −ν
+                ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))  # g = (x − p)·ν
+    want = "circle" if gdim == 2 else "sphere"
+    if obstacle["type"] != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
+    centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
+    if len(centre) != gdim:
+        raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
+    c_ufl = ufl.as_vector(centre.tolist())
+    return (lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
+            lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
+            (c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
+            ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o)
+
+
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
     obstacle, gdim = scene.cfg["obstacle"], scene.mesh.geometry.dim
+    normal, gap, n_ufl, g_ufl = obstacle_shape(scene)
     nu_o = np.asarray(obstacle["normal"], dtype=float)
     nu_o = nu_o / np.linalg.norm(nu_o)
     p = np.asarray(obstacle["point"], dtype=float)
-    if len(nu_o) != gdim or len(p) != gdim:
-        raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
     k = int(np.argmax(np.abs(nu_o)))
-    X = ufl.SpatialCoordinate(scene.mesh)
-    n_ufl = ufl.as_vector((-nu_o).tolist())                                       # n = −ν
-    g_ufl = ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist()))  # g = (x − p)·ν
     if abs(abs(nu_o[k]) - 1.0) > 1e-12:  # a tilted plane: rotate the contact nodes
-        return _rotated_contact(scene, V, K, b, fixed, ds,
-                                normal=lambda x: np.tile(-nu_o, (len(x), 1)),
-                                gap=lambda x: (x - p) @ nu_o, n_ufl=n_ufl, g_ufl=g_ufl)
+        return _rotated_contact(scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl)
     n_k = float(np.sign(-nu_o[k]))
     S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, scene.boundary.facets("contact"))
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
@@ -68,22 +93,7 @@ def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
 def curved_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid circle (2D) or sphere (3D) of centre c and radius R_o, the body outside it:
     n(x) = (c − x)/|c − x| and g(x) = |x − c| − R_o vary from node to node."""
-    obstacle, msh = scene.cfg["obstacle"], scene.mesh
-    gdim = msh.geometry.dim
-    want = "circle" if gdim == 2 else "sphere"
-    if obstacle["type"] != want:
-        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
-    centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
-    if len(centre) != gdim:
-        raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
-    X = ufl.SpatialCoordinate(msh)
-    c_ufl = ufl.as_vector(centre.tolist())
-    return _rotated_contact(
-        scene, V, K, b, fixed, ds,
-        normal=lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
-        gap=lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
-        n_ufl=(c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
-        g_ufl=ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o)
+    return _rotated_contact(scene, V, K, b, fixed, ds, *obstacle_shape(scene))
 
 
 def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl) -> dict:
@@ -131,27 +141,8 @@ def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.n
 
 def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
     """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
-    bs = V.dofmap.index_map_bs
-    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, nnz=(bs, 0), comm=K.comm)
-    lo, hi = Q.getOwnershipRange()
-    local_nodes = (hi - lo) // bs
-    blocks = np.tile(np.eye(bs), (local_nodes, 1, 1))
+    Q = NodeBlockMatrix(K, V.dofmap.index_map_bs)
+    blocks = Q.identity()
     for node, n in zip(nodes, normals):
-        blocks[node] = _frame(n)
-    # CSR of the owned rows: row (node, i) holds columns (node, 0 … bs−1), values blocks[node, i, :]
-    indptr = np.arange(0, local_nodes * bs * bs + 1, bs, dtype=PETSc.IntType)
-    cols = lo + np.arange(local_nodes * bs, dtype=PETSc.IntType).reshape(local_nodes, 1, bs)
-    indices = np.broadcast_to(cols, (local_nodes, bs, bs)).ravel()
-    Q.setValuesCSR(indptr, indices, blocks.ravel())
-    Q.assemble()
-    return Q
-
-
-def _frame(n: np.ndarray) -> np.ndarray:
-    """Columns n, t (, t2): an orthonormal frame whose first axis is n."""
-    if len(n) == 2:
-        return np.array([[n[0], -n[1]], [n[1], n[0]]])
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    t1 = np.cross(n, helper)
-    t1 /= np.linalg.norm(t1)
-    return np.column_stack([n, t1, np.cross(n, t1)])
+        blocks[node] = frame(n)
+    return Q.set(blocks)

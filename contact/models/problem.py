@@ -26,6 +26,7 @@ import ufl
 from dolfinx import fem
 
 from .. import expressions
+from ..config import ConfigError
 from ..scene import Scene
 
 
@@ -63,8 +64,13 @@ class DiscreteProblem:
     lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
     near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
     basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
+    basis_inverse: PETSc.Mat | None = None  # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
+    output_nodes: np.ndarray | None = None  # output-space DoFs of the contact nodes (multi-body problems)
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
+    in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
+    symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
+    friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""
@@ -72,8 +78,11 @@ class DiscreteProblem:
         out.axpy(-1.0, self.b)
 
     def to_unknowns(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
-        """x = Qᵀ u (the solver's unknowns from displacements; a copy when Q = I)."""
-        if self.basis is None:
+        """x = Q⁻¹ u (the solver's unknowns from displacements; Qᵀ u for a rotation, a copy
+        when Q = I)."""
+        if self.basis_inverse is not None:
+            self.basis_inverse.mult(u, x)
+        elif self.basis is None:
             u.copy(x)
         else:
             self.basis.multTranspose(u, x)
@@ -85,11 +94,33 @@ class DiscreteProblem:
         else:
             self.basis.mult(x, u)
 
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """p_i = −σ R_i / w_i ≥ 0 on the constrained DoFs (owned residual ``r``): the contact
+        pressure −λ_n of elasticity, the flux −σλ_i into the obstacle of scalar models."""
+        con = self.constraint
+        return -con.sign * r[con.dofs] / con.w
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """The resultant contact force over all ranks (collective),
+
+            F = m Σ_i w_i p_i (n_i · n),
+
+        p_i from :meth:`pressure`, n_i the nodal contact normals and n the one at the first
+        point of contact (n_i · n = 1 against a plane, and for scalar models), m the
+        symmetric copies the modelled part stands for.  Units: force per unit thickness in
+        2D elasticity (N/m), force in 3D (N); ∫ flux over Γ_C (or Ω) for scalar models."""
+        con = self.constraint
+        along = self.data["normals"] @ self.data["n"] if "normals" in self.data else 1.0
+        local = float(np.sum(con.w * self.pressure(r) * along))
+        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
     def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
         """Nodal fields on the output space S: the multiplier λ_h (λ_i = ±R_i / w_i on the
         constrained DoFs, 0 elsewhere), the gap σ(bound − u) (≥ 0 when feasible) and the
         0/1 active set.  ``x`` and ``r`` are the owned unknowns and residual at the
-        solution, ``active`` the mask over the constrained DoFs."""
+        solution, ``active`` the mask over the constrained DoFs.  The gap is NaN off the
+        constrained DoFs of a contact boundary Γ_C (g − u inside Ω is no gap); for an
+        obstacle (constraint in Ω) it is ψ − u everywhere."""
         V, con = self.V, self.constraint
         S = self.output_space or V
 
@@ -111,6 +142,9 @@ class DiscreteProblem:
         u = unknowns.x.array if self.output_map is None else unknowns.x.array[self.output_map]
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
+        if not self.in_domain:
+            on = nodal("on", np.ones(len(con.dofs)))
+            gap.x.array[on.x.array < 0.5] = np.nan
         return lmbda, gap, active_fn
 
     def _extend_to_ends(self, lmbda: fem.Function) -> None:
@@ -127,6 +161,33 @@ class DiscreteProblem:
         return self.output_bound if self.output_bound is not None else self.data["g_h"]
 
 
+class NodeBlockMatrix:
+    """An AIJ matrix with the row layout of ``layout`` and one dense bs×bs block per owned
+    node (bs = the vector block size): the pattern of the rotation Q (u = Q x) and of the
+    friction law's B and D (H = B K + D).  ``set(blocks)`` writes all blocks, an array
+    (local nodes, bs, bs), in one CSR call; the pattern never changes, so products with it
+    can reuse their symbolic phase."""
+
+    def __init__(self, layout: PETSc.Mat, bs: int):
+        lo, hi = layout.getOwnershipRange()
+        self.bs, self.local_nodes = bs, (hi - lo) // bs
+        n = self.local_nodes
+        # row (node, i) holds columns (node, 0 … bs−1)
+        self.indptr = np.arange(0, n * bs * bs + 1, bs, dtype=PETSc.IntType)
+        cols = lo + np.arange(n * bs, dtype=PETSc.IntType).reshape(n, 1, bs)
+        self.indices = np.broadcast_to(cols, (n, bs, bs)).ravel().copy()
+        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)
+
+    def identity(self) -> np.ndarray:
+        """Identity blocks, (local nodes, bs, bs)."""
+        return np.tile(np.eye(self.bs), (self.local_nodes, 1, 1))
+
+    def set(self, blocks: np.ndarray) -> PETSc.Mat:
+        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())
+        self.mat.assemble()
+        return self.mat
+
+
 def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray,
                   dirichlet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Owned contact DoFs that are Dirichlet DoFs too, and for each the nearest contact DoF
@@ -141,28 +202,36 @@ def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray
 
 
 def coefficient(text: str, scene: Scene) -> Any:
-    """UFL data: a ``fem.Constant`` when the expression is constant, else a UFL expression."""
+    """UFL data: a ``fem.Constant`` when the expression is constant (in space and in the
+    pseudo-time t), else a UFL expression (t enters as ``scene.t_constant``)."""
     consts = scene.cfg["constants"]
     if expressions.is_constant(text, consts):
         value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
         return fem.Constant(scene.mesh, PETSc.ScalarType(value))
-    return expressions.to_ufl(text, scene.mesh, consts)
+    return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
 
 
-def interpolate_expression(V: fem.FunctionSpace, text: str, scene: Scene) -> fem.Function:
-    """``text`` interpolated into the Lagrange space V; for a vector space the expression is
-    every component.  Lagrange interpolation is evaluation at the DoF points, so the
-    expression is evaluated once per DoF point (not once per cell and point, as
-    ``Function.interpolate`` does), and a constant is just assigned."""
+def interpolate_expression(V: fem.FunctionSpace, text: str | list[str], scene: Scene) -> fem.Function:
+    """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
+    vector space one expression is every component, a list gives one per component.
+    Lagrange interpolation is evaluation at the DoF points, so each expression is evaluated
+    once per DoF point (not once per cell and point, as ``Function.interpolate`` does), and
+    a constant is just assigned."""
     fn = fem.Function(V)
     consts = scene.cfg["constants"]
-    f = expressions.to_numpy(text, consts)
     bs = V.dofmap.index_map_bs
-    if expressions.is_constant(text, consts):
-        fn.x.array[:] = f(np.zeros((3, 1)))[0]
-    else:
-        values = f(V.tabulate_dof_coordinates().T)
-        fn.x.array[:] = np.repeat(values, bs)
+    texts = text if isinstance(text, list) else [text] * bs
+    if len(texts) != bs:
+        raise ConfigError(f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}")
+    values = fn.x.array.reshape(-1, bs)
+    points = None
+    for c, t in enumerate(texts):
+        f = expressions.to_numpy(t, consts, t=scene.time)
+        if expressions.is_constant(t, consts):
+            values[:, c] = f(np.zeros((3, 1)))[0]
+        else:
+            points = V.tabulate_dof_coordinates().T if points is None else points
+            values[:, c] = f(points)
     return fn
 
 
@@ -204,7 +273,7 @@ def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 
     which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
     for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from
     u = 0: 130 s against 45 s, 10 steps either way; nested 5 steps against 3 —
-    ``python demos/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
+    ``python demos/bench/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
     cold-start scene signorini_square sets κ = 100.
     """
     diag = K.getDiagonal()

@@ -19,6 +19,7 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem
 
+from ..checks import check_scene_data
 from ..config import ConfigError
 from ..scene import Scene
 from .problem import (Constraint, DiscreteProblem, coefficient, contact_ends, interpolate_expression,
@@ -28,6 +29,7 @@ from .problem import (Constraint, DiscreteProblem, coefficient, contact_ends, in
 def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     """Assemble the scalar Signorini or obstacle problem of ``scene`` (SPEC §1.1–1.2, §2)."""
     t0 = time.perf_counter()
+    check_scene_data(scene)  # every datum finite where it is used, k > 0 (ConfigError)
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
     degree = degree or cfg["mesh"]["degree"]
     data = cfg["data"]
@@ -80,7 +82,7 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     ends = {}
     if cfg["model"]["type"] == "signorini":
         ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
-    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends,
+    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends, in_domain=cfg["model"]["type"] == "obstacle",
                            data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
                                  "exact": data["exact"]},
                            assembly_time=time.perf_counter() - t0)

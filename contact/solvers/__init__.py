@@ -4,6 +4,9 @@
   derivatives;
 * :mod:`.newton` — semismooth Newton on Φ(x) = 0 through PETSc SNES, with the
   generalized-Jacobian callback; :mod:`.polish` — active-set polishing of its steps;
+* :mod:`.friction` — the tangential rows of Tresca / Coulomb friction and their block
+  Jacobian H = B K + D, the Coulomb fixed point (frictional scenes only);
+* :mod:`.loadpath` — quasi-static load paths (steps in the pseudo-time t);
 * :mod:`.vi` — PETSc's VI solvers (vinewtonrsls, vinewtonssls) as baselines;
 * :mod:`.linear` — the linear solver of each step;
 * :mod:`.options` — the ``solver`` section and PETSc options;

@@ -31,7 +31,8 @@ DIRECT_MAX_DOFS_3D = 0
 
 
 def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
-    """The linear solver of ``solver.linear`` (``auto`` resolved by size and dimension)."""
+    """The linear solver of ``solver.linear`` for the diagonal Newton law (``auto``
+    resolved by size and dimension)."""
     if linear != "auto":
         return linear
     if petsc_options and ({"ksp_type", "pc_type"} & set(petsc_options)):
@@ -42,21 +43,43 @@ def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options:
     return "direct" if dofs < limit else "gamg"
 
 
+def assembled_kind(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
+    """The linear solver of a Newton matrix that stays assembled (friction's block law
+    H = B K + D, not symmetric; PETSc's VI solvers on K): ``direct``, or BiCGStab + GAMG
+    (``bcgs``) when ``solver.linear`` asks for an iterative solver, and by default for 3D
+    elasticity (as before the reduced system existed)."""
+    if linear == "direct" or (petsc_options and ({"ksp_type", "pc_type"} & set(petsc_options))):
+        return "direct"
+    if linear in ("gamg", "bcgs"):
+        return "bcgs"
+    elastic_3d = problem.near_nullspace is not None and problem.V.mesh.geometry.dim == 3
+    return "bcgs" if elastic_3d else "direct"
+
+
 def default_linear_solver(problem: DiscreteProblem, linear: str = "auto") -> dict:
     """The default PETSc options of the solver ``choose_linear`` picks."""
     return petsc_defaults(problem, choose_linear(problem, linear))
 
 
 def petsc_defaults(problem: DiscreteProblem, kind: str) -> dict:
-    """PETSc options of linear solver ``kind``.  For ``gamg`` in 3D, plain (unsmoothed)
-    aggregation: its setup is ~5× cheaper than smoothed aggregation's Galerkin products
-    (hertz_3d, 302k DoFs: 1.6 s against 7.9 s, 78 against 32 CG iterations to 1e-8), and a
-    Newton solve sets GAMG up once per step while its forcing terms ask few iterations
-    (on hertz_3d's final mesh, 185k DoFs, min: 1.4–1.8× one smoothed CG + GAMG solve of K
-    against 2.6–3.1×).  In 2D smoothed aggregation stays (unsmoothed needs 161 instead of
-    17 iterations on the 1024² Poisson matrix)."""
+    """PETSc options of linear solver ``kind`` for ``problem``."""
+    return default_options(kind, problem.V.mesh.topology.dim)
+
+
+def default_options(kind: str, tdim: int) -> dict:
+    """PETSc options of linear solver ``kind`` (``direct``, ``gamg``, ``bcgs``, or ``auto``:
+    direct in 2D, gamg in 3D — the choice for small problems, known before the mesh exists,
+    used to check the user's options at load) in ``tdim`` dimensions.  For ``gamg`` in 3D,
+    plain (unsmoothed) aggregation: its setup is ~5× cheaper than smoothed aggregation's
+    Galerkin products (hertz_3d, 302k DoFs: 1.6 s against 7.9 s, 78 against 32 CG
+    iterations to 1e-8), and a Newton solve sets GAMG up once per step while its forcing
+    terms ask few iterations (on hertz_3d's final mesh, 185k DoFs, min: 1.4–1.8× one
+    smoothed CG + GAMG solve of K against 2.6–3.1×).  In 2D smoothed aggregation stays
+    (unsmoothed needs 161 instead of 17 iterations on the 1024² Poisson matrix)."""
+    if kind == "auto":
+        kind = "direct" if tdim == 2 else "gamg"
     if kind == "gamg":
-        extra = {"pc_gamg_agg_nsmooths": 0} if problem.V.mesh.topology.dim == 3 else {}
+        extra = {"pc_gamg_agg_nsmooths": 0} if tdim == 3 else {}
         return {**REDUCED_PETSC_OPTIONS, **extra}
     return dict(ASSEMBLED_PETSC_OPTIONS[kind])
 

@@ -20,6 +20,18 @@ Choices at the kinks (deterministic, documented, tested):
   kept).  With a = g − u and b = −cλ this is the primal–dual active set rule of
   Hintermüller–Ito–Kunisch (2002): active ⇔ −cλ_i > g_i − u_i, strictly.
 
+Ties within round-off.  A node touching the obstacle with zero pressure has (a, b) = (0, 0)
+only up to round-off: b comes from a residual whose last bits depend on the summation
+order, i.e. on the MPI partition, and the element of (0, ±10⁻¹⁷) would be (1, 0) or (1, 2)
+by its sign alone (hertz_2d took 9 Newton steps on one rank and 8 on two).  So a kink is
+decided with a tolerance τ ≥ 0: FB takes the biactive element where r = √(a² + b²) ≤ τ, min
+(and the active set) the tie element where |a − b| ≤ τ, i.e. active ⇔ b − a > τ.  The
+solver uses τ = :data:`TIE_RTOL` × max_i max(|a_i|, |b_i|), the largest gap or scaled
+multiplier over all constrained nodes of all ranks at the iterate
+(:meth:`contact.solvers.newton.Complementarity.tie_tolerance`): far above round-off
+(≈ 10⁻¹⁶ of that scale), far below any value Newton resolves.  With τ = 0 the elements are
+the exact ones above.
+
 Each function exists for NumPy arrays (``phi``/``dphi``, used by the solver and tests)
 and for UFL operands (``phi_ufl``, used in forms), from the same formulas.
 """
@@ -31,6 +43,7 @@ import numpy as np
 
 METHODS = ("fb", "min", "blend")
 _BIACTIVE = 1.0 - 1.0 / np.sqrt(2.0)
+TIE_RTOL = 1e-12  # relative tolerance of a kink (see the module doc)
 
 
 def phi_fb(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -49,8 +62,9 @@ def phi_fb(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.where(a + b > 0, stable, plain)
 
 
-def dphi_fb(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Element (∂_a φ, ∂_b φ) of the generalized derivative of φ_FB (see module doc).
+def dphi_fb(a: np.ndarray, b: np.ndarray, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Element (∂_a φ, ∂_b φ) of the generalized derivative of φ_FB (see module doc); the
+    biactive element where r = √(a² + b²) ≤ ``tol``.
 
     a/r and b/r are formed after scaling by m = max(|a|, |b|), so neither subnormal nor
     huge operands lose the direction (a, b)/r.
@@ -60,8 +74,9 @@ def dphi_fb(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     safe = np.where(m > 0, m, 1.0)
     an, bn = a / safe, b / safe
     r = np.hypot(an, bn)
-    da = np.where(m > 0, 1.0 - an / np.where(m > 0, r, 1.0), _BIACTIVE)
-    db = np.where(m > 0, 1.0 - bn / np.where(m > 0, r, 1.0), _BIACTIVE)
+    kink = (m == 0) | (m * r <= tol)
+    da = np.where(kink, _BIACTIVE, 1.0 - an / np.where(kink, 1.0, r))
+    db = np.where(kink, _BIACTIVE, 1.0 - bn / np.where(kink, 1.0, r))
     return da, db
 
 
@@ -70,9 +85,14 @@ def phi_min(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.minimum(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
 
 
-def dphi_min(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Element of ∂φ_min: (1, 0) where a < b, (0, 1) where a ≥ b (ties inactive)."""
-    active = np.asarray(a) < np.asarray(b)
+def active_min(a: np.ndarray, b: np.ndarray, tol: float = 0.0) -> np.ndarray:
+    """The active rows of φ_min: b − a > ``tol`` (ties, |a − b| ≤ tol, inactive)."""
+    return np.asarray(b, dtype=float) - np.asarray(a, dtype=float) > tol
+
+
+def dphi_min(a: np.ndarray, b: np.ndarray, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Element of ∂φ_min: (1, 0) where b − a > ``tol`` (active), else (0, 1)."""
+    active = active_min(a, b, tol)
     return active.astype(float), (~active).astype(float)
 
 
@@ -87,14 +107,16 @@ def phi(a: np.ndarray, b: np.ndarray, method: str, mu: float = 0.5) -> np.ndarra
     raise ValueError(f"unknown NCP function {method!r}; expected one of {', '.join(METHODS)}")
 
 
-def dphi(a: np.ndarray, b: np.ndarray, method: str, mu: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
-    """Generalized-derivative element (∂_a φ, ∂_b φ) of ``method``."""
+def dphi(a: np.ndarray, b: np.ndarray, method: str, mu: float = 0.5,
+         tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Generalized-derivative element (∂_a φ, ∂_b φ) of ``method``; kinks within ``tol``
+    take the documented tie / biactive element."""
     if method == "fb":
-        return dphi_fb(a, b)
+        return dphi_fb(a, b, tol)
     if method == "min":
-        return dphi_min(a, b)
+        return dphi_min(a, b, tol)
     if method == "blend":
-        (fa, fb_), (ma, mb) = dphi_fb(a, b), dphi_min(a, b)
+        (fa, fb_), (ma, mb) = dphi_fb(a, b, tol), dphi_min(a, b, tol)
         return (1.0 - mu) * fa + mu * ma, (1.0 - mu) * fb_ + mu * mb
     raise ValueError(f"unknown NCP function {method!r}; expected one of {', '.join(METHODS)}")
 

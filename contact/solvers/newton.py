@@ -28,6 +28,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..models import DiscreteProblem
@@ -54,10 +55,21 @@ class Complementarity:
         b = -self.sign * self.c * r[self.dofs] / self.w
         return a, b, r
 
+    def tie_tolerance(self, a: np.ndarray, b: np.ndarray) -> float:
+        """τ = TIE_RTOL × max_i max(|a_i|, |b_i|) over every rank (collective): kinks closer
+        than τ take the documented element (:mod:`.ncp`), the same on any partition."""
+        local = float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0)))
+        return ncp.TIE_RTOL * self.p.b.getComm().tompi4py().allreduce(local, op=MPI.MAX)
+
+    def active_set(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Active nodes: the scaled multiplier exceeds the gap, b_i − a_i > τ (ties
+        inactive; collective)."""
+        return ncp.active_min(a, b, self.tie_tolerance(a, b))
+
     def active(self, x: PETSc.Vec) -> np.ndarray:
-        """Active nodes: scaled multiplier exceeds the gap, b_i > a_i (ties inactive)."""
+        """:meth:`active_set` at x (collective)."""
         a, b, _ = self.pair(x)
-        return b > a
+        return self.active_set(a, b)
 
     def phi(self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float) -> tuple[np.ndarray, np.ndarray]:
         """f = Φ(x): R on free rows, −σ (w/c) φ(a, b) on constrained rows; returns (a, b)."""
@@ -69,8 +81,9 @@ class Complementarity:
     def law(self, a: np.ndarray, b: np.ndarray, method: str, mu: float) -> tuple[PETSc.Vec, PETSc.Vec]:
         """The diagonal law of the generalized-Jacobian element at the pair (a, b):
         H = diag(s) K + diag(d), s_i = ∂_b φ, d_i = (w_i / c_i) ∂_a φ on constrained rows,
-        s_i = 1, d_i = 0 elsewhere.  Returns (s, d) (owned by this object)."""
-        da, db = ncp.dphi(a, b, method, mu)
+        s_i = 1, d_i = 0 elsewhere (kinks within :meth:`tie_tolerance`: the documented
+        element; collective).  Returns (s, d) (owned by this object)."""
+        da, db = ncp.dphi(a, b, method, mu, self.tie_tolerance(a, b))
         self.s.set(1.0)
         self.d.set(0.0)
         self.s.array_w[self.dofs] = db
@@ -89,25 +102,39 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
     polisher or None."""
     method, mu = opts["method"], opts["mu"]
 
-    def residual(snes, x, f):
-        t0 = time.perf_counter()
-        cp.phi(x, f, method, mu)
-        timers["assembly"] += time.perf_counter() - t0
-
-    def jacobian(snes, x, J_, P):
-        t0 = time.perf_counter()
+    def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
         a, b, _ = cp.pair(x)
         system.set_law(*cp.law(a, b, method, mu))
-        now = time.perf_counter()
-        timers["assembly"] += now - t0
-        state["t_jac"] = now
 
-    snes.setType("newtonls")
-    snes.setFunction(residual, cp.p.b.duplicate())
-    snes.setJacobian(jacobian, system.J)
-    petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
+    set_newton(snes, cp.p, system.J, lambda x, f: cp.phi(x, f, method, mu), jacobian,
+               opts, timers, state, petsc_opts)
     polisher = None
     if opts["polish"] and method != "min":
         polisher = Polisher(cp, method, mu, system, timers)
         snes.setLineSearchPreCheck(polisher)
     return polisher
+
+
+def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, jacobian, opts: dict,
+               timers: dict, state: dict, petsc_opts: dict) -> None:
+    """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
+    ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
+    both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
+    (the linear solve's clock starts there).  Line search ``opts['line_search']`` unless the
+    PETSc options say otherwise."""
+    def residual(snes, x, f):
+        t0 = time.perf_counter()
+        phi(x, f)
+        timers["assembly"] += time.perf_counter() - t0
+
+    def jac(snes, x, J_, P):
+        t0 = time.perf_counter()
+        jacobian(x, P)
+        now = time.perf_counter()
+        timers["assembly"] += now - t0
+        state["t_jac"] = now
+
+    snes.setType("newtonls")
+    snes.setFunction(residual, problem.b.duplicate())
+    snes.setJacobian(jac, J)
+    petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])

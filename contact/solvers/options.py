@@ -2,11 +2,14 @@
 as benchmarks list them, and PETSc's options database (set, read, errors as one line)."""
 from __future__ import annotations
 
-from typing import Any
+import itertools
+from typing import Any, Mapping
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..config import SCENE, ConfigError, _validate
+from ..failures import petsc_message
 from ..scene import Scene
 
 
@@ -40,14 +43,71 @@ def set_from_options(snes: PETSc.SNES, *inner: PETSc.KSP) -> None:
         PETSc.Sys.popErrorHandler()
 
 
-def petsc_message(err: PETSc.Error) -> str:
-    lines = [ln.split("]", 1)[-1].strip() for ln in str(err).strip().splitlines()]
-    return lines[-1] if lines else f"error code {err.ierr}"
-
-
 def petsc_value(val: Any) -> str:
     if isinstance(val, bool):
         return "true" if val else "false"
     return "" if val is None else str(val)
 
 
+
+
+_checks = itertools.count()
+
+
+def check_petsc_options(options: Mapping[str, Any], defaults: Mapping[str, Any],
+                        comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """Refuse PETSc options that PETSc cannot set up, before any mesh is built: the
+    ``options`` (``solver.petsc_options``) over the model's ``defaults`` configure a SNES
+    (newtonls) that solves a tiny linear system — the 1D Laplacian, 4 rows per rank, as
+    an MPI matrix on ``comm`` — so that unknown solver, preconditioner or factorization
+    types (``pc_factor_mat_solver_type: nonsense``) fail here and not after the assembly.
+    The failure is one ConfigError line naming the option that fails on its own (or all
+    of them).  Collective."""
+    if not options:
+        return
+    problem = _tiny_solve({**defaults, **options}, comm)
+    if problem is None:
+        return
+    for key, value in options.items():  # which option is it?
+        if _tiny_solve({**defaults, key: value}, comm) is not None:
+            raise ConfigError(f"solver.petsc_options.{key}: PETSc cannot use {petsc_value(value)!r} ({problem})")
+    raise ConfigError(f"solver.petsc_options: PETSc cannot use these options together ({problem})")
+
+
+def _tiny_solve(options: Mapping[str, Any], comm: MPI.Comm) -> str | None:
+    """PETSc's message if ``options`` fail on the tiny system (on any rank), else None."""
+    n = 4
+    A = PETSc.Mat().createAIJ(((n, PETSc.DECIDE), (n, PETSc.DECIDE)), nnz=(3, 1), comm=comm)
+    lo, hi = A.getOwnershipRange()
+    size = A.getSize()[0]
+    for i in range(lo, hi):
+        A.setValues(i, [j for j in (i - 1, i, i + 1) if 0 <= j < size],
+                    [-1.0 if j != i else 2.0 for j in (i - 1, i, i + 1) if 0 <= j < size])
+    A.assemble()
+    b, x, f = A.createVecLeft(), A.createVecRight(), A.createVecLeft()
+    b.set(1.0)
+    x.set(0.0)
+    snes = PETSc.SNES().create(comm)
+    prefix = f"contactcheck{next(_checks)}_"
+    snes.setOptionsPrefix(prefix)
+    snes.setType("newtonls")
+    snes.setFunction(lambda s, X, F: (A.mult(X, F), F.axpy(-1.0, b)), f)
+    snes.setJacobian(lambda s, X, J, P: None, A)
+    db = PETSc.Options()
+    for key, value in options.items():
+        db[prefix + key] = petsc_value(value)
+    problem = None
+    PETSc.Sys.pushErrorHandler("python")
+    try:
+        snes.setFromOptions()
+        snes.solve(None, x)
+    except PETSc.Error as err:
+        problem = petsc_message(err)
+    finally:
+        PETSc.Sys.popErrorHandler()
+        for key in options:
+            db.delValue(prefix + key)
+        for obj in (snes, A, b, x, f):
+            obj.destroy()
+    problems = [p for p in comm.allgather(problem) if p]
+    return problems[0] if problems else None

@@ -47,7 +47,7 @@ class Polisher:
         t0 = time.perf_counter()
         a_w, b_w = cp.phi(W, self.FW, self.method, self.mu)  # one residual evaluation per point
         a, b = cp.phi(x, self.FP, "min", self.mu)
-        same = np.array_equal(b > a, b_w > a_w)  # the active-set rule of Complementarity.active
+        same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
         if not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND) or self.FW.norm() <= self.done:
             self.timers["assembly"] += time.perf_counter() - t0
             return

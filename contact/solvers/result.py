@@ -20,7 +20,10 @@ REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if 
 class Result:
     """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
     ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
-    solver's rule b_i > a_i at the solution, the set ``active`` and ``n_active`` show."""
+    solver's rule b_i − a_i > τ at the solution (``Complementarity.active_set``), the set
+    ``active`` and ``n_active`` show.  ``contact_force`` is the resultant contact force
+    summed over all ranks (:meth:`contact.models.DiscreteProblem.contact_force`), the same
+    number on every rank."""
 
     u_h: fem.Function
     lmbda_h: fem.Function
@@ -43,6 +46,8 @@ class Result:
     krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve
     sequence: list = field(default_factory=list)   # coarse levels of grid sequencing (CoarseLevel)
     sequence_note: str = ""       # why there are fewer coarse levels than asked, or none
+    contact_force: float = 0.0
+    friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
 
     @property
     def linear_solves(self) -> int:
@@ -89,7 +94,7 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
-    active = b > a
+    active = cp.active_set(a, b)
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     comm = scene.comm
     timers["total"] = time.perf_counter() - t_start
@@ -100,4 +105,5 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
                   iterations=snes.getIterationNumber(),
                   residual=history[-1]["residual"] if history else float("nan"),
                   method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
-                  timings=timers, problem=problem, active_mask=active, options=opts)
+                  timings=timers, problem=problem, active_mask=active, options=opts,
+                  contact_force=problem.contact_force(r))

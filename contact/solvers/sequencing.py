@@ -92,6 +92,10 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     floor = COARSEST_DOFS if wanted is None else 1
     ratio = 2 ** dim
 
+    if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        return [], "grid sequencing: not for frictional scenes (slip depends on the load history); cold start"
+    if scene.bodies is not None:
+        return [], "grid sequencing: not for scenes of several bodies yet; cold start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [(lambda s=s: s) for s in reversed(chain)], ""
@@ -143,8 +147,8 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
 
     cfg = copy.deepcopy(scene.cfg)
     cfg["mesh"].update(changes)
-    msh, tags = build_mesh(cfg, scene.comm)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags))
+    msh, tags, _ = build_mesh(cfg, scene.comm)
+    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags), time=scene.time, surfaces=tags)
 
 
 def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable,

@@ -13,14 +13,16 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
+from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
+from ..config import ConfigError
 from ..models.problem import interpolate_expression, nodal_scaling
-from ..scene import Scene
+from ..scene import Scene, require_scene
 from . import ncp, sequencing
-from .linear import ASSEMBLED_PETSC_OPTIONS, choose_linear, newton_system, petsc_defaults
+from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .newton import Complementarity, setup_newton
 from .reduced import ReducedSystem
-from .options import petsc_value, set_from_options, solver_options
+from .options import check_petsc_options, petsc_value, set_from_options, solver_options
 from .result import Result, finish
 from .vi import setup_vi
 
@@ -38,12 +40,30 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     without one, grid sequencing (``sequence``, :mod:`.sequencing`) solves coarser meshes
     first when it pays, and the coarsest level (or a cold start) begins from the scene's
     ``solver.u0`` (zero by default).
+    A frictional scene (``friction.law`` tresca / coulomb; fb, min or blend only) adds the
+    tangential rows of :mod:`contact.solvers.friction` (no polishing, the assembled block
+    Jacobian) and returns the nodal friction fields in ``Result.friction``;
+    ``friction.coulomb: fixed_point`` solves a sequence of Tresca problems instead
+    (:func:`~contact.solvers.friction.coulomb_fixed_point`).
     """
+    require_scene(scene)
+    if problem is not None and problem.V.mesh is not scene.mesh:
+        raise ValueError("problem: was built for another scene's mesh")
     opts = solver_options(scene, method=method, **options)
     method = opts["method"]
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     built_here = problem is None
     problem = problem or build_problem(scene)
+    friction = problem.friction
+    if friction is not None:
+        if method not in ncp.METHODS:
+            raise ConfigError(f"solver.method: {method} cannot solve frictional contact "
+                              f"(friction.law: {friction.law}); use fb, min or blend")
+        from .friction import (FrictionalComplementarity, coulomb_fixed_point, friction_fields,
+                               setup_friction_newton, status_counts)
+
+        if friction.law == "coulomb" and friction.coulomb == "fixed_point":
+            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, method=method, **options)
     t_start = time.perf_counter()
     con = problem.constraint  # the NCP scaling follows the options of this solve
     problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
@@ -52,7 +72,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # the problem's assembly counts once: in the solve that built it
     built = problem.assembly_time if built_here else 0.0
     timers = {"assembly": built, "solve": 0.0}
-    cp = Complementarity(problem)
+    cp = Complementarity(problem) if friction is None else FrictionalComplementarity(problem)
 
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
     x = problem.b.duplicate()
@@ -64,7 +84,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         timers["coarse"] = time.perf_counter() - t0
     guess = guess or u0 is not None
     if u0 is None:
+        check_data(scene, data_items("solver.u0", opts["u0"]))
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
+    else:
+        check_guess(u0, problem)
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
 
@@ -74,16 +97,23 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     user = {str(k): v for k, v in opts["petsc_options"].items()}
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher, system = None, None
-    if method in ncp.METHODS:
+    if friction is None and method in ncp.METHODS:
         linear = choose_linear(problem, opts["linear"], user)
-        petsc_opts = {**petsc_defaults(problem, linear), **user}
+        defaults = petsc_defaults(problem, linear)
+    else:  # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
+        linear = assembled_kind(problem, opts["linear"], user)
+        defaults = petsc_defaults(problem, linear)
+    petsc_opts = {**defaults, **user}
+    if options.get("petsc_options"):  # the scene's own were checked when it was loaded
+        check_petsc_options(opts["petsc_options"], defaults, comm)
+    if friction is not None:   # the block law H = B K + D (no polishing)
+        J = setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts)
+    elif method in ncp.METHODS:
         system = newton_system(problem, linear, prefix, forcing=opts["inexact"])
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
         polisher = setup_newton(snes, cp, system, opts, timers, state, petsc_opts)
         J = system.J
-    else:  # the VI baselines keep PETSc's own linear algebra on K (options as for the assembled path)
-        linear = "bcgs" if opts["linear"] == "bcgs" else "direct"
-        petsc_opts = {**ASSEMBLED_PETSC_OPTIONS[linear], **user}
+    else:
         J = setup_vi(snes, problem, method, timers, state)
 
     def post_solve(ksp, rhs, sol):
@@ -122,11 +152,17 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         polished = polisher is not None and (polisher.accepted if its > 0 else polisher.initial_accepted)
         row = {"iteration": its, "residual": float(fnorm), "step": float(step),
                "active": n_active, "changed": changed, "polished": polished}
+        extra = ""
+        if friction is not None:
+            counts = status_counts(comm, cp.status(xk))
+            row.update(stick=counts["stick"], slip=counts["slip"])
+            extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         history.append(row)
         if verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
-                  f"active {n_active:7d}  changed {changed:6d}{'  polished' if row['polished'] else ''}", flush=True)
+                  f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
+                  flush=True)
 
     snes.setMonitor(monitor)
     popts = PETSc.Options()
@@ -152,6 +188,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
     result.linear = linear
     result.sequence, result.sequence_note = levels, note
+    if friction is not None:
+        result.friction = friction_fields(problem, cp, x)
+        cp.destroy()
     if polisher is not None:
         result.polish_solves = polisher.solves
         polisher.destroy()
@@ -175,6 +214,21 @@ def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:
     out = f.norm()
     f.destroy()
     return out
+
+
+def check_guess(u0: Any, problem: DiscreteProblem) -> None:
+    """An initial guess must be a function in the problem's space (same mesh object,
+    element and layout); else one ValueError line on every rank."""
+    V = problem.V
+    if not isinstance(u0, fem.Function):
+        raise ValueError(f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}")
+    W = u0.function_space
+    local = W.mesh is not V.mesh or W.ufl_element() != V.ufl_element() or \
+        W.dofmap.index_map.size_local * W.dofmap.index_map_bs != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    if V.mesh.comm.allreduce(bool(local), op=MPI.LOR):
+        where = "another mesh" if W.mesh is not V.mesh else "another function space"
+        raise ValueError(f"u0: lives on {where} than the scene's problem; interpolate it first "
+                         "(contact.refine returns the guess on the refined mesh)")
 
 
 def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:

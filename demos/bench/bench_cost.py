@@ -14,6 +14,7 @@ square; BiCGStab + GAMG in 3D).
     python demos/bench/bench_cost.py square --cells 128 256 512 1024 --out demos/results/cost/square.csv
     python demos/bench/bench_cost.py hertz3d --out demos/results/cost/hertz3d.csv
     mpirun -n 2 python demos/bench/bench_cost.py hertz3d --max-dofs 1300000 --out demos/results/cost/hertz3d_1M_np2.csv
+    python demos/bench/bench_cost.py chart demos/results/cost      (cost.png from every CSV there)
 
 ``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
 ``hertz3d`` runs configs/hertz_3d.yaml's adaptive loop (up to ``--max-dofs``) and
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
@@ -109,9 +111,51 @@ def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: 
     return rows
 
 
+def chart(folder: Path) -> Path:
+    """cost.png: the wall-time ratio (contact solve / one CG + GAMG solve of K) against the
+    DoFs, one line per scene × method × sequencing setting, from every CSV in ``folder``."""
+    import csv
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves: dict[tuple, list[tuple[int, float]]] = {}
+    for path in sorted(folder.glob("*.csv")):
+        with open(path, newline="") as fh:
+            for r in csv.DictReader(fh):
+                label = (f"{r['case']} ({r['ranks']} rank{'s' if r['ranks'] != '1' else ''})", r["method"], r["sequence"])
+                curves.setdefault(label, []).append((int(r["dofs"]), float(r["ratio_wall"])))
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    colours = {"fb": "tab:blue", "min": "tab:orange", "blend": "tab:green"}
+    markers = ["o", "s", "^", "D"]
+    cases = sorted({k[0] for k in curves})
+    for (case, method, sequence), pts in sorted(curves.items()):
+        pts.sort()
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=markers[cases.index(case) % len(markers)],
+                color=colours.get(method, "k"), linestyle="-" if sequence != "off" else "--",
+                label=f"{case} {method}, sequence {sequence}")
+    ax.axhline(3.0, color="grey", lw=0.8, ls=":")
+    ax.axhline(4.0, color="grey", lw=0.8, ls="-.")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("DoFs of the mesh asked for")
+    ax.set_ylabel("contact solve / one CG + GAMG solve of K")
+    ax.set_title("Cost of a cold contact solve in linear solves (targets 3×: 2D, 4×: 3D)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    out = folder / "cost.png"
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    print(f"wrote {out}", flush=True)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("case", choices=("square", "hertz3d"))
+    ap.add_argument("case", choices=("square", "hertz3d", "chart"))
+    ap.add_argument("folder", nargs="?", default="demos/results/cost", help="chart: the folder of the CSVs")
     ap.add_argument("--cells", type=int, nargs="+", default=[128, 256, 512, 1024])
     ap.add_argument("--methods", default="fb,min")
     ap.add_argument("--sequence", default="auto,off", help="sequencing settings to compare")
@@ -119,6 +163,10 @@ def main() -> None:
     ap.add_argument("--max-dofs", type=int, default=300000, help="hertz3d: DoF budget of the adaptive loop")
     ap.add_argument("--out", default="bench/cost.csv")
     args = ap.parse_args()
+    if args.case == "chart":
+        if MPI.COMM_WORLD.rank == 0:
+            chart(Path(args.folder))
+        return
     methods, sequences = args.methods.split(","), args.sequence.split(",")
     rows = []
     if args.case == "square":

@@ -7,7 +7,7 @@ iterations per level with nested iteration, and, for problem D, how many DoFs un
 Dörfler refinement need to reach an energy error of 1e-2.  Writes one CSV per run and a
 summary CSV; prints a table.
 
-    python demos/bench_adaptive.py --out bench/adaptive        (about 3 minutes on 2 cores)
+    python demos/bench/bench_adaptive.py --out bench/adaptive        (about 3 minutes on 2 cores)
 """
 from __future__ import annotations
 

@@ -7,8 +7,8 @@ the default; each polishing solve is counted in ``polish``); ``fb-nopolish`` and
 ``blend-nopolish`` are the pure Newton methods.  Each method runs in its own process so
 that the peak memory (max RSS) is its own.  Prints a table and writes CSV.
 
-    python demos/bench_newton.py --cells 512 --out bench/newton_512.csv
-    python demos/bench_newton.py --cells 512 --np 2 --out bench/newton_512_np2.csv
+    python demos/bench/bench_newton.py --cells 512 --out bench/newton_512.csv
+    python demos/bench/bench_newton.py --cells 512 --np 2 --out bench/newton_512_np2.csv
 """
 from __future__ import annotations
 

@@ -5,10 +5,10 @@ on the final mesh of the fb run, every method from a cold start and from the nes
 with the scene's default linear solver (MUMPS in 2D, BiCGStab + GAMG with the rigid-body
 near-nullspace in 3D), and fb from a cold start with the other one.  Writes CSV.
 
-    python demos/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
-    python demos/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
+    python demos/bench/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
+    python demos/bench/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
                                                           on the 3D mesh)
-    python demos/bench_hertz.py --set solver.kappa=100 --out bench/hertz_kappa100
+    python demos/bench/bench_hertz.py --set solver.kappa=100 --out bench/hertz_kappa100
                                                          (scene overrides, as contact run --set)
 """
 from __future__ import annotations
@@ -18,7 +18,8 @@ import time
 from pathlib import Path
 
 import contact
-from contact.hertz import contact_resultants
+from contact.reference import compare
+from contact.resultants import contact_resultants
 from contact.io import write_csv
 from contact.models import build_problem
 from contact.solvers import (DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, default_linear_solver,
@@ -48,7 +49,7 @@ def main() -> None:
             runs[method] = res = contact.adapt(scene, method=method, verbose=False)
             wall = time.perf_counter() - t0
             for lv in res.levels:
-                h = contact_resultants(lv.scene, lv.result)
+                h = {**contact_resultants(lv.scene, lv.result), **compare(lv.scene, lv.result).values}
                 row = {"scene": name, "method": method, "level": lv.index, "dofs": lv.result.dofs,
                        "newton": lv.result.iterations, "polish": lv.result.polish_solves, "a_error": round(h["a_error"], 5),
                        "p0_error": round(h["p0_error"], 5), "a_over_R": round(h["a_over_R"], 4),

@@ -1,0 +1,383 @@
+"""Mortar coupling of a contact pair with dual Lagrange multipliers (Wohlmuth; SPEC §1.5).
+
+A pair couples a slave surface Γ_s of one body to a master surface Γ_m of another, once,
+in the reference configuration (small deformation).  With the P1 trace basis φ_i on Γ_s,
+its dual basis ψ_i (biorthogonal: ∫ ψ_i φ_k = δ_ik D_ii) and the projection π along the
+slave facet normals onto Γ_m (:mod:`contact.models.overlap`),
+
+    D_ii = ∫_{Γ_s} φ_i ds,       M_ij = ∫_{Γ_s} ψ_i (φ_j^m ∘ π) ds,       c_ij = M_ij / Σ_k M_ik,
+
+(Σ_k M_ik = D_ii where master facets cover the support of φ_i; dividing by the covered
+part keeps rigid translations exact at the ends of a partly covered slave surface).  Each
+slave node i gets the common normal n_i = (n_i^s − n_i^m)/|n_i^s − n_i^m|, the bisector of
+its own averaged facet normal n_i^s (towards the master) and the reversed master normal
+n_i^m = Σ_j c_ij n_j^m at its projection — the normal of the deformed interface of two
+elastically similar bodies (flat between two equal cylinders, where the slave normal is
+tilted by x/R: measured along it, the normal approach would look like a tangential slip
+of the order of the approach times x/R, which friction would resist) — and the weighted gap
+
+    g_i = n_i · (Σ_j c_ij X_j − X_i)     (X the reference coordinates),
+
+and its unknowns become the displacement relative to the master, in a frame R_i = [n_i t …]
+(:mod:`contact.models.basis`): x_i = R_iᵀ (u_i − Σ_j c_ij P_i u_j).  Non-penetration is the
+bound x_{i,n} ≤ g_i on one unknown, the interface pressure is λ_i = R̃_i / D_ii (≤ 0 in
+compression; R̃ = Qᵀ R) and Qᵀ hands the slave force to the master nodes through the same
+c_ij (action = reaction).  The tangential unknowns are the relative slip.
+
+Components fixed by a symmetry condition at a slave node stay absolute unknowns (their
+frame axis is the coordinate axis, the normal loses that component: the mirror image
+holds the other half), and a slave node fixed in every component carries no constraint.
+
+Parallel: each rank integrates the slave facets of its owned cells against the master
+facets it receives from the ranks that own them (only those within the search distance
+of its slave facets' bounding box; the master surface is small next to the volume), and
+the rows of M are summed on the owner of the slave node, so the coupling is the same for
+any number of ranks (up to the order of floating-point sums).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfinx import fem, la
+
+from ..config import ConfigError
+from ..scene import Scene
+from . import overlap
+from .basis import node_frames
+
+FACING = 0.0  # a master facet is paired only if n_S · n_M < FACING (the surfaces face each other)
+CHUNK = 256   # slave facets per vectorised candidate search
+# Σ_j M_ij / D_ii below which slave node i counts as uncovered: where a master surface ends
+# inside a slave facet, ψ_i (negative on part of its support) may weigh the covered part
+# with either sign; a node less than half covered is refused rather than extrapolated.
+MIN_COVERAGE = 0.5
+
+
+@dataclass
+class Facets:
+    """The facets of one surface held by this rank (those of its owned cells)."""
+
+    X: np.ndarray        # (F, nv, gdim) vertex coordinates
+    nodes: np.ndarray    # (F, nv) local node indices (blocks of V's DoFs)
+    gnodes: np.ndarray   # (F, nv) global node indices
+    normals: np.ndarray  # (F, gdim) unit normals out of the body
+    vertex_normals: np.ndarray | None = None  # (F, nv, gdim) the surface's nodal normals at the vertices
+
+
+@dataclass
+class Coupling:
+    """The mortar coupling of one pair on this rank (rows of the owned slave nodes)."""
+
+    nodes: np.ndarray        # owned local slave nodes with a constraint
+    D: np.ndarray            # D_ii of those nodes
+    normals: np.ndarray      # (n, gdim) unit normals n_i
+    frames: np.ndarray       # (n, bs, bs) frames R_i (columns: n_i, then the other axes)
+    projectors: np.ndarray   # (n, bs, bs) P_i onto the relative axes
+    absolute: list           # per node: the coordinate axes kept absolute (fixed by symmetry)
+    gap: np.ndarray          # weighted gaps g_i
+    rows: np.ndarray         # coupling entries: index into ``nodes`` …
+    cols: np.ndarray         # … global master node …
+    c: np.ndarray            # … and c_ij
+    M: PETSc.Mat             # M_ij (scalar, node layout; owned slave rows, global master columns)
+    master_weights: la.Vector  # ∫ φ_j^m over Γ_m at the master nodes (node layout)
+    ends: np.ndarray         # owned slave nodes fixed in every component (no constraint)
+    coverage: float          # min_i Σ_j M_ij / D_ii over all ranks (1 where fully covered)
+    search: float            # the search distance used
+
+
+def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
+    """The exterior ``facets`` of V's mesh that belong to owned cells, as :class:`Facets`
+    (P1: the facet's vertex nodes)."""
+    msh = V.mesh
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    msh.topology.create_connectivity(tdim, tdim - 1)
+    f2c, c2f = msh.topology.connectivity(tdim - 1, tdim), msh.topology.connectivity(tdim, tdim - 1)
+    cells = f2c.array[f2c.offsets[facets]]
+    owned = cells < msh.topology.index_map(tdim).size_local
+    facets, cells = facets[owned], cells[owned]
+    nf = tdim + 1
+    local = np.argmax(c2f.array.reshape(-1, nf)[cells] == facets[:, None], axis=1)
+    closure = np.array([V.dofmap.dof_layout.entity_closure_dofs(tdim - 1, j) for j in range(nf)])
+    cell_nodes = V.dofmap.list[cells]
+    nodes = np.take_along_axis(cell_nodes, closure[local], axis=1) if len(cells) else np.zeros((0, tdim), np.int32)
+    X = V.tabulate_dof_coordinates()[:, :gdim]
+    Xf = X[nodes]
+    normals = overlap.facet_normals(Xf, X[cell_nodes].mean(axis=1)) if len(cells) else np.zeros((0, gdim))
+    gnodes = V.dofmap.index_map.local_to_global(nodes.ravel().astype(np.int32)).reshape(nodes.shape)
+    return Facets(Xf, nodes, gnodes, normals)
+
+
+def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) -> Coupling:
+    """The mortar coupling of ``scene.cfg['pairs'][index]``; ``fixed`` are the local DoFs with
+    a Dirichlet or symmetry condition.  Raises ConfigError (one line, every rank) for a
+    slave node without master facet within the search distance."""
+    pair = scene.cfg["pairs"][index]
+    comm, bnd = scene.comm, scene.boundary
+    key = f"pairs[{index}]"
+    slave = surface_facets(V, part_facets(bnd, pair["slave"]))
+    master = surface_facets(V, part_facets(bnd, pair["master"]))
+    gdim = slave.X.shape[2]
+    search = pair["search"] or _diameter(comm, slave, master)
+    imap = V.dofmap.index_map
+    master.vertex_normals = _vertex_normals(imap, master, gdim)
+    remote = _gather_master(comm, slave, master, search)
+
+    # pairs (slave facet, master facet) whose overlap is non-empty, facing and within reach
+    s_idx, m_idx = _candidates(slave, remote, search)
+    M_loc, meas, dist = overlap.mortar_pairs(slave.X[s_idx], slave.normals[s_idx], remote.X[m_idx])
+    facing = np.einsum("pd,pd->p", slave.normals[s_idx], remote.normals[m_idx]) < FACING
+    keep = (meas > 0) & facing & (np.abs(dist) <= search)
+    s_idx, m_idx, M_loc = s_idx[keep], m_idx[keep], M_loc[keep]
+
+    nv = slave.nodes.shape[1]
+    # nodal sums over the slave facets (D_ii, Σ |F| n_F) and the master facets (∫ φ_j^m)
+    measure = overlap.facet_measures(slave.X) if len(slave.X) else np.zeros(0)
+    D = _nodal_sum(imap, slave.nodes, np.repeat(measure[:, None] / nv, nv, axis=1))
+    nsum = _nodal_sum(imap, slave.nodes, np.repeat((measure[:, None] * slave.normals)[:, None, :], nv, axis=1), gdim)
+    w_master = la.vector(imap, 1)
+    m_measure = overlap.facet_measures(master.X) if len(master.X) else np.zeros(0)
+    np.add.at(w_master.array, master.nodes.ravel(), np.repeat(m_measure / nv, nv))
+    w_master.scatter_reverse(la.InsertMode.add)
+    w_master.scatter_forward()
+    M_rows, cols, M_vals, attrs = _owned_rows(comm, imap, slave.nodes[s_idx], remote.gnodes[m_idx],
+                                              np.concatenate([remote.X, remote.vertex_normals], axis=2)[m_idx], M_loc)
+    X_of, N_of = attrs[:, :gdim], attrs[:, gdim:]
+
+    n_owned = imap.size_local
+    D_owned = D[:n_owned]
+    on_slave = np.flatnonzero(D_owned > 0)
+    bs = V.dofmap.index_map_bs
+    fixed_set = np.zeros(n_owned * bs, dtype=bool)
+    fixed_set[fixed[fixed < n_owned * bs]] = True
+    fixed_comp = fixed_set.reshape(n_owned, bs)[on_slave]
+    ends = on_slave[fixed_comp.all(axis=1)]
+    nodes = on_slave[~fixed_comp.all(axis=1)]
+    fixed_comp = fixed_comp[~fixed_comp.all(axis=1)]
+
+    covered = np.bincount(M_rows, weights=M_vals, minlength=n_owned)[nodes]
+    coverage = covered / D_owned[nodes]
+    _no_master(comm, V, nodes[coverage < MIN_COVERAGE], key, pair, search)
+
+    # c_ij = M_ij / Σ_k M_ik for the constrained nodes
+    position = np.full(n_owned, -1)
+    position[nodes] = np.arange(len(nodes))
+    use = position[M_rows] >= 0
+    rows, cols_c = position[M_rows[use]], cols[use]
+    c = M_vals[use] / covered[rows]
+    Xs = V.tabulate_dof_coordinates()[:n_owned, :gdim][nodes]
+    target = np.zeros((len(nodes), gdim))
+    np.add.at(target, rows, c[:, None] * X_of[use])                                # Σ_j c_ij X_j
+    n_master = np.zeros((len(nodes), gdim))
+    np.add.at(n_master, rows, c[:, None] * N_of[use])                              # Σ_j c_ij n_j^m
+    n_slave = nsum.reshape(-1, gdim)[nodes]
+    n_slave = n_slave / np.linalg.norm(n_slave, axis=1, keepdims=True)
+    n_master /= np.maximum(np.linalg.norm(n_master, axis=1, keepdims=True), 1e-300)
+    # the common normal: the bisector of the slave normal and the reversed master normal
+    normals, frames, projectors, absolute = _frames(comm, V, n_slave - n_master, fixed_comp, Xs, key)
+    gap = np.einsum("nd,nd->n", normals, target - Xs)
+    M = _node_matrix(V, M_rows, cols, M_vals)
+    return Coupling(nodes=nodes.astype(np.int32), D=D_owned[nodes], normals=normals, frames=frames,
+                    projectors=projectors, absolute=absolute, gap=gap, rows=rows, cols=cols_c, c=c, M=M,
+                    master_weights=w_master, ends=ends.astype(np.int32),
+                    coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN), search=search)
+
+
+def _owned_rows(comm: MPI.Comm, imap, slave_nodes: np.ndarray, master_gnodes: np.ndarray,
+                master_X: np.ndarray, M_loc: np.ndarray) -> tuple:
+    """The entries M_ij of this rank's owned slave rows from the local pair integrals
+    M_loc (P, nv, nv) of slave facets with local ``slave_nodes`` (P, nv) against master
+    facets with global ``master_gnodes`` and per-vertex data ``master_X`` (P, nv, k; the
+    coordinates and the nodal normals): each entry goes to the owner of its slave node,
+    duplicates (i, j) from several facets are summed.  Returns (local row, global column,
+    value, the column's data)."""
+    nv = M_loc.shape[1]
+    gdim = master_X.shape[2]
+    rows_local = np.repeat(slave_nodes, nv, axis=1).ravel()                 # (p, a, b) → slave a …
+    cols = np.tile(master_gnodes, (1, nv)).ravel()                           # … and master b
+    Xcol = np.tile(master_X, (1, nv, 1)).reshape(-1, gdim)
+    rows_g, cols, vals, Xcol = _to_owners(comm, imap, rows_local, cols, M_loc.ravel(), Xcol)
+    key_ij, inverse = np.unique(np.c_[rows_g - imap.local_range[0], cols], axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    X_of = np.zeros((len(key_ij), gdim))
+    X_of[inverse] = Xcol
+    return key_ij[:, 0], key_ij[:, 1], np.bincount(inverse, weights=vals, minlength=len(key_ij)), X_of
+
+
+def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
+    """No node may be a slave node twice or both a slave and a master node (Q would not be
+    unit triangular); a one-line ConfigError otherwise.  Checked on the surfaces, before
+    any coupling is computed."""
+    comm, imap, bnd = scene.comm, V.dofmap.index_map, scene.boundary
+    owned = np.zeros((imap.size_local, 3), dtype=int)   # per owned node: slave, master, obstacle parts through it
+
+    def count(column: int, facets: np.ndarray) -> None:
+        flag = la.vector(imap, 1)
+        flag.array[np.unique(surface_facets(V, facets).nodes)] = 1.0
+        flag.scatter_reverse(la.InsertMode.add)
+        owned[:, column] += flag.array[: imap.size_local] > 0
+
+    for pair in scene.cfg["pairs"] or []:
+        count(0, part_facets(bnd, pair["slave"]))
+        count(1, part_facets(bnd, pair["master"]))
+    if bnd.ids_with_role("contact"):
+        count(2, bnd.facets("contact"))
+    bad = np.flatnonzero((owned[:, 0] > 1) | ((owned[:, 0] > 0) & (owned[:, 1] > 0))
+                         | ((owned[:, 2] > 0) & (owned[:, :2].sum(axis=1) > 0)))
+    if comm.allreduce(len(bad), op=MPI.SUM):
+        where = _first_point(comm, V, bad)
+        raise ConfigError(f"pairs: the node at {where} is both a slave and a master node (or a slave node of "
+                          "two pairs, or on a pair and on the obstacle's contact part); a node may be the "
+                          "slave of one pair only, and never a master or obstacle contact node too")
+
+
+def part_facets(bnd, name: str) -> np.ndarray:
+    """The facets of boundary part ``name`` (sorted local indices)."""
+    return np.sort(bnd.tags.indices[bnd.tags.values == bnd.ids[name]]).astype(np.int32)
+
+
+def _diameter(comm: MPI.Comm, *sides: Facets) -> float:
+    """Diameter of the bounding box of the given surfaces (all ranks)."""
+    pts = [s.X.reshape(-1, s.X.shape[2]) for s in sides if len(s.X)]
+    gdim = sides[0].X.shape[2]
+    lo = np.min(pts[0], axis=0) if pts else np.full(gdim, np.inf)
+    hi = np.max(pts[0], axis=0) if pts else np.full(gdim, -np.inf)
+    for p in pts[1:]:
+        lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    lo, hi = np.min(comm.allgather(lo), axis=0), np.max(comm.allgather(hi), axis=0)
+    return float(np.linalg.norm(hi - lo))
+
+
+def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float) -> Facets:
+    """The master facets (of every rank) within ``search`` of this rank's slave facets'
+    bounding box: each rank sends every other rank only the facets that box needs."""
+    gdim = slave.X.shape[2]
+    box = None
+    if len(slave.X):
+        pts = slave.X.reshape(-1, gdim)
+        box = (pts.min(axis=0) - search, pts.max(axis=0) + search)
+    boxes = comm.allgather(box)
+    lo, hi = (master.X.min(axis=1), master.X.max(axis=1)) if len(master.X) else (np.zeros((0, gdim)),) * 2
+    send = []
+    for b in boxes:
+        sel = np.zeros(len(master.X), dtype=bool) if b is None else \
+            np.all((lo <= b[1]) & (hi >= b[0]), axis=1)
+        send.append((master.X[sel], master.gnodes[sel], master.normals[sel], master.vertex_normals[sel]))
+    recv = comm.alltoall(send)
+    nv = slave.X.shape[1] if len(slave.X) else master.X.shape[1] if len(master.X) else gdim
+    X = np.concatenate([r[0] for r in recv]).reshape(-1, nv, gdim)
+    return Facets(X, np.zeros((len(X), nv), np.int32), np.concatenate([r[1] for r in recv]).reshape(-1, nv),
+                  np.concatenate([r[2] for r in recv]).reshape(-1, gdim),
+                  np.concatenate([r[3] for r in recv]).reshape(-1, nv, gdim))
+
+
+def _vertex_normals(imap, side: Facets, gdim: int) -> np.ndarray:
+    """The surface's unit nodal normals (measure-weighted facet normals summed over all
+    ranks) at the vertices of its facets, (F, nv, gdim)."""
+    nv = side.nodes.shape[1]
+    measure = overlap.facet_measures(side.X) if len(side.X) else np.zeros(0)
+    nsum = _nodal_sum(imap, side.nodes, np.repeat((measure[:, None] * side.normals)[:, None, :], nv, axis=1), gdim)
+    N = nsum.reshape(-1, gdim)[side.nodes]
+    return N / np.maximum(np.linalg.norm(N, axis=-1, keepdims=True), 1e-300)
+
+
+def _candidates(slave: Facets, master: Facets, search: float) -> tuple[np.ndarray, np.ndarray]:
+    """(slave facet, master facet) pairs whose master facet may meet the prism swept by the
+    slave facet along its normal over [−search, search]: the master centroid within
+    r_S + r_M of the slave facet's normal line, and within search + r_M along it (r the
+    largest centroid-to-vertex distance)."""
+    if not len(slave.X) or not len(master.X):
+        return np.zeros(0, int), np.zeros(0, int)
+    cs, cm = slave.X.mean(axis=1), master.X.mean(axis=1)
+    rs = np.linalg.norm(slave.X - cs[:, None], axis=2).max(axis=1)
+    rm = np.linalg.norm(master.X - cm[:, None], axis=2).max(axis=1)
+    order = np.argsort(cm[:, 0])
+    cm_sorted, rm_max = cm[order, 0], rm.max()
+    out_s, out_m = [], []
+    for start in range(0, len(cs), CHUNK):
+        sl = slice(start, start + CHUNK)
+        # x-window of the chunk's prisms, then the exact line test
+        reach = np.abs(slave.normals[sl, 0]) * search + rs[sl] + rm_max
+        lo_x, hi_x = (cs[sl, 0] - reach).min(), (cs[sl, 0] + reach).max()
+        window = order[np.searchsorted(cm_sorted, lo_x):np.searchsorted(cm_sorted, hi_x, side="right")]
+        d = cm[window][None, :, :] - cs[sl][:, None, :]
+        along = np.einsum("smd,sd->sm", d, slave.normals[sl])
+        perp = np.linalg.norm(d - along[:, :, None] * slave.normals[sl][:, None, :], axis=2)
+        ok = (perp <= rs[sl, None] + rm[window][None, :]) & (np.abs(along) <= search + rm[window][None, :])
+        i, j = np.nonzero(ok)
+        out_s.append(i + start)
+        out_m.append(window[j])
+    return np.concatenate(out_s), np.concatenate(out_m)
+
+
+def _nodal_sum(imap, nodes: np.ndarray, values: np.ndarray, bs: int = 1) -> np.ndarray:
+    """Σ over facets of per-vertex ``values`` at their local ``nodes``, summed on the owners
+    (owned and ghost entries, ghosts updated)."""
+    vec = la.vector(imap, bs)
+    arr = vec.array.reshape(-1, bs)
+    np.add.at(arr, nodes.ravel(), values.reshape(-1, bs))
+    vec.scatter_reverse(la.InsertMode.add)
+    vec.scatter_forward()
+    return vec.array.copy() if bs == 1 else vec.array.reshape(-1, bs).copy()
+
+
+def _to_owners(comm: MPI.Comm, imap, rows_local: np.ndarray, *columns: np.ndarray):
+    """Send entries keyed by a local node (owned or ghost) to that node's owner; returns the
+    global node of each received entry and the received columns."""
+    n_owned = imap.size_local
+    owner = np.full(len(rows_local), comm.rank)
+    ghost = rows_local >= n_owned
+    owner[ghost] = imap.owners[rows_local[ghost] - n_owned]
+    rows_g = imap.local_to_global(rows_local.astype(np.int32)) if len(rows_local) else np.zeros(0, np.int64)
+    send = [tuple(a[owner == r] for a in (rows_g, *columns)) for r in range(comm.size)]
+    recv = comm.alltoall(send)
+    return tuple(np.concatenate([r[k] for r in recv]) for k in range(1 + len(columns)))
+
+
+def _frames(comm, V, nsum: np.ndarray, fixed: np.ndarray, Xs: np.ndarray, key: str):
+    """Frames of the slave nodes from the summed facet normals (:func:`basis.node_frames`);
+    a node whose normal lies mostly along a component fixed by symmetry is an error."""
+    normals, frames, projectors, absolute, bad = node_frames(nsum, fixed, V.dofmap.index_map_bs)
+    if comm.allreduce(int(bad.sum()), op=MPI.SUM):
+        where = _first_point(comm, V, np.flatnonzero(bad), Xs)
+        raise ConfigError(f"{key}.slave: the slave node at {where} has a symmetry condition along its "
+                          "contact normal")
+    return normals, frames, projectors, absolute
+
+
+def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray) -> PETSc.Mat:
+    """Scalar AIJ matrix in V's node layout from owned (local row, global column) entries."""
+    imap = V.dofmap.index_map
+    n_owned = imap.size_local
+    order = np.lexsort((cols, rows))
+    rows, cols, vals = rows[order], cols[order], vals[order]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n_owned))]).astype(PETSc.IntType)
+    M = PETSc.Mat().createAIJ(((n_owned, imap.size_global), (n_owned, imap.size_global)), comm=V.mesh.comm,
+                              csr=(indptr, cols.astype(PETSc.IntType), vals))
+    M.assemble()
+    return M
+
+
+def _first_point(comm: MPI.Comm, V: fem.FunctionSpace, nodes: np.ndarray, X: np.ndarray | None = None) -> str:
+    """'(x, y[, z])' of the first listed node on the lowest rank that has one."""
+    gdim = V.mesh.geometry.dim
+    mine = None
+    if len(nodes):
+        X = V.tabulate_dof_coordinates()[:, :gdim] if X is None else X
+        mine = X[nodes[0]].tolist()
+    point = next(p for p in comm.allgather(mine) if p is not None)
+    return "(" + ", ".join(f"{c:.6g}" for c in point) + ")"
+
+
+def _no_master(comm, V, nodes: np.ndarray, key: str, pair: dict, search: float) -> None:
+    if comm.allreduce(len(nodes), op=MPI.SUM):
+        total = comm.allreduce(len(nodes), op=MPI.SUM)
+        where = _first_point(comm, V, nodes)
+        raise ConfigError(f"{key}.slave: {total} slave node(s) of {pair['slave']!r}, e.g. at {where}, have no "
+                          f"master facet of {pair['master']!r} within the search distance {search:.4g} "
+                          f"({key}.search) facing (at least half of) their facets; restrict the slave part "
+                          "to lie within the master surface, or raise the search distance")

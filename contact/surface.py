@@ -1,0 +1,121 @@
+"""Friction on the contact surface Γ_C: the per-node columns of ``contact.csv``, the
+resultants of a step, and the nodal fields of the VTK output.
+
+For every contact node i (weight w_i = ∫_{Γ_C} φ_i, a length in 2D, an area in 3D) a
+frictional solve adds to the columns of :mod:`contact.contactdata` (coordinates, ``s`` / ``r``,
+λ_n, gap, active): the tangential traction on the body λ_t,i (stress; in 2D its component
+along t_0 = (−n_y, n_x), n the contact normal at the first point of contact — for a plane
+y = 0 below the body, the x component; in 3D the vector in global axes), |λ_t|, the friction
+bound ρ_i, the slip increment s_t,i of the load step (length; the same way), |s_t|, the
+status separated / stick / slip, and w_i.
+
+Resultants (of the modelled part: symmetric copies are not added, since tangential
+components across a symmetry plane cancel between copies): the normal force Σ w_i λ_n,i,
+the tangential force Σ w_i λ_t,i (vector), the contact force on the body Σ w_i (λ_n,i n_i +
+λ_t,i) (vector; with no body or Neumann load it balances the Dirichlet reaction), the
+Dirichlet reaction per component (:func:`contact.resultants.reaction_force`: the force the
+support exerts on the body), |F_t| / |F_n|, and the node counts and measures Σ w_i of the
+stick, slip and separated sets; in 2D also the number of stick zones (maximal runs of stick
+nodes along Γ_C) and their extent in s.
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfinx import fem
+
+from .contactdata import Table, contact_table
+from .resultants import reaction_force
+from .scene import Scene
+from .solvers import Result
+
+STATUS = ("separated", "stick", "slip")
+
+
+def tangent_2d(result: Result) -> np.ndarray:
+    """t_0 = (−n_y, n_x) of the contact normal n at the first point of contact (2D)."""
+    n = np.asarray(result.problem.data["n"], dtype=float)
+    return np.array([-n[1], n[0]])
+
+
+def friction_columns(scene: Scene, result: Result) -> Table:
+    """This rank's friction columns, row for row with :func:`contact.contactdata.contact_columns`."""
+    fr = result.friction
+    lam_t, slip = fr["lambda_t_vec"], fr["slip_vec"]
+    cols: Table = {}
+    if scene.mesh.geometry.dim == 2:
+        t0 = tangent_2d(result)
+        cols.update(lambda_t=lam_t @ t0, slip=slip @ t0)
+    else:
+        cols.update({f"lambda_t_{a}": lam_t[:, i] for i, a in enumerate("xyz")})
+        cols.update({f"slip_{a}": slip[:, i] for i, a in enumerate("xyz")})
+    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=float),
+                slip_norm=np.linalg.norm(slip, axis=1), status=np.array(STATUS, dtype=object)[fr["status"]],
+                weight=np.asarray(fr["w"], dtype=float))
+    return cols
+
+
+def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
+    """The resultants and zone measures of the module doc (collective); ``table`` is the
+    step's contact table on rank 0 if already gathered (for the stick zones in 2D)."""
+    comm, p, fr = scene.comm, result.problem, result.friction
+    w, lam_n = fr["w"], fr["lambda_n"]
+    normals = p.data["normals"] if "normals" in p.data else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
+
+    def total(values) -> np.ndarray:   # Σ over the nodes of every rank, per column
+        values = np.asarray(values, dtype=float)
+        return comm.allreduce((values[:, None] if values.ndim == 1 else values).sum(axis=0), op=MPI.SUM)
+
+    tangential = w[:, None] * fr["lambda_t_vec"]
+    out = {"normal_force": float(total(w * lam_n)[0]),
+           "tangential_force": total(tangential).tolist(),
+           "contact_force": total(w[:, None] * lam_n[:, None] * normals + tangential).tolist(),
+           "reaction_force": [reaction_force(result, k) / p.symmetric_copies
+                              for k in range(scene.mesh.geometry.dim)]}
+    out["friction_ratio"] = float(np.linalg.norm(out["tangential_force"]) / max(abs(out["normal_force"]), 1e-300))
+    for code, name in enumerate(STATUS):
+        mine = fr["status"] == code
+        out[f"{name}_nodes"] = comm.allreduce(int(mine.sum()), op=MPI.SUM)
+        out[f"{name}_measure"] = float(total(np.where(mine, w, 0.0))[0])
+    out["max_slip"] = comm.allreduce(float(np.max(np.linalg.norm(fr["slip_vec"], axis=1), initial=0.0)), op=MPI.MAX)
+    if scene.mesh.geometry.dim == 2:
+        if table is None:
+            table = contact_table(scene, result)
+        out.update(comm.bcast(stick_zones(table) if comm.rank == 0 else None, root=0))
+    return out
+
+
+def stick_zones(table: Table) -> dict:
+    """2D, from a contact table sorted along Γ_C: the number of stick zones and the arc
+    lengths of the first and last stick node."""
+    stick = table["status"] == "stick"
+    zones = int(np.sum(stick[1:] & ~stick[:-1]) + (int(stick[0]) if len(stick) else 0))
+    ends = [float(table["s"][stick].min()), float(table["s"][stick].max())] if stick.any() else []
+    return {"stick_zones": zones, "stick_extent": ends}
+
+
+def surface_functions(result: Result) -> list[fem.Function]:
+    """Nodal fields for the VTK output: λ_t and the slip increment (vectors in global axes,
+    on the displacement space), the status (0 separated, 1 stick, 2 slip; −1 off Γ_C) and the
+    friction bound ρ (on the scalar output space)."""
+    p, fr = result.problem, result.friction
+    V, con = p.V, p.constraint
+    bs = V.dofmap.index_map_bs
+    nodes = con.dofs // bs
+    out = []
+    for name, values in (("lambda_t", fr["lambda_t_vec"]), ("slip", fr["slip_vec"])):
+        fn = fem.Function(V, name=name)
+        fn.x.array[(nodes[:, None] * bs + np.arange(values.shape[1])).ravel()] = values.ravel()
+        fn.x.scatter_forward()
+        out.append(fn)
+    for name, values, off in (("status", fr["status"].astype(float), -1.0), ("bound", fr["rho"], 0.0)):
+        fn = fem.Function(V)
+        fn.x.array[:] = off
+        fn.x.array[con.dofs] = values
+        fn.x.scatter_forward()
+        S = p.output_space or V
+        scalar = fem.Function(S, name=name)
+        scalar.x.array[:] = fn.x.array if p.output_map is None else fn.x.array[p.output_map]
+        out.append(scalar)
+    return out

@@ -1,0 +1,50 @@
+"""Run the real ``contact`` command line as a subprocess (serial or under mpirun)."""
+from __future__ import annotations
+
+import copy
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+MPIRUN = Path(sys.executable).parent / "mpirun"
+
+
+def contact(cwd: Path, *args: str, ranks: int = 0, env: dict | None = None, prefix: tuple = (),
+            timeout: float = 300) -> subprocess.CompletedProcess:
+    """``python -m contact.cli ARGS`` in ``cwd`` (under ``mpirun -n ranks`` when ranks > 0);
+    ``prefix`` is prepended to the command (e.g. ``("unshare", "-U")``)."""
+    cmd = [sys.executable, "-m", "contact.cli", *args]
+    if ranks:
+        cmd = [str(MPIRUN), "-n", str(ranks), *cmd]
+    full_env = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1", **(env or {})}
+    return subprocess.run([*prefix, *cmd], cwd=cwd, env=full_env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def small_scene(path: Path, cells: int = 8, **changes) -> Path:
+    """configs/signorini_square.yaml on a ``cells`` × ``cells`` mesh without pictures (they
+    take most of a small run's time), with dotted-key ``changes`` (``data__f="1"`` sets
+    data.f), written to ``path``."""
+    scene = copy.deepcopy(yaml.safe_load((ROOT / "configs" / "signorini_square.yaml").read_text()))
+    scene["mesh"]["cells"] = [cells, cells]
+    scene.setdefault("output", {})["png"] = False
+    for key, value in changes.items():
+        node, parts = scene, key.split("__")
+        for part in parts[:-1]:
+            node = node.setdefault(part, {})
+        node[parts[-1]] = value
+    path.write_text(yaml.safe_dump(scene, sort_keys=False))
+    return path
+
+
+def error_lines(proc: subprocess.CompletedProcess) -> list[str]:
+    return [ln for ln in proc.stderr.splitlines() if ln.strip()]
+
+
+def tree(folder: Path) -> dict[str, bytes | None]:
+    """Every entry below ``folder`` (hidden ones included) with its content (None for folders)."""
+    return {str(p.relative_to(folder)): (None if p.is_dir() else p.read_bytes()) for p in folder.rglob("*")}

@@ -1,0 +1,110 @@
+"""The public API (``contact.__all__``) checks its arguments (issue 10, defect 9): misuse is
+a ``ValueError`` (``ConfigError`` for scene input) with one line naming the argument — not
+a segmentation fault, a silently wrong answer or a raw PETSc error code."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from clirun import ROOT
+
+import contact
+from contact import ConfigError
+
+SCENE = str(ROOT / "configs" / "signorini_square.yaml")
+
+
+@pytest.fixture(scope="module")
+def solved():
+    scene = contact.load_scene(SCENE, ["mesh.cells=[4,4]"])
+    result = contact.solve(scene, verbose=False)
+    return scene, result, contact.estimate(scene, result)
+
+
+def _one_line(err: pytest.ExceptionInfo) -> str:
+    text = str(err.value)
+    assert "\n" not in text and len(text) < 300
+    return text
+
+
+@pytest.mark.parametrize("cells, message", [
+    (np.array([10**6]), r"^cells: 1 index\(es\) outside the owned cells 0 … 31, e\.g\. 1000000"),
+    (np.array([3, -1]), r"^cells: 1 index\(es\) outside the owned cells 0 … 31, e\.g\. -1"),
+    (np.array([0.5, 1.0]), r"^cells: expected a 1D array of integer cell indices, got float64"),
+    (np.array([[0, 1]]), r"^cells: expected a 1D array of integer cell indices, got int64 with shape \(1, 2\)"),
+])
+def test_refine_checks_cell_indices(solved, cells, message) -> None:
+    scene, _, _ = solved
+    with pytest.raises(ValueError, match=message) as err:
+        contact.refine(scene, cells)
+    _one_line(err)
+
+
+def test_refine_accepts_lists_and_empty(solved) -> None:
+    scene, result, _ = solved
+    child, u0 = contact.refine(scene, [0, 1], result.u_h)
+    assert child.mesh.topology.index_map(2).size_global > 32 and u0 is not None
+    same, _ = contact.refine(scene, np.zeros(0, dtype=np.int64))
+    assert same.mesh.topology.index_map(2).size_global == 32
+
+
+@pytest.mark.parametrize("strategy, theta, message", [
+    ("dorfler", -1, r"^theta: must be a number in \(0, 1\], got -1"),
+    ("dorfler", 7, r"^theta: must be a number in \(0, 1\], got 7"),
+    ("maximum", 0, r"^theta: must be a number in \(0, 1\], got 0"),
+    ("dorfler", "half", r"^theta: must be a number in \(0, 1\], got 'half'"),
+    ("bulk", 0.5, r"^strategy: unknown marking strategy 'bulk'"),
+])
+def test_mark_checks_strategy_and_theta(solved, strategy, theta, message) -> None:
+    _, _, est = solved
+    with pytest.raises(ValueError, match=message) as err:
+        contact.mark(est.eta_T, strategy, theta=theta)
+    _one_line(err)
+
+
+def test_mark_checks_the_indicator(solved) -> None:
+    _, _, est = solved
+    with pytest.raises(ValueError, match=r"^eta_T: expected the DG0 indicator function"):
+        contact.mark(est.eta_T.x.array, "dorfler", 0.5)
+
+
+@pytest.mark.parametrize("overrides", ["mesh.cells=[4,4]", b"mesh.cells=[4,4]", [1, 2], {"mesh.cells": 4}])
+def test_load_scene_overrides_must_be_a_list_of_strings(overrides) -> None:
+    with pytest.raises(ConfigError, match=r"^overrides: expected a list of 'key.path=value' strings") as err:
+        contact.load_scene(SCENE, overrides)
+    _one_line(err)
+
+
+def test_load_scene_source_type() -> None:
+    with pytest.raises(ConfigError, match=r"^source: expected a scene file path or a mapping, got int"):
+        contact.load_scene(3)
+
+
+def test_guess_from_another_mesh(solved) -> None:
+    """Was a raw PETSc "error code 75" (vector sizes differ)."""
+    scene, _, _ = solved
+    other = contact.load_scene(SCENE, ["mesh.cells=[6,6]"])
+    foreign = contact.solve(other, verbose=False).u_h
+    with pytest.raises(ValueError, match=r"^u0: lives on another mesh than the scene's problem") as err:
+        contact.solve(scene, u0=foreign, verbose=False)
+    _one_line(err)
+    with pytest.raises(ValueError, match=r"^u0: expected a dolfinx\.fem\.Function"):
+        contact.solve(scene, u0=np.zeros(25), verbose=False)
+    with pytest.raises(ValueError, match=r"^u_h: expected a dolfinx\.fem\.Function on the scene's mesh"):
+        contact.refine(scene, [0], foreign)
+
+
+def test_scene_and_result_arguments(solved) -> None:
+    scene, result, _ = solved
+    other = contact.load_scene(SCENE, ["mesh.cells=[6,6]"])
+    for call in (lambda: contact.solve("configs/x.yaml"), lambda: contact.adapt(scene.cfg),
+                 lambda: contact.estimate(None, result), lambda: contact.refine("scene", [0])):
+        with pytest.raises(ValueError, match=r"^scene: expected a contact\.Scene"):
+            call()
+    with pytest.raises(ValueError, match=r"^result: expected the contact\.Result of contact\.solve on this scene"):
+        contact.estimate(other, result)
+    with pytest.raises(ValueError, match=r"^on_level: expected a function"):
+        contact.adapt(scene, on_level="print")
+    with pytest.raises(ConfigError, match=r"^solver\.method: 'newton' is not one of"):
+        contact.solve(scene, method="newton")
+    with pytest.raises(ConfigError, match=r"^adapt\.theta: must lie in \(0, 1\]"):
+        contact.adapt(scene, theta=2.0)

@@ -1,0 +1,59 @@
+"""The literate demos (demos/demo_*.py) run as written, at a small size, and print their
+key figure: the three NCP functions agree and min terminates like the primal–dual active
+set method; the adaptive loop by hand converges like N^{-1/2} with a steady effectivity;
+the Hertz demo balances forces and matches Hertz's peak pressure; the friction demo slides at
+F_t = F·F_n and agrees with the Tresca fixed point."""
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _demo(name: str, arg: str, cwd: Path) -> str:
+    proc = subprocess.run([sys.executable, str(ROOT / "demos" / f"demo_{name}.py"), arg], cwd=cwd,
+                          capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 0, proc.stderr
+    png = cwd / f"demo_{name}.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote demo_{name}.png" in proc.stdout
+    return proc.stdout
+
+
+def _number(pattern: str, text: str) -> float:
+    return float(re.search(pattern, text).group(1))
+
+
+def test_demo_obstacle(tmp_path):
+    out = _demo("obstacle", "16", tmp_path)
+    assert _number(r"largest difference between the three solutions: (\S+)", out) < 1e-8
+    its = {m: int(_number(rf"{m}: +(\d+) Newton iterations", out)) for m in ("fb", "min", "blend")}
+    assert its["min"] <= its["fb"] and all(n <= 30 for n in its.values())
+    history = [ln for ln in out.split("nodes that changed status")[1].splitlines() if ln[:6].strip().isdigit()]
+    assert len(history) == its["min"] + 1 and history[-1].split()[-1] == "0", "the last PDAS step changes no node"
+
+
+def test_demo_signorini_adaptive(tmp_path):
+    out = _demo("signorini_adaptive", "7", tmp_path)
+    rate = _number(r"error ~ N\^(\S+) over", out)
+    low, high = re.search(r"between (\S+) and (\S+)", out).groups()
+    assert -0.65 < rate < -0.4 and 2.0 < float(low) <= float(high) < 5.0
+
+
+def test_demo_hertz(tmp_path):
+    out = _demo("hertz", "2", tmp_path)
+    assert _number(r"relative difference (\S+)", out) < 1e-8
+    assert abs(_number(r"peak pressure p0 = \S+ \(Hertz \S+, (\S+)%\)", out)) < 1.5
+    assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 3.0
+
+
+def test_demo_friction(tmp_path):
+    out = _demo("friction", "40", tmp_path)
+    assert abs(_number(r"\|F_t\| / \|F_n\| = (\S+)", out) - 0.3) <= 1e-9
+    assert _number(r"balances the contact force to (\S+)", out) < 1e-12
+    assert _number(r"max \|u_newton - u_fixed\| / max \|u\| = (\S+)", out) < 1e-8
+    steps = re.findall(r"^\s+(\d+)\s+([0-9.]+)\s+(\d+)\s+(\d+)\s+(\d+)\s+([0-9.]+)$", out, re.M)
+    assert len(steps) == 10 and max(int(s[2]) for s in steps) <= 10
+    assert int(steps[0][3]) > 0 and int(steps[-1][3]) == 0          # stick first, sliding at the end

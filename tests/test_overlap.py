@@ -1,0 +1,105 @@
+"""Geometry kernels of the mortar coupling (contact.models.overlap, pure NumPy): the dual
+basis is biorthogonal, clipping gives exact polygons, and the mortar integrals over a
+slave facet covered by any master mesh of the same line / plane reproduce constants and
+linear functions exactly (what the contact patch test needs)."""
+import numpy as np
+import pytest
+
+from contact.models.overlap import DUAL, clip_polygons, facet_measures, facet_normals, mortar_pairs
+
+
+def _grid_triangles(rng, lo, hi, n, jitter=0.3):
+    """A perturbed structured triangulation of the square [lo, hi]² (boundary nodes fixed)."""
+    t = np.linspace(lo, hi, n + 1)
+    X, Y = np.meshgrid(t, t, indexing="ij")
+    P = np.column_stack([X.ravel(), Y.ravel()])
+    inner = (np.abs(P - lo) > 1e-12).all(1) & (np.abs(P - hi) > 1e-12).all(1)
+    P[inner] += jitter * (hi - lo) / n * (rng.random((inner.sum(), 2)) - 0.5)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    v = lambda a, b: (a * (n + 1) + b).ravel()  # noqa: E731
+    tris = np.vstack([np.c_[v(i, j), v(i + 1, j), v(i + 1, j + 1)], np.c_[v(i, j), v(i + 1, j + 1), v(i, j + 1)]])
+    return P[tris]
+
+
+def test_dual_basis_is_biorthogonal():
+    for nv, mass in ((2, np.array([[2, 1], [1, 2]]) / 6.0), (3, np.array([[2, 1, 1], [1, 2, 1], [1, 1, 2]]) / 12.0)):
+        # ∫ ψ_a φ_b = (DUAL @ mass)_ab on the unit facet (|facet| = 1): δ_ab ∫ φ_a = δ_ab / nv
+        assert np.allclose(DUAL[nv] @ mass, np.eye(nv) / nv, atol=1e-15)
+        assert np.allclose(DUAL[nv].sum(axis=0), 1.0)  # Σ_a ψ_a = 1
+
+
+def test_normals_point_away_from_the_cell():
+    X = np.array([[[0.0, 0.0], [1.0, 0.0]], [[0.0, 0.0], [1.0, 0.0]]])
+    n = facet_normals(X, np.array([[0.3, 0.5], [0.3, -0.5]]))
+    assert np.allclose(n, [[0, -1], [0, 1]])
+    T = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    assert np.allclose(facet_normals(T, np.array([[0.2, 0.2, 1.0]])), [[0, 0, -1]])
+    assert np.allclose(facet_measures(T), 0.5)
+
+
+def test_clipping_star_of_david_is_the_hexagon():
+    a = np.array([[np.cos(t), np.sin(t)] for t in np.pi / 2 + 2 * np.pi * np.arange(3) / 3])
+    for clip in (-a, -a[::-1]):  # either orientation of the clip triangle
+        poly, count = clip_polygons(a[None], clip[None])
+        assert count[0] == 6
+        hexagon = poly[0, :6]
+        assert np.allclose(np.linalg.norm(hexagon, axis=1), 1 / np.sqrt(3))  # its vertices
+    disjoint, count = clip_polygons(a[None], a[None] + 5.0)
+    assert count[0] == 0
+
+
+def test_segments_identical_and_offset():
+    Xs = np.array([[[0.0, 0.0], [2.0, 0.0]]])
+    n = np.array([[0.0, 1.0]])
+    M, meas, d = mortar_pairs(Xs, n, Xs[:, ::-1] + [0.0, 0.1])  # reversed master, gap 0.1
+    assert np.allclose(M[0], [[0, 1], [1, 0]]) and meas[0] == pytest.approx(2.0) and d[0] == pytest.approx(0.1)
+    M, meas, d = mortar_pairs(Xs, n, Xs + [5.0, -0.2])  # no overlap
+    assert not M.any() and meas[0] == 0 and np.isinf(d[0])
+
+
+@pytest.mark.parametrize("tilt", [0.0, 0.4])
+def test_segments_reproduce_linear_functions(tilt):
+    """Slave segment covered by an unrelated master mesh of the same line: Σ_j M_ij = D_ii
+    and Σ_j M_ij x_j = D_ii x_i (x_j the master node coordinates), whatever the tilt."""
+    rng = np.random.default_rng(1)
+    c, s = np.cos(tilt), np.sin(tilt)
+    R = np.array([[c, -s], [s, c]])
+    xs = np.array([0.13, 0.71])
+    xm = np.sort(np.concatenate([[-0.2, 1.1], rng.random(7)]))
+    Xs = (np.column_stack([xs, 0 * xs]) @ R.T)[None]
+    Xm = np.stack([np.column_stack([xm[:-1], 0 * xm[:-1]]), np.column_stack([xm[1:], 0 * xm[1:]])], 1) @ R.T
+    n = np.repeat((R @ [0.0, 1.0])[None], len(Xm), 0)
+    M, meas, _ = mortar_pairs(np.repeat(Xs, len(Xm), 0), n, Xm)
+    L = xs[1] - xs[0]
+    assert meas.sum() == pytest.approx(L, rel=1e-14)
+    assert np.allclose(M.sum(axis=(0, 2)), L / 2, rtol=1e-14)
+    moment = np.einsum("pab,pbd->ad", M, Xm)
+    assert np.allclose(moment, L / 2 * Xs[0], atol=1e-14)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_triangles_reproduce_linear_functions(seed):
+    """A slave triangle inside a perturbed master triangulation of its plane (arbitrary
+    orientation): Σ_j M_ij = D_ii = |T|/3 and Σ_j M_ij x_j = D_ii x_i, to round-off."""
+    rng = np.random.default_rng(seed)
+    master2 = _grid_triangles(rng, -0.5, 1.5, 7)
+    slave2 = np.array([[0.1, 0.05], [0.93, 0.22], [0.35, 0.8]])
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    lift = lambda T: np.concatenate([T, np.zeros(T.shape[:-1] + (1,))], -1) @ Q.T  # noqa: E731
+    Xs, Xm = lift(slave2)[None], lift(master2)
+    n = facet_normals(Xs, Xs.mean(1) - Q[:, 2])  # away from a point below: +Q e_z
+    M, meas, d = mortar_pairs(np.repeat(Xs, len(Xm), 0), np.repeat(n, len(Xm), 0), Xm)
+    area = facet_measures(Xs)[0]
+    assert meas.sum() == pytest.approx(area, rel=1e-13)
+    assert np.allclose(M.sum(axis=(0, 2)), area / 3, rtol=1e-13)
+    assert np.allclose(np.einsum("pab,pbd->ad", M, Xm), area / 3 * Xs[0], atol=1e-13)
+    assert np.allclose(d[meas > 0], 0.0, atol=1e-13)
+
+
+def test_triangles_distance_and_partial_overlap():
+    T = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    n = np.array([[0.0, 0, 1]])
+    M, meas, d = mortar_pairs(T, n, T + [0.5, 0.0, -0.05])  # shifted half-way, penetrating 0.05
+    # overlap: the triangle (0.5, 0), (1, 0), (0.5, 0.5) of area 1/8
+    assert meas[0] == pytest.approx(0.125) and d[0] == pytest.approx(-0.05)
+    assert M.sum() == pytest.approx(0.125)
