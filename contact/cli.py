@@ -125,6 +125,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from .config import load_config
     from .report import files_text, write_run
     from .scene import build_scene
+    from .solvers.result import not_converged_text
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
@@ -145,9 +146,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
                f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
     if not result.converged:
         if comm.rank == 0:
-            print(f"contact: error: solver {method} did not converge ({result.reason}) after "
-                  f"{result.iterations} iterations, last |Phi| = {result.residual:.3e}; nothing written",
-                  file=sys.stderr, flush=True)
+            print(failures.one_line(f"contact: error: solver {method} {not_converged_text(result)}; "
+                                    "nothing written"), file=sys.stderr, flush=True)
         return failures.NOT_CONVERGED
     info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
@@ -185,8 +185,10 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
             k = len(result.levels) - 1
             kept = f"kept levels 0-{k - 1} in {outdir}/ (summary.json: converged false)" if k else "nothing written"
             if comm.rank == 0:
-                print(f"contact: error: solver did not converge on level {k} ({last.reason}), "
-                      f"last |Phi| = {last.residual:.3e}; {kept}", file=sys.stderr, flush=True)
+                hint = f" ({last.hint})" if last.hint else ""
+                print(failures.one_line(f"contact: error: solver did not converge on level {k} ({last.reason}), "
+                                        f"last |Phi| = {last.residual:.3e}{hint}; {kept}"),
+                      file=sys.stderr, flush=True)
             if k == 0:
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}

@@ -148,7 +148,8 @@ def _c_value(v: Any) -> str | None:
 
 
 def _sequence(v: Any) -> str | None:
-    if v in ("auto", "off") or (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+    # YAML 1.1 reads an unquoted `off` (`sequence: off`, `--set solver.sequence=off`) as false
+    if v in ("auto", "off") or v is False or (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
         return None
     return f"must be auto, off or a number of coarser levels >= 0, got {v!r}"
 

@@ -17,9 +17,11 @@ A study file (``configs/studies/*.yaml``)::
     repeat: 1                            # run every combination this many times
 
 Axes (:data:`AXES`): ``method``, ``mu``, ``c`` (number or ``auto``), ``kappa``,
-``line_search``, ``max_it``, ``u0`` (initial-guess expression) set the scene's ``solver``
-keys; ``linear_solver`` is ``direct`` (the default MUMPS LU) or ``gamg`` (BiCGStab + GAMG,
-``ksp_rtol`` 1e-10); ``strategy`` is ``none`` (one solve) or an adaptive marking strategy
+``line_search``, ``max_it``, ``u0`` (initial-guess expression), ``linear`` (``solver.linear``:
+auto, direct, gamg, bcgs) and ``sequence`` (grid sequencing: auto, off or a number of coarser
+levels) set the scene's ``solver`` keys; ``linear_solver`` puts PETSc options on the
+assembled Newton matrix: ``direct`` (MUMPS LU) or ``gamg`` (BiCGStab + GAMG, ``ksp_rtol``
+1e-10); ``strategy`` is ``none`` (one solve) or an adaptive marking strategy
 (``uniform``, ``dorfler``, ``maximum``) with ``theta`` and ``nested`` (start each level
 from the previous solution, or cold from ``u0``); ``level`` refines the base mesh
 uniformly that many times before solving (``contact.refine`` with every cell marked, so it
@@ -31,7 +33,8 @@ are every case × every combination of the axes, and each row names its ``case``
 
 Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton iterations
 and active-set polishing solves (for adaptive runs on the final level and summed over the
-levels), converged, the SNES
+levels), the linear solver and its Krylov iterations (0 for MUMPS; the final level's or
+step's), converged, the SNES
 reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
 with ``data.exact``; the relative errors of a declared ``reference``, e.g. Hertz's
 ``a_error``, ``p0_error`` and their largest magnitude ``hertz_error``), η, the measure of the active set, the wall
@@ -86,6 +89,8 @@ AXES: dict[str, Field] = {
     "line_search": _SOLVER["line_search"],
     "max_it": _SOLVER["max_it"],
     "u0": _SOLVER["u0"],
+    "linear": _SOLVER["linear"],
+    "sequence": _SOLVER["sequence"],
     "linear_solver": Field("str", choices=tuple(LINEAR_SOLVERS)),
     "strategy": Field("str", choices=STRATEGIES),
     "theta": _ADAPT["theta"],
@@ -100,7 +105,7 @@ AXES: dict[str, Field] = {
     "coulomb": _FRICTION["coulomb"],
     "steps": Field("int", check=_positive, doc="load steps (load.steps)"),
 }
-_SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0")
+_SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
 _ADAPT_AXES = ("theta", "nested")
 #: friction axes -> keys of the scene's friction section
 _FRICTION_AXES = {"friction": "law", "coefficient": "coefficient", "threshold": "threshold", "c_t": "c_t",
@@ -453,10 +458,11 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     from .estimate import estimate
     from .scene import load_scene
     from .solvers import solve
+    from .solvers.result import not_converged_text
 
     out: dict[str, Any] = {"dofs": "", "levels": "", "newton_iterations": "", "newton_iterations_total": "",
-                           "polish_solves": "", "polish_solves_total": "",
-                           "converged": False, "reason": "", **_empty_figures(study)}
+                           "polish_solves": "", "polish_solves_total": "", "linear_solver": "",
+                           "krylov_iterations": "", "converged": False, "reason": "", **_empty_figures(study)}
     levels: list[dict[str, Any]] = []
     comm.barrier()
     t0 = time.perf_counter()
@@ -472,14 +478,14 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
             seconds = time.perf_counter() - t0
             out.update(dofs=result.dofs, levels=1, newton_iterations=result.iterations,
                        newton_iterations_total=result.iterations, polish_solves=result.polish_solves,
-                       polish_solves_total=result.polish_solves, converged=bool(result.converged),
+                       polish_solves_total=result.polish_solves, linear_solver=result.linear,
+                       krylov_iterations=result.krylov_iterations, converged=bool(result.converged),
                        reason=result.reason)
             if result.converged:
                 error = solution_error(scene, result)
                 out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
-                failure = (f"did not converge ({result.reason}) after {result.iterations} Newton "
-                           f"iterations, last |Phi| = {result.residual:.3e}")
+                failure = not_converged_text(result)
             levels.append({"level": 0, **{k: out[k] for k in ("dofs", "newton_iterations", "polish_solves",
                                                               "converged", "reason")},
                            **{k: out[k] for k in _empty_figures(study)}, "seconds": seconds})
@@ -503,7 +509,9 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
             converged = all(lv.result.converged for lv in res.levels)
             out.update(dofs=last["dofs"], levels=len(res.levels), newton_iterations=its[-1],
                        newton_iterations_total=sum(its), polish_solves=polish[-1],
-                       polish_solves_total=sum(polish), converged=converged, reason=last["reason"])
+                       polish_solves_total=sum(polish), linear_solver=res.levels[-1].result.linear,
+                       krylov_iterations=res.levels[-1].result.krylov_iterations, converged=converged,
+                       reason=last["reason"])
             if converged:
                 out.update({k: last[k] for k in _empty_figures(study)})
             else:
@@ -552,6 +560,7 @@ def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: l
     last, its = path.steps[-1], [s.result.iterations for s in path.steps]
     out.update(dofs=last.result.dofs, levels=len(path.steps), newton_iterations=its[-1],
                newton_iterations_total=sum(its), polish_solves=0, polish_solves_total=0,
+               linear_solver=last.result.linear, krylov_iterations=last.result.krylov_iterations,
                converged=path.converged, reason=last.result.reason, max_step_iterations=max(its))
     if study.adaptive_possible:
         out["stop"] = path.stop

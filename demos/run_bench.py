@@ -12,8 +12,11 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_two_bodies.py`` — two bodies (issue 13): patch tests, two cylinders,
    Cattaneo–Mindlin, and the sphere on a block on 2 MPI ranks (about 8 minutes; its
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
+   ``demos/bench/bench_newton_min_cycle.py`` — plain Newton-min cycling on a P-matrix LCP
+   (the stability map's case (p), under a second);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
-   file (speed against accuracy, stability map, iterations per level, peer problems);
+   file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
+   minutes, iterations per level, peer problems);
 5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
 
     python demos/run_bench.py                 # everything (about 25 minutes on 2 cores)
@@ -42,6 +45,7 @@ STEPS = {
     "two_bodies": [[PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")]
                   + [[str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
                       "--h-contact", "0.01", "0.005", "0.0035", "--swap", "0.005"]],
+    "cycle": [[PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
     "report": [[PY, "demos/make_results.py"]],

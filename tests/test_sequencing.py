@@ -117,3 +117,13 @@ def test_bad_sequence_value_is_a_config_error():
         contact.load_scene("configs/signorini_square.yaml", ["solver.sequence=-1"])
     with pytest.raises(contact.ConfigError, match="solver.linear"):
         contact.load_scene("configs/signorini_square.yaml", ["solver.linear=cholesky"])
+
+
+def test_unquoted_off_turns_sequencing_off():
+    """YAML reads an unquoted `off` as false (`--set solver.sequence=off`, `sequence: off`):
+    accepted, and it means off; `on` (true) is not a value."""
+    scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[64,64]", "solver.sequence=off"])
+    r = _solve(scene, method="min")
+    assert r.converged and r.sequence == [] and r.sequence_note == ""
+    with pytest.raises(contact.ConfigError, match="solver.sequence: must be auto, off"):
+        contact.load_scene("configs/signorini_square.yaml", ["solver.sequence=on"])

@@ -22,8 +22,8 @@ MPIRUN = Path(sys.executable).parent / "mpirun"
 PREFIX = "contact: error: "
 ENV = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
 TINY_COLUMNS = ["run", "method", "line_search", "repeat", "dofs", "levels", "newton_iterations",
-                "newton_iterations_total", "polish_solves", "polish_solves_total",
-                "converged", "reason", "eta", "active_measure", "outcome",
+                "newton_iterations_total", "polish_solves", "polish_solves_total", "linear_solver",
+                "krylov_iterations", "converged", "reason", "eta", "active_measure", "outcome",
                 "seconds", "peak_rss_mib", "ranks", "pareto", "failure"]
 
 
@@ -184,7 +184,9 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
 
 def test_shipped_studies_validate() -> None:
     """Every study file `make bench` runs validates; the stability study crosses its cases
-    (the seven stress cases (a)–(g) and the friction cases (h)–(j)) with the five methods."""
+    (the stress cases (a)–(g), the friction cases (h)–(j) and (l)–(o) of issue 11) with the
+    five methods, every one a cold start; its 1024² part (k) crosses κ and sequencing with
+    fb, min and blend."""
     from contact.study import load_study
 
     tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
@@ -193,8 +195,13 @@ def test_shipped_studies_validate() -> None:
         assert load_study(path).runs(), path
     stab = load_study(ROOT / "configs" / "studies" / "stability.yaml")
     assert stab.axes["method"] == ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]
-    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghij"}
+    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghijlmno"}
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
+    assert all(c.cfg["solver"]["sequence"] in ("off", False) for label, c in stab.cases.items()
+               if not label.startswith(("(h)", "(i)", "(j)")))   # friction is never sequenced
+    scale = load_study(ROOT / "configs" / "studies" / "stability_scale.yaml")
+    assert scale.axes["method"] == ["fb", "min", "blend"] and scale.base_cfg["mesh"]["cells"] == [1024, 1024]
+    assert scale.axes["sequence"] == ["auto", "off"] and len(scale.runs()) == 3 * 2 * len(scale.axes["kappa"])
     assert load_study(ROOT / "configs" / "studies" / "speed_accuracy_hertz.yaml").accuracy == "hertz_error"
 
 

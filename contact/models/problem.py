@@ -69,6 +69,7 @@ class DiscreteProblem:
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
     in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
+    semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
     friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
 

@@ -77,12 +77,41 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
                          "on this mesh; use mesh.degree: 1")
     g_h = interpolate_expression(V, bound_text, scene)
     constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
+    # no Dirichlet DoF on any rank: only the constraint holds the body (K is singular)
+    semicoercive = msh.comm.allreduce(len(dirichlet_dofs), op=MPI.SUM) == 0
+    if semicoercive:
+        check_semicoercive(b, sign, cfg["model"]["type"])
 
     u_h = fem.Function(V, name="u_h")
     ends = {}
     if cfg["model"]["type"] == "signorini":
         ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
     return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends, in_domain=cfg["model"]["type"] == "obstacle",
+                           semicoercive=semicoercive,
                            data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
                                  "exact": data["exact"]},
                            assembly_time=time.perf_counter() - t0)
+
+
+#: |L(1)| below this fraction of Σ_i |b_i| counts as a zero resultant
+RESULTANT_RTOL = 1e-10
+
+
+def check_semicoercive(b, sign: float, model: str) -> None:
+    """A scene without a Dirichlet part is held by the constraint alone (semi-coercive):
+    K is singular, its kernel the constants, and the energy ½ a(u, u) − L(u) is bounded
+    below on {σ u ≤ σ g} exactly when the load's resultant pushes the body onto the
+    obstacle, σ L(1) > 0 with L(1) = ∫_Ω f + ∫_{Γ_N} t + ∫_{Γ_C} t_C = Σ_i b_i (the basis
+    functions sum to one).  Otherwise u_h − s·1 lowers the energy for every s > 0: no
+    solution (σ L(1) < 0) or none unique (L(1) = 0).  One vector sum, so checked at assembly;
+    a bad resultant is bad input (ConfigError, exit 2) naming ``data.f``."""
+    resultant, scale = b.sum(), b.norm(1)
+    if sign * resultant > RESULTANT_RTOL * scale:
+        return
+    bound = "u ≤ g" if sign > 0 else "u ≥ psi"
+    what = ("is zero: any constant shift of a solution is another, no unique solution" if
+            abs(resultant) <= RESULTANT_RTOL * scale else
+            f"= {resultant:.3g} pulls it away from the obstacle ({bound}): no solution exists")
+    raise ConfigError(f"data.f: the scene has no dirichlet boundary, so only the {model} constraint holds the "
+                      f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto the obstacle "
+                      "or add a dirichlet boundary")

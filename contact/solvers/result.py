@@ -48,6 +48,7 @@ class Result:
     sequence_note: str = ""       # why there are fewer coarse levels than asked, or none
     contact_force: float = 0.0
     friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
+    hint: str = ""                 # a failed solve: what in the scene makes it hard ('' if nothing known)
 
     @property
     def linear_solves(self) -> int:
@@ -68,6 +69,19 @@ class Result:
     def dofs(self) -> int:
         V = self.u_h.function_space
         return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+
+def not_converged_text(result: Result) -> str:
+    """'did not converge (reason) after n Newton iterations, last |Phi| = r' and the
+    result's hint, for the messages of a failed solve."""
+    text = (f"did not converge ({result.reason}) after {result.iterations} Newton iterations, "
+            f"last |Phi| = {result.residual:.3e}")
+    return f"{text} ({result.hint})" if result.hint else text
+
+
+#: the hint of a failed solve on a semi-coercive scene (DiscreteProblem.semicoercive)
+SEMICOERCIVE_HINT = ("no dirichlet boundary: K is singular while no contact node is active, as in a cold "
+                     "min or vinewtonrsls step; fb and blend avoid it")
 
 
 def solves_text(newton: int, polish: int) -> str:
@@ -100,10 +114,11 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     timers["total"] = time.perf_counter() - t_start
     timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0)
     converged = reason_code > 0
+    hint = SEMICOERCIVE_HINT if problem.semicoercive and not converged else ""
     return Result(u_h=u_h, lmbda_h=lmbda, gap=gap, active=active_fn, history=history,
                   converged=converged, reason=REASONS.get(reason_code, str(reason_code)),
                   iterations=snes.getIterationNumber(),
                   residual=history[-1]["residual"] if history else float("nan"),
                   method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
                   timings=timers, problem=problem, active_mask=active, options=opts,
-                  contact_force=problem.contact_force(r))
+                  contact_force=problem.contact_force(r), hint=hint)

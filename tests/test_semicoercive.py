@@ -1,0 +1,63 @@
+"""Case (l) of the stability map: a body held only by contact (configs/semicoercive.yaml,
+no Dirichlet part, K singular on the inactive set), at 32² (serial, a few seconds).
+
+Documented behaviour: a load whose resultant does not push the body onto the obstacle is
+rejected at assembly (ConfigError naming data.f: no solution / no unique solution); with a
+pushing load fb converges from the cold start to the solution PETSc's semismooth VI solver
+finds, and the contact force carries the whole load; min's first cold step solves K itself,
+and CG + GAMG breaks down on it: a non-converged result whose message names the cause."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contact
+from contact.config import ConfigError
+from contact.models import build_problem
+from contact.solvers.result import SEMICOERCIVE_HINT, not_converged_text
+
+SCENE = Path(__file__).resolve().parents[1] / "configs" / "semicoercive.yaml"
+
+
+@pytest.mark.parametrize("f, what", [("-1", "pulls it away from the obstacle"), ("0", "is zero"),
+                                     ("1 - 2*x", "is zero")])
+def test_a_load_not_pushing_onto_the_obstacle_is_bad_input(f: str, what: str) -> None:
+    scene = contact.load_scene(SCENE, [f"data.f={f}", "mesh.cells=[8,8]"])
+    with pytest.raises(ConfigError, match=r"^data\.f: the scene has no dirichlet boundary") as err:
+        build_problem(scene)
+    assert what in str(err.value)
+
+
+def test_the_check_needs_the_whole_resultant() -> None:
+    """A pushing body load with a pulling Neumann flux: the resultant decides (∫f = 1 on
+    the square, the flux t on the three free sides of total length 3)."""
+    push = contact.load_scene(SCENE, ["mesh.cells=[8,8]", "data.t=-0.3"])     # 1 − 0.9 > 0
+    assert build_problem(push).semicoercive
+    pull = contact.load_scene(SCENE, ["mesh.cells=[8,8]", "data.t=-0.4"])     # 1 − 1.2 < 0
+    with pytest.raises(ConfigError, match="= -0.2 pulls"):
+        build_problem(pull)
+    clamped = contact.load_scene(Path(SCENE).parent / "signorini_square.yaml", ["mesh.cells=[8,8]", "data.f=-1"])
+    assert not build_problem(clamped).semicoercive   # a Dirichlet part: any load is fine
+
+
+def test_fb_solves_the_semicoercive_scene_like_the_vi_solver() -> None:
+    scene = contact.load_scene(SCENE)
+    fb = contact.solve(scene, method="fb", verbose=False)
+    ssls = contact.solve(scene, method="vinewtonssls", max_it=100, verbose=False)
+    assert fb.converged and ssls.converged and fb.hint == ""
+    assert fb.n_active > 0 and fb.n_active == ssls.n_active
+    assert np.max(np.abs(fb.u_h.x.array - ssls.u_h.x.array)) < 1e-8
+    # nothing else holds the body: the contact force carries the whole load, ∫f = Σ b_i
+    assert fb.contact_force == pytest.approx(fb.problem.b.sum(), rel=1e-9)
+    gap = fb.gap.x.array[np.isfinite(fb.gap.x.array)]
+    assert gap.min() > -1e-12
+
+
+def test_min_with_cg_gamg_fails_on_the_singular_first_step_and_says_why() -> None:
+    scene = contact.load_scene(SCENE)
+    r = contact.solve(scene, method="min", linear="gamg", verbose=False)
+    assert not r.converged and r.reason == "diverged_linear_solve" and r.iterations == 0
+    assert r.history[0]["active"] == 0          # the cold start: no node active, H = K
+    assert r.hint == SEMICOERCIVE_HINT and SEMICOERCIVE_HINT in not_converged_text(r)
