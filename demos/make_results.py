@@ -217,6 +217,30 @@ EXPLAIN = {
     ("(i) cylinder projection", "*", "max iterations"): _CYCLE_SHORT,
     ("(j) box 3D projection", "*", "max iterations"): _CYCLE_SHORT,
     ("(h)", "*", "max iterations"): _CYCLE_SHORT,
+    ("(k)", "min", "max iterations"):
+        "b_i = −κ R_i / K_ii multiplies by κ the residual an inexact Newton step leaves on the free "
+        "nodes (CG stops at the Eisenstat–Walker tolerance η ≤ 0.1); with κ = 1e4 that error outweighs "
+        "the gaps near the free boundary, so min's active set follows the Krylov error rather than the "
+        "contact zone and cycles; exact CG steps or MUMPS converge (the next rows)",
+    ("(l) semi-coercive", "vinewtonrsls", "stalled"):
+        "from u = 0 no node is in the active set, so the reduced-space step solves K on every DoF — "
+        "singular (the constants); the step is enormous along the constants and the line search finds "
+        "no decrease of ‖Φ‖",
+    ("(l) semi-coercive gamg", "min", "diverged"):
+        "min's first active set is empty (every gap exceeds the scaled load), so the reduced SPD system is "
+        "K on every DoF: singular, the load not in its range, and CG + GAMG breaks down "
+        "(diverged_linear_solve at step 0); the message names the singular K (`Result.hint`)",
+    ("(l)", "*", "diverged"): "a Newton step with no active node solves the singular K (no Dirichlet part)",
+    ("(l)", "*", "stalled"): "a Newton step with no active node solves the singular K (no Dirichlet part)",
+    ("(m)", "*", "max iterations"):
+        "the active set is found, then ‖Φ‖ sits at the round-off floor of K x − b, whose entries are 1e6 "
+        "times larger on the stiff half, just above the relative tolerance 1e-12 ‖Φ_0‖: the steps only "
+        "repeat the solution until a dip below the tolerance (raise solver.rtol / atol)",
+    ("(o)", "vinewtonssls", "max iterations"):
+        "PETSc's semismooth VI method applies φ_FB to the unscaled pair (u_i − lb_i, F_i): F_i is a nodal "
+        "force, orders of magnitude below the gaps on this mesh, so at the nodes next to the contact "
+        "boundary both parts are small and unbalanced and FB's Newton steps contract only linearly once "
+        "the active set is final (the same with MUMPS); fb scales the pair by c_i = κ w_i / K_ii and polishes",
 }
 
 
@@ -285,13 +309,126 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
         "blend for the normal part changes the counts by a few steps, never the outcome.")
 
 
+def _issue11_rows(its: dict, cell, span) -> list[str]:
+    """The bullets of the stress cases (k)–(o) (issue 11) of the stability map."""
+    def cells(case: str, methods=METHODS) -> str:
+        return ", ".join(f"{m} {cell(case, m)}" for m in methods)
+
+    def got(case: str, method: str):
+        return its.get((case, method))
+
+    out = []
+    k = ["(k) kappa=1e4 at 128²", "(k) kappa=1e4 at 128², exact CG", "(k) kappa=1e4 at 128², MUMPS"]
+    if got(k[0], "min"):
+        out.append(
+            f"* **(k) κ = 1e4 at 128²** (the mechanism of the 1024² failures below, §3 *At scale*): with the "
+            f"default inexact CG + GAMG steps {cells(k[0], METHODS[:3])}; with exact CG steps "
+            f"(`solver.inexact: false`) {cells(k[1], METHODS[:3])}; with MUMPS {cells(k[2], METHODS[:3])} "
+            "(the VI solvers use neither κ nor the reduced system: "
+            f"{cells(k[0], METHODS[3:])} in all three). The scaled multiplier b_i = −κ R_i / K_ii "
+            "magnifies what an inexact step leaves of the residual κ-fold; fb and blend weigh b against "
+            "the gap smoothly and absorb it, min's active set switches on its sign.")
+    l1, l2 = "(l) semi-coercive", "(l) semi-coercive gamg"
+    if got(l1, "fb"):
+        luck = got(l1, "min")
+        out.append(
+            f"* **(l) semi-coercive** (`configs/semicoercive.yaml`: no Dirichlet part, the body held by "
+            f"contact alone, K singular on the inactive set; the load's resultant pushes it onto the floor): "
+            f"with MUMPS {cells(l1)}; with `solver.linear: gamg` (CG + GAMG; the VI solvers BiCGStab + GAMG) "
+            f"{cells(l2)}. From u = 0 every contact node has a positive gap and a positive scaled load, so "
+            "fb's and blend's first Jacobian rows carry ∂_aφ > 0 and H is regular: they converge as on the "
+            "clamped square. min and vinewtonrsls put no node in the first active set and solve K itself, "
+            "which is singular. "
+            + ("With MUMPS min still converges: the factorization of K meets a round-off pivot, the step is "
+               "enormous along the constants and pushes every contact node into the active set, after which "
+               "the steps are regular — a recovery by round-off, not by design. " if luck and luck["converged"]
+               else "With MUMPS min fails on that step too. ")
+            + "CG breaks down on it, and the error says why (`no dirichlet boundary: K is singular while no "
+            "contact node is active …`); vinewtonssls' merit line search shortens its FB steps and gets "
+            "there slowly. A load whose resultant ∫f + ∫t + ∫t_C does not push onto the obstacle has no "
+            "(unique) solution: rejected at assembly, exit 2 naming `data.f` (`tests/test_semicoercive.py`).")
+    m = ["(m) k = 1 : 1e6", "(m) k, f = 1 : 1e6", "(m) k, f = 1 : 1e6 at 128²", "(m) k, f = 1 : 1e6 at 128², rtol 1e-10"]
+    if got(m[0], "fb"):
+        out.append(
+            f"* **(m) coefficient jump** k = 1 : 1e6 across x = 0.5: with f = 1 the stiff half holds the soft "
+            f"one off the floor ({cells(m[0])}: "
+            f"{'no node active' if got(m[0], 'min')['active_measure'] == 0 else 'nearly no contact'}, "
+            "a linear problem). With the load jumping alike (f = k: both halves press on the floor, contact "
+            f"pressures 1e6 apart): {cells(m[1])} at 32² — the homogeneous square on this mesh, (g) level 4, "
+            f"takes {cells('(g) level 4', METHODS[:3])}: the nodal scaling c_i = κ w_i / K_ii makes the "
+            "pair (a, b) a pair of lengths on both sides of the jump. At 128² (CG + GAMG): "
+            f"{cells(m[2])}, against {cells('(g) level 6')} on the homogeneous 128² square: the active set "
+            "is found as fast, but ‖Φ‖ then sits at the round-off floor of K x − b (its entries are 1e6 "
+            "times larger on the stiff half), about the size of the relative tolerance 1e-12 ‖Φ_0‖, and "
+            "the iteration repeats the solution until the noise dips below it. A tolerance, not a method, "
+            f"is what fails: with `solver.rtol` 1e-10 {cells(m[3])}.")
+    n = "(n) Hertz nu = 0.499"
+    if got(n, "fb"):
+        f, r = got("(f) elastic Hertz", "fb"), got(n, "fb")
+        locking = ""
+        if r["converged"] and f and f["converged"]:
+            locking = (f" P1 locks: the contact half-width a and peak pressure p0 miss Hertz by "
+                       f"{pct(r['a_error'])} and {pct(r['p0_error'])} (at ν = 0.3: {pct(f['a_error'])} and "
+                       f"{pct(f['p0_error'])}); the displacement space cannot represent nearly "
+                       "divergence-free fields and the discrete body is too stiff in compression (a mixed u–p or a "
+                       "higher-order element would avoid it; the contact solvers are not the problem).")
+        kry = ""
+        if r.get("krylov_iterations") not in (None, "") and f and f.get("krylov_iterations") not in (None, ""):
+            kry = (f" The linear algebra suffers most: CG + GAMG (rigid-body near-nullspace) needs "
+                   f"{r['krylov_iterations']} Krylov iterations for fb's solves against "
+                   f"{f['krylov_iterations']} at ν = 0.3 — the near-kernel of the nearly incompressible "
+                   "operator (divergence-free fields) is not in GAMG's coarse space.")
+        out.append(f"* **(n) nearly incompressible** hertz_2d with ν = 0.499 (cold, its 8k-DoF mesh): "
+                   f"{cells(n)}, against {cells('(f) elastic Hertz')} at ν = 0.3.{locking}{kry}")
+    o = "(o) 3D Hertz kappa=100 gamg"
+    if got(o, "fb"):
+        out.append(f"* **(o) 3D Hertz** (`configs/hertz_3d.yaml` on its own mesh, {got(o, 'fb')['dofs']} DoFs, "
+                   f"cold, κ = 100, `solver.linear: gamg`): {cells(o)}. fb, min and blend take inexact CG + "
+                   "GAMG steps (unsmoothed aggregation in 3D) and κ = 100 is far from the 1e4 where case (k) "
+                   "makes min cycle; the VI solvers run BiCGStab + GAMG on the assembled matrix."
+                   + ("" if got(o, "vinewtonssls")["converged"] else " vinewtonssls fails (see the table): its "
+                      "FB pairs are unscaled."))
+    out.append(_newton_min_cycle())
+    return out
+
+
+def _newton_min_cycle() -> str:
+    """Case (p): plain Newton-min on a P-matrix LCP (demos/bench/bench_newton_min_cycle.py)."""
+    data = rows(RES / "newton_min_cycle.csv")
+    if not data:
+        return "* **(p) Newton-min cycling**: " + missing("newton_min_cycle.csv (demos/bench/bench_newton_min_cycle.py)")
+    p = [r for r in data if r["matrix"].startswith("P-matrix")]
+    plain = next(r for r in p if r["method"] == "min" and r["line_search"] == "basic")
+    others = ", ".join(f"{r['method']}{' + bt' if r['line_search'] == 'bt' else ''} "
+                       f"{r['iterations'] if r['converged'] else 'fails'}" for r in p if r is not plain)
+    ctrl = next((r for r in data if r["matrix"].startswith("M-matrix")), None)
+    return ("* **(p) Newton-min cycling** (a unit case, not a scene: [`bench_newton_min_cycle.py`]"
+            "(bench/bench_newton_min_cycle.py), `tests/test_newton_min_cycle.py`). Ben Gharbia & Gilbert "
+            "(Math. Program. 134, 2012) proved that plain Newton-min — our `min` with plain Newton steps, "
+            "the primal–dual active set method — may cycle on an LCP 0 ≤ x ⟂ Mx + q ≥ 0 whose M is a "
+            "P-matrix of order ≥ 3, although such an LCP has one solution for every q. On the order-3 "
+            "P-matrix M = I + 2·(cyclic shift), q = −(1, 1, 1), from x0 = (" + plain["x0"].replace(" ", ", ")
+            + "), the package's own φ and ∂φ in a dense Newton loop (`contact.solvers.lcp`): plain min "
+            + (f"returns to x0 every {plain['period']} steps and is still cycling after {plain['iterations']} "
+               f"(‖Φ‖ = {g(plain['residual'])})" if not plain["converged"] else f"converges in {plain['iterations']}")
+            + f"; {others} steps to the solution (1, 1, 1)/3. Every step of the cycle is off the kinks of "
+            "min, so no tie rule changes it; the matrix has positive off-diagonal entries, unlike the "
+            "stiffness matrices of P1 Laplacians on non-obtuse meshes (M-matrices, on which plain Newton-min "
+            "ends in at most n steps"
+            + (f": {ctrl['iterations']} on the 1D Laplacian from the same x0" if ctrl else "")
+            + "). Elasticity and obtuse meshes (cases (e), (f)) leave that class, which is why min "
+            "can cycle there in principle although it has not in this map.")
+
+
 def stability() -> str:
     runs, _, out = _open("## 3. Stability map: where the methods fail", "stability", "stability")
     if not runs:
         return "\n".join(out)
     out += ["[`configs/studies/stability.yaml`](../configs/studies/stability.yaml): one cold solve per "
-            "cell, at most 100 Newton iterations, the lecture-notes square (32² cells) unless the case "
-            "names its own scene. Cell colour = outcome class from the SNES reason "
+            "cell (grid sequencing off), at most 100 Newton iterations, the lecture-notes square (32² cells) "
+            "unless the case names its own scene or size, the default linear solver (`solver.linear: auto`: "
+            "MUMPS below 5,000 DoFs in 2D, else CG + GAMG on the reduced system with inexact Newton for fb, "
+            "min and blend; the VI solvers keep MUMPS in 2D and BiCGStab + GAMG in 3D). Cell colour = outcome class from the SNES reason "
             "(`contact.study.outcome`), number = Newton iterations, + active-set polishing solves for fb "
             "and blend (n+p); the ranges below count linear solves (Newton steps + polishing).", ""]
     its = {(r["case"], r["method"]): r for r in runs}
@@ -347,6 +484,7 @@ def stability() -> str:
         "search costs about log₂(1/h) iterations for min/fb/blend (each step halves the overshoot) and "
         "O(1/h) for the VI solvers. Nested iteration removes this (§4).",
         _friction_rows(its, cases),
+        *_issue11_rows(its, cell, span),
     ]
     slow = [r for r in runs if r["converged"] and r["newton_iterations"] > 50]
     if slow:
@@ -359,6 +497,82 @@ def stability() -> str:
                 table(["case", "method", "outcome", "iterations", "SNES reason", "why"],
                       [[r["case"], r["method"], r["outcome"], r["newton_iterations"], r["reason"],
                         _explain(r["case"], r["method"], r["outcome"])] for r in fails])]
+    return "\n".join(out) + "\n"
+
+
+#: why a 1024² run of case (k) fails: (method or "*", sequence or "*", smallest κ, largest κ, outcome) -> why
+SCALE_EXPLAIN = {
+    ("min", "*", 1e3, math.inf, "max iterations"):
+        "κ-fold magnified Krylov error: min's active set follows what the inexact CG step leaves of the "
+        "residual and cycles (case (k) at 128² in the map: exact steps converge)",
+    ("*", "auto", 0.0, 0.1, "max iterations"):
+        "from the sequenced guess SNES's tolerance is relative to the guess's small ‖Φ‖, so the absolute "
+        "1e-12 governs; with κ = 1e-2 the constrained rows of Φ carry the factor w_i / c_i = K_ii / κ, 100 "
+        "times larger, and their round-off floor reaches that tolerance: the iterate is the solution, "
+        "‖Φ‖ cannot get below 1e-12",
+}
+
+
+def _explain_scale(r: dict) -> str:
+    for (m, seq, lo, hi, o), text in SCALE_EXPLAIN.items():
+        if m in (r["method"], "*") and seq in (str(r["sequence"]), "*") and lo <= float(r["kappa"]) <= hi \
+                and o == r["outcome"]:
+            return text
+    return "**not yet explained** (new since this report's text was written)"
+
+
+def stability_scale() -> str:
+    """Case (k) of §3 at 1024² (configs/studies/stability_scale.yaml)."""
+    runs, _, out = _open("### At scale: cold starts at 1024² (case (k))", "stability_scale", "stability")
+    if not runs:
+        return "\n".join(out)
+    methods = list(dict.fromkeys(r["method"] for r in runs))
+    keys = list(dict.fromkeys((str(r["sequence"]), r["kappa"]) for r in runs))
+    by = {(str(r["sequence"]), r["kappa"], r["method"]): r for r in runs}
+
+    def cell(r: dict | None) -> str:
+        if r is None:
+            return "–"
+        what = its_text(r) if r["outcome"] != "error" else "error"
+        return what + ("" if r["converged"] else f" ({r['outcome']})") + f", {g(r['seconds'])} s"
+
+    out += ["[`configs/studies/stability_scale.yaml`](../configs/studies/stability_scale.yaml): the "
+            f"square at 1024² cells ({runs[0]['dofs']} DoFs), one solve per cell from u = 0, NCP scaling "
+            "c_i = κ w_i / K_ii, grid sequencing on (`auto`: the coarser squares first, each solution the next "
+            "one's guess) or off (a cold start on the fine mesh), at most 100 Newton iterations, CG + GAMG "
+            "with inexact Newton (the default at this size). fb, min and blend only: the VI solvers change the "
+            "active set a few nodes per step and need O(1/h) iterations from a cold start (case (g)), far "
+            "beyond the limit here. Cells: Newton iterations (+ polishing solves) on the fine mesh, outcome, "
+            "wall time of the run (mesh, assembly, coarse levels and Newton).", "",
+            table(["sequence", "κ"] + methods, [[seq, g(kappa)] + [cell(by.get((seq, kappa, m))) for m in methods]
+                                               for seq, kappa in keys]), ""]
+    ok = [r for r in runs if r["converged"]]
+
+    def spread(seq: str, m: str) -> str:
+        vals = [solves(r) for r in ok if str(r["sequence"]) == seq and r["method"] == m]
+        return "–" if not vals else f"{min(vals)}–{max(vals)}" if min(vals) != max(vals) else str(vals[0])
+
+    said = []
+    for m in methods:
+        said.append(f"{m} {spread('auto', m)} sequenced, {spread('off', m)} cold")
+    ratios = [by[("off", k, m)]["seconds"] / by[("auto", k, m)]["seconds"] for (seq, k) in keys for m in methods
+              if seq == "auto" and ("off", k, m) in by and by[("auto", k, m)]["converged"]
+              and by[("off", k, m)]["converged"]]
+    out += [f"{len(ok)} of {len(runs)} runs converge. Linear solves on the fine mesh over the κ that converge: "
+            + "; ".join(said) + ". "
+            + (f"Where both converge a cold start takes {min(ratios):.1f}–{max(ratios):.1f} times the wall "
+               "time of the sequenced solve. " if ratios else "")
+            + "From a cold start the first steps overshoot the contact zone and the active-set search costs "
+            "about log₂(1/h) steps whatever κ is; κ only moves the balance between gap and multiplier. "
+            "Sequenced, the fine mesh starts from the 512² solution and needs a step or two — except where "
+            "κ makes the method itself fragile:"]
+    fails = [r for r in runs if not r["converged"]]
+    if fails:
+        out += ["", table(["sequence", "κ", "method", "outcome", "iterations", "SNES reason", "why"],
+                          [[r["sequence"], g(r["kappa"]), r["method"], r["outcome"], r["newton_iterations"],
+                            r["reason"], _explain_scale(r)] for r in fails])]
+    else:
+        out += ["", "none fails at this size."]
     return "\n".join(out) + "\n"
 
 
@@ -631,6 +845,7 @@ def main() -> None:
                        "discrete solutions (the curves coincide in the DoFs panel); the differences are time. "
                        "Refinement moves new nodes of the arc onto the circle, so the geometry converges too."),
         stability(),
+        stability_scale(),
         iterations(),
         peers(),
         hertz_methods(),

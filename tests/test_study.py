@@ -184,7 +184,7 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
 
 def test_shipped_studies_validate() -> None:
     """Every study file `make bench` runs validates; the stability study crosses its cases
-    (the stress cases (a)–(g), the friction cases (h)–(j) and (l)–(o) of issue 11) with the
+    (the stress cases (a)–(g), the friction cases (h)–(j) and (k)–(o) of issue 11) with the
     five methods, every one a cold start; its 1024² part (k) crosses κ and sequencing with
     fb, min and blend."""
     from contact.study import load_study
@@ -195,7 +195,7 @@ def test_shipped_studies_validate() -> None:
         assert load_study(path).runs(), path
     stab = load_study(ROOT / "configs" / "studies" / "stability.yaml")
     assert stab.axes["method"] == ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]
-    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghijlmno"}
+    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghijklmno"}
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
     assert all(c.cfg["solver"]["sequence"] in ("off", False) for label, c in stab.cases.items()
                if not label.startswith(("(h)", "(i)", "(j)")))   # friction is never sequenced
