@@ -343,9 +343,10 @@ def _issue11_rows(its: dict, cell, span) -> list[str]:
                "enormous along the constants and pushes every contact node into the active set, after which "
                "the steps are regular — a recovery by round-off, not by design. " if luck and luck["converged"]
                else "With MUMPS min fails on that step too. ")
-            + "CG breaks down on it, and the error says why (`no dirichlet boundary: K is singular while no "
-            "contact node is active …`); vinewtonssls' merit line search shortens its FB steps and gets "
-            "there slowly. A load whose resultant ∫f + ∫t + ∫t_C does not push onto the obstacle has no "
+            + "Serial CG + GAMG breaks down on it (on 2 MPI ranks it returns such a huge step instead, and "
+            "min recovers), and the error says why (`no dirichlet boundary: K is singular while no contact "
+            "node is active …`); vinewtonssls' merit line search shortens its FB steps and gets there "
+            "slowly. A load whose resultant ∫f + ∫t + ∫t_C does not push onto the obstacle has no "
             "(unique) solution: rejected at assembly, exit 2 naming `data.f` (`tests/test_semicoercive.py`).")
     m = ["(m) k = 1 : 1e6", "(m) k, f = 1 : 1e6", "(m) k, f = 1 : 1e6 at 128²", "(m) k, f = 1 : 1e6 at 128², rtol 1e-10"]
     if got(m[0], "fb"):

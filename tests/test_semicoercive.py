@@ -8,6 +8,7 @@ finds, and the contact force carries the whole load; min's first cold step solve
 and CG + GAMG breaks down on it: a non-converged result whose message names the cause."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -56,8 +57,27 @@ def test_fb_solves_the_semicoercive_scene_like_the_vi_solver() -> None:
 
 
 def test_min_with_cg_gamg_fails_on_the_singular_first_step_and_says_why() -> None:
+    """Serial: CG + GAMG breaks down on the singular first system (on 2 ranks round-off may
+    instead give a huge step that min recovers from, as MUMPS does: not asserted)."""
     scene = contact.load_scene(SCENE)
     r = contact.solve(scene, method="min", linear="gamg", verbose=False)
     assert not r.converged and r.reason == "diverged_linear_solve" and r.iterations == 0
     assert r.history[0]["active"] == 0          # the cold start: no node active, H = K
     assert r.hint == SEMICOERCIVE_HINT and SEMICOERCIVE_HINT in not_converged_text(r)
+
+
+def test_two_ranks_reject_the_pulling_load_and_solve_the_pushing_one(tmp_path: Path) -> None:
+    """Under mpirun -n 2: the same one-line exit 2 for a pulling load, and fb's serial answer
+    (active nodes, contact force) for the pushing one."""
+    from clirun import contact as cli
+
+    bad = cli(tmp_path, "run", str(SCENE), "-o", str(tmp_path / "bad"), "--set", "data.f=-1", "-q", ranks=2)
+    lines = [ln for ln in bad.stderr.splitlines() if ln.strip()]
+    assert bad.returncode == 2 and len(lines) == 1 and lines[0].startswith("contact: error: data.f: ")
+    assert not (tmp_path / "bad").exists()
+    ok = cli(tmp_path, "run", str(SCENE), "-o", str(tmp_path / "ok"), "--set", "output.png=false", "-q", ranks=2)
+    assert ok.returncode == 0, ok.stderr
+    summary = json.loads((tmp_path / "ok" / "summary.json").read_text())
+    serial = contact.solve(contact.load_scene(SCENE), method="fb", verbose=False)
+    assert summary["active_nodes"] == serial.n_active
+    assert summary["contact_force"] == pytest.approx(serial.contact_force, rel=1e-9)
