@@ -33,8 +33,8 @@ are every case × every combination of the axes, and each row names its ``case``
 
 Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton iterations
 and active-set polishing solves (for adaptive runs on the final level and summed over the
-levels), the linear solver and its Krylov iterations (0 for MUMPS; the final level's or
-step's), converged, the SNES
+levels), the linear solver and its Krylov iterations (MUMPS: one per solve; the final
+level's or step's), converged, the SNES
 reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
 with ``data.exact``; the relative errors of a declared ``reference``, e.g. Hertz's
 ``a_error``, ``p0_error`` and their largest magnitude ``hertz_error``), η, the measure of the active set, the wall
