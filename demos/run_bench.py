@@ -12,6 +12,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_two_bodies.py`` — two bodies (issue 13): patch tests, two cylinders,
    Cattaneo–Mindlin, and the sphere on a block on 2 MPI ranks (about 8 minutes; its
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
+   ``demos/bench/bench_cost.py`` — a cold contact solve against one CG + GAMG solve of K:
+   the square 128² … 1024² with and without grid sequencing, hertz_3d's final mesh, a 3D mesh
+   of about 1M DoFs on 2 MPI ranks, and the chart ``cost/cost.png`` (issue 11; about 12 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map, iterations per level, peer problems);
 5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
@@ -42,6 +45,13 @@ STEPS = {
     "two_bodies": [[PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")]
                   + [[str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
                       "--h-contact", "0.01", "0.005", "0.0035", "--swap", "0.005"]],
+    "cost": [[PY, "demos/bench/bench_cost.py", "square", "--sequence", "auto", "--out", "demos/results/cost/square.csv"],
+             [PY, "demos/bench/bench_cost.py", "square", "--sequence", "off", "--repeat", "1",
+              "--out", "demos/results/cost/square_off.csv"],
+             [PY, "demos/bench/bench_cost.py", "hertz3d", "--repeat", "2", "--out", "demos/results/cost/hertz3d.csv"],
+             [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_cost.py", "hertz3d", "--max-dofs",
+              "1300000", "--sequence", "auto", "--repeat", "1", "--out", "demos/results/cost/hertz3d_np2.csv"],
+             [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
     "report": [[PY, "demos/make_results.py"]],
