@@ -15,6 +15,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_cost.py`` — a cold contact solve against one CG + GAMG solve of K:
    the square 128² … 1024² with and without grid sequencing, hertz_3d's final mesh, a 3D mesh
    of about 1M DoFs on 2 MPI ranks, and the chart ``cost/cost.png`` (issue 11; about 12 minutes);
+   ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
+   1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map, iterations per level, peer problems);
 5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
@@ -53,6 +55,7 @@ STEPS = {
               "adapt.theta=0.3", "--max-dofs", "1600000", "--no-before", "--sequence", "auto", "--repeat", "1",
               "--out", "demos/results/cost/hertz3d_np2.csv"],
              [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
+    "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"]],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
     "report": [[PY, "demos/make_results.py"]],
