@@ -16,7 +16,7 @@ from .scene import Scene, load_scene  # noqa: E402
 from .solvers import Result, solve  # noqa: E402
 from .estimate import Estimate, estimate  # noqa: E402
 from .adapt import AdaptResult, adapt, mark, refine  # noqa: E402
-from .solvers.loadpath import LoadPath, run_load_path  # noqa: E402
+from .loadpath import LoadPath, run_load_path  # noqa: E402
 
 __all__ = ["ConfigError", "Scene", "load_scene", "Result", "solve", "Estimate", "estimate",
            "AdaptResult", "adapt", "mark", "refine", "LoadPath", "run_load_path"]

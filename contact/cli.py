@@ -209,7 +209,7 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     from . import io
     from .loadreport import StepWriter
     from .report import files_text
-    from .solvers.loadpath import LoadPath, run_load_path
+    from .loadpath import LoadPath, run_load_path
 
     with io.atomic_folder(outdir, comm, label) as tmp:
         writer = StepWriter(tmp, scene)

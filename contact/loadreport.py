@@ -33,12 +33,12 @@ from .reference import compare
 from .report import _finish, cell_fields, plot_solution, point_fields, write_contact
 from .scene import Scene
 from .series import Series
-from .solvers.loadpath import LoadPath, Step
+from .loadpath import LoadPath, Step
 from .surface import surface_figures, surface_functions
 
 
 class StepWriter:
-    """``on_step`` callback of :func:`contact.solvers.loadpath.run_load_path`: writes a
+    """``on_step`` callback of :func:`contact.loadpath.run_load_path`: writes a
     step's files into ``tmp`` and keeps its figures for :meth:`finish`."""
 
     def __init__(self, tmp: Path, scene: Scene):

@@ -78,13 +78,15 @@ def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | No
     tri = _triangulation(grid)
     fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
     shade = ax.tripcolor(tri, _magnitude(grid.point_data[u_h.name]), shading="gouraud", cmap="viridis")
+    shade.set_in_layout(False)  # tight_layout would turn every triangle into a path
     if grid.n_cells <= MAX_EDGES:
         ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
     pts = _active_points(grid)
     if len(pts):
         ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3 if len(pts) < 300 else 1.2, alpha=0.8,
                 label=f"active nodes ({len(pts)})")
-        ax.legend(loc="best", fontsize=8)
+        # "best" tests every triangle against the legend box (20 s at 1.4M cells)
+        ax.legend(loc="best" if grid.n_cells <= MAX_EDGES else "upper right", fontsize=8)
     _colorbar(fig, shade, ax, _field_label(u_h))
     _axes_2d(ax, title)
     fig.tight_layout()
@@ -108,13 +110,18 @@ def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: i
     if grid.n_cells <= max_edges:
         ax_m.triplot(tri, color="k", lw=0.3)
         _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
-    else:
+    else:  # h_T carried to the vertices (largest adjacent cell) and drawn smoothly: one
+        # triangle mesh for matplotlib instead of one polygon per cell (2.4M cells: 1 s, not 50 s)
         xy = grid.points[tri.triangles][:, :, :2]
         h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
-        shade = ax_m.tripcolor(tri, facecolors=np.log10(h), cmap="magma")
+        h_v = np.zeros(len(grid.points))
+        np.maximum.at(h_v, tri.triangles.ravel(), np.repeat(h, 3))
+        shade = ax_m.tripcolor(tri, np.log10(h_v), shading="gouraud", cmap="magma")
+        shade.set_in_layout(False)  # tight_layout would turn every triangle into a path
         _colorbar(fig, shade, ax_m, "cell size log10 h_T")
         _axes_2d(ax_m, f"cell size: {grid.n_cells} cells")
     shade = ax_u.tripcolor(tri, _magnitude(grid.point_data[u_h.name]), shading="gouraud", cmap="viridis")
+    shade.set_in_layout(False)  # tight_layout would turn every triangle into a path
     _colorbar(fig, shade, ax_u, _field_label(u_h))
     _axes_2d(ax_u, _field_label(u_h))
     fig.suptitle(title)

@@ -60,7 +60,7 @@ def active_measure(result: Result) -> float:
 
 
 def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
-            comparison: Comparison | None = None) -> dict[str, Any]:
+            comparison: Comparison | None = None, error: float | None = None) -> dict[str, Any]:
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
     ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
     Signorini / elasticity), the contact force, timings (seconds), errors if known, the
@@ -107,7 +107,7 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
     if comparison is not None:
         out["reference"] = scene.cfg["reference"]["type"]
         out.update(comparison.values)
-    error = solution_error(scene, result)
+    error = solution_error(scene, result) if error is None else error   # the adaptive loop's, if known
     if error is not None:
         out["error_energy"] = error
     return out
@@ -243,7 +243,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     last = adaptive.levels[-1]
     res = resultants(last.scene, last.result)
     comparison = compare(last.scene, last.result)
-    info = summary(last.scene, last.result, wall, res, comparison)
+    info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
                  "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
                  "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],

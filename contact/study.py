@@ -534,7 +534,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
 
 
 def _path_scene(cfg: Mapping) -> bool:
-    """A load path or a frictional scene: solved step by step (:mod:`contact.solvers.loadpath`)."""
+    """A load path or a frictional scene: solved step by step (:mod:`contact.loadpath`)."""
     return bool(cfg.get("load")) or (cfg.get("friction") or {}).get("law", "none") != "none"
 
 
@@ -545,7 +545,7 @@ def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: l
     (seconds, failure text)."""
     from .errors import solution_error
     from .estimate import estimate
-    from .solvers.loadpath import run_load_path
+    from .loadpath import run_load_path
     from .surface import surface_figures
 
     def on_step(step) -> None:

@@ -36,7 +36,7 @@ from mpi4py import MPI
 import contact
 from contact.interface import interface_resultants, master_pressure
 from contact.reference import compare
-from contact.solvers.loadpath import run_load_path
+from contact.loadpath import run_load_path
 from contact.io import gather_nodal
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 6

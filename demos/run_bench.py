@@ -14,6 +14,11 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
    ``demos/bench/bench_newton_min_cycle.py`` — plain Newton-min cycling on a P-matrix LCP
    (the stability map's case (p), under a second);
+   ``demos/bench/bench_cost.py`` — a cold contact solve against one CG + GAMG solve of K:
+   the square 128² … 1024² with and without grid sequencing, hertz_3d's final mesh, a 3D mesh
+   of about 1M DoFs on 2 MPI ranks, and the chart ``cost/cost.png`` (issue 11; about 12 minutes);
+   ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
+   1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -46,6 +51,15 @@ STEPS = {
                   + [[str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
                       "--h-contact", "0.01", "0.005", "0.0035", "--swap", "0.005"]],
     "cycle": [[PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]],
+    "cost": [[PY, "demos/bench/bench_cost.py", "square", "--sequence", "auto", "--out", "demos/results/cost/square.csv"],
+             [PY, "demos/bench/bench_cost.py", "square", "--sequence", "off", "--repeat", "1",
+              "--out", "demos/results/cost/square_off.csv"],
+             [PY, "demos/bench/bench_cost.py", "hertz3d", "--repeat", "2", "--out", "demos/results/cost/hertz3d.csv"],
+             [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_cost.py", "hertz3d", "--set",
+              "adapt.theta=0.3", "--max-dofs", "1600000", "--no-before", "--sequence", "auto", "--repeat", "1",
+              "--out", "demos/results/cost/hertz3d_np2.csv"],
+             [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
+    "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"]],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
     "report": [[PY, "demos/make_results.py"]],

@@ -11,7 +11,7 @@ from mpi4py import MPI
 
 import contact
 from contact.reference import compare
-from contact.solvers.loadpath import run_load_path
+from contact.loadpath import run_load_path
 
 
 def main(argv):

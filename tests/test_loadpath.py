@@ -12,7 +12,7 @@ import pytest
 
 import contact
 from contact import expressions
-from contact.solvers.loadpath import load_times, run_load_path
+from contact.loadpath import load_times, run_load_path
 
 from test_friction import BLOCK, block, coulomb
 

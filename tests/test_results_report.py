@@ -20,7 +20,7 @@ def _report(results: Path, out: Path) -> str:
 def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
-    assert text.count("*Not available:") == 12  # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8
+    assert text.count("*Not available:") == 13  # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:

@@ -1,4 +1,5 @@
-"""Solvers of the discrete contact problem (SPEC §3–4, §8).
+"""Solvers of the discrete contact problem (SPEC §3–4, §8).  Quasi-static load paths, which
+call the adaptive loop, live above them in :mod:`contact.loadpath`.
 
 * :mod:`.ncp` — complementarity functions φ (fb, min, blend) and their generalized
   derivatives;
@@ -6,9 +7,10 @@
   generalized-Jacobian callback; :mod:`.polish` — active-set polishing of its steps;
 * :mod:`.friction` — the tangential rows of Tresca / Coulomb friction and their block
   Jacobian H = B K + D, the Coulomb fixed point (frictional scenes only);
-* :mod:`.loadpath` — quasi-static load paths (steps in the pseudo-time t);
 * :mod:`.vi` — PETSc's VI solvers (vinewtonrsls, vinewtonssls) as baselines;
-* :mod:`.linear` — the linear solver of each step;
+* :mod:`.linear` — the linear solver of each step; :mod:`.reduced` — the symmetric
+  reduction of the diagonal law solved by CG + GAMG;
+* :mod:`.sequencing` — grid sequencing of a single solve (coarser meshes first);
 * :mod:`.options` — the ``solver`` section and PETSc options;
 * :mod:`.solve` — one solve end to end; :mod:`.result` — its outcome.
 """

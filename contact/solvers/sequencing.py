@@ -203,7 +203,7 @@ def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace |
 def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
     """Prolong through the refinements from ``coarse`` down to ``fine`` (exact for nested
     Lagrange spaces)."""
-    from ..adapt import prolong
+    from ..transfer import prolong
 
     chain = []
     s = fine

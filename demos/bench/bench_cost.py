@@ -13,12 +13,18 @@ square; BiCGStab + GAMG in 3D).
 
     python demos/bench/bench_cost.py square --cells 128 256 512 1024 --out demos/results/cost/square.csv
     python demos/bench/bench_cost.py hertz3d --out demos/results/cost/hertz3d.csv
-    mpirun -n 2 python demos/bench/bench_cost.py hertz3d --max-dofs 1300000 --out demos/results/cost/hertz3d_1M_np2.csv
+    mpirun -n 2 python demos/bench/bench_cost.py hertz3d --set adapt.theta=0.3 --max-dofs 1600000 --no-before \
+        --sequence auto --repeat 1 --out demos/results/cost/hertz3d_np2.csv          (a 3D mesh of > 1M DoFs)
+    mpirun -n 2 python demos/bench/bench_cost.py scene --scene configs/friction_box_3d.yaml --set friction.law=none \
+        --set "mesh.cells=[96,96,48]" --no-before --sequence auto --repeat 1 --out demos/results/cost/box3d_np2.csv
     python demos/bench/bench_cost.py chart demos/results/cost      (cost.png from every CSV there)
 
 ``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
 ``hertz3d`` runs configs/hertz_3d.yaml's adaptive loop (up to ``--max-dofs``) and
-measures on its final mesh, whose coarser levels are the loop's earlier meshes.
+measures on its final mesh, whose coarser levels are the loop's earlier meshes; ``scene``
+measures one solve of ``--scene`` on the mesh its ``--set`` options give (e.g. the 3D box of
+configs/friction_box_3d.yaml without friction at 96×96×48 cells, 1.38M DoFs, whose coarser
+levels are boxes of cells/2^k).
 """
 from __future__ import annotations
 
@@ -71,13 +77,14 @@ def contact_solve(scene, method: str, sequence: str, **options):
 
 
 def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: int,
-            reference: dict) -> list[dict]:
+            reference: dict | None) -> list[dict]:
     """Rows for one scene: every method × sequencing setting, ``repeat`` alternations of
-    one linear solve and one contact solve."""
+    one linear solve and one contact solve; the largest nodal difference to the solve of
+    options ``reference`` (None: not compared)."""
     rows = []
     say = MPI.COMM_WORLD.rank == 0
     contact_solve(scene, methods[0], "auto")  # warm-up: JIT compilation, first-touch
-    _, u_ref = gather_nodal(contact.solve(scene, verbose=False, **reference).u_h)
+    u_ref = None if reference is None else gather_nodal(contact.solve(scene, verbose=False, **reference).u_h)[1]
     for method in methods:
         for sequence in sequences:
             refs, runs = [], []
@@ -86,7 +93,7 @@ def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: 
                 runs.append(contact_solve(scene, method, sequence))
             r = runs[-1][2]
             _, u = gather_nodal(r.u_h)
-            diff = float(np.max(np.abs(u - u_ref))) if say else float("nan")
+            diff = float(np.max(np.abs(u - u_ref))) if say and u_ref is not None else float("nan")
             ref_wall = statistics.median(w for w, _, _ in refs)
             ref_cpu = statistics.median(c for _, c, _ in refs)
             wall = statistics.median(w for w, _, _ in runs)
@@ -154,13 +161,18 @@ def chart(folder: Path) -> Path:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("case", choices=("square", "hertz3d", "chart"))
+    ap.add_argument("case", choices=("square", "hertz3d", "scene", "chart"))
+    ap.add_argument("--scene", default="configs/friction_box_3d.yaml", help="scene: its file (with --set)")
     ap.add_argument("folder", nargs="?", default="demos/results/cost", help="chart: the folder of the CSVs")
     ap.add_argument("--cells", type=int, nargs="+", default=[128, 256, 512, 1024])
     ap.add_argument("--methods", default="fb,min")
     ap.add_argument("--sequence", default="auto,off", help="sequencing settings to compare")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--max-dofs", type=int, default=300000, help="hertz3d: DoF budget of the adaptive loop")
+    ap.add_argument("--set", dest="overrides", action="append", default=[],
+                    help="hertz3d: scene overrides (e.g. adapt.theta=0.3 for a finer last step)")
+    ap.add_argument("--no-before", action="store_true",
+                    help="skip the comparison with the solver as it was before (a cold solve: long in 3D)")
     ap.add_argument("--out", default="bench/cost.csv")
     args = ap.parse_args()
     if args.case == "chart":
@@ -174,16 +186,21 @@ def main() -> None:
         for n in args.cells:
             scene = contact.load_scene("configs/signorini_square.yaml", [f"mesh.cells=[{n},{n}]", "output.verbose=false"])
             rows += measure("square", scene, methods, sequences, args.repeat, before)
+    elif args.case == "scene":  # one solve of a scene file on the mesh its --set options give
+        scene = contact.load_scene(args.scene, ["output.verbose=false", *args.overrides])
+        before = {"method": "fb", "linear": "bcgs", "sequence": "off", "max_it": 200}
+        rows += measure(scene.name, scene, methods, sequences, args.repeat, None if args.no_before else before)
     else:
-        scene = contact.load_scene("configs/hertz_3d.yaml", ["output.verbose=false",
-                                                             f"adapt.max_dofs={args.max_dofs}", "adapt.max_levels=20"])
+        scene = contact.load_scene("configs/hertz_3d.yaml", ["output.verbose=false", f"adapt.max_dofs={args.max_dofs}",
+                                                             "adapt.max_levels=20", *args.overrides])
         t0 = time.perf_counter()
         res = contact.adapt(scene, verbose=False)
         if MPI.COMM_WORLD.rank == 0:
             print(f"hertz_3d adaptive loop: {[lv.result.dofs for lv in res.levels]} DoFs, "
                   f"{time.perf_counter() - t0:.1f} s", flush=True)
         before = {"method": "fb", "linear": "bcgs", "sequence": "off", "max_it": 200}
-        rows += measure("hertz3d", res.levels[-1].scene, methods, sequences, args.repeat, before)
+        rows += measure("hertz3d", res.levels[-1].scene, methods, sequences, args.repeat,
+                        None if args.no_before else before)
     save_csv(args.out, rows)
 
 

@@ -217,7 +217,7 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
 
 def cattaneo(sizes: list[float]) -> None:
     from contact.cattaneo import traction
-    from contact.solvers.loadpath import run_load_path
+    from contact.loadpath import run_load_path
 
     rows, profiles = [], None
     for h_contact in sizes:

@@ -20,9 +20,9 @@ from typing import Any, Callable
 
 from dolfinx import fem
 
-from ..scene import Scene
-from .result import Result
-from .solve import solve
+from .adapt import adapt
+from .scene import Scene
+from .solvers import Result, solve
 
 
 @dataclass
@@ -68,7 +68,6 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
     not converge.  ``adaptive``: run the adaptive loop (default: when the scene has an
     ``adapt`` section), with ``adapt_options`` overriding that section; ``options`` are
     solver options as for :func:`contact.solve`."""
-    from ..adapt import adapt
 
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     times = load_times(scene.cfg)
