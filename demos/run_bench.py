@@ -24,7 +24,7 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    minutes, iterations per level, peer problems);
 5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
 
-    python demos/run_bench.py                 # everything (about 25 minutes on 2 cores)
+    python demos/run_bench.py                 # everything (about 2 hours on 2 cores; stability_scale alone 45 min)
     python demos/run_bench.py --only studies  # steps 4 and 5
     python demos/run_bench.py --only report   # step 5 on the existing CSVs
 
