@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import platform
 import re
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -83,9 +84,7 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "final_residual": result.residual,
         "linear_solver": result.linear,
         "krylov_iterations": result.krylov_iterations,
-        "sequence": [{"dofs": lv.dofs, "newton_iterations": lv.newton_iterations,
-                      "polish_solves": lv.polish_solves, "linear": lv.linear,
-                      "seconds": lv.seconds, "converged": lv.converged} for lv in result.sequence],
+        "sequence": [asdict(lv) for lv in result.sequence],
         "weighted_linear_solves": result.weighted_linear_solves,
         "constrained_nodes": con.global_size(comm),
         "active_nodes": result.n_active,

@@ -35,7 +35,7 @@ def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options:
     resolved by size and dimension)."""
     if linear != "auto":
         return linear
-    if petsc_options and ({"ksp_type", "pc_type"} & set(petsc_options)):
+    if _user_solver(petsc_options):
         return "direct"  # the user's options on the assembled H, as they always applied
     V = problem.V
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
@@ -43,12 +43,17 @@ def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options:
     return "direct" if dofs < limit else "gamg"
 
 
+def _user_solver(petsc_options: dict | None) -> bool:
+    """Whether the user's PETSc options choose the Krylov method or preconditioner."""
+    return bool(petsc_options) and bool({"ksp_type", "pc_type"} & set(petsc_options))
+
+
 def assembled_kind(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
     """The linear solver of a Newton matrix that stays assembled (friction's block law
     H = B K + D, not symmetric; PETSc's VI solvers on K): ``direct``, or BiCGStab + GAMG
     (``bcgs``) when ``solver.linear`` asks for an iterative solver, and by default for 3D
     elasticity (as before the reduced system existed)."""
-    if linear == "direct" or (petsc_options and ({"ksp_type", "pc_type"} & set(petsc_options))):
+    if linear == "direct" or _user_solver(petsc_options):
         return "direct"
     if linear in ("gamg", "bcgs"):
         return "bcgs"

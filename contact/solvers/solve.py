@@ -77,12 +77,11 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
     x = problem.b.duplicate()
     levels, note = [], ""
-    guess = u0 is not None
     if u0 is None:
         t0 = time.perf_counter()
         u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
         timers["coarse"] = time.perf_counter() - t0
-    guess = guess or u0 is not None
+    guess = u0 is not None   # given, or the coarse levels' solution
     if u0 is None:
         check_data(scene, data_items("solver.u0", opts["u0"]))
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
@@ -97,12 +96,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     user = {str(k): v for k, v in opts["petsc_options"].items()}
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher, system = None, None
-    if friction is None and method in ncp.METHODS:
-        linear = choose_linear(problem, opts["linear"], user)
-        defaults = petsc_defaults(problem, linear)
-    else:  # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
-        linear = assembled_kind(problem, opts["linear"], user)
-        defaults = petsc_defaults(problem, linear)
+    # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
+    diagonal_law = friction is None and method in ncp.METHODS
+    linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
+    defaults = petsc_defaults(problem, linear)
     petsc_opts = {**defaults, **user}
     if options.get("petsc_options"):  # the scene's own were checked when it was loaded
         check_petsc_options(opts["petsc_options"], defaults, comm)
