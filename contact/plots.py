@@ -17,6 +17,8 @@ from dolfinx import fem
 from .series import gather_grid
 
 MAX_EDGES = 20000   # cells above which mesh edges would paint everything black
+RASTER_CELLS = 200_000   # cells above which a nodal field is drawn as an image (cells < pixels)
+RASTER_WIDTH = 1200      # its pixels across the domain (the axes are 700-1000 pixels wide)
 
 
 def _magnitude(values: np.ndarray) -> np.ndarray:
@@ -37,11 +39,78 @@ def _triangulation(grid):
 
 
 def _smooth(ax, tri, values: np.ndarray, cmap: str):
-    """Nodal ``values`` drawn smoothly (Gouraud shading: one triangle mesh for matplotlib),
-    kept out of tight_layout, which would turn every triangle into a path (2.4M cells: 30 s)."""
-    shade = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap)
-    shade.set_in_layout(False)
-    return shade
+    """Nodal ``values`` drawn smoothly: Gouraud shading (one triangle mesh for matplotlib, kept
+    out of tight_layout, which would turn every triangle into a path: 2.4M cells, 30 s), or
+    on meshes of more than :data:`RASTER_CELLS` cells, whose cells are smaller than the
+    pixels, the P1 interpolant sampled at pixel centres (:func:`raster`) shown as an image
+    (2.4M cells: 0.4 s against 2 s)."""
+    if len(tri.triangles) <= RASTER_CELLS:
+        shade = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap)
+        shade.set_in_layout(False)
+        return shade
+    image, extent = raster(tri, values)
+    return ax.imshow(np.ma.masked_invalid(image), extent=extent, origin="lower", cmap=cmap,
+                     interpolation="antialiased")
+
+
+def raster(tri, values: np.ndarray, width: int = RASTER_WIDTH, chunk: int = 2_000_000
+           ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """The piecewise linear interpolant of nodal ``values`` on the triangles ``tri``
+    (a matplotlib Triangulation) at the centres of a ``width``-pixel-wide grid of square
+    pixels over the bounding box: (image (ny, width), NaN outside the triangles; extent
+    (x0, x1, y0, y1) for ``imshow(origin="lower")``).
+
+    Every triangle visits the pixel centres of its bounding box and keeps those inside it
+    (barycentric coordinates λ ≥ 0), where the value is Σ λ_i v_i — exactly what Gouraud
+    shading paints, without drawing a polygon per cell.  Work and memory are
+    O(#triangles + #pixels), the candidates are processed ``chunk`` at a time."""
+    x, y = np.asarray(tri.x, float), np.asarray(tri.y, float)
+    x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
+    d = (x1 - x0) / width if x1 > x0 else max(y1 - y0, 1.0) / width
+    ny = max(int(np.ceil((y1 - y0) / d)), 1)
+    image = np.full((ny, width), np.nan)
+    # in pixel units (pixel (i, j) has its centre at (i + ½, j + ½)), one array per corner
+    x, y = (x - x0) / d, (y - y0) / d
+    corners = tri.triangles.T
+    X = [x[c] for c in corners]
+    Y = [y[c] for c in corners]
+    i0 = np.maximum(np.ceil(np.minimum(np.minimum(X[0], X[1]), X[2]) - 0.5), 0).astype(np.int64)
+    i1 = np.minimum(np.floor(np.maximum(np.maximum(X[0], X[1]), X[2]) - 0.5), width - 1).astype(np.int64)
+    j0 = np.maximum(np.ceil(np.minimum(np.minimum(Y[0], Y[1]), Y[2]) - 0.5), 0).astype(np.int64)
+    j1 = np.minimum(np.floor(np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - 0.5), ny - 1).astype(np.int64)
+    nx_t = np.maximum(i1 - i0 + 1, 0)
+    n_t = nx_t * np.maximum(j1 - j0 + 1, 0)
+    hit = np.flatnonzero(n_t)                  # triangles with a pixel centre in their box
+    i0, j0, nx_t, n_t = i0[hit], j0[hit], nx_t[hit], n_t[hit]
+    X, Y = [c[hit] for c in X], [c[hit] for c in Y]
+    v = np.asarray(values, float)
+    V0, V1, V2 = (v[c[hit]] for c in corners)
+    # λ1, λ2 are affine in the pixel position p: λ1 = c1 + p·g1, λ2 = c2 + p·g2 with
+    # g1 = (by, −bx)/det, g2 = (−ay, ax)/det (a, b the edges from corner 0)
+    ax_, ay_, bx_, by_ = X[1] - X[0], Y[1] - Y[0], X[2] - X[0], Y[2] - Y[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / (ax_ * by_ - ay_ * bx_)
+    g1x, g1y, g2x, g2y = by_ * inv, -bx_ * inv, -ay_ * inv, ax_ * inv
+    c1 = -(X[0] * g1x + Y[0] * g1y)
+    c2 = -(X[0] * g2x + Y[0] * g2y)
+    dV1, dV2 = V1 - V0, V2 - V0
+    ends = np.cumsum(n_t)
+    start = 0
+    while start < len(n_t):
+        stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")), start + 1)
+        n = n_t[start:stop]
+        tt = np.repeat(np.arange(start, stop), n)          # a triangle per candidate pixel
+        k = np.arange(len(tt)) - np.repeat(np.cumsum(n) - n, n)
+        i = i0[tt] + k % nx_t[tt]
+        j = j0[tt] + k // nx_t[tt]
+        px, py = i + 0.5, j + 0.5
+        l1 = c1[tt] + px * g1x[tt] + py * g1y[tt]
+        l2 = c2[tt] + px * g2x[tt] + py * g2y[tt]
+        inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l1 + l2 <= 1 + 1e-9)
+        tt, l1, l2 = tt[inside], l1[inside], l2[inside]
+        image[j[inside], i[inside]] = V0[tt] + l1 * dV1[tt] + l2 * dV2[tt]
+        start = stop
+    return image, (x0, x0 + width * d, y0, y0 + ny * d)
 
 
 def _aspect(grid) -> float:

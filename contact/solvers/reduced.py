@@ -28,8 +28,9 @@ Eisenstat and Walker (SIAM J. Sci. Comput. 17, 1996, choice 2), bounded by the N
 residual itself,
 
     η_k = min(γ (‖Φ_k‖ / ‖Φ_{k−1}‖)^α, ETA_MAX, ‖Φ_k‖ / ‖Φ_0‖),   γ = 0.9, α = 2,
-    η_0 = ETA_MAX (from a guess — nested or sequenced — η_0 as for an exact solve: the guess
-    usually has the final active set, so the first step ends the iteration),
+    η_0 = ETA_MAX (from a guess — nested or sequenced — that is not polished first, η_0 as
+    for an exact solve: the guess usually has the final active set, so the first step ends
+    the iteration; a polished guess has had that exact solve),
     safeguard η_k ≥ γ η_{k−1}^α when that exceeds 0.1,
 
 and η_k ≤ η_{k−1} / 10 after a step that did not halve ‖Φ‖: a semismooth Newton method

@@ -165,22 +165,26 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     popts = PETSc.Options()
     for key, val in petsc_opts.items():
         popts[prefix + key] = petsc_value(val)
-    try:
+    try:   # the options stay until the solve is done: some are read at set-up (GAMG's
+        # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
         set_from_options(snes, *([system.ksp] if isinstance(system, ReducedSystem) else []))
         if system is not None:
             system.set_options()
+        if isinstance(system, ReducedSystem):
+            # the first Newton step from a guess is exact — unless the guess is polished
+            # first: that exact solve on the guess's active set is then done, and a Newton
+            # step still needed means the active set moves, where a loose step does as well
+            system.guess = guess and polisher is None
+        if polisher is not None and guess:
+            # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
+            stop = max(opts["atol"], opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
+            polisher.initial(x, stop)
+            state["stop"] = stop
+            snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
+        snes.solve(None, x)
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
-    if isinstance(system, ReducedSystem):
-        system.guess = guess
-    if polisher is not None and guess:
-        # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-        stop = max(opts["atol"], opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
-        polisher.initial(x, stop)
-        state["stop"] = stop
-        snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
-    snes.solve(None, x)
     reason_code = snes.getConvergedReason()
     result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
     result.linear = linear

@@ -1,0 +1,71 @@
+"""The pictures of big 2D meshes: nodal fields sampled at pixel centres (contact.plots.raster)
+must be the P1 interpolant there — what Gouraud shading paints — and blank outside Ω."""
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.tri as mtri  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from contact import plots  # noqa: E402
+
+
+def _square(n: int, lo, seed: int):
+    """Delaunay triangles of n scattered points in the unit square at ``lo`` and its corners:
+    irregular, partly sub-pixel triangles that cover the square exactly."""
+    P = np.vstack([np.random.default_rng(seed).random((n, 2)), [[0, 0], [1, 0], [0, 1], [1, 1]]]) + lo
+    return P, mtri.Triangulation(P[:, 0], P[:, 1]).triangles
+
+
+def _lshape(n: int):
+    """(−1, 1)² without the quadrant x, y > 0, as three independently triangulated squares."""
+    parts = [_square(n // 3, lo, seed) for seed, lo in enumerate(([-1, -1], [0, -1], [-1, 0]))]
+    P = np.vstack([p for p, _ in parts])
+    offsets = np.cumsum([0] + [len(p) for p, _ in parts[:-1]])
+    return mtri.Triangulation(P[:, 0], P[:, 1], np.vstack([t + o for (_, t), o in zip(parts, offsets)]))
+
+
+def _centres(image, extent):
+    ny, nx = image.shape
+    x = extent[0] + (np.arange(nx) + 0.5) * (extent[1] - extent[0]) / nx
+    y = extent[2] + (np.arange(ny) + 0.5) * (extent[3] - extent[2]) / ny
+    return np.meshgrid(x, y)
+
+
+@pytest.mark.parametrize("n, width", [(300, 50), (40000, 120)])
+def test_raster_reproduces_a_linear_field_and_masks_outside(n, width):
+    tri = _lshape(n)
+    f = lambda x, y: 2.0 * x - 3.0 * y + 0.5  # noqa: E731  (P1-exact)
+    image, extent = plots.raster(tri, f(tri.x, tri.y), width=width, chunk=1000)
+    X, Y = _centres(image, extent)
+    inside = ~((X > 0) & (Y > 0)) & (X < 1) & (Y < 1)
+    assert np.isfinite(image[inside]).all()
+    assert np.abs(image[inside] - f(X[inside], Y[inside])).max() < 1e-12
+    outside = (X > 1e-9) & (Y > 1e-9)          # the removed quadrant stays blank
+    assert np.isnan(image[outside]).all()
+
+
+def test_raster_matches_the_triangulation_interpolant():
+    P, triangles = _square(5000, [0, 0], seed=7)
+    tri = mtri.Triangulation(P[:, 0], P[:, 1], triangles)
+    v = np.sin(3 * tri.x) * np.cos(2 * tri.y)
+    image, extent = plots.raster(tri, v, width=90)
+    X, Y = _centres(image, extent)
+    ref = mtri.LinearTriInterpolator(tri, v)(X, Y)
+    both = np.isfinite(image) & ~np.ma.getmaskarray(ref)
+    assert both.all()                                   # a square: every pixel centre is inside
+    assert np.abs(image - ref).max() < 1e-10
+
+
+def test_big_meshes_are_drawn_as_an_image(monkeypatch):
+    """Above RASTER_CELLS the field is an AxesImage, below it Gouraud triangles."""
+    import matplotlib.pyplot as plt
+
+    tri = _lshape(2000)
+    v = tri.x + tri.y
+    for cells, kind in ((10**9, "TriMesh"), (10, "AxesImage")):
+        monkeypatch.setattr(plots, "RASTER_CELLS", cells)
+        fig, ax = plt.subplots()
+        assert type(plots._smooth(ax, tri, v, "viridis")).__name__ == kind
+        plt.close(fig)
