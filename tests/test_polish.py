@@ -116,3 +116,30 @@ def test_no_polishing_when_the_newton_point_already_converged(scene):
     pol(x, y)
     assert pol.solves == 0 and not pol.accepted and pol.taken is None
     pol.destroy()
+
+
+def test_staged_initial_polish_resumes_only_on_the_same_active_set():
+    """With the iterative (reduced) Newton system, the polishing solve of a guess first
+    stops at STAGE_RTOL; it is finished (resumed from where it stopped) only when that step
+    keeps the guess's active set, otherwise Newton takes over."""
+    from contact.solvers.polish import STAGE_RTOL
+
+    scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["mesh.cells=[64,32]"])
+    exact = contact.solve(scene, method="fb", verbose=False, linear="gamg", sequence="off")
+    assert exact.converged
+    # (a) the solution plus a tiny interior bump (zero on ∂Ω): the active set is the final one
+    u0 = exact.u_h.copy()
+    u0.interpolate(lambda x: 1e-6 * x[1] * (1 - x[1]) * (1 - x[0] ** 2))
+    u0.x.array[:] += exact.u_h.x.array
+    near = contact.solve(scene, method="fb", verbose=False, linear="gamg", u0=u0)
+    assert near.converged and near.iterations == 0 and near.polish_solves == 1
+    assert [e["rtol"] == STAGE_RTOL for e in near.krylov_log] == [True, False]
+    assert [e["resume"] for e in near.krylov_log] == [False, True]
+    assert np.abs(near.u_h.x.array - exact.u_h.x.array).max() < 1e-8
+    # (b) a guess with nothing in contact: the first look changes the active set, no resume
+    cold = exact.u_h.copy()
+    cold.x.array[:] = 0.0
+    far = contact.solve(scene, method="fb", verbose=False, linear="gamg", u0=cold)
+    assert far.converged and far.iterations > 0
+    assert far.krylov_log[0]["rtol"] == STAGE_RTOL and not any(e["resume"] for e in far.krylov_log)
+    assert np.abs(far.u_h.x.array - exact.u_h.x.array).max() < 1e-8

@@ -123,6 +123,9 @@ class AssembledSystem:
         H.diagonalScale(L=s)
         H.setDiagonal(d, addv=PETSc.InsertMode.ADD_VALUES)
 
+    #: whether a polishing solve can be cut short and resumed (:class:`ReducedNewtonSystem`)
+    resumable = False
+
     def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = H⁻¹ F for another law (polishing) with SNES's own KSP, whose operators are put
         back afterwards: one factorization alive at a time (memory)."""
@@ -155,12 +158,16 @@ class ReducedNewtonSystem(ReducedSystem):
     def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = True):
         super().__init__(problem.K, problem.near_nullspace, prefix, forcing)
 
-    def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec) -> None:
-        """y = H⁻¹ F for another law (polishing).  The Newton law stays the one the
-        matrix-free J applies; the next Newton step rebuilds its own A."""
+    resumable = True
+
+    def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec,
+                  rtol: float | None = None, resume: bool = False) -> None:
+        """y = H⁻¹ F for another law (polishing); ``rtol`` and ``resume`` as in
+        :meth:`.reduced.ReducedSystem.solve`.  The Newton law stays the one the matrix-free J
+        applies; the next Newton step rebuilds its own A."""
         s_newton, d_newton = self.s.copy(), self.d.copy()
         self.set_law(s, d)
-        self.solve(F, y)
+        self.solve(F, y, rtol=rtol, resume=resume)
         s_newton.copy(self.s)
         d_newton.copy(self.d)
         s_newton.destroy()

@@ -12,6 +12,11 @@ if TYPE_CHECKING:
     from .newton import Complementarity
 
 
+#: the first look at a polishing step from a guess: the Krylov solve stops at this relative
+#: residual, and goes on to the exact one only if the step keeps the guess's active set
+STAGE_RTOL = 1e-3
+
+
 class Polisher:
     """Active-set polishing, a line-search pre-check of the Newton step x → W = x − y.
 
@@ -72,7 +77,13 @@ class Polisher:
         ‖Φ‖.  Then a guess whose active set is right ends in this one solve, where a Newton
         step of φ would first be spent just to confirm the active set.  Returns ‖Φ(x)‖ of
         the guess (SNES's relative tolerance refers to it); ``stop`` is SNES's stopping
-        value of ‖Φ‖, below which nothing is done."""
+        value of ‖Φ‖, below which nothing is done.
+
+        With an iterative Newton system the solve is staged: it stops at the relative
+        residual :data:`STAGE_RTOL` first and is resumed to the exact tolerance only if that
+        step keeps the guess's active set; otherwise the active set still moves, the exact
+        solve would be wasted, and the loose step goes to Newton (hertz_3d at 865k DoFs on
+        2 ranks: 9 CG iterations instead of 77)."""
         cp = self.cp
         t0 = time.perf_counter()
         a, b = cp.phi(x, self.FW, self.method, self.mu)
@@ -85,7 +96,16 @@ class Polisher:
         s, d = cp.law(a, b, "min", self.mu)
         self.system.stop = stop
         t1 = time.perf_counter()
-        self.system.solve_law(s, d, self.FP, self.dP)
+        if self.system.resumable:   # a first look at the step, finished if it keeps the active set
+            self.system.solve_law(s, d, self.FP, self.dP, rtol=STAGE_RTOL)
+            x.copy(self.W)
+            self.W.axpy(-1.0, self.dP)
+            a_w, b_w = cp.phi(self.W, self.FW, "min", self.mu)
+            same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
+            if x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND):
+                self.system.solve_law(s, d, self.FP, self.dP, resume=True)
+        else:
+            self.system.solve_law(s, d, self.FP, self.dP)
         t2 = time.perf_counter()
         self.solves += 1
         x.copy(self.W)
