@@ -19,6 +19,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    of about 1M DoFs on 2 MPI ranks, and the chart ``cost/cost.png`` (issue 11; about 12 minutes);
    ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
    1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
+   ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy, cost);
+   ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -59,7 +61,11 @@ STEPS = {
               "adapt.theta=0.3", "--max-dofs", "1600000", "--no-before", "--sequence", "auto", "--repeat", "1",
               "--out", "demos/results/cost/hertz3d_np2.csv"],
              [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
-    "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"]],
+    "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"],
+              [PY, "demos/bench/bench_error_quadrature.py", "--out", "demos/results/error_quadrature.csv"]]
+             + [(["rm", "-f", "demos/results/bandwidth.csv"] if n == 0 else
+                 [str(Path(PY).parent / "mpirun"), "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
+                  "--out", "demos/results/bandwidth.csv"]) for n in (0, 1, 2)],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
     "report": [[PY, "demos/make_results.py"]],
