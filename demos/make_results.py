@@ -912,6 +912,16 @@ def cost() -> str:
                            "[`demos/bench/bench_bandwidth.py`](bench/bench_bandwidth.py))")
             out += [f"Problem A on 2 ranks is {float(a[1]['wall_s']) / float(a[2]['wall_s']):.2f}× faster than "
                     f"serial{ceiling}."]
+        quad = rows(RES / "error_quadrature.csv") or []
+        if quad:
+            last = quad[-1]
+            fine = [r for r in quad if r["dofs"] >= 10_000]
+            out += [f"The energy error per level uses quadrature of degree 2p + 2 (4 for P1): against degree 12 "
+                    f"it changes ‖u − u_h‖_E by {quad[0]['change_q4']:.0e} on the first mesh (degree 8: "
+                    f"{quad[0]['change_q8']:.0e}) and by at most {max(r['change_q4'] for r in fine):.0e} from 10⁴ "
+                    f"DoFs on, at {last['seconds_q4']:.2f} s instead of {last['seconds_q8']:.2f} s for degree 8 on "
+                    f"{last['dofs']} DoFs ([`demos/bench/bench_error_quadrature.py`](bench/bench_error_quadrature.py), "
+                    "problem A's adaptive meshes).", ""]
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so "
                 "`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel: on 2 ranks it takes twice "
                 "as long as without ghosts) is the largest phase of the 2D loop and exceeds the finest level's "
