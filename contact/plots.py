@@ -3,8 +3,7 @@
 2D fields are drawn with matplotlib (axes in the scene's length unit, colour bars with their
 title beside the ticks); 3D fields with pyvista off-screen, seen from the obstacle's side so
 that the contact zone is in view.  Every function is collective (the fields are gathered on
-rank 0 with :func:`contact.series.gather_grid`) and draws on rank 0 — or draws a grid
-gathered beforehand on any rank (:func:`draw_spread`: several pictures at once in parallel).
+rank 0 with :func:`contact.series.gather_grid`) and draws on rank 0.
 """
 from __future__ import annotations
 
@@ -139,23 +138,15 @@ def _active_points(grid) -> np.ndarray:
     return grid.points[grid.point_data["active"] > 0.5] if "active" in grid.point_data else np.zeros((0, 3))
 
 
-def solution_fields(u_h: fem.Function, active: fem.Function | None = None,
-                    lmbda: fem.Function | None = None) -> list[fem.Function]:
-    """The fields :func:`plot_solution` draws (to gather them beforehand: ``grid``)."""
-    return [f for f in (u_h, active, lmbda) if f is not None]
-
-
 def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
-                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None,
-                  grid=None) -> None:
+                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> None:
     """u_h (|u_h| for vectors) over the domain with the active contact nodes in red.
 
     3D: two views — the whole body, and the contact zone seen from the obstacle's side
     (``normal``: the direction from the body towards the obstacle) coloured by the contact
-    pressure −λ_h when ``lmbda`` is given.  Collective, drawn on rank 0; or, given the
-    ``grid`` of :func:`solution_fields` gathered beforehand, drawn right here (not collective)."""
-    if grid is None:
-        grid = gather_grid(solution_fields(u_h, active, lmbda))
+    pressure −λ_h when ``lmbda`` is given."""
+    fields = [f for f in (u_h, active, lmbda) if f is not None]
+    grid = gather_grid(fields)
     if grid is None:
         return
     if u_h.function_space.mesh.geometry.dim == 3:
@@ -180,14 +171,11 @@ def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | No
 
 
 def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
-              normal: Sequence[float] | None = None, active: fem.Function | None = None,
-              grid=None) -> None:
+              normal: Sequence[float] | None = None, active: fem.Function | None = None) -> None:
     """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
     ``max_edges`` cells) and u_h.  3D: the surface mesh seen from the obstacle's side
-    (``normal``), whole and zoomed to the contact zone (the ``active`` nodes).  Collective
-    (rank 0 draws), or given the ``grid`` of ``solution_fields(u_h, active)``, local."""
-    if grid is None:
-        grid = gather_grid(solution_fields(u_h, active))
+    (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
+    grid = gather_grid([u_h] + ([active] if active is not None else []))
     if grid is None:
         return
     if u_h.function_space.mesh.geometry.dim == 3:
@@ -214,18 +202,6 @@ def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: i
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-
-
-def draw_spread(pictures: Sequence[tuple], comm) -> None:
-    """Draw several pictures in parallel (collective): ``pictures`` are (draw, fields, kw)
-    with ``draw(grid=..., **kw)`` a plot function of this module and ``fields`` what it
-    draws; every picture's fields are gathered first, picture i on rank i mod size, then
-    every rank draws its own — on N ranks N pictures at a time (problem A at 1.23M DoFs on 2
-    ranks: solution.png on one rank while the other draws the mesh pictures)."""
-    grids = [gather_grid(fields, root=i % comm.size) for i, (_, fields, _) in enumerate(pictures)]
-    for (draw, _, kw), grid in zip(pictures, grids):
-        if grid is not None:
-            draw(grid=grid, **kw)
 
 
 # ------------------------------------------------------------------------------- 3D (pyvista)

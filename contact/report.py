@@ -256,17 +256,12 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     if scene.cfg["output"]["png"]:
         if comm.rank == 0:
             plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")
-        r = last.result   # the largest picture first: it goes to rank 0, the mesh pictures to the others
-        pictures = [(plots.plot_solution, plots.solution_fields(r.u_h, r.active, r.lmbda_h),
-                     {"path": tmp / "solution.png", "u_h": r.u_h, "active": r.active, "lmbda": r.lmbda_h,
-                      "normal": _view_normal(last.scene, r),
-                      "title": f"{scene.name}: u_h on level {last.index} ({r.dofs} DoFs)"})]
-        for lv in picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))[::-1]:
-            pictures.append((plots.plot_mesh, plots.solution_fields(lv.result.u_h, lv.result.active),
-                             {"path": tmp / f"mesh_level_{lv.index}.png", "u_h": lv.result.u_h,
-                              "title": f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
-                              "normal": _view_normal(lv.scene, lv.result), "active": lv.result.active}))
-        plots.draw_spread(pictures, comm)
+        for lv in picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3)):
+            plots.plot_mesh(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
+                            title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                            normal=_view_normal(lv.scene, lv.result), active=lv.result.active)
+        plot_solution(tmp / "solution.png", last.scene, last.result,
+                      title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
     write_contact(tmp, last.scene, last.result, comparison)
     _finish(tmp, info, comm)
     return info
