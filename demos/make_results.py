@@ -925,8 +925,8 @@ def cost() -> str:
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so "
                 "`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel: on 2 ranks it takes twice "
                 "as long as without ghosts) is the largest phase of the 2D loop and exceeds the finest level's "
-                "solve; in 3D the solve dominates. Output is parallel where it can be (the final pictures are "
-                "drawn on several ranks at once); each level's `.vtu` is written by rank 0.", ""]
+                "solve; in 3D the solve dominates. The pictures and each level's `.vtu` are written by rank 0 "
+                "(2D meshes above 200k cells are drawn as images sampled at the pixel centres).", ""]
     return "\n".join(out) + "\n"
 
 
