@@ -20,6 +20,7 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
    1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
    ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy, cost);
+   ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old paths;
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
@@ -62,7 +63,10 @@ STEPS = {
               "--out", "demos/results/cost/hertz3d_np2.csv"],
              [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
     "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"],
-              [PY, "demos/bench/bench_error_quadrature.py", "--out", "demos/results/error_quadrature.csv"]]
+              [PY, "demos/bench/bench_error_quadrature.py", "--out", "demos/results/error_quadrature.csv"],
+              [PY, "demos/bench/bench_kernels.py", "--repeat", "4", "--out", "demos/results/kernels.csv"],
+              [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "assembly",
+               "--cells", "55", "--repeat", "4", "--out", "demos/results/kernels_np2.csv"]]
              + [(["rm", "-f", "demos/results/bandwidth.csv"] if n == 0 else
                  [str(Path(PY).parent / "mpirun"), "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
                   "--out", "demos/results/bandwidth.csv"]) for n in (0, 1, 2)],

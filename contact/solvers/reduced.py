@@ -190,8 +190,8 @@ class ReducedSystem:
         r0 = self.r.norm()
         if not newton and not resume and self._lagged:
             # an exact solve (polishing) on a lagged preconditioner: its rate is only known
-            # for loose Newton solves, which overrate it (hertz_3d at 865k DoFs: 43 lagged
-            # iterations, then a rebuild and 72 more, where a fresh set-up needs 77)
+            # for loose Newton solves, which overrate it (hertz_3d's 865k-DoF level on 2 ranks:
+            # the final polish took 115 iterations with a rebuild midway, 61 on a fresh set-up)
             self._rebuild()
         if resume:   # the exact solve's target, reached from y
             atol, rtol = max(atol, self._rtol * r0), 0.0

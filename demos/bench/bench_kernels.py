@@ -1,0 +1,116 @@
+"""Two kernels of the adaptive loop, each against the path it replaced (issue 11).
+
+What it shows:
+
+* ``assembly`` — the stiffness matrix of 3D elasticity (P1 tetrahedra on a box of
+  ``--cells`` × ``--cells`` × 2 ``--cells``) assembled by PETSc's MatSetValues (the old
+  path, ``contact.models.problem.BLOCK_CSR = False``) and through dolfinx's block CSR
+  matrix (:func:`contact.models.problem.assemble_matrix`), alternating, ``--repeat``
+  times, with the largest entry of their difference;
+* ``picture`` — a nodal field on a 2D mesh of ``--cells-2d`` × ``--cells-2d``/2 squares
+  (2 triangles each) drawn with Gouraud triangles and as the image of
+  :func:`contact.plots.raster`, each saved to a PNG.
+
+Prints one row per measurement and writes CSV (kernel, dofs or cells, path, seconds,
+check).  Run serially, and the assembly under ``mpirun -n 2`` too:
+
+    python demos/bench/bench_kernels.py --out demos/results/kernels.csv
+    mpirun -n 2 python demos/bench/bench_kernels.py --only assembly --cells 55 --out demos/results/kernels_np2.csv
+"""
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import dolfinx_solver  # noqa: F401  (before dolfinx / petsc4py with the solver wheel)
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from common import save_csv
+from contact.models import problem as P
+from contact.models.elasticity import epsilon, stress
+
+
+def assembly(cells: int, repeat: int) -> list[dict]:
+    comm = MPI.COMM_WORLD
+    msh = dmesh.create_box(comm, [[0, 0, 0], [1, 1, 2]], [cells, cells, 2 * cells], dmesh.CellType.tetrahedron)
+    V = fem.functionspace(msh, ("Lagrange", 1, (3,)))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    a = fem.form(ufl.inner(stress(u, 1.0, 1.0), epsilon(v)) * ufl.dx)
+    floor = dmesh.locate_entities_boundary(msh, 2, lambda x: np.isclose(x[2], 0.0))
+    bcs = [fem.dirichletbc(np.zeros(3), fem.locate_dofs_topological(V, 2, floor), V)]
+    times: dict[bool, list[float]] = {False: [], True: []}
+    K = {}
+    for _ in range(repeat):
+        for block in (False, True):
+            P.BLOCK_CSR = block
+            comm.Barrier()
+            t0 = time.perf_counter()
+            K[block] = P.assemble_matrix(a, bcs)
+            comm.Barrier()
+            times[block].append(time.perf_counter() - t0)
+    P.BLOCK_CSR = True
+    D = K[False].copy()
+    D.axpy(-1.0, K[True], structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    diff = D.norm(PETSc.NormType.INFINITY) / K[False].norm(PETSc.NormType.INFINITY)
+    dofs = K[True].getSize()[0]
+    return [{"kernel": "assembly", "ranks": comm.size, "size": dofs, "path": "petsc" if not block else "block_csr",
+             "seconds": round(float(np.median(times[block])), 3), "check": f"{diff:.1e}"} for block in (False, True)]
+
+
+def picture(cells: int) -> list[dict]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.tri as mtri
+
+    from contact import plots
+
+    msh = dmesh.create_rectangle(MPI.COMM_SELF, [[-1.0, 0.0], [1.0, 1.0]], [cells, cells // 2])
+    x = msh.geometry.x
+    tri = mtri.Triangulation(x[:, 0], x[:, 1], msh.geometry.dofmaps[0])
+    values = np.sin(3 * x[:, 0]) * x[:, 1]
+    out = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for path, limit in (("gouraud", 10**12), ("raster", 0)):
+            plots.RASTER_CELLS = limit
+            fig, ax = plt.subplots(figsize=(8.5, 5))
+            t0 = time.perf_counter()
+            plots._smooth(ax, tri, values, "viridis")
+            fig.savefig(Path(tmp) / f"{path}.png", dpi=120)
+            out.append({"kernel": "picture", "ranks": 1, "size": len(tri.triangles), "path": path,
+                        "seconds": round(time.perf_counter() - t0, 3), "check": ""})
+            plt.close(fig)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--only", choices=("assembly", "picture"))
+    ap.add_argument("--cells", type=int, default=50, help="assembly: the box's cells per unit length")
+    ap.add_argument("--cells-2d", type=int, default=1100, help="picture: cells along x")
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--out", default="demos/results/kernels.csv")
+    args = ap.parse_args()
+    rows = []
+    if args.only in (None, "assembly"):
+        rows += assembly(args.cells, args.repeat)
+    if args.only in (None, "picture") and MPI.COMM_WORLD.rank == 0:
+        rows += picture(args.cells_2d)
+    if MPI.COMM_WORLD.rank == 0:
+        for r in rows:
+            print(f"{r['kernel']:9s} {r['ranks']} rank(s) {r['size']:9d} {r['path']:10s} {r['seconds']:7.3f} s"
+                  + (f"  relative difference {r['check']}" if r["check"] else ""), flush=True)
+    save_csv(args.out, rows)
+
+
+if __name__ == "__main__":
+    main()
