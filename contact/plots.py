@@ -284,7 +284,7 @@ def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
     _look_from(p, grid.center, n, 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0))))
     p.add_text(f"{label}, whole body seen from the obstacle's side", position="upper_edge", font_size=11)
     p.subplot(0, 1)
-    surface = grid.extract_surface()
+    surface = grid.extract_surface(algorithm="dataset_surface")  # explicit: the default changes
     if lmbda is not None:
         surface.point_data["pressure"] = np.abs(surface.point_data[lmbda.name])
         _add_mesh(p, surface, scalars="pressure", cmap="YlOrRd", show_edges=True, edge_color="#999999",
@@ -304,7 +304,7 @@ def _mesh_3d(path, grid, title, normal) -> None:
     p = _plotter()
     focus, n, extent = _contact_view(grid, normal)
     whole = 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0)))
-    surface = grid.extract_surface()
+    surface = grid.extract_surface(algorithm="dataset_surface")  # explicit: the default changes
     for col, (centre, scale, text) in enumerate(((grid.center, whole, "surface mesh seen from the obstacle's side"),
                                                  (focus, extent, "contact zone seen from the obstacle"))):
         p.subplot(0, col)

@@ -69,3 +69,27 @@ def test_big_meshes_are_drawn_as_an_image(monkeypatch):
         fig, ax = plt.subplots()
         assert type(plots._smooth(ax, tri, v, "viridis")).__name__ == kind
         plt.close(fig)
+
+
+def test_3d_pictures_draw_without_warnings(tmp_path):
+    """The 3D pictures (pyvista) of a small elastic block on a plane: both files are PNGs,
+    and drawing them emits no warning (a user's run prints nothing but its own lines)."""
+    import warnings
+
+    import contact
+
+    scene = contact.load_scene({
+        "name": "box3d", "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": [3, 3, 3]},
+        "boundaries": {"floor": {"role": "contact", "where": "z < 1e-10"},
+                       "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"}},
+        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+        "obstacle": {"type": "plane", "point": [0, 0, -0.001], "normal": [0, 0, 1]},
+        "data": {"u_D": ["0", "0", "-0.01"]}})
+    r = contact.solve(scene, verbose=False)
+    assert r.converged and r.n_active > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plots.plot_solution(tmp_path / "solution.png", r.u_h, active=r.active, lmbda=r.lmbda_h, normal=[0, 0, -1])
+        plots.plot_mesh(tmp_path / "mesh.png", r.u_h, active=r.active, normal=[0, 0, -1])
+    for name in ("solution.png", "mesh.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
