@@ -2,15 +2,16 @@
 figure behind ``solver.max_dofs: auto`` (contact/budget.py).
 
 Each size runs in a fresh process (serial): load the scene, solve it once with the
-scene's defaults (fb, MUMPS LU; BiCGStab + GAMG for 3D elasticity), and report the peak
-resident set size (``ru_maxrss``).  The per-DoF figure is the slope between the two
+scene's defaults (fb; ``solver.linear: auto``, which picks CG + GAMG on the reduced system
+at these sizes, and grid sequencing where it pays), and report the peak resident set size
+(``ru_maxrss``) and the linear solver used.  The per-DoF figure is the slope between the two
 largest sizes of a kind, (RSS₂ − RSS₁)/(N₂ − N₁), which leaves out the ~0.3 GB the
 interpreter and libraries take whatever the size; ``bytes_per_dof`` is the peak over N.
 
     python demos/bench/bench_memory.py                       # every kind, ~6 minutes
     python demos/bench/bench_memory.py --kinds scalar2d --out /tmp/memory.csv
 
-Prints one row per run and writes CSV (kind, cells, dofs, seconds, peak_rss_mib,
+Prints one row per run and writes CSV (kind, cells, dofs, linear, seconds, peak_rss_mib,
 bytes_per_dof, slope_bytes_per_dof).
 """
 from __future__ import annotations
@@ -59,7 +60,7 @@ spec = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 scene = contact.load_scene(spec["source"], spec["overrides"] + ["solver.max_dofs=100000000"])
 result = contact.solve(scene, verbose=False)
-print(json.dumps({"dofs": result.dofs, "converged": bool(result.converged), "seconds": time.perf_counter() - t0,
+print(json.dumps({"dofs": result.dofs, "linear": result.linear, "converged": bool(result.converged), "seconds": time.perf_counter() - t0,
                   "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
@@ -79,7 +80,7 @@ def measure(kind: str, n: int) -> dict:
     if proc.returncode != 0:
         raise SystemExit(f"{kind} n={n} failed:\n{proc.stderr}")
     out = json.loads(proc.stdout.strip().splitlines()[-1])
-    return {"kind": kind, "cells": n, "dofs": out["dofs"], "converged": out["converged"],
+    return {"kind": kind, "cells": n, "dofs": out["dofs"], "linear": out["linear"], "converged": out["converged"],
             "seconds": round(out["seconds"], 2), "peak_rss_mib": round(out["rss_mib"], 1),
             "bytes_per_dof": round(out["rss_mib"] * 2**20 / out["dofs"])}
 
@@ -95,7 +96,7 @@ def main() -> int:
         for a, b in zip(runs, runs[1:]):
             b["slope_bytes_per_dof"] = round((b["peak_rss_mib"] - a["peak_rss_mib"]) * 2**20 / (b["dofs"] - a["dofs"]))
         for r in runs:
-            print(f"{r['kind']:13s} n={r['cells']:5d} {r['dofs']:9d} DoFs  {r['seconds']:7.1f} s  "
+            print(f"{r['kind']:13s} n={r['cells']:5d} {r['dofs']:9d} DoFs  {r['linear']:6s} {r['seconds']:7.1f} s  "
                   f"{r['peak_rss_mib']:8.0f} MiB  {r['bytes_per_dof']:6d} B/DoF  "
                   f"slope {r.get('slope_bytes_per_dof', '-')} B/DoF", flush=True)
         rows += runs
