@@ -906,8 +906,8 @@ def cost() -> str:
             if 1 in bw and 2 in bw:
                 ratio = lambda k: float(bw[1][k]) / float(bw[2][k])  # noqa: E731
                 ceiling = (f" (on this machine a sparse matrix–vector product is {ratio('matvec_100_s'):.2f}× and a "
-                           f"streaming array operation {ratio('array_scale_20_s'):.2f}× faster on 2 ranks: memory "
-                           "bandwidth bounds the kernels; "
+                           f"streaming array operation {ratio('array_scale_20_s'):.2f}× faster on 2 ranks, fastest of "
+                           f"{bw[1].get('repeat', 1)} rounds each: memory bandwidth bounds the kernels; "
                            "[`demos/bench/bench_bandwidth.py`](bench/bench_bandwidth.py))")
             out += [f"Problem A on 2 ranks is {float(a[1]['wall_s']) / float(a[2]['wall_s']):.2f}× faster than "
                     f"serial{ceiling}.", ""]
