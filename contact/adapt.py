@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 from mpi4py import MPI
 
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 
 from .budget import max_dofs
@@ -147,14 +147,20 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
 
 def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> int | None:
     """A lower bound of the DoFs after refining ``cells`` (P1: one new vertex per marked
-    edge; refinement may split more edges for conformity), or None for P2."""
+    edge; refinement may split more edges for conformity), or None for P2.  An edge counts
+    once, on its owning rank, whichever rank's cells marked it (the same bound on any
+    number of ranks)."""
     if V.element.basix_element.degree != 1:
         return None
     msh = scene.mesh
     tdim = msh.topology.dim
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells.astype(np.int32), tdim, 1)
-    owned = int(np.count_nonzero(edges < msh.topology.index_map(1).size_local))
+    imap = msh.topology.index_map(1)
+    marked = la.vector(imap, dtype=np.int32)
+    marked.array[edges] = 1
+    marked.scatter_reverse(la.InsertMode.add)   # ghost edges' marks to their owners
+    owned = int(np.count_nonzero(marked.array[: imap.size_local]))
     vertices = msh.topology.index_map(0).size_global
     return V.dofmap.index_map_bs * (vertices + msh.comm.allreduce(owned, op=MPI.SUM))
 

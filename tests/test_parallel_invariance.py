@@ -68,3 +68,40 @@ def test_hertz_2d_newton_path_identical_on_1_and_2_ranks(tmp_path: Path) -> None
         runs[ranks] = json.loads(proc.stdout.strip().splitlines()[-1])
     assert runs[1] == runs[2]
     assert runs[1]["history"][0] == [0, 0]  # the node at the origin starts inactive everywhere
+
+
+NEXT_DOFS = """
+import json, sys
+from mpi4py import MPI
+import contact
+from contact.adapt import mark, next_dofs_bound, refine
+from dolfinx import fem
+scene = contact.load_scene(sys.argv[1])
+rows = []
+for level in range(4):
+    r = contact.solve(scene, verbose=False)
+    cells = mark(contact.estimate(scene, r).eta_T, "dorfler", 0.5)
+    bound = next_dofs_bound(scene, cells, r.u_h.function_space)
+    scene, u0 = refine(scene, cells, r.u_h)
+    rows.append([bound, u0.function_space.dofmap.index_map.size_global])
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps(rows))
+"""
+
+
+def test_next_dofs_bound_identical_on_any_number_of_ranks(tmp_path: Path) -> None:
+    """The adaptive loop's lower bound on the next level's DoFs (its stop message) counts
+    each marked edge once on its owning rank.  Before, an edge owned by one rank but marked
+    only through another rank's cells was missed (problem A at 1.23M DoFs: 1919257 serially,
+    1919249 on 2 ranks)."""
+    script = tmp_path / "bound.py"
+    script.write_text(NEXT_DOFS)
+    runs = {}
+    for ranks in (1, 3):
+        proc = subprocess.run([str(MPIRUN), "-n", str(ranks), sys.executable, str(script),
+                               str(ROOT / "configs" / "lshape_corner.yaml")], capture_output=True, text=True,
+                              timeout=300, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        runs[ranks] = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert runs[1] == runs[3]
+    assert all(bound <= dofs for bound, dofs in runs[1])   # a lower bound of the refined mesh's DoFs
