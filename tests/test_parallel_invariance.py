@@ -28,6 +28,20 @@ if MPI.COMM_WORLD.rank == 0:
 """
 
 
+def _run_script(tmp_path: Path, source: str, scene: str, ranks: tuple[int, ...]) -> dict:
+    """Run ``source`` on ``configs/<scene>`` under mpirun on each number of ranks: the JSON
+    its rank 0 prints last, by number of ranks."""
+    script = tmp_path / "script.py"
+    script.write_text(source)
+    runs = {}
+    for n in ranks:
+        proc = subprocess.run([str(MPIRUN), "-n", str(n), sys.executable, str(script), str(ROOT / "configs" / scene)],
+                              capture_output=True, text=True, timeout=300, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        runs[n] = json.loads(proc.stdout.strip().splitlines()[-1])
+    return runs
+
+
 @pytest.fixture(scope="module")
 def lshape_runs(tmp_path_factory) -> dict[int, list[dict]]:
     """configs/lshape_corner.yaml, 6 adaptive levels, by the CLI on 1, 3 and 4 ranks."""
@@ -57,15 +71,7 @@ def test_lshape_adaptive_meshes_identical_on_any_number_of_ranks(lshape_runs, ra
 def test_hertz_2d_newton_path_identical_on_1_and_2_ranks(tmp_path: Path) -> None:
     """Before: 9 Newton steps on 1 rank, 8 on 2–4 (a contact node with gap exactly 0 whose
     round-off multiplier sign picked the Jacobian branch at the first step)."""
-    script = tmp_path / "first.py"
-    script.write_text(HERTZ_FIRST_SOLVE)
-    runs = {}
-    for ranks in (1, 2):
-        proc = subprocess.run([str(MPIRUN), "-n", str(ranks), sys.executable, str(script),
-                               str(ROOT / "configs" / "hertz_2d.yaml")], capture_output=True, text=True,
-                              timeout=300, cwd=tmp_path)
-        assert proc.returncode == 0, proc.stderr
-        runs[ranks] = json.loads(proc.stdout.strip().splitlines()[-1])
+    runs = _run_script(tmp_path, HERTZ_FIRST_SOLVE, "hertz_2d.yaml", (1, 2))
     assert runs[1] == runs[2]
     assert runs[1]["history"][0] == [0, 0]  # the node at the origin starts inactive everywhere
 
@@ -94,14 +100,6 @@ def test_next_dofs_bound_identical_on_any_number_of_ranks(tmp_path: Path) -> Non
     each marked edge once on its owning rank.  Before, an edge owned by one rank but marked
     only through another rank's cells was missed (problem A at 1.23M DoFs: 1919257 serially,
     1919249 on 2 ranks)."""
-    script = tmp_path / "bound.py"
-    script.write_text(NEXT_DOFS)
-    runs = {}
-    for ranks in (1, 3):
-        proc = subprocess.run([str(MPIRUN), "-n", str(ranks), sys.executable, str(script),
-                               str(ROOT / "configs" / "lshape_corner.yaml")], capture_output=True, text=True,
-                              timeout=300, cwd=tmp_path)
-        assert proc.returncode == 0, proc.stderr
-        runs[ranks] = json.loads(proc.stdout.strip().splitlines()[-1])
+    runs = _run_script(tmp_path, NEXT_DOFS, "lshape_corner.yaml", (1, 3))
     assert runs[1] == runs[3]
     assert all(bound <= dofs for bound, dofs in runs[1])   # a lower bound of the refined mesh's DoFs
