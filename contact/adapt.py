@@ -201,6 +201,7 @@ class Level:
     estimate: Estimate
     error: float | None
     seconds: dict[str, float]
+    imbalance: float = 1.0   # max over ranks of the owned DoFs / their mean (1 in serial)
 
     def row(self) -> dict[str, Any]:
         msh = self.scene.mesh
@@ -212,7 +213,7 @@ class Level:
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
         row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
                     "converged": self.result.converged,
-                    "active_nodes": self.result.n_active})
+                    "active_nodes": self.result.n_active, "rank_imbalance": round(self.imbalance, 4)})
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
         return row
 
@@ -225,6 +226,16 @@ class AdaptResult:
     @property
     def rows(self) -> list[dict]:
         return [lv.row() for lv in self.levels]
+
+
+def rank_imbalance(V: fem.FunctionSpace) -> float:
+    """max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial).  A
+    refined mesh keeps its parents' partition, so refinement concentrated on one rank's
+    part of the domain unbalances the work: 1.15 means the busiest rank has 15 % more
+    than its share, and 2 ranks gain at most 2/1.15 = 1.74×."""
+    comm = V.mesh.comm
+    owned = V.dofmap.index_map.size_local
+    return comm.allreduce(owned, op=MPI.MAX) * comm.size / max(comm.allreduce(owned, op=MPI.SUM), 1)
 
 
 def adapt_options(scene: Scene, **overrides: Any) -> dict:
@@ -261,7 +272,7 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         t0 = time.perf_counter()
         error = solution_error(scene, result)
         seconds["error"] = time.perf_counter() - t0
-        level = Level(index, scene, result, est, error, seconds)
+        level = Level(index, scene, result, est, error, seconds, imbalance=rank_imbalance(result.u_h.function_space))
         out.levels.append(level)
         if on_level is not None:
             t0 = time.perf_counter()

@@ -892,13 +892,13 @@ def cost() -> str:
                 table(["scene", "ranks", "levels", "final DoFs", "wall s", "peak GiB", "solve", "assembly",
                        "estimate", "error", "refine", "output", "finest: assembly + estimate / solve",
                        "level before: + refine / solve", "refine into the finest + its assembly + estimate, "
-                       "over its solve"],
+                       "over its solve", "busiest rank's DoFs / mean"],
                       [[r["scene"], r["ranks"], r["levels"], r["dofs"], g(r["wall_s"]), g(r["peak_rss_gib"]),
                         g(r["total_solve_s"]), g(r["total_assembly_s"]), g(r["total_estimate_s"]),
                         g(r["total_error_s"]), g(r["total_refine_s"]), g(r["total_output_s"]),
                         f"{g(r['last_assembly_estimate_s'])} / {g(r['last_solve_s'])}",
                         f"{g(r['prev_assembly_estimate_refine_s'])} / {g(r['prev_solve_s'])}",
-                        g(r.get("finest_overhead_ratio", ""))] for r in scale]), ""]
+                        g(r.get("finest_overhead_ratio", "")), g(r.get("rank_imbalance", ""))] for r in scale]), ""]
         a = {int(r["ranks"]): r for r in scale if r["scene"].startswith("signorini_free_boundary")}
         bw = {int(r["ranks"]): r for r in rows(RES / "bandwidth.csv") or []}
         if 1 in a and 2 in a:
@@ -911,6 +911,15 @@ def cost() -> str:
                            "[`demos/bench/bench_bandwidth.py`](bench/bench_bandwidth.py))")
             out += [f"Problem A on 2 ranks is {float(a[1]['wall_s']) / float(a[2]['wall_s']):.2f}× faster than "
                     f"serial{ceiling}.", ""]
+            busy = [r for r in scale if int(r["ranks"]) > 1 and r.get("rank_imbalance")]
+            if busy:
+                out += ["The refined meshes keep the first mesh's partition (`dolfinx.mesh.refine` leaves children "
+                        "on their parent's rank), and the loops refine towards the free boundary or the contact "
+                        "zone, more on one rank's side: on the finest level the busiest rank owns "
+                        + ", ".join(f"{float(r['rank_imbalance']):.2f}× its share in {r['scene']}" for r in busy)
+                        + " (`rank_imbalance` in convergence.csv), so 2 ranks can gain at most "
+                        + ", ".join(f"{2 / float(r['rank_imbalance']):.2f}×" for r in busy)
+                        + " there even with perfect scaling. Rebalancing the refined mesh is not done yet.", ""]
         quad = rows(RES / "error_quadrature.csv") or []
         if quad:
             last = quad[-1]

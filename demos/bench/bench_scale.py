@@ -64,6 +64,7 @@ def run_here(scene: str, ranks: int, max_dofs: int) -> dict:
     last, prev = levels[-1], levels[-2]
     sec = lambda r, k: float(r.get(f"seconds_{k}") or 0)   # noqa: E731
     return {"scene": scene, "ranks": ranks, "levels": len(levels), "dofs": int(last["dofs"]),
+            "rank_imbalance": float(last.get("rank_imbalance") or 1.0),
             "wall_s": round(wall, 2), "peak_rss_gib": round(peak_kib / 2**20, 3),
             **{f"total_{k}_s": round(v, 2) for k, v in total.items()},
             "last_solve_s": sec(last, "solve"),
@@ -97,7 +98,8 @@ def main() -> None:
               f"{r['last_assembly_estimate_s']:.2f} s vs solve {r['last_solve_s']:.2f} s; level before "
               f"({r['prev_dofs']} DoFs): + refine {r['prev_assembly_estimate_refine_s']:.2f} s vs solve "
               f"{r['prev_solve_s']:.2f} s; refine into the finest + its assembly + estimate "
-              f"{r['finest_overhead_s']:.2f} s = {r['finest_overhead_ratio']:.2f} x its solve", flush=True)
+              f"{r['finest_overhead_s']:.2f} s = {r['finest_overhead_ratio']:.2f} x its solve; the busiest rank "
+              f"owns {r['rank_imbalance']:.2f} x the mean of the finest level's DoFs", flush=True)
     print(f"problem A speed-up on 2 ranks: {rows[0]['wall_s'] / rows[1]['wall_s']:.2f}", flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
