@@ -26,6 +26,7 @@ from . import failures
 from .config import ConfigError
 
 AGREE_SECONDS = 5.0  # how long a failing rank waits for the others to fail too (MPI)
+ABORT_GRACE_SECONDS = 0.5  # a failing rank's pause between its line and MPI_Abort (once, the line was lost)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -113,6 +114,7 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
         if time.monotonic() - start > AGREE_SECONDS:
             line = line.replace("contact:", f"contact (rank {comm.rank}):", 1)
             print(failures.one_line(line), file=sys.stderr, flush=True)
+            time.sleep(ABORT_GRACE_SECONDS)   # let mpiexec forward the line before it kills the job
             comm.Abort(code)
         time.sleep(0.01)
     if comm.rank == 0:
