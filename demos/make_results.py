@@ -920,6 +920,15 @@ def cost() -> str:
                         + " (`rank_imbalance` in convergence.csv), so 2 ranks can gain at most "
                         + ", ".join(f"{2 / float(r['rank_imbalance']):.2f}×" for r in busy)
                         + " there even with perfect scaling. Rebalancing the refined mesh is not done yet.", ""]
+                kern = {r["path"]: r for r in rows(RES / "kernels_refine_np2.csv") or []}
+                if {"identity", "graph"} <= set(kern):
+                    i, gr = kern["identity"], kern["graph"]
+                    out[-2] += (f" It need not cost refinement time: refining one side of a square to {i['size']} cells on "
+                                f"2 ranks takes {g(i['seconds'])} s with the identity partitioner (busiest rank "
+                                f"{i['check']}× its share) and {g(gr['seconds'])} s when `dolfinx.mesh.refine` "
+                                f"redistributes the cells with its graph partitioner ({gr['check']}×; "
+                                "[`demos/bench/bench_kernels.py`](bench/bench_kernels.py) `--only refine`); what remains "
+                                "is carrying u_h and the tags to cells whose parent is on another rank.")
         quad = rows(RES / "error_quadrature.csv") or []
         if quad:
             last = quad[-1]

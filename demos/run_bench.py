@@ -66,7 +66,9 @@ STEPS = {
               [PY, "demos/bench/bench_error_quadrature.py", "--out", "demos/results/error_quadrature.csv"],
               [PY, "demos/bench/bench_kernels.py", "--repeat", "4", "--out", "demos/results/kernels.csv"],
               [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "assembly",
-               "--cells", "55", "--repeat", "4", "--out", "demos/results/kernels_np2.csv"]]
+               "--cells", "55", "--repeat", "4", "--out", "demos/results/kernels_np2.csv"],
+              [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "refine",
+               "--repeat", "3", "--out", "demos/results/kernels_refine_np2.csv"]]
              + [(["rm", "-f", "demos/results/bandwidth.csv"] if n == 0 else
                  [str(Path(PY).parent / "mpirun"), "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
                   "--out", "demos/results/bandwidth.csv"]) for n in (0, 1, 2)],

@@ -1,4 +1,4 @@
-"""Two kernels of the adaptive loop, each against the path it replaced (issue 11).
+"""Kernels of the adaptive loop, each against the path it replaced or might be replaced by (issue 11).
 
 What it shows:
 
@@ -9,13 +9,20 @@ What it shows:
   times, with the largest entry of their difference;
 * ``picture`` — a nodal field on a 2D mesh of ``--cells-2d`` × ``--cells-2d``/2 squares
   (2 triangles each) drawn with Gouraud triangles and as the image of
-  :func:`contact.plots.raster`, each saved to a PNG.
+  :func:`contact.plots.raster`, each saved to a PNG;
+* ``refine`` (run it under mpirun) — a unit square of ``--cells-refine``² squares whose
+  cells with x < 0.3 are refined, as an adaptive loop refines one region: by
+  ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.adapt.refine`
+  does in parallel: children stay on their parent's rank, the ghost layer is rebuilt) and
+  with dolfinx's graph partitioner (the refined mesh redistributed), alternating; the check
+  column is the busiest rank's owned cells over the mean after refinement.
 
 Prints one row per measurement and writes CSV (kernel, dofs or cells, path, seconds,
 check).  Run serially, and the assembly under ``mpirun -n 2`` too:
 
     python demos/bench/bench_kernels.py --out demos/results/kernels.csv
     mpirun -n 2 python demos/bench/bench_kernels.py --only assembly --cells 55 --out demos/results/kernels_np2.csv
+    mpirun -n 2 python demos/bench/bench_kernels.py --only refine --repeat 3 --out demos/results/kernels_refine_np2.csv
 """
 from __future__ import annotations
 
@@ -92,11 +99,39 @@ def picture(cells: int) -> list[dict]:
     return out
 
 
+def refine(cells: int, repeat: int) -> list[dict]:
+    comm = MPI.COMM_WORLD
+    msh = dmesh.create_unit_square(comm, cells, cells, ghost_mode=dmesh.GhostMode.shared_facet)
+    msh.topology.create_entities(1)
+    owned = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    marked = owned[dmesh.compute_midpoints(msh, 2, owned)[:, 0] < 0.3]
+    edges = dmesh.compute_incident_entities(msh.topology, marked, 2, 1)
+    paths = {"identity": dmesh.IdentityPartitionerPlaceholder,
+             "graph": lambda: dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)}
+    times: dict[str, list[float]] = {name: [] for name in paths}
+    balance, size = {}, 0
+    for _ in range(repeat):
+        for name, partitioner in paths.items():
+            comm.Barrier()
+            t0 = time.perf_counter()
+            new, _, _ = dmesh.refine(msh, edges, partitioner=partitioner(),
+                                     option=dmesh.RefinementOption.parent_cell_and_facet)
+            comm.Barrier()
+            times[name].append(time.perf_counter() - t0)
+            n = new.topology.index_map(2).size_local
+            balance[name] = comm.allreduce(n, op=MPI.MAX) * comm.size / comm.allreduce(n, op=MPI.SUM)
+            size = new.topology.index_map(2).size_global
+            del new
+    return [{"kernel": "refine", "ranks": comm.size, "size": size, "path": name,
+             "seconds": round(float(np.median(times[name])), 3), "check": f"{balance[name]:.3f}"} for name in paths]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--only", choices=("assembly", "picture"))
+    ap.add_argument("--only", choices=("assembly", "picture", "refine"))
     ap.add_argument("--cells", type=int, default=50, help="assembly: the box's cells per unit length")
     ap.add_argument("--cells-2d", type=int, default=1100, help="picture: cells along x")
+    ap.add_argument("--cells-refine", type=int, default=800, help="refine: the square's cells per side")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--out", default="demos/results/kernels.csv")
     args = ap.parse_args()
@@ -105,10 +140,13 @@ def main() -> None:
         rows += assembly(args.cells, args.repeat)
     if args.only in (None, "picture") and MPI.COMM_WORLD.rank == 0:
         rows += picture(args.cells_2d)
+    if args.only == "refine":   # a parallel kernel: asked for explicitly, under mpirun
+        rows += refine(args.cells_refine, args.repeat)
     if MPI.COMM_WORLD.rank == 0:
         for r in rows:
+            check = {"assembly": "relative difference", "refine": "busiest rank's cells / mean"}.get(r["kernel"])
             print(f"{r['kernel']:9s} {r['ranks']} rank(s) {r['size']:9d} {r['path']:10s} {r['seconds']:7.3f} s"
-                  + (f"  relative difference {r['check']}" if r["check"] else ""), flush=True)
+                  + (f"  {check} {r['check']}" if r["check"] else ""), flush=True)
     save_csv(args.out, rows)
 
 
