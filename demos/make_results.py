@@ -901,6 +901,7 @@ def cost() -> str:
                         g(r.get("finest_overhead_ratio", "")), g(r.get("rank_imbalance", ""))] for r in scale]), ""]
         a = {int(r["ranks"]): r for r in scale if r["scene"].startswith("signorini_free_boundary")}
         bw = {int(r["ranks"]): r for r in rows(RES / "bandwidth.csv") or []}
+        kern = {r["path"]: r for r in rows(RES / "kernels_refine_np2.csv") or []}
         if 1 in a and 2 in a:
             ceiling = ""
             if 1 in bw and 2 in bw:
@@ -913,22 +914,22 @@ def cost() -> str:
                     f"serial{ceiling}.", ""]
             busy = [r for r in scale if int(r["ranks"]) > 1 and r.get("rank_imbalance")]
             if busy:
-                out += ["The refined meshes keep the first mesh's partition (`dolfinx.mesh.refine` leaves children "
+                para = ("The refined meshes keep the first mesh's partition (`dolfinx.mesh.refine` leaves children "
                         "on their parent's rank), and the loops refine towards the free boundary or the contact "
                         "zone, more on one rank's side: on the finest level the busiest rank owns "
                         + ", ".join(f"{float(r['rank_imbalance']):.2f}× its share in {r['scene']}" for r in busy)
                         + " (`rank_imbalance` in convergence.csv), so 2 ranks can gain at most "
                         + ", ".join(f"{2 / float(r['rank_imbalance']):.2f}×" for r in busy)
-                        + " there even with perfect scaling. Rebalancing the refined mesh is not done yet.", ""]
-                kern = {r["path"]: r for r in rows(RES / "kernels_refine_np2.csv") or []}
+                        + " there even with perfect scaling. Rebalancing the refined mesh is not done yet.")
                 if {"identity", "graph"} <= set(kern):
                     i, gr = kern["identity"], kern["graph"]
-                    out[-2] += (f" It need not cost refinement time: refining one side of a square to {i['size']} cells on "
-                                f"2 ranks takes {g(i['seconds'])} s with the identity partitioner (busiest rank "
-                                f"{i['check']}× its share) and {g(gr['seconds'])} s when `dolfinx.mesh.refine` "
-                                f"redistributes the cells with its graph partitioner ({gr['check']}×; "
-                                "[`demos/bench/bench_kernels.py`](bench/bench_kernels.py) `--only refine`); what remains "
-                                "is carrying u_h and the tags to cells whose parent is on another rank.")
+                    para += (f" It need not cost refinement time: refining one side of a square to {i['size']} cells "
+                             f"on 2 ranks takes {g(i['seconds'])} s with the identity partitioner (busiest rank "
+                             f"{i['check']}× its share) and {g(gr['seconds'])} s when `dolfinx.mesh.refine` "
+                             f"redistributes the cells with its graph partitioner ({gr['check']}×; "
+                             "[`demos/bench/bench_kernels.py`](bench/bench_kernels.py) `--only refine`); what remains "
+                             "is carrying u_h and the tags to cells whose parent is on another rank.")
+                out += [para, ""]
         quad = rows(RES / "error_quadrature.csv") or []
         if quad:
             last = quad[-1]
@@ -939,9 +940,11 @@ def cost() -> str:
                     f"DoFs on, at {last['seconds_q4']:.2f} s instead of {last['seconds_q8']:.2f} s for degree 8 on "
                     f"{last['dofs']} DoFs ([`demos/bench/bench_error_quadrature.py`](bench/bench_error_quadrature.py), "
                     "problem A's adaptive meshes).", ""]
+        ghosts = (f": {g(kern['identity']['seconds'])} s against {g(kern['no_ghosts']['seconds'])} s without "
+                  "ghosts in the kernel above" if {"identity", "no_ghosts"} <= set(kern) else "")
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so "
-                "`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel: on 2 ranks it takes twice "
-                "as long as without ghosts) is the largest phase of the 2D loop and exceeds the finest level's "
+                f"`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel{ghosts}) is the largest "
+                "phase of the 2D loop and exceeds the finest level's "
                 "solve; in 3D the solve dominates. The pictures and each level's `.vtu` are written by rank 0 "
                 "(2D meshes above 200k cells are drawn as images sampled at the pixel centres).", ""]
     return "\n".join(out) + "\n"

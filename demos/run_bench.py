@@ -20,7 +20,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
    1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
    ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy, cost);
-   ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old paths;
+   ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old paths,
+   and (on 2 ranks) refinement with and without redistribution or a ghost layer;
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
@@ -44,6 +45,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 CONTACT = str(Path(PY).parent / "contact")
+MPIRUN = str(Path(PY).parent / "mpirun")
 STEPS = {
     "newton": [[PY, "demos/bench/bench_newton.py", "--cells", "512", "--out", "demos/results/newton_512.csv"]],
     "adaptive": [[PY, "demos/bench/bench_adaptive.py", "--out", "demos/results/adaptive"]],
@@ -51,26 +53,26 @@ STEPS = {
     "memory": [[PY, "demos/bench/bench_memory.py", "--out", "demos/results/memory.csv"]],
     "friction": [[PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"]],
     "two_bodies": [[PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")]
-                  + [[str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
+                  + [[MPIRUN, "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
                       "--h-contact", "0.01", "0.005", "0.0035", "--swap", "0.005"]],
     "cycle": [[PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]],
     "cost": [[PY, "demos/bench/bench_cost.py", "square", "--sequence", "auto", "--out", "demos/results/cost/square.csv"],
              [PY, "demos/bench/bench_cost.py", "square", "--sequence", "off", "--repeat", "1",
               "--out", "demos/results/cost/square_off.csv"],
              [PY, "demos/bench/bench_cost.py", "hertz3d", "--repeat", "2", "--out", "demos/results/cost/hertz3d.csv"],
-             [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_cost.py", "hertz3d", "--set",
+             [MPIRUN, "-n", "2", PY, "demos/bench/bench_cost.py", "hertz3d", "--set",
               "adapt.theta=0.3", "--max-dofs", "1600000", "--no-before", "--sequence", "auto", "--repeat", "1",
               "--out", "demos/results/cost/hertz3d_np2.csv"],
              [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
     "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"],
               [PY, "demos/bench/bench_error_quadrature.py", "--out", "demos/results/error_quadrature.csv"],
               [PY, "demos/bench/bench_kernels.py", "--repeat", "4", "--out", "demos/results/kernels.csv"],
-              [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "assembly",
+              [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "assembly",
                "--cells", "55", "--repeat", "4", "--out", "demos/results/kernels_np2.csv"],
-              [str(Path(PY).parent / "mpirun"), "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "refine",
+              [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "refine",
                "--repeat", "3", "--out", "demos/results/kernels_refine_np2.csv"]]
              + [(["rm", "-f", "demos/results/bandwidth.csv"] if n == 0 else
-                 [str(Path(PY).parent / "mpirun"), "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
+                 [MPIRUN, "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
                   "--out", "demos/results/bandwidth.csv"]) for n in (0, 1, 2)],
     "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
                 for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],

@@ -14,8 +14,9 @@ What it shows:
   cells with x < 0.3 are refined, as an adaptive loop refines one region: by
   ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.adapt.refine`
   does in parallel: children stay on their parent's rank, the ghost layer is rebuilt) and
-  with dolfinx's graph partitioner (the refined mesh redistributed), alternating; the check
-  column is the busiest rank's owned cells over the mean after refinement.
+  with dolfinx's graph partitioner (the refined mesh redistributed), and with none (children
+  stay, no ghost layer: what a serial run does), alternating; the check column is the
+  busiest rank's owned cells over the mean after refinement.
 
 Prints one row per measurement and writes CSV (kernel, dofs or cells, path, seconds,
 check).  Run serially, and the assembly under ``mpirun -n 2`` too:
@@ -107,7 +108,8 @@ def refine(cells: int, repeat: int) -> list[dict]:
     marked = owned[dmesh.compute_midpoints(msh, 2, owned)[:, 0] < 0.3]
     edges = dmesh.compute_incident_entities(msh.topology, marked, 2, 1)
     paths = {"identity": dmesh.IdentityPartitionerPlaceholder,
-             "graph": lambda: dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)}
+             "graph": lambda: dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+             "no_ghosts": lambda: None}
     times: dict[str, list[float]] = {name: [] for name in paths}
     balance, size = {}, 0
     for _ in range(repeat):

@@ -60,8 +60,8 @@ spec = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 scene = contact.load_scene(spec["source"], spec["overrides"] + ["solver.max_dofs=100000000"])
 result = contact.solve(scene, verbose=False)
-print(json.dumps({"dofs": result.dofs, "linear": result.linear, "converged": bool(result.converged), "seconds": time.perf_counter() - t0,
-                  "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+print(json.dumps({"dofs": result.dofs, "linear": result.linear, "converged": bool(result.converged),
+                  "seconds": time.perf_counter() - t0, "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
 
