@@ -96,7 +96,7 @@ def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
         raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")
 
 
-def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
+def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, rebalance: bool | None = None
            ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
@@ -114,6 +114,10 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
     the surface shifts by at most the sagitta h²/(8R) of the old edge).
 
+    In parallel the refined mesh is redistributed evenly over the ranks unless
+    ``rebalance`` is false (default: the scene's ``adapt.rebalance``, true; see
+    :func:`refine_partitioner`); the mesh itself does not depend on it.
+
     ``cells`` are owned local cell indices (as :func:`mark` returns them); anything else,
     or a ``u_h`` on another mesh, is a ValueError (on every rank)."""
     require_scene(scene)
@@ -121,11 +125,15 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None
     if u_h is not None and (not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh):
         raise ValueError("u_h: expected a dolfinx.fem.Function on the scene's mesh (e.g. result.u_h of "
                          "contact.solve on this scene)")
+    if rebalance is None:
+        rebalance = (scene.cfg.get("adapt") or {}).get("rebalance", True)
+    if not isinstance(rebalance, bool):
+        raise ValueError(f"rebalance: expected true or false, got {rebalance!r}")
     msh = scene.mesh
     tdim = msh.topology.dim
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    new, parent_cell, parent_facet = dmesh.refine(msh, edges, partitioner=refine_partitioner(msh),
+    new, parent_cell, parent_facet = dmesh.refine(msh, edges, partitioner=refine_partitioner(msh, rebalance),
                                                   option=dmesh.RefinementOption.parent_cell_and_facet)
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
@@ -165,13 +173,23 @@ def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> in
     return V.dofmap.index_map_bs * (vertices + msh.comm.allreduce(owned, op=MPI.SUM))
 
 
-def refine_partitioner(msh: dmesh.Mesh):
-    """``dolfinx.mesh.refine``'s partitioner: in serial ``None`` (no ghost layer to build:
-    40 % faster, 2.2 s against 3.7 s for 1.5M new cells), in parallel dolfinx's default
-    (children stay with their parents' rank and the ghost layer is rebuilt — the
-    estimator's interior-facet jumps need the ghost cells)."""
+def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
+    """``dolfinx.mesh.refine``'s partitioner.
+
+    * serial: ``None`` (no ghost layer to build: 40 % faster, 2.2 s against 3.7 s for 1.5M
+      new cells);
+    * parallel, ``rebalance``: dolfinx's graph partitioner, which spreads the refined mesh
+      evenly over the ranks — refinement concentrated in one rank's part of the domain
+      would otherwise leave that rank with most of the work (problem A: 1.15× its share
+      of the DoFs at 1.23M; hertz_3d 1.30× at 865k);
+    * parallel, not ``rebalance``: the identity partitioner (children stay on their parent's
+      rank).
+
+    Both parallel ones rebuild the ghost layer the estimator's interior-facet jumps need."""
     if msh.comm.size == 1:
         return None
+    if rebalance:
+        return dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)
     return dmesh.IdentityPartitionerPlaceholder()
 
 
@@ -300,7 +318,7 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
             break
         t0 = time.perf_counter()
-        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None)
+        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"])
         seconds["refine"] = time.perf_counter() - t0
         # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
         V_next = new_u0.function_space if new_u0 is not None else \

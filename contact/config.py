@@ -354,6 +354,9 @@ SCENE: dict[str, Field] = {
         "max_dofs": Field("int", 200000, check=_positive),
         "max_levels": Field("int", 8, check=_positive),
         "nested": Field("bool", True),
+        "rebalance": Field("bool", True,
+                           doc="in parallel, let dolfinx's graph partitioner spread each refined mesh "
+                               "evenly over the ranks (false: children stay on their parent's rank)"),
         "newton_rtol": Field("number", 1e-10, check=_positive,
                              doc="Newton's relative tolerance inside the loop: the algebraic error "
                                  "only has to be small against the discretization error"),
