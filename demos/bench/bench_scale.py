@@ -7,7 +7,11 @@ mark, refine), for
 
 * problem A (``configs/signorini_free_boundary.yaml``) to ``--max-dofs`` on 1 and 2 MPI
   ranks (the parallel speed-up is the ratio of the two wall times);
-* ``configs/hertz_3d.yaml`` to ``--max-dofs-3d`` on 2 ranks.
+* ``configs/hertz_3d.yaml`` to ``--max-dofs-3d`` on 2 ranks;
+
+the 2-rank runs twice: with ``adapt.rebalance: true`` (the default: each refined mesh is
+redistributed evenly) and ``false`` (children stay on their parent's rank), one after the
+other, so the two are compared on the machine's speed of the same minutes.
 
 For the finest level it prints assembly + estimate against the solve, for the level
 before it the refinement too (the finest level is not refined), and the refinement that
@@ -35,21 +39,22 @@ ROOT = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
 
 
-def run(scene: str, ranks: int, max_dofs: int) -> dict:
+def run(scene: str, ranks: int, max_dofs: int, rebalance: bool = True) -> dict:
     """:func:`run_here` in a child process of its own (so that its peak memory is its own)."""
-    proc = subprocess.run([sys.executable, __file__, "--one", scene, str(ranks), str(max_dofs)],
+    proc = subprocess.run([sys.executable, __file__, "--one", scene, str(ranks), str(max_dofs),
+                           str(rebalance).lower()],
                           capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(proc.stderr.strip()[-400:])
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def run_here(scene: str, ranks: int, max_dofs: int) -> dict:
+def run_here(scene: str, ranks: int, max_dofs: int, rebalance: str = "true") -> dict:
     """One CLI run in a fresh folder: wall time, peak RSS and the phase totals."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
         cmd = [str(BIN / "contact"), "run", str(ROOT / "configs" / scene), "-o", str(out), "-q",
-               "--set", f"adapt.max_dofs={max_dofs}", "--set", "adapt.max_levels=40"]
+               "--set", f"adapt.max_dofs={max_dofs}", "--set", "adapt.max_levels=40", "--set", f"adapt.rebalance={rebalance}"]
         if ranks > 1:
             cmd = [str(BIN / "mpirun"), "-n", str(ranks)] + cmd
         t0 = time.perf_counter()
@@ -63,7 +68,7 @@ def run_here(scene: str, ranks: int, max_dofs: int) -> dict:
     total = {k[8:]: sum(float(r[k] or 0) for r in levels) for k in phases}
     last, prev = levels[-1], levels[-2]
     sec = lambda r, k: float(r.get(f"seconds_{k}") or 0)   # noqa: E731
-    return {"scene": scene, "ranks": ranks, "levels": len(levels), "dofs": int(last["dofs"]),
+    return {"scene": scene, "ranks": ranks, "rebalance": rebalance, "levels": len(levels), "dofs": int(last["dofs"]),
             "rank_imbalance": float(last.get("rank_imbalance") or 1.0),
             "wall_s": round(wall, 2), "peak_rss_gib": round(peak_kib / 2**20, 3),
             **{f"total_{k}_s": round(v, 2) for k, v in total.items()},
@@ -84,16 +89,18 @@ def main() -> None:
     ap.add_argument("--max-dofs", type=int, default=1_500_000, help="problem A's DoF budget")
     ap.add_argument("--max-dofs-3d", type=int, default=1_000_000, help="hertz_3d's DoF budget")
     ap.add_argument("--out", default="demos/results/scale.csv")
-    ap.add_argument("--one", nargs=3, metavar=("SCENE", "RANKS", "MAX_DOFS"), help=argparse.SUPPRESS)
+    ap.add_argument("--one", nargs=4, metavar=("SCENE", "RANKS", "MAX_DOFS", "REBALANCE"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        print(json.dumps(run_here(args.one[0], int(args.one[1]), int(args.one[2]))))
+        print(json.dumps(run_here(args.one[0], int(args.one[1]), int(args.one[2]), args.one[3])))
         return
     rows = [run("signorini_free_boundary.yaml", 1, args.max_dofs),
             run("signorini_free_boundary.yaml", 2, args.max_dofs),
-            run("hertz_3d.yaml", 2, args.max_dofs_3d)]
+            run("signorini_free_boundary.yaml", 2, args.max_dofs, rebalance=False),
+            run("hertz_3d.yaml", 2, args.max_dofs_3d),
+            run("hertz_3d.yaml", 2, args.max_dofs_3d, rebalance=False)]
     for r in rows:
-        print(f"{r['scene']:>30s} {r['ranks']} rank(s): {r['levels']} levels to {r['dofs']} DoFs, "
+        print(f"{r['scene']:>30s} {r['ranks']} rank(s), rebalance {r['rebalance']}: {r['levels']} levels to {r['dofs']} DoFs, "
               f"{r['wall_s']:.1f} s wall, peak {r['peak_rss_gib']:.2f} GiB; finest level: assembly + estimate "
               f"{r['last_assembly_estimate_s']:.2f} s vs solve {r['last_solve_s']:.2f} s; level before "
               f"({r['prev_dofs']} DoFs): + refine {r['prev_assembly_estimate_refine_s']:.2f} s vs solve "
@@ -101,6 +108,8 @@ def main() -> None:
               f"{r['finest_overhead_s']:.2f} s = {r['finest_overhead_ratio']:.2f} x its solve; the busiest rank "
               f"owns {r['rank_imbalance']:.2f} x the mean of the finest level's DoFs", flush=True)
     print(f"problem A speed-up on 2 ranks: {rows[0]['wall_s'] / rows[1]['wall_s']:.2f}", flush=True)
+    print(f"2 ranks, wall time rebalanced / partition kept: problem A {rows[1]['wall_s'] / rows[2]['wall_s']:.3f}, "
+          f"hertz_3d {rows[3]['wall_s'] / rows[4]['wall_s']:.3f}", flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with open(out, "w", newline="") as fh:
