@@ -2,13 +2,15 @@
 
 2D fields are drawn with matplotlib (axes in the scene's length unit, colour bars with their
 title beside the ticks); 3D fields with pyvista off-screen, seen from the obstacle's side so
-that the contact zone is in view.  Every function is collective (the fields are gathered on
-rank 0 with :func:`contact.series.gather_grid`) and draws on rank 0.
+that the contact zone is in view.  The pictures of fields are collective: the fields are
+gathered on one rank with :func:`contact.series.gather_grid` and drawn there;
+:func:`draw_in_turn` draws several at once, one per rank.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -138,19 +140,66 @@ def _active_points(grid) -> np.ndarray:
     return grid.points[grid.point_data["active"] > 0.5] if "active" in grid.point_data else np.zeros((0, 3))
 
 
-def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
-                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> None:
+@dataclass(frozen=True)
+class Picture:
+    """A picture of fields: the point ``fields`` gathered on one grid (all ranks hold them)
+    and ``draw(grid)``, which writes the file on the rank that holds the grid."""
+
+    fields: list
+    draw: Callable[[Any], None]
+
+
+#: how many ranks draw pictures at once (None: all; 1: rank 0 draws every picture, the old
+#: path, kept to measure the difference)
+DRAW_RANKS: int | None = None
+
+
+def draw_in_turn(pictures: Sequence[Picture], comm) -> None:
+    """Draw ``pictures`` (collective): picture k is gathered on rank k mod n and drawn
+    there, n = ``comm.size`` (or :data:`DRAW_RANKS`).  With n > 1 every rank first gathers
+    its pictures, then draws them, all ranks at once; put the largest first, so that the
+    two largest go to different ranks.  With n = 1 each picture is drawn as soon as it is
+    gathered (one grid held at a time).  Ends with a barrier: every file exists when it
+    returns."""
+    n = min(comm.size, DRAW_RANKS or comm.size)
+    mine = []
+    for k, picture in enumerate(pictures):
+        grid = gather_grid(picture.fields, root=k % n)
+        if grid is not None:
+            mine.append((picture, grid))
+        if n == 1:
+            _draw(mine)
+    _draw(mine)
+    comm.Barrier()
+
+
+def _draw(held: list) -> None:
+    """Draw the (picture, grid) pairs of ``held`` and let go of their grids."""
+    while held:
+        picture, grid = held.pop(0)
+        picture.draw(grid)
+
+
+def solution_picture(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
+                     lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> Picture:
     """u_h (|u_h| for vectors) over the domain with the active contact nodes in red.
 
     3D: two views — the whole body, and the contact zone seen from the obstacle's side
     (``normal``: the direction from the body towards the obstacle) coloured by the contact
     pressure −λ_h when ``lmbda`` is given."""
     fields = [f for f in (u_h, active, lmbda) if f is not None]
-    grid = gather_grid(fields)
-    if grid is None:
-        return
     if u_h.function_space.mesh.geometry.dim == 3:
-        return _solution_3d(path, grid, u_h, lmbda, normal, title)
+        return Picture(fields, lambda grid: _solution_3d(path, grid, u_h, lmbda, normal, title))
+    return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title))
+
+
+def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
+                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> None:
+    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
+    draw_in_turn([solution_picture(path, u_h, active, title, lmbda, normal)], u_h.function_space.mesh.comm)
+
+
+def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
     plt = _pyplot()
     tri = _triangulation(grid)
     fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
@@ -170,16 +219,24 @@ def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | No
     plt.close(fig)
 
 
-def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
-              normal: Sequence[float] | None = None, active: fem.Function | None = None) -> None:
+def mesh_picture(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
+                 normal: Sequence[float] | None = None, active: fem.Function | None = None) -> Picture:
     """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
     ``max_edges`` cells) and u_h.  3D: the surface mesh seen from the obstacle's side
     (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
-    grid = gather_grid([u_h] + ([active] if active is not None else []))
-    if grid is None:
-        return
+    fields = [u_h] + ([active] if active is not None else [])
     if u_h.function_space.mesh.geometry.dim == 3:
-        return _mesh_3d(path, grid, title, normal)
+        return Picture(fields, lambda grid: _mesh_3d(path, grid, title, normal))
+    return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges))
+
+
+def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
+              normal: Sequence[float] | None = None, active: fem.Function | None = None) -> None:
+    """mesh.png (:func:`mesh_picture`), drawn on rank 0 (collective)."""
+    draw_in_turn([mesh_picture(path, u_h, title, max_edges, normal, active)], u_h.function_space.mesh.comm)
+
+
+def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: int) -> None:
     plt = _pyplot()
     tri = _triangulation(grid)
     fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))

@@ -143,10 +143,15 @@ def _view_normal(scene: Scene, result: Result):
     return contact_normal(scene, result)
 
 
-def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
+def solution_picture(path: Path, scene: Scene, result: Result, title: str) -> plots.Picture:
     """solution.png: u_h with the active set (3D: and the contact zone with λ_h)."""
-    plots.plot_solution(path, result.u_h, result.active, title=title, lmbda=result.lmbda_h,
-                        normal=_view_normal(scene, result))
+    return plots.solution_picture(path, result.u_h, result.active, title=title, lmbda=result.lmbda_h,
+                                  normal=_view_normal(scene, result))
+
+
+def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
+    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
+    plots.draw_in_turn([solution_picture(path, scene, result, title)], scene.comm)
 
 
 def write_contact(folder: Path, scene: Scene, result: Result, comparison: Comparison | None) -> None:
@@ -256,12 +261,14 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     if scene.cfg["output"]["png"]:
         if comm.rank == 0:
             plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")
-        for lv in picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3)):
-            plots.plot_mesh(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
-                            title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
-                            normal=_view_normal(lv.scene, lv.result), active=lv.result.active)
-        plot_solution(tmp / "solution.png", last.scene, last.result,
-                      title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")
+        # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh together)
+        pictures = [solution_picture(tmp / "solution.png", last.scene, last.result,
+                                     title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")]
+        for lv in reversed(picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))):
+            pictures.append(plots.mesh_picture(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
+                                               title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                                               normal=_view_normal(lv.scene, lv.result), active=lv.result.active))
+        plots.draw_in_turn(pictures, comm)
     write_contact(tmp, last.scene, last.result, comparison)
     _finish(tmp, info, comm)
     return info

@@ -59,8 +59,8 @@ def _cell_values(fn: fem.Function, n_cells: int) -> np.ndarray:
     return fn.x.array.real.reshape(-1, bs)[dofs]
 
 
-def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = ()):
-    """The fields on one pyvista grid on rank 0 (None elsewhere; collective).
+def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0):
+    """The fields on one pyvista grid on rank ``root`` (None elsewhere; collective).
 
     All point fields must be Lagrange of one degree on one mesh (scalar or vector valued);
     the grid's points are that space's nodes (in global DoF order), its cells the owned
@@ -78,8 +78,8 @@ def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.
     top[:, 1:] = imap.local_to_global(top[:, 1:].ravel().astype(np.int32)).reshape(n_cells, -1)
     points = {fn.name: _on_space(fn, W) for fn in point_fields}
     cells = {fn.name: _cell_values(fn, n_cells) for fn in cell_fields}
-    parts = comm.gather((x[:n_owned], top, cell_types, points, cells), root=0)
-    if comm.rank != 0:
+    parts = comm.gather((x[:n_owned], top, cell_types, points, cells), root=root)
+    if comm.rank != root:
         return None
     grid = pyvista.UnstructuredGrid(np.concatenate([p[1] for p in parts]).ravel(),
                                     np.concatenate([p[2] for p in parts]),

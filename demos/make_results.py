@@ -956,8 +956,10 @@ def cost() -> str:
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so "
                 f"`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel{ghosts}) is the largest "
                 "phase of the 2D loop and exceeds the finest level's "
-                "solve; in 3D the solve dominates. The pictures and each level's `.vtu` are written by rank 0 "
-                "(2D meshes above 200k cells are drawn as images sampled at the pixel centres).", ""]
+                "solve; in 3D the solve dominates. Each level's `.vtu` is written by rank 0 (one file, the same on "
+                "any number of ranks); the final pictures are drawn by all ranks at once, picture k on rank k mod "
+                "n (`contact.plots.draw_in_turn`; 2D meshes above 200k cells are drawn as images sampled at the "
+                "pixel centres).", ""]
     return "\n".join(out) + "\n"
 
 

@@ -1,5 +1,11 @@
 """The pictures of big 2D meshes: nodal fields sampled at pixel centres (contact.plots.raster)
 must be the P1 interpolant there — what Gouraud shading paints — and blank outside Ω."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -93,3 +99,40 @@ def test_3d_pictures_draw_without_warnings(tmp_path):
         plots.plot_mesh(tmp_path / "mesh.png", r.u_h, active=r.active, normal=[0, 0, -1])
     for name in ("solution.png", "mesh.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+
+
+DRAW_IN_TURN = """
+import json, sys
+import numpy as np
+from mpi4py import MPI
+import contact
+from contact import plots
+from dolfinx import fem, mesh
+comm = MPI.COMM_WORLD
+u = fem.Function(fem.functionspace(mesh.create_unit_square(comm, 8, 8), ("Lagrange", 1)), name="u")
+u.interpolate(lambda x: x[0] + 2 * x[1])
+def record(k):   # picture k notes the rank that drew it and the gathered grid's size and values
+    return lambda grid: open(f"{sys.argv[1]}/{k}.json", "w").write(json.dumps(
+        [comm.rank, grid.n_points, float(np.max(np.abs(grid.point_data["u"] - grid.points[:, 0] - 2 * grid.points[:, 1])))]))
+plots.DRAW_RANKS = int(sys.argv[2]) or None
+plots.draw_in_turn([plots.Picture([u], record(k)) for k in range(3)], comm)
+files = [json.load(open(f"{sys.argv[1]}/{k}.json")) for k in range(3)]   # after the barrier: all there
+if comm.rank == 0:
+    print(json.dumps(files))
+"""
+
+
+@pytest.mark.parametrize("draw_ranks, drawn_by", [(0, [0, 1, 0]), (1, [0, 0, 0])])
+def test_pictures_are_drawn_in_turn_by_every_rank(tmp_path, draw_ranks, drawn_by):
+    """On 2 ranks picture k is gathered whole (81 nodes, u = x + 2y at each) on rank k mod 2
+    and drawn there; plots.DRAW_RANKS = 1 (the old path) draws every picture on rank 0; every
+    file exists when draw_in_turn returns."""
+    script = tmp_path / "draw.py"
+    script.write_text(DRAW_IN_TURN)
+    mpirun = Path(sys.executable).parent / "mpirun"
+    proc = subprocess.run([str(mpirun), "-n", "2", sys.executable, str(script), str(tmp_path), str(draw_ranks)],
+                          capture_output=True, text=True, timeout=120, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr
+    files = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert [f[0] for f in files] == drawn_by
+    assert all(f[1] == 81 and f[2] < 1e-12 for f in files), files
