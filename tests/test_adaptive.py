@@ -21,15 +21,25 @@ MPIRUN = Path(sys.executable).parent / "mpirun"
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 
 
-def _levels(tmp_path, nproc, method="fb", strategy="dorfler", levels=6, rebalance=True):
-    out = tmp_path / f"levels_{nproc}_{method}_{strategy}_{rebalance}.json"
-    cmd = [sys.executable, str(ROOT / "tests" / "adapt_levels.py"), str(out),
-           str(ROOT / "configs" / "signorini_free_boundary.yaml"), method, strategy, str(levels),
-           str(rebalance).lower()]
-    if nproc > 1:
-        cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env=ENV)
-    return json.loads(out.read_text())
+@pytest.fixture(scope="module")
+def levels(tmp_path_factory):
+    """``levels(nproc, strategy=…, rebalance=…)``: the per-level rows of problem A's adaptive
+    loop (tests/adapt_levels.py, 6 levels, fb) on ``nproc`` ranks, each run once per module."""
+    runs = {}
+
+    def run(nproc, strategy="dorfler", rebalance=True):
+        key = (nproc, strategy, rebalance)
+        if key not in runs:
+            out = tmp_path_factory.mktemp("levels") / "levels.json"
+            cmd = [sys.executable, str(ROOT / "tests" / "adapt_levels.py"), str(out),
+                   str(ROOT / "configs" / "signorini_free_boundary.yaml"), "fb", strategy, "6",
+                   str(rebalance).lower()]
+            if nproc > 1:
+                cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
+            subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env=ENV)
+            runs[key] = json.loads(out.read_text())
+        return runs[key]
+    return run
 
 
 def _same_levels(serial, parallel):
@@ -44,20 +54,20 @@ def _same_levels(serial, parallel):
 
 
 @pytest.mark.parametrize("strategy", ["dorfler", "maximum"])
-def test_two_ranks_give_same_levels_as_serial(tmp_path, strategy):
-    serial, parallel = _levels(tmp_path, 1, strategy=strategy), _levels(tmp_path, 2, strategy=strategy)
+def test_two_ranks_give_same_levels_as_serial(levels, strategy):
+    serial, parallel = levels(1, strategy), levels(2, strategy)
     _same_levels(serial, parallel)
     # each refined mesh is redistributed by the graph partitioner (adapt.rebalance, the default)
     assert all(p["rank_imbalance"] <= 1.05 for p in parallel[1:]), [p["rank_imbalance"] for p in parallel]
 
 
-def test_without_rebalancing_the_first_partition_is_kept(tmp_path):
+def test_without_rebalancing_the_first_partition_is_kept(levels):
     """adapt.rebalance: false keeps each child on its parent's rank: the same levels, but
     problem A refines towards the free boundary, more on one rank's side (57.7 % of 1.23M
     DoFs at 18 levels), so the last level is less balanced than the rebalanced run's."""
-    serial, kept = _levels(tmp_path, 1), _levels(tmp_path, 2, rebalance=False)
+    serial, kept = levels(1), levels(2, rebalance=False)
     _same_levels(serial, kept)
-    rebalanced = _levels(tmp_path, 2)
+    rebalanced = levels(2)
     assert kept[-1]["rank_imbalance"] > max(1.02, rebalanced[-1]["rank_imbalance"]), (kept[-1], rebalanced[-1])
 
 
