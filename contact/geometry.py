@@ -33,7 +33,7 @@ from dolfinx import la
 from dolfinx import mesh as dmesh
 
 from .config import ConfigError
-from .meshes import collapsed_cells, gmsh_to_mesh, signed_volumes
+from .meshes import cells_touching, collapsed_cells, gmsh_to_mesh, signed_volumes
 
 CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
 GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h
@@ -255,9 +255,10 @@ class CurvedBoundary:
         xs[:] = X[:, :gdim]
         xs[owned] = self.project(xs[owned])
         coords.scatter_forward()
-        before = signed_volumes(msh)
+        touched = cells_touching(msh, flag.array)    # the only cells whose volume changes
+        before = signed_volumes(msh, touched)
         X[on, :gdim] = xs[on]
-        _, n_bad = collapsed_cells(msh, before, tol)
+        _, n_bad = collapsed_cells(msh, before, tol, touched)
         if n_bad:
             total = msh.topology.index_map(tdim).size_global
             raise RuntimeError(f"snapping the refined mesh to the curved boundary (tag {self.tag}) "

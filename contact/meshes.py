@@ -107,26 +107,40 @@ def _geometry_nodes(msh: dmesh.Mesh) -> np.ndarray:
     return msh.geometry.dofmaps[0][:, : msh.topology.dim + 1]
 
 
-def signed_volumes(msh: dmesh.Mesh) -> np.ndarray:
+def signed_volumes(msh: dmesh.Mesh, cells: np.ndarray | None = None) -> np.ndarray:
     """det(x_1 − x_0, …, x_d − x_0) of each simplex (d! times its signed volume, in the
-    mesh's length unit to the power d), local cells with ghosts."""
+    mesh's length unit to the power d): of the local ``cells`` (default all, ghosts
+    included)."""
     gdim = msh.geometry.dim
-    P = msh.geometry.x[_geometry_nodes(msh)][:, :, :gdim]
+    nodes = _geometry_nodes(msh) if cells is None else _geometry_nodes(msh)[cells]
+    P = msh.geometry.x[nodes][:, :, :gdim]
     return np.linalg.det(P[:, 1:] - P[:, :1])
 
 
-def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12) -> tuple[np.ndarray, int]:
+def cells_touching(msh: dmesh.Mesh, node_flag: np.ndarray) -> np.ndarray:
+    """The local cells (ghosts included) with a vertex geometry node whose ``node_flag``
+    (one value per local geometry node) is nonzero."""
+    return np.flatnonzero(np.any(node_flag[_geometry_nodes(msh)] != 0, axis=1)).astype(np.int32)
+
+
+def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12,
+                    cells: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """The owned cells a move of the geometry nodes inverted or flattened, and their number
     over all ranks (collective).
 
-    ``before`` is :func:`signed_volumes` before the move; with J_T = det_after / det_before
-    the cell's (mean) Jacobian determinant of the move, a cell is bad if
-    J_T ≤ tol · max_T |J_T| (maximum over all ranks).
+    ``before`` is :func:`signed_volumes` of ``cells`` (default all local cells) before the
+    move; with J_T = det_after / det_before the cell's (mean) Jacobian determinant of the
+    move, a cell is bad if J_T ≤ tol · max_T |J_T| (maximum over all owned cells of all
+    ranks).  ``cells`` must contain every cell the move touched: the others keep J_T = 1.
     """
-    jac = signed_volumes(msh) / before
     owned = msh.topology.index_map(msh.topology.dim).size_local
-    scale = msh.comm.allreduce(float(np.max(np.abs(jac[:owned]), initial=0.0)), op=MPI.MAX)
-    bad = np.flatnonzero(jac[:owned] <= tol * scale)
+    cells = np.arange(len(before)) if cells is None else np.asarray(cells)
+    jac = signed_volumes(msh, cells) / before
+    mine = cells < owned
+    cells, jac = cells[mine], jac[mine]
+    untouched = 1.0 if len(cells) < owned else 0.0          # J_T = 1 on the cells not listed
+    scale = msh.comm.allreduce(max(float(np.max(np.abs(jac), initial=0.0)), untouched), op=MPI.MAX)
+    bad = cells[jac <= tol * scale]
     return bad, msh.comm.allreduce(len(bad), op=MPI.SUM)
 
 

@@ -62,15 +62,16 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     """u_h on the refined mesh ``new`` (same element): every child cell lies in its parent,
     so a node x of child cell c takes u_h evaluated in parent(c) on c's creating rank —
     exact for the nested Lagrange spaces of refinement (u0 = u_h as functions), with no
-    point search.  Each owned DoF asks once, through the first local cell (ghosts
-    included) that holds it."""
+    point search.  Each owned DoF asks once, through one local cell (ghosts
+    included) that holds it (any one: u_h is continuous)."""
     V = fem.functionspace(new, u_h.function_space.ufl_element())
     u0 = fem.Function(V, name="u0")
     rank, index = creators(new, len(parent_cell))
     cell_dofs = V.dofmap.list
-    dofs, first = np.unique(cell_dofs.ravel(), return_index=True)
-    owned = dofs < V.dofmap.index_map.size_local
-    dofs, cell = dofs[owned], first[owned] // cell_dofs.shape[1]
+    cell_of = np.full(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, -1, dtype=np.int64)
+    cell_of[cell_dofs.ravel()] = np.repeat(np.arange(len(cell_dofs)), cell_dofs.shape[1])  # a cell holding it
+    dofs = np.flatnonzero(cell_of[: V.dofmap.index_map.size_local] >= 0)
+    cell = cell_of[dofs]
     bs = V.dofmap.index_map_bs
 
     def evaluate(i: np.ndarray, x: np.ndarray) -> np.ndarray:   # on the creating rank

@@ -22,6 +22,7 @@ from mpi4py import MPI
 
 from contact.adapt import refine, refine_partitioner
 from contact.config import ConfigError
+from contact.meshes import cells_touching, collapsed_cells, signed_volumes
 from contact.geometry import CONTACT, GRADING, CurvedBoundary, curved_boundary, quarter_disk, sphere_octant
 from snap_levels import SCENES, load, main, near_contact, refinements
 
@@ -253,6 +254,26 @@ def test_snapping_that_inverts_a_cell_is_an_error():
     surface = CurvedBoundary(centre=(0.0, 0.5), radius=0.1, tag=CONTACT)
     with pytest.raises(RuntimeError, match="inverts or flattens"):
         surface.snap(scene.mesh, scene.boundary.tags)
+
+
+@pytest.mark.parametrize("height", [0.05, 0.2, 0.125])
+def test_collapse_check_of_the_touched_cells_equals_the_full_check(height):
+    """Snapping checks only the cells with a moved node: the same collapsed cells as
+    checking every cell, when the bottom row of an 8 × 8 square moves up to ``height``
+    (0.05: none collapse; 0.2: the bottom row inverts; 0.125: it flattens onto the first
+    row of vertices)."""
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 8, 8)
+    x = msh.geometry.x
+    moved = np.isclose(x[:, 1], 0.0)
+    touched = cells_touching(msh, moved.astype(float))
+    n_local = msh.topology.index_map(2).size_local + msh.topology.index_map(2).num_ghosts
+    assert 0 < len(touched) < n_local
+    before_all, before_touched = signed_volumes(msh), signed_volumes(msh, touched)
+    x[moved, 1] = height
+    bad_all, n_all = collapsed_cells(msh, before_all)
+    bad_touched, n_touched = collapsed_cells(msh, before_touched, cells=touched)
+    assert n_touched == n_all == {0.05: 0, 0.2: 16, 0.125: 16}[height]
+    assert np.array_equal(np.sort(bad_touched), np.sort(bad_all))
 
 
 @pytest.mark.mpi
