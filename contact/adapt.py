@@ -96,8 +96,8 @@ def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
         raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")
 
 
-def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, rebalance: bool | None = None
-           ) -> tuple[Scene, fem.Function | None]:
+def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, rebalance: bool | None = None,
+           *, timings: dict[str, float] | None = None) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
     move the vertices of a curved boundary part onto its exact surface
@@ -119,7 +119,11 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
     :func:`refine_partitioner`); the mesh itself does not depend on it.
 
     ``cells`` are owned local cell indices (as :func:`mark` returns them); anything else,
-    or a ``u_h`` on another mesh, is a ValueError (on every rank)."""
+    or a ``u_h`` on another mesh, is a ValueError (on every rank).
+
+    ``timings``, if given, receives the seconds of the parts: ``mesh`` (the marked edges and
+    ``dolfinx.mesh.refine`` itself, with the redistribution and the ghost layer),
+    ``transfer`` (facets, tags and functions carried over) and ``snap`` (curved boundaries)."""
     require_scene(scene)
     cells = _owned_cells(scene, cells)
     if u_h is not None and (not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh):
@@ -131,10 +135,12 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
         raise ValueError(f"rebalance: expected true or false, got {rebalance!r}")
     msh = scene.mesh
     tdim = msh.topology.dim
+    clock = time.perf_counter()
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
     new, parent_cell, parent_facet = dmesh.refine(msh, edges, partitioner=refine_partitioner(msh, rebalance),
                                                   option=dmesh.RefinementOption.parent_cell_and_facet)
+    parts = {"mesh": time.perf_counter() - clock}
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
@@ -145,11 +151,15 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
                   time=scene.time, history=history, bodies=bodies, surfaces=surfaces,
                   parent=(scene, parent_cell))
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
+    parts["transfer"] = time.perf_counter() - clock - parts["mesh"]
     warn_undeclared_curves(scene)
     for surface in boundary_surfaces(scene):
         surface.snap(new, tags)
     for surface in builder_surfaces(scene.cfg):   # by the mesh's own tags of its curved surfaces
         surface.snap(new, surfaces)
+    parts["snap"] = time.perf_counter() - clock - parts["mesh"] - parts["transfer"]
+    if timings is not None:
+        timings.update(parts)
     return child, u0
 
 
@@ -319,8 +329,11 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
             break
         t0 = time.perf_counter()
-        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"])
+        parts: dict[str, float] = {}
+        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"],
+                                   timings=parts)
         seconds["refine"] = time.perf_counter() - t0
+        seconds["refine_mesh"] = parts["mesh"]   # of which dolfinx.mesh.refine
         # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
         V_next = new_u0.function_space if new_u0 is not None else \
             fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())

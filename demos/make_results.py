@@ -892,13 +892,14 @@ def cost() -> str:
                 table(["scene", "ranks", "rebalance", "levels", "final DoFs", "wall s", "peak GiB", "solve", "assembly",
                        "estimate", "error", "refine", "output", "finest: assembly + estimate / solve",
                        "level before: + refine / solve", "refine into the finest + its assembly + estimate, "
-                       "over its solve", "busiest rank's DoFs / mean"],
+                       "over its solve", "of which dolfinx.mesh.refine, over the solve", "busiest rank's DoFs / mean"],
                       [[r["scene"], r["ranks"], r.get("rebalance", "false"), r["levels"], r["dofs"], g(r["wall_s"]), g(r["peak_rss_gib"]),
                         g(r["total_solve_s"]), g(r["total_assembly_s"]), g(r["total_estimate_s"]),
                         g(r["total_error_s"]), g(r["total_refine_s"]), g(r["total_output_s"]),
                         f"{g(r['last_assembly_estimate_s'])} / {g(r['last_solve_s'])}",
                         f"{g(r['prev_assembly_estimate_refine_s'])} / {g(r['prev_solve_s'])}",
-                        g(r.get("finest_overhead_ratio", "")), g(r.get("rank_imbalance", ""))] for r in scale]), ""]
+                        g(r.get("finest_overhead_ratio", "")), g(r.get("finest_refine_mesh_ratio", "")),
+                        g(r.get("rank_imbalance", ""))] for r in scale]), ""]
         rebalanced = lambda r: r.get("rebalance", "false") == "true" or int(r["ranks"]) == 1  # noqa: E731
         a = {int(r["ranks"]): r for r in scale if r["scene"].startswith("signorini_free_boundary") and rebalanced(r)}
         bw = {int(r["ranks"]): r for r in rows(RES / "bandwidth.csv") or []}
@@ -953,10 +954,15 @@ def cost() -> str:
                     "problem A's adaptive meshes).", ""]
         ghosts = (f": {g(kern['identity']['seconds'])} s against {g(kern['no_ghosts']['seconds'])} s without "
                   "ghosts in the kernel above" if {"identity", "no_ghosts"} <= set(kern) else "")
+        floor = "; ".join(f"{g(r['finest_refine_mesh_s'])} s = {g(r['finest_refine_mesh_ratio'])}× the finest solve "
+                          f"in {r['scene']} on {r['ranks']} rank(s)" for r in scale
+                          if r.get("finest_refine_mesh_s") not in (None, "") and rebalanced(r))
+        floor = (f" (`dolfinx.mesh.refine` alone, into the finest mesh: {floor}; `seconds_refine_mesh` in "
+                 "convergence.csv)") if floor else ""
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so "
                 f"`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel{ghosts}) is the largest "
-                "phase of the 2D loop and exceeds the finest level's "
-                "solve; in 3D the solve dominates. Each level's `.vtu` is written by rank 0 (one file, the same on "
+                f"phase of the 2D loop and exceeds the finest level's solve{floor}: in 2D the refinement "
+                "kernel alone is above half the solve; in 3D the solve dominates. Each level's `.vtu` is written by rank 0 (one file, the same on "
                 "any number of ranks); the final pictures are drawn by all ranks at once, picture k on rank k mod "
                 "n (`contact.plots.draw_in_turn`; 2D meshes above 200k cells are drawn as images sampled at the "
                 "pixel centres).", ""]

@@ -6,6 +6,7 @@ import csv
 import json
 import os
 import subprocess
+import time
 import sys
 from pathlib import Path
 
@@ -107,8 +108,11 @@ def test_cli_writes_adaptive_folder(tmp_path):
     assert len(rows) == 4
     for key in ("dofs", "cells", "eta", "eta2_volume", "eta2_jump", "eta2_neumann", "eta2_consistency",
                 "eta2_sign", "eta2_complementarity", "error", "effectivity", "newton_iterations",
-                "rank_imbalance", "seconds_solve", "seconds_estimate", "seconds_mark", "seconds_refine", "seconds_output"):
+                "rank_imbalance", "seconds_solve", "seconds_estimate", "seconds_mark", "seconds_refine", "seconds_output",
+                "seconds_refine_mesh"):
         assert key in rows[0], key
+    for r in rows[:-1]:   # dolfinx.mesh.refine is a part of the refinement
+        assert 0 < float(r["seconds_refine_mesh"]) < float(r["seconds_refine"])
     eta = [float(r["eta"]) for r in rows]
     terms = [sum(float(r[f"eta2_{t}"]) for t in ("volume", "jump", "neumann", "consistency", "sign", "complementarity"))
              for r in rows]
@@ -116,6 +120,17 @@ def test_cli_writes_adaptive_folder(tmp_path):
     assert "level" in proc.stdout and "convergence.png" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert summary["levels"] == 4 and summary["dofs"] == int(rows[-1]["dofs"])
+
+
+def test_refine_reports_the_time_of_its_parts():
+    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    parts = {}
+    t0 = time.perf_counter()
+    child, _ = contact.refine(scene, np.arange(4, dtype=np.int32), timings=parts)
+    total = time.perf_counter() - t0
+    assert set(parts) == {"mesh", "transfer", "snap"}
+    assert all(v >= 0 for v in parts.values()) and sum(parts.values()) <= total
+    assert child.mesh.topology.index_map(2).size_global > scene.mesh.topology.index_map(2).size_global
 
 
 def test_loose_newton_tolerance_does_not_change_the_discretization():
