@@ -63,7 +63,7 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     so a node x of child cell c takes u_h evaluated in parent(c) on c's creating rank —
     exact for the nested Lagrange spaces of refinement (u0 = u_h as functions), with no
     point search.  Each owned DoF asks once, through one local cell (ghosts
-    included) that holds it (any one: u_h is continuous)."""
+    included) that holds it (any one: only a continuous space shares DoFs between cells)."""
     V = fem.functionspace(new, u_h.function_space.ufl_element())
     u0 = fem.Function(V, name="u0")
     rank, index = creators(new, len(parent_cell))
