@@ -277,6 +277,15 @@ def test_collapse_check_of_the_touched_cells_equals_the_full_check(height):
 
 
 @pytest.mark.mpi
+def test_collapse_check_of_the_touched_cells_on_three_ranks():
+    proc = subprocess.run([str(MPIRUN), "-n", "3", sys.executable, str(ROOT / "tests" / "collapse_check.py"),
+                           "0.05", "0.2", "0.125"], cwd=ROOT, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout.splitlines()[-1]) == {"0.05": 0, "0.2": 16, "0.125": 16}
+
+
+@pytest.mark.mpi
 @pytest.mark.parametrize("kind", list(SCENES))
 def test_snapped_coordinates_same_on_two_ranks(tmp_path, kind):
     """After two refinements the 2-rank mesh has the serial nodes (gathered, sorted), and
