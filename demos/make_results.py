@@ -959,10 +959,12 @@ def cost() -> str:
                           if r.get("finest_refine_mesh_s") not in (None, "") and rebalanced(r))
         floor = (f" (`dolfinx.mesh.refine` alone, into the finest mesh: {floor}; `seconds_refine_mesh` in "
                  "convergence.csv)") if floor else ""
-        out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so "
-                f"`dolfinx.mesh.refine` (C++, with the ghost layer rebuilt in parallel{ghosts}) is the largest "
-                f"phase of the 2D loop and exceeds the finest level's solve{floor}: in 2D the refinement "
-                "kernel alone is above half the solve; in 3D the solve dominates. Each level's `.vtu` is written by rank 0 (one file, the same on "
+        out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so refinement "
+                f"(`dolfinx.mesh.refine` in C++, with the ghost layer rebuilt in parallel{ghosts}, then the "
+                "transfers in `contact/transfer.py`) is the largest phase of the 2D loop, and the refinement "
+                f"into the finest mesh costs more than the finest level's solve{floor}. In 2D the library's kernel "
+                "alone is above half the solve, so refinement + estimate + assembly cannot come under half the "
+                "solve while the refinement is dolfinx's; in 3D the solve dominates. Each level's `.vtu` is written by rank 0 (one file, the same on "
                 "any number of ranks); the final pictures are drawn by all ranks at once, picture k on rank k mod "
                 "n (`contact.plots.draw_in_turn`; 2D meshes above 200k cells are drawn as images sampled at the "
                 "pixel centres).", ""]
