@@ -1,4 +1,4 @@
-"""Under mpirun: the snap's collapse check restricted to the touched cells finds the same
+"""Serially or under mpirun: the snap's collapse check restricted to the touched cells finds the same
 cells as the full check on every rank (ghosts excluded), for the bottom row of an 8 × 8
 square moved up to each height given; prints {height: global count} as JSON on rank 0."""
 import json
@@ -17,6 +17,9 @@ for height in map(float, sys.argv[1:]):
     x = msh.geometry.x
     moved = np.isclose(x[:, 1], 0.0)
     touched = cells_touching(msh, moved.astype(float))
+    n_local = msh.topology.index_map(2).size_local + msh.topology.index_map(2).num_ghosts
+    if len(touched) >= n_local or MPI.COMM_WORLD.allreduce(len(touched)) == 0:   # a proper, nonempty subset
+        raise SystemExit(f"rank {MPI.COMM_WORLD.rank}: {len(touched)} of {n_local} cells touched")
     before_all, before_touched = signed_volumes(msh), signed_volumes(msh, touched)
     x[moved, 1] = height
     bad_all, n_all = collapsed_cells(msh, before_all)

@@ -42,6 +42,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from common import save_csv
+from contact.adapt import busiest_share
 from contact.models import problem as P
 from contact.models.elasticity import epsilon, stress
 
@@ -120,8 +121,7 @@ def refine(cells: int, repeat: int) -> list[dict]:
                                      option=dmesh.RefinementOption.parent_cell_and_facet)
             comm.Barrier()
             times[name].append(time.perf_counter() - t0)
-            n = new.topology.index_map(2).size_local
-            balance[name] = comm.allreduce(n, op=MPI.MAX) * comm.size / comm.allreduce(n, op=MPI.SUM)
+            balance[name] = busiest_share(comm, new.topology.index_map(2).size_local)
             size = new.topology.index_map(2).size_global
             del new
     return [{"kernel": "refine", "ranks": comm.size, "size": size, "path": name,
