@@ -40,19 +40,26 @@ def _triangulation(grid):
     return mtri.Triangulation(grid.points[:, 0], grid.points[:, 1], cells)
 
 
-def _smooth(ax, tri, values: np.ndarray, cmap: str):
+def _smooth(ax, tri, values: np.ndarray, cmap: str, plan: Raster | None = None):
     """Nodal ``values`` drawn smoothly: Gouraud shading (one triangle mesh for matplotlib, kept
     out of tight_layout, which would turn every triangle into a path: 2.4M cells, 30 s), or
     on meshes of more than :data:`RASTER_CELLS` cells, whose cells are smaller than the
     pixels, the P1 interpolant sampled at pixel centres (:func:`raster`) shown as an image
-    (1.21M cells, drawn and saved: 0.34 s against 0.95 s; ``demos/bench/bench_kernels.py``)."""
-    if len(tri.triangles) <= RASTER_CELLS:
+    (1.21M cells, drawn and saved: 0.34 s against 0.95 s; ``demos/bench/bench_kernels.py``).
+    ``plan``: that sampling, when it is already built for ``tri`` (:func:`_raster_plan`)."""
+    plan = plan or _raster_plan(tri)
+    if plan is None:
         shade = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap)
         shade.set_in_layout(False)
         return shade
-    image, extent = raster(tri, values)
-    return ax.imshow(np.ma.masked_invalid(image), extent=extent, origin="lower", cmap=cmap,
+    return ax.imshow(np.ma.masked_invalid(plan.image(values)), extent=plan.extent, origin="lower", cmap=cmap,
                      interpolation="antialiased")
+
+
+def _raster_plan(tri) -> Raster | None:
+    """The pixel sampling of ``tri`` when it has more than :data:`RASTER_CELLS` cells, else
+    None (Gouraud shading)."""
+    return Raster(tri) if len(tri.triangles) > RASTER_CELLS else None
 
 
 def raster(tri, values: np.ndarray, width: int = RASTER_WIDTH, chunk: int = 2_000_000
@@ -60,59 +67,85 @@ def raster(tri, values: np.ndarray, width: int = RASTER_WIDTH, chunk: int = 2_00
     """The piecewise linear interpolant of nodal ``values`` on the triangles ``tri``
     (a matplotlib Triangulation) at the centres of a ``width``-pixel-wide grid of square
     pixels over the bounding box: (image (ny, width), NaN outside the triangles; extent
-    (x0, x1, y0, y1) for ``imshow(origin="lower")``).
+    (x0, x1, y0, y1) for ``imshow(origin="lower")``).  One :class:`Raster`, sampled once."""
+    plan = Raster(tri, width, chunk)
+    return plan.image(values), plan.extent
+
+
+class Raster:
+    """Where the pixel centres of a ``width``-pixel-wide grid of square pixels over the
+    bounding box of the triangles ``tri`` fall: for each covered pixel its triangle's corners
+    (i0, i1, i2) and barycentric coordinates λ1, λ2, so that :meth:`image` of nodal values v
+    is Σ λ_i v_i there — exactly what Gouraud shading paints, without drawing a polygon per
+    cell.  Built once per mesh, sampled for every field drawn on it (the mesh picture draws
+    two: 1.2M cells, the second field costs a tenth of the first).
 
     Every triangle visits the pixel centres of its bounding box and keeps those inside it
-    (barycentric coordinates λ ≥ 0), where the value is Σ λ_i v_i — exactly what Gouraud
-    shading paints, without drawing a polygon per cell.  Work and memory are
-    O(#triangles + #pixels), the candidates are processed ``chunk`` at a time."""
-    x, y = np.asarray(tri.x, float), np.asarray(tri.y, float)
-    x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
-    d = (x1 - x0) / width if x1 > x0 else max(y1 - y0, 1.0) / width
-    ny = max(int(np.ceil((y1 - y0) / d)), 1)
-    image = np.full((ny, width), np.nan)
-    # in pixel units (pixel (i, j) has its centre at (i + ½, j + ½)), one array per corner
-    x, y = (x - x0) / d, (y - y0) / d
-    corners = tri.triangles.T
-    X = [x[c] for c in corners]
-    Y = [y[c] for c in corners]
-    i0 = np.maximum(np.ceil(np.minimum(np.minimum(X[0], X[1]), X[2]) - 0.5), 0).astype(np.int64)
-    i1 = np.minimum(np.floor(np.maximum(np.maximum(X[0], X[1]), X[2]) - 0.5), width - 1).astype(np.int64)
-    j0 = np.maximum(np.ceil(np.minimum(np.minimum(Y[0], Y[1]), Y[2]) - 0.5), 0).astype(np.int64)
-    j1 = np.minimum(np.floor(np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - 0.5), ny - 1).astype(np.int64)
-    nx_t = np.maximum(i1 - i0 + 1, 0)
-    n_t = nx_t * np.maximum(j1 - j0 + 1, 0)
-    hit = np.flatnonzero(n_t)                  # triangles with a pixel centre in their box
-    i0, j0, nx_t, n_t = i0[hit], j0[hit], nx_t[hit], n_t[hit]
-    X, Y = [c[hit] for c in X], [c[hit] for c in Y]
-    v = np.asarray(values, float)
-    V0, V1, V2 = (v[c[hit]] for c in corners)
-    # λ1, λ2 are affine in the pixel position p: λ1 = c1 + p·g1, λ2 = c2 + p·g2 with
-    # g1 = (by, −bx)/det, g2 = (−ay, ax)/det (a, b the edges from corner 0)
-    ax_, ay_, bx_, by_ = X[1] - X[0], Y[1] - Y[0], X[2] - X[0], Y[2] - Y[0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / (ax_ * by_ - ay_ * bx_)
-    g1x, g1y, g2x, g2y = by_ * inv, -bx_ * inv, -ay_ * inv, ax_ * inv
-    c1 = -(X[0] * g1x + Y[0] * g1y)
-    c2 = -(X[0] * g2x + Y[0] * g2y)
-    dV1, dV2 = V1 - V0, V2 - V0
-    ends = np.cumsum(n_t)
-    start = 0
-    while start < len(n_t):
-        stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")), start + 1)
-        n = n_t[start:stop]
-        tt = np.repeat(np.arange(start, stop), n)          # a triangle per candidate pixel
-        k = np.arange(len(tt)) - np.repeat(np.cumsum(n) - n, n)
-        i = i0[tt] + k % nx_t[tt]
-        j = j0[tt] + k // nx_t[tt]
-        px, py = i + 0.5, j + 0.5
-        l1 = c1[tt] + px * g1x[tt] + py * g1y[tt]
-        l2 = c2[tt] + px * g2x[tt] + py * g2y[tt]
-        inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l1 + l2 <= 1 + 1e-9)
-        tt, l1, l2 = tt[inside], l1[inside], l2[inside]
-        image[j[inside], i[inside]] = V0[tt] + l1 * dV1[tt] + l2 * dV2[tt]
-        start = stop
-    return image, (x0, x0 + width * d, y0, y0 + ny * d)
+    (λ ≥ 0).  Work and memory are O(#triangles + #pixels); the candidates are processed
+    ``chunk`` at a time."""
+
+    def __init__(self, tri, width: int = RASTER_WIDTH, chunk: int = 2_000_000):
+        x, y = np.asarray(tri.x, float), np.asarray(tri.y, float)
+        x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
+        d = (x1 - x0) / width if x1 > x0 else max(y1 - y0, 1.0) / width
+        ny = max(int(np.ceil((y1 - y0) / d)), 1)
+        self.shape = (ny, width)
+        self.extent = (x0, x0 + width * d, y0, y0 + ny * d)
+        # in pixel units (pixel (i, j) has its centre at (i + ½, j + ½)), one array per corner
+        x, y = (x - x0) / d, (y - y0) / d
+        corners = tri.triangles.T
+        X = [x[c] for c in corners]
+        Y = [y[c] for c in corners]
+        i0 = np.maximum(np.ceil(np.minimum(np.minimum(X[0], X[1]), X[2]) - 0.5), 0).astype(np.int64)
+        i1 = np.minimum(np.floor(np.maximum(np.maximum(X[0], X[1]), X[2]) - 0.5), width - 1).astype(np.int64)
+        j0 = np.maximum(np.ceil(np.minimum(np.minimum(Y[0], Y[1]), Y[2]) - 0.5), 0).astype(np.int64)
+        j1 = np.minimum(np.floor(np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - 0.5), ny - 1).astype(np.int64)
+        nx_t = np.maximum(i1 - i0 + 1, 0)
+        n_t = nx_t * np.maximum(j1 - j0 + 1, 0)
+        hit = np.flatnonzero(n_t)                  # triangles with a pixel centre in their box
+        i0, j0, nx_t, n_t = i0[hit], j0[hit], nx_t[hit], n_t[hit]
+        X, Y = [c[hit] for c in X], [c[hit] for c in Y]
+        nodes = [c[hit] for c in corners]
+        # λ1, λ2 are affine in the pixel position p: λ1 = c1 + p·g1, λ2 = c2 + p·g2 with
+        # g1 = (by, −bx)/det, g2 = (−ay, ax)/det (a, b the edges from corner 0)
+        ax_, ay_, bx_, by_ = X[1] - X[0], Y[1] - Y[0], X[2] - X[0], Y[2] - Y[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / (ax_ * by_ - ay_ * bx_)
+        g1x, g1y, g2x, g2y = by_ * inv, -bx_ * inv, -ay_ * inv, ax_ * inv
+        c1 = -(X[0] * g1x + Y[0] * g1y)
+        c2 = -(X[0] * g2x + Y[0] * g2y)
+        ends = np.cumsum(n_t)
+        pieces = []
+        start = 0
+        while start < len(n_t):
+            stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")), start + 1)
+            n = n_t[start:stop]
+            tt = np.repeat(np.arange(start, stop), n)          # a triangle per candidate pixel
+            k = np.arange(len(tt)) - np.repeat(np.cumsum(n) - n, n)
+            i = i0[tt] + k % nx_t[tt]
+            j = j0[tt] + k // nx_t[tt]
+            px, py = i + 0.5, j + 0.5
+            l1 = c1[tt] + px * g1x[tt] + py * g1y[tt]
+            l2 = c2[tt] + px * g2x[tt] + py * g2y[tt]
+            inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l1 + l2 <= 1 + 1e-9)
+            tt = tt[inside]
+            pieces.append((j[inside] * width + i[inside], [c[tt] for c in nodes], l1[inside], l2[inside]))
+            start = stop
+        self.pixel = np.concatenate([p[0] for p in pieces]) if pieces else np.zeros(0, np.int64)
+        self.corners = [np.concatenate([p[1][m] for p in pieces]) if pieces else np.zeros(0, np.int64)
+                        for m in range(3)]
+        self.l1 = np.concatenate([p[2] for p in pieces]) if pieces else np.zeros(0)
+        self.l2 = np.concatenate([p[3] for p in pieces]) if pieces else np.zeros(0)
+
+    def image(self, values: np.ndarray) -> np.ndarray:
+        """The interpolant of the nodal ``values`` at the pixel centres, (ny, width), NaN
+        outside the triangles (where a pixel centre lies on a shared edge, the last
+        triangle holding it wins: the interpolant is continuous, so any will do)."""
+        v = np.asarray(values, float)
+        v0, v1, v2 = (v[c] for c in self.corners)
+        image = np.full(self.shape[0] * self.shape[1], np.nan)
+        image[self.pixel] = v0 + self.l1 * (v1 - v0) + self.l2 * (v2 - v0)
+        return image.reshape(self.shape)
 
 
 def _aspect(grid) -> float:
@@ -143,7 +176,8 @@ def _active_points(grid) -> np.ndarray:
 @dataclass(frozen=True)
 class Picture:
     """A picture of fields: the point ``fields`` gathered on one grid (all ranks hold them)
-    and ``draw(grid)``, which writes the file on the rank that holds the grid."""
+    and ``draw(grid)``, which writes the file on the rank that holds the grid.  A picture
+    without fields (a chart) is drawn by its rank with ``grid`` None."""
 
     fields: list
     draw: Callable[[Any], None]
@@ -164,8 +198,8 @@ def draw_in_turn(pictures: Sequence[Picture], comm) -> None:
     n = min(comm.size, DRAW_RANKS or comm.size)
     mine = []
     for k, picture in enumerate(pictures):
-        grid = gather_grid(picture.fields, root=k % n)
-        if grid is not None:
+        grid = gather_grid(picture.fields, root=k % n) if picture.fields else None
+        if comm.rank == k % n:
             mine.append((picture, grid))
         if n == 1:
             _draw(mine)
@@ -240,6 +274,7 @@ def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: i
     plt = _pyplot()
     tri = _triangulation(grid)
     fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
+    plan = _raster_plan(tri)   # both panels sample the same pixels
     if grid.n_cells <= max_edges:
         ax_m.triplot(tri, color="k", lw=0.3)
         _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
@@ -249,10 +284,10 @@ def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: i
         h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
         h_v = np.zeros(len(grid.points))
         np.maximum.at(h_v, tri.triangles.ravel(), np.repeat(h, 3))
-        shade = _smooth(ax_m, tri, np.log10(h_v), "magma")
+        shade = _smooth(ax_m, tri, np.log10(h_v), "magma", plan)
         _colorbar(fig, shade, ax_m, "cell size log10 h_T")
         _axes_2d(ax_m, f"cell size: {grid.n_cells} cells")
-    shade = _smooth(ax_u, tri, _magnitude(grid.point_data[u_h.name]), "viridis")
+    shade = _smooth(ax_u, tri, _magnitude(grid.point_data[u_h.name]), "viridis", plan)
     _colorbar(fig, shade, ax_u, _field_label(u_h))
     _axes_2d(ax_u, _field_label(u_h))
     fig.suptitle(title)

@@ -259,15 +259,16 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     io.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
                                        for h in lv.result.history], comm)
     if scene.cfg["output"]["png"]:
-        if comm.rank == 0:
-            plots.plot_convergence(tmp / "convergence.png", rows, title=f"{scene.name}: adaptive convergence")
-        # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh together)
+        # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
+        # together), the convergence chart last: on 2 ranks beside the first level's mesh
         pictures = [solution_picture(tmp / "solution.png", last.scene, last.result,
                                      title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")]
         for lv in reversed(picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))):
             pictures.append(plots.mesh_picture(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
                                                title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
                                                normal=_view_normal(lv.scene, lv.result), active=lv.result.active))
+        title = f"{scene.name}: adaptive convergence"
+        pictures.append(plots.Picture([], lambda grid: plots.plot_convergence(tmp / "convergence.png", rows, title)))
         plots.draw_in_turn(pictures, comm)
     write_contact(tmp, last.scene, last.result, comparison)
     _finish(tmp, info, comm)

@@ -64,6 +64,17 @@ def test_raster_matches_the_triangulation_interpolant():
     assert np.abs(image - ref).max() < 1e-10
 
 
+def test_one_raster_plan_samples_every_field_as_its_own_raster():
+    """The mesh picture samples two fields through one Raster: each image equals the raster of
+    that field alone (NaN outside at the same pixels), and the plan's extent is the raster's."""
+    tri = _lshape(3000)
+    plan = plots.Raster(tri, width=80, chunk=500)
+    for v in (np.sin(4 * tri.x) * tri.y, np.exp(tri.x - 2 * tri.y)):
+        image, extent = plots.raster(tri, v, width=80, chunk=700)
+        assert np.array_equal(plan.image(v), image, equal_nan=True) and plan.extent == extent
+    assert np.isnan(image).any() and np.isfinite(image).sum() > 2000
+
+
 def test_big_meshes_are_drawn_as_an_image(monkeypatch):
     """Above RASTER_CELLS the field is an AxesImage, below it Gouraud triangles."""
     import matplotlib.pyplot as plt
@@ -115,18 +126,20 @@ def record(k):   # picture k notes the rank that drew it and the gathered grid's
     return lambda grid: open(f"{sys.argv[1]}/{k}.json", "w").write(json.dumps(
         [comm.rank, grid.n_points, float(np.max(np.abs(grid.point_data["u"] - grid.points[:, 0] - 2 * grid.points[:, 1])))]))
 plots.DRAW_RANKS = int(sys.argv[2]) or None
-plots.draw_in_turn([plots.Picture([u], record(k)) for k in range(3)], comm)
-files = [json.load(open(f"{sys.argv[1]}/{k}.json")) for k in range(3)]   # after the barrier: all there
+def chart(grid):   # a picture without fields: drawn by its rank, with no grid
+    open(f"{sys.argv[1]}/3.json", "w").write(json.dumps([comm.rank, grid, 0.0]))
+plots.draw_in_turn([plots.Picture([u], record(k)) for k in range(3)] + [plots.Picture([], chart)], comm)
+files = [json.load(open(f"{sys.argv[1]}/{k}.json")) for k in range(4)]   # after the barrier: all there
 if comm.rank == 0:
     print(json.dumps(files))
 """
 
 
-@pytest.mark.parametrize("draw_ranks, drawn_by", [(0, [0, 1, 0]), (1, [0, 0, 0])])
+@pytest.mark.parametrize("draw_ranks, drawn_by", [(0, [0, 1, 0, 1]), (1, [0, 0, 0, 0])])
 def test_pictures_are_drawn_in_turn_by_every_rank(tmp_path, draw_ranks, drawn_by):
     """On 2 ranks picture k is gathered whole (81 nodes, u = x + 2y at each) on rank k mod 2
-    and drawn there; plots.DRAW_RANKS = 1 (the old path) draws every picture on rank 0; every
-    file exists when draw_in_turn returns."""
+    and drawn there, a chart (no fields) too, without a grid; plots.DRAW_RANKS = 1 (the old
+    path) draws every picture on rank 0; every file exists when draw_in_turn returns."""
     script = tmp_path / "draw.py"
     script.write_text(DRAW_IN_TURN)
     mpirun = Path(sys.executable).parent / "mpirun"
@@ -135,4 +148,5 @@ def test_pictures_are_drawn_in_turn_by_every_rank(tmp_path, draw_ranks, drawn_by
     assert proc.returncode == 0, proc.stderr
     files = json.loads(proc.stdout.strip().splitlines()[-1])
     assert [f[0] for f in files] == drawn_by
-    assert all(f[1] == 81 and f[2] < 1e-12 for f in files), files
+    assert all(f[1] == 81 and f[2] < 1e-12 for f in files[:3]), files
+    assert files[3][1] is None
