@@ -112,4 +112,4 @@ def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:
     from .solvers.linear import default_options
     from .solvers.options import check_petsc_options
 
-    check_petsc_options(cfg["solver"]["petsc_options"], default_options(cfg["solver"].get("linear", "auto"), gdim), comm)
+    check_petsc_options(cfg["solver"]["petsc_options"], default_options(cfg["solver"].get("linear", "auto"), gdim, comm.size), comm)

@@ -41,3 +41,59 @@ def test_options_read_at_setup_reach_the_solver():
         assert r.converged, r.reason
         its[sweeps] = r.krylov_iterations
     assert its[6] < its[1], its
+
+
+def test_gamg_coarsens_by_mis2_only_in_parallel_2d():
+    """2D on several ranks: the first aggressive coarsening by MIS-2, not the squared graph
+    (whose product scales badly across ranks); serial and 3D keep the squared graph."""
+    from contact.solvers.linear import default_options
+
+    key = "pc_gamg_aggressive_square_graph"
+    assert default_options("gamg", 2, ranks=2)[key] is False
+    assert key not in default_options("gamg", 2, ranks=1) and key not in default_options("gamg", 3, ranks=2)
+
+
+MIS2_RUN = """
+import json
+import numpy as np
+from mpi4py import MPI
+import contact
+from contact.models.scalar import scalar_problem
+from contact.solvers.linear import default_linear_solver
+from dolfinx import fem
+import ufl
+scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[96,96]"])
+problem = scalar_problem(scene)
+r = contact.solve(scene, method="min", problem=problem, verbose=False, linear="gamg")
+norm2 = scene.mesh.comm.allreduce(fem.assemble_scalar(fem.form(r.u_h**2 * ufl.dx)))
+if scene.mesh.comm.rank == 0:
+    print(json.dumps([r.converged, default_linear_solver(problem, "gamg").get("pc_gamg_aggressive_square_graph"),
+                      norm2, r.n_active]))
+"""
+
+
+def test_gamg_in_parallel_gives_the_serial_answer(tmp_path):
+    """The 2-rank default (MIS-2 coarsening) solves signorini_square 96² to the serial answer:
+    ∫ u_h² and the active set agree (CG to 1e-10 relative, Newton to its tolerance)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import ufl
+    from dolfinx import fem
+
+    script = tmp_path / "mis2.py"
+    script.write_text(MIS2_RUN)
+    proc = subprocess.run([str(Path(sys.executable).parent / "mpirun"), "-n", "2", sys.executable, str(script)],
+                          capture_output=True, text=True, timeout=300, cwd=Path(__file__).resolve().parents[1],
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr
+    converged, square_graph, norm2, n_active = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert converged and square_graph is False
+    scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[96,96]"])
+    r = contact.solve(scene, method="min", verbose=False, linear="gamg")
+    serial = fem.assemble_scalar(fem.form(r.u_h**2 * ufl.dx))
+    assert r.converged and n_active == r.n_active
+    assert abs(norm2 - serial) <= 1e-8 * serial

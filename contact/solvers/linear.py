@@ -68,10 +68,10 @@ def default_linear_solver(problem: DiscreteProblem, linear: str = "auto") -> dic
 
 def petsc_defaults(problem: DiscreteProblem, kind: str) -> dict:
     """PETSc options of linear solver ``kind`` for ``problem``."""
-    return default_options(kind, problem.V.mesh.topology.dim)
+    return default_options(kind, problem.V.mesh.topology.dim, problem.V.mesh.comm.size)
 
 
-def default_options(kind: str, tdim: int) -> dict:
+def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
     """PETSc options of linear solver ``kind`` (``direct``, ``gamg``, ``bcgs``, or ``auto``:
     direct in 2D, gamg in 3D — the choice for small problems, known before the mesh exists,
     used to check the user's options at load) in ``tdim`` dimensions.  For ``gamg`` in 3D,
@@ -80,11 +80,21 @@ def default_options(kind: str, tdim: int) -> dict:
     iterations to 1e-8), and a Newton solve sets GAMG up once per step while its forcing
     terms ask few iterations (on hertz_3d's final mesh, 185k DoFs, min: 1.4–1.8× one
     smoothed CG + GAMG solve of K against 2.6–3.1×).  In 2D smoothed aggregation stays
-    (unsmoothed needs 161 instead of 17 iterations on the 1024² Poisson matrix)."""
+    (unsmoothed needs 161 instead of 17 iterations on the 1024² Poisson matrix).
+
+    On ``ranks`` > 1 in 2D the first level's aggressive coarsening uses MIS-2 instead of the
+    squared graph AᵀA, whose product scales badly across ranks (problem A's finest level,
+    1.23M DoFs, 2 ranks: ``MatTrnMatMultSym`` 1.01 s against 0.56 s serially, GAMG's setup
+    2.68 s against 3.17 s).  Measured (``/work/team/notes/s21/gopts.py``, the same guess,
+    alternating): 2 ranks 4.30–5.30 s against 5.01–5.72 s (21 against 19 CG iterations),
+    but serially 6.55–7.25 s against 5.70–6.95 s, and in 3D on 2 ranks (hertz_3d, 865k DoFs)
+    31.4 s against 24.4 s: the squared graph stays there."""
     if kind == "auto":
         kind = "direct" if tdim == 2 else "gamg"
     if kind == "gamg":
         extra = {"pc_gamg_agg_nsmooths": 0} if tdim == 3 else {}
+        if tdim == 2 and ranks > 1:
+            extra = {"pc_gamg_aggressive_square_graph": False}
         return {**REDUCED_PETSC_OPTIONS, **extra}
     return dict(ASSEMBLED_PETSC_OPTIONS[kind])
 
