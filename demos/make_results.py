@@ -913,7 +913,10 @@ def cost() -> str:
                            f"{bw[1].get('repeat', 1)} rounds each: memory bandwidth bounds the kernels; "
                            "[`demos/bench/bench_bandwidth.py`](bench/bench_bandwidth.py))")
             out += [f"Problem A on 2 ranks is {float(a[1]['wall_s']) / float(a[2]['wall_s']):.2f}× faster than "
-                    f"serial{ceiling}.", ""]
+                    f"serial{ceiling}. The rows were run one after the other by one call of "
+                    "`bench_scale.py`; the machine's speed drifts by tens of per cent between sittings (a shared "
+                    "host), so compare the rows with each other, and two versions of the code with paired runs "
+                    "in the same minutes (`farm-bench --vs`), not with a table of another day.", ""]
             pairs = [(r, k) for r in scale for k in scale if int(r["ranks"]) > 1 and r["scene"] == k["scene"]
                      and r["ranks"] == k["ranks"] and r.get("rebalance") == "true" and k.get("rebalance") == "false"]
             if pairs:
