@@ -85,7 +85,7 @@ def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
     On ``ranks`` > 1 in 2D the first level's aggressive coarsening uses MIS-2 instead of the
     squared graph AᵀA, whose product scales badly across ranks (problem A's finest level,
     1.23M DoFs, 2 ranks: ``MatTrnMatMultSym`` 1.01 s against 0.56 s serially, GAMG's setup
-    2.68 s against 3.17 s).  Measured (``/work/team/notes/s21/gopts.py``, the same guess,
+    2.68 s against 3.17 s).  Measured (the finest solve repeated from the same guess,
     alternating): 2 ranks 4.30–5.30 s against 5.01–5.72 s (21 against 19 CG iterations),
     but serially 6.55–7.25 s against 5.70–6.95 s, and in 3D on 2 ranks (hertz_3d, 865k DoFs)
     31.4 s against 24.4 s: the squared graph stays there."""
