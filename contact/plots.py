@@ -115,7 +115,8 @@ class Raster:
         c1 = -(X[0] * g1x + Y[0] * g1y)
         c2 = -(X[0] * g2x + Y[0] * g2y)
         ends = np.cumsum(n_t)
-        pieces = []
+        # per covered pixel: flat index, the three corners, λ1, λ2 (one empty row to start)
+        pieces = [(np.zeros(0, np.int64),) * 4 + (np.zeros(0),) * 2]
         start = 0
         while start < len(n_t):
             stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")), start + 1)
@@ -129,13 +130,9 @@ class Raster:
             l2 = c2[tt] + px * g2x[tt] + py * g2y[tt]
             inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l1 + l2 <= 1 + 1e-9)
             tt = tt[inside]
-            pieces.append((j[inside] * width + i[inside], [c[tt] for c in nodes], l1[inside], l2[inside]))
+            pieces.append((j[inside] * width + i[inside], *(c[tt] for c in nodes), l1[inside], l2[inside]))
             start = stop
-        self.pixel = np.concatenate([p[0] for p in pieces]) if pieces else np.zeros(0, np.int64)
-        self.corners = [np.concatenate([p[1][m] for p in pieces]) if pieces else np.zeros(0, np.int64)
-                        for m in range(3)]
-        self.l1 = np.concatenate([p[2] for p in pieces]) if pieces else np.zeros(0)
-        self.l2 = np.concatenate([p[3] for p in pieces]) if pieces else np.zeros(0)
+        self.pixel, *self.corners, self.l1, self.l2 = (np.concatenate(column) for column in zip(*pieces))
 
     def image(self, values: np.ndarray) -> np.ndarray:
         """The interpolant of the nodal ``values`` at the pixel centres, (ny, width), NaN

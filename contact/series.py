@@ -102,7 +102,7 @@ def _gather_rows(a: np.ndarray, comm: MPI.Comm, root: int) -> np.ndarray | None:
     if comm.rank != root:
         comm.Gatherv(a, None, root=root)
         return None
-    out = np.empty((sum(counts) // max(int(np.prod(a.shape[1:])), 1),) + a.shape[1:], dtype=a.dtype)
+    out = np.empty((sum(counts) // int(np.prod(a.shape[1:])), *a.shape[1:]), dtype=a.dtype)
     comm.Gatherv(a, (out, counts), root=root)
     return out
 

@@ -92,9 +92,12 @@ def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
     if kind == "auto":
         kind = "direct" if tdim == 2 else "gamg"
     if kind == "gamg":
-        extra = {"pc_gamg_agg_nsmooths": 0} if tdim == 3 else {}
-        if tdim == 2 and ranks > 1:
+        if tdim == 3:
+            extra = {"pc_gamg_agg_nsmooths": 0}
+        elif ranks > 1:
             extra = {"pc_gamg_aggressive_square_graph": False}
+        else:
+            extra = {}
         return {**REDUCED_PETSC_OPTIONS, **extra}
     return dict(ASSEMBLED_PETSC_OPTIONS[kind])
 
