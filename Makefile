@@ -1,6 +1,6 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, run the test suite
-# make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, ~25 min)
+# make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
 SHELL := /bin/bash
 VENV  ?= .venv
 PY    := $(VENV)/bin/python

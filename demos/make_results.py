@@ -967,11 +967,36 @@ def cost() -> str:
                 "transfers in `contact/transfer.py`) is the largest phase of the 2D loop, and the refinement "
                 f"into the finest mesh costs more than the finest level's solve{floor}. In 2D the library's kernel "
                 "alone is above half the solve, so refinement + estimate + assembly cannot come under half the "
-                "solve while the refinement is dolfinx's; in 3D the solve dominates. Each level's `.vtu` is written by rank 0 (one file, the same on "
+                f"solve while the refinement is dolfinx's; in 3D the solve dominates.{refine_floor(RES)} "
+                "Each level's `.vtu` is written by rank 0 (one file, the same on "
                 "any number of ranks); the final pictures are drawn by all ranks at once, picture k on rank k mod "
                 "n (`contact.plots.draw_in_turn`; 2D meshes above 200k cells are drawn as images sampled at the "
                 "pixel centres).", ""]
     return "\n".join(out) + "\n"
+
+
+def refine_floor(res: Path) -> str:
+    """The sentence on the 2D floor (bench_kernels.py --only floor, serial and 2 ranks), or ''."""
+    runs = [{r["path"]: r for r in rs} for rs in (rows(res / "kernels_floor.csv"), rows(res / "kernels_floor_np2.csv"))
+            if rs]
+    if not runs:
+        return ""
+    ratio = lambda run, *paths: sum(float(run[p]["check"]) for p in paths)  # noqa: E731
+    each = "; ".join(f"on {run['solve']['ranks']} rank(s) `dolfinx.mesh.refine` {g(run['refine']['seconds'])} s "
+                     f"({ratio(run, 'refine'):.2f}× one CG + GAMG solve of {g(run['solve']['seconds'])} s), "
+                     f"`create_mesh` {g(run['create_mesh']['seconds'])} s ({ratio(run, 'create_mesh'):.2f}×), "
+                     f"assembly {ratio(run, 'assembly'):.2f}×" for run in runs)
+    low = min(ratio(run, "refine", "assembly") for run in runs)
+    outside = min(ratio(run, "create_mesh", "assembly") for run in runs)
+    slower = [float(run["create_mesh"]["seconds"]) / float(run["refine"]["seconds"]) for run in runs]
+    verdict = ("Nor would a refinement written outside dolfinx help" if outside > 0.5 else
+               "A refinement written outside dolfinx might help")
+    return (f" {verdict}: it must hand its cells to "
+            f"`dolfinx.mesh.create_mesh`, which costs {min(slower):.1f}–{max(slower):.1f}× `dolfinx.mesh.refine` "
+            f"itself. Refining a square uniformly to {runs[0]['solve']['size']} DoFs "
+            f"([`demos/bench/bench_kernels.py`](bench/bench_kernels.py) `--only floor`, medians): {each}. "
+            f"Refinement and assembly alone are at least {low:.2f}× the solve (with `create_mesh` instead of "
+            f"the refinement {outside:.2f}×), before any estimate.")
 
 
 def main() -> None:

@@ -21,7 +21,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
    ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy, cost);
    ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old paths,
-   and (on 2 ranks) refinement with and without redistribution or a ghost layer;
+   (on 2 ranks) refinement with and without redistribution or a ghost layer, and (serially
+   and on 2 ranks) the 2D floor of the finest level: refinement, ``create_mesh`` and
+   assembly against one CG + GAMG solve;
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
@@ -70,7 +72,11 @@ STEPS = {
               [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "assembly",
                "--cells", "55", "--repeat", "4", "--out", "demos/results/kernels_np2.csv"],
               [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "refine",
-               "--repeat", "3", "--out", "demos/results/kernels_refine_np2.csv"]]
+               "--repeat", "3", "--out", "demos/results/kernels_refine_np2.csv"],
+              [PY, "demos/bench/bench_kernels.py", "--only", "floor", "--repeat", "3",
+               "--out", "demos/results/kernels_floor.csv"],
+              [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "floor", "--repeat", "3",
+               "--out", "demos/results/kernels_floor_np2.csv"]]
              + [(["rm", "-f", "demos/results/bandwidth.csv"] if n == 0 else
                  [MPIRUN, "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
                   "--out", "demos/results/bandwidth.csv"]) for n in (0, 1, 2)],

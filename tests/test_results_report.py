@@ -55,3 +55,36 @@ def test_bench_scripts_live_in_demos_bench_and_run_bench_finds_them() -> None:
     for script in scripts:
         proc = subprocess.run([sys.executable, script, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
         assert proc.returncode == 0 and "usage:" in proc.stdout, proc.stderr
+
+
+def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
+    """§9's floor sentence (bench_kernels.py --only floor): its ratios come from the CSVs,
+    and it says a refinement outside dolfinx would not help only when create_mesh +
+    assembly exceed half the solve."""
+    import importlib.util
+
+    sys.path.insert(0, str(ROOT / "demos"))
+    try:
+        spec = importlib.util.spec_from_file_location("make_results", ROOT / "demos" / "make_results.py")
+        report = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(report)
+    finally:
+        sys.path.remove(str(ROOT / "demos"))
+    assert report.refine_floor(tmp_path) == ""
+
+    def write(name: str, ranks: int, refine: float, create: float, assembly: float, solve: float) -> None:
+        lines = ["kernel,ranks,size,path,seconds,check"] + [
+            f"floor,{ranks},1234321,{path},{t},{t / solve:.3f}" for path, t in
+            (("refine", refine), ("create_mesh", create), ("assembly", assembly))] + [
+            f"floor,{ranks},1234321,solve,{solve},16"]
+        (tmp_path / name).write_text("\n".join(lines) + "\n")
+
+    write("kernels_floor.csv", 1, 4.0, 10.0, 1.0, 5.0)
+    write("kernels_floor_np2.csv", 2, 4.5, 6.0, 0.75, 5.0)
+    text = report.refine_floor(tmp_path)
+    assert text.startswith(" Nor would a refinement written outside dolfinx help")
+    assert "1.3–2.5× `dolfinx.mesh.refine`" in text        # create_mesh over refine: 6/4.5, 10/4
+    assert "at least 1.00× the solve" in text              # min(0.8 + 0.2, 0.9 + 0.15)
+    assert "refinement 1.35×" in text                      # min(2.0 + 0.2, 1.2 + 0.15)
+    write("kernels_floor_np2.csv", 2, 4.5, 1.5, 0.75, 5.0)
+    assert report.refine_floor(tmp_path).startswith(" A refinement written outside dolfinx might help")

@@ -16,7 +16,15 @@ What it shows:
   does in parallel: children stay on their parent's rank, the ghost layer is rebuilt) and
   with dolfinx's graph partitioner (the refined mesh redistributed), and with none (children
   stay, no ghost layer: what a serial run does), alternating; the check column is the
-  busiest rank's owned cells over the mean after refinement.
+  busiest rank's owned cells over the mean after refinement;
+* ``floor`` (serially and under mpirun) — the least the 2D finest level can cost besides its
+  solve: a unit square of ``--cells-floor``² squares refined uniformly (to about the 1.23M
+  DoFs of problem A's finest level) by ``dolfinx.mesh.refine`` as the adaptive loop calls it;
+  the same child cells handed to ``dolfinx.mesh.create_mesh`` (what a refinement written
+  outside dolfinx would pay to obtain a dolfinx mesh); the P1 stiffness matrix and load
+  assembled on it; one CG + GAMG solve of that system (rtol 1e-8 from zero, the loop's
+  default options), alternating ``--repeat`` times. The check column is each time over the
+  solve's (the solve's row: its CG iterations).
 
 Prints one row per measurement and writes CSV (kernel, dofs or cells, path, seconds,
 check).  Run serially, and the assembly under ``mpirun -n 2`` too:
@@ -24,6 +32,8 @@ check).  Run serially, and the assembly under ``mpirun -n 2`` too:
     python demos/bench/bench_kernels.py --out demos/results/kernels.csv
     mpirun -n 2 python demos/bench/bench_kernels.py --only assembly --cells 55 --out demos/results/kernels_np2.csv
     mpirun -n 2 python demos/bench/bench_kernels.py --only refine --repeat 3 --out demos/results/kernels_refine_np2.csv
+    python demos/bench/bench_kernels.py --only floor --repeat 3 --out demos/results/kernels_floor.csv
+    mpirun -n 2 python demos/bench/bench_kernels.py --only floor --repeat 3 --out demos/results/kernels_floor_np2.csv
 """
 from __future__ import annotations
 
@@ -31,6 +41,7 @@ import argparse
 import tempfile
 import time
 from pathlib import Path
+from typing import Any, Callable
 
 import dolfinx_solver  # noqa: F401  (before dolfinx / petsc4py with the solver wheel)
 import numpy as np
@@ -40,11 +51,13 @@ from petsc4py import PETSc
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 
 from common import save_csv
-from contact.adapt import busiest_share
+from contact.adapt import busiest_share, refine_partitioner
 from contact.models import problem as P
 from contact.models.elasticity import epsilon, stress
+from contact.solvers.linear import default_options
 
 
 def assembly(cells: int, repeat: int) -> list[dict]:
@@ -128,12 +141,76 @@ def refine(cells: int, repeat: int) -> list[dict]:
              "seconds": round(float(np.median(times[name])), 3), "check": f"{balance[name]:.3f}"} for name in paths]
 
 
+def floor(cells: int, repeat: int) -> list[dict]:
+    comm = MPI.COMM_WORLD
+    ghosts = dmesh.GhostMode.shared_facet if comm.size > 1 else dmesh.GhostMode.none
+    parent = dmesh.create_unit_square(comm, cells, cells, ghost_mode=ghosts)
+    parent.topology.create_entities(1)
+    options = PETSc.Options()
+    for key, value in {**default_options("gamg", 2, comm.size), "ksp_rtol": 1e-8}.items():
+        options[f"floor_{key}"] = value
+    times: dict[str, list[float]] = {name: [] for name in ("refine", "create_mesh", "assembly", "solve")}
+    its, size = 0, 0
+
+    def timed(name: str, f: Callable[[], Any]) -> Any:
+        comm.Barrier()
+        t0 = time.perf_counter()
+        out = f()
+        comm.Barrier()
+        times[name].append(time.perf_counter() - t0)
+        return out
+
+    for _ in range(repeat):
+        child, _, _ = timed("refine", lambda: dmesh.refine(parent, None, refine_partitioner(parent),
+                                                            dmesh.RefinementOption.parent_cell_and_facet))
+        # the input a refinement outside dolfinx would hand over: owned cells by global node
+        # index, the owned nodes' coordinates
+        nodes = child.geometry.index_map()
+        owned = child.topology.index_map(2).size_local
+        cells_g = nodes.local_to_global(child.geometry.dofmaps[0][:owned].reshape(-1)).reshape(owned, 3)
+        x, domain = child.geometry.x[:nodes.size_local, :2].copy(), child.ufl_domain()
+        del child
+        msh = timed("create_mesh", lambda: dmesh.create_mesh(comm, cells_g.astype(np.int64, copy=False), domain, x,
+                                                              refine_partitioner(parent)))
+        V = fem.functionspace(msh, ("Lagrange", 1))
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        a, L = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx), fem.form(v * ufl.dx)
+        msh.topology.create_connectivity(1, 2)
+        bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, dmesh.exterior_facet_indices(msh.topology)), V)
+        K, b = timed("assembly", lambda: _stiffness_system(a, L, bc))
+        ksp = PETSc.KSP().create(comm)
+        ksp.setOptionsPrefix("floor_")
+        ksp.setOperators(K)
+        ksp.setFromOptions()
+        u_h = b.duplicate()
+        u_h.set(0.0)
+        timed("solve", lambda: ksp.solve(b, u_h))
+        its, size = ksp.getIterationNumber(), V.dofmap.index_map.size_global
+        for obj in (ksp, K, b, u_h):
+            obj.destroy()
+    median = {name: float(np.median(t)) for name, t in times.items()}
+    return [{"kernel": "floor", "ranks": comm.size, "size": size, "path": name, "seconds": round(median[name], 3),
+             "check": str(its) if name == "solve" else f"{median[name] / median['solve']:.3f}"} for name in median]
+
+
+def _stiffness_system(a: fem.Form, L: fem.Form, bc: fem.DirichletBC) -> tuple[PETSc.Mat, PETSc.Vec]:
+    """K and b of -Δu = 1, u = 0 on the boundary (dolfinx's assembly)."""
+    K = assemble_matrix(a, bcs=[bc])
+    K.assemble()
+    b = assemble_vector(L)
+    apply_lifting(b, [a], [[bc]])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    set_bc(b, [bc])
+    return K, b
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--only", choices=("assembly", "picture", "refine"))
+    ap.add_argument("--only", choices=("assembly", "picture", "refine", "floor"))
     ap.add_argument("--cells", type=int, default=50, help="assembly: the box's cells per unit length")
     ap.add_argument("--cells-2d", type=int, default=1100, help="picture: cells along x")
     ap.add_argument("--cells-refine", type=int, default=800, help="refine: the square's cells per side")
+    ap.add_argument("--cells-floor", type=int, default=555, help="floor: the square's cells per side")
     ap.add_argument("--repeat", type=int, default=2)
     ap.add_argument("--out", default="demos/results/kernels.csv")
     args = ap.parse_args()
@@ -144,9 +221,12 @@ def main() -> None:
         rows += picture(args.cells_2d)
     if args.only == "refine":   # a parallel kernel: asked for explicitly, under mpirun
         rows += refine(args.cells_refine, args.repeat)
+    if args.only == "floor":    # asked for explicitly, serially and under mpirun
+        rows += floor(args.cells_floor, args.repeat)
     if MPI.COMM_WORLD.rank == 0:
         for r in rows:
-            check = {"assembly": "relative difference", "refine": "busiest rank's cells / mean"}.get(r["kernel"])
+            check = {"assembly": "relative difference", "refine": "busiest rank's cells / mean",
+                     "floor": "over the solve (solve: CG its)"}.get(r["kernel"])
             print(f"{r['kernel']:9s} {r['ranks']} rank(s) {r['size']:9d} {r['path']:10s} {r['seconds']:7.3f} s"
                   + (f"  {check} {r['check']}" if r["check"] else ""), flush=True)
     save_csv(args.out, rows)
