@@ -645,8 +645,10 @@ def hertz_methods() -> str:
         return "\n".join(out) + "\n" + missing("demos/results/hertz/final_mesh_methods.csv")
     out += ["`demos/bench/bench_hertz.py`: the last mesh of the fb adaptive run on `configs/hertz_2d.yaml` and "
             "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
-            "solution (nested), with the scene's default linear solver (direct = MUMPS LU in 2D, gamg = "
-            "BiCGStab + GAMG in 3D), and fb from a cold start also with the other one. Newton its + "
+            "solution (nested), with the default linear solver (`solver.linear: auto`; the column is the "
+            "solver used: gamg = CG + GAMG on the reduced Newton system, direct = MUMPS LU, bcgs = BiCGStab "
+            "+ GAMG on the assembled matrix, which the PETSc VI solvers use in 3D), and fb from a cold "
+            "start (u = 0, no grid sequencing) also with the other kinds. Newton its + "
             "polishing solves; the 3D VI runs from a cold start, vinewtonssls and MUMPS in 3D only with "
             "`--full` (they took minutes).", "",
             table(["scene", "method", "start", "linear solver", "DoFs", "Newton its", "seconds"],

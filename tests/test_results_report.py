@@ -88,3 +88,20 @@ def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
     assert "refinement 1.35×" in text                      # min(2.0 + 0.2, 1.2 + 0.15)
     write("kernels_floor_np2.csv", 2, 4.5, 1.5, 0.75, 5.0)
     assert report.refine_floor(tmp_path).startswith(" A refinement written outside dolfinx might help")
+
+
+def test_bench_hertz_runs_end_to_end_on_small_meshes(tmp_path: Path) -> None:
+    """demos/bench/bench_hertz.py (make bench, RESULTS §6) on small meshes: every method
+    converges on both final meshes, and fb's cold 2D start is compared across all three
+    kinds of ``solver.linear`` (the script once broke when the default options changed)."""
+    import csv
+
+    proc = subprocess.run([sys.executable, "demos/bench/bench_hertz.py", "--set", "adapt.max_dofs=20000",
+                           "--out", str(tmp_path)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    with open(tmp_path / "final_mesh_methods.csv", newline="") as fh:
+        finals = list(csv.DictReader(fh))
+    assert {r["scene"] for r in finals} == {"hertz_2d", "hertz_3d"}
+    assert all(r["converged"] == "True" for r in finals)
+    cold_fb_2d = {r["linear_solver"] for r in finals if (r["scene"], r["method"], r["start"]) == ("hertz_2d", "fb", "cold")}
+    assert cold_fb_2d == {"direct", "gamg", "bcgs"}

@@ -1,9 +1,12 @@
 """Hertz validation (issue #4 figures): the adaptive loop on configs/hertz_2d.yaml and
 configs/hertz_3d.yaml for fb and min — per level DoFs, Newton iterations, contact
 half-width/radius and peak pressure against Hertz for the computed force, seconds — then,
-on the final mesh of the fb run, every method from a cold start and from the nested guess
-with the scene's default linear solver (MUMPS in 2D, BiCGStab + GAMG with the rigid-body
-near-nullspace in 3D), and fb from a cold start with the other one.  Writes CSV.
+on the final mesh of the fb run, every method from a cold start (u = 0, no grid sequencing)
+and from the nested guess with the default linear solver (``solver.linear: auto``: CG + GAMG
+on the reduced Newton system at these sizes; the PETSc VI solvers keep their own, MUMPS in 2D
+and BiCGStab + GAMG with the rigid-body near-nullspace in 3D), and fb from a cold start with
+the other kinds of ``solver.linear`` too.  The ``linear_solver`` column is the one the solve
+used (``Result.linear``).  Writes CSV.
 
     python demos/bench/bench_hertz.py --out bench/hertz        (about 8 minutes on 2 cores)
     python demos/bench/bench_hertz.py --full ...               (+ VI solvers cold and MUMPS for fb
@@ -22,10 +25,10 @@ from contact.reference import compare
 from contact.resultants import contact_resultants
 from contact.io import write_csv
 from contact.models import build_problem
-from contact.solvers import (DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, default_linear_solver,
-                             method_variant)
+from contact.solvers import method_variant
+from contact.solvers.linear import choose_linear
 
-LINEAR_SOLVERS = {"direct": DEFAULT_PETSC_OPTIONS, "gamg": ELASTICITY_3D_PETSC_OPTIONS}
+LINEAR_SOLVERS = ("direct", "gamg", "bcgs")   # the kinds of solver.linear
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish")
 
 
@@ -60,21 +63,21 @@ def main() -> None:
         last = runs["fb"].levels[-1]
         problem = build_problem(last.scene)
         nested = _previous_guess(runs["fb"])
-        default = next(k for k, v in LINEAR_SOLVERS.items() if v == default_linear_solver(problem))
         full_3d = name != "hertz_3d" or args.full
+        default = choose_linear(problem)   # what solver.linear: auto picks on this mesh
         for method in METHODS:
             for start in ("cold", "nested"):
                 if not full_3d and (method == "vinewtonssls" or (start == "cold" and method.startswith("vi"))):
                     continue
-                solvers = [default]
+                solvers = ["auto"]   # the default: resolves to `default` for fb, min, blend
                 if method == "fb" and start == "cold" and full_3d:  # the linear-solver comparison
                     solvers += [k for k in LINEAR_SOLVERS if k != default]
-                for solver in solvers:
+                for linear in solvers:
                     m, variant = method_variant(method)
                     t0 = time.perf_counter()
                     r = contact.solve(last.scene, method=m, problem=problem, u0=nested if start == "nested" else None,
-                                      verbose=False, max_it=100, petsc_options=LINEAR_SOLVERS[solver], **variant)
-                    row = {"scene": name, "method": method, "start": start, "linear_solver": solver,
+                                      verbose=False, max_it=100, linear=linear, sequence="off", **variant)
+                    row = {"scene": name, "method": method, "start": start, "linear_solver": r.linear,
                            "dofs": r.dofs, "converged": r.converged, "reason": r.reason,
                            "newton": r.iterations, "polish": r.polish_solves, "seconds": round(time.perf_counter() - t0, 2)}
                     finals.append(row)
