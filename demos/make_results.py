@@ -967,7 +967,7 @@ def cost() -> str:
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so refinement "
                 f"(`dolfinx.mesh.refine` in C++, with the ghost layer rebuilt in parallel{ghosts}, then the "
                 "transfers in `contact/transfer.py`) is the largest phase of the 2D loop, and the refinement "
-                f"into the finest mesh costs more than the finest level's solve{floor}. In 2D the library's kernel "
+                f"into the finest mesh costs about as much as the finest level's solve or more{floor}. In 2D the library's kernel "
                 "alone is above half the solve, so refinement + estimate + assembly cannot come under half the "
                 f"solve while the refinement is dolfinx's; in 3D the solve dominates.{refine_floor(RES)} "
                 "Each level's `.vtu` is written by rank 0 (one file, the same on "
