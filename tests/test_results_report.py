@@ -17,6 +17,16 @@ def _report(results: Path, out: Path) -> str:
     return out.read_text()
 
 
+def _demo_module(name: str):
+    """demos/<name>.py imported as a module (demos/ is not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "demos" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
@@ -45,11 +55,7 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
 
 def test_bench_scripts_live_in_demos_bench_and_run_bench_finds_them() -> None:
     """`make bench` (demos/run_bench.py) runs the benchmark scripts from demos/bench/."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("run_bench", ROOT / "demos" / "run_bench.py")
-    run_bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(run_bench)
+    run_bench = _demo_module("run_bench")
     scripts = [cmd[1] for step in ("newton", "adaptive", "hertz") for cmd in run_bench.STEPS[step]]
     assert scripts == [f"demos/bench/bench_{name}.py" for name in ("newton", "adaptive", "hertz")]
     for script in scripts:
@@ -61,15 +67,7 @@ def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
     """§9's floor sentence (bench_kernels.py --only floor): its ratios come from the CSVs,
     and it says a refinement outside dolfinx would not help only when create_mesh +
     assembly exceed half the solve."""
-    import importlib.util
-
-    sys.path.insert(0, str(ROOT / "demos"))
-    try:
-        spec = importlib.util.spec_from_file_location("make_results", ROOT / "demos" / "make_results.py")
-        report = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(report)
-    finally:
-        sys.path.remove(str(ROOT / "demos"))
+    report = _demo_module("make_results")
     assert report.refine_floor(tmp_path) == ""
 
     def write(name: str, ranks: int, refine: float, create: float, assembly: float, solve: float) -> None:

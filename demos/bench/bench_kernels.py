@@ -51,13 +51,22 @@ from petsc4py import PETSc
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
-from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 
 from common import save_csv
 from contact.adapt import busiest_share, refine_partitioner
 from contact.models import problem as P
 from contact.models.elasticity import epsilon, stress
 from contact.solvers.linear import default_options
+
+
+def _timed(times: list[float], f: Callable[[], Any]) -> Any:
+    """f() between two barriers of COMM_WORLD; its wall seconds appended to ``times``."""
+    MPI.COMM_WORLD.Barrier()
+    t0 = time.perf_counter()
+    out = f()
+    MPI.COMM_WORLD.Barrier()
+    times.append(time.perf_counter() - t0)
+    return out
 
 
 def assembly(cells: int, repeat: int) -> list[dict]:
@@ -73,11 +82,7 @@ def assembly(cells: int, repeat: int) -> list[dict]:
     for _ in range(repeat):
         for block in (False, True):
             P.BLOCK_CSR = block
-            comm.Barrier()
-            t0 = time.perf_counter()
-            K[block] = P.assemble_matrix(a, bcs)
-            comm.Barrier()
-            times[block].append(time.perf_counter() - t0)
+            K[block] = _timed(times[block], lambda: P.assemble_matrix(a, bcs))
     P.BLOCK_CSR = True
     D = K[False].copy()
     D.axpy(-1.0, K[True], structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
@@ -128,12 +133,8 @@ def refine(cells: int, repeat: int) -> list[dict]:
     balance, size = {}, 0
     for _ in range(repeat):
         for name, partitioner in paths.items():
-            comm.Barrier()
-            t0 = time.perf_counter()
-            new, _, _ = dmesh.refine(msh, edges, partitioner=partitioner(),
-                                     option=dmesh.RefinementOption.parent_cell_and_facet)
-            comm.Barrier()
-            times[name].append(time.perf_counter() - t0)
+            new, _, _ = _timed(times[name], lambda: dmesh.refine(msh, edges, partitioner=partitioner(),
+                                                                 option=dmesh.RefinementOption.parent_cell_and_facet))
             balance[name] = busiest_share(comm, new.topology.index_map(2).size_local)
             size = new.topology.index_map(2).size_global
             del new
@@ -151,17 +152,8 @@ def floor(cells: int, repeat: int) -> list[dict]:
         options[f"floor_{key}"] = value
     times: dict[str, list[float]] = {name: [] for name in ("refine", "create_mesh", "assembly", "solve")}
     its, size = 0, 0
-
-    def timed(name: str, f: Callable[[], Any]) -> Any:
-        comm.Barrier()
-        t0 = time.perf_counter()
-        out = f()
-        comm.Barrier()
-        times[name].append(time.perf_counter() - t0)
-        return out
-
     for _ in range(repeat):
-        child, _, _ = timed("refine", lambda: dmesh.refine(parent, None, refine_partitioner(parent),
+        child, _, _ = _timed(times["refine"], lambda: dmesh.refine(parent, None, refine_partitioner(parent),
                                                             dmesh.RefinementOption.parent_cell_and_facet))
         # the input a refinement outside dolfinx would hand over: owned cells by global node
         # index, the owned nodes' coordinates
@@ -170,38 +162,28 @@ def floor(cells: int, repeat: int) -> list[dict]:
         cells_g = nodes.local_to_global(child.geometry.dofmaps[0][:owned].reshape(-1)).reshape(owned, 3)
         x, domain = child.geometry.x[:nodes.size_local, :2].copy(), child.ufl_domain()
         del child
-        msh = timed("create_mesh", lambda: dmesh.create_mesh(comm, cells_g.astype(np.int64, copy=False), domain, x,
-                                                              refine_partitioner(parent)))
+        cells_g = cells_g.astype(np.int64, copy=False)
+        msh = _timed(times["create_mesh"],
+                     lambda: dmesh.create_mesh(comm, cells_g, domain, x, refine_partitioner(parent)))
         V = fem.functionspace(msh, ("Lagrange", 1))
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         a, L = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx), fem.form(v * ufl.dx)
         msh.topology.create_connectivity(1, 2)
         bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, dmesh.exterior_facet_indices(msh.topology)), V)
-        K, b = timed("assembly", lambda: _stiffness_system(a, L, bc))
+        K, b = _timed(times["assembly"], lambda: P.assemble_system(a, L, [bc]))   # -Δu = 1, u = 0 on ∂Ω
         ksp = PETSc.KSP().create(comm)
         ksp.setOptionsPrefix("floor_")
         ksp.setOperators(K)
         ksp.setFromOptions()
         u_h = b.duplicate()
         u_h.set(0.0)
-        timed("solve", lambda: ksp.solve(b, u_h))
+        _timed(times["solve"], lambda: ksp.solve(b, u_h))
         its, size = ksp.getIterationNumber(), V.dofmap.index_map.size_global
         for obj in (ksp, K, b, u_h):
             obj.destroy()
     median = {name: float(np.median(t)) for name, t in times.items()}
     return [{"kernel": "floor", "ranks": comm.size, "size": size, "path": name, "seconds": round(median[name], 3),
              "check": str(its) if name == "solve" else f"{median[name] / median['solve']:.3f}"} for name in median]
-
-
-def _stiffness_system(a: fem.Form, L: fem.Form, bc: fem.DirichletBC) -> tuple[PETSc.Mat, PETSc.Vec]:
-    """K and b of -Δu = 1, u = 0 on the boundary (dolfinx's assembly)."""
-    K = assemble_matrix(a, bcs=[bc])
-    K.assemble()
-    b = assemble_vector(L)
-    apply_lifting(b, [a], [[bc]])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    set_bc(b, [bc])
-    return K, b
 
 
 def main() -> None:
