@@ -89,6 +89,8 @@ STEPS = {
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", nargs="+", choices=list(STEPS), help="run only these steps (in this order)")
+    ap.add_argument("--keep-going", action="store_true",
+                    help="after a failed command, run the remaining ones and exit with the first failure's code")
     args = ap.parse_args()
     steps = args.only or list(STEPS)
     if "studies" in steps and "report" not in steps:
@@ -97,9 +99,10 @@ def main() -> int:
     timings = ROOT / "demos" / "results" / "timings.csv"
     rows = _read(timings)
     t_all = time.perf_counter()
+    failed: list[tuple[str, int]] = []
     for step in steps:
         for cmd in STEPS[step]:
-            label = " ".join(Path(c).name if i == 0 else c for i, c in enumerate(cmd))
+            label = _label(cmd)
             print(f"\n=== {label}", flush=True)
             t0 = time.perf_counter()
             proc = subprocess.run(cmd, cwd=ROOT)
@@ -108,11 +111,24 @@ def main() -> int:
             _write(timings, rows)
             if proc.returncode != 0:
                 print(f"run_bench: {label!r} failed with exit code {proc.returncode}", file=sys.stderr)
-                return proc.returncode
+                failed.append((label, proc.returncode))
+                if not args.keep_going:
+                    return proc.returncode
+                continue
             print(f"=== {label}: {seconds:.1f} s", flush=True)
+    if failed:
+        print(f"\nrun_bench: {len(failed)} command(s) failed: " + "; ".join(f"{lab!r} ({rc})" for lab, rc in failed),
+              file=sys.stderr)
+        return failed[0][1]
     print(f"\nrun_bench: {', '.join(steps)} done in {(time.perf_counter() - t_all) / 60:.1f} min; "
           f"timings in {timings.relative_to(ROOT)}", flush=True)
     return 0
+
+
+def _label(cmd: list[str]) -> str:
+    """The command as timings.csv names it: the venv's programs by their name, so that rows
+    do not depend on where the checkout lives (``mpirun -n 2 python demos/...``)."""
+    return " ".join(Path(c).name if c in (PY, CONTACT, MPIRUN) else c for c in cmd)
 
 
 def _read(path: Path) -> dict[str, str]:

@@ -63,6 +63,28 @@ def test_bench_scripts_live_in_demos_bench_and_run_bench_finds_them() -> None:
         assert proc.returncode == 0 and "usage:" in proc.stdout, proc.stderr
 
 
+def test_run_bench_keep_going_runs_past_a_failure_and_labels_portably(tmp_path: Path, monkeypatch) -> None:
+    """``run_bench --keep-going`` runs every command after a failed one and exits with the first
+    failure's code; without it the run stops there. timings.csv names the venv's programs by
+    their name, not by the checkout's absolute path."""
+    run_bench = _demo_module("run_bench")
+    fail = [run_bench.PY, "-c", "raise SystemExit(3)"]
+    ok = [run_bench.MPIRUN, "-n", "1", run_bench.PY, "-c", "pass"]
+    monkeypatch.setattr(run_bench, "ROOT", tmp_path)
+    monkeypatch.setattr(run_bench, "STEPS", {"a": [fail], "b": [ok], "report": []})
+    (tmp_path / "demos").mkdir()
+    timings = tmp_path / "demos" / "results" / "timings.csv"
+
+    monkeypatch.setattr(sys, "argv", ["run_bench", "--only", "a", "b"])
+    assert run_bench.main() == 3
+    assert list(run_bench._read(timings)) == ["python -c raise SystemExit(3)"]
+
+    timings.unlink()
+    monkeypatch.setattr(sys, "argv", ["run_bench", "--only", "a", "b", "--keep-going"])
+    assert run_bench.main() == 3
+    assert list(run_bench._read(timings)) == ["python -c raise SystemExit(3)", "mpirun -n 1 python -c pass"]
+
+
 def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
     """§9's floor sentence (bench_kernels.py --only floor): its ratios come from the CSVs,
     and it says a refinement outside dolfinx would not help only when create_mesh +
