@@ -110,6 +110,23 @@ def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
     assert report.refine_floor(tmp_path).startswith(" A refinement written outside dolfinx might help")
 
 
+def test_bench_friction_runs_end_to_end_quick(tmp_path: Path) -> None:
+    """demos/bench/bench_friction.py --quick (make bench, RESULTS friction section) runs through;
+    its tangential-forms study warm-starts every form from the frictionless solution (it once
+    failed there when a guess on another mesh became an error), and the hsw form converges
+    from both starts on every case."""
+    import csv
+
+    proc = subprocess.run([sys.executable, "demos/bench/bench_friction.py", "--quick", "--out", str(tmp_path)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    with open(tmp_path / "forms.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {r["start"] for r in rows} == {"cold", "frictionless"}
+    hsw = [r for r in rows if r["form"] == "hsw"]
+    assert len(hsw) == 24 and all(r["converged"] == "True" for r in hsw)
+
+
 def test_bench_hertz_runs_end_to_end_on_small_meshes(tmp_path: Path) -> None:
     """demos/bench/bench_hertz.py (make bench, RESULTS §6) on small meshes: every method
     converges on both final meshes, and fb's cold 2D start is compared across all three
