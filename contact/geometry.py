@@ -20,6 +20,11 @@ coarse polygon / polyhedron; :func:`curved_boundary` gives the exact surface of 
 these scenes, whose :meth:`CurvedBoundary.snap` moves the vertices of the refined mesh's
 tag-1 facets back onto it (as deal.II's manifolds do), so the discrete body converges to
 the disk / ball and the contact pressure to Hertz's instead of peaking at the kinks.
+
+:func:`gmsh_to_mesh` turns any gmsh model (these builders, a ``.msh`` file read by
+:mod:`contact.meshes`) into a distributed DOLFINx mesh; gmsh is imported there only, so a
+built-in mesh never imports it.  :func:`signed_volumes` and :func:`collapsed_cells` check
+that a move of the geometry nodes (a snap, a ``mesh.map``) keeps every cell's orientation.
 """
 from __future__ import annotations
 
@@ -33,10 +38,84 @@ from dolfinx import la
 from dolfinx import mesh as dmesh
 
 from .config import ConfigError
-from .meshes import cells_touching, collapsed_cells, gmsh_to_mesh, signed_volumes
 
 CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
 GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h
+
+
+def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cells: bool = False):
+    """Run ``build(gmsh)`` on rank 0 (gmsh's terminal output off) and distribute the mesh
+    with its physical groups; the geometric dimension is the model's unless given.  Returns
+    (mesh, facet tags), and the cell tags too if ``cells``.  Any failure is one ConfigError
+    line ``<error>: <gmsh's message>``, raised on every rank."""
+    import gmsh  # only for gmsh scenes
+    from dolfinx.io import gmsh as gmshio
+
+    problem = None
+    if comm.rank == 0:
+        gmsh.initialize(interruptible=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("scene")
+        try:
+            build(gmsh)
+            gdim = gdim or gmsh.model.getDimension()
+        except Exception as err:  # gmsh reports its errors as generic exceptions
+            problem = str(err) or type(err).__name__
+    problem, gdim = comm.bcast((problem, gdim), root=0)
+    try:
+        if problem is None:
+            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
+                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+    except Exception as err:  # e.g. no physical groups (raised on every rank)
+        problem = str(err)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
+    if problem is not None:
+        raise ConfigError(f"{error}: {' '.join(problem.split())}")
+    return (data.mesh, data.facet_tags, data.cell_tags) if cells else (data.mesh, data.facet_tags)
+
+
+def vertex_nodes(msh: dmesh.Mesh) -> np.ndarray:
+    """The vertex geometry nodes of each cell (local cells, ghosts included)."""
+    return msh.geometry.dofmaps[0][:, : msh.topology.dim + 1]
+
+
+def signed_volumes(msh: dmesh.Mesh, cells: np.ndarray | None = None) -> np.ndarray:
+    """det(x_1 − x_0, …, x_d − x_0) of each simplex (d! times its signed volume, in the
+    mesh's length unit to the power d): of the local ``cells`` (default all, ghosts
+    included)."""
+    gdim = msh.geometry.dim
+    nodes = vertex_nodes(msh) if cells is None else vertex_nodes(msh)[cells]
+    P = msh.geometry.x[nodes][:, :, :gdim]
+    return np.linalg.det(P[:, 1:] - P[:, :1])
+
+
+def cells_touching(msh: dmesh.Mesh, node_flag: np.ndarray) -> np.ndarray:
+    """The local cells (ghosts included) with a vertex geometry node whose ``node_flag``
+    (one value per local geometry node) is nonzero."""
+    return np.flatnonzero(np.any(node_flag[vertex_nodes(msh)] != 0, axis=1)).astype(np.int32)
+
+
+def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12,
+                    cells: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """The owned cells a move of the geometry nodes inverted or flattened, and their number
+    over all ranks (collective).
+
+    ``before`` is :func:`signed_volumes` of ``cells`` (default all local cells) before the
+    move; with J_T = det_after / det_before the cell's (mean) Jacobian determinant of the
+    move, a cell is bad if J_T ≤ tol · max_T |J_T| (maximum over all owned cells of all
+    ranks).  ``cells`` must contain every cell the move touched: the others keep J_T = 1.
+    """
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    cells = np.arange(len(before)) if cells is None else np.asarray(cells)
+    jac = signed_volumes(msh, cells) / before
+    mine = cells < owned
+    cells, jac = cells[mine], jac[mine]
+    untouched = 1.0 if len(cells) < owned else 0.0          # J_T = 1 on the cells not listed
+    scale = msh.comm.allreduce(max(float(np.max(np.abs(jac), initial=0.0)), untouched), op=MPI.MAX)
+    bad = cells[jac <= tol * scale]
+    return bad, msh.comm.allreduce(len(bad), op=MPI.SUM)
 
 
 def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
@@ -236,7 +315,7 @@ class CurvedBoundary:
         back to the ghosts); each owner projects its nodes and the ghosts receive the
         owner's coordinates, so every rank holds bit-identical coordinates.  Raises
         RuntimeError if the move inverts or flattens a cell (cell Jacobian determinant
-        J_T ≤ tol · max J_T, :func:`contact.meshes.collapsed_cells`), e.g. a coarse mesh
+        J_T ≤ tol · max J_T, :func:`collapsed_cells`), e.g. a coarse mesh
         whose cells are thinner than the sagitta h²/(8R) of its boundary edges.
         """
         tdim, gdim = msh.topology.dim, msh.geometry.dim

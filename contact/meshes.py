@@ -3,9 +3,10 @@
 Built-in meshes need nothing but DOLFINx: ``rectangle``/``unit_square`` and ``box``
 (structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], SPEC §7 D, built from
 NumPy arrays).  Only ``gmsh`` scenes import gmsh, to read a ``.msh`` file with physical
-tags.  A built-in mesh may be deformed by ``mesh.map`` (:func:`map_geometry`) before its
-boundary parts are tagged.  Boundary parts become one facet ``MeshTags`` whose values are
-the part ids.
+tags (:func:`contact.geometry.gmsh_to_mesh`, which also builds the parametric gmsh meshes of
+:mod:`contact.geometry`).  A built-in mesh may be deformed by ``mesh.map``
+(:func:`map_geometry`) before its boundary parts are tagged.  Boundary parts become one
+facet ``MeshTags`` whose values are the part ids.
 """
 from __future__ import annotations
 
@@ -20,6 +21,8 @@ from dolfinx import mesh as dmesh
 
 from . import expressions
 from .config import ConfigError
+from .geometry import (collapsed_cells, gmsh_to_mesh, half_disks, quarter_disk, signed_volumes, sphere_octant,
+                       sphere_on_block, vertex_nodes)
 
 _DIAGONALS = {"left": dmesh.DiagonalType.left, "right": dmesh.DiagonalType.right,
               "crossed": dmesh.DiagonalType.crossed, "left/right": dmesh.DiagonalType.left_right,
@@ -94,54 +97,12 @@ def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] 
     X[:, :gdim] = new.T
     bad, n_bad = collapsed_cells(msh, before, tol)
     if n_bad:
-        first = [old[:gdim, _geometry_nodes(msh)[bad[0]]].mean(axis=1)] if len(bad) else []
+        first = [old[:gdim, vertex_nodes(msh)[bad[0]]].mean(axis=1)] if len(bad) else []
         where = next(p for p in comm.allgather(first) if p)[0]
         at = ", ".join(f"{c} = {v:.4g}" for c, v in zip("xyz", where))
         total = msh.topology.index_map(msh.topology.dim).size_global
         raise ConfigError(f"{key}: the map inverts or flattens {n_bad} of {total} cells (Jacobian "
                           f"determinant ≤ 0), e.g. the cell at {at} (unmapped)")
-
-
-def _geometry_nodes(msh: dmesh.Mesh) -> np.ndarray:
-    """The vertex geometry nodes of each cell (local cells, ghosts included)."""
-    return msh.geometry.dofmaps[0][:, : msh.topology.dim + 1]
-
-
-def signed_volumes(msh: dmesh.Mesh, cells: np.ndarray | None = None) -> np.ndarray:
-    """det(x_1 − x_0, …, x_d − x_0) of each simplex (d! times its signed volume, in the
-    mesh's length unit to the power d): of the local ``cells`` (default all, ghosts
-    included)."""
-    gdim = msh.geometry.dim
-    nodes = _geometry_nodes(msh) if cells is None else _geometry_nodes(msh)[cells]
-    P = msh.geometry.x[nodes][:, :, :gdim]
-    return np.linalg.det(P[:, 1:] - P[:, :1])
-
-
-def cells_touching(msh: dmesh.Mesh, node_flag: np.ndarray) -> np.ndarray:
-    """The local cells (ghosts included) with a vertex geometry node whose ``node_flag``
-    (one value per local geometry node) is nonzero."""
-    return np.flatnonzero(np.any(node_flag[_geometry_nodes(msh)] != 0, axis=1)).astype(np.int32)
-
-
-def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12,
-                    cells: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-    """The owned cells a move of the geometry nodes inverted or flattened, and their number
-    over all ranks (collective).
-
-    ``before`` is :func:`signed_volumes` of ``cells`` (default all local cells) before the
-    move; with J_T = det_after / det_before the cell's (mean) Jacobian determinant of the
-    move, a cell is bad if J_T ≤ tol · max_T |J_T| (maximum over all owned cells of all
-    ranks).  ``cells`` must contain every cell the move touched: the others keep J_T = 1.
-    """
-    owned = msh.topology.index_map(msh.topology.dim).size_local
-    cells = np.arange(len(before)) if cells is None else np.asarray(cells)
-    jac = signed_volumes(msh, cells) / before
-    mine = cells < owned
-    cells, jac = cells[mine], jac[mine]
-    untouched = 1.0 if len(cells) < owned else 0.0          # J_T = 1 on the cells not listed
-    scale = msh.comm.allreduce(max(float(np.max(np.abs(jac), initial=0.0)), untouched), op=MPI.MAX)
-    bad = cells[jac <= tol * scale]
-    return bad, msh.comm.allreduce(len(bad), op=MPI.SUM)
 
 
 def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
@@ -159,19 +120,15 @@ def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags |
     if kind == "lshape":
         return lshape(comm, m["cells"][0], m["diagonal"]), None
     if kind in ("quarter_disk", "sphere_octant"):  # gmsh, built from the parameters
-        from . import geometry
-
-        build = geometry.quarter_disk if kind == "quarter_disk" else geometry.sphere_octant
+        build = quarter_disk if kind == "quarter_disk" else sphere_octant
         return build(comm, m["radius"], m["h"], m["h_contact"], m["zone"])
     if kind == "blocks":
         return blocks(comm, m["blocks"], m["diagonal"])
     if kind in ("half_disks", "sphere_on_block"):  # two gmsh bodies, built from the parameters
-        from . import geometry
-
         if kind == "half_disks":
-            return geometry.half_disks(comm, m["radius"], m["radius2"] or m["radius"], m["h"], m["h_contact"], m["zone"],
-                                       m["overlap"] or 0.0)
-        return geometry.sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
+            return half_disks(comm, m["radius"], m["radius2"] or m["radius"], m["h"], m["h_contact"], m["zone"],
+                              m["overlap"] or 0.0)
+        return sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
     return _read_gmsh(m["file"], comm)
 
 
@@ -250,39 +207,6 @@ def _structured(corners: np.ndarray, n: list[int], diagonal: str) -> tuple[np.nd
 def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
     return gmsh_to_mesh(comm, lambda gmsh: gmsh.merge(path), f"mesh.file: cannot read {path!r} as a gmsh mesh",
                         cells=True)
-
-
-def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cells: bool = False):
-    """Run ``build(gmsh)`` on rank 0 (gmsh's terminal output off) and distribute the mesh
-    with its physical groups; the geometric dimension is the model's unless given.  Returns
-    (mesh, facet tags), and the cell tags too if ``cells``.  Any failure is one ConfigError
-    line ``<error>: <gmsh's message>``, raised on every rank."""
-    import gmsh  # only for gmsh scenes
-    from dolfinx.io import gmsh as gmshio
-
-    problem = None
-    if comm.rank == 0:
-        gmsh.initialize(interruptible=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.add("scene")
-        try:
-            build(gmsh)
-            gdim = gdim or gmsh.model.getDimension()
-        except Exception as err:  # gmsh reports its errors as generic exceptions
-            problem = str(err) or type(err).__name__
-    problem, gdim = comm.bcast((problem, gdim), root=0)
-    try:
-        if problem is None:
-            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
-                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
-    except Exception as err:  # e.g. no physical groups (raised on every rank)
-        problem = str(err)
-    finally:
-        if comm.rank == 0:
-            gmsh.finalize()
-    if problem is not None:
-        raise ConfigError(f"{error}: {' '.join(problem.split())}")
-    return (data.mesh, data.facet_tags, data.cell_tags) if cells else (data.mesh, data.facet_tags)
 
 
 def tag_bodies(msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = None) -> dmesh.MeshTags | None:
