@@ -14,7 +14,15 @@ of the contact set only — with the named columns
     gap                 σ(g − u) ≥ 0 (elasticity: g − u·n)
     active              1 in the active set (the solver's rule b_i > a_i), else 0
     (friction)          lambda_t, slip (2D; 3D: their x, y, z components), lambda_t_norm,
-                        bound, slip_norm, status, weight (:mod:`contact.surface`)
+                        bound, slip_norm, status, weight (below)
+
+For every contact node i (weight w_i = ∫_{Γ_C} φ_i, a length in 2D, an area in 3D) a
+frictional solve adds to the columns above (coordinates, ``s`` / ``r``, λ_n, gap, active)
+:func:`friction_columns`: the tangential traction on the body λ_t,i (stress; in 2D its
+component along t_0 = (−n_y, n_x), n the contact normal at the first point of contact — for
+a plane y = 0 below the body, the x component; in 3D the vector in global axes), |λ_t|, the
+friction bound ρ_i, the slip increment s_t,i of the load step (length; the same way), |s_t|,
+the status separated / stick / slip, and w_i.  Their resultants are :mod:`contact.surface`'s.
 
 :func:`contact_columns` gives this rank's rows as named NumPy columns; a model with more
 data per contact node (friction: λ_t, slip, status) adds columns there.  :func:`gather`
@@ -36,6 +44,7 @@ from .scene import Scene
 from .solvers import Result, owned_residual
 
 Table = dict[str, np.ndarray]
+STATUS = ("separated", "stick", "slip")
 
 
 def value_name(scene: Scene) -> str:
@@ -58,12 +67,33 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     cols[value_name(scene)] = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
     cols["gap"] = nodal_gap(result)
     cols["active"] = result.active_mask.astype(np.int8)
-    if result.friction is not None:   # λ_t, bound, slip, status, weight (contact.surface)
-        from .surface import friction_columns
-
+    if result.friction is not None:   # λ_t, bound, slip, status, weight
         cols.update(friction_columns(scene, result))
     if p.in_domain:  # obstacle: the contact set only
         cols = {k: v[result.active_mask] for k, v in cols.items()}
+    return cols
+
+
+def tangent_2d(result: Result) -> np.ndarray:
+    """t_0 = (−n_y, n_x) of the contact normal n at the first point of contact (2D)."""
+    n = np.asarray(result.problem.data["n"], dtype=float)
+    return np.array([-n[1], n[0]])
+
+
+def friction_columns(scene: Scene, result: Result) -> Table:
+    """This rank's friction columns, row for row with :func:`contact_columns`."""
+    fr = result.friction
+    lam_t, slip = fr["lambda_t_vec"], fr["slip_vec"]
+    cols: Table = {}
+    if scene.mesh.geometry.dim == 2:
+        t0 = tangent_2d(result)
+        cols.update(lambda_t=lam_t @ t0, slip=slip @ t0)
+    else:
+        cols.update({f"lambda_t_{a}": lam_t[:, i] for i, a in enumerate("xyz")})
+        cols.update({f"slip_{a}": slip[:, i] for i, a in enumerate("xyz")})
+    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=float),
+                slip_norm=np.linalg.norm(slip, axis=1), status=np.array(STATUS, dtype=object)[fr["status"]],
+                weight=np.asarray(fr["w"], dtype=float))
     return cols
 
 

@@ -7,8 +7,7 @@ Per step k (numbered 000, 001, …):
   the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off Γ_C) and
   the friction bound ρ; cellwise the von Mises stress (and η_T after an adaptive step);
 * ``contact_step_00k.csv`` — one row per contact node along Γ_C (:mod:`contact.contactdata`
-  with the friction columns of :mod:`contact.surface`: s or r, λ_n, λ_t, gap, slip, bound,
-  status).
+  with its friction columns: s or r, λ_n, λ_t, gap, slip, bound, status).
 
 After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations, the
 resultants and zone measures of :func:`contact.surface.surface_figures`, η), ``summary.json``
@@ -27,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from . import io, plots
-from .contactdata import Table, contact_table, write_table
+from .contactdata import Table, contact_table, tangent_2d, write_table
 from .estimate import estimate
 from .reference import compare
 from .report import _finish, cell_fields, plot_solution, point_fields, write_contact
@@ -117,7 +116,6 @@ def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     """The first point of contact (smallest initial gap, over all ranks; collective) and, in
     2D, the tangent t_0 of the position's sign convention."""
     from .models.obstacles import first_contact_point
-    from .surface import tangent_2d
 
     p = result.problem
     con = p.constraint
@@ -161,7 +159,7 @@ def reference_curves(scene: Scene, table: Table | None, comparison=None, origin:
 def exact_tractions(scene: Scene, table: Table, t0: np.ndarray, h: float = 1e-6) -> list:
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
     nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
-    obstacle's normal at the node, t_0 of :func:`contact.surface.tangent_2d`)."""
+    obstacle's normal at the node, t_0 of :func:`contact.contactdata.tangent_2d`)."""
     from . import expressions
     from .models.elasticity import lame
 

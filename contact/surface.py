@@ -1,13 +1,7 @@
-"""Friction on the contact surface Γ_C: the per-node columns of ``contact.csv``, the
-resultants of a step, and the nodal fields of the VTK output.
-
-For every contact node i (weight w_i = ∫_{Γ_C} φ_i, a length in 2D, an area in 3D) a
-frictional solve adds to the columns of :mod:`contact.contactdata` (coordinates, ``s`` / ``r``,
-λ_n, gap, active): the tangential traction on the body λ_t,i (stress; in 2D its component
-along t_0 = (−n_y, n_x), n the contact normal at the first point of contact — for a plane
-y = 0 below the body, the x component; in 3D the vector in global axes), |λ_t|, the friction
-bound ρ_i, the slip increment s_t,i of the load step (length; the same way), |s_t|, the
-status separated / stick / slip, and w_i.
+"""Friction on the contact surface Γ_C: the resultants of a step and the nodal fields of
+the VTK output.  The per-node friction columns of ``contact.csv`` (λ_t,i, s_t,i, the
+status, the weight w_i = ∫_{Γ_C} φ_i of contact node i: a length in 2D, an area in 3D) are
+:func:`contact.contactdata.friction_columns`.
 
 Resultants (of the modelled part: symmetric copies are not added, since tangential
 components across a symmetry plane cancel between copies): the normal force Σ w_i λ_n,i,
@@ -25,36 +19,10 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
-from .contactdata import Table, contact_table
+from .contactdata import STATUS, Table, contact_table
 from .resultants import reaction_force
 from .scene import Scene
 from .solvers import Result
-
-STATUS = ("separated", "stick", "slip")
-
-
-def tangent_2d(result: Result) -> np.ndarray:
-    """t_0 = (−n_y, n_x) of the contact normal n at the first point of contact (2D)."""
-    n = np.asarray(result.problem.data["n"], dtype=float)
-    return np.array([-n[1], n[0]])
-
-
-def friction_columns(scene: Scene, result: Result) -> Table:
-    """This rank's friction columns, row for row with :func:`contact.contactdata.contact_columns`."""
-    fr = result.friction
-    lam_t, slip = fr["lambda_t_vec"], fr["slip_vec"]
-    cols: Table = {}
-    if scene.mesh.geometry.dim == 2:
-        t0 = tangent_2d(result)
-        cols.update(lambda_t=lam_t @ t0, slip=slip @ t0)
-    else:
-        cols.update({f"lambda_t_{a}": lam_t[:, i] for i, a in enumerate("xyz")})
-        cols.update({f"slip_{a}": slip[:, i] for i, a in enumerate("xyz")})
-    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=float),
-                slip_norm=np.linalg.norm(slip, axis=1), status=np.array(STATUS, dtype=object)[fr["status"]],
-                weight=np.asarray(fr["w"], dtype=float))
-    return cols
-
 
 def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
     """The resultants and zone measures of the module doc (collective); ``table`` is the

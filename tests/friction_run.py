@@ -14,8 +14,7 @@ from mpi4py import MPI
 import contact
 from contact.io import gather_nodal
 from contact.loadpath import run_load_path
-from contact.contactdata import contact_table
-from contact.surface import STATUS
+from contact.contactdata import STATUS, contact_table
 
 
 def main(argv):

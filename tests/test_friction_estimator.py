@@ -15,9 +15,8 @@ from dolfinx import fem
 from contact import expressions
 from contact.errors import solution_error
 from contact.models.elasticity import lame, stress
-from contact.contactdata import contact_table
+from contact.contactdata import contact_table, tangent_2d
 from contact.loadreport import exact_tractions
-from contact.surface import tangent_2d
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "configs" / "friction_tresca_manufactured.yaml"
