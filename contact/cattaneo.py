@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
+from .comparison import Comparison
 from .hertz import contact_extent, contact_modulus, hertz_values
 from .models.obstacles import first_contact_point
-from .reference import Comparison
 from .scene import Scene
 from .solvers import Result
 

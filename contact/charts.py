@@ -31,6 +31,8 @@ ACCURACY_LABELS = {
     "hertz_error": "Hertz error max(|a/a_H − 1|, |p0/p0_H − 1|)",
     "eta": "estimator η",
 }
+#: outcome classes of a run, in the order of the stability map's legend
+OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
 OUTCOME_COLOURS = {"converged": "#4daf4a", "max iterations": "#ff7f00", "stalled": "#ffd92f",
                    "diverged": "#e41a1c", "error": "#999999"}
 MARKERS = "osD^v<>pPX*h"
@@ -147,8 +149,6 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
     the levels of an adaptive run), ``+p`` for p active-set polishing solves."""
     from matplotlib.patches import Patch
 
-    from .study import OUTCOMES
-
     plt = _pyplot()
     methods = study.axes.get("method", [None])
     row_keys = (["case"] if study.named_cases else []) + [a for a in study.axes if a != "method"]
@@ -202,10 +202,8 @@ def _iteration_curves(study: Study, rows: list[dict], level_rows: list[dict]) ->
     one curve, nested or cold start as it was run; single solves (one per value of a
     ``level`` axis) are joined along that axis into one curve per combination of the other
     axes, each solve a cold start from u0."""
-    from .study import _plan
-
     keys = (["case"] if study.named_cases else []) + list(study.axes)
-    plans = {r["run"]: _plan(study, {k: r[k] for k in keys if k in r}) for r in rows}
+    plans = {r["run"]: study.plan({k: r[k] for k in keys if k in r}) for r in rows}
     other = [a for a in _categorical(study) if a not in ("method", "nested")]
     curves: dict[str, list[dict]] = {}
     for (run,), members in _groups(level_rows, ["run"]).items():

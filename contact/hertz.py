@@ -19,8 +19,8 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
+from .comparison import Comparison
 from .models.obstacles import first_contact_point
-from .reference import Comparison
 from .scene import Scene
 from .solvers import Result, owned_residual
 

@@ -438,7 +438,7 @@ def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, ti
     """The contact pressure −λ_n (elasticity) or flux −λ (scalar) at the contact nodes along
     Γ_C: against the arc length s (2D) or the distance r from the first point of contact
     (3D), active nodes filled; with a declared reference (``comparison``,
-    :class:`contact.reference.Comparison`) against its position axis, with its curves."""
+    :class:`contact.comparison.Comparison`) against its position axis, with its curves."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     name = "contact pressure −λ_n" if value == "lambda_n" else "contact flux −λ"

@@ -21,8 +21,9 @@ from mpi4py import MPI
 
 from . import io, plots
 from .adapt import AdaptResult, Level
+from .comparison import Comparison
 from .errors import solution_error
-from .reference import Comparison, compare
+from .reference import compare
 from .scene import Scene
 from .series import Series, write_vtu
 from .solvers import Result

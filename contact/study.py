@@ -73,8 +73,6 @@ LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of t
 }
 STRATEGIES = ("none", "uniform", "dorfler", "maximum")
 CHARTS = ("speed_accuracy", "stability", "iterations")
-#: outcome classes of a run, in the order of the stability map's legend
-OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
 
 _SOLVER = SCENE["solver"].schema
 _ADAPT = SCENE["adapt"].schema
@@ -219,10 +217,43 @@ class Study:
         head = (lambda label: {"case": label}) if self.named_cases else (lambda label: {})
         return [{**head(label), **combo} for label in self.cases for combo in combos]
 
+    def plan(self, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]:
+        """The run's raw scene, its number of uniform refinements and its adaptive options
+        (``None``: one solve)."""
+        case = self.cases[params.get("case")]
+        params = {**case.params, **params}
+        raw = copy.deepcopy(case.raw)
+        solver = raw["solver"] = dict(raw.get("solver") or {})
+        raw["output"] = {**(raw.get("output") or {}), "verbose": False}
+        for key in _SOLVER_AXES:
+            if key in params:
+                solver[key] = params[key]
+        if "linear_solver" in params:
+            solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
+        if any(axis in params for axis in _FRICTION_AXES):
+            friction = {**(raw.get("friction") or {}),
+                        **{key: params[axis] for axis, key in _FRICTION_AXES.items() if axis in params}}
+            law = friction.get("law", "none")
+            raw["friction"] = {k: v for k, v in friction.items() if k in _LAW_KEYS.get(law, friction)}
+        if "steps" in params:
+            raw["load"] = {**{k: v for k, v in (raw.get("load") or {}).items() if k != "times"},
+                           "steps": params["steps"]}
+        adapt = dict(self.adapt)
+        adapt.update({k: params[k] for k in _ADAPT_AXES if k in params})
+        strategy = adapt.pop("strategy", None)
+        strategy = params.get("strategy", strategy)
+        if strategy is None:
+            adaptive = case.cfg.get("adapt") is not None
+        else:
+            adaptive = strategy != "none"
+            if adaptive:
+                adapt["strategy"] = strategy
+        return raw, params.get("level", 0), (adapt if adaptive else None)
+
     @functools.cached_property
     def adaptive_possible(self) -> bool:
         """Whether any run is adaptive (then the rows get a ``stop`` column)."""
-        return any(_plan(self, params)[2] is not None for params in self.runs())
+        return any(self.plan(params)[2] is not None for params in self.runs())
 
     def as_dict(self) -> dict[str, Any]:
         cfg = {k: v for k, v in self.base_cfg.items() if not k.startswith("_")}
@@ -383,39 +414,6 @@ def _refine_uniformly(scene, times: int):
     return scene
 
 
-def _plan(study: Study, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]:
-    """The run's raw scene, its number of uniform refinements and its adaptive options
-    (``None``: one solve)."""
-    case = study.cases[params.get("case")]
-    params = {**case.params, **params}
-    raw = copy.deepcopy(case.raw)
-    solver = raw["solver"] = dict(raw.get("solver") or {})
-    raw["output"] = {**(raw.get("output") or {}), "verbose": False}
-    for key in _SOLVER_AXES:
-        if key in params:
-            solver[key] = params[key]
-    if "linear_solver" in params:
-        solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
-    if any(axis in params for axis in _FRICTION_AXES):
-        friction = {**(raw.get("friction") or {}),
-                    **{key: params[axis] for axis, key in _FRICTION_AXES.items() if axis in params}}
-        law = friction.get("law", "none")
-        raw["friction"] = {k: v for k, v in friction.items() if k in _LAW_KEYS.get(law, friction)}
-    if "steps" in params:
-        raw["load"] = {**{k: v for k, v in (raw.get("load") or {}).items() if k != "times"}, "steps": params["steps"]}
-    adapt = dict(study.adapt)
-    adapt.update({k: params[k] for k in _ADAPT_AXES if k in params})
-    strategy = adapt.pop("strategy", None)
-    strategy = params.get("strategy", strategy)
-    if strategy is None:
-        adaptive = case.cfg.get("adapt") is not None
-    else:
-        adaptive = strategy != "none"
-        if adaptive:
-            adapt["strategy"] = strategy
-    return raw, params.get("level", 0), (adapt if adaptive else None)
-
-
 def _figures(study: Study, scene, result, eta: float | None, error: float | None) -> dict[str, Any]:
     """The accuracy figures of one converged solve: energy error, Hertz errors, η, and the
     measure of the active set (Σ w_i over active nodes: a length or an area)."""
@@ -468,7 +466,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     t0 = time.perf_counter()
     failure = ""
     try:
-        raw, level, adapt_opts = _plan(study, params)
+        raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
         if _path_scene(scene.cfg):
