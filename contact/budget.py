@@ -54,7 +54,7 @@ def physical_memory() -> int:
 
 def direct_3d(cfg: dict, gdim: int) -> bool:
     """Whether the scene's linear solver is a direct factorization of a 3D problem."""
-    from .solvers.linear import default_options
+    from .solvers.options import default_options
 
     options = {**default_options(cfg["solver"].get("linear", "auto"), gdim), **cfg["solver"]["petsc_options"]}
     return gdim == 3 and str(options.get("pc_type")) in ("lu", "cholesky")

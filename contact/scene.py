@@ -109,7 +109,6 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
 
 def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:
     """The scene's PETSc options work with the model's default linear solver."""
-    from .solvers.linear import default_options
-    from .solvers.options import check_petsc_options
+    from .solvers.options import check_petsc_options, default_options
 
     check_petsc_options(cfg["solver"]["petsc_options"], default_options(cfg["solver"].get("linear", "auto"), gdim, comm.size), comm)

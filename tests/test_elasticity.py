@@ -180,3 +180,22 @@ def test_adaptive_dof_budget_counts_vector_dofs(scene):
     levels = contact.adapt(scene, method="min", max_levels=6, max_dofs=4000, verbose=False).levels
     assert all(lv.result.dofs <= 4000 for lv in levels)
     assert levels[-1].result.dofs > 2000, "the budget, not the level count, stopped the loop"
+
+
+#: the modules a scene loads only when its model needs them (README: a scalar scene never
+#: imports the elasticity code, a rectangle never gmsh, a frictionless scene never friction)
+LAZY = ("contact.models.elasticity", "contact.models.friction", "contact.solvers.friction", "gmsh")
+
+
+def test_a_run_imports_only_its_own_model(tmp_path):
+    """``contact run`` of a coarse scalar scene leaves every module of LAZY unloaded; one of
+    a frictionless elastic block then loads elasticity but neither friction module."""
+    code = ("import sys; from contact.cli import main; lazy = %r\n"
+            "for scene, cells, out in [('signorini_square', '[8, 8]', 's'), ('block_on_plane', '[8, 2]', 'b')]:\n"
+            "    rc = main(['run', f'configs/{scene}.yaml', '--set', f'mesh.cells={cells}', '--set', 'adapt.max_levels=2',\n"
+            "               '--set', 'output.verbose=false', '-o', %r + out])\n"
+            "    print(scene, rc, *[m for m in lazy if m in sys.modules])\n") % (LAZY, str(tmp_path) + "/")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    lines = [line for line in proc.stdout.splitlines() if line.split()[0] in ("signorini_square", "block_on_plane")]
+    assert lines == ["signorini_square 0", "block_on_plane 0 contact.models.elasticity"]

@@ -46,7 +46,7 @@ def test_options_read_at_setup_reach_the_solver():
 def test_gamg_coarsens_by_mis2_only_in_parallel_2d():
     """2D on several ranks: the first aggressive coarsening by MIS-2, not the squared graph
     (whose product scales badly across ranks); serial and 3D keep the squared graph."""
-    from contact.solvers.linear import default_options
+    from contact.solvers.options import default_options
 
     key = "pc_gamg_aggressive_square_graph"
     assert default_options("gamg", 2, ranks=2)[key] is False

@@ -5,6 +5,7 @@
 * :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
 * :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
   :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
+* :mod:`.bodies` — several elastic bodies in contact through :mod:`.mortar` pairs (SPEC §1.5);
 * :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
   unknowns, thresholds, c_t (only a frictional scene imports it).
 
@@ -23,16 +24,22 @@ __all__ = ["Constraint", "DiscreteProblem", "build_problem"]
 
 
 def build_problem(scene: "Scene") -> DiscreteProblem:
-    """The discrete problem of the scene's model (within the DoF budget, else ConfigError)."""
+    """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
+    an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
     from ..budget import check_dofs, mesh_dofs
 
     cfg, msh = scene.cfg, scene.mesh
     components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1
     check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
     if scene.cfg["model"]["type"] == "elasticity":
-        from .elasticity import elasticity_problem
+        if scene.cfg.get("bodies"):
+            from .bodies import bodies_problem
 
-        problem = elasticity_problem(scene)
+            problem = bodies_problem(scene)
+        else:
+            from .elasticity import elasticity_problem
+
+            problem = elasticity_problem(scene)
         if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
             from .friction import friction_set
 

@@ -140,12 +140,8 @@ def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
 
 
 def elasticity_problem(scene: Scene) -> DiscreteProblem:
-    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2); a
-    scene with ``bodies`` is the multi-body model of :mod:`contact.models.bodies`."""
-    if scene.cfg.get("bodies"):
-        from .bodies import bodies_problem
-
-        return bodies_problem(scene)
+    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2) against
+    its rigid obstacle (a scene with ``bodies`` is :func:`contact.models.bodies.bodies_problem`)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     model, obstacle = scene.cfg["model"], scene.cfg["obstacle"]

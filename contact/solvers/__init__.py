@@ -11,11 +11,11 @@ call the adaptive loop, live above them in :mod:`contact.loadpath`.
 * :mod:`.linear` — the linear solver of each step; :mod:`.reduced` — the symmetric
   reduction of the diagonal law solved by CG + GAMG;
 * :mod:`.sequencing` — grid sequencing of a single solve (coarser meshes first);
-* :mod:`.options` — the ``solver`` section and PETSc options;
+* :mod:`.options` — the ``solver`` section and PETSc options (each linear solver's defaults);
 * :mod:`.solve` — one solve end to end; :mod:`.result` — its outcome.
 """
-from .linear import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, default_linear_solver
-from .options import method_variant, solver_options
+from .linear import default_linear_solver
+from .options import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant, solver_options
 from .result import Result, owned_residual, solves_text
 from .solve import solve
 

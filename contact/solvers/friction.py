@@ -68,6 +68,7 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from mpi4py import MPI
@@ -242,7 +243,7 @@ def with_threshold(fs: FrictionSet, rho: np.ndarray) -> FrictionSet:
 
 
 def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | None, built_here: bool,
-                        **options):
+                        solve: Callable, **options):
     """Coulomb friction as a sequence of Tresca problems (``friction.coulomb: fixed_point``):
 
         ρ^0 = F·max(0, μ_n(u_0)),   u^k = the Tresca solution with threshold ρ^{k−1},
@@ -251,9 +252,8 @@ def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | Non
     each Tresca problem solved by semismooth Newton from the previous u^k.  A contraction
     for small F; an independent check of the full Newton method (same solution).  The
     returned :class:`~contact.solvers.result.Result` is the last Tresca solve's, with
-    ``iterations`` the Newton steps of all of them and ``friction['fixed_point_iterations']``."""
-    from .solve import solve
-
+    ``iterations`` the Newton steps of all of them and ``friction['fixed_point_iterations']``.
+    ``solve`` is :func:`contact.solvers.solve.solve`, passed in by it (it calls this module)."""
     fs: FrictionSet = problem.friction
     comm = scene.comm
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose

@@ -17,12 +17,10 @@ from __future__ import annotations
 from petsc4py import PETSc
 
 from ..models import DiscreteProblem
-from .reduced import REDUCED_PETSC_OPTIONS, ReducedSystem
+from .options import default_options
+from .reduced import ReducedSystem
 
 LINEAR = ("auto", "direct", "gamg", "bcgs")
-DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
-ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
-ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
 
 #: ``auto`` uses MUMPS for 2D problems below this many DoFs (measured: demos/bench/bench_linear.py)
 DIRECT_MAX_DOFS_2D = 5_000
@@ -69,37 +67,6 @@ def default_linear_solver(problem: DiscreteProblem, linear: str = "auto") -> dic
 def petsc_defaults(problem: DiscreteProblem, kind: str) -> dict:
     """PETSc options of linear solver ``kind`` for ``problem``."""
     return default_options(kind, problem.V.mesh.topology.dim, problem.V.mesh.comm.size)
-
-
-def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
-    """PETSc options of linear solver ``kind`` (``direct``, ``gamg``, ``bcgs``, or ``auto``:
-    direct in 2D, gamg in 3D — the choice for small problems, known before the mesh exists,
-    used to check the user's options at load) in ``tdim`` dimensions.  For ``gamg`` in 3D,
-    plain (unsmoothed) aggregation: its setup is ~5× cheaper than smoothed aggregation's
-    Galerkin products (hertz_3d, 302k DoFs: 1.6 s against 7.9 s, 78 against 32 CG
-    iterations to 1e-8), and a Newton solve sets GAMG up once per step while its forcing
-    terms ask few iterations (on hertz_3d's final mesh, 185k DoFs, min: 1.4–1.8× one
-    smoothed CG + GAMG solve of K against 2.6–3.1×).  In 2D smoothed aggregation stays
-    (unsmoothed needs 161 instead of 17 iterations on the 1024² Poisson matrix).
-
-    On ``ranks`` > 1 in 2D the first level's aggressive coarsening uses MIS-2 instead of the
-    squared graph AᵀA, whose product scales badly across ranks (problem A's finest level,
-    1.23M DoFs, 2 ranks: ``MatTrnMatMultSym`` 1.01 s against 0.56 s serially, GAMG's setup
-    2.68 s against 3.17 s).  Measured (the finest solve repeated from the same guess,
-    alternating): 2 ranks 4.30–5.30 s against 5.01–5.72 s (21 against 19 CG iterations),
-    but serially 6.55–7.25 s against 5.70–6.95 s, and in 3D on 2 ranks (hertz_3d, 865k DoFs)
-    31.4 s against 24.4 s: the squared graph stays there."""
-    if kind == "auto":
-        kind = "direct" if tdim == 2 else "gamg"
-    if kind == "gamg":
-        if tdim == 3:
-            extra = {"pc_gamg_agg_nsmooths": 0}
-        elif ranks > 1:
-            extra = {"pc_gamg_aggressive_square_graph": False}
-        else:
-            extra = {}
-        return {**REDUCED_PETSC_OPTIONS, **extra}
-    return dict(ASSEMBLED_PETSC_OPTIONS[kind])
 
 
 def attach_near_nullspace(problem: DiscreteProblem, J: PETSc.Mat) -> None:

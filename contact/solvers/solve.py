@@ -63,7 +63,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
                                setup_friction_newton, status_counts)
 
         if friction.law == "coulomb" and friction.coulomb == "fixed_point":
-            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, method=method, **options)
+            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, solve, method=method, **options)
     t_start = time.perf_counter()
     con = problem.constraint  # the NCP scaling follows the options of this solve
     problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"

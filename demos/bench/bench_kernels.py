@@ -56,7 +56,7 @@ from common import save_csv
 from contact.adapt import busiest_share, refine_partitioner
 from contact.models import problem as P
 from contact.models.elasticity import epsilon, stress
-from contact.solvers.linear import default_options
+from contact.solvers.options import default_options
 
 
 def _timed(times: list[float], f: Callable[[], Any]) -> Any:
