@@ -89,8 +89,6 @@ def petsc_value(val: Any) -> str:
     return "" if val is None else str(val)
 
 
-
-
 _checks = itertools.count()
 
 
