@@ -18,7 +18,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    the square 128² … 1024² with and without grid sequencing, hertz_3d's final mesh, a 3D mesh
    of about 1M DoFs on 2 MPI ranks, and the chart ``cost/cost.png`` (issue 11; about 12 minutes);
    ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
-   1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases);
+   1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases),
+   and the 2-rank speed-up as the median of 3 paired runs;
    ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy, cost);
    ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old paths,
    (on 2 ranks) refinement with and without redistribution or a ghost layer, and (serially
