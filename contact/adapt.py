@@ -152,8 +152,8 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
                   parent=(scene, parent_cell))
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     clock.append(time.perf_counter())
-    warn_undeclared_curves(scene)
-    for surface in boundary_surfaces(scene):
+    warn_undeclared_curves(scene.cfg, scene.mesh, scene.boundary)
+    for surface in boundary_surfaces(scene.cfg, scene.mesh.geometry.dim, scene.boundary):
         surface.snap(new, tags)
     for surface in builder_surfaces(scene.cfg):   # by the mesh's own tags of its curved surfaces
         surface.snap(new, surfaces)

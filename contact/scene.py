@@ -103,7 +103,8 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
         _check_solver(cfg, msh.geometry.dim, comm)
     bodies = tag_bodies(msh, cfg, cell_tags)
     scene = Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags, bodies), bodies=bodies, surfaces=file_tags)
-    boundary_surfaces(scene)  # a declared surface that does not fit the mesh is bad input now
+    # a declared surface that does not fit the mesh is bad input now, not at the first refinement
+    boundary_surfaces(cfg, msh.geometry.dim, scene.boundary)
     return scene
 
 

@@ -17,7 +17,6 @@ scene without a declared surface gets when it is refined.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,9 +24,7 @@ from dolfinx import mesh as dmesh
 
 from .config import ConfigError
 from .geometry import CurvedBoundary, curved_boundary
-
-if TYPE_CHECKING:
-    from .scene import Scene
+from .meshes import Boundary
 
 #: a ridge (vertex in 2D, edge in 3D) between two facets bends if their normals differ by more
 BEND = 1e-4  # radians
@@ -58,14 +55,13 @@ def declared_surface(name: str, spec: dict, gdim: int, tag: int) -> CurvedBounda
                           axis=None if axis is None else tuple(float(a) for a in axis))
 
 
-def boundary_surfaces(scene: "Scene") -> list[CurvedBoundary]:
-    """The exact surfaces refinement snaps to: the built-in Hertz meshes' curved tag, and
-    every part with a declared ``surface``."""
-    out = [s for s in (curved_boundary(scene.cfg),) if s is not None]
-    gdim = scene.mesh.geometry.dim
-    for name, part in scene.cfg["boundaries"].items():
+def boundary_surfaces(cfg: dict, gdim: int, boundary: Boundary) -> list[CurvedBoundary]:
+    """The exact surfaces refinement snaps to, in ``gdim`` dimensions: the built-in Hertz
+    meshes' curved tag, and every part of ``boundary`` with a declared ``surface``."""
+    out = [s for s in (curved_boundary(cfg),) if s is not None]
+    for name, part in cfg["boundaries"].items():
         if part.get("surface"):
-            out.append(declared_surface(name, part["surface"], gdim, scene.boundary.ids[name]))
+            out.append(declared_surface(name, part["surface"], gdim, boundary.ids[name]))
     return out
 
 
@@ -95,12 +91,11 @@ def ridge_angles(facets: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(cos, 0.0, 1.0))
 
 
-def looks_curved(scene: "Scene", name: str) -> bool:
-    """Whether part ``name`` looks like a discretized curve or curved surface: most of its
-    ridges bend (a polygon or polyhedron bends at a few corners only).  Collective."""
-    msh = scene.mesh
+def looks_curved(msh: dmesh.Mesh, boundary: Boundary, name: str) -> bool:
+    """Whether part ``name`` of ``boundary`` looks like a discretized curve or curved surface:
+    most of its ridges bend (a polygon or polyhedron bends at a few corners only).  Collective."""
     tdim = msh.topology.dim
-    facets = scene.boundary.tags.find(scene.boundary.ids[name])
+    facets = boundary.tags.find(boundary.ids[name])
     facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]
     nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)[:, :tdim]
     parts = msh.comm.gather(msh.geometry.x[nodes][:, :, :tdim], root=0)
@@ -111,18 +106,18 @@ def looks_curved(scene: "Scene", name: str) -> bool:
     return msh.comm.bcast(curved, root=0)
 
 
-def warn_undeclared_curves(scene: "Scene") -> None:
+def warn_undeclared_curves(cfg: dict, msh: dmesh.Mesh, boundary: Boundary) -> None:
     """Warn once per gmsh file and part when a contact part of a gmsh mesh looks curved and
     declares no ``surface``: refinement keeps its chords (collective; rank 0 warns)."""
-    if scene.cfg["mesh"]["type"] != "gmsh":
+    if cfg["mesh"]["type"] != "gmsh":
         return
-    for name, part in scene.cfg["boundaries"].items():
-        key = (scene.cfg["mesh"]["file"], name)
+    for name, part in cfg["boundaries"].items():
+        key = (cfg["mesh"]["file"], name)
         if part["role"] != "contact" or part.get("surface") or key in _checked:
             continue
-        _checked[key] = looks_curved(scene, name)
-        if _checked[key] and scene.comm.rank == 0:
-            warnings.warn(f"boundaries.{name}: the contact boundary of {scene.cfg['mesh']['file']} looks curved "
+        _checked[key] = looks_curved(msh, boundary, name)
+        if _checked[key] and msh.comm.rank == 0:
+            warnings.warn(f"boundaries.{name}: the contact boundary of {cfg['mesh']['file']} looks curved "
                           "but declares no surface; refinement keeps its chords (declare boundaries."
                           f"{name}.surface: {{type: circle|sphere|cylinder, center, radius}})", ContactWarning,
                           stacklevel=2)

@@ -53,7 +53,7 @@ def test_min_is_never_polished(scene):
 def _state(scene, method="fb"):
     problem = build_problem(scene)
     problem.c = nodal_scaling(problem.K, problem.constraint.dofs, problem.constraint.w,
-                              solver_options(scene)["kappa"])
+                              solver_options(scene.cfg)["kappa"])
     cp = Complementarity(problem)
     timers = {"solve": 0.0, "assembly": 0.0}
     ksp = PETSc.KSP().create(problem.b.getComm())

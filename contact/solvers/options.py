@@ -5,7 +5,7 @@ database (set, read, errors as one line)."""
 from __future__ import annotations
 
 import itertools
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import Any, Mapping
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -14,18 +14,16 @@ from ..config import SCENE, ConfigError, _validate
 from ..failures import petsc_message
 from .reduced import REDUCED_PETSC_OPTIONS
 
-if TYPE_CHECKING:
-    from ..scene import Scene
-
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
 ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
 
 
-def solver_options(scene: Scene, **overrides: Any) -> dict:
-    """The scene's ``solver`` section with keyword overrides, validated like the YAML."""
-    raw = {**scene.cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
-    return _validate(raw, SCENE["solver"], "solver", scene.cfg["constants"])
+def solver_options(cfg: Mapping[str, Any], **overrides: Any) -> dict:
+    """The ``solver`` section of a validated scene config with keyword overrides, validated
+    like the YAML."""
+    raw = {**cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
+    return _validate(raw, SCENE["solver"], "solver", cfg["constants"])
 
 
 def method_variant(name: str) -> tuple[str, dict]:

@@ -49,7 +49,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     require_scene(scene)
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
-    opts = solver_options(scene, method=method, **options)
+    opts = solver_options(scene.cfg, method=method, **options)
     method = opts["method"]
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     built_here = problem is None
