@@ -32,6 +32,8 @@ def import_graph() -> dict[str, set[str]]:
         skip = _annotation_only_lines(tree)
         targets = graph.setdefault(name, set())
         for node in ast.walk(tree):
+            if isinstance(node, ast.Import) and node.lineno not in skip:   # import contact.x
+                targets |= {a.name for a in node.names} & paths.keys() - {name}
             if not isinstance(node, ast.ImportFrom) or node.lineno in skip:
                 continue
             if node.level:
@@ -83,6 +85,7 @@ def test_the_import_graph_sees_lazy_imports():
     graph = import_graph()
     # models.build_problem imports the elasticity model inside the function
     assert "contact.models.elasticity" in graph["contact.models"]
+    # a package's __init__ importing its own submodule
     assert "contact.solvers.solve" in graph["contact.solvers"]
 
 
