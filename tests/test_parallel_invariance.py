@@ -70,10 +70,50 @@ def test_lshape_adaptive_meshes_identical_on_any_number_of_ranks(lshape_runs, ra
 
 def test_hertz_2d_newton_path_identical_on_1_and_2_ranks(tmp_path: Path) -> None:
     """Before: 9 Newton steps on 1 rank, 8 on 2–4 (a contact node with gap exactly 0 whose
-    round-off multiplier sign picked the Jacobian branch at the first step)."""
+    round-off multiplier sign picked the Jacobian branch at the first step).  The whole path
+    is compared: every kink is decided with the tie tolerance τ = 10⁻¹² × the problem's
+    scale, and no (a_i, b_i) of this scene lands within round-off of τ, so the path does not
+    depend on rounding."""
     runs = _run_script(tmp_path, HERTZ_FIRST_SOLVE, "hertz_2d.yaml", (1, 2))
     assert runs[1] == runs[2]
     assert runs[1]["history"][0] == [0, 0]  # the node at the origin starts inactive everywhere
+
+
+STACK_SOLVES = """
+import json, sys
+from mpi4py import MPI
+import contact
+scene = contact.load_scene(sys.argv[1])
+out = {}
+for method in ("fb", "min"):
+    r = contact.solve(scene, method=method, verbose=False)
+    out[method] = {"converged": r.converged, "history": [(h["active"], h["residual"]) for h in r.history],
+                   "force": r.contact_force}
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps(out))
+"""
+
+
+def test_two_body_first_iterate_identical_on_1_and_3_ranks(tmp_path: Path) -> None:
+    """two_body_stack_2d (issue 26): the cold start had 21 / 23 / 21 / 1 active nodes and a
+    different ‖Φ‖ on 1–4 ranks.  Two causes: the initial guess lacked the Dirichlet values
+    (the bodies' DirichletBC on the unknowns read DoF indices as node numbers, so each
+    partition fixed other DoFs), and every contact node is a tie (gap ±1e-16 from the
+    coordinates, multiplier 0) decided with τ = 10⁻¹² × max|a|, max|b| — itself round-off
+    there.  Now τ is relative to the coordinates' size as well (Constraint.scale): no node is
+    active at iteration 0, with margin (|a_i| ≤ 1e-15 ≪ τ = 1e-12), on any partition.  fb's
+    Jacobian is regular there and its whole path is the same; min's first Newton matrix is
+    singular (no active node holds the lower block: its step along the free translation
+    is round-off), so only its first row and its answer are compared."""
+    runs = _run_script(tmp_path, STACK_SOLVES, "two_body_stack_2d.yaml", (1, 3))
+    for method in ("fb", "min"):
+        one, three = runs[1][method], runs[3][method]
+        assert one["converged"] and three["converged"]
+        assert one["history"][0][0] == three["history"][0][0] == 0
+        assert abs(one["history"][0][1] - three["history"][0][1]) <= 1e-12 * one["history"][0][1]
+        assert abs(one["force"] - three["force"]) <= 1e-10 * one["force"]
+    fb1, fb3 = runs[1]["fb"]["history"], runs[3]["fb"]["history"]
+    assert [a for a, _ in fb1] == [a for a, _ in fb3]
 
 
 NEXT_DOFS = """

@@ -35,7 +35,7 @@ from ..scene import Scene
 from . import mortar
 from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
-from .problem import Constraint, DiscreteProblem, contact_ends
+from .problem import Constraint, DiscreteProblem, contact_ends, coordinate_scale
 
 
 def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
@@ -96,7 +96,8 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     ends = np.concatenate([c.ends for c in sets]).astype(np.int32)
     end_dofs, end_neighbours = contact_ends(V, (ends * bs).astype(np.int32),
                                             np.concatenate([slave_nodes, ends]) * bs, ends * bs)
-    con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in sets]), 1.0)
+    con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in sets]), 1.0,
+                     coordinate_scale(scene.mesh))
     normals = np.concatenate([c.normals for c in sets])
     pair_nodes = int(offsets[-1])      # the first pair_nodes constrained nodes are slave nodes
     X = V.tabulate_dof_coordinates()[nodes, : scene.mesh.geometry.dim]
@@ -207,7 +208,7 @@ def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, fr
                           absolute: list, Kt: PETSc.Mat, bt: PETSc.Vec) -> list:
     """The Dirichlet and symmetry conditions as conditions on the unknowns x = Q⁻¹ u, imposed
     on K̃ and b̃ (rows and columns identity, the prescribed values lifted into b̃), and
-    returned as one DirichletBC on x for the solvers' initial guess.
+    returned as DirichletBCs on x (one per component) for the solvers' initial guess.
 
     A fixed component u_k of a slave node whose frame keeps e_k as its axis 1 + m
     (``absolute``) is the unknown x_{1+m} = ±u_k; every other fixed DoF keeps its index
@@ -240,6 +241,18 @@ def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, fr
     lo = bt.getOwnershipRange()[0]
     Kt.zeroRowsColumns((lo + dofs).astype(PETSc.IntType), diag=1.0, x=xbar, b=bt)
     xbar.destroy()
-    g = fem.Function(V)
-    g.x.array[dofs] = x_values[dofs]
-    return [fem.dirichletbc(g, dofs)]
+    return [_component_bc(V, k, dofs[dofs % bs == k], x_values) for k in range(bs)]
+
+
+def _component_bc(V: fem.FunctionSpace, k: int, dofs: np.ndarray, values: np.ndarray) -> fem.DirichletBC:
+    """x_j = values[j] on the (unrolled, owned) DoFs ``dofs`` of component k, as a DirichletBC
+    on V.sub(k): ``fem.dirichletbc(g, dofs)`` on the blocked V would read the indices as
+    node (block) numbers and fix other DoFs."""
+    S, s_to_v = V.sub(k).collapse()
+    imap = V.dofmap.index_map
+    v_to_s = np.full((imap.size_local + imap.num_ghosts) * V.dofmap.index_map_bs, -1, dtype=np.int32)
+    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    v_to_s[s_to_v] = np.arange(len(s_to_v), dtype=np.int32)
+    g = fem.Function(S)
+    g.x.array[v_to_s[dofs]] = values[dofs]
+    return fem.dirichletbc(g, [dofs.astype(np.int32), v_to_s[dofs]], V.sub(k))

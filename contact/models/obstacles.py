@@ -22,7 +22,7 @@ from dolfinx import fem
 from ..config import ConfigError
 from ..scene import Scene
 from .basis import frame
-from .problem import Constraint, NodeBlockMatrix, lumped_weights
+from .problem import Constraint, NodeBlockMatrix, coordinate_scale, lumped_weights
 
 
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
@@ -85,7 +85,7 @@ def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     gap = (S.tabulate_dof_coordinates()[:, :gdim] - p) @ nu_o     # g(x) = (x − p)·ν
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = n_k * gap
-    return {"constraint": Constraint(dofs, n_k * gap[sd], w, n_k),
+    return {"constraint": Constraint(dofs, n_k * gap[sd], w, n_k, coordinate_scale(scene.mesh)),
             "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": n_k,
             "data": {"n": -nu_o, "n_ufl": n_ufl, "g_ufl": g_ufl}}
 
@@ -128,7 +128,7 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     bound.x.array[:] = g_all
     first = first_contact_point(msh.comm, Xs[sd], g_all[sd])
     return {"K": Kt, "b": bt, "basis": Q,
-            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0),
+            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0, coordinate_scale(msh)),
             "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
             "data": {"n": normal(first[None, :])[0], "normals": normals, "n_ufl": n_ufl, "g_ufl": g_ufl}}
 

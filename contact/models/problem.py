@@ -38,6 +38,11 @@ class Constraint:
     g: np.ndarray     # bound g_i (Signorini gap) or ψ_i (obstacle) at those DoFs
     w: np.ndarray     # lumped weights w_i > 0
     sign: float       # σ = +1: u ≤ g ; σ = −1: u ≥ ψ
+    # the size of what g is computed from, in the units of u: a gap measured between node
+    # coordinates X carries round-off ≈ ε max|X| (coincident surfaces give ±1e-16 instead of
+    # 0, its sign set by the partition), so kinks are decided relative to it too
+    # (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`); 0 for gaps given as data
+    scale: float = 0.0
 
     def global_size(self, comm: MPI.Comm) -> int:
         return comm.allreduce(len(self.dofs), op=MPI.SUM)
@@ -160,6 +165,12 @@ class DiscreteProblem:
     def bound_function(self) -> fem.Function:
         """The bound (g or ψ; n_k g for elasticity) on the output space."""
         return self.output_bound if self.output_bound is not None else self.data["g_h"]
+
+
+def coordinate_scale(msh: Any) -> float:
+    """max |X| over the vertex coordinates of every rank (the same on any partition)."""
+    X = msh.geometry.x[:, : msh.geometry.dim]
+    return msh.comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX)
 
 
 class NodeBlockMatrix:

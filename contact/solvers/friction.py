@@ -52,8 +52,10 @@ sliding on in the same direction.  With the exact tie rule round-off in |μ_t^pr
 decided, and a steadily sliding block took 8 Newton steps per load step instead of 1
 (10⁻⁸, 10⁻¹⁰, 10⁻¹¹ and 10⁻¹² all give 1; the tie moves λ_t by at most 10⁻¹¹ ρ).  For Coulomb,
 dρ = F·[ξ > 0] (dμ_n + σ dx_n / c) couples the tangential rows to the node's normal row
-([ξ > 0]: 0 at ξ = 0).  With dμ_t = −dR_t / w and ds = dx_t, every contact node contributes
-a small block to
+([ξ > 0]: 0 at ξ = 0, and where |b − a| = c|ξ| is within the tie tolerance τ of
+:meth:`~contact.solvers.newton.Complementarity.tie_tolerance`, as the normal element and
+the node's status: a cold start on a plane has every a_i ≈ ±10⁻¹⁸, b_i = 0).  With
+dμ_t = −dR_t / w and ds = dx_t, every contact node contributes a small block to
 
     H = B K + D,   B_tt = J_μ,  D_tt = −w J_s,  B_tn = σ F [ξ>0] J_ρ,  D_tn = −w σ F [ξ>0] J_ρ / c,
                    B_nn = ∂_b φ,  D_nn = (w/c) ∂_a φ,
@@ -176,7 +178,8 @@ class FrictionalComplementarity(Complementarity):
         """H = B K + D, the generalized-Jacobian element at x (module doc)."""
         fs, st = self.fs, self.evaluate(x)
         law = st["law"]
-        da, db = ncp.dphi(st["a"], st["b"], method, mu)
+        tau = self.tie_tolerance(st["a"], st["b"])   # kinks of φ and of ρ = F·max(0, ξ)
+        da, db = ncp.dphi(st["a"], st["b"], method, mu, tau)
         Bv, Dv = self.B.identity(), np.zeros((self.B.local_nodes, self.bs, self.bs))
         nodes, k, t = self.nodes, fs.n_comp, fs.t_comps
         rows = (nodes[:, None, None], t[None, :, None], t[None, None, :])
@@ -186,16 +189,17 @@ class FrictionalComplementarity(Complementarity):
         Bv[rows] = law.J_mu + eye
         Dv[rows] = -self.w[:, None, None] * law.J_s
         if self.coulomb:
-            gate = self.sign * fs.coefficient * (st["xi"] > 0)
+            gate = self.sign * fs.coefficient * ncp.active_min(st["a"], st["b"], tau)   # [ξ > 0]
             Bv[nodes[:, None], t[None, :], k] = gate[:, None] * law.J_rho
             Dv[nodes[:, None], t[None, :], k] = -(self.w * gate / self.c)[:, None] * law.J_rho
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
 
-    def status(self, x: PETSc.Vec) -> np.ndarray:
-        """Per node: SEPARATED (normal inactive, b ≤ a), STICK or SLIP."""
-        st = self.evaluate(x)
-        return np.where(st["b"] > st["a"], np.where(st["law"].stick, STICK, SLIP), SEPARATED)
+    def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
+        """Per node: SEPARATED (normal inactive: b − a ≤ τ, :meth:`active_set`), STICK or
+        SLIP (collective); ``st`` the :meth:`evaluate` of x if at hand."""
+        st = self.evaluate(x) if st is None else st
+        return np.where(self.active_set(st["a"], st["b"]), np.where(st["law"].stick, STICK, SLIP), SEPARATED)
 
     def matrix(self) -> PETSc.Mat:
         """A Jacobian matrix with the pattern of B K (created by the product, for reuse)."""
@@ -225,7 +229,7 @@ def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: 
     from ..models.friction import tangential_vector
 
     st = cp.evaluate(x)
-    status = np.where(st["b"] > st["a"], np.where(st["law"].stick, STICK, SLIP), SEPARATED)
+    status = cp.status(x, st)
     lam_t = -st["mu_t"]
     return {"lambda_n": -st["mu_n"], "lambda_t": lam_t, "rho": np.asarray(st["rho"], dtype=float),
             "slip": st["s"], "status": status, "gap": st["a"], "lambda_t_vec": tangential_vector(cp.fs, lam_t),

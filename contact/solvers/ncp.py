@@ -26,11 +26,16 @@ order, i.e. on the MPI partition, and the element of (0, ±10⁻¹⁷) would be 
 by its sign alone (hertz_2d took 9 Newton steps on one rank and 8 on two).  So a kink is
 decided with a tolerance τ ≥ 0: FB takes the biactive element where r = √(a² + b²) ≤ τ, min
 (and the active set) the tie element where |a − b| ≤ τ, i.e. active ⇔ b − a > τ.  The
-solver uses τ = :data:`TIE_RTOL` × max_i max(|a_i|, |b_i|), the largest gap or scaled
-multiplier over all constrained nodes of all ranks at the iterate
+solver uses τ = :data:`TIE_RTOL` × max(max_i |a_i|, max_i |b_i|, s), the largest gap or
+scaled multiplier over all constrained nodes of all ranks at the iterate, or s if larger
 (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`): far above round-off
-(≈ 10⁻¹⁶ of that scale), far below any value Newton resolves.  With τ = 0 the elements are
-the exact ones above.
+(≈ 10⁻¹⁶ of that scale), far below any value Newton resolves.  s is the size of what the
+gaps are computed from (:attr:`contact.models.Constraint.scale`: max |X| over the mesh for
+gaps between node coordinates, 0 for gaps given as data): two bodies that touch at a cold
+start have every a_i = ±10⁻¹⁶ (coordinate round-off, its sign set by the partition) and
+every b_i = 0, so without s the scale itself was round-off and two_body_stack_2d began with
+21, 23, 21 or 1 active nodes on 1–4 ranks.  With τ = 0 the elements are the exact ones
+above.
 
 Each function exists for NumPy arrays (``phi``/``dphi``, used by the solver and tests)
 and for UFL operands (``phi_ufl``, used in forms), from the same formulas.

@@ -56,10 +56,13 @@ class Complementarity:
         return a, b, r
 
     def tie_tolerance(self, a: np.ndarray, b: np.ndarray) -> float:
-        """τ = TIE_RTOL × max_i max(|a_i|, |b_i|) over every rank (collective): kinks closer
-        than τ take the documented element (:mod:`.ncp`), the same on any partition."""
+        """τ = TIE_RTOL × max(max_i |a_i|, max_i |b_i|, s) over every rank (collective), s the
+        constraint's :attr:`~contact.models.Constraint.scale` (the coordinates' size for
+        geometric gaps): kinks closer than τ take the documented element (:mod:`.ncp`), the
+        same on any partition — also at a cold start where every a_i, b_i is round-off."""
         local = float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0)))
-        return ncp.TIE_RTOL * self.p.b.getComm().tompi4py().allreduce(local, op=MPI.MAX)
+        scale = self.p.b.getComm().tompi4py().allreduce(local, op=MPI.MAX)
+        return ncp.TIE_RTOL * max(scale, self.p.constraint.scale)
 
     def active_set(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Active nodes: the scaled multiplier exceeds the gap, b_i − a_i > τ (ties
