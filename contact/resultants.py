@@ -24,13 +24,15 @@ from .solvers import Result, owned_residual
 
 def reaction_force(result: Result, k: int) -> float:
     """Component k of the reaction on the Dirichlet boundary, summed over all ranks and
-    multiplied by the symmetric copies (collective)."""
+    multiplied by the symmetric copies (collective).  The Dirichlet DoFs are those of the
+    condition on u (a multi-body problem's ``u_bcs``; its ``bcs`` act on the unknowns
+    x = Q⁻¹u, symmetry and slave axes included)."""
     p = result.problem
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     bs = p.V.dofmap.index_map_bs
     n_owned = p.V.dofmap.index_map.size_local * bs
-    dofs = p.bcs[0].dof_indices()[0]
+    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]
     dofs = dofs[(dofs < n_owned) & (dofs % bs == k)]
     local = float(np.sum(full.array_r[dofs]))
     full.destroy()
