@@ -93,6 +93,7 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "contact_force": result.contact_force,
         "c": result.options.get("c"),
         "line_search": result.options.get("line_search"),
+        "backtracked_steps": result.backtracked,
         "time_assembly": result.timings["assembly"],
         "time_linear_solve": result.timings["solve"],
         "time_other": result.timings["other"],

@@ -226,6 +226,11 @@ EXPLAIN = {
         "nodes (CG stops at the Eisenstat–Walker tolerance η ≤ 0.1); with κ = 1e4 that error outweighs "
         "the gaps near the free boundary, so min's active set follows the Krylov error rather than the "
         "contact zone and cycles; exact CG steps or MUMPS converge (the next rows)",
+    ("(q)", "min", "max iterations"):
+        "plain Newton-min (the primal–dual active set method, line search basic) cycles: from the "
+        "cold start every node is a tie and inactive, so the first system is singular (the lower block "
+        "floats) and its round-off step lands where 38 nodes flip between two active sets of 17 and 21; "
+        "the default line search (auto) sees the repeated set and backtracks",
     ("(l) semi-coercive", "vinewtonrsls", "stalled"):
         "from u = 0 no node is in the active set, so the reduced-space step solves K on every DoF — "
         "singular (the constants); the step is enormous along the constants and the line search finds "
@@ -268,7 +273,8 @@ def _line_search_verdict(its: dict) -> str:
             "the active set even when it raises ‖Φ‖ (the residual of newly active nodes jumps), and "
             "backtracking shortens exactly those steps; where the full step overshoots the contact zone "
             "(a large κ predicts contact wherever the load pushes), shortening it can help instead. Plain "
-            "Newton is the default.") if said else ""
+            "Newton steps are the default; for min only until a cycle shows (`solver.line_search: auto`: "
+            "rows (k) and (q) with and without it).") if said else ""
 
 
 def _friction_rows(its: dict, cases: list[str]) -> str:
@@ -406,7 +412,7 @@ def _newton_min_cycle() -> str:
         return "* **(p) Newton-min cycling**: " + missing("newton_min_cycle.csv (demos/bench/bench_newton_min_cycle.py)")
     p = [r for r in data if r["matrix"].startswith("P-matrix")]
     plain = next(r for r in p if r["method"] == "min" and r["line_search"] == "basic")
-    others = ", ".join(f"{r['method']}{' + bt' if r['line_search'] == 'bt' else ''} "
+    others = ", ".join(f"{r['method']}{'' if r['line_search'] == 'basic' else ' + ' + r['line_search']} "
                        f"{r['iterations'] if r['converged'] else 'fails'}" for r in p if r is not plain)
     ctrl = next((r for r in data if r["matrix"].startswith("M-matrix")), None)
     return ("* **(p) Newton-min cycling** (a unit case, not a scene: [`bench_newton_min_cycle.py`]"

@@ -102,7 +102,7 @@ CASES = {
                         {"boundaries.bottom.role": "contakt"}),
     "model_choice": Case("model.type: 'elastic' is not one of signorini, obstacle", {"model": "elastic"}),
     "mesh_type_choice": Case("mesh.type: 'circle' is not one of", {"mesh.type": "circle"}),
-    "line_search_choice": Case("solver.line_search: 'cp' is not one of basic, bt", {"solver.line_search": "cp"}),
+    "line_search_choice": Case("solver.line_search: 'cp' is not one of auto, basic, bt", {"solver.line_search": "cp"}),
     # --- out of range -----------------------------------------------------------------
     "mu_one": Case("solver.mu: must lie in (0, 1), got 1.0", {"solver.mu": 1}),
     "mu_zero": Case("solver.mu: must lie in (0, 1), got 0.0", {"solver.mu": 0}),

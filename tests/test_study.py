@@ -93,6 +93,9 @@ def test_tiny_study_two_ranks_same_iterations(tiny_serial, tmp_path_factory) -> 
     assert sum(ln.startswith("[") for ln in proc.stdout.splitlines()) == 3  # progress from rank 0 only
     _, s_rows = _rows(serial)
     _, p_rows = _rows(parallel)
+    # the same counts on 2 ranks: every kink is decided with the tie tolerance (no node of
+    # this scene is within round-off of it) and Newton's last steps contract by orders of
+    # magnitude, far from the stopping test: the partition's rounding cannot move a count
     key = ("method", "dofs", "newton_iterations", "converged", "reason")
     assert [tuple(r[k] for k in key) for r in p_rows] == [tuple(r[k] for k in key) for r in s_rows]
     assert {r["ranks"] for r in p_rows} == {"2"}
@@ -184,9 +187,9 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
 
 def test_shipped_studies_validate() -> None:
     """Every study file `make bench` runs validates; the stability study crosses its cases
-    (the stress cases (a)–(g), the friction cases (h)–(j) and (k)–(o) of issue 11) with the
-    five methods, every one a cold start; its 1024² part (k) crosses κ and sequencing with
-    fb, min and blend."""
+    (the stress cases (a)–(g), the friction cases (h)–(j), (k)–(o) of issue 11 and (q) of
+    issue 26) with the five methods, every one a cold start; its 1024² part (k) crosses κ
+    and sequencing with fb, min and blend."""
     from contact.study import load_study
 
     tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
@@ -195,7 +198,11 @@ def test_shipped_studies_validate() -> None:
         assert load_study(path).runs(), path
     stab = load_study(ROOT / "configs" / "studies" / "stability.yaml")
     assert stab.axes["method"] == ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]
-    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghijklmno"}
+    assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghijklmnoq"}
+    # plain Newton-min (no globalization) keeps rows of its own, so its cycles stay visible
+    plain = {label for label, c in stab.cases.items() if c.params.get("line_search") == "basic"}
+    assert plain == {"(d) plain Newton", "(k) kappa=1e4 at 128², plain Newton", "(q) two-body stack, plain Newton"}
+    assert stab.cases["(q) two-body stack"].cfg["solver"]["line_search"] == "auto"   # the default
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
     assert all(c.cfg["solver"]["sequence"] in ("off", False) for label, c in stab.cases.items()
                if not label.startswith(("(h)", "(i)", "(j)")))   # friction is never sequenced
@@ -300,7 +307,7 @@ def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
     its = {(lv["case"], lv["method"], lv["level"]): lv["newton_iterations"] for lv in levels}
     for m in ("fb", "min"):
         assert its["nested", m, 0] == its["cold", m, 0]           # the same first level
-        assert its["nested", m, 2] < its["cold", m, 2]             # warm start pays on level 2
+        assert its["nested", m, 2] < its["cold", m, 2]             # warm start pays on level 2 (1–2 against ≥ 4)
     for chart in ("stability", "iterations", "speed_accuracy"):
         assert (tmp_path / "out" / f"{chart}.png").stat().st_size > 10_000
     header = (tmp_path / "out" / "levels.csv").read_text().splitlines()[0].split(",")

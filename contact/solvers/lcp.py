@@ -6,10 +6,12 @@ for each NCP function φ of :mod:`.ncp` (a = x, b = w), with the generalized Jac
     H = diag(∂_a φ) + diag(∂_b φ) M,
 
 the same diagonal law (s, d) = (∂_b φ, ∂_a φ) as the contact solver's H = diag(s) K + diag(d)
-with K = M.  :func:`newton_lcp` is that Newton iteration, dense (NumPy), with an optional
-Armijo backtracking on the merit ½‖Φ‖².  For φ = min without a line search it is the plain
-Newton-min algorithm, i.e. the primal–dual active set method: each step solves w_i = 0 on
-the rows where w_i < x_i and x_i = 0 on the others.
+with K = M.  :func:`newton_lcp` is that Newton iteration, dense (NumPy), with the contact
+solver's line searches (:mod:`.globalize`): ``basic`` (plain Newton), ``bt`` (Armijo
+backtracking on the merit ½‖Φ‖² from the first step) or ``auto`` (plain steps until an
+active set repeats, then ``bt``).  For φ = min with ``basic`` it is the plain Newton-min
+algorithm, i.e. the primal–dual active set method: each step solves w_i = 0 on the rows
+where w_i < x_i and x_i = 0 on the others.
 
 Plain Newton-min converges on every LCP whose M is an M-matrix (in at most n steps) — the
 contact problems of this package have stiffness matrices close to that — but not on every
@@ -29,9 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import ncp
-
-ARMIJO = 1e-4        # sufficient decrease of ½‖Φ‖² per unit step
-MIN_STEP = 2.0**-30  # the backtracking gives up below this step length
+from .globalize import CycleGuard, backtrack
 
 
 @dataclass
@@ -69,14 +69,21 @@ def lcp_residual(M: np.ndarray, q: np.ndarray, x: np.ndarray, method: str, mu: f
     return ncp.phi(x, M @ x + q, method, mu)
 
 
-def newton_lcp(M: np.ndarray, q: np.ndarray, x0: np.ndarray, method: str = "min", line_search: bool = False,
-               mu: float = 0.5, tol: float = 1e-12, max_it: int = 50) -> LCPResult:
+def newton_lcp(M: np.ndarray, q: np.ndarray, x0: np.ndarray, method: str = "min",
+               line_search: str = "basic", mu: float = 0.5, tol: float = 1e-12,
+               max_it: int = 50) -> LCPResult:
     """Semismooth Newton on Φ(x) = φ(x, M x + q) = 0 from ``x0`` (module doc): each step
-    solves H y = −Φ with H = diag(∂_a φ) + diag(∂_b φ) M; with ``line_search`` the step
-    x + t y takes the largest t = 2^−k with ½‖Φ(x + t y)‖² ≤ (1 − 2 ARMIJO t) ½‖Φ(x)‖²
-    (plain Newton otherwise).  Stops when ‖Φ‖ ≤ ``tol`` or after ``max_it`` steps."""
+    solves H y = −Φ with H = diag(∂_a φ) + diag(∂_b φ) M and goes to x + t y, t = 1
+    (``basic``), t of :func:`~contact.solvers.globalize.backtrack` (``bt``), or ``auto``:
+    t = 1 until a cycle shows (:class:`~contact.solvers.globalize.CycleGuard`: the active
+    set {w_i − x_i > 0} of an iterate repeats an earlier one, or ‖Φ‖ stagnates), then
+    backtracking (min only; the other φ take plain steps).  Stops when ‖Φ‖ ≤ ``tol`` or
+    after ``max_it`` steps."""
+    if line_search not in ("basic", "bt", "auto"):
+        raise ValueError(f"unknown line search {line_search!r}; expected basic, bt or auto")
     x = np.array(x0, dtype=float)
     iterates = [x.copy()]
+    guard = CycleGuard() if line_search == "auto" and method == "min" else None
     for k in range(max_it + 1):
         F = lcp_residual(M, q, x, method, mu)
         merit = 0.5 * F @ F
@@ -84,14 +91,16 @@ def newton_lcp(M: np.ndarray, q: np.ndarray, x0: np.ndarray, method: str = "min"
             return LCPResult(x, k, True, iterates)
         if k == max_it:
             break
-        da, db = ncp.dphi(x, M @ x + q, method, mu)
+        w = M @ x + q
+        da, db = ncp.dphi(x, w, method, mu)
         y = np.linalg.solve(np.diag(da) + db[:, None] * M, -F)
         t = 1.0
-        while line_search and t >= MIN_STEP:
-            Ft = lcp_residual(M, q, x + t * y, method, mu)
-            if 0.5 * Ft @ Ft <= (1.0 - 2.0 * ARMIJO * t) * merit:
-                break
-            t *= 0.5
+        cycle = guard is not None and guard.visit(ncp.active_min(x, w), np.sqrt(2.0 * merit))
+        if line_search == "bt" or cycle:
+            def merit_at(t: float) -> float:
+                return 0.5 * float(np.sum(lcp_residual(M, q, x + t * y, method, mu) ** 2))
+
+            t = backtrack(merit_at, merit)
         x = x + t * y
         iterates.append(x.copy())
     return LCPResult(x, max_it, False, iterates)

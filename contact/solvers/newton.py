@@ -21,7 +21,9 @@ a diagonal law (s, d): :mod:`.linear` either assembles H from K (one ``MatDiagon
 and one ``MatDiagonalSet`` per iteration; the sparsity pattern never changes, so a direct
 solver reuses its symbolic factorization) or solves the equivalent symmetric positive
 definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
-``newtonls`` with these two callbacks (line search ``basic`` = plain Newton, or ``bt``).
+``newtonls`` with these two callbacks (line search ``basic`` = plain Newton, or ``bt``;
+``auto``, the default: plain Newton, and for min backtracking once a cycle shows,
+:mod:`.globalize`).
 """
 from __future__ import annotations
 
@@ -33,6 +35,7 @@ from petsc4py import PETSc
 
 from ..models import DiscreteProblem
 from . import ncp
+from .globalize import GuardedMin
 from .polish import Polisher
 
 
@@ -95,14 +98,16 @@ class Complementarity:
 
 
 def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, timers: dict,
-                 state: dict, petsc_opts: dict) -> Polisher | None:
+                 state: dict, petsc_opts: dict,
+                 verbose: bool = False) -> Polisher | GuardedMin | None:
     """Make ``snes`` semismooth Newton on Φ of ``opts['method']`` ∈ {fb, min, blend}:
     residual Φ and Jacobian callbacks (the Jacobian callback hands the law (s, d) to the
     Newton ``system`` of :mod:`.linear`, which builds its operator), the line search, and
-    (fb / blend with ``opts['polish']``) active-set polishing as the line-search pre-check.
-    Time spent in the callbacks is added to ``timers['assembly']``; ``state['t_jac']``
-    marks the end of the Jacobian (the linear solve's clock starts there).  Returns the
-    polisher or None."""
+    as the line-search pre-check either active-set polishing (fb / blend with
+    ``opts['polish']``) or, for min with line search ``auto``, the cycle guard of
+    :mod:`.globalize`.  Time spent in the callbacks is added to ``timers['assembly']``;
+    ``state['t_jac']`` marks the end of the Jacobian (the linear solve's clock starts
+    there).  Returns the pre-check object (Polisher or GuardedMin) or None."""
     method, mu = opts["method"], opts["mu"]
 
     def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
@@ -111,11 +116,14 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
 
     set_newton(snes, cp.p, system.J, lambda x, f: cp.phi(x, f, method, mu), jacobian,
                opts, timers, state, petsc_opts)
-    polisher = None
+    precheck = None
     if opts["polish"] and method != "min":
-        polisher = Polisher(cp, method, mu, system, timers)
-        snes.setLineSearchPreCheck(polisher)
-    return polisher
+        precheck = Polisher(cp, method, mu, system, timers)
+    elif method == "min" and opts["line_search"] == "auto":
+        precheck = GuardedMin(cp, mu, timers, verbose)
+    if precheck is not None:
+        snes.setLineSearchPreCheck(precheck)
+    return precheck
 
 
 def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, jacobian, opts: dict,
@@ -123,8 +131,9 @@ def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, ja
     """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
     ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
     both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
-    (the linear solve's clock starts there).  Line search ``opts['line_search']`` unless the
-    PETSc options say otherwise."""
+    (the linear solve's clock starts there).  PETSc's line search ``opts['line_search']``
+    (``auto``: ``basic``, the cycle guard being a pre-check) unless the PETSc options say
+    otherwise."""
     def residual(snes, x, f):
         t0 = time.perf_counter()
         phi(x, f)
@@ -140,4 +149,5 @@ def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, ja
     snes.setType("newtonls")
     snes.setFunction(residual, problem.b.duplicate())
     snes.setJacobian(jac, J)
-    petsc_opts.setdefault("snes_linesearch_type", opts["line_search"])
+    line_search = "basic" if opts["line_search"] == "auto" else opts["line_search"]
+    petsc_opts.setdefault("snes_linesearch_type", line_search)

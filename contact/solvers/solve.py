@@ -20,7 +20,9 @@ from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene, require_scene
 from . import ncp, sequencing
 from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
+from .globalize import GuardedMin
 from .newton import Complementarity, setup_newton
+from .polish import Polisher
 from .reduced import ReducedSystem
 from .options import check_petsc_options, petsc_value, set_from_options, solver_options
 from .result import Result, finish
@@ -95,7 +97,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     snes.setOptionsPrefix(prefix)
     user = {str(k): v for k, v in opts["petsc_options"].items()}
     state = {"t_jac": None, "dir_norm": np.nan}
-    polisher, system = None, None
+    polisher, guard, system = None, None, None
     # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
     diagonal_law = friction is None and method in ncp.METHODS
     linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
@@ -108,7 +110,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     elif method in ncp.METHODS:
         system = newton_system(problem, linear, prefix, forcing=opts["inexact"])
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
-        polisher = setup_newton(snes, cp, system, opts, timers, state, petsc_opts)
+        precheck = setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose)
+        polisher = precheck if isinstance(precheck, Polisher) else None
+        guard = precheck if isinstance(precheck, GuardedMin) else None
         J = system.J
     else:
         J = setup_vi(snes, problem, method, timers, state)
@@ -195,6 +199,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     if polisher is not None:
         result.polish_solves = polisher.solves
         polisher.destroy()
+    if guard is not None:
+        result.backtracked = guard.backtracked
+        guard.destroy()
     if system is not None:
         result.krylov_iterations = system.krylov_iterations
         result.krylov_log = getattr(system, "log", [])

@@ -6,7 +6,9 @@ Newton-min algorithm — the primal–dual active set method, our ``min`` with l
 although such an LCP has exactly one solution for every q.  On the order-3 problem of
 :func:`contact.solvers.lcp.cycling_lcp` each NCP function of the package (its own φ and ∂φ,
 :mod:`contact.solvers.ncp`) drives a dense semismooth Newton iteration from the same start,
-with and without backtracking on ½‖Φ‖²; the table gives iterations, convergence, the
+with plain steps (``basic``), backtracking on ½‖Φ‖² (``bt``) and for min the default
+globalization (``auto``: plain steps until an active set repeats, then ``bt``,
+:mod:`contact.solvers.globalize`); the table gives iterations, convergence, the
 period of a cycle (0: none) and the distance to the solution (1, 1, 1)/3.  A control row:
 plain Newton-min on an M-matrix (the 1D Laplacian, q = −1) from the same start.  Runs in
 well under a second.
@@ -35,12 +37,12 @@ def main() -> None:
                 "M-matrix (1D Laplacian)": (laplace, -np.ones(3), np.linalg.solve(laplace, np.ones(3)))}
     rows = []
     for name, (A, b, x_star) in problems.items():
-        runs = [(m, ls) for m in ("min", "fb", "blend") for ls in (False, True)] if name.startswith("P") \
-            else [("min", False)]
+        runs = [(m, ls) for m in ("min", "fb", "blend") for ls in ("basic", "bt")] + [("min", "auto")] \
+            if name.startswith("P") else [("min", "basic")]
         for method, line_search in runs:
             r = newton_lcp(A, b, x0, method=method, line_search=line_search, max_it=MAX_IT)
             rows.append({"matrix": name, "p_matrix": is_p_matrix(A), "method": method,
-                         "line_search": "bt" if line_search else "basic", "iterations": r.iterations,
+                         "line_search": line_search, "iterations": r.iterations,
                          "converged": r.converged, "period": r.period(),
                          "residual": float(np.linalg.norm(lcp_residual(A, b, r.x, method))),
                          "error": float(np.max(np.abs(r.x - x_star))),
