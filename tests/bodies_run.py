@@ -5,7 +5,8 @@
 
 For every method the npz holds the slave nodes' coordinates and pressures λ_i (sorted by
 coordinate), the master nodes' pressures λ^m_j, u_h at every node (sorted), and info =
-[converged, Newton iterations, active nodes, contact force, interface balance error].
+[converged, Newton iterations, active nodes, contact force, interface balance error, tie
+margin (tests/ties.py)].
 """
 import sys
 
@@ -18,6 +19,7 @@ from contact.interface import master_pressure
 from contact.io import gather_nodal
 from contact.models import build_problem
 from contact.report import resultants
+from ties import tie_margin
 
 
 def _restricted(fn, nodes):
@@ -49,6 +51,7 @@ def main(argv):
     for method in methods:
         r = contact.solve(scene, method=method, problem=problem, verbose=False, max_it=100)
         res = resultants(scene, r)
+        margin = tie_margin(r)
         lam_m = master_pressure(r)
         S = lam_m.function_space
         master = np.flatnonzero(np.abs(lam_m.x.array) > 0)
@@ -63,7 +66,8 @@ def main(argv):
             data.update({f"{method}/Xs": Xs, f"{method}/lambda": ls, f"{method}/Xm": Xm,
                          f"{method}/lambda_master": lm, f"{method}/X": Xu, f"{method}/u": u,
                          f"{method}/info": np.array([r.converged, r.iterations, r.n_active,
-                                                     res["contact_force"], res["interface_balance_error"]])})
+                                                     res["contact_force"], res["interface_balance_error"],
+                                                     margin])})
     if MPI.COMM_WORLD.rank == 0:
         np.savez(out, **data)
 

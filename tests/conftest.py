@@ -1,5 +1,16 @@
-"""Shared test helpers."""
+"""Shared test helpers, and the test-only perturbation of the load (tests/perturb)."""
+import importlib.util
+import os
 from pathlib import Path
+
+import numpy as np
+
+PERTURB = Path(__file__).resolve().parent / "perturb"
+if os.environ.get("CONTACT_TEST_PERTURB"):
+    # this process, and every Python subprocess of the suite (PYTHONPATH → sitecustomize)
+    _spec = importlib.util.spec_from_file_location("contact_test_perturb", PERTURB / "sitecustomize.py")
+    _spec.loader.exec_module(importlib.util.module_from_spec(_spec))
+    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(PERTURB), os.environ.get("PYTHONPATH")) if p)
 
 
 def make_square_msh(path: Path, size: float) -> Path:

@@ -3,8 +3,9 @@
     python tests/solve_methods.py OUT.npz SCENE.yaml [SCENE.yaml ...] [--set k=v ...]
 
 For every scene and method the npz holds X (coordinates), u, lambda, gap (nodal values
-sorted by coordinate) and the iteration count; tests compare them across methods and
-across MPI sizes.
+sorted by coordinate) and ``info``: converged, iterations, complementarity residual,
+active nodes, polishing solves, tie margin (tests/ties.py); tests compare them across
+methods and across MPI sizes.
 """
 import sys
 
@@ -15,6 +16,7 @@ import contact
 from contact.io import gather_nodal
 from contact.models import build_problem
 from contact.solvers import method_variant, owned_residual
+from ties import tie_margin
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls")
 VARIANTS = METHODS + ("fb-nopolish", "blend-nopolish")  # pure FB / blend Newton, no polishing
@@ -44,10 +46,12 @@ def main(argv):
             b = -con.sign * problem.c * owned_residual(r)[con.dofs] / con.w
             comp = scene.comm.allreduce(float(np.max(np.abs(np.minimum(a, b)), initial=0.0)), op=max)
             scale = scene.comm.allreduce(float(np.max(np.abs(con.g), initial=0.0)), op=max) + 1.0
+            margin = tie_margin(r)
             if scene.comm.rank == 0:
                 data[key + "/X"], data[key + "/u"] = X, u
                 data[key + "/lambda"], data[key + "/gap"] = lam, gap
-                data[key + "/info"] = np.array([r.converged, r.iterations, comp / scale, r.n_active, r.polish_solves])
+                data[key + "/info"] = np.array([r.converged, r.iterations, comp / scale, r.n_active, r.polish_solves,
+                                                margin])
     if MPI.COMM_WORLD.rank == 0:
         np.savez(out, **data)
 

@@ -49,6 +49,7 @@ def _same_levels(serial, parallel):
         assert s["dofs"] == p["dofs"] and s["cells"] == p["cells"], (s, p)
         assert abs(s["eta"] - p["eta"]) <= 1e-8 * s["eta"], (s["eta"], p["eta"])
         assert abs(s["error"] - p["error"]) <= 1e-8 * s["error"]
+        assert min(s["tie_margin"], p["tie_margin"]) >= 1e-6   # no node near a tie: counts cannot move
         assert s["active_nodes"] == p["active_nodes"]
         # the busiest rank's share of the owned DoFs over the mean: 1 in serial, in [1, 2] on 2 ranks
         assert s["rank_imbalance"] == 1.0 and 1.0 <= p["rank_imbalance"] <= 2.0
@@ -84,7 +85,9 @@ def test_adaptive_loop_converges_on_problem_A():
     assert r >= 0.45, f"rate {r:.3f}"
     assert eff[-5:].max() / eff[-5:].min() <= 2.0
     assert np.all(np.diff(N) > 0) and np.all(np.diff(err) < 0)
-    assert all(r["newton_iterations"] <= 5 for r in rows[2:])  # min with nested iteration
+    # a bound, not a path: from the previous level's solution the active set moves by a few
+    # nodes (1–3 steps); 5 fails only if nested iteration stops working
+    assert all(r["newton_iterations"] <= 5 for r in rows[2:])
 
 
 def test_uniform_is_the_same_loop_with_every_cell_marked():
@@ -143,7 +146,7 @@ def test_loose_newton_tolerance_does_not_change_the_discretization():
     for a, b in zip(loose, tight):
         assert abs(a["eta"] - b["eta"]) <= 1e-5 * b["eta"]
         assert abs(a["error"] - b["error"]) <= 1e-6 * b["error"]
-    assert all(r["newton_iterations"] <= 5 for r in loose[2:])
+    assert all(r["newton_iterations"] <= 5 for r in loose[2:])   # nested iteration (see above)
 
 
 def test_coarse_hertz_cylinder_peak_pressure_converges_under_refinement():

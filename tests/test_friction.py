@@ -2,6 +2,7 @@
 block Jacobian H = B K + D of a frictional scene, full sliding of a pulled block (Tresca and
 Coulomb force laws to round-off), Coulomb by full Newton against the Tresca fixed point,
 F = 0 against the frictionless Hertz solutions, and one-line errors for bad friction input."""
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +34,20 @@ def block(*overrides: str) -> contact.Scene:
 
 def coulomb(F: float) -> list[str]:
     return ["friction.law=coulomb", f"friction.coefficient={F}"]
+
+
+def clear_of_kinks(f: dict, rtol: float = 1e-6) -> np.ndarray:
+    """The contact nodes of ``Result.friction`` ``f`` whose status rounding cannot tip: not
+    on the normal kink (λ_n ≈ 0 with gap ≈ 0) nor on the stick/slip one (|λ_t| ≈ ρ with
+    slip ≈ 0), each to ``rtol`` of the largest value."""
+    def big(v):
+        v = np.abs(v)
+        return v > rtol * max(np.max(v, initial=0.0), 1e-300)
+
+    t_norm, slip = np.linalg.norm(f["lambda_t"], axis=1), np.linalg.norm(f["slip"], axis=1)
+    normal = big(f["lambda_n"]) | big(f["gap"])
+    tangential = (f["rho"] - t_norm > rtol * np.max(f["rho"], initial=0.0)) | big(slip) | (f["rho"] == 0)
+    return normal & tangential
 
 
 # ------------------------------------------------------------------- the law, pointwise
@@ -102,12 +117,17 @@ def test_fixed_components_and_zero_bound():
 
 def test_block_jacobian_is_the_directional_derivative_of_phi():
     """H = B K + D of a Coulomb scene (normal fb, projection form) against central
-    differences of Φ at a point with stick, slip and separated nodes."""
+    differences of Φ at a point with stick and slip nodes.  The point is the
+    solution (found with hsw: the same Φ, and the form that converges from any start) plus
+    noise; a node whose state (separated / stick / slip) differs at x − hv, x or x + hv sits
+    on a kink of Φ there, and its rows are left out (none or a few of ~80 nodes)."""
     from petsc4py import PETSc
 
     scene = block(*coulomb(0.3), "data.u_D=[\"0.004\", \"-0.01\"]", "friction.form=projection")
     problem = build_problem(scene)
+    problem.friction = dataclasses.replace(problem.friction, form="hsw")
     r = contact.solve(scene, problem=problem)
+    problem.friction = dataclasses.replace(problem.friction, form="projection")
     assert r.converged and {1, 2} <= set(r.friction["status"].tolist())
     cp = FrictionalComplementarity(problem)
     x = problem.b.duplicate()
@@ -121,12 +141,20 @@ def test_block_jacobian_is_the_directional_derivative_of_phi():
     Hv, fp, fm = x.duplicate(), x.duplicate(), x.duplicate()
     H.mult(v, Hv)
     h = 1e-7
+    states = [cp.status(x)]
     for sign, out in ((1, fp), (-1, fm)):
         xs = x.copy()
         xs.axpy(sign * h, v)
         cp.phi(xs, out, "fb", 0.5)
+        states.append(cp.status(xs))
+    assert {1, 2} <= set(states[0].tolist())
+    smooth = (states[0] == states[1]) & (states[0] == states[2])
+    assert smooth.sum() >= len(smooth) - 3
+    rows = np.ones(x.getLocalSize(), bool)
+    rows[cp.dofs[~smooth]] = False
+    rows[cp.fs.tangent[~smooth].ravel()] = False
     fd = (fp.array - fm.array) / (2 * h)
-    assert np.max(np.abs(fd - Hv.array)) <= 1e-5 * np.max(np.abs(Hv.array))
+    assert np.max(np.abs(fd - Hv.array)[rows]) <= 1e-5 * np.max(np.abs(Hv.array))
     assert H.getInfo()["nz_used"] == problem.K.getInfo()["nz_used"]   # the pattern of K
     for obj in (H, Hv, fp, fm, x, v):
         obj.destroy()
@@ -139,7 +167,7 @@ def test_pulled_block_tresca_force_is_threshold_times_length(method, form):
     scene = block("friction.law=tresca", "friction.threshold=0.01", f"friction.form={form}")
     r = contact.solve(scene, method=method)
     f = r.friction
-    assert r.converged and r.iterations <= 10
+    assert r.converged and r.iterations <= 10   # a bound: 2–8 steps here, 10 catches a cycle
     assert np.all(f["status"][f["status"] > 0] == 2)                        # every contact node slips
     Ft = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_t"][:, 0])))
     assert abs(Ft + 0.01 * 2.0) <= 1e-12                                    # −s·|Γ_C|: opposes +x
@@ -151,11 +179,14 @@ def test_pulled_block_coulomb_force_is_F_times_normal_force(method, form):
     scene = block(*coulomb(0.3), f"friction.form={form}")
     r = contact.solve(scene, method=method)
     f = r.friction
-    assert r.converged and r.iterations <= 10
+    assert r.converged and r.iterations <= 10   # a bound: 4–8 steps here, 10 catches a cycle
     Ft = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_t"][:, 0])))
     Fn = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_n"])))
     assert Fn < 0 and abs(Ft - 0.3 * Fn) <= 1e-8 * abs(Fn)
-    assert np.all(f["status"][f["lambda_n"] < 0] == 2)
+    # every node in clear contact slides; the leading edge lifts off with λ_n = 0 up to
+    # round-off (−7e-17 or −0 depending on the method and the CPU): that tie is not asserted
+    pressed = f["lambda_n"] < -1e-8 * np.max(np.abs(f["lambda_n"]))
+    assert pressed.sum() >= 35 and np.all(f["status"][pressed] == 2)
 
 
 # ------------------------------------------------------------------- Coulomb: SSN = fixed point
@@ -164,13 +195,15 @@ def test_coulomb_newton_equals_fixed_point_2d():
     base = [*coulomb(0.3), "data.u_D=[\"0.004\", \"-0.01\"]"]
     ssn = contact.solve(block(*base))
     fp = contact.solve(block(*base, "friction.coulomb=fixed_point"))
+    # a lower bound: the pressure moves with the slip, so the fixed point takes several Tresca solves
     assert ssn.converged and fp.converged and fp.friction["fixed_point_iterations"] > 2
     scale = np.max(np.abs(ssn.u_h.x.array))
     assert np.max(np.abs(ssn.u_h.x.array - fp.u_h.x.array)) <= 1e-8 * scale
     lam = np.max(np.abs(ssn.friction["lambda_t"]))
     assert np.max(np.abs(ssn.friction["lambda_t"] - fp.friction["lambda_t"])) <= 1e-8 * lam
-    assert np.array_equal(ssn.friction["status"], fp.friction["status"])
-    assert {1, 2} <= set(ssn.friction["status"].tolist())                  # stick and slip
+    f, clear = ssn.friction, clear_of_kinks(ssn.friction)
+    assert clear.sum() >= 0.9 * len(clear) and np.array_equal(f["status"][clear], fp.friction["status"][clear])
+    assert {1, 2} <= set(f["status"].tolist())                             # stick and slip
 
 
 #: a box [−½, ½]² × [0, ¼] pressed onto the plane z = 0 (top moved by (0.001, 0.0005, −0.005)):
@@ -189,7 +222,7 @@ def test_coulomb_newton_equals_fixed_point_3d():
     agree; every slipping node is on the cone |λ_t| = F|λ_n|, every sticking node inside."""
     ssn = contact.solve(contact.load_scene(BOX))
     fp = contact.solve(contact.load_scene(BOX, ["friction.coulomb=fixed_point"]))
-    assert ssn.converged and fp.converged and ssn.iterations <= 10
+    assert ssn.converged and fp.converged and ssn.iterations <= 10   # a bound (a cycle would hit it)
     u = ssn.u_h.x.array
     assert np.max(np.abs(u - fp.u_h.x.array)) <= 1e-8 * np.max(np.abs(u))
     f = ssn.friction

@@ -4,6 +4,7 @@ import pytest
 
 import contact
 from contact.models.scalar import scalar_problem
+from ties import tie_margin
 
 GAMG = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
 
@@ -18,6 +19,7 @@ def test_gamg_matches_direct(scene_name, method):
     krylov = contact.solve(scene, method=method, problem=problem, verbose=False, petsc_options=GAMG)
     assert direct.converged and krylov.converged, (direct.reason, krylov.reason)
     assert np.max(np.abs(krylov.u_h.x.array - u_direct)) <= 1e-8
+    assert tie_margin(direct) >= 1e-6   # no node near a tie: 1e-8 cannot move the count
     assert krylov.n_active == direct.n_active
 
 
@@ -62,13 +64,17 @@ from contact.models.scalar import scalar_problem
 from contact.solvers.linear import default_linear_solver
 from dolfinx import fem
 import ufl
+import sys
+sys.path.insert(0, "tests")   # run from the repository root
+from ties import tie_margin
 scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[96,96]"])
 problem = scalar_problem(scene)
 r = contact.solve(scene, method="min", problem=problem, verbose=False, linear="gamg")
 norm2 = scene.mesh.comm.allreduce(fem.assemble_scalar(fem.form(r.u_h**2 * ufl.dx)))
+margin = tie_margin(r)
 if scene.mesh.comm.rank == 0:
     print(json.dumps([r.converged, default_linear_solver(problem, "gamg").get("pc_gamg_aggressive_square_graph"),
-                      norm2, r.n_active]))
+                      norm2, r.n_active, margin]))
 """
 
 
@@ -90,8 +96,8 @@ def test_gamg_in_parallel_gives_the_serial_answer(tmp_path):
                           capture_output=True, text=True, timeout=300, cwd=Path(__file__).resolve().parents[1],
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, proc.stderr
-    converged, square_graph, norm2, n_active = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert converged and square_graph is False
+    converged, square_graph, norm2, n_active, margin = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert converged and square_graph is False and margin >= 1e-6   # no node near a tie
     scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[96,96]"])
     r = contact.solve(scene, method="min", verbose=False, linear="gamg")
     serial = fem.assemble_scalar(fem.form(r.u_h**2 * ufl.dx))

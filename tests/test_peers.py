@@ -15,6 +15,7 @@ from contact.errors import energy_error
 from contact.report import active_measure, summary
 from dolfinx import fem
 from test_agreement import assert_agrees_with_vinewtonrsls, run_methods
+from ties import tie_margin
 
 ROOT = Path(__file__).resolve().parents[1]
 EX9 = ROOT / "configs" / "peers" / "petsc_ex9.yaml"
@@ -45,6 +46,7 @@ def test_ex9_reproduces_petsc_published_errors():
     exact.interpolate(expressions.to_numpy(scene.cfg["data"]["exact"], scene.cfg["constants"]))
     err = np.abs(result.u_h.x.array - exact.x.array)
     assert (f"{err.mean():.3e}", f"{err.max():.3e}") == ("2.707e-03", "1.428e-02")
+    assert tie_margin(result) >= 1e-6   # no node near a tie: the published count cannot move
     assert result.n_active == 29
 
 
@@ -101,6 +103,7 @@ def test_active_measure_is_the_exact_measure_under_full_contact(model):
     scene = contact.load_scene({**raw, "output": {"verbose": False}})
     result = contact.solve(scene)
     n_constrained = result.problem.constraint.global_size(scene.comm)
+    # every constrained node is pressed (full contact, margin ~1): no tie, no rounding can move it
     assert result.converged and result.n_active == n_constrained, (result.n_active, n_constrained)
     assert active_measure(result) == pytest.approx(exact, rel=1e-12)
     assert summary(scene, result)["active_measure"] == active_measure(result)
