@@ -107,11 +107,15 @@ say(f"largest difference between the three solutions: {difference:.1e}")
 # which is exactly one step of the primal–dual active set method of Hintermüller, Ito and
 # Kunisch (2002).  The method stops when the active set repeats: the next step then
 # reproduces the same linear problem, and Φ = 0.  The history shows it — from the initial
-# guess u = 0 the set sheds whole layers of nodes, and the last step changes no node:
+# guess u = 0 the set sheds whole layers of nodes, and the last step changes no node.
+# (On K that is not an M-matrix PDAS may instead return to an active set it left, a cycle;
+# the default `solver.line_search: auto` then backtracks on ½‖Φ‖², and until then its steps
+# are PDAS's — here always.  `line_search="basic"` is PDAS without that guard.)
 
 say("\nmin = primal-dual active set: iteration, |Phi|, active nodes, nodes that changed status")
 for row in results["min"].history:
     say(f"  {row['iteration']:3d}  {row['residual']:10.3e}  {row['active']:6d}  {row['changed']:6d}")
+say(f"steps the cycle guard shortened: {results['min'].backtracked} (0: every step was PDAS's)")
 
 # ## What you see
 #
