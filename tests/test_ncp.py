@@ -259,8 +259,11 @@ def test_min_element_at_ties():
     da, db = ncp.dphi(t, t.copy(), "min")
     # an element of the B-subdifferential {(1, 0), (0, 1)} ...
     assert np.all(((da == 1) & (db == 0)) | ((da == 0) & (db == 1)))
-    # ... namely the documented one: ties are inactive
-    assert np.all(da == 0.0) and np.all(db == 1.0)
+    # ... namely the documented one: ties are inactive, except the biactive point (0, 0):
+    # a node touching with zero pressure is in contact
+    zero = t == 0
+    assert zero.sum() == 2 and np.all(da[zero] == 1.0) and np.all(db[zero] == 0.0)
+    assert np.all(da[~zero] == 0.0) and np.all(db[~zero] == 1.0)
 
 
 def test_min_element_off_ties():
@@ -284,7 +287,7 @@ def test_kinks_within_tolerance_take_the_documented_element(method, mu):
     want = ncp.dphi(0.0, 0.0, method, mu)
     np.testing.assert_array_equal(da, np.full(len(a), float(want[0])))
     np.testing.assert_array_equal(db, np.full(len(a), float(want[1])))
-    assert not ncp.active_min(a, b, tol=1e-12).any()
+    assert ncp.active_min(a, b, tol=1e-12).all()   # all at the biactive point: in contact
     # without the tolerance the signs decide: (0, +1e-17) is active, (0, -1e-17) is not
     assert list(ncp.active_min(a[:2], b[:2])) == [True, False]
     if method == "fb":
@@ -306,13 +309,14 @@ def test_blend_element_at_kinks(mu):
     t = _ties(np.random.default_rng(8))
     # FB is smooth on the diagonal off the origin: ∇φ_FB(t, t) = (1 - sign(t)/√2) · (1, 1)
     fb_elem = np.where(t < 0, 2.0 - C_FB, C_FB)
+    min_a = (t == 0).astype(float)          # min's element: (0, 1) at ties, (1, 0) at (0, 0)
     da, db = ncp.dphi(t, t.copy(), "blend", mu)
-    np.testing.assert_allclose(da, (1 - mu) * fb_elem + mu * 0.0, rtol=1e-14)
-    np.testing.assert_allclose(db, (1 - mu) * fb_elem + mu * 1.0, rtol=1e-14)
+    np.testing.assert_allclose(da, (1 - mu) * fb_elem + mu * min_a, rtol=1e-14)
+    np.testing.assert_allclose(db, (1 - mu) * fb_elem + mu * (1.0 - min_a), rtol=1e-14)
     # at (0, 0) in particular
     da0, db0 = ncp.dphi(0.0, 0.0, "blend", mu)
-    assert float(da0) == pytest.approx((1 - mu) * C_FB, rel=1e-14)
-    assert float(db0) == pytest.approx((1 - mu) * C_FB + mu, rel=1e-14)
+    assert float(da0) == pytest.approx((1 - mu) * C_FB + mu, rel=1e-14)
+    assert float(db0) == pytest.approx((1 - mu) * C_FB, rel=1e-14)
 
 
 @pytest.mark.parametrize("mu", MUS)
@@ -325,7 +329,8 @@ def test_blend_is_convex_combination(mu):
                                (1 - mu) * ncp.phi_fb(a, b) + mu * np.minimum(a, b), rtol=1e-14)
     da, db = ncp.dphi(a, b, "blend", mu)
     fa, fb_ = ncp.dphi_fb(a, b)
-    ma, mb = (a < b).astype(float), (a >= b).astype(float)
+    biactive = (a == 0) & (b == 0)                     # min's element there: (1, 0)
+    ma, mb = ((a < b) | biactive).astype(float), ((a >= b) & ~biactive).astype(float)
     np.testing.assert_allclose(da, (1 - mu) * fa + mu * ma, rtol=1e-14)
     np.testing.assert_allclose(db, (1 - mu) * fb_ + mu * mb, rtol=1e-14)
 

@@ -76,7 +76,7 @@ def test_hertz_2d_newton_path_identical_on_1_and_2_ranks(tmp_path: Path) -> None
     depend on rounding."""
     runs = _run_script(tmp_path, HERTZ_FIRST_SOLVE, "hertz_2d.yaml", (1, 2))
     assert runs[1] == runs[2]
-    assert runs[1]["history"][0] == [0, 0]  # the node at the origin starts inactive everywhere
+    assert runs[1]["history"][0] == [1, 0]  # the node at the origin touches: in contact everywhere
 
 
 STACK_SOLVES = """
@@ -100,20 +100,19 @@ def test_two_body_first_iterate_identical_on_1_and_3_ranks(tmp_path: Path) -> No
     (the bodies' DirichletBC on the unknowns read DoF indices as node numbers, so each
     partition fixed other DoFs), and every contact node is a tie (gap ±1e-16 from the
     coordinates, multiplier 0) decided with τ = 10⁻¹² × max|a|, max|b| — itself round-off
-    there.  Now τ is relative to the coordinates' size as well (Constraint.scale): no node is
-    active at iteration 0, with margin (|a_i| ≤ 1e-15 ≪ τ = 1e-12), on any partition.  fb's
-    Jacobian is regular there and its whole path is the same; min's first Newton matrix is
-    singular (no active node holds the lower block: its step along the free translation
-    is round-off), so only its first row and its answer are compared."""
+    there.  Now τ is relative to the coordinates' size as well (Constraint.scale): every
+    one of the 38 contact nodes is at the biactive point (|a_i| ≤ 1e-15 ≪ τ = 1e-12, b_i = 0)
+    and in contact at iteration 0 on any partition, and the whole path is the same."""
     runs = _run_script(tmp_path, STACK_SOLVES, "two_body_stack_2d.yaml", (1, 3))
     for method in ("fb", "min"):
         one, three = runs[1][method], runs[3][method]
         assert one["converged"] and three["converged"]
-        assert one["history"][0][0] == three["history"][0][0] == 0
+        assert one["history"][0][0] == three["history"][0][0] == 38
         assert abs(one["history"][0][1] - three["history"][0][1]) <= 1e-12 * one["history"][0][1]
         assert abs(one["force"] - three["force"]) <= 1e-10 * one["force"]
-    fb1, fb3 = runs[1]["fb"]["history"], runs[3]["fb"]["history"]
-    assert [a for a, _ in fb1] == [a for a, _ in fb3]
+        # the same path: every kink decided with τ, none within round-off of it (see the
+        # hertz test above)
+        assert [a for a, _ in one["history"]] == [a for a, _ in three["history"]]
 
 
 NEXT_DOFS = """

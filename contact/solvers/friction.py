@@ -196,8 +196,9 @@ class FrictionalComplementarity(Complementarity):
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
 
     def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
-        """Per node: SEPARATED (normal inactive: b − a ≤ τ, :meth:`active_set`), STICK or
-        SLIP (collective); ``st`` the :meth:`evaluate` of x if at hand."""
+        """Per node: SEPARATED (normal inactive, :meth:`active_set`), STICK or SLIP (a node
+        touching with zero pressure slips: ρ = 0; collective); ``st`` the :meth:`evaluate`
+        of x if at hand."""
         st = self.evaluate(x) if st is None else st
         return np.where(self.active_set(st["a"], st["b"]), np.where(st["law"].stick, STICK, SLIP), SEPARATED)
 

@@ -1,9 +1,9 @@
 """Globalization of Newton-min: plain steps until a cycle shows, then backtracking.
 
 Plain Newton on Φ = φ_min is the primal–dual active set method (PDAS, :mod:`.ncp`): with
-an exact linear solve the point x_{k+1} solves the linear problem of the active set
-A_k = {b_i − a_i > τ} at x_k alone (u_i = g_i on A_k, R_i = 0 elsewhere).  On an M-matrix
-it ends in finitely many steps; on P-matrices of order ≥ 3 (Ben Gharbia & Gilbert, Math.
+an exact linear solve the point x_{k+1} solves the linear problem of the active set A_k
+(:func:`.ncp.active_min`) at x_k alone (u_i = g_i on A_k, R_i = 0 elsewhere).  On an
+M-matrix it ends in finitely many steps; on P-matrices of order ≥ 3 (Ben Gharbia & Gilbert, Math.
 Program. 134, 2012), in elasticity and mortar couplings it may cycle — an active set seen
 before, after which PDAS repeats its steps — and with inexact (Krylov) steps it may
 near-cycle without ever repeating a set exactly.  Whether that happens can hinge on the

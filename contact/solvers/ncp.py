@@ -7,7 +7,8 @@ name        φ(a, b)                                element (∂_a φ, ∂_b φ)
 ==========  =====================================  =====================================
 ``fb``      a + b − √(a² + b²)  (Fischer–Burmeister) (1 − a/r, 1 − b/r), r = √(a² + b²);
                                                      at r = 0: (1 − 1/√2, 1 − 1/√2)
-``min``     min(a, b)  (natural residual)          (1, 0) if a < b, (0, 1) if a ≥ b
+``min``     min(a, b)  (natural residual)          (1, 0) if a < b or a = b = 0,
+                                                     (0, 1) otherwise
 ``blend``   (1 − μ) φ_fb + μ φ_min, μ ∈ (0, 1)     the same convex combination
 ==========  =====================================  =====================================
 
@@ -16,17 +17,25 @@ Choices at the kinks (deterministic, documented, tested):
 * FB at the biactive point (0, 0): ∂φ_FB(0, 0) = {(1 − α, 1 − β) : α² + β² ≤ 1}; we take
   α = β = 1/√2, the limit of the derivative along the diagonal a = b ↓ 0, which treats the
   gap and the pressure symmetrically.
-* min at a tie a = b: we take (0, 1), i.e. the node is *inactive* (the equilibrium row is
-  kept).  With a = g − u and b = −cλ this is the primal–dual active set rule of
+* min at a tie a = b ≠ 0: we take (0, 1), i.e. the node is *inactive* (the equilibrium row
+  is kept).  With a = g − u and b = −cλ this is the primal–dual active set rule of
   Hintermüller–Ito–Kunisch (2002): active ⇔ −cλ_i > g_i − u_i, strictly.
+* min at the biactive point a = b = 0 — the node touches with zero pressure — we take
+  (1, 0): the node is *in contact* (its gap row is kept), where the strict rule would drop
+  it.  At a cold start two bodies that touch (or a body on a plane it touches) have every
+  contact node there; a body held by contact alone (two_body_patch_2d's upper block, the
+  stack's lower block) would then have no node holding it, and the first Newton system
+  would be singular: its step a round-off direction, after which Newton-min cycled on the
+  stack and never converged on the patch.  Active at (0, 0), the first step is the linear
+  problem of "everything touching stays in contact", regular, and PDAS goes on from there.
 
 Ties within round-off.  A node touching the obstacle with zero pressure has (a, b) = (0, 0)
 only up to round-off: b comes from a residual whose last bits depend on the summation
 order, i.e. on the MPI partition, and the element of (0, ±10⁻¹⁷) would be (1, 0) or (1, 2)
 by its sign alone (hertz_2d took 9 Newton steps on one rank and 8 on two).  So a kink is
 decided with a tolerance τ ≥ 0: FB takes the biactive element where r = √(a² + b²) ≤ τ, min
-(and the active set) the tie element where |a − b| ≤ τ, i.e. active ⇔ b − a > τ.  The
-solver uses τ = :data:`TIE_RTOL` × max(max_i |a_i|, max_i |b_i|, s), the largest gap or
+(and the active set) the tie element where |a − b| ≤ τ and the biactive one where |a|, |b|
+≤ τ, i.e. active ⇔ b − a > τ or max(|a|, |b|) ≤ τ.  The solver uses τ = :data:`TIE_RTOL` × max(max_i |a_i|, max_i |b_i|, s), the largest gap or
 scaled multiplier over all constrained nodes of all ranks at the iterate, or s if larger
 (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`): far above round-off
 (≈ 10⁻¹⁶ of that scale), far below any value Newton resolves.  s is the size of what the
@@ -91,12 +100,14 @@ def phi_min(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def active_min(a: np.ndarray, b: np.ndarray, tol: float = 0.0) -> np.ndarray:
-    """The active rows of φ_min: b − a > ``tol`` (ties, |a − b| ≤ tol, inactive)."""
-    return np.asarray(b, dtype=float) - np.asarray(a, dtype=float) > tol
+    """The active rows of φ_min: b − a > ``tol``, or the biactive point |a|, |b| ≤ ``tol``
+    (a node that touches with zero pressure is in contact); other ties inactive."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return (b - a > tol) | ((np.abs(a) <= tol) & (np.abs(b) <= tol))
 
 
 def dphi_min(a: np.ndarray, b: np.ndarray, tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Element of ∂φ_min: (1, 0) where b − a > ``tol`` (active), else (0, 1)."""
+    """Element of ∂φ_min: (1, 0) on the rows of :func:`active_min`, else (0, 1)."""
     active = active_min(a, b, tol)
     return active.astype(float), (~active).astype(float)
 

@@ -68,8 +68,8 @@ class Complementarity:
         return ncp.TIE_RTOL * max(scale, self.p.constraint.scale)
 
     def active_set(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Active nodes: the scaled multiplier exceeds the gap, b_i − a_i > τ (ties
-        inactive; collective)."""
+        """Active nodes: the scaled multiplier exceeds the gap, b_i − a_i > τ, or the node
+        touches with zero pressure, |a_i|, |b_i| ≤ τ (other ties inactive; collective)."""
         return ncp.active_min(a, b, self.tie_tolerance(a, b))
 
     def active(self, x: PETSc.Vec) -> np.ndarray:

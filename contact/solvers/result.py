@@ -20,7 +20,8 @@ REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if 
 class Result:
     """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
     ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
-    solver's rule b_i − a_i > τ at the solution (``Complementarity.active_set``), the set
+    solver's rule at the solution (``Complementarity.active_set``: b_i − a_i > τ, or both
+    within τ of 0), the set
     ``active`` and ``n_active`` show.  ``contact_force`` is the resultant contact force
     summed over all ranks (:meth:`contact.models.DiscreteProblem.contact_force`), the same
     number on every rank."""
