@@ -227,10 +227,10 @@ EXPLAIN = {
         "the gaps near the free boundary, so min's active set follows the Krylov error rather than the "
         "contact zone and cycles; exact CG steps or MUMPS converge (the next rows)",
     ("(q)", "min", "max iterations"):
-        "plain Newton-min (the primal–dual active set method, line search basic) cycles: from the "
-        "cold start every node is a tie and inactive, so the first system is singular (the lower block "
-        "floats) and its round-off step lands where 38 nodes flip between two active sets of 17 and 21; "
-        "the default line search (auto) sees the repeated set and backtracks",
+        "plain Newton-min (the primal–dual active set method, line search basic) cycles: 38 nodes flip "
+        "between two active sets (it did so while the touching cold start's ties were decided by the "
+        "sign of round-off, its first system singular); the default line search (auto) sees the "
+        "repeated set and backtracks",
     ("(l) semi-coercive", "vinewtonrsls", "stalled"):
         "from u = 0 no node is in the active set, so the reduced-space step solves K on every DoF — "
         "singular (the constants); the step is enormous along the constants and the line search finds "

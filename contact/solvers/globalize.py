@@ -8,7 +8,8 @@ Program. 134, 2012), in elasticity and mortar couplings it may cycle — an acti
 before, after which PDAS repeats its steps — and with inexact (Krylov) steps it may
 near-cycle without ever repeating a set exactly.  Whether that happens can hinge on the
 last bits of a residual: two_body_stack_2d converged on one CPU and 2-cycled (38 nodes
-flipping) on another.
+flipping) on another, when its touching cold start was decided by round-off signs
+(:mod:`.ncp` now decides it as documented).
 
 ``solver.line_search: auto``, the default, for min is therefore
 
@@ -29,15 +30,16 @@ flipping) on another.
 Whether a cycle arises may depend on rounding; what is done about it depends on ‖Φ‖ only.
 Measured on the stress cases of the stability map with min (30 cases, cold starts;
 ``contact study`` of configs/studies/stability.yaml's frictionless cases × line search):
-plain steps (``basic``) converge in 27, ``auto`` in 29 with the same iteration counts
+plain steps (``basic``) converge in 28, ``auto`` in 29 with the same iteration counts
 wherever plain steps converge (except k, f = 1 : 1e6 at 128²: 26 → 14), ``bt`` from the
-first step in 25, with 514 Newton steps against 213 (level 7: 85 against 11; it fails on
+first step in 25, with 514 Newton steps against 207 (level 7: 85 against 11; it fails on
 c = 1e-6 and on κ = 1e4 with exact steps, where plain min takes 4): a full PDAS step that
-raises ‖Φ‖ is usually the right one, and backtracking shortens exactly those.  The one
-case ``auto`` leaves failing is the semi-coercive scene on CG + GAMG, whose first system
-has no solution.  ``basic`` keeps plain Newton-min (PDAS, cycles included); ``bt`` is
-PETSc's backtracking from the first step.  :func:`contact.solvers.lcp.newton_lcp` runs the
-same rules on a dense LCP.
+raises ‖Φ‖ is usually the right one, and backtracking shortens exactly those.  ``auto``
+rescues κ = 1e4 on inexact CG steps (plain: 100 steps, no convergence; ``auto`` 26) and the
+P-matrix LCP (plain: a 3-cycle; ``auto`` 5 steps).  The one case it leaves failing is the
+semi-coercive scene on CG + GAMG, whose first system has no solution.  ``basic`` keeps
+plain Newton-min (PDAS, cycles included); ``bt`` is PETSc's backtracking from the first
+step.  :func:`contact.solvers.lcp.newton_lcp` runs the same rules on a dense LCP.
 """
 from __future__ import annotations
 

@@ -34,9 +34,10 @@ only up to round-off: b comes from a residual whose last bits depend on the summ
 order, i.e. on the MPI partition, and the element of (0, ±10⁻¹⁷) would be (1, 0) or (1, 2)
 by its sign alone (hertz_2d took 9 Newton steps on one rank and 8 on two).  So a kink is
 decided with a tolerance τ ≥ 0: FB takes the biactive element where r = √(a² + b²) ≤ τ, min
-(and the active set) the tie element where |a − b| ≤ τ and the biactive one where |a|, |b|
-≤ τ, i.e. active ⇔ b − a > τ or max(|a|, |b|) ≤ τ.  The solver uses τ = :data:`TIE_RTOL` × max(max_i |a_i|, max_i |b_i|, s), the largest gap or
-scaled multiplier over all constrained nodes of all ranks at the iterate, or s if larger
+(and the active set) the tie element where |a − b| ≤ τ and the biactive one where
+|a|, |b| ≤ τ, i.e. active ⇔ b − a > τ or max(|a|, |b|) ≤ τ.  The solver uses
+τ = :data:`TIE_RTOL` × max(max_i |a_i|, max_i |b_i|, s), the largest gap or scaled
+multiplier over all constrained nodes of all ranks at the iterate, or s if larger
 (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`): far above round-off
 (≈ 10⁻¹⁶ of that scale), far below any value Newton resolves.  s is the size of what the
 gaps are computed from (:attr:`contact.models.Constraint.scale`: max |X| over the mesh for
