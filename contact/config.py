@@ -329,9 +329,9 @@ SCENE: dict[str, Field] = {
         "c": Field("any", "auto", check=_c_value),
         "kappa": Field("number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"),
         "line_search": Field("str", "auto", choices=("auto", "basic", "bt"),
-                             doc="auto: plain Newton steps, for min backtracking once an active set "
-                                 "repeats (contact/solvers/globalize.py); basic: plain Newton; bt: "
-                                 "backtracking on ½‖Φ‖² from the first step"),
+                             doc="auto: plain Newton steps, for min backtracking once a cycle "
+                                 "shows (contact/solvers/globalize.py); basic: plain Newton; "
+                                 "bt: backtracking on ½‖Φ‖² from the first step"),
         "polish": Field("bool", True, doc="fb / blend: active-set polishing (one extra linear solve once the active set settles)"),
         "rtol": Field("number", 1e-12, check=_nonnegative),
         "atol": Field("number", 1e-12, check=_nonnegative),

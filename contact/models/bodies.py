@@ -244,13 +244,15 @@ def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, fr
     return [_component_bc(V, k, dofs[dofs % bs == k], x_values) for k in range(bs)]
 
 
-def _component_bc(V: fem.FunctionSpace, k: int, dofs: np.ndarray, values: np.ndarray) -> fem.DirichletBC:
+def _component_bc(V: fem.FunctionSpace, k: int, dofs: np.ndarray,
+                  values: np.ndarray) -> fem.DirichletBC:
     """x_j = values[j] on the (unrolled, owned) DoFs ``dofs`` of component k, as a DirichletBC
     on V.sub(k): ``fem.dirichletbc(g, dofs)`` on the blocked V would read the indices as
     node (block) numbers and fix other DoFs."""
     S, s_to_v = V.sub(k).collapse()
     imap = V.dofmap.index_map
-    v_to_s = np.full((imap.size_local + imap.num_ghosts) * V.dofmap.index_map_bs, -1, dtype=np.int32)
+    n = (imap.size_local + imap.num_ghosts) * V.dofmap.index_map_bs
+    v_to_s = np.full(n, -1, dtype=np.int32)
     s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
     v_to_s[s_to_v] = np.arange(len(s_to_v), dtype=np.int32)
     g = fem.Function(S)

@@ -128,7 +128,8 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     bound.x.array[:] = g_all
     first = first_contact_point(msh.comm, Xs[sd], g_all[sd])
     return {"K": Kt, "b": bt, "basis": Q,
-            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0, coordinate_scale(msh)),
+            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0,
+                                     coordinate_scale(msh)),
             "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
             "data": {"n": normal(first[None, :])[0], "normals": normals, "n_ufl": n_ufl, "g_ufl": g_ufl}}
 

@@ -200,7 +200,8 @@ class FrictionalComplementarity(Complementarity):
         touching with zero pressure slips: ρ = 0; collective); ``st`` the :meth:`evaluate`
         of x if at hand."""
         st = self.evaluate(x) if st is None else st
-        return np.where(self.active_set(st["a"], st["b"]), np.where(st["law"].stick, STICK, SLIP), SEPARATED)
+        touching = self.active_set(st["a"], st["b"])
+        return np.where(touching, np.where(st["law"].stick, STICK, SLIP), SEPARATED)
 
     def matrix(self) -> PETSc.Mat:
         """A Jacobian matrix with the pattern of B K (created by the product, for reuse)."""

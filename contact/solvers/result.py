@@ -42,7 +42,7 @@ class Result:
     active_mask: np.ndarray
     options: dict = field(default_factory=dict)
     polish_solves: int = 0
-    backtracked: int = 0          # min, line search auto: steps shortened after an active set repeated
+    backtracked: int = 0          # min, line search auto: steps shortened once a cycle showed
     linear: str = ""              # the linear solver used (direct, gamg, bcgs)
     krylov_iterations: int = 0    # Krylov iterations of all linear solves (0 for direct)
     krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve
