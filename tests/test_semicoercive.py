@@ -59,12 +59,14 @@ def test_fb_solves_the_semicoercive_scene_like_the_vi_solver() -> None:
 
 
 def test_min_with_cg_gamg_fails_on_the_singular_first_step_and_says_why() -> None:
-    """Serial: CG + GAMG breaks down on the singular first system (on 2 ranks round-off may
-    instead give a huge step that min recovers from, as MUMPS does: not asserted)."""
+    """With exact CG + GAMG steps the singular first system is a failed linear solve, and
+    the message says why.  Not a path: K y = −Φ has no solution there (K singular along the
+    constants, the pushing load's resultant along them), so CG cannot reach its tight
+    tolerance.  With the default inexact steps the loose first tolerance may be met — on
+    this CPU with 1 of 3 perturbed loads (CONTACT_TEST_PERTURB) — and min recovers from the
+    huge step, as with MUMPS: that outcome depends on rounding and is not asserted."""
     scene = contact.load_scene(SCENE)
-    r = contact.solve(scene, method="min", linear="gamg", verbose=False)
-    # not a path: the first system K y = −Φ has no solution (K singular along the constants,
-    # the pushing load's resultant along them), so its linear solve cannot succeed
+    r = contact.solve(scene, method="min", linear="gamg", inexact=False, verbose=False)
     assert not r.converged and r.reason == "diverged_linear_solve" and r.iterations == 0
     assert r.history[0]["active"] == 0          # the cold start: no node active, H = K
     assert r.hint == SEMICOERCIVE_HINT and SEMICOERCIVE_HINT in not_converged_text(r)
