@@ -1,24 +1,27 @@
 """The lifetime of PETSc objects and MPI communicators: who destroys what, and how to count.
 
-PETSc objects made from Python (Mat, Vec, KSP, SNES, NullSpace, …) live until ``destroy()``
-or until their petsc4py wrapper is collected; the second is not enough.  A PETSc object
-created on the communicator of a DOLFINx index map (every ``Function.x.petsc_vec``, every
-assembled matrix) attaches PETSc's inner communicator to it; if the index map goes first
-(its function space collected before the matrix), that inner communicator is never freed.
-MPICH has 2048 context ids: a load path that leaked four communicators per step ended at
-step 509.  So every object is destroyed explicitly once its step is done:
+MPI can hold a few thousand communicators at once (MPICH: 2048 context ids), and a load
+path solves one problem per step, so nothing of a step may outlive it unnoticed:
 
-* :func:`destroy` — destroy PETSc objects (None and already destroyed ones are skipped);
-* :class:`Owner` — collects the objects a solve creates and destroys them all at once.
+* on more than one rank, petsc4py does not destroy a PETSc object whose last wrapper is
+  collected: it queues it for a collective ``PETSc.garbage_cleanup`` on the object's
+  communicator (DOLFINx index maps each have their own), which nothing calls — the object
+  and communicators with it stay (2 per solve, measured).  Serially it goes with its
+  wrapper: at once, or when the cycle collector gets to a cycle the wrapper is in;
+* every live DOLFINx vector (a function) holds two neighbourhood communicators on more than
+  one rank, every function space one.
 
-And three figures a long run must keep flat (:func:`free_communicators`,
-:func:`petsc_objects`, :func:`rss_mib`), for the tests and ``demos/bench/bench_long_path.py``.
+So the PETSc objects of a solve and of a problem are destroyed explicitly
+(:func:`destroy`, :class:`Owner`, ``DiscreteProblem.destroy``) and a load path releases
+each finished step (``Result.release``, ``Step.release``).  Before, a path ended at step 509
+(issue 26: 4 communicators per step).  Three figures a long run must keep flat
+(:func:`free_communicators`, :func:`petsc_objects`, :func:`rss_mib`) serve the tests and
+``demos/bench/bench_long_path.py``.
 """
 from __future__ import annotations
 
 import re
 import tempfile
-from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -49,9 +52,6 @@ class Owner:
         """Register ``obj`` for destruction; returns it."""
         self._objects.append(obj)
         return obj
-
-    def own_all(self, objects: Iterable[Any]) -> None:
-        self._objects.extend(objects)
 
     def close(self) -> None:
         """Destroy every owned object, the last owned first."""
