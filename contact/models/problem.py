@@ -79,7 +79,8 @@ class DiscreteProblem:
         mortar matrices); its functions stay usable.  Call it once the problem's last result
         is done with (:meth:`contact.solvers.result.Result.release`)."""
         couplings = self.data.get("couplings") or []
-        destroy(self.K, self.b, self.basis, self.basis_inverse, self.near_nullspace, *(c.M for c in couplings))
+        destroy(self.K, self.b, self.basis, self.basis_inverse, self.near_nullspace,
+                *(c.M for c in couplings))
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""

@@ -99,7 +99,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     x = owner.own(problem.b.duplicate())
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
-    cp = owner.own(Complementarity(problem) if friction is None else FrictionalComplementarity(problem))
+    cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
     snes = owner.own(PETSc.SNES().create(comm))
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
@@ -185,7 +185,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
         snes.solve(None, x)
         reason_code = snes.getConvergedReason()
-        result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
+        result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built,
+                        reason_code)
         result.linear = linear
         result.sequence, result.sequence_note = levels, note
         if friction is not None:

@@ -18,8 +18,8 @@ step's files are written.  Every ``--every`` steps, after Python's garbage colle
 wall and CPU seconds so far, the resident set size (MiB, the largest over the ranks), the
 communicators MPI can still create (:func:`contact.lifetime.free_communicators`), the
 live PETSc objects (:func:`contact.lifetime.petsc_objects`) and the entries of PETSc's
-options database (the largest counts over the ranks).  Prints one row per sample and a summary, writes CSV (default
-demos/results/long_path/<scene>_<mode>_np<ranks>.csv).
+options database (the largest counts over the ranks).  Prints one row per sample and a
+summary, writes CSV (default demos/results/long_path/<scene>_<mode>_np<ranks>.csv).
 """
 from __future__ import annotations
 
@@ -104,12 +104,16 @@ def summary(rows: list[dict], steps: int, start: int) -> str:
     first = next(r for r in rows if r["step"] >= start)
     last = rows[-1]
     span = max(last["step"] - first["step"], 1)
-    return (f"{last['step']} of {steps} steps in {last['seconds']:.1f} s ({last['cpu_seconds']:.1f} s CPU, "
-            f"{1000 * last['cpu_seconds'] / last['step']:.1f} ms CPU per step); from step {first['step']} "
-            f"to {last['step']}: free communicators {first['free_communicators']} -> "
-            f"{last['free_communicators']}, live PETSc objects {first['petsc_objects']} -> "
-            f"{last['petsc_objects']}, PETSc options {first['petsc_options']} -> {last['petsc_options']}, RSS {first['rss_mib']:.1f} -> {last['rss_mib']:.1f} MiB "
-            f"({1024 * (last['rss_mib'] - first['rss_mib']) / span:.2f} KiB per step)")
+    def change(key: str) -> str:
+        return f"{first[key]} -> {last[key]}"
+
+    cpu = last["cpu_seconds"]
+    growth = 1024 * (last["rss_mib"] - first["rss_mib"]) / span
+    return (f"{last['step']} of {steps} steps in {last['seconds']:.1f} s ({cpu:.1f} s CPU, "
+            f"{1000 * cpu / last['step']:.1f} ms CPU per step); from step {first['step']} to "
+            f"{last['step']}: free communicators {change('free_communicators')}, live PETSc "
+            f"objects {change('petsc_objects')}, PETSc options {change('petsc_options')}, RSS "
+            f"{change('rss_mib')} MiB ({growth:.2f} KiB per step)")
 
 
 def main() -> None:
@@ -119,18 +123,22 @@ def main() -> None:
                    help="scene overrides (default for the default scene: mesh.cells=[4,4])")
     p.add_argument("--steps", type=int, default=2000)
     p.add_argument("--every", type=int, default=100, help="steps between two samples")
-    p.add_argument("--start", type=int, default=200, help="the summary's changes count from this step")
+    p.add_argument("--start", type=int, default=200,
+                   help="the summary's changes count from this step")
     p.add_argument("--cli", action="store_true", help="run `contact run` instead of the API")
     p.add_argument("--no-collect", action="store_true",
                    help="no garbage collection before a sample (what is left to Python's own)")
-    p.add_argument("--out", help="CSV file (default: demos/results/long_path/<scene>_<mode>_np<ranks>.csv)")
+    p.add_argument("--out", help="CSV file (default: demos/results/long_path/"
+                                 "<scene>_<mode>_np<ranks>.csv)")
     args = p.parse_args()
     comm = MPI.COMM_WORLD
-    sets = args.sets or (["mesh.cells=[4,4]"] if args.scene.endswith("signorini_square.yaml") else [])
+    default_scene = args.scene.endswith("signorini_square.yaml")
+    sets = args.sets or (["mesh.cells=[4,4]"] if default_scene else [])
     sets = [*sets, f"load.steps={args.steps}"]
     mode = "cli" if args.cli else "api"
     if comm.rank == 0:
-        print(f"bench_long_path: {Path(args.scene).name} {' '.join(sets)}, {mode}, {comm.size} rank(s)", flush=True)
+        print(f"bench_long_path: {Path(args.scene).name} {' '.join(sets)}, {mode}, "
+              f"{comm.size} rank(s)", flush=True)
     sample = Sampler(args.every, comm, collect=not args.no_collect)
     if args.cli:
         run_cli(args.scene, sets, sample, comm)
@@ -138,8 +146,9 @@ def main() -> None:
         run_api(args.scene, sets, sample)
     if comm.rank == 0:
         print(summary(sample.rows, args.steps, args.start), flush=True)
-    out = args.out or ROOT / "demos" / "results" / "long_path" / f"{Path(args.scene).stem}_{mode}_np{comm.size}.csv"
-    save_csv(out, [{"scene": Path(args.scene).stem, "mode": mode, "ranks": comm.size, **r} for r in sample.rows])
+    name = Path(args.scene).stem
+    out = args.out or ROOT / "demos" / "results" / "long_path" / f"{name}_{mode}_np{comm.size}.csv"
+    save_csv(out, [{"scene": name, "mode": mode, "ranks": comm.size, **r} for r in sample.rows])
 
 
 if __name__ == "__main__":
