@@ -84,7 +84,11 @@ scene = contact.load_scene(scene_data)
 # $F_t = \sum_i w_i \lambda_{t,i}$ with the lumped weights $w_i = \int_{\Gamma_C} \varphi_i$.
 
 # +
+tables = []   # (t, contact table) of every step, for the picture below
+
+
 def show(step):
+    tables.append((step.time, contact_table(step.scene, step.result)))
     fig = surface_figures(step.scene, step.result)
     say(f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
         f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}")
@@ -126,7 +130,6 @@ say(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
 # with the VTK series of the steps and a contact CSV per step.
 
 # +
-tables = [(step.time, contact_table(step.scene, step.result)) for step in path.steps]
 if comm.rank == 0:
     plot_traction("demo_friction.png", tables, title="demo_friction: tractions along the bottom")
 say("wrote demo_friction.png")
