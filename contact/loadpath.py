@@ -11,6 +11,12 @@ With an ``adapt:`` section the adaptive loop runs at every step (``load.adapt: e
 k refines on from the final mesh of step k − 1, so meshes only get finer and u_prev is
 carried exactly by nested prolongation) or at the last step only (``end``: steps 1 … N−1
 on the scene's mesh, the adaptive loop at t_N with u_prev prolonged to every level).
+
+A path may have any number of steps: once step k is solved (and ``on_step`` has written its
+output), step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its
+functions, scene and meshes dropped — and keeps only its figures.  Every live function holds
+MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
+keeping every step whole (``keep_all``) suits short paths only.
 """
 from __future__ import annotations
 
@@ -37,6 +43,17 @@ class Step:
     levels: list = field(default_factory=list)   # adapt.Level of an adaptive step
     seconds: float = 0.0
 
+    def release(self) -> None:
+        """Keep the step's figures only: its result and its adaptive levels' results are
+        released (:meth:`contact.solvers.result.Result.release`: iterations, residual,
+        history, contact force stay; functions, nodal arrays and PETSc objects go), its
+        scene and the levels' scenes and η_T functions dropped."""
+        for level in self.levels:
+            level.result.release()
+            level.scene, level.estimate.eta_T = None, None
+        self.result.release()
+        self.scene = None
+
 
 @dataclass
 class LoadPath:
@@ -62,12 +79,15 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
 
 def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[Step], None] | None = None,
                   verbose: bool | None = None, adaptive: bool | None = None, adapt_options: dict | None = None,
-                  **options: Any) -> LoadPath:
+                  keep_all: bool = False, **options: Any) -> LoadPath:
     """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
-    after every step (the CLI writes its output there).  Stops at the first step that does
-    not converge.  ``adaptive``: run the adaptive loop (default: when the scene has an
-    ``adapt`` section), with ``adapt_options`` overriding that section; ``options`` are
-    solver options as for :func:`contact.solve`."""
+    after every step (the CLI writes its output there: anything that needs a step's
+    functions or scene belongs there).  Stops at the first step that does not converge.
+    The last step stays whole, and the last converged one before a failed step; the others
+    are released when the next one is solved (:meth:`Step.release`), unless ``keep_all``.
+    ``adaptive``: run the adaptive loop (default: when the scene has an ``adapt``
+    section), with ``adapt_options`` overriding that section; ``options`` are solver
+    options as for :func:`contact.solve`."""
 
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     times = load_times(scene.cfg)
@@ -99,6 +119,8 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
             break
         scene = step_scene    # 'each': the next step continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
+        if len(out.steps) > 1 and not keep_all:
+            out.steps[-2].release()
     else:
         out.stop = f"reached t = {times[-1]:g} in {len(times)} step(s)"
     return out

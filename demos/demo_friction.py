@@ -76,19 +76,26 @@ scene = contact.load_scene(scene_data)
 
 # ## The load path
 #
-# `run_load_path` solves step after step; every `Result` carries the nodal friction fields
-# (`result.friction`: $\lambda_n$, $\lambda_t$, the bound $\rho$, the slip increment and
-# the status 0 separated / 1 stick / 2 slip).  `surface_figures` sums them into forces:
-# $F_n = \sum_i w_i \lambda_{n,i}$, $F_t = \sum_i w_i \lambda_{t,i}$ with the lumped
-# weights $w_i = \int_{\Gamma_C} \varphi_i$.
+# `run_load_path` solves step after step and hands each step to `on_step` as it is done
+# (a step before the last keeps only its figures afterwards: a path may be long).  Every
+# `Result` carries the nodal friction fields (`result.friction`: $\lambda_n$, $\lambda_t$,
+# the bound $\rho$, the slip increment and the status 0 separated / 1 stick / 2 slip).
+# `surface_figures` sums them into forces: $F_n = \sum_i w_i \lambda_{n,i}$,
+# $F_t = \sum_i w_i \lambda_{t,i}$ with the lumped weights $w_i = \int_{\Gamma_C} \varphi_i$.
 
 # +
-path = contact.run_load_path(scene)
-say(" step     t  Newton   stick   slip   F_t / F_n")
-for step in path.steps:
+tables = []   # (t, contact table) of every step, for the picture below
+
+
+def show(step):
+    tables.append((step.time, contact_table(step.scene, step.result)))
     fig = surface_figures(step.scene, step.result)
     say(f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
         f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}")
+
+
+say(" step     t  Newton   stick   slip   F_t / F_n")
+path = contact.run_load_path(scene, on_step=show)
 fig = surface_figures(path.steps[-1].scene, path.steps[-1].result)
 say(f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
     f"the support's reaction balances the contact force to "
@@ -123,7 +130,6 @@ say(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
 # with the VTK series of the steps and a contact CSV per step.
 
 # +
-tables = [(step.time, contact_table(step.scene, step.result)) for step in path.steps]
 if comm.rank == 0:
     plot_traction("demo_friction.png", tables, title="demo_friction: tractions along the bottom")
 say("wrote demo_friction.png")

@@ -18,7 +18,7 @@ def main(argv):
     out, path = argv[0], argv[1]
     overrides = [a.split("=", 1)[1] if a.startswith("--set=") else a for a in argv[2:]]
     scene = contact.load_scene(path, overrides + ["output.verbose=false"])
-    run = run_load_path(scene, verbose=False)
+    run = run_load_path(scene, verbose=False, keep_all=True)
     comm = MPI.COMM_WORLD
     rows = []
     for step in run.steps:

@@ -34,7 +34,7 @@ def test_proportional_stick_loading_does_not_depend_on_the_steps():
     and 10 steps end where 1 step does (warm starts: 1 Newton step after the first)."""
     sets = [*coulomb(1.0), 'data.u_D=["0.002*t", "-0.01*t"]']
     one = run_load_path(block(*sets))
-    ten = run_load_path(block(*sets, "load.steps=10"))
+    ten = run_load_path(block(*sets, "load.steps=10"), keep_all=True)
     assert one.converged and ten.converged and len(ten.steps) == 10
     for step in ten.steps:
         f = step.result.friction
@@ -55,7 +55,7 @@ def test_pulled_block_slip_accumulates_over_the_steps():
     point along the drag, add up to the one-step slip, and once sliding each step slips by the
     drag increment (the block translates rigidly at the bottom); Coulomb's force law holds."""
     sets = [*coulomb(0.3), 'data.u_D=["0.05*t", "-0.01"]']
-    path = run_load_path(block(*sets, "load.steps=10"))
+    path = run_load_path(block(*sets, "load.steps=10"), keep_all=True)
     one = run_load_path(block(*sets)).steps[-1].result
     assert path.converged
     slips = np.array([s.result.friction["slip"][:, 0] for s in path.steps])

@@ -31,6 +31,7 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 
 from ..checks import check_scene_data
+from ..lifetime import destroy
 from ..scene import Scene
 from . import mortar
 from .basis import change_of_basis, node_frames
@@ -78,6 +79,7 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
     bt = b.duplicate()
     Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
+    destroy(K, b)
     bcs = dirichlet_on_unknowns(V, system.bcs, nodes, frames, [a for c in sets for a in c.absolute], Kt, bt)
 
     u_h = fem.Function(V, name="u_h")

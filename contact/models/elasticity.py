@@ -27,6 +27,7 @@ from dolfinx import fem
 from .. import expressions
 from ..checks import check_scene_data
 from ..config import ConfigError
+from ..lifetime import destroy
 from ..scene import Scene
 from .obstacles import curved_contact, plane_contact
 from .problem import DiscreteProblem, assemble_system
@@ -151,7 +152,9 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
         contact = plane_contact(scene, V, K, b, fixed, ds)
     else:
         contact = curved_contact(scene, V, K, b, fixed, ds)
-    K, b = contact.pop("K", K), contact.pop("b", b)
+    if "K" in contact:   # a curved obstacle: K̃ = Qᵀ K Q and b̃ = Qᵀ b replace K and b
+        destroy(K, b)
+        K, b = contact.pop("K"), contact.pop("b")
     con = contact.pop("constraint")
     u_h = fem.Function(V, name="u_h")
     data = {**system.data, "reaction_form": reaction_form(system, u_h), **contact.pop("data")}
@@ -186,6 +189,7 @@ def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None,
         if rotation is not None or inverse is not None:
             rotated = vec.duplicate()
             (inverse.mult if inverse is not None else rotation.multTranspose)(vec, rotated)
+            vec.destroy()
             vec = rotated
         for prev in basis:  # modified Gram–Schmidt
             vec.axpy(-vec.dot(prev), prev)

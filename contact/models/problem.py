@@ -27,6 +27,7 @@ from dolfinx import fem
 
 from .. import expressions
 from ..config import ConfigError
+from ..lifetime import destroy
 from ..scene import Scene
 
 
@@ -77,6 +78,14 @@ class DiscreteProblem:
     semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
     friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
+
+    def destroy(self) -> None:
+        """Destroy the PETSc objects of the problem (K, b, Q, Q⁻¹, the near-nullspace, the
+        mortar matrices); its functions stay usable.  Call it once the problem's last result
+        is done with (:meth:`contact.solvers.result.Result.release`)."""
+        couplings = self.data.get("couplings") or []
+        destroy(self.K, self.b, self.basis, self.basis_inverse, self.near_nullspace,
+                *(c.M for c in couplings))
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""

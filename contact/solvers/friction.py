@@ -209,6 +209,7 @@ class FrictionalComplementarity(Complementarity):
         return B.matMult(self.p.K)
 
     def destroy(self) -> None:
+        super().destroy()
         for obj in (self.B.mat, self.D.mat):
             obj.destroy()
 

@@ -96,6 +96,10 @@ class Complementarity:
         self.d.array_w[self.dofs] = (self.w / self.c) * da
         return self.s, self.d
 
+    def destroy(self) -> None:
+        for obj in (self.R, self.s, self.d):
+            obj.destroy()
+
 
 def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, timers: dict,
                  state: dict, petsc_opts: dict,

@@ -2,6 +2,7 @@
 iterate (u_h, the multiplier λ_h, the gap, the active set, the iteration history)."""
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 
@@ -67,10 +68,25 @@ class Result:
         """All linear solves, each weighted by its level's DoFs / the fine DoFs."""
         return self.linear_solves + sum(lv.linear_solves * lv.dofs for lv in self.sequence) / self.dofs
 
-    @property
+    @functools.cached_property
     def dofs(self) -> int:
         V = self.u_h.function_space
         return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+    def release(self) -> None:
+        """Keep the figures only: the problem's PETSc objects are destroyed
+        (:meth:`~contact.models.DiscreteProblem.destroy`), the functions, the problem and the
+        nodal arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps
+        its numbers).  What stays — iterations, residual, history, timings, contact force,
+        DoFs — takes no memory that grows with the mesh.  A load path releases each step's
+        result once the next step is done (:meth:`contact.loadpath.Step.release`)."""
+        if self.problem is None:
+            return
+        _ = self.dofs   # cached while u_h is there
+        self.problem.destroy()
+        self.u_h = self.lmbda_h = self.gap = self.active = self.problem = self.active_mask = None
+        if self.friction is not None:
+            self.friction = {k: v for k, v in self.friction.items() if np.ndim(v) == 0}
 
 
 def not_converged_text(result: Result) -> str:

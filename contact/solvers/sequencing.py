@@ -176,6 +176,8 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
                   **coarse_opts)
         levels.append(CoarseLevel(r.dofs, r.iterations, r.polish_solves, r.krylov_iterations, r.linear,
                                   time.perf_counter() - t0, bool(r.converged)))
+        solution = r.u_h
+        r.release()   # the coarse problem's PETSc objects: only u_h goes on
         if verbose and scene.comm.rank == 0:
             lv = levels[-1]
             solves = f"{lv.newton_iterations}+{lv.polish_solves}" if lv.polish_solves else f"{lv.newton_iterations}"
@@ -184,7 +186,7 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
         if not r.converged:  # a bad coarse solution is no guess: restart from the next level
             u, prev = None, None
             continue
-        u, prev = r.u_h, coarse
+        u, prev = solution, coarse
     if u is None:
         return None, levels, note
     return transfer(u, prev, scene, V), levels, note

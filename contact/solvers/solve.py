@@ -16,6 +16,7 @@ from dolfinx import fem
 from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
 from ..config import ConfigError
+from ..lifetime import Owner
 from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene, require_scene
 from . import ncp, sequencing
@@ -74,10 +75,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     # the problem's assembly counts once: in the solve that built it
     built = problem.assembly_time if built_here else 0.0
     timers = {"assembly": built, "solve": 0.0}
-    cp = Complementarity(problem) if friction is None else FrictionalComplementarity(problem)
 
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
-    x = problem.b.duplicate()
     levels, note = [], ""
     if u0 is None:
         t0 = time.perf_counter()
@@ -89,15 +88,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
     else:
         check_guess(u0, problem)
-    problem.to_unknowns(u0.x.petsc_vec, x)
-    set_dirichlet(x, problem.bcs)
-
-    snes = PETSc.SNES().create(comm)
-    prefix = f"contact{next(_counter)}_"
-    snes.setOptionsPrefix(prefix)
     user = {str(k): v for k, v in opts["petsc_options"].items()}
-    state = {"t_jac": None, "dir_norm": np.nan}
-    polisher, guard, system = None, None, None
     # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
     diagonal_law = friction is None and method in ncp.METHODS
     linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
@@ -105,17 +96,28 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     petsc_opts = {**defaults, **user}
     if options.get("petsc_options"):  # the scene's own were checked when it was loaded
         check_petsc_options(opts["petsc_options"], defaults, comm)
+
+    owner = Owner()   # this solve's PETSc objects, destroyed when it is done
+    x = owner.own(problem.b.duplicate())
+    problem.to_unknowns(u0.x.petsc_vec, x)
+    set_dirichlet(x, problem.bcs)
+    cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
+    snes = owner.own(PETSc.SNES().create(comm))
+    prefix = f"contact{next(_counter)}_"
+    snes.setOptionsPrefix(prefix)
+    state = {"t_jac": None, "dir_norm": np.nan}
+    polisher, guard, system = None, None, None
     if friction is not None:   # the block law H = B K + D (no polishing)
-        J = setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts)
+        J = owner.own(setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts))
     elif method in ncp.METHODS:
-        system = newton_system(problem, linear, prefix, forcing=opts["inexact"])
+        system = owner.own(newton_system(problem, linear, prefix, forcing=opts["inexact"]))
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
-        precheck = setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose)
+        precheck = owner.own(setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose))
         polisher = precheck if isinstance(precheck, Polisher) else None
         guard = precheck if isinstance(precheck, GuardedMin) else None
         J = system.J
     else:
-        J = setup_vi(snes, problem, method, timers, state)
+        J = owner.own(setup_vi(snes, problem, method, timers, state))
 
     def post_solve(ksp, rhs, sol):
         if system is not None:
@@ -129,7 +131,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     snes.setTolerances(rtol=opts["rtol"], atol=opts["atol"], stol=0.0, max_it=opts["max_it"])
     snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
     history: list[dict] = []
-    prev = {"x": x.duplicate(), "active": None}
+    prev = {"x": owner.own(x.duplicate()), "active": None}
 
     def monitor(snes, its, fnorm):
         xk = snes.getSolution()
@@ -167,10 +169,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
 
     snes.setMonitor(monitor)
     popts = PETSc.Options()
-    for key, val in petsc_opts.items():
-        popts[prefix + key] = petsc_value(val)
     try:   # the options stay until the solve is done: some are read at set-up (GAMG's
         # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
+        for key, val in petsc_opts.items():
+            popts[prefix + key] = petsc_value(val)
         set_from_options(snes, *([system.ksp] if isinstance(system, ReducedSystem) else []))
         if system is not None:
             system.set_options()
@@ -186,32 +188,26 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             state["stop"] = stop
             snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
         snes.solve(None, x)
+        reason_code = snes.getConvergedReason()
+        result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built,
+                        reason_code)
+        result.linear = linear
+        result.sequence, result.sequence_note = levels, note
+        if friction is not None:
+            result.friction = friction_fields(problem, cp, x)
+        if polisher is not None:
+            result.polish_solves = polisher.solves
+        if guard is not None:
+            result.backtracked = guard.backtracked
+        if system is not None:
+            result.krylov_iterations = system.krylov_iterations
+            result.krylov_log = getattr(system, "log", [])
+        else:
+            result.krylov_iterations = snes.getLinearSolveIterations()
     finally:
         for key in petsc_opts:
             popts.delValue(prefix + key)
-    reason_code = snes.getConvergedReason()
-    result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built, reason_code)
-    result.linear = linear
-    result.sequence, result.sequence_note = levels, note
-    if friction is not None:
-        result.friction = friction_fields(problem, cp, x)
-        cp.destroy()
-    if polisher is not None:
-        result.polish_solves = polisher.solves
-        polisher.destroy()
-    if guard is not None:
-        result.backtracked = guard.backtracked
-        guard.destroy()
-    if system is not None:
-        result.krylov_iterations = system.krylov_iterations
-        result.krylov_log = getattr(system, "log", [])
-        system.destroy()
-    else:
-        result.krylov_iterations = snes.getLinearSolveIterations()
-    for obj in (snes, x, prev["x"]):
-        obj.destroy()
-    if system is None:
-        J.destroy()
+        owner.close()
     return result
 
 

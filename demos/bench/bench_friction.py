@@ -262,7 +262,7 @@ def pictures(out: Path, quick: bool) -> None:
     for name, sets in (("friction_block_2d", []), ("friction_cylinder_2d", ["mesh.cells=[80,20]"] if quick else []),
                        ("friction_box_3d", ["mesh.cells=[8,8,4]"] if quick else [])):
         sc = scene(name, *sets)
-        path = contact.run_load_path(sc)
+        path = contact.run_load_path(sc, keep_all=True)
         data = [(s.time, contact_table(s.scene, s.result)) for s in path.steps]
         target = out / f"traction_{name.removeprefix('friction_')}.png"
         plot_traction(target, data, title=f"{name}: contact tractions ({path.steps[-1].result.dofs} DoFs)")

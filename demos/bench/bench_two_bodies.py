@@ -223,7 +223,7 @@ def cattaneo(sizes: list[float]) -> None:
     for h_contact in sizes:
         scene = contact.load_scene(ROOT / "configs" / "two_body_cattaneo_2d.yaml", QUIET + [f"mesh.h_contact={h_contact}"])
         t0 = time.perf_counter()
-        path = run_load_path(scene, verbose=False)
+        path = run_load_path(scene, verbose=False, keep_all=True)
         seconds = time.perf_counter() - t0
         profiles = []
         for step in path.steps:
