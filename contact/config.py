@@ -885,6 +885,25 @@ def _check_elasticity(cfg: dict) -> None:
         raise ConfigError("obstacle.normal: must not be the zero vector")
 
 
+#: the sections a solve reads from a built scene's config (:func:`check_sections`)
+SOLVE_SECTIONS = ("model", "bodies", "obstacle", "data", "solver", "friction", "load", "adapt",
+                  "output")
+
+
+def check_sections(cfg: Mapping) -> None:
+    """Validate again the sections of a validated config that a solve reads (a Scene's
+    ``cfg``, which a caller of the Python API may have changed since it was loaded): the
+    same ConfigError naming the key as at load, instead of a failure deep inside the solver
+    (``scene.cfg['friction']['law'] = 'coulom'`` was a bare PETSc "error code 101").
+    Cheap (no mesh, no file): run at the start of every solve."""
+    constants = cfg.get("constants") or {}
+    for key in SOLVE_SECTIONS:
+        if cfg.get(key) is not None:
+            _validate(cfg[key], SCENE[key], key, constants)
+    if cfg.get("friction") is not None:
+        _check_friction(cfg, {})
+
+
 def load_config(source: str | Path | Mapping, overrides: list[str] | tuple[str, ...] = ()) -> dict:
     """Read (if a path), apply ``--set`` overrides and validate a scene."""
     if isinstance(source, Mapping):
