@@ -1,21 +1,26 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, run the test suite
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
+# make venv-latest — the newest release of every dependency in .venv-latest (test-latest: its tests)
+# make lock  — after test-latest passed: .venv-latest's versions become constraints.txt
 SHELL := /bin/bash
 VENV  ?= .venv
 PY    := $(VENV)/bin/python
+LOCK  := constraints.txt
+LATEST ?= .venv-latest
 NP    ?= 2
 SCENE ?= configs/signorini_free_boundary.yaml
 
-.PHONY: demo test bench venv clean
+.PHONY: demo test bench venv venv-latest test-latest lock clean
 
 venv: $(VENV)/.installed
 
-$(VENV)/.installed: pyproject.toml
+# the tested versions (constraints.txt): a change of it or of pyproject.toml re-installs
+$(VENV)/.installed: pyproject.toml $(LOCK)
 	@tools/find-python >/dev/null || exit 1
 	@[ -x $(PY) ] || $$(tools/find-python) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c $(LOCK) pip
+	$(PY) -m pip install --quiet -c $(LOCK) -e '.[test]'
 	$(PY) -c "import contact, dolfinx; print('contact ready: DOLFINx', dolfinx.__version__)"
 	@touch $@
 
@@ -24,6 +29,24 @@ demo: venv
 
 test: venv
 	$(VENV)/bin/python -m pytest -q tests
+
+# the newest releases, in a venv of their own (never the tested .venv): upgrades are deliberate
+venv-latest:
+	@tools/find-python >/dev/null || exit 1
+	rm -rf $(LATEST)
+	$$(tools/find-python) -m venv $(LATEST)
+	$(LATEST)/bin/python -m pip install --quiet --upgrade pip
+	$(LATEST)/bin/python -m pip install --quiet --upgrade -e '.[test]'
+	$(LATEST)/bin/python -c "import contact, dolfinx; print('latest: DOLFINx', dolfinx.__version__)"
+	@tools/lock $(LATEST) | diff <(grep -v '^#' $(LOCK)) <(grep -v '^#' -) \
+	  && echo "same versions as $(LOCK)" || echo "(<: $(LOCK), >: $(LATEST))"
+
+test-latest: venv-latest
+	$(LATEST)/bin/python -m pytest -q tests
+
+lock:
+	@[ -x $(LATEST)/bin/python ] || { echo "make lock: no $(LATEST) (make test-latest)" >&2; exit 1; }
+	tools/lock $(LATEST) > $(LOCK)
 
 bench: venv
 	$(VENV)/bin/python demos/run_bench.py

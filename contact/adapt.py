@@ -78,6 +78,11 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
     comm = W.mesh.comm
     n_owned = W.dofmap.index_map.size_local
     eta = eta_T.x.array[:n_owned]
+    bad = comm.allreduce(int(np.count_nonzero(~np.isfinite(eta) | (eta < 0))), op=MPI.SUM)
+    if bad:   # a NaN is never >= a threshold: nothing would be marked, silently
+        total = W.dofmap.index_map.size_global
+        raise ValueError(f"eta_T: {bad} of {total} indicators are not finite numbers >= 0 "
+                         "(NaN, inf or negative); mark needs the indicators of contact.estimate")
     if strategy == "uniform":
         return np.arange(n_owned, dtype=np.int32)
     if strategy == "maximum":

@@ -1,10 +1,13 @@
 """The DoF budget of one solve (``solver.max_dofs``): refuse a problem that would not fit in
 memory before building it, instead of running for minutes into swap or a MemoryError.
 
-The number of degrees of freedom N is known from the mesh parameters of the built-in meshes
-before any mesh exists (:func:`estimate_dofs`), and from the mesh itself otherwise (gmsh
-files and the parametric Hertz bodies: :func:`mesh_dofs`, before assembly).  A scene with
-N > ``solver.max_dofs`` is bad input: exit code 2 naming the key, with a hint.
+The number of degrees of freedom N is known from the mesh parameters of the structured
+meshes (rectangle, unit_square, lshape, box, blocks) before any mesh exists
+(:func:`estimate_dofs`), is estimated from the sizes h, h_contact, zone of the parametric
+gmsh meshes before gmsh meshes them (:func:`parametric_dofs`, within 0.95–1.25 N), and is
+counted on the mesh itself before assembly for every mesh (:func:`mesh_dofs`; the only
+check of a gmsh file).  A scene with N > ``solver.max_dofs`` is bad input: exit code 2
+naming the key, with a hint.
 
 ``solver.max_dofs: auto`` (the default) is the largest N whose predicted peak memory stays
 within MEMORY_FRACTION (1/2) of this machine's physical memory.  The prediction is the
@@ -33,6 +36,7 @@ this machine's: on a cluster of several nodes, set ``solver.max_dofs`` yourself.
 """
 from __future__ import annotations
 
+import math
 import os
 from typing import Any
 
@@ -82,30 +86,91 @@ def max_dofs(cfg: dict, gdim: int) -> int:
 
 
 def estimate_dofs(cfg: dict) -> int | None:
-    """DoFs of the scene's problem from its mesh parameters (built-in meshes; None for
-    gmsh files and the parametric gmsh bodies).  Vertices V and cells F of the structured
-    triangulations / tetrahedralizations, P2 adds one node per edge (E = V + F − 1 for a
-    triangulated polygon, Euler), times the components (elasticity: the dimension)."""
+    """DoFs of the scene's problem from its mesh parameters, exact for the structured meshes
+    (rectangle, unit_square, lshape, box, blocks; None for the others).  Vertices V and
+    cells F of the structured triangulations / tetrahedralizations, P2 adds one node per
+    edge (E = V + F − 1 for a triangulated polygon, Euler; :func:`_kuhn_edges` for the
+    tetrahedra of a 3D block), times the components (elasticity: the dimension)."""
     mesh = cfg["mesh"]
-    kind, cells = mesh["type"], mesh.get("cells")
+    kind, cells, p2 = mesh["type"], mesh.get("cells"), mesh.get("degree", 1) == 2
     if kind in ("rectangle", "unit_square"):
         nx, ny = cells
         crossed = mesh.get("diagonal") == "crossed"
         vertices = (nx + 1) * (ny + 1) + (nx * ny if crossed else 0)
-        faces = (4 if crossed else 2) * nx * ny
-        gdim = 2
+        nodes, gdim = vertices + p2 * (vertices + (4 if crossed else 2) * nx * ny - 1), 2
     elif kind == "lshape":
         (n,) = cells
-        vertices, faces, gdim = (2 * n + 1) ** 2 - n * n, 6 * n * n, 2
+        vertices = (2 * n + 1) ** 2 - n * n
+        nodes, gdim = vertices + p2 * (vertices + 6 * n * n - 1), 2
     elif kind == "box":
         nx, ny, nz = cells
-        vertices, faces, gdim = (nx + 1) * (ny + 1) * (nz + 1), None, 3
+        nodes, gdim = (nx + 1) * (ny + 1) * (nz + 1), 3   # P2 boxes are refused (config)
+    elif kind == "blocks":
+        gdim = len(mesh["blocks"][0]["corners"][0])
+        nodes = sum(_block_nodes(block["cells"], p2) for block in mesh["blocks"])
     else:
         return None
-    nodes = vertices
-    if mesh.get("degree", 1) == 2 and faces is not None:
-        nodes += vertices + faces - 1
     return nodes * (gdim if cfg["model"]["type"] == "elasticity" else 1)
+
+
+def _block_nodes(n: list[int], p2: bool) -> int:
+    """Nodes of one structured block of :func:`contact.meshes.blocks` (``n`` cells per
+    direction): its vertices, and with ``p2`` its edges too."""
+    vertices = math.prod(k + 1 for k in n)
+    if not p2:
+        return vertices
+    if len(n) == 2:
+        return 2 * vertices + 2 * n[0] * n[1] - 1
+    return vertices + _kuhn_edges(*n)
+
+
+def _kuhn_edges(nx: int, ny: int, nz: int) -> int:
+    """Edges of the grid of nx × ny × nz boxes, each cut into six tetrahedra along its main
+    diagonal: the grid lines, one diagonal in every square face, one in every box."""
+    lines = nx * (ny + 1) * (nz + 1) + (nx + 1) * ny * (nz + 1) + (nx + 1) * (ny + 1) * nz
+    faces = nx * ny * (nz + 1) + nx * (ny + 1) * nz + (nx + 1) * ny * nz
+    return lines + faces + nx * ny * nz
+
+
+#: a parametric gmsh mesh has between 0.95 N and 1.25 N DoFs for the estimate N of
+#: :func:`parametric_dofs` (calibration, tests/test_budget.py: 0.99 N to 1.22 N)
+ESTIMATE_RANGE = (0.95, 1.25)
+#: P2 nodes per vertex of a gmsh mesh: V + E with E ≈ 3 V (triangles), ≈ 6 V (tetrahedra)
+P2_NODES_PER_VERTEX = {2: 4, 3: 7}
+
+
+def parametric_dofs(cfg: dict) -> float | None:
+    """The DoFs of a parametric gmsh mesh (quarter_disk, sphere_octant, half_disks,
+    sphere_on_block; None for the others), estimated from its sizes h, h_contact, zone
+    before gmsh meshes it (:func:`contact.geometry.estimated_vertices`); the true number
+    lies in :data:`ESTIMATE_RANGE` times it."""
+    from .geometry import estimated_vertices
+
+    mesh = cfg["mesh"]
+    if mesh["type"] not in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
+        return None
+    gdim = 2 if mesh["type"] in ("quarter_disk", "half_disks") else 3
+    per_vertex = P2_NODES_PER_VERTEX[gdim] if mesh.get("degree", 1) == 2 else 1
+    nodes = estimated_vertices(mesh) * per_vertex
+    return nodes * (gdim if cfg["model"]["type"] == "elasticity" else 1)
+
+
+def check_parameters(cfg: dict, gdim: int | None) -> None:
+    """The DoF budget from the mesh parameters, before any mesh is built (every rank finds
+    the same): exact for the structured meshes; for the parametric gmsh meshes refused
+    at once when the least number of DoFs the estimate N of :func:`parametric_dofs` allows
+    exceeds the budget, else meshed (and the mesh checked exactly before assembly)."""
+    mesh = cfg["mesh"]
+    if mesh["type"] == "blocks":
+        cells = [block["cells"] for block in mesh["blocks"]]
+        check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.blocks", f"cells {cells} give")
+    elif (estimate := parametric_dofs(cfg)) is not None:
+        sizes = ", ".join(f"{k} = {mesh[k]:g}" for k in ("h", "h_contact", "zone"))
+        low, high = (f * estimate for f in ESTIMATE_RANGE)
+        check_dofs(cfg, math.floor(low), gdim, "mesh.h", f"{sizes} give at least",
+                   enough=math.ceil(high))
+    else:
+        check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{mesh['cells']} cells give")
 
 
 def mesh_dofs(msh: Any, degree: int, components: int) -> int:
@@ -118,8 +183,10 @@ def mesh_dofs(msh: Any, degree: int, components: int) -> int:
     return nodes * components
 
 
-def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: str) -> None:
-    """ConfigError ``<key>: <what> N DoFs, more than solver.max_dofs = M …`` when N > M."""
+def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: str,
+               enough: int | None = None) -> None:
+    """ConfigError ``<key>: <what> N DoFs, more than solver.max_dofs = M …`` when N > M,
+    with the hint of a budget that would admit it (N, or ``enough`` for a lower bound N)."""
     if dofs is None or gdim is None:
         return
     limit = max_dofs(cfg, gdim)
@@ -128,4 +195,4 @@ def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: st
     gib = predicted_memory(dofs, direct_3d(cfg, gdim)) / 2**30
     raise ConfigError(f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (predicted peak memory "
                       f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use a coarser mesh, "
-                      f"or --set solver.max_dofs={dofs} if it fits")
+                      f"or --set solver.max_dofs={enough or dofs} if it fits")

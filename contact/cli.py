@@ -159,12 +159,19 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
 def _output_folder(option: str | None, cfg: dict) -> tuple[Path, str]:
     """The output folder and how it was chosen (for messages): ``-o``, ``output.dir``
     (relative to the current directory), or ``results/<name>``."""
-    if option:
-        return Path(option), f"-o {option}"
+    if option is not None:
+        return _output_option(option), f"-o {option}"
     if cfg["output"]["dir"]:
         return Path(cfg["output"]["dir"]), f"output.dir {cfg['output']['dir']}"
     path = Path("results") / cfg["name"]
     return path, f"output folder {path} (from name {cfg['name']!r})"
+
+
+def _output_option(option: str) -> Path:
+    """The folder of ``-o``; an empty one is bad input (it is no folder, not the default)."""
+    if not option.strip():
+        raise ConfigError("-o: the output folder must not be empty (leave -o out for the default)")
+    return Path(option)
 
 
 def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
@@ -248,8 +255,9 @@ def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from .study import load_study, run_study
 
     study = load_study(args.study, overrides=args.overrides)
-    outdir = Path(args.output) if args.output else Path("results") / "studies" / study.name
-    label = f"-o {args.output}" if args.output else f"output folder {outdir} (from name {study.name!r})"
+    given = args.output is not None
+    outdir = _output_option(args.output) if given else Path("results") / "studies" / study.name
+    label = f"-o {args.output}" if given else f"output folder {outdir} (from name {study.name!r})"
     run_study(study, outdir, comm=comm, verbose=not args.quiet, label=label)
     return failures.SOLVED
 

@@ -46,6 +46,11 @@ class YAMLTooLarge(yaml.YAMLError):
     """A YAML document beyond the limits (aliases expanding too far, nesting too deep)."""
 
 
+class DuplicateKey(yaml.YAMLError):
+    """A mapping of a YAML document that gives one key twice (PyYAML would keep the last
+    one silently); ``str(err)`` names its path: ``duplicate key mesh.cells (lines 3 and 5)``."""
+
+
 def load_yaml(text: str) -> Any:
     """Parse YAML text safely (no Python objects), with Python's float notation.
 
@@ -62,6 +67,7 @@ def load_yaml(text: str) -> Any:
         if node is None:
             return None
         _check_expansion(node, MAX_YAML_NODES)
+        _check_duplicates(node)
         return loader.construct_document(node)
     finally:
         loader.dispose()
@@ -99,6 +105,34 @@ def _check_expansion(root: yaml.Node, limit: int) -> None:
                 raise YAMLTooLarge("the YAML document has a recursive alias (an anchor used inside itself)")
             if id(child) not in size:
                 stack.append((child, False))
+
+
+def _check_duplicates(root: yaml.Node) -> None:
+    """Refuse a mapping that gives a key twice (:class:`DuplicateKey`, naming the key's path
+    ``a.b[2].c``).  Keys are compared as written with their resolved tag (``1`` and ``'1'``
+    differ, as they do for PyYAML); merge keys ``<<`` are YAML's way to take a mapping's
+    keys and override some, not a duplicate.  Each node is visited once (aliases share it)."""
+    seen: set[int] = set()
+    stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    while stack:
+        node, path = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.SequenceNode):
+            stack.extend((child, f"{path}[{i}]") for i, child in enumerate(node.value))
+        elif isinstance(node, yaml.MappingNode):
+            first: dict[tuple[str, str], yaml.Node] = {}
+            for key, value in node.value:
+                if key.tag == "tag:yaml.org,2002:merge" or not isinstance(key, yaml.ScalarNode):
+                    continue
+                name = f"{path}.{key.value}" if path else str(key.value)
+                if (key.tag, key.value) in first:
+                    before = first[key.tag, key.value].start_mark.line + 1
+                    lines = f"lines {before} and {key.start_mark.line + 1}"
+                    raise DuplicateKey(f"duplicate key {name} ({lines}); give each key once")
+                first[key.tag, key.value] = key
+                stack.append((value, name))
 
 
 class ConfigError(ValueError):
@@ -208,6 +242,24 @@ def _petsc_value(v: Any) -> str | None:
     if v is None or isinstance(v, (str, int, float)):  # None: a flag option without value
         return None
     return f"must be a string, number or boolean, got {_typename(v)} {v!r}"
+
+
+#: the longest load path: as many steps as an explicit ``times`` list can have items (a scene
+#: file holds at most MAX_YAML_NODES nodes); every step is at least one Newton solve and a row
+#: of each per-step output, so 10⁵ steps of the smallest mesh already take hours
+MAX_LOAD_STEPS = 100_000
+
+
+def _steps(v: Any) -> str | None:
+    if v <= 0:
+        return f"must be > 0, got {v}"
+    if v > MAX_LOAD_STEPS:
+        return f"must be at most {MAX_LOAD_STEPS} (the longest load path), got {v}"
+    return None
+
+
+def _not_empty(v: str) -> str | None:
+    return None if v.strip() else "must not be empty (leave the key out for results/<name>)"
 
 
 def _times(v: Any) -> str | None:
@@ -386,19 +438,32 @@ SCENE: dict[str, Field] = {
         "fixed_point_max_it": Field("int", 100, check=_positive),
     }),
     "load": Field("dict", None, schema={
-        "steps": Field("int", None, check=_positive, doc="N equal steps t = 1/N, 2/N, ..., 1"),
+        "steps": Field("int", None, check=_steps, doc="N equal steps t = 1/N, 2/N, ..., 1 "
+                                                     "(N ≤ MAX_LOAD_STEPS = 100 000)"),
         "times": Field("list", None, check=_times, doc="the pseudo-times of the steps, increasing, > 0"),
         "adapt": Field("str", "end", choices=("each", "end"),
                        doc="with an adapt section: the adaptive loop at every step, or only at the last"),
     }),
     "output": Field("dict", schema={
-        "dir": Field("str", None),
+        "dir": Field("str", None, check=_not_empty),
         "vtk": Field("bool", True, doc="write the fields as VTK: solution.vtu (one solve) or the "
                                          "series solution.pvd (adaptive levels)"),
         "png": Field("bool", True),
         "verbose": Field("bool", True),
     }),
 }
+
+
+#: the optional sections: ``<section>: none`` (``--set load=none``) switches one off
+OPTIONAL_SECTIONS = tuple(key for key, f in SCENE.items()
+                          if f.default is None and f.kind in ("dict", "list"))
+
+
+def switch_off(data: Mapping) -> dict:
+    """``data`` without the optional sections whose value is the word ``none`` (as if they
+    were not given): ``load: none``, ``friction: none``, ``adapt: none``, …"""
+    return {key: value for key, value in data.items()
+            if not (key in OPTIONAL_SECTIONS and value == "none")}
 
 
 def _typename(v: Any) -> str:
@@ -488,7 +553,7 @@ def read_yaml(path: str | Path) -> dict:
         raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
     except OSError as err:
         raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
-    except YAMLTooLarge as err:
+    except (YAMLTooLarge, DuplicateKey) as err:
         raise ConfigError(f"{p}: {err}") from None
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
@@ -511,6 +576,8 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
             raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE, the key path has an empty part")
         try:
             value = load_yaml(raw)
+        except DuplicateKey as err:
+            raise ConfigError(f"--set {key}: {err}") from None
         except yaml.YAMLError:
             value = raw
         node = data
@@ -538,8 +605,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if isinstance(data.get("output"), Mapping) and "xdmf" in data["output"]:
         raise ConfigError("output.xdmf: XDMF output was replaced by VTK files (solution.vtu, solution.pvd) "
                           "that ParaView and pyvista open; use output.vtk")
-    if data.get("adapt") == "none":  # adapt: none  =  no adaptive loop
-        data = {**data, "adapt": None}
+    data = switch_off(data)   # adapt: none  =  no adaptive loop, load: none  =  one solve, …
     if isinstance(data.get("model"), str):  # short form  model: signorini
         data = {**data, "model": {"type": data["model"]}}
     raw_constants = data.get("constants") or {}
@@ -820,6 +886,25 @@ def _check_elasticity(cfg: dict) -> None:
             raise ConfigError(f"obstacle.{key}: expected a list of numbers, got {vec!r}")
     if obstacle["type"] == "plane" and not any(obstacle["normal"]):
         raise ConfigError("obstacle.normal: must not be the zero vector")
+
+
+#: the sections a solve reads from a built scene's config (:func:`check_sections`)
+SOLVE_SECTIONS = ("model", "bodies", "obstacle", "data", "solver", "friction", "load", "adapt",
+                  "output")
+
+
+def check_sections(cfg: Mapping) -> None:
+    """Validate again the sections of a validated config that a solve reads (a Scene's
+    ``cfg``, which a caller of the Python API may have changed since it was loaded): the
+    same ConfigError naming the key as at load, instead of a failure deep inside the solver
+    (``scene.cfg['friction']['law'] = 'coulom'`` was a bare PETSc "error code 101").
+    Cheap (no mesh, no file): run at the start of every solve."""
+    constants = cfg.get("constants") or {}
+    for key in SOLVE_SECTIONS:
+        if cfg.get(key) is not None:
+            _validate(cfg[key], SCENE[key], key, constants)
+    if cfg.get("friction") is not None:
+        _check_friction(cfg, {})
 
 
 def load_config(source: str | Path | Mapping, overrides: list[str] | tuple[str, ...] = ()) -> dict:

@@ -91,11 +91,11 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     """The scene of a validated config (:func:`contact.config.load_config`): its mesh and
     tagged boundary.  Before the mesh is built: the DoF budget (from the mesh parameters)
     and the PETSc options; after: the declared boundary surfaces."""
-    from .budget import check_dofs, estimate_dofs
+    from .budget import check_parameters
     from .surfaces import boundary_surfaces
 
     gdim = mesh_dimension(cfg)  # None: a gmsh file, known once read
-    check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{cfg['mesh']['cells']} cells give")
+    check_parameters(cfg, gdim)
     if gdim is not None:
         _check_solver(cfg, gdim, comm)
     msh, file_tags, cell_tags = build_mesh(cfg, comm)

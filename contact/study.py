@@ -63,7 +63,7 @@ import numpy as np
 from mpi4py import MPI
 
 from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate, folder_name,
-                     _validate_mapping, apply_overrides, load_config, read_yaml)
+                     _validate_mapping, apply_overrides, load_config, read_yaml, switch_off)
 from .failures import describe, one_line
 from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
@@ -295,7 +295,7 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str, extra: t
             raw = apply_overrides(raw, [item])
         except ConfigError as err:
             raise ConfigError(f"{path}set[{i}]: {str(err).removeprefix('--set ')}") from None
-    raw = apply_overrides(raw, list(extra))
+    raw = switch_off(apply_overrides(raw, list(extra)))   # the runs' own sections see no 'none'
     if isinstance(raw.get("mesh"), dict) and isinstance(raw["mesh"].get("file"), str):
         mesh_file = Path(raw["mesh"]["file"])
         if not mesh_file.is_absolute():

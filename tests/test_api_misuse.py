@@ -108,3 +108,36 @@ def test_scene_and_result_arguments(solved) -> None:
         contact.solve(scene, method="newton")
     with pytest.raises(ConfigError, match=r"^adapt\.theta: must lie in \(0, 1\]"):
         contact.adapt(scene, theta=2.0)
+
+
+# ------------------------------------------------------------------------- issue 26
+def test_solve_validates_a_changed_config_again() -> None:
+    """A Scene's cfg changed after loading is checked like the YAML: a friction law typo was
+    a bare PETSc "error code 101"."""
+    scene = contact.load_scene(ROOT / "configs" / "friction_block_2d.yaml", ["mesh.cells=[8,4]"])
+    for key, value, message in [
+            ("law", "coulom", r"^friction\.law: 'coulom' is not one of none, tresca, coulomb$"),
+            ("law", "tresca", r"^friction\.threshold: required for friction law tresca$"),
+            ("coefficient", -1, r"^friction\.coefficient: must be >= 0, got -1")]:
+        old = scene.cfg["friction"][key]
+        scene.cfg["friction"][key] = value
+        with pytest.raises(ConfigError, match=message) as err:
+            contact.solve(scene, verbose=False)
+        _one_line(err)
+        scene.cfg["friction"][key] = old
+    scene.cfg["model"]["nu"] = 0.5
+    with pytest.raises(ConfigError, match=r"^model\.nu: must lie in \(-1, 0\.5\), got 0\.5"):
+        contact.solve(scene, verbose=False)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -1.0])
+def test_mark_refuses_indicators_that_are_not_finite(solved, bad) -> None:
+    """NaN indicators marked no cell at all (a NaN is never above a threshold)."""
+    _, _, est = solved
+    eta = est.eta_T.copy()
+    eta.x.array[5] = bad
+    for strategy in ("dorfler", "maximum"):
+        with pytest.raises(ValueError, match=r"^eta_T: 1 of 32 indicators are not finite "
+                                             r"numbers >= 0 \(NaN, inf or negative\)") as err:
+            contact.mark(eta, strategy)
+        _one_line(err)

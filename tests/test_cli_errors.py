@@ -154,6 +154,18 @@ CASES = {
                              text="- mesh\n- solver\n"),
     "yaml_empty": Case("{scene}: expected a mapping of sections at the top level, got empty", text=""),
     "yaml_not_utf8": Case("{scene}: not UTF-8 text", text=b"name: \xff\xfe\n"),
+    # issue 26: PyYAML keeps the last of two equal keys silently
+    "yaml_duplicate_key": Case("{scene}: duplicate key name (lines 1 and 3); give each key once",
+                               text="name: a\nmesh: {type: unit_square}\nname: b\n"),
+    "yaml_duplicate_nested_key": Case(
+        "{scene}: duplicate key boundaries.bottom.where (lines 4 and 5)",
+        text="mesh: {type: unit_square}\nboundaries:\n  bottom:\n"
+             "    where: 'y < 0'\n    where: 'y < 1e-10'\n    role: contact\n"),
+    "yaml_duplicate_in_list": Case("{scene}: duplicate key mesh.blocks[1].cells (lines 2 and 2)",
+                                   text="mesh: {type: blocks, blocks: [{cells: 1},\n"
+                                        "  {cells: 2, cells: 3}]}\n"),
+    "set_duplicate_key": Case("--set solver: duplicate key method (lines 1 and 1)",
+                              args=("--set", "solver={method: fb, method: min}")),
     "missing_mesh_file": Case("mesh.file: no such file '{tmp}/nope.msh'", {"mesh.file": "nope.msh"}, base="gmsh"),
     "gmsh_without_file": Case("mesh.file: required for mesh type 'gmsh'", {"mesh.file": DELETE}, base="gmsh"),
     "corrupt_mesh_file": Case("mesh.file: cannot read '{tmp}/garbage.msh' as a gmsh mesh",
@@ -208,6 +220,9 @@ CASES = {
     "set_bad_choice": Case(f"solver.method: 'fbb' is not one of {METHODS}", args=("--set", "solver.method=fbb")),
     "unknown_option": Case("unrecognized arguments: --frobnicate", args=("--frobnicate",)),
     "error_without_output_option": Case("solver.mu: must lie in (0, 1)", {"solver.mu": 5}, output=False),
+    "output_option_empty": Case("-o: the output folder must not be empty", output=False,
+                                args=("-o", "")),
+    "output_dir_empty": Case("output.dir: must not be empty", {"output.dir": " "}, output=False),
 }
 
 

@@ -64,3 +64,38 @@ def test_adapt_none_in_python_is_one_level():
 def test_output_xdmf_is_a_one_line_error_naming_the_replacement():
     with pytest.raises(contact.ConfigError, match=r"^output.xdmf: XDMF output was replaced by VTK files .*use output.vtk$"):
         contact.load_scene(ROOT / "configs" / "signorini_square.yaml", ["output.xdmf=true"])
+
+
+@pytest.mark.parametrize("overrides, steps, friction", [
+    (["load=none"], 1, True),                   # one frictional step at t = 1
+    (["friction=none"], 10, False),             # the scene's 10 steps, frictionless
+    (["load=none", "friction=none"], 0, False),  # one frictionless solve
+])
+def test_set_none_switches_a_section_off(tmp_path, overrides, steps, friction):
+    """``--set load=none`` / ``friction=none`` (any optional section) as ``adapt=none``
+    (issue 26): the run is the scene without that section."""
+    out = tmp_path / "out"
+    items = ["mesh.cells=[8,4]", "output.png=false", *overrides]
+    sets = [arg for item in items for arg in ("--set", item)]
+    proc = _contact("run", ROOT / "configs" / "friction_block_2d.yaml", "-o", out, "-q", *sets)
+    assert proc.returncode == 0, proc.stderr
+    if not steps:
+        assert (out / "solution.vtu").exists() and not (out / "steps.csv").exists()
+        return
+    with open(out / "steps.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == steps and float(rows[-1]["time"]) == 1.0
+    assert ("stick_nodes" in rows[0]) == friction
+
+
+@pytest.mark.parametrize("source, section", [("friction_block_2d.yaml", "load"),
+                                             ("friction_block_2d.yaml", "friction"),
+                                             ("hertz_2d.yaml", "reference"),
+                                             ("hertz_2d.yaml", "adapt")])
+def test_none_in_the_api_and_the_scene_file(source, section):
+    cfg = contact.config.load_config(ROOT / "configs" / source)
+    assert cfg[section] is not None
+    off = contact.config.load_config(ROOT / "configs" / source, [f"{section}=none"])
+    assert off[section] is None
+    raw = contact.config.read_yaml(ROOT / "configs" / source)
+    assert contact.config.validate_scene({**raw, section: "none"})[section] is None

@@ -1,6 +1,7 @@
 """Elastic contact against a rigid plane (issue #4): every method agrees with vinewtonrsls,
 1 and 2 MPI ranks agree, the contact force equals the reaction, GAMG with the rigid-body
 near-nullspace matches the direct solver, and bad elasticity input is a one-line error."""
+import json
 import os
 import subprocess
 import sys
@@ -205,3 +206,28 @@ def test_a_run_imports_only_its_own_model(tmp_path):
     assert proc.returncode == 0, proc.stderr
     lines = [line for line in proc.stdout.splitlines() if line.split()[0] in ("signorini_square", "block_on_plane")]
     assert lines == ["signorini_square 0", "block_on_plane 0 contact.models.elasticity"]
+
+
+# ------------------------------------------------------------------------- issue 26
+def test_tolerances_follow_the_scale_of_the_data(tmp_path):
+    """E = 1e-12 "converged" after 0 iterations with no contact and a force balance error of
+    2e287, exit 0: an absolute atol of 1e-12 was above every force of the scene.  solver.atol
+    is relative to the scene's force scale ‖Φ(x_D)‖ (contact.solvers.solve.force_scale), so
+    scaling E scales the forces and nothing else: the same active set, forces × E."""
+    from clirun import contact as cli
+
+    summaries = {}
+    for E in (1.0, 1e-12, 1e12):
+        out = tmp_path / f"E{E:g}"
+        sets = [f"model.E={E}", "adapt=none", "output.png=false"]
+        proc = cli(tmp_path, "run", str(ROOT / "configs" / "block_on_plane.yaml"), "-o", str(out),
+                   "-q", *(arg for s in sets for arg in ("--set", s)))
+        assert proc.returncode == 0, proc.stderr
+        summaries[E] = json.loads((out / "summary.json").read_text())
+    unit = summaries[1.0]
+    assert unit["newton_iterations"] >= 1 and unit["active_nodes"] > 0
+    for E in (1e-12, 1e12):
+        s = summaries[E]
+        assert s["newton_iterations"] >= 1 and s["active_nodes"] == unit["active_nodes"]
+        assert s["contact_force"] == pytest.approx(E * unit["contact_force"], rel=1e-9)
+        assert s["force_balance_error"] < 1e-9

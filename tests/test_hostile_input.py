@@ -116,3 +116,28 @@ def test_limits_leave_ordinary_expressions_alone() -> None:
                  "sqrt(x)", "log(x - 2)", "+".join(["x"] * 90), "-(-(-x))"]:
         tree = expressions.parse(text)
         assert tree is not None
+
+
+# ------------------------------------------------------------------------- issue 26
+def test_a_billion_load_steps_are_refused_at_once(tmp_path: Path) -> None:
+    """load.steps: 10⁹ built a list of 10⁹ pseudo-times while checking the scene (11.5 GB in
+    60 s); the bound is MAX_LOAD_STEPS, as long as the longest explicit ``times`` list."""
+    small_scene(tmp_path / "scene.yaml", load={"steps": 1_000_000_000})
+    _fails_fast(tmp_path, "run", "scene.yaml", limit=20,
+                expect="load.steps: must be at most 100000 (the longest load path), got 1000000000")
+    assert ct.config.MAX_LOAD_STEPS == 100_000 and ct.config.MAX_YAML_NODES == 100_000
+
+
+@pytest.mark.parametrize("where", ["study", "scene of a study"])
+def test_duplicate_keys_in_study_files(tmp_path: Path, where: str) -> None:
+    """A key given twice (the last one won silently) is one error line naming its path."""
+    scene = small_scene(tmp_path / "scene.yaml")
+    if where == "study":
+        text = "scene: scene.yaml\naxes:\n  method: [fb]\n  method: [min]\n"
+        (tmp_path / "study.yaml").write_text(text)
+        expect = "study.yaml: duplicate key axes.method (lines 3 and 4)"
+    else:
+        scene.write_text(scene.read_text() + "solver: {method: min}\n")
+        (tmp_path / "study.yaml").write_text("scene: scene.yaml\naxes: {line_search: [basic]}\n")
+        expect = f"{scene}: duplicate key solver"
+    _fails_fast(tmp_path, "study", "study.yaml", expect=expect)

@@ -110,3 +110,42 @@ def test_readme_says_how_to_import_dolfinx():
                            capture_output=True, text=True, timeout=120)
     assert bare.returncode != 0 and "libmpi.so.12" in bare.stderr
     assert first.returncode == 0 and first.stdout.startswith("0.11")
+
+
+def _locked() -> dict[str, str]:
+    """constraints.txt as {normalized name: version}."""
+    lines = (ROOT / "constraints.txt").read_text().splitlines()
+    pins = [ln.split("==") for ln in lines if ln and not ln.startswith("#")]
+    assert all(len(p) == 2 for p in pins), "every line of constraints.txt pins one exact version"
+    return {re.sub(r"[-_.]+", "-", name).lower(): version for name, version in pins}
+
+
+def test_lock_pins_every_dependency() -> None:
+    """constraints.txt (what `make venv` installs) pins every dependency of pyproject.toml,
+    the test extra included, and pip."""
+    import tomllib
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    wanted = project["dependencies"] + project["optional-dependencies"]["test"] + ["pip"]
+    names = {re.sub(r"[-_.]+", "-", re.split(r"[<>=!~\[; ]", req, 1)[0]).lower() for req in wanted}
+    assert names - set(_locked()) == set()
+    makefile = (ROOT / "Makefile").read_text()
+    assert "$(VENV)/.installed: pyproject.toml $(LOCK)" in makefile
+    assert "-c $(LOCK) -e '.[test]'" in makefile
+
+
+def test_readme_lists_the_locked_versions() -> None:
+    """README's table of tested versions says what constraints.txt pins (and the lock's
+    header the interpreter and PETSc it was recorded with)."""
+    section = (ROOT / "README.md").read_text().split("### Environment: the tested versions", 1)[1]
+    table = dict(re.findall(r"^\| ([^|]+?) \| (.+?) \|$", section.split("\n\n## ", 1)[0], re.M))
+    locked = _locked()
+    rows = {"DOLFINx": ["dolfinx-solver-real", "fenics-basix", "fenics-ffcx", "fenics-ufl"],
+            "MPICH": ["mpich", "mpi4py"], "numpy": ["numpy"], "gmsh": ["gmsh"],
+            "pyvista": ["pyvista", "vtk"], "matplotlib": ["matplotlib"], "h5py / meshio": ["h5py", "meshio"]}
+    for row, packages in rows.items():
+        for name in packages:
+            assert locked[name] in table[row], f"{row}: README {table[row]!r}, lock {name}=={locked[name]}"
+    header = (ROOT / "constraints.txt").read_text()
+    python, petsc = re.search(r"CPython (\S+) .*PETSc (\S+) ", header).groups()
+    assert f"CPython {python}" in table["Python"] and table["PETSc / petsc4py"].startswith(petsc)

@@ -88,3 +88,58 @@ def test_two_ranks_reject_the_pulling_load_and_solve_the_pushing_one(tmp_path: P
     assert tie_margin(serial) >= 1e-6   # no node near a tie: the count cannot move with rounding
     assert summary["active_nodes"] == serial.n_active
     assert summary["contact_force"] == pytest.approx(serial.contact_force, rel=1e-9)
+
+
+# ------------------------------------------------------------------------- issue 26
+APART = {   # two blocks 0.1 apart; the upper one, loaded on top, is held by nothing but contact
+    "name": "apart",
+    "mesh": {"type": "blocks", "blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                                          {"corners": [[0, 0.6], [1, 1.1]], "cells": [11, 5]}]},
+    "bodies": {"lower": {"tag": 1, "E": 1.0}, "upper": {"tag": 2, "E": 3.0, "nu": 0.2}},
+    "boundaries": {"top": {"role": "neumann", "where": "y > 1.1 - 1e-10"},
+                   "bottom": {"role": "dirichlet", "where": "y < 1e-10"},
+                   "slave": {"role": "interface", "where": "abs(y - 0.6) < 1e-10",
+                             "body": "upper"},
+                   "master": {"role": "interface", "where": "abs(y - 0.5) < 1e-10",
+                              "body": "lower"}},
+    "pairs": [{"slave": "slave", "master": "master"}],
+    "model": {"type": "elasticity"}, "data": {"t": ["0", "-0.01"]}, "output": {"png": False},
+}
+
+
+@pytest.mark.parametrize("ranks", [0, 2])
+def test_two_bodies_apart_fail_with_the_singular_stiffness_hint(tmp_path: Path, ranks: int) -> None:
+    """Exit 1 after 50 iterations with no word on why: now the line names the body no
+    condition holds and its free rigid motions (x, y and the rotation), on any rank count."""
+    import yaml
+    from clirun import contact as cli, error_lines
+
+    (tmp_path / "apart.yaml").write_text(yaml.safe_dump(APART))
+    proc = cli(tmp_path, "run", "apart.yaml", "-o", "out", "-q", ranks=ranks)
+    assert proc.returncode == 1
+    (line,) = error_lines(proc)
+    assert "(body upper: no dirichlet or symmetry part holds it, 3 rigid motion(s) free: K is " \
+           "singular until contact holds it" in line, line
+    assert not (tmp_path / "out").exists()
+
+
+LAYERS = "bodies={lower: {where: 'y < 0.25', E: 1}, upper: {where: 'y > 0.25', E: 2}}"
+
+
+@pytest.mark.parametrize("source, overrides, floating", [
+    ("hertz_2d.yaml", [], []),
+    ("two_body_hertz_2d.yaml", [], []),
+    ("two_body_patch_2d.yaml", [], [("upper", 1)]),            # held by the symmetry x = 0 only
+    ("two_body_patch_3d.yaml", [], [("upper", 1)]),
+    ("block_on_plane.yaml", ["boundaries.top.role=neumann"], [("", 3)]),
+    # two materials of one mesh share nodes: one rigid unit, held by the clamped top
+    ("block_on_plane.yaml", [LAYERS, "model.E=null"], []),
+    ("block_on_plane.yaml", [LAYERS, "model.E=null", "boundaries.top.role=neumann"],
+     [("lower+upper", 3)]),
+])
+def test_floating_bodies(source: str, overrides: list, floating: list) -> None:
+    """The bodies no Dirichlet or symmetry part holds, and how many rigid motions they keep."""
+    root = Path(__file__).resolve().parents[1] / "configs"
+    scene = contact.load_scene(root / source, [*overrides, "adapt=none", "mesh.cells=[8,4]"]
+                               if source == "block_on_plane.yaml" else overrides)
+    assert build_problem(scene).floating == floating

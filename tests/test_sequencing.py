@@ -22,7 +22,9 @@ def _solve(scene, **opts):
 def test_sequenced_gamg_equals_cold_direct(method):
     """128² square (16,641 DoFs): auto sequences (coarse levels of 32², 64²) and solves the
     reduced system with CG + GAMG; the answer is the cold MUMPS solve's to 1e-8, and the
-    finest mesh needs at most 2 linear solves."""
+    finest mesh needs at most 3 linear solves (fb: polishing the guess, one Newton step and
+    its polishing; 2 while solver.atol was an absolute 1e-12, which the polished guess met
+    at 5e-13, 5e-11 of this scene's force scale: issue 26 made it relative to that scale)."""
     scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[128,128]"])
     cold = _solve(scene, method=method, sequence="off", linear="direct")
     seq = _solve(scene, method=method)
@@ -31,8 +33,9 @@ def test_sequenced_gamg_equals_cold_direct(method):
     assert [lv.dofs for lv in seq.sequence][-2:] == [33 ** 2, 65 ** 2]
     assert all(lv.converged for lv in seq.sequence) and seq.sequence[0].dofs >= COARSEST_DOFS
     # bounds with room: the sequenced guess has the final active set up to a few nodes (1–2
-    # solves), the cold start from u = 0 moves ~100 nodes (≥ 5 solves)
-    assert seq.linear_solves <= 2 < cold.linear_solves
+    # solves, one more to meet the relative atol), the cold start from u = 0 moves ~100
+    # nodes (≥ 5 solves)
+    assert seq.linear_solves <= 3 < cold.linear_solves
     assert np.max(np.abs(seq.u_h.x.array - cold.u_h.x.array)) <= 1e-8
     # work in units of one fine solve: the coarse levels add less than one
     assert seq.weighted_linear_solves < seq.linear_solves + 1.0

@@ -36,6 +36,7 @@ from ..scene import Scene
 from . import mortar
 from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
+from .floating import floating_bodies
 from .problem import Constraint, DiscreteProblem, contact_ends, coordinate_scale
 
 
@@ -114,6 +115,8 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
                          basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
                          symmetric_copies=2 ** len(symmetry_axes(scene, X[on_pairs])),
                          near_nullspace=rigid_body_modes(V, inverse=Q_inv),
+                         floating=floating_bodies(V, system.fixed, scene.bodies,
+                                                  list(scene.cfg["bodies"])),
                          assembly_time=time.perf_counter() - t0)
 
 

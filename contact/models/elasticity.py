@@ -29,6 +29,7 @@ from ..checks import check_scene_data
 from ..config import ConfigError
 from ..lifetime import destroy
 from ..scene import Scene
+from .floating import floating_bodies
 from .obstacles import curved_contact, plane_contact
 from .problem import DiscreteProblem, assemble_system
 
@@ -161,6 +162,7 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
     return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact, symmetric_copies=copies,
                            near_nullspace=rigid_body_modes(V, contact.get("basis")),
+                           floating=floating_bodies(V, fixed, None, []),
                            assembly_time=time.perf_counter() - t0)
 
 

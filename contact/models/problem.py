@@ -76,6 +76,7 @@ class DiscreteProblem:
     assembly_time: float = 0.0
     in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
     semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
+    floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
     friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
 

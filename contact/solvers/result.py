@@ -102,6 +102,16 @@ SEMICOERCIVE_HINT = ("no dirichlet boundary: K is singular while no contact node
                      "min or vinewtonrsls step; fb and blend avoid it")
 
 
+def floating_hint(floating: list[tuple[str, int]]) -> str:
+    """The hint of a failed solve with elastic bodies no condition holds
+    (DiscreteProblem.floating, :mod:`contact.models.floating`)."""
+    name, free = floating[0]
+    what = f"body {name}" if name else "the body"
+    what += f" (and {len(floating) - 1} more)" if floating[1:] else ""
+    return (f"{what}: no dirichlet or symmetry part holds it, {free} rigid motion(s) free: K is "
+            "singular until contact holds it (frictionless contact never holds a sliding motion)")
+
+
 def solves_text(newton: int, polish: int) -> str:
     """'n' Newton iterations, or 'n+p' with p active-set polishing solves (tables, charts)."""
     return f"{newton}+{polish}" if polish else str(newton)
@@ -132,7 +142,8 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     timers["total"] = time.perf_counter() - t_start
     timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0)
     converged = reason_code > 0
-    hint = SEMICOERCIVE_HINT if problem.semicoercive and not converged else ""
+    hint = "" if converged else SEMICOERCIVE_HINT if problem.semicoercive else (
+        floating_hint(problem.floating) if problem.floating else "")
     return Result(u_h=u_h, lmbda_h=lmbda, gap=gap, active=active_fn, history=history,
                   converged=converged, reason=REASONS.get(reason_code, str(reason_code)),
                   iterations=snes.getIterationNumber(),

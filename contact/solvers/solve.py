@@ -15,7 +15,7 @@ from dolfinx import fem
 
 from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
-from ..config import ConfigError
+from ..config import ConfigError, check_sections
 from ..lifetime import Owner
 from ..models.problem import interpolate_expression, nodal_scaling
 from ..scene import Scene, require_scene
@@ -50,6 +50,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     (:func:`~contact.solvers.friction.coulomb_fixed_point`).
     """
     require_scene(scene)
+    check_sections(scene.cfg)   # as loaded, or changed since (Python API)
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
     opts = solver_options(scene.cfg, method=method, **options)
@@ -102,6 +103,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
     cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
+    # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
+    atol = opts["atol"] * force_scale(cp, problem, method if method in ncp.METHODS else "fb",
+                                      opts["mu"])
     snes = owner.own(PETSc.SNES().create(comm))
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
@@ -128,7 +132,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         state["dir_norm"] = sol.norm()
 
     snes.getKSP().setPostSolve(post_solve)
-    snes.setTolerances(rtol=opts["rtol"], atol=opts["atol"], stol=0.0, max_it=opts["max_it"])
+    snes.setTolerances(rtol=opts["rtol"], atol=atol, stol=0.0, max_it=opts["max_it"])
     snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
     history: list[dict] = []
     prev = {"x": owner.own(x.duplicate()), "active": None}
@@ -145,7 +149,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
             step = prev["x"].norm() / dn if dn > 0 else 0.0
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
-            done = state.get("stop") or max(opts["atol"], opts["rtol"] * fnorm)
+            done = state.get("stop") or max(atol, opts["rtol"] * fnorm)
             if polisher is not None:
                 polisher.done = done
             if system is not None:
@@ -183,7 +187,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             system.guess = guess and polisher is None
         if polisher is not None and guess:
             # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-            stop = max(opts["atol"], opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
+            stop = max(atol, opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
             polisher.initial(x, stop)
             state["stop"] = stop
             snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
@@ -216,6 +220,23 @@ def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:
     f = x.duplicate()
     cp.phi(x, f, method, mu)
     out = f.norm()
+    f.destroy()
+    return out
+
+
+def force_scale(cp: Complementarity, problem: DiscreteProblem, method: str, mu: float) -> float:
+    """F = ‖Φ(x_D)‖_∞, the largest entry of the residual at the start x_D that holds the
+    Dirichlet values and zero elsewhere: the largest nodal force of the scene's loads,
+    prescribed displacements and gaps (the units of Φ, :mod:`.newton`; the maximum does not
+    overflow where the 2-norm of huge data would).  ``solver.atol`` is relative to it, a
+    tolerance of atol · F on ‖Φ‖, so that a scene may be written in any units: with an
+    absolute 1e-12, E = 1e-12 made ‖Φ_0‖ = 8e-14 "converged" before the first step."""
+    x, f = problem.b.duplicate(), problem.b.duplicate()
+    x.set(0.0)
+    set_dirichlet(x, problem.bcs)
+    cp.phi(x, f, method, mu)
+    out = f.norm(PETSc.NormType.INFINITY)
+    x.destroy()
     f.destroy()
     return out
 
