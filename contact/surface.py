@@ -26,7 +26,10 @@ from .solvers import Result
 
 def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
     """The resultants and zone measures of the module doc (collective); ``table`` is the
-    step's contact table on rank 0 if already gathered (for the stick zones in 2D)."""
+    step's contact table as :func:`contact.contactdata.contact_table` returns it (the table on
+    rank 0, None elsewhere), if already gathered (for the stick zones in 2D).  Whether to
+    gather it is rank 0's decision, broadcast: a collective entered on some ranks only
+    would hang the others."""
     comm, p, fr = scene.comm, result.problem, result.friction
     w, lam_n = fr["w"], fr["lambda_n"]
     normals = p.data["normals"] if "normals" in p.data else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
@@ -48,7 +51,7 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
         out[f"{name}_measure"] = float(total(np.where(mine, w, 0.0))[0])
     out["max_slip"] = comm.allreduce(float(np.max(np.linalg.norm(fr["slip_vec"], axis=1), initial=0.0)), op=MPI.MAX)
     if scene.mesh.geometry.dim == 2:
-        if table is None:
+        if comm.bcast(table is None if comm.rank == 0 else None, root=0):
             table = contact_table(scene, result)
         out.update(comm.bcast(stick_zones(table) if comm.rank == 0 else None, root=0))
     return out
