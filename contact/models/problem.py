@@ -71,6 +71,7 @@ class DiscreteProblem:
     in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
     semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
+    symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies
     friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
