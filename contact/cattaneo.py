@@ -24,6 +24,7 @@ from mpi4py import MPI
 from .comparison import Comparison
 from .hertz import contact_extent, contact_modulus, hertz_values
 from .models.obstacles import first_contact_point
+from .resultants import whole_body
 from .scene import Scene
 from .solvers import Result
 
@@ -56,7 +57,7 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     w, lam_t = fr["w"][on], fr["lambda_t_vec"][on]
     stick = fr["status"][on] == 1
     P = result.contact_force
-    Q = float(np.linalg.norm(comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM))) * p.symmetric_copies
+    Q = float(np.linalg.norm(whole_body(p, comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM))))
     F = float(scene.cfg["friction"]["coefficient"])
     a_H, p0_H = hertz_values(float(ref["radius"]), contact_modulus(scene), P, dim)
     ratio = Q / (F * P)

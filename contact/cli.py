@@ -4,14 +4,16 @@
 Exit codes (:mod:`contact.failures`): 0 solved and written; 1 the solver did not converge
 (an adaptive run keeps its completed levels); 2 bad input (one line on stderr naming the
 key, file or option); 3 internal error (one line; ``--debug`` or ``CONTACT_DEBUG=1`` adds
-the traceback).  Under MPI a failure raised on every rank is reported once by rank 0; a
-failure on some ranks only is reported by each of them and ends the job with
-``MPI_Abort`` and the same exit code (the other ranks would wait forever).
+the traceback); 130 interrupted (Ctrl-C; one line).  Under MPI a failure raised on every
+rank is reported once by rank 0; a failure on some ranks only is reported by each of them
+and ends the job with ``MPI_Abort`` and the same exit code (the other ranks would wait
+forever; the rules are in :mod:`contact.failures`).
 """
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import time
 import traceback
@@ -24,9 +26,6 @@ from mpi4py import MPI
 
 from . import failures
 from .config import ConfigError
-
-AGREE_SECONDS = 5.0  # how long a failing rank waits for the others to fail too (MPI)
-ABORT_GRACE_SECONDS = 0.5  # a failing rank's pause between its line and MPI_Abort (once, the line was lost)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -84,39 +83,54 @@ def main(argv: list[str] | None = None) -> int:
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     try:
-        return _study(args, comm) if args.command == "study" else _run(args, comm)
-    except _Failed:
-        return failures.NOT_CONVERGED
+        code = _study(args, comm) if args.command == "study" else _run(args, comm)
+    except _Failed:   # raised on every rank alike, after its message
+        code = failures.NOT_CONVERGED
     except ConfigError as err:
-        return _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
-    except Exception as err:  # noqa: BLE001 - MemoryError, PETSc errors, bugs: one line, exit 3
-        head, tail = "contact: internal error: ", "" if debug else " (rerun with --debug for the traceback)"
-        what = failures.describe(err, failures.MAX_LINE - len(head) - len(tail) - 10)
-        return _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
+        code = _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
+    except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - MemoryError, PETSc errors, bugs: one line, exit 3
+        if failures.interrupted(err):
+            code = _interrupted(comm, agree, debug)
+        else:
+            head, tail = "contact: internal error: ", "" if debug else " (rerun with --debug for the traceback)"
+            what = failures.describe(err, failures.MAX_LINE - len(head) - len(tail) - 10)
+            code = _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
+    if agree is not None:   # every rank is here: a failure that was not agreed on aborted
+        agree.Free()
+    return code
+
+
+def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool) -> int:
+    """Ctrl-C: one line and exit code 130, agreed on like any failure (:func:`_fail`); a
+    second Ctrl-C while the ranks agree is ignored (mpiexec's own handling of a second
+    Ctrl-C still ends the job at once)."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:   # main() called outside the main thread
+        previous = None
+    try:
+        return _fail(comm, agree, failures.INTERRUPTED, "contact: interrupted", debug)
     finally:
-        if agree is not None:
-            agree.Free()
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: bool) -> int:
     """Report a failure in one line (capped, :func:`contact.failures.one_line`) and return
     its exit code.  Under MPI the failing ranks first wait up to AGREE_SECONDS for every
-    rank to fail (a non-blocking barrier on a communicator used for nothing else): then
-    rank 0 alone reports and all return ``code``; otherwise each failing rank reports with
-    its rank and calls MPI_Abort(code), which ends the job with that exit code."""
+    rank to fail (:func:`contact.failures.all_failed`): then they agree on one code and
+    line — an interrupt's if any rank was interrupted, else rank 0's —, rank 0 alone
+    reports and all return that code; otherwise each failing rank reports with its rank
+    and calls MPI_Abort(code), which ends the job with that exit code."""
     if debug:
         traceback.print_exc()
     if agree is None:
         print(failures.one_line(line), file=sys.stderr, flush=True)
         return code
-    request, start = agree.Ibarrier(), time.monotonic()
-    while not request.Test():
-        if time.monotonic() - start > AGREE_SECONDS:
-            line = line.replace("contact:", f"contact (rank {comm.rank}):", 1)
-            print(failures.one_line(line), file=sys.stderr, flush=True)
-            time.sleep(ABORT_GRACE_SECONDS)   # let mpiexec forward the line before it kills the job
-            comm.Abort(code)
-        time.sleep(0.01)
+    if not failures.all_failed(agree):
+        failures.abort(comm, code, line)
+    outcomes = agree.allgather((code, line))   # every rank is in this call now
+    code, line = next((o for o in outcomes if o[0] == failures.INTERRUPTED), outcomes[0])
     if comm.rank == 0:
         print(failures.one_line(line), file=sys.stderr, flush=True)
     return code

@@ -21,7 +21,7 @@ import dolfinx.fem.petsc
 import ufl
 from dolfinx import fem, la
 
-from .resultants import nodal_gap
+from .resultants import nodal_gap, whole_body
 from .scene import Scene
 from .solvers import Result, owned_residual
 
@@ -151,7 +151,8 @@ def pair_bodies(scene: Scene, index: int) -> list[str]:
 
 
 def interface_resultants(scene: Scene, result: Result) -> dict:
-    """The forces of a multi-body solve (collective):
+    """The forces of a multi-body solve, each of the whole bodies when symmetry planes cut
+    them (:func:`contact.resultants.whole_body`; collective):
 
     * ``interface_force_slave`` / ``_master``: Σ over the surfaces' owned nodes of the
       residual a(u_h, v) − L(v) (the force each body's surface needs from the other; the
@@ -199,7 +200,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
             facets = scene.boundary.tags.indices[scene.boundary.tags.values == scene.boundary.ids[name]]
             dofs = fem.locate_dofs_topological(V, tdim - 1, facets)
             dofs = dofs[dofs < n_owned]
-            reactions[name] = comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM).tolist()
+            reactions[name] = whole_body(p, comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM))
 
     con = p.constraint
     slaves, rigid = slice(0, p.data["pair_nodes"]), slice(p.data["pair_nodes"], None)
@@ -207,14 +208,14 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     gap = nodal_gap(result)
     out = {"contact_force": result.contact_force, "peak_pressure": comm.allreduce(
                float(np.max(pressure[slaves], initial=0.0)), op=MPI.MAX),
-           "interface_force_slave": F_s.tolist(), "interface_force_master": F_m.tolist(),
+           "interface_force_slave": whole_body(p, F_s), "interface_force_master": whole_body(p, F_m),
            "interface_balance_error": abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300),
            "reactions": reactions, "contact_normal": n0.tolist(), "symmetric_copies": p.symmetric_copies,
            "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
            "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)}
     if scene.cfg.get("obstacle"):
-        out["obstacle_force"] = comm.allreduce((con.w[rigid] * -pressure[rigid]) @ p.data["normals"][rigid],
-                                               op=MPI.SUM).tolist()
+        out["obstacle_force"] = whole_body(p, comm.allreduce((con.w[rigid] * -pressure[rigid])
+                                                             @ p.data["normals"][rigid], op=MPI.SUM))
     return out
 
 

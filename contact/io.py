@@ -229,7 +229,9 @@ def _replace(tmp: Path, outdir: Path) -> None:
 
 @contextlib.contextmanager
 def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: str | None = None) -> Iterator[Path]:
-    """Yield a temporary directory that becomes ``outdir`` on success (collective).
+    """Yield a temporary directory that becomes ``outdir`` on success (collective).  On an
+    exception rank 0 deletes it and nothing communicates (the exception may be this rank's
+    alone; :mod:`contact.failures`).
 
     ``outdir`` must pass :func:`output_problem` (else a ConfigError naming ``label``, the
     option that chose it, or the path), at the start and again at the end, before the
@@ -243,25 +245,25 @@ def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: st
         return Path(tempfile.mkdtemp(prefix=_temp_name(target, "partial") + "-", dir=target.parent))
 
     tmp = _on_root(comm, create, label)
-    ok = False
     try:
         yield tmp
-        ok = True
-    finally:
-        ok = comm.allreduce(ok, op=MPI.LAND)
-
-        def commit() -> str | None:  # the target may have changed during the run
-            if problem := output_problem(target):
-                shutil.rmtree(tmp, ignore_errors=True)
-                return problem
-            _write_marker(tmp)
-            _replace(tmp, target)
-            return None
-
-        if ok:
-            _on_root(comm, commit, label)
-        elif comm.rank == 0:
+    except BaseException:
+        if comm.rank == 0:   # local: no collective on the way out of an exception (contact.failures)
             shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    # Every rank finished its part of the folder (pictures are drawn on several ranks).  A
+    # rank that raised never gets here: the others wait until its handler aborts the job.
+    comm.Barrier()
+
+    def commit() -> str | None:  # the target may have changed during the run
+        if problem := output_problem(target):
+            shutil.rmtree(tmp, ignore_errors=True)
+            return problem
+        _write_marker(tmp)
+        _replace(tmp, target)
+        return None
+
+    _on_root(comm, commit, label)
 
 
 def write_json(path: str | Path, data: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD) -> None:

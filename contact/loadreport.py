@@ -95,6 +95,8 @@ class StepWriter:
                 "host": platform.node(), "steps": self.rows}
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
+        if self.scene.cfg["model"]["type"] == "elasticity":   # the forces are of the whole body
+            info["symmetric_copies"] = r.problem.symmetric_copies
         info.update(failure or {})
         if comparison is not None:
             info["reference"] = self.scene.cfg["reference"]["type"]

@@ -533,28 +533,22 @@ def plot_traction(path: str | Path, steps: list[tuple[float, dict]], title: str 
 
 
 def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float = 1.0) -> None:
-    """3D friction: the contact surface seen along the obstacle's normal (the coordinate of
-    least spread dropped), left the pressure −λ_n, right the tangential traction λ_t as arrows
-    coloured by the status (stick / slip), separated nodes grey."""
+    """3D: the contact surface seen along the obstacle's normal (the coordinate of least
+    spread dropped), left the pressure −λ_n, right (with friction) the tangential traction
+    λ_t as arrows coloured by the status (stick / slip), separated nodes grey.  A
+    frictionless table (no λ_t columns) gets the pressure panel alone."""
     plt = _pyplot()
     X = np.c_[table["x"], table["y"], table["z"]]
     keep = [i for i in range(3) if i != int(np.argmin(np.ptp(X, axis=0)))]
     P = X[:, keep]
-    lam_t = np.c_[table["lambda_t_x"], table["lambda_t_y"], table["lambda_t_z"]][:, keep]
-    status = np.asarray(table["status"])
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5.5))
+    friction = "lambda_t_x" in table
+    fig, axes = plt.subplots(1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False)
+    axes = axes[0]
     sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
     fig.colorbar(sc, ax=axes[0], label="pressure −λ_n")
-    axes[0].set_title("contact pressure")
-    scale = float(np.max(np.abs(lam_t), initial=0.0)) / (0.06 * float(np.ptp(P))) or 1.0
-    for name, colour in (("stick", "C0"), ("slip", "C3")):
-        m = status == name
-        axes[1].quiver(P[m, 0], P[m, 1], lam_t[m, 0], lam_t[m, 1], color=colour, label=f"{name} ({m.sum()})",
-                       angles="xy", scale_units="xy", scale=scale)
-    m = status == "separated"
-    axes[1].plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
-    axes[1].set_title(f"tangential traction λ_t at t = {t:g}")
-    axes[1].legend(loc="upper right", fontsize=8)
+    axes[0].set_title("contact pressure" if friction else f"contact pressure at t = {t:g}")
+    if friction:
+        _tangential_arrows(axes[1], P, table, keep, t)
     labels = ["xyz"[i] for i in keep]
     for ax in axes:
         ax.set_aspect("equal")
@@ -564,3 +558,18 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _tangential_arrows(ax, P: np.ndarray, table: dict, keep: list[int], t: float) -> None:
+    """λ_t of a 3D table at the points P (the ``keep`` components) as arrows by status."""
+    lam_t = np.c_[table["lambda_t_x"], table["lambda_t_y"], table["lambda_t_z"]][:, keep]
+    status = np.asarray(table["status"])
+    scale = float(np.max(np.abs(lam_t), initial=0.0)) / (0.06 * float(np.ptp(P))) or 1.0
+    for name, colour in (("stick", "C0"), ("slip", "C3")):
+        m = status == name
+        ax.quiver(P[m, 0], P[m, 1], lam_t[m, 0], lam_t[m, 1], color=colour, label=f"{name} ({m.sum()})",
+                  angles="xy", scale_units="xy", scale=scale)
+    m = status == "separated"
+    ax.plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
+    ax.set_title(f"tangential traction λ_t at t = {t:g}")
+    ax.legend(loc="upper right", fontsize=8)

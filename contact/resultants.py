@@ -7,6 +7,13 @@
   its DoFs, times m — equal to F at equilibrium (``force_balance_error`` = |R − F| / F);
 * peak pressure max_i p_i and the smallest gap min_i (g_i − u_i·n_i) (≥ 0: no penetration).
 
+**Every force is of the whole body** (:func:`whole_body`): when symmetry planes cut the
+body, the modelled part stands for m = 2^(number of planes) mirror images, so a force's
+components along the planes are m times the modelled part's, and its component normal to a
+plane is 0 (it cancels between mirror images).  The normal ``n`` lies in the planes, so the
+scalar forces along n are m times the modelled part's.  Measures (``active_measure``, the
+stick / slip measures) and node counts stay those of the modelled part.
+
 Units: forces per unit thickness (N/m) in 2D plane strain, forces (N) in 3D; pressures in
 the unit of E.  Reference solutions (Hertz, ...) are compared in :mod:`contact.reference`.
 """
@@ -22,21 +29,30 @@ from .scene import Scene
 from .solvers import Result, owned_residual
 
 
-def reaction_force(result: Result, k: int) -> float:
-    """Component k of the reaction on the Dirichlet boundary, summed over all ranks and
-    multiplied by the symmetric copies (collective).  The Dirichlet DoFs are those of the
-    condition on u (a multi-body problem's ``u_bcs``; its ``bcs`` act on the unknowns
-    x = Q⁻¹u, symmetry and slave axes included)."""
+def whole_body(problem, force) -> list[float]:
+    """A force of the modelled part (a vector summed over all ranks) as the force on the whole
+    body its symmetric copies stand for (module doc): component k is 0 for each symmetry
+    plane x_k = c, m times the modelled part's otherwise (m = ``symmetric_copies``)."""
+    out = problem.symmetric_copies * np.asarray(force, dtype=float)
+    out[list(problem.symmetry_axes)] = 0.0
+    return out.tolist()
+
+
+def reaction_force(result: Result) -> list[float]:
+    """The reaction of the Dirichlet boundary (the force the supports exert on the body or
+    bodies), per component, of the whole body (:func:`whole_body`; collective): Σ over the
+    Dirichlet DoFs of the residual a(u_h, v) − L(v), in the displacement's own components
+    (with contact pairs the solver's unknowns are rotated; the reaction is not)."""
     p = result.problem
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     bs = p.V.dofmap.index_map_bs
     n_owned = p.V.dofmap.index_map.size_local * bs
-    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]
-    dofs = dofs[(dofs < n_owned) & (dofs % bs == k)]
-    local = float(np.sum(full.array_r[dofs]))
+    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]   # the Dirichlet condition on u
+    dofs = dofs[dofs < n_owned]
+    local = np.bincount(dofs % bs, weights=full.array_r[dofs], minlength=bs)
     full.destroy()
-    return p.symmetric_copies * p.V.mesh.comm.allreduce(local, op=MPI.SUM)
+    return whole_body(p, p.V.mesh.comm.allreduce(local, op=MPI.SUM))
 
 
 def nodal_gap(result: Result) -> np.ndarray:
@@ -55,7 +71,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     comm = scene.comm
     p = result.problem
     n = np.asarray(p.data["n"])                       # contact normal at the first point of contact
-    reaction = abs(reaction_force(result, int(np.argmax(np.abs(n)))))
+    reaction = abs(reaction_force(result)[int(np.argmax(np.abs(n)))])
     force = result.contact_force
     pressure = p.pressure(owned_residual(result))
     return {"contact_force": force, "reaction_force": reaction,

@@ -64,7 +64,7 @@ from mpi4py import MPI
 
 from .config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename, _validate, folder_name,
                      _validate_mapping, apply_overrides, load_config, read_yaml, switch_off)
-from .failures import describe, one_line
+from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 from .solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -449,8 +449,10 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     for a single solve the final η / error evaluation is not included.  A level row's
     ``seconds`` is the time from the start of the run to the end of that level.  The first
     run of a study also pays for any JIT compilation not yet in the FFCx cache (use
-    ``repeat: 2``).  Under MPI a failure is caught on every rank alike as long as it is
-    collective (bad options, divergence, an error raised by all ranks)."""
+    ``repeat: 2``).  Under MPI an exception raised on every rank (bad options, an error
+    raised by all ranks) is a failed row; one raised on some ranks only ends the job
+    (:func:`contact.failures.abort`, exit code 3) after :data:`~contact.failures.AGREE_SECONDS`,
+    since the other ranks wait in a collective; Ctrl-C is raised on (:mod:`contact.failures`)."""
     from .adapt import adapt
     from .errors import solution_error
     from .estimate import estimate
@@ -462,6 +464,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
                            "polish_solves": "", "polish_solves_total": "", "linear_solver": "",
                            "krylov_iterations": "", "converged": False, "reason": "", **_empty_figures(study)}
     levels: list[dict[str, Any]] = []
+    agree = comm.Dup() if comm.size > 1 else None   # only for agreeing on a failure
     comm.barrier()
     t0 = time.perf_counter()
     failure = ""
@@ -516,9 +519,15 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
                 failure = f"{res.stop}, last |Phi| = {res.levels[-1].result.residual:.3e}"
             out["stop"] = res.stop
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
+        if interrupted(err):
+            raise
         seconds = time.perf_counter() - t0
         out["converged"] = False
         failure = str(err) if isinstance(err, ConfigError) else describe(err)
+        if not all_failed(agree):   # this rank's alone: the others wait in a collective
+            abort(comm, INTERNAL, f"contact: internal error: study run {_label(params)}: {failure}")
+    if agree is not None:   # every rank is here
+        agree.Free()
         if study.adaptive_possible:
             out.setdefault("stop", "")
     out["outcome"] = "error" if failure and not out["reason"] else outcome(out)

@@ -3,14 +3,14 @@ the VTK output.  The per-node friction columns of ``contact.csv`` (λ_t,i, s_t,i
 status, the weight w_i = ∫_{Γ_C} φ_i of contact node i: a length in 2D, an area in 3D) are
 :func:`contact.contactdata.friction_columns`.
 
-Resultants (of the modelled part: symmetric copies are not added, since tangential
-components across a symmetry plane cancel between copies): the normal force Σ w_i λ_n,i,
+Resultants (of the whole body when symmetry planes cut it: :func:`contact.resultants.whole_body`,
+m times the modelled part's along the planes, 0 across them): the normal force m Σ w_i λ_n,i,
 the tangential force Σ w_i λ_t,i (vector), the contact force on the body Σ w_i (λ_n,i n_i +
 λ_t,i) (vector; with no body or Neumann load it balances the Dirichlet reaction), the
 Dirichlet reaction per component (:func:`contact.resultants.reaction_force`: the force the
-support exerts on the body), |F_t| / |F_n|, and the node counts and measures Σ w_i of the
-stick, slip and separated sets; in 2D also the number of stick zones (maximal runs of stick
-nodes along Γ_C) and their extent in s.
+supports exert on the body or bodies), |F_t| / |F_n|, and the node counts and measures
+Σ w_i of the stick, slip and separated sets (of the modelled part); in 2D also the number
+of stick zones (maximal runs of stick nodes along Γ_C) and their extent in s.
 """
 from __future__ import annotations
 
@@ -20,13 +20,16 @@ from mpi4py import MPI
 from dolfinx import fem
 
 from .contactdata import STATUS, Table, contact_table
-from .resultants import reaction_force
+from .resultants import reaction_force, whole_body
 from .scene import Scene
 from .solvers import Result
 
 def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
     """The resultants and zone measures of the module doc (collective); ``table`` is the
-    step's contact table on rank 0 if already gathered (for the stick zones in 2D)."""
+    step's contact table as :func:`contact.contactdata.contact_table` returns it (the table on
+    rank 0, None elsewhere), if already gathered (for the stick zones in 2D).  Whether to
+    gather it is rank 0's decision, broadcast: a collective entered on some ranks only
+    would hang the others."""
     comm, p, fr = scene.comm, result.problem, result.friction
     w, lam_n = fr["w"], fr["lambda_n"]
     normals = p.data["normals"] if "normals" in p.data else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
@@ -36,11 +39,10 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
         return comm.allreduce((values[:, None] if values.ndim == 1 else values).sum(axis=0), op=MPI.SUM)
 
     tangential = w[:, None] * fr["lambda_t_vec"]
-    out = {"normal_force": float(total(w * lam_n)[0]),
-           "tangential_force": total(tangential).tolist(),
-           "contact_force": total(w[:, None] * lam_n[:, None] * normals + tangential).tolist(),
-           "reaction_force": [reaction_force(result, k) / p.symmetric_copies
-                              for k in range(scene.mesh.geometry.dim)]}
+    out = {"normal_force": p.symmetric_copies * float(total(w * lam_n)[0]),
+           "tangential_force": whole_body(p, total(tangential)),
+           "contact_force": whole_body(p, total(w[:, None] * lam_n[:, None] * normals + tangential)),
+           "reaction_force": reaction_force(result)}
     out["friction_ratio"] = float(np.linalg.norm(out["tangential_force"]) / max(abs(out["normal_force"]), 1e-300))
     for code, name in enumerate(STATUS):
         mine = fr["status"] == code
@@ -48,7 +50,7 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
         out[f"{name}_measure"] = float(total(np.where(mine, w, 0.0))[0])
     out["max_slip"] = comm.allreduce(float(np.max(np.linalg.norm(fr["slip_vec"], axis=1), initial=0.0)), op=MPI.MAX)
     if scene.mesh.geometry.dim == 2:
-        if table is None:
+        if comm.bcast(table is None if comm.rank == 0 else None, root=0):
             table = contact_table(scene, result)
         out.update(comm.bcast(stick_zones(table) if comm.rank == 0 else None, root=0))
     return out

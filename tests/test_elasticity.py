@@ -231,3 +231,22 @@ def test_tolerances_follow_the_scale_of_the_data(tmp_path):
         assert s["newton_iterations"] >= 1 and s["active_nodes"] == unit["active_nodes"]
         assert s["contact_force"] == pytest.approx(E * unit["contact_force"], rel=1e-9)
         assert s["force_balance_error"] < 1e-9
+
+
+def test_first_contact_point_breaks_ties_by_coordinates():
+    """Several nodes at the smallest initial gap (a flat face on a plane, a patch test): the
+    origin of contact.csv's r, θ is the first of them in coordinate order, whatever the order
+    of the rows — which is the partition's, so the same origin on any number of ranks (issue
+    26: the first in row order was taken before).  Gaps within round-off are a tie."""
+    import itertools
+
+    from mpi4py import MPI
+
+    from contact.models.obstacles import first_contact_point, first_contact_row
+
+    X = np.array([[0.5, 0.2, 0.0], [0.1, 0.9, 0.0], [0.1, 0.3, 0.0], [0.0, 0.0, 1.0]])
+    gap = np.array([0.0, 1e-13, 0.0, 0.5])
+    for order in map(list, itertools.permutations(range(4))):
+        assert first_contact_point(MPI.COMM_SELF, X[order], gap[order]).tolist() == [0.1, 0.3, 0.0]
+        assert first_contact_row(MPI.COMM_SELF, X[order], gap[order], np.arange(4)[order]) == 2
+    assert first_contact_point(MPI.COMM_SELF, X, np.array([0.3, 0.2, 0.1, 0.0])).tolist() == [0.0, 0.0, 1.0]

@@ -185,8 +185,9 @@ def test_readme_documents_the_exit_codes() -> None:
 
     text = (ROOT / "README.md").read_text()
     rows = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ") and
-            line.split("|")[1].strip() in ("0", "1", "2", "3")}
-    assert set(rows) == {"0", "1", "2", "3"}
+            line.split("|")[1].strip() in ("0", "1", "2", "3", "130")}
+    assert set(rows) == {"0", "1", "2", "3", "130"}
     assert "solved" in rows[str(failures.SOLVED)] and "did not converge" in rows[str(failures.NOT_CONVERGED)]
     assert "bad input" in rows[str(failures.BAD_INPUT)] and "internal error" in rows[str(failures.INTERNAL)]
+    assert "interrupted (Ctrl-C" in rows[str(failures.INTERRUPTED)]
     assert "--debug" in text and "CONTACT_DEBUG=1" in text

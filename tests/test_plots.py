@@ -150,3 +150,17 @@ def test_pictures_are_drawn_in_turn_by_every_rank(tmp_path, draw_ranks, drawn_by
     assert [f[0] for f in files] == drawn_by
     assert all(f[1] == 81 and f[2] < 1e-12 for f in files[:3]), files
     assert files[3][1] is None
+
+
+def test_traction_map_of_a_frictionless_3d_load_path(tmp_path):
+    """A 3D load path without friction (``--set friction.law=none``) has no λ_t columns: its
+    traction.png is the pressure map alone (issue 26: KeyError 'lambda_t_x', exit 3)."""
+    import matplotlib.image
+
+    x, y = np.meshgrid(np.linspace(-0.5, 0.5, 5), np.linspace(-0.5, 0.5, 5))
+    table = {"x": x.ravel(), "y": y.ravel(), "z": np.zeros(25), "r": np.hypot(x, y).ravel(),
+             "lambda_n": -(1.0 - x**2 - y**2).ravel()}
+    path = tmp_path / "traction.png"
+    plots.plot_traction(path, [(0.5, table), (1.0, table)], title="frictionless")
+    height, width = matplotlib.image.imread(path).shape[:2]
+    assert width < 1.3 * height   # one panel, not the two of a frictional map

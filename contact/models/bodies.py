@@ -105,6 +105,7 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     pair_nodes = int(offsets[-1])      # the first pair_nodes constrained nodes are slave nodes
     X = V.tabulate_dof_coordinates()[nodes, : scene.mesh.geometry.dim]
     on_pairs = slice(0, pair_nodes) if couplings else slice(None)
+    mirrors = tuple(sorted(symmetry_axes(scene, X[on_pairs])))
     data = {**system.data, **(rigid.data if rigid is not None else {}),
             "reaction_form": reaction_form(system, u_h), "u_bcs": system.bcs,
             "body": body, "couplings": couplings, "normals": normals, "frames": frames, "pair_nodes": pair_nodes,
@@ -113,7 +114,7 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     return BodiesProblem(V, u_h, bcs, Kt, bt, con, data=data, end_dofs=end_dofs, end_neighbours=end_neighbours,
                          output_space=S, output_map=s_to_v, output_bound=bound, lambda_sign=1.0,
                          basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
-                         symmetric_copies=2 ** len(symmetry_axes(scene, X[on_pairs])),
+                         symmetric_copies=2 ** len(mirrors), symmetry_axes=mirrors,
                          near_nullspace=rigid_body_modes(V, inverse=Q_inv),
                          floating=floating_bodies(V, system.fixed, scene.bodies,
                                                   list(scene.cfg["bodies"])),
@@ -136,10 +137,12 @@ class BodiesProblem(DiscreteProblem):
 
 
 def first_contact_normal(comm: MPI.Comm, X: np.ndarray, gap: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """The contact normal of the node with the smallest initial gap, over all ranks (the
-    same on every rank)."""
-    local = (float(gap.min()), normals[np.argmin(gap)].tolist()) if len(gap) else (np.inf, None)
-    return np.asarray(min(comm.allgather(local), key=lambda t: t[0])[1])
+    """The contact normal at the first point of contact (the node with the smallest initial
+    gap, ties broken by coordinates: :func:`~contact.models.obstacles.first_contact_point`),
+    the same on every rank."""
+    from .obstacles import first_contact_row
+
+    return first_contact_row(comm, X, gap, normals)
 
 
 def symmetry_axes(scene: Scene, X: np.ndarray) -> set[int]:

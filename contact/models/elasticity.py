@@ -93,6 +93,7 @@ class ElasticSystem:
     b: PETSc.Vec
     fixed: np.ndarray   # local DoFs with a Dirichlet or symmetry condition
     data: dict          # f, t, ds, mu, lmbda_L, exact (None) and the reaction form
+    symmetry_axes: tuple[int, ...] = ()   # k of each symmetry part's plane x_k = const
 
 
 def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
@@ -124,16 +125,17 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
     u_D = fem.Function(V)
     u_D.interpolate(_vector_numpy(data["u_D"], scene))
     bcs = [fem.dirichletbc(u_D, fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet")))]
+    axes = []
     for name, role in bnd.roles.items():
         if role == "symmetry":
             facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
-            k = _facet_normal_axis(scene, name, facets)
+            axes.append(k := _facet_normal_axis(scene, name, facets))
             dofs = fem.locate_dofs_topological(V.sub(k), tdim - 1, facets)
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
     K, b = assemble_system(a, L, bcs)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
     return ElasticSystem(V, a_ufl, L_ufl, bcs, K, b, fixed,
-                         {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None})
+                         {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None}, tuple(axes))
 
 
 def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
@@ -159,8 +161,8 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     con = contact.pop("constraint")
     u_h = fem.Function(V, name="u_h")
     data = {**system.data, "reaction_form": reaction_form(system, u_h), **contact.pop("data")}
-    copies = 2 ** sum(role == "symmetry" for role in scene.boundary.roles.values())
-    return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact, symmetric_copies=copies,
+    return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact,
+                           symmetric_copies=2 ** len(system.symmetry_axes), symmetry_axes=system.symmetry_axes,
                            near_nullspace=rigid_body_modes(V, contact.get("basis")),
                            floating=floating_bodies(V, fixed, None, []),
                            assembly_time=time.perf_counter() - t0)

@@ -78,6 +78,7 @@ class DiscreteProblem:
     semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
     floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
+    symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies
     friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
 
     def destroy(self) -> None:
