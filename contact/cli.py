@@ -195,7 +195,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
-        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed)
+        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed,
+                              files=write_level.files)
     _say(comm, f"contact: stopped: {result.stop}")
     if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
         _say(comm, format_table(result.rows))

@@ -1,12 +1,14 @@
 """The output folder of one run.
 
-A single solve writes ``solution.vtu`` (u_h, λ_h, gap, active; von Mises for elasticity),
-``summary.json``, ``history.csv``, ``solution.png`` and, for a contact scene,
-``contact.csv`` and ``pressure.png``.  An adaptive run writes the levels as the series
-``solution.pvd`` + ``solution_KKK.vtu`` (time value = level; η_T added as cell data),
-``convergence.csv`` / ``.png``, ``mesh_level_K.png`` and the final level's
-``solution.png``, ``contact.csv`` and ``pressure.png``; its ``history.csv`` lists the Newton
-iterations of every level (column ``level``).
+A single solve writes the fields (u_h, λ_h, gap, active; von Mises for elasticity) in the
+formats of ``output.formats`` (:mod:`contact.fieldfiles`: ``solution.xdmf`` + ``.h5``,
+``solution.vtu``), ``summary.json``, ``history.csv``, ``solution.png`` and, for a contact
+scene, ``contact.csv`` and ``pressure.png``.  An adaptive run writes the levels as the
+series ``solution.xdmf`` over ``solution_KKK.xdmf`` + ``.h5`` and ``solution.pvd`` over
+``solution_KKK.vtu`` (time value = level; η_T added as cell data), ``convergence.csv`` /
+``.png``, ``mesh_level_K.png`` and the final level's ``solution.png``, ``contact.csv`` and
+``pressure.png``; its ``history.csv`` lists the Newton iterations of every level (column
+``level``).
 """
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ from .comparison import Comparison
 from .errors import solution_error
 from .reference import compare
 from .scene import Scene
-from .series import Series, write_vtu
+from .fieldfiles import FieldFiles
 from .solvers import Result
 
 
@@ -177,8 +179,9 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     info = summary(scene, result, wall, res, comparison)
     out_cfg = scene.cfg["output"]
     with io.atomic_folder(outdir, comm) as tmp:
-        if out_cfg["vtk"]:
-            write_vtu(tmp / "solution.vtu", point_fields(result), cell_fields(scene, result))
+        files = FieldFiles(tmp, "solution", out_cfg["formats"], comm)
+        files.write_one(point_fields(result), cell_fields(scene, result))
+        info.update(files.timings())
         io.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg["png"]:
             plot_solution(tmp / "solution.png", scene, result,
@@ -223,25 +226,31 @@ def files_text(names: list[str]) -> str:
     return ", ".join(text)
 
 
-def level_writer(tmp: Path, scene: Scene):
+class LevelWriter:
     """Callback for :func:`contact.adapt.adapt`: level K as step K of the series
-    ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell fields)."""
-    series = Series(tmp, "solution", scene.comm)
+    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell
+    fields); ``files`` keeps the seconds per format."""
 
-    def write(level: Level) -> None:
+    def __init__(self, tmp: Path, scene: Scene):
+        self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
+
+    def __call__(self, level: Level) -> None:
         r = level.result
-        if scene.cfg["output"]["vtk"]:
-            series.write(level.index, point_fields(r), [level.estimate.eta_T, *cell_fields(level.scene, r)],
-                         field_data={"level": level.index, "dofs": r.dofs, "eta": level.estimate.eta})
-    return write
+        self.files.write_step(level.index, point_fields(r), [level.estimate.eta_T, *cell_fields(level.scene, r)],
+                              field_data={"level": level.index, "dofs": r.dofs, "eta": level.estimate.eta})
+
+
+def level_writer(tmp: Path, scene: Scene) -> LevelWriter:
+    return LevelWriter(tmp, scene)
 
 
 def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
-                   failure: dict | None = None) -> dict:
+                   failure: dict | None = None, files: FieldFiles | None = None) -> dict:
     """After the loop: convergence.csv/.png, history.csv of every level, mesh pictures, and
     the final level's summary, solution.png, contact.csv and pressure.png.  ``failure`` (a
     run that failed on the level after the last of ``adaptive``) is added to summary.json:
-    ``converged: false``, ``failed_level``, ``failed_reason``."""
+    ``converged: false``, ``failed_level``, ``failed_reason``; ``files`` (the levels' field
+    files) adds the seconds each format took."""
     comm = scene.comm
     rows = adaptive.rows
     io.write_csv(tmp / "convergence.csv", rows, comm)
@@ -256,7 +265,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
                  "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
                  "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
                  "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
-                 **(failure or {})})
+                 **(files.timings() if files else {}), **(failure or {})})
     io.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
                                        for h in lv.result.history], comm)
     if scene.cfg["output"]["png"]:
