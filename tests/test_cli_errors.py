@@ -272,8 +272,8 @@ def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        [".contact-result", "solution.vtu", "summary.json", "history.csv", "solution.png", "contact.csv",
-         "pressure.png"])
+        [".contact-result", "solution.h5", "solution.vtu", "solution.xdmf", "summary.json", "history.csv",
+         "solution.png", "contact.csv", "pressure.png"])
     assert all((out / name).stat().st_size > 0 for name in ("solution.vtu", "summary.json", "solution.png"))
     # the atomic write leaves no hidden .out.partial-*/.out.old-* sibling behind
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]

@@ -61,6 +61,10 @@ def test_adapt_none_in_python_is_one_level():
     assert contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["adapt=none"]).cfg["adapt"] is None
 
 
-def test_output_xdmf_is_a_one_line_error_naming_the_replacement():
-    with pytest.raises(contact.ConfigError, match=r"^output.xdmf: XDMF output was replaced by VTK files .*use output.vtk$"):
-        contact.load_scene(ROOT / "configs" / "signorini_square.yaml", ["output.xdmf=true"])
+def test_output_xdmf_and_vtk_switch_one_format():
+    """The old refusal of output.xdmf is gone: it and output.vtk add or drop one format."""
+    formats = lambda *sets: contact.load_scene(ROOT / "configs" / "signorini_square.yaml", list(sets)).cfg[  # noqa: E731
+        "output"]["formats"]
+    assert formats() == ["xdmf", "vtk"]
+    assert formats("output.xdmf=true") == ["xdmf", "vtk"] and formats("output.xdmf=false") == ["vtk"]
+    assert formats("output.vtk=false") == ["xdmf"] and formats("output.formats=[]", "output.vtk=true") == ["vtk"]
