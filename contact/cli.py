@@ -123,11 +123,11 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
 
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from . import io, solve
+    from . import io, progress, solve
     from .config import load_config
     from .report import files_text, write_run
     from .scene import build_scene
-    from .solvers.result import not_converged_text
+    from .solvers.result import newton_text, not_converged_text
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
@@ -135,6 +135,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     outdir, label = _output_folder(args.output, cfg)
     io.check_output(outdir, label, comm)  # before meshing and solving
     scene = build_scene(cfg, comm)
+    if scene.cfg["output"]["verbose"]:
+        progress.enable(comm)
     method = scene.cfg["solver"]["method"]
     _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
                f"{comm.size} MPI rank(s)")
@@ -143,8 +145,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if scene.cfg.get("adapt"):
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
-    polished = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
-    _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations{polished}, "
+    _say(comm, f"contact: {result.dofs} DoFs, {newton_text(result)}, "
                f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
     if not result.converged:
         if comm.rank == 0:

@@ -30,7 +30,7 @@ from . import io, plots
 from .contactdata import Table, contact_table, tangent_2d, write_table
 from .estimate import estimate
 from .reference import compare
-from .report import _finish, cell_fields, plot_solution, point_fields, write_contact
+from .report import _finish, cell_fields, plot_solution, point_fields, warn_coarse_zone, write_contact
 from .scene import Scene
 from .fieldfiles import FieldFiles
 from .loadpath import LoadPath, Step
@@ -85,6 +85,8 @@ class StepWriter:
         if self.levels:
             io.write_csv(tmp / "convergence.csv", self.levels, comm)
         comparison = compare(last.scene, r)
+        if failure is None:   # a failed run's last line is its error
+            warn_coarse_zone(last.scene, r)
         write_contact(tmp, last.scene, r, comparison)
         friction = (self.scene.cfg.get("friction") or {}).get("law", "none")
         its = [s["newton_iterations"] for s in self.rows]

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import platform
 import re
+import warnings
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -63,6 +64,35 @@ def active_measure(result: Result) -> float:
     return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
+NODES_ACROSS = 5   # fewer active nodes across the contact zone than this: a warning
+
+
+def nodes_across(result: Result) -> float:
+    """About how many nodes span the contact zone, from the n active nodes (× the symmetric
+    copies the modelled part stands for): n when the zone is a curve (2D, on Γ_C), the
+    diameter 2 √(n/π) of a disc of n nodes when it is a surface (3D on Γ_C, a 2D obstacle),
+    (6n/π)^(1/3) for a volume (a 3D obstacle)."""
+    p = result.problem
+    n = result.n_active * p.symmetric_copies
+    dim = p.V.mesh.topology.dim - (0 if p.in_domain else 1)
+    return float({1: n, 2: 2 * np.sqrt(n / np.pi), 3: np.cbrt(6 * n / np.pi)}.get(dim, n))
+
+
+def warn_coarse_zone(scene: Scene, result: Result) -> None:
+    """A one-line ContactWarning (rank 0) when the contact zone holds some but fewer than
+    NODES_ACROSS nodes across: the pressure, and the forces and ratios from it, are then
+    a mesh artefact (one node in contact can carry a sideways force of 10 % of the normal
+    force)."""
+    across = nodes_across(result)
+    if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
+        from .surfaces import ContactWarning
+
+        warnings.warn(f"the contact zone holds {result.n_active} active node(s), about {across:.1f} across: too "
+                      f"few to resolve the contact pressure and the forces from it; refine the contact zone "
+                      f"(mesh cells or h_contact, an adapt section) to {NODES_ACROSS} or more nodes across",
+                      ContactWarning, stacklevel=2)
+
+
 def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
             comparison: Comparison | None = None, error: float | None = None) -> dict[str, Any]:
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
@@ -81,8 +111,11 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "mpi_ranks": comm.size,
         "converged": result.converged,
         "reason": result.reason,
-        "newton_iterations": result.iterations,
+        "newton_iterations": result.iterations,        # on the final mesh
         "polish_solves": result.polish_solves,
+        "newton_iterations_coarse": result.coarse_iterations,   # grid sequencing's coarse levels
+        "polish_solves_coarse": sum(lv.polish_solves for lv in result.sequence),
+        "coarse_levels": len(result.sequence),
         "linear_solves": result.linear_solves,
         "final_residual": result.residual,
         "linear_solver": result.linear,
@@ -177,6 +210,7 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     res = resultants(scene, result)
     comparison = compare(scene, result)
     info = summary(scene, result, wall, res, comparison)
+    warn_coarse_zone(scene, result)
     out_cfg = scene.cfg["output"]
     with io.atomic_folder(outdir, comm) as tmp:
         files = FieldFiles(tmp, "solution", out_cfg["formats"], comm)
@@ -258,6 +292,8 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     res = resultants(last.scene, last.result)
     comparison = compare(last.scene, last.result)
     info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
+    if failure is None:   # a failed run's last line is its error
+        warn_coarse_zone(last.scene, last.result)
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
                  "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
                  "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],

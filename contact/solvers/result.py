@@ -56,6 +56,12 @@ class Result:
         return self.iterations + self.polish_solves
 
     @property
+    def coarse_iterations(self) -> int:
+        """Newton iterations on the coarse levels of grid sequencing (0 without): the work
+        that let the final mesh's Newton (``iterations``) start from a near solution."""
+        return sum(lv.newton_iterations for lv in self.sequence)
+
+    @property
     def coarse_linear_solves(self) -> int:
         """Linear solves (Newton steps + polishing) on the coarse levels of grid sequencing."""
         return sum(lv.linear_solves for lv in self.sequence)
@@ -82,6 +88,20 @@ def not_converged_text(result: Result) -> str:
 #: the hint of a failed solve on a semi-coercive scene (DiscreteProblem.semicoercive)
 SEMICOERCIVE_HINT = ("no dirichlet boundary: K is singular while no contact node is active, as in a cold "
                      "min or vinewtonrsls step; fb and blend avoid it")
+
+
+def newton_text(result: Result) -> str:
+    """The Newton iterations of a solve for one line: '5 Newton iterations (+1 polishing)',
+    and after grid sequencing the final mesh's beside the coarse levels' total: '0 Newton
+    iterations (+1 polishing) on the final mesh, 14 (+2) on 3 coarser meshes'."""
+    polish = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
+    text = f"{result.iterations} Newton iterations{polish}"
+    if not result.sequence:
+        return text
+    coarse_polish = sum(lv.polish_solves for lv in result.sequence)
+    n = len(result.sequence)
+    return (f"{text} on the final mesh, {result.coarse_iterations}" + (f" (+{coarse_polish})" if coarse_polish else "")
+            + f" on {n} coarser mesh{'es' if n > 1 else ''}")
 
 
 def solves_text(newton: int, polish: int) -> str:

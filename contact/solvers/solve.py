@@ -13,6 +13,7 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
+from .. import progress
 from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
 from ..config import ConfigError
@@ -160,8 +161,12 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
                   f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
                   flush=True)
+            progress.heard()
+        else:
+            progress.note(lambda: f"{method} Newton iteration {its}, |Phi| = {fnorm:.3e}")
 
     snes.setMonitor(monitor)
+    progress.watch(system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(), f"{method} linear solve")
     popts = PETSc.Options()
     for key, val in petsc_opts.items():
         popts[prefix + key] = petsc_value(val)
