@@ -300,7 +300,8 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
                        sequence=None if opts["nested"] else "off")
         seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
-        progress.note(lambda: f"level {index}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
+        progress.note(lambda: f"level {index}: solved ({result.dofs} DoFs), "
+                              f"{seconds['solve']:.0f} s; estimating")
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] = time.perf_counter() - t0

@@ -30,32 +30,33 @@ class FieldFiles:
     for one solve, :meth:`write_step` for step after step of a series (time value t: the
     level, the load step's pseudo-time)."""
 
-    def __init__(self, folder: str | Path, name: str, formats: Sequence[str], comm: MPI.Comm = MPI.COMM_WORLD):
+    def __init__(self, folder: str | Path, name: str, formats: Sequence[str],
+                 comm: MPI.Comm = MPI.COMM_WORLD):
         self.folder, self.name, self.comm = Path(folder), name, comm
         self.formats = [f for f in FORMATS if f in formats]
         self.seconds = {f: 0.0 for f in self.formats}
-        self._series = {"xdmf": XdmfSeries(folder, name, comm), "vtk": Series(folder, name, comm)}
+        self._xdmf, self._vtk = XdmfSeries(folder, name, comm), Series(folder, name, comm)
 
-    def write_one(self, point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = ()) -> None:
+    def write_one(self, point_fields: Sequence[fem.Function],
+                  cell_fields: Sequence[fem.Function] = ()) -> None:
         """``<name>.xdmf`` (+ .h5) and ``<name>.vtu``."""
-        writers = {"xdmf": lambda: write_xdmf(self.folder / f"{self.name}.xdmf", point_fields, cell_fields),
-                   "vtk": lambda: write_vtu(self.folder / f"{self.name}.vtu", point_fields, cell_fields)}
-        for f in self.formats:
-            self._timed(f, writers[f])
+        path = (self.folder / self.name).with_suffix
+        self._each({"xdmf": lambda: write_xdmf(path(".xdmf"), point_fields, cell_fields),
+                    "vtk": lambda: write_vtu(path(".vtu"), point_fields, cell_fields)})
 
-    def write_step(self, t: float, point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (),
+    def write_step(self, t: float, point_fields: Sequence[fem.Function],
+                   cell_fields: Sequence[fem.Function] = (),
                    field_data: dict | None = None) -> None:
         """Step ``<name>_KKK`` of the series ``<name>.xdmf`` / ``<name>.pvd`` with time value
         ``t`` (``field_data``: numbers the .vtu carries as VTK field data)."""
-        writers = {"xdmf": lambda: self._series["xdmf"].write(t, point_fields, cell_fields),
-                   "vtk": lambda: self._series["vtk"].write(t, point_fields, cell_fields, field_data)}
-        for f in self.formats:
-            self._timed(f, writers[f])
+        self._each({"xdmf": lambda: self._xdmf.write(t, point_fields, cell_fields),
+                    "vtk": lambda: self._vtk.write(t, point_fields, cell_fields, field_data)})
 
-    def _timed(self, fmt: str, write) -> None:
-        start = time.perf_counter()
-        write()
-        self.seconds[fmt] += time.perf_counter() - start
+    def _each(self, writers: dict) -> None:
+        for fmt in self.formats:
+            start = time.perf_counter()
+            writers[fmt]()
+            self.seconds[fmt] += time.perf_counter() - start
 
     def timings(self) -> dict[str, float]:
         """``{"time_output_xdmf": s, "time_output_vtk": s}`` of the formats written."""

@@ -5,8 +5,8 @@ Per step k (numbered 000, 001, …):
 * ``solution_00k.xdmf`` + ``.h5`` and ``solution_00k.vtu`` in the series ``solution.xdmf``
   and ``solution.pvd`` (the formats of ``output.formats``; time value t_k; each step may
   have its own mesh) — u_h, λ_n (``lambda_h``), the gap, the active set and, with friction,
-  λ_t and the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off Γ_C) and
-  the friction bound ρ; cellwise the von Mises stress (and η_T after an adaptive step);
+  λ_t and the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off
+  Γ_C) and the friction bound ρ; cellwise the von Mises stress (and η_T after an adaptive step);
 * ``contact_step_00k.csv`` — one row per contact node along Γ_C (:mod:`contact.contactdata`
   with its friction columns: s or r, λ_n, λ_t, gap, slip, bound, status).
 
@@ -30,7 +30,8 @@ from . import io, plots
 from .contactdata import Table, contact_table, tangent_2d, write_table
 from .estimate import estimate
 from .reference import compare
-from .report import _finish, cell_fields, plot_solution, point_fields, warn_coarse_zone, write_contact
+from .report import (_finish, cell_fields, plot_solution, point_fields, warn_coarse_zone,
+                     write_contact)
 from .scene import Scene
 from .fieldfiles import FieldFiles
 from .loadpath import LoadPath, Step
@@ -71,8 +72,8 @@ class StepWriter:
             write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
         if self.files.formats:
             nodal = point_fields(r) + (surface_functions(r) if r.friction is not None else [])
-            self.files.write_step(step.time, nodal, [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])],
-                                  field_data={"step": k, "dofs": r.dofs})
+            cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
+            self.files.write_step(step.time, nodal, cells, field_data={"step": k, "dofs": r.dofs})
 
     def finish(self, path: LoadPath, wall: float | None = None, failure: dict | None = None) -> dict[str, Any]:
         """The run's files after the last (converged) step; ``failure`` (``converged:

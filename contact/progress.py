@@ -19,12 +19,14 @@ from petsc4py import PETSc
 
 PERIOD = 5.0   # seconds between two progress lines at least
 
-_state = {"on": False, "last": 0.0, "period": PERIOD}
+_state = {"on": False, "root": False, "last": 0.0, "period": PERIOD}
 
 
 def enable(comm: MPI.Comm, period: float = PERIOD) -> None:
-    """Print progress lines from now on (rank 0 of ``comm``; the other ranks stay silent)."""
-    _state.update(on=comm.rank == 0, last=time.monotonic(), period=period)
+    """Print progress lines from now on (rank 0 of ``comm``; the other ranks stay silent).
+    Call it on every rank: :func:`watch` then sets the same monitors everywhere (a monitor
+    can make PETSc compute a residual norm, a collective)."""
+    _state.update(on=True, root=comm.rank == 0, last=time.monotonic(), period=period)
 
 
 def disable() -> None:
@@ -34,7 +36,7 @@ def disable() -> None:
 def note(text: str | Callable[[], str]) -> bool:
     """Print ``  … text`` if ``PERIOD`` seconds passed since the last line (``text`` may be a
     function, called only then); True if printed."""
-    if not _state["on"]:
+    if not (_state["on"] and _state["root"]):
         return False
     now = time.monotonic()
     if now - _state["last"] < _state["period"]:
@@ -51,14 +53,16 @@ def heard() -> None:
 
 def watch(ksp: PETSc.KSP, label: str) -> None:
     """Report the Krylov iterations of ``ksp``'s solves (``label``: which solve), at most
-    once per ``PERIOD`` seconds: iterations so far, residual norm, seconds in this solve."""
+    once per ``PERIOD`` seconds: iterations so far, residual norm, seconds in this solve
+    (collective: the monitor is set on every rank, only rank 0 prints)."""
     if not _state["on"]:
         return
     start = [time.monotonic()]
 
     def monitor(_ksp, its: int, rnorm: float) -> None:
-        if its == 0:
+        if its == 0:   # a new solve
             start[0] = time.monotonic()
+            return
         note(lambda: f"{label}: {its} Krylov iterations, |r| = {rnorm:.2e}, "
                      f"{time.monotonic() - start[0]:.0f} s in this solve")
 

@@ -87,10 +87,11 @@ def warn_coarse_zone(scene: Scene, result: Result) -> None:
     if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
         from .surfaces import ContactWarning
 
-        warnings.warn(f"the contact zone holds {result.n_active} active node(s), about {across:.1f} across: too "
-                      f"few to resolve the contact pressure and the forces from it; refine the contact zone "
-                      f"(mesh cells or h_contact, an adapt section) to {NODES_ACROSS} or more nodes across",
-                      ContactWarning, stacklevel=2)
+        warnings.warn(f"the contact zone holds {result.n_active} active node(s), about "
+                      f"{across:.1f} across: too few to resolve the contact pressure and the "
+                      "forces from it; refine the contact zone (mesh cells or h_contact, an adapt "
+                      f"section) to {NODES_ACROSS} or more nodes across", ContactWarning,
+                      stacklevel=2)
 
 
 def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
@@ -270,8 +271,10 @@ class LevelWriter:
 
     def __call__(self, level: Level) -> None:
         r = level.result
-        self.files.write_step(level.index, point_fields(r), [level.estimate.eta_T, *cell_fields(level.scene, r)],
-                              field_data={"level": level.index, "dofs": r.dofs, "eta": level.estimate.eta})
+        est = level.estimate
+        cells = [est.eta_T, *cell_fields(level.scene, r)]
+        self.files.write_step(level.index, point_fields(r), cells,
+                              field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta})
 
 
 def level_writer(tmp: Path, scene: Scene) -> LevelWriter:

@@ -79,7 +79,8 @@ def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.
     global_of = np.concatenate([np.arange(n_owned, dtype=np.int64) + imap.local_range[0],
                                 imap.ghosts.astype(np.int64)])
     dofs = W.dofmap.list[:n_cells]
-    connectivity = global_of[dofs[:, np.argsort(cpp.io.perm_vtk(msh.topology.cell_type, dofs.shape[1]))]]
+    vtk_order = np.argsort(cpp.io.perm_vtk(msh.topology.cell_type, dofs.shape[1]))
+    connectivity = global_of[dofs[:, vtk_order]]
     points = {fn.name: _gather_rows(nodal_rows(fn, W), comm, root) for fn in point_fields}
     cells = {fn.name: _gather_rows(cell_rows(fn, n_cells), comm, root) for fn in cell_fields}
     x = _gather_rows(W.tabulate_dof_coordinates()[:n_owned], comm, root)
@@ -108,7 +109,8 @@ def _scalar_space(point_fields: Sequence[fem.Function]) -> fem.FunctionSpace:
     return fem.functionspace(V.mesh, ("Lagrange", _degree(V)))
 
 
-FIRST_ORDER = {"interval": 3, "triangle": 5, "quadrilateral": 9, "tetrahedron": 10, "hexahedron": 12}
+FIRST_ORDER = {"interval": 3, "triangle": 5, "quadrilateral": 9, "tetrahedron": 10,
+               "hexahedron": 12}
 
 
 def _vtk_cell_type(msh, degree: int) -> int:
@@ -127,8 +129,9 @@ def _grid(x: np.ndarray, connectivity: np.ndarray, cell_type: int):
 
     n_cells, per_cell = connectivity.shape
     cells = vtkCellArray()
-    cells.SetData(numpy_to_vtkIdTypeArray(np.arange(0, n_cells * per_cell + 1, per_cell, dtype=np.int64), deep=True),
-                  numpy_to_vtkIdTypeArray(np.ascontiguousarray(connectivity, dtype=np.int64).ravel(), deep=True))
+    offsets = np.arange(0, n_cells * per_cell + 1, per_cell, dtype=np.int64)
+    cells.SetData(numpy_to_vtkIdTypeArray(offsets, deep=True),
+                  numpy_to_vtkIdTypeArray(connectivity.astype(np.int64).ravel(), deep=True))
     grid = pyvista.UnstructuredGrid()
     grid.points = x
     grid.SetCells(numpy_to_vtk(np.full(n_cells, cell_type, dtype=np.uint8), deep=True), cells)
@@ -196,17 +199,20 @@ def save_vtu(path: str | Path, grid) -> None:
             if open_section is not None:
                 lines.append(f"</{open_section}>")
             if section == "PointData":
-                lines.append(f'<Piece NumberOfPoints="{grid.n_points}" NumberOfCells="{grid.n_cells}">')
+                lines.append(f'<Piece NumberOfPoints="{grid.n_points}" '
+                             f'NumberOfCells="{grid.n_cells}">')
             lines.append(f"<{section}>")
             open_section = section
         attrs = {"type": VTK_TYPES[values.dtype.kind, values.dtype.itemsize], "Name": name, **attrs}
         if values.ndim > 1:
             attrs["NumberOfComponents"] = values.shape[1]
         attrs.update(format="appended", offset=offset)
-        lines.append("<DataArray" + "".join(f" {k}={quoteattr(str(v))}" for k, v in attrs.items()) + "/>")
+        pairs = "".join(f" {k}={quoteattr(str(v))}" for k, v in attrs.items())
+        lines.append(f"<DataArray{pairs}/>")
     lines += ["</Cells>", "</Piece>", "</UnstructuredGrid>", '<AppendedData encoding="raw">']
-    head = ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" '
-            'header_type="UInt64">\n<UnstructuredGrid>\n' + "\n".join(lines) + "\n_")
+    head = ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+            'byte_order="LittleEndian" header_type="UInt64">\n<UnstructuredGrid>\n'
+            + "\n".join(lines) + "\n_")
     with open(path, "wb") as fh:
         fh.write(head.encode())
         for _, _, values, _ in reversed(arrays):

@@ -69,6 +69,7 @@ class XdmfSeries:
 
     def __init__(self, folder: str | Path, name: str, comm: MPI.Comm = MPI.COMM_WORLD):
         self.folder, self.name, self.comm = Path(folder), name, comm
+        self.count = 0
         self.steps: list[ET.Element] = []   # rank 0: the grids of the collection
 
     @property
@@ -77,7 +78,7 @@ class XdmfSeries:
 
     def write(self, t: float, point_fields: Sequence[fem.Function],
               cell_fields: Sequence[fem.Function] = ()) -> Path:
-        file = self.folder / f"{self.name}_{len(self.steps):03d}.xdmf"
+        file = self.folder / f"{self.name}_{self.count:03d}.xdmf"
         grid = write_xdmf(file, point_fields, cell_fields)
 
         def collect() -> None:
@@ -85,12 +86,12 @@ class XdmfSeries:
             step.set("Name", self.name)   # one name for every step: one grid in ParaView's list
             step.insert(0, ET.Element("Time", Value=repr(float(t))))
             self.steps.append(step)
-            series = ET.Element("Grid", Name=self.name, GridType="Collection", CollectionType="Temporal")
+            series = ET.Element("Grid", Name=self.name, GridType="Collection",
+                                CollectionType="Temporal")
             series.extend(self.steps)
             _write_document(self.path, series)
         _on_root(self.comm, collect)
-        if self.comm.rank != 0:
-            self.steps.append(ET.Element("Grid"))   # keeps the step count on every rank
+        self.count += 1
         return file
 
 
@@ -180,8 +181,9 @@ def on_output_mesh(point_fields: Sequence[fem.Function], cell_fields: Sequence[f
             new.x.array.reshape(-1, bs)[new.function_space.dofmap.list[:n_cells, 0]] = rows[cell_of]
         return new
 
-    return ([copy_to(fn, ("Lagrange", degree), nodal_rows(fn, W, ghosts=True)) for fn in point_fields],
-            [copy_to(fn, ("DG", 0), cell_rows(fn)) for fn in cell_fields])
+    points = [copy_to(fn, ("Lagrange", degree), nodal_rows(fn, W, ghosts=True))
+              for fn in point_fields]
+    return points, [copy_to(fn, ("DG", 0), cell_rows(fn)) for fn in cell_fields]
 
 
 def lagrange_mesh(W: fem.FunctionSpace) -> tuple[dmesh.Mesh, np.ndarray, np.ndarray]:
@@ -198,14 +200,19 @@ def lagrange_mesh(W: fem.FunctionSpace) -> tuple[dmesh.Mesh, np.ndarray, np.ndar
     global_of = np.concatenate([np.arange(imap.size_local, dtype=np.int64) + imap.local_range[0],
                                 imap.ghosts.astype(np.int64)])
     degree = W.element.basix_element.degree
-    coordinate_element = basix.ufl.element("Lagrange", msh.topology.cell_name(), degree, shape=(gdim,))
-    keep_cells = lambda *_: graph.adjacencylist(np.full(n_cells, comm.rank, dtype=np.int32))._cpp_object  # noqa: E731
-    out = dmesh.create_mesh(comm, global_of[W.dofmap.list[:n_cells]], coordinate_element,
-                            W.tabulate_dof_coordinates()[: imap.size_local, :gdim], partitioner=keep_cells)
+    element = basix.ufl.element("Lagrange", msh.topology.cell_name(), degree, shape=(gdim,))
+
+    def keep_cells(*_):   # every cell stays on its rank
+        return graph.adjacencylist(np.full(n_cells, comm.rank, dtype=np.int32))._cpp_object
+
+    x = W.tabulate_dof_coordinates()[: imap.size_local, :gdim]
+    out = dmesh.create_mesh(comm, global_of[W.dofmap.list[:n_cells]], element, x,
+                            partitioner=keep_cells)
     order = np.argsort(global_of)
     local_of_global = lambda g: order[np.searchsorted(global_of, g, sorter=order)]  # noqa: E731
     Q = fem.functionspace(out, ("Lagrange", degree))
-    node_of = np.empty(Q.dofmap.index_map.size_local + Q.dofmap.index_map.num_ghosts, dtype=np.int64)
+    qmap = Q.dofmap.index_map
+    node_of = np.empty(qmap.size_local + qmap.num_ghosts, dtype=np.int64)
     geometry_nodes = out.geometry.dofmaps[0]
     node_of[Q.dofmap.list] = local_of_global(out.geometry.input_global_indices[geometry_nodes])
     first_cell = comm.exscan(n_cells) or 0

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-# the XDMF 3 content model of a Grid (Xdmf.dtd): Information*, Time*, Grid*, Topology*, Geometry*, Attribute*
+# the XDMF 3 content model of a Grid (Xdmf.dtd):
+# Information*, Time*, Grid*, Topology*, Geometry*, Attribute*
 GRID_CHILDREN = ("Information", "Time", "Grid", "Topology", "Geometry", "Attribute")
 NUMBER_TYPES = {"f": "Float", "i": "Int", "u": "UInt"}
 
@@ -52,18 +53,21 @@ def xdmf_steps(path: Path) -> list[dict]:
         for grid in grids:
             assert grid.tag == "Grid" and grid.get("GridType") == "Uniform"
             tags = [c.tag for c in grid]
-            assert set(tags) <= set(GRID_CHILDREN) and tags == sorted(tags, key=GRID_CHILDREN.index), tags
+            assert set(tags) <= set(GRID_CHILDREN), tags
+            assert tags == sorted(tags, key=GRID_CHILDREN.index), tags
             time = grid.find("Time")
             (topology,), (geometry,) = grid.findall("Topology"), grid.findall("Geometry")
             step = {"time": None if time is None else float(time.get("Value")),
-                    "topology": topology.get("TopologyType"), "cells": read(topology.find("DataItem")),
+                    "topology": topology.get("TopologyType"),
+                    "cells": read(topology.find("DataItem")),
                     "points": read(geometry.find("DataItem")), "point": {}, "cell": {}}
             assert int(topology.get("NumberOfElements")) == len(step["cells"])
             for attribute in grid.findall("Attribute"):
                 values = read(attribute.find("DataItem"))
                 center = {"Node": "point", "Cell": "cell"}[attribute.get("Center")]
                 step[center][attribute.get("Name")] = values
-                assert len(values) == len(step["points" if center == "point" else "cells"]), attribute.get("Name")
+                rows = len(step["points" if center == "point" else "cells"])
+                assert len(values) == rows, attribute.get("Name")
             steps.append(step)
     finally:
         for f in files.values():
@@ -82,14 +86,16 @@ def meshio_steps(path: Path) -> list[dict]:
     root = ET.parse(path).getroot()
     if root.find("Domain/Grid").get("GridType") != "Collection":
         mesh = meshio.read(path)
-        return [{"time": None, "points": mesh.points, "cells": mesh.cells[0].data, "point": dict(mesh.point_data),
-                 "cell": {k: v[0] for k, v in mesh.cell_data.items()}}]
+        cells = {k: v[0] for k, v in mesh.cell_data.items()}
+        return [{"time": None, "points": mesh.points, "cells": mesh.cells[0].data,
+                 "point": dict(mesh.point_data), "cell": cells}]
     out = []
     with meshio.xdmf.TimeSeriesReader(path) as reader:
         points, cells = reader.read_points_cells()
         for k in range(reader.num_steps):
             t, point_data, cell_data = reader.read_data(k)
-            out.append({"time": t, "point": point_data, "cell": {name: v[0] for name, v in cell_data.items()}})
+            cells_k = {name: v[0] for name, v in cell_data.items()}
+            out.append({"time": t, "point": point_data, "cell": cells_k})
         out[0].update(points=points, cells=cells[0].data)
     return out
 
@@ -104,8 +110,10 @@ def read_xdmf(path: Path) -> list[dict]:
         for kind in ("point", "cell"):
             assert set(step[kind]) == set(m[kind])
             for name, values in step[kind].items():
-                assert np.array_equal(np.asarray(m[kind][name]).reshape(values.shape), values, equal_nan=True), name
-    assert np.array_equal(other[0]["points"], steps[0]["points"]) and np.array_equal(other[0]["cells"], steps[0]["cells"])
+                theirs = np.asarray(m[kind][name]).reshape(values.shape)
+                assert np.array_equal(theirs, values, equal_nan=True), name
+    for key in ("points", "cells"):
+        assert np.array_equal(other[0][key], steps[0][key]), key
     return steps
 
 
@@ -118,8 +126,10 @@ def read_vtu(path: Path):
     mesh = meshio.read(path)
     assert np.array_equal(mesh.points, grid.points)
     assert sum(len(block.data) for block in mesh.cells) == grid.n_cells
-    assert np.array_equal(np.concatenate([block.data.ravel() for block in mesh.cells]), grid.cell_connectivity)
-    assert set(mesh.point_data) == set(grid.point_data.keys()) and set(mesh.cell_data) == set(grid.cell_data.keys())
+    connectivity = np.concatenate([block.data.ravel() for block in mesh.cells])
+    assert np.array_equal(connectivity, grid.cell_connectivity)
+    assert set(mesh.point_data) == set(grid.point_data.keys())
+    assert set(mesh.cell_data) == set(grid.cell_data.keys())
     for name, values in mesh.point_data.items():
         assert np.array_equal(values, grid.point_data[name], equal_nan=True), name
     for name, blocks in mesh.cell_data.items():

@@ -66,7 +66,8 @@ def read_folder(out: Path) -> dict:
             content[path.name] = path
         else:
             raise AssertionError(f"unexpected output file {path.name}")
-    assert h5_read == {name for name in content if name.endswith(".h5")}, "every .h5 file is read by an .xdmf file"
+    h5_files = {name for name in content if name.endswith(".h5")}
+    assert h5_read == h5_files, "every .h5 file is read by an .xdmf file"
     return content
 
 
@@ -87,24 +88,28 @@ def check_grid(grid, summary: dict, nodal_dofs: int, vector: int = 1, cell_field
     assert on.sum() == summary["constrained_nodes"] and np.all(gap[on] >= -1e-10)
 
 
-def check_step(step: dict, grid, summary: dict, nodal_dofs: int, vector: int = 1, cell_fields=()) -> None:
+def check_step(step: dict, grid, summary: dict, nodal_dofs: int, vector: int = 1,
+               cell_fields=()) -> None:
     """An XDMF step (:func:`readback.xdmf_steps`) holds one point per node of the solution
     space, every field, and the same values at the same points as the .vtu ``grid``."""
     points = step["points"]
     assert len(points) * vector == summary["dofs"] and len(points) == nodal_dofs
     assert len(step["cells"]) == summary["cells"]
     assert step["point"]["u_h"].shape == (len(points), 3 if vector > 1 else 1)
-    assert set(step["point"]) == set(grid.point_data.keys()) and set(step["cell"]) == set(grid.cell_data.keys())
+    assert set(step["point"]) == set(grid.point_data.keys())
+    assert set(step["cell"]) == set(grid.cell_data.keys())
     assert set(cell_fields) <= set(step["cell"])
     names = sorted(step["point"])
+    rows = lambda values: np.asarray(values).reshape(len(points), -1)  # noqa: E731
     ours = by_position(np.c_[points, np.zeros((len(points), 3 - points.shape[1]))],
-                       *(step["point"][n].reshape(len(points), -1) for n in names))
-    theirs = by_position(np.asarray(grid.points), *(np.asarray(grid.point_data[n]).reshape(len(points), -1) for n in names))
-    assert np.allclose(ours[0], theirs[0], rtol=0, atol=1e-12), "the same points (geometry / DoF coordinates)"
+                       *(rows(step["point"][n]) for n in names))
+    theirs = by_position(np.asarray(grid.points), *(rows(grid.point_data[n]) for n in names))
+    assert np.allclose(ours[0], theirs[0], rtol=0, atol=1e-12), "the same points (geometry, DoFs)"
     for a, b in zip(ours[1:], theirs[1:]):
-        assert np.array_equal(a, b, equal_nan=True), "the XDMF and VTK files hold the same nodal values"
-    for name in step["cell"]:   # cells in one order in both files: compare the sorted values
-        assert np.array_equal(np.sort(step["cell"][name].ravel()), np.sort(np.asarray(grid.cell_data[name])))
+        assert np.array_equal(a, b, equal_nan=True), "the XDMF and VTK files: the same nodal values"
+    for name in step["cell"]:   # compare the sorted cell values
+        sorted_values = np.sort(np.asarray(grid.cell_data[name]))
+        assert np.array_equal(np.sort(step["cell"][name].ravel()), sorted_values), name
 
 
 def check_contact_csv(rows: list[dict], summary: dict, value: str = "lambda") -> None:
@@ -124,8 +129,8 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     out = tmp_path / "run"
     proc = _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[24,20]"], nproc)
     assert proc.returncode == 0, proc.stderr
-    names = ["solution.h5", "solution.vtu", "solution.xdmf", "summary.json", "history.csv", "solution.png",
-             "contact.csv", "pressure.png"]
+    names = ["solution.h5", "solution.vtu", "solution.xdmf", "summary.json", "history.csv",
+             "solution.png", "contact.csv", "pressure.png"]
     assert sorted(p.name for p in out.iterdir()) == sorted(names + [".contact-result"])  # + the marker
     files = read_folder(out)
     summary = files["summary.json"]
@@ -215,7 +220,7 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     assert summary["dofs_per_level"] == [int(r["dofs"]) for r in conv]
     assert set(summary["files"]) == set(files) - {".contact-result"}  # the marker is written last
     wrote = proc.stdout.splitlines()[-1]
-    assert "solution_000…002.vtu" in wrote and "solution_000…002.h5" in wrote and "solution_000…002.xdmf" in wrote
+    assert all(f"solution_000…002.{ext}" in wrote for ext in ("vtu", "h5", "xdmf"))
     assert all(n in wrote for n in summary["files"] if not n.startswith("solution_"))
     headers = [line for line in proc.stdout.splitlines() if line.split()[:2] == ["level", "DoFs"]]
     assert len(headers) == 1, "the level table is printed once"

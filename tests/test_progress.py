@@ -38,7 +38,8 @@ def test_sequenced_solve_reports_final_and_coarse_iterations(tmp_path):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     (coarse,) = summary["sequence"]
-    assert summary["coarse_levels"] == 1 and summary["newton_iterations_coarse"] == coarse["newton_iterations"] > 0
+    assert summary["coarse_levels"] == 1
+    assert summary["newton_iterations_coarse"] == coarse["newton_iterations"] > 0
     assert summary["polish_solves_coarse"] == coarse["polish_solves"]
     line = next(ln for ln in proc.stdout.splitlines() if " DoFs, " in ln)
     polish = f" (+{summary['polish_solves']} polishing)" if summary["polish_solves"] else ""
@@ -89,8 +90,8 @@ PROGRESS_SCRIPT = """
 import contact
 from mpi4py import MPI
 from contact import progress
-scene = contact.load_scene({scene!r}, ["output.verbose=false", "mesh.cells=[40,40]", "solver.linear=gamg",
-                                       "adapt.max_levels=2"])
+scene = contact.load_scene({scene!r}, ["output.verbose=false", "mesh.cells=[40,40]",
+                                       "solver.linear=gamg", "adapt.max_levels=2"])
 progress.enable(MPI.COMM_WORLD, period=0.0)
 contact.adapt(scene, verbose=False)
 """
@@ -101,12 +102,15 @@ def test_progress_lines_come_from_rank_0_only(tmp_path):
     """Under mpirun -n 2 (period 0: every note prints) each progress line appears once:
     the phases of each level and the Krylov iterations of the linear solves."""
     script = tmp_path / "progress.py"
-    script.write_text(PROGRESS_SCRIPT.format(scene=str(ROOT / "configs" / "signorini_free_boundary.yaml")))
-    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script)], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    scene = ROOT / "configs" / "signorini_free_boundary.yaml"
+    script.write_text(PROGRESS_SCRIPT.format(scene=str(scene)))
+    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("  … ")]
-    for phase in ("level 0: assembled", "level 0: solved", "level 0: refining", "level 1: assembled"):
+    phases = ("level 0: assembled", "level 0: solved", "level 0: refining", "level 1: assembled")
+    for phase in phases:
         assert sum(ln.startswith(f"  … {phase}") for ln in lines) == 1, (phase, lines)
     assert any("linear solve: " in ln and " Krylov iterations, |r| = " in ln for ln in lines), lines
     assert any(" Newton iteration " in ln for ln in lines)
@@ -116,15 +120,15 @@ def test_progress_lines_come_from_rank_0_only(tmp_path):
 def test_coarse_contact_zone_warns_once(tmp_path, nproc):
     """8 × 8 cells put 3 nodes of signorini_square in contact: one warning line (once on 2
     ranks), exit 0; 32 × 32 put enough: none."""
-    proc = _run([SQUARE, "-o", tmp_path / "coarse", "-q", "--set", "mesh.cells=[8,8]", "--set", "output.png=false",
-                 "--set", "output.formats=[]"], nproc)
+    quiet = ["-q", "--set", "output.png=false", "--set", "output.formats=[]"]
+    proc = _run([SQUARE, "-o", tmp_path / "coarse", "--set", "mesh.cells=[8,8]", *quiet], nproc)
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert lines == ["contact: warning: the contact zone holds 3 active node(s), about 3.0 across: too few to "
-                     "resolve the contact pressure and the forces from it; refine the contact zone (mesh cells or "
-                     "h_contact, an adapt section) to 5 or more nodes across"], proc.stderr
-    fine = _run([SQUARE, "-o", tmp_path / "fine", "-q", "--set", "mesh.cells=[32,32]", "--set", "output.png=false",
-                 "--set", "output.formats=[]"], nproc)
+    warning = ("contact: warning: the contact zone holds 3 active node(s), about 3.0 across: too "
+               "few to resolve the contact pressure and the forces from it; refine the contact "
+               "zone (mesh cells or h_contact, an adapt section) to 5 or more nodes across")
+    assert lines == [warning], proc.stderr
+    fine = _run([SQUARE, "-o", tmp_path / "fine", "--set", "mesh.cells=[32,32]", *quiet], nproc)
     assert fine.returncode == 0 and not fine.stderr.strip(), fine.stderr
 
 
@@ -137,7 +141,7 @@ class _Problem:
 @pytest.mark.parametrize("tdim,in_domain,copies,n,across", [
     (2, False, 1, 3, 3.0),                       # a curve: the nodes themselves
     (2, False, 2, 3, 6.0),                       # half of a symmetric zone
-    (3, False, 4, 1, 2 * np.sqrt(4 / np.pi)),    # a quarter disc with one node (the block on a sphere)
+    (3, False, 4, 1, 2 * np.sqrt(4 / np.pi)),    # a quarter disc with one node (block on a sphere)
     (2, True, 1, 20, 2 * np.sqrt(20 / np.pi)),   # an obstacle's contact set in 2D: an area
     (3, True, 1, 30, np.cbrt(180 / np.pi)),      # in 3D: a volume
 ])

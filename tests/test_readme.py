@@ -85,7 +85,8 @@ def test_readme_output_tables_match_what_runs_write(results):
     assert single == {p.name for p in (results / "results" / "square").iterdir()}
     adaptive = _table_files(text.split("## Adaptive refinement", 1)[1])
     written = {p.name for p in (results / "results" / "demo").iterdir()}
-    numbered = {n for n in written if re.fullmatch(r"(solution_\d{3}\.(vtu|xdmf|h5)|mesh_level_\d+\.png)", n)}
+    pattern = r"(solution_\d{3}\.(vtu|xdmf|h5)|mesh_level_\d+\.png)"
+    numbered = {n for n in written if re.fullmatch(pattern, n)}
     levels = {f"solution_00{k}.{ext}" for k in (0, 1) for ext in ("vtu", "xdmf", "h5")}
     assert levels <= adaptive & numbered
     assert adaptive - levels - {"mesh_level_K.png"} == written - numbered
@@ -106,7 +107,8 @@ def test_readme_meshio_snippet_loads_the_xdmf(results):
     text = (ROOT / "README.md").read_text()
     code = re.findall(r"```python\n(.*?)```", text.split("## Running a scene", 1)[1], re.S)[1]
     assert "meshio.read(\"results/square/solution.xdmf\")" in code
-    proc = subprocess.run([sys.executable, "-c", code], cwd=results, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", code], cwd=results, capture_output=True, text=True,
+                          timeout=120)
     assert proc.returncode == 0, proc.stderr
     points, shape, _ = proc.stdout.split(" ", 2)
     assert int(points) == 13 * 11 and shape == "(143,"

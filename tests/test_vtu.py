@@ -37,7 +37,8 @@ def test_vtu_reads_back_exactly_with_pyvista_and_meshio(tmp_path):
     mesh = meshio.read(path)
     assert np.array_equal(back.points, grid.points) and np.array_equal(back.cells, grid.cells)
     assert np.array_equal(back.celltypes, grid.celltypes)
-    assert np.array_equal(mesh.points, grid.points) and np.array_equal(mesh.cells_dict["tetra"], cells)
+    assert np.array_equal(mesh.points, grid.points)
+    assert np.array_equal(mesh.cells_dict["tetra"], cells)
     for name in grid.point_data.keys():
         assert np.array_equal(back.point_data[name], grid.point_data[name], equal_nan=True), name
         assert np.array_equal(mesh.point_data[name], grid.point_data[name], equal_nan=True), name

@@ -16,6 +16,8 @@ from readback import by_position, read_vtu, read_xdmf
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
+SQUARE = ROOT / "configs" / "signorini_square.yaml"
+BLOCK = ROOT / "configs" / "friction_block_2d.yaml"
 
 
 def _run(args, nproc=1, cwd=ROOT):
@@ -61,8 +63,8 @@ def test_one_and_two_ranks_write_the_same_fields(tmp_path, scene, sets):
     for name in c1:
         assert np.allclose(c1[name], c2[name], rtol=1e-7), name
     # the .vtu: the same points and values as the serial one too
-    v1 = by_position(np.asarray(grids[1].points), *(np.asarray(grids[1].point_data[n]) for n in names))
-    v2 = by_position(np.asarray(grids[2].points), *(np.asarray(grids[2].point_data[n]) for n in names))
+    v1, v2 = (by_position(np.asarray(g.points), *(np.asarray(g.point_data[n]) for n in names))
+              for g in (grids[1], grids[2]))
     assert np.allclose(v1[0], v2[0], rtol=0, atol=1e-12)
     for name, a, b in zip(names, v1[1:], v2[1:]):
         assert np.allclose(a, b, rtol=0, atol=1e-8 * scale, equal_nan=True), name
@@ -74,17 +76,18 @@ def test_load_steps_are_one_temporal_collection(tmp_path):
     t = 1/3, 2/3, 1, one grid per step with the mesh's node count of every field; each
     step's own file holds that step's grid."""
     out = tmp_path / "steps"
-    proc = _run([ROOT / "configs" / "friction_block_2d.yaml", "-o", out, "-q", "--set", "output.png=false",
-                 "--set", "friction.law=none", "--set", "load.steps=3", "--set", "mesh.cells=[20,5]"], 2)
+    proc = _run([BLOCK, "-o", out, "-q", "--set", "output.png=false", "--set", "friction.law=none",
+                 "--set", "load.steps=3", "--set", "mesh.cells=[20,5]"], 2)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     steps = read_xdmf(out / "solution.xdmf")
     assert [s["time"] for s in steps] == pytest.approx([1 / 3, 2 / 3, 1.0])
-    assert [s["files"] for s in steps][0] == ["solution_000.h5", "solution_001.h5", "solution_002.h5"]
+    assert steps[0]["files"] == ["solution_000.h5", "solution_001.h5", "solution_002.h5"]
     for k, step in enumerate(steps):
         n = len(step["points"])
         assert 2 * n == summary["dofs"] and len(step["cells"]) == 2 * 20 * 5
-        assert {"u_h", "lambda_h", "gap", "active"} <= set(step["point"]) and "von_mises" in step["cell"]
+        assert {"u_h", "lambda_h", "gap", "active"} <= set(step["point"])
+        assert "von_mises" in step["cell"]
         assert step["point"]["u_h"].shape == (n, 3) and np.all(step["point"]["u_h"][:, 2] == 0)
         (alone,) = read_xdmf(out / f"solution_{k:03d}.xdmf")
         assert alone["time"] is None and np.array_equal(alone["point"]["u_h"], step["point"]["u_h"])
@@ -94,12 +97,13 @@ def test_load_steps_are_one_temporal_collection(tmp_path):
     for step in steps:
         t, top = step["time"], step["points"][:, 1] > 0.5 - 1e-10
         expected = [0.04 * max(t - 0.2, 0) / 0.8, -0.01 * min(t / 0.2, 1)]
-        assert top.sum() == 21 and np.allclose(step["point"]["u_h"][top, :2], expected, rtol=0, atol=1e-14)
+        assert top.sum() == 21
+        assert np.allclose(step["point"]["u_h"][top, :2], expected, rtol=0, atol=1e-14)
 
 
 def test_friction_steps_carry_the_friction_fields(tmp_path):
     out = tmp_path / "drag"
-    proc = _run([ROOT / "configs" / "friction_block_2d.yaml", "-o", out, "-q", "--set", "output.png=false",
+    proc = _run([BLOCK, "-o", out, "-q", "--set", "output.png=false",
                  "--set", "load.steps=2", "--set", "mesh.cells=[20,5]"])
     assert proc.returncode == 0, proc.stderr
     steps = read_xdmf(out / "solution.xdmf")
@@ -120,23 +124,22 @@ def test_friction_steps_carry_the_friction_fields(tmp_path):
 ])
 def test_formats_choose_the_field_files(tmp_path, sets, present, absent):
     out = tmp_path / "run"
-    proc = _run([ROOT / "configs" / "signorini_square.yaml", "-o", out, "-q", "--set", "mesh.cells=[6,6]",
+    proc = _run([SQUARE, "-o", out, "-q", "--set", "mesh.cells=[6,6]",
                  "--set", "output.png=false", *(f"--set={s}" for s in sets)])
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
     assert present <= names and not absent & names
     summary = json.loads((out / "summary.json").read_text())
-    assert {k for k in summary if k.startswith("time_output_")} == {
-        f"time_output_{f}" for f in ("xdmf", "vtk") if any(n.endswith({"xdmf": ".xdmf", "vtk": ".vtu"}[f])
-                                                            for n in present)}
+    written = {f for f, ext in (("xdmf", ".xdmf"), ("vtk", ".vtu"))
+               if any(n.endswith(ext) for n in present)}
+    timed = {k for k in summary if k.startswith("time_output_")}
+    assert timed == {f"time_output_{f}" for f in written}
 
 
-@pytest.mark.parametrize("value,message", [
-    ("[pdf]", "output.formats: expected a list of distinct formats from xdmf, vtk, got ['pdf']"),
-    ("[vtk,vtk]", "output.formats: expected a list of distinct formats from xdmf, vtk, got ['vtk', 'vtk']"),
-])
-def test_bad_formats_are_one_line_errors(tmp_path, value, message):
-    proc = _run([ROOT / "configs" / "signorini_square.yaml", "-o", tmp_path / "x", "--set", f"output.formats={value}"])
+@pytest.mark.parametrize("value,got", [("[pdf]", "['pdf']"), ("[vtk,vtk]", "['vtk', 'vtk']")])
+def test_bad_formats_are_one_line_errors(tmp_path, value, got):
+    proc = _run([SQUARE, "-o", tmp_path / "x", "--set", f"output.formats={value}"])
+    message = f"output.formats: expected a list of distinct formats from xdmf, vtk, got {got}"
     assert proc.returncode == 2 and proc.stderr == f"contact: error: {message}\n"
     assert not (tmp_path / "x").exists()
 
@@ -148,6 +151,6 @@ def test_readme_scene_keys_match(tmp_path):
     section = yaml.safe_load(line.split("#")[0])["output"]
     import contact
 
-    cfg = contact.load_scene(ROOT / "configs" / "signorini_square.yaml",
-                             [f"output.{k}={json.dumps(v)}" for k, v in section.items() if k != "dir"]).cfg
+    sets = [f"output.{k}={json.dumps(v)}" for k, v in section.items() if k != "dir"]
+    cfg = contact.load_scene(SQUARE, sets).cfg
     assert cfg["output"]["formats"] == section["formats"]

@@ -20,4 +20,5 @@ from .result import Result, newton_text, owned_residual, solves_text
 from .solve import solve
 
 __all__ = ["DEFAULT_PETSC_OPTIONS", "ELASTICITY_3D_PETSC_OPTIONS", "Result", "default_linear_solver",
-           "method_variant", "newton_text", "owned_residual", "solve", "solver_options", "solves_text"]
+           "method_variant", "newton_text", "owned_residual", "solve", "solver_options",
+           "solves_text"]

@@ -100,8 +100,8 @@ def newton_text(result: Result) -> str:
         return text
     coarse_polish = sum(lv.polish_solves for lv in result.sequence)
     n = len(result.sequence)
-    return (f"{text} on the final mesh, {result.coarse_iterations}" + (f" (+{coarse_polish})" if coarse_polish else "")
-            + f" on {n} coarser mesh{'es' if n > 1 else ''}")
+    coarse = f"{result.coarse_iterations}" + (f" (+{coarse_polish})" if coarse_polish else "")
+    return f"{text} on the final mesh, {coarse} on {n} coarser mesh{'es' if n > 1 else ''}"
 
 
 def solves_text(newton: int, polish: int) -> str:

@@ -166,7 +166,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             progress.note(lambda: f"{method} Newton iteration {its}, |Phi| = {fnorm:.3e}")
 
     snes.setMonitor(monitor)
-    progress.watch(system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(), f"{method} linear solve")
+    progress.watch(system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(),
+                   f"{method} linear solve")
     popts = PETSc.Options()
     for key, val in petsc_opts.items():
         popts[prefix + key] = petsc_value(val)
