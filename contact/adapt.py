@@ -21,6 +21,7 @@ from mpi4py import MPI
 from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 
+from . import progress
 from .budget import max_dofs
 from .config import SCENE, _validate
 from .errors import solution_error
@@ -299,10 +300,13 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         t0 = time.perf_counter()
         problem = build_problem(scene)
         seconds["assembly"] = problem.assembly_time
+        progress.note(lambda: f"level {index}: assembled, {problem.assembly_time:.0f} s")
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
         result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
                        sequence=None if opts["nested"] else "off")
         seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
+        progress.note(lambda: f"level {index}: solved ({result.dofs} DoFs), "
+                              f"{seconds['solve']:.0f} s; estimating")
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] = time.perf_counter() - t0
@@ -313,10 +317,12 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         out.levels.append(level)
         if on_level is not None:
             t0 = time.perf_counter()
+            progress.note(f"level {index}: writing its files")
             on_level(level)
             seconds["output"] = time.perf_counter() - t0
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
+            progress.heard()
         if not result.converged:
             out.stop = f"solver did not converge on level {index} ({result.reason})"
             break
@@ -337,6 +343,7 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
             break
         t0 = time.perf_counter()
+        progress.note(f"level {index}: refining the marked cells")
         parts: dict[str, float] = {}
         new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"],
                                    timings=parts)

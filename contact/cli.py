@@ -137,11 +137,11 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
 
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from . import io, solve
+    from . import io, progress, solve
     from .config import load_config
     from .report import files_text, write_run
     from .scene import build_scene
-    from .solvers.result import not_converged_text
+    from .solvers.result import newton_text, not_converged_text
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
@@ -149,6 +149,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     outdir, label = _output_folder(args.output, cfg)
     io.check_output(outdir, label, comm)  # before meshing and solving
     scene = build_scene(cfg, comm)
+    if scene.cfg["output"]["verbose"]:
+        progress.enable(comm)
     method = scene.cfg["solver"]["method"]
     _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
                f"{comm.size} MPI rank(s)")
@@ -157,8 +159,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if scene.cfg.get("adapt"):
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
-    polished = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
-    _say(comm, f"contact: {result.dofs} DoFs, {result.iterations} Newton iterations{polished}, "
+    _say(comm, f"contact: {result.dofs} DoFs, {newton_text(result)}, "
                f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
     if not result.converged:
         if comm.rank == 0:
@@ -216,7 +217,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
-        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed)
+        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed,
+                              files=write_level.files)
     _say(comm, f"contact: stopped: {result.stop}")
     if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
         _say(comm, format_table(result.rows))

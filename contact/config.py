@@ -262,6 +262,15 @@ def _not_empty(v: str) -> str | None:
     return None if v.strip() else "must not be empty (leave the key out for results/<name>)"
 
 
+OUTPUT_FORMATS = ("xdmf", "vtk")
+
+
+def _formats(v: Any) -> str | None:
+    if any(f not in OUTPUT_FORMATS for f in v) or len(set(v)) != len(v):
+        return f"expected a list of distinct formats from {', '.join(OUTPUT_FORMATS)}, got {v!r}"
+    return None
+
+
 def _times(v: Any) -> str | None:
     if not v or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) for t in v):
         return f"expected a non-empty list of numbers, got {v!r}"
@@ -446,8 +455,11 @@ SCENE: dict[str, Field] = {
     }),
     "output": Field("dict", schema={
         "dir": Field("str", None, check=_not_empty),
-        "vtk": Field("bool", True, doc="write the fields as VTK: solution.vtu (one solve) or the "
-                                         "series solution.pvd (adaptive levels)"),
+        "formats": Field("list", ["xdmf", "vtk"], check=_formats,
+                         doc="the field files: xdmf (solution.xdmf + .h5, for ParaView), vtk "
+                             "(solution.vtu, for pyvista); a series for levels and load steps"),
+        "xdmf": Field("bool", None, doc="true / false: add xdmf to / drop it from formats"),
+        "vtk": Field("bool", None, doc="true / false: add vtk to / drop it from formats"),
         "png": Field("bool", True),
         "verbose": Field("bool", True),
     }),
@@ -602,9 +614,6 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     """
     if not isinstance(data, Mapping):
         raise ConfigError(f"scene: expected a mapping, got {_typename(data)}")
-    if isinstance(data.get("output"), Mapping) and "xdmf" in data["output"]:
-        raise ConfigError("output.xdmf: XDMF output was replaced by VTK files (solution.vtu, solution.pvd) "
-                          "that ParaView and pyvista open; use output.vtk")
     data = switch_off(data)   # adapt: none  =  no adaptive loop, load: none  =  one solve, …
     if isinstance(data.get("model"), str):  # short form  model: signorini
         data = {**data, "model": {"type": data["model"]}}
@@ -717,8 +726,20 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
         raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
                           "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights vanish); use 1")
+    _resolve_formats(cfg["output"])
     cfg["constants"] = constants
     return cfg
+
+
+def _resolve_formats(output: dict) -> None:
+    """``output.xdmf`` / ``output.vtk`` (true or false) switch one format of
+    ``output.formats`` on or off; afterwards ``formats`` alone says what is written."""
+    for key in OUTPUT_FORMATS:
+        switch = output.pop(key)
+        if switch is True and key not in output["formats"]:
+            output["formats"] = output["formats"] + [key]
+        elif switch is False:
+            output["formats"] = [f for f in output["formats"] if f != key]
 
 
 GMSH_MESHES = ("gmsh", "quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")

@@ -2,10 +2,11 @@
 
 Per step k (numbered 000, 001, …):
 
-* ``solution_00k.vtu`` in the series ``solution.pvd`` (time value t_k; each step may have its
-  own mesh) — u_h, λ_n (``lambda_h``), the gap, the active set and, with friction, λ_t and
-  the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off Γ_C) and
-  the friction bound ρ; cellwise the von Mises stress (and η_T after an adaptive step);
+* ``solution_00k.xdmf`` + ``.h5`` and ``solution_00k.vtu`` in the series ``solution.xdmf``
+  and ``solution.pvd`` (the formats of ``output.formats``; time value t_k; each step may
+  have its own mesh) — u_h, λ_n (``lambda_h``), the gap, the active set and, with friction,
+  λ_t and the slip increment (vectors), the status (0 separated, 1 stick, 2 slip, −1 off
+  Γ_C) and the friction bound ρ; cellwise the von Mises stress (and η_T after an adaptive step);
 * ``contact_step_00k.csv`` — one row per contact node along Γ_C (:mod:`contact.contactdata`
   with its friction columns: s or r, λ_n, λ_t, gap, slip, bound, status).
 
@@ -29,9 +30,10 @@ from . import io, plots
 from .contactdata import Table, contact_table, tangent_2d, write_table
 from .estimate import estimate
 from .reference import compare
-from .report import _finish, cell_fields, plot_solution, point_fields, write_contact
+from .report import (_finish, cell_fields, plot_solution, point_fields, warn_coarse_zone,
+                     write_contact)
 from .scene import Scene
-from .series import Series
+from .fieldfiles import FieldFiles
 from .loadpath import LoadPath, Step
 from .surface import surface_figures, surface_functions
 
@@ -42,7 +44,7 @@ class StepWriter:
 
     def __init__(self, tmp: Path, scene: Scene):
         self.tmp, self.scene = tmp, scene
-        self.series = Series(tmp, "solution", scene.comm)
+        self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
         self.rows: list[dict[str, Any]] = []
         self.tables: list[tuple[float, Table]] = []
         self.levels: list[dict[str, Any]] = []
@@ -68,10 +70,10 @@ class StepWriter:
         self.tables.append((step.time, table))
         if scene.comm.rank == 0:
             write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
-        if scene.cfg["output"]["vtk"]:
+        if self.files.formats:
             nodal = point_fields(r) + (surface_functions(r) if r.friction is not None else [])
-            self.series.write(step.time, nodal, [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])],
-                              field_data={"step": k, "dofs": r.dofs})
+            cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
+            self.files.write_step(step.time, nodal, cells, field_data={"step": k, "dofs": r.dofs})
 
     def finish(self, path: LoadPath, wall: float | None = None, failure: dict | None = None) -> dict[str, Any]:
         """The run's files after the last (converged) step; ``failure`` (``converged:
@@ -84,6 +86,8 @@ class StepWriter:
         if self.levels:
             io.write_csv(tmp / "convergence.csv", self.levels, comm)
         comparison = compare(last.scene, r)
+        if failure is None:   # a failed run's last line is its error
+            warn_coarse_zone(last.scene, r)
         write_contact(tmp, last.scene, r, comparison)
         friction = (self.scene.cfg.get("friction") or {}).get("law", "none")
         its = [s["newton_iterations"] for s in self.rows]
@@ -92,7 +96,7 @@ class StepWriter:
                 "dofs": r.dofs, "mpi_ranks": comm.size, "converged": path.converged,
                 "newton_iterations": sum(its), "newton_iterations_max_per_step": max(its),
                 "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
-                "host": platform.node(), "steps": self.rows}
+                "host": platform.node(), **self.files.timings(), "steps": self.rows}
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
         if self.scene.cfg["model"]["type"] == "elasticity":   # the forces are of the whole body

@@ -1,17 +1,20 @@
 """The output folder of one run.
 
-A single solve writes ``solution.vtu`` (u_h, λ_h, gap, active; von Mises for elasticity),
-``summary.json``, ``history.csv``, ``solution.png`` and, for a contact scene,
-``contact.csv`` and ``pressure.png``.  An adaptive run writes the levels as the series
-``solution.pvd`` + ``solution_KKK.vtu`` (time value = level; η_T added as cell data),
-``convergence.csv`` / ``.png``, ``mesh_level_K.png`` and the final level's
-``solution.png``, ``contact.csv`` and ``pressure.png``; its ``history.csv`` lists the Newton
-iterations of every level (column ``level``).
+A single solve writes the fields (u_h, λ_h, gap, active; von Mises for elasticity) in the
+formats of ``output.formats`` (:mod:`contact.fieldfiles`: ``solution.xdmf`` + ``.h5``,
+``solution.vtu``), ``summary.json``, ``history.csv``, ``solution.png`` and, for a contact
+scene, ``contact.csv`` and ``pressure.png``.  An adaptive run writes the levels as the
+series ``solution.xdmf`` over ``solution_KKK.xdmf`` + ``.h5`` and ``solution.pvd`` over
+``solution_KKK.vtu`` (time value = level; η_T added as cell data), ``convergence.csv`` /
+``.png``, ``mesh_level_K.png`` and the final level's ``solution.png``, ``contact.csv`` and
+``pressure.png``; its ``history.csv`` lists the Newton iterations of every level (column
+``level``).
 """
 from __future__ import annotations
 
 import platform
 import re
+import warnings
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -25,7 +28,7 @@ from .comparison import Comparison
 from .errors import solution_error
 from .reference import compare
 from .scene import Scene
-from .series import Series, write_vtu
+from .fieldfiles import FieldFiles
 from .solvers import Result
 
 
@@ -61,6 +64,36 @@ def active_measure(result: Result) -> float:
     return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
+NODES_ACROSS = 5   # fewer active nodes across the contact zone than this: a warning
+
+
+def nodes_across(result: Result) -> float:
+    """About how many nodes span the contact zone, from the n active nodes (× the symmetric
+    copies the modelled part stands for): n when the zone is a curve (2D, on Γ_C), the
+    diameter 2 √(n/π) of a disc of n nodes when it is a surface (3D on Γ_C, a 2D obstacle),
+    (6n/π)^(1/3) for a volume (a 3D obstacle)."""
+    p = result.problem
+    n = result.n_active * p.symmetric_copies
+    dim = p.V.mesh.topology.dim - (0 if p.in_domain else 1)
+    return float({1: n, 2: 2 * np.sqrt(n / np.pi), 3: np.cbrt(6 * n / np.pi)}.get(dim, n))
+
+
+def warn_coarse_zone(scene: Scene, result: Result) -> None:
+    """A one-line ContactWarning (rank 0) when the contact zone holds some but fewer than
+    NODES_ACROSS nodes across: the pressure, and the forces and ratios from it, are then
+    a mesh artefact (one node in contact can carry a sideways force of 10 % of the normal
+    force)."""
+    across = nodes_across(result)
+    if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
+        from .surfaces import ContactWarning
+
+        warnings.warn(f"the contact zone holds {result.n_active} active node(s), about "
+                      f"{across:.1f} across: too few to resolve the contact pressure and the "
+                      "forces from it; refine the contact zone (mesh cells or h_contact, an adapt "
+                      f"section) to {NODES_ACROSS} or more nodes across", ContactWarning,
+                      stacklevel=2)
+
+
 def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
             comparison: Comparison | None = None, error: float | None = None) -> dict[str, Any]:
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
@@ -79,8 +112,11 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "mpi_ranks": comm.size,
         "converged": result.converged,
         "reason": result.reason,
-        "newton_iterations": result.iterations,
+        "newton_iterations": result.iterations,        # on the final mesh
         "polish_solves": result.polish_solves,
+        "newton_iterations_coarse": result.coarse_iterations,   # grid sequencing's coarse levels
+        "polish_solves_coarse": sum(lv.polish_solves for lv in result.sequence),
+        "coarse_levels": len(result.sequence),
         "linear_solves": result.linear_solves,
         "final_residual": result.residual,
         "linear_solver": result.linear,
@@ -176,10 +212,12 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     res = resultants(scene, result)
     comparison = compare(scene, result)
     info = summary(scene, result, wall, res, comparison)
+    warn_coarse_zone(scene, result)
     out_cfg = scene.cfg["output"]
     with io.atomic_folder(outdir, comm) as tmp:
-        if out_cfg["vtk"]:
-            write_vtu(tmp / "solution.vtu", point_fields(result), cell_fields(scene, result))
+        files = FieldFiles(tmp, "solution", out_cfg["formats"], comm)
+        files.write_one(point_fields(result), cell_fields(scene, result))
+        info.update(files.timings())
         io.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg["png"]:
             plot_solution(tmp / "solution.png", scene, result,
@@ -224,25 +262,33 @@ def files_text(names: list[str]) -> str:
     return ", ".join(text)
 
 
-def level_writer(tmp: Path, scene: Scene):
+class LevelWriter:
     """Callback for :func:`contact.adapt.adapt`: level K as step K of the series
-    ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell fields)."""
-    series = Series(tmp, "solution", scene.comm)
+    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell
+    fields); ``files`` keeps the seconds per format."""
 
-    def write(level: Level) -> None:
+    def __init__(self, tmp: Path, scene: Scene):
+        self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
+
+    def __call__(self, level: Level) -> None:
         r = level.result
-        if scene.cfg["output"]["vtk"]:
-            series.write(level.index, point_fields(r), [level.estimate.eta_T, *cell_fields(level.scene, r)],
-                         field_data={"level": level.index, "dofs": r.dofs, "eta": level.estimate.eta})
-    return write
+        est = level.estimate
+        cells = [est.eta_T, *cell_fields(level.scene, r)]
+        self.files.write_step(level.index, point_fields(r), cells,
+                              field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta})
+
+
+def level_writer(tmp: Path, scene: Scene) -> LevelWriter:
+    return LevelWriter(tmp, scene)
 
 
 def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
-                   failure: dict | None = None) -> dict:
+                   failure: dict | None = None, files: FieldFiles | None = None) -> dict:
     """After the loop: convergence.csv/.png, history.csv of every level, mesh pictures, and
     the final level's summary, solution.png, contact.csv and pressure.png.  ``failure`` (a
     run that failed on the level after the last of ``adaptive``) is added to summary.json:
-    ``converged: false``, ``failed_level``, ``failed_reason``."""
+    ``converged: false``, ``failed_level``, ``failed_reason``; ``files`` (the levels' field
+    files) adds the seconds each format took."""
     comm = scene.comm
     rows = adaptive.rows
     io.write_csv(tmp / "convergence.csv", rows, comm)
@@ -250,6 +296,8 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     res = resultants(last.scene, last.result)
     comparison = compare(last.scene, last.result)
     info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
+    if failure is None:   # a failed run's last line is its error
+        warn_coarse_zone(last.scene, last.result)
     info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
                  "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
                  "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
@@ -257,7 +305,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
                  "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
                  "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
                  "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
-                 **(failure or {})})
+                 **(files.timings() if files else {}), **(failure or {})})
     io.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
                                        for h in lv.result.history], comm)
     if scene.cfg["output"]["png"]:

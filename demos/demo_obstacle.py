@@ -32,7 +32,7 @@ from mpi4py import MPI
 
 import contact
 from contact.contactdata import contact_table
-from contact.solvers import ncp
+from contact.solvers import ncp, newton_text
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 64
 comm = MPI.COMM_WORLD
@@ -85,7 +85,7 @@ for method in ncp.METHODS:
     t0 = time.perf_counter()
     results[method] = r = contact.solve(scene, method=method, polish=False)
     seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-    say(f"{method:>6s}: {r.iterations:2d} Newton iterations, {seconds:5.2f} s, |Phi| = {r.residual:.1e}, "
+    say(f"{method:>6s}: {newton_text(r)}, {seconds:5.2f} s, |Phi| = {r.residual:.1e}, "
         f"{r.n_active} nodes in contact, contact force {r.contact_force:.4f}")
 
 u_min = results["min"].u_h.x.array

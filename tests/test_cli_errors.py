@@ -281,14 +281,16 @@ def test_bad_input_fails_before_solve(case: Case, tmp_path: Path, request) -> No
 
 def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
     scene_file = tmp_path / "scene.yaml"
-    scene_file.write_text(yaml.safe_dump(_base_scene(), sort_keys=False))
+    scene = _base_scene()
+    scene["mesh"]["cells"] = [16, 16]   # 8 × 8: 3 nodes in contact, a warning (test_progress.py)
+    scene_file.write_text(yaml.safe_dump(scene, sort_keys=False))
     out = tmp_path / "out"
     proc = _contact(tmp_path, str(scene_file), "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        [".contact-result", "solution.vtu", "summary.json", "history.csv", "solution.png", "contact.csv",
-         "pressure.png"])
+        [".contact-result", "solution.h5", "solution.vtu", "solution.xdmf", "summary.json",
+         "history.csv", "solution.png", "contact.csv", "pressure.png"])
     assert all((out / name).stat().st_size > 0 for name in ("solution.vtu", "summary.json", "solution.png"))
     # the atomic write leaves no hidden .out.partial-*/.out.old-* sibling behind
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]

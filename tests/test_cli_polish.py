@@ -61,9 +61,15 @@ def test_adapt_none_in_python_is_one_level():
     assert contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["adapt=none"]).cfg["adapt"] is None
 
 
-def test_output_xdmf_is_a_one_line_error_naming_the_replacement():
-    with pytest.raises(contact.ConfigError, match=r"^output.xdmf: XDMF output was replaced by VTK files .*use output.vtk$"):
-        contact.load_scene(ROOT / "configs" / "signorini_square.yaml", ["output.xdmf=true"])
+def test_output_xdmf_and_vtk_switch_one_format():
+    """The old refusal of output.xdmf is gone: it and output.vtk add or drop one format."""
+    def formats(*sets: str) -> list[str]:
+        scene = contact.load_scene(ROOT / "configs" / "signorini_square.yaml", list(sets))
+        return scene.cfg["output"]["formats"]
+
+    assert formats() == formats("output.xdmf=true") == ["xdmf", "vtk"]
+    assert formats("output.xdmf=false") == ["vtk"] and formats("output.vtk=false") == ["xdmf"]
+    assert formats("output.formats=[]", "output.vtk=true") == ["vtk"]
 
 
 @pytest.mark.parametrize("overrides, steps, friction", [

@@ -1,8 +1,9 @@
-"""The CLI's output folder (issue #14): every VTK file reads back with pyvista (VTK's own
-readers) with the mesh and every field at the right size — a single solve, a P2 scene (all
-DoFs kept), an adaptive series (read as a series) — contact.csv and pressure.png for scalar
-and elastic contact, summary.json / history.csv / the "wrote" line list everything; in
-serial and on 2 MPI ranks; nothing at all when the solver fails (issue #2)."""
+"""The CLI's output folder (issues #14, #27): every VTK file reads back with pyvista (VTK's
+own readers) and meshio, every XDMF file with meshio and with h5py + the XML
+(:mod:`readback`), with the mesh and every field at the right size — a single solve, a P2
+scene (all DoFs kept), an adaptive series (read as a series) — contact.csv and pressure.png
+for scalar and elastic contact, summary.json / history.csv / the "wrote" line list
+everything; in serial and on 2 MPI ranks; nothing at all when the solver fails (issue #2)."""
 import csv
 import json
 import os
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from readback import by_position, read_vtu, read_xdmf
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -33,15 +35,21 @@ def _rows(path: Path) -> list[dict]:
 
 
 def read_folder(out: Path) -> dict:
-    """Read every file of a result folder with its reader: VTK with pyvista (a .pvd as a
-    series), CSV, JSON, PNG (signature).  Returns {name: content}; fails on a file it
-    does not know."""
+    """Read every file of a result folder with its reader: VTK with pyvista and meshio (a .pvd
+    as a series), XDMF with meshio and h5py (:func:`readback.read_xdmf`: the list of its
+    steps), CSV, JSON, PNG (signature).  Returns {name: content}; fails on a file it does
+    not know, and on an .h5 file no .xdmf file reads."""
     import pyvista
 
-    content = {}
+    content, h5_read = {}, set()
     for path in sorted(out.iterdir()):
         if path.suffix == ".vtu":
-            content[path.name] = pyvista.read(path)
+            content[path.name] = read_vtu(path)
+        elif path.suffix == ".xdmf":
+            content[path.name] = read_xdmf(path)
+            h5_read.update(content[path.name][0]["files"])
+        elif path.suffix == ".h5":
+            content[path.name] = path
         elif path.suffix == ".pvd":
             reader = pyvista.get_reader(path)
             steps = []
@@ -58,6 +66,8 @@ def read_folder(out: Path) -> dict:
             content[path.name] = path
         else:
             raise AssertionError(f"unexpected output file {path.name}")
+    h5_files = {name for name in content if name.endswith(".h5")}
+    assert h5_read == h5_files, "every .h5 file is read by an .xdmf file"
     return content
 
 
@@ -78,6 +88,30 @@ def check_grid(grid, summary: dict, nodal_dofs: int, vector: int = 1, cell_field
     assert on.sum() == summary["constrained_nodes"] and np.all(gap[on] >= -1e-10)
 
 
+def check_step(step: dict, grid, summary: dict, nodal_dofs: int, vector: int = 1,
+               cell_fields=()) -> None:
+    """An XDMF step (:func:`readback.xdmf_steps`) holds one point per node of the solution
+    space, every field, and the same values at the same points as the .vtu ``grid``."""
+    points = step["points"]
+    assert len(points) * vector == summary["dofs"] and len(points) == nodal_dofs
+    assert len(step["cells"]) == summary["cells"]
+    assert step["point"]["u_h"].shape == (len(points), 3 if vector > 1 else 1)
+    assert set(step["point"]) == set(grid.point_data.keys())
+    assert set(step["cell"]) == set(grid.cell_data.keys())
+    assert set(cell_fields) <= set(step["cell"])
+    names = sorted(step["point"])
+    rows = lambda values: np.asarray(values).reshape(len(points), -1)  # noqa: E731
+    ours = by_position(np.c_[points, np.zeros((len(points), 3 - points.shape[1]))],
+                       *(rows(step["point"][n]) for n in names))
+    theirs = by_position(np.asarray(grid.points), *(rows(grid.point_data[n]) for n in names))
+    assert np.allclose(ours[0], theirs[0], rtol=0, atol=1e-12), "the same points (geometry, DoFs)"
+    for a, b in zip(ours[1:], theirs[1:]):
+        assert np.array_equal(a, b, equal_nan=True), "the XDMF and VTK files: the same nodal values"
+    for name in step["cell"]:   # compare the sorted cell values
+        sorted_values = np.sort(np.asarray(grid.cell_data[name]))
+        assert np.array_equal(np.sort(step["cell"][name].ravel()), sorted_values), name
+
+
 def check_contact_csv(rows: list[dict], summary: dict, value: str = "lambda") -> None:
     assert len(rows) == summary["constrained_nodes"]
     pos = "s" if "s" in rows[0] else "r"
@@ -95,7 +129,8 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     out = tmp_path / "run"
     proc = _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[24,20]"], nproc)
     assert proc.returncode == 0, proc.stderr
-    names = ["solution.vtu", "summary.json", "history.csv", "solution.png", "contact.csv", "pressure.png"]
+    names = ["solution.h5", "solution.vtu", "solution.xdmf", "summary.json", "history.csv",
+             "solution.png", "contact.csv", "pressure.png"]
     assert sorted(p.name for p in out.iterdir()) == sorted(names + [".contact-result"])  # + the marker
     files = read_folder(out)
     summary = files["summary.json"]
@@ -104,6 +139,10 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     n_vertices = 25 * 21
     check_grid(files["solution.vtu"], summary, n_vertices)
     assert files["solution.vtu"].n_cells == 2 * 24 * 20
+    (step,) = files["solution.xdmf"]
+    check_step(step, files["solution.vtu"], summary, n_vertices)
+    assert step["topology"] == "Triangle" and step["time"] is None
+    assert summary["time_output_xdmf"] > 0 and summary["time_output_vtk"] > 0
     for key in ("dofs", "mpi_ranks", "method", "newton_iterations", "polish_solves", "final_residual", "reason",
                 "active_nodes", "time_assembly", "time_linear_solve", "time_other", "contact_force"):
         assert key in summary, key
@@ -143,6 +182,9 @@ def test_p2_output_keeps_every_dof(tmp_path, scene, sets, vector):
     assert summary["degree"] == 2
     grid = files["solution.vtu"]
     assert set(np.unique(grid.celltypes)) == {69}, "VTK Lagrange triangles of degree 2"
+    (step,) = files["solution.xdmf"]
+    assert step["topology"] == "Triangle_6", "XDMF: the same cells with quadratic geometry"
+    check_step(step, grid, summary, nodes, vector, cell_fields=("von_mises",) if vector > 1 else ())
     check_contact_csv(files["contact.csv"], summary, "lambda_n" if vector > 1 else "lambda")
     assert len(files["contact.csv"]) == summary["constrained_nodes"]
 
@@ -156,12 +198,17 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     summary = files["summary.json"]
     steps = files["solution.pvd"]
     assert [t for t, _ in steps] == [0.0, 1.0, 2.0], "the level is the series' time"
+    assert [s["time"] for s in files["solution.xdmf"]] == [0.0, 1.0, 2.0]
     conv = files["convergence.csv"]
-    for (t, grid), row in zip(steps, conv):
+    for (t, grid), row, step in zip(steps, conv, files["solution.xdmf"]):
         assert grid.n_points == int(row["dofs"]) and grid.n_cells == int(row["cells"])
         assert grid.cell_data["eta_T"].shape == (grid.n_cells,)
         assert np.sqrt(np.sum(grid.cell_data["eta_T"] ** 2)) == pytest.approx(float(row["eta"]), rel=1e-10)
         assert int(grid.field_data["level"][0]) == t
+        level = {**summary, "dofs": int(row["dofs"]), "cells": int(row["cells"])}
+        check_step(step, grid, level, int(row["dofs"]), cell_fields=("eta_T",))
+        (alone,) = files[f"solution_{int(t):03d}.xdmf"]   # each level's own file: the same grid
+        assert all(np.array_equal(alone[k], step[k]) for k in ("points", "cells"))
     check_grid(steps[-1][1], summary, summary["dofs"], cell_fields=("eta_T",))
     # every level's Newton iterations are in history.csv and in summary.json
     hist = files["history.csv"]
@@ -173,7 +220,8 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     assert summary["dofs_per_level"] == [int(r["dofs"]) for r in conv]
     assert set(summary["files"]) == set(files) - {".contact-result"}  # the marker is written last
     wrote = proc.stdout.splitlines()[-1]
-    assert "solution_000…002.vtu" in wrote and all(n in wrote for n in summary["files"] if not n.endswith(".vtu"))
+    assert all(f"solution_000…002.{ext}" in wrote for ext in ("vtu", "h5", "xdmf"))
+    assert all(n in wrote for n in summary["files"] if not n.startswith("solution_"))
     headers = [line for line in proc.stdout.splitlines() if line.split()[:2] == ["level", "DoFs"]]
     assert len(headers) == 1, "the level table is printed once"
     check_contact_csv(files["contact.csv"], summary)

@@ -108,7 +108,8 @@ def test_rerun_replaces_its_own_result_only(workdir: Path) -> None:
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0
     marker = json.loads((workdir / "out" / ".contact-result").read_text())
     assert marker["tool"] == "contact" and marker["pid"] > 0 and "run" in marker["command"]
-    assert set(marker["entries"]) == {"solution.vtu", "summary.json", "history.csv", "contact.csv"}
+    assert set(marker["entries"]) == {"solution.h5", "solution.vtu", "solution.xdmf",
+                                      "summary.json", "history.csv", "contact.csv"}
     (workdir / "out" / "summary.json").write_text("{}")  # the tool's own file: replaced
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0
     assert json.loads((workdir / "out" / "summary.json").read_text())["converged"] is True

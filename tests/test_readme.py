@@ -85,9 +85,11 @@ def test_readme_output_tables_match_what_runs_write(results):
     assert single == {p.name for p in (results / "results" / "square").iterdir()}
     adaptive = _table_files(text.split("## Adaptive refinement", 1)[1])
     written = {p.name for p in (results / "results" / "demo").iterdir()}
-    numbered = {n for n in written if re.fullmatch(r"(solution_\d{3}\.vtu|mesh_level_\d+\.png)", n)}
-    assert {"solution_000.vtu", "solution_001.vtu"} <= adaptive | numbered
-    assert adaptive - {"solution_000.vtu", "solution_001.vtu", "mesh_level_K.png"} == written - numbered
+    pattern = r"(solution_\d{3}\.(vtu|xdmf|h5)|mesh_level_\d+\.png)"
+    numbered = {n for n in written if re.fullmatch(pattern, n)}
+    levels = {f"solution_00{k}.{ext}" for k in (0, 1) for ext in ("vtu", "xdmf", "h5")}
+    assert levels <= adaptive & numbered
+    assert adaptive - levels - {"mesh_level_K.png"} == written - numbered
 
 
 def test_readme_pyvista_snippets_load_results(results):
@@ -98,6 +100,18 @@ def test_readme_pyvista_snippets_load_results(results):
         proc = subprocess.run([sys.executable, "-c", code + "\nprint('loaded', grid.n_points)"], cwd=results,
                               capture_output=True, text=True, timeout=120)
         assert proc.returncode == 0 and "loaded" in proc.stdout, proc.stderr
+
+
+def test_readme_meshio_snippet_loads_the_xdmf(results):
+    """The second Python block of "Running a scene" reads solution.xdmf with meshio."""
+    text = (ROOT / "README.md").read_text()
+    code = re.findall(r"```python\n(.*?)```", text.split("## Running a scene", 1)[1], re.S)[1]
+    assert "meshio.read(\"results/square/solution.xdmf\")" in code
+    proc = subprocess.run([sys.executable, "-c", code], cwd=results, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    points, shape, _ = proc.stdout.split(" ", 2)
+    assert int(points) == 13 * 11 and shape == "(143,"
 
 
 def test_readme_says_how_to_import_dolfinx():

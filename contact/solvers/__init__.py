@@ -16,8 +16,9 @@ call the adaptive loop, live above them in :mod:`contact.loadpath`.
 """
 from .linear import default_linear_solver
 from .options import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant, solver_options
-from .result import Result, owned_residual, solves_text
+from .result import Result, newton_text, owned_residual, solves_text
 from .solve import solve
 
 __all__ = ["DEFAULT_PETSC_OPTIONS", "ELASTICITY_3D_PETSC_OPTIONS", "Result", "default_linear_solver",
-           "method_variant", "owned_residual", "solve", "solver_options", "solves_text"]
+           "method_variant", "newton_text", "owned_residual", "solve", "solver_options",
+           "solves_text"]

@@ -59,6 +59,12 @@ class Result:
         return self.iterations + self.polish_solves
 
     @property
+    def coarse_iterations(self) -> int:
+        """Newton iterations on the coarse levels of grid sequencing (0 without): the work
+        that let the final mesh's Newton (``iterations``) start from a near solution."""
+        return sum(lv.newton_iterations for lv in self.sequence)
+
+    @property
     def coarse_linear_solves(self) -> int:
         """Linear solves (Newton steps + polishing) on the coarse levels of grid sequencing."""
         return sum(lv.linear_solves for lv in self.sequence)
@@ -110,6 +116,20 @@ def floating_hint(floating: list[tuple[str, int]]) -> str:
     what += f" (and {len(floating) - 1} more)" if floating[1:] else ""
     return (f"{what}: no dirichlet or symmetry part holds it, {free} rigid motion(s) free: K is "
             "singular until contact holds it (frictionless contact never holds a sliding motion)")
+
+
+def newton_text(result: Result) -> str:
+    """The Newton iterations of a solve for one line: '5 Newton iterations (+1 polishing)',
+    and after grid sequencing the final mesh's beside the coarse levels' total: '0 Newton
+    iterations (+1 polishing) on the final mesh, 14 (+2) on 3 coarser meshes'."""
+    polish = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
+    text = f"{result.iterations} Newton iterations{polish}"
+    if not result.sequence:
+        return text
+    coarse_polish = sum(lv.polish_solves for lv in result.sequence)
+    n = len(result.sequence)
+    coarse = f"{result.coarse_iterations}" + (f" (+{coarse_polish})" if coarse_polish else "")
+    return f"{text} on the final mesh, {coarse} on {n} coarser mesh{'es' if n > 1 else ''}"
 
 
 def solves_text(newton: int, polish: int) -> str:

@@ -13,6 +13,7 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
+from .. import progress
 from ..checks import check_data, data_items
 from ..models import DiscreteProblem, build_problem
 from ..config import ConfigError, check_sections
@@ -170,8 +171,13 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
                   f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
                   flush=True)
+            progress.heard()
+        else:
+            progress.note(lambda: f"{method} Newton iteration {its}, |Phi| = {fnorm:.3e}")
 
     snes.setMonitor(monitor)
+    progress.watch(system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(),
+                   f"{method} linear solve")
     popts = PETSc.Options()
     try:   # the options stay until the solve is done: some are read at set-up (GAMG's
         # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
