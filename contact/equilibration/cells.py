@@ -2,8 +2,9 @@
 
 A row holds the cell's global index, its vertices (global indices, owning ranks and
 coordinates), the coefficients of u_h, the data f and k at the cell quadrature points of
-:mod:`.reference`, the kind of each facet (facet j is opposite vertex j) and the boundary
-flux data at the facet quadrature points, and the given multiplier λ_h at the vertices.
+:mod:`.reference`, the kind of each facet (facet j is opposite vertex j), the boundary
+flux data at the facet quadrature points and the coefficients of the discrete multiplier
+λ_h (:mod:`.multiplier`).
 Everything downstream is computed from rows, so a rank can solve the patch of a vertex
 whose cells live on other ranks once it has received their rows (:func:`complete`), and
 send back what it computed for them (:func:`return_to_owners`).
@@ -37,7 +38,8 @@ class CellTable:
     k: np.ndarray       # (n, nq) k at the cell quadrature points
     kind: np.ndarray    # (n, d+1) int8 facet kinds
     t: np.ndarray       # (n, d+1, nqf) flux data on FLUX / CONTACT facets (0 elsewhere)
-    lam: np.ndarray     # (n, d+1) the given multiplier at the vertices (0 without one)
+    lam: np.ndarray     # (n, nu) coefficients of λ_h in the element of u_h (0 without one)
+    tau: np.ndarray     # (n, nq, d) the target flux at the points, or (n, 0, d): k∇u_h
 
     def __len__(self) -> int:
         return len(self.gcell)
@@ -58,8 +60,10 @@ class FluxData:
     ``dirichlet``, ``neumann`` and ``contact`` are facet tag values of ``facet_tags``; the
     exterior facets no tag names carry the flux 0 (natural).  ``neumann`` and ``contact``
     map a tag to the prescribed part of the flux σ·n there (t on Γ_N; t_C on Γ_C, where the
-    multiplier λ is added).  ``lmbda_h`` (optional) gives the multiplier at the vertices
-    where the reconstruction cannot compute it from the residual (ends of Γ_C on Γ_D)."""
+    multiplier λ is added).  ``lmbda_h`` is the discrete multiplier λ_h (a Lagrange
+    function, on Γ_C including its ends on Γ_D, or in Ω; :mod:`.multiplier`).  ``target``
+    is the flux σ_h is fitted to in each patch (default k∇u_h; a better one, e.g. k∇ of a
+    feasible correction of u_h, only changes how close σ_h comes, not its constraints)."""
 
     u_h: fem.Function
     f: ufl.core.expr.Expr
@@ -69,6 +73,7 @@ class FluxData:
     neumann: dict | None = None
     contact: dict | None = None
     lmbda_h: fem.Function | None = None
+    target: ufl.core.expr.Expr | None = None
 
 
 def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
@@ -91,18 +96,19 @@ def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
 
 
 def _at_points(expr, msh: dmesh.Mesh, X: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """The scalar UFL expression at the reference points X of ``cells``: (len(cells), len(X)).
+    """The UFL expression at the reference points X of ``cells``: (len(cells), len(X), …).
     The expression is multiplied by a DG0 function 1, so that DOLFINx ties it to the mesh
     even when it is constant after differentiation (e.g. −div ∇ of a linear function)."""
     one = fem.Function(fem.functionspace(msh, ("DG", 0)))
     one.x.array[:] = 1.0
     expr = one * ufl.as_ufl(expr)   # collective: the expression is compiled (also for no cells)
-    return np.asarray(fem.Expression(expr, X).eval(msh, cells)).reshape(len(cells), len(X))
+    values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
+    return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
 
 
 def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
-    """The rows of this rank's owned cells (and their number); collective only through the
-    index maps' ownership queries."""
+    """The rows of this rank's owned cells (and their number).  Collective (the data
+    expressions are compiled)."""
     u_h = data.u_h
     V = u_h.function_space
     msh = V.mesh
@@ -132,11 +138,14 @@ def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
             vals = _at_points(expr, msh, XF, rows).reshape(len(rows), d + 1, len(ref.wS))
             hit = tag[rows] == v
             t[rows[:, None].repeat(d + 1, 1)[hit], np.nonzero(hit)[1]] = vals[hit]
-    lam = np.zeros((n_owned, d + 1))
+    lam = np.zeros_like(U)
     if data.lmbda_h is not None:
-        W = data.lmbda_h.function_space
-        lam = data.lmbda_h.x.array[W.dofmap.list[:n_owned, : d + 1]]
-    return CellTable(gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam), n_owned
+        in_V = fem.Function(V)
+        in_V.interpolate(data.lmbda_h)
+        lam = in_V.x.array[V.dofmap.list[:n_owned]]
+    tau = np.zeros((n_owned, 0, d)) if data.target is None else _at_points(data.target, msh, ref.X, cells)
+    return CellTable(gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam,
+                     tau), n_owned
 
 
 # ---------------------------------------------------------------------------------------

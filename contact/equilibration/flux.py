@@ -8,8 +8,9 @@ Given u_h ∈ P_p, the data f, k, t (Γ_N), t_C (Γ_C) and where the multiplier 
     σ_h·n = Π_p t   on Γ_N,    σ_h·n = Π_p t_C + λ̃_h   on Γ_C,    σ_h·n = 0 on other
     exterior facets but Γ_D,
 
-where λ̃_h = Σ_a c_a ψ_a is the P1 function of the patches' multiplier shares c_a (the
-lumped nodal multiplier; :mod:`.patches`).  It does not look at a configuration: the
+where λ̃_h = κ B⁻(λ_h) is the given discrete multiplier λ_h, where it changes sign between
+its nodes (P2) replaced by a function of one sign with the same lumped moments
+(:mod:`.multiplier`).  It does not look at a configuration: the
 inputs are DOLFINx functions, UFL expressions and facet tags (:class:`FluxData`), so the
 same reconstruction serves other models (row-wise for elasticity).
 """
@@ -24,6 +25,9 @@ import basix.ufl
 from dolfinx import fem
 
 from .cells import CellTable, FluxData, complete, local_table, return_to_owners
+from .cells import CONTACT
+from .multiplier import clipped, shares
+from .operators import cell_rule, facet_rule
 from .patches import solve_patches
 from .reference import Reference, reference
 
@@ -32,16 +36,28 @@ __all__ = ["Flux", "FluxData", "reconstruct_flux"]
 
 @dataclass
 class Flux:
-    """The reconstruction: σ_h (RT_p), λ̃_h (P1), the local data oscillation ‖f − Π_p f‖_T
-    (DG0) and of the boundary data Σ_F C_F ‖t − Π_p t‖_F, the projected balance defect
-    (algebraic residual), and timings (seconds)."""
+    """The reconstruction: σ_h (RT_p), λ̃_h (P1), the data oscillation of each owned cell,
+
+        osc_T = k_T,min^{-1/2} ( h_T/π ‖f − Π_p f‖_T + Σ_{F ⊂ ∂T, t given} C_{T,F} ‖t − Π_p t‖_F ),
+        C_{T,F} = h_T ((|F| / |T|)(1/π² + 2/(dπ)))^{1/2},
+
+    (so that (f − Π_p f, v)_T + ⟨t − Π_p t, v⟩_{∂T} ≤ osc_T ‖k^{1/2}∇v‖_T for every v ∈ H¹(T):
+    Poincaré's h_T/π on convex cells, and the trace inequality of :func:`_oscillation`),
+    the projected balance defect (algebraic residual, flux units) and timings (seconds)."""
 
     sigma_h: fem.Function
-    lmbda: fem.Function
-    osc_f: np.ndarray    # (owned cells,) ‖f − Π_p f‖_T
-    osc_t: np.ndarray    # (owned cells,) Σ_{F ⊂ ∂T ∩ (Γ_N ∪ Γ_C)} C_{T,F} ‖t − Π_p t‖_F / h_T
+    lmbda_clip: fem.Function  # λ_h with wrong-signed nodal values clipped (the element of u_h)
+    bubble: fem.Function      # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
+    kappa: fem.Function       # DG0: κ of the cell's contact entity (the largest of its facets')
+    osc: np.ndarray      # (owned cells,) osc_T
     defect: float
     seconds: dict = field(default_factory=dict)
+
+    @property
+    def lmbda(self):
+        """λ̃_h = κ (λ_h − ½ Σ_e β_e φ_{m_e}) as UFL on the contact entities (Γ_C facets or Ω;
+        on a cell with two contact facets an upper bound of |λ̃_h|)."""
+        return self.kappa * (self.lmbda_clip - 0.5 * self.bubble)
 
 
 def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float = 0.0) -> Flux:
@@ -58,9 +74,10 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     comm = msh.comm
     seconds = {}
     t0 = time.perf_counter()
+    if multiplier is not None and data.lmbda_h is None:
+        raise ValueError("lmbda_h: the discrete multiplier is needed when the flux carries one")
     table, n_owned = local_table(data, ref)
-    owner_rank = np.full(n_owned, comm.rank)
-    work, source = complete(comm, table, owner_rank)
+    work, source = complete(comm, table, np.full(n_owned, comm.rank))
     seconds["gather"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     vmap = msh.topology.index_map(0)
@@ -71,11 +88,11 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
     sigma_h = _rt_function(msh, ref, table, alpha)
-    lmbda = _p1_function(msh, out.vertices - vmap.local_range[0], out.c)
-    osc_f, osc_t = _oscillation(table, ref)
+    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign)
+    osc = _oscillation(table, ref)
     seconds["assemble"] = time.perf_counter() - t0
     defect = comm.allreduce(out.defect)
-    return Flux(sigma_h, lmbda, osc_f, osc_t, defect, seconds)
+    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, seconds)
 
 
 def _rt_function(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fem.Function:
@@ -112,42 +129,58 @@ def _rt_element(d: int, p: int):
     return basix.create_element(basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre)
 
 
-def _p1_function(msh, local_vertices: np.ndarray, values: np.ndarray) -> fem.Function:
-    """The P1 function with the given values at owned vertices (local indices)."""
-    V1 = fem.functionspace(msh, ("Lagrange", 1))
-    d = msh.topology.dim
-    c2v = msh.topology.connectivity(d, 0).array
-    vertex_dof = np.empty(msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts, dtype=np.int32)
-    vertex_dof[c2v] = V1.dofmap.list.ravel()
-    out = fem.Function(V1, name="lambda_tilde")
-    out.x.array[vertex_dof[local_vertices]] = values
-    out.x.scatter_forward()
-    return out
+def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign):
+    """λ_h clipped, the Bernstein bubble and κ (:class:`Flux`) from the owned rows."""
+    n = len(table)
+    nodal = clipped(table.lam, sign)
+    dofs = V.dofmap.list[:n]
+    lmbda_clip, bubble = fem.Function(V, name="lambda_h"), fem.Function(V)
+    lmbda_clip.x.array[dofs] = nodal
+    kappa = np.ones(n)
+    if multiplier is not None:
+        kappa[:] = 0.0 if multiplier == "facets" else 1.0
+        entities = [(cell_rule(ref), np.arange(n))] if multiplier == "cells" else \
+            [(facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT)) for j in range(ref.d + 1)]
+        for rule, rows in entities:
+            _, k, beta = shares(nodal[rows], rule, sign)
+            kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
+            for e, (_, _, mid) in enumerate(rule.edges):
+                bubble.x.array[dofs[rows, mid]] = beta[:, e]
+        kappa[kappa == 0.0] = 1.0
+    for fn in (lmbda_clip, bubble):
+        fn.x.scatter_forward()
+    DG0 = fem.functionspace(V.mesh, ("DG", 0))
+    kap = fem.Function(DG0, name="kappa")
+    kap.x.array[:n] = kappa
+    kap.x.scatter_forward()
+    return lmbda_clip, bubble, kap
 
 
-def _oscillation(table: CellTable, ref: Reference) -> tuple[np.ndarray, np.ndarray]:
-    """‖f − Π_p f‖_T and Σ_F C_F ‖t − Π_p t‖_F / h_T of the table's cells (see :class:`Flux`)."""
+def _oscillation(table: CellTable, ref: Reference) -> np.ndarray:
+    """osc_T of :class:`Flux` for the table's cells.
+
+    The trace inequality: for v ∈ H¹(T), F a facet and x_F the opposite vertex, the field
+    x − x_F has normal component d|T|/|F| on F and 0 on the other facets and divergence d,
+    so (d|T|/|F|)‖v‖²_F = ∫_T d v² + 2v ∇v·(x − x_F) ≤ d‖v‖²_T + 2h_T‖v‖_T‖∇v‖_T; with v − v̄_T
+    (‖v − v̄_T‖_T ≤ h_T/π ‖∇v‖_T) and t − Π_p t ⊥ constants on F this gives C_{T,F}."""
     from .operators import det_inv
 
+    d, D = ref.d, ref.d + 1
     x = table.x
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     absdet = np.abs(det_inv(J)[0])
+    vol = absdet / np.prod(np.arange(1, d + 1))
+    h = np.max([np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0)
     Q, w = ref.Q, ref.w
-    coef = table.f @ (w[:, None] * Q.T)                                # reference moments
-    rest = table.f - coef @ Q                                           # f − Π_p f at the points
-    osc_f = np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
+    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q              # f − Π_p f at the points
+    osc = h / np.pi * np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
     q, wS = ref.q, ref.wS
-    tc = table.t @ (wS[:, None] * q.T)
-    trest = table.t - tc @ q                                            # (n, D, nqf)
-    D = ref.d + 1
-    osc_t = np.zeros(len(table))
-    vol = absdet / np.prod(np.arange(1, ref.d + 1))
+    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q            # t − Π_p t, (n, D, nqf)
     for j in range(D):
         E = x[:, [v for v in range(D) if v != j]]
         E = E[:, 1:] - E[:, :1]
         size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))    # |F| / |F̂|
-        area = size / np.prod(np.arange(1, ref.d))
+        area = size / np.prod(np.arange(1, d))
         norm = np.sqrt(size * (trest[:, j] ** 2 @ wS))
-        # ‖v − v̄_F‖_F² ≤ (|F|/|T|) h_T² (1/π² + 2/(dπ)) ‖∇v‖_T²  (module bound.py)
-        osc_t += np.sqrt(area / vol * (1 / np.pi**2 + 2 / (ref.d * np.pi))) * norm
-    return osc_f, osc_t
+        osc += h * np.sqrt(area / vol * (1 / np.pi**2 + 2 / (d * np.pi))) * norm
+    return osc / np.sqrt(table.k.min(axis=1))

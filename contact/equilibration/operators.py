@@ -18,13 +18,15 @@ global index (the same on both sides of a facet and on every rank): O_j = s P_π
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from .cells import CONTACT, FLUX, CellTable
-from .reference import Reference
+from .multiplier import clipped, entity_rule, shares
+from .reference import Reference, reference
 
 
 def det_inv(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -75,6 +77,13 @@ class CellOperators:
     table: CellTable
     rows: np.ndarray
     ref: Reference
+    multiplier: str | None = None    # where λ lives: None, "facets" (Γ_C) or "cells" (Ω)
+    sign: float = 0.0                # its admissible sign
+
+    @cached_property
+    def nodal(self) -> np.ndarray:
+        """λ_h's coefficients with wrong-signed nodal values clipped: (n, nu)."""
+        return clipped(self.table.lam[self.rows], self.sign)
 
     @cached_property
     def geometry(self) -> dict:
@@ -136,10 +145,17 @@ class CellOperators:
     @cached_property
     def ZTg(self) -> np.ndarray:
         """Zᵀ g_a for each vertex a of the cell, (n, d+1, mz), with the load of the weight
-        k_T⁻¹ of M: g_a = ∫_T (k / k_T) ψ_a ∇u_h·φ = s ∫_T̂ (k / k_T) ψ̂_a ∇̂û·φ̂."""
+        k_T⁻¹ of M and the target τ (default k∇u_h): g_a = ∫_T k_T⁻¹ ψ_a τ·φ =
+        s k_T⁻¹ ∫_T̂ ψ̂_a (Jᵀτ)·φ̂, and Jᵀ k∇u_h = k ∇̂û."""
         n, nq, d = self.grad_u.shape
-        weight = self.table.k[self.rows] / self.kT[:, None]
-        lhs = (self.grad_u * weight[:, :, None]).reshape(n, nq * d)
+        tau = self.table.tau[self.rows]
+        if tau.shape[1]:
+            x = self.table.x[self.rows]
+            J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+            ref_tau = np.einsum("nji,nqj->nqi", J, tau)
+        else:
+            ref_tau = self.grad_u * self.table.k[self.rows][:, :, None]
+        lhs = (ref_tau / self.kT[:, None, None]).reshape(n, nq * d)
         ZG = self.ref_tables["ZG"]                       # (nq, d, D, mz): w λ_a (φ̂ Z)
         return self.geometry["s"][:, None, None] * (lhs @ ZG.reshape(nq * d, -1)).reshape(n, d + 1, -1)
 
@@ -149,20 +165,23 @@ class CellOperators:
 
     @cached_property
     def div_moments(self) -> tuple[np.ndarray, np.ndarray]:
-        """(R⁰, Rᶜ): ∫_T (ψ_a f − k∇u_h·∇ψ_a) Q_j and ∫_T ψ_a Q_j, each (n, d+1, np)."""
+        """∫_T (ψ_a f − k∇u_h·∇ψ_a) Q_j and, for the obstacle, the multiplier's share
+        ∫_T ψ_a λ̃_T Q_j: each (n, d+1, np)."""
         r, t = self.ref, self.ref_tables
         rows = self.rows
         g = self.geometry
         v = np.einsum("nqi,nik,ak->nqa", self.grad_u, g["KS"], r.dlam)
         R0 = g["absdet"][:, None, None] * np.einsum("nq,qaj->naj", self.table.f[rows], t["wlamQ"]) \
             - np.einsum("nqa,nq,qj->naj", v, self.table.k[rows], t["wQ"])
-        Rc = g["absdet"][:, None, None] * t["lamQ"][None]
-        return R0, Rc
+        src = np.zeros_like(R0)
+        if self.multiplier == "cells":
+            src = g["absdet"][:, None, None] * shares(self.nodal, cell_rule(r), self.sign)[0]
+        return R0, src
 
     @cached_property
-    def facet_data(self) -> tuple[np.ndarray, np.ndarray]:
-        """(d⁰, dᶜ): outward-flux data moments ∫_F ψ_a t q_k and, on contact facets, ∫_F ψ_a q_k,
-        in the global facet basis: each (n, d+1 facets, d+1 vertices a, nf)."""
+    def facet_data(self) -> np.ndarray:
+        """Outward-flux data moments of each vertex's share, ∫_F ψ_a (t + λ̃_F) q_k (λ̃ on Γ_C),
+        in the global facet basis: (n, d+1 facets, d+1 vertices a, nf)."""
         r = self.ref
         rows = self.rows
         x = self.table.x[rows]
@@ -172,13 +191,17 @@ class CellOperators:
         for j in range(D):
             E = x[:, [v for v in range(D) if v != j]]
             E = E[:, 1:] - E[:, :1]
-            size[:, j] = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))   # (d-1)! |F|
-        factor = size * ((kind == FLUX) | (kind == CONTACT))   # |F| / |facet simplex|
+            size[:, j] = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))   # |F| / |F̂|
+        factor = size * ((kind == FLUX) | (kind == CONTACT))
         base = np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q)  # (D, D, nf, nqf)
-        d0 = np.einsum("nj,jakq,njq->njak", factor, base, self.table.t[rows])
-        dc = np.einsum("nj,jak->njak", factor * (kind == CONTACT), base.sum(axis=-1))
+        data = np.einsum("nj,jakq,njq->njak", factor, base, self.table.t[rows])
+        if self.multiplier == "facets":
+            for j in range(D):
+                on = np.flatnonzero(kind[:, j] == CONTACT)
+                mom = shares(self.nodal[on], facet_rule(r, j), self.sign)[0]
+                data[on, j] += size[on, j][:, None, None] * mom
         P = r.P[self.perm]                                     # (n, D, nf, nf): m_glob = Pᵀ m_loc
-        return np.einsum("njkl,njak->njal", P, d0), np.einsum("njkl,njak->njal", P, dc)
+        return np.einsum("njkl,njak->njal", P, data)
 
 
 def _projected(r: Reference, which: str) -> np.ndarray:
@@ -200,4 +223,22 @@ def _data_tables(r: Reference, nu: int) -> dict:
             "ZG": np.einsum("q,qa,qzd->qdaz", r.w, r.lam, phiZ),
             "wlamQ": np.einsum("q,qa,jq->qaj", r.w, r.lam, r.Q),
             "wQ": np.einsum("q,jq->qj", r.w, r.Q),
-            "lamQ": np.einsum("q,qa,jq->aj", r.w, r.lam, r.Q)}
+            }
+
+
+def facet_rule(r: Reference, j: int):
+    """The contact-entity rule (:mod:`.multiplier`) of the cell's facet j."""
+    return _entity(r.d, r.p, j)
+
+
+def cell_rule(r: Reference):
+    """The contact-entity rule of the cell itself (the obstacle)."""
+    return _entity(r.d, r.p, None)
+
+
+@functools.cache
+def _entity(d: int, p: int, j: int | None):
+    r = reference(d, p)
+    if j is None:
+        return entity_rule(d, p, r.X, r.w, r.Q, np.arange(d + 1))
+    return entity_rule(d, p, r.XF[j], r.wS, r.q, np.array([v for v in range(d + 1) if v != j]))

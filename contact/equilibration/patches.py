@@ -3,21 +3,18 @@
 For a vertex a with hat function ψ_a and patch ω_a (the cells around a), Ern & Vohralík
 (SIAM J. Numer. Anal. 53, 2015) take
 
-    σ_a = argmin ‖k^{-1/2}(σ − ψ_a k∇u_h)‖_{ω_a}   over σ ∈ RT_p(ω_a) with
-    −div σ = Π_p(ψ_a f − k∇u_h·∇ψ_a + c_a ψ_a [obstacle])        in each cell,
-    σ·n = Π_p(ψ_a t)  on Γ_N,   Π_p(ψ_a t_C) + c_a ψ_a  on Γ_C,   0 on the rest of ∂ω_a
+    σ_a = argmin ‖k_T^{-1/2}(σ − ψ_a k∇u_h)‖_{ω_a}   over σ ∈ RT_p(ω_a) with
+    −div σ = Π_p(ψ_a f − k∇u_h·∇ψ_a + ψ_a λ̃_T [obstacle])       in each cell,
+    σ·n = Π_p(ψ_a t)  on Γ_N,   Π_p(ψ_a (t_C + λ̃_F))  on Γ_C,   0 on the rest of ∂ω_a
     (free on Γ_D),
 
-and σ_h = Σ_a σ_a.  Cells meet only through the Lagrange multipliers μ of the normal
-moments on the facets that contain a ("spokes"; :mod:`.operators`); the facet opposite
-a is eliminated in its cell.  The multiplier share c_a of a constrained vertex is fixed by
-the solvability of its patch (the patch's total flux balance): c_a = R(ψ_a) / ∫ ψ_a with
-R(ψ_a) the residual of the discrete equation tested with ψ_a, i.e. the nodal multiplier
-λ_a of the lumped discrete problem; its sign is clipped to the admissible one.  At the
-ends of Γ_C on Γ_D the given multiplier is used.  Patches without a Dirichlet facet are
-determined up to a constant multiplier (regularized) and solvable only if their balance
-holds; what remains of it (the algebraic residual of the solve, or a clipped sign) is
-projected out and reported as ``defect``.
+and σ_h = Σ_a σ_a (k_T: the cell mean of k; ψ_a λ̃: the share of :mod:`.multiplier`).
+Cells meet only through the Lagrange multipliers μ of the normal moments on the facets
+that contain a ("spokes"; :mod:`.operators`); the facet opposite a is eliminated in its
+cell.  Patches without a Dirichlet facet are determined up to a constant multiplier
+(regularized) and solvable only if their balance holds, which the nodal shares c_a
+make true up to the algebraic residual of the solve at free vertices (and a clipped
+sign); what remains is projected out and reported as ``defect``.
 
 All patches of one size (number of unknown spokes) are solved in one batched dense solve;
 no loop runs over vertices.
@@ -36,8 +33,6 @@ from .reference import Reference
 @dataclass
 class PatchOutput:
     alpha: np.ndarray     # (rows, m): the RT_p coefficients Σ_a σ_a|_T (of the patches solved here)
-    vertices: np.ndarray  # global indices of the vertices whose patches were solved
-    c: np.ndarray         # their multiplier shares c_a
     defect: float         # Σ_a |balance defect| (flux units) projected out
 
 
@@ -53,40 +48,41 @@ def solve_patches(table: CellTable, owned_vertex: np.ndarray, ref: Reference, mu
     rows, locs, verts = rows[order], locs[order], verts[order]
     alpha = np.zeros((len(table), ref.m))
     uniq, starts = np.unique(verts, return_index=True)
-    c_all = np.zeros(len(uniq))
     defect = 0.0
     bounds = list(range(0, len(uniq), chunk)) + [len(uniq)]
     ends = np.append(starts, len(verts))
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         sl = slice(ends[lo], ends[hi])
-        c, dfc = _solve_chunk(table, rows[sl], locs[sl], np.searchsorted(uniq[lo:hi], verts[sl]),
-                              hi - lo, ref, multiplier, sign, alpha)
-        c_all[lo:hi] = c
-        defect += dfc
-    assert D == table.gvert.shape[1]
-    return PatchOutput(alpha, uniq, c_all, defect)
+        defect += _solve_chunk(table, rows[sl], locs[sl], np.searchsorted(uniq[lo:hi], verts[sl]),
+                               hi - lo, ref, multiplier, sign, alpha)
+    return PatchOutput(alpha, defect)
 
 
 def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier, sign, alpha):
     """One batch of whole patches: pairs (row prow, local vertex ploc) of patch ``patch``."""
     D, nf = ref.d + 1, ref.nf
     cells, inv = np.unique(prow, return_inverse=True)
-    ops = CellOperators(table, cells, ref)
+    ops = CellOperators(table, cells, ref, multiplier, sign)
     npair = len(prow)
     ar = np.arange(npair)
     # the spokes of each pair: facets j != ploc; key = the other vertices of the facet
     spoke_facets = np.array([[j for j in range(D) if j != i] for i in range(D)])      # (D, d)
     sf = spoke_facets[ploc]                                                             # (npair, d)
-    gv = table.gvert[prow]
+    _, gv = np.unique(table.gvert[prow], return_inverse=True)                          # compact ids
+    gv = gv.reshape(npair, D).astype(np.int64)
+    nv = int(gv.max()) + 1 if npair else 1
     keys = []
     for s in range(ref.d):
         others = np.sort(np.stack([gv[ar, v] for v in _others(ploc, sf[:, s], D)], axis=1), axis=1)
-        keys.append(np.column_stack([patch, others]))
-    keys = np.concatenate(keys)                                                         # (npair*d, 1+d-1)
+        key = patch.astype(np.int64)
+        for col in others.T:
+            key = key * nv + col
+        keys.append(key)
+    keys = np.concatenate(keys)                                                         # (npair*d,)
     kinds = np.concatenate([table.kind[prow, sf[:, s]] for s in range(ref.d)])
-    ukeys, spoke = np.unique(keys, axis=0, return_inverse=True)
+    ukeys, first_of, spoke = np.unique(keys, return_index=True, return_inverse=True)
     spoke = spoke.reshape(ref.d, npair).T                                               # (npair, d)
-    spoke_patch = ukeys[:, 0]
+    spoke_patch = np.tile(patch, ref.d)[first_of]
     spoke_kind = np.zeros(len(ukeys), dtype=np.int8)
     spoke_kind[spoke.T.ravel()] = kinds
     has_dirichlet = np.zeros(n_patches, bool)
@@ -112,41 +108,13 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     Soo_inv = np.linalg.inv(S[ar[:, None, None], I_o[:, :, None], I_o[:, None, :]])
     T = Sso @ Soo_inv                                                                   # (npair, d nf, nf)
     Shat = Sss - T @ np.transpose(Sso, (0, 2, 1))
-    R0, Rc = ops.div_moments
+    R0, src = ops.div_moments
     s = ops.geometry["s"][inv]
-    beta0 = -s[:, None] * R0[inv, ploc]
-    betac = -s[:, None] * Rc[inv, ploc] if multiplier == "cells" else np.zeros_like(beta0)
+    beta = -s[:, None] * (R0[inv, ploc] + src[inv, ploc])
     ZTg = ops.ZTg[inv, ploc]
-    h0 = _h(ops, inv, beta0, ZTg)
-    hc = _h(ops, inv, betac, 0.0 * ZTg)
-    b0 = _condense(h0, I_s, I_o, T)
-    bc = _condense(hc, I_s, I_o, T)
-    d0, dc = ops.facet_data
-    d0 = d0[inv[:, None], sf, ploc[:, None]].reshape(npair, -1)                        # (npair, d nf)
-    dc = dc[inv[:, None], sf, ploc[:, None]].reshape(npair, -1)
-    if multiplier != "facets":
-        dc = 0.0 * dc
-    b0 = b0 - d0
-    bc = bc - dc
-
-    # the multiplier share c_a and the given values at the ends of Γ_C on Γ_D
-    kap = np.tile(ref.kappa, ref.d)
-    bal0 = np.bincount(patch, weights=b0 @ kap, minlength=n_patches)
-    balc = np.bincount(patch, weights=bc @ kap, minlength=n_patches)
-    constrained = ~has_dirichlet & (has_contact if multiplier == "facets" else multiplier == "cells")
-    c = np.zeros(n_patches)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        c[constrained] = -bal0[constrained] / balc[constrained]
-    if multiplier == "facets":
-        end = has_contact & has_dirichlet
-        given = np.zeros(n_patches)
-        given[patch] = table.lam[prow, ploc]
-        c[end] = given[end]
-    if sign:
-        c = np.maximum(sign * c, 0.0) * sign
-    b = b0 + c[patch][:, None] * bc
-    betac_scaled = c[patch][:, None] * betac
-    h = h0 + c[patch][:, None] * hc
+    h = _h(ops, inv, beta, ZTg)
+    data = ops.facet_data[inv[:, None], sf, ploc[:, None]].reshape(npair, -1)          # (npair, d nf)
+    b = _condense(h, I_s, I_o, T) - data
 
     mu_s = np.zeros((npair, ref.d, nf))
     defect = 0.0
@@ -173,13 +141,12 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     mu = np.zeros((npair, D * nf))
     mu[ar[:, None], I_s] = mu_s
     mu[ar[:, None], I_o] = mu_o
-    beta = beta0 + betac_scaled
-    gamma = np.einsum("nab,nb->na", ops.MZinv[inv], ZTg - np.einsum("nab,nb->na", ops.ZMR[inv], beta)
-                      - np.einsum("nka,nk->na", ops.OZ[inv], mu))
+    rhs_g = ZTg - np.einsum("nab,nb->na", ops.ZMR[inv], beta) - np.einsum("nka,nk->na", ops.OZ[inv], mu)
+    gamma = np.einsum("nab,nb->na", ops.MZinv[inv], rhs_g)
     contrib = beta @ ref.R.T + gamma @ ref.Z.T
     for col in range(ref.m):
         alpha[:, col] += np.bincount(prow, weights=contrib[:, col], minlength=len(alpha))
-    return c, defect
+    return defect
 
 
 def _others(ploc, facet, D):
