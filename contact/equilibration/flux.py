@@ -24,8 +24,7 @@ import numpy as np
 import basix.ufl
 from dolfinx import fem
 
-from .cells import CellTable, FluxData, complete, local_table, return_to_owners
-from .cells import CONTACT
+from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
 from .multiplier import clipped, shares
 from .operators import cell_rule, facet_rule
 from .patches import solve_patches
@@ -36,7 +35,8 @@ __all__ = ["Flux", "FluxData", "reconstruct_flux"]
 
 @dataclass
 class Flux:
-    """The reconstruction: σ_h (RT_p), λ̃_h (P1), the data oscillation of each owned cell,
+    """The reconstruction: σ_h (RT_p), the multiplier λ̃_h it carries (:attr:`lmbda`), the data
+    oscillation of each owned cell,
 
         osc_T = k_T,min^{-1/2} ( h_T/π ‖f − Π_p f‖_T + Σ_{F ⊂ ∂T, t given} C_{T,F} ‖t − Π_p t‖_F ),
         C_{T,F} = h_T ((|F| / |T|)(1/π² + 2/(dπ)))^{1/2},
@@ -46,6 +46,7 @@ class Flux:
     the projected balance defect (algebraic residual, flux units) and timings (seconds)."""
 
     sigma_h: fem.Function
+    sigma_cells: fem.Function  # the same cell by cell in vector DG_{p+1} (before interpolation)
     lmbda_clip: fem.Function  # λ_h with wrong-signed nodal values clipped (the element of u_h)
     bubble: fem.Function      # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
     kappa: fem.Function       # DG0: κ of the cell's contact entity (the largest of its facets')
@@ -87,17 +88,29 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     t0 = time.perf_counter()
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
-    sigma_h = _rt_function(msh, ref, table, alpha)
+    sigma_cells = cellwise(msh, ref, table, alpha)
+    sigma_h = _interpolated(msh, ref, sigma_cells)
     lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign)
     osc = _oscillation(table, ref)
     seconds["assemble"] = time.perf_counter() - t0
     defect = comm.allreduce(out.defect)
-    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, seconds)
+    return Flux(sigma_h, sigma_cells, lmbda_clip, bubble, kappa, osc, defect, seconds)
 
 
-def _rt_function(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fem.Function:
-    """σ_h as a function of RT_p: the Piola-mapped coefficients evaluated in a vector DG_{p+1}
-    space (exact: RT_p ⊂ P_{p+1}), then interpolated into RT_p by DOLFINx."""
+def _interpolated(msh, ref: Reference, sigma_cells: fem.Function) -> fem.Function:
+    """σ_h in RT_p: the cellwise field interpolated by DOLFINx (exact where it is normal-
+    continuous, which the patch problems make it)."""
+    RT = fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1,
+                                                  basix.LagrangeVariant.legendre))
+    sigma_h = fem.Function(RT, name="sigma_h")
+    sigma_h.interpolate(sigma_cells)
+    sigma_h.x.scatter_forward()
+    return sigma_h
+
+
+def cellwise(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fem.Function:
+    """The Piola-mapped RT_p coefficients ``alpha`` of the owned cells (rows of ``table``) in
+    a vector DG_{p+1} space (exact: RT_p ⊂ P_{p+1}), no continuity imposed."""
     d, p = ref.d, ref.p
     W = fem.functionspace(msh, ("DG", p + 1, (d,)))
     W0 = fem.functionspace(msh, ("DG", p + 1))
@@ -113,12 +126,7 @@ def _rt_function(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fe
     dofs = W0.dofmap.list[:n]
     sigma_dg.x.array.reshape(-1, d)[dofs] = vals
     sigma_dg.x.scatter_forward()
-    RT = fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), p + 1,
-                                                  basix.LagrangeVariant.legendre))
-    sigma_h = fem.Function(RT, name="sigma_h")
-    sigma_h.interpolate(sigma_dg)
-    sigma_h.x.scatter_forward()
-    return sigma_h
+    return sigma_dg
 
 
 def _rt_element(d: int, p: int):
