@@ -410,6 +410,9 @@ SCENE: dict[str, Field] = {
                               "contact/budget.py) or a positive integer"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
+    "estimator": Field("str", "residual", choices=("residual", "equilibrated"),
+                       doc="a posteriori error estimator: residual (SPEC §5, reliable up to a constant) or "
+                           "equilibrated (SPEC §9: a guaranteed bound, scalar models only)"),
     "adapt": Field("dict", None, schema={
         "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform", "none"),
                           doc="none: one solve on the given mesh (as if there were no adapt section)"),
@@ -704,6 +707,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     _check_vector_data(cfg, model)
     _check_time(cfg)
     _check_friction(cfg, data)
+    if cfg["estimator"] == "equilibrated" and model == "elasticity":
+        raise ConfigError("estimator: equilibrated is implemented for model types signorini and obstacle; "
+                          "use residual for elasticity")
     if model == "elasticity":
         _check_bodies(cfg, constants)
         _check_elasticity(cfg)

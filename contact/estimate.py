@@ -178,6 +178,11 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     require_scene(scene)
     if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
         raise ValueError("result: expected the contact.Result of contact.solve on this scene (same mesh)")
+    if scene.cfg.get("estimator") == "equilibrated":   # SPEC §9: a guaranteed bound
+        from .equilibration.bound import guaranteed_bound
+
+        bound = guaranteed_bound(scene, result)
+        return Estimate(bound.eta_T, bound.eta, bound.terms)
     terms = indicator_terms(scene, result)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())

@@ -1,0 +1,197 @@
+"""The cell table: per cell, the raw data a vertex-patch problem needs, as plain NumPy rows.
+
+A row holds the cell's global index, its vertices (global indices, owning ranks and
+coordinates), the coefficients of u_h, the data f and k at the cell quadrature points of
+:mod:`.reference`, the kind of each facet (facet j is opposite vertex j), the boundary
+flux data at the facet quadrature points and the coefficients of the discrete multiplier
+λ_h (:mod:`.multiplier`).
+Everything downstream is computed from rows, so a rank can solve the patch of a vertex
+whose cells live on other ranks once it has received their rows (:func:`complete`), and
+send back what it computed for them (:func:`return_to_owners`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+from mpi4py import MPI
+
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from .reference import Reference
+
+INTERIOR, DIRICHLET, FLUX, CONTACT = 0, 1, 2, 3   # facet kinds (FLUX: Neumann / natural)
+
+
+@dataclass
+class CellTable:
+    """Rows of cells (see the module docstring); all arrays share the first axis."""
+
+    gcell: np.ndarray   # (n,) int64 global cell index
+    gvert: np.ndarray   # (n, d+1) int64 global vertex indices
+    vowner: np.ndarray  # (n, d+1) int32 rank owning each vertex
+    x: np.ndarray       # (n, d+1, d) vertex coordinates
+    U: np.ndarray       # (n, nu) coefficients of u_h (the element's local order)
+    f: np.ndarray       # (n, nq) f at the cell quadrature points
+    k: np.ndarray       # (n, nq) k at the cell quadrature points
+    kind: np.ndarray    # (n, d+1) int8 facet kinds
+    t: np.ndarray       # (n, d+1, nqf) flux data on FLUX / CONTACT facets (0 elsewhere)
+    lam: np.ndarray     # (n, nu) coefficients of λ_h in the element of u_h (0 without one)
+    tau: np.ndarray     # (n, nq, d) the target flux at the points, or (n, 0, d): k∇u_h
+
+    def __len__(self) -> int:
+        return len(self.gcell)
+
+    def take(self, rows: np.ndarray) -> "CellTable":
+        return CellTable(**{fl.name: getattr(self, fl.name)[rows] for fl in fields(self)})
+
+    @staticmethod
+    def concatenate(tables: list["CellTable"]) -> "CellTable":
+        return CellTable(**{fl.name: np.concatenate([getattr(t, fl.name) for t in tables])
+                            for fl in fields(CellTable)})
+
+
+@dataclass
+class FluxData:
+    """What the flux reconstruction is given, as DOLFINx objects and UFL.
+
+    ``dirichlet``, ``neumann`` and ``contact`` are facet tag values of ``facet_tags``; the
+    exterior facets no tag names carry the flux 0 (natural).  ``neumann`` and ``contact``
+    map a tag to the prescribed part of the flux σ·n there (t on Γ_N; t_C on Γ_C, where the
+    multiplier λ is added).  ``lmbda_h`` is the discrete multiplier λ_h (a Lagrange
+    function, on Γ_C including its ends on Γ_D, or in Ω; :mod:`.multiplier`).  ``target``
+    is the flux σ_h is fitted to in each patch (default k∇u_h; a better one, e.g. k∇ of a
+    feasible correction of u_h, only changes how close σ_h comes, not its constraints)."""
+
+    u_h: fem.Function
+    f: ufl.core.expr.Expr
+    k: ufl.core.expr.Expr
+    facet_tags: dmesh.MeshTags
+    dirichlet: tuple = ()
+    neumann: dict | None = None
+    contact: dict | None = None
+    lmbda_h: fem.Function | None = None
+    target: ufl.core.expr.Expr | None = None
+
+
+def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
+    """(local cells, d+1) facet kinds, and for FLUX/CONTACT facets the tag they carry."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    msh.topology.create_connectivity(tdim, tdim - 1)
+    c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
+    n_facets = msh.topology.index_map(tdim - 1).size_local + msh.topology.index_map(tdim - 1).num_ghosts
+    facet_kind = np.zeros(n_facets, dtype=np.int8)
+    facet_tag = np.full(n_facets, -1, dtype=np.int64)
+    facet_kind[dmesh.exterior_facet_indices(msh.topology)] = FLUX
+    tags = data.facet_tags
+    for values, kind in ((data.neumann or {}, FLUX), (data.contact or {}, CONTACT), (data.dirichlet, DIRICHLET)):
+        for v in values:
+            facets = tags.indices[tags.values == v]
+            facet_kind[facets] = kind
+            facet_tag[facets] = v
+    return facet_kind[c2f], facet_tag[c2f]
+
+
+def _at_points(expr, msh: dmesh.Mesh, X: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """The UFL expression at the reference points X of ``cells``: (len(cells), len(X), …).
+    The expression is multiplied by a DG0 function 1, so that DOLFINx ties it to the mesh
+    even when it is constant after differentiation (e.g. −div ∇ of a linear function)."""
+    one = fem.Function(fem.functionspace(msh, ("DG", 0)))
+    one.x.array[:] = 1.0
+    expr = one * ufl.as_ufl(expr)   # collective: the expression is compiled (also for no cells)
+    values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
+    return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
+
+
+def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
+    """The rows of this rank's owned cells (and their number).  Collective (the data
+    expressions are compiled)."""
+    u_h = data.u_h
+    V = u_h.function_space
+    msh = V.mesh
+    d = msh.topology.dim
+    n_owned = msh.topology.index_map(d).size_local
+    cells = np.arange(n_owned, dtype=np.int32)
+    nodes = msh.geometry.dofmaps[0]
+    if nodes.shape[1] != d + 1:
+        raise ValueError("the equilibrated estimator needs affine (P1-geometry) simplex meshes")
+    msh.topology.create_connectivity(d, 0)
+    c2v = msh.topology.connectivity(d, 0).array.reshape(-1, d + 1)[:n_owned]
+    vmap = msh.topology.index_map(0)
+    gvert = vmap.local_to_global(c2v.ravel().astype(np.int32)).reshape(c2v.shape)
+    owners = np.concatenate([np.full(vmap.size_local, msh.comm.rank, dtype=np.int32), vmap.owners])
+    gcell = msh.topology.index_map(d).local_to_global(cells)
+    x = msh.geometry.x[nodes[:n_owned]][:, :, :d]
+    U = u_h.x.array[V.dofmap.list[:n_owned]]
+    f = _at_points(data.f, msh, ref.X, cells)
+    k = _at_points(data.k, msh, ref.X, cells)
+    kind, tag = _facet_kinds(msh, data)
+    kind, tag = kind[:n_owned], tag[:n_owned]
+    t = np.zeros((n_owned, d + 1, len(ref.wS)))
+    XF = ref.XF.reshape(-1, d)
+    for values in (data.neumann or {}, data.contact or {}):
+        for v, expr in values.items():
+            rows = np.flatnonzero(np.any(tag == v, axis=1)).astype(np.int32)
+            vals = _at_points(expr, msh, XF, rows).reshape(len(rows), d + 1, len(ref.wS))
+            hit = tag[rows] == v
+            t[rows[:, None].repeat(d + 1, 1)[hit], np.nonzero(hit)[1]] = vals[hit]
+    lam = np.zeros_like(U)
+    if data.lmbda_h is not None:
+        in_V = fem.Function(V)
+        in_V.interpolate(data.lmbda_h)
+        lam = in_V.x.array[V.dofmap.list[:n_owned]]
+    tau = np.zeros((n_owned, 0, d)) if data.target is None else _at_points(data.target, msh, ref.X, cells)
+    return CellTable(gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam,
+                     tau), n_owned
+
+
+# ---------------------------------------------------------------------------------------
+# parallel completion of the vertex patches
+# ---------------------------------------------------------------------------------------
+def _exchange(comm: MPI.Comm, dest: np.ndarray, arrays: list[np.ndarray]) -> list[np.ndarray]:
+    """Send row r of each array to rank dest[r]; returns the received rows (all ranks)."""
+    order = np.argsort(dest, kind="stable")
+    counts = np.bincount(dest, minlength=comm.size).astype(np.int64)
+    recv_counts = np.empty_like(counts)
+    comm.Alltoall(counts, recv_counts)
+    out = []
+    for a in arrays:
+        a = np.ascontiguousarray(a[order])
+        width = int(np.prod(a.shape[1:], dtype=np.int64))
+        buf = np.empty((int(recv_counts.sum()),) + a.shape[1:], dtype=a.dtype)
+        mpitype = MPI._typedict[a.dtype.char]
+        comm.Alltoallv([a, counts * width, mpitype], [buf, recv_counts * width, mpitype])
+        out.append(buf)
+    return out
+
+
+def complete(comm: MPI.Comm, table: CellTable, source: np.ndarray) -> tuple[CellTable, np.ndarray]:
+    """This rank's rows plus the rows of every other rank's cells that touch a vertex this
+    rank owns: afterwards each owned vertex has its whole patch here.  Returns the work
+    table (this rank's rows first, in order) and the rank owning each of its rows."""
+    if comm.size == 1:
+        return table, source
+    rows, cols = np.nonzero(table.vowner != comm.rank)
+    pairs = np.unique(np.column_stack([rows, table.vowner[rows, cols]]).astype(np.int64), axis=0)
+    pairs = pairs.reshape(-1, 2)
+    sent = table.take(pairs[:, 0])
+    arrays = [getattr(sent, fl.name) for fl in fields(CellTable)] + [source[pairs[:, 0]]]
+    *received, src = _exchange(comm, pairs[:, 1], arrays)
+    return CellTable.concatenate([table, CellTable(*received)]), np.concatenate([source, src])
+
+
+def return_to_owners(comm: MPI.Comm, gcell: np.ndarray, source: np.ndarray, values: np.ndarray,
+                     n_owned: int, offset: int) -> np.ndarray:
+    """Sum the rows of ``values`` (one per work row) into the cells' owners: returns the
+    (n_owned, …) sums of this rank's cells, whose global indices are offset … offset +
+    n_owned − 1 in the order of the first n_owned work rows."""
+    out = values[:n_owned].copy()
+    if comm.size == 1:
+        return out
+    remote = np.arange(n_owned, len(gcell))
+    g, v = _exchange(comm, source[remote].astype(np.int64), [gcell[remote], values[remote]])
+    np.add.at(out, g - offset, v)
+    return out

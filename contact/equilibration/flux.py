@@ -1,0 +1,194 @@
+"""Equilibrated flux reconstruction (Ern & Vohralík 2015) for a scalar problem with a
+contact multiplier: the public entry point :func:`reconstruct_flux`.
+
+Given u_h ∈ P_p, the data f, k, t (Γ_N), t_C (Γ_C) and where the multiplier lives (Γ_C,
+Ω or nowhere), it returns σ_h ∈ RT_p with, exactly up to round-off,
+
+    −div σ_h = Π_p f + λ̃_h     in every cell   (λ̃_h = 0 unless the multiplier is in Ω),
+    σ_h·n = Π_p t   on Γ_N,    σ_h·n = Π_p t_C + λ̃_h   on Γ_C,    σ_h·n = 0 on other
+    exterior facets but Γ_D,
+
+where λ̃_h = κ B⁻(λ_h) is the given discrete multiplier λ_h, where it changes sign between
+its nodes (P2) replaced by a function of one sign with the same lumped moments
+(:mod:`.multiplier`).  It does not look at a configuration: the
+inputs are DOLFINx functions, UFL expressions and facet tags (:class:`FluxData`), so the
+same reconstruction serves other models (row-wise for elasticity).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import basix.ufl
+from dolfinx import fem
+
+from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
+from .multiplier import clipped, shares
+from .operators import cell_rule, facet_rule
+from .patches import solve_patches
+from .reference import Reference, reference
+
+__all__ = ["Flux", "FluxData", "reconstruct_flux"]
+
+
+@dataclass
+class Flux:
+    """The reconstruction: σ_h (RT_p), the multiplier λ̃_h it carries (:attr:`lmbda`), the data
+    oscillation of each owned cell,
+
+        osc_T = k_T,min^{-1/2} ( h_T/π ‖f − Π_p f‖_T + Σ_{F ⊂ ∂T, t given} C_{T,F} ‖t − Π_p t‖_F ),
+        C_{T,F} = h_T ((|F| / |T|)(1/π² + 2/(dπ)))^{1/2},
+
+    (so that (f − Π_p f, v)_T + ⟨t − Π_p t, v⟩_{∂T} ≤ osc_T ‖k^{1/2}∇v‖_T for every v ∈ H¹(T):
+    Poincaré's h_T/π on convex cells, and the trace inequality of :func:`_oscillation`),
+    the projected balance defect (algebraic residual, flux units) and timings (seconds)."""
+
+    sigma_h: fem.Function
+    sigma_cells: fem.Function  # the same cell by cell in vector DG_{p+1} (before interpolation)
+    lmbda_clip: fem.Function  # λ_h with wrong-signed nodal values clipped (the element of u_h)
+    bubble: fem.Function      # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
+    kappa: fem.Function       # DG0: κ of the cell's contact entity (the largest of its facets')
+    osc: np.ndarray      # (owned cells,) osc_T
+    defect: float
+    seconds: dict = field(default_factory=dict)
+
+    @property
+    def lmbda(self):
+        """λ̃_h = κ (λ_h − ½ Σ_e β_e φ_{m_e}) as UFL on the contact entities (Γ_C facets or Ω;
+        on a cell with two contact facets an upper bound of |λ̃_h|)."""
+        return self.kappa * (self.lmbda_clip - 0.5 * self.bubble)
+
+
+def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float = 0.0) -> Flux:
+    """σ_h of the module docstring.  ``multiplier``: None, "facets" (λ on the ``contact``
+    facets, Signorini) or "cells" (λ in Ω, obstacle); ``sign``: the sign λ̃ must have
+    (−1: ≤ 0, +1: ≥ 0, 0: any).  Collective."""
+    if multiplier not in (None, "facets", "cells"):
+        raise ValueError(f"multiplier: expected None, 'facets' or 'cells', got {multiplier!r}")
+    V = data.u_h.function_space
+    msh = V.mesh
+    d = msh.topology.dim
+    p = V.element.basix_element.degree
+    ref = reference(d, p)
+    comm = msh.comm
+    seconds = {}
+    t0 = time.perf_counter()
+    if multiplier is not None and data.lmbda_h is None:
+        raise ValueError("lmbda_h: the discrete multiplier is needed when the flux carries one")
+    table, n_owned = local_table(data, ref)
+    work, source = complete(comm, table, np.full(n_owned, comm.rank))
+    seconds["gather"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    vmap = msh.topology.index_map(0)
+    owned_vertices = np.arange(*vmap.local_range, dtype=np.int64)
+    out = solve_patches(work, owned_vertices, ref, multiplier, sign)
+    seconds["patches"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    offset = msh.topology.index_map(d).local_range[0]
+    alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
+    sigma_cells = cellwise(msh, ref, table, alpha)
+    sigma_h = _interpolated(msh, ref, sigma_cells)
+    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign)
+    osc = _oscillation(table, ref)
+    seconds["assemble"] = time.perf_counter() - t0
+    defect = comm.allreduce(out.defect)
+    return Flux(sigma_h, sigma_cells, lmbda_clip, bubble, kappa, osc, defect, seconds)
+
+
+def _interpolated(msh, ref: Reference, sigma_cells: fem.Function) -> fem.Function:
+    """σ_h in RT_p: the cellwise field interpolated by DOLFINx (exact where it is normal-
+    continuous, which the patch problems make it)."""
+    RT = fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1,
+                                                  basix.LagrangeVariant.legendre))
+    sigma_h = fem.Function(RT, name="sigma_h")
+    sigma_h.interpolate(sigma_cells)
+    sigma_h.x.scatter_forward()
+    return sigma_h
+
+
+def cellwise(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fem.Function:
+    """The Piola-mapped RT_p coefficients ``alpha`` of the owned cells (rows of ``table``) in
+    a vector DG_{p+1} space (exact: RT_p ⊂ P_{p+1}), no continuity imposed."""
+    d, p = ref.d, ref.p
+    W = fem.functionspace(msh, ("DG", p + 1, (d,)))
+    W0 = fem.functionspace(msh, ("DG", p + 1))
+    points = W0.element.basix_element.points
+    phi = _rt_element(d, p).tabulate(0, points)[0]                     # (npts, m, d)
+    x = table.x
+    J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+    det = np.linalg.det(J)
+    ref_vals = np.einsum("qmd,nm->nqd", phi, alpha)
+    vals = np.einsum("nij,nqj->nqi", J, ref_vals) / det[:, None, None]
+    sigma_dg = fem.Function(W)
+    n = len(alpha)
+    dofs = W0.dofmap.list[:n]
+    sigma_dg.x.array.reshape(-1, d)[dofs] = vals
+    sigma_dg.x.scatter_forward()
+    return sigma_dg
+
+
+def _rt_element(d: int, p: int):
+    import basix
+
+    from .reference import CELLS
+
+    return basix.create_element(basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre)
+
+
+def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign):
+    """λ_h clipped, the Bernstein bubble and κ (:class:`Flux`) from the owned rows."""
+    n = len(table)
+    nodal = clipped(table.lam, sign)
+    dofs = V.dofmap.list[:n]
+    lmbda_clip, bubble = fem.Function(V, name="lambda_h"), fem.Function(V)
+    lmbda_clip.x.array[dofs] = nodal
+    kappa = np.ones(n)
+    if multiplier is not None:
+        kappa[:] = 0.0 if multiplier == "facets" else 1.0
+        entities = [(cell_rule(ref), np.arange(n))] if multiplier == "cells" else \
+            [(facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT)) for j in range(ref.d + 1)]
+        for rule, rows in entities:
+            _, k, beta = shares(nodal[rows], rule, sign)
+            kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
+            for e, (_, _, mid) in enumerate(rule.edges):
+                bubble.x.array[dofs[rows, mid]] = beta[:, e]
+        kappa[kappa == 0.0] = 1.0
+    for fn in (lmbda_clip, bubble):
+        fn.x.scatter_forward()
+    DG0 = fem.functionspace(V.mesh, ("DG", 0))
+    kap = fem.Function(DG0, name="kappa")
+    kap.x.array[:n] = kappa
+    kap.x.scatter_forward()
+    return lmbda_clip, bubble, kap
+
+
+def _oscillation(table: CellTable, ref: Reference) -> np.ndarray:
+    """osc_T of :class:`Flux` for the table's cells.
+
+    The trace inequality: for v ∈ H¹(T), F a facet and x_F the opposite vertex, the field
+    x − x_F has normal component d|T|/|F| on F and 0 on the other facets and divergence d,
+    so (d|T|/|F|)‖v‖²_F = ∫_T d v² + 2v ∇v·(x − x_F) ≤ d‖v‖²_T + 2h_T‖v‖_T‖∇v‖_T; with v − v̄_T
+    (‖v − v̄_T‖_T ≤ h_T/π ‖∇v‖_T) and t − Π_p t ⊥ constants on F this gives C_{T,F}."""
+    from .operators import det_inv
+
+    d, D = ref.d, ref.d + 1
+    x = table.x
+    J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+    absdet = np.abs(det_inv(J)[0])
+    vol = absdet / np.prod(np.arange(1, d + 1))
+    h = np.max([np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0)
+    Q, w = ref.Q, ref.w
+    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q              # f − Π_p f at the points
+    osc = h / np.pi * np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
+    q, wS = ref.q, ref.wS
+    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q            # t − Π_p t, (n, D, nqf)
+    for j in range(D):
+        E = x[:, [v for v in range(D) if v != j]]
+        E = E[:, 1:] - E[:, :1]
+        size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))    # |F| / |F̂|
+        area = size / np.prod(np.arange(1, d))
+        norm = np.sqrt(size * (trest[:, j] ** 2 @ wS))
+        osc += h * np.sqrt(area / vol * (1 / np.pi**2 + 2 / (d * np.pi))) * norm
+    return osc / np.sqrt(table.k.min(axis=1))
