@@ -6,7 +6,7 @@ code 130, serially and under mpirun.
 
 The exception is planted without a hook in the code: a small script replaces one function
 of the package by one that raises on the chosen rank, then calls the real
-``contact.cli.main`` (:data:`PLANT`).  Before the rules of :mod:`contact.failures` the
+``contact.app.cli.main`` (:data:`PLANT`).  Before the rules of :mod:`contact.app.failures` the
 failing rank ran a collective on its way out (``io.atomic_folder``'s ``finally``, a
 study's row bookkeeping) while the others waited in another one: the job hung.
 """
@@ -29,7 +29,7 @@ BOUND = 60.0   # seconds a failing job may take, start-up and the agreement wait
 PLANT = '''
 import importlib, sys
 from mpi4py import MPI
-import contact.cli
+import contact.app.cli
 
 target, rank, argv = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
 module_name, _, name = target.rpartition(".")
@@ -44,7 +44,7 @@ def planted(*args, **kwargs):
     return real(*args, **kwargs)
 
 setattr(module, name, planted)
-sys.exit(contact.cli.main(argv))
+sys.exit(contact.app.cli.main(argv))
 '''
 
 
@@ -100,11 +100,11 @@ def _friction_scene(tmp: Path) -> Path:
 # (target, rank, scene) — scene "square": the 8 × 8 Signorini square, one solve;
 # "adaptive": it with two uniform levels and pictures; "friction": _friction_scene
 CASES = {
-    "solve of a load step": ("contact.loadpath.solve", 1, "friction"),
-    "step writer (surface figures)": ("contact.loadreport.surface_figures", 1, "friction"),
-    "VTK gather": ("contact.series._gather_rows", 1, "square"),
-    "writing a file (disk full)": ("contact.series.save_vtu", 0, "square"),
-    "drawing a picture": ("contact.plots._mesh_2d", 1, "adaptive"),
+    "solve of a load step": ("contact.drivers.load_path.solve", 1, "friction"),
+    "step writer (surface figures)": ("contact.output.step_report.surface_figures", 1, "friction"),
+    "VTK gather": ("contact.output.vtk._gather_rows", 1, "square"),
+    "writing a file (disk full)": ("contact.output.vtk.save_vtu", 0, "square"),
+    "drawing a picture": ("contact.output.plots._mesh_2d", 1, "adaptive"),
 }
 
 
@@ -154,7 +154,7 @@ def _interrupt(tmp: Path, ranks: int) -> tuple[subprocess.Popen, str, float]:
     does (mpiexec forwards it to the ranks, which hydra puts in process groups of their
     own).  Returns the process, its stderr and the seconds from SIGINT to its end."""
     scene = _friction_scene(tmp)
-    cmd = [sys.executable, "-m", "contact.cli", "run", str(scene), "-o", "out", "-q", "--set", "load.steps=2000",
+    cmd = [sys.executable, "-m", "contact.app.cli", "run", str(scene), "-o", "out", "-q", "--set", "load.steps=2000",
            "--set", "output.vtk=false", "--set", "output.png=false"]
     if ranks:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from clirun import ROOT
 
-from contact import failures
-from contact.study import run_study
+from contact.app import failures
+from contact.app.study import run_study
 
 SCENE = str(ROOT / "configs" / "signorini_square.yaml")
 

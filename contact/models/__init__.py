@@ -15,10 +15,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .problem import Constraint, DiscreteProblem
+from ..solvers.problem import Constraint, DiscreteProblem
 
 if TYPE_CHECKING:
-    from ..scene import Scene
+    from ..setup.scene import Scene
 
 __all__ = ["Constraint", "DiscreteProblem", "build_problem"]
 
@@ -26,7 +26,7 @@ __all__ = ["Constraint", "DiscreteProblem", "build_problem"]
 def build_problem(scene: "Scene") -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
-    from ..budget import check_dofs, mesh_dofs
+    from ..setup.budget import check_dofs, mesh_dofs
 
     cfg, msh = scene.cfg, scene.mesh
     components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1

@@ -1,6 +1,6 @@
 """Friction on the contact nodes of the elastic model (SPEC §1.4): the scene side.
 
-Per contact node i (the constrained nodes of :class:`~contact.models.problem.Constraint`)
+Per contact node i (the constrained nodes of :class:`~contact.solvers.problem.Constraint`)
 with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns x:
 
 * the normal unknown x_n,i (already the constraint's DoF) and the tangential unknowns
@@ -22,7 +22,7 @@ with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns 
   ``friction.kappa_t`` (default 1).  Then c_t s_t = K_tt s_t / w is the tangential traction a
   Jacobi step of s_t would create: z = μ_t + c_t s_t adds two tractions of the same
   discrete origin, as the normal ``c: auto`` compares two lengths
-  (:func:`contact.models.problem.nodal_scaling`); scaling E scales both, so it cancels.
+  (:func:`contact.solvers.problem.nodal_scaling`); scaling E scales both, so it cancels.
 
 Two bodies.  The tangential unknowns are read in the solver's unknowns x of the change of
 basis u = Q x, and the frames from Q's diagonal node blocks; with the mortar basis of SPEC
@@ -46,10 +46,10 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
-from .. import expressions
-from ..config import ConfigError
-from ..scene import Scene
-from .problem import DiscreteProblem
+from ..setup import expressions
+from ..setup.config import ConfigError
+from ..setup.scene import Scene
+from ..solvers.problem import DiscreteProblem
 
 
 @dataclass

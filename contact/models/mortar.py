@@ -44,8 +44,8 @@ from petsc4py import PETSc
 
 from dolfinx import fem, la
 
-from ..config import ConfigError
-from ..scene import Scene
+from ..setup.config import ConfigError
+from ..setup.scene import Scene
 from . import overlap
 from .basis import node_frames
 

@@ -1,5 +1,5 @@
 """Solvers of the discrete contact problem (SPEC §3–4, §8).  Quasi-static load paths, which
-call the adaptive loop, live above them in :mod:`contact.loadpath`.
+call the adaptive loop, live above them in :mod:`contact.drivers.load_path`.
 
 * :mod:`.ncp` — complementarity functions φ (fb, min, blend) and their generalized
   derivatives;
@@ -15,9 +15,10 @@ call the adaptive loop, live above them in :mod:`contact.loadpath`.
 * :mod:`.solve` — one solve end to end; :mod:`.result` — its outcome.
 """
 from .linear import default_linear_solver
-from .options import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant, solver_options
+from .options import (DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant,
+                      solver_options)
 from .result import Result, newton_text, owned_residual, solves_text
-from .solve import solve
+from .snes import solve
 
 __all__ = ["DEFAULT_PETSC_OPTIONS", "ELASTICITY_3D_PETSC_OPTIONS", "Result", "default_linear_solver",
            "method_variant", "newton_text", "owned_residual", "solve", "solver_options",

@@ -78,7 +78,7 @@ from petsc4py import PETSc
 
 from ..models import DiscreteProblem
 from ..models.friction import FrictionSet
-from ..models.problem import NodeBlockMatrix
+from .problem import NodeBlockMatrix
 from . import ncp
 from .linear import attach_near_nullspace
 from .newton import Complementarity, set_newton
@@ -260,7 +260,7 @@ def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | Non
     for small F; an independent check of the full Newton method (same solution).  The
     returned :class:`~contact.solvers.result.Result` is the last Tresca solve's, with
     ``iterations`` the Newton steps of all of them and ``friction['fixed_point_iterations']``.
-    ``solve`` is :func:`contact.solvers.solve.solve`, passed in by it (it calls this module)."""
+    ``solve`` is :func:`contact.solvers.snes.solve`, passed in by it (it calls this module)."""
     fs: FrictionSet = problem.friction
     comm = scene.comm
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose

@@ -10,8 +10,8 @@ from typing import Any, Mapping
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..config import SCENE, ConfigError, _validate
-from ..failures import petsc_message
+from ..setup.config import SCENE, ConfigError, _validate
+from ..app.failures import petsc_message
 from .reduced import REDUCED_PETSC_OPTIONS
 
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}

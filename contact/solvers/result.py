@@ -85,7 +85,7 @@ class Result:
         nodal arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps
         its numbers).  What stays — iterations, residual, history, timings, contact force,
         DoFs — takes no memory that grows with the mesh.  A load path releases each step's
-        result once the next step is done (:meth:`contact.loadpath.Step.release`)."""
+        result once the next step is done (:meth:`contact.drivers.load_path.Step.release`)."""
         if self.problem is None:
             return
         _ = self.dofs   # cached while u_h is there
