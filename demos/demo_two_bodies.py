@@ -34,7 +34,8 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.post.interface import interface_resultants, master_pressure
+from contact.post.interface import interface_resultants
+from contact.models.mortar import master_pressure
 from contact.post.reference import compare
 from contact.drivers.load_path import run_load_path
 from contact.output.folder import gather_nodal

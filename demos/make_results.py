@@ -640,7 +640,7 @@ def iterations() -> str:
                         for m in METHODS if (m, True) in seconds)
             + f" — nested iteration is faster for {sum(seconds[m, True] < seconds[m, False] for m in METHODS if (m, True) in seconds and (m, False) in seconds)} "
             "of the five methods. The prolongation of u_h to the refined mesh evaluates it in each child's "
-            "parent cell (`contact.drivers.adaptive.prolong`, no point search), so it costs little next to a solve."]
+            "parent cell (`contact.adaptivity.transfer.prolong`, no point search), so it costs little next to a solve."]
     return "\n".join(out) + "\n"
 
 

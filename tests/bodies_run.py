@@ -15,7 +15,7 @@ from mpi4py import MPI
 
 import contact
 from dolfinx import fem
-from contact.post.interface import master_pressure
+from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
 from contact.models import build_problem
 from contact.output.run_report import resultants

@@ -1,5 +1,5 @@
 """Run by tests/test_adaptive.py (serial and under mpirun): what refinement carries to the
-child mesh, with both partitioners of contact.drivers.adaptive.refine_partitioner (children kept on
+child mesh, with both partitioners of contact.adaptivity.refine.refine_partitioner (children kept on
 their parent's rank, or redistributed by dolfinx's graph partitioner):
 
 * contact.adaptivity.transfer.prolong (parent-cell evaluation on the creating rank) against dolfinx's
@@ -14,7 +14,7 @@ from mpi4py import MPI
 import contact  # noqa: F401  (dolfinx_solver first)
 import ufl
 from dolfinx import fem, mesh
-from contact.drivers.adaptive import refine_partitioner
+from contact.adaptivity.refine import refine_partitioner
 from contact.adaptivity.transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 comm = MPI.COMM_WORLD

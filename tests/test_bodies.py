@@ -12,8 +12,8 @@ import pytest
 from mpi4py import MPI
 
 import contact
-from contact.setup.config import ConfigError
-from contact.post.interface import master_pressure
+from contact.base.errors import ConfigError
+from contact.models.mortar import master_pressure
 from contact.models import build_problem
 from contact.post.reference import compare
 from contact.output.run_report import resultants

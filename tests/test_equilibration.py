@@ -26,7 +26,7 @@ from dolfinx.fem.petsc import LinearProblem
 from mpi4py import MPI
 
 from clirun import MPIRUN, ROOT
-from contact.setup.config import ConfigError
+from contact.base.errors import ConfigError
 from contact.adaptivity.equilibration import FluxData, reconstruct_flux
 from contact.adaptivity.equilibration.bound import guaranteed_bound
 from contact.post.energy_error import solution_error

@@ -19,7 +19,8 @@ from mpi4py import MPI
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 
-from contact.drivers.adaptive import dorfler_threshold, mark, refine
+from contact.adaptivity.mark import dorfler_threshold, mark
+from contact.adaptivity.refine import refine
 from contact.post.energy_error import energy_error
 from contact.adaptivity.estimate import TERMS, estimate, indicator_terms
 from contact.setup.meshes import tag_boundaries

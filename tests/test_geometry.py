@@ -20,8 +20,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from contact.drivers.adaptive import refine, refine_partitioner
-from contact.setup.config import ConfigError
+from contact.adaptivity.refine import refine, refine_partitioner
+from contact.base.errors import ConfigError
 from contact.setup.geometry import (CONTACT, GRADING, CurvedBoundary, curved_boundary,
                                     quarter_disk, sphere_octant)
 from snap_levels import SCENES, load, main, near_contact, refinements

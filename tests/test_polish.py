@@ -11,7 +11,7 @@ import contact
 from contact.models import build_problem
 from contact.solvers.problem import nodal_scaling
 from contact.solvers.newton import Complementarity
-from contact.solvers.options import solver_options
+from contact.drivers.solve import solver_options
 from contact.solvers.linear import AssembledSystem
 from contact.solvers.polish import Polisher
 from contact.solvers.snes import set_dirichlet

@@ -132,7 +132,7 @@ def _tiny_study(tmp: Path) -> Path:
 def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> None:
     """A study catches a failing run as a row — but only a failure on every rank: one
     rank's alone ends the job."""
-    proc, seconds = _planted(tmp_path, "contact.solvers.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out")
+    proc, seconds = _planted(tmp_path, "contact.drivers.solve.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out")
     _ended_by(proc, seconds, 1, 3, "internal error: study run method=fb: RuntimeError: planted in solve")
     assert not (tmp_path / "out").exists()
 
@@ -140,7 +140,7 @@ def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> No
 def test_exception_on_every_rank_in_a_study_run_is_a_row(tmp_path: Path) -> None:
     import csv
 
-    proc, seconds = _planted(tmp_path, "contact.solvers.solve", -1, "study", str(_tiny_study(tmp_path)), "-o", "out")
+    proc, seconds = _planted(tmp_path, "contact.drivers.solve.solve", -1, "study", str(_tiny_study(tmp_path)), "-o", "out")
     assert proc.returncode == 0 and seconds <= BOUND, proc.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "study.csv")))
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [

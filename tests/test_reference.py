@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import contact
-from contact.setup.config import ConfigError
+from contact.base.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 HERTZ_KEYS = {"reference", "hertz_a", "hertz_p0", "a_error", "p0_error", "a_over_R", "contact_half_width",

@@ -133,11 +133,11 @@ def test_failing_runs_are_rows(tmp_path: Path) -> None:
 def test_exceptions_are_rows(monkeypatch) -> None:
     """A run that raises (a ConfigError from an impossible combination or anything else)
     is a failure row; the next run still happens."""
-    import contact.solvers
-    from contact.setup.config import ConfigError
+    import contact.drivers.solve
+    from contact.base.errors import ConfigError
     from contact.app.study import run_study
 
-    real = contact.solvers.solve
+    real = contact.drivers.solve.solve
 
     def fake(scene, *args, **kw):
         method = scene.cfg["solver"]["method"]
@@ -147,7 +147,7 @@ def test_exceptions_are_rows(monkeypatch) -> None:
             raise RuntimeError("boom\nsecond line")
         return real(scene, *args, **kw)
 
-    monkeypatch.setattr(contact.solvers, "solve", fake)
+    monkeypatch.setattr(contact.drivers.solve, "solve", fake)
     rows, _ = run_study({"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "warmup": False,
                          "axes": {"method": ["min", "blend", "fb"]}}, verbose=False)
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [

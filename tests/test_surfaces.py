@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 import contact
-from contact.setup.config import ConfigError
+from contact.base.errors import ConfigError
 from contact.setup.geometry import CurvedBoundary
 from contact.post.reference import compare
 from contact.setup.surfaces import ContactWarning, ridge_angles

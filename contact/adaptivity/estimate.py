@@ -137,8 +137,6 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
                 terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)
                 terms["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
     if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
-        from ..post.interface import interface_terms
-
         for key, form in interface_terms(scene, result, w, n, h_E, T).items():
             terms[key] = terms.get(key, zero) + form
     return terms
@@ -148,7 +146,7 @@ def friction_data(scene: Scene, result: Result):
     """UFL data of the friction terms (SPEC §1.4, Hild–Lleras) on Γ_C: the tangential
     multiplier λ_t (P1 vector of the nodal λ_t,i), the bound ρ (Tresca: the threshold
     expression s(x, t); Coulomb: F·(−λ_n,h)⁺) and the slip s_t = (I − n nᵀ)(u_h − u_prev)."""
-    from ..post.friction_resultants import surface_functions
+    from ..solvers.friction import surface_functions
 
     p = result.problem
     lam_t = surface_functions(result)[0]
@@ -162,6 +160,63 @@ def friction_data(scene: Scene, result: Result):
     n_c = p.data["n_ufl"]
     du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
     return lam_t, rho, du - ufl.dot(du, n_c) * n_c
+
+
+def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl.Form]:
+    """Estimator terms on the pairs' surfaces (SPEC §5 with both sides measured): on the
+    slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
+    with friction h_E ‖T_t − λ_t‖² and the terms ‖(|λ_t| − ρ)⁺‖², ∫ |ρ|s_t| + λ_t·s_t| of
+    SPEC §1.4, s_t the nodal relative slip increment), ‖λ_h⁺‖² (sign) and |min(λ_h, 0) g_h|
+    (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
+    (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
+    like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
+    T_t = T − (T·n) n."""
+    from ..models.mortar import master_pressure, master_vector
+
+    p = result.problem
+    ds, bnd = p.data["ds"], scene.boundary
+    lam = result.lmbda_h
+    gap = result.gap.copy()                 # the nodal gap, NaN off the constrained nodes → 0
+    gap.x.array[np.isnan(gap.x.array)] = 0.0
+    lam_m = master_pressure(result)
+    Tn = ufl.dot(T, n)
+    Tt = T - Tn * n
+    zero = fem.Constant(scene.mesh, 0.0) * w * ufl.dx(domain=scene.mesh)
+    terms = {"consistency_master": zero}
+    slave_ids = [bnd.ids[pair["slave"]] for pair in scene.cfg["pairs"]]
+    master_ids = [bnd.ids[pair["master"]] for pair in scene.cfg["pairs"]]
+    extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
+    Tt_s, Tt_m = Tt, Tt
+    if result.friction is not None:   # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
+        from ..solvers.friction import surface_functions
+
+        lam_t, slip = surface_functions(result)[:2]
+        Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
+        rho = friction_bound(scene, lam)
+        extra.update(friction_bound=zero, slip=zero)
+    for i in slave_ids:
+        extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+        extra["tangential"] += h_E * ufl.inner(Tt_s, Tt_s) * w * ds(i)
+        extra["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
+        extra["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
+        if result.friction is not None:   # Hild–Lleras: the bound and the slip's direction
+            extra["friction_bound"] += ufl.max_value(ufl.sqrt(ufl.inner(lam_t, lam_t)) - rho, 0) ** 2 * w * ds(i)
+            extra["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+    for i in master_ids:
+        terms["consistency_master"] += h_E * (lam_m - Tn) ** 2 * w * ds(i)
+        extra["tangential"] += h_E * ufl.inner(Tt_m, Tt_m) * w * ds(i)
+    return {**extra, **terms}
+
+
+def friction_bound(scene: Scene, lam: fem.Function):
+    """ρ of the scene's friction law on the slave surface (UFL): Coulomb F·(−λ_h)⁺, Tresca
+    the threshold expression s(x, t)."""
+    cfg = scene.cfg["friction"]
+    if cfg["law"] == "coulomb":
+        return cfg["coefficient"] * ufl.max_value(-lam, 0)
+    from ..setup import expressions
+
+    return expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:

@@ -25,7 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import failures
-from ..setup.config import ConfigError
+from ..base.errors import ConfigError
 
 
 class _Parser(argparse.ArgumentParser):

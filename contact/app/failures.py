@@ -42,9 +42,10 @@ not failures in this sense.
 """
 from __future__ import annotations
 
-import re
 import sys
 import time
+
+from ..base.errors import petsc_message
 
 SOLVED, NOT_CONVERGED, BAD_INPUT, INTERNAL = 0, 1, 2, 3
 INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, what a shell reports for a program SIGINT ended
@@ -58,18 +59,6 @@ def one_line(text: object, limit: int = MAX_LINE) -> str:
     characters with a trailing ``…``."""
     line = " ".join(str(text).split())
     return line if len(line) <= limit else line[: limit - 1].rstrip() + "…"
-
-
-def petsc_message(err: BaseException) -> str:
-    """PETSc's own message of a ``petsc4py.PETSc.Error``: the last line of its report that
-    is not a stack frame (``[0] Could not locate solver type ...``), without the rank
-    prefix; the error code when the report has no such line."""
-    lines = [re.sub(r"^\[\d+\]\s*", "", ln.strip()) for ln in str(err).strip().splitlines()]
-    text = [ln for ln in lines if ln and not _FRAME.match(ln) and not ln.startswith("error code")]
-    return text[-1] if text else f"error code {getattr(err, 'ierr', '?')}"
-
-
-_FRAME = re.compile(r"^\w+\(\) at \S+:\d+$")  # "KSPSetUp() at .../itfunc.c:428"
 
 
 def describe(err: BaseException, limit: int = MAX_LINE) -> str:

@@ -62,9 +62,10 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 from mpi4py import MPI
 
-from ..setup.config import (SCENE, ConfigError, Field, _nonnegative, _positive, _typename,
-                            _validate, folder_name, _validate_mapping, apply_overrides,
-                            load_config, read_yaml, switch_off)
+from ..setup.config import (SCENE, Field, _nonnegative, _positive, _typename, _validate,
+                            folder_name, _validate_mapping, apply_overrides, load_config,
+                            read_yaml, switch_off)
+from ..base.errors import ConfigError
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 
@@ -406,7 +407,7 @@ def _peak_rss_mib(comm: MPI.Comm) -> float:
 
 
 def _refine_uniformly(scene, times: int):
-    from ..drivers.adaptive import refine
+    from ..adaptivity.refine import refine
 
     for _ in range(times):
         tdim = scene.mesh.topology.dim
@@ -452,13 +453,13 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     run of a study also pays for any JIT compilation not yet in the FFCx cache (use
     ``repeat: 2``).  Under MPI an exception raised on every rank (bad options, an error
     raised by all ranks) is a failed row; one raised on some ranks only ends the job
-    (:func:`contact.app.failures.abort`, exit code 3) after :data:`~contact.app.failures.AGREE_SECONDS`,
-    since the other ranks wait in a collective; Ctrl-C is raised on (:mod:`contact.app.failures`)."""
+    (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
+    other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..drivers.adaptive import adapt
     from ..post.energy_error import solution_error
     from ..adaptivity.estimate import estimate
     from ..setup.scene import load_scene
-    from ..solvers import solve
+    from ..drivers.solve import solve
     from ..solvers.result import not_converged_text
 
     out: dict[str, Any] = {"dofs": "", "levels": "", "newton_iterations": "", "newton_iterations_total": "",
@@ -678,8 +679,9 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
     its level rows.
 
     Collective: call it on every rank.  With ``outdir`` the folder is written atomically
-    (``contact.output.folder.atomic_folder``) with ``study.csv``, ``levels.csv``, ``study.json`` (the
-    validated study) and the study's charts (``<chart>.png``, see :mod:`contact.output.charts`);
+    (``contact.output.folder.atomic_folder``) with ``study.csv``, ``levels.csv``,
+    ``study.json`` (the validated study) and the study's charts (``<chart>.png``, see
+    :mod:`contact.output.charts`);
     with ``outdir=None`` nothing is written.  Bad input raises :class:`ConfigError` before
     any run; failing runs are rows with ``converged=False`` and a ``failure`` text.
     Progress (one line per run, with an ETA) goes to rank 0's stdout when ``verbose``."""

@@ -28,7 +28,8 @@ from dolfinx import fem
 
 from .adaptive import adapt
 from ..setup.scene import Scene
-from ..solvers import Result, solve
+from ..solvers import Result
+from .solve import solve
 
 
 @dataclass

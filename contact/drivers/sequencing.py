@@ -16,7 +16,7 @@ levels that cost a fraction of one fine step each.  The levels, coarsest first:
   carried over by locating the fine DoF points in the coarse mesh (:func:`point_transfer`);
 * a scene made by :func:`contact.refine`: the scenes it was refined from (those whose
   DoFs fall by ≥ 4× from one chosen level to the next), carried over by
-  the exact prolongation of nested refinement (:func:`contact.drivers.adaptive.prolong`);
+  the exact prolongation of nested refinement (:func:`contact.adaptivity.transfer.prolong`);
 * a user's ``.msh`` file (and P2 on a built-in mesh): no coarser mesh — a cold start,
   reported in ``Result.sequence_note``.
 
@@ -38,7 +38,7 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
-from ..setup.config import ConfigError
+from ..base.errors import ConfigError
 from ..models import build_problem
 from ..setup.scene import Scene
 
@@ -224,13 +224,14 @@ def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionS
 class GridTransfer:
     """Multilinear interpolation between structured built-in meshes of one scene.
 
-    The input numbering of ``create_rectangle`` / ``create_box`` / :func:`contact.setup.meshes.lshape`
-    is that of a grid (``geometry.input_global_indices``), so every vertex knows its grid
-    position (i, j[, k]) whatever ``mesh.map`` did to its coordinates.  The coarse P1 nodal
-    values are summed into one grid array on every rank (each vertex from its owner), and
-    every fine vertex takes the multilinear interpolant at its position in coarse cell
-    units.  Crossed meshes' cell-centre vertices are left out of the coarse grid (the
-    corners alone define the interpolant) and interpolated like any other fine point."""
+    The input numbering of ``create_rectangle`` / ``create_box`` /
+    :func:`contact.setup.meshes.lshape` is that of a grid
+    (``geometry.input_global_indices``), so every vertex knows its grid position (i, j[, k])
+    whatever ``mesh.map`` did to its coordinates.  The coarse P1 nodal values are summed
+    into one grid array on every rank (each vertex from its owner), and every fine vertex
+    takes the multilinear interpolant at its position in coarse cell units.  Crossed meshes'
+    cell-centre vertices are left out of the coarse grid (the corners alone define the
+    interpolant) and interpolated like any other fine point."""
 
     def __init__(self, coarse: Scene):
         self.coarse = coarse

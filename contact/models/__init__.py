@@ -1,7 +1,7 @@
 """Models: a scene's mesh and data → the discrete contact problem (K, b, constraint set).
 
-* :mod:`.problem` — :class:`DiscreteProblem` and :class:`Constraint`, the interface to
-  the solvers, and what every model shares (assembly, lumped weights, the NCP scaling);
+* :mod:`.problem` — what every model shares (assembly, lumped weights, the scene's
+  expressions) to build the solvers' :class:`~contact.solvers.problem.DiscreteProblem`;
 * :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
 * :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
   :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
@@ -15,12 +15,12 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.problem import DiscreteProblem
 
 if TYPE_CHECKING:
     from ..setup.scene import Scene
 
-__all__ = ["Constraint", "DiscreteProblem", "build_problem"]
+__all__ = ["build_problem"]
 
 
 def build_problem(scene: "Scene") -> DiscreteProblem:

@@ -37,7 +37,8 @@ from . import mortar
 from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
 from .floating import floating_bodies
-from ..solvers.problem import Constraint, DiscreteProblem, contact_ends, coordinate_scale
+from ..solvers.problem import Constraint, DiscreteProblem
+from .problem import contact_ends, coordinate_scale
 
 
 def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
@@ -187,9 +188,9 @@ class ObstacleNodes:
 def obstacle_nodes(scene: Scene, V: fem.FunctionSpace, system) -> ObstacleNodes:
     """The obstacle's contact nodes rotated to their (n, t) frames (symmetry-fixed
     components kept as absolute axes, as for slave nodes), none of them a node of a pair."""
-    from ..setup.config import ConfigError
+    from ..base.errors import ConfigError
     from .obstacles import _contact_nodes, first_contact_point, obstacle_shape
-    from ..solvers.problem import lumped_weights
+    from .problem import lumped_weights
 
     normal, gap_of, n_ufl, g_ufl = obstacle_shape(scene)
     bs, gdim, comm = V.dofmap.index_map_bs, scene.mesh.geometry.dim, scene.comm

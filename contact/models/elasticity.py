@@ -26,12 +26,13 @@ from dolfinx import fem
 
 from ..setup import expressions
 from ..setup.checks import check_scene_data
-from ..setup.config import ConfigError
+from ..base.errors import ConfigError
 from ..base.lifetime import destroy
 from ..setup.scene import Scene
 from .floating import floating_bodies
 from .obstacles import curved_contact, plane_contact
-from ..solvers.problem import DiscreteProblem, assemble_system
+from ..solvers.problem import DiscreteProblem
+from .problem import assemble_system
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:

@@ -19,10 +19,11 @@ from petsc4py import PETSc
 import ufl
 from dolfinx import fem
 
-from ..setup.config import ConfigError
+from ..base.errors import ConfigError
 from ..setup.scene import Scene
 from .basis import frame
-from ..solvers.problem import Constraint, NodeBlockMatrix, coordinate_scale, lumped_weights
+from ..solvers.problem import Constraint, NodeBlockMatrix
+from .problem import coordinate_scale, lumped_weights
 
 
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):

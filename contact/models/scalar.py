@@ -5,7 +5,7 @@ Weak form, P1 (or P2) Lagrange u_h with u_h = u_D on Γ_D:
 
     a(u, v) = ∫_Ω k ∇u·∇v dx,     L(v) = ∫_Ω f v dx + ∫_{Γ_N} t v ds + ∫_{Γ_C} t_C v ds,
 
-assembled once into K and the lifted load b (:func:`contact.solvers.problem.assemble_system`).
+assembled once into K and the lifted load b (:func:`contact.models.problem.assemble_system`).
 λ_i is the contact flux k ∂u/∂n − t_C (Signorini) or −div(k∇u) − f (obstacle).  Units:
 with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²] in Ω.
 """
@@ -20,10 +20,11 @@ import ufl
 from dolfinx import fem
 
 from ..setup.checks import check_scene_data
-from ..setup.config import ConfigError
+from ..base.errors import ConfigError
 from ..setup.scene import Scene
-from ..solvers.problem import (Constraint, DiscreteProblem, coefficient, contact_ends,
-                               interpolate_expression, assemble_system, lumped_weights)
+from ..solvers.problem import Constraint, DiscreteProblem
+from .problem import (coefficient, contact_ends, interpolate_expression, assemble_system,
+                      lumped_weights)
 
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:

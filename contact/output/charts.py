@@ -1,4 +1,5 @@
-"""The charts of a parameter study (matplotlib, PNG), drawn from its rows.
+"""The charts of a parameter study (matplotlib, PNG), drawn from its rows (the pictures of
+one run are :mod:`.plots`).
 
 * :func:`speed_accuracy` — accuracy against wall time and against DoFs, one curve per
   combination of the study's non-numeric axes (and case); the points of a curve are the

@@ -1,4 +1,4 @@
-"""Output: an atomically written result folder with JSON and CSV files (VTK: :mod:`contact.output.vtk`).
+"""An atomically written result folder with JSON and CSV files (VTK: :mod:`.vtk`).
 
 ``atomic_folder`` gives a temporary sibling directory; only when everything inside was
 written does rank 0 move it to the requested name.  After a failure there is either no
@@ -9,7 +9,7 @@ file :data:`MARKER` (JSON: tool, version, command, time, host, pid, and the list
 entries it wrote), and an existing ``outdir`` is replaced only when it is such a folder
 holding nothing but those entries.  Any other existing folder, a file, a symbolic link,
 or a place the user cannot write is refused before anything is solved
-(:func:`check_output`, a one-line :class:`~contact.setup.config.ConfigError`).
+(:func:`check_output`, a one-line :class:`~contact.base.errors.ConfigError`).
 
 Temporaries are siblings named ``.NAME.partial-HOST-PID-XXXX`` (being written) and
 ``.NAME.old-HOST-PID`` (the previous result during the replace).  The replace is one
@@ -42,7 +42,7 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
-from ..setup.config import ConfigError
+from ..base.errors import ConfigError
 
 MARKER = ".contact-result"   # the marker file of every folder the tool writes
 
@@ -248,7 +248,7 @@ def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: st
     try:
         yield tmp
     except BaseException:
-        if comm.rank == 0:   # local: no collective on the way out of an exception (contact.app.failures)
+        if comm.rank == 0:   # local: no collective on the way out of an exception (app.failures)
             shutil.rmtree(tmp, ignore_errors=True)
         raise
     # Every rank finished its part of the folder (pictures are drawn on several ranks).  A

@@ -1,4 +1,4 @@
-"""Pictures a user can look at without ParaView.
+"""The pictures of one run (a study's are :mod:`.charts`), to look at without ParaView.
 
 2D fields are drawn with matplotlib (axes in the scene's length unit, colour bars with their
 title beside the ticks); 3D fields with pyvista off-screen, seen from the obstacle's side so

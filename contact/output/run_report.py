@@ -155,7 +155,7 @@ def point_fields(result: Result) -> list:
     contact pairs also the pressure the master surfaces see (``lambda_master``)."""
     fields = [result.u_h, result.lmbda_h, result.gap, result.active]
     if result.problem.data.get("couplings"):
-        from ..post.interface import master_pressure
+        from ..models.mortar import master_pressure
 
         fields.append(master_pressure(result))
     return fields

@@ -11,12 +11,13 @@ Per step k (numbered 000, 001, …):
   with its friction columns: s or r, λ_n, λ_t, gap, slip, bound, status).
 
 After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations, the
-resultants and zone measures of :func:`contact.post.friction_resultants.surface_figures`, η), ``summary.json``
-(the run, with the same figures per step under ``steps``), ``contact.csv`` and
-``pressure.png`` of the last step (:func:`contact.output.run_report.write_contact`), ``traction.png``
-(λ_n and λ_t along Γ_C at every step, with the declared reference's or the exact solution's
-curves), ``solution.png``, ``history.csv`` (every step's Newton iterations) and, when steps
-ran the adaptive loop, ``convergence.csv`` (one row per level, with its step).
+resultants and zone measures of :func:`contact.post.friction_resultants.surface_figures`,
+η), ``summary.json`` (the run, with the same figures per step under ``steps``),
+``contact.csv`` and ``pressure.png`` of the last step
+(:func:`contact.output.run_report.write_contact`), ``traction.png`` (λ_n and λ_t along Γ_C
+at every step, with the declared reference's or the exact solution's curves),
+``solution.png``, ``history.csv`` (every step's Newton iterations) and, when steps ran the
+adaptive loop, ``convergence.csv`` (one row per level, with its step).
 """
 from __future__ import annotations
 
@@ -35,7 +36,7 @@ from .run_report import (_finish, cell_fields, plot_solution, point_fields, warn
 from ..setup.scene import Scene
 from .fields import FieldFiles
 from ..drivers.load_path import LoadPath, Step
-from ..post.friction_resultants import surface_figures, surface_functions
+from ..post.friction_resultants import surface_figures
 
 
 class StepWriter:
@@ -71,7 +72,11 @@ class StepWriter:
         if scene.comm.rank == 0:
             write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
         if self.files.formats:
-            nodal = point_fields(r) + (surface_functions(r) if r.friction is not None else [])
+            nodal = point_fields(r)
+            if r.friction is not None:
+                from ..solvers.friction import surface_functions
+
+                nodal += surface_functions(r)
             cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
             self.files.write_step(step.time, nodal, cells, field_data={"step": k, "dofs": r.dofs})
 

@@ -22,7 +22,8 @@ frictional solve adds to the columns above (coordinates, ``s`` / ``r``, λ_n, ga
 component along t_0 = (−n_y, n_x), n the contact normal at the first point of contact — for
 a plane y = 0 below the body, the x component; in 3D the vector in global axes), |λ_t|, the
 friction bound ρ_i, the slip increment s_t,i of the load step (length; the same way), |s_t|,
-the status separated / stick / slip, and w_i.  Their resultants are :mod:`contact.post.friction_resultants`'s.
+the status separated / stick / slip, and w_i.  Their resultants are
+:mod:`contact.post.friction_resultants`'s.
 
 :func:`contact_columns` gives this rank's rows as named NumPy columns; a model with more
 data per contact node (friction: λ_t, slip, status) adds columns there.  :func:`gather`

@@ -51,7 +51,7 @@ def elastic_energy_error(u_h: fem.Function, exact: list[str], mu: float, lmbda_L
     gdim = msh.geometry.dim
     texts = exact if isinstance(exact, list) else [exact] * gdim
     if len(texts) != gdim:
-        from ..setup.config import ConfigError
+        from ..base.errors import ConfigError
 
         raise ConfigError(f"data.exact: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}")
     u = ufl.as_vector([expressions.to_ufl(e, msh, constants or {}, t=t) for e in texts])

@@ -1,23 +1,22 @@
-"""Friction on the contact surface Γ_C: the resultants of a step and the nodal fields of
-the VTK output.  The per-node friction columns of ``contact.csv`` (λ_t,i, s_t,i, the
-status, the weight w_i = ∫_{Γ_C} φ_i of contact node i: a length in 2D, an area in 3D) are
-:func:`contact.post.contact_table.friction_columns`.
+"""Friction on the contact surface Γ_C: the resultants of a step (the nodal fields of the
+field files are :func:`contact.solvers.friction.surface_functions`).  The per-node friction
+columns of ``contact.csv`` (λ_t,i, s_t,i, the status, the weight w_i = ∫_{Γ_C} φ_i of contact
+node i: a length in 2D, an area in 3D) are :func:`contact.post.contact_table.friction_columns`.
 
-Resultants (of the whole body when symmetry planes cut it: :func:`contact.post.resultants.whole_body`,
-m times the modelled part's along the planes, 0 across them): the normal force m Σ w_i λ_n,i,
-the tangential force Σ w_i λ_t,i (vector), the contact force on the body Σ w_i (λ_n,i n_i +
-λ_t,i) (vector; with no body or Neumann load it balances the Dirichlet reaction), the
-Dirichlet reaction per component (:func:`contact.post.resultants.reaction_force`: the force the
-supports exert on the body or bodies), |F_t| / |F_n|, and the node counts and measures
-Σ w_i of the stick, slip and separated sets (of the modelled part); in 2D also the number
-of stick zones (maximal runs of stick nodes along Γ_C) and their extent in s.
+Resultants (of the whole body when symmetry planes cut it:
+:func:`contact.post.resultants.whole_body`, m times the modelled part's along the planes, 0
+across them): the normal force m Σ w_i λ_n,i, the tangential force Σ w_i λ_t,i (vector), the
+contact force on the body Σ w_i (λ_n,i n_i + λ_t,i) (vector; with no body or Neumann load it
+balances the Dirichlet reaction), the Dirichlet reaction per component
+(:func:`contact.post.resultants.reaction_force`: the force the supports exert on the body or
+bodies), |F_t| / |F_n|, and the node counts and measures Σ w_i of the stick, slip and
+separated sets (of the modelled part); in 2D also the number of stick zones (maximal runs of
+stick nodes along Γ_C) and their extent in s.
 """
 from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
-
-from dolfinx import fem
 
 from .contact_table import STATUS, Table, contact_table
 from .resultants import reaction_force, whole_body
@@ -26,8 +25,8 @@ from ..solvers import Result
 
 def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
     """The resultants and zone measures of the module doc (collective); ``table`` is the
-    step's contact table as :func:`contact.post.contact_table.contact_table` returns it (the table on
-    rank 0, None elsewhere), if already gathered (for the stick zones in 2D).  Whether to
+    step's contact table as :func:`contact.post.contact_table.contact_table` returns it (the
+    table on rank 0, None elsewhere), if already gathered (for the stick zones in 2D).  Whether to
     gather it is rank 0's decision, broadcast: a collective entered on some ranks only
     would hang the others."""
     comm, p, fr = scene.comm, result.problem, result.friction
@@ -63,29 +62,3 @@ def stick_zones(table: Table) -> dict:
     zones = int(np.sum(stick[1:] & ~stick[:-1]) + (int(stick[0]) if len(stick) else 0))
     ends = [float(table["s"][stick].min()), float(table["s"][stick].max())] if stick.any() else []
     return {"stick_zones": zones, "stick_extent": ends}
-
-
-def surface_functions(result: Result) -> list[fem.Function]:
-    """Nodal fields for the VTK output: λ_t and the slip increment (vectors in global axes,
-    on the displacement space), the status (0 separated, 1 stick, 2 slip; −1 off Γ_C) and the
-    friction bound ρ (on the scalar output space)."""
-    p, fr = result.problem, result.friction
-    V, con = p.V, p.constraint
-    bs = V.dofmap.index_map_bs
-    nodes = con.dofs // bs
-    out = []
-    for name, values in (("lambda_t", fr["lambda_t_vec"]), ("slip", fr["slip_vec"])):
-        fn = fem.Function(V, name=name)
-        fn.x.array[(nodes[:, None] * bs + np.arange(values.shape[1])).ravel()] = values.ravel()
-        fn.x.scatter_forward()
-        out.append(fn)
-    for name, values, off in (("status", fr["status"].astype(float), -1.0), ("bound", fr["rho"], 0.0)):
-        fn = fem.Function(V)
-        fn.x.array[:] = off
-        fn.x.array[con.dofs] = values
-        fn.x.scatter_forward()
-        S = p.output_space or V
-        scalar = fem.Function(S, name=name)
-        scalar.x.array[:] = fn.x.array if p.output_map is None else fn.x.array[p.output_map]
-        out.append(scalar)
-    return out

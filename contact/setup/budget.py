@@ -40,7 +40,7 @@ import math
 import os
 from typing import Any
 
-from .config import ConfigError
+from ..base.errors import ConfigError
 
 BYTES_PER_DOF = 3600              # >= 1.2 x every measured per-DoF peak (bench_memory.py)
 BYTES_PER_DOF_3D_DIRECT = 15700   # a 3D direct solve at N_REF_3D_DIRECT DoFs ...

@@ -7,7 +7,7 @@ otherwise reach the solver as NaN / Inf (a "diverged_function_nanorinf" after a 
 solve) or as a meaningless "solution".  :func:`check_data` evaluates each expression at the
 mesh vertices where it enters the problem (every vertex, or those of the facets of one
 boundary role: ``g`` and ``t_C`` on Γ_C, ``t`` on Γ_N, ``u_D`` on Γ_D) on every rank and
-raises one :class:`~contact.setup.config.ConfigError` line on all ranks, e.g.
+raises one :class:`~contact.base.errors.ConfigError` line on all ranks, e.g.
 
     data.g: not a finite number at 12 of 289 nodes, e.g. at x = 2, y = 0.5
 
@@ -25,7 +25,7 @@ from mpi4py import MPI
 from dolfinx import mesh as dmesh
 
 from . import expressions
-from .config import ConfigError
+from ..base.errors import ConfigError
 
 
 @dataclass(frozen=True)

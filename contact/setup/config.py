@@ -18,6 +18,7 @@ from typing import Any, Callable, Mapping
 
 import yaml
 
+from ..base.errors import ConfigError  # also contact.base.errors.ConfigError, as before
 from . import expressions
 
 SOLVER_METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
@@ -133,10 +134,6 @@ def _check_duplicates(root: yaml.Node) -> None:
                     raise DuplicateKey(f"duplicate key {name} ({lines}); give each key once")
                 first[key.tag, key.value] = key
                 stack.append((value, name))
-
-
-class ConfigError(ValueError):
-    """Invalid scene or study input; ``str(err)`` is the one-line message for the user."""
 
 
 @dataclass(frozen=True)

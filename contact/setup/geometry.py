@@ -37,7 +37,7 @@ from mpi4py import MPI
 from dolfinx import la
 from dolfinx import mesh as dmesh
 
-from .config import ConfigError
+from ..base.errors import ConfigError
 
 CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
 GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h

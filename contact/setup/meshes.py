@@ -20,7 +20,7 @@ import ufl
 from dolfinx import mesh as dmesh
 
 from . import expressions
-from .config import ConfigError
+from ..base.errors import ConfigError
 from .geometry import (collapsed_cells, gmsh_to_mesh, half_disks, quarter_disk, signed_volumes,
                        sphere_octant, sphere_on_block, vertex_nodes)
 

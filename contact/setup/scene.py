@@ -14,7 +14,8 @@ from mpi4py import MPI
 
 from dolfinx import mesh as dmesh
 
-from .config import ConfigError, load_config
+from ..base.errors import ConfigError
+from .config import load_config
 from .meshes import Boundary, build_mesh, mesh_dimension, tag_bodies, tag_boundaries
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from dolfinx import mesh as dmesh
 
-from .config import ConfigError
+from ..base.errors import ConfigError
 from .geometry import CurvedBoundary, curved_boundary
 from .meshes import Boundary
 

@@ -11,6 +11,9 @@ nodes (SPEC §2):
 with lumped weights w_i = ∫ φ_i over Γ_C (Signorini, elasticity: the contact nodes not on
 the closure of Γ_D) or over Ω (obstacle: every free node), and σ = +1 for x ≤ g, −1 for
 x ≥ ψ.  λ_i is the nodal multiplier density (a flux or a pressure).
+
+A frictional problem adds the tangential unknowns of the contact nodes and the data of
+their friction law (:class:`FrictionSet`).
 """
 from __future__ import annotations
 
@@ -21,14 +24,9 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx.fem.petsc
-import ufl
 from dolfinx import fem
 
-from ..setup import expressions
-from ..setup.config import ConfigError
 from ..base.lifetime import destroy
-from ..setup.scene import Scene
 
 
 @dataclass
@@ -79,7 +77,7 @@ class DiscreteProblem:
     floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
     symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies
-    friction: Any = None   # FrictionSet (models.friction) of a frictional scene, else None
+    friction: Any = None   # FrictionSet (below) of a frictional scene, else None
 
     def destroy(self) -> None:
         """Destroy the PETSc objects of the problem (K, b, Q, Q⁻¹, the near-nullspace, the
@@ -178,10 +176,31 @@ class DiscreteProblem:
         return self.output_bound if self.output_bound is not None else self.data["g_h"]
 
 
-def coordinate_scale(msh: Any) -> float:
-    """max |X| over the vertex coordinates of every rank (the same on any partition)."""
-    X = msh.geometry.x[:, : msh.geometry.dim]
-    return msh.comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX)
+@dataclass
+class FrictionSet:
+    """The tangential unknowns of the contact nodes and the data of their friction law.
+
+    Arrays are per owned contact node, in the order of ``problem.constraint.dofs``; m is the
+    number of tangential directions (gdim − 1)."""
+
+    law: str                       # "tresca" | "coulomb"
+    n_comp: int                    # position of the normal unknown in the node's block
+    t_comps: np.ndarray            # (m,) positions of the tangential unknowns in the block
+    tangent: np.ndarray            # (n, m) owned local indices of the tangential unknowns
+    free: np.ndarray               # (n, m) bool: not fixed by a Dirichlet/symmetry condition
+    frames: np.ndarray             # (n, gdim, m) the tangent vectors t_i in global axes
+    c_t: np.ndarray                # (n,) tangential scaling (stress per length)
+    threshold: np.ndarray | None   # (n,) Tresca: s(x_i, t) (stress)
+    coefficient: float | None      # Coulomb: F
+    x_prev: np.ndarray             # (n, m) tangential unknowns at the previous load step
+    form: str = "hsw"              # tangential NCP: hsw | projection
+    coulomb: str = "ssn"           # Coulomb solver: ssn | fixed_point
+    fixed_point_rtol: float = 1e-10
+    fixed_point_max_it: int = 100
+
+    @property
+    def m(self) -> int:
+        return self.tangent.shape[1]
 
 
 class NodeBlockMatrix:
@@ -209,114 +228,6 @@ class NodeBlockMatrix:
         self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())
         self.mat.assemble()
         return self.mat
-
-
-def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray,
-                  dirichlet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Owned contact DoFs that are Dirichlet DoFs too, and for each the nearest contact DoF
-    that is not (owned or ghost).  A loop over the few ends only."""
-    ends = np.intersect1d(owned, dirichlet).astype(np.int32)
-    free = np.setdiff1d(candidates, dirichlet)
-    if len(ends) == 0 or len(free) == 0:
-        return np.zeros(0, np.int32), np.zeros(0, np.int32)
-    X = V.tabulate_dof_coordinates()
-    nearest = [free[np.argmin(np.linalg.norm(X[free] - X[e], axis=1))] for e in ends]
-    return ends, np.asarray(nearest, dtype=np.int32)
-
-
-def coefficient(text: str, scene: Scene) -> Any:
-    """UFL data: a ``fem.Constant`` when the expression is constant (in space and in the
-    pseudo-time t), else a UFL expression (t enters as ``scene.t_constant``)."""
-    consts = scene.cfg["constants"]
-    if expressions.is_constant(text, consts):
-        value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
-        return fem.Constant(scene.mesh, PETSc.ScalarType(value))
-    return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
-
-
-def interpolate_expression(V: fem.FunctionSpace, text: str | list[str], scene: Scene) -> fem.Function:
-    """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
-    vector space one expression is every component, a list gives one per component.
-    Lagrange interpolation is evaluation at the DoF points, so each expression is evaluated
-    once per DoF point (not once per cell and point, as ``Function.interpolate`` does), and
-    a constant is just assigned."""
-    fn = fem.Function(V)
-    consts = scene.cfg["constants"]
-    bs = V.dofmap.index_map_bs
-    texts = text if isinstance(text, list) else [text] * bs
-    if len(texts) != bs:
-        raise ConfigError(f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}")
-    values = fn.x.array.reshape(-1, bs)
-    points = None
-    for c, t in enumerate(texts):
-        f = expressions.to_numpy(t, consts, t=scene.time)
-        if expressions.is_constant(t, consts):
-            values[:, c] = f(np.zeros((3, 1)))[0]
-        else:
-            points = V.tabulate_dof_coordinates().T if points is None else points
-            values[:, c] = f(points)
-    return fn
-
-
-#: vector-valued K through dolfinx's block CSR matrix (:func:`assemble_matrix`); False: PETSc's
-#: MatSetValues as before (kept to measure the difference)
-BLOCK_CSR = True
-
-
-def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
-    """K of the bilinear form ``a`` (PETSc AIJ) with the Dirichlet rows and columns of
-    ``bcs`` replaced by identity.
-
-    A vector-valued space (block size bs > 1, elasticity) is assembled into dolfinx's block
-    CSR matrix — one insertion per bs × bs block where PETSc's AIJ takes bs² scalar ones —,
-    handed to PETSc as BAIJ from its arrays and converted to AIJ (which GAMG needs): the
-    same matrix (relative difference ≤ 1e-16), 1.3× faster in serial (3D elasticity, 788k
-    DoFs: 3.4 s against 4.3 s) and as fast on 2 ranks (1.04M DoFs: 3.4 s either way;
-    ``python demos/bench/bench_kernels.py``, demos/results/kernels*.csv).  Scalar spaces are
-    assembled by PETSc directly."""
-    bs = a.function_spaces[0].dofmap.index_map_bs
-    if not BLOCK_CSR or bs == 1:
-        K = dolfinx.fem.petsc.assemble_matrix(a, bcs=bcs)
-        K.assemble()
-        return K
-    A = fem.assemble_matrix(a, bcs=bcs)          # block CSR, ghost rows not yet summed
-    A.scatter_reverse()
-    n = A.index_map(0).size_local                # owned block rows
-    indptr = A.indptr[: n + 1].astype(PETSc.IntType)
-    cols = A.index_map(1).local_to_global(A.indices[: indptr[-1]].astype(np.int32)).astype(PETSc.IntType)
-    values = A.data[: indptr[-1] * bs * bs]      # row-major bs × bs blocks
-    comm = a.mesh.comm
-    B = PETSc.Mat().createBAIJ(((n * bs, None), (n * bs, None)), bs, csr=(indptr, cols, values), comm=comm)
-    B.assemble()
-    converted = B.convert("aij")
-    # a copy: with PETSc 3.25 the converted matrix still refers to B's memory (using it
-    # after B.destroy() is a segmentation fault, serial and parallel)
-    K = converted.copy()
-    converted.destroy()
-    B.destroy()
-    return K
-
-
-def assemble_system(a: fem.Form, L: fem.Form, bcs: list) -> tuple[PETSc.Mat, PETSc.Vec]:
-    """K with Dirichlet rows and columns replaced by identity (:func:`assemble_matrix`), and
-    the lifted load b, so that R(u) = K u − b is the residual for any u carrying the
-    Dirichlet values."""
-    K = assemble_matrix(a, bcs)
-    b = dolfinx.fem.petsc.assemble_vector(L)
-    dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    dolfinx.fem.petsc.set_bc(b, bcs)
-    return K, b
-
-
-def lumped_weights(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
-    """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed)."""
-    v = ufl.TestFunction(V)
-    w = dolfinx.fem.petsc.assemble_vector(fem.form(v * measure))
-    w.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    out = w.array.copy()
-    w.destroy()
-    return out
 
 
 def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 1.0) -> np.ndarray:

@@ -1,6 +1,7 @@
-"""One contact solve: the scene's discrete problem, an initial guess, a PETSc SNES
+"""One solve of a discrete problem from an initial guess: the NCP scaling, a PETSc SNES
 (semismooth Newton on an NCP function, or one of PETSc's VI solvers) with a monitor that
-records the history, and the :class:`~contact.solvers.result.Result`."""
+records the history, and the :class:`~contact.solvers.result.Result`.  The scene's part of
+a solve (its problem, options and initial guess) is :func:`contact.drivers.solve.solve`."""
 from __future__ import annotations
 
 import itertools
@@ -14,90 +15,47 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from ..base import progress
-from ..setup.checks import check_data, data_items
-from ..models import DiscreteProblem, build_problem
-from ..setup.config import ConfigError, check_sections
 from ..base.lifetime import Owner
-from .problem import interpolate_expression, nodal_scaling
-from ..setup.scene import Scene, require_scene
 from . import ncp
-from ..drivers import sequencing
 from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .globalize import GuardedMin
 from .newton import Complementarity, setup_newton
 from .polish import Polisher
 from .reduced import ReducedSystem
-from .options import check_petsc_options, petsc_value, set_from_options, solver_options
+from .options import check_petsc_options, petsc_value, set_from_options
+from .problem import DiscreteProblem, nodal_scaling
 from .result import Result, finish
 from .vi import setup_vi
 
 _counter = itertools.count()
 
 
-def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | None = None,
-          u0: fem.Function | None = None, verbose: bool | None = None, **options: Any) -> Result:
-    """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
-
-    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
-    override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
-    ``polish``, ``rtol``, ``atol``, ``max_it``, ``linear``, ``inexact``, ``sequence``,
-    ``petsc_options``).  ``problem`` reuses an assembled problem, ``u0`` is an initial guess;
-    without one, grid sequencing (``sequence``, :mod:`.sequencing`) solves coarser meshes
-    first when it pays, and the coarsest level (or a cold start) begins from the scene's
-    ``solver.u0`` (zero by default).
-    A frictional scene (``friction.law`` tresca / coulomb; fb, min or blend only) adds the
-    tangential rows of :mod:`contact.solvers.friction` (no polishing, the assembled block
-    Jacobian) and returns the nodal friction fields in ``Result.friction``;
-    ``friction.coulomb: fixed_point`` solves a sequence of Tresca problems instead
-    (:func:`~contact.solvers.friction.coulomb_fixed_point`).
-    """
-    require_scene(scene)
-    check_sections(scene.cfg)   # as loaded, or changed since (Python API)
-    if problem is not None and problem.V.mesh is not scene.mesh:
-        raise ValueError("problem: was built for another scene's mesh")
-    opts = solver_options(scene.cfg, method=method, **options)
+def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: MPI.Comm,
+                  verbose: bool, guess: bool, timers: dict, t_start: float,
+                  check_options: bool = False) -> Result:
+    """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
+    ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
+    the validated ``solver`` options ``opts``; return a :class:`Result` (never raises on
+    divergence).  ``timers`` holds the seconds counted so far (``assembly``, ``solve``,
+    ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
+    options were given for this solve and are checked first (a scene's were checked
+    when it was loaded)."""
     method = opts["method"]
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
-    built_here = problem is None
-    problem = problem or build_problem(scene)
     friction = problem.friction
     if friction is not None:
-        if method not in ncp.METHODS:
-            raise ConfigError(f"solver.method: {method} cannot solve frictional contact "
-                              f"(friction.law: {friction.law}); use fb, min or blend")
-        from .friction import (FrictionalComplementarity, coulomb_fixed_point, friction_fields,
-                               setup_friction_newton, status_counts)
+        from .friction import (FrictionalComplementarity, friction_fields, setup_friction_newton,
+                               status_counts)
 
-        if friction.law == "coulomb" and friction.coulomb == "fixed_point":
-            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, solve, method=method, **options)
-    t_start = time.perf_counter()
     con = problem.constraint  # the NCP scaling follows the options of this solve
     problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
                  else float(opts["c"]))
-    comm = scene.comm
-    # the problem's assembly counts once: in the solve that built it
-    built = problem.assembly_time if built_here else 0.0
-    timers = {"assembly": built, "solve": 0.0}
-
-    # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
-    levels, note = [], ""
-    if u0 is None:
-        t0 = time.perf_counter()
-        u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
-        timers["coarse"] = time.perf_counter() - t0
-    guess = u0 is not None   # given, or the coarse levels' solution
-    if u0 is None:
-        check_data(scene, data_items("solver.u0", opts["u0"]))
-        u0 = interpolate_expression(problem.V, opts["u0"], scene)
-    else:
-        check_guess(u0, problem)
     user = {str(k): v for k, v in opts["petsc_options"].items()}
     # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
     diagonal_law = friction is None and method in ncp.METHODS
     linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
     defaults = petsc_defaults(problem, linear)
     petsc_opts = {**defaults, **user}
-    if options.get("petsc_options"):  # the scene's own were checked when it was loaded
+    if check_options:
         check_petsc_options(opts["petsc_options"], defaults, comm)
 
     owner = Owner()   # this solve's PETSc objects, destroyed when it is done
@@ -200,10 +158,9 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
             snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
         snes.solve(None, x)
         reason_code = snes.getConvergedReason()
-        result = finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start - built,
+        result = finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
                         reason_code)
         result.linear = linear
-        result.sequence, result.sequence_note = levels, note
         if friction is not None:
             result.friction = friction_fields(problem, cp, x)
         if polisher is not None:

@@ -4,15 +4,15 @@ What it shows:
 
 * ``assembly`` — the stiffness matrix of 3D elasticity (P1 tetrahedra on a box of
   ``--cells`` × ``--cells`` × 2 ``--cells``) assembled by PETSc's MatSetValues (the old
-  path, ``contact.solvers.problem.BLOCK_CSR = False``) and through dolfinx's block CSR
-  matrix (:func:`contact.solvers.problem.assemble_matrix`), alternating, ``--repeat``
+  path, ``contact.models.problem.BLOCK_CSR = False``) and through dolfinx's block CSR
+  matrix (:func:`contact.models.problem.assemble_matrix`), alternating, ``--repeat``
   times, with the largest entry of their difference;
 * ``picture`` — a nodal field on a 2D mesh of ``--cells-2d`` × ``--cells-2d``/2 squares
   (2 triangles each) drawn with Gouraud triangles and as the image of
   :func:`contact.output.plots.raster`, each saved to a PNG;
 * ``refine`` (run it under mpirun) — a unit square of ``--cells-refine``² squares whose
   cells with x < 0.3 are refined, as an adaptive loop refines one region: by
-  ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.drivers.adaptive.refine`
+  ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.adaptivity.refine.refine`
   does in parallel: children stay on their parent's rank, the ghost layer is rebuilt) and
   with dolfinx's graph partitioner (the refined mesh redistributed), and with none (children
   stay, no ghost layer: what a serial run does), alternating; the check column is the
@@ -53,8 +53,9 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from common import save_csv
-from contact.drivers.adaptive import busiest_share, refine_partitioner
-from contact.solvers import problem as P
+from contact.drivers.adaptive import busiest_share
+from contact.adaptivity.refine import refine_partitioner
+from contact.models import problem as P
 from contact.models.elasticity import epsilon, stress
 from contact.solvers.options import default_options
 

@@ -41,7 +41,8 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.post.interface import output_dofs, interface_resultants, master_pressure
+from contact.post.interface import output_dofs, interface_resultants
+from contact.models.mortar import master_pressure
 from contact.models import build_problem
 from contact.post.reference import compare
 

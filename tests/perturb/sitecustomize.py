@@ -8,7 +8,7 @@ path, not a property.
 tests/conftest.py loads this file in the pytest process and puts its folder first on
 PYTHONPATH, where Python imports it at start-up as ``sitecustomize``: so ``contact run``
 subprocesses and ``mpirun`` ranks of the suite are perturbed alike.  Nothing in the package
-knows of it: an import hook wraps ``contact.solvers.problem.assemble_system`` when that
+knows of it: an import hook wraps ``contact.models.problem.assemble_system`` when that
 module is first executed, before the models import the name.  ``CONTACT_TEST_PERTURB_SEED``
 changes the seed (default 20261125).
 """
@@ -19,7 +19,7 @@ import importlib.abc
 import os
 import sys
 
-TARGET = "contact.solvers.problem"
+TARGET = "contact.models.problem"
 
 
 def perturbed(assemble_system, eps: float, seed: int):
@@ -40,7 +40,7 @@ def perturbed(assemble_system, eps: float, seed: int):
 
 
 class _Hook(importlib.abc.MetaPathFinder):
-    """Wraps assemble_system as soon as ``contact.solvers.problem`` has been executed."""
+    """Wraps assemble_system as soon as ``contact.models.problem`` has been executed."""
 
     def __init__(self, eps: float, seed: int):
         self.eps, self.seed = eps, seed

@@ -246,7 +246,7 @@ def _bernstein_lifting(scene: Scene, u_h: fem.Function, g_h: fem.Function) -> fe
 
 def _dirichlet(scene: Scene, result: Result, w_test, k) -> np.ndarray:
     """D_T² = ∫_T k |∇e_D|² of the module docstring (zero without a Dirichlet part)."""
-    from ...solvers.problem import interpolate_expression
+    from ...models.problem import interpolate_expression
 
     u_h = result.u_h
     msh = scene.mesh
