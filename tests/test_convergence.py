@@ -2,7 +2,7 @@
 import numpy as np
 
 import contact
-from contact.post.energy_error import energy_error
+from contact.adaptivity.energy_error import energy_error
 
 SCENE = "configs/signorini_free_boundary.yaml"
 EXACT_SEMINORM_SQ = 1.5 * (np.sqrt(2.0) + np.arcsinh(1.0))  # |u|²_{H¹} = 3.443380724 (SPEC §7 A)

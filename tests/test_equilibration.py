@@ -29,7 +29,7 @@ from clirun import MPIRUN, ROOT
 from contact.base.errors import ConfigError
 from contact.adaptivity.equilibration import FluxData, reconstruct_flux
 from contact.adaptivity.equilibration.bound import guaranteed_bound
-from contact.post.energy_error import solution_error
+from contact.adaptivity.energy_error import solution_error
 
 
 def _integral(expr, msh, degree=8):

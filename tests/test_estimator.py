@@ -21,7 +21,7 @@ from dolfinx import mesh as dmesh
 
 from contact.adaptivity.mark import dorfler_threshold, mark
 from contact.adaptivity.refine import refine
-from contact.post.energy_error import energy_error
+from contact.adaptivity.energy_error import energy_error
 from contact.adaptivity.estimate import TERMS, estimate, indicator_terms
 from contact.setup.meshes import tag_boundaries
 

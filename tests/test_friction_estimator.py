@@ -13,7 +13,7 @@ import contact
 import ufl
 from dolfinx import fem
 from contact.setup import expressions
-from contact.post.energy_error import solution_error
+from contact.adaptivity.energy_error import solution_error
 from contact.models.elasticity import lame, stress
 from contact.post.contact_table import contact_table, tangent_2d
 from contact.output.step_report import exact_tractions

@@ -11,7 +11,7 @@ import pytest
 
 import contact  # sets up the DOLFINx libraries before dolfinx is imported
 from contact.setup import expressions
-from contact.post.energy_error import energy_error
+from contact.adaptivity.energy_error import energy_error
 from contact.output.run_report import active_measure, summary
 from dolfinx import fem
 from test_agreement import assert_agrees_with_vinewtonrsls, run_methods

@@ -456,7 +456,7 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..drivers.adaptive import adapt
-    from ..post.energy_error import solution_error
+    from ..adaptivity.energy_error import solution_error
     from ..adaptivity.estimate import estimate
     from ..setup.scene import load_scene
     from ..drivers.solve import solve
@@ -552,7 +552,7 @@ def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: l
     step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
     (seconds, failure text)."""
-    from ..post.energy_error import solution_error
+    from ..adaptivity.energy_error import solution_error
     from ..adaptivity.estimate import estimate
     from ..drivers.load_path import run_load_path
     from ..post.friction_resultants import surface_figures

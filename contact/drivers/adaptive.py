@@ -26,7 +26,7 @@ from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
 from ..models import build_problem
-from ..post.energy_error import solution_error
+from ..adaptivity.energy_error import solution_error
 from ..setup.budget import max_dofs
 from ..setup.config import SCENE, _validate
 from ..setup.scene import Scene, require_scene

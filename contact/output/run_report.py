@@ -25,7 +25,7 @@ from mpi4py import MPI
 from . import folder, plots
 from ..drivers.adaptive import AdaptResult, Level
 from ..post.comparison import Comparison
-from ..post.energy_error import solution_error
+from ..adaptivity.energy_error import solution_error
 from ..post.reference import compare
 from ..setup.scene import Scene
 from .fields import FieldFiles

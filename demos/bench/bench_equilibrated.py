@@ -37,7 +37,7 @@ from common import save_csv
 from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
 from contact.adaptivity.equilibration.flux import reconstruct_flux
 from contact.adaptivity.refine import next_dofs_bound
-from contact.post.energy_error import solution_error
+from contact.adaptivity.energy_error import solution_error
 from contact.adaptivity.estimate import estimate
 from contact.solvers.options import default_options
 

@@ -31,7 +31,7 @@ import numpy as np
 import contact
 from dolfinx import fem  # after contact, which imports dolfinx_solver first
 from contact.output import folder
-from contact.post.energy_error import solution_error
+from contact.adaptivity.energy_error import solution_error
 from contact.models import build_problem
 from contact.output.plots import plot_traction
 from contact.post.contact_table import contact_table
