@@ -64,8 +64,8 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     set_dirichlet(x, problem.bcs)
     cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
     # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
-    atol = opts["atol"] * force_scale(cp, problem, method if method in ncp.METHODS else "fb",
-                                      opts["mu"])
+    scale, total = force_scale(cp, problem, method if method in ncp.METHODS else "fb", opts["mu"])
+    atol = opts["atol"] * scale
     snes = owner.own(PETSc.SNES().create(comm))
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
@@ -93,12 +93,20 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
 
     snes.getKSP().setPostSolve(post_solve)
     snes.setTolerances(rtol=opts["rtol"], atol=atol, stol=0.0, max_it=opts["max_it"])
+    k_norm = problem.K.norm(PETSc.NormType.INFINITY)   # for the round-off floor of ‖Φ‖
     snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
     history: list[dict] = []
     prev = {"x": owner.own(x.duplicate()), "active": None}
 
     def monitor(snes, its, fnorm):
         xk = snes.getSolution()
+        floor = min(roundoff_floor(k_norm, xk), opts["atol"] * total)
+        if floor > snes.getTolerances()[1]:   # atol · F out of reach: stop at the floor
+            snes.setTolerances(atol=floor)
+            if polisher is not None:
+                polisher.done = max(polisher.done, floor)
+            if isinstance(system, ReducedSystem):
+                system.stop = max(system.stop, floor)
         active = cp.active(xk)
         n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
         changed = 0 if prev["active"] is None else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
@@ -188,21 +196,43 @@ def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:
     return out
 
 
-def force_scale(cp: Complementarity, problem: DiscreteProblem, method: str, mu: float) -> float:
-    """F = ‖Φ(x_D)‖_∞, the largest entry of the residual at the start x_D that holds the
-    Dirichlet values and zero elsewhere: the largest nodal force of the scene's loads,
-    prescribed displacements and gaps (the units of Φ, :mod:`.newton`; the maximum does not
-    overflow where the 2-norm of huge data would).  ``solver.atol`` is relative to it, a
-    tolerance of atol · F on ‖Φ‖, so that a scene may be written in any units: with an
-    absolute 1e-12, E = 1e-12 made ‖Φ_0‖ = 8e-14 "converged" before the first step."""
+def force_scale(cp: Complementarity, problem: DiscreteProblem, method: str,
+                mu: float) -> tuple[float, float]:
+    """(F, F₁).  F = ‖Φ(x_D)‖_∞, the largest entry of the residual at the start x_D that
+    holds the Dirichlet values and zero elsewhere: the largest nodal force of the scene's
+    loads, prescribed displacements and gaps (the units of Φ, :mod:`.newton`; the maximum
+    does not overflow where the 2-norm of huge data would).  ``solver.atol`` is relative to
+    it, a tolerance of atol · F on ‖Φ‖, so that a scene may be written in any units: with an
+    absolute 1e-12, E = 1e-12 made ‖Φ_0‖ = 8e-14 "converged" before the first step.
+    F₁ = ‖Φ(x_D)‖₁ is the total force, which does not shrink with h: it caps the round-off
+    floor (:func:`roundoff_floor`)."""
     x, f = problem.b.duplicate(), problem.b.duplicate()
     x.set(0.0)
     set_dirichlet(x, problem.bcs)
     cp.phi(x, f, method, mu)
-    out = f.norm(PETSc.NormType.INFINITY)
+    peak = total = f.norm(PETSc.NormType.INFINITY)
+    if 0.0 < peak < np.inf:   # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
+        f.scale(1.0 / peak)
+        total = peak * f.norm(PETSc.NormType.NORM_1)
     x.destroy()
     f.destroy()
-    return out
+    return peak, total
+
+
+ROUNDOFF = 16.0   # the floor below: measured 0.7 ε ‖K‖_∞ ‖x‖ reached at 256² (Laplace, P1)
+
+
+def roundoff_floor(k_norm: float, x: PETSc.Vec) -> float:
+    """The round-off floor of ‖Φ(x)‖ = ‖K x − b‖ (and of the NCP rows, which are no larger):
+    ROUNDOFF · ε · ‖K‖_∞ · ‖x‖₂.  Rows of K x sum terms of size K_ij x_j that cancel to a
+    force h^d times smaller, so ‖Φ‖ cannot be computed below this, whatever the solver
+    does.  The stopping test uses max(atol · F, rtol ‖Φ_0‖, this floor): on fine meshes,
+    where atol · F (F the largest nodal force, shrinking like h^d) falls below the floor,
+    every method used to run to max_it (256² cells, issue 26).  The caller caps it at
+    atol · F₁ (the total force of the data, :func:`force_scale`): the floor grows with ‖x‖,
+    and a body that nothing holds drifts to ‖x‖ ~ 1e13 (singular K), which must stay a
+    failure, not a "converged" at ‖Φ‖ = 1e-2."""
+    return ROUNDOFF * np.finfo(float).eps * k_norm * x.norm()
 
 
 def check_guess(u0: Any, problem: DiscreteProblem) -> None:
