@@ -68,10 +68,13 @@ def _wait(proc: subprocess.Popen) -> tuple[str, str]:
     except subprocess.TimeoutExpired:
         proc.terminate()
         try:
-            proc.communicate(timeout=30)
+            _, err = proc.communicate(timeout=30)
         except subprocess.TimeoutExpired:
             proc.kill()
-        raise
+            _, err = proc.communicate()
+        # what the job printed says where it was (a timeout alone does not)
+        raise AssertionError(f"still running {4 * BOUND:g} s later; its stderr ends with: "
+                             f"{(err or '')[-3000:]}") from None
 
 
 def _ended_by(proc: subprocess.CompletedProcess, seconds: float, rank: int, code: int, text: str) -> None:
