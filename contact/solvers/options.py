@@ -1,17 +1,91 @@
-"""Solver options: method names as benchmarks list them, the default PETSc options of each
-linear solver (a function of its kind and the dimension alone, known before any mesh
-exists), and PETSc's options database (set, read, errors as one line).  The scene's
-``solver`` section with call-time overrides is :func:`contact.drivers.solve.solver_options`."""
+"""Solver options: :class:`SolverOptions` (the solver's knobs, typed and immutable), method
+names as benchmarks list them, the default PETSc options of each linear solver (a function
+of its kind and the dimension alone, known before any mesh exists), and PETSc's options
+database (set, read, errors as one line).  The scene's ``solver`` section with call-time
+overrides becomes SolverOptions in :func:`contact.drivers.solve.solver_options`."""
 from __future__ import annotations
 
 import itertools
-from typing import Any, Mapping
+from typing import Any, Iterable, Literal, Mapping
 
 from mpi4py import MPI
 from petsc4py import PETSc
+from pydantic import BaseModel, ConfigDict, ValidationError
 
 from ..base.errors import ConfigError, petsc_message
+from ..base.validation import (auto_or_positive, boolean, checked, config_error, field, integer,
+                               mapping_of, nonnegative, number, one_of, open_unit, petsc_value,
+                               positive)
+from . import ncp
 from .reduced import REDUCED_PETSC_OPTIONS
+
+VI_METHODS = ("vinewtonrsls", "vinewtonssls")
+#: every method: semismooth Newton on an NCP function, or one of PETSc's VI solvers
+METHODS = ncp.METHODS + VI_METHODS
+LINE_SEARCHES = ("auto", "basic", "bt")
+LINEAR = ("auto", "direct", "gamg", "bcgs")
+
+
+class SolverOptions(BaseModel):
+    """The knobs of one solve (SPEC §3–4, §8), validated once and immutable.
+
+    ``method`` — fb, min, blend (semismooth Newton on that NCP function) or vinewtonrsls /
+    vinewtonssls (PETSc's VI solvers); ``mu`` — blend's weight of φ_min, in (0, 1);
+    ``c`` — the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
+    :func:`~contact.solvers.problem.nodal_scaling`) or a number > 0; ``kappa`` — κ;
+    ``line_search`` — auto (plain Newton, for min backtracking once a cycle shows), basic,
+    bt; ``polish`` — active-set polishing of fb / blend steps; ``rtol`` — relative to
+    ‖Φ(x_0)‖; ``atol`` — relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless
+    both); ``max_it`` — Newton iterations; ``linear`` — direct, gamg, bcgs or auto
+    (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
+    ``petsc_options`` — PETSc options over the linear solver's defaults.
+
+    Build it from keywords (``SolverOptions(method="min")``) or from a scene's ``solver``
+    section with overrides (:meth:`from_config`); an invalid value is one ConfigError line
+    naming the key.  A changed copy: ``options.model_copy(update={"rtol": 1e-6})``.
+    Friction's tangential knobs (form, c_t) are data of the friction law on the problem
+    (:class:`~contact.solvers.problem.FrictionSet`), not options of a solve."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    method: field(one_of(METHODS), str) = "fb"
+    mu: field(number(open_unit), float) = 0.5
+    c: field(checked(auto_or_positive), Literal["auto"] | float) = "auto"
+    kappa: field(number(positive), float) = 1.0
+    line_search: field(one_of(LINE_SEARCHES), str) = "auto"
+    polish: field(boolean, bool) = True
+    rtol: field(number(nonnegative), float) = 1e-12
+    atol: field(number(nonnegative), float) = 1e-12
+    max_it: field(integer(positive), int) = 50
+    linear: field(one_of(LINEAR), str) = "auto"
+    inexact: field(boolean, bool) = True
+    petsc_options: field(mapping_of(petsc_value), dict) = {}
+
+    @classmethod
+    def from_config(cls, section: Mapping[str, Any], overrides: Mapping[str, Any] | None = None,
+                    path: str = "solver", keys: Iterable[str] | None = None) -> "SolverOptions":
+        """The options of a (validated) ``solver`` section with call-time ``overrides``
+        (None values ignored), validated: ConfigError ``solver.<key>: …`` with the scene's
+        messages.  ``keys``: every key the section may hold (the driver's too, which are
+        skipped here); an override outside them is an unknown key, as in the scene."""
+        keys = tuple(cls.model_fields) if keys is None else tuple(keys)
+        given = {k: v for k, v in section.items() if k in cls.model_fields and v is not None}
+        for key, value in (overrides or {}).items():
+            if value is None:
+                continue
+            if key not in keys:
+                raise ConfigError(f"{path}.{key}: unknown key (expected one of {', '.join(keys)})")
+            if key in cls.model_fields:
+                given[key] = value
+        try:
+            return cls.model_validate(given)
+        except ValidationError as err:
+            raise config_error(err, path, keys) from None
+
+    @property
+    def newton(self) -> bool:
+        """Semismooth Newton on an NCP function (fb, min, blend), not a PETSc VI solver."""
+        return self.method in ncp.METHODS
 
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
