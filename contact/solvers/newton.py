@@ -115,6 +115,7 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
     method, mu = opts["method"], opts["mu"]
 
     def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+        cp.p.linearize(x)
         a, b, _ = cp.pair(x)
         system.set_law(*cp.law(a, b, method, mu))
 

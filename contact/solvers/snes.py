@@ -46,12 +46,10 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         from .friction import (FrictionalComplementarity, friction_fields, setup_friction_newton,
                                status_counts)
 
-    con = problem.constraint  # the NCP scaling follows the options of this solve
-    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
-                 else float(opts["c"]))
     user = {str(k): v for k, v in opts["petsc_options"].items()}
-    # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
-    diagonal_law = friction is None and method in ncp.METHODS
+    # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
+    # keep an assembled matrix (their own linear algebra)
+    diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
     linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
     defaults = petsc_defaults(problem, linear)
     petsc_opts = {**defaults, **user}
@@ -62,6 +60,10 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     x = owner.own(problem.b.duplicate())
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
+    problem.linearize(x)
+    con = problem.constraint  # the NCP scaling follows the options of this solve
+    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
+                 else float(opts["c"]))
     cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
     # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
     scale, total = force_scale(cp, problem, method if method in ncp.METHODS else "fb", opts["mu"])
