@@ -201,3 +201,15 @@ def test_the_readme_example_runs():
                           timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert re.match(r"True \d+ Newton iterations, [1-9]\d* nodes on the floor", proc.stdout)
+
+
+def test_the_api_tests_agree_on_two_ranks():
+    """The tests above that run in-process (the scene path, linear vs nonlinear, facets vs
+    explicit DoFs, bad input, close) pass on each of 2 MPI ranks: every assertion compares
+    global values (allreduce), so the same discrete answers hold on a partitioned mesh."""
+    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, "-m", "pytest", "-q", "-p",
+                           "no:cacheprovider", __file__, "-k", "not demo and not readme and not ranks"],
+                          cwd=ROOT / "tests", capture_output=True, text=True, timeout=600,
+                          env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert proc.stdout.count(" passed") == 2 and " failed" not in proc.stdout
