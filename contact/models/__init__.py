@@ -7,7 +7,9 @@
   :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
 * :mod:`.bodies` — several elastic bodies in contact through :mod:`.mortar` pairs (SPEC §1.5);
 * :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
-  unknowns, thresholds, c_t (only a frictional scene imports it).
+  unknowns, thresholds, c_t (only a frictional scene imports it);
+* :mod:`.forms` — bring your own forms: the problem of the user's UFL forms and a
+  unilateral constraint, with no scene (``contact.ComplementarityProblem``).
 
 A scene imports only its own model: a scalar scene never loads the elasticity modules.
 """

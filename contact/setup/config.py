@@ -19,9 +19,13 @@ from typing import Any, Callable, Mapping
 import yaml
 
 from ..base.errors import ConfigError  # also contact.base.errors.ConfigError, as before
+from ..base.validation import (auto_or_positive as _c_value, half_open_unit as _half_open_unit,
+                               nonnegative as _nonnegative, open_unit as _open_unit,
+                               petsc_value as _petsc_value, positive as _positive,
+                               typename as _typename)
+from ..solvers.options import LINE_SEARCHES, LINEAR, METHODS as SOLVER_METHODS
 from . import expressions
 
-SOLVER_METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
 FRICTION_LAWS = ("none", "tresca", "coulomb")
 FRICTION_FORMS = ("projection", "hsw")
 _REQUIRED = object()
@@ -154,30 +158,6 @@ class Field:
     doc: str = ""
 
 
-def _positive(v: Any) -> str | None:
-    return None if v > 0 else f"must be > 0, got {v}"
-
-
-def _nonnegative(v: Any) -> str | None:
-    return None if v >= 0 else f"must be >= 0, got {v}"
-
-
-def _open_unit(v: Any) -> str | None:
-    return None if 0 < v < 1 else f"must lie in (0, 1), got {v}"
-
-
-def _half_open_unit(v: Any) -> str | None:
-    return None if 0 < v <= 1 else f"must lie in (0, 1], got {v}"
-
-
-def _c_value(v: Any) -> str | None:
-    if v == "auto":
-        return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        return f"must be 'auto' or a positive number, got {v!r}"
-    return _positive(v)
-
-
 def _sequence(v: Any) -> str | None:
     # YAML 1.1 reads an unquoted `off` (`sequence: off`, `--set solver.sequence=off`) as false
     if v in ("auto", "off") or v is False or (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
@@ -233,12 +213,6 @@ def _expression_list(v: Any) -> str | None:
     if not isinstance(v, list):
         return f"expected a list of expressions, one per coordinate, got {_typename(v)} {v!r}"
     return None
-
-
-def _petsc_value(v: Any) -> str | None:
-    if v is None or isinstance(v, (str, int, float)):  # None: a flag option without value
-        return None
-    return f"must be a string, number or boolean, got {_typename(v)} {v!r}"
 
 
 #: the longest load path: as many steps as an explicit ``times`` list can have items (a scene
@@ -386,7 +360,7 @@ SCENE: dict[str, Field] = {
         "mu": Field("number", 0.5, check=_open_unit),
         "c": Field("any", "auto", check=_c_value),
         "kappa": Field("number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"),
-        "line_search": Field("str", "auto", choices=("auto", "basic", "bt"),
+        "line_search": Field("str", "auto", choices=LINE_SEARCHES,
                              doc="auto: plain Newton steps, for min backtracking once a cycle "
                                  "shows (contact/solvers/globalize.py); basic: plain Newton; "
                                  "bt: backtracking on ½‖Φ‖² from the first step"),
@@ -396,7 +370,7 @@ SCENE: dict[str, Field] = {
         "max_it": Field("int", 50, check=_positive),
         "u0": Field("exprs", "0", doc="initial guess: an expression (every component), or one per "
                                       "component for elasticity"),
-        "linear": Field("str", "auto", choices=("auto", "direct", "gamg", "bcgs"),
+        "linear": Field("str", "auto", choices=LINEAR,
                         doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
                             "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and dimension)"),
         "inexact": Field("bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"),
@@ -476,11 +450,6 @@ def switch_off(data: Mapping) -> dict:
     were not given): ``load: none``, ``friction: none``, ``adapt: none``, …"""
     return {key: value for key, value in data.items()
             if not (key in OPTIONAL_SECTIONS and value == "none")}
-
-
-def _typename(v: Any) -> str:
-    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
-            int: "an integer", float: "a number", type(None): "empty"}.get(type(v), type(v).__name__)
 
 
 def _validate(value: Any, spec: Field, path: str, constants: Mapping[str, float]) -> Any:

@@ -20,8 +20,6 @@ from .problem import DiscreteProblem
 from .options import default_options
 from .reduced import ReducedSystem
 
-LINEAR = ("auto", "direct", "gamg", "bcgs")
-
 #: ``auto`` uses MUMPS for 2D problems below this many DoFs (measured: demos/bench/bench_linear.py)
 DIRECT_MAX_DOFS_2D = 5_000
 #: ... and for 3D problems below this many

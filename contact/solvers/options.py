@@ -1,17 +1,79 @@
-"""Solver options: method names as benchmarks list them, the default PETSc options of each
-linear solver (a function of its kind and the dimension alone, known before any mesh
-exists), and PETSc's options database (set, read, errors as one line).  The scene's
-``solver`` section with call-time overrides is :func:`contact.drivers.solve.solver_options`."""
+"""Solver options: :class:`SolverOptions` (the solver's knobs, typed and immutable), method
+names as benchmarks list them, the default PETSc options of each linear solver (a function
+of its kind and the dimension alone, known before any mesh exists), and PETSc's options
+database (set, read, errors as one line).  Nothing here reads a scene: its ``solver``
+section with call-time overrides becomes SolverOptions in :mod:`contact.drivers.solve`."""
 from __future__ import annotations
 
 import itertools
-from typing import Any, Mapping
+from typing import Annotated, Any, Literal, Mapping
 
 from mpi4py import MPI
 from petsc4py import PETSc
+from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError
 
 from ..base.errors import ConfigError, petsc_message
+from ..base.validation import (auto_or_positive, boolean, checked, config_error, integer,
+                               mapping_of, nonnegative, number, one_of, open_unit, positive)
+from ..base.validation import petsc_value as valid_petsc_value
+from . import ncp
 from .reduced import REDUCED_PETSC_OPTIONS
+
+VI_METHODS = ("vinewtonrsls", "vinewtonssls")
+#: every method: semismooth Newton on an NCP function, or one of PETSc's VI solvers
+METHODS = ncp.METHODS + VI_METHODS
+LINE_SEARCHES = ("auto", "basic", "bt")
+LINEAR = ("auto", "direct", "gamg", "bcgs")
+
+
+class SolverOptions(BaseModel):
+    """The knobs of one solve (SPEC §3–4, §8), validated once and immutable.
+
+    ``method`` — fb, min, blend (semismooth Newton on that NCP function) or vinewtonrsls /
+    vinewtonssls (PETSc's VI solvers); ``mu`` — blend's weight of φ_min, in (0, 1);
+    ``c`` — the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
+    :func:`~contact.solvers.problem.nodal_scaling`) or a number > 0; ``kappa`` — κ;
+    ``line_search`` — auto (plain Newton, for min backtracking once a cycle shows), basic,
+    bt; ``polish`` — active-set polishing of fb / blend steps; ``rtol`` — relative to
+    ‖Φ(x_0)‖; ``atol`` — relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless
+    both); ``max_it`` — Newton iterations; ``linear`` — direct, gamg, bcgs or auto
+    (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
+    ``petsc_options`` — PETSc options over the linear solver's defaults.
+
+    Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
+    one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
+    ValidationError); a scene's driver builds it once from its ``solver`` section
+    (:func:`contact.drivers.solve.solve`).  A changed copy:
+    ``options.model_copy(update={"rtol": 1e-6})`` (unchecked: use :meth:`parse`).
+    Friction's tangential knobs (form, c_t) are data of the friction law on the problem
+    (:class:`~contact.solvers.problem.FrictionSet`), not options of a solve."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    method: Annotated[str, BeforeValidator(one_of(METHODS))] = "fb"
+    mu: Annotated[float, BeforeValidator(number(open_unit))] = 0.5
+    c: Annotated[Literal["auto"] | float, BeforeValidator(checked(auto_or_positive))] = "auto"
+    kappa: Annotated[float, BeforeValidator(number(positive))] = 1.0
+    line_search: Annotated[str, BeforeValidator(one_of(LINE_SEARCHES))] = "auto"
+    polish: Annotated[bool, BeforeValidator(boolean)] = True
+    rtol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
+    atol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
+    max_it: Annotated[int, BeforeValidator(integer(positive))] = 50
+    linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
+    inexact: Annotated[bool, BeforeValidator(boolean)] = True
+    petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = {}
+
+    @classmethod
+    def parse(cls, values: Mapping[str, Any], path: str = "solver") -> "SolverOptions":
+        """The options of keyword ``values`` (None: the default), validated: one ConfigError
+        line ``<path>.<key>: …`` with the scene's messages, an unknown key named too."""
+        given = {k: v for k, v in values.items() if v is not None}
+        try:
+            return cls.model_validate(given)
+        except ValidationError as err:
+            raise config_error(err, path, cls.model_fields) from None
+
+
 
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}

@@ -87,10 +87,18 @@ class DiscreteProblem:
         destroy(self.K, self.b, self.basis, self.basis_inverse, self.near_nullspace,
                 *(c.M for c in couplings))
 
+    #: R(x) = K x − b is affine; a nonlinear residual re-assembles R and K = K_T(x)
+    #: (:class:`contact.models.forms.ResidualProblem`)
+    nonlinear = False
+
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""
         self.K.mult(x, out)
         out.axpy(-1.0, self.b)
+
+    def linearize(self, x: PETSc.Vec) -> None:
+        """K = K_T(x), the tangent of R at x: nothing to do for R(x) = K x − b.  The solvers
+        call it at every iterate before they use K (Jacobian, polishing)."""
 
     def to_unknowns(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
         """x = Q⁻¹ u (the solver's unknowns from displacements; Qᵀ u for a rotation, a copy

@@ -1,0 +1,282 @@
+"""Bring your own forms: the complementarity problem of any UFL forms, solved by our
+semismooth Newton (or PETSc's VI solvers), with no scene.
+
+Given a residual F(u; v) on a space V (Lagrange, one value per node) — a bilinear form
+a(u, v) with a load L(v), F = a(u, v) − L(v), or any form nonlinear in u with its
+derivative J = ∂F/∂u — Dirichlet conditions, and a unilateral constraint at a set of nodes
+C, the problem is (SPEC §2)
+
+    R_i(u) = w_i λ_i   (i ∈ C),     R_i(u) = 0   (i ∉ C, not Dirichlet),
+    σ (g_i − u_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − u_i) λ_i = 0   (i ∈ C),
+
+with R_i(u) = F(u; φ_i), σ = +1 for u ≤ g (``side="upper"``) and −1 for u ≥ g
+(``side="lower"``), lumped weights w_i = ∫ φ_i over the constraint's measure (dx: the
+obstacle problem; ds(tag): a Signorini condition on the tagged facets) or given, and λ_h the
+nodal multiplier density: F(u_h; v) = Σ_i w_i λ_i v_i.  A linear problem is assembled once
+(K, b); a nonlinear one re-assembles R(x) and its tangent K_T(x) = J(x) at every Newton
+iterate (:class:`ResidualProblem`).
+
+    problem = ComplementarityProblem.from_residual(F, u, Unilateral(psi, side="lower"), [bc])
+    result = problem.solve(method="fb")      # result.u_h is u; result.lmbda_h, .active, .history
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+import ufl
+from dolfinx import fem
+
+from ..solvers.options import SolverOptions
+from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.result import Result
+from ..solvers.snes import solve_problem
+from .problem import assemble_system, lumped_weights
+
+#: a bound: a number, a Function on V, values at the constrained DoFs, or f(x) → values
+#: at points x of shape (3, n) (as ``Function.interpolate`` takes it)
+Bound = float | fem.Function | np.ndarray | Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Unilateral:
+    """A unilateral constraint u ≤ g (``side="upper"``) or u ≥ g (``side="lower"``).
+
+    Where it holds: ``measure`` — ``ufl.dx`` (default: every node of Ω, the obstacle
+    problem) or ``ds(tag)`` with the facet tags as its ``subdomain_data`` (the nodes of those
+    facets, a Signorini condition); its weights w_i = ∫ φ_i d(measure).  On a vector space
+    the constraint acts on one ``component`` u_k (e.g. the normal displacement against a
+    plane): its DoFs there, and a bound given as a number, values at those DoFs, or a
+    scalar f(x).  Or explicit ``dofs`` (owned local indices of V, any components) with
+    ``weights`` (default 1: λ_i is then the nodal reaction R_i).  Dirichlet DoFs are never
+    constrained."""
+
+    bound: Bound
+    side: str = "upper"
+    measure: ufl.Measure | None = None
+    dofs: np.ndarray | None = None
+    weights: np.ndarray | None = None
+    component: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.side not in ("upper", "lower"):
+            raise ValueError("Unilateral.side: expected 'upper' (u <= g) or 'lower' (u >= g), "
+                             f"got {self.side!r}")
+        if self.dofs is not None and self.measure is not None:
+            raise ValueError("Unilateral: give either a measure or dofs, not both")
+        if self.weights is not None and self.dofs is None:
+            raise ValueError("Unilateral: weights go with dofs (a measure makes its own)")
+        if self.component is not None and self.dofs is not None:
+            raise ValueError("Unilateral: a component goes with a measure (dofs name their own)")
+
+    @property
+    def sign(self) -> float:
+        """σ: +1 for u ≤ g, −1 for u ≥ g."""
+        return 1.0 if self.side == "upper" else -1.0
+
+    def nodes(self, V: fem.FunctionSpace,
+              bcs: Sequence[fem.DirichletBC]) -> tuple[np.ndarray, np.ndarray]:
+        """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights."""
+        n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+        fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
+        if self.dofs is not None:
+            dofs = np.asarray(self.dofs, dtype=np.int32)
+            if np.any((dofs < 0) | (dofs >= n_owned)):
+                raise ValueError(f"Unilateral.dofs: owned local indices lie in [0, {n_owned})")
+            w = np.ones(len(dofs)) if self.weights is None else np.asarray(self.weights, float)
+            if w.shape != dofs.shape:
+                raise ValueError(f"Unilateral.weights: expected {len(dofs)} values, got {w.shape}")
+            keep = ~np.isin(dofs, fixed)
+            return dofs[keep], w[keep]
+        bs = V.dofmap.index_map_bs
+        if bs == 1 and self.component is not None:
+            raise ValueError("Unilateral.component: V is scalar: give no component")
+        if bs > 1 and self.component not in range(bs):
+            raise ValueError(f"Unilateral.component: a vector space needs one of 0 … {bs - 1}, "
+                             f"got {self.component}")
+        measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
+        dofs = _dofs_of(V, measure, self.component)
+        dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
+        w = lumped_weights(V, measure, self.component)[dofs]
+        if V.mesh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
+            raise ValueError("Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
+                             "(e.g. P2 vertices); use P1 or give dofs and weights")
+        return dofs, w
+
+    def bound_function(self, V: fem.FunctionSpace, dofs: np.ndarray) -> fem.Function:
+        """g on V (at the constrained DoFs at least)."""
+        g = fem.Function(V, name="bound")
+        if (isinstance(self.bound, fem.Function) or callable(self.bound)) and \
+                self.component is not None:   # a scalar bound on one component's DoFs
+            S, to_parent = V.sub(self.component).collapse()
+            g_k = fem.Function(S)
+            g_k.interpolate(self.bound)
+            g.x.array[to_parent] = g_k.x.array
+        elif isinstance(self.bound, fem.Function) or callable(self.bound):
+            g.interpolate(self.bound)
+        elif np.ndim(self.bound) == 0:
+            g.x.array[:] = float(self.bound)
+        else:
+            values = np.asarray(self.bound, dtype=float)
+            if values.shape != dofs.shape:
+                raise ValueError("Unilateral.bound: expected one value per constrained DoF "
+                                 f"({len(dofs)}), got shape {values.shape}")
+            g.x.array[dofs] = values
+        g.x.scatter_forward()
+        return g
+
+
+def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) -> np.ndarray:
+    """The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
+    exterior facets (``ds``) a measure covers."""
+    msh, tdim = V.mesh, V.mesh.topology.dim
+    kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
+    if kind not in ("cell", "exterior_facet"):
+        raise ValueError(f"Unilateral.measure: expected dx or ds, got {kind}")
+    dim = tdim if kind == "cell" else tdim - 1
+    if tag == "everywhere":
+        if kind == "cell" and component is not None:
+            return np.asarray(V.sub(component).collapse()[1], dtype=np.int32)
+        if kind == "cell":
+            index_map = V.dofmap.index_map
+            return np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32)
+        msh.topology.create_connectivity(tdim - 1, tdim)
+        entities = dolfinx.mesh.exterior_facet_indices(msh.topology)
+    else:
+        if tags is None:
+            raise ValueError(f"Unilateral.measure: {kind} with subdomain {tag} needs "
+                             "subdomain_data (mesh tags)")
+        ids = tag if isinstance(tag, tuple) else (tag,)
+        entities = np.concatenate([tags.find(i) for i in ids])
+    if component is None:
+        return fem.locate_dofs_topological(V, dim, entities)
+    S = V.sub(component).collapse()[0]
+    return fem.locate_dofs_topological((V.sub(component), S), dim, entities)[0]
+
+
+@dataclass
+class ResidualProblem(DiscreteProblem):
+    """A discrete problem with a nonlinear residual: R(x) = F(x; ·) and K = J(x) are
+    re-assembled at each iterate (x is copied into ``u_h``, the function F is written in).
+    Dirichlet rows: R_i = x_i − g_i and J's identity rows, as for K x − b."""
+
+    F_form: fem.Form | None = None
+    J_form: fem.Form | None = None
+    _F: PETSc.Vec | None = field(default=None, repr=False)
+
+    nonlinear = True
+
+    def _set_iterate(self, x: PETSc.Vec) -> None:
+        u = self.u_h.x
+        u.petsc_vec.array_w[:] = x.array_r
+        u.scatter_forward()
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """out = R(x) = F(x; φ_i), x_i − g_i on Dirichlet rows."""
+        self._set_iterate(x)
+        if self._F is None:
+            self._F = dolfinx.fem.petsc.create_vector(self.V)
+        F, u = self._F, self.u_h.x.petsc_vec
+        with F.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(F, self.F_form)
+        dolfinx.fem.petsc.apply_lifting(F, [self.J_form], bcs=[self.bcs], x0=[u], alpha=-1.0)
+        F.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        dolfinx.fem.petsc.set_bc(F, self.bcs, u, -1.0)
+        out.array_w[:] = F.array_r
+
+    def linearize(self, x: PETSc.Vec) -> None:
+        """K = J(x), Dirichlet rows and columns identity (same sparsity each time)."""
+        self._set_iterate(x)
+        self.K.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(self.K, self.J_form, bcs=self.bcs)
+        self.K.assemble()
+
+    def destroy(self) -> None:
+        super().destroy()
+        if self._F is not None:
+            self._F.destroy()
+
+
+class ComplementarityProblem:
+    """A complementarity problem of the user's forms (module docstring) and its solver.
+
+    Build it with :meth:`from_forms` (linear: a, L) or :meth:`from_residual` (F, J), then
+    :meth:`solve`; it owns PETSc objects (K, b): :meth:`close` it, or use ``with``."""
+
+    def __init__(self, problem: DiscreteProblem):
+        self.problem = problem
+
+    @classmethod
+    def from_forms(cls, a: ufl.Form, L: ufl.Form, u: fem.Function, constraint: Unilateral,
+                   bcs: Sequence[fem.DirichletBC] = ()) -> "ComplementarityProblem":
+        """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h)."""
+        t0 = time.perf_counter()
+        bcs = list(bcs)
+        K, b = assemble_system(fem.form(a), fem.form(L), bcs)
+        return cls(_discrete(DiscreteProblem, u, bcs, K, b, constraint, t0))
+
+    @classmethod
+    def from_residual(cls, F: ufl.Form, u: fem.Function, constraint: Unilateral,
+                      bcs: Sequence[fem.DirichletBC] = (), J: ufl.Form | None = None
+                      ) -> "ComplementarityProblem":
+        """R(u) = w λ from a residual F(u; v), nonlinear in the Function ``u`` it is written
+        in, and J = ∂F/∂u (default ``ufl.derivative(F, u)``); ``u``'s values are the initial
+        guess and receive the solution."""
+        t0 = time.perf_counter()
+        bcs = list(bcs)
+        J = ufl.derivative(F, u) if J is None else J
+        F_form, J_form = fem.form(F), fem.form(J)
+        K = dolfinx.fem.petsc.assemble_matrix(J_form, bcs=bcs)   # at u (the pattern of all K_T)
+        K.assemble()
+        b = dolfinx.fem.petsc.create_vector(u.function_space)   # R(x) = K x − b is never used
+        b.set(0.0)
+        problem = _discrete(ResidualProblem, u, bcs, K, b, constraint, t0)
+        problem.F_form, problem.J_form = F_form, J_form
+        return cls(problem)
+
+    def solve(self, method: str = "fb", verbose: bool = False, **options: Any) -> Result:
+        """Solve from u's current values (Dirichlet values put in); ``method`` ∈ {fb, min,
+        blend, vinewtonrsls, vinewtonssls}, ``options`` any other field of
+        :class:`~contact.solvers.options.SolverOptions` (``rtol``, ``max_it``,
+        ``petsc_options``, …; a bad one: ConfigError naming it).  Returns the
+        :class:`~contact.solvers.result.Result` (never raises on divergence): ``u_h`` (the
+        user's u), ``lmbda_h``, ``active``, ``history``, ``converged``, ``reason``."""
+        opts = SolverOptions.parse({"method": method, **options})
+        p = self.problem
+        timers = {"assembly": p.assembly_time, "solve": 0.0}
+        return solve_problem(p, p.u_h, opts, p.V.mesh.comm, verbose, False, timers,
+                             time.perf_counter() - p.assembly_time,
+                             check_options=bool(opts.petsc_options))
+
+    def close(self) -> None:
+        """Destroy the PETSc objects (K, b); the functions stay usable."""
+        if self.problem is not None:
+            self.problem.destroy()
+            self.problem = None
+
+    def __enter__(self) -> "ComplementarityProblem":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def _discrete(kind: type, u: fem.Function, bcs: list, K: PETSc.Mat, b: PETSc.Vec,
+              constraint: Unilateral, t0: float) -> DiscreteProblem:
+    """The solver's problem: the constraint's nodes, weights and bound on u's space."""
+    V = u.function_space
+    dofs, w = constraint.nodes(V, bcs)
+    g = constraint.bound_function(V, dofs)
+    fixed = V.mesh.comm.allreduce(sum(len(bc.dof_indices()[0]) for bc in bcs), op=MPI.SUM)
+    in_domain = constraint.dofs is None and (constraint.measure is None or
+                                             constraint.measure.integral_type() == "cell")
+    return kind(V, u, bcs, K, b, Constraint(dofs, g.x.array[dofs].copy(), w, constraint.sign),
+                in_domain=in_domain, semicoercive=fixed == 0, data={"g_h": g},
+                assembly_time=time.perf_counter() - t0)
