@@ -37,6 +37,7 @@ SCENES: dict[str, list[str]] = {
     "friction_tresca_manufactured.yaml": ["adapt.max_levels=2", *SMALL],
     "hertz_2d.yaml": ["mesh.h=0.3", "mesh.h_contact=0.05", "adapt.max_levels=2", *SMALL],
     "hertz_3d.yaml": ["mesh.h=0.5", "mesh.h_contact=0.1", "adapt=none", *SMALL],
+    "hyperelastic_block.yaml": SMALL,
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],
     "obstacle_membrane.yaml": ["mesh.cells=[8,8]", *SMALL],
