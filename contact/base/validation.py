@@ -12,9 +12,9 @@ text or None and serve the scene's schema as well (:mod:`contact.setup.config`).
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Callable, Iterable
+from typing import Any, Callable, Iterable
 
-from pydantic import BeforeValidator, ValidationError
+from pydantic import ValidationError
 from pydantic_core import PydanticCustomError
 
 from .errors import ConfigError
@@ -128,11 +128,6 @@ def mapping_of(check: Check) -> Callable[[Any], dict]:
                 raise _fail(problem, key=key)
         return dict(v)
     return validate
-
-
-def field(validate: Callable[[Any], Any], kind: Any = Any) -> Any:
-    """The annotation of a model field validated by ``validate`` (``Annotated``)."""
-    return Annotated[kind, BeforeValidator(validate)]
 
 
 def config_error(err: ValidationError, path: str, keys: Iterable[str]) -> ConfigError:

@@ -17,6 +17,7 @@ from ..setup.checks import check_data, data_items
 from ..setup.config import SCENE, _validate, check_sections
 from ..setup.scene import Scene, require_scene
 from ..solvers import ncp
+from ..solvers.options import SolverOptions
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import check_guess, solve_problem
@@ -75,7 +76,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
     else:
         check_guess(u0, problem)
-    result = solve_problem(problem, u0, opts, scene.comm, verbose, guess, timers, t_start - built,
+    result = solve_problem(problem, u0, solver_knobs(opts), scene.comm, verbose, guess, timers,
+                           t_start - built,
                            check_options=bool(options.get("petsc_options")))
     result.sequence, result.sequence_note = levels, note
     return result
@@ -83,6 +85,12 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
 
 def solver_options(cfg: Mapping[str, Any], **overrides: Any) -> dict:
     """The ``solver`` section of a validated scene config with keyword overrides, validated
-    like the YAML."""
+    like the YAML: the solver's knobs and the driver's (``u0``, ``sequence``, ``max_dofs``)."""
     raw = {**cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
     return _validate(raw, SCENE["solver"], "solver", cfg["constants"])
+
+
+def solver_knobs(opts: Mapping[str, Any]) -> SolverOptions:
+    """The solver's :class:`SolverOptions` of a validated ``solver`` section (the driver's
+    keys left out): the one typed object the solver receives."""
+    return SolverOptions.parse({key: opts[key] for key in SolverOptions.model_fields})

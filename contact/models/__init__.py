@@ -9,7 +9,9 @@
 * :mod:`.hyperelastic` — hyperelastic bodies (finite strain, neo-Hookean / St Venant–
   Kirchhoff) against rigid planes: a residual re-assembled at each Newton iterate;
 * :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
-  unknowns, thresholds, c_t (only a frictional scene imports it).
+  unknowns, thresholds, c_t (only a frictional scene imports it);
+* :mod:`.forms` — bring your own forms: the problem of the user's UFL forms and a
+  unilateral constraint, with no scene (``contact.ComplementarityProblem``).
 
 A scene imports only its own model: a scalar scene never loads the elasticity modules, a
 linear one never the hyperelastic module.

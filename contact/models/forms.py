@@ -234,10 +234,10 @@ class ComplementarityProblem:
         ``petsc_options``, …; a bad one: ConfigError naming it).  Returns the
         :class:`~contact.solvers.result.Result` (never raises on divergence): ``u_h`` (the
         user's u), ``lmbda_h``, ``active``, ``history``, ``converged``, ``reason``."""
-        opts = SolverOptions.from_config({}, {"method": method, **options})
+        opts = SolverOptions.parse({"method": method, **options})
         p = self.problem
         timers = {"assembly": p.assembly_time, "solve": 0.0}
-        return solve_problem(p, p.u_h, opts.model_dump(), p.V.mesh.comm, verbose, False, timers,
+        return solve_problem(p, p.u_h, opts, p.V.mesh.comm, verbose, False, timers,
                              time.perf_counter() - p.assembly_time,
                              check_options=bool(opts.petsc_options))
 

@@ -15,7 +15,8 @@ that build a scene's problem and run them live above, in :mod:`contact.drivers`.
 * :mod:`.vi` — PETSc's VI solvers (vinewtonrsls, vinewtonssls) as baselines;
 * :mod:`.linear` — the linear solver of each step; :mod:`.reduced` — the symmetric
   reduction of the diagonal law solved by CG + GAMG;
-* :mod:`.options` — PETSc options (each linear solver's defaults);
+* :mod:`.options` — :class:`~.options.SolverOptions` (the typed knobs of a solve) and PETSc
+  options (each linear solver's defaults);
 * :mod:`.snes` — one solve from an initial guess; :mod:`.result` — its outcome.
 """
 from .linear import default_linear_solver

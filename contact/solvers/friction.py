@@ -78,6 +78,7 @@ from dolfinx import fem
 from . import ncp
 from .linear import attach_near_nullspace
 from .newton import Complementarity, set_newton
+from .options import SolverOptions
 from .problem import DiscreteProblem, FrictionSet, NodeBlockMatrix
 from .result import Result
 
@@ -213,10 +214,11 @@ class FrictionalComplementarity(Complementarity):
 
 
 def setup_friction_newton(snes: PETSc.SNES, problem: DiscreteProblem, cp: FrictionalComplementarity,
-                          opts: dict, timers: dict, state: dict, petsc_opts: dict) -> PETSc.Mat:
-    """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts['method']``):
+                          opts: SolverOptions, timers: dict, state: dict,
+                          petsc_opts: dict) -> PETSc.Mat:
+    """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts.method``):
     the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix."""
-    method, mu = opts["method"], opts["mu"]
+    method, mu = opts.method, opts.mu
     J = cp.matrix()
     attach_near_nullspace(problem, J)
     set_newton(snes, problem, J, lambda x, f: cp.phi(x, f, method, mu),

@@ -36,6 +36,7 @@ from petsc4py import PETSc
 from .problem import DiscreteProblem
 from . import ncp
 from .globalize import GuardedMin
+from .options import SolverOptions
 from .polish import Polisher
 
 
@@ -101,18 +102,18 @@ class Complementarity:
             obj.destroy()
 
 
-def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, timers: dict,
+def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: SolverOptions, timers: dict,
                  state: dict, petsc_opts: dict,
                  verbose: bool = False) -> Polisher | GuardedMin | None:
-    """Make ``snes`` semismooth Newton on Φ of ``opts['method']`` ∈ {fb, min, blend}:
+    """Make ``snes`` semismooth Newton on Φ of ``opts.method`` ∈ {fb, min, blend}:
     residual Φ and Jacobian callbacks (the Jacobian callback hands the law (s, d) to the
     Newton ``system`` of :mod:`.linear`, which builds its operator), the line search, and
     as the line-search pre-check either active-set polishing (fb / blend with
-    ``opts['polish']``) or, for min with line search ``auto``, the cycle guard of
+    ``opts.polish``) or, for min with line search ``auto``, the cycle guard of
     :mod:`.globalize`.  Time spent in the callbacks is added to ``timers['assembly']``;
     ``state['t_jac']`` marks the end of the Jacobian (the linear solve's clock starts
     there).  Returns the pre-check object (Polisher or GuardedMin) or None."""
-    method, mu = opts["method"], opts["mu"]
+    method, mu = opts.method, opts.mu
 
     def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
         cp.p.linearize(x)
@@ -122,21 +123,21 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
     set_newton(snes, cp.p, system.J, lambda x, f: cp.phi(x, f, method, mu), jacobian,
                opts, timers, state, petsc_opts)
     precheck = None
-    if opts["polish"] and method != "min":
+    if opts.polish and method != "min":
         precheck = Polisher(cp, method, mu, system, timers)
-    elif method == "min" and opts["line_search"] == "auto":
+    elif method == "min" and opts.line_search == "auto":
         precheck = GuardedMin(cp, mu, timers, verbose)
     if precheck is not None:
         snes.setLineSearchPreCheck(precheck)
     return precheck
 
 
-def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, jacobian, opts: dict,
-               timers: dict, state: dict, petsc_opts: dict) -> None:
+def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, jacobian,
+               opts: SolverOptions, timers: dict, state: dict, petsc_opts: dict) -> None:
     """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
     ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
     both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
-    (the linear solve's clock starts there).  PETSc's line search ``opts['line_search']``
+    (the linear solve's clock starts there).  PETSc's line search ``opts.line_search``
     (``auto``: ``basic``, the cycle guard being a pre-check) unless the PETSc options say
     otherwise."""
     def residual(snes, x, f):
@@ -154,5 +155,5 @@ def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, ja
     snes.setType("newtonls")
     snes.setFunction(residual, problem.b.duplicate())
     snes.setJacobian(jac, J)
-    line_search = "basic" if opts["line_search"] == "auto" else opts["line_search"]
+    line_search = "basic" if opts.line_search == "auto" else opts.line_search
     petsc_opts.setdefault("snes_linesearch_type", line_search)

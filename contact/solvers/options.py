@@ -1,21 +1,21 @@
 """Solver options: :class:`SolverOptions` (the solver's knobs, typed and immutable), method
 names as benchmarks list them, the default PETSc options of each linear solver (a function
 of its kind and the dimension alone, known before any mesh exists), and PETSc's options
-database (set, read, errors as one line).  The scene's ``solver`` section with call-time
-overrides becomes SolverOptions in :func:`contact.drivers.solve.solver_options`."""
+database (set, read, errors as one line).  Nothing here reads a scene: its ``solver``
+section with call-time overrides becomes SolverOptions in :mod:`contact.drivers.solve`."""
 from __future__ import annotations
 
 import itertools
-from typing import Any, Iterable, Literal, Mapping
+from typing import Annotated, Any, Literal, Mapping
 
 from mpi4py import MPI
 from petsc4py import PETSc
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError
 
 from ..base.errors import ConfigError, petsc_message
-from ..base.validation import (auto_or_positive, boolean, checked, config_error, field, integer,
-                               mapping_of, nonnegative, number, one_of, open_unit, petsc_value,
-                               positive)
+from ..base.validation import (auto_or_positive, boolean, checked, config_error, integer,
+                               mapping_of, nonnegative, number, one_of, open_unit, positive)
+from ..base.validation import petsc_value as valid_petsc_value
 from . import ncp
 from .reduced import REDUCED_PETSC_OPTIONS
 
@@ -40,52 +40,40 @@ class SolverOptions(BaseModel):
     (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
     ``petsc_options`` — PETSc options over the linear solver's defaults.
 
-    Build it from keywords (``SolverOptions(method="min")``) or from a scene's ``solver``
-    section with overrides (:meth:`from_config`); an invalid value is one ConfigError line
-    naming the key.  A changed copy: ``options.model_copy(update={"rtol": 1e-6})``.
+    Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
+    one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
+    ValidationError); a scene's driver builds it once from its ``solver`` section
+    (:func:`contact.drivers.solve.solve`).  A changed copy:
+    ``options.model_copy(update={"rtol": 1e-6})`` (unchecked: use :meth:`parse`).
     Friction's tangential knobs (form, c_t) are data of the friction law on the problem
     (:class:`~contact.solvers.problem.FrictionSet`), not options of a solve."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    method: field(one_of(METHODS), str) = "fb"
-    mu: field(number(open_unit), float) = 0.5
-    c: field(checked(auto_or_positive), Literal["auto"] | float) = "auto"
-    kappa: field(number(positive), float) = 1.0
-    line_search: field(one_of(LINE_SEARCHES), str) = "auto"
-    polish: field(boolean, bool) = True
-    rtol: field(number(nonnegative), float) = 1e-12
-    atol: field(number(nonnegative), float) = 1e-12
-    max_it: field(integer(positive), int) = 50
-    linear: field(one_of(LINEAR), str) = "auto"
-    inexact: field(boolean, bool) = True
-    petsc_options: field(mapping_of(petsc_value), dict) = {}
+    method: Annotated[str, BeforeValidator(one_of(METHODS))] = "fb"
+    mu: Annotated[float, BeforeValidator(number(open_unit))] = 0.5
+    c: Annotated[Literal["auto"] | float, BeforeValidator(checked(auto_or_positive))] = "auto"
+    kappa: Annotated[float, BeforeValidator(number(positive))] = 1.0
+    line_search: Annotated[str, BeforeValidator(one_of(LINE_SEARCHES))] = "auto"
+    polish: Annotated[bool, BeforeValidator(boolean)] = True
+    rtol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
+    atol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
+    max_it: Annotated[int, BeforeValidator(integer(positive))] = 50
+    linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
+    inexact: Annotated[bool, BeforeValidator(boolean)] = True
+    petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = {}
 
     @classmethod
-    def from_config(cls, section: Mapping[str, Any], overrides: Mapping[str, Any] | None = None,
-                    path: str = "solver", keys: Iterable[str] | None = None) -> "SolverOptions":
-        """The options of a (validated) ``solver`` section with call-time ``overrides``
-        (None values ignored), validated: ConfigError ``solver.<key>: …`` with the scene's
-        messages.  ``keys``: every key the section may hold (the driver's too, which are
-        skipped here); an override outside them is an unknown key, as in the scene."""
-        keys = tuple(cls.model_fields) if keys is None else tuple(keys)
-        given = {k: v for k, v in section.items() if k in cls.model_fields and v is not None}
-        for key, value in (overrides or {}).items():
-            if value is None:
-                continue
-            if key not in keys:
-                raise ConfigError(f"{path}.{key}: unknown key (expected one of {', '.join(keys)})")
-            if key in cls.model_fields:
-                given[key] = value
+    def parse(cls, values: Mapping[str, Any], path: str = "solver") -> "SolverOptions":
+        """The options of keyword ``values`` (None: the default), validated: one ConfigError
+        line ``<path>.<key>: …`` with the scene's messages, an unknown key named too."""
+        given = {k: v for k, v in values.items() if v is not None}
         try:
             return cls.model_validate(given)
         except ValidationError as err:
-            raise config_error(err, path, keys) from None
+            raise config_error(err, path, cls.model_fields) from None
 
-    @property
-    def newton(self) -> bool:
-        """Semismooth Newton on an NCP function (fb, min, blend), not a PETSc VI solver."""
-        return self.method in ncp.METHODS
+
 
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}

@@ -41,7 +41,7 @@ class Result:
     timings: dict
     problem: DiscreteProblem
     active_mask: np.ndarray
-    options: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)   # the solve's SolverOptions as a dict
     polish_solves: int = 0
     backtracked: int = 0          # min, line search auto: steps shortened once a cycle showed
     linear: str = ""              # the linear solver used (direct, gamg, bcgs)
@@ -169,5 +169,5 @@ def finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
                   iterations=snes.getIterationNumber(),
                   residual=history[-1]["residual"] if history else float("nan"),
                   method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
-                  timings=timers, problem=problem, active_mask=active, options=opts,
+                  timings=timers, problem=problem, active_mask=active, options=opts.model_dump(),
                   contact_force=problem.contact_force(r), hint=hint)

@@ -22,7 +22,7 @@ from .globalize import GuardedMin
 from .newton import Complementarity, setup_newton
 from .polish import Polisher
 from .reduced import ReducedSystem
-from .options import check_petsc_options, petsc_value, set_from_options
+from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .problem import DiscreteProblem, nodal_scaling
 from .result import Result, finish
 from .vi import setup_vi
@@ -30,31 +30,31 @@ from .vi import setup_vi
 _counter = itertools.count()
 
 
-def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: MPI.Comm,
+def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOptions, comm: MPI.Comm,
                   verbose: bool, guess: bool, timers: dict, t_start: float,
                   check_options: bool = False) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
-    the validated ``solver`` options ``opts``; return a :class:`Result` (never raises on
+    the :class:`~.options.SolverOptions` ``opts``; return a :class:`Result` (never raises on
     divergence).  ``timers`` holds the seconds counted so far (``assembly``, ``solve``,
     ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
     when it was loaded)."""
-    method = opts["method"]
+    method = opts.method
     friction = problem.friction
     if friction is not None:
         from .friction import (FrictionalComplementarity, friction_fields, setup_friction_newton,
                                status_counts)
 
-    user = {str(k): v for k, v in opts["petsc_options"].items()}
+    user = {str(k): v for k, v in opts.petsc_options.items()}
     # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
     # keep an assembled matrix (their own linear algebra)
     diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
-    linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
+    linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts.linear, user)
     defaults = petsc_defaults(problem, linear)
     petsc_opts = {**defaults, **user}
     if check_options:
-        check_petsc_options(opts["petsc_options"], defaults, comm)
+        check_petsc_options(opts.petsc_options, defaults, comm)
 
     owner = Owner()   # this solve's PETSc objects, destroyed when it is done
     x = owner.own(problem.b.duplicate())
@@ -62,12 +62,12 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     set_dirichlet(x, problem.bcs)
     problem.linearize(x)
     con = problem.constraint  # the NCP scaling follows the options of this solve
-    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
-                 else float(opts["c"]))
+    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts.kappa) if opts.c == "auto"
+                 else float(opts.c))
     cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
     # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
-    scale, total = force_scale(cp, problem, method if method in ncp.METHODS else "fb", opts["mu"])
-    atol = opts["atol"] * scale
+    scale, total = force_scale(cp, problem, method if method in ncp.METHODS else "fb", opts.mu)
+    atol = opts.atol * scale
     snes = owner.own(PETSc.SNES().create(comm))
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
@@ -76,7 +76,7 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     if friction is not None:   # the block law H = B K + D (no polishing)
         J = owner.own(setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts))
     elif method in ncp.METHODS:
-        system = owner.own(newton_system(problem, linear, prefix, forcing=opts["inexact"]))
+        system = owner.own(newton_system(problem, linear, prefix, forcing=opts.inexact))
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
         precheck = owner.own(setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose))
         polisher = precheck if isinstance(precheck, Polisher) else None
@@ -94,7 +94,7 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         state["dir_norm"] = sol.norm()
 
     snes.getKSP().setPostSolve(post_solve)
-    snes.setTolerances(rtol=opts["rtol"], atol=atol, stol=0.0, max_it=opts["max_it"])
+    snes.setTolerances(rtol=opts.rtol, atol=atol, stol=0.0, max_it=opts.max_it)
     k_norm = problem.K.norm(PETSc.NormType.INFINITY)   # for the round-off floor of ‖Φ‖
     snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
     history: list[dict] = []
@@ -102,7 +102,7 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
 
     def monitor(snes, its, fnorm):
         xk = snes.getSolution()
-        floor = min(roundoff_floor(k_norm, xk), opts["atol"] * total)
+        floor = min(roundoff_floor(k_norm, xk), opts.atol * total)
         if floor > snes.getTolerances()[1]:   # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
             if polisher is not None:
@@ -119,7 +119,7 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
             dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
             step = prev["x"].norm() / dn if dn > 0 else 0.0
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
-            done = state.get("stop") or max(atol, opts["rtol"] * fnorm)
+            done = state.get("stop") or max(atol, opts.rtol * fnorm)
             if polisher is not None:
                 polisher.done = done
             if system is not None:
@@ -162,10 +162,10 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
             system.guess = guess and polisher is None
         if polisher is not None and guess:
             # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-            stop = max(atol, opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
+            stop = max(atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
             polisher.initial(x, stop)
             state["stop"] = stop
-            snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
+            snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts.max_it)
         snes.solve(None, x)
         reason_code = snes.getConvergedReason()
         result = finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,

@@ -1,0 +1,80 @@
+"""The solver's typed options (issue 28b): ``contact.solvers.options.SolverOptions`` is a frozen
+pydantic model with exactly the solver's knobs, its defaults and its one-line messages those
+of the scene's ``solver`` section, and it is what the solver receives (no dict)."""
+from __future__ import annotations
+
+import pydantic
+import pytest
+from clirun import ROOT
+
+import contact
+from contact import ConfigError
+from contact.drivers.solve import solver_knobs
+from contact.solvers.options import SolverOptions
+
+SCENE = str(ROOT / "configs" / "signorini_square.yaml")
+KNOBS = {"method", "mu", "c", "kappa", "line_search", "polish", "rtol", "atol", "max_it", "linear",
+         "inexact", "petsc_options"}
+
+
+def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
+    """A scene with no ``solver`` section has SolverOptions' defaults (and the driver's keys)."""
+    scene = contact.load_scene({
+        "name": "plain", "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": [2, 2]},
+        "boundaries": {"clamp": {"role": "dirichlet", "where": "x < 1e-10"}},
+        "model": {"type": "obstacle", "bound": "lower"}, "data": {"f": "-1", "psi": "-1"}})
+    assert set(SolverOptions.model_fields) == KNOBS
+    section = scene.cfg["solver"]
+    # the scene's section = the solver's knobs + the driver's (initial guess, sequencing, budget)
+    assert set(section) - KNOBS == {"u0", "sequence", "max_dofs"}
+    assert SolverOptions().model_dump() == {key: section[key] for key in KNOBS}
+    assert solver_knobs(section) == SolverOptions()
+
+
+@pytest.mark.parametrize("key, value", [
+    ("mu", 1.5), ("mu", 0), ("method", "newton"), ("c", -1), ("c", "big"), ("kappa", 0),
+    ("line_search", "cubic"), ("polish", "yes"), ("rtol", -1e-3), ("max_it", 0), ("max_it", 2.5),
+    ("linear", "cholesky"), ("inexact", 1), ("petsc_options", {"ksp_type": [1]}), ("petsc_options", 3),
+])
+def test_the_same_one_line_message_as_the_scene(key, value):
+    """A bad value gives the ConfigError line the scene's loader gives for it."""
+    with pytest.raises(ConfigError) as scene_error:
+        contact.load_scene(SCENE, [f"solver.{key}={value!r}" if isinstance(value, str) else
+                                   f"solver.{key}={value}"])
+    with pytest.raises(ConfigError) as typed_error:
+        SolverOptions.parse({key: value})
+    assert str(typed_error.value) == str(scene_error.value)
+    assert "\n" not in str(typed_error.value) and str(typed_error.value).startswith(f"solver.{key}")
+
+
+def test_an_unknown_knob_is_named():
+    with pytest.raises(ConfigError, match=r"^solver.max_iterations: unknown key \(expected one of method, "):
+        SolverOptions.parse({"max_iterations": 3})
+
+
+def test_frozen():
+    options = SolverOptions.parse({"method": "min", "rtol": 1e-8})
+    with pytest.raises(pydantic.ValidationError, match="frozen"):
+        options.rtol = 1.0
+    assert options.model_copy(update={"rtol": 1e-6}).rtol == 1e-6 and options.rtol == 1e-8
+
+
+def test_the_solver_receives_the_typed_options(monkeypatch):
+    """contact.solve hands solve_problem one SolverOptions built from the section and the
+    call's overrides; the result records them."""
+    from contact.drivers import solve as driver
+
+    seen = []
+    real = driver.solve_problem
+
+    def spy(problem, u0, opts, *args, **kwargs):
+        seen.append(opts)
+        return real(problem, u0, opts, *args, **kwargs)
+
+    monkeypatch.setattr(driver, "solve_problem", spy)
+    scene = contact.load_scene(SCENE, ["mesh.cells=[6,6]", "solver.sequence=off"])
+    result = contact.solve(scene, method="min", rtol=1e-9, verbose=False)
+    (options,) = seen
+    assert isinstance(options, SolverOptions)
+    assert (options.method, options.rtol, options.kappa) == ("min", 1e-9, scene.cfg["solver"]["kappa"])
+    assert result.converged and result.options == options.model_dump()
