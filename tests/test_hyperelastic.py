@@ -153,6 +153,33 @@ def test_step_cutting_halves_a_step_whose_start_inverts_cells():
     assert np.max(np.abs(a - b)) <= 1e-8 * np.max(np.abs(b))
 
 
+def test_the_tangent_of_st_venant_kirchhoff_loses_definiteness_in_strong_compression():
+    """The block pressed to 50 % in 5 steps.  Neo-Hookean (polyconvex): K_T stays positive
+    definite at every step.  St Venant–Kirchhoff: its plate force −P₂₂ peaks between 40 %
+    and 45 % compression (the analytic response) and beyond that K_T on the free unknowns
+    has negative eigenvalues: at 30 % none, at 50 % some, and the load path says from which
+    step (the homogeneous state still solves the equations: the answer stays analytic)."""
+    paths = {}
+    for law in LAWS:
+        cfg = block(law)
+        cfg["obstacle"]["point"] = [0, "1 - 0.5*t"]
+        paths[law] = contact.run_load_path(contact.load_scene({**cfg, "load": {"steps": 5}}),
+                                           method="fb", keep_all=True)
+        assert paths[law].converged
+    assert [s.negative_eigenvalues for s in paths["neo_hookean"].steps] == [0] * 5
+    assert paths["neo_hookean"].indefinite == ""
+    forces = [-uniaxial_stretch("saint_venant_kirchhoff", E, NU, 1 - c, 2)[1] for c in (0.4, 0.45, 0.5)]
+    assert forces[0] > forces[1] > forces[2]    # past the limit point at 45 % and 50 %
+    svk = paths["saint_venant_kirchhoff"]
+    counts = {round(0.5 * s.time, 6): s.negative_eigenvalues for s in svk.steps}
+    assert counts[0.3] == 0 and counts[0.5] > 0
+    first = min(s.index for s in svk.steps if s.negative_eigenvalues)
+    assert svk.indefinite.startswith(f"K_T not positive definite from step {first} ")
+    assert svk.indefinite in svk.stop
+    p, _ = nodal_pressure(svk.steps[-1].result)
+    assert np.max(np.abs(p / forces[2] - 1)) < 1e-8
+
+
 def test_small_load_limit_is_linear_elasticity():
     """At delta = 5e-4 (0.1 % of the height of an arch with a flat bottom y = 0.01 x²) finite
     strain is a 1e-3 correction: the hyperelastic laws give the linear model's contact
@@ -200,6 +227,7 @@ def test_cli_block_writes_the_force_of_every_step(tmp_path):
     assert proc.returncode == 0, proc.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "steps.csv")))
     assert [float(r["time"]) for r in rows] == pytest.approx([1 / 3, 2 / 3, 1.0])
+    assert [r["tangent_negative_eigenvalues"] for r in rows] == ["0"] * 3
     for r in rows:
         _, P22 = uniaxial_stretch("neo_hookean", E, NU, 1 - 0.3 * float(r["time"]), 2)
         assert float(r["contact_force"]) == pytest.approx(-4 * P22, rel=1e-8)

@@ -264,7 +264,8 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
             if k == 1:
                 raise _Failed()
             failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
-            path = LoadPath(path.steps[:-1], stop=path.stop, cuts=path.cuts)
+            path = LoadPath(path.steps[:-1], stop=path.stop, cuts=path.cuts,
+                            indefinite=path.indefinite)
         info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED

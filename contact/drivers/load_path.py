@@ -43,6 +43,7 @@ class Step:
     result: Result
     levels: list = field(default_factory=list)   # adapt.Level of an adaptive step
     seconds: float = 0.0
+    negative_eigenvalues: int | None = None   # of K_T at the solution (hyperelastic bodies)
 
     def release(self) -> None:
         """Keep the step's figures only: its result and its adaptive levels' results are
@@ -61,6 +62,7 @@ class LoadPath:
     steps: list[Step] = field(default_factory=list)
     stop: str = ""
     cuts: list[str] = field(default_factory=list)   # step cutting: 't = … (reason) cut to t = …'
+    indefinite: str = ""   # the first step whose K_T is not positive definite (hyperelastic)
 
     @property
     def converged(self) -> bool:
@@ -146,21 +148,40 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
             pending[:0] = [(mid, depth + 1), (t, depth + 1)]
             continue
         step = Step(k, t, step_scene, result, levels, time.perf_counter() - t0)
+        if result.converged and scene.cfg["model"]["type"] == "hyperelastic":
+            check_tangent(step, out, verbose)
         out.steps.append(step)
         if on_step is not None:
             on_step(step)
         if not result.converged:
-            out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})" + _cut_text(out)
+            out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})" + _notes(out)
             break
         scene, t_prev = step_scene, t   # 'each': the next step continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
     else:
-        out.stop = f"reached t = {times[-1]:g} in {len(out.steps)} step(s)" + _cut_text(out)
+        out.stop = f"reached t = {times[-1]:g} in {len(out.steps)} step(s)" + _notes(out)
     return out
 
 
-def _cut_text(path: LoadPath) -> str:
-    """', 2 step cut(s): t = 1 (diverged_fnorm_nan) cut to t = 0.5; …' ('' without cuts)."""
-    return f", {len(path.cuts)} step cut(s): " + "; ".join(path.cuts) if path.cuts else ""
+def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
+    """Count the negative eigenvalues of a hyperelastic step's tangent K_T at its solution
+    (:func:`contact.models.hyperelastic.negative_eigenvalues`); the first step where K_T is
+    not positive definite is reported (``LoadPath.indefinite``, the stop text, verbose)."""
+    from ..models.hyperelastic import negative_eigenvalues
+
+    n = step.negative_eigenvalues = negative_eigenvalues(step.result)
+    if n and not path.indefinite:
+        path.indefinite = (f"K_T not positive definite from step {step.index} (t = {step.time:g}: "
+                           f"{n} negative eigenvalue(s) on the free unknowns)")
+        if verbose and step.scene.comm.rank == 0:
+            print(f"contact: step {step.index}: {path.indefinite}: the solution may be unstable "
+                  "(past a limit point, or a nonconvex law)", flush=True)
+
+
+def _notes(path: LoadPath) -> str:
+    """', 2 step cut(s): t = 1 (diverged_fnorm_nan) cut to t = 0.5; …' and '; K_T not
+    positive definite from step k (…)' ('' without either)."""
+    cuts = f", {len(path.cuts)} step cut(s): " + "; ".join(path.cuts) if path.cuts else ""
+    return cuts + (f"; {path.indefinite}" if path.indefinite else "")

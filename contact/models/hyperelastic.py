@@ -38,6 +38,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from petsc4py import PETSc
 
 import ufl
 from dolfinx import fem
@@ -116,6 +117,41 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
                            floating=floating_bodies(V, s.fixed, None, []),
                            assembly_time=time.perf_counter() - t0,
                            F_form=F_form, J_form=J_form)
+
+
+def negative_eigenvalues(result) -> int:
+    """The number of negative eigenvalues of the tangent K_T(u_h) on the free unknowns (the
+    Dirichlet rows and the active contact nodes held), from the inertia of its Cholesky
+    factorization (MUMPS, LDLᵀ; collective).  0: u_h is a stable equilibrium of the
+    constrained problem; > 0: K_T lost positive definiteness — past a limit point, or
+    St Venant–Kirchhoff in strong compression (its energy is not convex) — and the
+    solution may be unstable (buckling, localisation).  One factorization per call."""
+    p = result.problem
+    x = p.b.duplicate()
+    p.to_unknowns(result.u_h.x.petsc_vec, x)
+    p.linearize(x)
+    A = p.K.duplicate(copy=True)
+    lo = A.getOwnershipRange()[0]
+    A.zeroRowsColumns((p.constraint.dofs[result.active_mask] + lo).astype(PETSc.IntType), diag=1.0)
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    ksp = PETSc.KSP().create(A.getComm())
+    try:
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("cholesky")
+        pc.setFactorSolverType("mumps")
+        pc.setFactorSetUpSolverType()
+        factor = pc.getFactorMatrix()
+        factor.setMumpsIcntl(13, 1)   # the root node without ScaLAPACK: the global inertia
+        factor.setMumpsIcntl(24, 1)   # null pivots detected (a singular K_T counts as zero)
+        pc.setUp()
+        negative, _, _ = factor.getInertia()
+    finally:
+        ksp.destroy()
+        A.destroy()
+        x.destroy()
+    return int(negative)
 
 
 def uniaxial_stretch(law: str, E: float, nu: float, stretch: float, gdim: int) -> tuple[float, float]:

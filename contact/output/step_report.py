@@ -67,6 +67,8 @@ class StepWriter:
             row.update(surface_figures(scene, r, table))
         else:
             row["contact_force"] = r.contact_force
+        if step.negative_eigenvalues is not None:   # hyperelastic: K_T's stability
+            row["tangent_negative_eigenvalues"] = step.negative_eigenvalues
         self.rows.append(row)
         self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
         self.tables.append((step.time, table))
@@ -105,6 +107,8 @@ class StepWriter:
                 "host": platform.node(), **self.files.timings(), "steps": self.rows}
         if path.cuts:   # step cutting (load.cuts): the steps that were halved
             info["step_cuts"] = path.cuts
+        if path.indefinite:
+            info["tangent_indefinite"] = path.indefinite
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
         if is_elastic(self.scene.cfg):   # the forces are of the whole body
