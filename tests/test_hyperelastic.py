@@ -239,6 +239,40 @@ def test_cli_block_writes_the_force_of_every_step(tmp_path):
     assert not (tmp_path / "bad").exists()
 
 
+API_RUN = """
+import sys, json
+sys.path.insert(0, "tests")
+import contact
+from test_hyperelastic import arch
+path = contact.run_load_path(contact.load_scene({**arch("neo_hookean"), "load": {"steps": 4}}), method="fb")
+r = path.steps[-1].result
+print(json.dumps([path.converged, r.contact_force, r.n_active,
+                  [s.negative_eigenvalues for s in path.steps]]))
+"""
+
+
+@pytest.mark.mpi
+def test_api_serial_and_two_ranks_agree(tmp_path):
+    """The Python API on the arch's load path: the same contact force (to 1e-10, the solver
+    stops at |Phi| ~ 1e-14), active nodes and tangent stability on 1 and 2 ranks."""
+    import json
+
+    from clirun import MPIRUN
+
+    out = {}
+    for ranks in (1, 2):
+        cmd = [sys.executable, "-c", API_RUN]
+        proc = subprocess.run([str(MPIRUN), "-n", str(ranks), *cmd], cwd=ROOT, capture_output=True,
+                              text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        lines = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("[")]
+        assert len(lines) == ranks and all(ln == lines[0] for ln in lines)
+        out[ranks] = lines[0]
+    assert out[1][0] and out[2][0]
+    assert out[2][1] == pytest.approx(out[1][1], rel=1e-10)
+    assert out[2][2:] == out[1][2:]
+
+
 def test_a_linear_scene_never_imports_the_hyperelastic_model():
     """Importing contact and running a linear elastic solve leaves contact.models.hyperelastic
     unloaded (the dispatch imports it only for model type hyperelastic)."""
