@@ -26,8 +26,10 @@ METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
 # the membrane of demos/demo_obstacle.py: f = −2 pulls it onto the dome ψ = 0.4 − r²
 MEMBRANE = {
     "name": "membrane",
-    "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 1]], "cells": [12, 12], "diagonal": "crossed"},
-    "boundaries": {"clamp": {"role": "dirichlet", "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}},
+    "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 1]], "cells": [12, 12],
+             "diagonal": "crossed"},
+    "boundaries": {"clamp": {"role": "dirichlet",
+                             "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}},
     "model": {"type": "obstacle", "bound": "lower"},
     "data": {"f": "-2", "psi": "0.4 - r**2"},
     "output": {"verbose": False},
@@ -103,6 +105,24 @@ def test_a_linear_residual_is_the_linear_problem():
     assert largest(u_res.x.array[bc.dof_indices()[0]] - 0.1) < 1e-14
 
 
+@pytest.mark.parametrize("method", ["fb", "vinewtonrsls"])
+def test_the_tangent_is_reassembled_at_every_iterate(method):
+    """The minimal surface residual (nonlinear): with J(x) re-assembled at each iterate the
+    last steps converge quadratically — some step lowers ‖Φ‖ by more than 10³ (measured:
+    4.7e-6 → 3.4e-11 for fb on 12²).  A tangent frozen at the start (a chord method)
+    contracts by ~0.3 per step only (23 steps instead of 5–7, measured)."""
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, 12, 12)
+    V = fem.functionspace(msh, ("Lagrange", 1))
+    u, v = fem.Function(V), ufl.TestFunction(V)
+    F = ufl.inner(ufl.grad(u), ufl.grad(v)) / ufl.sqrt(1 + ufl.grad(u) ** 2) * ufl.dx
+    obstacle = Unilateral(lambda x: 0.2 - 2 * ((x[0] - 0.5) ** 2 + (x[1] - 0.5) ** 2), side="lower")
+    with ComplementarityProblem.from_residual(F, u, obstacle, [clamped(msh, V)]) as problem:
+        result = problem.solve(method, rtol=1e-12)
+    residuals = [h["residual"] for h in result.history]
+    assert result.converged and result.n_active > 0
+    assert max(a / b for a, b in zip(residuals[:-1], residuals[1:]) if b > 0) > 1e3, residuals
+
+
 def test_signorini_on_tagged_facets_and_explicit_dofs():
     """u ≤ g on tagged facets (ds(tag), weights ∫ φ_i ds) equals the same constraint given as
     explicit DoFs and weights; the free nodes are untouched by it."""
@@ -133,9 +153,9 @@ def test_signorini_on_tagged_facets_and_explicit_dofs():
 
 @pytest.mark.parametrize("build, error, message", [
     (lambda V: Unilateral(0.0, side="middle"), ValueError, r"^Unilateral.side: expected 'upper'"),
-    (lambda V: Unilateral(0.0, dofs=np.array([10**7])), ValueError, r"^Unilateral.dofs: owned local"),
+    (lambda V: Unilateral(0.0, dofs=np.array([10**7])), ValueError, r"^Unilateral.dofs: owned"),
     (lambda V: Unilateral(np.zeros(3)), ValueError, r"^Unilateral.bound: expected one value per"),
-    (lambda V: Unilateral(0.0, weights=np.ones(2)), ValueError, r"^Unilateral: weights go with dofs"),
+    (lambda V: Unilateral(0.0, weights=np.ones(2)), ValueError, r"^Unilateral: weights go with"),
 ])
 def test_bad_constraints_are_one_line(build, error, message):
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
@@ -150,7 +170,7 @@ def test_bad_constraints_are_one_line(build, error, message):
     ({"method": "newton"}, r"^solver.method: 'newton' is not one of fb, min, blend"),
     ({"mu": 1.5}, r"^solver.mu: must lie in \(0, 1\), got 1.5"),
     ({"max_iterations": 3}, r"^solver.max_iterations: unknown key"),
-    ({"petsc_options": {"pc_type": "nonsense"}}, r"^solver.petsc_options.pc_type: PETSc cannot use"),
+    ({"petsc_options": {"pc_type": "nonsense"}}, r"^solver.petsc_options.pc_type: PETSc cannot"),
 ])
 def test_bad_options_are_one_config_error_line(options, message):
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
@@ -167,8 +187,8 @@ def test_close_destroys_the_petsc_objects():
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
     V = fem.functionspace(msh, ("Lagrange", 1))
     a, L = membrane_forms(V)
-    problem = ComplementarityProblem.from_forms(a, L, fem.Function(V), Unilateral(dome, side="lower"),
-                                                [clamped(msh, V)])
+    problem = ComplementarityProblem.from_forms(a, L, fem.Function(V),
+                                                Unilateral(dome, side="lower"), [clamped(msh, V)])
     K = problem.problem.K
     with problem:
         assert problem.solve("fb").converged
@@ -189,8 +209,8 @@ def test_the_demo_agrees_with_vinewtonrsls(ranks):
     assert len({n for *_, n, _ in lines}) == 1 and int(lines[0][3]) > 0   # one active set
     forces = [float(f) for *_, f in lines]
     assert max(forces) - min(forces) < 1e-8
-    difference = float(re.search(r"largest difference from vinewtonrsls: (\S+)", proc.stdout).group(1))
-    assert difference < 1e-8
+    difference = re.search(r"largest difference from vinewtonrsls: (\S+)", proc.stdout).group(1)
+    assert float(difference) < 1e-8
 
 
 def test_the_readme_example_runs():
@@ -201,3 +221,16 @@ def test_the_readme_example_runs():
                           timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert re.match(r"True \d+ Newton iterations, [1-9]\d* nodes on the floor", proc.stdout)
+
+
+def test_the_api_tests_agree_on_two_ranks():
+    """The tests above that run in-process (the scene path, linear vs nonlinear, facets vs
+    explicit DoFs, bad input, close) pass on each of 2 MPI ranks: every assertion compares
+    global values (allreduce), so the same discrete answers hold on a partitioned mesh."""
+    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, "-m", "pytest", "-q", "-p",
+                           "no:cacheprovider", __file__,
+                           "-k", "not demo and not readme and not ranks"],
+                          cwd=ROOT / "tests", capture_output=True, text=True, timeout=600,
+                          env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert proc.stdout.count(" passed") == 2 and " failed" not in proc.stdout

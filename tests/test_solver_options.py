@@ -20,7 +20,8 @@ KNOBS = {"method", "mu", "c", "kappa", "line_search", "polish", "rtol", "atol", 
 def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
     """A scene with no ``solver`` section has SolverOptions' defaults (and the driver's keys)."""
     scene = contact.load_scene({
-        "name": "plain", "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": [2, 2]},
+        "name": "plain",
+        "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": [2, 2]},
         "boundaries": {"clamp": {"role": "dirichlet", "where": "x < 1e-10"}},
         "model": {"type": "obstacle", "bound": "lower"}, "data": {"f": "-1", "psi": "-1"}})
     assert set(SolverOptions.model_fields) == KNOBS
@@ -34,7 +35,8 @@ def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
 @pytest.mark.parametrize("key, value", [
     ("mu", 1.5), ("mu", 0), ("method", "newton"), ("c", -1), ("c", "big"), ("kappa", 0),
     ("line_search", "cubic"), ("polish", "yes"), ("rtol", -1e-3), ("max_it", 0), ("max_it", 2.5),
-    ("linear", "cholesky"), ("inexact", 1), ("petsc_options", {"ksp_type": [1]}), ("petsc_options", 3),
+    ("linear", "cholesky"), ("inexact", 1), ("petsc_options", {"ksp_type": [1]}),
+    ("petsc_options", 3),
 ])
 def test_the_same_one_line_message_as_the_scene(key, value):
     """A bad value gives the ConfigError line the scene's loader gives for it."""
@@ -48,7 +50,8 @@ def test_the_same_one_line_message_as_the_scene(key, value):
 
 
 def test_an_unknown_knob_is_named():
-    with pytest.raises(ConfigError, match=r"^solver.max_iterations: unknown key \(expected one of method, "):
+    with pytest.raises(ConfigError,
+                       match=r"^solver.max_iterations: unknown key \(expected one of method, "):
         SolverOptions.parse({"max_iterations": 3})
 
 
@@ -76,5 +79,6 @@ def test_the_solver_receives_the_typed_options(monkeypatch):
     result = contact.solve(scene, method="min", rtol=1e-9, verbose=False)
     (options,) = seen
     assert isinstance(options, SolverOptions)
-    assert (options.method, options.rtol, options.kappa) == ("min", 1e-9, scene.cfg["solver"]["kappa"])
+    kappa = scene.cfg["solver"]["kappa"]
+    assert (options.method, options.rtol, options.kappa) == ("min", 1e-9, kappa)
     assert result.converged and result.options == options.model_dump()

@@ -17,7 +17,8 @@ that build a scene's problem and run them live above, in :mod:`contact.drivers`.
   reduction of the diagonal law solved by CG + GAMG;
 * :mod:`.options` — :class:`~.options.SolverOptions` (the typed knobs of a solve) and PETSc
   options (each linear solver's defaults);
-* :mod:`.snes` — one solve from an initial guess; :mod:`.result` — its outcome.
+* :mod:`.snes` — :class:`~.snes.SemismoothNewton` (it owns its SNES, options prefix and
+  Newton system) and one solve from an initial guess; :mod:`.result` — its outcome.
 """
 from .linear import default_linear_solver
 from .options import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant

@@ -119,9 +119,13 @@ class GuardedMin:
 
     def __init__(self, cp: "Complementarity", mu: float, timers: dict, verbose: bool = False):
         self.cp, self.mu, self.timers, self.verbose = cp, mu, timers, verbose
-        self.guard = CycleGuard(cp.p.b.getComm().tompi4py())
         self.W, self.F = cp.p.b.duplicate(), cp.p.b.duplicate()
         self.backtracked = 0
+        self.restart()
+
+    def restart(self) -> None:
+        """Forget the active sets seen: a new solve begins."""
+        self.guard = CycleGuard(self.cp.p.b.getComm().tompi4py())
 
     def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         t0 = time.perf_counter()

@@ -47,8 +47,13 @@ class Complementarity:
         self.p = problem
         self.R = problem.b.duplicate()
         con = problem.constraint
-        self.dofs, self.g, self.w, self.sign, self.c = con.dofs, con.g, con.w, con.sign, problem.c
+        self.dofs, self.g, self.w, self.sign = con.dofs, con.g, con.w, con.sign
         self.s, self.d = problem.b.duplicate(), problem.b.duplicate()  # Jacobian scalings
+
+    @property
+    def c(self) -> np.ndarray | float:
+        """The NCP scaling c_i of the problem (set by each solve, from its options)."""
+        return self.p.c
 
     def pair(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(a, b, R) at x: gap a = σ(g − u), scaled multiplier b = −σ c R / w, residual R."""

@@ -1,7 +1,10 @@
-"""One solve of a discrete problem from an initial guess: the NCP scaling, a PETSc SNES
-(semismooth Newton on an NCP function, or one of PETSc's VI solvers) with a monitor that
-records the history, and the :class:`~contact.solvers.result.Result`.  The scene's part of
-a solve (its problem, options and initial guess) is :func:`contact.drivers.solve.solve`."""
+"""One solve of a discrete problem from an initial guess: :class:`SemismoothNewton`, in the
+spirit of ``dolfinx.fem.petsc.NonlinearProblem``, owns a PETSc SNES (semismooth Newton on
+an NCP function, or one of PETSc's VI solvers), its options prefix, its Newton system and
+line-search pre-check, and a monitor that records the history; :meth:`~SemismoothNewton.solve`
+returns the :class:`~contact.solvers.result.Result`.  :func:`solve_problem` is one solve
+with one solver.  The scene's part of a solve (its problem, options and initial guess) is
+:func:`contact.drivers.solve.solve`."""
 from __future__ import annotations
 
 import itertools
@@ -40,69 +43,184 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOption
     ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
     when it was loaded)."""
-    method = opts.method
-    friction = problem.friction
-    if friction is not None:
-        from .friction import (FrictionalComplementarity, friction_fields, setup_friction_newton,
-                               status_counts)
+    with SemismoothNewton(problem, opts, comm, verbose=verbose, timers=timers,
+                          check_options=check_options) as solver:
+        return solver.solve(u0, guess=guess, t_start=t_start)
 
-    user = {str(k): v for k, v in opts.petsc_options.items()}
-    # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
-    # keep an assembled matrix (their own linear algebra)
-    diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
-    linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts.linear, user)
-    defaults = petsc_defaults(problem, linear)
-    petsc_opts = {**defaults, **user}
-    if check_options:
-        check_petsc_options(opts.petsc_options, defaults, comm)
 
-    owner = Owner()   # this solve's PETSc objects, destroyed when it is done
-    x = owner.own(problem.b.duplicate())
-    problem.to_unknowns(u0.x.petsc_vec, x)
-    set_dirichlet(x, problem.bcs)
-    problem.linearize(x)
-    con = problem.constraint  # the NCP scaling follows the options of this solve
-    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts.kappa) if opts.c == "auto"
-                 else float(opts.c))
-    cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
-    # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
-    scale, total = force_scale(cp, problem, method if method in ncp.METHODS else "fb", opts.mu)
-    atol = opts.atol * scale
-    snes = owner.own(PETSc.SNES().create(comm))
-    prefix = f"contact{next(_counter)}_"
-    snes.setOptionsPrefix(prefix)
-    state = {"t_jac": None, "dir_norm": np.nan}
-    polisher, guard, system = None, None, None
-    if friction is not None:   # the block law H = B K + D (no polishing)
-        J = owner.own(setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts))
-    elif method in ncp.METHODS:
-        system = owner.own(newton_system(problem, linear, prefix, forcing=opts.inexact))
-        system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
-        precheck = owner.own(setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose))
-        polisher = precheck if isinstance(precheck, Polisher) else None
-        guard = precheck if isinstance(precheck, GuardedMin) else None
-        J = system.J
-    else:
-        J = owner.own(setup_vi(snes, problem, method, timers, state))
+class SemismoothNewton:
+    """The solver of a :class:`~.problem.DiscreteProblem` with :class:`~.options.SolverOptions`:
+    semismooth Newton on Φ of ``options.method`` ∈ {fb, min, blend} (:mod:`.newton`; the
+    frictional block law of :mod:`.friction` when the problem has friction), or PETSc's VI
+    solver vinewtonrsls / vinewtonssls (:mod:`.vi`), through one PETSc SNES.
 
-    def post_solve(ksp, rhs, sol):
-        if system is not None:
-            system.count(ksp)
+    It owns the SNES (options prefix ``prefix``, default ``contact<n>_``), the Newton system
+    (:mod:`.linear`), the pre-check (polishing or the cycle guard) and its work vectors, and
+    destroys them in :meth:`close` (or on leaving a ``with`` block); the problem stays the
+    caller's.  ``timers`` (``assembly``, ``solve``; default new) receive the seconds of the
+    callbacks and linear solves; ``check_options``: check ``options.petsc_options`` on a tiny
+    system first (one ConfigError line).  Each :meth:`solve` is one Newton solve from a guess.
+    """
+
+    def __init__(self, problem: DiscreteProblem, options: SolverOptions,
+                 comm: MPI.Comm | None = None, prefix: str | None = None,
+                 verbose: bool = False, timers: dict | None = None, check_options: bool = False):
+        self.problem, self.opts, self.verbose = problem, options, verbose
+        self.comm = comm = problem.V.mesh.comm if comm is None else comm
+        self.timers = {"assembly": 0.0, "solve": 0.0} if timers is None else timers
+        method = self.method = options.method
+        friction = problem.friction
+        user = {str(k): v for k, v in options.petsc_options.items()}
+        # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
+        # keep an assembled matrix (their own linear algebra)
+        diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
+        choose = choose_linear if diagonal_law else assembled_kind
+        self.linear = choose(problem, options.linear, user)
+        defaults = petsc_defaults(problem, self.linear)
+        self.petsc_options = {**defaults, **user}
+        if check_options:
+            check_petsc_options(options.petsc_options, defaults, comm)
+
+        self._owner = owner = Owner()   # the solver's PETSc objects, destroyed by close()
+        if friction is None:
+            self.cp = owner.own(Complementarity(problem))
+        else:
+            from .friction import FrictionalComplementarity
+            self.cp = owner.own(FrictionalComplementarity(problem))
+        self.snes = snes = owner.own(PETSc.SNES().create(comm))
+        self.prefix = f"contact{next(_counter)}_" if prefix is None else prefix
+        snes.setOptionsPrefix(self.prefix)
+        self.state: dict[str, Any] = {"t_jac": None, "dir_norm": np.nan}
+        self.polisher: Polisher | None = None
+        self.guard: GuardedMin | None = None
+        self.system = None
+        if friction is not None:   # the block law H = B K + D (no polishing)
+            from .friction import setup_friction_newton
+            self.J = owner.own(setup_friction_newton(snes, problem, self.cp, options, self.timers,
+                                                     self.state, self.petsc_options))
+        elif method in ncp.METHODS:
+            system = self.system = owner.own(newton_system(problem, self.linear, self.prefix,
+                                                           forcing=options.inexact))
+            inner = self.prefix + "newton_" if self.linear == "gamg" else self.prefix
+            system.configure(snes, inner)
+            precheck = owner.own(setup_newton(snes, self.cp, system, options, self.timers,
+                                              self.state, self.petsc_options, verbose))
+            self.polisher = precheck if isinstance(precheck, Polisher) else None
+            self.guard = precheck if isinstance(precheck, GuardedMin) else None
+            self.J = system.J
+        else:
+            self.J = owner.own(setup_vi(snes, problem, method, self.timers, self.state))
+        snes.getKSP().setPostSolve(self._post_solve)
+        # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
+        snes.setDivergenceTolerance(PETSc.UNLIMITED)
+        snes.setMonitor(self._monitor)
+        progress.watch(system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
+                       f"{method} linear solve")
+        self._prev = owner.own(problem.b.duplicate())   # the previous iterate (step lengths)
+        self.history: list[dict] = []
+        self.solves = 0   # solves done by this object
+
+    def solve(self, u0: fem.Function, guess: bool = False, t_start: float | None = None) -> Result:
+        """Solve from ``u0`` (a function of ``problem.V``; the Dirichlet values are put in);
+        ``guess``: a real initial guess, given or from coarser levels, not a cold start (it is
+        polished first, and the gamg path takes an exact first step); ``t_start``: the start
+        of the whole solve for the timings (default now).  Returns the :class:`Result`
+        (never raises on divergence)."""
+        problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
+        t_start = time.perf_counter() if t_start is None else t_start
+        polisher, guard, system = self.polisher, self.guard, self.system
+        counts = (polisher.solves if polisher else 0, guard.backtracked if guard else 0,
+                  system.krylov_iterations if system else 0, len(getattr(system, "log", [])))
+        if polisher is not None:
+            polisher.initial_accepted = False
+        if self.solves and method not in ncp.METHODS:
+            # the VI solvers leave the KSP with the operators of the last reduced space
+            snes.getKSP().reset()
+        self.solves += 1
+        if guard is not None:
+            guard.restart()
+        x = problem.b.duplicate()
+        try:
+            problem.to_unknowns(u0.x.petsc_vec, x)
+            set_dirichlet(x, problem.bcs)
+            problem.linearize(x)
+            con = problem.constraint  # the NCP scaling follows the options of this solve
+            problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts.kappa) if opts.c == "auto"
+                         else float(opts.c))
+            # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
+            scale, self._total = force_scale(cp, problem, method if method in ncp.METHODS else "fb",
+                                             opts.mu)
+            self.atol = opts.atol * scale
+            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
+            # for the round-off floor of ‖Φ‖
+            self._k_norm = problem.K.norm(PETSc.NormType.INFINITY)
+            self.history, self._prev_active = [], None
+            self.state.update(t_jac=None, dir_norm=np.nan, stop=None)
+            return self._run(x, guess, t_start, counts)
+        finally:
+            x.destroy()
+
+    def _run(self, x: PETSc.Vec, guess: bool, t_start: float, counts: tuple) -> Result:
+        problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
+        polisher, guard, system, prefix = self.polisher, self.guard, self.system, self.prefix
+        popts = PETSc.Options()
+        try:   # the options stay until the solve is done: some are read at set-up (GAMG's
+            # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
+            for key, val in self.petsc_options.items():
+                popts[prefix + key] = petsc_value(val)
+            set_from_options(snes, *([system.ksp] if isinstance(system, ReducedSystem) else []))
+            if system is not None:
+                system.set_options()
+            if isinstance(system, ReducedSystem):
+                # the first Newton step from a guess is exact — unless the guess is polished
+                # first: that exact solve on the guess's active set is then done, and a Newton
+                # step still needed means the active set moves, where a loose step does as well
+                system.guess = guess and polisher is None
+            if polisher is not None and guess:
+                # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
+                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
+                polisher.initial(x, stop)
+                self.state["stop"] = stop
+                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts.max_it)
+            snes.solve(None, x)
+            reason_code = snes.getConvergedReason()
+            result = finish(self.comm, problem, cp, x, snes, self.history, method, opts,
+                            self.timers, t_start, reason_code)
+            result.linear = self.linear
+            if problem.friction is not None:
+                from .friction import friction_fields
+                result.friction = friction_fields(problem, cp, x)
+            if polisher is not None:
+                result.polish_solves = polisher.solves - counts[0]
+            if guard is not None:
+                result.backtracked = guard.backtracked - counts[1]
+            if system is not None:
+                result.krylov_iterations = system.krylov_iterations - counts[2]
+                result.krylov_log = getattr(system, "log", [])[counts[3]:]
+            else:
+                result.krylov_iterations = snes.getLinearSolveIterations()
+        finally:
+            for key in self.petsc_options:
+                popts.delValue(prefix + key)
+        return result
+
+    def _post_solve(self, ksp: PETSc.KSP, rhs: PETSc.Vec, sol: PETSc.Vec) -> None:
+        """After each linear solve: its Krylov count and seconds, the direction's norm."""
+        state = self.state
+        if self.system is not None:
+            self.system.count(ksp)
         if state["t_jac"] is not None:
-            timers["solve"] += time.perf_counter() - state["t_jac"]
+            self.timers["solve"] += time.perf_counter() - state["t_jac"]
             state["t_jac"] = None
         state["dir_norm"] = sol.norm()
 
-    snes.getKSP().setPostSolve(post_solve)
-    snes.setTolerances(rtol=opts.rtol, atol=atol, stol=0.0, max_it=opts.max_it)
-    k_norm = problem.K.norm(PETSc.NormType.INFINITY)   # for the round-off floor of ‖Φ‖
-    snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
-    history: list[dict] = []
-    prev = {"x": owner.own(x.duplicate()), "active": None}
-
-    def monitor(snes, its, fnorm):
+    def _monitor(self, snes: PETSc.SNES, its: int, fnorm: float) -> None:
+        """One row of the history per iterate (‖Φ‖, step length, active set, changes), the
+        round-off floor of the stopping test, the verbose line or the progress note."""
+        comm, cp, opts, method = self.comm, self.cp, self.opts, self.method
+        polisher, system, prev = self.polisher, self.system, self._prev
         xk = snes.getSolution()
-        floor = min(roundoff_floor(k_norm, xk), opts.atol * total)
+        floor = min(roundoff_floor(self._k_norm, xk), opts.atol * self._total)
         if floor > snes.getTolerances()[1]:   # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
             if polisher is not None:
@@ -111,31 +229,35 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOption
                 system.stop = max(system.stop, floor)
         active = cp.active(xk)
         n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
-        changed = 0 if prev["active"] is None else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
+        changed = 0 if self._prev_active is None else \
+            comm.allreduce(int((active != self._prev_active).sum()), op=MPI.SUM)
         step = np.nan
         if its > 0:
-            prev["x"].axpy(-1.0, xk)
+            prev.axpy(-1.0, xk)
             polished = polisher is not None and polisher.taken is not None
-            dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
-            step = prev["x"].norm() / dn if dn > 0 else 0.0
+            # the direction actually taken
+            dn = polisher.taken if polished else self.state["dir_norm"]
+            step = prev.norm() / dn if dn > 0 else 0.0
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
-            done = state.get("stop") or max(atol, opts.rtol * fnorm)
+            done = self.state.get("stop") or max(self.atol, opts.rtol * fnorm)
             if polisher is not None:
                 polisher.done = done
             if system is not None:
                 system.stop = done
-        xk.copy(prev["x"])
-        prev["active"] = active
-        polished = polisher is not None and (polisher.accepted if its > 0 else polisher.initial_accepted)
+        xk.copy(prev)
+        self._prev_active = active
+        polished = polisher is not None and (polisher.accepted if its > 0
+                                             else polisher.initial_accepted)
         row = {"iteration": its, "residual": float(fnorm), "step": float(step),
                "active": n_active, "changed": changed, "polished": polished}
         extra = ""
-        if friction is not None:
+        if self.problem.friction is not None:
+            from .friction import status_counts
             counts = status_counts(comm, cp.status(xk))
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
-        history.append(row)
-        if verbose and comm.rank == 0:
+        self.history.append(row)
+        if self.verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
                   f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
@@ -144,49 +266,16 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOption
         else:
             progress.note(lambda: f"{method} Newton iteration {its}, |Phi| = {fnorm:.3e}")
 
-    snes.setMonitor(monitor)
-    progress.watch(system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(),
-                   f"{method} linear solve")
-    popts = PETSc.Options()
-    try:   # the options stay until the solve is done: some are read at set-up (GAMG's
-        # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
-        for key, val in petsc_opts.items():
-            popts[prefix + key] = petsc_value(val)
-        set_from_options(snes, *([system.ksp] if isinstance(system, ReducedSystem) else []))
-        if system is not None:
-            system.set_options()
-        if isinstance(system, ReducedSystem):
-            # the first Newton step from a guess is exact — unless the guess is polished
-            # first: that exact solve on the guess's active set is then done, and a Newton
-            # step still needed means the active set moves, where a loose step does as well
-            system.guess = guess and polisher is None
-        if polisher is not None and guess:
-            # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-            stop = max(atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
-            polisher.initial(x, stop)
-            state["stop"] = stop
-            snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts.max_it)
-        snes.solve(None, x)
-        reason_code = snes.getConvergedReason()
-        result = finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
-                        reason_code)
-        result.linear = linear
-        if friction is not None:
-            result.friction = friction_fields(problem, cp, x)
-        if polisher is not None:
-            result.polish_solves = polisher.solves
-        if guard is not None:
-            result.backtracked = guard.backtracked
-        if system is not None:
-            result.krylov_iterations = system.krylov_iterations
-            result.krylov_log = getattr(system, "log", [])
-        else:
-            result.krylov_iterations = snes.getLinearSolveIterations()
-    finally:
-        for key in petsc_opts:
-            popts.delValue(prefix + key)
-        owner.close()
-    return result
+    def close(self) -> None:
+        """Destroy the solver's PETSc objects (SNES, Newton system, work vectors); the
+        problem's stay (:meth:`~.problem.DiscreteProblem.destroy`).  Twice is harmless."""
+        self._owner.close()
+
+    def __enter__(self) -> "SemismoothNewton":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
 
 
 def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:

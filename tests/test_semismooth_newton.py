@@ -1,0 +1,76 @@
+"""``contact.solvers.snes.SemismoothNewton`` (issue 28c), in the spirit of dolfinx's
+NonlinearProblem: it owns its SNES, options prefix and Newton system and destroys them; one
+object solves again from another guess with per-solve figures; ``solve_problem`` is one
+solve with one solver (the callers' path, unchanged)."""
+from __future__ import annotations
+
+import gc
+
+import numpy as np
+import pytest
+from clirun import ROOT
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import contact
+from contact.base.lifetime import petsc_objects
+from contact.models import build_problem
+from contact.solvers.options import SolverOptions
+from contact.solvers.snes import SemismoothNewton, solve_problem
+from dolfinx import fem
+
+SCENE = str(ROOT / "configs" / "signorini_square.yaml")
+
+
+@pytest.fixture(scope="module")
+def problem():
+    scene = contact.load_scene(SCENE, ["mesh.cells=[12,12]"])
+    p = build_problem(scene)
+    yield p
+    p.destroy()
+
+
+def largest(a: np.ndarray) -> float:
+    return MPI.COMM_WORLD.allreduce(float(np.max(np.abs(a), initial=0.0)), op=MPI.MAX)
+
+
+@pytest.mark.parametrize("method", ["fb", "min", "vinewtonrsls"])
+def test_one_solver_solves_twice_as_two_fresh_ones(problem, method):
+    """A second solve on the same object from the same cold start repeats the first one:
+    iterations, history, polishing solves (counted per solve, not summed) and u_h."""
+    options = SolverOptions.parse({"method": method, "kappa": 100.0})
+    zero = fem.Function(problem.V)
+    fresh = solve_problem(problem, zero, options, problem.V.mesh.comm, False, False,
+                          {"assembly": 0.0, "solve": 0.0}, 0.0)
+    u_fresh = fresh.u_h.x.array.copy()
+    with SemismoothNewton(problem, options) as solver:
+        first = solver.solve(zero)
+        second = solver.solve(zero)
+        u_second = second.u_h.x.array.copy()
+    for r in (first, second):
+        assert r.converged and r.iterations == fresh.iterations
+        assert r.polish_solves == fresh.polish_solves and r.backtracked == fresh.backtracked
+        assert [h["active"] for h in r.history] == [h["active"] for h in fresh.history]
+    assert largest(u_second - u_fresh) < 1e-12
+
+
+def test_close_destroys_what_the_solver_made(problem):
+    """Every PETSc object the solver created is gone after close (the problem's stay), and
+    its options prefix is its own."""
+    PETSc.Log.begin()
+    gc.collect()
+    before = petsc_objects()
+    solver = SemismoothNewton(problem, SolverOptions.parse({"method": "fb"}), prefix="mine_")
+    assert solver.snes.getOptionsPrefix() == "mine_"
+    result = solver.solve(fem.Function(problem.V))
+    assert result.converged and solver.snes.handle != 0
+    during = petsc_objects()
+    assert sum(during.values()) > sum(before.values())
+    solver.close()
+    solver.close()   # twice is harmless
+    del result
+    gc.collect()
+    after = petsc_objects()
+    grown = {k: v - before.get(k, 0) for k, v in after.items() if v != before.get(k, 0)}
+    assert not grown, grown
+    assert problem.K.handle != 0 and problem.b.handle != 0
