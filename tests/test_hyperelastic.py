@@ -269,8 +269,9 @@ import contact
 from test_hyperelastic import arch
 path = contact.run_load_path(contact.load_scene({**arch("neo_hookean"), "load": {"steps": 4}}), method="fb")
 r = path.steps[-1].result
-print(json.dumps([path.converged, r.contact_force, r.n_active,
-                  [s.negative_eigenvalues for s in path.steps]]))
+if r.u_h.function_space.mesh.comm.rank == 0:   # global values (one line: ranks' output may mix)
+    print(json.dumps([path.converged, r.contact_force, r.n_active,
+                      [s.negative_eigenvalues for s in path.steps]]))
 """
 
 
@@ -289,7 +290,7 @@ def test_api_serial_and_two_ranks_agree(tmp_path):
                               text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr[-2000:]
         lines = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("[")]
-        assert len(lines) == ranks and all(ln == lines[0] for ln in lines)
+        assert len(lines) == 1, proc.stdout
         out[ranks] = lines[0]
     assert out[1][0] and out[2][0]
     assert out[2][1] == pytest.approx(out[1][1], rel=1e-10)
