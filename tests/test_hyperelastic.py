@@ -88,6 +88,21 @@ def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim)
     X = r.u_h.function_space.tabulate_dof_coordinates()[:, :dim]
     exact = X * np.r_[[l1 - 1] * (dim - 1), -0.3]
     assert np.max(np.abs(r.u_h.x.array.reshape(-1, dim) - exact)) < 1e-8
+    # the output's von Mises stress: of the Cauchy stress σ = J⁻¹ F S Fᵀ (σ_33 ≠ 0 in 2D)
+    from contact.models.elasticity import lame, von_mises
+
+    vm = von_mises(r.u_h, None, None, r.problem.data["stresses"]).x.array
+    F = np.diag([l1] * (dim - 1) + [0.7] + [1.0] * (3 - dim))
+    mu, lm = lame(E, NU)
+    Ei = (F.T @ F - np.eye(3)) / 2
+    if law == "neo_hookean":   # S = μ (I − C⁻¹) + λ ln J C⁻¹
+        Ci = np.linalg.inv(F.T @ F)
+        S = mu * (np.eye(3) - Ci) + lm * np.log(np.linalg.det(F)) * Ci
+    else:                      # S = λ tr E I + 2μ E
+        S = lm * np.trace(Ei) * np.eye(3) + 2 * mu * Ei
+    sigma = F @ S @ F.T / np.linalg.det(F)
+    dev = sigma - np.trace(sigma) / 3 * np.eye(3)
+    assert len(vm) and np.max(np.abs(vm / np.sqrt(1.5 * np.sum(dev * dev)) - 1)) < 1e-8
 
 
 @pytest.mark.parametrize("law", LAWS)
