@@ -29,20 +29,27 @@ R_i(u) = w_i λ_i on the contact nodes keeps the structure every solver here nee
 semismooth Newton with H = diag(s) K_T(x) + diag(d), and PETSc's VI solvers (the bound is
 a box constraint).  λ_i is a force per *reference* area (nominal pressure).
 
+A plane whose normal is not a coordinate direction rotates the contact nodes to their
+(n, t) axes, u = Q x, as the linear model does: R̃(x) = Qᵀ R(Q x), K̃ = Qᵀ K_T Q
+(:class:`RotatedResidualProblem`).
+
 Not in this model (yet): curved obstacles (a gap that is nonlinear in u: normal and gap
-updated each Newton step), tilted planes (the rotated basis u = Q x of the linear model),
-friction, several bodies, the adaptive loop.  The configuration refuses them.
+updated each Newton step), friction, several bodies, the adaptive loop.  The configuration
+refuses them.
 """
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 from petsc4py import PETSc
 
+import dolfinx.fem.petsc
 import ufl
 from dolfinx import fem
 
+from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
 from .elasticity import elastic_setting, lame, rigid_body_modes
@@ -104,6 +111,11 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
     K, b = ResidualProblem.matrices(J_form, s.bcs)
     contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
+    kind, tangent = ResidualProblem, {}
+    if "K" in contact:   # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
+        b.destroy()
+        kind, tangent = RotatedResidualProblem, {"K_T": K}
+        K, b = contact.pop("K"), contact.pop("b")
     con = contact.pop("constraint")
 
     def stresses(u):
@@ -111,12 +123,50 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
 
     data = {**s.data, "exact": None, "reaction_form": F_form, "stresses": stresses,
             "law": model["law"], **contact.pop("data")}
-    return ResidualProblem(V, u_h, s.bcs, K, b, con, data=data, **contact,
-                           symmetric_copies=2 ** len(s.symmetry_axes),
-                           symmetry_axes=s.symmetry_axes, near_nullspace=rigid_body_modes(V),
-                           floating=floating_bodies(V, s.fixed, None, []),
-                           assembly_time=time.perf_counter() - t0,
-                           F_form=F_form, J_form=J_form)
+    return kind(V, u_h, s.bcs, K, b, con, data=data, **contact,
+                symmetric_copies=2 ** len(s.symmetry_axes), symmetry_axes=s.symmetry_axes,
+                near_nullspace=rigid_body_modes(V, contact.get("basis")),
+                floating=floating_bodies(V, s.fixed, None, []),
+                assembly_time=time.perf_counter() - t0, F_form=F_form, J_form=J_form, **tangent)
+
+
+@dataclass
+class RotatedResidualProblem(ResidualProblem):
+    """The residual problem in rotated unknowns x = Qᵀ u (Q orthogonal and block-diagonal:
+    the contact nodes of a tilted plane on their (n, t) axes, the others unrotated, as in
+    :func:`contact.models.obstacles.plane_contact`):
+
+        R̃(x) = Qᵀ R(Q x),     K̃(x) = Qᵀ K_T(Q x) Q,
+
+    so that u·n ≤ g is a bound on one unknown per contact node.  K̃ is written into ``K``
+    (MatPtAP reusing its pattern: the solvers keep their references to it)."""
+
+    K_T: PETSc.Mat | None = None   # the tangent in the displacement unknowns
+    _R: PETSc.Vec | None = field(default=None, repr=False)
+
+    def _set_iterate(self, x: PETSc.Vec) -> None:
+        u = self.u_h.x
+        self.basis.mult(x, u.petsc_vec)      # u = Q x
+        u.scatter_forward()
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """out = Qᵀ R(Q x)."""
+        if self._R is None:
+            self._R = out.duplicate()
+        super().residual(x, self._R)
+        self.basis.multTranspose(self._R, out)
+
+    def linearize(self, x: PETSc.Vec) -> None:
+        """K = Qᵀ K_T(Q x) Q."""
+        self._set_iterate(x)
+        self.K_T.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(self.K_T, self.J_form, bcs=self.bcs)
+        self.K_T.assemble()
+        self.K_T.PtAP(self.basis, result=self.K)
+
+    def destroy(self) -> None:
+        super().destroy()
+        destroy(self.K_T, self._R)
 
 
 def negative_eigenvalues(result) -> int:

@@ -727,8 +727,8 @@ def is_elastic(cfg: Mapping) -> bool:
 
 def _check_hyperelastic(cfg: dict, model: str) -> None:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
-    does not do yet (contact/models/hyperelastic.py) is refused by name: a curved or
-    tilted obstacle, contact pairs, friction, the adaptive loop, a reference solution, an
+    does not do yet (contact/models/hyperelastic.py) is refused by name: a curved
+    obstacle, contact pairs, friction, the adaptive loop, a reference solution, an
     exact solution, grid sequencing."""
     if model != "hyperelastic":
         if cfg["model"]["law"] is not None:
@@ -741,10 +741,6 @@ def _check_hyperelastic(cfg: dict, model: str) -> None:
     if obstacle.get("type", "plane") != "plane":
         raise ConfigError(f"obstacle.type: a hyperelastic body meets rigid planes only (not a "
                           f"{obstacle['type']}: its gap is not affine in u)")
-    normal = obstacle.get("normal")
-    if normal and sum(1 for c in normal if c != 0) != 1:
-        raise ConfigError("obstacle.normal: a hyperelastic body meets planes with a coordinate "
-                          "normal (e.g. [0, 1]) only")
     for key, what in (("bodies", "several bodies"), ("pairs", "contact pairs"),
                       ("adapt", "the adaptive loop"), ("reference", "a reference solution")):
         if cfg.get(key):
