@@ -86,9 +86,9 @@ def nodal_pressure(result) -> tuple[np.ndarray, np.ndarray]:
     return p.pressure(owned_residual(result)), p.constraint.w
 
 
-@pytest.mark.parametrize("law, degree, dim", [("neo_hookean", 1, 2), ("saint_venant_kirchhoff", 1, 2),
-                                              ("neo_hookean", 2, 2), ("neo_hookean", 1, 3),
-                                              ("saint_venant_kirchhoff", 1, 3)])
+@pytest.mark.parametrize("law, degree, dim", [
+    ("neo_hookean", 1, 2), ("saint_venant_kirchhoff", 1, 2), ("neo_hookean", 2, 2),
+    ("neo_hookean", 1, 3), ("saint_venant_kirchhoff", 1, 3)])
 def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim):
     """30 % compression in one solve from u = 0: F = diag(λ₁, (λ₁,) 0.7) exactly, with λ₁
     the root of P₁₁ = 0; the plate's nominal pressure is −P₂₂ at every contact node and on
@@ -157,7 +157,8 @@ def test_a_tilted_plane_is_the_rotated_scene(law):
             assert path.converged, (theta, method, path.stop)
             r = path.steps[-1].result
             u = r.u_h.x.array.reshape(-1, 2)
-            out[theta, method] = (r.contact_force, r.n_active, np.max(np.linalg.norm(u, axis=1)), u.copy())
+            largest = np.max(np.linalg.norm(u, axis=1))
+            out[theta, method] = (r.contact_force, r.n_active, largest, u.copy())
     (F0, n0, u0, _), (F1, n1, u1, x_fb) = out[0.0, "fb"], out[0.3, "fb"]
     assert n0 > 1 and n1 == n0
     assert F1 == pytest.approx(F0, rel=1e-10) and u1 == pytest.approx(u0, rel=1e-10)
@@ -172,7 +173,8 @@ def test_newton_converges_superlinearly(law):
     two steps above round-off (r > 1e-11 r_0; the forces are O(1), round-off 1e-16) falls
     by at least 10× (a linear rate keeps it constant), and each step takes ≤ 8 Newton
     iterations (issue 31's target at the shipped step sizes)."""
-    path = contact.run_load_path(contact.load_scene({**arch(law), "load": {"steps": 4}}), method="fb")
+    scene = contact.load_scene({**arch(law), "load": {"steps": 4}})
+    path = contact.run_load_path(scene, method="fb")
     assert path.converged
     checked = 0
     for step in path.steps:
@@ -223,7 +225,8 @@ def test_the_tangent_of_st_venant_kirchhoff_loses_definiteness_in_strong_compres
         assert paths[law].converged
     assert [s.negative_eigenvalues for s in paths["neo_hookean"].steps] == [0] * 5
     assert paths["neo_hookean"].indefinite == ""
-    forces = [-uniaxial_stretch("saint_venant_kirchhoff", E, NU, 1 - c, 2)[1] for c in (0.4, 0.45, 0.5)]
+    forces = [-uniaxial_stretch("saint_venant_kirchhoff", E, NU, 1 - c, 2)[1]
+              for c in (0.4, 0.45, 0.5)]
     assert forces[0] > forces[1] > forces[2]    # past the limit point at 45 % and 50 %
     svk = paths["saint_venant_kirchhoff"]
     counts = {round(0.5 * s.time, 6): s.negative_eigenvalues for s in svk.steps}
@@ -272,7 +275,8 @@ def test_small_indentation_of_a_neo_hookean_cylinder_is_the_linear_hertz_scene()
         scene = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", sets + model)
         r = contact.solve(scene, method="fb")
         assert r.converged
-        figures.append((active_measure(r), contact_resultants(scene, r)["peak_pressure"], r.n_active))
+        p0 = contact_resultants(scene, r)["peak_pressure"]
+        figures.append((active_measure(r), p0, r.n_active))
     (a, p0, n), (a_h, p0_h, n_h) = figures
     assert n >= 4 and n_h == n
     assert abs(a_h / a - 1) < 5e-3 and abs(p0_h / p0 - 1) < 5e-3
@@ -283,7 +287,8 @@ def test_small_indentation_of_a_neo_hookean_cylinder_is_the_linear_hertz_scene()
     ({"model": {"type": "hyperelastic", "E": 1.0}}, "model.law: required"),
     ({"model": {"type": "elasticity", "E": 1.0, "law": "neo_hookean"}}, "model.law: only for"),
     ({"model": {"type": "hyperelastic", "law": "mooney", "E": 1.0}}, "model.law:"),
-    ({"obstacle": {"type": "circle", "center": [0.5, 2], "radius": 1}}, "obstacle.type: a hyperelastic"),
+    ({"obstacle": {"type": "circle", "center": [0.5, 2], "radius": 1}},
+     "obstacle.type: a hyperelastic"),
     ({"obstacle": {"type": "plane", "point": [0, "1 - x"], "normal": [0, -1]}}, "obstacle.point:"),
     ({"friction": {"law": "coulomb", "coefficient": 0.3}}, "friction.law: a hyperelastic"),
     ({"adapt": {"strategy": "dorfler"}}, "adapt: not available"),
@@ -299,18 +304,18 @@ def test_cli_block_writes_the_force_of_every_step(tmp_path):
     each step is the analytic plate force at λ₂ = 1 − 0.3 t (4 quarters × width 1 × −P₂₂)
     to 1e-8, and the XDMF series holds u_h for ParaView's Warp By Vector; a bad law is
     exit 2 with one line naming model.law."""
-    proc = cli(tmp_path, "run", str(ROOT / "configs" / "hyperelastic_block.yaml"), "-o", "out", "-q",
-               "--set", "output.png=false")
+    scene = str(ROOT / "configs" / "hyperelastic_block.yaml")
+    proc = cli(tmp_path, "run", scene, "-o", "out", "-q", "--set", "output.png=false")
     assert proc.returncode == 0, proc.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "steps.csv")))
     assert [float(r["time"]) for r in rows] == pytest.approx([1 / 3, 2 / 3, 1.0])
     assert [r["tangent_negative_eigenvalues"] for r in rows] == ["0"] * 3
+    assert all(int(r["newton_iterations"]) <= 8 for r in rows)   # issue 31's bound per step
     for r in rows:
         _, P22 = uniaxial_stretch("neo_hookean", E, NU, 1 - 0.3 * float(r["time"]), 2)
         assert float(r["contact_force"]) == pytest.approx(-4 * P22, rel=1e-8)
     assert "u_h" in (tmp_path / "out" / "solution_002.xdmf").read_text()
-    bad = cli(tmp_path, "run", str(ROOT / "configs" / "hyperelastic_block.yaml"), "-o", "bad", "-q",
-              "--set", "model.law=mooney")
+    bad = cli(tmp_path, "run", scene, "-o", "bad", "-q", "--set", "model.law=mooney")
     lines = [ln for ln in bad.stderr.splitlines() if ln.strip()]
     assert bad.returncode == 2 and len(lines) == 1 and "model.law" in lines[0], bad.stderr
     assert not (tmp_path / "bad").exists()
@@ -325,7 +330,8 @@ figures = []
 for cfg in ({**arch("neo_hookean"), "load": {"steps": 4}}, tilted_arch(0.3, "neo_hookean")):
     path = contact.run_load_path(contact.load_scene(cfg), method="fb")
     r = path.steps[-1].result
-    figures += [path.converged, r.contact_force, r.n_active, [s.negative_eigenvalues for s in path.steps]]
+    figures += [path.converged, r.contact_force, r.n_active,
+                [s.negative_eigenvalues for s in path.steps]]
 if r.u_h.function_space.mesh.comm.rank == 0:   # global values (one line: ranks' output may mix)
     print(json.dumps(figures))
 """
@@ -359,10 +365,11 @@ def test_a_linear_scene_never_imports_the_hyperelastic_model():
     """Importing contact and running a linear elastic solve leaves contact.models.hyperelastic
     unloaded (the dispatch imports it only for model type hyperelastic)."""
     code = ("import sys, contact\n"
-            "s = contact.load_scene('configs/block_on_plane.yaml', ['mesh.cells=[8,2]', 'adapt=none',"
-            " 'output.verbose=false'])\n"
+            "s = contact.load_scene('configs/block_on_plane.yaml',"
+            " ['mesh.cells=[8,2]', 'adapt=none', 'output.verbose=false'])\n"
             "assert contact.solve(s).converged\n"
             "print('contact.models.hyperelastic' in sys.modules)\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-1] == "False"

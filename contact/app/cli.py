@@ -231,8 +231,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
 
 
 def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
-    """A load path (or a frictional or hyperelastic scene, one step at t = 1), writing into one atomic
-    folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
+    """A load path (or a frictional or hyperelastic scene, one step at t = 1), writing into one
+    atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
     from ..output import folder

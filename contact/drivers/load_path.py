@@ -143,7 +143,8 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
             out.cuts.append(f"t = {t:g} ({result.reason}) cut to t = {mid:g}")
             if verbose and comm.rank == 0:
                 print(f"contact: step {k} to t = {t:g} did not converge ({result.reason}): "
-                      f"cut to t = {mid:g} (cut {depth + 1} of at most {max_cuts} in a row)", flush=True)
+                      f"cut to t = {mid:g} (cut {depth + 1} of at most {max_cuts} in a row)",
+                      flush=True)
             result.release()
             pending[:0] = [(mid, depth + 1), (t, depth + 1)]
             continue

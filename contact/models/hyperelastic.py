@@ -204,7 +204,8 @@ def negative_eigenvalues(result) -> int:
     return int(negative)
 
 
-def uniaxial_stretch(law: str, E: float, nu: float, stretch: float, gdim: int) -> tuple[float, float]:
+def uniaxial_stretch(law: str, E: float, nu: float, stretch: float,
+                     gdim: int) -> tuple[float, float]:
     """Homogeneous uniaxial compression (or tension) along one axis to ``stretch`` with
     traction-free lateral faces: (lateral stretch λ_1, nominal stress P_22 along the axis),
     P_22 < 0 in compression.  gdim = 2: plane strain, F = diag(λ_1, stretch, 1); gdim = 3:

@@ -335,7 +335,8 @@ SCENE: dict[str, Field] = {
                          "saint_venant_kirchhoff (nonconvex in strong compression)"),
         "bound": Field("str", "upper", choices=("upper", "lower"),
                        doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
-        "E": Field("number", None, check=_positive, doc="elasticity, hyperelastic: Young's modulus"),
+        "E": Field("number", None, check=_positive,
+                   doc="elasticity, hyperelastic: Young's modulus"),
         "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
                     doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 < ν < 1/2)"),
     }),
@@ -908,7 +909,8 @@ def _check_reference(cfg: dict) -> None:
 
 def _check_elasticity(cfg: dict) -> None:
     if cfg["model"]["E"] is None and not cfg["bodies"]:
-        raise ConfigError(f"model.E: required for model type {cfg['model']['type']} (Young's modulus)")
+        raise ConfigError(f"model.E: required for model type {cfg['model']['type']} "
+                          "(Young's modulus)")
     obstacle = cfg.get("obstacle")
     contact_parts = [n for n, p in cfg["boundaries"].items() if p["role"] == "contact"]
     if obstacle and not contact_parts:
