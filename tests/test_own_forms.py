@@ -20,7 +20,9 @@ from mpi4py import MPI
 import contact
 import ufl
 from contact import ComplementarityProblem, ConfigError, Unilateral
+import dolfinx.fem.petsc
 from dolfinx import fem, mesh
+from petsc4py import PETSc
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
 # the membrane of demos/demo_obstacle.py: f = −2 pulls it onto the dome ψ = 0.4 − r²
@@ -151,11 +153,55 @@ def test_signorini_on_tagged_facets_and_explicit_dofs():
         assert np.allclose(X[:, 1], 1.0)       # only the tagged facets' nodes are constrained
 
 
+def test_a_hyperelastic_block_on_a_curved_floor():
+    """A vector-valued nonlinear residual (St Venant–Kirchhoff, pressed down 0.02 at its
+    top) with u_y ≥ g on the bottom facets (``measure=ds(1), component=1``): fb agrees with
+    vinewtonrsls and with the same constraint as explicit DoFs and weights; the floor's
+    force balances the reaction at the clamp, −Σ_top F_y(u_h) (∫ P : ∇e_y dx = 0)."""
+    msh = mesh.create_rectangle(MPI.COMM_WORLD, [[0, 0], [1, 0.5]], [16, 8])
+    V = fem.functionspace(msh, ("Lagrange", 1, (2,)))
+    top = fem.locate_dofs_topological(V, 1, mesh.locate_entities_boundary(
+        msh, 1, lambda x: np.isclose(x[1], 0.5)))
+    bc = fem.dirichletbc(np.array([0.0, -0.02]), top, V)
+    bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
+    tags = mesh.meshtags(msh, 1, bottom, np.full(len(bottom), 1, dtype=np.int32))
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+    floor = Unilateral(lambda x: -0.005 - 0.05 * (x[0] - 0.5) ** 2, side="lower", measure=ds(1),
+                       component=1)
+    mu, lmbda = 1 / 2.6, 0.3 / (1.3 * 0.4)    # E = 1, ν = 0.3
+
+    def solve(constraint, method):
+        u, v = fem.Function(V), ufl.TestFunction(V)
+        F_grad = ufl.Identity(2) + ufl.grad(u)
+        E = (F_grad.T * F_grad - ufl.Identity(2)) / 2
+        S = lmbda * ufl.tr(E) * ufl.Identity(2) + 2 * mu * E     # 2nd Piola–Kirchhoff
+        F = ufl.inner(F_grad * S, ufl.grad(v)) * ufl.dx
+        with ComplementarityProblem.from_residual(F, u, constraint, [bc]) as problem:
+            result = problem.solve(method, rtol=1e-12)
+            con = problem.problem.constraint
+            reaction = dolfinx.fem.petsc.assemble_vector(fem.form(F))
+            reaction.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            top_y = 2 * top[top < V.dofmap.index_map.size_local] + 1   # nodes → y DoFs
+            clamp = MPI.COMM_WORLD.allreduce(float(np.sum(reaction.array[top_y])), op=MPI.SUM)
+            reaction.destroy()
+            return result, u.x.array.copy(), (con.dofs, con.w, con.g), clamp
+
+    fb, u_fb, (dofs, w, g), clamp = solve(floor, "fb")
+    vi, u_vi, _, _ = solve(floor, "vinewtonrsls")
+    by_dofs, u_dofs, _, _ = solve(Unilateral(g, side="lower", dofs=dofs, weights=w), "fb")
+    assert fb.converged and vi.converged and by_dofs.converged and fb.n_active > 0
+    assert np.all(dofs % 2 == 1)                     # y components only
+    assert largest(u_fb - u_vi) < 1e-10 and largest(u_fb - u_dofs) < 1e-12
+    assert abs(fb.contact_force + clamp) < 1e-10 * abs(clamp) and fb.contact_force > 0
+    assert largest(np.minimum(u_fb[dofs] - g, 0.0)) < 1e-12     # u_y ≥ g
+
+
 @pytest.mark.parametrize("build, error, message", [
     (lambda V: Unilateral(0.0, side="middle"), ValueError, r"^Unilateral.side: expected 'upper'"),
     (lambda V: Unilateral(0.0, dofs=np.array([10**7])), ValueError, r"^Unilateral.dofs: owned"),
     (lambda V: Unilateral(np.zeros(3)), ValueError, r"^Unilateral.bound: expected one value per"),
     (lambda V: Unilateral(0.0, weights=np.ones(2)), ValueError, r"^Unilateral: weights go with"),
+    (lambda V: Unilateral(0.0, component=1), ValueError, r"^Unilateral.component: V is scalar"),
 ])
 def test_bad_constraints_are_one_line(build, error, message):
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)

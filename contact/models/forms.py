@@ -50,15 +50,19 @@ class Unilateral:
 
     Where it holds: ``measure`` — ``ufl.dx`` (default: every node of Ω, the obstacle
     problem) or ``ds(tag)`` with the facet tags as its ``subdomain_data`` (the nodes of those
-    facets, a Signorini condition); its weights w_i = ∫ φ_i d(measure).  Or explicit
-    ``dofs`` (owned local indices of V) with ``weights`` (default 1: λ_i is then the nodal
-    reaction R_i).  Dirichlet DoFs are never constrained."""
+    facets, a Signorini condition); its weights w_i = ∫ φ_i d(measure).  On a vector space
+    the constraint acts on one ``component`` u_k (e.g. the normal displacement against a
+    plane): its DoFs there, and a bound given as a number, values at those DoFs, or a
+    scalar f(x).  Or explicit ``dofs`` (owned local indices of V, any components) with
+    ``weights`` (default 1: λ_i is then the nodal reaction R_i).  Dirichlet DoFs are never
+    constrained."""
 
     bound: Bound
     side: str = "upper"
     measure: ufl.Measure | None = None
     dofs: np.ndarray | None = None
     weights: np.ndarray | None = None
+    component: int | None = None
 
     def __post_init__(self) -> None:
         if self.side not in ("upper", "lower"):
@@ -68,6 +72,8 @@ class Unilateral:
             raise ValueError("Unilateral: give either a measure or dofs, not both")
         if self.weights is not None and self.dofs is None:
             raise ValueError("Unilateral: weights go with dofs (a measure makes its own)")
+        if self.component is not None and self.dofs is not None:
+            raise ValueError("Unilateral: a component goes with a measure (dofs name their own)")
 
     @property
     def sign(self) -> float:
@@ -88,13 +94,16 @@ class Unilateral:
                 raise ValueError(f"Unilateral.weights: expected {len(dofs)} values, got {w.shape}")
             keep = ~np.isin(dofs, fixed)
             return dofs[keep], w[keep]
-        if V.dofmap.index_map_bs != 1:
-            raise ValueError("Unilateral.measure: a vector space needs explicit dofs "
-                             "(one component)")
+        bs = V.dofmap.index_map_bs
+        if bs == 1 and self.component is not None:
+            raise ValueError("Unilateral.component: V is scalar: give no component")
+        if bs > 1 and self.component not in range(bs):
+            raise ValueError(f"Unilateral.component: a vector space needs one of 0 … {bs - 1}, "
+                             f"got {self.component}")
         measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
-        dofs = _dofs_of(V, measure)
+        dofs = _dofs_of(V, measure, self.component)
         dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
-        w = lumped_weights(V, measure)[dofs]
+        w = lumped_weights(V, measure, self.component)[dofs]
         if V.mesh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
             raise ValueError("Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
                              "(e.g. P2 vertices); use P1 or give dofs and weights")
@@ -103,7 +112,13 @@ class Unilateral:
     def bound_function(self, V: fem.FunctionSpace, dofs: np.ndarray) -> fem.Function:
         """g on V (at the constrained DoFs at least)."""
         g = fem.Function(V, name="bound")
-        if isinstance(self.bound, fem.Function) or callable(self.bound):
+        if (isinstance(self.bound, fem.Function) or callable(self.bound)) and \
+                self.component is not None:   # a scalar bound on one component's DoFs
+            S, to_parent = V.sub(self.component).collapse()
+            g_k = fem.Function(S)
+            g_k.interpolate(self.bound)
+            g.x.array[to_parent] = g_k.x.array
+        elif isinstance(self.bound, fem.Function) or callable(self.bound):
             g.interpolate(self.bound)
         elif np.ndim(self.bound) == 0:
             g.x.array[:] = float(self.bound)
@@ -117,14 +132,17 @@ class Unilateral:
         return g
 
 
-def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
-    """The DoFs (local) of the cells (``dx``) or exterior facets (``ds``) a measure covers."""
+def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) -> np.ndarray:
+    """The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
+    exterior facets (``ds``) a measure covers."""
     msh, tdim = V.mesh, V.mesh.topology.dim
     kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
     if kind not in ("cell", "exterior_facet"):
         raise ValueError(f"Unilateral.measure: expected dx or ds, got {kind}")
     dim = tdim if kind == "cell" else tdim - 1
     if tag == "everywhere":
+        if kind == "cell" and component is not None:
+            return np.asarray(V.sub(component).collapse()[1], dtype=np.int32)
         if kind == "cell":
             index_map = V.dofmap.index_map
             return np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32)
@@ -136,7 +154,10 @@ def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
                              "subdomain_data (mesh tags)")
         ids = tag if isinstance(tag, tuple) else (tag,)
         entities = np.concatenate([tags.find(i) for i in ids])
-    return fem.locate_dofs_topological(V, dim, entities)
+    if component is None:
+        return fem.locate_dofs_topological(V, dim, entities)
+    S = V.sub(component).collapse()[0]
+    return fem.locate_dofs_topological((V.sub(component), S), dim, entities)[0]
 
 
 @dataclass

@@ -122,10 +122,13 @@ def assemble_system(a: fem.Form, L: fem.Form, bcs: list) -> tuple[PETSc.Mat, PET
     return K, b
 
 
-def lumped_weights(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
-    """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed)."""
+def lumped_weights(V: fem.FunctionSpace, measure: ufl.Measure,
+                   component: int | None = None) -> np.ndarray:
+    """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed); for a
+    vector space, of the DoFs of one ``component`` (0 at the others)."""
     v = ufl.TestFunction(V)
-    w = dolfinx.fem.petsc.assemble_vector(fem.form(v * measure))
+    w = dolfinx.fem.petsc.assemble_vector(fem.form((v if component is None else v[component])
+                                                   * measure))
     w.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     out = w.array.copy()
     w.destroy()
