@@ -60,3 +60,18 @@ def test_demo_friction(tmp_path):
     steps = re.findall(r"^\s+(\d+)\s+([0-9.]+)\s+(\d+)\s+(\d+)\s+(\d+)\s+([0-9.]+)$", out, re.M)
     assert len(steps) == 10 and max(int(s[2]) for s in steps) <= 10
     assert int(steps[0][3]) > 0 and int(steps[-1][3]) == 0          # stick first, sliding at the end
+
+
+def test_demo_large_deformation(tmp_path):
+    """The neo-Hookean cylinder's force matches linear elasticity at small indentation (within
+    2 %) and exceeds it by > 10 % at a third of the radius; each step takes ≤ 8 Newton
+    iterations, the tangent stays positive definite, the last step ends at round-off."""
+    out = _demo("large_deformation", "6", tmp_path)
+    assert abs(_number(r"first step: neo-Hookean / linear force = (\S+)", out) - 1) < 0.02
+    assert _number(r"last step: neo-Hookean / linear force = (\S+)", out) > 1.1
+    rows = re.findall(r"^\s+0\.\d+\s+\S+\s+\S+\s+\S+\s+\S+\s+\S+\s+(\d+)$", out, re.M)
+    assert len(rows) == 6 and all(int(n) <= 8 for n in rows)
+    assert "K_T positive definite at every step: True" in out
+    line = re.search(r"residuals of the last step: (.*)$", out, re.M).group(1)
+    residuals = [float(r) for r in line.split()]
+    assert residuals[-1] <= 1e-10 * residuals[0]

@@ -191,7 +191,8 @@ def test_adaptive_dof_budget_counts_vector_dofs(scene):
 
 #: the modules a scene loads only when its model needs them (README: a scalar scene never
 #: imports the elasticity code, a rectangle never gmsh, a frictionless scene never friction)
-LAZY = ("contact.models.elasticity", "contact.models.friction", "contact.solvers.friction", "gmsh")
+LAZY = ("contact.models.elasticity", "contact.models.friction", "contact.solvers.friction", "gmsh",
+        "contact.models.hyperelastic")
 
 
 def test_a_run_imports_only_its_own_model(tmp_path):

@@ -37,6 +37,7 @@ import ufl
 from dolfinx import fem, la
 
 from ..setup.scene import Scene, require_scene
+from ..setup.config import is_elastic
 from ..solvers import Result
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
@@ -63,7 +64,7 @@ def _cellwise(msh):
 
 def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     """The terms as UFL forms linear in a DG0 test function (SPEC §5)."""
-    if scene.cfg["model"]["type"] == "elasticity":
+    if is_elastic(scene.cfg):
         return elasticity_terms(scene, result)
     msh = scene.mesh
     p = result.problem
@@ -110,7 +111,10 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     n_c = p.data.get("n_ufl")                               # normal towards the obstacle
-    sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
+    if "stresses" in p.data:   # a hyperelastic body: P(u_h), tractions per reference area
+        sigma = p.data["stresses"](u_h)[0]
+    else:
+        sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
     T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
     terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
              "jump": 0.5 * ufl.avg(h_E) * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n)) * (w("+") + w("-")) * dS,

@@ -156,7 +156,9 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     method = scene.cfg["solver"]["method"]
     _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
                f"{comm.size} MPI rank(s)")
-    if scene.cfg.get("load") or (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+    # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
+    if scene.cfg.get("load") or (scene.cfg.get("friction") or {}).get("law", "none") != "none" \
+            or scene.cfg["model"]["type"] == "hyperelastic":
         return _run_steps(scene, outdir, label, comm, t0)
     if scene.cfg.get("adapt"):
         return _run_adaptive(scene, outdir, label, comm, t0)
@@ -229,8 +231,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
 
 
 def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
-    """A load path (or a frictional scene, one step at t = 1), writing into one atomic
-    folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
+    """A load path (or a frictional or hyperelastic scene, one step at t = 1), writing into one
+    atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
     from ..output import folder
@@ -262,7 +264,8 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
             if k == 1:
                 raise _Failed()
             failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
-            path = LoadPath(path.steps[:-1], stop=path.stop)
+            path = LoadPath(path.steps[:-1], stop=path.stop, cuts=path.cuts,
+                            indefinite=path.indefinite)
         info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED

@@ -43,6 +43,7 @@ class Step:
     result: Result
     levels: list = field(default_factory=list)   # adapt.Level of an adaptive step
     seconds: float = 0.0
+    negative_eigenvalues: int | None = None   # of K_T at the solution (hyperelastic bodies)
 
     def release(self) -> None:
         """Keep the step's figures only: its result and its adaptive levels' results are
@@ -60,6 +61,8 @@ class Step:
 class LoadPath:
     steps: list[Step] = field(default_factory=list)
     stop: str = ""
+    cuts: list[str] = field(default_factory=list)   # step cutting: 't = … (reason) cut to t = …'
+    indefinite: str = ""   # the first step whose K_T is not positive definite (hyperelastic)
 
     @property
     def converged(self) -> bool:
@@ -78,12 +81,32 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
     return out
 
 
+#: ``load.cuts`` of a hyperelastic scene (none given): a step may be halved 4 times in a row
+#: (to 1/16 of its length)
+HYPERELASTIC_CUTS = 4
+
+
+def step_cuts(cfg: dict) -> int:
+    """How many times in a row a step that does not converge is halved (``load.cuts``;
+    default :data:`HYPERELASTIC_CUTS` for a hyperelastic body, whose Newton iteration
+    converges only near enough to the solution, 0 for the linear models, whose solution
+    does not depend on the path but for friction)."""
+    cuts = (cfg.get("load") or {}).get("cuts")
+    if cuts is not None:
+        return int(cuts)
+    return HYPERELASTIC_CUTS if cfg["model"]["type"] == "hyperelastic" else 0
+
+
 def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[Step], None] | None = None,
                   verbose: bool | None = None, adaptive: bool | None = None, adapt_options: dict | None = None,
                   keep_all: bool = False, **options: Any) -> LoadPath:
     """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
     after every step (the CLI writes its output there: anything that needs a step's
-    functions or scene belongs there).  Stops at the first step that does not converge.
+    functions or scene belongs there).  Stops at the first step that does not converge —
+    unless step cutting (``load.cuts``, :func:`step_cuts`) may halve it: the step from
+    t_{k−1} to t_k is then retried as two, to (t_{k−1} + t_k)/2 first, at most ``cuts``
+    times in a row; each cut is reported (``LoadPath.cuts``, verbose output) and the failed
+    attempt is not a step (``on_step`` sees converged steps and the final failure only).
     The last step stays whole, and the last converged one before a failed step; the others
     are released when the next one is solved (:meth:`Step.release`), unless ``keep_all``.
     ``adaptive``: run the adaptive loop (default: when the scene has an ``adapt``
@@ -92,36 +115,74 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
 
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     times = load_times(scene.cfg)
+    max_cuts = step_cuts(scene.cfg)
     mode = (scene.cfg.get("load") or {}).get("adapt", "end")
     if adaptive is None:
         adaptive = scene.cfg.get("adapt") is not None
     comm = scene.comm
-    out, u_prev = LoadPath(), None
-    for k, t in enumerate(times, start=1):
+    out, u_prev, t_prev = LoadPath(), None, 0.0
+    pending = [(t, 0) for t in times]   # (pseudo-time, cuts that led to it)
+    while pending:
+        t, depth = pending.pop(0)
+        k = len(out.steps) + 1
         t0 = time.perf_counter()
         step_scene = Scene(scene.cfg, scene.mesh, scene.boundary, time=t,
                            history={} if u_prev is None else {"u_prev": u_prev},
                            bodies=scene.bodies, surfaces=scene.surfaces)
         if verbose and comm.rank == 0 and len(times) > 1:
-            print(f"contact: load step {k}/{len(times)}, t = {t:g}", flush=True)
+            print(f"contact: load step {k}/{k + len(pending)}, t = {t:g}", flush=True)
         levels = []
-        if adaptive and (mode == "each" or k == len(times)):
+        if adaptive and (mode == "each" or not pending):
             run = adapt(step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {}))
             levels = run.levels
             step_scene, result = levels[-1].scene, levels[-1].result
         else:
             result = solve(step_scene, method=method, u0=u_prev, verbose=verbose, **options)
+        if not result.converged and depth < max_cuts:
+            mid = t_prev + (t - t_prev) / 2
+            out.cuts.append(f"t = {t:g} ({result.reason}) cut to t = {mid:g}")
+            if verbose and comm.rank == 0:
+                print(f"contact: step {k} to t = {t:g} did not converge ({result.reason}): "
+                      f"cut to t = {mid:g} (cut {depth + 1} of at most {max_cuts} in a row)",
+                      flush=True)
+            result.release()
+            pending[:0] = [(mid, depth + 1), (t, depth + 1)]
+            continue
         step = Step(k, t, step_scene, result, levels, time.perf_counter() - t0)
+        if result.converged and scene.cfg["model"]["type"] == "hyperelastic":
+            check_tangent(step, out, verbose)
         out.steps.append(step)
         if on_step is not None:
             on_step(step)
         if not result.converged:
-            out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})"
+            out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})" + _notes(out)
             break
-        scene = step_scene    # 'each': the next step continues on this step's final mesh
+        scene, t_prev = step_scene, t   # 'each': the next step continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
     else:
-        out.stop = f"reached t = {times[-1]:g} in {len(times)} step(s)"
+        out.stop = f"reached t = {times[-1]:g} in {len(out.steps)} step(s)" + _notes(out)
     return out
+
+
+def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
+    """Count the negative eigenvalues of a hyperelastic step's tangent K_T at its solution
+    (:func:`contact.models.hyperelastic.negative_eigenvalues`); the first step where K_T is
+    not positive definite is reported (``LoadPath.indefinite``, the stop text, verbose)."""
+    from ..models.hyperelastic import negative_eigenvalues
+
+    n = step.negative_eigenvalues = negative_eigenvalues(step.result)
+    if n and not path.indefinite:
+        path.indefinite = (f"K_T not positive definite from step {step.index} (t = {step.time:g}: "
+                           f"{n} negative eigenvalue(s) on the free unknowns)")
+        if verbose and step.scene.comm.rank == 0:
+            print(f"contact: step {step.index}: {path.indefinite}: the solution may be unstable "
+                  "(past a limit point, or a nonconvex law)", flush=True)
+
+
+def _notes(path: LoadPath) -> str:
+    """', 2 step cut(s): t = 1 (diverged_fnorm_nan) cut to t = 0.5; …' and '; K_T not
+    positive definite from step k (…)' ('' without either)."""
+    cuts = f", {len(path.cuts)} step cut(s): " + "; ".join(path.cuts) if path.cuts else ""
+    return cuts + (f"; {path.indefinite}" if path.indefinite else "")

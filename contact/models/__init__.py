@@ -6,12 +6,15 @@
 * :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
   :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
 * :mod:`.bodies` — several elastic bodies in contact through :mod:`.mortar` pairs (SPEC §1.5);
+* :mod:`.hyperelastic` — hyperelastic bodies (finite strain, neo-Hookean / St Venant–
+  Kirchhoff) against rigid planes: a residual re-assembled at each Newton iterate;
 * :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
   unknowns, thresholds, c_t (only a frictional scene imports it);
 * :mod:`.forms` — bring your own forms: the problem of the user's UFL forms and a
   unilateral constraint, with no scene (``contact.ComplementarityProblem``).
 
-A scene imports only its own model: a scalar scene never loads the elasticity modules.
+A scene imports only its own model: a scalar scene never loads the elasticity modules, a
+linear one never the hyperelastic module.
 """
 from __future__ import annotations
 
@@ -29,10 +32,15 @@ def build_problem(scene: "Scene") -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
     from ..setup.budget import check_dofs, mesh_dofs
+    from ..setup.config import is_elastic
 
     cfg, msh = scene.cfg, scene.mesh
-    components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1
+    components = msh.geometry.dim if is_elastic(cfg) else 1
     check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
+    if cfg["model"]["type"] == "hyperelastic":
+        from .hyperelastic import hyperelastic_problem
+
+        return hyperelastic_problem(scene)
     if scene.cfg["model"]["type"] == "elasticity":
         if scene.cfg.get("bodies"):
             from .bodies import bodies_problem

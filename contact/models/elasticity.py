@@ -81,6 +81,21 @@ def _facet_normal_axis(scene: Scene, name: str, facets: np.ndarray) -> int:
 
 
 @dataclass
+class ElasticSetting:
+    """What an elastic body's problem needs before any material law: the vector space, the
+    load L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds, the Dirichlet and symmetry conditions, and the
+    data the estimator and outputs read (f, t, ds).  Shared by linear elasticity, the
+    multi-body model and the hyperelastic model (:mod:`.hyperelastic`)."""
+
+    V: fem.FunctionSpace
+    L_ufl: ufl.Form
+    bcs: list
+    fixed: np.ndarray   # local DoFs with a Dirichlet or symmetry condition
+    data: dict          # f, t, ds
+    symmetry_axes: tuple[int, ...] = ()   # k of each symmetry part's plane x_k = const
+
+
+@dataclass
 class ElasticSystem:
     """Linear elasticity on the scene's mesh before any contact: the space, the forms, the
     Dirichlet and symmetry conditions, K (their rows and columns identity) and the lifted
@@ -97,10 +112,10 @@ class ElasticSystem:
     symmetry_axes: tuple[int, ...] = ()   # k of each symmetry part's plane x_k = const
 
 
-def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
-    """Assemble linear elasticity with Lamé parameters ``mu``, ``lmbda_L`` (numbers, or DG0
-    functions for several bodies): a(u, v) = ∫ σ(u) : ε(v) dx, L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds,
-    u = u_D on Γ_D and u_k = 0 on each symmetry plane x_k = const."""
+def elastic_setting(scene: Scene) -> ElasticSetting:
+    """The space (Lagrange of ``mesh.degree``, gdim components), the load
+    L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds, u = u_D on Γ_D and u_k = 0 on each symmetry plane
+    x_k = const."""
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
     data = cfg["data"]
     gdim, tdim = msh.geometry.dim, msh.topology.dim
@@ -110,17 +125,13 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
             raise ConfigError(f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}")
     degree = cfg["mesh"]["degree"]
     V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    v = ufl.TestFunction(V)
     f, t = _vector(data["f"], scene), _vector(data["t"], scene)
     ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
     dx = ufl.Measure("dx", domain=msh)
-
-    # a(u, v) = ∫ σ(u) : ε(v) dx,   L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds
-    a_ufl = ufl.inner(stress(u, mu, lmbda_L), epsilon(v)) * dx
     L_ufl = ufl.inner(f, v) * dx
     for i in bnd.ids_with_role("neumann"):
         L_ufl += ufl.inner(t, v) * ds(i)
-    a, L = fem.form(a_ufl), fem.form(L_ufl)
 
     # Dirichlet: u = u_D on Γ_D;  symmetry: u_k = 0 on a plane x_k = const.
     u_D = fem.Function(V)
@@ -133,10 +144,20 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
             axes.append(k := _facet_normal_axis(scene, name, facets))
             dofs = fem.locate_dofs_topological(V.sub(k), tdim - 1, facets)
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
-    K, b = assemble_system(a, L, bcs)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
-    return ElasticSystem(V, a_ufl, L_ufl, bcs, K, b, fixed,
-                         {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None}, tuple(axes))
+    return ElasticSetting(V, L_ufl, bcs, fixed, {"f": f, "t": t, "ds": ds}, tuple(axes))
+
+
+def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
+    """Assemble linear elasticity with Lamé parameters ``mu``, ``lmbda_L`` (numbers, or DG0
+    functions for several bodies): a(u, v) = ∫ σ(u) : ε(v) dx with the load and conditions
+    of :func:`elastic_setting`."""
+    s = elastic_setting(scene)
+    u, v = ufl.TrialFunction(s.V), ufl.TestFunction(s.V)
+    a_ufl = ufl.inner(stress(u, mu, lmbda_L), epsilon(v)) * ufl.dx(domain=scene.mesh)
+    K, b = assemble_system(fem.form(a_ufl), fem.form(s.L_ufl), s.bcs)
+    return ElasticSystem(s.V, a_ufl, s.L_ufl, s.bcs, K, b, s.fixed,
+                         {**s.data, "mu": mu, "lmbda_L": lmbda_L, "exact": None}, s.symmetry_axes)
 
 
 def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
@@ -203,14 +224,19 @@ def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None,
     return PETSc.NullSpace().create(vectors=basis, comm=msh.comm)
 
 
-def von_mises(u_h: fem.Function, mu: float, lmbda_L: float) -> fem.Function:
+def von_mises(u_h: fem.Function, mu: float, lmbda_L: float, stresses=None) -> fem.Function:
     """Cellwise (DG0) von Mises stress √(3/2 s:s), s the deviator of the 3D stress; in
-    plane strain σ_zz = λ_L tr ε (ε_zz = 0) is included."""
+    plane strain σ_zz = λ_L tr ε (ε_zz = 0) is included.  ``stresses``: u ↦ (P, σ) of a
+    hyperelastic body (:func:`contact.models.hyperelastic.piola_and_cauchy`), whose 3 × 3
+    Cauchy stress σ is used instead (at the cell's midpoint, in the current configuration)."""
     msh = u_h.function_space.mesh
-    sig = stress(u_h, mu, lmbda_L)
-    if msh.geometry.dim == 2:
-        szz = lmbda_L * ufl.tr(epsilon(u_h))
-        sig = ufl.as_matrix([[sig[0, 0], sig[0, 1], 0], [sig[1, 0], sig[1, 1], 0], [0, 0, szz]])
+    if stresses is not None:
+        sig = stresses(u_h)[1]
+    else:
+        sig = stress(u_h, mu, lmbda_L)
+        if msh.geometry.dim == 2:
+            szz = lmbda_L * ufl.tr(epsilon(u_h))
+            sig = ufl.as_matrix([[sig[0, 0], sig[0, 1], 0], [sig[1, 0], sig[1, 1], 0], [0, 0, szz]])
     dev = sig - ufl.tr(sig) / 3 * ufl.Identity(3)
     W = fem.functionspace(msh, ("DG", 0))
     out = fem.Function(W, name="von_mises")

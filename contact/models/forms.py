@@ -172,6 +172,16 @@ class ResidualProblem(DiscreteProblem):
 
     nonlinear = True
 
+    @staticmethod
+    def matrices(J_form: fem.Form, bcs: list) -> tuple[PETSc.Mat, PETSc.Vec]:
+        """(K, b) to build it with: K = J(u) at the current u (the pattern of every K_T(x)),
+        b = 0 (R(x) = K x − b is never used)."""
+        K = dolfinx.fem.petsc.assemble_matrix(J_form, bcs=bcs)
+        K.assemble()
+        b = dolfinx.fem.petsc.create_vector(J_form.function_spaces[0])
+        b.set(0.0)
+        return K, b
+
     def _set_iterate(self, x: PETSc.Vec) -> None:
         u = self.u_h.x
         u.petsc_vec.array_w[:] = x.array_r
@@ -233,11 +243,8 @@ class ComplementarityProblem:
         bcs = list(bcs)
         J = ufl.derivative(F, u) if J is None else J
         F_form, J_form = fem.form(F), fem.form(J)
-        K = dolfinx.fem.petsc.assemble_matrix(J_form, bcs=bcs)   # at u (the pattern of all K_T)
-        K.assemble()
-        b = dolfinx.fem.petsc.create_vector(u.function_space)   # R(x) = K x − b is never used
-        b.set(0.0)
-        problem = _discrete(ResidualProblem, u, bcs, K, b, constraint, t0)
+        problem = _discrete(ResidualProblem, u, bcs, *ResidualProblem.matrices(J_form, bcs),
+                            constraint, t0)
         problem.F_form, problem.J_form = F_form, J_form
         return cls(problem)
 

@@ -20,6 +20,7 @@ import ufl
 from dolfinx import fem
 
 from ..base.errors import ConfigError
+from ..setup import expressions
 from ..setup.scene import Scene
 from .basis import frame
 from ..solvers.problem import Constraint, NodeBlockMatrix
@@ -47,7 +48,7 @@ def obstacle_shape(scene: Scene) -> tuple:
     if obstacle["type"] == "plane":
         nu_o = np.asarray(obstacle["normal"], dtype=float)
         nu_o = nu_o / np.linalg.norm(nu_o)
-        p = np.asarray(obstacle["point"], dtype=float)
+        p = plane_point(scene)
         if len(nu_o) != gdim or len(p) != gdim:
             raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
         return (lambda x: np.tile(-nu_o, (len(x), 1)), lambda x: (x - p) @ nu_o,
@@ -66,6 +67,14 @@ def obstacle_shape(scene: Scene) -> tuple:
             ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o)
 
 
+def plane_point(scene: Scene) -> np.ndarray:
+    """The plane's point p at the scene's pseudo-time (its coordinates may be expressions
+    of t: a plane moved along a load path)."""
+    consts = scene.cfg["constants"]
+    return np.array([float(expressions.to_numpy(c, consts, t=scene.time)(np.zeros((3, 1)))[0])
+                     for c in scene.cfg["obstacle"]["point"]])
+
+
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
@@ -73,7 +82,7 @@ def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     normal, gap, n_ufl, g_ufl = obstacle_shape(scene)
     nu_o = np.asarray(obstacle["normal"], dtype=float)
     nu_o = nu_o / np.linalg.norm(nu_o)
-    p = np.asarray(obstacle["point"], dtype=float)
+    p = plane_point(scene)
     k = int(np.argmax(np.abs(nu_o)))
     if abs(abs(nu_o[k]) - 1.0) > 1e-12:  # a tilted plane: rotate the contact nodes
         return _rotated_contact(scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl)
@@ -117,7 +126,9 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     nodes, sd = nodes[keep], s_dofs[keep]
     Xs = S.tabulate_dof_coordinates()[:, :gdim]
     g_all = gap(Xs)
-    if msh.comm.allreduce(int(np.sum(g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs)))))) ):
+    inside = g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs))))
+    # a plane may have moved into the body (obstacle.point in t): a prescribed penetration
+    if scene.cfg["obstacle"]["type"] != "plane" and msh.comm.allreduce(int(np.sum(inside))):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
     normals = normal(Xs[sd])
     Q = _rotation(V, K, nodes, normals)

@@ -28,6 +28,7 @@ from ..post.comparison import Comparison
 from ..adaptivity.energy_error import solution_error
 from ..post.reference import compare
 from ..setup.scene import Scene
+from ..setup.config import is_elastic
 from .fields import FieldFiles
 from ..solvers import Result
 
@@ -36,7 +37,7 @@ def resultants(scene: Scene, result: Result) -> dict | None:
     """Contact force, reaction, balance, peak pressure of an elasticity run (None for
     scalar models; :mod:`contact.post.resultants`; with contact pairs the forces on both sides
     of each interface and the reactions, :func:`contact.post.interface.interface_resultants`)."""
-    if scene.cfg["model"]["type"] != "elasticity":
+    if not is_elastic(scene.cfg):
         return None
     if scene.cfg.get("pairs"):
         from ..post.interface import interface_resultants
@@ -162,14 +163,15 @@ def point_fields(result: Result) -> list:
 
 
 def cell_fields(scene: Scene, result: Result) -> list:
-    """Cellwise output fields: the von Mises stress for elasticity, and the ``body`` number
-    of each cell in a scene with bodies."""
-    if scene.cfg["model"]["type"] != "elasticity":
+    """Cellwise output fields: the von Mises stress for elasticity (of the Cauchy stress
+    for a hyperelastic body), and the ``body`` number of each cell in a scene with bodies."""
+    if not is_elastic(scene.cfg):
         return []
     from ..models.elasticity import von_mises
 
     data = result.problem.data
-    return [von_mises(result.u_h, data["mu"], data["lmbda_L"])] + ([data["body"]] if "body" in data else [])
+    return [von_mises(result.u_h, data.get("mu"), data.get("lmbda_L"), data.get("stresses"))] + (
+        [data["body"]] if "body" in data else [])
 
 
 def _view_normal(scene: Scene, result: Result):

@@ -34,6 +34,7 @@ from ..post.reference import compare
 from .run_report import (_finish, cell_fields, plot_solution, point_fields, warn_coarse_zone,
                          write_contact)
 from ..setup.scene import Scene
+from ..setup.config import is_elastic
 from .fields import FieldFiles
 from ..drivers.load_path import LoadPath, Step
 from ..post.friction_resultants import surface_figures
@@ -66,6 +67,8 @@ class StepWriter:
             row.update(surface_figures(scene, r, table))
         else:
             row["contact_force"] = r.contact_force
+        if step.negative_eigenvalues is not None:   # hyperelastic: K_T's stability
+            row["tangent_negative_eigenvalues"] = step.negative_eigenvalues
         self.rows.append(row)
         self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
         self.tables.append((step.time, table))
@@ -102,9 +105,13 @@ class StepWriter:
                 "newton_iterations": sum(its), "newton_iterations_max_per_step": max(its),
                 "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
                 "host": platform.node(), **self.files.timings(), "steps": self.rows}
+        if path.cuts:   # step cutting (load.cuts): the steps that were halved
+            info["step_cuts"] = path.cuts
+        if path.indefinite:
+            info["tangent_indefinite"] = path.indefinite
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
-        if self.scene.cfg["model"]["type"] == "elasticity":   # the forces are of the whole body
+        if is_elastic(self.scene.cfg):   # the forces are of the whole body
             info["symmetric_copies"] = r.problem.symmetric_copies
         info.update(failure or {})
         if comparison is not None:

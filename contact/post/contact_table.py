@@ -42,6 +42,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from ..setup.scene import Scene
+from ..setup.config import is_elastic
 from ..solvers import Result, owned_residual
 
 Table = dict[str, np.ndarray]
@@ -50,7 +51,7 @@ STATUS = ("separated", "stick", "slip")
 
 def value_name(scene: Scene) -> str:
     """The multiplier column: ``lambda_n`` for elasticity, ``lambda`` for scalar models."""
-    return "lambda_n" if scene.cfg["model"]["type"] == "elasticity" else "lambda"
+    return "lambda_n" if is_elastic(scene.cfg) else "lambda"
 
 
 def contact_columns(scene: Scene, result: Result) -> Table:

@@ -41,6 +41,7 @@ import os
 from typing import Any
 
 from ..base.errors import ConfigError
+from .config import is_elastic
 
 BYTES_PER_DOF = 3600              # >= 1.2 x every measured per-DoF peak (bench_memory.py)
 BYTES_PER_DOF_3D_DIRECT = 15700   # a 3D direct solve at N_REF_3D_DIRECT DoFs ...
@@ -110,7 +111,7 @@ def estimate_dofs(cfg: dict) -> int | None:
         nodes = sum(_block_nodes(block["cells"], p2) for block in mesh["blocks"])
     else:
         return None
-    return nodes * (gdim if cfg["model"]["type"] == "elasticity" else 1)
+    return nodes * (gdim if is_elastic(cfg) else 1)
 
 
 def _block_nodes(n: list[int], p2: bool) -> int:
@@ -152,7 +153,7 @@ def parametric_dofs(cfg: dict) -> float | None:
     gdim = 2 if mesh["type"] in ("quarter_disk", "half_disks") else 3
     per_vertex = P2_NODES_PER_VERTEX[gdim] if mesh.get("degree", 1) == 2 else 1
     nodes = estimated_vertices(mesh) * per_vertex
-    return nodes * (gdim if cfg["model"]["type"] == "elasticity" else 1)
+    return nodes * (gdim if is_elastic(cfg) else 1)
 
 
 def check_parameters(cfg: dict, gdim: int | None) -> None:

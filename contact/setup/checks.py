@@ -26,6 +26,7 @@ from dolfinx import mesh as dmesh
 
 from . import expressions
 from ..base.errors import ConfigError
+from .config import ELASTIC_MODELS
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ def scene_data(cfg: dict) -> list[Datum]:
         items += [*data_items("data.g", data["g"], "contact"), *data_items("data.t_C", data["t_C"], "contact")]
     elif model == "obstacle":
         items += data_items("data.psi", data["psi"])
-    if model != "elasticity":
+    if model not in ELASTIC_MODELS:
         items += data_items("data.k", data["k"], positive=True)
     return items
 

@@ -9,6 +9,7 @@ needs; everything else has a default that works.
 """
 from __future__ import annotations
 
+import ast
 import copy
 import math
 import re
@@ -27,6 +28,10 @@ from ..solvers.options import LINE_SEARCHES, LINEAR, METHODS as SOLVER_METHODS
 from . import expressions
 
 FRICTION_LAWS = ("none", "tresca", "coulomb")
+#: models whose unknown is a displacement vector: linear elasticity (small strain) and
+#: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)
+ELASTIC_MODELS = ("elasticity", "hyperelastic")
+HYPERELASTIC_LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 FRICTION_FORMS = ("projection", "hsw")
 _REQUIRED = object()
 
@@ -324,10 +329,14 @@ SCENE: dict[str, Field] = {
     }),
     "boundaries": Field("dict", schema=None, item=BOUNDARY),
     "model": Field("dict", schema={
-        "type": Field("str", "signorini", choices=("signorini", "obstacle", "elasticity")),
+        "type": Field("str", "signorini", choices=("signorini", "obstacle") + ELASTIC_MODELS),
+        "law": Field("str", None, choices=HYPERELASTIC_LAWS,
+                     doc="hyperelastic: the strain energy, neo_hookean (compressible) or "
+                         "saint_venant_kirchhoff (nonconvex in strong compression)"),
         "bound": Field("str", "upper", choices=("upper", "lower"),
                        doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
-        "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
+        "E": Field("number", None, check=_positive,
+                   doc="elasticity, hyperelastic: Young's modulus"),
         "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
                     doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 < ν < 1/2)"),
     }),
@@ -335,7 +344,9 @@ SCENE: dict[str, Field] = {
     "pairs": Field("list", None, doc="contact pairs between bodies: [{slave, master, search}]"),
     "obstacle": Field("dict", None, schema={
         "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
-        "point": Field("list", None, doc="plane: a point of the rigid plane"),
+        "point": Field("list", None, doc="plane: a point of the rigid plane; its coordinates "
+                                         "may be expressions of the pseudo-time t (a moving "
+                                         "plane, e.g. a plate pressed along a load path)"),
         "normal": Field("list", None, doc="plane: its outward normal, pointing towards the body"),
         "center": Field("list", None, doc="circle / sphere: the centre"),
         "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
@@ -426,6 +437,10 @@ SCENE: dict[str, Field] = {
         "times": Field("list", None, check=_times, doc="the pseudo-times of the steps, increasing, > 0"),
         "adapt": Field("str", "end", choices=("each", "end"),
                        doc="with an adapt section: the adaptive loop at every step, or only at the last"),
+        "cuts": Field("int", None, check=_nonnegative,
+                      doc="step cutting: a step that does not converge is halved (t_k → "
+                          "(t_{k-1} + t_k)/2) and retried, at most this many times in a row "
+                          "(default: 4 for model type hyperelastic, 0 otherwise)"),
     }),
     "output": Field("dict", schema={
         "dir": Field("str", None, check=_not_empty),
@@ -652,6 +667,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                 raise ConfigError(f"boundaries.{bname}.where: {err}") from None
     roles = [p["role"] for p in cfg["boundaries"].values()]
     model = cfg["model"]["type"]
+    _check_hyperelastic(cfg, model)
+    if model == "hyperelastic":   # the rest of the checks: those of an elastic body
+        model = "elasticity"
     if model == "signorini" and "contact" not in roles or model == "elasticity" and not (
             "contact" in roles or cfg["pairs"]):
         raise ConfigError(f"boundaries: a {model} scene needs a part with role: contact")
@@ -701,6 +719,41 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     _resolve_formats(cfg["output"])
     cfg["constants"] = constants
     return cfg
+
+
+def is_elastic(cfg: Mapping) -> bool:
+    """Whether the scene's unknown is a displacement vector (:data:`ELASTIC_MODELS`)."""
+    return cfg["model"]["type"] in ELASTIC_MODELS
+
+
+def _check_hyperelastic(cfg: dict, model: str) -> None:
+    """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
+    does not do yet (contact/models/hyperelastic.py) is refused by name: a curved
+    obstacle, contact pairs, friction, the adaptive loop, a reference solution, an
+    exact solution, grid sequencing."""
+    if model != "hyperelastic":
+        if cfg["model"]["law"] is not None:
+            raise ConfigError("model.law: only for model type hyperelastic")
+        return
+    if cfg["model"]["law"] is None:
+        raise ConfigError(f"model.law: required for model type hyperelastic "
+                          f"({', '.join(HYPERELASTIC_LAWS)})")
+    obstacle = cfg.get("obstacle") or {}
+    if obstacle.get("type", "plane") != "plane":
+        raise ConfigError(f"obstacle.type: a hyperelastic body meets rigid planes only (not a "
+                          f"{obstacle['type']}: its gap is not affine in u)")
+    for key, what in (("bodies", "several bodies"), ("pairs", "contact pairs"),
+                      ("adapt", "the adaptive loop"), ("reference", "a reference solution")):
+        if cfg.get(key):
+            raise ConfigError(f"{key}: not available for model type hyperelastic ({what})")
+    if (cfg.get("friction") or {}).get("law", "none") != "none":
+        raise ConfigError("friction.law: a hyperelastic body's contact is frictionless (none)")
+    if cfg["data"]["exact"] is not None:
+        raise ConfigError("data.exact: not available for model type hyperelastic")
+    if cfg["solver"]["sequence"] not in ("auto", "off", 0):
+        raise ConfigError("solver.sequence: grid sequencing is not available for model type "
+                          "hyperelastic (use off)")
+    cfg["solver"]["sequence"] = "off"
 
 
 def _resolve_formats(output: dict) -> None:
@@ -856,7 +909,8 @@ def _check_reference(cfg: dict) -> None:
 
 def _check_elasticity(cfg: dict) -> None:
     if cfg["model"]["E"] is None and not cfg["bodies"]:
-        raise ConfigError("model.E: required for model type elasticity (Young's modulus)")
+        raise ConfigError(f"model.E: required for model type {cfg['model']['type']} "
+                          "(Young's modulus)")
     obstacle = cfg.get("obstacle")
     contact_parts = [n for n, p in cfg["boundaries"].items() if p["role"] == "contact"]
     if obstacle and not contact_parts:
@@ -875,10 +929,26 @@ def _check_elasticity(cfg: dict) -> None:
             raise ConfigError(f"obstacle.{key}: not used by an obstacle of type {obstacle['type']}")
     for key in keys[:2] if obstacle["type"] == "plane" else ("center",):
         vec = obstacle[key]
+        if key == "point" and all(isinstance(c, (str, int, float)) and not isinstance(c, bool)
+                                  for c in vec):
+            _check_moving_point(vec, cfg["constants"])
+            continue
         if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in vec):
             raise ConfigError(f"obstacle.{key}: expected a list of numbers, got {vec!r}")
     if obstacle["type"] == "plane" and not any(obstacle["normal"]):
         raise ConfigError("obstacle.normal: must not be the zero vector")
+
+
+def _check_moving_point(point: list, constants: Mapping[str, float]) -> None:
+    """obstacle.point: numbers, or expressions of constants and the pseudo-time t only."""
+    for c in point:
+        try:
+            tree = expressions.parse(c, constants)
+        except expressions.ExpressionError as err:
+            raise ConfigError(f"obstacle.point: {err}") from None
+        names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+        if names & set(expressions.COORDINATES + expressions.HELPERS):
+            raise ConfigError(f"obstacle.point: {c!r} may use the pseudo-time t, not x, y, z")
 
 
 #: the sections a solve reads from a built scene's config (:func:`check_sections`)
