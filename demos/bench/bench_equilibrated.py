@@ -29,13 +29,15 @@ import dataclasses
 import time
 from pathlib import Path
 
+import numpy as np
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import contact
 from common import save_csv
 from contact.equilibration.bound import flux_data, guaranteed_bound
-from contact.equilibration.flux import reconstruct_flux
+from contact.equilibration.flux import BACKENDS, reconstruct_flux
 from contact.adapt import next_dofs_bound
 from contact.errors import solution_error
 from contact.estimate import estimate
@@ -98,18 +100,31 @@ def verdict(rows: list[dict]) -> str:
             f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: {not high})")
 
 
-def cost(n: int) -> list[dict]:
+def cost_scene(n: int, dim: int) -> contact.Scene:
+    """Problem A on [2N, N] cells (2D), or its extrusion u(x, y, z) = u_A(x, y) on the box
+    [−1, 1] × [0, 1]² with [2N, N, N] cells (3D; z = 0, 1 carry the natural flux 0, which
+    u satisfies)."""
+    sets = [f"mesh.cells=[{2 * n},{n}]"] if dim == 2 else \
+        ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", f"mesh.cells=[{2 * n},{n},{n}]"]
+    return contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml",
+                              sets + ["output.verbose=false", "solver.max_dofs=30000000"])
+
+
+def _timed(fn):
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t, time.process_time() - c
+
+
+def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
+    """The reconstruction with each backend (after a warm-up call that compiles the data
+    expressions and the kernel) and one CG + GAMG solve of K, in this process."""
     comm = MPI.COMM_WORLD
-    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml",
-                               [f"mesh.cells=[{2 * n},{n}]", "output.verbose=false", "solver.max_dofs=3000000"])
+    scene = cost_scene(n, dim)
     result = contact.solve(scene, verbose=False)
     data, multiplier, sign = flux_data(scene, result)
-    reconstruct_flux(data, multiplier, sign)                 # compiles the data expressions
-    t, c = time.perf_counter(), time.process_time()
-    flux = reconstruct_flux(data, multiplier, sign)
-    rec = (time.perf_counter() - t, time.process_time() - c)
     options = PETSc.Options()
-    for key, value in {**default_options("gamg", 2, comm.size), "ksp_rtol": 1e-8}.items():
+    for key, value in {**default_options("gamg", dim, comm.size), "ksp_rtol": 1e-8}.items():
         options[f"eqcost_{key}"] = value
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix("eqcost_")
@@ -117,21 +132,38 @@ def cost(n: int) -> list[dict]:
     ksp.setFromOptions()
     x = result.problem.b.duplicate()
     x.set(0.0)
-    t, c = time.perf_counter(), time.process_time()
-    ksp.solve(result.problem.b, x)
-    sol = (time.perf_counter() - t, time.process_time() - c)
-    cpu = comm.allreduce(rec[1], op=MPI.MAX), comm.allreduce(sol[1], op=MPI.MAX)
-    row = {"ranks": comm.size, "dofs": result.dofs, "reconstruction_wall": round(rec[0], 3),
-           "reconstruction_cpu": round(cpu[0], 3), "solve_wall": round(sol[0], 3), "solve_cpu": round(cpu[1], 3),
-           "cg_iterations": ksp.getIterationNumber(), "ratio_wall": round(rec[0] / sol[0], 2),
-           "ratio_cpu": round(cpu[0] / cpu[1], 2),
-           **{f"seconds_{k}": round(v, 3) for k, v in flux.seconds.items()}}
+    _, sol_wall, sol_cpu = _timed(lambda: ksp.solve(result.problem.b, x))
+    sol_cpu = comm.allreduce(sol_cpu, op=MPI.MAX)
+    rows, etas = [], {}
+    for backend in backends:
+        reconstruct_flux(data, multiplier, sign, backend=backend)          # warm-up (JIT)
+        flux, wall, cpu = _timed(lambda: reconstruct_flux(data, multiplier, sign, backend=backend))
+        cpu = comm.allreduce(cpu, op=MPI.MAX)
+        etas[backend] = flux
+        rows.append({"dim": dim, "ranks": comm.size, "dofs": result.dofs,
+                     "cells": scene.mesh.topology.index_map(dim).size_global, "backend": backend,
+                     "reconstruction_wall": round(wall, 3), "reconstruction_cpu": round(cpu, 3),
+                     "solve_wall": round(sol_wall, 3), "solve_cpu": round(sol_cpu, 3),
+                     "cg_iterations": ksp.getIterationNumber(), "ratio_wall": round(wall / sol_wall, 2),
+                     "ratio_cpu": round(cpu / sol_cpu, 2),
+                     **{f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3) for k, v in flux.seconds.items()}})
+    if len(etas) == 2:      # the same σ_h to round-off
+        a, b = (f.sigma_h.x.array for f in etas.values())
+        diff = comm.allreduce(float(np.abs(a - b).max()), op=MPI.MAX) / \
+            comm.allreduce(float(np.abs(a).max()), op=MPI.MAX)
+        for r in rows:
+            r["sigma_rel_diff"] = f"{diff:.2e}"
     if comm.rank == 0:
-        print(f"cost: {row['dofs']} DoFs on {comm.size} rank(s): reconstruction {rec[0]:.2f} s wall, "
-              f"{cpu[0]:.2f} s CPU; one CG + GAMG solve of K {sol[0]:.2f} s wall, {cpu[1]:.2f} s CPU "
-              f"({row['cg_iterations']} iterations); ratio {row['ratio_wall']} (wall), {row['ratio_cpu']} (CPU); "
-              f"phases {flux.seconds}", flush=True)
-    return [row]
+        print(f"cost, {dim}D, {rows[0]['dofs']} DoFs, {rows[0]['cells']} cells, {comm.size} rank(s); "
+              f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
+              f"({rows[0]['cg_iterations']} iterations)")
+        print(f"{'backend':9s} {'wall':>8s} {'CPU':>8s} {'CPU/solve':>9s} {'gather':>8s} {'patches':>8s} "
+              f"{'assemble':>8s}")
+        for r in rows:
+            print(f"{r['backend']:9s} {r['reconstruction_wall']:8.2f} {r['reconstruction_cpu']:8.2f} "
+                  f"{r['ratio_cpu']:9.2f} {r['seconds_gather']:8.2f} {r['seconds_patches']:8.2f} "
+                  f"{r['seconds_assemble']:8.2f}", flush=True)
+    return rows
 
 
 def main() -> None:
@@ -140,11 +172,15 @@ def main() -> None:
     ap.add_argument("--strategy", default="dorfler", choices=("dorfler", "uniform"))
     ap.add_argument("--max-dofs", type=int, default=30000)
     ap.add_argument("--cost", type=int, default=0, help="measure the cost on problem A with [2N, N] cells instead")
+    ap.add_argument("--cost3d", type=int, default=0, help="... or on its 3D extrusion with [2N, N, N] cells")
+    ap.add_argument("--backends", nargs="*", default=list(BACKENDS), choices=list(BACKENDS),
+                    help="the reconstruction backends to time (cost)")
     ap.add_argument("--out", default="demos/results/equilibrated")
     args = ap.parse_args()
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"
-    if args.cost:
-        save_csv(Path(args.out) / f"cost{suffix}.csv", cost(args.cost))
+    if args.cost or args.cost3d:
+        dim, n = (2, args.cost) if args.cost else (3, args.cost3d)
+        save_csv(Path(args.out) / f"cost{'' if dim == 2 else '_3d'}{suffix}.csv", cost(n, dim, args.backends))
         return
     rows, verdicts = [], []
     for name in args.problems:

@@ -1,0 +1,831 @@
+"""The C source of the compiled patch solver (:mod:`.compiled`): the algebra of
+:mod:`.operators` and :mod:`.patches`, cell by cell and patch by patch, in plain C99.
+
+The dimensions of the reference element are compile-time constants (one library per
+(d, p)), so the compiler unrolls the small loops:
+
+    DIM  d              NV   d + 1 (vertices = facets)     NQ, NQF  cell / facet points
+    NU   dim P_p        M    dim RT_p     NP  dim P_p (div moments)    MZ  M − NP
+    NF   dim P_p(F)     NPERM  d!        NLOOK  d^d (facet-permutation codes)
+
+``eq_cells`` computes, per cell row c, the operators the patch problems need (the work row
+of :data:`WORK_LAYOUT`) and osc_T; ``eq_patches`` solves the patch of every vertex of a
+global index range and adds σ_a|_T to alpha.  A patch system is ordered by reverse
+Cuthill–McKee and factorized by an envelope Cholesky (the spokes of a 3D patch couple
+only through the cells they share); a patch without a Dirichlet spoke has the constant
+multiplier as its kernel: one constant moment is pinned and the solution projected
+orthogonal to the kernel, which is the solution of the regularized system of
+:mod:`.patches`.  Where the Cholesky meets a non-positive pivot the patch falls back to
+that regularized system and an LU factorization with partial pivoting.
+Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out of memory.
+"""
+
+#: the per-cell work row of eq_cells, in this order (sizes in the macros above)
+WORK_LAYOUT = ("S: DNF*DNF", "OZ: DNF*MZ", "MZinv: MZ*MZ", "ZMR: MZ*NP", "beta: NV*NP",
+               "ZTg: NV*MZ", "h: NV*DNF", "data: NV*NV*NF")
+
+CDEF = """
+typedef struct {
+  const double *w, *ZZ, *ZR, *NZ, *NR, *P, *ZG, *wlamQ, *wQ, *dphi, *dlam, *base, *R, *Z,
+               *kappa, *Q, *q, *wS;
+  const int64_t *lookup;
+  double wsum;
+} eq_ref;
+typedef struct {
+  int64_t n;
+  const int64_t *gvert;
+  const double *x, *U, *f, *k;
+  const int8_t *kind;
+  const double *t, *tau, *src;
+  const int64_t *cidx;
+  const double *cmom;
+} eq_table;
+int64_t eq_work_size(void);
+void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc);
+int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+               double *alpha, double *stats);
+"""
+
+SOURCE = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n" + CDEF + r"""
+
+#define PI_ 3.14159265358979323846
+#define MAXN (MZ > NF ? MZ : NF)
+#define MAXB (NP > NF ? NP : NF)
+#define DNF (NV * NF)
+#define SNF (DIM * NF)
+enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
+
+#define W_S 0
+#define W_OZ (W_S + DNF * DNF)
+#define W_MZI (W_OZ + DNF * MZ)
+#define W_ZMR (W_MZI + MZ * MZ)
+#define W_BETA (W_ZMR + MZ * NP)
+#define W_ZTG (W_BETA + NV * NP)
+#define W_H (W_ZTG + NV * MZ)
+#define W_DATA (W_H + NV * DNF)
+#define W_SIZE (W_DATA + NV * NV * NF)
+
+int64_t eq_work_size(void) { return W_SIZE; }
+
+/* Solve A X = B (n x n, row-major, nrhs columns) by LU with partial pivoting, in place;
+   returns 1 if a pivot is exactly zero. */
+static int lu_solve(int n, double *A, double *B, int nrhs)
+{
+  for (int k = 0; k < n; ++k) {
+    int piv = k;
+    double best = fabs(A[k * n + k]);
+    for (int i = k + 1; i < n; ++i)
+      if (fabs(A[i * n + k]) > best) { best = fabs(A[i * n + k]); piv = i; }
+    if (best == 0.0) return 1;
+    if (piv != k) {
+      for (int j = 0; j < n; ++j) { double s = A[k * n + j]; A[k * n + j] = A[piv * n + j]; A[piv * n + j] = s; }
+      for (int j = 0; j < nrhs; ++j) { double s = B[k * nrhs + j]; B[k * nrhs + j] = B[piv * nrhs + j]; B[piv * nrhs + j] = s; }
+    }
+    double inv = 1.0 / A[k * n + k];
+    for (int i = k + 1; i < n; ++i) {
+      double l = A[i * n + k] * inv;
+      if (l == 0.0) continue;
+      for (int j = k + 1; j < n; ++j) A[i * n + j] -= l * A[k * n + j];
+      for (int j = 0; j < nrhs; ++j) B[i * nrhs + j] -= l * B[k * nrhs + j];
+    }
+  }
+  for (int k = n - 1; k >= 0; --k)
+    for (int j = 0; j < nrhs; ++j) {
+      double s = B[k * nrhs + j];
+      for (int i = k + 1; i < n; ++i) s -= A[k * n + i] * B[i * nrhs + j];
+      B[k * nrhs + j] = s / A[k * n + k];
+    }
+  return 0;
+}
+
+/* The inverse of a symmetric positive definite matrix by Cholesky (A = L Lᵀ, A⁻¹ = L⁻ᵀ L⁻¹);
+   returns 1 on a non-positive pivot. */
+static int spd_inverse(int n, const double *restrict A, double *restrict Ainv)
+{
+  double L[MAXN * MAXN], Li[MAXN * MAXN];
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j <= i; ++j) {
+      double s = A[i * n + j];
+      for (int k = 0; k < j; ++k) s -= L[i * MAXN + k] * L[j * MAXN + k];
+      if (i == j) {
+        if (!(s > 0.0)) return 1;
+        L[i * MAXN + i] = sqrt(s);
+      } else {
+        L[i * MAXN + j] = s / L[j * MAXN + j];
+      }
+    }
+  }
+  for (int j = 0; j < n; ++j)              /* Li = L⁻¹, lower triangular */
+    for (int i = j; i < n; ++i) {
+      double s = i == j ? 1.0 : 0.0;
+      for (int k = j; k < i; ++k) s -= L[i * MAXN + k] * Li[k * MAXN + j];
+      Li[i * MAXN + j] = s / L[i * MAXN + i];
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double s = 0.0;
+      for (int k = i; k < n; ++k) s += Li[k * MAXN + i] * Li[k * MAXN + j];
+      Ainv[i * n + j] = Ainv[j * n + i] = s;
+    }
+  return 0;
+}
+
+static int invert(int n, const double *A, double *Ainv, double *scratch)
+{
+  if (n <= MAXN && !spd_inverse(n, A, Ainv)) return 0;
+  memcpy(scratch, A, sizeof(double) * n * n);
+  memset(Ainv, 0, sizeof(double) * n * n);
+  for (int i = 0; i < n; ++i) Ainv[i * n + i] = 1.0;
+  return lu_solve(n, scratch, Ainv, n);
+}
+
+static double det_inv(const double J[DIM][DIM], double Ji[DIM][DIM])
+{
+#if DIM == 2
+  double det = J[0][0] * J[1][1] - J[0][1] * J[1][0];
+  Ji[0][0] = J[1][1] / det; Ji[1][1] = J[0][0] / det;
+  Ji[0][1] = -J[0][1] / det; Ji[1][0] = -J[1][0] / det;
+#else
+  double adj[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
+      if (r0 > r1) { int s = r0; r0 = r1; r1 = s; }
+      if (c0 > c1) { int s = c0; c0 = c1; c1 = s; }
+      double minor = J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0];
+      adj[i][j] = ((i + j) % 2 ? -1.0 : 1.0) * minor;
+    }
+  double det = J[0][0] * adj[0][0] + J[0][1] * adj[1][0] + J[0][2] * adj[2][0];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) Ji[i][j] = adj[i][j] / det;
+#endif
+  return det;
+}
+
+/* |F| / |F^| of facet j (the vertices other than j): sqrt(det(E E^T)) */
+static double facet_size(const double *x, int j)
+{
+  int o[NV - 1], n = 0;
+  for (int v = 0; v < NV; ++v) if (v != j) o[n++] = v;
+  double E[DIM - 1][DIM];
+  for (int a = 0; a < DIM - 1; ++a)
+    for (int i = 0; i < DIM; ++i) E[a][i] = x[o[a + 1] * DIM + i] - x[o[0] * DIM + i];
+  double G[DIM - 1][DIM - 1];
+  for (int a = 0; a < DIM - 1; ++a)
+    for (int b = 0; b < DIM - 1; ++b) {
+      double s = 0.0;
+      for (int i = 0; i < DIM; ++i) s += E[a][i] * E[b][i];
+      G[a][b] = s;
+    }
+#if DIM == 2
+  double det = G[0][0];
+#else
+  double det = G[0][0] * G[1][1] - G[0][1] * G[1][0];
+#endif
+  return sqrt(fabs(det));
+}
+
+static int facet_perm(const eq_ref *r, const int64_t *g, int j)
+{
+  int64_t o[NV - 1];
+  int n = 0;
+  for (int v = 0; v < NV; ++v) if (v != j) o[n++] = g[v];
+  int64_t code = 0;
+  for (int a = 0; a < NV - 1; ++a) {
+    int rank = 0;
+    for (int b = 0; b < NV - 1; ++b) rank += o[b] < o[a];
+    code = code * (NV - 1) + rank;
+  }
+  return (int)r->lookup[code];
+}
+
+/* C = A B: (n x k)(k x m), row-major */
+static inline void matmul(int n, int k, int m, const double *restrict A, const double *restrict B,
+                          double *restrict C)
+{
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j) {
+      double v = 0.0;
+      for (int l = 0; l < k; ++l) v += A[i * k + l] * B[l * m + j];
+      C[i * m + j] = v;
+    }
+}
+
+/* ‖v − Π v‖² by the rule (w, nq): Π the projection onto the nb orthonormal B (nb, nq). */
+static double l2_rest(const double *v, const double *w, const double *B, int nq, int nb)
+{
+  double mom[MAXB], rest = 0.0;
+  for (int a = 0; a < nb; ++a) {
+    double s = 0.0;
+    for (int q = 0; q < nq; ++q) s += v[q] * w[q] * B[a * nq + q];
+    mom[a] = s;
+  }
+  for (int q = 0; q < nq; ++q) {
+    double e = v[q];
+    for (int a = 0; a < nb; ++a) e -= mom[a] * B[a * nq + q];
+    rest += e * e * w[q];
+  }
+  return rest;
+}
+
+static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet, const double *size)
+{
+  const double *x = t->x + c * NV * DIM, *f = t->f + c * NQ, *k = t->k + c * NQ;
+  double fact = 1.0, fact1 = 1.0;
+  for (int i = 2; i <= DIM; ++i) fact *= i;
+  for (int i = 2; i <= DIM - 1; ++i) fact1 *= i;
+  double vol = absdet / fact, h = 0.0;
+  for (int i = 0; i < NV; ++i)
+    for (int j = 0; j < i; ++j) {
+      double s = 0.0;
+      for (int l = 0; l < DIM; ++l) { double e = x[i * DIM + l] - x[j * DIM + l]; s += e * e; }
+      if (sqrt(s) > h) h = sqrt(s);
+    }
+  double rest = l2_rest(f, r->w, r->Q, NQ, NP);
+  double osc = h / PI_ * sqrt(fmax(absdet * rest, 0.0));
+  for (int j = 0; j < NV; ++j) {
+    const double *tj = t->t + (c * NV + j) * NQF;
+    double tr = l2_rest(tj, r->wS, r->q, NQF, NF);
+    double area = size[j] / fact1, norm = sqrt(size[j] * tr);
+    osc += h * sqrt(area / vol * (1.0 / (PI_ * PI_) + 2.0 / (DIM * PI_))) * norm;
+  }
+  double kmin = k[0];
+  for (int q = 1; q < NQ; ++q) kmin = fmin(kmin, k[q]);
+  return osc / sqrt(kmin);
+}
+
+/* The operators of cell row c (operators.py), written to out[0 .. W_SIZE). */
+static int cell(const eq_ref *restrict r, const eq_table *restrict t, int64_t c, double *restrict out)
+{
+  const double *x = t->x + c * NV * DIM, *kq = t->k + c * NQ, *fq = t->f + c * NQ;
+  const double *U = t->U + c * NU;
+  double J[DIM][DIM], Ji[DIM][DIM];
+  for (int i = 0; i < DIM; ++i)
+    for (int j = 0; j < DIM; ++j) J[i][j] = x[(j + 1) * DIM + i] - x[i];
+  double det = det_inv(J, Ji);
+  double s = (det > 0) - (det < 0), absdet = fabs(det);
+  double GM[DIM][DIM], KS[DIM][DIM];
+  for (int i = 0; i < DIM; ++i)
+    for (int j = 0; j < DIM; ++j) {
+      double a = 0.0, b = 0.0;
+      for (int l = 0; l < DIM; ++l) { a += J[l][i] * J[l][j]; b += Ji[i][l] * Ji[j][l]; }
+      GM[i][j] = a / absdet;
+      KS[i][j] = b * absdet;
+    }
+  double kT = 0.0;
+  for (int q = 0; q < NQ; ++q) kT += kq[q] * r->w[q];
+  kT /= r->wsum;
+  double MZ_[MZ * MZ], tmp[MZ * MZ];
+  double *MZi = out + W_MZI, *ZMR = out + W_ZMR, *OZ = out + W_OZ, *S = out + W_S;
+  for (int a = 0; a < MZ * MZ; ++a) {
+    double v = 0.0;
+    for (int ij = 0; ij < DIM * DIM; ++ij) v += GM[ij / DIM][ij % DIM] * r->ZZ[ij * MZ * MZ + a];
+    MZ_[a] = v / kT;
+  }
+  if (invert(MZ, MZ_, MZi, tmp)) return 1;
+  for (int a = 0; a < MZ * NP; ++a) {
+    double v = 0.0;
+    for (int ij = 0; ij < DIM * DIM; ++ij) v += GM[ij / DIM][ij % DIM] * r->ZR[ij * MZ * NP + a];
+    ZMR[a] = v / kT;
+  }
+  int perm[NV];
+  double size[NV];
+  double OR[DNF * NP];
+  for (int j = 0; j < NV; ++j) {
+    perm[j] = facet_perm(r, t->gvert + c * NV, j);
+    size[j] = facet_size(x, j);
+    const double *P = r->P + perm[j] * NF * NF;
+    for (int l = 0; l < NF; ++l) {
+      for (int z = 0; z < MZ; ++z) {
+        double v = 0.0;
+        for (int k = 0; k < NF; ++k) v += P[k * NF + l] * r->NZ[(j * NF + k) * MZ + z];
+        OZ[(j * NF + l) * MZ + z] = s * v;
+      }
+      for (int z = 0; z < NP; ++z) {
+        double v = 0.0;
+        for (int k = 0; k < NF; ++k) v += P[k * NF + l] * r->NR[(j * NF + k) * NP + z];
+        OR[(j * NF + l) * NP + z] = s * v;
+      }
+    }
+  }
+  double Yt[DNF * MZ];
+  matmul(DNF, MZ, MZ, OZ, MZi, Yt);
+  for (int i = 0; i < DNF; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v = 0.0;
+      for (int a = 0; a < MZ; ++a) v += Yt[i * MZ + a] * OZ[j * MZ + a];
+      S[i * DNF + j] = S[j * DNF + i] = v;
+    }
+  /* data terms at the points */
+  double gu[NQ][DIM], lhs[NQ][DIM], KSd[DIM][NV];
+  for (int q = 0; q < NQ; ++q)
+    for (int i = 0; i < DIM; ++i) {
+      double v = 0.0;
+      for (int u = 0; u < NU; ++u) v += U[u] * r->dphi[(q * NU + u) * DIM + i];
+      gu[q][i] = v;
+    }
+  if (t->tau) {
+    const double *tau = t->tau + c * NQ * DIM;
+    for (int q = 0; q < NQ; ++q)
+      for (int i = 0; i < DIM; ++i) {
+        double v = 0.0;
+        for (int j = 0; j < DIM; ++j) v += J[j][i] * tau[q * DIM + j];
+        lhs[q][i] = v / kT;
+      }
+  } else {
+    for (int q = 0; q < NQ; ++q)
+      for (int i = 0; i < DIM; ++i) lhs[q][i] = gu[q][i] * kq[q] / kT;
+  }
+  double *ZTg = out + W_ZTG, *beta = out + W_BETA;
+  double acc[NV * MZ] = {0.0};
+  for (int q = 0; q < NQ; ++q)
+    for (int i = 0; i < DIM; ++i) {
+      const double *restrict zg = r->ZG + (q * DIM + i) * NV * MZ;
+      double l = lhs[q][i];
+      for (int az = 0; az < NV * MZ; ++az) acc[az] += l * zg[az];
+    }
+  for (int az = 0; az < NV * MZ; ++az) ZTg[az] = s * acc[az];
+  for (int i = 0; i < DIM; ++i)
+    for (int a = 0; a < NV; ++a) {
+      double v = 0.0;
+      for (int k = 0; k < DIM; ++k) v += KS[i][k] * r->dlam[a * DIM + k];
+      KSd[i][a] = v;
+    }
+  double R0[NV * NP] = {0.0};
+  for (int q = 0; q < NQ; ++q) {
+    const double *wl = r->wlamQ + q * NV * NP;
+    double fa = absdet * fq[q];
+    for (int a = 0; a < NV; ++a) {
+      double v = 0.0;
+      for (int i = 0; i < DIM; ++i) v += gu[q][i] * KSd[i][a];
+      v *= kq[q];
+      for (int j = 0; j < NP; ++j) R0[a * NP + j] += fa * wl[a * NP + j] - v * r->wQ[q * NP + j];
+    }
+  }
+  for (int a = 0; a < NV; ++a)
+    for (int j = 0; j < NP; ++j) {
+      double src = t->src ? absdet * t->src[(c * NV + a) * NP + j] : 0.0;
+      beta[a * NP + j] = -s * (R0[a * NP + j] + src);
+    }
+  /* h_a = O R beta + Yt (ZTg - ZMR beta) */
+  double *h = out + W_H;
+  for (int a = 0; a < NV; ++a) {
+    double y[MZ];
+    for (int z = 0; z < MZ; ++z) {
+      double v = ZTg[a * MZ + z];
+      for (int j = 0; j < NP; ++j) v -= ZMR[z * NP + j] * beta[a * NP + j];
+      y[z] = v;
+    }
+    for (int i = 0; i < DNF; ++i) {
+      double v = 0.0, w = 0.0;
+      for (int j = 0; j < NP; ++j) v += OR[i * NP + j] * beta[a * NP + j];
+      for (int z = 0; z < MZ; ++z) w += Yt[i * MZ + z] * y[z];
+      h[a * DNF + i] = v + w;
+    }
+  }
+  /* outward-flux data of each vertex's share, in the global facet basis */
+  double *data = out + W_DATA;
+  int64_t ci = t->cidx ? t->cidx[c] : -1;
+  for (int j = 0; j < NV; ++j) {
+    int kind = t->kind[c * NV + j];
+    double factor = (kind == FLUX || kind == CONTACT) ? size[j] : 0.0;
+    const double *tj = t->t + (c * NV + j) * NQF, *P = r->P + perm[j] * NF * NF;
+    for (int a = 0; a < NV; ++a) {
+      double loc[NF];
+      for (int k = 0; k < NF; ++k) {
+        double v = 0.0;
+        if (factor != 0.0) {
+          const double *b = r->base + ((j * NV + a) * NF + k) * NQF;
+          for (int q = 0; q < NQF; ++q) v += b[q] * tj[q];
+        }
+        loc[k] = factor * v;
+        if (kind == CONTACT && ci >= 0) loc[k] += size[j] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
+      }
+      for (int l = 0; l < NF; ++l) {
+        double v = 0.0;
+        for (int k = 0; k < NF; ++k) v += P[k * NF + l] * loc[k];
+        data[(j * NV + a) * NF + l] = v;
+      }
+    }
+  }
+  return 0;
+}
+
+void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc)
+{
+  for (int64_t c = 0; c < t->n; ++c) {
+    const double *x = t->x + c * NV * DIM;
+    double J[DIM][DIM], Ji[DIM][DIM], size[NV];
+    for (int i = 0; i < DIM; ++i)
+      for (int j = 0; j < DIM; ++j) J[i][j] = x[(j + 1) * DIM + i] - x[i];
+    double absdet = fabs(det_inv(J, Ji));
+    for (int j = 0; j < NV; ++j) size[j] = facet_size(x, j);
+    osc[c] = oscillation(r, t, c, absdet, size);
+  }
+}
+
+/* ---------------------------------------------------------------------------------- */
+/* patches                                                                              */
+/* ---------------------------------------------------------------------------------- */
+typedef struct {
+  int64_t key[DIM - 1 > 0 ? DIM - 1 : 1];
+  int kind;
+} spoke_t;
+
+static int key_cmp(const int64_t *a, const int64_t *b)
+{
+  for (int i = 0; i < DIM - 1; ++i) {
+    if (a[i] < b[i]) return -1;
+    if (a[i] > b[i]) return 1;
+  }
+  return 0;
+}
+
+typedef struct {
+  int np, ns, nu, dim, maxdeg;
+  int64_t *prow; int *ploc;       /* the pairs of the patch */
+  int *spoke;                     /* (np, DIM): index of each pair's spoke in the sorted list */
+  spoke_t *keys;                  /* the sorted unique spokes */
+  int *order;                     /* scratch for sorting */
+  spoke_t *raw;
+  int *unknown;                   /* per spoke: position of its first dof / NF, or -1 */
+  int *adj, *deg, *pos, *queue, *first;
+  double *A, *rhs, *Sooi, *Sso, *b;
+  const double *work;             /* the operators of the cells of the current chunk */
+  const int64_t *slot;            /* cell row -> its row in work */
+} scratch_t;
+
+#define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
+
+/* the spokes of the patch: sorted unique keys (the facet's vertices other than a) */
+static void spokes(const eq_table *t, scratch_t *w)
+{
+  int n = 0;
+  for (int p = 0; p < w->np; ++p) {
+    const int64_t *g = t->gvert + w->prow[p] * NV;
+    int a = w->ploc[p];
+    for (int j = 0; j < NV; ++j) {
+      if (j == a) continue;
+      int64_t o[DIM > 1 ? DIM - 1 : 1];
+      int m = 0;
+      for (int v = 0; v < NV; ++v) if (v != a && v != j) o[m++] = g[v];
+      for (int x = 1; x < m; ++x)           /* sort the d - 1 others */
+        for (int y = x; y > 0 && o[y - 1] > o[y]; --y) { int64_t s = o[y]; o[y] = o[y - 1]; o[y - 1] = s; }
+      for (int x = 0; x < DIM - 1; ++x) w->raw[n].key[x] = o[x];
+      w->raw[n].kind = t->kind[w->prow[p] * NV + j];
+      w->order[n] = n;
+      ++n;
+    }
+  }
+  /* insertion sort of the indices by key */
+  for (int x = 1; x < n; ++x) {
+    int v = w->order[x], y = x;
+    while (y > 0 && key_cmp(w->raw[w->order[y - 1]].key, w->raw[v].key) > 0) { w->order[y] = w->order[y - 1]; --y; }
+    w->order[y] = v;
+  }
+  int ns = 0;
+  for (int x = 0; x < n; ++x) {
+    int v = w->order[x];
+    if (ns == 0 || key_cmp(w->keys[ns - 1].key, w->raw[v].key) != 0) w->keys[ns++] = w->raw[v];
+    else w->keys[ns - 1].kind = w->raw[v].kind;
+    w->spoke[v] = ns - 1;     /* raw index v = pair * DIM + s */
+  }
+  w->ns = ns;
+}
+
+/* reverse Cuthill-McKee order of the unknown spokes; pos[spoke] = its block position */
+static void rcm(scratch_t *w)
+{
+  int ns = w->ns, md = w->maxdeg;
+  for (int i = 0; i < ns; ++i) w->deg[i] = 0;
+  int ok = 1;
+  for (int p = 0; p < w->np; ++p)
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      if (w->unknown[u] < 0) continue;
+      for (int s2 = 0; s2 < DIM; ++s2) {
+        int v = w->spoke[p * DIM + s2];
+        if (s1 == s2 || w->unknown[v] < 0) continue;
+        int seen = 0;
+        for (int e = 0; e < w->deg[u]; ++e) seen |= w->adj[u * md + e] == v;
+        if (!seen) { if (w->deg[u] < md) w->adj[u * md + w->deg[u]++] = v; else ok = 0; }
+      }
+    }
+  int count = 0;
+  for (int i = 0; i < ns; ++i) w->pos[i] = -1;
+  if (!ok) {   /* more neighbours than a manifold patch has: keep the sorted order */
+    for (int i = 0; i < ns; ++i) if (w->unknown[i] >= 0) w->pos[i] = count++;
+    return;
+  }
+  int *queue = w->queue, head = 0, tail = 0;
+  char *seen = (char *)w->first;   /* first[] is free here */
+  for (int i = 0; i < ns; ++i) seen[i] = 0;
+  for (;;) {
+    int start = -1;
+    for (int i = 0; i < ns; ++i)
+      if (w->unknown[i] >= 0 && !seen[i] && (start < 0 || w->deg[i] < w->deg[start])) start = i;
+    if (start < 0) break;
+    seen[start] = 1;
+    queue[tail++] = start;
+    while (head < tail) {
+      int u = queue[head++], lo = tail;
+      for (int e = 0; e < w->deg[u]; ++e) {
+        int v = w->adj[u * md + e];
+        if (!seen[v]) { seen[v] = 1; queue[tail++] = v; }
+      }
+      for (int x = lo + 1; x < tail; ++x)      /* neighbours by increasing degree */
+        for (int y = x; y > lo && w->deg[queue[y - 1]] > w->deg[queue[y]]; --y) {
+          int s = queue[y]; queue[y] = queue[y - 1]; queue[y - 1] = s;
+        }
+    }
+  }
+  for (int x = 0; x < tail; ++x) w->pos[queue[x]] = tail - 1 - x;
+}
+
+/* condensation of the opposite facet of pair p; Shat (SNF x SNF) and b (SNF) */
+static int condense(scratch_t *w, int p, double *Shat, double *b)
+{
+  const double *cw = CELL_WORK(w, w->prow[p]), *S = cw + W_S;
+  int a = w->ploc[p];
+  const double *h = cw + W_H + a * DNF, *data = cw + W_DATA;
+  int Is[SNF], Io[NF], n = 0;
+  for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) Is[n++] = j * NF + k;
+  for (int k = 0; k < NF; ++k) Io[k] = a * NF + k;
+  double Soo[NF * NF], tmp[NF * NF];
+  double *Sooi = w->Sooi + p * NF * NF, *Sso = w->Sso + p * SNF * NF;
+  for (int k = 0; k < NF; ++k)
+    for (int l = 0; l < NF; ++l) Soo[k * NF + l] = S[Io[k] * DNF + Io[l]];
+  if (invert(NF, Soo, Sooi, tmp)) return 1;
+  for (int i = 0; i < SNF; ++i)
+    for (int l = 0; l < NF; ++l) Sso[i * NF + l] = S[Is[i] * DNF + Io[l]];
+  double T[SNF * NF];
+  matmul(SNF, NF, NF, Sso, Sooi, T);
+  for (int i = 0; i < SNF; ++i) {
+    for (int j = 0; j < SNF; ++j) {
+      double v = S[Is[i] * DNF + Is[j]];
+      for (int k = 0; k < NF; ++k) v -= T[i * NF + k] * Sso[j * NF + k];
+      Shat[i * SNF + j] = v;
+    }
+    double v = h[Is[i]];
+    for (int k = 0; k < NF; ++k) v -= T[i * NF + k] * h[Io[k]];
+    int j = Is[i] / NF, k = Is[i] % NF;
+    b[i] = v - data[(j * NV + a) * NF + k];
+  }
+  return 0;
+}
+
+static void assemble(scratch_t *w, const double *Shat_all, const double *b_all, int dense)
+{
+  int dim = w->dim;
+  double *A = w->A, *rhs = w->rhs;
+  if (dense) memset(A, 0, sizeof(double) * dim * dim);
+  else for (int i = 0; i < dim; ++i) memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
+  memset(rhs, 0, sizeof(double) * dim);
+  for (int p = 0; p < w->np; ++p) {
+    const double *Shat = Shat_all + p * SNF * SNF, *b = b_all + p * SNF;
+    int row[SNF];
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      for (int k = 0; k < NF; ++k) row[s1 * NF + k] = w->unknown[u] < 0 ? -1 : w->pos[u] * NF + k;
+    }
+    for (int i = 0; i < SNF; ++i) {
+      if (row[i] < 0) continue;
+      rhs[row[i]] += b[i];
+      for (int j = 0; j < SNF; ++j)
+        if (row[j] >= 0 && (dense || row[j] <= row[i])) A[row[i] * dim + row[j]] += Shat[i * SNF + j];
+    }
+  }
+}
+
+/* envelope Cholesky of the lower triangle and solve, in place; 1 on a non-positive pivot */
+static int envelope_solve(int n, double *A, const int *first, double *x)
+{
+  for (int i = 0; i < n; ++i) {
+    double *Ai = A + i * n;
+    for (int j = first[i]; j < i; ++j) {
+      const double *Aj = A + j * n;
+      double s = Ai[j];
+      int k0 = first[i] > first[j] ? first[i] : first[j];
+      for (int k = k0; k < j; ++k) s -= Ai[k] * Aj[k];
+      Ai[j] = s / Aj[j];
+    }
+    double s = Ai[i];
+    for (int k = first[i]; k < i; ++k) s -= Ai[k] * Ai[k];
+    if (!(s > 0.0)) return 1;
+    Ai[i] = sqrt(s);
+  }
+  for (int i = 0; i < n; ++i) {
+    double s = x[i];
+    for (int k = first[i]; k < i; ++k) s -= A[i * n + k] * x[k];
+    x[i] = s / A[i * n + i];
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    x[i] /= A[i * n + i];
+    for (int k = first[i]; k < i; ++k) x[k] -= A[i * n + k] * x[i];
+  }
+  return 0;
+}
+
+static int solve_patch(const eq_ref *r, scratch_t *w, double *Shat, double *bb, double *alpha,
+                       double *defect)
+{
+  int has_dirichlet = 0, nu = 0;
+  for (int i = 0; i < w->ns; ++i) {
+    has_dirichlet |= w->keys[i].kind == DIRICHLET;
+    w->unknown[i] = w->keys[i].kind == DIRICHLET ? -1 : nu++;
+  }
+  for (int p = 0; p < w->np; ++p)
+    if (condense(w, p, Shat + p * SNF * SNF, bb + p * SNF)) return 1;
+  int dim = nu * NF;
+  w->dim = dim;
+  double *mu = w->rhs;
+  if (nu > 0) {
+    rcm(w);
+    /* envelope: first dof coupled to each dof */
+    for (int i = 0; i < dim; ++i) w->first[i] = (i / NF) * NF;
+    for (int p = 0; p < w->np; ++p) {
+      int lo = dim;
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int u = w->spoke[p * DIM + s1];
+        if (w->unknown[u] >= 0 && w->pos[u] * NF < lo) lo = w->pos[u] * NF;
+      }
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int u = w->spoke[p * DIM + s1];
+        if (w->unknown[u] < 0) continue;
+        for (int k = 0; k < NF; ++k) {
+          int i = w->pos[u] * NF + k;
+          if (lo < w->first[i]) w->first[i] = lo;
+        }
+      }
+    }
+    assemble(w, Shat, bb, 0);
+    double kk = 0.0;
+    int kmax = 0;
+    for (int k = 0; k < NF; ++k) {
+      kk += r->kappa[k] * r->kappa[k];
+      if (fabs(r->kappa[k]) > fabs(r->kappa[kmax])) kmax = k;
+    }
+    kk *= nu;
+    if (!has_dirichlet) {   /* project out the balance; pin one constant moment */
+      double bal = 0.0;
+      for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
+      *defect += fabs(bal) / kk * sqrt(kk);
+      for (int i = 0; i < dim; ++i) w->rhs[i] -= bal / kk * r->kappa[i % NF];
+      int pin = kmax;    /* block position 0 */
+      for (int j = w->first[pin]; j < pin; ++j) w->A[pin * dim + j] = 0.0;
+      for (int i = pin + 1; i < dim; ++i) if (w->first[i] <= pin) w->A[i * dim + pin] = 0.0;
+      w->A[pin * dim + pin] = 1.0;
+      w->rhs[pin] = 0.0;
+    }
+    if (envelope_solve(dim, w->A, w->first, w->rhs)) {
+      /* fall back: the regularized dense system of patches.py and LU */
+      assemble(w, Shat, bb, 1);
+      if (!has_dirichlet) {
+        double bal = 0.0, tr = 0.0;
+        for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
+        for (int i = 0; i < dim; ++i) { w->rhs[i] -= bal / kk * r->kappa[i % NF]; tr += w->A[i * dim + i]; }
+        double scale = tr / (dim * kk);
+        for (int i = 0; i < dim; ++i)
+          for (int j = 0; j < dim; ++j) w->A[i * dim + j] += scale * r->kappa[i % NF] * r->kappa[j % NF];
+      }
+      if (lu_solve(dim, w->A, w->rhs, 1)) return 2;
+    } else if (!has_dirichlet) {
+      double c = 0.0;
+      for (int i = 0; i < dim; ++i) c += w->rhs[i] * r->kappa[i % NF];
+      for (int i = 0; i < dim; ++i) w->rhs[i] -= c / kk * r->kappa[i % NF];
+    }
+  }
+  /* back substitution, pair by pair */
+  for (int p = 0; p < w->np; ++p) {
+    int64_t c = w->prow[p];
+    int a = w->ploc[p];
+    const double *cw = CELL_WORK(w, c), *h = cw + W_H + a * DNF, *beta = cw + W_BETA + a * NP;
+    const double *Sooi = w->Sooi + p * NF * NF, *Sso = w->Sso + p * SNF * NF;
+    double m[DNF], mus[SNF];
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      for (int k = 0; k < NF; ++k) mus[s1 * NF + k] = w->unknown[u] < 0 ? 0.0 : mu[w->pos[u] * NF + k];
+    }
+    int n = 0;
+    for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) m[j * NF + k] = mus[n++];
+    double y[NF];
+    for (int k = 0; k < NF; ++k) {
+      double v = h[a * NF + k];
+      for (int i = 0; i < SNF; ++i) v -= Sso[i * NF + k] * mus[i];
+      y[k] = v;
+    }
+    for (int k = 0; k < NF; ++k) {
+      double v = 0.0;
+      for (int l = 0; l < NF; ++l) v += Sooi[k * NF + l] * y[l];
+      m[a * NF + k] = v;
+    }
+    const double *ZTg = cw + W_ZTG + a * MZ, *ZMR = cw + W_ZMR, *OZ = cw + W_OZ, *MZi = cw + W_MZI;
+    double g[MZ], gam[MZ];
+    for (int z = 0; z < MZ; ++z) {
+      double v = ZTg[z], u = 0.0, o = 0.0;
+      for (int j = 0; j < NP; ++j) u += ZMR[z * NP + j] * beta[j];
+      for (int i = 0; i < DNF; ++i) o += OZ[i * MZ + z] * m[i];
+      g[z] = v - u - o;
+    }
+    for (int z = 0; z < MZ; ++z) {
+      double v = 0.0;
+      for (int y2 = 0; y2 < MZ; ++y2) v += MZi[z * MZ + y2] * g[y2];
+      gam[z] = v;
+    }
+    double *al = alpha + c * M;
+    for (int l = 0; l < M; ++l) {
+      double v = 0.0, u = 0.0;
+      for (int j = 0; j < NP; ++j) v += r->R[l * NP + j] * beta[j];
+      for (int z = 0; z < MZ; ++z) u += r->Z[l * MZ + z] * gam[z];
+      al[l] += v + u;
+    }
+  }
+  return 0;
+}
+
+/* The patches of the vertices vlo <= g < vhi, in chunks whose cells' operators fit in
+   ``capacity`` work rows (each computed once per chunk it is needed in); stats[0] += the
+   projected balance defect, stats[1] += the number of cell evaluations. */
+int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+               double *alpha, double *stats)
+{
+  int64_t nv = vhi - vlo, total = 0;
+  int64_t *start = calloc(nv + 1, sizeof(int64_t));
+  if (!start) return 3;
+  for (int64_t i = 0; i < t->n * NV; ++i) {
+    int64_t g = t->gvert[i];
+    if (g >= vlo && g < vhi) { ++start[g - vlo + 1]; ++total; }
+  }
+  int maxp = 0;
+  for (int64_t v = 0; v < nv; ++v) { if (start[v + 1] > maxp) maxp = (int)start[v + 1]; start[v + 1] += start[v]; }
+  if (capacity < maxp) capacity = maxp;
+  int64_t *prow = malloc(sizeof(int64_t) * (total + 1));
+  int *ploc = malloc(sizeof(int) * (total + 1));
+  int64_t *cur = malloc(sizeof(int64_t) * (nv + 1));
+  int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1)), *cells = malloc(sizeof(int64_t) * capacity);
+  double *work = malloc(sizeof(double) * W_SIZE * capacity);
+  int nraw = maxp * DIM > 0 ? maxp * DIM : 1, maxdim = nraw * NF;
+  scratch_t w;
+  w.maxdeg = 2 * (DIM - 1) + 2;
+  w.spoke = malloc(sizeof(int) * nraw);
+  w.keys = malloc(sizeof(spoke_t) * nraw);
+  w.raw = malloc(sizeof(spoke_t) * nraw);
+  w.order = malloc(sizeof(int) * nraw);
+  w.unknown = malloc(sizeof(int) * nraw);
+  w.adj = malloc(sizeof(int) * nraw * w.maxdeg);
+  w.deg = malloc(sizeof(int) * nraw);
+  w.pos = malloc(sizeof(int) * nraw);
+  w.queue = malloc(sizeof(int) * nraw);
+  w.first = malloc(sizeof(int) * maxdim + nraw);
+  w.A = malloc(sizeof(double) * (size_t)maxdim * maxdim);
+  w.rhs = malloc(sizeof(double) * maxdim);
+  w.Sooi = malloc(sizeof(double) * nraw * NF * NF);
+  w.Sso = malloc(sizeof(double) * nraw * SNF * NF);
+  w.work = work;
+  w.slot = slot;
+  double *Shat = malloc(sizeof(double) * nraw * SNF * SNF), *bb = malloc(sizeof(double) * nraw * SNF);
+  int err = 0;
+  if (!prow || !ploc || !cur || !slot || !cells || !work || !w.spoke || !w.keys || !w.raw || !w.order ||
+      !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs || !w.Sooi ||
+      !w.Sso || !Shat || !bb) err = 3;
+  if (!err) {
+    memcpy(cur, start, sizeof(int64_t) * nv);
+    for (int64_t c = 0; c < t->n; ++c)
+      for (int a = 0; a < NV; ++a) {
+        int64_t g = t->gvert[c * NV + a];
+        if (g >= vlo && g < vhi) { int64_t x = cur[g - vlo]++; prow[x] = c; ploc[x] = a; }
+      }
+    for (int64_t c = 0; c < t->n; ++c) slot[c] = -1;
+  }
+  int64_t v0 = 0;
+  while (v0 < nv && !err) {
+    /* the chunk: vertices v0 .. v1 - 1 whose cells fit */
+    int64_t used = 0, v1 = v0;
+    while (v1 < nv) {
+      int64_t fresh = 0;
+      for (int64_t x = start[v1]; x < start[v1 + 1]; ++x) fresh += slot[prow[x]] < 0;
+      if (used + fresh > capacity) break;
+      for (int64_t x = start[v1]; x < start[v1 + 1]; ++x)
+        if (slot[prow[x]] < 0) { slot[prow[x]] = used; cells[used++] = prow[x]; }
+      ++v1;
+    }
+    for (int64_t i = 0; i < used && !err; ++i)
+      if (cell(r, t, cells[i], work + i * W_SIZE)) err = 1;
+    stats[1] += (double)used;
+    for (int64_t v = v0; v < v1 && !err; ++v) {
+      if (start[v + 1] == start[v]) continue;
+      w.np = (int)(start[v + 1] - start[v]);
+      w.prow = prow + start[v];
+      w.ploc = ploc + start[v];
+      spokes(t, &w);
+      err = solve_patch(r, &w, Shat, bb, alpha, stats);
+    }
+    for (int64_t i = 0; i < used; ++i) slot[cells[i]] = -1;
+    v0 = v1;
+  }
+  free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
+  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.Sooi); free(w.Sso);
+  free(Shat); free(bb); free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(work);
+  return err;
+}
+"""
