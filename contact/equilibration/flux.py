@@ -92,7 +92,8 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     clock = _Clock()
     if multiplier is not None and data.lmbda_h is None:
         raise ValueError("lmbda_h: the discrete multiplier is needed when the flux carries one")
-    table, n_owned = local_table(data, ref)
+    DG0 = fem.functionspace(msh, ("DG", 0))
+    table, n_owned = local_table(data, ref, DG0)
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
     vmap = msh.topology.index_map(0)
@@ -105,16 +106,17 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
     if backend == "compiled":
-        sigma_h = rt_function(msh, ref, alpha)
+        sigma_h = rt_function(msh, ref, alpha)          # transforms alpha in place
         sigma_cells = None
     else:
         sigma_cells = cellwise(msh, ref, table, alpha)
         sigma_h = _interpolated(msh, ref, sigma_cells)
         osc = _oscillation(table, ref)
-    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign)
+    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
     clock.lap("assemble")
     defect = comm.allreduce(out.defect)
-    cells = (lambda: sigma_cells) if sigma_cells is not None else (lambda: cellwise(msh, ref, table, alpha))
+    cells = (lambda: sigma_cells) if sigma_cells is not None else \
+        (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
     return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells)
 
 
@@ -145,14 +147,23 @@ def rt_function(msh, ref: Reference, alpha: np.ndarray) -> fem.Function:
     RT = _rt_space(msh, ref)
     sigma_h = fem.Function(RT, name="sigma_h")
     n = len(alpha)
-    values = np.array(alpha, dtype=np.float64)             # Tt_inv_apply works in place
     if RT.element.needs_dof_transformations:
         msh.topology.create_entity_permutations()
         perms = msh.topology.get_cell_permutation_info()[:n]
-        RT.element.Tt_inv_apply(values.reshape(-1), perms, 1)
-    sigma_h.x.array[RT.dofmap.list[:n]] = values
+        RT.element.Tt_inv_apply(alpha.reshape(-1), perms, 1)
+    sigma_h.x.array[RT.dofmap.list[:n]] = alpha
     sigma_h.x.scatter_forward()
     return sigma_h
+
+
+def rt_coefficients(sigma_h: fem.Function, n: int) -> np.ndarray:
+    """The reference coefficients α = Tᵀ u of the first n cells (the inverse of :func:`rt_function`)."""
+    RT = sigma_h.function_space
+    alpha = sigma_h.x.array[RT.dofmap.list[:n]]
+    if RT.element.needs_dof_transformations:
+        msh = RT.mesh
+        RT.element.Tt_apply(alpha.reshape(-1), msh.topology.get_cell_permutation_info()[:n], 1)
+    return alpha
 
 
 def _interpolated(msh, ref: Reference, sigma_cells: fem.Function) -> fem.Function:
@@ -193,7 +204,7 @@ def _rt_element(d: int, p: int):
     return basix.create_element(basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre)
 
 
-def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign):
+def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, DG0):
     """λ_h clipped, the Bernstein bubble and κ (:class:`Flux`) from the owned rows."""
     n = len(table)
     nodal = clipped(table.lam, sign)
@@ -213,7 +224,6 @@ def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign)
         kappa[kappa == 0.0] = 1.0
     for fn in (lmbda_clip, bubble):
         fn.x.scatter_forward()
-    DG0 = fem.functionspace(V.mesh, ("DG", 0))
     kap = fem.Function(DG0, name="kappa")
     kap.x.array[:n] = kappa
     kap.x.scatter_forward()

@@ -55,15 +55,21 @@ SOURCE = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include 
 #define SNF (DIM * NF)
 enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
 
-#define W_S 0
-#define W_OZ (W_S + DNF * DNF)
+/* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
+   μ_o = ho_a − Ta_a μ_s) and the final map to alpha (OZ, M_Z⁻¹, ZMR, β_a, Zᵀg_a) need */
+#define W_OZ 0
 #define W_MZI (W_OZ + DNF * MZ)
 #define W_ZMR (W_MZI + MZ * MZ)
 #define W_BETA (W_ZMR + MZ * NP)
 #define W_ZTG (W_BETA + NV * NP)
-#define W_H (W_ZTG + NV * MZ)
-#define W_DATA (W_H + NV * DNF)
-#define W_SIZE (W_DATA + NV * NV * NF)
+#define W_SHAT (W_ZTG + NV * MZ)
+#define W_B (W_SHAT + NV * SNF * SNF)
+#define W_TA (W_B + NV * SNF)
+#define W_HO (W_TA + NV * NF * SNF)
+#define W_SIZE (W_HO + NV * NF)
+#define DENSE 24                        /* patch systems up to this size: no reordering */
+#define LB 8                            /* cells per block: the SIMD lanes of cell_block */
+#define LANES for (int b = 0; b < LB; ++b)
 
 int64_t eq_work_size(void) { return W_SIZE; }
 
@@ -254,159 +260,286 @@ static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double 
   return osc / sqrt(kmin);
 }
 
-/* The operators of cell row c (operators.py), written to out[0 .. W_SIZE). */
-static int cell(const eq_ref *restrict r, const eq_table *restrict t, int64_t c, double *restrict out)
+/* SPD inverses of LB n x n matrices at once (entry (i, j) of lane b at [(i n + j) LB + b]) by
+   Cholesky; a lane with a non-positive pivot is inverted by LU instead. */
+static int spd_inverse_lanes(int n, const double *restrict A, double *restrict Ainv)
 {
-  const double *x = t->x + c * NV * DIM, *kq = t->k + c * NQ, *fq = t->f + c * NQ;
-  const double *U = t->U + c * NU;
-  double J[DIM][DIM], Ji[DIM][DIM];
+  double L[MAXN * MAXN][LB], Li[MAXN * MAXN][LB];
+  int bad[LB] = {0};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v[LB];
+      LANES v[b] = A[(i * n + j) * LB + b];
+      for (int k = 0; k < j; ++k) LANES v[b] -= L[i * MAXN + k][b] * L[j * MAXN + k][b];
+      if (i == j) {
+        LANES { if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; } L[i * MAXN + i][b] = sqrt(v[b]); }
+      } else {
+        LANES L[i * MAXN + j][b] = v[b] / L[j * MAXN + j][b];
+      }
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = j; i < n; ++i) {
+      double v[LB];
+      LANES v[b] = i == j ? 1.0 : 0.0;
+      for (int k = j; k < i; ++k) LANES v[b] -= L[i * MAXN + k][b] * Li[k * MAXN + j][b];
+      LANES Li[i * MAXN + j][b] = v[b] / L[i * MAXN + i][b];
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v[LB] = {0.0};
+      for (int k = i; k < n; ++k) LANES v[b] += Li[k * MAXN + i][b] * Li[k * MAXN + j][b];
+      LANES Ainv[(i * n + j) * LB + b] = Ainv[(j * n + i) * LB + b] = v[b];
+    }
+  for (int b = 0; b < LB; ++b) {
+    if (!bad[b]) continue;
+    double a[MAXN * MAXN], ai[MAXN * MAXN];
+    for (int k = 0; k < n * n; ++k) a[k] = A[k * LB + b];
+    memset(ai, 0, sizeof(double) * n * n);
+    for (int k = 0; k < n; ++k) ai[k * n + k] = 1.0;
+    if (lu_solve(n, a, ai, n)) return 1;
+    for (int k = 0; k < n * n; ++k) Ainv[k * LB + b] = ai[k];
+  }
+  return 0;
+}
+
+/* The operators of the cells cells[0 .. nb) (operators.py), condensed per vertex (patches.py),
+   into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
+   fills the lanes nb .. LB - 1 and is not stored twice). */
+static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells, int nb,
+                      double *const *rows)
+{
+  int64_t cl[LB];
+  LANES cl[b] = cells[b < nb ? b : nb - 1];
+  double X[NV * DIM][LB], K[NQ][LB], F[NQ][LB], Uc[NU][LB];
+  for (int v = 0; v < NV * DIM; ++v) LANES X[v][b] = t->x[cl[b] * NV * DIM + v];
+  for (int q = 0; q < NQ; ++q) LANES { K[q][b] = t->k[cl[b] * NQ + q]; F[q][b] = t->f[cl[b] * NQ + q]; }
+  for (int u = 0; u < NU; ++u) LANES Uc[u][b] = t->U[cl[b] * NU + u];
+  double J[DIM][DIM][LB], Ji[DIM][DIM][LB], det[LB], s[LB], absdet[LB];
   for (int i = 0; i < DIM; ++i)
-    for (int j = 0; j < DIM; ++j) J[i][j] = x[(j + 1) * DIM + i] - x[i];
-  double det = det_inv(J, Ji);
-  double s = (det > 0) - (det < 0), absdet = fabs(det);
-  double GM[DIM][DIM], KS[DIM][DIM];
+    for (int j = 0; j < DIM; ++j) LANES J[i][j][b] = X[(j + 1) * DIM + i][b] - X[i][b];
+#if DIM == 2
+  LANES {
+    det[b] = J[0][0][b] * J[1][1][b] - J[0][1][b] * J[1][0][b];
+    Ji[0][0][b] = J[1][1][b] / det[b]; Ji[1][1][b] = J[0][0][b] / det[b];
+    Ji[0][1][b] = -J[0][1][b] / det[b]; Ji[1][0][b] = -J[1][0][b] / det[b];
+  }
+#else
+  double adj[3][3][LB];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
+      if (r0 > r1) { int u = r0; r0 = r1; r1 = u; }
+      if (c0 > c1) { int u = c0; c0 = c1; c1 = u; }
+      double sg = (i + j) % 2 ? -1.0 : 1.0;
+      LANES adj[i][j][b] = sg * (J[r0][c0][b] * J[r1][c1][b] - J[r0][c1][b] * J[r1][c0][b]);
+    }
+  LANES det[b] = J[0][0][b] * adj[0][0][b] + J[0][1][b] * adj[1][0][b] + J[0][2][b] * adj[2][0][b];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) LANES Ji[i][j][b] = adj[i][j][b] / det[b];
+#endif
+  LANES { s[b] = (det[b] > 0) - (det[b] < 0); absdet[b] = fabs(det[b]); }
+  double GM[DIM * DIM][LB], KS[DIM][DIM][LB], kT[LB] = {0.0};
   for (int i = 0; i < DIM; ++i)
     for (int j = 0; j < DIM; ++j) {
-      double a = 0.0, b = 0.0;
-      for (int l = 0; l < DIM; ++l) { a += J[l][i] * J[l][j]; b += Ji[i][l] * Ji[j][l]; }
-      GM[i][j] = a / absdet;
-      KS[i][j] = b * absdet;
+      double g[LB] = {0.0}, h[LB] = {0.0};
+      for (int l = 0; l < DIM; ++l) LANES { g[b] += J[l][i][b] * J[l][j][b]; h[b] += Ji[i][l][b] * Ji[j][l][b]; }
+      LANES { GM[i * DIM + j][b] = g[b] / absdet[b]; KS[i][j][b] = h[b] * absdet[b]; }
     }
-  double kT = 0.0;
-  for (int q = 0; q < NQ; ++q) kT += kq[q] * r->w[q];
-  kT /= r->wsum;
-  double MZ_[MZ * MZ], tmp[MZ * MZ];
-  double *MZi = out + W_MZI, *ZMR = out + W_ZMR, *OZ = out + W_OZ, *S = out + W_S;
+  for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
+  LANES kT[b] /= r->wsum;
+  /* M_Z = Zᵀ M Z, M_Z⁻¹ and Zᵀ M R (the weight k_T⁻¹) */
+  double MZm[MZ * MZ * LB], MZi[MZ * MZ * LB], ZMR[MZ * NP][LB];
   for (int a = 0; a < MZ * MZ; ++a) {
-    double v = 0.0;
-    for (int ij = 0; ij < DIM * DIM; ++ij) v += GM[ij / DIM][ij % DIM] * r->ZZ[ij * MZ * MZ + a];
-    MZ_[a] = v / kT;
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZZ[ij * MZ * MZ + a];
+    LANES MZm[a * LB + b] = v[b] / kT[b];
   }
-  if (invert(MZ, MZ_, MZi, tmp)) return 1;
+  if (spd_inverse_lanes(MZ, MZm, MZi)) return 1;
   for (int a = 0; a < MZ * NP; ++a) {
-    double v = 0.0;
-    for (int ij = 0; ij < DIM * DIM; ++ij) v += GM[ij / DIM][ij % DIM] * r->ZR[ij * MZ * NP + a];
-    ZMR[a] = v / kT;
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZR[ij * MZ * NP + a];
+    LANES ZMR[a][b] = v[b] / kT[b];
   }
-  int perm[NV];
-  double size[NV];
-  double OR[DNF * NP];
-  for (int j = 0; j < NV; ++j) {
-    perm[j] = facet_perm(r, t->gvert + c * NV, j);
-    size[j] = facet_size(x, j);
-    const double *P = r->P + perm[j] * NF * NF;
+  /* facet orientations and sizes; O Z and O R in the global facet bases */
+  double Pl[NV][NF * NF][LB], size[NV][LB];
+  for (int b = 0; b < LB; ++b)
+    for (int j = 0; j < NV; ++j) {
+      const double *P = r->P + facet_perm(r, t->gvert + cl[b] * NV, j) * NF * NF;
+      for (int kl = 0; kl < NF * NF; ++kl) Pl[j][kl][b] = P[kl];
+      size[j][b] = facet_size(t->x + cl[b] * NV * DIM, j);
+    }
+  double OZ[DNF * MZ][LB], OR[DNF * NP][LB];
+  for (int j = 0; j < NV; ++j)
     for (int l = 0; l < NF; ++l) {
       for (int z = 0; z < MZ; ++z) {
-        double v = 0.0;
-        for (int k = 0; k < NF; ++k) v += P[k * NF + l] * r->NZ[(j * NF + k) * MZ + z];
-        OZ[(j * NF + l) * MZ + z] = s * v;
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * r->NZ[(j * NF + k) * MZ + z];
+        LANES OZ[(j * NF + l) * MZ + z][b] = s[b] * v[b];
       }
       for (int z = 0; z < NP; ++z) {
-        double v = 0.0;
-        for (int k = 0; k < NF; ++k) v += P[k * NF + l] * r->NR[(j * NF + k) * NP + z];
-        OR[(j * NF + l) * NP + z] = s * v;
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * r->NR[(j * NF + k) * NP + z];
+        LANES OR[(j * NF + l) * NP + z][b] = s[b] * v[b];
       }
     }
-  }
-  double Yt[DNF * MZ];
-  matmul(DNF, MZ, MZ, OZ, MZi, Yt);
+  /* Yt = (O Z) M_Z⁻¹, S = Yt (O Z)ᵀ */
+  double Yt[DNF * MZ][LB], S[DNF * DNF][LB];
+  for (int i = 0; i < DNF; ++i)
+    for (int c = 0; c < MZ; ++c) {
+      double v[LB] = {0.0};
+      for (int a = 0; a < MZ; ++a) LANES v[b] += OZ[i * MZ + a][b] * MZi[(a * MZ + c) * LB + b];
+      LANES Yt[i * MZ + c][b] = v[b];
+    }
   for (int i = 0; i < DNF; ++i)
     for (int j = 0; j <= i; ++j) {
-      double v = 0.0;
-      for (int a = 0; a < MZ; ++a) v += Yt[i * MZ + a] * OZ[j * MZ + a];
-      S[i * DNF + j] = S[j * DNF + i] = v;
+      double v[LB] = {0.0};
+      for (int a = 0; a < MZ; ++a) LANES v[b] += Yt[i * MZ + a][b] * OZ[j * MZ + a][b];
+      LANES S[i * DNF + j][b] = S[j * DNF + i][b] = v[b];
     }
-  /* data terms at the points */
-  double gu[NQ][DIM], lhs[NQ][DIM], KSd[DIM][NV];
+  /* the data at the points: ∇̂û, the load Zᵀg_a and the divergence moments */
+  double gu[NQ * DIM][LB], lhs[NQ * DIM][LB];
   for (int q = 0; q < NQ; ++q)
     for (int i = 0; i < DIM; ++i) {
-      double v = 0.0;
-      for (int u = 0; u < NU; ++u) v += U[u] * r->dphi[(q * NU + u) * DIM + i];
-      gu[q][i] = v;
+      double v[LB] = {0.0};
+      for (int u = 0; u < NU; ++u) LANES v[b] += Uc[u][b] * r->dphi[(q * NU + u) * DIM + i];
+      LANES gu[q * DIM + i][b] = v[b];
     }
   if (t->tau) {
-    const double *tau = t->tau + c * NQ * DIM;
+    double TAU[NQ * DIM][LB];
+    for (int qj = 0; qj < NQ * DIM; ++qj) LANES TAU[qj][b] = t->tau[cl[b] * NQ * DIM + qj];
     for (int q = 0; q < NQ; ++q)
       for (int i = 0; i < DIM; ++i) {
-        double v = 0.0;
-        for (int j = 0; j < DIM; ++j) v += J[j][i] * tau[q * DIM + j];
-        lhs[q][i] = v / kT;
+        double v[LB] = {0.0};
+        for (int j = 0; j < DIM; ++j) LANES v[b] += J[j][i][b] * TAU[q * DIM + j][b];
+        LANES lhs[q * DIM + i][b] = v[b] / kT[b];
       }
   } else {
     for (int q = 0; q < NQ; ++q)
-      for (int i = 0; i < DIM; ++i) lhs[q][i] = gu[q][i] * kq[q] / kT;
+      for (int i = 0; i < DIM; ++i) LANES lhs[q * DIM + i][b] = gu[q * DIM + i][b] * K[q][b] / kT[b];
   }
-  double *ZTg = out + W_ZTG, *beta = out + W_BETA;
-  double acc[NV * MZ] = {0.0};
-  for (int q = 0; q < NQ; ++q)
-    for (int i = 0; i < DIM; ++i) {
-      const double *restrict zg = r->ZG + (q * DIM + i) * NV * MZ;
-      double l = lhs[q][i];
-      for (int az = 0; az < NV * MZ; ++az) acc[az] += l * zg[az];
-    }
-  for (int az = 0; az < NV * MZ; ++az) ZTg[az] = s * acc[az];
+  double ZTg[NV * MZ][LB] = {{0.0}};
+  for (int qi = 0; qi < NQ * DIM; ++qi) {
+    const double *zg = r->ZG + qi * NV * MZ;
+    for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] += lhs[qi][b] * zg[az];
+  }
+  for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] *= s[b];
+  double KSd[DIM * NV][LB], R0[NV * NP][LB] = {{0.0}}, beta[NV * NP][LB];
   for (int i = 0; i < DIM; ++i)
     for (int a = 0; a < NV; ++a) {
-      double v = 0.0;
-      for (int k = 0; k < DIM; ++k) v += KS[i][k] * r->dlam[a * DIM + k];
-      KSd[i][a] = v;
+      double v[LB] = {0.0};
+      for (int k = 0; k < DIM; ++k) LANES v[b] += KS[i][k][b] * r->dlam[a * DIM + k];
+      LANES KSd[i * NV + a][b] = v[b];
     }
-  double R0[NV * NP] = {0.0};
   for (int q = 0; q < NQ; ++q) {
     const double *wl = r->wlamQ + q * NV * NP;
-    double fa = absdet * fq[q];
     for (int a = 0; a < NV; ++a) {
-      double v = 0.0;
-      for (int i = 0; i < DIM; ++i) v += gu[q][i] * KSd[i][a];
-      v *= kq[q];
-      for (int j = 0; j < NP; ++j) R0[a * NP + j] += fa * wl[a * NP + j] - v * r->wQ[q * NP + j];
+      double v[LB] = {0.0};
+      for (int i = 0; i < DIM; ++i) LANES v[b] += gu[q * DIM + i][b] * KSd[i * NV + a][b];
+      for (int j = 0; j < NP; ++j)
+        LANES R0[a * NP + j][b] += absdet[b] * F[q][b] * wl[a * NP + j] - v[b] * K[q][b] * r->wQ[q * NP + j];
     }
   }
-  for (int a = 0; a < NV; ++a)
-    for (int j = 0; j < NP; ++j) {
-      double src = t->src ? absdet * t->src[(c * NV + a) * NP + j] : 0.0;
-      beta[a * NP + j] = -s * (R0[a * NP + j] + src);
-    }
-  /* h_a = O R beta + Yt (ZTg - ZMR beta) */
-  double *h = out + W_H;
+  if (t->src)
+    for (int aj = 0; aj < NV * NP; ++aj) LANES R0[aj][b] += absdet[b] * t->src[cl[b] * NV * NP + aj];
+  for (int aj = 0; aj < NV * NP; ++aj) LANES beta[aj][b] = -s[b] * R0[aj][b];
+  /* h_a = O R β_a + Yt (Zᵀg_a − ZMR β_a) */
+  double h[NV * DNF][LB];
   for (int a = 0; a < NV; ++a) {
-    double y[MZ];
+    double y[MZ][LB];
     for (int z = 0; z < MZ; ++z) {
-      double v = ZTg[a * MZ + z];
-      for (int j = 0; j < NP; ++j) v -= ZMR[z * NP + j] * beta[a * NP + j];
-      y[z] = v;
+      LANES y[z][b] = ZTg[a * MZ + z][b];
+      for (int j = 0; j < NP; ++j) LANES y[z][b] -= ZMR[z * NP + j][b] * beta[a * NP + j][b];
     }
     for (int i = 0; i < DNF; ++i) {
-      double v = 0.0, w = 0.0;
-      for (int j = 0; j < NP; ++j) v += OR[i * NP + j] * beta[a * NP + j];
-      for (int z = 0; z < MZ; ++z) w += Yt[i * MZ + z] * y[z];
-      h[a * DNF + i] = v + w;
+      double v[LB] = {0.0};
+      for (int j = 0; j < NP; ++j) LANES v[b] += OR[i * NP + j][b] * beta[a * NP + j][b];
+      for (int z = 0; z < MZ; ++z) LANES v[b] += Yt[i * MZ + z][b] * y[z][b];
+      LANES h[a * DNF + i][b] = v[b];
     }
   }
-  /* outward-flux data of each vertex's share, in the global facet basis */
-  double *data = out + W_DATA;
-  int64_t ci = t->cidx ? t->cidx[c] : -1;
+  /* outward-flux data of each vertex's share, in the global facet bases */
+  double data[NV * NV * NF][LB];
   for (int j = 0; j < NV; ++j) {
-    int kind = t->kind[c * NV + j];
-    double factor = (kind == FLUX || kind == CONTACT) ? size[j] : 0.0;
-    const double *tj = t->t + (c * NV + j) * NQF, *P = r->P + perm[j] * NF * NF;
+    double factor[LB], Tq[NQF][LB];
+    int any = 0;
+    LANES {
+      int kind = t->kind[cl[b] * NV + j];
+      factor[b] = (kind == FLUX || kind == CONTACT) ? size[j][b] : 0.0;
+      any |= kind == FLUX || kind == CONTACT;
+    }
+    if (any)
+      for (int q = 0; q < NQF; ++q) LANES Tq[q][b] = t->t[(cl[b] * NV + j) * NQF + q];
     for (int a = 0; a < NV; ++a) {
-      double loc[NF];
-      for (int k = 0; k < NF; ++k) {
-        double v = 0.0;
-        if (factor != 0.0) {
-          const double *b = r->base + ((j * NV + a) * NF + k) * NQF;
-          for (int q = 0; q < NQF; ++q) v += b[q] * tj[q];
+      double loc[NF][LB] = {{0.0}};
+      if (any)
+        for (int k = 0; k < NF; ++k) {
+          const double *bs = r->base + ((j * NV + a) * NF + k) * NQF;
+          for (int q = 0; q < NQF; ++q) LANES loc[k][b] += bs[q] * Tq[q][b];
+          LANES loc[k][b] *= factor[b];
         }
-        loc[k] = factor * v;
-        if (kind == CONTACT && ci >= 0) loc[k] += size[j] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
-      }
+      if (t->cidx)
+        for (int b = 0; b < LB; ++b) {
+          int64_t ci = t->cidx[cl[b]];
+          if (ci >= 0 && t->kind[cl[b] * NV + j] == CONTACT)
+            for (int k = 0; k < NF; ++k) loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
+        }
       for (int l = 0; l < NF; ++l) {
-        double v = 0.0;
-        for (int k = 0; k < NF; ++k) v += P[k * NF + l] * loc[k];
-        data[(j * NV + a) * NF + l] = v;
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * loc[k][b];
+        LANES data[(j * NV + a) * NF + l][b] = v[b];
       }
     }
+  }
+  /* condensation of the facet opposite each vertex a (patches.py):
+     Ŝ_a = S_ss − T S_soᵀ, b_a = h_s − T h_o − data, T = S_so S_oo⁻¹; μ_o = S_oo⁻¹ h_o − Tᵀ μ_s */
+  for (int a = 0; a < NV; ++a) {
+    int Is[SNF], n = 0;
+    for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) Is[n++] = j * NF + k;
+    double Soo[NF * NF * LB], Sooi[NF * NF * LB], T[SNF * NF][LB];
+    for (int k = 0; k < NF; ++k)
+      for (int l = 0; l < NF; ++l) LANES Soo[(k * NF + l) * LB + b] = S[(a * NF + k) * DNF + a * NF + l][b];
+    if (spd_inverse_lanes(NF, Soo, Sooi)) return 1;
+    for (int i = 0; i < SNF; ++i)
+      for (int l = 0; l < NF; ++l) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k) LANES v[b] += S[Is[i] * DNF + a * NF + k][b] * Sooi[(k * NF + l) * LB + b];
+        LANES T[i * NF + l][b] = v[b];
+      }
+    double Sh[SNF * SNF][LB], bv[SNF][LB], ho[NF][LB];
+    for (int i = 0; i < SNF; ++i) {
+      for (int j = 0; j <= i; ++j) {
+        double v[LB];
+        LANES v[b] = S[Is[i] * DNF + Is[j]][b];
+        for (int k = 0; k < NF; ++k) LANES v[b] -= T[i * NF + k][b] * S[Is[j] * DNF + a * NF + k][b];
+        LANES Sh[i * SNF + j][b] = Sh[j * SNF + i][b] = v[b];
+      }
+      double v[LB];
+      const double *dat = data[((Is[i] / NF) * NV + a) * NF + Is[i] % NF];
+      LANES v[b] = h[a * DNF + Is[i]][b] - dat[b];
+      for (int k = 0; k < NF; ++k) LANES v[b] -= T[i * NF + k][b] * h[a * DNF + a * NF + k][b];
+      LANES bv[i][b] = v[b];
+    }
+    for (int k = 0; k < NF; ++k) {
+      double v[LB] = {0.0};
+      for (int l = 0; l < NF; ++l) LANES v[b] += Sooi[(k * NF + l) * LB + b] * h[a * DNF + a * NF + l][b];
+      LANES ho[k][b] = v[b];
+    }
+    for (int b = 0; b < nb; ++b) {
+      double *row = rows[b];
+      for (int k = 0; k < SNF * SNF; ++k) row[W_SHAT + a * SNF * SNF + k] = Sh[k][b];
+      for (int i = 0; i < SNF; ++i) row[W_B + a * SNF + i] = bv[i][b];
+      for (int k = 0; k < NF; ++k)
+        for (int i = 0; i < SNF; ++i) row[W_TA + (a * NF + k) * SNF + i] = T[i * NF + k][b];
+      for (int k = 0; k < NF; ++k) row[W_HO + a * NF + k] = ho[k][b];
+    }
+  }
+  for (int b = 0; b < nb; ++b) {
+    double *row = rows[b];
+    for (int k = 0; k < DNF * MZ; ++k) row[W_OZ + k] = OZ[k][b];
+    for (int k = 0; k < MZ * MZ; ++k) row[W_MZI + k] = MZi[k * LB + b];
+    for (int k = 0; k < MZ * NP; ++k) row[W_ZMR + k] = ZMR[k][b];
+    for (int k = 0; k < NV * NP; ++k) row[W_BETA + k] = beta[k][b];
+    for (int k = 0; k < NV * MZ; ++k) row[W_ZTG + k] = ZTg[k][b];
   }
   return 0;
 }
@@ -450,12 +583,15 @@ typedef struct {
   spoke_t *raw;
   int *unknown;                   /* per spoke: position of its first dof / NF, or -1 */
   int *adj, *deg, *pos, *queue, *first;
-  double *A, *rhs, *Sooi, *Sso, *b;
+  double *A, *rhs;
   const double *work;             /* the operators of the cells of the current chunk */
+  double *acc;                    /* per chunk cell: Σ β_a, Σ Zᵀg_a, Σ μ_a over its pairs */
   const int64_t *slot;            /* cell row -> its row in work */
 } scratch_t;
 
 #define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
+#define ACC_SIZE (NP + MZ + DNF)
+#define CELL_ACC(w, c) ((w)->acc + (w)->slot[c] * ACC_SIZE)
 
 /* the spokes of the patch: sorted unique keys (the facet's vertices other than a) */
 static void spokes(const eq_table *t, scratch_t *w)
@@ -542,39 +678,7 @@ static void rcm(scratch_t *w)
   for (int x = 0; x < tail; ++x) w->pos[queue[x]] = tail - 1 - x;
 }
 
-/* condensation of the opposite facet of pair p; Shat (SNF x SNF) and b (SNF) */
-static int condense(scratch_t *w, int p, double *Shat, double *b)
-{
-  const double *cw = CELL_WORK(w, w->prow[p]), *S = cw + W_S;
-  int a = w->ploc[p];
-  const double *h = cw + W_H + a * DNF, *data = cw + W_DATA;
-  int Is[SNF], Io[NF], n = 0;
-  for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) Is[n++] = j * NF + k;
-  for (int k = 0; k < NF; ++k) Io[k] = a * NF + k;
-  double Soo[NF * NF], tmp[NF * NF];
-  double *Sooi = w->Sooi + p * NF * NF, *Sso = w->Sso + p * SNF * NF;
-  for (int k = 0; k < NF; ++k)
-    for (int l = 0; l < NF; ++l) Soo[k * NF + l] = S[Io[k] * DNF + Io[l]];
-  if (invert(NF, Soo, Sooi, tmp)) return 1;
-  for (int i = 0; i < SNF; ++i)
-    for (int l = 0; l < NF; ++l) Sso[i * NF + l] = S[Is[i] * DNF + Io[l]];
-  double T[SNF * NF];
-  matmul(SNF, NF, NF, Sso, Sooi, T);
-  for (int i = 0; i < SNF; ++i) {
-    for (int j = 0; j < SNF; ++j) {
-      double v = S[Is[i] * DNF + Is[j]];
-      for (int k = 0; k < NF; ++k) v -= T[i * NF + k] * Sso[j * NF + k];
-      Shat[i * SNF + j] = v;
-    }
-    double v = h[Is[i]];
-    for (int k = 0; k < NF; ++k) v -= T[i * NF + k] * h[Io[k]];
-    int j = Is[i] / NF, k = Is[i] % NF;
-    b[i] = v - data[(j * NV + a) * NF + k];
-  }
-  return 0;
-}
-
-static void assemble(scratch_t *w, const double *Shat_all, const double *b_all, int dense)
+static void assemble(scratch_t *w, int dense)
 {
   int dim = w->dim;
   double *A = w->A, *rhs = w->rhs;
@@ -582,7 +686,8 @@ static void assemble(scratch_t *w, const double *Shat_all, const double *b_all, 
   else for (int i = 0; i < dim; ++i) memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
   memset(rhs, 0, sizeof(double) * dim);
   for (int p = 0; p < w->np; ++p) {
-    const double *Shat = Shat_all + p * SNF * SNF, *b = b_all + p * SNF;
+    const double *cw = CELL_WORK(w, w->prow[p]), *Shat = cw + W_SHAT + w->ploc[p] * SNF * SNF;
+    const double *b = cw + W_B + w->ploc[p] * SNF;
     int row[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
       int u = w->spoke[p * DIM + s1];
@@ -626,20 +731,20 @@ static int envelope_solve(int n, double *A, const int *first, double *x)
   return 0;
 }
 
-static int solve_patch(const eq_ref *r, scratch_t *w, double *Shat, double *bb, double *alpha,
-                       double *defect)
+static int solve_patch(const eq_ref *r, scratch_t *w, double *defect)
 {
   int has_dirichlet = 0, nu = 0;
   for (int i = 0; i < w->ns; ++i) {
     has_dirichlet |= w->keys[i].kind == DIRICHLET;
     w->unknown[i] = w->keys[i].kind == DIRICHLET ? -1 : nu++;
   }
-  for (int p = 0; p < w->np; ++p)
-    if (condense(w, p, Shat + p * SNF * SNF, bb + p * SNF)) return 1;
   int dim = nu * NF;
   w->dim = dim;
   double *mu = w->rhs;
-  if (nu > 0) {
+  if (nu > 0 && dim <= DENSE) {      /* small: the sorted order, a dense profile */
+    for (int i = 0; i < w->ns; ++i) w->pos[i] = w->unknown[i];
+    for (int i = 0; i < dim; ++i) w->first[i] = 0;
+  } else if (nu > 0) {
     rcm(w);
     /* envelope: first dof coupled to each dof */
     for (int i = 0; i < dim; ++i) w->first[i] = (i / NF) * NF;
@@ -658,7 +763,9 @@ static int solve_patch(const eq_ref *r, scratch_t *w, double *Shat, double *bb, 
         }
       }
     }
-    assemble(w, Shat, bb, 0);
+  }
+  if (nu > 0) {
+    assemble(w, 0);
     double kk = 0.0;
     int kmax = 0;
     for (int k = 0; k < NF; ++k) {
@@ -679,7 +786,7 @@ static int solve_patch(const eq_ref *r, scratch_t *w, double *Shat, double *bb, 
     }
     if (envelope_solve(dim, w->A, w->first, w->rhs)) {
       /* fall back: the regularized dense system of patches.py and LU */
-      assemble(w, Shat, bb, 1);
+      assemble(w, 1);
       if (!has_dirichlet) {
         double bal = 0.0, tr = 0.0;
         for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
@@ -699,8 +806,8 @@ static int solve_patch(const eq_ref *r, scratch_t *w, double *Shat, double *bb, 
   for (int p = 0; p < w->np; ++p) {
     int64_t c = w->prow[p];
     int a = w->ploc[p];
-    const double *cw = CELL_WORK(w, c), *h = cw + W_H + a * DNF, *beta = cw + W_BETA + a * NP;
-    const double *Sooi = w->Sooi + p * NF * NF, *Sso = w->Sso + p * SNF * NF;
+    const double *cw = CELL_WORK(w, c), *beta = cw + W_BETA + a * NP;
+    const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
     double m[DNF], mus[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
       int u = w->spoke[p * DIM + s1];
@@ -708,39 +815,41 @@ static int solve_patch(const eq_ref *r, scratch_t *w, double *Shat, double *bb, 
     }
     int n = 0;
     for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) m[j * NF + k] = mus[n++];
-    double y[NF];
     for (int k = 0; k < NF; ++k) {
-      double v = h[a * NF + k];
-      for (int i = 0; i < SNF; ++i) v -= Sso[i * NF + k] * mus[i];
-      y[k] = v;
-    }
-    for (int k = 0; k < NF; ++k) {
-      double v = 0.0;
-      for (int l = 0; l < NF; ++l) v += Sooi[k * NF + l] * y[l];
+      double v = ho[k];
+      for (int i = 0; i < SNF; ++i) v -= Ta[k * SNF + i] * mus[i];
       m[a * NF + k] = v;
     }
-    const double *ZTg = cw + W_ZTG + a * MZ, *ZMR = cw + W_ZMR, *OZ = cw + W_OZ, *MZi = cw + W_MZI;
-    double g[MZ], gam[MZ];
-    for (int z = 0; z < MZ; ++z) {
-      double v = ZTg[z], u = 0.0, o = 0.0;
-      for (int j = 0; j < NP; ++j) u += ZMR[z * NP + j] * beta[j];
-      for (int i = 0; i < DNF; ++i) o += OZ[i * MZ + z] * m[i];
-      g[z] = v - u - o;
-    }
-    for (int z = 0; z < MZ; ++z) {
-      double v = 0.0;
-      for (int y2 = 0; y2 < MZ; ++y2) v += MZi[z * MZ + y2] * g[y2];
-      gam[z] = v;
-    }
-    double *al = alpha + c * M;
-    for (int l = 0; l < M; ++l) {
-      double v = 0.0, u = 0.0;
-      for (int j = 0; j < NP; ++j) v += r->R[l * NP + j] * beta[j];
-      for (int z = 0; z < MZ; ++z) u += r->Z[l * MZ + z] * gam[z];
-      al[l] += v + u;
-    }
+    /* σ_a|_T = R β_a + Z M_Z⁻¹ (Zᵀg_a − Zᵀ M R β_a − O Zᵀ μ_a) is linear in (β_a, Zᵀg_a, μ_a):
+       sum them over the cell's pairs and map once per cell (finish_cells) */
+    double *acc = CELL_ACC(w, c);
+    const double *ZTg = cw + W_ZTG + a * MZ;
+    for (int j = 0; j < NP; ++j) acc[j] += beta[j];
+    for (int z = 0; z < MZ; ++z) acc[NP + z] += ZTg[z];
+    for (int i = 0; i < DNF; ++i) acc[NP + MZ + i] += m[i];
   }
   return 0;
+}
+
+/* alpha[c] += R β + Z M_Z⁻¹ (Zᵀg − ZMR β − OZᵀ μ) from the sums of the chunk's pairs */
+static void finish_cell(const eq_ref *r, const double *cw, const double *acc, double *al)
+{
+  const double *beta = acc, *ZTg = acc + NP, *m = acc + NP + MZ;
+  const double *ZMR = cw + W_ZMR, *OZ = cw + W_OZ, *MZi = cw + W_MZI;
+  double g[MZ], gam[MZ];
+  for (int z = 0; z < MZ; ++z) {
+    double v = ZTg[z], u = 0.0, o = 0.0;
+    for (int j = 0; j < NP; ++j) u += ZMR[z * NP + j] * beta[j];
+    for (int i = 0; i < DNF; ++i) o += OZ[i * MZ + z] * m[i];
+    g[z] = v - u - o;
+  }
+  matmul(MZ, MZ, 1, MZi, g, gam);
+  for (int l = 0; l < M; ++l) {
+    double v = 0.0, u = 0.0;
+    for (int j = 0; j < NP; ++j) v += r->R[l * NP + j] * beta[j];
+    for (int z = 0; z < MZ; ++z) u += r->Z[l * MZ + z] * gam[z];
+    al[l] += v + u;
+  }
 }
 
 /* The patches of the vertices vlo <= g < vhi, in chunks whose cells' operators fit in
@@ -763,7 +872,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   int *ploc = malloc(sizeof(int) * (total + 1));
   int64_t *cur = malloc(sizeof(int64_t) * (nv + 1));
   int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1)), *cells = malloc(sizeof(int64_t) * capacity);
-  double *work = malloc(sizeof(double) * W_SIZE * capacity);
+  int *left = malloc(sizeof(int) * capacity);
+  double *work = malloc(sizeof(double) * W_SIZE * capacity), *acc = malloc(sizeof(double) * ACC_SIZE * capacity);
   int nraw = maxp * DIM > 0 ? maxp * DIM : 1, maxdim = nraw * NF;
   scratch_t w;
   w.maxdeg = 2 * (DIM - 1) + 2;
@@ -779,15 +889,12 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.first = malloc(sizeof(int) * maxdim + nraw);
   w.A = malloc(sizeof(double) * (size_t)maxdim * maxdim);
   w.rhs = malloc(sizeof(double) * maxdim);
-  w.Sooi = malloc(sizeof(double) * nraw * NF * NF);
-  w.Sso = malloc(sizeof(double) * nraw * SNF * NF);
   w.work = work;
+  w.acc = acc;
   w.slot = slot;
-  double *Shat = malloc(sizeof(double) * nraw * SNF * SNF), *bb = malloc(sizeof(double) * nraw * SNF);
   int err = 0;
-  if (!prow || !ploc || !cur || !slot || !cells || !work || !w.spoke || !w.keys || !w.raw || !w.order ||
-      !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs || !w.Sooi ||
-      !w.Sso || !Shat || !bb) err = 3;
+  if (!prow || !ploc || !cur || !slot || !cells || !left || !work || !acc || !w.spoke || !w.keys || !w.raw || !w.order ||
+      !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs) err = 3;
   if (!err) {
     memcpy(cur, start, sizeof(int64_t) * nv);
     for (int64_t c = 0; c < t->n; ++c)
@@ -797,35 +904,54 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
       }
     for (int64_t c = 0; c < t->n; ++c) slot[c] = -1;
   }
+  /* Chunks of vertices v0 .. v1 - 1 whose cells fit in the work rows.  A cell's operators
+     are computed just before the first patch of the chunk that needs them and mapped to
+     alpha after its last one (its rows stay in cache in between where the vertex order is
+     local, as DOLFINx's is). */
   int64_t v0 = 0;
   while (v0 < nv && !err) {
-    /* the chunk: vertices v0 .. v1 - 1 whose cells fit */
     int64_t used = 0, v1 = v0;
     while (v1 < nv) {
       int64_t fresh = 0;
       for (int64_t x = start[v1]; x < start[v1 + 1]; ++x) fresh += slot[prow[x]] < 0;
       if (used + fresh > capacity) break;
-      for (int64_t x = start[v1]; x < start[v1 + 1]; ++x)
-        if (slot[prow[x]] < 0) { slot[prow[x]] = used; cells[used++] = prow[x]; }
+      for (int64_t x = start[v1]; x < start[v1 + 1]; ++x) {
+        int64_t c = prow[x];
+        if (slot[c] < 0) { slot[c] = used; cells[used] = c; left[used++] = 0; }
+        ++left[slot[c]];
+      }
       ++v1;
     }
-    for (int64_t i = 0; i < used && !err; ++i)
-      if (cell(r, t, cells[i], work + i * W_SIZE)) err = 1;
     stats[1] += (double)used;
+    int64_t done = 0;                     /* the slots computed so far (assigned in order) */
     for (int64_t v = v0; v < v1 && !err; ++v) {
       if (start[v + 1] == start[v]) continue;
+      for (int64_t x = start[v]; x < start[v + 1]; ++x)
+        while (done <= slot[prow[x]] && !err) {
+          int nb = used - done < LB ? (int)(used - done) : LB;
+          double *rows[LB];
+          LANES rows[b] = work + (done + (b < nb ? b : 0)) * W_SIZE;
+          memset(acc + done * ACC_SIZE, 0, sizeof(double) * ACC_SIZE * nb);
+          if (cell_block(r, t, cells + done, nb, rows)) err = 1;
+          done += nb;
+        }
+      if (err) break;
       w.np = (int)(start[v + 1] - start[v]);
       w.prow = prow + start[v];
       w.ploc = ploc + start[v];
       spokes(t, &w);
-      err = solve_patch(r, &w, Shat, bb, alpha, stats);
+      err = solve_patch(r, &w, stats);
+      for (int64_t x = start[v]; x < start[v + 1] && !err; ++x) {
+        int64_t i = slot[prow[x]];
+        if (--left[i] == 0) finish_cell(r, work + i * W_SIZE, acc + i * ACC_SIZE, alpha + cells[i] * M);
+      }
     }
     for (int64_t i = 0; i < used; ++i) slot[cells[i]] = -1;
     v0 = v1;
   }
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
-  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.Sooi); free(w.Sso);
-  free(Shat); free(bb); free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(work);
+  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs);
+  free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(left); free(work); free(acc);
   return err;
 }
 """
