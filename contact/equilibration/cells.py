@@ -100,6 +100,9 @@ def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.
     The expression is multiplied by ``one``, a DG0 function 1, so that DOLFINx ties it to
     the mesh even when it is constant after differentiation (e.g. −div ∇ of a linear
     function)."""
+    if isinstance(expr, fem.Constant):      # the same on every rank: nothing to compile
+        value = np.asarray(expr.value, dtype=np.float64)
+        return np.full((len(cells), len(X)) + value.shape, value)
     msh = one.function_space.mesh
     expr = one * ufl.as_ufl(expr)   # collective: the expression is compiled (also for no cells)
     values = np.asarray(fem.Expression(expr, X).eval(msh, cells))

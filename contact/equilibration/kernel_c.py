@@ -583,7 +583,7 @@ typedef struct {
   spoke_t *raw;
   int *unknown;                   /* per spoke: position of its first dof / NF, or -1 */
   int *adj, *deg, *pos, *queue, *first;
-  double *A, *rhs;
+  double *A, *rhs, *dinv;
   const double *work;             /* the operators of the cells of the current chunk */
   double *acc;                    /* per chunk cell: Σ β_a, Σ Zᵀg_a, Σ μ_a over its pairs */
   const int64_t *slot;            /* cell row -> its row in work */
@@ -702,8 +702,9 @@ static void assemble(scratch_t *w, int dense)
   }
 }
 
-/* envelope Cholesky of the lower triangle and solve, in place; 1 on a non-positive pivot */
-static int envelope_solve(int n, double *A, const int *first, double *x)
+/* envelope Cholesky of the lower triangle and solve, in place; 1 on a non-positive pivot
+   (dinv: scratch for the reciprocals of the diagonal, one division per row) */
+static int envelope_solve(int n, double *A, const int *first, double *x, double *dinv)
 {
   for (int i = 0; i < n; ++i) {
     double *Ai = A + i * n;
@@ -712,20 +713,20 @@ static int envelope_solve(int n, double *A, const int *first, double *x)
       double s = Ai[j];
       int k0 = first[i] > first[j] ? first[i] : first[j];
       for (int k = k0; k < j; ++k) s -= Ai[k] * Aj[k];
-      Ai[j] = s / Aj[j];
+      Ai[j] = s * dinv[j];
     }
     double s = Ai[i];
     for (int k = first[i]; k < i; ++k) s -= Ai[k] * Ai[k];
     if (!(s > 0.0)) return 1;
-    Ai[i] = sqrt(s);
+    dinv[i] = 1.0 / sqrt(s);
   }
   for (int i = 0; i < n; ++i) {
     double s = x[i];
     for (int k = first[i]; k < i; ++k) s -= A[i * n + k] * x[k];
-    x[i] = s / A[i * n + i];
+    x[i] = s * dinv[i];
   }
   for (int i = n - 1; i >= 0; --i) {
-    x[i] /= A[i * n + i];
+    x[i] *= dinv[i];
     for (int k = first[i]; k < i; ++k) x[k] -= A[i * n + k] * x[i];
   }
   return 0;
@@ -784,7 +785,7 @@ static int solve_patch(const eq_ref *r, scratch_t *w, double *defect)
       w->A[pin * dim + pin] = 1.0;
       w->rhs[pin] = 0.0;
     }
-    if (envelope_solve(dim, w->A, w->first, w->rhs)) {
+    if (envelope_solve(dim, w->A, w->first, w->rhs, w->dinv)) {
       /* fall back: the regularized dense system of patches.py and LU */
       assemble(w, 1);
       if (!has_dirichlet) {
@@ -889,12 +890,13 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.first = malloc(sizeof(int) * maxdim + nraw);
   w.A = malloc(sizeof(double) * (size_t)maxdim * maxdim);
   w.rhs = malloc(sizeof(double) * maxdim);
+  w.dinv = malloc(sizeof(double) * maxdim);
   w.work = work;
   w.acc = acc;
   w.slot = slot;
   int err = 0;
   if (!prow || !ploc || !cur || !slot || !cells || !left || !work || !acc || !w.spoke || !w.keys || !w.raw || !w.order ||
-      !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs) err = 3;
+      !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs || !w.dinv) err = 3;
   if (!err) {
     memcpy(cur, start, sizeof(int64_t) * nv);
     for (int64_t c = 0; c < t->n; ++c)
@@ -950,7 +952,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
     v0 = v1;
   }
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
-  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs);
+  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
   free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(left); free(work); free(acc);
   return err;
 }

@@ -61,9 +61,10 @@ def residual_eta(scene: contact.Scene, result) -> float:
     return estimate(dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result).eta
 
 
-def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30) -> list[dict]:
+def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30, compare: bool = False) -> list[dict]:
     """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/adapt.py's
-    docstring, with nested iteration, until the next level would exceed ``max_dofs``."""
+    docstring, with nested iteration, until the next level would exceed ``max_dofs``;
+    ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference)."""
     path, sets = PROBLEMS[name]
     scene = contact.load_scene(ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"])
     rows, u0 = [], None
@@ -74,16 +75,21 @@ def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30) -
         bound = guaranteed_bound(scene, result)
         t2 = time.perf_counter()
         err = solution_error(scene, result)
+        extra = {}
+        if compare:
+            eta_np = guaranteed_bound(scene, result, backend="numpy").eta
+            extra = {"eta_numpy": eta_np, "eta_rel_diff": abs(bound.eta - eta_np) / eta_np}
         rows.append({"problem": name, "ranks": MPI.COMM_WORLD.size, "strategy": strategy, "level": level,
                      "dofs": result.dofs, "error": err, "eta": bound.eta, "effectivity": bound.eta / err,
                      "residual_effectivity": residual_eta(scene, result) / err,
                      **{f"part_{k}": v for k, v in bound.parts.items()},
-                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3)})
+                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3), **extra})
         if MPI.COMM_WORLD.rank == 0:
             r = rows[-1]
             print(f"{name:7s} {level:3d} {r['dofs']:8d} error {err:.4e} eta {bound.eta:.4e} "
                   f"eff {r['effectivity']:.3f} (residual {r['residual_effectivity']:.2f}) "
-                  f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s", flush=True)
+                  f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s"
+                  + (f" |eta - eta_numpy|/eta {r['eta_rel_diff']:.1e}" if compare else ""), flush=True)
         cells = contact.mark(bound.eta_T, strategy, 0.5)
         if (next_dofs_bound(scene, cells, result.u_h.function_space) or 2 * result.dofs) > max_dofs:
             break
@@ -171,6 +177,8 @@ def main() -> None:
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS), choices=list(PROBLEMS))
     ap.add_argument("--strategy", default="dorfler", choices=("dorfler", "uniform"))
     ap.add_argument("--max-dofs", type=int, default=30000)
+    ap.add_argument("--compare-backends", action="store_true",
+                    help="also compute η with the NumPy patch solver on every level (eta_numpy, eta_rel_diff)")
     ap.add_argument("--cost", type=int, default=0, help="measure the cost on problem A with [2N, N] cells instead")
     ap.add_argument("--cost3d", type=int, default=0, help="... or on its 3D extrusion with [2N, N, N] cells")
     ap.add_argument("--backends", nargs="*", default=list(BACKENDS), choices=list(BACKENDS),
@@ -184,7 +192,7 @@ def main() -> None:
         return
     rows, verdicts = [], []
     for name in args.problems:
-        got = effectivity(name, args.strategy, args.max_dofs)
+        got = effectivity(name, args.strategy, args.max_dofs, compare=args.compare_backends)
         rows += got
         verdicts.append(verdict(got))
     if MPI.COMM_WORLD.rank == 0:
