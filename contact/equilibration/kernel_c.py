@@ -104,47 +104,6 @@ static int lu_solve(int n, double *A, double *B, int nrhs)
   return 0;
 }
 
-/* The inverse of a symmetric positive definite matrix by Cholesky (A = L Lᵀ, A⁻¹ = L⁻ᵀ L⁻¹);
-   returns 1 on a non-positive pivot. */
-static int spd_inverse(int n, const double *restrict A, double *restrict Ainv)
-{
-  double L[MAXN * MAXN], Li[MAXN * MAXN];
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j <= i; ++j) {
-      double s = A[i * n + j];
-      for (int k = 0; k < j; ++k) s -= L[i * MAXN + k] * L[j * MAXN + k];
-      if (i == j) {
-        if (!(s > 0.0)) return 1;
-        L[i * MAXN + i] = sqrt(s);
-      } else {
-        L[i * MAXN + j] = s / L[j * MAXN + j];
-      }
-    }
-  }
-  for (int j = 0; j < n; ++j)              /* Li = L⁻¹, lower triangular */
-    for (int i = j; i < n; ++i) {
-      double s = i == j ? 1.0 : 0.0;
-      for (int k = j; k < i; ++k) s -= L[i * MAXN + k] * Li[k * MAXN + j];
-      Li[i * MAXN + j] = s / L[i * MAXN + i];
-    }
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j <= i; ++j) {
-      double s = 0.0;
-      for (int k = i; k < n; ++k) s += Li[k * MAXN + i] * Li[k * MAXN + j];
-      Ainv[i * n + j] = Ainv[j * n + i] = s;
-    }
-  return 0;
-}
-
-static int invert(int n, const double *A, double *Ainv, double *scratch)
-{
-  if (n <= MAXN && !spd_inverse(n, A, Ainv)) return 0;
-  memcpy(scratch, A, sizeof(double) * n * n);
-  memset(Ainv, 0, sizeof(double) * n * n);
-  for (int i = 0; i < n; ++i) Ainv[i * n + i] = 1.0;
-  return lu_solve(n, scratch, Ainv, n);
-}
-
 static double det_inv(const double J[DIM][DIM], double Ji[DIM][DIM])
 {
 #if DIM == 2
@@ -575,7 +534,7 @@ static int key_cmp(const int64_t *a, const int64_t *b)
 }
 
 typedef struct {
-  int np, ns, nu, dim, maxdeg;
+  int np, ns, nu, dim, maxdeg, maxraw, pure;
   int64_t *prow; int *ploc;       /* the pairs of the patch */
   int *spoke;                     /* (np, DIM): index of each pair's spoke in the sorted list */
   spoke_t *keys;                  /* the sorted unique spokes */
@@ -587,6 +546,9 @@ typedef struct {
   const double *work;             /* the operators of the cells of the current chunk */
   double *acc;                    /* per chunk cell: Σ β_a, Σ Zᵀg_a, Σ μ_a over its pairs */
   const int64_t *slot;            /* cell row -> its row in work */
+  int *left;                      /* per work row: its pairs in the chunk not yet solved */
+  int *map;                       /* (np, DIM): the dof of each pair's spokes, or -1 */
+  double *alpha;
 } scratch_t;
 
 #define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
@@ -732,106 +694,6 @@ static int envelope_solve(int n, double *A, const int *first, double *x, double 
   return 0;
 }
 
-static int solve_patch(const eq_ref *r, scratch_t *w, double *defect)
-{
-  int has_dirichlet = 0, nu = 0;
-  for (int i = 0; i < w->ns; ++i) {
-    has_dirichlet |= w->keys[i].kind == DIRICHLET;
-    w->unknown[i] = w->keys[i].kind == DIRICHLET ? -1 : nu++;
-  }
-  int dim = nu * NF;
-  w->dim = dim;
-  double *mu = w->rhs;
-  if (nu > 0 && dim <= DENSE) {      /* small: the sorted order, a dense profile */
-    for (int i = 0; i < w->ns; ++i) w->pos[i] = w->unknown[i];
-    for (int i = 0; i < dim; ++i) w->first[i] = 0;
-  } else if (nu > 0) {
-    rcm(w);
-    /* envelope: first dof coupled to each dof */
-    for (int i = 0; i < dim; ++i) w->first[i] = (i / NF) * NF;
-    for (int p = 0; p < w->np; ++p) {
-      int lo = dim;
-      for (int s1 = 0; s1 < DIM; ++s1) {
-        int u = w->spoke[p * DIM + s1];
-        if (w->unknown[u] >= 0 && w->pos[u] * NF < lo) lo = w->pos[u] * NF;
-      }
-      for (int s1 = 0; s1 < DIM; ++s1) {
-        int u = w->spoke[p * DIM + s1];
-        if (w->unknown[u] < 0) continue;
-        for (int k = 0; k < NF; ++k) {
-          int i = w->pos[u] * NF + k;
-          if (lo < w->first[i]) w->first[i] = lo;
-        }
-      }
-    }
-  }
-  if (nu > 0) {
-    assemble(w, 0);
-    double kk = 0.0;
-    int kmax = 0;
-    for (int k = 0; k < NF; ++k) {
-      kk += r->kappa[k] * r->kappa[k];
-      if (fabs(r->kappa[k]) > fabs(r->kappa[kmax])) kmax = k;
-    }
-    kk *= nu;
-    if (!has_dirichlet) {   /* project out the balance; pin one constant moment */
-      double bal = 0.0;
-      for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
-      *defect += fabs(bal) / kk * sqrt(kk);
-      for (int i = 0; i < dim; ++i) w->rhs[i] -= bal / kk * r->kappa[i % NF];
-      int pin = kmax;    /* block position 0 */
-      for (int j = w->first[pin]; j < pin; ++j) w->A[pin * dim + j] = 0.0;
-      for (int i = pin + 1; i < dim; ++i) if (w->first[i] <= pin) w->A[i * dim + pin] = 0.0;
-      w->A[pin * dim + pin] = 1.0;
-      w->rhs[pin] = 0.0;
-    }
-    if (envelope_solve(dim, w->A, w->first, w->rhs, w->dinv)) {
-      /* fall back: the regularized dense system of patches.py and LU */
-      assemble(w, 1);
-      if (!has_dirichlet) {
-        double bal = 0.0, tr = 0.0;
-        for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
-        for (int i = 0; i < dim; ++i) { w->rhs[i] -= bal / kk * r->kappa[i % NF]; tr += w->A[i * dim + i]; }
-        double scale = tr / (dim * kk);
-        for (int i = 0; i < dim; ++i)
-          for (int j = 0; j < dim; ++j) w->A[i * dim + j] += scale * r->kappa[i % NF] * r->kappa[j % NF];
-      }
-      if (lu_solve(dim, w->A, w->rhs, 1)) return 2;
-    } else if (!has_dirichlet) {
-      double c = 0.0;
-      for (int i = 0; i < dim; ++i) c += w->rhs[i] * r->kappa[i % NF];
-      for (int i = 0; i < dim; ++i) w->rhs[i] -= c / kk * r->kappa[i % NF];
-    }
-  }
-  /* back substitution, pair by pair */
-  for (int p = 0; p < w->np; ++p) {
-    int64_t c = w->prow[p];
-    int a = w->ploc[p];
-    const double *cw = CELL_WORK(w, c), *beta = cw + W_BETA + a * NP;
-    const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
-    double m[DNF], mus[SNF];
-    for (int s1 = 0; s1 < DIM; ++s1) {
-      int u = w->spoke[p * DIM + s1];
-      for (int k = 0; k < NF; ++k) mus[s1 * NF + k] = w->unknown[u] < 0 ? 0.0 : mu[w->pos[u] * NF + k];
-    }
-    int n = 0;
-    for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) m[j * NF + k] = mus[n++];
-    for (int k = 0; k < NF; ++k) {
-      double v = ho[k];
-      for (int i = 0; i < SNF; ++i) v -= Ta[k * SNF + i] * mus[i];
-      m[a * NF + k] = v;
-    }
-    /* σ_a|_T = R β_a + Z M_Z⁻¹ (Zᵀg_a − Zᵀ M R β_a − O Zᵀ μ_a) is linear in (β_a, Zᵀg_a, μ_a):
-       sum them over the cell's pairs and map once per cell (finish_cells) */
-    double *acc = CELL_ACC(w, c);
-    const double *ZTg = cw + W_ZTG + a * MZ;
-    for (int j = 0; j < NP; ++j) acc[j] += beta[j];
-    for (int z = 0; z < MZ; ++z) acc[NP + z] += ZTg[z];
-    for (int i = 0; i < DNF; ++i) acc[NP + MZ + i] += m[i];
-  }
-  return 0;
-}
-
 /* alpha[c] += R β + Z M_Z⁻¹ (Zᵀg − ZMR β − OZᵀ μ) from the sums of the chunk's pairs */
 static void finish_cell(const eq_ref *r, const double *cw, const double *acc, double *al)
 {
@@ -851,6 +713,228 @@ static void finish_cell(const eq_ref *r, const double *cw, const double *acc, do
     for (int z = 0; z < MZ; ++z) u += r->Z[l * MZ + z] * gam[z];
     al[l] += v + u;
   }
+}
+
+/* the dof of each pair's spokes in the patch system: map[p DIM + s] = pos NF, or -1 (Dirichlet) */
+static void dof_map(scratch_t *w)
+{
+  for (int p = 0; p < w->np; ++p)
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      w->map[p * DIM + s1] = w->unknown[u] < 0 ? -1 : w->pos[u] * NF;
+    }
+}
+
+/* Number the unknown spokes (sorted order up to DENSE dofs, else reverse Cuthill-McKee and
+   its envelope), assemble the patch system, project out the balance defect and pin one
+   constant moment of a patch without a Dirichlet spoke (its kernel).  w->dim = 0: nothing to
+   solve. */
+static void setup_patch(const eq_ref *r, scratch_t *w, double *defect)
+{
+  int nu = 0;
+  w->pure = 1;
+  for (int i = 0; i < w->ns; ++i) {
+    w->pure &= w->keys[i].kind != DIRICHLET;
+    w->unknown[i] = w->keys[i].kind == DIRICHLET ? -1 : nu++;
+  }
+  int dim = nu * NF;
+  w->dim = dim;
+  if (dim <= DENSE) {
+    for (int i = 0; i < w->ns; ++i) w->pos[i] = w->unknown[i];
+    for (int i = 0; i < dim; ++i) w->first[i] = 0;
+  } else {
+    rcm(w);
+    for (int i = 0; i < dim; ++i) w->first[i] = (i / NF) * NF;
+    for (int p = 0; p < w->np; ++p) {
+      int lo = dim;
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int u = w->spoke[p * DIM + s1];
+        if (w->unknown[u] >= 0 && w->pos[u] * NF < lo) lo = w->pos[u] * NF;
+      }
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int u = w->spoke[p * DIM + s1];
+        if (w->unknown[u] < 0) continue;
+        for (int k = 0; k < NF; ++k) {
+          int i = w->pos[u] * NF + k;
+          if (lo < w->first[i]) w->first[i] = lo;
+        }
+      }
+    }
+  }
+  dof_map(w);
+  if (dim == 0) return;
+  assemble(w, 0);
+  if (w->pure) {
+    double kk = 0.0, bal = 0.0;
+    int pin = 0;                        /* the largest constant moment of block position 0 */
+    for (int k = 0; k < NF; ++k) {
+      kk += r->kappa[k] * r->kappa[k];
+      if (fabs(r->kappa[k]) > fabs(r->kappa[pin])) pin = k;
+    }
+    kk *= nu;
+    for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
+    *defect += fabs(bal) / kk * sqrt(kk);
+    for (int i = 0; i < dim; ++i) w->rhs[i] -= bal / kk * r->kappa[i % NF];
+    for (int j = w->first[pin]; j < pin; ++j) w->A[pin * dim + j] = 0.0;
+    for (int i = pin + 1; i < dim; ++i) if (w->first[i] <= pin) w->A[i * dim + pin] = 0.0;
+    w->A[pin * dim + pin] = 1.0;
+    w->rhs[pin] = 0.0;
+  }
+}
+
+/* the pinned solution of a patch without a Dirichlet spoke, made orthogonal to the kernel */
+static void project_kernel(const eq_ref *r, int dim, double *x)
+{
+  double kk = 0.0, c = 0.0;
+  for (int i = 0; i < dim; ++i) { kk += r->kappa[i % NF] * r->kappa[i % NF]; c += x[i] * r->kappa[i % NF]; }
+  for (int i = 0; i < dim; ++i) x[i] -= c / kk * r->kappa[i % NF];
+}
+
+/* the regularized dense system of patches.py, by LU (where the Cholesky met a non-positive
+   pivot): the patch is set up anew in w (spokes() done) and solved into w->rhs */
+static int regularized_solve(const eq_ref *r, scratch_t *w)
+{
+  double ignore = 0.0;
+  setup_patch(r, w, &ignore);
+  int dim = w->dim;
+  assemble(w, 1);
+  if (w->pure) {
+    double kk = 0.0, bal = 0.0, tr = 0.0;
+    for (int i = 0; i < dim; ++i) kk += r->kappa[i % NF] * r->kappa[i % NF];
+    for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
+    for (int i = 0; i < dim; ++i) { w->rhs[i] -= bal / kk * r->kappa[i % NF]; tr += w->A[i * dim + i]; }
+    double scale = tr / (dim * kk);
+    for (int i = 0; i < dim; ++i)
+      for (int j = 0; j < dim; ++j) w->A[i * dim + j] += scale * r->kappa[i % NF] * r->kappa[j % NF];
+  }
+  return lu_solve(dim, w->A, w->rhs, 1) ? 2 : 0;
+}
+
+/* μ of each pair from the patch solution mu (dofs by map), the opposite facet's from the
+   condensation, summed into the cells' accumulators; a cell whose last pair this was is
+   mapped to alpha (finish_cell) */
+static void backsub(const eq_ref *r, scratch_t *w, int np, const int64_t *prow, const int *ploc,
+                    const int *map, const double *mu)
+{
+  for (int p = 0; p < np; ++p) {
+    int64_t c = prow[p];
+    int a = ploc[p];
+    const double *cw = CELL_WORK(w, c), *beta = cw + W_BETA + a * NP;
+    const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
+    double m[DNF], mus[SNF];
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int d0 = map[p * DIM + s1];
+      for (int k = 0; k < NF; ++k) mus[s1 * NF + k] = d0 < 0 ? 0.0 : mu[d0 + k];
+    }
+    int n = 0;
+    for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) m[j * NF + k] = mus[n++];
+    for (int k = 0; k < NF; ++k) {
+      double v = ho[k];
+      for (int i = 0; i < SNF; ++i) v -= Ta[k * SNF + i] * mus[i];
+      m[a * NF + k] = v;
+    }
+    /* σ_a|_T = R β_a + Z M_Z⁻¹ (Zᵀg_a − Zᵀ M R β_a − O Zᵀ μ_a) is linear in (β_a, Zᵀg_a, μ_a):
+       sum them over the cell's pairs and map once per cell */
+    int64_t i = w->slot[c];
+    double *acc = w->acc + i * ACC_SIZE;
+    const double *ZTg = cw + W_ZTG + a * MZ;
+    for (int j = 0; j < NP; ++j) acc[j] += beta[j];
+    for (int z = 0; z < MZ; ++z) acc[NP + z] += ZTg[z];
+    for (int k = 0; k < DNF; ++k) acc[NP + MZ + k] += m[k];
+    if (--w->left[i] == 0) finish_cell(r, cw, acc, w->alpha + c * M);
+  }
+}
+
+/* Patch systems of DENSE dofs or fewer are factorized LB at a time (the lanes of one size):
+   the Cholesky of a small system is a chain of dependent divisions and square roots, which
+   the lanes overlap. */
+typedef struct {
+  int count, np[LB], pure[LB];
+  const int64_t *prow[LB];
+  const int *ploc[LB];
+  int *map;                /* (LB, maxraw) */
+  double *A, *x;           /* [(i dim + j) LB + b], [i LB + b] */
+} batch_t;
+
+static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, int dim)
+{
+  if (bt->count == 0) return 0;
+  double *A = bt->A, *x = bt->x, dinv[DENSE][LB];
+  int bad[LB] = {0};
+  for (int i = 0; i < dim; ++i) {
+    for (int j = 0; j < i; ++j) {
+      double v[LB];
+      LANES v[b] = A[(i * dim + j) * LB + b];
+      for (int k = 0; k < j; ++k) LANES v[b] -= A[(i * dim + k) * LB + b] * A[(j * dim + k) * LB + b];
+      LANES A[(i * dim + j) * LB + b] = v[b] * dinv[j][b];
+    }
+    double v[LB];
+    LANES v[b] = A[(i * dim + i) * LB + b];
+    for (int k = 0; k < i; ++k) LANES v[b] -= A[(i * dim + k) * LB + b] * A[(i * dim + k) * LB + b];
+    LANES { if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; } dinv[i][b] = 1.0 / sqrt(v[b]); }
+  }
+  for (int i = 0; i < dim; ++i) {
+    double v[LB];
+    LANES v[b] = x[i * LB + b];
+    for (int k = 0; k < i; ++k) LANES v[b] -= A[(i * dim + k) * LB + b] * x[k * LB + b];
+    LANES x[i * LB + b] = v[b] * dinv[i][b];
+  }
+  for (int i = dim - 1; i >= 0; --i) {
+    LANES x[i * LB + b] *= dinv[i][b];
+    for (int k = 0; k < i; ++k) LANES x[k * LB + b] -= A[(i * dim + k) * LB + b] * x[i * LB + b];
+  }
+  int nraw = w->maxraw;
+  for (int b = 0; b < bt->count; ++b) {
+    double mu[DENSE];
+    const int *map = bt->map + b * nraw;
+    if (bad[b]) {
+      w->np = bt->np[b];
+      w->prow = (int64_t *)bt->prow[b];
+      w->ploc = (int *)bt->ploc[b];
+      spokes(t, w);
+      if (regularized_solve(r, w)) return 2;
+      memcpy(mu, w->rhs, sizeof(double) * dim);
+      map = w->map;
+    } else {
+      for (int i = 0; i < dim; ++i) mu[i] = x[i * LB + b];
+      if (bt->pure[b]) project_kernel(r, dim, mu);
+    }
+    backsub(r, w, bt->np[b], bt->prow[b], bt->ploc[b], map, mu);
+  }
+  bt->count = 0;
+  return 0;
+}
+
+/* the patch in w (spokes() done): batched if small, else the envelope Cholesky now */
+static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *batches, double *defect)
+{
+  setup_patch(r, w, defect);
+  int dim = w->dim;
+  if (dim == 0) {
+    backsub(r, w, w->np, w->prow, w->ploc, w->map, w->rhs);
+    return 0;
+  }
+  if (dim <= DENSE) {
+    batch_t *bt = batches + dim;
+    int b = bt->count++;
+    for (int i = 0; i < dim; ++i) {
+      bt->x[i * LB + b] = w->rhs[i];
+      for (int j = 0; j <= i; ++j) bt->A[(i * dim + j) * LB + b] = w->A[i * dim + j];
+    }
+    bt->np[b] = w->np;
+    bt->prow[b] = w->prow;
+    bt->ploc[b] = w->ploc;
+    bt->pure[b] = w->pure;
+    memcpy(bt->map + b * w->maxraw, w->map, sizeof(int) * w->np * DIM);
+    return bt->count == LB ? flush(r, t, w, bt, dim) : 0;
+  }
+  if (envelope_solve(dim, w->A, w->first, w->rhs, w->dinv)) {
+    if (regularized_solve(r, w)) return 2;
+  } else if (w->pure) {
+    project_kernel(r, dim, w->rhs);
+  }
+  backsub(r, w, w->np, w->prow, w->ploc, w->map, w->rhs);
+  return 0;
 }
 
 /* The patches of the vertices vlo <= g < vhi, in chunks whose cells' operators fit in
@@ -894,7 +978,20 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.work = work;
   w.acc = acc;
   w.slot = slot;
-  int err = 0;
+  w.left = left;
+  w.alpha = alpha;
+  w.maxraw = nraw;
+  w.map = malloc(sizeof(int) * nraw);
+  batch_t batches[DENSE + 1];
+  int nbatch_ok = 1;
+  for (int d = 0; d <= DENSE; ++d) {
+    batches[d].count = 0;
+    batches[d].map = malloc(sizeof(int) * nraw * LB);
+    batches[d].A = malloc(sizeof(double) * (d * d + 1) * LB);
+    batches[d].x = malloc(sizeof(double) * (d + 1) * LB);
+    nbatch_ok &= batches[d].map && batches[d].A && batches[d].x;
+  }
+  int err = nbatch_ok && w.map ? 0 : 3;
   if (!prow || !ploc || !cur || !slot || !cells || !left || !work || !acc || !w.spoke || !w.keys || !w.raw || !w.order ||
       !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs || !w.dinv) err = 3;
   if (!err) {
@@ -942,15 +1039,14 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
       w.prow = prow + start[v];
       w.ploc = ploc + start[v];
       spokes(t, &w);
-      err = solve_patch(r, &w, stats);
-      for (int64_t x = start[v]; x < start[v + 1] && !err; ++x) {
-        int64_t i = slot[prow[x]];
-        if (--left[i] == 0) finish_cell(r, work + i * W_SIZE, acc + i * ACC_SIZE, alpha + cells[i] * M);
-      }
+      err = solve_patch(r, t, &w, batches, stats);
     }
+    for (int d = 1; d <= DENSE && !err; ++d) err = flush(r, t, &w, batches + d, d);
     for (int64_t i = 0; i < used; ++i) slot[cells[i]] = -1;
     v0 = v1;
   }
+  for (int d = 0; d <= DENSE; ++d) { free(batches[d].map); free(batches[d].A); free(batches[d].x); }
+  free(w.map);
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
   free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
   free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(left); free(work); free(acc);
