@@ -102,7 +102,7 @@ def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.
     function)."""
     if isinstance(expr, fem.Constant):      # the same on every rank: nothing to compile
         value = np.asarray(expr.value, dtype=np.float64)
-        return np.full((len(cells), len(X)) + value.shape, value)
+        return np.broadcast_to(value, (len(cells), len(X)) + value.shape)   # read-only, no memory
     msh = one.function_space.mesh
     expr = one * ufl.as_ufl(expr)   # collective: the expression is compiled (also for no cells)
     values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
@@ -127,7 +127,7 @@ def local_table(data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = 
     gvert = vmap.local_to_global(c2v.ravel().astype(np.int32)).reshape(c2v.shape)
     owners = np.concatenate([np.full(vmap.size_local, msh.comm.rank, dtype=np.int32), vmap.owners])
     gcell = msh.topology.index_map(d).local_to_global(cells)
-    x = msh.geometry.x[nodes[:n_owned]][:, :, :d]
+    x = msh.geometry.x[:, :d][nodes[:n_owned]]              # (n, d+1, d), contiguous
     U = u_h.x.array[V.dofmap.list[:n_owned]]
     one = fem.Function(dg0 or fem.functionspace(msh, ("DG", 0)))
     one.x.array[:] = 1.0

@@ -35,6 +35,7 @@ typedef struct {
   int64_t n;
   const int64_t *gvert;
   const double *x, *U, *f, *k;
+  int64_t fstride, kstride;       /* NQ, or 0 where f or k is one row for all cells */
   const int8_t *kind;
   const double *t, *tau, *src;
   const int64_t *cidx;
@@ -195,7 +196,7 @@ static double l2_rest(const double *v, const double *w, const double *B, int nq,
 
 static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet, const double *size)
 {
-  const double *x = t->x + c * NV * DIM, *f = t->f + c * NQ, *k = t->k + c * NQ;
+  const double *x = t->x + c * NV * DIM, *f = t->f + c * t->fstride, *k = t->k + c * t->kstride;
   double fact = 1.0, fact1 = 1.0;
   for (int i = 2; i <= DIM; ++i) fact *= i;
   for (int i = 2; i <= DIM - 1; ++i) fact1 *= i;
@@ -223,17 +224,34 @@ static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double 
    Cholesky; a lane with a non-positive pivot is inverted by LU instead. */
 static int spd_inverse_lanes(int n, const double *restrict A, double *restrict Ainv)
 {
-  double L[MAXN * MAXN][LB], Li[MAXN * MAXN][LB];
+  double L[MAXN * MAXN][LB], Li[MAXN * MAXN][LB], Ld[MAXN][LB];   /* Ld: 1 / L_ii */
   int bad[LB] = {0};
+  if (n == 1) {
+    LANES { if (!(A[b] > 0.0)) bad[b] = 1; Ainv[b] = 1.0 / A[b]; }
+    goto fallback;
+  }
+  if (n == 2) {
+    LANES {
+      double a = A[b], c = A[LB + b], d = A[3 * LB + b], det = a * d - c * c;
+      if (!(a > 0.0 && det > 0.0)) bad[b] = 1;
+      det = 1.0 / det;
+      Ainv[b] = d * det; Ainv[LB + b] = Ainv[2 * LB + b] = -c * det; Ainv[3 * LB + b] = a * det;
+    }
+    goto fallback;
+  }
   for (int i = 0; i < n; ++i)
     for (int j = 0; j <= i; ++j) {
       double v[LB];
       LANES v[b] = A[(i * n + j) * LB + b];
       for (int k = 0; k < j; ++k) LANES v[b] -= L[i * MAXN + k][b] * L[j * MAXN + k][b];
       if (i == j) {
-        LANES { if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; } L[i * MAXN + i][b] = sqrt(v[b]); }
+        LANES {
+          if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; }
+          L[i * MAXN + i][b] = sqrt(v[b]);
+          Ld[i][b] = 1.0 / L[i * MAXN + i][b];
+        }
       } else {
-        LANES L[i * MAXN + j][b] = v[b] / L[j * MAXN + j][b];
+        LANES L[i * MAXN + j][b] = v[b] * Ld[j][b];
       }
     }
   for (int j = 0; j < n; ++j)
@@ -241,7 +259,7 @@ static int spd_inverse_lanes(int n, const double *restrict A, double *restrict A
       double v[LB];
       LANES v[b] = i == j ? 1.0 : 0.0;
       for (int k = j; k < i; ++k) LANES v[b] -= L[i * MAXN + k][b] * Li[k * MAXN + j][b];
-      LANES Li[i * MAXN + j][b] = v[b] / L[i * MAXN + i][b];
+      LANES Li[i * MAXN + j][b] = v[b] * Ld[i][b];
     }
   for (int i = 0; i < n; ++i)
     for (int j = 0; j <= i; ++j) {
@@ -249,6 +267,7 @@ static int spd_inverse_lanes(int n, const double *restrict A, double *restrict A
       for (int k = i; k < n; ++k) LANES v[b] += Li[k * MAXN + i][b] * Li[k * MAXN + j][b];
       LANES Ainv[(i * n + j) * LB + b] = Ainv[(j * n + i) * LB + b] = v[b];
     }
+fallback:
   for (int b = 0; b < LB; ++b) {
     if (!bad[b]) continue;
     double a[MAXN * MAXN], ai[MAXN * MAXN];
@@ -271,7 +290,7 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
   LANES cl[b] = cells[b < nb ? b : nb - 1];
   double X[NV * DIM][LB], K[NQ][LB], F[NQ][LB], Uc[NU][LB];
   for (int v = 0; v < NV * DIM; ++v) LANES X[v][b] = t->x[cl[b] * NV * DIM + v];
-  for (int q = 0; q < NQ; ++q) LANES { K[q][b] = t->k[cl[b] * NQ + q]; F[q][b] = t->f[cl[b] * NQ + q]; }
+  for (int q = 0; q < NQ; ++q) LANES { K[q][b] = t->k[cl[b] * t->kstride + q]; F[q][b] = t->f[cl[b] * t->fstride + q]; }
   for (int u = 0; u < NU; ++u) LANES Uc[u][b] = t->U[cl[b] * NU + u];
   double J[DIM][DIM][LB], Ji[DIM][DIM][LB], det[LB], s[LB], absdet[LB];
   for (int i = 0; i < DIM; ++i)

@@ -57,19 +57,19 @@ def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: 
     out = {"src": None, "cidx": None, "cmom": None}
     if multiplier is None:
         return out
-    nodal = clipped(table.lam, sign)
     if multiplier == "cells":
-        out["src"] = np.ascontiguousarray(shares(nodal, cell_rule(ref), sign)[0])
+        out["src"] = np.ascontiguousarray(shares(clipped(table.lam, sign), cell_rule(ref), sign)[0])
         return out
     D = ref.d + 1
     crow = np.flatnonzero(np.any(table.kind == CONTACT, axis=1))
+    nodal = clipped(table.lam[crow], sign)
     cidx = np.full(len(table), -1, dtype=np.int64)
     cidx[crow] = np.arange(len(crow))
     cmom = np.zeros((len(crow), D, D, ref.nf))
     for j in range(D):
         on = np.flatnonzero(table.kind[crow, j] == CONTACT)
         if len(on):
-            cmom[on, j] = shares(nodal[crow[on]], facet_rule(ref, j), sign)[0]
+            cmom[on, j] = shares(nodal[on], facet_rule(ref, j), sign)[0]
     out.update(cidx=cidx, cmom=cmom)
     return out
 
@@ -99,8 +99,13 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
     t.n = len(table)
     t.gvert = ptr(table.gvert.astype(np.int64, copy=False), "int64_t")
     t.kind = ptr(table.kind.astype(np.int8, copy=False), "int8_t")
-    for name in ("x", "U", "f", "k", "t"):
+    for name in ("x", "U", "t"):
         setattr(t, name, ptr(getattr(table, name).astype(np.float64, copy=False)))
+    for name in ("f", "k"):                     # a constant is a stride-0 view (cells._at_points)
+        a = getattr(table, name)
+        constant = len(a) > 0 and a.strides[0] == 0
+        setattr(t, name, ptr(a[0] if constant else a))
+        setattr(t, f"{name}stride", 0 if constant else a.shape[1])
     t.tau = ptr(table.tau if table.tau.shape[1] else None)
     t.src = ptr(extra["src"])
     t.cidx = ptr(extra["cidx"], "int64_t")
