@@ -57,13 +57,12 @@ SOURCE = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include 
 enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
 
 /* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
-   μ_o = ho_a − Ta_a μ_s) and the final map to alpha (OZ, M_Z⁻¹, ZMR, β_a, Zᵀg_a) need */
-#define W_OZ 0
-#define W_MZI (W_OZ + DNF * MZ)
-#define W_ZMR (W_MZI + MZ * MZ)
-#define W_BETA (W_ZMR + MZ * NP)
-#define W_ZTG (W_BETA + NV * NP)
-#define W_SHAT (W_ZTG + NV * MZ)
+   μ_o = ho_a − Ta_a μ_s) and the final map to alpha need: σ_h|_T = Σ_a σ_a|_T, σ_a|_T =
+   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C + G Σ_a μ_a with G = −Z M_Z⁻¹ (O Z)ᵀ and
+   C the rest, summed over the vertices a whose patches are solved here */
+#define W_G 0
+#define W_C (W_G + M * DNF)
+#define W_SHAT (W_C + M)
 #define W_B (W_SHAT + NV * SNF * SNF)
 #define W_TA (W_B + NV * SNF)
 #define W_HO (W_TA + NV * NF * SNF)
@@ -163,18 +162,6 @@ static int facet_perm(const eq_ref *r, const int64_t *g, int j)
     code = code * (NV - 1) + rank;
   }
   return (int)r->lookup[code];
-}
-
-/* C = A B: (n x k)(k x m), row-major */
-static inline void matmul(int n, int k, int m, const double *restrict A, const double *restrict B,
-                          double *restrict C)
-{
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < m; ++j) {
-      double v = 0.0;
-      for (int l = 0; l < k; ++l) v += A[i * k + l] * B[l * m + j];
-      C[i * m + j] = v;
-    }
 }
 
 /* ‖v − Π v‖² by the rule (w, nq): Π the projection onto the nb orthonormal B (nb, nq). */
@@ -284,7 +271,7 @@ fallback:
    into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
    fills the lanes nb .. LB - 1 and is not stored twice). */
 static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells, int nb,
-                      double *const *rows)
+                      double *const *rows, int64_t vlo, int64_t vhi)
 {
   int64_t cl[LB];
   LANES cl[b] = cells[b < nb ? b : nb - 1];
@@ -511,13 +498,38 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
       for (int k = 0; k < NF; ++k) row[W_HO + a * NF + k] = ho[k][b];
     }
   }
-  for (int b = 0; b < nb; ++b) {
-    double *row = rows[b];
-    for (int k = 0; k < DNF * MZ; ++k) row[W_OZ + k] = OZ[k][b];
-    for (int k = 0; k < MZ * MZ; ++k) row[W_MZI + k] = MZi[k * LB + b];
-    for (int k = 0; k < MZ * NP; ++k) row[W_ZMR + k] = ZMR[k][b];
-    for (int k = 0; k < NV * NP; ++k) row[W_BETA + k] = beta[k][b];
-    for (int k = 0; k < NV * MZ; ++k) row[W_ZTG + k] = ZTg[k][b];
+  /* C = R Σ_a β_a + Z M_Z⁻¹ (Σ_a Zᵀg_a − ZMR Σ_a β_a) over the vertices solved here */
+  double Bs[NP][LB] = {{0.0}}, Gs[MZ][LB] = {{0.0}}, gam[MZ][LB], own[NV][LB];
+  for (int a = 0; a < NV; ++a)
+    LANES { int64_t g = t->gvert[cl[b] * NV + a]; own[a][b] = g >= vlo && g < vhi; }
+  for (int a = 0; a < NV; ++a) {
+    for (int j = 0; j < NP; ++j) LANES Bs[j][b] += own[a][b] * beta[a * NP + j][b];
+    for (int z = 0; z < MZ; ++z) LANES Gs[z][b] += own[a][b] * ZTg[a * MZ + z][b];
+  }
+  for (int z = 0; z < MZ; ++z)
+    for (int j = 0; j < NP; ++j) LANES Gs[z][b] -= ZMR[z * NP + j][b] * Bs[j][b];
+  for (int z = 0; z < MZ; ++z) {
+    double v[LB] = {0.0};
+    for (int y = 0; y < MZ; ++y) LANES v[b] += MZi[(z * MZ + y) * LB + b] * Gs[y][b];
+    LANES gam[z][b] = v[b];
+  }
+  double ZM[MZ][LB];
+  for (int l = 0; l < M; ++l) {
+    double v[LB] = {0.0};
+    for (int j = 0; j < NP; ++j) LANES v[b] += r->R[l * NP + j] * Bs[j][b];
+    for (int z = 0; z < MZ; ++z) LANES v[b] += r->Z[l * MZ + z] * gam[z][b];
+    for (int b = 0; b < nb; ++b) rows[b][W_C + l] = v[b];
+    /* G_l = −(Z M_Z⁻¹)_l (O Z)ᵀ */
+    for (int z = 0; z < MZ; ++z) {
+      double u[LB] = {0.0};
+      for (int y = 0; y < MZ; ++y) LANES u[b] += r->Z[l * MZ + y] * MZi[(y * MZ + z) * LB + b];
+      LANES ZM[z][b] = u[b];
+    }
+    for (int i = 0; i < DNF; ++i) {
+      double u[LB] = {0.0};
+      for (int z = 0; z < MZ; ++z) LANES u[b] -= ZM[z][b] * OZ[i * MZ + z][b];
+      for (int b = 0; b < nb; ++b) rows[b][W_G + l * DNF + i] = u[b];
+    }
   }
   return 0;
 }
@@ -563,16 +575,16 @@ typedef struct {
   int *adj, *deg, *pos, *queue, *first;
   double *A, *rhs, *dinv;
   const double *work;             /* the operators of the cells of the current chunk */
-  double *acc;                    /* per chunk cell: Σ β_a, Σ Zᵀg_a, Σ μ_a over its pairs */
+  double *acc;                    /* per chunk cell: Σ μ_a over its pairs in the chunk */
   const int64_t *slot;            /* cell row -> its row in work */
   int *left;                      /* per work row: its pairs in the chunk not yet solved */
   int *map;                       /* (np, DIM): the dof of each pair's spokes, or -1 */
   double *alpha;
+  char *added;                    /* per table row: C of finish_cell added */
 } scratch_t;
 
 #define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
-#define ACC_SIZE (NP + MZ + DNF)
-#define CELL_ACC(w, c) ((w)->acc + (w)->slot[c] * ACC_SIZE)
+#define ACC_SIZE DNF
 
 /* the spokes of the patch: sorted unique keys (the facet's vertices other than a) */
 static void spokes(const eq_table *t, scratch_t *w)
@@ -713,25 +725,16 @@ static int envelope_solve(int n, double *A, const int *first, double *x, double 
   return 0;
 }
 
-/* alpha[c] += R β + Z M_Z⁻¹ (Zᵀg − ZMR β − OZᵀ μ) from the sums of the chunk's pairs */
-static void finish_cell(const eq_ref *r, const double *cw, const double *acc, double *al)
+/* alpha[c] += C (once: the first chunk that finishes the cell) + G Σ μ_a (the chunk's pairs) */
+static void finish_cell(const double *cw, const double *msum, double *al, char *added)
 {
-  const double *beta = acc, *ZTg = acc + NP, *m = acc + NP + MZ;
-  const double *ZMR = cw + W_ZMR, *OZ = cw + W_OZ, *MZi = cw + W_MZI;
-  double g[MZ], gam[MZ];
-  for (int z = 0; z < MZ; ++z) {
-    double v = ZTg[z], u = 0.0, o = 0.0;
-    for (int j = 0; j < NP; ++j) u += ZMR[z * NP + j] * beta[j];
-    for (int i = 0; i < DNF; ++i) o += OZ[i * MZ + z] * m[i];
-    g[z] = v - u - o;
-  }
-  matmul(MZ, MZ, 1, MZi, g, gam);
+  const double *G = cw + W_G;
   for (int l = 0; l < M; ++l) {
-    double v = 0.0, u = 0.0;
-    for (int j = 0; j < NP; ++j) v += r->R[l * NP + j] * beta[j];
-    for (int z = 0; z < MZ; ++z) u += r->Z[l * MZ + z] * gam[z];
-    al[l] += v + u;
+    double v = *added ? 0.0 : cw[W_C + l];
+    for (int i = 0; i < DNF; ++i) v += G[l * DNF + i] * msum[i];
+    al[l] += v;
   }
+  *added = 1;
 }
 
 /* the dof of each pair's spokes in the patch system: map[p DIM + s] = pos NF, or -1 (Dirichlet) */
@@ -832,13 +835,13 @@ static int regularized_solve(const eq_ref *r, scratch_t *w)
 /* μ of each pair from the patch solution mu (dofs by map), the opposite facet's from the
    condensation, summed into the cells' accumulators; a cell whose last pair this was is
    mapped to alpha (finish_cell) */
-static void backsub(const eq_ref *r, scratch_t *w, int np, const int64_t *prow, const int *ploc,
+static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
                     const int *map, const double *mu)
 {
   for (int p = 0; p < np; ++p) {
     int64_t c = prow[p];
     int a = ploc[p];
-    const double *cw = CELL_WORK(w, c), *beta = cw + W_BETA + a * NP;
+    const double *cw = CELL_WORK(w, c);
     const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
     double m[DNF], mus[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
@@ -852,15 +855,11 @@ static void backsub(const eq_ref *r, scratch_t *w, int np, const int64_t *prow, 
       for (int i = 0; i < SNF; ++i) v -= Ta[k * SNF + i] * mus[i];
       m[a * NF + k] = v;
     }
-    /* σ_a|_T = R β_a + Z M_Z⁻¹ (Zᵀg_a − Zᵀ M R β_a − O Zᵀ μ_a) is linear in (β_a, Zᵀg_a, μ_a):
-       sum them over the cell's pairs and map once per cell */
+    /* σ_h|_T is linear in Σ_a μ_a: sum, and map once per cell (finish_cell) */
     int64_t i = w->slot[c];
     double *acc = w->acc + i * ACC_SIZE;
-    const double *ZTg = cw + W_ZTG + a * MZ;
-    for (int j = 0; j < NP; ++j) acc[j] += beta[j];
-    for (int z = 0; z < MZ; ++z) acc[NP + z] += ZTg[z];
-    for (int k = 0; k < DNF; ++k) acc[NP + MZ + k] += m[k];
-    if (--w->left[i] == 0) finish_cell(r, cw, acc, w->alpha + c * M);
+    for (int k = 0; k < DNF; ++k) acc[k] += m[k];
+    if (--w->left[i] == 0) finish_cell(cw, acc, w->alpha + c * M, w->added + c);
   }
 }
 
@@ -918,7 +917,7 @@ static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, 
       for (int i = 0; i < dim; ++i) mu[i] = x[i * LB + b];
       if (bt->pure[b]) project_kernel(r, dim, mu);
     }
-    backsub(r, w, bt->np[b], bt->prow[b], bt->ploc[b], map, mu);
+    backsub(w, bt->np[b], bt->prow[b], bt->ploc[b], map, mu);
   }
   bt->count = 0;
   return 0;
@@ -930,7 +929,7 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
   setup_patch(r, w, defect);
   int dim = w->dim;
   if (dim == 0) {
-    backsub(r, w, w->np, w->prow, w->ploc, w->map, w->rhs);
+    backsub(w, w->np, w->prow, w->ploc, w->map, w->rhs);
     return 0;
   }
   if (dim <= DENSE) {
@@ -952,7 +951,7 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
   } else if (w->pure) {
     project_kernel(r, dim, w->rhs);
   }
-  backsub(r, w, w->np, w->prow, w->ploc, w->map, w->rhs);
+  backsub(w, w->np, w->prow, w->ploc, w->map, w->rhs);
   return 0;
 }
 
@@ -998,6 +997,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.acc = acc;
   w.slot = slot;
   w.left = left;
+  w.added = calloc(t->n + 1, 1);
   w.alpha = alpha;
   w.maxraw = nraw;
   w.map = malloc(sizeof(int) * nraw);
@@ -1010,7 +1010,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
     batches[d].x = malloc(sizeof(double) * (d + 1) * LB);
     nbatch_ok &= batches[d].map && batches[d].A && batches[d].x;
   }
-  int err = nbatch_ok && w.map ? 0 : 3;
+  int err = nbatch_ok && w.map && w.added ? 0 : 3;
   if (!prow || !ploc || !cur || !slot || !cells || !left || !work || !acc || !w.spoke || !w.keys || !w.raw || !w.order ||
       !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs || !w.dinv) err = 3;
   if (!err) {
@@ -1050,7 +1050,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
           double *rows[LB];
           LANES rows[b] = work + (done + (b < nb ? b : 0)) * W_SIZE;
           memset(acc + done * ACC_SIZE, 0, sizeof(double) * ACC_SIZE * nb);
-          if (cell_block(r, t, cells + done, nb, rows)) err = 1;
+          if (cell_block(r, t, cells + done, nb, rows, vlo, vhi)) err = 1;
           done += nb;
         }
       if (err) break;
@@ -1066,6 +1066,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   }
   for (int d = 0; d <= DENSE; ++d) { free(batches[d].map); free(batches[d].A); free(batches[d].x); }
   free(w.map);
+  free(w.added);
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
   free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
   free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(left); free(work); free(acc);
