@@ -574,13 +574,13 @@ typedef struct {
   int *unknown;                   /* per spoke: position of its first dof / NF, or -1 */
   int *adj, *deg, *pos, *queue, *first;
   double *A, *rhs, *dinv;
-  const double *work;             /* the operators of the cells of the current chunk */
-  double *acc;                    /* per chunk cell: Σ μ_a over its pairs in the chunk */
-  const int64_t *slot;            /* cell row -> its row in work */
-  int *left;                      /* per work row: its pairs in the chunk not yet solved */
+  const double *work;             /* the operators of the live cells, one row each */
+  double *acc;                    /* per work row: Σ μ_a over its cell's pairs solved so far */
+  const int64_t *slot;            /* table row -> its work row, or -1 */
+  int *left;                      /* per work row: its cell's pairs not yet solved */
+  int64_t *freel, nfree;          /* the work rows free for reuse */
   int *map;                       /* (np, DIM): the dof of each pair's spokes, or -1 */
   double *alpha;
-  char *added;                    /* per table row: C of finish_cell added */
 } scratch_t;
 
 #define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
@@ -725,16 +725,15 @@ static int envelope_solve(int n, double *A, const int *first, double *x, double 
   return 0;
 }
 
-/* alpha[c] += C (once: the first chunk that finishes the cell) + G Σ μ_a (the chunk's pairs) */
-static void finish_cell(const double *cw, const double *msum, double *al, char *added)
+/* alpha[c] += C + G Σ_a μ_a */
+static void finish_cell(const double *cw, const double *msum, double *al)
 {
   const double *G = cw + W_G;
   for (int l = 0; l < M; ++l) {
-    double v = *added ? 0.0 : cw[W_C + l];
+    double v = cw[W_C + l];
     for (int i = 0; i < DNF; ++i) v += G[l * DNF + i] * msum[i];
     al[l] += v;
   }
-  *added = 1;
 }
 
 /* the dof of each pair's spokes in the patch system: map[p DIM + s] = pos NF, or -1 (Dirichlet) */
@@ -859,7 +858,10 @@ static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
     int64_t i = w->slot[c];
     double *acc = w->acc + i * ACC_SIZE;
     for (int k = 0; k < DNF; ++k) acc[k] += m[k];
-    if (--w->left[i] == 0) finish_cell(cw, acc, w->alpha + c * M, w->added + c);
+    if (--w->left[i] == 0) {
+      finish_cell(cw, acc, w->alpha + c * M);
+      w->freel[w->nfree++] = i;
+    }
   }
 }
 
@@ -955,9 +957,14 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
   return 0;
 }
 
-/* The patches of the vertices vlo <= g < vhi, in chunks whose cells' operators fit in
-   ``capacity`` work rows (each computed once per chunk it is needed in); stats[0] += the
-   projected balance defect, stats[1] += the number of cell evaluations. */
+/* The patches of the vertices vlo <= g < vhi, in their order.  A cell's operators are
+   computed (LB at a time, looking ahead) just before the first patch that needs them, into a
+   work row, and mapped to alpha after its last pair is solved, when the row returns to a
+   free list: the live rows are the front of cells between the patches solved and those to
+   come, which stays in cache where the vertex order is local (DOLFINx orders vertices by
+   Gibbs-Poole-Stockmeyer).  ``capacity``: the initial number of work rows (doubled when
+   needed).  stats[0] += the projected balance defect, stats[1] += the cell evaluations,
+   stats[2] = the most work rows in use. */
 int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
                double *alpha, double *stats)
 {
@@ -970,15 +977,18 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   }
   int maxp = 0;
   for (int64_t v = 0; v < nv; ++v) { if (start[v + 1] > maxp) maxp = (int)start[v + 1]; start[v + 1] += start[v]; }
-  if (capacity < maxp) capacity = maxp;
+  int64_t cap = capacity > maxp + LB ? capacity : maxp + LB;
   int64_t *prow = malloc(sizeof(int64_t) * (total + 1));
   int *ploc = malloc(sizeof(int) * (total + 1));
   int64_t *cur = malloc(sizeof(int64_t) * (nv + 1));
-  int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1)), *cells = malloc(sizeof(int64_t) * capacity);
-  int *left = malloc(sizeof(int) * capacity);
-  double *work = malloc(sizeof(double) * W_SIZE * capacity), *acc = malloc(sizeof(double) * ACC_SIZE * capacity);
+  int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1)), *pend = malloc(sizeof(int64_t) * (maxp + LB));
   int nraw = maxp * DIM > 0 ? maxp * DIM : 1, maxdim = nraw * NF;
   scratch_t w;
+  w.work = malloc(sizeof(double) * W_SIZE * cap);
+  w.acc = malloc(sizeof(double) * ACC_SIZE * cap);
+  w.left = malloc(sizeof(int) * cap);
+  w.freel = malloc(sizeof(int64_t) * cap);
+  w.nfree = 0;
   w.maxdeg = 2 * (DIM - 1) + 2;
   w.spoke = malloc(sizeof(int) * nraw);
   w.keys = malloc(sizeof(spoke_t) * nraw);
@@ -993,26 +1003,23 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.A = malloc(sizeof(double) * (size_t)maxdim * maxdim);
   w.rhs = malloc(sizeof(double) * maxdim);
   w.dinv = malloc(sizeof(double) * maxdim);
-  w.work = work;
-  w.acc = acc;
   w.slot = slot;
-  w.left = left;
-  w.added = calloc(t->n + 1, 1);
   w.alpha = alpha;
   w.maxraw = nraw;
   w.map = malloc(sizeof(int) * nraw);
   batch_t batches[DENSE + 1];
-  int nbatch_ok = 1;
+  int ok = 1;
   for (int d = 0; d <= DENSE; ++d) {
     batches[d].count = 0;
     batches[d].map = malloc(sizeof(int) * nraw * LB);
     batches[d].A = malloc(sizeof(double) * (d * d + 1) * LB);
     batches[d].x = malloc(sizeof(double) * (d + 1) * LB);
-    nbatch_ok &= batches[d].map && batches[d].A && batches[d].x;
+    ok &= batches[d].map && batches[d].A && batches[d].x;
   }
-  int err = nbatch_ok && w.map && w.added ? 0 : 3;
-  if (!prow || !ploc || !cur || !slot || !cells || !left || !work || !acc || !w.spoke || !w.keys || !w.raw || !w.order ||
-      !w.unknown || !w.adj || !w.deg || !w.pos || !w.queue || !w.first || !w.A || !w.rhs || !w.dinv) err = 3;
+  ok &= prow && ploc && cur && slot && pend && w.work && w.acc && w.left && w.freel && w.spoke && w.keys &&
+        w.raw && w.order && w.unknown && w.adj && w.deg && w.pos && w.queue && w.first && w.A && w.rhs &&
+        w.dinv && w.map;
+  int err = ok ? 0 : 3;
   if (!err) {
     memcpy(cur, start, sizeof(int64_t) * nv);
     for (int64_t c = 0; c < t->n; ++c)
@@ -1022,54 +1029,58 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
       }
     for (int64_t c = 0; c < t->n; ++c) slot[c] = -1;
   }
-  /* Chunks of vertices v0 .. v1 - 1 whose cells fit in the work rows.  A cell's operators
-     are computed just before the first patch of the chunk that needs them and mapped to
-     alpha after its last one (its rows stay in cache in between where the vertex order is
-     local, as DOLFINx's is). */
-  int64_t v0 = 0;
-  while (v0 < nv && !err) {
-    int64_t used = 0, v1 = v0;
-    while (v1 < nv) {
-      int64_t fresh = 0;
-      for (int64_t x = start[v1]; x < start[v1 + 1]; ++x) fresh += slot[prow[x]] < 0;
-      if (used + fresh > capacity) break;
-      for (int64_t x = start[v1]; x < start[v1 + 1]; ++x) {
-        int64_t c = prow[x];
-        if (slot[c] < 0) { slot[c] = used; cells[used] = c; left[used++] = 0; }
-        ++left[slot[c]];
-      }
-      ++v1;
-    }
-    stats[1] += (double)used;
-    int64_t done = 0;                     /* the slots computed so far (assigned in order) */
-    for (int64_t v = v0; v < v1 && !err; ++v) {
-      if (start[v + 1] == start[v]) continue;
-      for (int64_t x = start[v]; x < start[v + 1]; ++x)
-        while (done <= slot[prow[x]] && !err) {
-          int nb = used - done < LB ? (int)(used - done) : LB;
-          double *rows[LB];
-          LANES rows[b] = work + (done + (b < nb ? b : 0)) * W_SIZE;
-          memset(acc + done * ACC_SIZE, 0, sizeof(double) * ACC_SIZE * nb);
-          if (cell_block(r, t, cells + done, nb, rows, vlo, vhi)) err = 1;
-          done += nb;
+  int64_t used = 0, ahead = 0;     /* rows ever used; patches whose cells are computed */
+  for (int64_t v = 0; v < nv && !err; ++v) {
+    while (ahead <= v && !err) {   /* look ahead: the new cells of the next patches, >= LB of them */
+      int npend = 0;
+      for (; ahead < nv && npend < LB; ++ahead)
+        for (int64_t x = start[ahead]; x < start[ahead + 1]; ++x) {
+          int64_t c = prow[x];
+          if (slot[c] >= 0) continue;
+          if (w.nfree == 0 && used == cap) {          /* grow the work rows */
+            cap *= 2;
+            double *wk = realloc((void *)w.work, sizeof(double) * W_SIZE * cap);
+            double *ac = realloc(w.acc, sizeof(double) * ACC_SIZE * cap);
+            int *lf = realloc(w.left, sizeof(int) * cap);
+            int64_t *fr = realloc(w.freel, sizeof(int64_t) * cap);
+            if (wk) w.work = wk;
+            if (ac) w.acc = ac;
+            if (lf) w.left = lf;
+            if (fr) w.freel = fr;
+            if (!wk || !ac || !lf || !fr) { err = 3; break; }
+          }
+          int64_t s = w.nfree ? w.freel[--w.nfree] : used++;
+          slot[c] = s;
+          int n = 0;
+          for (int a = 0; a < NV; ++a) { int64_t g = t->gvert[c * NV + a]; n += g >= vlo && g < vhi; }
+          w.left[s] = n;
+          memset(w.acc + s * ACC_SIZE, 0, sizeof(double) * ACC_SIZE);
+          pend[npend++] = c;
         }
-      if (err) break;
-      w.np = (int)(start[v + 1] - start[v]);
-      w.prow = prow + start[v];
-      w.ploc = ploc + start[v];
-      spokes(t, &w);
-      err = solve_patch(r, t, &w, batches, stats);
+      stats[1] += npend;
+      for (int i = 0; i < npend && !err; i += LB) {
+        int nb = npend - i < LB ? npend - i : LB;
+        double *rows[LB];
+        LANES rows[b] = (double *)w.work + slot[pend[i + (b < nb ? b : 0)]] * W_SIZE;
+        if (cell_block(r, t, pend + i, nb, rows, vlo, vhi)) err = 1;
+      }
+      if (ahead == nv) break;
     }
-    for (int d = 1; d <= DENSE && !err; ++d) err = flush(r, t, &w, batches + d, d);
-    for (int64_t i = 0; i < used; ++i) slot[cells[i]] = -1;
-    v0 = v1;
+    if (err || start[v + 1] == start[v]) continue;
+    w.np = (int)(start[v + 1] - start[v]);
+    w.prow = prow + start[v];
+    w.ploc = ploc + start[v];
+    spokes(t, &w);
+    err = solve_patch(r, t, &w, batches, stats);
   }
+  for (int d = 1; d <= DENSE && !err; ++d) err = flush(r, t, &w, batches + d, d);
+  stats[2] = (double)used;
   for (int d = 0; d <= DENSE; ++d) { free(batches[d].map); free(batches[d].A); free(batches[d].x); }
   free(w.map);
-  free(w.added);
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
   free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
-  free(start); free(prow); free(ploc); free(cur); free(slot); free(cells); free(left); free(work); free(acc);
+  free((void *)w.work); free(w.acc); free(w.left); free(w.freel);
+  free(start); free(prow); free(ploc); free(cur); free(slot); free(pend);
   return err;
 }
 """

@@ -21,8 +21,8 @@ from .operators import _data_tables, _projected, cell_rule, facet_rule
 from .patches import PatchOutput
 from .reference import Reference
 
-#: work rows (cells) per chunk of patches: bounds the kernel's memory (≈ 5 kB a row in 3D P1)
-CAPACITY = 50_000
+#: the initial work rows of the kernel (one per live cell; doubled when the front of live cells needs more)
+CAPACITY = 4096
 
 
 @functools.cache
@@ -112,7 +112,7 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
     t.cmom = ptr(extra["cmom"])
     alpha = np.zeros((len(table), ref.m))
     osc = np.empty(len(table))
-    stats = np.zeros(2)
+    stats = np.zeros(3)
     err = lib.eq_patches(r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(stats))
     lib.eq_oscillation(r, t, ptr(osc))
     err = comm.allreduce(err, op=MPI.MAX)
@@ -121,5 +121,5 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
                             2: "a singular vertex-patch system in the flux reconstruction",
                             3: "out of memory in the flux reconstruction"}.get(err, f"kernel error {err}"))
     out = PatchOutput(alpha, float(stats[0]))
-    out.stats = {"cell_evaluations": int(stats[1])}
+    out.stats = {"cell_evaluations": int(stats[1]), "work_rows": int(stats[2])}
     return out, osc
