@@ -44,7 +44,7 @@ typedef struct {
 int64_t eq_work_size(void);
 void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc);
 int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
-               double *alpha, double *stats);
+               double *alpha, double *osc, double *stats);
 """
 
 SOURCE = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n" + CDEF + r"""
@@ -61,7 +61,7 @@ enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
    R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C + G Σ_a μ_a with G = −Z M_Z⁻¹ (O Z)ᵀ and
    C the rest, summed over the vertices a whose patches are solved here */
 #define W_G 0
-#define W_C (W_G + M * DNF)
+#define W_C (W_G + M * DNF)             /* right after G (cell_block stores them as one) */
 #define W_SHAT (W_C + M)
 #define W_B (W_SHAT + NV * SNF * SNF)
 #define W_TA (W_B + NV * SNF)
@@ -181,7 +181,8 @@ static double l2_rest(const double *v, const double *w, const double *B, int nq,
   return rest;
 }
 
-static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet, const double *size)
+static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet, const double size[][LB],
+                          int lane)
 {
   const double *x = t->x + c * NV * DIM, *f = t->f + c * t->fstride, *k = t->k + c * t->kstride;
   double fact = 1.0, fact1 = 1.0;
@@ -199,7 +200,7 @@ static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double 
   for (int j = 0; j < NV; ++j) {
     const double *tj = t->t + (c * NV + j) * NQF;
     double tr = l2_rest(tj, r->wS, r->q, NQF, NF);
-    double area = size[j] / fact1, norm = sqrt(size[j] * tr);
+    double area = size[j][lane] / fact1, norm = sqrt(size[j][lane] * tr);
     osc += h * sqrt(area / vol * (1.0 / (PI_ * PI_) + 2.0 / (DIM * PI_))) * norm;
   }
   double kmin = k[0];
@@ -271,7 +272,7 @@ fallback:
    into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
    fills the lanes nb .. LB - 1 and is not stored twice). */
 static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells, int nb,
-                      double *const *rows, int64_t vlo, int64_t vhi)
+                      double *const *rows, int64_t vlo, int64_t vhi, double *osc)
 {
   int64_t cl[LB];
   LANES cl[b] = cells[b < nb ? b : nb - 1];
@@ -513,12 +514,11 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int y = 0; y < MZ; ++y) LANES v[b] += MZi[(z * MZ + y) * LB + b] * Gs[y][b];
     LANES gam[z][b] = v[b];
   }
-  double ZM[MZ][LB];
+  double ZM[MZ][LB], GC[M * DNF + M][LB];     /* G then C, the layout of the work row */
   for (int l = 0; l < M; ++l) {
-    double v[LB] = {0.0};
-    for (int j = 0; j < NP; ++j) LANES v[b] += r->R[l * NP + j] * Bs[j][b];
-    for (int z = 0; z < MZ; ++z) LANES v[b] += r->Z[l * MZ + z] * gam[z][b];
-    for (int b = 0; b < nb; ++b) rows[b][W_C + l] = v[b];
+    LANES GC[M * DNF + l][b] = 0.0;
+    for (int j = 0; j < NP; ++j) LANES GC[M * DNF + l][b] += r->R[l * NP + j] * Bs[j][b];
+    for (int z = 0; z < MZ; ++z) LANES GC[M * DNF + l][b] += r->Z[l * MZ + z] * gam[z][b];
     /* G_l = −(Z M_Z⁻¹)_l (O Z)ᵀ */
     for (int z = 0; z < MZ; ++z) {
       double u[LB] = {0.0};
@@ -528,22 +528,28 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int i = 0; i < DNF; ++i) {
       double u[LB] = {0.0};
       for (int z = 0; z < MZ; ++z) LANES u[b] -= ZM[z][b] * OZ[i * MZ + z][b];
-      for (int b = 0; b < nb; ++b) rows[b][W_G + l * DNF + i] = u[b];
+      LANES GC[l * DNF + i][b] = u[b];
     }
   }
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < M * DNF + M; ++k) rows[b][W_G + k] = GC[k][b];
+  for (int b = 0; b < nb; ++b) osc[b] = oscillation(r, t, cl[b], absdet[b], size, b);
   return 0;
 }
 
+/* osc_T of the rows the patches did not evaluate (osc NaN: cells none of whose vertices
+   this rank solves) */
 void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc)
 {
   for (int64_t c = 0; c < t->n; ++c) {
+    if (osc[c] == osc[c]) continue;
     const double *x = t->x + c * NV * DIM;
-    double J[DIM][DIM], Ji[DIM][DIM], size[NV];
+    double J[DIM][DIM], Ji[DIM][DIM], size[NV][LB];
     for (int i = 0; i < DIM; ++i)
       for (int j = 0; j < DIM; ++j) J[i][j] = x[(j + 1) * DIM + i] - x[i];
     double absdet = fabs(det_inv(J, Ji));
-    for (int j = 0; j < NV; ++j) size[j] = facet_size(x, j);
-    osc[c] = oscillation(r, t, c, absdet, size);
+    for (int j = 0; j < NV; ++j) size[j][0] = facet_size(x, j);
+    osc[c] = oscillation(r, t, c, absdet, size, 0);
   }
 }
 
@@ -963,10 +969,10 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
    free list: the live rows are the front of cells between the patches solved and those to
    come, which stays in cache where the vertex order is local (DOLFINx orders vertices by
    Gibbs-Poole-Stockmeyer).  ``capacity``: the initial number of work rows (doubled when
-   needed).  stats[0] += the projected balance defect, stats[1] += the cell evaluations,
+   needed).  osc[c] = osc_T of each row evaluated.  stats[0] += the projected balance defect, stats[1] += the cell evaluations,
    stats[2] = the most work rows in use. */
 int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
-               double *alpha, double *stats)
+               double *alpha, double *osc, double *stats)
 {
   int64_t nv = vhi - vlo, total = 0;
   int64_t *start = calloc(nv + 1, sizeof(int64_t));
@@ -1060,9 +1066,10 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
       stats[1] += npend;
       for (int i = 0; i < npend && !err; i += LB) {
         int nb = npend - i < LB ? npend - i : LB;
-        double *rows[LB];
+        double *rows[LB], os[LB];
         LANES rows[b] = (double *)w.work + slot[pend[i + (b < nb ? b : 0)]] * W_SIZE;
-        if (cell_block(r, t, pend + i, nb, rows, vlo, vhi)) err = 1;
+        if (cell_block(r, t, pend + i, nb, rows, vlo, vhi, os)) err = 1;
+        for (int b = 0; b < nb; ++b) osc[pend[i + b]] = os[b];
       }
       if (ahead == nv) break;
     }

@@ -111,9 +111,9 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
     t.cidx = ptr(extra["cidx"], "int64_t")
     t.cmom = ptr(extra["cmom"])
     alpha = np.zeros((len(table), ref.m))
-    osc = np.empty(len(table))
+    osc = np.full(len(table), np.nan)
     stats = np.zeros(3)
-    err = lib.eq_patches(r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(stats))
+    err = lib.eq_patches(r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc), ptr(stats))
     lib.eq_oscillation(r, t, ptr(osc))
     err = comm.allreduce(err, op=MPI.MAX)
     if err:
