@@ -17,6 +17,7 @@ same reconstruction serves other models (row-wise for elasticity).
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Callable
@@ -27,6 +28,7 @@ import basix.ufl
 from dolfinx import fem
 
 from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
+from .compiled import library
 from .multiplier import clipped, shares
 from .operators import cell_rule, facet_rule
 from .patches import solve_patches
@@ -97,6 +99,12 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
     vmap = msh.topology.index_map(0)
+    if backend == "compiled":
+        try:
+            library(comm, ref, table.U.shape[1])
+        except RuntimeError as err:         # no C compiler: the NumPy solver, same numbers, slower
+            warnings.warn(f"{err}; the flux reconstruction falls back to backend='numpy'", stacklevel=2)
+            backend = "numpy"
     if backend == "compiled":
         out, osc = solve_patches_compiled(comm, work, vmap.local_range, ref, multiplier, sign)
         osc = osc[:n_owned]

@@ -120,6 +120,5 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
         raise RuntimeError({1: "a singular cell matrix in the flux reconstruction (degenerate cell?)",
                             2: "a singular vertex-patch system in the flux reconstruction",
                             3: "out of memory in the flux reconstruction"}.get(err, f"kernel error {err}"))
-    out = PatchOutput(alpha, float(stats[0]))
-    out.stats = {"cell_evaluations": int(stats[1]), "work_rows": int(stats[2])}
+    out = PatchOutput(alpha, float(stats[0]), {"cell_evaluations": int(stats[1]), "work_rows": int(stats[2])})
     return out, osc
