@@ -332,8 +332,24 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int j = 0; j < NV; ++j) {
       const double *P = r->P + facet_perm(r, t->gvert + cl[b] * NV, j) * NF * NF;
       for (int kl = 0; kl < NF * NF; ++kl) Pl[j][kl][b] = P[kl];
-      size[j][b] = facet_size(t->x + cl[b] * NV * DIM, j);
     }
+  for (int j = 0; j < NV; ++j) {          /* |F_j| / |F̂| = sqrt(det(E Eᵀ)), as facet_size */
+    int o[NV - 1], n = 0;
+    for (int v = 0; v < NV; ++v) if (v != j) o[n++] = v;
+    double E[DIM - 1][DIM][LB], G[DIM - 1][DIM - 1][LB];
+    for (int a = 0; a < DIM - 1; ++a)
+      for (int i = 0; i < DIM; ++i) LANES E[a][i][b] = X[o[a + 1] * DIM + i][b] - X[o[0] * DIM + i][b];
+    for (int a = 0; a < DIM - 1; ++a)
+      for (int c = 0; c < DIM - 1; ++c) {
+        LANES G[a][c][b] = 0.0;
+        for (int i = 0; i < DIM; ++i) LANES G[a][c][b] += E[a][i][b] * E[c][i][b];
+      }
+#if DIM == 2
+    LANES size[j][b] = sqrt(fabs(G[0][0][b]));
+#else
+    LANES size[j][b] = sqrt(fabs(G[0][0][b] * G[1][1][b] - G[0][1][b] * G[1][0][b]));
+#endif
+  }
   double OZ[DNF * MZ][LB], OR[DNF * NP][LB];
   for (int j = 0; j < NV; ++j)
     for (int l = 0; l < NF; ++l) {

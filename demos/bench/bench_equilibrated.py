@@ -10,17 +10,25 @@ effectivity on the same solve (SPEC §5), the parts of the bound (A, B, W, D of
 contact/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
 η ≥ error on every level and η / error ≤ 1.5 on every level past the first three, prints
 each level and a verdict per problem, and writes ``effectivity.csv`` (``effectivity_np2.csv``
-under ``mpirun -n 2``).
+under ``mpirun -n 2``); ``--compare-backends`` also computes η with the NumPy patch solver on
+every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off).
 
     python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
 
-Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs), the reconstruction
-(:func:`contact.equilibration.reconstruct_flux`) against one CG + GAMG solve of the
-stiffness matrix K (rtol 1e-8 from zero, the loop's options) in the same process, wall and
-CPU seconds (the machine is shared: CPU seconds are the steadier measure); ``cost.csv``.
+Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs; ``--cost3d N``: its
+extrusion u(x, y, z) = u_A(x, y) on [−1, 1] × [0, 1]² with [2N, N, N] cells, N = 63: 520k
+DoFs), the reconstruction (:func:`contact.equilibration.reconstruct_flux`) with each patch
+solver (``--backends``: ``compiled``, the default C kernel, and ``numpy``, the reference;
+each after a warm-up call that compiles) against one CG + GAMG solve of the stiffness matrix K
+(rtol 1e-8 from zero, the loop's options) in the same process: wall and CPU seconds (the
+machine is shared: CPU seconds are the steadier measure), the phases (gather: the cell data;
+patches: the patch problems; assemble: σ_h, λ̃_h and the DG0 fields) and the largest
+difference of σ_h between the backends; ``cost.csv`` / ``cost_3d.csv`` (``_np2`` on 2 ranks).
 
     python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
+    mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
+    python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled --out demos/results/equilibrated
 """
 from __future__ import annotations
 
