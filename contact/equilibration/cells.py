@@ -109,7 +109,8 @@ def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.
     return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
 
 
-def local_table(data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = None) -> tuple[CellTable, int]:
+def local_table(data: FluxData, ref: Reference,
+                dg0: fem.FunctionSpace | None = None) -> tuple[CellTable, int]:
     """The rows of this rank's owned cells (and their number); ``dg0``: the mesh's DG0 space,
     if the caller has it.  Collective (the data expressions are compiled)."""
     u_h = data.u_h
@@ -148,7 +149,8 @@ def local_table(data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = 
         in_V = fem.Function(V)
         in_V.interpolate(data.lmbda_h)
         lam = in_V.x.array[V.dofmap.list[:n_owned]]
-    tau = np.zeros((n_owned, 0, d)) if data.target is None else _at_points(data.target, one, ref.X, cells)
+    tau = np.zeros((n_owned, 0, d)) if data.target is None else \
+        _at_points(data.target, one, ref.X, cells)
     return CellTable(gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam,
                      tau), n_owned
 

@@ -35,7 +35,8 @@ def dimensions(ref: Reference, nu: int) -> dict:
     """The compile-time constants of :mod:`.kernel_c` for ``ref`` and dim P_p = ``nu``."""
     d = ref.d
     return {"DIM": d, "NV": d + 1, "NQ": len(ref.w), "NQF": len(ref.wS), "NU": nu, "M": ref.m,
-            "NP": ref.np_, "MZ": ref.Z.shape[1], "NF": ref.nf, "NPERM": len(ref.perms), "NLOOK": d ** d}
+            "NP": ref.np_, "MZ": ref.Z.shape[1], "NF": ref.nf, "NPERM": len(ref.perms),
+            "NLOOK": d ** d}
 
 
 def cache_dir() -> Path:
@@ -48,8 +49,8 @@ FLAGS = (["-O3", "-march=native"], ["-O2"])
 
 
 def _command(src: Path, out: Path, flags: list[str]) -> list[str]:
-    return shlex.split(os.environ.get("CC", "cc")) + flags + ["-std=c99", "-fPIC", "-shared", str(src),
-                                                               "-o", str(out), "-lm"]
+    cc = shlex.split(os.environ.get("CC", "cc"))
+    return cc + flags + ["-std=c99", "-fPIC", "-shared", str(src), "-o", str(out), "-lm"]
 
 
 @functools.cache

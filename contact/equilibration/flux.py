@@ -103,13 +103,15 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
         try:
             library(comm, ref, table.U.shape[1])
         except RuntimeError as err:         # no C compiler: the NumPy solver, same numbers, slower
-            warnings.warn(f"{err}; the flux reconstruction falls back to backend='numpy'", stacklevel=2)
+            warnings.warn(f"{err}; the flux reconstruction falls back to backend='numpy'",
+                          stacklevel=2)
             backend = "numpy"
     if backend == "compiled":
         out, osc = solve_patches_compiled(comm, work, vmap.local_range, ref, multiplier, sign)
         osc = osc[:n_owned]
     else:
-        out = solve_patches(work, np.arange(*vmap.local_range, dtype=np.int64), ref, multiplier, sign)
+        owned = np.arange(*vmap.local_range, dtype=np.int64)
+        out = solve_patches(work, owned, ref, multiplier, sign)
     clock.lap("patches")
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
@@ -165,7 +167,8 @@ def rt_function(msh, ref: Reference, alpha: np.ndarray) -> fem.Function:
 
 
 def rt_coefficients(sigma_h: fem.Function, n: int) -> np.ndarray:
-    """The reference coefficients α = Tᵀ u of the first n cells (the inverse of :func:`rt_function`)."""
+    """The reference coefficients α = Tᵀ u of the first n cells (the inverse of
+    :func:`rt_function`)."""
     RT = sigma_h.function_space
     alpha = sigma_h.x.array[RT.dofmap.list[:n]]
     if RT.element.needs_dof_transformations:

@@ -47,7 +47,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
                double *alpha, double *osc, double *stats);
 """
 
-SOURCE = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n" + CDEF + r"""
+HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n"
+SOURCE = HEADERS + CDEF + r"""
 
 #define PI_ 3.14159265358979323846
 #define MAXN (MZ > NF ? MZ : NF)
@@ -84,8 +85,10 @@ static int lu_solve(int n, double *A, double *B, int nrhs)
       if (fabs(A[i * n + k]) > best) { best = fabs(A[i * n + k]); piv = i; }
     if (best == 0.0) return 1;
     if (piv != k) {
-      for (int j = 0; j < n; ++j) { double s = A[k * n + j]; A[k * n + j] = A[piv * n + j]; A[piv * n + j] = s; }
-      for (int j = 0; j < nrhs; ++j) { double s = B[k * nrhs + j]; B[k * nrhs + j] = B[piv * nrhs + j]; B[piv * nrhs + j] = s; }
+      for (int j = 0; j < n; ++j)
+        { double s = A[k * n + j]; A[k * n + j] = A[piv * n + j]; A[piv * n + j] = s; }
+      for (int j = 0; j < nrhs; ++j)
+        { double s = B[k * nrhs + j]; B[k * nrhs + j] = B[piv * nrhs + j]; B[piv * nrhs + j] = s; }
     }
     double inv = 1.0 / A[k * n + k];
     for (int i = k + 1; i < n; ++i) {
@@ -181,8 +184,8 @@ static double l2_rest(const double *v, const double *w, const double *B, int nq,
   return rest;
 }
 
-static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet, const double size[][LB],
-                          int lane)
+static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet,
+                          const double size[][LB], int lane)
 {
   const double *x = t->x + c * NV * DIM, *f = t->f + c * t->fstride, *k = t->k + c * t->kstride;
   double fact = 1.0, fact1 = 1.0;
@@ -271,14 +274,15 @@ fallback:
 /* The operators of the cells cells[0 .. nb) (operators.py), condensed per vertex (patches.py),
    into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
    fills the lanes nb .. LB - 1 and is not stored twice). */
-static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells, int nb,
-                      double *const *rows, int64_t vlo, int64_t vhi, double *osc)
+static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells,
+                      int nb, double *const *rows, int64_t vlo, int64_t vhi, double *osc)
 {
   int64_t cl[LB];
   LANES cl[b] = cells[b < nb ? b : nb - 1];
   double X[NV * DIM][LB], K[NQ][LB], F[NQ][LB], Uc[NU][LB];
   for (int v = 0; v < NV * DIM; ++v) LANES X[v][b] = t->x[cl[b] * NV * DIM + v];
-  for (int q = 0; q < NQ; ++q) LANES { K[q][b] = t->k[cl[b] * t->kstride + q]; F[q][b] = t->f[cl[b] * t->fstride + q]; }
+  for (int q = 0; q < NQ; ++q)
+    LANES { K[q][b] = t->k[cl[b] * t->kstride + q]; F[q][b] = t->f[cl[b] * t->fstride + q]; }
   for (int u = 0; u < NU; ++u) LANES Uc[u][b] = t->U[cl[b] * NU + u];
   double J[DIM][DIM][LB], Ji[DIM][DIM][LB], det[LB], s[LB], absdet[LB];
   for (int i = 0; i < DIM; ++i)
@@ -308,7 +312,8 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
   for (int i = 0; i < DIM; ++i)
     for (int j = 0; j < DIM; ++j) {
       double g[LB] = {0.0}, h[LB] = {0.0};
-      for (int l = 0; l < DIM; ++l) LANES { g[b] += J[l][i][b] * J[l][j][b]; h[b] += Ji[i][l][b] * Ji[j][l][b]; }
+      for (int l = 0; l < DIM; ++l)
+        LANES { g[b] += J[l][i][b] * J[l][j][b]; h[b] += Ji[i][l][b] * Ji[j][l][b]; }
       LANES { GM[i * DIM + j][b] = g[b] / absdet[b]; KS[i][j][b] = h[b] * absdet[b]; }
     }
   for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
@@ -338,7 +343,8 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int v = 0; v < NV; ++v) if (v != j) o[n++] = v;
     double E[DIM - 1][DIM][LB], G[DIM - 1][DIM - 1][LB];
     for (int a = 0; a < DIM - 1; ++a)
-      for (int i = 0; i < DIM; ++i) LANES E[a][i][b] = X[o[a + 1] * DIM + i][b] - X[o[0] * DIM + i][b];
+      for (int i = 0; i < DIM; ++i)
+        LANES E[a][i][b] = X[o[a + 1] * DIM + i][b] - X[o[0] * DIM + i][b];
     for (int a = 0; a < DIM - 1; ++a)
       for (int c = 0; c < DIM - 1; ++c) {
         LANES G[a][c][b] = 0.0;
@@ -355,12 +361,14 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int l = 0; l < NF; ++l) {
       for (int z = 0; z < MZ; ++z) {
         double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * r->NZ[(j * NF + k) * MZ + z];
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += Pl[j][k * NF + l][b] * r->NZ[(j * NF + k) * MZ + z];
         LANES OZ[(j * NF + l) * MZ + z][b] = s[b] * v[b];
       }
       for (int z = 0; z < NP; ++z) {
         double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * r->NR[(j * NF + k) * NP + z];
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += Pl[j][k * NF + l][b] * r->NR[(j * NF + k) * NP + z];
         LANES OR[(j * NF + l) * NP + z][b] = s[b] * v[b];
       }
     }
@@ -397,7 +405,8 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
       }
   } else {
     for (int q = 0; q < NQ; ++q)
-      for (int i = 0; i < DIM; ++i) LANES lhs[q * DIM + i][b] = gu[q * DIM + i][b] * K[q][b] / kT[b];
+      for (int i = 0; i < DIM; ++i)
+        LANES lhs[q * DIM + i][b] = gu[q * DIM + i][b] * K[q][b] / kT[b];
   }
   double ZTg[NV * MZ][LB] = {{0.0}};
   for (int qi = 0; qi < NQ * DIM; ++qi) {
@@ -418,11 +427,13 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
       double v[LB] = {0.0};
       for (int i = 0; i < DIM; ++i) LANES v[b] += gu[q * DIM + i][b] * KSd[i * NV + a][b];
       for (int j = 0; j < NP; ++j)
-        LANES R0[a * NP + j][b] += absdet[b] * F[q][b] * wl[a * NP + j] - v[b] * K[q][b] * r->wQ[q * NP + j];
+        LANES R0[a * NP + j][b] +=
+            absdet[b] * F[q][b] * wl[a * NP + j] - v[b] * K[q][b] * r->wQ[q * NP + j];
     }
   }
   if (t->src)
-    for (int aj = 0; aj < NV * NP; ++aj) LANES R0[aj][b] += absdet[b] * t->src[cl[b] * NV * NP + aj];
+    for (int aj = 0; aj < NV * NP; ++aj)
+      LANES R0[aj][b] += absdet[b] * t->src[cl[b] * NV * NP + aj];
   for (int aj = 0; aj < NV * NP; ++aj) LANES beta[aj][b] = -s[b] * R0[aj][b];
   /* h_a = O R β_a + Yt (Zᵀg_a − ZMR β_a) */
   double h[NV * DNF][LB];
@@ -463,7 +474,8 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
         for (int b = 0; b < LB; ++b) {
           int64_t ci = t->cidx[cl[b]];
           if (ci >= 0 && t->kind[cl[b] * NV + j] == CONTACT)
-            for (int k = 0; k < NF; ++k) loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
+            for (int k = 0; k < NF; ++k)
+              loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
         }
       for (int l = 0; l < NF; ++l) {
         double v[LB] = {0.0};
@@ -479,12 +491,14 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) Is[n++] = j * NF + k;
     double Soo[NF * NF * LB], Sooi[NF * NF * LB], T[SNF * NF][LB];
     for (int k = 0; k < NF; ++k)
-      for (int l = 0; l < NF; ++l) LANES Soo[(k * NF + l) * LB + b] = S[(a * NF + k) * DNF + a * NF + l][b];
+      for (int l = 0; l < NF; ++l)
+        LANES Soo[(k * NF + l) * LB + b] = S[(a * NF + k) * DNF + a * NF + l][b];
     if (spd_inverse_lanes(NF, Soo, Sooi)) return 1;
     for (int i = 0; i < SNF; ++i)
       for (int l = 0; l < NF; ++l) {
         double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k) LANES v[b] += S[Is[i] * DNF + a * NF + k][b] * Sooi[(k * NF + l) * LB + b];
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += S[Is[i] * DNF + a * NF + k][b] * Sooi[(k * NF + l) * LB + b];
         LANES T[i * NF + l][b] = v[b];
       }
     double Sh[SNF * SNF][LB], bv[SNF][LB], ho[NF][LB];
@@ -492,7 +506,8 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
       for (int j = 0; j <= i; ++j) {
         double v[LB];
         LANES v[b] = S[Is[i] * DNF + Is[j]][b];
-        for (int k = 0; k < NF; ++k) LANES v[b] -= T[i * NF + k][b] * S[Is[j] * DNF + a * NF + k][b];
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] -= T[i * NF + k][b] * S[Is[j] * DNF + a * NF + k][b];
         LANES Sh[i * SNF + j][b] = Sh[j * SNF + i][b] = v[b];
       }
       double v[LB];
@@ -503,7 +518,8 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     }
     for (int k = 0; k < NF; ++k) {
       double v[LB] = {0.0};
-      for (int l = 0; l < NF; ++l) LANES v[b] += Sooi[(k * NF + l) * LB + b] * h[a * DNF + a * NF + l][b];
+      for (int l = 0; l < NF; ++l)
+        LANES v[b] += Sooi[(k * NF + l) * LB + b] * h[a * DNF + a * NF + l][b];
       LANES ho[k][b] = v[b];
     }
     for (int b = 0; b < nb; ++b) {
@@ -621,7 +637,8 @@ static void spokes(const eq_table *t, scratch_t *w)
       int m = 0;
       for (int v = 0; v < NV; ++v) if (v != a && v != j) o[m++] = g[v];
       for (int x = 1; x < m; ++x)           /* sort the d - 1 others */
-        for (int y = x; y > 0 && o[y - 1] > o[y]; --y) { int64_t s = o[y]; o[y] = o[y - 1]; o[y - 1] = s; }
+        for (int y = x; y > 0 && o[y - 1] > o[y]; --y)
+          { int64_t s = o[y]; o[y] = o[y - 1]; o[y - 1] = s; }
       for (int x = 0; x < DIM - 1; ++x) w->raw[n].key[x] = o[x];
       w->raw[n].kind = t->kind[w->prow[p] * NV + j];
       w->order[n] = n;
@@ -631,7 +648,10 @@ static void spokes(const eq_table *t, scratch_t *w)
   /* insertion sort of the indices by key */
   for (int x = 1; x < n; ++x) {
     int v = w->order[x], y = x;
-    while (y > 0 && key_cmp(w->raw[w->order[y - 1]].key, w->raw[v].key) > 0) { w->order[y] = w->order[y - 1]; --y; }
+    while (y > 0 && key_cmp(w->raw[w->order[y - 1]].key, w->raw[v].key) > 0) {
+      w->order[y] = w->order[y - 1];
+      --y;
+    }
     w->order[y] = v;
   }
   int ns = 0;
@@ -698,7 +718,9 @@ static void assemble(scratch_t *w, int dense)
   int dim = w->dim;
   double *A = w->A, *rhs = w->rhs;
   if (dense) memset(A, 0, sizeof(double) * dim * dim);
-  else for (int i = 0; i < dim; ++i) memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
+  else
+    for (int i = 0; i < dim; ++i)
+      memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
   memset(rhs, 0, sizeof(double) * dim);
   for (int p = 0; p < w->np; ++p) {
     const double *cw = CELL_WORK(w, w->prow[p]), *Shat = cw + W_SHAT + w->ploc[p] * SNF * SNF;
@@ -712,7 +734,8 @@ static void assemble(scratch_t *w, int dense)
       if (row[i] < 0) continue;
       rhs[row[i]] += b[i];
       for (int j = 0; j < SNF; ++j)
-        if (row[j] >= 0 && (dense || row[j] <= row[i])) A[row[i] * dim + row[j]] += Shat[i * SNF + j];
+        if (row[j] >= 0 && (dense || row[j] <= row[i]))
+          A[row[i] * dim + row[j]] += Shat[i * SNF + j];
     }
   }
 }
@@ -724,7 +747,10 @@ static inline double dot(const double *restrict a, const double *restrict b, int
   double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
   int k = 0;
   for (; k + 4 <= n; k += 4) {
-    s0 += a[k] * b[k]; s1 += a[k + 1] * b[k + 1]; s2 += a[k + 2] * b[k + 2]; s3 += a[k + 3] * b[k + 3];
+    s0 += a[k] * b[k];
+    s1 += a[k + 1] * b[k + 1];
+    s2 += a[k + 2] * b[k + 2];
+    s3 += a[k + 3] * b[k + 3];
   }
   for (; k < n; ++k) s0 += a[k] * b[k];
   return (s0 + s1) + (s2 + s3);
@@ -747,7 +773,8 @@ static int envelope_solve(int n, double *A, const int *first, double *x, double 
     if (!(s > 0.0)) return 1;
     dinv[i] = 1.0 / sqrt(s);
   }
-  for (int i = 0; i < n; ++i) x[i] = (x[i] - dot(A + i * n + first[i], x + first[i], i - first[i])) * dinv[i];
+  for (int i = 0; i < n; ++i)
+    x[i] = (x[i] - dot(A + i * n + first[i], x + first[i], i - first[i])) * dinv[i];
   for (int i = n - 1; i >= 0; --i) {
     x[i] *= dinv[i];
     for (int k = first[i]; k < i; ++k) x[k] -= A[i * n + k] * x[i];
@@ -837,7 +864,8 @@ static void setup_patch(const eq_ref *r, scratch_t *w, double *defect)
 static void project_kernel(const eq_ref *r, int dim, double *x)
 {
   double kk = 0.0, c = 0.0;
-  for (int i = 0; i < dim; ++i) { kk += r->kappa[i % NF] * r->kappa[i % NF]; c += x[i] * r->kappa[i % NF]; }
+  for (int i = 0; i < dim; ++i)
+    { kk += r->kappa[i % NF] * r->kappa[i % NF]; c += x[i] * r->kappa[i % NF]; }
   for (int i = 0; i < dim; ++i) x[i] -= c / kk * r->kappa[i % NF];
 }
 
@@ -853,10 +881,12 @@ static int regularized_solve(const eq_ref *r, scratch_t *w)
     double kk = 0.0, bal = 0.0, tr = 0.0;
     for (int i = 0; i < dim; ++i) kk += r->kappa[i % NF] * r->kappa[i % NF];
     for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
-    for (int i = 0; i < dim; ++i) { w->rhs[i] -= bal / kk * r->kappa[i % NF]; tr += w->A[i * dim + i]; }
+    for (int i = 0; i < dim; ++i)
+      { w->rhs[i] -= bal / kk * r->kappa[i % NF]; tr += w->A[i * dim + i]; }
     double scale = tr / (dim * kk);
     for (int i = 0; i < dim; ++i)
-      for (int j = 0; j < dim; ++j) w->A[i * dim + j] += scale * r->kappa[i % NF] * r->kappa[j % NF];
+      for (int j = 0; j < dim; ++j)
+        w->A[i * dim + j] += scale * r->kappa[i % NF] * r->kappa[j % NF];
   }
   return lu_solve(dim, w->A, w->rhs, 1) ? 2 : 0;
 }
@@ -915,7 +945,8 @@ static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, 
     for (int j = 0; j < i; ++j) {
       double v[LB];
       LANES v[b] = A[(i * dim + j) * LB + b];
-      for (int k = 0; k < j; ++k) LANES v[b] -= A[(i * dim + k) * LB + b] * A[(j * dim + k) * LB + b];
+      for (int k = 0; k < j; ++k)
+        LANES v[b] -= A[(i * dim + k) * LB + b] * A[(j * dim + k) * LB + b];
       LANES A[(i * dim + j) * LB + b] = v[b] * dinv[j][b];
     }
     double v[LB];
@@ -956,7 +987,8 @@ static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, 
 }
 
 /* the patch in w (spokes() done): batched if small, else the envelope Cholesky now */
-static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *batches, double *defect)
+static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *batches,
+                       double *defect)
 {
   setup_patch(r, w, defect);
   int dim = w->dim;
@@ -993,8 +1025,8 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
    free list: the live rows are the front of cells between the patches solved and those to
    come, which stays in cache where the vertex order is local (DOLFINx orders vertices by
    Gibbs-Poole-Stockmeyer).  ``capacity``: the initial number of work rows (doubled when
-   needed).  osc[c] = osc_T of each row evaluated.  stats[0] += the projected balance defect, stats[1] += the cell evaluations,
-   stats[2] = the most work rows in use. */
+   needed).  osc[c] = osc_T of each row evaluated.  stats[0] += the projected balance
+   defect, stats[1] += the cell evaluations, stats[2] = the most work rows in use. */
 int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
                double *alpha, double *osc, double *stats)
 {
@@ -1006,12 +1038,14 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
     if (g >= vlo && g < vhi) { ++start[g - vlo + 1]; ++total; }
   }
   int maxp = 0;
-  for (int64_t v = 0; v < nv; ++v) { if (start[v + 1] > maxp) maxp = (int)start[v + 1]; start[v + 1] += start[v]; }
+  for (int64_t v = 0; v < nv; ++v)
+    { if (start[v + 1] > maxp) maxp = (int)start[v + 1]; start[v + 1] += start[v]; }
   int64_t cap = capacity > maxp + LB ? capacity : maxp + LB;
   int64_t *prow = malloc(sizeof(int64_t) * (total + 1));
   int *ploc = malloc(sizeof(int) * (total + 1));
   int64_t *cur = malloc(sizeof(int64_t) * (nv + 1));
-  int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1)), *pend = malloc(sizeof(int64_t) * (maxp + LB));
+  int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1));
+  int64_t *pend = malloc(sizeof(int64_t) * (maxp + LB));
   int nraw = maxp * DIM > 0 ? maxp * DIM : 1, maxdim = nraw * NF;
   scratch_t w;
   w.work = malloc(sizeof(double) * W_SIZE * cap);
@@ -1046,9 +1080,9 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
     batches[d].x = malloc(sizeof(double) * (d + 1) * LB);
     ok &= batches[d].map && batches[d].A && batches[d].x;
   }
-  ok &= prow && ploc && cur && slot && pend && w.work && w.acc && w.left && w.freel && w.spoke && w.keys &&
-        w.raw && w.order && w.unknown && w.adj && w.deg && w.pos && w.queue && w.first && w.A && w.rhs &&
-        w.dinv && w.map;
+  ok &= prow && ploc && cur && slot && pend && w.work && w.acc && w.left && w.freel && w.spoke;
+  ok &= w.keys && w.raw && w.order && w.unknown && w.adj && w.deg && w.pos && w.queue && w.first;
+  ok &= w.A && w.rhs && w.dinv && w.map;
   int err = ok ? 0 : 3;
   if (!err) {
     memcpy(cur, start, sizeof(int64_t) * nv);
@@ -1061,7 +1095,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   }
   int64_t used = 0, ahead = 0;     /* rows ever used; patches whose cells are computed */
   for (int64_t v = 0; v < nv && !err; ++v) {
-    while (ahead <= v && !err) {   /* look ahead: the new cells of the next patches, >= LB of them */
+    while (ahead <= v && !err) {   /* look ahead: the new cells of the next patches, >= LB */
       int npend = 0;
       for (; ahead < nv && npend < LB; ++ahead)
         for (int64_t x = start[ahead]; x < start[ahead + 1]; ++x) {
@@ -1082,7 +1116,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
           int64_t s = w.nfree ? w.freel[--w.nfree] : used++;
           slot[c] = s;
           int n = 0;
-          for (int a = 0; a < NV; ++a) { int64_t g = t->gvert[c * NV + a]; n += g >= vlo && g < vhi; }
+          for (int a = 0; a < NV; ++a)
+            { int64_t g = t->gvert[c * NV + a]; n += g >= vlo && g < vhi; }
           w.left[s] = n;
           memset(w.acc + s * ACC_SIZE, 0, sizeof(double) * ACC_SIZE);
           pend[npend++] = c;
@@ -1108,7 +1143,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   stats[2] = (double)used;
   for (int d = 0; d <= DENSE; ++d) { free(batches[d].map); free(batches[d].A); free(batches[d].x); }
   free(w.map);
-  free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj); free(w.deg);
+  free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj);
+  free(w.deg);
   free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
   free((void *)w.work); free(w.acc); free(w.left); free(w.freel);
   free(start); free(prow); free(ploc); free(cur); free(slot); free(pend);

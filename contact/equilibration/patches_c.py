@@ -21,7 +21,8 @@ from .operators import _data_tables, _projected, cell_rule, facet_rule
 from .patches import PatchOutput
 from .reference import Reference
 
-#: the initial work rows of the kernel (one per live cell; doubled when the front of live cells needs more)
+#: the initial work rows of the kernel (one per live cell; doubled when the front of live
+#: cells needs more)
 CAPACITY = 4096
 
 
@@ -40,10 +41,10 @@ def _tables(d: int, p: int, nu: int) -> dict:
             code = code * d + rank
         lookup[code] = i
     arrays = {"w": r.w, "ZZ": _projected(r, "ZZ"), "ZR": _projected(r, "ZR"),
-              "NZ": np.einsum("jkm,mz->jkz", r.N, r.Z), "NR": np.einsum("jkm,mz->jkz", r.N, r.R), "P": r.P,
-              "ZG": t["ZG"], "wlamQ": t["wlamQ"], "wQ": t["wQ"], "dphi": t["dphi_u"], "dlam": r.dlam,
-              "base": np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q), "R": r.R, "Z": r.Z, "kappa": r.kappa,
-              "Q": r.Q, "q": r.q, "wS": r.wS}
+              "NZ": np.einsum("jkm,mz->jkz", r.N, r.Z), "NR": np.einsum("jkm,mz->jkz", r.N, r.R),
+              "P": r.P, "ZG": t["ZG"], "wlamQ": t["wlamQ"], "wQ": t["wQ"], "dphi": t["dphi_u"],
+              "dlam": r.dlam, "base": np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q), "R": r.R,
+              "Z": r.Z, "kappa": r.kappa, "Q": r.Q, "q": r.q, "wS": r.wS}
     out = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
     assert out["base"].shape == (D, D, r.nf, len(r.wS))
     out["lookup"] = lookup
@@ -74,8 +75,9 @@ def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: 
     return out
 
 
-def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int, int], ref: Reference,
-                           multiplier: str | None, sign: float) -> tuple[PatchOutput, np.ndarray]:
+def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int, int],
+                           ref: Reference, multiplier: str | None,
+                           sign: float) -> tuple[PatchOutput, np.ndarray]:
     """The patches of the vertices with global index in [vertices[0], vertices[1]) (complete in
     ``table``), and osc_T of every row.  Collective (the kernel is loaded collectively)."""
     nu = table.U.shape[1]
@@ -113,12 +115,14 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
     alpha = np.zeros((len(table), ref.m))
     osc = np.full(len(table), np.nan)
     stats = np.zeros(3)
-    err = lib.eq_patches(r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc), ptr(stats))
+    err = lib.eq_patches(r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc),
+                         ptr(stats))
     lib.eq_oscillation(r, t, ptr(osc))
     err = comm.allreduce(err, op=MPI.MAX)
     if err:
-        raise RuntimeError({1: "a singular cell matrix in the flux reconstruction (degenerate cell?)",
-                            2: "a singular vertex-patch system in the flux reconstruction",
-                            3: "out of memory in the flux reconstruction"}.get(err, f"kernel error {err}"))
-    out = PatchOutput(alpha, float(stats[0]), {"cell_evaluations": int(stats[1]), "work_rows": int(stats[2])})
+        what = {1: "a singular cell matrix (a degenerate cell?)", 2: "a singular vertex-patch system",
+                3: "out of memory"}.get(err, f"error {err}")
+        raise RuntimeError(f"flux reconstruction: {what}")
+    counters = {"cell_evaluations": int(stats[1]), "work_rows": int(stats[2])}
+    out = PatchOutput(alpha, float(stats[0]), counters)
     return out, osc

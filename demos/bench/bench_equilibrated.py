@@ -28,7 +28,8 @@ difference of σ_h between the backends; ``cost.csv`` / ``cost_3d.csv`` (``_np2`
 
     python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
-    python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled --out demos/results/equilibrated
+    python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled \
+        --out demos/results/equilibrated
 """
 from __future__ import annotations
 
@@ -69,7 +70,8 @@ def residual_eta(scene: contact.Scene, result) -> float:
     return estimate(dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result).eta
 
 
-def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30, compare: bool = False) -> list[dict]:
+def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30,
+                compare: bool = False) -> list[dict]:
     """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/adapt.py's
     docstring, with nested iteration, until the next level would exceed ``max_dofs``;
     ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference)."""
@@ -91,13 +93,15 @@ def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30, c
                      "dofs": result.dofs, "error": err, "eta": bound.eta, "effectivity": bound.eta / err,
                      "residual_effectivity": residual_eta(scene, result) / err,
                      **{f"part_{k}": v for k, v in bound.parts.items()},
-                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3), **extra})
+                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3),
+                     **extra})
         if MPI.COMM_WORLD.rank == 0:
             r = rows[-1]
             print(f"{name:7s} {level:3d} {r['dofs']:8d} error {err:.4e} eta {bound.eta:.4e} "
                   f"eff {r['effectivity']:.3f} (residual {r['residual_effectivity']:.2f}) "
                   f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s"
-                  + (f" |eta - eta_numpy|/eta {r['eta_rel_diff']:.1e}" if compare else ""), flush=True)
+                  + (f" |eta - eta_numpy|/eta {r['eta_rel_diff']:.1e}" if compare else ""),
+                  flush=True)
         cells = contact.mark(bound.eta_T, strategy, 0.5)
         if (next_dofs_bound(scene, cells, result.u_h.function_space) or 2 * result.dofs) > max_dofs:
             break
@@ -158,9 +162,10 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
                      "cells": scene.mesh.topology.index_map(dim).size_global, "backend": backend,
                      "reconstruction_wall": round(wall, 3), "reconstruction_cpu": round(cpu, 3),
                      "solve_wall": round(sol_wall, 3), "solve_cpu": round(sol_cpu, 3),
-                     "cg_iterations": ksp.getIterationNumber(), "ratio_wall": round(wall / sol_wall, 2),
-                     "ratio_cpu": round(cpu / sol_cpu, 2),
-                     **{f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3) for k, v in flux.seconds.items()}})
+                     "cg_iterations": ksp.getIterationNumber(),
+                     "ratio_wall": round(wall / sol_wall, 2), "ratio_cpu": round(cpu / sol_cpu, 2),
+                     **{f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
+                        for k, v in flux.seconds.items()}})
     if len(etas) == 2:      # the same σ_h to round-off
         a, b = (f.sigma_h.x.array for f in etas.values())
         diff = comm.allreduce(float(np.abs(a - b).max()), op=MPI.MAX) / \
@@ -168,15 +173,16 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
         for r in rows:
             r["sigma_rel_diff"] = f"{diff:.2e}"
     if comm.rank == 0:
-        print(f"cost, {dim}D, {rows[0]['dofs']} DoFs, {rows[0]['cells']} cells, {comm.size} rank(s); "
+        r0 = rows[0]
+        print(f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s); "
               f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
-              f"({rows[0]['cg_iterations']} iterations)")
-        print(f"{'backend':9s} {'wall':>8s} {'CPU':>8s} {'CPU/solve':>9s} {'gather':>8s} {'patches':>8s} "
-              f"{'assemble':>8s}")
+              f"({r0['cg_iterations']} iterations); CPU seconds of the phases:")
+        head = ("backend", "wall", "CPU", "CPU/solve", "gather", "patches", "assemble")
+        print(f"{head[0]:9s}" + "".join(f" {h:>9s}" for h in head[1:]))
         for r in rows:
-            print(f"{r['backend']:9s} {r['reconstruction_wall']:8.2f} {r['reconstruction_cpu']:8.2f} "
-                  f"{r['ratio_cpu']:9.2f} {r['seconds_gather']:8.2f} {r['seconds_patches']:8.2f} "
-                  f"{r['seconds_assemble']:8.2f}", flush=True)
+            cols = ("reconstruction_wall", "reconstruction_cpu", "ratio_cpu", "seconds_gather_cpu",
+                    "seconds_patches_cpu", "seconds_assemble_cpu")
+            print(f"{r['backend']:9s}" + "".join(f" {r[c]:9.2f}" for c in cols), flush=True)
     return rows
 
 
@@ -186,9 +192,10 @@ def main() -> None:
     ap.add_argument("--strategy", default="dorfler", choices=("dorfler", "uniform"))
     ap.add_argument("--max-dofs", type=int, default=30000)
     ap.add_argument("--compare-backends", action="store_true",
-                    help="also compute η with the NumPy patch solver on every level (eta_numpy, eta_rel_diff)")
+                    help="also η with the NumPy patch solver per level (eta_numpy, eta_rel_diff)")
     ap.add_argument("--cost", type=int, default=0, help="measure the cost on problem A with [2N, N] cells instead")
-    ap.add_argument("--cost3d", type=int, default=0, help="... or on its 3D extrusion with [2N, N, N] cells")
+    ap.add_argument("--cost3d", type=int, default=0,
+                    help="... or on its 3D extrusion with [2N, N, N] cells")
     ap.add_argument("--backends", nargs="*", default=list(BACKENDS), choices=list(BACKENDS),
                     help="the reconstruction backends to time (cost)")
     ap.add_argument("--out", default="demos/results/equilibrated")
@@ -196,7 +203,8 @@ def main() -> None:
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"
     if args.cost or args.cost3d:
         dim, n = (2, args.cost) if args.cost else (3, args.cost3d)
-        save_csv(Path(args.out) / f"cost{'' if dim == 2 else '_3d'}{suffix}.csv", cost(n, dim, args.backends))
+        name = f"cost{'' if dim == 2 else '_3d'}{suffix}.csv"
+        save_csv(Path(args.out) / name, cost(n, dim, args.backends))
         return
     rows, verdicts = [], []
     for name in args.problems:
