@@ -1,8 +1,8 @@
-"""Issue 30 (cost): the compiled patch solver (contact/equilibration/patches_c.py, the default)
-and the NumPy one (backend="numpy") solve the same patch minimizations, whose minimizers are
-unique: σ_h, osc_T and η agree to round-off on Signorini (λ on Γ_C) and obstacle (λ in Ω)
-scenes, P1 and P2, 2D and 3D; where no C compiler works the reconstruction falls back to
-NumPy with a warning.
+"""Issue 30 (cost): the compiled patch solver (contact/adaptivity/equilibration/patches_c.py,
+the default) and the NumPy one (backend="numpy") solve the same patch minimizations, whose
+minimizers are unique: σ_h, osc_T and η agree to round-off on Signorini (λ on Γ_C) and obstacle
+(λ in Ω) scenes, P1 and P2, 2D and 3D; where no C compiler works the reconstruction falls back
+to NumPy with a warning.
 """
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 
 import contact
-from contact.equilibration import compiled
-from contact.equilibration.bound import flux_data, guaranteed_bound
-from contact.equilibration.flux import reconstruct_flux
+from contact.adaptivity.equilibration import compiled
+from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
+from contact.adaptivity.equilibration.flux import reconstruct_flux
+from contact.adaptivity.equilibration.reference import reference
 
 ROOT = Path(__file__).resolve().parents[1]
 BOX = ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", "mesh.cells=[6,3,3]"]
@@ -55,3 +56,18 @@ def test_no_compiler_falls_back(tmp_path, monkeypatch) -> None:
     with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
         flux = reconstruct_flux(data, multiplier, sign)
     assert np.array_equal(flux.sigma_h.x.array, expected)
+
+
+def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
+    """A cache shared by machines (a home directory on CI runners of different CPUs) never
+    hands one machine's -march=native library to another: the file name hashes the CPU's
+    model and flags and the compiler command; the same machine finds its own file again."""
+    dims = compiled.dimensions(reference(2, 1), 3)      # P1 in 2D: dim P_1 = 3
+    here = compiled._path(dims)
+    assert compiled._path(dims) == here
+    monkeypatch.setattr(compiled, "_cpu", lambda: "model name : other\nflags : sse2\n")
+    assert compiled._path(dims) != here
+    monkeypatch.undo()
+    monkeypatch.setenv("CC", "clang")
+    assert compiled._path(dims) != here
+

@@ -7,7 +7,7 @@ solutions, through the adaptive loop (Dörfler θ = 0.5, ``--strategy uniform`` 
 refinement) with ``estimator: equilibrated`` while the next level stays within ``--max-dofs``.  Per level: DoFs, the
 energy error, the guaranteed η and its effectivity η / error, the residual estimator's
 effectivity on the same solve (SPEC §5), the parts of the bound (A, B, W, D of
-contact/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
+contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
 η ≥ error on every level and η / error ≤ 1.5 on every level past the first three, prints
 each level and a verdict per problem, and writes ``effectivity.csv`` (``effectivity_np2.csv``
 under ``mpirun -n 2``); ``--compare-backends`` also computes η with the NumPy patch solver on
@@ -18,7 +18,7 @@ every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off).
 
 Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs; ``--cost3d N``: its
 extrusion u(x, y, z) = u_A(x, y) on [−1, 1] × [0, 1]² with [2N, N, N] cells, N = 63: 520k
-DoFs), the reconstruction (:func:`contact.equilibration.reconstruct_flux`) with each patch
+DoFs), the reconstruction (:func:`contact.adaptivity.equilibration.reconstruct_flux`) with each patch
 solver (``--backends``: ``compiled``, the default C kernel, and ``numpy``, the reference;
 each after a warm-up call that compiles) against one CG + GAMG solve of the stiffness matrix K
 (rtol 1e-8 from zero, the loop's options) in the same process: wall and CPU seconds (the
@@ -45,11 +45,11 @@ from petsc4py import PETSc
 
 import contact
 from common import save_csv
-from contact.equilibration.bound import flux_data, guaranteed_bound
-from contact.equilibration.flux import BACKENDS, reconstruct_flux
-from contact.adapt import next_dofs_bound
-from contact.errors import solution_error
-from contact.estimate import estimate
+from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
+from contact.adaptivity.equilibration.flux import BACKENDS, reconstruct_flux
+from contact.adaptivity.refine import next_dofs_bound
+from contact.adaptivity.energy_error import solution_error
+from contact.adaptivity.estimate import estimate
 from contact.solvers.options import default_options
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -72,7 +72,7 @@ def residual_eta(scene: contact.Scene, result) -> float:
 
 def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30,
                 compare: bool = False) -> list[dict]:
-    """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/adapt.py's
+    """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/drivers/adaptive.py's
     docstring, with nested iteration, until the next level would exceed ``max_dofs``;
     ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference)."""
     path, sets = PROBLEMS[name]
