@@ -24,7 +24,9 @@ each after a warm-up call that compiles) against one CG + GAMG solve of the stif
 (rtol 1e-8 from zero, the loop's options) in the same process: wall and CPU seconds (the
 machine is shared: CPU seconds are the steadier measure), the phases (gather: the cell data;
 patches: the patch problems; assemble: σ_h, λ̃_h and the DG0 fields) and the largest
-difference of σ_h between the backends; ``cost.csv`` / ``cost_3d.csv`` (``_np2`` on 2 ranks).
+difference of σ_h between the backends, and the whole estimate (``estimate_*``:
+:func:`~contact.adaptivity.equilibration.bound.guaranteed_bound`, the feasible lifting and the
+terms besides the reconstruction); ``cost.csv`` / ``cost_3d.csv`` (``_np2`` on 2 ranks).
 
     python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
@@ -158,12 +160,17 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
         flux, wall, cpu = _timed(lambda: reconstruct_flux(data, multiplier, sign, backend=backend))
         cpu = comm.allreduce(cpu, op=MPI.MAX)
         etas[backend] = flux
+        # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
+        _, bound_wall, bound_cpu = _timed(lambda: guaranteed_bound(scene, result, backend=backend))
+        bound_cpu = comm.allreduce(bound_cpu, op=MPI.MAX)
         rows.append({"dim": dim, "ranks": comm.size, "dofs": result.dofs,
                      "cells": scene.mesh.topology.index_map(dim).size_global, "backend": backend,
                      "reconstruction_wall": round(wall, 3), "reconstruction_cpu": round(cpu, 3),
                      "solve_wall": round(sol_wall, 3), "solve_cpu": round(sol_cpu, 3),
                      "cg_iterations": ksp.getIterationNumber(),
                      "ratio_wall": round(wall / sol_wall, 2), "ratio_cpu": round(cpu / sol_cpu, 2),
+                     "estimate_wall": round(bound_wall, 3), "estimate_cpu": round(bound_cpu, 3),
+                     "estimate_ratio_cpu": round(bound_cpu / sol_cpu, 2),
                      **{f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
                         for k, v in flux.seconds.items()}})
     if len(etas) == 2:      # the same σ_h to round-off
@@ -177,11 +184,13 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
         print(f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s); "
               f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
               f"({r0['cg_iterations']} iterations); CPU seconds of the phases:")
-        head = ("backend", "wall", "CPU", "CPU/solve", "gather", "patches", "assemble")
+        head = ("backend", "wall", "CPU", "CPU/solve", "gather", "patches", "assemble",
+                "estimate", "est/solve")
         print(f"{head[0]:9s}" + "".join(f" {h:>9s}" for h in head[1:]))
         for r in rows:
             cols = ("reconstruction_wall", "reconstruction_cpu", "ratio_cpu", "seconds_gather_cpu",
-                    "seconds_patches_cpu", "seconds_assemble_cpu")
+                    "seconds_patches_cpu", "seconds_assemble_cpu", "estimate_cpu",
+                    "estimate_ratio_cpu")
             print(f"{r['backend']:9s}" + "".join(f" {r[c]:9.2f}" for c in cols), flush=True)
     return rows
 
