@@ -25,6 +25,7 @@ from .reduced import ReducedSystem
 from .options import check_petsc_options, petsc_value, set_from_options
 from .problem import DiscreteProblem, nodal_scaling
 from .result import Result, finish
+from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
 from .vi import setup_vi
 
 _counter = itertools.count()
@@ -32,14 +33,15 @@ _counter = itertools.count()
 
 def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: MPI.Comm,
                   verbose: bool, guess: bool, timers: dict, t_start: float,
-                  check_options: bool = False) -> Result:
+                  check_options: bool = False, stopping: AdaptiveStopping | None = None) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
     the validated ``solver`` options ``opts``; return a :class:`Result` (never raises on
     divergence).  ``timers`` holds the seconds counted so far (``assembly``, ``solve``,
     ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
-    when it was loaded)."""
+    when it was loaded); ``stopping``: adaptive stopping (:mod:`.stopping`), consulted by
+    the Newton monitor and the reduced system's Krylov solves."""
     method = opts["method"]
     friction = problem.friction
     if friction is not None:
@@ -54,6 +56,8 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     diagonal_law = friction is None and method in ncp.METHODS
     linear = (choose_linear if diagonal_law else assembled_kind)(problem, opts["linear"], user)
     defaults = petsc_defaults(problem, linear)
+    if stopping is not None and linear == "gamg":   # η_alg: CG's natural residual norm
+        defaults["ksp_norm_type"] = "natural"
     petsc_opts = {**defaults, **user}
     if check_options:
         check_petsc_options(opts["petsc_options"], defaults, comm)
@@ -80,6 +84,8 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         polisher = precheck if isinstance(precheck, Polisher) else None
         guard = precheck if isinstance(precheck, GuardedMin) else None
         J = system.J
+        if isinstance(system, ReducedSystem):
+            system.stopping = stopping
     else:
         J = owner.own(setup_vi(snes, problem, method, timers, state))
 
@@ -110,12 +116,13 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         active = cp.active(xk)
         n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
         changed = 0 if prev["active"] is None else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
-        step = np.nan
+        step, energy = np.nan, np.inf
         if its > 0:
             prev["x"].axpy(-1.0, xk)
             polished = polisher is not None and polisher.taken is not None
             dn = polisher.taken if polished else state["dir_norm"]  # the direction actually taken
             step = prev["x"].norm() / dn if dn > 0 else 0.0
+            energy = energy_norm(problem.K, prev["x"]) if stopping is not None else np.inf
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
             done = state.get("stop") or max(atol, opts["rtol"] * fnorm)
             if polisher is not None:
@@ -133,6 +140,11 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         history.append(row)
+        if stopping is not None:
+            same = (changed == 0 if its > 0 else stopping.guess_kept(active)) and \
+                (method == "min" or polished)
+            if stopping.newton_done(its, comm.allreduce(bool(same), op=MPI.LAND), energy):
+                snes.setConvergedReason(STOPPED_REASON)
         if verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
@@ -158,6 +170,8 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
             # first: that exact solve on the guess's active set is then done, and a Newton
             # step still needed means the active set moves, where a loose step does as well
             system.guess = guess and polisher is None
+        if stopping is not None:
+            stopping.start(cp.active(x))
         if polisher is not None and guess:
             # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
             stop = max(atol, opts["rtol"] * cp_norm(cp, x, method, opts["mu"]))
@@ -167,8 +181,11 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         snes.solve(None, x)
         reason_code = snes.getConvergedReason()
         result = finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
-                        reason_code)
+                        reason_code, inexact=stopping is not None)
         result.linear = linear
+        if stopping is not None:
+            result.stopping = stopping
+            result.reason = "converged_adaptive" if stopping.stopped else result.reason
         if friction is not None:
             result.friction = friction_fields(problem, cp, x)
         if polisher is not None:
