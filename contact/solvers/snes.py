@@ -141,8 +141,9 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         history.append(row)
         if stopping is not None:
-            same = (changed == 0 if its > 0 else stopping.guess_kept(active)) and \
-                (method == "min" or polished)
+            # an active-set step (min's, or polishing) that kept its active set: η_lin = 0
+            same = changed == 0 and (method == "min" or polished) if its > 0 else \
+                polished and stopping.guess_kept(active)
             if stopping.newton_done(its, comm.allreduce(bool(same), op=MPI.LAND), energy):
                 snes.setConvergedReason(STOPPED_REASON)
         if verbose and comm.rank == 0:
