@@ -39,6 +39,9 @@ def test_config_errors_name_the_key() -> None:
         contact.load_scene(SCENE, ["solver.stopping=adaptive"])
     with pytest.raises(ConfigError, match=r"^solver\.stopping: 'exact' is not one of fixed, adapt"):
         contact.load_scene(SCENE, ["solver.stopping=exact"])
+    # elasticity has no equilibrated estimator yet: no η_disc to balance against (hertz_2d)
+    with pytest.raises(ConfigError, match=needs):
+        contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", ["solver.stopping=adaptive"])
     for key in ("gamma_lin", "gamma_alg"):
         with pytest.raises(ConfigError, match=rf"^solver\.{key}: must lie in \(0, 1\), got 1\.5"):
             contact.load_scene(SCENE, ["estimator=equilibrated", f"solver.{key}=1.5"])

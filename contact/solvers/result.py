@@ -13,6 +13,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from .problem import DiscreteProblem
+from .stopping import AdaptiveStopping
 
 REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 
@@ -52,7 +53,7 @@ class Result:
     contact_force: float = 0.0
     friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
     hint: str = ""                 # a failed solve: what in the scene makes it hard ('' if nothing known)
-    stopping: object = None        # solver.stopping adaptive: its AdaptiveStopping (.stopping)
+    stopping: AdaptiveStopping | None = None   # solver.stopping adaptive: its criteria (.stopping)
 
     @property
     def linear_solves(self) -> int:
