@@ -46,12 +46,19 @@ def test_backends_agree(name: str) -> None:
     assert abs(eta[0] - eta[1]) < 1e-11 * eta[1]
 
 
-def test_no_compiler_falls_back(tmp_path, monkeypatch) -> None:
+@pytest.mark.parametrize("missing", ["compiler", "cache"])
+def test_no_compiler_falls_back(tmp_path, monkeypatch, missing: str) -> None:
+    """A fresh machine without a C compiler, or whose cache folder cannot be made (a
+    read-only home on CI: here a file where the folder should be), still estimates."""
     scene, result = _solved("A_P1")
     data, multiplier, sign = flux_data(scene, result)
     expected = reconstruct_flux(data, multiplier, sign, backend="numpy").sigma_h.x.array
-    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
-    monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "cache"))
+    if missing == "compiler":
+        monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+        monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "cache"))
+    else:
+        (tmp_path / "file").write_text("")
+        monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "file" / "cache"))
     monkeypatch.setattr(compiled, "_LOADED", {})
     with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
         flux = reconstruct_flux(data, multiplier, sign)
