@@ -408,9 +408,10 @@ SCENE: dict[str, Field] = {
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
         "stopping": Field("str", "fixed", choices=("fixed", "adaptive"),
                           doc="fixed: Newton and Krylov stop at rtol / atol / forcing terms; "
-                              "adaptive: when the linearization and algebraic errors are small "
-                              "against the discretization error (contact/solvers/stopping.py; "
-                              "needs estimator: equilibrated)"),
+                              "adaptive (the adaptive loop's levels after the first): when the "
+                              "linearization and algebraic errors are small against the "
+                              "discretization error (contact/solvers/stopping.py; needs "
+                              "estimator: equilibrated)"),
         "gamma_lin": Field("number", 0.1, check=_open_unit,
                            doc="stopping adaptive: Newton stops once "
                                "eta_lin <= gamma_lin eta_disc"),
