@@ -65,7 +65,8 @@ VOLATILE = {"time_total", "time_assembly", "time_linear_solve", "time_other", "t
             "newton_iterations_per_level", "polish_solves", "polish_solves_total", "polish_solves_per_level",
             "linear_solves", "weighted_linear_solves", "krylov_iterations", "final_residual", "reason",
             "sequence", "sequence_note", "fixed_point_iterations", "linear_solver", "newton_iterations_coarse",
-            "polish_solves_coarse", "backtracked_steps"}
+            "polish_solves_coarse", "backtracked_steps", "krylov_iterations_total",
+            "krylov_iterations_per_level", "eta_lin_per_level", "eta_alg_per_level"}
 #: keys whose values are sizes: equal exactly
 EXACT = {"dofs", "cells", "levels", "dofs_per_level", "constrained_nodes", "steps_total", "step", "degree",
          "converged", "symmetric_copies"}

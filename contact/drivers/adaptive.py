@@ -13,6 +13,7 @@ The pieces are plain functions so a user can write their own loop in a few lines
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -31,6 +32,7 @@ from ..setup.budget import max_dofs
 from ..setup.config import SCENE, _validate
 from ..setup.scene import Scene, require_scene
 from ..solvers.result import Result, solves_text
+from ..solvers.stopping import AdaptiveStopping
 from .solve import solve
 
 
@@ -45,6 +47,7 @@ class Level:
     error: float | None
     seconds: dict[str, float]
     imbalance: float = 1.0   # max over ranks of the owned DoFs / their mean (1 in serial)
+    passes: int = 1          # solves of this level (adaptive stopping may solve on: solve_level)
 
     def row(self) -> dict[str, Any]:
         msh = self.scene.mesh
@@ -57,8 +60,24 @@ class Level:
         row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
                     "converged": self.result.converged,
                     "active_nodes": self.result.n_active, "rank_imbalance": round(self.imbalance, 4)})
+        row.update(self.errors())
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
         return row
+
+    def errors(self) -> dict[str, Any]:
+        """The error components and the solver's work (:mod:`contact.solvers.stopping`):
+        η_disc (the level's η), η_lin and η_alg of the final iterate (adaptive stopping
+        only; '' otherwise, or where not defined), the Krylov iterations of all its solves."""
+        st = self.result.stopping
+
+        def finite(v: float) -> float | str:
+            return float(v) if st is not None and math.isfinite(v) else ""
+
+        return {"stopping": "adaptive" if st is not None else "fixed",
+                "eta_disc": self.estimate.eta,
+                "eta_lin": finite(st.eta_lin if st else 0.0),
+                "eta_alg": finite(st.eta_alg if st else 0.0),
+                "krylov_iterations": self.result.krylov_iterations, "solve_passes": self.passes}
 
 
 @dataclass
@@ -106,23 +125,19 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
     out = AdaptResult()
     for index in range(opts["max_levels"]):
         seconds = {}
-        t0 = time.perf_counter()
         problem = build_problem(scene)
         seconds["assembly"] = problem.assembly_time
         progress.note(lambda: f"level {index}: assembled, {problem.assembly_time:.0f} s")
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-        result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
-                       sequence=None if opts["nested"] else "off")
-        seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
-        progress.note(lambda: f"level {index}: solved ({result.dofs} DoFs), "
-                              f"{seconds['solve']:.0f} s; estimating")
-        t0 = time.perf_counter()
-        est = estimate(scene, result)
-        seconds["estimate"] = time.perf_counter() - t0
+        result, est, passes = solve_level(scene, problem, u0, seconds, method=method,
+                                          rtol=opts["newton_rtol"],
+                                          sequence=None if opts["nested"] else "off",
+                                          previous=out.levels[-1] if out.levels else None)
         t0 = time.perf_counter()
         error = solution_error(scene, result)
         seconds["error"] = time.perf_counter() - t0
-        level = Level(index, scene, result, est, error, seconds, imbalance=rank_imbalance(result.u_h.function_space))
+        level = Level(index, scene, result, est, error, seconds,
+                      imbalance=rank_imbalance(result.u_h.function_space), passes=passes)
         out.levels.append(level)
         if on_level is not None:
             t0 = time.perf_counter()
@@ -170,6 +185,52 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             break
         scene, u0 = new_scene, new_u0
     return out
+
+
+#: adaptive stopping: at most this many solves of a level (each from the last one's solution)
+MAX_PASSES = 3
+
+
+def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict,
+                previous: Level | None = None, **options: Any) -> tuple[Result, Estimate, int]:
+    """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
+    of :func:`~contact.drivers.solve.solve`); returns (result, estimate, solves).
+
+    With ``solver.stopping: adaptive`` (:mod:`contact.solvers.stopping`) a level after the
+    first is solved against the discretization error it should reach, predicted from the
+    previous level at the optimal rate, η_prev (N_prev / N)^{p/d}; the level's η_disc is then
+    computed at the final iterate, and where the iterate fails either criterion against it
+    (the prediction was too large), the level is solved on from there with η_disc — at most
+    :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
+    level, with no η known yet, uses the fixed tolerances."""
+    solver = scene.cfg["solver"]
+    adaptive = solver["stopping"] == "adaptive" and previous is not None
+    eta = None
+    if adaptive:
+        V = problem.V
+        dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+        rate = V.element.basix_element.degree / V.mesh.geometry.dim
+        eta = previous.estimate.eta * (previous.result.dofs / dofs) ** rate
+    seconds["solve"] = seconds["estimate"] = 0.0
+    krylov, passes = 0, 0
+    while True:
+        stopping = AdaptiveStopping(eta, solver["gamma_lin"], solver["gamma_alg"]) \
+            if adaptive else None
+        t0 = time.perf_counter()
+        result = solve(scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options)
+        seconds["solve"] += time.perf_counter() - t0
+        progress.note(lambda: f"solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
+        t0 = time.perf_counter()
+        est = estimate(scene, result)
+        seconds["estimate"] += time.perf_counter() - t0
+        krylov += result.krylov_iterations
+        passes += 1
+        if stopping is None or not result.converged or stopping.balanced(est.eta) \
+                or passes == MAX_PASSES:
+            break
+        eta, u0 = est.eta, result.u_h    # solve on from the iterate, against its η_disc
+    result.krylov_iterations = krylov
+    return result, est, passes
 
 
 def format_table(rows: list[dict]) -> str:

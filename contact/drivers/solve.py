@@ -21,11 +21,13 @@ from ..solvers.options import SolverOptions
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import check_guess, solve_problem
+from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
 
 
 def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | None = None,
-          u0: fem.Function | None = None, verbose: bool | None = None, **options: Any) -> Result:
+          u0: fem.Function | None = None, verbose: bool | None = None,
+          criterion: AdaptiveStopping | None = None, **options: Any) -> Result:
     """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
 
     ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
@@ -39,7 +41,10 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     tangential rows of :mod:`contact.solvers.friction` (no polishing, the assembled block
     Jacobian) and returns the nodal friction fields in ``Result.friction``;
     ``friction.coulomb: fixed_point`` solves a sequence of Tresca problems instead
-    (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).
+    (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).  ``criterion``: adaptive
+    stopping against a discretization error (:mod:`contact.solvers.stopping`; the adaptive
+    loop makes one per level for ``solver.stopping: adaptive``, which a single solve
+    ignores: it has no discretization error to balance against).
     """
     require_scene(scene)
     check_sections(scene.cfg)   # as loaded, or changed since (Python API)
@@ -77,8 +82,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     else:
         check_guess(u0, problem)
     result = solve_problem(problem, u0, solver_knobs(opts), scene.comm, verbose, guess, timers,
-                           t_start - built,
-                           check_options=bool(options.get("petsc_options")))
+                           t_start - built, check_options=bool(options.get("petsc_options")),
+                           stopping=criterion)
     result.sequence, result.sequence_note = levels, note
     return result
 

@@ -307,6 +307,7 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
                  "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
                  "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
                  "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
+                 **_components(adaptive),
                  **(files.timings() if files else {}), **(failure or {})})
     folder.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
                                        for h in lv.result.history], comm)
@@ -325,6 +326,17 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     write_contact(tmp, last.scene, last.result, comparison)
     _finish(tmp, info, comm)
     return info
+
+
+def _components(adaptive: AdaptResult) -> dict:
+    """The error components and the Krylov iterations per level (Level.errors): lists, with
+    None where a component is not defined (fixed stopping: η_lin, η_alg)."""
+    rows = [lv.errors() for lv in adaptive.levels]
+    out = {"stopping": rows[-1]["stopping"],
+           "krylov_iterations_total": sum(r["krylov_iterations"] for r in rows)}
+    for key in ("eta_disc", "eta_lin", "eta_alg", "krylov_iterations"):
+        out[f"{key}_per_level"] = [None if r[key] == "" else r[key] for r in rows]
+    return out
 
 
 def picture_levels(adaptive: AdaptResult, count: int) -> list[Level]:

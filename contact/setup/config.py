@@ -391,6 +391,18 @@ SCENE: dict[str, Field] = {
                           doc="DoF budget of one solve: auto (sized to this machine's memory, see "
                               "contact/setup/budget.py) or a positive integer"),
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
+        "stopping": Field("str", "fixed", choices=("fixed", "adaptive"),
+                          doc="fixed: Newton and Krylov stop at rtol / atol / forcing terms; "
+                              "adaptive (the adaptive loop's levels after the first): when the "
+                              "linearization and algebraic errors are small against the "
+                              "discretization error (contact/solvers/stopping.py; needs "
+                              "estimator: equilibrated)"),
+        "gamma_lin": Field("number", 0.1, check=_open_unit,
+                           doc="stopping adaptive: Newton stops once "
+                               "eta_lin <= gamma_lin eta_disc"),
+        "gamma_alg": Field("number", 0.1, check=_open_unit,
+                           doc="stopping adaptive: CG stops once eta_alg <= gamma_alg "
+                               "(eta_disc + eta_lin)"),
     }),
     "estimator": Field("str", "residual", choices=("residual", "equilibrated"),
                        doc="a posteriori error estimator: residual (SPEC §5, reliable up to a constant) or "
@@ -694,6 +706,10 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if cfg["estimator"] == "equilibrated" and model == "elasticity":
         raise ConfigError("estimator: equilibrated is implemented for model types signorini and obstacle; "
                           "use residual for elasticity")
+    if cfg["solver"]["stopping"] == "adaptive" and cfg["estimator"] != "equilibrated":
+        raise ConfigError("solver.stopping: adaptive needs estimator: equilibrated (the "
+                          "discretization error it balances against; signorini and obstacle "
+                          "scenes)")
     if model == "elasticity":
         _check_bodies(cfg, constants)
         _check_elasticity(cfg)

@@ -98,6 +98,7 @@ class ReducedSystem:
         self.stop = 0.0                  # SNES's stopping value of ‖Φ‖ (set by the solver)
         self.previous = None             # ‖Φ‖ and η of the last Newton solve
         self.guess = False               # the iteration starts from a guess: first step exact
+        self.stopping = None             # adaptive stopping (.stopping): the Krylov tolerance
         self._held = self._newton = None  # the law A holds, the law of the last Newton solve
         self.krylov_iterations = 0
         self.log: list[dict] = []        # one entry per inner solve: rtol, iterations, seconds
@@ -118,6 +119,8 @@ class ReducedSystem:
         lagging switch ``reduced_lag_pc`` (default true)."""
         self._rtol, _, _, self._max_it = self.ksp.getTolerances()
         self.lag = PETSc.Options(self.ksp.getOptionsPrefix()).getBool("reduced_lag_pc", True)
+        # adaptive stopping measures CG's natural norm, which the lagging's rates do not use
+        self.lag = self.lag and self.stopping is None
 
     def configure(self, snes: PETSc.SNES, prefix: str) -> None:
         """Make SNES's KSP one application of :meth:`solve` (preonly + a Python PC); its
@@ -179,13 +182,15 @@ class ReducedSystem:
         with np.errstate(divide="ignore", invalid="ignore"):
             r[:] = np.where(fixed, yx, fa / np.where(fixed, 1.0, sa) - self.work.array_r)
         rtol = self._rtol if rtol is None else max(rtol, self._rtol)
-        if newton and self.forcing:
+        if newton and self.forcing and self.stopping is None:
             # the law of the last Newton step again: the linear model is exact on this piece
             # of Φ, so solve to SNES's stopping value at once (atol below) instead of forcing
             same = self._same(self._newton, sa, da)
             rtol = self._rtol if same else self._forcing(F.norm())
             self._newton = (sa.copy(), da.copy())
         atol = 0.05 * self.stop                                    # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
+        if self.stopping is not None:     # natural norm: η_alg ≤ γ_alg (η_disc + η_lin)
+            atol = self.stopping.krylov_atol()
         t0 = time.perf_counter()
         r0 = self.r.norm()
         if not newton and not resume and self._lagged:
@@ -204,6 +209,8 @@ class ReducedSystem:
         # Krylov solve did (it stops at once when ‖r‖ ≤ atol, leaving y = 0 there too, and a
         # large d makes r = F/d on those rows small while Φ = F is not)
         y.array_w[fixed] = yx[fixed]
+        if self.stopping is not None:
+            self.stopping.krylov_done(self.ksp.getResidualNorm())
         self.krylov_iterations += its
         self.log.append({"rtol": rtol, "iterations": its, "seconds": time.perf_counter() - t0,
                          "reason": self.last_reason, "fixed_rows": self.fixed_rows, "resume": resume})

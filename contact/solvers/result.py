@@ -13,6 +13,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 
 from .problem import DiscreteProblem
+from .stopping import AdaptiveStopping
 
 REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 
@@ -52,6 +53,7 @@ class Result:
     contact_force: float = 0.0
     friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
     hint: str = ""                 # a failed solve: what in the scene makes it hard ('' if nothing known)
+    stopping: AdaptiveStopping | None = None   # solver.stopping adaptive: its criteria (.stopping)
 
     @property
     def linear_solves(self) -> int:
@@ -150,14 +152,21 @@ def owned_residual(result: Result) -> np.ndarray:
 
 
 def finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
-           reason_code) -> Result:
+           reason_code, inexact: bool = False) -> Result:
     """Copy the iterate into functions: u_h, and λ_h, the gap and the active set.  Timings
-    count from ``t_start`` (shifted back by the assembly when this solve built the problem)."""
+    count from ``t_start`` (shifted back by the assembly when this solve built the problem).
+    ``inexact``: the iterate keeps an algebraic residual (adaptive stopping), and λ_h is the
+    complementarity law's, 0 off the active set, not the residual there (the algebraic
+    residual on inactive rows is no contact force: in the bound's complementarity term it
+    would weigh like a multiplier times the gap)."""
     u_h = problem.u_h
     problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()
     a, b, r = cp.pair(x)
     active = cp.active_set(a, b)
+    if inexact:
+        r = r.copy()
+        r[cp.dofs[~active]] = 0.0
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     timers["total"] = time.perf_counter() - t_start
     timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0)

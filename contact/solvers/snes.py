@@ -28,6 +28,7 @@ from .reduced import ReducedSystem
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .problem import DiscreteProblem, nodal_scaling
 from .result import Result, finish
+from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
 from .vi import setup_vi
 
 _counter = itertools.count()
@@ -35,16 +36,17 @@ _counter = itertools.count()
 
 def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOptions, comm: MPI.Comm,
                   verbose: bool, guess: bool, timers: dict, t_start: float,
-                  check_options: bool = False) -> Result:
+                  check_options: bool = False, stopping: AdaptiveStopping | None = None) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
     the :class:`~.options.SolverOptions` ``opts``; return a :class:`Result` (never raises on
     divergence).  ``timers`` holds the seconds counted so far (``assembly``, ``solve``,
     ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
-    when it was loaded)."""
+    when it was loaded); ``stopping``: adaptive stopping (:mod:`.stopping`), consulted by
+    the Newton monitor and the reduced system's Krylov solves."""
     with SemismoothNewton(problem, opts, comm, verbose=verbose, timers=timers,
-                          check_options=check_options) as solver:
+                          check_options=check_options, stopping=stopping) as solver:
         return solver.solve(u0, guess=guess, t_start=t_start)
 
 
@@ -59,13 +61,17 @@ class SemismoothNewton:
     destroys them in :meth:`close` (or on leaving a ``with`` block); the problem stays the
     caller's.  ``timers`` (``assembly``, ``solve``; default new) receive the seconds of the
     callbacks and linear solves; ``check_options``: check ``options.petsc_options`` on a tiny
-    system first (one ConfigError line).  Each :meth:`solve` is one Newton solve from a guess.
+    system first (one ConfigError line); ``stopping``: adaptive stopping (:mod:`.stopping`),
+    consulted by the monitor and the reduced system's Krylov solves.  Each :meth:`solve` is
+    one Newton solve from a guess.
     """
 
     def __init__(self, problem: DiscreteProblem, options: SolverOptions,
                  comm: MPI.Comm | None = None, prefix: str | None = None,
-                 verbose: bool = False, timers: dict | None = None, check_options: bool = False):
+                 verbose: bool = False, timers: dict | None = None, check_options: bool = False,
+                 stopping: AdaptiveStopping | None = None):
         self.problem, self.opts, self.verbose = problem, options, verbose
+        self.stopping = stopping
         self.comm = comm = problem.V.mesh.comm if comm is None else comm
         self.timers = {"assembly": 0.0, "solve": 0.0} if timers is None else timers
         method = self.method = options.method
@@ -77,6 +83,8 @@ class SemismoothNewton:
         choose = choose_linear if diagonal_law else assembled_kind
         self.linear = choose(problem, options.linear, user)
         defaults = petsc_defaults(problem, self.linear)
+        if stopping is not None and self.linear == "gamg":   # η_alg: CG's natural residual norm
+            defaults["ksp_norm_type"] = "natural"
         self.petsc_options = {**defaults, **user}
         if check_options:
             check_petsc_options(options.petsc_options, defaults, comm)
@@ -108,6 +116,8 @@ class SemismoothNewton:
             self.polisher = precheck if isinstance(precheck, Polisher) else None
             self.guard = precheck if isinstance(precheck, GuardedMin) else None
             self.J = system.J
+            if isinstance(system, ReducedSystem):
+                system.stopping = stopping
         else:
             self.J = owner.own(setup_vi(snes, problem, method, self.timers, self.state))
         snes.getKSP().setPostSolve(self._post_solve)
@@ -176,6 +186,8 @@ class SemismoothNewton:
                 # first: that exact solve on the guess's active set is then done, and a Newton
                 # step still needed means the active set moves, where a loose step does as well
                 system.guess = guess and polisher is None
+            if self.stopping is not None:
+                self.stopping.start(cp.active(x))
             if polisher is not None and guess:
                 # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
                 stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
@@ -185,8 +197,11 @@ class SemismoothNewton:
             snes.solve(None, x)
             reason_code = snes.getConvergedReason()
             result = finish(self.comm, problem, cp, x, snes, self.history, method, opts,
-                            self.timers, t_start, reason_code)
+                            self.timers, t_start, reason_code, inexact=self.stopping is not None)
             result.linear = self.linear
+            if self.stopping is not None:
+                result.stopping = self.stopping
+                result.reason = "converged_adaptive" if self.stopping.stopped else result.reason
             if problem.friction is not None:
                 from .friction import friction_fields
                 result.friction = friction_fields(problem, cp, x)
@@ -231,13 +246,15 @@ class SemismoothNewton:
         n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
         changed = 0 if self._prev_active is None else \
             comm.allreduce(int((active != self._prev_active).sum()), op=MPI.SUM)
-        step = np.nan
+        step, energy = np.nan, np.inf
+        stopping = self.stopping
         if its > 0:
             prev.axpy(-1.0, xk)
             polished = polisher is not None and polisher.taken is not None
             # the direction actually taken
             dn = polisher.taken if polished else self.state["dir_norm"]
             step = prev.norm() / dn if dn > 0 else 0.0
+            energy = energy_norm(self.problem.K, prev) if stopping is not None else np.inf
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
             done = self.state.get("stop") or max(self.atol, opts.rtol * fnorm)
             if polisher is not None:
@@ -257,6 +274,12 @@ class SemismoothNewton:
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         self.history.append(row)
+        if stopping is not None:
+            # an active-set step (min's, or polishing) that kept its active set: η_lin = 0
+            same = changed == 0 and (method == "min" or polished) if its > 0 else \
+                polished and stopping.guess_kept(active)
+            if stopping.newton_done(its, comm.allreduce(bool(same), op=MPI.LAND), energy):
+                snes.setConvergedReason(STOPPED_REASON)
         if self.verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "

@@ -10,17 +10,28 @@ effectivity on the same solve (SPEC §5), the parts of the bound (A, B, W, D of
 contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
 η ≥ error on every level and η / error ≤ 1.5 on every level past the first three, prints
 each level and a verdict per problem, and writes ``effectivity.csv`` (``effectivity_np2.csv``
-under ``mpirun -n 2``).
+under ``mpirun -n 2``); ``--compare-backends`` also computes η with the NumPy patch solver on
+every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off).
 
     python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
 
-Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs), the reconstruction
-(:func:`contact.adaptivity.equilibration.reconstruct_flux`) against one CG + GAMG solve of the
-stiffness matrix K (rtol 1e-8 from zero, the loop's options) in the same process, wall and
-CPU seconds (the machine is shared: CPU seconds are the steadier measure); ``cost.csv``.
+Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs; ``--cost3d N``: its
+extrusion u(x, y, z) = u_A(x, y) on [−1, 1] × [0, 1]² with [2N, N, N] cells, N = 63: 520k
+DoFs), the reconstruction (:func:`contact.adaptivity.equilibration.reconstruct_flux`) with each patch
+solver (``--backends``: ``compiled``, the default C kernel, and ``numpy``, the reference;
+each after a warm-up call that compiles) against one CG + GAMG solve of the stiffness matrix K
+(rtol 1e-8 from zero, the loop's options) in the same process: wall and CPU seconds (the
+machine is shared: CPU seconds are the steadier measure), the phases (gather: the cell data;
+patches: the patch problems; assemble: σ_h, λ̃_h and the DG0 fields) and the largest
+difference of σ_h between the backends, and the whole estimate (``estimate_*``:
+:func:`~contact.adaptivity.equilibration.bound.guaranteed_bound`, the feasible lifting and the
+terms besides the reconstruction); ``cost.csv`` / ``cost_3d.csv`` (``_np2`` on 2 ranks).
 
     python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
+    mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
+    python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled \
+        --out demos/results/equilibrated
 """
 from __future__ import annotations
 
@@ -29,13 +40,15 @@ import dataclasses
 import time
 from pathlib import Path
 
+import numpy as np
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import contact
 from common import save_csv
 from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
-from contact.adaptivity.equilibration.flux import reconstruct_flux
+from contact.adaptivity.equilibration.flux import BACKENDS, reconstruct_flux
 from contact.adaptivity.refine import next_dofs_bound
 from contact.adaptivity.energy_error import solution_error
 from contact.adaptivity.estimate import estimate
@@ -59,9 +72,11 @@ def residual_eta(scene: contact.Scene, result) -> float:
     return estimate(dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result).eta
 
 
-def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30) -> list[dict]:
+def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30,
+                compare: bool = False) -> list[dict]:
     """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/drivers/adaptive.py's
-    docstring, with nested iteration, until the next level would exceed ``max_dofs``."""
+    docstring, with nested iteration, until the next level would exceed ``max_dofs``;
+    ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference)."""
     path, sets = PROBLEMS[name]
     scene = contact.load_scene(ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"])
     rows, u0 = [], None
@@ -72,16 +87,23 @@ def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30) -
         bound = guaranteed_bound(scene, result)
         t2 = time.perf_counter()
         err = solution_error(scene, result)
+        extra = {}
+        if compare:
+            eta_np = guaranteed_bound(scene, result, backend="numpy").eta
+            extra = {"eta_numpy": eta_np, "eta_rel_diff": abs(bound.eta - eta_np) / eta_np}
         rows.append({"problem": name, "ranks": MPI.COMM_WORLD.size, "strategy": strategy, "level": level,
                      "dofs": result.dofs, "error": err, "eta": bound.eta, "effectivity": bound.eta / err,
                      "residual_effectivity": residual_eta(scene, result) / err,
                      **{f"part_{k}": v for k, v in bound.parts.items()},
-                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3)})
+                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3),
+                     **extra})
         if MPI.COMM_WORLD.rank == 0:
             r = rows[-1]
             print(f"{name:7s} {level:3d} {r['dofs']:8d} error {err:.4e} eta {bound.eta:.4e} "
                   f"eff {r['effectivity']:.3f} (residual {r['residual_effectivity']:.2f}) "
-                  f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s", flush=True)
+                  f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s"
+                  + (f" |eta - eta_numpy|/eta {r['eta_rel_diff']:.1e}" if compare else ""),
+                  flush=True)
         cells = contact.mark(bound.eta_T, strategy, 0.5)
         if (next_dofs_bound(scene, cells, result.u_h.function_space) or 2 * result.dofs) > max_dofs:
             break
@@ -98,18 +120,31 @@ def verdict(rows: list[dict]) -> str:
             f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: {not high})")
 
 
-def cost(n: int) -> list[dict]:
+def cost_scene(n: int, dim: int) -> contact.Scene:
+    """Problem A on [2N, N] cells (2D), or its extrusion u(x, y, z) = u_A(x, y) on the box
+    [−1, 1] × [0, 1]² with [2N, N, N] cells (3D; z = 0, 1 carry the natural flux 0, which
+    u satisfies)."""
+    sets = [f"mesh.cells=[{2 * n},{n}]"] if dim == 2 else \
+        ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", f"mesh.cells=[{2 * n},{n},{n}]"]
+    return contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml",
+                              sets + ["output.verbose=false", "solver.max_dofs=30000000"])
+
+
+def _timed(fn):
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t, time.process_time() - c
+
+
+def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
+    """The reconstruction with each backend (after a warm-up call that compiles the data
+    expressions and the kernel) and one CG + GAMG solve of K, in this process."""
     comm = MPI.COMM_WORLD
-    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml",
-                               [f"mesh.cells=[{2 * n},{n}]", "output.verbose=false", "solver.max_dofs=3000000"])
+    scene = cost_scene(n, dim)
     result = contact.solve(scene, verbose=False)
     data, multiplier, sign = flux_data(scene, result)
-    reconstruct_flux(data, multiplier, sign)                 # compiles the data expressions
-    t, c = time.perf_counter(), time.process_time()
-    flux = reconstruct_flux(data, multiplier, sign)
-    rec = (time.perf_counter() - t, time.process_time() - c)
     options = PETSc.Options()
-    for key, value in {**default_options("gamg", 2, comm.size), "ksp_rtol": 1e-8}.items():
+    for key, value in {**default_options("gamg", dim, comm.size), "ksp_rtol": 1e-8}.items():
         options[f"eqcost_{key}"] = value
     ksp = PETSc.KSP().create(comm)
     ksp.setOptionsPrefix("eqcost_")
@@ -117,21 +152,47 @@ def cost(n: int) -> list[dict]:
     ksp.setFromOptions()
     x = result.problem.b.duplicate()
     x.set(0.0)
-    t, c = time.perf_counter(), time.process_time()
-    ksp.solve(result.problem.b, x)
-    sol = (time.perf_counter() - t, time.process_time() - c)
-    cpu = comm.allreduce(rec[1], op=MPI.MAX), comm.allreduce(sol[1], op=MPI.MAX)
-    row = {"ranks": comm.size, "dofs": result.dofs, "reconstruction_wall": round(rec[0], 3),
-           "reconstruction_cpu": round(cpu[0], 3), "solve_wall": round(sol[0], 3), "solve_cpu": round(cpu[1], 3),
-           "cg_iterations": ksp.getIterationNumber(), "ratio_wall": round(rec[0] / sol[0], 2),
-           "ratio_cpu": round(cpu[0] / cpu[1], 2),
-           **{f"seconds_{k}": round(v, 3) for k, v in flux.seconds.items()}}
+    _, sol_wall, sol_cpu = _timed(lambda: ksp.solve(result.problem.b, x))
+    sol_cpu = comm.allreduce(sol_cpu, op=MPI.MAX)
+    rows, etas = [], {}
+    for backend in backends:
+        reconstruct_flux(data, multiplier, sign, backend=backend)          # warm-up (JIT)
+        flux, wall, cpu = _timed(lambda: reconstruct_flux(data, multiplier, sign, backend=backend))
+        cpu = comm.allreduce(cpu, op=MPI.MAX)
+        etas[backend] = flux
+        # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
+        _, bound_wall, bound_cpu = _timed(lambda: guaranteed_bound(scene, result, backend=backend))
+        bound_cpu = comm.allreduce(bound_cpu, op=MPI.MAX)
+        rows.append({"dim": dim, "ranks": comm.size, "dofs": result.dofs,
+                     "cells": scene.mesh.topology.index_map(dim).size_global, "backend": backend,
+                     "reconstruction_wall": round(wall, 3), "reconstruction_cpu": round(cpu, 3),
+                     "solve_wall": round(sol_wall, 3), "solve_cpu": round(sol_cpu, 3),
+                     "cg_iterations": ksp.getIterationNumber(),
+                     "ratio_wall": round(wall / sol_wall, 2), "ratio_cpu": round(cpu / sol_cpu, 2),
+                     "estimate_wall": round(bound_wall, 3), "estimate_cpu": round(bound_cpu, 3),
+                     "estimate_ratio_cpu": round(bound_cpu / sol_cpu, 2),
+                     **{f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
+                        for k, v in flux.seconds.items()}})
+    if len(etas) == 2:      # the same σ_h to round-off
+        a, b = (f.sigma_h.x.array for f in etas.values())
+        diff = comm.allreduce(float(np.abs(a - b).max()), op=MPI.MAX) / \
+            comm.allreduce(float(np.abs(a).max()), op=MPI.MAX)
+        for r in rows:
+            r["sigma_rel_diff"] = f"{diff:.2e}"
     if comm.rank == 0:
-        print(f"cost: {row['dofs']} DoFs on {comm.size} rank(s): reconstruction {rec[0]:.2f} s wall, "
-              f"{cpu[0]:.2f} s CPU; one CG + GAMG solve of K {sol[0]:.2f} s wall, {cpu[1]:.2f} s CPU "
-              f"({row['cg_iterations']} iterations); ratio {row['ratio_wall']} (wall), {row['ratio_cpu']} (CPU); "
-              f"phases {flux.seconds}", flush=True)
-    return [row]
+        r0 = rows[0]
+        print(f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s); "
+              f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
+              f"({r0['cg_iterations']} iterations); CPU seconds of the phases:")
+        head = ("backend", "wall", "CPU", "CPU/solve", "gather", "patches", "assemble",
+                "estimate", "est/solve")
+        print(f"{head[0]:9s}" + "".join(f" {h:>9s}" for h in head[1:]))
+        for r in rows:
+            cols = ("reconstruction_wall", "reconstruction_cpu", "ratio_cpu", "seconds_gather_cpu",
+                    "seconds_patches_cpu", "seconds_assemble_cpu", "estimate_cpu",
+                    "estimate_ratio_cpu")
+            print(f"{r['backend']:9s}" + "".join(f" {r[c]:9.2f}" for c in cols), flush=True)
+    return rows
 
 
 def main() -> None:
@@ -139,16 +200,24 @@ def main() -> None:
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS), choices=list(PROBLEMS))
     ap.add_argument("--strategy", default="dorfler", choices=("dorfler", "uniform"))
     ap.add_argument("--max-dofs", type=int, default=30000)
+    ap.add_argument("--compare-backends", action="store_true",
+                    help="also η with the NumPy patch solver per level (eta_numpy, eta_rel_diff)")
     ap.add_argument("--cost", type=int, default=0, help="measure the cost on problem A with [2N, N] cells instead")
+    ap.add_argument("--cost3d", type=int, default=0,
+                    help="... or on its 3D extrusion with [2N, N, N] cells")
+    ap.add_argument("--backends", nargs="*", default=list(BACKENDS), choices=list(BACKENDS),
+                    help="the reconstruction backends to time (cost)")
     ap.add_argument("--out", default="demos/results/equilibrated")
     args = ap.parse_args()
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"
-    if args.cost:
-        save_csv(Path(args.out) / f"cost{suffix}.csv", cost(args.cost))
+    if args.cost or args.cost3d:
+        dim, n = (2, args.cost) if args.cost else (3, args.cost3d)
+        name = f"cost{'' if dim == 2 else '_3d'}{suffix}.csv"
+        save_csv(Path(args.out) / name, cost(n, dim, args.backends))
         return
     rows, verdicts = [], []
     for name in args.problems:
-        got = effectivity(name, args.strategy, args.max_dofs)
+        got = effectivity(name, args.strategy, args.max_dofs, compare=args.compare_backends)
         rows += got
         verdicts.append(verdict(got))
     if MPI.COMM_WORLD.rank == 0:

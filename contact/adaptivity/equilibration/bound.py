@@ -115,8 +115,9 @@ def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
     return flux, ("cells" if model == "obstacle" else "facets"), -p.constraint.sign
 
 
-def guaranteed_bound(scene: Scene, result: Result) -> Bound:
-    """The bound of the module docstring for a solve of a scalar scene (collective)."""
+def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bound:
+    """The bound of the module docstring for a solve of a scalar scene (collective);
+    ``backend``: the patch solver of :func:`.flux.reconstruct_flux`."""
     seconds = {}
     t0 = time.perf_counter()
     data, multiplier, sign = flux_data(scene, result)
@@ -128,7 +129,7 @@ def guaranteed_bound(scene: Scene, result: Result) -> Bound:
     lift = _feasibility(scene, result, sigma, k, v)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)       # k∇s_h: fit σ_h to the feasible s_h
-    flux = reconstruct_flux(data, multiplier, sign)
+    flux = reconstruct_flux(data, multiplier, sign, backend=backend)
     seconds["flux"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     p = _degree(u_h)

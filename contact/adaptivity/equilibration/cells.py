@@ -95,20 +95,24 @@ def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
     return facet_kind[c2f], facet_tag[c2f]
 
 
-def _at_points(expr, msh: dmesh.Mesh, X: np.ndarray, cells: np.ndarray) -> np.ndarray:
+def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """The UFL expression at the reference points X of ``cells``: (len(cells), len(X), …).
-    The expression is multiplied by a DG0 function 1, so that DOLFINx ties it to the mesh
-    even when it is constant after differentiation (e.g. −div ∇ of a linear function)."""
-    one = fem.Function(fem.functionspace(msh, ("DG", 0)))
-    one.x.array[:] = 1.0
+    The expression is multiplied by ``one``, a DG0 function 1, so that DOLFINx ties it to
+    the mesh even when it is constant after differentiation (e.g. −div ∇ of a linear
+    function)."""
+    if isinstance(expr, fem.Constant):      # the same on every rank: nothing to compile
+        value = np.asarray(expr.value, dtype=np.float64)
+        return np.broadcast_to(value, (len(cells), len(X)) + value.shape)   # read-only, no memory
+    msh = one.function_space.mesh
     expr = one * ufl.as_ufl(expr)   # collective: the expression is compiled (also for no cells)
     values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
     return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
 
 
-def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
-    """The rows of this rank's owned cells (and their number).  Collective (the data
-    expressions are compiled)."""
+def local_table(data: FluxData, ref: Reference,
+                dg0: fem.FunctionSpace | None = None) -> tuple[CellTable, int]:
+    """The rows of this rank's owned cells (and their number); ``dg0``: the mesh's DG0 space,
+    if the caller has it.  Collective (the data expressions are compiled)."""
     u_h = data.u_h
     V = u_h.function_space
     msh = V.mesh
@@ -124,10 +128,12 @@ def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
     gvert = vmap.local_to_global(c2v.ravel().astype(np.int32)).reshape(c2v.shape)
     owners = np.concatenate([np.full(vmap.size_local, msh.comm.rank, dtype=np.int32), vmap.owners])
     gcell = msh.topology.index_map(d).local_to_global(cells)
-    x = msh.geometry.x[nodes[:n_owned]][:, :, :d]
+    x = msh.geometry.x[:, :d][nodes[:n_owned]]              # (n, d+1, d), contiguous
     U = u_h.x.array[V.dofmap.list[:n_owned]]
-    f = _at_points(data.f, msh, ref.X, cells)
-    k = _at_points(data.k, msh, ref.X, cells)
+    one = fem.Function(dg0 or fem.functionspace(msh, ("DG", 0)))
+    one.x.array[:] = 1.0
+    f = _at_points(data.f, one, ref.X, cells)
+    k = _at_points(data.k, one, ref.X, cells)
     kind, tag = _facet_kinds(msh, data)
     kind, tag = kind[:n_owned], tag[:n_owned]
     t = np.zeros((n_owned, d + 1, len(ref.wS)))
@@ -135,7 +141,7 @@ def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
     for values in (data.neumann or {}, data.contact or {}):
         for v, expr in values.items():
             rows = np.flatnonzero(np.any(tag == v, axis=1)).astype(np.int32)
-            vals = _at_points(expr, msh, XF, rows).reshape(len(rows), d + 1, len(ref.wS))
+            vals = _at_points(expr, one, XF, rows).reshape(len(rows), d + 1, len(ref.wS))
             hit = tag[rows] == v
             t[rows[:, None].repeat(d + 1, 1)[hit], np.nonzero(hit)[1]] = vals[hit]
     lam = np.zeros_like(U)
@@ -143,7 +149,8 @@ def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
         in_V = fem.Function(V)
         in_V.interpolate(data.lmbda_h)
         lam = in_V.x.array[V.dofmap.list[:n_owned]]
-    tau = np.zeros((n_owned, 0, d)) if data.target is None else _at_points(data.target, msh, ref.X, cells)
+    tau = np.zeros((n_owned, 0, d)) if data.target is None else \
+        _at_points(data.target, one, ref.X, cells)
     return CellTable(gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam,
                      tau), n_owned
 
@@ -188,9 +195,9 @@ def return_to_owners(comm: MPI.Comm, gcell: np.ndarray, source: np.ndarray, valu
     """Sum the rows of ``values`` (one per work row) into the cells' owners: returns the
     (n_owned, …) sums of this rank's cells, whose global indices are offset … offset +
     n_owned − 1 in the order of the first n_owned work rows."""
-    out = values[:n_owned].copy()
     if comm.size == 1:
-        return out
+        return values[:n_owned]
+    out = values[:n_owned].copy()
     remote = np.arange(n_owned, len(gcell))
     g, v = _exchange(comm, source[remote].astype(np.int64), [gcell[remote], values[remote]])
     np.add.at(out, g - offset, v)

@@ -17,7 +17,10 @@ same reconstruction serves other models (row-wise for elasticity).
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
 
 import numpy as np
 
@@ -25,12 +28,18 @@ import basix.ufl
 from dolfinx import fem
 
 from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
+from .compiled import library
 from .multiplier import clipped, shares
 from .operators import cell_rule, facet_rule
 from .patches import solve_patches
+from .patches_c import solve_patches_compiled
 from .reference import Reference, reference
 
 __all__ = ["Flux", "FluxData", "reconstruct_flux"]
+
+#: the patch solver: "compiled" (the C kernel of :mod:`.patches_c`) or "numpy" (:mod:`.patches`,
+#: the reference implementation, kept to measure and cross-check the kernel)
+BACKENDS = ("compiled", "numpy")
 
 
 @dataclass
@@ -43,16 +52,22 @@ class Flux:
 
     (so that (f − Π_p f, v)_T + ⟨t − Π_p t, v⟩_{∂T} ≤ osc_T ‖k^{1/2}∇v‖_T for every v ∈ H¹(T):
     Poincaré's h_T/π on convex cells, and the trace inequality of :func:`_oscillation`),
-    the projected balance defect (algebraic residual, flux units) and timings (seconds)."""
+    the projected balance defect (algebraic residual, flux units) and timings (seconds).
+    :attr:`sigma_cells`, the same field cell by cell in vector DG_{p+1} (no continuity
+    imposed; σ_h is its RT_p interpolant), is built when first asked for."""
 
     sigma_h: fem.Function
-    sigma_cells: fem.Function  # the same cell by cell in vector DG_{p+1} (before interpolation)
     lmbda_clip: fem.Function  # λ_h with wrong-signed nodal values clipped (the element of u_h)
     bubble: fem.Function      # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
     kappa: fem.Function       # DG0: κ of the cell's contact entity (the largest of its facets')
     osc: np.ndarray      # (owned cells,) osc_T
     defect: float
     seconds: dict = field(default_factory=dict)
+    cells: Callable[[], fem.Function] | None = field(default=None, repr=False)
+
+    @cached_property
+    def sigma_cells(self) -> fem.Function:
+        return self.cells()
 
     @property
     def lmbda(self):
@@ -61,48 +76,111 @@ class Flux:
         return self.kappa * (self.lmbda_clip - 0.5 * self.bubble)
 
 
-def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float = 0.0) -> Flux:
+def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float = 0.0,
+                     backend: str = "compiled") -> Flux:
     """σ_h of the module docstring.  ``multiplier``: None, "facets" (λ on the ``contact``
     facets, Signorini) or "cells" (λ in Ω, obstacle); ``sign``: the sign λ̃ must have
-    (−1: ≤ 0, +1: ≥ 0, 0: any).  Collective."""
+    (−1: ≤ 0, +1: ≥ 0, 0: any); ``backend``: one of :data:`BACKENDS`.  Collective."""
     if multiplier not in (None, "facets", "cells"):
         raise ValueError(f"multiplier: expected None, 'facets' or 'cells', got {multiplier!r}")
+    if backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     V = data.u_h.function_space
     msh = V.mesh
     d = msh.topology.dim
     p = V.element.basix_element.degree
     ref = reference(d, p)
     comm = msh.comm
-    seconds = {}
-    t0 = time.perf_counter()
+    clock = _Clock()
     if multiplier is not None and data.lmbda_h is None:
         raise ValueError("lmbda_h: the discrete multiplier is needed when the flux carries one")
-    table, n_owned = local_table(data, ref)
+    DG0 = fem.functionspace(msh, ("DG", 0))
+    table, n_owned = local_table(data, ref, DG0)
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
-    seconds["gather"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    clock.lap("gather")
     vmap = msh.topology.index_map(0)
-    owned_vertices = np.arange(*vmap.local_range, dtype=np.int64)
-    out = solve_patches(work, owned_vertices, ref, multiplier, sign)
-    seconds["patches"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    if backend == "compiled":
+        try:
+            library(comm, ref, table.U.shape[1])
+        except RuntimeError as err:         # no C compiler: the NumPy solver, same numbers, slower
+            warnings.warn(f"{err}; the flux reconstruction falls back to backend='numpy'",
+                          stacklevel=2)
+            backend = "numpy"
+    if backend == "compiled":
+        out, osc = solve_patches_compiled(comm, work, vmap.local_range, ref, multiplier, sign)
+        osc = osc[:n_owned]
+    else:
+        owned = np.arange(*vmap.local_range, dtype=np.int64)
+        out = solve_patches(work, owned, ref, multiplier, sign)
+    clock.lap("patches")
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
-    sigma_cells = cellwise(msh, ref, table, alpha)
-    sigma_h = _interpolated(msh, ref, sigma_cells)
-    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign)
-    osc = _oscillation(table, ref)
-    seconds["assemble"] = time.perf_counter() - t0
+    if backend == "compiled":
+        sigma_h = rt_function(msh, ref, alpha)          # transforms alpha in place
+        sigma_cells = None
+    else:
+        sigma_cells = cellwise(msh, ref, table, alpha)
+        sigma_h = _interpolated(msh, ref, sigma_cells)
+        osc = _oscillation(table, ref)
+    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
+    clock.lap("assemble")
     defect = comm.allreduce(out.defect)
-    return Flux(sigma_h, sigma_cells, lmbda_clip, bubble, kappa, osc, defect, seconds)
+    cells = (lambda: sigma_cells) if sigma_cells is not None else \
+        (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
+    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells)
+
+
+class _Clock:
+    """Wall and CPU seconds of consecutive phases: seconds[name], seconds[name + "_cpu"]."""
+
+    def __init__(self) -> None:
+        self.seconds: dict = {}
+        self.t, self.c = time.perf_counter(), time.process_time()
+
+    def lap(self, name: str) -> None:
+        t, c = time.perf_counter(), time.process_time()
+        self.seconds[name], self.seconds[f"{name}_cpu"] = t - self.t, c - self.c
+        self.t, self.c = t, c
+
+
+def _rt_space(msh, ref: Reference) -> fem.FunctionSpace:
+    return fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1,
+                                                    basix.LagrangeVariant.legendre))
+
+
+def rt_function(msh, ref: Reference, alpha: np.ndarray) -> fem.Function:
+    """σ_h ∈ RT_p from the reference coefficients ``alpha`` of the owned cells (σ_h|_T =
+    Piola(Σ_l α_l φ̂_l)): the DoFs are α in DOLFINx's global orientation, u = T⁻ᵀ α (T: the
+    cell's DoF transformation, as DOLFINx's interpolation applies it); a DoF shared by two
+    cells takes one cell's value, which the other's equals to round-off (σ_h·n is
+    continuous)."""
+    RT = _rt_space(msh, ref)
+    sigma_h = fem.Function(RT, name="sigma_h")
+    n = len(alpha)
+    if RT.element.needs_dof_transformations:
+        msh.topology.create_entity_permutations()
+        perms = msh.topology.get_cell_permutation_info()[:n]
+        RT.element.Tt_inv_apply(alpha.reshape(-1), perms, 1)
+    sigma_h.x.array[RT.dofmap.list[:n]] = alpha
+    sigma_h.x.scatter_forward()
+    return sigma_h
+
+
+def rt_coefficients(sigma_h: fem.Function, n: int) -> np.ndarray:
+    """The reference coefficients α = Tᵀ u of the first n cells (the inverse of
+    :func:`rt_function`)."""
+    RT = sigma_h.function_space
+    alpha = sigma_h.x.array[RT.dofmap.list[:n]]
+    if RT.element.needs_dof_transformations:
+        msh = RT.mesh
+        RT.element.Tt_apply(alpha.reshape(-1), msh.topology.get_cell_permutation_info()[:n], 1)
+    return alpha
 
 
 def _interpolated(msh, ref: Reference, sigma_cells: fem.Function) -> fem.Function:
     """σ_h in RT_p: the cellwise field interpolated by DOLFINx (exact where it is normal-
     continuous, which the patch problems make it)."""
-    RT = fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1,
-                                                  basix.LagrangeVariant.legendre))
-    sigma_h = fem.Function(RT, name="sigma_h")
+    sigma_h = fem.Function(_rt_space(msh, ref), name="sigma_h")
     sigma_h.interpolate(sigma_cells)
     sigma_h.x.scatter_forward()
     return sigma_h
@@ -137,7 +215,7 @@ def _rt_element(d: int, p: int):
     return basix.create_element(basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre)
 
 
-def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign):
+def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, DG0):
     """λ_h clipped, the Bernstein bubble and κ (:class:`Flux`) from the owned rows."""
     n = len(table)
     nodal = clipped(table.lam, sign)
@@ -157,7 +235,6 @@ def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign)
         kappa[kappa == 0.0] = 1.0
     for fn in (lmbda_clip, bubble):
         fn.x.scatter_forward()
-    DG0 = fem.functionspace(V.mesh, ("DG", 0))
     kap = fem.Function(DG0, name="kappa")
     kap.x.array[:n] = kappa
     kap.x.scatter_forward()

@@ -21,7 +21,7 @@ no loop runs over vertices.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from .reference import Reference
 class PatchOutput:
     alpha: np.ndarray     # (rows, m): the RT_p coefficients Σ_a σ_a|_T (of the patches solved here)
     defect: float         # Σ_a |balance defect| (flux units) projected out
+    stats: dict = field(default_factory=dict)   # counters of the compiled kernel
 
 
 def solve_patches(table: CellTable, owned_vertex: np.ndarray, ref: Reference, multiplier: str | None,

@@ -1,0 +1,1153 @@
+"""The C source of the compiled patch solver (:mod:`.compiled`): the algebra of
+:mod:`.operators` and :mod:`.patches`, cell by cell and patch by patch, in plain C99.
+
+The dimensions of the reference element are compile-time constants (one library per
+(d, p)), so the compiler unrolls the small loops:
+
+    DIM  d              NV   d + 1 (vertices = facets)     NQ, NQF  cell / facet points
+    NU   dim P_p        M    dim RT_p     NP  dim P_p (div moments)    MZ  M − NP
+    NF   dim P_p(F)     NPERM  d!        NLOOK  d^d (facet-permutation codes)
+
+``eq_cells`` computes, per cell row c, the operators the patch problems need (the work row
+of :data:`WORK_LAYOUT`) and osc_T; ``eq_patches`` solves the patch of every vertex of a
+global index range and adds σ_a|_T to alpha.  A patch system is ordered by reverse
+Cuthill–McKee and factorized by an envelope Cholesky (the spokes of a 3D patch couple
+only through the cells they share); a patch without a Dirichlet spoke has the constant
+multiplier as its kernel: one constant moment is pinned and the solution projected
+orthogonal to the kernel, which is the solution of the regularized system of
+:mod:`.patches`.  Where the Cholesky meets a non-positive pivot the patch falls back to
+that regularized system and an LU factorization with partial pivoting.
+Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out of memory.
+"""
+
+#: the per-cell work row of eq_cells, in this order (sizes in the macros above)
+WORK_LAYOUT = ("S: DNF*DNF", "OZ: DNF*MZ", "MZinv: MZ*MZ", "ZMR: MZ*NP", "beta: NV*NP",
+               "ZTg: NV*MZ", "h: NV*DNF", "data: NV*NV*NF")
+
+CDEF = """
+typedef struct {
+  const double *w, *ZZ, *ZR, *NZ, *NR, *P, *ZG, *wlamQ, *wQ, *dphi, *dlam, *base, *R, *Z,
+               *kappa, *Q, *q, *wS;
+  const int64_t *lookup;
+  double wsum;
+} eq_ref;
+typedef struct {
+  int64_t n;
+  const int64_t *gvert;
+  const double *x, *U, *f, *k;
+  int64_t fstride, kstride;       /* NQ, or 0 where f or k is one row for all cells */
+  const int8_t *kind;
+  const double *t, *tau, *src;
+  const int64_t *cidx;
+  const double *cmom;
+} eq_table;
+int64_t eq_work_size(void);
+void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc);
+int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+               double *alpha, double *osc, double *stats);
+"""
+
+HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n"
+SOURCE = HEADERS + CDEF + r"""
+
+#define PI_ 3.14159265358979323846
+#define MAXN (MZ > NF ? MZ : NF)
+#define MAXB (NP > NF ? NP : NF)
+#define DNF (NV * NF)
+#define SNF (DIM * NF)
+enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
+
+/* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
+   μ_o = ho_a − Ta_a μ_s) and the final map to alpha need: σ_h|_T = Σ_a σ_a|_T, σ_a|_T =
+   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C + G Σ_a μ_a with G = −Z M_Z⁻¹ (O Z)ᵀ and
+   C the rest, summed over the vertices a whose patches are solved here */
+#define W_G 0
+#define W_C (W_G + M * DNF)             /* right after G (cell_block stores them as one) */
+#define W_SHAT (W_C + M)
+#define W_B (W_SHAT + NV * SNF * SNF)
+#define W_TA (W_B + NV * SNF)
+#define W_HO (W_TA + NV * NF * SNF)
+#define W_SIZE (W_HO + NV * NF)
+#define DENSE 24                        /* patch systems up to this size: no reordering */
+#define LB 8                            /* cells per block: the SIMD lanes of cell_block */
+#define LANES for (int b = 0; b < LB; ++b)
+
+int64_t eq_work_size(void) { return W_SIZE; }
+
+/* Solve A X = B (n x n, row-major, nrhs columns) by LU with partial pivoting, in place;
+   returns 1 if a pivot is exactly zero. */
+static int lu_solve(int n, double *A, double *B, int nrhs)
+{
+  for (int k = 0; k < n; ++k) {
+    int piv = k;
+    double best = fabs(A[k * n + k]);
+    for (int i = k + 1; i < n; ++i)
+      if (fabs(A[i * n + k]) > best) { best = fabs(A[i * n + k]); piv = i; }
+    if (best == 0.0) return 1;
+    if (piv != k) {
+      for (int j = 0; j < n; ++j)
+        { double s = A[k * n + j]; A[k * n + j] = A[piv * n + j]; A[piv * n + j] = s; }
+      for (int j = 0; j < nrhs; ++j)
+        { double s = B[k * nrhs + j]; B[k * nrhs + j] = B[piv * nrhs + j]; B[piv * nrhs + j] = s; }
+    }
+    double inv = 1.0 / A[k * n + k];
+    for (int i = k + 1; i < n; ++i) {
+      double l = A[i * n + k] * inv;
+      if (l == 0.0) continue;
+      for (int j = k + 1; j < n; ++j) A[i * n + j] -= l * A[k * n + j];
+      for (int j = 0; j < nrhs; ++j) B[i * nrhs + j] -= l * B[k * nrhs + j];
+    }
+  }
+  for (int k = n - 1; k >= 0; --k)
+    for (int j = 0; j < nrhs; ++j) {
+      double s = B[k * nrhs + j];
+      for (int i = k + 1; i < n; ++i) s -= A[k * n + i] * B[i * nrhs + j];
+      B[k * nrhs + j] = s / A[k * n + k];
+    }
+  return 0;
+}
+
+static double det_inv(const double J[DIM][DIM], double Ji[DIM][DIM])
+{
+#if DIM == 2
+  double det = J[0][0] * J[1][1] - J[0][1] * J[1][0];
+  Ji[0][0] = J[1][1] / det; Ji[1][1] = J[0][0] / det;
+  Ji[0][1] = -J[0][1] / det; Ji[1][0] = -J[1][0] / det;
+#else
+  double adj[3][3];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
+      if (r0 > r1) { int s = r0; r0 = r1; r1 = s; }
+      if (c0 > c1) { int s = c0; c0 = c1; c1 = s; }
+      double minor = J[r0][c0] * J[r1][c1] - J[r0][c1] * J[r1][c0];
+      adj[i][j] = ((i + j) % 2 ? -1.0 : 1.0) * minor;
+    }
+  double det = J[0][0] * adj[0][0] + J[0][1] * adj[1][0] + J[0][2] * adj[2][0];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) Ji[i][j] = adj[i][j] / det;
+#endif
+  return det;
+}
+
+/* |F| / |F^| of facet j (the vertices other than j): sqrt(det(E E^T)) */
+static double facet_size(const double *x, int j)
+{
+  int o[NV - 1], n = 0;
+  for (int v = 0; v < NV; ++v) if (v != j) o[n++] = v;
+  double E[DIM - 1][DIM];
+  for (int a = 0; a < DIM - 1; ++a)
+    for (int i = 0; i < DIM; ++i) E[a][i] = x[o[a + 1] * DIM + i] - x[o[0] * DIM + i];
+  double G[DIM - 1][DIM - 1];
+  for (int a = 0; a < DIM - 1; ++a)
+    for (int b = 0; b < DIM - 1; ++b) {
+      double s = 0.0;
+      for (int i = 0; i < DIM; ++i) s += E[a][i] * E[b][i];
+      G[a][b] = s;
+    }
+#if DIM == 2
+  double det = G[0][0];
+#else
+  double det = G[0][0] * G[1][1] - G[0][1] * G[1][0];
+#endif
+  return sqrt(fabs(det));
+}
+
+static int facet_perm(const eq_ref *r, const int64_t *g, int j)
+{
+  int64_t o[NV - 1];
+  int n = 0;
+  for (int v = 0; v < NV; ++v) if (v != j) o[n++] = g[v];
+  int64_t code = 0;
+  for (int a = 0; a < NV - 1; ++a) {
+    int rank = 0;
+    for (int b = 0; b < NV - 1; ++b) rank += o[b] < o[a];
+    code = code * (NV - 1) + rank;
+  }
+  return (int)r->lookup[code];
+}
+
+/* ‖v − Π v‖² by the rule (w, nq): Π the projection onto the nb orthonormal B (nb, nq). */
+static double l2_rest(const double *v, const double *w, const double *B, int nq, int nb)
+{
+  double mom[MAXB], rest = 0.0;
+  for (int a = 0; a < nb; ++a) {
+    double s = 0.0;
+    for (int q = 0; q < nq; ++q) s += v[q] * w[q] * B[a * nq + q];
+    mom[a] = s;
+  }
+  for (int q = 0; q < nq; ++q) {
+    double e = v[q];
+    for (int a = 0; a < nb; ++a) e -= mom[a] * B[a * nq + q];
+    rest += e * e * w[q];
+  }
+  return rest;
+}
+
+static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double absdet,
+                          const double size[][LB], int lane)
+{
+  const double *x = t->x + c * NV * DIM, *f = t->f + c * t->fstride, *k = t->k + c * t->kstride;
+  double fact = 1.0, fact1 = 1.0;
+  for (int i = 2; i <= DIM; ++i) fact *= i;
+  for (int i = 2; i <= DIM - 1; ++i) fact1 *= i;
+  double vol = absdet / fact, h = 0.0;
+  for (int i = 0; i < NV; ++i)
+    for (int j = 0; j < i; ++j) {
+      double s = 0.0;
+      for (int l = 0; l < DIM; ++l) { double e = x[i * DIM + l] - x[j * DIM + l]; s += e * e; }
+      if (sqrt(s) > h) h = sqrt(s);
+    }
+  double rest = l2_rest(f, r->w, r->Q, NQ, NP);
+  double osc = h / PI_ * sqrt(fmax(absdet * rest, 0.0));
+  for (int j = 0; j < NV; ++j) {
+    const double *tj = t->t + (c * NV + j) * NQF;
+    double tr = l2_rest(tj, r->wS, r->q, NQF, NF);
+    double area = size[j][lane] / fact1, norm = sqrt(size[j][lane] * tr);
+    osc += h * sqrt(area / vol * (1.0 / (PI_ * PI_) + 2.0 / (DIM * PI_))) * norm;
+  }
+  double kmin = k[0];
+  for (int q = 1; q < NQ; ++q) kmin = fmin(kmin, k[q]);
+  return osc / sqrt(kmin);
+}
+
+/* SPD inverses of LB n x n matrices at once (entry (i, j) of lane b at [(i n + j) LB + b]) by
+   Cholesky; a lane with a non-positive pivot is inverted by LU instead. */
+static int spd_inverse_lanes(int n, const double *restrict A, double *restrict Ainv)
+{
+  double L[MAXN * MAXN][LB], Li[MAXN * MAXN][LB], Ld[MAXN][LB];   /* Ld: 1 / L_ii */
+  int bad[LB] = {0};
+  if (n == 1) {
+    LANES { if (!(A[b] > 0.0)) bad[b] = 1; Ainv[b] = 1.0 / A[b]; }
+    goto fallback;
+  }
+  if (n == 2) {
+    LANES {
+      double a = A[b], c = A[LB + b], d = A[3 * LB + b], det = a * d - c * c;
+      if (!(a > 0.0 && det > 0.0)) bad[b] = 1;
+      det = 1.0 / det;
+      Ainv[b] = d * det; Ainv[LB + b] = Ainv[2 * LB + b] = -c * det; Ainv[3 * LB + b] = a * det;
+    }
+    goto fallback;
+  }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v[LB];
+      LANES v[b] = A[(i * n + j) * LB + b];
+      for (int k = 0; k < j; ++k) LANES v[b] -= L[i * MAXN + k][b] * L[j * MAXN + k][b];
+      if (i == j) {
+        LANES {
+          if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; }
+          L[i * MAXN + i][b] = sqrt(v[b]);
+          Ld[i][b] = 1.0 / L[i * MAXN + i][b];
+        }
+      } else {
+        LANES L[i * MAXN + j][b] = v[b] * Ld[j][b];
+      }
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = j; i < n; ++i) {
+      double v[LB];
+      LANES v[b] = i == j ? 1.0 : 0.0;
+      for (int k = j; k < i; ++k) LANES v[b] -= L[i * MAXN + k][b] * Li[k * MAXN + j][b];
+      LANES Li[i * MAXN + j][b] = v[b] * Ld[i][b];
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v[LB] = {0.0};
+      for (int k = i; k < n; ++k) LANES v[b] += Li[k * MAXN + i][b] * Li[k * MAXN + j][b];
+      LANES Ainv[(i * n + j) * LB + b] = Ainv[(j * n + i) * LB + b] = v[b];
+    }
+fallback:
+  for (int b = 0; b < LB; ++b) {
+    if (!bad[b]) continue;
+    double a[MAXN * MAXN], ai[MAXN * MAXN];
+    for (int k = 0; k < n * n; ++k) a[k] = A[k * LB + b];
+    memset(ai, 0, sizeof(double) * n * n);
+    for (int k = 0; k < n; ++k) ai[k * n + k] = 1.0;
+    if (lu_solve(n, a, ai, n)) return 1;
+    for (int k = 0; k < n * n; ++k) Ainv[k * LB + b] = ai[k];
+  }
+  return 0;
+}
+
+/* The operators of the cells cells[0 .. nb) (operators.py), condensed per vertex (patches.py),
+   into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
+   fills the lanes nb .. LB - 1 and is not stored twice). */
+static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells,
+                      int nb, double *const *rows, int64_t vlo, int64_t vhi, double *osc)
+{
+  int64_t cl[LB];
+  LANES cl[b] = cells[b < nb ? b : nb - 1];
+  double X[NV * DIM][LB], K[NQ][LB], F[NQ][LB], Uc[NU][LB];
+  for (int v = 0; v < NV * DIM; ++v) LANES X[v][b] = t->x[cl[b] * NV * DIM + v];
+  for (int q = 0; q < NQ; ++q)
+    LANES { K[q][b] = t->k[cl[b] * t->kstride + q]; F[q][b] = t->f[cl[b] * t->fstride + q]; }
+  for (int u = 0; u < NU; ++u) LANES Uc[u][b] = t->U[cl[b] * NU + u];
+  double J[DIM][DIM][LB], Ji[DIM][DIM][LB], det[LB], s[LB], absdet[LB];
+  for (int i = 0; i < DIM; ++i)
+    for (int j = 0; j < DIM; ++j) LANES J[i][j][b] = X[(j + 1) * DIM + i][b] - X[i][b];
+#if DIM == 2
+  LANES {
+    det[b] = J[0][0][b] * J[1][1][b] - J[0][1][b] * J[1][0][b];
+    Ji[0][0][b] = J[1][1][b] / det[b]; Ji[1][1][b] = J[0][0][b] / det[b];
+    Ji[0][1][b] = -J[0][1][b] / det[b]; Ji[1][0][b] = -J[1][0][b] / det[b];
+  }
+#else
+  double adj[3][3][LB];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      int r0 = (j + 1) % 3, r1 = (j + 2) % 3, c0 = (i + 1) % 3, c1 = (i + 2) % 3;
+      if (r0 > r1) { int u = r0; r0 = r1; r1 = u; }
+      if (c0 > c1) { int u = c0; c0 = c1; c1 = u; }
+      double sg = (i + j) % 2 ? -1.0 : 1.0;
+      LANES adj[i][j][b] = sg * (J[r0][c0][b] * J[r1][c1][b] - J[r0][c1][b] * J[r1][c0][b]);
+    }
+  LANES det[b] = J[0][0][b] * adj[0][0][b] + J[0][1][b] * adj[1][0][b] + J[0][2][b] * adj[2][0][b];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) LANES Ji[i][j][b] = adj[i][j][b] / det[b];
+#endif
+  LANES { s[b] = (det[b] > 0) - (det[b] < 0); absdet[b] = fabs(det[b]); }
+  double GM[DIM * DIM][LB], KS[DIM][DIM][LB], kT[LB] = {0.0};
+  for (int i = 0; i < DIM; ++i)
+    for (int j = 0; j < DIM; ++j) {
+      double g[LB] = {0.0}, h[LB] = {0.0};
+      for (int l = 0; l < DIM; ++l)
+        LANES { g[b] += J[l][i][b] * J[l][j][b]; h[b] += Ji[i][l][b] * Ji[j][l][b]; }
+      LANES { GM[i * DIM + j][b] = g[b] / absdet[b]; KS[i][j][b] = h[b] * absdet[b]; }
+    }
+  for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
+  LANES kT[b] /= r->wsum;
+  /* M_Z = Zᵀ M Z, M_Z⁻¹ and Zᵀ M R (the weight k_T⁻¹) */
+  double MZm[MZ * MZ * LB], MZi[MZ * MZ * LB], ZMR[MZ * NP][LB];
+  for (int a = 0; a < MZ * MZ; ++a) {
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZZ[ij * MZ * MZ + a];
+    LANES MZm[a * LB + b] = v[b] / kT[b];
+  }
+  if (spd_inverse_lanes(MZ, MZm, MZi)) return 1;
+  for (int a = 0; a < MZ * NP; ++a) {
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZR[ij * MZ * NP + a];
+    LANES ZMR[a][b] = v[b] / kT[b];
+  }
+  /* facet orientations and sizes; O Z and O R in the global facet bases */
+  double Pl[NV][NF * NF][LB], size[NV][LB];
+  for (int b = 0; b < LB; ++b)
+    for (int j = 0; j < NV; ++j) {
+      const double *P = r->P + facet_perm(r, t->gvert + cl[b] * NV, j) * NF * NF;
+      for (int kl = 0; kl < NF * NF; ++kl) Pl[j][kl][b] = P[kl];
+    }
+  for (int j = 0; j < NV; ++j) {          /* |F_j| / |F̂| = sqrt(det(E Eᵀ)), as facet_size */
+    int o[NV - 1], n = 0;
+    for (int v = 0; v < NV; ++v) if (v != j) o[n++] = v;
+    double E[DIM - 1][DIM][LB], G[DIM - 1][DIM - 1][LB];
+    for (int a = 0; a < DIM - 1; ++a)
+      for (int i = 0; i < DIM; ++i)
+        LANES E[a][i][b] = X[o[a + 1] * DIM + i][b] - X[o[0] * DIM + i][b];
+    for (int a = 0; a < DIM - 1; ++a)
+      for (int c = 0; c < DIM - 1; ++c) {
+        LANES G[a][c][b] = 0.0;
+        for (int i = 0; i < DIM; ++i) LANES G[a][c][b] += E[a][i][b] * E[c][i][b];
+      }
+#if DIM == 2
+    LANES size[j][b] = sqrt(fabs(G[0][0][b]));
+#else
+    LANES size[j][b] = sqrt(fabs(G[0][0][b] * G[1][1][b] - G[0][1][b] * G[1][0][b]));
+#endif
+  }
+  double OZ[DNF * MZ][LB], OR[DNF * NP][LB];
+  for (int j = 0; j < NV; ++j)
+    for (int l = 0; l < NF; ++l) {
+      for (int z = 0; z < MZ; ++z) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += Pl[j][k * NF + l][b] * r->NZ[(j * NF + k) * MZ + z];
+        LANES OZ[(j * NF + l) * MZ + z][b] = s[b] * v[b];
+      }
+      for (int z = 0; z < NP; ++z) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += Pl[j][k * NF + l][b] * r->NR[(j * NF + k) * NP + z];
+        LANES OR[(j * NF + l) * NP + z][b] = s[b] * v[b];
+      }
+    }
+  /* Yt = (O Z) M_Z⁻¹, S = Yt (O Z)ᵀ */
+  double Yt[DNF * MZ][LB], S[DNF * DNF][LB];
+  for (int i = 0; i < DNF; ++i)
+    for (int c = 0; c < MZ; ++c) {
+      double v[LB] = {0.0};
+      for (int a = 0; a < MZ; ++a) LANES v[b] += OZ[i * MZ + a][b] * MZi[(a * MZ + c) * LB + b];
+      LANES Yt[i * MZ + c][b] = v[b];
+    }
+  for (int i = 0; i < DNF; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v[LB] = {0.0};
+      for (int a = 0; a < MZ; ++a) LANES v[b] += Yt[i * MZ + a][b] * OZ[j * MZ + a][b];
+      LANES S[i * DNF + j][b] = S[j * DNF + i][b] = v[b];
+    }
+  /* the data at the points: ∇̂û, the load Zᵀg_a and the divergence moments */
+  double gu[NQ * DIM][LB], lhs[NQ * DIM][LB];
+  for (int q = 0; q < NQ; ++q)
+    for (int i = 0; i < DIM; ++i) {
+      double v[LB] = {0.0};
+      for (int u = 0; u < NU; ++u) LANES v[b] += Uc[u][b] * r->dphi[(q * NU + u) * DIM + i];
+      LANES gu[q * DIM + i][b] = v[b];
+    }
+  if (t->tau) {
+    double TAU[NQ * DIM][LB];
+    for (int qj = 0; qj < NQ * DIM; ++qj) LANES TAU[qj][b] = t->tau[cl[b] * NQ * DIM + qj];
+    for (int q = 0; q < NQ; ++q)
+      for (int i = 0; i < DIM; ++i) {
+        double v[LB] = {0.0};
+        for (int j = 0; j < DIM; ++j) LANES v[b] += J[j][i][b] * TAU[q * DIM + j][b];
+        LANES lhs[q * DIM + i][b] = v[b] / kT[b];
+      }
+  } else {
+    for (int q = 0; q < NQ; ++q)
+      for (int i = 0; i < DIM; ++i)
+        LANES lhs[q * DIM + i][b] = gu[q * DIM + i][b] * K[q][b] / kT[b];
+  }
+  double ZTg[NV * MZ][LB] = {{0.0}};
+  for (int qi = 0; qi < NQ * DIM; ++qi) {
+    const double *zg = r->ZG + qi * NV * MZ;
+    for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] += lhs[qi][b] * zg[az];
+  }
+  for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] *= s[b];
+  double KSd[DIM * NV][LB], R0[NV * NP][LB] = {{0.0}}, beta[NV * NP][LB];
+  for (int i = 0; i < DIM; ++i)
+    for (int a = 0; a < NV; ++a) {
+      double v[LB] = {0.0};
+      for (int k = 0; k < DIM; ++k) LANES v[b] += KS[i][k][b] * r->dlam[a * DIM + k];
+      LANES KSd[i * NV + a][b] = v[b];
+    }
+  for (int q = 0; q < NQ; ++q) {
+    const double *wl = r->wlamQ + q * NV * NP;
+    for (int a = 0; a < NV; ++a) {
+      double v[LB] = {0.0};
+      for (int i = 0; i < DIM; ++i) LANES v[b] += gu[q * DIM + i][b] * KSd[i * NV + a][b];
+      for (int j = 0; j < NP; ++j)
+        LANES R0[a * NP + j][b] +=
+            absdet[b] * F[q][b] * wl[a * NP + j] - v[b] * K[q][b] * r->wQ[q * NP + j];
+    }
+  }
+  if (t->src)
+    for (int aj = 0; aj < NV * NP; ++aj)
+      LANES R0[aj][b] += absdet[b] * t->src[cl[b] * NV * NP + aj];
+  for (int aj = 0; aj < NV * NP; ++aj) LANES beta[aj][b] = -s[b] * R0[aj][b];
+  /* h_a = O R β_a + Yt (Zᵀg_a − ZMR β_a) */
+  double h[NV * DNF][LB];
+  for (int a = 0; a < NV; ++a) {
+    double y[MZ][LB];
+    for (int z = 0; z < MZ; ++z) {
+      LANES y[z][b] = ZTg[a * MZ + z][b];
+      for (int j = 0; j < NP; ++j) LANES y[z][b] -= ZMR[z * NP + j][b] * beta[a * NP + j][b];
+    }
+    for (int i = 0; i < DNF; ++i) {
+      double v[LB] = {0.0};
+      for (int j = 0; j < NP; ++j) LANES v[b] += OR[i * NP + j][b] * beta[a * NP + j][b];
+      for (int z = 0; z < MZ; ++z) LANES v[b] += Yt[i * MZ + z][b] * y[z][b];
+      LANES h[a * DNF + i][b] = v[b];
+    }
+  }
+  /* outward-flux data of each vertex's share, in the global facet bases */
+  double data[NV * NV * NF][LB];
+  for (int j = 0; j < NV; ++j) {
+    double factor[LB], Tq[NQF][LB];
+    int any = 0;
+    LANES {
+      int kind = t->kind[cl[b] * NV + j];
+      factor[b] = (kind == FLUX || kind == CONTACT) ? size[j][b] : 0.0;
+      any |= kind == FLUX || kind == CONTACT;
+    }
+    if (any)
+      for (int q = 0; q < NQF; ++q) LANES Tq[q][b] = t->t[(cl[b] * NV + j) * NQF + q];
+    for (int a = 0; a < NV; ++a) {
+      double loc[NF][LB] = {{0.0}};
+      if (any)
+        for (int k = 0; k < NF; ++k) {
+          const double *bs = r->base + ((j * NV + a) * NF + k) * NQF;
+          for (int q = 0; q < NQF; ++q) LANES loc[k][b] += bs[q] * Tq[q][b];
+          LANES loc[k][b] *= factor[b];
+        }
+      if (t->cidx)
+        for (int b = 0; b < LB; ++b) {
+          int64_t ci = t->cidx[cl[b]];
+          if (ci >= 0 && t->kind[cl[b] * NV + j] == CONTACT)
+            for (int k = 0; k < NF; ++k)
+              loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
+        }
+      for (int l = 0; l < NF; ++l) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * loc[k][b];
+        LANES data[(j * NV + a) * NF + l][b] = v[b];
+      }
+    }
+  }
+  /* condensation of the facet opposite each vertex a (patches.py):
+     Ŝ_a = S_ss − T S_soᵀ, b_a = h_s − T h_o − data, T = S_so S_oo⁻¹; μ_o = S_oo⁻¹ h_o − Tᵀ μ_s */
+  for (int a = 0; a < NV; ++a) {
+    int Is[SNF], n = 0;
+    for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) Is[n++] = j * NF + k;
+    double Soo[NF * NF * LB], Sooi[NF * NF * LB], T[SNF * NF][LB];
+    for (int k = 0; k < NF; ++k)
+      for (int l = 0; l < NF; ++l)
+        LANES Soo[(k * NF + l) * LB + b] = S[(a * NF + k) * DNF + a * NF + l][b];
+    if (spd_inverse_lanes(NF, Soo, Sooi)) return 1;
+    for (int i = 0; i < SNF; ++i)
+      for (int l = 0; l < NF; ++l) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += S[Is[i] * DNF + a * NF + k][b] * Sooi[(k * NF + l) * LB + b];
+        LANES T[i * NF + l][b] = v[b];
+      }
+    double Sh[SNF * SNF][LB], bv[SNF][LB], ho[NF][LB];
+    for (int i = 0; i < SNF; ++i) {
+      for (int j = 0; j <= i; ++j) {
+        double v[LB];
+        LANES v[b] = S[Is[i] * DNF + Is[j]][b];
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] -= T[i * NF + k][b] * S[Is[j] * DNF + a * NF + k][b];
+        LANES Sh[i * SNF + j][b] = Sh[j * SNF + i][b] = v[b];
+      }
+      double v[LB];
+      const double *dat = data[((Is[i] / NF) * NV + a) * NF + Is[i] % NF];
+      LANES v[b] = h[a * DNF + Is[i]][b] - dat[b];
+      for (int k = 0; k < NF; ++k) LANES v[b] -= T[i * NF + k][b] * h[a * DNF + a * NF + k][b];
+      LANES bv[i][b] = v[b];
+    }
+    for (int k = 0; k < NF; ++k) {
+      double v[LB] = {0.0};
+      for (int l = 0; l < NF; ++l)
+        LANES v[b] += Sooi[(k * NF + l) * LB + b] * h[a * DNF + a * NF + l][b];
+      LANES ho[k][b] = v[b];
+    }
+    for (int b = 0; b < nb; ++b) {
+      double *row = rows[b];
+      for (int k = 0; k < SNF * SNF; ++k) row[W_SHAT + a * SNF * SNF + k] = Sh[k][b];
+      for (int i = 0; i < SNF; ++i) row[W_B + a * SNF + i] = bv[i][b];
+      for (int k = 0; k < NF; ++k)
+        for (int i = 0; i < SNF; ++i) row[W_TA + (a * NF + k) * SNF + i] = T[i * NF + k][b];
+      for (int k = 0; k < NF; ++k) row[W_HO + a * NF + k] = ho[k][b];
+    }
+  }
+  /* C = R Σ_a β_a + Z M_Z⁻¹ (Σ_a Zᵀg_a − ZMR Σ_a β_a) over the vertices solved here */
+  double Bs[NP][LB] = {{0.0}}, Gs[MZ][LB] = {{0.0}}, gam[MZ][LB], own[NV][LB];
+  for (int a = 0; a < NV; ++a)
+    LANES { int64_t g = t->gvert[cl[b] * NV + a]; own[a][b] = g >= vlo && g < vhi; }
+  for (int a = 0; a < NV; ++a) {
+    for (int j = 0; j < NP; ++j) LANES Bs[j][b] += own[a][b] * beta[a * NP + j][b];
+    for (int z = 0; z < MZ; ++z) LANES Gs[z][b] += own[a][b] * ZTg[a * MZ + z][b];
+  }
+  for (int z = 0; z < MZ; ++z)
+    for (int j = 0; j < NP; ++j) LANES Gs[z][b] -= ZMR[z * NP + j][b] * Bs[j][b];
+  for (int z = 0; z < MZ; ++z) {
+    double v[LB] = {0.0};
+    for (int y = 0; y < MZ; ++y) LANES v[b] += MZi[(z * MZ + y) * LB + b] * Gs[y][b];
+    LANES gam[z][b] = v[b];
+  }
+  double ZM[MZ][LB], GC[M * DNF + M][LB];     /* G then C, the layout of the work row */
+  for (int l = 0; l < M; ++l) {
+    LANES GC[M * DNF + l][b] = 0.0;
+    for (int j = 0; j < NP; ++j) LANES GC[M * DNF + l][b] += r->R[l * NP + j] * Bs[j][b];
+    for (int z = 0; z < MZ; ++z) LANES GC[M * DNF + l][b] += r->Z[l * MZ + z] * gam[z][b];
+    /* G_l = −(Z M_Z⁻¹)_l (O Z)ᵀ */
+    for (int z = 0; z < MZ; ++z) {
+      double u[LB] = {0.0};
+      for (int y = 0; y < MZ; ++y) LANES u[b] += r->Z[l * MZ + y] * MZi[(y * MZ + z) * LB + b];
+      LANES ZM[z][b] = u[b];
+    }
+    for (int i = 0; i < DNF; ++i) {
+      double u[LB] = {0.0};
+      for (int z = 0; z < MZ; ++z) LANES u[b] -= ZM[z][b] * OZ[i * MZ + z][b];
+      LANES GC[l * DNF + i][b] = u[b];
+    }
+  }
+  for (int b = 0; b < nb; ++b)
+    for (int k = 0; k < M * DNF + M; ++k) rows[b][W_G + k] = GC[k][b];
+  for (int b = 0; b < nb; ++b) osc[b] = oscillation(r, t, cl[b], absdet[b], size, b);
+  return 0;
+}
+
+/* osc_T of the rows the patches did not evaluate (osc NaN: cells none of whose vertices
+   this rank solves) */
+void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc)
+{
+  for (int64_t c = 0; c < t->n; ++c) {
+    if (osc[c] == osc[c]) continue;
+    const double *x = t->x + c * NV * DIM;
+    double J[DIM][DIM], Ji[DIM][DIM], size[NV][LB];
+    for (int i = 0; i < DIM; ++i)
+      for (int j = 0; j < DIM; ++j) J[i][j] = x[(j + 1) * DIM + i] - x[i];
+    double absdet = fabs(det_inv(J, Ji));
+    for (int j = 0; j < NV; ++j) size[j][0] = facet_size(x, j);
+    osc[c] = oscillation(r, t, c, absdet, size, 0);
+  }
+}
+
+/* ---------------------------------------------------------------------------------- */
+/* patches                                                                              */
+/* ---------------------------------------------------------------------------------- */
+typedef struct {
+  int64_t key[DIM - 1 > 0 ? DIM - 1 : 1];
+  int kind;
+} spoke_t;
+
+static int key_cmp(const int64_t *a, const int64_t *b)
+{
+  for (int i = 0; i < DIM - 1; ++i) {
+    if (a[i] < b[i]) return -1;
+    if (a[i] > b[i]) return 1;
+  }
+  return 0;
+}
+
+typedef struct {
+  int np, ns, nu, dim, maxdeg, maxraw, pure;
+  int64_t *prow; int *ploc;       /* the pairs of the patch */
+  int *spoke;                     /* (np, DIM): index of each pair's spoke in the sorted list */
+  spoke_t *keys;                  /* the sorted unique spokes */
+  int *order;                     /* scratch for sorting */
+  spoke_t *raw;
+  int *unknown;                   /* per spoke: position of its first dof / NF, or -1 */
+  int *adj, *deg, *pos, *queue, *first;
+  double *A, *rhs, *dinv;
+  const double *work;             /* the operators of the live cells, one row each */
+  double *acc;                    /* per work row: Σ μ_a over its cell's pairs solved so far */
+  const int64_t *slot;            /* table row -> its work row, or -1 */
+  int *left;                      /* per work row: its cell's pairs not yet solved */
+  int64_t *freel, nfree;          /* the work rows free for reuse */
+  int *map;                       /* (np, DIM): the dof of each pair's spokes, or -1 */
+  double *alpha;
+} scratch_t;
+
+#define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
+#define ACC_SIZE DNF
+
+/* the spokes of the patch: sorted unique keys (the facet's vertices other than a) */
+static void spokes(const eq_table *t, scratch_t *w)
+{
+  int n = 0;
+  for (int p = 0; p < w->np; ++p) {
+    const int64_t *g = t->gvert + w->prow[p] * NV;
+    int a = w->ploc[p];
+    for (int j = 0; j < NV; ++j) {
+      if (j == a) continue;
+      int64_t o[DIM > 1 ? DIM - 1 : 1];
+      int m = 0;
+      for (int v = 0; v < NV; ++v) if (v != a && v != j) o[m++] = g[v];
+      for (int x = 1; x < m; ++x)           /* sort the d - 1 others */
+        for (int y = x; y > 0 && o[y - 1] > o[y]; --y)
+          { int64_t s = o[y]; o[y] = o[y - 1]; o[y - 1] = s; }
+      for (int x = 0; x < DIM - 1; ++x) w->raw[n].key[x] = o[x];
+      w->raw[n].kind = t->kind[w->prow[p] * NV + j];
+      w->order[n] = n;
+      ++n;
+    }
+  }
+  /* insertion sort of the indices by key */
+  for (int x = 1; x < n; ++x) {
+    int v = w->order[x], y = x;
+    while (y > 0 && key_cmp(w->raw[w->order[y - 1]].key, w->raw[v].key) > 0) {
+      w->order[y] = w->order[y - 1];
+      --y;
+    }
+    w->order[y] = v;
+  }
+  int ns = 0;
+  for (int x = 0; x < n; ++x) {
+    int v = w->order[x];
+    if (ns == 0 || key_cmp(w->keys[ns - 1].key, w->raw[v].key) != 0) w->keys[ns++] = w->raw[v];
+    else w->keys[ns - 1].kind = w->raw[v].kind;
+    w->spoke[v] = ns - 1;     /* raw index v = pair * DIM + s */
+  }
+  w->ns = ns;
+}
+
+/* reverse Cuthill-McKee order of the unknown spokes; pos[spoke] = its block position */
+static void rcm(scratch_t *w)
+{
+  int ns = w->ns, md = w->maxdeg;
+  for (int i = 0; i < ns; ++i) w->deg[i] = 0;
+  int ok = 1;
+  for (int p = 0; p < w->np; ++p)
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      if (w->unknown[u] < 0) continue;
+      for (int s2 = 0; s2 < DIM; ++s2) {
+        int v = w->spoke[p * DIM + s2];
+        if (s1 == s2 || w->unknown[v] < 0) continue;
+        int seen = 0;
+        for (int e = 0; e < w->deg[u]; ++e) seen |= w->adj[u * md + e] == v;
+        if (!seen) { if (w->deg[u] < md) w->adj[u * md + w->deg[u]++] = v; else ok = 0; }
+      }
+    }
+  int count = 0;
+  for (int i = 0; i < ns; ++i) w->pos[i] = -1;
+  if (!ok) {   /* more neighbours than a manifold patch has: keep the sorted order */
+    for (int i = 0; i < ns; ++i) if (w->unknown[i] >= 0) w->pos[i] = count++;
+    return;
+  }
+  int *queue = w->queue, head = 0, tail = 0;
+  char *seen = (char *)w->first;   /* first[] is free here */
+  for (int i = 0; i < ns; ++i) seen[i] = 0;
+  for (;;) {
+    int start = -1;
+    for (int i = 0; i < ns; ++i)
+      if (w->unknown[i] >= 0 && !seen[i] && (start < 0 || w->deg[i] < w->deg[start])) start = i;
+    if (start < 0) break;
+    seen[start] = 1;
+    queue[tail++] = start;
+    while (head < tail) {
+      int u = queue[head++], lo = tail;
+      for (int e = 0; e < w->deg[u]; ++e) {
+        int v = w->adj[u * md + e];
+        if (!seen[v]) { seen[v] = 1; queue[tail++] = v; }
+      }
+      for (int x = lo + 1; x < tail; ++x)      /* neighbours by increasing degree */
+        for (int y = x; y > lo && w->deg[queue[y - 1]] > w->deg[queue[y]]; --y) {
+          int s = queue[y]; queue[y] = queue[y - 1]; queue[y - 1] = s;
+        }
+    }
+  }
+  for (int x = 0; x < tail; ++x) w->pos[queue[x]] = tail - 1 - x;
+}
+
+static void assemble(scratch_t *w, int dense)
+{
+  int dim = w->dim;
+  double *A = w->A, *rhs = w->rhs;
+  if (dense) memset(A, 0, sizeof(double) * dim * dim);
+  else
+    for (int i = 0; i < dim; ++i)
+      memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
+  memset(rhs, 0, sizeof(double) * dim);
+  for (int p = 0; p < w->np; ++p) {
+    const double *cw = CELL_WORK(w, w->prow[p]), *Shat = cw + W_SHAT + w->ploc[p] * SNF * SNF;
+    const double *b = cw + W_B + w->ploc[p] * SNF;
+    int row[SNF];
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      for (int k = 0; k < NF; ++k) row[s1 * NF + k] = w->unknown[u] < 0 ? -1 : w->pos[u] * NF + k;
+    }
+    for (int i = 0; i < SNF; ++i) {
+      if (row[i] < 0) continue;
+      rhs[row[i]] += b[i];
+      for (int j = 0; j < SNF; ++j)
+        if (row[j] >= 0 && (dense || row[j] <= row[i]))
+          A[row[i] * dim + row[j]] += Shat[i * SNF + j];
+    }
+  }
+}
+
+/* Σ_k a_k b_k with four partial sums (the compiler keeps one chain of dependent adds
+   otherwise, four times slower) */
+static inline double dot(const double *restrict a, const double *restrict b, int n)
+{
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+  int k = 0;
+  for (; k + 4 <= n; k += 4) {
+    s0 += a[k] * b[k];
+    s1 += a[k + 1] * b[k + 1];
+    s2 += a[k + 2] * b[k + 2];
+    s3 += a[k + 3] * b[k + 3];
+  }
+  for (; k < n; ++k) s0 += a[k] * b[k];
+  return (s0 + s1) + (s2 + s3);
+}
+
+/* envelope Cholesky of the lower triangle and solve, in place; 1 on a non-positive pivot
+   (dinv: scratch for the reciprocals of the diagonal, one division per row) */
+static int envelope_solve(int n, double *A, const int *first, double *x, double *dinv)
+{
+  for (int i = 0; i < n; ++i) {
+    double *Ai = A + i * n;
+    for (int j = first[i]; j < i; ++j) {
+      const double *Aj = A + j * n;
+      double s = Ai[j];
+      int k0 = first[i] > first[j] ? first[i] : first[j];
+      s -= dot(Ai + k0, Aj + k0, j - k0);
+      Ai[j] = s * dinv[j];
+    }
+    double s = Ai[i] - dot(Ai + first[i], Ai + first[i], i - first[i]);
+    if (!(s > 0.0)) return 1;
+    dinv[i] = 1.0 / sqrt(s);
+  }
+  for (int i = 0; i < n; ++i)
+    x[i] = (x[i] - dot(A + i * n + first[i], x + first[i], i - first[i])) * dinv[i];
+  for (int i = n - 1; i >= 0; --i) {
+    x[i] *= dinv[i];
+    for (int k = first[i]; k < i; ++k) x[k] -= A[i * n + k] * x[i];
+  }
+  return 0;
+}
+
+/* alpha[c] += C + G Σ_a μ_a */
+static void finish_cell(const double *cw, const double *msum, double *al)
+{
+  const double *G = cw + W_G;
+  for (int l = 0; l < M; ++l) {
+    double v = cw[W_C + l];
+    for (int i = 0; i < DNF; ++i) v += G[l * DNF + i] * msum[i];
+    al[l] += v;
+  }
+}
+
+/* the dof of each pair's spokes in the patch system: map[p DIM + s] = pos NF, or -1 (Dirichlet) */
+static void dof_map(scratch_t *w)
+{
+  for (int p = 0; p < w->np; ++p)
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int u = w->spoke[p * DIM + s1];
+      w->map[p * DIM + s1] = w->unknown[u] < 0 ? -1 : w->pos[u] * NF;
+    }
+}
+
+/* Number the unknown spokes (sorted order up to DENSE dofs, else reverse Cuthill-McKee and
+   its envelope), assemble the patch system, project out the balance defect and pin one
+   constant moment of a patch without a Dirichlet spoke (its kernel).  w->dim = 0: nothing to
+   solve. */
+static void setup_patch(const eq_ref *r, scratch_t *w, double *defect)
+{
+  int nu = 0;
+  w->pure = 1;
+  for (int i = 0; i < w->ns; ++i) {
+    w->pure &= w->keys[i].kind != DIRICHLET;
+    w->unknown[i] = w->keys[i].kind == DIRICHLET ? -1 : nu++;
+  }
+  int dim = nu * NF;
+  w->dim = dim;
+  if (dim <= DENSE) {
+    for (int i = 0; i < w->ns; ++i) w->pos[i] = w->unknown[i];
+    for (int i = 0; i < dim; ++i) w->first[i] = 0;
+  } else {
+    rcm(w);
+    for (int i = 0; i < dim; ++i) w->first[i] = (i / NF) * NF;
+    for (int p = 0; p < w->np; ++p) {
+      int lo = dim;
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int u = w->spoke[p * DIM + s1];
+        if (w->unknown[u] >= 0 && w->pos[u] * NF < lo) lo = w->pos[u] * NF;
+      }
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int u = w->spoke[p * DIM + s1];
+        if (w->unknown[u] < 0) continue;
+        for (int k = 0; k < NF; ++k) {
+          int i = w->pos[u] * NF + k;
+          if (lo < w->first[i]) w->first[i] = lo;
+        }
+      }
+    }
+  }
+  dof_map(w);
+  if (dim == 0) return;
+  assemble(w, 0);
+  if (w->pure) {
+    double kk = 0.0, bal = 0.0;
+    int pin = 0;                        /* the largest constant moment of block position 0 */
+    for (int k = 0; k < NF; ++k) {
+      kk += r->kappa[k] * r->kappa[k];
+      if (fabs(r->kappa[k]) > fabs(r->kappa[pin])) pin = k;
+    }
+    kk *= nu;
+    for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
+    *defect += fabs(bal) / kk * sqrt(kk);
+    for (int i = 0; i < dim; ++i) w->rhs[i] -= bal / kk * r->kappa[i % NF];
+    for (int j = w->first[pin]; j < pin; ++j) w->A[pin * dim + j] = 0.0;
+    for (int i = pin + 1; i < dim; ++i) if (w->first[i] <= pin) w->A[i * dim + pin] = 0.0;
+    w->A[pin * dim + pin] = 1.0;
+    w->rhs[pin] = 0.0;
+  }
+}
+
+/* the pinned solution of a patch without a Dirichlet spoke, made orthogonal to the kernel */
+static void project_kernel(const eq_ref *r, int dim, double *x)
+{
+  double kk = 0.0, c = 0.0;
+  for (int i = 0; i < dim; ++i)
+    { kk += r->kappa[i % NF] * r->kappa[i % NF]; c += x[i] * r->kappa[i % NF]; }
+  for (int i = 0; i < dim; ++i) x[i] -= c / kk * r->kappa[i % NF];
+}
+
+/* the regularized dense system of patches.py, by LU (where the Cholesky met a non-positive
+   pivot): the patch is set up anew in w (spokes() done) and solved into w->rhs */
+static int regularized_solve(const eq_ref *r, scratch_t *w)
+{
+  double ignore = 0.0;
+  setup_patch(r, w, &ignore);
+  int dim = w->dim;
+  assemble(w, 1);
+  if (w->pure) {
+    double kk = 0.0, bal = 0.0, tr = 0.0;
+    for (int i = 0; i < dim; ++i) kk += r->kappa[i % NF] * r->kappa[i % NF];
+    for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
+    for (int i = 0; i < dim; ++i)
+      { w->rhs[i] -= bal / kk * r->kappa[i % NF]; tr += w->A[i * dim + i]; }
+    double scale = tr / (dim * kk);
+    for (int i = 0; i < dim; ++i)
+      for (int j = 0; j < dim; ++j)
+        w->A[i * dim + j] += scale * r->kappa[i % NF] * r->kappa[j % NF];
+  }
+  return lu_solve(dim, w->A, w->rhs, 1) ? 2 : 0;
+}
+
+/* μ of each pair from the patch solution mu (dofs by map), the opposite facet's from the
+   condensation, summed into the cells' accumulators; a cell whose last pair this was is
+   mapped to alpha (finish_cell) */
+static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
+                    const int *map, const double *mu)
+{
+  for (int p = 0; p < np; ++p) {
+    int64_t c = prow[p];
+    int a = ploc[p];
+    const double *cw = CELL_WORK(w, c);
+    const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
+    double m[DNF], mus[SNF];
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int d0 = map[p * DIM + s1];
+      for (int k = 0; k < NF; ++k) mus[s1 * NF + k] = d0 < 0 ? 0.0 : mu[d0 + k];
+    }
+    int n = 0;
+    for (int j = 0; j < NV; ++j) if (j != a) for (int k = 0; k < NF; ++k) m[j * NF + k] = mus[n++];
+    for (int k = 0; k < NF; ++k) {
+      double v = ho[k];
+      for (int i = 0; i < SNF; ++i) v -= Ta[k * SNF + i] * mus[i];
+      m[a * NF + k] = v;
+    }
+    /* σ_h|_T is linear in Σ_a μ_a: sum, and map once per cell (finish_cell) */
+    int64_t i = w->slot[c];
+    double *acc = w->acc + i * ACC_SIZE;
+    for (int k = 0; k < DNF; ++k) acc[k] += m[k];
+    if (--w->left[i] == 0) {
+      finish_cell(cw, acc, w->alpha + c * M);
+      w->freel[w->nfree++] = i;
+    }
+  }
+}
+
+/* Patch systems of DENSE dofs or fewer are factorized LB at a time (the lanes of one size):
+   the Cholesky of a small system is a chain of dependent divisions and square roots, which
+   the lanes overlap. */
+typedef struct {
+  int count, np[LB], pure[LB];
+  const int64_t *prow[LB];
+  const int *ploc[LB];
+  int *map;                /* (LB, maxraw) */
+  double *A, *x;           /* [(i dim + j) LB + b], [i LB + b] */
+} batch_t;
+
+static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, int dim)
+{
+  if (bt->count == 0) return 0;
+  double *A = bt->A, *x = bt->x, dinv[DENSE][LB];
+  int bad[LB] = {0};
+  for (int i = 0; i < dim; ++i) {
+    for (int j = 0; j < i; ++j) {
+      double v[LB];
+      LANES v[b] = A[(i * dim + j) * LB + b];
+      for (int k = 0; k < j; ++k)
+        LANES v[b] -= A[(i * dim + k) * LB + b] * A[(j * dim + k) * LB + b];
+      LANES A[(i * dim + j) * LB + b] = v[b] * dinv[j][b];
+    }
+    double v[LB];
+    LANES v[b] = A[(i * dim + i) * LB + b];
+    for (int k = 0; k < i; ++k) LANES v[b] -= A[(i * dim + k) * LB + b] * A[(i * dim + k) * LB + b];
+    LANES { if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; } dinv[i][b] = 1.0 / sqrt(v[b]); }
+  }
+  for (int i = 0; i < dim; ++i) {
+    double v[LB];
+    LANES v[b] = x[i * LB + b];
+    for (int k = 0; k < i; ++k) LANES v[b] -= A[(i * dim + k) * LB + b] * x[k * LB + b];
+    LANES x[i * LB + b] = v[b] * dinv[i][b];
+  }
+  for (int i = dim - 1; i >= 0; --i) {
+    LANES x[i * LB + b] *= dinv[i][b];
+    for (int k = 0; k < i; ++k) LANES x[k * LB + b] -= A[(i * dim + k) * LB + b] * x[i * LB + b];
+  }
+  int nraw = w->maxraw;
+  for (int b = 0; b < bt->count; ++b) {
+    double mu[DENSE];
+    const int *map = bt->map + b * nraw;
+    if (bad[b]) {
+      w->np = bt->np[b];
+      w->prow = (int64_t *)bt->prow[b];
+      w->ploc = (int *)bt->ploc[b];
+      spokes(t, w);
+      if (regularized_solve(r, w)) return 2;
+      memcpy(mu, w->rhs, sizeof(double) * dim);
+      map = w->map;
+    } else {
+      for (int i = 0; i < dim; ++i) mu[i] = x[i * LB + b];
+      if (bt->pure[b]) project_kernel(r, dim, mu);
+    }
+    backsub(w, bt->np[b], bt->prow[b], bt->ploc[b], map, mu);
+  }
+  bt->count = 0;
+  return 0;
+}
+
+/* the patch in w (spokes() done): batched if small, else the envelope Cholesky now */
+static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *batches,
+                       double *defect)
+{
+  setup_patch(r, w, defect);
+  int dim = w->dim;
+  if (dim == 0) {
+    backsub(w, w->np, w->prow, w->ploc, w->map, w->rhs);
+    return 0;
+  }
+  if (dim <= DENSE) {
+    batch_t *bt = batches + dim;
+    int b = bt->count++;
+    for (int i = 0; i < dim; ++i) {
+      bt->x[i * LB + b] = w->rhs[i];
+      for (int j = 0; j <= i; ++j) bt->A[(i * dim + j) * LB + b] = w->A[i * dim + j];
+    }
+    bt->np[b] = w->np;
+    bt->prow[b] = w->prow;
+    bt->ploc[b] = w->ploc;
+    bt->pure[b] = w->pure;
+    memcpy(bt->map + b * w->maxraw, w->map, sizeof(int) * w->np * DIM);
+    return bt->count == LB ? flush(r, t, w, bt, dim) : 0;
+  }
+  if (envelope_solve(dim, w->A, w->first, w->rhs, w->dinv)) {
+    if (regularized_solve(r, w)) return 2;
+  } else if (w->pure) {
+    project_kernel(r, dim, w->rhs);
+  }
+  backsub(w, w->np, w->prow, w->ploc, w->map, w->rhs);
+  return 0;
+}
+
+/* The patches of the vertices vlo <= g < vhi, in their order.  A cell's operators are
+   computed (LB at a time, looking ahead) just before the first patch that needs them, into a
+   work row, and mapped to alpha after its last pair is solved, when the row returns to a
+   free list: the live rows are the front of cells between the patches solved and those to
+   come, which stays in cache where the vertex order is local (DOLFINx orders vertices by
+   Gibbs-Poole-Stockmeyer).  ``capacity``: the initial number of work rows (doubled when
+   needed).  osc[c] = osc_T of each row evaluated.  stats[0] += the projected balance
+   defect, stats[1] += the cell evaluations, stats[2] = the most work rows in use. */
+int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+               double *alpha, double *osc, double *stats)
+{
+  int64_t nv = vhi - vlo, total = 0;
+  int64_t *start = calloc(nv + 1, sizeof(int64_t));
+  if (!start) return 3;
+  for (int64_t i = 0; i < t->n * NV; ++i) {
+    int64_t g = t->gvert[i];
+    if (g >= vlo && g < vhi) { ++start[g - vlo + 1]; ++total; }
+  }
+  int maxp = 0;
+  for (int64_t v = 0; v < nv; ++v)
+    { if (start[v + 1] > maxp) maxp = (int)start[v + 1]; start[v + 1] += start[v]; }
+  int64_t cap = capacity > maxp + LB ? capacity : maxp + LB;
+  int64_t *prow = malloc(sizeof(int64_t) * (total + 1));
+  int *ploc = malloc(sizeof(int) * (total + 1));
+  int64_t *cur = malloc(sizeof(int64_t) * (nv + 1));
+  int64_t *slot = malloc(sizeof(int64_t) * (t->n + 1));
+  int64_t *pend = malloc(sizeof(int64_t) * (maxp + LB));
+  int nraw = maxp * DIM > 0 ? maxp * DIM : 1, maxdim = nraw * NF;
+  scratch_t w;
+  w.work = malloc(sizeof(double) * W_SIZE * cap);
+  w.acc = malloc(sizeof(double) * ACC_SIZE * cap);
+  w.left = malloc(sizeof(int) * cap);
+  w.freel = malloc(sizeof(int64_t) * cap);
+  w.nfree = 0;
+  w.maxdeg = 2 * (DIM - 1) + 2;
+  w.spoke = malloc(sizeof(int) * nraw);
+  w.keys = malloc(sizeof(spoke_t) * nraw);
+  w.raw = malloc(sizeof(spoke_t) * nraw);
+  w.order = malloc(sizeof(int) * nraw);
+  w.unknown = malloc(sizeof(int) * nraw);
+  w.adj = malloc(sizeof(int) * nraw * w.maxdeg);
+  w.deg = malloc(sizeof(int) * nraw);
+  w.pos = malloc(sizeof(int) * nraw);
+  w.queue = malloc(sizeof(int) * nraw);
+  w.first = malloc(sizeof(int) * maxdim + nraw);
+  w.A = malloc(sizeof(double) * (size_t)maxdim * maxdim);
+  w.rhs = malloc(sizeof(double) * maxdim);
+  w.dinv = malloc(sizeof(double) * maxdim);
+  w.slot = slot;
+  w.alpha = alpha;
+  w.maxraw = nraw;
+  w.map = malloc(sizeof(int) * nraw);
+  batch_t batches[DENSE + 1];
+  int ok = 1;
+  for (int d = 0; d <= DENSE; ++d) {
+    batches[d].count = 0;
+    batches[d].map = malloc(sizeof(int) * nraw * LB);
+    batches[d].A = malloc(sizeof(double) * (d * d + 1) * LB);
+    batches[d].x = malloc(sizeof(double) * (d + 1) * LB);
+    ok &= batches[d].map && batches[d].A && batches[d].x;
+  }
+  ok &= prow && ploc && cur && slot && pend && w.work && w.acc && w.left && w.freel && w.spoke;
+  ok &= w.keys && w.raw && w.order && w.unknown && w.adj && w.deg && w.pos && w.queue && w.first;
+  ok &= w.A && w.rhs && w.dinv && w.map;
+  int err = ok ? 0 : 3;
+  if (!err) {
+    memcpy(cur, start, sizeof(int64_t) * nv);
+    for (int64_t c = 0; c < t->n; ++c)
+      for (int a = 0; a < NV; ++a) {
+        int64_t g = t->gvert[c * NV + a];
+        if (g >= vlo && g < vhi) { int64_t x = cur[g - vlo]++; prow[x] = c; ploc[x] = a; }
+      }
+    for (int64_t c = 0; c < t->n; ++c) slot[c] = -1;
+  }
+  int64_t used = 0, ahead = 0;     /* rows ever used; patches whose cells are computed */
+  for (int64_t v = 0; v < nv && !err; ++v) {
+    while (ahead <= v && !err) {   /* look ahead: the new cells of the next patches, >= LB */
+      int npend = 0;
+      for (; ahead < nv && npend < LB; ++ahead)
+        for (int64_t x = start[ahead]; x < start[ahead + 1]; ++x) {
+          int64_t c = prow[x];
+          if (slot[c] >= 0) continue;
+          if (w.nfree == 0 && used == cap) {          /* grow the work rows */
+            cap *= 2;
+            double *wk = realloc((void *)w.work, sizeof(double) * W_SIZE * cap);
+            double *ac = realloc(w.acc, sizeof(double) * ACC_SIZE * cap);
+            int *lf = realloc(w.left, sizeof(int) * cap);
+            int64_t *fr = realloc(w.freel, sizeof(int64_t) * cap);
+            if (wk) w.work = wk;
+            if (ac) w.acc = ac;
+            if (lf) w.left = lf;
+            if (fr) w.freel = fr;
+            if (!wk || !ac || !lf || !fr) { err = 3; break; }
+          }
+          int64_t s = w.nfree ? w.freel[--w.nfree] : used++;
+          slot[c] = s;
+          int n = 0;
+          for (int a = 0; a < NV; ++a)
+            { int64_t g = t->gvert[c * NV + a]; n += g >= vlo && g < vhi; }
+          w.left[s] = n;
+          memset(w.acc + s * ACC_SIZE, 0, sizeof(double) * ACC_SIZE);
+          pend[npend++] = c;
+        }
+      stats[1] += npend;
+      for (int i = 0; i < npend && !err; i += LB) {
+        int nb = npend - i < LB ? npend - i : LB;
+        double *rows[LB], os[LB];
+        LANES rows[b] = (double *)w.work + slot[pend[i + (b < nb ? b : 0)]] * W_SIZE;
+        if (cell_block(r, t, pend + i, nb, rows, vlo, vhi, os)) err = 1;
+        for (int b = 0; b < nb; ++b) osc[pend[i + b]] = os[b];
+      }
+      if (ahead == nv) break;
+    }
+    if (err || start[v + 1] == start[v]) continue;
+    w.np = (int)(start[v + 1] - start[v]);
+    w.prow = prow + start[v];
+    w.ploc = ploc + start[v];
+    spokes(t, &w);
+    err = solve_patch(r, t, &w, batches, stats);
+  }
+  for (int d = 1; d <= DENSE && !err; ++d) err = flush(r, t, &w, batches + d, d);
+  stats[2] = (double)used;
+  for (int d = 0; d <= DENSE; ++d) { free(batches[d].map); free(batches[d].A); free(batches[d].x); }
+  free(w.map);
+  free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj);
+  free(w.deg);
+  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
+  free((void *)w.work); free(w.acc); free(w.left); free(w.freel);
+  free(start); free(prow); free(ploc); free(cur); free(slot); free(pend);
+  return err;
+}
+"""

@@ -1,0 +1,80 @@
+"""Issue 30 (cost): the compiled patch solver (contact/adaptivity/equilibration/patches_c.py,
+the default) and the NumPy one (backend="numpy") solve the same patch minimizations, whose
+minimizers are unique: σ_h, osc_T and η agree to round-off on Signorini (λ on Γ_C) and obstacle
+(λ in Ω) scenes, P1 and P2, 2D and 3D; where no C compiler works the reconstruction falls back
+to NumPy with a warning.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import contact
+from contact.adaptivity.equilibration import compiled
+from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
+from contact.adaptivity.equilibration.flux import reconstruct_flux
+from contact.adaptivity.equilibration.reference import reference
+
+ROOT = Path(__file__).resolve().parents[1]
+BOX = ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", "mesh.cells=[6,3,3]"]
+SCENES = {"A_P1": ("signorini_free_boundary.yaml", []),
+          "A_P2": ("signorini_free_boundary.yaml", ["mesh.degree=2", "mesh.cells=[8,4]"]),
+          "C_P2": ("signorini_smooth.yaml", ["mesh.degree=2", "mesh.cells=[4,4]"]),
+          "ex9": ("peers/petsc_ex9.yaml", ["mesh.cells=[8,8]"]),
+          "A_3D": ("signorini_free_boundary.yaml", BOX)}
+
+
+def _solved(name: str):
+    path, sets = SCENES[name]
+    scene = contact.load_scene(ROOT / "configs" / path, sets + ["output.verbose=false"])
+    return scene, contact.solve(scene, verbose=False)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_backends_agree(name: str) -> None:
+    scene, result = _solved(name)
+    data, multiplier, sign = flux_data(scene, result)
+    fast, ref = (reconstruct_flux(data, multiplier, sign, backend=b) for b in ("compiled", "numpy"))
+    scale = np.abs(ref.sigma_h.x.array).max()
+    assert np.abs(fast.sigma_h.x.array - ref.sigma_h.x.array).max() < 1e-12 * scale
+    assert np.abs(fast.sigma_cells.x.array - ref.sigma_cells.x.array).max() < 1e-12 * scale
+    # osc_T is f − Π_p f: round-off (~1e-17) where f is a polynomial of degree ≤ p
+    assert np.abs(fast.osc - ref.osc).max() <= 1e-12 * np.abs(ref.osc).max() + 1e-14 * scale
+    eta = [guaranteed_bound(scene, result, backend=b).eta for b in ("compiled", "numpy")]
+    assert abs(eta[0] - eta[1]) < 1e-11 * eta[1]
+
+
+@pytest.mark.parametrize("missing", ["compiler", "cache"])
+def test_no_compiler_falls_back(tmp_path, monkeypatch, missing: str) -> None:
+    """A fresh machine without a C compiler, or whose cache folder cannot be made (a
+    read-only home on CI: here a file where the folder should be), still estimates."""
+    scene, result = _solved("A_P1")
+    data, multiplier, sign = flux_data(scene, result)
+    expected = reconstruct_flux(data, multiplier, sign, backend="numpy").sigma_h.x.array
+    if missing == "compiler":
+        monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+        monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "cache"))
+    else:
+        (tmp_path / "file").write_text("")
+        monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "file" / "cache"))
+    monkeypatch.setattr(compiled, "_LOADED", {})
+    with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
+        flux = reconstruct_flux(data, multiplier, sign)
+    assert np.array_equal(flux.sigma_h.x.array, expected)
+
+
+def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
+    """A cache shared by machines (a home directory on CI runners of different CPUs) never
+    hands one machine's -march=native library to another: the file name hashes the CPU's
+    model and flags and the compiler command; the same machine finds its own file again."""
+    dims = compiled.dimensions(reference(2, 1), 3)      # P1 in 2D: dim P_1 = 3
+    here = compiled._path(dims)
+    assert compiled._path(dims) == here
+    monkeypatch.setattr(compiled, "_cpu", lambda: "model name : other\nflags : sse2\n")
+    assert compiled._path(dims) != here
+    monkeypatch.undo()
+    monkeypatch.setenv("CC", "clang")
+    assert compiled._path(dims) != here
+
