@@ -26,8 +26,10 @@ def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
         "model": {"type": "obstacle", "bound": "lower"}, "data": {"f": "-1", "psi": "-1"}})
     assert set(SolverOptions.model_fields) == KNOBS
     section = scene.cfg["solver"]
-    # the scene's section = the solver's knobs + the driver's (initial guess, sequencing, budget)
-    assert set(section) - KNOBS == {"u0", "sequence", "max_dofs"}
+    # the scene's section = the solver's knobs + the driver's (initial guess, sequencing, budget,
+    # and the adaptive loop's stopping rule, which the driver hands the solver as an object)
+    assert set(section) - KNOBS == {"u0", "sequence", "max_dofs", "stopping", "gamma_lin",
+                                    "gamma_alg"}
     assert SolverOptions().model_dump() == {key: section[key] for key in KNOBS}
     assert solver_knobs(section) == SolverOptions()
 
