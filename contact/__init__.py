@@ -10,13 +10,16 @@ try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before do
 except ImportError:  # a conda / Debian DOLFINx needs nothing
     pass
 
-from . import expressions  # noqa: E402
-from .config import ConfigError  # noqa: E402
-from .scene import Scene, load_scene  # noqa: E402
-from .solvers import Result, solve  # noqa: E402
-from .estimate import Estimate, estimate  # noqa: E402
-from .adapt import AdaptResult, adapt, mark, refine  # noqa: E402
-from .loadpath import LoadPath, run_load_path  # noqa: E402
+# the public API, bottom (setup) to top (drivers) of the layers (README, "Layout")
+from .base.errors import ConfigError  # noqa: E402
+from .setup.scene import Scene, load_scene  # noqa: E402
+from .solvers.result import Result  # noqa: E402
+from .adaptivity.estimate import Estimate, estimate  # noqa: E402
+from .adaptivity.mark import mark  # noqa: E402
+from .adaptivity.refine import refine  # noqa: E402
+from .drivers.solve import solve  # noqa: E402
+from .drivers.adaptive import AdaptResult, adapt  # noqa: E402
+from .drivers.load_path import LoadPath, run_load_path  # noqa: E402
 
 __all__ = ["ConfigError", "Scene", "load_scene", "Result", "solve", "Estimate", "estimate",
            "AdaptResult", "adapt", "mark", "refine", "LoadPath", "run_load_path"]

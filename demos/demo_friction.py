@@ -36,9 +36,9 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.contactdata import contact_table
-from contact.plots import plot_traction
-from contact.surface import surface_figures
+from contact.post.contact_table import contact_table
+from contact.output.plots import plot_traction
+from contact.post.friction_resultants import surface_figures
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 80
 comm = MPI.COMM_WORLD

@@ -27,8 +27,8 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.contactdata import contact_table
-from contact.resultants import contact_resultants
+from contact.post.contact_table import contact_table
+from contact.post.resultants import contact_resultants
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 5
 comm = MPI.COMM_WORLD

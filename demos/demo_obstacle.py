@@ -31,7 +31,7 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.contactdata import contact_table
+from contact.post.contact_table import contact_table
 from contact.solvers import ncp, newton_text
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 64

@@ -25,7 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.errors import energy_error
+from contact.adaptivity.energy_error import energy_error
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 12
 comm = MPI.COMM_WORLD

@@ -34,10 +34,11 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.interface import interface_resultants, master_pressure
-from contact.reference import compare
-from contact.loadpath import run_load_path
-from contact.io import gather_nodal
+from contact.post.interface import interface_resultants
+from contact.models.mortar import master_pressure
+from contact.post.reference import compare
+from contact.drivers.load_path import run_load_path
+from contact.output.folder import gather_nodal
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 6
 comm = MPI.COMM_WORLD

@@ -442,7 +442,7 @@ def stability() -> str:
             "unless the case names its own scene or size, the default linear solver (`solver.linear: auto`: "
             "MUMPS below 5,000 DoFs in 2D, else CG + GAMG on the reduced system with inexact Newton for fb, "
             "min and blend; the VI solvers keep MUMPS in 2D and BiCGStab + GAMG in 3D). Cell colour = outcome class from the SNES reason "
-            "(`contact.study.outcome`), number = Newton iterations, + active-set polishing solves for fb "
+            "(`contact.app.study.outcome`), number = Newton iterations, + active-set polishing solves for fb "
             "and blend (n+p); the ranges below count linear solves (Newton steps + polishing).", ""]
     its = {(r["case"], r["method"]): r for r in runs}
     cases = list(dict.fromkeys(r["case"] for r in runs))
@@ -640,7 +640,7 @@ def iterations() -> str:
                         for m in METHODS if (m, True) in seconds)
             + f" — nested iteration is faster for {sum(seconds[m, True] < seconds[m, False] for m in METHODS if (m, True) in seconds and (m, False) in seconds)} "
             "of the five methods. The prolongation of u_h to the refined mesh evaluates it in each child's "
-            "parent cell (`contact.adapt.prolong`, no point search), so it costs little next to a solve."]
+            "parent cell (`contact.adaptivity.transfer.prolong`, no point search), so it costs little next to a solve."]
     return "\n".join(out) + "\n"
 
 
@@ -943,7 +943,7 @@ def cost() -> str:
                         + ", ".join(f"{2 / float(k['rank_imbalance']):.2f}×" for _, k in pairs)
                         + ". With `adapt.rebalance: true` (the default) the refinement redistributes every refined "
                         "mesh with dolfinx's graph partitioner, and each child pulls u_h and its tags from the rank "
-                        "that created it (`contact/transfer.py`): "
+                        "that created it (`contact/adaptivity/transfer.py`): "
                         + "; ".join(f"busiest rank {float(r['rank_imbalance']):.2f}× its share, {g(r['wall_s'])} s "
                                     f"against {g(k['wall_s'])} s in {r['scene']}" for r, k in pairs)
                         + " (runs one after the other).")
@@ -979,13 +979,13 @@ def cost() -> str:
                  "convergence.csv)") if floor else ""
         out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so refinement "
                 f"(`dolfinx.mesh.refine` in C++, with the ghost layer rebuilt in parallel{ghosts}, then the "
-                "transfers in `contact/transfer.py`) is the largest phase of the 2D loop, and the refinement "
+                "transfers in `contact/adaptivity/transfer.py`) is the largest phase of the 2D loop, and the refinement "
                 f"into the finest mesh costs about as much as the finest level's solve or more{floor}. In 2D the library's kernel "
                 "alone is above half the solve, so refinement + estimate + assembly cannot come under half the "
                 f"solve while the refinement is dolfinx's; in 3D the solve dominates.{refine_floor(RES)} "
                 "Each level's `.vtu` is written by rank 0 (one file, the same on "
                 "any number of ranks); the final pictures are drawn by all ranks at once, picture k on rank k mod "
-                "n (`contact.plots.draw_in_turn`; 2D meshes above 200k cells are drawn as images sampled at the "
+                "n (`contact.output.plots.draw_in_turn`; 2D meshes above 200k cells are drawn as images sampled at the "
                 "pixel centres).", ""]
     return "\n".join(out) + "\n"
 

@@ -9,7 +9,7 @@ import sys
 from mpi4py import MPI
 
 import contact
-from contact.adapt import adapt
+from contact.drivers.adaptive import adapt
 from ties import tie_margin
 
 

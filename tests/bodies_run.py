@@ -15,10 +15,10 @@ from mpi4py import MPI
 
 import contact
 from dolfinx import fem
-from contact.interface import master_pressure
-from contact.io import gather_nodal
+from contact.models.mortar import master_pressure
+from contact.output.folder import gather_nodal
 from contact.models import build_problem
-from contact.report import resultants
+from contact.output.run_report import resultants
 from ties import tie_margin
 
 

@@ -10,8 +10,8 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.reference import compare
-from contact.loadpath import run_load_path
+from contact.post.reference import compare
+from contact.drivers.load_path import run_load_path
 
 
 def main(argv):

@@ -15,9 +15,9 @@ MPIRUN = Path(sys.executable).parent / "mpirun"
 
 def contact(cwd: Path, *args: str, ranks: int = 0, env: dict | None = None, prefix: tuple = (),
             timeout: float = 300) -> subprocess.CompletedProcess:
-    """``python -m contact.cli ARGS`` in ``cwd`` (under ``mpirun -n ranks`` when ranks > 0);
+    """``python -m contact.app.cli ARGS`` in ``cwd`` (under ``mpirun -n ranks`` when ranks > 0);
     ``prefix`` is prepended to the command (e.g. ``("unshare", "-U")``)."""
-    cmd = [sys.executable, "-m", "contact.cli", *args]
+    cmd = [sys.executable, "-m", "contact.app.cli", *args]
     if ranks:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]
     full_env = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1", **(env or {})}

@@ -9,7 +9,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from contact.geometry import cells_touching, collapsed_cells, signed_volumes
+from contact.setup.geometry import cells_touching, collapsed_cells, signed_volumes
 
 counts = {}
 for height in map(float, sys.argv[1:]):

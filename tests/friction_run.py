@@ -12,9 +12,9 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.io import gather_nodal
-from contact.loadpath import run_load_path
-from contact.contactdata import STATUS, contact_table
+from contact.output.folder import gather_nodal
+from contact.drivers.load_path import run_load_path
+from contact.post.contact_table import STATUS, contact_table
 
 
 def main(argv):

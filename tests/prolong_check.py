@@ -1,8 +1,8 @@
 """Run by tests/test_adaptive.py (serial and under mpirun): what refinement carries to the
-child mesh, with both partitioners of contact.adapt.refine_partitioner (children kept on
+child mesh, with both partitioners of contact.adaptivity.refine.refine_partitioner (children kept on
 their parent's rank, or redistributed by dolfinx's graph partitioner):
 
-* contact.transfer.prolong (parent-cell evaluation on the creating rank) against dolfinx's
+* contact.adaptivity.transfer.prolong (parent-cell evaluation on the creating rank) against dolfinx's
   interpolate_nonmatching (point search), scalar P1, P2 and vector P1;
 * facet tags (the four sides, 1…4) and cell tags (left half 1, right half 2) measured on
   the child: each side has length 1, each half area 1/2.
@@ -14,8 +14,8 @@ from mpi4py import MPI
 import contact  # noqa: F401  (dolfinx_solver first)
 import ufl
 from dolfinx import fem, mesh
-from contact.adapt import refine_partitioner
-from contact.transfer import prolong, transfer_cell_tags, transfer_facet_tags
+from contact.adaptivity.refine import refine_partitioner
+from contact.adaptivity.transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 comm = MPI.COMM_WORLD
 msh = mesh.create_unit_square(comm, 12, 9, ghost_mode=mesh.GhostMode.shared_facet)

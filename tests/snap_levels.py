@@ -12,7 +12,7 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.adapt import refine
+from contact.adaptivity.refine import refine
 from dolfinx import la
 from dolfinx import mesh as dmesh
 

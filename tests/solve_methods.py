@@ -13,7 +13,7 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.io import gather_nodal
+from contact.output.folder import gather_nodal
 from contact.models import build_problem
 from contact.solvers import method_variant, owned_residual
 from ties import tie_margin

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import contact
-from contact.adapt import adapt
-from contact.reference import compare
+from contact.drivers.adaptive import adapt
+from contact.post.reference import compare
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -99,7 +99,7 @@ def test_uniform_is_the_same_loop_with_every_cell_marked():
 
 def test_cli_writes_adaptive_folder(tmp_path):
     out = tmp_path / "adaptive"
-    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(ROOT / "configs" / "lshape_corner.yaml"),
+    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(ROOT / "configs" / "lshape_corner.yaml"),
                            "-o", str(out), "--set", "adapt.max_levels=4", "--set", "adapt.pictures=2"],
                           cwd=ROOT, capture_output=True, text=True, timeout=300, env=ENV)
     assert proc.returncode == 0, proc.stderr

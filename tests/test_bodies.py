@@ -12,11 +12,11 @@ import pytest
 from mpi4py import MPI
 
 import contact
-from contact.config import ConfigError
-from contact.interface import master_pressure
+from contact.base.errors import ConfigError
+from contact.models.mortar import master_pressure
 from contact.models import build_problem
-from contact.reference import compare
-from contact.report import resultants
+from contact.post.reference import compare
+from contact.output.run_report import resultants
 from ties import tie_margin
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -328,7 +328,7 @@ def test_cli_run_writes_both_bodies_and_the_slave_table(tmp_path):
     import pyvista
 
     out = tmp_path / "patch"
-    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(PATCH_2D), "-o", str(out), "-q"],
+    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(PATCH_2D), "-o", str(out), "-q"],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     grid = pyvista.read(out / "solution.vtu")
@@ -352,7 +352,7 @@ def test_readme_two_body_example_validates():
 
     import yaml
 
-    from contact.config import validate_scene
+    from contact.setup.config import validate_scene
 
     section = (ROOT / "README.md").read_text().split("## Two bodies in contact", 1)[1]
     cfg = validate_scene(yaml.safe_load(re.search(r"```yaml\n(.*?)```", section, re.S).group(1)))
@@ -405,8 +405,8 @@ def test_reaction_force_of_two_bodies_with_friction_is_the_supports():
     so it equals the tangential force the interface transmits (the contact force on the
     slave body).  Before issue 26 it summed the solver's rotated unknowns and the rollers'
     DoFs: [9e-15, -0.32] against a clamp reaction of [-1.05, 1.53]."""
-    from contact.interface import interface_resultants
-    from contact.surface import surface_figures
+    from contact.post.interface import interface_resultants
+    from contact.post.friction_resultants import surface_figures
 
     scene = contact.load_scene(CATTANEO, ["output.verbose=false", "mesh.h_contact=0.05", "load.times=[0.5,0.875]"])
     path = contact.run_load_path(scene)

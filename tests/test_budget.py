@@ -12,8 +12,8 @@ import yaml
 from clirun import ROOT, contact, error_lines, small_scene
 
 import contact as ct
-from contact import budget
-from contact.config import load_config
+from contact.setup import budget
+from contact.setup.config import load_config
 from contact.models import build_problem
 
 
@@ -112,7 +112,7 @@ def test_blocks_estimate_is_exact(blocks: list, degree: int) -> None:
     """Mesh type blocks had no estimate: the budget skipped it."""
     from mpi4py import MPI
 
-    from contact.meshes import blocks as build_blocks
+    from contact.setup.meshes import blocks as build_blocks
 
     cfg = {"mesh": {"type": "blocks", "blocks": blocks, "degree": degree},
            "model": {"type": "elasticity"}}

@@ -3,8 +3,8 @@ single solves, or the adaptive loop's level — and cold starts are not called n
 import dataclasses
 from pathlib import Path
 
-from contact import charts
-from contact.study import load_study, run_study
+from contact.output import charts
+from contact.app.study import load_study, run_study
 
 ROOT = Path(__file__).resolve().parents[1]
 

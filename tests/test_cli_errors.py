@@ -1,7 +1,7 @@
 """Bad input to ``contact run`` fails before any solve: exit code 2, one stderr line
 ``contact: error: <key path or file>: <what is wrong>``, no traceback, no output folder.
 
-Every case runs the CLI as a subprocess (``python -m contact.cli run ...``) in its own tmp
+Every case runs the CLI as a subprocess (``python -m contact.app.cli run ...``) in its own tmp
 directory, on scenes derived from configs/signorini_square.yaml with an 8 × 8 mesh.
 """
 from __future__ import annotations
@@ -234,7 +234,7 @@ def square_msh(tmp_path_factory) -> Path:
 
 def _contact(tmp: Path, *args: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "contact.cli", "run", *args], cwd=tmp, env=env,
+    return subprocess.run([sys.executable, "-m", "contact.app.cli", "run", *args], cwd=tmp, env=env,
                           capture_output=True, text=True, timeout=120)
 
 
@@ -300,7 +300,7 @@ def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
                                          ("1.0", 1.0), ("1e6x", "1e6x"), ("fb", "fb")])
 def test_yaml_reads_exponent_floats(text: str, value: Any) -> None:
     """`--set solver.kappa=1e6` and `kappa: 1e6` are numbers (PyYAML alone reads a string)."""
-    from contact.config import apply_overrides, load_yaml
+    from contact.setup.config import apply_overrides, load_yaml
 
     assert load_yaml(f"k: {text}") == {"k": value}
     assert apply_overrides({}, [f"solver.kappa={text}"]) == {"solver": {"kappa": value}}

@@ -185,7 +185,7 @@ def test_scene_under_mpirun_matches_serial(tmp_path: Path, serial, scene: str, r
 
 def test_frictional_study_under_mpirun_matches_serial(tmp_path: Path) -> None:
     """A study of load paths (the small friction block, two steps, two methods): its rows
-    take their friction figures through the collectives of contact.surface."""
+    take their friction figures through the collectives of contact.post.friction_resultants."""
     study = tmp_path / "study.yaml"
     study.write_text(f"name: friction\nscene: {ROOT / 'configs' / 'friction_block_2d.yaml'}\n"
                      "set: ['mesh.cells=[20,5]', load.steps=2, output.png=false]\n"

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _contact(*args, cwd=ROOT):
-    return subprocess.run([sys.executable, "-m", "contact.cli", *map(str, args)], cwd=cwd, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "contact.app.cli", *map(str, args)], cwd=cwd, capture_output=True,
                           text=True, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
 
 
@@ -99,9 +99,9 @@ def test_set_none_switches_a_section_off(tmp_path, overrides, steps, friction):
                                              ("hertz_2d.yaml", "reference"),
                                              ("hertz_2d.yaml", "adapt")])
 def test_none_in_the_api_and_the_scene_file(source, section):
-    cfg = contact.config.load_config(ROOT / "configs" / source)
+    cfg = contact.setup.config.load_config(ROOT / "configs" / source)
     assert cfg[section] is not None
-    off = contact.config.load_config(ROOT / "configs" / source, [f"{section}=none"])
+    off = contact.setup.config.load_config(ROOT / "configs" / source, [f"{section}=none"])
     assert off[section] is None
-    raw = contact.config.read_yaml(ROOT / "configs" / source)
-    assert contact.config.validate_scene({**raw, section: "none"})[section] is None
+    raw = contact.setup.config.read_yaml(ROOT / "configs" / source)
+    assert contact.setup.config.validate_scene({**raw, section: "none"})[section] is None

@@ -2,7 +2,7 @@
 import numpy as np
 
 import contact
-from contact.errors import energy_error
+from contact.adaptivity.energy_error import energy_error
 
 SCENE = "configs/signorini_free_boundary.yaml"
 EXACT_SEMINORM_SQ = 1.5 * (np.sqrt(2.0) + np.arcsinh(1.0))  # |u|²_{H¹} = 3.443380724 (SPEC §7 A)
@@ -28,7 +28,7 @@ def test_exact_seminorm_matches_spec():
     from mpi4py import MPI
 
     scene = contact.load_scene(SCENE, ["mesh.cells=[64,32]"])
-    u = contact.expressions.to_ufl(scene.cfg["data"]["exact"], scene.mesh)
+    u = contact.setup.expressions.to_ufl(scene.cfg["data"]["exact"], scene.mesh)
     dx = ufl.dx(domain=scene.mesh, metadata={"quadrature_degree": 10})
     val = scene.comm.allreduce(fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)), op=MPI.SUM)
     assert abs(val - 3.443380724) < 1e-5

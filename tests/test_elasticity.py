@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import contact
-from contact.hertz import hertz
-from contact.reference import compare
-from contact.resultants import contact_resultants
+from contact.post.hertz import hertz
+from contact.post.reference import compare
+from contact.post.resultants import contact_resultants
 from contact.models import build_problem
 from ties import tie_margin
 
@@ -197,7 +197,7 @@ LAZY = ("contact.models.elasticity", "contact.models.friction", "contact.solvers
 def test_a_run_imports_only_its_own_model(tmp_path):
     """``contact run`` of a coarse scalar scene leaves every module of LAZY unloaded; one of
     a frictionless elastic block then loads elasticity but neither friction module."""
-    code = ("import sys; from contact.cli import main; lazy = %r\n"
+    code = ("import sys; from contact.app.cli import main; lazy = %r\n"
             "for scene, cells, out in [('signorini_square', '[8, 8]', 's'), ('block_on_plane', '[8, 2]', 'b')]:\n"
             "    rc = main(['run', f'configs/{scene}.yaml', '--set', f'mesh.cells={cells}', '--set', 'adapt.max_levels=2',\n"
             "               '--set', 'output.verbose=false', '-o', %r + out])\n"
@@ -212,7 +212,7 @@ def test_a_run_imports_only_its_own_model(tmp_path):
 def test_tolerances_follow_the_scale_of_the_data(tmp_path):
     """E = 1e-12 "converged" after 0 iterations with no contact and a force balance error of
     2e287, exit 0: an absolute atol of 1e-12 was above every force of the scene.  solver.atol
-    is relative to the scene's force scale ‖Φ(x_D)‖ (contact.solvers.solve.force_scale), so
+    is relative to the scene's force scale ‖Φ(x_D)‖ (contact.solvers.snes.force_scale), so
     scaling E scales the forces and nothing else: the same active set, forces × E."""
     from clirun import contact as cli
 

@@ -1,4 +1,4 @@
-"""Issue 30 (phase 1): the equilibrated flux and the guaranteed bound (contact/equilibration).
+"""Issue 30 (phase 1): the equilibrated flux and the guaranteed bound (contact/adaptivity/equilibration).
 
 1. The flux of a Poisson problem (variable k, Dirichlet and Neumann parts, P1 and P2, 2D and
    3D) is equilibrated: −div σ_h = Π_p f in every cell, σ_h·n = Π_p t on Γ_N, and the cell
@@ -26,10 +26,10 @@ from dolfinx.fem.petsc import LinearProblem
 from mpi4py import MPI
 
 from clirun import MPIRUN, ROOT
-from contact.config import ConfigError
-from contact.equilibration import FluxData, reconstruct_flux
-from contact.equilibration.bound import guaranteed_bound
-from contact.errors import solution_error
+from contact.base.errors import ConfigError
+from contact.adaptivity.equilibration import FluxData, reconstruct_flux
+from contact.adaptivity.equilibration.bound import guaranteed_bound
+from contact.adaptivity.energy_error import solution_error
 
 
 def _integral(expr, msh, degree=8):
@@ -170,7 +170,7 @@ PARALLEL = """
 import json, sys
 from mpi4py import MPI
 import contact
-from contact.equilibration.bound import guaranteed_bound
+from contact.adaptivity.equilibration.bound import guaranteed_bound
 out = {}
 for path, sets in [("signorini_free_boundary.yaml", ["mesh.cells=[16,8]"]),
                    ("signorini_smooth.yaml", ["mesh.cells=[16,16]", "mesh.degree=2"]),

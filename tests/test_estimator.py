@@ -1,4 +1,4 @@
-"""SPEC §5–§6: the residual estimator (contact/estimate.py) and MARK / REFINE (contact/adapt.py).
+"""SPEC §5–§6: the residual estimator (contact/adaptivity/estimate.py) and MARK / REFINE (contact/drivers/adaptive.py).
 
 1. η vanishes at an exact discrete solution (linear u, no contact), also with a Neumann side
    carrying the exact flux; a wrong Neumann flux gives the exact Neumann term.
@@ -19,10 +19,11 @@ from mpi4py import MPI
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 
-from contact.adapt import dorfler_threshold, mark, refine
-from contact.errors import energy_error
-from contact.estimate import TERMS, estimate, indicator_terms
-from contact.meshes import tag_boundaries
+from contact.adaptivity.mark import dorfler_threshold, mark
+from contact.adaptivity.refine import refine
+from contact.adaptivity.energy_error import energy_error
+from contact.adaptivity.estimate import TERMS, estimate, indicator_terms
+from contact.setup.meshes import tag_boundaries
 
 QUADRATIC = ("volume", "jump", "neumann", "consistency", "sign")  # squares: round-off ~1e-30
 

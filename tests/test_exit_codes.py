@@ -3,7 +3,7 @@ error — one line each, the traceback only with ``--debug`` / ``CONTACT_DEBUG=1
 ``mpirun`` a failure on one rank ends the job with the same code instead of a hang.
 
 Internal errors are provoked by a wrapper that replaces ``contact.solve`` with a function
-that raises (on every rank, or on rank 1 only) and then calls the real ``contact.cli.main``.
+that raises (on every rank, or on rank 1 only) and then calls the real ``contact.app.cli.main``.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from clirun import MPIRUN, ROOT, contact, error_lines, small_scene
 WRAPPER = '''
 import sys
 from mpi4py import MPI
-import contact, contact.cli
+import contact, contact.app.cli
 from petsc4py import PETSc
 
 mode, argv = sys.argv[1], sys.argv[2:]
@@ -34,7 +34,7 @@ def broken_solve(*args, **kwargs):
     raise RuntimeError("boom\\nsecond line " + "x" * 1000)
 
 contact.solve = broken_solve
-sys.exit(contact.cli.main(argv))
+sys.exit(contact.app.cli.main(argv))
 '''
 
 
@@ -181,7 +181,7 @@ def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ra
 
 
 def test_readme_documents_the_exit_codes() -> None:
-    from contact import failures
+    from contact.app import failures
 
     text = (ROOT / "README.md").read_text()
     rows = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ") and

@@ -1,4 +1,4 @@
-"""Tests of the safe scene-data expressions (contact.expressions)."""
+"""Tests of the safe scene-data expressions (contact.setup.expressions)."""
 from __future__ import annotations
 
 import math
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import contact  # noqa: F401  (sets up dolfinx_solver before dolfinx is imported)
-from contact import expressions as E
-from contact.expressions import ExpressionError
+from contact.setup import expressions as E
+from contact.setup.expressions import ExpressionError
 
 CONSTS = {"k": 2.5, "L": 3.0, "alpha_1": -0.75}
 

@@ -12,11 +12,11 @@ from mpi4py import MPI
 import contact
 import ufl
 from dolfinx import fem
-from contact import expressions
-from contact.errors import solution_error
+from contact.setup import expressions
+from contact.adaptivity.energy_error import solution_error
 from contact.models.elasticity import lame, stress
-from contact.contactdata import contact_table, tangent_2d
-from contact.loadreport import exact_tractions
+from contact.post.contact_table import contact_table, tangent_2d
+from contact.output.step_report import exact_tractions
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "configs" / "friction_tresca_manufactured.yaml"

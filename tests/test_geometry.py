@@ -1,4 +1,4 @@
-"""Gmsh geometries for Hertz contact validation (contact.geometry): measures of the body
+"""Gmsh geometries for Hertz contact validation (contact.setup.geometry): measures of the body
 and of each tagged part, every exterior facet tagged by the right part, the mesh graded
 down to h_contact near the contact point, argument errors as one-line ConfigErrors, and
 the same mesh on 1 and 2 MPI ranks; refinement snaps the new vertices of the curved
@@ -20,9 +20,10 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from contact.adapt import refine, refine_partitioner
-from contact.config import ConfigError
-from contact.geometry import CONTACT, GRADING, CurvedBoundary, curved_boundary, quarter_disk, sphere_octant
+from contact.adaptivity.refine import refine, refine_partitioner
+from contact.base.errors import ConfigError
+from contact.setup.geometry import (CONTACT, GRADING, CurvedBoundary, curved_boundary,
+                                    quarter_disk, sphere_octant)
 from snap_levels import SCENES, load, main, near_contact, refinements
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -146,7 +147,7 @@ SCRIPT = f"""
 import json, contact, ufl
 from mpi4py import MPI
 from dolfinx import fem
-from contact.geometry import quarter_disk
+from contact.setup.geometry import quarter_disk
 msh, tags = quarter_disk(MPI.COMM_WORLD, **{DISK!r})
 one = fem.Constant(msh, 1.0)
 area = msh.comm.allreduce(fem.assemble_scalar(fem.form(one * ufl.dx)), op=MPI.SUM)

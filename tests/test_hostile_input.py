@@ -10,8 +10,8 @@ import pytest
 from clirun import contact, error_lines, small_scene
 
 import contact as ct
-from contact import expressions
-from contact.config import MAX_YAML_NODES, YAMLTooLarge, load_yaml
+from contact.setup import expressions
+from contact.setup.config import MAX_YAML_NODES, YAMLTooLarge, load_yaml
 
 
 def alias_bomb(levels: int, width: int = 9) -> str:
@@ -125,7 +125,7 @@ def test_a_billion_load_steps_are_refused_at_once(tmp_path: Path) -> None:
     small_scene(tmp_path / "scene.yaml", load={"steps": 1_000_000_000})
     _fails_fast(tmp_path, "run", "scene.yaml", limit=20,
                 expect="load.steps: must be at most 100000 (the longest load path), got 1000000000")
-    assert ct.config.MAX_LOAD_STEPS == 100_000 and ct.config.MAX_YAML_NODES == 100_000
+    assert ct.setup.config.MAX_LOAD_STEPS == 100_000 and ct.setup.config.MAX_YAML_NODES == 100_000
 
 
 @pytest.mark.parametrize("where", ["study", "scene of a study"])

@@ -1,93 +1,82 @@
-"""The package's layout: data flows one way, so no two modules of ``contact`` import each
-other, directly or around a loop — function-level ("lazy") imports included, imports used
-only for annotations (``if TYPE_CHECKING:``) left out."""
+"""The package's layout (README, "Layout"): the import-linter contracts of pyproject.toml
+hold — the layers app > output > post > drivers > adaptivity > models > setup > solvers >
+base (a package imports only the packages below it), no two modules or packages importing
+each other, solvers that never import a scene, a model or a driver, a scalar model that
+never imports elasticity.  Function-level ("lazy") imports count; imports used only for
+annotations (``if TYPE_CHECKING:``) do not.  That a scalar *run* loads no elasticity module
+is test_elasticity.py::test_a_run_imports_only_its_own_model."""
 from __future__ import annotations
 
-import ast
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
-PACKAGE = Path(__file__).resolve().parents[1] / "contact"
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LINT = Path(sys.executable).with_name("lint-imports")
 
 
-def _module_name(path: Path) -> str:
-    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
-    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+def lint(root: Path) -> subprocess.CompletedProcess:
+    """``lint-imports`` on the package ``contact`` under ``root`` with the contracts of
+    ``root/pyproject.toml`` (that copy of the package, not the installed one)."""
+    env = {**os.environ, "PYTHONPATH": str(root)}
+    return subprocess.run([str(LINT), "--no-cache", "--no-logo", str(root / "pyproject.toml")], cwd=root,
+                          env=env, capture_output=True, text=True, timeout=300)
 
 
-def _annotation_only_lines(tree: ast.Module) -> set[int]:
-    return {node.lineno
-            for block in ast.walk(tree)
-            if isinstance(block, ast.If) and "TYPE_CHECKING" in ast.unparse(block.test)
-            for node in ast.walk(block) if hasattr(node, "lineno")}
+def test_the_contracts_hold():
+    proc = lint(ROOT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "0 broken" in proc.stdout
 
 
-def import_graph() -> dict[str, set[str]]:
-    """module -> the package's modules it imports (``from .x import y`` names module ``x.y``
-    when ``y`` is a module, else ``x``)."""
-    paths = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
-    graph: dict[str, set[str]] = {}
-    for name, path in paths.items():
-        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        tree = ast.parse(path.read_text())
-        skip = _annotation_only_lines(tree)
-        targets = graph.setdefault(name, set())
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import) and node.lineno not in skip:   # import contact.x
-                targets |= {a.name for a in node.names} & paths.keys() - {name}
-            if not isinstance(node, ast.ImportFrom) or node.lineno in skip:
-                continue
-            if node.level:
-                base = package.split(".")[: len(package.split(".")) - node.level + 1]
-                module = ".".join(base + ([node.module] if node.module else []))
-            else:
-                module = node.module or ""
-            submodules = {f"{module}.{a.name}" for a in node.names} & paths.keys()
-            targets |= (submodules or {module} & paths.keys()) - {name}
-    return graph
+def _copy(tmp_path: Path) -> Path:
+    shutil.copytree(ROOT / "contact", tmp_path / "contact", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path)
+    return tmp_path
 
 
-def circles(graph: dict[str, set[str]]) -> list[list[str]]:
-    """The strongly connected components of more than one module (Tarjan's algorithm)."""
-    index: dict[str, int] = {}
-    low: dict[str, int] = {}
-    stack: list[str] = []
-    found: list[list[str]] = []
+LAYERS, ACYCLIC = "app > output > post", "no two modules"
+SOLVERS, SCALAR = "the solvers take a problem", "a scalar model imports no elasticity"
 
-    def visit(v: str) -> None:
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        for w in graph[v]:
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in stack:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            component = []
-            while (w := stack.pop()) != v:
-                component.append(w)
-            if component:
-                found.append(sorted([v, *component]))
-
-    for v in graph:
-        if v not in index:
-            visit(v)
-    return found
+# (module, code appended to it, the contracts it breaks: an import up the layers closes a
+# loop too, since the lower package already imports the higher one's dependencies)
+PLANTED = {
+    "a solver reads a scene (lazy import)": (
+        "solvers/ncp.py", "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
+        [LAYERS, ACYCLIC, SOLVERS]),
+    "a solver calls a driver": (
+        "solvers/result.py", "from ..drivers import sequencing\n", [LAYERS, ACYCLIC, SOLVERS]),
+    "the estimator imports an output helper": (
+        "adaptivity/estimate.py", "from ..output.plots import draw_in_turn\n", [LAYERS, ACYCLIC]),
+    "two models import each other": (
+        "models/basis.py", "def _planted():\n    from . import mortar\n    return mortar\n", [ACYCLIC]),
+    "a scalar model imports elasticity through another module": (
+        "models/problem.py", "def _planted():\n    from .elasticity import lame\n    return lame\n",
+        [ACYCLIC, SCALAR]),
+}
 
 
-def test_the_circle_finder_finds_a_planted_circle():
-    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
-    assert circles(graph) == [["a", "b", "c"]]
-    assert circles({"a": {"b"}, "b": set()}) == []
+@pytest.mark.parametrize("case", PLANTED)
+def test_a_planted_import_breaks_its_contract(tmp_path, case):
+    module, code, broken = PLANTED[case]
+    root = _copy(tmp_path)
+    with open(root / "contact" / module, "a") as f:
+        f.write("\n\n" + code)
+    proc = lint(root)
+    assert proc.returncode != 0, proc.stdout
+    report = proc.stdout.split("Broken contracts", 1)[1]
+    assert all(name in report for name in broken), proc.stdout
+    assert proc.stdout.count(" BROKEN") == len(broken), proc.stdout
 
 
-def test_the_import_graph_sees_lazy_imports():
-    graph = import_graph()
-    # models.build_problem imports the elasticity model inside the function
-    assert "contact.models.elasticity" in graph["contact.models"]
-    # a package's __init__ importing its own submodule
-    assert "contact.solvers.solve" in graph["contact.solvers"]
-
-
-def test_no_two_modules_import_each_other():
-    assert circles(import_graph()) == []
+def test_an_annotation_only_import_breaks_nothing(tmp_path):
+    """``if TYPE_CHECKING:`` imports are left out (charts.py annotates with study's Study)."""
+    root = _copy(tmp_path)
+    with open(root / "contact" / "solvers" / "ncp.py", "a") as f:
+        f.write("\n\nfrom typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from ..setup.scene import Scene\n")
+    proc = lint(root)
+    assert proc.returncode == 0, proc.stdout

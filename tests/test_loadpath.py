@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import contact
-from contact import expressions
-from contact.loadpath import load_times, run_load_path
+from contact.setup import expressions
+from contact.drivers.load_path import load_times, run_load_path
 
 from test_friction import BLOCK, block, coulomb
 
@@ -83,7 +83,7 @@ def test_run_writes_every_step(tmp_path):
     path = tmp_path / "drag.yaml"
     path.write_text(yaml.safe_dump(scene))
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(path), "-o", str(out)],
+    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(path), "-o", str(out)],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
@@ -158,7 +158,7 @@ def test_study_sweeps_friction_axes_and_steps():
     """`contact study` axes for friction: the tangential form, F, the Coulomb solver and the
     number of load steps; a load path is one row with its total and per-step Newton iterations,
     the friction ratio and the stick measure (one level row per step)."""
-    from contact.study import load_study, run_study
+    from contact.app.study import load_study, run_study
 
     study = {"name": "friction", "scene": str(ROOT / "configs" / "friction_block_2d.yaml"),
              "set": ["mesh.cells=[20,6]"], "warmup": False,
@@ -206,7 +206,7 @@ def test_run_keeps_the_steps_before_a_failing_one(tmp_path):
     """A step that does not converge (data that blow up at t = 1): exit 1, one line, and the
     folder holds the converged first step with converged false and failed_step 2."""
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(ROOT / "configs" / "friction_block_2d.yaml"),
+    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(ROOT / "configs" / "friction_block_2d.yaml"),
                            "-o", str(out), "-q", "--set", 'data.u_D=["0", "-0.01*t*(1 if t < 0.6 else 1e200)"]',
                            "--set", "load.times=[0.5, 1.0]", "--set", "load.steps=null", "--set", "mesh.cells=[20,6]"],
                           capture_output=True, text=True, timeout=300)

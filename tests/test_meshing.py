@@ -20,10 +20,10 @@ import contact
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from contact import geometry
-from contact.hertz import patch_average
+from contact.setup import geometry
+from contact.post.hertz import patch_average
 from contact.models import build_problem
-from contact.reference import compare
+from contact.post.reference import compare
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -110,8 +110,8 @@ import json, sys
 import numpy as np
 import contact
 from mpi4py import MPI
-from contact import geometry
-from contact.reference import compare
+from contact.setup import geometry
+from contact.post.reference import compare
 msh, _, _ = geometry.sphere_on_block(MPI.COMM_WORLD, **json.loads(sys.argv[1]))
 nodes = np.unique(geometry.vertex_nodes(msh)[: msh.topology.index_map(3).size_local])
 X = msh.geometry.x[nodes[nodes < msh.geometry.index_map().size_local]]

@@ -22,7 +22,7 @@ FIELDS = ("u_h", "lambda_h", "gap", "active")
 
 
 def _contact(args, nproc=1, cwd=ROOT):
-    cmd = [sys.executable, "-m", "contact.cli"] + [str(a) for a in args]
+    cmd = [sys.executable, "-m", "contact.app.cli"] + [str(a) for a in args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=300,

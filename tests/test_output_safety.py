@@ -139,9 +139,9 @@ def test_replace_killed_between_renames_is_recovered(tmp_path: Path) -> None:
     """The window of a two-rename replace: the previous result in .out.old-*, the new one
     complete in .out.partial-*, no out.  The next run's tidy step puts the newest complete
     result back and removes the leftovers of dead writers only."""
-    from contact import io
+    from contact.output import folder
 
-    host, dead = io._host(), _dead_pid()
+    host, dead = folder._host(), _dead_pid()
     _fake_result(tmp_path / f".out.old-{host}-{dead}", "old", "2026-01-01T00:00:00+00:00")
     _fake_result(tmp_path / f".out.partial-{host}-{dead}-x1", "new", "2026-01-02T00:00:00+00:00")
     (tmp_path / f".out.partial-{host}-{dead}-x2").mkdir()                 # an incomplete one
@@ -149,21 +149,21 @@ def test_replace_killed_between_renames_is_recovered(tmp_path: Path) -> None:
     other = tmp_path / f".out.old-otherhost-{dead}"                        # another host's
     live.mkdir()
     other.mkdir()
-    io.tidy_temporaries(tmp_path / "out")
+    folder.tidy_temporaries(tmp_path / "out")
     assert (tmp_path / "out" / "summary.json").read_text() == "new"
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["out", live.name, other.name])
     # with only the old one left (killed before the new one was complete): it comes back
     shutil.rmtree(tmp_path / "out")
     _fake_result(tmp_path / f".out.old-{host}-{dead}", "old", "2026-01-01T00:00:00+00:00")
-    io.tidy_temporaries(tmp_path / "out")
+    folder.tidy_temporaries(tmp_path / "out")
     assert (tmp_path / "out" / "summary.json").read_text() == "old"
 
 
 def test_next_run_cleans_stale_temporaries(workdir: Path) -> None:
-    from contact import io
+    from contact.output import folder
 
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0
-    host, dead = io._host(), _dead_pid()
+    host, dead = folder._host(), _dead_pid()
     stale = [workdir / f".out.partial-{host}-{dead}-abcd", workdir / f".out.old-{host}-{dead}"]
     shutil.copytree(workdir / "out", stale[0])
     shutil.copytree(workdir / "out", stale[1])

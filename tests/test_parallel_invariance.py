@@ -119,7 +119,7 @@ NEXT_DOFS = """
 import json, sys
 from mpi4py import MPI
 import contact
-from contact.adapt import mark, next_dofs_bound, refine
+from contact.drivers.adaptive import mark, next_dofs_bound, refine
 from dolfinx import fem
 scene = contact.load_scene(sys.argv[1])
 rows = []
@@ -151,7 +151,7 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem
 import contact
-from contact.solvers.sequencing import transfer
+from contact.drivers.sequencing import transfer
 comm = MPI.COMM_WORLD
 scene = first = contact.load_scene(sys.argv[1], ["mesh.cells=[16,16]"])
 for _ in range(5):     # Dörfler: local refinement, each child mesh redistributed (adapt.rebalance)

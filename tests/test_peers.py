@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import contact  # sets up the DOLFINx libraries before dolfinx is imported
-from contact import expressions
-from contact.errors import energy_error
-from contact.report import active_measure, summary
+from contact.setup import expressions
+from contact.adaptivity.energy_error import energy_error
+from contact.output.run_report import active_measure, summary
 from dolfinx import fem
 from test_agreement import assert_agrees_with_vinewtonrsls, run_methods
 from ties import tie_margin

@@ -1,4 +1,4 @@
-"""The pictures of big 2D meshes: nodal fields sampled at pixel centres (contact.plots.raster)
+"""The pictures of big 2D meshes: nodal fields sampled at pixel centres (contact.output.plots.raster)
 must be the P1 interpolant there — what Gouraud shading paints — and blank outside Ω."""
 import json
 import os
@@ -14,7 +14,7 @@ import matplotlib.tri as mtri  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from contact import plots  # noqa: E402
+from contact.output import plots  # noqa: E402
 
 
 def _square(n: int, lo, seed: int):
@@ -117,7 +117,7 @@ import json, sys
 import numpy as np
 from mpi4py import MPI
 import contact
-from contact import plots
+from contact.output import plots
 from dolfinx import fem, mesh
 comm = MPI.COMM_WORLD
 u = fem.Function(fem.functionspace(mesh.create_unit_square(comm, 8, 8), ("Lagrange", 1)), name="u")

@@ -9,12 +9,12 @@ import pytest
 
 import contact
 from contact.models import build_problem
-from contact.models.problem import nodal_scaling
+from contact.solvers.problem import nodal_scaling
 from contact.solvers.newton import Complementarity
-from contact.solvers.options import solver_options
+from contact.drivers.solve import solver_options
 from contact.solvers.linear import AssembledSystem
 from contact.solvers.polish import Polisher
-from contact.solvers.solve import set_dirichlet
+from contact.solvers.snes import set_dirichlet
 from petsc4py import PETSc
 from ties import tie_margin
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 import contact
-from contact import progress
-from contact.report import nodes_across
+from contact.base import progress
+from contact.output.run_report import nodes_across
 from contact.solvers import newton_text
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -22,7 +22,7 @@ SQUARE = ROOT / "configs" / "signorini_square.yaml"
 
 
 def _run(args, nproc=1):
-    cmd = [sys.executable, "-m", "contact.cli", "run"] + [str(a) for a in args]
+    cmd = [sys.executable, "-m", "contact.app.cli", "run"] + [str(a) for a in args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
     return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=600,
@@ -89,7 +89,7 @@ def test_progress_lines_are_rate_limited(monkeypatch, capsys):
 PROGRESS_SCRIPT = """
 import contact
 from mpi4py import MPI
-from contact import progress
+from contact.base import progress
 scene = contact.load_scene({scene!r}, ["output.verbose=false", "mesh.cells=[40,40]",
                                        "solver.linear=gamg", "adapt.max_levels=2"])
 progress.enable(MPI.COMM_WORLD, period=0.0)

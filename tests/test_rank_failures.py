@@ -6,7 +6,7 @@ code 130, serially and under mpirun.
 
 The exception is planted without a hook in the code: a small script replaces one function
 of the package by one that raises on the chosen rank, then calls the real
-``contact.cli.main`` (:data:`PLANT`).  Before the rules of :mod:`contact.failures` the
+``contact.app.cli.main`` (:data:`PLANT`).  Before the rules of :mod:`contact.app.failures` the
 failing rank ran a collective on its way out (``io.atomic_folder``'s ``finally``, a
 study's row bookkeeping) while the others waited in another one: the job hung.
 """
@@ -29,7 +29,7 @@ BOUND = 60.0   # seconds a failing job may take, start-up and the agreement wait
 PLANT = '''
 import importlib, sys
 from mpi4py import MPI
-import contact.cli
+import contact.app.cli
 
 target, rank, argv = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
 module_name, _, name = target.rpartition(".")
@@ -44,7 +44,7 @@ def planted(*args, **kwargs):
     return real(*args, **kwargs)
 
 setattr(module, name, planted)
-sys.exit(contact.cli.main(argv))
+sys.exit(contact.app.cli.main(argv))
 '''
 
 
@@ -100,11 +100,11 @@ def _friction_scene(tmp: Path) -> Path:
 # (target, rank, scene) — scene "square": the 8 × 8 Signorini square, one solve;
 # "adaptive": it with two uniform levels and pictures; "friction": _friction_scene
 CASES = {
-    "solve of a load step": ("contact.loadpath.solve", 1, "friction"),
-    "step writer (surface figures)": ("contact.loadreport.surface_figures", 1, "friction"),
-    "VTK gather": ("contact.series._gather_rows", 1, "square"),
-    "writing a file (disk full)": ("contact.series.save_vtu", 0, "square"),
-    "drawing a picture": ("contact.plots._mesh_2d", 1, "adaptive"),
+    "solve of a load step": ("contact.drivers.load_path.solve", 1, "friction"),
+    "step writer (surface figures)": ("contact.output.step_report.surface_figures", 1, "friction"),
+    "VTK gather": ("contact.output.vtk._gather_rows", 1, "square"),
+    "writing a file (disk full)": ("contact.output.vtk.save_vtu", 0, "square"),
+    "drawing a picture": ("contact.output.plots._mesh_2d", 1, "adaptive"),
 }
 
 
@@ -132,7 +132,7 @@ def _tiny_study(tmp: Path) -> Path:
 def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> None:
     """A study catches a failing run as a row — but only a failure on every rank: one
     rank's alone ends the job."""
-    proc, seconds = _planted(tmp_path, "contact.solvers.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out")
+    proc, seconds = _planted(tmp_path, "contact.drivers.solve.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out")
     _ended_by(proc, seconds, 1, 3, "internal error: study run method=fb: RuntimeError: planted in solve")
     assert not (tmp_path / "out").exists()
 
@@ -140,7 +140,7 @@ def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> No
 def test_exception_on_every_rank_in_a_study_run_is_a_row(tmp_path: Path) -> None:
     import csv
 
-    proc, seconds = _planted(tmp_path, "contact.solvers.solve", -1, "study", str(_tiny_study(tmp_path)), "-o", "out")
+    proc, seconds = _planted(tmp_path, "contact.drivers.solve.solve", -1, "study", str(_tiny_study(tmp_path)), "-o", "out")
     assert proc.returncode == 0 and seconds <= BOUND, proc.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "study.csv")))
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [
@@ -154,7 +154,7 @@ def _interrupt(tmp: Path, ranks: int) -> tuple[subprocess.Popen, str, float]:
     does (mpiexec forwards it to the ranks, which hydra puts in process groups of their
     own).  Returns the process, its stderr and the seconds from SIGINT to its end."""
     scene = _friction_scene(tmp)
-    cmd = [sys.executable, "-m", "contact.cli", "run", str(scene), "-o", "out", "-q", "--set", "load.steps=2000",
+    cmd = [sys.executable, "-m", "contact.app.cli", "run", str(scene), "-o", "out", "-q", "--set", "load.steps=2000",
            "--set", "output.vtk=false", "--set", "output.png=false"]
     if ranks:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]

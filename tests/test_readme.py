@@ -27,7 +27,7 @@ def test_readme_study_example_validates(monkeypatch):
     relative to configs/studies/, as a study file there would be)."""
     import yaml
 
-    from contact.study import load_study
+    from contact.app.study import load_study
 
     section = (ROOT / "README.md").read_text().split("## Parameter studies", 1)[1]
     block = re.search(r"```yaml\n(.*?)```", section, re.S).group(1)
@@ -72,7 +72,7 @@ def results(tmp_path_factory):
     cwd = tmp_path_factory.mktemp("readme")
     for scene, out, sets in (("signorini_square.yaml", "square", ["mesh.cells=[12,10]"]),
                              ("signorini_free_boundary.yaml", "demo", ["adapt.max_levels=2"])):
-        proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(ROOT / "configs" / scene),
+        proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(ROOT / "configs" / scene),
                                "-o", str(cwd / "results" / out), "-q", *(f"--set={s}" for s in sets)],
                               capture_output=True, text=True, timeout=300)
         assert proc.returncode == 0, proc.stderr

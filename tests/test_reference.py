@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import contact
-from contact.config import ConfigError
+from contact.base.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 HERTZ_KEYS = {"reference", "hertz_a", "hertz_p0", "a_error", "p0_error", "a_over_R", "contact_half_width",
@@ -22,7 +22,7 @@ SMALL_HERTZ = ["mesh.h=0.2", "mesh.h_contact=0.02", "mesh.zone=0.2"]
 
 
 def _run(scene, out, *sets):
-    cmd = [sys.executable, "-m", "contact.cli", "run", str(scene), "-o", str(out), "-q", *(f"--set={s}" for s in sets)]
+    cmd = [sys.executable, "-m", "contact.app.cli", "run", str(scene), "-o", str(out), "-q", *(f"--set={s}" for s in sets)]
     return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300,
                           env={**os.environ, "OMP_NUM_THREADS": "1"})
 
@@ -77,7 +77,7 @@ def test_reference_on_a_scalar_scene_is_bad_input():
 
 
 def test_study_rows_carry_reference_errors_only_for_declared_scenes():
-    from contact.study import load_study, run_study
+    from contact.app.study import load_study, run_study
 
     study = {"name": "ref", "scene": str(ROOT / "configs" / "hertz_2d.yaml"), "set": SMALL_HERTZ,
              "axes": {"method": ["min"]}, "adapt": {"strategy": "none"}, "warmup": False,

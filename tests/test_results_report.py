@@ -36,7 +36,7 @@ def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     """A small stability study (two cases, a failing one) → its iterations, outcomes and the
     failure table in the report."""
-    from contact.study import run_study
+    from contact.app.study import run_study
 
     study = {"name": "stability", "scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
              "axes": {"method": ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]},

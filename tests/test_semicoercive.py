@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import contact
-from contact.config import ConfigError
+from contact.base.errors import ConfigError
 from contact.models import build_problem
 from contact.solvers.result import SEMICOERCIVE_HINT, not_converged_text
 from ties import tie_margin

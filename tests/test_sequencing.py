@@ -9,7 +9,7 @@ from conftest import make_square_msh
 
 import contact
 from contact.models import build_problem
-from contact.solvers.sequencing import COARSEST_DOFS, transfer
+from contact.drivers.sequencing import COARSEST_DOFS, transfer
 from ties import tie_margin
 
 

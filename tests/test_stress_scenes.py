@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import contact
-from contact.errors import energy_error
+from contact.adaptivity.energy_error import energy_error
 from contact.models import build_problem
 from contact.solvers import owned_residual
 

@@ -28,7 +28,7 @@ TINY_COLUMNS = ["run", "method", "line_search", "repeat", "dofs", "levels", "new
 
 
 def _study(cwd: Path, *args: str, nproc: int = 1) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "contact.cli", "study", *args]
+    cmd = [sys.executable, "-m", "contact.app.cli", "study", *args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc), *cmd]
     return subprocess.run(cmd, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=300)
@@ -133,11 +133,11 @@ def test_failing_runs_are_rows(tmp_path: Path) -> None:
 def test_exceptions_are_rows(monkeypatch) -> None:
     """A run that raises (a ConfigError from an impossible combination or anything else)
     is a failure row; the next run still happens."""
-    import contact.solvers
-    from contact.config import ConfigError
-    from contact.study import run_study
+    import contact.drivers.solve
+    from contact.base.errors import ConfigError
+    from contact.app.study import run_study
 
-    real = contact.solvers.solve
+    real = contact.drivers.solve.solve
 
     def fake(scene, *args, **kw):
         method = scene.cfg["solver"]["method"]
@@ -147,7 +147,7 @@ def test_exceptions_are_rows(monkeypatch) -> None:
             raise RuntimeError("boom\nsecond line")
         return real(scene, *args, **kw)
 
-    monkeypatch.setattr(contact.solvers, "solve", fake)
+    monkeypatch.setattr(contact.drivers.solve, "solve", fake)
     rows, _ = run_study({"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "warmup": False,
                          "axes": {"method": ["min", "blend", "fb"]}}, verbose=False)
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [
@@ -161,7 +161,7 @@ def test_exceptions_are_rows(monkeypatch) -> None:
 def test_adaptive_and_single_runs_with_exact_solution() -> None:
     """Problem A (exact solution known): one solve against two uniform levels; level
     refines the base mesh uniformly (4× the cells per level in 2D)."""
-    from contact.study import run_study
+    from contact.app.study import run_study
 
     rows, levels = run_study({"scene": str(FREE), "set": ["mesh.cells=[8,4]"], "adapt": {"max_levels": 2},
                               "axes": {"strategy": ["none", "uniform"], "level": [0, 1]}}, verbose=False)
@@ -190,7 +190,7 @@ def test_shipped_studies_validate() -> None:
     (the stress cases (a)–(g), the friction cases (h)–(j), (k)–(o) of issue 11 and (q) of
     issue 26) with the five methods, every one a cold start; its 1024² part (k) crosses κ
     and sequencing with fb, min and blend."""
-    from contact.study import load_study
+    from contact.app.study import load_study
 
     tiny = load_study(ROOT / "configs" / "studies" / "tiny.yaml")
     assert len(tiny.runs()) == 3 and not tiny.has_exact
@@ -213,7 +213,7 @@ def test_shipped_studies_validate() -> None:
 
 
 def test_pareto_front() -> None:
-    from contact.study import pareto_front
+    from contact.app.study import pareto_front
 
     pts = [(1.0, 1.0), (2.0, 0.5), (3.0, 0.5), (0.5, 1.0 + 1e-12), (1.0, 2.0), (math.nan, 0.1), (4.0, 0.1)]
     assert pareto_front(pts) == [False, True, False, True, False, False, True]
@@ -272,7 +272,7 @@ def test_bad_study_fails_before_running(expect: str, content, tmp_path: Path) ->
 
 
 def test_outcome_classes() -> None:
-    from contact.study import outcome
+    from contact.app.study import outcome
 
     assert outcome({"converged": True, "reason": "converged_fnorm_abs"}) == "converged"
     assert outcome({"converged": False, "reason": "diverged_max_it"}) == "max iterations"
@@ -288,7 +288,7 @@ def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
     its case and outcome; a case may swap the scene; the stability map and the
     iterations-per-level chart are drawn; nested iteration needs fewer Newton steps than a
     cold start on the finer levels of problem A."""
-    from contact.study import run_study
+    from contact.app.study import run_study
 
     study = {"name": "cases", "scene": str(FREE), "set": ["mesh.cells=[8,4]"],
              "axes": {"method": ["fb", "min"]},

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from clirun import ROOT
 
-from contact import failures
-from contact.study import run_study
+from contact.app import failures
+from contact.app.study import run_study
 
 SCENE = str(ROOT / "configs" / "signorini_square.yaml")
 
@@ -48,7 +48,7 @@ def test_study_failure_cell_is_one_line(monkeypatch) -> None:
     def broken(scene, **kwargs):
         raise err
 
-    monkeypatch.setattr("contact.solvers.solve", broken)
+    monkeypatch.setattr("contact.drivers.solve.solve", broken)
     study = {"name": "failing", "scene": SCENE, "set": ["mesh.cells=[4,4]"], "axes": {"method": ["fb"]},
              "warmup": False}
     rows, _ = run_study(study, verbose=False)
@@ -62,7 +62,7 @@ def test_long_failure_texts_are_capped(monkeypatch) -> None:
     def broken(scene, **kwargs):
         raise RuntimeError("x" * 5000 + "\n" + "y" * 5000)
 
-    monkeypatch.setattr("contact.solvers.solve", broken)
+    monkeypatch.setattr("contact.drivers.solve.solve", broken)
     study = {"name": "failing", "scene": SCENE, "set": ["mesh.cells=[4,4]"], "axes": {"method": ["fb"]},
              "warmup": False}
     (row,), _ = run_study(study, verbose=False)

@@ -15,10 +15,10 @@ import pytest
 import yaml
 
 import contact
-from contact.config import ConfigError
-from contact.geometry import CurvedBoundary
-from contact.reference import compare
-from contact.surfaces import ContactWarning, ridge_angles
+from contact.base.errors import ConfigError
+from contact.setup.geometry import CurvedBoundary
+from contact.post.reference import compare
+from contact.setup.surfaces import ContactWarning, ridge_angles
 
 from conftest import make_quarter_disk_msh
 
@@ -59,7 +59,7 @@ def test_declared_circle_keeps_the_hertz_peak_pressure(disk_scene):
 def test_cli_prints_the_curved_boundary_warning_as_one_line(disk_scene, tmp_path):
     scene_file = tmp_path / "disk.yaml"
     scene_file.write_text(yaml.safe_dump({**disk_scene, "adapt": {"max_levels": 2}}))
-    proc = subprocess.run([sys.executable, "-m", "contact.cli", "run", str(scene_file), "-o", str(tmp_path / "out"),
+    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(scene_file), "-o", str(tmp_path / "out"),
                            "-q"], capture_output=True, text=True, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]

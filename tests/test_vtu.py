@@ -1,4 +1,4 @@
-"""The .vtu files (contact.series): one raw appended block, uncompressed, that VTK's reader
+"""The .vtu files (contact.output.vtk): one raw appended block, uncompressed, that VTK's reader
 (pyvista.read) and meshio both give back exactly — points, cells, point, cell and field
 data — and the gather behind them stacks every rank's rows in rank order, a rank with no
 rows included."""
@@ -11,7 +11,7 @@ import meshio
 import numpy as np
 import pyvista
 
-from contact import series
+from contact.output import vtk
 
 
 def test_vtu_reads_back_exactly_with_pyvista_and_meshio(tmp_path):
@@ -30,7 +30,7 @@ def test_vtu_reads_back_exactly_with_pyvista_and_meshio(tmp_path):
     for name, value in (("time", 2.5), ("step", 3), ("dofs", 123)):
         grid.field_data[name] = np.array([value])
     path = tmp_path / "g.vtu"
-    series.save_vtu(path, grid)
+    vtk.save_vtu(path, grid)
     data = path.read_bytes()
     assert b'<AppendedData encoding="raw">' in data and b"compressor" not in data
     back = pyvista.read(path)
@@ -52,12 +52,12 @@ GATHER_ROWS = """
 import json
 import numpy as np
 from mpi4py import MPI
-from contact import series
+from contact.output import vtk
 comm = MPI.COMM_WORLD
 rows = [3, 0, 5][comm.rank]   # rank 1 holds nothing
 a = np.full((rows, 2), comm.rank, dtype=np.int64) + np.arange(rows)[:, None]
 b = np.full(rows, 0.5 + comm.rank)
-out = [series._gather_rows(x, comm, root=2) for x in (a, b)]
+out = [vtk._gather_rows(x, comm, root=2) for x in (a, b)]
 if comm.rank == 2:
     print(json.dumps([o.tolist() for o in out] + [str(out[0].dtype), str(out[1].dtype)]))
 else:

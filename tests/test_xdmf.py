@@ -21,7 +21,7 @@ BLOCK = ROOT / "configs" / "friction_block_2d.yaml"
 
 
 def _run(args, nproc=1, cwd=ROOT):
-    cmd = [sys.executable, "-m", "contact.cli", "run"] + [str(a) for a in args]
+    cmd = [sys.executable, "-m", "contact.app.cli", "run"] + [str(a) for a in args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600,

@@ -1,7 +1,7 @@
 """Models: a scene's mesh and data → the discrete contact problem (K, b, constraint set).
 
-* :mod:`.problem` — :class:`DiscreteProblem` and :class:`Constraint`, the interface to
-  the solvers, and what every model shares (assembly, lumped weights, the NCP scaling);
+* :mod:`.problem` — what every model shares (assembly, lumped weights, the scene's
+  expressions) to build the solvers' :class:`~contact.solvers.problem.DiscreteProblem`;
 * :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
 * :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
   :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
@@ -15,18 +15,18 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from .problem import Constraint, DiscreteProblem
+from ..solvers.problem import DiscreteProblem
 
 if TYPE_CHECKING:
-    from ..scene import Scene
+    from ..setup.scene import Scene
 
-__all__ = ["Constraint", "DiscreteProblem", "build_problem"]
+__all__ = ["build_problem"]
 
 
 def build_problem(scene: "Scene") -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
-    from ..budget import check_dofs, mesh_dofs
+    from ..setup.budget import check_dofs, mesh_dofs
 
     cfg, msh = scene.cfg, scene.mesh
     components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1

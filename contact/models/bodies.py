@@ -1,7 +1,7 @@
 """Several elastic bodies in one mesh, in contact through mortar pairs (SPEC §1.5).
 
 The bodies are the disconnected components of one DOLFINx mesh, told apart by the cell
-tags of :func:`contact.meshes.tag_bodies`; one vector P1 space carries them all, so the
+tags of :func:`contact.setup.meshes.tag_bodies`; one vector P1 space carries them all, so the
 elastic assembly of :mod:`contact.models.elasticity` applies unchanged with Lamé
 parameters that are DG0 functions (E_k, ν_k of body k).  Each pair of ``pairs`` couples a
 slave surface to a master surface (:mod:`contact.models.mortar`); with the change of
@@ -30,14 +30,15 @@ from petsc4py import PETSc
 from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 
-from ..checks import check_scene_data
-from ..lifetime import destroy
-from ..scene import Scene
+from ..setup.checks import check_scene_data
+from ..base.lifetime import destroy
+from ..setup.scene import Scene
 from . import mortar
 from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
 from .floating import floating_bodies
-from .problem import Constraint, DiscreteProblem, contact_ends, coordinate_scale
+from ..solvers.problem import Constraint, DiscreteProblem
+from .problem import contact_ends, coordinate_scale
 
 
 def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
@@ -187,7 +188,7 @@ class ObstacleNodes:
 def obstacle_nodes(scene: Scene, V: fem.FunctionSpace, system) -> ObstacleNodes:
     """The obstacle's contact nodes rotated to their (n, t) frames (symmetry-fixed
     components kept as absolute axes, as for slave nodes), none of them a node of a pair."""
-    from ..config import ConfigError
+    from ..base.errors import ConfigError
     from .obstacles import _contact_nodes, first_contact_point, obstacle_shape
     from .problem import lumped_weights
 

@@ -24,14 +24,15 @@ import dolfinx.fem.petsc
 import ufl
 from dolfinx import fem
 
-from .. import expressions
-from ..checks import check_scene_data
-from ..config import ConfigError
-from ..lifetime import destroy
-from ..scene import Scene
+from ..setup import expressions
+from ..setup.checks import check_scene_data
+from ..base.errors import ConfigError
+from ..base.lifetime import destroy
+from ..setup.scene import Scene
 from .floating import floating_bodies
 from .obstacles import curved_contact, plane_contact
-from .problem import DiscreteProblem, assemble_system
+from ..solvers.problem import DiscreteProblem
+from .problem import assemble_system
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:

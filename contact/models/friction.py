@@ -1,6 +1,6 @@
 """Friction on the contact nodes of the elastic model (SPEC §1.4): the scene side.
 
-Per contact node i (the constrained nodes of :class:`~contact.models.problem.Constraint`)
+Per contact node i (the constrained nodes of :class:`~contact.solvers.problem.Constraint`)
 with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns x:
 
 * the normal unknown x_n,i (already the constraint's DoF) and the tangential unknowns
@@ -22,7 +22,7 @@ with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns 
   ``friction.kappa_t`` (default 1).  Then c_t s_t = K_tt s_t / w is the tangential traction a
   Jacobi step of s_t would create: z = μ_t + c_t s_t adds two tractions of the same
   discrete origin, as the normal ``c: auto`` compares two lengths
-  (:func:`contact.models.problem.nodal_scaling`); scaling E scales both, so it cancels.
+  (:func:`contact.solvers.problem.nodal_scaling`); scaling E scales both, so it cancels.
 
 Two bodies.  The tangential unknowns are read in the solver's unknowns x of the change of
 basis u = Q x, and the frames from Q's diagonal node blocks; with the mortar basis of SPEC
@@ -38,45 +38,16 @@ data are not free either.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from dolfinx import fem
 
-from .. import expressions
-from ..config import ConfigError
-from ..scene import Scene
-from .problem import DiscreteProblem
-
-
-@dataclass
-class FrictionSet:
-    """The tangential unknowns of the contact nodes and the data of their friction law.
-
-    Arrays are per owned contact node, in the order of ``problem.constraint.dofs``; m is the
-    number of tangential directions (gdim − 1)."""
-
-    law: str                       # "tresca" | "coulomb"
-    n_comp: int                    # position of the normal unknown in the node's block
-    t_comps: np.ndarray            # (m,) positions of the tangential unknowns in the block
-    tangent: np.ndarray            # (n, m) owned local indices of the tangential unknowns
-    free: np.ndarray               # (n, m) bool: not fixed by a Dirichlet/symmetry condition
-    frames: np.ndarray             # (n, gdim, m) the tangent vectors t_i in global axes
-    c_t: np.ndarray                # (n,) tangential scaling (stress per length)
-    threshold: np.ndarray | None   # (n,) Tresca: s(x_i, t) (stress)
-    coefficient: float | None      # Coulomb: F
-    x_prev: np.ndarray             # (n, m) tangential unknowns at the previous load step
-    form: str = "hsw"              # tangential NCP: hsw | projection
-    coulomb: str = "ssn"           # Coulomb solver: ssn | fixed_point
-    fixed_point_rtol: float = 1e-10
-    fixed_point_max_it: int = 100
-
-    @property
-    def m(self) -> int:
-        return self.tangent.shape[1]
+from ..setup import expressions
+from ..base.errors import ConfigError
+from ..setup.scene import Scene
+from ..solvers.problem import DiscreteProblem, FrictionSet
 
 
 def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
@@ -162,9 +133,3 @@ def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
     if comps:
         raise ConfigError(f"data.u_D[{comps[0]}]: moves nodes of a symmetry plane across it; with "
                           "friction a drag across a symmetry plane is not symmetric (model the full body)")
-
-
-def tangential_vector(fs: FrictionSet, values: np.ndarray) -> np.ndarray:
-    """Nodal tangential components (n, m) → vectors in global axes (n, gdim): Σ_j v_j t_j."""
-    return np.einsum("nij,nj->ni", fs.frames, np.where(fs.free, values, 0.0))
-

@@ -44,9 +44,10 @@ from petsc4py import PETSc
 
 from dolfinx import fem, la
 
-from ..config import ConfigError
-from ..scene import Scene
+from ..base.errors import ConfigError
+from ..setup.scene import Scene
 from . import overlap
+from ..solvers.result import Result
 from .basis import node_frames
 
 FACING = 0.0  # a master facet is paired only if n_S · n_M < FACING (the surfaces face each other)
@@ -381,3 +382,51 @@ def _no_master(comm, V, nodes: np.ndarray, key: str, pair: dict, search: float) 
                           f"master facet of {pair['master']!r} within the search distance {search:.4g} "
                           f"({key}.search) facing (at least half of) their facets; restrict the slave part "
                           "to lie within the master surface, or raise the search distance")
+
+
+def to_master(result: Result, values: np.ndarray) -> np.ndarray:
+    """Nodal data of the slave nodes carried to the master nodes the way the mortar
+    coupling carries forces, (Σ_i M_ij v_i) / ∫ φ_j^m, per component: ``values`` (local
+    nodes, k) → (local nodes, k), 0 off the master surfaces (owned and ghost entries)."""
+    p = result.problem
+    imap = p.V.dofmap.index_map
+    n_owned = imap.size_local
+    k = values.shape[1]
+    v = PETSc.Vec().createMPI((n_owned, imap.size_global), comm=p.V.mesh.comm)
+    y = v.duplicate()
+    out = la.vector(imap, k)
+    arr = out.array.reshape(-1, k)
+    weight = np.zeros(n_owned + imap.num_ghosts)
+    for coupling in p.data["couplings"]:
+        weight += coupling.master_weights.array
+    for comp in range(k):
+        v.array[:] = values[:n_owned, comp]
+        for coupling in p.data["couplings"]:
+            coupling.M.multTranspose(v, y)                           # Σ_i M_ij v_i
+            arr[:n_owned, comp] += y.array_r
+    out.scatter_forward()
+    for vec in (v, y):
+        vec.destroy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(weight[:, None] > 0, arr / np.where(weight > 0, weight, 1.0)[:, None], 0.0)
+
+
+def master_pressure(result: Result) -> fem.Function:
+    """λ^m on the output space (nodal; 0 away from the master surfaces), named
+    ``lambda_master``."""
+    p = result.problem
+    S, bs = p.output_space, p.V.dofmap.index_map_bs
+    node_of_s = p.output_map // bs
+    lam_nodes = np.zeros((len(node_of_s), 1))
+    lam_nodes[node_of_s, 0] = result.lmbda_h.x.array
+    fn = fem.Function(S, name="lambda_master")
+    fn.x.array[:] = to_master(result, lam_nodes)[node_of_s, 0]
+    return fn
+
+
+def master_vector(result: Result, fn: fem.Function) -> fem.Function:
+    """A vector nodal function (on V) of the slave nodes carried to the master nodes."""
+    bs = fn.function_space.dofmap.index_map_bs
+    out = fem.Function(fn.function_space)
+    out.x.array[:] = to_master(result, fn.x.array.reshape(-1, bs)).ravel()
+    return out

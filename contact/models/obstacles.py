@@ -7,7 +7,7 @@ outside) n = (c − x)/|c − x| and g = |x − c| − R_o.  When n is a coordin
 u·n ≤ g is a bound on the single component u_k (σ = n_k, bound n_k g); otherwise each
 contact node's displacement is rotated to its (n, t) axes, u = Q x with Q orthogonal and
 block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, so that it is a bound on one unknown again.
-Each function returns the pieces of :class:`contact.models.problem.DiscreteProblem` that
+Each function returns the pieces of :class:`contact.solvers.problem.DiscreteProblem` that
 the obstacle determines (constraint, output space, basis, contact data).
 """
 from __future__ import annotations
@@ -19,10 +19,11 @@ from petsc4py import PETSc
 import ufl
 from dolfinx import fem
 
-from ..config import ConfigError
-from ..scene import Scene
+from ..base.errors import ConfigError
+from ..setup.scene import Scene
 from .basis import frame
-from .problem import Constraint, NodeBlockMatrix, coordinate_scale, lumped_weights
+from ..solvers.problem import Constraint, NodeBlockMatrix
+from .problem import coordinate_scale, lumped_weights
 
 
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):

@@ -19,11 +19,12 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem
 
-from ..checks import check_scene_data
-from ..config import ConfigError
-from ..scene import Scene
-from .problem import (Constraint, DiscreteProblem, coefficient, contact_ends, interpolate_expression,
-                      assemble_system, lumped_weights)
+from ..setup.checks import check_scene_data
+from ..base.errors import ConfigError
+from ..setup.scene import Scene
+from ..solvers.problem import Constraint, DiscreteProblem
+from .problem import (coefficient, contact_ends, interpolate_expression, assemble_system,
+                      lumped_weights)
 
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:

@@ -2,7 +2,7 @@
 nonsmooth function, which element of its generalized derivative.  How the Newton system is
 then solved is :mod:`contact.solvers.linear`'s business.
 
-Per contact node (the data of :class:`contact.models.friction.FrictionSet`), with the
+Per contact node (the data of :class:`contact.solvers.problem.FrictionSet`), with the
 normal quantities of :mod:`contact.solvers.newton` (gap a = σ(g − x_n), b = c μ_n,
 μ_n = −λ_n = −σ R_n / w, the normal NCP φ ∈ {fb, min, blend}) and
 
@@ -67,21 +67,19 @@ over nodes.  Components fixed by a symmetry or Dirichlet condition keep their ro
 """
 from __future__ import annotations
 
-import dataclasses
-import time
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..models import DiscreteProblem
-from ..models.friction import FrictionSet
-from ..models.problem import NodeBlockMatrix
+from dolfinx import fem
+
 from . import ncp
 from .linear import attach_near_nullspace
 from .newton import Complementarity, set_newton
+from .problem import DiscreteProblem, FrictionSet, NodeBlockMatrix
+from .result import Result
 
 FORMS = ("projection", "hsw")
 SEPARATED, STICK, SLIP = 0, 1, 2
@@ -229,8 +227,6 @@ def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: 
     """Nodal results of a frictional solve (owned contact nodes): λ_n, λ_t (n, m), ρ, the
     slip increment s (n, m), the status, the gap, the weights w, and λ_t, s as vectors in
     global axes (n, gdim)."""
-    from ..models.friction import tangential_vector
-
     st = cp.evaluate(x)
     status = cp.status(x, st)
     lam_t = -st["mu_t"]
@@ -244,65 +240,32 @@ def status_counts(comm: MPI.Comm, status: np.ndarray) -> dict[str, int]:
     return {name: comm.allreduce(int(np.sum(status == code)), op=MPI.SUM) for code, name in STATUS_NAMES.items()}
 
 
-def with_threshold(fs: FrictionSet, rho: np.ndarray) -> FrictionSet:
-    """The Tresca problem with threshold ρ (one step of the Coulomb fixed point)."""
-    return dataclasses.replace(fs, law="tresca", threshold=np.asarray(rho, dtype=float))
+def tangential_vector(fs: FrictionSet, values: np.ndarray) -> np.ndarray:
+    """Nodal tangential components (n, m) → vectors in global axes (n, gdim): Σ_j v_j t_j."""
+    return np.einsum("nij,nj->ni", fs.frames, np.where(fs.free, values, 0.0))
 
 
-def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | None, built_here: bool,
-                        solve: Callable, **options):
-    """Coulomb friction as a sequence of Tresca problems (``friction.coulomb: fixed_point``):
-
-        ρ^0 = F·max(0, μ_n(u_0)),   u^k = the Tresca solution with threshold ρ^{k−1},
-        ρ^k = F·max(0, μ_n(u^k)),    until  max_i |ρ^k_i − ρ^{k−1}_i| ≤ rtol · max_i ρ^k_i,
-
-    each Tresca problem solved by semismooth Newton from the previous u^k.  A contraction
-    for small F; an independent check of the full Newton method (same solution).  The
-    returned :class:`~contact.solvers.result.Result` is the last Tresca solve's, with
-    ``iterations`` the Newton steps of all of them and ``friction['fixed_point_iterations']``.
-    ``solve`` is :func:`contact.solvers.solve.solve`, passed in by it (it calls this module)."""
-    fs: FrictionSet = problem.friction
-    comm = scene.comm
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
-    x = problem.b.duplicate()
-    if u0 is not None:
-        problem.to_unknowns(u0.x.petsc_vec, x)
-    r = x.duplicate()
-    problem.residual(x, r)
-    rho = fs.coefficient * np.maximum(-problem.constraint.sign * r.array_r[problem.constraint.dofs]
-                                      / problem.constraint.w, 0.0)
-    for obj in (x, r):
-        obj.destroy()
-    total, result, t0, converged = 0, None, time.perf_counter(), False
-    timers = {"assembly": 0.0, "solve": 0.0}
-    try:
-        for k in range(1, fs.fixed_point_max_it + 1):
-            problem.friction = with_threshold(fs, rho)
-            result = solve(scene, problem=problem, u0=u0, verbose=False, **options)
-            total += result.iterations
-            for key in timers:
-                timers[key] += result.timings[key]
-            if not result.converged:
-                break
-            rho_new = fs.coefficient * np.maximum(-result.friction["lambda_n"], 0.0)
-            change = comm.allreduce(float(np.max(np.abs(rho_new - rho), initial=0.0)), op=MPI.MAX)
-            scale = comm.allreduce(float(np.max(rho_new, initial=0.0)), op=MPI.MAX)
-            rho, u0 = rho_new, result.u_h
-            if verbose and comm.rank == 0:
-                print(f"  fixed point it {k:3d}  max|rho - rho_prev| = {change:10.3e}  "
-                      f"({result.iterations} Newton its)", flush=True)
-            if change <= fs.fixed_point_rtol * scale:
-                converged = True
-                break
-    finally:
-        problem.friction = fs
-    if built_here:
-        timers["assembly"] += problem.assembly_time
-    timers["total"] = time.perf_counter() - t0 + (problem.assembly_time if built_here else 0.0)
-    timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"], 0.0)
-    result.timings = timers
-    result.iterations = total
-    result.friction["fixed_point_iterations"] = k
-    if result.converged and not converged:
-        result.converged, result.reason = False, "fixed_point_max_it"
-    return result
+def surface_functions(result: Result) -> list[fem.Function]:
+    """Nodal fields for the VTK output: λ_t and the slip increment (vectors in global axes,
+    on the displacement space), the status (0 separated, 1 stick, 2 slip; −1 off Γ_C) and the
+    friction bound ρ (on the scalar output space)."""
+    p, fr = result.problem, result.friction
+    V, con = p.V, p.constraint
+    bs = V.dofmap.index_map_bs
+    nodes = con.dofs // bs
+    out = []
+    for name, values in (("lambda_t", fr["lambda_t_vec"]), ("slip", fr["slip_vec"])):
+        fn = fem.Function(V, name=name)
+        fn.x.array[(nodes[:, None] * bs + np.arange(values.shape[1])).ravel()] = values.ravel()
+        fn.x.scatter_forward()
+        out.append(fn)
+    for name, values, off in (("status", fr["status"].astype(float), -1.0), ("bound", fr["rho"], 0.0)):
+        fn = fem.Function(V)
+        fn.x.array[:] = off
+        fn.x.array[con.dofs] = values
+        fn.x.scatter_forward()
+        S = p.output_space or V
+        scalar = fem.Function(S, name=name)
+        scalar.x.array[:] = fn.x.array if p.output_map is None else fn.x.array[p.output_map]
+        out.append(scalar)
+    return out

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
-from ..models import DiscreteProblem
+from .problem import DiscreteProblem
 from .options import default_options
 from .reduced import ReducedSystem
 

@@ -40,7 +40,7 @@ decided with a tolerance τ ≥ 0: FB takes the biactive element where r = √(a
 multiplier over all constrained nodes of all ranks at the iterate, or s if larger
 (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`): far above round-off
 (≈ 10⁻¹⁶ of that scale), far below any value Newton resolves.  s is the size of what the
-gaps are computed from (:attr:`contact.models.Constraint.scale`: max |X| over the mesh for
+gaps are computed from (:attr:`contact.solvers.problem.Constraint.scale`: max |X| over the mesh for
 gaps between node coordinates, 0 for gaps given as data): two bodies that touch at a cold
 start have every a_i = ±10⁻¹⁶ (coordinate round-off, its sign set by the partition) and
 every b_i = 0, so without s the scale itself was round-off and two_body_stack_2d began with

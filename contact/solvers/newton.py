@@ -1,6 +1,6 @@
 """Semismooth Newton for the nodal complementarity problem (SPEC §3–4).
 
-With R(x) = K x − b and the constraint set of :class:`contact.models.Constraint`, the
+With R(x) = K x − b and the constraint set of :class:`contact.solvers.problem.Constraint`, the
 multiplier is eliminated (SPEC §4, implementation note): on a constrained node i
 
     a_i = σ (g_i − x_i)  [gap],     b_i = −σ c_i R_i / w_i  [c × multiplier density],
@@ -33,7 +33,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..models import DiscreteProblem
+from .problem import DiscreteProblem
 from . import ncp
 from .globalize import GuardedMin
 from .polish import Polisher
@@ -60,7 +60,7 @@ class Complementarity:
 
     def tie_tolerance(self, a: np.ndarray, b: np.ndarray) -> float:
         """τ = TIE_RTOL × max(max_i |a_i|, max_i |b_i|, s) over every rank (collective), s the
-        constraint's :attr:`~contact.models.Constraint.scale` (the coordinates' size for
+        constraint's :attr:`~contact.solvers.problem.Constraint.scale` (the coordinates' size for
         geometric gaps): kinks closer than τ take the documented element (:mod:`.ncp`), the
         same on any partition — also at a cold start where every a_i, b_i is round-off."""
         local = float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0)))

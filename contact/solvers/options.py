@@ -1,7 +1,7 @@
-"""Solver options: the scene's ``solver`` section with call-time overrides, method names
-as benchmarks list them, the default PETSc options of each linear solver (a function of
-its kind and the dimension alone, known before any mesh exists), and PETSc's options
-database (set, read, errors as one line)."""
+"""Solver options: method names as benchmarks list them, the default PETSc options of each
+linear solver (a function of its kind and the dimension alone, known before any mesh
+exists), and PETSc's options database (set, read, errors as one line).  The scene's
+``solver`` section with call-time overrides is :func:`contact.drivers.solve.solver_options`."""
 from __future__ import annotations
 
 import itertools
@@ -10,20 +10,12 @@ from typing import Any, Mapping
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..config import SCENE, ConfigError, _validate
-from ..failures import petsc_message
+from ..base.errors import ConfigError, petsc_message
 from .reduced import REDUCED_PETSC_OPTIONS
 
 DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
 ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
-
-
-def solver_options(cfg: Mapping[str, Any], **overrides: Any) -> dict:
-    """The ``solver`` section of a validated scene config with keyword overrides, validated
-    like the YAML."""
-    raw = {**cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
-    return _validate(raw, SCENE["solver"], "solver", cfg["constants"])
 
 
 def method_variant(name: str) -> tuple[str, dict]:

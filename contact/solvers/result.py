@@ -12,7 +12,7 @@ from petsc4py import PETSc
 
 from dolfinx import fem
 
-from ..models import DiscreteProblem
+from .problem import DiscreteProblem
 
 REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 
@@ -24,7 +24,7 @@ class Result:
     solver's rule at the solution (``Complementarity.active_set``: b_i − a_i > τ, or both
     within τ of 0), the set
     ``active`` and ``n_active`` show.  ``contact_force`` is the resultant contact force
-    summed over all ranks (:meth:`contact.models.DiscreteProblem.contact_force`), the same
+    summed over all ranks (:meth:`contact.solvers.problem.DiscreteProblem.contact_force`), the same
     number on every rank."""
 
     u_h: fem.Function
@@ -81,11 +81,11 @@ class Result:
 
     def release(self) -> None:
         """Keep the figures only: the problem's PETSc objects are destroyed
-        (:meth:`~contact.models.DiscreteProblem.destroy`), the functions, the problem and the
-        nodal arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps
+        (:meth:`~contact.solvers.problem.DiscreteProblem.destroy`), the functions, the problem
+        and the nodal arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps
         its numbers).  What stays — iterations, residual, history, timings, contact force,
         DoFs — takes no memory that grows with the mesh.  A load path releases each step's
-        result once the next step is done (:meth:`contact.loadpath.Step.release`)."""
+        result once the next step is done (:meth:`contact.drivers.load_path.Step.release`)."""
         if self.problem is None:
             return
         _ = self.dofs   # cached while u_h is there
@@ -149,7 +149,8 @@ def owned_residual(result: Result) -> np.ndarray:
     return out
 
 
-def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code) -> Result:
+def finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
+           reason_code) -> Result:
     """Copy the iterate into functions: u_h, and λ_h, the gap and the active set.  Timings
     count from ``t_start`` (shifted back by the assembly when this solve built the problem)."""
     u_h = problem.u_h
@@ -158,7 +159,6 @@ def finish(scene, problem, cp, x, snes, history, method, opts, timers, t_start, 
     a, b, r = cp.pair(x)
     active = cp.active_set(a, b)
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
-    comm = scene.comm
     timers["total"] = time.perf_counter() - t_start
     timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0)
     converged = reason_code > 0

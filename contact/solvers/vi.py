@@ -12,7 +12,7 @@ import time
 
 from petsc4py import PETSc
 
-from ..models import DiscreteProblem
+from .problem import DiscreteProblem
 from .linear import attach_near_nullspace
 
 METHODS = ("vinewtonrsls", "vinewtonssls")

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 import contact
-from contact.adapt import adapt
-from contact.io import write_csv
+from contact.drivers.adaptive import adapt
+from contact.output.folder import write_csv
 
 RUNS = [  # (problem, scene, strategy, method, options)
     ("A", "configs/signorini_free_boundary.yaml", "dorfler", "fb", dict(max_levels=14, max_dofs=150_000)),

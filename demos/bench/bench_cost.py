@@ -39,7 +39,7 @@ from petsc4py import PETSc
 
 import contact
 from common import save_csv
-from contact.io import gather_nodal
+from contact.output.folder import gather_nodal
 from contact.models import build_problem
 
 

@@ -7,7 +7,7 @@ solutions, through the adaptive loop (Dörfler θ = 0.5, ``--strategy uniform`` 
 refinement) with ``estimator: equilibrated`` while the next level stays within ``--max-dofs``.  Per level: DoFs, the
 energy error, the guaranteed η and its effectivity η / error, the residual estimator's
 effectivity on the same solve (SPEC §5), the parts of the bound (A, B, W, D of
-contact/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
+contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
 η ≥ error on every level and η / error ≤ 1.5 on every level past the first three, prints
 each level and a verdict per problem, and writes ``effectivity.csv`` (``effectivity_np2.csv``
 under ``mpirun -n 2``).
@@ -16,7 +16,7 @@ under ``mpirun -n 2``).
     mpirun -n 2 python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
 
 Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs), the reconstruction
-(:func:`contact.equilibration.reconstruct_flux`) against one CG + GAMG solve of the
+(:func:`contact.adaptivity.equilibration.reconstruct_flux`) against one CG + GAMG solve of the
 stiffness matrix K (rtol 1e-8 from zero, the loop's options) in the same process, wall and
 CPU seconds (the machine is shared: CPU seconds are the steadier measure); ``cost.csv``.
 
@@ -34,11 +34,11 @@ from petsc4py import PETSc
 
 import contact
 from common import save_csv
-from contact.equilibration.bound import flux_data, guaranteed_bound
-from contact.equilibration.flux import reconstruct_flux
-from contact.adapt import next_dofs_bound
-from contact.errors import solution_error
-from contact.estimate import estimate
+from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
+from contact.adaptivity.equilibration.flux import reconstruct_flux
+from contact.adaptivity.refine import next_dofs_bound
+from contact.adaptivity.energy_error import solution_error
+from contact.adaptivity.estimate import estimate
 from contact.solvers.options import default_options
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -60,7 +60,7 @@ def residual_eta(scene: contact.Scene, result) -> float:
 
 
 def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30) -> list[dict]:
-    """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/adapt.py's
+    """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/drivers/adaptive.py's
     docstring, with nested iteration, until the next level would exceed ``max_dofs``."""
     path, sets = PROBLEMS[name]
     scene = contact.load_scene(ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"])

@@ -5,7 +5,7 @@ at the origin) reports ‖u − u_h‖_E on every level; the integrand holds the
 (r^{3/2}, atan2, cos at every quadrature point), so its quadrature degree sets the cost.
 On each level this script evaluates the error with degrees 2 … 8 and a reference of
 degree 12, and prints the relative change |e_q / e_12 − 1| and the seconds per
-evaluation.  The default, degree 2p + 2 = 4 for P1 (:func:`contact.errors.default_degree`),
+evaluation.  The default, degree 2p + 2 = 4 for P1 (:func:`contact.adaptivity.energy_error.default_degree`),
 is where the change stays far below the two digits an effectivity index is read to.
 
     python demos/bench/bench_error_quadrature.py --max-dofs 500000 --out demos/results/error_quadrature.csv
@@ -19,8 +19,8 @@ import dolfinx_solver  # noqa: F401  (before dolfinx / petsc4py with the solver 
 
 import contact
 from common import save_csv
-from contact.adapt import Level
-from contact.errors import energy_error
+from contact.drivers.adaptive import Level
+from contact.adaptivity.energy_error import energy_error
 
 DEGREES = (2, 3, 4, 5, 6, 8)
 REFERENCE = 12

@@ -30,12 +30,12 @@ import numpy as np
 
 import contact
 from dolfinx import fem  # after contact, which imports dolfinx_solver first
-from contact import io
-from contact.errors import solution_error
+from contact.output import folder
+from contact.adaptivity.energy_error import solution_error
 from contact.models import build_problem
-from contact.plots import plot_traction
-from contact.contactdata import contact_table
-from contact.surface import surface_figures
+from contact.output.plots import plot_traction
+from contact.post.contact_table import contact_table
+from contact.post.friction_resultants import surface_figures
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = ROOT / "configs"
@@ -47,7 +47,7 @@ def scene(name: str, *sets: str) -> contact.Scene:
 
 
 def write(path: Path, rows: list[dict]) -> None:
-    io.write_csv(path, rows)
+    folder.write_csv(path, rows)
     print(f"wrote {path}", flush=True)
 
 

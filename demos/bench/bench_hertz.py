@@ -21,9 +21,9 @@ import time
 from pathlib import Path
 
 import contact
-from contact.reference import compare
-from contact.resultants import contact_resultants
-from contact.io import write_csv
+from contact.post.reference import compare
+from contact.post.resultants import contact_resultants
+from contact.output.folder import write_csv
 from contact.models import build_problem
 from contact.solvers import method_variant
 from contact.solvers.linear import choose_linear

@@ -9,10 +9,10 @@ What it shows:
   times, with the largest entry of their difference;
 * ``picture`` — a nodal field on a 2D mesh of ``--cells-2d`` × ``--cells-2d``/2 squares
   (2 triangles each) drawn with Gouraud triangles and as the image of
-  :func:`contact.plots.raster`, each saved to a PNG;
+  :func:`contact.output.plots.raster`, each saved to a PNG;
 * ``refine`` (run it under mpirun) — a unit square of ``--cells-refine``² squares whose
   cells with x < 0.3 are refined, as an adaptive loop refines one region: by
-  ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.adapt.refine`
+  ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.adaptivity.refine.refine`
   does in parallel: children stay on their parent's rank, the ghost layer is rebuilt) and
   with dolfinx's graph partitioner (the refined mesh redistributed), and with none (children
   stay, no ghost layer: what a serial run does), alternating; the check column is the
@@ -53,7 +53,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 
 from common import save_csv
-from contact.adapt import busiest_share, refine_partitioner
+from contact.drivers.adaptive import busiest_share
+from contact.adaptivity.refine import refine_partitioner
 from contact.models import problem as P
 from contact.models.elasticity import epsilon, stress
 from contact.solvers.options import default_options
@@ -99,7 +100,7 @@ def picture(cells: int) -> list[dict]:
     import matplotlib.pyplot as plt
     import matplotlib.tri as mtri
 
-    from contact import plots
+    from contact.output import plots
 
     msh = dmesh.create_rectangle(MPI.COMM_SELF, [[-1.0, 0.0], [1.0, 1.0]], [cells, cells // 2])
     x = msh.geometry.x

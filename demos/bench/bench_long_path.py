@@ -1,7 +1,7 @@
 """A long load path on a tiny mesh: MPI communicators, PETSc objects and memory step by step.
 
-A load path releases each step once the next one is solved (contact/loadpath.py) and every
-solve destroys the PETSc objects it made (contact/lifetime.py), so these figures must stay
+A load path releases each step once the next one is solved (contact/drivers/load_path.py) and every
+solve destroys the PETSc objects it made (contact/base/lifetime.py), so these figures must stay
 flat however many steps run.  Before, every step kept its PETSc objects and functions: the
 communicators ran out (MPICH has 2048) and a path ended at step 509 with an MPI abort.
 
@@ -16,8 +16,8 @@ process (VTK and PNG off unless ``--set`` turns them on), taking its figures aft
 step's files are written.  Every ``--every`` steps, after Python's garbage collection
 (``--no-collect``: without; reference cycles, e.g. UFL's, then wait for Python's own): the
 wall and CPU seconds so far, the resident set size (MiB, the largest over the ranks), the
-communicators MPI can still create (:func:`contact.lifetime.free_communicators`), the
-live PETSc objects (:func:`contact.lifetime.petsc_objects`) and the entries of PETSc's
+communicators MPI can still create (:func:`contact.base.lifetime.free_communicators`), the
+live PETSc objects (:func:`contact.base.lifetime.petsc_objects`) and the entries of PETSc's
 options database (the largest counts over the ranks).  Prints one row per sample and a
 summary, writes CSV (default demos/results/long_path/<scene>_<mode>_np<ranks>.csv).
 """
@@ -35,7 +35,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from common import save_csv
-from contact.lifetime import free_communicators, petsc_objects, rss_mib
+from contact.base.lifetime import free_communicators, petsc_objects, rss_mib
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -75,15 +75,16 @@ def run_api(scene_file: str, sets: list[str], sample: Sampler) -> None:
 
 def run_cli(scene_file: str, sets: list[str], sample: Sampler, comm: MPI.Comm) -> None:
     """``contact run`` into a temporary folder, ``sample`` called after each step's files."""
-    from contact import cli, loadreport
+    from contact.app import cli
+    from contact.output import step_report
 
-    write = loadreport.StepWriter.__call__
+    write = step_report.StepWriter.__call__
 
     def write_and_sample(writer, step) -> None:
         write(writer, step)
         sample(step)
 
-    loadreport.StepWriter.__call__ = write_and_sample
+    step_report.StepWriter.__call__ = write_and_sample
     folder = comm.bcast(tempfile.mkdtemp(prefix="long_path_") if comm.rank == 0 else None)
     try:
         args = ["run", scene_file, "-o", str(Path(folder) / "out"), "-q"]
@@ -91,7 +92,7 @@ def run_cli(scene_file: str, sets: list[str], sample: Sampler, comm: MPI.Comm) -
             args += ["--set", s]
         code = cli.main(args)
     finally:
-        loadreport.StepWriter.__call__ = write
+        step_report.StepWriter.__call__ = write
         comm.barrier()
         if comm.rank == 0:
             shutil.rmtree(folder, ignore_errors=True)

@@ -1,5 +1,5 @@
 """Peak memory per degree of freedom of one solve with the default linear solvers — the
-figure behind ``solver.max_dofs: auto`` (contact/budget.py).
+figure behind ``solver.max_dofs: auto`` (contact/setup/budget.py).
 
 Each size runs in a fresh process (serial): load the scene, solve it once with the
 scene's defaults (fb; ``solver.linear: auto``, which picks CG + GAMG on the reduced system

@@ -10,16 +10,16 @@ merged by their key, so a run of one more size or variant keeps the others.
 * ``mesh.csv`` — each builder (sphere_on_block, sphere_octant: ``two_body_hertz_3d`` /
   ``hertz_3d``'s h, zone; half_disks, quarter_disk: ``two_body_hertz_2d`` / ``hertz_2d``'s)
   with each set of gmsh options (``--variants``, :data:`VARIANTS`; ``chosen`` is what
-  :mod:`contact.geometry` uses), in one process: gmsh's meshing alone (wall and CPU
+  :mod:`contact.setup.geometry` uses), in one process: gmsh's meshing alone (wall and CPU
   seconds), the whole builder (gmsh and the distribution by ``dolfinx.io.gmsh``), vertices,
-  cells, the worst angle (:func:`contact.geometry.worst_angle`: dihedral in 3D) and whether
+  cells, the worst angle (:func:`contact.setup.geometry.worst_angle`: dihedral in 3D) and whether
   building twice gives the same mesh (``repeatable``; ``--repeat 1`` builds once);
 * ``hertz.csv`` — ``two_body_hertz_3d`` at gmsh sizes ``h_contact`` with a 3D variant, on
   the ranks it runs on: ``contact.load_scene`` (wall, max over ranks; CPU, summed over
   ranks) with gmsh's part on rank 0, one solve (fb from u = 0: Newton and Krylov
   iterations, wall and CPU), DoFs, and the errors of the contact radius a and of the peak
   pressure p0 against Hertz: p0 as reported (the patch average,
-  :func:`contact.hertz.patch_average`) and the largest nodal value;
+  :func:`contact.post.hertz.patch_average`) and the largest nodal value;
 * ``refined.csv`` — ``two_body_hertz_3d`` as shipped (Dörfler refinement by
   ``dolfinx.mesh.refine``, four levels to 340k DoFs): per level the DoFs, a error, the
   patch-averaged and the nodal p0 errors, and the rms deviation of the nodal and of the
@@ -43,10 +43,10 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact import geometry
-from contact.config import load_config
-from contact.hertz import patch_average
-from contact.reference import compare
+from contact.setup import geometry
+from contact.setup.config import load_config
+from contact.post.hertz import patch_average
+from contact.post.reference import compare
 from contact.solvers import owned_residual
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -55,7 +55,7 @@ comm = MPI.COMM_WORLD
 QUIET = ["output.verbose=false"]
 
 #: gmsh options to compare, by name, for the tetrahedra (3D) and the triangles (2D); they
-#: replace :data:`contact.geometry.TETRAHEDRA` / :data:`~contact.geometry.TRIANGLES`
+#: replace :data:`contact.setup.geometry.TETRAHEDRA` / :data:`~contact.setup.geometry.TRIANGLES`
 VARIANTS = {
     3: {"chosen": dict(geometry.TETRAHEDRA),
         "delaunay+netgen": {"Mesh.Algorithm3D": 1, "General.NumThreads": 1,

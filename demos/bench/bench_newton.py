@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from contact.io import write_csv
+from contact.output.folder import write_csv
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls", "fb-nopolish", "blend-nopolish")
 

@@ -41,9 +41,10 @@ import numpy as np
 from mpi4py import MPI
 
 import contact
-from contact.interface import output_dofs, interface_resultants, master_pressure
+from contact.post.interface import output_dofs, interface_resultants
+from contact.models.mortar import master_pressure
 from contact.models import build_problem
-from contact.reference import compare
+from contact.post.reference import compare
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "demos" / "results" / "two_bodies"
@@ -216,8 +217,8 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
 
 
 def cattaneo(sizes: list[float]) -> None:
-    from contact.cattaneo import traction
-    from contact.loadpath import run_load_path
+    from contact.post.cattaneo import traction
+    from contact.drivers.load_path import run_load_path
 
     rows, profiles = [], None
     for h_contact in sizes:

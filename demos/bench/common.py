@@ -5,7 +5,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from contact.io import write_csv
+from contact.output.folder import write_csv
 
 
 def save_csv(path: str | Path, rows: list[dict]) -> None:

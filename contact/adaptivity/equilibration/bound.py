@@ -1,0 +1,264 @@
+"""A guaranteed upper bound of the energy error for the scalar Signorini and obstacle
+problems (SPEC §1.1–1.2, §9), from an equilibrated flux (:func:`.flux.reconstruct_flux`).
+
+Notation: |||v|||² = ∫_Ω k |∇v|², e = u − u_h; σ = +1 for the constraint u ≤ g (Signorini, and
+the upper obstacle ψ = g), σ = −1 for u ≥ ψ, so σ(u − g) ≤ 0 and σλ ≤ 0 for the exact
+multiplier λ (k∂u/∂n − t_C on Γ_C; −div(k∇u) − f in Ω).  σ_h ∈ RT_p is the reconstructed flux,
+
+    −div σ_h = Π_p f (+ λ̃_h for the obstacle),   σ_h·n = Π_p t on Γ_N,
+    σ_h·n = Π_p t_C + λ̃_h on Γ_C,
+
+with λ̃_h the discrete multiplier of :mod:`.multiplier` (σλ̃_h ≤ 0 pointwise).  Per cell T
+
+    A_T = ‖k^{-1/2}(σ_h − k∇u_h)‖_T + osc_T,     A = (Σ_T A_T²)^{1/2}     (osc_T: :class:`.flux.Flux`),
+
+w ∈ H¹(Ω) with w = 0 on Γ_D and w ≥ σ(u_h − g) on Γ_C (Signorini) or in Ω (obstacle),
+W = |||w|||, s_h = u_h − σw (feasible: σ(s_h − g) ≤ 0 where the constraint acts), A_s as A with
+s_h for u_h, and
+
+    B = ∫ (−σλ̃_h)(w − σ(u_h − g)) ≥ 0     (over Γ_C, or Ω).
+
+**Theorem.**  Assume u_h = u_D on Γ_D and, for Signorini, g ∈ P_p on each contact facet (the
+discrete problem sees g through its interpolant g_h; the obstacle uses ψ itself).  Then,
+with R(S, P) = ½(S + (S² + 4P)^{1/2}), each of
+
+    (i)   η_1 = R(A + W, A W + B),
+    (ii)  η_2 = R(A_s, B) + W,
+    (iii) η_3 = (R(A_s, B)² + 2X + W²)^{1/2}   (obstacle; X below),
+
+bounds |||u − u_h||| with no unknown constant, and η = min(η_1, η_2, η_3).
+
+Proof (Braess, Numer. Math. 101, 2005; Weiss & Wohlmuth, Math. Comp. 78, 2009; Ern &
+Vohralík, SINUM 53, 2015).  For any v ∈ H¹ with v = u_D on Γ_D, integrating by parts against
+σ_h,
+
+    (k∇(u − v), ∇(u − v)) = (f − Π_p f, u − v) + ⟨t − Π_p t, u − v⟩ + (σ_h − k∇v, ∇(u − v))
+                            + ⟨λ − λ̃_h, u − v⟩,
+
+⟨·,·⟩ on Γ_N ∪ Γ_C resp. Γ_C or Ω.  The first three terms are ≤ Σ_T A_T(v) |||u − v|||_T
+(the oscillations are orthogonal to constants: Poincaré h_T/π on convex cells and the trace
+inequality of :func:`.flux._oscillation`).  With λ(u − g) = 0, σλ ≤ 0, σλ̃_h ≤ 0, σ(u − g) ≤ 0:
+
+    ⟨λ − λ̃_h, u − v⟩ = −⟨λ, v − g⟩ − ⟨λ̃_h, u − g⟩ + ⟨λ̃_h, v − g⟩ ≤ −⟨λ, v − g⟩ + ⟨−σλ̃_h, −σ(v − g)⟩.
+
+(ii): v = s_h is feasible, so −⟨λ, s_h − g⟩ ≤ 0 and ⟨−σλ̃_h, −σ(s_h − g)⟩ = B: |||u − s_h|||² ≤
+A_s |||u − s_h||| + B, then the triangle inequality with |||s_h − u_h||| = W.  (i): v = u_h,
+−⟨λ, u_h − g⟩ ≤ ⟨−σλ, w⟩, and the weak equation tested with w gives ⟨−σλ, w⟩ ≤
+(|||e||| + A) W + ⟨−σλ̃_h, w⟩, so |||e|||² ≤ (A + W)|||e||| + A W + B.  (iii) (obstacle):
+|||e|||² = |||u − s_h|||² + 2(k∇(u − s_h), ∇(s_h − u_h)) + W², and with s_h − u_h = −σw,
+(k∇(u − s_h), −σ∇w) = −σ(f, w) + (−σλ, w) + σ(k∇s_h, ∇w) ≤ X := −σ(f, w) + ((−σL)⁺, w) +
+σ(k∇s_h, ∇w), L = −div(k∇ψ) − f, by the Lewy–Stampacchia inequality 0 ≤ −σλ ≤ (−σL)⁺
+(Kinderlehrer & Stampacchia, ch. IV; it needs div(k∇ψ) ∈ L², true for the shipped obstacles).
+∎
+
+Realization.  Signorini: w is the smallest nodal w ∈ V_h above σ(u_h − g_h) on Γ_C
+(:func:`_bernstein_lifting`: P1 nodal values; P2 also the midpoint value that makes the
+Bernstein coefficients non-negative), zero for a feasible P1 u_h.  Obstacle: w = (σ(u_h − ψ))⁺
+with the exact ψ (by quadrature of degree 2p + 6 across its kinks), s_h = max or min of u_h
+and ψ; σ_h is fitted to k∇s_h (:class:`.flux.FluxData` ``target``), which makes A_s small on
+the contact set where u = ψ = s_h.  The Dirichlet datum: u_h = I_p u_D on Γ_D only; D =
+|||e_D|||, e_D ∈ P_{p+1} equal to I_{p+1}u_D − u_h at the DoFs on Γ_D (zero elsewhere and on
+Γ_C), enters as in (i)–(ii): R(A + W + D, A(W + D) + B), R(A_s + D, A_s D + B) (exact for
+u_D ∈ P_{p+1}(Γ_D); otherwise D stands in for the Dirichlet error, of higher order).  The data
+f, t, t_C enter through quadrature of degree 2p + 4 (exact for polynomial data of degree
+≤ p + 2), and the algebraic residual of the solve through the patches' projected balance
+defect (:attr:`.flux.Flux.defect`, reported): the bound is guaranteed up to these.
+
+The indicators η_T² = A_T² + W_T² + D_T² + B_T (A_{s,T} when (ii) or (iii) is the smaller
+bound) are DG0 forms, so marking is unchanged; η is the bound, not (Σ η_T²)^{1/2}.  The
+terms reported are Σ_T ‖k^{-1/2}(σ_h − k∇u_h)‖²_T ("flux"), Σ osc_T² ("oscillation"), B
+("complementarity"), W² ("feasibility") and D² ("dirichlet").
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from mpi4py import MPI
+
+import ufl
+from dolfinx import fem, la
+
+from ...setup import expressions
+from ...setup.scene import Scene
+from ...solvers import Result
+from .flux import Flux, FluxData, reconstruct_flux
+
+TERMS = ("flux", "oscillation", "complementarity", "feasibility", "dirichlet")
+
+
+@dataclass
+class Bound:
+    """η (the guaranteed bound), η_T (DG0), the totals of the terms, the parts A, B, W, D of
+    the theorem, the flux and timings (seconds)."""
+
+    eta: float
+    eta_T: fem.Function
+    terms: dict
+    parts: dict
+    flux: Flux
+    seconds: dict = field(default_factory=dict)
+
+
+def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
+    """The inputs of :func:`reconstruct_flux` for a scalar scene: (data, multiplier, sign)."""
+    model = scene.cfg["model"]["type"]
+    if model not in ("signorini", "obstacle"):
+        raise ValueError(f"estimator: equilibrated works for the scalar models, not model type {model!r}")
+    p, bnd = result.problem, scene.boundary
+    data = p.data
+    contact = {i: data["t_C"] for i in bnd.ids_with_role("contact")}
+    flux = FluxData(result.u_h, data["f"], data["k"], bnd.tags, dirichlet=bnd.ids_with_role("dirichlet"),
+                    neumann={i: data["t"] for i in bnd.ids_with_role("neumann")}, contact=contact,
+                    lmbda_h=result.lmbda_h)
+    return flux, ("cells" if model == "obstacle" else "facets"), -p.constraint.sign
+
+
+def guaranteed_bound(scene: Scene, result: Result) -> Bound:
+    """The bound of the module docstring for a solve of a scalar scene (collective)."""
+    seconds = {}
+    t0 = time.perf_counter()
+    data, multiplier, sign = flux_data(scene, result)
+    sigma = -sign            # the constraint sign: σ(u − g) ≤ 0
+    msh = scene.mesh
+    u_h, k = result.u_h, data.k
+    DG0 = fem.functionspace(msh, ("DG", 0))
+    v = ufl.TestFunction(DG0)
+    lift = _feasibility(scene, result, sigma, k, v)
+    grad_w = lift.grad
+    data.target = k * (ufl.grad(u_h) - sigma * grad_w)       # k∇s_h: fit σ_h to the feasible s_h
+    flux = reconstruct_flux(data, multiplier, sign)
+    seconds["flux"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    p = _degree(u_h)
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * p + 6})
+    B_form = lift.complementarity(flux.lmbda)
+    q = flux.sigma_h - k * ufl.grad(u_h)
+    q_s = q + sigma * k * grad_w              # σ_h − k∇s_h, s_h = u_h − σ w feasible
+    local = {"F": _cellwise(ufl.inner(q, q) / k * v * dx), "Fs": _cellwise(ufl.inner(q_s, q_s) / k * v * dx),
+             "W2": _cellwise(k * ufl.inner(grad_w, grad_w) * v * dx), "B": _cellwise(B_form),
+             "D2": _dirichlet(scene, result, v, k)}
+    local = {name: np.maximum(val, 0.0) for name, val in local.items()}
+    cross = msh.comm.allreduce(float(np.sum(_cellwise(lift.cross))), op=MPI.SUM) if lift.cross else np.inf
+    A_T, As_T = np.sqrt(local["F"]) + flux.osc, np.sqrt(local["Fs"]) + flux.osc
+    comm = msh.comm
+    total = {name: comm.allreduce(float(np.sum(val)), op=MPI.SUM) for name, val in
+             (("A2", A_T**2), ("As2", As_T**2), ("flux", local["F"]), ("oscillation", flux.osc**2),
+              ("complementarity", local["B"]), ("feasibility", local["W2"]), ("dirichlet", local["D2"]))}
+    A, As, B = np.sqrt(total["A2"]), np.sqrt(total["As2"]), total["complementarity"]
+    W, D = np.sqrt(total["feasibility"]), np.sqrt(total["dirichlet"])
+    direct = _root(A + W + D, A * (W + D) + B)
+    s_bound = _root(As + D, As * D + B)     # |||u − s_h|||
+    feasible = s_bound + W
+    split = np.sqrt(max(s_bound**2 + 2 * cross + W**2, 0.0))
+    eta = min(direct, feasible, split)
+    eta_T = fem.Function(DG0, name="eta_T")
+    n = len(A_T)
+    eta_T.x.array[:n] = np.sqrt((A_T if direct <= min(feasible, split) else As_T) ** 2 + local["W2"] + local["D2"] + local["B"])
+    eta_T.x.scatter_forward()
+    seconds["terms"] = time.perf_counter() - t0
+    terms = {name: total[name] for name in TERMS}
+    parts = {"A": A, "A_s": As, "B": B, "W": W, "D": D, "X": cross, "direct": direct, "feasible": feasible,
+             "split": split, "defect": flux.defect}
+    return Bound(float(eta), eta_T, terms, parts, flux, {**flux.seconds, **seconds})
+
+
+def _root(S: float, P: float) -> float:
+    """The positive root bound of x² ≤ S x + P: x ≤ ½ (S + (S² + 4P)^{1/2})."""
+    return 0.5 * (S + np.sqrt(S**2 + 4 * P))
+
+
+def _degree(u_h: fem.Function) -> int:
+    return u_h.function_space.element.basix_element.degree
+
+
+def _cellwise(form) -> np.ndarray:
+    """The owned entries of a DG0 form's vector (interior-facet terms summed over ranks)."""
+    vec = fem.assemble_vector(fem.form(form))
+    vec.scatter_reverse(la.InsertMode.add)
+    return vec.array[: vec.index_map.size_local].copy()
+
+
+@dataclass
+class _Lifting:
+    """w of the module docstring: its gradient, λ̃ ↦ the DG0 form of B_T, and (obstacle) the
+    DG0 form of the cross term X, or None."""
+
+    grad: object
+    complementarity: object
+    cross: object = None
+
+
+def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lifting:
+    u_h = result.u_h
+    msh = scene.mesh
+    if scene.cfg["model"]["type"] == "obstacle":
+        psi = expressions.to_ufl(scene.cfg["data"]["psi"], msh, scene.cfg["constants"], t=scene.t_constant)
+        f = result.problem.data["f"]
+        s = sigma * (u_h - psi)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * _degree(u_h) + 6})   # kinks
+        w = ufl.conditional(ufl.gt(s, 0), s, 0)
+        grad_w = ufl.conditional(ufl.gt(s, 0), ufl.grad(s), ufl.zero(msh.geometry.dim))
+        L = -ufl.div(k * ufl.grad(psi)) - f                     # Lewy–Stampacchia: 0 ≤ −σλ ≤ (−σL)⁺
+        grad_s = ufl.grad(u_h) - sigma * grad_w
+        cross = (-sigma * f * w + ufl.max_value(-sigma * L, 0) * w + sigma * k * ufl.inner(grad_s, grad_w)) * w_test * dx
+        return _Lifting(grad_w, lambda lmbda: (-sigma * lmbda) * ufl.conditional(ufl.lt(s, 0), -s, 0) * w_test * dx,
+                        cross)
+    g_h = result.problem.data["g_h"]
+    w = _bernstein_lifting(scene, u_h, g_h)
+    ds = result.problem.data["ds"]
+    contact = scene.boundary.ids_with_role("contact")
+    return _Lifting(ufl.grad(w), lambda lmbda: sum((-lmbda) * (w - (u_h - g_h)) * w_test * ds(i) for i in contact))
+
+
+def _bernstein_lifting(scene: Scene, u_h: fem.Function, g_h: fem.Function) -> fem.Function:
+    """The smallest nodal w ∈ V with u_h − g_h ≤ w on Γ_C and w = 0 on Γ_D: vertex values
+    max(u_h − g_h, 0); for P2 the midpoint value m of a contact facet with vertex values
+    w_0, w_1 is max(0, d_m + (w_0 − d_0 + w_1 − d_1)/4) (d = u_h − g_h), which makes the
+    Bernstein coefficients of w − d on the facet non-negative."""
+    V = u_h.function_space
+    msh = V.mesh
+    tdim = msh.topology.dim
+    bnd = scene.boundary
+    w = fem.Function(V, name="w")
+    dvals = u_h.x.array - g_h.x.array
+    facets = bnd.facets("contact")
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32) if len(facets) else np.zeros(0, np.int32)
+    local = np.argmax(c2f[cells] == facets[:, None], axis=1) if len(facets) else np.zeros(0, int)
+    layout = V.dofmap.dof_layout
+    closure = np.array([layout.entity_closure_dofs(tdim - 1, j) for j in range(tdim + 1)])
+    fdofs = V.dofmap.list[cells[:, None], closure[local]] if len(facets) else np.zeros((0, closure.shape[1]), int)
+    nv = tdim                                         # vertex DoFs of a facet come first
+    vdofs = np.unique(fdofs[:, :nv])
+    w.x.array[vdofs] = np.maximum(dvals[vdofs], 0.0)
+    if fdofs.shape[1] > nv:                           # P2 on segments: one midpoint per facet
+        d0, d1, dm = dvals[fdofs[:, 0]], dvals[fdofs[:, 1]], dvals[fdofs[:, 2]]
+        w0, w1 = w.x.array[fdofs[:, 0]], w.x.array[fdofs[:, 1]]
+        w.x.array[fdofs[:, 2]] = np.maximum(0.0, dm + (w0 - d0 + w1 - d1) / 4)
+    dirichlet = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
+    w.x.array[dirichlet] = 0.0
+    return w
+
+
+def _dirichlet(scene: Scene, result: Result, w_test, k) -> np.ndarray:
+    """D_T² = ∫_T k |∇e_D|² of the module docstring (zero without a Dirichlet part)."""
+    from ...models.problem import interpolate_expression
+
+    u_h = result.u_h
+    msh = scene.mesh
+    tdim = msh.topology.dim
+    bnd = scene.boundary
+    V2 = fem.functionspace(msh, ("Lagrange", _degree(u_h) + 1))
+    dofs = np.setdiff1d(fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet")),
+                        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact")))
+    e_D = fem.Function(V2)
+    u2 = fem.Function(V2)
+    u2.interpolate(u_h)
+    e_D.x.array[dofs] = interpolate_expression(V2, scene.cfg["data"]["u_D"], scene).x.array[dofs] - u2.x.array[dofs]
+    e_D.x.scatter_forward()
+    dx = ufl.Measure("dx", domain=msh)
+    return _cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)

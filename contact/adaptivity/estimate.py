@@ -1,0 +1,251 @@
+"""Residual a posteriori error estimator (SPEC §5) as DG0 indicator forms.
+
+With w a DG0 test function, one assembly per term of the form below gives every η_T²
+(each term's vector is kept, so its total Σ_T costs no second assembly):
+
+    η_T² = h_T² ‖f + div(k∇u_h)‖²_T                               volume
+         + Σ_{E ⊂ ∂T interior} ½ h_E ‖[k ∂u_h/∂n]‖²_E                jump
+         + Σ_{E ⊂ ∂T ∩ Γ_N} h_E ‖t − k ∂u_h/∂n‖²_E                   neumann  (t = 0 on
+                                                                     unmarked facets)
+         + Σ_{E ⊂ ∂T ∩ Γ_C} ( h_E ‖λ_h + t_C − k ∂u_h/∂n‖²_E         consistency
+                              + ‖λ_h⁺‖²_E                            sign (λ⁺ = max(λ, 0))
+                              + ∫_E |min(λ_h, 0)(u_h − g)| ds )      complementarity
+
+Elasticity replaces k∂u/∂n by the traction σ(u_h)n and adds the frictionless tangential
+term h_E ‖σ_t(u_h)‖²_E on Γ_C; with friction (Hild & Lleras, SIAM J. Numer. Anal. 47, 2009)
+that term becomes h_E ‖λ_t − σ_t(u_h)‖²_E and two terms join: ‖(|λ_t| − ρ)⁺‖²_E (friction
+bound) and ∫_E |ρ |s_t| + λ_t·s_t| ds (slip; ≥ 0 and zero when the law holds pointwise).
+
+For the obstacle problem (constraint σ(u − ψ) ≤ 0 in Ω, λ = −div(k∇u) − f) the same
+terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sign term is
+h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
+the cell diameter, h_E the facet size.  η = (Σ_T η_T²)^{1/2}.
+
+The complementarity integrand is taken in absolute value: it equals SPEC's
+min(λ_h, 0)(u_h − g) ≥ 0 whenever u_h ≤ g, and stays a non-negative indicator (instead of
+making Σ η_T² negative) for an infeasible u_h, e.g. between nodes for P2 or after a solve
+that did not converge.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+import ufl
+from dolfinx import fem, la
+
+from ..setup.scene import Scene, require_scene
+from ..solvers import Result
+
+TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
+
+
+@dataclass
+class Estimate:
+    """η_T as a DG0 function, the global η, and the global total Σ_T of each term."""
+
+    eta_T: fem.Function
+    eta: float
+    terms: dict[str, float]
+
+
+def _cellwise(msh):
+    """What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
+    diameter), h_E (facet size), dx, dS, and a zero form to start sums from."""
+    w = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
+    dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
+    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    zero = fem.Constant(msh, 0.0) * w * dx
+    return w, ufl.FacetNormal(msh), ufl.CellDiameter(msh), h_E, dx, dS, zero
+
+
+def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
+    """The terms as UFL forms linear in a DG0 test function (SPEC §5)."""
+    if scene.cfg["model"]["type"] == "elasticity":
+        return elasticity_terms(scene, result)
+    msh = scene.mesh
+    p = result.problem
+    u_h, lmbda_h = result.u_h, result.lmbda_h
+    k, f, t, t_C, g = (p.data[key] for key in ("k", "f", "t", "t_C", "g_h"))
+    ds, bnd = p.data["ds"], scene.boundary
+    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
+    sigma = p.constraint.sign
+    flux = k * ufl.grad(u_h)                       # k ∇u_h
+    obstacle = scene.cfg["model"]["type"] == "obstacle"
+
+    residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
+    terms = {"volume": h_T**2 * residual**2 * w * dx,
+             # ½ h_E ‖[k ∂u_h/∂n]‖²_E to each of the two cells of an interior facet
+             "jump": 0.5 * ufl.avg(h_E) * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
+             "neumann": zero, "consistency": zero, "sign": zero, "complementarity": zero}
+    for i in bnd.ids_with_role("neumann"):
+        terms["neumann"] += h_E * (t - ufl.dot(flux, n)) ** 2 * w * ds(i)
+    for i in bnd.ids_with_role("natural"):
+        terms["neumann"] += h_E * ufl.dot(flux, n) ** 2 * w * ds(i)
+    if obstacle:
+        terms["sign"] = h_T**2 * ufl.max_value(sigma * lmbda_h, 0) ** 2 * w * dx
+        terms["complementarity"] = abs(ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g)) * w * dx
+    else:
+        for i in bnd.ids_with_role("contact"):
+            terms["consistency"] += h_E * (lmbda_h + t_C - ufl.dot(flux, n)) ** 2 * w * ds(i)
+            terms["sign"] += ufl.max_value(lmbda_h, 0) ** 2 * w * ds(i)
+            terms["complementarity"] += abs(ufl.min_value(lmbda_h, 0) * (u_h - g)) * w * ds(i)
+    return terms
+
+
+def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
+    """SPEC §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
+    n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
+
+        h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
+
+    (consistency, tangential — frictionless —, sign, complementarity)."""
+    from ..models.elasticity import stress
+
+    msh = scene.mesh
+    p = result.problem
+    u_h, lam = result.u_h, result.lmbda_h
+    f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
+    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
+    n_c = p.data.get("n_ufl")                               # normal towards the obstacle
+    sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
+    T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
+    terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
+             "jump": 0.5 * ufl.avg(h_E) * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n)) * (w("+") + w("-")) * dS,
+             "neumann": zero, "consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
+    for i in bnd.ids_with_role("neumann"):
+        terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
+    for i in bnd.ids_with_role("natural"):
+        terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
+    friction = friction_data(scene, result) if result.friction is not None and n_c is not None else None
+    if n_c is not None:  # the rigid obstacle's contact parts
+        Tn = ufl.dot(T, n_c)
+        Tt = T - Tn * n_c
+        if friction is not None:   # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
+            lam_t, rho, slip = friction
+            Tt = Tt - lam_t
+            terms.update(friction_bound=zero, slip=zero)
+        for i in bnd.ids_with_role("contact"):
+            terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+            terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
+            terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
+            terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+            if friction is not None:
+                norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
+                terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)
+                terms["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+    if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
+        for key, form in interface_terms(scene, result, w, n, h_E, T).items():
+            terms[key] = terms.get(key, zero) + form
+    return terms
+
+
+def friction_data(scene: Scene, result: Result):
+    """UFL data of the friction terms (SPEC §1.4, Hild–Lleras) on Γ_C: the tangential
+    multiplier λ_t (P1 vector of the nodal λ_t,i), the bound ρ (Tresca: the threshold
+    expression s(x, t); Coulomb: F·(−λ_n,h)⁺) and the slip s_t = (I − n nᵀ)(u_h − u_prev)."""
+    from ..solvers.friction import surface_functions
+
+    p = result.problem
+    lam_t = surface_functions(result)[0]
+    cfg = scene.cfg["friction"]
+    if cfg["law"] == "coulomb":
+        rho = cfg["coefficient"] * ufl.max_value(-result.lmbda_h, 0)
+    else:
+        from ..setup import expressions
+
+        rho = expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
+    n_c = p.data["n_ufl"]
+    du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
+    return lam_t, rho, du - ufl.dot(du, n_c) * n_c
+
+
+def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl.Form]:
+    """Estimator terms on the pairs' surfaces (SPEC §5 with both sides measured): on the
+    slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
+    with friction h_E ‖T_t − λ_t‖² and the terms ‖(|λ_t| − ρ)⁺‖², ∫ |ρ|s_t| + λ_t·s_t| of
+    SPEC §1.4, s_t the nodal relative slip increment), ‖λ_h⁺‖² (sign) and |min(λ_h, 0) g_h|
+    (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
+    (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
+    like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
+    T_t = T − (T·n) n."""
+    from ..models.mortar import master_pressure, master_vector
+
+    p = result.problem
+    ds, bnd = p.data["ds"], scene.boundary
+    lam = result.lmbda_h
+    gap = result.gap.copy()                 # the nodal gap, NaN off the constrained nodes → 0
+    gap.x.array[np.isnan(gap.x.array)] = 0.0
+    lam_m = master_pressure(result)
+    Tn = ufl.dot(T, n)
+    Tt = T - Tn * n
+    zero = fem.Constant(scene.mesh, 0.0) * w * ufl.dx(domain=scene.mesh)
+    terms = {"consistency_master": zero}
+    slave_ids = [bnd.ids[pair["slave"]] for pair in scene.cfg["pairs"]]
+    master_ids = [bnd.ids[pair["master"]] for pair in scene.cfg["pairs"]]
+    extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
+    Tt_s, Tt_m = Tt, Tt
+    if result.friction is not None:   # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
+        from ..solvers.friction import surface_functions
+
+        lam_t, slip = surface_functions(result)[:2]
+        Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
+        rho = friction_bound(scene, lam)
+        extra.update(friction_bound=zero, slip=zero)
+    for i in slave_ids:
+        extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+        extra["tangential"] += h_E * ufl.inner(Tt_s, Tt_s) * w * ds(i)
+        extra["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
+        extra["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
+        if result.friction is not None:   # Hild–Lleras: the bound and the slip's direction
+            extra["friction_bound"] += ufl.max_value(ufl.sqrt(ufl.inner(lam_t, lam_t)) - rho, 0) ** 2 * w * ds(i)
+            extra["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+    for i in master_ids:
+        terms["consistency_master"] += h_E * (lam_m - Tn) ** 2 * w * ds(i)
+        extra["tangential"] += h_E * ufl.inner(Tt_m, Tt_m) * w * ds(i)
+    return {**extra, **terms}
+
+
+def friction_bound(scene: Scene, lam: fem.Function):
+    """ρ of the scene's friction law on the slave surface (UFL): Coulomb F·(−λ_h)⁺, Tresca
+    the threshold expression s(x, t)."""
+    cfg = scene.cfg["friction"]
+    if cfg["law"] == "coulomb":
+        return cfg["coefficient"] * ufl.max_value(-lam, 0)
+    from ..setup import expressions
+
+    return expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
+
+
+def _assemble_cellwise(form: ufl.Form) -> la.Vector:
+    vec = fem.assemble_vector(fem.form(form))
+    vec.scatter_reverse(la.InsertMode.add)   # interior facets on rank boundaries
+    vec.scatter_forward()
+    return vec
+
+
+def estimate(scene: Scene, result: Result) -> Estimate:
+    """Assemble each term of η_T² once as a DG0 vector; η_T² is their sum, and each term's
+    global total Σ_T is the sum of its owned entries.  ``result`` must be a solve of this
+    scene (on its mesh), else a ValueError."""
+    require_scene(scene)
+    if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
+        raise ValueError("result: expected the contact.Result of contact.solve on this scene (same mesh)")
+    if scene.cfg.get("estimator") == "equilibrated":   # SPEC §9: a guaranteed bound
+        from .equilibration.bound import guaranteed_bound
+
+        bound = guaranteed_bound(scene, result)
+        return Estimate(bound.eta_T, bound.eta, bound.terms)
+    terms = indicator_terms(scene, result)
+    vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
+    eta_sq = sum(v.array for v in vecs.values())
+    W = next(iter(terms.values())).arguments()[0].ufl_function_space()  # the DG0 space of w
+    eta_T = fem.Function(W, name="eta_T")
+    eta_T.x.array[:] = np.sqrt(np.maximum(eta_sq, 0.0))
+    comm = scene.comm
+    n_owned = W.dofmap.index_map.size_local
+    totals = {name: comm.allreduce(float(np.sum(v.array[:n_owned])), op=MPI.SUM) for name, v in vecs.items()}
+    eta = float(np.sqrt(sum(totals.values())))
+    return Estimate(eta_T, eta, totals)

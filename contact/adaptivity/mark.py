@@ -1,0 +1,78 @@
+"""MARK (SPEC §6): the cells whose indicators η_T carry the error, by Dörfler's bulk
+criterion, the maximum criterion, or all of them — the same cells on any number of MPI
+ranks."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfinx import fem
+
+STRATEGIES = ("dorfler", "maximum", "uniform")
+#: indicators within this relative distance of the marking threshold count as equal to it
+#: (mirror-image cells differ by round-off that depends on the partition)
+MARK_RTOL = 1e-10
+
+
+def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COMM_WORLD) -> float:
+    """Global threshold τ of Dörfler (bulk) marking: the set {η_T² ≥ τ} is the smallest set
+    M with Σ_M η_T² ≥ θ Σ_T η_T² (ties at τ are all included).
+
+    The owned indicators of all ranks are gathered on rank 0, sorted once there and τ is
+    broadcast: every rank marks against the same global threshold (no per-rank sorting).
+    """
+    parts = comm.gather(np.asarray(eta_sq, dtype=float), root=0)
+    tau = None
+    if comm.rank == 0:
+        values = np.sort(np.concatenate(parts))[::-1]
+        cumulative = np.cumsum(values)
+        if len(values) == 0 or cumulative[-1] <= 0:
+            tau = np.inf
+        elif theta >= 1.0:
+            tau = float(values[-1])  # everything
+        else:
+            k = int(np.searchsorted(cumulative, theta * cumulative[-1] * (1 - 1e-14)))
+            tau = float(values[min(k, len(values) - 1)])
+    return comm.bcast(tau, root=0)
+
+
+def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> np.ndarray:
+    """Owned local cell indices to refine.
+
+    * ``dorfler``: smallest set with Σ_M η_T² ≥ θ Σ η_T² (global threshold τ), θ ∈ (0, 1];
+    * ``maximum``: η_T ≥ θ max_T η_T (global maximum), θ ∈ (0, 1];
+    * ``uniform``: every cell.
+
+    Values within a relative :data:`MARK_RTOL` (1e-10) below the threshold are marked too:
+    cells that are equal up to round-off (symmetric ones, whose η_T differ by ~1e-16
+    depending on how the partition summed them) are treated alike, so the refined meshes
+    are the same on any number of MPI ranks.
+    """
+    _check_mark_args(eta_T, strategy, theta)
+    W = eta_T.function_space
+    comm = W.mesh.comm
+    n_owned = W.dofmap.index_map.size_local
+    eta = eta_T.x.array[:n_owned]
+    bad = comm.allreduce(int(np.count_nonzero(~np.isfinite(eta) | (eta < 0))), op=MPI.SUM)
+    if bad:   # a NaN is never >= a threshold: nothing would be marked, silently
+        total = W.dofmap.index_map.size_global
+        raise ValueError(f"eta_T: {bad} of {total} indicators are not finite numbers >= 0 "
+                         "(NaN, inf or negative); mark needs the indicators of contact.estimate")
+    if strategy == "uniform":
+        return np.arange(n_owned, dtype=np.int32)
+    if strategy == "maximum":
+        top = comm.allreduce(float(eta.max(initial=0.0)), op=MPI.MAX)
+        return np.flatnonzero(eta >= theta * top * (1 - MARK_RTOL)).astype(np.int32)
+    tau = dorfler_threshold(eta**2, theta, comm)
+    return np.flatnonzero(eta**2 >= tau * (1 - MARK_RTOL)).astype(np.int32)
+
+
+def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
+    if not isinstance(eta_T, fem.Function):
+        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got {type(eta_T).__name__}")
+    if strategy not in STRATEGIES:
+        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+    if isinstance(theta, bool) or not isinstance(theta, (int, float)) or not 0 < theta <= 1:
+        raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")

@@ -1,0 +1,294 @@
+"""Command line:  contact run SCENE.yaml [-o OUTDIR] [--set key.path=value ...] [--debug]
+               contact study STUDY.yaml [-o OUTDIR] [--debug]
+
+Exit codes (:mod:`contact.app.failures`): 0 solved and written; 1 the solver did not converge
+(an adaptive run keeps its completed levels); 2 bad input (one line on stderr naming the
+key, file or option); 3 internal error (one line; ``--debug`` or ``CONTACT_DEBUG=1`` adds
+the traceback); 130 interrupted (Ctrl-C; one line).  Under MPI a failure raised on every
+rank is reported once by rank 0; a failure on some ranks only is reported by each of them
+and ends the job with ``MPI_Abort`` and the same exit code (the other ranks would wait
+forever; the rules are in :mod:`contact.app.failures`).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import time
+import traceback
+import warnings
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+from mpi4py import MPI
+
+from . import failures
+from ..base.errors import ConfigError
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors are one line on stderr with exit code 2, like bad scene input."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"contact: error: {message} (see {self.prog} --help)\n")
+
+
+_DEBUG_HELP = "print the traceback of an internal error (also: environment CONTACT_DEBUG=1)"
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="contact", description="Contact problems by semismooth Newton on DOLFINx.")
+    p.add_argument("--version", action="version", version=_version())
+    sub = p.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="solve one scene and write its output folder")
+    run.add_argument("scene", help="scene YAML file (see configs/)")
+    run.add_argument("-o", "--output", help="output folder (default: results/<scene name>)")
+    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scene key, e.g. --set solver.method=min (repeatable)")
+    run.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
+    run.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
+    study = sub.add_parser("study", help="run a parameter study (a sweep over methods, meshes, ...) "
+                                         "and write study.csv and speed_accuracy.png")
+    study.add_argument("study", help="study YAML file (see configs/studies/)")
+    study.add_argument("-o", "--output", help="output folder (default: results/studies/<study name>)")
+    study.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a key of the study's scene (after the study's own 'set'), "
+                            "e.g. --set mesh.cells=[32,32] (repeatable)")
+    study.add_argument("-q", "--quiet", action="store_true", help="no per-run progress")
+    study.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
+    return p
+
+
+def _say(comm: MPI.Comm, *args, **kw) -> None:
+    if comm.rank == 0:
+        print(*args, **kw, flush=True)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints them."""
+    from ..setup.surfaces import ContactWarning
+
+    if issubclass(category, ContactWarning):
+        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
+    else:
+        _default(message, category, filename, lineno, file, line)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    warnings.showwarning = _one_line_warning
+    comm = MPI.COMM_WORLD
+    debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
+    agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
+    try:
+        code = _study(args, comm) if args.command == "study" else _run(args, comm)
+    except _Failed:   # raised on every rank alike, after its message
+        code = failures.NOT_CONVERGED
+    except ConfigError as err:
+        code = _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
+    except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - MemoryError, PETSc errors, bugs: one line, exit 3
+        if failures.interrupted(err):
+            code = _interrupted(comm, agree, debug)
+        else:
+            head, tail = "contact: internal error: ", "" if debug else " (rerun with --debug for the traceback)"
+            what = failures.describe(err, failures.MAX_LINE - len(head) - len(tail) - 10)
+            code = _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
+    if agree is not None:   # every rank is here: a failure that was not agreed on aborted
+        agree.Free()
+    return code
+
+
+def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool) -> int:
+    """Ctrl-C: one line and exit code 130, agreed on like any failure (:func:`_fail`); a
+    second Ctrl-C while the ranks agree is ignored (mpiexec's own handling of a second
+    Ctrl-C still ends the job at once)."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:   # main() called outside the main thread
+        previous = None
+    try:
+        return _fail(comm, agree, failures.INTERRUPTED, "contact: interrupted", debug)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: bool) -> int:
+    """Report a failure in one line (capped, :func:`contact.app.failures.one_line`) and return
+    its exit code.  Under MPI the failing ranks first wait up to AGREE_SECONDS for every
+    rank to fail (:func:`contact.app.failures.all_failed`): then they agree on one code and
+    line — an interrupt's if any rank was interrupted, else rank 0's —, rank 0 alone
+    reports and all return that code; otherwise each failing rank reports with its rank
+    and calls MPI_Abort(code), which ends the job with that exit code."""
+    if debug:
+        traceback.print_exc()
+    if agree is None:
+        print(failures.one_line(line), file=sys.stderr, flush=True)
+        return code
+    if not failures.all_failed(agree):
+        failures.abort(comm, code, line)
+    outcomes = agree.allgather((code, line))   # every rank is in this call now
+    code, line = next((o for o in outcomes if o[0] == failures.INTERRUPTED), outcomes[0])
+    if comm.rank == 0:
+        print(failures.one_line(line), file=sys.stderr, flush=True)
+    return code
+
+
+def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    from ..output import folder
+    from ..base import progress
+    from .. import solve
+    from ..setup.config import load_config
+    from ..output.run_report import files_text, write_run
+    from ..setup.scene import build_scene
+    from ..solvers.result import newton_text, not_converged_text
+
+    t0 = time.perf_counter()
+    overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
+    cfg = load_config(args.scene, overrides)
+    outdir, label = _output_folder(args.output, cfg)
+    folder.check_output(outdir, label, comm)  # before meshing and solving
+    scene = build_scene(cfg, comm)
+    if scene.cfg["output"]["verbose"]:
+        progress.enable(comm)
+    method = scene.cfg["solver"]["method"]
+    _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
+               f"{comm.size} MPI rank(s)")
+    if scene.cfg.get("load") or (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        return _run_steps(scene, outdir, label, comm, t0)
+    if scene.cfg.get("adapt"):
+        return _run_adaptive(scene, outdir, label, comm, t0)
+    result = solve(scene)
+    _say(comm, f"contact: {result.dofs} DoFs, {newton_text(result)}, "
+               f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
+    if not result.converged:
+        if comm.rank == 0:
+            print(failures.one_line(f"contact: error: solver {method} {not_converged_text(result)}; "
+                                    "nothing written"), file=sys.stderr, flush=True)
+        return failures.NOT_CONVERGED
+    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
+    return failures.SOLVED
+
+
+def _output_folder(option: str | None, cfg: dict) -> tuple[Path, str]:
+    """The output folder and how it was chosen (for messages): ``-o``, ``output.dir``
+    (relative to the current directory), or ``results/<name>``."""
+    if option is not None:
+        return _output_option(option), f"-o {option}"
+    if cfg["output"]["dir"]:
+        return Path(cfg["output"]["dir"]), f"output.dir {cfg['output']['dir']}"
+    path = Path("results") / cfg["name"]
+    return path, f"output folder {path} (from name {cfg['name']!r})"
+
+
+def _output_option(option: str) -> Path:
+    """The folder of ``-o``; an empty one is bad input (it is no folder, not the default)."""
+    if not option.strip():
+        raise ConfigError("-o: the output folder must not be empty (leave -o out for the default)")
+    return Path(option)
+
+
+def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
+    """The adaptive loop, writing into one atomic folder.  If the solver fails on level
+    k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
+    ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
+    from ..output import folder
+    from ..drivers.adaptive import AdaptResult, adapt, format_table
+    from ..output.run_report import files_text, level_writer, write_adaptive
+
+    a = scene.cfg["adapt"]
+    _say(comm, f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
+               f"at most {a['max_levels']} levels / {a['max_dofs']} DoFs")
+    with folder.atomic_folder(outdir, comm, label) as tmp:
+        write_level = level_writer(tmp, scene)
+        result = adapt(scene, on_level=lambda lv: write_level(lv) if lv.result.converged else None)
+        last = result.levels[-1].result
+        failed = None
+        if not last.converged:
+            k = len(result.levels) - 1
+            kept = f"kept levels 0-{k - 1} in {outdir}/ (summary.json: converged false)" if k else "nothing written"
+            if comm.rank == 0:
+                hint = f" ({last.hint})" if last.hint else ""
+                print(failures.one_line(f"contact: error: solver did not converge on level {k} ({last.reason}), "
+                                        f"last |Phi| = {last.residual:.3e}{hint}; {kept}"),
+                      file=sys.stderr, flush=True)
+            if k == 0:
+                raise _Failed()
+            failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
+            result = AdaptResult(result.levels[:-1], stop=result.stop)
+        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed,
+                              files=write_level.files)
+    _say(comm, f"contact: stopped: {result.stop}")
+    if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
+        _say(comm, format_table(result.rows))
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
+    return failures.NOT_CONVERGED if failed else failures.SOLVED
+
+
+def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
+    """A load path (or a frictional scene, one step at t = 1), writing into one atomic
+    folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
+    folder is complete for them, summary.json has ``converged: false`` and
+    ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
+    from ..output import folder
+    from ..output.step_report import StepWriter
+    from ..output.run_report import files_text
+    from ..drivers.load_path import LoadPath, run_load_path
+
+    with folder.atomic_folder(outdir, comm, label) as tmp:
+        writer = StepWriter(tmp, scene)
+
+        def on_step(s) -> None:   # one line per step as it finishes, then its files
+            fr = s.result.friction
+            counts = "" if fr is None else "  " + "  ".join(
+                f"{name} {comm.allreduce(int(np.sum(fr['status'] == code)))}"
+                for code, name in enumerate(("separated", "stick", "slip")))
+            _say(comm, f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
+                       f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}")
+            writer(s)
+
+        path = run_load_path(scene, on_step=on_step)
+        failed = None
+        if not path.converged:
+            k, last = len(path.steps), path.steps[-1].result
+            steps = "step 1" if k == 2 else f"steps 1-{k - 1}"
+            kept = f"kept {steps} in {outdir}/ (summary.json: converged false)" if k > 1 else "nothing written"
+            if comm.rank == 0:
+                print(f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; {kept}",
+                      file=sys.stderr, flush=True)
+            if k == 1:
+                raise _Failed()
+            failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
+            path = LoadPath(path.steps[:-1], stop=path.stop)
+        info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
+    _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
+    return failures.NOT_CONVERGED if failed else failures.SOLVED
+
+
+def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
+    """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
+    from .study import load_study, run_study
+
+    study = load_study(args.study, overrides=args.overrides)
+    given = args.output is not None
+    outdir = _output_option(args.output) if given else Path("results") / "studies" / study.name
+    label = f"-o {args.output}" if given else f"output folder {outdir} (from name {study.name!r})"
+    run_study(study, outdir, comm=comm, verbose=not args.quiet, label=label)
+    return failures.SOLVED
+
+
+def _version() -> str:
+    from .. import __version__
+
+    return f"contact {__version__}"
+
+
+class _Failed(Exception):
+    """A run that did not converge, after its message was printed (exit code 1)."""
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,6 @@
+"""The ground floor: what every layer may use and that imports nothing of ``contact``.
+
+* :mod:`.lifetime` — who destroys which PETSc object; counting communicators, PETSc
+  objects and memory;
+* :mod:`.progress` — progress lines of long runs.
+"""

@@ -1,0 +1,197 @@
+"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (SPEC §6), of
+:func:`contact.solve`, :mod:`contact.adaptivity.estimate`, :mod:`contact.adaptivity.mark`
+and :mod:`contact.adaptivity.refine`.
+
+The pieces are plain functions so a user can write their own loop in a few lines::
+
+    scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+    for level in range(6):
+        result = contact.solve(scene)
+        est = contact.estimate(scene, result)
+        cells = contact.mark(est.eta_T, "dorfler", theta=0.5)
+        scene, u0 = contact.refine(scene, cells, result.u_h)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from mpi4py import MPI
+
+from dolfinx import fem
+
+from ..adaptivity.estimate import Estimate, estimate
+from ..adaptivity.mark import mark
+from ..adaptivity.refine import next_dofs_bound, refine
+from ..base import progress
+from ..models import build_problem
+from ..adaptivity.energy_error import solution_error
+from ..setup.budget import max_dofs
+from ..setup.config import SCENE, _validate
+from ..setup.scene import Scene, require_scene
+from ..solvers.result import Result, solves_text
+from .solve import solve
+
+
+@dataclass
+class Level:
+    """One level of the adaptive loop."""
+
+    index: int
+    scene: Scene
+    result: Result
+    estimate: Estimate
+    error: float | None
+    seconds: dict[str, float]
+    imbalance: float = 1.0   # max over ranks of the owned DoFs / their mean (1 in serial)
+
+    def row(self) -> dict[str, Any]:
+        msh = self.scene.mesh
+        row = {"level": self.index, "dofs": self.result.dofs,
+               "cells": msh.topology.index_map(msh.topology.dim).size_global,
+               "eta": self.estimate.eta}
+        row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})  # Σ_T of each term
+        row["error"] = self.error if self.error is not None else ""
+        row["effectivity"] = self.estimate.eta / self.error if self.error else ""
+        row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
+                    "converged": self.result.converged,
+                    "active_nodes": self.result.n_active, "rank_imbalance": round(self.imbalance, 4)})
+        row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
+        return row
+
+
+@dataclass
+class AdaptResult:
+    levels: list[Level] = field(default_factory=list)
+    stop: str = ""
+
+    @property
+    def rows(self) -> list[dict]:
+        return [lv.row() for lv in self.levels]
+
+
+def rank_imbalance(V: fem.FunctionSpace) -> float:
+    """max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial):
+    1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain at most
+    2/1.15 = 1.74×.  Near 1 with ``adapt.rebalance`` (the default); without it a refined
+    mesh keeps its parents' partition, and refinement concentrated on one rank's part of
+    the domain unbalances the work."""
+    return busiest_share(V.mesh.comm, V.dofmap.index_map.size_local)
+
+
+def busiest_share(comm: MPI.Comm, owned: int) -> float:
+    """max_r n_r / mean_r n_r of a count ``owned`` = n_r on each rank (collective)."""
+    return comm.allreduce(owned, op=MPI.MAX) * comm.size / max(comm.allreduce(owned, op=MPI.SUM), 1)
+
+
+def adapt_options(scene: Scene, **overrides: Any) -> dict:
+    """The scene's ``adapt`` section (defaults if absent) with keyword overrides, validated."""
+    raw = {**(scene.cfg.get("adapt") or {}), **{k: v for k, v in overrides.items() if v is not None}}
+    return _validate(raw, SCENE["adapt"], "adapt", scene.cfg["constants"])
+
+
+def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], None] | None = None,
+          verbose: bool | None = None, u0: fem.Function | None = None, **options: Any) -> AdaptResult:
+    """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
+    budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
+    called after each level is estimated (used by the CLI to write output as it goes);
+    ``u0`` is the first level's initial guess (a load step's previous solution)."""
+    require_scene(scene)
+    if on_level is not None and not callable(on_level):
+        raise ValueError(f"on_level: expected a function of one Level, got {type(on_level).__name__}")
+    opts = adapt_options(scene, **options)
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    comm = scene.comm
+    out = AdaptResult()
+    for index in range(opts["max_levels"]):
+        seconds = {}
+        t0 = time.perf_counter()
+        problem = build_problem(scene)
+        seconds["assembly"] = problem.assembly_time
+        progress.note(lambda: f"level {index}: assembled, {problem.assembly_time:.0f} s")
+        # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
+        result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
+                       sequence=None if opts["nested"] else "off")
+        seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
+        progress.note(lambda: f"level {index}: solved ({result.dofs} DoFs), "
+                              f"{seconds['solve']:.0f} s; estimating")
+        t0 = time.perf_counter()
+        est = estimate(scene, result)
+        seconds["estimate"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        error = solution_error(scene, result)
+        seconds["error"] = time.perf_counter() - t0
+        level = Level(index, scene, result, est, error, seconds, imbalance=rank_imbalance(result.u_h.function_space))
+        out.levels.append(level)
+        if on_level is not None:
+            t0 = time.perf_counter()
+            progress.note(f"level {index}: writing its files")
+            on_level(level)
+            seconds["output"] = time.perf_counter() - t0
+        if verbose and comm.rank == 0:
+            _print_row(level, header=index == 0)
+            progress.heard()
+        if not result.converged:
+            out.stop = f"solver did not converge on level {index} ({result.reason})"
+            break
+        if est.eta <= opts["tol"]:
+            out.stop = f"eta = {est.eta:.3e} <= tol = {opts['tol']:.3e}"
+            break
+        if index + 1 >= opts["max_levels"]:
+            out.stop = f"reached max_levels = {opts['max_levels']}"
+            break
+        if opts["strategy"] == "none":
+            out.stop = "strategy none: one solve"
+            break
+        t0 = time.perf_counter()
+        cells = mark(est.eta_T, opts["strategy"], opts["theta"])
+        seconds["mark"] = time.perf_counter() - t0
+        bound = next_dofs_bound(scene, cells, result.u_h.function_space)
+        if bound is not None and bound > opts["max_dofs"]:  # refining would be wasted work
+            out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
+            break
+        t0 = time.perf_counter()
+        progress.note(f"level {index}: refining the marked cells")
+        parts: dict[str, float] = {}
+        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"],
+                                   timings=parts)
+        seconds["refine"] = time.perf_counter() - t0
+        seconds["refine_mesh"] = parts["mesh"]   # of which dolfinx.mesh.refine
+        # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
+        V_next = new_u0.function_space if new_u0 is not None else \
+            fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+        new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
+        if new_dofs > opts["max_dofs"]:
+            out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
+            break
+        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):  # memory budget of one solve
+            out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
+            break
+        scene, u0 = new_scene, new_u0
+    return out
+
+
+def format_table(rows: list[dict]) -> str:
+    """The convergence table as fixed-width text."""
+    lines = [_header()]
+    lines += [_format(r) for r in rows]
+    return "\n".join(lines)
+
+
+def _header() -> str:
+    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} {'active':>7s} {'solve s':>8s}"
+
+
+def _format(r: dict) -> str:
+    err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
+    eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
+    its = solves_text(r["newton_iterations"], r["polish_solves"])
+    return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
+            f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}")
+
+
+def _print_row(level: Level, header: bool) -> None:
+    if header:
+        print(_header(), flush=True)
+    print(_format(level.row()), flush=True)

@@ -1,0 +1,77 @@
+"""The Coulomb fixed point (``friction.coulomb: fixed_point``): Coulomb friction solved as a
+sequence of Tresca problems, each an ordinary solve (:func:`contact.drivers.solve.solve`);
+the full Coulomb law in one semismooth Newton solve is :mod:`contact.solvers.friction`'s."""
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Callable
+
+import numpy as np
+from mpi4py import MPI
+
+from ..solvers.problem import DiscreteProblem, FrictionSet
+
+
+def with_threshold(fs: FrictionSet, rho: np.ndarray) -> FrictionSet:
+    """The Tresca problem with threshold ρ (one step of the Coulomb fixed point)."""
+    return dataclasses.replace(fs, law="tresca", threshold=np.asarray(rho, dtype=float))
+
+
+def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | None, built_here: bool,
+                        solve: Callable, **options):
+    """Coulomb friction as a sequence of Tresca problems (``friction.coulomb: fixed_point``):
+
+        ρ^0 = F·max(0, μ_n(u_0)),   u^k = the Tresca solution with threshold ρ^{k−1},
+        ρ^k = F·max(0, μ_n(u^k)),    until  max_i |ρ^k_i − ρ^{k−1}_i| ≤ rtol · max_i ρ^k_i,
+
+    each Tresca problem solved by semismooth Newton from the previous u^k.  A contraction
+    for small F; an independent check of the full Newton method (same solution).  The
+    returned :class:`~contact.solvers.result.Result` is the last Tresca solve's, with
+    ``iterations`` the Newton steps of all of them and ``friction['fixed_point_iterations']``.
+    ``solve`` is :func:`contact.drivers.solve.solve`, passed in by it (it calls this module)."""
+    fs: FrictionSet = problem.friction
+    comm = scene.comm
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    x = problem.b.duplicate()
+    if u0 is not None:
+        problem.to_unknowns(u0.x.petsc_vec, x)
+    r = x.duplicate()
+    problem.residual(x, r)
+    rho = fs.coefficient * np.maximum(-problem.constraint.sign * r.array_r[problem.constraint.dofs]
+                                      / problem.constraint.w, 0.0)
+    for obj in (x, r):
+        obj.destroy()
+    total, result, t0, converged = 0, None, time.perf_counter(), False
+    timers = {"assembly": 0.0, "solve": 0.0}
+    try:
+        for k in range(1, fs.fixed_point_max_it + 1):
+            problem.friction = with_threshold(fs, rho)
+            result = solve(scene, problem=problem, u0=u0, verbose=False, **options)
+            total += result.iterations
+            for key in timers:
+                timers[key] += result.timings[key]
+            if not result.converged:
+                break
+            rho_new = fs.coefficient * np.maximum(-result.friction["lambda_n"], 0.0)
+            change = comm.allreduce(float(np.max(np.abs(rho_new - rho), initial=0.0)), op=MPI.MAX)
+            scale = comm.allreduce(float(np.max(rho_new, initial=0.0)), op=MPI.MAX)
+            rho, u0 = rho_new, result.u_h
+            if verbose and comm.rank == 0:
+                print(f"  fixed point it {k:3d}  max|rho - rho_prev| = {change:10.3e}  "
+                      f"({result.iterations} Newton its)", flush=True)
+            if change <= fs.fixed_point_rtol * scale:
+                converged = True
+                break
+    finally:
+        problem.friction = fs
+    if built_here:
+        timers["assembly"] += problem.assembly_time
+    timers["total"] = time.perf_counter() - t0 + (problem.assembly_time if built_here else 0.0)
+    timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"], 0.0)
+    result.timings = timers
+    result.iterations = total
+    result.friction["fixed_point_iterations"] = k
+    if result.converged and not converged:
+        result.converged, result.reason = False, "fixed_point_max_it"
+    return result

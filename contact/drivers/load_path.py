@@ -1,0 +1,127 @@
+"""Quasi-static load paths (``load:`` section): a sequence of pseudo-times
+t_1 < t_2 < … < t_N, one contact solve per step.
+
+Data expressions may use the pseudo-time ``t`` (e.g. ``u_D: ["0.01*t", "-delta"]``); step k
+solves the problem at t = t_k, starting from the solution of step k − 1 (a warm start), and
+friction's slip increments s_t = u_t − u_t^prev are measured from that solution (the state
+``u_prev`` of :attr:`contact.setup.scene.Scene.history`; zero before the first step).  A scene
+without a ``load:`` section is one step at t = 1.
+
+With an ``adapt:`` section the adaptive loop runs at every step (``load.adapt: each``: step
+k refines on from the final mesh of step k − 1, so meshes only get finer and u_prev is
+carried exactly by nested prolongation) or at the last step only (``end``: steps 1 … N−1
+on the scene's mesh, the adaptive loop at t_N with u_prev prolonged to every level).
+
+A path may have any number of steps: once step k is solved (and ``on_step`` has written its
+output), step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its
+functions, scene and meshes dropped — and keeps only its figures.  Every live function holds
+MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
+keeping every step whole (``keep_all``) suits short paths only.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+from dolfinx import fem
+
+from .adaptive import adapt
+from ..setup.scene import Scene
+from ..solvers import Result
+from .solve import solve
+
+
+@dataclass
+class Step:
+    """One load step: its pseudo-time, the scene it was solved on (the final mesh of its
+    adaptive loop, if any), the result, the adaptive loop's levels and the wall time."""
+
+    index: int            # 1 … N
+    time: float
+    scene: Scene
+    result: Result
+    levels: list = field(default_factory=list)   # adapt.Level of an adaptive step
+    seconds: float = 0.0
+
+    def release(self) -> None:
+        """Keep the step's figures only: its result and its adaptive levels' results are
+        released (:meth:`contact.solvers.result.Result.release`: iterations, residual,
+        history, contact force stay; functions, nodal arrays and PETSc objects go), its
+        scene and the levels' scenes and η_T functions dropped."""
+        for level in self.levels:
+            level.result.release()
+            level.scene, level.estimate.eta_T = None, None
+        self.result.release()
+        self.scene = None
+
+
+@dataclass
+class LoadPath:
+    steps: list[Step] = field(default_factory=list)
+    stop: str = ""
+
+    @property
+    def converged(self) -> bool:
+        return bool(self.steps) and all(s.result.converged for s in self.steps)
+
+
+def load_times(cfg: dict) -> list[float]:
+    """The pseudo-times of the scene's load path ([1.0] without a ``load:`` section)."""
+    load = cfg.get("load")
+    return list(load["times"]) if load else [1.0]
+
+
+def copy_function(fn: fem.Function, name: str) -> fem.Function:
+    out = fem.Function(fn.function_space, name=name)
+    out.x.array[:] = fn.x.array
+    return out
+
+
+def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[Step], None] | None = None,
+                  verbose: bool | None = None, adaptive: bool | None = None, adapt_options: dict | None = None,
+                  keep_all: bool = False, **options: Any) -> LoadPath:
+    """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
+    after every step (the CLI writes its output there: anything that needs a step's
+    functions or scene belongs there).  Stops at the first step that does not converge.
+    The last step stays whole, and the last converged one before a failed step; the others
+    are released when the next one is solved (:meth:`Step.release`), unless ``keep_all``.
+    ``adaptive``: run the adaptive loop (default: when the scene has an ``adapt``
+    section), with ``adapt_options`` overriding that section; ``options`` are solver
+    options as for :func:`contact.solve`."""
+
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    times = load_times(scene.cfg)
+    mode = (scene.cfg.get("load") or {}).get("adapt", "end")
+    if adaptive is None:
+        adaptive = scene.cfg.get("adapt") is not None
+    comm = scene.comm
+    out, u_prev = LoadPath(), None
+    for k, t in enumerate(times, start=1):
+        t0 = time.perf_counter()
+        step_scene = Scene(scene.cfg, scene.mesh, scene.boundary, time=t,
+                           history={} if u_prev is None else {"u_prev": u_prev},
+                           bodies=scene.bodies, surfaces=scene.surfaces)
+        if verbose and comm.rank == 0 and len(times) > 1:
+            print(f"contact: load step {k}/{len(times)}, t = {t:g}", flush=True)
+        levels = []
+        if adaptive and (mode == "each" or k == len(times)):
+            run = adapt(step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {}))
+            levels = run.levels
+            step_scene, result = levels[-1].scene, levels[-1].result
+        else:
+            result = solve(step_scene, method=method, u0=u_prev, verbose=verbose, **options)
+        step = Step(k, t, step_scene, result, levels, time.perf_counter() - t0)
+        out.steps.append(step)
+        if on_step is not None:
+            on_step(step)
+        if not result.converged:
+            out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})"
+            break
+        scene = step_scene    # 'each': the next step continues on this step's final mesh
+        u_prev = copy_function(result.u_h, "u_prev")
+        if len(out.steps) > 1 and not keep_all:
+            out.steps[-2].release()
+    else:
+        out.stop = f"reached t = {times[-1]:g} in {len(times)} step(s)"
+    return out

@@ -1,0 +1,88 @@
+"""One contact solve of a scene: its discrete problem (built here unless given), the
+``solver`` options with call-time overrides, an initial guess (grid sequencing,
+:mod:`.sequencing`, or ``solver.u0``), then the solve itself
+(:func:`contact.solvers.snes.solve_problem`), or the Coulomb fixed point
+(:mod:`.fixed_point`)."""
+from __future__ import annotations
+
+import time
+from typing import Any, Mapping
+
+from dolfinx import fem
+
+from ..base.errors import ConfigError
+from ..models import build_problem
+from ..models.problem import interpolate_expression
+from ..setup.checks import check_data, data_items
+from ..setup.config import SCENE, _validate, check_sections
+from ..setup.scene import Scene, require_scene
+from ..solvers import ncp
+from ..solvers.problem import DiscreteProblem
+from ..solvers.result import Result
+from ..solvers.snes import check_guess, solve_problem
+from . import sequencing
+
+
+def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | None = None,
+          u0: fem.Function | None = None, verbose: bool | None = None, **options: Any) -> Result:
+    """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
+
+    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
+    override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
+    ``polish``, ``rtol``, ``atol``, ``max_it``, ``linear``, ``inexact``, ``sequence``,
+    ``petsc_options``).  ``problem`` reuses an assembled problem, ``u0`` is an initial guess;
+    without one, grid sequencing (``sequence``, :mod:`.sequencing`) solves coarser meshes
+    first when it pays, and the coarsest level (or a cold start) begins from the scene's
+    ``solver.u0`` (zero by default).
+    A frictional scene (``friction.law`` tresca / coulomb; fb, min or blend only) adds the
+    tangential rows of :mod:`contact.solvers.friction` (no polishing, the assembled block
+    Jacobian) and returns the nodal friction fields in ``Result.friction``;
+    ``friction.coulomb: fixed_point`` solves a sequence of Tresca problems instead
+    (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).
+    """
+    require_scene(scene)
+    check_sections(scene.cfg)   # as loaded, or changed since (Python API)
+    if problem is not None and problem.V.mesh is not scene.mesh:
+        raise ValueError("problem: was built for another scene's mesh")
+    opts = solver_options(scene.cfg, method=method, **options)
+    method = opts["method"]
+    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    built_here = problem is None
+    problem = problem or build_problem(scene)
+    friction = problem.friction
+    if friction is not None:
+        if method not in ncp.METHODS:
+            raise ConfigError(f"solver.method: {method} cannot solve frictional contact "
+                              f"(friction.law: {friction.law}); use fb, min or blend")
+        if friction.law == "coulomb" and friction.coulomb == "fixed_point":
+            from .fixed_point import coulomb_fixed_point
+
+            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, solve, method=method, **options)
+    t_start = time.perf_counter()
+    # the problem's assembly counts once: in the solve that built it
+    built = problem.assembly_time if built_here else 0.0
+    timers = {"assembly": built, "solve": 0.0}
+
+    # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
+    levels, note = [], ""
+    if u0 is None:
+        t0 = time.perf_counter()
+        u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
+        timers["coarse"] = time.perf_counter() - t0
+    guess = u0 is not None   # given, or the coarse levels' solution
+    if u0 is None:
+        check_data(scene, data_items("solver.u0", opts["u0"]))
+        u0 = interpolate_expression(problem.V, opts["u0"], scene)
+    else:
+        check_guess(u0, problem)
+    result = solve_problem(problem, u0, opts, scene.comm, verbose, guess, timers, t_start - built,
+                           check_options=bool(options.get("petsc_options")))
+    result.sequence, result.sequence_note = levels, note
+    return result
+
+
+def solver_options(cfg: Mapping[str, Any], **overrides: Any) -> dict:
+    """The ``solver`` section of a validated scene config with keyword overrides, validated
+    like the YAML."""
+    raw = {**cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
+    return _validate(raw, SCENE["solver"], "solver", cfg["constants"])

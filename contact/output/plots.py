@@ -1,0 +1,575 @@
+"""The pictures of one run (a study's are :mod:`.charts`), to look at without ParaView.
+
+2D fields are drawn with matplotlib (axes in the scene's length unit, colour bars with their
+title beside the ticks); 3D fields with pyvista off-screen, seen from the obstacle's side so
+that the contact zone is in view.  The pictures of fields are collective: the fields are
+gathered on one rank with :func:`contact.output.vtk.gather_grid` and drawn there;
+:func:`draw_in_turn` draws several at once, one per rank.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from dolfinx import fem
+
+from .vtk import gather_grid
+
+MAX_EDGES = 20000   # cells above which mesh edges would paint everything black
+RASTER_CELLS = 200_000   # cells above which a nodal field is drawn as an image (cells < pixels)
+RASTER_WIDTH = 1200      # its pixels across the domain (the axes are 700-1000 pixels wide)
+
+
+def _magnitude(values: np.ndarray) -> np.ndarray:
+    return values if values.ndim == 1 else np.linalg.norm(values, axis=1)
+
+
+def _field_label(fn: fem.Function) -> str:
+    return f"{fn.name} magnitude" if fn.function_space.dofmap.index_map_bs > 1 else fn.name
+
+
+def _triangulation(grid):
+    """matplotlib's Triangulation of a 2D grid's cells (their vertices: P2 cells are drawn
+    on their corners)."""
+    import matplotlib.tri as mtri
+
+    cells = next(iter(grid.cells_dict.values()))[:, :3]
+    return mtri.Triangulation(grid.points[:, 0], grid.points[:, 1], cells)
+
+
+def _smooth(ax, tri, values: np.ndarray, cmap: str, plan: Raster | None = None):
+    """Nodal ``values`` drawn smoothly: Gouraud shading (one triangle mesh for matplotlib, kept
+    out of tight_layout, which would turn every triangle into a path: 2.4M cells, 30 s), or
+    on meshes of more than :data:`RASTER_CELLS` cells, whose cells are smaller than the
+    pixels, the P1 interpolant sampled at pixel centres (:func:`raster`) shown as an image
+    (1.21M cells, drawn and saved: 0.34 s against 0.95 s; ``demos/bench/bench_kernels.py``).
+    ``plan``: that sampling, when it is already built for ``tri`` (:func:`_raster_plan`)."""
+    plan = plan or _raster_plan(tri)
+    if plan is None:
+        shade = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap)
+        shade.set_in_layout(False)
+        return shade
+    return ax.imshow(np.ma.masked_invalid(plan.image(values)), extent=plan.extent, origin="lower", cmap=cmap,
+                     interpolation="antialiased")
+
+
+def _raster_plan(tri) -> Raster | None:
+    """The pixel sampling of ``tri`` when it has more than :data:`RASTER_CELLS` cells, else
+    None (Gouraud shading)."""
+    return Raster(tri) if len(tri.triangles) > RASTER_CELLS else None
+
+
+def raster(tri, values: np.ndarray, width: int = RASTER_WIDTH, chunk: int = 2_000_000
+           ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """The piecewise linear interpolant of nodal ``values`` on the triangles ``tri``
+    (a matplotlib Triangulation) at the centres of a ``width``-pixel-wide grid of square
+    pixels over the bounding box: (image (ny, width), NaN outside the triangles; extent
+    (x0, x1, y0, y1) for ``imshow(origin="lower")``).  One :class:`Raster`, sampled once."""
+    plan = Raster(tri, width, chunk)
+    return plan.image(values), plan.extent
+
+
+class Raster:
+    """Where the pixel centres of a ``width``-pixel-wide grid of square pixels over the
+    bounding box of the triangles ``tri`` fall: for each covered pixel its triangle's corners
+    (i0, i1, i2) and barycentric coordinates λ1, λ2, so that :meth:`image` of nodal values v
+    is Σ λ_i v_i there — exactly what Gouraud shading paints, without drawing a polygon per
+    cell.  Built once per mesh, sampled for every field drawn on it (the mesh picture draws
+    two: 1.2M cells, the second field costs a tenth of the first).
+
+    Every triangle visits the pixel centres of its bounding box and keeps those inside it
+    (λ ≥ 0).  Work and memory are O(#triangles + #pixels); the candidates are processed
+    ``chunk`` at a time."""
+
+    def __init__(self, tri, width: int = RASTER_WIDTH, chunk: int = 2_000_000):
+        x, y = np.asarray(tri.x, float), np.asarray(tri.y, float)
+        x0, x1, y0, y1 = x.min(), x.max(), y.min(), y.max()
+        d = (x1 - x0) / width if x1 > x0 else max(y1 - y0, 1.0) / width
+        ny = max(int(np.ceil((y1 - y0) / d)), 1)
+        self.shape = (ny, width)
+        self.extent = (x0, x0 + width * d, y0, y0 + ny * d)
+        # in pixel units (pixel (i, j) has its centre at (i + ½, j + ½)), one array per corner
+        x, y = (x - x0) / d, (y - y0) / d
+        corners = tri.triangles.T
+        X = [x[c] for c in corners]
+        Y = [y[c] for c in corners]
+        i0 = np.maximum(np.ceil(np.minimum(np.minimum(X[0], X[1]), X[2]) - 0.5), 0).astype(np.int64)
+        i1 = np.minimum(np.floor(np.maximum(np.maximum(X[0], X[1]), X[2]) - 0.5), width - 1).astype(np.int64)
+        j0 = np.maximum(np.ceil(np.minimum(np.minimum(Y[0], Y[1]), Y[2]) - 0.5), 0).astype(np.int64)
+        j1 = np.minimum(np.floor(np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - 0.5), ny - 1).astype(np.int64)
+        nx_t = np.maximum(i1 - i0 + 1, 0)
+        n_t = nx_t * np.maximum(j1 - j0 + 1, 0)
+        hit = np.flatnonzero(n_t)                  # triangles with a pixel centre in their box
+        i0, j0, nx_t, n_t = i0[hit], j0[hit], nx_t[hit], n_t[hit]
+        X, Y = [c[hit] for c in X], [c[hit] for c in Y]
+        nodes = [c[hit] for c in corners]
+        # λ1, λ2 are affine in the pixel position p: λ1 = c1 + p·g1, λ2 = c2 + p·g2 with
+        # g1 = (by, −bx)/det, g2 = (−ay, ax)/det (a, b the edges from corner 0)
+        ax_, ay_, bx_, by_ = X[1] - X[0], Y[1] - Y[0], X[2] - X[0], Y[2] - Y[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / (ax_ * by_ - ay_ * bx_)
+        g1x, g1y, g2x, g2y = by_ * inv, -bx_ * inv, -ay_ * inv, ax_ * inv
+        c1 = -(X[0] * g1x + Y[0] * g1y)
+        c2 = -(X[0] * g2x + Y[0] * g2y)
+        ends = np.cumsum(n_t)
+        # per covered pixel: flat index, the three corners, λ1, λ2 (one empty row to start)
+        pieces = [(np.zeros(0, np.int64),) * 4 + (np.zeros(0),) * 2]
+        start = 0
+        while start < len(n_t):
+            stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")), start + 1)
+            n = n_t[start:stop]
+            tt = np.repeat(np.arange(start, stop), n)          # a triangle per candidate pixel
+            k = np.arange(len(tt)) - np.repeat(np.cumsum(n) - n, n)
+            i = i0[tt] + k % nx_t[tt]
+            j = j0[tt] + k // nx_t[tt]
+            px, py = i + 0.5, j + 0.5
+            l1 = c1[tt] + px * g1x[tt] + py * g1y[tt]
+            l2 = c2[tt] + px * g2x[tt] + py * g2y[tt]
+            inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l1 + l2 <= 1 + 1e-9)
+            tt = tt[inside]
+            pieces.append((j[inside] * width + i[inside], *(c[tt] for c in nodes), l1[inside], l2[inside]))
+            start = stop
+        self.pixel, *self.corners, self.l1, self.l2 = (np.concatenate(column) for column in zip(*pieces))
+
+    def image(self, values: np.ndarray) -> np.ndarray:
+        """The interpolant of the nodal ``values`` at the pixel centres, (ny, width), NaN
+        outside the triangles (where a pixel centre lies on a shared edge, the last
+        triangle holding it wins: the interpolant is continuous, so any will do)."""
+        v = np.asarray(values, float)
+        v0, v1, v2 = (v[c] for c in self.corners)
+        image = np.full(self.shape[0] * self.shape[1], np.nan)
+        image[self.pixel] = v0 + self.l1 * (v1 - v0) + self.l2 * (v2 - v0)
+        return image.reshape(self.shape)
+
+
+def _aspect(grid) -> float:
+    """Height over width of a 2D grid, kept within [0.3, 1.2] for the figure size."""
+    width, height = np.ptp(grid.points[:, :2], axis=0)
+    return float(np.clip(height / width, 0.3, 1.2)) if width > 0 else 1.0
+
+
+def _colorbar(fig, mappable, ax, label: str) -> None:
+    """A colour bar as tall as the axes, its label beside the ticks."""
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+    cax = make_axes_locatable(ax).append_axes("right", size="4%", pad=0.1)
+    fig.colorbar(mappable, cax=cax, label=label)
+
+
+def _axes_2d(ax, title: str) -> None:
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (scene length unit)")
+    ax.set_ylabel("y")
+    ax.set_title(title, fontsize=10)
+
+
+def _active_points(grid) -> np.ndarray:
+    return grid.points[grid.point_data["active"] > 0.5] if "active" in grid.point_data else np.zeros((0, 3))
+
+
+@dataclass(frozen=True)
+class Picture:
+    """A picture of fields: the point ``fields`` gathered on one grid (all ranks hold them)
+    and ``draw(grid)``, which writes the file on the rank that holds the grid.  A picture
+    without fields (a chart) is drawn by its rank with ``grid`` None."""
+
+    fields: list
+    draw: Callable[[Any], None]
+
+
+#: how many ranks draw pictures at once (None: all; 1: rank 0 draws every picture, the old
+#: path, kept to measure the difference)
+DRAW_RANKS: int | None = None
+
+
+def draw_in_turn(pictures: Sequence[Picture], comm) -> None:
+    """Draw ``pictures`` (collective): picture k is gathered on rank k mod n and drawn
+    there, n = ``comm.size`` (or :data:`DRAW_RANKS`).  With n > 1 every rank first gathers
+    its pictures, then draws them, all ranks at once; put the largest first, so that the
+    two largest go to different ranks.  With n = 1 each picture is drawn as soon as it is
+    gathered (one grid held at a time).  Ends with a barrier: every file exists when it
+    returns."""
+    n = min(comm.size, DRAW_RANKS or comm.size)
+    mine = []
+    for k, picture in enumerate(pictures):
+        grid = gather_grid(picture.fields, root=k % n) if picture.fields else None
+        if comm.rank == k % n:
+            mine.append((picture, grid))
+        if n == 1:
+            _draw(mine)
+    _draw(mine)
+    comm.Barrier()
+
+
+def _draw(held: list) -> None:
+    """Draw the (picture, grid) pairs of ``held`` and let go of their grids."""
+    while held:
+        picture, grid = held.pop(0)
+        picture.draw(grid)
+
+
+def solution_picture(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
+                     lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> Picture:
+    """u_h (|u_h| for vectors) over the domain with the active contact nodes in red.
+
+    3D: two views — the whole body, and the contact zone seen from the obstacle's side
+    (``normal``: the direction from the body towards the obstacle) coloured by the contact
+    pressure −λ_h when ``lmbda`` is given."""
+    fields = [f for f in (u_h, active, lmbda) if f is not None]
+    if u_h.function_space.mesh.geometry.dim == 3:
+        return Picture(fields, lambda grid: _solution_3d(path, grid, u_h, lmbda, normal, title))
+    return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title))
+
+
+def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
+                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> None:
+    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
+    draw_in_turn([solution_picture(path, u_h, active, title, lmbda, normal)], u_h.function_space.mesh.comm)
+
+
+def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
+    plt = _pyplot()
+    tri = _triangulation(grid)
+    fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
+    shade = _smooth(ax, tri, _magnitude(grid.point_data[u_h.name]), "viridis")
+    if grid.n_cells <= MAX_EDGES:
+        ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
+    pts = _active_points(grid)
+    if len(pts):
+        ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3 if len(pts) < 300 else 1.2, alpha=0.8,
+                label=f"active nodes ({len(pts)})")
+        # "best" tests every triangle against the legend box (20 s at 1.4M cells)
+        ax.legend(loc="best" if grid.n_cells <= MAX_EDGES else "upper right", fontsize=8)
+    _colorbar(fig, shade, ax, _field_label(u_h))
+    _axes_2d(ax, title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def mesh_picture(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
+                 normal: Sequence[float] | None = None, active: fem.Function | None = None) -> Picture:
+    """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
+    ``max_edges`` cells) and u_h.  3D: the surface mesh seen from the obstacle's side
+    (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
+    fields = [u_h] + ([active] if active is not None else [])
+    if u_h.function_space.mesh.geometry.dim == 3:
+        return Picture(fields, lambda grid: _mesh_3d(path, grid, title, normal))
+    return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges))
+
+
+def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
+              normal: Sequence[float] | None = None, active: fem.Function | None = None) -> None:
+    """mesh.png (:func:`mesh_picture`), drawn on rank 0 (collective)."""
+    draw_in_turn([mesh_picture(path, u_h, title, max_edges, normal, active)], u_h.function_space.mesh.comm)
+
+
+def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: int) -> None:
+    plt = _pyplot()
+    tri = _triangulation(grid)
+    fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
+    plan = _raster_plan(tri)   # both panels sample the same pixels
+    if grid.n_cells <= max_edges:
+        ax_m.triplot(tri, color="k", lw=0.3)
+        _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
+    else:  # h_T carried to the vertices (largest adjacent cell) and drawn smoothly: one
+        # triangle mesh for matplotlib instead of one polygon per cell (2.4M cells: 1 s, not 50 s)
+        xy = grid.points[tri.triangles][:, :, :2]
+        h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
+        h_v = np.zeros(len(grid.points))
+        np.maximum.at(h_v, tri.triangles.ravel(), np.repeat(h, 3))
+        shade = _smooth(ax_m, tri, np.log10(h_v), "magma", plan)
+        _colorbar(fig, shade, ax_m, "cell size log10 h_T")
+        _axes_2d(ax_m, f"cell size: {grid.n_cells} cells")
+    shade = _smooth(ax_u, tri, _magnitude(grid.point_data[u_h.name]), "viridis", plan)
+    _colorbar(fig, shade, ax_u, _field_label(u_h))
+    _axes_2d(ax_u, _field_label(u_h))
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------- 3D (pyvista)
+
+def _quiet_vtk() -> None:
+    """VTK warns on stderr when there is no X display before it falls back to off-screen."""
+    import vtk
+
+    vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)
+    vtk.vtkObject.GlobalWarningDisplayOff()
+
+
+def _plotter(shape=(1, 2), size=(1800, 850)):
+    import pyvista
+
+    pyvista.OFF_SCREEN = True
+    _quiet_vtk()
+    return pyvista.Plotter(off_screen=True, window_size=size, shape=shape, border=False)
+
+
+def _bar(title: str) -> dict:
+    """A horizontal colour bar under the view: title above the bar, tick labels below."""
+    return {"title": title, "vertical": False, "position_x": 0.2, "position_y": 0.05, "width": 0.6,
+            "height": 0.07, "fmt": "%.3g", "n_labels": 5, "title_font_size": 16, "label_font_size": 14,
+            "color": "black"}
+
+
+def _add_mesh(plotter, mesh, **kw) -> None:
+    """add_mesh with the colour bar's tick labels under the bar and its title above it (VTK
+    puts both on one side, where they overlap)."""
+    plotter.add_mesh(mesh, **kw)
+    args = kw.get("scalar_bar_args", {})
+    if args.get("title") in plotter.scalar_bars:
+        bar = plotter.scalar_bars[args["title"]]
+        bar.SetTextPositionToPrecedeScalarBar()
+        bar.SetTitle("")
+        plotter.add_text(args["title"], position=(args["position_x"], args["position_y"] + args["height"] + 0.01),
+                         viewport=True, font_size=11, color="black")
+
+
+def _look_from(plotter, focus: np.ndarray, normal: np.ndarray, extent: float, tilt: float = 35.0) -> None:
+    """Camera on the obstacle's side of ``focus`` (``normal`` points from the body to the
+    obstacle), tilted by ``tilt`` degrees for depth, parallel projection showing ``extent``
+    around it."""
+    n = normal / np.linalg.norm(normal)
+    side = np.cross(n, [0.0, 0.0, 1.0] if abs(n[2]) < 0.9 else [1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    direction = np.cos(np.radians(tilt)) * n + np.sin(np.radians(tilt)) * side
+    up = np.cross(side, n)
+    plotter.camera.focal_point = focus
+    plotter.camera.position = focus + 10.0 * extent * direction
+    plotter.camera.up = up
+    plotter.enable_parallel_projection()
+    plotter.camera.parallel_scale = extent
+
+
+def _contact_view(grid, normal) -> tuple[np.ndarray, np.ndarray, float]:
+    """(focus, view normal, extent): the active nodes' centre and spread (the whole body
+    if none is active), seen along ``normal`` (default −z)."""
+    n = np.asarray(normal if normal is not None else (0.0, 0.0, -1.0), dtype=float)
+    pts = _active_points(grid)
+    size = float(np.linalg.norm(np.ptp(grid.points, axis=0)))
+    if len(pts) == 0:
+        return grid.center, n, 0.6 * size
+    focus = pts.mean(axis=0)
+    spread = float(np.max(np.linalg.norm(pts - focus, axis=1)))
+    return focus, n, min(max(2.0 * spread, 0.02 * size), 0.6 * size)
+
+
+def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
+    import pyvista
+
+    p = _plotter()
+    label = _field_label(u_h)
+    grid.point_data["shown"] = _magnitude(grid.point_data[u_h.name])
+    p.subplot(0, 0)
+    _add_mesh(p, grid.copy(), scalars="shown", cmap="viridis", show_edges=grid.n_cells <= MAX_EDGES,
+              edge_color="#555555", line_width=0.5, scalar_bar_args=_bar(label))
+    focus, n, extent = _contact_view(grid, normal)
+    _look_from(p, grid.center, n, 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0))))
+    p.add_text(f"{label}, whole body seen from the obstacle's side", position="upper_edge", font_size=11)
+    p.subplot(0, 1)
+    surface = grid.extract_surface(algorithm="dataset_surface")  # explicit: the default changes
+    if lmbda is not None:
+        surface.point_data["pressure"] = np.abs(surface.point_data[lmbda.name])
+        _add_mesh(p, surface, scalars="pressure", cmap="YlOrRd", show_edges=True, edge_color="#999999",
+                  line_width=0.5, scalar_bar_args=_bar(f"contact pressure -{lmbda.name}"))
+    else:
+        _add_mesh(p, surface, scalars="shown", cmap="viridis", show_edges=True, scalar_bar_args=_bar(label))
+    pts = _active_points(grid)
+    if len(pts):
+        p.add_points(pyvista.PolyData(pts), color="#1f4fff", point_size=7, render_points_as_spheres=True)
+    p.add_text(f"contact zone seen from the obstacle: {len(pts)} active nodes (blue)", position="upper_edge",
+               font_size=11)
+    _look_from(p, focus, n, extent, tilt=0.0)
+    _save(p, path, title)
+
+
+def _mesh_3d(path, grid, title, normal) -> None:
+    p = _plotter()
+    focus, n, extent = _contact_view(grid, normal)
+    whole = 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0)))
+    surface = grid.extract_surface(algorithm="dataset_surface")  # explicit: the default changes
+    for col, (centre, scale, text) in enumerate(((grid.center, whole, "surface mesh seen from the obstacle's side"),
+                                                 (focus, extent, "contact zone seen from the obstacle"))):
+        p.subplot(0, col)
+        p.add_mesh(surface.copy(), color="white", show_edges=True, edge_color="black", line_width=0.4)
+        p.add_text(text, position="upper_edge", font_size=11)
+        _look_from(p, centre, n, scale, tilt=35.0 if col == 0 else 0.0)
+    _save(p, path, title)
+
+
+def _save(plotter, path, title: str) -> None:
+    if title:
+        plotter.subplot(0, 0)
+        plotter.add_text(title, position="lower_left", font_size=10)
+    plotter.screenshot(str(path))
+    plotter.close()
+
+
+def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> None:
+    """η (and the error, where known) against DoFs on log–log axes with N^{-1/2}, N^{-1/3}."""
+    plt = _pyplot()
+    N = np.array([r["dofs"] for r in rows], dtype=float)
+    eta = np.array([r["eta"] for r in rows], dtype=float)
+    fig, ax = plt.subplots(figsize=(7, 5))
+    ax.loglog(N, eta, "o-", label="estimator η")
+    errors = [r["error"] for r in rows]
+    if all(e != "" for e in errors):
+        ax.loglog(N, np.array(errors, dtype=float), "s-", label="error ‖u − u_h‖_E")
+    for p, style in ((0.5, "k--"), (1.0 / 3.0, "k:")):
+        ref = eta[0] * (N / N[0]) ** (-p)
+        ax.loglog(N, ref, style, lw=1, label=f"N^(-{'1/2' if p == 0.5 else '1/3'})")
+    ax.set_xlabel("degrees of freedom N")
+    ax.set_ylabel("energy norm")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, title: str = "") -> None:
+    """The contact pressure −λ_n (elasticity) or flux −λ (scalar) at the contact nodes along
+    Γ_C: against the arc length s (2D) or the distance r from the first point of contact
+    (3D), active nodes filled; with a declared reference (``comparison``,
+    :class:`contact.post.comparison.Comparison`) against its position axis, with its curves."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    name = "contact pressure −λ_n" if value == "lambda_n" else "contact flux −λ"
+    if comparison is not None:
+        prof = comparison.profile
+        reach = max([c[0].max() for c in comparison.curves] + [m[0] for m in comparison.marks] + [0.0])
+        keep = prof[:, 0] <= 2.0 * reach if reach > 0 else slice(None)
+        ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label=f"computed {name} (nodal)")
+        for x, y, label in comparison.curves:
+            ax.plot(x, y, "k-", label=label)
+        for x, label in comparison.marks:
+            ax.axvline(x, color="C1", ls="--", lw=1, label=label)
+        ax.set_xlabel(comparison.xlabel)
+        extra = ", ".join(f"{k} {100 * v:+.2f}%" for k, v in comparison.errors.items())
+        title = f"{title}\n{extra}" if extra else title
+    else:
+        pos = "s" if "s" in table else "r"
+        x, y, act = table[pos], -table[value], table["active"] > 0
+        ax.plot(x, y, "-", color="C0", lw=0.8, alpha=0.6)
+        ax.plot(x[act], y[act], "o", ms=3.5, color="C3", label=f"active ({int(act.sum())} nodes)")
+        ax.plot(x[~act], y[~act], "o", ms=3.5, mfc="none", color="C0", label=f"inactive ({int((~act).sum())})")
+        ax.set_xlabel("arc length s along Γ_C (scene length unit)" if pos == "s"
+                      else "distance r from the first point of contact (scene length unit)")
+    ax.set_ylabel(name)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_traction(path: str | Path, steps: list[tuple[float, dict]], title: str = "",
+                  references: Sequence[tuple[int, np.ndarray, np.ndarray, str]] = ()) -> None:
+    """Contact tractions along Γ_C, one curve per load step coloured by the pseudo-time t
+    (``steps``: (t, contact table of :mod:`contact.post.contact_table` with the friction columns)):
+    the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its component along
+    t_0) against the arc length s, with the friction bound ±ρ of the last step dashed (where
+    λ_t reaches it the node slips) and the slipping nodes of the last step circled, zoomed on
+    the contact zone when it is less than half of Γ_C.  3D: :func:`plot_traction_map`.
+    ``references``: (panel 0 | 1, x, y, label) curves such as the Hertz pressure or an exact
+    traction."""
+    table = steps[-1][1]
+    if "s" not in table:
+        return plot_traction_map(path, table, title, t=steps[-1][0])
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    cmap = plt.get_cmap("viridis")
+    t_max = max(t for t, _ in steps)
+    friction = "lambda_t" in table
+    for t, tab in steps:
+        colour = cmap(t / t_max if len(steps) > 1 else 0.0)
+        label = f"t = {t:g}" if len(steps) <= 8 or t in (steps[0][0], t_max) else None
+        axes[0].plot(tab["s"], -np.asarray(tab["lambda_n"]), ".-", color=colour, ms=3, lw=1, label=label)
+        if friction:
+            axes[1].plot(tab["s"], tab["lambda_t"], ".-", color=colour, ms=3, lw=1, label=label)
+    x = np.asarray(table["s"])
+    if friction:
+        bound = np.asarray(table["bound"])
+        axes[1].plot(x, bound, "k--", lw=1, label="friction bound ±ρ")
+        axes[1].plot(x, -bound, "k--", lw=1)
+        slip = np.asarray(table["status"]) == "slip"
+        axes[1].plot(x[slip], np.asarray(table["lambda_t"])[slip], "o", mfc="none", mec="C3", ms=6,
+                     label=f"slipping at t = {t_max:g}")
+    for panel, rx, ry, label in references:
+        axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
+    lam_n = np.asarray(table["lambda_n"])
+    pressed = lam_n < -1e-9 * np.max(np.abs(lam_n), initial=0.0)
+    if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):   # a small contact zone: zoom on it
+        lo, hi = x[pressed].min(), x[pressed].max()
+        pad = 0.3 * max(hi - lo, 1e-12)
+        axes[1].set_xlim(lo - pad, hi + pad)
+    axes[0].set_ylabel("pressure −λ_n")
+    axes[1].set_ylabel("tangential traction λ_t")
+    axes[1].set_xlabel("arc length s along Γ_C (scene length unit)")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float = 1.0) -> None:
+    """3D: the contact surface seen along the obstacle's normal (the coordinate of least
+    spread dropped), left the pressure −λ_n, right (with friction) the tangential traction
+    λ_t as arrows coloured by the status (stick / slip), separated nodes grey.  A
+    frictionless table (no λ_t columns) gets the pressure panel alone."""
+    plt = _pyplot()
+    X = np.c_[table["x"], table["y"], table["z"]]
+    keep = [i for i in range(3) if i != int(np.argmin(np.ptp(X, axis=0)))]
+    P = X[:, keep]
+    friction = "lambda_t_x" in table
+    fig, axes = plt.subplots(1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False)
+    axes = axes[0]
+    sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
+    fig.colorbar(sc, ax=axes[0], label="pressure −λ_n")
+    axes[0].set_title("contact pressure" if friction else f"contact pressure at t = {t:g}")
+    if friction:
+        _tangential_arrows(axes[1], P, table, keep, t)
+    labels = ["xyz"[i] for i in keep]
+    for ax in axes:
+        ax.set_aspect("equal")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _tangential_arrows(ax, P: np.ndarray, table: dict, keep: list[int], t: float) -> None:
+    """λ_t of a 3D table at the points P (the ``keep`` components) as arrows by status."""
+    lam_t = np.c_[table["lambda_t_x"], table["lambda_t_y"], table["lambda_t_z"]][:, keep]
+    status = np.asarray(table["status"])
+    scale = float(np.max(np.abs(lam_t), initial=0.0)) / (0.06 * float(np.ptp(P))) or 1.0
+    for name, colour in (("stick", "C0"), ("slip", "C3")):
+        m = status == name
+        ax.quiver(P[m, 0], P[m, 1], lam_t[m, 0], lam_t[m, 1], color=colour, label=f"{name} ({m.sum()})",
+                  angles="xy", scale_units="xy", scale=scale)
+    m = status == "separated"
+    ax.plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
+    ax.set_title(f"tangential traction λ_t at t = {t:g}")
+    ax.legend(loc="upper right", fontsize=8)

@@ -1,0 +1,334 @@
+"""The output folder of one run.
+
+A single solve writes the fields (u_h, λ_h, gap, active; von Mises for elasticity) in the
+formats of ``output.formats`` (:mod:`contact.output.fields`: ``solution.xdmf`` + ``.h5``,
+``solution.vtu``), ``summary.json``, ``history.csv``, ``solution.png`` and, for a contact
+scene, ``contact.csv`` and ``pressure.png``.  An adaptive run writes the levels as the
+series ``solution.xdmf`` over ``solution_KKK.xdmf`` + ``.h5`` and ``solution.pvd`` over
+``solution_KKK.vtu`` (time value = level; η_T added as cell data), ``convergence.csv`` /
+``.png``, ``mesh_level_K.png`` and the final level's ``solution.png``, ``contact.csv`` and
+``pressure.png``; its ``history.csv`` lists the Newton iterations of every level (column
+``level``).
+"""
+from __future__ import annotations
+
+import platform
+import re
+import warnings
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+
+from . import folder, plots
+from ..drivers.adaptive import AdaptResult, Level
+from ..post.comparison import Comparison
+from ..adaptivity.energy_error import solution_error
+from ..post.reference import compare
+from ..setup.scene import Scene
+from .fields import FieldFiles
+from ..solvers import Result
+
+
+def resultants(scene: Scene, result: Result) -> dict | None:
+    """Contact force, reaction, balance, peak pressure of an elasticity run (None for
+    scalar models; :mod:`contact.post.resultants`; with contact pairs the forces on both sides
+    of each interface and the reactions, :func:`contact.post.interface.interface_resultants`)."""
+    if scene.cfg["model"]["type"] != "elasticity":
+        return None
+    if scene.cfg.get("pairs"):
+        from ..post.interface import interface_resultants
+
+        return interface_resultants(scene, result)
+    from ..post.resultants import contact_resultants
+
+    return contact_resultants(scene, result)
+
+
+def active_measure(result: Result) -> float:
+    """The measure of the discrete contact (active) set,
+
+        |A_h| = Σ_{i ∈ A} w_i,    w_i = ∫ φ_i  (the lumped weights of the constraint set),
+
+    summed over the owned constrained nodes of every MPI rank, with A the active nodes by
+    the solver's rule (``result.active_mask``).  w_i is integrated over Ω for obstacle
+    scenes, so |A_h| is an area in 2D (m², a volume in 3D), and over Γ_C for Signorini and
+    elasticity scenes, so it is a length in 2D (m, an area in 3D) — of the modelled part
+    only when symmetry planes cut the body.  With every constrained node active it is
+    |Ω| (obstacle) or |Γ_C| (Signorini) less the weight of the nodes on the closure of
+    Γ_D, which carry no constraint.  For a contact disc of radius a, sqrt(|A_h|/π) ≈ a."""
+    con = result.problem.constraint
+    local = float(np.sum(con.w[result.active_mask]))
+    return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
+NODES_ACROSS = 5   # fewer active nodes across the contact zone than this: a warning
+
+
+def nodes_across(result: Result) -> float:
+    """About how many nodes span the contact zone, from the n active nodes (× the symmetric
+    copies the modelled part stands for): n when the zone is a curve (2D, on Γ_C), the
+    diameter 2 √(n/π) of a disc of n nodes when it is a surface (3D on Γ_C, a 2D obstacle),
+    (6n/π)^(1/3) for a volume (a 3D obstacle)."""
+    p = result.problem
+    n = result.n_active * p.symmetric_copies
+    dim = p.V.mesh.topology.dim - (0 if p.in_domain else 1)
+    return float({1: n, 2: 2 * np.sqrt(n / np.pi), 3: np.cbrt(6 * n / np.pi)}.get(dim, n))
+
+
+def warn_coarse_zone(scene: Scene, result: Result) -> None:
+    """A one-line ContactWarning (rank 0) when the contact zone holds some but fewer than
+    NODES_ACROSS nodes across: the pressure, and the forces and ratios from it, are then
+    a mesh artefact (one node in contact can carry a sideways force of 10 % of the normal
+    force)."""
+    across = nodes_across(result)
+    if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
+        from ..setup.surfaces import ContactWarning
+
+        warnings.warn(f"the contact zone holds {result.n_active} active node(s), about "
+                      f"{across:.1f} across: too few to resolve the contact pressure and the "
+                      "forces from it; refine the contact zone (mesh cells or h_contact, an adapt "
+                      f"section) to {NODES_ACROSS} or more nodes across", ContactWarning,
+                      stacklevel=2)
+
+
+def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
+            comparison: Comparison | None = None, error: float | None = None) -> dict[str, Any]:
+    """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
+    ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
+    Signorini / elasticity), the contact force, timings (seconds), errors if known, the
+    contact resultants ``res`` of an elasticity run and the values of a declared reference."""
+    con = result.problem.constraint
+    comm = scene.comm
+    out = {
+        "scene": scene.name,
+        "model": scene.cfg["model"]["type"],
+        "method": result.method,
+        "dofs": result.dofs,
+        "cells": scene.mesh.topology.index_map(scene.mesh.topology.dim).size_global,
+        "degree": result.problem.V.element.basix_element.degree,
+        "mpi_ranks": comm.size,
+        "converged": result.converged,
+        "reason": result.reason,
+        "newton_iterations": result.iterations,        # on the final mesh
+        "polish_solves": result.polish_solves,
+        "newton_iterations_coarse": result.coarse_iterations,   # grid sequencing's coarse levels
+        "polish_solves_coarse": sum(lv.polish_solves for lv in result.sequence),
+        "coarse_levels": len(result.sequence),
+        "linear_solves": result.linear_solves,
+        "final_residual": result.residual,
+        "linear_solver": result.linear,
+        "krylov_iterations": result.krylov_iterations,
+        "sequence": [asdict(lv) for lv in result.sequence],
+        "weighted_linear_solves": result.weighted_linear_solves,
+        "constrained_nodes": con.global_size(comm),
+        "active_nodes": result.n_active,
+        "active_measure": active_measure(result),
+        "contact_force": result.contact_force,
+        "c": result.options.get("c"),
+        "line_search": result.options.get("line_search"),
+        "backtracked_steps": result.backtracked,
+        "time_assembly": result.timings["assembly"],
+        "time_linear_solve": result.timings["solve"],
+        "time_other": result.timings["other"],
+        "time_sequence": result.timings.get("coarse", 0.0),
+        "time_total": wall if wall is not None else result.timings["total"],
+        "host": platform.node(),
+    }
+    if result.sequence_note:
+        out["sequence_note"] = result.sequence_note
+    if res is not None:
+        out.update(res)
+    if comparison is not None:
+        out["reference"] = scene.cfg["reference"]["type"]
+        out.update(comparison.values)
+    error = solution_error(scene, result) if error is None else error   # the adaptive loop's, if known
+    if error is not None:
+        out["error_energy"] = error
+    return out
+
+
+def point_fields(result: Result) -> list:
+    """The nodal output fields: u_h, λ_h, the gap (on Γ_C only) and the active set; with
+    contact pairs also the pressure the master surfaces see (``lambda_master``)."""
+    fields = [result.u_h, result.lmbda_h, result.gap, result.active]
+    if result.problem.data.get("couplings"):
+        from ..models.mortar import master_pressure
+
+        fields.append(master_pressure(result))
+    return fields
+
+
+def cell_fields(scene: Scene, result: Result) -> list:
+    """Cellwise output fields: the von Mises stress for elasticity, and the ``body`` number
+    of each cell in a scene with bodies."""
+    if scene.cfg["model"]["type"] != "elasticity":
+        return []
+    from ..models.elasticity import von_mises
+
+    data = result.problem.data
+    return [von_mises(result.u_h, data["mu"], data["lmbda_L"])] + ([data["body"]] if "body" in data else [])
+
+
+def _view_normal(scene: Scene, result: Result):
+    """The direction 3D pictures look along (from the obstacle's side), None in 2D."""
+    if scene.mesh.geometry.dim != 3:
+        return None
+    from ..post.contact_table import contact_normal
+
+    return contact_normal(scene, result)
+
+
+def solution_picture(path: Path, scene: Scene, result: Result, title: str) -> plots.Picture:
+    """solution.png: u_h with the active set (3D: and the contact zone with λ_h)."""
+    return plots.solution_picture(path, result.u_h, result.active, title=title, lmbda=result.lmbda_h,
+                                  normal=_view_normal(scene, result))
+
+
+def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
+    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
+    plots.draw_in_turn([solution_picture(path, scene, result, title)], scene.comm)
+
+
+def write_contact(folder: Path, scene: Scene, result: Result, comparison: Comparison | None) -> None:
+    """``contact.csv`` (:mod:`contact.post.contact_table`) and, for a contact boundary Γ_C (not an
+    obstacle in Ω), ``pressure.png`` (collective)."""
+    from ..post.contact_table import contact_table, value_name, write_table
+
+    table = contact_table(scene, result)
+    if scene.comm.rank != 0:
+        return
+    write_table(folder / "contact.csv", table)
+    if scene.cfg["output"]["png"] and not result.problem.in_domain:
+        plots.plot_pressure(folder / "pressure.png", table, value_name(scene), comparison,
+                            title=f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)")
+
+
+def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
+    """Write the complete output folder atomically; return the summary (with ``files``)."""
+    comm = scene.comm
+    res = resultants(scene, result)
+    comparison = compare(scene, result)
+    info = summary(scene, result, wall, res, comparison)
+    warn_coarse_zone(scene, result)
+    out_cfg = scene.cfg["output"]
+    with folder.atomic_folder(outdir, comm) as tmp:
+        files = FieldFiles(tmp, "solution", out_cfg["formats"], comm)
+        files.write_one(point_fields(result), cell_fields(scene, result))
+        info.update(files.timings())
+        folder.write_csv(tmp / "history.csv", result.history, comm)
+        if out_cfg["png"]:
+            plot_solution(tmp / "solution.png", scene, result,
+                          title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
+        write_contact(tmp, scene, result, comparison)
+        _finish(tmp, info, comm)
+    return info
+
+
+def _finish(tmp: Path, info: dict, comm: MPI.Comm) -> None:
+    """Write summary.json, listing every file of the folder (itself included)."""
+    names = [p.name for p in tmp.iterdir()] if comm.rank == 0 else None
+    natural = lambda name: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]  # noqa: E731
+    info["files"] = sorted(set(comm.bcast(names, root=0)) | {"summary.json"}, key=natural)
+    folder.write_json(tmp / "summary.json", info, comm)
+
+
+def files_text(names: list[str]) -> str:
+    """File names for one line: a numbered run ``x_000.vtu … x_011.vtu`` is shown as
+    ``x_000…011.vtu``."""
+    runs: dict[tuple[str, str], list[str]] = {}
+    out: list[str] = []
+    for name in names:
+        m = re.fullmatch(r"(.*_)(\d{3,})(\.\w+)", name)
+        if m:
+            key = (m.group(1), m.group(3))
+            if key not in runs:
+                out.append(f"\0{len(runs)}")
+                runs[key] = []
+            runs[key].append(m.group(2))
+        else:
+            out.append(name)
+    keys = list(runs)
+    text = []
+    for item in out:
+        if item.startswith("\0"):
+            (stem, ext) = keys[int(item[1:])]
+            nums = runs[(stem, ext)]
+            text.append(f"{stem}{nums[0]}{ext}" if len(nums) == 1 else f"{stem}{nums[0]}…{nums[-1]}{ext}")
+        else:
+            text.append(item)
+    return ", ".join(text)
+
+
+class LevelWriter:
+    """Callback for :func:`contact.drivers.adaptive.adapt`: level K as step K of the series
+    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell
+    fields); ``files`` keeps the seconds per format."""
+
+    def __init__(self, tmp: Path, scene: Scene):
+        self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
+
+    def __call__(self, level: Level) -> None:
+        r = level.result
+        est = level.estimate
+        cells = [est.eta_T, *cell_fields(level.scene, r)]
+        self.files.write_step(level.index, point_fields(r), cells,
+                              field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta})
+
+
+def level_writer(tmp: Path, scene: Scene) -> LevelWriter:
+    return LevelWriter(tmp, scene)
+
+
+def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
+                   failure: dict | None = None, files: FieldFiles | None = None) -> dict:
+    """After the loop: convergence.csv/.png, history.csv of every level, mesh pictures, and
+    the final level's summary, solution.png, contact.csv and pressure.png.  ``failure`` (a
+    run that failed on the level after the last of ``adaptive``) is added to summary.json:
+    ``converged: false``, ``failed_level``, ``failed_reason``; ``files`` (the levels' field
+    files) adds the seconds each format took."""
+    comm = scene.comm
+    rows = adaptive.rows
+    folder.write_csv(tmp / "convergence.csv", rows, comm)
+    last = adaptive.levels[-1]
+    res = resultants(last.scene, last.result)
+    comparison = compare(last.scene, last.result)
+    info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
+    if failure is None:   # a failed run's last line is its error
+        warn_coarse_zone(last.scene, last.result)
+    info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
+                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
+                 "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
+                 "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
+                 "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
+                 "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
+                 "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
+                 **(files.timings() if files else {}), **(failure or {})})
+    folder.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
+                                       for h in lv.result.history], comm)
+    if scene.cfg["output"]["png"]:
+        # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
+        # together), the convergence chart last: on 2 ranks beside the first level's mesh
+        pictures = [solution_picture(tmp / "solution.png", last.scene, last.result,
+                                     title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")]
+        for lv in reversed(picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))):
+            pictures.append(plots.mesh_picture(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
+                                               title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                                               normal=_view_normal(lv.scene, lv.result), active=lv.result.active))
+        title = f"{scene.name}: adaptive convergence"
+        pictures.append(plots.Picture([], lambda grid: plots.plot_convergence(tmp / "convergence.png", rows, title)))
+        plots.draw_in_turn(pictures, comm)
+    write_contact(tmp, last.scene, last.result, comparison)
+    _finish(tmp, info, comm)
+    return info
+
+
+def picture_levels(adaptive: AdaptResult, count: int) -> list[Level]:
+    """``count`` levels spread from the first to the last."""
+    n = len(adaptive.levels)
+    if count <= 0 or n == 0:
+        return []
+    idx = sorted(set(int(round(i)) for i in np.linspace(0, n - 1, min(count, n))))
+    return [adaptive.levels[i] for i in idx]

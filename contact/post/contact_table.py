@@ -1,0 +1,250 @@
+"""The contact data along Γ_C as one table: ``contact.csv`` and the data of ``pressure.png``.
+
+One row per constrained node — Signorini and elasticity: the nodes of Γ_C that carry the
+constraint (not those on the closure of Γ_D); obstacle problems (constraint in Ω): the nodes
+of the contact set only — with the named columns
+
+    x, y(, z)           coordinates
+    s                   2D contact boundary: arc length along Γ_C (from its end with the
+                        smallest coordinates; several pieces follow one another)
+    r, theta            3D contact boundary: polar position about the first point of contact
+                        (smallest initial gap) in the plane ⟂ n (elasticity: the contact
+                        normal there; scalar: the mean normal of Γ_C)
+    lambda_n | lambda   the multiplier: normal pressure λ_n ≤ 0 (elasticity), flux λ (scalar)
+    gap                 σ(g − u) ≥ 0 (elasticity: g − u·n)
+    active              1 in the active set (the solver's rule b_i > a_i), else 0
+    (friction)          lambda_t, slip (2D; 3D: their x, y, z components), lambda_t_norm,
+                        bound, slip_norm, status, weight (below)
+
+For every contact node i (weight w_i = ∫_{Γ_C} φ_i, a length in 2D, an area in 3D) a
+frictional solve adds to the columns above (coordinates, ``s`` / ``r``, λ_n, gap, active)
+:func:`friction_columns`: the tangential traction on the body λ_t,i (stress; in 2D its
+component along t_0 = (−n_y, n_x), n the contact normal at the first point of contact — for
+a plane y = 0 below the body, the x component; in 3D the vector in global axes), |λ_t|, the
+friction bound ρ_i, the slip increment s_t,i of the load step (length; the same way), |s_t|,
+the status separated / stick / slip, and w_i.  Their resultants are
+:mod:`contact.post.friction_resultants`'s.
+
+:func:`contact_columns` gives this rank's rows as named NumPy columns; a model with more
+data per contact node (friction: λ_t, slip, status) adds columns there.  :func:`gather`
+collects them on rank 0 with the arc length, :func:`write_table` writes any such table.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from ..setup.scene import Scene
+from ..solvers import Result, owned_residual
+
+Table = dict[str, np.ndarray]
+STATUS = ("separated", "stick", "slip")
+
+
+def value_name(scene: Scene) -> str:
+    """The multiplier column: ``lambda_n`` for elasticity, ``lambda`` for scalar models."""
+    return "lambda_n" if scene.cfg["model"]["type"] == "elasticity" else "lambda"
+
+
+def contact_columns(scene: Scene, result: Result) -> Table:
+    """This rank's rows (owned constrained nodes; the contact set for obstacles) as named
+    columns (collective: the 3D position needs global data)."""
+    p = result.problem
+    con = p.constraint
+    gdim = scene.mesh.geometry.dim
+    X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
+    from .resultants import nodal_gap
+
+    cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
+    if gdim == 3 and not p.in_domain:
+        cols.update(_polar(scene, result, X))
+    cols[value_name(scene)] = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
+    cols["gap"] = nodal_gap(result)
+    cols["active"] = result.active_mask.astype(np.int8)
+    if result.friction is not None:   # λ_t, bound, slip, status, weight
+        cols.update(friction_columns(scene, result))
+    if p.in_domain:  # obstacle: the contact set only
+        cols = {k: v[result.active_mask] for k, v in cols.items()}
+    return cols
+
+
+def tangent_2d(result: Result) -> np.ndarray:
+    """t_0 = (−n_y, n_x) of the contact normal n at the first point of contact (2D)."""
+    n = np.asarray(result.problem.data["n"], dtype=float)
+    return np.array([-n[1], n[0]])
+
+
+def friction_columns(scene: Scene, result: Result) -> Table:
+    """This rank's friction columns, row for row with :func:`contact_columns`."""
+    fr = result.friction
+    lam_t, slip = fr["lambda_t_vec"], fr["slip_vec"]
+    cols: Table = {}
+    if scene.mesh.geometry.dim == 2:
+        t0 = tangent_2d(result)
+        cols.update(lambda_t=lam_t @ t0, slip=slip @ t0)
+    else:
+        cols.update({f"lambda_t_{a}": lam_t[:, i] for i, a in enumerate("xyz")})
+        cols.update({f"slip_{a}": slip[:, i] for i, a in enumerate("xyz")})
+    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=float),
+                slip_norm=np.linalg.norm(slip, axis=1), status=np.array(STATUS, dtype=object)[fr["status"]],
+                weight=np.asarray(fr["w"], dtype=float))
+    return cols
+
+
+def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
+    """r, theta about the first point of contact in the plane ⟂ n (collective)."""
+    from ..models.obstacles import first_contact_point
+
+    p = result.problem
+    con = p.constraint
+    n = contact_normal(scene, result)
+    origin = first_contact_point(scene.comm, X, con.sign * con.g)
+    t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    rel = X - origin
+    return {"r": np.hypot(rel @ t1, rel @ t2), "theta": np.arctan2(rel @ t2, rel @ t1)}
+
+
+def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
+    """The unit normal from the body towards the obstacle (collective): elasticity, the
+    contact normal at the first point of contact; scalar Signorini, the mean outward normal
+    of Γ_C; None for an obstacle in Ω."""
+    p = result.problem
+    if p.in_domain:
+        return None
+    return np.asarray(p.data["n"], dtype=float) if "n" in p.data else _mean_normal(scene)
+
+
+def _mean_normal(scene: Scene) -> np.ndarray:
+    """∫_{Γ_C} n ds / |∫_{Γ_C} n ds|, the mean outward normal of the contact boundary."""
+    msh = scene.mesh
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=scene.boundary.tags)
+    n = ufl.FacetNormal(msh)
+    measure = ds(scene.boundary.ids_with_role("contact"))
+    v = np.array([scene.comm.allreduce(fem.assemble_scalar(fem.form(n[i] * measure)), op=MPI.SUM)
+                  for i in range(msh.geometry.dim)])
+    return v / np.linalg.norm(v)
+
+
+def contact_table(scene: Scene, result: Result, columns: Table | None = None) -> Table | None:
+    """The whole table on rank 0 (None elsewhere), rows sorted along Γ_C: by arc length s in
+    2D, by r in 3D, by coordinates for obstacles.  ``columns`` defaults to
+    :func:`contact_columns` (collective)."""
+    columns = contact_columns(scene, result) if columns is None else columns
+    segments = None
+    if scene.mesh.geometry.dim == 2 and not result.problem.in_domain:
+        segments = _contact_segments(scene)
+    table = gather(columns, scene.comm)
+    if scene.comm.rank != 0:
+        return None
+    if segments is not None:
+        s = arc_length(np.c_[table["x"], table["y"]], segments)
+        keys = list(table)
+        table = {**{k: table[k] for k in keys[:2]}, "s": s, **{k: table[k] for k in keys[2:]}}
+    order = _order(table)
+    return {k: v[order] for k, v in table.items()}
+
+
+def _order(table: Table) -> np.ndarray:
+    for key in ("s", "r"):
+        if key in table:
+            return np.argsort(table[key], kind="stable")
+    coords = [table[c] for c in "zyx" if c in table]   # lexsort: last key is primary
+    return np.lexsort(coords)
+
+
+def gather(columns: Table, comm: MPI.Comm) -> Table | None:
+    """Concatenate every rank's rows on rank 0 (None elsewhere)."""
+    parts = comm.gather(columns, root=0)
+    if comm.rank != 0:
+        return None
+    return {k: np.concatenate([part[k] for part in parts]) for k in columns}
+
+
+def _contact_segments(scene: Scene) -> np.ndarray | None:
+    """(m, 2, 2) end points of all Γ_C facets (2D) on rank 0, each facet once: the parts
+    of role contact and the slave surfaces of contact pairs."""
+    msh = scene.mesh
+    tdim = msh.topology.dim
+    facets = scene.boundary.facets("contact")
+    if scene.cfg.get("pairs"):
+        from ..models.mortar import part_facets
+
+        facets = np.union1d(facets, np.concatenate([part_facets(scene.boundary, pair["slave"])
+                                                    for pair in scene.cfg["pairs"]])).astype(np.int32)
+    facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]
+    nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)[:, :2]
+    local = msh.geometry.x[nodes][:, :, :2]
+    parts = msh.comm.gather(local, root=0)
+    return np.concatenate(parts) if msh.comm.rank == 0 else None
+
+
+def arc_length(points: np.ndarray, segments: np.ndarray, digits: int = 9) -> np.ndarray:
+    """Arc length along the polyline(s) made of ``segments`` (m, 2, 2) at ``points`` (n, 2),
+    which are segment end points or midpoints (P2); NaN for any other point.
+
+    Chains start at their end with the smallest (x, y); several chains follow one another
+    in that order.  Points are matched to vertices by their coordinates rounded to
+    ``digits`` significant digits of the polyline's size."""
+    if len(segments) == 0:
+        return np.full(len(points), np.nan)
+    scale = float(np.max(np.abs(segments))) or 1.0
+
+    def key(x: np.ndarray) -> list[tuple]:
+        return [tuple(row) for row in np.round(np.asarray(x) / scale, digits)]
+
+    ends = segments.reshape(-1, 2)
+    vkeys = key(ends)
+    ids = {}
+    vid = np.array([ids.setdefault(k, len(ids)) for k in vkeys]).reshape(-1, 2)
+    coords = np.zeros((len(ids), 2))
+    coords[vid.ravel()] = ends
+    adjacency: dict[int, list[int]] = {}
+    for j, (a, b) in enumerate(vid):
+        if a != b:
+            adjacency.setdefault(a, []).append(j)
+            adjacency.setdefault(b, []).append(j)
+    s_vertex = np.full(len(ids), np.nan)
+    used = np.zeros(len(vid), dtype=bool)
+    total = 0.0
+    while not used.all():
+        free = [v for v in adjacency if any(not used[j] for j in adjacency[v])]
+        if not free:
+            break
+        ends_ = [v for v in free if sum(not used[j] for j in adjacency[v]) == 1] or free
+        v = min(ends_, key=lambda i: tuple(coords[i]))
+        if np.isnan(s_vertex[v]):
+            s_vertex[v] = total
+        while True:
+            nxt = [j for j in adjacency[v] if not used[j]]
+            if not nxt:
+                break
+            j = nxt[0]
+            used[j] = True
+            w = vid[j, 1] if vid[j, 0] == v else vid[j, 0]
+            total = s_vertex[v] + float(np.linalg.norm(coords[w] - coords[v]))
+            if np.isnan(s_vertex[w]):
+                s_vertex[w] = total
+            v = w
+    lookup = dict(zip(key(coords), s_vertex))
+    mids = key(0.5 * (coords[vid[:, 0]] + coords[vid[:, 1]]))
+    lookup.update(zip(mids, 0.5 * (s_vertex[vid[:, 0]] + s_vertex[vid[:, 1]])))
+    return np.array([lookup.get(k, np.nan) for k in key(points)])
+
+
+def write_table(path: str | Path, table: Table) -> None:
+    """Named columns to CSV (call on the rank that holds the table)."""
+    names = list(table)
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(names)
+        for row in zip(*(table[k].tolist() for k in names)):
+            writer.writerow(row)

@@ -1,0 +1,124 @@
+"""The interface of a multi-body solve (SPEC §1.5, §7): the pressure seen from both sides
+(the master side's: :func:`contact.models.mortar.master_pressure`), the forces each body
+feels and their balance, the reactions, the Hertz values of the effective radius.  The
+interface terms of the estimator are :func:`contact.adaptivity.estimate.interface_terms`.
+
+Sign convention: λ = σ_nn ≤ 0 in compression on both sides.  On the slave side λ_i =
+R̃_i / D_ii at the slave nodes (the multiplier); on the master side the same traction,
+transported by the mortar matrix and lumped,
+
+    λ^m_j = (Σ_i M_ij λ_i) / w_j,    w_j = ∫_{Γ_m} φ_j ds,
+
+which is the pressure at master node j when the slave surface covers its support (a
+uniform pressure is seen exactly on both sides).
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+from dolfinx import fem, la
+
+from .resultants import nodal_gap, whole_body
+from ..setup.scene import Scene
+from ..solvers import Result, owned_residual
+
+
+def effective_modulus(materials: list[tuple[float, float]]) -> float:
+    """E* of two bodies: 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (SPEC §7)."""
+    return 1.0 / sum((1.0 - nu**2) / E for E, nu in materials)
+
+
+def pair_bodies(scene: Scene, index: int) -> list[str]:
+    """Names of the bodies of pair ``index``'s slave and master surfaces (from the cells
+    of their facets)."""
+    msh, bnd, comm = scene.mesh, scene.boundary, scene.comm
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    names = list(scene.cfg["bodies"])
+    out = []
+    for side in ("slave", "master"):
+        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[scene.cfg["pairs"][index][side]]]
+        local = int(scene.bodies.values[f2c.array[f2c.offsets[facets[:1]]]][0]) if len(facets) else 0
+        out.append(names[comm.allreduce(local, op=MPI.MAX) - 1])
+    return out
+
+
+def interface_resultants(scene: Scene, result: Result) -> dict:
+    """The forces of a multi-body solve, each of the whole bodies when symmetry planes cut
+    them (:func:`contact.post.resultants.whole_body`; collective):
+
+    * ``interface_force_slave`` / ``_master``: Σ over the surfaces' owned nodes of the
+      residual a(u_h, v) − L(v) (the force each body's surface needs from the other; the
+      DoFs with a Dirichlet or symmetry condition left out), summed over all pairs; their
+      sum vanishes when action equals reaction: ``interface_balance_error`` =
+      |F_s·n + F_m·n| / |F_s·n| along the normal n at the first point of contact;
+    * ``reactions``: per Dirichlet part, Σ of the residual over its DoFs (a vector);
+    * ``contact_force`` (:attr:`Result.contact_force`: m Σ_i D_ii p_i (n_i·n), m the
+      symmetric copies), ``peak_pressure`` max_i p_i on the slave nodes, ``min_gap``,
+      ``mortar_coverage`` (min_i Σ_j M_ij / D_ii) and, with a rigid obstacle too,
+      ``obstacle_force`` Σ_i w_i λ_i n_i (the obstacle's force on the body, a vector).
+
+    The Hertz values come from a declared ``reference`` (:mod:`contact.post.reference`)."""
+    comm = scene.comm
+    p = result.problem
+    V = p.V
+    bs = V.dofmap.index_map_bs
+    gdim = scene.mesh.geometry.dim
+    n_owned = V.dofmap.index_map.size_local
+    full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
+    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    residual = full.array_r.reshape(-1, bs).copy()
+    full.destroy()
+    fixed = np.zeros(n_owned * bs, dtype=bool)
+    for bc in p.data["u_bcs"]:
+        dofs = bc.dof_indices()[0]
+        fixed[dofs[dofs < n_owned * bs]] = True
+    free_res = np.where(fixed.reshape(-1, bs), 0.0, residual)
+    n0 = np.asarray(p.data["n"])
+
+    from ..models.mortar import part_facets, surface_facets
+    F_s, F_m = np.zeros(gdim), np.zeros(gdim)
+    for pair in scene.cfg["pairs"] or []:
+        for side, F in (("slave", F_s), ("master", F_m)):
+            facets = surface_facets(V, part_facets(scene.boundary, pair[side]))
+            mark = la.vector(V.dofmap.index_map, 1)
+            mark.array[np.unique(facets.nodes)] = 1.0
+            mark.scatter_reverse(la.InsertMode.add)
+            owned = np.flatnonzero(mark.array[:n_owned] > 0)
+            F += comm.allreduce(free_res[owned].sum(axis=0), op=MPI.SUM)
+    reactions = {}
+    tdim = scene.mesh.topology.dim
+    for name, role in scene.boundary.roles.items():
+        if role == "dirichlet":
+            facets = scene.boundary.tags.indices[scene.boundary.tags.values == scene.boundary.ids[name]]
+            dofs = fem.locate_dofs_topological(V, tdim - 1, facets)
+            dofs = dofs[dofs < n_owned]
+            reactions[name] = whole_body(p, comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM))
+
+    con = p.constraint
+    slaves, rigid = slice(0, p.data["pair_nodes"]), slice(p.data["pair_nodes"], None)
+    pressure = p.pressure(owned_residual(result))
+    gap = nodal_gap(result)
+    out = {"contact_force": result.contact_force, "peak_pressure": comm.allreduce(
+               float(np.max(pressure[slaves], initial=0.0)), op=MPI.MAX),
+           "interface_force_slave": whole_body(p, F_s), "interface_force_master": whole_body(p, F_m),
+           "interface_balance_error": abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300),
+           "reactions": reactions, "contact_normal": n0.tolist(), "symmetric_copies": p.symmetric_copies,
+           "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
+           "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)}
+    if scene.cfg.get("obstacle"):
+        out["obstacle_force"] = whole_body(p, comm.allreduce((con.w[rigid] * -pressure[rigid])
+                                                             @ p.data["normals"][rigid], op=MPI.SUM))
+    return out
+
+
+def output_dofs(problem, nodes: np.ndarray) -> np.ndarray:
+    """The output-space DoFs (of λ_h, the gap) of local nodes."""
+    bs = problem.V.dofmap.index_map_bs
+    s_of_node = np.empty(len(problem.output_map), dtype=np.int64)
+    s_of_node[problem.output_map // bs] = np.arange(len(problem.output_map))
+    return s_of_node[nodes]

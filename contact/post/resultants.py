@@ -1,0 +1,81 @@
+"""Resultants of an elastic contact solve: the numbers every elastic contact scene reports.
+
+* contact force  F = m Σ_i w_i p_i (n_i · n)  (``Result.contact_force``: p_i = −λ_n,i the nodal
+  pressure, w_i the lumped weights, n_i the nodal normals, n the normal at the first point of
+  contact, m the symmetric copies the modelled part stands for);
+* reaction on the Dirichlet boundary along n: the sum of the residual a(u_h, v) − L(v) over
+  its DoFs, times m — equal to F at equilibrium (``force_balance_error`` = |R − F| / F);
+* peak pressure max_i p_i and the smallest gap min_i (g_i − u_i·n_i) (≥ 0: no penetration).
+
+**Every force is of the whole body** (:func:`whole_body`): when symmetry planes cut the
+body, the modelled part stands for m = 2^(number of planes) mirror images, so a force's
+components along the planes are m times the modelled part's, and its component normal to a
+plane is 0 (it cancels between mirror images).  The normal ``n`` lies in the planes, so the
+scalar forces along n are m times the modelled part's.  Measures (``active_measure``, the
+stick / slip measures) and node counts stay those of the modelled part.
+
+Units: forces per unit thickness (N/m) in 2D plane strain, forces (N) in 3D; pressures in
+the unit of E.  Reference solutions (Hertz, ...) are compared in :mod:`contact.post.reference`.
+"""
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc
+
+from ..setup.scene import Scene
+from ..solvers import Result, owned_residual
+
+
+def whole_body(problem, force) -> list[float]:
+    """A force of the modelled part (a vector summed over all ranks) as the force on the whole
+    body its symmetric copies stand for (module doc): component k is 0 for each symmetry
+    plane x_k = c, m times the modelled part's otherwise (m = ``symmetric_copies``)."""
+    out = problem.symmetric_copies * np.asarray(force, dtype=float)
+    out[list(problem.symmetry_axes)] = 0.0
+    return out.tolist()
+
+
+def reaction_force(result: Result) -> list[float]:
+    """The reaction of the Dirichlet boundary (the force the supports exert on the body or
+    bodies), per component, of the whole body (:func:`whole_body`; collective): Σ over the
+    Dirichlet DoFs of the residual a(u_h, v) − L(v), in the displacement's own components
+    (with contact pairs the solver's unknowns are rotated; the reaction is not)."""
+    p = result.problem
+    full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
+    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    bs = p.V.dofmap.index_map_bs
+    n_owned = p.V.dofmap.index_map.size_local * bs
+    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]   # the Dirichlet condition on u
+    dofs = dofs[dofs < n_owned]
+    local = np.bincount(dofs % bs, weights=full.array_r[dofs], minlength=bs)
+    full.destroy()
+    return whole_body(p, p.V.mesh.comm.allreduce(local, op=MPI.SUM))
+
+
+def nodal_gap(result: Result) -> np.ndarray:
+    """g_i − (Qᵀu)_i, the gap at the owned constrained nodes (≥ 0 when feasible)."""
+    p = result.problem
+    con = p.constraint
+    unknowns = p.b.duplicate()
+    p.to_unknowns(result.u_h.x.petsc_vec, unknowns)
+    gap = con.sign * (con.g - unknowns.array_r[con.dofs])
+    unknowns.destroy()
+    return gap
+
+
+def contact_resultants(scene: Scene, result: Result) -> dict:
+    """Contact force, reaction, force balance, peak pressure and smallest gap (collective)."""
+    comm = scene.comm
+    p = result.problem
+    n = np.asarray(p.data["n"])                       # contact normal at the first point of contact
+    reaction = abs(reaction_force(result)[int(np.argmax(np.abs(n)))])
+    force = result.contact_force
+    pressure = p.pressure(owned_residual(result))
+    return {"contact_force": force, "reaction_force": reaction,
+            "force_balance_error": abs(reaction - force) / max(force, 1e-300),
+            "peak_pressure": comm.allreduce(float(np.max(pressure, initial=0.0)), op=MPI.MAX),
+            "symmetric_copies": p.symmetric_copies,
+            "min_gap": comm.allreduce(float(nodal_gap(result).min(initial=np.inf)), op=MPI.MIN)}

@@ -1,0 +1,255 @@
+"""The discrete contact problem every model produces and every solver consumes.
+
+A model assembles, once per mesh, the stiffness matrix K (Dirichlet rows and columns
+replaced by identity) and the lifted load b, so that R(x) = K x − b is the discrete
+residual in the solver's unknowns x (x = Qᵀ u when a change of basis u = Q x rotates
+contact nodes to their (n, t) axes).  The complementarity conditions act on a set of
+nodes (SPEC §2):
+
+    R_i = w_i λ_i,   σ(g_i − x_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − x_i) λ_i = 0,
+
+with lumped weights w_i = ∫ φ_i over Γ_C (Signorini, elasticity: the contact nodes not on
+the closure of Γ_D) or over Ω (obstacle: every free node), and σ = +1 for x ≤ g, −1 for
+x ≥ ψ.  λ_i is the nodal multiplier density (a flux or a pressure).
+
+A frictional problem adds the tangential unknowns of the contact nodes and the data of
+their friction law (:class:`FrictionSet`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfinx import fem
+
+from ..base.lifetime import destroy
+
+
+@dataclass
+class Constraint:
+    """The nodal complementarity set: owned local DoF indices with bound, weight and sign."""
+
+    dofs: np.ndarray  # owned local indices into the PETSc vector
+    g: np.ndarray     # bound g_i (Signorini gap) or ψ_i (obstacle) at those DoFs
+    w: np.ndarray     # lumped weights w_i > 0
+    sign: float       # σ = +1: u ≤ g ; σ = −1: u ≥ ψ
+    # the size of what g is computed from, in the units of u: a gap measured between node
+    # coordinates X carries round-off ≈ ε max|X| (coincident surfaces give ±1e-16 instead of
+    # 0, its sign set by the partition), so kinks are decided relative to it too
+    # (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`); 0 for gaps given as data
+    scale: float = 0.0
+
+    def global_size(self, comm: MPI.Comm) -> int:
+        return comm.allreduce(len(self.dofs), op=MPI.SUM)
+
+
+@dataclass
+class DiscreteProblem:
+    """Everything the solver needs: K u − b = w λ on the constraint set, = 0 elsewhere."""
+
+    V: fem.FunctionSpace
+    u_h: fem.Function
+    bcs: list
+    K: PETSc.Mat
+    b: PETSc.Vec
+    constraint: Constraint
+    c: np.ndarray | float | None = None  # NCP scaling (gap per λ), nodal or one number; set by solve()
+    end_dofs: np.ndarray | None = None       # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
+    end_neighbours: np.ndarray | None = None # the nearest constrained DoF of each (local index)
+    # Output of nodal fields on a scalar space S (S = V for scalar models; the contact
+    # component's collapsed subspace for elasticity, with the S → V DoF map):
+    output_space: fem.FunctionSpace | None = None
+    output_map: np.ndarray | None = None
+    output_bound: fem.Function | None = None   # the bound (g, ψ or n_k g) on S
+    lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
+    near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
+    basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
+    basis_inverse: PETSc.Mat | None = None  # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
+    output_nodes: np.ndarray | None = None  # output-space DoFs of the contact nodes (multi-body problems)
+    data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
+    assembly_time: float = 0.0
+    in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
+    semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
+    floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
+    symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
+    symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies
+    friction: Any = None   # FrictionSet (below) of a frictional scene, else None
+
+    def destroy(self) -> None:
+        """Destroy the PETSc objects of the problem (K, b, Q, Q⁻¹, the near-nullspace, the
+        mortar matrices); its functions stay usable.  Call it once the problem's last result
+        is done with (:meth:`contact.solvers.result.Result.release`)."""
+        couplings = self.data.get("couplings") or []
+        destroy(self.K, self.b, self.basis, self.basis_inverse, self.near_nullspace,
+                *(c.M for c in couplings))
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """out = R(x) = K x − b."""
+        self.K.mult(x, out)
+        out.axpy(-1.0, self.b)
+
+    def to_unknowns(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
+        """x = Q⁻¹ u (the solver's unknowns from displacements; Qᵀ u for a rotation, a copy
+        when Q = I)."""
+        if self.basis_inverse is not None:
+            self.basis_inverse.mult(u, x)
+        elif self.basis is None:
+            u.copy(x)
+        else:
+            self.basis.multTranspose(u, x)
+
+    def to_displacement(self, x: PETSc.Vec, u: PETSc.Vec) -> None:
+        """u = Q x."""
+        if self.basis is None:
+            x.copy(u)
+        else:
+            self.basis.mult(x, u)
+
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """p_i = −σ R_i / w_i ≥ 0 on the constrained DoFs (owned residual ``r``): the contact
+        pressure −λ_n of elasticity, the flux −σλ_i into the obstacle of scalar models."""
+        con = self.constraint
+        return -con.sign * r[con.dofs] / con.w
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """The resultant contact force over all ranks (collective),
+
+            F = m Σ_i w_i p_i (n_i · n),
+
+        p_i from :meth:`pressure`, n_i the nodal contact normals and n the one at the first
+        point of contact (n_i · n = 1 against a plane, and for scalar models), m the
+        symmetric copies the modelled part stands for.  Units: force per unit thickness in
+        2D elasticity (N/m), force in 3D (N); ∫ flux over Γ_C (or Ω) for scalar models."""
+        con = self.constraint
+        along = self.data["normals"] @ self.data["n"] if "normals" in self.data else 1.0
+        local = float(np.sum(con.w * self.pressure(r) * along))
+        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
+    def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
+        """Nodal fields on the output space S: the multiplier λ_h (λ_i = ±R_i / w_i on the
+        constrained DoFs, 0 elsewhere), the gap σ(bound − u) (≥ 0 when feasible) and the
+        0/1 active set.  ``x`` and ``r`` are the owned unknowns and residual at the
+        solution, ``active`` the mask over the constrained DoFs.  The gap is NaN off the
+        constrained DoFs of a contact boundary Γ_C (g − u inside Ω is no gap); for an
+        obstacle (constraint in Ω) it is ψ − u everywhere."""
+        V, con = self.V, self.constraint
+        S = self.output_space or V
+
+        def nodal(name: str, values: np.ndarray) -> fem.Function:
+            fn = fem.Function(V)
+            fn.x.array[con.dofs] = values
+            fn.x.scatter_forward()
+            if name == "lambda_h":
+                self._extend_to_ends(fn)
+            out = fem.Function(S, name=name)
+            out.x.array[:] = fn.x.array if self.output_map is None else fn.x.array[self.output_map]
+            return out
+
+        lmbda = nodal("lambda_h", self.lambda_sign * r[con.dofs] / con.w)
+        active_fn = nodal("active", active.astype(float))
+        unknowns = fem.Function(V)
+        unknowns.x.array[: len(x)] = x
+        unknowns.x.scatter_forward()
+        u = unknowns.x.array if self.output_map is None else unknowns.x.array[self.output_map]
+        gap = fem.Function(S, name="gap")
+        gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
+        if not self.in_domain:
+            on = nodal("on", np.ones(len(con.dofs)))
+            gap.x.array[on.x.array < 0.5] = np.nan
+        return lmbda, gap, active_fn
+
+    def _extend_to_ends(self, lmbda: fem.Function) -> None:
+        """The ends of Γ_C on the closure of Γ_D carry no constraint, and their residual row
+        mixes the flux through Γ_C with that through Γ_D; give them the multiplier of the
+        nearest contact node (constant extrapolation) so that λ_h is the discrete contact
+        flux on all of Γ_C and the estimator sees no spurious jump there."""
+        if self.end_dofs is not None and len(self.end_dofs):
+            lmbda.x.array[self.end_dofs] = lmbda.x.array[self.end_neighbours]
+        lmbda.x.scatter_forward()
+
+    def bound_function(self) -> fem.Function:
+        """The bound (g or ψ; n_k g for elasticity) on the output space."""
+        return self.output_bound if self.output_bound is not None else self.data["g_h"]
+
+
+@dataclass
+class FrictionSet:
+    """The tangential unknowns of the contact nodes and the data of their friction law.
+
+    Arrays are per owned contact node, in the order of ``problem.constraint.dofs``; m is the
+    number of tangential directions (gdim − 1)."""
+
+    law: str                       # "tresca" | "coulomb"
+    n_comp: int                    # position of the normal unknown in the node's block
+    t_comps: np.ndarray            # (m,) positions of the tangential unknowns in the block
+    tangent: np.ndarray            # (n, m) owned local indices of the tangential unknowns
+    free: np.ndarray               # (n, m) bool: not fixed by a Dirichlet/symmetry condition
+    frames: np.ndarray             # (n, gdim, m) the tangent vectors t_i in global axes
+    c_t: np.ndarray                # (n,) tangential scaling (stress per length)
+    threshold: np.ndarray | None   # (n,) Tresca: s(x_i, t) (stress)
+    coefficient: float | None      # Coulomb: F
+    x_prev: np.ndarray             # (n, m) tangential unknowns at the previous load step
+    form: str = "hsw"              # tangential NCP: hsw | projection
+    coulomb: str = "ssn"           # Coulomb solver: ssn | fixed_point
+    fixed_point_rtol: float = 1e-10
+    fixed_point_max_it: int = 100
+
+    @property
+    def m(self) -> int:
+        return self.tangent.shape[1]
+
+
+class NodeBlockMatrix:
+    """An AIJ matrix with the row layout of ``layout`` and one dense bs×bs block per owned
+    node (bs = the vector block size): the pattern of the rotation Q (u = Q x) and of the
+    friction law's B and D (H = B K + D).  ``set(blocks)`` writes all blocks, an array
+    (local nodes, bs, bs), in one CSR call; the pattern never changes, so products with it
+    can reuse their symbolic phase."""
+
+    def __init__(self, layout: PETSc.Mat, bs: int):
+        lo, hi = layout.getOwnershipRange()
+        self.bs, self.local_nodes = bs, (hi - lo) // bs
+        n = self.local_nodes
+        # row (node, i) holds columns (node, 0 … bs−1)
+        self.indptr = np.arange(0, n * bs * bs + 1, bs, dtype=PETSc.IntType)
+        cols = lo + np.arange(n * bs, dtype=PETSc.IntType).reshape(n, 1, bs)
+        self.indices = np.broadcast_to(cols, (n, bs, bs)).ravel().copy()
+        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)
+
+    def identity(self) -> np.ndarray:
+        """Identity blocks, (local nodes, bs, bs)."""
+        return np.tile(np.eye(self.bs), (self.local_nodes, 1, 1))
+
+    def set(self, blocks: np.ndarray) -> PETSc.Mat:
+        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())
+        self.mat.assemble()
+        return self.mat
+
+
+def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 1.0) -> np.ndarray:
+    """Default NCP scaling ``c: auto``:  c_i = κ w_i / K_ii  on each constrained node
+    (κ = ``solver.kappa``, default 1).
+
+    Then b_i = −σ c_i R_i / w_i = −σ κ R_i / K_ii is the displacement one Jacobi step would
+    move node i by: the NCP compares two lengths of the same discrete origin, the gap and
+    the local correction.  Scaling k (or E) scales R and K_ii alike, so it cancels; on any
+    mesh the two parts of a Jacobian row  (K_ii/κ) ∂_aφ e_i + ∂_bφ K_i  keep the size of K's
+    own rows, which keeps Krylov + GAMG working.  Measured (fb with polishing, Newton steps +
+    polishing solves): with nested iteration on SPEC problem A, κ = 1 needs 1+1 per level and
+    κ = 100 2+1 (min: 1 against 4); from u = 0 on signorini_square at 512², κ = 1 needs 17+1
+    and κ = 100 10+1 (a large κ makes the first step predict contact wherever the load
+    pushes, and the retreat is fast).  A cold start on a fine mesh corrects smooth modes,
+    which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
+    for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from
+    u = 0: 130 s against 45 s, 10 steps either way; nested 5 steps against 3 —
+    ``python demos/bench/bench_hertz.py --set solver.kappa=100``).  Hence κ = 1 by default; the
+    cold-start scene signorini_square sets κ = 100.
+    """
+    diag = K.getDiagonal()
+    out = kappa * w / diag.array_r[dofs]
+    diag.destroy()
+    return out
