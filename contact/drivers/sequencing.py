@@ -12,13 +12,16 @@ levels that cost a fraction of one fine step each.  The levels, coarsest first:
   level by multilinear interpolation of the coarse nodal values on the structured grid
   (:class:`GridTransfer`: P1, exact for nested levels where the coarse mesh's diagonals
   line up, a second-order accurate guess otherwise, and the same on every MPI rank);
-* ``quarter_disk`` / ``sphere_octant``: gmsh with mesh sizes h·2^k and h_contact·2^k,
-  carried over by locating the fine DoF points in the coarse mesh (:func:`point_transfer`);
+* ``quarter_disk`` / ``sphere_octant`` and the two-body ``half_disks`` / ``sphere_on_block``:
+  gmsh with mesh sizes h·2^k and h_contact·2^k, carried over by locating the fine DoF
+  points in the coarse mesh (:func:`point_transfer`; with several bodies each body's
+  points in that body's coarse cells only, so a point of one body's contact surface never
+  takes the other body's displacement), the mortar coupling built anew on every level;
 * a scene made by :func:`contact.refine`: the scenes it was refined from (those whose
   DoFs fall by ≥ 4× from one chosen level to the next), carried over by
   the exact prolongation of nested refinement (:func:`contact.adaptivity.transfer.prolong`);
-* a user's ``.msh`` file (and P2 on a built-in mesh): no coarser mesh — a cold start,
-  reported in ``Result.sequence_note``.
+* a user's ``.msh`` file (and P2 on a built-in mesh), several bodies on any other mesh:
+  no coarser mesh — a cold start, reported in ``Result.sequence_note``.
 
 ``auto`` sequences when the finest level has at least :data:`AUTO_MIN_DOFS` DoFs, with as
 many levels as keep the coarsest at ≥ :data:`COARSEST_DOFS`; an integer N asks for N
@@ -37,6 +40,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfinx import fem
+from dolfinx.mesh import MeshTags
 
 from ..base.errors import ConfigError
 from ..models import build_problem
@@ -47,6 +51,8 @@ COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many Do
 COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
 ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
 BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
+#: the gmsh-built meshes, whose sizes h and h_contact give the coarse levels
+GMSH_BUILT = ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")
 
 
 @dataclass
@@ -94,12 +100,13 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
 
     if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
         return [], "grid sequencing: not for frictional scenes (slip depends on the load history); cold start"
-    if scene.bodies is not None:
-        return [], "grid sequencing: not for scenes of several bodies yet; cold start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [(lambda s=s: s) for s in reversed(chain)], ""
     kind = scene.cfg["mesh"]["type"]
+    if scene.bodies is not None and kind not in GMSH_BUILT:
+        return [], (f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; "
+                    "cold start")
     if degree != 1 and kind in BUILT_IN:
         return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
@@ -113,7 +120,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         note = "" if wanted is None or len(builders) == wanted else \
             f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
         return builders[::-1], note
-    if kind in ("quarter_disk", "sphere_octant"):
+    if kind in GMSH_BUILT:
         m = scene.cfg["mesh"]
         builders = []
         for k in range(1, limit + 1):
@@ -143,12 +150,14 @@ def _ancestors(scene: Scene, ratio: int, floor: int, bs: int) -> list[Scene]:
 
 def _with_mesh(scene: Scene, changes: dict) -> Scene:
     """The scene with other mesh parameters (a coarse level)."""
-    from ..setup.meshes import build_mesh, tag_boundaries
+    from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
 
     cfg = copy.deepcopy(scene.cfg)
     cfg["mesh"].update(changes)
-    msh, tags, _ = build_mesh(cfg, scene.comm)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags), time=scene.time, surfaces=tags)
+    msh, tags, cell_tags = build_mesh(cfg, scene.comm)
+    bodies = tag_bodies(msh, cfg, cell_tags)
+    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags, bodies), time=scene.time, bodies=bodies,
+                 surfaces=tags)
 
 
 def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable,
@@ -199,7 +208,7 @@ def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace |
         return _prolong_chain(u, coarse, fine, V)
     if fine.cfg["mesh"]["type"] in BUILT_IN:
         return GridTransfer(coarse).apply(u, fine, V)
-    return point_transfer(u, V)
+    return point_transfer(u, V, coarse.bodies, fine.bodies)
 
 
 def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
@@ -330,10 +339,13 @@ def _lshape_vertices(n: int) -> np.ndarray:
     return np.unique(corners)
 
 
-def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
+def point_transfer(u: fem.Function, V: fem.FunctionSpace, coarse_bodies: MeshTags | None = None,
+                   fine_bodies: MeshTags | None = None) -> fem.Function:
     """The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
     point of V in u's mesh (for meshes of one geometry that are not nested, e.g. gmsh
-    meshes of two sizes).
+    meshes of two sizes).  With the cell tags of the bodies of both meshes
+    (``Scene.bodies``), a point of body k is located among body k's coarse cells only:
+    where two bodies touch, the nearest coarse cell may be the other body's.
 
     Every rank gathers the coarse cells (vertex coordinates and nodal values: a coarse
     level is a fraction of the fine one) and sorts them into a uniform grid of buckets of
@@ -352,16 +364,33 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
     X = Vc.tabulate_dof_coordinates()[:, :gdim]
     verts = X[dofs]                                                     # (cells, tdim+1, gdim)
     vals = u.x.array.reshape(-1, bs)[dofs]                              # (cells, tdim+1, bs)
+    points = V.tabulate_dof_coordinates()[:, :gdim]
+    cell_body = np.zeros(n_cells, dtype=np.int32)                       # 0: one body
+    point_body = np.zeros(len(points), dtype=np.int32)
+    if coarse_bodies is not None and fine_bodies is not None:
+        cell_body[:] = _cell_values(coarse_bodies, n_cells)
+        point_body[V.dofmap.list] = _cell_values(fine_bodies, len(V.dofmap.list))[:, None]
     if comm.size > 1:
         verts = np.concatenate(comm.allgather(verts))
         vals = np.concatenate(comm.allgather(vals))
-    points = V.tabulate_dof_coordinates()[:, :gdim]
+        cell_body = np.concatenate(comm.allgather(cell_body))
     inv = np.linalg.inv(np.transpose(verts[:, 1:] - verts[:, :1], (0, 2, 1)))  # barycentric maps
-    cell = _locate(verts, inv, points)
+    cell = np.empty(len(points), dtype=np.int64)
+    for body in np.unique(point_body):
+        mine, cells = np.flatnonzero(point_body == body), np.flatnonzero(cell_body == body)
+        cell[mine] = cells[_locate(verts[cells], inv[cells], points[mine])]
     lam = _barycentric(verts, inv, cell, points)
     out = fem.Function(V)
     out.x.array[:] = np.einsum("pv,pvb->pb", lam, vals[cell]).ravel()
     return out
+
+
+def _cell_values(tags: MeshTags, n: int) -> np.ndarray:
+    """The tag values of local cells 0 … n − 1 (every one of them tagged)."""
+    values = np.zeros(n, dtype=np.int32)
+    inside = tags.indices < n
+    values[tags.indices[inside]] = tags.values[inside]
+    return values
 
 
 def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray) -> np.ndarray:
