@@ -16,8 +16,8 @@ merged by their key, so a run of one more size or variant keeps the others.
   building twice gives the same mesh (``repeatable``; ``--repeat 1`` builds once);
 * ``hertz.csv`` — ``two_body_hertz_3d`` at gmsh sizes ``h_contact`` with a 3D variant, on
   the ranks it runs on: ``contact.load_scene`` (wall, max over ranks; CPU, summed over
-  ranks) with gmsh's part on rank 0, one solve (fb from u = 0: Newton and Krylov
-  iterations, wall and CPU), DoFs, and the errors of the contact radius a and of the peak
+  ranks) with gmsh's part on rank 0, one solve (fb, grid sequencing ``auto``: the coarse
+  levels' DoFs, Newton and Krylov iterations, wall and CPU), DoFs, and the errors of the contact radius a and of the peak
   pressure p0 against Hertz: p0 as reported (the patch average,
   :func:`contact.post.hertz.patch_average`) and the largest nodal value;
 * ``refined.csv`` — ``two_body_hertz_3d`` as shipped (Dörfler refinement by
@@ -237,6 +237,7 @@ def hertz_part(sizes: list[float], variants: list[str]) -> None:
                    "load_cpu": round(comm.allreduce(load_cpu, op=MPI.SUM), 2),
                    "gmsh_wall": round(gmsh_wall, 2), "gmsh_cpu": round(gmsh_cpu, 2),
                    "worst_angle": round(geometry.worst_angle(scene.mesh), 2),
+                   "coarse_dofs": " ".join(str(level.dofs) for level in r.sequence),
                    "newton": f"{r.iterations}+{r.polish_solves}", "krylov": r.krylov_iterations,
                    "solve_wall": round(comm.allreduce(solve_wall, op=MPI.MAX), 1),
                    "solve_cpu": round(comm.allreduce(solve_cpu, op=MPI.SUM), 1),
