@@ -185,3 +185,19 @@ def test_point_transfer_keeps_each_body(name, sizes):
     assert np.max(np.abs(carried.x.array - exact.x.array)) <= 1e-12
     blind = point_transfer(u_coarse, exact.function_space)   # without the bodies' cell tags
     assert np.max(np.abs(blind.x.array - exact.x.array)) > 1.0
+
+
+def test_refined_two_body_scene_sequences_through_its_ancestors():
+    """Two bodies refined by contact.refine: the coarse levels are the ancestors (exact
+    nested prolongation, each level's mortar coupling built anew), and the answer is the
+    cold solve's (before issue 29 every scene of several bodies started cold)."""
+    scene = contact.load_scene("configs/two_body_hertz_2d.yaml",
+                               ["adapt=null", "mesh.h_contact=0.1", "output.verbose=false"])
+    for _ in range(2):
+        r = contact.solve(scene, method="fb", verbose=False, sequence="off")
+        scene, _ = contact.refine(scene, contact.mark(contact.estimate(scene, r).eta_T, "uniform"))
+    cold = _solve(scene, method="fb", sequence="off")
+    seq = _solve(scene, method="fb", sequence=1)
+    assert cold.converged and seq.converged and seq.sequence_note == ""
+    assert len(seq.sequence) == 1 and seq.sequence[0].dofs * 4 <= seq.dofs
+    assert np.max(np.abs(seq.u_h.x.array - cold.u_h.x.array)) <= 1e-8
