@@ -186,3 +186,32 @@ def test_sequencing_through_a_rebalanced_refinement_chain(tmp_path: Path) -> Non
         assert run["gap"] <= 1e-8 and run["chain"] <= 1e-12, (n, run)
         assert run["dofs"] == runs[1]["dofs"] and run["levels"] == runs[1]["levels"], (n, run)
         assert abs(run["norm"] - runs[1]["norm"]) <= 1e-10 * runs[1]["norm"], (n, run)
+
+
+TWO_BODY_SEQUENCED = """
+import json, sys
+from mpi4py import MPI
+import contact
+from contact.post.reference import compare
+scene = contact.load_scene(sys.argv[1], ["adapt=null", "mesh.h_contact=0.025", "output.verbose=false"])
+r = contact.solve(scene, verbose=False, method="fb")
+values = compare(scene, r).values
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps({"levels": [lv.dofs for lv in r.sequence], "converged": bool(r.converged),
+                      "force": r.contact_force, "a": values["contact_half_width"],
+                      "p0_error": values["p0_error"]}))
+"""
+
+
+def test_two_body_grid_sequencing_same_answer_on_1_2_and_3_ranks(tmp_path: Path) -> None:
+    """two_body_hertz_2d sequenced (a coarser gmsh mesh first, each body's points carried in
+    that body's coarse cells, gathered on every rank): the same levels and, to solver
+    tolerance, the same force, contact half-width and peak pressure on 1, 2 and 3 ranks."""
+    runs = _run_script(tmp_path, TWO_BODY_SEQUENCED, "two_body_hertz_2d.yaml", (1, 2, 3))
+    serial = runs[1]
+    assert serial["converged"] and len(serial["levels"]) >= 1
+    for n in (2, 3):
+        assert runs[n]["converged"] and runs[n]["levels"] == serial["levels"], runs[n]
+        assert runs[n]["force"] == pytest.approx(serial["force"], rel=1e-8)
+        assert runs[n]["a"] == pytest.approx(serial["a"], rel=1e-12)
+        assert runs[n]["p0_error"] == pytest.approx(serial["p0_error"], abs=1e-8)

@@ -12,13 +12,16 @@ levels that cost a fraction of one fine step each.  The levels, coarsest first:
   level by multilinear interpolation of the coarse nodal values on the structured grid
   (:class:`GridTransfer`: P1, exact for nested levels where the coarse mesh's diagonals
   line up, a second-order accurate guess otherwise, and the same on every MPI rank);
-* ``quarter_disk`` / ``sphere_octant``: gmsh with mesh sizes h·2^k and h_contact·2^k,
-  carried over by locating the fine DoF points in the coarse mesh (:func:`point_transfer`);
+* ``quarter_disk`` / ``sphere_octant`` and the two-body ``half_disks`` / ``sphere_on_block``:
+  gmsh with mesh sizes h·2^k and h_contact·2^k, carried over by locating the fine DoF
+  points in the coarse mesh (:func:`point_transfer`; with several bodies each body's
+  points in that body's coarse cells only, so a point of one body's contact surface never
+  takes the other body's displacement), the mortar coupling built anew on every level;
 * a scene made by :func:`contact.refine`: the scenes it was refined from (those whose
   DoFs fall by ≥ 4× from one chosen level to the next), carried over by
   the exact prolongation of nested refinement (:func:`contact.adaptivity.transfer.prolong`);
-* a user's ``.msh`` file (and P2 on a built-in mesh): no coarser mesh — a cold start,
-  reported in ``Result.sequence_note``.
+* a user's ``.msh`` file (and P2 on a built-in mesh), several bodies on any other mesh:
+  no coarser mesh — a cold start, reported in ``Result.sequence_note``.
 
 ``auto`` sequences when the finest level has at least :data:`AUTO_MIN_DOFS` DoFs, with as
 many levels as keep the coarsest at ≥ :data:`COARSEST_DOFS`; an integer N asks for N
@@ -37,6 +40,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfinx import fem
+from dolfinx.mesh import MeshTags
 
 from ..base.errors import ConfigError
 from ..models import build_problem
@@ -47,6 +51,9 @@ COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many Do
 COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
 ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
 BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
+SIZE_CLASS = 2.0          # point location: cell extents within one size class differ by < 2×
+#: the gmsh-built meshes, whose sizes h and h_contact give the coarse levels
+GMSH_BUILT = ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")
 
 
 @dataclass
@@ -94,12 +101,13 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
 
     if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
         return [], "grid sequencing: not for frictional scenes (slip depends on the load history); cold start"
-    if scene.bodies is not None:
-        return [], "grid sequencing: not for scenes of several bodies yet; cold start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [(lambda s=s: s) for s in reversed(chain)], ""
     kind = scene.cfg["mesh"]["type"]
+    if scene.bodies is not None and kind not in GMSH_BUILT:
+        return [], (f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; "
+                    "cold start")
     if degree != 1 and kind in BUILT_IN:
         return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
@@ -113,7 +121,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         note = "" if wanted is None or len(builders) == wanted else \
             f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
         return builders[::-1], note
-    if kind in ("quarter_disk", "sphere_octant"):
+    if kind in GMSH_BUILT:
         m = scene.cfg["mesh"]
         builders = []
         for k in range(1, limit + 1):
@@ -143,12 +151,14 @@ def _ancestors(scene: Scene, ratio: int, floor: int, bs: int) -> list[Scene]:
 
 def _with_mesh(scene: Scene, changes: dict) -> Scene:
     """The scene with other mesh parameters (a coarse level)."""
-    from ..setup.meshes import build_mesh, tag_boundaries
+    from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
 
     cfg = copy.deepcopy(scene.cfg)
     cfg["mesh"].update(changes)
-    msh, tags, _ = build_mesh(cfg, scene.comm)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags), time=scene.time, surfaces=tags)
+    msh, tags, cell_tags = build_mesh(cfg, scene.comm)
+    bodies = tag_bodies(msh, cfg, cell_tags)
+    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags, bodies), time=scene.time, bodies=bodies,
+                 surfaces=tags)
 
 
 def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable,
@@ -199,7 +209,7 @@ def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace |
         return _prolong_chain(u, coarse, fine, V)
     if fine.cfg["mesh"]["type"] in BUILT_IN:
         return GridTransfer(coarse).apply(u, fine, V)
-    return point_transfer(u, V)
+    return point_transfer(u, V, coarse.bodies, fine.bodies)
 
 
 def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
@@ -330,10 +340,13 @@ def _lshape_vertices(n: int) -> np.ndarray:
     return np.unique(corners)
 
 
-def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
+def point_transfer(u: fem.Function, V: fem.FunctionSpace, coarse_bodies: MeshTags | None = None,
+                   fine_bodies: MeshTags | None = None) -> fem.Function:
     """The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
     point of V in u's mesh (for meshes of one geometry that are not nested, e.g. gmsh
-    meshes of two sizes).
+    meshes of two sizes).  With the cell tags of the bodies of both meshes
+    (``Scene.bodies``), a point of body k is located among body k's coarse cells only:
+    where two bodies touch, the nearest coarse cell may be the other body's.
 
     Every rank gathers the coarse cells (vertex coordinates and nodal values: a coarse
     level is a fraction of the fine one) and sorts them into a uniform grid of buckets of
@@ -352,16 +365,33 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
     X = Vc.tabulate_dof_coordinates()[:, :gdim]
     verts = X[dofs]                                                     # (cells, tdim+1, gdim)
     vals = u.x.array.reshape(-1, bs)[dofs]                              # (cells, tdim+1, bs)
+    points = V.tabulate_dof_coordinates()[:, :gdim]
+    cell_body = np.zeros(n_cells, dtype=np.int32)                       # 0: one body
+    point_body = np.zeros(len(points), dtype=np.int32)
+    if coarse_bodies is not None and fine_bodies is not None:
+        cell_body[:] = _cell_values(coarse_bodies, n_cells)
+        point_body[V.dofmap.list] = _cell_values(fine_bodies, len(V.dofmap.list))[:, None]
     if comm.size > 1:
         verts = np.concatenate(comm.allgather(verts))
         vals = np.concatenate(comm.allgather(vals))
-    points = V.tabulate_dof_coordinates()[:, :gdim]
+        cell_body = np.concatenate(comm.allgather(cell_body))
     inv = np.linalg.inv(np.transpose(verts[:, 1:] - verts[:, :1], (0, 2, 1)))  # barycentric maps
-    cell = _locate(verts, inv, points)
+    cell = np.empty(len(points), dtype=np.int64)
+    for body in np.unique(point_body):
+        mine, cells = np.flatnonzero(point_body == body), np.flatnonzero(cell_body == body)
+        cell[mine] = cells[_locate(verts[cells], inv[cells], points[mine])]
     lam = _barycentric(verts, inv, cell, points)
     out = fem.Function(V)
     out.x.array[:] = np.einsum("pv,pvb->pb", lam, vals[cell]).ravel()
     return out
+
+
+def _cell_values(tags: MeshTags, n: int) -> np.ndarray:
+    """The tag values of local cells 0 … n − 1 (every one of them tagged)."""
+    values = np.zeros(n, dtype=np.int32)
+    inside = tags.indices < n
+    values[tags.indices[inside]] = tags.values[inside]
+    return values
 
 
 def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -373,21 +403,61 @@ def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: 
     return np.column_stack([1.0 - lam.sum(axis=1), lam])
 
 
-def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1) -> np.ndarray:
+def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray,
+            grow: float = 0.1) -> np.ndarray:
     """For each point the index of the simplex (of ``verts``) that contains it, or the one
     it is least outside of among those whose bounding box, grown by ``grow`` buckets, holds
-    it (points no box holds are located again with boxes grown by one more bucket)."""
+    it (points no box holds are located again with boxes grown by one more bucket).
+
+    A graded mesh has cells from h_contact to h: the cells are sorted into classes whose
+    extents lie within a factor 2 (:data:`SIZE_CLASS`), and each class gets buckets of
+    half its mean extent over its own bounding box, so a cell spans a few buckets of its
+    class whatever the others' sizes (one grid of the mean size made a large cell span
+    ~10⁶ buckets: 70 s for sphere_on_block's 480k points)."""
     lo_c, hi_c = verts.min(axis=1), verts.max(axis=1)
-    lo, hi = np.minimum(lo_c.min(axis=0), points.min(axis=0)), np.maximum(hi_c.max(axis=0), points.max(axis=0))
-    dim = verts.shape[2]
-    size = max(0.5 * float(np.mean(hi_c - lo_c)), 1e-300)  # half a cell: fewer candidates per point
+    extent = np.max(hi_c - lo_c, axis=1)
+    smallest = max(float(extent.min(initial=1.0)), 1e-300)
+    size_class = np.floor(np.log(np.maximum(extent, smallest) / smallest) / np.log(SIZE_CLASS))
+    pairs = [_bucket_candidates(lo_c, hi_c, np.flatnonzero(size_class == k), points, grow)
+             for k in np.unique(size_class)]
+    point_of = np.concatenate([p for p, _ in pairs] + [np.zeros(0, dtype=np.int64)])
+    cand = np.concatenate([c for _, c in pairs] + [np.zeros(0, dtype=np.int64)])
+    order = np.argsort(point_of, kind="stable")
+    point_of, cand = point_of[order], cand[order]
+    n_cand = np.bincount(point_of, minlength=len(points))
+    lost = np.flatnonzero(n_cand == 0)
+    if len(lost) and grow >= 4:  # pragma: no cover - the coarse mesh covers the fine one
+        raise RuntimeError("grid sequencing: a point of the fine mesh lies far outside the "
+                           "coarse mesh")
+    chosen = np.empty(len(points), dtype=np.int64)
+    if len(cand):
+        score = _barycentric(verts, inv, cand, points[point_of]).min(axis=1)
+        group = np.flatnonzero(np.r_[True, point_of[1:] != point_of[:-1]])  # one group a point
+        best = np.maximum.reduceat(score, group)
+        hit = np.flatnonzero(score >= np.repeat(best, np.diff(np.r_[group, len(point_of)])))
+        chosen[point_of[hit[::-1]]] = cand[hit[::-1]]   # the first best candidate of each point
+    if len(lost):
+        chosen[lost] = _locate(verts, inv, points[lost], grow + 1.0)
+    return chosen
+
+
+def _bucket_candidates(lo_c: np.ndarray, hi_c: np.ndarray, cells: np.ndarray, points: np.ndarray,
+                       grow: float) -> tuple[np.ndarray, np.ndarray]:
+    """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
+    ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
+    cells' mean extent over their common bounding box (at most ~4 buckets a cell)."""
+    lo_k, hi_k = lo_c[cells], hi_c[cells]
+    dim = lo_c.shape[1]
+    size = max(0.5 * float(np.mean(hi_k - lo_k)), 1e-300)
+    lo, hi = lo_k.min(axis=0) - grow * size, hi_k.max(axis=0) + grow * size
+    size = max(size, float(np.prod(hi - lo) / (4 * len(cells))) ** (1 / dim))
     shape = np.maximum(np.ceil((hi - lo) / size).astype(np.int64), 1)
-    # every cell into the buckets its box (one bucket wider each side) overlaps
-    first = np.clip(np.floor((lo_c - lo) / size - grow).astype(np.int64), 0, shape - 1)
-    last = np.clip(np.floor((hi_c - lo) / size + grow).astype(np.int64), 0, shape - 1)
+    # every cell into the buckets its grown box overlaps
+    first = np.clip(np.floor((lo_k - lo) / size - grow).astype(np.int64), 0, shape - 1)
+    last = np.clip(np.floor((hi_k - lo) / size + grow).astype(np.int64), 0, shape - 1)
     span = last - first + 1
     count = np.prod(span, axis=1)
-    cell_of = np.repeat(np.arange(len(verts)), count)
+    cell_of = np.repeat(np.arange(len(cells)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     offset = np.empty((len(cell_of), dim), dtype=np.int64)
     for axis in range(dim - 1, -1, -1):
@@ -396,24 +466,14 @@ def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float 
     order = np.argsort(bucket, kind="stable")
     bucket, cell_of = bucket[order], cell_of[order]
     start = np.searchsorted(bucket, np.arange(np.prod(shape) + 1))
-    # candidates of every point, tested all at once
-    pb = np.ravel_multi_index(tuple(np.clip(np.floor((points - lo) / size).astype(np.int64), 0, shape - 1).T), shape)
+    # the points inside the class's box, with the cells of their bucket
+    inside = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
+    at = np.clip(np.floor((points[inside] - lo) / size).astype(np.int64), 0, shape - 1)
+    pb = np.ravel_multi_index(tuple(at.T), shape)
     n_cand = start[pb + 1] - start[pb]
-    point_of = np.repeat(np.arange(len(points)), n_cand)
+    point_of = np.repeat(inside, n_cand)
     j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
-    cand = cell_of[start[pb][point_of] + j]
-    lost = np.flatnonzero(n_cand == 0)
-    if len(lost) and grow >= 4:  # pragma: no cover - the coarse mesh covers the fine one
-        raise RuntimeError("grid sequencing: a point of the fine mesh lies far outside the coarse mesh")
-    score = _barycentric(verts, inv, cand, points[point_of]).min(axis=1)
-    group = np.cumsum(n_cand) - n_cand                       # point_of is sorted: one group a point
-    best = np.maximum.reduceat(score, group)
-    hit = np.flatnonzero(score >= best[point_of])
-    chosen = np.empty(len(points), dtype=np.int64)
-    chosen[point_of[hit[::-1]]] = cand[hit[::-1]]             # the first best candidate of each point
-    if len(lost):
-        chosen[lost] = _locate(verts, inv, points[lost], grow + 1.0)
-    return chosen
+    return point_of, cells[cell_of[np.repeat(start[pb], n_cand) + j]]
 
 
 def weighted_solves(levels: list[CoarseLevel], fine_dofs: int) -> float:

@@ -12,8 +12,10 @@ a ``.msh`` scene does, with physical facet tags
 and cell tag 10.  The mesh size is ``h_contact`` within distance ``zone`` of the contact
 point, grows linearly with slope ``GRADING`` beyond it, and is ``h`` everywhere else
 (gmsh Distance + Threshold fields; sizes from points, curvature and boundary are off, so
-the field alone sets the size).  Elements are linear; tetrahedra get gmsh's Netgen
-optimisation too.
+the field alone sets the size).  Elements are linear: triangles by gmsh's Frontal-Delaunay
+algorithm, one thread per surface (:data:`TRIANGLES`), tetrahedra by its HXT algorithm on
+one thread (:data:`TETRAHEDRA`), so the mesh is the same on every run and any number of
+ranks; while rank 0 meshes, the other ranks sleep rather than spin.
 
 Refinement (``dolfinx.mesh.refine``) puts new vertices at edge midpoints, which keeps the
 coarse polygon / polyhedron; :func:`curved_boundary` gives the exact surface of tag 1 of
@@ -29,6 +31,7 @@ that a move of the geometry nodes (a snap, a ``mesh.map``) keeps every cell's or
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +64,7 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cel
             gdim = gdim or gmsh.model.getDimension()
         except Exception as err:  # gmsh reports its errors as generic exceptions
             problem = str(err) or type(err).__name__
+    _sleep_until_all_arrive(comm)   # the other ranks leave rank 0's gmsh the machine's cores
     problem, gdim = comm.bcast((problem, gdim), root=0)
     try:
         if problem is None:
@@ -76,6 +80,14 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cel
     return (data.mesh, data.facet_tags, data.cell_tags) if cells else (data.mesh, data.facet_tags)
 
 
+def _sleep_until_all_arrive(comm: MPI.Comm, poll: float = 0.005) -> None:
+    """A barrier that the ranks waiting in it spend asleep, polling every ``poll`` seconds
+    (MPI's own barrier and broadcast spin at 100 % of a core until the last rank comes)."""
+    request = comm.Ibarrier()
+    while not request.Test():
+        time.sleep(poll)
+
+
 def vertex_nodes(msh: dmesh.Mesh) -> np.ndarray:
     """The vertex geometry nodes of each cell (local cells, ghosts included)."""
     return msh.geometry.dofmaps[0][:, : msh.topology.dim + 1]
@@ -89,6 +101,29 @@ def signed_volumes(msh: dmesh.Mesh, cells: np.ndarray | None = None) -> np.ndarr
     nodes = vertex_nodes(msh) if cells is None else vertex_nodes(msh)[cells]
     P = msh.geometry.x[nodes][:, :, :gdim]
     return np.linalg.det(P[:, 1:] - P[:, :1])
+
+
+def worst_angle(msh: dmesh.Mesh) -> float:
+    """The smallest angle of the mesh's cells in degrees (collective): the interior angles
+    of triangles, the dihedral angles of tetrahedra (π minus the angle between the outward
+    normals of the two faces at an edge), over the owned cells of every rank."""
+    tdim = msh.topology.dim
+    owned = msh.topology.index_map(tdim).size_local
+    P = msh.geometry.x[vertex_nodes(msh)[:owned]][:, :, : msh.geometry.dim]
+    k = np.arange(tdim + 1)
+    if tdim == 2:   # the angle at vertex i between the edges to the other two
+        e1, e2 = P[:, (k + 1) % 3] - P, P[:, (k + 2) % 3] - P
+        e1, e2 = (e / np.linalg.norm(e, axis=2, keepdims=True) for e in (e1, e2))
+        cosines = np.einsum("cid,cid->ci", e1, e2)
+    else:           # n_i: the unit outward normal of the face opposite vertex i
+        a, b, c = (P[:, (k + j) % 4] for j in (1, 2, 3))
+        n = np.cross(b - a, c - a)
+        n *= -np.sign(np.einsum("cid,cid->ci", n, P - a))[:, :, None]
+        n /= np.linalg.norm(n, axis=2, keepdims=True)
+        i, j = np.triu_indices(4, 1)
+        cosines = -np.einsum("ced,ced->ce", n[:, i], n[:, j])
+    largest = float(np.max(cosines, initial=-1.0))
+    return math.degrees(math.acos(np.clip(msh.comm.allreduce(largest, op=MPI.MAX), -1.0, 1.0)))
 
 
 def cells_touching(msh: dmesh.Mesh, node_flag: np.ndarray) -> np.ndarray:
@@ -137,7 +172,7 @@ def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
             gmsh.model.addPhysicalGroup(1, [curve], tag, name=name)
         gmsh.model.addPhysicalGroup(2, [surface], BODY, name="body")
         _size_field(gmsh, bottom, h, h_contact, zone)
-        gmsh.model.mesh.generate(2)
+        _generate(gmsh, 2)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the quarter_disk", gdim=2)
 
@@ -172,8 +207,7 @@ def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
             gmsh.model.addPhysicalGroup(2, groups[tag], tag, name=name)
         gmsh.model.addPhysicalGroup(3, [volume], BODY, name="body")
         _size_field(gmsh, pole[0], h, h_contact, zone)
-        gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)  # worst tet quality 0.25 -> 0.4
-        gmsh.model.mesh.generate(3)
+        _generate(gmsh, 3)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_octant", gdim=3)
 
@@ -218,7 +252,7 @@ def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contac
         gmsh.model.addPhysicalGroup(2, [surfaces[0]], FIRST_BODY, name="upper")
         gmsh.model.addPhysicalGroup(2, [surfaces[1]], SECOND_BODY, name="lower")
         _size_field(gmsh, contacts, h, h_contact, zone)
-        gmsh.model.mesh.generate(2)
+        _generate(gmsh, 2)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
 
@@ -272,8 +306,7 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
         if len(origin) != 2:
             raise RuntimeError("the sphere and the block need a vertex each at the contact point")
         _size_field(gmsh, origin, h, h_contact, zone)
-        gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
-        gmsh.model.mesh.generate(3)
+        _generate(gmsh, 3)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_on_block", gdim=3, cells=True)
 
@@ -377,8 +410,9 @@ def curved_boundary(cfg: dict) -> CurvedBoundary | None:
 #: gmsh's vertices per unit area (2D) / volume (3D) at mesh size s, times s^d, and per unit
 #: length (2D) / area (3D) of the boundary, times s^(d-1): (interior, boundary), fitted to
 #: uniform meshes, quarter_disk h = 0.02, 0.01 and sphere_octant h = 0.04, 0.025 (2 383 to
-#: 26 579 vertices); the interior's 2D value is an equilateral triangulation's 2/√3
-VERTEX_DENSITY = {2: (1.153, 0.665), 3: (0.602, 1.02)}
+#: 25 404 vertices; 3D: HXT's tetrahedra, :data:`TETRAHEDRA`); the interior's 2D value is an
+#: equilateral triangulation's 2/√3
+VERTEX_DENSITY = {2: (1.153, 0.665), 3: (0.616, 0.808)}
 
 
 def estimated_vertices(mesh: dict) -> float:
@@ -461,6 +495,34 @@ def _check(radius, h, h_contact, zone, radius_key: str = "radius") -> tuple[floa
     if zone >= radius:
         raise ConfigError(f"mesh.zone: must be < mesh.{radius_key} ({radius:g}), got {zone:g}")
     return float(radius), float(h), float(h_contact), float(zone)
+
+
+#: gmsh options of the tetrahedra of the 3D builders: the HXT algorithm (``Mesh.Algorithm3D``
+#: = 10) on one thread.  sphere_on_block at h_contact = 0.0025 (demos/bench/bench_meshing.py,
+#: CPU seconds): 2.3 s against 107–113 s for gmsh's Delaunay with Netgen's optimisation
+#: (formerly used; Netgen took 86 s of it), 160 096 vertices against 169 427, the worst
+#: dihedral angle 13.5° against 19.6°; at h_contact = 0.005 the same Krylov iterations (808
+#: against 807) and Hertz errors within 0.3 % of each other.  On two threads HXT's mesh
+#: changes from run to run; its optimisation of cells below quality 0.45
+#: (``Mesh.OptimizeThreshold``) lifts the worst angle to 19.4° for 3× the time, with no
+#: change in those figures.
+TETRAHEDRA = {"Mesh.Algorithm3D": 10, "General.NumThreads": 1}
+
+
+#: gmsh options of the triangles of the 2D builders: gmsh's default Frontal-Delaunay
+#: algorithm, each surface on its own thread (half_disks: both bodies at once, 5.4 s against
+#: 10.4 s at h_contact = 0.004, 230k vertices; the same triangles, each surface's mesh being
+#: its own; Delaunay, ``Mesh.Algorithm`` = 5, saves 15 % for 14 % more vertices and a worst
+#: angle of 27.8° against 31.4°)
+TRIANGLES = {"Mesh.Algorithm": 6, "Mesh.MaxNumThreads2D": 2}
+
+
+def _generate(gmsh, dim: int) -> None:
+    """Mesh the model up to dimension ``dim`` with the options :data:`TRIANGLES` (2) or
+    :data:`TETRAHEDRA` (3): the same mesh on every run, whatever the machine's cores."""
+    for option, value in (TRIANGLES if dim == 2 else TETRAHEDRA).items():
+        gmsh.option.setNumber(option, value)
+    gmsh.model.mesh.generate(dim)
 
 
 def _size_field(gmsh, point: int | list[int], h: float, h_contact: float, zone: float) -> None:

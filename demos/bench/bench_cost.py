@@ -17,6 +17,11 @@ square; BiCGStab + GAMG in 3D).
         --sequence auto --repeat 1 --out demos/results/cost/hertz3d_np2.csv          (a 3D mesh of > 1M DoFs)
     mpirun -n 2 python demos/bench/bench_cost.py scene --scene configs/friction_box_3d.yaml --set friction.law=none \
         --set "mesh.cells=[96,96,48]" --no-before --sequence auto --repeat 1 --out demos/results/cost/box3d_np2.csv
+    cd demos/bench && mpirun -n 2 python bench_cost.py scene \
+        --scene ../../configs/two_body_hertz_3d.yaml --set mesh.h_contact=0.0025 \
+        --set adapt=null --no-before --methods fb --sequence auto --repeat 1 \
+        --out ../results/cost/two_body_hertz_3d_np2.csv     (two bodies, 480k DoFs; 2D likewise:
+        two_body_hertz_2d.yaml, mesh.h_contact=0.00265, about 1M DoFs)
     python demos/bench/bench_cost.py chart demos/results/cost      (cost.png from every CSV there)
 
 ``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
@@ -24,7 +29,8 @@ square; BiCGStab + GAMG in 3D).
 measures on its final mesh, whose coarser levels are the loop's earlier meshes; ``scene``
 measures one solve of ``--scene`` on the mesh its ``--set`` options give (e.g. the 3D box of
 configs/friction_box_3d.yaml without friction at 96×96×48 cells, 1.38M DoFs, whose coarser
-levels are boxes of cells/2^k).
+levels are boxes of cells/2^k; the two-body Hertz scenes, whose coarser levels are gmsh
+meshes of sizes h·2^k, h_contact·2^k, and whose K is Qᵀ K Q of the mortar change of basis).
 """
 from __future__ import annotations
 
