@@ -1,6 +1,6 @@
 # # Coulomb friction: a block pressed onto a plane and dragged along it
 #
-# This demo shows frictional contact by semismooth Newton (SPEC §1.4).  An elastic block
+# This demo shows frictional contact by semismooth Newton (docs/theory.md §1.4).  An elastic block
 # $\Omega = [-1, 1] \times [0, 0.5]$ (plane strain, $E = 1$, $\nu = 0.3$) rests on the rigid
 # plane $y = 0$.  Over a quasi-static load path $t \in (0, 1]$ its top is first pressed
 # down, then moved sideways.  On the contact part $\Gamma_C$ (the bottom) the multiplier

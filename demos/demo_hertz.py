@@ -2,13 +2,14 @@
 #
 # An elastic cylinder of radius R (plane strain, Young's modulus E, Poisson's ratio ν) is
 # pressed onto a rigid frictionless plane.  Linear elasticity with the Signorini condition
-# on the contact surface Γ_C (SPEC §1.3):
+# on the contact surface Γ_C (docs/theory.md §1.3):
 #
 #     −div σ(u) = 0,   σ(u) = 2μ ε(u) + λ_L tr ε(u) I,
 #     u·n ≤ g,   λ_n := σ_nn(u) ≤ 0,   λ_n (u·n − g) = 0,   σ_nt(u) = 0    on Γ_C,
 #
-# with n the normal towards the plane and g the initial gap.  Hertz's theory (SPEC §7) gives,
-# for the force P per unit thickness and E* = E / (1 − ν²), a contact strip of half-width
+# with n the normal towards the plane and g the initial gap.  Hertz's theory
+# (docs/theory.md §7) gives, for the force P per unit thickness and E* = E / (1 − ν²), a contact
+# strip of half-width
 #
 #     a = 2 √(R P / (π E*))      and the pressure    p(x) = p0 √(1 − x²/a²),   p0 = 2P / (π a),
 #

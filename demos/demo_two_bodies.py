@@ -3,7 +3,7 @@
 # Two bodies Ω¹ (slave) and Ω² (master), meshed independently, touch along surfaces whose
 # meshes do not match.  On the slave surface Γ_s, with the P1 trace basis φ_i, its dual
 # basis ψ_i (∫ ψ_i φ_k ds = δ_ik D_ii) and the projection π onto the master surface Γ_m
-# (SPEC §1.5),
+# (docs/theory.md §1.5),
 #
 #     D_ii = ∫_{Γ_s} φ_i ds,     M_ij = ∫_{Γ_s} ψ_i (φ_j^m ∘ π) ds,
 #
@@ -144,7 +144,7 @@ say(f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, 
 # ## Partial slip: Cattaneo–Mindlin
 #
 # The tangential unknowns of a slave node are its displacement relative to the master, so
-# the Coulomb law of `friction:` (SPEC §1.4) applies to the pair unchanged.  Two identical
+# the Coulomb law of `friction:` (docs/theory.md §1.4) applies to the pair unchanged.  Two identical
 # cylinders, built interpenetrating by 0.1 (`mesh.overlap`: the normal force), their flat
 # faces rolling on planes (`role: symmetry`), a body force in x on the upper one whose
 # resultant Q grows at constant P (`load:` steps in the pseudo-time t): the stick zone

@@ -74,8 +74,8 @@ def test_without_rebalancing_the_first_partition_is_kept(levels):
 
 
 def test_adaptive_loop_converges_on_problem_A():
-    """Dörfler on SPEC problem A: error ~ N^{-1/2} and a steady effectivity (small version of
-    the benchmark in demos/bench/bench_adaptive.py)."""
+    """Dörfler on problem A (docs/theory.md §7): error ~ N^{-1/2} and a steady effectivity
+    (small version of the benchmark in demos/bench/bench_adaptive.py)."""
     scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
     rows = adapt(scene, method="min", max_levels=9, verbose=False).rows
     N = np.array([r["dofs"] for r in rows], dtype=float)

@@ -1,4 +1,5 @@
-"""SPEC §5–§6: the residual estimator (contact/adaptivity/estimate.py) and MARK / REFINE (contact/drivers/adaptive.py).
+"""docs/theory.md §5–§6: the residual estimator (contact/adaptivity/estimate.py) and
+MARK / REFINE (contact/drivers/adaptive.py).
 
 1. η vanishes at an exact discrete solution (linear u, no contact), also with a Neumann side
    carrying the exact flux; a wrong Neumann flux gives the exact Neumann term.
@@ -456,7 +457,7 @@ def test_refine_keeps_boundary_tags_and_interpolates(source):
 
 
 # ---------------------------------------------------------------------------------------
-# 5. P2 (and P1 for comparison) on SPEC §7 problem A
+# 5. P2 (and P1 for comparison) on problem A (docs/theory.md §7)
 # ---------------------------------------------------------------------------------------
 FREE = "configs/signorini_free_boundary.yaml"
 

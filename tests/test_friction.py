@@ -1,4 +1,4 @@
-"""Friction (SPEC §1.4, issue 12): the tangential law and its generalized Jacobian, the
+"""Friction (docs/theory.md §1.4, issue 12): the tangential law and its generalized Jacobian, the
 block Jacobian H = B K + D of a frictional scene, full sliding of a pulled block (Tresca and
 Coulomb force laws to round-off), Coulomb by full Newton against the Tresca fixed point,
 F = 0 against the frictionless Hertz solutions, and one-line errors for bad friction input."""

@@ -1,4 +1,4 @@
-"""Tests of the complementarity functions and their generalized derivatives (SPEC §3)."""
+"""Tests of the complementarity functions and their generalized derivatives (docs/theory.md §3)."""
 from __future__ import annotations
 
 import decimal

@@ -1,4 +1,4 @@
-"""Errors against an exact solution (SPEC §7): energy / H¹-seminorm and L² norms."""
+"""Errors against an exact solution (docs/theory.md §7): energy / H¹-seminorm and L² norms."""
 from __future__ import annotations
 
 import numpy as np

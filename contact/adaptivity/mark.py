@@ -1,4 +1,4 @@
-"""MARK (SPEC §6): the cells whose indicators η_T carry the error, by Dörfler's bulk
+"""MARK (docs/theory.md §6): the cells whose indicators η_T carry the error, by Dörfler's bulk
 criterion, the maximum criterion, or all of them — the same cells on any number of MPI
 ranks."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""REFINE (SPEC §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the scene
+"""REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the scene
 carried to the new mesh (tags, history, nested-iteration guess, curved boundaries snapped
 to their exact surfaces), and the refined mesh's partition."""
 from __future__ import annotations

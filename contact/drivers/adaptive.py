@@ -1,4 +1,4 @@
-"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (SPEC §6), of
+"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6), of
 :func:`contact.solve`, :mod:`contact.adaptivity.estimate`, :mod:`contact.adaptivity.mark`
 and :mod:`contact.adaptivity.refine`.
 

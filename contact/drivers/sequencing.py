@@ -1,4 +1,4 @@
-"""Grid sequencing of a single solve (``solver.sequence``; SPEC §8).
+"""Grid sequencing of a single solve (``solver.sequence``; docs/theory.md §8).
 
 From a cold start semismooth Newton needs about log₂(1/h) active-set steps: the first
 steps move the free boundary across the whole contact zone.  Solving the same scene on

@@ -2,9 +2,9 @@
 
 Two kinds of nodes carry a non-trivial block of Q (every other node keeps x_j = u_j):
 
-* a *rotated* node j (rigid curved obstacle, SPEC §1.3): u_j = R_j x_j with R_j = [n t (t2)]
-  an orthonormal frame whose first axis is the contact normal;
-* a *slave* node i of a mortar contact pair (SPEC §1.5): its unknowns are the displacement
+* a *rotated* node j (rigid curved obstacle, docs/theory.md §1.3): u_j = R_j x_j with
+  R_j = [n t (t2)] an orthonormal frame whose first axis is the contact normal;
+* a *slave* node i of a mortar contact pair (docs/theory.md §1.5): its unknowns are the displacement
   relative to the master surface, in its own frame R_i,
 
       x_i = R_iᵀ (u_i − Σ_j c_ij P_i u_j),    c_ij = M_ij / D_ii,   P_i = Σ_{b relative} e_b e_bᵀ,

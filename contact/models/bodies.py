@@ -1,4 +1,4 @@
-"""Several elastic bodies in one mesh, in contact through mortar pairs (SPEC §1.5).
+"""Several elastic bodies in one mesh, in contact through mortar pairs (docs/theory.md §1.5).
 
 The bodies are the disconnected components of one DOLFINx mesh, told apart by the cell
 tags of :func:`contact.setup.meshes.tag_bodies`; one vector P1 space carries them all, so the

@@ -1,4 +1,4 @@
-"""Linear elasticity against a rigid obstacle, frictionless (SPEC §1.3).
+"""Linear elasticity against a rigid obstacle, frictionless (docs/theory.md §1.3).
 
     σ(u) = 2μ ε(u) + λ_L tr ε(u) I   (plane strain in 2D),   −div σ(u) = f in Ω,
     u = u_D on Γ_D,   σ n = t on Γ_N,   u·n_s = 0 on symmetry planes,
@@ -145,8 +145,9 @@ def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
 
 
 def elasticity_problem(scene: Scene) -> DiscreteProblem:
-    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2) against
-    its rigid obstacle (a scene with ``bodies`` is :func:`contact.models.bodies.bodies_problem`)."""
+    """Assemble the frictionless elastic contact problem of ``scene`` (docs/theory.md §1.3,
+    §2) against its rigid obstacle (a scene with ``bodies`` is
+    :func:`contact.models.bodies.bodies_problem`)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     model, obstacle = scene.cfg["model"], scene.cfg["obstacle"]

@@ -1,4 +1,4 @@
-"""Mortar coupling of a contact pair with dual Lagrange multipliers (Wohlmuth; SPEC §1.5).
+"""Mortar coupling of a contact pair with dual Lagrange multipliers (Wohlmuth; docs/theory.md §1.5).
 
 A pair couples a slave surface Γ_s of one body to a master surface Γ_m of another, once,
 in the reference configuration (small deformation).  With the P1 trace basis φ_i on Γ_s,

@@ -1,5 +1,5 @@
 """Rigid obstacles (plane, circle, sphere) as nodal constraint sets of the elastic model
-(SPEC §1.3), and the change of basis u = Q x that rotates contact nodes to their axes.
+(docs/theory.md §1.3), and the change of basis u = Q x that rotates contact nodes to their axes.
 
 For a rigid plane through p with outward normal ν (pointing from the obstacle to the body),
 n = −ν and g(x) = (x − p)·ν; for a rigid circle/sphere (centre c, radius R_o, the body

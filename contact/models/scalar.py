@@ -1,4 +1,4 @@
-"""Scalar Signorini and obstacle models (SPEC §1.1–1.2): forms, Dirichlet data and the
+"""Scalar Signorini and obstacle models (docs/theory.md §1.1–1.2): forms, Dirichlet data and the
 nodal constraint set.
 
 Weak form, P1 (or P2) Lagrange u_h with u_h = u_D on Γ_D:
@@ -28,7 +28,8 @@ from .problem import (coefficient, contact_ends, interpolate_expression, assembl
 
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
-    """Assemble the scalar Signorini or obstacle problem of ``scene`` (SPEC §1.1–1.2, §2)."""
+    """Assemble the scalar Signorini or obstacle problem of ``scene`` (docs/theory.md
+    §1.1–1.2, §2)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used, k > 0 (ConfigError)
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary

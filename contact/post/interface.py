@@ -1,4 +1,4 @@
-"""The interface of a multi-body solve (SPEC §1.5, §7): the pressure seen from both sides
+"""The interface of a multi-body solve (docs/theory.md §1.5, §7): the pressure seen from both sides
 (the master side's: :func:`contact.models.mortar.master_pressure`), the forces each body
 feels and their balance, the reactions, the Hertz values of the effective radius.  The
 interface terms of the estimator are :func:`contact.adaptivity.estimate.interface_terms`.
@@ -27,7 +27,7 @@ from ..solvers import Result, owned_residual
 
 
 def effective_modulus(materials: list[tuple[float, float]]) -> float:
-    """E* of two bodies: 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (SPEC §7)."""
+    """E* of two bodies: 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (docs/theory.md §7)."""
     return 1.0 / sum((1.0 - nu**2) / E for E, nu in materials)
 
 

@@ -368,8 +368,9 @@ SCENE: dict[str, Field] = {
     }),
     "reference": Field("dict", None, schema={
         "type": Field("str", choices=("hertz", "cattaneo_mindlin"),
-                      doc="the reference solution the results are compared with (SPEC §7): hertz, or "
-                          "cattaneo_mindlin (partial slip of two similar bodies, Coulomb friction)"),
+                      doc="the reference solution the results are compared with "
+                          "(docs/theory.md §7): hertz, or cattaneo_mindlin (partial slip of "
+                          "two similar bodies, Coulomb friction)"),
         "radius": Field("number", None, check=_positive,
                         doc="hertz: the radius R of the curved body (default: mesh.radius of a "
                             "quarter_disk / sphere_octant)"),
@@ -408,8 +409,9 @@ SCENE: dict[str, Field] = {
         "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
     }),
     "estimator": Field("str", "residual", choices=("residual", "equilibrated"),
-                       doc="a posteriori error estimator: residual (SPEC §5, reliable up to a constant) or "
-                           "equilibrated (SPEC §9: a guaranteed bound, scalar models only)"),
+                       doc="a posteriori error estimator: residual (docs/theory.md §5, reliable up "
+                           "to a constant) or equilibrated (docs/theory.md §9: a guaranteed "
+                           "bound, scalar models only)"),
     "adapt": Field("dict", None, schema={
         "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform", "none"),
                           doc="none: one solve on the given mesh (as if there were no adapt section)"),

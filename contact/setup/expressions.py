@@ -1,4 +1,4 @@
-"""Safe expressions in x, y, z for scene data (SPEC §1: f, u_D, t, g, ψ, t_C, k, exact).
+"""Safe expressions in x, y, z for scene data (docs/theory.md §1: f, u_D, t, g, ψ, t_C, k, exact).
 
 A scene writes its data as strings such as ``"-r**1.5*cos(1.5*theta)"``.  They are parsed
 with :mod:`ast` and checked against a whitelist; nothing is ever passed to ``eval``.

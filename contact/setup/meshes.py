@@ -1,7 +1,7 @@
 """Meshes and boundary parts of a scene.
 
 Built-in meshes need nothing but DOLFINx: ``rectangle``/``unit_square`` and ``box``
-(structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], SPEC §7 D, built from
+(structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], docs/theory.md §7 D, built from
 NumPy arrays).  Only ``gmsh`` scenes import gmsh, to read a ``.msh`` file with physical
 tags (:func:`contact.setup.geometry.gmsh_to_mesh`, which also builds the parametric gmsh meshes of
 :mod:`contact.setup.geometry`).  A built-in mesh may be deformed by ``mesh.map``

@@ -1,4 +1,4 @@
-"""Frictional contact rows and their generalized Jacobian (SPEC §1.4): which rows, which
+"""Frictional contact rows and their generalized Jacobian (docs/theory.md §1.4): which rows, which
 nonsmooth function, which element of its generalized derivative.  How the Newton system is
 then solved is :mod:`contact.solvers.linear`'s business.
 
@@ -9,7 +9,7 @@ normal quantities of :mod:`contact.solvers.newton` (gap a = σ(g − x_n), b = c
     μ_t = −λ_t = −R_t / w,   s = x_t − x_t^prev,   z = μ_t + c_t s,
     ρ = s(x, t)  (Tresca)   or   ρ = F·max(0, ξ),  ξ = μ_n − a / c = (b − a) / c  (Coulomb)
 
-(ξ = μ_n + c_n (u_n − g) of SPEC §1.4 with c_n = 1/c; ξ = μ_n at a solution in contact,
+(ξ = μ_n + c_n (u_n − g) of docs/theory.md §1.4 with c_n = 1/c; ξ = μ_n at a solution in contact,
 ξ < 0 where the node separates), the tangential equation is, in one of two forms,
 
     projection (Alart–Curnier):  C = μ_t − P_B(ρ)(z) = 0,   P_B(ρ)(z) = z min(1, ρ/|z|),

@@ -4,7 +4,7 @@ A model assembles, once per mesh, the stiffness matrix K (Dirichlet rows and col
 replaced by identity) and the lifted load b, so that R(x) = K x − b is the discrete
 residual in the solver's unknowns x (x = Qᵀ u when a change of basis u = Q x rotates
 contact nodes to their (n, t) axes).  The complementarity conditions act on a set of
-nodes (SPEC §2):
+nodes (docs/theory.md §2):
 
     R_i = w_i λ_i,   σ(g_i − x_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − x_i) λ_i = 0,
 
@@ -239,9 +239,9 @@ def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 
     the local correction.  Scaling k (or E) scales R and K_ii alike, so it cancels; on any
     mesh the two parts of a Jacobian row  (K_ii/κ) ∂_aφ e_i + ∂_bφ K_i  keep the size of K's
     own rows, which keeps Krylov + GAMG working.  Measured (fb with polishing, Newton steps +
-    polishing solves): with nested iteration on SPEC problem A, κ = 1 needs 1+1 per level and
-    κ = 100 2+1 (min: 1 against 4); from u = 0 on signorini_square at 512², κ = 1 needs 17+1
-    and κ = 100 10+1 (a large κ makes the first step predict contact wherever the load
+    polishing solves): with nested iteration on problem A (docs/theory.md §7), κ = 1 needs
+    1+1 per level and κ = 100 2+1 (min: 1 against 4); from u = 0 on signorini_square at 512², κ = 1
+    needs 17+1 and κ = 100 10+1 (a large κ makes the first step predict contact wherever the load
     pushes, and the retreat is fast).  A cold start on a fine mesh corrects smooth modes,
     which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
     for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from

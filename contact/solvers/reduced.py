@@ -1,4 +1,4 @@
-"""The Newton system of a diagonal law as a symmetric positive definite system (SPEC §8).
+"""The Newton system of a diagonal law as a symmetric positive definite system (docs/theory.md §8).
 
 For fb, min and blend the generalized Jacobian is  H = diag(s) K + diag(d)  with s, d ≥ 0
 (:mod:`.newton`; never s_i = d_i = 0).  The step y of  H y = F  splits by rows:

@@ -1,4 +1,4 @@
-"""Adaptive against uniform refinement on SPEC §7 problems A and D (issue #3 figures).
+"""Adaptive against uniform refinement on docs/theory.md §7 problems A and D (issue #3 figures).
 
 What it shows, per problem, strategy and method: the energy error and the estimator η
 per level, the convergence rate r in error ~ N^{-r} (least squares over the last five

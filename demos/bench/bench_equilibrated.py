@@ -1,16 +1,16 @@
 """Guaranteed bounds by flux equilibration (issue 30, phase 1): effectivity per level, and
 the cost of the reconstruction against one CG + GAMG solve.
 
-Effectivity (default): SPEC problems A (P1, P2), C (P1, P2; configs/signorini_smooth.yaml),
-D (P1) and PETSc ex9's obstacle (P1; configs/peers/petsc_ex9.yaml), all with exact
-solutions, through the adaptive loop (Dörfler θ = 0.5, ``--strategy uniform`` for uniform
-refinement) with ``estimator: equilibrated`` while the next level stays within ``--max-dofs``.  Per level: DoFs, the
-energy error, the guaranteed η and its effectivity η / error, the residual estimator's
-effectivity on the same solve (SPEC §5), the parts of the bound (A, B, W, D of
-contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
-η ≥ error on every level and η / error ≤ 1.5 on every level past the first three, prints
-each level and a verdict per problem, and writes ``effectivity.csv`` (``effectivity_np2.csv``
-under ``mpirun -n 2``).
+Effectivity (default): problems of docs/theory.md §7, A (P1, P2), C (P1, P2;
+configs/signorini_smooth.yaml), D (P1) and PETSc ex9's obstacle (P1; configs/peers/petsc_ex9.yaml),
+all with exact solutions, through the adaptive loop (Dörfler θ = 0.5, ``--strategy uniform`` for
+uniform refinement) with ``estimator: equilibrated`` while the next level stays within
+``--max-dofs``.  Per level: DoFs, the energy error, the guaranteed η and its effectivity η / error,
+the residual estimator's effectivity on the same solve (docs/theory.md §5), the parts of the bound
+(A, B, W, D of contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's
+seconds.  It checks η ≥ error on every level and η / error ≤ 1.5 on every level past the first
+three, prints each level and a verdict per problem, and writes ``effectivity.csv``
+(``effectivity_np2.csv`` under ``mpirun -n 2``).
 
     python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
@@ -55,7 +55,7 @@ BOUND, LEVELS_EXEMPT = 1.5, 3
 
 
 def residual_eta(scene: contact.Scene, result) -> float:
-    """The residual estimator (SPEC §5) of the same solve."""
+    """The residual estimator (docs/theory.md §5) of the same solve."""
     return estimate(dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result).eta
 
 

@@ -1,6 +1,6 @@
 """How accurate and how costly is the energy error ‖u − u_h‖_E per quadrature degree?
 
-What it shows: the adaptive loop of problem A (SPEC §7, u = −r^{3/2} cos(3θ/2), singular
+What it shows: the adaptive loop of problem A (docs/theory.md §7, u = −r^{3/2} cos(3θ/2), singular
 at the origin) reports ‖u − u_h‖_E on every level; the integrand holds the exact solution
 (r^{3/2}, atan2, cos at every quadrature point), so its quadrature degree sets the cost.
 On each level this script evaluates the error with degrees 2 … 8 and a reference of

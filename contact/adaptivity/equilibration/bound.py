@@ -1,5 +1,5 @@
 """A guaranteed upper bound of the energy error for the scalar Signorini and obstacle
-problems (SPEC §1.1–1.2, §9), from an equilibrated flux (:func:`.flux.reconstruct_flux`).
+problems (docs/theory.md §1.1–1.2, §9), from an equilibrated flux (:func:`.flux.reconstruct_flux`).
 
 Notation: |||v|||² = ∫_Ω k |∇v|², e = u − u_h; σ = +1 for the constraint u ≤ g (Signorini, and
 the upper obstacle ψ = g), σ = −1 for u ≥ ψ, so σ(u − g) ≤ 0 and σλ ≤ 0 for the exact
