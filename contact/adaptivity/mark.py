@@ -25,7 +25,7 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
     """
     parts = comm.gather(np.asarray(eta_sq, dtype=float), root=0)
     tau = None
-    if comm.rank == 0:
+    if parts is not None:   # rank 0
         values = np.sort(np.concatenate(parts))[::-1]
         cumulative = np.cumsum(values)
         if len(values) == 0 or cumulative[-1] <= 0:

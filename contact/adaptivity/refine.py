@@ -79,6 +79,7 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
     for surface in boundary_surfaces(scene.cfg, scene.mesh.geometry.dim, scene.boundary):
         surface.snap(new, tags)
     for surface in builder_surfaces(scene.cfg):   # by the mesh's own tags of its curved surfaces
+        assert surfaces is not None  # a mesh builder with curved surfaces tags them
         surface.snap(new, surfaces)
     clock.append(time.perf_counter())
     if timings is not None:
@@ -122,7 +123,7 @@ def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     if msh.comm.size == 1:
         return None
     if rebalance:
-        return dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)
+        return dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)  # type: ignore[call-arg]
     return dmesh.IdentityPartitionerPlaceholder()
 
 
@@ -131,6 +132,7 @@ def _owned_cells(scene: Scene, cells: Any) -> np.ndarray:
     arr = np.asarray(cells)
     comm = scene.comm
     n_owned = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    problem: str | None
     if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
         problem = f"expected a 1D array of integer cell indices, got {arr.dtype} with shape {arr.shape}"
     else:

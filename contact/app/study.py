@@ -76,9 +76,18 @@ LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of t
 STRATEGIES = ("none", "uniform", "dorfler", "maximum")
 CHARTS = ("speed_accuracy", "stability", "iterations")
 
-_SOLVER = SCENE["solver"].schema
-_ADAPT = SCENE["adapt"].schema
-_FRICTION = SCENE["friction"].schema
+
+
+def _section(name: str) -> Mapping[str, Field]:
+    """The fields of the scene section ``name`` (a section has a schema)."""
+    schema = SCENE[name].schema
+    assert schema is not None, f"scene section {name} has no schema"
+    return schema
+
+
+_SOLVER = _section("solver")
+_ADAPT = _section("adapt")
+_FRICTION = _section("friction")
 
 #: axis name -> the Field each of its values is validated with
 AXES: dict[str, Field] = {
@@ -428,7 +437,9 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     if scene.cfg.get("reference"):
         from ..post.reference import compare, error_values
 
-        out.update(error_values(scene.cfg, compare(scene, result)))
+        comparison = compare(scene, result)
+        assert comparison is not None  # the scene declares a reference
+        out.update(error_values(scene.cfg, comparison))
     out["eta"] = "" if eta is None else eta
     out["active_measure"] = active_measure(result)
     return out

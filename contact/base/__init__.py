@@ -2,5 +2,6 @@
 
 * :mod:`.lifetime` — who destroys which PETSc object; counting communicators, PETSc
   objects and memory;
+* :mod:`.norms` — ‖v‖₂ of a PETSc vector, typed as a float;
 * :mod:`.progress` — progress lines of long runs.
 """

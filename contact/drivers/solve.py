@@ -64,7 +64,8 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     timers = {"assembly": built, "solve": 0.0}
 
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
-    levels, note = [], ""
+    levels: list[sequencing.CoarseLevel] = []
+    note = ""
     if u0 is None:
         t0 = time.perf_counter()
         u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)

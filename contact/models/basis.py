@@ -130,7 +130,7 @@ def _blocked_csr(K: PETSc.Mat, bs: int, per_node: np.ndarray, cols: np.ndarray, 
         pos = start[:, None] + np.arange(bs)
         indices[pos] = scalar_cols
         values[pos] = blocks[:, a, :]
-    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, comm=K.comm,
-                              csr=(indptr, indices, values))
+    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, comm=K.comm,  # type: ignore[arg-type]
+                              csr=(indptr, indices, values))  # type: ignore[arg-type]
     Q.assemble()
     return Q

@@ -132,7 +132,7 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
             facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
             axes.append(k := _facet_normal_axis(scene, name, facets))
             dofs = fem.locate_dofs_topological(V.sub(k), tdim - 1, facets)
-            bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))
+            bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))  # type: ignore[operator]
     K, b = assemble_system(a, L, bcs)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
     return ElasticSystem(V, a_ufl, L_ufl, bcs, K, b, fixed,
@@ -188,13 +188,17 @@ def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None,
         m = np.zeros((n_local, gdim))
         m[:, i], m[:, j] = -X[:, j], X[:, i]
         modes.append(m)
-    basis = []
+    basis: list[PETSc.Vec] = []
     for m in modes:
         vec = PETSc.Vec().createMPI((n_local * gdim, PETSc.DECIDE), comm=msh.comm)
         vec.array[:] = m.ravel()
         if rotation is not None or inverse is not None:
             rotated = vec.duplicate()
-            (inverse.mult if inverse is not None else rotation.multTranspose)(vec, rotated)
+            if inverse is not None:
+                inverse.mult(vec, rotated)
+            else:
+                assert rotation is not None
+                rotation.multTranspose(vec, rotated)
             vec.destroy()
             vec = rotated
         for prev in basis:  # modified Gram–Schmidt

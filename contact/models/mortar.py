@@ -264,6 +264,7 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
     boxes = comm.allgather(box)
     lo, hi = (master.X.min(axis=1), master.X.max(axis=1)) if len(master.X) else (np.zeros((0, gdim)),) * 2
     send = []
+    assert master.vertex_normals is not None  # set for every master surface (_surface)
     for b in boxes:
         sel = np.zeros(len(master.X), dtype=bool) if b is None else \
             np.all((lo <= b[1]) & (hi >= b[0]), axis=1)
@@ -358,7 +359,7 @@ def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals:
     rows, cols, vals = rows[order], cols[order], vals[order]
     indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n_owned))]).astype(PETSc.IntType)
     M = PETSc.Mat().createAIJ(((n_owned, imap.size_global), (n_owned, imap.size_global)), comm=V.mesh.comm,
-                              csr=(indptr, cols.astype(PETSc.IntType), vals))
+                              csr=(indptr, cols.astype(PETSc.IntType), vals))  # type: ignore[arg-type]
     M.assemble()
     return M
 
@@ -416,6 +417,7 @@ def master_pressure(result: Result) -> fem.Function:
     ``lambda_master``."""
     p = result.problem
     S, bs = p.output_space, p.V.dofmap.index_map_bs
+    assert S is not None and p.output_map is not None  # a bodies problem has its output space
     node_of_s = p.output_map // bs
     lam_nodes = np.zeros((len(node_of_s), 1))
     lam_nodes[node_of_s, 0] = result.lmbda_h.x.array

@@ -29,8 +29,8 @@ from .problem import coordinate_scale, lumped_weights
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
     """For component k: its collapsed space S, the S → V map, and the (V-DoF, S-DoF) pairs
     on the contact facets."""
-    S, s_to_v = V.sub(k).collapse()
-    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    S, collapsed = V.sub(k).collapse()
+    s_to_v = np.asarray(collapsed, dtype=np.int32).ravel()
     tdim = V.mesh.topology.dim
     v_dofs, s_dofs = fem.locate_dofs_topological((V.sub(k), S), tdim - 1, facets)
     return S, s_to_v, v_dofs, s_dofs

@@ -43,7 +43,7 @@ def coefficient(text: str, scene: Scene) -> Any:
     consts = scene.cfg["constants"]
     if expressions.is_constant(text, consts):
         value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
-        return fem.Constant(scene.mesh, PETSc.ScalarType(value))
+        return fem.Constant(scene.mesh, PETSc.ScalarType(value))  # type: ignore[operator]
     return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
 
 
@@ -99,7 +99,7 @@ def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
     cols = A.index_map(1).local_to_global(A.indices[: indptr[-1]].astype(np.int32)).astype(PETSc.IntType)
     values = A.data[: indptr[-1] * bs * bs]      # row-major bs × bs blocks
     comm = a.mesh.comm
-    B = PETSc.Mat().createBAIJ(((n * bs, None), (n * bs, None)), bs, csr=(indptr, cols, values), comm=comm)
+    B = PETSc.Mat().createBAIJ(((n * bs, None), (n * bs, None)), bs, csr=(indptr, cols, values), comm=comm)  # type: ignore[arg-type]
     B.assemble()
     converted = B.convert("aij")
     # a copy: with PETSc 3.25 the converted matrix still refers to B's memory (using it
@@ -117,7 +117,7 @@ def assemble_system(a: fem.Form, L: fem.Form, bcs: list) -> tuple[PETSc.Mat, PET
     K = assemble_matrix(a, bcs)
     b = dolfinx.fem.petsc.assemble_vector(L)
     dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     dolfinx.fem.petsc.set_bc(b, bcs)
     return K, b
 
@@ -126,7 +126,7 @@ def lumped_weights(V: fem.FunctionSpace, measure: ufl.Measure) -> np.ndarray:
     """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed)."""
     v = ufl.TestFunction(V)
     w = dolfinx.fem.petsc.assemble_vector(fem.form(v * measure))
-    w.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    w.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     out = w.array.copy()
     w.destroy()
     return out

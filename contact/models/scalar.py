@@ -12,6 +12,7 @@ with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
@@ -85,7 +86,7 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         check_semicoercive(b, sign, cfg["model"]["type"])
 
     u_h = fem.Function(V, name="u_h")
-    ends = {}
+    ends: dict[str, Any] = {}
     if cfg["model"]["type"] == "signorini":
         ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
     return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends, in_domain=cfg["model"]["type"] == "obstacle",

@@ -198,7 +198,7 @@ def write_contact(folder: Path, scene: Scene, result: Result, comparison: Compar
     from ..post.contact_table import contact_table, value_name, write_table
 
     table = contact_table(scene, result)
-    if scene.comm.rank != 0:
+    if table is None:   # not rank 0
         return
     write_table(folder / "contact.csv", table)
     if scene.cfg["output"]["png"] and not result.problem.in_domain:

@@ -87,10 +87,12 @@ def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.
     connectivity = _gather_rows(connectivity, comm, root)
     if comm.rank != root:
         return None
+    assert x is not None and connectivity is not None  # gathered on root
     grid = _grid(x, connectivity, _vtk_cell_type(msh, _degree(W)))
     gdim = msh.geometry.dim
     for fields, where in ((points, grid.point_data), (cells, grid.cell_data)):
         for name, values in fields.items():
+            assert values is not None  # gathered on root
             if values.shape[1] == 1:
                 values = values[:, 0]
             elif values.shape[1] == gdim == 2:
@@ -147,6 +149,7 @@ def _gather_rows(a: np.ndarray, comm: MPI.Comm, root: int) -> np.ndarray | None:
     if comm.rank != root:
         comm.Gatherv(a, None, root=root)
         return None
+    assert counts is not None  # gathered on root
     out = np.empty((sum(counts) // int(np.prod(a.shape[1:])), *a.shape[1:]), dtype=a.dtype)
     comm.Gatherv(a, (out, counts), root=root)
     return out

@@ -35,6 +35,7 @@ def pair_bodies(scene: Scene, index: int) -> list[str]:
     """Names of the bodies of pair ``index``'s slave and master surfaces (from the cells
     of their facets)."""
     msh, bnd, comm = scene.mesh, scene.boundary, scene.comm
+    assert scene.bodies is not None  # a pair joins two bodies
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
@@ -70,7 +71,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     gdim = scene.mesh.geometry.dim
     n_owned = V.dofmap.index_map.size_local
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
-    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     residual = full.array_r.reshape(-1, bs).copy()
     full.destroy()
     fixed = np.zeros(n_owned * bs, dtype=bool)

@@ -65,7 +65,7 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cel
     try:
         if problem is None:
             data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
-                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))  # type: ignore[call-arg]
     except Exception as err:  # e.g. no physical groups (raised on every rank)
         problem = str(err)
     finally:
@@ -259,6 +259,7 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
                 elif volume == sphere:
                     kind = SPHERE_TOP if abs(z - R) < tol else SPHERE
                 else:
+                    assert bottom is not None  # the block has a bottom
                     kind = top if abs(z) < tol else bottom if abs(z + H) < tol else BLOCK_SIDES
                 groups[kind].append(face)
         names = {SPHERE: "sphere", SPHERE_TOP: "sphere_top", BLOCK_TOP: "block_top", BLOCK_BOTTOM: "block_bottom",
@@ -299,7 +300,7 @@ class CurvedBoundary:
         edges on the symmetry planes and the top stay on those planes."""
         c = np.asarray(self.centre, dtype=float)
         d = x - c
-        along = 0.0
+        along: float | np.ndarray = 0.0
         if self.axis is not None:
             a = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
             along = np.outer(d @ a, a)

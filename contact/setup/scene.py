@@ -49,7 +49,7 @@ class Scene:
             from dolfinx import fem
             from petsc4py import PETSc
 
-            self._t_constant = fem.Constant(self.mesh, PETSc.ScalarType(self.time))
+            self._t_constant = fem.Constant(self.mesh, PETSc.ScalarType(self.time))  # type: ignore[operator]
         return self._t_constant
 
     def set_time(self, t: float) -> None:

@@ -154,7 +154,12 @@ class FrictionalComplementarity(Complementarity):
         a, b, r = self.pair(x)
         mu_n = -self.sign * r[self.dofs] / self.w
         xi = (b - a) / self.c
-        rho = fs.coefficient * np.maximum(xi, 0.0) if self.coulomb else self.threshold
+        if self.coulomb:
+            assert fs.coefficient is not None  # a Coulomb set has its coefficient F
+            rho = fs.coefficient * np.maximum(xi, 0.0)
+        else:
+            assert self.threshold is not None  # Tresca's threshold s(x)
+            rho = self.threshold
         mu_t = -r[fs.tangent] / self.w[:, None]
         s = x.array_r[fs.tangent] - fs.x_prev
         law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
@@ -187,11 +192,12 @@ class FrictionalComplementarity(Complementarity):
         Bv[rows] = law.J_mu + eye
         Dv[rows] = -self.w[:, None, None] * law.J_s
         if self.coulomb:
+            assert fs.coefficient is not None  # a Coulomb set has its coefficient F
             gate = self.sign * fs.coefficient * ncp.active_min(st["a"], st["b"], tau)   # [ξ > 0]
             Bv[nodes[:, None], t[None, :], k] = gate[:, None] * law.J_rho
             Dv[nodes[:, None], t[None, :], k] = -(self.w * gate / self.c)[:, None] * law.J_rho
         self.B.set(Bv).matMult(self.p.K, result=H)
-        H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
 
     def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
         """Per node: SEPARATED (normal inactive, :meth:`active_set`), STICK or SLIP (a node
@@ -250,6 +256,8 @@ def surface_functions(result: Result) -> list[fem.Function]:
     on the displacement space), the status (0 separated, 1 stick, 2 slip; −1 off Γ_C) and the
     friction bound ρ (on the scalar output space)."""
     p, fr = result.problem, result.friction
+    if fr is None:
+        raise ValueError("friction fields of a frictionless result")
     V, con = p.V, p.constraint
     bs = V.dofmap.index_map_bs
     nodes = con.dofs // bs

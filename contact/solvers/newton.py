@@ -46,7 +46,10 @@ class Complementarity:
         self.p = problem
         self.R = problem.b.duplicate()
         con = problem.constraint
-        self.dofs, self.g, self.w, self.sign, self.c = con.dofs, con.g, con.w, con.sign, problem.c
+        if problem.c is None:
+            raise ValueError("the NCP scaling problem.c is set before the solve")
+        self.dofs, self.g, self.w, self.sign = con.dofs, con.g, con.w, con.sign
+        self.c: np.ndarray | float = problem.c
         self.s, self.d = problem.b.duplicate(), problem.b.duplicate()  # Jacobian scalings
 
     def pair(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -120,7 +123,7 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
 
     set_newton(snes, cp.p, system.J, lambda x, f: cp.phi(x, f, method, mu), jacobian,
                opts, timers, state, petsc_opts)
-    precheck = None
+    precheck: Polisher | GuardedMin | None = None
     if opts["polish"] and method != "min":
         precheck = Polisher(cp, method, mu, system, timers)
     elif method == "min" and opts["line_search"] == "auto":

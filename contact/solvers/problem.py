@@ -218,14 +218,14 @@ class NodeBlockMatrix:
         self.indptr = np.arange(0, n * bs * bs + 1, bs, dtype=PETSc.IntType)
         cols = lo + np.arange(n * bs, dtype=PETSc.IntType).reshape(n, 1, bs)
         self.indices = np.broadcast_to(cols, (n, bs, bs)).ravel().copy()
-        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)
+        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)  # type: ignore[arg-type]
 
     def identity(self) -> np.ndarray:
         """Identity blocks, (local nodes, bs, bs)."""
         return np.tile(np.eye(self.bs), (self.local_nodes, 1, 1))
 
     def set(self, blocks: np.ndarray) -> PETSc.Mat:
-        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())
+        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())  # type: ignore[arg-type]
         self.mat.assemble()
         return self.mat
 

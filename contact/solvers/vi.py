@@ -30,7 +30,7 @@ def setup_vi(snes: PETSc.SNES, problem: DiscreteProblem, method: str, timers: di
     def jacobian(snes, x, J_, P):
         # vinewtonssls scales the Jacobian in place: hand it a fresh copy of K each time
         t0 = time.perf_counter()
-        problem.K.copy(P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        problem.K.copy(P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         state["t_jac"] = now = time.perf_counter()
         timers["assembly"] += now - t0
 
