@@ -1,6 +1,6 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, run the test suite
-# make lint  — mypy on contact/ (configuration in pyproject.toml)
+# make lint  — ruff (lint, format) on contact/ tests/ demos/ and mypy on contact/ (pyproject.toml)
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
 # make venv-latest — the newest release of every dependency in .venv-latest (test-latest: its tests)
 # make lock  — after test-latest passed: .venv-latest's versions become constraints.txt
@@ -32,6 +32,8 @@ test: venv
 	$(VENV)/bin/python -m pytest -q tests
 
 lint: venv
+	$(VENV)/bin/ruff check contact tests demos
+	$(VENV)/bin/ruff format --check contact tests demos
 	$(VENV)/bin/mypy
 
 # the newest releases, in a venv of their own (never the tested .venv): upgrades are deliberate

@@ -117,8 +117,8 @@ fixed = contact.solve(contact.load_scene({**scene_data, "load": {"steps": 1},
 diff = comm.allreduce(float(np.max(np.abs(newton.u_h.x.array - fixed.u_h.x.array))), op=MPI.MAX)
 diff /= comm.allreduce(float(np.max(np.abs(newton.u_h.x.array))), op=MPI.MAX)
 say(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
-    f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton iterations); "
-    f"max |u_newton - u_fixed| / max |u| = {diff:.1e}")
+    f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton "
+    f"iterations); max |u_newton - u_fixed| / max |u| = {diff:.1e}")
 # -
 
 # ## The tractions along Γ_C

@@ -67,7 +67,7 @@ scene = contact.load_scene({
 levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=LEVELS).levels
 say(f"{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'Newton':>6s} {'active':>6s}")
 for lv in levels:
-    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} {lv.result.n_active:6d}")
+    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} " f"{lv.result.n_active:6d}")
 scene, result = levels[-1].scene, levels[-1].result
 
 # ## Force balance
@@ -95,10 +95,12 @@ table = contact_table(scene, result)
 if comm.rank == 0:
     x, p, active = table["x"], -table["lambda_n"], table["active"] > 0
     last = x[active].max()
-    a_h = 0.5 * (last + x[~active & (x > last)].min())   # between the last active and the first free node
+    # between the last active and the first free node
+    a_h = 0.5 * (last + x[~active & (x > last)].min())
     p0_h = p.max()
     say(f"half-width a = {a_h:.5f} (Hertz {a_H:.5f}, {100 * (a_h / a_H - 1):+.2f}%), "
-        f"peak pressure p0 = {p0_h:.5f} (Hertz {p0_H:.5f}, {100 * (p0_h / p0_H - 1):+.2f}%), a/R = {a_h / R:.3f}")
+        f"peak pressure p0 = {p0_h:.5f} (Hertz {p0_H:.5f}, {100 * (p0_h / p0_H - 1):+.2f}%), a/R = "
+        f"{a_h / R:.3f}")
 
 # ## What you see
 #

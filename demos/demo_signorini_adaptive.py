@@ -78,10 +78,11 @@ for level in range(LEVELS):
     est = contact.estimate(scene, result)                                    # ESTIMATE
     error = energy_error(result.u_h, exact)
     rows.append((result.dofs, est.eta, error, result.iterations))
-    say(f"{level:5d} {result.dofs:7d} {est.eta:10.3e} {error:10.3e} {est.eta / error:9.2f} {result.iterations:6d}")
+    say(f"{level:5d} {result.dofs:7d} {est.eta:10.3e} {error:10.3e} {est.eta / error:9.2f} " f"{result.iterations:6d}")
     if level + 1 < LEVELS:
         cells = contact.mark(est.eta_T, "dorfler", theta=0.5)                # MARK
-        scene, u0 = contact.refine(scene, cells, result.u_h)                 # REFINE (+ nested guess)
+        # REFINE (+ nested guess)
+        scene, u0 = contact.refine(scene, cells, result.u_h)
 
 # ## Rates
 #

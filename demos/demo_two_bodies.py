@@ -104,7 +104,8 @@ scene = contact.load_scene({
                    "slave": {"role": "interface", "where": "abs(x) < 2 and y < 1", "body": "upper"},
                    "master": {"role": "interface", "where": "abs(x) < 3 and y > -1", "body": "lower"}},
     "pairs": [{"slave": "slave", "master": "master"}],
-    "reference": {"type": "hertz"},     # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
+    # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
+    "reference": {"type": "hertz"},
     "model": {"type": "elasticity"},
     "data": {"u_D": ["0", f"-{delta} * (y > 0)"]},
     "output": {"verbose": False},
@@ -112,7 +113,7 @@ scene = contact.load_scene({
 levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=LEVELS).levels
 say(f"\n{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'Newton':>6s} {'active':>6s}")
 for lv in levels:
-    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} {lv.result.n_active:6d}")
+    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} " f"{lv.result.n_active:6d}")
 scene, result = levels[-1].scene, levels[-1].result
 
 # ## Action and reaction
@@ -138,8 +139,9 @@ say(f"\nforce on the slave surface {F_s:.6f}, on the master surface {F_m:.6f} "
 
 hz = compare(scene, result).values
 say(f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, "
-    f"{100 * hz['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} "
-    f"(Hertz {hz['hertz_p0']:.5f}, {100 * hz['p0_error']:+.2f}%), a/R_c = {hz['contact_half_width'] / Rc:.3f}")
+    f"{100 * hz['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} (Hertz "
+    f"{hz['hertz_p0']:.5f}, {100 * hz['p0_error']:+.2f}%), a/R_c = "
+    f"{hz['contact_half_width'] / Rc:.3f}")
 
 # ## Partial slip: Cattaneo–Mindlin
 #

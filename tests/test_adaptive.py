@@ -49,9 +49,11 @@ def _same_levels(serial, parallel):
         assert s["dofs"] == p["dofs"] and s["cells"] == p["cells"], (s, p)
         assert abs(s["eta"] - p["eta"]) <= 1e-8 * s["eta"], (s["eta"], p["eta"])
         assert abs(s["error"] - p["error"]) <= 1e-8 * s["error"]
-        assert min(s["tie_margin"], p["tie_margin"]) >= 1e-6   # no node near a tie: counts cannot move
+        # no node near a tie: counts cannot move
+        assert min(s["tie_margin"], p["tie_margin"]) >= 1e-6
         assert s["active_nodes"] == p["active_nodes"]
-        # the busiest rank's share of the owned DoFs over the mean: 1 in serial, in [1, 2] on 2 ranks
+        # the busiest rank's share of the owned DoFs over the mean: 1 in serial, in [1, 2] on 2
+        # ranks
         assert s["rank_imbalance"] == 1.0 and 1.0 <= p["rank_imbalance"] <= 2.0
 
 

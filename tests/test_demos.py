@@ -59,4 +59,5 @@ def test_demo_friction(tmp_path):
     assert _number(r"max \|u_newton - u_fixed\| / max \|u\| = (\S+)", out) < 1e-8
     steps = re.findall(r"^\s+(\d+)\s+([0-9.]+)\s+(\d+)\s+(\d+)\s+(\d+)\s+([0-9.]+)$", out, re.M)
     assert len(steps) == 10 and max(int(s[2]) for s in steps) <= 10
-    assert int(steps[0][3]) > 0 and int(steps[-1][3]) == 0          # stick first, sliding at the end
+    # stick first, sliding at the end
+    assert int(steps[0][3]) > 0 and int(steps[-1][3]) == 0

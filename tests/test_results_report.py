@@ -30,7 +30,8 @@ def _demo_module(name: str):
 def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
-    assert text.count("*Not available:") == 13  # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost
+    # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost
+    assert text.count("*Not available:") == 13
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -47,7 +48,8 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     section = text.split("## 3.", 1)[1].split("## 4.", 1)[0]
     ok = [r for r in rows if r["converged"]]
     assert f"{len(ok)} of {len(rows)} runs converge" in section
-    fb = [r["newton_iterations"] + r["polish_solves"] for r in rows if r["method"] == "fb"]  # linear solves
+    # linear solves
+    fb = [r["newton_iterations"] + r["polish_solves"] for r in rows if r["method"] == "fb"]
     assert f"fb {min(fb)}–{max(fb)}" in section
     failed = [r for r in rows if not r["converged"]]
     assert failed and all(f"| {r['case']} | {r['method']} | max iterations | 2 |" in section for r in failed)

@@ -187,7 +187,8 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     master_ids = [bnd.ids[pair["master"]] for pair in scene.cfg["pairs"]]
     extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
     Tt_s, Tt_m = Tt, Tt
-    if result.friction is not None:   # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
+    # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
+    if result.friction is not None:
         from ..solvers.friction import surface_functions
 
         lam_t, slip = surface_functions(result)[:2]

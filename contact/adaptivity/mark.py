@@ -71,8 +71,8 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
 
 def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
     if not isinstance(eta_T, fem.Function):
-        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got {type(eta_T).__name__}")
+        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got " f"{type(eta_T).__name__}")
     if strategy not in STRATEGIES:
-        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of " f"{', '.join(STRATEGIES)}")
     if isinstance(theta, bool) or not isinstance(theta, (int, float)) or not 0 < theta <= 1:
         raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")

@@ -51,7 +51,8 @@ class Level:
         row = {"level": self.index, "dofs": self.result.dofs,
                "cells": msh.topology.index_map(msh.topology.dim).size_global,
                "eta": self.estimate.eta}
-        row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})  # Σ_T of each term
+        # Σ_T of each term
+        row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
         row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
@@ -109,13 +110,13 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         t0 = time.perf_counter()
         problem = build_problem(scene)
         seconds["assembly"] = problem.assembly_time
-        progress.note(lambda: f"level {index}: assembled, {problem.assembly_time:.0f} s")
+        progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
         result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
                        sequence=None if opts["nested"] else "off")
         seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
-        progress.note(lambda: f"level {index}: solved ({result.dofs} DoFs), "
-                              f"{seconds['solve']:.0f} s; estimating")
+        progress.note(f"level {index}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; "
+                      "estimating")
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] = time.perf_counter() - t0
@@ -165,7 +166,8 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
             break
-        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):  # memory budget of one solve
+        # memory budget of one solve
+        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):
             out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
         scene, u0 = new_scene, new_u0
@@ -180,7 +182,7 @@ def format_table(rows: list[dict]) -> str:
 
 
 def _header() -> str:
-    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} {'active':>7s} {'solve s':>8s}"
+    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} " f"{'active':>7s} {'solve s':>8s}"
 
 
 def _format(r: dict) -> str:

@@ -43,7 +43,8 @@ from ..base.errors import ConfigError
 from ..models import build_problem
 from ..setup.scene import Scene
 
-AUTO_MIN_DOFS = 4_000     # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
+# measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
+AUTO_MIN_DOFS = 4_000
 COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many DoFs
 COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
 ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
@@ -94,7 +95,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     ratio = 2 ** dim
 
     if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
-        return [], "grid sequencing: not for frictional scenes (slip depends on the load history); cold start"
+        return [], "grid sequencing: not for frictional scenes (slip depends on the load history); " "cold start"
     if scene.bodies is not None:
         return [], "grid sequencing: not for scenes of several bodies yet; cold start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
@@ -421,7 +422,8 @@ def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float 
     best = np.maximum.reduceat(score, group)
     hit = np.flatnonzero(score >= best[point_of])
     chosen = np.empty(len(points), dtype=np.int64)
-    chosen[point_of[hit[::-1]]] = cand[hit[::-1]]             # the first best candidate of each point
+    # the first best candidate of each point
+    chosen[point_of[hit[::-1]]] = cand[hit[::-1]]
     if len(lost):
         chosen[lost] = _locate(verts, inv, points[lost], grow + 1.0)
     return chosen

@@ -126,7 +126,8 @@ def _blocked_csr(K: PETSc.Mat, bs: int, per_node: np.ndarray, cols: np.ndarray, 
     node_of_block = np.repeat(np.arange(n_local), per_node)
     rank_in_row = np.arange(len(cols)) - block_start[node_of_block]
     for a in range(bs):
-        start = indptr[node_of_block * bs + a] + rank_in_row * bs             # first entry of the block in row (i, a)
+        # first entry of the block in row (i, a)
+        start = indptr[node_of_block * bs + a] + rank_in_row * bs
         pos = start[:, None] + np.arange(bs)
         indices[pos] = scalar_cols
         values[pos] = blocks[:, a, :]

@@ -132,4 +132,5 @@ def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
     comps = sorted(set(c for part in comps for c in part))
     if comps:
         raise ConfigError(f"data.u_D[{comps[0]}]: moves nodes of a symmetry plane across it; with "
-                          "friction a drag across a symmetry plane is not symmetric (model the full body)")
+                          "friction a drag across a symmetry plane is not symmetric (model the "
+                          "full body)")

@@ -66,7 +66,8 @@ class Facets:
     nodes: np.ndarray    # (F, nv) local node indices (blocks of V's DoFs)
     gnodes: np.ndarray   # (F, nv) global node indices
     normals: np.ndarray  # (F, gdim) unit normals out of the body
-    vertex_normals: np.ndarray | None = None  # (F, nv, gdim) the surface's nodal normals at the vertices
+    # (F, nv, gdim) the surface's nodal normals at the vertices
+    vertex_normals: np.ndarray | None = None
 
 
 @dataclass
@@ -214,7 +215,8 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
     unit triangular); a one-line ConfigError otherwise.  Checked on the surfaces, before
     any coupling is computed."""
     comm, imap, bnd = scene.comm, V.dofmap.index_map, scene.boundary
-    owned = np.zeros((imap.size_local, 3), dtype=int)   # per owned node: slave, master, obstacle parts through it
+    # per owned node: slave, master, obstacle parts through it
+    owned = np.zeros((imap.size_local, 3), dtype=int)
 
     def count(column: int, facets: np.ndarray) -> None:
         flag = la.vector(imap, 1)
@@ -232,8 +234,9 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
     if comm.allreduce(len(bad), op=MPI.SUM):
         where = _first_point(comm, V, bad)
         raise ConfigError(f"pairs: the node at {where} is both a slave and a master node (or a slave node of "
-                          "two pairs, or on a pair and on the obstacle's contact part); a node may be the "
-                          "slave of one pair only, and never a master or obstacle contact node too")
+                          "two pairs, or on a pair and on the obstacle's contact part); a node may "
+                          "be the slave of one pair only, and never a master or obstacle contact "
+                          "node too")
 
 
 def part_facets(bnd, name: str) -> np.ndarray:
@@ -380,8 +383,9 @@ def _no_master(comm, V, nodes: np.ndarray, key: str, pair: dict, search: float) 
         total = comm.allreduce(len(nodes), op=MPI.SUM)
         where = _first_point(comm, V, nodes)
         raise ConfigError(f"{key}.slave: {total} slave node(s) of {pair['slave']!r}, e.g. at {where}, have no "
-                          f"master facet of {pair['master']!r} within the search distance {search:.4g} "
-                          f"({key}.search) facing (at least half of) their facets; restrict the slave part "
+                          f"master facet of {pair['master']!r} within the search distance "
+                          f"{search:.4g} ({key}.search) facing (at least half of) their facets; "
+                          f"restrict the slave part "
                           "to lie within the master surface, or raise the search distance")
 
 

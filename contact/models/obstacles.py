@@ -52,7 +52,8 @@ def obstacle_shape(scene: Scene) -> tuple:
             raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
         return (lambda x: np.tile(-nu_o, (len(x), 1)), lambda x: (x - p) @ nu_o,
                 ufl.as_vector((-nu_o).tolist()),                                       # n = −ν
-                ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))  # g = (x − p)·ν
+                # g = (x − p)·ν
+                ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))
     want = "circle" if gdim == 2 else "sphere"
     if obstacle["type"] != want:
         raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")

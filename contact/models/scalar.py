@@ -116,5 +116,6 @@ def check_semicoercive(b, sign: float, model: str) -> None:
             abs(resultant) <= RESULTANT_RTOL * scale else
             f"= {resultant:.3g} pulls it away from the obstacle ({bound}): no solution exists")
     raise ConfigError(f"data.f: the scene has no dirichlet boundary, so only the {model} constraint holds the "
-                      f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto the obstacle "
+                      f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto "
+                      f"the obstacle "
                       "or add a dirichlet boundary")

@@ -92,7 +92,7 @@ def output_problem(outdir: Path) -> str | None:
             return "is an existing file; nothing was changed (give a folder name that does not exist)"
         written = _manifest(outdir)
         if written is None:
-            return (f"is an existing folder that contact did not write (no {MARKER} marker); nothing was "
+            return (f"is an existing folder that contact did not write (no {MARKER} marker); " f"nothing was "
                     "changed (give a new folder name, or remove it yourself)")
         foreign = sorted(set(_entries(outdir)) - written - {MARKER})
         if foreign:

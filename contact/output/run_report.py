@@ -144,7 +144,8 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
     if comparison is not None:
         out["reference"] = scene.cfg["reference"]["type"]
         out.update(comparison.values)
-    error = solution_error(scene, result) if error is None else error   # the adaptive loop's, if known
+    # the adaptive loop's, if known
+    error = solution_error(scene, result) if error is None else error
     if error is not None:
         out["error_energy"] = error
     return out

@@ -255,5 +255,5 @@ class Series:
 def pvd(steps: Sequence[tuple[float, str]]) -> str:
     """The ParaView collection file of (time value, file name) pairs."""
     rows = "\n".join(f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>' for t, f in steps)
-    return ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+    return ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" ' 'byte_order="LittleEndian">\n'
             f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")

@@ -215,7 +215,8 @@ def lagrange_mesh(W: fem.FunctionSpace) -> tuple[dmesh.Mesh, np.ndarray, np.ndar
         return graph.adjacencylist(np.full(n_cells, comm.rank, dtype=np.int32))._cpp_object
 
     x = W.tabulate_dof_coordinates()[: imap.size_local, :gdim]
-    # basix.ufl.element is annotated as returning the abstract base, create_mesh lists its subclasses
+    # basix.ufl.element is annotated as returning the abstract base, create_mesh lists its
+    # subclasses
     out = dmesh.create_mesh(comm, global_of[W.dofmap.list[:n_cells]], element,  # type: ignore[arg-type]
                             x, partitioner=keep_cells)
     order = np.argsort(global_of)

@@ -246,7 +246,8 @@ def to_numpy(text: str | float, constants: Mapping[str, float] = {}, t: float = 
         X = np.asarray(x, dtype=float)
         symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0],
                        t=np.float64(t))
-        if "r" in names:  # only what the expression uses (interpolation evaluates millions of points)
+        # only what the expression uses (interpolation evaluates millions of points)
+        if "r" in names:
             symbols["r"] = np.hypot(symbols["x"], symbols["y"])
         if "theta" in names:
             symbols["theta"] = np.arctan2(symbols["y"], symbols["x"])

@@ -201,7 +201,8 @@ def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contac
     def build(gmsh):
         occ = gmsh.model.occ
         contacts, surfaces, arcs, flats = [], [], [], []
-        for R, s, y0 in ((radius, 1.0, 0.0), (radius2, -1.0, overlap)):   # upper (centre (0, R1)), lower (centre (0, d − R2))
+        # upper (centre (0, R1)), lower (centre (0, d − R2))
+        for R, s, y0 in ((radius, 1.0, 0.0), (radius2, -1.0, overlap)):
             p0 = occ.addPoint(0, y0, 0)
             centre = occ.addPoint(0, y0 + s * R, 0)
             left, right = occ.addPoint(-R, y0 + s * R, 0), occ.addPoint(R, y0 + s * R, 0)

@@ -57,8 +57,10 @@ class DiscreteProblem:
     K: PETSc.Mat
     b: PETSc.Vec
     constraint: Constraint
-    c: np.ndarray | float | None = None  # NCP scaling (gap per λ), nodal or one number; set by solve()
-    end_dofs: np.ndarray | None = None       # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
+    # NCP scaling (gap per λ), nodal or one number; set by solve()
+    c: np.ndarray | float | None = None
+    # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
+    end_dofs: np.ndarray | None = None
     end_neighbours: np.ndarray | None = None # the nearest constrained DoF of each (local index)
     # Output of nodal fields on a scalar space S (S = V for scalar models; the contact
     # component's collapsed subspace for elasticity, with the S → V DoF map):
@@ -68,12 +70,15 @@ class DiscreteProblem:
     lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
     near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
     basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
-    basis_inverse: PETSc.Mat | None = None  # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
-    output_nodes: np.ndarray | None = None  # output-space DoFs of the contact nodes (multi-body problems)
+    # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
+    basis_inverse: PETSc.Mat | None = None
+    # output-space DoFs of the contact nodes (multi-body problems)
+    output_nodes: np.ndarray | None = None
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
     in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
-    semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
+    # no Dirichlet DoF: K is singular (constants), held by the constraint alone
+    semicoercive: bool = False
     floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
     symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies

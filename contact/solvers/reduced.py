@@ -40,8 +40,8 @@ and never below what SNES's stopping test needs: the residual of the linear mode
 next ‖Φ‖ (when the law does not change), so the solve stops once ‖r‖ ≤ ``stop`` / 20
 (``stop`` = max(atol, rtol ‖Φ_0‖), set by the solver).  When a Newton step has the law of
 the step before (min's active set settled), Φ is linear on the piece the iterates are in,
-and the step is solved to that stopping value at once: one more step ends the iteration.  With ``forcing=False`` every
-solve runs to ``rtol`` (:data:`EXACT_RTOL`, or the user's ``ksp_rtol``).
+and the step is solved to that stopping value at once: one more step ends the iteration.  With
+``forcing=False`` every solve runs to ``rtol`` (:data:`EXACT_RTOL`, or the user's ``ksp_rtol``).
 
 This applies to diagonal laws only; a block law (friction, H = B K + D) uses the
 assembled system of :mod:`.linear`.
@@ -56,7 +56,8 @@ from petsc4py import PETSc
 
 from ..base.norms import norm2
 
-FIXED = 1e-8      # s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
+# s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
+FIXED = 1e-8
 ETA_MAX = 0.1     # the loosest forcing term
 POOR_PROGRESS = 0.5  # ‖Φ_k‖ > 0.5 ‖Φ_{k−1}‖: the next forcing term is at most a tenth of the last
 GAMMA, ALPHA = 0.9, 2.0
@@ -87,7 +88,8 @@ class ReducedSystem:
                  forcing: bool = True):
         self.K = K
         self.A = K.duplicate(copy=True)   # the reduced operator
-        self.P = K.duplicate(copy=True)   # the matrix GAMG was last built from (= A, or an earlier A)
+        # the matrix GAMG was last built from (= A, or an earlier A)
+        self.P = K.duplicate(copy=True)
         if near_nullspace is not None:
             self.P.setNearNullSpace(near_nullspace)
         self.Kdiag = K.getDiagonal()
@@ -220,8 +222,8 @@ class ReducedSystem:
         they cost less than rebuilding it: with S = :data:`SETUP_ITERATIONS` the cost of a
         set-up in iterations and ρ the convergence rate per iteration of the last fresh
         setup, a lagged solve may take the iterations a fresh one would
-        (log(target/‖r‖)/log ρ) plus S.  Past that GAMG is rebuilt and the solve goes on from where it stopped; a
-        lagged solve that used more than half of that margin ends the lagging."""
+        (log(target/‖r‖)/log ρ) plus S.  Past that GAMG is rebuilt and the solve goes on from where
+        it stopped; a lagged solve that used more than half of that margin ends the lagging."""
         ksp = self.ksp
         lagged = self._lagged
         ksp.getPC().setReusePreconditioner(lagged)

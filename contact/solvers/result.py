@@ -50,8 +50,10 @@ class Result:
     sequence: list = field(default_factory=list)   # coarse levels of grid sequencing (CoarseLevel)
     sequence_note: str = ""       # why there are fewer coarse levels than asked, or none
     contact_force: float = 0.0
-    friction: dict | None = None   # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
-    hint: str = ""                 # a failed solve: what in the scene makes it hard ('' if nothing known)
+    # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
+    friction: dict | None = None
+    # a failed solve: what in the scene makes it hard ('' if nothing known)
+    hint: str = ""
 
     @property
     def linear_solves(self) -> int:

@@ -72,16 +72,15 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher, guard, system = None, None, None
     if friction is not None:   # the block law H = B K + D (no polishing)
-        J = owner.own(setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts))
+        owner.own(setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts))
     elif method in ncp.METHODS:
         system = owner.own(newton_system(problem, linear, prefix, forcing=opts["inexact"]))
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
         precheck = owner.own(setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose))
         polisher = precheck if isinstance(precheck, Polisher) else None
         guard = precheck if isinstance(precheck, GuardedMin) else None
-        J = system.J
     else:
-        J = owner.own(setup_vi(snes, problem, method, timers, state))
+        owner.own(setup_vi(snes, problem, method, timers, state))
 
     def post_solve(ksp, rhs, sol):
         if system is not None:
@@ -93,7 +92,8 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
 
     snes.getKSP().setPostSolve(post_solve)
     snes.setTolerances(rtol=opts["rtol"], atol=atol, stol=0.0, max_it=opts["max_it"])
-    snes.setDivergenceTolerance(PETSc.UNLIMITED)  # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
+    # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
+    snes.setDivergenceTolerance(PETSc.UNLIMITED)
     history: list[dict] = []
     prev = {"x": owner.own(x.duplicate()), "active": None}
 
@@ -128,7 +128,8 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         if verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
-                  f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
+                  f"active {n_active:7d}  changed "
+                  f"{changed:6d}{extra}{'  polished' if row['polished'] else ''}",
                   flush=True)
             progress.heard()
         else:

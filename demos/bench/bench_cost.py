@@ -11,12 +11,16 @@ DoFs (the work in units of one fine solve), and the largest nodal difference to 
 of the solver as it was before issue 11 (a cold start with MUMPS, and κ = 100 for the
 square; BiCGStab + GAMG in 3D).
 
-    python demos/bench/bench_cost.py square --cells 128 256 512 1024 --out demos/results/cost/square.csv
-    python demos/bench/bench_cost.py hertz3d --out demos/results/cost/hertz3d.csv
-    mpirun -n 2 python demos/bench/bench_cost.py hertz3d --set adapt.theta=0.3 --max-dofs 1600000 --no-before \
-        --sequence auto --repeat 1 --out demos/results/cost/hertz3d_np2.csv          (a 3D mesh of > 1M DoFs)
-    mpirun -n 2 python demos/bench/bench_cost.py scene --scene configs/friction_box_3d.yaml --set friction.law=none \
-        --set "mesh.cells=[96,96,48]" --no-before --sequence auto --repeat 1 --out demos/results/cost/box3d_np2.csv
+    python demos/bench/bench_cost.py square --cells 128 256 512 1024 --out
+    demos/results/cost/square.csv python demos/bench/bench_cost.py hertz3d --out
+    demos/results/cost/hertz3d.csv mpirun -n 2 python demos/bench/bench_cost.py hertz3d --set
+    adapt.theta=0.3 --max-dofs 1600000 --no-before \
+        --sequence auto --repeat 1 --out demos/results/cost/hertz3d_np2.csv          (a 3D mesh of >
+        1M DoFs)
+    mpirun -n 2 python demos/bench/bench_cost.py scene --scene configs/friction_box_3d.yaml --set
+    friction.law=none \
+        --set "mesh.cells=[96,96,48]" --no-before --sequence auto --repeat 1 --out
+        demos/results/cost/box3d_np2.csv
     python demos/bench/bench_cost.py chart demos/results/cost      (cost.png from every CSV there)
 
 ``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
@@ -111,7 +115,7 @@ def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: 
                    "max_diff_vs_before": diff, "repeat": repeat}
             rows.append(row)
             if say:
-                print(f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine {r.iterations}+{r.polish_solves} "
+                print(f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine " f"{r.iterations}+{r.polish_solves} "
                       f"coarse {row['coarse_solves']:3d} weighted {row['weighted_solves']:5.2f}  "
                       f"ref {ref_wall:6.2f} s  solve {wall:7.2f} s  ratio {row['ratio_wall']:5.2f} "
                       f"(cpu {row['ratio_cpu']:5.2f})  diff {diff:.1e}", flush=True)

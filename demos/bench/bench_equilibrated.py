@@ -95,7 +95,8 @@ def verdict(rows: list[dict]) -> str:
     late = [r["effectivity"] for r in rows if r["level"] >= LEVELS_EXEMPT]
     rng = f"{min(late):.3f}-{max(late):.3f}" if late else "-"
     return (f"{rows[0]['problem']}: {len(rows)} levels, eta >= error on every level: {not below} "
-            f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: {not high})")
+            f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: "
+            f"{not high})")
 
 
 def cost(n: int) -> list[dict]:
@@ -128,8 +129,9 @@ def cost(n: int) -> list[dict]:
            **{f"seconds_{k}": round(v, 3) for k, v in flux.seconds.items()}}
     if comm.rank == 0:
         print(f"cost: {row['dofs']} DoFs on {comm.size} rank(s): reconstruction {rec[0]:.2f} s wall, "
-              f"{cpu[0]:.2f} s CPU; one CG + GAMG solve of K {sol[0]:.2f} s wall, {cpu[1]:.2f} s CPU "
-              f"({row['cg_iterations']} iterations); ratio {row['ratio_wall']} (wall), {row['ratio_cpu']} (CPU); "
+              f"{cpu[0]:.2f} s CPU; one CG + GAMG solve of K {sol[0]:.2f} s wall, {cpu[1]:.2f} s "
+              f"CPU ({row['cg_iterations']} iterations); ratio {row['ratio_wall']} (wall), "
+              f"{row['ratio_cpu']} (CPU); "
               f"phases {flux.seconds}", flush=True)
     return [row]
 

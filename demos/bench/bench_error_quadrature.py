@@ -5,10 +5,12 @@ at the origin) reports ‖u − u_h‖_E on every level; the integrand holds the
 (r^{3/2}, atan2, cos at every quadrature point), so its quadrature degree sets the cost.
 On each level this script evaluates the error with degrees 2 … 8 and a reference of
 degree 12, and prints the relative change |e_q / e_12 − 1| and the seconds per
-evaluation.  The default, degree 2p + 2 = 4 for P1 (:func:`contact.adaptivity.energy_error.default_degree`),
-is where the change stays far below the two digits an effectivity index is read to.
+evaluation.  The default, degree 2p + 2 = 4 for P1
+(:func:`contact.adaptivity.energy_error.default_degree`), is where the change stays far below the
+two digits an effectivity index is read to.
 
-    python demos/bench/bench_error_quadrature.py --max-dofs 500000 --out demos/results/error_quadrature.csv
+    python demos/bench/bench_error_quadrature.py --max-dofs 500000 --out
+    demos/results/error_quadrature.csv
 """
 from __future__ import annotations
 
