@@ -1,5 +1,5 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
-# make test  — set up .venv if needed, run the test suite
+# make test  — set up .venv if needed, lint (below), run the test suite
 # make lint  — ruff (lint, format) on contact/ tests/ demos/ and mypy on contact/ (pyproject.toml)
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
 # make venv-latest — the newest release of every dependency in .venv-latest (test-latest: its tests)
@@ -28,7 +28,7 @@ $(VENV)/.installed: pyproject.toml $(LOCK)
 demo: venv
 	$(VENV)/bin/mpirun -n $(NP) $(VENV)/bin/contact run $(SCENE) -o results/demo
 
-test: venv
+test: venv lint
 	$(VENV)/bin/python -m pytest -q tests
 
 lint: venv

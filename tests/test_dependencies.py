@@ -66,3 +66,15 @@ def test_every_test_dependency_is_used() -> None:
            if any(re.search(rf"\b{re.escape(cmd)}\b", text) for cmd in _commands(name))}
     unused = _declared("test") - _imported_distributions("tests") - run
     assert unused == set(), f"in the test extra, used neither by tests/ nor as a command: {unused}"
+
+
+def test_make_test_lints_first() -> None:
+    """`make test` (and so CI) runs `make lint` first: ruff check, ruff format --check and mypy,
+    with the versions of constraints.txt."""
+    makefile = (ROOT / "Makefile").read_text()
+    assert re.search(r"^test: venv lint$", makefile, re.M)
+    lint = makefile.split("\nlint: venv\n", 1)[1].split("\n\n", 1)[0]
+    for command in ("ruff check contact tests demos", "ruff format --check contact tests demos", "mypy"):
+        assert f"$(VENV)/bin/{command}" in lint, command
+    assert {"ruff", "mypy"} <= _declared("test")
+
