@@ -13,7 +13,6 @@ The pieces are plain functions so a user can write their own loop in a few lines
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -25,6 +24,7 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
+from ..base.timing import Timer
 from ..models import build_problem
 from ..adaptivity.energy_error import solution_error
 from ..setup.budget import max_dofs
@@ -106,30 +106,27 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
     comm = scene.comm
     out = AdaptResult()
     for index in range(opts["max_levels"]):
-        seconds = {}
-        t0 = time.perf_counter()
-        problem = build_problem(scene)
-        seconds["assembly"] = problem.assembly_time
-        progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
-        # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-        result = solve(scene, method=method, problem=problem, u0=u0, verbose=False, rtol=opts["newton_rtol"],
-                       sequence=None if opts["nested"] else "off")
-        seconds["solve"] = time.perf_counter() - t0 - problem.assembly_time
+        seconds: dict[str, float] = {}
+        with Timer(seconds, "solve"):   # assembly and solve; the assembly is taken out below
+            problem = build_problem(scene)
+            seconds["assembly"] = problem.assembly_time
+            progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
+            # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
+            result = solve(scene, method=method, problem=problem, u0=u0, verbose=False,
+                           rtol=opts["newton_rtol"], sequence=None if opts["nested"] else "off")
+        seconds["solve"] -= problem.assembly_time
         progress.note(f"level {index}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; "
                       "estimating")
-        t0 = time.perf_counter()
-        est = estimate(scene, result)
-        seconds["estimate"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        error = solution_error(scene, result)
-        seconds["error"] = time.perf_counter() - t0
+        with Timer(seconds, "estimate"):
+            est = estimate(scene, result)
+        with Timer(seconds, "error"):
+            error = solution_error(scene, result)
         level = Level(index, scene, result, est, error, seconds, imbalance=rank_imbalance(result.u_h.function_space))
         out.levels.append(level)
         if on_level is not None:
-            t0 = time.perf_counter()
-            progress.note(f"level {index}: writing its files")
-            on_level(level)
-            seconds["output"] = time.perf_counter() - t0
+            with Timer(seconds, "output"):
+                progress.note(f"level {index}: writing its files")
+                on_level(level)
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
             progress.heard()
@@ -145,19 +142,17 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if opts["strategy"] == "none":
             out.stop = "strategy none: one solve"
             break
-        t0 = time.perf_counter()
-        cells = mark(est.eta_T, opts["strategy"], opts["theta"])
-        seconds["mark"] = time.perf_counter() - t0
+        with Timer(seconds, "mark"):
+            cells = mark(est.eta_T, opts["strategy"], opts["theta"])
         bound = next_dofs_bound(scene, cells, result.u_h.function_space)
         if bound is not None and bound > opts["max_dofs"]:  # refining would be wasted work
             out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
             break
-        t0 = time.perf_counter()
-        progress.note(f"level {index}: refining the marked cells")
         parts: dict[str, float] = {}
-        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"],
-                                   timings=parts)
-        seconds["refine"] = time.perf_counter() - t0
+        with Timer(seconds, "refine"):
+            progress.note(f"level {index}: refining the marked cells")
+            new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None,
+                                       opts["rebalance"], timings=parts)
         seconds["refine_mesh"] = parts["mesh"]   # of which dolfinx.mesh.refine
         # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
         V_next = new_u0.function_space if new_u0 is not None else \
