@@ -1090,6 +1090,52 @@ def refine_floor(res: Path) -> str:
             f"`create_mesh` instead of the refinement {outside:.2f}×), before any estimate.")
 
 
+#: (module, the choice it made, what was measured, the command that repeats it); quoted from
+#: the docstrings they were measured for, not re-measured by `make bench`
+DESIGN_MEASUREMENTS = [
+    ("`contact.output.vtk`", "one .vtu, written on rank 0 from the owned nodes and cells",
+     "1.2M P1 nodes, four point fields and one cell field, 2 ranks: 2–4 s and 186 MB, against "
+     "12.5 s and 321 MB for `dolfinx.io.VTKFile`'s ASCII pieces", "—"),
+    ("`contact.output.vtk._gather_rows`", "one `Gatherv` of the raw buffers",
+     "pickling the rows cost 0.17 s for 1.2M cells on one rank", "—"),
+    ("`contact.output.vtk`", "raw appended data, uncompressed",
+     "1.2M P1 nodes and 2.4M cells: base64 4.6 s against 0.5 s raw; zlib level 1 5.4 s "
+     "(79 MB against 186 MB)", "—"),
+    ("`contact.output.plots._smooth`", "Gouraud shading kept out of tight_layout; above "
+     "`RASTER_CELLS` cells the P1 interpolant sampled at pixel centres",
+     "tight_layout with 2.4M cells: 30 s; 1.21M cells drawn and saved: raster 0.34 s against "
+     "Gouraud 0.95 s", "`python demos/bench/bench_kernels.py`"),
+    ("`contact.output.plots`", "the legend at a fixed corner on big meshes",
+     "`loc=\"best\"` tests every triangle: 20 s at 1.4M cells", "—"),
+    ("`contact.output.plots`", "h_T drawn as one triangle mesh",
+     "2.4M cells: 1 s, against 50 s for one polygon per cell", "—"),
+    ("`contact.adaptivity.refine.refine_partitioner`", "serial: no partitioner (no ghost layer)",
+     "1.5M new cells: 2.2 s against 3.7 s", "—"),
+    ("`contact.adaptivity.energy_error.default_degree`", "quadrature degree 2p + 2",
+     "problem A: 0.74 s against 1.73 s for degree 8 (demos/results/error_quadrature.csv)",
+     "`python demos/bench/bench_error_quadrature.py`"),
+    ("`contact.models.problem` (block CSR)", "bs > 1 assembled as BAIJ, converted to AIJ",
+     "3D elasticity, 788k DoFs, serial: 3.4 s against 4.3 s; 1.04M DoFs on 2 ranks: 3.4 s "
+     "either way", "`python demos/bench/bench_kernels.py`"),
+    ("`contact.drivers.sequencing` (prolongation)", "cells sorted into buckets, points tested "
+     "by barycentric coordinates", "`interpolate_nonmatching`: 44 s for 1M points", "—"),
+]
+
+
+def design_measurements() -> str:
+    """Timings behind design choices of the code, quoted here instead of in its docstrings."""
+    return "\n".join([
+        "## 10. Measurements behind design choices",
+        "",
+        "Single measurements, one run each, that decided how a module does its work; they are "
+        "quoted, not re-run by `make bench` (the last column names the script that repeats "
+        "one, where there is one). The docstrings state the choice and point here.",
+        "",
+        table(["module", "choice", "measured", "reproduce"], [list(m) for m in DESIGN_MEASUREMENTS]),
+        "",
+    ])
+
+
 def main() -> None:
     global RES
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -1121,6 +1167,7 @@ def main() -> None:
         friction(),
         two_bodies(),
         cost(),
+        design_measurements(),
     ]
     args.out.write_text("\n".join(parts))
     print(f"make_results: wrote {args.out}")

@@ -55,6 +55,20 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     assert failed and all(f"| {r['case']} | {r['method']} | max iterations | 2 |" in section for r in failed)
 
 
+def test_design_measurements_are_in_the_report_and_out_of_the_docstrings() -> None:
+    """Timings that decided a design choice live in RESULTS.md §10 (written by make_results),
+    and the docstrings of the modules listed there point to it instead of quoting them."""
+    report = _demo_module("make_results")
+    assert report.design_measurements() in (ROOT / "demos" / "RESULTS.md").read_text()
+    for module in ("output/vtk", "output/plots", "adaptivity/refine", "adaptivity/energy_error",
+                   "models/problem", "drivers/sequencing"):
+        text = (ROOT / "contact" / f"{module}.py").read_text()
+        assert "demos/RESULTS.md §10" in text, module
+        for quoted in ("12.5 s", "0.17 s", "4.6 s", "5.4 s", "0.34 s", "20 s at", "50 s", "2.2 s",
+                       "1.73 s", "4.3 s", "44 s"):
+            assert quoted not in text, (module, quoted)
+
+
 def test_bench_scripts_live_in_demos_bench_and_run_bench_finds_them() -> None:
     """`make bench` (demos/run_bench.py) runs the benchmark scripts from demos/bench/."""
     run_bench = _demo_module("run_bench")

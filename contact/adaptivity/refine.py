@@ -110,8 +110,7 @@ def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> in
 def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     """``dolfinx.mesh.refine``'s partitioner.
 
-    * serial: ``None`` (no ghost layer to build: 40 % faster, 2.2 s against 3.7 s for 1.5M
-      new cells);
+    * serial: ``None`` (no ghost layer to build: 40 % faster; demos/RESULTS.md §10);
     * parallel, ``rebalance``: dolfinx's graph partitioner, which spreads the refined mesh
       evenly over the ranks — refinement concentrated in one rank's part of the domain
       would otherwise leave that rank with most of the work (problem A: 1.15× its share

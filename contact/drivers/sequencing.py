@@ -354,7 +354,7 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
     its smallest barycentric coordinate is largest — the containing cell, or for a point
     just outside a curved boundary's coarse polygon the nearest one (linear
     extrapolation).  ``interpolate_nonmatching`` does the same through a collision search
-    per point and is orders of magnitude slower here (44 s for 1M points)."""
+    per point and is orders of magnitude slower here (demos/RESULTS.md §10)."""
     Vc = u.function_space
     msh, comm = Vc.mesh, V.mesh.comm
     tdim, gdim = msh.topology.dim, msh.geometry.dim

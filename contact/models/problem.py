@@ -83,10 +83,9 @@ def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
     A vector-valued space (block size bs > 1, elasticity) is assembled into dolfinx's block
     CSR matrix — one insertion per bs × bs block where PETSc's AIJ takes bs² scalar ones —,
     handed to PETSc as BAIJ from its arrays and converted to AIJ (which GAMG needs): the
-    same matrix (relative difference ≤ 1e-16), 1.3× faster in serial (3D elasticity, 788k
-    DoFs: 3.4 s against 4.3 s) and as fast on 2 ranks (1.04M DoFs: 3.4 s either way;
-    ``python demos/bench/bench_kernels.py``, demos/results/kernels*.csv).  Scalar spaces are
-    assembled by PETSc directly."""
+    same matrix (relative difference ≤ 1e-16), 1.3× faster in serial and as fast on 2 ranks
+    (3D elasticity, ``python demos/bench/bench_kernels.py``, demos/results/kernels*.csv;
+    timings: demos/RESULTS.md §10).  Scalar spaces are assembled by PETSc directly."""
     bs = a.function_spaces[0].dofmap.index_map_bs
     if not BLOCK_CSR or bs == 1:
         K = dolfinx.fem.petsc.assemble_matrix(a, bcs=bcs)

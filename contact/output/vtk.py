@@ -10,9 +10,8 @@ The grid's points are the nodes of the fields' Lagrange space, so P2 fields keep
 (edge midpoints included; the cells are VTK Lagrange cells of degree 2).  In parallel each
 rank sends its owned nodes (in the global DoF order) and owned cells to rank 0, which writes
 one file: the same layout for any number of ranks, no duplicated partition-boundary nodes.
-``dolfinx.io.VTKFile`` writes ASCII pieces, one per rank, and a .pvtu: for 1.2M P1 nodes
-with four point fields and one cell field on 2 ranks, 12.5 s and 321 MB against this
-module's 2-4 s and 186 MB.  The XDMF files (:mod:`contact.output.xdmf`) are written in parallel.
+``dolfinx.io.VTKFile`` writes ASCII pieces, one per rank, and a .pvtu: several times slower and
+larger on big meshes (timings: demos/RESULTS.md §10).  The XDMF files (:mod:`contact.output.xdmf`) are written in parallel.
 
 Reading back in Python::
 
@@ -142,8 +141,8 @@ def _grid(x: np.ndarray, connectivity: np.ndarray, cell_type: int):
 
 def _gather_rows(a: np.ndarray, comm: MPI.Comm, root: int) -> np.ndarray | None:
     """The rows of every rank's array ``a`` stacked in rank order on ``root`` (None elsewhere;
-    collective).  One ``Gatherv`` of the raw buffers: no pickling, which cost 0.17 s for
-    1.2M cells even on one rank."""
+    collective).  One ``Gatherv`` of the raw buffers: no pickling, which is slow on big
+    meshes even on one rank (timings: demos/RESULTS.md §10)."""
     a = np.ascontiguousarray(a)
     counts = comm.gather(a.size, root=root)
     if comm.rank != root:
@@ -177,10 +176,10 @@ def save_vtu(path: str | Path, grid) -> None:
     arrays in XML order it takes an already re-encoded array whose new offset happens to be
     equal (three field-data numbers suffice) and drops the field; in reverse order the
     re-encoded arrays all come after the one looked up.  VTK's own writer puts them in XML
-    order; its base64 encoding (which meshio reads safely) took 4.6 s for 1.2M P1 nodes and
-    2.4M cells with four point fields and one cell field, against 0.5 s raw.  No
-    compression: LZ4 is unknown to meshio, zlib took 5.4 s at level 1 (79 MB against
-    186 MB), on rank 0 while the other ranks wait."""
+    order; its base64 encoding (which meshio reads safely) is about ten times slower than
+    raw data.  No compression: LZ4 is unknown to meshio, and zlib, even at level 1, costs
+    more than the raw write it shrinks, on rank 0 while the other ranks wait (timings:
+    demos/RESULTS.md §10)."""
     arrays: list[tuple[str, str, np.ndarray, dict]] = []   # (section, name, values, attributes)
     for name in grid.field_data.keys():
         values = np.asarray(grid.field_data[name])
