@@ -131,7 +131,7 @@ def _blocked_csr(K: PETSc.Mat, bs: int, per_node: np.ndarray, cols: np.ndarray, 
         pos = start[:, None] + np.arange(bs)
         indices[pos] = scalar_cols
         values[pos] = blocks[:, a, :]
-    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, comm=K.comm,  # type: ignore[arg-type]
-                              csr=(indptr, indices, values))  # type: ignore[arg-type]
+    sizes, csr = K.getSizes(), (indptr, indices, values)
+    Q = PETSc.Mat().createAIJ(sizes, bsize=bs, comm=K.comm, csr=csr)  # type: ignore[arg-type]
     Q.assemble()
     return Q

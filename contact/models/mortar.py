@@ -361,8 +361,9 @@ def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals:
     order = np.lexsort((cols, rows))
     rows, cols, vals = rows[order], cols[order], vals[order]
     indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n_owned))]).astype(PETSc.IntType)
-    M = PETSc.Mat().createAIJ(((n_owned, imap.size_global), (n_owned, imap.size_global)), comm=V.mesh.comm,
-                              csr=(indptr, cols.astype(PETSc.IntType), vals))  # type: ignore[arg-type]
+    sizes = ((n_owned, imap.size_global), (n_owned, imap.size_global))
+    csr = (indptr, cols.astype(PETSc.IntType), vals)
+    M = PETSc.Mat().createAIJ(sizes, comm=V.mesh.comm, csr=csr)  # type: ignore[arg-type]
     M.assemble()
     return M
 

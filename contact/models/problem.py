@@ -98,7 +98,8 @@ def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
     cols = A.index_map(1).local_to_global(A.indices[: indptr[-1]].astype(np.int32)).astype(PETSc.IntType)
     values = A.data[: indptr[-1] * bs * bs]      # row-major bs × bs blocks
     comm = a.mesh.comm
-    B = PETSc.Mat().createBAIJ(((n * bs, None), (n * bs, None)), bs, csr=(indptr, cols, values), comm=comm)  # type: ignore[arg-type]
+    sizes = ((n * bs, None), (n * bs, None))
+    B = PETSc.Mat().createBAIJ(sizes, bs, csr=(indptr, cols, values), comm=comm)  # type: ignore[arg-type]
     B.assemble()
     converted = B.convert("aij")
     # a copy: with PETSc 3.25 the converted matrix still refers to B's memory (using it

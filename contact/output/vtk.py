@@ -10,8 +10,9 @@ The grid's points are the nodes of the fields' Lagrange space, so P2 fields keep
 (edge midpoints included; the cells are VTK Lagrange cells of degree 2).  In parallel each
 rank sends its owned nodes (in the global DoF order) and owned cells to rank 0, which writes
 one file: the same layout for any number of ranks, no duplicated partition-boundary nodes.
-``dolfinx.io.VTKFile`` writes ASCII pieces, one per rank, and a .pvtu: several times slower and
-larger on big meshes (timings: demos/RESULTS.md §10).  The XDMF files (:mod:`contact.output.xdmf`) are written in parallel.
+``dolfinx.io.VTKFile`` writes ASCII pieces, one per rank, and a .pvtu: several times slower
+and larger on big meshes (timings: demos/RESULTS.md §10).  The XDMF files
+(:mod:`contact.output.xdmf`) are written in parallel.
 
 Reading back in Python::
 

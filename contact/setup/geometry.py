@@ -64,8 +64,10 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cel
     problem, gdim = comm.bcast((problem, gdim), root=0)
     try:
         if problem is None:
+            ghosts = dmesh.GhostMode.shared_facet
+            partitioner = dmesh.create_cell_partitioner(ghosts, 2)  # type: ignore[call-arg]
             data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
-                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))  # type: ignore[call-arg]
+                                        partitioner=partitioner)
     except Exception as err:  # e.g. no physical groups (raised on every rank)
         problem = str(err)
     finally:

@@ -230,7 +230,8 @@ class NodeBlockMatrix:
         return np.tile(np.eye(self.bs), (self.local_nodes, 1, 1))
 
     def set(self, blocks: np.ndarray) -> PETSc.Mat:
-        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())  # type: ignore[arg-type]
+        values = np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel()
+        self.mat.setValuesCSR(self.indptr, self.indices, values)  # type: ignore[arg-type]
         self.mat.assemble()
         return self.mat
 
