@@ -1,5 +1,6 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
-# make test  — set up .venv if needed, run the test suite
+# make test  — set up .venv if needed, lint (below), run the test suite
+# make lint  — ruff (lint, format) on contact/ tests/ demos/ and mypy on contact/ (pyproject.toml)
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
 # make venv-latest — the newest release of every dependency in .venv-latest (test-latest: its tests)
 # make lock  — after test-latest passed: .venv-latest's versions become constraints.txt
@@ -11,7 +12,7 @@ LATEST ?= .venv-latest
 NP    ?= 2
 SCENE ?= configs/signorini_free_boundary.yaml
 
-.PHONY: demo test bench venv venv-latest test-latest lock clean
+.PHONY: demo test lint bench venv venv-latest test-latest lock clean
 
 venv: $(VENV)/.installed
 
@@ -27,8 +28,13 @@ $(VENV)/.installed: pyproject.toml $(LOCK)
 demo: venv
 	$(VENV)/bin/mpirun -n $(NP) $(VENV)/bin/contact run $(SCENE) -o results/demo
 
-test: venv
+test: venv lint
 	$(VENV)/bin/python -m pytest -q tests
+
+lint: venv
+	$(VENV)/bin/ruff check contact tests demos
+	$(VENV)/bin/ruff format --check contact tests demos
+	$(VENV)/bin/mypy
 
 # the newest releases, in a venv of their own (never the tested .venv): upgrades are deliberate
 venv-latest:

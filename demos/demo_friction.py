@@ -1,6 +1,6 @@
 # # Coulomb friction: a block pressed onto a plane and dragged along it
 #
-# This demo shows frictional contact by semismooth Newton (SPEC §1.4).  An elastic block
+# This demo shows frictional contact by semismooth Newton (docs/theory.md §1.4).  An elastic block
 # $\Omega = [-1, 1] \times [0, 0.5]$ (plane strain, $E = 1$, $\nu = 0.3$) rests on the rigid
 # plane $y = 0$.  Over a quasi-static load path $t \in (0, 1]$ its top is first pressed
 # down, then moved sideways.  On the contact part $\Gamma_C$ (the bottom) the multiplier
@@ -117,8 +117,8 @@ fixed = contact.solve(contact.load_scene({**scene_data, "load": {"steps": 1},
 diff = comm.allreduce(float(np.max(np.abs(newton.u_h.x.array - fixed.u_h.x.array))), op=MPI.MAX)
 diff /= comm.allreduce(float(np.max(np.abs(newton.u_h.x.array))), op=MPI.MAX)
 say(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
-    f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton iterations); "
-    f"max |u_newton - u_fixed| / max |u| = {diff:.1e}")
+    f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton "
+    f"iterations); max |u_newton - u_fixed| / max |u| = {diff:.1e}")
 # -
 
 # ## The tractions along Γ_C

@@ -2,13 +2,14 @@
 #
 # An elastic cylinder of radius R (plane strain, Young's modulus E, Poisson's ratio ν) is
 # pressed onto a rigid frictionless plane.  Linear elasticity with the Signorini condition
-# on the contact surface Γ_C (SPEC §1.3):
+# on the contact surface Γ_C (docs/theory.md §1.3):
 #
 #     −div σ(u) = 0,   σ(u) = 2μ ε(u) + λ_L tr ε(u) I,
 #     u·n ≤ g,   λ_n := σ_nn(u) ≤ 0,   λ_n (u·n − g) = 0,   σ_nt(u) = 0    on Γ_C,
 #
-# with n the normal towards the plane and g the initial gap.  Hertz's theory (SPEC §7) gives,
-# for the force P per unit thickness and E* = E / (1 − ν²), a contact strip of half-width
+# with n the normal towards the plane and g the initial gap.  Hertz's theory
+# (docs/theory.md §7) gives, for the force P per unit thickness and E* = E / (1 − ν²), a contact
+# strip of half-width
 #
 #     a = 2 √(R P / (π E*))      and the pressure    p(x) = p0 √(1 − x²/a²),   p0 = 2P / (π a),
 #
@@ -66,7 +67,7 @@ scene = contact.load_scene({
 levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=LEVELS).levels
 say(f"{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'Newton':>6s} {'active':>6s}")
 for lv in levels:
-    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} {lv.result.n_active:6d}")
+    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} " f"{lv.result.n_active:6d}")
 scene, result = levels[-1].scene, levels[-1].result
 
 # ## Force balance
@@ -94,10 +95,12 @@ table = contact_table(scene, result)
 if comm.rank == 0:
     x, p, active = table["x"], -table["lambda_n"], table["active"] > 0
     last = x[active].max()
-    a_h = 0.5 * (last + x[~active & (x > last)].min())   # between the last active and the first free node
+    # between the last active and the first free node
+    a_h = 0.5 * (last + x[~active & (x > last)].min())
     p0_h = p.max()
     say(f"half-width a = {a_h:.5f} (Hertz {a_H:.5f}, {100 * (a_h / a_H - 1):+.2f}%), "
-        f"peak pressure p0 = {p0_h:.5f} (Hertz {p0_H:.5f}, {100 * (p0_h / p0_H - 1):+.2f}%), a/R = {a_h / R:.3f}")
+        f"peak pressure p0 = {p0_h:.5f} (Hertz {p0_H:.5f}, {100 * (p0_h / p0_H - 1):+.2f}%), a/R = "
+        f"{a_h / R:.3f}")
 
 # ## What you see
 #

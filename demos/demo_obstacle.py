@@ -2,7 +2,7 @@
 #
 # A membrane clamped on the boundary of Ω = (−1, 1)² is pulled down by a uniform load
 # f = −2 and drapes over a dome ψ(x) = 0.4 − r².  Its deflection u solves the obstacle
-# problem (SPEC §1.2)
+# problem (docs/theory.md §1.2)
 #
 #     −Δu − f ≥ 0,    u − ψ ≥ 0,    (−Δu − f)(u − ψ) = 0    in Ω,     u = 0 on ∂Ω:
 #
@@ -77,7 +77,7 @@ scene = contact.load_scene({
 # Newton's method needs an element H of the generalized derivative of Φ: on row i,
 # H_i = ∂_aφ · ∂a_i/∂u + ∂_bφ · ∂b_i/∂u, a combination of the identity row and the
 # stiffness row K_i.  `contact.solve` assembles K once and builds H as
-# diag(s) K + diag(d) from the pairs (a_i, b_i) at every step (SPEC §4).  Every method
+# diag(s) K + diag(d) from the pairs (a_i, b_i) at every step (docs/theory.md §4).  Every method
 # solves the same discrete problem, so the solutions must agree to solver tolerance.
 
 results = {}

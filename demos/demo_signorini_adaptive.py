@@ -1,6 +1,6 @@
 # # Adaptive refinement for a Signorini problem, step by step
 #
-# Problem A of SPEC §7: on Ω = (−1, 1) × (0, 1), find u with
+# Problem A of docs/theory.md §7: on Ω = (−1, 1) × (0, 1), find u with
 #
 #     −Δu = 0 in Ω,    u = u_D on the sides and the top,
 #     u ≤ 0,  λ := ∂u/∂n ≤ 0,  λ u = 0    on Γ_C = {y = 0}.
@@ -59,8 +59,8 @@ scene = contact.load_scene({
 # * SOLVE: semismooth Newton on the min function (the primal–dual active set method), started
 #   from the previous level's solution interpolated onto the new mesh (nested iteration:
 #   after the first level it needs one or two steps);
-# * ESTIMATE: the residual estimator of SPEC §5, one DG0 form per term, so one assembly gives
-#   every cell's indicator
+# * ESTIMATE: the residual estimator of docs/theory.md §5, one DG0 form per term, so one
+#   assembly gives every cell's indicator
 #
 #       η_T² = h_T² ‖Δu_h‖²_T + ½ Σ_E h_E ‖[∂u_h/∂n]‖²_E + Σ_{E ⊂ Γ_N ∪ Γ_C} (...)
 #
@@ -78,10 +78,11 @@ for level in range(LEVELS):
     est = contact.estimate(scene, result)                                    # ESTIMATE
     error = energy_error(result.u_h, exact)
     rows.append((result.dofs, est.eta, error, result.iterations))
-    say(f"{level:5d} {result.dofs:7d} {est.eta:10.3e} {error:10.3e} {est.eta / error:9.2f} {result.iterations:6d}")
+    say(f"{level:5d} {result.dofs:7d} {est.eta:10.3e} {error:10.3e} {est.eta / error:9.2f} " f"{result.iterations:6d}")
     if level + 1 < LEVELS:
         cells = contact.mark(est.eta_T, "dorfler", theta=0.5)                # MARK
-        scene, u0 = contact.refine(scene, cells, result.u_h)                 # REFINE (+ nested guess)
+        # REFINE (+ nested guess)
+        scene, u0 = contact.refine(scene, cells, result.u_h)
 
 # ## Rates
 #

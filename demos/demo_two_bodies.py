@@ -3,7 +3,7 @@
 # Two bodies Ω¹ (slave) and Ω² (master), meshed independently, touch along surfaces whose
 # meshes do not match.  On the slave surface Γ_s, with the P1 trace basis φ_i, its dual
 # basis ψ_i (∫ ψ_i φ_k ds = δ_ik D_ii) and the projection π onto the master surface Γ_m
-# (SPEC §1.5),
+# (docs/theory.md §1.5),
 #
 #     D_ii = ∫_{Γ_s} φ_i ds,     M_ij = ∫_{Γ_s} ψ_i (φ_j^m ∘ π) ds,
 #
@@ -104,7 +104,8 @@ scene = contact.load_scene({
                    "slave": {"role": "interface", "where": "abs(x) < 2 and y < 1", "body": "upper"},
                    "master": {"role": "interface", "where": "abs(x) < 3 and y > -1", "body": "lower"}},
     "pairs": [{"slave": "slave", "master": "master"}],
-    "reference": {"type": "hertz"},     # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
+    # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
+    "reference": {"type": "hertz"},
     "model": {"type": "elasticity"},
     "data": {"u_D": ["0", f"-{delta} * (y > 0)"]},
     "output": {"verbose": False},
@@ -112,7 +113,7 @@ scene = contact.load_scene({
 levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=LEVELS).levels
 say(f"\n{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'Newton':>6s} {'active':>6s}")
 for lv in levels:
-    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} {lv.result.n_active:6d}")
+    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} " f"{lv.result.n_active:6d}")
 scene, result = levels[-1].scene, levels[-1].result
 
 # ## Action and reaction
@@ -138,13 +139,14 @@ say(f"\nforce on the slave surface {F_s:.6f}, on the master surface {F_m:.6f} "
 
 hz = compare(scene, result).values
 say(f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, "
-    f"{100 * hz['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} "
-    f"(Hertz {hz['hertz_p0']:.5f}, {100 * hz['p0_error']:+.2f}%), a/R_c = {hz['contact_half_width'] / Rc:.3f}")
+    f"{100 * hz['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} (Hertz "
+    f"{hz['hertz_p0']:.5f}, {100 * hz['p0_error']:+.2f}%), a/R_c = "
+    f"{hz['contact_half_width'] / Rc:.3f}")
 
 # ## Partial slip: Cattaneo–Mindlin
 #
 # The tangential unknowns of a slave node are its displacement relative to the master, so
-# the Coulomb law of `friction:` (SPEC §1.4) applies to the pair unchanged.  Two identical
+# the Coulomb law of `friction:` (docs/theory.md §1.4) applies to the pair unchanged.  Two identical
 # cylinders, built interpenetrating by 0.1 (`mesh.overlap`: the normal force), their flat
 # faces rolling on planes (`role: symmetry`), a body force in x on the upper one whose
 # resultant Q grows at constant P (`load:` steps in the pseudo-time t): the stick zone

@@ -20,9 +20,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_scale.py`` — adaptive runs end to end through the CLI: problem A to
    1.2M DoFs on 1 and 2 ranks, hertz_3d to 865k DoFs on 2 ranks (wall, peak memory, phases),
    and the 2-rank speed-up as the median of 3 paired runs;
-   ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy, cost);
-   ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old paths,
-   (on 2 ranks) refinement with and without redistribution or a ghost layer, and (serially
+   ``demos/bench/bench_error_quadrature.py`` — the energy error's quadrature degree (accuracy,
+   cost); ``demos/bench/bench_kernels.py`` — block-CSR assembly and raster pictures against the old
+   paths, (on 2 ranks) refinement with and without redistribution or a ghost layer, and (serially
    and on 2 ranks) the 2D floor of the finest level: refinement, ``create_mesh`` and
    assembly against one CG + GAMG solve;
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
@@ -31,8 +31,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    minutes, iterations per level, peer problems);
 5. ``demos/make_results.py`` — demos/RESULTS.md from the CSVs written above.
 
-    python demos/run_bench.py                 # everything (about 2 hours on 2 cores; stability_scale alone 45 min)
-    python demos/run_bench.py --only studies  # steps 4 and 5
+    python demos/run_bench.py                 # everything (about 2 hours on 2 cores;
+    stability_scale alone 45 min) python demos/run_bench.py --only studies  # steps 4 and 5
     python demos/run_bench.py --only report   # step 5 on the existing CSVs
 
 Studies run serially, one process each, so their timings do not disturb one another.
@@ -91,7 +91,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--only", nargs="+", choices=list(STEPS), help="run only these steps (in this order)")
     ap.add_argument("--keep-going", action="store_true",
-                    help="after a failed command, run the remaining ones and exit with the first failure's code")
+                    help="after a failed command, run the others and exit with the first failure's code")
     args = ap.parse_args()
     steps = args.only or list(STEPS)
     if "studies" in steps and "report" not in steps:

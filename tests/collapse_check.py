@@ -1,5 +1,5 @@
-"""Serially or under mpirun: the snap's collapse check restricted to the touched cells finds the same
-cells as the full check on every rank (ghosts excluded), for the bottom row of an 8 × 8
+"""Serially or under mpirun: the snap's collapse check restricted to the touched cells finds the
+same cells as the full check on every rank (ghosts excluded), for the bottom row of an 8 × 8
 square moved up to each height given; prints {height: global count} as JSON on rank 0."""
 import json
 import sys
@@ -18,7 +18,8 @@ for height in map(float, sys.argv[1:]):
     moved = np.isclose(x[:, 1], 0.0)
     touched = cells_touching(msh, moved.astype(float))
     n_local = msh.topology.index_map(2).size_local + msh.topology.index_map(2).num_ghosts
-    if len(touched) >= n_local or MPI.COMM_WORLD.allreduce(len(touched)) == 0:   # a proper, nonempty subset
+    # a proper, nonempty subset
+    if len(touched) >= n_local or MPI.COMM_WORLD.allreduce(len(touched)) == 0:
         raise SystemExit(f"rank {MPI.COMM_WORLD.rank}: {len(touched)} of {n_local} cells touched")
     before_all, before_touched = signed_volumes(msh), signed_volumes(msh, touched)
     x[moved, 1] = height

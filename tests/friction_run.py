@@ -26,7 +26,8 @@ def main(argv):
     X, u = gather_nodal(last.result.u_h)
     table = contact_table(last.scene, last.result)
     if MPI.COMM_WORLD.rank == 0:
-        order = np.lexsort([np.round(table[c], 12) for c in "zyx" if c in table])   # rank-independent
+        # rank-independent
+        order = np.lexsort([np.round(table[c], 12) for c in "zyx" if c in table])
         table = {k: np.asarray(v)[order] for k, v in table.items()}
         cols = [k for k in table if k != "status"]
         np.savez(out, X=X, u=u, its=np.array([s.result.iterations for s in run.steps]),

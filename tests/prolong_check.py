@@ -2,7 +2,8 @@
 child mesh, with both partitioners of contact.adaptivity.refine.refine_partitioner (children kept on
 their parent's rank, or redistributed by dolfinx's graph partitioner):
 
-* contact.adaptivity.transfer.prolong (parent-cell evaluation on the creating rank) against dolfinx's
+* contact.adaptivity.transfer.prolong (parent-cell evaluation on the creating rank) against
+dolfinx's
   interpolate_nonmatching (point search), scalar P1, P2 and vector P1;
 * facet tags (the four sides, 1…4) and cell tags (left half 1, right half 2) measured on
   the child: each side has length 1, each half area 1/2.

@@ -23,7 +23,8 @@ SCENES = {
     "quarter_disk": ("hertz_2d.yaml", 2.0, ["mesh.radius=2", "mesh.h=0.4", "mesh.h_contact=0.1", "mesh.zone=0.5"]),
     "sphere_octant": ("hertz_3d.yaml", 1.5, ["mesh.radius=1.5", "mesh.h=0.4", "mesh.h_contact=0.15", "mesh.zone=0.3"]),
 }
-NEAR = 0.4  # the second refinement marks the cells whose midpoint is this close to the contact point (× R)
+# the second refinement marks the cells whose midpoint is this close to the contact point (× R)
+NEAR = 0.4
 
 
 def load(kind: str) -> tuple[contact.Scene, float]:

@@ -49,9 +49,11 @@ def _same_levels(serial, parallel):
         assert s["dofs"] == p["dofs"] and s["cells"] == p["cells"], (s, p)
         assert abs(s["eta"] - p["eta"]) <= 1e-8 * s["eta"], (s["eta"], p["eta"])
         assert abs(s["error"] - p["error"]) <= 1e-8 * s["error"]
-        assert min(s["tie_margin"], p["tie_margin"]) >= 1e-6   # no node near a tie: counts cannot move
+        # no node near a tie: counts cannot move
+        assert min(s["tie_margin"], p["tie_margin"]) >= 1e-6
         assert s["active_nodes"] == p["active_nodes"]
-        # the busiest rank's share of the owned DoFs over the mean: 1 in serial, in [1, 2] on 2 ranks
+        # the busiest rank's share of the owned DoFs over the mean: 1 in serial, in [1, 2] on 2
+        # ranks
         assert s["rank_imbalance"] == 1.0 and 1.0 <= p["rank_imbalance"] <= 2.0
 
 
@@ -74,8 +76,8 @@ def test_without_rebalancing_the_first_partition_is_kept(levels):
 
 
 def test_adaptive_loop_converges_on_problem_A():
-    """Dörfler on SPEC problem A: error ~ N^{-1/2} and a steady effectivity (small version of
-    the benchmark in demos/bench/bench_adaptive.py)."""
+    """Dörfler on problem A (docs/theory.md §7): error ~ N^{-1/2} and a steady effectivity
+    (small version of the benchmark in demos/bench/bench_adaptive.py)."""
     scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
     rows = adapt(scene, method="min", max_levels=9, verbose=False).rows
     N = np.array([r["dofs"] for r in rows], dtype=float)

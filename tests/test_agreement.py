@@ -88,5 +88,6 @@ def test_serial_and_parallel_agree(serial, parallel, scene, method):
         scale = max(np.max(np.abs(serial[f"{key}/{field}"])), 1.0)
         diff = np.max(np.abs(serial[f"{key}/{field}"] - parallel[f"{key}/{field}"]))
         assert diff <= 1e-8 * scale, f"{field}: serial vs 2 ranks differ by {diff:.3e}"
-    assert min(serial[key + "/info"][5], parallel[key + "/info"][5]) >= 1e-6   # no node near a tie: see above
+    # no node near a tie: see above
+    assert min(serial[key + "/info"][5], parallel[key + "/info"][5]) >= 1e-6
     assert serial[key + "/info"][3] == parallel[key + "/info"][3]

@@ -51,7 +51,8 @@ def test_patch_2d_pressure_is_exact_at_every_slave_node(patch_2d, method):
     r = contact.solve(scene, method=method, problem=problem, verbose=False)
     assert r.converged
     lam = r.lmbda_h.x.array[problem.output_nodes]
-    assert len(lam) == 32 and r.n_active == 32   # every node pressed by p: no tie, no rounding can move it
+    # every node pressed by p: no tie, no rounding can move it
+    assert len(lam) == 32 and r.n_active == 32
     assert np.max(np.abs(lam + P)) <= 1e-8 * P
     lam_m = master_pressure(r).x.array
     master = np.abs(lam_m) > 0
@@ -77,7 +78,8 @@ def test_patch_3d_pressure_is_exact_at_every_slave_node():
     for method in ("min", "vinewtonrsls"):
         r = contact.solve(scene, method=method, problem=problem, verbose=False)
         lam = r.lmbda_h.x.array[problem.output_nodes]
-        assert r.converged and len(lam) == 14 * 14 == r.n_active   # uniform p: every node far from a tie
+        # uniform p: every node far from a tie
+        assert r.converged and len(lam) == 14 * 14 == r.n_active
         assert np.max(np.abs(lam + P)) <= 1e-6 * P, method
 
 
@@ -108,7 +110,8 @@ def hertz_runs(tmp_path_factory):
 def test_hertz_2d_methods_agree_with_vinewtonrsls(hertz_runs, which, method):
     res = hertz_runs[which]
     info, ref = res[f"{method}/info"], res["vinewtonrsls/info"]
-    assert min(info[5], ref[5]) >= 1e-6   # no node near a tie (tests/ties.py): the counts cannot move
+    # no node near a tie (tests/ties.py): the counts cannot move
+    assert min(info[5], ref[5]) >= 1e-6
     assert info[0] == 1 and ref[0] == 1 and info[2] == ref[2] > 5
     assert np.max(np.abs(res[f"{method}/u"] - res["vinewtonrsls/u"])) <= 1e-8
     lam, lam_ref = res[f"{method}/lambda"], res["vinewtonrsls/lambda"]
@@ -131,7 +134,8 @@ def test_slave_and_master_swapped_agree_within_discretization_error():
     """Which surface carries the multiplier changes the discrete problem, not the answer:
     the contact force and the peak pressure move by less than the mesh's Hertz error."""
     base = contact.load_scene(HERTZ_2D, COARSE_2D)
-    swapped = contact.load_scene(HERTZ_2D, COARSE_2D + [  # the lower arc is the slave now, the narrower one
+    # the lower arc is the slave now, the narrower one
+    swapped = contact.load_scene(HERTZ_2D, COARSE_2D + [
         "boundaries.slave.where=abs(x) < 3 and y < 1", "boundaries.master.where=abs(x) < 2 and y > -1",
         "pairs=[{slave: master, master: slave}]"])
     figures = []
@@ -242,7 +246,8 @@ def test_pair_and_rigid_obstacle_in_one_scene():
     F_pair, F_floor, F_top = res["interface_force_slave"][1], res["obstacle_force"][1], res["reactions"]["top"][1]
     assert F_pair > 0 and abs(F_floor / F_pair - 1) < 1e-10 and abs(F_top / F_pair + 1) < 1e-10
     assert res["interface_balance_error"] < 1e-10
-    for method in ("fb", "min", "blend"):   # min on the defaults: cycles guarded (contact.solvers.globalize)
+    # min on the defaults: cycles guarded (contact.solvers.globalize)
+    for method in ("fb", "min", "blend"):
         r = contact.solve(scene, method=method, problem=problem, verbose=False)
         assert r.converged and tie_margin(r) >= 1e-6   # no node near a tie: the counts cannot move
         assert r.n_active == ref.n_active
@@ -268,7 +273,8 @@ def test_three_blocks_two_pairs_patch_test():
     scene = contact.load_scene(cfg)
     r = contact.solve(scene, method="min", verbose=False)
     lam = r.lmbda_h.x.array[r.problem.output_nodes]
-    assert r.converged and len(lam) == 32 + 32 == r.n_active   # uniform p: every node far from a tie
+    # uniform p: every node far from a tie
+    assert r.converged and len(lam) == 32 + 32 == r.n_active
     assert np.max(np.abs(lam + P)) <= 1e-8 * P
 
 
@@ -395,7 +401,8 @@ def test_cattaneo_mindlin_serial_equals_two_ranks(cattaneo_runs):
     assert np.allclose(s["nodes"][:, :2], p["nodes"][:, :2], atol=1e-12)
     scale = np.max(np.abs(s["nodes"][:, 2:]))
     assert np.max(np.abs(s["nodes"][:, 2:] - p["nodes"][:, 2:])) <= 1e-8 * scale
-    assert np.allclose(s["steps"][1:], p["steps"][1:], rtol=1e-8, atol=1e-10)   # step 1: Q ~ 1e-7, ratios of round-off
+    # step 1: Q ~ 1e-7, ratios of round-off
+    assert np.allclose(s["steps"][1:], p["steps"][1:], rtol=1e-8, atol=1e-10)
 
 
 def test_reaction_force_of_two_bodies_with_friction_is_the_supports():

@@ -134,7 +134,8 @@ CASES = {
     "map_not_a_list": Case("mesh.map: expected a list of expressions, one per coordinate, got a string",
                            {"mesh.map": "x + y"}),
     "map_bad_expression": Case("mesh.map[1]: unknown name 'q'", {"mesh.map": ["x + y", "q*y"]}),
-    "map_inverts_cells": Case("mesh.map: the map inverts or flattens 64 of 128 cells",  # a fold at x = 0.5
+    # a fold at x = 0.5
+    "map_inverts_cells": Case("mesh.map: the map inverts or flattens 64 of 128 cells",
                               {"mesh.map": ["x if x < 0.5 else 1 - x", "y"]}),
     "map_flattens_cells": Case("mesh.map: the map inverts or flattens 128 of 128 cells", {"mesh.map": ["x", "0"]}),
     "map_not_finite": Case("mesh.map[0]: not a finite number at 9 of 81 vertices", {"mesh.map": ["log(x)", "y"]}),

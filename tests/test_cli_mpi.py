@@ -25,7 +25,8 @@ from clirun import ROOT, contact
 
 pytestmark = pytest.mark.mpi
 
-TIMEOUT = {0: 180, 2: 240, 3: 300}   # seconds per run (a loaded 2-core machine; 3 ranks oversubscribe it)
+# seconds per run (a loaded 2-core machine; 3 ranks oversubscribe it)
+TIMEOUT = {0: 180, 2: 240, 3: 300}
 SMALL = ["output.png=false"]
 #: scene (relative to configs/) -> --set overrides that make it small
 SCENES: dict[str, list[str]] = {
@@ -70,8 +71,10 @@ VOLATILE = {"time_total", "time_assembly", "time_linear_solve", "time_other", "t
 #: keys whose values are sizes: equal exactly
 EXACT = {"dofs", "cells", "levels", "dofs_per_level", "constrained_nodes", "steps_total", "step", "degree",
          "converged", "symmetric_copies"}
-RTOL = 1e-6   # relative, of a figure or of a column's largest magnitude (the solver stops at |Phi| ~ 1e-12)
-ATOL = 1e-12  # absolute, for figures that vanish up to round-off (the scenes' forces are 1e-3 or more)
+# relative, of a figure or of a column's largest magnitude (the solver stops at |Phi| ~ 1e-12)
+RTOL = 1e-6
+# absolute, for figures that vanish up to round-off (the scenes' forces are 1e-3 or more)
+ATOL = 1e-12
 
 
 def test_every_shipped_scene_is_listed() -> None:

@@ -1,11 +1,13 @@
-"""SPEC §7 problem A: the H¹-seminorm error of P1 falls like O(h) under uniform refinement."""
+"""Problem A (docs/theory.md §7): the H¹-seminorm error of P1 falls like O(h) under
+uniform refinement."""
 import numpy as np
 
 import contact
 from contact.adaptivity.energy_error import energy_error
 
 SCENE = "configs/signorini_free_boundary.yaml"
-EXACT_SEMINORM_SQ = 1.5 * (np.sqrt(2.0) + np.arcsinh(1.0))  # |u|²_{H¹} = 3.443380724 (SPEC §7 A)
+# |u|²_{H¹} = 3.443380724 (docs/theory.md §7 A)
+EXACT_SEMINORM_SQ = 1.5 * (np.sqrt(2.0) + np.arcsinh(1.0))
 
 
 def test_problem_A_energy_error_rate():
@@ -21,8 +23,8 @@ def test_problem_A_energy_error_rate():
 
 
 def test_exact_seminorm_matches_spec():
-    """The quadrature of the exact solution reproduces |u|²_{H¹} = 3.443380724 (SPEC §7 A),
-    so the error above is measured against the right function."""
+    """The quadrature of the exact solution reproduces |u|²_{H¹} = 3.443380724
+    (docs/theory.md §7 A), so the error above is measured against the right function."""
     import ufl
     from dolfinx import fem
     from mpi4py import MPI

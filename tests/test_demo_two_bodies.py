@@ -27,5 +27,6 @@ def test_demo_two_bodies(tmp_path):
     assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 4.0
     ratios = [float(m) for m in re.findall(r"Q/\(F P\) = (\S+):", out)]
     errors = [float(m) for m in re.findall(r"Cattaneo–Mindlin \S+, (\S+)%\)", out)]
-    assert ratios == [0.25, 0.5, 0.75] and all(abs(e) < 6.0 for e in errors)   # a coarse 7.6k-DoF mesh
+    # a coarse 7.6k-DoF mesh
+    assert ratios == [0.25, 0.5, 0.75] and all(abs(e) < 6.0 for e in errors)
     assert (tmp_path / "demo_two_bodies.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

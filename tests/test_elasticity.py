@@ -85,7 +85,8 @@ def test_serial_and_two_ranks_agree(tmp_path):
         assert np.allclose(s[key + "/X"], p[key + "/X"], atol=1e-12)
         assert np.max(np.abs(s[key + "/u"] - p[key + "/u"])) <= 1e-8
         assert np.max(np.abs(s[key + "/lambda"] - p[key + "/lambda"])) <= 1e-8 * np.max(np.abs(s[key + "/lambda"]))
-        assert min(s[key + "/info"][5], p[key + "/info"][5]) >= 1e-6   # no node near a tie (tests/ties.py)
+        # no node near a tie (tests/ties.py)
+        assert min(s[key + "/info"][5], p[key + "/info"][5]) >= 1e-6
         assert s[key + "/info"][3] == p[key + "/info"][3]
 
 
@@ -198,11 +199,13 @@ LAZY = ("contact.models.elasticity", "contact.models.friction", "contact.solvers
 def test_a_run_imports_only_its_own_model(tmp_path):
     """``contact run`` of a coarse scalar scene leaves every module of LAZY unloaded; one of
     a frictionless elastic block then loads elasticity but neither friction module."""
-    code = ("import sys; from contact.app.cli import main; lazy = %r\n"
-            "for scene, cells, out in [('signorini_square', '[8, 8]', 's'), ('block_on_plane', '[8, 2]', 'b')]:\n"
-            "    rc = main(['run', f'configs/{scene}.yaml', '--set', f'mesh.cells={cells}', '--set', 'adapt.max_levels=2',\n"
-            "               '--set', 'output.verbose=false', '-o', %r + out])\n"
-            "    print(scene, rc, *[m for m in lazy if m in sys.modules])\n") % (LAZY, str(tmp_path) + "/")
+    code = ("import sys; from contact.app.cli import main; lazy = " + repr(LAZY) + "\n"
+            "for scene, cells, out in [('signorini_square', '[8, 8]', 's'),\n                      "
+            "    ('block_on_plane', '[8, 2]', 'b')]:\n    rc = main(['run', "
+            "f'configs/{scene}.yaml', '--set', f'mesh.cells={cells}',\n               '--set', "
+            "'adapt.max_levels=2', '--set', 'output.verbose=false',\n"
+            "               '-o', " + repr(str(tmp_path) + "/") + " + out])\n"
+            "    print(scene, rc, *[m for m in lazy if m in sys.modules])\n")
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     lines = [line for line in proc.stdout.splitlines() if line.split()[0] in ("signorini_square", "block_on_plane")]

@@ -1,4 +1,5 @@
-"""Issue 30 (phase 1): the equilibrated flux and the guaranteed bound (contact/adaptivity/equilibration).
+"""Issue 30 (phase 1): the equilibrated flux and the guaranteed bound
+(contact/adaptivity/equilibration).
 
 1. The flux of a Poisson problem (variable k, Dirichlet and Neumann parts, P1 and P2, 2D and
    3D) is equilibrated: −div σ_h = Π_p f in every cell, σ_h·n = Π_p t on Γ_N, and the cell

@@ -1,4 +1,5 @@
-"""SPEC §5–§6: the residual estimator (contact/adaptivity/estimate.py) and MARK / REFINE (contact/drivers/adaptive.py).
+"""docs/theory.md §5–§6: the residual estimator (contact/adaptivity/estimate.py) and
+MARK / REFINE (contact/drivers/adaptive.py).
 
 1. η vanishes at an exact discrete solution (linear u, no contact), also with a Neumann side
    carrying the exact flux; a wrong Neumann flux gives the exact Neumann term.
@@ -82,8 +83,8 @@ def test_estimator_vanishes_at_exact_discrete_solution(neumann_t):
     assert set(est.terms) == set(TERMS)
     for name in QUADRATIC:
         assert abs(est.terms[name]) < 1e-20, (name, est.terms)
-    # The complementarity term is *linear* in λ_h: |∫ min(λ_h, 0)(u_h − g)| ≤ max|λ_h|·max|u_h − g|·|Γ_C|
-    # (≤ 10·1e-9 here), so η is only ~ sqrt(round-off of λ_h): 1e-10 is out of reach.
+    # The complementarity term is *linear* in λ_h: |∫ min(λ_h, 0)(u_h − g)| ≤ max|λ_h|·max|u_h −
+    # g|·|Γ_C| (≤ 10·1e-9 here), so η is only ~ sqrt(round-off of λ_h): 1e-10 is out of reach.
     assert abs(est.terms["complementarity"]) <= lam * 10.0 * 1.0 + 1e-15
     assert est.eta < 1e-6
     np.testing.assert_allclose(est.eta**2, sum(est.terms.values()), rtol=1e-8, atol=1e-18)
@@ -244,7 +245,8 @@ def test_jump_term_exact(signorini):
     # (1/8 each) to the 16 cells touching x = ½.
     est = hand_made(signorini, 0.0, u=lambda X: np.abs(X[0] - 0.5))
     assert est.terms["jump"] == pytest.approx(N2 * (1 / N2) ** 2 * (2 * K2) ** 2, rel=1e-12)
-    assert est.terms["neumann"] == pytest.approx(2 * K2**2 / N2, rel=1e-12)  # |k ∂u_h/∂n| = k on x = 0, 1
+    # |k ∂u_h/∂n| = k on x = 0, 1
+    assert est.terms["neumann"] == pytest.approx(2 * K2**2 / N2, rel=1e-12)
     scene, result, _, _ = signorini
     per_cell = cellwise(indicator_terms(scene, result)["jump"])
     mid = scene.mesh.geometry.x[dmesh.entities_to_geometry(
@@ -289,7 +291,8 @@ def test_obstacle_sign_complementarity_and_volume(bound):
     t = run(good, feasible)   # right sign, gap 0.5 → complementarity ∫ |λ| · 0.5 = 0.5
     assert t["sign"] == 0.0
     assert t["complementarity"] == pytest.approx(0.5, rel=1e-12)
-    assert t["volume"] == pytest.approx((f + good) ** 2 * sum_hT2, rel=1e-12)  # λ_h enters the residual
+    # λ_h enters the residual
+    assert t["volume"] == pytest.approx((f + good) ** 2 * sum_hT2, rel=1e-12)
     t = run(good, 0.0)        # u_h = ψ_h: complementarity holds
     assert abs(t["complementarity"]) < 1e-15
     t = run(-good, feasible)  # wrong sign: h_T² ‖(σλ)⁺‖² = Σ h_T² |T|, no complementarity
@@ -456,7 +459,7 @@ def test_refine_keeps_boundary_tags_and_interpolates(source):
 
 
 # ---------------------------------------------------------------------------------------
-# 5. P2 (and P1 for comparison) on SPEC §7 problem A
+# 5. P2 (and P1 for comparison) on problem A (docs/theory.md §7)
 # ---------------------------------------------------------------------------------------
 FREE = "configs/signorini_free_boundary.yaml"
 

@@ -132,13 +132,15 @@ def test_unknown_petsc_solver_type_is_exit_2_before_meshing(tmp_path: Path, rank
     assert time.perf_counter() - t0 < 30
     assert proc.returncode == 2
     assert error_lines(proc) == [
-        "contact: error: solver.petsc_options.pc_factor_mat_solver_type: PETSc cannot use 'nonsense' (Could not "
-        f"locate solver type nonsense for factorization type LU and matrix type {'mpiaij' if ranks else 'seqaij'}. "
+        "contact: error: solver.petsc_options.pc_factor_mat_solver_type: PETSc cannot use "
+        "'nonsense' (Could not "
+        f"locate solver type nonsense for factorization type LU and matrix type "
+        f"{'mpiaij' if ranks else 'seqaij'}. "
         "Perhaps you must ./configure with --download-nonsense)"]
 
 
 @pytest.mark.parametrize("options, expect", [
-    ({"ksp_type": "cgg"}, r"^solver\.petsc_options\.ksp_type: PETSc cannot use 'cgg' \(Unable to find requested KSP"),
+    ({"ksp_type": "cgg"}, r"^solver\.petsc_options\.ksp_type: PETSc cannot use 'cgg' \(Unable to find " r"requested KSP"),
     ({"pc_type": "hypre"}, r"^solver\.petsc_options\.pc_type: PETSc cannot use 'hypre'"),
     ({"ksp_type": "cg", "snes_linesearch_type": "zz"}, r"^solver\.petsc_options\.snes_linesearch_type: "),
 ])
@@ -177,7 +179,8 @@ def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ra
     summary = json.loads((out / "summary.json").read_text())
     assert summary["converged"] is False and summary["failed_level"] == 2 and summary["levels"] == 2
     assert summary["failed_reason"] == "diverged_max_it"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]  # no temporaries left
+    # no temporaries left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]
 
 
 def test_readme_documents_the_exit_codes() -> None:

@@ -1,4 +1,4 @@
-"""Friction (SPEC §1.4, issue 12): the tangential law and its generalized Jacobian, the
+"""Friction (docs/theory.md §1.4, issue 12): the tangential law and its generalized Jacobian, the
 block Jacobian H = B K + D of a frictional scene, full sliding of a pulled block (Tresca and
 Coulomb force laws to round-off), Coulomb by full Newton against the Tresca fixed point,
 F = 0 against the frictionless Hertz solutions, and one-line errors for bad friction input."""
@@ -74,12 +74,18 @@ def test_projection_law_jacobian_is_the_derivative(m):
     z = np.linalg.norm(mu + c_t[:, None] * s, axis=1)
     ok = np.abs(z - rho) > 1e-3                        # away from the stick/slip kink
     assert ok.sum() > 150 and 20 < law.stick[ok].sum() < ok.sum() - 20
-    C = lambda m_: tangential_law(m_, s, rho, c_t, free).C
-    assert np.allclose(law.J_mu[ok], _fd(C, mu)[ok], atol=1e-6)
-    C = lambda s_: tangential_law(mu, s_, rho, c_t, free).C
-    assert np.allclose(law.J_s[ok], _fd(C, s)[ok], atol=1e-6)
-    C = lambda r_: tangential_law(mu, s, r_[:, 0], c_t, free).C
-    assert np.allclose(law.J_rho[ok], _fd(C, rho[:, None])[ok, :, 0], atol=1e-6)
+    def C_of_mu(m_):
+        return tangential_law(m_, s, rho, c_t, free).C
+
+    def C_of_s(s_):
+        return tangential_law(mu, s_, rho, c_t, free).C
+
+    def C_of_rho(r_):
+        return tangential_law(mu, s, r_[:, 0], c_t, free).C
+
+    assert np.allclose(law.J_mu[ok], _fd(C_of_mu, mu)[ok], atol=1e-6)
+    assert np.allclose(law.J_s[ok], _fd(C_of_s, s)[ok], atol=1e-6)
+    assert np.allclose(law.J_rho[ok], _fd(C_of_rho, rho[:, None])[ok, :, 0], atol=1e-6)
 
 
 def test_hsw_law_jacobian_is_the_scaled_derivative_of_the_max_form():
@@ -168,7 +174,8 @@ def test_pulled_block_tresca_force_is_threshold_times_length(method, form):
     r = contact.solve(scene, method=method)
     f = r.friction
     assert r.converged and r.iterations <= 10   # a bound: 2–8 steps here, 10 catches a cycle
-    assert np.all(f["status"][f["status"] > 0] == 2)                        # every contact node slips
+    # every contact node slips
+    assert np.all(f["status"][f["status"] > 0] == 2)
     Ft = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_t"][:, 0])))
     assert abs(Ft + 0.01 * 2.0) <= 1e-12                                    # −s·|Γ_C|: opposes +x
     assert np.all(f["slip"][:, 0] > 0)
@@ -195,7 +202,8 @@ def test_coulomb_newton_equals_fixed_point_2d():
     base = [*coulomb(0.3), "data.u_D=[\"0.004\", \"-0.01\"]"]
     ssn = contact.solve(block(*base))
     fp = contact.solve(block(*base, "friction.coulomb=fixed_point"))
-    # a lower bound: the pressure moves with the slip, so the fixed point takes several Tresca solves
+    # a lower bound: the pressure moves with the slip, so the fixed point takes several Tresca
+    # solves
     assert ssn.converged and fp.converged and fp.friction["fixed_point_iterations"] > 2
     scale = np.max(np.abs(ssn.u_h.x.array))
     assert np.max(np.abs(ssn.u_h.x.array - fp.u_h.x.array)) <= 1e-8 * scale
@@ -222,7 +230,8 @@ def test_coulomb_newton_equals_fixed_point_3d():
     agree; every slipping node is on the cone |λ_t| = F|λ_n|, every sticking node inside."""
     ssn = contact.solve(contact.load_scene(BOX))
     fp = contact.solve(contact.load_scene(BOX, ["friction.coulomb=fixed_point"]))
-    assert ssn.converged and fp.converged and ssn.iterations <= 10   # a bound (a cycle would hit it)
+    # a bound (a cycle would hit it)
+    assert ssn.converged and fp.converged and ssn.iterations <= 10
     u = ssn.u_h.x.array
     assert np.max(np.abs(u - fp.u_h.x.array)) <= 1e-8 * np.max(np.abs(u))
     f = ssn.friction
@@ -231,7 +240,8 @@ def test_coulomb_newton_equals_fixed_point_3d():
     assert (status == 1).sum() > 20 and (status == 2).sum() > 20
     assert np.allclose(norm_t[status == 2], cone[status == 2], rtol=1e-9)
     assert np.all(norm_t[status == 1] < cone[status == 1])
-    assert np.all(np.einsum("ij,ij->i", f["lambda_t"], f["slip"])[status == 2] < 0)   # opposes the slip
+    # opposes the slip
+    assert np.all(np.einsum("ij,ij->i", f["lambda_t"], f["slip"])[status == 2] < 0)
 
 
 # ------------------------------------------------------------------- F = 0 is frictionless

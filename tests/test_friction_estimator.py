@@ -85,7 +85,8 @@ def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
     table = contact_table(scene, r)
     if scene.comm.rank == 0:
         (_, s, p_exact, _), (_, _, t_exact, _) = exact_tractions(scene, table, tangent_2d(r))
-        assert np.allclose(s, table["x"]) and s[0] == pytest.approx(0.0)     # the arc length along y = 0
+        # the arc length along y = 0
+        assert np.allclose(s, table["x"]) and s[0] == pytest.approx(0.0)
         assert np.max(np.abs(p_exact + table["lambda_n"])) < 0.02 * np.max(p_exact)
         assert np.max(np.abs(t_exact - table["lambda_t"])) < 0.02 * np.max(np.abs(t_exact))
         assert np.allclose(t_exact, -0.5 * lame(1.0, 0.3)[0], rtol=1e-6)          # λ_t = −μα

@@ -240,7 +240,7 @@ def test_other_meshes_are_refined_as_dolfinx_does():
 
 
 def test_rectangle_refinement_does_not_import_gmsh():
-    code = ("import sys, numpy as np, contact; s = contact.load_scene('configs/signorini_free_boundary.yaml'); "
+    code = ("import sys, numpy as np, contact; s = " "contact.load_scene('configs/signorini_free_boundary.yaml'); "
             "contact.refine(s, np.arange(4, dtype=np.int32)); print('gmsh' in sys.modules)")
     proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr

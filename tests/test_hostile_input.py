@@ -24,7 +24,8 @@ def alias_bomb(levels: int, width: int = 9) -> str:
 
 def _scene_text(cells: str) -> str:
     return (f"name: bomb\nmesh: {{type: unit_square, cells: {cells}}}\n"
-            "boundaries: {bottom: {role: contact, where: 'y < 1e-10'}, top: {role: dirichlet, where: 'y > 0.9'}}\n")
+            "boundaries: {bottom: {role: contact, where: 'y < 1e-10'}, top: {role: dirichlet, "
+            "where: 'y > 0.9'}}\n")
 
 
 def _fails_fast(tmp: Path, *args: str, expect: str, limit: float = 30.0) -> str:

@@ -77,6 +77,6 @@ def test_an_annotation_only_import_breaks_nothing(tmp_path):
     """``if TYPE_CHECKING:`` imports are left out (charts.py annotates with study's Study)."""
     root = _copy(tmp_path)
     with open(root / "contact" / "solvers" / "ncp.py", "a") as f:
-        f.write("\n\nfrom typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from ..setup.scene import Scene\n")
+        f.write("\n\nfrom typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from " "..setup.scene import Scene\n")
     proc = lint(root)
     assert proc.returncode == 0, proc.stdout

@@ -73,8 +73,8 @@ r = contact.solve(scene, method="min", problem=problem, verbose=False, linear="g
 norm2 = scene.mesh.comm.allreduce(fem.assemble_scalar(fem.form(r.u_h**2 * ufl.dx)))
 margin = tie_margin(r)
 if scene.mesh.comm.rank == 0:
-    print(json.dumps([r.converged, default_linear_solver(problem, "gamg").get("pc_gamg_aggressive_square_graph"),
-                      norm2, r.n_active, margin]))
+    square = default_linear_solver(problem, "gamg").get("pc_gamg_aggressive_square_graph")
+    print(json.dumps([r.converged, square, norm2, r.n_active, margin]))
 """
 
 

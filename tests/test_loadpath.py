@@ -62,7 +62,8 @@ def test_pulled_block_slip_accumulates_over_the_steps():
     assert np.all(slips[1:] >= -1e-12) and slips[1:].sum() > 0.03          # along the drag
     assert np.all(slips[0, -2:] < 0)         # step 1 also presses: the front edge expands outward
     counts = [np.bincount(s.result.friction["status"], minlength=3) for s in path.steps]
-    assert counts[0][1] > 0 and counts[-1][1] == 0                    # sticks first, slides at the end
+    # sticks first, slides at the end
+    assert counts[0][1] > 0 and counts[-1][1] == 0
     assert np.allclose(slips.sum(axis=0), one.friction["slip"][:, 0], atol=1e-12)
     assert np.allclose(slips[-1], 0.005, rtol=1e-8)
     assert max(s.result.iterations for s in path.steps) <= 10   # a bound (warm starts take 1–8)
@@ -95,7 +96,8 @@ def test_run_writes_every_step(tmp_path):
     reader.set_active_time_value(reader.time_values[-1])
     grid = reader.read()[0]
     assert {"u_h", "lambda_h", "lambda_t", "slip", "status", "bound"} <= set(grid.point_data.keys())
-    assert set(np.unique(grid.point_data["status"])) <= {-1.0, 0.0, 2.0}     # off Γ_C, separated, slip
+    # off Γ_C, separated, slip
+    assert set(np.unique(grid.point_data["status"])) <= {-1.0, 0.0, 2.0}
     steps = list(csv.DictReader(open(out / "steps.csv")))
     assert [float(s["time"]) for s in steps] == pytest.approx([1 / 3, 2 / 3, 1.0])
     for s in steps:
@@ -140,7 +142,8 @@ def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
     cols = list(s["columns"])
     for name in [c for c in cols if c.startswith(("lambda", "slip", "gap"))]:
         a, b = s["surface"][:, cols.index(name)], p["surface"][:, cols.index(name)]
-        scale = np.max(np.abs(s["u"])) if name == "gap" else np.max(np.abs(a))   # gaps are 0 in contact
+        # gaps are 0 in contact
+        scale = np.max(np.abs(s["u"])) if name == "gap" else np.max(np.abs(a))
         assert np.max(np.abs(a - b)) <= 1e-8 * scale, name
     # the statuses agree wherever a node is clear of both kinks (rounding may tip one that
     # is on a kink: λ_n ≈ 0 with gap ≈ 0, or |λ_t| ≈ ρ with slip ≈ 0)
@@ -170,7 +173,8 @@ def test_study_sweeps_friction_axes_and_steps():
     assert all(r["converged"] for r in rows)
     for r in rows:
         assert r["levels"] == r["steps"]
-        assert r["max_step_iterations"] <= (40 if r["case"] == "fixed point" else 10)   # (all inner solves)
+        # (all inner solves)
+        assert r["max_step_iterations"] <= (40 if r["case"] == "fixed point" else 10)
         assert r["newton_iterations_total"] == sum(lv["newton_iterations"] for lv in levels if lv["run"] == r["run"])
         if r["case"] != "frictionless":
             assert r["friction_ratio"] == pytest.approx(0.3, rel=1e-8)        # sliding at t = 1

@@ -1,4 +1,4 @@
-"""Tests of the complementarity functions and their generalized derivatives (SPEC §3)."""
+"""Tests of the complementarity functions and their generalized derivatives (docs/theory.md §3)."""
 from __future__ import annotations
 
 import decimal
@@ -59,7 +59,8 @@ EDGE_NOT_COMPLEMENTARY = [
     (-HUGE, HUGE), (HUGE, -HUGE), (-HUGE, 0.0), (0.0, -HUGE), (1e-300, 1e-300),
     (-1e-300, -1e-300), (2.0, 3.0), (-2.0, 3.0), (1e-10, 1e10),
 ]
-# pairs with 0 < |b| ≪ a, where b/(a+b+r) underflows (to 0 or to a subnormal): see test_fb_small_partner_*
+# pairs with 0 < |b| ≪ a, where b/(a+b+r) underflows (to 0 or to a subnormal): see
+# test_fb_small_partner_*
 EDGE_NOT_COMPLEMENTARY_UNDERFLOW = [(HUGE, 1e-300), (HUGE, -1e-300), (1e20, -1e-300), (1.0, -TINY)]
 
 

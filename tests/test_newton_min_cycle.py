@@ -91,7 +91,8 @@ def test_cycle_guard_and_backtracking() -> None:
     start's ‖Φ_0‖ is no yardstick); backtrack takes the largest 2^−j with Armijo's
     decrease, else the trial with the smallest merit."""
     guard = CycleGuard()
-    sets = [[1, 0, 0], [0, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0], [1, 1, 1]]   # twice in a row: no cycle
+    # twice in a row: no cycle
+    sets = [[1, 0, 0], [0, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0], [1, 1, 1]]
     told = [guard.visit(np.array(a, bool), 1.0 / (k + 1)) for k, a in enumerate(sets)]
     assert told == [False] * 4 + [True] * 2
     assert (guard.engaged_at, guard.why) == (4, "repeat")
@@ -105,7 +106,8 @@ def test_cycle_guard_and_backtracking() -> None:
     # never a sufficient decrease: the trial with the smallest merit (the full step or the last)
     assert backtrack(lambda t: 2.0 - t, 1.0) == 1.0
     assert backtrack(lambda t: 2.0 + t, 1.0) == MIN_STEP
-    assert backtrack(lambda t: 1.0 - 1.5 * ARMIJO * t, 1.0) == 1.0   # less than Armijo asks: best trial
+    # less than Armijo asks: best trial
+    assert backtrack(lambda t: 1.0 - 1.5 * ARMIJO * t, 1.0) == 1.0
 
 
 def test_stack_min_converges_by_default_and_plain_steps_come_first() -> None:

@@ -131,7 +131,8 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     assert proc.returncode == 0, proc.stderr
     names = ["solution.h5", "solution.vtu", "solution.xdmf", "summary.json", "history.csv",
              "solution.png", "contact.csv", "pressure.png"]
-    assert sorted(p.name for p in out.iterdir()) == sorted(names + [".contact-result"])  # + the marker
+    # + the marker
+    assert sorted(p.name for p in out.iterdir()) == sorted(names + [".contact-result"])
     files = read_folder(out)
     summary = files["summary.json"]
     assert summary["files"] == sorted(names)

@@ -20,7 +20,8 @@ import json, sys
 from mpi4py import MPI
 import contact
 scene = contact.load_scene(sys.argv[1])
-# the cold start on the direct solver: GAMG's aggregates (hence inexact steps) depend on the partition
+# the cold start on the direct solver: GAMG's aggregates (hence inexact steps) depend on the
+# partition
 r = contact.solve(scene, verbose=False, sequence="off", linear="direct")
 rows = [(h["active"], h["changed"]) for h in r.history]
 if MPI.COMM_WORLD.rank == 0:
@@ -87,8 +88,8 @@ scene = contact.load_scene(sys.argv[1])
 out = {}
 for method in ("fb", "min"):
     r = contact.solve(scene, method=method, verbose=False)
-    out[method] = {"converged": r.converged, "history": [(h["active"], h["residual"]) for h in r.history],
-                   "force": r.contact_force}
+    history = [(h["active"], h["residual"]) for h in r.history]
+    out[method] = {"converged": r.converged, "history": history, "force": r.contact_force}
 if MPI.COMM_WORLD.rank == 0:
     print(json.dumps(out))
 """
@@ -141,7 +142,8 @@ def test_next_dofs_bound_identical_on_any_number_of_ranks(tmp_path: Path) -> Non
     1919249 on 2 ranks)."""
     runs = _run_script(tmp_path, NEXT_DOFS, "lshape_corner.yaml", (1, 3))
     assert runs[1] == runs[3]
-    assert all(bound <= dofs for bound, dofs in runs[1])   # a lower bound of the refined mesh's DoFs
+    # a lower bound of the refined mesh's DoFs
+    assert all(bound <= dofs for bound, dofs in runs[1])
 
 
 SEQUENCE_CHAIN = """
@@ -169,8 +171,8 @@ fine = transfer(u, first, scene)
 square = lambda f: comm.allreduce(fem.assemble_scalar(fem.form(f ** 2 * ufl.dx)), op=MPI.SUM)
 chain = abs(square(fine) - square(u)) / square(u)
 if comm.rank == 0:
-    print(json.dumps({"dofs": seq.dofs, "levels": [lv.dofs for lv in seq.sequence], "gap": gap, "norm": norm,
-                      "chain": chain}))
+    print(json.dumps({"dofs": seq.dofs, "levels": [lv.dofs for lv in seq.sequence], "gap": gap,
+                      "norm": norm, "chain": chain}))
 """
 
 
@@ -178,11 +180,12 @@ def test_sequencing_through_a_rebalanced_refinement_chain(tmp_path: Path) -> Non
     """A scene refined by contact.refine on 2 and 3 ranks, each child mesh redistributed by
     the graph partitioner: the prolongation through the chain of ancestors (pulling each
     node's value from the rank that created its cell) carries a P1 function from the first
-    mesh to the last unchanged (the same ∫ u² to 1e-12), and grid sequencing gives the cold direct answer, with the serial
-    run's meshes and norm."""
+    mesh to the last unchanged (the same ∫ u² to 1e-12), and grid sequencing gives the cold direct
+    answer, with the serial run's meshes and norm."""
     runs = _run_script(tmp_path, SEQUENCE_CHAIN, "signorini_free_boundary.yaml", (1, 2, 3))
     for n, run in runs.items():
-        assert run["levels"] and run["levels"][-1] * 4 <= run["dofs"], run   # an ancestor several levels up
+        # an ancestor several levels up
+        assert run["levels"] and run["levels"][-1] * 4 <= run["dofs"], run
         assert run["gap"] <= 1e-8 and run["chain"] <= 1e-12, (n, run)
         assert run["dofs"] == runs[1]["dofs"] and run["levels"] == runs[1]["levels"], (n, run)
         assert abs(run["norm"] - runs[1]["norm"]) <= 1e-10 * runs[1]["norm"], (n, run)

@@ -1,5 +1,6 @@
-"""The pictures of big 2D meshes: nodal fields sampled at pixel centres (contact.output.plots.raster)
-must be the P1 interpolant there — what Gouraud shading paints — and blank outside Ω."""
+"""The pictures of big 2D meshes: nodal fields sampled at pixel centres
+(contact.output.plots.raster) must be the P1 interpolant there — what Gouraud shading paints — and
+blank outside Ω."""
 import json
 import os
 import subprocess
@@ -123,13 +124,18 @@ comm = MPI.COMM_WORLD
 u = fem.Function(fem.functionspace(mesh.create_unit_square(comm, 8, 8), ("Lagrange", 1)), name="u")
 u.interpolate(lambda x: x[0] + 2 * x[1])
 def record(k):   # picture k notes the rank that drew it and the gathered grid's size and values
+    def error(grid):
+        exact = grid.points[:, 0] + 2 * grid.points[:, 1]
+        return float(np.max(np.abs(grid.point_data["u"] - exact)))
     return lambda grid: open(f"{sys.argv[1]}/{k}.json", "w").write(json.dumps(
-        [comm.rank, grid.n_points, float(np.max(np.abs(grid.point_data["u"] - grid.points[:, 0] - 2 * grid.points[:, 1])))]))
+        [comm.rank, grid.n_points, error(grid)]))
 plots.DRAW_RANKS = int(sys.argv[2]) or None
 def chart(grid):   # a picture without fields: drawn by its rank, with no grid
     open(f"{sys.argv[1]}/3.json", "w").write(json.dumps([comm.rank, grid, 0.0]))
-plots.draw_in_turn([plots.Picture([u], record(k)) for k in range(3)] + [plots.Picture([], chart)], comm)
-files = [json.load(open(f"{sys.argv[1]}/{k}.json")) for k in range(4)]   # after the barrier: all there
+pictures = [plots.Picture([u], record(k)) for k in range(3)] + [plots.Picture([], chart)]
+plots.draw_in_turn(pictures, comm)
+# after the barrier: all there
+files = [json.load(open(f"{sys.argv[1]}/{k}.json")) for k in range(4)]
 if comm.rank == 0:
     print(json.dumps(files))
 """

@@ -78,7 +78,8 @@ def _wait(proc: subprocess.Popen) -> tuple[str, str]:
 
 
 def _ended_by(proc: subprocess.CompletedProcess, seconds: float, rank: int, code: int, text: str) -> None:
-    """The job ended within BOUND with ``code`` and one line of ours: ``rank``'s, naming ``text``."""
+    """The job ended within BOUND with ``code`` and one line of ours: ``rank``'s, naming
+    ``text``."""
     assert seconds <= BOUND, f"{seconds:.0f} s"
     assert proc.returncode == code, proc.stderr[-3000:]
     ours = {ln for ln in error_lines(proc) if ln.startswith("contact")}
@@ -128,7 +129,8 @@ def test_exception_on_one_rank_ends_the_job(tmp_path: Path, case: str) -> None:
 def _tiny_study(tmp: Path) -> Path:
     study = tmp / "study.yaml"
     study.write_text(f"name: tiny\nscene: {ROOT / 'configs' / 'signorini_square.yaml'}\n"
-                     "set: ['mesh.cells=[8,8]', output.png=false]\naxes: {method: [fb, min]}\nwarmup: false\n")
+                     "set: ['mesh.cells=[8,8]', output.png=false]\naxes: {method: [fb, "
+                     "min]}\nwarmup: false\n")
     return study
 
 

@@ -42,7 +42,7 @@ def test_readme_python_example_prints_global_values_under_mpirun(tmp_path):
     text = (ROOT / "README.md").read_text()
     code = re.search(r"```python\n(.*?)```", text.split("## Python API", 1)[1], re.S).group(1)
     # each rank's stdout to its own file (mpirun may interleave the two streams mid-line)
-    to_file = f"import os, sys; sys.stdout = open(r'{tmp_path}/out' + os.environ.get('PMI_RANK', 's'), 'w')\n"
+    to_file = f"import os, sys; sys.stdout = open(r'{tmp_path}/out' + os.environ.get('PMI_RANK', 's'), " f"'w')\n"
     mpirun = Path(sys.executable).parent / "mpirun"
     serial = subprocess.run([sys.executable, "-c", to_file + code], cwd=ROOT, capture_output=True, text=True,
                             timeout=300)
@@ -141,7 +141,7 @@ def test_lock_pins_every_dependency() -> None:
 
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     wanted = project["dependencies"] + project["optional-dependencies"]["test"] + ["pip"]
-    names = {re.sub(r"[-_.]+", "-", re.split(r"[<>=!~\[; ]", req, 1)[0]).lower() for req in wanted}
+    names = {re.sub(r"[-_.]+", "-", re.split(r"[<>=!~\[; ]", req, maxsplit=1)[0]).lower() for req in wanted}
     assert names - set(_locked()) == set()
     makefile = (ROOT / "Makefile").read_text()
     assert "$(VENV)/.installed: pyproject.toml $(LOCK)" in makefile

@@ -47,7 +47,8 @@ def test_sequence_off_and_explicit_levels():
     two = _solve(scene, method="min", sequence=2)
     assert off.sequence == [] and [lv.dofs for lv in two.sequence] == [17 ** 2, 33 ** 2]
     assert np.max(np.abs(off.u_h.x.array - two.u_h.x.array)) <= 1e-8
-    many = _solve(scene, method="min", sequence=20)  # more than exist (or than fit the parts): a note
+    # more than exist (or than fit the parts): a note
+    many = _solve(scene, method="min", sequence=20)
     assert many.sequence_note.startswith("grid sequencing") and 4 <= len(many.sequence) <= 6
     assert many.converged and np.max(np.abs(off.u_h.x.array - many.u_h.x.array)) <= 1e-8
 

@@ -90,7 +90,8 @@ def test_tiny_study_end_to_end(tiny_serial) -> None:
 def test_tiny_study_two_ranks_same_iterations(tiny_serial, tmp_path_factory) -> None:
     _, serial = tiny_serial
     proc, parallel = _tiny(tmp_path_factory, 2)
-    assert sum(ln.startswith("[") for ln in proc.stdout.splitlines()) == 3  # progress from rank 0 only
+    # progress from rank 0 only
+    assert sum(ln.startswith("[") for ln in proc.stdout.splitlines()) == 3
     _, s_rows = _rows(serial)
     _, p_rows = _rows(parallel)
     # the same counts on 2 ranks: every kink is decided with the tie tolerance (no node of
@@ -220,7 +221,7 @@ def test_pareto_front() -> None:
 
 
 BAD = {
-    "unknown_key": ("colour: unknown key (expected one of name, scene, set, axes, cases, adapt, charts, repeat, warmup)",
+    "unknown_key": ("colour: unknown key (expected one of name, scene, set, axes, cases, adapt, charts, " "repeat, warmup)",
                     {"colour": "red"}),
     "unknown_axis": ("axes.solver: unknown axis (expected one of method, mu, c,", {"axes": {"solver": ["fb"]}}),
     "bad_method": ("axes.method[1]: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls",
@@ -307,7 +308,8 @@ def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
     its = {(lv["case"], lv["method"], lv["level"]): lv["newton_iterations"] for lv in levels}
     for m in ("fb", "min"):
         assert its["nested", m, 0] == its["cold", m, 0]           # the same first level
-        assert its["nested", m, 2] < its["cold", m, 2]             # warm start pays on level 2 (1–2 against ≥ 4)
+        # warm start pays on level 2 (1–2 against ≥ 4)
+        assert its["nested", m, 2] < its["cold", m, 2]
     for chart in ("stability", "iterations", "speed_accuracy"):
         assert (tmp_path / "out" / f"{chart}.png").stat().st_size > 10_000
     header = (tmp_path / "out" / "levels.csv").read_text().splitlines()[0].split(",")

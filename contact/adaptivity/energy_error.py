@@ -1,4 +1,4 @@
-"""Errors against an exact solution (SPEC §7): energy / H¹-seminorm and L² norms."""
+"""Errors against an exact solution (docs/theory.md §7): energy / H¹-seminorm and L² norms."""
 from __future__ import annotations
 
 import numpy as np
@@ -14,9 +14,9 @@ def default_degree(u_h: fem.Function) -> int:
     """Quadrature degree 2p + 2 for P_p: exact for the polynomial part |∇u_h|² (degree
     2p − 2) with four orders to spare for the smooth u.  Problem A (u = −r^{3/2} cos(3θ/2),
     singular at the origin, P1) against degree 12: relative change of ‖u − u_h‖_E 7e-5 on
-    the first mesh (degree 8: 3e-5), ≤ 5e-7 from 10⁴ DoFs on and 2e-8 at 4.4·10⁵ DoFs, at
-    0.74 s instead of 1.73 s for degree 8 (``python demos/bench/bench_error_quadrature.py``,
-    demos/results/error_quadrature.csv)."""
+    the first mesh (degree 8: 3e-5), ≤ 5e-7 from 10⁴ DoFs on and 2e-8 at 4.4·10⁵ DoFs, in
+    less than half the time of degree 8 (``python demos/bench/bench_error_quadrature.py``,
+    demos/results/error_quadrature.csv; timings: demos/RESULTS.md §10)."""
     return 2 * u_h.function_space.element.basix_element.degree + 2
 
 

@@ -1,4 +1,4 @@
-"""Residual a posteriori error estimator (SPEC §5) as DG0 indicator forms.
+"""Residual a posteriori error estimator (docs/theory.md §5) as DG0 indicator forms.
 
 With w a DG0 test function, one assembly per term of the form below gives every η_T²
 (each term's vector is kept, so its total Σ_T costs no second assembly):
@@ -21,7 +21,7 @@ terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sig
 h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
 the cell diameter, h_E the facet size.  η = (Σ_T η_T²)^{1/2}.
 
-The complementarity integrand is taken in absolute value: it equals SPEC's
+The complementarity integrand is taken in absolute value: it equals
 min(λ_h, 0)(u_h − g) ≥ 0 whenever u_h ≤ g, and stays a non-negative indicator (instead of
 making Σ η_T² negative) for an infeasible u_h, e.g. between nodes for P2 or after a solve
 that did not converge.
@@ -97,7 +97,7 @@ def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
 
 
 def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """SPEC §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
+    """docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
     n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
 
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
@@ -147,7 +147,7 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
 
 
 def friction_data(scene: Scene, result: Result):
-    """UFL data of the friction terms (SPEC §1.4, Hild–Lleras) on Γ_C: the tangential
+    """UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on Γ_C: the tangential
     multiplier λ_t (P1 vector of the nodal λ_t,i), the bound ρ (Tresca: the threshold
     expression s(x, t); Coulomb: F·(−λ_n,h)⁺) and the slip s_t = (I − n nᵀ)(u_h − u_prev)."""
     from ..solvers.friction import surface_functions
@@ -167,11 +167,11 @@ def friction_data(scene: Scene, result: Result):
 
 
 def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl.Form]:
-    """Estimator terms on the pairs' surfaces (SPEC §5 with both sides measured): on the
+    """Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on the
     slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
     with friction h_E ‖T_t − λ_t‖² and the terms ‖(|λ_t| − ρ)⁺‖², ∫ |ρ|s_t| + λ_t·s_t| of
-    SPEC §1.4, s_t the nodal relative slip increment), ‖λ_h⁺‖² (sign) and |min(λ_h, 0) g_h|
-    (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
+    docs/theory.md §1.4, s_t the nodal relative slip increment), ‖λ_h⁺‖² (sign) and
+    |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
     (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
     like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
     T_t = T − (T·n) n."""
@@ -191,7 +191,8 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     master_ids = [bnd.ids[pair["master"]] for pair in scene.cfg["pairs"]]
     extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
     Tt_s, Tt_m = Tt, Tt
-    if result.friction is not None:   # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
+    # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
+    if result.friction is not None:
         from ..solvers.friction import surface_functions
 
         lam_t, slip = surface_functions(result)[:2]
@@ -237,7 +238,7 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     require_scene(scene)
     if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
         raise ValueError("result: expected the contact.Result of contact.solve on this scene (same mesh)")
-    if scene.cfg.get("estimator") == "equilibrated":   # SPEC §9: a guaranteed bound
+    if scene.cfg.get("estimator") == "equilibrated":   # docs/theory.md §9: a guaranteed bound
         from .equilibration.bound import guaranteed_bound
 
         bound = guaranteed_bound(scene, result)

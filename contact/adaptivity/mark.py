@@ -1,4 +1,4 @@
-"""MARK (SPEC §6): the cells whose indicators η_T carry the error, by Dörfler's bulk
+"""MARK (docs/theory.md §6): the cells whose indicators η_T carry the error, by Dörfler's bulk
 criterion, the maximum criterion, or all of them — the same cells on any number of MPI
 ranks."""
 from __future__ import annotations
@@ -25,7 +25,7 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
     """
     parts = comm.gather(np.asarray(eta_sq, dtype=float), root=0)
     tau = None
-    if comm.rank == 0:
+    if parts is not None:   # rank 0
         values = np.sort(np.concatenate(parts))[::-1]
         cumulative = np.cumsum(values)
         if len(values) == 0 or cumulative[-1] <= 0:
@@ -71,8 +71,8 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
 
 def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
     if not isinstance(eta_T, fem.Function):
-        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got {type(eta_T).__name__}")
+        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got " f"{type(eta_T).__name__}")
     if strategy not in STRATEGIES:
-        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of {', '.join(STRATEGIES)}")
+        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of " f"{', '.join(STRATEGIES)}")
     if isinstance(theta, bool) or not isinstance(theta, (int, float)) or not 0 < theta <= 1:
         raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")

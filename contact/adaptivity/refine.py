@@ -1,4 +1,4 @@
-"""REFINE (SPEC §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the scene
+"""REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the scene
 carried to the new mesh (tags, history, nested-iteration guess, curved boundaries snapped
 to their exact surfaces), and the refined mesh's partition."""
 from __future__ import annotations
@@ -79,6 +79,7 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
     for surface in boundary_surfaces(scene.cfg, scene.mesh.geometry.dim, scene.boundary):
         surface.snap(new, tags)
     for surface in builder_surfaces(scene.cfg):   # by the mesh's own tags of its curved surfaces
+        assert surfaces is not None  # a mesh builder with curved surfaces tags them
         surface.snap(new, surfaces)
     clock.append(time.perf_counter())
     if timings is not None:
@@ -109,8 +110,7 @@ def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> in
 def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     """``dolfinx.mesh.refine``'s partitioner.
 
-    * serial: ``None`` (no ghost layer to build: 40 % faster, 2.2 s against 3.7 s for 1.5M
-      new cells);
+    * serial: ``None`` (no ghost layer to build: 40 % faster; demos/RESULTS.md §10);
     * parallel, ``rebalance``: dolfinx's graph partitioner, which spreads the refined mesh
       evenly over the ranks — refinement concentrated in one rank's part of the domain
       would otherwise leave that rank with most of the work (problem A: 1.15× its share
@@ -122,7 +122,7 @@ def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     if msh.comm.size == 1:
         return None
     if rebalance:
-        return dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)
+        return dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2)  # type: ignore[call-arg]
     return dmesh.IdentityPartitionerPlaceholder()
 
 
@@ -131,6 +131,7 @@ def _owned_cells(scene: Scene, cells: Any) -> np.ndarray:
     arr = np.asarray(cells)
     comm = scene.comm
     n_owned = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    problem: str | None
     if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
         problem = f"expected a 1D array of integer cell indices, got {arr.dtype} with shape {arr.shape}"
     else:

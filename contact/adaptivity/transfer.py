@@ -26,7 +26,8 @@ def creators(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
     """(creating rank, index in that rank's creation list) of every local cell of the
     refined mesh ``new``, ghosts included; ``n_created`` = ``len(parent_cell)`` on this
     rank.  Collective."""
-    offsets = np.cumsum([0, *new.comm.allgather(int(n_created))])  # global creation index of each rank's first
+    # global creation index of each rank's first
+    offsets = np.cumsum([0, *new.comm.allgather(int(n_created))])
     g = np.asarray(new.topology.original_cell_index, dtype=np.int64)
     rank = np.searchsorted(offsets, g, side="right") - 1
     return rank, g - offsets[rank]
@@ -69,7 +70,8 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     rank, index = creators(new, len(parent_cell))
     cell_dofs = V.dofmap.list
     cell_of = np.full(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, -1, dtype=np.int64)
-    cell_of[cell_dofs.ravel()] = np.repeat(np.arange(len(cell_dofs)), cell_dofs.shape[1])  # a cell holding it
+    # a cell holding it
+    cell_of[cell_dofs.ravel()] = np.repeat(np.arange(len(cell_dofs)), cell_dofs.shape[1])
     dofs = np.flatnonzero(cell_of[: V.dofmap.index_map.size_local] >= 0)
     cell = cell_of[dofs]
     bs = V.dofmap.index_map_bs

@@ -67,7 +67,8 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
-    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints them."""
+    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints
+    them."""
     from ..setup.surfaces import ContactWarning
 
     if issubclass(category, ContactWarning):
@@ -164,7 +165,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
     _say(comm, f"contact: {result.dofs} DoFs, {newton_text(result)}, "
-               f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active nodes")
+               f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active "
+               f"nodes")
     if not result.converged:
         if comm.rank == 0:
             print(failures.one_line(f"contact: error: solver {method} {not_converged_text(result)}; "

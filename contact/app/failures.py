@@ -51,7 +51,8 @@ SOLVED, NOT_CONVERGED, BAD_INPUT, INTERNAL = 0, 1, 2, 3
 INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, what a shell reports for a program SIGINT ended
 MAX_LINE = 300  # characters of one failure message
 AGREE_SECONDS = 5.0  # how long a failing rank waits for the others to fail too (MPI)
-ABORT_GRACE_SECONDS = 0.5  # a failing rank's pause between its line and MPI_Abort (once, the line was lost)
+# a failing rank's pause between its line and MPI_Abort (once, the line was lost)
+ABORT_GRACE_SECONDS = 0.5
 
 
 def one_line(text: object, limit: int = MAX_LINE) -> str:

@@ -37,9 +37,9 @@ levels), the linear solver and its Krylov iterations (MUMPS: one per solve; the 
 level's or step's), converged, the SNES
 reason and its :func:`outcome` class, the accuracy figures the scene allows (energy error
 with ``data.exact``; the relative errors of a declared ``reference``, e.g. Hertz's
-``a_error``, ``p0_error`` and their largest magnitude ``hertz_error``), η, the measure of the active set, the wall
-time and the peak memory.  Every level of every run is one row of ``levels.csv``, with the
-wall time since the start of the run (the x axis of speed-against-accuracy charts).  A run
+``a_error``, ``p0_error`` and their largest magnitude ``hertz_error``), η, the measure of the active
+set, the wall time and the peak memory.  Every level of every run is one row of ``levels.csv``, with
+the wall time since the start of the run (the x axis of speed-against-accuracy charts).  A run
 that raises or does not converge is a row with ``converged=False`` and the reason in
 ``failure``; the study goes on.
 
@@ -76,9 +76,18 @@ LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of t
 STRATEGIES = ("none", "uniform", "dorfler", "maximum")
 CHARTS = ("speed_accuracy", "stability", "iterations")
 
-_SOLVER = SCENE["solver"].schema
-_ADAPT = SCENE["adapt"].schema
-_FRICTION = SCENE["friction"].schema
+
+
+def _section(name: str) -> Mapping[str, Field]:
+    """The fields of the scene section ``name`` (a section has a schema)."""
+    schema = SCENE[name].schema
+    assert schema is not None, f"scene section {name} has no schema"
+    return schema
+
+
+_SOLVER = _section("solver")
+_ADAPT = _section("adapt")
+_FRICTION = _section("friction")
 
 #: axis name -> the Field each of its values is validated with
 AXES: dict[str, Field] = {
@@ -343,7 +352,8 @@ def _validate_case(name: str, spec: dict, st: dict, base_raw: dict, base_cfg: di
                    axes: dict, extra: tuple[str, ...] = ()) -> Case:
     path = f"cases.{name}."
     raw, cfg = base_raw, base_cfg
-    if "scene" in spec or "set" in spec:  # the case's own scene (default: the study's), then its `set`
+    # the case's own scene (default: the study's), then its `set`
+    if "scene" in spec or "set" in spec:
         ref = spec.get("scene", st["scene"])
         sets = ([] if "scene" in spec else list(st["set"])) + list(spec.get("set") or [])
         raw, cfg, _ = _read_scene(ref, sets, base_dir, path, extra)
@@ -363,13 +373,13 @@ def _validate_axes(axes: Any, constants: Mapping[str, float]) -> dict[str, list]
     if axes is None:
         return {}
     if not isinstance(axes, dict):
-        raise ConfigError(f"axes: expected a mapping of axis name to a list of values, got {_typename(axes)} {axes!r}")
+        raise ConfigError(f"axes: expected a mapping of axis name to a list of values, got " f"{_typename(axes)} {axes!r}")
     out: dict[str, list] = {}
     for name, values in axes.items():
         if name not in AXES:
             raise ConfigError(f"axes.{name}: unknown axis (expected one of {', '.join(AXES)})")
         if not isinstance(values, list) or not values:
-            raise ConfigError(f"axes.{name}: expected a non-empty list of values, got {_typename(values)} {values!r}")
+            raise ConfigError(f"axes.{name}: expected a non-empty list of values, got {_typename(values)} " f"{values!r}")
         checked = [_validate(v, AXES[name], f"axes.{name}[{i}]", constants) for i, v in enumerate(values)]
         for i, v in enumerate(checked):
             if v in checked[:i]:
@@ -388,7 +398,8 @@ def outcome(row: Mapping[str, Any]) -> str:
     reason = str(row.get("reason") or "")
     if row.get("converged") is True or reason.startswith("converged"):
         return "converged"
-    if reason.startswith("diverged") and reason.endswith("max_it"):   # Newton's or the fixed point's limit
+    # Newton's or the fixed point's limit
+    if reason.startswith("diverged") and reason.endswith("max_it"):
         return "max iterations"
     if reason in ("diverged_line_search", "diverged_local_min", "diverged_tr_delta"):
         return "stalled"
@@ -428,7 +439,9 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     if scene.cfg.get("reference"):
         from ..post.reference import compare, error_values
 
-        out.update(error_values(scene.cfg, compare(scene, result)))
+        comparison = compare(scene, result)
+        assert comparison is not None  # the scene declares a reference
+        out.update(error_values(scene.cfg, comparison))
     out["eta"] = "" if eta is None else eta
     out["active_measure"] = active_measure(result)
     return out
@@ -501,7 +514,8 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
                        "reason": lv.result.reason}
                 row.update(_figures(study, lv.scene, lv.result, lv.estimate.eta, lv.error)
                            if lv.result.converged else _empty_figures(study))
-                row["seconds"] = time.perf_counter() - t0  # reduced over ranks with the others below
+                # reduced over ranks with the others below
+                row["seconds"] = time.perf_counter() - t0
                 levels.append(row)
 
             res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
@@ -601,7 +615,7 @@ def _duration(s: float) -> str:
 def _progress(k: int, n: int, params: Mapping[str, Any], row: Mapping[str, Any], eta_s: float) -> str:
     if row["converged"]:
         if row.get("stop") not in (None, "single solve") and row["levels"] != "":
-            what = (f"converged, {row['levels']} levels, {row['dofs']} DoFs, {row['newton_iterations']} its "
+            what = (f"converged, {row['levels']} levels, {row['dofs']} DoFs, " f"{row['newton_iterations']} its "
                     f"({row['newton_iterations_total']} total)")
         else:
             what = f"converged, {row['newton_iterations']} its"

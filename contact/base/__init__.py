@@ -2,5 +2,7 @@
 
 * :mod:`.lifetime` — who destroys which PETSc object; counting communicators, PETSc
   objects and memory;
-* :mod:`.progress` — progress lines of long runs.
+* :mod:`.norms` — ‖v‖₂ of a PETSc vector, typed as a float;
+* :mod:`.progress` — progress lines of long runs;
+* :mod:`.timing` — :class:`~.timing.Timer`, the seconds of a phase into the caller's dict.
 """

@@ -1,4 +1,4 @@
-"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (SPEC §6), of
+"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6), of
 :func:`contact.solve`, :mod:`contact.adaptivity.estimate`, :mod:`contact.adaptivity.mark`
 and :mod:`contact.adaptivity.refine`.
 
@@ -26,6 +26,7 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
+from ..base.timing import Timer
 from ..models import build_problem
 from ..adaptivity.energy_error import solution_error
 from ..setup.budget import max_dofs
@@ -54,7 +55,8 @@ class Level:
         row = {"level": self.index, "dofs": self.result.dofs,
                "cells": msh.topology.index_map(msh.topology.dim).size_global,
                "eta": self.estimate.eta}
-        row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})  # Σ_T of each term
+        # Σ_T of each term
+        row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
         row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
@@ -140,10 +142,9 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
                       imbalance=rank_imbalance(result.u_h.function_space), passes=passes)
         out.levels.append(level)
         if on_level is not None:
-            t0 = time.perf_counter()
-            progress.note(f"level {index}: writing its files")
-            on_level(level)
-            seconds["output"] = time.perf_counter() - t0
+            with Timer(seconds, "output"):
+                progress.note(f"level {index}: writing its files")
+                on_level(level)
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
             progress.heard()
@@ -159,19 +160,17 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if opts["strategy"] == "none":
             out.stop = "strategy none: one solve"
             break
-        t0 = time.perf_counter()
-        cells = mark(est.eta_T, opts["strategy"], opts["theta"])
-        seconds["mark"] = time.perf_counter() - t0
+        with Timer(seconds, "mark"):
+            cells = mark(est.eta_T, opts["strategy"], opts["theta"])
         bound = next_dofs_bound(scene, cells, result.u_h.function_space)
         if bound is not None and bound > opts["max_dofs"]:  # refining would be wasted work
             out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
             break
-        t0 = time.perf_counter()
-        progress.note(f"level {index}: refining the marked cells")
         parts: dict[str, float] = {}
-        new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None, opts["rebalance"],
-                                   timings=parts)
-        seconds["refine"] = time.perf_counter() - t0
+        with Timer(seconds, "refine"):
+            progress.note(f"level {index}: refining the marked cells")
+            new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None,
+                                       opts["rebalance"], timings=parts)
         seconds["refine_mesh"] = parts["mesh"]   # of which dolfinx.mesh.refine
         # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
         V_next = new_u0.function_space if new_u0 is not None else \
@@ -180,7 +179,8 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
             break
-        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):  # memory budget of one solve
+        # memory budget of one solve
+        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):
             out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
         scene, u0 = new_scene, new_u0
@@ -241,7 +241,7 @@ def format_table(rows: list[dict]) -> str:
 
 
 def _header() -> str:
-    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} {'active':>7s} {'solve s':>8s}"
+    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} " f"{'active':>7s} {'solve s':>8s}"
 
 
 def _format(r: dict) -> str:

@@ -69,6 +69,7 @@ def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | Non
         timers["assembly"] += problem.assembly_time
     timers["total"] = time.perf_counter() - t0 + (problem.assembly_time if built_here else 0.0)
     timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"], 0.0)
+    assert result is not None  # the loop solved at least once
     result.timings = timers
     result.iterations = total
     result.friction["fixed_point_iterations"] = k

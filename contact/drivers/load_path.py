@@ -54,7 +54,7 @@ class Step:
             level.result.release()
             level.scene, level.estimate.eta_T = None, None
         self.result.release()
-        self.scene = None
+        self.scene = None  # type: ignore[assignment]  # released: unused afterwards
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""Grid sequencing of a single solve (``solver.sequence``; SPEC §8).
+"""Grid sequencing of a single solve (``solver.sequence``; docs/theory.md §8).
 
 From a cold start semismooth Newton needs about log₂(1/h) active-set steps: the first
 steps move the free boundary across the whole contact zone.  Solving the same scene on
@@ -32,6 +32,7 @@ linear solver choice, counted in ``Result.sequence``); the coarse Newton toleran
 from __future__ import annotations
 
 import copy
+import functools
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -46,7 +47,8 @@ from ..base.errors import ConfigError
 from ..models import build_problem
 from ..setup.scene import Scene
 
-AUTO_MIN_DOFS = 4_000     # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
+# measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
+AUTO_MIN_DOFS = 4_000
 COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many DoFs
 COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
 ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
@@ -103,7 +105,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         return [], "grid sequencing: not for frictional scenes (slip depends on the load history); cold start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
-        return [(lambda s=s: s) for s in reversed(chain)], ""
+        return [functools.partial(_same, s) for s in reversed(chain)], ""
     kind = scene.cfg["mesh"]["type"]
     if scene.bodies is not None and kind not in GMSH_BUILT:
         return [], (f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; "
@@ -112,12 +114,12 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
         cells = scene.cfg["mesh"]["cells"]
-        builders = []
+        builders: list[Callable[[], Scene]] = []
         for k in range(1, limit + 1):
             coarse = [c // 2**k for c in cells]
             if min(coarse) < 1 or fine_dofs / ratio**k < floor:
                 break
-            builders.append(lambda coarse=coarse: _with_mesh(scene, {"cells": coarse}))
+            builders.append(functools.partial(_with_mesh, scene, {"cells": coarse}))
         note = "" if wanted is None or len(builders) == wanted else \
             f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
         return builders[::-1], note
@@ -128,7 +130,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
             h, hc = m["h"] * 2**k, m["h_contact"] * 2**k
             if hc > m["zone"] or fine_dofs / ratio**k < floor:
                 break
-            builders.append(lambda h=h, hc=hc: _with_mesh(scene, {"h": h, "h_contact": min(hc, h)}))
+            builders.append(functools.partial(_with_mesh, scene, {"h": h, "h_contact": min(hc, h)}))
         return builders[::-1], ""
     return [], "grid sequencing: a mesh file has no coarser mesh; cold start"
 
@@ -137,7 +139,8 @@ def _ancestors(scene: Scene, ratio: int, floor: int, bs: int) -> list[Scene]:
     """The scenes ``scene`` was refined from, finest first, each with ≥ ``ratio`` times
     fewer DoFs than the one chosen before it and ≥ ``floor`` DoFs."""
     out, last = [], _dofs(scene, bs)
-    s = scene.parent[0]
+    assert scene.parent is not None  # called for a refined scene
+    s: Scene | None = scene.parent[0]
     while s is not None:
         n = _dofs(s, bs)
         if n < floor:
@@ -147,6 +150,11 @@ def _ancestors(scene: Scene, ratio: int, floor: int, bs: int) -> list[Scene]:
             last = n
         s = s.parent[0] if s.parent is not None else None
     return out
+
+
+def _same(scene: Scene) -> Scene:
+    """``scene`` itself (the builder of a level that exists already)."""
+    return scene
 
 
 def _with_mesh(scene: Scene, changes: dict) -> Scene:
@@ -181,7 +189,9 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
         except ConfigError as err:  # e.g. a boundary part too thin for the coarse mesh
             note = f"grid sequencing: coarse level {k} skipped ({err})"
             continue
-        u0 = None if u is None else transfer(u, prev, coarse, problem.V)
+        u0: fem.Function | None = None
+        if u is not None and prev is not None:
+            u0 = transfer(u, prev, coarse, problem.V)
         r = solve(coarse, problem=problem, u0=u0, verbose=False, sequence="off", rtol=COARSE_RTOL,
                   **coarse_opts)
         levels.append(CoarseLevel(r.dofs, r.iterations, r.polish_solves, r.krylov_iterations, r.linear,
@@ -197,7 +207,7 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
             u, prev = None, None
             continue
         u, prev = solution, coarse
-    if u is None:
+    if u is None or prev is None:
         return None, levels, note
     return transfer(u, prev, scene, V), levels, note
 
@@ -221,8 +231,10 @@ def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionS
     s = fine
     while s is not coarse:
         chain.append(s)
+        assert s.parent is not None  # coarse is an ancestor of fine
         s = s.parent[0]
     for child in reversed(chain):
+        assert child.parent is not None
         u = prolong(u, child.mesh, child.parent[1])
     if u.function_space.mesh is not fine.mesh:  # pragma: no cover - chain ends on fine
         raise RuntimeError("grid sequencing: the refinement chain does not end on the scene")
@@ -355,7 +367,7 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace, coarse_bodies: MeshTag
     its smallest barycentric coordinate is largest — the containing cell, or for a point
     just outside a curved boundary's coarse polygon the nearest one (linear
     extrapolation).  ``interpolate_nonmatching`` does the same through a collision search
-    per point and is orders of magnitude slower here (44 s for 1M points)."""
+    per point and is orders of magnitude slower here (demos/RESULTS.md §10)."""
     Vc = u.function_space
     msh, comm = Vc.mesh, V.mesh.comm
     tdim, gdim = msh.topology.dim, msh.geometry.dim

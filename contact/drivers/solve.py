@@ -11,6 +11,7 @@ from typing import Any, Mapping
 from dolfinx import fem
 
 from ..base.errors import ConfigError
+from ..base.timing import Timer
 from ..models import build_problem
 from ..models.problem import interpolate_expression
 from ..setup.checks import check_data, data_items
@@ -70,11 +71,11 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     timers = {"assembly": built, "solve": 0.0}
 
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
-    levels, note = [], ""
+    levels: list[sequencing.CoarseLevel] = []
+    note = ""
     if u0 is None:
-        t0 = time.perf_counter()
-        u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
-        timers["coarse"] = time.perf_counter() - t0
+        with Timer(timers, "coarse"):
+            u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
     guess = u0 is not None   # given, or the coarse levels' solution
     if u0 is None:
         check_data(scene, data_items("solver.u0", opts["u0"]))

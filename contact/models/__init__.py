@@ -2,8 +2,8 @@
 
 * :mod:`.problem` — what every model shares (assembly, lumped weights, the scene's
   expressions) to build the solvers' :class:`~contact.solvers.problem.DiscreteProblem`;
-* :mod:`.scalar` — scalar Signorini and obstacle problems (SPEC §1.1–1.2);
-* :mod:`.elasticity` — linear elasticity (SPEC §1.3), with its rigid
+* :mod:`.scalar` — scalar Signorini and obstacle problems (docs/theory.md §1.1–1.2);
+* :mod:`.elasticity` — linear elasticity (docs/theory.md §1.3), with its rigid
   :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
 * :mod:`.bodies` — several elastic bodies in contact through :mod:`.mortar` pairs (SPEC §1.5);
 * :mod:`.hyperelastic` — hyperelastic bodies (finite strain, neo-Hookean / St Venant–

@@ -2,9 +2,9 @@
 
 Two kinds of nodes carry a non-trivial block of Q (every other node keeps x_j = u_j):
 
-* a *rotated* node j (rigid curved obstacle, SPEC §1.3): u_j = R_j x_j with R_j = [n t (t2)]
-  an orthonormal frame whose first axis is the contact normal;
-* a *slave* node i of a mortar contact pair (SPEC §1.5): its unknowns are the displacement
+* a *rotated* node j (rigid curved obstacle, docs/theory.md §1.3): u_j = R_j x_j with
+  R_j = [n t (t2)] an orthonormal frame whose first axis is the contact normal;
+* a *slave* node i of a mortar contact pair (docs/theory.md §1.5): its unknowns are the displacement
   relative to the master surface, in its own frame R_i,
 
       x_i = R_iᵀ (u_i − Σ_j c_ij P_i u_j),    c_ij = M_ij / D_ii,   P_i = Σ_{b relative} e_b e_bᵀ,
@@ -126,11 +126,12 @@ def _blocked_csr(K: PETSc.Mat, bs: int, per_node: np.ndarray, cols: np.ndarray, 
     node_of_block = np.repeat(np.arange(n_local), per_node)
     rank_in_row = np.arange(len(cols)) - block_start[node_of_block]
     for a in range(bs):
-        start = indptr[node_of_block * bs + a] + rank_in_row * bs             # first entry of the block in row (i, a)
+        # first entry of the block in row (i, a)
+        start = indptr[node_of_block * bs + a] + rank_in_row * bs
         pos = start[:, None] + np.arange(bs)
         indices[pos] = scalar_cols
         values[pos] = blocks[:, a, :]
-    Q = PETSc.Mat().createAIJ(K.getSizes(), bsize=bs, comm=K.comm,
-                              csr=(indptr, indices, values))
+    sizes, csr = K.getSizes(), (indptr, indices, values)
+    Q = PETSc.Mat().createAIJ(sizes, bsize=bs, comm=K.comm, csr=csr)  # type: ignore[arg-type]
     Q.assemble()
     return Q

@@ -1,4 +1,4 @@
-"""Several elastic bodies in one mesh, in contact through mortar pairs (SPEC §1.5).
+"""Several elastic bodies in one mesh, in contact through mortar pairs (docs/theory.md §1.5).
 
 The bodies are the disconnected components of one DOLFINx mesh, told apart by the cell
 tags of :func:`contact.setup.meshes.tag_bodies`; one vector P1 space carries them all, so the
@@ -45,6 +45,7 @@ def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
     """DG0 Lamé parameters μ, λ_L of each cell's body and the DG0 ``body`` number (1, 2, …
     in the order of the bodies section; the output tells the bodies apart by it)."""
     msh, tags = scene.mesh, scene.bodies
+    assert tags is not None  # a scene of several bodies has its body tags
     W = fem.functionspace(msh, ("DG", 0))
     mu, lmbda_L, body = (fem.Function(W, name=name) for name in ("mu", "lmbda_L", "body"))
     values = [lame(b["E"], b["nu"]) for b in scene.cfg["bodies"].values()]
@@ -85,8 +86,8 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     bcs = dirichlet_on_unknowns(V, system.bcs, nodes, frames, [a for c in sets for a in c.absolute], Kt, bt)
 
     u_h = fem.Function(V, name="u_h")
-    S, s_to_v = V.sub(0).collapse()
-    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    S, collapsed = V.sub(0).collapse()
+    s_to_v = np.asarray(collapsed, dtype=np.int32).ravel()
     v_to_s = np.empty(len(s_to_v), dtype=np.int32)
     v_to_s[s_to_v // bs] = np.arange(len(s_to_v), dtype=np.int32)
     gap = np.concatenate([c.gap for c in sets])
@@ -248,7 +249,7 @@ def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, fr
     xbar.set(0.0)
     xbar.array_w[dofs] = x_values[dofs]
     lo = bt.getOwnershipRange()[0]
-    Kt.zeroRowsColumns((lo + dofs).astype(PETSc.IntType), diag=1.0, x=xbar, b=bt)
+    Kt.zeroRowsColumns((lo + dofs).astype(PETSc.IntType), diag=1.0, x=xbar, b=bt)  # type: ignore[arg-type]
     xbar.destroy()
     return [_component_bc(V, k, dofs[dofs % bs == k], x_values) for k in range(bs)]
 
@@ -258,12 +259,12 @@ def _component_bc(V: fem.FunctionSpace, k: int, dofs: np.ndarray,
     """x_j = values[j] on the (unrolled, owned) DoFs ``dofs`` of component k, as a DirichletBC
     on V.sub(k): ``fem.dirichletbc(g, dofs)`` on the blocked V would read the indices as
     node (block) numbers and fix other DoFs."""
-    S, s_to_v = V.sub(k).collapse()
+    S, collapsed = V.sub(k).collapse()
     imap = V.dofmap.index_map
     n = (imap.size_local + imap.num_ghosts) * V.dofmap.index_map_bs
     v_to_s = np.full(n, -1, dtype=np.int32)
-    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    s_to_v = np.asarray(collapsed, dtype=np.int32).ravel()
     v_to_s[s_to_v] = np.arange(len(s_to_v), dtype=np.int32)
     g = fem.Function(S)
     g.x.array[v_to_s[dofs]] = values[dofs]
-    return fem.dirichletbc(g, [dofs.astype(np.int32), v_to_s[dofs]], V.sub(k))
+    return fem.dirichletbc(g, [dofs.astype(np.int32), v_to_s[dofs]], V.sub(k))  # type: ignore[arg-type]

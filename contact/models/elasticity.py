@@ -1,4 +1,4 @@
-"""Linear elasticity against a rigid obstacle, frictionless (SPEC §1.3).
+"""Linear elasticity against a rigid obstacle, frictionless (docs/theory.md §1.3).
 
     σ(u) = 2μ ε(u) + λ_L tr ε(u) I   (plane strain in 2D),   −div σ(u) = f in Ω,
     u = u_D on Γ_D,   σ n = t on Γ_N,   u·n_s = 0 on symmetry planes,
@@ -166,8 +166,9 @@ def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
 
 
 def elasticity_problem(scene: Scene) -> DiscreteProblem:
-    """Assemble the frictionless elastic contact problem of ``scene`` (SPEC §1.3, §2) against
-    its rigid obstacle (a scene with ``bodies`` is :func:`contact.models.bodies.bodies_problem`)."""
+    """Assemble the frictionless elastic contact problem of ``scene`` (docs/theory.md §1.3,
+    §2) against its rigid obstacle (a scene with ``bodies`` is
+    :func:`contact.models.bodies.bodies_problem`)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used (ConfigError)
     model, obstacle = scene.cfg["model"], scene.cfg["obstacle"]
@@ -208,13 +209,17 @@ def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None,
         m = np.zeros((n_local, gdim))
         m[:, i], m[:, j] = -X[:, j], X[:, i]
         modes.append(m)
-    basis = []
+    basis: list[PETSc.Vec] = []
     for m in modes:
         vec = PETSc.Vec().createMPI((n_local * gdim, PETSc.DECIDE), comm=msh.comm)
         vec.array[:] = m.ravel()
         if rotation is not None or inverse is not None:
             rotated = vec.duplicate()
-            (inverse.mult if inverse is not None else rotation.multTranspose)(vec, rotated)
+            if inverse is not None:
+                inverse.mult(vec, rotated)
+            else:
+                assert rotation is not None
+                rotation.multTranspose(vec, rotated)
             vec.destroy()
             vec = rotated
         for prev in basis:  # modified Gram–Schmidt

@@ -1,4 +1,4 @@
-"""Friction on the contact nodes of the elastic model (SPEC §1.4): the scene side.
+"""Friction on the contact nodes of the elastic model (docs/theory.md §1.4): the scene side.
 
 Per contact node i (the constrained nodes of :class:`~contact.solvers.problem.Constraint`)
 with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns x:
@@ -25,9 +25,9 @@ with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns 
   (:func:`contact.solvers.problem.nodal_scaling`); scaling E scales both, so it cancels.
 
 Two bodies.  The tangential unknowns are read in the solver's unknowns x of the change of
-basis u = Q x, and the frames from Q's diagonal node blocks; with the mortar basis of SPEC
-§1.5, whose slave unknowns are relative displacements (slave minus the mortar-projected
-master), x_t − x_t^prev is the relative slip and the same rows apply unchanged.
+basis u = Q x, and the frames from Q's diagonal node blocks; with the mortar basis of
+docs/theory.md §1.5, whose slave unknowns are relative displacements (slave minus the
+mortar-projected master), x_t − x_t^prev is the relative slip and the same rows apply unchanged.
 
 Symmetry planes.  A contact node on a symmetry plane x_k = const has u_k = 0: that
 tangential component is not free, it sticks by symmetry, and friction acts on the node's
@@ -132,4 +132,5 @@ def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
     comps = sorted(set(c for part in comps for c in part))
     if comps:
         raise ConfigError(f"data.u_D[{comps[0]}]: moves nodes of a symmetry plane across it; with "
-                          "friction a drag across a symmetry plane is not symmetric (model the full body)")
+                          "friction a drag across a symmetry plane is not symmetric (model the "
+                          "full body)")

@@ -1,4 +1,4 @@
-"""Mortar coupling of a contact pair with dual Lagrange multipliers (Wohlmuth; SPEC §1.5).
+"""Mortar coupling of a contact pair with dual Lagrange multipliers (Wohlmuth; docs/theory.md §1.5).
 
 A pair couples a slave surface Γ_s of one body to a master surface Γ_m of another, once,
 in the reference configuration (small deformation).  With the P1 trace basis φ_i on Γ_s,
@@ -66,7 +66,8 @@ class Facets:
     nodes: np.ndarray    # (F, nv) local node indices (blocks of V's DoFs)
     gnodes: np.ndarray   # (F, nv) global node indices
     normals: np.ndarray  # (F, gdim) unit normals out of the body
-    vertex_normals: np.ndarray | None = None  # (F, nv, gdim) the surface's nodal normals at the vertices
+    # (F, nv, gdim) the surface's nodal normals at the vertices
+    vertex_normals: np.ndarray | None = None
 
 
 @dataclass
@@ -214,7 +215,8 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
     unit triangular); a one-line ConfigError otherwise.  Checked on the surfaces, before
     any coupling is computed."""
     comm, imap, bnd = scene.comm, V.dofmap.index_map, scene.boundary
-    owned = np.zeros((imap.size_local, 3), dtype=int)   # per owned node: slave, master, obstacle parts through it
+    # per owned node: slave, master, obstacle parts through it
+    owned = np.zeros((imap.size_local, 3), dtype=int)
 
     def count(column: int, facets: np.ndarray) -> None:
         flag = la.vector(imap, 1)
@@ -232,8 +234,9 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
     if comm.allreduce(len(bad), op=MPI.SUM):
         where = _first_point(comm, V, bad)
         raise ConfigError(f"pairs: the node at {where} is both a slave and a master node (or a slave node of "
-                          "two pairs, or on a pair and on the obstacle's contact part); a node may be the "
-                          "slave of one pair only, and never a master or obstacle contact node too")
+                          "two pairs, or on a pair and on the obstacle's contact part); a node may "
+                          "be the slave of one pair only, and never a master or obstacle contact "
+                          "node too")
 
 
 def part_facets(bnd, name: str) -> np.ndarray:
@@ -264,6 +267,7 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
     boxes = comm.allgather(box)
     lo, hi = (master.X.min(axis=1), master.X.max(axis=1)) if len(master.X) else (np.zeros((0, gdim)),) * 2
     send = []
+    assert master.vertex_normals is not None  # set for every master surface (_surface)
     for b in boxes:
         sel = np.zeros(len(master.X), dtype=bool) if b is None else \
             np.all((lo <= b[1]) & (hi >= b[0]), axis=1)
@@ -357,8 +361,9 @@ def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals:
     order = np.lexsort((cols, rows))
     rows, cols, vals = rows[order], cols[order], vals[order]
     indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n_owned))]).astype(PETSc.IntType)
-    M = PETSc.Mat().createAIJ(((n_owned, imap.size_global), (n_owned, imap.size_global)), comm=V.mesh.comm,
-                              csr=(indptr, cols.astype(PETSc.IntType), vals))
+    sizes = ((n_owned, imap.size_global), (n_owned, imap.size_global))
+    csr = (indptr, cols.astype(PETSc.IntType), vals)
+    M = PETSc.Mat().createAIJ(sizes, comm=V.mesh.comm, csr=csr)  # type: ignore[arg-type]
     M.assemble()
     return M
 
@@ -379,8 +384,9 @@ def _no_master(comm, V, nodes: np.ndarray, key: str, pair: dict, search: float) 
         total = comm.allreduce(len(nodes), op=MPI.SUM)
         where = _first_point(comm, V, nodes)
         raise ConfigError(f"{key}.slave: {total} slave node(s) of {pair['slave']!r}, e.g. at {where}, have no "
-                          f"master facet of {pair['master']!r} within the search distance {search:.4g} "
-                          f"({key}.search) facing (at least half of) their facets; restrict the slave part "
+                          f"master facet of {pair['master']!r} within the search distance "
+                          f"{search:.4g} ({key}.search) facing (at least half of) their facets; "
+                          f"restrict the slave part "
                           "to lie within the master surface, or raise the search distance")
 
 
@@ -416,6 +422,7 @@ def master_pressure(result: Result) -> fem.Function:
     ``lambda_master``."""
     p = result.problem
     S, bs = p.output_space, p.V.dofmap.index_map_bs
+    assert S is not None and p.output_map is not None  # a bodies problem has its output space
     node_of_s = p.output_map // bs
     lam_nodes = np.zeros((len(node_of_s), 1))
     lam_nodes[node_of_s, 0] = result.lmbda_h.x.array

@@ -1,5 +1,5 @@
 """Rigid obstacles (plane, circle, sphere) as nodal constraint sets of the elastic model
-(SPEC §1.3), and the change of basis u = Q x that rotates contact nodes to their axes.
+(docs/theory.md §1.3), and the change of basis u = Q x that rotates contact nodes to their axes.
 
 For a rigid plane through p with outward normal ν (pointing from the obstacle to the body),
 n = −ν and g(x) = (x − p)·ν; for a rigid circle/sphere (centre c, radius R_o, the body
@@ -30,8 +30,8 @@ from .problem import coordinate_scale, lumped_weights
 def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
     """For component k: its collapsed space S, the S → V map, and the (V-DoF, S-DoF) pairs
     on the contact facets."""
-    S, s_to_v = V.sub(k).collapse()
-    s_to_v = np.asarray(s_to_v, dtype=np.int32).ravel()
+    S, collapsed = V.sub(k).collapse()
+    s_to_v = np.asarray(collapsed, dtype=np.int32).ravel()
     tdim = V.mesh.topology.dim
     v_dofs, s_dofs = fem.locate_dofs_topological((V.sub(k), S), tdim - 1, facets)
     return S, s_to_v, v_dofs, s_dofs
@@ -53,7 +53,8 @@ def obstacle_shape(scene: Scene) -> tuple:
             raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
         return (lambda x: np.tile(-nu_o, (len(x), 1)), lambda x: (x - p) @ nu_o,
                 ufl.as_vector((-nu_o).tolist()),                                       # n = −ν
-                ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))  # g = (x − p)·ν
+                # g = (x − p)·ν
+                ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))
     want = "circle" if gdim == 2 else "sphere"
     if obstacle["type"] != want:
         raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")

@@ -43,7 +43,7 @@ def coefficient(text: str, scene: Scene) -> Any:
     consts = scene.cfg["constants"]
     if expressions.is_constant(text, consts):
         value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
-        return fem.Constant(scene.mesh, PETSc.ScalarType(value))
+        return fem.Constant(scene.mesh, PETSc.ScalarType(value))  # type: ignore[operator]
     return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
 
 
@@ -83,10 +83,9 @@ def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
     A vector-valued space (block size bs > 1, elasticity) is assembled into dolfinx's block
     CSR matrix — one insertion per bs × bs block where PETSc's AIJ takes bs² scalar ones —,
     handed to PETSc as BAIJ from its arrays and converted to AIJ (which GAMG needs): the
-    same matrix (relative difference ≤ 1e-16), 1.3× faster in serial (3D elasticity, 788k
-    DoFs: 3.4 s against 4.3 s) and as fast on 2 ranks (1.04M DoFs: 3.4 s either way;
-    ``python demos/bench/bench_kernels.py``, demos/results/kernels*.csv).  Scalar spaces are
-    assembled by PETSc directly."""
+    same matrix (relative difference ≤ 1e-16), 1.3× faster in serial and as fast on 2 ranks
+    (3D elasticity, ``python demos/bench/bench_kernels.py``, demos/results/kernels*.csv;
+    timings: demos/RESULTS.md §10).  Scalar spaces are assembled by PETSc directly."""
     bs = a.function_spaces[0].dofmap.index_map_bs
     if not BLOCK_CSR or bs == 1:
         K = dolfinx.fem.petsc.assemble_matrix(a, bcs=bcs)
@@ -99,7 +98,8 @@ def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
     cols = A.index_map(1).local_to_global(A.indices[: indptr[-1]].astype(np.int32)).astype(PETSc.IntType)
     values = A.data[: indptr[-1] * bs * bs]      # row-major bs × bs blocks
     comm = a.mesh.comm
-    B = PETSc.Mat().createBAIJ(((n * bs, None), (n * bs, None)), bs, csr=(indptr, cols, values), comm=comm)
+    sizes = ((n * bs, None), (n * bs, None))
+    B = PETSc.Mat().createBAIJ(sizes, bs, csr=(indptr, cols, values), comm=comm)  # type: ignore[arg-type]
     B.assemble()
     converted = B.convert("aij")
     # a copy: with PETSc 3.25 the converted matrix still refers to B's memory (using it
@@ -117,7 +117,7 @@ def assemble_system(a: fem.Form, L: fem.Form, bcs: list) -> tuple[PETSc.Mat, PET
     K = assemble_matrix(a, bcs)
     b = dolfinx.fem.petsc.assemble_vector(L)
     dolfinx.fem.petsc.apply_lifting(b, [a], bcs=[bcs])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     dolfinx.fem.petsc.set_bc(b, bcs)
     return K, b
 

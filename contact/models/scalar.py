@@ -1,4 +1,4 @@
-"""Scalar Signorini and obstacle models (SPEC §1.1–1.2): forms, Dirichlet data and the
+"""Scalar Signorini and obstacle models (docs/theory.md §1.1–1.2): forms, Dirichlet data and the
 nodal constraint set.
 
 Weak form, P1 (or P2) Lagrange u_h with u_h = u_D on Γ_D:
@@ -12,6 +12,7 @@ with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
@@ -28,7 +29,8 @@ from .problem import (coefficient, contact_ends, interpolate_expression, assembl
 
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
-    """Assemble the scalar Signorini or obstacle problem of ``scene`` (SPEC §1.1–1.2, §2)."""
+    """Assemble the scalar Signorini or obstacle problem of ``scene`` (docs/theory.md
+    §1.1–1.2, §2)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used, k > 0 (ConfigError)
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
@@ -84,7 +86,7 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         check_semicoercive(b, sign, cfg["model"]["type"])
 
     u_h = fem.Function(V, name="u_h")
-    ends = {}
+    ends: dict[str, Any] = {}
     if cfg["model"]["type"] == "signorini":
         ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
     return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends, in_domain=cfg["model"]["type"] == "obstacle",
@@ -114,5 +116,6 @@ def check_semicoercive(b, sign: float, model: str) -> None:
             abs(resultant) <= RESULTANT_RTOL * scale else
             f"= {resultant:.3g} pulls it away from the obstacle ({bound}): no solution exists")
     raise ConfigError(f"data.f: the scene has no dirichlet boundary, so only the {model} constraint holds the "
-                      f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto the obstacle "
+                      f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto "
+                      f"the obstacle "
                       "or add a dirichlet boundary")

@@ -162,10 +162,10 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
     fig, ax = plt.subplots(figsize=(1.6 * len(methods) + 4.5, 0.42 * len(labels) + 1.8))
     for i, lk in enumerate(labels):
         for j, m in enumerate(methods):
-            r = cells.get((lk, m))
-            what = r["outcome"] if r else "error"
+            cell = cells.get((lk, m))
+            what = cell["outcome"] if cell else "error"
             ax.add_patch(plt.Rectangle((j, i), 1, 1, facecolor=OUTCOME_COLOURS[what], edgecolor="white", lw=2))
-            text = "—" if r is None else _solves_label(r)
+            text = "—" if cell is None else _solves_label(cell)
             ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", fontsize=9)
     ax.set_xlim(0, len(methods))
     ax.set_ylim(len(labels), 0)
@@ -264,7 +264,7 @@ def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: lis
     return curves
 
 
-DRAW: dict[str, Callable[[Path, Any, list, list], None]] = {
+DRAW: dict[str, Callable[[Path, Any, list, list], object]] = {
     "speed_accuracy": speed_accuracy,
     "stability": stability,
     "iterations": iterations,

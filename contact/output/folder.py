@@ -36,7 +36,7 @@ import socket
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 from mpi4py import MPI
 
@@ -92,7 +92,7 @@ def output_problem(outdir: Path) -> str | None:
             return "is an existing file; nothing was changed (give a folder name that does not exist)"
         written = _manifest(outdir)
         if written is None:
-            return (f"is an existing folder that contact did not write (no {MARKER} marker); nothing was "
+            return (f"is an existing folder that contact did not write (no {MARKER} marker); " f"nothing was "
                     "changed (give a new folder name, or remove it yourself)")
         foreign = sorted(set(_entries(outdir)) - written - {MARKER})
         if foreign:
@@ -166,7 +166,7 @@ def stale_temporaries(outdir: Path) -> list[Path]:
     """The temporaries of ``outdir`` left by a writer that is gone (same host, dead pid)."""
     outdir = _absolute(outdir)
     pattern = re.compile(rf"\.{re.escape(outdir.name)}\.(partial|old)-([A-Za-z0-9._]+)-(\d+)(-[A-Za-z0-9_]+)?")
-    out = []
+    out: list[Path] = []
     if not outdir.parent.is_dir():
         return out
     for entry in outdir.parent.iterdir():
@@ -271,7 +271,7 @@ def write_json(path: str | Path, data: Mapping[str, Any], comm: MPI.Comm = MPI.C
         Path(path).write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
 
 
-def write_csv(path: str | Path, rows: list[Mapping[str, Any]], comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+def write_csv(path: str | Path, rows: Sequence[Mapping[str, Any]], comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """Rows of dicts to CSV (header from the union of keys, in first-seen order)."""
     if comm.rank != 0:
         return

@@ -42,10 +42,10 @@ def _triangulation(grid):
 
 def _smooth(ax, tri, values: np.ndarray, cmap: str, plan: Raster | None = None):
     """Nodal ``values`` drawn smoothly: Gouraud shading (one triangle mesh for matplotlib, kept
-    out of tight_layout, which would turn every triangle into a path: 2.4M cells, 30 s), or
-    on meshes of more than :data:`RASTER_CELLS` cells, whose cells are smaller than the
-    pixels, the P1 interpolant sampled at pixel centres (:func:`raster`) shown as an image
-    (1.21M cells, drawn and saved: 0.34 s against 0.95 s; ``demos/bench/bench_kernels.py``).
+    out of tight_layout, which would turn every triangle into a path), or on meshes of more
+    than :data:`RASTER_CELLS` cells, whose cells are smaller than the pixels, the P1
+    interpolant sampled at pixel centres (:func:`raster`) shown as an image, about three
+    times faster there (timings: demos/RESULTS.md §10).
     ``plan``: that sampling, when it is already built for ``tri`` (:func:`_raster_plan`)."""
     plan = plan or _raster_plan(tri)
     if plan is None:
@@ -241,7 +241,7 @@ def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
     if len(pts):
         ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3 if len(pts) < 300 else 1.2, alpha=0.8,
                 label=f"active nodes ({len(pts)})")
-        # "best" tests every triangle against the legend box (20 s at 1.4M cells)
+        # "best" tests every triangle against the legend box (demos/RESULTS.md §10)
         ax.legend(loc="best" if grid.n_cells <= MAX_EDGES else "upper right", fontsize=8)
     _colorbar(fig, shade, ax, _field_label(u_h))
     _axes_2d(ax, title)
@@ -276,7 +276,7 @@ def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: i
         ax_m.triplot(tri, color="k", lw=0.3)
         _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
     else:  # h_T carried to the vertices (largest adjacent cell) and drawn smoothly: one
-        # triangle mesh for matplotlib instead of one polygon per cell (2.4M cells: 1 s, not 50 s)
+        # triangle mesh for matplotlib instead of one polygon per cell (demos/RESULTS.md §10)
         xy = grid.points[tri.triangles][:, :, :2]
         h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
         h_v = np.zeros(len(grid.points))

@@ -145,7 +145,8 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
     if comparison is not None:
         out["reference"] = scene.cfg["reference"]["type"]
         out.update(comparison.values)
-    error = solution_error(scene, result) if error is None else error   # the adaptive loop's, if known
+    # the adaptive loop's, if known
+    error = solution_error(scene, result) if error is None else error
     if error is not None:
         out["error_energy"] = error
     return out
@@ -200,7 +201,7 @@ def write_contact(folder: Path, scene: Scene, result: Result, comparison: Compar
     from ..post.contact_table import contact_table, value_name, write_table
 
     table = contact_table(scene, result)
-    if scene.comm.rank != 0:
+    if table is None:   # not rank 0
         return
     write_table(folder / "contact.csv", table)
     if scene.cfg["output"]["png"] and not result.problem.in_domain:

@@ -48,7 +48,7 @@ class StepWriter:
         self.tmp, self.scene = tmp, scene
         self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
         self.rows: list[dict[str, Any]] = []
-        self.tables: list[tuple[float, Table]] = []
+        self.tables: list[tuple[float, Table | None]] = []   # the tables on rank 0
         self.levels: list[dict[str, Any]] = []
         self.history: list[dict[str, Any]] = []
 
@@ -72,7 +72,7 @@ class StepWriter:
         self.rows.append(row)
         self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
         self.tables.append((step.time, table))
-        if scene.comm.rank == 0:
+        if table is not None:   # rank 0
             write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
         if self.files.formats:
             nodal = point_fields(r)
@@ -120,7 +120,8 @@ class StepWriter:
         if self.scene.cfg["output"]["png"]:
             origin, t0 = first_contact(last.scene, r)
             if comm.rank == 0:
-                plots.plot_traction(tmp / "traction.png", self.tables,
+                tables = [(t, table) for t, table in self.tables if table is not None]
+                plots.plot_traction(tmp / "traction.png", tables,
                                     title=f"{self.scene.name}: contact tractions ({r.dofs} DoFs)",
                                     references=reference_curves(last.scene, self.tables[-1][1], comparison,
                                                                 origin, t0))
@@ -170,11 +171,12 @@ def reference_curves(scene: Scene, table: Table | None, comparison=None, origin:
     if "s" not in table:
         return curves
     X = np.c_[table["x"], table["y"]]
+    assert origin is not None  # a table with arc lengths s has a first point of contact
     s0 = float(table["s"][int(np.argmin(np.linalg.norm(X - origin[:2], axis=1)))])
     return [(panel, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label) for panel, x, y, label in curves]
 
 
-def exact_tractions(scene: Scene, table: Table, t0: np.ndarray, h: float = 1e-6) -> list:
+def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float = 1e-6) -> list:
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
     nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
     obstacle's normal at the node, t_0 of :func:`contact.post.contact_table.tangent_2d`)."""
@@ -183,7 +185,7 @@ def exact_tractions(scene: Scene, table: Table, t0: np.ndarray, h: float = 1e-6)
 
     cfg = scene.cfg
     exact = cfg["data"]["exact"]
-    if scene.mesh.geometry.dim != 2 or not isinstance(exact, list) or "s" not in table:
+    if scene.mesh.geometry.dim != 2 or not isinstance(exact, list) or "s" not in table or t0 is None:
         return []
     X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
     u = [expressions.to_numpy(e, cfg["constants"], t=scene.time) for e in exact]

@@ -10,9 +10,9 @@ The grid's points are the nodes of the fields' Lagrange space, so P2 fields keep
 (edge midpoints included; the cells are VTK Lagrange cells of degree 2).  In parallel each
 rank sends its owned nodes (in the global DoF order) and owned cells to rank 0, which writes
 one file: the same layout for any number of ranks, no duplicated partition-boundary nodes.
-``dolfinx.io.VTKFile`` writes ASCII pieces, one per rank, and a .pvtu: for 1.2M P1 nodes
-with four point fields and one cell field on 2 ranks, 12.5 s and 321 MB against this
-module's 2-4 s and 186 MB.  The XDMF files (:mod:`contact.output.xdmf`) are written in parallel.
+``dolfinx.io.VTKFile`` writes ASCII pieces, one per rank, and a .pvtu: several times slower
+and larger on big meshes (timings: demos/RESULTS.md §10).  The XDMF files
+(:mod:`contact.output.xdmf`) are written in parallel.
 
 Reading back in Python::
 
@@ -87,10 +87,12 @@ def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.
     connectivity = _gather_rows(connectivity, comm, root)
     if comm.rank != root:
         return None
+    assert x is not None and connectivity is not None  # gathered on root
     grid = _grid(x, connectivity, _vtk_cell_type(msh, _degree(W)))
     gdim = msh.geometry.dim
     for fields, where in ((points, grid.point_data), (cells, grid.cell_data)):
         for name, values in fields.items():
+            assert values is not None  # gathered on root
             if values.shape[1] == 1:
                 values = values[:, 0]
             elif values.shape[1] == gdim == 2:
@@ -140,13 +142,14 @@ def _grid(x: np.ndarray, connectivity: np.ndarray, cell_type: int):
 
 def _gather_rows(a: np.ndarray, comm: MPI.Comm, root: int) -> np.ndarray | None:
     """The rows of every rank's array ``a`` stacked in rank order on ``root`` (None elsewhere;
-    collective).  One ``Gatherv`` of the raw buffers: no pickling, which cost 0.17 s for
-    1.2M cells even on one rank."""
+    collective).  One ``Gatherv`` of the raw buffers: no pickling, which is slow on big
+    meshes even on one rank (timings: demos/RESULTS.md §10)."""
     a = np.ascontiguousarray(a)
     counts = comm.gather(a.size, root=root)
     if comm.rank != root:
         comm.Gatherv(a, None, root=root)
         return None
+    assert counts is not None  # gathered on root
     out = np.empty((sum(counts) // int(np.prod(a.shape[1:])), *a.shape[1:]), dtype=a.dtype)
     comm.Gatherv(a, (out, counts), root=root)
     return out
@@ -174,10 +177,10 @@ def save_vtu(path: str | Path, grid) -> None:
     arrays in XML order it takes an already re-encoded array whose new offset happens to be
     equal (three field-data numbers suffice) and drops the field; in reverse order the
     re-encoded arrays all come after the one looked up.  VTK's own writer puts them in XML
-    order; its base64 encoding (which meshio reads safely) took 4.6 s for 1.2M P1 nodes and
-    2.4M cells with four point fields and one cell field, against 0.5 s raw.  No
-    compression: LZ4 is unknown to meshio, zlib took 5.4 s at level 1 (79 MB against
-    186 MB), on rank 0 while the other ranks wait."""
+    order; its base64 encoding (which meshio reads safely) is about ten times slower than
+    raw data.  No compression: LZ4 is unknown to meshio, and zlib, even at level 1, costs
+    more than the raw write it shrinks, on rank 0 while the other ranks wait (timings:
+    demos/RESULTS.md §10)."""
     arrays: list[tuple[str, str, np.ndarray, dict]] = []   # (section, name, values, attributes)
     for name in grid.field_data.keys():
         values = np.asarray(grid.field_data[name])
@@ -252,5 +255,5 @@ class Series:
 def pvd(steps: Sequence[tuple[float, str]]) -> str:
     """The ParaView collection file of (time value, file name) pairs."""
     rows = "\n".join(f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>' for t, f in steps)
-    return ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+    return ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" ' 'byte_order="LittleEndian">\n'
             f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")

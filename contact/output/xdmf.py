@@ -82,6 +82,7 @@ class XdmfSeries:
         grid = write_xdmf(file, point_fields, cell_fields)
 
         def collect() -> None:
+            assert grid is not None  # collect runs on rank 0, where write_xdmf returns the grid
             step = copy.deepcopy(grid)
             step.set("Name", self.name)   # one name for every step: one grid in ParaView's list
             step.insert(0, ET.Element("Time", Value=repr(float(t))))
@@ -99,13 +100,21 @@ def one_grid(path: Path, name: str) -> ET.Element:
     """The grid ``name`` holding the mesh and every field of the file DOLFINx's XDMFFile
     wrote at ``path`` (its mesh grid and one temporal collection of one step per function),
     each DataItem with the number type and precision of its HDF5 dataset."""
-    domain = ET.parse(path).getroot().find("Domain")
-    mesh_grid = domain.find("Grid[@GridType='Uniform']")
+    domain = _child(ET.parse(path).getroot(), "Domain")
+    mesh_grid = _child(domain, "Grid[@GridType='Uniform']")
     grid = ET.Element("Grid", Name=name, GridType="Uniform")
-    grid.extend([mesh_grid.find("Topology"), mesh_grid.find("Geometry")])
+    grid.extend([_child(mesh_grid, "Topology"), _child(mesh_grid, "Geometry")])
     grid.extend(domain.iterfind("Grid[@GridType='Collection']/Grid/Attribute"))
     _state_types(grid, path.parent)
     return grid
+
+
+def _child(element: ET.Element, path: str) -> ET.Element:
+    """The first match of ``path`` under ``element`` (a file DOLFINx wrote has it)."""
+    found = element.find(path)
+    if found is None:
+        raise ValueError(f"XDMF: no {path} under <{element.tag}>")
+    return found
 
 
 def _state_types(grid: ET.Element, folder: Path) -> None:
@@ -118,7 +127,7 @@ def _state_types(grid: ET.Element, folder: Path) -> None:
         for item in grid.iter("DataItem"):
             if item.get("Format") != "HDF":
                 continue
-            name, h5path = item.text.strip().split(":", 1)
+            name, h5path = (item.text or "").strip().split(":", 1)
             if name not in files:
                 files[name] = h5py.File(folder / name, "r")
             dtype = files[name][h5path].dtype
@@ -206,8 +215,10 @@ def lagrange_mesh(W: fem.FunctionSpace) -> tuple[dmesh.Mesh, np.ndarray, np.ndar
         return graph.adjacencylist(np.full(n_cells, comm.rank, dtype=np.int32))._cpp_object
 
     x = W.tabulate_dof_coordinates()[: imap.size_local, :gdim]
-    out = dmesh.create_mesh(comm, global_of[W.dofmap.list[:n_cells]], element, x,
-                            partitioner=keep_cells)
+    # basix.ufl.element is annotated as returning the abstract base, create_mesh lists its
+    # subclasses
+    out = dmesh.create_mesh(comm, global_of[W.dofmap.list[:n_cells]], element,  # type: ignore[arg-type]
+                            x, partitioner=keep_cells)
     order = np.argsort(global_of)
     local_of_global = lambda g: order[np.searchsorted(global_of, g, sorter=order)]  # noqa: E731
     Q = fem.functionspace(out, ("Lagrange", degree))

@@ -1,4 +1,4 @@
-"""Cattaneo–Mindlin partial slip as a declared reference (SPEC §7; Johnson, Contact
+"""Cattaneo–Mindlin partial slip as a declared reference (docs/theory.md §7; Johnson, Contact
 Mechanics §7.1): ``reference: {type: cattaneo_mindlin, radius: R}``.
 
 Two elastically similar bodies (the normal and the tangential response decouple) pressed

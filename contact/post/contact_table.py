@@ -85,6 +85,8 @@ def tangent_2d(result: Result) -> np.ndarray:
 def friction_columns(scene: Scene, result: Result) -> Table:
     """This rank's friction columns, row for row with :func:`contact_columns`."""
     fr = result.friction
+    if fr is None:
+        raise ValueError("friction columns of a frictionless result")
     lam_t, slip = fr["lambda_t_vec"], fr["slip_vec"]
     cols: Table = {}
     if scene.mesh.geometry.dim == 2:
@@ -93,9 +95,9 @@ def friction_columns(scene: Scene, result: Result) -> Table:
     else:
         cols.update({f"lambda_t_{a}": lam_t[:, i] for i, a in enumerate("xyz")})
         cols.update({f"slip_{a}": slip[:, i] for i, a in enumerate("xyz")})
-    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=float),
+    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=np.float64),
                 slip_norm=np.linalg.norm(slip, axis=1), status=np.array(STATUS, dtype=object)[fr["status"]],
-                weight=np.asarray(fr["w"], dtype=float))
+                weight=np.asarray(fr["w"], dtype=np.float64))
     return cols
 
 
@@ -106,6 +108,7 @@ def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     p = result.problem
     con = p.constraint
     n = contact_normal(scene, result)
+    assert n is not None  # polar coordinates are asked for on a contact boundary
     origin = first_contact_point(scene.comm, X, con.sign * con.g)
     t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     t1 /= np.linalg.norm(t1)
@@ -146,6 +149,7 @@ def contact_table(scene: Scene, result: Result, columns: Table | None = None) ->
     table = gather(columns, scene.comm)
     if scene.comm.rank != 0:
         return None
+    assert table is not None  # gathered on rank 0
     if segments is not None:
         s = arc_length(np.c_[table["x"], table["y"]], segments)
         keys = list(table)
@@ -167,6 +171,7 @@ def gather(columns: Table, comm: MPI.Comm) -> Table | None:
     parts = comm.gather(columns, root=0)
     if comm.rank != 0:
         return None
+    assert parts is not None  # gathered on rank 0
     return {k: np.concatenate([part[k] for part in parts]) for k in columns}
 
 
@@ -204,7 +209,7 @@ def arc_length(points: np.ndarray, segments: np.ndarray, digits: int = 9) -> np.
 
     ends = segments.reshape(-1, 2)
     vkeys = key(ends)
-    ids = {}
+    ids: dict[tuple, int] = {}
     vid = np.array([ids.setdefault(k, len(ids)) for k in vkeys]).reshape(-1, 2)
     coords = np.zeros((len(ids), 2))
     coords[vid.ravel()] = ends

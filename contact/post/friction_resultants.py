@@ -15,6 +15,8 @@ stick nodes along Γ_C) and their extent in s.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from mpi4py import MPI
 
@@ -30,6 +32,8 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
     gather it is rank 0's decision, broadcast: a collective entered on some ranks only
     would hang the others."""
     comm, p, fr = scene.comm, result.problem, result.friction
+    if fr is None:
+        raise ValueError("friction figures of a frictionless result")
     w, lam_n = fr["w"], fr["lambda_n"]
     normals = p.data["normals"] if "normals" in p.data else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
 
@@ -38,7 +42,7 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
         return comm.allreduce((values[:, None] if values.ndim == 1 else values).sum(axis=0), op=MPI.SUM)
 
     tangential = w[:, None] * fr["lambda_t_vec"]
-    out = {"normal_force": p.symmetric_copies * float(total(w * lam_n)[0]),
+    out: dict[str, Any] = {"normal_force": p.symmetric_copies * float(total(w * lam_n)[0]),
            "tangential_force": whole_body(p, total(tangential)),
            "contact_force": whole_body(p, total(w[:, None] * lam_n[:, None] * normals + tangential)),
            "reaction_force": reaction_force(result)}
@@ -51,7 +55,7 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
     if scene.mesh.geometry.dim == 2:
         if comm.bcast(table is None if comm.rank == 0 else None, root=0):
             table = contact_table(scene, result)
-        out.update(comm.bcast(stick_zones(table) if comm.rank == 0 else None, root=0))
+        out.update(comm.bcast(stick_zones(table) if table is not None else None, root=0))
     return out
 
 

@@ -1,4 +1,5 @@
-"""Hertz theory (SPEC §7) as a declared reference: ``reference: {type: hertz, radius: R}``.
+"""Hertz theory (docs/theory.md §7) as a declared reference:
+``reference: {type: hertz, radius: R}``.
 
 For the computed total force (:attr:`contact.solvers.Result.contact_force`, the symmetric
 copies included) Hertz theory gives, with E* = E / (1 − ν²) against a rigid plane (or a
@@ -128,7 +129,7 @@ def _largest(comm: MPI.Comm, values: np.ndarray) -> float:
 
 def contact_modulus(scene: Scene) -> float:
     """E* = E / (1 − ν²) of the body against a rigid plane; for contact pairs that of the
-    first pair's two bodies, 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (SPEC §7)."""
+    first pair's two bodies, 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (docs/theory.md §7)."""
     if not scene.cfg.get("pairs"):
         model = scene.cfg["model"]
         return model["E"] / (1.0 - model["nu"] ** 2)

@@ -1,4 +1,4 @@
-"""The interface of a multi-body solve (SPEC §1.5, §7): the pressure seen from both sides
+"""The interface of a multi-body solve (docs/theory.md §1.5, §7): the pressure seen from both sides
 (the master side's: :func:`contact.models.mortar.master_pressure`), the forces each body
 feels and their balance, the reactions, the Hertz values of the effective radius.  The
 interface terms of the estimator are :func:`contact.adaptivity.estimate.interface_terms`.
@@ -27,7 +27,7 @@ from ..solvers import Result, owned_residual
 
 
 def effective_modulus(materials: list[tuple[float, float]]) -> float:
-    """E* of two bodies: 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (SPEC §7)."""
+    """E* of two bodies: 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (docs/theory.md §7)."""
     return 1.0 / sum((1.0 - nu**2) / E for E, nu in materials)
 
 
@@ -35,6 +35,7 @@ def pair_bodies(scene: Scene, index: int) -> list[str]:
     """Names of the bodies of pair ``index``'s slave and master surfaces (from the cells
     of their facets)."""
     msh, bnd, comm = scene.mesh, scene.boundary, scene.comm
+    assert scene.bodies is not None  # a pair joins two bodies
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
@@ -70,7 +71,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     gdim = scene.mesh.geometry.dim
     n_owned = V.dofmap.index_map.size_local
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
-    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     residual = full.array_r.reshape(-1, bs).copy()
     full.destroy()
     fixed = np.zeros(n_owned * bs, dtype=bool)

@@ -45,7 +45,7 @@ def reaction_force(result: Result) -> list[float]:
     (with contact pairs the solver's unknowns are rotated; the reaction is not)."""
     p = result.problem
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
-    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     bs = p.V.dofmap.index_map_bs
     n_owned = p.V.dofmap.index_map.size_local * bs
     dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]   # the Dirichlet condition on u

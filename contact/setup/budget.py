@@ -195,5 +195,5 @@ def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: st
         return
     gib = predicted_memory(dofs, direct_3d(cfg, gdim)) / 2**30
     raise ConfigError(f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (predicted peak memory "
-                      f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use a coarser mesh, "
-                      f"or --set solver.max_dofs={enough or dofs} if it fits")
+                      f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use "
+                      f"a coarser mesh, or --set solver.max_dofs={enough or dofs} if it fits")

@@ -50,7 +50,7 @@ def data_items(key: str, value: str | list[str], role: str | None = None,
 
 
 def scene_data(cfg: dict) -> list[Datum]:
-    """Every data expression of a scene's model and where it is used (SPEC §1): f, exact
+    """Every data expression of a scene's model and where it is used (docs/theory.md §1): f, exact
     in Ω; t on Γ_N; u_D on Γ_D; scalar models also k > 0 in Ω, and g, t_C on Γ_C
     (Signorini) or ψ in Ω (obstacle)."""
     data, model = cfg["data"], cfg["model"]["type"]

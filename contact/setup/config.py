@@ -338,7 +338,7 @@ SCENE: dict[str, Field] = {
         "E": Field("number", None, check=_positive,
                    doc="elasticity, hyperelastic: Young's modulus"),
         "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
-                    doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 < ν < 1/2)"),
+                    doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 " "< ν < 1/2)"),
     }),
     "bodies": Field("dict", None, schema=None, item=BODY),
     "pairs": Field("list", None, doc="contact pairs between bodies: [{slave, master, search}]"),
@@ -353,8 +353,9 @@ SCENE: dict[str, Field] = {
     }),
     "reference": Field("dict", None, schema={
         "type": Field("str", choices=("hertz", "cattaneo_mindlin"),
-                      doc="the reference solution the results are compared with (SPEC §7): hertz, or "
-                          "cattaneo_mindlin (partial slip of two similar bodies, Coulomb friction)"),
+                      doc="the reference solution the results are compared with "
+                          "(docs/theory.md §7): hertz, or cattaneo_mindlin (partial slip of "
+                          "two similar bodies, Coulomb friction)"),
         "radius": Field("number", None, check=_positive,
                         doc="hertz: the radius R of the curved body (default: mesh.radius of a "
                             "quarter_disk / sphere_octant)"),
@@ -375,7 +376,7 @@ SCENE: dict[str, Field] = {
                              doc="auto: plain Newton steps, for min backtracking once a cycle "
                                  "shows (contact/solvers/globalize.py); basic: plain Newton; "
                                  "bt: backtracking on ½‖Φ‖² from the first step"),
-        "polish": Field("bool", True, doc="fb / blend: active-set polishing (one extra linear solve once the active set settles)"),
+        "polish": Field("bool", True, doc="fb / blend: active-set polishing (one extra linear solve once the active set " "settles)"),
         "rtol": Field("number", 1e-12, check=_nonnegative),
         "atol": Field("number", 1e-12, check=_nonnegative),
         "max_it": Field("int", 50, check=_positive),
@@ -383,7 +384,8 @@ SCENE: dict[str, Field] = {
                                       "component for elasticity"),
         "linear": Field("str", "auto", choices=LINEAR,
                         doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
-                            "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and dimension)"),
+                            "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and "
+                            "dimension)"),
         "inexact": Field("bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"),
         "sequence": Field("any", "auto", check=_sequence,
                           doc="grid sequencing of a single solve: auto, off, or the number of coarser levels"),
@@ -405,8 +407,9 @@ SCENE: dict[str, Field] = {
                                "(eta_disc + eta_lin)"),
     }),
     "estimator": Field("str", "residual", choices=("residual", "equilibrated"),
-                       doc="a posteriori error estimator: residual (SPEC §5, reliable up to a constant) or "
-                           "equilibrated (SPEC §9: a guaranteed bound, scalar models only)"),
+                       doc="a posteriori error estimator: residual (docs/theory.md §5, reliable up "
+                           "to a constant) or equilibrated (docs/theory.md §9: a guaranteed "
+                           "bound, scalar models only)"),
     "adapt": Field("dict", None, schema={
         "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform", "none"),
                           doc="none: one solve on the given mesh (as if there were no adapt section)"),
@@ -417,7 +420,8 @@ SCENE: dict[str, Field] = {
         "nested": Field("bool", True),
         "rebalance": Field("bool", True,
                            doc="in parallel, let dolfinx's graph partitioner spread each refined mesh "
-                               "evenly over the ranks (false: children stay on their parent's rank)"),
+                               "evenly over the ranks (false: children stay on their parent's "
+                               "rank)"),
         "newton_rtol": Field("number", 1e-10, check=_positive,
                              doc="Newton's relative tolerance inside the loop: the algebraic error "
                                  "only has to be small against the discretization error"),
@@ -435,7 +439,7 @@ SCENE: dict[str, Field] = {
                          "c_t,i = K_tt,i / (kappa_t w_i)) or a number"),
         "kappa_t": Field("number", 1.0, check=_positive, doc="factor of c_t: auto"),
         "form": Field("str", "hsw", choices=FRICTION_FORMS,
-                      doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth max form)"),
+                      doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth " "max form)"),
         "coulomb": Field("str", "ssn", choices=("ssn", "fixed_point"),
                          doc="coulomb: full semismooth Newton, or the fixed point on the normal "
                              "pressure (a sequence of Tresca problems)"),
@@ -656,7 +660,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         cells = mesh["cells"] if isinstance(mesh["cells"], list) else [mesh["cells"]] * (1 if mesh["type"] == "lshape" else dims)
         want = 1 if mesh["type"] == "lshape" else dims
         if len(cells) != want:
-            raise ConfigError(f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got {mesh['cells']!r}")
+            raise ConfigError(f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got " f"{mesh['cells']!r}")
         mesh["cells"] = cells
     if mesh["type"] == "blocks":
         dims = _check_blocks(mesh)
@@ -668,7 +672,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         raise ConfigError("boundaries: at least one boundary part is required")
     for bname, part in cfg["boundaries"].items():
         if part["where"] is None and part["tag"] is None:
-            raise ConfigError(f"boundaries.{bname}: give 'where' or 'tag' (or both: the tag's facets where it holds)")
+            raise ConfigError(f"boundaries.{bname}: give 'where' or 'tag' (or both: the tag's facets where " f"it holds)")
         if part["tag"] is not None and mesh["type"] not in GMSH_MESHES:
             raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: "
                               f"{', '.join(GMSH_MESHES)})")
@@ -686,7 +690,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
             "contact" in roles or cfg["pairs"]):
         raise ConfigError(f"boundaries: a {model} scene needs a part with role: contact")
     if model == "obstacle" and "contact" in roles:
-        raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a contact part")
+        raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a " "contact part")
     given = set(data.get("data") or {})
     if model == "elasticity" and ({"k", "g", "psi", "t_C"} & given):
         raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C'} & given)[0]}: not used by model type elasticity")
@@ -697,7 +701,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if model == "signorini" and "psi" in given:
         raise ConfigError("data.psi: only for model type obstacle (Signorini uses data.g)")
     if model == "obstacle" and ({"g", "t_C"} & given):
-        raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini (obstacles use data.psi)")
+        raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini " f"(obstacles use data.psi)")
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
     _check_vector_data(cfg, model)
@@ -731,7 +735,8 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
         raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
-                          "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights vanish); use 1")
+                          "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights "
+                          "vanish); use 1")
     _resolve_formats(cfg["output"])
     cfg["constants"] = constants
     return cfg
@@ -797,7 +802,7 @@ def _check_blocks(mesh: dict) -> int:
         d = len(block["corners"][0])
         cells = block["cells"] if isinstance(block["cells"], list) else [block["cells"]] * d
         if len(cells) != d:
-            raise ConfigError(f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got {block['cells']!r}")
+            raise ConfigError(f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got " f"{block['cells']!r}")
         if dims not in (None, d):
             raise ConfigError(f"mesh.blocks[{i}].corners: every block needs {dims}D points")
         dims = d
@@ -884,7 +889,8 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
         return
     given = {k for k, v in (data.get("friction") or {}).items() if v is not None}
     law = fr["law"]
-    if law == "none":   # frictionless: the other keys are ignored (--set friction.law=none switches it off)
+    # frictionless: the other keys are ignored (--set friction.law=none switches it off)
+    if law == "none":
         return
     if cfg["model"]["type"] != "elasticity":
         raise ConfigError(f"friction.law: {law} friction needs model type elasticity "

@@ -1,4 +1,4 @@
-"""Safe expressions in x, y, z for scene data (SPEC §1: f, u_D, t, g, ψ, t_C, k, exact).
+"""Safe expressions in x, y, z for scene data (docs/theory.md §1: f, u_D, t, g, ψ, t_C, k, exact).
 
 A scene writes its data as strings such as ``"-r**1.5*cos(1.5*theta)"``.  They are parsed
 with :mod:`ast` and checked against a whitelist; nothing is ever passed to ``eval``.
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import ast
 import math
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, cast
 
 import numpy as np
 
@@ -90,7 +90,7 @@ def _depth(tree: ast.AST) -> int:
     return deepest
 
 
-_MATH = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+_MATH: dict[str, Callable[..., float]] = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
          "sqrt": math.sqrt, "atan2": math.atan2, "abs": abs, "min": min, "max": max,
          "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh, "asinh": math.asinh}
 _FLOAT_OPS = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
@@ -103,7 +103,8 @@ def _fold(node: ast.AST, values: Mapping[str, float], source: str) -> float | No
     """The value of ``node`` if it is constant (no coordinate in it), else None; raise
     ExpressionError for a constant subexpression without a finite real value."""
     if isinstance(node, ast.Constant):
-        return _finite(node, lambda: float(node.value), source)
+        value = cast(float, node.value)   # _check_tree admits numeric constants only
+        return _finite(node, lambda: float(value), source)
     if isinstance(node, ast.Name):
         return values.get(node.id)
     children = [_fold(c, values, source) for c in ast.iter_child_nodes(node)
@@ -114,9 +115,11 @@ def _fold(node: ast.AST, values: Mapping[str, float], source: str) -> float | No
         return _finite(node, lambda: _FLOAT_OPS[type(node.op)](*children), source)
     if isinstance(node, ast.UnaryOp):
         (v,) = children
+        assert v is not None
         return float(not v) if isinstance(node.op, ast.Not) else -v if isinstance(node.op, ast.USub) else v
     if isinstance(node, ast.Call):
-        return _finite(node, lambda: _MATH[node.func.id](*children), source)
+        name = cast(ast.Name, node.func).id   # _check_tree admits calls of names only
+        return _finite(node, lambda: _MATH[name](*children), source)
     if isinstance(node, ast.Compare):
         pairs = zip(children, children[1:])
         return float(all(_FLOAT_OPS[type(op)](a, b) for op, (a, b) in zip(node.ops, pairs)))
@@ -215,7 +218,7 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
         if isinstance(node, ast.IfExp):
             return be.cond(go(node.test), go(node.body), go(node.orelse))
         if isinstance(node, ast.Call):
-            return be.ops[node.func.id](*[go(a) for a in node.args])
+            return be.ops[cast(ast.Name, node.func).id](*[go(a) for a in node.args])
         raise ExpressionError(f"unsupported node {type(node).__name__}")  # pragma: no cover
 
     return go(tree)
@@ -243,7 +246,8 @@ def to_numpy(text: str | float, constants: Mapping[str, float] = {}, t: float = 
         X = np.asarray(x, dtype=float)
         symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0],
                        t=np.float64(t))
-        if "r" in names:  # only what the expression uses (interpolation evaluates millions of points)
+        # only what the expression uses (interpolation evaluates millions of points)
+        if "r" in names:
             symbols["r"] = np.hypot(symbols["x"], symbols["y"])
         if "theta" in names:
             symbols["theta"] = np.arctan2(symbols["y"], symbols["x"])

@@ -68,8 +68,10 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cel
     problem, gdim = comm.bcast((problem, gdim), root=0)
     try:
         if problem is None:
+            ghosts = dmesh.GhostMode.shared_facet
+            partitioner = dmesh.create_cell_partitioner(ghosts, 2)  # type: ignore[call-arg]
             data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
-                                        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+                                        partitioner=partitioner)
     except Exception as err:  # e.g. no physical groups (raised on every rank)
         problem = str(err)
     finally:
@@ -235,7 +237,8 @@ def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contac
     def build(gmsh):
         occ = gmsh.model.occ
         contacts, surfaces, arcs, flats = [], [], [], []
-        for R, s, y0 in ((radius, 1.0, 0.0), (radius2, -1.0, overlap)):   # upper (centre (0, R1)), lower (centre (0, d − R2))
+        # upper (centre (0, R1)), lower (centre (0, d − R2))
+        for R, s, y0 in ((radius, 1.0, 0.0), (radius2, -1.0, overlap)):
             p0 = occ.addPoint(0, y0, 0)
             centre = occ.addPoint(0, y0 + s * R, 0)
             left, right = occ.addPoint(-R, y0 + s * R, 0), occ.addPoint(R, y0 + s * R, 0)
@@ -293,6 +296,7 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
                 elif volume == sphere:
                     kind = SPHERE_TOP if abs(z - R) < tol else SPHERE
                 else:
+                    assert bottom is not None  # the block has a bottom
                     kind = top if abs(z) < tol else bottom if abs(z + H) < tol else BLOCK_SIDES
                 groups[kind].append(face)
         names = {SPHERE: "sphere", SPHERE_TOP: "sphere_top", BLOCK_TOP: "block_top", BLOCK_BOTTOM: "block_bottom",
@@ -332,7 +336,7 @@ class CurvedBoundary:
         edges on the symmetry planes and the top stay on those planes."""
         c = np.asarray(self.centre, dtype=float)
         d = x - c
-        along = 0.0
+        along: float | np.ndarray = 0.0
         if self.axis is not None:
             a = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
             along = np.outer(d @ a, a)

@@ -1,7 +1,7 @@
 """Meshes and boundary parts of a scene.
 
 Built-in meshes need nothing but DOLFINx: ``rectangle``/``unit_square`` and ``box``
-(structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], SPEC §7 D, built from
+(structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], docs/theory.md §7 D, built from
 NumPy arrays).  Only ``gmsh`` scenes import gmsh, to read a ``.msh`` file with physical
 tags (:func:`contact.setup.geometry.gmsh_to_mesh`, which also builds the parametric gmsh meshes of
 :mod:`contact.setup.geometry`).  A built-in mesh may be deformed by ``mesh.map``
@@ -229,7 +229,7 @@ def tag_bodies(msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = No
         if body["tag"] is not None:
             if body["tag"] not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
-                raise ConfigError(f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell tags: {known})")
+                raise ConfigError(f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell " f"tags: {known})")
             cells = cell_tags.indices[cell_tags.values == body["tag"]]
         else:
             if midpoints is None:
@@ -263,9 +263,9 @@ def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None 
 
     A ``where`` predicate selects exterior facets all of whose vertices satisfy it; a
     ``tag`` selects the gmsh physical facet group (with ``where`` too: those of its facets
-    that satisfy it); ``body`` keeps only the facets of that body's cells (``bodies``: :func:`tag_bodies`).  A part selecting no facet anywhere, an
-    unknown tag, or two parts sharing a facet are ConfigErrors.  Exterior facets left
-    unmarked carry the natural condition k ∂u/∂n = 0.
+    that satisfy it); ``body`` keeps only the facets of that body's cells (``bodies``:
+    :func:`tag_bodies`).  A part selecting no facet anywhere, an unknown tag, or two parts sharing a
+    facet are ConfigErrors.  Exterior facets left unmarked carry the natural condition k ∂u/∂n = 0.
     """
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -281,11 +281,11 @@ def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None 
         if part["tag"] is not None:
             if file_tags is None or part["tag"] not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
-                raise ConfigError(f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh file (facet tags: {known})")
+                raise ConfigError(f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh " f"file (facet tags: {known})")
             facets = file_tags.indices[file_tags.values == part["tag"]]
         if part["where"] is not None:
             pred = expressions.to_numpy(part["where"], cfg["constants"])
-            located = dmesh.locate_entities_boundary(msh, tdim - 1, lambda x: pred(x).astype(bool))
+            located = dmesh.locate_entities_boundary(msh, tdim - 1, lambda x, pred=pred: pred(x).astype(bool))
             facets = np.intersect1d(facets, located)
         if part.get("body") is not None:
             facets = body_facets(msh, bodies, list(cfg["bodies"]).index(part["body"]) + 1, facets)

@@ -37,7 +37,8 @@ class Scene:
     history: dict = field(default_factory=dict)
     _t_constant: Any = field(default=None, repr=False)
     bodies: dmesh.MeshTags | None = None    # cell tags k + 1 of the k-th body (scenes with bodies)
-    surfaces: dmesh.MeshTags | None = None  # the mesh's own facet tags (gmsh groups), carried by refinement
+    # the mesh's own facet tags (gmsh groups), carried by refinement
+    surfaces: dmesh.MeshTags | None = None
     #: for a scene made by :func:`contact.refine`: (the scene it was refined from, the parent
     #: cell of each new cell) — the coarser meshes grid sequencing solves on first
     parent: Optional[tuple["Scene", np.ndarray]] = None
@@ -49,7 +50,7 @@ class Scene:
             from dolfinx import fem
             from petsc4py import PETSc
 
-            self._t_constant = fem.Constant(self.mesh, PETSc.ScalarType(self.time))
+            self._t_constant = fem.Constant(self.mesh, PETSc.ScalarType(self.time))  # type: ignore[operator]
         return self._t_constant
 
     def set_time(self, t: float) -> None:

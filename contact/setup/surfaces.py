@@ -118,7 +118,8 @@ def warn_undeclared_curves(cfg: dict, msh: dmesh.Mesh, boundary: Boundary) -> No
         _checked[key] = looks_curved(msh, boundary, name)
         if _checked[key] and msh.comm.rank == 0:
             warnings.warn(f"boundaries.{name}: the contact boundary of {cfg['mesh']['file']} looks curved "
-                          "but declares no surface; refinement keeps its chords (declare boundaries."
+                          "but declares no surface; refinement keeps its chords (declare "
+                          "boundaries."
                           f"{name}.surface: {{type: circle|sphere|cylinder, center, radius}})", ContactWarning,
                           stacklevel=2)
 

@@ -1,4 +1,4 @@
-"""Solvers of the discrete contact problem (SPEC §3–4, §8): they take a
+"""Solvers of the discrete contact problem (docs/theory.md §3–4, §8): they take a
 :class:`~contact.solvers.problem.DiscreteProblem` and options, never a scene.  The drivers
 that build a scene's problem and run them live above, in :mod:`contact.drivers`.
 

@@ -1,4 +1,4 @@
-"""Frictional contact rows and their generalized Jacobian (SPEC §1.4): which rows, which
+"""Frictional contact rows and their generalized Jacobian (docs/theory.md §1.4): which rows, which
 nonsmooth function, which element of its generalized derivative.  How the Newton system is
 then solved is :mod:`contact.solvers.linear`'s business.
 
@@ -9,7 +9,7 @@ normal quantities of :mod:`contact.solvers.newton` (gap a = σ(g − x_n), b = c
     μ_t = −λ_t = −R_t / w,   s = x_t − x_t^prev,   z = μ_t + c_t s,
     ρ = s(x, t)  (Tresca)   or   ρ = F·max(0, ξ),  ξ = μ_n − a / c = (b − a) / c  (Coulomb)
 
-(ξ = μ_n + c_n (u_n − g) of SPEC §1.4 with c_n = 1/c; ξ = μ_n at a solution in contact,
+(ξ = μ_n + c_n (u_n − g) of docs/theory.md §1.4 with c_n = 1/c; ξ = μ_n at a solution in contact,
 ξ < 0 where the node separates), the tangential equation is, in one of two forms,
 
     projection (Alart–Curnier):  C = μ_t − P_B(ρ)(z) = 0,   P_B(ρ)(z) = z min(1, ρ/|z|),
@@ -155,7 +155,12 @@ class FrictionalComplementarity(Complementarity):
         a, b, r = self.pair(x)
         mu_n = -self.sign * r[self.dofs] / self.w
         xi = (b - a) / self.c
-        rho = fs.coefficient * np.maximum(xi, 0.0) if self.coulomb else self.threshold
+        if self.coulomb:
+            assert fs.coefficient is not None  # a Coulomb set has its coefficient F
+            rho = fs.coefficient * np.maximum(xi, 0.0)
+        else:
+            assert self.threshold is not None  # Tresca's threshold s(x)
+            rho = self.threshold
         mu_t = -r[fs.tangent] / self.w[:, None]
         s = x.array_r[fs.tangent] - fs.x_prev
         law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
@@ -188,11 +193,12 @@ class FrictionalComplementarity(Complementarity):
         Bv[rows] = law.J_mu + eye
         Dv[rows] = -self.w[:, None, None] * law.J_s
         if self.coulomb:
+            assert fs.coefficient is not None  # a Coulomb set has its coefficient F
             gate = self.sign * fs.coefficient * ncp.active_min(st["a"], st["b"], tau)   # [ξ > 0]
             Bv[nodes[:, None], t[None, :], k] = gate[:, None] * law.J_rho
             Dv[nodes[:, None], t[None, :], k] = -(self.w * gate / self.c)[:, None] * law.J_rho
         self.B.set(Bv).matMult(self.p.K, result=H)
-        H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+        H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
 
     def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
         """Per node: SEPARATED (normal inactive, :meth:`active_set`), STICK or SLIP (a node
@@ -252,6 +258,8 @@ def surface_functions(result: Result) -> list[fem.Function]:
     on the displacement space), the status (0 separated, 1 stick, 2 slip; −1 off Γ_C) and the
     friction bound ρ (on the scalar output space)."""
     p, fr = result.problem, result.friction
+    if fr is None:
+        raise ValueError("friction fields of a frictionless result")
     V, con = p.V, p.constraint
     bs = V.dofmap.index_map_bs
     nodes = con.dofs // bs

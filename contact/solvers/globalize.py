@@ -51,6 +51,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.norms import norm2
+
 if TYPE_CHECKING:
     from .newton import Complementarity
 
@@ -131,7 +133,7 @@ class GuardedMin:
         t0 = time.perf_counter()
         cp = self.cp
         a, b = cp.phi(x, self.F, "min", self.mu)
-        fnorm = self.F.norm()
+        fnorm = norm2(self.F)
         first = self.guard.engaged_at is None
         if self.guard.visit(cp.active_set(a, b), fnorm):
             if first and self.verbose and x.getComm().getRank() == 0:
@@ -150,10 +152,10 @@ class GuardedMin:
             x.copy(self.W)
             self.W.axpy(-t, y)
             self.cp.phi(self.W, self.F, "min", self.mu)
-            return 0.5 * self.F.norm() ** 2
+            return 0.5 * norm2(self.F) ** 2
         return merit
 
     def destroy(self) -> None:
         for obj in (self.W, self.F):
             obj.destroy()
-        self.cp = None
+        self.cp = None  # type: ignore[assignment]  # released: unused after destroy

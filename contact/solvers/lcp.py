@@ -97,7 +97,7 @@ def newton_lcp(M: np.ndarray, q: np.ndarray, x0: np.ndarray, method: str = "min"
         t = 1.0
         cycle = guard is not None and guard.visit(ncp.active_min(x, w), np.sqrt(2.0 * merit))
         if line_search == "bt" or cycle:
-            def merit_at(t: float) -> float:
+            def merit_at(t: float, x: np.ndarray = x, y: np.ndarray = y) -> float:
                 return 0.5 * float(np.sum(lcp_residual(M, q, x + t * y, method, mu) ** 2))
 
             t = backtrack(merit_at, merit)

@@ -41,7 +41,7 @@ def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options:
 
 def _user_solver(petsc_options: dict | None) -> bool:
     """Whether the user's PETSc options choose the Krylov method or preconditioner."""
-    return bool(petsc_options) and bool({"ksp_type", "pc_type"} & set(petsc_options))
+    return petsc_options is not None and bool({"ksp_type", "pc_type"} & set(petsc_options))
 
 
 def assembled_kind(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
@@ -84,7 +84,7 @@ class AssembledSystem:
         attach_near_nullspace(problem, self.J)
         self._problem = problem
         self.ksp = ksp         # SNES's KSP (:meth:`configure`)
-        self.H = None          # the polishing system's matrix, made when first needed
+        self.H: PETSc.Mat | None = None   # the polishing system's matrix, made when first needed
         self.krylov_iterations = 0
         self.stop = 0.0
 
@@ -97,9 +97,9 @@ class AssembledSystem:
     def set_law(self, s: PETSc.Vec, d: PETSc.Vec, H: PETSc.Mat | None = None) -> None:
         """H (default: SNES's Jacobian J) = diag(s) K + diag(d)."""
         H = self.J if H is None else H
-        self.K.copy(H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.K.copy(H, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         H.diagonalScale(L=s)
-        H.setDiagonal(d, addv=PETSc.InsertMode.ADD_VALUES)
+        H.setDiagonal(d, addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
 
     #: whether a polishing solve can be cut short and resumed (:class:`ReducedNewtonSystem`)
     resumable = False
@@ -107,6 +107,7 @@ class AssembledSystem:
     def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = H⁻¹ F for another law (polishing) with SNES's own KSP, whose operators are put
         back afterwards: one factorization alive at a time (memory)."""
+        assert self.ksp is not None, "solve_law after configure and before destroy"
         if self.H is None:
             self.H = self.K.duplicate(copy=True)
             attach_near_nullspace(self._problem, self.H)
@@ -127,7 +128,8 @@ class AssembledSystem:
                 obj.destroy()
         # SNES's KSP holds callbacks that hold this object: drop the reference back (a cycle
         # through PETSc objects that Python's collector cannot see would keep the mesh alive)
-        self.ksp = self._problem = None
+        self.ksp = None
+        self._problem = None  # type: ignore[assignment]  # released: unused after destroy
 
 
 class ReducedNewtonSystem(ReducedSystem):

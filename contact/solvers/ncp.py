@@ -1,4 +1,5 @@
-"""Complementarity (NCP) functions and elements of their generalized derivatives (SPEC §3).
+"""Complementarity (NCP) functions and elements of their generalized derivatives
+(docs/theory.md §3).
 
 For a, b ∈ R:   a ≥ 0, b ≥ 0, a·b = 0   ⇔   φ(a, b) = 0,   for each φ below.
 

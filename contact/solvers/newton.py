@@ -1,7 +1,7 @@
-"""Semismooth Newton for the nodal complementarity problem (SPEC §3–4).
+"""Semismooth Newton for the nodal complementarity problem (docs/theory.md §3–4).
 
 With R(x) = K x − b and the constraint set of :class:`contact.solvers.problem.Constraint`, the
-multiplier is eliminated (SPEC §4, implementation note): on a constrained node i
+multiplier is eliminated (docs/theory.md §4, implementation note): on a constrained node i
 
     a_i = σ (g_i − x_i)  [gap],     b_i = −σ c_i R_i / w_i  [c × multiplier density],
 
@@ -9,7 +9,7 @@ and the nonsmooth equation is Φ(x) = 0 with
 
     Φ_i = −σ (w_i / c_i) φ(a_i, b_i)   on constrained rows,    Φ_i = R_i   elsewhere.
 
-The factor −σ w_i / c_i is a constant row scaling of SPEC's Φ_i = φ(a_i, b_i): it does
+The factor −σ w_i / c_i is a constant row scaling of Φ_i = φ(a_i, b_i): it does
 not change the zeros or the Newton steps, but it gives every row the units of R (a force),
 so that ‖Φ‖ and the merit ½‖Φ‖² mix no units, and an inactive row is exactly R_i.  An
 element of the generalized Jacobian is then

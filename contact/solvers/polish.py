@@ -8,6 +8,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.norms import norm2
+
 if TYPE_CHECKING:
     from .newton import Complementarity
 
@@ -40,7 +42,8 @@ class Polisher:
         problem = cp.p
         self.cp, self.method, self.mu, self.system, self.timers = cp, method, mu, system, timers
         self.W, self.FW, self.FP, self.dP = (problem.b.duplicate() for _ in range(4))
-        self.solves, self.accepted, self.taken = 0, False, None
+        self.solves, self.accepted = 0, False
+        self.taken: float | None = None   # ‖step‖ of the last attempt, None if none was made
         self.initial_accepted = False
         self.done = 0.0  # ‖Φ‖ at which SNES stops: a Newton point below it needs no polishing
 
@@ -53,10 +56,10 @@ class Polisher:
         a_w, b_w = cp.phi(W, self.FW, self.method, self.mu)  # one residual evaluation per point
         a, b = cp.phi(x, self.FP, "min", self.mu)
         same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
-        if not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND) or self.FW.norm() <= self.done:
+        if not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND) or norm2(self.FW) <= self.done:
             self.timers["assembly"] += time.perf_counter() - t0
             return
-        self.taken = y.norm()
+        self.taken = norm2(y)
         s, d = cp.law(a, b, "min", self.mu)
         t1 = time.perf_counter()
         self.system.solve_law(s, d, self.FP, self.dP)
@@ -65,9 +68,9 @@ class Polisher:
         x.copy(W)
         W.axpy(-1.0, self.dP)  # W = P
         cp.phi(W, self.FP, self.method, self.mu)
-        if self.FP.norm() < self.FW.norm():
+        if norm2(self.FP) < norm2(self.FW):
             self.dP.copy(y)
-            self.accepted, self.taken = True, self.dP.norm()
+            self.accepted, self.taken = True, norm2(self.dP)
         self.timers["solve"] += t2 - t1
         self.timers["assembly"] += (t1 - t0) + (time.perf_counter() - t2)
 
@@ -87,7 +90,7 @@ class Polisher:
         cp = self.cp
         t0 = time.perf_counter()
         a, b = cp.phi(x, self.FW, self.method, self.mu)
-        f0 = self.FW.norm()
+        f0 = norm2(self.FW)
         self.initial_accepted = False
         if f0 <= stop:
             self.timers["assembly"] += time.perf_counter() - t0
@@ -111,7 +114,7 @@ class Polisher:
         x.copy(self.W)
         self.W.axpy(-1.0, self.dP)
         cp.phi(self.W, self.FP, self.method, self.mu)
-        if self.FP.norm() < f0:
+        if norm2(self.FP) < f0:
             self.W.copy(x)
             self.initial_accepted = True
         self.timers["solve"] += t2 - t1
@@ -121,6 +124,6 @@ class Polisher:
     def destroy(self) -> None:
         for obj in (self.W, self.FW, self.FP, self.dP):
             obj.destroy()
-        self.system = self.cp = None
+        self.system = self.cp = None  # type: ignore[assignment]  # released: unused after destroy
 
 

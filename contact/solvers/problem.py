@@ -4,7 +4,7 @@ A model assembles, once per mesh, the stiffness matrix K (Dirichlet rows and col
 replaced by identity) and the lifted load b, so that R(x) = K x − b is the discrete
 residual in the solver's unknowns x (x = Qᵀ u when a change of basis u = Q x rotates
 contact nodes to their (n, t) axes).  The complementarity conditions act on a set of
-nodes (SPEC §2):
+nodes (docs/theory.md §2):
 
     R_i = w_i λ_i,   σ(g_i − x_i) ≥ 0,   −σ λ_i ≥ 0,   (g_i − x_i) λ_i = 0,
 
@@ -57,8 +57,10 @@ class DiscreteProblem:
     K: PETSc.Mat
     b: PETSc.Vec
     constraint: Constraint
-    c: np.ndarray | float | None = None  # NCP scaling (gap per λ), nodal or one number; set by solve()
-    end_dofs: np.ndarray | None = None       # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
+    # NCP scaling (gap per λ), nodal or one number; set by solve()
+    c: np.ndarray | float | None = None
+    # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
+    end_dofs: np.ndarray | None = None
     end_neighbours: np.ndarray | None = None # the nearest constrained DoF of each (local index)
     # Output of nodal fields on a scalar space S (S = V for scalar models; the contact
     # component's collapsed subspace for elasticity, with the S → V DoF map):
@@ -68,12 +70,15 @@ class DiscreteProblem:
     lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
     near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
     basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
-    basis_inverse: PETSc.Mat | None = None  # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
-    output_nodes: np.ndarray | None = None  # output-space DoFs of the contact nodes (multi-body problems)
+    # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
+    basis_inverse: PETSc.Mat | None = None
+    # output-space DoFs of the contact nodes (multi-body problems)
+    output_nodes: np.ndarray | None = None
     data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
     in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
-    semicoercive: bool = False       # no Dirichlet DoF: K is singular (constants), held by the constraint alone
+    # no Dirichlet DoF: K is singular (constants), held by the constraint alone
+    semicoercive: bool = False
     floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
     symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
     symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies
@@ -226,14 +231,15 @@ class NodeBlockMatrix:
         self.indptr = np.arange(0, n * bs * bs + 1, bs, dtype=PETSc.IntType)
         cols = lo + np.arange(n * bs, dtype=PETSc.IntType).reshape(n, 1, bs)
         self.indices = np.broadcast_to(cols, (n, bs, bs)).ravel().copy()
-        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)
+        self.mat = PETSc.Mat().createAIJ(layout.getSizes(), bsize=bs, nnz=(bs, 0), comm=layout.comm)  # type: ignore[arg-type]
 
     def identity(self) -> np.ndarray:
         """Identity blocks, (local nodes, bs, bs)."""
         return np.tile(np.eye(self.bs), (self.local_nodes, 1, 1))
 
     def set(self, blocks: np.ndarray) -> PETSc.Mat:
-        self.mat.setValuesCSR(self.indptr, self.indices, np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel())
+        values = np.ascontiguousarray(blocks, dtype=PETSc.ScalarType).ravel()
+        self.mat.setValuesCSR(self.indptr, self.indices, values)  # type: ignore[arg-type]
         self.mat.assemble()
         return self.mat
 
@@ -247,9 +253,9 @@ def nodal_scaling(K: PETSc.Mat, dofs: np.ndarray, w: np.ndarray, kappa: float = 
     the local correction.  Scaling k (or E) scales R and K_ii alike, so it cancels; on any
     mesh the two parts of a Jacobian row  (K_ii/κ) ∂_aφ e_i + ∂_bφ K_i  keep the size of K's
     own rows, which keeps Krylov + GAMG working.  Measured (fb with polishing, Newton steps +
-    polishing solves): with nested iteration on SPEC problem A, κ = 1 needs 1+1 per level and
-    κ = 100 2+1 (min: 1 against 4); from u = 0 on signorini_square at 512², κ = 1 needs 17+1
-    and κ = 100 10+1 (a large κ makes the first step predict contact wherever the load
+    polishing solves): with nested iteration on problem A (docs/theory.md §7), κ = 1 needs
+    1+1 per level and κ = 100 2+1 (min: 1 against 4); from u = 0 on signorini_square at 512², κ = 1
+    needs 17+1 and κ = 100 10+1 (a large κ makes the first step predict contact wherever the load
     pushes, and the retreat is fast).  A cold start on a fine mesh corrects smooth modes,
     which the Jacobi-sized κ = 1 underestimates by ~L/h; a nested guess leaves local errors,
     for which κ = 1 is right.  With GAMG, κ = 100 slows each linear solve (hertz_3d, min from

@@ -1,4 +1,4 @@
-"""The Newton system of a diagonal law as a symmetric positive definite system (SPEC §8).
+"""The Newton system of a diagonal law as a symmetric positive definite system (docs/theory.md §8).
 
 For fb, min and blend the generalized Jacobian is  H = diag(s) K + diag(d)  with s, d ≥ 0
 (:mod:`.newton`; never s_i = d_i = 0).  The step y of  H y = F  splits by rows:
@@ -40,8 +40,8 @@ and never below what SNES's stopping test needs: the residual of the linear mode
 next ‖Φ‖ (when the law does not change), so the solve stops once ‖r‖ ≤ ``stop`` / 20
 (``stop`` = max(atol, rtol ‖Φ_0‖), set by the solver).  When a Newton step has the law of
 the step before (min's active set settled), Φ is linear on the piece the iterates are in,
-and the step is solved to that stopping value at once: one more step ends the iteration.  With ``forcing=False`` every
-solve runs to ``rtol`` (:data:`EXACT_RTOL`, or the user's ``ksp_rtol``).
+and the step is solved to that stopping value at once: one more step ends the iteration.  With
+``forcing=False`` every solve runs to ``rtol`` (:data:`EXACT_RTOL`, or the user's ``ksp_rtol``).
 
 This applies to diagonal laws only; a block law (friction, H = B K + D) uses the
 assembled system of :mod:`.linear`.
@@ -54,7 +54,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-FIXED = 1e-8      # s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
+from ..base.norms import norm2
+
+# s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
+FIXED = 1e-8
 ETA_MAX = 0.1     # the loosest forcing term
 POOR_PROGRESS = 0.5  # ‖Φ_k‖ > 0.5 ‖Φ_{k−1}‖: the next forcing term is at most a tenth of the last
 GAMMA, ALPHA = 0.9, 2.0
@@ -85,7 +88,8 @@ class ReducedSystem:
                  forcing: bool = True):
         self.K = K
         self.A = K.duplicate(copy=True)   # the reduced operator
-        self.P = K.duplicate(copy=True)   # the matrix GAMG was last built from (= A, or an earlier A)
+        # the matrix GAMG was last built from (= A, or an earlier A)
+        self.P = K.duplicate(copy=True)
         if near_nullspace is not None:
             self.P.setNearNullSpace(near_nullspace)
         self.Kdiag = K.getDiagonal()
@@ -96,7 +100,7 @@ class ReducedSystem:
         self.ksp.setOperators(self.A, self.P)
         self.forcing = forcing
         self.stop = 0.0                  # SNES's stopping value of ‖Φ‖ (set by the solver)
-        self.previous = None             # ‖Φ‖ and η of the last Newton solve
+        self.previous: tuple[float, float] | None = None  # ‖Φ‖ and η of the last Newton solve
         self.guess = False               # the iteration starts from a guess: first step exact
         self.stopping = None             # adaptive stopping (.stopping): the Krylov tolerance
         self._held = self._newton = None  # the law A holds, the law of the last Newton solve
@@ -105,13 +109,14 @@ class ReducedSystem:
         self.fixed_rows = 0
         self.fixed = np.zeros(K.getLocalSize()[0], dtype=bool)
         self._rtol, self._max_it = EXACT_RTOL, 10000
-        self.last_reason = 0
+        self.last_reason: int = 0
         self.lag = True
-        self._fresh_rate, self._lag_ok, self._lagged = None, False, False
+        self._fresh_rate: float | None = None
+        self._lag_ok, self._lagged = False, False
         self.rebuilds = 0                # lagged solves that had to rebuild GAMG midway
         self.restarts = 0                # solves started over with a new GAMG after a breakdown
         m, n = K.getSizes()
-        self.J = PETSc.Mat().createPython((m, n), context=_MatrixFreeH(self), comm=K.getComm())
+        self.J = PETSc.Mat().createPython((m, n), context=_MatrixFreeH(self), comm=K.getComm())  # type: ignore[arg-type]
         self.J.setUp()
 
     def set_options(self) -> None:
@@ -146,12 +151,12 @@ class ReducedSystem:
         self.fixed_rows = int(fixed.sum())
         p = self.p.array_w
         p[:] = np.where(fixed, 0.0, 1.0)
-        self.K.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.K.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         self.A.diagonalScale(L=self.p, R=self.p)
         diag = self.work.array_w
         with np.errstate(divide="ignore", invalid="ignore"):
             diag[:] = np.where(fixed, 1.0, da / np.where(fixed, 1.0, sa))
-        self.A.setDiagonal(self.work, addv=PETSc.InsertMode.ADD_VALUES)
+        self.A.setDiagonal(self.work, addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
         # lag the preconditioner (GAMG of an earlier A, kept in P) while it converges well
         self._lagged = self.lag and self._fresh_rate is not None and self._lag_ok
         if not self._lagged:
@@ -161,7 +166,7 @@ class ReducedSystem:
     def _rebuild(self) -> None:
         """P = A: GAMG is set up again at the next solve (Galerkin products; the
         interpolation is reused with ``pc_gamg_reuse_interpolation``)."""
-        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         self.ksp.setOperators(self.A, self.P)
         self.ksp.getPC().setReusePreconditioner(False)
         self._lagged = False
@@ -186,13 +191,13 @@ class ReducedSystem:
             # the law of the last Newton step again: the linear model is exact on this piece
             # of Φ, so solve to SNES's stopping value at once (atol below) instead of forcing
             same = self._same(self._newton, sa, da)
-            rtol = self._rtol if same else self._forcing(F.norm())
+            rtol = self._rtol if same else self._forcing(norm2(F))
             self._newton = (sa.copy(), da.copy())
         atol = 0.05 * self.stop                                    # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
         if self.stopping is not None:     # natural norm: η_alg ≤ γ_alg (η_disc + η_lin)
             atol = self.stopping.krylov_atol()
         t0 = time.perf_counter()
-        r0 = self.r.norm()
+        r0 = norm2(self.r)
         if not newton and not resume and self._lagged:
             # an exact solve (polishing) on a lagged preconditioner: its rate is only known
             # for loose Newton solves, which overrate it (hertz_3d's 865k-DoF level on 2 ranks:
@@ -222,13 +227,14 @@ class ReducedSystem:
         they cost less than rebuilding it: with S = :data:`SETUP_ITERATIONS` the cost of a
         set-up in iterations and ρ the convergence rate per iteration of the last fresh
         setup, a lagged solve may take the iterations a fresh one would
-        (log(target/‖r‖)/log ρ) plus S.  Past that GAMG is rebuilt and the solve goes on from where it stopped; a
-        lagged solve that used more than half of that margin ends the lagging."""
+        (log(target/‖r‖)/log ρ) plus S.  Past that GAMG is rebuilt and the solve goes on from where
+        it stopped; a lagged solve that used more than half of that margin ends the lagging."""
         ksp = self.ksp
         lagged = self._lagged
         ksp.getPC().setReusePreconditioner(lagged)
         max_it, expected = self._max_it, 0.0
         if lagged and r0 > 0:
+            assert self._fresh_rate is not None  # a lagged solve follows a fresh one
             target = max(rtol * r0, atol, np.finfo(float).tiny)
             expected = np.log(min(target / r0, 1.0)) / np.log(self._fresh_rate)
             max_it = int(np.ceil(expected + SETUP_ITERATIONS)) + LAG_MIN_ITS
@@ -237,7 +243,7 @@ class ReducedSystem:
             ksp.setUp()
         ksp.solve(self.r, y)
         its = ksp.getIterationNumber()
-        self.last_reason = ksp.getConvergedReason()
+        self.last_reason = ksp.getConvergedReason()  # type: ignore[assignment]
         if not lagged:
             self._fresh(its, r0)
         elif self.last_reason == PETSc.KSP.ConvergedReason.DIVERGED_MAX_IT:
@@ -252,7 +258,7 @@ class ReducedSystem:
             finally:
                 ksp.setInitialGuessNonzero(False)
             n = ksp.getIterationNumber()
-            self.last_reason = ksp.getConvergedReason()
+            self.last_reason = ksp.getConvergedReason()  # type: ignore[assignment]
             self._fresh(n, start)
             its += n
         elif its - expected > 0.5 * SETUP_ITERATIONS:
@@ -267,7 +273,7 @@ class ReducedSystem:
         interpolation and smoother bounds no longer fit A), set GAMG up from scratch — new
         aggregates, interpolation and Chebyshev bounds — and solve again from zero."""
         ksp = self.ksp
-        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         ksp.getPC().reset()
         ksp.setOperators(self.A, self.P)
         ksp.getPC().setReusePreconditioner(False)
@@ -275,7 +281,7 @@ class ReducedSystem:
         ksp.solve(self.r, y)
         self.restarts += 1
         n = ksp.getIterationNumber()
-        self.last_reason = ksp.getConvergedReason()
+        self.last_reason = ksp.getConvergedReason()  # type: ignore[assignment]
         self._fresh(n, r0)
         return n
 
@@ -330,7 +336,7 @@ class _MatrixFreeH:
 
 def _add_product(y: PETSc.Vec, d: PETSc.Vec, x: PETSc.Vec) -> None:
     """y += d ⊙ x."""
-    y.array_w[:] += d.array_r * x.array_r
+    y.array_w[:] += d.array_r * x.array_r  # type: ignore[arg-type]
 
 
 class _ApplyInverse:

@@ -92,7 +92,9 @@ class Result:
             return
         _ = self.dofs   # cached while u_h is there
         self.problem.destroy()
-        self.u_h = self.lmbda_h = self.gap = self.active = self.problem = self.active_mask = None
+        # released (the doc above): these fields are None from here on
+        self.u_h = self.lmbda_h = self.gap = self.active = None  # type: ignore[assignment]
+        self.problem = self.active_mask = None  # type: ignore[assignment]
         if self.friction is not None:
             self.friction = {k: v for k, v in self.friction.items() if np.ndim(v) == 0}
 

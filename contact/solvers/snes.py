@@ -283,7 +283,8 @@ class SemismoothNewton:
         if self.verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
-                  f"active {n_active:7d}  changed {changed:6d}{extra}{'  polished' if row['polished'] else ''}",
+                  f"active {n_active:7d}  changed "
+                  f"{changed:6d}{extra}{'  polished' if row['polished'] else ''}",
                   flush=True)
             progress.heard()
         else:

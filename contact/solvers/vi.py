@@ -1,4 +1,4 @@
-"""PETSc's variational-inequality solvers as baselines (SPEC §4).
+"""PETSc's variational-inequality solvers as baselines (docs/theory.md §4).
 
 ``vinewtonrsls`` (reduced-space active set) and ``vinewtonssls`` (semismooth, FB) solve
 the same discrete problem as the bound-constrained VI  l ≤ x ≤ u_max,  F(x) = K x − b,

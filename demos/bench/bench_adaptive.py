@@ -1,4 +1,4 @@
-"""Adaptive against uniform refinement on SPEC §7 problems A and D (issue #3 figures).
+"""Adaptive against uniform refinement on docs/theory.md §7 problems A and D (issue #3 figures).
 
 What it shows, per problem, strategy and method: the energy error and the estimator η
 per level, the convergence rate r in error ~ N^{-r} (least squares over the last five
@@ -72,14 +72,16 @@ def main() -> None:
                "newton_per_level": " ".join(map(str, its)),
                "dofs_to_error_1e-2": round(dofs_to_reach(rows, 1e-2)), "seconds": round(wall, 1)}
         summary.append(row)
-        print(f"{problem} {strategy:8s} {method:4s} levels {row['levels']:2d}  N {row['final_dofs']:8d}  "
-              f"error {row['final_error']:.3e}  r {row['rate_last5']:.3f}  eff [{row['effectivity_min']:.2f}, "
-              f"{row['effectivity_max']:.2f}] band {row['effectivity_band']:.2f}  Newton {row['newton_per_level']}  "
+        print(f"{problem} {strategy:8s} {method:4s} levels {row['levels']:2d}  N " f"{row['final_dofs']:8d}  "
+              f"error {row['final_error']:.3e}  r {row['rate_last5']:.3f}  eff "
+              f"[{row['effectivity_min']:.2f}, {row['effectivity_max']:.2f}] band "
+              f"{row['effectivity_band']:.2f}  Newton {row['newton_per_level']}  "
               f"N(1e-2) {row['dofs_to_error_1e-2']}  {wall:.0f} s", flush=True)
     uni = next(r for r in summary if r["problem"] == "D" and r["strategy"] == "uniform")
     dor = next(r for r in summary if r["problem"] == "D" and r["strategy"] == "dorfler")
     print(f"problem D: DoFs to reach energy error 1e-2: uniform {uni['dofs_to_error_1e-2']}, "
-          f"Dörfler {dor['dofs_to_error_1e-2']}, ratio {uni['dofs_to_error_1e-2'] / dor['dofs_to_error_1e-2']:.1f}")
+          f"Dörfler {dor['dofs_to_error_1e-2']}, ratio "
+          f"{uni['dofs_to_error_1e-2'] / dor['dofs_to_error_1e-2']:.1f}")
     write_csv(out / "summary.csv", summary)
     print(f"wrote {out}/summary.csv")
 

@@ -67,8 +67,9 @@ def main() -> None:
            "matvec_100_median_s": round(float(np.median(products)), 4),
            "array_scale_20_median_s": round(float(np.median(scalings)), 4)}
     if comm.rank == 0:
-        print(f"{comm.size} rank(s), {row['dofs']} DoFs, fastest (median) of {args.repeat}: 100 products "
-              f"{row['matvec_100_s']:.3f} s ({row['matvec_100_median_s']:.3f} s), 20 scalings of 20M entries "
+        print(f"{comm.size} rank(s), {row['dofs']} DoFs, fastest (median) of {args.repeat}: 100 " f"products "
+              f"{row['matvec_100_s']:.3f} s ({row['matvec_100_median_s']:.3f} s), 20 scalings of "
+              f"20M entries "
               f"{row['array_scale_20_s']:.3f} s ({row['array_scale_20_median_s']:.3f} s)", flush=True)
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)

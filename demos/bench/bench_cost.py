@@ -117,7 +117,7 @@ def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: 
                    "max_diff_vs_before": diff, "repeat": repeat}
             rows.append(row)
             if say:
-                print(f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine {r.iterations}+{r.polish_solves} "
+                print(f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine " f"{r.iterations}+{r.polish_solves} "
                       f"coarse {row['coarse_solves']:3d} weighted {row['weighted_solves']:5.2f}  "
                       f"ref {ref_wall:6.2f} s  solve {wall:7.2f} s  ratio {row['ratio_wall']:5.2f} "
                       f"(cpu {row['ratio_cpu']:5.2f})  diff {diff:.1e}", flush=True)

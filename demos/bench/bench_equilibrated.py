@@ -68,7 +68,7 @@ BOUND, LEVELS_EXEMPT = 1.5, 3
 
 
 def residual_eta(scene: contact.Scene, result) -> float:
-    """The residual estimator (SPEC §5) of the same solve."""
+    """The residual estimator (docs/theory.md §5) of the same solve."""
     return estimate(dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result).eta
 
 
@@ -117,7 +117,8 @@ def verdict(rows: list[dict]) -> str:
     late = [r["effectivity"] for r in rows if r["level"] >= LEVELS_EXEMPT]
     rng = f"{min(late):.3f}-{max(late):.3f}" if late else "-"
     return (f"{rows[0]['problem']}: {len(rows)} levels, eta >= error on every level: {not below} "
-            f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: {not high})")
+            f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: "
+            f"{not high})")
 
 
 def cost_scene(n: int, dim: int) -> contact.Scene:

@@ -1,14 +1,16 @@
 """How accurate and how costly is the energy error ‖u − u_h‖_E per quadrature degree?
 
-What it shows: the adaptive loop of problem A (SPEC §7, u = −r^{3/2} cos(3θ/2), singular
+What it shows: the adaptive loop of problem A (docs/theory.md §7, u = −r^{3/2} cos(3θ/2), singular
 at the origin) reports ‖u − u_h‖_E on every level; the integrand holds the exact solution
 (r^{3/2}, atan2, cos at every quadrature point), so its quadrature degree sets the cost.
 On each level this script evaluates the error with degrees 2 … 8 and a reference of
 degree 12, and prints the relative change |e_q / e_12 − 1| and the seconds per
-evaluation.  The default, degree 2p + 2 = 4 for P1 (:func:`contact.adaptivity.energy_error.default_degree`),
-is where the change stays far below the two digits an effectivity index is read to.
+evaluation.  The default, degree 2p + 2 = 4 for P1
+(:func:`contact.adaptivity.energy_error.default_degree`), is where the change stays far below the
+two digits an effectivity index is read to.
 
-    python demos/bench/bench_error_quadrature.py --max-dofs 500000 --out demos/results/error_quadrature.csv
+    python demos/bench/bench_error_quadrature.py --max-dofs 500000 --out
+    demos/results/error_quadrature.csv
 """
 from __future__ import annotations
 

@@ -83,7 +83,8 @@ def coulomb_vs_fixed_point(quick: bool) -> list[dict]:
                "u_difference": rel(ssn.u_h.x.array, fp.u_h.x.array),
                "lambda_t_difference": rel(ssn.friction["lambda_t"].ravel(), fp.friction["lambda_t"].ravel())}
         print(f"{label}: Newton {row['newton_iterations']} its {t_ssn:.2f} s, fixed point "
-              f"{row['fixed_point_iterations']} Tresca solves / {fp.iterations} Newton its {t_fp:.2f} s, "
+              f"{row['fixed_point_iterations']} Tresca solves / {fp.iterations} Newton its "
+              f"{t_fp:.2f} s, "
               f"difference {row['u_difference']:.1e}", flush=True)
         rows.append(row)
     return rows
@@ -166,7 +167,7 @@ def steps(quick: bool) -> list[dict]:
                          "max_step_iterations": max(its), "mean_step_iterations": round(float(np.mean(its)), 2),
                          "total_iterations": sum(its), "seconds": round(t, 3),
                          "friction_ratio": fig.get("friction_ratio", ""), "stick_measure": fig.get("stick_measure", "")})
-            print(f"steps: {label} N = {n:2d}: max {max(its)} / total {sum(its)} Newton its, {t:.2f} s, "
+            print(f"steps: {label} N = {n:2d}: max {max(its)} / total {sum(its)} Newton its, " f"{t:.2f} s, "
                   f"{'converged' if path.converged else 'FAILED'}", flush=True)
     return rows
 
@@ -200,8 +201,9 @@ def manufactured(quick: bool) -> tuple[list[dict], dict]:
     summary = {"uniform_rate": rate_u, "adaptive_rate": rate_a, "effectivity_band": max(eff) / min(eff),
                "effectivity_min": min(eff), "effectivity_max": max(eff), "status_wrong_far": wrong,
                "status_nodes_far": int(far.sum())}
-    print(f"manufactured: uniform rate {rate_u:.3f}, Dörfler rate {rate_a:.3f} (last 5 levels), effectivity "
-          f"{min(eff):.2f}–{max(eff):.2f} (band {max(eff) / min(eff):.2f}), wrong status {wrong} of {far.sum()} "
+    print(f"manufactured: uniform rate {rate_u:.3f}, Dörfler rate {rate_a:.3f} (last 5 levels), " f"effectivity "
+          f"{min(eff):.2f}–{max(eff):.2f} (band {max(eff) / min(eff):.2f}), wrong status {wrong} "
+          f"of {far.sum()} "
           "nodes at distance >= 0.1 from the transition", flush=True)
     return rows, summary
 
@@ -231,7 +233,7 @@ def acceptance(quick: bool, cvf: list[dict], mms: dict, step_rows: list[dict]) -
         add(f"Coulomb Newton = fixed point, {row['case']}", row["u_difference"], "<= 1e-8", row["u_difference"] <= 1e-8,
             "bench_friction.py (coulomb_vs_fixed_point.csv)")
     for name, sets in (("hertz_2d", []), ("hertz_3d", ["mesh.h=0.3", "mesh.h_contact=0.02", "mesh.zone=0.15"])):
-        direct = ["solver.petsc_options={ksp_type: preonly, pc_type: lu, pc_factor_mat_solver_type: mumps}"]
+        direct = ["solver.petsc_options={ksp_type: preonly, pc_type: lu, pc_factor_mat_solver_type: " "mumps}"]
         ref = contact.solve(scene(name, *sets, *direct))
         zero = contact.solve(scene(name, *sets, *direct, "friction.law=coulomb", "friction.coefficient=0"))
         d = rel(ref.u_h.x.array, zero.u_h.x.array)

@@ -38,8 +38,9 @@ def main() -> None:
     ap.add_argument("--set", dest="extra", action="append", default=[], help="scene override KEY=VALUE")
     ap.add_argument("--full", action="store_true",
                     help="also the PETSc VI solvers from a cold start, vinewtonssls nested, and fb with "
-                         "MUMPS on the final 3D mesh (vinewtonssls took over 6 minutes cold and over 4 "
-                         "nested there, vinewtonrsls 136 s cold, MUMPS 219 s; left out of make bench)")
+                         "MUMPS on the final 3D mesh (vinewtonssls took over 6 minutes cold and "
+                         "over 4 nested there, vinewtonrsls 136 s cold, MUMPS 219 s; left out of "
+                         "make bench)")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

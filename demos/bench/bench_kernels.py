@@ -1,4 +1,5 @@
-"""Kernels of the adaptive loop, each against the path it replaced or might be replaced by (issue 11).
+"""Kernels of the adaptive loop, each against the path it replaced or might be replaced by (issue
+11).
 
 What it shows:
 
@@ -12,11 +13,11 @@ What it shows:
   :func:`contact.output.plots.raster`, each saved to a PNG;
 * ``refine`` (run it under mpirun) — a unit square of ``--cells-refine``² squares whose
   cells with x < 0.3 are refined, as an adaptive loop refines one region: by
-  ``dolfinx.mesh.refine`` with the identity partitioner (what :func:`contact.adaptivity.refine.refine`
-  does in parallel: children stay on their parent's rank, the ghost layer is rebuilt) and
-  with dolfinx's graph partitioner (the refined mesh redistributed), and with none (children
-  stay, no ghost layer: what a serial run does), alternating; the check column is the
-  busiest rank's owned cells over the mean after refinement;
+  ``dolfinx.mesh.refine`` with the identity partitioner (what
+  :func:`contact.adaptivity.refine.refine` does in parallel: children stay on their parent's rank,
+  the ghost layer is rebuilt) and with dolfinx's graph partitioner (the refined mesh redistributed),
+  and with none (children stay, no ghost layer: what a serial run does), alternating; the check
+  column is the busiest rank's owned cells over the mean after refinement;
 * ``floor`` (serially and under mpirun) — the least the 2D finest level can cost besides its
   solve: a unit square of ``--cells-floor``² squares refined uniformly (to about the 1.23M
   DoFs of problem A's finest level) by ``dolfinx.mesh.refine`` as the adaptive loop calls it;
@@ -30,10 +31,11 @@ Prints one row per measurement and writes CSV (kernel, dofs or cells, path, seco
 check).  Run serially, and the assembly under ``mpirun -n 2`` too:
 
     python demos/bench/bench_kernels.py --out demos/results/kernels.csv
-    mpirun -n 2 python demos/bench/bench_kernels.py --only assembly --cells 55 --out demos/results/kernels_np2.csv
-    mpirun -n 2 python demos/bench/bench_kernels.py --only refine --repeat 3 --out demos/results/kernels_refine_np2.csv
-    python demos/bench/bench_kernels.py --only floor --repeat 3 --out demos/results/kernels_floor.csv
-    mpirun -n 2 python demos/bench/bench_kernels.py --only floor --repeat 3 --out demos/results/kernels_floor_np2.csv
+    mpirun -n 2 python demos/bench/bench_kernels.py --only assembly --cells 55 --out
+    demos/results/kernels_np2.csv mpirun -n 2 python demos/bench/bench_kernels.py --only refine
+    --repeat 3 --out demos/results/kernels_refine_np2.csv python demos/bench/bench_kernels.py --only
+    floor --repeat 3 --out demos/results/kernels_floor.csv mpirun -n 2 python
+    demos/bench/bench_kernels.py --only floor --repeat 3 --out demos/results/kernels_floor_np2.csv
 """
 from __future__ import annotations
 
@@ -134,7 +136,7 @@ def refine(cells: int, repeat: int) -> list[dict]:
     balance, size = {}, 0
     for _ in range(repeat):
         for name, partitioner in paths.items():
-            new, _, _ = _timed(times[name], lambda: dmesh.refine(msh, edges, partitioner=partitioner(),
+            new, _, _ = _timed(times[name], lambda partitioner=partitioner: dmesh.refine(msh, edges, partitioner=partitioner(),
                                                                  option=dmesh.RefinementOption.parent_cell_and_facet))
             balance[name] = busiest_share(comm, new.topology.index_map(2).size_local)
             size = new.topology.index_map(2).size_global
@@ -165,20 +167,21 @@ def floor(cells: int, repeat: int) -> list[dict]:
         del child
         cells_g = cells_g.astype(np.int64, copy=False)
         msh = _timed(times["create_mesh"],
-                     lambda: dmesh.create_mesh(comm, cells_g, domain, x, refine_partitioner(parent)))
+                     lambda cells_g=cells_g, domain=domain, x=x:
+                     dmesh.create_mesh(comm, cells_g, domain, x, refine_partitioner(parent)))
         V = fem.functionspace(msh, ("Lagrange", 1))
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         a, L = fem.form(ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx), fem.form(v * ufl.dx)
         msh.topology.create_connectivity(1, 2)
         bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, dmesh.exterior_facet_indices(msh.topology)), V)
-        K, b = _timed(times["assembly"], lambda: P.assemble_system(a, L, [bc]))   # -Δu = 1, u = 0 on ∂Ω
+        K, b = _timed(times["assembly"], lambda a=a, L=L, bc=bc: P.assemble_system(a, L, [bc]))  # -Δu = 1, u = 0 on ∂Ω
         ksp = PETSc.KSP().create(comm)
         ksp.setOptionsPrefix("floor_")
         ksp.setOperators(K)
         ksp.setFromOptions()
         u_h = b.duplicate()
         u_h.set(0.0)
-        _timed(times["solve"], lambda: ksp.solve(b, u_h))
+        _timed(times["solve"], lambda ksp=ksp, b=b, u_h=u_h: ksp.solve(b, u_h))
         its, size = ksp.getIterationNumber(), V.dofmap.index_map.size_global
         for obj in (ksp, K, b, u_h):
             obj.destroy()
@@ -210,7 +213,7 @@ def main() -> None:
         for r in rows:
             check = {"assembly": "relative difference", "refine": "busiest rank's cells / mean",
                      "floor": "over the solve (solve: CG its)"}.get(r["kernel"])
-            print(f"{r['kernel']:9s} {r['ranks']} rank(s) {r['size']:9d} {r['path']:10s} {r['seconds']:7.3f} s"
+            print(f"{r['kernel']:9s} {r['ranks']} rank(s) {r['size']:9d} {r['path']:10s} " f"{r['seconds']:7.3f} s"
                   + (f"  {check} {r['check']}" if r["check"] else ""), flush=True)
     save_csv(args.out, rows)
 

@@ -59,7 +59,7 @@ def main() -> None:
                        "wall_s": round(statistics.median(w for w, _, _ in runs), 4),
                        "cpu_s": round(statistics.median(c for _, c, _ in runs), 4), "repeat": args.repeat}
                 rows.append(row)
-                print(f"{row['scene']:>18s} {row['dofs']:8d} {linear:>7s} {r.iterations:3d}+{r.polish_solves:<1d} "
+                print(f"{row['scene']:>18s} {row['dofs']:8d} {linear:>7s} " f"{r.iterations:3d}+{r.polish_solves:<1d} "
                       f"{row['wall_s']:8.3f} {row['cpu_s']:8.3f}", flush=True)
     save_csv(args.out, rows)
 

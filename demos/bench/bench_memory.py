@@ -60,8 +60,9 @@ spec = json.loads(sys.argv[1])
 t0 = time.perf_counter()
 scene = contact.load_scene(spec["source"], spec["overrides"] + ["solver.max_dofs=100000000"])
 result = contact.solve(scene, verbose=False)
+rss_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 print(json.dumps({"dofs": result.dofs, "linear": result.linear, "converged": bool(result.converged),
-                  "seconds": time.perf_counter() - t0, "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "seconds": time.perf_counter() - t0, "rss_mib": rss_mib}))
 """
 
 
@@ -96,7 +97,7 @@ def main() -> int:
         for a, b in zip(runs, runs[1:]):
             b["slope_bytes_per_dof"] = round((b["peak_rss_mib"] - a["peak_rss_mib"]) * 2**20 / (b["dofs"] - a["dofs"]))
         for r in runs:
-            print(f"{r['kind']:13s} n={r['cells']:5d} {r['dofs']:9d} DoFs  {r['linear']:6s} {r['seconds']:7.1f} s  "
+            print(f"{r['kind']:13s} n={r['cells']:5d} {r['dofs']:9d} DoFs  {r['linear']:6s} " f"{r['seconds']:7.1f} s  "
                   f"{r['peak_rss_mib']:8.0f} MiB  {r['bytes_per_dof']:6d} B/DoF  "
                   f"slope {r.get('slope_bytes_per_dof', '-')} B/DoF", flush=True)
         rows += runs

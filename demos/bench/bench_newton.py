@@ -68,7 +68,7 @@ def main() -> None:
     if "PMI_SIZE" in os.environ or "OMPI_COMM_WORLD_SIZE" in os.environ:
         sys.exit("run the benchmark driver serially; use --np N to give each solve N ranks")
     rows = []
-    print(f"{'method':>14s} {'DoFs':>8s} {'its':>4s} {'pol':>3s} {'seconds':>8s} {'s/solve':>7s} {'lin.solve':>9s} "
+    print(f"{'method':>14s} {'DoFs':>8s} {'its':>4s} {'pol':>3s} {'seconds':>8s} " f"{'s/solve':>7s} {'lin.solve':>9s} "
           f"{'peak MiB':>9s}  reason")
     for m in args.methods.split(","):
         cmd = launcher + [sys.executable, __file__, "--one", m, "--scene", args.scene, "--cells", str(args.cells)]
@@ -81,8 +81,9 @@ def main() -> None:
             continue
         row = json.loads(line[0][4:])
         rows.append(row)
-        print(f"{m:>14s} {row['dofs']:8d} {row['iterations']:4d} {row['polish']:3d} {row['seconds']:8.2f} "
-              f"{row['seconds_per_iteration']:7.2f} {row['linear_solve_seconds']:9.2f} {row['peak_rss_mib']:9.1f}  {row['reason']}",
+        print(f"{m:>14s} {row['dofs']:8d} {row['iterations']:4d} {row['polish']:3d} " f"{row['seconds']:8.2f} "
+              f"{row['seconds_per_iteration']:7.2f} {row['linear_solve_seconds']:9.2f} "
+              f"{row['peak_rss_mib']:9.1f}  {row['reason']}",
               flush=True)
     ref = {r["method"]: r for r in rows}.get("vinewtonrsls")
     if ref:

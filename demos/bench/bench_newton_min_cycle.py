@@ -50,7 +50,7 @@ def main() -> None:
     width = max(len(r["matrix"]) for r in rows)
     print(f"{'matrix':{width}s}  method  line search  its  converged  period  |Phi|      max|x - x*|")
     for r in rows:
-        print(f"{r['matrix']:{width}s}  {r['method']:6s}  {r['line_search']:11s}  {r['iterations']:3d}  "
+        print(f"{r['matrix']:{width}s}  {r['method']:6s}  {r['line_search']:11s}  " f"{r['iterations']:3d}  "
               f"{str(r['converged']):9s}  {r['period']:6d}  {r['residual']:.2e}  {r['error']:.2e}")
     save_csv(args.out, rows)
 

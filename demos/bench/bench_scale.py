@@ -110,23 +110,25 @@ def main() -> None:
             run("hertz_3d.yaml", 2, args.max_dofs_3d),
             run("hertz_3d.yaml", 2, args.max_dofs_3d, rebalance=False)]
     for r in rows:
-        print(f"{r['scene']:>30s} {r['ranks']} rank(s), rebalance {r['rebalance']}: {r['levels']} levels to {r['dofs']} DoFs, "
-              f"{r['wall_s']:.1f} s wall, peak {r['peak_rss_gib']:.2f} GiB; finest level: assembly + estimate "
-              f"{r['last_assembly_estimate_s']:.2f} s vs solve {r['last_solve_s']:.2f} s; level before "
-              f"({r['prev_dofs']} DoFs): + refine {r['prev_assembly_estimate_refine_s']:.2f} s vs solve "
-              f"{r['prev_solve_s']:.2f} s; refine into the finest + its assembly + estimate "
-              f"{r['finest_overhead_s']:.2f} s = {r['finest_overhead_ratio']:.2f} x its solve (dolfinx.mesh.refine "
-              f"alone {r['finest_refine_mesh_s']:.2f} s = {r['finest_refine_mesh_ratio']:.2f} x); the busiest rank "
+        print(f"{r['scene']:>30s} {r['ranks']} rank(s), rebalance {r['rebalance']}: " f"{r['levels']} levels to {r['dofs']} DoFs, "
+              f"{r['wall_s']:.1f} s wall, peak {r['peak_rss_gib']:.2f} GiB; finest level: assembly "
+              f"+ estimate {r['last_assembly_estimate_s']:.2f} s vs solve {r['last_solve_s']:.2f} "
+              f"s; level before ({r['prev_dofs']} DoFs): + refine "
+              f"{r['prev_assembly_estimate_refine_s']:.2f} s vs solve {r['prev_solve_s']:.2f} s; "
+              f"refine into the finest + its assembly + estimate {r['finest_overhead_s']:.2f} s = "
+              f"{r['finest_overhead_ratio']:.2f} x its solve (dolfinx.mesh.refine alone "
+              f"{r['finest_refine_mesh_s']:.2f} s = {r['finest_refine_mesh_ratio']:.2f} x); the "
+              f"busiest rank "
               f"owns {r['rank_imbalance']:.2f} x the mean of the finest level's DoFs", flush=True)
     walls = [(rows[0]["wall_s"], rows[1]["wall_s"])]
     for _ in range(args.pairs - 1):
         walls.append((run("signorini_free_boundary.yaml", 1, args.max_dofs)["wall_s"],
                       run("signorini_free_boundary.yaml", 2, args.max_dofs)["wall_s"]))
     speedups = [serial / parallel for serial, parallel in walls]
-    print(f"problem A speed-up on 2 ranks, {len(walls)} pair(s): median {statistics.median(speedups):.2f} "
+    print(f"problem A speed-up on 2 ranks, {len(walls)} pair(s): median " f"{statistics.median(speedups):.2f} "
           f"(min {min(speedups):.2f}, max {max(speedups):.2f}); walls "
           + ", ".join(f"{a:.1f} / {b:.1f} s" for a, b in walls), flush=True)
-    print(f"2 ranks, wall time rebalanced / partition kept: problem A {rows[1]['wall_s'] / rows[2]['wall_s']:.3f}, "
+    print(f"2 ranks, wall time rebalanced / partition kept: problem A " f"{rows[1]['wall_s'] / rows[2]['wall_s']:.3f}, "
           f"hertz_3d {rows[3]['wall_s'] / rows[4]['wall_s']:.3f}", flush=True)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,9 +1,9 @@
 """Two bodies in contact (mortar coupling with dual multipliers): the figures of issue 13.
 
     python demos/bench/bench_two_bodies.py patch                 # patch tests 2D / 3D, every method
-    python demos/bench/bench_two_bodies.py cylinders             # two cylinders, adaptive, methods, slave/master
-    mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
-    python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
+    python demos/bench/bench_two_bodies.py cylinders             # two cylinders, adaptive, methods,
+    slave/master mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005
+    ...] python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
 
 Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
 
@@ -139,7 +139,8 @@ def cylinders(max_dofs: int) -> None:
     final_scene, nested = contact.refine(previous.scene, contact.mark(previous.estimate.eta_T, "dorfler", 0.5),
                                          previous.result.u_h)
     problem = build_problem(final_scene)
-    ref = contact.solve(final_scene, method="vinewtonrsls", problem=problem, verbose=False)   # from u = 0
+    # from u = 0
+    ref = contact.solve(final_scene, method="vinewtonrsls", problem=problem, verbose=False)
     u_ref = ref.u_h.x.array.copy()
     methods = []
     for method in METHODS:
@@ -205,8 +206,9 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
                      "newton": r.iterations, "polish": r.polish_solves, "seconds": round(seconds, 1),
                      "a_error": res["a_error"], "p0_error": res["p0_error"], "pressure_rms": rms,
                      "a_over_R": res["a_over_R"], "balance": res["interface_balance_error"]})
-        say(f"h_contact {h_contact}: {r.dofs} DoFs, {r.iterations}+{r.polish_solves} its, {seconds:.1f} s, "
-            f"a {100 * res['a_error']:+.2f}%, p0 {100 * res['p0_error']:+.2f}%, rms {100 * rms:.2f}%")
+        say(f"h_contact {h_contact}: {r.dofs} DoFs, {r.iterations}+{r.polish_solves} its, " f"{seconds:.1f} s, "
+            f"a {100 * res['a_error']:+.2f}%, p0 {100 * res['p0_error']:+.2f}%, rms "
+            f"{100 * rms:.2f}%")
     table(rows)
     write("sphere.csv", rows, key=("h_contact", "ranks"))
     if swap_size is not None:
@@ -262,10 +264,10 @@ def cattaneo(sizes: list[float]) -> None:
             a = v["hertz_a"]
             xs = np.linspace(-a, a, 600)
             ax.plot(xs, traction(np.abs(xs), a, v["c_over_a_theory"] * a, v["hertz_p0"], F), "-", color=f"C{k}", lw=1,
-                    label=f"Cattaneo–Mindlin, Q/(F P) = {v['Q_over_FP']:.2f} (c/a = {v['c_over_a_theory']:.3f})")
+                    label=f"Cattaneo–Mindlin, Q/(F P) = {v['Q_over_FP']:.2f} (c/a = " f"{v['c_over_a_theory']:.3f})")
             near = np.abs(x[order]) <= 1.3 * a
             ax.plot(x[order][near], q[order][near], "o", ms=2.5, color=f"C{k}",
-                    label=f"computed |λ_t| (c/a = {v['c_over_a']:.3f}, L² error {100 * v['q_error']:.1f}%)")
+                    label=f"computed |λ_t| (c/a = {v['c_over_a']:.3f}, L² error " f"{100 * v['q_error']:.1f}%)")
         v = profiles[-1][0]
         xs = np.linspace(-v["hertz_a"], v["hertz_a"], 600)
         ax.plot(xs, F * v["hertz_p0"] * np.sqrt(1 - (xs / v["hertz_a"]) ** 2), "k--", lw=0.8, label="F p(x) (Hertz)")

@@ -1,4 +1,4 @@
-"""Equilibrated fluxes and guaranteed error bounds (issue 30, SPEC §9).
+"""Equilibrated fluxes and guaranteed error bounds (issue 30, docs/theory.md §9).
 
 * :mod:`.reference` — reference-cell tables (basix RT_p, P_p, facet moments);
 * :mod:`.cells` — the per-cell data rows and their exchange between ranks;

@@ -1,5 +1,5 @@
 """A guaranteed upper bound of the energy error for the scalar Signorini and obstacle
-problems (SPEC §1.1–1.2, §9), from an equilibrated flux (:func:`.flux.reconstruct_flux`).
+problems (docs/theory.md §1.1–1.2, §9), from an equilibrated flux (:func:`.flux.reconstruct_flux`).
 
 Notation: |||v|||² = ∫_Ω k |∇v|², e = u − u_h; σ = +1 for the constraint u ≤ g (Signorini, and
 the upper obstacle ψ = g), σ = −1 for u ≥ ψ, so σ(u − g) ≤ 0 and σλ ≤ 0 for the exact
@@ -10,7 +10,8 @@ multiplier λ (k∂u/∂n − t_C on Γ_C; −div(k∇u) − f in Ω).  σ_h ∈
 
 with λ̃_h the discrete multiplier of :mod:`.multiplier` (σλ̃_h ≤ 0 pointwise).  Per cell T
 
-    A_T = ‖k^{-1/2}(σ_h − k∇u_h)‖_T + osc_T,     A = (Σ_T A_T²)^{1/2}     (osc_T: :class:`.flux.Flux`),
+    A_T = ‖k^{-1/2}(σ_h − k∇u_h)‖_T + osc_T,     A = (Σ_T A_T²)^{1/2}     (osc_T:
+    :class:`.flux.Flux`),
 
 w ∈ H¹(Ω) with w = 0 on Γ_D and w ≥ σ(u_h − g) on Γ_C (Signorini) or in Ω (obstacle),
 W = |||w|||, s_h = u_h − σw (feasible: σ(s_h − g) ≤ 0 where the constraint acts), A_s as A with
@@ -39,7 +40,8 @@ Vohralík, SINUM 53, 2015).  For any v ∈ H¹ with v = u_D on Γ_D, integrating
 (the oscillations are orthogonal to constants: Poincaré h_T/π on convex cells and the trace
 inequality of :func:`.flux._oscillation`).  With λ(u − g) = 0, σλ ≤ 0, σλ̃_h ≤ 0, σ(u − g) ≤ 0:
 
-    ⟨λ − λ̃_h, u − v⟩ = −⟨λ, v − g⟩ − ⟨λ̃_h, u − g⟩ + ⟨λ̃_h, v − g⟩ ≤ −⟨λ, v − g⟩ + ⟨−σλ̃_h, −σ(v − g)⟩.
+    ⟨λ − λ̃_h, u − v⟩ = −⟨λ, v − g⟩ − ⟨λ̃_h, u − g⟩ + ⟨λ̃_h, v − g⟩ ≤ −⟨λ, v − g⟩ + ⟨−σλ̃_h, −σ(v −
+    g)⟩.
 
 (ii): v = s_h is feasible, so −⟨λ, s_h − g⟩ ≤ 0 and ⟨−σλ̃_h, −σ(s_h − g)⟩ = B: |||u − s_h|||² ≤
 A_s |||u − s_h||| + B, then the triangle inequality with |||s_h − u_h||| = W.  (i): v = u_h,
@@ -198,7 +200,8 @@ def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lift
         psi = expressions.to_ufl(scene.cfg["data"]["psi"], msh, scene.cfg["constants"], t=scene.t_constant)
         f = result.problem.data["f"]
         s = sigma * (u_h - psi)
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * _degree(u_h) + 6})   # kinks
+        # kinks
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * _degree(u_h) + 6})
         w = ufl.conditional(ufl.gt(s, 0), s, 0)
         grad_w = ufl.conditional(ufl.gt(s, 0), ufl.grad(s), ufl.zero(msh.geometry.dim))
         L = -ufl.div(k * ufl.grad(psi)) - f                     # Lewy–Stampacchia: 0 ≤ −σλ ≤ (−σL)⁺

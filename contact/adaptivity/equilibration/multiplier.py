@@ -2,7 +2,7 @@
 
 The solver's multiplier λ_h ∈ P_p has nodal values λ_i = R_i / w_i: the residual of the
 discrete equation at node i over the lumped weight w_i = ∫ φ_i (Γ_C for Signorini, Ω for
-the obstacle; SPEC §2).  With ψ_a the P1 hat of vertex a (ψ_a = Σ_i ψ_a(x_i) φ_i in P_p)
+the obstacle; docs/theory.md §2).  With ψ_a the P1 hat of vertex a (ψ_a = Σ_i ψ_a(x_i) φ_i in P_p)
 the patch of a must carry R(ψ_a) = Σ_i ψ_a(x_i) w_i λ_i, and on each contact entity E (a
 Γ_C facet, or a cell for the obstacle) its part
 

@@ -191,7 +191,8 @@ class CellOperators:
         for j in range(D):
             E = x[:, [v for v in range(D) if v != j]]
             E = E[:, 1:] - E[:, :1]
-            size[:, j] = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))   # |F| / |F̂|
+            # |F| / |F̂|
+            size[:, j] = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))
         factor = size * ((kind == FLUX) | (kind == CONTACT))
         base = np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q)  # (D, D, nf, nqf)
         data = np.einsum("nj,jakq,njq->njak", factor, base, self.table.t[rows])

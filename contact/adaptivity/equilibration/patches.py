@@ -42,7 +42,6 @@ def solve_patches(table: CellTable, owned_vertex: np.ndarray, ref: Reference, mu
     """Solve the patches of the vertices ``owned_vertex`` (global indices, complete in
     ``table``).  ``multiplier``: None, "facets" (λ on Γ_C) or "cells" (λ in Ω); ``sign``:
     the admissible sign of λ (−1: λ ≤ 0, +1: λ ≥ 0)."""
-    D = ref.d + 1
     rows, locs = np.nonzero(np.isin(table.gvert, owned_vertex))
     verts = table.gvert[rows, locs]
     order = np.argsort(verts, kind="stable")
@@ -90,31 +89,37 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     has_dirichlet[spoke_patch[spoke_kind == DIRICHLET]] = True
     has_contact = np.zeros(n_patches, bool)
     has_contact[spoke_patch[spoke_kind == CONTACT]] = True
-    free = spoke_kind != DIRICHLET                                                      # spokes with μ
+    # spokes with μ
+    free = spoke_kind != DIRICHLET
     # patch-local numbering of the unknown spokes
     n_unknown = np.bincount(spoke_patch[free], minlength=n_patches)
     local = np.full(len(ukeys), -1)
     first = np.concatenate([[0], np.cumsum(n_unknown)[:-1]])
     fs = np.flatnonzero(free)
     local[fs] = np.arange(len(fs)) - first[spoke_patch[fs]]
-    pair_local = local[spoke]                                                           # (npair, d) or -1
+    # (npair, d) or -1
+    pair_local = local[spoke]
 
     # condensation of the opposite facet in each pair's cell
     dof = np.arange(D * nf).reshape(D, nf)
-    I_s = dof[spoke_facets].reshape(D, -1)[ploc]                                        # (npair, d nf)
-    I_o = dof[ploc]                                                                     # (npair, nf)
+    # (npair, d nf)
+    I_s = dof[spoke_facets].reshape(D, -1)[ploc]
+    # (npair, nf)
+    I_o = dof[ploc]
     S = ops.S[inv]
     Sss = S[ar[:, None, None], I_s[:, :, None], I_s[:, None, :]]
     Sso = S[ar[:, None, None], I_s[:, :, None], I_o[:, None, :]]
     Soo_inv = np.linalg.inv(S[ar[:, None, None], I_o[:, :, None], I_o[:, None, :]])
-    T = Sso @ Soo_inv                                                                   # (npair, d nf, nf)
+    # (npair, d nf, nf)
+    T = Sso @ Soo_inv
     Shat = Sss - T @ np.transpose(Sso, (0, 2, 1))
     R0, src = ops.div_moments
     s = ops.geometry["s"][inv]
     beta = -s[:, None] * (R0[inv, ploc] + src[inv, ploc])
     ZTg = ops.ZTg[inv, ploc]
     h = _h(ops, inv, beta, ZTg)
-    data = ops.facet_data[inv[:, None], sf, ploc[:, None]].reshape(npair, -1)          # (npair, d nf)
+    # (npair, d nf)
+    data = ops.facet_data[inv[:, None], sf, ploc[:, None]].reshape(npair, -1)
     b = _condense(h, I_s, I_o, T) - data
 
     mu_s = np.zeros((npair, ref.d, nf))
@@ -126,7 +131,8 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
         sel = np.flatnonzero(where[patch] >= 0)
         A, rhs = _assemble(where[patch[sel]], pair_local[sel], Shat[sel], b[sel], len(members), size, nf)
         pure = ~has_dirichlet[members]
-        if np.any(pure):   # regularize the constant multiplier; project out what is left of the balance
+        # regularize the constant multiplier; project out what is left of the balance
+        if np.any(pure):
             kv = np.tile(ref.kappa, size)
             bal = rhs[pure] @ kv
             defect += float(np.abs(bal).sum() / (kv @ kv) * np.sqrt(kv @ kv))
@@ -176,7 +182,8 @@ def _assemble(patch, local, Shat, b, n, size, nf):
     """Dense patch matrices (n, size nf, size nf) and right-hand sides from the pairs."""
     npair, d = local.shape
     dim = size * nf
-    idx = (local[:, :, None] * nf + np.arange(nf)[None, None, :]).reshape(npair, d * nf)   # (npair, d nf)
+    # (npair, d nf)
+    idx = (local[:, :, None] * nf + np.arange(nf)[None, None, :]).reshape(npair, d * nf)
     ok = np.repeat(local >= 0, nf, axis=1)
     rows = np.where(ok, idx, -1)
     flat_rhs = patch[:, None] * dim + rows
