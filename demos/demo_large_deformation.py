@@ -24,11 +24,11 @@
 
 import sys
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
 from contact.output.run_report import active_measure
+
+import numpy as np
+from mpi4py import MPI
 
 STEPS = int(sys.argv[1]) if len(sys.argv) > 1 else 6
 comm = MPI.COMM_WORLD
@@ -46,17 +46,24 @@ def say(*args):
 # 2 flat top, 3 axis x = 0), its top held, the axis a symmetry line; the plane's point
 # moves with the pseudo-time t.  Only `model` differs between the two runs.
 
+
 def scene(model: dict) -> contact.Scene:
-    return contact.load_scene({
-        "name": "large_deformation", "constants": {"delta": delta},
-        "mesh": {"type": "quarter_disk", "radius": R, "h": 0.1, "h_contact": 0.02, "zone": 0.7},
-        "boundaries": {"arc": {"role": "contact", "tag": 1}, "top": {"role": "dirichlet", "tag": 2},
-                       "axis": {"role": "symmetry", "tag": 3}},
-        "model": model,
-        "obstacle": {"type": "plane", "point": [0.0, "delta*t"], "normal": [0.0, 1.0]},
-        "load": {"steps": STEPS},
-        "output": {"verbose": False},
-    })
+    return contact.load_scene(
+        {
+            "name": "large_deformation",
+            "constants": {"delta": delta},
+            "mesh": {"type": "quarter_disk", "radius": R, "h": 0.1, "h_contact": 0.02, "zone": 0.7},
+            "boundaries": {
+                "arc": {"role": "contact", "tag": 1},
+                "top": {"role": "dirichlet", "tag": 2},
+                "axis": {"role": "symmetry", "tag": 3},
+            },
+            "model": model,
+            "obstacle": {"type": "plane", "point": [0.0, "delta*t"], "normal": [0.0, 1.0]},
+            "load": {"steps": STEPS},
+            "output": {"verbose": False},
+        }
+    )
 
 
 # ## Two load paths
@@ -66,10 +73,13 @@ def scene(model: dict) -> contact.Scene:
 # the negative eigenvalues of K_T at each solution (`Step.negative_eigenvalues`: 0 means a
 # stable equilibrium).  `keep_all` keeps every step's solution for the picture.
 
-paths = {name: contact.run_load_path(scene(model), method="fb", keep_all=True)
-         for name, model in (("linear", {"type": "elasticity", "E": E, "nu": nu}),
-                             ("neo-Hookean", {"type": "hyperelastic", "law": "neo_hookean",
-                                              "E": E, "nu": nu}))}
+paths = {
+    name: contact.run_load_path(scene(model), method="fb", keep_all=True)
+    for name, model in (
+        ("linear", {"type": "elasticity", "E": E, "nu": nu}),
+        ("neo-Hookean", {"type": "hyperelastic", "law": "neo_hookean", "E": E, "nu": nu}),
+    )
+}
 assert all(p.converged for p in paths.values()), {k: p.stop for k, p in paths.items()}
 lin, nh = paths["linear"].steps, paths["neo-Hookean"].steps
 
@@ -79,14 +89,18 @@ lin, nh = paths["linear"].steps, paths["neo-Hookean"].steps
 # quarter's) and the contact half-width a = |A_h| (the measure of the active contact nodes,
 # in the reference configuration).
 
-say(f"{'indentation/R':>13s} {'P linear':>10s} {'P neo-Hookean':>13s} {'ratio':>7s} "
-    f"{'a linear':>9s} {'a neo-H.':>9s} {'Newton':>6s}")
+say(
+    f"{'indentation/R':>13s} {'P linear':>10s} {'P neo-Hookean':>13s} {'ratio':>7s} "
+    f"{'a linear':>9s} {'a neo-H.':>9s} {'Newton':>6s}"
+)
 for s_lin, s_nh in zip(lin, nh):
     d = delta * s_nh.time / R
     P_lin, P_nh = s_lin.result.contact_force, s_nh.result.contact_force
     a_lin, a_nh = active_measure(s_lin.result), active_measure(s_nh.result)
-    say(f"{d:13.3f} {P_lin:10.5f} {P_nh:13.5f} {P_nh / P_lin:7.4f} {a_lin:9.4f} {a_nh:9.4f} "
-        f"{s_nh.result.iterations:6d}")
+    say(
+        f"{d:13.3f} {P_lin:10.5f} {P_nh:13.5f} {P_nh / P_lin:7.4f} {a_lin:9.4f} {a_nh:9.4f} "
+        f"{s_nh.result.iterations:6d}"
+    )
 for which, k in (("first", 0), ("last", -1)):
     ratio = nh[k].result.contact_force / lin[k].result.contact_force
     say(f"{which} step: neo-Hookean / linear force = {ratio:.4f}")

@@ -13,12 +13,12 @@
 # `python demos/demo_own_forms.py [N]` (N × N cells, default 32; also under `mpirun -n 2`).
 import sys
 
-import numpy as np
-from mpi4py import MPI
-
 import contact  # before dolfinx
+
+import numpy as np
 import ufl
 from dolfinx import fem, mesh
+from mpi4py import MPI
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 32
 comm = MPI.COMM_WORLD
@@ -42,16 +42,21 @@ solutions = {}
 for method in ("vinewtonrsls", "fb", "min", "blend", "vinewtonssls"):
     u, v = fem.Function(V, name="u"), ufl.TestFunction(V)
     F = ufl.inner(ufl.grad(u), ufl.grad(v)) / ufl.sqrt(1 + ufl.grad(u) ** 2) * ufl.dx
-    with contact.ComplementarityProblem.from_residual(F, u, contact.Unilateral(dome, side="lower"),
-                                                      [bc]) as problem:
+    with contact.ComplementarityProblem.from_residual(
+        F, u, contact.Unilateral(dome, side="lower"), [bc]
+    ) as problem:
         r = problem.solve(method, rtol=1e-12)
         solutions[method] = u.x.array.copy()
     if comm.rank == 0:
-        print(f"{method:>12s}: {r.iterations:3d} Newton iterations, {r.reason}, {r.n_active} nodes "
-              f"on the dome, its force ∫ λ_h = {r.contact_force:.6f}")
+        print(
+            f"{method:>12s}: {r.iterations:3d} Newton iterations, {r.reason}, {r.n_active} nodes "
+            f"on the dome, its force ∫ λ_h = {r.contact_force:.6f}"
+        )
 
 # ## The same discrete solution
-diff = max(comm.allreduce(float(np.max(np.abs(s - solutions["vinewtonrsls"]))), op=MPI.MAX)
-           for s in solutions.values())
+diff = max(
+    comm.allreduce(float(np.max(np.abs(s - solutions["vinewtonrsls"]))), op=MPI.MAX)
+    for s in solutions.values()
+)
 if comm.rank == 0:
     print(f"largest difference from vinewtonrsls: {diff:.2e}")

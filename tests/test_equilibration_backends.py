@@ -4,12 +4,10 @@ minimizers are unique: σ_h, osc_T and η agree to round-off on Signorini (λ on
 (λ in Ω) scenes, P1 and P2, 2D and 3D; where no C compiler works the reconstruction falls back
 to NumPy with a warning.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 import contact
 from contact.adaptivity.equilibration import compiled
@@ -17,13 +15,18 @@ from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
 from contact.adaptivity.equilibration.flux import reconstruct_flux
 from contact.adaptivity.equilibration.reference import reference
 
+import numpy as np
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 BOX = ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", "mesh.cells=[6,3,3]"]
-SCENES = {"A_P1": ("signorini_free_boundary.yaml", []),
-          "A_P2": ("signorini_free_boundary.yaml", ["mesh.degree=2", "mesh.cells=[8,4]"]),
-          "C_P2": ("signorini_smooth.yaml", ["mesh.degree=2", "mesh.cells=[4,4]"]),
-          "ex9": ("peers/petsc_ex9.yaml", ["mesh.cells=[8,8]"]),
-          "A_3D": ("signorini_free_boundary.yaml", BOX)}
+SCENES = {
+    "A_P1": ("signorini_free_boundary.yaml", []),
+    "A_P2": ("signorini_free_boundary.yaml", ["mesh.degree=2", "mesh.cells=[8,4]"]),
+    "C_P2": ("signorini_smooth.yaml", ["mesh.degree=2", "mesh.cells=[4,4]"]),
+    "ex9": ("peers/petsc_ex9.yaml", ["mesh.cells=[8,8]"]),
+    "A_3D": ("signorini_free_boundary.yaml", BOX),
+}
 
 
 def _solved(name: str):
@@ -69,7 +72,7 @@ def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
     """A cache shared by machines (a home directory on CI runners of different CPUs) never
     hands one machine's -march=native library to another: the file name hashes the CPU's
     model and flags and the compiler command; the same machine finds its own file again."""
-    dims = compiled.dimensions(reference(2, 1), 3)      # P1 in 2D: dim P_1 = 3
+    dims = compiled.dimensions(reference(2, 1), 3)  # P1 in 2D: dim P_1 = 3
     here = compiled._path(dims)
     assert compiled._path(dims) == here
     monkeypatch.setattr(compiled, "_cpu", lambda: "model name : other\nflags : sse2\n")
@@ -77,4 +80,3 @@ def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
     monkeypatch.undo()
     monkeypatch.setenv("CC", "clang")
     assert compiled._path(dims) != here
-

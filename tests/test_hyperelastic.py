@@ -8,22 +8,24 @@ the same discrete problem (a curved body pressed by a moving plate: the contact 
 unknown); the linear model in the small-load limit; step cutting on a step whose start
 inverts cells; the CLI's steps.csv (force per step).  Serial = 2 and 3 ranks: the shipped
 scene configs/hyperelastic_block.yaml is in tests/test_cli_mpi.py."""
+
 from __future__ import annotations
 
 import csv
 import subprocess
 import sys
 
-import numpy as np
-import pytest
-from mpi4py import MPI
-from clirun import ROOT, contact as cli
-
 import contact
 from contact import ConfigError
 from contact.models.hyperelastic import uniaxial_stretch
 from contact.post.resultants import contact_resultants
 from contact.solvers import owned_residual
+
+import numpy as np
+import pytest
+from clirun import ROOT
+from clirun import contact as cli
+from mpi4py import MPI
 
 LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 E, NU = 1.0, 0.3
@@ -37,29 +39,55 @@ def block(law: str, degree: int = 1, dim: int = 2, compression: float = 0.3) -> 
     last = names[-1]
     parts = {f"sym_{c}": {"role": "symmetry", "where": f"{c} < 1e-10"} for c in names}
     parts["top"] = {"role": "contact", "where": f"{last} > 1 - 1e-10"}
-    mesh = {"type": "rectangle" if dim == 2 else "box", "corners": [[0] * dim, [1] * dim],
-            "cells": [3] * dim if dim == 2 else [2] * dim, "degree": degree}
-    return {"name": "block", "mesh": mesh, "boundaries": parts,
-            "model": {"type": "hyperelastic", "law": law, "E": E, "nu": NU},
-            "obstacle": {"type": "plane", "point": [0] * (dim - 1) + [1 - compression],
-                         "normal": [0] * (dim - 1) + [-1]},
-            "output": {"verbose": False}}
+    mesh = {
+        "type": "rectangle" if dim == 2 else "box",
+        "corners": [[0] * dim, [1] * dim],
+        "cells": [3] * dim if dim == 2 else [2] * dim,
+        "degree": degree,
+    }
+    return {
+        "name": "block",
+        "mesh": mesh,
+        "boundaries": parts,
+        "model": {"type": "hyperelastic", "law": law, "E": E, "nu": NU},
+        "obstacle": {
+            "type": "plane",
+            "point": [0] * (dim - 1) + [1 - compression],
+            "normal": [0] * (dim - 1) + [-1],
+        },
+        "output": {"verbose": False},
+    }
 
 
-def arch(law: str = "neo_hookean", delta: float = 0.1, model: str = "hyperelastic",
-         cells: tuple = (12, 6), c: float = 0.2) -> dict:
+def arch(
+    law: str = "neo_hookean",
+    delta: float = 0.1,
+    model: str = "hyperelastic",
+    cells: tuple = (12, 6),
+    c: float = 0.2,
+) -> dict:
     """A body with a curved bottom y = c x² (x ∈ [0, 1], the axis x = 0 a symmetry
     plane), its flat top y = 0.5 clamped, pressed by the rigid plate y = delta·t from below:
     the contact zone grows from the axis and is an unknown of the problem."""
     m = {"type": model, "E": E, "nu": NU, **({"law": law} if model == "hyperelastic" else {})}
-    return {"name": "arch", "constants": {"delta": delta},
-            "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 0.5]], "cells": list(cells),
-                     "map": ["x", f"y + {c}*x*x*(1 - 2*y)"]},
-            "boundaries": {"axis": {"role": "symmetry", "where": "x < 1e-10"},
-                           "bottom": {"role": "contact", "where": f"y < {c}*x*x + 1e-10"},
-                           "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"}},
-            "model": m, "obstacle": {"type": "plane", "point": [0, "delta*t"], "normal": [0, 1]},
-            "output": {"verbose": False}}
+    return {
+        "name": "arch",
+        "constants": {"delta": delta},
+        "mesh": {
+            "type": "rectangle",
+            "corners": [[0, 0], [1, 0.5]],
+            "cells": list(cells),
+            "map": ["x", f"y + {c}*x*x*(1 - 2*y)"],
+        },
+        "boundaries": {
+            "axis": {"role": "symmetry", "where": "x < 1e-10"},
+            "bottom": {"role": "contact", "where": f"y < {c}*x*x + 1e-10"},
+            "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"},
+        },
+        "model": m,
+        "obstacle": {"type": "plane", "point": [0, "delta*t"], "normal": [0, 1]},
+        "output": {"verbose": False},
+    }
 
 
 def tilted_arch(theta: float, law: str, delta: float = 0.1, drive: str = "top") -> dict:
@@ -70,16 +98,27 @@ def tilted_arch(theta: float, law: str, delta: float = 0.1, drive: str = "top") 
     co, si = np.cos(theta), np.sin(theta)
     top = [f"{si}*delta*t", f"{-co}*delta*t"] if drive == "top" else ["0", "0"]
     point = [0, 0] if drive == "top" else [f"{-si}*delta*t", f"{co}*delta*t"]
-    xr, yr = f"({co}*x + {si}*y)", f"({-si}*x + {co}*y)"     # the coordinates before the rotation
+    xr, yr = f"({co}*x + {si}*y)", f"({-si}*x + {co}*y)"  # the coordinates before the rotation
     bottom = "(y + 0.2*x*x*(1 - 2*y))"
-    return {"name": "tilted", "constants": {"delta": delta},
-            "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 0.5]], "cells": [16, 4],
-                     "map": [f"{co}*x - {si}*{bottom}", f"{si}*x + {co}*{bottom}"]},
-            "boundaries": {"bottom": {"role": "contact", "where": f"{yr} < 0.2*{xr}**2 + 1e-9"},
-                           "top": {"role": "dirichlet", "where": f"{yr} > 0.5 - 1e-9"}},
-            "model": {"type": "hyperelastic", "law": law, "E": E, "nu": NU},
-            "obstacle": {"type": "plane", "point": point, "normal": [-si, co]},
-            "data": {"u_D": top}, "load": {"steps": 4}, "output": {"verbose": False}}
+    return {
+        "name": "tilted",
+        "constants": {"delta": delta},
+        "mesh": {
+            "type": "rectangle",
+            "corners": [[-1, 0], [1, 0.5]],
+            "cells": [16, 4],
+            "map": [f"{co}*x - {si}*{bottom}", f"{si}*x + {co}*{bottom}"],
+        },
+        "boundaries": {
+            "bottom": {"role": "contact", "where": f"{yr} < 0.2*{xr}**2 + 1e-9"},
+            "top": {"role": "dirichlet", "where": f"{yr} > 0.5 - 1e-9"},
+        },
+        "model": {"type": "hyperelastic", "law": law, "E": E, "nu": NU},
+        "obstacle": {"type": "plane", "point": point, "normal": [-si, co]},
+        "data": {"u_D": top},
+        "load": {"steps": 4},
+        "output": {"verbose": False},
+    }
 
 
 def nodal_pressure(result) -> tuple[np.ndarray, np.ndarray]:
@@ -88,9 +127,16 @@ def nodal_pressure(result) -> tuple[np.ndarray, np.ndarray]:
     return p.pressure(owned_residual(result)), p.constraint.w
 
 
-@pytest.mark.parametrize("law, degree, dim", [
-    ("neo_hookean", 1, 2), ("saint_venant_kirchhoff", 1, 2), ("neo_hookean", 2, 2),
-    ("neo_hookean", 1, 3), ("saint_venant_kirchhoff", 1, 3)])
+@pytest.mark.parametrize(
+    "law, degree, dim",
+    [
+        ("neo_hookean", 1, 2),
+        ("saint_venant_kirchhoff", 1, 2),
+        ("neo_hookean", 2, 2),
+        ("neo_hookean", 1, 3),
+        ("saint_venant_kirchhoff", 1, 3),
+    ],
+)
 def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim):
     """30 % compression in one solve from u = 0: F = diag(λ₁, (λ₁,) 0.7) exactly, with λ₁
     the root of P₁₁ = 0; the plate's nominal pressure is −P₂₂ at every contact node and on
@@ -115,10 +161,10 @@ def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim)
     F = np.diag([l1] * (dim - 1) + [0.7] + [1.0] * (3 - dim))
     mu, lm = lame(E, NU)
     Ei = (F.T @ F - np.eye(3)) / 2
-    if law == "neo_hookean":   # S = μ (I − C⁻¹) + λ ln J C⁻¹
+    if law == "neo_hookean":  # S = μ (I − C⁻¹) + λ ln J C⁻¹
         Ci = np.linalg.inv(F.T @ F)
         S = mu * (np.eye(3) - Ci) + lm * np.log(np.linalg.det(F)) * Ci
-    else:                      # S = λ tr E I + 2μ E
+    else:  # S = λ tr E I + 2μ E
         S = lm * np.trace(Ei) * np.eye(3) + 2 * mu * Ei
     sigma = F @ S @ F.T / np.linalg.det(F)
     dev = sigma - np.trace(sigma) / 3 * np.eye(3)
@@ -145,8 +191,10 @@ def test_semismooth_newton_agrees_with_vinewtonrsls(law):
         assert r.contact_force == pytest.approx(ref.contact_force, rel=1e-8)
 
 
-@pytest.mark.parametrize("law, drive", [("neo_hookean", "top"), ("saint_venant_kirchhoff", "top"),
-                                        ("neo_hookean", "plane")])
+@pytest.mark.parametrize(
+    "law, drive",
+    [("neo_hookean", "top"), ("saint_venant_kirchhoff", "top"), ("neo_hookean", "plane")],
+)
 def test_a_tilted_plane_is_the_rotated_scene(law, drive):
     """Frame invariance: the arch on the plane y = 0 and the same scene rotated by 0.3 rad
     (a tilted plane: the contact nodes rotated to their (n, t) axes, R̃ = Qᵀ R(Q x),
@@ -224,14 +272,16 @@ def test_the_tangent_of_st_venant_kirchhoff_loses_definiteness_in_strong_compres
     for law in LAWS:
         cfg = block(law)
         cfg["obstacle"]["point"] = [0, "1 - 0.5*t"]
-        paths[law] = contact.run_load_path(contact.load_scene({**cfg, "load": {"steps": 5}}),
-                                           method="fb", keep_all=True)
+        paths[law] = contact.run_load_path(
+            contact.load_scene({**cfg, "load": {"steps": 5}}), method="fb", keep_all=True
+        )
         assert paths[law].converged
     assert [s.negative_eigenvalues for s in paths["neo_hookean"].steps] == [0] * 5
     assert paths["neo_hookean"].indefinite == ""
-    forces = [-uniaxial_stretch("saint_venant_kirchhoff", E, NU, 1 - c, 2)[1]
-              for c in (0.4, 0.45, 0.5)]
-    assert forces[0] > forces[1] > forces[2]    # past the limit point at 45 % and 50 %
+    forces = [
+        -uniaxial_stretch("saint_venant_kirchhoff", E, NU, 1 - c, 2)[1] for c in (0.4, 0.45, 0.5)
+    ]
+    assert forces[0] > forces[1] > forces[2]  # past the limit point at 45 % and 50 %
     svk = paths["saint_venant_kirchhoff"]
     counts = {round(0.5 * s.time, 6): s.negative_eigenvalues for s in svk.steps}
     assert counts[0.3] == 0 and counts[0.5] > 0
@@ -247,6 +297,7 @@ def test_small_load_limit_is_linear_elasticity():
     strain is a 1e-3 correction: the hyperelastic laws give the linear model's contact
     force and peak pressure within 0.5 % and the same active nodes (contact width a); the
     difference is no longer round-off (≥ 1e-6: the laws are not the linear one)."""
+
     def figures(model, law="neo_hookean"):
         scene = contact.load_scene(arch(law, delta=5e-4, model=model, cells=(48, 12), c=0.01))
         r = contact.solve(scene, method="fb")
@@ -272,8 +323,15 @@ def test_small_indentation_of_a_neo_hookean_cylinder_is_the_linear_hertz_scene()
     ~1 % strain under the contact moves its p0 by 1.3 %."""
     from contact.output.run_report import active_measure
 
-    sets = ["mesh.h=0.2", "mesh.h_contact=0.005", "mesh.zone=0.15", "output.verbose=false",
-            "adapt=none", "reference=none", "constants.delta=0.001"]
+    sets = [
+        "mesh.h=0.2",
+        "mesh.h_contact=0.005",
+        "mesh.zone=0.15",
+        "output.verbose=false",
+        "adapt=none",
+        "reference=none",
+        "constants.delta=0.001",
+    ]
     figures = []
     for model in (["model.type=elasticity"], ["model.type=hyperelastic", "model.law=neo_hookean"]):
         scene = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", sets + model)
@@ -287,17 +345,25 @@ def test_small_indentation_of_a_neo_hookean_cylinder_is_the_linear_hertz_scene()
     assert abs(p0_h / p0 - 1) > 1e-6
 
 
-@pytest.mark.parametrize("change, key", [
-    ({"model": {"type": "hyperelastic", "E": 1.0}}, "model.law: required"),
-    ({"model": {"type": "elasticity", "E": 1.0, "law": "neo_hookean"}}, "model.law: only for"),
-    ({"model": {"type": "hyperelastic", "law": "mooney", "E": 1.0}}, "model.law:"),
-    ({"obstacle": {"type": "circle", "center": [0.5, 2], "radius": 1}},
-     "obstacle.type: a hyperelastic"),
-    ({"obstacle": {"type": "plane", "point": [0, "1 - x"], "normal": [0, -1]}}, "obstacle.point:"),
-    ({"friction": {"law": "coulomb", "coefficient": 0.3}}, "friction.law: a hyperelastic"),
-    ({"adapt": {"strategy": "dorfler"}}, "adapt: not available"),
-    ({"load": {"steps": 2, "cuts": -1}}, "load.cuts:"),
-])
+@pytest.mark.parametrize(
+    "change, key",
+    [
+        ({"model": {"type": "hyperelastic", "E": 1.0}}, "model.law: required"),
+        ({"model": {"type": "elasticity", "E": 1.0, "law": "neo_hookean"}}, "model.law: only for"),
+        ({"model": {"type": "hyperelastic", "law": "mooney", "E": 1.0}}, "model.law:"),
+        (
+            {"obstacle": {"type": "circle", "center": [0.5, 2], "radius": 1}},
+            "obstacle.type: a hyperelastic",
+        ),
+        (
+            {"obstacle": {"type": "plane", "point": [0, "1 - x"], "normal": [0, -1]}},
+            "obstacle.point:",
+        ),
+        ({"friction": {"law": "coulomb", "coefficient": 0.3}}, "friction.law: a hyperelastic"),
+        ({"adapt": {"strategy": "dorfler"}}, "adapt: not available"),
+        ({"load": {"steps": 2, "cuts": -1}}, "load.cuts:"),
+    ],
+)
 def test_bad_hyperelastic_input_names_the_key(change, key):
     with pytest.raises(ConfigError, match=f"^{key}"):
         contact.load_scene({**block("neo_hookean"), **change})
@@ -314,7 +380,7 @@ def test_cli_block_writes_the_force_of_every_step(tmp_path):
     rows = list(csv.DictReader(open(tmp_path / "out" / "steps.csv")))
     assert [float(r["time"]) for r in rows] == pytest.approx([1 / 3, 2 / 3, 1.0])
     assert [r["tangent_negative_eigenvalues"] for r in rows] == ["0"] * 3
-    assert all(int(r["newton_iterations"]) <= 8 for r in rows)   # issue 31's bound per step
+    assert all(int(r["newton_iterations"]) <= 8 for r in rows)  # issue 31's bound per step
     for r in rows:
         _, P22 = uniaxial_stretch("neo_hookean", E, NU, 1 - 0.3 * float(r["time"]), 2)
         assert float(r["contact_force"]) == pytest.approx(-4 * P22, rel=1e-8)
@@ -353,27 +419,35 @@ def test_api_serial_and_two_ranks_agree(tmp_path):
     out = {}
     for ranks in (1, 2):
         cmd = [sys.executable, "-c", API_RUN]
-        proc = subprocess.run([str(MPIRUN), "-n", str(ranks), *cmd], cwd=ROOT, capture_output=True,
-                              text=True, timeout=300)
+        proc = subprocess.run(
+            [str(MPIRUN), "-n", str(ranks), *cmd],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert proc.returncode == 0, proc.stderr[-2000:]
         lines = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("[")]
         assert len(lines) == 1, proc.stdout
         out[ranks] = lines[0]
-    for i in (0, 4):   # the two scenes: converged, force, active nodes, negative eigenvalues
+    for i in (0, 4):  # the two scenes: converged, force, active nodes, negative eigenvalues
         assert out[1][i] and out[2][i]
         assert out[2][i + 1] == pytest.approx(out[1][i + 1], rel=1e-10)
-        assert out[2][i + 2:i + 4] == out[1][i + 2:i + 4]
+        assert out[2][i + 2 : i + 4] == out[1][i + 2 : i + 4]
 
 
 def test_a_linear_scene_never_imports_the_hyperelastic_model():
     """Importing contact and running a linear elastic solve leaves contact.models.hyperelastic
     unloaded (the dispatch imports it only for model type hyperelastic)."""
-    code = ("import sys, contact\n"
-            "s = contact.load_scene('configs/block_on_plane.yaml',"
-            " ['mesh.cells=[8,2]', 'adapt=none', 'output.verbose=false'])\n"
-            "assert contact.solve(s).converged\n"
-            "print('contact.models.hyperelastic' in sys.modules)\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
-                          timeout=300)
+    code = (
+        "import sys, contact\n"
+        "s = contact.load_scene('configs/block_on_plane.yaml',"
+        " ['mesh.cells=[8,2]', 'adapt=none', 'output.verbose=false'])\n"
+        "assert contact.solve(s).converged\n"
+        "print('contact.models.hyperelastic' in sys.modules)\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-1] == "False"

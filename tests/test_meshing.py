@@ -5,6 +5,7 @@ mesh; the worst angle of structured meshes is known exactly; the patch average o
 nodal pressures reproduces a constant, is the same on 1 and 2 ranks, and brings the peak
 pressure on Dörfler-refined tetrahedra within 2 % of Hertz where the nodal maximum is 6 %
 off."""
+
 import json
 import math
 import os
@@ -13,17 +14,16 @@ import sys
 from pathlib import Path
 from unittest import mock
 
+import contact
+from contact.models import build_problem
+from contact.post.hertz import patch_average
+from contact.post.reference import compare
+from contact.setup import geometry
+
 import numpy as np
 import pytest
-
-import contact
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
-
-from contact.setup import geometry
-from contact.post.hertz import patch_average
-from contact.models import build_problem
-from contact.post.reference import compare
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -83,8 +83,12 @@ def test_patch_average_removes_the_scatter_of_refined_tetrahedra():
     patch average, the reported p0, is within 2 % (measured −0.1 %), and so is a."""
     scene = contact.load_scene(SPHERE, ["output.verbose=false", "adapt.max_levels=3"])
     values = []
-    contact.adapt(scene, method="fb", verbose=False,
-                  on_level=lambda level: values.append(compare(level.scene, level.result).values))
+    contact.adapt(
+        scene,
+        method="fb",
+        verbose=False,
+        on_level=lambda level: values.append(compare(level.scene, level.result).values),
+    )
     last = values[-1]
     assert len(values) == 3 and last["p0_nodal_error"] > 0.04, last
     assert abs(last["p0_error"]) < 0.02 and abs(last["a_error"]) < 0.02, last
@@ -132,10 +136,25 @@ def test_same_mesh_and_peak_pressure_on_one_and_two_ranks(tmp_path):
     patch average, which sums facets across the ranks' boundaries, the same p0."""
     runs = []
     for n in (1, 2):
-        command = [str(MPIRUN), "-n", str(n), sys.executable, "-c", SCRIPT,
-                   json.dumps(SMALL_BLOCK), str(SPHERE), str(tmp_path / f"X{n}.npy")]
-        proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=600,
-                              env={**os.environ, "OMP_NUM_THREADS": "1"})
+        command = [
+            str(MPIRUN),
+            "-n",
+            str(n),
+            sys.executable,
+            "-c",
+            SCRIPT,
+            json.dumps(SMALL_BLOCK),
+            str(SPHERE),
+            str(tmp_path / f"X{n}.npy"),
+        ]
+        proc = subprocess.run(
+            command,
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=600,
+            env={**os.environ, "OMP_NUM_THREADS": "1"},
+        )
         assert proc.returncode == 0, proc.stderr
         runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
     serial, parallel = runs

@@ -6,32 +6,38 @@ problem, built by models/scalar.py), PETSc's vinewtonrsls on the same forms, and
 path (a, L assembled once) against the nonlinear one (F = a(u, ·) − L re-assembled at
 every iterate, with non-zero Dirichlet values through the lifting).  The demo runs as a user
 runs it, serially and on 2 ranks, and agrees with vinewtonrsls to 1e-8."""
+
 from __future__ import annotations
 
 import re
 import subprocess
 import sys
 
+import contact
+from contact import ComplementarityProblem, ConfigError, Unilateral
+
+import dolfinx.fem.petsc
 import numpy as np
 import pytest
-from clirun import MPIRUN, ROOT
-from mpi4py import MPI
-
-import contact
 import ufl
-from contact import ComplementarityProblem, ConfigError, Unilateral
-import dolfinx.fem.petsc
+from clirun import MPIRUN, ROOT
 from dolfinx import fem, mesh
+from mpi4py import MPI
 from petsc4py import PETSc
 
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
 # the membrane of demos/demo_obstacle.py: f = −2 pulls it onto the dome ψ = 0.4 − r²
 MEMBRANE = {
     "name": "membrane",
-    "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 1]], "cells": [12, 12],
-             "diagonal": "crossed"},
-    "boundaries": {"clamp": {"role": "dirichlet",
-                             "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}},
+    "mesh": {
+        "type": "rectangle",
+        "corners": [[-1, -1], [1, 1]],
+        "cells": [12, 12],
+        "diagonal": "crossed",
+    },
+    "boundaries": {
+        "clamp": {"role": "dirichlet", "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}
+    },
     "model": {"type": "obstacle", "bound": "lower"},
     "data": {"f": "-2", "psi": "0.4 - r**2"},
     "output": {"verbose": False},
@@ -69,8 +75,9 @@ def test_forms_agree_with_the_scene_path(scene, method):
     V = reference.u_h.function_space
     a, L = membrane_forms(V)
     u = fem.Function(V)
-    with ComplementarityProblem.from_forms(a, L, u, Unilateral(dome, side="lower"),
-                                           [clamped(scene.mesh, V)]) as problem:
+    with ComplementarityProblem.from_forms(
+        a, L, u, Unilateral(dome, side="lower"), [clamped(scene.mesh, V)]
+    ) as problem:
         result = problem.solve(method, rtol=1e-12, atol=1e-14)
         assert result.converged and result.u_h is u
         assert largest(u.x.array - reference.u_h.x.array) < 1e-8
@@ -92,8 +99,9 @@ def test_a_linear_residual_is_the_linear_problem():
     ceiling = Unilateral(lambda x: 0.15 + 0.0 * x[0], side="upper")
     u_lin, u_res = fem.Function(V), fem.Function(V)
     w = ufl.TrialFunction(V)
-    with ComplementarityProblem.from_forms(k * ufl.inner(ufl.grad(w), ufl.grad(v)) * ufl.dx,
-                                           5.0 * v * ufl.dx, u_lin, ceiling, [bc]) as linear:
+    with ComplementarityProblem.from_forms(
+        k * ufl.inner(ufl.grad(w), ufl.grad(v)) * ufl.dx, 5.0 * v * ufl.dx, u_lin, ceiling, [bc]
+    ) as linear:
         lin = linear.solve("fb", rtol=1e-12)
     F = k * ufl.inner(ufl.grad(u_res), ufl.grad(v)) * ufl.dx - 5.0 * v * ufl.dx
     with ComplementarityProblem.from_residual(F, u_res, ceiling, [bc]) as nonlinear:
@@ -150,7 +158,7 @@ def test_signorini_on_tagged_facets_and_explicit_dofs():
         assert largest(u1.x.array - u2.x.array) < 1e-10
         assert largest(r1.lmbda_h.x.array - r2.lmbda_h.x.array) < 1e-8
         X = V.tabulate_dof_coordinates()[con.dofs]
-        assert np.allclose(X[:, 1], 1.0)       # only the tagged facets' nodes are constrained
+        assert np.allclose(X[:, 1], 1.0)  # only the tagged facets' nodes are constrained
 
 
 def test_a_hyperelastic_block_on_a_curved_floor():
@@ -160,28 +168,30 @@ def test_a_hyperelastic_block_on_a_curved_floor():
     force balances the reaction at the clamp, −Σ_top F_y(u_h) (∫ P : ∇e_y dx = 0)."""
     msh = mesh.create_rectangle(MPI.COMM_WORLD, [[0, 0], [1, 0.5]], [16, 8])
     V = fem.functionspace(msh, ("Lagrange", 1, (2,)))
-    top = fem.locate_dofs_topological(V, 1, mesh.locate_entities_boundary(
-        msh, 1, lambda x: np.isclose(x[1], 0.5)))
+    top = fem.locate_dofs_topological(
+        V, 1, mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.5))
+    )
     bc = fem.dirichletbc(np.array([0.0, -0.02]), top, V)
     bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
     tags = mesh.meshtags(msh, 1, bottom, np.full(len(bottom), 1, dtype=np.int32))
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
-    floor = Unilateral(lambda x: -0.005 - 0.05 * (x[0] - 0.5) ** 2, side="lower", measure=ds(1),
-                       component=1)
-    mu, lmbda = 1 / 2.6, 0.3 / (1.3 * 0.4)    # E = 1, ν = 0.3
+    floor = Unilateral(
+        lambda x: -0.005 - 0.05 * (x[0] - 0.5) ** 2, side="lower", measure=ds(1), component=1
+    )
+    mu, lmbda = 1 / 2.6, 0.3 / (1.3 * 0.4)  # E = 1, ν = 0.3
 
     def solve(constraint, method):
         u, v = fem.Function(V), ufl.TestFunction(V)
         F_grad = ufl.Identity(2) + ufl.grad(u)
         E = (F_grad.T * F_grad - ufl.Identity(2)) / 2
-        S = lmbda * ufl.tr(E) * ufl.Identity(2) + 2 * mu * E     # 2nd Piola–Kirchhoff
+        S = lmbda * ufl.tr(E) * ufl.Identity(2) + 2 * mu * E  # 2nd Piola–Kirchhoff
         F = ufl.inner(F_grad * S, ufl.grad(v)) * ufl.dx
         with ComplementarityProblem.from_residual(F, u, constraint, [bc]) as problem:
             result = problem.solve(method, rtol=1e-12)
             con = problem.problem.constraint
             reaction = dolfinx.fem.petsc.assemble_vector(fem.form(F))
             reaction.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            top_y = 2 * top[top < V.dofmap.index_map.size_local] + 1   # nodes → y DoFs
+            top_y = 2 * top[top < V.dofmap.index_map.size_local] + 1  # nodes → y DoFs
             clamp = MPI.COMM_WORLD.allreduce(float(np.sum(reaction.array[top_y])), op=MPI.SUM)
             reaction.destroy()
             return result, u.x.array.copy(), (con.dofs, con.w, con.g), clamp
@@ -190,19 +200,34 @@ def test_a_hyperelastic_block_on_a_curved_floor():
     vi, u_vi, _, _ = solve(floor, "vinewtonrsls")
     by_dofs, u_dofs, _, _ = solve(Unilateral(g, side="lower", dofs=dofs, weights=w), "fb")
     assert fb.converged and vi.converged and by_dofs.converged and fb.n_active > 0
-    assert np.all(dofs % 2 == 1)                     # y components only
+    assert np.all(dofs % 2 == 1)  # y components only
     assert largest(u_fb - u_vi) < 1e-10 and largest(u_fb - u_dofs) < 1e-12
     assert abs(fb.contact_force + clamp) < 1e-10 * abs(clamp) and fb.contact_force > 0
-    assert largest(np.minimum(u_fb[dofs] - g, 0.0)) < 1e-12     # u_y ≥ g
+    assert largest(np.minimum(u_fb[dofs] - g, 0.0)) < 1e-12  # u_y ≥ g
 
 
-@pytest.mark.parametrize("build, error, message", [
-    (lambda V: Unilateral(0.0, side="middle"), ValueError, r"^Unilateral.side: expected 'upper'"),
-    (lambda V: Unilateral(0.0, dofs=np.array([10**7])), ValueError, r"^Unilateral.dofs: owned"),
-    (lambda V: Unilateral(np.zeros(3)), ValueError, r"^Unilateral.bound: expected one value per"),
-    (lambda V: Unilateral(0.0, weights=np.ones(2)), ValueError, r"^Unilateral: weights go with"),
-    (lambda V: Unilateral(0.0, component=1), ValueError, r"^Unilateral.component: V is scalar"),
-])
+@pytest.mark.parametrize(
+    "build, error, message",
+    [
+        (
+            lambda V: Unilateral(0.0, side="middle"),
+            ValueError,
+            r"^Unilateral.side: expected 'upper'",
+        ),
+        (lambda V: Unilateral(0.0, dofs=np.array([10**7])), ValueError, r"^Unilateral.dofs: owned"),
+        (
+            lambda V: Unilateral(np.zeros(3)),
+            ValueError,
+            r"^Unilateral.bound: expected one value per",
+        ),
+        (
+            lambda V: Unilateral(0.0, weights=np.ones(2)),
+            ValueError,
+            r"^Unilateral: weights go with",
+        ),
+        (lambda V: Unilateral(0.0, component=1), ValueError, r"^Unilateral.component: V is scalar"),
+    ],
+)
 def test_bad_constraints_are_one_line(build, error, message):
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
     V = fem.functionspace(msh, ("Lagrange", 1))
@@ -212,18 +237,25 @@ def test_bad_constraints_are_one_line(build, error, message):
     assert "\n" not in str(err.value)
 
 
-@pytest.mark.parametrize("options, message", [
-    ({"method": "newton"}, r"^solver.method: 'newton' is not one of fb, min, blend"),
-    ({"mu": 1.5}, r"^solver.mu: must lie in \(0, 1\), got 1.5"),
-    ({"max_iterations": 3}, r"^solver.max_iterations: unknown key"),
-    ({"petsc_options": {"pc_type": "nonsense"}}, r"^solver.petsc_options.pc_type: PETSc cannot"),
-])
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"method": "newton"}, r"^solver.method: 'newton' is not one of fb, min, blend"),
+        ({"mu": 1.5}, r"^solver.mu: must lie in \(0, 1\), got 1.5"),
+        ({"max_iterations": 3}, r"^solver.max_iterations: unknown key"),
+        (
+            {"petsc_options": {"pc_type": "nonsense"}},
+            r"^solver.petsc_options.pc_type: PETSc cannot",
+        ),
+    ],
+)
 def test_bad_options_are_one_config_error_line(options, message):
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
     V = fem.functionspace(msh, ("Lagrange", 1))
     a, L = membrane_forms(V)
-    with ComplementarityProblem.from_forms(a, L, fem.Function(V), Unilateral(dome, side="lower"),
-                                           [clamped(msh, V)]) as problem:
+    with ComplementarityProblem.from_forms(
+        a, L, fem.Function(V), Unilateral(dome, side="lower"), [clamped(msh, V)]
+    ) as problem:
         with pytest.raises(ConfigError, match=message) as err:
             problem.solve(**options)
     assert "\n" not in str(err.value)
@@ -233,26 +265,36 @@ def test_close_destroys_the_petsc_objects():
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
     V = fem.functionspace(msh, ("Lagrange", 1))
     a, L = membrane_forms(V)
-    problem = ComplementarityProblem.from_forms(a, L, fem.Function(V),
-                                                Unilateral(dome, side="lower"), [clamped(msh, V)])
+    problem = ComplementarityProblem.from_forms(
+        a, L, fem.Function(V), Unilateral(dome, side="lower"), [clamped(msh, V)]
+    )
     K = problem.problem.K
     with problem:
         assert problem.solve("fb").converged
     assert problem.problem is None and K.handle == 0
-    problem.close()   # twice is harmless
+    problem.close()  # twice is harmless
 
 
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_the_demo_agrees_with_vinewtonrsls(ranks):
     cmd = [sys.executable, str(ROOT / "demos" / "demo_own_forms.py"), "12"]
-    proc = subprocess.run([str(MPIRUN), "-n", str(ranks), *cmd], capture_output=True, text=True,
-                          timeout=600, env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    proc = subprocess.run(
+        [str(MPIRUN), "-n", str(ranks), *cmd],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"},
+    )
     assert proc.returncode == 0, proc.stderr
-    lines = re.findall(r"^\s*(\S+): +(\d+) Newton iterations, (\S+), (\d+) nodes on the dome, "
-                       r"its force ∫ λ_h = (\S+)$", proc.stdout, re.M)
+    lines = re.findall(
+        r"^\s*(\S+): +(\d+) Newton iterations, (\S+), (\d+) nodes on the dome, "
+        r"its force ∫ λ_h = (\S+)$",
+        proc.stdout,
+        re.M,
+    )
     assert [m for m, *_ in lines] == ["vinewtonrsls", "fb", "min", "blend", "vinewtonssls"]
     assert all(reason.startswith("converged") for _, _, reason, _, _ in lines)
-    assert len({n for *_, n, _ in lines}) == 1 and int(lines[0][3]) > 0   # one active set
+    assert len({n for *_, n, _ in lines}) == 1 and int(lines[0][3]) > 0  # one active set
     forces = [float(f) for *_, f in lines]
     assert max(forces) - min(forces) < 1e-8
     difference = re.search(r"largest difference from vinewtonrsls: (\S+)", proc.stdout).group(1)
@@ -263,8 +305,9 @@ def test_the_readme_example_runs():
     """README, "Your own forms": the example runs as written and converges."""
     section = (ROOT / "README.md").read_text().split("### Your own forms", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr
     assert re.match(r"True \d+ Newton iterations, [1-9]\d* nodes on the floor", proc.stdout)
 
@@ -273,10 +316,26 @@ def test_the_api_tests_agree_on_two_ranks():
     """The tests above that run in-process (the scene path, linear vs nonlinear, facets vs
     explicit DoFs, bad input, close) pass on each of 2 MPI ranks: every assertion compares
     global values (allreduce), so the same discrete answers hold on a partitioned mesh."""
-    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, "-m", "pytest", "-q", "-p",
-                           "no:cacheprovider", __file__,
-                           "-k", "not demo and not readme and not ranks"],
-                          cwd=ROOT / "tests", capture_output=True, text=True, timeout=600,
-                          env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
+    proc = subprocess.run(
+        [
+            str(MPIRUN),
+            "-n",
+            "2",
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            __file__,
+            "-k",
+            "not demo and not readme and not ranks",
+        ],
+        cwd=ROOT / "tests",
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"},
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert proc.stdout.count(" passed") == 2 and " failed" not in proc.stdout

@@ -2,22 +2,23 @@
 NonlinearProblem: it owns its SNES, options prefix and Newton system and destroys them; one
 object solves again from another guess with per-solve figures; ``solve_problem`` is one
 solve with one solver (the callers' path, unchanged)."""
+
 from __future__ import annotations
 
 import gc
-
-import numpy as np
-import pytest
-from clirun import ROOT
-from mpi4py import MPI
-from petsc4py import PETSc
 
 import contact
 from contact.base.lifetime import petsc_objects
 from contact.models import build_problem
 from contact.solvers.options import SolverOptions
 from contact.solvers.snes import SemismoothNewton, solve_problem
+
+import numpy as np
+import pytest
+from clirun import ROOT
 from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
 
 SCENE = str(ROOT / "configs" / "signorini_square.yaml")
 
@@ -40,8 +41,16 @@ def test_one_solver_solves_twice_as_two_fresh_ones(problem, method):
     iterations, history, polishing solves (counted per solve, not summed) and u_h."""
     options = SolverOptions.parse({"method": method, "kappa": 100.0})
     zero = fem.Function(problem.V)
-    fresh = solve_problem(problem, zero, options, problem.V.mesh.comm, False, False,
-                          {"assembly": 0.0, "solve": 0.0}, 0.0)
+    fresh = solve_problem(
+        problem,
+        zero,
+        options,
+        problem.V.mesh.comm,
+        False,
+        False,
+        {"assembly": 0.0, "solve": 0.0},
+        0.0,
+    )
     u_fresh = fresh.u_h.x.array.copy()
     with SemismoothNewton(problem, options) as solver:
         first = solver.solve(zero)
@@ -67,7 +76,7 @@ def test_close_destroys_what_the_solver_made(problem):
     during = petsc_objects()
     assert sum(during.values()) > sum(before.values())
     solver.close()
-    solver.close()   # twice is harmless
+    solver.close()  # twice is harmless
     del result
     gc.collect()
     after = petsc_objects()

@@ -1,50 +1,89 @@
 """The solver's typed options (issue 28b): ``contact.solvers.options.SolverOptions`` is a frozen
 pydantic model with exactly the solver's knobs, its defaults and its one-line messages those
 of the scene's ``solver`` section, and it is what the solver receives (no dict)."""
-from __future__ import annotations
 
-import pydantic
-import pytest
-from clirun import ROOT
+from __future__ import annotations
 
 import contact
 from contact import ConfigError
 from contact.drivers.solve import solver_knobs
 from contact.solvers.options import SolverOptions
 
+import pydantic
+import pytest
+from clirun import ROOT
+
 SCENE = str(ROOT / "configs" / "signorini_square.yaml")
-KNOBS = {"method", "mu", "c", "kappa", "line_search", "polish", "rtol", "atol", "max_it", "linear",
-         "inexact", "petsc_options"}
+KNOBS = {
+    "method",
+    "mu",
+    "c",
+    "kappa",
+    "line_search",
+    "polish",
+    "rtol",
+    "atol",
+    "max_it",
+    "linear",
+    "inexact",
+    "petsc_options",
+}
 
 
 def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
     """A scene with no ``solver`` section has SolverOptions' defaults (and the driver's keys)."""
-    scene = contact.load_scene({
-        "name": "plain",
-        "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": [2, 2]},
-        "boundaries": {"clamp": {"role": "dirichlet", "where": "x < 1e-10"}},
-        "model": {"type": "obstacle", "bound": "lower"}, "data": {"f": "-1", "psi": "-1"}})
+    scene = contact.load_scene(
+        {
+            "name": "plain",
+            "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": [2, 2]},
+            "boundaries": {"clamp": {"role": "dirichlet", "where": "x < 1e-10"}},
+            "model": {"type": "obstacle", "bound": "lower"},
+            "data": {"f": "-1", "psi": "-1"},
+        }
+    )
     assert set(SolverOptions.model_fields) == KNOBS
     section = scene.cfg["solver"]
     # the scene's section = the solver's knobs + the driver's (initial guess, sequencing, budget,
     # and the adaptive loop's stopping rule, which the driver hands the solver as an object)
-    assert set(section) - KNOBS == {"u0", "sequence", "max_dofs", "stopping", "gamma_lin",
-                                    "gamma_alg"}
+    assert set(section) - KNOBS == {
+        "u0",
+        "sequence",
+        "max_dofs",
+        "stopping",
+        "gamma_lin",
+        "gamma_alg",
+    }
     assert SolverOptions().model_dump() == {key: section[key] for key in KNOBS}
     assert solver_knobs(section) == SolverOptions()
 
 
-@pytest.mark.parametrize("key, value", [
-    ("mu", 1.5), ("mu", 0), ("method", "newton"), ("c", -1), ("c", "big"), ("kappa", 0),
-    ("line_search", "cubic"), ("polish", "yes"), ("rtol", -1e-3), ("max_it", 0), ("max_it", 2.5),
-    ("linear", "cholesky"), ("inexact", 1), ("petsc_options", {"ksp_type": [1]}),
-    ("petsc_options", 3),
-])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("mu", 1.5),
+        ("mu", 0),
+        ("method", "newton"),
+        ("c", -1),
+        ("c", "big"),
+        ("kappa", 0),
+        ("line_search", "cubic"),
+        ("polish", "yes"),
+        ("rtol", -1e-3),
+        ("max_it", 0),
+        ("max_it", 2.5),
+        ("linear", "cholesky"),
+        ("inexact", 1),
+        ("petsc_options", {"ksp_type": [1]}),
+        ("petsc_options", 3),
+    ],
+)
 def test_the_same_one_line_message_as_the_scene(key, value):
     """A bad value gives the ConfigError line the scene's loader gives for it."""
     with pytest.raises(ConfigError) as scene_error:
-        contact.load_scene(SCENE, [f"solver.{key}={value!r}" if isinstance(value, str) else
-                                   f"solver.{key}={value}"])
+        contact.load_scene(
+            SCENE,
+            [f"solver.{key}={value!r}" if isinstance(value, str) else f"solver.{key}={value}"],
+        )
     with pytest.raises(ConfigError) as typed_error:
         SolverOptions.parse({key: value})
     assert str(typed_error.value) == str(scene_error.value)
@@ -52,8 +91,9 @@ def test_the_same_one_line_message_as_the_scene(key, value):
 
 
 def test_an_unknown_knob_is_named():
-    with pytest.raises(ConfigError,
-                       match=r"^solver.max_iterations: unknown key \(expected one of method, "):
+    with pytest.raises(
+        ConfigError, match=r"^solver.max_iterations: unknown key \(expected one of method, "
+    ):
         SolverOptions.parse({"max_iterations": 3})
 
 

@@ -3,6 +3,7 @@ contact/solvers/stopping.py).  Newton and CG stop once the linearization and alg
 errors are a tenth of the discretization error; the adaptive loop then spends far fewer
 Krylov iterations for the same final error, the bound stays above the error of the inexact
 iterate, and the algebraic estimate η_alg measures the algebraic error it stands for."""
+
 from __future__ import annotations
 
 import csv
@@ -12,20 +13,25 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 import contact
 from contact.adaptivity.energy_error import solution_error
 from contact.base.errors import ConfigError
 from contact.solvers.stopping import AdaptiveStopping, energy_norm
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 SCENE = ROOT / "configs" / "signorini_free_boundary.yaml"
 #: problem A, CG + GAMG Newton systems (Krylov iterations to count), to 20k DoFs
-LOOP = ["estimator=equilibrated", "output.verbose=false", "solver.linear=gamg",
-        "adapt.max_dofs=20000", "adapt.max_levels=30"]
+LOOP = [
+    "estimator=equilibrated",
+    "output.verbose=false",
+    "solver.linear=gamg",
+    "adapt.max_dofs=20000",
+    "adapt.max_levels=30",
+]
 
 
 def _loop(mode: str, method: str) -> list:
@@ -48,9 +54,24 @@ def test_config_errors_name_the_key() -> None:
 
 
 def test_cli_exit_2_names_the_key(tmp_path) -> None:
-    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(SCENE), "-o",
-                           str(tmp_path / "out"), "--set", "solver.stopping=adaptive"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=ENV)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "contact.app.cli",
+            "run",
+            str(SCENE),
+            "-o",
+            str(tmp_path / "out"),
+            "--set",
+            "solver.stopping=adaptive",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=ENV,
+    )
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "solver.stopping" in lines[0], proc.stderr
@@ -73,7 +94,7 @@ def test_fewer_krylov_iterations_same_error(method: str) -> None:
     assert 2 * k_adaptive <= k_fixed, (k_adaptive, k_fixed)
     assert abs(adaptive[-1].error - fixed[-1].error) <= 0.05 * fixed[-1].error
     assert all(lv.estimate.eta >= lv.error for lv in adaptive)
-    for lv in adaptive[1:]:   # both criteria hold at every level's final iterate
+    for lv in adaptive[1:]:  # both criteria hold at every level's final iterate
         st = lv.result.stopping
         assert lv.result.linear_solves >= 1
         eta = lv.estimate.eta
@@ -85,8 +106,15 @@ def test_eta_alg_measures_the_algebraic_error() -> None:
     """η_alg, CG's natural residual norm (r, B r)^{1/2}, equals |||y − y*||| when the
     preconditioner B is A⁻¹; with GAMG it stays within a factor 2 of the energy norm of the
     difference to the exactly solved iterate (B's spectral bounds on this matrix)."""
-    scene = contact.load_scene(SCENE, ["estimator=equilibrated", "output.verbose=false",
-                                       "solver.linear=gamg", "mesh.cells=[32,16]"])
+    scene = contact.load_scene(
+        SCENE,
+        [
+            "estimator=equilibrated",
+            "output.verbose=false",
+            "solver.linear=gamg",
+            "mesh.cells=[32,16]",
+        ],
+    )
     coarse = contact.solve(scene, verbose=False)
     est = contact.estimate(scene, coarse)
     fine, u0 = contact.refine(scene, contact.mark(est.eta_T, "dorfler", 0.5), coarse.u_h)
@@ -104,7 +132,7 @@ def test_eta_alg_measures_the_algebraic_error() -> None:
     diff.array[:] = guess[:n] - exact[:n]
     start = energy_norm(p.K, diff)
     diff.destroy()
-    assert error < 0.5 * start                      # CG did work, and η_alg measures what is left
+    assert error < 0.5 * start  # CG did work, and η_alg measures what is left
     assert 0.5 * error <= stopping.eta_alg <= 2.0 * error, (stopping.eta_alg, error)
     exact_error = solution_error(fine, contact.solve(fine, verbose=False))
     assert solution_error(fine, result) <= 1.05 * exact_error
@@ -118,12 +146,33 @@ def test_cli_reports_components_on_two_ranks(tmp_path) -> None:
     errors = {}
     for n in (1, 2):
         out = tmp_path / f"np{n}"
-        sets = ["estimator=equilibrated", "solver.linear=gamg", "solver.stopping=adaptive",
-                "adapt.max_dofs=8000", "adapt.max_levels=30", "output.png=false"]
-        cmd = [sys.executable, "-m", "contact.app.cli", "run", str(SCENE), "-o", str(out), "-q",
-               *[a for s in sets for a in ("--set", s)]]
-        proc = subprocess.run([str(MPIRUN), "-n", str(n), *cmd], cwd=ROOT, capture_output=True,
-                              text=True, timeout=600, env=ENV)
+        sets = [
+            "estimator=equilibrated",
+            "solver.linear=gamg",
+            "solver.stopping=adaptive",
+            "adapt.max_dofs=8000",
+            "adapt.max_levels=30",
+            "output.png=false",
+        ]
+        cmd = [
+            sys.executable,
+            "-m",
+            "contact.app.cli",
+            "run",
+            str(SCENE),
+            "-o",
+            str(out),
+            "-q",
+            *[a for s in sets for a in ("--set", s)],
+        ]
+        proc = subprocess.run(
+            [str(MPIRUN), "-n", str(n), *cmd],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=600,
+            env=ENV,
+        )
         assert proc.returncode == 0, proc.stderr
         rows = list(csv.DictReader(open(out / "convergence.csv")))
         summary = json.loads((out / "summary.json").read_text())

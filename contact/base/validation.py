@@ -9,10 +9,12 @@ Each type checks its value itself in a *before* validator and raises a
 naming the key path.  The check functions (``positive``, ``open_unit``, …) return an error
 text or None and serve the scene's schema as well (:mod:`contact.setup.config`).
 """
+
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from pydantic import ValidationError
 from pydantic_core import PydanticCustomError
@@ -24,8 +26,15 @@ Check = Callable[[Any], "str | None"]
 
 def typename(v: Any) -> str:
     """'a mapping', 'a list', 'a string', … for messages."""
-    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
-            int: "an integer", float: "a number", type(None): "empty"}.get(type(v), type(v).__name__)
+    return {
+        dict: "a mapping",
+        list: "a list",
+        str: "a string",
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+        type(None): "empty",
+    }.get(type(v), type(v).__name__)
 
 
 def positive(v: Any) -> str | None:
@@ -73,12 +82,14 @@ def _then(check: Check | None, v: Any) -> Any:
 
 def number(check: Check | None = None) -> Callable[[Any], float]:
     """A finite number (an int becomes a float), then ``check``."""
+
     def validate(v: Any) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise _fail(f"expected a number, got {typename(v)} {v!r}")
         if not math.isfinite(v):
             raise _fail(f"must be finite, got {v}")
         return _then(check, float(v))
+
     return validate
 
 
@@ -87,6 +98,7 @@ def integer(check: Check | None = None) -> Callable[[Any], int]:
         if isinstance(v, bool) or not isinstance(v, int):
             raise _fail(f"expected an integer, got {typename(v)} {v!r}")
         return _then(check, v)
+
     return validate
 
 
@@ -106,6 +118,7 @@ def one_of(choices: Iterable[str]) -> Callable[[Any], str]:
         if v not in choices:
             raise _fail(f"{v!r} is not one of {', '.join(choices)}")
         return v
+
     return validate
 
 
@@ -116,6 +129,7 @@ def checked(check: Check) -> Callable[[Any], Any]:
 
 def mapping_of(check: Check) -> Callable[[Any], dict]:
     """A mapping with string keys whose values pass ``check`` (empty: ``{}``)."""
+
     def validate(v: Any) -> dict:
         if v is None:
             return {}
@@ -127,6 +141,7 @@ def mapping_of(check: Check) -> Callable[[Any], dict]:
             if problem := check(item):
                 raise _fail(problem, key=key)
         return dict(v)
+
     return validate
 
 

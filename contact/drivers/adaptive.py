@@ -11,24 +11,25 @@ The pieces are plain functions so a user can write their own loop in a few lines
         cells = contact.mark(est.eta_T, "dorfler", theta=0.5)
         scene, u0 = contact.refine(scene, cells, result.u_h)
 """
+
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
-
-from mpi4py import MPI
+from typing import Any
 
 from dolfinx import fem
+from mpi4py import MPI
 
+from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
 from ..base.timing import Timer
 from ..models import build_problem
-from ..adaptivity.energy_error import solution_error
 from ..setup.budget import max_dofs
 from ..setup.config import SCENE, _validate
 from ..setup.scene import Scene, require_scene
@@ -47,21 +48,30 @@ class Level:
     estimate: Estimate
     error: float | None
     seconds: dict[str, float]
-    imbalance: float = 1.0   # max over ranks of the owned DoFs / their mean (1 in serial)
-    passes: int = 1          # solves of this level (adaptive stopping may solve on: solve_level)
+    imbalance: float = 1.0  # max over ranks of the owned DoFs / their mean (1 in serial)
+    passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
 
     def row(self) -> dict[str, Any]:
         msh = self.scene.mesh
-        row = {"level": self.index, "dofs": self.result.dofs,
-               "cells": msh.topology.index_map(msh.topology.dim).size_global,
-               "eta": self.estimate.eta}
+        row = {
+            "level": self.index,
+            "dofs": self.result.dofs,
+            "cells": msh.topology.index_map(msh.topology.dim).size_global,
+            "eta": self.estimate.eta,
+        }
         # Σ_T of each term
         row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
-        row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
-                    "converged": self.result.converged,
-                    "active_nodes": self.result.n_active, "rank_imbalance": round(self.imbalance, 4)})
+        row.update(
+            {
+                "newton_iterations": self.result.iterations,
+                "polish_solves": self.result.polish_solves,
+                "converged": self.result.converged,
+                "active_nodes": self.result.n_active,
+                "rank_imbalance": round(self.imbalance, 4),
+            }
+        )
         row.update(self.errors())
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
         return row
@@ -75,11 +85,14 @@ class Level:
         def finite(v: float) -> float | str:
             return float(v) if st is not None and math.isfinite(v) else ""
 
-        return {"stopping": "adaptive" if st is not None else "fixed",
-                "eta_disc": self.estimate.eta,
-                "eta_lin": finite(st.eta_lin if st else 0.0),
-                "eta_alg": finite(st.eta_alg if st else 0.0),
-                "krylov_iterations": self.result.krylov_iterations, "solve_passes": self.passes}
+        return {
+            "stopping": "adaptive" if st is not None else "fixed",
+            "eta_disc": self.estimate.eta,
+            "eta_lin": finite(st.eta_lin if st else 0.0),
+            "eta_alg": finite(st.eta_alg if st else 0.0),
+            "krylov_iterations": self.result.krylov_iterations,
+            "solve_passes": self.passes,
+        }
 
 
 @dataclass
@@ -108,19 +121,30 @@ def busiest_share(comm: MPI.Comm, owned: int) -> float:
 
 def adapt_options(scene: Scene, **overrides: Any) -> dict:
     """The scene's ``adapt`` section (defaults if absent) with keyword overrides, validated."""
-    raw = {**(scene.cfg.get("adapt") or {}), **{k: v for k, v in overrides.items() if v is not None}}
+    raw = {
+        **(scene.cfg.get("adapt") or {}),
+        **{k: v for k, v in overrides.items() if v is not None},
+    }
     return _validate(raw, SCENE["adapt"], "adapt", scene.cfg["constants"])
 
 
-def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], None] | None = None,
-          verbose: bool | None = None, u0: fem.Function | None = None, **options: Any) -> AdaptResult:
+def adapt(
+    scene: Scene,
+    method: str | None = None,
+    on_level: Callable[[Level], None] | None = None,
+    verbose: bool | None = None,
+    u0: fem.Function | None = None,
+    **options: Any,
+) -> AdaptResult:
     """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
     called after each level is estimated (used by the CLI to write output as it goes);
     ``u0`` is the first level's initial guess (a load step's previous solution)."""
     require_scene(scene)
     if on_level is not None and not callable(on_level):
-        raise ValueError(f"on_level: expected a function of one Level, got {type(on_level).__name__}")
+        raise ValueError(
+            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
+        )
     opts = adapt_options(scene, **options)
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     comm = scene.comm
@@ -129,17 +153,31 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         seconds = {}
         problem = build_problem(scene)
         seconds["assembly"] = problem.assembly_time
-        progress.note(lambda: f"level {index}: assembled, {problem.assembly_time:.0f} s")
+        progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-        result, est, passes = solve_level(scene, problem, u0, seconds, method=method,
-                                          rtol=opts["newton_rtol"],
-                                          sequence=None if opts["nested"] else "off",
-                                          previous=out.levels[-1] if out.levels else None)
+        result, est, passes = solve_level(
+            scene,
+            problem,
+            u0,
+            seconds,
+            method=method,
+            rtol=opts["newton_rtol"],
+            sequence=None if opts["nested"] else "off",
+            previous=out.levels[-1] if out.levels else None,
+        )
         t0 = time.perf_counter()
         error = solution_error(scene, result)
         seconds["error"] = time.perf_counter() - t0
-        level = Level(index, scene, result, est, error, seconds,
-                      imbalance=rank_imbalance(result.u_h.function_space), passes=passes)
+        level = Level(
+            index,
+            scene,
+            result,
+            est,
+            error,
+            seconds,
+            imbalance=rank_imbalance(result.u_h.function_space),
+            passes=passes,
+        )
         out.levels.append(level)
         if on_level is not None:
             with Timer(seconds, "output"):
@@ -164,17 +202,27 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             cells = mark(est.eta_T, opts["strategy"], opts["theta"])
         bound = next_dofs_bound(scene, cells, result.u_h.function_space)
         if bound is not None and bound > opts["max_dofs"]:  # refining would be wasted work
-            out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
+            out.stop = (
+                f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
+            )
             break
         parts: dict[str, float] = {}
         with Timer(seconds, "refine"):
             progress.note(f"level {index}: refining the marked cells")
-            new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None,
-                                       opts["rebalance"], timings=parts)
-        seconds["refine_mesh"] = parts["mesh"]   # of which dolfinx.mesh.refine
+            new_scene, new_u0 = refine(
+                scene,
+                cells,
+                result.u_h if opts["nested"] else None,
+                opts["rebalance"],
+                timings=parts,
+            )
+        seconds["refine_mesh"] = parts["mesh"]  # of which dolfinx.mesh.refine
         # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
-        V_next = new_u0.function_space if new_u0 is not None else \
-            fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+        V_next = (
+            new_u0.function_space
+            if new_u0 is not None
+            else fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+        )
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
@@ -191,8 +239,14 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
 MAX_PASSES = 3
 
 
-def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict,
-                previous: Level | None = None, **options: Any) -> tuple[Result, Estimate, int]:
+def solve_level(
+    scene: Scene,
+    problem,
+    u0: fem.Function | None,
+    seconds: dict,
+    previous: Level | None = None,
+    **options: Any,
+) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
     of :func:`~contact.drivers.solve.solve`); returns (result, estimate, solves).
 
@@ -207,6 +261,7 @@ def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict,
     adaptive = solver["stopping"] == "adaptive" and previous is not None
     eta = None
     if adaptive:
+        assert previous is not None  # adaptive needs the previous level's η
         V = problem.V
         dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
         rate = V.element.basix_element.degree / V.mesh.geometry.dim
@@ -214,21 +269,26 @@ def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict,
     seconds["solve"] = seconds["estimate"] = 0.0
     krylov, passes = 0, 0
     while True:
-        stopping = AdaptiveStopping(eta, solver["gamma_lin"], solver["gamma_alg"]) \
-            if adaptive else None
+        stopping = (  # eta is known exactly when the stopping is adaptive
+            None if eta is None else AdaptiveStopping(eta, solver["gamma_lin"], solver["gamma_alg"])
+        )
         t0 = time.perf_counter()
         result = solve(scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options)
         seconds["solve"] += time.perf_counter() - t0
-        progress.note(lambda: f"solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
+        progress.note(f"solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] += time.perf_counter() - t0
         krylov += result.krylov_iterations
         passes += 1
-        if stopping is None or not result.converged or stopping.balanced(est.eta) \
-                or passes == MAX_PASSES:
+        if (
+            stopping is None
+            or not result.converged
+            or stopping.balanced(est.eta)
+            or passes == MAX_PASSES
+        ):
             break
-        eta, u0 = est.eta, result.u_h    # solve on from the iterate, against its η_disc
+        eta, u0 = est.eta, result.u_h  # solve on from the iterate, against its η_disc
     result.krylov_iterations = krylov
     return result, est, passes
 
@@ -241,15 +301,20 @@ def format_table(rows: list[dict]) -> str:
 
 
 def _header() -> str:
-    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} " f"{'active':>7s} {'solve s':>8s}"
+    return (
+        f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} "
+        f"{'active':>7s} {'solve s':>8s}"
+    )
 
 
 def _format(r: dict) -> str:
     err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
     eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
     its = solves_text(r["newton_iterations"], r["polish_solves"])
-    return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
-            f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}")
+    return (
+        f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
+        f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}"
+    )
 
 
 def _print_row(level: Level, header: bool) -> None:

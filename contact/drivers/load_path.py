@@ -18,17 +18,19 @@ functions, scene and meshes dropped — and keeps only its figures.  Every live 
 MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
 keeping every step whole (``keep_all``) suits short paths only.
 """
+
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from dolfinx import fem
 
-from .adaptive import adapt
 from ..setup.scene import Scene
 from ..solvers import Result
+from .adaptive import adapt
 from .solve import solve
 
 
@@ -37,13 +39,13 @@ class Step:
     """One load step: its pseudo-time, the scene it was solved on (the final mesh of its
     adaptive loop, if any), the result, the adaptive loop's levels and the wall time."""
 
-    index: int            # 1 … N
+    index: int  # 1 … N
     time: float
     scene: Scene
     result: Result
-    levels: list = field(default_factory=list)   # adapt.Level of an adaptive step
+    levels: list = field(default_factory=list)  # adapt.Level of an adaptive step
     seconds: float = 0.0
-    negative_eigenvalues: int | None = None   # of K_T at the solution (hyperelastic bodies)
+    negative_eigenvalues: int | None = None  # of K_T at the solution (hyperelastic bodies)
 
     def release(self) -> None:
         """Keep the step's figures only: its result and its adaptive levels' results are
@@ -61,8 +63,8 @@ class Step:
 class LoadPath:
     steps: list[Step] = field(default_factory=list)
     stop: str = ""
-    cuts: list[str] = field(default_factory=list)   # step cutting: 't = … (reason) cut to t = …'
-    indefinite: str = ""   # the first step whose K_T is not positive definite (hyperelastic)
+    cuts: list[str] = field(default_factory=list)  # step cutting: 't = … (reason) cut to t = …'
+    indefinite: str = ""  # the first step whose K_T is not positive definite (hyperelastic)
 
     @property
     def converged(self) -> bool:
@@ -97,9 +99,16 @@ def step_cuts(cfg: dict) -> int:
     return HYPERELASTIC_CUTS if cfg["model"]["type"] == "hyperelastic" else 0
 
 
-def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[Step], None] | None = None,
-                  verbose: bool | None = None, adaptive: bool | None = None, adapt_options: dict | None = None,
-                  keep_all: bool = False, **options: Any) -> LoadPath:
+def run_load_path(
+    scene: Scene,
+    method: str | None = None,
+    on_step: Callable[[Step], None] | None = None,
+    verbose: bool | None = None,
+    adaptive: bool | None = None,
+    adapt_options: dict | None = None,
+    keep_all: bool = False,
+    **options: Any,
+) -> LoadPath:
     """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
     after every step (the CLI writes its output there: anything that needs a step's
     functions or scene belongs there).  Stops at the first step that does not converge —
@@ -121,19 +130,27 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
         adaptive = scene.cfg.get("adapt") is not None
     comm = scene.comm
     out, u_prev, t_prev = LoadPath(), None, 0.0
-    pending = [(t, 0) for t in times]   # (pseudo-time, cuts that led to it)
+    pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
     while pending:
         t, depth = pending.pop(0)
         k = len(out.steps) + 1
         t0 = time.perf_counter()
-        step_scene = Scene(scene.cfg, scene.mesh, scene.boundary, time=t,
-                           history={} if u_prev is None else {"u_prev": u_prev},
-                           bodies=scene.bodies, surfaces=scene.surfaces)
+        step_scene = Scene(
+            scene.cfg,
+            scene.mesh,
+            scene.boundary,
+            time=t,
+            history={} if u_prev is None else {"u_prev": u_prev},
+            bodies=scene.bodies,
+            surfaces=scene.surfaces,
+        )
         if verbose and comm.rank == 0 and len(times) > 1:
             print(f"contact: load step {k}/{k + len(pending)}, t = {t:g}", flush=True)
         levels = []
         if adaptive and (mode == "each" or not pending):
-            run = adapt(step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {}))
+            run = adapt(
+                step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {})
+            )
             levels = run.levels
             step_scene, result = levels[-1].scene, levels[-1].result
         else:
@@ -142,9 +159,11 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
             mid = t_prev + (t - t_prev) / 2
             out.cuts.append(f"t = {t:g} ({result.reason}) cut to t = {mid:g}")
             if verbose and comm.rank == 0:
-                print(f"contact: step {k} to t = {t:g} did not converge ({result.reason}): "
-                      f"cut to t = {mid:g} (cut {depth + 1} of at most {max_cuts} in a row)",
-                      flush=True)
+                print(
+                    f"contact: step {k} to t = {t:g} did not converge ({result.reason}): "
+                    f"cut to t = {mid:g} (cut {depth + 1} of at most {max_cuts} in a row)",
+                    flush=True,
+                )
             result.release()
             pending[:0] = [(mid, depth + 1), (t, depth + 1)]
             continue
@@ -157,7 +176,7 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
         if not result.converged:
             out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})" + _notes(out)
             break
-        scene, t_prev = step_scene, t   # 'each': the next step continues on this step's final mesh
+        scene, t_prev = step_scene, t  # 'each': the next step continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
@@ -174,11 +193,16 @@ def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
 
     n = step.negative_eigenvalues = negative_eigenvalues(step.result)
     if n and not path.indefinite:
-        path.indefinite = (f"K_T not positive definite from step {step.index} (t = {step.time:g}: "
-                           f"{n} negative eigenvalue(s) on the free unknowns)")
+        path.indefinite = (
+            f"K_T not positive definite from step {step.index} (t = {step.time:g}: "
+            f"{n} negative eigenvalue(s) on the free unknowns)"
+        )
         if verbose and step.scene.comm.rank == 0:
-            print(f"contact: step {step.index}: {path.indefinite}: the solution may be unstable "
-                  "(past a limit point, or a nonconvex law)", flush=True)
+            print(
+                f"contact: step {step.index}: {path.indefinite}: the solution may be unstable "
+                "(past a limit point, or a nonconvex law)",
+                flush=True,
+            )
 
 
 def _notes(path: LoadPath) -> str:

@@ -29,19 +29,19 @@ coarser levels; ``off`` starts cold.  Every coarse solve is an ordinary solve (i
 linear solver choice, counted in ``Result.sequence``); the coarse Newton tolerance is
 :data:`COARSE_RTOL` (a guess only needs the coarse active set, not round-off).
 """
+
 from __future__ import annotations
 
 import copy
 import functools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem
 from dolfinx.mesh import MeshTags
+from mpi4py import MPI
 
 from ..base.errors import ConfigError
 from ..models import build_problem
@@ -49,11 +49,11 @@ from ..setup.scene import Scene
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 AUTO_MIN_DOFS = 4_000
-COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many DoFs
-COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
-ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
+COARSEST_DOFS = 1_000  # auto: the coarsest level keeps at least this many DoFs
+COARSE_RTOL = 1e-6  # Newton's relative tolerance on the coarse levels
+ANCESTOR_RATIO = 4  # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
 BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
-SIZE_CLASS = 2.0          # point location: cell extents within one size class differ by < 2×
+SIZE_CLASS = 2.0  # point location: cell extents within one size class differ by < 2×
 #: the gmsh-built meshes, whose sizes h and h_contact give the coarse levels
 GMSH_BUILT = ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")
 
@@ -99,17 +99,22 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         return [], ""
     limit = wanted if wanted is not None else 64
     floor = COARSEST_DOFS if wanted is None else 1
-    ratio = 2 ** dim
+    ratio = 2**dim
 
     if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
-        return [], "grid sequencing: not for frictional scenes (slip depends on the load history); cold start"
+        return (
+            [],
+            "grid sequencing: not for frictional scenes (slip depends on the load history); "
+            "cold start",
+        )
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [functools.partial(_same, s) for s in reversed(chain)], ""
     kind = scene.cfg["mesh"]["type"]
     if scene.bodies is not None and kind not in GMSH_BUILT:
-        return [], (f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; "
-                    "cold start")
+        return [], (
+            f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; cold start"
+        )
     if degree != 1 and kind in BUILT_IN:
         return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
@@ -120,8 +125,11 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
             if min(coarse) < 1 or fine_dofs / ratio**k < floor:
                 break
             builders.append(functools.partial(_with_mesh, scene, {"cells": coarse}))
-        note = "" if wanted is None or len(builders) == wanted else \
-            f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
+        note = (
+            ""
+            if wanted is None or len(builders) == wanted
+            else f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
+        )
         return builders[::-1], note
     if kind in GMSH_BUILT:
         m = scene.cfg["mesh"]
@@ -165,12 +173,19 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
     cfg["mesh"].update(changes)
     msh, tags, cell_tags = build_mesh(cfg, scene.comm)
     bodies = tag_bodies(msh, cfg, cell_tags)
-    return Scene(cfg, msh, tag_boundaries(msh, cfg, tags, bodies), time=scene.time, bodies=bodies,
-                 surfaces=tags)
+    return Scene(
+        cfg,
+        msh,
+        tag_boundaries(msh, cfg, tags, bodies),
+        time=scene.time,
+        bodies=bodies,
+        surfaces=tags,
+    )
 
 
-def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable,
-                  verbose: bool) -> tuple[fem.Function | None, list[CoarseLevel], str]:
+def initial_guess(
+    scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable, verbose: bool
+) -> tuple[fem.Function | None, list[CoarseLevel], str]:
     """Solve the coarse levels of ``opts['sequence']``; return the last coarse solution on
     the fine space V (None if there is no coarse level), the levels and a note."""
     bs = V.dofmap.index_map_bs
@@ -192,17 +207,40 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
         u0: fem.Function | None = None
         if u is not None and prev is not None:
             u0 = transfer(u, prev, coarse, problem.V)
-        r = solve(coarse, problem=problem, u0=u0, verbose=False, sequence="off", rtol=COARSE_RTOL,
-                  **coarse_opts)
-        levels.append(CoarseLevel(r.dofs, r.iterations, r.polish_solves, r.krylov_iterations, r.linear,
-                                  time.perf_counter() - t0, bool(r.converged)))
+        r = solve(
+            coarse,
+            problem=problem,
+            u0=u0,
+            verbose=False,
+            sequence="off",
+            rtol=COARSE_RTOL,
+            **coarse_opts,
+        )
+        levels.append(
+            CoarseLevel(
+                r.dofs,
+                r.iterations,
+                r.polish_solves,
+                r.krylov_iterations,
+                r.linear,
+                time.perf_counter() - t0,
+                bool(r.converged),
+            )
+        )
         solution = r.u_h
-        r.release()   # the coarse problem's PETSc objects: only u_h goes on
+        r.release()  # the coarse problem's PETSc objects: only u_h goes on
         if verbose and scene.comm.rank == 0:
             lv = levels[-1]
-            solves = f"{lv.newton_iterations}+{lv.polish_solves}" if lv.polish_solves else f"{lv.newton_iterations}"
-            print(f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts['method']} {solves} its "
-                  f"({lv.linear})  {lv.seconds:.2f} s", flush=True)
+            solves = (
+                f"{lv.newton_iterations}+{lv.polish_solves}"
+                if lv.polish_solves
+                else f"{lv.newton_iterations}"
+            )
+            print(
+                f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts['method']} {solves} its "
+                f"({lv.linear})  {lv.seconds:.2f} s",
+                flush=True,
+            )
         if not r.converged:  # a bad coarse solution is no guess: restart from the next level
             u, prev = None, None
             continue
@@ -212,7 +250,9 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
     return transfer(u, prev, scene, V), levels, note
 
 
-def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace | None = None) -> fem.Function:
+def transfer(
+    u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace | None = None
+) -> fem.Function:
     """The coarse solution ``u`` on the fine scene's space (same element)."""
     V = V or fem.functionspace(fine.mesh, u.function_space.ufl_element())
     if fine.parent is not None:
@@ -222,7 +262,9 @@ def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace |
     return point_transfer(u, V, coarse.bodies, fine.bodies)
 
 
-def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
+def _prolong_chain(
+    u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace
+) -> fem.Function:
     """Prolong through the refinements from ``coarse`` down to ``fine`` (exact for nested
     Lagrange spaces)."""
     from ..adaptivity.transfer import prolong
@@ -348,12 +390,18 @@ def _lshape_vertices(n: int) -> np.ndarray:
     i, j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
     keep = ~((i >= n) & (j < n))
     i, j = i[keep], j[keep]
-    corners = np.concatenate([a * (2 * n + 1) + b for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1))])
+    corners = np.concatenate(
+        [a * (2 * n + 1) + b for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1))]
+    )
     return np.unique(corners)
 
 
-def point_transfer(u: fem.Function, V: fem.FunctionSpace, coarse_bodies: MeshTags | None = None,
-                   fine_bodies: MeshTags | None = None) -> fem.Function:
+def point_transfer(
+    u: fem.Function,
+    V: fem.FunctionSpace,
+    coarse_bodies: MeshTags | None = None,
+    fine_bodies: MeshTags | None = None,
+) -> fem.Function:
     """The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
     point of V in u's mesh (for meshes of one geometry that are not nested, e.g. gmsh
     meshes of two sizes).  With the cell tags of the bodies of both meshes
@@ -375,10 +423,10 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace, coarse_bodies: MeshTag
     n_cells = msh.topology.index_map(tdim).size_local
     dofs = Vc.dofmap.list[:n_cells]
     X = Vc.tabulate_dof_coordinates()[:, :gdim]
-    verts = X[dofs]                                                     # (cells, tdim+1, gdim)
-    vals = u.x.array.reshape(-1, bs)[dofs]                              # (cells, tdim+1, bs)
+    verts = X[dofs]  # (cells, tdim+1, gdim)
+    vals = u.x.array.reshape(-1, bs)[dofs]  # (cells, tdim+1, bs)
     points = V.tabulate_dof_coordinates()[:, :gdim]
-    cell_body = np.zeros(n_cells, dtype=np.int32)                       # 0: one body
+    cell_body = np.zeros(n_cells, dtype=np.int32)  # 0: one body
     point_body = np.zeros(len(points), dtype=np.int32)
     if coarse_bodies is not None and fine_bodies is not None:
         cell_body[:] = _cell_values(coarse_bodies, n_cells)
@@ -406,7 +454,9 @@ def _cell_values(tags: MeshTags, n: int) -> np.ndarray:
     return values
 
 
-def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray) -> np.ndarray:
+def _barycentric(
+    verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray
+) -> np.ndarray:
     """Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
     simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``."""
     dp = points - verts[cells, 0]
@@ -415,8 +465,9 @@ def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: 
     return np.column_stack([1.0 - lam.sum(axis=1), lam])
 
 
-def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray,
-            grow: float = 0.1) -> np.ndarray:
+def _locate(
+    verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1
+) -> np.ndarray:
     """For each point the index of the simplex (of ``verts``) that contains it, or the one
     it is least outside of among those whose bounding box, grown by ``grow`` buckets, holds
     it (points no box holds are located again with boxes grown by one more bucket).
@@ -430,8 +481,10 @@ def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray,
     extent = np.max(hi_c - lo_c, axis=1)
     smallest = max(float(extent.min(initial=1.0)), 1e-300)
     size_class = np.floor(np.log(np.maximum(extent, smallest) / smallest) / np.log(SIZE_CLASS))
-    pairs = [_bucket_candidates(lo_c, hi_c, np.flatnonzero(size_class == k), points, grow)
-             for k in np.unique(size_class)]
+    pairs = [
+        _bucket_candidates(lo_c, hi_c, np.flatnonzero(size_class == k), points, grow)
+        for k in np.unique(size_class)
+    ]
     point_of = np.concatenate([p for p, _ in pairs] + [np.zeros(0, dtype=np.int64)])
     cand = np.concatenate([c for _, c in pairs] + [np.zeros(0, dtype=np.int64)])
     order = np.argsort(point_of, kind="stable")
@@ -439,22 +492,24 @@ def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray,
     n_cand = np.bincount(point_of, minlength=len(points))
     lost = np.flatnonzero(n_cand == 0)
     if len(lost) and grow >= 4:  # pragma: no cover - the coarse mesh covers the fine one
-        raise RuntimeError("grid sequencing: a point of the fine mesh lies far outside the "
-                           "coarse mesh")
+        raise RuntimeError(
+            "grid sequencing: a point of the fine mesh lies far outside the coarse mesh"
+        )
     chosen = np.empty(len(points), dtype=np.int64)
     if len(cand):
         score = _barycentric(verts, inv, cand, points[point_of]).min(axis=1)
         group = np.flatnonzero(np.r_[True, point_of[1:] != point_of[:-1]])  # one group a point
         best = np.maximum.reduceat(score, group)
         hit = np.flatnonzero(score >= np.repeat(best, np.diff(np.r_[group, len(point_of)])))
-        chosen[point_of[hit[::-1]]] = cand[hit[::-1]]   # the first best candidate of each point
+        chosen[point_of[hit[::-1]]] = cand[hit[::-1]]  # the first best candidate of each point
     if len(lost):
         chosen[lost] = _locate(verts, inv, points[lost], grow + 1.0)
     return chosen
 
 
-def _bucket_candidates(lo_c: np.ndarray, hi_c: np.ndarray, cells: np.ndarray, points: np.ndarray,
-                       grow: float) -> tuple[np.ndarray, np.ndarray]:
+def _bucket_candidates(
+    lo_c: np.ndarray, hi_c: np.ndarray, cells: np.ndarray, points: np.ndarray, grow: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
     ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
     cells' mean extent over their common bounding box (at most ~4 buckets a cell)."""
@@ -493,5 +548,13 @@ def weighted_solves(levels: list[CoarseLevel], fine_dofs: int) -> float:
     return sum(lv.linear_solves * lv.dofs for lv in levels) / max(fine_dofs, 1) if levels else 0.0
 
 
-__all__ = ["AUTO_MIN_DOFS", "COARSEST_DOFS", "CoarseLevel", "GridTransfer", "initial_guess", "plan",
-           "transfer", "weighted_solves"]
+__all__ = [
+    "AUTO_MIN_DOFS",
+    "COARSEST_DOFS",
+    "CoarseLevel",
+    "GridTransfer",
+    "initial_guess",
+    "plan",
+    "transfer",
+    "weighted_solves",
+]

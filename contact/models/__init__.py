@@ -16,6 +16,7 @@
 A scene imports only its own model: a scalar scene never loads the elasticity modules, a
 linear one never the hyperelastic module.
 """
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -28,7 +29,7 @@ if TYPE_CHECKING:
 __all__ = ["build_problem"]
 
 
-def build_problem(scene: "Scene") -> DiscreteProblem:
+def build_problem(scene: Scene) -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
     from ..setup.budget import check_dofs, mesh_dofs
@@ -36,7 +37,13 @@ def build_problem(scene: "Scene") -> DiscreteProblem:
 
     cfg, msh = scene.cfg, scene.mesh
     components = msh.geometry.dim if is_elastic(cfg) else 1
-    check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
+    check_dofs(
+        cfg,
+        mesh_dofs(msh, cfg["mesh"]["degree"], components),
+        msh.geometry.dim,
+        "mesh",
+        "the mesh gives",
+    )
     if cfg["model"]["type"] == "hyperelastic":
         from .hyperelastic import hyperelastic_problem
 

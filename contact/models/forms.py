@@ -19,19 +19,20 @@ iterate (:class:`ResidualProblem`).
     problem = ComplementarityProblem.from_residual(F, u, Unilateral(psi, side="lower"), [bc])
     result = problem.solve(method="fb")      # result.u_h is u; result.lmbda_h, .active, .history
 """
+
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
-
-import numpy as np
-from mpi4py import MPI
-from petsc4py import PETSc
+from typing import Any
 
 import dolfinx.fem.petsc
+import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
 
 from ..solvers.options import SolverOptions
 from ..solvers.problem import Constraint, DiscreteProblem
@@ -66,8 +67,9 @@ class Unilateral:
 
     def __post_init__(self) -> None:
         if self.side not in ("upper", "lower"):
-            raise ValueError("Unilateral.side: expected 'upper' (u <= g) or 'lower' (u >= g), "
-                             f"got {self.side!r}")
+            raise ValueError(
+                f"Unilateral.side: expected 'upper' (u <= g) or 'lower' (u >= g), got {self.side!r}"
+            )
         if self.dofs is not None and self.measure is not None:
             raise ValueError("Unilateral: give either a measure or dofs, not both")
         if self.weights is not None and self.dofs is None:
@@ -80,8 +82,9 @@ class Unilateral:
         """σ: +1 for u ≤ g, −1 for u ≥ g."""
         return 1.0 if self.side == "upper" else -1.0
 
-    def nodes(self, V: fem.FunctionSpace,
-              bcs: Sequence[fem.DirichletBC]) -> tuple[np.ndarray, np.ndarray]:
+    def nodes(
+        self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC]
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights."""
         n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
@@ -98,22 +101,27 @@ class Unilateral:
         if bs == 1 and self.component is not None:
             raise ValueError("Unilateral.component: V is scalar: give no component")
         if bs > 1 and self.component not in range(bs):
-            raise ValueError(f"Unilateral.component: a vector space needs one of 0 … {bs - 1}, "
-                             f"got {self.component}")
+            raise ValueError(
+                f"Unilateral.component: a vector space needs one of 0 … {bs - 1}, "
+                f"got {self.component}"
+            )
         measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
         dofs = _dofs_of(V, measure, self.component)
         dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
         w = lumped_weights(V, measure, self.component)[dofs]
         if V.mesh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
-            raise ValueError("Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
-                             "(e.g. P2 vertices); use P1 or give dofs and weights")
+            raise ValueError(
+                "Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
+                "(e.g. P2 vertices); use P1 or give dofs and weights"
+            )
         return dofs, w
 
     def bound_function(self, V: fem.FunctionSpace, dofs: np.ndarray) -> fem.Function:
         """g on V (at the constrained DoFs at least)."""
         g = fem.Function(V, name="bound")
-        if (isinstance(self.bound, fem.Function) or callable(self.bound)) and \
-                self.component is not None:   # a scalar bound on one component's DoFs
+        if (
+            isinstance(self.bound, fem.Function) or callable(self.bound)
+        ) and self.component is not None:  # a scalar bound on one component's DoFs
             S, to_parent = V.sub(self.component).collapse()
             g_k = fem.Function(S)
             g_k.interpolate(self.bound)
@@ -125,8 +133,10 @@ class Unilateral:
         else:
             values = np.asarray(self.bound, dtype=float)
             if values.shape != dofs.shape:
-                raise ValueError("Unilateral.bound: expected one value per constrained DoF "
-                                 f"({len(dofs)}), got shape {values.shape}")
+                raise ValueError(
+                    "Unilateral.bound: expected one value per constrained DoF "
+                    f"({len(dofs)}), got shape {values.shape}"
+                )
             g.x.array[dofs] = values
         g.x.scatter_forward()
         return g
@@ -150,8 +160,9 @@ def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) 
         entities = dolfinx.mesh.exterior_facet_indices(msh.topology)
     else:
         if tags is None:
-            raise ValueError(f"Unilateral.measure: {kind} with subdomain {tag} needs "
-                             "subdomain_data (mesh tags)")
+            raise ValueError(
+                f"Unilateral.measure: {kind} with subdomain {tag} needs subdomain_data (mesh tags)"
+            )
         ids = tag if isinstance(tag, tuple) else (tag,)
         entities = np.concatenate([tags.find(i) for i in ids])
     if component is None:
@@ -224,8 +235,14 @@ class ComplementarityProblem:
         self.problem = problem
 
     @classmethod
-    def from_forms(cls, a: ufl.Form, L: ufl.Form, u: fem.Function, constraint: Unilateral,
-                   bcs: Sequence[fem.DirichletBC] = ()) -> "ComplementarityProblem":
+    def from_forms(
+        cls,
+        a: ufl.Form,
+        L: ufl.Form,
+        u: fem.Function,
+        constraint: Unilateral,
+        bcs: Sequence[fem.DirichletBC] = (),
+    ) -> ComplementarityProblem:
         """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h)."""
         t0 = time.perf_counter()
         bcs = list(bcs)
@@ -233,9 +250,14 @@ class ComplementarityProblem:
         return cls(_discrete(DiscreteProblem, u, bcs, K, b, constraint, t0))
 
     @classmethod
-    def from_residual(cls, F: ufl.Form, u: fem.Function, constraint: Unilateral,
-                      bcs: Sequence[fem.DirichletBC] = (), J: ufl.Form | None = None
-                      ) -> "ComplementarityProblem":
+    def from_residual(
+        cls,
+        F: ufl.Form,
+        u: fem.Function,
+        constraint: Unilateral,
+        bcs: Sequence[fem.DirichletBC] = (),
+        J: ufl.Form | None = None,
+    ) -> ComplementarityProblem:
         """R(u) = w λ from a residual F(u; v), nonlinear in the Function ``u`` it is written
         in, and J = ∂F/∂u (default ``ufl.derivative(F, u)``); ``u``'s values are the initial
         guess and receive the solution."""
@@ -243,8 +265,9 @@ class ComplementarityProblem:
         bcs = list(bcs)
         J = ufl.derivative(F, u) if J is None else J
         F_form, J_form = fem.form(F), fem.form(J)
-        problem = _discrete(ResidualProblem, u, bcs, *ResidualProblem.matrices(J_form, bcs),
-                            constraint, t0)
+        problem = _discrete(
+            ResidualProblem, u, bcs, *ResidualProblem.matrices(J_form, bcs), constraint, t0
+        )
         problem.F_form, problem.J_form = F_form, J_form
         return cls(problem)
 
@@ -258,9 +281,17 @@ class ComplementarityProblem:
         opts = SolverOptions.parse({"method": method, **options})
         p = self.problem
         timers = {"assembly": p.assembly_time, "solve": 0.0}
-        return solve_problem(p, p.u_h, opts, p.V.mesh.comm, verbose, False, timers,
-                             time.perf_counter() - p.assembly_time,
-                             check_options=bool(opts.petsc_options))
+        return solve_problem(
+            p,
+            p.u_h,
+            opts,
+            p.V.mesh.comm,
+            verbose,
+            False,
+            timers,
+            time.perf_counter() - p.assembly_time,
+            check_options=bool(opts.petsc_options),
+        )
 
     def close(self) -> None:
         """Destroy the PETSc objects (K, b); the functions stay usable."""
@@ -268,22 +299,39 @@ class ComplementarityProblem:
             self.problem.destroy()
             self.problem = None
 
-    def __enter__(self) -> "ComplementarityProblem":
+    def __enter__(self) -> ComplementarityProblem:
         return self
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
 
 
-def _discrete(kind: type, u: fem.Function, bcs: list, K: PETSc.Mat, b: PETSc.Vec,
-              constraint: Unilateral, t0: float) -> DiscreteProblem:
+def _discrete(
+    kind: type,
+    u: fem.Function,
+    bcs: list,
+    K: PETSc.Mat,
+    b: PETSc.Vec,
+    constraint: Unilateral,
+    t0: float,
+) -> DiscreteProblem:
     """The solver's problem: the constraint's nodes, weights and bound on u's space."""
     V = u.function_space
     dofs, w = constraint.nodes(V, bcs)
     g = constraint.bound_function(V, dofs)
     fixed = V.mesh.comm.allreduce(sum(len(bc.dof_indices()[0]) for bc in bcs), op=MPI.SUM)
-    in_domain = constraint.dofs is None and (constraint.measure is None or
-                                             constraint.measure.integral_type() == "cell")
-    return kind(V, u, bcs, K, b, Constraint(dofs, g.x.array[dofs].copy(), w, constraint.sign),
-                in_domain=in_domain, semicoercive=fixed == 0, data={"g_h": g},
-                assembly_time=time.perf_counter() - t0)
+    in_domain = constraint.dofs is None and (
+        constraint.measure is None or constraint.measure.integral_type() == "cell"
+    )
+    return kind(
+        V,
+        u,
+        bcs,
+        K,
+        b,
+        Constraint(dofs, g.x.array[dofs].copy(), w, constraint.sign),
+        in_domain=in_domain,
+        semicoercive=fixed == 0,
+        data={"g_h": g},
+        assembly_time=time.perf_counter() - t0,
+    )

@@ -37,17 +37,17 @@ Not in this model (yet): curved obstacles (a gap that is nonlinear in u: normal 
 updated each Newton step), friction, several bodies, the adaptive loop.  The configuration
 refuses them.
 """
+
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
-from petsc4py import PETSc
-
 import dolfinx.fem.petsc
+import numpy as np
 import ufl
 from dolfinx import fem
+from petsc4py import PETSc
 
 from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
@@ -112,7 +112,7 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     K, b = ResidualProblem.matrices(J_form, s.bcs)
     contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
     kind, tangent = ResidualProblem, {}
-    if "K" in contact:   # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
+    if "K" in contact:  # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
         b.destroy()
         kind, tangent = RotatedResidualProblem, {"K_T": K}
         K, b = contact.pop("K"), contact.pop("b")
@@ -121,13 +121,32 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     def stresses(u):
         return piola_and_cauchy(u, model["law"], mu, lmbda_L)
 
-    data = {**s.data, "exact": None, "reaction_form": F_form, "stresses": stresses,
-            "law": model["law"], **contact.pop("data")}
-    return kind(V, u_h, s.bcs, K, b, con, data=data, **contact,
-                symmetric_copies=2 ** len(s.symmetry_axes), symmetry_axes=s.symmetry_axes,
-                near_nullspace=rigid_body_modes(V, contact.get("basis")),
-                floating=floating_bodies(V, s.fixed, None, []),
-                assembly_time=time.perf_counter() - t0, F_form=F_form, J_form=J_form, **tangent)
+    data = {
+        **s.data,
+        "exact": None,
+        "reaction_form": F_form,
+        "stresses": stresses,
+        "law": model["law"],
+        **contact.pop("data"),
+    }
+    return kind(
+        V,
+        u_h,
+        s.bcs,
+        K,
+        b,
+        con,
+        data=data,
+        **contact,
+        symmetric_copies=2 ** len(s.symmetry_axes),
+        symmetry_axes=s.symmetry_axes,
+        near_nullspace=rigid_body_modes(V, contact.get("basis")),
+        floating=floating_bodies(V, s.fixed, None, []),
+        assembly_time=time.perf_counter() - t0,
+        F_form=F_form,
+        J_form=J_form,
+        **tangent,
+    )
 
 
 @dataclass
@@ -141,12 +160,12 @@ class RotatedResidualProblem(ResidualProblem):
     so that u·n ≤ g is a bound on one unknown per contact node.  K̃ is written into ``K``
     (MatPtAP reusing its pattern: the solvers keep their references to it)."""
 
-    K_T: PETSc.Mat | None = None   # the tangent in the displacement unknowns
+    K_T: PETSc.Mat | None = None  # the tangent in the displacement unknowns
     _R: PETSc.Vec | None = field(default=None, repr=False)
 
     def _set_iterate(self, x: PETSc.Vec) -> None:
         u = self.u_h.x
-        self.basis.mult(x, u.petsc_vec)      # u = Q x
+        self.basis.mult(x, u.petsc_vec)  # u = Q x
         u.scatter_forward()
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
@@ -193,8 +212,8 @@ def negative_eigenvalues(result) -> int:
         pc.setFactorSolverType("mumps")
         pc.setFactorSetUpSolverType()
         factor = pc.getFactorMatrix()
-        factor.setMumpsIcntl(13, 1)   # the root node without ScaLAPACK: the global inertia
-        factor.setMumpsIcntl(24, 1)   # null pivots detected (a singular K_T counts as zero)
+        factor.setMumpsIcntl(13, 1)  # the root node without ScaLAPACK: the global inertia
+        factor.setMumpsIcntl(24, 1)  # null pivots detected (a singular K_T counts as zero)
         pc.setUp()
         negative, _, _ = factor.getInertia()
     finally:
@@ -204,19 +223,20 @@ def negative_eigenvalues(result) -> int:
     return int(negative)
 
 
-def uniaxial_stretch(law: str, E: float, nu: float, stretch: float,
-                     gdim: int) -> tuple[float, float]:
+def uniaxial_stretch(
+    law: str, E: float, nu: float, stretch: float, gdim: int
+) -> tuple[float, float]:
     """Homogeneous uniaxial compression (or tension) along one axis to ``stretch`` with
     traction-free lateral faces: (lateral stretch λ_1, nominal stress P_22 along the axis),
     P_22 < 0 in compression.  gdim = 2: plane strain, F = diag(λ_1, stretch, 1); gdim = 3:
     F = diag(λ_1, λ_1, stretch).  λ_1 solves P_11(λ_1) = 0 by Newton's method (a scalar
     root; the reference values of the compression test)."""
     mu, lm = lame(E, nu)
-    m = gdim - 1                                   # lateral directions that stretch
+    m = gdim - 1  # lateral directions that stretch
 
     def stress(l1: float) -> tuple[float, float, float]:
         """(P_11, dP_11/dλ_1, P_22)."""
-        if law == "neo_hookean":   # P = μ (F − F⁻ᵀ) + λ ln J F⁻ᵀ
+        if law == "neo_hookean":  # P = μ (F − F⁻ᵀ) + λ ln J F⁻ᵀ
             lnJ = m * np.log(l1) + np.log(stretch)
             P11 = mu * (l1 - 1 / l1) + lm * lnJ / l1
             dP11 = mu * (1 + 1 / l1**2) + lm * (m - lnJ) / l1**2

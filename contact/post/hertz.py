@@ -24,19 +24,19 @@ with a = 5 h, where the nodal values do not scatter (hertz_2d at h_contact = 0.0
 against −0.4 % for max_i p_i).  3D reports max_i p_i too (``p0_nodal_error``).  Hertz theory
 needs a ≪ R (a/R ≲ 0.1).
 """
+
 from __future__ import annotations
 
 import numpy as np
+from dolfinx import fem, la
 from mpi4py import MPI
 
-from dolfinx import fem, la
-
-from .comparison import Comparison
 from ..models.mortar import part_facets, surface_facets
 from ..models.obstacles import first_contact_point
 from ..models.overlap import facet_measures
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
+from .comparison import Comparison
 
 
 def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float, float]:
@@ -70,26 +70,40 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     pressure = p.pressure(owned_residual(result))[on]
-    a = contact_extent(comm, rho, result.active_mask[on])   # the solver's rule: b_i > a_i
+    a = contact_extent(comm, rho, result.active_mask[on])  # the solver's rule: b_i > a_i
     dim, R = scene.mesh.geometry.dim, float(ref["radius"])
     p0_nodal = _largest(comm, pressure)
     p0 = _largest(comm, patch_average(scene, V, nodes, pressure)) if dim == 3 else p0_nodal
     a_H, p0_H = hertz_values(R, contact_modulus(scene), result.contact_force, dim)
     errors = {"a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0}
-    values = {"contact_half_width" if dim == 2 else "contact_radius": a, "hertz_radius": R,
-              "hertz_a": a_H, "hertz_p0": p0_H, **errors, "a_over_R": a / R}
+    values = {
+        "contact_half_width" if dim == 2 else "contact_radius": a,
+        "hertz_radius": R,
+        "hertz_a": a_H,
+        "hertz_p0": p0_H,
+        **errors,
+        "a_over_R": a / R,
+    }
     if dim == 3:
         values.update(peak_pressure_patch=p0, p0_nodal_error=p0_nodal / p0_H - 1.0)
     profile = np.vstack(comm.gather(np.c_[rho, pressure], root=0) or [np.zeros((0, 2))])
     profile = profile[np.argsort(profile[:, 0])] if comm.rank == 0 else np.zeros((0, 2))
     r = np.linspace(0.0, a_H, 200)
-    return Comparison(values, errors, profile, xlabel="distance ρ from the first point of contact",
-                      curves=[(r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")],
-                      marks=[(a, f"computed a = {a:.4g} ({100 * errors['a_error']:+.1f}% vs Hertz)")])
+    return Comparison(
+        values,
+        errors,
+        profile,
+        xlabel="distance ρ from the first point of contact",
+        curves=[
+            (r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")
+        ],
+        marks=[(a, f"computed a = {a:.4g} ({100 * errors['a_error']:+.1f}% vs Hertz)")],
+    )
 
 
-def patch_average(scene: Scene, V: fem.FunctionSpace, nodes: np.ndarray,
-                  values: np.ndarray) -> np.ndarray:
+def patch_average(
+    scene: Scene, V: fem.FunctionSpace, nodes: np.ndarray, values: np.ndarray
+) -> np.ndarray:
     """The patch averages p̄_i of nodal values p_i (a pressure) on the contact surface
     (collective): with Γ_h the contact facets (the slave parts of the scene's pairs, else
     its contact parts) and ω_i the facets of Γ_h through node i,
@@ -103,20 +117,26 @@ def patch_average(scene: Scene, V: fem.FunctionSpace, nodes: np.ndarray,
     p_i.  Returns p̄_i at ``nodes``."""
     bnd, imap = scene.boundary, V.dofmap.index_map
     pairs = scene.cfg.get("pairs") or []
-    facets = (np.concatenate([part_facets(bnd, pair["slave"]) for pair in pairs]) if pairs
-              else bnd.facets("contact"))
-    surface = surface_facets(V, facets)    # those of owned cells: each facet on one rank
-    known = la.vector(imap, 2)             # (p_i, 1) at the nodes with a value
+    facets = (
+        np.concatenate([part_facets(bnd, pair["slave"]) for pair in pairs])
+        if pairs
+        else bnd.facets("contact")
+    )
+    surface = surface_facets(V, facets)  # those of owned cells: each facet on one rank
+    known = la.vector(imap, 2)  # (p_i, 1) at the nodes with a value
     known.array.reshape(-1, 2)[nodes] = np.c_[values, np.ones(len(nodes))]
     known.scatter_forward()
-    at = known.array.reshape(-1, 2)[surface.nodes]                  # (F, nv, 2)
+    at = known.array.reshape(-1, 2)[surface.nodes]  # (F, nv, 2)
     count = at[:, :, 1].sum(axis=1)
     weight = np.where(count > 0, facet_measures(surface.X) if len(surface.X) else 0.0, 0.0)
     mean = at[:, :, 0].sum(axis=1) / np.maximum(count, 1.0)
-    sums = la.vector(imap, 2)              # (Σ |F| p̄_F, Σ |F|) over the facets at each node
+    sums = la.vector(imap, 2)  # (Σ |F| p̄_F, Σ |F|) over the facets at each node
     nv = surface.nodes.shape[1]
-    np.add.at(sums.array.reshape(-1, 2), surface.nodes.ravel(),
-              np.repeat(np.c_[weight * mean, weight], nv, axis=0))
+    np.add.at(
+        sums.array.reshape(-1, 2),
+        surface.nodes.ravel(),
+        np.repeat(np.c_[weight * mean, weight], nv, axis=0),
+    )
     sums.scatter_reverse(la.InsertMode.add)
     total, area = sums.array.reshape(-1, 2)[nodes].T
     return np.where(area > 0, total / np.where(area > 0, area, 1.0), values)
@@ -143,5 +163,7 @@ def contact_extent(comm: MPI.Comm, rho: np.ndarray, active: np.ndarray) -> float
     """Half-width / radius of the contact set: the midpoint between the last active node and
     the first inactive one beyond it, in the distance ρ from the first point of contact."""
     last_active = comm.allreduce(float(rho[active].max(initial=0.0)), op=MPI.MAX)
-    first_free = comm.allreduce(float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN)
+    first_free = comm.allreduce(
+        float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN
+    )
     return 0.5 * (last_active + first_free) if np.isfinite(first_free) else last_active

@@ -5,6 +5,7 @@ line-search pre-check, and a monitor that records the history; :meth:`~Semismoot
 returns the :class:`~contact.solvers.result.Result`.  :func:`solve_problem` is one solve
 with one solver.  The scene's part of a solve (its problem, options and initial guess) is
 :func:`contact.drivers.solve.solve`."""
+
 from __future__ import annotations
 
 import itertools
@@ -12,21 +13,20 @@ import time
 from typing import Any
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-from dolfinx import fem
 
 from ..base import progress
 from ..base.lifetime import Owner
 from . import ncp
-from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .globalize import GuardedMin
+from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .newton import Complementarity, setup_newton
-from .polish import Polisher
-from .reduced import ReducedSystem
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
+from .polish import Polisher
 from .problem import DiscreteProblem, nodal_scaling
+from .reduced import ReducedSystem
 from .result import Result, finish
 from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
 from .vi import setup_vi
@@ -34,9 +34,18 @@ from .vi import setup_vi
 _counter = itertools.count()
 
 
-def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOptions, comm: MPI.Comm,
-                  verbose: bool, guess: bool, timers: dict, t_start: float,
-                  check_options: bool = False, stopping: AdaptiveStopping | None = None) -> Result:
+def solve_problem(
+    problem: DiscreteProblem,
+    u0: fem.Function,
+    opts: SolverOptions,
+    comm: MPI.Comm,
+    verbose: bool,
+    guess: bool,
+    timers: dict,
+    t_start: float,
+    check_options: bool = False,
+    stopping: AdaptiveStopping | None = None,
+) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
     the :class:`~.options.SolverOptions` ``opts``; return a :class:`Result` (never raises on
@@ -45,8 +54,15 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: SolverOption
     options were given for this solve and are checked first (a scene's were checked
     when it was loaded); ``stopping``: adaptive stopping (:mod:`.stopping`), consulted by
     the Newton monitor and the reduced system's Krylov solves."""
-    with SemismoothNewton(problem, opts, comm, verbose=verbose, timers=timers,
-                          check_options=check_options, stopping=stopping) as solver:
+    with SemismoothNewton(
+        problem,
+        opts,
+        comm,
+        verbose=verbose,
+        timers=timers,
+        check_options=check_options,
+        stopping=stopping,
+    ) as solver:
         return solver.solve(u0, guess=guess, t_start=t_start)
 
 
@@ -66,10 +82,17 @@ class SemismoothNewton:
     one Newton solve from a guess.
     """
 
-    def __init__(self, problem: DiscreteProblem, options: SolverOptions,
-                 comm: MPI.Comm | None = None, prefix: str | None = None,
-                 verbose: bool = False, timers: dict | None = None, check_options: bool = False,
-                 stopping: AdaptiveStopping | None = None):
+    def __init__(
+        self,
+        problem: DiscreteProblem,
+        options: SolverOptions,
+        comm: MPI.Comm | None = None,
+        prefix: str | None = None,
+        verbose: bool = False,
+        timers: dict | None = None,
+        check_options: bool = False,
+        stopping: AdaptiveStopping | None = None,
+    ):
         self.problem, self.opts, self.verbose = problem, options, verbose
         self.stopping = stopping
         self.comm = comm = problem.V.mesh.comm if comm is None else comm
@@ -83,17 +106,18 @@ class SemismoothNewton:
         choose = choose_linear if diagonal_law else assembled_kind
         self.linear = choose(problem, options.linear, user)
         defaults = petsc_defaults(problem, self.linear)
-        if stopping is not None and self.linear == "gamg":   # η_alg: CG's natural residual norm
+        if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
             defaults["ksp_norm_type"] = "natural"
         self.petsc_options = {**defaults, **user}
         if check_options:
             check_petsc_options(options.petsc_options, defaults, comm)
 
-        self._owner = owner = Owner()   # the solver's PETSc objects, destroyed by close()
+        self._owner = owner = Owner()  # the solver's PETSc objects, destroyed by close()
         if friction is None:
             self.cp = owner.own(Complementarity(problem))
         else:
             from .friction import FrictionalComplementarity
+
             self.cp = owner.own(FrictionalComplementarity(problem))
         self.snes = snes = owner.own(PETSc.SNES().create(comm))
         self.prefix = f"contact{next(_counter)}_" if prefix is None else prefix
@@ -102,17 +126,32 @@ class SemismoothNewton:
         self.polisher: Polisher | None = None
         self.guard: GuardedMin | None = None
         self.system = None
-        if friction is not None:   # the block law H = B K + D (no polishing)
+        if friction is not None:  # the block law H = B K + D (no polishing)
             from .friction import setup_friction_newton
-            self.J = owner.own(setup_friction_newton(snes, problem, self.cp, options, self.timers,
-                                                     self.state, self.petsc_options))
+
+            self.J = owner.own(
+                setup_friction_newton(
+                    snes, problem, self.cp, options, self.timers, self.state, self.petsc_options
+                )
+            )
         elif method in ncp.METHODS:
-            system = self.system = owner.own(newton_system(problem, self.linear, self.prefix,
-                                                           forcing=options.inexact))
+            system = self.system = owner.own(
+                newton_system(problem, self.linear, self.prefix, forcing=options.inexact)
+            )
             inner = self.prefix + "newton_" if self.linear == "gamg" else self.prefix
             system.configure(snes, inner)
-            precheck = owner.own(setup_newton(snes, self.cp, system, options, self.timers,
-                                              self.state, self.petsc_options, verbose))
+            precheck = owner.own(
+                setup_newton(
+                    snes,
+                    self.cp,
+                    system,
+                    options,
+                    self.timers,
+                    self.state,
+                    self.petsc_options,
+                    verbose,
+                )
+            )
             self.polisher = precheck if isinstance(precheck, Polisher) else None
             self.guard = precheck if isinstance(precheck, GuardedMin) else None
             self.J = system.J
@@ -124,11 +163,13 @@ class SemismoothNewton:
         # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
         snes.setDivergenceTolerance(PETSc.UNLIMITED)
         snes.setMonitor(self._monitor)
-        progress.watch(system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
-                       f"{method} linear solve")
-        self._prev = owner.own(problem.b.duplicate())   # the previous iterate (step lengths)
+        progress.watch(
+            system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
+            f"{method} linear solve",
+        )
+        self._prev = owner.own(problem.b.duplicate())  # the previous iterate (step lengths)
         self.history: list[dict] = []
-        self.solves = 0   # solves done by this object
+        self.solves = 0  # solves done by this object
 
     def solve(self, u0: fem.Function, guess: bool = False, t_start: float | None = None) -> Result:
         """Solve from ``u0`` (a function of ``problem.V``; the Dirichlet values are put in);
@@ -139,8 +180,12 @@ class SemismoothNewton:
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
         t_start = time.perf_counter() if t_start is None else t_start
         polisher, guard, system = self.polisher, self.guard, self.system
-        counts = (polisher.solves if polisher else 0, guard.backtracked if guard else 0,
-                  system.krylov_iterations if system else 0, len(getattr(system, "log", [])))
+        counts = (
+            polisher.solves if polisher else 0,
+            guard.backtracked if guard else 0,
+            system.krylov_iterations if system else 0,
+            len(getattr(system, "log", [])),
+        )
         if polisher is not None:
             polisher.initial_accepted = False
         if self.solves and method not in ncp.METHODS:
@@ -155,11 +200,15 @@ class SemismoothNewton:
             set_dirichlet(x, problem.bcs)
             problem.linearize(x)
             con = problem.constraint  # the NCP scaling follows the options of this solve
-            problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts.kappa) if opts.c == "auto"
-                         else float(opts.c))
+            problem.c = (
+                nodal_scaling(problem.K, con.dofs, con.w, opts.kappa)
+                if opts.c == "auto"
+                else float(opts.c)
+            )
             # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
-            scale, self._total = force_scale(cp, problem, method if method in ncp.METHODS else "fb",
-                                             opts.mu)
+            scale, self._total = force_scale(
+                cp, problem, method if method in ncp.METHODS else "fb", opts.mu
+            )
             self.atol = opts.atol * scale
             snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
             # for the round-off floor of ‖Φ‖
@@ -174,7 +223,7 @@ class SemismoothNewton:
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
         polisher, guard, system, prefix = self.polisher, self.guard, self.system, self.prefix
         popts = PETSc.Options()
-        try:   # the options stay until the solve is done: some are read at set-up (GAMG's
+        try:  # the options stay until the solve is done: some are read at set-up (GAMG's
             # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
             for key, val in self.petsc_options.items():
                 popts[prefix + key] = petsc_value(val)
@@ -196,14 +245,27 @@ class SemismoothNewton:
                 snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts.max_it)
             snes.solve(None, x)
             reason_code = snes.getConvergedReason()
-            result = finish(self.comm, problem, cp, x, snes, self.history, method, opts,
-                            self.timers, t_start, reason_code, inexact=self.stopping is not None)
+            result = finish(
+                self.comm,
+                problem,
+                cp,
+                x,
+                snes,
+                self.history,
+                method,
+                opts,
+                self.timers,
+                t_start,
+                reason_code,
+                inexact=self.stopping is not None,
+            )
             result.linear = self.linear
             if self.stopping is not None:
                 result.stopping = self.stopping
                 result.reason = "converged_adaptive" if self.stopping.stopped else result.reason
             if problem.friction is not None:
                 from .friction import friction_fields
+
                 result.friction = friction_fields(problem, cp, x)
             if polisher is not None:
                 result.polish_solves = polisher.solves - counts[0]
@@ -211,7 +273,7 @@ class SemismoothNewton:
                 result.backtracked = guard.backtracked - counts[1]
             if system is not None:
                 result.krylov_iterations = system.krylov_iterations - counts[2]
-                result.krylov_log = getattr(system, "log", [])[counts[3]:]
+                result.krylov_log = getattr(system, "log", [])[counts[3] :]
             else:
                 result.krylov_iterations = snes.getLinearSolveIterations()
         finally:
@@ -236,7 +298,7 @@ class SemismoothNewton:
         polisher, system, prev = self.polisher, self.system, self._prev
         xk = snes.getSolution()
         floor = min(roundoff_floor(self._k_norm, xk), opts.atol * self._total)
-        if floor > snes.getTolerances()[1]:   # atol · F out of reach: stop at the floor
+        if floor > snes.getTolerances()[1]:  # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
             if polisher is not None:
                 polisher.done = max(polisher.done, floor)
@@ -244,8 +306,11 @@ class SemismoothNewton:
                 system.stop = max(system.stop, floor)
         active = cp.active(xk)
         n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
-        changed = 0 if self._prev_active is None else \
-            comm.allreduce(int((active != self._prev_active).sum()), op=MPI.SUM)
+        changed = (
+            0
+            if self._prev_active is None
+            else comm.allreduce(int((active != self._prev_active).sum()), op=MPI.SUM)
+        )
         step, energy = np.nan, np.inf
         stopping = self.stopping
         if its > 0:
@@ -263,29 +328,42 @@ class SemismoothNewton:
                 system.stop = done
         xk.copy(prev)
         self._prev_active = active
-        polished = polisher is not None and (polisher.accepted if its > 0
-                                             else polisher.initial_accepted)
-        row = {"iteration": its, "residual": float(fnorm), "step": float(step),
-               "active": n_active, "changed": changed, "polished": polished}
+        polished = polisher is not None and (
+            polisher.accepted if its > 0 else polisher.initial_accepted
+        )
+        row = {
+            "iteration": its,
+            "residual": float(fnorm),
+            "step": float(step),
+            "active": n_active,
+            "changed": changed,
+            "polished": polished,
+        }
         extra = ""
         if self.problem.friction is not None:
             from .friction import status_counts
+
             counts = status_counts(comm, cp.status(xk))
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         self.history.append(row)
         if stopping is not None:
             # an active-set step (min's, or polishing) that kept its active set: η_lin = 0
-            same = changed == 0 and (method == "min" or polished) if its > 0 else \
-                polished and stopping.guess_kept(active)
+            same = (
+                changed == 0 and (method == "min" or polished)
+                if its > 0
+                else polished and stopping.guess_kept(active)
+            )
             if stopping.newton_done(its, comm.allreduce(bool(same), op=MPI.LAND), energy):
                 snes.setConvergedReason(STOPPED_REASON)
         if self.verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
-            print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
-                  f"active {n_active:7d}  changed "
-                  f"{changed:6d}{extra}{'  polished' if row['polished'] else ''}",
-                  flush=True)
+            print(
+                f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
+                f"active {n_active:7d}  changed "
+                f"{changed:6d}{extra}{'  polished' if row['polished'] else ''}",
+                flush=True,
+            )
             progress.heard()
         else:
             progress.note(lambda: f"{method} Newton iteration {its}, |Phi| = {fnorm:.3e}")
@@ -295,7 +373,7 @@ class SemismoothNewton:
         problem's stay (:meth:`~.problem.DiscreteProblem.destroy`).  Twice is harmless."""
         self._owner.close()
 
-    def __enter__(self) -> "SemismoothNewton":
+    def __enter__(self) -> SemismoothNewton:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -311,8 +389,9 @@ def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:
     return out
 
 
-def force_scale(cp: Complementarity, problem: DiscreteProblem, method: str,
-                mu: float) -> tuple[float, float]:
+def force_scale(
+    cp: Complementarity, problem: DiscreteProblem, method: str, mu: float
+) -> tuple[float, float]:
     """(F, F₁).  F = ‖Φ(x_D)‖_∞, the largest entry of the residual at the start x_D that
     holds the Dirichlet values and zero elsewhere: the largest nodal force of the scene's
     loads, prescribed displacements and gaps (the units of Φ, :mod:`.newton`; the maximum
@@ -326,9 +405,9 @@ def force_scale(cp: Complementarity, problem: DiscreteProblem, method: str,
     set_dirichlet(x, problem.bcs)
     cp.phi(x, f, method, mu)
     peak = total = f.norm(PETSc.NormType.INFINITY)
-    if np.isnan(peak):   # a nonlinear residual undefined at x_D (cells a finite-strain body's
-        peak = total = 0.0   # prescribed displacement inverts while the rest stays): rtol alone
-    if 0.0 < peak < np.inf:   # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
+    if np.isnan(peak):  # a nonlinear residual undefined at x_D (cells a finite-strain body's
+        peak = total = 0.0  # prescribed displacement inverts while the rest stays): rtol alone
+    if 0.0 < peak < np.inf:  # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
         f.scale(1.0 / peak)
         total = peak * f.norm(PETSc.NormType.NORM_1)
     x.destroy()
@@ -336,7 +415,7 @@ def force_scale(cp: Complementarity, problem: DiscreteProblem, method: str,
     return peak, total
 
 
-ROUNDOFF = 16.0   # the floor below: measured 0.7 ε ‖K‖_∞ ‖x‖ reached at 256² (Laplace, P1)
+ROUNDOFF = 16.0  # the floor below: measured 0.7 ε ‖K‖_∞ ‖x‖ reached at 256² (Laplace, P1)
 
 
 def roundoff_floor(k_norm: float, x: PETSc.Vec) -> float:
@@ -357,14 +436,22 @@ def check_guess(u0: Any, problem: DiscreteProblem) -> None:
     element and layout); else one ValueError line on every rank."""
     V = problem.V
     if not isinstance(u0, fem.Function):
-        raise ValueError(f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}")
+        raise ValueError(
+            f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}"
+        )
     W = u0.function_space
-    local = W.mesh is not V.mesh or W.ufl_element() != V.ufl_element() or \
-        W.dofmap.index_map.size_local * W.dofmap.index_map_bs != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    local = (
+        W.mesh is not V.mesh
+        or W.ufl_element() != V.ufl_element()
+        or W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+        != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    )
     if V.mesh.comm.allreduce(bool(local), op=MPI.LOR):
         where = "another mesh" if W.mesh is not V.mesh else "another function space"
-        raise ValueError(f"u0: lives on {where} than the scene's problem; interpolate it first "
-                         "(contact.refine returns the guess on the refined mesh)")
+        raise ValueError(
+            f"u0: lives on {where} than the scene's problem; interpolate it first "
+            "(contact.refine returns the guess on the refined mesh)"
+        )
 
 
 def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:

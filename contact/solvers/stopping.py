@@ -39,6 +39,7 @@ The solver consults this object at two places only: its Newton monitor calls
 reduced system take :meth:`AdaptiveStopping.krylov_atol` as their absolute tolerance (in
 the natural norm) and report what they reached through :meth:`AdaptiveStopping.krylov_done`.
 """
+
 from __future__ import annotations
 
 import math
@@ -61,8 +62,8 @@ class AdaptiveStopping:
     gamma_alg: float = GAMMA_ALG
     eta_lin: float = math.inf
     eta_alg: float = math.nan
-    stopped: bool = False           # Newton stopped by η_lin ≤ γ_lin η_disc
-    history: list[dict] = field(default_factory=list)   # per iterate: its, eta_lin, eta_alg
+    stopped: bool = False  # Newton stopped by η_lin ≤ γ_lin η_disc
+    history: list[dict] = field(default_factory=list)  # per iterate: its, eta_lin, eta_alg
     _guess_active: np.ndarray | None = None
 
     def krylov_atol(self) -> float:
@@ -105,7 +106,7 @@ def energy_norm(K: PETSc.Mat, v: PETSc.Vec) -> float:
     """(vᵀ K v)^{1/2} (collective)."""
     w = K.createVecLeft()
     K.mult(v, w)
-    out = math.sqrt(max(w.dot(v), 0.0))
+    out = math.sqrt(max(float(np.real(w.dot(v))), 0.0))
     w.destroy()
     return out
 

@@ -4,7 +4,8 @@ the cost of the reconstruction against one CG + GAMG solve.
 Effectivity (default): SPEC problems A (P1, P2), C (P1, P2; configs/signorini_smooth.yaml),
 D (P1) and PETSc ex9's obstacle (P1; configs/peers/petsc_ex9.yaml), all with exact
 solutions, through the adaptive loop (Dörfler θ = 0.5, ``--strategy uniform`` for uniform
-refinement) with ``estimator: equilibrated`` while the next level stays within ``--max-dofs``.  Per level: DoFs, the
+refinement) with ``estimator: equilibrated`` while the next level stays within
+``--max-dofs``.  Per level: DoFs, the
 energy error, the guaranteed η and its effectivity η / error, the residual estimator's
 effectivity on the same solve (SPEC §5), the parts of the bound (A, B, W, D of
 contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's seconds.  It checks
@@ -18,7 +19,8 @@ every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off).
 
 Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs; ``--cost3d N``: its
 extrusion u(x, y, z) = u_A(x, y) on [−1, 1] × [0, 1]² with [2N, N, N] cells, N = 63: 520k
-DoFs), the reconstruction (:func:`contact.adaptivity.equilibration.reconstruct_flux`) with each patch
+DoFs), the reconstruction
+(:func:`contact.adaptivity.equilibration.reconstruct_flux`) with each patch
 solver (``--backends``: ``compiled``, the default C kernel, and ``numpy``, the reference;
 each after a warm-up call that compiles) against one CG + GAMG solve of the stiffness matrix K
 (rtol 1e-8 from zero, the loop's options) in the same process: wall and CPU seconds (the
@@ -33,6 +35,7 @@ terms besides the reconstruction); ``cost.csv`` / ``cost_3d.csv`` (``_np2`` on 2
     python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled \
         --out demos/results/equilibrated
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,19 +43,18 @@ import dataclasses
 import time
 from pathlib import Path
 
-import numpy as np
-
-from mpi4py import MPI
-from petsc4py import PETSc
-
 import contact
-from common import save_csv
+from contact.adaptivity.energy_error import solution_error
 from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
 from contact.adaptivity.equilibration.flux import BACKENDS, reconstruct_flux
-from contact.adaptivity.refine import next_dofs_bound
-from contact.adaptivity.energy_error import solution_error
 from contact.adaptivity.estimate import estimate
+from contact.adaptivity.refine import next_dofs_bound
 from contact.solvers.options import default_options
+
+import numpy as np
+from common import save_csv
+from mpi4py import MPI
+from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parents[2]
 PROBLEMS = {  # name: (scene, overrides)
@@ -69,16 +71,21 @@ BOUND, LEVELS_EXEMPT = 1.5, 3
 
 def residual_eta(scene: contact.Scene, result) -> float:
     """The residual estimator (docs/theory.md §5) of the same solve."""
-    return estimate(dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result).eta
+    return estimate(
+        dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result
+    ).eta
 
 
-def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30,
-                compare: bool = False) -> list[dict]:
+def effectivity(
+    name: str, strategy: str, max_dofs: int, max_levels: int = 30, compare: bool = False
+) -> list[dict]:
     """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/drivers/adaptive.py's
     docstring, with nested iteration, until the next level would exceed ``max_dofs``;
     ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference)."""
     path, sets = PROBLEMS[name]
-    scene = contact.load_scene(ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"]
+    )
     rows, u0 = [], None
     for level in range(max_levels):
         t0 = time.perf_counter()
@@ -91,19 +98,32 @@ def effectivity(name: str, strategy: str, max_dofs: int, max_levels: int = 30,
         if compare:
             eta_np = guaranteed_bound(scene, result, backend="numpy").eta
             extra = {"eta_numpy": eta_np, "eta_rel_diff": abs(bound.eta - eta_np) / eta_np}
-        rows.append({"problem": name, "ranks": MPI.COMM_WORLD.size, "strategy": strategy, "level": level,
-                     "dofs": result.dofs, "error": err, "eta": bound.eta, "effectivity": bound.eta / err,
-                     "residual_effectivity": residual_eta(scene, result) / err,
-                     **{f"part_{k}": v for k, v in bound.parts.items()},
-                     "seconds_estimate": round(t2 - t1, 3), "seconds_solve": round(t1 - t0, 3),
-                     **extra})
+        rows.append(
+            {
+                "problem": name,
+                "ranks": MPI.COMM_WORLD.size,
+                "strategy": strategy,
+                "level": level,
+                "dofs": result.dofs,
+                "error": err,
+                "eta": bound.eta,
+                "effectivity": bound.eta / err,
+                "residual_effectivity": residual_eta(scene, result) / err,
+                **{f"part_{k}": v for k, v in bound.parts.items()},
+                "seconds_estimate": round(t2 - t1, 3),
+                "seconds_solve": round(t1 - t0, 3),
+                **extra,
+            }
+        )
         if MPI.COMM_WORLD.rank == 0:
             r = rows[-1]
-            print(f"{name:7s} {level:3d} {r['dofs']:8d} error {err:.4e} eta {bound.eta:.4e} "
-                  f"eff {r['effectivity']:.3f} (residual {r['residual_effectivity']:.2f}) "
-                  f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s"
-                  + (f" |eta - eta_numpy|/eta {r['eta_rel_diff']:.1e}" if compare else ""),
-                  flush=True)
+            print(
+                f"{name:7s} {level:3d} {r['dofs']:8d} error {err:.4e} eta {bound.eta:.4e} "
+                f"eff {r['effectivity']:.3f} (residual {r['residual_effectivity']:.2f}) "
+                f"estimate {r['seconds_estimate']:.2f} s solve {r['seconds_solve']:.2f} s"
+                + (f" |eta - eta_numpy|/eta {r['eta_rel_diff']:.1e}" if compare else ""),
+                flush=True,
+            )
         cells = contact.mark(bound.eta_T, strategy, 0.5)
         if (next_dofs_bound(scene, cells, result.u_h.function_space) or 2 * result.dofs) > max_dofs:
             break
@@ -116,19 +136,26 @@ def verdict(rows: list[dict]) -> str:
     high = [r["level"] for r in rows if r["level"] >= LEVELS_EXEMPT and r["effectivity"] > BOUND]
     late = [r["effectivity"] for r in rows if r["level"] >= LEVELS_EXEMPT]
     rng = f"{min(late):.3f}-{max(late):.3f}" if late else "-"
-    return (f"{rows[0]['problem']}: {len(rows)} levels, eta >= error on every level: {not below} "
-            f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: "
-            f"{not high})")
+    return (
+        f"{rows[0]['problem']}: {len(rows)} levels, eta >= error on every level: {not below} "
+        f"{below or ''}; effectivity past level {LEVELS_EXEMPT - 1}: {rng} (<= {BOUND}: "
+        f"{not high})"
+    )
 
 
 def cost_scene(n: int, dim: int) -> contact.Scene:
     """Problem A on [2N, N] cells (2D), or its extrusion u(x, y, z) = u_A(x, y) on the box
     [−1, 1] × [0, 1]² with [2N, N, N] cells (3D; z = 0, 1 carry the natural flux 0, which
     u satisfies)."""
-    sets = [f"mesh.cells=[{2 * n},{n}]"] if dim == 2 else \
-        ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", f"mesh.cells=[{2 * n},{n},{n}]"]
-    return contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml",
-                              sets + ["output.verbose=false", "solver.max_dofs=30000000"])
+    sets = (
+        [f"mesh.cells=[{2 * n},{n}]"]
+        if dim == 2
+        else ["mesh.type=box", "mesh.corners=[[-1,0,0],[1,1,1]]", f"mesh.cells=[{2 * n},{n},{n}]"]
+    )
+    return contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml",
+        sets + ["output.verbose=false", "solver.max_dofs=30000000"],
+    )
 
 
 def _timed(fn):
@@ -157,57 +184,109 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
     sol_cpu = comm.allreduce(sol_cpu, op=MPI.MAX)
     rows, etas = [], {}
     for backend in backends:
-        reconstruct_flux(data, multiplier, sign, backend=backend)          # warm-up (JIT)
-        flux, wall, cpu = _timed(lambda: reconstruct_flux(data, multiplier, sign, backend=backend))
+        reconstruct_flux(data, multiplier, sign, backend=backend)  # warm-up (JIT)
+        flux, wall, cpu = _timed(
+            lambda b=backend: reconstruct_flux(data, multiplier, sign, backend=b)
+        )
         cpu = comm.allreduce(cpu, op=MPI.MAX)
         etas[backend] = flux
         # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
-        _, bound_wall, bound_cpu = _timed(lambda: guaranteed_bound(scene, result, backend=backend))
+        _, bound_wall, bound_cpu = _timed(
+            lambda b=backend: guaranteed_bound(scene, result, backend=b)
+        )
         bound_cpu = comm.allreduce(bound_cpu, op=MPI.MAX)
-        rows.append({"dim": dim, "ranks": comm.size, "dofs": result.dofs,
-                     "cells": scene.mesh.topology.index_map(dim).size_global, "backend": backend,
-                     "reconstruction_wall": round(wall, 3), "reconstruction_cpu": round(cpu, 3),
-                     "solve_wall": round(sol_wall, 3), "solve_cpu": round(sol_cpu, 3),
-                     "cg_iterations": ksp.getIterationNumber(),
-                     "ratio_wall": round(wall / sol_wall, 2), "ratio_cpu": round(cpu / sol_cpu, 2),
-                     "estimate_wall": round(bound_wall, 3), "estimate_cpu": round(bound_cpu, 3),
-                     "estimate_ratio_cpu": round(bound_cpu / sol_cpu, 2),
-                     **{f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
-                        for k, v in flux.seconds.items()}})
-    if len(etas) == 2:      # the same σ_h to round-off
+        rows.append(
+            {
+                "dim": dim,
+                "ranks": comm.size,
+                "dofs": result.dofs,
+                "cells": scene.mesh.topology.index_map(dim).size_global,
+                "backend": backend,
+                "reconstruction_wall": round(wall, 3),
+                "reconstruction_cpu": round(cpu, 3),
+                "solve_wall": round(sol_wall, 3),
+                "solve_cpu": round(sol_cpu, 3),
+                "cg_iterations": ksp.getIterationNumber(),
+                "ratio_wall": round(wall / sol_wall, 2),
+                "ratio_cpu": round(cpu / sol_cpu, 2),
+                "estimate_wall": round(bound_wall, 3),
+                "estimate_cpu": round(bound_cpu, 3),
+                "estimate_ratio_cpu": round(bound_cpu / sol_cpu, 2),
+                **{
+                    f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
+                    for k, v in flux.seconds.items()
+                },
+            }
+        )
+    if len(etas) == 2:  # the same σ_h to round-off
         a, b = (f.sigma_h.x.array for f in etas.values())
-        diff = comm.allreduce(float(np.abs(a - b).max()), op=MPI.MAX) / \
-            comm.allreduce(float(np.abs(a).max()), op=MPI.MAX)
+        diff = comm.allreduce(float(np.abs(a - b).max()), op=MPI.MAX) / comm.allreduce(
+            float(np.abs(a).max()), op=MPI.MAX
+        )
         for r in rows:
             r["sigma_rel_diff"] = f"{diff:.2e}"
     if comm.rank == 0:
         r0 = rows[0]
-        print(f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s); "
-              f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
-              f"({r0['cg_iterations']} iterations); CPU seconds of the phases:")
-        head = ("backend", "wall", "CPU", "CPU/solve", "gather", "patches", "assemble",
-                "estimate", "est/solve")
+        print(
+            f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s); "
+            f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
+            f"({r0['cg_iterations']} iterations); CPU seconds of the phases:"
+        )
+        head = (
+            "backend",
+            "wall",
+            "CPU",
+            "CPU/solve",
+            "gather",
+            "patches",
+            "assemble",
+            "estimate",
+            "est/solve",
+        )
         print(f"{head[0]:9s}" + "".join(f" {h:>9s}" for h in head[1:]))
         for r in rows:
-            cols = ("reconstruction_wall", "reconstruction_cpu", "ratio_cpu", "seconds_gather_cpu",
-                    "seconds_patches_cpu", "seconds_assemble_cpu", "estimate_cpu",
-                    "estimate_ratio_cpu")
+            cols = (
+                "reconstruction_wall",
+                "reconstruction_cpu",
+                "ratio_cpu",
+                "seconds_gather_cpu",
+                "seconds_patches_cpu",
+                "seconds_assemble_cpu",
+                "estimate_cpu",
+                "estimate_ratio_cpu",
+            )
             print(f"{r['backend']:9s}" + "".join(f" {r[c]:9.2f}" for c in cols), flush=True)
     return rows
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS), choices=list(PROBLEMS))
     ap.add_argument("--strategy", default="dorfler", choices=("dorfler", "uniform"))
     ap.add_argument("--max-dofs", type=int, default=30000)
-    ap.add_argument("--compare-backends", action="store_true",
-                    help="also η with the NumPy patch solver per level (eta_numpy, eta_rel_diff)")
-    ap.add_argument("--cost", type=int, default=0, help="measure the cost on problem A with [2N, N] cells instead")
-    ap.add_argument("--cost3d", type=int, default=0,
-                    help="... or on its 3D extrusion with [2N, N, N] cells")
-    ap.add_argument("--backends", nargs="*", default=list(BACKENDS), choices=list(BACKENDS),
-                    help="the reconstruction backends to time (cost)")
+    ap.add_argument(
+        "--compare-backends",
+        action="store_true",
+        help="also η with the NumPy patch solver per level (eta_numpy, eta_rel_diff)",
+    )
+    ap.add_argument(
+        "--cost",
+        type=int,
+        default=0,
+        help="measure the cost on problem A with [2N, N] cells instead",
+    )
+    ap.add_argument(
+        "--cost3d", type=int, default=0, help="... or on its 3D extrusion with [2N, N, N] cells"
+    )
+    ap.add_argument(
+        "--backends",
+        nargs="*",
+        default=list(BACKENDS),
+        choices=list(BACKENDS),
+        help="the reconstruction backends to time (cost)",
+    )
     ap.add_argument("--out", default="demos/results/equilibrated")
     args = ap.parse_args()
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"

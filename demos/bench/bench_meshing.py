@@ -17,7 +17,8 @@ merged by their key, so a run of one more size or variant keeps the others.
 * ``hertz.csv`` — ``two_body_hertz_3d`` at gmsh sizes ``h_contact`` with a 3D variant, on
   the ranks it runs on: ``contact.load_scene`` (wall, max over ranks; CPU, summed over
   ranks) with gmsh's part on rank 0, one solve (fb, grid sequencing ``auto``: the coarse
-  levels' DoFs, Newton and Krylov iterations, wall and CPU), DoFs, and the errors of the contact radius a and of the peak
+  levels' DoFs, Newton and Krylov iterations, wall and CPU), DoFs, and the errors of the
+  contact radius a and of the peak
   pressure p0 against Hertz: p0 as reported (the patch average,
   :func:`contact.post.hertz.patch_average`) and the largest nodal value;
 * ``refined.csv`` — ``two_body_hertz_3d`` as shipped (Dörfler refinement by
@@ -28,6 +29,7 @@ merged by their key, so a run of one more size or variant keeps the others.
 The machine is shared: ``uptime`` is printed with each part; compare CPU seconds when the
 load is high.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,15 +41,15 @@ import time
 from pathlib import Path
 from unittest import mock
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
-from contact.setup import geometry
-from contact.setup.config import load_config
 from contact.post.hertz import patch_average
 from contact.post.reference import compare
+from contact.setup import geometry
+from contact.setup.config import load_config
 from contact.solvers import owned_residual
+
+import numpy as np
+from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "demos" / "results" / "meshing"
@@ -57,19 +59,30 @@ QUIET = ["output.verbose=false"]
 #: gmsh options to compare, by name, for the tetrahedra (3D) and the triangles (2D); they
 #: replace :data:`contact.setup.geometry.TETRAHEDRA` / :data:`~contact.setup.geometry.TRIANGLES`
 VARIANTS = {
-    3: {"chosen": dict(geometry.TETRAHEDRA),
-        "delaunay+netgen": {"Mesh.Algorithm3D": 1, "General.NumThreads": 1,
-                            "Mesh.OptimizeNetgen": 1},
+    3: {
+        "chosen": dict(geometry.TETRAHEDRA),
+        "delaunay+netgen": {
+            "Mesh.Algorithm3D": 1,
+            "General.NumThreads": 1,
+            "Mesh.OptimizeNetgen": 1,
+        },
         "delaunay": {"Mesh.Algorithm3D": 1, "General.NumThreads": 1},
         "hxt+optimise": {**geometry.TETRAHEDRA, "Mesh.OptimizeThreshold": 0.45},
-        "hxt 2 threads": {**geometry.TETRAHEDRA, "General.NumThreads": 2}},
-    2: {"chosen": dict(geometry.TRIANGLES),
+        "hxt 2 threads": {**geometry.TETRAHEDRA, "General.NumThreads": 2},
+    },
+    2: {
+        "chosen": dict(geometry.TRIANGLES),
         "1 thread": {**geometry.TRIANGLES, "Mesh.MaxNumThreads2D": 1},
-        "delaunay": {**geometry.TRIANGLES, "Mesh.Algorithm": 5}},
+        "delaunay": {**geometry.TRIANGLES, "Mesh.Algorithm": 5},
+    },
 }
 #: builder -> (scene file whose h, zone it takes, dimension)
-KINDS = {"sphere_on_block": ("two_body_hertz_3d.yaml", 3), "sphere_octant": ("hertz_3d.yaml", 3),
-         "half_disks": ("two_body_hertz_2d.yaml", 2), "quarter_disk": ("hertz_2d.yaml", 2)}
+KINDS = {
+    "sphere_on_block": ("two_body_hertz_3d.yaml", 3),
+    "sphere_octant": ("hertz_3d.yaml", 3),
+    "half_disks": ("two_body_hertz_2d.yaml", 2),
+    "quarter_disk": ("hertz_2d.yaml", 2),
+}
 
 
 def say(*args) -> None:
@@ -103,8 +116,11 @@ def table(rows: list[dict]) -> None:
     if rows:
         say("  ".join(f"{k:>14s}" for k in rows[0]))
         for r in rows:
-            say("  ".join(f"{v:>14.4g}" if isinstance(v, float) else f"{str(v):>14s}"
-                          for v in r.values()))
+            say(
+                "  ".join(
+                    f"{v:>14.4g}" if isinstance(v, float) else f"{str(v):>14s}" for v in r.values()
+                )
+            )
 
 
 class GmshClock:
@@ -144,8 +160,9 @@ def build(kind: str, h_contact: float):
     if kind == "sphere_on_block":
         return geometry.sphere_on_block(MPI.COMM_SELF, m["radius"], m["block"], *sizes)[0]
     if kind == "half_disks":
-        return geometry.half_disks(MPI.COMM_SELF, m["radius"], m["radius2"] or m["radius"],
-                                   *sizes, m["overlap"] or 0.0)[0]
+        return geometry.half_disks(
+            MPI.COMM_SELF, m["radius"], m["radius2"] or m["radius"], *sizes, m["overlap"] or 0.0
+        )[0]
     return getattr(geometry, kind)(MPI.COMM_SELF, m["radius"], *sizes)[0]
 
 
@@ -155,8 +172,9 @@ def fingerprint(msh) -> str:
     return hashlib.sha1(X[np.lexsort(X.T[::-1])].tobytes()).hexdigest()[:12]
 
 
-def mesh_part(kinds: list[str], sizes: dict[str, list[float]], variants: list[str] | None,
-              repeat: int) -> None:
+def mesh_part(
+    kinds: list[str], sizes: dict[str, list[float]], variants: list[str] | None, repeat: int
+) -> None:
     if comm.rank != 0:
         return
     rows = []
@@ -173,19 +191,28 @@ def mesh_part(kinds: list[str], sizes: dict[str, list[float]], variants: list[st
                         msh = build(kind, h_contact)
                         wall, cpu = time.perf_counter() - t, time.process_time() - c
                     prints.append(fingerprint(msh))
-                row = {"kind": kind, "h_contact": h_contact, "variant": variant,
-                       "vertices": msh.topology.index_map(0).size_global,
-                       "cells": msh.topology.index_map(dim).size_global,
-                       "gmsh_wall": round(clock.wall, 2), "gmsh_cpu": round(clock.cpu, 2),
-                       "builder_wall": round(wall, 2), "builder_cpu": round(cpu, 2),
-                       "worst_angle": round(geometry.worst_angle(msh), 2),
-                       "repeatable": "" if repeat < 2 else len(set(prints)) == 1,
-                       "load": round(os.getloadavg()[0], 2)}
+                row = {
+                    "kind": kind,
+                    "h_contact": h_contact,
+                    "variant": variant,
+                    "vertices": msh.topology.index_map(0).size_global,
+                    "cells": msh.topology.index_map(dim).size_global,
+                    "gmsh_wall": round(clock.wall, 2),
+                    "gmsh_cpu": round(clock.cpu, 2),
+                    "builder_wall": round(wall, 2),
+                    "builder_cpu": round(cpu, 2),
+                    "worst_angle": round(geometry.worst_angle(msh), 2),
+                    "repeatable": "" if repeat < 2 else len(set(prints)) == 1,
+                    "load": round(os.getloadavg()[0], 2),
+                }
                 rows.append(row)
-                print(f"{kind} h_contact {h_contact} {variant}: {row['vertices']} vertices, "
-                      f"gmsh {row['gmsh_wall']} s ({row['gmsh_cpu']} s CPU), builder "
-                      f"{row['builder_wall']} s, worst angle {row['worst_angle']}°, repeatable "
-                      f"{row['repeatable']} ({load()})", flush=True)
+                print(
+                    f"{kind} h_contact {h_contact} {variant}: {row['vertices']} vertices, "
+                    f"gmsh {row['gmsh_wall']} s ({row['gmsh_cpu']} s CPU), builder "
+                    f"{row['builder_wall']} s, worst angle {row['worst_angle']}°, repeatable "
+                    f"{row['repeatable']} ({load()})",
+                    flush=True,
+                )
     table(rows)
     write("mesh.csv", rows, ("kind", "h_contact", "variant"))
 
@@ -211,9 +238,13 @@ def rms_to_hertz(values: dict, rho: np.ndarray, pressure: np.ndarray) -> float:
 
 def errors(v: dict, rho: np.ndarray, pressure: np.ndarray, smooth: np.ndarray) -> dict:
     """The columns a_error, p0_error, p0_nodal_error, rms_nodal, rms_patch."""
-    return {"a_error": v["a_error"], "p0_error": v["p0_error"],
-            "p0_nodal_error": v["p0_nodal_error"], "rms_nodal": rms_to_hertz(v, rho, pressure),
-            "rms_patch": rms_to_hertz(v, rho, smooth)}
+    return {
+        "a_error": v["a_error"],
+        "p0_error": v["p0_error"],
+        "p0_nodal_error": v["p0_nodal_error"],
+        "rms_nodal": rms_to_hertz(v, rho, pressure),
+        "rms_patch": rms_to_hertz(v, rho, smooth),
+    }
 
 
 def hertz_part(sizes: list[float], variants: list[str]) -> None:
@@ -222,8 +253,10 @@ def hertz_part(sizes: list[float], variants: list[str]) -> None:
         for h_contact in sizes:
             with options(3, variant), GmshClock() as clock:
                 t, c = time.perf_counter(), time.process_time()
-                scene = contact.load_scene(ROOT / "configs" / "two_body_hertz_3d.yaml",
-                                           QUIET + [f"mesh.h_contact={h_contact}", "adapt=null"])
+                scene = contact.load_scene(
+                    ROOT / "configs" / "two_body_hertz_3d.yaml",
+                    QUIET + [f"mesh.h_contact={h_contact}", "adapt=null"],
+                )
                 load_wall, load_cpu = time.perf_counter() - t, time.process_time() - c
             t, c = time.perf_counter(), time.process_time()
             r = contact.solve(scene, method="fb", verbose=False)
@@ -231,23 +264,32 @@ def hertz_part(sizes: list[float], variants: list[str]) -> None:
             v = compare(scene, r).values
             rho, pressure, smooth = sphere_pressures(scene, r)
             gmsh_wall, gmsh_cpu = comm.bcast((clock.wall, clock.cpu), root=0)
-            row = {"variant": variant, "h_contact": h_contact, "ranks": comm.size,
-                   "dofs": r.dofs,
-                   "load_wall": round(comm.allreduce(load_wall, op=MPI.MAX), 2),
-                   "load_cpu": round(comm.allreduce(load_cpu, op=MPI.SUM), 2),
-                   "gmsh_wall": round(gmsh_wall, 2), "gmsh_cpu": round(gmsh_cpu, 2),
-                   "worst_angle": round(geometry.worst_angle(scene.mesh), 2),
-                   "coarse_dofs": " ".join(str(level.dofs) for level in r.sequence),
-                   "newton": f"{r.iterations}+{r.polish_solves}", "krylov": r.krylov_iterations,
-                   "solve_wall": round(comm.allreduce(solve_wall, op=MPI.MAX), 1),
-                   "solve_cpu": round(comm.allreduce(solve_cpu, op=MPI.SUM), 1),
-                   "converged": r.converged, **errors(v, rho, pressure, smooth),
-                   "load": round(os.getloadavg()[0], 2)}
+            row = {
+                "variant": variant,
+                "h_contact": h_contact,
+                "ranks": comm.size,
+                "dofs": r.dofs,
+                "load_wall": round(comm.allreduce(load_wall, op=MPI.MAX), 2),
+                "load_cpu": round(comm.allreduce(load_cpu, op=MPI.SUM), 2),
+                "gmsh_wall": round(gmsh_wall, 2),
+                "gmsh_cpu": round(gmsh_cpu, 2),
+                "worst_angle": round(geometry.worst_angle(scene.mesh), 2),
+                "coarse_dofs": " ".join(str(level.dofs) for level in r.sequence),
+                "newton": f"{r.iterations}+{r.polish_solves}",
+                "krylov": r.krylov_iterations,
+                "solve_wall": round(comm.allreduce(solve_wall, op=MPI.MAX), 1),
+                "solve_cpu": round(comm.allreduce(solve_cpu, op=MPI.SUM), 1),
+                "converged": r.converged,
+                **errors(v, rho, pressure, smooth),
+                "load": round(os.getloadavg()[0], 2),
+            }
             rows.append(row)
-            say(f"{variant} h_contact {h_contact}: {r.dofs} DoFs, load_scene {row['load_wall']} s "
+            say(
+                f"{variant} h_contact {h_contact}: {r.dofs} DoFs, load_scene {row['load_wall']} s "
                 f"(gmsh {row['gmsh_wall']} s), solve {row['solve_wall']} s, "
                 f"a {100 * v['a_error']:+.2f}%, p0 {100 * v['p0_error']:+.2f}% "
-                f"(nodal {100 * v['p0_nodal_error']:+.2f}%) ({load()})")
+                f"(nodal {100 * v['p0_nodal_error']:+.2f}%) ({load()})"
+            )
     table(rows)
     write("hertz.csv", rows, ("variant", "h_contact", "ranks"))
 
@@ -259,8 +301,14 @@ def refined_part() -> None:
     def on_level(level):
         v = compare(level.scene, level.result).values
         rho, pressure, smooth = sphere_pressures(level.scene, level.result)
-        rows.append({"level": level.index, "ranks": comm.size, "dofs": level.result.dofs,
-                     **errors(v, rho, pressure, smooth)})
+        rows.append(
+            {
+                "level": level.index,
+                "ranks": comm.size,
+                "dofs": level.result.dofs,
+                **errors(v, rho, pressure, smooth),
+            }
+        )
 
     contact.adapt(scene, method="fb", on_level=on_level, verbose=False)
     say(f"two_body_hertz_3d, Dörfler refinement, {comm.size} ranks ({load()})")
@@ -272,20 +320,34 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("part", choices=("mesh", "hertz", "refined"))
     parser.add_argument("--kinds", nargs="+", choices=list(KINDS), default=list(KINDS))
-    parser.add_argument("--h-contact", type=float, nargs="+", default=None,
-                        help="mesh: sizes for every kind (default: 0.005 and 0.0025 for "
-                             "sphere_on_block, 0.005 for sphere_octant, 0.004 for half_disks, "
-                             "0.001 for quarter_disk); hertz: default 0.01 0.005 0.0025")
-    parser.add_argument("--variants", nargs="+", default=None,
-                        help=f"mesh: of {', '.join(sorted(set(VARIANTS[2]) | set(VARIANTS[3])))}"
-                             " (default all); hertz: 3D ones (default chosen)")
-    parser.add_argument("--repeat", type=int, default=2,
-                        help="mesh: builds of each mesh (repeatable column)")
+    parser.add_argument(
+        "--h-contact",
+        type=float,
+        nargs="+",
+        default=None,
+        help="mesh: sizes for every kind (default: 0.005 and 0.0025 for "
+        "sphere_on_block, 0.005 for sphere_octant, 0.004 for half_disks, "
+        "0.001 for quarter_disk); hertz: default 0.01 0.005 0.0025",
+    )
+    parser.add_argument(
+        "--variants",
+        nargs="+",
+        default=None,
+        help=f"mesh: of {', '.join(sorted(set(VARIANTS[2]) | set(VARIANTS[3])))}"
+        " (default all); hertz: 3D ones (default chosen)",
+    )
+    parser.add_argument(
+        "--repeat", type=int, default=2, help="mesh: builds of each mesh (repeatable column)"
+    )
     args = parser.parse_args(argv)
     say(f"{args.part}: {comm.size} rank(s), {load()}")
     if args.part == "mesh":
-        default = {"sphere_on_block": [0.005, 0.0025], "sphere_octant": [0.005],
-                   "half_disks": [0.004], "quarter_disk": [0.001]}
+        default = {
+            "sphere_on_block": [0.005, 0.0025],
+            "sphere_octant": [0.005],
+            "half_disks": [0.004],
+            "quarter_disk": [0.001],
+        }
         sizes = {k: args.h_contact or default[k] for k in args.kinds}
         mesh_part(args.kinds, sizes, args.variants, args.repeat)
     elif args.part == "hertz":

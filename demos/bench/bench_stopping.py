@@ -19,6 +19,7 @@ final errors within 5 %) and writes ``stopping.csv`` (one row per run) and
 Elasticity (hertz_2d) is not measured: the equilibrated estimator, hence η_disc, exists for
 the scalar models only (``solver.stopping: adaptive`` needs ``estimator: equilibrated``).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,22 +27,29 @@ import collections
 import time
 from pathlib import Path
 
-from mpi4py import MPI
-
 import contact
-from common import save_csv
 from contact.drivers import adaptive as loop
+
+from common import save_csv
+from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[2]
 MODES = ("fixed", "adaptive")
 #: the loop's phases (functions of contact.drivers.adaptive) whose CPU seconds are counted
-PHASES = {"build_problem": "assembly", "solve": "solve", "estimate": "estimate",
-          "solution_error": "error", "mark": "mark", "refine": "refine"}
+PHASES = {
+    "build_problem": "assembly",
+    "solve": "solve",
+    "estimate": "estimate",
+    "solution_error": "error",
+    "mark": "mark",
+    "refine": "refine",
+}
 CPU: dict[str, float] = collections.defaultdict(float)
 
 
 def _count_cpu() -> None:
     """Wrap the loop's phase functions so that their CPU seconds add up in :data:`CPU`."""
+
     def timed(fn, key):
         def call(*args, **kwargs):
             c = time.process_time()
@@ -49,16 +57,25 @@ def _count_cpu() -> None:
                 return fn(*args, **kwargs)
             finally:
                 CPU[key] += time.process_time() - c
+
         return call
+
     for name, key in PHASES.items():
         setattr(loop, name, timed(getattr(loop, name), key))
 
 
 def run(mode: str, tol: float, extra: list[str]) -> tuple[dict, list[dict]]:
     """One adaptive loop of problem A to η ≤ ``tol``; (the run's row, its levels' rows)."""
-    sets = ["estimator=equilibrated", "output.verbose=false", "solver.linear=gamg",
-            f"solver.stopping={mode}", f"adapt.tol={tol}", "adapt.max_levels=60",
-            "adapt.max_dofs=5000000", *extra]
+    sets = [
+        "estimator=equilibrated",
+        "output.verbose=false",
+        "solver.linear=gamg",
+        f"solver.stopping={mode}",
+        f"adapt.tol={tol}",
+        "adapt.max_levels=60",
+        "adapt.max_dofs=5000000",
+        *extra,
+    ]
     scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", sets)
     MPI.COMM_WORLD.Barrier()
     CPU.clear()
@@ -68,18 +85,28 @@ def run(mode: str, tol: float, extra: list[str]) -> tuple[dict, list[dict]]:
     cpu = MPI.COMM_WORLD.allreduce(time.process_time() - c0, op=MPI.MAX)
     levels = [{"mode": mode, **lv.row()} for lv in out.levels]
     last = out.levels[-1]
-    row = {"mode": mode, "ranks": MPI.COMM_WORLD.size, "tol": tol, "levels": len(levels),
-           "dofs": last.result.dofs, "eta": last.estimate.eta, "error": last.error,
-           "krylov_iterations": sum(r["krylov_iterations"] for r in levels),
-           "newton_iterations": sum(r["newton_iterations"] for r in levels),
-           "polish_solves": sum(r["polish_solves"] for r in levels),
-           "solve_passes": sum(r["solve_passes"] for r in levels),
-           "seconds_solve": round(sum(r["seconds_solve"] for r in levels), 3),
-           "seconds_estimate": round(sum(r["seconds_estimate"] for r in levels), 3),
-           "wall": round(wall, 3), "cpu": round(cpu, 3),
-           **{f"cpu_{k}": round(MPI.COMM_WORLD.allreduce(CPU[k], op=MPI.MAX), 3)
-              for k in PHASES.values()},
-           "stop": out.stop}
+    row = {
+        "mode": mode,
+        "ranks": MPI.COMM_WORLD.size,
+        "tol": tol,
+        "levels": len(levels),
+        "dofs": last.result.dofs,
+        "eta": last.estimate.eta,
+        "error": last.error,
+        "krylov_iterations": sum(r["krylov_iterations"] for r in levels),
+        "newton_iterations": sum(r["newton_iterations"] for r in levels),
+        "polish_solves": sum(r["polish_solves"] for r in levels),
+        "solve_passes": sum(r["solve_passes"] for r in levels),
+        "seconds_solve": round(sum(r["seconds_solve"] for r in levels), 3),
+        "seconds_estimate": round(sum(r["seconds_estimate"] for r in levels), 3),
+        "wall": round(wall, 3),
+        "cpu": round(cpu, 3),
+        **{
+            f"cpu_{k}": round(MPI.COMM_WORLD.allreduce(CPU[k], op=MPI.MAX), 3)
+            for k in PHASES.values()
+        },
+        "stop": out.stop,
+    }
     return row, levels
 
 
@@ -88,19 +115,22 @@ def verdict(rows: list[dict]) -> str:
     f, a = best["fixed"], best["adaptive"]
     ratio = f["krylov_iterations"] / max(a["krylov_iterations"], 1)
     err = abs(a["error"] - f["error"]) / f["error"]
-    return (f"Krylov iterations {f['krylov_iterations']} -> {a['krylov_iterations']} "
-            f"({ratio:.2f}x fewer, "
-            f">= 2: {ratio >= 2}); CPU (best of runs) {f['cpu']:.2f} -> {a['cpu']:.2f} s "
-            f"(less: {a['cpu'] < f['cpu']}; wall {f['wall']:.2f} -> {a['wall']:.2f} s); "
-            f"final error {f['error']:.4e} -> {a['error']:.4e} "
-            f"({100 * err:.2f} %, <= 5 %: {err <= 0.05}); "
-            f"final eta {f['eta']:.4e} / {a['eta']:.4e}, "
-            f"DoFs {f['dofs']} / {a['dofs']}")
+    return (
+        f"Krylov iterations {f['krylov_iterations']} -> {a['krylov_iterations']} "
+        f"({ratio:.2f}x fewer, "
+        f">= 2: {ratio >= 2}); CPU (best of runs) {f['cpu']:.2f} -> {a['cpu']:.2f} s "
+        f"(less: {a['cpu'] < f['cpu']}; wall {f['wall']:.2f} -> {a['wall']:.2f} s); "
+        f"final error {f['error']:.4e} -> {a['error']:.4e} "
+        f"({100 * err:.2f} %, <= 5 %: {err <= 0.05}); "
+        f"final eta {f['eta']:.4e} / {a['eta']:.4e}, "
+        f"DoFs {f['dofs']} / {a['dofs']}"
+    )
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--tol", type=float, default=2e-3, help="adapt.tol: the final η of both runs")
     ap.add_argument("--repeat", type=int, default=2, help="runs of each mode, alternating")
     ap.add_argument("--set", action="append", default=[], help="further scene overrides")
@@ -114,14 +144,16 @@ def main() -> None:
             rows.append({"run": k, **row})
             levels += [{"run": k, **r} for r in lv]
             if MPI.COMM_WORLD.rank == 0:
-                print(f"{mode:8s} run {k}: {row['levels']} levels, {row['dofs']} DoFs, "
-                      f"eta {row['eta']:.4e}, "
-                      f"error {row['error']:.4e}, Krylov {row['krylov_iterations']}, Newton "
-                      f"{row['newton_iterations']} (+{row['polish_solves']}), "
-                      f"wall {row['wall']:.2f} s, CPU {row['cpu']:.2f} s (of which solve "
-                      f"{row['cpu_solve']:.2f}, estimate {row['cpu_estimate']:.2f}, refine "
-                      f"{row['cpu_refine']:.2f})",
-                      flush=True)
+                print(
+                    f"{mode:8s} run {k}: {row['levels']} levels, {row['dofs']} DoFs, "
+                    f"eta {row['eta']:.4e}, "
+                    f"error {row['error']:.4e}, Krylov {row['krylov_iterations']}, Newton "
+                    f"{row['newton_iterations']} (+{row['polish_solves']}), "
+                    f"wall {row['wall']:.2f} s, CPU {row['cpu']:.2f} s (of which solve "
+                    f"{row['cpu_solve']:.2f}, estimate {row['cpu_estimate']:.2f}, refine "
+                    f"{row['cpu_refine']:.2f})",
+                    flush=True,
+                )
     if MPI.COMM_WORLD.rank == 0:
         print(verdict(rows), flush=True)
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"

@@ -12,6 +12,7 @@ never load half a library.  Under MPI, rank 0 compiles while the
 others wait, the outcome is broadcast (an error ends every rank with the same message),
 and a rank that does not see rank 0's file (a node-local cache) compiles its own.
 """
+
 from __future__ import annotations
 
 import functools
@@ -34,14 +35,26 @@ _LOADED: dict = {}
 def dimensions(ref: Reference, nu: int) -> dict:
     """The compile-time constants of :mod:`.kernel_c` for ``ref`` and dim P_p = ``nu``."""
     d = ref.d
-    return {"DIM": d, "NV": d + 1, "NQ": len(ref.w), "NQF": len(ref.wS), "NU": nu, "M": ref.m,
-            "NP": ref.np_, "MZ": ref.Z.shape[1], "NF": ref.nf, "NPERM": len(ref.perms),
-            "NLOOK": d ** d}
+    return {
+        "DIM": d,
+        "NV": d + 1,
+        "NQ": len(ref.w),
+        "NQF": len(ref.wS),
+        "NU": nu,
+        "M": ref.m,
+        "NP": ref.np_,
+        "MZ": ref.Z.shape[1],
+        "NF": ref.nf,
+        "NPERM": len(ref.perms),
+        "NLOOK": d**d,
+    }
 
 
 def cache_dir() -> Path:
-    base = os.environ.get("CONTACT_CACHE_DIR") or \
-        Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "contact"
+    base = (
+        os.environ.get("CONTACT_CACHE_DIR")
+        or Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "contact"
+    )
     return Path(base)
 
 
@@ -108,7 +121,7 @@ def library(comm: MPI.Comm, ref: Reference, nu: int):
         path = _path(dims)
         error = comm.bcast(_compile(dims, path) if comm.rank == 0 else "", root=0)
         if not error and key not in _LOADED:
-            error = _compile(dims, path)          # a no-op where rank 0's file is seen
+            error = _compile(dims, path)  # a no-op where rank 0's file is seen
             if not error:
                 try:
                     ffi = cffi.FFI()

@@ -14,17 +14,17 @@ its nodes (P2) replaced by a function of one sign with the same lumped moments
 inputs are DOLFINx functions, UFL expressions and facet tags (:class:`FluxData`), so the
 same reconstruction serves other models (row-wise for elasticity).
 """
+
 from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Callable
-
-import numpy as np
 
 import basix.ufl
+import numpy as np
 from dolfinx import fem
 
 from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
@@ -58,9 +58,9 @@ class Flux:
 
     sigma_h: fem.Function
     lmbda_clip: fem.Function  # λ_h with wrong-signed nodal values clipped (the element of u_h)
-    bubble: fem.Function      # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
-    kappa: fem.Function       # DG0: κ of the cell's contact entity (the largest of its facets')
-    osc: np.ndarray      # (owned cells,) osc_T
+    bubble: fem.Function  # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
+    kappa: fem.Function  # DG0: κ of the cell's contact entity (the largest of its facets')
+    osc: np.ndarray  # (owned cells,) osc_T
     defect: float
     seconds: dict = field(default_factory=dict)
     cells: Callable[[], fem.Function] | None = field(default=None, repr=False)
@@ -76,8 +76,9 @@ class Flux:
         return self.kappa * (self.lmbda_clip - 0.5 * self.bubble)
 
 
-def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float = 0.0,
-                     backend: str = "compiled") -> Flux:
+def reconstruct_flux(
+    data: FluxData, multiplier: str | None = None, sign: float = 0.0, backend: str = "compiled"
+) -> Flux:
     """σ_h of the module docstring.  ``multiplier``: None, "facets" (λ on the ``contact``
     facets, Signorini) or "cells" (λ in Ω, obstacle); ``sign``: the sign λ̃ must have
     (−1: ≤ 0, +1: ≥ 0, 0: any); ``backend``: one of :data:`BACKENDS`.  Collective."""
@@ -102,9 +103,10 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     if backend == "compiled":
         try:
             library(comm, ref, table.U.shape[1])
-        except RuntimeError as err:         # no C compiler: the NumPy solver, same numbers, slower
-            warnings.warn(f"{err}; the flux reconstruction falls back to backend='numpy'",
-                          stacklevel=2)
+        except RuntimeError as err:  # no C compiler: the NumPy solver, same numbers, slower
+            warnings.warn(
+                f"{err}; the flux reconstruction falls back to backend='numpy'", stacklevel=2
+            )
             backend = "numpy"
     if backend == "compiled":
         out, osc = solve_patches_compiled(comm, work, vmap.local_range, ref, multiplier, sign)
@@ -116,7 +118,7 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
     if backend == "compiled":
-        sigma_h = rt_function(msh, ref, alpha)          # transforms alpha in place
+        sigma_h = rt_function(msh, ref, alpha)  # transforms alpha in place
         sigma_cells = None
     else:
         sigma_cells = cellwise(msh, ref, table, alpha)
@@ -125,8 +127,11 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
     lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
     clock.lap("assemble")
     defect = comm.allreduce(out.defect)
-    cells = (lambda: sigma_cells) if sigma_cells is not None else \
-        (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
+    cells = (
+        (lambda: sigma_cells)
+        if sigma_cells is not None
+        else (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
+    )
     return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells)
 
 
@@ -144,8 +149,9 @@ class _Clock:
 
 
 def _rt_space(msh, ref: Reference) -> fem.FunctionSpace:
-    return fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1,
-                                                    basix.LagrangeVariant.legendre))
+    return fem.functionspace(
+        msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1, basix.LagrangeVariant.legendre)
+    )
 
 
 def rt_function(msh, ref: Reference, alpha: np.ndarray) -> fem.Function:
@@ -193,7 +199,7 @@ def cellwise(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fem.Fu
     W = fem.functionspace(msh, ("DG", p + 1, (d,)))
     W0 = fem.functionspace(msh, ("DG", p + 1))
     points = W0.element.basix_element.points
-    phi = _rt_element(d, p).tabulate(0, points)[0]                     # (npts, m, d)
+    phi = _rt_element(d, p).tabulate(0, points)[0]  # (npts, m, d)
     x = table.x
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     det = np.linalg.det(J)
@@ -212,7 +218,9 @@ def _rt_element(d: int, p: int):
 
     from .reference import CELLS
 
-    return basix.create_element(basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre)
+    return basix.create_element(
+        basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre
+    )
 
 
 def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, DG0):
@@ -225,8 +233,14 @@ def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign,
     kappa = np.ones(n)
     if multiplier is not None:
         kappa[:] = 0.0 if multiplier == "facets" else 1.0
-        entities = [(cell_rule(ref), np.arange(n))] if multiplier == "cells" else \
-            [(facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT)) for j in range(ref.d + 1)]
+        entities = (
+            [(cell_rule(ref), np.arange(n))]
+            if multiplier == "cells"
+            else [
+                (facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT))
+                for j in range(ref.d + 1)
+            ]
+        )
         for rule, rows in entities:
             _, k, beta = shares(nodal[rows], rule, sign)
             kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
@@ -255,16 +269,18 @@ def _oscillation(table: CellTable, ref: Reference) -> np.ndarray:
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     absdet = np.abs(det_inv(J)[0])
     vol = absdet / np.prod(np.arange(1, d + 1))
-    h = np.max([np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0)
+    h = np.max(
+        [np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0
+    )
     Q, w = ref.Q, ref.w
-    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q              # f − Π_p f at the points
+    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q  # f − Π_p f at the points
     osc = h / np.pi * np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
     q, wS = ref.q, ref.wS
-    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q            # t − Π_p t, (n, D, nqf)
+    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q  # t − Π_p t, (n, D, nqf)
     for j in range(D):
         E = x[:, [v for v in range(D) if v != j]]
         E = E[:, 1:] - E[:, :1]
-        size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))    # |F| / |F̂|
+        size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))  # |F| / |F̂|
         area = size / np.prod(np.arange(1, d))
         norm = np.sqrt(size * (trest[:, j] ** 2 @ wS))
         osc += h * np.sqrt(area / vol * (1 / np.pi**2 + 2 / (d * np.pi))) * norm

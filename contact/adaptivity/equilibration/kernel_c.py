@@ -21,8 +21,16 @@ Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out o
 """
 
 #: the per-cell work row of eq_cells, in this order (sizes in the macros above)
-WORK_LAYOUT = ("S: DNF*DNF", "OZ: DNF*MZ", "MZinv: MZ*MZ", "ZMR: MZ*NP", "beta: NV*NP",
-               "ZTg: NV*MZ", "h: NV*DNF", "data: NV*NV*NF")
+WORK_LAYOUT = (
+    "S: DNF*DNF",
+    "OZ: DNF*MZ",
+    "MZinv: MZ*MZ",
+    "ZMR: MZ*NP",
+    "beta: NV*NP",
+    "ZTg: NV*MZ",
+    "h: NV*DNF",
+    "data: NV*NV*NF",
+)
 
 CDEF = """
 typedef struct {
@@ -48,7 +56,10 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
 """
 
 HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n"
-SOURCE = HEADERS + CDEF + r"""
+SOURCE = (
+    HEADERS
+    + CDEF
+    + r"""
 
 #define PI_ 3.14159265358979323846
 #define MAXN (MZ > NF ? MZ : NF)
@@ -1151,3 +1162,4 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   return err;
 }
 """
+)

@@ -7,6 +7,7 @@ minimizer is unique, so σ_h agrees with the NumPy backend to round-off.  NumPy 
 what the flops cost.  Here: the reference tables in the kernel's layout, the multiplier
 shares of :mod:`.multiplier` (vectorized, only on contact entities), and the call.
 """
+
 from __future__ import annotations
 
 import functools
@@ -34,17 +35,32 @@ def _tables(d: int, p: int, nu: int) -> dict:
     r = reference(d, p)
     t = _data_tables(r, nu)
     D = d + 1
-    lookup = np.full(max(d ** d, 1), -1, dtype=np.int64)
+    lookup = np.full(max(d**d, 1), -1, dtype=np.int64)
     for i, pi in enumerate(r.perms):
         code = 0
         for rank in pi:
             code = code * d + rank
         lookup[code] = i
-    arrays = {"w": r.w, "ZZ": _projected(r, "ZZ"), "ZR": _projected(r, "ZR"),
-              "NZ": np.einsum("jkm,mz->jkz", r.N, r.Z), "NR": np.einsum("jkm,mz->jkz", r.N, r.R),
-              "P": r.P, "ZG": t["ZG"], "wlamQ": t["wlamQ"], "wQ": t["wQ"], "dphi": t["dphi_u"],
-              "dlam": r.dlam, "base": np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q), "R": r.R,
-              "Z": r.Z, "kappa": r.kappa, "Q": r.Q, "q": r.q, "wS": r.wS}
+    arrays = {
+        "w": r.w,
+        "ZZ": _projected(r, "ZZ"),
+        "ZR": _projected(r, "ZR"),
+        "NZ": np.einsum("jkm,mz->jkz", r.N, r.Z),
+        "NR": np.einsum("jkm,mz->jkz", r.N, r.R),
+        "P": r.P,
+        "ZG": t["ZG"],
+        "wlamQ": t["wlamQ"],
+        "wQ": t["wQ"],
+        "dphi": t["dphi_u"],
+        "dlam": r.dlam,
+        "base": np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q),
+        "R": r.R,
+        "Z": r.Z,
+        "kappa": r.kappa,
+        "Q": r.Q,
+        "q": r.q,
+        "wS": r.wS,
+    }
     out = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
     assert out["base"].shape == (D, D, r.nf, len(r.wS))
     out["lookup"] = lookup
@@ -75,15 +91,20 @@ def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: 
     return out
 
 
-def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int, int],
-                           ref: Reference, multiplier: str | None,
-                           sign: float) -> tuple[PatchOutput, np.ndarray]:
+def solve_patches_compiled(
+    comm: MPI.Comm,
+    table: CellTable,
+    vertices: tuple[int, int],
+    ref: Reference,
+    multiplier: str | None,
+    sign: float,
+) -> tuple[PatchOutput, np.ndarray]:
     """The patches of the vertices with global index in [vertices[0], vertices[1]) (complete in
     ``table``), and osc_T of every row.  Collective (the kernel is loaded collectively)."""
     nu = table.U.shape[1]
     ffi, lib = library(comm, ref, nu)
     tabs = _tables(ref.d, ref.p, nu)
-    keep = []                                   # the buffers must outlive the call
+    keep = []  # the buffers must outlive the call
 
     def ptr(a, ctype="double"):
         if a is None:
@@ -103,7 +124,7 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
     t.kind = ptr(table.kind.astype(np.int8, copy=False), "int8_t")
     for name in ("x", "U", "t"):
         setattr(t, name, ptr(getattr(table, name).astype(np.float64, copy=False)))
-    for name in ("f", "k"):                     # a constant is a stride-0 view (cells._at_points)
+    for name in ("f", "k"):  # a constant is a stride-0 view (cells._at_points)
         a = getattr(table, name)
         constant = len(a) > 0 and a.strides[0] == 0
         setattr(t, name, ptr(a[0] if constant else a))
@@ -115,13 +136,17 @@ def solve_patches_compiled(comm: MPI.Comm, table: CellTable, vertices: tuple[int
     alpha = np.zeros((len(table), ref.m))
     osc = np.full(len(table), np.nan)
     stats = np.zeros(3)
-    err = lib.eq_patches(r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc),
-                         ptr(stats))
+    err = lib.eq_patches(
+        r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc), ptr(stats)
+    )
     lib.eq_oscillation(r, t, ptr(osc))
     err = comm.allreduce(err, op=MPI.MAX)
     if err:
-        what = {1: "a singular cell matrix (a degenerate cell?)", 2: "a singular vertex-patch system",
-                3: "out of memory"}.get(err, f"error {err}")
+        what = {
+            1: "a singular cell matrix (a degenerate cell?)",
+            2: "a singular vertex-patch system",
+            3: "out of memory",
+        }.get(err, f"error {err}")
         raise RuntimeError(f"flux reconstruction: {what}")
     counters = {"cell_evaluations": int(stats[1]), "work_rows": int(stats[2])}
     out = PatchOutput(alpha, float(stats[0]), counters)
