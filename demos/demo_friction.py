@@ -32,13 +32,13 @@
 # +
 import sys
 
+import contact
+from contact.output.plots import plot_traction
+from contact.post.contact_table import contact_table
+from contact.post.friction_resultants import surface_figures
+
 import numpy as np
 from mpi4py import MPI
-
-import contact
-from contact.post.contact_table import contact_table
-from contact.output.plots import plot_traction
-from contact.post.friction_resultants import surface_figures
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 80
 comm = MPI.COMM_WORLD
@@ -47,6 +47,8 @@ comm = MPI.COMM_WORLD
 def say(*args):
     if comm.rank == 0:
         print(*args, flush=True)
+
+
 # -
 
 # ## The scene
@@ -61,12 +63,14 @@ scene_data = {
     "name": "demo_friction",
     "constants": {"delta": 0.01, "drag": 0.04},
     "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 0.5]], "cells": [N, N // 4]},
-    "boundaries": {"bottom": {"role": "contact", "where": "y < 1e-10"},
-                   "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"}},
+    "boundaries": {
+        "bottom": {"role": "contact", "where": "y < 1e-10"},
+        "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"},
+    },
     "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
     "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]},
     "data": {"u_D": ["drag*max(t - 0.2, 0)/0.8", "-delta*min(t/0.2, 1)"]},
-    "friction": {"law": "coulomb", "coefficient": 0.3},   # tangential form: hsw (default)
+    "friction": {"law": "coulomb", "coefficient": 0.3},  # tangential form: hsw (default)
     "load": {"steps": 10},
     "solver": {"method": "min"},
     "output": {"verbose": False},
@@ -84,22 +88,26 @@ scene = contact.load_scene(scene_data)
 # $F_t = \sum_i w_i \lambda_{t,i}$ with the lumped weights $w_i = \int_{\Gamma_C} \varphi_i$.
 
 # +
-tables = []   # (t, contact table) of every step, for the picture below
+tables = []  # (t, contact table) of every step, for the picture below
 
 
 def show(step):
     tables.append((step.time, contact_table(step.scene, step.result)))
     fig = surface_figures(step.scene, step.result)
-    say(f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
-        f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}")
+    say(
+        f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
+        f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}"
+    )
 
 
 say(" step     t  Newton   stick   slip   F_t / F_n")
 path = contact.run_load_path(scene, on_step=show)
 fig = surface_figures(path.steps[-1].scene, path.steps[-1].result)
-say(f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
+say(
+    f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
     f"the support's reaction balances the contact force to "
-    f"{abs(fig['reaction_force'][0] + fig['contact_force'][0]):.1e}")
+    f"{abs(fig['reaction_force'][0] + fig['contact_force'][0]):.1e}"
+)
 # -
 
 # ## An independent check: the fixed point on the pressure
@@ -111,14 +119,22 @@ say(f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (
 
 # +
 newton = contact.solve(contact.load_scene({**scene_data, "load": {"steps": 1}}))
-fixed = contact.solve(contact.load_scene({**scene_data, "load": {"steps": 1},
-                                          "friction": {"law": "coulomb", "coefficient": 0.3,
-                                                       "coulomb": "fixed_point"}}))
+fixed = contact.solve(
+    contact.load_scene(
+        {
+            **scene_data,
+            "load": {"steps": 1},
+            "friction": {"law": "coulomb", "coefficient": 0.3, "coulomb": "fixed_point"},
+        }
+    )
+)
 diff = comm.allreduce(float(np.max(np.abs(newton.u_h.x.array - fixed.u_h.x.array))), op=MPI.MAX)
 diff /= comm.allreduce(float(np.max(np.abs(newton.u_h.x.array))), op=MPI.MAX)
-say(f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
+say(
+    f"one step to t = 1: Newton {newton.iterations} iterations, fixed point "
     f"{fixed.friction['fixed_point_iterations']} Tresca solves ({fixed.iterations} Newton "
-    f"iterations); max |u_newton - u_fixed| / max |u| = {diff:.1e}")
+    f"iterations); max |u_newton - u_fixed| / max |u| = {diff:.1e}"
+)
 # -
 
 # ## The tractions along Γ_C

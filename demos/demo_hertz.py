@@ -24,12 +24,12 @@
 
 import sys
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
 from contact.post.contact_table import contact_table
 from contact.post.resultants import contact_resultants
+
+import numpy as np
+from mpi4py import MPI
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 5
 comm = MPI.COMM_WORLD
@@ -47,16 +47,21 @@ def say(*args):
 # the contact point within `zone`), its gmsh tags 1 arc / 2 top / 3 axis, the rigid plane
 # y = 0 whose normal points towards the body, and the displacement of the top.
 
-scene = contact.load_scene({
-    "name": "hertz",
-    "mesh": {"type": "quarter_disk", "radius": R, "h": 0.1, "h_contact": 0.004, "zone": 0.25},
-    "boundaries": {"arc": {"role": "contact", "tag": 1}, "top": {"role": "dirichlet", "tag": 2},
-                   "axis": {"role": "symmetry", "tag": 3}},
-    "model": {"type": "elasticity", "E": E, "nu": nu},
-    "obstacle": {"type": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0]},
-    "data": {"u_D": ["0", str(-delta)]},
-    "output": {"verbose": False},
-})
+scene = contact.load_scene(
+    {
+        "name": "hertz",
+        "mesh": {"type": "quarter_disk", "radius": R, "h": 0.1, "h_contact": 0.004, "zone": 0.25},
+        "boundaries": {
+            "arc": {"role": "contact", "tag": 1},
+            "top": {"role": "dirichlet", "tag": 2},
+            "axis": {"role": "symmetry", "tag": 3},
+        },
+        "model": {"type": "elasticity", "E": E, "nu": nu},
+        "obstacle": {"type": "plane", "point": [0.0, 0.0], "normal": [0.0, 1.0]},
+        "data": {"u_D": ["0", str(-delta)]},
+        "output": {"verbose": False},
+    }
+)
 
 # ## Solve, estimate, mark, refine
 #
@@ -67,7 +72,10 @@ scene = contact.load_scene({
 levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=LEVELS).levels
 say(f"{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'Newton':>6s} {'active':>6s}")
 for lv in levels:
-    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} " f"{lv.result.n_active:6d}")
+    say(
+        f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} "
+        f"{lv.result.n_active:6d}"
+    )
 scene, result = levels[-1].scene, levels[-1].result
 
 # ## Force balance
@@ -79,8 +87,10 @@ scene, result = levels[-1].scene, levels[-1].result
 
 P = result.contact_force
 reaction = contact_resultants(scene, result)["reaction_force"]
-say(f"\ncontact force P = {P:.6f}, reaction on the top = {reaction:.6f}, "
-    f"relative difference {abs(P - reaction) / P:.1e}")
+say(
+    f"\ncontact force P = {P:.6f}, reaction on the top = {reaction:.6f}, "
+    f"relative difference {abs(P - reaction) / P:.1e}"
+)
 
 # ## Pressure against Hertz
 #
@@ -98,9 +108,11 @@ if comm.rank == 0:
     # between the last active and the first free node
     a_h = 0.5 * (last + x[~active & (x > last)].min())
     p0_h = p.max()
-    say(f"half-width a = {a_h:.5f} (Hertz {a_H:.5f}, {100 * (a_h / a_H - 1):+.2f}%), "
+    say(
+        f"half-width a = {a_h:.5f} (Hertz {a_H:.5f}, {100 * (a_h / a_H - 1):+.2f}%), "
         f"peak pressure p0 = {p0_h:.5f} (Hertz {p0_H:.5f}, {100 * (p0_h / p0_H - 1):+.2f}%), a/R = "
-        f"{a_h / R:.3f}")
+        f"{a_h / R:.3f}"
+    )
 
 # ## What you see
 #
@@ -119,7 +131,12 @@ if comm.rank == 0:
     keep = x <= 2 * a_H
     ax.plot(x[keep], p[keep], "o", ms=3, label=f"computed −λ_n ({result.dofs} DoFs)")
     xs = np.linspace(0, a_H, 200)
-    ax.plot(xs, p0_H * np.sqrt(1 - (xs / a_H) ** 2), "k-", label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}")
+    ax.plot(
+        xs,
+        p0_H * np.sqrt(1 - (xs / a_H) ** 2),
+        "k-",
+        label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}",
+    )
     ax.set_xlabel("x")
     ax.set_ylabel("contact pressure")
     ax.legend()

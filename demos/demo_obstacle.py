@@ -27,12 +27,12 @@
 import sys
 import time
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
 from contact.post.contact_table import contact_table
 from contact.solvers import ncp, newton_text
+
+import numpy as np
+from mpi4py import MPI
 
 N = int(sys.argv[1]) if len(sys.argv) > 1 else 64
 comm = MPI.COMM_WORLD
@@ -63,14 +63,23 @@ for a, b in pairs:
 # `configs/obstacle_membrane.yaml` at N × N cells): the mesh, the clamped boundary, the
 # model `obstacle` with the lower bound u ≥ ψ, and the data.
 
-scene = contact.load_scene({
-    "name": "membrane",
-    "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 1]], "cells": [N, N], "diagonal": "crossed"},
-    "boundaries": {"clamp": {"role": "dirichlet", "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}},
-    "model": {"type": "obstacle", "bound": "lower"},
-    "data": {"f": "-2", "psi": "0.4 - r**2"},
-    "output": {"verbose": False},
-})
+scene = contact.load_scene(
+    {
+        "name": "membrane",
+        "mesh": {
+            "type": "rectangle",
+            "corners": [[-1, -1], [1, 1]],
+            "cells": [N, N],
+            "diagonal": "crossed",
+        },
+        "boundaries": {
+            "clamp": {"role": "dirichlet", "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}
+        },
+        "model": {"type": "obstacle", "bound": "lower"},
+        "data": {"f": "-2", "psi": "0.4 - r**2"},
+        "output": {"verbose": False},
+    }
+)
 
 # ## Semismooth Newton with each φ
 #
@@ -85,12 +94,16 @@ for method in ncp.METHODS:
     t0 = time.perf_counter()
     results[method] = r = contact.solve(scene, method=method, polish=False)
     seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-    say(f"{method:>6s}: {newton_text(r)}, {seconds:5.2f} s, |Phi| = {r.residual:.1e}, "
-        f"{r.n_active} nodes in contact, contact force {r.contact_force:.4f}")
+    say(
+        f"{method:>6s}: {newton_text(r)}, {seconds:5.2f} s, |Phi| = {r.residual:.1e}, "
+        f"{r.n_active} nodes in contact, contact force {r.contact_force:.4f}"
+    )
 
 u_min = results["min"].u_h.x.array
-difference = max(comm.allreduce(float(np.max(np.abs(r.u_h.x.array - u_min))), op=MPI.MAX)
-                 for r in results.values())
+difference = max(
+    comm.allreduce(float(np.max(np.abs(r.u_h.x.array - u_min))), op=MPI.MAX)
+    for r in results.values()
+)
 say(f"largest difference between the three solutions: {difference:.1e}")
 
 # (`polish=False` shows the plain Newton methods; by default fb and blend finish with an
@@ -114,7 +127,9 @@ say(f"largest difference between the three solutions: {difference:.1e}")
 
 say("\nmin = primal-dual active set: iteration, |Phi|, active nodes, nodes that changed status")
 for row in results["min"].history:
-    say(f"  {row['iteration']:3d}  {row['residual']:10.3e}  {row['active']:6d}  {row['changed']:6d}")
+    say(
+        f"  {row['iteration']:3d}  {row['residual']:10.3e}  {row['active']:6d}  {row['changed']:6d}"
+    )
 say(f"steps the cycle guard shortened: {results['min'].backtracked} (0: every step was PDAS's)")
 
 # ## What you see
@@ -124,7 +139,7 @@ say(f"steps the cycle guard shortened: {results['min'].backtracked} (0: every st
 # but needs more steps; the blend lies in between) and the contact set on the mesh (right).
 # The table printed above says the same in numbers.
 
-table = contact_table(scene, results["min"])   # the contact set, gathered on rank 0
+table = contact_table(scene, results["min"])  # the contact set, gathered on rank 0
 if comm.rank == 0:
     import matplotlib
 
@@ -133,8 +148,12 @@ if comm.rank == 0:
 
     fig, (ax, ax_set) = plt.subplots(1, 2, figsize=(12, 5))
     for method, r in results.items():
-        ax.semilogy([h["iteration"] for h in r.history], [max(h["residual"], 1e-17) for h in r.history],
-                    "o-", label=f"{method} ({r.iterations} iterations)")
+        ax.semilogy(
+            [h["iteration"] for h in r.history],
+            [max(h["residual"], 1e-17) for h in r.history],
+            "o-",
+            label=f"{method} ({r.iterations} iterations)",
+        )
     ax.set_xlabel("Newton iteration")
     ax.set_ylabel("residual ‖Φ‖")
     ax.legend()

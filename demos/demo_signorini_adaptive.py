@@ -21,11 +21,11 @@
 
 import sys
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
 from contact.adaptivity.energy_error import energy_error
+
+import numpy as np
+from mpi4py import MPI
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 12
 comm = MPI.COMM_WORLD
@@ -43,16 +43,23 @@ def say(*args):
 # solution (used here only to measure the error).
 
 exact = "-r**1.5*cos(1.5*theta)"
-scene = contact.load_scene({
-    "name": "problem_A",
-    "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 1]], "cells": [16, 8]},
-    "boundaries": {"contact": {"role": "contact", "where": "y < 1e-10"},
-                   "outer": {"role": "dirichlet", "where": "x < -1 + 1e-10 or x > 1 - 1e-10 or y > 1 - 1e-10"}},
-    "model": "signorini",
-    "data": {"f": "0", "g": "0", "u_D": exact, "exact": exact},
-    "solver": {"method": "min"},
-    "output": {"verbose": False},
-})
+scene = contact.load_scene(
+    {
+        "name": "problem_A",
+        "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 1]], "cells": [16, 8]},
+        "boundaries": {
+            "contact": {"role": "contact", "where": "y < 1e-10"},
+            "outer": {
+                "role": "dirichlet",
+                "where": "x < -1 + 1e-10 or x > 1 - 1e-10 or y > 1 - 1e-10",
+            },
+        },
+        "model": "signorini",
+        "data": {"f": "0", "g": "0", "u_D": exact, "exact": exact},
+        "solver": {"method": "min"},
+        "output": {"verbose": False},
+    }
+)
 
 # ## The loop
 #
@@ -74,13 +81,16 @@ scene = contact.load_scene({
 rows, u0 = [], None
 say(f"{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'error':>10s} {'eta/error':>9s} {'Newton':>6s}")
 for level in range(LEVELS):
-    result = contact.solve(scene, u0=u0)                                     # SOLVE
-    est = contact.estimate(scene, result)                                    # ESTIMATE
+    result = contact.solve(scene, u0=u0)  # SOLVE
+    est = contact.estimate(scene, result)  # ESTIMATE
     error = energy_error(result.u_h, exact)
     rows.append((result.dofs, est.eta, error, result.iterations))
-    say(f"{level:5d} {result.dofs:7d} {est.eta:10.3e} {error:10.3e} {est.eta / error:9.2f} " f"{result.iterations:6d}")
+    say(
+        f"{level:5d} {result.dofs:7d} {est.eta:10.3e} {error:10.3e} {est.eta / error:9.2f} "
+        f"{result.iterations:6d}"
+    )
     if level + 1 < LEVELS:
-        cells = contact.mark(est.eta_T, "dorfler", theta=0.5)                # MARK
+        cells = contact.mark(est.eta_T, "dorfler", theta=0.5)  # MARK
         # REFINE (+ nested guess)
         scene, u0 = contact.refine(scene, cells, result.u_h)
 
@@ -93,8 +103,10 @@ N, eta, err, its = (np.array(c, dtype=float) for c in zip(*rows))
 half = len(N) // 2
 rate = np.polyfit(np.log(N[half:]), np.log(err[half:]), 1)[0]
 eff = eta / err
-say(f"error ~ N^{rate:.2f} over the last {len(N) - half} levels; effectivity eta/error "
-    f"between {eff.min():.2f} and {eff.max():.2f}")
+say(
+    f"error ~ N^{rate:.2f} over the last {len(N) - half} levels; effectivity eta/error "
+    f"between {eff.min():.2f} and {eff.max():.2f}"
+)
 
 # ## What you see
 #

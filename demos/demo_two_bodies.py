@@ -30,15 +30,15 @@
 import sys
 from pathlib import Path
 
+import contact
+from contact.drivers.load_path import run_load_path
+from contact.models.mortar import master_pressure
+from contact.output.folder import gather_nodal
+from contact.post.interface import interface_resultants
+from contact.post.reference import compare
+
 import numpy as np
 from mpi4py import MPI
-
-import contact
-from contact.post.interface import interface_resultants
-from contact.models.mortar import master_pressure
-from contact.post.reference import compare
-from contact.drivers.load_path import run_load_path
-from contact.output.folder import gather_nodal
 
 LEVELS = int(sys.argv[1]) if len(sys.argv) > 1 else 6
 comm = MPI.COMM_WORLD
@@ -60,28 +60,42 @@ def say(*args):
 # guess presses it in a little and the first Newton step sees the contact.
 
 p = 0.01
-patch = contact.load_scene({
-    "mesh": {"type": "blocks", "blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
-                                          {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]}]},
-    "bodies": {"lower": {"tag": 1, "E": 1.0, "nu": 0.3}, "upper": {"tag": 2, "E": 3.0, "nu": 0.2}},
-    "boundaries": {"top": {"role": "neumann", "where": "y > 1 - 1e-10"},
-                   "bottom": {"role": "symmetry", "where": "y < 1e-10"},
-                   "left": {"role": "symmetry", "where": "x < 1e-10"},
-                   "slave": {"role": "interface", "where": "abs(y - 0.5) < 1e-10", "body": "upper"},
-                   "master": {"role": "interface", "where": "abs(y - 0.5) < 1e-10", "body": "lower"}},
-    "pairs": [{"slave": "slave", "master": "master"}],
-    "model": {"type": "elasticity"},
-    "data": {"t": ["0", f"-{p}"]},
-    "solver": {"u0": ["0", "-1e-4 * (y > 0.5 - 1e-10)"]},
-    "output": {"verbose": False},
-})
+patch = contact.load_scene(
+    {
+        "mesh": {
+            "type": "blocks",
+            "blocks": [
+                {"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]},
+            ],
+        },
+        "bodies": {
+            "lower": {"tag": 1, "E": 1.0, "nu": 0.3},
+            "upper": {"tag": 2, "E": 3.0, "nu": 0.2},
+        },
+        "boundaries": {
+            "top": {"role": "neumann", "where": "y > 1 - 1e-10"},
+            "bottom": {"role": "symmetry", "where": "y < 1e-10"},
+            "left": {"role": "symmetry", "where": "x < 1e-10"},
+            "slave": {"role": "interface", "where": "abs(y - 0.5) < 1e-10", "body": "upper"},
+            "master": {"role": "interface", "where": "abs(y - 0.5) < 1e-10", "body": "lower"},
+        },
+        "pairs": [{"slave": "slave", "master": "master"}],
+        "model": {"type": "elasticity"},
+        "data": {"t": ["0", f"-{p}"]},
+        "solver": {"u0": ["0", "-1e-4 * (y > 0.5 - 1e-10)"]},
+        "output": {"verbose": False},
+    }
+)
 result = contact.solve(patch, method="fb")
-lam = result.lmbda_h.x.array[result.problem.output_nodes]       # λ_i at this rank's slave nodes
-lam_m = master_pressure(result).x.array                            # λ^m_j = Σ_i M_ij λ_i / ∫ φ_j^m
+lam = result.lmbda_h.x.array[result.problem.output_nodes]  # λ_i at this rank's slave nodes
+lam_m = master_pressure(result).x.array  # λ^m_j = Σ_i M_ij λ_i / ∫ φ_j^m
 worst = comm.allreduce(float(np.max(np.abs(lam + p))), op=MPI.MAX) / p
 worst_m = comm.allreduce(float(np.max(np.abs(lam_m[lam_m != 0] + p), initial=0.0)), op=MPI.MAX) / p
-say(f"patch test: {result.n_active} slave nodes active; largest |λ_i + p| / p = {worst:.1e} "
-    f"(slave side), {worst_m:.1e} (master side)")
+say(
+    f"patch test: {result.n_active} slave nodes active; largest |λ_i + p| / p = {worst:.1e} "
+    f"(slave side), {worst_m:.1e} (master side)"
+)
 
 # ## Two cylinders, adaptively
 #
@@ -96,24 +110,32 @@ say(f"patch test: {result.n_active} slave nodes active; largest |λ_i + p| / p =
 # every level.
 
 Rc, E, nu, delta = 8.0, 200.0, 0.3, 0.1
-scene = contact.load_scene({
-    "name": "two_cylinders",
-    "mesh": {"type": "half_disks", "radius": Rc, "h": 1.0, "h_contact": 0.05, "zone": 1.0},
-    "bodies": {"upper": {"tag": 1, "E": E, "nu": nu}, "lower": {"tag": 2, "E": E, "nu": nu}},
-    "boundaries": {"top": {"role": "dirichlet", "tag": 2}, "bottom": {"role": "dirichlet", "tag": 4},
-                   "slave": {"role": "interface", "where": "abs(x) < 2 and y < 1", "body": "upper"},
-                   "master": {"role": "interface", "where": "abs(x) < 3 and y > -1", "body": "lower"}},
-    "pairs": [{"slave": "slave", "master": "master"}],
-    # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
-    "reference": {"type": "hertz"},
-    "model": {"type": "elasticity"},
-    "data": {"u_D": ["0", f"-{delta} * (y > 0)"]},
-    "output": {"verbose": False},
-})
+scene = contact.load_scene(
+    {
+        "name": "two_cylinders",
+        "mesh": {"type": "half_disks", "radius": Rc, "h": 1.0, "h_contact": 0.05, "zone": 1.0},
+        "bodies": {"upper": {"tag": 1, "E": E, "nu": nu}, "lower": {"tag": 2, "E": E, "nu": nu}},
+        "boundaries": {
+            "top": {"role": "dirichlet", "tag": 2},
+            "bottom": {"role": "dirichlet", "tag": 4},
+            "slave": {"role": "interface", "where": "abs(x) < 2 and y < 1", "body": "upper"},
+            "master": {"role": "interface", "where": "abs(x) < 3 and y > -1", "body": "lower"},
+        },
+        "pairs": [{"slave": "slave", "master": "master"}],
+        # Hertz for the effective radius R_c / 2 (from the mesh) and E* of the bodies
+        "reference": {"type": "hertz"},
+        "model": {"type": "elasticity"},
+        "data": {"u_D": ["0", f"-{delta} * (y > 0)"]},
+        "output": {"verbose": False},
+    }
+)
 levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=LEVELS).levels
 say(f"\n{'level':>5s} {'DoFs':>7s} {'eta':>10s} {'Newton':>6s} {'active':>6s}")
 for lv in levels:
-    say(f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} " f"{lv.result.n_active:6d}")
+    say(
+        f"{lv.index:5d} {lv.result.dofs:7d} {lv.estimate.eta:10.3e} {lv.result.iterations:6d} "
+        f"{lv.result.n_active:6d}"
+    )
 scene, result = levels[-1].scene, levels[-1].result
 
 # ## Action and reaction
@@ -125,9 +147,11 @@ scene, result = levels[-1].scene, levels[-1].result
 
 res = interface_resultants(scene, result)
 F_s, F_m = res["interface_force_slave"][1], res["interface_force_master"][1]
-say(f"\nforce on the slave surface {F_s:.6f}, on the master surface {F_m:.6f} "
+say(
+    f"\nforce on the slave surface {F_s:.6f}, on the master surface {F_m:.6f} "
     f"(balance error {res['interface_balance_error']:.1e}); reactions: top "
-    f"{res['reactions']['top'][1]:.6f}, bottom {res['reactions']['bottom'][1]:.6f}")
+    f"{res['reactions']['top'][1]:.6f}, bottom {res['reactions']['bottom'][1]:.6f}"
+)
 
 # ## The pressure against Hertz
 #
@@ -138,10 +162,12 @@ say(f"\nforce on the slave surface {F_s:.6f}, on the master surface {F_m:.6f} "
 # two bodies of the pair.
 
 hz = compare(scene, result).values
-say(f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, "
+say(
+    f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, "
     f"{100 * hz['a_error']:+.2f}%), peak pressure p0 = {res['peak_pressure']:.5f} (Hertz "
     f"{hz['hertz_p0']:.5f}, {100 * hz['p0_error']:+.2f}%), a/R_c = "
-    f"{hz['contact_half_width'] / Rc:.3f}")
+    f"{hz['contact_half_width'] / Rc:.3f}"
+)
 
 # ## Partial slip: Cattaneo–Mindlin
 #
@@ -155,17 +181,21 @@ say(f"half-width a = {hz['contact_half_width']:.5f} (Hertz {hz['hertz_a']:.5f}, 
 # normal of the two surfaces (flat between equal cylinders): pressing alone then makes no
 # tangential traction, as for the half-spaces of the theory.
 
-cm = contact.load_scene(Path(__file__).resolve().parents[1] / "configs" / "two_body_cattaneo_2d.yaml",
-                        ["mesh.h_contact=0.03", "output.verbose=false"])
+cm = contact.load_scene(
+    Path(__file__).resolve().parents[1] / "configs" / "two_body_cattaneo_2d.yaml",
+    ["mesh.h_contact=0.03", "output.verbose=false"],
+)
 
 
 def show(step):
-    if step.index == 1:   # t = 0.5: P only
+    if step.index == 1:  # t = 0.5: P only
         return
     v = compare(step.scene, step.result).values
-    say(f"Q/(F P) = {v['Q_over_FP']:.3f}: stick zone c/a = {v['c_over_a']:.4f} (Cattaneo–Mindlin "
+    say(
+        f"Q/(F P) = {v['Q_over_FP']:.3f}: stick zone c/a = {v['c_over_a']:.4f} (Cattaneo–Mindlin "
         f"{v['c_over_a_theory']:.4f}, {100 * v['c_error']:+.1f}%), tangential traction L² error "
-        f"{100 * v['q_error']:.1f}%")
+        f"{100 * v['q_error']:.1f}%"
+    )
 
 
 run_load_path(cm, verbose=False, on_step=show)
@@ -183,11 +213,16 @@ run_load_path(cm, verbose=False, on_step=show)
 X, lam_s = gather_nodal(result.lmbda_h)
 _, lam_m = gather_nodal(master_pressure(result))
 V = result.u_h.function_space
-cells = V.dofmap.list[: scene.mesh.topology.index_map(2).size_local]   # this rank's triangles
+cells = V.dofmap.list[: scene.mesh.topology.index_map(2).size_local]  # this rank's triangles
 body = result.problem.data["body"]
-triangles = comm.gather((V.tabulate_dof_coordinates()[cells][:, :, :2],
-                         result.u_h.x.array.reshape(-1, 2)[cells],
-                         body.x.array[body.function_space.dofmap.list[: len(cells), 0]]), root=0)
+triangles = comm.gather(
+    (
+        V.tabulate_dof_coordinates()[cells][:, :, :2],
+        result.u_h.x.array.reshape(-1, 2)[cells],
+        body.x.array[body.function_space.dofmap.list[: len(cells), 0]],
+    ),
+    root=0,
+)
 if comm.rank == 0:
     import matplotlib
 
@@ -198,11 +233,22 @@ if comm.rank == 0:
     T, U, B = (np.concatenate([t[k] for t in triangles]) for k in range(3))
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), gridspec_kw={"width_ratios": [1, 1.2, 1.3]})
     scale = 5.0
-    for ax, window, edges in ((axes[0], (-8.5, 8.5, -8.5, 8.5), "none"), (axes[1], (-0.8, 0.8, -0.55, 0.15), "k")):
+    for ax, window, edges in (
+        (axes[0], (-8.5, 8.5, -8.5, 8.5), "none"),
+        (axes[1], (-0.8, 0.8, -0.55, 0.15), "k"),
+    ):
         for k, colour in ((1, "#9ecae1"), (2, "#fdae6b")):
             on = np.rint(B) == k
-            ax.add_collection(PolyCollection(T[on] + scale * U[on], facecolors=colour, edgecolors=edges,
-                                             linewidths=0.15, antialiased=edges != "none", label=["upper body (slave)", "lower body (master)"][k - 1]))
+            ax.add_collection(
+                PolyCollection(
+                    T[on] + scale * U[on],
+                    facecolors=colour,
+                    edgecolors=edges,
+                    linewidths=0.15,
+                    antialiased=edges != "none",
+                    label=["upper body (slave)", "lower body (master)"][k - 1],
+                )
+            )
         ax.set_xlim(window[:2])
         ax.set_ylim(window[2:])
         ax.set_aspect("equal")
@@ -215,7 +261,13 @@ if comm.rank == 0:
     axes[2].plot(X[slave, 0], -lam_s[slave], "o", ms=3, label="slave nodes: −λ_i")
     axes[2].plot(X[master, 0], -lam_m[master], "x", ms=3, label="master nodes: −λ^m_j")
     xs = np.linspace(-a_H, a_H, 300)
-    axes[2].plot(xs, p0_H * np.sqrt(1 - (xs / a_H) ** 2), "k-", lw=1, label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}")
+    axes[2].plot(
+        xs,
+        p0_H * np.sqrt(1 - (xs / a_H) ** 2),
+        "k-",
+        lw=1,
+        label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}",
+    )
     axes[2].set_xlabel("x")
     axes[2].set_ylabel("contact pressure")
     axes[2].set_title("pressure on both sides of the interface")

@@ -7,6 +7,7 @@ missing are reported as missing, so a partial run still gives an honest report.
     python demos/make_results.py            (run by demos/run_bench.py as its last step)
     python demos/make_results.py --results DIR --out FILE
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,8 +24,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RES = ROOT / "demos" / "results"
 METHODS = ("fb", "min", "blend", "vinewtonrsls", "vinewtonssls")
-EX9_RADIUS = 0.697965148223374   # PETSc ex9: the exact free-boundary radius
-STEP41_SOLVES = 19               # deal.II step-41 results.dox: "Newton iteration 0" … "18"
+EX9_RADIUS = 0.697965148223374  # PETSc ex9: the exact free-boundary radius
+STEP41_SOLVES = 19  # deal.II step-41 results.dox: "Newton iteration 0" … "18"
 
 
 # ------------------------------------------------------------------------------ reading
@@ -51,7 +52,7 @@ def study(name: str) -> tuple[list[dict] | None, list[dict] | None]:
 
 def table(header: list[str], body: list[list]) -> str:
     def cell(c) -> str:
-        return str(c).replace("|", "\\|")   # a literal | (e.g. |F_t|) must not end the cell
+        return str(c).replace("|", "\\|")  # a literal | (e.g. |F_t|) must not end the cell
 
     lines = ["| " + " | ".join(cell(h) for h in header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cell(c) for c in r) + " |" for r in body]
@@ -75,7 +76,9 @@ def its_text(r: dict) -> str:
     """'n' Newton iterations, or 'n+p' with p polishing solves (as contact.solvers.solves_text;
     this script reads CSVs only and does not import the package)."""
     p = r.get("polish_solves")
-    return f"{r['newton_iterations']}+{p}" if p not in (None, "", 0) else str(r["newton_iterations"])
+    return (
+        f"{r['newton_iterations']}+{p}" if p not in (None, "", 0) else str(r["newton_iterations"])
+    )
 
 
 def missing(what: str) -> str:
@@ -84,10 +87,24 @@ def missing(what: str) -> str:
 
 # ----------------------------------------------------------------------------- sections
 def header() -> str:
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                            text=True).stdout.strip() or "unknown"
-    cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
-                if ln.startswith("model name")), platform.processor()) if Path("/proc/cpuinfo").is_file() else "?"
+    commit = (
+        subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+        ).stdout.strip()
+        or "unknown"
+    )
+    cpu = (
+        next(
+            (
+                ln.split(":", 1)[1].strip()
+                for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                if ln.startswith("model name")
+            ),
+            platform.processor(),
+        )
+        if Path("/proc/cpuinfo").is_file()
+        else "?"
+    )
     mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
     timing = rows(RES / "timings.csv") or []
     total = sum(float(r["seconds"]) for r in timing)
@@ -104,7 +121,7 @@ def header() -> str:
         "[`demos/results/`](results/) by [`demos/make_results.py`](make_results.py); the study "
         "files are in [`configs/studies/`](../configs/studies/).",
         "",
-        "Time is wall time; \"cold\" means Newton starts from u = 0, \"nested\" from the previous "
+        'Time is wall time; "cold" means Newton starts from u = 0, "nested" from the previous '
         "level's solution interpolated onto the refined mesh. fb = Fischer–Burmeister, min = the "
         "min function (the primal–dual active set method), blend = μ φ_FB + (1 − μ) φ_min with μ = "
         "0.5; vinewtonrsls / vinewtonssls are PETSc's reduced-space and semismooth VI solvers on "
@@ -114,8 +131,12 @@ def header() -> str:
         "counted separately (n+p = n Newton steps + p polishing solves), never hidden in n.",
     ]
     if timing:
-        out += ["", f"`make bench` took {total / 60:.1f} minutes:", "",
-                table(["step", "seconds"], [[f"`{r['step']}`", r["seconds"]] for r in timing])]
+        out += [
+            "",
+            f"`make bench` took {total / 60:.1f} minutes:",
+            "",
+            table(["step", "seconds"], [[f"`{r['step']}`", r["seconds"]] for r in timing]),
+        ]
     return "\n".join(out) + "\n"
 
 
@@ -124,30 +145,58 @@ def newton_512() -> str:
     out = ["## 1. Newton methods on the 512 × 512 square (cold start)", ""]
     if not data:
         return "\n".join(out) + "\n" + missing("newton_512.csv")
-    out += ["`configs/signorini_square.yaml` (κ = 100, set in the scene) at 512² cells, every method "
-            "in its own process (`demos/bench/bench_newton.py --cells 512`); *polish* = active-set "
-            "polishing solves (`solver.polish`, on by default for fb and blend), *-nopolish* = the "
-            "pure Newton "
-            "method:", "",
-            table(["method", "DoFs", "Newton its", "polish", "seconds", "s / solve", "peak MiB",
-                   "speed-up vs vinewtonrsls"],
-                  [[r["method"], r["dofs"], r["iterations"], r.get("polish", ""), g(r["seconds"]),
-                    g(r["seconds_per_iteration"]), g(r["peak_rss_mib"], 4), r["speedup_vs_vinewtonrsls"]]
-                   for r in data]), ""]
+    out += [
+        "`configs/signorini_square.yaml` (κ = 100, set in the scene) at 512² cells, every method "
+        "in its own process (`demos/bench/bench_newton.py --cells 512`); *polish* = active-set "
+        "polishing solves (`solver.polish`, on by default for fb and blend), *-nopolish* = the "
+        "pure Newton "
+        "method:",
+        "",
+        table(
+            [
+                "method",
+                "DoFs",
+                "Newton its",
+                "polish",
+                "seconds",
+                "s / solve",
+                "peak MiB",
+                "speed-up vs vinewtonrsls",
+            ],
+            [
+                [
+                    r["method"],
+                    r["dofs"],
+                    r["iterations"],
+                    r.get("polish", ""),
+                    g(r["seconds"]),
+                    g(r["seconds_per_iteration"]),
+                    g(r["peak_rss_mib"], 4),
+                    r["speedup_vs_vinewtonrsls"],
+                ]
+                for r in data
+            ],
+        ),
+        "",
+    ]
     by = {r["method"]: r for r in data}
     if "fb-nopolish" in by and "min" in by:
-        out += [f"min needs {by['min']['iterations']} iterations and pure fb " f"{by['fb-nopolish']['iterations']}: "
-                "both share the active-set phase (the first step overshoots the contact zone, and "
-                "the excess roughly halves per iteration — log₂(1/h) iterations), after which min "
-                "is exact in one step while fb needs a superlinear tail of 3–4 steps at the nodes "
-                "next to the free boundary, where both the gap and the multiplier are small and "
-                "φ_FB is curved (from b = −a/2 a Newton step of φ_FB only shrinks b to 0.15 b). "
-                "Polishing replaces that tail: once a step leaves the active set unchanged, the "
-                "linear problem of that set is solved once "
-                f"more, and fb finishes in {by['fb']['iterations']} steps + "
-                f"{by['fb'].get('polish', '?')} "
-                "polishing solve(s). The VI solvers change the active set by only a few nodes per "
-                "iteration, so their counts grow with the number of nodes that must switch (§3, " "case (g))."]
+        out += [
+            f"min needs {by['min']['iterations']} iterations and pure fb "
+            f"{by['fb-nopolish']['iterations']}: "
+            "both share the active-set phase (the first step overshoots the contact zone, and "
+            "the excess roughly halves per iteration — log₂(1/h) iterations), after which min "
+            "is exact in one step while fb needs a superlinear tail of 3–4 steps at the nodes "
+            "next to the free boundary, where both the gap and the multiplier are small and "
+            "φ_FB is curved (from b = −a/2 a Newton step of φ_FB only shrinks b to 0.15 b). "
+            "Polishing replaces that tail: once a step leaves the active set unchanged, the "
+            "linear problem of that set is solved once "
+            f"more, and fb finishes in {by['fb']['iterations']} steps + "
+            f"{by['fb'].get('polish', '?')} "
+            "polishing solve(s). The VI solvers change the active set by only a few nodes per "
+            "iteration, so their counts grow with the number of nodes that must switch (§3, "
+            "case (g))."
+        ]
     return "\n".join(out) + "\n"
 
 
@@ -159,7 +208,9 @@ def _curves(levels: list[dict], key: str) -> dict[tuple, list[dict]]:
     return out
 
 
-def _open(heading: str, name: str, chart: str) -> tuple[list[dict] | None, list[dict] | None, list[str]]:
+def _open(
+    heading: str, name: str, chart: str
+) -> tuple[list[dict] | None, list[dict] | None, list[str]]:
     """A section on study ``name``: its rows, level rows and the heading lines with the
     chart embedded (or the "not available" line, then the rows are None)."""
     runs, levels = study(name)
@@ -179,24 +230,55 @@ def speed_accuracy(name: str, title: str, key: str, what: str, note: str = "") -
     for (m, s), c in curves.items():
         first = next(r for r in c if abs(r[key]) <= target * (1 + 1e-9))
         last = c[-1]
-        body.append([m, s, len(c), last["dofs"], g(abs(last[key])), g(last["seconds"]),
-                     first["dofs"], g(first["seconds"])])
+        body.append(
+            [
+                m,
+                s,
+                len(c),
+                last["dofs"],
+                g(abs(last[key])),
+                g(last["seconds"]),
+                first["dofs"],
+                g(first["seconds"]),
+            ]
+        )
     body.sort(key=lambda r: float(r[-1]))
-    out += [table(["method", "refinement", "levels", "final DoFs", f"final {what}", "run seconds",
-                   f"DoFs to {what} ≤ {target:.3g}", f"seconds to {what} ≤ {target:.3g}"], body), ""]
+    out += [
+        table(
+            [
+                "method",
+                "refinement",
+                "levels",
+                "final DoFs",
+                f"final {what}",
+                "run seconds",
+                f"DoFs to {what} ≤ {target:.3g}",
+                f"seconds to {what} ≤ {target:.3g}",
+            ],
+            body,
+        ),
+        "",
+    ]
     front = Counter((r["method"], r["strategy"]) for r in levels if r.get("pareto") is True)
     n_front = sum(front.values())
     fastest = body[0]
-    out += [f"The Pareto front (circled in the left panel) has {n_front} points: "
-            + ", ".join(f"{m}/{s} ×{k}" for (m, s), k in front.most_common()) + ". "
-            f"To reach {what} ≤ {target:.3g} (the accuracy every curve reaches), the fastest is "
-            f"{fastest[0]} with {fastest[1]} refinement ({fastest[-1]} s, {fastest[-2]} DoFs); the "
-            f"slowest takes {body[-1][-1]} s ({body[-1][0]}/{body[-1][1]})."]
+    out += [
+        f"The Pareto front (circled in the left panel) has {n_front} points: "
+        + ", ".join(f"{m}/{s} ×{k}" for (m, s), k in front.most_common())
+        + ". "
+        f"To reach {what} ≤ {target:.3g} (the accuracy every curve reaches), the fastest is "
+        f"{fastest[0]} with {fastest[1]} refinement ({fastest[-1]} s, {fastest[-2]} DoFs); the "
+        f"slowest takes {body[-1][-1]} s ({body[-1][0]}/{body[-1][1]})."
+    ]
     if note:
         out += ["", note]
     failed = [r for r in runs or [] if not r["converged"]]
     if failed:
-        out += ["", "Failed runs: " + "; ".join(f"{r['method']}/{r['strategy']}: {r['failure']}" for r in failed)]
+        out += [
+            "",
+            "Failed runs: "
+            + "; ".join(f"{r['method']}/{r['strategy']}: {r['failure']}" for r in failed),
+        ]
     return "\n".join(out) + "\n"
 
 
@@ -206,55 +288,90 @@ _PROJECTION_CYCLE = (
     "c_t (the nodal default c_t = K_tt/w on a fine mesh) z follows the slip, the linear all-slip "
     "problem moves the surface the other way, and the iterates 2-cycle between sliding left and "
     "right. HSW's element (with its projected multiplier) turns such nodes back to stick; so do a "
-    "100 times smaller c_t (kappa_t = 100) or backtracking")
-_CYCLE_SHORT = "the projection form's 2-cycle between sliding one way and the other (see (h)–(j) above)"
+    "100 times smaller c_t (kappa_t = 100) or backtracking"
+)
+_CYCLE_SHORT = (
+    "the projection form's 2-cycle between sliding one way and the other (see (h)–(j) above)"
+)
 FRICTION_CASES = ("(h)", "(i)", "(j)")
 
 EXPLAIN = {
     # (case prefix, method or "*", outcome) -> why
-    ("(g)", "vinewtonrsls", "max iterations"):
-        "the reduced-space active-set method adds or drops only the nodes whose sign test fails in "
-        "the current step; from u = 0 the contact zone is found a few nodes per iteration, so the "
-        "count grows like the number of contact nodes (linear in 1/h) and passes the limit of 100 "
-        "on the finest levels",
-    ("(g)", "vinewtonssls", "max iterations"):
-        "the semismooth VI method uses the FB function with PETSc's default line search on ½‖Φ‖²; "
-        "the merit line search shortens the steps far from the solution, so the iteration count "
-        "grows with the mesh (compare fb with plain Newton, which is mesh-robust here)",
+    (
+        "(g)",
+        "vinewtonrsls",
+        "max iterations",
+    ): "the reduced-space active-set method adds or drops only the nodes whose sign test fails in "
+    "the current step; from u = 0 the contact zone is found a few nodes per iteration, so the "
+    "count grows like the number of contact nodes (linear in 1/h) and passes the limit of 100 "
+    "on the finest levels",
+    (
+        "(g)",
+        "vinewtonssls",
+        "max iterations",
+    ): "the semismooth VI method uses the FB function with PETSc's default line search on ½‖Φ‖²; "
+    "the merit line search shortens the steps far from the solution, so the iteration count "
+    "grows with the mesh (compare fb with plain Newton, which is mesh-robust here)",
     ("(i) cylinder projection", "*", "max iterations"): _CYCLE_SHORT,
     ("(j) box 3D projection", "*", "max iterations"): _CYCLE_SHORT,
     ("(h)", "*", "max iterations"): _CYCLE_SHORT,
-    ("(k)", "min", "max iterations"):
-        "b_i = −κ R_i / K_ii multiplies by κ the residual an inexact Newton step leaves on the "
-        "free nodes (CG stops at the Eisenstat–Walker tolerance η ≤ 0.1); with κ = 1e4 that error "
-        "outweighs the gaps near the free boundary, so min's active set follows the Krylov error "
-        "rather than the contact zone and cycles; exact CG steps or MUMPS converge (the next rows)",
-    ("(q)", "min", "max iterations"):
-        "plain Newton-min (the primal–dual active set method, line search basic) cycles: 38 nodes "
-        "flip between two active sets (it did so while the touching cold start's ties were decided "
-        "by the sign of round-off, its first system singular); the default line search (auto) sees "
-        "the repeated set and backtracks",
-    ("(l) semi-coercive", "vinewtonrsls", "stalled"):
-        "from u = 0 no node is in the active set, so the reduced-space step solves K on every DoF "
-        "— singular (the constants); the step is enormous along the constants and the line search "
-        "finds no decrease of ‖Φ‖",
-    ("(l) semi-coercive gamg", "min", "diverged"):
-        "min's first active set is empty (every gap exceeds the scaled load), so the reduced SPD "
-        "system is K on every DoF: singular, the load not in its range, and CG + GAMG breaks down "
-        "(diverged_linear_solve at step 0); the message names the singular K (`Result.hint`)",
-    ("(l)", "*", "diverged"): "a Newton step with no active node solves the singular K (no Dirichlet part)",
-    ("(l)", "*", "stalled"): "a Newton step with no active node solves the singular K (no Dirichlet part)",
-    ("(m)", "*", "max iterations"):
-        "the active set is found, then ‖Φ‖ sits at the round-off floor of K x − b, whose entries "
-        "are 1e6 times larger on the stiff half, just above the relative tolerance 1e-12 ‖Φ_0‖: "
-        "the steps only repeat the solution until a dip below the tolerance (raise solver.rtol / "
-        "atol)",
-    ("(o)", "vinewtonssls", "max iterations"):
-        "PETSc's semismooth VI method applies φ_FB to the unscaled pair (u_i − lb_i, F_i): F_i is "
-        "a nodal force, orders of magnitude below the gaps on this mesh, so at the nodes next to "
-        "the contact boundary both parts are small and unbalanced and FB's Newton steps contract "
-        "only linearly once the active set is final (the same with MUMPS); fb scales the pair by "
-        "c_i = κ w_i / K_ii and polishes",
+    (
+        "(k)",
+        "min",
+        "max iterations",
+    ): "b_i = −κ R_i / K_ii multiplies by κ the residual an inexact Newton step leaves on the "
+    "free nodes (CG stops at the Eisenstat–Walker tolerance η ≤ 0.1); with κ = 1e4 that error "
+    "outweighs the gaps near the free boundary, so min's active set follows the Krylov error "
+    "rather than the contact zone and cycles; exact CG steps or MUMPS converge (the next rows)",
+    (
+        "(q)",
+        "min",
+        "max iterations",
+    ): "plain Newton-min (the primal–dual active set method, line search basic) cycles: 38 nodes "
+    "flip between two active sets (it did so while the touching cold start's ties were decided "
+    "by the sign of round-off, its first system singular); the default line search (auto) sees "
+    "the repeated set and backtracks",
+    (
+        "(l) semi-coercive",
+        "vinewtonrsls",
+        "stalled",
+    ): "from u = 0 no node is in the active set, so the reduced-space step solves K on every DoF "
+    "— singular (the constants); the step is enormous along the constants and the line search "
+    "finds no decrease of ‖Φ‖",
+    (
+        "(l) semi-coercive gamg",
+        "min",
+        "diverged",
+    ): "min's first active set is empty (every gap exceeds the scaled load), so the reduced SPD "
+    "system is K on every DoF: singular, the load not in its range, and CG + GAMG breaks down "
+    "(diverged_linear_solve at step 0); the message names the singular K (`Result.hint`)",
+    (
+        "(l)",
+        "*",
+        "diverged",
+    ): "a Newton step with no active node solves the singular K (no Dirichlet part)",
+    (
+        "(l)",
+        "*",
+        "stalled",
+    ): "a Newton step with no active node solves the singular K (no Dirichlet part)",
+    (
+        "(m)",
+        "*",
+        "max iterations",
+    ): "the active set is found, then ‖Φ‖ sits at the round-off floor of K x − b, whose entries "
+    "are 1e6 times larger on the stiff half, just above the relative tolerance 1e-12 ‖Φ_0‖: "
+    "the steps only repeat the solution until a dip below the tolerance (raise solver.rtol / "
+    "atol)",
+    (
+        "(o)",
+        "vinewtonssls",
+        "max iterations",
+    ): "PETSc's semismooth VI method applies φ_FB to the unscaled pair (u_i − lb_i, F_i): F_i is "
+    "a nodal force, orders of magnitude below the gaps on this mesh, so at the nodes next to "
+    "the contact boundary both parts are small and unbalanced and FB's Newton steps contract "
+    "only linearly once the active set is final (the same with MUMPS); fb scales the pair by "
+    "c_i = κ w_i / K_ii and polishes",
 }
 
 
@@ -272,15 +389,27 @@ def _line_search_verdict(its: dict) -> str:
         plain, bt = its.get(("(d) plain Newton", m)), its.get(("(d) line search bt", m))
         if plain and bt:
             d = solves(bt) - solves(plain)
-            said.append(f"{m} {'saves' if d < 0 else 'costs'} {abs(d)} linear " f"solve{'s' if abs(d) != 1 else ''}"
-                        if d else f"{m} needs as many")
-    return ("With backtracking " + " and ".join(said) + ". A full semismooth Newton step is often right about "
+            said.append(
+                f"{m} {'saves' if d < 0 else 'costs'} {abs(d)} linear "
+                f"solve{'s' if abs(d) != 1 else ''}"
+                if d
+                else f"{m} needs as many"
+            )
+    return (
+        (
+            "With backtracking "
+            + " and ".join(said)
+            + ". A full semismooth Newton step is often right about "
             "the active set even when it raises ‖Φ‖ (the residual of newly active nodes jumps), "
             "and backtracking shortens exactly those steps; where the full step overshoots the "
             "contact zone (a large κ predicts contact wherever the load pushes), shortening it can "
             "help instead. Plain Newton steps are the default; for min only until a cycle shows "
             "(`solver.line_search: auto`: "
-            "rows (k) and (q) with and without it).") if said else ""
+            "rows (k) and (q) with and without it)."
+        )
+        if said
+        else ""
+    )
 
 
 def _friction_rows(its: dict, cases: list[str]) -> str:
@@ -291,31 +420,54 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
     newton = [m for m in ("fb", "min", "blend")]
 
     def span(select) -> str:
-        vals = [its[c, m]["newton_iterations"] for c in friction if select(c) for m in newton
-                if (c, m) in its and its[c, m]["converged"]]
+        vals = [
+            its[c, m]["newton_iterations"]
+            for c in friction
+            if select(c)
+            for m in newton
+            if (c, m) in its and its[c, m]["converged"]
+        ]
         return f"{min(vals)}–{max(vals)}" if vals else "–"
 
     def failed(select) -> list[str]:
-        return [f"{c} / {m}" for c in friction if select(c) for m in newton
-                if (c, m) in its and not its[c, m]["converged"]]
+        return [
+            f"{c} / {m}"
+            for c in friction
+            if select(c)
+            for m in newton
+            if (c, m) in its and not its[c, m]["converged"]
+        ]
 
-    hsw = lambda c: c.endswith(" hsw")                                      # noqa: E731
-    proj = lambda c: c.endswith(" projection")                              # noqa: E731
-    fixed = lambda c: c.endswith(" fixed point")                            # noqa: E731
+    hsw = lambda c: c.endswith(" hsw")  # noqa: E731
+    proj = lambda c: c.endswith(" projection")  # noqa: E731
+    fixed = lambda c: c.endswith(" fixed point")  # noqa: E731
     cured = lambda c: "projection kappa_t" in c or c.endswith("projection bt")  # noqa: E731
-    fp = [its[c, m].get("fixed_point_iterations") for c in friction if fixed(c) for m in newton
-          if (c, m) in its and its[c, m]["converged"]]
+    fp = [
+        its[c, m].get("fixed_point_iterations")
+        for c in friction
+        if fixed(c)
+        for m in newton
+        if (c, m) in its and its[c, m]["converged"]
+    ]
     fp = [v for v in fp if v not in ("", None)]
-    ratios = [its[c, m]["newton_iterations"] / its[c.replace(" fixed point", " hsw"), m]["newton_iterations"]
-              for c in friction if fixed(c) for m in newton
-              if (c, m) in its and its[c, m]["converged"] and its.get((c.replace(" fixed point", " hsw"), m), {}).get("converged")]
+    ratios = [
+        its[c, m]["newton_iterations"]
+        / its[c.replace(" fixed point", " hsw"), m]["newton_iterations"]
+        for c in friction
+        if fixed(c)
+        for m in newton
+        if (c, m) in its
+        and its[c, m]["converged"]
+        and its.get((c.replace(" fixed point", " hsw"), m), {}).get("converged")
+    ]
     bad_proj, bad_hsw = failed(proj), failed(hsw)
     return (
         "* **(h)–(j) Coulomb friction** (one cold step; the block stick- or slip-dominated with F "
         "= 0.1 … 1.0, the cylinder and the 3D box with F = 0.3): full semismooth Newton with the "
         "default hsw form "
         f"converges in {span(hsw)} iterations with fb, min and blend"
-        + (f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere") + "; the projection form in "
+        + (f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere")
+        + "; the projection form in "
         f"{span(proj)} where it converges, and it fails on {len(bad_proj)} of "
         f"{sum(1 for c in friction if proj(c)) * len(newton)} runs "
         f"({', '.join(bad_proj) or 'none'}): {_PROJECTION_CYCLE} ({span(cured)} iterations). The "
@@ -323,12 +475,15 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
         f"everywhere it is run here in {min(fp) if fp else '–'}–{max(fp) if fp else '–'} Tresca "
         f"solves ({span(fixed)} Newton steps in all, "
         + (f"{min(ratios):.1f}–{max(ratios):.1f} times the full Newton method's" if ratios else "–")
-        + "); being a fixed point of the pressure it is a contraction only for small enough F. " "min vs fb vs "
-        "blend for the normal part changes the counts by a few steps, never the outcome.")
+        + "); being a fixed point of the pressure it is a contraction only for small enough F. "
+        "min vs fb vs "
+        "blend for the normal part changes the counts by a few steps, never the outcome."
+    )
 
 
 def _issue11_rows(its: dict, cell, span) -> list[str]:
     """The bullets of the stress cases (k)–(o) (issue 11) of the stability map."""
+
     def cells(case: str, methods=METHODS) -> str:
         return ", ".join(f"{m} {cell(case, m)}" for m in methods)
 
@@ -347,7 +502,8 @@ def _issue11_rows(its: dict, cell, span) -> list[str]:
             f"{cells(k[0], METHODS[3:])} in all three). The scaled multiplier b_i = −κ R_i / K_ii "
             "magnifies what an inexact step leaves of the residual κ-fold. fb and blend weigh b "
             "against the gap smoothly: the inexact steps cost them iterations, not convergence; "
-            "min's active set switches on the sign of b − a and cycles.")
+            "min's active set switches on the sign of b − a and cycles."
+        )
     l1, l2 = "(l) semi-coercive", "(l) semi-coercive gamg"
     if got(l1, "fb"):
         luck = got(l1, "min")
@@ -360,20 +516,33 @@ def _issue11_rows(its: dict, cell, span) -> list[str]:
             "fb's and blend's first Jacobian rows carry ∂_aφ > 0 and H is regular: they converge "
             "as on the clamped square. min and vinewtonrsls put no node in the first active set "
             "and solve K itself, which is singular. "
-            + ("With MUMPS min still converges: the factorization of K meets a round-off " "pivot, the step is "
-               "enormous along the constants and pushes every contact node into the active set, "
-               "after which "
-               "the steps are regular — a recovery by round-off, not by design. " if luck and luck["converged"]
-               else "With MUMPS min fails on that step too. ")
-            + "Serial CG + GAMG breaks down on it (on 2 MPI ranks it returns such a huge step " "instead, and "
+            + (
+                "With MUMPS min still converges: the factorization of K meets a round-off "
+                "pivot, the step is "
+                "enormous along the constants and pushes every contact node into the active set, "
+                "after which "
+                "the steps are regular — a recovery by round-off, not by design. "
+                if luck and luck["converged"]
+                else "With MUMPS min fails on that step too. "
+            )
+            + "Serial CG + GAMG breaks down on it (on 2 MPI ranks it returns such a huge step "
+            "instead, and "
             "min recovers), and the error says why (`no dirichlet boundary: K is singular while no "
             "contact node is active …`); vinewtonssls' merit line search shortens its FB steps and "
             "gets there slowly. A load whose resultant ∫f + ∫t + ∫t_C does not push onto the "
             "obstacle has no (unique) solution: rejected at assembly, exit 2 naming `data.f` "
-            "(`tests/test_semicoercive.py`).")
-    m = ["(m) k = 1 : 1e6", "(m) k, f = 1 : 1e6", "(m) k, f = 1 : 1e6 at 128²", "(m) k, f = 1 : 1e6 at 128², rtol 1e-10"]
+            "(`tests/test_semicoercive.py`)."
+        )
+    m = [
+        "(m) k = 1 : 1e6",
+        "(m) k, f = 1 : 1e6",
+        "(m) k, f = 1 : 1e6 at 128²",
+        "(m) k, f = 1 : 1e6 at 128², rtol 1e-10",
+    ]
     if got(m[0], "fb"):
-        lifted = "no node active" if got(m[0], "min")["active_measure"] == 0 else "nearly no contact"
+        lifted = (
+            "no node active" if got(m[0], "min")["active_measure"] == 0 else "nearly no contact"
+        )
         out.append(
             f"* **(m) coefficient jump** k = 1 : 1e6 across x = 0.5: with f = 1 the stiff half "
             f"holds the soft one off the floor ({cells(m[0])}: "
@@ -390,38 +559,55 @@ def _issue11_rows(its: dict, cell, span) -> list[str]:
             "(its entries are 1e6 times larger on the stiff half), about the size of the relative "
             "tolerance 1e-12 ‖Φ_0‖, and the iteration repeats the solution until the noise dips "
             "below it. A tolerance, not a method, "
-            f"is what fails: with `solver.rtol` 1e-10 {cells(m[3])}.")
+            f"is what fails: with `solver.rtol` 1e-10 {cells(m[3])}."
+        )
     n = "(n) Hertz nu = 0.499"
     if got(n, "fb"):
         f, r = got("(f) elastic Hertz", "fb"), got(n, "fb")
         locking = ""
         if r["converged"] and f and f["converged"]:
-            locking = (f" P1 locks: the contact half-width a and peak pressure p0 miss Hertz by "
-                       f"{pct(r['a_error'])} and {pct(r['p0_error'])} (at ν = 0.3: "
-                       f"{pct(f['a_error'])} and {pct(f['p0_error'])}); the displacement space "
-                       f"cannot represent nearly "
-                       "divergence-free fields and the discrete body is too stiff in compression "
-                       "(a mixed u–p or a higher-order element would avoid it; the contact solvers "
-                       "are not the problem).")
+            locking = (
+                f" P1 locks: the contact half-width a and peak pressure p0 miss Hertz by "
+                f"{pct(r['a_error'])} and {pct(r['p0_error'])} (at ν = 0.3: "
+                f"{pct(f['a_error'])} and {pct(f['p0_error'])}); the displacement space "
+                f"cannot represent nearly "
+                "divergence-free fields and the discrete body is too stiff in compression "
+                "(a mixed u–p or a higher-order element would avoid it; the contact solvers "
+                "are not the problem)."
+            )
         kry = ""
-        if r.get("krylov_iterations") not in (None, "") and f and f.get("krylov_iterations") not in (None, ""):
-            kry = (f" The linear algebra suffers most: CG + GAMG (rigid-body near-nullspace) needs "
-                   f"{r['krylov_iterations']} Krylov iterations for fb's solves against "
-                   f"{f['krylov_iterations']} at ν = 0.3 — the near-kernel of the nearly "
-                   f"incompressible "
-                   "operator (divergence-free fields) is not in GAMG's coarse space.")
-        out.append(f"* **(n) nearly incompressible** hertz_2d with ν = 0.499 (cold, its 8k-DoF mesh): "
-                   f"{cells(n)}, against {cells('(f) elastic Hertz')} at ν = 0.3.{locking}{kry}")
+        if (
+            r.get("krylov_iterations") not in (None, "")
+            and f
+            and f.get("krylov_iterations") not in (None, "")
+        ):
+            kry = (
+                f" The linear algebra suffers most: CG + GAMG (rigid-body near-nullspace) needs "
+                f"{r['krylov_iterations']} Krylov iterations for fb's solves against "
+                f"{f['krylov_iterations']} at ν = 0.3 — the near-kernel of the nearly "
+                f"incompressible "
+                "operator (divergence-free fields) is not in GAMG's coarse space."
+            )
+        out.append(
+            f"* **(n) nearly incompressible** hertz_2d with ν = 0.499 (cold, its 8k-DoF mesh): "
+            f"{cells(n)}, against {cells('(f) elastic Hertz')} at ν = 0.3.{locking}{kry}"
+        )
     o = "(o) 3D Hertz kappa=100 gamg"
     if got(o, "fb"):
-        out.append(f"* **(o) 3D Hertz** (`configs/hertz_3d.yaml` on its own mesh, " f"{got(o, 'fb')['dofs']} DoFs, "
-                   f"cold, κ = 100, `solver.linear: gamg`): {cells(o)}. fb, min and blend take "
-                   f"inexact CG + "
-                   "GAMG steps (unsmoothed aggregation in 3D) and κ = 100 is far from the 1e4 "
-                   "where case (k) makes min cycle; the VI solvers run BiCGStab + GAMG on the "
-                   "assembled matrix."
-                   + ("" if got(o, "vinewtonssls")["converged"] else " vinewtonssls fails (see the table): its "
-                      "FB pairs are unscaled."))
+        out.append(
+            f"* **(o) 3D Hertz** (`configs/hertz_3d.yaml` on its own mesh, "
+            f"{got(o, 'fb')['dofs']} DoFs, "
+            f"cold, κ = 100, `solver.linear: gamg`): {cells(o)}. fb, min and blend take "
+            f"inexact CG + "
+            "GAMG steps (unsmoothed aggregation in 3D) and κ = 100 is far from the 1e4 "
+            "where case (k) makes min cycle; the VI solvers run BiCGStab + GAMG on the "
+            "assembled matrix."
+            + (
+                ""
+                if got(o, "vinewtonssls")["converged"]
+                else " vinewtonssls fails (see the table): its FB pairs are unscaled."
+            )
+        )
     out.append(_newton_min_cycle())
     return out
 
@@ -430,44 +616,62 @@ def _newton_min_cycle() -> str:
     """Case (p): plain Newton-min on a P-matrix LCP (demos/bench/bench_newton_min_cycle.py)."""
     data = rows(RES / "newton_min_cycle.csv")
     if not data:
-        return "* **(p) Newton-min cycling**: " + missing("newton_min_cycle.csv (demos/bench/bench_newton_min_cycle.py)")
+        return "* **(p) Newton-min cycling**: " + missing(
+            "newton_min_cycle.csv (demos/bench/bench_newton_min_cycle.py)"
+        )
     p = [r for r in data if r["matrix"].startswith("P-matrix")]
     plain = next(r for r in p if r["method"] == "min" and r["line_search"] == "basic")
-    others = ", ".join(f"{r['method']}{'' if r['line_search'] == 'basic' else ' + ' + r['line_search']} "
-                       f"{r['iterations'] if r['converged'] else 'fails'}" for r in p if r is not plain)
+    others = ", ".join(
+        f"{r['method']}{'' if r['line_search'] == 'basic' else ' + ' + r['line_search']} "
+        f"{r['iterations'] if r['converged'] else 'fails'}"
+        for r in p
+        if r is not plain
+    )
     ctrl = next((r for r in data if r["matrix"].startswith("M-matrix")), None)
-    return ("* **(p) Newton-min cycling** (a unit case, not a scene: [`bench_newton_min_cycle.py`]"
-            "(bench/bench_newton_min_cycle.py), `tests/test_newton_min_cycle.py`). Ben Gharbia & "
-            "Gilbert (Math. Program. 134, 2012) proved that plain Newton-min — our `min` with "
-            "plain Newton steps, the primal–dual active set method — may cycle on an LCP 0 ≤ x ⟂ "
-            "Mx + q ≥ 0 whose M is a P-matrix of order ≥ 3, although such an LCP has one solution "
-            "for every q. On the order-3 "
-            "P-matrix M = I + 2·(cyclic shift), q = −(1, 1, 1), from x0 = (" + plain["x0"].replace(" ", ", ")
-            + "), the package's own φ and ∂φ in a dense Newton loop (`contact.solvers.lcp`): plain min "
-            + (f"returns to x0 every {plain['period']} steps and is still cycling after " f"{plain['iterations']} "
-               f"(‖Φ‖ = {g(plain['residual'])})" if not plain["converged"] else f"converges in {plain['iterations']}")
-            + f"; {others} steps to the solution (1, 1, 1)/3. Every step of the cycle is off the " f"kinks of "
-            "min, so no tie rule changes it; the matrix has positive off-diagonal entries, unlike "
-            "the stiffness matrices of P1 Laplacians on non-obtuse meshes (M-matrices, on which "
-            "plain Newton-min ends in at most n steps"
-            + (f": {ctrl['iterations']} on the 1D Laplacian from the same x0" if ctrl else "")
-            + "). Elasticity and obtuse meshes (cases (e), (f)) leave that class, which is why min "
-            "can cycle there in principle although it has not in this map.")
+    return (
+        "* **(p) Newton-min cycling** (a unit case, not a scene: [`bench_newton_min_cycle.py`]"
+        "(bench/bench_newton_min_cycle.py), `tests/test_newton_min_cycle.py`). Ben Gharbia & "
+        "Gilbert (Math. Program. 134, 2012) proved that plain Newton-min — our `min` with "
+        "plain Newton steps, the primal–dual active set method — may cycle on an LCP 0 ≤ x ⟂ "
+        "Mx + q ≥ 0 whose M is a P-matrix of order ≥ 3, although such an LCP has one solution "
+        "for every q. On the order-3 "
+        "P-matrix M = I + 2·(cyclic shift), q = −(1, 1, 1), from x0 = ("
+        + plain["x0"].replace(" ", ", ")
+        + "), the package's own φ and ∂φ in a dense Newton loop (`contact.solvers.lcp`): plain min "
+        + (
+            f"returns to x0 every {plain['period']} steps and is still cycling after "
+            f"{plain['iterations']} "
+            f"(‖Φ‖ = {g(plain['residual'])})"
+            if not plain["converged"]
+            else f"converges in {plain['iterations']}"
+        )
+        + f"; {others} steps to the solution (1, 1, 1)/3. Every step of the cycle is off the "
+        f"kinks of "
+        "min, so no tie rule changes it; the matrix has positive off-diagonal entries, unlike "
+        "the stiffness matrices of P1 Laplacians on non-obtuse meshes (M-matrices, on which "
+        "plain Newton-min ends in at most n steps"
+        + (f": {ctrl['iterations']} on the 1D Laplacian from the same x0" if ctrl else "")
+        + "). Elasticity and obtuse meshes (cases (e), (f)) leave that class, which is why min "
+        "can cycle there in principle although it has not in this map."
+    )
 
 
 def stability() -> str:
     runs, _, out = _open("## 3. Stability map: where the methods fail", "stability", "stability")
     if not runs:
         return "\n".join(out)
-    out += ["[`configs/studies/stability.yaml`](../configs/studies/stability.yaml): one cold solve per "
-            "cell (grid sequencing off), at most 100 Newton iterations, the lecture-notes square "
-            "(32² cells) unless the case names its own scene or size, the default linear solver "
-            "(`solver.linear: auto`: MUMPS below 5,000 DoFs in 2D, else CG + GAMG on the reduced "
-            "system with inexact Newton for fb, min and blend; the VI solvers keep MUMPS in 2D and "
-            "BiCGStab + GAMG in 3D). Cell colour = outcome class from the SNES reason "
-            "(`contact.app.study.outcome`), number = Newton iterations, + active-set polishing "
-            "solves for fb "
-            "and blend (n+p); the ranges below count linear solves (Newton steps + polishing).", ""]
+    out += [
+        "[`configs/studies/stability.yaml`](../configs/studies/stability.yaml): one cold solve per "
+        "cell (grid sequencing off), at most 100 Newton iterations, the lecture-notes square "
+        "(32² cells) unless the case names its own scene or size, the default linear solver "
+        "(`solver.linear: auto`: MUMPS below 5,000 DoFs in 2D, else CG + GAMG on the reduced "
+        "system with inexact Newton for fb, min and blend; the VI solvers keep MUMPS in 2D and "
+        "BiCGStab + GAMG in 3D). Cell colour = outcome class from the SNES reason "
+        "(`contact.app.study.outcome`), number = Newton iterations, + active-set polishing "
+        "solves for fb "
+        "and blend (n+p); the ranges below count linear solves (Newton steps + polishing).",
+        "",
+    ]
     its = {(r["case"], r["method"]): r for r in runs}
     cases = list(dict.fromkeys(r["case"] for r in runs))
 
@@ -476,29 +680,43 @@ def stability() -> str:
         return "–" if r is None else its_text(r) + ("" if r["converged"] else f" ({r['outcome']})")
 
     def span(prefix: str, method: str) -> str:
-        vals = [solves(its[c, method]) for c in cases if c.startswith(prefix) and (c, method) in its]
+        vals = [
+            solves(its[c, method]) for c in cases if c.startswith(prefix) and (c, method) in its
+        ]
         return f"{min(vals)}–{max(vals)}" if len(set(vals)) > 1 else str(vals[0]) if vals else "–"
 
     fails = [r for r in runs if not r["converged"]]
-    not_applicable = [r for r in fails if r["case"].startswith(FRICTION_CASES) and r["method"].startswith("vi")]
+    not_applicable = [
+        r for r in fails if r["case"].startswith(FRICTION_CASES) and r["method"].startswith("vi")
+    ]
     fails = [r for r in fails if r not in not_applicable]
-    na = (f" ({len(not_applicable)} friction runs of the VI solvers are errors by design: " f"PETSc's VI solvers "
-          "take bounds on single unknowns, friction is not one)") if not_applicable else ""
-    out += [f"{len(runs) - len(fails) - len(not_applicable)} of {len(runs)} runs converge{na}. "
-            "What each row shows:", ""]
+    na = (
+        (
+            f" ({len(not_applicable)} friction runs of the VI solvers are errors by design: "
+            f"PETSc's VI solvers "
+            "take bounds on single unknowns, friction is not one)"
+        )
+        if not_applicable
+        else ""
+    )
+    out += [
+        f"{len(runs) - len(fails) - len(not_applicable)} of {len(runs)} runs converge{na}. "
+        "What each row shows:",
+        "",
+    ]
     out += [
         f"* **(a) biactive** (`configs/biactive.yaml`, u = y², every contact node has u = g and λ "
-        f"= 0 on the crossed mesh): {', '.join(f'{m} {cell('(a) biactive', m)}' for m in METHODS)} "
+        f"= 0 on the crossed mesh): {', '.join(f'{m} {cell("(a) biactive", m)}' for m in METHODS)} "
         "iterations. Degenerate but benign for a linear PDE: with g − u = 0 and λ = 0 at every "
         "contact node Φ is positively homogeneous about the solution, so one full Newton step "
         "lands on it from any start (whichever way the kink is resolved, the all-active and the "
         "all-inactive systems have the same solution). On the one-diagonal mesh the discrete "
         "problem is only *nearly* degenerate (gaps ~1e-4, "
-        f"one node active): {', '.join(f'{m} {cell('(a) nearly biactive', m)}' for m in METHODS)} "
+        f"one node active): {', '.join(f'{m} {cell("(a) nearly biactive", m)}' for m in METHODS)} "
         "iterations — the smooth NCPs (fb, blend, vinewtonssls) now see tiny pairs (a, b) where "
         "φ_FB is strongly curved, min and the reduced-space VI resolve the sign pattern directly.",
         f"* **(b) far initial guess** u0 = ±100: "
-        f"{', '.join(f'{m} {span('(b)', m)}' for m in METHODS)} "
+        f"{', '.join(f'{m} {span("(b)", m)}' for m in METHODS)} "
         "iterations. The problem is linear away from the contact nodes, so the first step removes "
         "the offset in the interior; what remains is the same active-set search as from u = 0.",
         f"* **(c) NCP scaling c** = 1e-6 … 1e6 (constant instead of the nodal default): fb "
@@ -512,11 +730,11 @@ def stability() -> str:
         f"{cell('(d) line search bt', 'min')} iterations. " + _line_search_verdict(its) + " The VI "
         "solvers keep PETSc's own line search in both rows.",
         f"* **(e) obtuse mesh** (`configs/obtuse_square.yaml`, every triangle has a 135° angle, K "
-        f"is not an M-matrix): {', '.join(f'{m} {span('(e)', m)}' for m in METHODS)}. Convergence "
+        f"is not an M-matrix): {', '.join(f'{m} {span("(e)", m)}' for m in METHODS)}. Convergence "
         "proofs of the active-set method from any start use the M-matrix property; here it is "
         "lost, yet no method cycles at this size.",
         f"* **(f) elastic Hertz** (`configs/hertz_2d.yaml`, cold start on its 8k-DoF mesh): "
-        f"{', '.join(f'{m} {span('(f)', m)}' for m in METHODS)}. min-Newton could cycle on a "
+        f"{', '.join(f'{m} {span("(f)", m)}' for m in METHODS)}. min-Newton could cycle on a "
         "vector problem whose stiffness couples normal and tangential unknowns; it does not here.",
         f"* **(g) mesh levels 1…7** (4² … 256² cells): fb {span('(g)', 'fb')}, min "
         f"{span('(g)', 'min')}, blend {span('(g)', 'blend')}, vinewtonrsls "
@@ -529,44 +747,79 @@ def stability() -> str:
     ]
     slow = [r for r in runs if r["converged"] and r["newton_iterations"] > 50]
     if slow:
-        out += ["", "Within PETSc's default limit of 50 iterations these runs would have failed (max "
-                "iterations) — the VI methods' failure mode here is iteration growth with the "
-                "mesh, not "
-                "divergence: " + ", ".join(f"{r['method']} on {r['case']} ({r['newton_iterations']})"
-                                           for r in slow) + "."]
+        out += [
+            "",
+            "Within PETSc's default limit of 50 iterations these runs would have failed (max "
+            "iterations) — the VI methods' failure mode here is iteration growth with the "
+            "mesh, not "
+            "divergence: "
+            + ", ".join(f"{r['method']} on {r['case']} ({r['newton_iterations']})" for r in slow)
+            + ".",
+        ]
     if fails:
-        out += ["", "Every failure in the map:", "",
-                table(["case", "method", "outcome", "iterations", "SNES reason", "why"],
-                      [[r["case"], r["method"], r["outcome"], r["newton_iterations"], r["reason"],
-                        _explain(r["case"], r["method"], r["outcome"])] for r in fails])]
+        out += [
+            "",
+            "Every failure in the map:",
+            "",
+            table(
+                ["case", "method", "outcome", "iterations", "SNES reason", "why"],
+                [
+                    [
+                        r["case"],
+                        r["method"],
+                        r["outcome"],
+                        r["newton_iterations"],
+                        r["reason"],
+                        _explain(r["case"], r["method"], r["outcome"]),
+                    ]
+                    for r in fails
+                ],
+            ),
+        ]
     return "\n".join(out) + "\n"
 
 
 #: why a 1024² run of case (k) fails: (method or "*", sequence or "*", smallest κ, largest κ,
-#outcome) -> why
+# outcome) -> why
 SCALE_EXPLAIN = {
-    ("min", "*", 1e3, math.inf, "max iterations"):
-        "κ-fold magnified Krylov error: min's active set follows what the inexact CG step leaves "
-        "of the residual and cycles (case (k) at 128² in the map: exact steps converge)",
-    ("*", "auto", 0.0, 0.1, "max iterations"):
-        "from the sequenced guess SNES's tolerance is relative to the guess's small ‖Φ‖, so the "
-        "absolute 1e-12 governs; with κ = 1e-2 the constrained rows of Φ carry the factor w_i / "
-        "c_i = K_ii / κ, 100 times larger, and their round-off floor reaches that tolerance: the "
-        "iterate is the solution, ‖Φ‖ cannot get below 1e-12",
+    (
+        "min",
+        "*",
+        1e3,
+        math.inf,
+        "max iterations",
+    ): "κ-fold magnified Krylov error: min's active set follows what the inexact CG step leaves "
+    "of the residual and cycles (case (k) at 128² in the map: exact steps converge)",
+    (
+        "*",
+        "auto",
+        0.0,
+        0.1,
+        "max iterations",
+    ): "from the sequenced guess SNES's tolerance is relative to the guess's small ‖Φ‖, so the "
+    "absolute 1e-12 governs; with κ = 1e-2 the constrained rows of Φ carry the factor w_i / "
+    "c_i = K_ii / κ, 100 times larger, and their round-off floor reaches that tolerance: the "
+    "iterate is the solution, ‖Φ‖ cannot get below 1e-12",
 }
 
 
 def _explain_scale(r: dict) -> str:
     for (m, seq, lo, hi, o), text in SCALE_EXPLAIN.items():
-        if m in (r["method"], "*") and seq in (str(r["sequence"]), "*") and lo <= float(r["kappa"]) <= hi \
-                and o == r["outcome"]:
+        if (
+            m in (r["method"], "*")
+            and seq in (str(r["sequence"]), "*")
+            and lo <= float(r["kappa"]) <= hi
+            and o == r["outcome"]
+        ):
             return text
     return "**not yet explained** (new since this report's text was written)"
 
 
 def stability_scale() -> str:
     """Case (k) of §3 at 1024² (configs/studies/stability_scale.yaml)."""
-    runs, _, out = _open("### At scale: cold starts at 1024² (case (k))", "stability_scale", "stability")
+    runs, _, out = _open(
+        "### At scale: cold starts at 1024² (case (k))", "stability_scale", "stability"
+    )
     if not runs:
         return "\n".join(out)
     import itertools
@@ -577,7 +830,12 @@ def stability_scale() -> str:
     methods = axes["method"]
     keys = [(str(seq), float(k)) for seq, k in itertools.product(axes["sequence"], axes["kappa"])]
     by = {(str(r["sequence"]), float(r["kappa"]), r["method"]): r for r in runs}
-    missing = [f"sequence {seq}, κ = {g(k)}, {m}" for seq, k in keys for m in methods if (seq, k, m) not in by]
+    missing = [
+        f"sequence {seq}, κ = {g(k)}, {m}"
+        for seq, k in keys
+        for m in methods
+        if (seq, k, m) not in by
+    ]
 
     def cell(r: dict | None) -> str:
         if r is None:
@@ -585,21 +843,32 @@ def stability_scale() -> str:
         what = its_text(r) if r["outcome"] != "error" else "error"
         return what + ("" if r["converged"] else f" ({r['outcome']})") + f", {g(r['seconds'])} s"
 
-    out += ["[`configs/studies/stability_scale.yaml`](../configs/studies/stability_scale.yaml): the "
-            f"square at 1024² cells ({runs[0]['dofs']} DoFs), one solve per cell from u = 0, NCP "
-            f"scaling "
-            "c_i = κ w_i / K_ii, grid sequencing on (`auto`: 512², 256², … first, each solution "
-            "the next one's guess) or off (a cold start on the fine mesh), at most 100 Newton "
-            "iterations, CG + GAMG with inexact Newton (the default at this size). fb, min and "
-            "blend only: the VI solvers change the active set a few nodes per step and need O(1/h) "
-            "iterations from a cold start (case (g) at 256²: "
-            + ", ".join(f"{m} {solves(r)}" for m in METHODS[3:] for r in (stab or []) if r["case"] == "(g) level 7"
-                        and r["method"] == m) + "), far beyond the limit here. Cells: Newton iterations (+ polishing solves) "
-            "on the fine mesh, outcome, wall time of the run (mesh, assembly, coarse levels and "
-            "Newton; one "
-            "run each on the shared 2-core machine, so only the large differences mean something).", "",
-            table(["sequence", "κ"] + methods, [[seq, g(k)] + [cell(by.get((seq, k, m))) for m in methods]
-                                               for seq, k in keys]), ""]
+    out += [
+        "[`configs/studies/stability_scale.yaml`](../configs/studies/stability_scale.yaml): the "
+        f"square at 1024² cells ({runs[0]['dofs']} DoFs), one solve per cell from u = 0, NCP "
+        f"scaling "
+        "c_i = κ w_i / K_ii, grid sequencing on (`auto`: 512², 256², … first, each solution "
+        "the next one's guess) or off (a cold start on the fine mesh), at most 100 Newton "
+        "iterations, CG + GAMG with inexact Newton (the default at this size). fb, min and "
+        "blend only: the VI solvers change the active set a few nodes per step and need O(1/h) "
+        "iterations from a cold start (case (g) at 256²: "
+        + ", ".join(
+            f"{m} {solves(r)}"
+            for m in METHODS[3:]
+            for r in (stab or [])
+            if r["case"] == "(g) level 7" and r["method"] == m
+        )
+        + "), far beyond the limit here. Cells: Newton iterations (+ polishing solves) "
+        "on the fine mesh, outcome, wall time of the run (mesh, assembly, coarse levels and "
+        "Newton; one "
+        "run each on the shared 2-core machine, so only the large differences mean something).",
+        "",
+        table(
+            ["sequence", "κ"] + methods,
+            [[seq, g(k)] + [cell(by.get((seq, k, m))) for m in methods] for seq, k in keys],
+        ),
+        "",
+    ]
     if missing:
         out += [f"*Not run (the study was stopped before them): {'; '.join(missing)}.*", ""]
     ok = [r for r in runs if r["converged"]]
@@ -607,79 +876,165 @@ def stability_scale() -> str:
 
     def spread(seq: str, m: str) -> str:
         vals = [solves(r) for r in ok if str(r["sequence"]) == seq and r["method"] == m]
-        return "–" if not vals else f"{min(vals)}–{max(vals)}" if min(vals) != max(vals) else str(vals[0])
+        return (
+            "–"
+            if not vals
+            else f"{min(vals)}–{max(vals)}"
+            if min(vals) != max(vals)
+            else str(vals[0])
+        )
 
-    ratios = [by["off", k, m]["seconds"] / by["auto", k, m]["seconds"] for _, k in keys[:len(axes["kappa"])]
-              for m in methods if ("off", k, m) in by and ("auto", k, m) in by and by["auto", k, m]["converged"]
-              and by["off", k, m]["converged"]]
-    out += [f"{len(ok)} of {len(runs)} runs converge. Linear solves on the fine mesh, over the κ " f"where the "
-            "method converges: " + "; ".join(f"{m} {spread('auto', m)} sequenced, {spread('off', m)} cold"
-                                              for m in methods) + ". "
-            + (f"Where both converge, the cold start takes {min(ratios):.1f}–{max(ratios):.1f} " f"times the wall "
-               "time of the sequenced solve. " if ratios else "")
-            + "Sequenced, the fine mesh starts from the 512² solution: with the default κ = 1 one " "linear solve "
-            "(fb and blend: the polishing solve alone; min: one Newton step); a larger κ costs a "
-            "few fine steps more, because b_i = −κ R_i / K_ii magnifies the guess's interpolation "
-            "error. "
-            + ("The exception: " + ", ".join(f"{r['method']} at κ = {g(r['kappa'])} ({its_text(r)}, converged)"
-                                            for r in odd)
-               + (" — at κ = 1e4 b_i = −κ R_i / K_ii magnifies both the guess's interpolation " "error and what "
-                  "the inexact CG steps leave of the residual 10⁴-fold, the cause of min's failure "
-                  "below; fb and "
-                  "blend work through it in more steps. " if all(r["kappa"] >= 1e4 for r in odd) else
-                  " — runs whose iteration history the study does not keep, not analysed. ") if odd else "")
-            + "Cold, every method pays the active-set search on the fine mesh (§3 (g)); a small κ " "makes fb "
-            "and blend resolve the multiplier late (as a small constant c does in (c)), while "
-            "min's count hardly moves with κ"
-            + (" — until κ = 1e4, where its inexact steps fail." if any(r["method"] == "min" and not r["converged"]
-                                                                   for r in runs) else ".")]
+    ratios = [
+        by["off", k, m]["seconds"] / by["auto", k, m]["seconds"]
+        for _, k in keys[: len(axes["kappa"])]
+        for m in methods
+        if ("off", k, m) in by
+        and ("auto", k, m) in by
+        and by["auto", k, m]["converged"]
+        and by["off", k, m]["converged"]
+    ]
+    out += [
+        f"{len(ok)} of {len(runs)} runs converge. Linear solves on the fine mesh, over the κ "
+        f"where the "
+        "method converges: "
+        + "; ".join(f"{m} {spread('auto', m)} sequenced, {spread('off', m)} cold" for m in methods)
+        + ". "
+        + (
+            f"Where both converge, the cold start takes {min(ratios):.1f}–{max(ratios):.1f} "
+            f"times the wall "
+            "time of the sequenced solve. "
+            if ratios
+            else ""
+        )
+        + "Sequenced, the fine mesh starts from the 512² solution: with the default κ = 1 one "
+        "linear solve "
+        "(fb and blend: the polishing solve alone; min: one Newton step); a larger κ costs a "
+        "few fine steps more, because b_i = −κ R_i / K_ii magnifies the guess's interpolation "
+        "error. "
+        + (
+            "The exception: "
+            + ", ".join(
+                f"{r['method']} at κ = {g(r['kappa'])} ({its_text(r)}, converged)" for r in odd
+            )
+            + (
+                " — at κ = 1e4 b_i = −κ R_i / K_ii magnifies both the guess's interpolation "
+                "error and what "
+                "the inexact CG steps leave of the residual 10⁴-fold, the cause of min's failure "
+                "below; fb and "
+                "blend work through it in more steps. "
+                if all(r["kappa"] >= 1e4 for r in odd)
+                else " — runs whose iteration history the study does not keep, not analysed. "
+            )
+            if odd
+            else ""
+        )
+        + "Cold, every method pays the active-set search on the fine mesh (§3 (g)); a small κ "
+        "makes fb "
+        "and blend resolve the multiplier late (as a small constant c does in (c)), while "
+        "min's count hardly moves with κ"
+        + (
+            " — until κ = 1e4, where its inexact steps fail."
+            if any(r["method"] == "min" and not r["converged"] for r in runs)
+            else "."
+        )
+    ]
     fails = [r for r in runs if not r["converged"]]
     if fails:
-        out += ["", "Failures:", "",
-                table(["sequence", "κ", "method", "outcome", "iterations", "SNES reason", "why"],
-                      [[r["sequence"], g(r["kappa"]), r["method"], r["outcome"], r["newton_iterations"],
-                        r["reason"], _explain_scale(r)] for r in fails])]
+        out += [
+            "",
+            "Failures:",
+            "",
+            table(
+                ["sequence", "κ", "method", "outcome", "iterations", "SNES reason", "why"],
+                [
+                    [
+                        r["sequence"],
+                        g(r["kappa"]),
+                        r["method"],
+                        r["outcome"],
+                        r["newton_iterations"],
+                        r["reason"],
+                        _explain_scale(r),
+                    ]
+                    for r in fails
+                ],
+            ),
+        ]
     return "\n".join(out) + "\n"
 
 
 def iterations() -> str:
-    runs, levels, out = _open("## 4. Newton iterations against the refinement level", "iterations_levels",
-                              "iterations")
+    runs, levels, out = _open(
+        "## 4. Newton iterations against the refinement level", "iterations_levels", "iterations"
+    )
     if not levels:
         return "\n".join(out)
-    out += ["Problem A, uniform refinement from 16 × 8 cells "
-            "([`configs/studies/iterations_levels.yaml`](../configs/studies/iterations_levels.yaml)); "
-            "Newton iterations on each level (+ polishing solves, fb and blend):", ""]
+    out += [
+        "Problem A, uniform refinement from 16 × 8 cells "
+        "([`configs/studies/iterations_levels.yaml`](../configs/studies/iterations_levels.yaml)); "
+        "Newton iterations on each level (+ polishing solves, fb and blend):",
+        "",
+    ]
     n_levels = max(r["level"] for r in levels) + 1
     dofs = {r["level"]: r["dofs"] for r in levels}
     body = []
     for r in runs:
         mine = sorted((lv for lv in levels if lv["run"] == r["run"]), key=lambda lv: lv["level"])
-        body.append([r["method"], "nested" if r["nested"] else "cold",
-                     *[its_text(lv) for lv in mine], g(r["seconds"])])
-    out += [table(["method", "start", *[f"L{k} ({dofs.get(k, '?')})" for k in range(n_levels)], "run s"], body), ""]
+        body.append(
+            [
+                r["method"],
+                "nested" if r["nested"] else "cold",
+                *[its_text(lv) for lv in mine],
+                g(r["seconds"]),
+            ]
+        )
+    out += [
+        table(
+            ["method", "start", *[f"L{k} ({dofs.get(k, '?')})" for k in range(n_levels)], "run s"],
+            body,
+        ),
+        "",
+    ]
     seconds = {(r["method"], r["nested"]): r["seconds"] for r in runs}
-    faster = sum(seconds[m, True] < seconds[m, False] for m in METHODS
-                 if (m, True) in seconds and (m, False) in seconds)
+    faster = sum(
+        seconds[m, True] < seconds[m, False]
+        for m in METHODS
+        if (m, True) in seconds and (m, False) in seconds
+    )
 
     def flat(method: str, nested: bool) -> str:
-        vals = sorted({solves(lv) for r in runs if r["method"] == method and r["nested"] == nested
-                       for lv in levels if lv["run"] == r["run"] and lv["level"] > 0})
+        vals = sorted(
+            {
+                solves(lv)
+                for r in runs
+                if r["method"] == method and r["nested"] == nested
+                for lv in levels
+                if lv["run"] == r["run"] and lv["level"] > 0
+            }
+        )
         return "–" if not vals else str(vals[0]) if len(vals) == 1 else f"{vals[0]}–{vals[-1]}"
 
-    out += ["Linear solves per level after the first, nested: "
-            + ", ".join(f"{m} {flat(m, True)}" for m in METHODS) + "; cold: "
-            + ", ".join(f"{m} {flat(m, False)}" for m in METHODS) + ". From a cold start every method "
-            "needs more on finer meshes (the active-set search of §3 (g)); with nested iteration "
-            "the count is flat — the interpolated active set is already right or one step away, "
-            "and for fb and blend the polishing solve replaces the superlinear tail of a smooth "
-            "NCP. Wall time of the whole six-level run: "
-            + ", ".join(f"{m} {g(seconds.get((m, True)))} s nested vs {g(seconds.get((m, False)))} s cold"
-                        for m in METHODS if (m, True) in seconds)
-            + f" — nested iteration is faster for {faster} "
-            "of the five methods. The prolongation of u_h to the refined mesh evaluates it in each "
-            "child's "
-            "parent cell (`contact.adaptivity.transfer.prolong`, no point search), so it costs " "little next to a solve."]
+    out += [
+        "Linear solves per level after the first, nested: "
+        + ", ".join(f"{m} {flat(m, True)}" for m in METHODS)
+        + "; cold: "
+        + ", ".join(f"{m} {flat(m, False)}" for m in METHODS)
+        + ". From a cold start every method "
+        "needs more on finer meshes (the active-set search of §3 (g)); with nested iteration "
+        "the count is flat — the interpolated active set is already right or one step away, "
+        "and for fb and blend the polishing solve replaces the superlinear tail of a smooth "
+        "NCP. Wall time of the whole six-level run: "
+        + ", ".join(
+            f"{m} {g(seconds.get((m, True)))} s nested vs {g(seconds.get((m, False)))} s cold"
+            for m in METHODS
+            if (m, True) in seconds
+        )
+        + f" — nested iteration is faster for {faster} "
+        "of the five methods. The prolongation of u_h to the refined mesh evaluates it in each "
+        "child's "
+        "parent cell (`contact.adaptivity.transfer.prolong`, no point search), so it costs "
+        "little next to a solve."
+    ]
     return "\n".join(out) + "\n"
 
 
@@ -689,19 +1044,34 @@ def hertz_methods() -> str:
     data = rows(RES / "hertz" / "final_mesh_methods.csv")
     if not data:
         return "\n".join(out) + "\n" + missing("demos/results/hertz/final_mesh_methods.csv")
-    out += ["`demos/bench/bench_hertz.py`: the last mesh of the fb adaptive run on " "`configs/hertz_2d.yaml` and "
-            "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
-            "solution (nested), with the default linear solver (`solver.linear: auto`; the column "
-            "is the solver used: gamg = CG + GAMG on the reduced Newton system, direct = MUMPS LU, "
-            "bcgs = BiCGStab + GAMG on the assembled matrix, which the PETSc VI solvers use in "
-            "3D), and fb from a cold start (u = 0, no grid sequencing) also with the other kinds. "
-            "Newton its + polishing solves; the 3D VI runs from a cold start, vinewtonssls and "
-            "MUMPS in 3D only with "
-            "`--full` (they took minutes).", "",
-            table(["scene", "method", "start", "linear solver", "DoFs", "Newton its", "seconds"],
-                  [[r["scene"], r["method"], r["start"], r["linear_solver"],
-                    r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r.get("polish")}),
-                    g(r["seconds"])] for r in data])]
+    out += [
+        "`demos/bench/bench_hertz.py`: the last mesh of the fb adaptive run on "
+        "`configs/hertz_2d.yaml` and "
+        "`configs/hertz_3d.yaml`, every method from u = 0 (cold) and from the previous level's "
+        "solution (nested), with the default linear solver (`solver.linear: auto`; the column "
+        "is the solver used: gamg = CG + GAMG on the reduced Newton system, direct = MUMPS LU, "
+        "bcgs = BiCGStab + GAMG on the assembled matrix, which the PETSc VI solvers use in "
+        "3D), and fb from a cold start (u = 0, no grid sequencing) also with the other kinds. "
+        "Newton its + polishing solves; the 3D VI runs from a cold start, vinewtonssls and "
+        "MUMPS in 3D only with "
+        "`--full` (they took minutes).",
+        "",
+        table(
+            ["scene", "method", "start", "linear solver", "DoFs", "Newton its", "seconds"],
+            [
+                [
+                    r["scene"],
+                    r["method"],
+                    r["start"],
+                    r["linear_solver"],
+                    r["dofs"],
+                    its_text({"newton_iterations": r["newton"], "polish_solves": r.get("polish")}),
+                    g(r["seconds"]),
+                ]
+                for r in data
+            ],
+        ),
+    ]
     return "\n".join(out) + "\n"
 
 
@@ -712,38 +1082,84 @@ def peers() -> str:
         body = []
         for r in runs:
             radius = math.sqrt(r["active_measure"] / math.pi) if r["active_measure"] != "" else ""
-            body.append([r["method"], r["level"], r["dofs"], g(r["error"]), g(radius, 5),
-                         g(radius - EX9_RADIUS if radius != "" else "", 2), its_text(r), g(r["seconds"])])
-        out += ["[`configs/peers/petsc_ex9.yaml`](../configs/peers/petsc_ex9.yaml): f = 0, the " "spherical-cap "
-                "obstacle, Dirichlet data from the exact solution; on the one-diagonal mesh P1 "
-                "gives exactly ex9's 5-point matrix, and the nodal errors on 17², 9² and 33² grids "
-                "equal the ones in PETSc's published test outputs (`tests/test_peers.py`). "
-                "Free-boundary radius r_h = √(|active set|/π) "
-                f"from the lumped measure of the active nodes, exact {EX9_RADIUS}:", "",
-                table(["method", "level", "DoFs", "energy error", "r_h", "r_h − r", "Newton its", "seconds"], body),
-                "", "The energy error halves per level (first order, the P1 rate for this solution) " "and r_h "
-                "approaches the exact radius from outside, r_h − r between h/4 and h/2 (the lumped "
-                "measure "
-                "counts the half-cells around the last active nodes)."]
+            body.append(
+                [
+                    r["method"],
+                    r["level"],
+                    r["dofs"],
+                    g(r["error"]),
+                    g(radius, 5),
+                    g(radius - EX9_RADIUS if radius != "" else "", 2),
+                    its_text(r),
+                    g(r["seconds"]),
+                ]
+            )
+        out += [
+            "[`configs/peers/petsc_ex9.yaml`](../configs/peers/petsc_ex9.yaml): f = 0, the "
+            "spherical-cap "
+            "obstacle, Dirichlet data from the exact solution; on the one-diagonal mesh P1 "
+            "gives exactly ex9's 5-point matrix, and the nodal errors on 17², 9² and 33² grids "
+            "equal the ones in PETSc's published test outputs (`tests/test_peers.py`). "
+            "Free-boundary radius r_h = √(|active set|/π) "
+            f"from the lumped measure of the active nodes, exact {EX9_RADIUS}:",
+            "",
+            table(
+                [
+                    "method",
+                    "level",
+                    "DoFs",
+                    "energy error",
+                    "r_h",
+                    "r_h − r",
+                    "Newton its",
+                    "seconds",
+                ],
+                body,
+            ),
+            "",
+            "The energy error halves per level (first order, the P1 rate for this solution) "
+            "and r_h "
+            "approaches the exact radius from outside, r_h − r between h/4 and h/2 (the lumped "
+            "measure "
+            "counts the half-cells around the last active nodes).",
+        ]
     else:
         out += [missing("demos/results/peer_ex9")]
     out += ["", "### deal.II step-41 (stair-step obstacle, 16641 DoFs)", ""]
     runs, _ = study("peer_step41")
     if runs:
-        out += ["[`configs/peers/dealii_step41.yaml`](../configs/peers/dealii_step41.yaml): the " "same data as "
-                "step-41 (f = −10, u = 0 on ∂Ω, the four-step obstacle) on P1 triangles of the 128 "
-                "× 128 grid (the same 16641 nodes as their Q1 mesh). deal.II reports its "
-                "primal–dual active set "
-                f"iterations as \"Newton iteration 0\" … \"18\", i.e. {STEP41_SOLVES} linear "
-                f"solves, ending with "
-                "5399 constrained DoFs.", "",
-                table(["method", "Newton its (+ polishing)", "active nodes", "seconds"],
-                      [[r["method"], its_text(r), round(r["active_measure"] / (2 / 128) ** 2)
-                        if r["active_measure"] != "" else "–", g(r["seconds"])] for r in runs]),
-                "", "min is the same primal–dual active set method and needs about as many solves as " "deal.II "
-                "(the active set differs by a few nodes at the stair edges because Q1 and P1 are "
-                "different "
-                "discretizations); the active-node column is |active set| / h², the lumped area " "in cells."]
+        out += [
+            "[`configs/peers/dealii_step41.yaml`](../configs/peers/dealii_step41.yaml): the "
+            "same data as "
+            "step-41 (f = −10, u = 0 on ∂Ω, the four-step obstacle) on P1 triangles of the 128 "
+            "× 128 grid (the same 16641 nodes as their Q1 mesh). deal.II reports its "
+            "primal–dual active set "
+            f'iterations as "Newton iteration 0" … "18", i.e. {STEP41_SOLVES} linear '
+            f"solves, ending with "
+            "5399 constrained DoFs.",
+            "",
+            table(
+                ["method", "Newton its (+ polishing)", "active nodes", "seconds"],
+                [
+                    [
+                        r["method"],
+                        its_text(r),
+                        round(r["active_measure"] / (2 / 128) ** 2)
+                        if r["active_measure"] != ""
+                        else "–",
+                        g(r["seconds"]),
+                    ]
+                    for r in runs
+                ],
+            ),
+            "",
+            "min is the same primal–dual active set method and needs about as many solves as "
+            "deal.II "
+            "(the active set differs by a few nodes at the stair edges because Q1 and P1 are "
+            "different "
+            "discretizations); the active-node column is |active set| / h², the lumped area "
+            "in cells.",
+        ]
     else:
         out += [missing("demos/results/peer_step41")]
     return "\n".join(out) + "\n"
@@ -755,24 +1171,58 @@ def friction() -> str:
     folder = RES / "friction"
     acc = rows(folder / "acceptance.csv")
     if not acc:
-        return "\n".join(out) + "\n" + missing("friction/acceptance.csv (demos/bench/bench_friction.py)")
-    out += ["[`demos/bench/bench_friction.py`](bench/bench_friction.py) on the shipped friction scenes "
-            "(`configs/friction_*.yaml`). The acceptance figures of issue 12:", "",
-            table(["item", "value", "target", "met"],
-                  [[r["item"], g(r["value"], 3), r["target"], "yes" if r["met"] else "**no**"] for r in acc]), ""]
+        return (
+            "\n".join(out)
+            + "\n"
+            + missing("friction/acceptance.csv (demos/bench/bench_friction.py)")
+        )
+    out += [
+        "[`demos/bench/bench_friction.py`](bench/bench_friction.py) on the shipped friction scenes "
+        "(`configs/friction_*.yaml`). The acceptance figures of issue 12:",
+        "",
+        table(
+            ["item", "value", "target", "met"],
+            [
+                [r["item"], g(r["value"], 3), r["target"], "yes" if r["met"] else "**no**"]
+                for r in acc
+            ],
+        ),
+        "",
+    ]
     cvf = rows(folder / "coulomb_vs_fixed_point.csv") or []
     if cvf:
-        out += ["Coulomb by full semismooth Newton (hsw) against the fixed point on the pressure " "(a Tresca "
-                "problem per iteration), one step with partial slip, both with `solver.atol` 1e-15 "
-                "(with the "
-                "default 1e-12 on ‖Φ‖ they agree to that tolerance: 2e-9 in u, 1.4e-8 in λ_t on " "the box):", "",
-                table(["case", "DoFs", "stick / slip nodes", "Newton: its, s", "fixed point: iterations, Newton its, s",
-                       "max |Δu| / max |u|"],
-                      [[r["case"], r["dofs"], f"{r['stick_nodes']} / {r['slip_nodes']}",
+        out += [
+            "Coulomb by full semismooth Newton (hsw) against the fixed point on the pressure "
+            "(a Tresca "
+            "problem per iteration), one step with partial slip, both with `solver.atol` 1e-15 "
+            "(with the "
+            "default 1e-12 on ‖Φ‖ they agree to that tolerance: 2e-9 in u, 1.4e-8 in λ_t on "
+            "the box):",
+            "",
+            table(
+                [
+                    "case",
+                    "DoFs",
+                    "stick / slip nodes",
+                    "Newton: its, s",
+                    "fixed point: iterations, Newton its, s",
+                    "max |Δu| / max |u|",
+                ],
+                [
+                    [
+                        r["case"],
+                        r["dofs"],
+                        f"{r['stick_nodes']} / {r['slip_nodes']}",
                         f"{r['newton_iterations']}, {g(r['newton_seconds'])}",
                         f"{r['fixed_point_iterations']}, {r['fixed_point_newton_iterations']}, "
                         f"{g(r['fixed_point_seconds'])}",
-                        g(r["u_difference"], 2)] for r in cvf]), ""]
+                        g(r["u_difference"], 2),
+                    ]
+                    for r in cvf
+                ],
+            ),
+            "",
+        ]
     forms = rows(folder / "forms.csv") or []
     if forms:
         keys = list(dict.fromkeys((r["case"], r["start"]) for r in forms))
@@ -781,57 +1231,142 @@ def friction() -> str:
             cells = []
             for form in ("hsw", "projection"):
                 for m in ("fb", "min", "blend"):
-                    r = next(x for x in forms if (x["case"], x["start"], x["form"], x["method"]) == (case, start, form, m))
+                    r = next(
+                        x
+                        for x in forms
+                        if (x["case"], x["start"], x["form"], x["method"]) == (case, start, form, m)
+                    )
                     cells.append(str(r["newton_iterations"]) if r["converged"] else "**fail**")
             body.append([case, start] + cells)
-        ok = {f: sum(1 for r in forms if r["form"] == f and r["converged"]) for f in ("hsw", "projection")}
+        ok = {
+            f: sum(1 for r in forms if r["form"] == f and r["converged"])
+            for f in ("hsw", "projection")
+        }
         n = {f: sum(1 for r in forms if r["form"] == f) for f in ("hsw", "projection")}
-        out += ["The tangential form (the default): Newton iterations of one step from u = 0 " "(cold) and from the "
-                "frictionless solution (every node starts sliding), at most 100 (**fail**: no " "convergence):", "",
-                table(["scene", "start", "hsw fb", "hsw min", "hsw blend", "projection fb", "projection min",
-                       "projection blend"], body), "",
-                f"hsw converges in {ok['hsw']} of {n['hsw']} runs, the projection form in "
-                f"{ok['projection']} of {n['projection']}: its failures are the 2-cycle of §3 "
-                f"({_PROJECTION_CYCLE}). Hence "
-                "`friction.form: hsw` by default; the projection form stays selectable.", ""]
+        out += [
+            "The tangential form (the default): Newton iterations of one step from u = 0 "
+            "(cold) and from the "
+            "frictionless solution (every node starts sliding), at most 100 (**fail**: no "
+            "convergence):",
+            "",
+            table(
+                [
+                    "scene",
+                    "start",
+                    "hsw fb",
+                    "hsw min",
+                    "hsw blend",
+                    "projection fb",
+                    "projection min",
+                    "projection blend",
+                ],
+                body,
+            ),
+            "",
+            f"hsw converges in {ok['hsw']} of {n['hsw']} runs, the projection form in "
+            f"{ok['projection']} of {n['projection']}: its failures are the 2-cycle of §3 "
+            f"({_PROJECTION_CYCLE}). Hence "
+            "`friction.form: hsw` by default; the projection form stays selectable.",
+            "",
+        ]
     steps = rows(folder / "steps.csv") or []
     if steps:
         scenes = list(dict.fromkeys(r["scene"] for r in steps))
         ns = sorted({r["steps"] for r in steps})
-        body = [[sc] + [next((f"{r['max_step_iterations']} / {r['total_iterations']}" + ("" if r["converged"] else " fail")
-                             for r in steps if r["scene"] == sc and r["steps"] == n), "–") for n in ns] for sc in scenes]
-        out += ["Newton iterations per load step against the number of steps (max per step / " "total), warm "
-                "starts from the previous step:", "",
-                table(["scene"] + [f"{n} step{'s' if n > 1 else ''}" for n in ns], body), "",
-                "Fewer, larger steps cost more iterations per step (a cold first step has to find "
-                "the contact zone and the stick zone at once), but within 10 down to a single step "
-                "on these scenes; more steps cost more iterations in total (2–3 per step once the "
-                "state changes slowly). The load path changes the answer where nodes slip (the "
-                "cylinder's final tangential force with 1 step "
-                "and with 40 steps: " + ", ".join(f"{g(r['friction_ratio'], 4)}" for r in steps
-                                                  if r["scene"] == "cylinder_2d" and r["steps"] in (ns[0], ns[-1]))
-                + " × |F_n|), and not for a proportional stick-only loading (acceptance table).", ""]
+        body = [
+            [sc]
+            + [
+                next(
+                    (
+                        f"{r['max_step_iterations']} / {r['total_iterations']}"
+                        + ("" if r["converged"] else " fail")
+                        for r in steps
+                        if r["scene"] == sc and r["steps"] == n
+                    ),
+                    "–",
+                )
+                for n in ns
+            ]
+            for sc in scenes
+        ]
+        out += [
+            "Newton iterations per load step against the number of steps (max per step / "
+            "total), warm "
+            "starts from the previous step:",
+            "",
+            table(["scene"] + [f"{n} step{'s' if n > 1 else ''}" for n in ns], body),
+            "",
+            "Fewer, larger steps cost more iterations per step (a cold first step has to find "
+            "the contact zone and the stick zone at once), but within 10 down to a single step "
+            "on these scenes; more steps cost more iterations in total (2–3 per step once the "
+            "state changes slowly). The load path changes the answer where nodes slip (the "
+            "cylinder's final tangential force with 1 step "
+            "and with 40 steps: "
+            + ", ".join(
+                f"{g(r['friction_ratio'], 4)}"
+                for r in steps
+                if r["scene"] == "cylinder_2d" and r["steps"] in (ns[0], ns[-1])
+            )
+            + " × |F_n|), and not for a proportional stick-only loading (acceptance table).",
+            "",
+        ]
     mms = rows(folder / "manufactured.csv") or []
     if mms:
-        out += ["The manufactured Tresca solution (`configs/friction_tresca_manufactured.yaml`: " "exact stick zone "
-                "x < 0.5 and slip zone x > 0.5 on Γ_C), energy error, η with the Hild–Lleras "
-                "friction terms and "
-                "the effectivity per level:", "",
-                table(["refinement", "level", "DoFs", "error", "η", "η / error", "Newton its"],
-                      [[r["strategy"], r["level"], r["dofs"], g(r["error"]), g(r["eta"]), g(r["effectivity"], 3),
-                        r["newton_iterations"]] for r in mms]), ""]
+        out += [
+            "The manufactured Tresca solution (`configs/friction_tresca_manufactured.yaml`: "
+            "exact stick zone "
+            "x < 0.5 and slip zone x > 0.5 on Γ_C), energy error, η with the Hild–Lleras "
+            "friction terms and "
+            "the effectivity per level:",
+            "",
+            table(
+                ["refinement", "level", "DoFs", "error", "η", "η / error", "Newton its"],
+                [
+                    [
+                        r["strategy"],
+                        r["level"],
+                        r["dofs"],
+                        g(r["error"]),
+                        g(r["eta"]),
+                        g(r["effectivity"], 3),
+                        r["newton_iterations"],
+                    ]
+                    for r in mms
+                ],
+            ),
+            "",
+        ]
     cost = rows(folder / "cost.csv") or []
     if cost:
-        out += ["Cost of the block Jacobian (milliseconds per Newton step; min for the normal " "part, the default "
-                "linear solver: MUMPS in 2D, BiCGStab + GAMG in 3D): the callbacks evaluate Φ and "
-                "build H — H = diag(s) K + diag(d) without friction, H = B K + D (one sparse "
-                "product, one axpy) with it; "
-                "Coulomb with F = 0 solves the frictionless equations through the block path:", "",
-                table(["scene", "law", "DoFs", "Newton its", "Φ and H, ms/step", "linear solve, ms/step"],
-                      [[r["scene"], r["law"], r["dofs"], r["newton_iterations"], r["callbacks_ms_per_step"],
-                        r["linear_solve_ms_per_step"]] for r in cost]), ""]
-    out += ["Traction pictures: [block](results/friction/traction_block_2d.png), "
-            "[cylinder](results/friction/traction_cylinder_2d.png), [3D " "box](results/friction/traction_box_3d.png)."]
+        out += [
+            "Cost of the block Jacobian (milliseconds per Newton step; min for the normal "
+            "part, the default "
+            "linear solver: MUMPS in 2D, BiCGStab + GAMG in 3D): the callbacks evaluate Φ and "
+            "build H — H = diag(s) K + diag(d) without friction, H = B K + D (one sparse "
+            "product, one axpy) with it; "
+            "Coulomb with F = 0 solves the frictionless equations through the block path:",
+            "",
+            table(
+                ["scene", "law", "DoFs", "Newton its", "Φ and H, ms/step", "linear solve, ms/step"],
+                [
+                    [
+                        r["scene"],
+                        r["law"],
+                        r["dofs"],
+                        r["newton_iterations"],
+                        r["callbacks_ms_per_step"],
+                        r["linear_solve_ms_per_step"],
+                    ]
+                    for r in cost
+                ],
+            ),
+            "",
+        ]
+    out += [
+        "Traction pictures: [block](results/friction/traction_block_2d.png), "
+        "[cylinder](results/friction/traction_cylinder_2d.png), [3D "
+        "box](results/friction/traction_box_3d.png)."
+    ]
     return "\n".join(out) + "\n"
 
 
@@ -841,73 +1376,238 @@ def two_bodies() -> str:
     folder = RES / "two_bodies"
     patch = rows(folder / "patch.csv")
     if not patch:
-        return "\n".join(out) + "\n" + missing("two_bodies/patch.csv (demos/bench/bench_two_bodies.py)")
-    out += ["[`demos/bench/bench_two_bodies.py`](bench/bench_two_bodies.py). **Contact patch test** "
-            "(`configs/two_body_patch_{2d,3d}.yaml`: two blocks of different materials, mesh-size "
-            "ratio ≥ 3, no interface node aligned but the corners, uniform pressure p on top): the "
-            "largest deviation of the interface pressure from −p over the slave nodes (λ_i) and "
-            "over the master nodes (λ^m_j), "
-            "relative to p:", "",
-            table(["dim", "method", "DoFs", "Newton its", "seconds", "slave max |λ + p| / p", "master max |λ + p| / p"],
-                  [[r["dim"], r["method"], r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
-                    g(r["seconds"]), g(r["slave_error"], 2), g(r["master_error"], 2)] for r in patch]), "",
-            "(3D: the default linear solver is BiCGStab + GAMG with rtol 1e-10, which bounds the " "agreement.)", ""]
+        return (
+            "\n".join(out)
+            + "\n"
+            + missing("two_bodies/patch.csv (demos/bench/bench_two_bodies.py)")
+        )
+    out += [
+        "[`demos/bench/bench_two_bodies.py`](bench/bench_two_bodies.py). **Contact patch test** "
+        "(`configs/two_body_patch_{2d,3d}.yaml`: two blocks of different materials, mesh-size "
+        "ratio ≥ 3, no interface node aligned but the corners, uniform pressure p on top): the "
+        "largest deviation of the interface pressure from −p over the slave nodes (λ_i) and "
+        "over the master nodes (λ^m_j), "
+        "relative to p:",
+        "",
+        table(
+            [
+                "dim",
+                "method",
+                "DoFs",
+                "Newton its",
+                "seconds",
+                "slave max |λ + p| / p",
+                "master max |λ + p| / p",
+            ],
+            [
+                [
+                    r["dim"],
+                    r["method"],
+                    r["dofs"],
+                    its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                    g(r["seconds"]),
+                    g(r["slave_error"], 2),
+                    g(r["master_error"], 2),
+                ]
+                for r in patch
+            ],
+        ),
+        "",
+        "(3D: the default linear solver is BiCGStab + GAMG with rtol 1e-10, which bounds the "
+        "agreement.)",
+        "",
+    ]
     levels = rows(folder / "cylinders_levels.csv") or []
     if levels:
-        out += ["**Two cylinders, Hertz** (`configs/two_body_hertz_2d.yaml`: R_c = 8, E = 200, ν " "= 0.3; "
-                "effective radius R = R_c/2, E* = E / (2(1 − ν²))), Dörfler θ = 0.5, fb with " "nested iteration:", "",
-                table(["level", "DoFs", "Newton its", "solve s", "η", "a error", "p0 error", "a / R_c", "force balance"],
-                      [[r["level"], r["dofs"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
-                        g(r["seconds_solve"]), g(r["eta"]), pct(r["a_error"]), pct(r["p0_error"]), g(r["a_over_Rc"]),
-                        g(r["balance"], 2)] for r in levels]), ""]
+        out += [
+            "**Two cylinders, Hertz** (`configs/two_body_hertz_2d.yaml`: R_c = 8, E = 200, ν "
+            "= 0.3; "
+            "effective radius R = R_c/2, E* = E / (2(1 − ν²))), Dörfler θ = 0.5, fb with "
+            "nested iteration:",
+            "",
+            table(
+                [
+                    "level",
+                    "DoFs",
+                    "Newton its",
+                    "solve s",
+                    "η",
+                    "a error",
+                    "p0 error",
+                    "a / R_c",
+                    "force balance",
+                ],
+                [
+                    [
+                        r["level"],
+                        r["dofs"],
+                        its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds_solve"]),
+                        g(r["eta"]),
+                        pct(r["a_error"]),
+                        pct(r["p0_error"]),
+                        g(r["a_over_Rc"]),
+                        g(r["balance"], 2),
+                    ]
+                    for r in levels
+                ],
+            ),
+            "",
+        ]
     methods = rows(folder / "cylinders_methods.csv") or []
     if methods:
-        out += ["Every method on the final mesh, from u = 0 (cold) and from the previous level's " "solution "
-                "(nested); the largest nodal difference to vinewtonrsls from u = 0:", "",
-                table(["method", "start", "Newton its", "seconds", "max |u − u_rsls|"],
-                      [[r["method"], r["start"], its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
-                        g(r["seconds"]), g(r["max_diff_to_vinewtonrsls"], 2)] for r in methods]), ""]
+        out += [
+            "Every method on the final mesh, from u = 0 (cold) and from the previous level's "
+            "solution "
+            "(nested); the largest nodal difference to vinewtonrsls from u = 0:",
+            "",
+            table(
+                ["method", "start", "Newton its", "seconds", "max |u − u_rsls|"],
+                [
+                    [
+                        r["method"],
+                        r["start"],
+                        its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds"]),
+                        g(r["max_diff_to_vinewtonrsls"], 2),
+                    ]
+                    for r in methods
+                ],
+            ),
+            "",
+        ]
     swaps = (rows(folder / "slave_master.csv") or []) + (rows(folder / "slave_master_3d.csv") or [])
     if swaps:
-        out += ["Which surface is the slave (same meshes, the other surface as slave): the " "contact force, "
-                "half-width / radius and peak pressure, and the relative L² difference of the two "
-                "pressure "
-                "profiles over [0, a]:", "",
-                table(["case", "slave", "DoFs", "force", "a", "p0", "a error", "p0 error", "profiles differ by"],
-                      [[r["case"], r["slave"], r["dofs"], g(r["force"], 6), g(r["a"], 5), g(r["p0"], 5), pct(r["a_error"]),
-                        pct(r["p0_error"]), g(r["profile_L2_difference"], 2)] for r in swaps]), ""]
-    out += [speed_accuracy("speed_accuracy_two_bodies", "Two cylinders: speed against accuracy, every method",
-                           "hertz_error", "Hertz error",
-                           "The study `configs/studies/speed_accuracy_two_bodies.yaml`: Newton "
-                           "iterations and "
-                           "times per level in its levels.csv, as for every other scene.")]
+        out += [
+            "Which surface is the slave (same meshes, the other surface as slave): the "
+            "contact force, "
+            "half-width / radius and peak pressure, and the relative L² difference of the two "
+            "pressure "
+            "profiles over [0, a]:",
+            "",
+            table(
+                [
+                    "case",
+                    "slave",
+                    "DoFs",
+                    "force",
+                    "a",
+                    "p0",
+                    "a error",
+                    "p0 error",
+                    "profiles differ by",
+                ],
+                [
+                    [
+                        r["case"],
+                        r["slave"],
+                        r["dofs"],
+                        g(r["force"], 6),
+                        g(r["a"], 5),
+                        g(r["p0"], 5),
+                        pct(r["a_error"]),
+                        pct(r["p0_error"]),
+                        g(r["profile_L2_difference"], 2),
+                    ]
+                    for r in swaps
+                ],
+            ),
+            "",
+        ]
+    out += [
+        speed_accuracy(
+            "speed_accuracy_two_bodies",
+            "Two cylinders: speed against accuracy, every method",
+            "hertz_error",
+            "Hertz error",
+            "The study `configs/studies/speed_accuracy_two_bodies.yaml`: Newton "
+            "iterations and "
+            "times per level in its levels.csv, as for every other scene.",
+        )
+    ]
     sphere = rows(folder / "sphere.csv") or []
     if sphere:
-        out += ["**A sphere on a block** (`configs/two_body_hertz_3d.yaml`, the quarter x, y ≥ 0; " "gmsh meshes "
-                "of decreasing h_contact at the contact point, no refinement: nodal pressures on "
-                "tetrahedra refined by `dolfinx.mesh.refine` scatter by a few per cent about "
-                "Hertz's, as the rigid-plane `hertz_3d` does, while gmsh's own fine meshes give "
-                "smooth ones), `mpirun -n 2`, fb from u = 0, "
-                "BiCGStab + GAMG:", "",
-                table(["h_contact", "DoFs", "ranks", "Newton its", "seconds", "radius error", "p0 error",
-                       "rms of p − p_Hertz (r < 0.8 a)", "a / R"],
-                      [[r["h_contact"], r["dofs"], r["ranks"], its_text({"newton_iterations": r["newton"],
-                                                                          "polish_solves": r["polish"]}),
-                        g(r["seconds"]), pct(r["a_error"]), pct(r["p0_error"]), f"{100 * r['pressure_rms']:.2f} %",
-                        g(r["a_over_R"])]
-                       for r in sphere]), ""]
+        out += [
+            "**A sphere on a block** (`configs/two_body_hertz_3d.yaml`, the quarter x, y ≥ 0; "
+            "gmsh meshes "
+            "of decreasing h_contact at the contact point, no refinement: nodal pressures on "
+            "tetrahedra refined by `dolfinx.mesh.refine` scatter by a few per cent about "
+            "Hertz's, as the rigid-plane `hertz_3d` does, while gmsh's own fine meshes give "
+            "smooth ones), `mpirun -n 2`, fb from u = 0, "
+            "BiCGStab + GAMG:",
+            "",
+            table(
+                [
+                    "h_contact",
+                    "DoFs",
+                    "ranks",
+                    "Newton its",
+                    "seconds",
+                    "radius error",
+                    "p0 error",
+                    "rms of p − p_Hertz (r < 0.8 a)",
+                    "a / R",
+                ],
+                [
+                    [
+                        r["h_contact"],
+                        r["dofs"],
+                        r["ranks"],
+                        its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+                        g(r["seconds"]),
+                        pct(r["a_error"]),
+                        pct(r["p0_error"]),
+                        f"{100 * r['pressure_rms']:.2f} %",
+                        g(r["a_over_R"]),
+                    ]
+                    for r in sphere
+                ],
+            ),
+            "",
+        ]
     cm = rows(folder / "cattaneo.csv") or []
     if cm:
-        out += ["**Cattaneo–Mindlin partial slip** (`configs/two_body_cattaneo_2d.yaml`: the two " "cylinders with "
-                "Coulomb F = 0.3, P from an interference, then Q as a body force of the upper one "
-                "at constant P): "
-                "the stick zone c/a against √(1 − Q/(F P)) and the relative L² error of the " "tangential traction:", "",
-                table(["h_contact", "DoFs", "Q/(F P)", "Newton its", "c/a", "theory", "c/a error", "q L² error"],
-                      [[r["h_contact"], r["dofs"], g(r["Q_over_FP"], 4), r["newton"], g(r["c_over_a"], 4),
-                        g(r["c_over_a_theory"], 4), pct(r["c_error"]), g(r["q_error"], 3)]
-                       for r in cm if r["Q_over_FP"] > 0.01]), "",
-                "Computed against analytic tangential traction on the finer mesh:", "",
-                "![Cattaneo–Mindlin: computed and analytic tangential " "traction](results/two_bodies/cattaneo_traction.png)", ""]
+        out += [
+            "**Cattaneo–Mindlin partial slip** (`configs/two_body_cattaneo_2d.yaml`: the two "
+            "cylinders with "
+            "Coulomb F = 0.3, P from an interference, then Q as a body force of the upper one "
+            "at constant P): "
+            "the stick zone c/a against √(1 − Q/(F P)) and the relative L² error of the "
+            "tangential traction:",
+            "",
+            table(
+                [
+                    "h_contact",
+                    "DoFs",
+                    "Q/(F P)",
+                    "Newton its",
+                    "c/a",
+                    "theory",
+                    "c/a error",
+                    "q L² error",
+                ],
+                [
+                    [
+                        r["h_contact"],
+                        r["dofs"],
+                        g(r["Q_over_FP"], 4),
+                        r["newton"],
+                        g(r["c_over_a"], 4),
+                        g(r["c_over_a_theory"], 4),
+                        pct(r["c_error"]),
+                        g(r["q_error"], 3),
+                    ]
+                    for r in cm
+                    if r["Q_over_FP"] > 0.01
+                ],
+            ),
+            "",
+            "Computed against analytic tangential traction on the finer mesh:",
+            "",
+            "![Cattaneo–Mindlin: computed and analytic tangential "
+            "traction](results/two_bodies/cattaneo_traction.png)",
+            "",
+        ]
     return "\n".join(out) + "\n"
 
 
@@ -915,231 +1615,447 @@ def cost() -> str:
     """Section 9: a contact solve in units of one linear solve (demos/bench/bench_cost.py)."""
     out = ["## 9. Cost against one linear solve", ""]
     folder = RES / "cost"
-    runs = {path.stem: rows(path) or [] for path in sorted(folder.glob("*.csv"))} if folder.is_dir() else {}
+    runs = (
+        {path.stem: rows(path) or [] for path in sorted(folder.glob("*.csv"))}
+        if folder.is_dir()
+        else {}
+    )
     if not any(runs.values()):
         return "\n".join(out) + "\n" + missing("cost/*.csv (demos/bench/bench_cost.py)")
-    out += ["[`demos/bench/bench_cost.py`](bench/bench_cost.py): the wall time of one contact " "solve from a "
-            "cold start, counted from when the scene's mesh exists (assembly, the coarse levels of "
-            "grid sequencing, the Newton steps on the mesh asked for), divided by the time of ONE "
-            "CG + GAMG solve of the stiffness matrix K (rtol 1e-8 from zero, GAMG set-up included, "
-            "rigid-body modes for elasticity), both measured in the same process, alternating; "
-            "medians of the repeats. Defaults throughout (`solver.linear: auto`, `solver.sequence: "
-            "auto`, κ = 1), except `sequence off`, the cold start without sequencing. \"fine\" "
-            "counts the linear solves on the mesh asked for (Newton + polishing); \"weighted\" "
-            "counts all of them, each weighted by its level's DoFs over the fine DoFs; \"max |u − "
-            "u_before|\" is the largest nodal difference to the solver as it was before issue 11 "
-            "(a cold MUMPS solve for the square with κ = 100, "
-            "BiCGStab + GAMG in 3D).", "",
-            "![cost of a contact solve in linear solves](results/cost/cost.png)", ""]
+    out += [
+        "[`demos/bench/bench_cost.py`](bench/bench_cost.py): the wall time of one contact "
+        "solve from a "
+        "cold start, counted from when the scene's mesh exists (assembly, the coarse levels of "
+        "grid sequencing, the Newton steps on the mesh asked for), divided by the time of ONE "
+        "CG + GAMG solve of the stiffness matrix K (rtol 1e-8 from zero, GAMG set-up included, "
+        "rigid-body modes for elasticity), both measured in the same process, alternating; "
+        "medians of the repeats. Defaults throughout (`solver.linear: auto`, `solver.sequence: "
+        'auto`, κ = 1), except `sequence off`, the cold start without sequencing. "fine" '
+        'counts the linear solves on the mesh asked for (Newton + polishing); "weighted" '
+        "counts all of them, each weighted by its level's DoFs over the fine DoFs; \"max |u − "
+        'u_before|" is the largest nodal difference to the solver as it was before issue 11 '
+        "(a cold MUMPS solve for the square with κ = 100, "
+        "BiCGStab + GAMG in 3D).",
+        "",
+        "![cost of a contact solve in linear solves](results/cost/cost.png)",
+        "",
+    ]
     all_rows = [r for rs in runs.values() for r in rs]
-    body = [[r["case"], r["dofs"], r["ranks"], r["method"], r["sequence"], r["levels"],
-             its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
-             r["coarse_solves"], g(r["weighted_solves"]), r["linear"], g(r["ref_wall_s"]),
-             g(r["solve_wall_s"]), g(r["ratio_wall"]), g(r["max_diff_vs_before"], 2)] for r in all_rows]
-    out += [table(["case", "DoFs", "ranks", "method", "sequence", "levels", "fine", "coarse solves", "weighted",
-                   "linear", "one CG+GAMG s", "contact solve s", "ratio", "max |u − u_before|"], body), ""]
+    body = [
+        [
+            r["case"],
+            r["dofs"],
+            r["ranks"],
+            r["method"],
+            r["sequence"],
+            r["levels"],
+            its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}),
+            r["coarse_solves"],
+            g(r["weighted_solves"]),
+            r["linear"],
+            g(r["ref_wall_s"]),
+            g(r["solve_wall_s"]),
+            g(r["ratio_wall"]),
+            g(r["max_diff_vs_before"], 2),
+        ]
+        for r in all_rows
+    ]
+    out += [
+        table(
+            [
+                "case",
+                "DoFs",
+                "ranks",
+                "method",
+                "sequence",
+                "levels",
+                "fine",
+                "coarse solves",
+                "weighted",
+                "linear",
+                "one CG+GAMG s",
+                "contact solve s",
+                "ratio",
+                "max |u − u_before|",
+            ],
+            body,
+        ),
+        "",
+    ]
     square = [r for r in all_rows if r["case"] == "square" and r["sequence"] != "off"]
     if square:
-        fine = sorted({its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]}) for r in square})
+        fine = sorted(
+            {
+                its_text({"newton_iterations": r["newton"], "polish_solves": r["polish"]})
+                for r in square
+            }
+        )
         weighted = [r["weighted_solves"] for r in square]
-        out += ["Without sequencing the cold start pays the active-set search on the finest mesh " "(about "
-                "log₂(1/h) Newton steps, §3 (g)). With it, the square's finest mesh needs "
-                f"{' or '.join(fine)} linear solves (min: Newton steps; fb: n+p with the polishing "
-                f"solve of the "
-                "guess's active set) and all levels together weigh "
-                f"{g(min(weighted))}–{g(max(weighted))} fine solves at every size. What remains "
-                f"above 1 in the "
-                "ratio is the assembly of K and the Newton system's own GAMG set-ups. The 3D Hertz "
-                "rows sequence through the adaptive loop's own coarser meshes, 4× apart in DoFs, "
-                "and need a few "
-                "more Newton steps on the finest mesh.", ""]
+        out += [
+            "Without sequencing the cold start pays the active-set search on the finest mesh "
+            "(about "
+            "log₂(1/h) Newton steps, §3 (g)). With it, the square's finest mesh needs "
+            f"{' or '.join(fine)} linear solves (min: Newton steps; fb: n+p with the polishing "
+            f"solve of the "
+            "guess's active set) and all levels together weigh "
+            f"{g(min(weighted))}–{g(max(weighted))} fine solves at every size. What remains "
+            f"above 1 in the "
+            "ratio is the assembly of K and the Newton system's own GAMG set-ups. The 3D Hertz "
+            "rows sequence through the adaptive loop's own coarser meshes, 4× apart in DoFs, "
+            "and need a few "
+            "more Newton steps on the finest mesh.",
+            "",
+        ]
     scale = rows(RES / "scale.csv") or []
     if scale:
-        out += ["**Adaptive runs end to end** " "([`demos/bench/bench_scale.py`](bench/bench_scale.py): `contact run` "
-                "with every output file, wall time from the shell, peak resident memory of one "
-                "process; the "
-                "phases are the per-level times of convergence.csv summed):", "",
-                table(["scene", "ranks", "rebalance", "levels", "final DoFs", "wall s", "peak GiB", "solve", "assembly",
-                       "estimate", "error", "refine", "output", "finest: assembly + estimate / solve",
-                       "level before: + refine / solve", "refine into the finest + its assembly + estimate, "
-                       "over its solve", "of which dolfinx.mesh.refine, over the solve", "busiest rank's DoFs / mean"],
-                      [[r["scene"], r["ranks"], r.get("rebalance", "false"), r["levels"], r["dofs"], g(r["wall_s"]), g(r["peak_rss_gib"]),
-                        g(r["total_solve_s"]), g(r["total_assembly_s"]), g(r["total_estimate_s"]),
-                        g(r["total_error_s"]), g(r["total_refine_s"]), g(r["total_output_s"]),
+        out += [
+            "**Adaptive runs end to end** "
+            "([`demos/bench/bench_scale.py`](bench/bench_scale.py): `contact run` "
+            "with every output file, wall time from the shell, peak resident memory of one "
+            "process; the "
+            "phases are the per-level times of convergence.csv summed):",
+            "",
+            table(
+                [
+                    "scene",
+                    "ranks",
+                    "rebalance",
+                    "levels",
+                    "final DoFs",
+                    "wall s",
+                    "peak GiB",
+                    "solve",
+                    "assembly",
+                    "estimate",
+                    "error",
+                    "refine",
+                    "output",
+                    "finest: assembly + estimate / solve",
+                    "level before: + refine / solve",
+                    "refine into the finest + its assembly + estimate, over its solve",
+                    "of which dolfinx.mesh.refine, over the solve",
+                    "busiest rank's DoFs / mean",
+                ],
+                [
+                    [
+                        r["scene"],
+                        r["ranks"],
+                        r.get("rebalance", "false"),
+                        r["levels"],
+                        r["dofs"],
+                        g(r["wall_s"]),
+                        g(r["peak_rss_gib"]),
+                        g(r["total_solve_s"]),
+                        g(r["total_assembly_s"]),
+                        g(r["total_estimate_s"]),
+                        g(r["total_error_s"]),
+                        g(r["total_refine_s"]),
+                        g(r["total_output_s"]),
                         f"{g(r['last_assembly_estimate_s'])} / {g(r['last_solve_s'])}",
                         f"{g(r['prev_assembly_estimate_refine_s'])} / {g(r['prev_solve_s'])}",
-                        g(r.get("finest_overhead_ratio", "")), g(r.get("finest_refine_mesh_ratio", "")),
-                        g(r.get("rank_imbalance", ""))] for r in scale]), ""]
+                        g(r.get("finest_overhead_ratio", "")),
+                        g(r.get("finest_refine_mesh_ratio", "")),
+                        g(r.get("rank_imbalance", "")),
+                    ]
+                    for r in scale
+                ],
+            ),
+            "",
+        ]
         rebalanced = lambda r: r.get("rebalance", "false") == "true" or int(r["ranks"]) == 1  # noqa: E731
-        a = {int(r["ranks"]): r for r in scale if r["scene"].startswith("signorini_free_boundary") and rebalanced(r)}
+        a = {
+            int(r["ranks"]): r
+            for r in scale
+            if r["scene"].startswith("signorini_free_boundary") and rebalanced(r)
+        }
         bw = {int(r["ranks"]): r for r in rows(RES / "bandwidth.csv") or []}
         kern = {r["path"]: r for r in rows(RES / "kernels_refine_np2.csv") or []}
         if 1 in a and 2 in a:
             ceiling = ""
             if 1 in bw and 2 in bw:
                 ratio = lambda k: float(bw[1][k]) / float(bw[2][k])  # noqa: E731
-                ceiling = (f". On this machine a sparse matrix–vector product is " f"{ratio('matvec_100_s'):.2f}× and a "
-                           f"streaming array operation {ratio('array_scale_20_s'):.2f}× faster on "
-                           f"2 ranks (fastest of {bw[1].get('repeat', 1)} rounds each): memory "
-                           f"bandwidth bounds the kernels "
-                           "([`demos/bench/bench_bandwidth.py`](bench/bench_bandwidth.py))")
+                ceiling = (
+                    f". On this machine a sparse matrix–vector product is "
+                    f"{ratio('matvec_100_s'):.2f}× and a "
+                    f"streaming array operation {ratio('array_scale_20_s'):.2f}× faster on "
+                    f"2 ranks (fastest of {bw[1].get('repeat', 1)} rounds each): memory "
+                    f"bandwidth bounds the kernels "
+                    "([`demos/bench/bench_bandwidth.py`](bench/bench_bandwidth.py))"
+                )
             speedups = [float(r["speedup"]) for r in rows(RES / "scale_pairs.csv") or []]
             if speedups:
-                speedup = (f"{statistics.median(speedups):.2f}× faster than serial (the median of " f"{len(speedups)} "
-                           f"paired runs, serial then 2 ranks: "
-                           f"{min(speedups):.2f}–{max(speedups):.2f}×; "
-                           "`scale_pairs.csv`)")
+                speedup = (
+                    f"{statistics.median(speedups):.2f}× faster than serial (the median of "
+                    f"{len(speedups)} "
+                    f"paired runs, serial then 2 ranks: "
+                    f"{min(speedups):.2f}–{max(speedups):.2f}×; "
+                    "`scale_pairs.csv`)"
+                )
             else:
                 speedup = f"{float(a[1]['wall_s']) / float(a[2]['wall_s']):.2f}× faster than serial"
-            out += [f"Problem A on 2 ranks is {speedup}{ceiling}. The rows were run one after the " f"other by one "
-                    "call of `bench_scale.py`; the machine's speed drifts by tens of per cent "
-                    "between sittings (a shared host), so compare the rows with each other, and "
-                    "two versions of the code with paired "
-                    "runs in the same minutes (`farm-bench --vs`), not with a table of another day.", ""]
-            pairs = [(r, k) for r in scale for k in scale if int(r["ranks"]) > 1 and r["scene"] == k["scene"]
-                     and r["ranks"] == k["ranks"] and r.get("rebalance") == "true" and k.get("rebalance") == "false"]
+            out += [
+                f"Problem A on 2 ranks is {speedup}{ceiling}. The rows were run one after the "
+                f"other by one "
+                "call of `bench_scale.py`; the machine's speed drifts by tens of per cent "
+                "between sittings (a shared host), so compare the rows with each other, and "
+                "two versions of the code with paired "
+                "runs in the same minutes (`farm-bench --vs`), not with a table of another day.",
+                "",
+            ]
+            pairs = [
+                (r, k)
+                for r in scale
+                for k in scale
+                if int(r["ranks"]) > 1
+                and r["scene"] == k["scene"]
+                and r["ranks"] == k["ranks"]
+                and r.get("rebalance") == "true"
+                and k.get("rebalance") == "false"
+            ]
             if pairs:
-                para = ("`dolfinx.mesh.refine` creates each child on its parent's rank, and the " "loops refine towards "
-                        "the free boundary or the contact zone, more on one rank's side. Kept "
-                        "there (`adapt.rebalance: false`), the finest level's busiest rank owns "
-                        + ", ".join(f"{float(k['rank_imbalance']):.2f}× its share in {k['scene']}" for _, k in pairs)
-                        + " (`rank_imbalance` in convergence.csv), which caps the gain of 2 ranks at "
-                        + ", ".join(f"{2 / float(k['rank_imbalance']):.2f}×" for _, k in pairs)
-                        + ". With `adapt.rebalance: true` (the default) the refinement " "redistributes every refined "
-                        "mesh with dolfinx's graph partitioner, and each child pulls u_h and its "
-                        "tags from the rank that created it (`contact/adaptivity/transfer.py`): "
-                        + "; ".join(f"busiest rank {float(r['rank_imbalance']):.2f}× its share, " f"{g(r['wall_s'])} s "
-                                    f"against {g(k['wall_s'])} s in {r['scene']}" for r, k in pairs)
-                        + " (runs one after the other).")
+                para = (
+                    "`dolfinx.mesh.refine` creates each child on its parent's rank, and the "
+                    "loops refine towards "
+                    "the free boundary or the contact zone, more on one rank's side. Kept "
+                    "there (`adapt.rebalance: false`), the finest level's busiest rank owns "
+                    + ", ".join(
+                        f"{float(k['rank_imbalance']):.2f}× its share in {k['scene']}"
+                        for _, k in pairs
+                    )
+                    + " (`rank_imbalance` in convergence.csv), which caps the gain of 2 ranks at "
+                    + ", ".join(f"{2 / float(k['rank_imbalance']):.2f}×" for _, k in pairs)
+                    + ". With `adapt.rebalance: true` (the default) the refinement "
+                    "redistributes every refined "
+                    "mesh with dolfinx's graph partitioner, and each child pulls u_h and its "
+                    "tags from the rank that created it (`contact/adaptivity/transfer.py`): "
+                    + "; ".join(
+                        f"busiest rank {float(r['rank_imbalance']):.2f}× its share, "
+                        f"{g(r['wall_s'])} s "
+                        f"against {g(k['wall_s'])} s in {r['scene']}"
+                        for r, k in pairs
+                    )
+                    + " (runs one after the other)."
+                )
                 differ = [r["scene"] for r, k in pairs if r["dofs"] != k["dofs"]]
                 if differ:
-                    para += (f" In {', '.join(differ)} the final meshes differ by a few DoFs: its " f"iterative solves "
-                             "(GAMG's aggregates depend on the partition) agree to solver "
-                             "tolerance, not to the last digit, and a cell at the Dörfler "
-                             "threshold can fall on either side.")
+                    para += (
+                        f" In {', '.join(differ)} the final meshes differ by a few DoFs: its "
+                        f"iterative solves "
+                        "(GAMG's aggregates depend on the partition) agree to solver "
+                        "tolerance, not to the last digit, and a cell at the Dörfler "
+                        "threshold can fall on either side."
+                    )
                 if {"identity", "graph"} <= set(kern):
                     i, gr = kern["identity"], kern["graph"]
-                    para += (f" The redistribution costs no refinement time: refining one side of " f"a square to "
-                             f"{i['size']} cells on 2 ranks takes {g(i['seconds'])} s with the "
-                             f"identity partitioner (busiest rank {i['check']}× its share) and "
-                             f"{g(gr['seconds'])} s with the graph partitioner ({gr['check']}×; "
-                             f"[`demos/bench/bench_kernels.py`](bench/bench_kernels.py) "
-                             "`--only refine`).")
+                    para += (
+                        f" The redistribution costs no refinement time: refining one side of "
+                        f"a square to "
+                        f"{i['size']} cells on 2 ranks takes {g(i['seconds'])} s with the "
+                        f"identity partitioner (busiest rank {i['check']}× its share) and "
+                        f"{g(gr['seconds'])} s with the graph partitioner ({gr['check']}×; "
+                        f"[`demos/bench/bench_kernels.py`](bench/bench_kernels.py) "
+                        "`--only refine`)."
+                    )
                 out += [para, ""]
         quad = rows(RES / "error_quadrature.csv") or []
         if quad:
             last = quad[-1]
             fine = [r for r in quad if r["dofs"] >= 10_000]
-            out += [f"The energy error per level uses quadrature of degree 2p + 2 (4 for P1): " f"against degree 12 "
-                    f"it changes ‖u − u_h‖_E by {quad[0]['change_q4']:.0e} on the first mesh "
-                    f"(degree 8: {quad[0]['change_q8']:.0e}) and by at most "
-                    f"{max(r['change_q4'] for r in fine):.0e} from 10⁴ DoFs on, at "
-                    f"{last['seconds_q4']:.2f} s instead of {last['seconds_q8']:.2f} s for degree "
-                    f"8 on {last['dofs']} DoFs "
-                    f"([`demos/bench/bench_error_quadrature.py`](bench/bench_error_quadrature.py), "
-                    "problem A's adaptive meshes).", ""]
-        ghosts = (f": {g(kern['identity']['seconds'])} s against {g(kern['no_ghosts']['seconds'])} " f"s without "
-                  "ghosts in the kernel above" if {"identity", "no_ghosts"} <= set(kern) else "")
-        floor = "; ".join(f"{g(r['finest_refine_mesh_s'])} s = {g(r['finest_refine_mesh_ratio'])}× the " f"finest solve "
-                          f"in {r['scene']} on {r['ranks']} rank(s)" for r in scale
-                          if r.get("finest_refine_mesh_s") not in (None, "") and rebalanced(r))
-        floor = (f" (`dolfinx.mesh.refine` alone, into the finest mesh: {floor}; " f"`seconds_refine_mesh` in "
-                 "convergence.csv)") if floor else ""
-        out += ["The 2D solves cost about one linear solve per level (nested iteration, §4), so " "refinement "
-                f"(`dolfinx.mesh.refine` in C++, with the ghost layer rebuilt in parallel{ghosts}, "
-                f"then the "
-                "transfers in `contact/adaptivity/transfer.py`) is the largest phase of the 2D "
-                "loop, and the refinement "
-                f"into the finest mesh costs about as much as the finest level's solve or "
-                f"more{floor}. In 2D the library's kernel "
-                "alone is above half the solve, so refinement + estimate + assembly cannot come "
-                "under half the "
-                f"solve while the refinement is dolfinx's; in 3D the solve "
-                f"dominates.{refine_floor(RES)} "
-                "Each level's `.vtu` is written by rank 0 (one file, the same on any number of "
-                "ranks); the final pictures are drawn by all ranks at once, picture k on rank k "
-                "mod n (`contact.output.plots.draw_in_turn`; 2D meshes above 200k cells are drawn "
-                "as images sampled at the "
-                "pixel centres).", ""]
+            out += [
+                f"The energy error per level uses quadrature of degree 2p + 2 (4 for P1): "
+                f"against degree 12 "
+                f"it changes ‖u − u_h‖_E by {quad[0]['change_q4']:.0e} on the first mesh "
+                f"(degree 8: {quad[0]['change_q8']:.0e}) and by at most "
+                f"{max(r['change_q4'] for r in fine):.0e} from 10⁴ DoFs on, at "
+                f"{last['seconds_q4']:.2f} s instead of {last['seconds_q8']:.2f} s for degree "
+                f"8 on {last['dofs']} DoFs "
+                f"([`demos/bench/bench_error_quadrature.py`](bench/bench_error_quadrature.py), "
+                "problem A's adaptive meshes).",
+                "",
+            ]
+        ghosts = (
+            f": {g(kern['identity']['seconds'])} s against {g(kern['no_ghosts']['seconds'])} "
+            f"s without "
+            "ghosts in the kernel above"
+            if {"identity", "no_ghosts"} <= set(kern)
+            else ""
+        )
+        floor = "; ".join(
+            f"{g(r['finest_refine_mesh_s'])} s = {g(r['finest_refine_mesh_ratio'])}× the "
+            f"finest solve "
+            f"in {r['scene']} on {r['ranks']} rank(s)"
+            for r in scale
+            if r.get("finest_refine_mesh_s") not in (None, "") and rebalanced(r)
+        )
+        floor = (
+            (
+                f" (`dolfinx.mesh.refine` alone, into the finest mesh: {floor}; "
+                f"`seconds_refine_mesh` in "
+                "convergence.csv)"
+            )
+            if floor
+            else ""
+        )
+        out += [
+            "The 2D solves cost about one linear solve per level (nested iteration, §4), so "
+            "refinement "
+            f"(`dolfinx.mesh.refine` in C++, with the ghost layer rebuilt in parallel{ghosts}, "
+            f"then the "
+            "transfers in `contact/adaptivity/transfer.py`) is the largest phase of the 2D "
+            "loop, and the refinement "
+            f"into the finest mesh costs about as much as the finest level's solve or "
+            f"more{floor}. In 2D the library's kernel "
+            "alone is above half the solve, so refinement + estimate + assembly cannot come "
+            "under half the "
+            f"solve while the refinement is dolfinx's; in 3D the solve "
+            f"dominates.{refine_floor(RES)} "
+            "Each level's `.vtu` is written by rank 0 (one file, the same on any number of "
+            "ranks); the final pictures are drawn by all ranks at once, picture k on rank k "
+            "mod n (`contact.output.plots.draw_in_turn`; 2D meshes above 200k cells are drawn "
+            "as images sampled at the "
+            "pixel centres).",
+            "",
+        ]
     return "\n".join(out) + "\n"
 
 
 def refine_floor(res: Path) -> str:
     """The sentence on the 2D floor (bench_kernels.py --only floor, serial and 2 ranks), or ''."""
-    runs = [{r["path"]: r for r in rs} for rs in (rows(res / "kernels_floor.csv"), rows(res / "kernels_floor_np2.csv"))
-            if rs]
+    runs = [
+        {r["path"]: r for r in rs}
+        for rs in (rows(res / "kernels_floor.csv"), rows(res / "kernels_floor_np2.csv"))
+        if rs
+    ]
     if not runs:
         return ""
     ratio = lambda run, *paths: sum(float(run[p]["check"]) for p in paths)  # noqa: E731
-    each = "; ".join(f"on {run['solve']['ranks']} rank(s) `dolfinx.mesh.refine` {g(run['refine']['seconds'])} s "
-                     f"({ratio(run, 'refine'):.2f}× one CG + GAMG solve of "
-                     f"{g(run['solve']['seconds'])} s), `create_mesh` "
-                     f"{g(run['create_mesh']['seconds'])} s ({ratio(run, 'create_mesh'):.2f}×), "
-                     f"assembly {ratio(run, 'assembly'):.2f}×" for run in runs)
+    each = "; ".join(
+        f"on {run['solve']['ranks']} rank(s) `dolfinx.mesh.refine` {g(run['refine']['seconds'])} s "
+        f"({ratio(run, 'refine'):.2f}× one CG + GAMG solve of "
+        f"{g(run['solve']['seconds'])} s), `create_mesh` "
+        f"{g(run['create_mesh']['seconds'])} s ({ratio(run, 'create_mesh'):.2f}×), "
+        f"assembly {ratio(run, 'assembly'):.2f}×"
+        for run in runs
+    )
     low = min(ratio(run, "refine", "assembly") for run in runs)
     outside = min(ratio(run, "create_mesh", "assembly") for run in runs)
-    slower = [float(run["create_mesh"]["seconds"]) / float(run["refine"]["seconds"]) for run in runs]
-    verdict = ("Nor would a refinement written outside dolfinx help" if outside > 0.5 else
-               "A refinement written outside dolfinx might help")
-    return (f" {verdict}: it must hand its cells to "
-            f"`dolfinx.mesh.create_mesh`, which costs {min(slower):.1f}–{max(slower):.1f}× "
-            f"`dolfinx.mesh.refine` itself. Refining a square uniformly to "
-            f"{runs[0]['solve']['size']} DoFs "
-            f"([`demos/bench/bench_kernels.py`](bench/bench_kernels.py) `--only floor`, medians): "
-            f"{each}. Refinement and assembly alone are at least {low:.2f}× the solve (with "
-            f"`create_mesh` instead of the refinement {outside:.2f}×), before any estimate.")
+    slower = [
+        float(run["create_mesh"]["seconds"]) / float(run["refine"]["seconds"]) for run in runs
+    ]
+    verdict = (
+        "Nor would a refinement written outside dolfinx help"
+        if outside > 0.5
+        else "A refinement written outside dolfinx might help"
+    )
+    return (
+        f" {verdict}: it must hand its cells to "
+        f"`dolfinx.mesh.create_mesh`, which costs {min(slower):.1f}–{max(slower):.1f}× "
+        f"`dolfinx.mesh.refine` itself. Refining a square uniformly to "
+        f"{runs[0]['solve']['size']} DoFs "
+        f"([`demos/bench/bench_kernels.py`](bench/bench_kernels.py) `--only floor`, medians): "
+        f"{each}. Refinement and assembly alone are at least {low:.2f}× the solve (with "
+        f"`create_mesh` instead of the refinement {outside:.2f}×), before any estimate."
+    )
 
 
 #: (module, the choice it made, what was measured, the command that repeats it); quoted from
 #: the docstrings they were measured for, not re-measured by `make bench`
 DESIGN_MEASUREMENTS = [
-    ("`contact.output.vtk`", "one .vtu, written on rank 0 from the owned nodes and cells",
-     "1.2M P1 nodes, four point fields and one cell field, 2 ranks: 2–4 s and 186 MB, against "
-     "12.5 s and 321 MB for `dolfinx.io.VTKFile`'s ASCII pieces", "—"),
-    ("`contact.output.vtk._gather_rows`", "one `Gatherv` of the raw buffers",
-     "pickling the rows cost 0.17 s for 1.2M cells on one rank", "—"),
-    ("`contact.output.vtk`", "raw appended data, uncompressed",
-     "1.2M P1 nodes and 2.4M cells: base64 4.6 s against 0.5 s raw; zlib level 1 5.4 s "
-     "(79 MB against 186 MB)", "—"),
-    ("`contact.output.plots._smooth`", "Gouraud shading kept out of tight_layout; above "
-     "`RASTER_CELLS` cells the P1 interpolant sampled at pixel centres",
-     "tight_layout with 2.4M cells: 30 s; 1.21M cells drawn and saved: raster 0.34 s against "
-     "Gouraud 0.95 s", "`python demos/bench/bench_kernels.py`"),
-    ("`contact.output.plots`", "the legend at a fixed corner on big meshes",
-     "`loc=\"best\"` tests every triangle: 20 s at 1.4M cells", "—"),
-    ("`contact.output.plots`", "h_T drawn as one triangle mesh",
-     "2.4M cells: 1 s, against 50 s for one polygon per cell", "—"),
-    ("`contact.adaptivity.refine.refine_partitioner`", "serial: no partitioner (no ghost layer)",
-     "1.5M new cells: 2.2 s against 3.7 s", "—"),
-    ("`contact.adaptivity.energy_error.default_degree`", "quadrature degree 2p + 2",
-     "problem A: 0.74 s against 1.73 s for degree 8 (demos/results/error_quadrature.csv)",
-     "`python demos/bench/bench_error_quadrature.py`"),
-    ("`contact.models.problem` (block CSR)", "bs > 1 assembled as BAIJ, converted to AIJ",
-     "3D elasticity, 788k DoFs, serial: 3.4 s against 4.3 s; 1.04M DoFs on 2 ranks: 3.4 s "
-     "either way", "`python demos/bench/bench_kernels.py`"),
-    ("`contact.drivers.sequencing` (prolongation)", "cells sorted into buckets, points tested "
-     "by barycentric coordinates", "`interpolate_nonmatching`: 44 s for 1M points", "—"),
+    (
+        "`contact.output.vtk`",
+        "one .vtu, written on rank 0 from the owned nodes and cells",
+        "1.2M P1 nodes, four point fields and one cell field, 2 ranks: 2–4 s and 186 MB, against "
+        "12.5 s and 321 MB for `dolfinx.io.VTKFile`'s ASCII pieces",
+        "—",
+    ),
+    (
+        "`contact.output.vtk._gather_rows`",
+        "one `Gatherv` of the raw buffers",
+        "pickling the rows cost 0.17 s for 1.2M cells on one rank",
+        "—",
+    ),
+    (
+        "`contact.output.vtk`",
+        "raw appended data, uncompressed",
+        "1.2M P1 nodes and 2.4M cells: base64 4.6 s against 0.5 s raw; zlib level 1 5.4 s "
+        "(79 MB against 186 MB)",
+        "—",
+    ),
+    (
+        "`contact.output.plots._smooth`",
+        "Gouraud shading kept out of tight_layout; above "
+        "`RASTER_CELLS` cells the P1 interpolant sampled at pixel centres",
+        "tight_layout with 2.4M cells: 30 s; 1.21M cells drawn and saved: raster 0.34 s against "
+        "Gouraud 0.95 s",
+        "`python demos/bench/bench_kernels.py`",
+    ),
+    (
+        "`contact.output.plots`",
+        "the legend at a fixed corner on big meshes",
+        '`loc="best"` tests every triangle: 20 s at 1.4M cells',
+        "—",
+    ),
+    (
+        "`contact.output.plots`",
+        "h_T drawn as one triangle mesh",
+        "2.4M cells: 1 s, against 50 s for one polygon per cell",
+        "—",
+    ),
+    (
+        "`contact.adaptivity.refine.refine_partitioner`",
+        "serial: no partitioner (no ghost layer)",
+        "1.5M new cells: 2.2 s against 3.7 s",
+        "—",
+    ),
+    (
+        "`contact.adaptivity.energy_error.default_degree`",
+        "quadrature degree 2p + 2",
+        "problem A: 0.74 s against 1.73 s for degree 8 (demos/results/error_quadrature.csv)",
+        "`python demos/bench/bench_error_quadrature.py`",
+    ),
+    (
+        "`contact.models.problem` (block CSR)",
+        "bs > 1 assembled as BAIJ, converted to AIJ",
+        "3D elasticity, 788k DoFs, serial: 3.4 s against 4.3 s; 1.04M DoFs on 2 ranks: 3.4 s "
+        "either way",
+        "`python demos/bench/bench_kernels.py`",
+    ),
+    (
+        "`contact.drivers.sequencing` (prolongation)",
+        "cells sorted into buckets, points tested by barycentric coordinates",
+        "`interpolate_nonmatching`: 44 s for 1M points",
+        "—",
+    ),
 ]
 
 
 def design_measurements() -> str:
     """Timings behind design choices of the code, quoted here instead of in its docstrings."""
-    return "\n".join([
-        "## 10. Measurements behind design choices",
-        "",
-        "Single measurements, one run each, that decided how a module does its work; they are "
-        "quoted, not re-run by `make bench` (the last column names the script that repeats "
-        "one, where there is one). The docstrings state the choice and point here.",
-        "",
-        table(["module", "choice", "measured", "reproduce"], [list(m) for m in DESIGN_MEASUREMENTS]),
-        "",
-    ])
+    return "\n".join(
+        [
+            "## 10. Measurements behind design choices",
+            "",
+            "Single measurements, one run each, that decided how a module does its work; they are "
+            "quoted, not re-run by `make bench` (the last column names the script that repeats "
+            "one, where there is one). The docstrings state the choice and point here.",
+            "",
+            table(
+                ["module", "choice", "measured", "reproduce"],
+                [list(m) for m in DESIGN_MEASUREMENTS],
+            ),
+            "",
+        ]
+    )
 
 
 def main() -> None:
     global RES
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--results", type=Path, default=RES, help="folder of the CSVs (default demos/results)")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--results", type=Path, default=RES, help="folder of the CSVs (default demos/results)"
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "demos" / "RESULTS.md")
     args = ap.parse_args()
     RES = args.results.resolve()
@@ -1150,15 +2066,24 @@ def main() -> None:
         "Dörfler θ = 0.5, maximum θ = 0.5), each point a level of one adaptive run with nested "
         "iteration; x = wall time from the start of the run (all solves, estimates, markings and "
         "refinements up to that level), right panel the same against DoFs.\n",
-        speed_accuracy("speed_accuracy_A", "Problem A (free boundary, r^{3/2})", "error", "energy error"),
-        speed_accuracy("speed_accuracy_D", "Problem D (L-shape corner, full contact)", "error", "energy error"),
-        speed_accuracy("speed_accuracy_hertz", "2D Hertz (cylinder on a plane)", "hertz_error", "Hertz error",
-                       "The Hertz error does not go to zero: Hertz theory itself is an "
-                       "approximation (a/R ≈ 0.1 here), and a is measured as the midpoint between "
-                       "the last active and the first free node, so it moves in node-spacing "
-                       "steps. All methods reach the same discrete solutions (the curves coincide "
-                       "in the DoFs panel); the differences are time. Refinement moves new nodes "
-                       "of the arc onto the circle, so the geometry converges too."),
+        speed_accuracy(
+            "speed_accuracy_A", "Problem A (free boundary, r^{3/2})", "error", "energy error"
+        ),
+        speed_accuracy(
+            "speed_accuracy_D", "Problem D (L-shape corner, full contact)", "error", "energy error"
+        ),
+        speed_accuracy(
+            "speed_accuracy_hertz",
+            "2D Hertz (cylinder on a plane)",
+            "hertz_error",
+            "Hertz error",
+            "The Hertz error does not go to zero: Hertz theory itself is an "
+            "approximation (a/R ≈ 0.1 here), and a is measured as the midpoint between "
+            "the last active and the first free node, so it moves in node-spacing "
+            "steps. All methods reach the same discrete solutions (the curves coincide "
+            "in the DoFs panel); the differences are time. Refinement moves new nodes "
+            "of the arc onto the circle, so the geometry converges too.",
+        ),
         stability(),
         stability_scale(),
         iterations(),

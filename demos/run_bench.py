@@ -37,6 +37,7 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
 
 Studies run serially, one process each, so their timings do not disturb one another.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,48 +51,190 @@ PY = sys.executable
 CONTACT = str(Path(PY).parent / "contact")
 MPIRUN = str(Path(PY).parent / "mpirun")
 STEPS = {
-    "newton": [[PY, "demos/bench/bench_newton.py", "--cells", "512", "--out", "demos/results/newton_512.csv"]],
+    "newton": [
+        [
+            PY,
+            "demos/bench/bench_newton.py",
+            "--cells",
+            "512",
+            "--out",
+            "demos/results/newton_512.csv",
+        ]
+    ],
     "adaptive": [[PY, "demos/bench/bench_adaptive.py", "--out", "demos/results/adaptive"]],
     "hertz": [[PY, "demos/bench/bench_hertz.py", "--out", "demos/results/hertz"]],
     "memory": [[PY, "demos/bench/bench_memory.py", "--out", "demos/results/memory.csv"]],
     "friction": [[PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"]],
-    "two_bodies": [[PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")]
-                  + [[MPIRUN, "-n", "2", PY, "demos/bench/bench_two_bodies.py", "sphere",
-                      "--h-contact", "0.01", "0.005", "0.0035", "--swap", "0.005"]],
-    "cycle": [[PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]],
-    "cost": [[PY, "demos/bench/bench_cost.py", "square", "--sequence", "auto", "--out", "demos/results/cost/square.csv"],
-             [PY, "demos/bench/bench_cost.py", "square", "--sequence", "off", "--repeat", "1",
-              "--out", "demos/results/cost/square_off.csv"],
-             [PY, "demos/bench/bench_cost.py", "hertz3d", "--repeat", "2", "--out", "demos/results/cost/hertz3d.csv"],
-             [MPIRUN, "-n", "2", PY, "demos/bench/bench_cost.py", "hertz3d", "--set",
-              "adapt.theta=0.3", "--max-dofs", "1600000", "--no-before", "--sequence", "auto", "--repeat", "1",
-              "--out", "demos/results/cost/hertz3d_np2.csv"],
-             [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"]],
-    "scale": [[PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"],
-              [PY, "demos/bench/bench_error_quadrature.py", "--out", "demos/results/error_quadrature.csv"],
-              [PY, "demos/bench/bench_kernels.py", "--repeat", "4", "--out", "demos/results/kernels.csv"],
-              [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "assembly",
-               "--cells", "55", "--repeat", "4", "--out", "demos/results/kernels_np2.csv"],
-              [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "refine",
-               "--repeat", "3", "--out", "demos/results/kernels_refine_np2.csv"],
-              [PY, "demos/bench/bench_kernels.py", "--only", "floor", "--repeat", "3",
-               "--out", "demos/results/kernels_floor.csv"],
-              [MPIRUN, "-n", "2", PY, "demos/bench/bench_kernels.py", "--only", "floor", "--repeat", "3",
-               "--out", "demos/results/kernels_floor_np2.csv"]]
-             + [(["rm", "-f", "demos/results/bandwidth.csv"] if n == 0 else
-                 [MPIRUN, "-n", str(n), PY, "demos/bench/bench_bandwidth.py",
-                  "--out", "demos/results/bandwidth.csv"]) for n in (0, 1, 2)],
-    "studies": [[CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
-                for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))],
+    "two_bodies": [
+        [PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")
+    ]
+    + [
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_two_bodies.py",
+            "sphere",
+            "--h-contact",
+            "0.01",
+            "0.005",
+            "0.0035",
+            "--swap",
+            "0.005",
+        ]
+    ],
+    "cycle": [
+        [PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]
+    ],
+    "cost": [
+        [
+            PY,
+            "demos/bench/bench_cost.py",
+            "square",
+            "--sequence",
+            "auto",
+            "--out",
+            "demos/results/cost/square.csv",
+        ],
+        [
+            PY,
+            "demos/bench/bench_cost.py",
+            "square",
+            "--sequence",
+            "off",
+            "--repeat",
+            "1",
+            "--out",
+            "demos/results/cost/square_off.csv",
+        ],
+        [
+            PY,
+            "demos/bench/bench_cost.py",
+            "hertz3d",
+            "--repeat",
+            "2",
+            "--out",
+            "demos/results/cost/hertz3d.csv",
+        ],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_cost.py",
+            "hertz3d",
+            "--set",
+            "adapt.theta=0.3",
+            "--max-dofs",
+            "1600000",
+            "--no-before",
+            "--sequence",
+            "auto",
+            "--repeat",
+            "1",
+            "--out",
+            "demos/results/cost/hertz3d_np2.csv",
+        ],
+        [PY, "demos/bench/bench_cost.py", "chart", "demos/results/cost"],
+    ],
+    "scale": [
+        [PY, "demos/bench/bench_scale.py", "--out", "demos/results/scale.csv"],
+        [
+            PY,
+            "demos/bench/bench_error_quadrature.py",
+            "--out",
+            "demos/results/error_quadrature.csv",
+        ],
+        [PY, "demos/bench/bench_kernels.py", "--repeat", "4", "--out", "demos/results/kernels.csv"],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_kernels.py",
+            "--only",
+            "assembly",
+            "--cells",
+            "55",
+            "--repeat",
+            "4",
+            "--out",
+            "demos/results/kernels_np2.csv",
+        ],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_kernels.py",
+            "--only",
+            "refine",
+            "--repeat",
+            "3",
+            "--out",
+            "demos/results/kernels_refine_np2.csv",
+        ],
+        [
+            PY,
+            "demos/bench/bench_kernels.py",
+            "--only",
+            "floor",
+            "--repeat",
+            "3",
+            "--out",
+            "demos/results/kernels_floor.csv",
+        ],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_kernels.py",
+            "--only",
+            "floor",
+            "--repeat",
+            "3",
+            "--out",
+            "demos/results/kernels_floor_np2.csv",
+        ],
+    ]
+    + [
+        (
+            ["rm", "-f", "demos/results/bandwidth.csv"]
+            if n == 0
+            else [
+                MPIRUN,
+                "-n",
+                str(n),
+                PY,
+                "demos/bench/bench_bandwidth.py",
+                "--out",
+                "demos/results/bandwidth.csv",
+            ]
+        )
+        for n in (0, 1, 2)
+    ],
+    "studies": [
+        [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
+        for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))
+    ],
     "report": [[PY, "demos/make_results.py"]],
 }
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--only", nargs="+", choices=list(STEPS), help="run only these steps (in this order)")
-    ap.add_argument("--keep-going", action="store_true",
-                    help="after a failed command, run the others and exit with the first failure's code")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--only", nargs="+", choices=list(STEPS), help="run only these steps (in this order)"
+    )
+    ap.add_argument(
+        "--keep-going",
+        action="store_true",
+        help="after a failed command, run the others and exit with the first failure's code",
+    )
     args = ap.parse_args()
     steps = args.only or list(STEPS)
     if "studies" in steps and "report" not in steps:
@@ -111,18 +254,26 @@ def main() -> int:
             rows[label] = f"{seconds:.1f}"
             _write(timings, rows)
             if proc.returncode != 0:
-                print(f"run_bench: {label!r} failed with exit code {proc.returncode}", file=sys.stderr)
+                print(
+                    f"run_bench: {label!r} failed with exit code {proc.returncode}", file=sys.stderr
+                )
                 failed.append((label, proc.returncode))
                 if not args.keep_going:
                     return proc.returncode
                 continue
             print(f"=== {label}: {seconds:.1f} s", flush=True)
     if failed:
-        print(f"\nrun_bench: {len(failed)} command(s) failed: " + "; ".join(f"{lab!r} ({rc})" for lab, rc in failed),
-              file=sys.stderr)
+        print(
+            f"\nrun_bench: {len(failed)} command(s) failed: "
+            + "; ".join(f"{lab!r} ({rc})" for lab, rc in failed),
+            file=sys.stderr,
+        )
         return failed[0][1]
-    print(f"\nrun_bench: {', '.join(steps)} done in {(time.perf_counter() - t_all) / 60:.1f} min; "
-          f"timings in {timings.relative_to(ROOT)}", flush=True)
+    print(
+        f"\nrun_bench: {', '.join(steps)} done in {(time.perf_counter() - t_all) / 60:.1f} min; "
+        f"timings in {timings.relative_to(ROOT)}",
+        flush=True,
+    )
     return 0
 
 

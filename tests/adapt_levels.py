@@ -3,23 +3,33 @@ under mpirun).
 
     python tests/adapt_levels.py OUT.json SCENE.yaml METHOD STRATEGY LEVELS [REBALANCE]
 """
+
 import json
 import sys
 
-from mpi4py import MPI
-
 import contact
 from contact.drivers.adaptive import adapt
+
+from mpi4py import MPI
 from ties import tie_margin
 
 
 def main(out, scene_path, method, strategy, levels, rebalance="true"):
     scene = contact.load_scene(scene_path, ["output.verbose=false", f"adapt.rebalance={rebalance}"])
-    margins = []   # each level's tie margin (tests/ties.py), taken while its problem is alive
-    res = adapt(scene, method=method, strategy=strategy, max_levels=int(levels), max_dofs=10**7, verbose=False,
-                on_level=lambda level: margins.append(tie_margin(level.result)))
-    rows = [{**{k: v for k, v in r.items() if not k.startswith("seconds")}, "tie_margin": m}
-            for r, m in zip(res.rows, margins)]
+    margins = []  # each level's tie margin (tests/ties.py), taken while its problem is alive
+    res = adapt(
+        scene,
+        method=method,
+        strategy=strategy,
+        max_levels=int(levels),
+        max_dofs=10**7,
+        verbose=False,
+        on_level=lambda level: margins.append(tie_margin(level.result)),
+    )
+    rows = [
+        {**{k: v for k, v in r.items() if not k.startswith("seconds")}, "tie_margin": m}
+        for r, m in zip(res.rows, margins)
+    ]
     if MPI.COMM_WORLD.rank == 0:
         with open(out, "w") as fh:
             json.dump(rows, fh)

@@ -8,17 +8,18 @@ coordinate), the master nodes' pressures λ^m_j, u_h at every node (sorted), and
 [converged, Newton iterations, active nodes, contact force, interface balance error, tie
 margin (tests/ties.py)].
 """
+
 import sys
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
-from dolfinx import fem
+from contact.models import build_problem
 from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
-from contact.models import build_problem
 from contact.output.run_report import resultants
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
 from ties import tie_margin
 
 
@@ -58,16 +59,31 @@ def main(argv):
         Xs, ls = _restricted(r.lmbda_h, problem.output_nodes)
         Xm, lm = _restricted(lam_m, master[master < S.dofmap.index_map.size_local])
         Xu, u = gather_nodal(r.u_h)
-        _, body = gather_nodal(nodal_body)      # coincident nodes of two bodies: order by body
+        _, body = gather_nodal(nodal_body)  # coincident nodes of two bodies: order by body
         if Xu is not None:
             order = np.lexsort((body, *np.round(Xu, 12).T[::-1]))
             Xu, u = Xu[order], u[order]
         if scene.comm.rank == 0:
-            data.update({f"{method}/Xs": Xs, f"{method}/lambda": ls, f"{method}/Xm": Xm,
-                         f"{method}/lambda_master": lm, f"{method}/X": Xu, f"{method}/u": u,
-                         f"{method}/info": np.array([r.converged, r.iterations, r.n_active,
-                                                     res["contact_force"], res["interface_balance_error"],
-                                                     margin])})
+            data.update(
+                {
+                    f"{method}/Xs": Xs,
+                    f"{method}/lambda": ls,
+                    f"{method}/Xm": Xm,
+                    f"{method}/lambda_master": lm,
+                    f"{method}/X": Xu,
+                    f"{method}/u": u,
+                    f"{method}/info": np.array(
+                        [
+                            r.converged,
+                            r.iterations,
+                            r.n_active,
+                            res["contact_force"],
+                            res["interface_balance_error"],
+                            margin,
+                        ]
+                    ),
+                }
+            )
     if MPI.COMM_WORLD.rank == 0:
         np.savez(out, **data)
 

@@ -4,14 +4,15 @@ under mpirun to compare rank counts.
 
     python tests/cattaneo_run.py OUT.npz SCENE.yaml [--set k=v ...]
 """
+
 import sys
+
+import contact
+from contact.drivers.load_path import run_load_path
+from contact.post.reference import compare
 
 import numpy as np
 from mpi4py import MPI
-
-import contact
-from contact.post.reference import compare
-from contact.drivers.load_path import run_load_path
 
 
 def main(argv):
@@ -23,12 +24,23 @@ def main(argv):
     rows = []
     for step in run.steps:
         v = compare(step.scene, step.result).values
-        rows.append([step.result.converged, v["Q_over_FP"], v["c_over_a"], v["c_over_a_theory"], v["c_error"], v["q_error"]])
+        rows.append(
+            [
+                step.result.converged,
+                v["Q_over_FP"],
+                v["c_over_a"],
+                v["c_over_a_theory"],
+                v["c_error"],
+                v["q_error"],
+            ]
+        )
     r = run.steps[-1].result
     p = r.problem
     on = slice(0, p.data["pair_nodes"])
     X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // p.V.dofmap.index_map_bs]
-    data = comm.gather(np.c_[X[:, :2], r.friction["lambda_t_vec"][on], r.friction["lambda_n"][on]], root=0)
+    data = comm.gather(
+        np.c_[X[:, :2], r.friction["lambda_t_vec"][on], r.friction["lambda_n"][on]], root=0
+    )
     if comm.rank == 0:
         table = np.vstack(data)
         table = table[np.lexsort(np.round(table[:, :2], 12).T[::-1])]

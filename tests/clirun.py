@@ -1,4 +1,5 @@
 """Run the real ``contact`` command line as a subprocess (serial or under mpirun)."""
+
 from __future__ import annotations
 
 import copy
@@ -13,16 +14,23 @@ ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
 
 
-def contact(cwd: Path, *args: str, ranks: int = 0, env: dict | None = None, prefix: tuple = (),
-            timeout: float = 300) -> subprocess.CompletedProcess:
+def contact(
+    cwd: Path,
+    *args: str,
+    ranks: int = 0,
+    env: dict | None = None,
+    prefix: tuple = (),
+    timeout: float = 300,
+) -> subprocess.CompletedProcess:
     """``python -m contact.app.cli ARGS`` in ``cwd`` (under ``mpirun -n ranks`` when ranks > 0);
     ``prefix`` is prepended to the command (e.g. ``("unshare", "-U")``)."""
     cmd = [sys.executable, "-m", "contact.app.cli", *args]
     if ranks:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]
     full_env = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1", **(env or {})}
-    return subprocess.run([*prefix, *cmd], cwd=cwd, env=full_env, capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [*prefix, *cmd], cwd=cwd, env=full_env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def small_scene(path: Path, cells: int = 8, **changes) -> Path:
@@ -47,4 +55,7 @@ def error_lines(proc: subprocess.CompletedProcess) -> list[str]:
 
 def tree(folder: Path) -> dict[str, bytes | None]:
     """Every entry below ``folder`` (hidden ones included) with its content (None for folders)."""
-    return {str(p.relative_to(folder)): (None if p.is_dir() else p.read_bytes()) for p in folder.rglob("*")}
+    return {
+        str(p.relative_to(folder)): (None if p.is_dir() else p.read_bytes())
+        for p in folder.rglob("*")
+    }

@@ -1,15 +1,16 @@
 """Serially or under mpirun: the snap's collapse check restricted to the touched cells finds the
 same cells as the full check on every rank (ghosts excluded), for the bottom row of an 8 × 8
 square moved up to each height given; prints {height: global count} as JSON on rank 0."""
+
 import json
 import sys
 
 import contact  # noqa: F401  (must precede dolfinx)
+from contact.setup.geometry import cells_touching, collapsed_cells, signed_volumes
+
 import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
-
-from contact.setup.geometry import cells_touching, collapsed_cells, signed_volumes
 
 counts = {}
 for height in map(float, sys.argv[1:]):

@@ -1,16 +1,19 @@
 """Shared test helpers, and the test-only perturbation of the load (tests/perturb)."""
+
 import importlib.util
 import os
 from pathlib import Path
 
-import numpy as np
-
 PERTURB = Path(__file__).resolve().parent / "perturb"
 if os.environ.get("CONTACT_TEST_PERTURB"):
     # this process, and every Python subprocess of the suite (PYTHONPATH → sitecustomize)
-    _spec = importlib.util.spec_from_file_location("contact_test_perturb", PERTURB / "sitecustomize.py")
+    _spec = importlib.util.spec_from_file_location(
+        "contact_test_perturb", PERTURB / "sitecustomize.py"
+    )
     _spec.loader.exec_module(importlib.util.module_from_spec(_spec))
-    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(PERTURB), os.environ.get("PYTHONPATH")) if p)
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(PERTURB), os.environ.get("PYTHONPATH")) if p
+    )
 
 
 def make_square_msh(path: Path, size: float) -> Path:
@@ -39,7 +42,9 @@ def make_square_msh(path: Path, size: float) -> Path:
     return path
 
 
-def make_quarter_disk_msh(path: Path, radius: float = 1.0, h: float = 0.15, h_contact: float = 0.02) -> Path:
+def make_quarter_disk_msh(
+    path: Path, radius: float = 1.0, h: float = 0.15, h_contact: float = 0.02
+) -> Path:
     """Write a gmsh mesh of the quarter {x ≥ 0, y ≤ R} of the disk of radius R about (0, R)
     — a user's mesh of the Hertz cylinder: facet groups arc 1 (through the origin), top 2,
     axis x = 0 3, surface 10; mesh size ``h_contact`` at the origin growing to ``h``."""
@@ -50,7 +55,11 @@ def make_quarter_disk_msh(path: Path, radius: float = 1.0, h: float = 0.15, h_co
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("disk")
         occ, R = gmsh.model.occ, radius
-        bottom, centre, corner = occ.addPoint(0, 0, 0, h_contact), occ.addPoint(0, R, 0, h), occ.addPoint(R, R, 0, h)
+        bottom, centre, corner = (
+            occ.addPoint(0, 0, 0, h_contact),
+            occ.addPoint(0, R, 0, h),
+            occ.addPoint(R, R, 0, h),
+        )
         arc = occ.addCircleArc(bottom, centre, corner)
         top, axis = occ.addLine(corner, centre), occ.addLine(centre, bottom)
         surface = occ.addPlaneSurface([occ.addCurveLoop([arc, top, axis])])

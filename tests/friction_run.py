@@ -6,15 +6,16 @@ The npz holds, for the last step, the nodal coordinates and u_h (sorted by coord
 contact surface columns (sorted along Γ_C: position, λ_n, λ_t, slip, status codes) and the
 Newton iterations of every step; tests compare serial and parallel runs.
 """
+
 import sys
+
+import contact
+from contact.drivers.load_path import run_load_path
+from contact.output.folder import gather_nodal
+from contact.post.contact_table import STATUS, contact_table
 
 import numpy as np
 from mpi4py import MPI
-
-import contact
-from contact.output.folder import gather_nodal
-from contact.drivers.load_path import run_load_path
-from contact.post.contact_table import STATUS, contact_table
 
 
 def main(argv):
@@ -30,10 +31,16 @@ def main(argv):
         order = np.lexsort([np.round(table[c], 12) for c in "zyx" if c in table])
         table = {k: np.asarray(v)[order] for k, v in table.items()}
         cols = [k for k in table if k != "status"]
-        np.savez(out, X=X, u=u, its=np.array([s.result.iterations for s in run.steps]),
-                 converged=np.array([s.result.converged for s in run.steps]),
-                 surface=np.column_stack([np.asarray(table[k], dtype=float) for k in cols]), columns=np.array(cols),
-                 status=np.array([STATUS.index(v) for v in table["status"]]))
+        np.savez(
+            out,
+            X=X,
+            u=u,
+            its=np.array([s.result.iterations for s in run.steps]),
+            converged=np.array([s.result.converged for s in run.steps]),
+            surface=np.column_stack([np.asarray(table[k], dtype=float) for k in cols]),
+            columns=np.array(cols),
+            status=np.array([STATUS.index(v) for v in table["status"]]),
+        )
 
 
 if __name__ == "__main__":

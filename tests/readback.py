@@ -2,6 +2,7 @@
 readers that must agree: XDMF with meshio and with h5py + the XML (ElementTree), .vtu with
 meshio and pyvista.  Used by the output tests on folders that `contact run` wrote in another
 process."""
+
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
@@ -57,10 +58,14 @@ def xdmf_steps(path: Path) -> list[dict]:
             assert tags == sorted(tags, key=GRID_CHILDREN.index), tags
             time = grid.find("Time")
             (topology,), (geometry,) = grid.findall("Topology"), grid.findall("Geometry")
-            step = {"time": None if time is None else float(time.get("Value")),
-                    "topology": topology.get("TopologyType"),
-                    "cells": read(topology.find("DataItem")),
-                    "points": read(geometry.find("DataItem")), "point": {}, "cell": {}}
+            step = {
+                "time": None if time is None else float(time.get("Value")),
+                "topology": topology.get("TopologyType"),
+                "cells": read(topology.find("DataItem")),
+                "points": read(geometry.find("DataItem")),
+                "point": {},
+                "cell": {},
+            }
             assert int(topology.get("NumberOfElements")) == len(step["cells"])
             for attribute in grid.findall("Attribute"):
                 values = read(attribute.find("DataItem"))
@@ -87,8 +92,15 @@ def meshio_steps(path: Path) -> list[dict]:
     if root.find("Domain/Grid").get("GridType") != "Collection":
         mesh = meshio.read(path)
         cells = {k: v[0] for k, v in mesh.cell_data.items()}
-        return [{"time": None, "points": mesh.points, "cells": mesh.cells[0].data,
-                 "point": dict(mesh.point_data), "cell": cells}]
+        return [
+            {
+                "time": None,
+                "points": mesh.points,
+                "cells": mesh.cells[0].data,
+                "point": dict(mesh.point_data),
+                "cell": cells,
+            }
+        ]
     out = []
     with meshio.xdmf.TimeSeriesReader(path) as reader:
         points, cells = reader.read_points_cells()

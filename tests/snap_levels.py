@@ -4,24 +4,33 @@ agree bit for bit with their owners (run under mpirun; used by tests/test_geomet
 
     python tests/snap_levels.py OUT.json KIND        # KIND: quarter_disk or sphere_octant
 """
+
 import json
 import sys
 from pathlib import Path
 
-import numpy as np
-from mpi4py import MPI
-
 import contact
 from contact.adaptivity.refine import refine
+
+import numpy as np
 from dolfinx import la
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[1]
 
 # coarse Hertz scenes (scene file, radius R, overrides); R ≠ 1 so that a missing factor R shows
 SCENES = {
-    "quarter_disk": ("hertz_2d.yaml", 2.0, ["mesh.radius=2", "mesh.h=0.4", "mesh.h_contact=0.1", "mesh.zone=0.5"]),
-    "sphere_octant": ("hertz_3d.yaml", 1.5, ["mesh.radius=1.5", "mesh.h=0.4", "mesh.h_contact=0.15", "mesh.zone=0.3"]),
+    "quarter_disk": (
+        "hertz_2d.yaml",
+        2.0,
+        ["mesh.radius=2", "mesh.h=0.4", "mesh.h_contact=0.1", "mesh.zone=0.5"],
+    ),
+    "sphere_octant": (
+        "hertz_3d.yaml",
+        1.5,
+        ["mesh.radius=1.5", "mesh.h=0.4", "mesh.h_contact=0.15", "mesh.zone=0.3"],
+    ),
 }
 # the second refinement marks the cells whose midpoint is this close to the contact point (× R)
 NEAR = 0.4

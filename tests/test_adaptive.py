@@ -2,20 +2,21 @@
 the per-level VTK series, convergence.csv/.png and mesh pictures, uniform refinement is the
 same loop with every cell marked, and refining a coarse Hertz cylinder converges to the
 Hertz pressure (the refined arc is snapped onto the circle)."""
+
 import csv
 import json
 import os
 import subprocess
-import time
 import sys
+import time
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 import contact
 from contact.drivers.adaptive import adapt
 from contact.post.reference import compare
+
+import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -32,14 +33,22 @@ def levels(tmp_path_factory):
         key = (nproc, strategy, rebalance)
         if key not in runs:
             out = tmp_path_factory.mktemp("levels") / "levels.json"
-            cmd = [sys.executable, str(ROOT / "tests" / "adapt_levels.py"), str(out),
-                   str(ROOT / "configs" / "signorini_free_boundary.yaml"), "fb", strategy, "6",
-                   str(rebalance).lower()]
+            cmd = [
+                sys.executable,
+                str(ROOT / "tests" / "adapt_levels.py"),
+                str(out),
+                str(ROOT / "configs" / "signorini_free_boundary.yaml"),
+                "fb",
+                strategy,
+                "6",
+                str(rebalance).lower(),
+            ]
             if nproc > 1:
                 cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
             subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env=ENV)
             runs[key] = json.loads(out.read_text())
         return runs[key]
+
     return run
 
 
@@ -62,7 +71,9 @@ def test_two_ranks_give_same_levels_as_serial(levels, strategy):
     serial, parallel = levels(1, strategy), levels(2, strategy)
     _same_levels(serial, parallel)
     # each refined mesh is redistributed by the graph partitioner (adapt.rebalance, the default)
-    assert all(p["rank_imbalance"] <= 1.05 for p in parallel[1:]), [p["rank_imbalance"] for p in parallel]
+    assert all(p["rank_imbalance"] <= 1.05 for p in parallel[1:]), [
+        p["rank_imbalance"] for p in parallel
+    ]
 
 
 def test_without_rebalancing_the_first_partition_is_kept(levels):
@@ -72,13 +83,18 @@ def test_without_rebalancing_the_first_partition_is_kept(levels):
     serial, kept = levels(1), levels(2, rebalance=False)
     _same_levels(serial, kept)
     rebalanced = levels(2)
-    assert kept[-1]["rank_imbalance"] > max(1.02, rebalanced[-1]["rank_imbalance"]), (kept[-1], rebalanced[-1])
+    assert kept[-1]["rank_imbalance"] > max(1.02, rebalanced[-1]["rank_imbalance"]), (
+        kept[-1],
+        rebalanced[-1],
+    )
 
 
 def test_adaptive_loop_converges_on_problem_A():
     """Dörfler on problem A (docs/theory.md §7): error ~ N^{-1/2} and a steady effectivity
     (small version of the benchmark in demos/bench/bench_adaptive.py)."""
-    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
     rows = adapt(scene, method="min", max_levels=9, verbose=False).rows
     N = np.array([r["dofs"] for r in rows], dtype=float)
     err = np.array([r["error"] for r in rows])
@@ -93,7 +109,9 @@ def test_adaptive_loop_converges_on_problem_A():
 
 
 def test_uniform_is_the_same_loop_with_every_cell_marked():
-    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
     rows = adapt(scene, method="min", strategy="uniform", max_levels=3, verbose=False).rows
     cells = [r["cells"] for r in rows]
     assert cells[1] == 4 * cells[0] and cells[2] == 4 * cells[1]
@@ -101,26 +119,72 @@ def test_uniform_is_the_same_loop_with_every_cell_marked():
 
 def test_cli_writes_adaptive_folder(tmp_path):
     out = tmp_path / "adaptive"
-    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(ROOT / "configs" / "lshape_corner.yaml"),
-                           "-o", str(out), "--set", "adapt.max_levels=4", "--set", "adapt.pictures=2"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=ENV)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "contact.app.cli",
+            "run",
+            str(ROOT / "configs" / "lshape_corner.yaml"),
+            "-o",
+            str(out),
+            "--set",
+            "adapt.max_levels=4",
+            "--set",
+            "adapt.pictures=2",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=ENV,
+    )
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
     assert {"solution.pvd", *(f"solution_{k:03d}.vtu" for k in range(4))} <= names
-    assert {"convergence.csv", "convergence.png", "mesh_level_0.png", "mesh_level_3.png",
-            "summary.json", "solution.png", "history.csv"} <= names
+    assert {
+        "convergence.csv",
+        "convergence.png",
+        "mesh_level_0.png",
+        "mesh_level_3.png",
+        "summary.json",
+        "solution.png",
+        "history.csv",
+    } <= names
     rows = list(csv.DictReader(open(out / "convergence.csv")))
     assert len(rows) == 4
-    for key in ("dofs", "cells", "eta", "eta2_volume", "eta2_jump", "eta2_neumann", "eta2_consistency",
-                "eta2_sign", "eta2_complementarity", "error", "effectivity", "newton_iterations",
-                "rank_imbalance", "seconds_solve", "seconds_estimate", "seconds_mark", "seconds_refine", "seconds_output",
-                "seconds_refine_mesh"):
+    for key in (
+        "dofs",
+        "cells",
+        "eta",
+        "eta2_volume",
+        "eta2_jump",
+        "eta2_neumann",
+        "eta2_consistency",
+        "eta2_sign",
+        "eta2_complementarity",
+        "error",
+        "effectivity",
+        "newton_iterations",
+        "rank_imbalance",
+        "seconds_solve",
+        "seconds_estimate",
+        "seconds_mark",
+        "seconds_refine",
+        "seconds_output",
+        "seconds_refine_mesh",
+    ):
         assert key in rows[0], key
-    for r in rows[:-1]:   # dolfinx.mesh.refine is a part of the refinement
+    for r in rows[:-1]:  # dolfinx.mesh.refine is a part of the refinement
         assert 0 < float(r["seconds_refine_mesh"]) < float(r["seconds_refine"])
     eta = [float(r["eta"]) for r in rows]
-    terms = [sum(float(r[f"eta2_{t}"]) for t in ("volume", "jump", "neumann", "consistency", "sign", "complementarity"))
-             for r in rows]
+    terms = [
+        sum(
+            float(r[f"eta2_{t}"])
+            for t in ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
+        )
+        for r in rows
+    ]
     assert np.allclose(np.array(eta) ** 2, terms, rtol=1e-10)
     assert "level" in proc.stdout and "convergence.png" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
@@ -128,27 +192,33 @@ def test_cli_writes_adaptive_folder(tmp_path):
 
 
 def test_refine_reports_the_time_of_its_parts():
-    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
     parts = {}
     t0 = time.perf_counter()
     child, _ = contact.refine(scene, np.arange(4, dtype=np.int32), timings=parts)
     total = time.perf_counter() - t0
     assert set(parts) == {"mesh", "transfer", "snap"}
     assert all(v >= 0 for v in parts.values()) and sum(parts.values()) <= total
-    assert child.mesh.topology.index_map(2).size_global > scene.mesh.topology.index_map(2).size_global
+    assert (
+        child.mesh.topology.index_map(2).size_global > scene.mesh.topology.index_map(2).size_global
+    )
 
 
 def test_loose_newton_tolerance_does_not_change_the_discretization():
     """adapt.newton_rtol = 1e-6 (the default) against 1e-12: same meshes, and η and the error
     agree far below the discretization error, so the looser algebraic tolerance is safe."""
-    scene = contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
     loose = adapt(scene, method="fb", max_levels=7, verbose=False, newton_rtol=1e-6).rows
     tight = adapt(scene, method="fb", max_levels=7, verbose=False, newton_rtol=1e-12).rows
     assert [r["dofs"] for r in loose] == [r["dofs"] for r in tight]
     for a, b in zip(loose, tight):
         assert abs(a["eta"] - b["eta"]) <= 1e-5 * b["eta"]
         assert abs(a["error"] - b["error"]) <= 1e-6 * b["error"]
-    assert all(r["newton_iterations"] <= 5 for r in loose[2:])   # nested iteration (see above)
+    assert all(r["newton_iterations"] <= 5 for r in loose[2:])  # nested iteration (see above)
 
 
 def test_coarse_hertz_cylinder_peak_pressure_converges_under_refinement():
@@ -156,10 +226,18 @@ def test_coarse_hertz_cylinder_peak_pressure_converges_under_refinement():
     the circle the peak pressure p0 = max |λ_n| settles near Hertz (within the ~0.3% model
     error of a/R ≈ 0.1), its changes shrinking (−0.38%, +0.10%, +0.24%).  Midpoints alone
     keep the coarse polygon, whose kinks drove p0 away: +4.3% and +9.4% on these levels."""
-    scene = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", ["output.verbose=false", "mesh.h_contact=0.02"])
+    scene = contact.load_scene(
+        ROOT / "configs" / "hertz_2d.yaml", ["output.verbose=false", "mesh.h_contact=0.02"]
+    )
     p0 = []
-    adapt(scene, method="min", strategy="uniform", max_levels=3, verbose=False,
-          on_level=lambda level: p0.append(compare(level.scene, level.result).errors["p0_error"]))
+    adapt(
+        scene,
+        method="min",
+        strategy="uniform",
+        max_levels=3,
+        verbose=False,
+        on_level=lambda level: p0.append(compare(level.scene, level.result).errors["p0_error"]),
+    )
     assert len(p0) == 3 and max(map(abs, p0)) < 0.01, p0
     assert abs(p0[2] - p0[1]) < 0.5 * abs(p0[1] - p0[0]), p0
 
@@ -176,8 +254,9 @@ def test_refinement_carries_functions_and_tags_with_either_partitioner(nproc):
     cmd = [sys.executable, str(ROOT / "tests" / "prolong_check.py")]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=120, env={**os.environ, "OMP_NUM_THREADS": "1"}
+    )
     assert proc.returncode == 0, proc.stderr
     lines = dict(line.split(": ", 1) for line in proc.stdout.splitlines())
     assert set(lines) == {"identity", "graph"}, proc.stdout

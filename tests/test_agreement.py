@@ -2,6 +2,7 @@
 and on 2 MPI ranks, and serial and parallel answers agree (issue #2).  obtuse_square (a
 sheared ``mesh.map`` mesh whose stiffness is not an M-matrix) checks that agreement does not
 rest on the discrete maximum principle, and that every rank maps its nodes alike."""
+
 import os
 import subprocess
 import sys
@@ -16,8 +17,9 @@ SCRIPT = ROOT / "tests" / "solve_methods.py"
 MPIRUN = Path(sys.executable).parent / "mpirun"
 
 
-def run_methods(tmp_path_factory, nproc: int, scenes: list[Path] | None = None,
-                overrides: tuple[str, ...] = ()) -> dict:
+def run_methods(
+    tmp_path_factory, nproc: int, scenes: list[Path] | None = None, overrides: tuple[str, ...] = ()
+) -> dict:
     """Solve ``scenes`` (default: SCENES) with every method of solve_methods.py on ``nproc``
     ranks, with ``--set``-style ``overrides``; return the gathered results by key."""
     out = tmp_path_factory.mktemp(f"np{nproc}") / "res.npz"
@@ -25,7 +27,9 @@ def run_methods(tmp_path_factory, nproc: int, scenes: list[Path] | None = None,
     cmd = [sys.executable, str(SCRIPT), str(out)] + [str(s) for s in scenes] + list(overrides)
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    subprocess.run(
+        cmd, check=True, cwd=ROOT, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"}
+    )
     return dict(np.load(out))
 
 

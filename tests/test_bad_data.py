@@ -1,15 +1,16 @@
 """Non-finite or invalid scene data is bad input (issue 10, defect 3): exit code 2 with one
 line naming the key, before anything is assembled or solved — not a solve that ends in
 "diverged_function_nanorinf" (exit 1) or, for k ≤ 0, a meaningless "solution" (exit 0)."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
-from clirun import ROOT, contact, error_lines, small_scene
-
 import contact as ct
 from contact.models import build_problem
+
+import pytest
+from clirun import ROOT, contact, error_lines, small_scene
 
 # (--set override, start of the message after "contact: error: ")
 CLI_CASES = [
@@ -17,12 +18,17 @@ CLI_CASES = [
     ("data.g=log(x-2)", "data.g: not a finite number at 9 of 9 nodes, e.g. at x = 0, y = 0"),
     ("data.u_D=sqrt(-1)", "data.u_D: sqrt(-1) is undefined"),
     ("data.t_C=(-8)**(1/3)", "data.t_C: (-8) ** (1 / 3) is not a real number"),
-    ("solver.u0=sqrt(x - 0.5)", "solver.u0: not a finite number at 36 of 81 nodes, e.g. at x = 0, y = 0"),
+    (
+        "solver.u0=sqrt(x - 0.5)",
+        "solver.u0: not a finite number at 36 of 81 nodes, e.g. at x = 0, y = 0",
+    ),
     ("data.k=-1", "data.k: must be > 0 at 81 of 81 nodes, e.g. at x = 0, y = 0 (got -1)"),
 ]
 
 
-RUNS = [(0, *case) for case in CLI_CASES] + [(2, *case) for case in CLI_CASES if case[0][:6] in ("data.g", "data.k")]
+RUNS = [(0, *case) for case in CLI_CASES] + [
+    (2, *case) for case in CLI_CASES if case[0][:6] in ("data.g", "data.k")
+]
 
 
 @pytest.mark.parametrize("ranks, override, expect", RUNS, ids=[f"{r or 1}-{o}" for r, o, _ in RUNS])
@@ -45,21 +51,33 @@ def _square(**data) -> dict:
     return scene
 
 
-@pytest.mark.parametrize("data, expect", [
-    ({"t": "1/(x - 0.5)"}, None),                  # used on the sides x = 0, 1 only: fine
-    ({"g": "0.1 if y < 0.5 else log(x - 2)"}, None),  # used on y = 0 only: fine
-    ({"t": "1/(x - 1)"}, "data.t: not a finite number at 5 of 10 nodes, e.g. at x = 1, y = 0"),
-    ({"f": "1/(x*y)"}, "data.f: not a finite number at 9 of 25 nodes, e.g. at x = 0, y = 0"),
-    ({"exact": "sqrt(y - 0.5)"}, "data.exact: not a finite number at 10 of 25 nodes"),
-    ({"k": "x - 0.5"}, "data.k: must be > 0 at 15 of 25 nodes, e.g. at x = 0, y = 0 (got -0.5)"),
-    ({"k": "1/(x - 0.5)"}, "data.k: not a finite number at 5 of 25 nodes, e.g. at x = 0.5, y = 0"),
-])
+@pytest.mark.parametrize(
+    "data, expect",
+    [
+        ({"t": "1/(x - 0.5)"}, None),  # used on the sides x = 0, 1 only: fine
+        ({"g": "0.1 if y < 0.5 else log(x - 2)"}, None),  # used on y = 0 only: fine
+        ({"t": "1/(x - 1)"}, "data.t: not a finite number at 5 of 10 nodes, e.g. at x = 1, y = 0"),
+        ({"f": "1/(x*y)"}, "data.f: not a finite number at 9 of 25 nodes, e.g. at x = 0, y = 0"),
+        ({"exact": "sqrt(y - 0.5)"}, "data.exact: not a finite number at 10 of 25 nodes"),
+        (
+            {"k": "x - 0.5"},
+            "data.k: must be > 0 at 15 of 25 nodes, e.g. at x = 0, y = 0 (got -0.5)",
+        ),
+        (
+            {"k": "1/(x - 0.5)"},
+            "data.k: not a finite number at 5 of 25 nodes, e.g. at x = 0.5, y = 0",
+        ),
+    ],
+)
 def test_scalar_data_checked_where_used(data: dict, expect: str | None) -> None:
     scene = ct.load_scene(_square(**data))
     if expect is None:
         build_problem(scene)
         return
-    with pytest.raises(ct.ConfigError, match="^" + expect.replace("(", r"\(").replace(")", r"\)").replace("*", r"\*")):
+    with pytest.raises(
+        ct.ConfigError,
+        match="^" + expect.replace("(", r"\(").replace(")", r"\)").replace("*", r"\*"),
+    ):
         build_problem(scene)
 
 
@@ -75,12 +93,18 @@ def test_obstacle_psi_checked_everywhere() -> None:
 HERTZ = ["mesh.h=0.2", "mesh.h_contact=0.05", "adapt.max_levels=1"]
 
 
-@pytest.mark.parametrize("override, expect", [
-    ("data.f=['0', 'log(x - 0.5)']", r"^data\.f\[1\]: not a finite number at \d+ of \d+ nodes"),
-    ("data.u_D=['0', '-delta/(x - 0)']", r"^data\.u_D\[1\]: not a finite number at 1 of \d+ nodes, e\.g\. at x = 0, y = 1"),
-    ("model.E=0", r"^model\.E: must be > 0, got 0"),
-    ("model.nu=-1", r"^model\.nu: must lie in \(-1, 0\.5\), got -1"),
-])
+@pytest.mark.parametrize(
+    "override, expect",
+    [
+        ("data.f=['0', 'log(x - 0.5)']", r"^data\.f\[1\]: not a finite number at \d+ of \d+ nodes"),
+        (
+            "data.u_D=['0', '-delta/(x - 0)']",
+            r"^data\.u_D\[1\]: not a finite number at 1 of \d+ nodes, e\.g\. at x = 0, y = 1",
+        ),
+        ("model.E=0", r"^model\.E: must be > 0, got 0"),
+        ("model.nu=-1", r"^model\.nu: must lie in \(-1, 0\.5\), got -1"),
+    ],
+)
 def test_elasticity_data_checked(override: str, expect: str) -> None:
     with pytest.raises(ct.ConfigError, match=expect):
         build_problem(ct.load_scene(ROOT / "configs" / "hertz_2d.yaml", [*HERTZ, override]))

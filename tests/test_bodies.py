@@ -2,27 +2,31 @@
 the contact patch test in 2D and 3D (serial and 2 ranks), every NCP method against
 vinewtonrsls, serial = 2 ranks on a Hertz scene, the slave/master choice, the adaptive
 loop on two bodies, the multi-body meshes, and one-line errors for bad pairs."""
+
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+import contact
+from contact.base.errors import ConfigError
+from contact.models import build_problem
+from contact.models.mortar import master_pressure
+from contact.output.run_report import resultants
+from contact.post.reference import compare
+
 import numpy as np
 import pytest
 from mpi4py import MPI
-
-import contact
-from contact.base.errors import ConfigError
-from contact.models.mortar import master_pressure
-from contact.models import build_problem
-from contact.post.reference import compare
-from contact.output.run_report import resultants
 from ties import tie_margin
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
 SCRIPT = ROOT / "tests" / "bodies_run.py"
-PATCH_2D, PATCH_3D = ROOT / "configs" / "two_body_patch_2d.yaml", ROOT / "configs" / "two_body_patch_3d.yaml"
+PATCH_2D, PATCH_3D = (
+    ROOT / "configs" / "two_body_patch_2d.yaml",
+    ROOT / "configs" / "two_body_patch_3d.yaml",
+)
 HERTZ_2D = ROOT / "configs" / "two_body_hertz_2d.yaml"
 COARSE_2D = ["mesh.h=2.0", "mesh.h_contact=0.1", "mesh.zone=1.0", "output.verbose=false"]
 P = 0.01  # the patch tests' applied pressure
@@ -33,7 +37,9 @@ def run(tmp_path, scene, nproc, *args):
     cmd = [sys.executable, str(SCRIPT), str(out), str(scene), *args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    subprocess.run(cmd, check=True, cwd=ROOT, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    subprocess.run(
+        cmd, check=True, cwd=ROOT, timeout=300, env={**os.environ, "OMP_NUM_THREADS": "1"}
+    )
     return dict(np.load(out))
 
 
@@ -94,7 +100,9 @@ def test_patch_on_two_ranks_equals_serial(tmp_path, scene, tol):
             assert np.max(np.abs(res[f"{method}/lambda"] + P)) <= tol * P
             assert np.max(np.abs(res[f"{method}/lambda_master"] + P)) <= tol * P
         assert np.allclose(s[f"{method}/Xs"], p[f"{method}/Xs"], atol=1e-14)
-        assert np.max(np.abs(s[f"{method}/u"] - p[f"{method}/u"])) <= tol * np.max(np.abs(s[f"{method}/u"]))
+        assert np.max(np.abs(s[f"{method}/u"] - p[f"{method}/u"])) <= tol * np.max(
+            np.abs(s[f"{method}/u"])
+        )
 
 
 @pytest.fixture(scope="module")
@@ -124,10 +132,12 @@ def test_hertz_2d_serial_equals_two_ranks(hertz_runs, method):
     s, p = hertz_runs
     assert np.allclose(s[f"{method}/X"], p[f"{method}/X"], atol=1e-12)
     assert np.max(np.abs(s[f"{method}/u"] - p[f"{method}/u"])) <= 1e-8
-    assert np.max(np.abs(s[f"{method}/lambda"] - p[f"{method}/lambda"])) <= 1e-8 * np.max(np.abs(s[f"{method}/lambda"]))
-    assert min(s[f"{method}/info"][5], p[f"{method}/info"][5]) >= 1e-6   # no node near a tie
+    assert np.max(np.abs(s[f"{method}/lambda"] - p[f"{method}/lambda"])) <= 1e-8 * np.max(
+        np.abs(s[f"{method}/lambda"])
+    )
+    assert min(s[f"{method}/info"][5], p[f"{method}/info"][5]) >= 1e-6  # no node near a tie
     assert s[f"{method}/info"][2] == p[f"{method}/info"][2]
-    assert s[f"{method}/info"][4] < 1e-10 and p[f"{method}/info"][4] < 1e-10   # action = reaction
+    assert s[f"{method}/info"][4] < 1e-10 and p[f"{method}/info"][4] < 1e-10  # action = reaction
 
 
 def test_slave_and_master_swapped_agree_within_discretization_error():
@@ -135,9 +145,15 @@ def test_slave_and_master_swapped_agree_within_discretization_error():
     the contact force and the peak pressure move by less than the mesh's Hertz error."""
     base = contact.load_scene(HERTZ_2D, COARSE_2D)
     # the lower arc is the slave now, the narrower one
-    swapped = contact.load_scene(HERTZ_2D, COARSE_2D + [
-        "boundaries.slave.where=abs(x) < 3 and y < 1", "boundaries.master.where=abs(x) < 2 and y > -1",
-        "pairs=[{slave: master, master: slave}]"])
+    swapped = contact.load_scene(
+        HERTZ_2D,
+        COARSE_2D
+        + [
+            "boundaries.slave.where=abs(x) < 3 and y < 1",
+            "boundaries.master.where=abs(x) < 2 and y > -1",
+            "pairs=[{slave: master, master: slave}]",
+        ],
+    )
     figures = []
     for scene in (base, swapped):
         r = contact.solve(scene, method="min", verbose=False)
@@ -159,7 +175,9 @@ def test_adaptive_two_bodies_refines_both_and_recouples():
     for lv in out.levels:
         tags = lv.scene.bodies
         n_owned = lv.scene.mesh.topology.index_map(2).size_local
-        counts.append([MPI.COMM_WORLD.allreduce(int(np.sum(tags.values[:n_owned] == k))) for k in (1, 2)])
+        counts.append(
+            [MPI.COMM_WORLD.allreduce(int(np.sum(tags.values[:n_owned] == k))) for k in (1, 2)]
+        )
         res = resultants(lv.scene, lv.result)
         assert res["interface_balance_error"] < 1e-10 and res["mortar_coverage"] > 0.999
         # every vertex of the refined arcs lies on its circle (R = 8 about (0, ±8))
@@ -167,6 +185,7 @@ def test_adaptive_two_bodies_refines_both_and_recouples():
         for tag, centre in ((1, (0.0, 8.0)), (3, (0.0, -8.0))):
             facets = lv.scene.surfaces.find(tag)
             from dolfinx.mesh import entities_to_geometry
+
             nodes = entities_to_geometry(lv.scene.mesh, 1, facets).ravel()
             assert np.allclose(np.linalg.norm(X[nodes] - centre, axis=1), 8.0, rtol=1e-12)
     assert counts[2][0] > counts[0][0] and counts[2][1] > counts[0][1]
@@ -177,7 +196,9 @@ def test_blocks_mesh_has_disconnected_bodies():
     scene = contact.load_scene(PATCH_2D, ["output.verbose=false"])
     msh = scene.mesh
     n_owned = msh.topology.index_map(2).size_local
-    counts = [MPI.COMM_WORLD.allreduce(int(np.sum(scene.bodies.values[:n_owned] == k))) for k in (1, 2)]
+    counts = [
+        MPI.COMM_WORLD.allreduce(int(np.sum(scene.bodies.values[:n_owned] == k))) for k in (1, 2)
+    ]
     assert counts == [2 * 10 * 5, 2 * 31 * 15]
     # no vertex is shared by the two bodies: the interface has two copies of its corners
     X = msh.geometry.x[:, :2]
@@ -187,6 +208,7 @@ def test_blocks_mesh_has_disconnected_bodies():
 
 def _scene(**changes):
     import yaml
+
     cfg = yaml.safe_load(PATCH_2D.read_text())
     for key, value in changes.items():
         node = cfg
@@ -197,26 +219,67 @@ def _scene(**changes):
     return cfg
 
 
-@pytest.mark.parametrize("changes, message", [
-    ({"pairs": [{"slave": "slave", "master": "slave"}]}, "pairs[0].master: boundary part 'slave' is already the slave"),
-    ({"pairs": [{"slave": "slave", "master": "top"}]}, "pairs[0].master: boundary part 'top' needs role: interface"),
-    ({"pairs": [{"slave": "slave", "master": "nowhere"}]}, "pairs[0].master: 'nowhere' is not a boundary part"),
-    ({"boundaries.slave.body": "middle"}, "boundaries.slave.body: 'middle' is not a body"),
-    ({"bodies.upper": {"E": 1.0}}, "bodies.upper: give exactly one of 'where' or 'tag'"),
-    ({"bodies.upper": {"tag": 7, "E": 1.0}}, "bodies.upper.tag: tag 7 does not exist in the mesh"),
-    ({"bodies.upper": {"where": "y > 0.4", "E": 1.0}}, "bodies.upper: 20 of its cells belong to an earlier body"),
-    ({"bodies.upper": {"where": "y > 2", "E": 1.0}}, "bodies.upper: where 'y > 2' selects no cell"),
-    ({"model.E": 1.0}, "model.E: a scene with bodies gives E (and nu) per body"),
-    ({"pairs": [{"slave": "slave", "master": "master", "search": 1e-3}],
-      "mesh.blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
-                      {"corners": [[0.5, 0.5], [1.5, 1]], "cells": [31, 15]}]},
-     "pairs[0].slave: 16 slave node(s) of 'slave', e.g. at ("),
-    ({"mesh.blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
-                      {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]}],
-      "boundaries.slave": {"role": "interface", "where": "abs(y - 0.5) < 1e-10 and x < 0.5", "body": "upper"},
-      "boundaries.master": {"role": "interface", "where": "abs(y - 0.5) < 1e-10 and x > 0.4", "body": "upper"}},
-     "boundaries: master and slave share"),
-])
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (
+            {"pairs": [{"slave": "slave", "master": "slave"}]},
+            "pairs[0].master: boundary part 'slave' is already the slave",
+        ),
+        (
+            {"pairs": [{"slave": "slave", "master": "top"}]},
+            "pairs[0].master: boundary part 'top' needs role: interface",
+        ),
+        (
+            {"pairs": [{"slave": "slave", "master": "nowhere"}]},
+            "pairs[0].master: 'nowhere' is not a boundary part",
+        ),
+        ({"boundaries.slave.body": "middle"}, "boundaries.slave.body: 'middle' is not a body"),
+        ({"bodies.upper": {"E": 1.0}}, "bodies.upper: give exactly one of 'where' or 'tag'"),
+        (
+            {"bodies.upper": {"tag": 7, "E": 1.0}},
+            "bodies.upper.tag: tag 7 does not exist in the mesh",
+        ),
+        (
+            {"bodies.upper": {"where": "y > 0.4", "E": 1.0}},
+            "bodies.upper: 20 of its cells belong to an earlier body",
+        ),
+        (
+            {"bodies.upper": {"where": "y > 2", "E": 1.0}},
+            "bodies.upper: where 'y > 2' selects no cell",
+        ),
+        ({"model.E": 1.0}, "model.E: a scene with bodies gives E (and nu) per body"),
+        (
+            {
+                "pairs": [{"slave": "slave", "master": "master", "search": 1e-3}],
+                "mesh.blocks": [
+                    {"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                    {"corners": [[0.5, 0.5], [1.5, 1]], "cells": [31, 15]},
+                ],
+            },
+            "pairs[0].slave: 16 slave node(s) of 'slave', e.g. at (",
+        ),
+        (
+            {
+                "mesh.blocks": [
+                    {"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                    {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]},
+                ],
+                "boundaries.slave": {
+                    "role": "interface",
+                    "where": "abs(y - 0.5) < 1e-10 and x < 0.5",
+                    "body": "upper",
+                },
+                "boundaries.master": {
+                    "role": "interface",
+                    "where": "abs(y - 0.5) < 1e-10 and x > 0.4",
+                    "body": "upper",
+                },
+            },
+            "boundaries: master and slave share",
+        ),
+    ],
+)
 def test_bad_pairs_are_one_line_errors(changes, message):
     with pytest.raises(ConfigError) as err:
         scene = contact.load_scene(_scene(**changes))
@@ -227,8 +290,18 @@ def test_bad_pairs_are_one_line_errors(changes, message):
 
 def test_a_node_both_slave_and_master_is_refused():
     # the upper block's right side as the master: its corner (1, 0.5) is a slave node too
-    cfg = _scene(**{"boundaries.master": {"role": "interface", "where": "abs(x - 1) < 1e-10", "body": "upper"}})
-    with pytest.raises(ConfigError, match="both a slave and a master|slave or master node of another"):
+    cfg = _scene(
+        **{
+            "boundaries.master": {
+                "role": "interface",
+                "where": "abs(x - 1) < 1e-10",
+                "body": "upper",
+            }
+        }
+    )
+    with pytest.raises(
+        ConfigError, match="both a slave and a master|slave or master node of another"
+    ):
         build_problem(contact.load_scene(cfg))
 
 
@@ -243,15 +316,21 @@ def test_pair_and_rigid_obstacle_in_one_scene():
     problem = build_problem(scene)
     ref = contact.solve(scene, method="vinewtonrsls", problem=problem, verbose=False)
     res = resultants(scene, ref)
-    F_pair, F_floor, F_top = res["interface_force_slave"][1], res["obstacle_force"][1], res["reactions"]["top"][1]
+    F_pair, F_floor, F_top = (
+        res["interface_force_slave"][1],
+        res["obstacle_force"][1],
+        res["reactions"]["top"][1],
+    )
     assert F_pair > 0 and abs(F_floor / F_pair - 1) < 1e-10 and abs(F_top / F_pair + 1) < 1e-10
     assert res["interface_balance_error"] < 1e-10
     # min on the defaults: cycles guarded (contact.solvers.globalize)
     for method in ("fb", "min", "blend"):
         r = contact.solve(scene, method=method, problem=problem, verbose=False)
-        assert r.converged and tie_margin(r) >= 1e-6   # no node near a tie: the counts cannot move
+        assert r.converged and tie_margin(r) >= 1e-6  # no node near a tie: the counts cannot move
         assert r.n_active == ref.n_active
-        assert np.max(np.abs(r.u_h.x.array - ref.u_h.x.array)) <= 1e-8 * np.max(np.abs(ref.u_h.x.array))
+        assert np.max(np.abs(r.u_h.x.array - ref.u_h.x.array)) <= 1e-8 * np.max(
+            np.abs(ref.u_h.x.array)
+        )
     est = contact.estimate(scene, ref)
     assert est.terms["consistency_master"] > 0 and est.terms["consistency"] > 0
 
@@ -259,17 +338,36 @@ def test_pair_and_rigid_obstacle_in_one_scene():
 def test_three_blocks_two_pairs_patch_test():
     """Two interfaces in series (three blocks, three mesh sizes): the uniform pressure crosses
     both pairs exactly."""
-    cfg = _scene(**{
-        "mesh.blocks": [{"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
-                        {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]},
-                        {"corners": [[0, 1], [1, 1.5]], "cells": [7, 4]}],
-        "bodies": {"lower": {"tag": 1, "E": 1.0, "nu": 0.3}, "upper": {"tag": 2, "E": 3.0, "nu": 0.2},
-                   "cap": {"tag": 3, "E": 2.0, "nu": 0.25}},
-        "boundaries.top": {"role": "neumann", "where": "y > 1.5 - 1e-10"},
-        "boundaries.slave2": {"role": "interface", "where": "abs(y - 1) < 1e-10", "body": "upper"},
-        "boundaries.master2": {"role": "interface", "where": "abs(y - 1) < 1e-10", "body": "cap"},
-        "pairs": [{"slave": "slave", "master": "master"}, {"slave": "slave2", "master": "master2"}],
-        "solver.u0": ["0", "-1e-4 * (y > 0.5 - 1e-10) - 1e-4 * (y > 1 - 1e-10)"]})
+    cfg = _scene(
+        **{
+            "mesh.blocks": [
+                {"corners": [[0, 0], [1, 0.5]], "cells": [10, 5]},
+                {"corners": [[0, 0.5], [1, 1]], "cells": [31, 15]},
+                {"corners": [[0, 1], [1, 1.5]], "cells": [7, 4]},
+            ],
+            "bodies": {
+                "lower": {"tag": 1, "E": 1.0, "nu": 0.3},
+                "upper": {"tag": 2, "E": 3.0, "nu": 0.2},
+                "cap": {"tag": 3, "E": 2.0, "nu": 0.25},
+            },
+            "boundaries.top": {"role": "neumann", "where": "y > 1.5 - 1e-10"},
+            "boundaries.slave2": {
+                "role": "interface",
+                "where": "abs(y - 1) < 1e-10",
+                "body": "upper",
+            },
+            "boundaries.master2": {
+                "role": "interface",
+                "where": "abs(y - 1) < 1e-10",
+                "body": "cap",
+            },
+            "pairs": [
+                {"slave": "slave", "master": "master"},
+                {"slave": "slave2", "master": "master2"},
+            ],
+            "solver.u0": ["0", "-1e-4 * (y > 0.5 - 1e-10) - 1e-4 * (y > 1 - 1e-10)"],
+        }
+    )
     scene = contact.load_scene(cfg)
     r = contact.solve(scene, method="min", verbose=False)
     lam = r.lmbda_h.x.array[r.problem.output_nodes]
@@ -295,8 +393,12 @@ def test_gmsh_file_with_one_physical_surface_per_body(tmp_path):
             for _, c in gmsh.model.getBoundary([(2, surface)], oriented=False):
                 x, y, _ = occ.getCenterOfMass(1, c)
                 curves[(surface, round(x, 3), round(y, 3))] = c
-        tags = {"bottom": (lower, 0.5, 0.0), "master": (lower, 0.5, 0.5), "slave": (upper, 0.5, 0.5),
-                "top": (upper, 0.5, 1.0)}
+        tags = {
+            "bottom": (lower, 0.5, 0.0),
+            "master": (lower, 0.5, 0.5),
+            "slave": (upper, 0.5, 0.5),
+            "top": (upper, 0.5, 1.0),
+        }
         for k, (name, key) in enumerate(tags.items(), start=1):
             gmsh.model.addPhysicalGroup(1, [curves[key]], k, name=name)
         gmsh.model.addPhysicalGroup(2, [lower], 11, name="lower")
@@ -307,17 +409,25 @@ def test_gmsh_file_with_one_physical_surface_per_body(tmp_path):
         gmsh.write(str(path))
     finally:
         gmsh.finalize()
-    cfg = {"mesh": {"type": "gmsh", "file": str(path)},
-           "bodies": {"lower": {"tag": 11, "E": 1.0}, "upper": {"tag": 12, "E": 3.0, "nu": 0.2}},
-           "boundaries": {"bottom": {"role": "dirichlet", "tag": 1}, "top": {"role": "neumann", "tag": 4},
-                          "master": {"role": "interface", "tag": 2}, "slave": {"role": "interface", "tag": 3}},
-           "pairs": [{"slave": "slave", "master": "master"}], "model": {"type": "elasticity"},
-           "data": {"t": ["0", f"-{P}"]}, "solver": {"u0": ["0", "-1e-4 * (y > 0.5 - 1e-10)"]},
-           "output": {"verbose": False}}
+    cfg = {
+        "mesh": {"type": "gmsh", "file": str(path)},
+        "bodies": {"lower": {"tag": 11, "E": 1.0}, "upper": {"tag": 12, "E": 3.0, "nu": 0.2}},
+        "boundaries": {
+            "bottom": {"role": "dirichlet", "tag": 1},
+            "top": {"role": "neumann", "tag": 4},
+            "master": {"role": "interface", "tag": 2},
+            "slave": {"role": "interface", "tag": 3},
+        },
+        "pairs": [{"slave": "slave", "master": "master"}],
+        "model": {"type": "elasticity"},
+        "data": {"t": ["0", f"-{P}"]},
+        "solver": {"u0": ["0", "-1e-4 * (y > 0.5 - 1e-10)"]},
+        "output": {"verbose": False},
+    }
     scene = contact.load_scene(cfg)
     r = contact.solve(scene, method="min")
     lam = r.lmbda_h.x.array[r.problem.output_nodes]
-    assert r.converged and r.n_active == len(lam) > 20   # every slave node pressed by ≈ p: no tie
+    assert r.converged and r.n_active == len(lam) > 20  # every slave node pressed by ≈ p: no tie
     # the bottom is clamped (not a roller): the stress is not uniform near the corners, but the
     # total force is p × width and it crosses the interface unchanged
     res = resultants(scene, r)
@@ -334,8 +444,13 @@ def test_cli_run_writes_both_bodies_and_the_slave_table(tmp_path):
     import pyvista
 
     out = tmp_path / "patch"
-    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(PATCH_2D), "-o", str(out), "-q"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "contact.app.cli", "run", str(PATCH_2D), "-o", str(out), "-q"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     grid = pyvista.read(out / "solution.vtu")
     assert {"u_h", "lambda_h", "lambda_master", "gap", "active"} <= set(grid.point_data)
@@ -356,9 +471,9 @@ def test_cli_run_writes_both_bodies_and_the_slave_table(tmp_path):
 def test_readme_two_body_example_validates():
     import re
 
-    import yaml
-
     from contact.setup.config import validate_scene
+
+    import yaml
 
     section = (ROOT / "README.md").read_text().split("## Two bodies in contact", 1)[1]
     cfg = validate_scene(yaml.safe_load(re.search(r"```yaml\n(.*?)```", section, re.S).group(1)))
@@ -374,9 +489,20 @@ def cattaneo_runs(tmp_path_factory):
     out = []
     for nproc in (1, 2):
         path = tmp / f"np{nproc}.npz"
-        cmd = [sys.executable, str(ROOT / "tests" / "cattaneo_run.py"), str(path), str(CATTANEO), "--set=mesh.h_contact=0.02"]
-        subprocess.run(([str(MPIRUN), "-n", "2"] if nproc > 1 else []) + cmd, check=True, cwd=ROOT, timeout=300,
-                       env={**os.environ, "OMP_NUM_THREADS": "1"})
+        cmd = [
+            sys.executable,
+            str(ROOT / "tests" / "cattaneo_run.py"),
+            str(path),
+            str(CATTANEO),
+            "--set=mesh.h_contact=0.02",
+        ]
+        subprocess.run(
+            ([str(MPIRUN), "-n", "2"] if nproc > 1 else []) + cmd,
+            check=True,
+            cwd=ROOT,
+            timeout=300,
+            env={**os.environ, "OMP_NUM_THREADS": "1"},
+        )
         out.append(dict(np.load(path)))
     return out
 
@@ -389,9 +515,9 @@ def test_cattaneo_mindlin_partial_slip(cattaneo_runs):
     on a 17k-DoF mesh (the figures of RESULTS.md are finer)."""
     steps = cattaneo_runs[0]["steps"]
     assert np.all(steps[:, 0] == 1)
-    assert abs(steps[0, 1]) < 1e-3                                   # t = 0.5: P only
+    assert abs(steps[0, 1]) < 1e-3  # t = 0.5: P only
     assert np.allclose(steps[1:, 1], [0.25, 0.5, 0.75], atol=0.005)  # Q/(F P)
-    assert np.all(np.abs(steps[1:, 4]) < 0.03)                        # c/a
+    assert np.all(np.abs(steps[1:, 4]) < 0.03)  # c/a
     assert np.all(steps[1:, 5] < 0.10) and np.all(steps[2:, 5] < 0.05)  # q(x) in L²
 
 
@@ -412,10 +538,12 @@ def test_reaction_force_of_two_bodies_with_friction_is_the_supports():
     so it equals the tangential force the interface transmits (the contact force on the
     slave body).  Before issue 26 it summed the solver's rotated unknowns and the rollers'
     DoFs: [9e-15, -0.32] against a clamp reaction of [-1.05, 1.53]."""
-    from contact.post.interface import interface_resultants
     from contact.post.friction_resultants import surface_figures
+    from contact.post.interface import interface_resultants
 
-    scene = contact.load_scene(CATTANEO, ["output.verbose=false", "mesh.h_contact=0.05", "load.times=[0.5,0.875]"])
+    scene = contact.load_scene(
+        CATTANEO, ["output.verbose=false", "mesh.h_contact=0.05", "load.times=[0.5,0.875]"]
+    )
     path = contact.run_load_path(scene)
     last = path.steps[-1]
     assert path.converged

@@ -1,20 +1,21 @@
 """The DoF budget ``solver.max_dofs`` (issue 10, defect 11): a problem beyond it is bad
 input (exit 2 with a hint) found before the mesh is built (built-in meshes) or before the
 assembly (gmsh meshes), instead of minutes of work ending in a MemoryError."""
+
 from __future__ import annotations
 
 import re
 import time
 from pathlib import Path
 
+import contact as ct
+from contact.models import build_problem
+from contact.setup import budget
+from contact.setup.config import load_config
+
 import pytest
 import yaml
 from clirun import ROOT, contact, error_lines, small_scene
-
-import contact as ct
-from contact.setup import budget
-from contact.setup.config import load_config
-from contact.models import build_problem
 
 
 @pytest.mark.parametrize("ranks", [0, 2])
@@ -26,8 +27,10 @@ def test_huge_mesh_is_exit_2_before_meshing(tmp_path: Path, ranks: int) -> None:
     assert time.perf_counter() - t0 < 30
     assert proc.returncode == 2
     (line,) = error_lines(proc)
-    assert line.startswith("contact: error: mesh.cells: [5000, 5000] cells give 25010001 DoFs, more than "
-                           "solver.max_dofs = ")
+    assert line.startswith(
+        "contact: error: mesh.cells: [5000, 5000] cells give 25010001 DoFs, more than "
+        "solver.max_dofs = "
+    )
     assert line.endswith("use a coarser mesh, or --set solver.max_dofs=25010001 if it fits")
 
 
@@ -35,13 +38,21 @@ def test_explicit_budget(tmp_path: Path) -> None:
     small_scene(tmp_path / "scene.yaml")
     proc = contact(tmp_path, "run", "scene.yaml", "--set", "solver.max_dofs=80", "-o", "out")
     assert proc.returncode == 2 and error_lines(proc)[0].startswith(
-        "contact: error: mesh.cells: [8, 8] cells give 81 DoFs, more than solver.max_dofs = 80")
-    assert contact(tmp_path, "run", "scene.yaml", "--set", "solver.max_dofs=81", "-o", "out", "-q").returncode == 0
+        "contact: error: mesh.cells: [8, 8] cells give 81 DoFs, more than solver.max_dofs = 80"
+    )
+    assert (
+        contact(
+            tmp_path, "run", "scene.yaml", "--set", "solver.max_dofs=81", "-o", "out", "-q"
+        ).returncode
+        == 0
+    )
 
 
 @pytest.mark.parametrize("value", [0, -3, 2.5, "lots", True])
 def test_budget_value_is_checked(value) -> None:
-    with pytest.raises(ct.ConfigError, match=r"^solver\.max_dofs: must be 'auto' or a positive integer"):
+    with pytest.raises(
+        ct.ConfigError, match=r"^solver\.max_dofs: must be 'auto' or a positive integer"
+    ):
         load_config(ROOT / "configs" / "signorini_square.yaml", [f"solver.max_dofs={value}"])
 
 
@@ -51,8 +62,9 @@ def test_gmsh_mesh_is_checked_before_assembly() -> None:
     estimate = budget.parametric_dofs(load_config(ROOT / "configs" / "hertz_2d.yaml"))
     assert budget.ESTIMATE_RANGE[0] * estimate < 7800 < 8004
     scene = ct.load_scene(ROOT / "configs" / "hertz_2d.yaml", ["solver.max_dofs=7800"])
-    with pytest.raises(ct.ConfigError,
-                       match=r"^mesh: the mesh gives 8004 DoFs, more than solver\.max_dofs = 7800"):
+    with pytest.raises(
+        ct.ConfigError, match=r"^mesh: the mesh gives 8004 DoFs, more than solver\.max_dofs = 7800"
+    ):
         build_problem(scene)
 
 
@@ -63,13 +75,16 @@ def test_adaptive_loop_stops_at_the_budget() -> None:
     assert res.stop == "the next level would have 172 DoFs > solver.max_dofs = 150"
 
 
-@pytest.mark.parametrize("source, overrides", [
-    ("signorini_square.yaml", ["mesh.cells=[7,5]"]),
-    ("signorini_square.yaml", ["mesh.cells=[7,5]", "mesh.degree=2"]),
-    ("signorini_square.yaml", ["mesh.cells=[7,5]", "mesh.diagonal=crossed", "mesh.degree=2"]),
-    ("lshape_corner.yaml", ["mesh.cells=5", "mesh.degree=2"]),
-    ("indentation_2d.yaml", []),
-])
+@pytest.mark.parametrize(
+    "source, overrides",
+    [
+        ("signorini_square.yaml", ["mesh.cells=[7,5]"]),
+        ("signorini_square.yaml", ["mesh.cells=[7,5]", "mesh.degree=2"]),
+        ("signorini_square.yaml", ["mesh.cells=[7,5]", "mesh.diagonal=crossed", "mesh.degree=2"]),
+        ("lshape_corner.yaml", ["mesh.cells=5", "mesh.degree=2"]),
+        ("indentation_2d.yaml", []),
+    ],
+)
 def test_estimate_is_exact_for_built_in_meshes(source: str, overrides: list) -> None:
     scene = ct.load_scene(ROOT / "configs" / source, overrides)
     problem = build_problem(scene)
@@ -78,9 +93,15 @@ def test_estimate_is_exact_for_built_in_meshes(source: str, overrides: list) -> 
 
 
 def test_box_estimate_is_exact() -> None:
-    raw = {"mesh": {"type": "box", "cells": [3, 4, 5]},
-           "boundaries": {"b": {"role": "contact", "where": "z < 1e-10"}, "t": {"role": "dirichlet", "where": "z > 0.99"}},
-           "model": {"type": "elasticity", "E": 1.0}, "obstacle": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]}}
+    raw = {
+        "mesh": {"type": "box", "cells": [3, 4, 5]},
+        "boundaries": {
+            "b": {"role": "contact", "where": "z < 1e-10"},
+            "t": {"role": "dirichlet", "where": "z > 0.99"},
+        },
+        "model": {"type": "elasticity", "E": 1.0},
+        "obstacle": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]},
+    }
     scene = ct.load_scene(raw)
     assert budget.estimate_dofs(scene.cfg) == 4 * 5 * 6 * 3 == budget.mesh_dofs(scene.mesh, 1, 3)
 
@@ -100,22 +121,29 @@ def test_default_budget_on_a_24_gib_machine(monkeypatch) -> None:
 
 
 # ------------------------------------------------------------------------- issue 26
-BLOCKS_2D = [{"corners": [[0, 0], [1, 0.5]], "cells": [3, 2]},
-             {"corners": [[0, 0.5], [1, 1]], "cells": [5, 4]}]
-BLOCKS_3D = [{"corners": [[0, 0, 0], [1, 1, 0.5]], "cells": [2, 3, 2]},
-             {"corners": [[0, 0, 0.5], [1, 1, 1]], "cells": [3, 2, 4]}]
+BLOCKS_2D = [
+    {"corners": [[0, 0], [1, 0.5]], "cells": [3, 2]},
+    {"corners": [[0, 0.5], [1, 1]], "cells": [5, 4]},
+]
+BLOCKS_3D = [
+    {"corners": [[0, 0, 0], [1, 1, 0.5]], "cells": [2, 3, 2]},
+    {"corners": [[0, 0, 0.5], [1, 1, 1]], "cells": [3, 2, 4]},
+]
 
 
-@pytest.mark.parametrize("blocks, degree",
-                         [(BLOCKS_2D, 1), (BLOCKS_2D, 2), (BLOCKS_3D, 1), (BLOCKS_3D, 2)])
+@pytest.mark.parametrize(
+    "blocks, degree", [(BLOCKS_2D, 1), (BLOCKS_2D, 2), (BLOCKS_3D, 1), (BLOCKS_3D, 2)]
+)
 def test_blocks_estimate_is_exact(blocks: list, degree: int) -> None:
     """Mesh type blocks had no estimate: the budget skipped it."""
-    from mpi4py import MPI
-
     from contact.setup.meshes import blocks as build_blocks
 
-    cfg = {"mesh": {"type": "blocks", "blocks": blocks, "degree": degree},
-           "model": {"type": "elasticity"}}
+    from mpi4py import MPI
+
+    cfg = {
+        "mesh": {"type": "blocks", "blocks": blocks, "degree": degree},
+        "model": {"type": "elasticity"},
+    }
     msh, _, _ = build_blocks(MPI.COMM_WORLD, blocks)
     gdim = msh.geometry.dim
     assert budget.estimate_dofs(cfg) == budget.mesh_dofs(msh, degree, gdim)
@@ -135,8 +163,10 @@ def test_huge_blocks_are_exit_2_before_meshing(tmp_path: Path) -> None:
     proc = contact(tmp_path, "run", "scene.yaml", "-o", "out", timeout=60)
     assert time.perf_counter() - t0 < 30 and proc.returncode == 2
     (line,) = error_lines(proc)
-    assert line.startswith("contact: error: mesh.blocks: cells [[20000, 10000], [20000, 10000]] "
-                           "give 800120004 DoFs, more than solver.max_dofs = ")
+    assert line.startswith(
+        "contact: error: mesh.blocks: cells [[20000, 10000], [20000, 10000]] "
+        "give 800120004 DoFs, more than solver.max_dofs = "
+    )
 
 
 def test_huge_parametric_gmsh_mesh_is_exit_2_before_meshing(tmp_path: Path) -> None:
@@ -145,13 +175,23 @@ def test_huge_parametric_gmsh_mesh_is_exit_2_before_meshing(tmp_path: Path) -> N
     the auto budget of a 24 GiB machine, so that the test does not depend on this one)."""
     sets = ["mesh.h=0.01", "mesh.h_contact=0.01", "solver.max_dofs=3500000"]
     t0 = time.perf_counter()
-    proc = contact(tmp_path, "run", str(ROOT / "configs" / "two_body_hertz_2d.yaml"), "-o", "out",
-                   *(a for s in sets for a in ("--set", s)), timeout=60)
+    proc = contact(
+        tmp_path,
+        "run",
+        str(ROOT / "configs" / "two_body_hertz_2d.yaml"),
+        "-o",
+        "out",
+        *(a for s in sets for a in ("--set", s)),
+        timeout=60,
+    )
     assert time.perf_counter() - t0 < 30 and proc.returncode == 2
     (line,) = error_lines(proc)
-    assert re.match(r"contact: error: mesh\.h: h = 0\.01, h_contact = 0\.01, zone = 1 give "
-                    r"at least \d+ DoFs, more than solver\.max_dofs = 3500000 .*"
-                    r"--set solver\.max_dofs=\d+ if it fits$", line), line
+    assert re.match(
+        r"contact: error: mesh\.h: h = 0\.01, h_contact = 0\.01, zone = 1 give "
+        r"at least \d+ DoFs, more than solver\.max_dofs = 3500000 .*"
+        r"--set solver\.max_dofs=\d+ if it fits$",
+        line,
+    ), line
     low, enough = (int(n) for n in re.findall(r"(?:at least |max_dofs=)(\d+)", line))
     # two half-disks of radius 8: 2 × 32π / (√3/2 · 0.01²) = 4.64 M DoFs (equilateral triangles)
     assert 0.95 * 4.64e6 * 0.95 < low < 4.64e6 < enough < 1.3 * 4.64e6
@@ -160,12 +200,16 @@ def test_huge_parametric_gmsh_mesh_is_exit_2_before_meshing(tmp_path: Path) -> N
 
 # the parameters of the shipped parametric scenes, and finer or graded variants
 CALIBRATION = [
-    ("hertz_2d.yaml", []), ("two_body_hertz_2d.yaml", []),
-    ("hertz_3d.yaml", []), ("two_body_hertz_3d.yaml", []),
+    ("hertz_2d.yaml", []),
+    ("two_body_hertz_2d.yaml", []),
+    ("hertz_3d.yaml", []),
+    ("two_body_hertz_3d.yaml", []),
     ("hertz_2d.yaml", ["mesh.h=0.01", "mesh.h_contact=0.01", "mesh.zone=0.1"]),
     ("hertz_2d.yaml", ["mesh.degree=2"]),
-    ("two_body_hertz_2d.yaml",
-     ["mesh.h=0.5", "mesh.h_contact=0.02", "mesh.zone=0.5", "mesh.overlap=0.1"]),
+    (
+        "two_body_hertz_2d.yaml",
+        ["mesh.h=0.5", "mesh.h_contact=0.02", "mesh.zone=0.5", "mesh.overlap=0.1"],
+    ),
     ("hertz_3d.yaml", ["mesh.h=0.06", "mesh.h_contact=0.06", "mesh.zone=0.1"]),
 ]
 

@@ -1,10 +1,11 @@
 """iterations.png (issue #14, item 7): x is the refinement level — the ``level`` axis of
 single solves, or the adaptive loop's level — and cold starts are not called nested."""
+
 import dataclasses
 from pathlib import Path
 
-from contact.output import charts
 from contact.app.study import load_study, run_study
+from contact.output import charts
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -18,9 +19,16 @@ def _draw(study, tmp_path):
 
 
 def test_level_axis_study_draws_single_solves_along_the_levels(tmp_path):
-    study = load_study({"name": "levels", "scene": str(ROOT / "configs" / "signorini_square.yaml"),
-                        "set": ["mesh.cells=[8,8]"], "axes": {"method": ["fb", "min"], "level": [0, 1, 2]},
-                        "charts": ["iterations"], "warmup": False})
+    study = load_study(
+        {
+            "name": "levels",
+            "scene": str(ROOT / "configs" / "signorini_square.yaml"),
+            "set": ["mesh.cells=[8,8]"],
+            "axes": {"method": ["fb", "min"], "level": [0, 1, 2]},
+            "charts": ["iterations"],
+            "warmup": False,
+        }
+    )
     curves = _draw(study, tmp_path)
     assert set(curves) == {"fb, single solves (cold)", "min, single solves (cold)"}
     for xs, ys in curves.values():
@@ -30,8 +38,12 @@ def test_level_axis_study_draws_single_solves_along_the_levels(tmp_path):
 def test_shipped_iterations_levels_study_nested_and_cold(tmp_path):
     shipped = load_study(ROOT / "configs" / "studies" / "iterations_levels.yaml")
     assert shipped.charts[0] == "iterations"
-    study = dataclasses.replace(shipped, axes={"method": ["min"], "nested": [True, False]},
-                                adapt={**shipped.adapt, "max_levels": 3}, warmup=False)
+    study = dataclasses.replace(
+        shipped,
+        axes={"method": ["min"], "nested": [True, False]},
+        adapt={**shipped.adapt, "max_levels": 3},
+        warmup=False,
+    )
     curves = _draw(study, tmp_path)
     assert set(curves) == {"min, nested", "min, cold start"}
     nested, cold = curves["min, nested"], curves["min, cold start"]

@@ -4,6 +4,7 @@
 Every case runs the CLI as a subprocess (``python -m contact.app.cli run ...``) in its own tmp
 directory, on scenes derived from configs/signorini_square.yaml with an 8 × 8 mesh.
 """
+
 from __future__ import annotations
 
 import copy
@@ -15,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import make_square_msh
 import yaml
+from conftest import make_square_msh
 
 ROOT = Path(__file__).resolve().parents[1]
 PREFIX = "contact: error: "
@@ -33,9 +34,11 @@ def _base_scene() -> dict:
 GMSH_SCENE = {
     "name": "gmsh_square",
     "mesh": {"type": "gmsh", "file": "square.msh"},
-    "boundaries": {"top": {"role": "dirichlet", "tag": 2},
-                   "sides": {"role": "neumann", "tag": 3},
-                   "bottom": {"role": "contact", "tag": 1}},
+    "boundaries": {
+        "top": {"role": "dirichlet", "tag": 2},
+        "sides": {"role": "neumann", "tag": 3},
+        "bottom": {"role": "contact", "tag": 1},
+    },
     "model": "signorini",
     "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"},
 }
@@ -50,12 +53,12 @@ class Case:
     expect: str
     changes: dict = field(default_factory=dict)
     text: str | bytes | None = None
-    base: str = "square"         # square | gmsh
+    base: str = "square"  # square | gmsh
     args: tuple = ()
     contains: str = ""
-    scene: str | None = None     # scene argument if not the written file (relative to tmp)
-    msh: bool = False            # copy the small gmsh mesh into tmp (as square.msh)
-    output: bool = True          # pass -o tmp/out
+    scene: str | None = None  # scene argument if not the written file (relative to tmp)
+    msh: bool = False  # copy the small gmsh mesh into tmp (as square.msh)
+    output: bool = True  # pass -o tmp/out
 
 
 def _apply(scene: dict, changes: dict) -> dict:
@@ -74,35 +77,63 @@ def _apply(scene: dict, changes: dict) -> dict:
 CASES = {
     # --- unknown keys -----------------------------------------------------------------
     "unknown_top_key": Case("colour: unknown key (expected one of name, mesh,", {"colour": "red"}),
-    "unknown_solver_key": Case("solver.methd: unknown key (expected one of method, mu,", {"solver.methd": "fb"}),
-    "unknown_boundary_key": Case("boundaries.bottom.wher: unknown key", {"boundaries.bottom.wher": "y < 0"}),
+    "unknown_solver_key": Case(
+        "solver.methd: unknown key (expected one of method, mu,", {"solver.methd": "fb"}
+    ),
+    "unknown_boundary_key": Case(
+        "boundaries.bottom.wher: unknown key", {"boundaries.bottom.wher": "y < 0"}
+    ),
     "unknown_data_key": Case("data.q: unknown key", {"data.q": "1"}),
-    "mesh_key_unused_by_type": Case("mesh.corners: not used by mesh type 'unit_square'",
-                                    {"mesh.corners": [[0, 0], [1, 1]]}),
-    "gmsh_with_cells": Case("mesh.cells: not used by mesh type 'gmsh'", {"mesh.cells": 8},
-                            base="gmsh", msh=True),
+    "mesh_key_unused_by_type": Case(
+        "mesh.corners: not used by mesh type 'unit_square'", {"mesh.corners": [[0, 0], [1, 1]]}
+    ),
+    "gmsh_with_cells": Case(
+        "mesh.cells: not used by mesh type 'gmsh'", {"mesh.cells": 8}, base="gmsh", msh=True
+    ),
     # --- wrong types ------------------------------------------------------------------
     "mu_string": Case("solver.mu: expected a number, got a string 'half'", {"solver.mu": "half"}),
     "rtol_bool": Case("solver.rtol: expected a number, got a boolean True", {"solver.rtol": True}),
-    "max_it_float": Case("solver.max_it: expected an integer, got a number 2.5", {"solver.max_it": 2.5}),
+    "max_it_float": Case(
+        "solver.max_it: expected an integer, got a number 2.5", {"solver.max_it": 2.5}
+    ),
     "section_not_mapping": Case("solver: expected a mapping, got a string 'fb'", {"solver": "fb"}),
-    "boundaries_list": Case("boundaries: expected a mapping, got a list", {"boundaries": ["top", "bottom"]}),
+    "boundaries_list": Case(
+        "boundaries: expected a mapping, got a list", {"boundaries": ["top", "bottom"]}
+    ),
     "cells_string": Case("mesh.cells: must be a positive integer or a list", {"mesh.cells": "8x8"}),
-    "where_number": Case("boundaries.bottom.where: expected a string", {"boundaries.bottom.where": 0}),
-    "tag_string": Case("boundaries.bottom.tag: expected an integer", {"boundaries.bottom.tag": "one"},
-                       base="gmsh", msh=True),
+    "where_number": Case(
+        "boundaries.bottom.where: expected a string", {"boundaries.bottom.where": 0}
+    ),
+    "tag_string": Case(
+        "boundaries.bottom.tag: expected an integer",
+        {"boundaries.bottom.tag": "one"},
+        base="gmsh",
+        msh=True,
+    ),
     "verbose_string": Case("output.verbose: expected true or false", {"output.verbose": "loud"}),
     "constant_string": Case("constants.a: expected a number", {"constants": {"a": "b"}}),
-    "constant_bad_name": Case("constants.x: is not a usable constant name", {"constants": {"x": 1}}),
-    "petsc_option_list": Case("solver.petsc_options.ksp_type: must be a string, number or boolean",
-                              {"solver.petsc_options": {"ksp_type": [1, 2]}}),
+    "constant_bad_name": Case(
+        "constants.x: is not a usable constant name", {"constants": {"x": 1}}
+    ),
+    "petsc_option_list": Case(
+        "solver.petsc_options.ksp_type: must be a string, number or boolean",
+        {"solver.petsc_options": {"ksp_type": [1, 2]}},
+    ),
     # --- not one of the choices -------------------------------------------------------
-    "method_choice": Case(f"solver.method: 'fbb' is not one of {METHODS}", {"solver.method": "fbb"}),
-    "role_choice": Case("boundaries.bottom.role: 'contakt' is not one of dirichlet, neumann, contact",
-                        {"boundaries.bottom.role": "contakt"}),
-    "model_choice": Case("model.type: 'elastic' is not one of signorini, obstacle", {"model": "elastic"}),
+    "method_choice": Case(
+        f"solver.method: 'fbb' is not one of {METHODS}", {"solver.method": "fbb"}
+    ),
+    "role_choice": Case(
+        "boundaries.bottom.role: 'contakt' is not one of dirichlet, neumann, contact",
+        {"boundaries.bottom.role": "contakt"},
+    ),
+    "model_choice": Case(
+        "model.type: 'elastic' is not one of signorini, obstacle", {"model": "elastic"}
+    ),
     "mesh_type_choice": Case("mesh.type: 'circle' is not one of", {"mesh.type": "circle"}),
-    "line_search_choice": Case("solver.line_search: 'cp' is not one of auto, basic, bt", {"solver.line_search": "cp"}),
+    "line_search_choice": Case(
+        "solver.line_search: 'cp' is not one of auto, basic, bt", {"solver.line_search": "cp"}
+    ),
     # --- out of range -----------------------------------------------------------------
     "mu_one": Case("solver.mu: must lie in (0, 1), got 1.0", {"solver.mu": 1}),
     "mu_zero": Case("solver.mu: must lie in (0, 1), got 0.0", {"solver.mu": 0}),
@@ -111,89 +142,170 @@ CASES = {
     "rtol_negative": Case("solver.rtol: must be >= 0, got -1e-08", {"solver.rtol": -1e-8}),
     "atol_negative": Case("solver.atol: must be >= 0, got -1.0", {"solver.atol": -1}),
     "c_negative": Case("solver.c: must be > 0, got -1", {"solver.c": -1}),
-    "c_string": Case("solver.c: must be 'auto' or a positive number, got 'big'", {"solver.c": "big"}),
-    "c_infinite": Case("solver.c: must be 'auto' or a positive number, got inf", {"solver.c": float("inf")}),
+    "c_string": Case(
+        "solver.c: must be 'auto' or a positive number, got 'big'", {"solver.c": "big"}
+    ),
+    "c_infinite": Case(
+        "solver.c: must be 'auto' or a positive number, got inf", {"solver.c": float("inf")}
+    ),
     # --- impossible parameters --------------------------------------------------------
-    "cells_zero": Case("mesh.cells: must be a positive integer or a list of positive integers, got 0",
-                       {"mesh.cells": 0}),
+    "cells_zero": Case(
+        "mesh.cells: must be a positive integer or a list of positive integers, got 0",
+        {"mesh.cells": 0},
+    ),
     "cells_list_zero": Case("mesh.cells: must be a positive integer", {"mesh.cells": [8, 0]}),
-    "cells_wrong_count": Case("mesh.cells: a unit_square mesh needs 2 cell count(s), got [8, 8, 8]",
-                              {"mesh.cells": [8, 8, 8]}),
+    "cells_wrong_count": Case(
+        "mesh.cells: a unit_square mesh needs 2 cell count(s), got [8, 8, 8]",
+        {"mesh.cells": [8, 8, 8]},
+    ),
     "max_it_zero": Case("solver.max_it: must be > 0, got 0", {"solver.max_it": 0}),
     "degree_three": Case("mesh.degree: 3 is not one of 1, 2", {"mesh.degree": 3}),
-    "degree_two_obstacle": Case("mesh.degree: 2 does not work for an obstacle scene",
-                                {"model": "obstacle", "mesh.degree": 2, "boundaries.bottom": DELETE,
-                                 "data.g": DELETE, "data.psi": "-1"}),
-    "corners_reversed": Case("mesh.corners: the second corner must exceed the first in every coordinate",
-                             {"mesh.type": "rectangle", "mesh.corners": [[1, 1], [0, 0]]}),
-    "corners_3d_for_rectangle": Case("mesh.corners: a rectangle needs 2D points",
-                                     {"mesh.type": "rectangle", "mesh.corners": [[0, 0, 0], [1, 1, 1]]}),
-    "corners_infinite": Case("mesh.corners: coordinates must be finite",
-                             {"mesh.type": "rectangle", "mesh.corners": [[0, 0], [float("inf"), 1]]}),
-    "map_wrong_count": Case("mesh.map: expected 2 expressions for a 2D mesh, got 3", {"mesh.map": ["x", "y", "z"]}),
-    "map_not_a_list": Case("mesh.map: expected a list of expressions, one per coordinate, got a string",
-                           {"mesh.map": "x + y"}),
+    "degree_two_obstacle": Case(
+        "mesh.degree: 2 does not work for an obstacle scene",
+        {
+            "model": "obstacle",
+            "mesh.degree": 2,
+            "boundaries.bottom": DELETE,
+            "data.g": DELETE,
+            "data.psi": "-1",
+        },
+    ),
+    "corners_reversed": Case(
+        "mesh.corners: the second corner must exceed the first in every coordinate",
+        {"mesh.type": "rectangle", "mesh.corners": [[1, 1], [0, 0]]},
+    ),
+    "corners_3d_for_rectangle": Case(
+        "mesh.corners: a rectangle needs 2D points",
+        {"mesh.type": "rectangle", "mesh.corners": [[0, 0, 0], [1, 1, 1]]},
+    ),
+    "corners_infinite": Case(
+        "mesh.corners: coordinates must be finite",
+        {"mesh.type": "rectangle", "mesh.corners": [[0, 0], [float("inf"), 1]]},
+    ),
+    "map_wrong_count": Case(
+        "mesh.map: expected 2 expressions for a 2D mesh, got 3", {"mesh.map": ["x", "y", "z"]}
+    ),
+    "map_not_a_list": Case(
+        "mesh.map: expected a list of expressions, one per coordinate, got a string",
+        {"mesh.map": "x + y"},
+    ),
     "map_bad_expression": Case("mesh.map[1]: unknown name 'q'", {"mesh.map": ["x + y", "q*y"]}),
     # a fold at x = 0.5
-    "map_inverts_cells": Case("mesh.map: the map inverts or flattens 64 of 128 cells",
-                              {"mesh.map": ["x if x < 0.5 else 1 - x", "y"]}),
-    "map_flattens_cells": Case("mesh.map: the map inverts or flattens 128 of 128 cells", {"mesh.map": ["x", "0"]}),
-    "map_not_finite": Case("mesh.map[0]: not a finite number at 9 of 81 vertices", {"mesh.map": ["log(x)", "y"]}),
-    "map_of_gmsh_mesh": Case("mesh.map: not used by mesh type 'gmsh'", {"mesh.map": ["x", "y"]}, base="gmsh", msh=True),
-    "bound_lower_signorini": Case("model.bound: Signorini contact is always", {"model": {"type": "signorini",
-                                                                                          "bound": "lower"}}),
+    "map_inverts_cells": Case(
+        "mesh.map: the map inverts or flattens 64 of 128 cells",
+        {"mesh.map": ["x if x < 0.5 else 1 - x", "y"]},
+    ),
+    "map_flattens_cells": Case(
+        "mesh.map: the map inverts or flattens 128 of 128 cells", {"mesh.map": ["x", "0"]}
+    ),
+    "map_not_finite": Case(
+        "mesh.map[0]: not a finite number at 9 of 81 vertices", {"mesh.map": ["log(x)", "y"]}
+    ),
+    "map_of_gmsh_mesh": Case(
+        "mesh.map: not used by mesh type 'gmsh'", {"mesh.map": ["x", "y"]}, base="gmsh", msh=True
+    ),
+    "bound_lower_signorini": Case(
+        "model.bound: Signorini contact is always",
+        {"model": {"type": "signorini", "bound": "lower"}},
+    ),
     "psi_for_signorini": Case("data.psi: only for model type obstacle", {"data.psi": "0"}),
     # --- files ------------------------------------------------------------------------
     "missing_scene_file": Case("{tmp}/nope.yaml: no such file", scene="nope.yaml"),
     "scene_is_directory": Case("{tmp}: no such file", scene="."),
-    "malformed_yaml": Case("{scene}: malformed YAML (line 2, column 15): mapping values are not allowed",
-                           text="name: x\nsolver: method: fb\n"),
+    "malformed_yaml": Case(
+        "{scene}: malformed YAML (line 2, column 15): mapping values are not allowed",
+        text="name: x\nsolver: method: fb\n",
+    ),
     "yaml_unclosed_brace": Case("{scene}: malformed YAML", text="name: x\nsolver: {method: fb\n"),
     "yaml_tab_indent": Case("{scene}: malformed YAML", text="mesh:\n\ttype: unit_square\n"),
-    "yaml_python_tag": Case("{scene}: malformed YAML", text="name: !!python/object/apply:os.system ['true']\n"),
-    "yaml_not_mapping": Case("{scene}: expected a mapping of sections at the top level, got a list",
-                             text="- mesh\n- solver\n"),
-    "yaml_empty": Case("{scene}: expected a mapping of sections at the top level, got empty", text=""),
+    "yaml_python_tag": Case(
+        "{scene}: malformed YAML", text="name: !!python/object/apply:os.system ['true']\n"
+    ),
+    "yaml_not_mapping": Case(
+        "{scene}: expected a mapping of sections at the top level, got a list",
+        text="- mesh\n- solver\n",
+    ),
+    "yaml_empty": Case(
+        "{scene}: expected a mapping of sections at the top level, got empty", text=""
+    ),
     "yaml_not_utf8": Case("{scene}: not UTF-8 text", text=b"name: \xff\xfe\n"),
     # issue 26: PyYAML keeps the last of two equal keys silently
-    "yaml_duplicate_key": Case("{scene}: duplicate key name (lines 1 and 3); give each key once",
-                               text="name: a\nmesh: {type: unit_square}\nname: b\n"),
+    "yaml_duplicate_key": Case(
+        "{scene}: duplicate key name (lines 1 and 3); give each key once",
+        text="name: a\nmesh: {type: unit_square}\nname: b\n",
+    ),
     "yaml_duplicate_nested_key": Case(
         "{scene}: duplicate key boundaries.bottom.where (lines 4 and 5)",
         text="mesh: {type: unit_square}\nboundaries:\n  bottom:\n"
-             "    where: 'y < 0'\n    where: 'y < 1e-10'\n    role: contact\n"),
-    "yaml_duplicate_in_list": Case("{scene}: duplicate key mesh.blocks[1].cells (lines 2 and 2)",
-                                   text="mesh: {type: blocks, blocks: [{cells: 1},\n"
-                                        "  {cells: 2, cells: 3}]}\n"),
-    "set_duplicate_key": Case("--set solver: duplicate key method (lines 1 and 1)",
-                              args=("--set", "solver={method: fb, method: min}")),
-    "missing_mesh_file": Case("mesh.file: no such file '{tmp}/nope.msh'", {"mesh.file": "nope.msh"}, base="gmsh"),
-    "gmsh_without_file": Case("mesh.file: required for mesh type 'gmsh'", {"mesh.file": DELETE}, base="gmsh"),
-    "corrupt_mesh_file": Case("mesh.file: cannot read '{tmp}/garbage.msh' as a gmsh mesh",
-                              {"mesh.file": "garbage.msh"}, base="gmsh"),
+        "    where: 'y < 0'\n    where: 'y < 1e-10'\n    role: contact\n",
+    ),
+    "yaml_duplicate_in_list": Case(
+        "{scene}: duplicate key mesh.blocks[1].cells (lines 2 and 2)",
+        text="mesh: {type: blocks, blocks: [{cells: 1},\n  {cells: 2, cells: 3}]}\n",
+    ),
+    "set_duplicate_key": Case(
+        "--set solver: duplicate key method (lines 1 and 1)",
+        args=("--set", "solver={method: fb, method: min}"),
+    ),
+    "missing_mesh_file": Case(
+        "mesh.file: no such file '{tmp}/nope.msh'", {"mesh.file": "nope.msh"}, base="gmsh"
+    ),
+    "gmsh_without_file": Case(
+        "mesh.file: required for mesh type 'gmsh'", {"mesh.file": DELETE}, base="gmsh"
+    ),
+    "corrupt_mesh_file": Case(
+        "mesh.file: cannot read '{tmp}/garbage.msh' as a gmsh mesh",
+        {"mesh.file": "garbage.msh"},
+        base="gmsh",
+    ),
     # --- boundary parts ---------------------------------------------------------------
-    "where_selects_nothing": Case("boundaries.bottom: where 'y < -1' selects no boundary facet",
-                                  {"boundaries.bottom.where": "y < -1"}),
-    "where_interior_only": Case("boundaries.bottom: where 'abs(y - 0.5) < 1e-10' selects no boundary facet",
-                                {"boundaries.bottom.where": "abs(y - 0.5) < 1e-10"}),
-    "tag_missing_in_msh": Case("boundaries.bottom.tag: tag 99 does not exist in the mesh file (facet tags: 1, 2, 3)",
-                               {"boundaries.bottom.tag": 99}, base="gmsh", msh=True),
-    "tag_of_surface_group": Case("boundaries.bottom.tag: tag 10 does not exist in the mesh file",
-                                 {"boundaries.bottom.tag": 10}, base="gmsh", msh=True),
-    "tag_without_gmsh": Case("boundaries.bottom.tag: tags need a gmsh mesh",
-                             {"boundaries.bottom": {"role": "contact", "tag": 1}}),
-    "where_and_tag_select_nothing": Case("boundaries.bottom: tag 1 and where 'y > 2' selects no boundary facet",
-                                         {"boundaries.bottom.where": "y > 2"}, base="gmsh", msh=True),
-    "neither_where_nor_tag": Case("boundaries.bottom: give 'where' or 'tag'",
-                                  {"boundaries.bottom": {"role": "contact"}}),
-    "role_missing": Case("boundaries.bottom.role: required key is missing",
-                         {"boundaries.bottom": {"where": "y < 1e-10"}}),
-    "overlapping_parts": Case("boundaries: bottom and sides share", {"boundaries.sides.where":
-                                                                     "x < 1e-10 or x > 1 - 1e-10 or y < 1e-10"},
-                              contains="parts must not overlap"),
+    "where_selects_nothing": Case(
+        "boundaries.bottom: where 'y < -1' selects no boundary facet",
+        {"boundaries.bottom.where": "y < -1"},
+    ),
+    "where_interior_only": Case(
+        "boundaries.bottom: where 'abs(y - 0.5) < 1e-10' selects no boundary facet",
+        {"boundaries.bottom.where": "abs(y - 0.5) < 1e-10"},
+    ),
+    "tag_missing_in_msh": Case(
+        "boundaries.bottom.tag: tag 99 does not exist in the mesh file (facet tags: 1, 2, 3)",
+        {"boundaries.bottom.tag": 99},
+        base="gmsh",
+        msh=True,
+    ),
+    "tag_of_surface_group": Case(
+        "boundaries.bottom.tag: tag 10 does not exist in the mesh file",
+        {"boundaries.bottom.tag": 10},
+        base="gmsh",
+        msh=True,
+    ),
+    "tag_without_gmsh": Case(
+        "boundaries.bottom.tag: tags need a gmsh mesh",
+        {"boundaries.bottom": {"role": "contact", "tag": 1}},
+    ),
+    "where_and_tag_select_nothing": Case(
+        "boundaries.bottom: tag 1 and where 'y > 2' selects no boundary facet",
+        {"boundaries.bottom.where": "y > 2"},
+        base="gmsh",
+        msh=True,
+    ),
+    "neither_where_nor_tag": Case(
+        "boundaries.bottom: give 'where' or 'tag'", {"boundaries.bottom": {"role": "contact"}}
+    ),
+    "role_missing": Case(
+        "boundaries.bottom.role: required key is missing",
+        {"boundaries.bottom": {"where": "y < 1e-10"}},
+    ),
+    "overlapping_parts": Case(
+        "boundaries: bottom and sides share",
+        {"boundaries.sides.where": "x < 1e-10 or x > 1 - 1e-10 or y < 1e-10"},
+        contains="parts must not overlap",
+    ),
     "no_boundaries": Case("boundaries: at least one boundary part is required", {"boundaries": {}}),
-    "no_contact_part": Case("boundaries: a signorini scene needs a part with role: contact",
-                            {"boundaries.bottom": DELETE}),
+    "no_contact_part": Case(
+        "boundaries: a signorini scene needs a part with role: contact",
+        {"boundaries.bottom": DELETE},
+    ),
     # --- expressions ------------------------------------------------------------------
     "expr_import": Case("data.f: only the functions sin, cos,", {"data.f": "__import__('os')"}),
     "expr_attribute": Case("data.g: attribute is not allowed", {"data.g": "x.__class__"}),
@@ -203,26 +315,47 @@ CASES = {
     "expr_lambda": Case("data.f: only the functions", {"data.f": "(lambda: 0)()"}),
     "expr_syntax": Case("data.u_D: cannot parse 'x +'", {"data.u_D": "x +"}),
     "expr_string_constant": Case("data.f: constant 'abc' is not a number", {"data.f": "'abc'"}),
-    "expr_bare_function": Case("data.f: 'sin' is a function, call it with arguments", {"data.f": "sin"}),
+    "expr_bare_function": Case(
+        "data.f: 'sin' is a function, call it with arguments", {"data.f": "sin"}
+    ),
     "expr_arity": Case("data.g: atan2() takes 2 argument(s)", {"data.g": "atan2(x)"}),
     "expr_empty": Case("data.g: empty expression", {"data.g": " "}),
     "expr_u0": Case("solver.u0: cannot parse", {"solver.u0": "import os"}),
-    "where_call": Case("boundaries.bottom.where: only the functions", {"boundaries.bottom.where": "os.system('x')"}),
-    "where_syntax": Case("boundaries.bottom.where: cannot parse", {"boundaries.bottom.where": "y <"}),
-    "where_unknown_name": Case("boundaries.top.where: unknown name 'Y'", {"boundaries.top.where": "Y > 1"}),
+    "where_call": Case(
+        "boundaries.bottom.where: only the functions", {"boundaries.bottom.where": "os.system('x')"}
+    ),
+    "where_syntax": Case(
+        "boundaries.bottom.where: cannot parse", {"boundaries.bottom.where": "y <"}
+    ),
+    "where_unknown_name": Case(
+        "boundaries.top.where: unknown name 'Y'", {"boundaries.top.where": "Y > 1"}
+    ),
     # --- command line -----------------------------------------------------------------
-    "set_without_equals": Case("--set solver.method: expected KEY.PATH=VALUE", args=("--set", "solver.method")),
+    "set_without_equals": Case(
+        "--set solver.method: expected KEY.PATH=VALUE", args=("--set", "solver.method")
+    ),
     "set_empty_key": Case("--set =3: expected KEY.PATH=VALUE", args=("--set", "=3")),
-    "set_empty_part": Case("--set solver..mu=0.5: expected KEY.PATH=VALUE", args=("--set", "solver..mu=0.5")),
-    "set_into_value": Case("--set mesh.cells.x: cells is not a section", args=("--set", "mesh.cells.x=3")),
+    "set_empty_part": Case(
+        "--set solver..mu=0.5: expected KEY.PATH=VALUE", args=("--set", "solver..mu=0.5")
+    ),
+    "set_into_value": Case(
+        "--set mesh.cells.x: cells is not a section", args=("--set", "mesh.cells.x=3")
+    ),
     "set_missing_value": Case("argument --set: expected one argument", args=("--set",)),
-    "set_out_of_range": Case("solver.mu: must lie in (0, 1), got 2.0", args=("--set", "solver.mu=2")),
+    "set_out_of_range": Case(
+        "solver.mu: must lie in (0, 1), got 2.0", args=("--set", "solver.mu=2")
+    ),
     "set_unknown_key": Case("solver.metod: unknown key", args=("--set", "solver.metod=fb")),
-    "set_bad_choice": Case(f"solver.method: 'fbb' is not one of {METHODS}", args=("--set", "solver.method=fbb")),
+    "set_bad_choice": Case(
+        f"solver.method: 'fbb' is not one of {METHODS}", args=("--set", "solver.method=fbb")
+    ),
     "unknown_option": Case("unrecognized arguments: --frobnicate", args=("--frobnicate",)),
-    "error_without_output_option": Case("solver.mu: must lie in (0, 1)", {"solver.mu": 5}, output=False),
-    "output_option_empty": Case("-o: the output folder must not be empty", output=False,
-                                args=("-o", "")),
+    "error_without_output_option": Case(
+        "solver.mu: must lie in (0, 1)", {"solver.mu": 5}, output=False
+    ),
+    "output_option_empty": Case(
+        "-o: the output folder must not be empty", output=False, args=("-o", "")
+    ),
     "output_dir_empty": Case("output.dir: must not be empty", {"output.dir": " "}, output=False),
 }
 
@@ -235,8 +368,14 @@ def square_msh(tmp_path_factory) -> Path:
 
 def _contact(tmp: Path, *args: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "contact.app.cli", "run", *args], cwd=tmp, env=env,
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "contact.app.cli", "run", *args],
+        cwd=tmp,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def _snapshot(tmp: Path) -> set[str]:
@@ -267,12 +406,14 @@ def test_bad_input_fails_before_solve(case: Case, tmp_path: Path, request) -> No
     proc = _contact(tmp_path, scene_arg, *(["-o", str(out)] if case.output else []), *case.args)
 
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    assert proc.returncode == 2, f"exit code {proc.returncode}\nstderr:\n{proc.stderr}\nstdout:\n{proc.stdout}"
+    assert proc.returncode == 2, (
+        f"exit code {proc.returncode}\nstderr:\n{proc.stderr}\nstdout:\n{proc.stdout}"
+    )
     assert "Traceback" not in proc.stderr + proc.stdout
     assert len(lines) == 1, f"expected one stderr line, got:\n{proc.stderr}"
     line = lines[0]
     assert line.startswith(PREFIX), line
-    message = line[len(PREFIX):]
+    message = line[len(PREFIX) :]
     expect = case.expect.format(scene=scene_file, tmp=tmp_path)
     assert message.startswith(expect), f"\n got: {message}\nwant: {expect}..."
     assert case.contains in message
@@ -283,22 +424,44 @@ def test_bad_input_fails_before_solve(case: Case, tmp_path: Path, request) -> No
 def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
     scene_file = tmp_path / "scene.yaml"
     scene = _base_scene()
-    scene["mesh"]["cells"] = [16, 16]   # 8 × 8: 3 nodes in contact, a warning (test_progress.py)
+    scene["mesh"]["cells"] = [16, 16]  # 8 × 8: 3 nodes in contact, a warning (test_progress.py)
     scene_file.write_text(yaml.safe_dump(scene, sort_keys=False))
     out = tmp_path / "out"
     proc = _contact(tmp_path, str(scene_file), "-o", str(out), "-q")
     assert proc.returncode == 0, proc.stderr
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        [".contact-result", "solution.h5", "solution.vtu", "solution.xdmf", "summary.json",
-         "history.csv", "solution.png", "contact.csv", "pressure.png"])
-    assert all((out / name).stat().st_size > 0 for name in ("solution.vtu", "summary.json", "solution.png"))
+        [
+            ".contact-result",
+            "solution.h5",
+            "solution.vtu",
+            "solution.xdmf",
+            "summary.json",
+            "history.csv",
+            "solution.png",
+            "contact.csv",
+            "pressure.png",
+        ]
+    )
+    assert all(
+        (out / name).stat().st_size > 0 for name in ("solution.vtu", "summary.json", "solution.png")
+    )
     # the atomic write leaves no hidden .out.partial-*/.out.old-* sibling behind
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "scene.yaml"]
 
 
-@pytest.mark.parametrize("text, value", [("1e6", 1e6), ("1E-3", 1e-3), ("-2.5e+4", -2.5e4), ("3", 3),
-                                         ("1.0", 1.0), ("1e6x", "1e6x"), ("fb", "fb")])
+@pytest.mark.parametrize(
+    "text, value",
+    [
+        ("1e6", 1e6),
+        ("1E-3", 1e-3),
+        ("-2.5e+4", -2.5e4),
+        ("3", 3),
+        ("1.0", 1.0),
+        ("1e6x", "1e6x"),
+        ("fb", "fb"),
+    ],
+)
 def test_yaml_reads_exponent_floats(text: str, value: Any) -> None:
     """`--set solver.kappa=1e6` and `kappa: 1e6` are numbers (PyYAML alone reads a string)."""
     from contact.setup.config import apply_overrides, load_yaml

@@ -13,6 +13,7 @@ write everything else (VTK files, CSV, JSON), which is gathered the same way —
 are most of a small run's time.  Before issue 26 the frictional scenes
 hung under MPI after their first step (a collective entered on ranks 1… only).
 """
+
 from __future__ import annotations
 
 import csv
@@ -58,15 +59,48 @@ SCENES: dict[str, list[str]] = {
 
 #: summary.json keys that are not the answer: timings, the machine, the path a solver took
 #: (iteration counts, residuals and reasons may differ with the rank count), file lists
-VOLATILE = {"time_total", "time_assembly", "time_linear_solve", "time_other", "time_sequence", "seconds",
-            "host", "mpi_ranks", "newton_iterations", "newton_iterations_total", "newton_iterations_max_per_step",
-            "newton_iterations_per_level", "polish_solves", "polish_solves_total", "polish_solves_per_level",
-            "linear_solves", "weighted_linear_solves", "krylov_iterations", "final_residual", "reason",
-            "sequence", "sequence_note", "fixed_point_iterations", "linear_solver", "newton_iterations_coarse",
-            "polish_solves_coarse", "backtracked_steps"}
+VOLATILE = {
+    "time_total",
+    "time_assembly",
+    "time_linear_solve",
+    "time_other",
+    "time_sequence",
+    "seconds",
+    "host",
+    "mpi_ranks",
+    "newton_iterations",
+    "newton_iterations_total",
+    "newton_iterations_max_per_step",
+    "newton_iterations_per_level",
+    "polish_solves",
+    "polish_solves_total",
+    "polish_solves_per_level",
+    "linear_solves",
+    "weighted_linear_solves",
+    "krylov_iterations",
+    "final_residual",
+    "reason",
+    "sequence",
+    "sequence_note",
+    "fixed_point_iterations",
+    "linear_solver",
+    "newton_iterations_coarse",
+    "polish_solves_coarse",
+    "backtracked_steps",
+}
 #: keys whose values are sizes: equal exactly
-EXACT = {"dofs", "cells", "levels", "dofs_per_level", "constrained_nodes", "steps_total", "step", "degree",
-         "converged", "symmetric_copies"}
+EXACT = {
+    "dofs",
+    "cells",
+    "levels",
+    "dofs_per_level",
+    "constrained_nodes",
+    "steps_total",
+    "step",
+    "degree",
+    "converged",
+    "symmetric_copies",
+}
 # relative, of a figure or of a column's largest magnitude (the solver stops at |Phi| ~ 1e-12)
 RTOL = 1e-6
 # absolute, for figures that vanish up to round-off (the scenes' forces are 1e-3 or more)
@@ -74,8 +108,11 @@ ATOL = 1e-12
 
 
 def test_every_shipped_scene_is_listed() -> None:
-    shipped = {str(p.relative_to(ROOT / "configs")) for p in (ROOT / "configs").rglob("*.yaml")
-               if "studies" not in p.parts}
+    shipped = {
+        str(p.relative_to(ROOT / "configs"))
+        for p in (ROOT / "configs").rglob("*.yaml")
+        if "studies" not in p.parts
+    }
     assert shipped == set(SCENES)
 
 
@@ -96,8 +133,11 @@ def serial(tmp_path_factory):
 
     def get(scene: str) -> Path:
         if scene not in done:
-            done[scene] = _run(tmp_path_factory.mktemp(scene.replace("/", "_").removesuffix(".yaml")), scene, 0)
+            done[scene] = _run(
+                tmp_path_factory.mktemp(scene.replace("/", "_").removesuffix(".yaml")), scene, 0
+            )
         return done[scene]
+
     return get
 
 
@@ -118,16 +158,20 @@ def _same(a, b, where: str) -> None:
     elif isinstance(a, list):
         assert isinstance(b, list) and len(a) == len(b), where
         if a and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in a + b):
-            scale = max(abs(v) for v in a + b)   # a vector: to RTOL of its largest component
+            scale = max(abs(v) for v in a + b)  # a vector: to RTOL of its largest component
             for i, (x, y) in enumerate(zip(a, b)):
-                assert (x == y) if key in EXACT else abs(x - y) <= RTOL * scale + ATOL, f"{where}[{i}]: {x} != {y}"
+                assert (x == y) if key in EXACT else abs(x - y) <= RTOL * scale + ATOL, (
+                    f"{where}[{i}]: {x} != {y}"
+                )
         else:
             for i, (x, y) in enumerate(zip(a, b)):
                 _same(x, y, f"{where}[{i}]")
     elif isinstance(a, float) or isinstance(b, float):
         # relative errors may be a balance of round-off (force_balance_error ~ 1e-15)
         atol = 1e-8 if key.endswith("_error") else ATOL
-        assert (a == b) if key in EXACT else math.isclose(a, b, rel_tol=RTOL, abs_tol=atol), f"{where}: {a} != {b}"
+        assert (a == b) if key in EXACT else math.isclose(a, b, rel_tol=RTOL, abs_tol=atol), (
+            f"{where}: {a} != {b}"
+        )
     else:
         assert a == b, f"{where}: {a!r} != {b!r}"
 
@@ -152,21 +196,34 @@ def _same_table(a: Path, b: Path) -> None:
     hb, rb = _table(b)
     assert ha == hb and len(ra) == len(rb), f"{a.name}: {len(ra)} rows against {len(rb)}"
     cols = {name: ([r[j] for r in ra], [r[j] for r in rb]) for j, name in enumerate(ha)}
-    num = {name: ([float(v) for v in x], [float(v) for v in y]) for name, (x, y) in cols.items() if name != "status"}
+    num = {
+        name: ([float(v) for v in x], [float(v) for v in y])
+        for name, (x, y) in cols.items()
+        if name != "status"
+    }
     biggest = lambda names: max(abs(v) for n in names if n in num for v in num[n][0] + num[n][1])  # noqa: E731
     length = biggest("xyz")
     traction = biggest(("lambda_n", "lambda"))
     for name, (va, vb) in num.items():
         if name == "theta":
             continue
-        scale = (length if name in ("x", "y", "z", "s", "r", "gap") or name.startswith("slip") else
-                 traction if name.startswith("lambda") or name == "bound" else biggest([name]))
+        scale = (
+            length
+            if name in ("x", "y", "z", "s", "r", "gap") or name.startswith("slip")
+            else traction
+            if name.startswith("lambda") or name == "bound"
+            else biggest([name])
+        )
         worst = max((abs(x - y) for x, y in zip(va, vb)), default=0.0)
-        assert worst <= RTOL * scale + ATOL, f"{a.name}: column {name} differs by {worst:.2e} (scale {scale:.2e})"
+        assert worst <= RTOL * scale + ATOL, (
+            f"{a.name}: column {name} differs by {worst:.2e} (scale {scale:.2e})"
+        )
     if "theta" in num:
         r, (va, vb) = num["r"][0], num["theta"]
-        assert all(ri * abs(math.remainder(x - y, 2 * math.pi)) <= RTOL * length
-                   for ri, x, y in zip(r, va, vb)), f"{a.name}: column theta"
+        assert all(
+            ri * abs(math.remainder(x - y, 2 * math.pi)) <= RTOL * length
+            for ri, x, y in zip(r, va, vb)
+        ), f"{a.name}: column theta"
     if "status" in cols:
         assert cols["status"][0] == cols["status"][1], f"{a.name}: column status"
 
@@ -190,12 +247,23 @@ def test_frictional_study_under_mpirun_matches_serial(tmp_path: Path) -> None:
     """A study of load paths (the small friction block, two steps, two methods): its rows
     take their friction figures through the collectives of contact.post.friction_resultants."""
     study = tmp_path / "study.yaml"
-    study.write_text(f"name: friction\nscene: {ROOT / 'configs' / 'friction_block_2d.yaml'}\n"
-                     "set: ['mesh.cells=[20,5]', load.steps=2, output.png=false]\n"
-                     "axes: {method: [min, fb]}\nwarmup: false\n")
+    study.write_text(
+        f"name: friction\nscene: {ROOT / 'configs' / 'friction_block_2d.yaml'}\n"
+        "set: ['mesh.cells=[20,5]', load.steps=2, output.png=false]\n"
+        "axes: {method: [min, fb]}\nwarmup: false\n"
+    )
     rows = {}
     for ranks in (0, 2):
-        proc = contact(tmp_path, "study", str(study), "-o", f"np{ranks}", "-q", ranks=ranks, timeout=TIMEOUT[ranks])
+        proc = contact(
+            tmp_path,
+            "study",
+            str(study),
+            "-o",
+            f"np{ranks}",
+            "-q",
+            ranks=ranks,
+            timeout=TIMEOUT[ranks],
+        )
         assert proc.returncode == 0, proc.stderr[-2000:]
         rows[ranks] = list(csv.DictReader(open(tmp_path / f"np{ranks}" / "study.csv")))
     assert [r["ranks"] for r in rows[2]] == ["2", "2"]

@@ -1,9 +1,10 @@
 """Problem A (docs/theory.md §7): the H¹-seminorm error of P1 falls like O(h) under
 uniform refinement."""
-import numpy as np
 
 import contact
 from contact.adaptivity.energy_error import energy_error
+
+import numpy as np
 
 SCENE = "configs/signorini_free_boundary.yaml"
 # |u|²_{H¹} = 3.443380724 (docs/theory.md §7 A)
@@ -32,6 +33,8 @@ def test_exact_seminorm_matches_spec():
     scene = contact.load_scene(SCENE, ["mesh.cells=[64,32]"])
     u = contact.setup.expressions.to_ufl(scene.cfg["data"]["exact"], scene.mesh)
     dx = ufl.dx(domain=scene.mesh, metadata={"quadrature_degree": 10})
-    val = scene.comm.allreduce(fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)), op=MPI.SUM)
+    val = scene.comm.allreduce(
+        fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)), op=MPI.SUM
+    )
     assert abs(val - 3.443380724) < 1e-5
     assert abs(EXACT_SEMINORM_SQ - 3.443380724) < 1e-9

@@ -3,6 +3,7 @@ key figure: the three NCP functions agree and min terminates like the primal–d
 set method; the adaptive loop by hand converges like N^{-1/2} with a steady effectivity;
 the Hertz demo balances forces and matches Hertz's peak pressure; the friction demo slides at
 F_t = F·F_n and agrees with the Tresca fixed point."""
+
 import os
 import re
 import subprocess
@@ -13,9 +14,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _demo(name: str, arg: str, cwd: Path) -> str:
-    proc = subprocess.run([sys.executable, str(ROOT / "demos" / f"demo_{name}.py"), arg], cwd=cwd,
-                          capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)})
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "demos" / f"demo_{name}.py"), arg],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)},
+    )
     assert proc.returncode == 0, proc.stderr
     png = cwd / f"demo_{name}.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote demo_{name}.png" in proc.stdout
@@ -32,8 +38,14 @@ def test_demo_obstacle(tmp_path):
     its = {m: int(_number(rf"{m}: +(\d+) Newton iterations", out)) for m in ("fb", "min", "blend")}
     # bounds with room: min 3, plain fb and blend 8 (FB's slow end game without polishing)
     assert its["min"] <= its["fb"] and all(n <= 30 for n in its.values())
-    history = [ln for ln in out.split("nodes that changed status")[1].splitlines() if ln[:6].strip().isdigit()]
-    assert len(history) == its["min"] + 1 and history[-1].split()[-1] == "0", "the last PDAS step changes no node"
+    history = [
+        ln
+        for ln in out.split("nodes that changed status")[1].splitlines()
+        if ln[:6].strip().isdigit()
+    ]
+    assert len(history) == its["min"] + 1 and history[-1].split()[-1] == "0", (
+        "the last PDAS step changes no node"
+    )
     # min on the defaults is PDAS here: an M-matrix, the sets shrink and never return
     assert "steps the cycle guard shortened: 0" in out
 

@@ -2,6 +2,7 @@
 by contact/ (or is the MPI launcher), every third-party module contact/ imports is declared
 (or comes with the FEniCS wheel), and every test-extra package is imported by tests/ or run
 by the Makefile."""
+
 import ast
 import importlib.metadata as md
 import re
@@ -47,8 +48,11 @@ def test_every_runtime_dependency_is_used() -> None:
 
 
 def test_every_import_of_contact_is_declared() -> None:
-    stack = {STACK} | {_normal(re.split(r"[<>=!~\[; ]", r, maxsplit=1)[0])
-                       for r in md.requires(STACK) or [] if "extra ==" not in r}
+    stack = {STACK} | {
+        _normal(re.split(r"[<>=!~\[; ]", r, maxsplit=1)[0])
+        for r in md.requires(STACK) or []
+        if "extra ==" not in r
+    }
     undeclared = _imported_distributions("contact") - {"contact"} - _declared() - stack
     assert undeclared == set(), f"imported by contact/ but not declared: {undeclared}"
 
@@ -62,8 +66,11 @@ def _commands(distribution: str) -> set[str]:
 
 def test_every_test_dependency_is_used() -> None:
     text = "\n".join(p.read_text() for p in [ROOT / "Makefile", *(ROOT / "tests").glob("*.py")])
-    run = {name for name in _declared("test")
-           if any(re.search(rf"\b{re.escape(cmd)}\b", text) for cmd in _commands(name))}
+    run = {
+        name
+        for name in _declared("test")
+        if any(re.search(rf"\b{re.escape(cmd)}\b", text) for cmd in _commands(name))
+    }
     unused = _declared("test") - _imported_distributions("tests") - run
     assert unused == set(), f"in the test extra, used neither by tests/ nor as a command: {unused}"
 
@@ -74,7 +81,10 @@ def test_make_test_lints_first() -> None:
     makefile = (ROOT / "Makefile").read_text()
     assert re.search(r"^test: venv lint$", makefile, re.M)
     lint = makefile.split("\nlint: venv\n", 1)[1].split("\n\n", 1)[0]
-    for command in ("ruff check contact tests demos", "ruff format --check contact tests demos", "mypy"):
+    for command in (
+        "ruff check contact tests demos",
+        "ruff format --check contact tests demos",
+        "mypy",
+    ):
         assert f"$(VENV)/bin/{command}" in lint, command
     assert {"ruff", "mypy"} <= _declared("test")
-

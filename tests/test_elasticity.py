@@ -1,20 +1,21 @@
 """Elastic contact against a rigid plane (issue #4): every method agrees with vinewtonrsls,
 1 and 2 MPI ranks agree, the contact force equals the reaction, GAMG with the rigid-body
 near-nullspace matches the direct solver, and bad elasticity input is a one-line error."""
+
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
-import pytest
-
 import contact
+from contact.models import build_problem
 from contact.post.hertz import hertz
 from contact.post.reference import compare
 from contact.post.resultants import contact_resultants
-from contact.models import build_problem
+
+import numpy as np
+import pytest
 from ties import tie_margin
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,7 +45,7 @@ def test_methods_agree_with_vinewtonrsls(scene, reference, method):
     assert r.converged and r.iterations <= 15
     assert np.max(np.abs(r.u_h.x.array - u_ref)) <= 1e-8
     assert np.max(np.abs(r.lmbda_h.x.array - lam_ref)) <= 1e-8 * np.max(np.abs(lam_ref))
-    assert tie_margin(r) >= 1e-6   # no node near a tie: the count cannot move with rounding
+    assert tie_margin(r) >= 1e-6  # no node near a tie: the count cannot move with rounding
     assert r.n_active == n_ref > 0
 
 
@@ -64,8 +65,12 @@ def test_force_balance_and_hertz_sanity(scene):
 def test_gamg_with_rigid_body_modes_matches_direct(scene, reference):
     problem, u_ref, _, _ = reference
     assert problem.near_nullspace is not None
-    r = contact.solve(scene, method="fb", problem=problem,
-                      petsc_options={"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-12})
+    r = contact.solve(
+        scene,
+        method="fb",
+        problem=problem,
+        petsc_options={"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-12},
+    )
     assert r.converged
     assert np.max(np.abs(r.u_h.x.array - u_ref)) <= 1e-8
 
@@ -76,36 +81,51 @@ def test_serial_and_two_ranks_agree(tmp_path):
     out1, out2 = tmp_path / "s.npz", tmp_path / "p.npz"
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     args = [scene] + [f"--set={o}" for o in SMALL]
-    subprocess.run([sys.executable, str(script), str(out1), *args], check=True, timeout=300, env=env)
-    subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script), str(out2), *args], check=True,
-                   timeout=300, env=env)
+    subprocess.run(
+        [sys.executable, str(script), str(out1), *args], check=True, timeout=300, env=env
+    )
+    subprocess.run(
+        [str(MPIRUN), "-n", "2", sys.executable, str(script), str(out2), *args],
+        check=True,
+        timeout=300,
+        env=env,
+    )
     s, p = dict(np.load(out1)), dict(np.load(out2))
     for method in ("fb", "min", "blend", "vinewtonrsls"):
         key = f"hertz_2d/{method}"
         assert np.allclose(s[key + "/X"], p[key + "/X"], atol=1e-12)
         assert np.max(np.abs(s[key + "/u"] - p[key + "/u"])) <= 1e-8
-        assert np.max(np.abs(s[key + "/lambda"] - p[key + "/lambda"])) <= 1e-8 * np.max(np.abs(s[key + "/lambda"]))
+        assert np.max(np.abs(s[key + "/lambda"] - p[key + "/lambda"])) <= 1e-8 * np.max(
+            np.abs(s[key + "/lambda"])
+        )
         # no node near a tie (tests/ties.py)
         assert min(s[key + "/info"][5], p[key + "/info"][5]) >= 1e-6
         assert s[key + "/info"][3] == p[key + "/info"][3]
 
 
-@pytest.mark.parametrize("override,message", [
-    ("model.E=-1", "model.E: must be > 0"),
-    ("model.nu=0.5", "model.nu: must lie in (-1, 0.5)"),
-    ("obstacle.normal=[0,0]", "obstacle.normal: must not be the zero vector"),
-    ("data.g=0", "data.g: not used by model type elasticity"),
-])
+@pytest.mark.parametrize(
+    "override,message",
+    [
+        ("model.E=-1", "model.E: must be > 0"),
+        ("model.nu=0.5", "model.nu: must lie in (-1, 0.5)"),
+        ("obstacle.normal=[0,0]", "obstacle.normal: must not be the zero vector"),
+        ("data.g=0", "data.g: not used by model type elasticity"),
+    ],
+)
 def test_bad_elasticity_input(override, message):
-    with pytest.raises(contact.ConfigError, match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(
+        contact.ConfigError,
+        match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)"),
+    ):
         scene = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", SMALL + [override])
         build_problem(scene)
 
 
 @pytest.fixture(scope="module")
 def indentation():
-    scene = contact.load_scene(ROOT / "configs" / "indentation_2d.yaml",
-                               ["mesh.cells=[80,40]", "output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs" / "indentation_2d.yaml", ["mesh.cells=[80,40]", "output.verbose=false"]
+    )
     problem = build_problem(scene)
     ref = contact.solve(scene, method="vinewtonrsls", problem=problem)
     assert ref.converged
@@ -120,7 +140,7 @@ def test_circular_obstacle_agrees_with_vinewtonrsls(indentation, method):
     r = contact.solve(scene, method=method, problem=problem)
     assert r.converged
     assert np.max(np.abs(r.u_h.x.array - u_ref)) <= 1e-8
-    assert tie_margin(r) >= 1e-6   # no node near a tie: the count cannot move with rounding
+    assert tie_margin(r) >= 1e-6  # no node near a tie: the count cannot move with rounding
     assert r.n_active == n_ref > 0
 
 
@@ -136,18 +156,25 @@ def test_circular_obstacle_is_respected_and_balanced(indentation):
     u = r.u_h.x.array.reshape(-1, 2)
     act = r.active.x.array > 0.5
     dist = np.linalg.norm(X[act] + u[act] - np.array([0.0, 5.0]), axis=1)
-    assert np.all(np.abs(dist - 5.0) < 1e-4)   # linearised contact: second-order gap error
+    assert np.all(np.abs(dist - 5.0) < 1e-4)  # linearised contact: second-order gap error
 
 
 def test_spherical_obstacle_3d_agrees_with_vinewtonrsls():
-    scene = contact.load_scene({
-        "name": "sphere_indenter", "constants": {"R": 5.0, "delta": 0.01},
-        "mesh": {"type": "box", "corners": [[-1, -1, -1], [1, 1, 0]], "cells": [12, 12, 6]},
-        "boundaries": {"top": {"role": "contact", "where": "z > -1e-10"},
-                       "bottom": {"role": "dirichlet", "where": "z < -1 + 1e-10"}},
-        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
-        "obstacle": {"type": "sphere", "center": [0.0, 0.0, 5.0], "radius": 5.0},
-        "data": {"u_D": ["0", "0", "delta"]}, "output": {"verbose": False}})
+    scene = contact.load_scene(
+        {
+            "name": "sphere_indenter",
+            "constants": {"R": 5.0, "delta": 0.01},
+            "mesh": {"type": "box", "corners": [[-1, -1, -1], [1, 1, 0]], "cells": [12, 12, 6]},
+            "boundaries": {
+                "top": {"role": "contact", "where": "z > -1e-10"},
+                "bottom": {"role": "dirichlet", "where": "z < -1 + 1e-10"},
+            },
+            "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+            "obstacle": {"type": "sphere", "center": [0.0, 0.0, 5.0], "radius": 5.0},
+            "data": {"u_D": ["0", "0", "delta"]},
+            "output": {"verbose": False},
+        }
+    )
     problem = build_problem(scene)
     ref = contact.solve(scene, method="vinewtonrsls", problem=problem).u_h.x.array.copy()
     for method in ("fb", "min"):
@@ -160,14 +187,21 @@ def test_spherical_obstacle_3d_agrees_with_vinewtonrsls():
 
 def test_tilted_plane_agrees_with_vinewtonrsls():
     """A plane whose normal is no coordinate direction uses the rotated unknowns too."""
-    scene = contact.load_scene({
-        "name": "tilted", "constants": {"delta": 0.02},
-        "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 0]], "cells": [40, 20]},
-        "boundaries": {"top": {"role": "contact", "where": "y > -1e-10"},
-                       "bottom": {"role": "dirichlet", "where": "y < -1 + 1e-10"}},
-        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
-        "obstacle": {"type": "plane", "point": [-1.0, 0.0], "normal": [0.1, -1.0]},
-        "data": {"u_D": ["0", "delta"]}, "output": {"verbose": False}})
+    scene = contact.load_scene(
+        {
+            "name": "tilted",
+            "constants": {"delta": 0.02},
+            "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 0]], "cells": [40, 20]},
+            "boundaries": {
+                "top": {"role": "contact", "where": "y > -1e-10"},
+                "bottom": {"role": "dirichlet", "where": "y < -1 + 1e-10"},
+            },
+            "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+            "obstacle": {"type": "plane", "point": [-1.0, 0.0], "normal": [0.1, -1.0]},
+            "data": {"u_D": ["0", "delta"]},
+            "output": {"verbose": False},
+        }
+    )
     problem = build_problem(scene)
     assert problem.basis is not None
     ref = contact.solve(scene, method="vinewtonrsls", problem=problem).u_h.x.array.copy()
@@ -198,16 +232,24 @@ LAZY = ("contact.models.elasticity", "contact.models.friction", "contact.solvers
 def test_a_run_imports_only_its_own_model(tmp_path):
     """``contact run`` of a coarse scalar scene leaves every module of LAZY unloaded; one of
     a frictionless elastic block then loads elasticity but neither friction module."""
-    code = ("import sys; from contact.app.cli import main; lazy = " + repr(LAZY) + "\n"
-            "for scene, cells, out in [('signorini_square', '[8, 8]', 's'),\n                      "
-            "    ('block_on_plane', '[8, 2]', 'b')]:\n    rc = main(['run', "
-            "f'configs/{scene}.yaml', '--set', f'mesh.cells={cells}',\n               '--set', "
-            "'adapt.max_levels=2', '--set', 'output.verbose=false',\n"
-            "               '-o', " + repr(str(tmp_path) + "/") + " + out])\n"
-            "    print(scene, rc, *[m for m in lazy if m in sys.modules])\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    code = (
+        "import sys; from contact.app.cli import main; lazy = " + repr(LAZY) + "\n"
+        "for scene, cells, out in [('signorini_square', '[8, 8]', 's'),\n                      "
+        "    ('block_on_plane', '[8, 2]', 'b')]:\n    rc = main(['run', "
+        "f'configs/{scene}.yaml', '--set', f'mesh.cells={cells}',\n               '--set', "
+        "'adapt.max_levels=2', '--set', 'output.verbose=false',\n"
+        "               '-o', " + repr(str(tmp_path) + "/") + " + out])\n"
+        "    print(scene, rc, *[m for m in lazy if m in sys.modules])\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
-    lines = [line for line in proc.stdout.splitlines() if line.split()[0] in ("signorini_square", "block_on_plane")]
+    lines = [
+        line
+        for line in proc.stdout.splitlines()
+        if line.split()[0] in ("signorini_square", "block_on_plane")
+    ]
     assert lines == ["signorini_square 0", "block_on_plane 0 contact.models.elasticity"]
 
 
@@ -223,8 +265,15 @@ def test_tolerances_follow_the_scale_of_the_data(tmp_path):
     for E in (1.0, 1e-12, 1e12):
         out = tmp_path / f"E{E:g}"
         sets = [f"model.E={E}", "adapt=none", "output.png=false"]
-        proc = cli(tmp_path, "run", str(ROOT / "configs" / "block_on_plane.yaml"), "-o", str(out),
-                   "-q", *(arg for s in sets for arg in ("--set", s)))
+        proc = cli(
+            tmp_path,
+            "run",
+            str(ROOT / "configs" / "block_on_plane.yaml"),
+            "-o",
+            str(out),
+            "-q",
+            *(arg for s in sets for arg in ("--set", s)),
+        )
         assert proc.returncode == 0, proc.stderr
         summaries[E] = json.loads((out / "summary.json").read_text())
     unit = summaries[1.0]
@@ -243,13 +292,17 @@ def test_first_contact_point_breaks_ties_by_coordinates():
     26: the first in row order was taken before).  Gaps within round-off are a tie."""
     import itertools
 
-    from mpi4py import MPI
-
     from contact.models.obstacles import first_contact_point, first_contact_row
+
+    from mpi4py import MPI
 
     X = np.array([[0.5, 0.2, 0.0], [0.1, 0.9, 0.0], [0.1, 0.3, 0.0], [0.0, 0.0, 1.0]])
     gap = np.array([0.0, 1e-13, 0.0, 0.5])
     for order in map(list, itertools.permutations(range(4))):
         assert first_contact_point(MPI.COMM_SELF, X[order], gap[order]).tolist() == [0.1, 0.3, 0.0]
         assert first_contact_row(MPI.COMM_SELF, X[order], gap[order], np.arange(4)[order]) == 2
-    assert first_contact_point(MPI.COMM_SELF, X, np.array([0.3, 0.2, 0.1, 0.0])).tolist() == [0.0, 0.0, 1.0]
+    assert first_contact_point(MPI.COMM_SELF, X, np.array([0.3, 0.2, 0.1, 0.0])).tolist() == [
+        0.0,
+        0.0,
+        1.0,
+    ]

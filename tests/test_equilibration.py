@@ -11,26 +11,26 @@
 3. ``estimator: equilibrated`` dispatches (and the residual stays the default), is refused for
    elasticity with a one-line error, and gives the same η on 2 ranks as on 1.
 """
+
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
 
+import contact  # noqa: F401  (before dolfinx)
+from contact.adaptivity.energy_error import solution_error
+from contact.adaptivity.equilibration import FluxData, reconstruct_flux
+from contact.adaptivity.equilibration.bound import guaranteed_bound
+from contact.base.errors import ConfigError
+
 import numpy as np
 import pytest
-
-import contact  # noqa: F401  (before dolfinx)
 import ufl
+from clirun import MPIRUN, ROOT
 from dolfinx import fem, mesh
 from dolfinx.fem.petsc import LinearProblem
 from mpi4py import MPI
-
-from clirun import MPIRUN, ROOT
-from contact.base.errors import ConfigError
-from contact.adaptivity.equilibration import FluxData, reconstruct_flux
-from contact.adaptivity.equilibration.bound import guaranteed_bound
-from contact.adaptivity.energy_error import solution_error
 
 
 def _integral(expr, msh, degree=8):
@@ -42,15 +42,26 @@ def _poisson(d: int, p: int, n: int):
     """−div(k∇u) = f on the unit square / cube, u = u_D on x < 1 (tag 1), k∂u/∂n = t on x = 1
     (tag 2), u cubic and k = 1 + x² (f and t polynomials that the reconstruction's quadrature
     of degree 2p + 4 integrates exactly); returns (data, exact u, Neumann measure)."""
-    msh = mesh.create_unit_square(MPI.COMM_WORLD, n, n) if d == 2 else mesh.create_unit_cube(MPI.COMM_WORLD, n, n, n)
+    msh = (
+        mesh.create_unit_square(MPI.COMM_WORLD, n, n)
+        if d == 2
+        else mesh.create_unit_cube(MPI.COMM_WORLD, n, n, n)
+    )
     V = fem.functionspace(msh, ("Lagrange", p))
     x = ufl.SpatialCoordinate(msh)
     k = 1 + x[0] ** 2
-    u_ex = x[0] ** 3 + x[0] ** 2 * x[1] - x[1] ** 3 / 3 + (0 if d == 2 else x[2] ** 3 - x[0] * x[2] ** 2)
+    u_ex = (
+        x[0] ** 3
+        + x[0] ** 2 * x[1]
+        - x[1] ** 3 / 3
+        + (0 if d == 2 else x[2] ** 3 - x[0] * x[2] ** 2)
+    )
     f = -ufl.div(k * ufl.grad(u_ex))
     msh.topology.create_connectivity(d - 1, d)
     facets = mesh.exterior_facet_indices(msh.topology)
-    values = np.where(mesh.compute_midpoints(msh, d - 1, facets)[:, 0] > 1 - 1e-10, 2, 1).astype(np.int32)
+    values = np.where(mesh.compute_midpoints(msh, d - 1, facets)[:, 0] > 1 - 1e-10, 2, 1).astype(
+        np.int32
+    )
     tags = mesh.meshtags(msh, d - 1, facets, values)
     t = k * ufl.grad(u_ex)[0]
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
@@ -58,9 +69,13 @@ def _poisson(d: int, p: int, n: int):
     u_D.interpolate(fem.Expression(u_ex, V.element.interpolation_points))
     bc = fem.dirichletbc(u_D, fem.locate_dofs_topological(V, d - 1, facets[values == 1]))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    problem = LinearProblem(k * ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx, f * v * ufl.dx + t * v * ds(2),
-                            bcs=[bc], petsc_options_prefix="eq_poisson_",
-                            petsc_options={"ksp_type": "preonly", "pc_type": "lu"})
+    problem = LinearProblem(
+        k * ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx,
+        f * v * ufl.dx + t * v * ds(2),
+        bcs=[bc],
+        petsc_options_prefix="eq_poisson_",
+        petsc_options={"ksp_type": "preonly", "pc_type": "lu"},
+    )
     u_h = problem.solve()
     return FluxData(u_h, f, k, tags, dirichlet=(1,), neumann={2: t}), u_ex, ds(2)
 
@@ -73,7 +88,9 @@ def test_flux_is_equilibrated(d: int, p: int, n: int) -> None:
     # −div σ_h = Π_p f: (div σ_h + f, q)_T = 0 for every q ∈ P_p(T)
     Q = fem.functionspace(msh, ("DG", p))
     q = ufl.TestFunction(Q)
-    div_res = fem.assemble_vector(fem.form((ufl.div(sigma) + data.f) * q * ufl.dx(metadata={"quadrature_degree": 10})))
+    div_res = fem.assemble_vector(
+        fem.form((ufl.div(sigma) + data.f) * q * ufl.dx(metadata={"quadrature_degree": 10}))
+    )
     scale = np.abs(fem.assemble_vector(fem.form(abs(data.f) * q * ufl.dx)).array).max()
     assert np.abs(div_res.array).max() < 1e-11 * scale
     # σ_h·n = Π_p t on Γ_N: (σ_h·n − t, v)_F = 0 for v ∈ P_p(F)
@@ -85,8 +102,10 @@ def test_flux_is_equilibrated(d: int, p: int, n: int) -> None:
     jump = _integral(ufl.inner(sigma - flux.sigma_cells, sigma - flux.sigma_cells), msh)
     assert jump < 1e-20 * _integral(ufl.inner(sigma, sigma), msh)
     error = np.sqrt(_integral(k * ufl.inner(ufl.grad(u_ex - u_h), ufl.grad(u_ex - u_h)), msh))
-    est = np.sqrt(_integral(ufl.inner(sigma - k * ufl.grad(u_h), sigma - k * ufl.grad(u_h)) / k, msh))
-    assert 0.9 < est / error < 1.2      # (the data oscillation is left out here)
+    est = np.sqrt(
+        _integral(ufl.inner(sigma - k * ufl.grad(u_h), sigma - k * ufl.grad(u_h)) / k, msh)
+    )
+    assert 0.9 < est / error < 1.2  # (the data oscillation is left out here)
     assert flux.defect < 1e-9
 
 
@@ -100,27 +119,33 @@ def test_p2_reproduces_the_flux_of_a_quadratic() -> None:
     msh.topology.create_connectivity(1, 2)
     facets = mesh.exterior_facet_indices(msh.topology)
     tags = mesh.meshtags(msh, 1, facets, np.ones(len(facets), dtype=np.int32))
-    flux = reconstruct_flux(FluxData(u_h, -ufl.div(ufl.grad(u_ex)), fem.Constant(msh, 1.0), tags, dirichlet=(1,)))
+    flux = reconstruct_flux(
+        FluxData(u_h, -ufl.div(ufl.grad(u_ex)), fem.Constant(msh, 1.0), tags, dirichlet=(1,))
+    )
     q = flux.sigma_h - ufl.grad(u_h)
     assert np.sqrt(_integral(ufl.inner(q, q), msh)) < 1e-12
 
 
-PROBLEMS = [("signorini_free_boundary.yaml", ["mesh.cells=[16,8]"]),
-            ("signorini_free_boundary.yaml", ["mesh.cells=[8,4]", "mesh.degree=2"]),
-            ("signorini_smooth.yaml", ["mesh.cells=[8,8]"]),
-            ("signorini_smooth.yaml", ["mesh.cells=[16,16]", "mesh.degree=2"]),
-            ("lshape_corner.yaml", ["mesh.cells=8"]),
-            ("peers/petsc_ex9.yaml", ["mesh.cells=[32,32]"])]
+PROBLEMS = [
+    ("signorini_free_boundary.yaml", ["mesh.cells=[16,8]"]),
+    ("signorini_free_boundary.yaml", ["mesh.cells=[8,4]", "mesh.degree=2"]),
+    ("signorini_smooth.yaml", ["mesh.cells=[8,8]"]),
+    ("signorini_smooth.yaml", ["mesh.cells=[16,16]", "mesh.degree=2"]),
+    ("lshape_corner.yaml", ["mesh.cells=8"]),
+    ("peers/petsc_ex9.yaml", ["mesh.cells=[32,32]"]),
+]
 
 
 @pytest.mark.parametrize("path, sets", PROBLEMS, ids=["A_P1", "A_P2", "C_P1", "C_P2", "D", "ex9"])
 def test_bound_is_guaranteed(path: str, sets: list[str]) -> None:
-    scene = contact.load_scene(ROOT / "configs" / path, sets + ["output.verbose=false", "estimator=equilibrated"])
+    scene = contact.load_scene(
+        ROOT / "configs" / path, sets + ["output.verbose=false", "estimator=equilibrated"]
+    )
     result = contact.solve(scene, verbose=False)
     assert result.converged, result.reason
-    est = contact.estimate(scene, result)           # dispatched to the equilibrated bound
+    est = contact.estimate(scene, result)  # dispatched to the equilibrated bound
     error = solution_error(scene, result)
-    assert error <= est.eta <= 1.6 * error, (est.eta, error)   # observed 1.19-1.47 on these meshes
+    assert error <= est.eta <= 1.6 * error, (est.eta, error)  # observed 1.19-1.47 on these meshes
     assert set(est.terms) == {"flux", "oscillation", "complementarity", "feasibility", "dirichlet"}
     eta_T = est.eta_T.x.array[: est.eta_T.function_space.dofmap.index_map.size_local]
     assert np.all(eta_T >= 0) and eta_T.max() > 0
@@ -130,23 +155,29 @@ def test_sign_changing_p2_multiplier_is_replaced() -> None:
     """P2 on problem A: λ_h changes sign between its nodes on the facet where the free
     boundary lies; the flux carries a one-signed λ̃ there (the positive Bernstein coefficient
     removed, κ < 1 restores the facet's total), and the bound holds."""
-    scene = contact.load_scene(ROOT / "configs/signorini_free_boundary.yaml",
-                               ["mesh.cells=[8,4]", "mesh.degree=2", "output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs/signorini_free_boundary.yaml",
+        ["mesh.cells=[8,4]", "mesh.degree=2", "output.verbose=false"],
+    )
     result = contact.solve(scene, verbose=False)
     bound = guaranteed_bound(scene, result)
     flux = bound.flux
-    assert np.abs(flux.bubble.x.array).max() > 0        # a Bernstein coefficient was removed
+    assert np.abs(flux.bubble.x.array).max() > 0  # a Bernstein coefficient was removed
     assert 0 < flux.kappa.x.array.min() < 1
-    ds = result.problem.data["ds"](scene.boundary.ids_with_role("contact")[0], metadata={"quadrature_degree": 8})
+    ds = result.problem.data["ds"](
+        scene.boundary.ids_with_role("contact")[0], metadata={"quadrature_degree": 8}
+    )
     positive = fem.assemble_scalar(fem.form(ufl.max_value(flux.lmbda, 0) * ds))
-    assert positive < 1e-14                              # σλ̃ ≤ 0: no positive part left
+    assert positive < 1e-14  # σλ̃ ≤ 0: no positive part left
     assert bound.eta >= solution_error(scene, result)
 
 
 def test_infeasible_u_h_is_lifted() -> None:
     """A discrete solution pushed above the obstacle (u_h + 0.01 on problem A, g = 0) is
     infeasible on Γ_C: W > 0 enters, and the bound still exceeds the error."""
-    scene = contact.load_scene(ROOT / "configs/signorini_free_boundary.yaml", ["mesh.cells=[16,8]", "output.verbose=false"])
+    scene = contact.load_scene(
+        ROOT / "configs/signorini_free_boundary.yaml", ["mesh.cells=[16,8]", "output.verbose=false"]
+    )
     result = contact.solve(scene, verbose=False)
     result.u_h.x.array[:] += 0.01
     bound = guaranteed_bound(scene, result)
@@ -155,15 +186,28 @@ def test_infeasible_u_h_is_lifted() -> None:
 
 
 def test_estimator_key() -> None:
-    base = {"mesh": {"type": "unit_square", "cells": [4, 4]},
-            "boundaries": {"b": {"role": "contact", "where": "y < 1e-10"},
-                           "t": {"role": "dirichlet", "where": "y > 1 - 1e-10"}}, "model": "signorini"}
+    base = {
+        "mesh": {"type": "unit_square", "cells": [4, 4]},
+        "boundaries": {
+            "b": {"role": "contact", "where": "y < 1e-10"},
+            "t": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+        },
+        "model": "signorini",
+    }
     assert contact.load_scene(base).cfg["estimator"] == "residual"
-    with pytest.raises(ConfigError, match=r"^estimator: 'fancy' is not one of residual, equilibrated$"):
+    with pytest.raises(
+        ConfigError, match=r"^estimator: 'fancy' is not one of residual, equilibrated$"
+    ):
         contact.load_scene({**base, "estimator": "fancy"})
-    elastic = {**base, "model": {"type": "elasticity", "E": 1.0}, "estimator": "equilibrated",
-               "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]}}
-    with pytest.raises(ConfigError, match=r"^estimator: equilibrated is implemented for model types signorini"):
+    elastic = {
+        **base,
+        "model": {"type": "elasticity", "E": 1.0},
+        "estimator": "equilibrated",
+        "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]},
+    }
+    with pytest.raises(
+        ConfigError, match=r"^estimator: equilibrated is implemented for model types signorini"
+    ):
         contact.load_scene(elastic)
 
 
@@ -190,8 +234,13 @@ def test_same_bound_on_two_ranks(tmp_path) -> None:
     script.write_text(PARALLEL)
     runs = {}
     for n in (1, 2):
-        proc = subprocess.run([str(MPIRUN), "-n", str(n), sys.executable, str(script), str(ROOT / "configs")],
-                              capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        proc = subprocess.run(
+            [str(MPIRUN), "-n", str(n), sys.executable, str(script), str(ROOT / "configs")],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            cwd=tmp_path,
+        )
         assert proc.returncode == 0, proc.stderr
         runs[n] = json.loads(proc.stdout.strip().splitlines()[-1])
     for key, eta in runs[1].items():

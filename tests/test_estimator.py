@@ -9,22 +9,21 @@ MARK / REFINE (contact/drivers/adaptive.py).
    and the nested-iteration interpolant reproduces u_h.
 5. P2: η finite, positive, decreasing, with an effectivity in a sane band.
 """
+
 import math
+
+import contact  # noqa: F401  (sets up the DOLFINx libraries before dolfinx is imported)
+from contact.adaptivity.energy_error import energy_error
+from contact.adaptivity.estimate import TERMS, estimate, indicator_terms
+from contact.adaptivity.mark import dorfler_threshold, mark
+from contact.adaptivity.refine import refine
+from contact.setup.meshes import tag_boundaries
 
 import numpy as np
 import pytest
-
-import contact  # noqa: F401  (sets up the DOLFINx libraries before dolfinx is imported)
-from mpi4py import MPI
-
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
-
-from contact.adaptivity.mark import dorfler_threshold, mark
-from contact.adaptivity.refine import refine
-from contact.adaptivity.energy_error import energy_error
-from contact.adaptivity.estimate import TERMS, estimate, indicator_terms
-from contact.setup.meshes import tag_boundaries
+from mpi4py import MPI
 
 QUADRATIC = ("volume", "jump", "neumann", "consistency", "sign")  # squares: round-off ~1e-30
 
@@ -52,17 +51,33 @@ K1 = 3.0
 
 
 def linear_scene(neumann_t=None, n=8):
-    b = {"top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
-         "bottom": {"role": "contact", "where": "y < 1e-10"}}
+    b = {
+        "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+        "bottom": {"role": "contact", "where": "y < 1e-10"},
+    }
     if neumann_t is None:
         b["sides"] = {"role": "dirichlet", "where": "x < 1e-10 or x > 1 - 1e-10"}
     else:  # the right side carries the flux t; k ∂u/∂n = k on x = 1
         b["left"] = {"role": "dirichlet", "where": "x < 1e-10"}
         b["right"] = {"role": "neumann", "where": "x > 1 - 1e-10"}
-    data = {"k": str(K1), "f": "0", "u_D": "1 + x + 2*y", "g": "10", "t_C": str(-2 * K1),
-            "t": neumann_t or "0", "exact": "1 + x + 2*y"}
-    return contact.load_scene({"mesh": {"type": "unit_square", "cells": [n, n]}, "boundaries": b,
-                               "model": "signorini", "data": data, "output": {"verbose": False}})
+    data = {
+        "k": str(K1),
+        "f": "0",
+        "u_D": "1 + x + 2*y",
+        "g": "10",
+        "t_C": str(-2 * K1),
+        "t": neumann_t or "0",
+        "exact": "1 + x + 2*y",
+    }
+    return contact.load_scene(
+        {
+            "mesh": {"type": "unit_square", "cells": [n, n]},
+            "boundaries": b,
+            "model": "signorini",
+            "data": data,
+            "output": {"verbose": False},
+        }
+    )
 
 
 def exact_linear(x):
@@ -74,7 +89,7 @@ def test_estimator_vanishes_at_exact_discrete_solution(neumann_t):
     scene = linear_scene(neumann_t)
     result = contact.solve(scene, verbose=False)
     assert result.converged, result.reason
-    assert result.n_active == 0   # g = 10 against u ≤ 4: every node far from the tie
+    assert result.n_active == 0  # g = 10 against u ≤ 4: every node far from the tie
     # the discrete solution is the exact one and the multiplier vanishes (round-off)
     assert energy_error(result.u_h, "1 + x + 2*y") < 1e-10
     lam = np.abs(result.lmbda_h.x.array).max()
@@ -103,10 +118,10 @@ def test_wrong_neumann_flux_is_detected():
     t_wrong = 2.0  # exact flux is k ∂u/∂n = 3 on x = 1
     scene = linear_scene(str(t_wrong))
     result = contact.solve(scene, verbose=False)
-    assert result.converged and result.n_active == 0   # g = 10: far from contact, no tie
+    assert result.converged and result.n_active == 0  # g = 10: far from contact, no tie
     est = estimate(scene, result)
     assert est.terms["neumann"] > 1e-4
-    assert est.terms["jump"] > 1e-4      # u_h is no longer linear
+    assert est.terms["jump"] > 1e-4  # u_h is no longer linear
     assert est.eta > 1e-2
     # With the exact linear u_h and λ_h = 0 only the Neumann term remains, and it is exactly
     # Σ_E h_E ‖t − k ∂u_h/∂n‖²_E = h_E (t − k)² |Γ_N| = (1/8)·1·1.
@@ -138,14 +153,24 @@ N2, K2, TC2, F2 = 8, 2.0, 0.5, 1.0
 
 @pytest.fixture(scope="module")
 def signorini():
-    cfg = {"mesh": {"type": "unit_square", "cells": [N2, N2]},
-           "boundaries": {"top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
-                          "sides": {"role": "neumann", "where": "x < 1e-10 or x > 1 - 1e-10"},
-                          "bottom": {"role": "contact", "where": "y < 1e-10"}},
-           "model": "signorini",
-           "data": {"k": str(K2), "t_C": str(TC2), "f": str(F2), "t": "0", "u_D": "0",
-                    "g": "0.1 + 2*(x - 0.5)**2"},
-           "output": {"verbose": False}}
+    cfg = {
+        "mesh": {"type": "unit_square", "cells": [N2, N2]},
+        "boundaries": {
+            "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+            "sides": {"role": "neumann", "where": "x < 1e-10 or x > 1 - 1e-10"},
+            "bottom": {"role": "contact", "where": "y < 1e-10"},
+        },
+        "model": "signorini",
+        "data": {
+            "k": str(K2),
+            "t_C": str(TC2),
+            "f": str(F2),
+            "t": "0",
+            "u_D": "0",
+            "g": "0.1 + 2*(x - 0.5)**2",
+        },
+        "output": {"verbose": False},
+    }
     scene = contact.load_scene(cfg)
     result = contact.solve(scene, verbose=False)
     assert result.converged, result.reason
@@ -196,7 +221,9 @@ def test_complementarity_term(signorini):
     # λ_h = −1, u_h = g − 0.5: ∫ (−1)(−0.5) ds = 0.5 |Γ_C|
     assert hand_made(signorini, -1.0).terms["complementarity"] == pytest.approx(0.5, rel=1e-12)
     # λ_h = −x: ∫_0^1 x · 0.5 dx = 1/4
-    assert hand_made(signorini, lambda x: -x).terms["complementarity"] == pytest.approx(0.25, rel=1e-12)
+    assert hand_made(signorini, lambda x: -x).terms["complementarity"] == pytest.approx(
+        0.25, rel=1e-12
+    )
     # λ_h = x − 1/2 changes sign at a node: complementarity ∫_0^{1/2} (1/2 − x)/2 = 1/16, sign 1/24
     est = hand_made(signorini, lambda x: x - 0.5)
     assert est.terms["complementarity"] == pytest.approx(1 / 16, rel=1e-12)
@@ -249,8 +276,9 @@ def test_jump_term_exact(signorini):
     assert est.terms["neumann"] == pytest.approx(2 * K2**2 / N2, rel=1e-12)
     scene, result, _, _ = signorini
     per_cell = cellwise(indicator_terms(scene, result)["jump"])
-    mid = scene.mesh.geometry.x[dmesh.entities_to_geometry(
-        scene.mesh, 2, np.arange(len(per_cell), dtype=np.int32))].mean(axis=1)
+    mid = scene.mesh.geometry.x[
+        dmesh.entities_to_geometry(scene.mesh, 2, np.arange(len(per_cell), dtype=np.int32))
+    ].mean(axis=1)
     touching = np.abs(mid[:, 0] - 0.5) < 0.5 / N2  # centroid h/3 (edge on x = ½) or 2h/3 away
     assert touching.sum() == 2 * N2
     np.testing.assert_allclose(per_cell[touching], 0.5 * (1 / N2) ** 2 * (2 * K2) ** 2, rtol=1e-12)
@@ -260,17 +288,29 @@ def test_jump_term_exact(signorini):
 # Obstacle: constraint σ(u − ψ) ≤ 0 in Ω (σ = −1: u ≥ ψ, σ = +1: u ≤ ψ), λ = −div(k∇u) − f with
 # −σλ ≥ 0.  Unit square 4×4 (right diagonals: h_T² = 2/16, Σ_T h_T² |T| = 1/8), clamped.
 N3 = 4
-OBSTACLES = {"lower": (-1.0, "-2", "0.05 - (x - 0.5)**2 - (y - 0.5)**2"),
-             "upper": (1.0, "2", "-0.05 + (x - 0.5)**2 + (y - 0.5)**2")}
+OBSTACLES = {
+    "lower": (-1.0, "-2", "0.05 - (x - 0.5)**2 - (y - 0.5)**2"),
+    "upper": (1.0, "2", "-0.05 + (x - 0.5)**2 + (y - 0.5)**2"),
+}
 
 
 @pytest.mark.parametrize("bound", ["lower", "upper"])
 def test_obstacle_sign_complementarity_and_volume(bound):
     sigma, f, psi = OBSTACLES[bound]
-    scene = contact.load_scene({"mesh": {"type": "unit_square", "cells": [N3, N3]},
-                                "boundaries": {"clamp": {"role": "dirichlet", "where": "x < 1e-10 or x > 1 - 1e-10 or y < 1e-10 or y > 1 - 1e-10"}},
-                                "model": {"type": "obstacle", "bound": bound},
-                                "data": {"f": f, "psi": psi}, "output": {"verbose": False}})
+    scene = contact.load_scene(
+        {
+            "mesh": {"type": "unit_square", "cells": [N3, N3]},
+            "boundaries": {
+                "clamp": {
+                    "role": "dirichlet",
+                    "where": "x < 1e-10 or x > 1 - 1e-10 or y < 1e-10 or y > 1 - 1e-10",
+                }
+            },
+            "model": {"type": "obstacle", "bound": bound},
+            "data": {"f": f, "psi": psi},
+            "output": {"verbose": False},
+        }
+    )
     result = contact.solve(scene, verbose=False)
     assert result.converged and result.n_active > 0
     assert result.problem.constraint.sign == sigma
@@ -288,19 +328,19 @@ def test_obstacle_sign_complementarity_and_volume(bound):
 
     good = -sigma  # the admissible sign of λ
     feasible = -sigma * 0.5
-    t = run(good, feasible)   # right sign, gap 0.5 → complementarity ∫ |λ| · 0.5 = 0.5
+    t = run(good, feasible)  # right sign, gap 0.5 → complementarity ∫ |λ| · 0.5 = 0.5
     assert t["sign"] == 0.0
     assert t["complementarity"] == pytest.approx(0.5, rel=1e-12)
     # λ_h enters the residual
     assert t["volume"] == pytest.approx((f + good) ** 2 * sum_hT2, rel=1e-12)
-    t = run(good, 0.0)        # u_h = ψ_h: complementarity holds
+    t = run(good, 0.0)  # u_h = ψ_h: complementarity holds
     assert abs(t["complementarity"]) < 1e-15
     t = run(-good, feasible)  # wrong sign: h_T² ‖(σλ)⁺‖² = Σ h_T² |T|, no complementarity
     assert t["sign"] == pytest.approx(sum_hT2, rel=1e-12)
     assert t["complementarity"] == 0.0
-    t = run(-f, feasible)     # λ_h = −f balances f (u_h linear on each cell): no volume residual
+    t = run(-f, feasible)  # λ_h = −f balances f (u_h linear on each cell): no volume residual
     assert abs(t["volume"]) < 1e-24
-    assert t["sign"] == 0.0   # −f has the admissible sign in both scenes
+    assert t["sign"] == 0.0  # −f has the admissible sign in both scenes
     for name in ("neumann", "consistency"):  # no contact boundary, no Neumann part
         assert t[name] == 0.0
 
@@ -397,11 +437,16 @@ def test_mark_maximum_uniform_and_unknown(dg0):
 # ---------------------------------------------------------------------------------------
 # 4. REFINE: boundary tags and the nested-iteration interpolant
 # ---------------------------------------------------------------------------------------
-NATURAL_SCENE = {"mesh": {"type": "unit_square", "cells": [6, 6]},
-                 "boundaries": {"top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
-                                "bottom": {"role": "contact", "where": "y < 1e-10"}},
-                 "model": "signorini",
-                 "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"}, "output": {"verbose": False}}
+NATURAL_SCENE = {
+    "mesh": {"type": "unit_square", "cells": [6, 6]},
+    "boundaries": {
+        "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+        "bottom": {"role": "contact", "where": "y < 1e-10"},
+    },
+    "model": "signorini",
+    "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"},
+    "output": {"verbose": False},
+}
 
 
 def tags_by_value(boundary):
@@ -418,8 +463,11 @@ def eval_points(u, points):
     return u.eval(points, cells).ravel()
 
 
-@pytest.mark.parametrize("source", ["configs/lshape_corner.yaml", "configs/signorini_free_boundary.yaml",
-                                    NATURAL_SCENE], ids=["lshape", "free_boundary", "natural_sides"])
+@pytest.mark.parametrize(
+    "source",
+    ["configs/lshape_corner.yaml", "configs/signorini_free_boundary.yaml", NATURAL_SCENE],
+    ids=["lshape", "free_boundary", "natural_sides"],
+)
 def test_refine_keeps_boundary_tags_and_interpolates(source):
     scene = contact.load_scene(source, ["output.verbose=false"] if isinstance(source, str) else [])
     n_tagged0 = len(scene.boundary.tags.indices)
@@ -449,7 +497,10 @@ def test_refine_keeps_boundary_tags_and_interpolates(source):
         np.testing.assert_allclose(u0.x.array[idx], result.u_h.x.array, rtol=0, atol=1e-12)
         np.testing.assert_allclose(u0.x.array, eval_points(result.u_h, new_X), rtol=0, atol=1e-12)
         assert np.abs(result.u_h.x.array).max() > 1e-3  # the comparison is not 0 = 0
-        assert child.mesh.topology.index_map(2).size_local > scene.mesh.topology.index_map(2).size_local
+        assert (
+            child.mesh.topology.index_map(2).size_local
+            > scene.mesh.topology.index_map(2).size_local
+        )
         scene = child
     assert len(scene.boundary.tags.indices) > n_tagged0  # boundary facets were split
     assert scene.mesh.topology.index_map(2).size_local < 4 * n_cells0  # local, not uniform
@@ -471,13 +522,16 @@ def problem_A():
     for degree in (1, 2):
         out[degree] = []
         for n in (4, 8):
-            scene = contact.load_scene(FREE, [f"mesh.degree={degree}", f"mesh.cells=[{2 * n},{n}]",
-                                              "output.verbose=false"])
+            scene = contact.load_scene(
+                FREE, [f"mesh.degree={degree}", f"mesh.cells=[{2 * n},{n}]", "output.verbose=false"]
+            )
             result = contact.solve(scene, verbose=False)
             assert result.converged, result.reason
             assert result.u_h.function_space.ufl_element().embedded_superdegree == degree
             est = estimate(scene, result)
-            out[degree].append((est.eta, energy_error(result.u_h, scene.cfg["data"]["exact"]), est.terms))
+            out[degree].append(
+                (est.eta, energy_error(result.u_h, scene.cfg["data"]["exact"]), est.terms)
+            )
     return out
 
 
@@ -486,11 +540,11 @@ def test_p2_estimator(problem_A):
     for eta, err, terms in problem_A[2]:
         assert np.isfinite(eta) and eta > 0
         assert all(np.isfinite(v) for v in terms.values())
-        assert terms["volume"] > 0       # Δu_h ≠ 0 for P2: the second derivatives are used
+        assert terms["volume"] > 0  # Δu_h ≠ 0 for P2: the second derivatives are used
         assert terms["jump"] > 0 and terms["consistency"] > 0
         assert 1.0 <= eta / err <= 20.0, (eta, err)
     assert err2 < err1
-    assert eta2 < 0.6 * eta1             # observed ≈ 0.44
+    assert eta2 < 0.6 * eta1  # observed ≈ 0.44
     # P2 beats P1 on the same mesh in both the error and η
     for (e1, r1, _), (e2, r2, _) in zip(problem_A[1], problem_A[2]):
         assert r2 < r1 and e2 < e1
@@ -500,9 +554,9 @@ def test_p1_effectivity_is_stable(problem_A):
     (eta1, err1, _), (eta2, err2, _) = problem_A[1]
     assert 2.0 <= eta1 / err1 <= 8.0 and 2.0 <= eta2 / err2 <= 8.0
     assert abs((eta2 / err2) / (eta1 / err1) - 1) < 0.05
-    assert eta2 < 0.6 * eta1             # O(h): ≈ 0.51
+    assert eta2 < 0.6 * eta1  # O(h): ≈ 0.51
 
 
 def test_p2_effectivity_is_stable(problem_A):
     (eta1, err1, _), (eta2, err2, _) = problem_A[2]
-    assert (eta2 / err2) / (eta1 / err1) < 1.05   # observed 15.0 → 18.2 (→ 23.3 → 31.2)
+    assert (eta2 / err2) / (eta1 / err1) < 1.05  # observed 15.0 → 18.2 (→ 23.3 → 31.2)

@@ -5,6 +5,7 @@ error — one line each, the traceback only with ``--debug`` / ``CONTACT_DEBUG=1
 Internal errors are provoked by a wrapper that replaces ``contact.solve`` with a function
 that raises (on every rank, or on rank 1 only) and then calls the real ``contact.app.cli.main``.
 """
+
 from __future__ import annotations
 
 import sys
@@ -14,7 +15,7 @@ from pathlib import Path
 import pytest
 from clirun import MPIRUN, ROOT, contact, error_lines, small_scene
 
-WRAPPER = '''
+WRAPPER = """
 import sys
 from mpi4py import MPI
 import contact, contact.app.cli
@@ -35,7 +36,7 @@ def broken_solve(*args, **kwargs):
 
 contact.solve = broken_solve
 sys.exit(contact.app.cli.main(argv))
-'''
+"""
 
 
 def _wrapped(tmp: Path, mode: str, *args: str, ranks: int = 0, env: dict | None = None):
@@ -47,8 +48,14 @@ def _wrapped(tmp: Path, mode: str, *args: str, ranks: int = 0, env: dict | None 
     cmd = [sys.executable, str(tmp / "wrapper.py"), mode, "run", "scene.yaml", "-o", "out", *args]
     if ranks:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]
-    return subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "OMP_NUM_THREADS": "1", **(env or {})})
+    return subprocess.run(
+        cmd,
+        cwd=tmp,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "OMP_NUM_THREADS": "1", **(env or {})},
+    )
 
 
 def _internal(proc) -> str:
@@ -69,19 +76,27 @@ def test_internal_error_is_exit_3_in_one_line(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("how", ["--debug", "CONTACT_DEBUG=1"])
 def test_debug_prints_the_traceback(tmp_path: Path, how: str) -> None:
-    proc = _wrapped(tmp_path, "all", *(["--debug"] if how == "--debug" else []),
-                    env={"CONTACT_DEBUG": "1"} if how != "--debug" else None)
+    proc = _wrapped(
+        tmp_path,
+        "all",
+        *(["--debug"] if how == "--debug" else []),
+        env={"CONTACT_DEBUG": "1"} if how != "--debug" else None,
+    )
     assert proc.returncode == 3
     assert "Traceback (most recent call last)" in proc.stderr and "broken_solve" in proc.stderr
     assert error_lines(proc)[-1].startswith("contact: internal error: RuntimeError: boom")
 
 
 def test_memory_error_is_exit_3(tmp_path: Path) -> None:
-    assert _internal(_wrapped(tmp_path, "memory")).startswith("contact: internal error: out of memory")
+    assert _internal(_wrapped(tmp_path, "memory")).startswith(
+        "contact: internal error: out of memory"
+    )
 
 
 def test_petsc_error_is_exit_3_with_petsc_code(tmp_path: Path) -> None:
-    assert _internal(_wrapped(tmp_path, "petsc")).startswith("contact: internal error: PETSc error 76")
+    assert _internal(_wrapped(tmp_path, "petsc")).startswith(
+        "contact: internal error: PETSc error 76"
+    )
 
 
 def test_internal_error_on_every_rank_under_mpirun(tmp_path: Path) -> None:
@@ -95,7 +110,9 @@ def test_internal_error_on_one_rank_ends_the_job_with_code_3(tmp_path: Path) -> 
     assert proc.returncode == 3, proc.stderr
     assert time.perf_counter() - t0 < 60
     ours = [ln for ln in error_lines(proc) if ln.startswith("contact")]
-    assert ours == [ours[0]] and ours[0].startswith("contact (rank 1): internal error: RuntimeError: boom")
+    assert ours == [ours[0]] and ours[0].startswith(
+        "contact (rank 1): internal error: RuntimeError: boom"
+    )
     assert "Traceback" not in proc.stderr
 
 
@@ -110,7 +127,9 @@ def test_not_converged_is_exit_1(tmp_path: Path) -> None:
     small_scene(tmp_path / "scene.yaml", solver__max_it=1)
     proc = contact(tmp_path, "run", "scene.yaml", "-o", "out")
     assert proc.returncode == 1
-    assert error_lines(proc)[-1].startswith("contact: error: solver fb did not converge (diverged_max_it)")
+    assert error_lines(proc)[-1].startswith(
+        "contact: error: solver fb did not converge (diverged_max_it)"
+    )
     assert not (tmp_path / "out").exists()
 
 
@@ -119,14 +138,18 @@ def test_error_lines_are_capped(tmp_path: Path) -> None:
     proc = contact(tmp_path, "run", "scene.yaml")
     lines = error_lines(proc)
     assert proc.returncode == 2 and len(lines) == 1
-    assert lines[0].startswith("contact: error: data.g: unknown name 'qqqq") and len(lines[0]) <= 300
+    assert (
+        lines[0].startswith("contact: error: data.g: unknown name 'qqqq") and len(lines[0]) <= 300
+    )
 
 
 @pytest.mark.parametrize("ranks", [0, 2])
 def test_unknown_petsc_solver_type_is_exit_2_before_meshing(tmp_path: Path, ranks: int) -> None:
     """Checked on a tiny system when the scene is loaded: 0.5 s, not after the assembly
     (the 1500² mesh would take half a minute to build)."""
-    small_scene(tmp_path / "scene.yaml", solver__petsc_options={"pc_factor_mat_solver_type": "nonsense"})
+    small_scene(
+        tmp_path / "scene.yaml", solver__petsc_options={"pc_factor_mat_solver_type": "nonsense"}
+    )
     t0 = time.perf_counter()
     proc = contact(tmp_path, "run", "scene.yaml", "--set", "mesh.cells=[1500,1500]", ranks=ranks)
     assert time.perf_counter() - t0 < 30
@@ -136,14 +159,25 @@ def test_unknown_petsc_solver_type_is_exit_2_before_meshing(tmp_path: Path, rank
         "'nonsense' (Could not "
         f"locate solver type nonsense for factorization type LU and matrix type "
         f"{'mpiaij' if ranks else 'seqaij'}. "
-        "Perhaps you must ./configure with --download-nonsense)"]
+        "Perhaps you must ./configure with --download-nonsense)"
+    ]
 
 
-@pytest.mark.parametrize("options, expect", [
-    ({"ksp_type": "cgg"}, r"^solver\.petsc_options\.ksp_type: PETSc cannot use 'cgg' \(Unable to find " r"requested KSP"),
-    ({"pc_type": "hypre"}, r"^solver\.petsc_options\.pc_type: PETSc cannot use 'hypre'"),
-    ({"ksp_type": "cg", "snes_linesearch_type": "zz"}, r"^solver\.petsc_options\.snes_linesearch_type: "),
-])
+@pytest.mark.parametrize(
+    "options, expect",
+    [
+        (
+            {"ksp_type": "cgg"},
+            r"^solver\.petsc_options\.ksp_type: PETSc cannot use 'cgg' \(Unable to find "
+            r"requested KSP",
+        ),
+        ({"pc_type": "hypre"}, r"^solver\.petsc_options\.pc_type: PETSc cannot use 'hypre'"),
+        (
+            {"ksp_type": "cg", "snes_linesearch_type": "zz"},
+            r"^solver\.petsc_options\.snes_linesearch_type: ",
+        ),
+    ],
+)
 def test_petsc_options_checked_in_the_api(options: dict, expect: str) -> None:
     import contact as ct
 
@@ -151,8 +185,10 @@ def test_petsc_options_checked_in_the_api(options: dict, expect: str) -> None:
     with pytest.raises(ct.ConfigError, match=expect):
         ct.solve(scene, petsc_options=options, verbose=False)
     with pytest.raises(ct.ConfigError, match=expect):
-        ct.load_scene(str(ROOT / "configs" / "signorini_square.yaml"),
-                      ["mesh.cells=[4,4]", f"solver.petsc_options={options}"])
+        ct.load_scene(
+            str(ROOT / "configs" / "signorini_square.yaml"),
+            ["mesh.cells=[4,4]", f"solver.petsc_options={options}"],
+        )
 
 
 @pytest.mark.parametrize("ranks", [0, 2])
@@ -163,17 +199,32 @@ def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ra
     import csv
     import json
 
-    small_scene(tmp_path / "scene.yaml", cells=4, solver__max_it=4,
-                adapt={"strategy": "uniform", "max_levels": 4, "nested": False})
+    small_scene(
+        tmp_path / "scene.yaml",
+        cells=4,
+        solver__max_it=4,
+        adapt={"strategy": "uniform", "max_levels": 4, "nested": False},
+    )
     proc = contact(tmp_path, "run", "scene.yaml", "-o", "out", "-q", ranks=ranks)
     assert proc.returncode == 1, proc.stderr
-    assert error_lines(proc)[-1].startswith("contact: error: solver did not converge on level 2 (diverged_max_it)")
+    assert error_lines(proc)[-1].startswith(
+        "contact: error: solver did not converge on level 2 (diverged_max_it)"
+    )
     assert "kept levels 0-1 in out/" in error_lines(proc)[-1]
     out = tmp_path / "out"
     names = {p.name for p in out.iterdir()}
-    assert {"solution_000.vtu", "solution_001.vtu", "solution.pvd", "convergence.csv", "summary.json",
-            ".contact-result"} <= names
-    assert "solution_002.vtu" not in names and "solution_002.vtu" not in (out / "solution.pvd").read_text()
+    assert {
+        "solution_000.vtu",
+        "solution_001.vtu",
+        "solution.pvd",
+        "convergence.csv",
+        "summary.json",
+        ".contact-result",
+    } <= names
+    assert (
+        "solution_002.vtu" not in names
+        and "solution_002.vtu" not in (out / "solution.pvd").read_text()
+    )
     rows = list(csv.DictReader(open(out / "convergence.csv")))
     assert [int(r["dofs"]) for r in rows] == [25, 81]
     summary = json.loads((out / "summary.json").read_text())
@@ -187,10 +238,19 @@ def test_readme_documents_the_exit_codes() -> None:
     from contact.app import failures
 
     text = (ROOT / "README.md").read_text()
-    rows = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ") and
-            line.split("|")[1].strip() in ("0", "1", "2", "3", "130")}
+    rows = {
+        line.split("|")[1].strip(): line
+        for line in text.splitlines()
+        if line.startswith("| ") and line.split("|")[1].strip() in ("0", "1", "2", "3", "130")
+    }
     assert set(rows) == {"0", "1", "2", "3", "130"}
-    assert "solved" in rows[str(failures.SOLVED)] and "did not converge" in rows[str(failures.NOT_CONVERGED)]
-    assert "bad input" in rows[str(failures.BAD_INPUT)] and "internal error" in rows[str(failures.INTERNAL)]
+    assert (
+        "solved" in rows[str(failures.SOLVED)]
+        and "did not converge" in rows[str(failures.NOT_CONVERGED)]
+    )
+    assert (
+        "bad input" in rows[str(failures.BAD_INPUT)]
+        and "internal error" in rows[str(failures.INTERNAL)]
+    )
     assert "interrupted (Ctrl-C" in rows[str(failures.INTERRUPTED)]
     assert "--debug" in text and "CONTACT_DEBUG=1" in text

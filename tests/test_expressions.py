@@ -1,14 +1,15 @@
 """Tests of the safe scene-data expressions (contact.setup.expressions)."""
+
 from __future__ import annotations
 
 import math
 
-import numpy as np
-import pytest
-
 import contact  # noqa: F401  (sets up dolfinx_solver before dolfinx is imported)
 from contact.setup import expressions as E
 from contact.setup.expressions import ExpressionError
+
+import numpy as np
+import pytest
 
 CONSTS = {"k": 2.5, "L": 3.0, "alpha_1": -0.75}
 
@@ -38,14 +39,17 @@ NUMERIC = [
     ("e", lambda x, y, z: np.full_like(x, math.e)),
     ("2*pi*x - e", lambda x, y, z: 2 * math.pi * x - math.e),
     ("k*x + L", lambda x, y, z: 2.5 * x + 3.0),
-    ("alpha_1*y**2", lambda x, y, z: -0.75 * y ** 2),
+    ("alpha_1*y**2", lambda x, y, z: -0.75 * y**2),
     ("x + y - z", lambda x, y, z: x + y - z),
     ("x*y/(1 + z*z)", lambda x, y, z: x * y / (1 + z * z)),
-    ("-x**2", lambda x, y, z: -(x ** 2)),
+    ("-x**2", lambda x, y, z: -(x**2)),
     ("+x - -y", lambda x, y, z: x + y),
-    ("2**3**0.5", lambda x, y, z: np.full_like(x, 2 ** 3 ** 0.5)),
+    ("2**3**0.5", lambda x, y, z: np.full_like(x, 2**3**0.5)),
     ("(1 + x)**2 - 1e-3", lambda x, y, z: (1 + x) ** 2 - 1e-3),
-    ("-r**1.5*cos(1.5*theta)", lambda x, y, z: -_hyp(x, y) ** 1.5 * np.cos(1.5 * np.arctan2(y, x))),
+    (
+        "-r**1.5*cos(1.5*theta)",
+        lambda x, y, z: -(_hyp(x, y) ** 1.5) * np.cos(1.5 * np.arctan2(y, x)),
+    ),
     ("sin(x)", lambda x, y, z: np.sin(x)),
     ("cos(y)", lambda x, y, z: np.cos(y)),
     ("tan(0.5*x)", lambda x, y, z: np.tan(0.5 * x)),
@@ -70,14 +74,22 @@ NUMERIC = [
     ("1 if x > 0 and y > 0 else 0", lambda x, y, z: np.where((x > 0) & (y > 0), 1.0, 0.0)),
     ("1 if x > 0 or y > 0 else 0", lambda x, y, z: np.where((x > 0) | (y > 0), 1.0, 0.0)),
     ("1 if not x > 0 else 0", lambda x, y, z: np.where(~(x > 0), 1.0, 0.0)),
-    ("1 if x > 0 and y > 0 and z > 0 else 0",
-     lambda x, y, z: np.where((x > 0) & (y > 0) & (z > 0), 1.0, 0.0)),
-    ("1 if x > 1 or y > 1 or z > 1 else 0",
-     lambda x, y, z: np.where((x > 1) | (y > 1) | (z > 1), 1.0, 0.0)),
-    ("1 if not (x > 0 and y < 0) or z > 1 else 0",
-     lambda x, y, z: np.where(~((x > 0) & (y < 0)) | (z > 1), 1.0, 0.0)),
-    ("(x if y > 0 else y) if z < 0 else (0 if x < y else 1)",
-     lambda x, y, z: np.where(z < 0, np.where(y > 0, x, y), np.where(x < y, 0.0, 1.0))),
+    (
+        "1 if x > 0 and y > 0 and z > 0 else 0",
+        lambda x, y, z: np.where((x > 0) & (y > 0) & (z > 0), 1.0, 0.0),
+    ),
+    (
+        "1 if x > 1 or y > 1 or z > 1 else 0",
+        lambda x, y, z: np.where((x > 1) | (y > 1) | (z > 1), 1.0, 0.0),
+    ),
+    (
+        "1 if not (x > 0 and y < 0) or z > 1 else 0",
+        lambda x, y, z: np.where(~((x > 0) & (y < 0)) | (z > 1), 1.0, 0.0),
+    ),
+    (
+        "(x if y > 0 else y) if z < 0 else (0 if x < y else 1)",
+        lambda x, y, z: np.where(z < 0, np.where(y > 0, x, y), np.where(x < y, 0.0, 1.0)),
+    ),
 ]
 NUMERIC_IDS = [t for t, _ in NUMERIC]
 
@@ -90,11 +102,20 @@ def test_to_numpy(text, ref):
     np.testing.assert_allclose(val, ref(*X), rtol=1e-13, atol=1e-14)
 
 
-@pytest.mark.parametrize("text,want", [
-    ("x", [1.0, -1.0]), ("y", [2.0, 0.5]), ("z", [-0.5, 1.5]), ("r", [np.sqrt(5), np.sqrt(1.25)]),
-    ("theta", [np.arctan2(2, 1), np.pi - np.arctan(0.5)]), ("x*y*z", [-1.0, -0.75]),
-    ("k", [2.5, 2.5]), ("1 if x > 0 else 7", [1.0, 7.0]), ("max(x, y) - min(y, z)", [2.5, 0.0]),
-])
+@pytest.mark.parametrize(
+    "text,want",
+    [
+        ("x", [1.0, -1.0]),
+        ("y", [2.0, 0.5]),
+        ("z", [-0.5, 1.5]),
+        ("r", [np.sqrt(5), np.sqrt(1.25)]),
+        ("theta", [np.arctan2(2, 1), np.pi - np.arctan(0.5)]),
+        ("x*y*z", [-1.0, -0.75]),
+        ("k", [2.5, 2.5]),
+        ("1 if x > 0 else 7", [1.0, 7.0]),
+        ("max(x, y) - min(y, z)", [2.5, 0.0]),
+    ],
+)
 def test_to_numpy_by_hand(text, want):
     X = np.array([[1.0, -1.0], [2.0, 0.5], [-0.5, 1.5]])
     np.testing.assert_allclose(E.to_numpy(text, CONSTS)(X), want, rtol=1e-15)
@@ -105,8 +126,19 @@ def test_theta_range():
     np.testing.assert_allclose(E.to_numpy("theta")(X), [0.0, np.pi / 2, np.pi, -np.pi / 2, -np.pi])
 
 
-@pytest.mark.parametrize("text", ["x < y", "x <= y", "x > y", "x >= y", "-1 < x < y",
-                                  "x > 0 and y > 0", "x > 0 or y > 0", "not x > 0"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "x < y",
+        "x <= y",
+        "x > y",
+        "x >= y",
+        "-1 < x < y",
+        "x > 0 and y > 0",
+        "x > 0 or y > 0",
+        "not x > 0",
+    ],
+)
 def test_to_numpy_boolean_value_is_zero_one(text):
     X = _points()
     val = E.to_numpy(text)(X)
@@ -170,7 +202,11 @@ def _ufl_vs_numpy(msh, ref_points, texts, constants):
     cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
     gdim = msh.geometry.dim
     vec = ufl.as_vector([E.to_ufl(t, msh, constants) for t in texts])
-    got = fem.Expression(vec, ref_points).eval(msh, cells).reshape(len(cells), len(ref_points), len(texts))
+    got = (
+        fem.Expression(vec, ref_points)
+        .eval(msh, cells)
+        .reshape(len(cells), len(ref_points), len(texts))
+    )
     xs = fem.Expression(ufl.SpatialCoordinate(msh), ref_points).eval(msh, cells)
     xs = xs.reshape(len(cells) * len(ref_points), gdim).T
     X = np.vstack([xs, np.zeros((3 - gdim, xs.shape[1]))])
@@ -180,14 +216,22 @@ def _ufl_vs_numpy(msh, ref_points, texts, constants):
 
 
 # expressions whose value is a number (a bare comparison/and/or/not is a UFL condition)
-UFL_TEXTS = [t for t, _ in NUMERIC] + ["3", "k", "2.5*k - L", "1 if 0 < 1 else 2", "min(1, k)",
-                                         "abs(-2)", "sin(pi/4)", "asinh(-30*x)"]
+UFL_TEXTS = [t for t, _ in NUMERIC] + [
+    "3",
+    "k",
+    "2.5*k - L",
+    "1 if 0 < 1 else 2",
+    "min(1, k)",
+    "abs(-2)",
+    "sin(pi/4)",
+    "asinh(-30*x)",
+]
 
 
 @pytest.fixture(scope="module")
 def mesh2d():
-    from mpi4py import MPI
     from dolfinx import mesh
+    from mpi4py import MPI
 
     # not symmetric about the axes, contains the origin, no dof/point on y = 0
     return mesh.create_rectangle(MPI.COMM_SELF, [[-1.3, -0.7], [1.1, 1.4]], [5, 4])
@@ -195,8 +239,8 @@ def mesh2d():
 
 @pytest.fixture(scope="module")
 def mesh3d():
-    from mpi4py import MPI
     from dolfinx import mesh
+    from mpi4py import MPI
 
     return mesh.create_box(MPI.COMM_SELF, [[-1.1, -0.7, -0.9], [0.8, 1.2, 1.3]], [2, 2, 2])
 
@@ -209,8 +253,16 @@ def test_to_ufl_agrees_with_to_numpy_2d(mesh2d):
 
 
 def test_to_ufl_agrees_with_to_numpy_3d(mesh3d):
-    texts = ["z", "x*y*z", "r + z", "sin(x)*cos(y)*exp(z)", "1 if z > 0 and x < y else -1",
-             "theta*z", "k*z**2", "min(z, x) + max(y, z)"]
+    texts = [
+        "z",
+        "x*y*z",
+        "r + z",
+        "sin(x)*cos(y)*exp(z)",
+        "1 if z > 0 and x < y else -1",
+        "theta*z",
+        "k*z**2",
+        "min(z, x) + max(y, z)",
+    ]
     got, want, X = _ufl_vs_numpy(mesh3d, REF_POINTS_3D, texts, CONSTS)
     assert np.ptp(X[2]) > 1.0
     for text, g, w in zip(texts, got, want):
@@ -223,7 +275,9 @@ def test_to_ufl_interpolated_into_p2_matches_to_numpy_at_dofs(mesh2d):
     V = fem.functionspace(mesh2d, ("Lagrange", 2))
     text = "k*x*y - sin(3*x) + (y if x > 0.1 else 0.5*y**2)"
     u_ufl, u_np = fem.Function(V), fem.Function(V)
-    u_ufl.interpolate(fem.Expression(E.to_ufl(text, mesh2d, CONSTS), V.element.interpolation_points))
+    u_ufl.interpolate(
+        fem.Expression(E.to_ufl(text, mesh2d, CONSTS), V.element.interpolation_points)
+    )
     u_np.interpolate(E.to_numpy(text, CONSTS))
     np.testing.assert_allclose(u_ufl.x.array, u_np.x.array, rtol=1e-12, atol=1e-13)
     x = V.tabulate_dof_coordinates().T
@@ -251,13 +305,31 @@ def test_to_ufl_asinh_large_negative_argument(mesh2d):
 # --------------------------------------------------------------------------------------
 # is_constant
 # --------------------------------------------------------------------------------------
-@pytest.mark.parametrize("text,expected", [
-    ("1", True), (2.5, True), (0, True), ("2*pi", True), ("e**2", True), ("k*L", True),
-    ("sin(pi/4) + sqrt(2)", True), ("1 if k > 2 else 0", True), ("max(k, L)", True),
-    ("x", False), ("y", False), ("z", False), ("r", False), ("theta", False),
-    ("0*x", False), ("x - x", False), ("k*y", False), ("1 if z > 0 else 1", False),
-    ("sin(atan2(y, 1))", False), ("max(k, r)", False),
-])
+@pytest.mark.parametrize(
+    "text,expected",
+    [
+        ("1", True),
+        (2.5, True),
+        (0, True),
+        ("2*pi", True),
+        ("e**2", True),
+        ("k*L", True),
+        ("sin(pi/4) + sqrt(2)", True),
+        ("1 if k > 2 else 0", True),
+        ("max(k, L)", True),
+        ("x", False),
+        ("y", False),
+        ("z", False),
+        ("r", False),
+        ("theta", False),
+        ("0*x", False),
+        ("x - x", False),
+        ("k*y", False),
+        ("1 if z > 0 else 1", False),
+        ("sin(atan2(y, 1))", False),
+        ("max(k, r)", False),
+    ],
+)
 def test_is_constant(text, expected):
     assert E.is_constant(text, CONSTS) is expected
 
@@ -381,18 +453,30 @@ def test_disallowed_constructs_raise(text, message):
             func(text, CONSTS)
 
 
-@pytest.mark.parametrize("text", ["x.real", "__import__('os')", "foo", "sin(x, y)", "'a'", "", "x +"])
+@pytest.mark.parametrize(
+    "text", ["x.real", "__import__('os')", "foo", "sin(x, y)", "'a'", "", "x +"]
+)
 def test_to_ufl_rejects_like_parse(mesh2d, text):
     with pytest.raises(ExpressionError):
         E.to_ufl(text, mesh2d, CONSTS)
 
 
-@pytest.mark.parametrize("value,message", [
-    (True, "got bool"), (False, "got bool"), (None, "got NoneType"), ([1.0], "got list"),
-    (b"x", "got bytes"), (1j, "got complex"), ({"x": 1}, "got dict"),
-])
+@pytest.mark.parametrize(
+    "value,message",
+    [
+        (True, "got bool"),
+        (False, "got bool"),
+        (None, "got NoneType"),
+        ([1.0], "got list"),
+        (b"x", "got bytes"),
+        (1j, "got complex"),
+        ({"x": 1}, "got dict"),
+    ],
+)
 def test_non_string_non_number_inputs_raise(value, message):
-    with pytest.raises(ExpressionError, match=f"expected an expression string or a number, {message}"):
+    with pytest.raises(
+        ExpressionError, match=f"expected an expression string or a number, {message}"
+    ):
         E.parse(value)
     with pytest.raises(ExpressionError):
         E.to_numpy(value)

@@ -2,15 +2,16 @@
 block Jacobian H = B K + D of a frictional scene, full sliding of a pulled block (Tresca and
 Coulomb force laws to round-off), Coulomb by full Newton against the Tresca fixed point,
 F = 0 against the frictionless Hertz solutions, and one-line errors for bad friction input."""
+
 import dataclasses
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 import contact
 from contact.models import build_problem
 from contact.solvers.friction import FrictionalComplementarity, tangential_law
+
+import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -19,8 +20,10 @@ ROOT = Path(__file__).resolve().parents[1]
 BLOCK = {
     "name": "block",
     "mesh": {"type": "rectangle", "corners": [[-1, 0], [1, 0.5]], "cells": [40, 10]},
-    "boundaries": {"bottom": {"role": "contact", "where": "y < 1e-10"},
-                   "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"}},
+    "boundaries": {
+        "bottom": {"role": "contact", "where": "y < 1e-10"},
+        "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"},
+    },
     "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
     "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]},
     "data": {"u_D": ["0.05", "-0.01"]},
@@ -40,13 +43,16 @@ def clear_of_kinks(f: dict, rtol: float = 1e-6) -> np.ndarray:
     """The contact nodes of ``Result.friction`` ``f`` whose status rounding cannot tip: not
     on the normal kink (λ_n ≈ 0 with gap ≈ 0) nor on the stick/slip one (|λ_t| ≈ ρ with
     slip ≈ 0), each to ``rtol`` of the largest value."""
+
     def big(v):
         v = np.abs(v)
         return v > rtol * max(np.max(v, initial=0.0), 1e-300)
 
     t_norm, slip = np.linalg.norm(f["lambda_t"], axis=1), np.linalg.norm(f["slip"], axis=1)
     normal = big(f["lambda_n"]) | big(f["gap"])
-    tangential = (f["rho"] - t_norm > rtol * np.max(f["rho"], initial=0.0)) | big(slip) | (f["rho"] == 0)
+    tangential = (
+        (f["rho"] - t_norm > rtol * np.max(f["rho"], initial=0.0)) | big(slip) | (f["rho"] == 0)
+    )
     return normal & tangential
 
 
@@ -72,8 +78,9 @@ def test_projection_law_jacobian_is_the_derivative(m):
     free = np.ones((n, m), bool)
     law = tangential_law(mu, s, rho, c_t, free)
     z = np.linalg.norm(mu + c_t[:, None] * s, axis=1)
-    ok = np.abs(z - rho) > 1e-3                        # away from the stick/slip kink
+    ok = np.abs(z - rho) > 1e-3  # away from the stick/slip kink
     assert ok.sum() > 150 and 20 < law.stick[ok].sum() < ok.sum() - 20
+
     def C_of_mu(m_):
         return tangential_law(m_, s, rho, c_t, free).C
 
@@ -107,8 +114,12 @@ def test_hsw_law_jacobian_is_the_scaled_derivative_of_the_max_form():
         z_ = mu_ + c_t[:, None] * s_
         return np.maximum(rho, np.linalg.norm(z_, axis=1))[:, None] * mu_ - rho[:, None] * z_
 
-    assert np.allclose(law.J_mu[ok], (_fd(lambda v: hsw(v, s), mu) / scale[:, None, None])[ok], atol=1e-6)
-    assert np.allclose(law.J_s[ok], (_fd(lambda v: hsw(mu, v), s) / scale[:, None, None])[ok], atol=1e-6)
+    assert np.allclose(
+        law.J_mu[ok], (_fd(lambda v: hsw(v, s), mu) / scale[:, None, None])[ok], atol=1e-6
+    )
+    assert np.allclose(
+        law.J_s[ok], (_fd(lambda v: hsw(mu, v), s) / scale[:, None, None])[ok], atol=1e-6
+    )
 
 
 def test_fixed_components_and_zero_bound():
@@ -117,7 +128,12 @@ def test_fixed_components_and_zero_bound():
     mu, s = np.array([[0.3, 5.0], [0.2, -0.1]]), np.array([[0.1, 7.0], [0.4, 0.3]])
     free = np.array([[True, False], [True, True]])
     law = tangential_law(mu, s, np.array([1.0, 0.0]), np.ones(2), free)
-    assert law.stick[0] and law.C[0, 1] == 0 and np.all(law.J_mu[0, :, 1] == 0) and np.all(law.J_s[0, 1] == 0)
+    assert (
+        law.stick[0]
+        and law.C[0, 1] == 0
+        and np.all(law.J_mu[0, :, 1] == 0)
+        and np.all(law.J_s[0, 1] == 0)
+    )
     assert np.allclose(law.C[1], mu[1]) and np.allclose(law.J_mu[1], np.eye(2)) and not law.stick[1]
 
 
@@ -129,7 +145,7 @@ def test_block_jacobian_is_the_directional_derivative_of_phi():
     on a kink of Φ there, and its rows are left out (none or a few of ~80 nodes)."""
     from petsc4py import PETSc
 
-    scene = block(*coulomb(0.3), "data.u_D=[\"0.004\", \"-0.01\"]", "friction.form=projection")
+    scene = block(*coulomb(0.3), 'data.u_D=["0.004", "-0.01"]', "friction.form=projection")
     problem = build_problem(scene)
     problem.friction = dataclasses.replace(problem.friction, form="hsw")
     r = contact.solve(scene, problem=problem)
@@ -161,32 +177,37 @@ def test_block_jacobian_is_the_directional_derivative_of_phi():
     rows[cp.fs.tangent[~smooth].ravel()] = False
     fd = (fp.array - fm.array) / (2 * h)
     assert np.max(np.abs(fd - Hv.array)[rows]) <= 1e-5 * np.max(np.abs(Hv.array))
-    assert H.getInfo()["nz_used"] == problem.K.getInfo()["nz_used"]   # the pattern of K
+    assert H.getInfo()["nz_used"] == problem.K.getInfo()["nz_used"]  # the pattern of K
     for obj in (H, Hv, fp, fm, x, v):
         obj.destroy()
     assert isinstance(PETSc.ScalarType(0), np.floating)
 
 
 # ------------------------------------------------------------------- full sliding
-@pytest.mark.parametrize("method,form", [("fb", "projection"), ("min", "projection"), ("min", "hsw")])
+@pytest.mark.parametrize(
+    "method,form", [("fb", "projection"), ("min", "projection"), ("min", "hsw")]
+)
 def test_pulled_block_tresca_force_is_threshold_times_length(method, form):
     scene = block("friction.law=tresca", "friction.threshold=0.01", f"friction.form={form}")
     r = contact.solve(scene, method=method)
     f = r.friction
-    assert r.converged and r.iterations <= 10   # a bound: 2–8 steps here, 10 catches a cycle
+    assert r.converged and r.iterations <= 10  # a bound: 2–8 steps here, 10 catches a cycle
     # every contact node slips
     assert np.all(f["status"][f["status"] > 0] == 2)
     Ft = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_t"][:, 0])))
-    assert abs(Ft + 0.01 * 2.0) <= 1e-12                                    # −s·|Γ_C|: opposes +x
+    assert abs(Ft + 0.01 * 2.0) <= 1e-12  # −s·|Γ_C|: opposes +x
     assert np.all(f["slip"][:, 0] > 0)
 
 
-@pytest.mark.parametrize("method,form", [("fb", "projection"), ("min", "projection"), ("fb", "hsw"), ("blend", "projection")])
+@pytest.mark.parametrize(
+    "method,form",
+    [("fb", "projection"), ("min", "projection"), ("fb", "hsw"), ("blend", "projection")],
+)
 def test_pulled_block_coulomb_force_is_F_times_normal_force(method, form):
     scene = block(*coulomb(0.3), f"friction.form={form}")
     r = contact.solve(scene, method=method)
     f = r.friction
-    assert r.converged and r.iterations <= 10   # a bound: 4–8 steps here, 10 catches a cycle
+    assert r.converged and r.iterations <= 10  # a bound: 4–8 steps here, 10 catches a cycle
     Ft = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_t"][:, 0])))
     Fn = scene.comm.allreduce(float(np.sum(f["w"] * f["lambda_n"])))
     assert Fn < 0 and abs(Ft - 0.3 * Fn) <= 1e-8 * abs(Fn)
@@ -199,7 +220,7 @@ def test_pulled_block_coulomb_force_is_F_times_normal_force(method, form):
 # ------------------------------------------------------------------- Coulomb: SSN = fixed point
 def test_coulomb_newton_equals_fixed_point_2d():
     """Partial slip (a small drag): full semismooth Newton and the sequence of Tresca problems."""
-    base = [*coulomb(0.3), "data.u_D=[\"0.004\", \"-0.01\"]"]
+    base = [*coulomb(0.3), 'data.u_D=["0.004", "-0.01"]']
     ssn = contact.solve(block(*base))
     fp = contact.solve(block(*base, "friction.coulomb=fixed_point"))
     # a lower bound: the pressure moves with the slip, so the fixed point takes several Tresca
@@ -210,19 +231,27 @@ def test_coulomb_newton_equals_fixed_point_2d():
     lam = np.max(np.abs(ssn.friction["lambda_t"]))
     assert np.max(np.abs(ssn.friction["lambda_t"] - fp.friction["lambda_t"])) <= 1e-8 * lam
     f, clear = ssn.friction, clear_of_kinks(ssn.friction)
-    assert clear.sum() >= 0.9 * len(clear) and np.array_equal(f["status"][clear], fp.friction["status"][clear])
-    assert {1, 2} <= set(f["status"].tolist())                             # stick and slip
+    assert clear.sum() >= 0.9 * len(clear) and np.array_equal(
+        f["status"][clear], fp.friction["status"][clear]
+    )
+    assert {1, 2} <= set(f["status"].tolist())  # stick and slip
 
 
 #: a box [−½, ½]² × [0, ¼] pressed onto the plane z = 0 (top moved by (0.001, 0.0005, −0.005)):
 #: partial slip for F = 0.3
-BOX = {"name": "box", "mesh": {"type": "box", "corners": [[-0.5, -0.5, 0], [0.5, 0.5, 0.25]], "cells": [8, 8, 4]},
-       "boundaries": {"bottom": {"role": "contact", "where": "z < 1e-10"},
-                      "top": {"role": "dirichlet", "where": "z > 0.25 - 1e-10"}},
-       "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
-       "obstacle": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]},
-       "data": {"u_D": ["0.001", "0.0005", "-0.005"]}, "friction": {"law": "coulomb", "coefficient": 0.3},
-       "output": {"verbose": False}}
+BOX = {
+    "name": "box",
+    "mesh": {"type": "box", "corners": [[-0.5, -0.5, 0], [0.5, 0.5, 0.25]], "cells": [8, 8, 4]},
+    "boundaries": {
+        "bottom": {"role": "contact", "where": "z < 1e-10"},
+        "top": {"role": "dirichlet", "where": "z > 0.25 - 1e-10"},
+    },
+    "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+    "obstacle": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]},
+    "data": {"u_D": ["0.001", "0.0005", "-0.005"]},
+    "friction": {"law": "coulomb", "coefficient": 0.3},
+    "output": {"verbose": False},
+}
 
 
 def test_coulomb_newton_equals_fixed_point_3d():
@@ -245,58 +274,102 @@ def test_coulomb_newton_equals_fixed_point_3d():
 
 
 # ------------------------------------------------------------------- F = 0 is frictionless
-HERTZ_SMALL = {"hertz_2d": ["mesh.h=0.2", "mesh.h_contact=0.02", "mesh.zone=0.2"],
-               "hertz_3d": ["mesh.h=0.3", "mesh.h_contact=0.03", "mesh.zone=0.2"]}
+HERTZ_SMALL = {
+    "hertz_2d": ["mesh.h=0.2", "mesh.h_contact=0.02", "mesh.zone=0.2"],
+    "hertz_3d": ["mesh.h=0.3", "mesh.h_contact=0.03", "mesh.zone=0.2"],
+}
 
 
 @pytest.mark.parametrize("name", sorted(HERTZ_SMALL))
 def test_zero_friction_reproduces_frictionless_hertz(name):
-    sets = HERTZ_SMALL[name] + ["output.verbose=false", "solver.petsc_options={ksp_type: preonly, pc_type: lu, pc_factor_mat_solver_type: mumps}"]
+    sets = HERTZ_SMALL[name] + [
+        "output.verbose=false",
+        "solver.petsc_options={ksp_type: preonly, pc_type: lu, pc_factor_mat_solver_type: mumps}",
+    ]
     path = ROOT / "configs" / f"{name}.yaml"
     ref = contact.solve(contact.load_scene(path, sets))
     r = contact.solve(contact.load_scene(path, sets + coulomb(0.0)))
     assert ref.converged and r.converged
-    assert np.max(np.abs(r.u_h.x.array - ref.u_h.x.array)) <= 1e-10 * np.max(np.abs(ref.u_h.x.array))
+    assert np.max(np.abs(r.u_h.x.array - ref.u_h.x.array)) <= 1e-10 * np.max(
+        np.abs(ref.u_h.x.array)
+    )
     assert np.max(np.abs(r.friction["lambda_t"])) <= 1e-10 * np.max(np.abs(r.friction["lambda_n"]))
 
 
 # ------------------------------------------------------------------- bad input
-@pytest.mark.parametrize("overrides,message", [
-    (["friction.law=tresca"], "friction.threshold: required for friction law tresca"),
-    (["friction.law=coulomb"], "friction.coefficient: required for friction law coulomb"),
-    ([*coulomb(0.3), "friction.threshold=1"], "friction.threshold: not used by friction law coulomb"),
-    (["friction.law=tresca", "friction.threshold=1", "friction.coefficient=1"],
-     "friction.coefficient: not used by friction law tresca"),
-    ([*coulomb(-0.1)], "friction.coefficient: must be >= 0"),
-    ([*coulomb(0.3), "solver.method=vinewtonrsls"], "solver.method: vinewtonrsls cannot solve frictional contact"),
-    ([*coulomb(0.3), "friction.form=max"], "friction.form: 'max' is not one of projection, hsw"),
-    (["constants.t=1"], "constants.t: is not a usable constant name"),
-    (["boundaries.bottom.where=y < 1e-10*t"], "boundaries.bottom.where: the pseudo-time t is only for data"),
-    (["load.steps=2", "load.times=[1]"], "load: give exactly one of 'steps' or 'times'"),
-    (["load.times=[0.5, 0.2]"], "load.times: the pseudo-times must be > 0 and strictly increasing"),
-])
+@pytest.mark.parametrize(
+    "overrides,message",
+    [
+        (["friction.law=tresca"], "friction.threshold: required for friction law tresca"),
+        (["friction.law=coulomb"], "friction.coefficient: required for friction law coulomb"),
+        (
+            [*coulomb(0.3), "friction.threshold=1"],
+            "friction.threshold: not used by friction law coulomb",
+        ),
+        (
+            ["friction.law=tresca", "friction.threshold=1", "friction.coefficient=1"],
+            "friction.coefficient: not used by friction law tresca",
+        ),
+        ([*coulomb(-0.1)], "friction.coefficient: must be >= 0"),
+        (
+            [*coulomb(0.3), "solver.method=vinewtonrsls"],
+            "solver.method: vinewtonrsls cannot solve frictional contact",
+        ),
+        (
+            [*coulomb(0.3), "friction.form=max"],
+            "friction.form: 'max' is not one of projection, hsw",
+        ),
+        (["constants.t=1"], "constants.t: is not a usable constant name"),
+        (
+            ["boundaries.bottom.where=y < 1e-10*t"],
+            "boundaries.bottom.where: the pseudo-time t is only for data",
+        ),
+        (["load.steps=2", "load.times=[1]"], "load: give exactly one of 'steps' or 'times'"),
+        (
+            ["load.times=[0.5, 0.2]"],
+            "load.times: the pseudo-times must be > 0 and strictly increasing",
+        ),
+    ],
+)
 def test_bad_friction_input(overrides, message):
-    with pytest.raises(contact.ConfigError, match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(
+        contact.ConfigError,
+        match=message.replace("[", r"\[").replace("(", r"\(").replace(")", r"\)"),
+    ):
         block(*overrides)
 
 
 def test_friction_needs_elasticity_and_a_threshold_that_is_not_negative():
-    with pytest.raises(contact.ConfigError, match="friction.law: tresca friction needs model type elasticity"):
-        contact.load_scene(ROOT / "configs" / "signorini_square.yaml", ["friction.law=tresca", "friction.threshold=1"])
-    with pytest.raises(contact.ConfigError, match="friction.threshold: negative or undefined at 21 contact node"):
+    with pytest.raises(
+        contact.ConfigError, match="friction.law: tresca friction needs model type elasticity"
+    ):
+        contact.load_scene(
+            ROOT / "configs" / "signorini_square.yaml",
+            ["friction.law=tresca", "friction.threshold=1"],
+        )
+    with pytest.raises(
+        contact.ConfigError, match="friction.threshold: negative or undefined at 21 contact node"
+    ):
         build_problem(block("friction.law=tresca", "friction.threshold=x - 0.01"))
 
 
 def test_drag_across_a_symmetry_plane_is_refused():
-    sets = HERTZ_SMALL["hertz_2d"] + coulomb(0.3) + ["data.u_D=[\"0.01\", \"-delta\"]"]
-    with pytest.raises(contact.ConfigError, match=r"data.u_D\[0\]: moves nodes of a symmetry plane across it"):
+    sets = HERTZ_SMALL["hertz_2d"] + coulomb(0.3) + ['data.u_D=["0.01", "-delta"]']
+    with pytest.raises(
+        contact.ConfigError, match=r"data.u_D\[0\]: moves nodes of a symmetry plane across it"
+    ):
         build_problem(contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", sets))
 
 
 def test_curved_obstacle_uses_the_rotated_frames():
     """A rigid circle indenting a block (rotated (n, t) unknowns per node): the frames are
     orthonormal to the nodal normals, Newton = fixed point, slipping nodes are on the cone."""
-    sets = ["mesh.cells=[40,20]", *coulomb(0.3), "output.verbose=false", 'data.u_D=["0.002", "delta"]']
+    sets = [
+        "mesh.cells=[40,20]",
+        *coulomb(0.3),
+        "output.verbose=false",
+        'data.u_D=["0.002", "delta"]',
+    ]
     path = ROOT / "configs" / "indentation_2d.yaml"
     problem = build_problem(contact.load_scene(path, sets))
     frames, normals = problem.friction.frames, problem.data["normals"]
@@ -305,7 +378,9 @@ def test_curved_obstacle_uses_the_rotated_frames():
     ssn = contact.solve(contact.load_scene(path, sets))
     fp = contact.solve(contact.load_scene(path, sets + ["friction.coulomb=fixed_point"]))
     assert ssn.converged and fp.converged
-    assert np.max(np.abs(ssn.u_h.x.array - fp.u_h.x.array)) <= 1e-8 * np.max(np.abs(ssn.u_h.x.array))
+    assert np.max(np.abs(ssn.u_h.x.array - fp.u_h.x.array)) <= 1e-8 * np.max(
+        np.abs(ssn.u_h.x.array)
+    )
     f = ssn.friction
     slip = f["status"] == 2
     assert slip.sum() >= 2 and (f["status"] == 1).sum() >= 2

@@ -3,20 +3,21 @@ its data are consistent with the exact solution, the discrete stick/slip status 
 from the transition, the energy error is O(h) under uniform refinement, Dörfler refinement
 converges at rate ≥ 0.45 in N with the Hild–Lleras friction estimator, whose effectivity
 stays in a band of width ≤ 2; and a frictionless scene keeps today's estimator."""
+
 from pathlib import Path
+
+import contact
+from contact.adaptivity.energy_error import solution_error
+from contact.models.elasticity import lame, stress
+from contact.output.step_report import exact_tractions
+from contact.post.contact_table import contact_table, tangent_2d
+from contact.setup import expressions
 
 import numpy as np
 import pytest
-from mpi4py import MPI
-
-import contact
 import ufl
 from dolfinx import fem
-from contact.setup import expressions
-from contact.adaptivity.energy_error import solution_error
-from contact.models.elasticity import lame, stress
-from contact.post.contact_table import contact_table, tangent_2d
-from contact.output.step_report import exact_tractions
+from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "configs" / "friction_tresca_manufactured.yaml"
@@ -39,7 +40,12 @@ def test_manufactured_data_are_those_of_the_exact_solution():
     sigma = stress(u, mu, lmbda)
     dx = ufl.Measure("dx", domain=scene.mesh, metadata={"quadrature_degree": 10})
     n = ufl.FacetNormal(scene.mesh)
-    ds = ufl.Measure("ds", domain=scene.mesh, subdomain_data=scene.boundary.tags, metadata={"quadrature_degree": 10})
+    ds = ufl.Measure(
+        "ds",
+        domain=scene.mesh,
+        subdomain_data=scene.boundary.tags,
+        metadata={"quadrature_degree": 10},
+    )
     sides, floor = scene.boundary.ids["sides"], scene.boundary.ids["floor"]
 
     def integral(expr, measure):
@@ -56,7 +62,7 @@ def test_manufactured_data_are_those_of_the_exact_solution():
     slip_side = ufl.conditional(ufl.gt(x[0], c["x0"]), 1.0, 0.0)
     assert integral(slip_side * (rho - mu * c["alpha"]) ** 2, ds(floor)) < 1e-28
     margin = integral((1 - slip_side) * (rho - mu * c["alpha"]), ds(floor))
-    assert margin == pytest.approx(mu * c["alpha"] * 0.25, rel=1e-12)       # ∫_0^½ 2μα(½ − x) dx
+    assert margin == pytest.approx(mu * c["alpha"] * 0.25, rel=1e-12)  # ∫_0^½ 2μα(½ − x) dx
 
 
 def _status_exact(scene, result, distance):
@@ -65,8 +71,11 @@ def _status_exact(scene, result, distance):
         return True
     x, status = table["x"], table["status"]
     far = np.abs(x - 0.5) >= distance
-    return bool(np.all(status[far & (x < 0.5)] == "stick") and np.all(status[far & (x > 0.5)] == "slip")
-                and far.sum() >= 0.6 * len(x))
+    return bool(
+        np.all(status[far & (x < 0.5)] == "stick")
+        and np.all(status[far & (x > 0.5)] == "slip")
+        and far.sum() >= 0.6 * len(x)
+    )
 
 
 def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
@@ -79,7 +88,7 @@ def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
         errors.append(solution_error(scene, r))
         dofs.append(r.dofs)
     rates = -np.diff(np.log(errors)) / np.diff(np.log(dofs))
-    assert np.all(rates > 0.48), rates                      # O(h) = O(N^{-1/2})
+    assert np.all(rates > 0.48), rates  # O(h) = O(N^{-1/2})
     assert errors[-1] < 0.017
     # the nodal multipliers against the exact tractions (the reference curves of traction.png)
     table = contact_table(scene, r)
@@ -89,7 +98,7 @@ def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
         assert np.allclose(s, table["x"]) and s[0] == pytest.approx(0.0)
         assert np.max(np.abs(p_exact + table["lambda_n"])) < 0.02 * np.max(p_exact)
         assert np.max(np.abs(t_exact - table["lambda_t"])) < 0.02 * np.max(np.abs(t_exact))
-        assert np.allclose(t_exact, -0.5 * lame(1.0, 0.3)[0], rtol=1e-6)          # λ_t = −μα
+        assert np.allclose(t_exact, -0.5 * lame(1.0, 0.3)[0], rtol=1e-6)  # λ_t = −μα
 
 
 def test_dorfler_adaptive_rate_and_effectivity_band():
@@ -120,10 +129,21 @@ def test_frictionless_estimator_unchanged_and_zero_friction_equal():
     path = ROOT / "configs" / "hertz_2d.yaml"
     scene = contact.load_scene(path, sets)
     est = contact.estimate(scene, contact.solve(scene))
-    assert set(est.terms) == {"volume", "jump", "neumann", "consistency", "tangential", "sign", "complementarity"}
+    assert set(est.terms) == {
+        "volume",
+        "jump",
+        "neumann",
+        "consistency",
+        "tangential",
+        "sign",
+        "complementarity",
+    }
     scene0 = contact.load_scene(path, sets + ["friction.law=coulomb", "friction.coefficient=0"])
     est0 = contact.estimate(scene0, contact.solve(scene0))
-    assert est0.terms["friction_bound"] < 1e-14 * est.eta**2 and est0.terms["slip"] < 1e-14 * est.eta**2
+    assert (
+        est0.terms["friction_bound"] < 1e-14 * est.eta**2
+        and est0.terms["slip"] < 1e-14 * est.eta**2
+    )
     for name, value in est.terms.items():
         assert est0.terms[name] == pytest.approx(value, rel=1e-8, abs=1e-14)
     assert est0.eta == pytest.approx(est.eta, rel=1e-10)

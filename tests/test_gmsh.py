@@ -1,25 +1,36 @@
 """A scene on a gmsh .msh file with physical tags (issue #2): boundary parts by tag give the
 same answer as by predicate on the same mesh, semismooth Newton agrees with vinewtonrsls,
 and the adaptive loop refines a gmsh mesh keeping its tags."""
-import numpy as np
-import pytest
-from conftest import make_square_msh
 
 import contact
 from contact.models.scalar import scalar_problem
 
+import numpy as np
+import pytest
+from conftest import make_square_msh
+
 
 def _scene(msh, boundaries):
-    return {"name": "gmsh_square", "mesh": {"type": "gmsh", "file": str(msh)},
-            "boundaries": boundaries, "model": "signorini",
-            "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"}, "output": {"verbose": False}}
+    return {
+        "name": "gmsh_square",
+        "mesh": {"type": "gmsh", "file": str(msh)},
+        "boundaries": boundaries,
+        "model": "signorini",
+        "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"},
+        "output": {"verbose": False},
+    }
 
 
-BY_TAG = {"top": {"role": "dirichlet", "tag": 2}, "sides": {"role": "neumann", "tag": 3},
-          "bottom": {"role": "contact", "tag": 1}}
-BY_PREDICATE = {"top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
-                "sides": {"role": "neumann", "where": "x < 1e-10 or x > 1 - 1e-10"},
-                "bottom": {"role": "contact", "where": "y < 1e-10"}}
+BY_TAG = {
+    "top": {"role": "dirichlet", "tag": 2},
+    "sides": {"role": "neumann", "tag": 3},
+    "bottom": {"role": "contact", "tag": 1},
+}
+BY_PREDICATE = {
+    "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+    "sides": {"role": "neumann", "where": "x < 1e-10 or x > 1 - 1e-10"},
+    "bottom": {"role": "contact", "where": "y < 1e-10"},
+}
 
 
 @pytest.fixture(scope="module")
@@ -56,5 +67,6 @@ def test_adaptive_loop_on_gmsh_mesh(msh):
     assert set(last.boundary.ids.values()) == {1, 2, 3}
     # every contact facet of the refined mesh still lies on y = 0
     from dolfinx.mesh import compute_midpoints
+
     mid = compute_midpoints(last.mesh, 1, last.boundary.facets("contact"))
     assert len(mid) > 0 and np.all(np.abs(mid[:, 1]) < 1e-10)

@@ -5,6 +5,7 @@ each other, solvers that never import a scene, a model or a driver, a scalar mod
 never imports elasticity.  Function-level ("lazy") imports count; imports used only for
 annotations (``if TYPE_CHECKING:``) do not.  That a scalar *run* loads no elasticity module
 is test_elasticity.py::test_a_run_imports_only_its_own_model."""
+
 from __future__ import annotations
 
 import os
@@ -23,8 +24,14 @@ def lint(root: Path) -> subprocess.CompletedProcess:
     """``lint-imports`` on the package ``contact`` under ``root`` with the contracts of
     ``root/pyproject.toml`` (that copy of the package, not the installed one)."""
     env = {**os.environ, "PYTHONPATH": str(root)}
-    return subprocess.run([str(LINT), "--no-cache", "--no-logo", str(root / "pyproject.toml")], cwd=root,
-                          env=env, capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [str(LINT), "--no-cache", "--no-logo", str(root / "pyproject.toml")],
+        cwd=root,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 def test_the_contracts_hold():
@@ -34,7 +41,9 @@ def test_the_contracts_hold():
 
 
 def _copy(tmp_path: Path) -> Path:
-    shutil.copytree(ROOT / "contact", tmp_path / "contact", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(
+        ROOT / "contact", tmp_path / "contact", ignore=shutil.ignore_patterns("__pycache__")
+    )
     shutil.copy(ROOT / "pyproject.toml", tmp_path)
     return tmp_path
 
@@ -46,17 +55,30 @@ SOLVERS, SCALAR = "the solvers take a problem", "a scalar model imports no elast
 # loop too, since the lower package already imports the higher one's dependencies)
 PLANTED = {
     "a solver reads a scene (lazy import)": (
-        "solvers/ncp.py", "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
-        [LAYERS, ACYCLIC, SOLVERS]),
+        "solvers/ncp.py",
+        "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
+        [LAYERS, ACYCLIC, SOLVERS],
+    ),
     "a solver calls a driver": (
-        "solvers/result.py", "from ..drivers import sequencing\n", [LAYERS, ACYCLIC, SOLVERS]),
+        "solvers/result.py",
+        "from ..drivers import sequencing\n",
+        [LAYERS, ACYCLIC, SOLVERS],
+    ),
     "the estimator imports an output helper": (
-        "adaptivity/estimate.py", "from ..output.plots import draw_in_turn\n", [LAYERS, ACYCLIC]),
+        "adaptivity/estimate.py",
+        "from ..output.plots import draw_in_turn\n",
+        [LAYERS, ACYCLIC],
+    ),
     "two models import each other": (
-        "models/basis.py", "def _planted():\n    from . import mortar\n    return mortar\n", [ACYCLIC]),
+        "models/basis.py",
+        "def _planted():\n    from . import mortar\n    return mortar\n",
+        [ACYCLIC],
+    ),
     "a scalar model imports elasticity through another module": (
-        "models/problem.py", "def _planted():\n    from .elasticity import lame\n    return lame\n",
-        [ACYCLIC, SCALAR]),
+        "models/problem.py",
+        "def _planted():\n    from .elasticity import lame\n    return lame\n",
+        [ACYCLIC, SCALAR],
+    ),
 }
 
 
@@ -77,6 +99,9 @@ def test_an_annotation_only_import_breaks_nothing(tmp_path):
     """``if TYPE_CHECKING:`` imports are left out (charts.py annotates with study's Study)."""
     root = _copy(tmp_path)
     with open(root / "contact" / "solvers" / "ncp.py", "a") as f:
-        f.write("\n\nfrom typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from " "..setup.scene import Scene\n")
+        f.write(
+            "\n\nfrom typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n    from "
+            "..setup.scene import Scene\n"
+        )
     proc = lint(root)
     assert proc.returncode == 0, proc.stdout

@@ -1,15 +1,18 @@
 """Krylov + GAMG gives the same discrete solution as the direct solver (issue #2)."""
-import numpy as np
-import pytest
 
 import contact
 from contact.models.scalar import scalar_problem
+
+import numpy as np
+import pytest
 from ties import tie_margin
 
 GAMG = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
 
 
-@pytest.mark.parametrize("scene_name", ["signorini_square", "signorini_free_boundary", "obstacle_membrane"])
+@pytest.mark.parametrize(
+    "scene_name", ["signorini_square", "signorini_free_boundary", "obstacle_membrane"]
+)
 @pytest.mark.parametrize("method", ["fb", "min"])
 def test_gamg_matches_direct(scene_name, method):
     scene = contact.load_scene(f"configs/{scene_name}.yaml", ["mesh.cells=[32,32]"])
@@ -19,7 +22,7 @@ def test_gamg_matches_direct(scene_name, method):
     krylov = contact.solve(scene, method=method, problem=problem, verbose=False, petsc_options=GAMG)
     assert direct.converged and krylov.converged, (direct.reason, krylov.reason)
     assert np.max(np.abs(krylov.u_h.x.array - u_direct)) <= 1e-8
-    assert tie_margin(direct) >= 1e-6   # no node near a tie: 1e-8 cannot move the count
+    assert tie_margin(direct) >= 1e-6  # no node near a tie: 1e-8 cannot move the count
     assert krylov.n_active == direct.n_active
 
 
@@ -38,8 +41,14 @@ def test_options_read_at_setup_reach_the_solver():
     problem = scalar_problem(scene)
     its = {}
     for sweeps in (1, 6):
-        r = contact.solve(scene, method="min", problem=problem, verbose=False, linear="gamg",
-                          petsc_options={"mg_levels_ksp_max_it": sweeps})
+        r = contact.solve(
+            scene,
+            method="min",
+            problem=problem,
+            verbose=False,
+            linear="gamg",
+            petsc_options={"mg_levels_ksp_max_it": sweeps},
+        )
         assert r.converged, r.reason
         its[sweeps] = r.krylov_iterations
     assert its[6] < its[1], its
@@ -52,7 +61,9 @@ def test_gamg_coarsens_by_mis2_only_in_parallel_2d():
 
     key = "pc_gamg_aggressive_square_graph"
     assert default_options("gamg", 2, ranks=2)[key] is False
-    assert key not in default_options("gamg", 2, ranks=1) and key not in default_options("gamg", 3, ranks=2)
+    assert key not in default_options("gamg", 2, ranks=1) and key not in default_options(
+        "gamg", 3, ranks=2
+    )
 
 
 MIS2_RUN = """
@@ -92,12 +103,19 @@ def test_gamg_in_parallel_gives_the_serial_answer(tmp_path):
 
     script = tmp_path / "mis2.py"
     script.write_text(MIS2_RUN)
-    proc = subprocess.run([str(Path(sys.executable).parent / "mpirun"), "-n", "2", sys.executable, str(script)],
-                          capture_output=True, text=True, timeout=300, cwd=Path(__file__).resolve().parents[1],
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        [str(Path(sys.executable).parent / "mpirun"), "-n", "2", sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=Path(__file__).resolve().parents[1],
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stderr
-    converged, square_graph, norm2, n_active, margin = json.loads(proc.stdout.strip().splitlines()[-1])
-    assert converged and square_graph is False and margin >= 1e-6   # no node near a tie
+    converged, square_graph, norm2, n_active, margin = json.loads(
+        proc.stdout.strip().splitlines()[-1]
+    )
+    assert converged and square_graph is False and margin >= 1e-6  # no node near a tie
     scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[96,96]"])
     r = contact.solve(scene, method="min", verbose=False, linear="gamg")
     serial = fem.assemble_scalar(fem.form(r.u_h**2 * ufl.dx))

@@ -1,19 +1,19 @@
 """Quasi-static load paths (issue 12): the pseudo-time t in expressions, 1 step = 10 steps of a
 proportional stick-only loading, slip accumulating over the steps of a pulled block, warm
 starts, and the per-step output folder of `contact run`."""
+
 import csv
 import json
 import subprocess
 import sys
 from pathlib import Path
 
+import contact
+from contact.drivers.load_path import load_times, run_load_path
+from contact.setup import expressions
+
 import numpy as np
 import pytest
-
-import contact
-from contact.setup import expressions
-from contact.drivers.load_path import load_times, run_load_path
-
 from test_friction import BLOCK, block, coulomb
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,16 +59,18 @@ def test_pulled_block_slip_accumulates_over_the_steps():
     one = run_load_path(block(*sets)).steps[-1].result
     assert path.converged
     slips = np.array([s.result.friction["slip"][:, 0] for s in path.steps])
-    assert np.all(slips[1:] >= -1e-12) and slips[1:].sum() > 0.03          # along the drag
-    assert np.all(slips[0, -2:] < 0)         # step 1 also presses: the front edge expands outward
+    assert np.all(slips[1:] >= -1e-12) and slips[1:].sum() > 0.03  # along the drag
+    assert np.all(slips[0, -2:] < 0)  # step 1 also presses: the front edge expands outward
     counts = [np.bincount(s.result.friction["status"], minlength=3) for s in path.steps]
     # sticks first, slides at the end
     assert counts[0][1] > 0 and counts[-1][1] == 0
     assert np.allclose(slips.sum(axis=0), one.friction["slip"][:, 0], atol=1e-12)
     assert np.allclose(slips[-1], 0.005, rtol=1e-8)
-    assert max(s.result.iterations for s in path.steps) <= 10   # a bound (warm starts take 1–8)
+    assert max(s.result.iterations for s in path.steps) <= 10  # a bound (warm starts take 1–8)
     f = path.steps[-1].result.friction
-    assert abs(np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))
+    assert abs(
+        np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])
+    ) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))
 
 
 def test_run_writes_every_step(tmp_path):
@@ -79,18 +81,37 @@ def test_run_writes_every_step(tmp_path):
     import pyvista
     import yaml
 
-    scene = {**BLOCK, "data": {"u_D": ["0.05*t", "-0.01"]}, "friction": {"law": "coulomb", "coefficient": 0.3},
-             "load": {"steps": 3}, "output": {"verbose": False}}
+    scene = {
+        **BLOCK,
+        "data": {"u_D": ["0.05*t", "-0.01"]},
+        "friction": {"law": "coulomb", "coefficient": 0.3},
+        "load": {"steps": 3},
+        "output": {"verbose": False},
+    }
     path = tmp_path / "drag.yaml"
     path.write_text(yaml.safe_dump(scene))
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(path), "-o", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "contact.app.cli", "run", str(path), "-o", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
-    assert {"steps.csv", "summary.json", "contact.csv", "pressure.png", "traction.png", "solution.png",
-            "history.csv", "solution.pvd"} <= names
-    assert {f"solution_00{k}.vtu" for k in (0, 1, 2)} | {f"contact_step_00{k}.csv" for k in (0, 1, 2)} <= names
+    assert {
+        "steps.csv",
+        "summary.json",
+        "contact.csv",
+        "pressure.png",
+        "traction.png",
+        "solution.png",
+        "history.csv",
+        "solution.pvd",
+    } <= names
+    assert {f"solution_00{k}.vtu" for k in (0, 1, 2)} | {
+        f"contact_step_00{k}.csv" for k in (0, 1, 2)
+    } <= names
     reader = pyvista.get_reader(str(out / "solution.pvd"))
     assert reader.time_values == pytest.approx([1 / 3, 2 / 3, 1.0])
     reader.set_active_time_value(reader.time_values[-1])
@@ -102,27 +123,39 @@ def test_run_writes_every_step(tmp_path):
     assert [float(s["time"]) for s in steps] == pytest.approx([1 / 3, 2 / 3, 1.0])
     for s in steps:
         for ax in "xy":
-            assert float(s[f"contact_force_{ax}"]) == pytest.approx(-float(s[f"reaction_force_{ax}"]), abs=1e-12)
+            assert float(s[f"contact_force_{ax}"]) == pytest.approx(
+                -float(s[f"reaction_force_{ax}"]), abs=1e-12
+            )
     last = steps[-1]
-    assert float(last["friction_ratio"]) == pytest.approx(0.3, rel=1e-8) and int(last["stick_nodes"]) == 0
+    assert (
+        float(last["friction_ratio"]) == pytest.approx(0.3, rel=1e-8)
+        and int(last["stick_nodes"]) == 0
+    )
     rows = list(csv.DictReader(open(out / "contact.csv")))
     assert len(rows) == 41 and {r["status"] for r in rows} <= {"slip", "separated"}
     s_ = [float(r["s"]) for r in rows]
     assert s_ == sorted(s_) and s_[0] == pytest.approx(0.0) and s_[-1] == pytest.approx(2.0)
     assert {"lambda_t", "slip", "bound", "lambda_t_norm", "slip_norm", "weight"} <= set(rows[0])
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["steps_total"] == 3 and len(summary["steps"]) == 3 and summary["friction"] == "coulomb"
+    assert (
+        summary["steps_total"] == 3
+        and len(summary["steps"]) == 3
+        and summary["friction"] == "coulomb"
+    )
     assert summary["newton_iterations_max_per_step"] <= 10 and "solution.pvd" in summary["files"]
 
 
 MPIRUN = Path(sys.executable).parent / "mpirun"
 
 
-@pytest.mark.parametrize("scene,sets", [
-    ("friction_block_2d.yaml", ["mesh.cells=[40,10]"]),
-    ("friction_cylinder_2d.yaml", ["mesh.cells=[64,16]", "load.steps=4"]),
-    ("friction_box_3d.yaml", ["mesh.cells=[6,6,3]", "load.steps=4"]),
-])
+@pytest.mark.parametrize(
+    "scene,sets",
+    [
+        ("friction_block_2d.yaml", ["mesh.cells=[40,10]"]),
+        ("friction_cylinder_2d.yaml", ["mesh.cells=[64,16]", "load.steps=4"]),
+        ("friction_box_3d.yaml", ["mesh.cells=[6,6,3]", "load.steps=4"]),
+    ],
+)
 def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
     """The whole load path (stick, partial slip, sliding) on 1 and 2 MPI ranks: the same
     displacements, tractions, slips (to 1e-8) and statuses (away from ties)."""
@@ -132,9 +165,15 @@ def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     args = [f"--set={s}" for s in sets]
     s, p = tmp_path / "s.npz", tmp_path / "p.npz"
-    subprocess.run([sys.executable, str(script), str(s), path, *args], check=True, timeout=300, env=env)
-    subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script), str(p), path, *args],
-                   check=True, timeout=300, env=env)
+    subprocess.run(
+        [sys.executable, str(script), str(s), path, *args], check=True, timeout=300, env=env
+    )
+    subprocess.run(
+        [str(MPIRUN), "-n", "2", sys.executable, str(script), str(p), path, *args],
+        check=True,
+        timeout=300,
+        env=env,
+    )
     s, p = dict(np.load(s)), dict(np.load(p))
     assert s["converged"].all() and p["converged"].all()
     assert np.allclose(s["X"], p["X"], atol=1e-12)
@@ -148,13 +187,17 @@ def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
     # the statuses agree wherever a node is clear of both kinks (rounding may tip one that
     # is on a kink: λ_n ≈ 0 with gap ≈ 0, or |λ_t| ≈ ρ with slip ≈ 0)
     col = {name: s["surface"][:, cols.index(name)] for name in cols}
-    clear = (np.abs(col["lambda_n"]) > 1e-6 * np.max(np.abs(col["lambda_n"]))) | \
-        (col["gap"] > 1e-6 * np.max(np.abs(s["u"])))
-    clear &= (col["bound"] - col["lambda_t_norm"] > 1e-6 * np.max(col["bound"])) | \
-        (col["slip_norm"] > 1e-6 * max(np.max(col["slip_norm"]), 1e-300)) | (col["bound"] == 0)
+    clear = (np.abs(col["lambda_n"]) > 1e-6 * np.max(np.abs(col["lambda_n"]))) | (
+        col["gap"] > 1e-6 * np.max(np.abs(s["u"]))
+    )
+    clear &= (
+        (col["bound"] - col["lambda_t_norm"] > 1e-6 * np.max(col["bound"]))
+        | (col["slip_norm"] > 1e-6 * max(np.max(col["slip_norm"]), 1e-300))
+        | (col["bound"] == 0)
+    )
     assert clear.sum() >= 0.9 * len(clear)
     assert np.array_equal(s["status"][clear], p["status"][clear])
-    assert s["its"].max() <= 10 and p["its"].max() <= 10   # a bound (round-off may change a count)
+    assert s["its"].max() <= 10 and p["its"].max() <= 10  # a bound (round-off may change a count)
 
 
 def test_study_sweeps_friction_axes_and_steps():
@@ -163,11 +206,19 @@ def test_study_sweeps_friction_axes_and_steps():
     the friction ratio and the stick measure (one level row per step)."""
     from contact.app.study import load_study, run_study
 
-    study = {"name": "friction", "scene": str(ROOT / "configs" / "friction_block_2d.yaml"),
-             "set": ["mesh.cells=[20,6]"], "warmup": False,
-             "axes": {"steps": [1, 5], "coefficient": [0.3]},
-             "cases": {"hsw": {"friction_form": "hsw"}, "projection": {"friction_form": "projection"},
-                       "fixed point": {"coulomb": "fixed_point"}, "frictionless": {"friction": "none"}}}
+    study = {
+        "name": "friction",
+        "scene": str(ROOT / "configs" / "friction_block_2d.yaml"),
+        "set": ["mesh.cells=[20,6]"],
+        "warmup": False,
+        "axes": {"steps": [1, 5], "coefficient": [0.3]},
+        "cases": {
+            "hsw": {"friction_form": "hsw"},
+            "projection": {"friction_form": "projection"},
+            "fixed point": {"coulomb": "fixed_point"},
+            "frictionless": {"friction": "none"},
+        },
+    }
     assert len(load_study(study).runs()) == 4 * 2
     rows, levels = run_study(study, verbose=False)
     assert all(r["converged"] for r in rows)
@@ -175,9 +226,11 @@ def test_study_sweeps_friction_axes_and_steps():
         assert r["levels"] == r["steps"]
         # (all inner solves)
         assert r["max_step_iterations"] <= (40 if r["case"] == "fixed point" else 10)
-        assert r["newton_iterations_total"] == sum(lv["newton_iterations"] for lv in levels if lv["run"] == r["run"])
+        assert r["newton_iterations_total"] == sum(
+            lv["newton_iterations"] for lv in levels if lv["run"] == r["run"]
+        )
         if r["case"] != "frictionless":
-            assert r["friction_ratio"] == pytest.approx(0.3, rel=1e-8)        # sliding at t = 1
+            assert r["friction_ratio"] == pytest.approx(0.3, rel=1e-8)  # sliding at t = 1
         else:
             assert "friction_ratio" not in r or r["friction_ratio"] == ""
     assert {r["fixed_point_iterations"] for r in rows if r["case"] == "fixed point"} != {""}
@@ -188,8 +241,15 @@ def test_adaptive_loop_each_step_or_at_the_end(mode):
     """load.adapt: `each` refines at every step and continues on the previous step's final mesh
     (u_prev prolonged with it); `end` solves the first steps on the scene's mesh and refines at
     the last.  Either way the block ends sliding (Coulomb's force law on the refined mesh)."""
-    sets = [*coulomb(0.3), 'data.u_D=["0.05*t", "-0.01"]', "mesh.cells=[20,6]", "load.steps=2",
-            f"load.adapt={mode}", "adapt.max_levels=3", "adapt.strategy=dorfler"]
+    sets = [
+        *coulomb(0.3),
+        'data.u_D=["0.05*t", "-0.01"]',
+        "mesh.cells=[20,6]",
+        "load.steps=2",
+        f"load.adapt={mode}",
+        "adapt.max_levels=3",
+        "adapt.strategy=dorfler",
+    ]
     path = run_load_path(block(*sets))
     assert path.converged and len(path.steps) == 2
     first, last = path.steps
@@ -197,31 +257,64 @@ def test_adaptive_loop_each_step_or_at_the_end(mode):
     n_base = contact.solve(base).dofs
     if mode == "each":
         assert len(first.levels) == 3 and first.result.dofs > n_base
-        assert last.levels[0].result.dofs == first.result.dofs and last.result.dofs > first.result.dofs
+        assert (
+            last.levels[0].result.dofs == first.result.dofs and last.result.dofs > first.result.dofs
+        )
     else:
         assert first.levels == [] and first.result.dofs == n_base
         assert len(last.levels) == 3 and last.result.dofs > n_base
     assert "u_prev" in last.scene.history
     f = last.result.friction
-    assert abs(np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))
+    assert abs(
+        np.sum(f["w"] * f["lambda_t"][:, 0]) - 0.3 * np.sum(f["w"] * f["lambda_n"])
+    ) <= 1e-8 * abs(np.sum(f["w"] * f["lambda_n"]))
 
 
 def test_run_keeps_the_steps_before_a_failing_one(tmp_path):
     """A step that does not converge (data that blow up at t = 1): exit 1, one line, and the
     folder holds the converged first step with converged false and failed_step 2."""
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(ROOT / "configs" / "friction_block_2d.yaml"),
-                           "-o", str(out), "-q", "--set", 'data.u_D=["0", "-0.01*t*(1 if t < 0.6 else 1e200)"]',
-                           "--set", "load.times=[0.5, 1.0]", "--set", "load.steps=null", "--set", "mesh.cells=[20,6]"],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "contact.app.cli",
+            "run",
+            str(ROOT / "configs" / "friction_block_2d.yaml"),
+            "-o",
+            str(out),
+            "-q",
+            "--set",
+            'data.u_D=["0", "-0.01*t*(1 if t < 0.6 else 1e200)"]',
+            "--set",
+            "load.times=[0.5, 1.0]",
+            "--set",
+            "load.steps=null",
+            "--set",
+            "mesh.cells=[20,6]",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 1
-    assert proc.stderr.count("\n") == 1 and "step 2 (t = 1) did not converge" in proc.stderr and "kept step 1" in proc.stderr
+    assert (
+        proc.stderr.count("\n") == 1
+        and "step 2 (t = 1) did not converge" in proc.stderr
+        and "kept step 1" in proc.stderr
+    )
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["converged"] is False and summary["failed_step"] == 2 and summary["steps_total"] == 1
+    assert (
+        summary["converged"] is False
+        and summary["failed_step"] == 2
+        and summary["steps_total"] == 1
+    )
     assert (out / "solution_000.vtu").is_file() and not (out / "solution_001.vtu").exists()
 
 
 def test_data_checked_at_every_step():
     """Data that depend on t are checked at each step's t: a one-line error naming the step."""
-    with pytest.raises(contact.ConfigError, match=r"data.u_D\[0\] \(at t = 0.25\): not a finite number"):
+    with pytest.raises(
+        contact.ConfigError, match=r"data.u_D\[0\] \(at t = 0.25\): not a finite number"
+    ):
         run_load_path(block('data.u_D=["log(t - 0.35)", "-0.01"]', "load.steps=4"))

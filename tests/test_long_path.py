@@ -4,6 +4,7 @@ end with the communicators MPI can still create and the live PETSc objects const
 first steps, and the memory growing by no more than the few KiB of figures a released step
 keeps.  Serially through the API, and through `contact run` on two ranks.  The same run
 with 2000 steps: demos/bench/bench_long_path.py (its CSV in demos/results/long_path/)."""
+
 import csv
 import os
 import subprocess
@@ -23,15 +24,32 @@ RSS_GROWTH_MIB = 8.0
 
 def run_bench(tmp_path: Path, ranks: int, *args: str) -> list[dict]:
     out = tmp_path / "long_path.csv"
-    cmd = [sys.executable, str(BENCH), "--steps", str(STEPS), "--every", str(EVERY), "--out", str(out),
-           *args]
+    cmd = [
+        sys.executable,
+        str(BENCH),
+        "--steps",
+        str(STEPS),
+        "--every",
+        str(EVERY),
+        "--out",
+        str(out),
+        *args,
+    ]
     if ranks > 1:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1200, cwd=ROOT,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        cmd,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+        cwd=ROOT,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    return [{k: v if k in ("scene", "mode", "converged") else float(v) for k, v in row.items()}
-            for row in csv.DictReader(open(out))]
+    return [
+        {k: v if k in ("scene", "mode", "converged") else float(v) for k, v in row.items()}
+        for row in csv.DictReader(open(out))
+    ]
 
 
 def check_flat(rows: list[dict]) -> None:
@@ -43,7 +61,7 @@ def check_flat(rows: list[dict]) -> None:
     first, last = at[EVERY], at[STEPS]
     for key in ("free_communicators", "petsc_objects"):
         assert [r[key] for r in rows[1:]] == [first[key]] * (len(rows) - 1), key
-    assert {r["petsc_options"] for r in rows} == {0.0}     # each solve deletes its own
+    assert {r["petsc_options"] for r in rows} == {0.0}  # each solve deletes its own
     assert last["rss_mib"] - at[200]["rss_mib"] < RSS_GROWTH_MIB
 
 

@@ -1,13 +1,14 @@
 """Tests of the complementarity functions and their generalized derivatives (docs/theory.md §3)."""
+
 from __future__ import annotations
 
 import decimal
 
-import numpy as np
-import pytest
-
 import contact  # noqa: F401  (sets up dolfinx_solver before dolfinx is imported)
 from contact.solvers import ncp
+
+import numpy as np
+import pytest
 
 MUS = (0.3, 0.5, 0.7)
 CASES = [("fb", 0.5), ("min", 0.5)] + [("blend", mu) for mu in MUS]
@@ -27,7 +28,7 @@ def _loguniform(rng, lo, hi, n):
 def _complementary(rng, lo=1e-300, hi=1e300, n=4000):
     """Random pairs a ≥ 0, b ≥ 0, a·b = 0 over magnitudes lo..hi (both orders, some zeros)."""
     mag = _loguniform(rng, lo, hi, n)
-    mag[:: 17] = 0.0
+    mag[::17] = 0.0
     first = rng.random(n) < 0.5
     a = np.where(first, mag, 0.0)
     b = np.where(first, 0.0, mag)
@@ -47,17 +48,48 @@ def _not_complementary(rng, lo, hi, n=4000):
 
 
 EDGE_COMPLEMENTARY = [
-    (0.0, 0.0), (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0),
-    (0.0, 1.0), (1.0, 0.0), (0.0, TINY), (TINY, 0.0), (0.0, 1e-300), (1e-300, 0.0),
-    (0.0, HUGE), (HUGE, 0.0), (0.0, 1e-5), (3.7e12, 0.0),
+    (0.0, 0.0),
+    (-0.0, 0.0),
+    (0.0, -0.0),
+    (-0.0, -0.0),
+    (0.0, 1.0),
+    (1.0, 0.0),
+    (0.0, TINY),
+    (TINY, 0.0),
+    (0.0, 1e-300),
+    (1e-300, 0.0),
+    (0.0, HUGE),
+    (HUGE, 0.0),
+    (0.0, 1e-5),
+    (3.7e12, 0.0),
 ]
 EDGE_COMPLEMENTARY_OVERFLOW = [(0.0, 1e308), (1e308, 0.0), (0.0, FMAX), (FMAX, 0.0)]
 EDGE_NOT_COMPLEMENTARY = [
-    (-1.0, 0.0), (0.0, -1.0), (-1.0, -1.0), (1.0, 1.0), (-1.0, 1.0), (1.0, -1.0),
-    (-TINY, 0.0), (0.0, -TINY), (-TINY, -TINY), (1e-310, 1e-310), (-1e-310, 1e-310),
-    (-1e-300, HUGE), (-HUGE, 1e-300), (1e-300, HUGE), (-HUGE, -HUGE), (HUGE, HUGE),
-    (-HUGE, HUGE), (HUGE, -HUGE), (-HUGE, 0.0), (0.0, -HUGE), (1e-300, 1e-300),
-    (-1e-300, -1e-300), (2.0, 3.0), (-2.0, 3.0), (1e-10, 1e10),
+    (-1.0, 0.0),
+    (0.0, -1.0),
+    (-1.0, -1.0),
+    (1.0, 1.0),
+    (-1.0, 1.0),
+    (1.0, -1.0),
+    (-TINY, 0.0),
+    (0.0, -TINY),
+    (-TINY, -TINY),
+    (1e-310, 1e-310),
+    (-1e-310, 1e-310),
+    (-1e-300, HUGE),
+    (-HUGE, 1e-300),
+    (1e-300, HUGE),
+    (-HUGE, -HUGE),
+    (HUGE, HUGE),
+    (-HUGE, HUGE),
+    (HUGE, -HUGE),
+    (-HUGE, 0.0),
+    (0.0, -HUGE),
+    (1e-300, 1e-300),
+    (-1e-300, -1e-300),
+    (2.0, 3.0),
+    (-2.0, 3.0),
+    (1e-10, 1e10),
 ]
 # pairs with 0 < |b| ≪ a, where b/(a+b+r) underflows (to 0 or to a subnormal): see
 # test_fb_small_partner_*
@@ -83,11 +115,20 @@ def test_zero_on_edge_complementary_pairs(method, mu, a, b):
     assert ncp.phi(np.array([a]), np.array([b]), method, mu)[0] == 0.0
 
 
-@pytest.mark.parametrize("method,mu,a,b", [
-    pytest.param(m, mu, a, b, id=f"{i}-{a}-{b}",
-                 )
-    for m, mu, i in [(m, mu, i) for (m, mu), i in zip(CASES, CASE_IDS)]
-    for a, b in EDGE_COMPLEMENTARY_OVERFLOW])
+@pytest.mark.parametrize(
+    "method,mu,a,b",
+    [
+        pytest.param(
+            m,
+            mu,
+            a,
+            b,
+            id=f"{i}-{a}-{b}",
+        )
+        for m, mu, i in [(m, mu, i) for (m, mu), i in zip(CASES, CASE_IDS)]
+        for a, b in EDGE_COMPLEMENTARY_OVERFLOW
+    ],
+)
 def test_zero_on_complementary_pairs_near_overflow(method, mu, a, b):
     with np.errstate(all="ignore"):
         assert ncp.phi(a, b, method, mu) == 0.0
@@ -113,9 +154,9 @@ def test_nonzero_on_random_non_complementary_pairs_moderate(method, mu):
     _check_not_complementary(method, mu, a, b)
 
 
-@pytest.mark.parametrize("method,mu", [
-    pytest.param(m, mu, id=i)
-    for (m, mu), i in zip(CASES, CASE_IDS)])
+@pytest.mark.parametrize(
+    "method,mu", [pytest.param(m, mu, id=i) for (m, mu), i in zip(CASES, CASE_IDS)]
+)
 def test_nonzero_on_random_non_complementary_pairs_full_range(method, mu):
     a, b = _not_complementary(np.random.default_rng(3), 1e-300, 1e300)
     _check_not_complementary(method, mu, a, b)
@@ -226,7 +267,7 @@ def test_dphi_is_lipschitz_bounded(method, mu):
 def test_fb_element_at_biactive_point():
     da, db = ncp.dphi(0.0, 0.0, "fb")
     alpha, beta = 1.0 - float(da), 1.0 - float(db)
-    assert alpha ** 2 + beta ** 2 <= 1.0 + 1e-15  # in ∂φ_FB(0, 0)
+    assert alpha**2 + beta**2 <= 1.0 + 1e-15  # in ∂φ_FB(0, 0)
     assert float(da) == pytest.approx(1.0 - 1.0 / np.sqrt(2.0), rel=1e-15)
     assert float(db) == pytest.approx(1.0 - 1.0 / np.sqrt(2.0), rel=1e-15)
     # the documented choice is the limit along the diagonal a = b ↓ 0
@@ -250,8 +291,12 @@ def test_fb_element_at_biactive_point_in_arrays():
 
 
 def _ties(rng):
-    t = np.concatenate([[0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, HUGE, -HUGE],
-                        _loguniform(rng, 1e-300, 1e300, 200) * rng.choice([-1.0, 1.0], 200)])
+    t = np.concatenate(
+        [
+            [0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, HUGE, -HUGE],
+            _loguniform(rng, 1e-300, 1e300, 200) * rng.choice([-1.0, 1.0], 200),
+        ]
+    )
     return t
 
 
@@ -288,7 +333,7 @@ def test_kinks_within_tolerance_take_the_documented_element(method, mu):
     want = ncp.dphi(0.0, 0.0, method, mu)
     np.testing.assert_array_equal(da, np.full(len(a), float(want[0])))
     np.testing.assert_array_equal(db, np.full(len(a), float(want[1])))
-    assert ncp.active_min(a, b, tol=1e-12).all()   # all at the biactive point: in contact
+    assert ncp.active_min(a, b, tol=1e-12).all()  # all at the biactive point: in contact
     # without the tolerance the signs decide: (0, +1e-17) is active, (0, -1e-17) is not
     assert list(ncp.active_min(a[:2], b[:2])) == [True, False]
     if method == "fb":
@@ -310,7 +355,7 @@ def test_blend_element_at_kinks(mu):
     t = _ties(np.random.default_rng(8))
     # FB is smooth on the diagonal off the origin: ∇φ_FB(t, t) = (1 - sign(t)/√2) · (1, 1)
     fb_elem = np.where(t < 0, 2.0 - C_FB, C_FB)
-    min_a = (t == 0).astype(float)          # min's element: (0, 1) at ties, (1, 0) at (0, 0)
+    min_a = (t == 0).astype(float)  # min's element: (0, 1) at ties, (1, 0) at (0, 0)
     da, db = ncp.dphi(t, t.copy(), "blend", mu)
     np.testing.assert_allclose(da, (1 - mu) * fb_elem + mu * min_a, rtol=1e-14)
     np.testing.assert_allclose(db, (1 - mu) * fb_elem + mu * (1.0 - min_a), rtol=1e-14)
@@ -326,11 +371,12 @@ def test_blend_is_convex_combination(mu):
     a, b = rng.normal(size=500), rng.normal(size=500)
     a[:20] = b[:20]
     a[20:25] = b[20:25] = 0.0
-    np.testing.assert_allclose(ncp.phi(a, b, "blend", mu),
-                               (1 - mu) * ncp.phi_fb(a, b) + mu * np.minimum(a, b), rtol=1e-14)
+    np.testing.assert_allclose(
+        ncp.phi(a, b, "blend", mu), (1 - mu) * ncp.phi_fb(a, b) + mu * np.minimum(a, b), rtol=1e-14
+    )
     da, db = ncp.dphi(a, b, "blend", mu)
     fa, fb_ = ncp.dphi_fb(a, b)
-    biactive = (a == 0) & (b == 0)                     # min's element there: (1, 0)
+    biactive = (a == 0) & (b == 0)  # min's element there: (1, 0)
     ma, mb = ((a < b) | biactive).astype(float), ((a >= b) & ~biactive).astype(float)
     np.testing.assert_allclose(da, (1 - mu) * fa + mu * ma, rtol=1e-14)
     np.testing.assert_allclose(db, (1 - mu) * fb_ + mu * mb, rtol=1e-14)
@@ -338,7 +384,9 @@ def test_blend_is_convex_combination(mu):
 
 def test_blend_default_mu_is_one_half():
     a, b = np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, 0.5])
-    np.testing.assert_allclose(ncp.phi(a, b, "blend"), 0.5 * ncp.phi_fb(a, b) + 0.5 * np.minimum(a, b))
+    np.testing.assert_allclose(
+        ncp.phi(a, b, "blend"), 0.5 * ncp.phi_fb(a, b) + 0.5 * np.minimum(a, b)
+    )
 
 
 # --------------------------------------------------------------------------------------
@@ -360,8 +408,8 @@ def test_methods_constant():
 # --------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def dg0_pair():
-    from mpi4py import MPI
     from dolfinx import fem, mesh
+    from mpi4py import MPI
 
     msh = mesh.create_unit_square(MPI.COMM_SELF, 8, 8)
     V = fem.functionspace(msh, ("DG", 0))
@@ -370,8 +418,20 @@ def dg0_pair():
     a_val = rng.normal(size=n) * 10.0 ** rng.integers(-3, 4, n)
     b_val = rng.normal(size=n) * 10.0 ** rng.integers(-3, 4, n)
     # complementary pairs, (0, 0), ties, a sign pattern of each kind
-    special = [(0.0, 0.0), (0.0, 2.0), (3.0, 0.0), (0.0, 1e-8), (1.5, 1.5), (-1.5, -1.5),
-               (-1.0, 0.0), (0.0, -1.0), (1.0, 2.0), (-1.0, 2.0), (1.0, -2.0), (1e3, 1e3 + 1)]
+    special = [
+        (0.0, 0.0),
+        (0.0, 2.0),
+        (3.0, 0.0),
+        (0.0, 1e-8),
+        (1.5, 1.5),
+        (-1.5, -1.5),
+        (-1.0, 0.0),
+        (0.0, -1.0),
+        (1.0, 2.0),
+        (-1.0, 2.0),
+        (1.0, -2.0),
+        (1e3, 1e3 + 1),
+    ]
     for i, (x, y) in enumerate(special):
         a_val[i], b_val[i] = x, y
     a, b = fem.Function(V), fem.Function(V)

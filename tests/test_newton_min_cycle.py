@@ -5,17 +5,18 @@ the blend, min with backtracking and min with the default globalization (plain s
 an active set repeats, then backtracking: contact.solvers.globalize) converge from the same
 start.  The same globalization in the contact solver on two_body_stack_2d, whose plain
 Newton-min cycled on one CPU and converged on another (issue 26)."""
+
 from __future__ import annotations
 
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 import contact
 from contact.solvers import ncp
 from contact.solvers.globalize import ARMIJO, MIN_STEP, WATCHDOG, CycleGuard, backtrack
 from contact.solvers.lcp import cycling_lcp, is_p_matrix, lcp_residual, newton_lcp
+
+import numpy as np
+import pytest
 
 STACK = Path(__file__).resolve().parents[1] / "configs" / "two_body_stack_2d.yaml"
 
@@ -63,8 +64,10 @@ def test_plain_newton_min_cycles() -> None:
         assert np.array_equal(da, (b - a > 0).astype(float)) and np.array_equal(db, 1.0 - da)
 
 
-@pytest.mark.parametrize("method, line_search", [("fb", "basic"), ("blend", "basic"), ("min", "bt"),
-                                                 ("fb", "bt"), ("min", "auto")])
+@pytest.mark.parametrize(
+    "method, line_search",
+    [("fb", "basic"), ("blend", "basic"), ("min", "bt"), ("fb", "bt"), ("min", "auto")],
+)
 def test_fb_blend_and_min_with_backtracking_converge(method: str, line_search: str) -> None:
     M, q, x0 = cycling_lcp()
     res = newton_lcp(M, q, x0, method=method, line_search=line_search, max_it=30)
@@ -81,7 +84,7 @@ def test_min_auto_takes_plain_steps_until_the_active_set_repeats() -> None:
     auto = newton_lcp(M, q, x0, method="min", line_search="auto", max_it=30)
     for k in range(4):
         assert np.array_equal(auto.iterates[k], plain.iterates[k])
-    assert not np.array_equal(auto.iterates[4], plain.iterates[4])   # the first shortened step
+    assert not np.array_equal(auto.iterates[4], plain.iterates[4])  # the first shortened step
     assert auto.converged and auto.period() == 0
 
 
@@ -97,12 +100,12 @@ def test_cycle_guard_and_backtracking() -> None:
     assert told == [False] * 4 + [True] * 2
     assert (guard.engaged_at, guard.why) == (4, "repeat")
     stagnant = CycleGuard()
-    norms = [1e-3, 1.0, 0.5] + [0.6] * WATCHDOG + [0.1]      # a new set every time
+    norms = [1e-3, 1.0, 0.5] + [0.6] * WATCHDOG + [0.1]  # a new set every time
     told = [stagnant.visit(np.arange(8) < k, f) for k, f in enumerate(norms)]
     assert told == [False] * (2 + WATCHDOG) + [True] * 2
     assert (stagnant.engaged_at, stagnant.why) == (2 + WATCHDOG, "stagnation")
-    assert backtrack(lambda t: (1 - t) ** 2 + 0.1, 1.0) == 1.0            # the full step decreases
-    assert backtrack(lambda t: (4 * t - 1) ** 2, 1.0) == 0.25             # 9, 1, 0 at t = 1, ½, ¼
+    assert backtrack(lambda t: (1 - t) ** 2 + 0.1, 1.0) == 1.0  # the full step decreases
+    assert backtrack(lambda t: (4 * t - 1) ** 2, 1.0) == 0.25  # 9, 1, 0 at t = 1, ½, ¼
     # never a sufficient decrease: the trial with the smallest merit (the full step or the last)
     assert backtrack(lambda t: 2.0 - t, 1.0) == 1.0
     assert backtrack(lambda t: 2.0 + t, 1.0) == MIN_STEP
@@ -122,8 +125,11 @@ def test_stack_min_converges_by_default_and_plain_steps_come_first() -> None:
     assert auto.converged and auto.options["line_search"] == "auto"
     scale = np.max(np.abs(ref.u_h.x.array))
     assert np.max(np.abs(auto.u_h.x.array - ref.u_h.x.array)) <= 1e-8 * scale
-    shared = len(auto.history) if auto.backtracked == 0 else next(
-        k for k, row in enumerate(auto.history) if k > 0 and row["step"] < 1.0)
+    shared = (
+        len(auto.history)
+        if auto.backtracked == 0
+        else next(k for k, row in enumerate(auto.history) if k > 0 and row["step"] < 1.0)
+    )
     residuals = [[r["residual"] for r in run.history[:shared]] for run in (auto, plain)]
     assert residuals[0] == residuals[1]
     if plain.converged:
@@ -138,6 +144,6 @@ def test_newton_min_converges_on_an_m_matrix_from_the_same_start() -> None:
     n = 3
     M = 2.0 * np.eye(n) - np.eye(n, k=1) - np.eye(n, k=-1)
     q = -np.ones(n)
-    res = newton_lcp(M, q, cycling_lcp()[2], method="min", max_it=30)   # plain: line search basic
+    res = newton_lcp(M, q, cycling_lcp()[2], method="min", max_it=30)  # plain: line search basic
     assert res.converged and res.iterations <= n
     assert np.allclose(res.x, _solution(M, q), atol=1e-12)

@@ -4,6 +4,7 @@ own readers) and meshio, every XDMF file with meshio and with h5py + the XML
 scene (all DoFs kept), an adaptive series (read as a series) — contact.csv and pressure.png
 for scalar and elastic contact, summary.json / history.csv / the "wrote" line list
 everything; in serial and on 2 MPI ranks; nothing at all when the solver fails (issue #2)."""
+
 import csv
 import json
 import os
@@ -25,8 +26,14 @@ def _contact(args, nproc=1, cwd=ROOT):
     cmd = [sys.executable, "-m", "contact.app.cli"] + [str(a) for a in args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return subprocess.run(
+        cmd,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
 
 
 def _rows(path: Path) -> list[dict]:
@@ -62,7 +69,9 @@ def read_folder(out: Path) -> dict:
         elif path.suffix == ".json" or path.name == ".contact-result":  # the marker is JSON too
             content[path.name] = json.loads(path.read_text())
         elif path.suffix == ".png":
-            assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000, path.name
+            assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and path.stat().st_size > 10_000, (
+                path.name
+            )
             content[path.name] = path
         else:
             raise AssertionError(f"unexpected output file {path.name}")
@@ -84,12 +93,13 @@ def check_grid(grid, summary: dict, nodal_dofs: int, vector: int = 1, cell_field
     active = grid.point_data["active"]
     assert set(np.unique(active)) <= {0.0, 1.0} and int(active.sum()) == summary["active_nodes"]
     gap = grid.point_data["gap"]
-    on = np.isfinite(gap)   # the gap lives on the constrained nodes of Γ_C only
+    on = np.isfinite(gap)  # the gap lives on the constrained nodes of Γ_C only
     assert on.sum() == summary["constrained_nodes"] and np.all(gap[on] >= -1e-10)
 
 
-def check_step(step: dict, grid, summary: dict, nodal_dofs: int, vector: int = 1,
-               cell_fields=()) -> None:
+def check_step(
+    step: dict, grid, summary: dict, nodal_dofs: int, vector: int = 1, cell_fields=()
+) -> None:
     """An XDMF step (:func:`readback.xdmf_steps`) holds one point per node of the solution
     space, every field, and the same values at the same points as the .vtu ``grid``."""
     points = step["points"]
@@ -101,13 +111,15 @@ def check_step(step: dict, grid, summary: dict, nodal_dofs: int, vector: int = 1
     assert set(cell_fields) <= set(step["cell"])
     names = sorted(step["point"])
     rows = lambda values: np.asarray(values).reshape(len(points), -1)  # noqa: E731
-    ours = by_position(np.c_[points, np.zeros((len(points), 3 - points.shape[1]))],
-                       *(rows(step["point"][n]) for n in names))
+    ours = by_position(
+        np.c_[points, np.zeros((len(points), 3 - points.shape[1]))],
+        *(rows(step["point"][n]) for n in names),
+    )
     theirs = by_position(np.asarray(grid.points), *(rows(grid.point_data[n]) for n in names))
     assert np.allclose(ours[0], theirs[0], rtol=0, atol=1e-12), "the same points (geometry, DoFs)"
     for a, b in zip(ours[1:], theirs[1:]):
         assert np.array_equal(a, b, equal_nan=True), "the XDMF and VTK files: the same nodal values"
-    for name in step["cell"]:   # compare the sorted cell values
+    for name in step["cell"]:  # compare the sorted cell values
         sorted_values = np.sort(np.asarray(grid.cell_data[name]))
         assert np.array_equal(np.sort(step["cell"][name].ravel()), sorted_values), name
 
@@ -129,14 +141,24 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     out = tmp_path / "run"
     proc = _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[24,20]"], nproc)
     assert proc.returncode == 0, proc.stderr
-    names = ["solution.h5", "solution.vtu", "solution.xdmf", "summary.json", "history.csv",
-             "solution.png", "contact.csv", "pressure.png"]
+    names = [
+        "solution.h5",
+        "solution.vtu",
+        "solution.xdmf",
+        "summary.json",
+        "history.csv",
+        "solution.png",
+        "contact.csv",
+        "pressure.png",
+    ]
     # + the marker
     assert sorted(p.name for p in out.iterdir()) == sorted(names + [".contact-result"])
     files = read_folder(out)
     summary = files["summary.json"]
     assert summary["files"] == sorted(names)
-    assert all(name in proc.stdout.splitlines()[-1] for name in names), "the wrote line names every file"
+    assert all(name in proc.stdout.splitlines()[-1] for name in names), (
+        "the wrote line names every file"
+    )
     n_vertices = 25 * 21
     check_grid(files["solution.vtu"], summary, n_vertices)
     assert files["solution.vtu"].n_cells == 2 * 24 * 20
@@ -144,8 +166,20 @@ def test_run_writes_complete_folder(tmp_path, nproc):
     check_step(step, files["solution.vtu"], summary, n_vertices)
     assert step["topology"] == "Triangle" and step["time"] is None
     assert summary["time_output_xdmf"] > 0 and summary["time_output_vtk"] > 0
-    for key in ("dofs", "mpi_ranks", "method", "newton_iterations", "polish_solves", "final_residual", "reason",
-                "active_nodes", "time_assembly", "time_linear_solve", "time_other", "contact_force"):
+    for key in (
+        "dofs",
+        "mpi_ranks",
+        "method",
+        "newton_iterations",
+        "polish_solves",
+        "final_residual",
+        "reason",
+        "active_nodes",
+        "time_assembly",
+        "time_linear_solve",
+        "time_other",
+        "contact_force",
+    ):
         assert key in summary, key
     assert summary["dofs"] == n_vertices and summary["mpi_ranks"] == nproc
     assert summary["converged"] and summary["reason"].startswith("converged")
@@ -166,20 +200,39 @@ def test_run_writes_complete_folder(tmp_path, nproc):
         assert "it   1" in proc.stdout, "progress line per Newton iteration"
 
 
-@pytest.mark.parametrize("scene,sets,vector", [
-    ("signorini_square.yaml", ["mesh.cells=[8,6]"], 1),
-    ("block_on_plane.yaml", ["mesh.cells=[8,4]", "adapt=none"], 2),
-])
+@pytest.mark.parametrize(
+    "scene,sets,vector",
+    [
+        ("signorini_square.yaml", ["mesh.cells=[8,6]"], 1),
+        ("block_on_plane.yaml", ["mesh.cells=[8,4]", "adapt=none"], 2),
+    ],
+)
 def test_p2_output_keeps_every_dof(tmp_path, scene, sets, vector):
     out = tmp_path / "p2"
-    proc = _contact(["run", ROOT / "configs" / scene, "-o", out, "-q", "--set", "mesh.degree=2",
-                     *(f"--set={s}" for s in sets)])
+    proc = _contact(
+        [
+            "run",
+            ROOT / "configs" / scene,
+            "-o",
+            out,
+            "-q",
+            "--set",
+            "mesh.degree=2",
+            *(f"--set={s}" for s in sets),
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     files = read_folder(out)
     summary = files["summary.json"]
     nx, ny = [int(v) for v in sets[0].split("=")[1].strip("[]").split(",")]
-    nodes = (2 * nx + 1) * (2 * ny + 1)          # vertices and edge midpoints
-    check_grid(files["solution.vtu"], summary, nodes, vector, cell_fields=("von_mises",) if vector > 1 else ())
+    nodes = (2 * nx + 1) * (2 * ny + 1)  # vertices and edge midpoints
+    check_grid(
+        files["solution.vtu"],
+        summary,
+        nodes,
+        vector,
+        cell_fields=("von_mises",) if vector > 1 else (),
+    )
     assert summary["degree"] == 2
     grid = files["solution.vtu"]
     assert set(np.unique(grid.celltypes)) == {69}, "VTK Lagrange triangles of degree 2"
@@ -192,8 +245,19 @@ def test_p2_output_keeps_every_dof(tmp_path, scene, sets, vector):
 
 def test_adaptive_series_reads_as_one_series(tmp_path):
     out = tmp_path / "adaptive"
-    proc = _contact(["run", ROOT / "configs" / "signorini_free_boundary.yaml", "-o", out,
-                     "--set", "adapt.max_levels=3", "--set", "adapt.pictures=2"], 2)
+    proc = _contact(
+        [
+            "run",
+            ROOT / "configs" / "signorini_free_boundary.yaml",
+            "-o",
+            out,
+            "--set",
+            "adapt.max_levels=3",
+            "--set",
+            "adapt.pictures=2",
+        ],
+        2,
+    )
     assert proc.returncode == 0, proc.stderr
     files = read_folder(out)
     summary = files["summary.json"]
@@ -204,11 +268,13 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     for (t, grid), row, step in zip(steps, conv, files["solution.xdmf"]):
         assert grid.n_points == int(row["dofs"]) and grid.n_cells == int(row["cells"])
         assert grid.cell_data["eta_T"].shape == (grid.n_cells,)
-        assert np.sqrt(np.sum(grid.cell_data["eta_T"] ** 2)) == pytest.approx(float(row["eta"]), rel=1e-10)
+        assert np.sqrt(np.sum(grid.cell_data["eta_T"] ** 2)) == pytest.approx(
+            float(row["eta"]), rel=1e-10
+        )
         assert int(grid.field_data["level"][0]) == t
         level = {**summary, "dofs": int(row["dofs"]), "cells": int(row["cells"])}
         check_step(step, grid, level, int(row["dofs"]), cell_fields=("eta_T",))
-        (alone,) = files[f"solution_{int(t):03d}.xdmf"]   # each level's own file: the same grid
+        (alone,) = files[f"solution_{int(t):03d}.xdmf"]  # each level's own file: the same grid
         assert all(np.array_equal(alone[k], step[k]) for k in ("points", "cells"))
     check_grid(steps[-1][1], summary, summary["dofs"], cell_fields=("eta_T",))
     # every level's Newton iterations are in history.csv and in summary.json
@@ -230,7 +296,17 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
 
 def test_obstacle_contact_csv_lists_the_contact_set(tmp_path):
     out = tmp_path / "obstacle"
-    proc = _contact(["run", ROOT / "configs" / "obstacle_membrane.yaml", "-o", out, "-q", "--set", "mesh.cells=[16,16]"])
+    proc = _contact(
+        [
+            "run",
+            ROOT / "configs" / "obstacle_membrane.yaml",
+            "-o",
+            out,
+            "-q",
+            "--set",
+            "mesh.cells=[16,16]",
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     files = read_folder(out)
     summary = files["summary.json"]
@@ -243,7 +319,9 @@ def test_obstacle_contact_csv_lists_the_contact_set(tmp_path):
 
 def test_failed_solve_writes_nothing_and_exits_nonzero(tmp_path):
     out = tmp_path / "run"
-    proc = _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[24,20]", "--set", "solver.max_it=1"])
+    proc = _contact(
+        ["run", SCENE, "-o", out, "--set", "mesh.cells=[24,20]", "--set", "solver.max_it=1"]
+    )
     assert proc.returncode == 1
     assert "did not converge" in proc.stderr and "diverged_max_it" in proc.stderr
     assert list(tmp_path.iterdir()) == []
@@ -253,6 +331,13 @@ def test_existing_folder_replaced_only_when_complete(tmp_path):
     out = tmp_path / "run"
     assert _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[12,10]"]).returncode == 0
     before = json.loads((out / "summary.json").read_text())
-    assert _contact(["run", SCENE, "-o", out, "--set", "mesh.cells=[12,10]", "--set", "solver.max_it=1"]).returncode == 1
-    assert json.loads((out / "summary.json").read_text()) == before, "failed run must not touch the old folder"
+    assert (
+        _contact(
+            ["run", SCENE, "-o", out, "--set", "mesh.cells=[12,10]", "--set", "solver.max_it=1"]
+        ).returncode
+        == 1
+    )
+    assert json.loads((out / "summary.json").read_text()) == before, (
+        "failed run must not touch the old folder"
+    )
     assert [p.name for p in tmp_path.iterdir()] == ["run"]

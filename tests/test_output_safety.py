@@ -7,6 +7,7 @@ else — an existing user folder (``-o .``, ``-o results``, a scene ``output.dir
 naming the option, before any solve, leaving every byte as it was.  Temporaries of killed
 runs are tidied by the next run, and a replace killed between its renames is recovered.
 """
+
 from __future__ import annotations
 
 import json
@@ -54,22 +55,34 @@ def test_existing_user_folder_is_refused_and_untouched(workdir: Path, how: str) 
         args += ["--set", "name=mine"]
     before = tree(workdir)
     proc = contact(workdir, *args)
-    line = _refused(proc, {"-o folder": "-o mine: ", "-o .": "-o .: ", "output.dir": "output.dir ",
-                           "name": "output folder results/mine (from name 'mine'): "}[how])
+    line = _refused(
+        proc,
+        {
+            "-o folder": "-o mine: ",
+            "-o .": "-o .: ",
+            "output.dir": "output.dir ",
+            "name": "output folder results/mine (from name 'mine'): ",
+        }[how],
+    )
     assert "contact did not write" in line
     assert tree(workdir) == before
 
 
 def test_output_at_a_file_is_refused(workdir: Path) -> None:
     before = tree(workdir)
-    _refused(contact(workdir, "run", "scene.yaml", "-o", "notes.txt"), "-o notes.txt: is an existing file")
-    assert tree(workdir) == before   # in particular no hidden .notes.txt.old-* rename
+    _refused(
+        contact(workdir, "run", "scene.yaml", "-o", "notes.txt"),
+        "-o notes.txt: is an existing file",
+    )
+    assert tree(workdir) == before  # in particular no hidden .notes.txt.old-* rename
 
 
 def test_output_below_a_file_is_refused_before_solving(workdir: Path) -> None:
     before = tree(workdir)
-    _refused(contact(workdir, "run", "scene.yaml", "-o", "notes.txt/out"),
-             f"-o notes.txt/out: cannot be created: {workdir.resolve() / 'notes.txt'} is a file")
+    _refused(
+        contact(workdir, "run", "scene.yaml", "-o", "notes.txt/out"),
+        f"-o notes.txt/out: cannot be created: {workdir.resolve() / 'notes.txt'} is a file",
+    )
     assert tree(workdir) == before
 
 
@@ -90,7 +103,10 @@ def test_read_only_folder_is_refused_before_solving(workdir: Path) -> None:
 @pytest.mark.parametrize("name", ["../escaped", "a/b", "/tmp/abs", ".."])
 def test_scene_name_must_be_a_plain_folder_name(workdir: Path, name: str) -> None:
     before = tree(workdir.parent)
-    _refused(contact(workdir, "run", "scene.yaml", "--set", f"name={name}"), "name: must be a plain folder name")
+    _refused(
+        contact(workdir, "run", "scene.yaml", "--set", f"name={name}"),
+        "name: must be a plain folder name",
+    )
     assert tree(workdir.parent) == before
 
 
@@ -108,14 +124,23 @@ def test_rerun_replaces_its_own_result_only(workdir: Path) -> None:
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0
     marker = json.loads((workdir / "out" / ".contact-result").read_text())
     assert marker["tool"] == "contact" and marker["pid"] > 0 and "run" in marker["command"]
-    assert set(marker["entries"]) == {"solution.h5", "solution.vtu", "solution.xdmf",
-                                      "summary.json", "history.csv", "contact.csv"}
+    assert set(marker["entries"]) == {
+        "solution.h5",
+        "solution.vtu",
+        "solution.xdmf",
+        "summary.json",
+        "history.csv",
+        "contact.csv",
+    }
     (workdir / "out" / "summary.json").write_text("{}")  # the tool's own file: replaced
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0
     assert json.loads((workdir / "out" / "summary.json").read_text())["converged"] is True
     (workdir / "out" / "added.txt").write_text("mine now\n")  # a user file inside: refused
     before = tree(workdir)
-    _refused(contact(workdir, "run", "scene.yaml", "-o", "out"), "-o out: is a contact result, but holds 1 file(s)")
+    _refused(
+        contact(workdir, "run", "scene.yaml", "-o", "out"),
+        "-o out: is a contact result, but holds 1 file(s)",
+    )
     assert tree(workdir) == before
     assert sorted(p.name for p in workdir.iterdir()) == ["mine", "notes.txt", "out", "scene.yaml"]
 
@@ -130,8 +155,9 @@ def _dead_pid() -> int:
 def _fake_result(folder: Path, text: str, time: str) -> Path:
     folder.mkdir()
     (folder / "summary.json").write_text(text)
-    (folder / ".contact-result").write_text(json.dumps({"tool": "contact", "time": time,
-                                                         "entries": ["summary.json"]}))
+    (folder / ".contact-result").write_text(
+        json.dumps({"tool": "contact", "time": time, "entries": ["summary.json"]})
+    )
     return folder
 
 
@@ -144,9 +170,9 @@ def test_replace_killed_between_renames_is_recovered(tmp_path: Path) -> None:
     host, dead = folder._host(), _dead_pid()
     _fake_result(tmp_path / f".out.old-{host}-{dead}", "old", "2026-01-01T00:00:00+00:00")
     _fake_result(tmp_path / f".out.partial-{host}-{dead}-x1", "new", "2026-01-02T00:00:00+00:00")
-    (tmp_path / f".out.partial-{host}-{dead}-x2").mkdir()                 # an incomplete one
-    live = tmp_path / f".out.partial-{host}-{os.getpid()}-x3"              # a live writer's
-    other = tmp_path / f".out.old-otherhost-{dead}"                        # another host's
+    (tmp_path / f".out.partial-{host}-{dead}-x2").mkdir()  # an incomplete one
+    live = tmp_path / f".out.partial-{host}-{os.getpid()}-x3"  # a live writer's
+    other = tmp_path / f".out.old-otherhost-{dead}"  # another host's
     live.mkdir()
     other.mkdir()
     folder.tidy_temporaries(tmp_path / "out")

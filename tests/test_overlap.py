@@ -2,10 +2,11 @@
 basis is biorthogonal, clipping gives exact polygons, and the mortar integrals over a
 slave facet covered by any master mesh of the same line / plane reproduce constants and
 linear functions exactly (what the contact patch test needs)."""
-import numpy as np
-import pytest
 
 from contact.models.overlap import DUAL, clip_polygons, facet_measures, facet_normals, mortar_pairs
+
+import numpy as np
+import pytest
 
 
 def _grid_triangles(rng, lo, hi, n, jitter=0.3):
@@ -17,12 +18,17 @@ def _grid_triangles(rng, lo, hi, n, jitter=0.3):
     P[inner] += jitter * (hi - lo) / n * (rng.random((inner.sum(), 2)) - 0.5)
     i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     v = lambda a, b: (a * (n + 1) + b).ravel()  # noqa: E731
-    tris = np.vstack([np.c_[v(i, j), v(i + 1, j), v(i + 1, j + 1)], np.c_[v(i, j), v(i + 1, j + 1), v(i, j + 1)]])
+    tris = np.vstack(
+        [np.c_[v(i, j), v(i + 1, j), v(i + 1, j + 1)], np.c_[v(i, j), v(i + 1, j + 1), v(i, j + 1)]]
+    )
     return P[tris]
 
 
 def test_dual_basis_is_biorthogonal():
-    for nv, mass in ((2, np.array([[2, 1], [1, 2]]) / 6.0), (3, np.array([[2, 1, 1], [1, 2, 1], [1, 1, 2]]) / 12.0)):
+    for nv, mass in (
+        (2, np.array([[2, 1], [1, 2]]) / 6.0),
+        (3, np.array([[2, 1, 1], [1, 2, 1], [1, 1, 2]]) / 12.0),
+    ):
         # ∫ ψ_a φ_b = (DUAL @ mass)_ab on the unit facet (|facet| = 1): δ_ab ∫ φ_a = δ_ab / nv
         assert np.allclose(DUAL[nv] @ mass, np.eye(nv) / nv, atol=1e-15)
         assert np.allclose(DUAL[nv].sum(axis=0), 1.0)  # Σ_a ψ_a = 1
@@ -52,7 +58,11 @@ def test_segments_identical_and_offset():
     Xs = np.array([[[0.0, 0.0], [2.0, 0.0]]])
     n = np.array([[0.0, 1.0]])
     M, meas, d = mortar_pairs(Xs, n, Xs[:, ::-1] + [0.0, 0.1])  # reversed master, gap 0.1
-    assert np.allclose(M[0], [[0, 1], [1, 0]]) and meas[0] == pytest.approx(2.0) and d[0] == pytest.approx(0.1)
+    assert (
+        np.allclose(M[0], [[0, 1], [1, 0]])
+        and meas[0] == pytest.approx(2.0)
+        and d[0] == pytest.approx(0.1)
+    )
     M, meas, d = mortar_pairs(Xs, n, Xs + [5.0, -0.2])  # no overlap
     assert not M.any() and meas[0] == 0 and np.isinf(d[0])
 
@@ -67,7 +77,12 @@ def test_segments_reproduce_linear_functions(tilt):
     xs = np.array([0.13, 0.71])
     xm = np.sort(np.concatenate([[-0.2, 1.1], rng.random(7)]))
     Xs = (np.column_stack([xs, 0 * xs]) @ R.T)[None]
-    Xm = np.stack([np.column_stack([xm[:-1], 0 * xm[:-1]]), np.column_stack([xm[1:], 0 * xm[1:]])], 1) @ R.T
+    Xm = (
+        np.stack(
+            [np.column_stack([xm[:-1], 0 * xm[:-1]]), np.column_stack([xm[1:], 0 * xm[1:]])], 1
+        )
+        @ R.T
+    )
     n = np.repeat((R @ [0.0, 1.0])[None], len(Xm), 0)
     M, meas, _ = mortar_pairs(np.repeat(Xs, len(Xm), 0), n, Xm)
     L = xs[1] - xs[0]

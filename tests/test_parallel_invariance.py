@@ -3,6 +3,7 @@ depend on how round-off split mirror-image indicators (marking within a relative
 its threshold), and Newton's generalized-Jacobian element at a kink does not depend on the
 sign of round-off (ties within 1e-12 of the global scale of (a, b), contact.solvers.ncp).
 """
+
 from __future__ import annotations
 
 import csv
@@ -36,8 +37,13 @@ def _run_script(tmp_path: Path, source: str, scene: str, ranks: tuple[int, ...])
     script.write_text(source)
     runs = {}
     for n in ranks:
-        proc = subprocess.run([str(MPIRUN), "-n", str(n), sys.executable, str(script), str(ROOT / "configs" / scene)],
-                              capture_output=True, text=True, timeout=300, cwd=tmp_path)
+        proc = subprocess.run(
+            [str(MPIRUN), "-n", str(n), sys.executable, str(script), str(ROOT / "configs" / scene)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            cwd=tmp_path,
+        )
         assert proc.returncode == 0, proc.stderr
         runs[n] = json.loads(proc.stdout.strip().splitlines()[-1])
     return runs
@@ -49,8 +55,19 @@ def lshape_runs(tmp_path_factory) -> dict[int, list[dict]]:
     out = {}
     for ranks in (1, 3, 4):
         folder = tmp_path_factory.mktemp(f"lshape{ranks}")
-        proc = contact(folder, "run", str(ROOT / "configs" / "lshape_corner.yaml"), "-o", "out", "-q",
-                       "--set", "adapt.max_levels=6", "--set", "output.png=false", ranks=ranks)
+        proc = contact(
+            folder,
+            "run",
+            str(ROOT / "configs" / "lshape_corner.yaml"),
+            "-o",
+            "out",
+            "-q",
+            "--set",
+            "adapt.max_levels=6",
+            "--set",
+            "output.png=false",
+            ranks=ranks,
+        )
         assert proc.returncode == 0, proc.stderr
         out[ranks] = list(csv.DictReader(open(folder / "out" / "convergence.csv")))
     return out

@@ -1,18 +1,19 @@
 """Peer problems (configs/peers/): PETSc SNES ex9 and deal.II step-41 as scenes, and the
 measure of the contact set ``active_measure`` (report.py) that compares our free
 boundaries with theirs."""
+
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
-import numpy as np
-import pytest
-
 import contact  # sets up the DOLFINx libraries before dolfinx is imported
-from contact.setup import expressions
 from contact.adaptivity.energy_error import energy_error
 from contact.output.run_report import active_measure, summary
+from contact.setup import expressions
+
+import numpy as np
+import pytest
 from dolfinx import fem
 from test_agreement import assert_agrees_with_vinewtonrsls, run_methods
 from ties import tie_margin
@@ -20,7 +21,7 @@ from ties import tie_margin
 ROOT = Path(__file__).resolve().parents[1]
 EX9 = ROOT / "configs" / "peers" / "petsc_ex9.yaml"
 STEP41 = ROOT / "configs" / "peers" / "dealii_step41.yaml"
-A_FREE = 0.697965148223374   # ex9's free-boundary radius
+A_FREE = 0.697965148223374  # ex9's free-boundary radius
 
 
 def _solve_ex9(cells: int) -> tuple[float, contact.Scene, contact.Result]:
@@ -46,7 +47,7 @@ def test_ex9_reproduces_petsc_published_errors():
     exact.interpolate(expressions.to_numpy(scene.cfg["data"]["exact"], scene.cfg["constants"]))
     err = np.abs(result.u_h.x.array - exact.x.array)
     assert (f"{err.mean():.3e}", f"{err.max():.3e}") == ("2.707e-03", "1.428e-02")
-    assert tie_margin(result) >= 1e-6   # no node near a tie: the published count cannot move
+    assert tie_margin(result) >= 1e-6  # no node near a tie: the published count cannot move
     assert result.n_active == 29
 
 
@@ -79,21 +80,32 @@ FULL_CONTACT = {
     # u ≥ 0 pressed down by f = -1 with u = 0 on ∂Ω: u_h = 0, λ = 1 at every free node, so
     # every interior node of the N × N mesh of [-1, 1]² is active, each with the weight
     # ∫ φ_i = h² (six triangles of area h²/2, a third each):  |A_h| = (N − 1)² h².
-    "obstacle": ({"mesh": {"corners": [[-1, -1], [1, 1]], "cells": [8, 8]},
-                  "boundaries": {"frame": {"role": "dirichlet",
-                                           "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}},
-                  "model": {"type": "obstacle", "bound": "lower"},
-                  "data": {"f": "-1", "psi": "0"}},
-                 (8 - 1) ** 2 * (2 / 8) ** 2),
+    "obstacle": (
+        {
+            "mesh": {"corners": [[-1, -1], [1, 1]], "cells": [8, 8]},
+            "boundaries": {
+                "frame": {"role": "dirichlet", "where": "abs(x) > 1 - 1e-10 or abs(y) > 1 - 1e-10"}
+            },
+            "model": {"type": "obstacle", "bound": "lower"},
+            "data": {"f": "-1", "psi": "0"},
+        },
+        (8 - 1) ** 2 * (2 / 8) ** 2,
+    ),
     # u ≤ 0 on y = 0 with u = 1 on y = 1 and free sides: u = y, λ = -1 on all of Γ_C, whose
     # nodes (corners included: they are not on the closure of Γ_D) are all active:
     # |A_h| = |Γ_C| = 1.
-    "signorini": ({"mesh": {"type": "unit_square", "cells": [8, 8]},
-                   "boundaries": {"floor": {"role": "contact", "where": "y < 1e-10"},
-                                  "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"}},
-                   "model": "signorini",
-                   "data": {"u_D": "1", "g": "0"}},
-                  1.0),
+    "signorini": (
+        {
+            "mesh": {"type": "unit_square", "cells": [8, 8]},
+            "boundaries": {
+                "floor": {"role": "contact", "where": "y < 1e-10"},
+                "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+            },
+            "model": "signorini",
+            "data": {"u_D": "1", "g": "0"},
+        },
+        1.0,
+    ),
 }
 
 

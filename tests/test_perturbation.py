@@ -2,6 +2,7 @@
 says, in a subprocess as the suite's own ``contact run`` and ``mpirun`` children see it:
 CONTACT_TEST_PERTURB=ε moves the assembled load b by a relative ε off the Dirichlet rows
 and leaves the prescribed values alone; without it b is untouched."""
+
 from __future__ import annotations
 
 import json
@@ -28,11 +29,19 @@ print(json.dumps({"b": p.b.array.tolist(), "fixed": fixed.tolist()}))
 
 def _b(eps: str | None) -> dict:
     env = {k: v for k, v in os.environ.items() if k != "CONTACT_TEST_PERTURB"}
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "tests" / "perturb"), env.get("PYTHONPATH", "")])
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(ROOT / "tests" / "perturb"), env.get("PYTHONPATH", "")]
+    )
     if eps is not None:
         env["CONTACT_TEST_PERTURB"] = eps
-    proc = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, env=env, capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", SCRIPT],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     return {k: np.array(v) for k, v in out.items()}

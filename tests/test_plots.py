@@ -1,6 +1,7 @@
 """The pictures of big 2D meshes: nodal fields sampled at pixel centres
 (contact.output.plots.raster) must be the P1 interpolant there — what Gouraud shading paints — and
 blank outside Ω."""
+
 import json
 import os
 import subprocess
@@ -11,17 +12,20 @@ import matplotlib
 
 matplotlib.use("Agg")
 
+from contact.output import plots  # noqa: E402
+
 import matplotlib.tri as mtri  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
-
-from contact.output import plots  # noqa: E402
 
 
 def _square(n: int, lo, seed: int):
     """Delaunay triangles of n scattered points in the unit square at ``lo`` and its corners:
     irregular, partly sub-pixel triangles that cover the square exactly."""
-    P = np.vstack([np.random.default_rng(seed).random((n, 2)), [[0, 0], [1, 0], [0, 1], [1, 1]]]) + lo
+    P = (
+        np.vstack([np.random.default_rng(seed).random((n, 2)), [[0, 0], [1, 0], [0, 1], [1, 1]]])
+        + lo
+    )
     return P, mtri.Triangulation(P[:, 0], P[:, 1]).triangles
 
 
@@ -30,7 +34,9 @@ def _lshape(n: int):
     parts = [_square(n // 3, lo, seed) for seed, lo in enumerate(([-1, -1], [0, -1], [-1, 0]))]
     P = np.vstack([p for p, _ in parts])
     offsets = np.cumsum([0] + [len(p) for p, _ in parts[:-1]])
-    return mtri.Triangulation(P[:, 0], P[:, 1], np.vstack([t + o for (_, t), o in zip(parts, offsets)]))
+    return mtri.Triangulation(
+        P[:, 0], P[:, 1], np.vstack([t + o for (_, t), o in zip(parts, offsets)])
+    )
 
 
 def _centres(image, extent):
@@ -49,7 +55,7 @@ def test_raster_reproduces_a_linear_field_and_masks_outside(n, width):
     inside = ~((X > 0) & (Y > 0)) & (X < 1) & (Y < 1)
     assert np.isfinite(image[inside]).all()
     assert np.abs(image[inside] - f(X[inside], Y[inside])).max() < 1e-12
-    outside = (X > 1e-9) & (Y > 1e-9)          # the removed quadrant stays blank
+    outside = (X > 1e-9) & (Y > 1e-9)  # the removed quadrant stays blank
     assert np.isnan(image[outside]).all()
 
 
@@ -61,7 +67,7 @@ def test_raster_matches_the_triangulation_interpolant():
     X, Y = _centres(image, extent)
     ref = mtri.LinearTriInterpolator(tri, v)(X, Y)
     both = np.isfinite(image) & ~np.ma.getmaskarray(ref)
-    assert both.all()                                   # a square: every pixel centre is inside
+    assert both.all()  # a square: every pixel centre is inside
     assert np.abs(image - ref).max() < 1e-10
 
 
@@ -96,18 +102,26 @@ def test_3d_pictures_draw_without_warnings(tmp_path):
 
     import contact
 
-    scene = contact.load_scene({
-        "name": "box3d", "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": [3, 3, 3]},
-        "boundaries": {"floor": {"role": "contact", "where": "z < 1e-10"},
-                       "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"}},
-        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
-        "obstacle": {"type": "plane", "point": [0, 0, -0.001], "normal": [0, 0, 1]},
-        "data": {"u_D": ["0", "0", "-0.01"]}})
+    scene = contact.load_scene(
+        {
+            "name": "box3d",
+            "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": [3, 3, 3]},
+            "boundaries": {
+                "floor": {"role": "contact", "where": "z < 1e-10"},
+                "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"},
+            },
+            "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+            "obstacle": {"type": "plane", "point": [0, 0, -0.001], "normal": [0, 0, 1]},
+            "data": {"u_D": ["0", "0", "-0.01"]},
+        }
+    )
     r = contact.solve(scene, verbose=False)
     assert r.converged and r.n_active > 0
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        plots.plot_solution(tmp_path / "solution.png", r.u_h, active=r.active, lmbda=r.lmbda_h, normal=[0, 0, -1])
+        plots.plot_solution(
+            tmp_path / "solution.png", r.u_h, active=r.active, lmbda=r.lmbda_h, normal=[0, 0, -1]
+        )
         plots.plot_mesh(tmp_path / "mesh.png", r.u_h, active=r.active, normal=[0, 0, -1])
     for name in ("solution.png", "mesh.png"):
         assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
@@ -149,8 +163,13 @@ def test_pictures_are_drawn_in_turn_by_every_rank(tmp_path, draw_ranks, drawn_by
     script = tmp_path / "draw.py"
     script.write_text(DRAW_IN_TURN)
     mpirun = Path(sys.executable).parent / "mpirun"
-    proc = subprocess.run([str(mpirun), "-n", "2", sys.executable, str(script), str(tmp_path), str(draw_ranks)],
-                          capture_output=True, text=True, timeout=120, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        [str(mpirun), "-n", "2", sys.executable, str(script), str(tmp_path), str(draw_ranks)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stderr
     files = json.loads(proc.stdout.strip().splitlines()[-1])
     assert [f[0] for f in files] == drawn_by
@@ -164,9 +183,14 @@ def test_traction_map_of_a_frictionless_3d_load_path(tmp_path):
     import matplotlib.image
 
     x, y = np.meshgrid(np.linspace(-0.5, 0.5, 5), np.linspace(-0.5, 0.5, 5))
-    table = {"x": x.ravel(), "y": y.ravel(), "z": np.zeros(25), "r": np.hypot(x, y).ravel(),
-             "lambda_n": -(1.0 - x**2 - y**2).ravel()}
+    table = {
+        "x": x.ravel(),
+        "y": y.ravel(),
+        "z": np.zeros(25),
+        "r": np.hypot(x, y).ravel(),
+        "lambda_n": -(1.0 - x**2 - y**2).ravel(),
+    }
     path = tmp_path / "traction.png"
     plots.plot_traction(path, [(0.5, table), (1.0, table)], title="frictionless")
     height, width = matplotlib.image.imread(path).shape[:2]
-    assert width < 1.3 * height   # one panel, not the two of a frictional map
+    assert width < 1.3 * height  # one panel, not the two of a frictional map

@@ -1,31 +1,33 @@
 """Active-set polishing (``solver.polish``, :class:`contact.solvers.polish.Polisher`): it changes
 how fast FB / blend Newton converges, never what it converges to."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
+import contact
+from contact.drivers.solve import solver_options
+from contact.models import build_problem
+from contact.solvers.linear import AssembledSystem
+from contact.solvers.newton import Complementarity
+from contact.solvers.polish import Polisher
+from contact.solvers.problem import nodal_scaling
+from contact.solvers.snes import set_dirichlet
+
 import numpy as np
 import pytest
-
-import contact
-from contact.models import build_problem
-from contact.solvers.problem import nodal_scaling
-from contact.solvers.newton import Complementarity
-from contact.drivers.solve import solver_options
-from contact.solvers.linear import AssembledSystem
-from contact.solvers.polish import Polisher
-from contact.solvers.snes import set_dirichlet
 from petsc4py import PETSc
 from ties import tie_margin
-
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def scene():
-    return contact.load_scene(ROOT / "configs" / "signorini_square.yaml",
-                              overrides=["mesh.cells=[96,96]", "solver.kappa=1", "output.verbose=false"])
+    return contact.load_scene(
+        ROOT / "configs" / "signorini_square.yaml",
+        overrides=["mesh.cells=[96,96]", "solver.kappa=1", "output.verbose=false"],
+    )
 
 
 @pytest.mark.parametrize("method", ["fb", "blend"])
@@ -43,7 +45,7 @@ def test_polish_same_solution_fewer_linear_solves(scene, method):
     # whole solves, not of rounding
     assert pol.linear_solves < pure.linear_solves, (pol.linear_solves, pure.linear_solves)
     assert np.max(np.abs(pol.u_h.x.array - u_pure)) <= 1e-10
-    assert tie_margin(pol) >= 1e-6   # no node near a tie: the counts cannot move with rounding
+    assert tie_margin(pol) >= 1e-6  # no node near a tie: the counts cannot move with rounding
     assert pol.n_active == pure.n_active
     assert any(row["polished"] for row in pol.history)
     assert not any(row["polished"] for row in pure.history)
@@ -57,8 +59,9 @@ def test_min_is_never_polished(scene):
 
 def _state(scene, method="fb"):
     problem = build_problem(scene)
-    problem.c = nodal_scaling(problem.K, problem.constraint.dofs, problem.constraint.w,
-                              solver_options(scene.cfg)["kappa"])
+    problem.c = nodal_scaling(
+        problem.K, problem.constraint.dofs, problem.constraint.w, solver_options(scene.cfg)["kappa"]
+    )
     cp = Complementarity(problem)
     timers = {"solve": 0.0, "assembly": 0.0}
     ksp = PETSc.KSP().create(problem.b.getComm())

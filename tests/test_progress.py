@@ -2,19 +2,20 @@
 final mesh's Newton iterations beside the coarse levels' (CLI line, summary.json, Result);
 progress lines come at most once per period, from rank 0 only; a contact zone with fewer
 than five nodes across gets a one-line warning."""
+
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
-import pytest
-
 import contact
 from contact.base import progress
 from contact.output.run_report import nodes_across
 from contact.solvers import newton_text
+
+import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -25,16 +26,34 @@ def _run(args, nproc=1):
     cmd = [sys.executable, "-m", "contact.app.cli", "run"] + [str(a) for a in args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=600,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return subprocess.run(
+        cmd,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
 
 
 def test_sequenced_solve_reports_final_and_coarse_iterations(tmp_path):
     """signorini_square (64 × 64) is solved after one coarser mesh: the line and summary.json
     give the final mesh's iterations and the coarse level's, which did the work."""
     out = tmp_path / "seq"
-    proc = _run([SQUARE, "-o", out, "-q", "--set", "output.png=false", "--set", "output.formats=[]",
-                 "--set", "solver.sequence=1"])
+    proc = _run(
+        [
+            SQUARE,
+            "-o",
+            out,
+            "-q",
+            "--set",
+            "output.png=false",
+            "--set",
+            "output.formats=[]",
+            "--set",
+            "solver.sequence=1",
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     (coarse,) = summary["sequence"]
@@ -44,8 +63,10 @@ def test_sequenced_solve_reports_final_and_coarse_iterations(tmp_path):
     line = next(ln for ln in proc.stdout.splitlines() if " DoFs, " in ln)
     polish = f" (+{summary['polish_solves']} polishing)" if summary["polish_solves"] else ""
     coarse_polish = f" (+{coarse['polish_solves']})" if coarse["polish_solves"] else ""
-    assert (f"{summary['newton_iterations']} Newton iterations{polish} on the final mesh, "
-            f"{coarse['newton_iterations']}{coarse_polish} on 1 coarser mesh") in line
+    assert (
+        f"{summary['newton_iterations']} Newton iterations{polish} on the final mesh, "
+        f"{coarse['newton_iterations']}{coarse_polish} on 1 coarser mesh"
+    ) in line
 
 
 def test_result_counts_coarse_iterations():
@@ -53,10 +74,15 @@ def test_result_counts_coarse_iterations():
     seq = contact.solve(scene, sequence=2)
     assert len(seq.sequence) == 2
     assert seq.coarse_iterations == sum(lv.newton_iterations for lv in seq.sequence) > 0
-    assert newton_text(seq).endswith(f"on the final mesh, {seq.coarse_iterations}"
-                                     + (f" (+{sum(lv.polish_solves for lv in seq.sequence)})"
-                                        if any(lv.polish_solves for lv in seq.sequence) else "")
-                                     + " on 2 coarser meshes")
+    assert newton_text(seq).endswith(
+        f"on the final mesh, {seq.coarse_iterations}"
+        + (
+            f" (+{sum(lv.polish_solves for lv in seq.sequence)})"
+            if any(lv.polish_solves for lv in seq.sequence)
+            else ""
+        )
+        + " on 2 coarser meshes"
+    )
     cold = contact.solve(scene, sequence="off")
     assert cold.coarse_iterations == 0 and "coarser" not in newton_text(cold)
     assert newton_text(cold).startswith(f"{cold.iterations} Newton iterations")
@@ -104,9 +130,14 @@ def test_progress_lines_come_from_rank_0_only(tmp_path):
     script = tmp_path / "progress.py"
     scene = ROOT / "configs" / "signorini_free_boundary.yaml"
     script.write_text(PROGRESS_SCRIPT.format(scene=str(scene)))
-    proc = subprocess.run([str(MPIRUN), "-n", "2", sys.executable, str(script)], cwd=ROOT,
-                          capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        [str(MPIRUN), "-n", "2", sys.executable, str(script)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("  … ")]
     phases = ("level 0: assembled", "level 0: solved", "level 0: refining", "level 1: assembled")
@@ -124,9 +155,11 @@ def test_coarse_contact_zone_warns_once(tmp_path, nproc):
     proc = _run([SQUARE, "-o", tmp_path / "coarse", "--set", "mesh.cells=[8,8]", *quiet], nproc)
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-    warning = ("contact: warning: the contact zone holds 3 active node(s), about 3.0 across: too "
-               "few to resolve the contact pressure and the forces from it; refine the contact "
-               "zone (mesh cells or h_contact, an adapt section) to 5 or more nodes across")
+    warning = (
+        "contact: warning: the contact zone holds 3 active node(s), about 3.0 across: too "
+        "few to resolve the contact pressure and the forces from it; refine the contact "
+        "zone (mesh cells or h_contact, an adapt section) to 5 or more nodes across"
+    )
     assert lines == [warning], proc.stderr
     fine = _run([SQUARE, "-o", tmp_path / "fine", "--set", "mesh.cells=[32,32]", *quiet], nproc)
     assert fine.returncode == 0 and not fine.stderr.strip(), fine.stderr
@@ -138,13 +171,22 @@ class _Problem:
         self.in_domain, self.symmetric_copies = in_domain, copies
 
 
-@pytest.mark.parametrize("tdim,in_domain,copies,n,across", [
-    (2, False, 1, 3, 3.0),                       # a curve: the nodes themselves
-    (2, False, 2, 3, 6.0),                       # half of a symmetric zone
-    (3, False, 4, 1, 2 * np.sqrt(4 / np.pi)),    # a quarter disc with one node (block on a sphere)
-    (2, True, 1, 20, 2 * np.sqrt(20 / np.pi)),   # an obstacle's contact set in 2D: an area
-    (3, True, 1, 30, np.cbrt(180 / np.pi)),      # in 3D: a volume
-])
+@pytest.mark.parametrize(
+    "tdim,in_domain,copies,n,across",
+    [
+        (2, False, 1, 3, 3.0),  # a curve: the nodes themselves
+        (2, False, 2, 3, 6.0),  # half of a symmetric zone
+        (
+            3,
+            False,
+            4,
+            1,
+            2 * np.sqrt(4 / np.pi),
+        ),  # a quarter disc with one node (block on a sphere)
+        (2, True, 1, 20, 2 * np.sqrt(20 / np.pi)),  # an obstacle's contact set in 2D: an area
+        (3, True, 1, 30, np.cbrt(180 / np.pi)),  # in 3D: a volume
+    ],
+)
 def test_nodes_across_the_zone(tdim, in_domain, copies, n, across):
     result = type("R", (), {"problem": _Problem(tdim, in_domain, copies), "n_active": n})
     assert nodes_across(result) == pytest.approx(across)

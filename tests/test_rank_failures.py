@@ -10,6 +10,7 @@ of the package by one that raises on the chosen rank, then calls the real
 failing rank ran a collective on its way out (``io.atomic_folder``'s ``finally``, a
 study's row bookkeeping) while the others waited in another one: the job hung.
 """
+
 from __future__ import annotations
 
 import os
@@ -24,9 +25,9 @@ from clirun import MPIRUN, ROOT, error_lines, small_scene
 
 pytestmark = pytest.mark.mpi
 
-BOUND = 60.0   # seconds a failing job may take, start-up and the agreement wait included
+BOUND = 60.0  # seconds a failing job may take, start-up and the agreement wait included
 
-PLANT = '''
+PLANT = """
 import importlib, sys
 from mpi4py import MPI
 import contact.app.cli
@@ -45,17 +46,34 @@ def planted(*args, **kwargs):
 
 setattr(module, name, planted)
 sys.exit(contact.app.cli.main(argv))
-'''
+"""
 
 
-def _planted(tmp: Path, target: str, rank: int, *args: str, ranks: int = 2) -> tuple[subprocess.CompletedProcess, float]:
+def _planted(
+    tmp: Path, target: str, rank: int, *args: str, ranks: int = 2
+) -> tuple[subprocess.CompletedProcess, float]:
     """Run ``contact ARGS`` under ``mpirun -n ranks`` with ``target`` (module.function)
     raising on ``rank`` (−1: every rank); returns the process and its wall time."""
     (tmp / "plant.py").write_text(PLANT)
-    cmd = [str(MPIRUN), "-n", str(ranks), sys.executable, str(tmp / "plant.py"), target, str(rank), *args]
+    cmd = [
+        str(MPIRUN),
+        "-n",
+        str(ranks),
+        sys.executable,
+        str(tmp / "plant.py"),
+        target,
+        str(rank),
+        *args,
+    ]
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "OMP_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"})
+    proc = subprocess.Popen(
+        cmd,
+        cwd=tmp,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"},
+    )
     out, err = _wait(proc)
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err), time.perf_counter() - t0
 
@@ -74,7 +92,9 @@ def _wait(proc: subprocess.Popen) -> tuple[str, str]:
         raise
 
 
-def _ended_by(proc: subprocess.CompletedProcess, seconds: float, rank: int, code: int, text: str) -> None:
+def _ended_by(
+    proc: subprocess.CompletedProcess, seconds: float, rank: int, code: int, text: str
+) -> None:
     """The job ended within BOUND with ``code`` and one line of ours: ``rank``'s, naming
     ``text``."""
     assert seconds <= BOUND, f"{seconds:.0f} s"
@@ -115,38 +135,61 @@ def test_exception_on_one_rank_ends_the_job(tmp_path: Path, case: str) -> None:
     if kind == "friction":
         scene = _friction_scene(tmp_path)
     else:
-        scene = small_scene(tmp_path / "scene.yaml", output={"png": kind == "adaptive"},
-                            **({"adapt": {"strategy": "uniform", "max_levels": 2}} if kind == "adaptive" else {}))
+        scene = small_scene(
+            tmp_path / "scene.yaml",
+            output={"png": kind == "adaptive"},
+            **({"adapt": {"strategy": "uniform", "max_levels": 2}} if kind == "adaptive" else {}),
+        )
     proc, seconds = _planted(tmp_path, target, rank, "run", scene.name, "-o", "out", "-q")
-    what = "OSError: [Errno 28] No space left on device" if rank == 0 else f"RuntimeError: planted in {target.rsplit('.', 1)[1]}"
+    what = (
+        "OSError: [Errno 28] No space left on device"
+        if rank == 0
+        else f"RuntimeError: planted in {target.rsplit('.', 1)[1]}"
+    )
     _ended_by(proc, seconds, rank, 3, "internal error: " + what)
     assert not (tmp_path / "out").exists()
 
 
 def _tiny_study(tmp: Path) -> Path:
     study = tmp / "study.yaml"
-    study.write_text(f"name: tiny\nscene: {ROOT / 'configs' / 'signorini_square.yaml'}\n"
-                     "set: ['mesh.cells=[8,8]', output.png=false]\naxes: {method: [fb, "
-                     "min]}\nwarmup: false\n")
+    study.write_text(
+        f"name: tiny\nscene: {ROOT / 'configs' / 'signorini_square.yaml'}\n"
+        "set: ['mesh.cells=[8,8]', output.png=false]\naxes: {method: [fb, "
+        "min]}\nwarmup: false\n"
+    )
     return study
 
 
 def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> None:
     """A study catches a failing run as a row — but only a failure on every rank: one
     rank's alone ends the job."""
-    proc, seconds = _planted(tmp_path, "contact.drivers.solve.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out")
-    _ended_by(proc, seconds, 1, 3, "internal error: study run method=fb: RuntimeError: planted in solve")
+    proc, seconds = _planted(
+        tmp_path, "contact.drivers.solve.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out"
+    )
+    _ended_by(
+        proc, seconds, 1, 3, "internal error: study run method=fb: RuntimeError: planted in solve"
+    )
     assert not (tmp_path / "out").exists()
 
 
 def test_exception_on_every_rank_in_a_study_run_is_a_row(tmp_path: Path) -> None:
     import csv
 
-    proc, seconds = _planted(tmp_path, "contact.drivers.solve.solve", -1, "study", str(_tiny_study(tmp_path)), "-o", "out")
+    proc, seconds = _planted(
+        tmp_path,
+        "contact.drivers.solve.solve",
+        -1,
+        "study",
+        str(_tiny_study(tmp_path)),
+        "-o",
+        "out",
+    )
     assert proc.returncode == 0 and seconds <= BOUND, proc.stderr
     rows = list(csv.DictReader(open(tmp_path / "out" / "study.csv")))
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [
-        ("fb", "False", "RuntimeError: planted in solve"), ("min", "False", "RuntimeError: planted in solve")]
+        ("fb", "False", "RuntimeError: planted in solve"),
+        ("min", "False", "RuntimeError: planted in solve"),
+    ]
 
 
 # ------------------------------------------------------------------------------ Ctrl-C
@@ -156,12 +199,33 @@ def _interrupt(tmp: Path, ranks: int) -> tuple[subprocess.Popen, str, float]:
     does (mpiexec forwards it to the ranks, which hydra puts in process groups of their
     own).  Returns the process, its stderr and the seconds from SIGINT to its end."""
     scene = _friction_scene(tmp)
-    cmd = [sys.executable, "-m", "contact.app.cli", "run", str(scene), "-o", "out", "-q", "--set", "load.steps=2000",
-           "--set", "output.vtk=false", "--set", "output.png=false"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "contact.app.cli",
+        "run",
+        str(scene),
+        "-o",
+        "out",
+        "-q",
+        "--set",
+        "load.steps=2000",
+        "--set",
+        "output.vtk=false",
+        "--set",
+        "output.png=false",
+    ]
     if ranks:
         cmd = [str(MPIRUN), "-n", str(ranks), *cmd]
-    proc = subprocess.Popen(cmd, cwd=tmp, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.Popen(
+        cmd,
+        cwd=tmp,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     for line in proc.stdout:
         if line.startswith("contact: step 2 "):
             break
@@ -179,8 +243,11 @@ def test_ctrl_c_is_one_line_and_exit_130(tmp_path: Path, ranks: int) -> None:
     ours = [ln for ln in err.splitlines() if ln.startswith("contact")]
     # agreed by every rank: rank 0 says it once; a rank caught inside a collective cannot
     # agree: the interrupted rank says it with its number and aborts (still code 130)
-    assert len(ours) == 1 and (ours[0] == "contact: interrupted" or
-                               ranks and ours[0].removeprefix("contact (rank 0)").removeprefix(
-                                   "contact (rank 1)") == ": interrupted"), err[-3000:]
+    assert len(ours) == 1 and (
+        ours[0] == "contact: interrupted"
+        or ranks
+        and ours[0].removeprefix("contact (rank 0)").removeprefix("contact (rank 1)")
+        == ": interrupted"
+    ), err[-3000:]
     assert "Traceback" not in err and "KeyboardInterrupt" not in err
     assert not (tmp_path / "out").exists()

@@ -1,6 +1,7 @@
 """README.md as a user reads it: the Python examples run as written (and print global values
 under mpirun), the output tables list what runs write, the pyvista snippets load results,
 and the dolfinx import note is true."""
+
 import re
 import subprocess
 import sys
@@ -16,7 +17,9 @@ def test_readme_python_example_runs():
     section = text.split("## Python API", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     assert 5 <= len(code.strip().splitlines()) <= 12
-    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr
     assert any(line.startswith("True ") for line in proc.stdout.splitlines())
     assert "min (primal-dual active set):" in proc.stdout
@@ -25,15 +28,18 @@ def test_readme_python_example_runs():
 def test_readme_study_example_validates(monkeypatch):
     """The study YAML of README's "Parameter studies" section is a valid study (paths
     relative to configs/studies/, as a study file there would be)."""
-    import yaml
-
     from contact.app.study import load_study
+
+    import yaml
 
     section = (ROOT / "README.md").read_text().split("## Parameter studies", 1)[1]
     block = re.search(r"```yaml\n(.*?)```", section, re.S).group(1)
     monkeypatch.chdir(ROOT / "configs" / "studies")
     study = load_study(yaml.safe_load(block))
-    assert study.axes["method"] == ["fb", "min", "vinewtonrsls"] and set(study.cases) == {"cold far", "obtuse"}
+    assert study.axes["method"] == ["fb", "min", "vinewtonrsls"] and set(study.cases) == {
+        "cold far",
+        "obtuse",
+    }
     assert len(study.runs()) == 2 * 3 * 3 and study.charts == ["speed_accuracy", "stability"]
 
 
@@ -42,15 +48,28 @@ def test_readme_python_example_prints_global_values_under_mpirun(tmp_path):
     text = (ROOT / "README.md").read_text()
     code = re.search(r"```python\n(.*?)```", text.split("## Python API", 1)[1], re.S).group(1)
     # each rank's stdout to its own file (mpirun may interleave the two streams mid-line)
-    to_file = f"import os, sys; sys.stdout = open(r'{tmp_path}/out' + os.environ.get('PMI_RANK', 's'), " f"'w')\n"
+    to_file = (
+        f"import os, sys; sys.stdout = open(r'{tmp_path}/out' + os.environ.get('PMI_RANK', 's'), "
+        f"'w')\n"
+    )
     mpirun = Path(sys.executable).parent / "mpirun"
-    serial = subprocess.run([sys.executable, "-c", to_file + code], cwd=ROOT, capture_output=True, text=True,
-                            timeout=300)
-    par = subprocess.run([str(mpirun), "-n", "2", sys.executable, "-c", to_file + code], cwd=ROOT,
-                         capture_output=True, text=True, timeout=300)
+    serial = subprocess.run(
+        [sys.executable, "-c", to_file + code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    par = subprocess.run(
+        [str(mpirun), "-n", "2", sys.executable, "-c", to_file + code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert serial.returncode == 0 and par.returncode == 0, par.stderr
 
-    def printed(name: str) -> list[str]:   # without the Newton progress lines
+    def printed(name: str) -> list[str]:  # without the Newton progress lines
         return [ln for ln in (tmp_path / name).read_text().splitlines() if not ln.startswith("  ")]
 
     assert printed("out0") == printed("out1") == printed("outs")
@@ -70,11 +89,26 @@ def _table_files(section: str) -> set[str]:
 def results(tmp_path_factory):
     """results/square (one solve) and results/demo (an adaptive run) in a scratch folder."""
     cwd = tmp_path_factory.mktemp("readme")
-    for scene, out, sets in (("signorini_square.yaml", "square", ["mesh.cells=[12,10]"]),
-                             ("signorini_free_boundary.yaml", "demo", ["adapt.max_levels=2"])):
-        proc = subprocess.run([sys.executable, "-m", "contact.app.cli", "run", str(ROOT / "configs" / scene),
-                               "-o", str(cwd / "results" / out), "-q", *(f"--set={s}" for s in sets)],
-                              capture_output=True, text=True, timeout=300)
+    for scene, out, sets in (
+        ("signorini_square.yaml", "square", ["mesh.cells=[12,10]"]),
+        ("signorini_free_boundary.yaml", "demo", ["adapt.max_levels=2"]),
+    ):
+        proc = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "contact.app.cli",
+                "run",
+                str(ROOT / "configs" / scene),
+                "-o",
+                str(cwd / "results" / out),
+                "-q",
+                *(f"--set={s}" for s in sets),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert proc.returncode == 0, proc.stderr
     return cwd
 
@@ -97,8 +131,13 @@ def test_readme_pyvista_snippets_load_results(results):
     for section in ("## Running a scene", "## Adaptive refinement"):
         code = re.search(r"```python\n(.*?)```", text.split(section, 1)[1], re.S).group(1)
         assert len(code.strip().splitlines()) == 3
-        proc = subprocess.run([sys.executable, "-c", code + "\nprint('loaded', grid.n_points)"], cwd=results,
-                              capture_output=True, text=True, timeout=120)
+        proc = subprocess.run(
+            [sys.executable, "-c", code + "\nprint('loaded', grid.n_points)"],
+            cwd=results,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert proc.returncode == 0 and "loaded" in proc.stdout, proc.stderr
 
 
@@ -106,9 +145,10 @@ def test_readme_meshio_snippet_loads_the_xdmf(results):
     """The second Python block of "Running a scene" reads solution.xdmf with meshio."""
     text = (ROOT / "README.md").read_text()
     code = re.findall(r"```python\n(.*?)```", text.split("## Running a scene", 1)[1], re.S)[1]
-    assert "meshio.read(\"results/square/solution.xdmf\")" in code
-    proc = subprocess.run([sys.executable, "-c", code], cwd=results, capture_output=True, text=True,
-                          timeout=120)
+    assert 'meshio.read("results/square/solution.xdmf")' in code
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=results, capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     points, shape, _ = proc.stdout.split(" ", 2)
     assert int(points) == 13 * 11 and shape == "(143,"
@@ -119,9 +159,15 @@ def test_readme_says_how_to_import_dolfinx():
     works, as the README says."""
     text = (ROOT / "README.md").read_text()
     assert "`import dolfinx_solver`" in text and "libmpi.so.12" in text
-    bare = subprocess.run([sys.executable, "-c", "import dolfinx"], capture_output=True, text=True, timeout=120)
-    first = subprocess.run([sys.executable, "-c", "import dolfinx_solver, dolfinx; print(dolfinx.__version__)"],
-                           capture_output=True, text=True, timeout=120)
+    bare = subprocess.run(
+        [sys.executable, "-c", "import dolfinx"], capture_output=True, text=True, timeout=120
+    )
+    first = subprocess.run(
+        [sys.executable, "-c", "import dolfinx_solver, dolfinx; print(dolfinx.__version__)"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bare.returncode != 0 and "libmpi.so.12" in bare.stderr
     assert first.returncode == 0 and first.stdout.startswith("0.11")
 
@@ -141,7 +187,10 @@ def test_lock_pins_every_dependency() -> None:
 
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     wanted = project["dependencies"] + project["optional-dependencies"]["test"] + ["pip"]
-    names = {re.sub(r"[-_.]+", "-", re.split(r"[<>=!~\[; ]", req, maxsplit=1)[0]).lower() for req in wanted}
+    names = {
+        re.sub(r"[-_.]+", "-", re.split(r"[<>=!~\[; ]", req, maxsplit=1)[0]).lower()
+        for req in wanted
+    }
     assert names - set(_locked()) == set()
     makefile = (ROOT / "Makefile").read_text()
     assert "$(VENV)/.installed: pyproject.toml $(LOCK)" in makefile
@@ -154,12 +203,20 @@ def test_readme_lists_the_locked_versions() -> None:
     section = (ROOT / "README.md").read_text().split("### Environment: the tested versions", 1)[1]
     table = dict(re.findall(r"^\| ([^|]+?) \| (.+?) \|$", section.split("\n\n## ", 1)[0], re.M))
     locked = _locked()
-    rows = {"DOLFINx": ["dolfinx-solver-real", "fenics-basix", "fenics-ffcx", "fenics-ufl"],
-            "MPICH": ["mpich", "mpi4py"], "numpy": ["numpy"], "gmsh": ["gmsh"],
-            "pyvista": ["pyvista", "vtk"], "matplotlib": ["matplotlib"], "h5py / meshio": ["h5py", "meshio"]}
+    rows = {
+        "DOLFINx": ["dolfinx-solver-real", "fenics-basix", "fenics-ffcx", "fenics-ufl"],
+        "MPICH": ["mpich", "mpi4py"],
+        "numpy": ["numpy"],
+        "gmsh": ["gmsh"],
+        "pyvista": ["pyvista", "vtk"],
+        "matplotlib": ["matplotlib"],
+        "h5py / meshio": ["h5py", "meshio"],
+    }
     for row, packages in rows.items():
         for name in packages:
-            assert locked[name] in table[row], f"{row}: README {table[row]!r}, lock {name}=={locked[name]}"
+            assert locked[name] in table[row], (
+                f"{row}: README {table[row]!r}, lock {name}=={locked[name]}"
+            )
     header = (ROOT / "constraints.txt").read_text()
     python, petsc = re.search(r"CPython (\S+) .*PETSc (\S+) ", header).groups()
     assert f"CPython {python}" in table["Python"] and table["PETSc / petsc4py"].startswith(petsc)

@@ -1,5 +1,6 @@
 """demos/make_results.py: the report's numbers come from the study CSVs, and missing
 results are reported as missing instead of crashing."""
+
 from __future__ import annotations
 
 import subprocess
@@ -11,8 +12,13 @@ SQUARE = ROOT / "configs" / "signorini_square.yaml"
 
 
 def _report(results: Path, out: Path) -> str:
-    proc = subprocess.run([sys.executable, "demos/make_results.py", "--results", str(results), "--out", str(out)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "demos/make_results.py", "--results", str(results), "--out", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     return out.read_text()
 
@@ -39,10 +45,14 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     failure table in the report."""
     from contact.app.study import run_study
 
-    study = {"name": "stability", "scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
-             "axes": {"method": ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]},
-             "cases": {"(g) level 1": {"level": 1}, "(g) level 2": {"level": 2, "max_it": 2}},
-             "charts": ["stability"]}
+    study = {
+        "name": "stability",
+        "scene": str(SQUARE),
+        "set": ["mesh.cells=[8,8]"],
+        "axes": {"method": ["fb", "min", "blend", "vinewtonrsls", "vinewtonssls"]},
+        "cases": {"(g) level 1": {"level": 1}, "(g) level 2": {"level": 2, "max_it": 2}},
+        "charts": ["stability"],
+    }
     rows, _ = run_study(study, tmp_path / "res" / "stability", verbose=False)
     text = _report(tmp_path / "res", tmp_path / "R.md")
     section = text.split("## 3.", 1)[1].split("## 4.", 1)[0]
@@ -52,7 +62,9 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     fb = [r["newton_iterations"] + r["polish_solves"] for r in rows if r["method"] == "fb"]
     assert f"fb {min(fb)}–{max(fb)}" in section
     failed = [r for r in rows if not r["converged"]]
-    assert failed and all(f"| {r['case']} | {r['method']} | max iterations | 2 |" in section for r in failed)
+    assert failed and all(
+        f"| {r['case']} | {r['method']} | max iterations | 2 |" in section for r in failed
+    )
 
 
 def test_design_measurements_are_in_the_report_and_out_of_the_docstrings() -> None:
@@ -60,12 +72,29 @@ def test_design_measurements_are_in_the_report_and_out_of_the_docstrings() -> No
     and the docstrings of the modules listed there point to it instead of quoting them."""
     report = _demo_module("make_results")
     assert report.design_measurements() in (ROOT / "demos" / "RESULTS.md").read_text()
-    for module in ("output/vtk", "output/plots", "adaptivity/refine", "adaptivity/energy_error",
-                   "models/problem", "drivers/sequencing"):
+    for module in (
+        "output/vtk",
+        "output/plots",
+        "adaptivity/refine",
+        "adaptivity/energy_error",
+        "models/problem",
+        "drivers/sequencing",
+    ):
         text = (ROOT / "contact" / f"{module}.py").read_text()
         assert "demos/RESULTS.md §10" in text, module
-        for quoted in ("12.5 s", "0.17 s", "4.6 s", "5.4 s", "0.34 s", "20 s at", "50 s", "2.2 s",
-                       "1.73 s", "4.3 s", "44 s"):
+        for quoted in (
+            "12.5 s",
+            "0.17 s",
+            "4.6 s",
+            "5.4 s",
+            "0.34 s",
+            "20 s at",
+            "50 s",
+            "2.2 s",
+            "1.73 s",
+            "4.3 s",
+            "44 s",
+        ):
             assert quoted not in text, (module, quoted)
 
 
@@ -75,11 +104,19 @@ def test_bench_scripts_live_in_demos_bench_and_run_bench_finds_them() -> None:
     scripts = [cmd[1] for step in ("newton", "adaptive", "hertz") for cmd in run_bench.STEPS[step]]
     assert scripts == [f"demos/bench/bench_{name}.py" for name in ("newton", "adaptive", "hertz")]
     for script in scripts:
-        proc = subprocess.run([sys.executable, script, "--help"], cwd=ROOT, capture_output=True, text=True, timeout=120)
+        proc = subprocess.run(
+            [sys.executable, script, "--help"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert proc.returncode == 0 and "usage:" in proc.stdout, proc.stderr
 
 
-def test_run_bench_keep_going_runs_past_a_failure_and_labels_portably(tmp_path: Path, monkeypatch) -> None:
+def test_run_bench_keep_going_runs_past_a_failure_and_labels_portably(
+    tmp_path: Path, monkeypatch
+) -> None:
     """``run_bench --keep-going`` runs every command after a failed one and exits with the first
     failure's code; without it the run stops there. timings.csv names the venv's programs by
     their name, not by the checkout's absolute path."""
@@ -98,7 +135,10 @@ def test_run_bench_keep_going_runs_past_a_failure_and_labels_portably(tmp_path: 
     timings.unlink()
     monkeypatch.setattr(sys, "argv", ["run_bench", "--only", "a", "b", "--keep-going"])
     assert run_bench.main() == 3
-    assert list(run_bench._read(timings)) == ["python -c raise SystemExit(3)", "mpirun -n 1 python -c pass"]
+    assert list(run_bench._read(timings)) == [
+        "python -c raise SystemExit(3)",
+        "mpirun -n 1 python -c pass",
+    ]
 
 
 def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
@@ -108,22 +148,30 @@ def test_refine_floor_sentence_reads_the_kernel_csvs(tmp_path: Path) -> None:
     report = _demo_module("make_results")
     assert report.refine_floor(tmp_path) == ""
 
-    def write(name: str, ranks: int, refine: float, create: float, assembly: float, solve: float) -> None:
-        lines = ["kernel,ranks,size,path,seconds,check"] + [
-            f"floor,{ranks},1234321,{path},{t},{t / solve:.3f}" for path, t in
-            (("refine", refine), ("create_mesh", create), ("assembly", assembly))] + [
-            f"floor,{ranks},1234321,solve,{solve},16"]
+    def write(
+        name: str, ranks: int, refine: float, create: float, assembly: float, solve: float
+    ) -> None:
+        lines = (
+            ["kernel,ranks,size,path,seconds,check"]
+            + [
+                f"floor,{ranks},1234321,{path},{t},{t / solve:.3f}"
+                for path, t in (("refine", refine), ("create_mesh", create), ("assembly", assembly))
+            ]
+            + [f"floor,{ranks},1234321,solve,{solve},16"]
+        )
         (tmp_path / name).write_text("\n".join(lines) + "\n")
 
     write("kernels_floor.csv", 1, 4.0, 10.0, 1.0, 5.0)
     write("kernels_floor_np2.csv", 2, 4.5, 6.0, 0.75, 5.0)
     text = report.refine_floor(tmp_path)
     assert text.startswith(" Nor would a refinement written outside dolfinx help")
-    assert "1.3–2.5× `dolfinx.mesh.refine`" in text        # create_mesh over refine: 6/4.5, 10/4
-    assert "at least 1.00× the solve" in text              # min(0.8 + 0.2, 0.9 + 0.15)
-    assert "refinement 1.35×" in text                      # min(2.0 + 0.2, 1.2 + 0.15)
+    assert "1.3–2.5× `dolfinx.mesh.refine`" in text  # create_mesh over refine: 6/4.5, 10/4
+    assert "at least 1.00× the solve" in text  # min(0.8 + 0.2, 0.9 + 0.15)
+    assert "refinement 1.35×" in text  # min(2.0 + 0.2, 1.2 + 0.15)
     write("kernels_floor_np2.csv", 2, 4.5, 1.5, 0.75, 5.0)
-    assert report.refine_floor(tmp_path).startswith(" A refinement written outside dolfinx might help")
+    assert report.refine_floor(tmp_path).startswith(
+        " A refinement written outside dolfinx might help"
+    )
 
 
 def test_bench_friction_runs_end_to_end_quick(tmp_path: Path) -> None:
@@ -133,8 +181,13 @@ def test_bench_friction_runs_end_to_end_quick(tmp_path: Path) -> None:
     from both starts on every case."""
     import csv
 
-    proc = subprocess.run([sys.executable, "demos/bench/bench_friction.py", "--quick", "--out", str(tmp_path)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, "demos/bench/bench_friction.py", "--quick", "--out", str(tmp_path)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     with open(tmp_path / "forms.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -149,12 +202,28 @@ def test_bench_hertz_runs_end_to_end_on_small_meshes(tmp_path: Path) -> None:
     kinds of ``solver.linear`` (the script once broke when the default options changed)."""
     import csv
 
-    proc = subprocess.run([sys.executable, "demos/bench/bench_hertz.py", "--set", "adapt.max_dofs=20000",
-                           "--out", str(tmp_path)], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "demos/bench/bench_hertz.py",
+            "--set",
+            "adapt.max_dofs=20000",
+            "--out",
+            str(tmp_path),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     with open(tmp_path / "final_mesh_methods.csv", newline="") as fh:
         finals = list(csv.DictReader(fh))
     assert {r["scene"] for r in finals} == {"hertz_2d", "hertz_3d"}
     assert all(r["converged"] == "True" for r in finals)
-    cold_fb_2d = {r["linear_solver"] for r in finals if (r["scene"], r["method"], r["start"]) == ("hertz_2d", "fb", "cold")}
+    cold_fb_2d = {
+        r["linear_solver"]
+        for r in finals
+        if (r["scene"], r["method"], r["start"]) == ("hertz_2d", "fb", "cold")
+    }
     assert cold_fb_2d == {"direct", "gamg", "bcgs"}

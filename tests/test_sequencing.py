@@ -3,13 +3,14 @@
 Sequencing changes only the initial guess and the linear solver only how each Newton step
 is solved: the answer must be the cold direct solve's to solver tolerance, and the
 counts the result reports must be those of the levels actually solved."""
+
+import contact
+from contact.drivers.sequencing import COARSEST_DOFS, transfer
+from contact.models import build_problem
+
 import numpy as np
 import pytest
 from conftest import make_square_msh
-
-import contact
-from contact.models import build_problem
-from contact.drivers.sequencing import COARSEST_DOFS, transfer
 from ties import tie_margin
 
 
@@ -30,7 +31,7 @@ def test_sequenced_gamg_equals_cold_direct(method):
     seq = _solve(scene, method=method)
     assert cold.converged and seq.converged
     assert seq.linear == "gamg" and cold.linear == "direct"
-    assert [lv.dofs for lv in seq.sequence][-2:] == [33 ** 2, 65 ** 2]
+    assert [lv.dofs for lv in seq.sequence][-2:] == [33**2, 65**2]
     assert all(lv.converged for lv in seq.sequence) and seq.sequence[0].dofs >= COARSEST_DOFS
     # bounds with room: the sequenced guess has the final active set up to a few nodes (1–2
     # solves, one more to meet the relative atol), the cold start from u = 0 moves ~100
@@ -45,7 +46,7 @@ def test_sequence_off_and_explicit_levels():
     scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[64,64]"])
     off = _solve(scene, method="min", sequence="off")
     two = _solve(scene, method="min", sequence=2)
-    assert off.sequence == [] and [lv.dofs for lv in two.sequence] == [17 ** 2, 33 ** 2]
+    assert off.sequence == [] and [lv.dofs for lv in two.sequence] == [17**2, 33**2]
     assert np.max(np.abs(off.u_h.x.array - two.u_h.x.array)) <= 1e-8
     # more than exist (or than fit the parts): a note
     many = _solve(scene, method="min", sequence=20)
@@ -56,12 +57,20 @@ def test_sequence_off_and_explicit_levels():
 def test_mesh_file_scene_starts_cold_and_says_so(tmp_path):
     """A user's .msh has no coarser mesh: a cold start, and the result's note says why."""
     msh = make_square_msh(tmp_path / "square.msh", size=0.04)
-    scene = contact.load_scene({"name": "gmsh_square", "mesh": {"type": "gmsh", "file": str(msh)},
-                                "boundaries": {"top": {"role": "dirichlet", "tag": 2},
-                                               "sides": {"role": "neumann", "tag": 3},
-                                               "bottom": {"role": "contact", "tag": 1}},
-                                "model": "signorini", "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"},
-                                "output": {"verbose": False}})
+    scene = contact.load_scene(
+        {
+            "name": "gmsh_square",
+            "mesh": {"type": "gmsh", "file": str(msh)},
+            "boundaries": {
+                "top": {"role": "dirichlet", "tag": 2},
+                "sides": {"role": "neumann", "tag": 3},
+                "bottom": {"role": "contact", "tag": 1},
+            },
+            "model": "signorini",
+            "data": {"f": "1", "g": "0.1 + 2*(x - 0.5)**2"},
+            "output": {"verbose": False},
+        }
+    )
     r = _solve(scene, method="min", sequence=2)
     assert r.converged and r.sequence == [] and "mesh file" in r.sequence_note
 
@@ -97,8 +106,10 @@ def test_grid_transfer_is_exact_for_bilinear_data():
     assert np.max(np.abs(out.x.array - exact)) <= 1e-12
 
 
-@pytest.mark.parametrize("scene_name,linear", [("hertz_2d", "gamg"), ("hertz_2d", "bcgs"),
-                                               ("signorini_free_boundary", "gamg")])
+@pytest.mark.parametrize(
+    "scene_name,linear",
+    [("hertz_2d", "gamg"), ("hertz_2d", "bcgs"), ("signorini_free_boundary", "gamg")],
+)
 def test_iterative_newton_systems_equal_direct(scene_name, linear):
     """The reduced CG + GAMG system (rigid-body modes for elasticity) and BiCGStab + GAMG on
     the assembled H give the direct solution to 1e-8 from the same cold start."""
@@ -109,7 +120,7 @@ def test_iterative_newton_systems_equal_direct(scene_name, linear):
     assert it.krylov_iterations > 0
     scale = np.max(np.abs(direct.u_h.x.array))
     assert np.max(np.abs(it.u_h.x.array - direct.u_h.x.array)) <= 1e-8 * max(scale, 1.0)
-    assert tie_margin(direct) >= 1e-6   # no node near a tie: the counts cannot move with rounding
+    assert tie_margin(direct) >= 1e-6  # no node near a tie: the counts cannot move with rounding
     assert it.n_active == direct.n_active
 
 
@@ -130,7 +141,9 @@ def test_bad_sequence_value_is_a_config_error():
 def test_unquoted_off_turns_sequencing_off():
     """YAML reads an unquoted `off` as false (`--set solver.sequence=off`, `sequence: off`):
     accepted, and it means off; `on` (true) is not a value."""
-    scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[64,64]", "solver.sequence=off"])
+    scene = contact.load_scene(
+        "configs/signorini_square.yaml", ["mesh.cells=[64,64]", "solver.sequence=off"]
+    )
     r = _solve(scene, method="min")
     assert r.converged and r.sequence == [] and r.sequence_note == ""
     with pytest.raises(contact.ConfigError, match="solver.sequence: must be auto, off"):

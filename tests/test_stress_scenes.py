@@ -10,17 +10,18 @@
   active-set sizes, and with every pair (a_i, b_i) = (0, 0) up to round-off the rule
   b_i > a_i classifies the nodes by round-off.)
 """
+
 from __future__ import annotations
 
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 import contact
 from contact.adaptivity.energy_error import energy_error
 from contact.models import build_problem
 from contact.solvers import owned_residual
+
+import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 OBTUSE = ROOT / "configs" / "obtuse_square.yaml"
@@ -90,7 +91,9 @@ def test_every_contact_node_is_biactive(biactive, method):
     gap, lam = _contact_state(result)
     U, L = np.max(np.abs(result.u_h.x.array)), 1.0
     both = (np.abs(gap) / U <= 1e-8) & (np.abs(lam) / (U / L) <= 1e-8)
-    assert len(gap) == 17 and np.mean(both) >= 0.9, f"max |g - u| {np.abs(gap).max():.1e}, max |λ| {np.abs(lam).max():.1e}"
+    assert len(gap) == 17 and np.mean(both) >= 0.9, (
+        f"max |g - u| {np.abs(gap).max():.1e}, max |λ| {np.abs(lam).max():.1e}"
+    )
 
 
 def test_biactive_energy_error_is_first_order():
@@ -102,7 +105,9 @@ def test_biactive_energy_error_is_first_order():
         u_h = contact.solve(scene, verbose=False).u_h
         errors.append(energy_error(u_h, "y**2"))
         assert errors[-1] <= 0.5 / n
-    free = contact.solve(contact.load_scene(BIACTIVE, ["mesh.cells=[32,32]", "data.g=1"]), verbose=False)
-    assert free.n_active == 0   # the obstacle 1 away: every node far from the tie
+    free = contact.solve(
+        contact.load_scene(BIACTIVE, ["mesh.cells=[32,32]", "data.g=1"]), verbose=False
+    )
+    assert free.n_active == 0  # the obstacle 1 away: every node far from the tie
     assert np.max(np.abs(free.u_h.x.array - u_h.x.array)) <= 1e-10
     assert 1.9 <= errors[0] / errors[1] <= 2.1

@@ -2,6 +2,7 @@
 study.csv / levels.csv / study.json and its charts; failing runs are rows classified by
 outcome, bad study files fail before anything runs (exit 2, one line); 2 MPI ranks give
 the serial iteration counts."""
+
 from __future__ import annotations
 
 import csv
@@ -21,10 +22,30 @@ FREE = ROOT / "configs" / "signorini_free_boundary.yaml"
 MPIRUN = Path(sys.executable).parent / "mpirun"
 PREFIX = "contact: error: "
 ENV = {**os.environ, "PYTHONWARNINGS": "ignore", "OMP_NUM_THREADS": "1"}
-TINY_COLUMNS = ["run", "method", "line_search", "repeat", "dofs", "levels", "newton_iterations",
-                "newton_iterations_total", "polish_solves", "polish_solves_total", "linear_solver",
-                "krylov_iterations", "converged", "reason", "eta", "active_measure", "outcome",
-                "seconds", "peak_rss_mib", "ranks", "pareto", "failure"]
+TINY_COLUMNS = [
+    "run",
+    "method",
+    "line_search",
+    "repeat",
+    "dofs",
+    "levels",
+    "newton_iterations",
+    "newton_iterations_total",
+    "polish_solves",
+    "polish_solves_total",
+    "linear_solver",
+    "krylov_iterations",
+    "converged",
+    "reason",
+    "eta",
+    "active_measure",
+    "outcome",
+    "seconds",
+    "peak_rss_mib",
+    "ranks",
+    "pareto",
+    "failure",
+]
 
 
 def _study(cwd: Path, *args: str, nproc: int = 1) -> subprocess.CompletedProcess:
@@ -55,8 +76,13 @@ def tiny_serial(tmp_path_factory):
 
 def test_tiny_study_end_to_end(tiny_serial) -> None:
     proc, out = tiny_serial
-    assert sorted(p.name for p in out.iterdir()) == [".contact-result", "levels.csv", "speed_accuracy.png",
-                                                     "study.csv", "study.json"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".contact-result",
+        "levels.csv",
+        "speed_accuracy.png",
+        "study.csv",
+        "study.json",
+    ]
     assert (out / "speed_accuracy.png").stat().st_size > 10_000
     assert sorted(p.name for p in out.parent.iterdir()) == ["out"]  # no .partial / .old left over
     assert not [ln for ln in proc.stderr.splitlines() if ln.strip()], proc.stderr
@@ -64,9 +90,14 @@ def test_tiny_study_end_to_end(tiny_serial) -> None:
     columns, rows = _rows(out)
     assert columns == TINY_COLUMNS
     assert [(r["run"], r["method"], r["line_search"]) for r in rows] == [
-        ("1", "fb", "basic"), ("2", "min", "basic"), ("3", "vinewtonrsls", "basic")]
+        ("1", "fb", "basic"),
+        ("2", "min", "basic"),
+        ("3", "vinewtonrsls", "basic"),
+    ]
     for r in rows:
-        assert r["converged"] == "True" and r["failure"] == "" and r["reason"].startswith("converged")
+        assert (
+            r["converged"] == "True" and r["failure"] == "" and r["reason"].startswith("converged")
+        )
         assert r["outcome"] == "converged"
         assert r["dofs"] == "289" and r["levels"] == "1" and r["ranks"] == "1"
         assert 1 <= int(r["newton_iterations"]) == int(r["newton_iterations_total"]) <= 50
@@ -107,8 +138,12 @@ def test_tiny_study_two_ranks_same_iterations(tiny_serial, tmp_path_factory) -> 
 def test_failing_runs_are_rows(tmp_path: Path) -> None:
     """max_it = 1 cannot converge and u0 = 1/x is infinite at x = 0 (bad input, found
     before the solve): those runs are failure rows, the others converge, the study exits 0."""
-    study = {"name": "failing", "scene": str(SQUARE), "set": ["mesh.cells=[8,8]"],
-             "axes": {"method": ["fb", "min"], "max_it": [1, 50], "u0": ["0", "1/x"]}}
+    study = {
+        "name": "failing",
+        "scene": str(SQUARE),
+        "set": ["mesh.cells=[8,8]"],
+        "axes": {"method": ["fb", "min"], "max_it": [1, 50], "u0": ["0", "1/x"]},
+    }
     (tmp_path / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     proc = _study(tmp_path, "study.yaml", "-o", "out")
     assert proc.returncode == 0, proc.stderr + proc.stdout
@@ -121,10 +156,15 @@ def test_failing_runs_are_rows(tmp_path: Path) -> None:
         assert (r["failure"] == "") == ok, r
         if r["u0"] == "1/x":
             assert r["reason"] == "" and r["outcome"] == "error"
-            assert r["failure"] == "solver.u0: not a finite number at 9 of 81 nodes, e.g. at x = 0, y = 0"
+            assert (
+                r["failure"]
+                == "solver.u0: not a finite number at 9 of 81 nodes, e.g. at x = 0, y = 0"
+            )
         elif r["max_it"] == "1":
             assert r["reason"] == "diverged_max_it" and r["newton_iterations"] == "1"
-            assert r["failure"].startswith("did not converge (diverged_max_it) after 1 Newton iterations")
+            assert r["failure"].startswith(
+                "did not converge (diverged_max_it) after 1 Newton iterations"
+            )
         if not ok:
             assert r["eta"] == "" and r["pareto"] == "False"
     assert "FAILED (diverged_max_it), 1 its" in proc.stdout
@@ -135,8 +175,8 @@ def test_exceptions_are_rows(monkeypatch) -> None:
     """A run that raises (a ConfigError from an impossible combination or anything else)
     is a failure row; the next run still happens."""
     import contact.drivers.solve
-    from contact.base.errors import ConfigError
     from contact.app.study import run_study
+    from contact.base.errors import ConfigError
 
     real = contact.drivers.solve.solve
 
@@ -149,12 +189,20 @@ def test_exceptions_are_rows(monkeypatch) -> None:
         return real(scene, *args, **kw)
 
     monkeypatch.setattr(contact.drivers.solve, "solve", fake)
-    rows, _ = run_study({"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "warmup": False,
-                         "axes": {"method": ["min", "blend", "fb"]}}, verbose=False)
+    rows, _ = run_study(
+        {
+            "scene": str(SQUARE),
+            "set": ["mesh.cells=[8,8]"],
+            "warmup": False,
+            "axes": {"method": ["min", "blend", "fb"]},
+        },
+        verbose=False,
+    )
     assert [(r["method"], r["converged"], r["failure"]) for r in rows] == [
         ("min", False, "solver.method: min cannot do this"),
         ("blend", False, "RuntimeError: boom second line"),
-        ("fb", True, "")]
+        ("fb", True, ""),
+    ]
     assert rows[0]["dofs"] == "" and rows[0]["seconds"] >= 0
     assert [r["outcome"] for r in rows] == ["error", "error", "converged"]
 
@@ -164,8 +212,15 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
     refines the base mesh uniformly (4× the cells per level in 2D)."""
     from contact.app.study import run_study
 
-    rows, levels = run_study({"scene": str(FREE), "set": ["mesh.cells=[8,4]"], "adapt": {"max_levels": 2},
-                              "axes": {"strategy": ["none", "uniform"], "level": [0, 1]}}, verbose=False)
+    rows, levels = run_study(
+        {
+            "scene": str(FREE),
+            "set": ["mesh.cells=[8,4]"],
+            "adapt": {"max_levels": 2},
+            "axes": {"strategy": ["none", "uniform"], "level": [0, 1]},
+        },
+        verbose=False,
+    )
     by = {(r["strategy"], r["level"]): r for r in rows}
     assert all(r["converged"] and r["failure"] == "" for r in rows)
     assert by["none", 0]["levels"] == 1 and by["none", 0]["stop"] == "single solve"
@@ -177,11 +232,20 @@ def test_adaptive_and_single_runs_with_exact_solution() -> None:
     assert by["none", 1]["error"] < by["none", 0]["error"] < by["none", 0]["eta"] * 10
     assert all(r["eta"] > 0 for r in rows)
     # levels.csv: one row per level, the last one of a run equal to the run's row
-    assert [(lv["run"], lv["level"]) for lv in levels] == [(1, 0), (2, 0), (3, 0), (3, 1), (4, 0), (4, 1)]
+    assert [(lv["run"], lv["level"]) for lv in levels] == [
+        (1, 0),
+        (2, 0),
+        (3, 0),
+        (3, 1),
+        (4, 0),
+        (4, 1),
+    ]
     for r in rows:
         mine = [lv for lv in levels if lv["run"] == r["run"]]
         assert mine[-1]["dofs"] == r["dofs"] and mine[-1]["error"] == r["error"]
-        assert [lv["seconds"] for lv in mine] == sorted(lv["seconds"] for lv in mine) and mine[-1]["seconds"] <= r["seconds"]
+        assert [lv["seconds"] for lv in mine] == sorted(lv["seconds"] for lv in mine) and mine[-1][
+            "seconds"
+        ] <= r["seconds"]
     adaptive = [lv for lv in levels if lv["run"] == 3]
     assert adaptive[1]["dofs"] > adaptive[0]["dofs"] and adaptive[1]["error"] < adaptive[0]["error"]
 
@@ -202,53 +266,110 @@ def test_shipped_studies_validate() -> None:
     assert {label[:3] for label in stab.cases} == {f"({c})" for c in "abcdefghijklmnoq"}
     # plain Newton-min (no globalization) keeps rows of its own, so its cycles stay visible
     plain = {label for label, c in stab.cases.items() if c.params.get("line_search") == "basic"}
-    assert plain == {"(d) plain Newton", "(k) kappa=1e4 at 128², plain Newton", "(q) two-body stack, plain Newton"}
-    assert stab.cases["(q) two-body stack"].cfg["solver"]["line_search"] == "auto"   # the default
+    assert plain == {
+        "(d) plain Newton",
+        "(k) kappa=1e4 at 128², plain Newton",
+        "(q) two-body stack, plain Newton",
+    }
+    assert stab.cases["(q) two-body stack"].cfg["solver"]["line_search"] == "auto"  # the default
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
-    assert all(c.cfg["solver"]["sequence"] in ("off", False) for label, c in stab.cases.items()
-               if not label.startswith(("(h)", "(i)", "(j)")))   # friction is never sequenced
+    assert all(
+        c.cfg["solver"]["sequence"] in ("off", False)
+        for label, c in stab.cases.items()
+        if not label.startswith(("(h)", "(i)", "(j)"))
+    )  # friction is never sequenced
     scale = load_study(ROOT / "configs" / "studies" / "stability_scale.yaml")
-    assert scale.axes["method"] == ["fb", "min", "blend"] and scale.base_cfg["mesh"]["cells"] == [1024, 1024]
-    assert scale.axes["sequence"] == ["auto", "off"] and len(scale.runs()) == 3 * 2 * len(scale.axes["kappa"])
-    assert load_study(ROOT / "configs" / "studies" / "speed_accuracy_hertz.yaml").accuracy == "hertz_error"
+    assert scale.axes["method"] == ["fb", "min", "blend"] and scale.base_cfg["mesh"]["cells"] == [
+        1024,
+        1024,
+    ]
+    assert scale.axes["sequence"] == ["auto", "off"] and len(scale.runs()) == 3 * 2 * len(
+        scale.axes["kappa"]
+    )
+    assert (
+        load_study(ROOT / "configs" / "studies" / "speed_accuracy_hertz.yaml").accuracy
+        == "hertz_error"
+    )
 
 
 def test_pareto_front() -> None:
     from contact.app.study import pareto_front
 
-    pts = [(1.0, 1.0), (2.0, 0.5), (3.0, 0.5), (0.5, 1.0 + 1e-12), (1.0, 2.0), (math.nan, 0.1), (4.0, 0.1)]
+    pts = [
+        (1.0, 1.0),
+        (2.0, 0.5),
+        (3.0, 0.5),
+        (0.5, 1.0 + 1e-12),
+        (1.0, 2.0),
+        (math.nan, 0.1),
+        (4.0, 0.1),
+    ]
     assert pareto_front(pts) == [False, True, False, True, False, False, True]
 
 
 BAD = {
-    "unknown_key": ("colour: unknown key (expected one of name, scene, set, axes, cases, adapt, charts, " "repeat, warmup)",
-                    {"colour": "red"}),
-    "unknown_axis": ("axes.solver: unknown axis (expected one of method, mu, c,", {"axes": {"solver": ["fb"]}}),
-    "bad_method": ("axes.method[1]: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls",
-                   {"axes": {"method": ["fb", "fbb"]}}),
+    "unknown_key": (
+        "colour: unknown key (expected one of name, scene, set, axes, cases, adapt, charts, "
+        "repeat, warmup)",
+        {"colour": "red"},
+    ),
+    "unknown_axis": (
+        "axes.solver: unknown axis (expected one of method, mu, c,",
+        {"axes": {"solver": ["fb"]}},
+    ),
+    "bad_method": (
+        "axes.method[1]: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls",
+        {"axes": {"method": ["fb", "fbb"]}},
+    ),
     "bad_c": ("axes.c[0]: must be > 0, got -1", {"axes": {"c": [-1, "auto"]}}),
-    "bad_linear_solver": ("axes.linear_solver[0]: 'lu' is not one of direct, gamg", {"axes": {"linear_solver": ["lu"]}}),
+    "bad_linear_solver": (
+        "axes.linear_solver[0]: 'lu' is not one of direct, gamg",
+        {"axes": {"linear_solver": ["lu"]}},
+    ),
     "bad_u0": ("axes.u0[0]: unknown name 'foo'", {"axes": {"u0": ["foo"]}}),
-    "axis_not_list": ("axes.method: expected a non-empty list of values, got a string 'fb'", {"axes": {"method": "fb"}}),
+    "axis_not_list": (
+        "axes.method: expected a non-empty list of values, got a string 'fb'",
+        {"axes": {"method": "fb"}},
+    ),
     "axis_duplicate": ("axes.level[1]: 1 is listed twice", {"axes": {"level": [1, 1]}}),
-    "bad_strategy": ("adapt.strategy: 'best' is not one of none, uniform, dorfler, maximum",
-                     {"adapt": {"strategy": "best"}}),
+    "bad_strategy": (
+        "adapt.strategy: 'best' is not one of none, uniform, dorfler, maximum",
+        {"adapt": {"strategy": "best"}},
+    ),
     "repeat_string": ("repeat: expected an integer, got a string 'twice'", {"repeat": "twice"}),
     "missing_scene_key": ("scene: required key is missing", {"scene": None}),
     "missing_scene_file": ("scene: no such file '{tmp}/nope.yaml'", {"scene": "nope.yaml"}),
     "set_not_string": ("set[0]: expected a string KEY.PATH=VALUE, got an integer 3", {"set": [3]}),
     "set_bad_scene_key": ("scene.solver.metod: unknown key", {"set": ["solver.metod=fb"]}),
-    "unknown_chart": ("charts: unknown chart 'pie' (expected some of speed_accuracy, stability, iterations)",
-                      {"charts": ["speed_accuracy", "pie"]}),
-    "case_not_mapping": ("cases.far: expected a mapping, got a string 'u0=10'", {"cases": {"far": "u0=10"}}),
-    "case_unknown_key": ("cases.far.colour: unknown key (expected scene, set or an axis: method,",
-                         {"cases": {"far": {"colour": 1}}}),
-    "case_is_axis": ("cases.far.method: is also an axis of the study; set it in one place",
-                     {"cases": {"far": {"method": "min"}}}),
+    "unknown_chart": (
+        "charts: unknown chart 'pie' (expected some of speed_accuracy, stability, iterations)",
+        {"charts": ["speed_accuracy", "pie"]},
+    ),
+    "case_not_mapping": (
+        "cases.far: expected a mapping, got a string 'u0=10'",
+        {"cases": {"far": "u0=10"}},
+    ),
+    "case_unknown_key": (
+        "cases.far.colour: unknown key (expected scene, set or an axis: method,",
+        {"cases": {"far": {"colour": 1}}},
+    ),
+    "case_is_axis": (
+        "cases.far.method: is also an axis of the study; set it in one place",
+        {"cases": {"far": {"method": "min"}}},
+    ),
     "case_bad_value": ("cases.far.u0: unknown name 'foo'", {"cases": {"far": {"u0": "foo"}}}),
-    "case_missing_scene": ("cases.far.scene: no such file '{tmp}/nope.yaml'", {"cases": {"far": {"scene": "nope.yaml"}}}),
-    "case_bad_set": ("cases.far.scene.solver.metod: unknown key", {"cases": {"far": {"set": ["solver.metod=fb"]}}}),
-    "malformed_yaml": ("{study}: malformed YAML (line 2, column 13): mapping values are not allowed", "name: x\naxes: method: [fb]\n"),
+    "case_missing_scene": (
+        "cases.far.scene: no such file '{tmp}/nope.yaml'",
+        {"cases": {"far": {"scene": "nope.yaml"}}},
+    ),
+    "case_bad_set": (
+        "cases.far.scene.solver.metod: unknown key",
+        {"cases": {"far": {"set": ["solver.metod=fb"]}}},
+    ),
+    "malformed_yaml": (
+        "{study}: malformed YAML (line 2, column 13): mapping values are not allowed",
+        "name: x\naxes: method: [fb]\n",
+    ),
 }
 
 
@@ -259,7 +380,12 @@ def test_bad_study_fails_before_running(expect: str, content, tmp_path: Path) ->
     if isinstance(content, str):
         study_file.write_text(content)
     else:
-        study = {"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "axes": {"method": ["fb"]}, **content}
+        study = {
+            "scene": str(SQUARE),
+            "set": ["mesh.cells=[8,8]"],
+            "axes": {"method": ["fb"]},
+            **content,
+        }
         study = {k: v for k, v in study.items() if v is not None}
         study_file.write_text(yaml.safe_dump(study, sort_keys=False))
     before = sorted(tmp_path.rglob("*"))
@@ -291,23 +417,34 @@ def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
     cold start on the finer levels of problem A."""
     from contact.app.study import run_study
 
-    study = {"name": "cases", "scene": str(FREE), "set": ["mesh.cells=[8,4]"],
-             "axes": {"method": ["fb", "min"]},
-             "cases": {"nested": {"strategy": "uniform", "nested": True},
-                       "cold": {"strategy": "uniform", "nested": False},
-                       "one step": {"strategy": "none", "max_it": 1},
-                       "square": {"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "strategy": "none"}},
-             "adapt": {"max_levels": 3}, "charts": ["stability", "iterations", "speed_accuracy"]}
+    study = {
+        "name": "cases",
+        "scene": str(FREE),
+        "set": ["mesh.cells=[8,4]"],
+        "axes": {"method": ["fb", "min"]},
+        "cases": {
+            "nested": {"strategy": "uniform", "nested": True},
+            "cold": {"strategy": "uniform", "nested": False},
+            "one step": {"strategy": "none", "max_it": 1},
+            "square": {"scene": str(SQUARE), "set": ["mesh.cells=[8,8]"], "strategy": "none"},
+        },
+        "adapt": {"max_levels": 3},
+        "charts": ["stability", "iterations", "speed_accuracy"],
+    }
     rows, levels = run_study(study, tmp_path / "out", verbose=False)
     assert [(r["case"], r["method"]) for r in rows] == [
-        (c, m) for c in ("nested", "cold", "one step", "square") for m in ("fb", "min")]
+        (c, m) for c in ("nested", "cold", "one step", "square") for m in ("fb", "min")
+    ]
     outcomes = {(r["case"], r["method"]): r["outcome"] for r in rows}
-    assert outcomes == {**{(c, m): "converged" for c in ("nested", "cold", "square") for m in ("fb", "min")},
-                        ("one step", "fb"): "max iterations", ("one step", "min"): "max iterations"}
+    assert outcomes == {
+        **{(c, m): "converged" for c in ("nested", "cold", "square") for m in ("fb", "min")},
+        ("one step", "fb"): "max iterations",
+        ("one step", "min"): "max iterations",
+    }
     assert {r["dofs"] for r in rows if r["case"] == "square"} == {81}
     its = {(lv["case"], lv["method"], lv["level"]): lv["newton_iterations"] for lv in levels}
     for m in ("fb", "min"):
-        assert its["nested", m, 0] == its["cold", m, 0]           # the same first level
+        assert its["nested", m, 0] == its["cold", m, 0]  # the same first level
         # warm start pays on level 2 (1–2 against ≥ 4)
         assert its["nested", m, 2] < its["cold", m, 2]
     for chart in ("stability", "iterations", "speed_accuracy"):

@@ -1,12 +1,13 @@
 """A failed run of a study is one row whose ``failure`` cell is one line of at most 300
 characters — for a PETSc error, PETSc's own message, not its 3 KB stack (issue 10, defect
 10)."""
-from __future__ import annotations
 
-from clirun import ROOT
+from __future__ import annotations
 
 from contact.app import failures
 from contact.app.study import run_study
+
+from clirun import ROOT
 
 SCENE = str(ROOT / "configs" / "signorini_square.yaml")
 
@@ -38,7 +39,9 @@ def test_describe_keeps_petscs_message_not_its_stack() -> None:
     err = _petsc_error()
     assert len(str(err).splitlines()) > 4  # the stack of function names
     line = failures.describe(err)
-    assert line.startswith("PETSc error 92: Could not locate solver type nonsense for factorization type LU")
+    assert line.startswith(
+        "PETSc error 92: Could not locate solver type nonsense for factorization type LU"
+    )
     assert "\n" not in line and len(line) <= failures.MAX_LINE and "KSPSetUp()" not in line
 
 
@@ -49,8 +52,13 @@ def test_study_failure_cell_is_one_line(monkeypatch) -> None:
         raise err
 
     monkeypatch.setattr("contact.drivers.solve.solve", broken)
-    study = {"name": "failing", "scene": SCENE, "set": ["mesh.cells=[4,4]"], "axes": {"method": ["fb"]},
-             "warmup": False}
+    study = {
+        "name": "failing",
+        "scene": SCENE,
+        "set": ["mesh.cells=[4,4]"],
+        "axes": {"method": ["fb"]},
+        "warmup": False,
+    }
     rows, _ = run_study(study, verbose=False)
     (row,) = rows
     assert row["converged"] is False and row["outcome"] == "error"
@@ -63,8 +71,13 @@ def test_long_failure_texts_are_capped(monkeypatch) -> None:
         raise RuntimeError("x" * 5000 + "\n" + "y" * 5000)
 
     monkeypatch.setattr("contact.drivers.solve.solve", broken)
-    study = {"name": "failing", "scene": SCENE, "set": ["mesh.cells=[4,4]"], "axes": {"method": ["fb"]},
-             "warmup": False}
+    study = {
+        "name": "failing",
+        "scene": SCENE,
+        "set": ["mesh.cells=[4,4]"],
+        "axes": {"method": ["fb"]},
+        "warmup": False,
+    }
     (row,), _ = run_study(study, verbose=False)
     assert row["failure"].startswith("RuntimeError: xxx") and row["failure"].endswith("…")
     assert len(row["failure"]) == 300

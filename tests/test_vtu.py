@@ -2,16 +2,17 @@
 (pyvista.read) and meshio both give back exactly — points, cells, point, cell and field
 data — and the gather behind them stacks every rank's rows in rank order, a rank with no
 rows included."""
+
 import os
 import subprocess
 import sys
 from pathlib import Path
 
+from contact.output import vtk
+
 import meshio
 import numpy as np
 import pyvista
-
-from contact.output import vtk
 
 
 def test_vtu_reads_back_exactly_with_pyvista_and_meshio(tmp_path):
@@ -69,10 +70,16 @@ def test_gather_rows_stacks_every_rank_in_order(tmp_path):
     script = tmp_path / "gather.py"
     script.write_text(GATHER_ROWS)
     mpirun = Path(sys.executable).parent / "mpirun"
-    proc = subprocess.run([str(mpirun), "-n", "3", sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=120, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        [str(mpirun), "-n", "3", sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stderr
     import json
+
     a, b, da, db = json.loads(proc.stdout.strip().splitlines()[-1])
     assert a == [[0, 0], [1, 1], [2, 2], [2, 2], [3, 3], [4, 4], [5, 5], [6, 6]]
     assert b == [0.5] * 3 + [2.5] * 5 and (da, db) == ("int64", "float64")

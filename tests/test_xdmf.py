@@ -3,6 +3,7 @@ another: every .xdmf with meshio and with h5py + the XML (tests/readback.py), ev
 with meshio and pyvista; the same content from 1 and 2 MPI ranks up to the order of nodes
 and cells; load steps as a temporal collection with time t; `output.formats` choosing
 the files."""
+
 import json
 import os
 import subprocess
@@ -24,8 +25,14 @@ def _run(args, nproc=1, cwd=ROOT):
     cmd = [sys.executable, "-m", "contact.app.cli", "run"] + [str(a) for a in args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
-    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=600,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return subprocess.run(
+        cmd,
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
 
 
 def _content(step: dict) -> tuple:
@@ -36,18 +43,31 @@ def _content(step: dict) -> tuple:
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("scene,sets", [
-    ("signorini_square.yaml", ["mesh.cells=[16,12]"]),
-    ("block_on_plane.yaml", ["mesh.cells=[12,6]", "adapt=none"]),
-])
+@pytest.mark.parametrize(
+    "scene,sets",
+    [
+        ("signorini_square.yaml", ["mesh.cells=[16,12]"]),
+        ("block_on_plane.yaml", ["mesh.cells=[12,6]", "adapt=none"]),
+    ],
+)
 def test_one_and_two_ranks_write_the_same_fields(tmp_path, scene, sets):
     """The XDMF grid and the .vtu of a 2-rank run hold the serial run's points, cells and
     values (to the solver's tolerance), in another order."""
     steps, grids = {}, {}
     for nproc in (1, 2):
         out = tmp_path / f"np{nproc}"
-        proc = _run([ROOT / "configs" / scene, "-o", out, "-q", "--set", "output.png=false",
-                     *(f"--set={s}" for s in sets)], nproc)
+        proc = _run(
+            [
+                ROOT / "configs" / scene,
+                "-o",
+                out,
+                "-q",
+                "--set",
+                "output.png=false",
+                *(f"--set={s}" for s in sets),
+            ],
+            nproc,
+        )
         assert proc.returncode == 0, proc.stderr
         (steps[nproc],) = read_xdmf(out / "solution.xdmf")
         grids[nproc] = read_vtu(out / "solution.vtu")
@@ -63,8 +83,10 @@ def test_one_and_two_ranks_write_the_same_fields(tmp_path, scene, sets):
     for name in c1:
         assert np.allclose(c1[name], c2[name], rtol=1e-7), name
     # the .vtu: the same points and values as the serial one too
-    v1, v2 = (by_position(np.asarray(g.points), *(np.asarray(g.point_data[n]) for n in names))
-              for g in (grids[1], grids[2]))
+    v1, v2 = (
+        by_position(np.asarray(g.points), *(np.asarray(g.point_data[n]) for n in names))
+        for g in (grids[1], grids[2])
+    )
     assert np.allclose(v1[0], v2[0], rtol=0, atol=1e-12)
     for name, a, b in zip(names, v1[1:], v2[1:]):
         assert np.allclose(a, b, rtol=0, atol=1e-8 * scale, equal_nan=True), name
@@ -76,8 +98,23 @@ def test_load_steps_are_one_temporal_collection(tmp_path):
     t = 1/3, 2/3, 1, one grid per step with the mesh's node count of every field; each
     step's own file holds that step's grid."""
     out = tmp_path / "steps"
-    proc = _run([BLOCK, "-o", out, "-q", "--set", "output.png=false", "--set", "friction.law=none",
-                 "--set", "load.steps=3", "--set", "mesh.cells=[20,5]"], 2)
+    proc = _run(
+        [
+            BLOCK,
+            "-o",
+            out,
+            "-q",
+            "--set",
+            "output.png=false",
+            "--set",
+            "friction.law=none",
+            "--set",
+            "load.steps=3",
+            "--set",
+            "mesh.cells=[20,5]",
+        ],
+        2,
+    )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "summary.json").read_text())
     steps = read_xdmf(out / "solution.xdmf")
@@ -103,8 +140,20 @@ def test_load_steps_are_one_temporal_collection(tmp_path):
 
 def test_friction_steps_carry_the_friction_fields(tmp_path):
     out = tmp_path / "drag"
-    proc = _run([BLOCK, "-o", out, "-q", "--set", "output.png=false",
-                 "--set", "load.steps=2", "--set", "mesh.cells=[20,5]"])
+    proc = _run(
+        [
+            BLOCK,
+            "-o",
+            out,
+            "-q",
+            "--set",
+            "output.png=false",
+            "--set",
+            "load.steps=2",
+            "--set",
+            "mesh.cells=[20,5]",
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     steps = read_xdmf(out / "solution.xdmf")
     assert [s["time"] for s in steps] == [0.5, 1.0]
@@ -115,23 +164,44 @@ def test_friction_steps_carry_the_friction_fields(tmp_path):
         assert set(np.unique(step["point"]["status"])) <= {-1.0, 0.0, 1.0, 2.0}
 
 
-@pytest.mark.parametrize("sets,present,absent", [
-    (["output.formats=[vtk]"], {"solution.vtu"}, {"solution.xdmf", "solution.h5"}),
-    (["output.xdmf=false"], {"solution.vtu"}, {"solution.xdmf", "solution.h5"}),
-    (["output.formats=[xdmf]"], {"solution.xdmf", "solution.h5"}, {"solution.vtu"}),
-    (["output.formats=[]", "output.xdmf=true"], {"solution.xdmf", "solution.h5"}, {"solution.vtu"}),
-    (["output.formats=[]"], set(), {"solution.xdmf", "solution.h5", "solution.vtu"}),
-])
+@pytest.mark.parametrize(
+    "sets,present,absent",
+    [
+        (["output.formats=[vtk]"], {"solution.vtu"}, {"solution.xdmf", "solution.h5"}),
+        (["output.xdmf=false"], {"solution.vtu"}, {"solution.xdmf", "solution.h5"}),
+        (["output.formats=[xdmf]"], {"solution.xdmf", "solution.h5"}, {"solution.vtu"}),
+        (
+            ["output.formats=[]", "output.xdmf=true"],
+            {"solution.xdmf", "solution.h5"},
+            {"solution.vtu"},
+        ),
+        (["output.formats=[]"], set(), {"solution.xdmf", "solution.h5", "solution.vtu"}),
+    ],
+)
 def test_formats_choose_the_field_files(tmp_path, sets, present, absent):
     out = tmp_path / "run"
-    proc = _run([SQUARE, "-o", out, "-q", "--set", "mesh.cells=[6,6]",
-                 "--set", "output.png=false", *(f"--set={s}" for s in sets)])
+    proc = _run(
+        [
+            SQUARE,
+            "-o",
+            out,
+            "-q",
+            "--set",
+            "mesh.cells=[6,6]",
+            "--set",
+            "output.png=false",
+            *(f"--set={s}" for s in sets),
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
     assert present <= names and not absent & names
     summary = json.loads((out / "summary.json").read_text())
-    written = {f for f, ext in (("xdmf", ".xdmf"), ("vtk", ".vtu"))
-               if any(n.endswith(ext) for n in present)}
+    written = {
+        f
+        for f, ext in (("xdmf", ".xdmf"), ("vtk", ".vtu"))
+        if any(n.endswith(ext) for n in present)
+    }
     timed = {k for k in summary if k.startswith("time_output_")}
     assert timed == {f"time_output_{f}" for f in written}
 

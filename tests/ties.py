@@ -6,12 +6,13 @@ difference of the tie tolerance τ (contact.solvers.ncp): a node that is nearly 
 (gap ≈ 0 and pressure ≈ 0).  ``tie_margin`` measures that distance; a test that compares
 counts asserts a margin far above the solver tolerance, so that its count cannot move
 with rounding (or compares node sets only away from ties)."""
+
 from __future__ import annotations
+
+from contact.solvers.newton import Complementarity
 
 import numpy as np
 from mpi4py import MPI
-
-from contact.solvers.newton import Complementarity
 
 
 def tie_margin(result) -> float:
@@ -24,6 +25,8 @@ def tie_margin(result) -> float:
     a, b, _ = cp.pair(x)
     x.destroy()
     comm = p.V.mesh.comm
-    scale = comm.allreduce(float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0))), op=MPI.MAX)
+    scale = comm.allreduce(
+        float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0))), op=MPI.MAX
+    )
     gap = comm.allreduce(float(np.min(np.abs(b - a), initial=np.inf)), op=MPI.MIN)
     return gap / scale if scale > 0 else np.inf

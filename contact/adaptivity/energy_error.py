@@ -1,11 +1,11 @@
 """Errors against an exact solution (docs/theory.md §7): energy / H¹-seminorm and L² norms."""
+
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
-
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
 from ..setup import expressions
 
@@ -25,8 +25,14 @@ def _integrate(expr, msh, degree: int) -> float:
     return msh.comm.allreduce(fem.assemble_scalar(fem.form(expr * dx)), op=MPI.SUM)
 
 
-def energy_error(u_h: fem.Function, exact: str, k=1.0, constants: dict | None = None,
-                 quadrature_degree: int | None = None, t: float = 1.0) -> float:
+def energy_error(
+    u_h: fem.Function,
+    exact: str,
+    k=1.0,
+    constants: dict | None = None,
+    quadrature_degree: int | None = None,
+    t: float = 1.0,
+) -> float:
     """‖u − u_h‖_E = (∫ k |∇(u − u_h)|² dx)^{1/2}, u given as an expression string.
 
     The exact solution enters as a UFL expression (not an interpolant), so the error is
@@ -39,8 +45,15 @@ def energy_error(u_h: fem.Function, exact: str, k=1.0, constants: dict | None = 
     return float(np.sqrt(max(_integrate(k * ufl.inner(e, e), msh, quadrature_degree), 0.0)))
 
 
-def elastic_energy_error(u_h: fem.Function, exact: list[str], mu: float, lmbda_L: float,
-                         constants: dict | None = None, t: float = 1.0, quadrature_degree: int | None = None) -> float:
+def elastic_energy_error(
+    u_h: fem.Function,
+    exact: list[str],
+    mu: float,
+    lmbda_L: float,
+    constants: dict | None = None,
+    t: float = 1.0,
+    quadrature_degree: int | None = None,
+) -> float:
     """‖u − u_h‖_E = a(u − u_h, u − u_h)^{1/2} = (∫ σ(e) : ε(e) dx)^{1/2}, e = u − u_h, for linear
     elasticity (Lamé μ, λ_L; plane strain in 2D), u given per component (energy per unit
     thickness in 2D, its square root in the unit √(E·L^d))."""
@@ -53,10 +66,19 @@ def elastic_energy_error(u_h: fem.Function, exact: list[str], mu: float, lmbda_L
     if len(texts) != gdim:
         from ..base.errors import ConfigError
 
-        raise ConfigError(f"data.exact: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}")
+        raise ConfigError(
+            f"data.exact: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
+        )
     u = ufl.as_vector([expressions.to_ufl(e, msh, constants or {}, t=t) for e in texts])
     e = u - u_h
-    return float(np.sqrt(max(_integrate(ufl.inner(stress(e, mu, lmbda_L), epsilon(e)), msh, quadrature_degree), 0.0)))
+    return float(
+        np.sqrt(
+            max(
+                _integrate(ufl.inner(stress(e, mu, lmbda_L), epsilon(e)), msh, quadrature_degree),
+                0.0,
+            )
+        )
+    )
 
 
 def solution_error(scene, result) -> float | None:
@@ -67,12 +89,18 @@ def solution_error(scene, result) -> float | None:
         return None
     data, constants = result.problem.data, scene.cfg["constants"]
     if scene.cfg["model"]["type"] == "elasticity":
-        return elastic_energy_error(result.u_h, exact, data["mu"], data["lmbda_L"], constants, scene.time)
+        return elastic_energy_error(
+            result.u_h, exact, data["mu"], data["lmbda_L"], constants, scene.time
+        )
     return energy_error(result.u_h, exact, data["k"], constants, t=scene.time)
 
 
-def l2_error(u_h: fem.Function, exact: str, constants: dict | None = None,
-             quadrature_degree: int | None = None) -> float:
+def l2_error(
+    u_h: fem.Function,
+    exact: str,
+    constants: dict | None = None,
+    quadrature_degree: int | None = None,
+) -> float:
     """‖u − u_h‖_{L²(Ω)} (quadrature of degree 2p + 2 unless given)."""
     msh = u_h.function_space.mesh
     quadrature_degree = quadrature_degree or default_degree(u_h)

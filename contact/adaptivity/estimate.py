@@ -26,15 +26,15 @@ min(λ_h, 0)(u_h − g) ≥ 0 whenever u_h ≤ g, and stays a non-negative indic
 making Σ η_T² negative) for an infeasible u_h, e.g. between nodes for P2 or after a solve
 that did not converge.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-from mpi4py import MPI
-
 import ufl
 from dolfinx import fem, la
+from mpi4py import MPI
 
 from ..setup.scene import Scene, require_scene
 from ..solvers import Result
@@ -72,21 +72,28 @@ def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     ds, bnd = p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     sigma = p.constraint.sign
-    flux = k * ufl.grad(u_h)                       # k ∇u_h
+    flux = k * ufl.grad(u_h)  # k ∇u_h
     obstacle = scene.cfg["model"]["type"] == "obstacle"
 
     residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
-    terms = {"volume": h_T**2 * residual**2 * w * dx,
-             # ½ h_E ‖[k ∂u_h/∂n]‖²_E to each of the two cells of an interior facet
-             "jump": 0.5 * ufl.avg(h_E) * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
-             "neumann": zero, "consistency": zero, "sign": zero, "complementarity": zero}
+    terms = {
+        "volume": h_T**2 * residual**2 * w * dx,
+        # ½ h_E ‖[k ∂u_h/∂n]‖²_E to each of the two cells of an interior facet
+        "jump": 0.5 * ufl.avg(h_E) * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
+        "neumann": zero,
+        "consistency": zero,
+        "sign": zero,
+        "complementarity": zero,
+    }
     for i in bnd.ids_with_role("neumann"):
         terms["neumann"] += h_E * (t - ufl.dot(flux, n)) ** 2 * w * ds(i)
     for i in bnd.ids_with_role("natural"):
         terms["neumann"] += h_E * ufl.dot(flux, n) ** 2 * w * ds(i)
     if obstacle:
         terms["sign"] = h_T**2 * ufl.max_value(sigma * lmbda_h, 0) ** 2 * w * dx
-        terms["complementarity"] = abs(ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g)) * w * dx
+        terms["complementarity"] = (
+            abs(ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g)) * w * dx
+        )
     else:
         for i in bnd.ids_with_role("contact"):
             terms["consistency"] += h_E * (lmbda_h + t_C - ufl.dot(flux, n)) ** 2 * w * ds(i)
@@ -109,21 +116,33 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     u_h, lam = result.u_h, result.lmbda_h
     f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
-    n_c = p.data.get("n_ufl")                               # normal towards the obstacle
+    n_c = p.data.get("n_ufl")  # normal towards the obstacle
     sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
-    T = ufl.dot(sigma, n)                                   # traction σ(u_h) n
-    terms = {"volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
-             "jump": 0.5 * ufl.avg(h_E) * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n)) * (w("+") + w("-")) * dS,
-             "neumann": zero, "consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
+    T = ufl.dot(sigma, n)  # traction σ(u_h) n
+    terms = {
+        "volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
+        "jump": 0.5
+        * ufl.avg(h_E)
+        * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n))
+        * (w("+") + w("-"))
+        * dS,
+        "neumann": zero,
+        "consistency": zero,
+        "tangential": zero,
+        "sign": zero,
+        "complementarity": zero,
+    }
     for i in bnd.ids_with_role("neumann"):
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
     for i in bnd.ids_with_role("natural"):
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
-    friction = friction_data(scene, result) if result.friction is not None and n_c is not None else None
+    friction = (
+        friction_data(scene, result) if result.friction is not None and n_c is not None else None
+    )
     if n_c is not None:  # the rigid obstacle's contact parts
         Tn = ufl.dot(T, n_c)
         Tt = T - Tn * n_c
-        if friction is not None:   # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
+        if friction is not None:  # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
             lam_t, rho, slip = friction
             Tt = Tt - lam_t
             terms.update(friction_bound=zero, slip=zero)
@@ -131,11 +150,15 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
             terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
             terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
             terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
-            terms["complementarity"] += abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+            terms["complementarity"] += (
+                abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+            )
             if friction is not None:
                 norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
                 terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)
-                terms["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+                terms["slip"] += (
+                    abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+                )
     if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
         for key, form in interface_terms(scene, result, w, n, h_E, T).items():
             terms[key] = terms.get(key, zero) + form
@@ -156,7 +179,9 @@ def friction_data(scene: Scene, result: Result):
     else:
         from ..setup import expressions
 
-        rho = expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
+        rho = expressions.to_ufl(
+            cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant
+        )
     n_c = p.data["n_ufl"]
     du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
     return lam_t, rho, du - ufl.dot(du, n_c) * n_c
@@ -176,7 +201,7 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     p = result.problem
     ds, bnd = p.data["ds"], scene.boundary
     lam = result.lmbda_h
-    gap = result.gap.copy()                 # the nodal gap, NaN off the constrained nodes → 0
+    gap = result.gap.copy()  # the nodal gap, NaN off the constrained nodes → 0
     gap.x.array[np.isnan(gap.x.array)] = 0.0
     lam_m = master_pressure(result)
     Tn = ufl.dot(T, n)
@@ -200,9 +225,13 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
         extra["tangential"] += h_E * ufl.inner(Tt_s, Tt_s) * w * ds(i)
         extra["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
         extra["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
-        if result.friction is not None:   # Hild–Lleras: the bound and the slip's direction
-            extra["friction_bound"] += ufl.max_value(ufl.sqrt(ufl.inner(lam_t, lam_t)) - rho, 0) ** 2 * w * ds(i)
-            extra["slip"] += abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+        if result.friction is not None:  # Hild–Lleras: the bound and the slip's direction
+            extra["friction_bound"] += (
+                ufl.max_value(ufl.sqrt(ufl.inner(lam_t, lam_t)) - rho, 0) ** 2 * w * ds(i)
+            )
+            extra["slip"] += (
+                abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+            )
     for i in master_ids:
         terms["consistency_master"] += h_E * (lam_m - Tn) ** 2 * w * ds(i)
         extra["tangential"] += h_E * ufl.inner(Tt_m, Tt_m) * w * ds(i)
@@ -217,12 +246,14 @@ def friction_bound(scene: Scene, lam: fem.Function):
         return cfg["coefficient"] * ufl.max_value(-lam, 0)
     from ..setup import expressions
 
-    return expressions.to_ufl(cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant)
+    return expressions.to_ufl(
+        cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant
+    )
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:
     vec = fem.assemble_vector(fem.form(form))
-    vec.scatter_reverse(la.InsertMode.add)   # interior facets on rank boundaries
+    vec.scatter_reverse(la.InsertMode.add)  # interior facets on rank boundaries
     vec.scatter_forward()
     return vec
 
@@ -233,8 +264,10 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     scene (on its mesh), else a ValueError."""
     require_scene(scene)
     if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
-        raise ValueError("result: expected the contact.Result of contact.solve on this scene (same mesh)")
-    if scene.cfg.get("estimator") == "equilibrated":   # docs/theory.md §9: a guaranteed bound
+        raise ValueError(
+            "result: expected the contact.Result of contact.solve on this scene (same mesh)"
+        )
+    if scene.cfg.get("estimator") == "equilibrated":  # docs/theory.md §9: a guaranteed bound
         from .equilibration.bound import guaranteed_bound
 
         bound = guaranteed_bound(scene, result)
@@ -247,6 +280,9 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     eta_T.x.array[:] = np.sqrt(np.maximum(eta_sq, 0.0))
     comm = scene.comm
     n_owned = W.dofmap.index_map.size_local
-    totals = {name: comm.allreduce(float(np.sum(v.array[:n_owned])), op=MPI.SUM) for name, v in vecs.items()}
+    totals = {
+        name: comm.allreduce(float(np.sum(v.array[:n_owned])), op=MPI.SUM)
+        for name, v in vecs.items()
+    }
     eta = float(np.sqrt(sum(totals.values())))
     return Estimate(eta_T, eta, totals)

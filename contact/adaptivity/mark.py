@@ -1,14 +1,14 @@
 """MARK (docs/theory.md §6): the cells whose indicators η_T carry the error, by Dörfler's bulk
 criterion, the maximum criterion, or all of them — the same cells on any number of MPI
 ranks."""
+
 from __future__ import annotations
 
 from typing import Any
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem
+from mpi4py import MPI
 
 STRATEGIES = ("dorfler", "maximum", "uniform")
 #: indicators within this relative distance of the marking threshold count as equal to it
@@ -25,7 +25,7 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
     """
     parts = comm.gather(np.asarray(eta_sq, dtype=float), root=0)
     tau = None
-    if parts is not None:   # rank 0
+    if parts is not None:  # rank 0
         values = np.sort(np.concatenate(parts))[::-1]
         cumulative = np.cumsum(values)
         if len(values) == 0 or cumulative[-1] <= 0:
@@ -56,10 +56,12 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
     n_owned = W.dofmap.index_map.size_local
     eta = eta_T.x.array[:n_owned]
     bad = comm.allreduce(int(np.count_nonzero(~np.isfinite(eta) | (eta < 0))), op=MPI.SUM)
-    if bad:   # a NaN is never >= a threshold: nothing would be marked, silently
+    if bad:  # a NaN is never >= a threshold: nothing would be marked, silently
         total = W.dofmap.index_map.size_global
-        raise ValueError(f"eta_T: {bad} of {total} indicators are not finite numbers >= 0 "
-                         "(NaN, inf or negative); mark needs the indicators of contact.estimate")
+        raise ValueError(
+            f"eta_T: {bad} of {total} indicators are not finite numbers >= 0 "
+            "(NaN, inf or negative); mark needs the indicators of contact.estimate"
+        )
     if strategy == "uniform":
         return np.arange(n_owned, dtype=np.int32)
     if strategy == "maximum":
@@ -71,8 +73,14 @@ def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> 
 
 def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:
     if not isinstance(eta_T, fem.Function):
-        raise ValueError(f"eta_T: expected the DG0 indicator function of contact.estimate, got " f"{type(eta_T).__name__}")
+        raise ValueError(
+            f"eta_T: expected the DG0 indicator function of contact.estimate, got "
+            f"{type(eta_T).__name__}"
+        )
     if strategy not in STRATEGIES:
-        raise ValueError(f"strategy: unknown marking strategy {strategy!r}; expected one of " f"{', '.join(STRATEGIES)}")
+        raise ValueError(
+            f"strategy: unknown marking strategy {strategy!r}; expected one of "
+            f"{', '.join(STRATEGIES)}"
+        )
     if isinstance(theta, bool) or not isinstance(theta, (int, float)) or not 0 < theta <= 1:
         raise ValueError(f"theta: must be a number in (0, 1], got {theta!r}")

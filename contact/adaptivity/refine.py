@@ -1,16 +1,16 @@
 """REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the scene
 carried to the new mesh (tags, history, nested-iteration guess, curved boundaries snapped
 to their exact surfaces), and the refined mesh's partition."""
+
 from __future__ import annotations
 
 import time
 from typing import Any
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem, la
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 from ..setup.geometry import builder_surfaces
 from ..setup.meshes import Boundary
@@ -19,8 +19,14 @@ from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 
-def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, rebalance: bool | None = None,
-           *, timings: dict[str, float] | None = None) -> tuple[Scene, fem.Function | None]:
+def refine(
+    scene: Scene,
+    cells: np.ndarray,
+    u_h: fem.Function | None = None,
+    rebalance: bool | None = None,
+    *,
+    timings: dict[str, float] | None = None,
+) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
     move the vertices of a curved boundary part onto its exact surface
@@ -49,36 +55,55 @@ def refine(scene: Scene, cells: np.ndarray, u_h: fem.Function | None = None, reb
     ``transfer`` (facets, tags and functions carried over) and ``snap`` (curved boundaries)."""
     require_scene(scene)
     cells = _owned_cells(scene, cells)
-    if u_h is not None and (not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh):
-        raise ValueError("u_h: expected a dolfinx.fem.Function on the scene's mesh (e.g. result.u_h of "
-                         "contact.solve on this scene)")
+    if u_h is not None and (
+        not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh
+    ):
+        raise ValueError(
+            "u_h: expected a dolfinx.fem.Function on the scene's mesh (e.g. result.u_h of "
+            "contact.solve on this scene)"
+        )
     if rebalance is None:
         rebalance = (scene.cfg.get("adapt") or {}).get("rebalance", True)
     if not isinstance(rebalance, bool):
         raise ValueError(f"rebalance: expected true or false, got {rebalance!r}")
     msh = scene.mesh
     tdim = msh.topology.dim
-    clock = [time.perf_counter()]   # the start, then the end of each part
+    clock = [time.perf_counter()]  # the start, then the end of each part
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    new, parent_cell, parent_facet = dmesh.refine(msh, edges, partitioner=refine_partitioner(msh, rebalance),
-                                                  option=dmesh.RefinementOption.parent_cell_and_facet)
+    new, parent_cell, parent_facet = dmesh.refine(
+        msh,
+        edges,
+        partitioner=refine_partitioner(msh, rebalance),
+        option=dmesh.RefinementOption.parent_cell_and_facet,
+    )
     clock.append(time.perf_counter())
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
     tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
     history = {name: prolong(fn, new, parent_cell) for name, fn in scene.history.items()}
     bodies = None if scene.bodies is None else transfer_cell_tags(scene.bodies, new, parent_cell)
-    surfaces = None if scene.surfaces is None else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
-    child = Scene(scene.cfg, new, Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
-                  time=scene.time, history=history, bodies=bodies, surfaces=surfaces,
-                  parent=(scene, parent_cell))
+    surfaces = (
+        None
+        if scene.surfaces is None
+        else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
+    )
+    child = Scene(
+        scene.cfg,
+        new,
+        Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
+        time=scene.time,
+        history=history,
+        bodies=bodies,
+        surfaces=surfaces,
+        parent=(scene, parent_cell),
+    )
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     clock.append(time.perf_counter())
     warn_undeclared_curves(scene.cfg, scene.mesh, scene.boundary)
     for surface in boundary_surfaces(scene.cfg, scene.mesh.geometry.dim, scene.boundary):
         surface.snap(new, tags)
-    for surface in builder_surfaces(scene.cfg):   # by the mesh's own tags of its curved surfaces
+    for surface in builder_surfaces(scene.cfg):  # by the mesh's own tags of its curved surfaces
         assert surfaces is not None  # a mesh builder with curved surfaces tags them
         surface.snap(new, surfaces)
     clock.append(time.perf_counter())
@@ -101,7 +126,7 @@ def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> in
     imap = msh.topology.index_map(1)
     marked = la.vector(imap, dtype=np.int32)
     marked.array[edges] = 1
-    marked.scatter_reverse(la.InsertMode.add)   # ghost edges' marks to their owners
+    marked.scatter_reverse(la.InsertMode.add)  # ghost edges' marks to their owners
     owned = int(np.count_nonzero(marked.array[: imap.size_local]))
     vertices = msh.topology.index_map(0).size_global
     return V.dofmap.index_map_bs * (vertices + msh.comm.allreduce(owned, op=MPI.SUM))
@@ -133,11 +158,19 @@ def _owned_cells(scene: Scene, cells: Any) -> np.ndarray:
     n_owned = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
     problem: str | None
     if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
-        problem = f"expected a 1D array of integer cell indices, got {arr.dtype} with shape {arr.shape}"
+        problem = (
+            f"expected a 1D array of integer cell indices, got {arr.dtype} with shape {arr.shape}"
+        )
     else:
         bad = arr[(arr < 0) | (arr >= n_owned)]
-        problem = f"{len(bad)} index(es) outside the owned cells 0 … {n_owned - 1}, e.g. {bad[0]}" if len(bad) else None
+        problem = (
+            f"{len(bad)} index(es) outside the owned cells 0 … {n_owned - 1}, e.g. {bad[0]}"
+            if len(bad)
+            else None
+        )
     problems = [p for p in comm.allgather(problem) if p]
     if problems:
-        raise ValueError(f"cells: {problems[0]} (owned local cell indices, as contact.mark returns them)")
+        raise ValueError(
+            f"cells: {problems[0]} (owned local cell indices, as contact.mark returns them)"
+        )
     return arr.astype(np.int32)

@@ -11,15 +11,15 @@ new mesh's ``original_cell_index`` is the child's global creation index, so ever
 name the creating rank of each of its cells and *pull* what it needs from there
 (:func:`_pull`: one ``Alltoallv`` out, one back).  With the identity partitioner every
 request is local."""
+
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 
 def creators(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
@@ -33,7 +33,9 @@ def creators(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
     return rank, g - offsets[rank]
 
 
-def _exchange(comm: MPI.Comm, rows: np.ndarray, counts: np.ndarray, rcounts: np.ndarray) -> np.ndarray:
+def _exchange(
+    comm: MPI.Comm, rows: np.ndarray, counts: np.ndarray, rcounts: np.ndarray
+) -> np.ndarray:
     """Alltoallv of ``rows`` (grouped by destination, ``counts[r]`` rows to rank r);
     returns the ``rcounts.sum()`` rows received, grouped by source."""
     rows = np.ascontiguousarray(rows)
@@ -43,8 +45,14 @@ def _exchange(comm: MPI.Comm, rows: np.ndarray, counts: np.ndarray, rcounts: np.
     return out
 
 
-def _pull(comm: MPI.Comm, dest: np.ndarray, requests: list[np.ndarray],
-          answer: Callable[..., np.ndarray], shape: tuple[int, ...], dtype: type) -> np.ndarray:
+def _pull(
+    comm: MPI.Comm,
+    dest: np.ndarray,
+    requests: list[np.ndarray],
+    answer: Callable[..., np.ndarray],
+    shape: tuple[int, ...],
+    dtype: type,
+) -> np.ndarray:
     """Row i of each array of ``requests`` goes to rank ``dest[i]``, which replies
     ``answer(*received)`` (one row of ``shape`` and ``dtype`` per request); returns the
     replies in the order of the requests.  Collective."""
@@ -69,37 +77,50 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     u0 = fem.Function(V, name="u0")
     rank, index = creators(new, len(parent_cell))
     cell_dofs = V.dofmap.list
-    cell_of = np.full(V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, -1, dtype=np.int64)
+    cell_of = np.full(
+        V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts, -1, dtype=np.int64
+    )
     # a cell holding it
     cell_of[cell_dofs.ravel()] = np.repeat(np.arange(len(cell_dofs)), cell_dofs.shape[1])
     dofs = np.flatnonzero(cell_of[: V.dofmap.index_map.size_local] >= 0)
     cell = cell_of[dofs]
     bs = V.dofmap.index_map_bs
 
-    def evaluate(i: np.ndarray, x: np.ndarray) -> np.ndarray:   # on the creating rank
+    def evaluate(i: np.ndarray, x: np.ndarray) -> np.ndarray:  # on the creating rank
         return u_h.eval(x, parent_cell[i].astype(np.int32))
 
-    values = _pull(new.comm, rank[cell], [index[cell], V.tabulate_dof_coordinates()[dofs]], evaluate,
-                   (bs,), np.float64)
+    values = _pull(
+        new.comm,
+        rank[cell],
+        [index[cell], V.tabulate_dof_coordinates()[dofs]],
+        evaluate,
+        (bs,),
+        np.float64,
+    )
     u0.x.array[(dofs[:, None] * bs + np.arange(bs)).ravel()] = values.ravel()
     u0.x.scatter_forward()
     return u0
 
 
-def transfer_cell_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray) -> dmesh.MeshTags:
+def transfer_cell_tags(
+    tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray
+) -> dmesh.MeshTags:
     """Cell tags on the refined mesh, on every local cell (ghosts included): a child cell
     inherits its parent's value."""
     tdim = new.topology.dim
-    old_value = np.zeros(tags.topology.index_map(tdim).size_local + tags.topology.index_map(tdim).num_ghosts,
-                         dtype=np.int32)
+    old_value = np.zeros(
+        tags.topology.index_map(tdim).size_local + tags.topology.index_map(tdim).num_ghosts,
+        dtype=np.int32,
+    )
     old_value[tags.indices] = tags.values
     rank, index = creators(new, len(parent_cell))
     values = _pull(new.comm, rank, [index], lambda i: old_value[parent_cell[i]], (), np.int32)
     return dmesh.meshtags(new, tdim, np.arange(len(values), dtype=np.int32), values)
 
 
-def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray,
-                        parent_facet: np.ndarray) -> dmesh.MeshTags:
+def transfer_facet_tags(
+    tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.ndarray, parent_facet: np.ndarray
+) -> dmesh.MeshTags:
     """Facet tags on the refined mesh: a child facet inherits the tag of the parent facet it
     lies in; the facets of the owned cells are tagged.  (``dolfinx.mesh.transfer_meshtag``
     refuses ghosted meshes, and the estimator's interior-facet integrals need ghosts; this
@@ -112,13 +133,15 @@ def transfer_facet_tags(tags: dmesh.MeshTags, new: dmesh.Mesh, parent_cell: np.n
     old = tags.topology
     tdim = new.topology.dim
     old_c2f = old.connectivity(tdim, tdim - 1)
-    nf = tdim + 1                                                 # simplices
-    old_value = np.full(old.index_map(tdim - 1).size_local + old.index_map(tdim - 1).num_ghosts, -1, dtype=np.int32)
+    nf = tdim + 1  # simplices
+    old_value = np.full(
+        old.index_map(tdim - 1).size_local + old.index_map(tdim - 1).num_ghosts, -1, dtype=np.int32
+    )
     old_value[tags.indices] = tags.values
     pf = np.asarray(parent_facet, dtype=np.int64).reshape(-1, nf)
     old_facets = old_c2f.array.reshape(-1, nf)
 
-    def parent_tags(i: np.ndarray) -> np.ndarray:                 # on the creating rank: (n, nf)
+    def parent_tags(i: np.ndarray) -> np.ndarray:  # on the creating rank: (n, nf)
         local = pf[i]
         facets = np.take_along_axis(old_facets[parent_cell[i]], np.maximum(local, 0), axis=1)
         return np.where(local >= 0, old_value[facets], -1)

@@ -9,6 +9,7 @@ rank is reported once by rank 0; a failure on some ranks only is reported by eac
 and ends the job with ``MPI_Abort`` and the same exit code (the other ranks would wait
 forever; the rules are in :mod:`contact.app.failures`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -24,8 +25,8 @@ from typing import NoReturn
 import numpy as np
 from mpi4py import MPI
 
-from . import failures
 from ..base.errors import ConfigError
+from . import failures
 
 
 class _Parser(argparse.ArgumentParser):
@@ -45,17 +46,34 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="solve one scene and write its output folder")
     run.add_argument("scene", help="scene YAML file (see configs/)")
     run.add_argument("-o", "--output", help="output folder (default: results/<scene name>)")
-    run.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a scene key, e.g. --set solver.method=min (repeatable)")
+    run.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scene key, e.g. --set solver.method=min (repeatable)",
+    )
     run.add_argument("-q", "--quiet", action="store_true", help="no per-iteration progress")
     run.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
-    study = sub.add_parser("study", help="run a parameter study (a sweep over methods, meshes, ...) "
-                                         "and write study.csv and speed_accuracy.png")
+    study = sub.add_parser(
+        "study",
+        help="run a parameter study (a sweep over methods, meshes, ...) "
+        "and write study.csv and speed_accuracy.png",
+    )
     study.add_argument("study", help="study YAML file (see configs/studies/)")
-    study.add_argument("-o", "--output", help="output folder (default: results/studies/<study name>)")
-    study.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a key of the study's scene (after the study's own 'set'), "
-                            "e.g. --set mesh.cells=[32,32] (repeatable)")
+    study.add_argument(
+        "-o", "--output", help="output folder (default: results/studies/<study name>)"
+    )
+    study.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a key of the study's scene (after the study's own 'set'), "
+        "e.g. --set mesh.cells=[32,32] (repeatable)",
+    )
     study.add_argument("-q", "--quiet", action="store_true", help="no per-run progress")
     study.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
     return p
@@ -66,7 +84,9 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
-def _one_line_warning(message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning):
+def _one_line_warning(
+    message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning
+):
     """The project's warnings (ContactWarning) as one line on stderr; others as Python prints
     them."""
     from ..setup.surfaces import ContactWarning
@@ -85,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     try:
         code = _study(args, comm) if args.command == "study" else _run(args, comm)
-    except _Failed:   # raised on every rank alike, after its message
+    except _Failed:  # raised on every rank alike, after its message
         code = failures.NOT_CONVERGED
     except ConfigError as err:
         code = _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
@@ -93,10 +113,13 @@ def main(argv: list[str] | None = None) -> int:
         if failures.interrupted(err):
             code = _interrupted(comm, agree, debug)
         else:
-            head, tail = "contact: internal error: ", "" if debug else " (rerun with --debug for the traceback)"
+            head, tail = (
+                "contact: internal error: ",
+                "" if debug else " (rerun with --debug for the traceback)",
+            )
             what = failures.describe(err, failures.MAX_LINE - len(head) - len(tail) - 10)
             code = _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
-    if agree is not None:   # every rank is here: a failure that was not agreed on aborted
+    if agree is not None:  # every rank is here: a failure that was not agreed on aborted
         agree.Free()
     return code
 
@@ -107,7 +130,7 @@ def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool) -> int:
     Ctrl-C still ends the job at once)."""
     try:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:   # main() called outside the main thread
+    except ValueError:  # main() called outside the main thread
         previous = None
     try:
         return _fail(comm, agree, failures.INTERRUPTED, "contact: interrupted", debug)
@@ -130,7 +153,7 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
         return code
     if not failures.all_failed(agree):
         failures.abort(comm, code, line)
-    outcomes = agree.allgather((code, line))   # every rank is in this call now
+    outcomes = agree.allgather((code, line))  # every rank is in this call now
     code, line = next((o for o in outcomes if o[0] == failures.INTERRUPTED), outcomes[0])
     if comm.rank == 0:
         print(failures.one_line(line), file=sys.stderr, flush=True)
@@ -138,11 +161,11 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
 
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from ..output import folder
-    from ..base import progress
     from .. import solve
-    from ..setup.config import load_config
+    from ..base import progress
+    from ..output import folder
     from ..output.run_report import files_text, write_run
+    from ..setup.config import load_config
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
 
@@ -155,20 +178,31 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     if scene.cfg["output"]["verbose"]:
         progress.enable(comm)
     method = scene.cfg["solver"]["method"]
-    _say(comm, f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
-               f"{comm.size} MPI rank(s)")
+    _say(
+        comm,
+        f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
+        f"{comm.size} MPI rank(s)",
+    )
     if scene.cfg.get("load") or (scene.cfg.get("friction") or {}).get("law", "none") != "none":
         return _run_steps(scene, outdir, label, comm, t0)
     if scene.cfg.get("adapt"):
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
-    _say(comm, f"contact: {result.dofs} DoFs, {newton_text(result)}, "
-               f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active "
-               f"nodes")
+    _say(
+        comm,
+        f"contact: {result.dofs} DoFs, {newton_text(result)}, "
+        f"|Phi| = {result.residual:.3e}, reason {result.reason}, {result.n_active} active "
+        f"nodes",
+    )
     if not result.converged:
         if comm.rank == 0:
-            print(failures.one_line(f"contact: error: solver {method} {not_converged_text(result)}; "
-                                    "nothing written"), file=sys.stderr, flush=True)
+            print(
+                failures.one_line(
+                    f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
+                ),
+                file=sys.stderr,
+                flush=True,
+            )
         return failures.NOT_CONVERGED
     info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
@@ -197,13 +231,16 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     """The adaptive loop, writing into one atomic folder.  If the solver fails on level
     k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
-    from ..output import folder
     from ..drivers.adaptive import AdaptResult, adapt, format_table
+    from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
 
     a = scene.cfg["adapt"]
-    _say(comm, f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
-               f"at most {a['max_levels']} levels / {a['max_dofs']} DoFs")
+    _say(
+        comm,
+        f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
+        f"at most {a['max_levels']} levels / {a['max_dofs']} DoFs",
+    )
     with folder.atomic_folder(outdir, comm, label) as tmp:
         write_level = level_writer(tmp, scene)
         result = adapt(scene, on_level=lambda lv: write_level(lv) if lv.result.converged else None)
@@ -211,18 +248,33 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
         failed = None
         if not last.converged:
             k = len(result.levels) - 1
-            kept = f"kept levels 0-{k - 1} in {outdir}/ (summary.json: converged false)" if k else "nothing written"
+            kept = (
+                f"kept levels 0-{k - 1} in {outdir}/ (summary.json: converged false)"
+                if k
+                else "nothing written"
+            )
             if comm.rank == 0:
                 hint = f" ({last.hint})" if last.hint else ""
-                print(failures.one_line(f"contact: error: solver did not converge on level {k} ({last.reason}), "
-                                        f"last |Phi| = {last.residual:.3e}{hint}; {kept}"),
-                      file=sys.stderr, flush=True)
+                print(
+                    failures.one_line(
+                        f"contact: error: solver did not converge on level {k} ({last.reason}), "
+                        f"last |Phi| = {last.residual:.3e}{hint}; {kept}"
+                    ),
+                    file=sys.stderr,
+                    flush=True,
+                )
             if k == 0:
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
-        info = write_adaptive(tmp, scene, result, wall=time.perf_counter() - t0, failure=failed,
-                              files=write_level.files)
+        info = write_adaptive(
+            tmp,
+            scene,
+            result,
+            wall=time.perf_counter() - t0,
+            failure=failed,
+            files=write_level.files,
+        )
     _say(comm, f"contact: stopped: {result.stop}")
     if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
         _say(comm, format_table(result.rows))
@@ -235,21 +287,30 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
-    from ..output import folder
-    from ..output.step_report import StepWriter
-    from ..output.run_report import files_text
     from ..drivers.load_path import LoadPath, run_load_path
+    from ..output import folder
+    from ..output.run_report import files_text
+    from ..output.step_report import StepWriter
 
     with folder.atomic_folder(outdir, comm, label) as tmp:
         writer = StepWriter(tmp, scene)
 
-        def on_step(s) -> None:   # one line per step as it finishes, then its files
+        def on_step(s) -> None:  # one line per step as it finishes, then its files
             fr = s.result.friction
-            counts = "" if fr is None else "  " + "  ".join(
-                f"{name} {comm.allreduce(int(np.sum(fr['status'] == code)))}"
-                for code, name in enumerate(("separated", "stick", "slip")))
-            _say(comm, f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
-                       f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}")
+            counts = (
+                ""
+                if fr is None
+                else "  "
+                + "  ".join(
+                    f"{name} {comm.allreduce(int(np.sum(fr['status'] == code)))}"
+                    for code, name in enumerate(("separated", "stick", "slip"))
+                )
+            )
+            _say(
+                comm,
+                f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
+                f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}",
+            )
             writer(s)
 
         path = run_load_path(scene, on_step=on_step)
@@ -257,10 +318,17 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
         if not path.converged:
             k, last = len(path.steps), path.steps[-1].result
             steps = "step 1" if k == 2 else f"steps 1-{k - 1}"
-            kept = f"kept {steps} in {outdir}/ (summary.json: converged false)" if k > 1 else "nothing written"
+            kept = (
+                f"kept {steps} in {outdir}/ (summary.json: converged false)"
+                if k > 1
+                else "nothing written"
+            )
             if comm.rank == 0:
-                print(f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; {kept}",
-                      file=sys.stderr, flush=True)
+                print(
+                    f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; {kept}",
+                    file=sys.stderr,
+                    flush=True,
+                )
             if k == 1:
                 raise _Failed()
             failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}

@@ -40,6 +40,7 @@ Collective checks that raise after a reduction (the same exception on every rank
 probes whose expected outcome is an exception (PETSc's answer to a set of options) are
 not failures in this sense.
 """
+
 from __future__ import annotations
 
 import sys
@@ -70,7 +71,9 @@ def describe(err: BaseException, limit: int = MAX_LINE) -> str:
         text = f"out of memory{': ' + text if text else ''}"
     elif type(err).__name__ == "Error" and type(err).__module__.startswith("petsc4py"):
         message = petsc_message(err)
-        text = f"PETSc error {getattr(err, 'ierr', '?')}" + ("" if message.startswith("error code") else f": {message}")
+        text = f"PETSc error {getattr(err, 'ierr', '?')}" + (
+            "" if message.startswith("error code") else f": {message}"
+        )
     else:
         text = f"{type(err).__name__}: {text}" if text else type(err).__name__
     return one_line(text, limit)
@@ -110,5 +113,5 @@ def abort(comm, code: int, line: str) -> None:
     some ranks only (the module doc).  Does not return."""
     line = line.replace("contact:", f"contact (rank {comm.rank}):", 1)
     print(one_line(line), file=sys.stderr, flush=True)
-    time.sleep(ABORT_GRACE_SECONDS)   # let mpiexec forward the line before it kills the job
+    time.sleep(ABORT_GRACE_SECONDS)  # let mpiexec forward the line before it kills the job
     comm.Abort(code)

@@ -46,6 +46,7 @@ that raises or does not converge is a row with ``converged=False`` and the reaso
 Validation uses the scene schema's machinery (:class:`contact.setup.config.Field`), so a bad
 study file fails before anything runs with one line ``<key path>: <problem>``.
 """
+
 from __future__ import annotations
 
 import copy
@@ -55,27 +56,38 @@ import itertools
 import math
 import resource
 import time
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
 
-from ..setup.config import (SCENE, Field, _nonnegative, _positive, _typename, _validate,
-                            folder_name, _validate_mapping, apply_overrides, load_config,
-                            read_yaml, switch_off)
 from ..base.errors import ConfigError
-from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
+from ..setup.config import (
+    SCENE,
+    Field,
+    _nonnegative,
+    _positive,
+    _typename,
+    _validate,
+    _validate_mapping,
+    apply_overrides,
+    folder_name,
+    load_config,
+    read_yaml,
+    switch_off,
+)
 from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
+from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
-    "direct": DEFAULT_PETSC_OPTIONS,      # preonly + LU (MUMPS), also for 3D elasticity
+    "direct": DEFAULT_PETSC_OPTIONS,  # preonly + LU (MUMPS), also for 3D elasticity
     "gamg": ELASTICITY_3D_PETSC_OPTIONS,  # BiCGStab + GAMG (the 3D elasticity default)
 }
 STRATEGIES = ("none", "uniform", "dorfler", "maximum")
 CHARTS = ("speed_accuracy", "stability", "iterations")
-
 
 
 def _section(name: str) -> Mapping[str, Field]:
@@ -117,12 +129,30 @@ AXES: dict[str, Field] = {
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
 _ADAPT_AXES = ("theta", "nested")
 #: friction axes -> keys of the scene's friction section
-_FRICTION_AXES = {"friction": "law", "coefficient": "coefficient", "threshold": "threshold", "c_t": "c_t",
-                  "kappa_t": "kappa_t", "friction_form": "form", "coulomb": "coulomb"}
+_FRICTION_AXES = {
+    "friction": "law",
+    "coefficient": "coefficient",
+    "threshold": "threshold",
+    "c_t": "c_t",
+    "kappa_t": "kappa_t",
+    "friction_form": "form",
+    "coulomb": "coulomb",
+}
 #: friction keys each law uses (the others are dropped when an axis switches the law)
-_LAW_KEYS = {"none": {"law"}, "tresca": {"law", "threshold", "c_t", "kappa_t", "form"},
-             "coulomb": {"law", "coefficient", "c_t", "kappa_t", "form", "coulomb", "fixed_point_rtol",
-                         "fixed_point_max_it"}}
+_LAW_KEYS = {
+    "none": {"law"},
+    "tresca": {"law", "threshold", "c_t", "kappa_t", "form"},
+    "coulomb": {
+        "law",
+        "coefficient",
+        "c_t",
+        "kappa_t",
+        "form",
+        "coulomb",
+        "fixed_point_rtol",
+        "fixed_point_max_it",
+    },
+}
 
 
 def _optional(f: Field, **changes: Any) -> Field:
@@ -147,17 +177,26 @@ STUDY: dict[str, Field] = {
     "scene": Field("any", check=_scene_ref, doc="scene YAML, relative to the study file"),
     "set": Field("list", [], doc="overrides of the base scene, as contact run --set"),
     "axes": Field("any", None, doc="axis name -> list of values (validated by AXES)"),
-    "cases": Field("dict", None, schema=None, item=Field("dict", schema=None),
-                   doc="label -> {scene, set, <axis>: value}: named variants crossed with the axes"),
-    "adapt": Field("dict", None, schema={
-        "strategy": _optional(_ADAPT["strategy"], choices=STRATEGIES),
-        "theta": _optional(_ADAPT["theta"]),
-        "tol": _optional(_ADAPT["tol"]),
-        "max_dofs": _optional(_ADAPT["max_dofs"]),
-        "max_levels": _optional(_ADAPT["max_levels"]),
-        "nested": _optional(_ADAPT["nested"]),
-        "newton_rtol": _optional(_ADAPT["newton_rtol"]),
-    }),
+    "cases": Field(
+        "dict",
+        None,
+        schema=None,
+        item=Field("dict", schema=None),
+        doc="label -> {scene, set, <axis>: value}: named variants crossed with the axes",
+    ),
+    "adapt": Field(
+        "dict",
+        None,
+        schema={
+            "strategy": _optional(_ADAPT["strategy"], choices=STRATEGIES),
+            "theta": _optional(_ADAPT["theta"]),
+            "tol": _optional(_ADAPT["tol"]),
+            "max_dofs": _optional(_ADAPT["max_dofs"]),
+            "max_levels": _optional(_ADAPT["max_levels"]),
+            "nested": _optional(_ADAPT["nested"]),
+            "newton_rtol": _optional(_ADAPT["newton_rtol"]),
+        },
+    ),
     "charts": Field("list", ["speed_accuracy"], check=_charts, doc=f"some of {', '.join(CHARTS)}"),
     "repeat": Field("int", 1, check=_positive),
     "warmup": Field("bool", True, doc="solve each case once, untimed, before the timed runs"),
@@ -182,10 +221,10 @@ class Study:
     cartesian product of the axes in the order written (the last axis varies fastest)."""
 
     name: str
-    scene: str                      # absolute path of the scene file, or "<inline>"
+    scene: str  # absolute path of the scene file, or "<inline>"
     set: list[str]
     axes: dict[str, list]
-    adapt: dict[str, Any]           # only the keys given
+    adapt: dict[str, Any]  # only the keys given
     repeat: int
     cases: dict[str | None, Case] = field(repr=False)
     charts: list[str] = field(default_factory=lambda: ["speed_accuracy"])
@@ -219,12 +258,16 @@ class Study:
     def accuracy(self) -> str:
         """The column the speed-against-accuracy chart plots: the energy error, else a
         declared reference's combined error (``<type>_error``), else η."""
-        combined = [k for k in self.reference_columns if k.removesuffix("_error") in _reference_types()]
+        combined = [
+            k for k in self.reference_columns if k.removesuffix("_error") in _reference_types()
+        ]
         return "error" if self.has_exact else combined[0] if combined else "eta"
 
     def runs(self) -> list[dict[str, Any]]:
         names = list(self.axes)
-        combos = [dict(zip(names, combo)) for combo in itertools.product(*(self.axes[n] for n in names))]
+        combos = [
+            dict(zip(names, combo)) for combo in itertools.product(*(self.axes[n] for n in names))
+        ]
         head = (lambda label: {"case": label}) if self.named_cases else (lambda label: {})
         return [{**head(label), **combo} for label in self.cases for combo in combos]
 
@@ -242,13 +285,19 @@ class Study:
         if "linear_solver" in params:
             solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
         if any(axis in params for axis in _FRICTION_AXES):
-            friction = {**(raw.get("friction") or {}),
-                        **{key: params[axis] for axis, key in _FRICTION_AXES.items() if axis in params}}
+            friction = {
+                **(raw.get("friction") or {}),
+                **{key: params[axis] for axis, key in _FRICTION_AXES.items() if axis in params},
+            }
             law = friction.get("law", "none")
-            raw["friction"] = {k: v for k, v in friction.items() if k in _LAW_KEYS.get(law, friction)}
+            raw["friction"] = {
+                k: v for k, v in friction.items() if k in _LAW_KEYS.get(law, friction)
+            }
         if "steps" in params:
-            raw["load"] = {**{k: v for k, v in (raw.get("load") or {}).items() if k != "times"},
-                           "steps": params["steps"]}
+            raw["load"] = {
+                **{k: v for k, v in (raw.get("load") or {}).items() if k != "times"},
+                "steps": params["steps"],
+            }
         adapt = dict(self.adapt)
         adapt.update({k: params[k] for k in _ADAPT_AXES if k in params})
         strategy = adapt.pop("strategy", None)
@@ -268,11 +317,21 @@ class Study:
 
     def as_dict(self) -> dict[str, Any]:
         cfg = {k: v for k, v in self.base_cfg.items() if not k.startswith("_")}
-        out = {"name": self.name, "scene": self.scene, "set": self.set, "axes": self.axes,
-               "adapt": self.adapt, "charts": self.charts, "repeat": self.repeat,
-               "runs": len(self.runs()) * self.repeat, "base_scene": cfg}
+        out = {
+            "name": self.name,
+            "scene": self.scene,
+            "set": self.set,
+            "axes": self.axes,
+            "adapt": self.adapt,
+            "charts": self.charts,
+            "repeat": self.repeat,
+            "runs": len(self.runs()) * self.repeat,
+            "base_scene": cfg,
+        }
         if self.named_cases:
-            out["cases"] = {label: {**c.params, "scene": c.cfg.get("name")} for label, c in self.cases.items()}
+            out["cases"] = {
+                label: {**c.params, "scene": c.cfg.get("name")} for label, c in self.cases.items()
+            }
         return out
 
 
@@ -282,8 +341,9 @@ def _reference_types() -> tuple[str, ...]:
     return tuple(REFERENCES)
 
 
-def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str, extra: tuple[str, ...] = ()
-                ) -> tuple[dict, dict, str]:
+def _read_scene(
+    ref: str | dict, sets: list, base_dir: Path, path: str, extra: tuple[str, ...] = ()
+) -> tuple[dict, dict, str]:
     """Read a scene reference (a path relative to ``base_dir``, or a mapping), apply the
     ``set`` overrides, then the command line's ``extra`` ones (``contact study --set``), make
     a relative mesh file absolute and validate: (raw, cfg, label).  Errors name the study
@@ -292,21 +352,31 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str, extra: t
         raw, scene_name, scene_dir, label = copy.deepcopy(ref), None, base_dir, "<inline>"
     else:
         scene_path = Path(ref).expanduser()
-        scene_path = (scene_path if scene_path.is_absolute() else Path(base_dir) / scene_path).resolve()
+        scene_path = (
+            scene_path if scene_path.is_absolute() else Path(base_dir) / scene_path
+        ).resolve()
         if not scene_path.is_file():
             raise ConfigError(f"{path}scene: no such file {str(scene_path)!r}")
-        raw, scene_name, scene_dir, label = (read_yaml(scene_path), scene_path.stem,
-                                             scene_path.parent, str(scene_path))
+        raw, scene_name, scene_dir, label = (
+            read_yaml(scene_path),
+            scene_path.stem,
+            scene_path.parent,
+            str(scene_path),
+        )
     if not isinstance(sets, list):
-        raise ConfigError(f"{path}set: expected a list of KEY.PATH=VALUE strings, got {_typename(sets)} {sets!r}")
+        raise ConfigError(
+            f"{path}set: expected a list of KEY.PATH=VALUE strings, got {_typename(sets)} {sets!r}"
+        )
     for i, item in enumerate(sets):
         if not isinstance(item, str) or "=" not in item:
-            raise ConfigError(f"{path}set[{i}]: expected a string KEY.PATH=VALUE, got {_typename(item)} {item!r}")
+            raise ConfigError(
+                f"{path}set[{i}]: expected a string KEY.PATH=VALUE, got {_typename(item)} {item!r}"
+            )
         try:
             raw = apply_overrides(raw, [item])
         except ConfigError as err:
             raise ConfigError(f"{path}set[{i}]: {str(err).removeprefix('--set ')}") from None
-    raw = switch_off(apply_overrides(raw, list(extra)))   # the runs' own sections see no 'none'
+    raw = switch_off(apply_overrides(raw, list(extra)))  # the runs' own sections see no 'none'
     if isinstance(raw.get("mesh"), dict) and isinstance(raw["mesh"].get("file"), str):
         mesh_file = Path(raw["mesh"]["file"])
         if not mesh_file.is_absolute():
@@ -320,7 +390,9 @@ def _read_scene(ref: str | dict, sets: list, base_dir: Path, path: str, extra: t
     return raw, cfg, label
 
 
-def load_study(source: str | Path | Mapping | Study, overrides: list[str] | tuple[str, ...] = ()) -> Study:
+def load_study(
+    source: str | Path | Mapping | Study, overrides: list[str] | tuple[str, ...] = ()
+) -> Study:
     """Read (if a path) and validate a study; raise :class:`ConfigError` (one line) on bad
     input.  A relative ``scene`` path is taken relative to the study file (to the current
     directory for a mapping).  ``overrides`` (``contact study --set``) apply to the scene of
@@ -340,16 +412,34 @@ def load_study(source: str | Path | Mapping | Study, overrides: list[str] | tupl
     axes = _validate_axes(st["axes"], base_cfg["constants"])
     cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
     if st["cases"]:
-        cases = {name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes, extra)
-                 for name, spec in st["cases"].items()}
+        cases = {
+            name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes, extra)
+            for name, spec in st["cases"].items()
+        }
     adapt = {k: v for k, v in st["adapt"].items() if v is not None} if st["adapt"] else {}
-    return Study(name=st["name"] or stem or "study", scene=label, set=list(st["set"]) + list(extra), axes=axes,
-                 adapt=adapt, repeat=st["repeat"], cases=cases, charts=list(st["charts"]),
-                 warmup=st["warmup"])
+    return Study(
+        name=st["name"] or stem or "study",
+        scene=label,
+        set=list(st["set"]) + list(extra),
+        axes=axes,
+        adapt=adapt,
+        repeat=st["repeat"],
+        cases=cases,
+        charts=list(st["charts"]),
+        warmup=st["warmup"],
+    )
 
 
-def _validate_case(name: str, spec: dict, st: dict, base_raw: dict, base_cfg: dict, base_dir: Path,
-                   axes: dict, extra: tuple[str, ...] = ()) -> Case:
+def _validate_case(
+    name: str,
+    spec: dict,
+    st: dict,
+    base_raw: dict,
+    base_cfg: dict,
+    base_dir: Path,
+    axes: dict,
+    extra: tuple[str, ...] = (),
+) -> Case:
     path = f"cases.{name}."
     raw, cfg = base_raw, base_cfg
     # the case's own scene (default: the study's), then its `set`
@@ -362,7 +452,9 @@ def _validate_case(name: str, spec: dict, st: dict, base_raw: dict, base_cfg: di
         if key in ("scene", "set"):
             continue
         if key not in AXES:
-            raise ConfigError(f"{path}{key}: unknown key (expected scene, set or an axis: {', '.join(AXES)})")
+            raise ConfigError(
+                f"{path}{key}: unknown key (expected scene, set or an axis: {', '.join(AXES)})"
+            )
         if key in axes:
             raise ConfigError(f"{path}{key}: is also an axis of the study; set it in one place")
         params[key] = _validate(value, AXES[key], path + key, cfg["constants"])
@@ -373,14 +465,22 @@ def _validate_axes(axes: Any, constants: Mapping[str, float]) -> dict[str, list]
     if axes is None:
         return {}
     if not isinstance(axes, dict):
-        raise ConfigError(f"axes: expected a mapping of axis name to a list of values, got " f"{_typename(axes)} {axes!r}")
+        raise ConfigError(
+            f"axes: expected a mapping of axis name to a list of values, got "
+            f"{_typename(axes)} {axes!r}"
+        )
     out: dict[str, list] = {}
     for name, values in axes.items():
         if name not in AXES:
             raise ConfigError(f"axes.{name}: unknown axis (expected one of {', '.join(AXES)})")
         if not isinstance(values, list) or not values:
-            raise ConfigError(f"axes.{name}: expected a non-empty list of values, got {_typename(values)} " f"{values!r}")
-        checked = [_validate(v, AXES[name], f"axes.{name}[{i}]", constants) for i, v in enumerate(values)]
+            raise ConfigError(
+                f"axes.{name}: expected a non-empty list of values, got {_typename(values)} "
+                f"{values!r}"
+            )
+        checked = [
+            _validate(v, AXES[name], f"axes.{name}[{i}]", constants) for i, v in enumerate(values)
+        ]
         for i, v in enumerate(checked):
             if v in checked[:i]:
                 raise ConfigError(f"axes.{name}[{i}]: {v!r} is listed twice")
@@ -453,8 +553,9 @@ def _empty_figures(study: Study) -> dict[str, Any]:
     return {**out, "eta": "", "active_measure": ""}
 
 
-def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD
-            ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+def run_one(
+    study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Build the scene for ``params``, solve (or run the adaptive loop); return the row's
     figures (without the swept values) and one row per level.  Never raises for a failing
     run.
@@ -468,18 +569,28 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
     raised by all ranks) is a failed row; one raised on some ranks only ends the job
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
-    from ..drivers.adaptive import adapt
     from ..adaptivity.energy_error import solution_error
     from ..adaptivity.estimate import estimate
-    from ..setup.scene import load_scene
+    from ..drivers.adaptive import adapt
     from ..drivers.solve import solve
+    from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 
-    out: dict[str, Any] = {"dofs": "", "levels": "", "newton_iterations": "", "newton_iterations_total": "",
-                           "polish_solves": "", "polish_solves_total": "", "linear_solver": "",
-                           "krylov_iterations": "", "converged": False, "reason": "", **_empty_figures(study)}
+    out: dict[str, Any] = {
+        "dofs": "",
+        "levels": "",
+        "newton_iterations": "",
+        "newton_iterations_total": "",
+        "polish_solves": "",
+        "polish_solves_total": "",
+        "linear_solver": "",
+        "krylov_iterations": "",
+        "converged": False,
+        "reason": "",
+        **_empty_figures(study),
+    }
     levels: list[dict[str, Any]] = []
-    agree = comm.Dup() if comm.size > 1 else None   # only for agreeing on a failure
+    agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     comm.barrier()
     t0 = time.perf_counter()
     failure = ""
@@ -492,28 +603,58 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
         elif adapt_opts is None:
             result = solve(scene, verbose=False)
             seconds = time.perf_counter() - t0
-            out.update(dofs=result.dofs, levels=1, newton_iterations=result.iterations,
-                       newton_iterations_total=result.iterations, polish_solves=result.polish_solves,
-                       polish_solves_total=result.polish_solves, linear_solver=result.linear,
-                       krylov_iterations=result.krylov_iterations, converged=bool(result.converged),
-                       reason=result.reason)
+            out.update(
+                dofs=result.dofs,
+                levels=1,
+                newton_iterations=result.iterations,
+                newton_iterations_total=result.iterations,
+                polish_solves=result.polish_solves,
+                polish_solves_total=result.polish_solves,
+                linear_solver=result.linear,
+                krylov_iterations=result.krylov_iterations,
+                converged=bool(result.converged),
+                reason=result.reason,
+            )
             if result.converged:
                 error = solution_error(scene, result)
                 out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
                 failure = not_converged_text(result)
-            levels.append({"level": 0, **{k: out[k] for k in ("dofs", "newton_iterations", "polish_solves",
-                                                              "converged", "reason")},
-                           **{k: out[k] for k in _empty_figures(study)}, "seconds": seconds})
+            levels.append(
+                {
+                    "level": 0,
+                    **{
+                        k: out[k]
+                        for k in (
+                            "dofs",
+                            "newton_iterations",
+                            "polish_solves",
+                            "converged",
+                            "reason",
+                        )
+                    },
+                    **{k: out[k] for k in _empty_figures(study)},
+                    "seconds": seconds,
+                }
+            )
             if study.adaptive_possible:
                 out["stop"] = "single solve"
         else:
+
             def on_level(lv) -> None:
-                row = {"level": lv.index, "dofs": lv.result.dofs, "newton_iterations": lv.result.iterations,
-                       "polish_solves": lv.result.polish_solves, "converged": bool(lv.result.converged),
-                       "reason": lv.result.reason}
-                row.update(_figures(study, lv.scene, lv.result, lv.estimate.eta, lv.error)
-                           if lv.result.converged else _empty_figures(study))
+                row = {
+                    "level": lv.index,
+                    "dofs": lv.result.dofs,
+                    "newton_iterations": lv.result.iterations,
+                    "polish_solves": lv.result.polish_solves,
+                    "converged": bool(lv.result.converged),
+                    "reason": lv.result.reason,
+                }
+                row.update(
+                    _figures(study, lv.scene, lv.result, lv.estimate.eta, lv.error)
+                    if lv.result.converged
+                    else _empty_figures(study)
+                )
                 # reduced over ranks with the others below
                 row["seconds"] = time.perf_counter() - t0
                 levels.append(row)
@@ -524,11 +665,18 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
             its = [lv.result.iterations for lv in res.levels]
             polish = [lv.result.polish_solves for lv in res.levels]
             converged = all(lv.result.converged for lv in res.levels)
-            out.update(dofs=last["dofs"], levels=len(res.levels), newton_iterations=its[-1],
-                       newton_iterations_total=sum(its), polish_solves=polish[-1],
-                       polish_solves_total=sum(polish), linear_solver=res.levels[-1].result.linear,
-                       krylov_iterations=res.levels[-1].result.krylov_iterations, converged=converged,
-                       reason=last["reason"])
+            out.update(
+                dofs=last["dofs"],
+                levels=len(res.levels),
+                newton_iterations=its[-1],
+                newton_iterations_total=sum(its),
+                polish_solves=polish[-1],
+                polish_solves_total=sum(polish),
+                linear_solver=res.levels[-1].result.linear,
+                krylov_iterations=res.levels[-1].result.krylov_iterations,
+                converged=converged,
+                reason=last["reason"],
+            )
             if converged:
                 out.update({k: last[k] for k in _empty_figures(study)})
             else:
@@ -540,9 +688,9 @@ def run_one(study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_W
         seconds = time.perf_counter() - t0
         out["converged"] = False
         failure = str(err) if isinstance(err, ConfigError) else describe(err)
-        if not all_failed(agree):   # this rank's alone: the others wait in a collective
+        if not all_failed(agree):  # this rank's alone: the others wait in a collective
             abort(comm, INTERNAL, f"contact: internal error: study run {_label(params)}: {failure}")
-    if agree is not None:   # every rank is here
+    if agree is not None:  # every rank is here
         agree.Free()
         if study.adaptive_possible:
             out.setdefault("stop", "")
@@ -561,7 +709,9 @@ def _path_scene(cfg: Mapping) -> bool:
     return bool(cfg.get("load")) or (cfg.get("friction") or {}).get("law", "none") != "none"
 
 
-def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, t0: float) -> tuple[float, str]:
+def _run_path(
+    study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, t0: float
+) -> tuple[float, str]:
     """Run a load path for :func:`run_one`: one level row per step; the run's row has the last
     step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
@@ -573,24 +723,51 @@ def _run_path(study: Study, scene, adapt_opts: dict | None, out: dict, levels: l
 
     def on_step(step) -> None:
         r = step.result
-        levels.append({"level": step.index - 1, "step": step.index, "time": step.time, "dofs": r.dofs,
-                       "newton_iterations": r.iterations, "polish_solves": 0, "converged": bool(r.converged),
-                       "reason": r.reason, **_empty_figures(study), "seconds": time.perf_counter() - t0})
+        levels.append(
+            {
+                "level": step.index - 1,
+                "step": step.index,
+                "time": step.time,
+                "dofs": r.dofs,
+                "newton_iterations": r.iterations,
+                "polish_solves": 0,
+                "converged": bool(r.converged),
+                "reason": r.reason,
+                **_empty_figures(study),
+                "seconds": time.perf_counter() - t0,
+            }
+        )
 
-    path = run_load_path(scene, verbose=False, on_step=on_step, adaptive=adapt_opts is not None,
-                         adapt_options=adapt_opts)
+    path = run_load_path(
+        scene,
+        verbose=False,
+        on_step=on_step,
+        adaptive=adapt_opts is not None,
+        adapt_options=adapt_opts,
+    )
     seconds = time.perf_counter() - t0
     last, its = path.steps[-1], [s.result.iterations for s in path.steps]
-    out.update(dofs=last.result.dofs, levels=len(path.steps), newton_iterations=its[-1],
-               newton_iterations_total=sum(its), polish_solves=0, polish_solves_total=0,
-               linear_solver=last.result.linear, krylov_iterations=last.result.krylov_iterations,
-               converged=path.converged, reason=last.result.reason, max_step_iterations=max(its))
+    out.update(
+        dofs=last.result.dofs,
+        levels=len(path.steps),
+        newton_iterations=its[-1],
+        newton_iterations_total=sum(its),
+        polish_solves=0,
+        polish_solves_total=0,
+        linear_solver=last.result.linear,
+        krylov_iterations=last.result.krylov_iterations,
+        converged=path.converged,
+        reason=last.result.reason,
+        max_step_iterations=max(its),
+    )
     if study.adaptive_possible:
         out["stop"] = path.stop
     if not path.converged:
         return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
     est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
-    figures = _figures(study, last.scene, last.result, est.eta, solution_error(last.scene, last.result))
+    figures = _figures(
+        study, last.scene, last.result, est.eta, solution_error(last.scene, last.result)
+    )
     if last.result.friction is not None:
         surface = surface_figures(last.scene, last.result)
         figures.update({k: surface[k] for k in ("friction_ratio", "stick_measure", "slip_measure")})
@@ -612,11 +789,16 @@ def _duration(s: float) -> str:
     return f"{m} min {s:02d} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"
 
 
-def _progress(k: int, n: int, params: Mapping[str, Any], row: Mapping[str, Any], eta_s: float) -> str:
+def _progress(
+    k: int, n: int, params: Mapping[str, Any], row: Mapping[str, Any], eta_s: float
+) -> str:
     if row["converged"]:
         if row.get("stop") not in (None, "single solve") and row["levels"] != "":
-            what = (f"converged, {row['levels']} levels, {row['dofs']} DoFs, " f"{row['newton_iterations']} its "
-                    f"({row['newton_iterations_total']} total)")
+            what = (
+                f"converged, {row['levels']} levels, {row['dofs']} DoFs, "
+                f"{row['newton_iterations']} its "
+                f"({row['newton_iterations_total']} total)"
+            )
         else:
             what = f"converged, {row['newton_iterations']} its"
     elif row["reason"]:
@@ -639,8 +821,9 @@ def _warm_up(study: Study, comm: MPI.Comm) -> None:
         run_one(warm, {**params, "level": 0}, comm)
 
 
-def iter_study(study: Study, comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True
-               ) -> Iterator[tuple[dict, list[dict]]]:
+def iter_study(
+    study: Study, comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True
+) -> Iterator[tuple[dict, list[dict]]]:
     """Run the study's combinations one by one; yield each finished row with its level rows
     (which repeat the run number and swept values)."""
     combos = [(params, rep) for params in study.runs() for rep in range(1, study.repeat + 1)]
@@ -670,25 +853,36 @@ def pareto_front(points: list[tuple[float, float]], rtol: float = 1e-6) -> list[
         (tq, eq), (tp, ep) = q, p
         return tq <= tp and eq <= ep * (1 + rtol) and (tq < tp or eq < ep * (1 - rtol))
 
-    return [ok[i] and not any(ok[j] and j != i and dominates(points[j], p) for j in range(len(points)))
-            for i, p in enumerate(points)]
+    return [
+        ok[i] and not any(ok[j] and j != i and dominates(points[j], p) for j in range(len(points)))
+        for i, p in enumerate(points)
+    ]
 
 
 def mark_pareto(rows: list[dict], key: str) -> None:
     """Add the ``pareto`` column (before ``failure`` when there is one): on the front of
     (seconds, ``key``) among the converged rows."""
-    pts = [(float(r["seconds"]), float(r[key])) if r["converged"] and r.get(key, "") != "" else (math.nan, math.nan)
-           for r in rows]
+    pts = [
+        (float(r["seconds"]), float(r[key]))
+        if r["converged"] and r.get(key, "") != ""
+        else (math.nan, math.nan)
+        for r in rows
+    ]
     for row, on in zip(rows, pareto_front(pts)):
         failure = row.pop("failure", None)
         row["pareto"] = bool(on)
         if failure is not None:
-            row["failure"] = failure   # keep the failure text the last column
+            row["failure"] = failure  # keep the failure text the last column
 
 
-def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = None, *,
-              comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True,
-              label: str | None = None) -> tuple[list[dict], list[dict]]:
+def run_study(
+    source: str | Path | Mapping | Study,
+    outdir: str | Path | None = None,
+    *,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    verbose: bool = True,
+    label: str | None = None,
+) -> tuple[list[dict], list[dict]]:
     """Validate and run a study (YAML path, mapping or :class:`Study`); return its rows and
     its level rows.
 
@@ -706,7 +900,10 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
         folder.check_output(outdir, label or f"outdir {outdir}", comm)
     n = len(study.runs()) * study.repeat
     if verbose and comm.rank == 0:
-        print(f"contact: study {study.name!r}: {n} run(s) on {study.scene}, {comm.size} MPI rank(s)", flush=True)
+        print(
+            f"contact: study {study.name!r}: {n} run(s) on {study.scene}, {comm.size} MPI rank(s)",
+            flush=True,
+        )
     rows, level_rows = [], []
     for row, levels in iter_study(study, comm, verbose):
         rows.append(row)
@@ -723,6 +920,8 @@ def run_study(source: str | Path | Mapping | Study, outdir: str | Path | None = 
                     charts.DRAW[chart](tmp / f"{chart}.png", study, rows, level_rows)
         if verbose and comm.rank == 0:
             ok = sum(1 for r in rows if r["converged"])
-            files = ", ".join(["study.csv", "levels.csv", "study.json", *(f"{c}.png" for c in study.charts)])
+            files = ", ".join(
+                ["study.csv", "levels.csv", "study.json", *(f"{c}.png" for c in study.charts)]
+            )
             print(f"contact: {ok}/{n} runs converged; wrote {outdir}/ ({files})", flush=True)
     return rows, level_rows

@@ -1,5 +1,6 @@
 """Errors every layer raises or reads: :class:`ConfigError` (bad input, one line) and
 :func:`petsc_message` (PETSc's own message of a ``petsc4py.PETSc.Error``, one line)."""
+
 from __future__ import annotations
 
 import re

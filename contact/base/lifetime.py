@@ -18,6 +18,7 @@ each finished step (``Result.release``, ``Step.release``).  Before, a path ended
 (:func:`free_communicators`, :func:`petsc_objects`, :func:`rss_mib`) serve the tests and
 ``demos/bench/bench_long_path.py``.
 """
+
 from __future__ import annotations
 
 import re
@@ -58,7 +59,7 @@ class Owner:
         objects, self._objects = self._objects[::-1], []
         destroy(*objects)
 
-    def __enter__(self) -> "Owner":
+    def __enter__(self) -> Owner:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -97,7 +98,7 @@ def petsc_objects() -> dict[str, int]:
     table = text.split("Object Type", 1)[-1].split("=" * 20, 1)[0]
     for name, made, gone in re.findall(r"^\s*(\S.*?)\s+(\d+)\s+(\d+)\s*$", table, re.M):
         live[name] = live.get(name, 0) + int(made) - int(gone)
-    live.pop("Viewer", None)   # the viewer of this very call
+    live.pop("Viewer", None)  # the viewer of this very call
     return {k: v for k, v in live.items() if v}
 
 

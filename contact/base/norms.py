@@ -3,6 +3,7 @@
 ``PETSc.Vec.norm()`` returns one float for every norm type but ``NORM_1_AND_2`` (a pair);
 petsc4py's stubs declare the union for every call, so the solvers ask through
 :func:`norm2`, whose type says what the default norm returns."""
+
 from __future__ import annotations
 
 from petsc4py import PETSc

@@ -9,15 +9,16 @@ without callbacks inside (a direct factorization, GAMG's set-up, a mesh refineme
 reported when it ends.  Off (the default, as for the Python API) every call returns at
 once.
 """
+
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from mpi4py import MPI
 from petsc4py import PETSc
 
-PERIOD = 5.0   # seconds between two progress lines at least
+PERIOD = 5.0  # seconds between two progress lines at least
 
 _state = {"on": False, "root": False, "last": 0.0, "period": PERIOD}
 
@@ -60,10 +61,14 @@ def watch(ksp: PETSc.KSP, label: str) -> None:
     start = [time.monotonic()]
 
     def monitor(_ksp, its: int, rnorm: float) -> None:
-        if its == 0:   # a new solve
+        if its == 0:  # a new solve
             start[0] = time.monotonic()
             return
-        note(lambda: f"{label}: {its} Krylov iterations, |r| = {rnorm:.2e}, "
-                     f"{time.monotonic() - start[0]:.0f} s in this solve")
+        note(
+            lambda: (
+                f"{label}: {its} Krylov iterations, |r| = {rnorm:.2e}, "
+                f"{time.monotonic() - start[0]:.0f} s in this solve"
+            )
+        )
 
     ksp.setMonitor(monitor)

@@ -7,6 +7,7 @@
 replaces the pair ``t0 = time.perf_counter()`` … ``seconds["estimate"] = time.perf_counter()
 - t0`` written by hand around every phase; the dict is what the outputs record (a level's
 ``seconds``: levels.csv, summary.json).  A phase timed twice under one name adds up."""
+
 from __future__ import annotations
 
 import time
@@ -25,7 +26,11 @@ class Timer:
         self._t0 = time.perf_counter()
         return self
 
-    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
-                 trace: TracebackType | None) -> None:
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        trace: TracebackType | None,
+    ) -> None:
         elapsed = time.perf_counter() - self._t0
         self.seconds[self.name] = self.seconds.get(self.name, 0.0) + elapsed

@@ -11,22 +11,23 @@ The pieces are plain functions so a user can write their own loop in a few lines
         cells = contact.mark(est.eta_T, "dorfler", theta=0.5)
         scene, u0 = contact.refine(scene, cells, result.u_h)
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
-
-from mpi4py import MPI
+from typing import Any
 
 from dolfinx import fem
+from mpi4py import MPI
 
+from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
 from ..base.timing import Timer
 from ..models import build_problem
-from ..adaptivity.energy_error import solution_error
 from ..setup.budget import max_dofs
 from ..setup.config import SCENE, _validate
 from ..setup.scene import Scene, require_scene
@@ -44,20 +45,29 @@ class Level:
     estimate: Estimate
     error: float | None
     seconds: dict[str, float]
-    imbalance: float = 1.0   # max over ranks of the owned DoFs / their mean (1 in serial)
+    imbalance: float = 1.0  # max over ranks of the owned DoFs / their mean (1 in serial)
 
     def row(self) -> dict[str, Any]:
         msh = self.scene.mesh
-        row = {"level": self.index, "dofs": self.result.dofs,
-               "cells": msh.topology.index_map(msh.topology.dim).size_global,
-               "eta": self.estimate.eta}
+        row = {
+            "level": self.index,
+            "dofs": self.result.dofs,
+            "cells": msh.topology.index_map(msh.topology.dim).size_global,
+            "eta": self.estimate.eta,
+        }
         # Σ_T of each term
         row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
-        row.update({"newton_iterations": self.result.iterations, "polish_solves": self.result.polish_solves,
-                    "converged": self.result.converged,
-                    "active_nodes": self.result.n_active, "rank_imbalance": round(self.imbalance, 4)})
+        row.update(
+            {
+                "newton_iterations": self.result.iterations,
+                "polish_solves": self.result.polish_solves,
+                "converged": self.result.converged,
+                "active_nodes": self.result.n_active,
+                "rank_imbalance": round(self.imbalance, 4),
+            }
+        )
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
         return row
 
@@ -88,40 +98,67 @@ def busiest_share(comm: MPI.Comm, owned: int) -> float:
 
 def adapt_options(scene: Scene, **overrides: Any) -> dict:
     """The scene's ``adapt`` section (defaults if absent) with keyword overrides, validated."""
-    raw = {**(scene.cfg.get("adapt") or {}), **{k: v for k, v in overrides.items() if v is not None}}
+    raw = {
+        **(scene.cfg.get("adapt") or {}),
+        **{k: v for k, v in overrides.items() if v is not None},
+    }
     return _validate(raw, SCENE["adapt"], "adapt", scene.cfg["constants"])
 
 
-def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], None] | None = None,
-          verbose: bool | None = None, u0: fem.Function | None = None, **options: Any) -> AdaptResult:
+def adapt(
+    scene: Scene,
+    method: str | None = None,
+    on_level: Callable[[Level], None] | None = None,
+    verbose: bool | None = None,
+    u0: fem.Function | None = None,
+    **options: Any,
+) -> AdaptResult:
     """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
     called after each level is estimated (used by the CLI to write output as it goes);
     ``u0`` is the first level's initial guess (a load step's previous solution)."""
     require_scene(scene)
     if on_level is not None and not callable(on_level):
-        raise ValueError(f"on_level: expected a function of one Level, got {type(on_level).__name__}")
+        raise ValueError(
+            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
+        )
     opts = adapt_options(scene, **options)
     verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()
     for index in range(opts["max_levels"]):
         seconds: dict[str, float] = {}
-        with Timer(seconds, "solve"):   # assembly and solve; the assembly is taken out below
+        with Timer(seconds, "solve"):  # assembly and solve; the assembly is taken out below
             problem = build_problem(scene)
             seconds["assembly"] = problem.assembly_time
             progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
             # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-            result = solve(scene, method=method, problem=problem, u0=u0, verbose=False,
-                           rtol=opts["newton_rtol"], sequence=None if opts["nested"] else "off")
+            result = solve(
+                scene,
+                method=method,
+                problem=problem,
+                u0=u0,
+                verbose=False,
+                rtol=opts["newton_rtol"],
+                sequence=None if opts["nested"] else "off",
+            )
         seconds["solve"] -= problem.assembly_time
-        progress.note(f"level {index}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; "
-                      "estimating")
+        progress.note(
+            f"level {index}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating"
+        )
         with Timer(seconds, "estimate"):
             est = estimate(scene, result)
         with Timer(seconds, "error"):
             error = solution_error(scene, result)
-        level = Level(index, scene, result, est, error, seconds, imbalance=rank_imbalance(result.u_h.function_space))
+        level = Level(
+            index,
+            scene,
+            result,
+            est,
+            error,
+            seconds,
+            imbalance=rank_imbalance(result.u_h.function_space),
+        )
         out.levels.append(level)
         if on_level is not None:
             with Timer(seconds, "output"):
@@ -146,17 +183,27 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
             cells = mark(est.eta_T, opts["strategy"], opts["theta"])
         bound = next_dofs_bound(scene, cells, result.u_h.function_space)
         if bound is not None and bound > opts["max_dofs"]:  # refining would be wasted work
-            out.stop = f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
+            out.stop = (
+                f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
+            )
             break
         parts: dict[str, float] = {}
         with Timer(seconds, "refine"):
             progress.note(f"level {index}: refining the marked cells")
-            new_scene, new_u0 = refine(scene, cells, result.u_h if opts["nested"] else None,
-                                       opts["rebalance"], timings=parts)
-        seconds["refine_mesh"] = parts["mesh"]   # of which dolfinx.mesh.refine
+            new_scene, new_u0 = refine(
+                scene,
+                cells,
+                result.u_h if opts["nested"] else None,
+                opts["rebalance"],
+                timings=parts,
+            )
+        seconds["refine_mesh"] = parts["mesh"]  # of which dolfinx.mesh.refine
         # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
-        V_next = new_u0.function_space if new_u0 is not None else \
-            fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+        V_next = (
+            new_u0.function_space
+            if new_u0 is not None
+            else fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+        )
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts["max_dofs"]:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
@@ -177,15 +224,20 @@ def format_table(rows: list[dict]) -> str:
 
 
 def _header() -> str:
-    return f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} " f"{'active':>7s} {'solve s':>8s}"
+    return (
+        f"{'level':>5s} {'DoFs':>9s} {'eta':>11s} {'error':>11s} {'eff.':>6s} {'Newton':>6s} "
+        f"{'active':>7s} {'solve s':>8s}"
+    )
 
 
 def _format(r: dict) -> str:
     err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
     eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
     its = solves_text(r["newton_iterations"], r["polish_solves"])
-    return (f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
-            f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}")
+    return (
+        f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
+        f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}"
+    )
 
 
 def _print_row(level: Level, header: bool) -> None:

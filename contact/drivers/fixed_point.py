@@ -1,11 +1,12 @@
 """The Coulomb fixed point (``friction.coulomb: fixed_point``): Coulomb friction solved as a
 sequence of Tresca problems, each an ordinary solve (:func:`contact.drivers.solve.solve`);
 the full Coulomb law in one semismooth Newton solve is :mod:`contact.solvers.friction`'s."""
+
 from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from mpi4py import MPI
@@ -18,8 +19,15 @@ def with_threshold(fs: FrictionSet, rho: np.ndarray) -> FrictionSet:
     return dataclasses.replace(fs, law="tresca", threshold=np.asarray(rho, dtype=float))
 
 
-def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | None, built_here: bool,
-                        solve: Callable, **options):
+def coulomb_fixed_point(
+    scene,
+    problem: DiscreteProblem,
+    u0,
+    verbose: bool | None,
+    built_here: bool,
+    solve: Callable,
+    **options,
+):
     """Coulomb friction as a sequence of Tresca problems (``friction.coulomb: fixed_point``):
 
         ρ^0 = F·max(0, μ_n(u_0)),   u^k = the Tresca solution with threshold ρ^{k−1},
@@ -38,8 +46,9 @@ def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | Non
         problem.to_unknowns(u0.x.petsc_vec, x)
     r = x.duplicate()
     problem.residual(x, r)
-    rho = fs.coefficient * np.maximum(-problem.constraint.sign * r.array_r[problem.constraint.dofs]
-                                      / problem.constraint.w, 0.0)
+    rho = fs.coefficient * np.maximum(
+        -problem.constraint.sign * r.array_r[problem.constraint.dofs] / problem.constraint.w, 0.0
+    )
     for obj in (x, r):
         obj.destroy()
     total, result, t0, converged = 0, None, time.perf_counter(), False
@@ -58,8 +67,11 @@ def coulomb_fixed_point(scene, problem: DiscreteProblem, u0, verbose: bool | Non
             scale = comm.allreduce(float(np.max(rho_new, initial=0.0)), op=MPI.MAX)
             rho, u0 = rho_new, result.u_h
             if verbose and comm.rank == 0:
-                print(f"  fixed point it {k:3d}  max|rho - rho_prev| = {change:10.3e}  "
-                      f"({result.iterations} Newton its)", flush=True)
+                print(
+                    f"  fixed point it {k:3d}  max|rho - rho_prev| = {change:10.3e}  "
+                    f"({result.iterations} Newton its)",
+                    flush=True,
+                )
             if change <= fs.fixed_point_rtol * scale:
                 converged = True
                 break

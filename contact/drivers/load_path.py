@@ -18,17 +18,19 @@ functions, scene and meshes dropped — and keeps only its figures.  Every live 
 MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
 keeping every step whole (``keep_all``) suits short paths only.
 """
+
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 from dolfinx import fem
 
-from .adaptive import adapt
 from ..setup.scene import Scene
 from ..solvers import Result
+from .adaptive import adapt
 from .solve import solve
 
 
@@ -37,11 +39,11 @@ class Step:
     """One load step: its pseudo-time, the scene it was solved on (the final mesh of its
     adaptive loop, if any), the result, the adaptive loop's levels and the wall time."""
 
-    index: int            # 1 … N
+    index: int  # 1 … N
     time: float
     scene: Scene
     result: Result
-    levels: list = field(default_factory=list)   # adapt.Level of an adaptive step
+    levels: list = field(default_factory=list)  # adapt.Level of an adaptive step
     seconds: float = 0.0
 
     def release(self) -> None:
@@ -78,9 +80,16 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
     return out
 
 
-def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[Step], None] | None = None,
-                  verbose: bool | None = None, adaptive: bool | None = None, adapt_options: dict | None = None,
-                  keep_all: bool = False, **options: Any) -> LoadPath:
+def run_load_path(
+    scene: Scene,
+    method: str | None = None,
+    on_step: Callable[[Step], None] | None = None,
+    verbose: bool | None = None,
+    adaptive: bool | None = None,
+    adapt_options: dict | None = None,
+    keep_all: bool = False,
+    **options: Any,
+) -> LoadPath:
     """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
     after every step (the CLI writes its output there: anything that needs a step's
     functions or scene belongs there).  Stops at the first step that does not converge.
@@ -99,14 +108,22 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
     out, u_prev = LoadPath(), None
     for k, t in enumerate(times, start=1):
         t0 = time.perf_counter()
-        step_scene = Scene(scene.cfg, scene.mesh, scene.boundary, time=t,
-                           history={} if u_prev is None else {"u_prev": u_prev},
-                           bodies=scene.bodies, surfaces=scene.surfaces)
+        step_scene = Scene(
+            scene.cfg,
+            scene.mesh,
+            scene.boundary,
+            time=t,
+            history={} if u_prev is None else {"u_prev": u_prev},
+            bodies=scene.bodies,
+            surfaces=scene.surfaces,
+        )
         if verbose and comm.rank == 0 and len(times) > 1:
             print(f"contact: load step {k}/{len(times)}, t = {t:g}", flush=True)
         levels = []
         if adaptive and (mode == "each" or k == len(times)):
-            run = adapt(step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {}))
+            run = adapt(
+                step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {})
+            )
             levels = run.levels
             step_scene, result = levels[-1].scene, levels[-1].result
         else:
@@ -118,7 +135,7 @@ def run_load_path(scene: Scene, method: str | None = None, on_step: Callable[[St
         if not result.converged:
             out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})"
             break
-        scene = step_scene    # 'each': the next step continues on this step's final mesh
+        scene = step_scene  # 'each': the next step continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()

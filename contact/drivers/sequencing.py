@@ -26,18 +26,18 @@ coarser levels; ``off`` starts cold.  Every coarse solve is an ordinary solve (i
 linear solver choice, counted in ``Result.sequence``); the coarse Newton tolerance is
 :data:`COARSE_RTOL` (a guess only needs the coarse active set, not round-off).
 """
+
 from __future__ import annotations
 
 import copy
 import functools
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem
+from mpi4py import MPI
 
 from ..base.errors import ConfigError
 from ..models import build_problem
@@ -45,9 +45,9 @@ from ..setup.scene import Scene
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 AUTO_MIN_DOFS = 4_000
-COARSEST_DOFS = 1_000     # auto: the coarsest level keeps at least this many DoFs
-COARSE_RTOL = 1e-6        # Newton's relative tolerance on the coarse levels
-ANCESTOR_RATIO = 4        # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
+COARSEST_DOFS = 1_000  # auto: the coarsest level keeps at least this many DoFs
+COARSE_RTOL = 1e-6  # Newton's relative tolerance on the coarse levels
+ANCESTOR_RATIO = 4  # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
 BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
 
 
@@ -92,10 +92,14 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         return [], ""
     limit = wanted if wanted is not None else 64
     floor = COARSEST_DOFS if wanted is None else 1
-    ratio = 2 ** dim
+    ratio = 2**dim
 
     if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
-        return [], "grid sequencing: not for frictional scenes (slip depends on the load history); " "cold start"
+        return (
+            [],
+            "grid sequencing: not for frictional scenes (slip depends on the load history); "
+            "cold start",
+        )
     if scene.bodies is not None:
         return [], "grid sequencing: not for scenes of several bodies yet; cold start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
@@ -112,8 +116,11 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
             if min(coarse) < 1 or fine_dofs / ratio**k < floor:
                 break
             builders.append(functools.partial(_with_mesh, scene, {"cells": coarse}))
-        note = "" if wanted is None or len(builders) == wanted else \
-            f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
+        note = (
+            ""
+            if wanted is None or len(builders) == wanted
+            else f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
+        )
         return builders[::-1], note
     if kind in ("quarter_disk", "sphere_octant"):
         m = scene.cfg["mesh"]
@@ -159,8 +166,9 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
     return Scene(cfg, msh, tag_boundaries(msh, cfg, tags), time=scene.time, surfaces=tags)
 
 
-def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable,
-                  verbose: bool) -> tuple[fem.Function | None, list[CoarseLevel], str]:
+def initial_guess(
+    scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable, verbose: bool
+) -> tuple[fem.Function | None, list[CoarseLevel], str]:
     """Solve the coarse levels of ``opts['sequence']``; return the last coarse solution on
     the fine space V (None if there is no coarse level), the levels and a note."""
     bs = V.dofmap.index_map_bs
@@ -182,17 +190,40 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
         u0: fem.Function | None = None
         if u is not None and prev is not None:
             u0 = transfer(u, prev, coarse, problem.V)
-        r = solve(coarse, problem=problem, u0=u0, verbose=False, sequence="off", rtol=COARSE_RTOL,
-                  **coarse_opts)
-        levels.append(CoarseLevel(r.dofs, r.iterations, r.polish_solves, r.krylov_iterations, r.linear,
-                                  time.perf_counter() - t0, bool(r.converged)))
+        r = solve(
+            coarse,
+            problem=problem,
+            u0=u0,
+            verbose=False,
+            sequence="off",
+            rtol=COARSE_RTOL,
+            **coarse_opts,
+        )
+        levels.append(
+            CoarseLevel(
+                r.dofs,
+                r.iterations,
+                r.polish_solves,
+                r.krylov_iterations,
+                r.linear,
+                time.perf_counter() - t0,
+                bool(r.converged),
+            )
+        )
         solution = r.u_h
-        r.release()   # the coarse problem's PETSc objects: only u_h goes on
+        r.release()  # the coarse problem's PETSc objects: only u_h goes on
         if verbose and scene.comm.rank == 0:
             lv = levels[-1]
-            solves = f"{lv.newton_iterations}+{lv.polish_solves}" if lv.polish_solves else f"{lv.newton_iterations}"
-            print(f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts['method']} {solves} its "
-                  f"({lv.linear})  {lv.seconds:.2f} s", flush=True)
+            solves = (
+                f"{lv.newton_iterations}+{lv.polish_solves}"
+                if lv.polish_solves
+                else f"{lv.newton_iterations}"
+            )
+            print(
+                f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts['method']} {solves} its "
+                f"({lv.linear})  {lv.seconds:.2f} s",
+                flush=True,
+            )
         if not r.converged:  # a bad coarse solution is no guess: restart from the next level
             u, prev = None, None
             continue
@@ -202,7 +233,9 @@ def initial_guess(scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callabl
     return transfer(u, prev, scene, V), levels, note
 
 
-def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace | None = None) -> fem.Function:
+def transfer(
+    u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace | None = None
+) -> fem.Function:
     """The coarse solution ``u`` on the fine scene's space (same element)."""
     V = V or fem.functionspace(fine.mesh, u.function_space.ufl_element())
     if fine.parent is not None:
@@ -212,7 +245,9 @@ def transfer(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace |
     return point_transfer(u, V)
 
 
-def _prolong_chain(u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
+def _prolong_chain(
+    u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace
+) -> fem.Function:
     """Prolong through the refinements from ``coarse`` down to ``fine`` (exact for nested
     Lagrange spaces)."""
     from ..adaptivity.transfer import prolong
@@ -338,7 +373,9 @@ def _lshape_vertices(n: int) -> np.ndarray:
     i, j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
     keep = ~((i >= n) & (j < n))
     i, j = i[keep], j[keep]
-    corners = np.concatenate([a * (2 * n + 1) + b for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1))])
+    corners = np.concatenate(
+        [a * (2 * n + 1) + b for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1))]
+    )
     return np.unique(corners)
 
 
@@ -362,8 +399,8 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
     n_cells = msh.topology.index_map(tdim).size_local
     dofs = Vc.dofmap.list[:n_cells]
     X = Vc.tabulate_dof_coordinates()[:, :gdim]
-    verts = X[dofs]                                                     # (cells, tdim+1, gdim)
-    vals = u.x.array.reshape(-1, bs)[dofs]                              # (cells, tdim+1, bs)
+    verts = X[dofs]  # (cells, tdim+1, gdim)
+    vals = u.x.array.reshape(-1, bs)[dofs]  # (cells, tdim+1, bs)
     if comm.size > 1:
         verts = np.concatenate(comm.allgather(verts))
         vals = np.concatenate(comm.allgather(vals))
@@ -376,7 +413,9 @@ def point_transfer(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
     return out
 
 
-def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray) -> np.ndarray:
+def _barycentric(
+    verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray
+) -> np.ndarray:
     """Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
     simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``."""
     dp = points - verts[cells, 0]
@@ -385,12 +424,17 @@ def _barycentric(verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: 
     return np.column_stack([1.0 - lam.sum(axis=1), lam])
 
 
-def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1) -> np.ndarray:
+def _locate(
+    verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1
+) -> np.ndarray:
     """For each point the index of the simplex (of ``verts``) that contains it, or the one
     it is least outside of among those whose bounding box, grown by ``grow`` buckets, holds
     it (points no box holds are located again with boxes grown by one more bucket)."""
     lo_c, hi_c = verts.min(axis=1), verts.max(axis=1)
-    lo, hi = np.minimum(lo_c.min(axis=0), points.min(axis=0)), np.maximum(hi_c.max(axis=0), points.max(axis=0))
+    lo, hi = (
+        np.minimum(lo_c.min(axis=0), points.min(axis=0)),
+        np.maximum(hi_c.max(axis=0), points.max(axis=0)),
+    )
     dim = verts.shape[2]
     size = max(0.5 * float(np.mean(hi_c - lo_c)), 1e-300)  # half a cell: fewer candidates per point
     shape = np.maximum(np.ceil((hi - lo) / size).astype(np.int64), 1)
@@ -409,16 +453,20 @@ def _locate(verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float 
     bucket, cell_of = bucket[order], cell_of[order]
     start = np.searchsorted(bucket, np.arange(np.prod(shape) + 1))
     # candidates of every point, tested all at once
-    pb = np.ravel_multi_index(tuple(np.clip(np.floor((points - lo) / size).astype(np.int64), 0, shape - 1).T), shape)
+    pb = np.ravel_multi_index(
+        tuple(np.clip(np.floor((points - lo) / size).astype(np.int64), 0, shape - 1).T), shape
+    )
     n_cand = start[pb + 1] - start[pb]
     point_of = np.repeat(np.arange(len(points)), n_cand)
     j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
     cand = cell_of[start[pb][point_of] + j]
     lost = np.flatnonzero(n_cand == 0)
     if len(lost) and grow >= 4:  # pragma: no cover - the coarse mesh covers the fine one
-        raise RuntimeError("grid sequencing: a point of the fine mesh lies far outside the coarse mesh")
+        raise RuntimeError(
+            "grid sequencing: a point of the fine mesh lies far outside the coarse mesh"
+        )
     score = _barycentric(verts, inv, cand, points[point_of]).min(axis=1)
-    group = np.cumsum(n_cand) - n_cand                       # point_of is sorted: one group a point
+    group = np.cumsum(n_cand) - n_cand  # point_of is sorted: one group a point
     best = np.maximum.reduceat(score, group)
     hit = np.flatnonzero(score >= best[point_of])
     chosen = np.empty(len(points), dtype=np.int64)
@@ -434,5 +482,13 @@ def weighted_solves(levels: list[CoarseLevel], fine_dofs: int) -> float:
     return sum(lv.linear_solves * lv.dofs for lv in levels) / max(fine_dofs, 1) if levels else 0.0
 
 
-__all__ = ["AUTO_MIN_DOFS", "COARSEST_DOFS", "CoarseLevel", "GridTransfer", "initial_guess", "plan",
-           "transfer", "weighted_solves"]
+__all__ = [
+    "AUTO_MIN_DOFS",
+    "COARSEST_DOFS",
+    "CoarseLevel",
+    "GridTransfer",
+    "initial_guess",
+    "plan",
+    "transfer",
+    "weighted_solves",
+]

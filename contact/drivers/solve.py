@@ -3,10 +3,12 @@
 :mod:`.sequencing`, or ``solver.u0``), then the solve itself
 (:func:`contact.solvers.snes.solve_problem`), or the Coulomb fixed point
 (:mod:`.fixed_point`)."""
+
 from __future__ import annotations
 
 import time
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from dolfinx import fem
 
@@ -24,8 +26,14 @@ from ..solvers.snes import check_guess, solve_problem
 from . import sequencing
 
 
-def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | None = None,
-          u0: fem.Function | None = None, verbose: bool | None = None, **options: Any) -> Result:
+def solve(
+    scene: Scene,
+    method: str | None = None,
+    problem: DiscreteProblem | None = None,
+    u0: fem.Function | None = None,
+    verbose: bool | None = None,
+    **options: Any,
+) -> Result:
     """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
 
     ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
@@ -42,7 +50,7 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).
     """
     require_scene(scene)
-    check_sections(scene.cfg)   # as loaded, or changed since (Python API)
+    check_sections(scene.cfg)  # as loaded, or changed since (Python API)
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
     opts = solver_options(scene.cfg, method=method, **options)
@@ -53,12 +61,16 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     friction = problem.friction
     if friction is not None:
         if method not in ncp.METHODS:
-            raise ConfigError(f"solver.method: {method} cannot solve frictional contact "
-                              f"(friction.law: {friction.law}); use fb, min or blend")
+            raise ConfigError(
+                f"solver.method: {method} cannot solve frictional contact "
+                f"(friction.law: {friction.law}); use fb, min or blend"
+            )
         if friction.law == "coulomb" and friction.coulomb == "fixed_point":
             from .fixed_point import coulomb_fixed_point
 
-            return coulomb_fixed_point(scene, problem, u0, verbose, built_here, solve, method=method, **options)
+            return coulomb_fixed_point(
+                scene, problem, u0, verbose, built_here, solve, method=method, **options
+            )
     t_start = time.perf_counter()
     # the problem's assembly counts once: in the solve that built it
     built = problem.assembly_time if built_here else 0.0
@@ -70,14 +82,23 @@ def solve(scene: Scene, method: str | None = None, problem: DiscreteProblem | No
     if u0 is None:
         with Timer(timers, "coarse"):
             u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
-    guess = u0 is not None   # given, or the coarse levels' solution
+    guess = u0 is not None  # given, or the coarse levels' solution
     if u0 is None:
         check_data(scene, data_items("solver.u0", opts["u0"]))
         u0 = interpolate_expression(problem.V, opts["u0"], scene)
     else:
         check_guess(u0, problem)
-    result = solve_problem(problem, u0, opts, scene.comm, verbose, guess, timers, t_start - built,
-                           check_options=bool(options.get("petsc_options")))
+    result = solve_problem(
+        problem,
+        u0,
+        opts,
+        scene.comm,
+        verbose,
+        guess,
+        timers,
+        t_start - built,
+        check_options=bool(options.get("petsc_options")),
+    )
     result.sequence, result.sequence_note = levels, note
     return result
 

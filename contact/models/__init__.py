@@ -12,6 +12,7 @@
 
 A scene imports only its own model: a scalar scene never loads the elasticity modules.
 """
+
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
@@ -24,14 +25,20 @@ if TYPE_CHECKING:
 __all__ = ["build_problem"]
 
 
-def build_problem(scene: "Scene") -> DiscreteProblem:
+def build_problem(scene: Scene) -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
     from ..setup.budget import check_dofs, mesh_dofs
 
     cfg, msh = scene.cfg, scene.mesh
     components = msh.geometry.dim if cfg["model"]["type"] == "elasticity" else 1
-    check_dofs(cfg, mesh_dofs(msh, cfg["mesh"]["degree"], components), msh.geometry.dim, "mesh", "the mesh gives")
+    check_dofs(
+        cfg,
+        mesh_dofs(msh, cfg["mesh"]["degree"], components),
+        msh.geometry.dim,
+        "mesh",
+        "the mesh gives",
+    )
     if scene.cfg["model"]["type"] == "elasticity":
         if scene.cfg.get("bodies"):
             from .bodies import bodies_problem

@@ -22,12 +22,12 @@ Q and Q⁻¹ are parallel AIJ matrices with the layout of V (block size bs): eac
 the rows of its owned nodes, with global column indices (a master node may live on
 another rank).  For pure rotations Q⁻¹ = Qᵀ.
 """
+
 from __future__ import annotations
 
 import numpy as np
-from petsc4py import PETSc
-
 from dolfinx import fem
+from petsc4py import PETSc
 
 
 def frame(n: np.ndarray, fixed_axes: tuple[int, ...] = ()) -> np.ndarray:
@@ -76,9 +76,14 @@ def node_frames(n: np.ndarray, fixed: np.ndarray, bs: int) -> tuple:
     return n, frames, projectors, absolute, bad
 
 
-def change_of_basis(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, frames: np.ndarray,
-                    coupling: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                    projectors: np.ndarray | None = None) -> tuple[PETSc.Mat, PETSc.Mat]:
+def change_of_basis(
+    V: fem.FunctionSpace,
+    K: PETSc.Mat,
+    nodes: np.ndarray,
+    frames: np.ndarray,
+    coupling: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    projectors: np.ndarray | None = None,
+) -> tuple[PETSc.Mat, PETSc.Mat]:
     """(Q, Q⁻¹) for owned local ``nodes`` with frames (n, bs, bs) and, optionally, the mortar
     ``coupling`` (rows, cols, c): entry c_ij with ``rows`` an index into ``nodes`` (slave i)
     and ``cols`` the *global* node index of master j; ``projectors`` (n, bs, bs) are the P_i
@@ -99,7 +104,7 @@ def change_of_basis(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, frame
         rows, master, c = coupling
         P = np.tile(np.eye(bs), (len(nodes), 1, 1)) if projectors is None else projectors
         slave = nodes[rows]
-        cP = c[:, None, None] * P[rows]                                       # c_ij P_i
+        cP = c[:, None, None] * P[rows]  # c_ij P_i
         cRP = -c[:, None, None] * np.einsum("nba,nbc->nac", frames[rows], P[rows])  # −c_ij R_iᵀ P_i
         row_node = np.concatenate([np.arange(n_local), slave])
         cols = np.concatenate([own_cols, master])
@@ -111,13 +116,15 @@ def change_of_basis(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, frame
     return _blocked_csr(K, bs, per_node, cols, Qb), _blocked_csr(K, bs, per_node, cols, Qib)
 
 
-def _blocked_csr(K: PETSc.Mat, bs: int, per_node: np.ndarray, cols: np.ndarray, blocks: np.ndarray) -> PETSc.Mat:
+def _blocked_csr(
+    K: PETSc.Mat, bs: int, per_node: np.ndarray, cols: np.ndarray, blocks: np.ndarray
+) -> PETSc.Mat:
     """AIJ matrix with K's layout from node blocks sorted by (row node, column node):
     ``per_node[i]`` blocks in row node i, block columns ``cols`` (global nodes)."""
     n_local = len(per_node)
     # scalar row (i, a) holds, for each block (i, j), the columns (j, 0 … bs−1)
     block_start = np.concatenate([[0], np.cumsum(per_node)])
-    row_len = np.repeat(per_node * bs, bs)                                   # per scalar row
+    row_len = np.repeat(per_node * bs, bs)  # per scalar row
     indptr = np.concatenate([[0], np.cumsum(row_len)]).astype(PETSc.IntType)
     indices = np.empty(indptr[-1], dtype=PETSc.IntType)
     values = np.empty(indptr[-1])

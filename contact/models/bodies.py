@@ -18,26 +18,26 @@ the tangential unknowns of the same frames: for a slave node, its slip relative 
 master.  Units: E in Pa (any consistent unit), λ a pressure, D_ii a length (2D) or an area
 (3D).
 """
+
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
 import numpy as np
+from dolfinx import fem, la
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfinx import fem, la
-from dolfinx import mesh as dmesh
-
-from ..setup.checks import check_scene_data
 from ..base.lifetime import destroy
+from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..solvers.problem import Constraint, DiscreteProblem
 from . import mortar
 from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
 from .floating import floating_bodies
-from ..solvers.problem import Constraint, DiscreteProblem
 from .problem import contact_ends, coordinate_scale
 
 
@@ -67,7 +67,9 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     V, K, b = system.V, system.K, system.b
     bs = V.dofmap.index_map_bs
     mortar.check_disjoint(scene, V)
-    couplings = [mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.cfg["pairs"] or []))]
+    couplings = [
+        mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.cfg["pairs"] or []))
+    ]
     rigid = obstacle_nodes(scene, V, system) if scene.cfg.get("obstacle") else None
     sets = couplings + ([rigid] if rigid is not None else [])
 
@@ -75,15 +77,19 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     offsets = np.cumsum([0] + [len(c.nodes) for c in couplings])
     frames = np.concatenate([c.frames for c in sets]).reshape(-1, bs, bs)
     projectors = np.concatenate([c.projectors for c in sets]).reshape(-1, bs, bs)
-    coupling = (np.concatenate([c.rows + o for c, o in zip(couplings, offsets)] + [np.zeros(0, int)]),
-                np.concatenate([c.cols for c in couplings] + [np.zeros(0, int)]),
-                np.concatenate([c.c for c in couplings] + [np.zeros(0)]))
+    coupling = (
+        np.concatenate([c.rows + o for c, o in zip(couplings, offsets)] + [np.zeros(0, int)]),
+        np.concatenate([c.cols for c in couplings] + [np.zeros(0, int)]),
+        np.concatenate([c.c for c in couplings] + [np.zeros(0)]),
+    )
     Q, Q_inv = change_of_basis(V, K, nodes, frames, coupling, projectors)
-    Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
+    Kt = K.PtAP(Q)  # K̃ = Qᵀ K Q
     bt = b.duplicate()
-    Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
+    Q.multTranspose(b, bt)  # b̃ = Qᵀ b
     destroy(K, b)
-    bcs = dirichlet_on_unknowns(V, system.bcs, nodes, frames, [a for c in sets for a in c.absolute], Kt, bt)
+    bcs = dirichlet_on_unknowns(
+        V, system.bcs, nodes, frames, [a for c in sets for a in c.absolute], Kt, bt
+    )
 
     u_h = fem.Function(V, name="u_h")
     S, collapsed = V.sub(0).collapse()
@@ -91,7 +97,7 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     v_to_s = np.empty(len(s_to_v), dtype=np.int32)
     v_to_s[s_to_v // bs] = np.arange(len(s_to_v), dtype=np.int32)
     gap = np.concatenate([c.gap for c in sets])
-    on = la.vector(V.dofmap.index_map, 2)                    # (slave marker, bound) per node
+    on = la.vector(V.dofmap.index_map, 2)  # (slave marker, bound) per node
     on.array.reshape(-1, 2)[nodes] = np.c_[np.ones(len(nodes)), gap]
     on.scatter_forward()
     marker, bound_nodes = on.array.reshape(-1, 2).T
@@ -99,28 +105,57 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     bound.x.array[:] = bound_nodes[s_to_v // bs]
     slave_nodes = np.flatnonzero(marker > 0)
     ends = np.concatenate([c.ends for c in sets]).astype(np.int32)
-    end_dofs, end_neighbours = contact_ends(V, (ends * bs).astype(np.int32),
-                                            np.concatenate([slave_nodes, ends]) * bs, ends * bs)
-    con = Constraint((nodes * bs).astype(np.int32), gap, np.concatenate([c.D for c in sets]), 1.0,
-                     coordinate_scale(scene.mesh))
+    end_dofs, end_neighbours = contact_ends(
+        V, (ends * bs).astype(np.int32), np.concatenate([slave_nodes, ends]) * bs, ends * bs
+    )
+    con = Constraint(
+        (nodes * bs).astype(np.int32),
+        gap,
+        np.concatenate([c.D for c in sets]),
+        1.0,
+        coordinate_scale(scene.mesh),
+    )
     normals = np.concatenate([c.normals for c in sets])
-    pair_nodes = int(offsets[-1])      # the first pair_nodes constrained nodes are slave nodes
+    pair_nodes = int(offsets[-1])  # the first pair_nodes constrained nodes are slave nodes
     X = V.tabulate_dof_coordinates()[nodes, : scene.mesh.geometry.dim]
     on_pairs = slice(0, pair_nodes) if couplings else slice(None)
     mirrors = tuple(sorted(symmetry_axes(scene, X[on_pairs])))
-    data = {**system.data, **(rigid.data if rigid is not None else {}),
-            "reaction_form": reaction_form(system, u_h), "u_bcs": system.bcs,
-            "body": body, "couplings": couplings, "normals": normals, "frames": frames, "pair_nodes": pair_nodes,
-            # the contact normal at the first point of contact (of the pairs, if any)
-            "n": first_contact_normal(scene.comm, X[on_pairs], gap[on_pairs], normals[on_pairs])}
-    return BodiesProblem(V, u_h, bcs, Kt, bt, con, data=data, end_dofs=end_dofs, end_neighbours=end_neighbours,
-                         output_space=S, output_map=s_to_v, output_bound=bound, lambda_sign=1.0,
-                         basis=Q, basis_inverse=Q_inv, output_nodes=v_to_s[slave_nodes],
-                         symmetric_copies=2 ** len(mirrors), symmetry_axes=mirrors,
-                         near_nullspace=rigid_body_modes(V, inverse=Q_inv),
-                         floating=floating_bodies(V, system.fixed, scene.bodies,
-                                                  list(scene.cfg["bodies"])),
-                         assembly_time=time.perf_counter() - t0)
+    data = {
+        **system.data,
+        **(rigid.data if rigid is not None else {}),
+        "reaction_form": reaction_form(system, u_h),
+        "u_bcs": system.bcs,
+        "body": body,
+        "couplings": couplings,
+        "normals": normals,
+        "frames": frames,
+        "pair_nodes": pair_nodes,
+        # the contact normal at the first point of contact (of the pairs, if any)
+        "n": first_contact_normal(scene.comm, X[on_pairs], gap[on_pairs], normals[on_pairs]),
+    }
+    return BodiesProblem(
+        V,
+        u_h,
+        bcs,
+        Kt,
+        bt,
+        con,
+        data=data,
+        end_dofs=end_dofs,
+        end_neighbours=end_neighbours,
+        output_space=S,
+        output_map=s_to_v,
+        output_bound=bound,
+        lambda_sign=1.0,
+        basis=Q,
+        basis_inverse=Q_inv,
+        output_nodes=v_to_s[slave_nodes],
+        symmetric_copies=2 ** len(mirrors),
+        symmetry_axes=mirrors,
+        near_nullspace=rigid_body_modes(V, inverse=Q_inv),
+        floating=floating_bodies(V, system.fixed, scene.bodies, list(scene.cfg["bodies"])),
+        assembly_time=time.perf_counter() - t0,
+    )
 
 
 class BodiesProblem(DiscreteProblem):
@@ -134,11 +169,19 @@ class BodiesProblem(DiscreteProblem):
         if not self.data["couplings"]:
             return super().contact_force(r)
         on = slice(0, self.data["pair_nodes"])
-        local = float(np.sum(self.constraint.w[on] * self.pressure(r)[on] * (self.data["normals"][on] @ self.data["n"])))
+        local = float(
+            np.sum(
+                self.constraint.w[on]
+                * self.pressure(r)[on]
+                * (self.data["normals"][on] @ self.data["n"])
+            )
+        )
         return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
-def first_contact_normal(comm: MPI.Comm, X: np.ndarray, gap: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def first_contact_normal(
+    comm: MPI.Comm, X: np.ndarray, gap: np.ndarray, normals: np.ndarray
+) -> np.ndarray:
     """The contact normal at the first point of contact (the node with the smallest initial
     gap, ties broken by coordinates: :func:`~contact.models.obstacles.first_contact_point`),
     the same on every rank."""
@@ -176,7 +219,7 @@ class ObstacleNodes:
     the fields a mortar :class:`~contact.models.mortar.Coupling` has for its slave nodes."""
 
     nodes: np.ndarray
-    D: np.ndarray            # lumped weights w_i = ∫_{Γ_C} φ_i ds
+    D: np.ndarray  # lumped weights w_i = ∫_{Γ_C} φ_i ds
     normals: np.ndarray
     frames: np.ndarray
     projectors: np.ndarray
@@ -203,19 +246,39 @@ def obstacle_nodes(scene: Scene, V: fem.FunctionSpace, system) -> ObstacleNodes:
     full = fixed.all(axis=1)
     X = S.tabulate_dof_coordinates()[:, :gdim]
     g = gap_of(X[s_dofs])
-    if comm.allreduce(int(np.sum(g[~full] < -1e-12 * max(1.0, float(np.max(np.abs(X), initial=0.0))))), op=MPI.SUM):
+    if comm.allreduce(
+        int(np.sum(g[~full] < -1e-12 * max(1.0, float(np.max(np.abs(X), initial=0.0))))), op=MPI.SUM
+    ):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
     n, frames, projectors, absolute, bad = node_frames(normal(X[s_dofs[~full]]), fixed[~full], bs)
     if comm.allreduce(int(bad.sum()), op=MPI.SUM):
-        raise ConfigError("obstacle: a contact node has a symmetry condition along the obstacle's normal")
+        raise ConfigError(
+            "obstacle: a contact node has a symmetry condition along the obstacle's normal"
+        )
     w = lumped_weights(S, system.data["ds"](scene.boundary.ids_with_role("contact")))[s_dofs[~full]]
     first = first_contact_point(comm, X[s_dofs], g)
-    return ObstacleNodes(nodes[~full], w, n, frames, projectors, absolute, g[~full], nodes[full],
-                         {"n": normal(first[None, :])[0], "n_ufl": n_ufl, "g_ufl": g_ufl})
+    return ObstacleNodes(
+        nodes[~full],
+        w,
+        n,
+        frames,
+        projectors,
+        absolute,
+        g[~full],
+        nodes[full],
+        {"n": normal(first[None, :])[0], "n_ufl": n_ufl, "g_ufl": g_ufl},
+    )
 
 
-def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, frames: np.ndarray,
-                          absolute: list, Kt: PETSc.Mat, bt: PETSc.Vec) -> list:
+def dirichlet_on_unknowns(
+    V: fem.FunctionSpace,
+    bcs: list,
+    nodes: np.ndarray,
+    frames: np.ndarray,
+    absolute: list,
+    Kt: PETSc.Mat,
+    bt: PETSc.Vec,
+) -> list:
     """The Dirichlet and symmetry conditions as conditions on the unknowns x = Q⁻¹ u, imposed
     on K̃ and b̃ (rows and columns identity, the prescribed values lifted into b̃), and
     returned as DirichletBCs on x (one per component) for the solvers' initial guess.
@@ -254,8 +317,9 @@ def dirichlet_on_unknowns(V: fem.FunctionSpace, bcs: list, nodes: np.ndarray, fr
     return [_component_bc(V, k, dofs[dofs % bs == k], x_values) for k in range(bs)]
 
 
-def _component_bc(V: fem.FunctionSpace, k: int, dofs: np.ndarray,
-                  values: np.ndarray) -> fem.DirichletBC:
+def _component_bc(
+    V: fem.FunctionSpace, k: int, dofs: np.ndarray, values: np.ndarray
+) -> fem.DirichletBC:
     """x_j = values[j] on the (unrolled, owned) DoFs ``dofs`` of component k, as a DirichletBC
     on V.sub(k): ``fem.dirichletbc(g, dofs)`` on the blocked V would read the indices as
     node (block) numbers and fix other DoFs."""

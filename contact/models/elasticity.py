@@ -12,26 +12,26 @@ contact pressure (negative in compression).
 Units: E and stresses in Pa (or any consistent unit), lengths in m, forces per unit
 thickness in N/m in 2D.
 """
+
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
 
-import numpy as np
-from petsc4py import PETSc
-
 import dolfinx.fem.petsc
+import numpy as np
 import ufl
 from dolfinx import fem
+from petsc4py import PETSc
 
-from ..setup import expressions
-from ..setup.checks import check_scene_data
 from ..base.errors import ConfigError
 from ..base.lifetime import destroy
+from ..setup import expressions
+from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..solvers.problem import DiscreteProblem
 from .floating import floating_bodies
 from .obstacles import curved_contact, plane_contact
-from ..solvers.problem import DiscreteProblem
 from .problem import assemble_system
 
 
@@ -58,7 +58,9 @@ def _vector(texts: list[str], scene: Scene):
     if all(expressions.is_constant(t, consts) for t in texts):
         values = [float(expressions.to_numpy(t, consts)(np.zeros((3, 1)))[0]) for t in texts]
         return fem.Constant(scene.mesh, np.array(values, dtype=PETSc.ScalarType))
-    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, consts, t=scene.t_constant) for t in texts])
+    return ufl.as_vector(
+        [expressions.to_ufl(t, scene.mesh, consts, t=scene.t_constant) for t in texts]
+    )
 
 
 def _vector_numpy(texts: list[str], scene: Scene):
@@ -72,8 +74,12 @@ def _facet_normal_axis(scene: Scene, name: str, facets: np.ndarray) -> int:
     tdim = msh.topology.dim
     nodes = dolfinx.mesh.entities_to_geometry(msh, tdim - 1, facets).ravel()
     x = msh.geometry.x[nodes, :tdim]
-    lo = np.min(np.vstack(msh.comm.allgather(x.min(axis=0) if len(x) else np.full(tdim, np.inf))), axis=0)
-    hi = np.max(np.vstack(msh.comm.allgather(x.max(axis=0) if len(x) else np.full(tdim, -np.inf))), axis=0)
+    lo = np.min(
+        np.vstack(msh.comm.allgather(x.min(axis=0) if len(x) else np.full(tdim, np.inf))), axis=0
+    )
+    hi = np.max(
+        np.vstack(msh.comm.allgather(x.max(axis=0) if len(x) else np.full(tdim, -np.inf))), axis=0
+    )
     axes = np.flatnonzero(hi - lo < 1e-10 * max(1.0, float(np.max(np.abs(hi)))))
     if len(axes) != 1:
         raise ConfigError(f"boundaries.{name}: a symmetry part must lie in one plane x_k = const")
@@ -92,9 +98,9 @@ class ElasticSystem:
     bcs: list
     K: PETSc.Mat
     b: PETSc.Vec
-    fixed: np.ndarray   # local DoFs with a Dirichlet or symmetry condition
-    data: dict          # f, t, ds, mu, lmbda_L, exact (None) and the reaction form
-    symmetry_axes: tuple[int, ...] = ()   # k of each symmetry part's plane x_k = const
+    fixed: np.ndarray  # local DoFs with a Dirichlet or symmetry condition
+    data: dict  # f, t, ds, mu, lmbda_L, exact (None) and the reaction form
+    symmetry_axes: tuple[int, ...] = ()  # k of each symmetry part's plane x_k = const
 
 
 def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
@@ -104,10 +110,15 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
     cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
     data = cfg["data"]
     gdim, tdim = msh.geometry.dim, msh.topology.dim
-    data = {key: (data[key] if isinstance(data[key], list) else [data[key]] * gdim) for key in ("f", "u_D", "t")}
+    data = {
+        key: (data[key] if isinstance(data[key], list) else [data[key]] * gdim)
+        for key in ("f", "u_D", "t")
+    }
     for key, texts in data.items():
         if len(texts) != gdim:
-            raise ConfigError(f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}")
+            raise ConfigError(
+                f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
+            )
     degree = cfg["mesh"]["degree"]
     V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
@@ -135,8 +146,17 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
             bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(k)))  # type: ignore[operator]
     K, b = assemble_system(a, L, bcs)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
-    return ElasticSystem(V, a_ufl, L_ufl, bcs, K, b, fixed,
-                         {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None}, tuple(axes))
+    return ElasticSystem(
+        V,
+        a_ufl,
+        L_ufl,
+        bcs,
+        K,
+        b,
+        fixed,
+        {"f": f, "t": t, "ds": ds, "mu": mu, "lmbda_L": lmbda_L, "exact": None},
+        tuple(axes),
+    )
 
 
 def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
@@ -157,21 +177,32 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
         contact = plane_contact(scene, V, K, b, fixed, ds)
     else:
         contact = curved_contact(scene, V, K, b, fixed, ds)
-    if "K" in contact:   # a curved obstacle: K̃ = Qᵀ K Q and b̃ = Qᵀ b replace K and b
+    if "K" in contact:  # a curved obstacle: K̃ = Qᵀ K Q and b̃ = Qᵀ b replace K and b
         destroy(K, b)
         K, b = contact.pop("K"), contact.pop("b")
     con = contact.pop("constraint")
     u_h = fem.Function(V, name="u_h")
     data = {**system.data, "reaction_form": reaction_form(system, u_h), **contact.pop("data")}
-    return DiscreteProblem(V, u_h, system.bcs, K, b, con, data=data, **contact,
-                           symmetric_copies=2 ** len(system.symmetry_axes), symmetry_axes=system.symmetry_axes,
-                           near_nullspace=rigid_body_modes(V, contact.get("basis")),
-                           floating=floating_bodies(V, fixed, None, []),
-                           assembly_time=time.perf_counter() - t0)
+    return DiscreteProblem(
+        V,
+        u_h,
+        system.bcs,
+        K,
+        b,
+        con,
+        data=data,
+        **contact,
+        symmetric_copies=2 ** len(system.symmetry_axes),
+        symmetry_axes=system.symmetry_axes,
+        near_nullspace=rigid_body_modes(V, contact.get("basis")),
+        floating=floating_bodies(V, fixed, None, []),
+        assembly_time=time.perf_counter() - t0,
+    )
 
 
-def rigid_body_modes(V: fem.FunctionSpace, rotation: PETSc.Mat | None = None,
-                     inverse: PETSc.Mat | None = None) -> PETSc.NullSpace:
+def rigid_body_modes(
+    V: fem.FunctionSpace, rotation: PETSc.Mat | None = None, inverse: PETSc.Mat | None = None
+) -> PETSc.NullSpace:
     """Near-nullspace of elasticity for GAMG: gdim translations and the infinitesimal
     rotations (1 in 2D, 3 in 3D), in the solver's unknowns (Q⁻¹ m: Qᵀ m for a rotation,
     ``inverse`` m for a general change of basis), orthonormalised."""
@@ -219,5 +250,7 @@ def von_mises(u_h: fem.Function, mu: float, lmbda_L: float) -> fem.Function:
     dev = sig - ufl.tr(sig) / 3 * ufl.Identity(3)
     W = fem.functionspace(msh, ("DG", 0))
     out = fem.Function(W, name="von_mises")
-    out.interpolate(fem.Expression(ufl.sqrt(1.5 * ufl.inner(dev, dev)), W.element.interpolation_points))
+    out.interpolate(
+        fem.Expression(ufl.sqrt(1.5 * ufl.inner(dev, dev)), W.element.interpolation_points)
+    )
     return out

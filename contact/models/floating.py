@@ -15,19 +15,20 @@ unit's fixed DoFs i (owned, summed over all ranks; coordinates relative to the u
 bounding box, scaled by its size) is singular exactly when some motion is free: its
 eigenvalues at most FREE_RTOL · trace G count the free motions.
 """
+
 from __future__ import annotations
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem, la
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 FREE_RTOL = 1e-10
 
 
-def floating_bodies(V: fem.FunctionSpace, fixed: np.ndarray, bodies: dmesh.MeshTags | None,
-                    names: list[str]) -> list[tuple[str, int]]:
+def floating_bodies(
+    V: fem.FunctionSpace, fixed: np.ndarray, bodies: dmesh.MeshTags | None, names: list[str]
+) -> list[tuple[str, int]]:
     """The rigid units of the vector space ``V`` (one per body of the cell tags ``bodies``,
     k + 1 for ``names[k]``, bodies sharing a node joined; the whole mesh if ``bodies`` is
     None, named ``''``) that the local DoFs ``fixed`` (Dirichlet and symmetry) do not hold,
@@ -44,7 +45,7 @@ def floating_bodies(V: fem.FunctionSpace, fixed: np.ndarray, bodies: dmesh.MeshT
         member = np.zeros((len(names), n_owned), dtype=bool)
         body = np.zeros(len(cells), dtype=np.int32)
         body[bodies.indices] = bodies.values
-        for k in range(len(names)):   # the owned nodes of body k's cells, on any rank
+        for k in range(len(names)):  # the owned nodes of body k's cells, on any rank
             flag = la.vector(imap)
             flag.array[cells[body == k + 1].ravel()] = 1.0
             flag.scatter_reverse(la.InsertMode.add)

@@ -36,16 +36,16 @@ about the plane; a drag across a symmetry plane is not, and the Dirichlet data m
 prescribe one (checked here: a one-line error).  Tangential components fixed by Dirichlet
 data are not free either.
 """
+
 from __future__ import annotations
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfinx import fem
-
-from ..setup import expressions
 from ..base.errors import ConfigError
+from ..setup import expressions
 from ..setup.scene import Scene
 from ..solvers.problem import DiscreteProblem, FrictionSet
 
@@ -56,11 +56,11 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
     V, con = problem.V, problem.constraint
     gdim, bs = scene.mesh.geometry.dim, V.dofmap.index_map_bs
     nodes = con.dofs // bs
-    if problem.basis is None:        # coordinate plane: the normal is the component k
+    if problem.basis is None:  # coordinate plane: the normal is the component k
         n_comp = int(np.asarray(problem.data["n"]).nonzero()[0][0])
         t_comps = np.array([j for j in range(bs) if j != n_comp], dtype=np.int32)
         frames = np.broadcast_to(np.eye(gdim)[:, t_comps], (len(nodes), gdim, len(t_comps))).copy()
-    else:                            # rotated frames [n t (t2)]: the columns of Q's node blocks
+    else:  # rotated frames [n t (t2)]: the columns of Q's node blocks
         n_comp, t_comps = 0, np.arange(1, bs, dtype=np.int32)
         frames = node_blocks(problem.basis, bs)[nodes][:, :, t_comps]
     tangent = (nodes[:, None] * bs + t_comps[None, :]).astype(np.int32)
@@ -72,21 +72,40 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
     diag = problem.K.getDiagonal()
     K_tt = np.where(free, diag.array_r[tangent], 0.0).sum(axis=1) / np.maximum(free.sum(axis=1), 1)
     diag.destroy()
-    c_t = K_tt / (cfg["kappa_t"] * w) if cfg["c_t"] == "auto" else np.full(len(nodes), float(cfg["c_t"]))
+    c_t = (
+        K_tt / (cfg["kappa_t"] * w)
+        if cfg["c_t"] == "auto"
+        else np.full(len(nodes), float(cfg["c_t"]))
+    )
 
     threshold = None
     if cfg["law"] == "tresca":
         X = V.tabulate_dof_coordinates()[nodes]
-        threshold = expressions.to_numpy(cfg["threshold"], scene.cfg["constants"], t=scene.time)(X.T)
+        threshold = expressions.to_numpy(cfg["threshold"], scene.cfg["constants"], t=scene.time)(
+            X.T
+        )
         bad = scene.comm.allreduce(int(np.sum(~(threshold >= 0))), op=MPI.SUM)
         if bad:
-            raise ConfigError(f"friction.threshold: negative or undefined at {bad} contact node(s) "
-                              f"at t = {scene.time:g} (a slip threshold is >= 0)")
-    return FrictionSet(law=cfg["law"], n_comp=n_comp, t_comps=t_comps, tangent=tangent, free=free,
-                       frames=frames, c_t=c_t, threshold=threshold, coefficient=cfg["coefficient"],
-                       x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
-                       form=cfg["form"], coulomb=cfg["coulomb"],
-                       fixed_point_rtol=cfg["fixed_point_rtol"], fixed_point_max_it=cfg["fixed_point_max_it"])
+            raise ConfigError(
+                f"friction.threshold: negative or undefined at {bad} contact node(s) "
+                f"at t = {scene.time:g} (a slip threshold is >= 0)"
+            )
+    return FrictionSet(
+        law=cfg["law"],
+        n_comp=n_comp,
+        t_comps=t_comps,
+        tangent=tangent,
+        free=free,
+        frames=frames,
+        c_t=c_t,
+        threshold=threshold,
+        coefficient=cfg["coefficient"],
+        x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
+        form=cfg["form"],
+        coulomb=cfg["coulomb"],
+        fixed_point_rtol=cfg["fixed_point_rtol"],
+        fixed_point_max_it=cfg["fixed_point_max_it"],
+    )
 
 
 def node_blocks(Q: PETSc.Mat, bs: int) -> np.ndarray:
@@ -102,7 +121,9 @@ def node_blocks(Q: PETSc.Mat, bs: int) -> np.ndarray:
     return blocks
 
 
-def previous_tangential(problem: DiscreteProblem, tangent: np.ndarray, u_prev: fem.Function | None) -> np.ndarray:
+def previous_tangential(
+    problem: DiscreteProblem, tangent: np.ndarray, u_prev: fem.Function | None
+) -> np.ndarray:
     """x_t^prev: the tangential unknowns of the previous step's displacement (zero without)."""
     if u_prev is None:
         return np.zeros(tangent.shape)
@@ -122,7 +143,7 @@ def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
     bs = problem.V.dofmap.index_map_bs
     dirichlet = bcs[0].dof_indices()[0]
     values = np.zeros(problem.b.getLocalSize())
-    bcs[0].set(values)                                   # u_D at the Dirichlet DoFs
+    bcs[0].set(values)  # u_D at the Dirichlet DoFs
     n_owned = len(values)
     clash = np.concatenate([np.intersect1d(bc.dof_indices()[0], dirichlet) for bc in bcs[1:]])
     clash = clash[clash < n_owned]
@@ -131,6 +152,8 @@ def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
     comps = scene.comm.allgather(sorted(set((bad % bs).tolist())))
     comps = sorted(set(c for part in comps for c in part))
     if comps:
-        raise ConfigError(f"data.u_D[{comps[0]}]: moves nodes of a symmetry plane across it; with "
-                          "friction a drag across a symmetry plane is not symmetric (model the "
-                          "full body)")
+        raise ConfigError(
+            f"data.u_D[{comps[0]}]: moves nodes of a symmetry plane across it; with "
+            "friction a drag across a symmetry plane is not symmetric (model the "
+            "full body)"
+        )

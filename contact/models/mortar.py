@@ -34,24 +34,24 @@ of its slave facets' bounding box; the master surface is small next to the volum
 the rows of M are summed on the owner of the slave node, so the coupling is the same for
 any number of ranks (up to the order of floating-point sums).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from dolfinx import fem, la
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfinx import fem, la
-
 from ..base.errors import ConfigError
 from ..setup.scene import Scene
-from . import overlap
 from ..solvers.result import Result
+from . import overlap
 from .basis import node_frames
 
 FACING = 0.0  # a master facet is paired only if n_S · n_M < FACING (the surfaces face each other)
-CHUNK = 256   # slave facets per vectorised candidate search
+CHUNK = 256  # slave facets per vectorised candidate search
 # Σ_j M_ij / D_ii below which slave node i counts as uncovered: where a master surface ends
 # inside a slave facet, ψ_i (negative on part of its support) may weigh the covered part
 # with either sign; a node less than half covered is refused rather than extrapolated.
@@ -62,9 +62,9 @@ MIN_COVERAGE = 0.5
 class Facets:
     """The facets of one surface held by this rank (those of its owned cells)."""
 
-    X: np.ndarray        # (F, nv, gdim) vertex coordinates
-    nodes: np.ndarray    # (F, nv) local node indices (blocks of V's DoFs)
-    gnodes: np.ndarray   # (F, nv) global node indices
+    X: np.ndarray  # (F, nv, gdim) vertex coordinates
+    nodes: np.ndarray  # (F, nv) local node indices (blocks of V's DoFs)
+    gnodes: np.ndarray  # (F, nv) global node indices
     normals: np.ndarray  # (F, gdim) unit normals out of the body
     # (F, nv, gdim) the surface's nodal normals at the vertices
     vertex_normals: np.ndarray | None = None
@@ -74,21 +74,21 @@ class Facets:
 class Coupling:
     """The mortar coupling of one pair on this rank (rows of the owned slave nodes)."""
 
-    nodes: np.ndarray        # owned local slave nodes with a constraint
-    D: np.ndarray            # D_ii of those nodes
-    normals: np.ndarray      # (n, gdim) unit normals n_i
-    frames: np.ndarray       # (n, bs, bs) frames R_i (columns: n_i, then the other axes)
-    projectors: np.ndarray   # (n, bs, bs) P_i onto the relative axes
-    absolute: list           # per node: the coordinate axes kept absolute (fixed by symmetry)
-    gap: np.ndarray          # weighted gaps g_i
-    rows: np.ndarray         # coupling entries: index into ``nodes`` …
-    cols: np.ndarray         # … global master node …
-    c: np.ndarray            # … and c_ij
-    M: PETSc.Mat             # M_ij (scalar, node layout; owned slave rows, global master columns)
+    nodes: np.ndarray  # owned local slave nodes with a constraint
+    D: np.ndarray  # D_ii of those nodes
+    normals: np.ndarray  # (n, gdim) unit normals n_i
+    frames: np.ndarray  # (n, bs, bs) frames R_i (columns: n_i, then the other axes)
+    projectors: np.ndarray  # (n, bs, bs) P_i onto the relative axes
+    absolute: list  # per node: the coordinate axes kept absolute (fixed by symmetry)
+    gap: np.ndarray  # weighted gaps g_i
+    rows: np.ndarray  # coupling entries: index into ``nodes`` …
+    cols: np.ndarray  # … global master node …
+    c: np.ndarray  # … and c_ij
+    M: PETSc.Mat  # M_ij (scalar, node layout; owned slave rows, global master columns)
     master_weights: la.Vector  # ∫ φ_j^m over Γ_m at the master nodes (node layout)
-    ends: np.ndarray         # owned slave nodes fixed in every component (no constraint)
-    coverage: float          # min_i Σ_j M_ij / D_ii over all ranks (1 where fully covered)
-    search: float            # the search distance used
+    ends: np.ndarray  # owned slave nodes fixed in every component (no constraint)
+    coverage: float  # min_i Σ_j M_ij / D_ii over all ranks (1 where fully covered)
+    search: float  # the search distance used
 
 
 def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
@@ -106,10 +106,16 @@ def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
     local = np.argmax(c2f.array.reshape(-1, nf)[cells] == facets[:, None], axis=1)
     closure = np.array([V.dofmap.dof_layout.entity_closure_dofs(tdim - 1, j) for j in range(nf)])
     cell_nodes = V.dofmap.list[cells]
-    nodes = np.take_along_axis(cell_nodes, closure[local], axis=1) if len(cells) else np.zeros((0, tdim), np.int32)
+    nodes = (
+        np.take_along_axis(cell_nodes, closure[local], axis=1)
+        if len(cells)
+        else np.zeros((0, tdim), np.int32)
+    )
     X = V.tabulate_dof_coordinates()[:, :gdim]
     Xf = X[nodes]
-    normals = overlap.facet_normals(Xf, X[cell_nodes].mean(axis=1)) if len(cells) else np.zeros((0, gdim))
+    normals = (
+        overlap.facet_normals(Xf, X[cell_nodes].mean(axis=1)) if len(cells) else np.zeros((0, gdim))
+    )
     gnodes = V.dofmap.index_map.local_to_global(nodes.ravel().astype(np.int32)).reshape(nodes.shape)
     return Facets(Xf, nodes, gnodes, normals)
 
@@ -140,14 +146,25 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     # nodal sums over the slave facets (D_ii, Σ |F| n_F) and the master facets (∫ φ_j^m)
     measure = overlap.facet_measures(slave.X) if len(slave.X) else np.zeros(0)
     D = _nodal_sum(imap, slave.nodes, np.repeat(measure[:, None] / nv, nv, axis=1))
-    nsum = _nodal_sum(imap, slave.nodes, np.repeat((measure[:, None] * slave.normals)[:, None, :], nv, axis=1), gdim)
+    nsum = _nodal_sum(
+        imap,
+        slave.nodes,
+        np.repeat((measure[:, None] * slave.normals)[:, None, :], nv, axis=1),
+        gdim,
+    )
     w_master = la.vector(imap, 1)
     m_measure = overlap.facet_measures(master.X) if len(master.X) else np.zeros(0)
     np.add.at(w_master.array, master.nodes.ravel(), np.repeat(m_measure / nv, nv))
     w_master.scatter_reverse(la.InsertMode.add)
     w_master.scatter_forward()
-    M_rows, cols, M_vals, attrs = _owned_rows(comm, imap, slave.nodes[s_idx], remote.gnodes[m_idx],
-                                              np.concatenate([remote.X, remote.vertex_normals], axis=2)[m_idx], M_loc)
+    M_rows, cols, M_vals, attrs = _owned_rows(
+        comm,
+        imap,
+        slave.nodes[s_idx],
+        remote.gnodes[m_idx],
+        np.concatenate([remote.X, remote.vertex_normals], axis=2)[m_idx],
+        M_loc,
+    )
     X_of, N_of = attrs[:, :gdim], attrs[:, gdim:]
 
     n_owned = imap.size_local
@@ -173,24 +190,45 @@ def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) ->
     c = M_vals[use] / covered[rows]
     Xs = V.tabulate_dof_coordinates()[:n_owned, :gdim][nodes]
     target = np.zeros((len(nodes), gdim))
-    np.add.at(target, rows, c[:, None] * X_of[use])                                # Σ_j c_ij X_j
+    np.add.at(target, rows, c[:, None] * X_of[use])  # Σ_j c_ij X_j
     n_master = np.zeros((len(nodes), gdim))
-    np.add.at(n_master, rows, c[:, None] * N_of[use])                              # Σ_j c_ij n_j^m
+    np.add.at(n_master, rows, c[:, None] * N_of[use])  # Σ_j c_ij n_j^m
     n_slave = nsum.reshape(-1, gdim)[nodes]
     n_slave = n_slave / np.linalg.norm(n_slave, axis=1, keepdims=True)
     n_master /= np.maximum(np.linalg.norm(n_master, axis=1, keepdims=True), 1e-300)
     # the common normal: the bisector of the slave normal and the reversed master normal
-    normals, frames, projectors, absolute = _frames(comm, V, n_slave - n_master, fixed_comp, Xs, key)
+    normals, frames, projectors, absolute = _frames(
+        comm, V, n_slave - n_master, fixed_comp, Xs, key
+    )
     gap = np.einsum("nd,nd->n", normals, target - Xs)
     M = _node_matrix(V, M_rows, cols, M_vals)
-    return Coupling(nodes=nodes.astype(np.int32), D=D_owned[nodes], normals=normals, frames=frames,
-                    projectors=projectors, absolute=absolute, gap=gap, rows=rows, cols=cols_c, c=c, M=M,
-                    master_weights=w_master, ends=ends.astype(np.int32),
-                    coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN), search=search)
+    return Coupling(
+        nodes=nodes.astype(np.int32),
+        D=D_owned[nodes],
+        normals=normals,
+        frames=frames,
+        projectors=projectors,
+        absolute=absolute,
+        gap=gap,
+        rows=rows,
+        cols=cols_c,
+        c=c,
+        M=M,
+        master_weights=w_master,
+        ends=ends.astype(np.int32),
+        coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN),
+        search=search,
+    )
 
 
-def _owned_rows(comm: MPI.Comm, imap, slave_nodes: np.ndarray, master_gnodes: np.ndarray,
-                master_X: np.ndarray, M_loc: np.ndarray) -> tuple:
+def _owned_rows(
+    comm: MPI.Comm,
+    imap,
+    slave_nodes: np.ndarray,
+    master_gnodes: np.ndarray,
+    master_X: np.ndarray,
+    M_loc: np.ndarray,
+) -> tuple:
     """The entries M_ij of this rank's owned slave rows from the local pair integrals
     M_loc (P, nv, nv) of slave facets with local ``slave_nodes`` (P, nv) against master
     facets with global ``master_gnodes`` and per-vertex data ``master_X`` (P, nv, k; the
@@ -199,15 +237,22 @@ def _owned_rows(comm: MPI.Comm, imap, slave_nodes: np.ndarray, master_gnodes: np
     value, the column's data)."""
     nv = M_loc.shape[1]
     gdim = master_X.shape[2]
-    rows_local = np.repeat(slave_nodes, nv, axis=1).ravel()                 # (p, a, b) → slave a …
-    cols = np.tile(master_gnodes, (1, nv)).ravel()                           # … and master b
+    rows_local = np.repeat(slave_nodes, nv, axis=1).ravel()  # (p, a, b) → slave a …
+    cols = np.tile(master_gnodes, (1, nv)).ravel()  # … and master b
     Xcol = np.tile(master_X, (1, nv, 1)).reshape(-1, gdim)
     rows_g, cols, vals, Xcol = _to_owners(comm, imap, rows_local, cols, M_loc.ravel(), Xcol)
-    key_ij, inverse = np.unique(np.c_[rows_g - imap.local_range[0], cols], axis=0, return_inverse=True)
+    key_ij, inverse = np.unique(
+        np.c_[rows_g - imap.local_range[0], cols], axis=0, return_inverse=True
+    )
     inverse = inverse.ravel()
     X_of = np.zeros((len(key_ij), gdim))
     X_of[inverse] = Xcol
-    return key_ij[:, 0], key_ij[:, 1], np.bincount(inverse, weights=vals, minlength=len(key_ij)), X_of
+    return (
+        key_ij[:, 0],
+        key_ij[:, 1],
+        np.bincount(inverse, weights=vals, minlength=len(key_ij)),
+        X_of,
+    )
 
 
 def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
@@ -229,14 +274,19 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
         count(1, part_facets(bnd, pair["master"]))
     if bnd.ids_with_role("contact"):
         count(2, bnd.facets("contact"))
-    bad = np.flatnonzero((owned[:, 0] > 1) | ((owned[:, 0] > 0) & (owned[:, 1] > 0))
-                         | ((owned[:, 2] > 0) & (owned[:, :2].sum(axis=1) > 0)))
+    bad = np.flatnonzero(
+        (owned[:, 0] > 1)
+        | ((owned[:, 0] > 0) & (owned[:, 1] > 0))
+        | ((owned[:, 2] > 0) & (owned[:, :2].sum(axis=1) > 0))
+    )
     if comm.allreduce(len(bad), op=MPI.SUM):
         where = _first_point(comm, V, bad)
-        raise ConfigError(f"pairs: the node at {where} is both a slave and a master node (or a slave node of "
-                          "two pairs, or on a pair and on the obstacle's contact part); a node may "
-                          "be the slave of one pair only, and never a master or obstacle contact "
-                          "node too")
+        raise ConfigError(
+            f"pairs: the node at {where} is both a slave and a master node (or a slave node of "
+            "two pairs, or on a pair and on the obstacle's contact part); a node may "
+            "be the slave of one pair only, and never a master or obstacle contact "
+            "node too"
+        )
 
 
 def part_facets(bnd, name: str) -> np.ndarray:
@@ -265,19 +315,32 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
         pts = slave.X.reshape(-1, gdim)
         box = (pts.min(axis=0) - search, pts.max(axis=0) + search)
     boxes = comm.allgather(box)
-    lo, hi = (master.X.min(axis=1), master.X.max(axis=1)) if len(master.X) else (np.zeros((0, gdim)),) * 2
+    lo, hi = (
+        (master.X.min(axis=1), master.X.max(axis=1))
+        if len(master.X)
+        else (np.zeros((0, gdim)),) * 2
+    )
     send = []
     assert master.vertex_normals is not None  # set for every master surface (_surface)
     for b in boxes:
-        sel = np.zeros(len(master.X), dtype=bool) if b is None else \
-            np.all((lo <= b[1]) & (hi >= b[0]), axis=1)
-        send.append((master.X[sel], master.gnodes[sel], master.normals[sel], master.vertex_normals[sel]))
+        sel = (
+            np.zeros(len(master.X), dtype=bool)
+            if b is None
+            else np.all((lo <= b[1]) & (hi >= b[0]), axis=1)
+        )
+        send.append(
+            (master.X[sel], master.gnodes[sel], master.normals[sel], master.vertex_normals[sel])
+        )
     recv = comm.alltoall(send)
     nv = slave.X.shape[1] if len(slave.X) else master.X.shape[1] if len(master.X) else gdim
     X = np.concatenate([r[0] for r in recv]).reshape(-1, nv, gdim)
-    return Facets(X, np.zeros((len(X), nv), np.int32), np.concatenate([r[1] for r in recv]).reshape(-1, nv),
-                  np.concatenate([r[2] for r in recv]).reshape(-1, gdim),
-                  np.concatenate([r[3] for r in recv]).reshape(-1, nv, gdim))
+    return Facets(
+        X,
+        np.zeros((len(X), nv), np.int32),
+        np.concatenate([r[1] for r in recv]).reshape(-1, nv),
+        np.concatenate([r[2] for r in recv]).reshape(-1, gdim),
+        np.concatenate([r[3] for r in recv]).reshape(-1, nv, gdim),
+    )
 
 
 def _vertex_normals(imap, side: Facets, gdim: int) -> np.ndarray:
@@ -285,7 +348,9 @@ def _vertex_normals(imap, side: Facets, gdim: int) -> np.ndarray:
     ranks) at the vertices of its facets, (F, nv, gdim)."""
     nv = side.nodes.shape[1]
     measure = overlap.facet_measures(side.X) if len(side.X) else np.zeros(0)
-    nsum = _nodal_sum(imap, side.nodes, np.repeat((measure[:, None] * side.normals)[:, None, :], nv, axis=1), gdim)
+    nsum = _nodal_sum(
+        imap, side.nodes, np.repeat((measure[:, None] * side.normals)[:, None, :], nv, axis=1), gdim
+    )
     N = nsum.reshape(-1, gdim)[side.nodes]
     return N / np.maximum(np.linalg.norm(N, axis=-1, keepdims=True), 1e-300)
 
@@ -308,11 +373,15 @@ def _candidates(slave: Facets, master: Facets, search: float) -> tuple[np.ndarra
         # x-window of the chunk's prisms, then the exact line test
         reach = np.abs(slave.normals[sl, 0]) * search + rs[sl] + rm_max
         lo_x, hi_x = (cs[sl, 0] - reach).min(), (cs[sl, 0] + reach).max()
-        window = order[np.searchsorted(cm_sorted, lo_x):np.searchsorted(cm_sorted, hi_x, side="right")]
+        window = order[
+            np.searchsorted(cm_sorted, lo_x) : np.searchsorted(cm_sorted, hi_x, side="right")
+        ]
         d = cm[window][None, :, :] - cs[sl][:, None, :]
         along = np.einsum("smd,sd->sm", d, slave.normals[sl])
         perp = np.linalg.norm(d - along[:, :, None] * slave.normals[sl][:, None, :], axis=2)
-        ok = (perp <= rs[sl, None] + rm[window][None, :]) & (np.abs(along) <= search + rm[window][None, :])
+        ok = (perp <= rs[sl, None] + rm[window][None, :]) & (
+            np.abs(along) <= search + rm[window][None, :]
+        )
         i, j = np.nonzero(ok)
         out_s.append(i + start)
         out_m.append(window[j])
@@ -337,7 +406,11 @@ def _to_owners(comm: MPI.Comm, imap, rows_local: np.ndarray, *columns: np.ndarra
     owner = np.full(len(rows_local), comm.rank)
     ghost = rows_local >= n_owned
     owner[ghost] = imap.owners[rows_local[ghost] - n_owned]
-    rows_g = imap.local_to_global(rows_local.astype(np.int32)) if len(rows_local) else np.zeros(0, np.int64)
+    rows_g = (
+        imap.local_to_global(rows_local.astype(np.int32))
+        if len(rows_local)
+        else np.zeros(0, np.int64)
+    )
     send = [tuple(a[owner == r] for a in (rows_g, *columns)) for r in range(comm.size)]
     recv = comm.alltoall(send)
     return tuple(np.concatenate([r[k] for r in recv]) for k in range(1 + len(columns)))
@@ -349,18 +422,24 @@ def _frames(comm, V, nsum: np.ndarray, fixed: np.ndarray, Xs: np.ndarray, key: s
     normals, frames, projectors, absolute, bad = node_frames(nsum, fixed, V.dofmap.index_map_bs)
     if comm.allreduce(int(bad.sum()), op=MPI.SUM):
         where = _first_point(comm, V, np.flatnonzero(bad), Xs)
-        raise ConfigError(f"{key}.slave: the slave node at {where} has a symmetry condition along its "
-                          "contact normal")
+        raise ConfigError(
+            f"{key}.slave: the slave node at {where} has a symmetry condition along its "
+            "contact normal"
+        )
     return normals, frames, projectors, absolute
 
 
-def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray) -> PETSc.Mat:
+def _node_matrix(
+    V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals: np.ndarray
+) -> PETSc.Mat:
     """Scalar AIJ matrix in V's node layout from owned (local row, global column) entries."""
     imap = V.dofmap.index_map
     n_owned = imap.size_local
     order = np.lexsort((cols, rows))
     rows, cols, vals = rows[order], cols[order], vals[order]
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n_owned))]).astype(PETSc.IntType)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=n_owned))]).astype(
+        PETSc.IntType
+    )
     sizes = ((n_owned, imap.size_global), (n_owned, imap.size_global))
     csr = (indptr, cols.astype(PETSc.IntType), vals)
     M = PETSc.Mat().createAIJ(sizes, comm=V.mesh.comm, csr=csr)  # type: ignore[arg-type]
@@ -368,7 +447,9 @@ def _node_matrix(V: fem.FunctionSpace, rows: np.ndarray, cols: np.ndarray, vals:
     return M
 
 
-def _first_point(comm: MPI.Comm, V: fem.FunctionSpace, nodes: np.ndarray, X: np.ndarray | None = None) -> str:
+def _first_point(
+    comm: MPI.Comm, V: fem.FunctionSpace, nodes: np.ndarray, X: np.ndarray | None = None
+) -> str:
     """'(x, y[, z])' of the first listed node on the lowest rank that has one."""
     gdim = V.mesh.geometry.dim
     mine = None
@@ -383,11 +464,13 @@ def _no_master(comm, V, nodes: np.ndarray, key: str, pair: dict, search: float) 
     if comm.allreduce(len(nodes), op=MPI.SUM):
         total = comm.allreduce(len(nodes), op=MPI.SUM)
         where = _first_point(comm, V, nodes)
-        raise ConfigError(f"{key}.slave: {total} slave node(s) of {pair['slave']!r}, e.g. at {where}, have no "
-                          f"master facet of {pair['master']!r} within the search distance "
-                          f"{search:.4g} ({key}.search) facing (at least half of) their facets; "
-                          f"restrict the slave part "
-                          "to lie within the master surface, or raise the search distance")
+        raise ConfigError(
+            f"{key}.slave: {total} slave node(s) of {pair['slave']!r}, e.g. at {where}, have no "
+            f"master facet of {pair['master']!r} within the search distance "
+            f"{search:.4g} ({key}.search) facing (at least half of) their facets; "
+            f"restrict the slave part "
+            "to lie within the master surface, or raise the search distance"
+        )
 
 
 def to_master(result: Result, values: np.ndarray) -> np.ndarray:
@@ -408,7 +491,7 @@ def to_master(result: Result, values: np.ndarray) -> np.ndarray:
     for comp in range(k):
         v.array[:] = values[:n_owned, comp]
         for coupling in p.data["couplings"]:
-            coupling.M.multTranspose(v, y)                           # Σ_i M_ij v_i
+            coupling.M.multTranspose(v, y)  # Σ_i M_ij v_i
             arr[:n_owned, comp] += y.array_r
     out.scatter_forward()
     for vec in (v, y):

@@ -10,19 +10,19 @@ block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, so that it is a bound on one unkno
 Each function returns the pieces of :class:`contact.solvers.problem.DiscreteProblem` that
 the obstacle determines (constraint, output space, basis, contact data).
 """
+
 from __future__ import annotations
 
 import numpy as np
+import ufl
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import ufl
-from dolfinx import fem
-
 from ..base.errors import ConfigError
 from ..setup.scene import Scene
-from .basis import frame
 from ..solvers.problem import Constraint, NodeBlockMatrix
+from .basis import frame
 from .problem import coordinate_scale, lumped_weights
 
 
@@ -49,11 +49,16 @@ def obstacle_shape(scene: Scene) -> tuple:
         nu_o = nu_o / np.linalg.norm(nu_o)
         p = np.asarray(obstacle["point"], dtype=float)
         if len(nu_o) != gdim or len(p) != gdim:
-            raise ConfigError(f"obstacle: point and normal need {gdim} components in a {gdim}D scene")
-        return (lambda x: np.tile(-nu_o, (len(x), 1)), lambda x: (x - p) @ nu_o,
-                ufl.as_vector((-nu_o).tolist()),                                       # n = −ν
-                # g = (x − p)·ν
-                ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())))
+            raise ConfigError(
+                f"obstacle: point and normal need {gdim} components in a {gdim}D scene"
+            )
+        return (
+            lambda x: np.tile(-nu_o, (len(x), 1)),
+            lambda x: (x - p) @ nu_o,
+            ufl.as_vector((-nu_o).tolist()),  # n = −ν
+            # g = (x − p)·ν
+            ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())),
+        )
     want = "circle" if gdim == 2 else "sphere"
     if obstacle["type"] != want:
         raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
@@ -61,10 +66,12 @@ def obstacle_shape(scene: Scene) -> tuple:
     if len(centre) != gdim:
         raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
     c_ufl = ufl.as_vector(centre.tolist())
-    return (lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
-            lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
-            (c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
-            ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o)
+    return (
+        lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
+        lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
+        (c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
+        ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o,
+    )
 
 
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
@@ -84,12 +91,17 @@ def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     keep = (v_dofs < n_owned) & ~np.isin(v_dofs, fixed)
     dofs, sd = v_dofs[keep].astype(np.int32), s_dofs[keep]
     w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
-    gap = (S.tabulate_dof_coordinates()[:, :gdim] - p) @ nu_o     # g(x) = (x − p)·ν
+    gap = (S.tabulate_dof_coordinates()[:, :gdim] - p) @ nu_o  # g(x) = (x − p)·ν
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = n_k * gap
-    return {"constraint": Constraint(dofs, n_k * gap[sd], w, n_k, coordinate_scale(scene.mesh)),
-            "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": n_k,
-            "data": {"n": -nu_o, "n_ufl": n_ufl, "g_ufl": g_ufl}}
+    return {
+        "constraint": Constraint(dofs, n_k * gap[sd], w, n_k, coordinate_scale(scene.mesh)),
+        "output_space": S,
+        "output_map": s_to_v,
+        "output_bound": bound,
+        "lambda_sign": n_k,
+        "data": {"n": -nu_o, "n_ufl": n_ufl, "g_ufl": g_ufl},
+    }
 
 
 def curved_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
@@ -112,28 +124,43 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
     partial = node_fixed.any(axis=1) & ~node_fixed.all(axis=1)
     if msh.comm.allreduce(int(partial.sum())):
-        raise ConfigError("obstacle: contact nodes with a symmetry or partial Dirichlet condition "
-                          "cannot be rotated to the obstacle's normal")
+        raise ConfigError(
+            "obstacle: contact nodes with a symmetry or partial Dirichlet condition "
+            "cannot be rotated to the obstacle's normal"
+        )
     keep = (nodes < V.dofmap.index_map.size_local) & ~node_fixed.all(axis=1)
     nodes, sd = nodes[keep], s_dofs[keep]
     Xs = S.tabulate_dof_coordinates()[:, :gdim]
     g_all = gap(Xs)
-    if msh.comm.allreduce(int(np.sum(g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs)))))) ):
+    if msh.comm.allreduce(int(np.sum(g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs))))))):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
     normals = normal(Xs[sd])
     Q = _rotation(V, K, nodes, normals)
-    Kt = K.PtAP(Q)                                          # K̃ = Qᵀ K Q
+    Kt = K.PtAP(Q)  # K̃ = Qᵀ K Q
     bt = b.duplicate()
-    Q.multTranspose(b, bt)                                  # b̃ = Qᵀ b
+    Q.multTranspose(b, bt)  # b̃ = Qᵀ b
     w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = g_all
     first = first_contact_point(msh.comm, Xs[sd], g_all[sd])
-    return {"K": Kt, "b": bt, "basis": Q,
-            "constraint": Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0,
-                                     coordinate_scale(msh)),
-            "output_space": S, "output_map": s_to_v, "output_bound": bound, "lambda_sign": 1.0,
-            "data": {"n": normal(first[None, :])[0], "normals": normals, "n_ufl": n_ufl, "g_ufl": g_ufl}}
+    return {
+        "K": Kt,
+        "b": bt,
+        "basis": Q,
+        "constraint": Constraint(
+            (nodes * bs).astype(np.int32), g_all[sd], w, 1.0, coordinate_scale(msh)
+        ),
+        "output_space": S,
+        "output_map": s_to_v,
+        "output_bound": bound,
+        "lambda_sign": 1.0,
+        "data": {
+            "n": normal(first[None, :])[0],
+            "normals": normals,
+            "n_ufl": n_ufl,
+            "g_ufl": g_ufl,
+        },
+    }
 
 
 #: initial gaps within TIE_RTOL × (the largest coordinate, at least 1) of the smallest count as
@@ -152,7 +179,9 @@ def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.n
     return _first_contact(comm, X, dist, X)[0]
 
 
-def first_contact_row(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray, rows: np.ndarray) -> np.ndarray:
+def first_contact_row(
+    comm: MPI.Comm, X: np.ndarray, dist: np.ndarray, rows: np.ndarray
+) -> np.ndarray:
     """The row of ``rows`` (e.g. the nodal normals, row for row with X) at
     :func:`first_contact_point` (collective)."""
     return _first_contact(comm, X, dist, rows)[1]
@@ -162,21 +191,25 @@ def _first_contact(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray, rows: np.nda
     """(point, row of ``rows``) of :func:`first_contact_point`, as arrays (None, None if no
     rank has a point)."""
     lowest = comm.allreduce(float(np.min(dist, initial=np.inf)), op=MPI.MIN)
-    scale = max(comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny)
+    scale = max(
+        comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny
+    )
     near = np.flatnonzero(dist <= lowest + TIE_RTOL * max(scale, 1.0))
     local = None
     if len(near):
-        key = np.round(X[near] / scale, -int(np.log10(TIE_RTOL))) + 0.0   # + 0.0: no −0.0
-        i = np.lexsort(key.T[::-1])[0]   # lexsort: the last key is the primary one
+        key = np.round(X[near] / scale, -int(np.log10(TIE_RTOL))) + 0.0  # + 0.0: no −0.0
+        i = np.lexsort(key.T[::-1])[0]  # lexsort: the last key is the primary one
         local = (key[i].tolist(), X[near[i]].tolist(), np.asarray(rows[near[i]]).tolist())
     found = [c for c in comm.allgather(local) if c is not None]
     if not found:
         return None, None
-    _, point, row = min(found, key=lambda c: c[0])   # lists compare in coordinate order
+    _, point, row = min(found, key=lambda c: c[0])  # lists compare in coordinate order
     return np.asarray(point), np.asarray(row)
 
 
-def _rotation(V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray) -> PETSc.Mat:
+def _rotation(
+    V: fem.FunctionSpace, K: PETSc.Mat, nodes: np.ndarray, normals: np.ndarray
+) -> PETSc.Mat:
     """Q (u = Q x): identity, except the blocks [n t (t2)] of the given owned nodes."""
     Q = NodeBlockMatrix(K, V.dofmap.index_map_bs)
     blocks = Q.identity()

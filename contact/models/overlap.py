@@ -24,13 +24,16 @@ Every function is vectorised over P pairs (leading axis) and knows nothing of me
 MPI or PETSc.  Lengths are in the mesh's unit; M_loc has the unit of the facet measure
 (length in 2D, area in 3D).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
 # ψ = DUAL[nv] @ φ on a facet with nv vertices (rows: ψ_a, columns: φ_b)
-DUAL = {2: np.array([[2.0, -1.0], [-1.0, 2.0]]),
-        3: np.array([[3.0, -1.0, -1.0], [-1.0, 3.0, -1.0], [-1.0, -1.0, 3.0]])}
+DUAL = {
+    2: np.array([[2.0, -1.0], [-1.0, 2.0]]),
+    3: np.array([[3.0, -1.0, -1.0], [-1.0, 3.0, -1.0], [-1.0, -1.0, 3.0]]),
+}
 
 _GAUSS2 = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))  # 2-point Gauss on [0, 1]
 MAX_POLYGON = 8  # vertices of a triangle clipped by a triangle: at most 6 (+ slack)
@@ -57,8 +60,9 @@ def facet_measures(X: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]), axis=1)
 
 
-def mortar_pairs(Xs: np.ndarray, ns: np.ndarray, Xm: np.ndarray, tol: float = 1e-12
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def mortar_pairs(
+    Xs: np.ndarray, ns: np.ndarray, Xm: np.ndarray, tol: float = 1e-12
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """M_loc (P, nv, nv), the overlap measure (P,) and the signed normal distance (P,) from
     the slave facet to the master facet at the overlap's centroid (> 0: a gap, < 0:
     penetration), for slave facets Xs (P, nv, gdim) with unit normals ns (P, gdim) and
@@ -87,8 +91,8 @@ def _segments(Xs, ns, Xm, tol):
         return M, np.zeros(P), dist
     Xs, ns, Xm, L, xi, lo, hi, dxi = (a[ok] for a in (Xs, ns, Xm, L, xi, lo, hi, dxi))
     for g in _GAUSS2:
-        q = lo + g * (hi - lo)                         # slave coordinate of the Gauss point
-        eta = (q - xi[:, 0]) / dxi                     # master coordinate of its projection
+        q = lo + g * (hi - lo)  # slave coordinate of the Gauss point
+        eta = (q - xi[:, 0]) / dxi  # master coordinate of its projection
         psi = np.column_stack([1.0 - q, q]) @ DUAL[2].T
         phim = np.column_stack([1.0 - eta, eta])
         M[ok] += 0.5 * ((hi - lo) * L)[:, None, None] * psi[:, :, None] * phim[:, None, :]
@@ -128,7 +132,9 @@ def _triangles(Xs, ns, Xm, tol):
         if not use.any():
             break
         A, B, C = poly[:, 0], poly[:, k], poly[:, np.minimum(k + 1, poly.shape[1] - 1)]
-        area = 0.5 * np.abs((B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0]))
+        area = 0.5 * np.abs(
+            (B[:, 0] - A[:, 0]) * (C[:, 1] - A[:, 1]) - (B[:, 1] - A[:, 1]) * (C[:, 0] - A[:, 0])
+        )
         area = np.where(use, area, 0.0)
         meas += area
         centroid += area[:, None] * (A + B + C) / 3.0
@@ -136,16 +142,20 @@ def _triangles(Xs, ns, Xm, tol):
             psi = _apply(Bs, q) @ DUAL[3].T
             phim = _apply(Bm, q)
             M += (area / 3.0)[:, None, None] * psi[:, :, None] * phim[:, None, :]
-    good = (meas > area_tol) & (np.abs(np.linalg.det(np.stack([m2[:, 1] - m2[:, 0], m2[:, 2] - m2[:, 0]], 1))) > area_tol)
+    good = (meas > area_tol) & (
+        np.abs(np.linalg.det(np.stack([m2[:, 1] - m2[:, 0], m2[:, 2] - m2[:, 0]], 1))) > area_tol
+    )
     M[~good] = 0.0
     meas[~good] = 0.0
     dist = np.full(P, np.inf)
     if good.any():
         c2 = centroid[good] / meas[good, None]
-        x = origin[good] + c2[:, :1] * e1[good] + c2[:, 1:] * e2[good]       # slave point
-        nm = np.cross(Xm[good, 1] - Xm[good, 0], Xm[good, 2] - Xm[good, 0])   # master plane
+        x = origin[good] + c2[:, :1] * e1[good] + c2[:, 1:] * e2[good]  # slave point
+        nm = np.cross(Xm[good, 1] - Xm[good, 0], Xm[good, 2] - Xm[good, 0])  # master plane
         # the projected master triangle is not degenerate, so n_S·n_M ≠ 0
-        dist[good] = np.einsum("pd,pd->p", Xm[good, 0] - x, nm) / np.einsum("pd,pd->p", ns[good], nm)
+        dist[good] = np.einsum("pd,pd->p", Xm[good, 0] - x, nm) / np.einsum(
+            "pd,pd->p", ns[good], nm
+        )
     return M, meas, dist
 
 
@@ -181,8 +191,10 @@ def clip_polygons(subject: np.ndarray, clip: np.ndarray) -> tuple[np.ndarray, np
 
 
 def _signed_area(T: np.ndarray) -> np.ndarray:
-    return 0.5 * ((T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1])
-                  - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0]))
+    return 0.5 * (
+        (T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1])
+        - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0])
+    )
 
 
 def _clip_half_plane(poly, count, normal, offset):

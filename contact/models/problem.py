@@ -1,17 +1,17 @@
 """What every model shares when it builds the discrete problem of a scene
 (:class:`~contact.solvers.problem.DiscreteProblem`): K and the lifted load b, lumped
 weights, the ends of Γ_C, the scene's expressions as UFL data or interpolated functions."""
+
 from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
-from mpi4py import MPI
-from petsc4py import PETSc
-
 import dolfinx.fem.petsc
+import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
 
 from ..base.errors import ConfigError
 from ..setup import expressions
@@ -24,8 +24,9 @@ def coordinate_scale(msh: Any) -> float:
     return msh.comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX)
 
 
-def contact_ends(V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray,
-                  dirichlet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def contact_ends(
+    V: fem.FunctionSpace, owned: np.ndarray, candidates: np.ndarray, dirichlet: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Owned contact DoFs that are Dirichlet DoFs too, and for each the nearest contact DoF
     that is not (owned or ghost).  A loop over the few ends only."""
     ends = np.intersect1d(owned, dirichlet).astype(np.int32)
@@ -47,7 +48,9 @@ def coefficient(text: str, scene: Scene) -> Any:
     return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
 
 
-def interpolate_expression(V: fem.FunctionSpace, text: str | list[str], scene: Scene) -> fem.Function:
+def interpolate_expression(
+    V: fem.FunctionSpace, text: str | list[str], scene: Scene
+) -> fem.Function:
     """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
     vector space one expression is every component, a list gives one per component.
     Lagrange interpolation is evaluation at the DoF points, so each expression is evaluated
@@ -58,7 +61,9 @@ def interpolate_expression(V: fem.FunctionSpace, text: str | list[str], scene: S
     bs = V.dofmap.index_map_bs
     texts = text if isinstance(text, list) else [text] * bs
     if len(texts) != bs:
-        raise ConfigError(f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}")
+        raise ConfigError(
+            f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}"
+        )
     values = fn.x.array.reshape(-1, bs)
     points = None
     for c, t in enumerate(texts):
@@ -91,12 +96,16 @@ def assemble_matrix(a: fem.Form, bcs: list) -> PETSc.Mat:
         K = dolfinx.fem.petsc.assemble_matrix(a, bcs=bcs)
         K.assemble()
         return K
-    A = fem.assemble_matrix(a, bcs=bcs)          # block CSR, ghost rows not yet summed
+    A = fem.assemble_matrix(a, bcs=bcs)  # block CSR, ghost rows not yet summed
     A.scatter_reverse()
-    n = A.index_map(0).size_local                # owned block rows
+    n = A.index_map(0).size_local  # owned block rows
     indptr = A.indptr[: n + 1].astype(PETSc.IntType)
-    cols = A.index_map(1).local_to_global(A.indices[: indptr[-1]].astype(np.int32)).astype(PETSc.IntType)
-    values = A.data[: indptr[-1] * bs * bs]      # row-major bs × bs blocks
+    cols = (
+        A.index_map(1)
+        .local_to_global(A.indices[: indptr[-1]].astype(np.int32))
+        .astype(PETSc.IntType)
+    )
+    values = A.data[: indptr[-1] * bs * bs]  # row-major bs × bs blocks
     comm = a.mesh.comm
     sizes = ((n * bs, None), (n * bs, None))
     B = PETSc.Mat().createBAIJ(sizes, bs, csr=(indptr, cols, values), comm=comm)  # type: ignore[arg-type]

@@ -9,23 +9,28 @@ assembled once into K and the lifted load b (:func:`contact.models.problem.assem
 λ_i is the contact flux k ∂u/∂n − t_C (Signorini) or −div(k∇u) − f (obstacle).  Units:
 with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²] in Ω.
 """
+
 from __future__ import annotations
 
 import time
 from typing import Any
 
 import numpy as np
-from mpi4py import MPI
-
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 
-from ..setup.checks import check_scene_data
 from ..base.errors import ConfigError
+from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
 from ..solvers.problem import Constraint, DiscreteProblem
-from .problem import (coefficient, contact_ends, interpolate_expression, assemble_system,
-                      lumped_weights)
+from .problem import (
+    assemble_system,
+    coefficient,
+    contact_ends,
+    interpolate_expression,
+    lumped_weights,
+)
 
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
@@ -76,8 +81,10 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     dofs = np.setdiff1d(owned, dirichlet_dofs).astype(np.int32)
     w = lumped_weights(V, measure)[dofs]
     if msh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
-        raise ConfigError(f"mesh.degree: {degree} gives constrained DoFs with lumped weight ∫ φ_i = 0 "
-                         "on this mesh; use mesh.degree: 1")
+        raise ConfigError(
+            f"mesh.degree: {degree} gives constrained DoFs with lumped weight ∫ φ_i = 0 "
+            "on this mesh; use mesh.degree: 1"
+        )
     g_h = interpolate_expression(V, bound_text, scene)
     constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
     # no Dirichlet DoF on any rank: only the constraint holds the body (K is singular)
@@ -88,12 +95,22 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     u_h = fem.Function(V, name="u_h")
     ends: dict[str, Any] = {}
     if cfg["model"]["type"] == "signorini":
-        ends = dict(zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs)))
-    return DiscreteProblem(V, u_h, bcs, K, b, constraint, **ends, in_domain=cfg["model"]["type"] == "obstacle",
-                           semicoercive=semicoercive,
-                           data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds,
-                                 "exact": data["exact"]},
-                           assembly_time=time.perf_counter() - t0)
+        ends = dict(
+            zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs))
+        )
+    return DiscreteProblem(
+        V,
+        u_h,
+        bcs,
+        K,
+        b,
+        constraint,
+        **ends,
+        in_domain=cfg["model"]["type"] == "obstacle",
+        semicoercive=semicoercive,
+        data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds, "exact": data["exact"]},
+        assembly_time=time.perf_counter() - t0,
+    )
 
 
 #: |L(1)| below this fraction of Σ_i |b_i| counts as a zero resultant
@@ -112,10 +129,14 @@ def check_semicoercive(b, sign: float, model: str) -> None:
     if sign * resultant > RESULTANT_RTOL * scale:
         return
     bound = "u ≤ g" if sign > 0 else "u ≥ psi"
-    what = ("is zero: any constant shift of a solution is another, no unique solution" if
-            abs(resultant) <= RESULTANT_RTOL * scale else
-            f"= {resultant:.3g} pulls it away from the obstacle ({bound}): no solution exists")
-    raise ConfigError(f"data.f: the scene has no dirichlet boundary, so only the {model} constraint holds the "
-                      f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto "
-                      f"the obstacle "
-                      "or add a dirichlet boundary")
+    what = (
+        "is zero: any constant shift of a solution is another, no unique solution"
+        if abs(resultant) <= RESULTANT_RTOL * scale
+        else f"= {resultant:.3g} pulls it away from the obstacle ({bound}): no solution exists"
+    )
+    raise ConfigError(
+        f"data.f: the scene has no dirichlet boundary, so only the {model} constraint holds the "
+        f"body, and the load's resultant ∫f + ∫t + ∫t_C {what}; push the body onto "
+        f"the obstacle "
+        "or add a dirichlet boundary"
+    )

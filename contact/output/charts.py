@@ -14,11 +14,13 @@ one run are :mod:`.plots`).
 Every function has the signature ``(path, study, rows, level_rows)`` (see :data:`DRAW`)
 and is called on one rank.
 """
+
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,8 +36,13 @@ ACCURACY_LABELS = {
 }
 #: outcome classes of a run, in the order of the stability map's legend
 OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
-OUTCOME_COLOURS = {"converged": "#4daf4a", "max iterations": "#ff7f00", "stalled": "#ffd92f",
-                   "diverged": "#e41a1c", "error": "#999999"}
+OUTCOME_COLOURS = {
+    "converged": "#4daf4a",
+    "max iterations": "#ff7f00",
+    "stalled": "#ffd92f",
+    "diverged": "#e41a1c",
+    "error": "#999999",
+}
 MARKERS = "osD^v<>pPX*h"
 
 
@@ -86,10 +93,11 @@ def _encodings(study: Study, cat: list[str]):
             return f"C{methods.index(gkey[k]) % 10}"
 
         def style_of(gkey: tuple) -> tuple[str, str]:
-            rest = gkey[:k] + gkey[k + 1:]
+            rest = gkey[:k] + gkey[k + 1 :]
             if rest not in others:
                 others.append(rest)
             return styles[others.index(rest) % len(styles)]
+
         return colour_of, style_of
     seen: list[tuple] = []
 
@@ -97,28 +105,44 @@ def _encodings(study: Study, cat: list[str]):
         if gkey not in seen:
             seen.append(gkey)
         return seen.index(gkey)
+
     return (lambda g: f"C{index(g) % 10}"), (lambda g: ("-", MARKERS[index(g) % len(MARKERS)]))
 
 
-def speed_accuracy(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> None:
+def speed_accuracy(
+    path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]
+) -> None:
     """Accuracy (``study.accuracy``) against wall time (left) and DoFs (right), log–log."""
     plt = _pyplot()
     key = study.accuracy
-    good = [r for r in level_rows if r["converged"] and r.get(key, "") != "" and float(r[key]) > 0
-            and float(r["seconds"]) > 0]
+    good = [
+        r
+        for r in level_rows
+        if r["converged"] and r.get(key, "") != "" and float(r[key]) > 0 and float(r["seconds"]) > 0
+    ]
     cat, num = _categorical(study), _numeric(study)
     colour_of, style_of = _encodings(study, cat)
     fig, (ax_t, ax_n) = plt.subplots(1, 2, figsize=(13, 6.5), sharey=True)
     for gkey, members in _groups(good, cat).items():
         members.sort(key=lambda r: (tuple(r[a] for a in num), r["run"], r["level"]))
         ls, marker = style_of(gkey)
-        style = dict(marker=marker, color=colour_of(gkey), lw=1.1, ms=5, ls=ls if len(members) > 1 else "none")
+        style = dict(
+            marker=marker,
+            color=colour_of(gkey),
+            lw=1.1,
+            ms=5,
+            ls=ls if len(members) > 1 else "none",
+        )
         for ax, x in ((ax_t, "seconds"), (ax_n, "dofs")):
             # one polyline per run (levels) or along the numeric axes (single solves)
             runs = _groups(members, ["run"]) if any(r["level"] for r in members) else {(): members}
             for j, part in enumerate(runs.values()):
-                ax.loglog([float(r[x]) for r in part], [float(r[key]) for r in part],
-                          label=" / ".join(map(str, gkey)) if (ax is ax_t and j == 0) else None, **style)
+                ax.loglog(
+                    [float(r[x]) for r in part],
+                    [float(r[key]) for r in part],
+                    label=" / ".join(map(str, gkey)) if (ax is ax_t and j == 0) else None,
+                    **style,
+                )
     front = sorted((float(r["seconds"]), float(r[key])) for r in good if r.get("pareto"))
     if front:
         ft, fe = zip(*front)
@@ -131,14 +155,24 @@ def speed_accuracy(path: str | Path, study: Study, rows: list[dict], level_rows:
             ax.text(0.5, 0.5, "no converged run", transform=ax.transAxes, ha="center", va="center")
     ax_t.set_ylabel(ACCURACY_LABELS[key])
     failed = sum(1 for r in rows if not r["converged"])
-    fig.suptitle(f"study {study.name}: accuracy against time and DoFs, {len(rows)} runs"
-                 + (f" ({failed} failed, not shown)" if failed else ""))
+    fig.suptitle(
+        f"study {study.name}: accuracy against time and DoFs, {len(rows)} runs"
+        + (f" ({failed} failed, not shown)" if failed else "")
+    )
     handles, labels = ax_t.get_legend_handles_labels()
     rows_of_legend = math.ceil(len(labels) / 5)
     bottom = min(0.06 + 0.035 * rows_of_legend, 0.5) if handles else 0.0
     if handles:
-        fig.legend(handles, labels, loc="lower center", ncol=5, fontsize=8, frameon=False,
-                   title=" / ".join(cat) if cat else None, title_fontsize=8)
+        fig.legend(
+            handles,
+            labels,
+            loc="lower center",
+            ncol=5,
+            fontsize=8,
+            frameon=False,
+            title=" / ".join(cat) if cat else None,
+            title_fontsize=8,
+        )
     fig.tight_layout(rect=(0, bottom, 1, 1))
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -164,7 +198,11 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
         for j, m in enumerate(methods):
             cell = cells.get((lk, m))
             what = cell["outcome"] if cell else "error"
-            ax.add_patch(plt.Rectangle((j, i), 1, 1, facecolor=OUTCOME_COLOURS[what], edgecolor="white", lw=2))
+            ax.add_patch(
+                plt.Rectangle(
+                    (j, i), 1, 1, facecolor=OUTCOME_COLOURS[what], edgecolor="white", lw=2
+                )
+            )
             text = "—" if cell is None else _solves_label(cell)
             ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", fontsize=9)
     ax.set_xlim(0, len(methods))
@@ -175,8 +213,14 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
     ax.tick_params(length=0)
     for side in ax.spines.values():
         side.set_visible(False)
-    ax.legend(handles=[Patch(color=OUTCOME_COLOURS[o], label=o) for o in OUTCOMES],
-              loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=len(OUTCOMES), fontsize=8, frameon=False)
+    ax.legend(
+        handles=[Patch(color=OUTCOME_COLOURS[o], label=o) for o in OUTCOMES],
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.01),
+        ncol=len(OUTCOMES),
+        fontsize=8,
+        frameon=False,
+    )
     ax.set_title(f"study {study.name}: outcome and Newton iterations (+ polishing solves)", pad=22)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -194,7 +238,9 @@ def _linear_solves(r: dict) -> int:
     return int(r["newton_iterations"]) + int(r.get("polish_solves") or 0)
 
 
-def _iteration_curves(study: Study, rows: list[dict], level_rows: list[dict]) -> dict[str, list[dict]]:
+def _iteration_curves(
+    study: Study, rows: list[dict], level_rows: list[dict]
+) -> dict[str, list[dict]]:
     """The curves of :func:`iterations`: label -> points ``{x, y, converged, method,
     nested, marker_key}`` sorted by x.
 
@@ -219,13 +265,22 @@ def _iteration_curves(study: Study, rows: list[dict], level_rows: list[dict]) ->
         for r in members:
             if r["newton_iterations"] != "":
                 curves.setdefault(label, []).append(
-                    {"x": base + int(r["level"]), "y": _linear_solves(r), "run": run,
-                     "converged": bool(r["converged"]), "method": r0.get("method"), "nested": nested,
-                     "marker_key": tuple(r0[a] for a in other)})
+                    {
+                        "x": base + int(r["level"]),
+                        "y": _linear_solves(r),
+                        "run": run,
+                        "converged": bool(r["converged"]),
+                        "method": r0.get("method"),
+                        "nested": nested,
+                        "marker_key": tuple(r0[a] for a in other),
+                    }
+                )
     return {k: sorted(v, key=lambda p: p["x"]) for k, v in curves.items()}
 
 
-def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> dict[str, list[dict]]:
+def iterations(
+    path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]
+) -> dict[str, list[dict]]:
     """Linear solves per refinement level (Newton steps + active-set polishing solves):
     colour = method, solid = nested iteration, dashed = cold start (an adaptive run from
     u0 on every level, or single solves along a ``level`` axis); other non-numeric axes
@@ -242,8 +297,16 @@ def iterations(path: str | Path, study: Study, rows: list[dict], level_rows: lis
         marker = MARKERS[combos.index(pts[0]["marker_key"]) % len(MARKERS)]
         shift = 0.06 * (m - (len(methods) - 1) / 2)  # side by side where counts coincide
         xs = [p["x"] + shift for p in pts]
-        ax.plot(xs, [p["y"] for p in pts], color=f"C{m % 10}", ls="-" if pts[0]["nested"] else "--",
-                marker=marker, ms=5, lw=1.2, label=label)
+        ax.plot(
+            xs,
+            [p["y"] for p in pts],
+            color=f"C{m % 10}",
+            ls="-" if pts[0]["nested"] else "--",
+            marker=marker,
+            ms=5,
+            lw=1.2,
+            label=label,
+        )
         for x, p in zip(xs, pts):
             if not p["converged"]:
                 ax.plot(x, p["y"], "x", color="k", ms=9)

@@ -9,15 +9,15 @@
 seconds each format took (``seconds``), which go to summary.json as ``time_output_xdmf``
 and ``time_output_vtk``.
 """
+
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
-
-from mpi4py import MPI
 
 from dolfinx import fem
+from mpi4py import MPI
 
 from .vtk import Series, write_vtu
 from .xdmf import XdmfSeries, write_xdmf
@@ -30,27 +30,41 @@ class FieldFiles:
     for one solve, :meth:`write_step` for step after step of a series (time value t: the
     level, the load step's pseudo-time)."""
 
-    def __init__(self, folder: str | Path, name: str, formats: Sequence[str],
-                 comm: MPI.Comm = MPI.COMM_WORLD):
+    def __init__(
+        self, folder: str | Path, name: str, formats: Sequence[str], comm: MPI.Comm = MPI.COMM_WORLD
+    ):
         self.folder, self.name, self.comm = Path(folder), name, comm
         self.formats = [f for f in FORMATS if f in formats]
         self.seconds = {f: 0.0 for f in self.formats}
         self._xdmf, self._vtk = XdmfSeries(folder, name, comm), Series(folder, name, comm)
 
-    def write_one(self, point_fields: Sequence[fem.Function],
-                  cell_fields: Sequence[fem.Function] = ()) -> None:
+    def write_one(
+        self, point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = ()
+    ) -> None:
         """``<name>.xdmf`` (+ .h5) and ``<name>.vtu``."""
         path = (self.folder / self.name).with_suffix
-        self._each({"xdmf": lambda: write_xdmf(path(".xdmf"), point_fields, cell_fields),
-                    "vtk": lambda: write_vtu(path(".vtu"), point_fields, cell_fields)})
+        self._each(
+            {
+                "xdmf": lambda: write_xdmf(path(".xdmf"), point_fields, cell_fields),
+                "vtk": lambda: write_vtu(path(".vtu"), point_fields, cell_fields),
+            }
+        )
 
-    def write_step(self, t: float, point_fields: Sequence[fem.Function],
-                   cell_fields: Sequence[fem.Function] = (),
-                   field_data: dict | None = None) -> None:
+    def write_step(
+        self,
+        t: float,
+        point_fields: Sequence[fem.Function],
+        cell_fields: Sequence[fem.Function] = (),
+        field_data: dict | None = None,
+    ) -> None:
         """Step ``<name>_KKK`` of the series ``<name>.xdmf`` / ``<name>.pvd`` with time value
         ``t`` (``field_data``: numbers the .vtu carries as VTK field data)."""
-        self._each({"xdmf": lambda: self._xdmf.write(t, point_fields, cell_fields),
-                    "vtk": lambda: self._vtk.write(t, point_fields, cell_fields, field_data)})
+        self._each(
+            {
+                "xdmf": lambda: self._xdmf.write(t, point_fields, cell_fields),
+                "vtk": lambda: self._vtk.write(t, point_fields, cell_fields, field_data),
+            }
+        )
 
     def _each(self, writers: dict) -> None:
         for fmt in self.formats:

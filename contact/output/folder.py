@@ -22,6 +22,7 @@ whose writer is gone are deleted, after the newest complete one (carrying the ma
 moved back to ``NAME`` if ``NAME`` is missing.  Temporaries of a live process or of another
 host are left alone.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -35,16 +36,16 @@ import shutil
 import socket
 import sys
 import tempfile
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Iterator, Mapping, Sequence
-
-from mpi4py import MPI
+from typing import Any
 
 from dolfinx import fem
+from mpi4py import MPI
 
 from ..base.errors import ConfigError
 
-MARKER = ".contact-result"   # the marker file of every folder the tool writes
+MARKER = ".contact-result"  # the marker file of every folder the tool writes
 
 
 def check_output(outdir: str | Path, label: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
@@ -69,7 +70,9 @@ def _on_root(comm: MPI.Comm, action, label: str) -> Any:
         try:
             outcome = action()
         except OSError as err:
-            outcome = f"cannot write: {err.strerror or err}" + (f" ({err.filename})" if err.filename else "")
+            outcome = f"cannot write: {err.strerror or err}" + (
+                f" ({err.filename})" if err.filename else ""
+            )
     outcome = comm.bcast(outcome, root=0)
     if isinstance(outcome, str):
         raise ConfigError(f"{label}: {outcome}")
@@ -89,15 +92,22 @@ def output_problem(outdir: Path) -> str | None:
         return "is a symbolic link; give the folder itself"
     if outdir.exists():
         if not outdir.is_dir():
-            return "is an existing file; nothing was changed (give a folder name that does not exist)"
+            return (
+                "is an existing file; nothing was changed (give a folder name that does not exist)"
+            )
         written = _manifest(outdir)
         if written is None:
-            return (f"is an existing folder that contact did not write (no {MARKER} marker); " f"nothing was "
-                    "changed (give a new folder name, or remove it yourself)")
+            return (
+                f"is an existing folder that contact did not write (no {MARKER} marker); "
+                f"nothing was "
+                "changed (give a new folder name, or remove it yourself)"
+            )
         foreign = sorted(set(_entries(outdir)) - written - {MARKER})
         if foreign:
-            return (f"is a contact result, but holds {len(foreign)} file(s) contact did not write "
-                    f"({', '.join(foreign[:3])}); nothing was changed")
+            return (
+                f"is a contact result, but holds {len(foreign)} file(s) contact did not write "
+                f"({', '.join(foreign[:3])}); nothing was changed"
+            )
     anc = outdir.parent
     while not anc.exists() and not anc.is_symlink() and anc != anc.parent:
         anc = anc.parent
@@ -106,7 +116,9 @@ def output_problem(outdir: Path) -> str | None:
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".contact-probe-", dir=anc))
     except OSError as err:
-        return f"cannot be written: no permission to create entries in {anc} ({err.strerror or err})"
+        return (
+            f"cannot be written: no permission to create entries in {anc} ({err.strerror or err})"
+        )
     return None
 
 
@@ -136,9 +148,16 @@ def _manifest(folder: Path) -> set[str] | None:
 def _write_marker(folder: Path) -> None:
     from .. import __version__
 
-    info = {"tool": "contact", "version": __version__, "command": [Path(sys.argv[0]).name, *sys.argv[1:]],
-            "cwd": os.getcwd(), "time": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "host": socket.gethostname(), "pid": os.getpid(), "entries": sorted(_entries(folder))}
+    info = {
+        "tool": "contact",
+        "version": __version__,
+        "command": [Path(sys.argv[0]).name, *sys.argv[1:]],
+        "cwd": os.getcwd(),
+        "time": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "host": socket.gethostname(),
+        "pid": os.getpid(),
+        "entries": sorted(_entries(folder)),
+    }
     (folder / MARKER).write_text(json.dumps(info, indent=1) + "\n")
 
 
@@ -165,13 +184,21 @@ def _alive(pid: int) -> bool:
 def stale_temporaries(outdir: Path) -> list[Path]:
     """The temporaries of ``outdir`` left by a writer that is gone (same host, dead pid)."""
     outdir = _absolute(outdir)
-    pattern = re.compile(rf"\.{re.escape(outdir.name)}\.(partial|old)-([A-Za-z0-9._]+)-(\d+)(-[A-Za-z0-9_]+)?")
+    pattern = re.compile(
+        rf"\.{re.escape(outdir.name)}\.(partial|old)-([A-Za-z0-9._]+)-(\d+)(-[A-Za-z0-9_]+)?"
+    )
     out: list[Path] = []
     if not outdir.parent.is_dir():
         return out
     for entry in outdir.parent.iterdir():
         m = pattern.fullmatch(entry.name)
-        if m and entry.is_dir() and not entry.is_symlink() and m[2] == _host() and not _alive(int(m[3])):
+        if (
+            m
+            and entry.is_dir()
+            and not entry.is_symlink()
+            and m[2] == _host()
+            and not _alive(int(m[3]))
+        ):
             out.append(entry)
     return sorted(out)
 
@@ -228,7 +255,9 @@ def _replace(tmp: Path, outdir: Path) -> None:
 
 
 @contextlib.contextmanager
-def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: str | None = None) -> Iterator[Path]:
+def atomic_folder(
+    outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: str | None = None
+) -> Iterator[Path]:
     """Yield a temporary directory that becomes ``outdir`` on success (collective).  On an
     exception rank 0 deletes it and nothing communicates (the exception may be this rank's
     alone; :mod:`contact.app.failures`).
@@ -248,7 +277,7 @@ def atomic_folder(outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: st
     try:
         yield tmp
     except BaseException:
-        if comm.rank == 0:   # local: no collective on the way out of an exception (app.failures)
+        if comm.rank == 0:  # local: no collective on the way out of an exception (app.failures)
             shutil.rmtree(tmp, ignore_errors=True)
         raise
     # Every rank finished its part of the folder (pictures are drawn on several ranks).  A
@@ -271,7 +300,9 @@ def write_json(path: str | Path, data: Mapping[str, Any], comm: MPI.Comm = MPI.C
         Path(path).write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
 
 
-def write_csv(path: str | Path, rows: Sequence[Mapping[str, Any]], comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+def write_csv(
+    path: str | Path, rows: Sequence[Mapping[str, Any]], comm: MPI.Comm = MPI.COMM_WORLD
+) -> None:
     """Rows of dicts to CSV (header from the union of keys, in first-seen order)."""
     if comm.rank != 0:
         return

@@ -6,21 +6,22 @@ that the contact zone is in view.  The pictures of fields are collective: the fi
 gathered on one rank with :func:`contact.output.vtk.gather_grid` and drawn there;
 :func:`draw_in_turn` draws several at once, one per rank.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
-
 from dolfinx import fem
 
 from .vtk import gather_grid
 
-MAX_EDGES = 20000   # cells above which mesh edges would paint everything black
-RASTER_CELLS = 200_000   # cells above which a nodal field is drawn as an image (cells < pixels)
-RASTER_WIDTH = 1200      # its pixels across the domain (the axes are 700-1000 pixels wide)
+MAX_EDGES = 20000  # cells above which mesh edges would paint everything black
+RASTER_CELLS = 200_000  # cells above which a nodal field is drawn as an image (cells < pixels)
+RASTER_WIDTH = 1200  # its pixels across the domain (the axes are 700-1000 pixels wide)
 
 
 def _magnitude(values: np.ndarray) -> np.ndarray:
@@ -52,8 +53,13 @@ def _smooth(ax, tri, values: np.ndarray, cmap: str, plan: Raster | None = None):
         shade = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap)
         shade.set_in_layout(False)
         return shade
-    return ax.imshow(np.ma.masked_invalid(plan.image(values)), extent=plan.extent, origin="lower", cmap=cmap,
-                     interpolation="antialiased")
+    return ax.imshow(
+        np.ma.masked_invalid(plan.image(values)),
+        extent=plan.extent,
+        origin="lower",
+        cmap=cmap,
+        interpolation="antialiased",
+    )
 
 
 def _raster_plan(tri) -> Raster | None:
@@ -62,8 +68,9 @@ def _raster_plan(tri) -> Raster | None:
     return Raster(tri) if len(tri.triangles) > RASTER_CELLS else None
 
 
-def raster(tri, values: np.ndarray, width: int = RASTER_WIDTH, chunk: int = 2_000_000
-           ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+def raster(
+    tri, values: np.ndarray, width: int = RASTER_WIDTH, chunk: int = 2_000_000
+) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """The piecewise linear interpolant of nodal ``values`` on the triangles ``tri``
     (a matplotlib Triangulation) at the centres of a ``width``-pixel-wide grid of square
     pixels over the bounding box: (image (ny, width), NaN outside the triangles; extent
@@ -97,12 +104,16 @@ class Raster:
         X = [x[c] for c in corners]
         Y = [y[c] for c in corners]
         i0 = np.maximum(np.ceil(np.minimum(np.minimum(X[0], X[1]), X[2]) - 0.5), 0).astype(np.int64)
-        i1 = np.minimum(np.floor(np.maximum(np.maximum(X[0], X[1]), X[2]) - 0.5), width - 1).astype(np.int64)
+        i1 = np.minimum(np.floor(np.maximum(np.maximum(X[0], X[1]), X[2]) - 0.5), width - 1).astype(
+            np.int64
+        )
         j0 = np.maximum(np.ceil(np.minimum(np.minimum(Y[0], Y[1]), Y[2]) - 0.5), 0).astype(np.int64)
-        j1 = np.minimum(np.floor(np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - 0.5), ny - 1).astype(np.int64)
+        j1 = np.minimum(np.floor(np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - 0.5), ny - 1).astype(
+            np.int64
+        )
         nx_t = np.maximum(i1 - i0 + 1, 0)
         n_t = nx_t * np.maximum(j1 - j0 + 1, 0)
-        hit = np.flatnonzero(n_t)                  # triangles with a pixel centre in their box
+        hit = np.flatnonzero(n_t)  # triangles with a pixel centre in their box
         i0, j0, nx_t, n_t = i0[hit], j0[hit], nx_t[hit], n_t[hit]
         X, Y = [c[hit] for c in X], [c[hit] for c in Y]
         nodes = [c[hit] for c in corners]
@@ -119,9 +130,12 @@ class Raster:
         pieces = [(np.zeros(0, np.int64),) * 4 + (np.zeros(0),) * 2]
         start = 0
         while start < len(n_t):
-            stop = max(int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")), start + 1)
+            stop = max(
+                int(np.searchsorted(ends, (ends[start - 1] if start else 0) + chunk, side="right")),
+                start + 1,
+            )
             n = n_t[start:stop]
-            tt = np.repeat(np.arange(start, stop), n)          # a triangle per candidate pixel
+            tt = np.repeat(np.arange(start, stop), n)  # a triangle per candidate pixel
             k = np.arange(len(tt)) - np.repeat(np.cumsum(n) - n, n)
             i = i0[tt] + k % nx_t[tt]
             j = j0[tt] + k // nx_t[tt]
@@ -130,9 +144,13 @@ class Raster:
             l2 = c2[tt] + px * g2x[tt] + py * g2y[tt]
             inside = (l1 >= -1e-9) & (l2 >= -1e-9) & (l1 + l2 <= 1 + 1e-9)
             tt = tt[inside]
-            pieces.append((j[inside] * width + i[inside], *(c[tt] for c in nodes), l1[inside], l2[inside]))
+            pieces.append(
+                (j[inside] * width + i[inside], *(c[tt] for c in nodes), l1[inside], l2[inside])
+            )
             start = stop
-        self.pixel, *self.corners, self.l1, self.l2 = (np.concatenate(column) for column in zip(*pieces))
+        self.pixel, *self.corners, self.l1, self.l2 = (
+            np.concatenate(column) for column in zip(*pieces)
+        )
 
     def image(self, values: np.ndarray) -> np.ndarray:
         """The interpolant of the nodal ``values`` at the pixel centres, (ny, width), NaN
@@ -167,7 +185,11 @@ def _axes_2d(ax, title: str) -> None:
 
 
 def _active_points(grid) -> np.ndarray:
-    return grid.points[grid.point_data["active"] > 0.5] if "active" in grid.point_data else np.zeros((0, 3))
+    return (
+        grid.points[grid.point_data["active"] > 0.5]
+        if "active" in grid.point_data
+        else np.zeros((0, 3))
+    )
 
 
 @dataclass(frozen=True)
@@ -211,8 +233,14 @@ def _draw(held: list) -> None:
         picture.draw(grid)
 
 
-def solution_picture(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
-                     lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> Picture:
+def solution_picture(
+    path: str | Path,
+    u_h: fem.Function,
+    active: fem.Function | None = None,
+    title: str = "",
+    lmbda: fem.Function | None = None,
+    normal: Sequence[float] | None = None,
+) -> Picture:
     """u_h (|u_h| for vectors) over the domain with the active contact nodes in red.
 
     3D: two views — the whole body, and the contact zone seen from the obstacle's side
@@ -224,10 +252,18 @@ def solution_picture(path: str | Path, u_h: fem.Function, active: fem.Function |
     return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title))
 
 
-def plot_solution(path: str | Path, u_h: fem.Function, active: fem.Function | None = None, title: str = "",
-                  lmbda: fem.Function | None = None, normal: Sequence[float] | None = None) -> None:
+def plot_solution(
+    path: str | Path,
+    u_h: fem.Function,
+    active: fem.Function | None = None,
+    title: str = "",
+    lmbda: fem.Function | None = None,
+    normal: Sequence[float] | None = None,
+) -> None:
     """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
-    draw_in_turn([solution_picture(path, u_h, active, title, lmbda, normal)], u_h.function_space.mesh.comm)
+    draw_in_turn(
+        [solution_picture(path, u_h, active, title, lmbda, normal)], u_h.function_space.mesh.comm
+    )
 
 
 def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
@@ -239,8 +275,15 @@ def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
         ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
     pts = _active_points(grid)
     if len(pts):
-        ax.plot(pts[:, 0], pts[:, 1], "o", color="red", ms=3 if len(pts) < 300 else 1.2, alpha=0.8,
-                label=f"active nodes ({len(pts)})")
+        ax.plot(
+            pts[:, 0],
+            pts[:, 1],
+            "o",
+            color="red",
+            ms=3 if len(pts) < 300 else 1.2,
+            alpha=0.8,
+            label=f"active nodes ({len(pts)})",
+        )
         # "best" tests every triangle against the legend box (demos/RESULTS.md §10)
         ax.legend(loc="best" if grid.n_cells <= MAX_EDGES else "upper right", fontsize=8)
     _colorbar(fig, shade, ax, _field_label(u_h))
@@ -250,8 +293,14 @@ def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
     plt.close(fig)
 
 
-def mesh_picture(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
-                 normal: Sequence[float] | None = None, active: fem.Function | None = None) -> Picture:
+def mesh_picture(
+    path: str | Path,
+    u_h: fem.Function,
+    title: str = "",
+    max_edges: int = MAX_EDGES,
+    normal: Sequence[float] | None = None,
+    active: fem.Function | None = None,
+) -> Picture:
     """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
     ``max_edges`` cells) and u_h.  3D: the surface mesh seen from the obstacle's side
     (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
@@ -261,17 +310,25 @@ def mesh_picture(path: str | Path, u_h: fem.Function, title: str = "", max_edges
     return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges))
 
 
-def plot_mesh(path: str | Path, u_h: fem.Function, title: str = "", max_edges: int = MAX_EDGES,
-              normal: Sequence[float] | None = None, active: fem.Function | None = None) -> None:
+def plot_mesh(
+    path: str | Path,
+    u_h: fem.Function,
+    title: str = "",
+    max_edges: int = MAX_EDGES,
+    normal: Sequence[float] | None = None,
+    active: fem.Function | None = None,
+) -> None:
     """mesh.png (:func:`mesh_picture`), drawn on rank 0 (collective)."""
-    draw_in_turn([mesh_picture(path, u_h, title, max_edges, normal, active)], u_h.function_space.mesh.comm)
+    draw_in_turn(
+        [mesh_picture(path, u_h, title, max_edges, normal, active)], u_h.function_space.mesh.comm
+    )
 
 
 def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: int) -> None:
     plt = _pyplot()
     tri = _triangulation(grid)
     fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
-    plan = _raster_plan(tri)   # both panels sample the same pixels
+    plan = _raster_plan(tri)  # both panels sample the same pixels
     if grid.n_cells <= max_edges:
         ax_m.triplot(tri, color="k", lw=0.3)
         _axes_2d(ax_m, f"mesh: {grid.n_cells} cells")
@@ -295,6 +352,7 @@ def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: i
 
 # ------------------------------------------------------------------------------- 3D (pyvista)
 
+
 def _quiet_vtk() -> None:
     """VTK warns on stderr when there is no X display before it falls back to off-screen."""
     import vtk
@@ -313,9 +371,19 @@ def _plotter(shape=(1, 2), size=(1800, 850)):
 
 def _bar(title: str) -> dict:
     """A horizontal colour bar under the view: title above the bar, tick labels below."""
-    return {"title": title, "vertical": False, "position_x": 0.2, "position_y": 0.05, "width": 0.6,
-            "height": 0.07, "fmt": "%.3g", "n_labels": 5, "title_font_size": 16, "label_font_size": 14,
-            "color": "black"}
+    return {
+        "title": title,
+        "vertical": False,
+        "position_x": 0.2,
+        "position_y": 0.05,
+        "width": 0.6,
+        "height": 0.07,
+        "fmt": "%.3g",
+        "n_labels": 5,
+        "title_font_size": 16,
+        "label_font_size": 14,
+        "color": "black",
+    }
 
 
 def _add_mesh(plotter, mesh, **kw) -> None:
@@ -327,11 +395,18 @@ def _add_mesh(plotter, mesh, **kw) -> None:
         bar = plotter.scalar_bars[args["title"]]
         bar.SetTextPositionToPrecedeScalarBar()
         bar.SetTitle("")
-        plotter.add_text(args["title"], position=(args["position_x"], args["position_y"] + args["height"] + 0.01),
-                         viewport=True, font_size=11, color="black")
+        plotter.add_text(
+            args["title"],
+            position=(args["position_x"], args["position_y"] + args["height"] + 0.01),
+            viewport=True,
+            font_size=11,
+            color="black",
+        )
 
 
-def _look_from(plotter, focus: np.ndarray, normal: np.ndarray, extent: float, tilt: float = 35.0) -> None:
+def _look_from(
+    plotter, focus: np.ndarray, normal: np.ndarray, extent: float, tilt: float = 35.0
+) -> None:
     """Camera on the obstacle's side of ``focus`` (``normal`` points from the body to the
     obstacle), tilted by ``tilt`` degrees for depth, parallel projection showing ``extent``
     around it."""
@@ -367,24 +442,54 @@ def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
     label = _field_label(u_h)
     grid.point_data["shown"] = _magnitude(grid.point_data[u_h.name])
     p.subplot(0, 0)
-    _add_mesh(p, grid.copy(), scalars="shown", cmap="viridis", show_edges=grid.n_cells <= MAX_EDGES,
-              edge_color="#555555", line_width=0.5, scalar_bar_args=_bar(label))
+    _add_mesh(
+        p,
+        grid.copy(),
+        scalars="shown",
+        cmap="viridis",
+        show_edges=grid.n_cells <= MAX_EDGES,
+        edge_color="#555555",
+        line_width=0.5,
+        scalar_bar_args=_bar(label),
+    )
     focus, n, extent = _contact_view(grid, normal)
     _look_from(p, grid.center, n, 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0))))
-    p.add_text(f"{label}, whole body seen from the obstacle's side", position="upper_edge", font_size=11)
+    p.add_text(
+        f"{label}, whole body seen from the obstacle's side", position="upper_edge", font_size=11
+    )
     p.subplot(0, 1)
     surface = grid.extract_surface(algorithm="dataset_surface")  # explicit: the default changes
     if lmbda is not None:
         surface.point_data["pressure"] = np.abs(surface.point_data[lmbda.name])
-        _add_mesh(p, surface, scalars="pressure", cmap="YlOrRd", show_edges=True, edge_color="#999999",
-                  line_width=0.5, scalar_bar_args=_bar(f"contact pressure -{lmbda.name}"))
+        _add_mesh(
+            p,
+            surface,
+            scalars="pressure",
+            cmap="YlOrRd",
+            show_edges=True,
+            edge_color="#999999",
+            line_width=0.5,
+            scalar_bar_args=_bar(f"contact pressure -{lmbda.name}"),
+        )
     else:
-        _add_mesh(p, surface, scalars="shown", cmap="viridis", show_edges=True, scalar_bar_args=_bar(label))
+        _add_mesh(
+            p,
+            surface,
+            scalars="shown",
+            cmap="viridis",
+            show_edges=True,
+            scalar_bar_args=_bar(label),
+        )
     pts = _active_points(grid)
     if len(pts):
-        p.add_points(pyvista.PolyData(pts), color="#1f4fff", point_size=7, render_points_as_spheres=True)
-    p.add_text(f"contact zone seen from the obstacle: {len(pts)} active nodes (blue)", position="upper_edge",
-               font_size=11)
+        p.add_points(
+            pyvista.PolyData(pts), color="#1f4fff", point_size=7, render_points_as_spheres=True
+        )
+    p.add_text(
+        f"contact zone seen from the obstacle: {len(pts)} active nodes (blue)",
+        position="upper_edge",
+        font_size=11,
+    )
     _look_from(p, focus, n, extent, tilt=0.0)
     _save(p, path, title)
 
@@ -394,10 +499,16 @@ def _mesh_3d(path, grid, title, normal) -> None:
     focus, n, extent = _contact_view(grid, normal)
     whole = 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0)))
     surface = grid.extract_surface(algorithm="dataset_surface")  # explicit: the default changes
-    for col, (centre, scale, text) in enumerate(((grid.center, whole, "surface mesh seen from the obstacle's side"),
-                                                 (focus, extent, "contact zone seen from the obstacle"))):
+    for col, (centre, scale, text) in enumerate(
+        (
+            (grid.center, whole, "surface mesh seen from the obstacle's side"),
+            (focus, extent, "contact zone seen from the obstacle"),
+        )
+    ):
         p.subplot(0, col)
-        p.add_mesh(surface.copy(), color="white", show_edges=True, edge_color="black", line_width=0.4)
+        p.add_mesh(
+            surface.copy(), color="white", show_edges=True, edge_color="black", line_width=0.4
+        )
         p.add_text(text, position="upper_edge", font_size=11)
         _look_from(p, centre, n, scale, tilt=35.0 if col == 0 else 0.0)
     _save(p, path, title)
@@ -434,7 +545,9 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     plt.close(fig)
 
 
-def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, title: str = "") -> None:
+def plot_pressure(
+    path: str | Path, table: dict, value: str, comparison=None, title: str = ""
+) -> None:
     """The contact pressure −λ_n (elasticity) or flux −λ (scalar) at the contact nodes along
     Γ_C: against the arc length s (2D) or the distance r from the first point of contact
     (3D), active nodes filled; with a declared reference (``comparison``,
@@ -444,7 +557,9 @@ def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, ti
     name = "contact pressure −λ_n" if value == "lambda_n" else "contact flux −λ"
     if comparison is not None:
         prof = comparison.profile
-        reach = max([c[0].max() for c in comparison.curves] + [m[0] for m in comparison.marks] + [0.0])
+        reach = max(
+            [c[0].max() for c in comparison.curves] + [m[0] for m in comparison.marks] + [0.0]
+        )
         keep = prof[:, 0] <= 2.0 * reach if reach > 0 else slice(None)
         ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label=f"computed {name} (nodal)")
         for x, y, label in comparison.curves:
@@ -459,9 +574,20 @@ def plot_pressure(path: str | Path, table: dict, value: str, comparison=None, ti
         x, y, act = table[pos], -table[value], table["active"] > 0
         ax.plot(x, y, "-", color="C0", lw=0.8, alpha=0.6)
         ax.plot(x[act], y[act], "o", ms=3.5, color="C3", label=f"active ({int(act.sum())} nodes)")
-        ax.plot(x[~act], y[~act], "o", ms=3.5, mfc="none", color="C0", label=f"inactive ({int((~act).sum())})")
-        ax.set_xlabel("arc length s along Γ_C (scene length unit)" if pos == "s"
-                      else "distance r from the first point of contact (scene length unit)")
+        ax.plot(
+            x[~act],
+            y[~act],
+            "o",
+            ms=3.5,
+            mfc="none",
+            color="C0",
+            label=f"inactive ({int((~act).sum())})",
+        )
+        ax.set_xlabel(
+            "arc length s along Γ_C (scene length unit)"
+            if pos == "s"
+            else "distance r from the first point of contact (scene length unit)"
+        )
     ax.set_ylabel(name)
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
@@ -480,8 +606,12 @@ def _pyplot():
     return plt
 
 
-def plot_traction(path: str | Path, steps: list[tuple[float, dict]], title: str = "",
-                  references: Sequence[tuple[int, np.ndarray, np.ndarray, str]] = ()) -> None:
+def plot_traction(
+    path: str | Path,
+    steps: list[tuple[float, dict]],
+    title: str = "",
+    references: Sequence[tuple[int, np.ndarray, np.ndarray, str]] = (),
+) -> None:
     """Contact tractions along Γ_C, one curve per load step coloured by the pseudo-time t
     (``steps``: (t, contact table of :mod:`contact.post.contact_table` with the friction columns)):
     the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its component along
@@ -501,7 +631,9 @@ def plot_traction(path: str | Path, steps: list[tuple[float, dict]], title: str 
     for t, tab in steps:
         colour = cmap(t / t_max if len(steps) > 1 else 0.0)
         label = f"t = {t:g}" if len(steps) <= 8 or t in (steps[0][0], t_max) else None
-        axes[0].plot(tab["s"], -np.asarray(tab["lambda_n"]), ".-", color=colour, ms=3, lw=1, label=label)
+        axes[0].plot(
+            tab["s"], -np.asarray(tab["lambda_n"]), ".-", color=colour, ms=3, lw=1, label=label
+        )
         if friction:
             axes[1].plot(tab["s"], tab["lambda_t"], ".-", color=colour, ms=3, lw=1, label=label)
     x = np.asarray(table["s"])
@@ -510,13 +642,20 @@ def plot_traction(path: str | Path, steps: list[tuple[float, dict]], title: str 
         axes[1].plot(x, bound, "k--", lw=1, label="friction bound ±ρ")
         axes[1].plot(x, -bound, "k--", lw=1)
         slip = np.asarray(table["status"]) == "slip"
-        axes[1].plot(x[slip], np.asarray(table["lambda_t"])[slip], "o", mfc="none", mec="C3", ms=6,
-                     label=f"slipping at t = {t_max:g}")
+        axes[1].plot(
+            x[slip],
+            np.asarray(table["lambda_t"])[slip],
+            "o",
+            mfc="none",
+            mec="C3",
+            ms=6,
+            label=f"slipping at t = {t_max:g}",
+        )
     for panel, rx, ry, label in references:
         axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
     lam_n = np.asarray(table["lambda_n"])
     pressed = lam_n < -1e-9 * np.max(np.abs(lam_n), initial=0.0)
-    if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):   # a small contact zone: zoom on it
+    if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):  # a small contact zone: zoom on it
         lo, hi = x[pressed].min(), x[pressed].max()
         pad = 0.3 * max(hi - lo, 1e-12)
         axes[1].set_xlim(lo - pad, hi + pad)
@@ -542,7 +681,9 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
     keep = [i for i in range(3) if i != int(np.argmin(np.ptp(X, axis=0)))]
     P = X[:, keep]
     friction = "lambda_t_x" in table
-    fig, axes = plt.subplots(1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False)
+    fig, axes = plt.subplots(
+        1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False
+    )
     axes = axes[0]
     sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
     fig.colorbar(sc, ax=axes[0], label="pressure −λ_n")
@@ -567,8 +708,17 @@ def _tangential_arrows(ax, P: np.ndarray, table: dict, keep: list[int], t: float
     scale = float(np.max(np.abs(lam_t), initial=0.0)) / (0.06 * float(np.ptp(P))) or 1.0
     for name, colour in (("stick", "C0"), ("slip", "C3")):
         m = status == name
-        ax.quiver(P[m, 0], P[m, 1], lam_t[m, 0], lam_t[m, 1], color=colour, label=f"{name} ({m.sum()})",
-                  angles="xy", scale_units="xy", scale=scale)
+        ax.quiver(
+            P[m, 0],
+            P[m, 1],
+            lam_t[m, 0],
+            lam_t[m, 1],
+            color=colour,
+            label=f"{name} ({m.sum()})",
+            angles="xy",
+            scale_units="xy",
+            scale=scale,
+        )
     m = status == "separated"
     ax.plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
     ax.set_title(f"tangential traction λ_t at t = {t:g}")

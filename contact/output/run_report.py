@@ -10,6 +10,7 @@ series ``solution.xdmf`` over ``solution_KKK.xdmf`` + ``.h5`` and ``solution.pvd
 ``pressure.png``; its ``history.csv`` lists the Newton iterations of every level (column
 ``level``).
 """
+
 from __future__ import annotations
 
 import platform
@@ -22,14 +23,14 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from . import folder, plots
+from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
 from ..post.comparison import Comparison
-from ..adaptivity.energy_error import solution_error
 from ..post.reference import compare
 from ..setup.scene import Scene
-from .fields import FieldFiles
 from ..solvers import Result
+from . import folder, plots
+from .fields import FieldFiles
 
 
 def resultants(scene: Scene, result: Result) -> dict | None:
@@ -64,7 +65,7 @@ def active_measure(result: Result) -> float:
     return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
-NODES_ACROSS = 5   # fewer active nodes across the contact zone than this: a warning
+NODES_ACROSS = 5  # fewer active nodes across the contact zone than this: a warning
 
 
 def nodes_across(result: Result) -> float:
@@ -87,15 +88,24 @@ def warn_coarse_zone(scene: Scene, result: Result) -> None:
     if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
         from ..setup.surfaces import ContactWarning
 
-        warnings.warn(f"the contact zone holds {result.n_active} active node(s), about "
-                      f"{across:.1f} across: too few to resolve the contact pressure and the "
-                      "forces from it; refine the contact zone (mesh cells or h_contact, an adapt "
-                      f"section) to {NODES_ACROSS} or more nodes across", ContactWarning,
-                      stacklevel=2)
+        warnings.warn(
+            f"the contact zone holds {result.n_active} active node(s), about "
+            f"{across:.1f} across: too few to resolve the contact pressure and the "
+            "forces from it; refine the contact zone (mesh cells or h_contact, an adapt "
+            f"section) to {NODES_ACROSS} or more nodes across",
+            ContactWarning,
+            stacklevel=2,
+        )
 
 
-def summary(scene: Scene, result: Result, wall: float | None = None, res: dict | None = None,
-            comparison: Comparison | None = None, error: float | None = None) -> dict[str, Any]:
+def summary(
+    scene: Scene,
+    result: Result,
+    wall: float | None = None,
+    res: dict | None = None,
+    comparison: Comparison | None = None,
+    error: float | None = None,
+) -> dict[str, Any]:
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
     ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
     Signorini / elasticity), the contact force, timings (seconds), errors if known, the
@@ -112,9 +122,9 @@ def summary(scene: Scene, result: Result, wall: float | None = None, res: dict |
         "mpi_ranks": comm.size,
         "converged": result.converged,
         "reason": result.reason,
-        "newton_iterations": result.iterations,        # on the final mesh
+        "newton_iterations": result.iterations,  # on the final mesh
         "polish_solves": result.polish_solves,
-        "newton_iterations_coarse": result.coarse_iterations,   # grid sequencing's coarse levels
+        "newton_iterations_coarse": result.coarse_iterations,  # grid sequencing's coarse levels
         "polish_solves_coarse": sum(lv.polish_solves for lv in result.sequence),
         "coarse_levels": len(result.sequence),
         "linear_solves": result.linear_solves,
@@ -170,7 +180,9 @@ def cell_fields(scene: Scene, result: Result) -> list:
     from ..models.elasticity import von_mises
 
     data = result.problem.data
-    return [von_mises(result.u_h, data["mu"], data["lmbda_L"])] + ([data["body"]] if "body" in data else [])
+    return [von_mises(result.u_h, data["mu"], data["lmbda_L"])] + (
+        [data["body"]] if "body" in data else []
+    )
 
 
 def _view_normal(scene: Scene, result: Result):
@@ -184,8 +196,14 @@ def _view_normal(scene: Scene, result: Result):
 
 def solution_picture(path: Path, scene: Scene, result: Result, title: str) -> plots.Picture:
     """solution.png: u_h with the active set (3D: and the contact zone with λ_h)."""
-    return plots.solution_picture(path, result.u_h, result.active, title=title, lmbda=result.lmbda_h,
-                                  normal=_view_normal(scene, result))
+    return plots.solution_picture(
+        path,
+        result.u_h,
+        result.active,
+        title=title,
+        lmbda=result.lmbda_h,
+        normal=_view_normal(scene, result),
+    )
 
 
 def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
@@ -193,18 +211,25 @@ def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
     plots.draw_in_turn([solution_picture(path, scene, result, title)], scene.comm)
 
 
-def write_contact(folder: Path, scene: Scene, result: Result, comparison: Comparison | None) -> None:
+def write_contact(
+    folder: Path, scene: Scene, result: Result, comparison: Comparison | None
+) -> None:
     """``contact.csv`` (:mod:`contact.post.contact_table`) and, for a contact boundary Γ_C (not an
     obstacle in Ω), ``pressure.png`` (collective)."""
     from ..post.contact_table import contact_table, value_name, write_table
 
     table = contact_table(scene, result)
-    if table is None:   # not rank 0
+    if table is None:  # not rank 0
         return
     write_table(folder / "contact.csv", table)
     if scene.cfg["output"]["png"] and not result.problem.in_domain:
-        plots.plot_pressure(folder / "pressure.png", table, value_name(scene), comparison,
-                            title=f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)")
+        plots.plot_pressure(
+            folder / "pressure.png",
+            table,
+            value_name(scene),
+            comparison,
+            title=f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)",
+        )
 
 
 def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
@@ -221,8 +246,12 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
         info.update(files.timings())
         folder.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg["png"]:
-            plot_solution(tmp / "solution.png", scene, result,
-                          title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)")
+            plot_solution(
+                tmp / "solution.png",
+                scene,
+                result,
+                title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)",
+            )
         write_contact(tmp, scene, result, comparison)
         _finish(tmp, info, comm)
     return info
@@ -257,7 +286,9 @@ def files_text(names: list[str]) -> str:
         if item.startswith("\0"):
             (stem, ext) = keys[int(item[1:])]
             nums = runs[(stem, ext)]
-            text.append(f"{stem}{nums[0]}{ext}" if len(nums) == 1 else f"{stem}{nums[0]}…{nums[-1]}{ext}")
+            text.append(
+                f"{stem}{nums[0]}{ext}" if len(nums) == 1 else f"{stem}{nums[0]}…{nums[-1]}{ext}"
+            )
         else:
             text.append(item)
     return ", ".join(text)
@@ -275,16 +306,26 @@ class LevelWriter:
         r = level.result
         est = level.estimate
         cells = [est.eta_T, *cell_fields(level.scene, r)]
-        self.files.write_step(level.index, point_fields(r), cells,
-                              field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta})
+        self.files.write_step(
+            level.index,
+            point_fields(r),
+            cells,
+            field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
+        )
 
 
 def level_writer(tmp: Path, scene: Scene) -> LevelWriter:
     return LevelWriter(tmp, scene)
 
 
-def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float | None = None,
-                   failure: dict | None = None, files: FieldFiles | None = None) -> dict:
+def write_adaptive(
+    tmp: Path,
+    scene: Scene,
+    adaptive: AdaptResult,
+    wall: float | None = None,
+    failure: dict | None = None,
+    files: FieldFiles | None = None,
+) -> dict:
     """After the loop: convergence.csv/.png, history.csv of every level, mesh pictures, and
     the final level's summary, solution.png, contact.csv and pressure.png.  ``failure`` (a
     run that failed on the level after the last of ``adaptive``) is added to summary.json:
@@ -297,29 +338,57 @@ def write_adaptive(tmp: Path, scene: Scene, adaptive: AdaptResult, wall: float |
     res = resultants(last.scene, last.result)
     comparison = compare(last.scene, last.result)
     info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
-    if failure is None:   # a failed run's last line is its error
+    if failure is None:  # a failed run's last line is its error
         warn_coarse_zone(last.scene, last.result)
-    info.update({"levels": len(rows), "stop": adaptive.stop, "eta": last.estimate.eta,
-                 "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
-                 "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
-                 "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
-                 "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
-                 "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
-                 "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
-                 **(files.timings() if files else {}), **(failure or {})})
-    folder.write_csv(tmp / "history.csv", [{"level": lv.index, **h} for lv in adaptive.levels
-                                       for h in lv.result.history], comm)
+    info.update(
+        {
+            "levels": len(rows),
+            "stop": adaptive.stop,
+            "eta": last.estimate.eta,
+            "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
+            "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
+            "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
+            "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
+            "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),
+            "polish_solves_total": sum(lv.result.polish_solves for lv in adaptive.levels),
+            **(files.timings() if files else {}),
+            **(failure or {}),
+        }
+    )
+    folder.write_csv(
+        tmp / "history.csv",
+        [{"level": lv.index, **h} for lv in adaptive.levels for h in lv.result.history],
+        comm,
+    )
     if scene.cfg["output"]["png"]:
         # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
         # together), the convergence chart last: on 2 ranks beside the first level's mesh
-        pictures = [solution_picture(tmp / "solution.png", last.scene, last.result,
-                                     title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)")]
-        for lv in reversed(picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))):
-            pictures.append(plots.mesh_picture(tmp / f"mesh_level_{lv.index}.png", lv.result.u_h,
-                                               title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
-                                               normal=_view_normal(lv.scene, lv.result), active=lv.result.active))
+        pictures = [
+            solution_picture(
+                tmp / "solution.png",
+                last.scene,
+                last.result,
+                title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)",
+            )
+        ]
+        for lv in reversed(
+            picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))
+        ):
+            pictures.append(
+                plots.mesh_picture(
+                    tmp / f"mesh_level_{lv.index}.png",
+                    lv.result.u_h,
+                    title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                    normal=_view_normal(lv.scene, lv.result),
+                    active=lv.result.active,
+                )
+            )
         title = f"{scene.name}: adaptive convergence"
-        pictures.append(plots.Picture([], lambda grid: plots.plot_convergence(tmp / "convergence.png", rows, title)))
+        pictures.append(
+            plots.Picture(
+                [], lambda grid: plots.plot_convergence(tmp / "convergence.png", rows, title)
+            )
+        )
         plots.draw_in_turn(pictures, comm)
     write_contact(tmp, last.scene, last.result, comparison)
     _finish(tmp, info, comm)

@@ -19,6 +19,7 @@ at every step, with the declared reference's or the exact solution's curves),
 ``solution.png``, ``history.csv`` (every step's Newton iterations) and, when steps ran the
 adaptive loop, ``convergence.csv`` (one row per level, with its step).
 """
+
 from __future__ import annotations
 
 import platform
@@ -27,16 +28,22 @@ from typing import Any
 
 import numpy as np
 
-from . import folder, plots
-from ..post.contact_table import Table, contact_table, tangent_2d, write_table
 from ..adaptivity.estimate import estimate
-from ..post.reference import compare
-from .run_report import (_finish, cell_fields, plot_solution, point_fields, warn_coarse_zone,
-                         write_contact)
-from ..setup.scene import Scene
-from .fields import FieldFiles
 from ..drivers.load_path import LoadPath, Step
+from ..post.contact_table import Table, contact_table, tangent_2d, write_table
 from ..post.friction_resultants import surface_figures
+from ..post.reference import compare
+from ..setup.scene import Scene
+from . import folder, plots
+from .fields import FieldFiles
+from .run_report import (
+    _finish,
+    cell_fields,
+    plot_solution,
+    point_fields,
+    warn_coarse_zone,
+    write_contact,
+)
 
 
 class StepWriter:
@@ -47,7 +54,7 @@ class StepWriter:
         self.tmp, self.scene = tmp, scene
         self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
         self.rows: list[dict[str, Any]] = []
-        self.tables: list[tuple[float, Table | None]] = []   # the tables on rank 0
+        self.tables: list[tuple[float, Table | None]] = []  # the tables on rank 0
         self.levels: list[dict[str, Any]] = []
         self.history: list[dict[str, Any]] = []
 
@@ -57,8 +64,16 @@ class StepWriter:
         if not r.converged:
             return
         est = step.levels[-1].estimate if step.levels else estimate(scene, r)
-        row = {"step": k, "time": step.time, "dofs": r.dofs, "newton_iterations": r.iterations,
-               "converged": r.converged, "reason": r.reason, "eta": est.eta, "seconds": round(step.seconds, 4)}
+        row = {
+            "step": k,
+            "time": step.time,
+            "dofs": r.dofs,
+            "newton_iterations": r.iterations,
+            "converged": r.converged,
+            "reason": r.reason,
+            "eta": est.eta,
+            "seconds": round(step.seconds, 4),
+        }
         table = contact_table(scene, r)
         if r.friction is not None:
             if "fixed_point_iterations" in r.friction:
@@ -69,7 +84,7 @@ class StepWriter:
         self.rows.append(row)
         self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
         self.tables.append((step.time, table))
-        if table is not None:   # rank 0
+        if table is not None:  # rank 0
             write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
         if self.files.formats:
             nodal = point_fields(r)
@@ -80,7 +95,9 @@ class StepWriter:
             cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
             self.files.write_step(step.time, nodal, cells, field_data={"step": k, "dofs": r.dofs})
 
-    def finish(self, path: LoadPath, wall: float | None = None, failure: dict | None = None) -> dict[str, Any]:
+    def finish(
+        self, path: LoadPath, wall: float | None = None, failure: dict | None = None
+    ) -> dict[str, Any]:
         """The run's files after the last (converged) step; ``failure`` (``converged:
         false``, the failed step) goes into summary.json.  Returns the summary."""
         tmp, comm = self.tmp, self.scene.comm
@@ -91,20 +108,31 @@ class StepWriter:
         if self.levels:
             folder.write_csv(tmp / "convergence.csv", self.levels, comm)
         comparison = compare(last.scene, r)
-        if failure is None:   # a failed run's last line is its error
+        if failure is None:  # a failed run's last line is its error
             warn_coarse_zone(last.scene, r)
         write_contact(tmp, last.scene, r, comparison)
         friction = (self.scene.cfg.get("friction") or {}).get("law", "none")
         its = [s["newton_iterations"] for s in self.rows]
-        info = {"scene": self.scene.name, "model": self.scene.cfg["model"]["type"], "method": r.method,
-                "friction": friction, "steps_total": len(path.steps), "stop": path.stop,
-                "dofs": r.dofs, "mpi_ranks": comm.size, "converged": path.converged,
-                "newton_iterations": sum(its), "newton_iterations_max_per_step": max(its),
-                "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
-                "host": platform.node(), **self.files.timings(), "steps": self.rows}
+        info = {
+            "scene": self.scene.name,
+            "model": self.scene.cfg["model"]["type"],
+            "method": r.method,
+            "friction": friction,
+            "steps_total": len(path.steps),
+            "stop": path.stop,
+            "dofs": r.dofs,
+            "mpi_ranks": comm.size,
+            "converged": path.converged,
+            "newton_iterations": sum(its),
+            "newton_iterations_max_per_step": max(its),
+            "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
+            "host": platform.node(),
+            **self.files.timings(),
+            "steps": self.rows,
+        }
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
-        if self.scene.cfg["model"]["type"] == "elasticity":   # the forces are of the whole body
+        if self.scene.cfg["model"]["type"] == "elasticity":  # the forces are of the whole body
             info["symmetric_copies"] = r.problem.symmetric_copies
         info.update(failure or {})
         if comparison is not None:
@@ -114,12 +142,20 @@ class StepWriter:
             origin, t0 = first_contact(last.scene, r)
             if comm.rank == 0:
                 tables = [(t, table) for t, table in self.tables if table is not None]
-                plots.plot_traction(tmp / "traction.png", tables,
-                                    title=f"{self.scene.name}: contact tractions ({r.dofs} DoFs)",
-                                    references=reference_curves(last.scene, self.tables[-1][1], comparison,
-                                                                origin, t0))
-            plot_solution(tmp / "solution.png", last.scene, r,
-                          title=f"{self.scene.name}: u_h at t = {last.time:g} ({r.dofs} DoFs)")
+                plots.plot_traction(
+                    tmp / "traction.png",
+                    tables,
+                    title=f"{self.scene.name}: contact tractions ({r.dofs} DoFs)",
+                    references=reference_curves(
+                        last.scene, self.tables[-1][1], comparison, origin, t0
+                    ),
+                )
+            plot_solution(
+                tmp / "solution.png",
+                last.scene,
+                r,
+                title=f"{self.scene.name}: u_h at t = {last.time:g} ({r.dofs} DoFs)",
+            )
         _finish(tmp, info, comm)
         return info
 
@@ -133,7 +169,9 @@ def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     con = p.constraint
     gdim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    return first_contact_point(scene.comm, X, con.sign * con.g), (tangent_2d(result) if gdim == 2 else None)
+    return first_contact_point(scene.comm, X, con.sign * con.g), (
+        tangent_2d(result) if gdim == 2 else None
+    )
 
 
 def _flat(row: dict[str, Any]) -> dict[str, Any]:
@@ -148,8 +186,13 @@ def _flat(row: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def reference_curves(scene: Scene, table: Table | None, comparison=None, origin: np.ndarray | None = None,
-                     t0: np.ndarray | None = None) -> list:
+def reference_curves(
+    scene: Scene,
+    table: Table | None,
+    comparison=None,
+    origin: np.ndarray | None = None,
+    t0: np.ndarray | None = None,
+) -> list:
     """Reference curves of the traction plot (rank 0): the exact tractions of a declared
     exact solution (``data.exact``, 2D), or the pressure of a declared reference
     (``reference:``, e.g. Hertz for the computed force) on both sides of the first point of
@@ -166,19 +209,27 @@ def reference_curves(scene: Scene, table: Table | None, comparison=None, origin:
     X = np.c_[table["x"], table["y"]]
     assert origin is not None  # a table with arc lengths s has a first point of contact
     s0 = float(table["s"][int(np.argmin(np.linalg.norm(X - origin[:2], axis=1)))])
-    return [(panel, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label) for panel, x, y, label in curves]
+    return [
+        (panel, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label)
+        for panel, x, y, label in curves
+    ]
 
 
 def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float = 1e-6) -> list:
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
     nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
     obstacle's normal at the node, t_0 of :func:`contact.post.contact_table.tangent_2d`)."""
-    from ..setup import expressions
     from ..models.elasticity import lame
+    from ..setup import expressions
 
     cfg = scene.cfg
     exact = cfg["data"]["exact"]
-    if scene.mesh.geometry.dim != 2 or not isinstance(exact, list) or "s" not in table or t0 is None:
+    if (
+        scene.mesh.geometry.dim != 2
+        or not isinstance(exact, list)
+        or "s" not in table
+        or t0 is None
+    ):
         return []
     X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
     u = [expressions.to_numpy(e, cfg["constants"], t=scene.time) for e in exact]
@@ -193,7 +244,10 @@ def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float 
     sigma = 2 * mu * eps + lmbda * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
     obstacle = cfg["obstacle"]
     if obstacle["type"] == "plane":
-        n = np.tile(-np.asarray(obstacle["normal"], float) / np.linalg.norm(obstacle["normal"]), (X.shape[1], 1))
+        n = np.tile(
+            -np.asarray(obstacle["normal"], float) / np.linalg.norm(obstacle["normal"]),
+            (X.shape[1], 1),
+        )
     else:
         d = np.asarray(obstacle["center"], float)[:, None] - X[:2]
         n = (d / np.linalg.norm(d, axis=0)).T

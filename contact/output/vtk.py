@@ -23,16 +23,16 @@ Reading back in Python::
     import meshio
     mesh = meshio.read("results/square/solution.vtu")
 """
+
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import cpp, fem
+from mpi4py import MPI
 
 
 def _degree(V: fem.FunctionSpace) -> int:
@@ -46,8 +46,9 @@ def nodal_rows(fn: fem.Function, W: fem.FunctionSpace, ghosts: bool = False) -> 
     (exact between Lagrange spaces of one degree on one mesh)."""
     V = fn.function_space
     bs = V.dofmap.index_map_bs
-    if V.dofmap.index_map.size_local != W.dofmap.index_map.size_local or \
-            not np.array_equal(V.dofmap.list, W.dofmap.list):
+    if V.dofmap.index_map.size_local != W.dofmap.index_map.size_local or not np.array_equal(
+        V.dofmap.list, W.dofmap.list
+    ):
         out = fem.Function(fem.functionspace(W.mesh, ("Lagrange", _degree(W), V.value_shape)))
         out.interpolate(fn)
         fn = out
@@ -64,7 +65,9 @@ def cell_rows(fn: fem.Function, n_cells: int | None = None) -> np.ndarray:
     return fn.x.array.real.reshape(-1, bs)[V.dofmap.list[:n_cells, 0]]
 
 
-def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0):
+def gather_grid(
+    point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0
+):
     """The fields on one pyvista grid on rank ``root`` (None elsewhere; collective).
 
     All point fields must be Lagrange of one degree on one mesh (scalar or vector valued);
@@ -76,8 +79,9 @@ def gather_grid(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.
     W = _scalar_space(point_fields)
     imap = W.dofmap.index_map
     n_owned, n_cells = imap.size_local, msh.topology.index_map(msh.topology.dim).size_local
-    global_of = np.concatenate([np.arange(n_owned, dtype=np.int64) + imap.local_range[0],
-                                imap.ghosts.astype(np.int64)])
+    global_of = np.concatenate(
+        [np.arange(n_owned, dtype=np.int64) + imap.local_range[0], imap.ghosts.astype(np.int64)]
+    )
     dofs = W.dofmap.list[:n_cells]
     vtk_order = np.argsort(cpp.io.perm_vtk(msh.topology.cell_type, dofs.shape[1]))
     connectivity = global_of[dofs[:, vtk_order]]
@@ -111,8 +115,13 @@ def _scalar_space(point_fields: Sequence[fem.Function]) -> fem.FunctionSpace:
     return fem.functionspace(V.mesh, ("Lagrange", _degree(V)))
 
 
-FIRST_ORDER = {"interval": 3, "triangle": 5, "quadrilateral": 9, "tetrahedron": 10,
-               "hexahedron": 12}
+FIRST_ORDER = {
+    "interval": 3,
+    "triangle": 5,
+    "quadrilateral": 9,
+    "tetrahedron": 10,
+    "hexahedron": 12,
+}
 
 
 def _vtk_cell_type(msh, degree: int) -> int:
@@ -132,8 +141,10 @@ def _grid(x: np.ndarray, connectivity: np.ndarray, cell_type: int):
     n_cells, per_cell = connectivity.shape
     cells = vtkCellArray()
     offsets = np.arange(0, n_cells * per_cell + 1, per_cell, dtype=np.int64)
-    cells.SetData(numpy_to_vtkIdTypeArray(offsets, deep=True),
-                  numpy_to_vtkIdTypeArray(connectivity.astype(np.int64).ravel(), deep=True))
+    cells.SetData(
+        numpy_to_vtkIdTypeArray(offsets, deep=True),
+        numpy_to_vtkIdTypeArray(connectivity.astype(np.int64).ravel(), deep=True),
+    )
     grid = pyvista.UnstructuredGrid()
     grid.points = x
     grid.SetCells(numpy_to_vtk(np.full(n_cells, cell_type, dtype=np.uint8), deep=True), cells)
@@ -155,8 +166,12 @@ def _gather_rows(a: np.ndarray, comm: MPI.Comm, root: int) -> np.ndarray | None:
     return out
 
 
-def write_vtu(path: str | Path, point_fields: Sequence[fem.Function],
-              cell_fields: Sequence[fem.Function] = (), field_data: dict | None = None) -> None:
+def write_vtu(
+    path: str | Path,
+    point_fields: Sequence[fem.Function],
+    cell_fields: Sequence[fem.Function] = (),
+    field_data: dict | None = None,
+) -> None:
     """One ``.vtu`` file with the fields (collective; rank 0 writes).  ``field_data`` adds
     global numbers (e.g. the level and the DoFs) as VTK field data."""
     grid = gather_grid(point_fields, cell_fields)
@@ -181,18 +196,25 @@ def save_vtu(path: str | Path, grid) -> None:
     raw data.  No compression: LZ4 is unknown to meshio, and zlib, even at level 1, costs
     more than the raw write it shrinks, on rank 0 while the other ranks wait (timings:
     demos/RESULTS.md §10)."""
-    arrays: list[tuple[str, str, np.ndarray, dict]] = []   # (section, name, values, attributes)
+    arrays: list[tuple[str, str, np.ndarray, dict]] = []  # (section, name, values, attributes)
     for name in grid.field_data.keys():
         values = np.asarray(grid.field_data[name])
         arrays.append(("FieldData", name, values, {"NumberOfTuples": len(values)}))
     for section, data in (("PointData", grid.point_data), ("CellData", grid.cell_data)):
         arrays += [(section, name, np.asarray(data[name]), {}) for name in data.keys()]
     arrays.append(("Points", "Points", np.asarray(grid.points), {}))
-    arrays += [("Cells", name, np.asarray(values), {}) for name, values in
-               (("connectivity", grid.cell_connectivity), ("offsets", grid.cell_offsets[1:]),
-                ("types", grid.celltypes))]
-    arrays = [(sec, name, np.ascontiguousarray(v, dtype=v.dtype.newbyteorder("<")), attrs)
-              for sec, name, v, attrs in arrays]
+    arrays += [
+        ("Cells", name, np.asarray(values), {})
+        for name, values in (
+            ("connectivity", grid.cell_connectivity),
+            ("offsets", grid.cell_offsets[1:]),
+            ("types", grid.celltypes),
+        )
+    ]
+    arrays = [
+        (sec, name, np.ascontiguousarray(v, dtype=v.dtype.newbyteorder("<")), attrs)
+        for sec, name, v, attrs in arrays
+    ]
     offsets, position = [0] * len(arrays), 0
     for k in reversed(range(len(arrays))):
         offsets[k], position = position, position + 8 + arrays[k][2].nbytes
@@ -202,8 +224,9 @@ def save_vtu(path: str | Path, grid) -> None:
             if open_section is not None:
                 lines.append(f"</{open_section}>")
             if section == "PointData":
-                lines.append(f'<Piece NumberOfPoints="{grid.n_points}" '
-                             f'NumberOfCells="{grid.n_cells}">')
+                lines.append(
+                    f'<Piece NumberOfPoints="{grid.n_points}" NumberOfCells="{grid.n_cells}">'
+                )
             lines.append(f"<{section}>")
             open_section = section
         attrs = {"type": VTK_TYPES[values.dtype.kind, values.dtype.itemsize], "Name": name, **attrs}
@@ -213,9 +236,12 @@ def save_vtu(path: str | Path, grid) -> None:
         pairs = "".join(f" {k}={quoteattr(str(v))}" for k, v in attrs.items())
         lines.append(f"<DataArray{pairs}/>")
     lines += ["</Cells>", "</Piece>", "</UnstructuredGrid>", '<AppendedData encoding="raw">']
-    head = ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
-            'byte_order="LittleEndian" header_type="UInt64">\n<UnstructuredGrid>\n'
-            + "\n".join(lines) + "\n_")
+    head = (
+        '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
+        'byte_order="LittleEndian" header_type="UInt64">\n<UnstructuredGrid>\n'
+        + "\n".join(lines)
+        + "\n_"
+    )
     with open(path, "wb") as fh:
         fh.write(head.encode())
         for _, _, values, _ in reversed(arrays):
@@ -224,8 +250,14 @@ def save_vtu(path: str | Path, grid) -> None:
         fh.write(b"\n</AppendedData>\n</VTKFile>\n")
 
 
-VTK_TYPES = {("f", 8): "Float64", ("f", 4): "Float32", ("i", 8): "Int64", ("i", 4): "Int32",
-             ("u", 1): "UInt8", ("u", 8): "UInt64"}
+VTK_TYPES = {
+    ("f", 8): "Float64",
+    ("f", 4): "Float32",
+    ("i", 8): "Int64",
+    ("i", 4): "Int32",
+    ("u", 1): "UInt8",
+    ("u", 8): "UInt64",
+}
 
 
 class Series:
@@ -242,8 +274,13 @@ class Series:
     def path(self) -> Path:
         return self.folder / f"{self.name}.pvd"
 
-    def write(self, t: float, point_fields: Sequence[fem.Function],
-              cell_fields: Sequence[fem.Function] = (), field_data: dict | None = None) -> Path:
+    def write(
+        self,
+        t: float,
+        point_fields: Sequence[fem.Function],
+        cell_fields: Sequence[fem.Function] = (),
+        field_data: dict | None = None,
+    ) -> Path:
         file = f"{self.name}_{len(self.steps):03d}.vtu"
         write_vtu(self.folder / file, point_fields, cell_fields, {"time": t, **(field_data or {})})
         self.steps.append((float(t), file))
@@ -254,6 +291,11 @@ class Series:
 
 def pvd(steps: Sequence[tuple[float, str]]) -> str:
     """The ParaView collection file of (time value, file name) pairs."""
-    rows = "\n".join(f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>' for t, f in steps)
-    return ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" ' 'byte_order="LittleEndian">\n'
-            f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n")
+    rows = "\n".join(
+        f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>' for t, f in steps
+    )
+    return (
+        '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '
+        'byte_order="LittleEndian">\n'
+        f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n"
+    )

@@ -22,28 +22,29 @@ Lagrange fields of degree p on a mesh whose geometry has degree 1 < p (P2 scenes
 written on the same cells with degree-p geometry (``Triangle_6``): one point per P2 node,
 every DoF kept; ParaView draws them as quadratic cells.
 """
+
 from __future__ import annotations
 
 import copy
 import xml.etree.ElementTree as ET
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import basix.ufl
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import fem, graph, io
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 from .vtk import cell_rows, nodal_rows
 
 HEADER = '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
-NUMBER_TYPES = {"f": "Float", "i": "Int", "u": "UInt"}   # numpy dtype kind -> XDMF NumberType
+NUMBER_TYPES = {"f": "Float", "i": "Int", "u": "UInt"}  # numpy dtype kind -> XDMF NumberType
 
 
-def write_xdmf(path: str | Path, point_fields: Sequence[fem.Function],
-               cell_fields: Sequence[fem.Function] = ()) -> ET.Element | None:
+def write_xdmf(
+    path: str | Path, point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = ()
+) -> ET.Element | None:
     """Write ``path`` (.xdmf) and its .h5: the fields' mesh and the fields on one grid
     (collective).  Returns the grid's XML element on rank 0, None on the other ranks."""
     path = Path(path)
@@ -58,6 +59,7 @@ def write_xdmf(path: str | Path, point_fields: Sequence[fem.Function],
         grid = one_grid(path, path.stem)
         _write_document(path, grid)
         return grid
+
     return _on_root(msh.comm, rewrite)
 
 
@@ -70,27 +72,33 @@ class XdmfSeries:
     def __init__(self, folder: str | Path, name: str, comm: MPI.Comm = MPI.COMM_WORLD):
         self.folder, self.name, self.comm = Path(folder), name, comm
         self.count = 0
-        self.steps: list[ET.Element] = []   # rank 0: the grids of the collection
+        self.steps: list[ET.Element] = []  # rank 0: the grids of the collection
 
     @property
     def path(self) -> Path:
         return self.folder / f"{self.name}.xdmf"
 
-    def write(self, t: float, point_fields: Sequence[fem.Function],
-              cell_fields: Sequence[fem.Function] = ()) -> Path:
+    def write(
+        self,
+        t: float,
+        point_fields: Sequence[fem.Function],
+        cell_fields: Sequence[fem.Function] = (),
+    ) -> Path:
         file = self.folder / f"{self.name}_{self.count:03d}.xdmf"
         grid = write_xdmf(file, point_fields, cell_fields)
 
         def collect() -> None:
             assert grid is not None  # collect runs on rank 0, where write_xdmf returns the grid
             step = copy.deepcopy(grid)
-            step.set("Name", self.name)   # one name for every step: one grid in ParaView's list
+            step.set("Name", self.name)  # one name for every step: one grid in ParaView's list
             step.insert(0, ET.Element("Time", Value=repr(float(t))))
             self.steps.append(step)
-            series = ET.Element("Grid", Name=self.name, GridType="Collection",
-                                CollectionType="Temporal")
+            series = ET.Element(
+                "Grid", Name=self.name, GridType="Collection", CollectionType="Temporal"
+            )
             series.extend(self.steps)
             _write_document(self.path, series)
+
         _on_root(self.comm, collect)
         self.count += 1
         return file
@@ -161,8 +169,9 @@ def _on_root(comm: MPI.Comm, action: Callable):
 
 
 # ------------------------------------------------------------------ P2 on a quadratic mesh
-def on_output_mesh(point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function]
-                   ) -> tuple[list[fem.Function], list[fem.Function]]:
+def on_output_mesh(
+    point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function]
+) -> tuple[list[fem.Function], list[fem.Function]]:
     """The fields on a mesh XDMFFile can write them on: as they are when the point fields
     are Lagrange of the mesh's geometry degree; else (P2 fields of a P1 mesh) copied onto
     the same cells with geometry of the fields' degree (:func:`lagrange_mesh`), nodal values
@@ -190,8 +199,9 @@ def on_output_mesh(point_fields: Sequence[fem.Function], cell_fields: Sequence[f
             new.x.array.reshape(-1, bs)[new.function_space.dofmap.list[:n_cells, 0]] = rows[cell_of]
         return new
 
-    points = [copy_to(fn, ("Lagrange", degree), nodal_rows(fn, W, ghosts=True))
-              for fn in point_fields]
+    points = [
+        copy_to(fn, ("Lagrange", degree), nodal_rows(fn, W, ghosts=True)) for fn in point_fields
+    ]
     return points, [copy_to(fn, ("DG", 0), cell_rows(fn)) for fn in cell_fields]
 
 
@@ -206,19 +216,28 @@ def lagrange_mesh(W: fem.FunctionSpace) -> tuple[dmesh.Mesh, np.ndarray, np.ndar
     comm, tdim, gdim = msh.comm, msh.topology.dim, msh.geometry.dim
     imap = W.dofmap.index_map
     n_cells = msh.topology.index_map(tdim).size_local
-    global_of = np.concatenate([np.arange(imap.size_local, dtype=np.int64) + imap.local_range[0],
-                                imap.ghosts.astype(np.int64)])
+    global_of = np.concatenate(
+        [
+            np.arange(imap.size_local, dtype=np.int64) + imap.local_range[0],
+            imap.ghosts.astype(np.int64),
+        ]
+    )
     degree = W.element.basix_element.degree
     element = basix.ufl.element("Lagrange", msh.topology.cell_name(), degree, shape=(gdim,))
 
-    def keep_cells(*_):   # every cell stays on its rank
+    def keep_cells(*_):  # every cell stays on its rank
         return graph.adjacencylist(np.full(n_cells, comm.rank, dtype=np.int32))._cpp_object
 
     x = W.tabulate_dof_coordinates()[: imap.size_local, :gdim]
     # basix.ufl.element is annotated as returning the abstract base, create_mesh lists its
     # subclasses
-    out = dmesh.create_mesh(comm, global_of[W.dofmap.list[:n_cells]], element,  # type: ignore[arg-type]
-                            x, partitioner=keep_cells)
+    out = dmesh.create_mesh(
+        comm,
+        global_of[W.dofmap.list[:n_cells]],
+        element,  # type: ignore[arg-type]
+        x,
+        partitioner=keep_cells,
+    )
     order = np.argsort(global_of)
     local_of_global = lambda g: order[np.searchsorted(global_of, g, sorter=order)]  # noqa: E731
     Q = fem.functionspace(out, ("Lagrange", degree))

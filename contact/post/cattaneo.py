@@ -16,17 +16,18 @@ first inactive / slipping one, in the distance ρ from the first point of contac
 q_h,i = |λ_t,i|.  Errors: ``c_error`` = (c_h/a_h) / (c/a) − 1 and ``q_error`` =
 ‖q_h − q‖ / ‖q‖, a discrete L² norm over the contact nodes with ρ ≤ a (weights w_i).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
 
-from .comparison import Comparison
-from .hertz import contact_extent, contact_modulus, hertz_values
 from ..models.obstacles import first_contact_point
-from .resultants import whole_body
 from ..setup.scene import Scene
 from ..solvers import Result
+from .comparison import Comparison
+from .hertz import contact_extent, contact_modulus, hertz_values
+from .resultants import whole_body
 
 
 def stick_ratio(ratio: float, dim: int) -> float:
@@ -57,7 +58,9 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     w, lam_t = fr["w"][on], fr["lambda_t_vec"][on]
     stick = fr["status"][on] == 1
     P = result.contact_force
-    Q = float(np.linalg.norm(whole_body(p, comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM))))
+    Q = float(
+        np.linalg.norm(whole_body(p, comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM)))
+    )
     F = float(scene.cfg["friction"]["coefficient"])
     a_H, p0_H = hertz_values(float(ref["radius"]), contact_modulus(scene), P, dim)
     ratio = Q / (F * P)
@@ -69,18 +72,42 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     inside = rho <= a_H
     num = comm.allreduce(float(np.sum(w[inside] * (q_h[inside] - q[inside]) ** 2)), op=MPI.SUM)
     den = comm.allreduce(float(np.sum(w[inside] * q[inside] ** 2)), op=MPI.SUM)
-    errors = {"c_error": (c_h / a_h) / c_over_a - 1.0, "q_error": float(np.sqrt(num / max(den, 1e-300)))}
-    values = {"Q_over_FP": ratio, "c_over_a": c_h / a_h, "c_over_a_theory": c_over_a, "stick_half_width": c_h,
-              "contact_half_width" if dim == 2 else "contact_radius": a_h, "hertz_radius": float(ref["radius"]),
-              "hertz_a": a_H, "hertz_p0": p0_H, "tangential_force": Q, **errors}
+    errors = {
+        "c_error": (c_h / a_h) / c_over_a - 1.0,
+        "q_error": float(np.sqrt(num / max(den, 1e-300))),
+    }
+    values = {
+        "Q_over_FP": ratio,
+        "c_over_a": c_h / a_h,
+        "c_over_a_theory": c_over_a,
+        "stick_half_width": c_h,
+        "contact_half_width" if dim == 2 else "contact_radius": a_h,
+        "hertz_radius": float(ref["radius"]),
+        "hertz_a": a_H,
+        "hertz_p0": p0_H,
+        "tangential_force": Q,
+        **errors,
+    }
     profile = np.vstack(comm.gather(np.c_[rho, q_h], root=0) or [np.zeros((0, 2))])
     profile = profile[np.argsort(profile[:, 0])] if comm.rank == 0 else np.zeros((0, 2))
     r = np.linspace(0.0, a_H, 300)
     # the sign of λ_t as computed (2D: along the tangent t0 = (−n_y, n_x) of the plots)
     force = comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM)
     sign = float(np.sign(force @ np.array([-n[1], n[0]]))) if dim == 2 else 1.0
-    return Comparison(values, errors, profile, xlabel="distance ρ from the first point of contact",
-                      curves=[(r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")],
-                      traction_curves=[(r, sign * traction(r, a_H, c_over_a * a_H, p0_H, F),
-                                        f"Cattaneo–Mindlin: c/a = {c_over_a:.3f} (Q/FP = {ratio:.3f})")],
-                      marks=[(c_h, f"computed c = {c_h:.4g} (c/a {c_h / a_h:.3f})")])
+    return Comparison(
+        values,
+        errors,
+        profile,
+        xlabel="distance ρ from the first point of contact",
+        curves=[
+            (r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")
+        ],
+        traction_curves=[
+            (
+                r,
+                sign * traction(r, a_H, c_over_a * a_H, p0_H, F),
+                f"Cattaneo–Mindlin: c/a = {c_over_a:.3f} (Q/FP = {ratio:.3f})",
+            )
+        ],
+        marks=[(c_h, f"computed c = {c_h:.4g} (c/a {c_h / a_h:.3f})")],
+    )

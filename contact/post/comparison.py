@@ -3,6 +3,7 @@ type's ``compare`` (:mod:`contact.post.hertz`, :mod:`contact.post.cattaneo`) ret
 :mod:`contact.post.reference` dispatches to, and that the output writes (summary.json, study.csv,
 pressure.png).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -29,17 +29,17 @@ the status separated / stick / slip, and w_i.  Their resultants are
 data per contact node (friction: λ_t, slip, status) adds columns there.  :func:`gather`
 collects them on rank 0 with the arc length, :func:`write_table` writes any such table.
 """
+
 from __future__ import annotations
 
 import csv
 from pathlib import Path
 
 import numpy as np
-from mpi4py import MPI
-
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
@@ -68,7 +68,7 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     cols[value_name(scene)] = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
     cols["gap"] = nodal_gap(result)
     cols["active"] = result.active_mask.astype(np.int8)
-    if result.friction is not None:   # λ_t, bound, slip, status, weight
+    if result.friction is not None:  # λ_t, bound, slip, status, weight
         cols.update(friction_columns(scene, result))
     if p.in_domain:  # obstacle: the contact set only
         cols = {k: v[result.active_mask] for k, v in cols.items()}
@@ -94,9 +94,13 @@ def friction_columns(scene: Scene, result: Result) -> Table:
     else:
         cols.update({f"lambda_t_{a}": lam_t[:, i] for i, a in enumerate("xyz")})
         cols.update({f"slip_{a}": slip[:, i] for i, a in enumerate("xyz")})
-    cols.update(lambda_t_norm=np.linalg.norm(lam_t, axis=1), bound=np.asarray(fr["rho"], dtype=np.float64),
-                slip_norm=np.linalg.norm(slip, axis=1), status=np.array(STATUS, dtype=object)[fr["status"]],
-                weight=np.asarray(fr["w"], dtype=np.float64))
+    cols.update(
+        lambda_t_norm=np.linalg.norm(lam_t, axis=1),
+        bound=np.asarray(fr["rho"], dtype=np.float64),
+        slip_norm=np.linalg.norm(slip, axis=1),
+        status=np.array(STATUS, dtype=object)[fr["status"]],
+        weight=np.asarray(fr["w"], dtype=np.float64),
+    )
     return cols
 
 
@@ -132,8 +136,12 @@ def _mean_normal(scene: Scene) -> np.ndarray:
     ds = ufl.Measure("ds", domain=msh, subdomain_data=scene.boundary.tags)
     n = ufl.FacetNormal(msh)
     measure = ds(scene.boundary.ids_with_role("contact"))
-    v = np.array([scene.comm.allreduce(fem.assemble_scalar(fem.form(n[i] * measure)), op=MPI.SUM)
-                  for i in range(msh.geometry.dim)])
+    v = np.array(
+        [
+            scene.comm.allreduce(fem.assemble_scalar(fem.form(n[i] * measure)), op=MPI.SUM)
+            for i in range(msh.geometry.dim)
+        ]
+    )
     return v / np.linalg.norm(v)
 
 
@@ -161,7 +169,7 @@ def _order(table: Table) -> np.ndarray:
     for key in ("s", "r"):
         if key in table:
             return np.argsort(table[key], kind="stable")
-    coords = [table[c] for c in "zyx" if c in table]   # lexsort: last key is primary
+    coords = [table[c] for c in "zyx" if c in table]  # lexsort: last key is primary
     return np.lexsort(coords)
 
 
@@ -183,8 +191,12 @@ def _contact_segments(scene: Scene) -> np.ndarray | None:
     if scene.cfg.get("pairs"):
         from ..models.mortar import part_facets
 
-        facets = np.union1d(facets, np.concatenate([part_facets(scene.boundary, pair["slave"])
-                                                    for pair in scene.cfg["pairs"]])).astype(np.int32)
+        facets = np.union1d(
+            facets,
+            np.concatenate(
+                [part_facets(scene.boundary, pair["slave"]) for pair in scene.cfg["pairs"]]
+            ),
+        ).astype(np.int32)
     facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]
     nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)[:, :2]
     local = msh.geometry.x[nodes][:, :, :2]

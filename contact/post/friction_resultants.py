@@ -13,6 +13,7 @@ bodies), |F_t| / |F_n|, and the node counts and measures Σ w_i of the stick, sl
 separated sets (of the modelled part); in 2D also the number of stick zones (maximal runs of
 stick nodes along Γ_C) and their extent in s.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -20,10 +21,11 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from .contact_table import STATUS, Table, contact_table
-from .resultants import reaction_force, whole_body
 from ..setup.scene import Scene
 from ..solvers import Result
+from .contact_table import STATUS, Table, contact_table
+from .resultants import reaction_force, whole_body
+
 
 def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
     """The resultants and zone measures of the module doc (collective); ``table`` is the
@@ -35,23 +37,35 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
     if fr is None:
         raise ValueError("friction figures of a frictionless result")
     w, lam_n = fr["w"], fr["lambda_n"]
-    normals = p.data["normals"] if "normals" in p.data else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
+    normals = (
+        p.data["normals"]
+        if "normals" in p.data
+        else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
+    )
 
-    def total(values) -> np.ndarray:   # Σ over the nodes of every rank, per column
+    def total(values) -> np.ndarray:  # Σ over the nodes of every rank, per column
         values = np.asarray(values, dtype=float)
-        return comm.allreduce((values[:, None] if values.ndim == 1 else values).sum(axis=0), op=MPI.SUM)
+        return comm.allreduce(
+            (values[:, None] if values.ndim == 1 else values).sum(axis=0), op=MPI.SUM
+        )
 
     tangential = w[:, None] * fr["lambda_t_vec"]
-    out: dict[str, Any] = {"normal_force": p.symmetric_copies * float(total(w * lam_n)[0]),
-           "tangential_force": whole_body(p, total(tangential)),
-           "contact_force": whole_body(p, total(w[:, None] * lam_n[:, None] * normals + tangential)),
-           "reaction_force": reaction_force(result)}
-    out["friction_ratio"] = float(np.linalg.norm(out["tangential_force"]) / max(abs(out["normal_force"]), 1e-300))
+    out: dict[str, Any] = {
+        "normal_force": p.symmetric_copies * float(total(w * lam_n)[0]),
+        "tangential_force": whole_body(p, total(tangential)),
+        "contact_force": whole_body(p, total(w[:, None] * lam_n[:, None] * normals + tangential)),
+        "reaction_force": reaction_force(result),
+    }
+    out["friction_ratio"] = float(
+        np.linalg.norm(out["tangential_force"]) / max(abs(out["normal_force"]), 1e-300)
+    )
     for code, name in enumerate(STATUS):
         mine = fr["status"] == code
         out[f"{name}_nodes"] = comm.allreduce(int(mine.sum()), op=MPI.SUM)
         out[f"{name}_measure"] = float(total(np.where(mine, w, 0.0))[0])
-    out["max_slip"] = comm.allreduce(float(np.max(np.linalg.norm(fr["slip_vec"], axis=1), initial=0.0)), op=MPI.MAX)
+    out["max_slip"] = comm.allreduce(
+        float(np.max(np.linalg.norm(fr["slip_vec"], axis=1), initial=0.0)), op=MPI.MAX
+    )
     if scene.mesh.geometry.dim == 2:
         if comm.bcast(table is None if comm.rank == 0 else None, root=0):
             table = contact_table(scene, result)

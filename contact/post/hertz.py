@@ -15,15 +15,16 @@ pairs) are Hertz's problem for the effective radius 1/R = 1/R₁ + 1/R₂ and
 (2D) or radius (3D) is the midpoint between the last active node and the first inactive one
 in ρ; the computed peak pressure is max_i p_i.  Hertz theory needs a ≪ R (a/R ≲ 0.1).
 """
+
 from __future__ import annotations
 
 import numpy as np
 from mpi4py import MPI
 
-from .comparison import Comparison
 from ..models.obstacles import first_contact_point
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
+from .comparison import Comparison
 
 
 def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float, float]:
@@ -50,23 +51,38 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     on = slice(0, p.data["pair_nodes"]) if scene.cfg.get("pairs") else slice(None)
     n = np.asarray(p.data["n"])
     V = p.V
-    X = V.tabulate_dof_coordinates()[con.dofs[on] // V.dofmap.index_map_bs, : scene.mesh.geometry.dim]
+    X = V.tabulate_dof_coordinates()[
+        con.dofs[on] // V.dofmap.index_map_bs, : scene.mesh.geometry.dim
+    ]
     rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     pressure = p.pressure(owned_residual(result))[on]
-    a = contact_extent(comm, rho, result.active_mask[on])   # the solver's rule: b_i > a_i
+    a = contact_extent(comm, rho, result.active_mask[on])  # the solver's rule: b_i > a_i
     p0 = comm.allreduce(float(np.max(pressure, initial=0.0)), op=MPI.MAX)
     dim, R = scene.mesh.geometry.dim, float(ref["radius"])
     a_H, p0_H = hertz_values(R, contact_modulus(scene), result.contact_force, dim)
     errors = {"a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0}
-    values = {"contact_half_width" if dim == 2 else "contact_radius": a, "hertz_radius": R,
-              "hertz_a": a_H, "hertz_p0": p0_H, **errors, "a_over_R": a / R}
+    values = {
+        "contact_half_width" if dim == 2 else "contact_radius": a,
+        "hertz_radius": R,
+        "hertz_a": a_H,
+        "hertz_p0": p0_H,
+        **errors,
+        "a_over_R": a / R,
+    }
     profile = np.vstack(comm.gather(np.c_[rho, pressure], root=0) or [np.zeros((0, 2))])
     profile = profile[np.argsort(profile[:, 0])] if comm.rank == 0 else np.zeros((0, 2))
     r = np.linspace(0.0, a_H, 200)
-    return Comparison(values, errors, profile, xlabel="distance ρ from the first point of contact",
-                      curves=[(r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")],
-                      marks=[(a, f"computed a = {a:.4g} ({100 * errors['a_error']:+.1f}% vs Hertz)")])
+    return Comparison(
+        values,
+        errors,
+        profile,
+        xlabel="distance ρ from the first point of contact",
+        curves=[
+            (r, p0_H * np.sqrt(1.0 - (r / a_H) ** 2), f"Hertz: a = {a_H:.4g}, p0 = {p0_H:.4g}")
+        ],
+        marks=[(a, f"computed a = {a:.4g} ({100 * errors['a_error']:+.1f}% vs Hertz)")],
+    )
 
 
 def contact_modulus(scene: Scene) -> float:
@@ -85,5 +101,7 @@ def contact_extent(comm: MPI.Comm, rho: np.ndarray, active: np.ndarray) -> float
     """Half-width / radius of the contact set: the midpoint between the last active node and
     the first inactive one beyond it, in the distance ρ from the first point of contact."""
     last_active = comm.allreduce(float(rho[active].max(initial=0.0)), op=MPI.MAX)
-    first_free = comm.allreduce(float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN)
+    first_free = comm.allreduce(
+        float(rho[(~active) & (rho > last_active)].min(initial=np.inf)), op=MPI.MIN
+    )
     return 0.5 * (last_active + first_free) if np.isfinite(first_free) else last_active

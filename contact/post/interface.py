@@ -12,18 +12,18 @@ transported by the mortar matrix and lumped,
 which is the pressure at master node j when the slave surface covers its support (a
 uniform pressure is seen exactly on both sides).
 """
+
 from __future__ import annotations
 
+import dolfinx.fem.petsc
 import numpy as np
+from dolfinx import fem, la
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx.fem.petsc
-from dolfinx import fem, la
-
-from .resultants import nodal_gap, whole_body
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
+from .resultants import nodal_gap, whole_body
 
 
 def effective_modulus(materials: list[tuple[float, float]]) -> float:
@@ -43,7 +43,9 @@ def pair_bodies(scene: Scene, index: int) -> list[str]:
     out = []
     for side in ("slave", "master"):
         facets = bnd.tags.indices[bnd.tags.values == bnd.ids[scene.cfg["pairs"][index][side]]]
-        local = int(scene.bodies.values[f2c.array[f2c.offsets[facets[:1]]]][0]) if len(facets) else 0
+        local = (
+            int(scene.bodies.values[f2c.array[f2c.offsets[facets[:1]]]][0]) if len(facets) else 0
+        )
         out.append(names[comm.allreduce(local, op=MPI.MAX) - 1])
     return out
 
@@ -82,6 +84,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     n0 = np.asarray(p.data["n"])
 
     from ..models.mortar import part_facets, surface_facets
+
     F_s, F_m = np.zeros(gdim), np.zeros(gdim)
     for pair in scene.cfg["pairs"] or []:
         for side, F in (("slave", F_s), ("master", F_m)):
@@ -95,7 +98,9 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     tdim = scene.mesh.topology.dim
     for name, role in scene.boundary.roles.items():
         if role == "dirichlet":
-            facets = scene.boundary.tags.indices[scene.boundary.tags.values == scene.boundary.ids[name]]
+            facets = scene.boundary.tags.indices[
+                scene.boundary.tags.values == scene.boundary.ids[name]
+            ]
             dofs = fem.locate_dofs_topological(V, tdim - 1, facets)
             dofs = dofs[dofs < n_owned]
             reactions[name] = whole_body(p, comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM))
@@ -104,16 +109,25 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     slaves, rigid = slice(0, p.data["pair_nodes"]), slice(p.data["pair_nodes"], None)
     pressure = p.pressure(owned_residual(result))
     gap = nodal_gap(result)
-    out = {"contact_force": result.contact_force, "peak_pressure": comm.allreduce(
-               float(np.max(pressure[slaves], initial=0.0)), op=MPI.MAX),
-           "interface_force_slave": whole_body(p, F_s), "interface_force_master": whole_body(p, F_m),
-           "interface_balance_error": abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300),
-           "reactions": reactions, "contact_normal": n0.tolist(), "symmetric_copies": p.symmetric_copies,
-           "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
-           "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN)}
+    out = {
+        "contact_force": result.contact_force,
+        "peak_pressure": comm.allreduce(float(np.max(pressure[slaves], initial=0.0)), op=MPI.MAX),
+        "interface_force_slave": whole_body(p, F_s),
+        "interface_force_master": whole_body(p, F_m),
+        "interface_balance_error": abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300),
+        "reactions": reactions,
+        "contact_normal": n0.tolist(),
+        "symmetric_copies": p.symmetric_copies,
+        "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
+        "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
+    }
     if scene.cfg.get("obstacle"):
-        out["obstacle_force"] = whole_body(p, comm.allreduce((con.w[rigid] * -pressure[rigid])
-                                                             @ p.data["normals"][rigid], op=MPI.SUM))
+        out["obstacle_force"] = whole_body(
+            p,
+            comm.allreduce(
+                (con.w[rigid] * -pressure[rigid]) @ p.data["normals"][rigid], op=MPI.SUM
+            ),
+        )
     return out
 
 

@@ -5,10 +5,12 @@ summary.json, study.csv and levels.csv, and its curve into pressure.png.  Each t
 function ``(scene, result, reference section) -> Comparison`` in :data:`REFERENCES`; a new
 type (two-body Hertz, Cattaneo–Mindlin, ...) is one more entry.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 from .comparison import Comparison
 
@@ -28,7 +30,7 @@ class ReferenceType:
     """How to compare with one type of reference: the function, and the names of the
     relative errors it reports (their largest magnitude is the column ``<type>_error``)."""
 
-    compare: Callable[["Scene", "Result", dict], Comparison]
+    compare: Callable[[Scene, Result, dict], Comparison]
     errors: tuple[str, ...]
 
 
@@ -39,8 +41,10 @@ def _cattaneo_mindlin(scene: Scene, result: Result, ref: dict) -> Comparison:
 
 
 #: reference type -> how to compare with it
-REFERENCES: dict[str, ReferenceType] = {"hertz": ReferenceType(_hertz, ("a_error", "p0_error")),
-                                        "cattaneo_mindlin": ReferenceType(_cattaneo_mindlin, ("c_error", "q_error"))}
+REFERENCES: dict[str, ReferenceType] = {
+    "hertz": ReferenceType(_hertz, ("a_error", "p0_error")),
+    "cattaneo_mindlin": ReferenceType(_cattaneo_mindlin, ("c_error", "q_error")),
+}
 
 
 def compare(scene: Scene, result: Result) -> Comparison | None:

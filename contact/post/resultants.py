@@ -17,13 +17,13 @@ stick / slip measures) and node counts stay those of the modelled part.
 Units: forces per unit thickness (N/m) in 2D plane strain, forces (N) in 3D; pressures in
 the unit of E.  Reference solutions (Hertz, ...) are compared in :mod:`contact.post.reference`.
 """
+
 from __future__ import annotations
 
+import dolfinx.fem.petsc
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
-
-import dolfinx.fem.petsc
 
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
@@ -48,7 +48,7 @@ def reaction_force(result: Result) -> list[float]:
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     bs = p.V.dofmap.index_map_bs
     n_owned = p.V.dofmap.index_map.size_local * bs
-    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]   # the Dirichlet condition on u
+    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]  # the Dirichlet condition on u
     dofs = dofs[dofs < n_owned]
     local = np.bincount(dofs % bs, weights=full.array_r[dofs], minlength=bs)
     full.destroy()
@@ -70,12 +70,15 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     """Contact force, reaction, force balance, peak pressure and smallest gap (collective)."""
     comm = scene.comm
     p = result.problem
-    n = np.asarray(p.data["n"])                       # contact normal at the first point of contact
+    n = np.asarray(p.data["n"])  # contact normal at the first point of contact
     reaction = abs(reaction_force(result)[int(np.argmax(np.abs(n)))])
     force = result.contact_force
     pressure = p.pressure(owned_residual(result))
-    return {"contact_force": force, "reaction_force": reaction,
-            "force_balance_error": abs(reaction - force) / max(force, 1e-300),
-            "peak_pressure": comm.allreduce(float(np.max(pressure, initial=0.0)), op=MPI.MAX),
-            "symmetric_copies": p.symmetric_copies,
-            "min_gap": comm.allreduce(float(nodal_gap(result).min(initial=np.inf)), op=MPI.MIN)}
+    return {
+        "contact_force": force,
+        "reaction_force": reaction,
+        "force_balance_error": abs(reaction - force) / max(force, 1e-300),
+        "peak_pressure": comm.allreduce(float(np.max(pressure, initial=0.0)), op=MPI.MAX),
+        "symmetric_copies": p.symmetric_copies,
+        "min_gap": comm.allreduce(float(nodal_gap(result).min(initial=np.inf)), op=MPI.MIN),
+    }

@@ -34,6 +34,7 @@ machine that allows 3.6 M DoFs (1024² scalar and 1 M-DoF 3D elasticity fit), an
 DoFs for a 3D direct solve.  Under MPI, N counts the DoFs of all ranks and the memory is
 this machine's: on a cluster of several nodes, set ``solver.max_dofs`` yourself.
 """
+
 from __future__ import annotations
 
 import math
@@ -42,10 +43,10 @@ from typing import Any
 
 from ..base.errors import ConfigError
 
-BYTES_PER_DOF = 3600              # >= 1.2 x every measured per-DoF peak (bench_memory.py)
-BYTES_PER_DOF_3D_DIRECT = 15700   # a 3D direct solve at N_REF_3D_DIRECT DoFs ...
-N_REF_3D_DIRECT = 117649          # ... growing like N^{1/3} per DoF
-MEMORY_FRACTION = 0.5             # of the physical memory one solve may plan to use
+BYTES_PER_DOF = 3600  # >= 1.2 x every measured per-DoF peak (bench_memory.py)
+BYTES_PER_DOF_3D_DIRECT = 15700  # a 3D direct solve at N_REF_3D_DIRECT DoFs ...
+N_REF_3D_DIRECT = 117649  # ... growing like N^{1/3} per DoF
+MEMORY_FRACTION = 0.5  # of the physical memory one solve may plan to use
 
 
 def physical_memory() -> int:
@@ -60,7 +61,10 @@ def direct_3d(cfg: dict, gdim: int) -> bool:
     """Whether the scene's linear solver is a direct factorization of a 3D problem."""
     from ..solvers.options import default_options
 
-    options = {**default_options(cfg["solver"].get("linear", "auto"), gdim), **cfg["solver"]["petsc_options"]}
+    options = {
+        **default_options(cfg["solver"].get("linear", "auto"), gdim),
+        **cfg["solver"]["petsc_options"],
+    }
     return gdim == 3 and str(options.get("pc_type")) in ("lu", "cholesky")
 
 
@@ -104,7 +108,7 @@ def estimate_dofs(cfg: dict) -> int | None:
         nodes, gdim = vertices + p2 * (vertices + 6 * n * n - 1), 2
     elif kind == "box":
         nx, ny, nz = cells
-        nodes, gdim = (nx + 1) * (ny + 1) * (nz + 1), 3   # P2 boxes are refused (config)
+        nodes, gdim = (nx + 1) * (ny + 1) * (nz + 1), 3  # P2 boxes are refused (config)
     elif kind == "blocks":
         gdim = len(mesh["blocks"][0]["corners"][0])
         nodes = sum(_block_nodes(block["cells"], p2) for block in mesh["blocks"])
@@ -167,8 +171,9 @@ def check_parameters(cfg: dict, gdim: int | None) -> None:
     elif (estimate := parametric_dofs(cfg)) is not None:
         sizes = ", ".join(f"{k} = {mesh[k]:g}" for k in ("h", "h_contact", "zone"))
         low, high = (f * estimate for f in ESTIMATE_RANGE)
-        check_dofs(cfg, math.floor(low), gdim, "mesh.h", f"{sizes} give at least",
-                   enough=math.ceil(high))
+        check_dofs(
+            cfg, math.floor(low), gdim, "mesh.h", f"{sizes} give at least", enough=math.ceil(high)
+        )
     else:
         check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{mesh['cells']} cells give")
 
@@ -183,8 +188,9 @@ def mesh_dofs(msh: Any, degree: int, components: int) -> int:
     return nodes * components
 
 
-def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: str,
-               enough: int | None = None) -> None:
+def check_dofs(
+    cfg: dict, dofs: int | None, gdim: int | None, key: str, what: str, enough: int | None = None
+) -> None:
     """ConfigError ``<key>: <what> N DoFs, more than solver.max_dofs = M …`` when N > M,
     with the hint of a budget that would admit it (N, or ``enough`` for a lower bound N)."""
     if dofs is None or gdim is None:
@@ -193,6 +199,8 @@ def check_dofs(cfg: dict, dofs: int | None, gdim: int | None, key: str, what: st
     if dofs <= limit:
         return
     gib = predicted_memory(dofs, direct_3d(cfg, gdim)) / 2**30
-    raise ConfigError(f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (predicted peak memory "
-                      f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use "
-                      f"a coarser mesh, or --set solver.max_dofs={enough or dofs} if it fits")
+    raise ConfigError(
+        f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (predicted peak memory "
+        f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use "
+        f"a coarser mesh, or --set solver.max_dofs={enough or dofs} if it fits"
+    )

@@ -14,18 +14,18 @@ raises one :class:`~contact.base.errors.ConfigError` line on all ranks, e.g.
 (Nodes are where the finite element data live; between them a UFL coefficient is not
 evaluated here, so ``1/(x - 0.55)`` on a mesh without a vertex at x = 0.55 passes.)
 """
+
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Iterable
 
 import numpy as np
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from dolfinx import mesh as dmesh
-
-from . import expressions
 from ..base.errors import ConfigError
+from . import expressions
 
 
 @dataclass(frozen=True)
@@ -39,8 +39,9 @@ class Datum:
     positive: bool = False
 
 
-def data_items(key: str, value: str | list[str], role: str | None = None,
-               positive: bool = False) -> list[Datum]:
+def data_items(
+    key: str, value: str | list[str], role: str | None = None, positive: bool = False
+) -> list[Datum]:
     """The :class:`Datum` of a scene key: one, or one per component of a list
     (``data.u_D[1]``)."""
     if isinstance(value, list):
@@ -53,12 +54,18 @@ def scene_data(cfg: dict) -> list[Datum]:
     in Ω; t on Γ_N; u_D on Γ_D; scalar models also k > 0 in Ω, and g, t_C on Γ_C
     (Signorini) or ψ in Ω (obstacle)."""
     data, model = cfg["data"], cfg["model"]["type"]
-    items = [*data_items("data.f", data["f"]), *data_items("data.t", data["t"], "neumann"),
-             *data_items("data.u_D", data["u_D"], "dirichlet")]
+    items = [
+        *data_items("data.f", data["f"]),
+        *data_items("data.t", data["t"], "neumann"),
+        *data_items("data.u_D", data["u_D"], "dirichlet"),
+    ]
     if data.get("exact") is not None:
         items += data_items("data.exact", data["exact"])
     if model == "signorini":
-        items += [*data_items("data.g", data["g"], "contact"), *data_items("data.t_C", data["t_C"], "contact")]
+        items += [
+            *data_items("data.g", data["g"], "contact"),
+            *data_items("data.t_C", data["t_C"], "contact"),
+        ]
     elif model == "obstacle":
         items += data_items("data.psi", data["psi"])
     if model != "elasticity":
@@ -84,7 +91,7 @@ def check_data(scene, items: Iterable[Datum]) -> None:
             nodes_of[item.role] = _nodes(scene, item.role, n_owned)
         nodes = nodes_of[item.role]
         values = expressions.to_numpy(item.text, scene.cfg["constants"], t=scene.time)(X[nodes].T)
-        if expressions.uses_time(item.text, scene.cfg["constants"]):   # name the load step's time
+        if expressions.uses_time(item.text, scene.cfg["constants"]):  # name the load step's time
             item = Datum(f"{item.key} (at t = {scene.time:g})", item.text, item.role, item.positive)
         with np.errstate(invalid="ignore"):
             finite = np.isfinite(values)
@@ -104,11 +111,21 @@ def _nodes(scene, role: str | None, n_owned: int) -> np.ndarray:
     facets = scene.boundary.facets(role)
     if len(facets) == 0:
         return np.zeros(0, dtype=np.int32)
-    return np.unique(dmesh.entities_to_geometry(msh, msh.topology.dim - 1, facets).ravel()).astype(np.int32)
+    return np.unique(dmesh.entities_to_geometry(msh, msh.topology.dim - 1, facets).ravel()).astype(
+        np.int32
+    )
 
 
-def _report(msh, comm: MPI.Comm, item: Datum, what: str, nodes: np.ndarray, bad: np.ndarray,
-            values: np.ndarray, imap) -> None:
+def _report(
+    msh,
+    comm: MPI.Comm,
+    item: Datum,
+    what: str,
+    nodes: np.ndarray,
+    bad: np.ndarray,
+    values: np.ndarray,
+    imap,
+) -> None:
     """Raise on every rank if any rank found ``bad`` nodes: counts of distinct vertices
     over the ranks and one example (coordinates, and the value when finite)."""
     if not comm.allreduce(bool(bad.any()), op=MPI.LOR):

@@ -7,14 +7,16 @@ Every check runs before any mesh is built or any solve starts, and every failure
 The schema is data (:data:`SCENE`): nested :class:`Field` s.  A scene describes only what it
 needs; everything else has a default that works.
 """
+
 from __future__ import annotations
 
 import copy
 import math
 import re
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import yaml
 
@@ -34,13 +36,17 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_implicit_resolver(
     "tag:yaml.org,2002:float",
-    re.compile(r"""^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|[0-9][0-9_]*[eE][-+]?[0-9]+
-                   |\.[0-9_]+(?:[eE][-+]?[0-9]+)?|\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""", re.X),
-    list("-+0123456789."))
+    re.compile(
+        r"""^[-+]?(?:[0-9][0-9_]*\.[0-9_]*(?:[eE][-+]?[0-9]+)?|[0-9][0-9_]*[eE][-+]?[0-9]+
+                   |\.[0-9_]+(?:[eE][-+]?[0-9]+)?|\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
 
 
 MAX_FILE_BYTES = 1_000_000  # a scene or study file
-MAX_YAML_NODES = 100_000    # nodes of a YAML document with its aliases expanded
+MAX_YAML_NODES = 100_000  # nodes of a YAML document with its aliases expanded
 
 
 class YAMLTooLarge(yaml.YAMLError):
@@ -77,6 +83,7 @@ def load_yaml(text: str) -> Any:
 def _check_expansion(root: yaml.Node, limit: int) -> None:
     """Count the nodes of the document as its consumers see it (each alias expanded), one
     visit per distinct node (sizes memoized), iteratively; refuse cycles and > limit."""
+
     def children(node: yaml.Node) -> list:
         if isinstance(node, yaml.SequenceNode):
             return node.value
@@ -94,8 +101,10 @@ def _check_expansion(root: yaml.Node, limit: int) -> None:
             open_nodes.discard(key)
             size[key] = 1 + sum(size[id(c)] for c in children(node))
             if size[key] > limit:
-                raise YAMLTooLarge(f"the YAML document expands to more than {limit} nodes "
-                                   "(aliases * of anchors & repeat whole subtrees)")
+                raise YAMLTooLarge(
+                    f"the YAML document expands to more than {limit} nodes "
+                    "(aliases * of anchors & repeat whole subtrees)"
+                )
             continue
         if key in size:
             continue
@@ -103,7 +112,9 @@ def _check_expansion(root: yaml.Node, limit: int) -> None:
         stack.append((node, True))
         for child in children(node):
             if id(child) in open_nodes:
-                raise YAMLTooLarge("the YAML document has a recursive alias (an anchor used inside itself)")
+                raise YAMLTooLarge(
+                    "the YAML document has a recursive alias (an anchor used inside itself)"
+                )
             if id(child) not in size:
                 stack.append((child, False))
 
@@ -149,8 +160,8 @@ class Field:
     default: Any = _REQUIRED
     choices: tuple | None = None
     check: Callable[[Any], str | None] | None = None
-    schema: Mapping[str, "Field"] | None = None
-    item: "Field | None" = None
+    schema: Mapping[str, Field] | None = None
+    item: Field | None = None
     doc: str = ""
 
 
@@ -180,7 +191,11 @@ def _c_value(v: Any) -> str | None:
 
 def _sequence(v: Any) -> str | None:
     # YAML 1.1 reads an unquoted `off` (`sequence: off`, `--set solver.sequence=off`) as false
-    if v in ("auto", "off") or v is False or (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+    if (
+        v in ("auto", "off")
+        or v is False
+        or (isinstance(v, int) and not isinstance(v, bool) and v >= 0)
+    ):
         return None
     return f"must be auto, off or a number of coarser levels >= 0, got {v!r}"
 
@@ -193,15 +208,25 @@ def _max_dofs(v: Any) -> str | None:
 
 def _cells(v: Any) -> str | None:
     items = v if isinstance(v, list) else [v]
-    if not items or not all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items):
+    if not items or not all(
+        isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in items
+    ):
         return f"must be a positive integer or a list of positive integers, got {v!r}"
     return None
 
 
 def _point_list(v: Any) -> str | None:
-    ok = isinstance(v, list) and len(v) == 2 and all(
-        isinstance(p, list) and 2 <= len(p) <= 3 and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)
-        for p in v) and len(v[0]) == len(v[1])
+    ok = (
+        isinstance(v, list)
+        and len(v) == 2
+        and all(
+            isinstance(p, list)
+            and 2 <= len(p) <= 3
+            and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in p)
+            for p in v
+        )
+        and len(v[0]) == len(v[1])
+    )
     if not ok:
         return f"must be two points [[x0, y0(, z0)], [x1, y1(, z1)]], got {v!r}"
     if not all(math.isfinite(c) for p in v for c in p):
@@ -224,8 +249,9 @@ def folder_name(v: str) -> str | None:
 
 
 def _numbers(v: Any, lengths: tuple[int, ...]) -> str | None:
-    ok = len(v) in lengths and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
-                                   for c in v)
+    ok = len(v) in lengths and all(
+        isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in v
+    )
     return None if ok else f"expected {' or '.join(map(str, lengths))} finite numbers, got {v!r}"
 
 
@@ -269,7 +295,9 @@ def _formats(v: Any) -> str | None:
 
 
 def _times(v: Any) -> str | None:
-    if not v or not all(isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) for t in v):
+    if not v or not all(
+        isinstance(t, (int, float)) and not isinstance(t, bool) and math.isfinite(t) for t in v
+    ):
         return f"expected a non-empty list of numbers, got {v!r}"
     if v[0] <= 0 or any(b <= a for a, b in zip(v, v[1:])):
         return f"the pseudo-times must be > 0 and strictly increasing, got {v!r}"
@@ -277,214 +305,451 @@ def _times(v: Any) -> str | None:
 
 
 EXPR = Field("expr", "0")
-EXPRS = Field("exprs", "0", doc="an expression, or a list of them (one per component) for elasticity")
+EXPRS = Field(
+    "exprs", "0", doc="an expression, or a list of them (one per component) for elasticity"
+)
 
-BOUNDARY = Field("dict", schema={
-    "role": Field("str", choices=("dirichlet", "neumann", "contact", "symmetry", "interface"),
-                  doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact (with the "
-                      "rigid obstacle), symmetry (elasticity: zero normal displacement on a plane "
-                      "x_k = const), or interface (a slave or master surface of a contact pair)"),
-    "where": Field("str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"),
-    "tag": Field("int", None, doc="gmsh physical tag of the facets (with where: those satisfying it)"),
-    "body": Field("str", None, doc="only the facets of this body (a name of the bodies section)"),
-    "surface": Field("dict", None, schema={
-        "type": Field("str", choices=("circle", "sphere", "cylinder")),
-        "center": Field("list", check=lambda v: _numbers(v, (2, 3))),
-        "radius": Field("number", check=_positive),
-        "axis": Field("list", None, check=lambda v: _numbers(v, (3,))),
-    }, doc="the exact curve / surface the part lies on (circle 2D; sphere, cylinder 3D): "
-           "refinement moves the part's new vertices onto it"),
-})
+BOUNDARY = Field(
+    "dict",
+    schema={
+        "role": Field(
+            "str",
+            choices=("dirichlet", "neumann", "contact", "symmetry", "interface"),
+            doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact (with the "
+            "rigid obstacle), symmetry (elasticity: zero normal displacement on a plane "
+            "x_k = const), or interface (a slave or master surface of a contact pair)",
+        ),
+        "where": Field(
+            "str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"
+        ),
+        "tag": Field(
+            "int", None, doc="gmsh physical tag of the facets (with where: those satisfying it)"
+        ),
+        "body": Field(
+            "str", None, doc="only the facets of this body (a name of the bodies section)"
+        ),
+        "surface": Field(
+            "dict",
+            None,
+            schema={
+                "type": Field("str", choices=("circle", "sphere", "cylinder")),
+                "center": Field("list", check=lambda v: _numbers(v, (2, 3))),
+                "radius": Field("number", check=_positive),
+                "axis": Field("list", None, check=lambda v: _numbers(v, (3,))),
+            },
+            doc="the exact curve / surface the part lies on (circle 2D; sphere, cylinder 3D): "
+            "refinement moves the part's new vertices onto it",
+        ),
+    },
+)
 
-BODY = Field("dict", schema={
-    "tag": Field("int", None, doc="the body's cells: a cell tag of the mesh (gmsh physical volume "
-                                  "or surface; block number 1, 2, … of mesh type blocks)"),
-    "where": Field("str", None, doc="the body's cells: predicate in x, y, z on the cell midpoints"),
-    "E": Field("number", check=_positive, doc="Young's modulus of the body"),
-    "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
-                doc="Poisson's ratio of the body"),
-})
+BODY = Field(
+    "dict",
+    schema={
+        "tag": Field(
+            "int",
+            None,
+            doc="the body's cells: a cell tag of the mesh (gmsh physical volume "
+            "or surface; block number 1, 2, … of mesh type blocks)",
+        ),
+        "where": Field(
+            "str", None, doc="the body's cells: predicate in x, y, z on the cell midpoints"
+        ),
+        "E": Field("number", check=_positive, doc="Young's modulus of the body"),
+        "nu": Field(
+            "number",
+            0.3,
+            check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
+            doc="Poisson's ratio of the body",
+        ),
+    },
+)
 
-PAIR = Field("dict", schema={
-    "slave": Field("str", doc="boundary part (role interface) carrying the multiplier"),
-    "master": Field("str", doc="boundary part (role interface) of another body"),
-    "search": Field("number", None, check=_positive,
-                    doc="largest normal distance between a slave facet and a master facet it is "
-                        "paired with (default: the diameter of the two surfaces' bounding box); "
-                        "a slave node with no master facet within it is an error"),
-})
+PAIR = Field(
+    "dict",
+    schema={
+        "slave": Field("str", doc="boundary part (role interface) carrying the multiplier"),
+        "master": Field("str", doc="boundary part (role interface) of another body"),
+        "search": Field(
+            "number",
+            None,
+            check=_positive,
+            doc="largest normal distance between a slave facet and a master facet it is "
+            "paired with (default: the diameter of the two surfaces' bounding box); "
+            "a slave node with no master facet within it is an error",
+        ),
+    },
+)
 
-BLOCK = Field("dict", schema={
-    "corners": Field("list", check=_point_list, doc="two opposite corners of the block"),
-    "cells": Field("any", check=_cells, doc="cells per direction"),
-})
+BLOCK = Field(
+    "dict",
+    schema={
+        "corners": Field("list", check=_point_list, doc="two opposite corners of the block"),
+        "cells": Field("any", check=_cells, doc="cells per direction"),
+    },
+)
 
 SCENE: dict[str, Field] = {
     "name": Field("str", None, check=folder_name, doc="the default output folder results/<name>"),
-    "mesh": Field("dict", schema={
-        "type": Field("str", "rectangle", choices=("rectangle", "unit_square", "box", "lshape", "gmsh",
-                                                   "quarter_disk", "sphere_octant", "blocks", "half_disks",
-                                                   "sphere_on_block")),
-        "corners": Field("list", None, check=_point_list),
-        "cells": Field("any", 16, check=_cells),
-        "diagonal": Field("str", "right", choices=("left", "right", "crossed", "left/right", "right/left")),
-        "file": Field("str", None),
-        "degree": Field("int", 1, choices=(1, 2)),
-        "radius": Field("number", None, doc="quarter_disk / sphere_octant: radius R"),
-        "h": Field("number", None, doc="quarter_disk / sphere_octant: mesh size away from contact"),
-        "h_contact": Field("number", None, doc="quarter_disk / sphere_octant: mesh size at the contact point"),
-        "zone": Field("number", None, doc="quarter_disk / sphere_octant: radius of the fine zone"),
-        "radius2": Field("number", None, doc="half_disks: radius of the lower disk (default: radius)"),
-        "overlap": Field("number", None, doc="half_disks: the lower disk moved up by this much (the "
-                                             "bodies interpenetrate: an interference load)"),
-        "block": Field("list", None, doc="sphere_on_block: [half-width, depth] of the block"),
-        "blocks": Field("list", None, doc="blocks: a list of {corners, cells}, one body each "
-                                          "(cell tags 1, 2, …), meshed independently"),
-        "map": Field("exprs", None, check=_expression_list,
-                     doc="rectangle / unit_square / box / lshape: new vertex coordinates "
-                         "[x', y'(, z')] as expressions in the built mesh's x, y, z (lengths in "
-                         "the scene's length unit, one per coordinate), applied before the "
-                         "boundary parts are tagged (their 'where' sees mapped coordinates); "
-                         "a map that inverts or flattens a cell is an error. Not for gmsh "
-                         "meshes: shape those in gmsh, which meshes the shape it is given"),
-    }),
+    "mesh": Field(
+        "dict",
+        schema={
+            "type": Field(
+                "str",
+                "rectangle",
+                choices=(
+                    "rectangle",
+                    "unit_square",
+                    "box",
+                    "lshape",
+                    "gmsh",
+                    "quarter_disk",
+                    "sphere_octant",
+                    "blocks",
+                    "half_disks",
+                    "sphere_on_block",
+                ),
+            ),
+            "corners": Field("list", None, check=_point_list),
+            "cells": Field("any", 16, check=_cells),
+            "diagonal": Field(
+                "str", "right", choices=("left", "right", "crossed", "left/right", "right/left")
+            ),
+            "file": Field("str", None),
+            "degree": Field("int", 1, choices=(1, 2)),
+            "radius": Field("number", None, doc="quarter_disk / sphere_octant: radius R"),
+            "h": Field(
+                "number", None, doc="quarter_disk / sphere_octant: mesh size away from contact"
+            ),
+            "h_contact": Field(
+                "number", None, doc="quarter_disk / sphere_octant: mesh size at the contact point"
+            ),
+            "zone": Field(
+                "number", None, doc="quarter_disk / sphere_octant: radius of the fine zone"
+            ),
+            "radius2": Field(
+                "number", None, doc="half_disks: radius of the lower disk (default: radius)"
+            ),
+            "overlap": Field(
+                "number",
+                None,
+                doc="half_disks: the lower disk moved up by this much (the "
+                "bodies interpenetrate: an interference load)",
+            ),
+            "block": Field("list", None, doc="sphere_on_block: [half-width, depth] of the block"),
+            "blocks": Field(
+                "list",
+                None,
+                doc="blocks: a list of {corners, cells}, one body each "
+                "(cell tags 1, 2, …), meshed independently",
+            ),
+            "map": Field(
+                "exprs",
+                None,
+                check=_expression_list,
+                doc="rectangle / unit_square / box / lshape: new vertex coordinates "
+                "[x', y'(, z')] as expressions in the built mesh's x, y, z (lengths in "
+                "the scene's length unit, one per coordinate), applied before the "
+                "boundary parts are tagged (their 'where' sees mapped coordinates); "
+                "a map that inverts or flattens a cell is an error. Not for gmsh "
+                "meshes: shape those in gmsh, which meshes the shape it is given",
+            ),
+        },
+    ),
     "boundaries": Field("dict", schema=None, item=BOUNDARY),
-    "model": Field("dict", schema={
-        "type": Field("str", "signorini", choices=("signorini", "obstacle", "elasticity")),
-        "bound": Field("str", "upper", choices=("upper", "lower"),
-                       doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)"),
-        "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
-        "nu": Field("number", 0.3, check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
-                    doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 " "< ν < 1/2)"),
-    }),
+    "model": Field(
+        "dict",
+        schema={
+            "type": Field("str", "signorini", choices=("signorini", "obstacle", "elasticity")),
+            "bound": Field(
+                "str",
+                "upper",
+                choices=("upper", "lower"),
+                doc="obstacle only: u ≤ ψ (upper) or u ≥ ψ (lower)",
+            ),
+            "E": Field("number", None, check=_positive, doc="elasticity: Young's modulus"),
+            "nu": Field(
+                "number",
+                0.3,
+                check=lambda v: None if -1 < v < 0.5 else f"must lie in (-1, 0.5), got {v}",
+                doc="elasticity: Poisson's ratio (the elastic energy is positive definite for -1 "
+                "< ν < 1/2)",
+            ),
+        },
+    ),
     "bodies": Field("dict", None, schema=None, item=BODY),
     "pairs": Field("list", None, doc="contact pairs between bodies: [{slave, master, search}]"),
-    "obstacle": Field("dict", None, schema={
-        "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
-        "point": Field("list", None, doc="plane: a point of the rigid plane"),
-        "normal": Field("list", None, doc="plane: its outward normal, pointing towards the body"),
-        "center": Field("list", None, doc="circle / sphere: the centre"),
-        "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
-    }),
-    "reference": Field("dict", None, schema={
-        "type": Field("str", choices=("hertz", "cattaneo_mindlin"),
-                      doc="the reference solution the results are compared with "
-                          "(docs/theory.md §7): hertz, or cattaneo_mindlin (partial slip of "
-                          "two similar bodies, Coulomb friction)"),
-        "radius": Field("number", None, check=_positive,
-                        doc="hertz: the radius R of the curved body (default: mesh.radius of a "
-                            "quarter_disk / sphere_octant)"),
-    }, doc="optional: a declared reference solution; only then are its values and errors reported"),
+    "obstacle": Field(
+        "dict",
+        None,
+        schema={
+            "type": Field("str", "plane", choices=("plane", "circle", "sphere")),
+            "point": Field("list", None, doc="plane: a point of the rigid plane"),
+            "normal": Field(
+                "list", None, doc="plane: its outward normal, pointing towards the body"
+            ),
+            "center": Field("list", None, doc="circle / sphere: the centre"),
+            "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
+        },
+    ),
+    "reference": Field(
+        "dict",
+        None,
+        schema={
+            "type": Field(
+                "str",
+                choices=("hertz", "cattaneo_mindlin"),
+                doc="the reference solution the results are compared with "
+                "(docs/theory.md §7): hertz, or cattaneo_mindlin (partial slip of "
+                "two similar bodies, Coulomb friction)",
+            ),
+            "radius": Field(
+                "number",
+                None,
+                check=_positive,
+                doc="hertz: the radius R of the curved body (default: mesh.radius of a "
+                "quarter_disk / sphere_octant)",
+            ),
+        },
+        doc="optional: a declared reference solution; only then are its values and errors reported",
+    ),
     "constants": Field("dict", schema=None, item=Field("number")),
-    "data": Field("dict", schema={
-        "f": EXPRS, "k": Field("expr", "1"), "u_D": EXPRS, "t": EXPRS, "t_C": EXPR,
-        "g": EXPR, "psi": EXPR,
-        "exact": Field("exprs", None, doc="the exact solution, if known (one expression per component "
-                                         "for elasticity): reports the energy error"),
-    }),
-    "solver": Field("dict", schema={
-        "method": Field("str", "fb", choices=SOLVER_METHODS),
-        "mu": Field("number", 0.5, check=_open_unit),
-        "c": Field("any", "auto", check=_c_value),
-        "kappa": Field("number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"),
-        "line_search": Field("str", "auto", choices=("auto", "basic", "bt"),
-                             doc="auto: plain Newton steps, for min backtracking once a cycle "
-                                 "shows (contact/solvers/globalize.py); basic: plain Newton; "
-                                 "bt: backtracking on ½‖Φ‖² from the first step"),
-        "polish": Field("bool", True, doc="fb / blend: active-set polishing (one extra linear solve once the active set " "settles)"),
-        "rtol": Field("number", 1e-12, check=_nonnegative),
-        "atol": Field("number", 1e-12, check=_nonnegative),
-        "max_it": Field("int", 50, check=_positive),
-        "u0": Field("exprs", "0", doc="initial guess: an expression (every component), or one per "
-                                      "component for elasticity"),
-        "linear": Field("str", "auto", choices=("auto", "direct", "gamg", "bcgs"),
-                        doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
-                            "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and "
-                            "dimension)"),
-        "inexact": Field("bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"),
-        "sequence": Field("any", "auto", check=_sequence,
-                          doc="grid sequencing of a single solve: auto, off, or the number of coarser levels"),
-        "max_dofs": Field("any", "auto", check=_max_dofs,
-                          doc="DoF budget of one solve: auto (sized to this machine's memory, see "
-                              "contact/setup/budget.py) or a positive integer"),
-        "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
-    }),
-    "estimator": Field("str", "residual", choices=("residual", "equilibrated"),
-                       doc="a posteriori error estimator: residual (docs/theory.md §5, reliable up "
-                           "to a constant) or equilibrated (docs/theory.md §9: a guaranteed "
-                           "bound, scalar models only)"),
-    "adapt": Field("dict", None, schema={
-        "strategy": Field("str", "dorfler", choices=("dorfler", "maximum", "uniform", "none"),
-                          doc="none: one solve on the given mesh (as if there were no adapt section)"),
-        "theta": Field("number", 0.5, check=_half_open_unit),
-        "tol": Field("number", 0.0, check=_nonnegative),
-        "max_dofs": Field("int", 200000, check=_positive),
-        "max_levels": Field("int", 8, check=_positive),
-        "nested": Field("bool", True),
-        "rebalance": Field("bool", True,
-                           doc="in parallel, let dolfinx's graph partitioner spread each refined mesh "
-                               "evenly over the ranks (false: children stay on their parent's "
-                               "rank)"),
-        "newton_rtol": Field("number", 1e-10, check=_positive,
-                             doc="Newton's relative tolerance inside the loop: the algebraic error "
-                                 "only has to be small against the discretization error"),
-        "pictures": Field("int", 3, check=_nonnegative),
-    }),
-    "friction": Field("dict", None, schema={
-        "law": Field("str", "none", choices=FRICTION_LAWS,
-                     doc="none (frictionless), tresca (given slip threshold) or coulomb"),
-        "coefficient": Field("number", None, check=_nonnegative,
-                             doc="coulomb: the friction coefficient F (dimensionless)"),
-        "threshold": Field("expr", None,
-                           doc="tresca: the slip threshold s(x, t) >= 0, a stress (the unit of E)"),
-        "c_t": Field("any", "auto", check=_c_value,
-                     doc="tangential NCP scaling, stress per length: auto (nodal, "
-                         "c_t,i = K_tt,i / (kappa_t w_i)) or a number"),
-        "kappa_t": Field("number", 1.0, check=_positive, doc="factor of c_t: auto"),
-        "form": Field("str", "hsw", choices=FRICTION_FORMS,
-                      doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth " "max form)"),
-        "coulomb": Field("str", "ssn", choices=("ssn", "fixed_point"),
-                         doc="coulomb: full semismooth Newton, or the fixed point on the normal "
-                             "pressure (a sequence of Tresca problems)"),
-        "fixed_point_rtol": Field("number", 1e-10, check=_positive,
-                                  doc="fixed point: stop when |rho_new - rho| <= rtol |rho|"),
-        "fixed_point_max_it": Field("int", 100, check=_positive),
-    }),
-    "load": Field("dict", None, schema={
-        "steps": Field("int", None, check=_steps, doc="N equal steps t = 1/N, 2/N, ..., 1 "
-                                                     "(N ≤ MAX_LOAD_STEPS = 100 000)"),
-        "times": Field("list", None, check=_times, doc="the pseudo-times of the steps, increasing, > 0"),
-        "adapt": Field("str", "end", choices=("each", "end"),
-                       doc="with an adapt section: the adaptive loop at every step, or only at the last"),
-    }),
-    "output": Field("dict", schema={
-        "dir": Field("str", None, check=_not_empty),
-        "formats": Field("list", ["xdmf", "vtk"], check=_formats,
-                         doc="the field files: xdmf (solution.xdmf + .h5, for ParaView), vtk "
-                             "(solution.vtu, for pyvista); a series for levels and load steps"),
-        "xdmf": Field("bool", None, doc="true / false: add xdmf to / drop it from formats"),
-        "vtk": Field("bool", None, doc="true / false: add vtk to / drop it from formats"),
-        "png": Field("bool", True),
-        "verbose": Field("bool", True),
-    }),
+    "data": Field(
+        "dict",
+        schema={
+            "f": EXPRS,
+            "k": Field("expr", "1"),
+            "u_D": EXPRS,
+            "t": EXPRS,
+            "t_C": EXPR,
+            "g": EXPR,
+            "psi": EXPR,
+            "exact": Field(
+                "exprs",
+                None,
+                doc="the exact solution, if known (one expression per component "
+                "for elasticity): reports the energy error",
+            ),
+        },
+    ),
+    "solver": Field(
+        "dict",
+        schema={
+            "method": Field("str", "fb", choices=SOLVER_METHODS),
+            "mu": Field("number", 0.5, check=_open_unit),
+            "c": Field("any", "auto", check=_c_value),
+            "kappa": Field(
+                "number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"
+            ),
+            "line_search": Field(
+                "str",
+                "auto",
+                choices=("auto", "basic", "bt"),
+                doc="auto: plain Newton steps, for min backtracking once a cycle "
+                "shows (contact/solvers/globalize.py); basic: plain Newton; "
+                "bt: backtracking on ½‖Φ‖² from the first step",
+            ),
+            "polish": Field(
+                "bool",
+                True,
+                doc="fb / blend: active-set polishing (one extra linear solve once the active set "
+                "settles)",
+            ),
+            "rtol": Field("number", 1e-12, check=_nonnegative),
+            "atol": Field("number", 1e-12, check=_nonnegative),
+            "max_it": Field("int", 50, check=_positive),
+            "u0": Field(
+                "exprs",
+                "0",
+                doc="initial guess: an expression (every component), or one per "
+                "component for elasticity",
+            ),
+            "linear": Field(
+                "str",
+                "auto",
+                choices=("auto", "direct", "gamg", "bcgs"),
+                doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
+                "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and "
+                "dimension)",
+            ),
+            "inexact": Field(
+                "bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"
+            ),
+            "sequence": Field(
+                "any",
+                "auto",
+                check=_sequence,
+                doc="grid sequencing of a single solve: auto, off, or the number of coarser levels",
+            ),
+            "max_dofs": Field(
+                "any",
+                "auto",
+                check=_max_dofs,
+                doc="DoF budget of one solve: auto (sized to this machine's memory, see "
+                "contact/setup/budget.py) or a positive integer",
+            ),
+            "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
+        },
+    ),
+    "estimator": Field(
+        "str",
+        "residual",
+        choices=("residual", "equilibrated"),
+        doc="a posteriori error estimator: residual (docs/theory.md §5, reliable up "
+        "to a constant) or equilibrated (docs/theory.md §9: a guaranteed "
+        "bound, scalar models only)",
+    ),
+    "adapt": Field(
+        "dict",
+        None,
+        schema={
+            "strategy": Field(
+                "str",
+                "dorfler",
+                choices=("dorfler", "maximum", "uniform", "none"),
+                doc="none: one solve on the given mesh (as if there were no adapt section)",
+            ),
+            "theta": Field("number", 0.5, check=_half_open_unit),
+            "tol": Field("number", 0.0, check=_nonnegative),
+            "max_dofs": Field("int", 200000, check=_positive),
+            "max_levels": Field("int", 8, check=_positive),
+            "nested": Field("bool", True),
+            "rebalance": Field(
+                "bool",
+                True,
+                doc="in parallel, let dolfinx's graph partitioner spread each refined mesh "
+                "evenly over the ranks (false: children stay on their parent's "
+                "rank)",
+            ),
+            "newton_rtol": Field(
+                "number",
+                1e-10,
+                check=_positive,
+                doc="Newton's relative tolerance inside the loop: the algebraic error "
+                "only has to be small against the discretization error",
+            ),
+            "pictures": Field("int", 3, check=_nonnegative),
+        },
+    ),
+    "friction": Field(
+        "dict",
+        None,
+        schema={
+            "law": Field(
+                "str",
+                "none",
+                choices=FRICTION_LAWS,
+                doc="none (frictionless), tresca (given slip threshold) or coulomb",
+            ),
+            "coefficient": Field(
+                "number",
+                None,
+                check=_nonnegative,
+                doc="coulomb: the friction coefficient F (dimensionless)",
+            ),
+            "threshold": Field(
+                "expr",
+                None,
+                doc="tresca: the slip threshold s(x, t) >= 0, a stress (the unit of E)",
+            ),
+            "c_t": Field(
+                "any",
+                "auto",
+                check=_c_value,
+                doc="tangential NCP scaling, stress per length: auto (nodal, "
+                "c_t,i = K_tt,i / (kappa_t w_i)) or a number",
+            ),
+            "kappa_t": Field("number", 1.0, check=_positive, doc="factor of c_t: auto"),
+            "form": Field(
+                "str",
+                "hsw",
+                choices=FRICTION_FORMS,
+                doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth "
+                "max form)",
+            ),
+            "coulomb": Field(
+                "str",
+                "ssn",
+                choices=("ssn", "fixed_point"),
+                doc="coulomb: full semismooth Newton, or the fixed point on the normal "
+                "pressure (a sequence of Tresca problems)",
+            ),
+            "fixed_point_rtol": Field(
+                "number",
+                1e-10,
+                check=_positive,
+                doc="fixed point: stop when |rho_new - rho| <= rtol |rho|",
+            ),
+            "fixed_point_max_it": Field("int", 100, check=_positive),
+        },
+    ),
+    "load": Field(
+        "dict",
+        None,
+        schema={
+            "steps": Field(
+                "int",
+                None,
+                check=_steps,
+                doc="N equal steps t = 1/N, 2/N, ..., 1 (N ≤ MAX_LOAD_STEPS = 100 000)",
+            ),
+            "times": Field(
+                "list", None, check=_times, doc="the pseudo-times of the steps, increasing, > 0"
+            ),
+            "adapt": Field(
+                "str",
+                "end",
+                choices=("each", "end"),
+                doc="with an adapt section: the adaptive loop at every step, or only at the last",
+            ),
+        },
+    ),
+    "output": Field(
+        "dict",
+        schema={
+            "dir": Field("str", None, check=_not_empty),
+            "formats": Field(
+                "list",
+                ["xdmf", "vtk"],
+                check=_formats,
+                doc="the field files: xdmf (solution.xdmf + .h5, for ParaView), vtk "
+                "(solution.vtu, for pyvista); a series for levels and load steps",
+            ),
+            "xdmf": Field("bool", None, doc="true / false: add xdmf to / drop it from formats"),
+            "vtk": Field("bool", None, doc="true / false: add vtk to / drop it from formats"),
+            "png": Field("bool", True),
+            "verbose": Field("bool", True),
+        },
+    ),
 }
 
 
 #: the optional sections: ``<section>: none`` (``--set load=none``) switches one off
-OPTIONAL_SECTIONS = tuple(key for key, f in SCENE.items()
-                          if f.default is None and f.kind in ("dict", "list"))
+OPTIONAL_SECTIONS = tuple(
+    key for key, f in SCENE.items() if f.default is None and f.kind in ("dict", "list")
+)
 
 
 def switch_off(data: Mapping) -> dict:
     """``data`` without the optional sections whose value is the word ``none`` (as if they
     were not given): ``load: none``, ``friction: none``, ``adapt: none``, …"""
-    return {key: value for key, value in data.items()
-            if not (key in OPTIONAL_SECTIONS and value == "none")}
+    return {
+        key: value
+        for key, value in data.items()
+        if not (key in OPTIONAL_SECTIONS and value == "none")
+    }
 
 
 def _typename(v: Any) -> str:
-    return {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean",
-            int: "an integer", float: "a number", type(None): "empty"}.get(type(v), type(v).__name__)
+    return {
+        dict: "a mapping",
+        list: "a list",
+        str: "a string",
+        bool: "a boolean",
+        int: "an integer",
+        float: "a number",
+        type(None): "empty",
+    }.get(type(v), type(v).__name__)
 
 
 def _validate(value: Any, spec: Field, path: str, constants: Mapping[str, float]) -> Any:
@@ -530,7 +795,9 @@ def _validate(value: Any, spec: Field, path: str, constants: Mapping[str, float]
     return value
 
 
-def _validate_mapping(data: Mapping, spec: Field, path: str, constants: Mapping[str, float]) -> dict:
+def _validate_mapping(
+    data: Mapping, spec: Field, path: str, constants: Mapping[str, float]
+) -> dict:
     prefix = f"{path}." if path else ""
     out = {}
     if spec.schema is None:  # free-form mapping: every value follows spec.item
@@ -541,7 +808,9 @@ def _validate_mapping(data: Mapping, spec: Field, path: str, constants: Mapping[
         return out
     for key in data:
         if key not in spec.schema:
-            raise ConfigError(f"{prefix}{key}: unknown key (expected one of {', '.join(spec.schema)})")
+            raise ConfigError(
+                f"{prefix}{key}: unknown key (expected one of {', '.join(spec.schema)})"
+            )
     for key, sub in spec.schema.items():
         if key in data and data[key] is not None:
             out[key] = _validate(data[key], sub, prefix + key, constants)
@@ -562,11 +831,15 @@ def read_yaml(path: str | Path) -> dict:
         raise ConfigError(f"{p}: no such file")
     try:
         if (size := p.stat().st_size) > MAX_FILE_BYTES:
-            raise ConfigError(f"{p}: the file has {size} bytes, more than the limit of {MAX_FILE_BYTES} "
-                              "for a scene or study (put meshes and data in files of their own)")
+            raise ConfigError(
+                f"{p}: the file has {size} bytes, more than the limit of {MAX_FILE_BYTES} "
+                "for a scene or study (put meshes and data in files of their own)"
+            )
         data = load_yaml(p.read_text(encoding="utf-8"))
     except UnicodeDecodeError as err:
-        raise ConfigError(f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})") from None
+        raise ConfigError(
+            f"{p}: not UTF-8 text (byte {err.object[err.start]:#04x} at offset {err.start})"
+        ) from None
     except OSError as err:
         raise ConfigError(f"{p}: cannot read: {err.strerror or err}") from None
     except (YAMLTooLarge, DuplicateKey) as err:
@@ -577,7 +850,9 @@ def read_yaml(path: str | Path) -> dict:
         problem = getattr(err, "problem", None) or str(err).splitlines()[0]
         raise ConfigError(f"{p}: malformed YAML{where}: {problem}") from None
     if not isinstance(data, dict):
-        raise ConfigError(f"{p}: expected a mapping of sections at the top level, got {_typename(data)}")
+        raise ConfigError(
+            f"{p}: expected a mapping of sections at the top level, got {_typename(data)}"
+        )
     return data
 
 
@@ -589,7 +864,9 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
             raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE")
         key, raw = item.split("=", 1)
         if not all(key.strip().split(".")):
-            raise ConfigError(f"--set {item}: expected KEY.PATH=VALUE, the key path has an empty part")
+            raise ConfigError(
+                f"--set {item}: expected KEY.PATH=VALUE, the key path has an empty part"
+            )
         try:
             value = load_yaml(raw)
         except DuplicateKey as err:
@@ -618,14 +895,20 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     """
     if not isinstance(data, Mapping):
         raise ConfigError(f"scene: expected a mapping, got {_typename(data)}")
-    data = switch_off(data)   # adapt: none  =  no adaptive loop, load: none  =  one solve, …
+    data = switch_off(data)  # adapt: none  =  no adaptive loop, load: none  =  one solve, …
     if isinstance(data.get("model"), str):  # short form  model: signorini
         data = {**data, "model": {"type": data["model"]}}
     raw_constants = data.get("constants") or {}
     constants = _validate(raw_constants, SCENE["constants"], "constants", {})
     for key in constants:
-        if (key in expressions.COORDINATES + expressions.HELPERS + expressions.FUNCTIONS + (expressions.TIME,)
-                or not key.isidentifier()):
+        if (
+            key
+            in expressions.COORDINATES
+            + expressions.HELPERS
+            + expressions.FUNCTIONS
+            + (expressions.TIME,)
+            or not key.isidentifier()
+        ):
             raise ConfigError(f"constants.{key}: is not a usable constant name")
     cfg = _validate_mapping(data, Field("dict", schema=SCENE), "", constants)
     cfg["name"] = cfg["name"] or name or "scene"
@@ -634,14 +917,18 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     cfg["_base_dir"] = str(Path(base_dir).resolve())
 
     mesh = cfg["mesh"]
-    allowed = {"rectangle": {"corners", "cells", "diagonal", "map"}, "unit_square": {"cells", "diagonal", "map"},
-               "box": {"corners", "cells", "map"}, "lshape": {"cells", "diagonal", "map"},
-               "gmsh": {"file"},
-               "quarter_disk": {"radius", "h", "h_contact", "zone"},
-               "sphere_octant": {"radius", "h", "h_contact", "zone"},
-               "blocks": {"blocks", "diagonal"},
-               "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap"},
-               "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"}}[mesh["type"]]
+    allowed = {
+        "rectangle": {"corners", "cells", "diagonal", "map"},
+        "unit_square": {"cells", "diagonal", "map"},
+        "box": {"corners", "cells", "map"},
+        "lshape": {"cells", "diagonal", "map"},
+        "gmsh": {"file"},
+        "quarter_disk": {"radius", "h", "h_contact", "zone"},
+        "sphere_octant": {"radius", "h", "h_contact", "zone"},
+        "blocks": {"blocks", "diagonal"},
+        "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap"},
+        "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"},
+    }[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
     for key in SCENE["mesh"].schema:
         if key in given and key not in allowed | {"type", "degree"}:
@@ -661,25 +948,38 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         if len(mesh["corners"][0]) != dims:
             raise ConfigError(f"mesh.corners: a {mesh['type']} needs {dims}D points")
     if dims is not None:
-        cells = mesh["cells"] if isinstance(mesh["cells"], list) else [mesh["cells"]] * (1 if mesh["type"] == "lshape" else dims)
+        cells = (
+            mesh["cells"]
+            if isinstance(mesh["cells"], list)
+            else [mesh["cells"]] * (1 if mesh["type"] == "lshape" else dims)
+        )
         want = 1 if mesh["type"] == "lshape" else dims
         if len(cells) != want:
-            raise ConfigError(f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got " f"{mesh['cells']!r}")
+            raise ConfigError(
+                f"mesh.cells: a {mesh['type']} mesh needs {want} cell count(s), got "
+                f"{mesh['cells']!r}"
+            )
         mesh["cells"] = cells
     if mesh["type"] == "blocks":
         dims = _check_blocks(mesh)
     if mesh["map"] is not None and len(mesh["map"]) != dims:
-        raise ConfigError(f"mesh.map: expected {dims} expressions for a {dims}D mesh, "
-                          f"got {len(mesh['map'])}")
+        raise ConfigError(
+            f"mesh.map: expected {dims} expressions for a {dims}D mesh, got {len(mesh['map'])}"
+        )
 
     if not cfg["boundaries"]:
         raise ConfigError("boundaries: at least one boundary part is required")
     for bname, part in cfg["boundaries"].items():
         if part["where"] is None and part["tag"] is None:
-            raise ConfigError(f"boundaries.{bname}: give 'where' or 'tag' (or both: the tag's facets where " f"it holds)")
+            raise ConfigError(
+                f"boundaries.{bname}: give 'where' or 'tag' (or both: the tag's facets where "
+                f"it holds)"
+            )
         if part["tag"] is not None and mesh["type"] not in GMSH_MESHES:
-            raise ConfigError(f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: "
-                              f"{', '.join(GMSH_MESHES)})")
+            raise ConfigError(
+                f"boundaries.{bname}.tag: tags need a gmsh mesh (mesh.type: "
+                f"{', '.join(GMSH_MESHES)})"
+            )
         if part["where"] is not None:
             try:
                 expressions.parse(part["where"], constants)
@@ -687,30 +987,46 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
                 raise ConfigError(f"boundaries.{bname}.where: {err}") from None
     roles = [p["role"] for p in cfg["boundaries"].values()]
     model = cfg["model"]["type"]
-    if model == "signorini" and "contact" not in roles or model == "elasticity" and not (
-            "contact" in roles or cfg["pairs"]):
+    if (
+        model == "signorini"
+        and "contact" not in roles
+        or model == "elasticity"
+        and not ("contact" in roles or cfg["pairs"])
+    ):
         raise ConfigError(f"boundaries: a {model} scene needs a part with role: contact")
     if model == "obstacle" and "contact" in roles:
-        raise ConfigError("boundaries: an obstacle scene constrains the whole domain; use data.psi, not a " "contact part")
+        raise ConfigError(
+            "boundaries: an obstacle scene constrains the whole domain; use data.psi, not a "
+            "contact part"
+        )
     given = set(data.get("data") or {})
     if model == "elasticity" and ({"k", "g", "psi", "t_C"} & given):
-        raise ConfigError(f"data.{sorted({'k', 'g', 'psi', 't_C'} & given)[0]}: not used by model type elasticity")
+        raise ConfigError(
+            f"data.{sorted({'k', 'g', 'psi', 't_C'} & given)[0]}: not used by model type elasticity"
+        )
     if model != "elasticity" and cfg.get("obstacle"):
-        raise ConfigError("obstacle: only for model type elasticity (scalar models use data.g / data.psi)")
+        raise ConfigError(
+            "obstacle: only for model type elasticity (scalar models use data.g / data.psi)"
+        )
     if model != "elasticity" and (cfg["model"]["E"] is not None):
         raise ConfigError("model.E: only for model type elasticity")
     if model == "signorini" and "psi" in given:
         raise ConfigError("data.psi: only for model type obstacle (Signorini uses data.g)")
     if model == "obstacle" and ({"g", "t_C"} & given):
-        raise ConfigError(f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini " f"(obstacles use data.psi)")
+        raise ConfigError(
+            f"data.{sorted({'g', 't_C'} & given)[0]}: only for model type signorini "
+            f"(obstacles use data.psi)"
+        )
     if cfg["model"]["bound"] != "upper" and model == "signorini":
         raise ConfigError("model.bound: Signorini contact is always u ≤ g (upper)")
     _check_vector_data(cfg, model)
     _check_time(cfg)
     _check_friction(cfg, data)
     if cfg["estimator"] == "equilibrated" and model == "elasticity":
-        raise ConfigError("estimator: equilibrated is implemented for model types signorini and obstacle; "
-                          "use residual for elasticity")
+        raise ConfigError(
+            "estimator: equilibrated is implemented for model types signorini and obstacle; "
+            "use residual for elasticity"
+        )
     if model == "elasticity":
         _check_bodies(cfg, constants)
         _check_elasticity(cfg)
@@ -722,7 +1038,9 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
             role = "symmetry" if "symmetry" in roles else "interface"
             raise ConfigError(f"boundaries: role {role} is for elasticity scenes")
     if mesh["type"] in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
-        for key in ("radius", "h", "h_contact", "zone") + (("block",) if mesh["type"] == "sphere_on_block" else ()):
+        for key in ("radius", "h", "h_contact", "zone") + (
+            ("block",) if mesh["type"] == "sphere_on_block" else ()
+        ):
             if mesh[key] is None:
                 raise ConfigError(f"mesh.{key}: required for mesh type {mesh['type']!r}")
     if mesh["degree"] == 2 and cfg["pairs"]:
@@ -731,9 +1049,11 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         _check_reference(cfg)
     if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
         where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
-        raise ConfigError(f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
-                          "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights "
-                          "vanish); use 1")
+        raise ConfigError(
+            f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
+            "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights "
+            "vanish); use 1"
+        )
     _resolve_formats(cfg["output"])
     cfg["constants"] = constants
     return cfg
@@ -757,14 +1077,19 @@ def _check_blocks(mesh: dict) -> int:
     """Mesh type blocks: a list of at least one {corners, cells} of one dimension; returns it."""
     blocks = mesh["blocks"]
     if not blocks:
-        raise ConfigError("mesh.blocks: required for mesh type 'blocks' (a list of {corners, cells})")
+        raise ConfigError(
+            "mesh.blocks: required for mesh type 'blocks' (a list of {corners, cells})"
+        )
     dims = None
     for i, raw in enumerate(blocks):
         block = _validate(raw, BLOCK, f"mesh.blocks[{i}]", {})
         d = len(block["corners"][0])
         cells = block["cells"] if isinstance(block["cells"], list) else [block["cells"]] * d
         if len(cells) != d:
-            raise ConfigError(f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got " f"{block['cells']!r}")
+            raise ConfigError(
+                f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got "
+                f"{block['cells']!r}"
+            )
         if dims not in (None, d):
             raise ConfigError(f"mesh.blocks[{i}].corners: every block needs {dims}D points")
         dims = d
@@ -793,7 +1118,9 @@ def _check_bodies(cfg: dict, constants: Mapping[str, float]) -> None:
     for pname, part in parts.items():
         if part["body"] is not None and part["body"] not in bodies:
             known = ", ".join(bodies) or "none"
-            raise ConfigError(f"boundaries.{pname}.body: {part['body']!r} is not a body (bodies: {known})")
+            raise ConfigError(
+                f"boundaries.{pname}.body: {part['body']!r} is not a body (bodies: {known})"
+            )
     if pairs and not bodies:
         raise ConfigError("pairs: contact pairs need a bodies section (one material per body)")
     used: dict[str, str] = {}
@@ -805,14 +1132,20 @@ def _check_bodies(cfg: dict, constants: Mapping[str, float]) -> None:
             if name not in parts:
                 raise ConfigError(f"pairs[{i}].{side}: {name!r} is not a boundary part")
             if parts[name]["role"] != "interface":
-                raise ConfigError(f"pairs[{i}].{side}: boundary part {name!r} needs role: interface")
+                raise ConfigError(
+                    f"pairs[{i}].{side}: boundary part {name!r} needs role: interface"
+                )
             if name in used:
-                raise ConfigError(f"pairs[{i}].{side}: boundary part {name!r} is already the {used[name]}")
+                raise ConfigError(
+                    f"pairs[{i}].{side}: boundary part {name!r} is already the {used[name]}"
+                )
             used[name] = f"{side} of pairs[{i}]"
     for pname, part in parts.items():
         if part["role"] == "interface" and pname not in used:
-            raise ConfigError(f"boundaries.{pname}: a part with role interface must be the slave or "
-                              "master of a contact pair (pairs)")
+            raise ConfigError(
+                f"boundaries.{pname}: a part with role interface must be the slave or "
+                "master of a contact pair (pairs)"
+            )
 
 
 def _check_vector_data(cfg: dict, model: str) -> None:
@@ -829,10 +1162,14 @@ def _check_time(cfg: dict) -> None:
     """The pseudo-time t is for data only (the mesh and its parts are fixed along a load
     path); ``load`` takes steps or times, not both."""
     constants = cfg["constants"]
-    for key, texts in (("mesh.map", cfg["mesh"]["map"] or []),
-                       *((f"boundaries.{n}.where", [p["where"]]) for n, p in cfg["boundaries"].items())):
+    for key, texts in (
+        ("mesh.map", cfg["mesh"]["map"] or []),
+        *((f"boundaries.{n}.where", [p["where"]]) for n, p in cfg["boundaries"].items()),
+    ):
         if any(t is not None and expressions.uses_time(t, constants) for t in texts):
-            raise ConfigError(f"{key}: the pseudo-time t is only for data expressions (the mesh is fixed)")
+            raise ConfigError(
+                f"{key}: the pseudo-time t is only for data expressions (the mesh is fixed)"
+            )
     load = cfg.get("load")
     if load is not None:
         if (load["steps"] is None) == (load["times"] is None):
@@ -855,18 +1192,25 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
     if law == "none":
         return
     if cfg["model"]["type"] != "elasticity":
-        raise ConfigError(f"friction.law: {law} friction needs model type elasticity "
-                          f"(a {cfg['model']['type']} scene has no tangential direction)")
+        raise ConfigError(
+            f"friction.law: {law} friction needs model type elasticity "
+            f"(a {cfg['model']['type']} scene has no tangential direction)"
+        )
     need = {"tresca": "threshold", "coulomb": "coefficient"}.get(law)
     if need is not None and fr[need] is None:
         raise ConfigError(f"friction.{need}: required for friction law {law}")
-    unused = sorted(given - {"law", need, "c_t", "kappa_t", "form"}
-                    - ({"coulomb", "fixed_point_rtol", "fixed_point_max_it"} if law == "coulomb" else set()))
+    unused = sorted(
+        given
+        - {"law", need, "c_t", "kappa_t", "form"}
+        - ({"coulomb", "fixed_point_rtol", "fixed_point_max_it"} if law == "coulomb" else set())
+    )
     if unused:
         raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")
     if law != "none" and cfg["solver"]["method"] not in ("fb", "min", "blend"):
-        raise ConfigError(f"solver.method: {cfg['solver']['method']} cannot solve frictional contact "
-                          f"(friction.law: {law}); use fb, min or blend")
+        raise ConfigError(
+            f"solver.method: {cfg['solver']['method']} cannot solve frictional contact "
+            f"(friction.law: {law}); use fb, min or blend"
+        )
 
 
 def _check_reference(cfg: dict) -> None:
@@ -876,16 +1220,25 @@ def _check_reference(cfg: dict) -> None:
     the effective one, 1/R = 1/R1 + 1/R2, and E* comes from the two bodies of the first pair."""
     ref = cfg["reference"]
     if ref["type"] == "cattaneo_mindlin" and (cfg.get("friction") or {}).get("law") != "coulomb":
-        raise ConfigError("reference.type: cattaneo_mindlin needs Coulomb friction (friction.law: coulomb)")
+        raise ConfigError(
+            "reference.type: cattaneo_mindlin needs Coulomb friction (friction.law: coulomb)"
+        )
     if ref["type"] in ("hertz", "cattaneo_mindlin"):
         if cfg["model"]["type"] != "elasticity":
             raise ConfigError(f"reference.type: {ref['type']} needs model type elasticity")
         mesh = cfg["mesh"]
         if ref["radius"] is None:
-            if mesh["type"] not in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
-                raise ConfigError(f"reference.radius: required for type {ref['type']} (the radius R of the "
-                                  "curved body, the effective radius of two) unless the mesh is a "
-                                  "quarter_disk, sphere_octant, half_disks or sphere_on_block")
+            if mesh["type"] not in (
+                "quarter_disk",
+                "sphere_octant",
+                "half_disks",
+                "sphere_on_block",
+            ):
+                raise ConfigError(
+                    f"reference.radius: required for type {ref['type']} (the radius R of the "
+                    "curved body, the effective radius of two) unless the mesh is a "
+                    "quarter_disk, sphere_octant, half_disks or sphere_on_block"
+                )
             R1 = float(mesh["radius"])
             R2 = float(mesh["radius2"] or R1) if mesh["type"] == "half_disks" else None
             ref["radius"] = R1 if R2 is None else R1 * R2 / (R1 + R2)
@@ -897,30 +1250,48 @@ def _check_elasticity(cfg: dict) -> None:
     obstacle = cfg.get("obstacle")
     contact_parts = [n for n, p in cfg["boundaries"].items() if p["role"] == "contact"]
     if obstacle and not contact_parts:
-        raise ConfigError("obstacle: needs a boundary part with role: contact (the surface it touches)")
+        raise ConfigError(
+            "obstacle: needs a boundary part with role: contact (the surface it touches)"
+        )
     if not obstacle and cfg["pairs"] and not contact_parts:
         return
     if not obstacle:
-        raise ConfigError("obstacle: an elasticity scene needs a rigid obstacle (type plane, circle or "
-                          "sphere) or contact pairs between bodies (pairs)")
+        raise ConfigError(
+            "obstacle: an elasticity scene needs a rigid obstacle (type plane, circle or "
+            "sphere) or contact pairs between bodies (pairs)"
+        )
     keys = ("point", "normal") if obstacle["type"] == "plane" else ("center", "radius")
     for key in keys:
         if obstacle[key] is None:
-            raise ConfigError(f"obstacle.{key}: required for an obstacle of type {obstacle['type']}")
+            raise ConfigError(
+                f"obstacle.{key}: required for an obstacle of type {obstacle['type']}"
+            )
     for key in ("point", "normal", "center", "radius"):
         if obstacle[key] is not None and key not in keys:
             raise ConfigError(f"obstacle.{key}: not used by an obstacle of type {obstacle['type']}")
     for key in keys[:2] if obstacle["type"] == "plane" else ("center",):
         vec = obstacle[key]
-        if not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in vec):
+        if not all(
+            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
+            for c in vec
+        ):
             raise ConfigError(f"obstacle.{key}: expected a list of numbers, got {vec!r}")
     if obstacle["type"] == "plane" and not any(obstacle["normal"]):
         raise ConfigError("obstacle.normal: must not be the zero vector")
 
 
 #: the sections a solve reads from a built scene's config (:func:`check_sections`)
-SOLVE_SECTIONS = ("model", "bodies", "obstacle", "data", "solver", "friction", "load", "adapt",
-                  "output")
+SOLVE_SECTIONS = (
+    "model",
+    "bodies",
+    "obstacle",
+    "data",
+    "solver",
+    "friction",
+    "load",
+    "adapt",
+    "output",
+)
 
 
 def check_sections(cfg: Mapping) -> None:

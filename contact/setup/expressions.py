@@ -27,23 +27,39 @@ evaluated (``1/0``, ``log(-1)``), overflows (``2**10000``), is complex (``(-1)**
 ``(-8)**(1/3)``) or not finite is an error naming it.  Data that depend on x, y, z are
 checked on the mesh where they are used (:mod:`contact.setup.checks`).
 """
+
 from __future__ import annotations
 
 import ast
 import math
-from typing import Any, Callable, Mapping, cast
+from collections.abc import Callable, Mapping
+from typing import Any, cast
 
 import numpy as np
 
-FUNCTIONS = ("sin", "cos", "tan", "exp", "log", "sqrt", "atan2", "abs", "min", "max",
-             "sinh", "cosh", "tanh", "asinh")
+FUNCTIONS = (
+    "sin",
+    "cos",
+    "tan",
+    "exp",
+    "log",
+    "sqrt",
+    "atan2",
+    "abs",
+    "min",
+    "max",
+    "sinh",
+    "cosh",
+    "tanh",
+    "asinh",
+)
 _ARITY = {"atan2": 2, "min": 2, "max": 2}
 COORDINATES = ("x", "y", "z")
 HELPERS = ("r", "theta")
-TIME = "t"   # the pseudo-time of a load path
+TIME = "t"  # the pseudo-time of a load path
 BUILTIN_CONSTANTS = {"pi": math.pi, "e": math.e}
-MAX_LENGTH = 10_000   # characters of one expression
-MAX_DEPTH = 100       # nesting levels of its syntax tree
+MAX_LENGTH = 10_000  # characters of one expression
+MAX_DEPTH = 100  # nesting levels of its syntax tree
 
 
 class ExpressionError(ValueError):
@@ -53,28 +69,41 @@ class ExpressionError(ValueError):
 def parse(text: str | int | float, constants: Mapping[str, float] = {}) -> ast.Expression:
     """Parse and validate ``text``; raise :class:`ExpressionError` naming the problem."""
     if isinstance(text, bool) or not isinstance(text, (str, int, float)):
-        raise ExpressionError(f"expected an expression string or a number, got {type(text).__name__}")
+        raise ExpressionError(
+            f"expected an expression string or a number, got {type(text).__name__}"
+        )
     source = str(text).strip()
     if not source:
         raise ExpressionError("empty expression")
     if len(source) > MAX_LENGTH:
-        raise ExpressionError(f"the expression has {len(source)} characters, more than the limit of {MAX_LENGTH}")
+        raise ExpressionError(
+            f"the expression has {len(source)} characters, more than the limit of {MAX_LENGTH}"
+        )
     shown = source if len(source) <= 80 else source[:60] + "…"  # in messages
     try:
         tree = ast.parse(source, mode="eval")
     except SyntaxError as err:
         raise ExpressionError(f"cannot parse {shown!r}: {err.msg}") from None
     except (RecursionError, MemoryError) as err:
-        raise ExpressionError(f"cannot parse {shown!r}: nested too deeply ({type(err).__name__})") from None
+        raise ExpressionError(
+            f"cannot parse {shown!r}: nested too deeply ({type(err).__name__})"
+        ) from None
     except ValueError as err:
         raise ExpressionError(f"cannot parse {shown!r}: {err}") from None
     if (depth := _depth(tree)) > MAX_DEPTH:
-        raise ExpressionError(f"the expression nests {depth} levels deep, more than the limit of {MAX_DEPTH}")
+        raise ExpressionError(
+            f"the expression nests {depth} levels deep, more than the limit of {MAX_DEPTH}"
+        )
     names = set(COORDINATES) | set(HELPERS) | {TIME} | set(BUILTIN_CONSTANTS) | set(constants)
     called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
     for node in ast.walk(tree):
         _check_node(node, names, shown)
-        if isinstance(node, ast.Name) and node.id in FUNCTIONS and node.id not in names and id(node) not in called:
+        if (
+            isinstance(node, ast.Name)
+            and node.id in FUNCTIONS
+            and node.id not in names
+            and id(node) not in called
+        ):
             raise ExpressionError(f"{node.id!r} is a function, call it with arguments in {shown!r}")
     _fold(tree.body, {**BUILTIN_CONSTANTS, **constants}, shown)
     return tree
@@ -90,25 +119,48 @@ def _depth(tree: ast.AST) -> int:
     return deepest
 
 
-_MATH: dict[str, Callable[..., float]] = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
-         "sqrt": math.sqrt, "atan2": math.atan2, "abs": abs, "min": min, "max": max,
-         "sinh": math.sinh, "cosh": math.cosh, "tanh": math.tanh, "asinh": math.asinh}
-_FLOAT_OPS = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
-              ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b,
-              ast.Lt: lambda a, b: a < b, ast.LtE: lambda a, b: a <= b, ast.Gt: lambda a, b: a > b,
-              ast.GtE: lambda a, b: a >= b}
+_MATH: dict[str, Callable[..., float]] = {
+    "sin": math.sin,
+    "cos": math.cos,
+    "tan": math.tan,
+    "exp": math.exp,
+    "log": math.log,
+    "sqrt": math.sqrt,
+    "atan2": math.atan2,
+    "abs": abs,
+    "min": min,
+    "max": max,
+    "sinh": math.sinh,
+    "cosh": math.cosh,
+    "tanh": math.tanh,
+    "asinh": math.asinh,
+}
+_FLOAT_OPS = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.Pow: lambda a, b: a**b,
+    ast.Lt: lambda a, b: a < b,
+    ast.LtE: lambda a, b: a <= b,
+    ast.Gt: lambda a, b: a > b,
+    ast.GtE: lambda a, b: a >= b,
+}
 
 
 def _fold(node: ast.AST, values: Mapping[str, float], source: str) -> float | None:
     """The value of ``node`` if it is constant (no coordinate in it), else None; raise
     ExpressionError for a constant subexpression without a finite real value."""
     if isinstance(node, ast.Constant):
-        value = cast(float, node.value)   # _check_tree admits numeric constants only
+        value = cast(float, node.value)  # _check_tree admits numeric constants only
         return _finite(node, lambda: float(value), source)
     if isinstance(node, ast.Name):
         return values.get(node.id)
-    children = [_fold(c, values, source) for c in ast.iter_child_nodes(node)
-                if isinstance(c, ast.expr) and not (isinstance(node, ast.Call) and c is node.func)]
+    children = [
+        _fold(c, values, source)
+        for c in ast.iter_child_nodes(node)
+        if isinstance(c, ast.expr) and not (isinstance(node, ast.Call) and c is node.func)
+    ]
     if any(v is None for v in children):
         return None
     if isinstance(node, ast.BinOp):
@@ -116,9 +168,15 @@ def _fold(node: ast.AST, values: Mapping[str, float], source: str) -> float | No
     if isinstance(node, ast.UnaryOp):
         (v,) = children
         assert v is not None
-        return float(not v) if isinstance(node.op, ast.Not) else -v if isinstance(node.op, ast.USub) else v
+        return (
+            float(not v)
+            if isinstance(node.op, ast.Not)
+            else -v
+            if isinstance(node.op, ast.USub)
+            else v
+        )
     if isinstance(node, ast.Call):
-        name = cast(ast.Name, node.func).id   # _check_tree admits calls of names only
+        name = cast(ast.Name, node.func).id  # _check_tree admits calls of names only
         return _finite(node, lambda: _MATH[name](*children), source)
     if isinstance(node, ast.Compare):
         pairs = zip(children, children[1:])
@@ -149,35 +207,68 @@ def _finite(node: ast.AST, evaluate: Callable[[], Any], source: str) -> float:
     return float(value)
 
 
-_ALLOWED = (ast.Expression, ast.BinOp, ast.UnaryOp, ast.BoolOp, ast.Compare, ast.IfExp,
-            ast.Call, ast.Name, ast.Constant, ast.Load, ast.Add, ast.Sub, ast.Mult, ast.Div,
-            ast.Pow, ast.USub, ast.UAdd, ast.Not, ast.And, ast.Or, ast.Lt, ast.LtE, ast.Gt,
-            ast.GtE)
+_ALLOWED = (
+    ast.Expression,
+    ast.BinOp,
+    ast.UnaryOp,
+    ast.BoolOp,
+    ast.Compare,
+    ast.IfExp,
+    ast.Call,
+    ast.Name,
+    ast.Constant,
+    ast.Load,
+    ast.Add,
+    ast.Sub,
+    ast.Mult,
+    ast.Div,
+    ast.Pow,
+    ast.USub,
+    ast.UAdd,
+    ast.Not,
+    ast.And,
+    ast.Or,
+    ast.Lt,
+    ast.LtE,
+    ast.Gt,
+    ast.GtE,
+)
 
 
 def _check_node(node: ast.AST, names: set[str], source: str) -> None:
     """Refuse a node outside the grammar (``source``, as shown in messages)."""
     if not isinstance(node, _ALLOWED):
         raise ExpressionError(f"{type(node).__name__.lower()} is not allowed in {source!r}")
-    if isinstance(node, ast.Constant) and (isinstance(node.value, bool)
-                                           or not isinstance(node.value, (int, float))):
+    if isinstance(node, ast.Constant) and (
+        isinstance(node.value, bool) or not isinstance(node.value, (int, float))
+    ):
         raise ExpressionError(f"constant {node.value!r} is not a number in {source!r}")
     if isinstance(node, ast.Name) and node.id not in names and node.id not in FUNCTIONS:
         raise ExpressionError(f"unknown name {node.id!r} in {source!r}")
     if isinstance(node, ast.Call):
         if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
-            raise ExpressionError(f"only the functions {', '.join(FUNCTIONS)} may be called in {source!r}")
+            raise ExpressionError(
+                f"only the functions {', '.join(FUNCTIONS)} may be called in {source!r}"
+            )
         if node.keywords:
             raise ExpressionError(f"keyword arguments are not allowed in {source!r}")
         if len(node.args) != _ARITY.get(node.func.id, 1):
-            raise ExpressionError(f"{node.func.id}() takes {_ARITY.get(node.func.id, 1)} argument(s) in {source!r}")
+            raise ExpressionError(
+                f"{node.func.id}() takes {_ARITY.get(node.func.id, 1)} argument(s) in {source!r}"
+            )
 
 
 class _Backend:
     """Operations of one target (UFL or NumPy) used by :func:`_translate`."""
 
-    def __init__(self, ops: dict[str, Callable], cond: Callable, logic: dict[type, Callable],
-                 compare: dict[type, Callable], number: Callable = float):
+    def __init__(
+        self,
+        ops: dict[str, Callable],
+        cond: Callable,
+        logic: dict[type, Callable],
+        compare: dict[type, Callable],
+        number: Callable = float,
+    ):
         self.ops, self.cond, self.logic, self.compare = ops, cond, logic, compare
         self.number = number
 
@@ -199,8 +290,13 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
             return -v if isinstance(node.op, ast.USub) else v
         if isinstance(node, ast.BinOp):
             a, b = go(node.left), go(node.right)
-            return {ast.Add: lambda: a + b, ast.Sub: lambda: a - b, ast.Mult: lambda: a * b,
-                    ast.Div: lambda: a / b, ast.Pow: lambda: a ** b}[type(node.op)]()
+            return {
+                ast.Add: lambda: a + b,
+                ast.Sub: lambda: a - b,
+                ast.Mult: lambda: a * b,
+                ast.Div: lambda: a / b,
+                ast.Pow: lambda: a**b,
+            }[type(node.op)]()
         if isinstance(node, ast.BoolOp):
             vals = [go(v) for v in node.values]
             out = vals[0]
@@ -224,28 +320,52 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
     return go(tree)
 
 
-def to_numpy(text: str | float, constants: Mapping[str, float] = {}, t: float = 1.0
-             ) -> Callable[[np.ndarray], np.ndarray]:
+def to_numpy(
+    text: str | float, constants: Mapping[str, float] = {}, t: float = 1.0
+) -> Callable[[np.ndarray], np.ndarray]:
     """Vectorised ``f(x)`` for ``x`` of shape ``(3, n)`` (DOLFINx interpolation convention),
     at pseudo-time ``t``."""
     tree = parse(text, constants)
     be = _Backend(
-        ops={"sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log,
-             "sqrt": np.sqrt, "atan2": np.arctan2, "abs": np.abs, "min": np.minimum,
-             "max": np.maximum, "sinh": np.sinh, "cosh": np.cosh, "tanh": np.tanh,
-             "asinh": np.arcsinh},
+        ops={
+            "sin": np.sin,
+            "cos": np.cos,
+            "tan": np.tan,
+            "exp": np.exp,
+            "log": np.log,
+            "sqrt": np.sqrt,
+            "atan2": np.arctan2,
+            "abs": np.abs,
+            "min": np.minimum,
+            "max": np.maximum,
+            "sinh": np.sinh,
+            "cosh": np.cosh,
+            "tanh": np.tanh,
+            "asinh": np.arcsinh,
+        },
         cond=np.where,
         logic={ast.And: np.logical_and, ast.Or: np.logical_or, ast.Not: np.logical_not},
-        compare={ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater,
-                 ast.GtE: np.greater_equal},
-        number=np.float64)
+        compare={
+            ast.Lt: np.less,
+            ast.LtE: np.less_equal,
+            ast.Gt: np.greater,
+            ast.GtE: np.greater_equal,
+        },
+        number=np.float64,
+    )
 
     names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
 
     def f(x: np.ndarray) -> np.ndarray:
         X = np.asarray(x, dtype=float)
-        symbols = dict(BUILTIN_CONSTANTS, **constants, x=X[0], y=X[1], z=X[2] if len(X) > 2 else 0 * X[0],
-                       t=np.float64(t))
+        symbols = dict(
+            BUILTIN_CONSTANTS,
+            **constants,
+            x=X[0],
+            y=X[1],
+            z=X[2] if len(X) > 2 else 0 * X[0],
+            t=np.float64(t),
+        )
         # only what the expression uses (interpolation evaluates millions of points)
         if "r" in names:
             symbols["r"] = np.hypot(symbols["x"], symbols["y"])
@@ -271,13 +391,26 @@ def to_ufl(text: str | float, mesh: Any, constants: Mapping[str, float] = {}, t:
     symbols["r"] = ufl.sqrt(xs[0] ** 2 + xs[1] ** 2)
     symbols["theta"] = ufl.atan2(xs[1], xs[0])
     be = _Backend(
-        ops={"sin": ufl.sin, "cos": ufl.cos, "tan": ufl.tan, "exp": ufl.exp, "log": ufl.ln,
-             "sqrt": ufl.sqrt, "atan2": ufl.atan2, "abs": abs, "min": ufl.min_value,
-             "max": ufl.max_value, "sinh": ufl.sinh, "cosh": ufl.cosh, "tanh": ufl.tanh,
-             "asinh": lambda a: ufl.sign(a) * ufl.ln(abs(a) + ufl.sqrt(a * a + 1))},
+        ops={
+            "sin": ufl.sin,
+            "cos": ufl.cos,
+            "tan": ufl.tan,
+            "exp": ufl.exp,
+            "log": ufl.ln,
+            "sqrt": ufl.sqrt,
+            "atan2": ufl.atan2,
+            "abs": abs,
+            "min": ufl.min_value,
+            "max": ufl.max_value,
+            "sinh": ufl.sinh,
+            "cosh": ufl.cosh,
+            "tanh": ufl.tanh,
+            "asinh": lambda a: ufl.sign(a) * ufl.ln(abs(a) + ufl.sqrt(a * a + 1)),
+        },
         cond=ufl.conditional,
         logic={ast.And: ufl.And, ast.Or: ufl.Or, ast.Not: ufl.Not},
-        compare={ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge})
+        compare={ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge},
+    )
     value = _translate(tree, symbols, be)
     return ufl.as_ufl(value)
 
@@ -286,7 +419,9 @@ def is_constant(text: str | float, constants: Mapping[str, float] = {}) -> bool:
     """True when the expression uses neither a coordinate nor the pseudo-time ``t`` (so it
     can be a ``fem.Constant`` fixed once)."""
     tree = parse(text, constants)
-    return not any(isinstance(n, ast.Name) and n.id in COORDINATES + HELPERS + (TIME,) for n in ast.walk(tree))
+    return not any(
+        isinstance(n, ast.Name) and n.id in COORDINATES + HELPERS + (TIME,) for n in ast.walk(tree)
+    )
 
 
 def uses_time(text: str | float, constants: Mapping[str, float] = {}) -> bool:

@@ -26,16 +26,16 @@ the disk / ball and the contact pressure to Hertz's instead of peaking at the ki
 built-in mesh never imports it.  :func:`signed_volumes` and :func:`collapsed_cells` check
 that a move of the geometry nodes (a snap, a ``mesh.map``) keeps every cell's orientation.
 """
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from mpi4py import MPI
-
 from dolfinx import la
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 from ..base.errors import ConfigError
 
@@ -66,8 +66,9 @@ def gmsh_to_mesh(comm: MPI.Comm, build, error: str, gdim: int | None = None, cel
         if problem is None:
             ghosts = dmesh.GhostMode.shared_facet
             partitioner = dmesh.create_cell_partitioner(ghosts, 2)  # type: ignore[call-arg]
-            data = gmshio.model_to_mesh(gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim,
-                                        partitioner=partitioner)
+            data = gmshio.model_to_mesh(
+                gmsh.model if comm.rank == 0 else None, comm, 0, gdim=gdim, partitioner=partitioner
+            )
     except Exception as err:  # e.g. no physical groups (raised on every rank)
         problem = str(err)
     finally:
@@ -99,8 +100,9 @@ def cells_touching(msh: dmesh.Mesh, node_flag: np.ndarray) -> np.ndarray:
     return np.flatnonzero(np.any(node_flag[vertex_nodes(msh)] != 0, axis=1)).astype(np.int32)
 
 
-def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12,
-                    cells: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+def collapsed_cells(
+    msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12, cells: np.ndarray | None = None
+) -> tuple[np.ndarray, int]:
     """The owned cells a move of the geometry nodes inverted or flattened, and their number
     over all ranks (collective).
 
@@ -114,14 +116,15 @@ def collapsed_cells(msh: dmesh.Mesh, before: np.ndarray, tol: float = 1e-12,
     jac = signed_volumes(msh, cells) / before
     mine = cells < owned
     cells, jac = cells[mine], jac[mine]
-    untouched = 1.0 if len(cells) < owned else 0.0          # J_T = 1 on the cells not listed
+    untouched = 1.0 if len(cells) < owned else 0.0  # J_T = 1 on the cells not listed
     scale = msh.comm.allreduce(max(float(np.max(np.abs(jac), initial=0.0)), untouched), op=MPI.MAX)
     bad = cells[jac <= tol * scale]
     return bad, msh.comm.allreduce(len(bad), op=MPI.SUM)
 
 
-def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
-                 zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
+def quarter_disk(
+    comm: MPI.Comm, radius: float, h: float, h_contact: float, zone: float
+) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
     """Triangulation of {x ≥ 0, y ≤ R} ∩ disk((0, R), R): the arc from (0, 0) to (R, R)
     (tag 1, contact), the top y = R (tag 2) and the axis x = 0 (tag 3); surface tag 10."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
@@ -135,7 +138,11 @@ def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
         axis = occ.addLine(centre, bottom)
         surface = occ.addPlaneSurface([occ.addCurveLoop([arc, top, axis])])
         occ.synchronize()
-        for tag, curve, name in ((CONTACT, arc, "contact"), (TOP, top, "top"), (AXIS, axis, "axis")):
+        for tag, curve, name in (
+            (CONTACT, arc, "contact"),
+            (TOP, top, "top"),
+            (AXIS, axis, "axis"),
+        ):
             gmsh.model.addPhysicalGroup(1, [curve], tag, name=name)
         gmsh.model.addPhysicalGroup(2, [surface], BODY, name="body")
         _size_field(gmsh, bottom, h, h_contact, zone)
@@ -144,8 +151,9 @@ def quarter_disk(comm: MPI.Comm, radius: float, h: float, h_contact: float,
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the quarter_disk", gdim=2)
 
 
-def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
-                  zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
+def sphere_octant(
+    comm: MPI.Comm, radius: float, h: float, h_contact: float, zone: float
+) -> tuple[dmesh.Mesh, dmesh.MeshTags]:
     """Tetrahedra of {x ≥ 0, y ≥ 0, z ≤ R} ∩ ball((0, 0, R), R): the spherical surface
     (tag 1, contact), the top z = R (tag 2), the planes x = 0 (tag 3) and y = 0 (tag 4);
     volume tag 10."""
@@ -161,13 +169,23 @@ def sphere_octant(comm: MPI.Comm, radius: float, h: float, h_contact: float,
         tol = 1e-8 * R
         for _, face in gmsh.model.getBoundary([(3, volume)], oriented=False):
             x, y, z = occ.getCenterOfMass(2, face)
-            kind = (TOP if abs(z - R) < tol else AXIS if abs(x) < tol
-                    else PLANE_Y if abs(y) < tol else CONTACT)
+            kind = (
+                TOP
+                if abs(z - R) < tol
+                else AXIS
+                if abs(x) < tol
+                else PLANE_Y
+                if abs(y) < tol
+                else CONTACT
+            )
             groups[kind].append(face)
         if any(len(faces) != 1 for faces in groups.values()):
             raise RuntimeError(f"unexpected faces of the sphere octant: {groups}")
-        pole = [p for _, p in gmsh.model.getEntities(0)
-                if max(abs(c) for c in gmsh.model.getValue(0, p, [])) < tol]
+        pole = [
+            p
+            for _, p in gmsh.model.getEntities(0)
+            if max(abs(c) for c in gmsh.model.getValue(0, p, [])) < tol
+        ]
         if len(pole) != 1:
             raise RuntimeError("the sphere octant has no vertex at the contact point")
         for tag, name in ((CONTACT, "contact"), (TOP, "top"), (AXIS, "x0"), (PLANE_Y, "y0")):
@@ -186,8 +204,15 @@ SPHERE, SPHERE_TOP, BLOCK_TOP, BLOCK_BOTTOM, SYM_X, SYM_Y, BLOCK_SIDES = 1, 2, 3
 FIRST_BODY, SECOND_BODY = 1, 2
 
 
-def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contact: float,
-               zone: float, overlap: float = 0.0) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
+def half_disks(
+    comm: MPI.Comm,
+    radius: float,
+    radius2: float,
+    h: float,
+    h_contact: float,
+    zone: float,
+    overlap: float = 0.0,
+) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """Two half-disks touching at the origin, meshed independently (2D triangles): the upper
     one {|x − (0, R1)| ≤ R1, y ≤ R1} (cell tag 1; arc tag 1, top y = R1 tag 2) and the lower
     one {|x − (0, d − R2)| ≤ R2, y ≥ d − R2} (cell tag 2; arc tag 3, bottom tag 4), moved up
@@ -197,7 +222,11 @@ def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contac
     (mesh, facet tags, cell tags)."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
     radius2, *_ = _check(radius2, h, h_contact, zone, "radius2")
-    if not (isinstance(overlap, (int, float)) and not isinstance(overlap, bool) and 0 <= overlap < 0.1 * min(radius, radius2)):
+    if not (
+        isinstance(overlap, (int, float))
+        and not isinstance(overlap, bool)
+        and 0 <= overlap < 0.1 * min(radius, radius2)
+    ):
         raise ConfigError(f"mesh.overlap: must be a number in [0, 0.1 × radius), got {overlap!r}")
 
     def build(gmsh):
@@ -215,8 +244,12 @@ def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contac
             arcs.append([arc_l, arc_r])
             flats.append(flat)
         occ.synchronize()
-        for tag, curves, name in ((UPPER_ARC, arcs[0], "upper_arc"), (UPPER_TOP, [flats[0]], "upper_top"),
-                                  (LOWER_ARC, arcs[1], "lower_arc"), (LOWER_BOTTOM, [flats[1]], "lower_bottom")):
+        for tag, curves, name in (
+            (UPPER_ARC, arcs[0], "upper_arc"),
+            (UPPER_TOP, [flats[0]], "upper_top"),
+            (LOWER_ARC, arcs[1], "lower_arc"),
+            (LOWER_BOTTOM, [flats[1]], "lower_bottom"),
+        ):
             gmsh.model.addPhysicalGroup(1, curves, tag, name=name)
         gmsh.model.addPhysicalGroup(2, [surfaces[0]], FIRST_BODY, name="upper")
         gmsh.model.addPhysicalGroup(2, [surfaces[1]], SECOND_BODY, name="lower")
@@ -226,8 +259,9 @@ def half_disks(comm: MPI.Comm, radius: float, radius2: float, h: float, h_contac
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
 
 
-def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_contact: float,
-                    zone: float) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
+def sphere_on_block(
+    comm: MPI.Comm, radius: float, block: list, h: float, h_contact: float, zone: float
+) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """A sphere of radius R resting on an elastic block at the origin, the quarter x, y ≥ 0
     of both (3D tetrahedra, meshed independently): the octant of the sphere's lower half
     (cell tag 1; spherical surface tag 1, top z = R tag 2) and the block [0, W]² × [−H, 0]
@@ -235,8 +269,14 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
     y = W tag 7); the symmetry planes x = 0 (tag 5) and y = 0 (tag 6) of both bodies.  Mesh
     size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
-    if not (isinstance(block, list) and len(block) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in block)):
-        raise ConfigError(f"mesh.block: must be [half-width, depth] with positive numbers, got {block!r}")
+    if not (
+        isinstance(block, list)
+        and len(block) == 2
+        and all(isinstance(v, (int, float)) and v > 0 for v in block)
+    ):
+        raise ConfigError(
+            f"mesh.block: must be [half-width, depth] with positive numbers, got {block!r}"
+        )
     W, H = float(block[0]), float(block[1])
 
     def build(gmsh):
@@ -251,7 +291,9 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
         box = occ.addBox(0, 0, -H, W, W, H)
         occ.synchronize()
         tol = 1e-8 * max(R, W, H)
-        groups: dict[int, list[int]] = {k: [] for k in (SPHERE, SPHERE_TOP, BLOCK_TOP, BLOCK_BOTTOM, SYM_X, SYM_Y, BLOCK_SIDES)}
+        groups: dict[int, list[int]] = {
+            k: [] for k in (SPHERE, SPHERE_TOP, BLOCK_TOP, BLOCK_BOTTOM, SYM_X, SYM_Y, BLOCK_SIDES)
+        }
         for volume, top, bottom in ((sphere, SPHERE_TOP, None), (box, BLOCK_TOP, BLOCK_BOTTOM)):
             for _, face in gmsh.model.getBoundary([(3, volume)], oriented=False):
                 x, y, z = occ.getCenterOfMass(2, face)
@@ -265,21 +307,33 @@ def sphere_on_block(comm: MPI.Comm, radius: float, block: list, h: float, h_cont
                     assert bottom is not None  # the block has a bottom
                     kind = top if abs(z) < tol else bottom if abs(z + H) < tol else BLOCK_SIDES
                 groups[kind].append(face)
-        names = {SPHERE: "sphere", SPHERE_TOP: "sphere_top", BLOCK_TOP: "block_top", BLOCK_BOTTOM: "block_bottom",
-                 SYM_X: "x0", SYM_Y: "y0", BLOCK_SIDES: "block_sides"}
+        names = {
+            SPHERE: "sphere",
+            SPHERE_TOP: "sphere_top",
+            BLOCK_TOP: "block_top",
+            BLOCK_BOTTOM: "block_bottom",
+            SYM_X: "x0",
+            SYM_Y: "y0",
+            BLOCK_SIDES: "block_sides",
+        }
         for tag, faces in groups.items():
             gmsh.model.addPhysicalGroup(2, faces, tag, name=names[tag])
         gmsh.model.addPhysicalGroup(3, [sphere], FIRST_BODY, name="sphere")
         gmsh.model.addPhysicalGroup(3, [box], SECOND_BODY, name="block")
-        origin = [p for _, p in gmsh.model.getEntities(0)
-                  if max(abs(c) for c in gmsh.model.getValue(0, p, [])) < tol]
+        origin = [
+            p
+            for _, p in gmsh.model.getEntities(0)
+            if max(abs(c) for c in gmsh.model.getValue(0, p, [])) < tol
+        ]
         if len(origin) != 2:
             raise RuntimeError("the sphere and the block need a vertex each at the contact point")
         _size_field(gmsh, origin, h, h_contact, zone)
         gmsh.option.setNumber("Mesh.OptimizeNetgen", 1)
         gmsh.model.mesh.generate(3)
 
-    return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the sphere_on_block", gdim=3, cells=True)
+    return gmsh_to_mesh(
+        comm, build, "mesh: gmsh cannot build the sphere_on_block", gdim=3, cells=True
+    )
 
 
 @dataclass(frozen=True)
@@ -338,14 +392,16 @@ class CurvedBoundary:
         xs[:] = X[:, :gdim]
         xs[owned] = self.project(xs[owned])
         coords.scatter_forward()
-        touched = cells_touching(msh, flag.array)    # the only cells whose volume changes
+        touched = cells_touching(msh, flag.array)  # the only cells whose volume changes
         before = signed_volumes(msh, touched)
         X[on, :gdim] = xs[on]
         _, n_bad = collapsed_cells(msh, before, tol, touched)
         if n_bad:
             total = msh.topology.index_map(tdim).size_global
-            raise RuntimeError(f"snapping the refined mesh to the curved boundary (tag {self.tag}) "
-                               f"inverts or flattens {n_bad} of {total} cells")
+            raise RuntimeError(
+                f"snapping the refined mesh to the curved boundary (tag {self.tag}) "
+                f"inverts or flattens {n_bad} of {total} cells"
+            )
         return msh.comm.allreduce(len(owned), op=MPI.SUM)
 
 
@@ -358,7 +414,10 @@ def builder_surfaces(cfg: dict) -> list[CurvedBoundary]:
         R1 = float(m["radius"])
         R2 = float(m["radius2"] or R1)
         d = float(m.get("overlap") or 0.0)
-        return [CurvedBoundary((0.0, R1), R1, UPPER_ARC), CurvedBoundary((0.0, d - R2), R2, LOWER_ARC)]
+        return [
+            CurvedBoundary((0.0, R1), R1, UPPER_ARC),
+            CurvedBoundary((0.0, d - R2), R2, LOWER_ARC),
+        ]
     if m["type"] == "sphere_on_block":
         R = float(m["radius"])
         return [CurvedBoundary((0.0, 0.0, R), R, SPHERE)]
@@ -401,41 +460,47 @@ def estimated_vertices(mesh: dict) -> float:
     Parameters are checked first (ConfigError as the builders raise)."""
     kind = mesh["type"]
     R, h, h_c, zone = _check(mesh["radius"], mesh["h"], mesh["h_contact"], mesh["zone"])
-    bodies: list[tuple] = []   # (φ(x) for points x of shape (gdim, ...), contact point, reach)
+    bodies: list[tuple] = []  # (φ(x) for points x of shape (gdim, ...), contact point, reach)
     if kind in ("quarter_disk", "half_disks"):
         R2 = _check(mesh["radius2"] or R, h, h_c, zone, "radius2")[0] if kind == "half_disks" else R
         d = float(mesh.get("overlap") or 0.0)
         for Rk, s, y0 in ((R, 1.0, 0.0),) + (((R2, -1.0, d),) if kind == "half_disks" else ()):
+
             def disk(x, Rk=Rk, s=s, y0=y0, half=kind == "quarter_disk"):
                 c = y0 + s * Rk
                 phi = np.maximum(np.hypot(x[0], x[1] - c) - Rk, s * (x[1] - c))
                 return np.maximum(phi, -x[0]) if half else phi
+
             bodies.append((disk, np.array([0.0, y0]), 2 * Rk))
     else:
+
         def octant(x):
             ball = np.sqrt(x[0] ** 2 + x[1] ** 2 + (x[2] - R) ** 2) - R
             return np.maximum.reduce([ball, -x[0], -x[1], x[2] - R])
+
         bodies.append((octant, np.zeros(3), 2 * R))
         if kind == "sphere_on_block":
             W, H = (float(v) for v in mesh["block"])
+
             def block(x):
                 return np.maximum.reduce([-x[0], x[0] - W, -x[1], x[1] - W, x[2], -H - x[2]])
+
             bodies.append((block, np.zeros(3), math.sqrt(2 * W * W + H * H)))
     gdim = len(bodies[0][1])
     interior, boundary = VERTEX_DENSITY[gdim]
     directions = _directions(gdim)
-    points = [p for _, p, _ in bodies]   # the size field measures the distance to the nearest
+    points = [p for _, p, _ in bodies]  # the size field measures the distance to the nearest
     total = 0.0
     for phi, p, reach in bodies:
         r = np.geomspace(min(h_c, zone) * 1e-3, 1.2 * reach, 200)
-        x = p[:, None, None] + r[None, :, None] * directions[:, None, :]   # (gdim, r, direction)
+        x = p[:, None, None] + r[None, :, None] * directions[:, None, :]  # (gdim, r, direction)
         dist = np.min([np.linalg.norm(x - q[:, None, None], axis=0) for q in points], axis=0)
         size = np.minimum(h_c + GRADING * np.maximum(dist - zone, 0.0), h)
         level = phi(x)
         band = np.abs(level) < size / 2
         density = (interior * (level <= 0) + boundary * band) * size ** (-gdim)
         sphere = 2 * math.pi * r if gdim == 2 else 4 * math.pi * r**2
-        f = sphere * density.mean(axis=1)   # the integral over the sphere of radius r
+        f = sphere * density.mean(axis=1)  # the integral over the sphere of radius r
         total += float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(r)))
     return total
 
@@ -452,7 +517,9 @@ def _directions(gdim: int) -> np.ndarray:
     return np.array([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z])
 
 
-def _check(radius, h, h_contact, zone, radius_key: str = "radius") -> tuple[float, float, float, float]:
+def _check(
+    radius, h, h_contact, zone, radius_key: str = "radius"
+) -> tuple[float, float, float, float]:
     """The four parameters as floats; a ConfigError naming the first bad one."""
     values = {radius_key: radius, "h": h, "h_contact": h_contact, "zone": zone}
     for name, value in values.items():

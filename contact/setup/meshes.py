@@ -8,25 +8,37 @@ tags (:func:`contact.setup.geometry.gmsh_to_mesh`, which also builds the paramet
 (:func:`map_geometry`) before its boundary parts are tagged.  Boundary parts become one
 facet ``MeshTags`` whose values are the part ids.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-from mpi4py import MPI
-
 import basix.ufl
+import numpy as np
 import ufl
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
-from . import expressions
 from ..base.errors import ConfigError
-from .geometry import (collapsed_cells, gmsh_to_mesh, half_disks, quarter_disk, signed_volumes,
-                       sphere_octant, sphere_on_block, vertex_nodes)
+from . import expressions
+from .geometry import (
+    collapsed_cells,
+    gmsh_to_mesh,
+    half_disks,
+    quarter_disk,
+    signed_volumes,
+    sphere_octant,
+    sphere_on_block,
+    vertex_nodes,
+)
 
-_DIAGONALS = {"left": dmesh.DiagonalType.left, "right": dmesh.DiagonalType.right,
-              "crossed": dmesh.DiagonalType.crossed, "left/right": dmesh.DiagonalType.left_right,
-              "right/left": dmesh.DiagonalType.right_left}
+_DIAGONALS = {
+    "left": dmesh.DiagonalType.left,
+    "right": dmesh.DiagonalType.right,
+    "crossed": dmesh.DiagonalType.crossed,
+    "left/right": dmesh.DiagonalType.left_right,
+    "right/left": dmesh.DiagonalType.right_left,
+}
 
 
 NATURAL = "(natural)"  # name of the part of unmarked exterior facets
@@ -56,12 +68,21 @@ def mesh_dimension(cfg: dict) -> int | None:
     mesh = cfg["mesh"]
     if mesh["type"] == "blocks":
         return len(mesh["blocks"][0]["corners"][0])
-    return {"rectangle": 2, "unit_square": 2, "lshape": 2, "quarter_disk": 2, "half_disks": 2,
-            "box": 3, "sphere_octant": 3, "sphere_on_block": 3}.get(mesh["type"])
+    return {
+        "rectangle": 2,
+        "unit_square": 2,
+        "lshape": 2,
+        "quarter_disk": 2,
+        "half_disks": 2,
+        "box": 3,
+        "sphere_octant": 3,
+        "sphere_on_block": 3,
+    }.get(mesh["type"])
 
 
-def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
-               ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
+def build_mesh(
+    cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
+) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
     """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given), its facet
     tags (gmsh files and builders) and cell tags (gmsh physical volumes / surfaces, the
     block numbers of mesh type blocks), ``None`` where the mesh has none."""
@@ -71,8 +92,13 @@ def build_mesh(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
     return msh, tags, (cells[0] if cells else None)
 
 
-def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] | None = None,
-                 key: str = "mesh.map", tol: float = 1e-12) -> None:
+def map_geometry(
+    msh: dmesh.Mesh,
+    exprs: list[str],
+    constants: dict[str, float] | None = None,
+    key: str = "mesh.map",
+    tol: float = 1e-12,
+) -> None:
     """Move every geometry node x of ``msh`` to Φ(x) = (exprs[0], exprs[1](, exprs[2]))(x).
 
     The expressions are in the coordinates x, y, z of the mesh as built and give the new
@@ -101,8 +127,10 @@ def map_geometry(msh: dmesh.Mesh, exprs: list[str], constants: dict[str, float] 
         where = next(p for p in comm.allgather(first) if p)[0]
         at = ", ".join(f"{c} = {v:.4g}" for c, v in zip("xyz", where))
         total = msh.topology.index_map(msh.topology.dim).size_global
-        raise ConfigError(f"{key}: the map inverts or flattens {n_bad} of {total} cells (Jacobian "
-                          f"determinant ≤ 0), e.g. the cell at {at} (unmapped)")
+        raise ConfigError(
+            f"{key}: the map inverts or flattens {n_bad} of {total} cells (Jacobian "
+            f"determinant ≤ 0), e.g. the cell at {at} (unmapped)"
+        )
 
 
 def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
@@ -111,12 +139,20 @@ def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags |
     kind = m["type"]
     if kind in ("rectangle", "unit_square"):
         corners = m["corners"] if kind == "rectangle" else [[0.0, 0.0], [1.0, 1.0]]
-        return dmesh.create_rectangle(comm, [np.array(c, dtype=float) for c in corners], m["cells"],
-                                      cell_type=dmesh.CellType.triangle,
-                                      diagonal=_DIAGONALS[m["diagonal"]]), None
+        return dmesh.create_rectangle(
+            comm,
+            [np.array(c, dtype=float) for c in corners],
+            m["cells"],
+            cell_type=dmesh.CellType.triangle,
+            diagonal=_DIAGONALS[m["diagonal"]],
+        ), None
     if kind == "box":
-        return dmesh.create_box(comm, [np.array(c, dtype=float) for c in m["corners"]], m["cells"],
-                                cell_type=dmesh.CellType.tetrahedron), None
+        return dmesh.create_box(
+            comm,
+            [np.array(c, dtype=float) for c in m["corners"]],
+            m["cells"],
+            cell_type=dmesh.CellType.tetrahedron,
+        ), None
     if kind == "lshape":
         return lshape(comm, m["cells"][0], m["diagonal"]), None
     if kind in ("quarter_disk", "sphere_octant"):  # gmsh, built from the parameters
@@ -126,8 +162,15 @@ def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags |
         return blocks(comm, m["blocks"], m["diagonal"])
     if kind in ("half_disks", "sphere_on_block"):  # two gmsh bodies, built from the parameters
         if kind == "half_disks":
-            return half_disks(comm, m["radius"], m["radius2"] or m["radius"], m["h"], m["h_contact"], m["zone"],
-                              m["overlap"] or 0.0)
+            return half_disks(
+                comm,
+                m["radius"],
+                m["radius2"] or m["radius"],
+                m["h"],
+                m["h_contact"],
+                m["zone"],
+                m["overlap"] or 0.0,
+            )
         return sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
     return _read_gmsh(m["file"], comm)
 
@@ -152,12 +195,18 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
     else:
         X, cells = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
     element = ufl.Mesh(basix.ufl.element("Lagrange", "triangle", 1, shape=(2,)))
-    return dmesh.create_mesh(comm, cells, element, X,
-                             partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+    return dmesh.create_mesh(
+        comm,
+        cells,
+        element,
+        X,
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+    )
 
 
-def blocks(comm: MPI.Comm, specs: list[dict], diagonal: str = "right"
-           ) -> tuple[dmesh.Mesh, None, dmesh.MeshTags]:
+def blocks(
+    comm: MPI.Comm, specs: list[dict], diagonal: str = "right"
+) -> tuple[dmesh.Mesh, None, dmesh.MeshTags]:
     """Structured blocks meshed independently into one mesh (disconnected components, no
     shared nodes, so their meshes need not match where they touch): triangles (2D, each
     rectangle split along its ``diagonal``, left or right) or tetrahedra (3D, six per box,
@@ -178,21 +227,32 @@ def blocks(comm: MPI.Comm, specs: list[dict], diagonal: str = "right"
     counts = comm.bcast(counts, root=0)
     shape = "triangle" if gdim == 2 else "tetrahedron"
     element = ufl.Mesh(basix.ufl.element("Lagrange", shape, 1, shape=(gdim,)))
-    msh = dmesh.create_mesh(comm, cells, element, X,
-                            partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2))
+    msh = dmesh.create_mesh(
+        comm,
+        cells,
+        element,
+        X,
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+    )
     tdim = msh.topology.dim
     n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
     original = np.asarray(msh.topology.original_cell_index[:n_all])
     block = np.searchsorted(np.cumsum(counts), original, side="right") + 1
-    return msh, None, dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), block.astype(np.int32))
+    return (
+        msh,
+        None,
+        dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), block.astype(np.int32)),
+    )
 
 
 def _structured(corners: np.ndarray, n: list[int], diagonal: str) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and simplices of one structured block with ``n`` cells per direction."""
     axes = [np.linspace(lo, hi, k + 1) for lo, hi, k in zip(corners[0], corners[1], n)]
     X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(n))
-    ijk = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1).reshape(-1, len(n))
-    strides = np.cumprod([1] + [k + 1 for k in n[::-1]])[::-1][1:]    # vertex (i, j[, k]) → index
+    ijk = np.stack(np.meshgrid(*[np.arange(k) for k in n], indexing="ij"), axis=-1).reshape(
+        -1, len(n)
+    )
+    strides = np.cumprod([1] + [k + 1 for k in n[::-1]])[::-1][1:]  # vertex (i, j[, k]) → index
     corner = lambda *offs: (ijk + np.array(offs)) @ strides  # noqa: E731
     if len(n) == 2:
         v00, v10, v01, v11 = corner(0, 0), corner(1, 0), corner(0, 1), corner(1, 1)
@@ -204,12 +264,20 @@ def _structured(corners: np.ndarray, n: list[int], diagonal: str) -> tuple[np.nd
     return X, np.vstack([np.c_[tuple(v[b] for b in t)] for t in tets])
 
 
-def _read_gmsh(path: str, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
-    return gmsh_to_mesh(comm, lambda gmsh: gmsh.merge(path), f"mesh.file: cannot read {path!r} as a gmsh mesh",
-                        cells=True)
+def _read_gmsh(
+    path: str, comm: MPI.Comm
+) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
+    return gmsh_to_mesh(
+        comm,
+        lambda gmsh: gmsh.merge(path),
+        f"mesh.file: cannot read {path!r} as a gmsh mesh",
+        cells=True,
+    )
 
 
-def tag_bodies(msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = None) -> dmesh.MeshTags | None:
+def tag_bodies(
+    msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = None
+) -> dmesh.MeshTags | None:
     """Cell tags of the scene's ``bodies`` (value k + 1 for the k-th body, on every local
     cell, ghosts included), or None for a scene without bodies.  A body takes the cells of
     a mesh cell tag (``tag``) or those whose midpoint satisfies ``where``.  A body with no
@@ -229,7 +297,10 @@ def tag_bodies(msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = No
         if body["tag"] is not None:
             if body["tag"] not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
-                raise ConfigError(f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell " f"tags: {known})")
+                raise ConfigError(
+                    f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell "
+                    f"tags: {known})"
+                )
             cells = cell_tags.indices[cell_tags.values == body["tag"]]
         else:
             if midpoints is None:
@@ -249,7 +320,9 @@ def tag_bodies(msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = No
     return dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), value)
 
 
-def body_facets(msh: dmesh.Mesh, bodies: dmesh.MeshTags, body: int, facets: np.ndarray) -> np.ndarray:
+def body_facets(
+    msh: dmesh.Mesh, bodies: dmesh.MeshTags, body: int, facets: np.ndarray
+) -> np.ndarray:
     """The exterior ``facets`` whose cell belongs to body number ``body`` (1-based)."""
     tdim = msh.topology.dim
     f2c = msh.topology.connectivity(tdim - 1, tdim)
@@ -257,8 +330,12 @@ def body_facets(msh: dmesh.Mesh, bodies: dmesh.MeshTags, body: int, facets: np.n
     return facets[bodies.values[first_cell] == body]
 
 
-def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None = None,
-                   bodies: dmesh.MeshTags | None = None) -> Boundary:
+def tag_boundaries(
+    msh: dmesh.Mesh,
+    cfg: dict,
+    file_tags: dmesh.MeshTags | None = None,
+    bodies: dmesh.MeshTags | None = None,
+) -> Boundary:
     """Mark every boundary part of ``cfg['boundaries']`` on the exterior facets.
 
     A ``where`` predicate selects exterior facets all of whose vertices satisfy it; a
@@ -281,22 +358,29 @@ def tag_boundaries(msh: dmesh.Mesh, cfg: dict, file_tags: dmesh.MeshTags | None 
         if part["tag"] is not None:
             if file_tags is None or part["tag"] not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
-                raise ConfigError(f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh " f"file (facet tags: {known})")
+                raise ConfigError(
+                    f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh "
+                    f"file (facet tags: {known})"
+                )
             facets = file_tags.indices[file_tags.values == part["tag"]]
         if part["where"] is not None:
             pred = expressions.to_numpy(part["where"], cfg["constants"])
-            located = dmesh.locate_entities_boundary(msh, tdim - 1, lambda x, pred=pred: pred(x).astype(bool))
+            located = dmesh.locate_entities_boundary(
+                msh, tdim - 1, lambda x, pred=pred: pred(x).astype(bool)
+            )
             facets = np.intersect1d(facets, located)
         if part.get("body") is not None:
             facets = body_facets(msh, bodies, list(cfg["bodies"]).index(part["body"]) + 1, facets)
         if part["tag"] is not None and part["where"] is None and part.get("body") is None:
-            pid = part["tag"]           # the whole gmsh group keeps its tag
+            pid = part["tag"]  # the whole gmsh group keeps its tag
         else:
             pid = next_id
             next_id += 1
         if comm.allreduce(len(facets), op=MPI.SUM) == 0:
-            what = " and ".join(([f"tag {part['tag']}"] if part["tag"] is not None else [])
-                                + ([f"where {part['where']!r}"] if part["where"] is not None else []))
+            what = " and ".join(
+                ([f"tag {part['tag']}"] if part["tag"] is not None else [])
+                + ([f"where {part['where']!r}"] if part["where"] is not None else [])
+            )
             what += f" on body {part['body']}" if part.get("body") is not None else ""
             raise ConfigError(f"boundaries.{name}: {what} selects no boundary facet")
         ids[name], roles[name] = pid, part["role"]

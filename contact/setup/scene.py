@@ -2,17 +2,17 @@
 
 ``load_scene`` is the entry point of the data flow  config → scene → solver → output.
 """
+
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Optional
+from typing import Any
 
 import numpy as np
-
-from mpi4py import MPI
-
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 from ..base.errors import ConfigError
 from .config import load_config
@@ -36,12 +36,12 @@ class Scene:
     time: float = 1.0
     history: dict = field(default_factory=dict)
     _t_constant: Any = field(default=None, repr=False)
-    bodies: dmesh.MeshTags | None = None    # cell tags k + 1 of the k-th body (scenes with bodies)
+    bodies: dmesh.MeshTags | None = None  # cell tags k + 1 of the k-th body (scenes with bodies)
     # the mesh's own facet tags (gmsh groups), carried by refinement
     surfaces: dmesh.MeshTags | None = None
     #: for a scene made by :func:`contact.refine`: (the scene it was refined from, the parent
     #: cell of each new cell) — the coarser meshes grid sequencing solves on first
-    parent: Optional[tuple["Scene", np.ndarray]] = None
+    parent: tuple[Scene, np.ndarray] | None = None
 
     @property
     def t_constant(self):
@@ -71,21 +71,33 @@ class Scene:
 def require_scene(scene: Any) -> None:
     """ValueError unless ``scene`` is a :class:`Scene` (argument check of the public API)."""
     if not isinstance(scene, Scene):
-        raise ValueError(f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}")
+        raise ValueError(
+            f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}"
+        )
 
 
-def load_scene(source: str | Path | Mapping[str, Any], overrides: list[str] | tuple[str, ...] = (),
-               comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
+def load_scene(
+    source: str | Path | Mapping[str, Any],
+    overrides: list[str] | tuple[str, ...] = (),
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> Scene:
     """Read and validate a scene (YAML path or dict), build its mesh and tag its boundary.
 
     ``overrides`` are ``"key.path=value"`` strings as given to ``contact run --set``.
     Raises :class:`contact.ConfigError` with a one-line message on any bad input.
     """
     if isinstance(source, bool) or not isinstance(source, (str, Path, Mapping)):
-        raise ConfigError(f"source: expected a scene file path or a mapping, got {type(source).__name__}")
-    if isinstance(overrides, (str, bytes)) or not isinstance(overrides, (list, tuple)) \
-            or not all(isinstance(o, str) for o in overrides):
-        raise ConfigError(f"overrides: expected a list of 'key.path=value' strings, got {overrides!r:.80}")
+        raise ConfigError(
+            f"source: expected a scene file path or a mapping, got {type(source).__name__}"
+        )
+    if (
+        isinstance(overrides, (str, bytes))
+        or not isinstance(overrides, (list, tuple))
+        or not all(isinstance(o, str) for o in overrides)
+    ):
+        raise ConfigError(
+            f"overrides: expected a list of 'key.path=value' strings, got {overrides!r:.80}"
+        )
     return build_scene(load_config(source, overrides), comm)
 
 
@@ -104,7 +116,9 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     if gdim is None:
         _check_solver(cfg, msh.geometry.dim, comm)
     bodies = tag_bodies(msh, cfg, cell_tags)
-    scene = Scene(cfg, msh, tag_boundaries(msh, cfg, file_tags, bodies), bodies=bodies, surfaces=file_tags)
+    scene = Scene(
+        cfg, msh, tag_boundaries(msh, cfg, file_tags, bodies), bodies=bodies, surfaces=file_tags
+    )
     # a declared surface that does not fit the mesh is bad input now, not at the first refinement
     boundary_surfaces(cfg, msh.geometry.dim, scene.boundary)
     return scene
@@ -114,4 +128,8 @@ def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:
     """The scene's PETSc options work with the model's default linear solver."""
     from ..solvers.options import check_petsc_options, default_options
 
-    check_petsc_options(cfg["solver"]["petsc_options"], default_options(cfg["solver"].get("linear", "auto"), gdim, comm.size), comm)
+    check_petsc_options(
+        cfg["solver"]["petsc_options"],
+        default_options(cfg["solver"].get("linear", "auto"), gdim, comm.size),
+        comm,
+    )

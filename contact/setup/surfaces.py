@@ -14,12 +14,12 @@ the refined mesh's vertices of that part onto the surface.  :func:`looks_curved`
 polygonal contact boundary from a discretized curve, for the one-line warning a gmsh
 scene without a declared surface gets when it is refined.
 """
+
 from __future__ import annotations
 
 import warnings
 
 import numpy as np
-
 from dolfinx import mesh as dmesh
 
 from ..base.errors import ConfigError
@@ -47,12 +47,22 @@ def declared_surface(name: str, spec: dict, gdim: int, tag: int) -> CurvedBounda
         raise ConfigError(f"{key}.center: needs {gdim} coordinates, got {len(centre)}")
     axis = spec.get("axis")
     if (axis is not None) != (spec["type"] == "cylinder"):
-        raise ConfigError(f"{key}.axis: " + ("required for a cylinder" if axis is None else
-                                            f"only for a cylinder, not a {spec['type']}"))
+        raise ConfigError(
+            f"{key}.axis: "
+            + (
+                "required for a cylinder"
+                if axis is None
+                else f"only for a cylinder, not a {spec['type']}"
+            )
+        )
     if axis is not None and (len(axis) != 3 or not np.any(axis)):
         raise ConfigError(f"{key}.axis: must be a non-zero vector of 3 numbers, got {axis!r}")
-    return CurvedBoundary(centre=tuple(float(c) for c in centre), radius=float(spec["radius"]), tag=tag,
-                          axis=None if axis is None else tuple(float(a) for a in axis))
+    return CurvedBoundary(
+        centre=tuple(float(c) for c in centre),
+        radius=float(spec["radius"]),
+        tag=tag,
+        axis=None if axis is None else tuple(float(a) for a in axis),
+    )
 
 
 def boundary_surfaces(cfg: dict, gdim: int, boundary: Boundary) -> list[CurvedBoundary]:
@@ -83,7 +93,11 @@ def ridge_angles(facets: np.ndarray) -> np.ndarray:
     owners: dict[tuple, list[int]] = {}
     for f in range(len(facets)):
         verts = [tuple(v) for v in keys[f]]
-        ridges = verts if d == 2 else [tuple(sorted((verts[i], verts[j]))) for i, j in ((0, 1), (1, 2), (0, 2))]
+        ridges = (
+            verts
+            if d == 2
+            else [tuple(sorted((verts[i], verts[j]))) for i, j in ((0, 1), (1, 2), (0, 2))]
+        )
         for r in ridges:
             owners.setdefault(r, []).append(f)
     pairs = np.array([fs for fs in owners.values() if len(fs) == 2], dtype=int).reshape(-1, 2)
@@ -117,9 +131,11 @@ def warn_undeclared_curves(cfg: dict, msh: dmesh.Mesh, boundary: Boundary) -> No
             continue
         _checked[key] = looks_curved(msh, boundary, name)
         if _checked[key] and msh.comm.rank == 0:
-            warnings.warn(f"boundaries.{name}: the contact boundary of {cfg['mesh']['file']} looks curved "
-                          "but declares no surface; refinement keeps its chords (declare "
-                          "boundaries."
-                          f"{name}.surface: {{type: circle|sphere|cylinder, center, radius}})", ContactWarning,
-                          stacklevel=2)
-
+            warnings.warn(
+                f"boundaries.{name}: the contact boundary of {cfg['mesh']['file']} looks curved "
+                "but declares no surface; refinement keeps its chords (declare "
+                "boundaries."
+                f"{name}.surface: {{type: circle|sphere|cylinder, center, radius}})",
+                ContactWarning,
+                stacklevel=2,
+            )

@@ -18,9 +18,18 @@ that build a scene's problem and run them live above, in :mod:`contact.drivers`.
 * :mod:`.options` — PETSc options (each linear solver's defaults);
 * :mod:`.snes` — one solve from an initial guess; :mod:`.result` — its outcome.
 """
+
 from .linear import default_linear_solver
 from .options import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant
 from .result import Result, newton_text, owned_residual, solves_text
 
-__all__ = ["DEFAULT_PETSC_OPTIONS", "ELASTICITY_3D_PETSC_OPTIONS", "Result", "default_linear_solver",
-           "method_variant", "newton_text", "owned_residual", "solves_text"]
+__all__ = [
+    "DEFAULT_PETSC_OPTIONS",
+    "ELASTICITY_3D_PETSC_OPTIONS",
+    "Result",
+    "default_linear_solver",
+    "method_variant",
+    "newton_text",
+    "owned_residual",
+    "solves_text",
+]

@@ -65,15 +65,15 @@ B and D identity / zero on every other node: two node-block matrices, one sparse
 over nodes.  Components fixed by a symmetry or Dirichlet condition keep their rows
 (``free`` masks them out of |z| and of the blocks).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-from dolfinx import fem
 
 from . import ncp
 from .linear import attach_near_nullspace
@@ -83,7 +83,7 @@ from .result import Result
 
 FORMS = ("projection", "hsw")
 SEPARATED, STICK, SLIP = 0, 1, 2
-SLIP_TIE = 1e-11   # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
+SLIP_TIE = 1e-11  # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
 STATUS_NAMES = {SEPARATED: "separated", STICK: "stick", SLIP: "slip"}
 
 
@@ -91,15 +91,21 @@ STATUS_NAMES = {SEPARATED: "separated", STICK: "stick", SLIP: "slip"}
 class TangentialLaw:
     """C and its derivative element (J_μ, J_s, J_ρ) per node, and the node's state."""
 
-    C: np.ndarray      # (n, m)  μ_t − P_B(ρ)(z)
-    J_mu: np.ndarray   # (n, m, m)
-    J_s: np.ndarray    # (n, m, m)
+    C: np.ndarray  # (n, m)  μ_t − P_B(ρ)(z)
+    J_mu: np.ndarray  # (n, m, m)
+    J_s: np.ndarray  # (n, m, m)
     J_rho: np.ndarray  # (n, m)
     stick: np.ndarray  # (n,) bool: |z| < (1 − SLIP_TIE) ρ
 
 
-def tangential_law(mu_t: np.ndarray, s: np.ndarray, rho: np.ndarray, c_t: np.ndarray,
-                   free: np.ndarray, form: str = "projection") -> TangentialLaw:
+def tangential_law(
+    mu_t: np.ndarray,
+    s: np.ndarray,
+    rho: np.ndarray,
+    c_t: np.ndarray,
+    free: np.ndarray,
+    form: str = "projection",
+) -> TangentialLaw:
     """The tangential equation C = μ_t − P_B(ρ)(μ_t + c_t s) = 0 and the generalized-
     derivative element of ``form`` (see the module doc), vectorised over nodes.  Components
     with ``free`` False are absent (zero in z, C and the blocks)."""
@@ -118,18 +124,28 @@ def tangential_law(mu_t: np.ndarray, s: np.ndarray, rho: np.ndarray, c_t: np.nda
     P = np.where(stick[:, None], z, np.where(slip[:, None], rho[:, None] * zhat, 0.0))
     C = mu_t - P
     eye = np.eye(m)[None, :, :] * np.ones((n, 1, 1))
-    pair = mask[:, :, None] * mask[:, None, :]            # free × free entries only
+    pair = mask[:, :, None] * mask[:, None, :]  # free × free entries only
     ratio = np.where(slip, rho / safe, 0.0)[:, None, None]
     if form == "projection":
         M = ratio * (eye - zhat[:, :, None] * zhat[:, None, :])
         J_mu_slip, J_s_slip = eye - M, -c_t[:, None, None] * M
-    else:   # HSW's modification: μ_t in the rank-one term projected onto B(ρ)
-        mu_b = mu_t * (rho / np.maximum(np.maximum(rho, np.linalg.norm(mu_t, axis=1)), 1e-300))[:, None]
+    else:  # HSW's modification: μ_t in the rank-one term projected onto B(ρ)
+        mu_b = (
+            mu_t
+            * (rho / np.maximum(np.maximum(rho, np.linalg.norm(mu_t, axis=1)), 1e-300))[:, None]
+        )
         outer = mu_b[:, :, None] * zhat[:, None, :] / safe[:, None, None]
         J_mu_slip = (1.0 - ratio) * eye + outer
         J_s_slip = c_t[:, None, None] * (outer - ratio * eye)
     J_mu = np.where(stick[:, None, None], 0.0, np.where(slip[:, None, None], J_mu_slip, eye)) * pair
-    J_s = np.where(stick[:, None, None], -c_t[:, None, None] * eye, np.where(slip[:, None, None], J_s_slip, 0.0)) * pair
+    J_s = (
+        np.where(
+            stick[:, None, None],
+            -c_t[:, None, None] * eye,
+            np.where(slip[:, None, None], J_s_slip, 0.0),
+        )
+        * pair
+    )
     J_rho = np.where(stick[:, None], 0.0, -zhat) * mask
     return TangentialLaw(C * mask, J_mu, J_s, J_rho, stick)
 
@@ -144,7 +160,7 @@ class FrictionalComplementarity(Complementarity):
         self.fs = fs
         self.bs = problem.V.dofmap.index_map_bs
         self.nodes = self.dofs // self.bs
-        self.threshold = fs.threshold     # Tresca's ρ (the fixed point replaces it)
+        self.threshold = fs.threshold  # Tresca's ρ (the fixed point replaces it)
         self.coulomb = fs.law == "coulomb" and self.threshold is None
         self.B, self.D = NodeBlockMatrix(problem.K, self.bs), NodeBlockMatrix(problem.K, self.bs)
 
@@ -163,10 +179,20 @@ class FrictionalComplementarity(Complementarity):
         mu_t = -r[fs.tangent] / self.w[:, None]
         s = x.array_r[fs.tangent] - fs.x_prev
         law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
-        return {"a": a, "b": b, "mu_n": mu_n, "xi": xi, "rho": rho, "mu_t": mu_t * fs.free,
-                "s": s * fs.free, "law": law}
+        return {
+            "a": a,
+            "b": b,
+            "mu_n": mu_n,
+            "xi": xi,
+            "rho": rho,
+            "mu_t": mu_t * fs.free,
+            "s": s * fs.free,
+            "law": law,
+        }
 
-    def phi(self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    def phi(
+        self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """f = Φ(x): R on free rows, the normal NCP rows and Φ_t = −w C on tangential rows."""
         st = self.evaluate(x)
         a, b = st["a"], st["b"]
@@ -181,19 +207,19 @@ class FrictionalComplementarity(Complementarity):
         """H = B K + D, the generalized-Jacobian element at x (module doc)."""
         fs, st = self.fs, self.evaluate(x)
         law = st["law"]
-        tau = self.tie_tolerance(st["a"], st["b"])   # kinks of φ and of ρ = F·max(0, ξ)
+        tau = self.tie_tolerance(st["a"], st["b"])  # kinks of φ and of ρ = F·max(0, ξ)
         da, db = ncp.dphi(st["a"], st["b"], method, mu, tau)
         Bv, Dv = self.B.identity(), np.zeros((self.B.local_nodes, self.bs, self.bs))
         nodes, k, t = self.nodes, fs.n_comp, fs.t_comps
         rows = (nodes[:, None, None], t[None, :, None], t[None, None, :])
         Bv[nodes, k, k] = db
         Dv[nodes, k, k] = (self.w / self.c) * da
-        eye = np.eye(fs.m)[None] * (~fs.free)[:, :, None]          # fixed components keep R
+        eye = np.eye(fs.m)[None] * (~fs.free)[:, :, None]  # fixed components keep R
         Bv[rows] = law.J_mu + eye
         Dv[rows] = -self.w[:, None, None] * law.J_s
         if self.coulomb:
             assert fs.coefficient is not None  # a Coulomb set has its coefficient F
-            gate = self.sign * fs.coefficient * ncp.active_min(st["a"], st["b"], tau)   # [ξ > 0]
+            gate = self.sign * fs.coefficient * ncp.active_min(st["a"], st["b"], tau)  # [ξ > 0]
             Bv[nodes[:, None], t[None, :], k] = gate[:, None] * law.J_rho
             Dv[nodes[:, None], t[None, :], k] = -(self.w * gate / self.c)[:, None] * law.J_rho
         self.B.set(Bv).matMult(self.p.K, result=H)
@@ -218,16 +244,33 @@ class FrictionalComplementarity(Complementarity):
             obj.destroy()
 
 
-def setup_friction_newton(snes: PETSc.SNES, problem: DiscreteProblem, cp: FrictionalComplementarity,
-                          opts: dict, timers: dict, state: dict, petsc_opts: dict) -> PETSc.Mat:
+def setup_friction_newton(
+    snes: PETSc.SNES,
+    problem: DiscreteProblem,
+    cp: FrictionalComplementarity,
+    opts: dict,
+    timers: dict,
+    state: dict,
+    petsc_opts: dict,
+) -> PETSc.Mat:
     """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts['method']``):
     the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix."""
     method, mu = opts["method"], opts["mu"]
     J = cp.matrix()
     attach_near_nullspace(problem, J)
-    set_newton(snes, problem, J, lambda x, f: cp.phi(x, f, method, mu),
-               lambda x, P: cp.block_jacobian(x, P, method, mu), opts, timers, state, petsc_opts)
+    set_newton(
+        snes,
+        problem,
+        J,
+        lambda x, f: cp.phi(x, f, method, mu),
+        lambda x, P: cp.block_jacobian(x, P, method, mu),
+        opts,
+        timers,
+        state,
+        petsc_opts,
+    )
     return J
+
 
 def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: PETSc.Vec) -> dict:
     """Nodal results of a frictional solve (owned contact nodes): λ_n, λ_t (n, m), ρ, the
@@ -236,14 +279,25 @@ def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: 
     st = cp.evaluate(x)
     status = cp.status(x, st)
     lam_t = -st["mu_t"]
-    return {"lambda_n": -st["mu_n"], "lambda_t": lam_t, "rho": np.asarray(st["rho"], dtype=float),
-            "slip": st["s"], "status": status, "gap": st["a"], "lambda_t_vec": tangential_vector(cp.fs, lam_t),
-            "slip_vec": tangential_vector(cp.fs, st["s"]), "w": cp.w}
+    return {
+        "lambda_n": -st["mu_n"],
+        "lambda_t": lam_t,
+        "rho": np.asarray(st["rho"], dtype=float),
+        "slip": st["s"],
+        "status": status,
+        "gap": st["a"],
+        "lambda_t_vec": tangential_vector(cp.fs, lam_t),
+        "slip_vec": tangential_vector(cp.fs, st["s"]),
+        "w": cp.w,
+    }
 
 
 def status_counts(comm: MPI.Comm, status: np.ndarray) -> dict[str, int]:
     """Global numbers of separated / stick / slip contact nodes."""
-    return {name: comm.allreduce(int(np.sum(status == code)), op=MPI.SUM) for code, name in STATUS_NAMES.items()}
+    return {
+        name: comm.allreduce(int(np.sum(status == code)), op=MPI.SUM)
+        for code, name in STATUS_NAMES.items()
+    }
 
 
 def tangential_vector(fs: FrictionSet, values: np.ndarray) -> np.ndarray:
@@ -267,7 +321,10 @@ def surface_functions(result: Result) -> list[fem.Function]:
         fn.x.array[(nodes[:, None] * bs + np.arange(values.shape[1])).ravel()] = values.ravel()
         fn.x.scatter_forward()
         out.append(fn)
-    for name, values, off in (("status", fr["status"].astype(float), -1.0), ("bound", fr["rho"], 0.0)):
+    for name, values, off in (
+        ("status", fr["status"].astype(float), -1.0),
+        ("bound", fr["rho"], 0.0),
+    ):
         fn = fem.Function(V)
         fn.x.array[:] = off
         fn.x.array[con.dofs] = values

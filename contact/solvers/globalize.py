@@ -41,11 +41,13 @@ semi-coercive scene on CG + GAMG, whose first system has no solution.  ``basic``
 plain Newton-min (PDAS, cycles included); ``bt`` is PETSc's backtracking from the first
 step.  :func:`contact.solvers.lcp.newton_lcp` runs the same rules on a dense LCP.
 """
+
 from __future__ import annotations
 
 import hashlib
 import time
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from mpi4py import MPI
@@ -56,9 +58,9 @@ from ..base.norms import norm2
 if TYPE_CHECKING:
     from .newton import Complementarity
 
-ARMIJO = 1e-4        # sufficient decrease of ½‖Φ‖² per unit step
+ARMIJO = 1e-4  # sufficient decrease of ½‖Φ‖² per unit step
 MIN_STEP = 2.0**-30  # the backtracking stops below this step length
-WATCHDOG = 5         # iterates in a row without a new smallest ‖Φ‖ that count as a cycle
+WATCHDOG = 5  # iterates in a row without a new smallest ‖Φ‖ that count as a cycle
 
 
 def backtrack(merit: Callable[[float], float], merit0: float) -> float:
@@ -85,8 +87,8 @@ class CycleGuard:
     def __init__(self, comm: MPI.Comm | None = None):
         self.comm = comm
         self.seen: set[tuple] = set()
-        self.engaged_at: int | None = None   # the iteration at which a cycle was told
-        self.why = ""                        # "repeat" or "stagnation"
+        self.engaged_at: int | None = None  # the iteration at which a cycle was told
+        self.why = ""  # "repeat" or "stagnation"
         self.iteration = 0
         self.best, self.since_best = np.inf, 0
         self.last: tuple | None = None
@@ -94,10 +96,13 @@ class CycleGuard:
     def visit(self, active: np.ndarray, fnorm: float) -> bool:
         """Record the active set (a boolean mask; this rank's part under MPI, collective)
         and ‖Φ‖ of the next iterate; True from the first sign of a cycle on (backtrack)."""
-        digest = hashlib.blake2b(np.packbits(np.asarray(active, dtype=bool)).tobytes(),
-                                 digest_size=16, person=len(active).to_bytes(8, "little")).digest()
+        digest = hashlib.blake2b(
+            np.packbits(np.asarray(active, dtype=bool)).tobytes(),
+            digest_size=16,
+            person=len(active).to_bytes(8, "little"),
+        ).digest()
         key = tuple(self.comm.allgather(digest)) if self.comm is not None else (digest,)
-        if self.iteration > 0:   # not the cold start's ‖Φ‖: a first PDAS step often raises it
+        if self.iteration > 0:  # not the cold start's ‖Φ‖: a first PDAS step often raises it
             self.since_best = 0 if fnorm < self.best else self.since_best + 1
             self.best = min(self.best, fnorm)
         # the previous iterate's set again is PDAS's last step (its linear problem solved
@@ -119,7 +124,7 @@ class GuardedMin:
     :func:`backtrack` (the line search proper stays ``basic``).  ``backtracked`` counts the
     steps it shortened; residual evaluations are added to ``timers['assembly']``."""
 
-    def __init__(self, cp: "Complementarity", mu: float, timers: dict, verbose: bool = False):
+    def __init__(self, cp: Complementarity, mu: float, timers: dict, verbose: bool = False):
         self.cp, self.mu, self.timers, self.verbose = cp, mu, timers, verbose
         self.guard = CycleGuard(cp.p.b.getComm().tompi4py())
         self.W, self.F = cp.p.b.duplicate(), cp.p.b.duplicate()
@@ -133,10 +138,16 @@ class GuardedMin:
         first = self.guard.engaged_at is None
         if self.guard.visit(cp.active_set(a, b), fnorm):
             if first and self.verbose and x.getComm().getRank() == 0:
-                what = ("its active set was seen before" if self.guard.why == "repeat" else
-                        f"{WATCHDOG} iterates without a new smallest |Phi|")
-                print(f"  min: a cycle at iteration {self.guard.engaged_at} ({what}): "
-                      "backtracking on |Phi|^2 from here", flush=True)
+                what = (
+                    "its active set was seen before"
+                    if self.guard.why == "repeat"
+                    else f"{WATCHDOG} iterates without a new smallest |Phi|"
+                )
+                print(
+                    f"  min: a cycle at iteration {self.guard.engaged_at} ({what}): "
+                    "backtracking on |Phi|^2 from here",
+                    flush=True,
+                )
             t = backtrack(self._merit(x, y), 0.5 * fnorm**2)
             if t != 1.0:
                 y.scale(t)
@@ -149,6 +160,7 @@ class GuardedMin:
             self.W.axpy(-t, y)
             self.cp.phi(self.W, self.F, "min", self.mu)
             return 0.5 * norm2(self.F) ** 2
+
         return merit
 
     def destroy(self) -> None:

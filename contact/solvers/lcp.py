@@ -24,6 +24,7 @@ off-diagonal 2 per row, q = −(1, 1, 1); from x = (−1, 1, 0) each step moves 
 entry one place along, and after three steps the iterate is back (a 3-cycle, no step at a
 kink), while the solution is x* = (1, 1, 1)/3.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -64,14 +65,23 @@ def is_p_matrix(M: np.ndarray) -> bool:
     return True
 
 
-def lcp_residual(M: np.ndarray, q: np.ndarray, x: np.ndarray, method: str, mu: float = 0.5) -> np.ndarray:
+def lcp_residual(
+    M: np.ndarray, q: np.ndarray, x: np.ndarray, method: str, mu: float = 0.5
+) -> np.ndarray:
     """Φ(x) = φ(x, M x + q) componentwise."""
     return ncp.phi(x, M @ x + q, method, mu)
 
 
-def newton_lcp(M: np.ndarray, q: np.ndarray, x0: np.ndarray, method: str = "min",
-               line_search: str = "basic", mu: float = 0.5, tol: float = 1e-12,
-               max_it: int = 50) -> LCPResult:
+def newton_lcp(
+    M: np.ndarray,
+    q: np.ndarray,
+    x0: np.ndarray,
+    method: str = "min",
+    line_search: str = "basic",
+    mu: float = 0.5,
+    tol: float = 1e-12,
+    max_it: int = 50,
+) -> LCPResult:
     """Semismooth Newton on Φ(x) = φ(x, M x + q) = 0 from ``x0`` (module doc): each step
     solves H y = −Φ with H = diag(∂_a φ) + diag(∂_b φ) M and goes to x + t y, t = 1
     (``basic``), t of :func:`~contact.solvers.globalize.backtrack` (``bt``), or ``auto``:
@@ -97,6 +107,7 @@ def newton_lcp(M: np.ndarray, q: np.ndarray, x0: np.ndarray, method: str = "min"
         t = 1.0
         cycle = guard is not None and guard.visit(ncp.active_min(x, w), np.sqrt(2.0 * merit))
         if line_search == "bt" or cycle:
+
             def merit_at(t: float, x: np.ndarray = x, y: np.ndarray = y) -> float:
                 return 0.5 * float(np.sum(lcp_residual(M, q, x + t * y, method, mu) ** 2))
 

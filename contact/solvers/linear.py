@@ -12,12 +12,13 @@ the reduced system's inner KSP for ``gamg``.  With ``auto``, petsc_options namin
 ``ksp_type`` or ``pc_type`` select the assembled path with exactly those options (as before
 ``solver.linear`` existed).
 """
+
 from __future__ import annotations
 
 from petsc4py import PETSc
 
-from .problem import DiscreteProblem
 from .options import default_options
+from .problem import DiscreteProblem
 from .reduced import ReducedSystem
 
 LINEAR = ("auto", "direct", "gamg", "bcgs")
@@ -28,7 +29,9 @@ DIRECT_MAX_DOFS_2D = 5_000
 DIRECT_MAX_DOFS_3D = 0
 
 
-def choose_linear(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
+def choose_linear(
+    problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None
+) -> str:
     """The linear solver of ``solver.linear`` for the diagonal Newton law (``auto``
     resolved by size and dimension)."""
     if linear != "auto":
@@ -46,7 +49,9 @@ def _user_solver(petsc_options: dict | None) -> bool:
     return petsc_options is not None and bool({"ksp_type", "pc_type"} & set(petsc_options))
 
 
-def assembled_kind(problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None) -> str:
+def assembled_kind(
+    problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None
+) -> str:
     """The linear solver of a Newton matrix that stays assembled (friction's block law
     H = B K + D, not symmetric; PETSc's VI solvers on K): ``direct``, or BiCGStab + GAMG
     (``bcgs``) when ``solver.linear`` asks for an iterative solver, and by default for 3D
@@ -85,8 +90,8 @@ class AssembledSystem:
         self.J = problem.K.duplicate(copy=True)
         attach_near_nullspace(problem, self.J)
         self._problem = problem
-        self.ksp = ksp         # SNES's KSP (:meth:`configure`)
-        self.H: PETSc.Mat | None = None   # the polishing system's matrix, made when first needed
+        self.ksp = ksp  # SNES's KSP (:meth:`configure`)
+        self.H: PETSc.Mat | None = None  # the polishing system's matrix, made when first needed
         self.krylov_iterations = 0
         self.stop = 0.0
 
@@ -142,8 +147,15 @@ class ReducedNewtonSystem(ReducedSystem):
 
     resumable = True
 
-    def solve_law(self, s: PETSc.Vec, d: PETSc.Vec, F: PETSc.Vec, y: PETSc.Vec,
-                  rtol: float | None = None, resume: bool = False) -> None:
+    def solve_law(
+        self,
+        s: PETSc.Vec,
+        d: PETSc.Vec,
+        F: PETSc.Vec,
+        y: PETSc.Vec,
+        rtol: float | None = None,
+        resume: bool = False,
+    ) -> None:
         """y = H⁻¹ F for another law (polishing); ``rtol`` and ``resume`` as in
         :meth:`.reduced.ReducedSystem.solve`.  The Newton law stays the one the matrix-free J
         applies; the next Newton step rebuilds its own A."""

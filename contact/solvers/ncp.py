@@ -51,6 +51,7 @@ above.
 Each function exists for NumPy arrays (``phi``/``dphi``, used by the solver and tests)
 and for UFL operands (``phi_ufl``, used in forms), from the same formulas.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -125,8 +126,9 @@ def phi(a: np.ndarray, b: np.ndarray, method: str, mu: float = 0.5) -> np.ndarra
     raise ValueError(f"unknown NCP function {method!r}; expected one of {', '.join(METHODS)}")
 
 
-def dphi(a: np.ndarray, b: np.ndarray, method: str, mu: float = 0.5,
-         tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def dphi(
+    a: np.ndarray, b: np.ndarray, method: str, mu: float = 0.5, tol: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Generalized-derivative element (∂_a φ, ∂_b φ) of ``method``; kinks within ``tol``
     take the documented tie / biactive element."""
     if method == "fb":

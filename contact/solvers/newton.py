@@ -25,6 +25,7 @@ definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
 ``auto``, the default: plain Newton, and for min backtracking once a cycle shows,
 :mod:`.globalize`).
 """
+
 from __future__ import annotations
 
 import time
@@ -33,10 +34,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .problem import DiscreteProblem
 from . import ncp
 from .globalize import GuardedMin
 from .polish import Polisher
+from .problem import DiscreteProblem
 
 
 class Complementarity:
@@ -80,14 +81,18 @@ class Complementarity:
         a, b, _ = self.pair(x)
         return self.active_set(a, b)
 
-    def phi(self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    def phi(
+        self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """f = Φ(x): R on free rows, −σ (w/c) φ(a, b) on constrained rows; returns (a, b)."""
         a, b, _ = self.pair(x)
         self.R.copy(f)
         f.array_w[self.dofs] = -self.sign * (self.w / self.c) * ncp.phi(a, b, method, mu)
         return a, b
 
-    def law(self, a: np.ndarray, b: np.ndarray, method: str, mu: float) -> tuple[PETSc.Vec, PETSc.Vec]:
+    def law(
+        self, a: np.ndarray, b: np.ndarray, method: str, mu: float
+    ) -> tuple[PETSc.Vec, PETSc.Vec]:
         """The diagonal law of the generalized-Jacobian element at the pair (a, b):
         H = diag(s) K + diag(d), s_i = ∂_b φ, d_i = (w_i / c_i) ∂_a φ on constrained rows,
         s_i = 1, d_i = 0 elsewhere (kinks within :meth:`tie_tolerance`: the documented
@@ -104,9 +109,16 @@ class Complementarity:
             obj.destroy()
 
 
-def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, timers: dict,
-                 state: dict, petsc_opts: dict,
-                 verbose: bool = False) -> Polisher | GuardedMin | None:
+def setup_newton(
+    snes: PETSc.SNES,
+    cp: Complementarity,
+    system,
+    opts: dict,
+    timers: dict,
+    state: dict,
+    petsc_opts: dict,
+    verbose: bool = False,
+) -> Polisher | GuardedMin | None:
     """Make ``snes`` semismooth Newton on Φ of ``opts['method']`` ∈ {fb, min, blend}:
     residual Φ and Jacobian callbacks (the Jacobian callback hands the law (s, d) to the
     Newton ``system`` of :mod:`.linear`, which builds its operator), the line search, and
@@ -121,8 +133,17 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
         a, b, _ = cp.pair(x)
         system.set_law(*cp.law(a, b, method, mu))
 
-    set_newton(snes, cp.p, system.J, lambda x, f: cp.phi(x, f, method, mu), jacobian,
-               opts, timers, state, petsc_opts)
+    set_newton(
+        snes,
+        cp.p,
+        system.J,
+        lambda x, f: cp.phi(x, f, method, mu),
+        jacobian,
+        opts,
+        timers,
+        state,
+        petsc_opts,
+    )
     precheck: Polisher | GuardedMin | None = None
     if opts["polish"] and method != "min":
         precheck = Polisher(cp, method, mu, system, timers)
@@ -133,14 +154,24 @@ def setup_newton(snes: PETSc.SNES, cp: Complementarity, system, opts: dict, time
     return precheck
 
 
-def set_newton(snes: PETSc.SNES, problem: DiscreteProblem, J: PETSc.Mat, phi, jacobian, opts: dict,
-               timers: dict, state: dict, petsc_opts: dict) -> None:
+def set_newton(
+    snes: PETSc.SNES,
+    problem: DiscreteProblem,
+    J: PETSc.Mat,
+    phi,
+    jacobian,
+    opts: dict,
+    timers: dict,
+    state: dict,
+    petsc_opts: dict,
+) -> None:
     """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
     ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
     both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
     (the linear solve's clock starts there).  PETSc's line search ``opts['line_search']``
     (``auto``: ``basic``, the cycle guard being a pre-check) unless the PETSc options say
     otherwise."""
+
     def residual(snes, x, f):
         t0 = time.perf_counter()
         phi(x, f)

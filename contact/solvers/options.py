@@ -2,10 +2,12 @@
 linear solver (a function of its kind and the dimension alone, known before any mesh
 exists), and PETSc's options database (set, read, errors as one line).  The scene's
 ``solver`` section with call-time overrides is :func:`contact.drivers.solve.solver_options`."""
+
 from __future__ import annotations
 
 import itertools
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -13,7 +15,11 @@ from petsc4py import PETSc
 from ..base.errors import ConfigError, petsc_message
 from .reduced import REDUCED_PETSC_OPTIONS
 
-DEFAULT_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+DEFAULT_PETSC_OPTIONS = {
+    "ksp_type": "preonly",
+    "pc_type": "lu",
+    "pc_factor_mat_solver_type": "mumps",
+}
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
 ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
 
@@ -68,7 +74,9 @@ def set_from_options(snes: PETSc.SNES, *inner: PETSc.KSP) -> None:
         for ksp in inner:
             ksp.setFromOptions()
     except PETSc.Error as err:
-        raise ConfigError(f"solver.petsc_options: PETSc rejected the options ({petsc_message(err)})") from None
+        raise ConfigError(
+            f"solver.petsc_options: PETSc rejected the options ({petsc_message(err)})"
+        ) from None
     finally:
         PETSc.Sys.popErrorHandler()
 
@@ -82,8 +90,9 @@ def petsc_value(val: Any) -> str:
 _checks = itertools.count()
 
 
-def check_petsc_options(options: Mapping[str, Any], defaults: Mapping[str, Any],
-                        comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+def check_petsc_options(
+    options: Mapping[str, Any], defaults: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD
+) -> None:
     """Refuse PETSc options that PETSc cannot set up, before any mesh is built: the
     ``options`` (``solver.petsc_options``) over the model's ``defaults`` configure a SNES
     (newtonls) that solves a tiny linear system — the 1D Laplacian, 4 rows per rank, as
@@ -98,7 +107,9 @@ def check_petsc_options(options: Mapping[str, Any], defaults: Mapping[str, Any],
         return
     for key, value in options.items():  # which option is it?
         if _tiny_solve({**defaults, key: value}, comm) is not None:
-            raise ConfigError(f"solver.petsc_options.{key}: PETSc cannot use {petsc_value(value)!r} ({problem})")
+            raise ConfigError(
+                f"solver.petsc_options.{key}: PETSc cannot use {petsc_value(value)!r} ({problem})"
+            )
     raise ConfigError(f"solver.petsc_options: PETSc cannot use these options together ({problem})")
 
 
@@ -109,8 +120,11 @@ def _tiny_solve(options: Mapping[str, Any], comm: MPI.Comm) -> str | None:
     lo, hi = A.getOwnershipRange()
     size = A.getSize()[0]
     for i in range(lo, hi):
-        A.setValues(i, [j for j in (i - 1, i, i + 1) if 0 <= j < size],
-                    [-1.0 if j != i else 2.0 for j in (i - 1, i, i + 1) if 0 <= j < size])
+        A.setValues(
+            i,
+            [j for j in (i - 1, i, i + 1) if 0 <= j < size],
+            [-1.0 if j != i else 2.0 for j in (i - 1, i, i + 1) if 0 <= j < size],
+        )
     A.assemble()
     b, x, f = A.createVecLeft(), A.createVecRight(), A.createVecLeft()
     b.set(1.0)

@@ -1,4 +1,5 @@
 """Active-set polishing of fb / blend Newton steps (``solver.polish``)."""
+
 from __future__ import annotations
 
 import time
@@ -38,12 +39,12 @@ class Polisher:
     its SPD operator.
     """
 
-    def __init__(self, cp: "Complementarity", method: str, mu: float, system, timers: dict):
+    def __init__(self, cp: Complementarity, method: str, mu: float, system, timers: dict):
         problem = cp.p
         self.cp, self.method, self.mu, self.system, self.timers = cp, method, mu, system, timers
         self.W, self.FW, self.FP, self.dP = (problem.b.duplicate() for _ in range(4))
         self.solves, self.accepted = 0, False
-        self.taken: float | None = None   # ‖step‖ of the last attempt, None if none was made
+        self.taken: float | None = None  # ‖step‖ of the last attempt, None if none was made
         self.initial_accepted = False
         self.done = 0.0  # ‖Φ‖ at which SNES stops: a Newton point below it needs no polishing
 
@@ -56,7 +57,10 @@ class Polisher:
         a_w, b_w = cp.phi(W, self.FW, self.method, self.mu)  # one residual evaluation per point
         a, b = cp.phi(x, self.FP, "min", self.mu)
         same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
-        if not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND) or norm2(self.FW) <= self.done:
+        if (
+            not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND)
+            or norm2(self.FW) <= self.done
+        ):
             self.timers["assembly"] += time.perf_counter() - t0
             return
         self.taken = norm2(y)
@@ -99,7 +103,7 @@ class Polisher:
         s, d = cp.law(a, b, "min", self.mu)
         self.system.stop = stop
         t1 = time.perf_counter()
-        if self.system.resumable:   # a first look at the step, finished if it keeps the active set
+        if self.system.resumable:  # a first look at the step, finished if it keeps the active set
             self.system.solve_law(s, d, self.FP, self.dP, rtol=STAGE_RTOL)
             x.copy(self.W)
             self.W.axpy(-1.0, self.dP)
@@ -125,5 +129,3 @@ class Polisher:
         for obj in (self.W, self.FW, self.FP, self.dP):
             obj.destroy()
         self.system = self.cp = None  # type: ignore[assignment]  # released: unused after destroy
-
-

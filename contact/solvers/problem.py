@@ -15,16 +15,16 @@ x ≥ ψ.  λ_i is the nodal multiplier density (a flux or a pressure).
 A frictional problem adds the tangential unknowns of the contact nodes and the data of
 their friction law (:class:`FrictionSet`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-from dolfinx import fem
 
 from ..base.lifetime import destroy
 
@@ -34,9 +34,9 @@ class Constraint:
     """The nodal complementarity set: owned local DoF indices with bound, weight and sign."""
 
     dofs: np.ndarray  # owned local indices into the PETSc vector
-    g: np.ndarray     # bound g_i (Signorini gap) or ψ_i (obstacle) at those DoFs
-    w: np.ndarray     # lumped weights w_i > 0
-    sign: float       # σ = +1: u ≤ g ; σ = −1: u ≥ ψ
+    g: np.ndarray  # bound g_i (Signorini gap) or ψ_i (obstacle) at those DoFs
+    w: np.ndarray  # lumped weights w_i > 0
+    sign: float  # σ = +1: u ≤ g ; σ = −1: u ≥ ψ
     # the size of what g is computed from, in the units of u: a gap measured between node
     # coordinates X carries round-off ≈ ε max|X| (coincident surfaces give ±1e-16 instead of
     # 0, its sign set by the partition), so kinks are decided relative to it too
@@ -61,36 +61,42 @@ class DiscreteProblem:
     c: np.ndarray | float | None = None
     # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
     end_dofs: np.ndarray | None = None
-    end_neighbours: np.ndarray | None = None # the nearest constrained DoF of each (local index)
+    end_neighbours: np.ndarray | None = None  # the nearest constrained DoF of each (local index)
     # Output of nodal fields on a scalar space S (S = V for scalar models; the contact
     # component's collapsed subspace for elasticity, with the S → V DoF map):
     output_space: fem.FunctionSpace | None = None
     output_map: np.ndarray | None = None
-    output_bound: fem.Function | None = None   # the bound (g, ψ or n_k g) on S
-    lambda_sign: float = 1.0                    # λ reported = lambda_sign · R_i / w_i
+    output_bound: fem.Function | None = None  # the bound (g, ψ or n_k g) on S
+    lambda_sign: float = 1.0  # λ reported = lambda_sign · R_i / w_i
     near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
-    basis: PETSc.Mat | None = None   # Q with u = Q x: per-node rotations to (n, t) axes, or None
+    basis: PETSc.Mat | None = None  # Q with u = Q x: per-node rotations to (n, t) axes, or None
     # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
     basis_inverse: PETSc.Mat | None = None
     # output-space DoFs of the contact nodes (multi-body problems)
     output_nodes: np.ndarray | None = None
-    data: dict = field(default_factory=dict)   # UFL data (k, f, t, t_C, g, exact) for estimators
+    data: dict = field(default_factory=dict)  # UFL data (k, f, t, t_C, g, exact) for estimators
     assembly_time: float = 0.0
-    in_domain: bool = False          # the constraint holds in Ω (obstacle), not on Γ_C
+    in_domain: bool = False  # the constraint holds in Ω (obstacle), not on Γ_C
     # no Dirichlet DoF: K is singular (constants), held by the constraint alone
     semicoercive: bool = False
     floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
-    symmetric_copies: int = 1        # copies of the modelled part the body stands for (symmetry)
-    symmetry_axes: tuple[int, ...] = ()   # k of the mirror planes x_k = c behind those copies
-    friction: Any = None   # FrictionSet (below) of a frictional scene, else None
+    symmetric_copies: int = 1  # copies of the modelled part the body stands for (symmetry)
+    symmetry_axes: tuple[int, ...] = ()  # k of the mirror planes x_k = c behind those copies
+    friction: Any = None  # FrictionSet (below) of a frictional scene, else None
 
     def destroy(self) -> None:
         """Destroy the PETSc objects of the problem (K, b, Q, Q⁻¹, the near-nullspace, the
         mortar matrices); its functions stay usable.  Call it once the problem's last result
         is done with (:meth:`contact.solvers.result.Result.release`)."""
         couplings = self.data.get("couplings") or []
-        destroy(self.K, self.b, self.basis, self.basis_inverse, self.near_nullspace,
-                *(c.M for c in couplings))
+        destroy(
+            self.K,
+            self.b,
+            self.basis,
+            self.basis_inverse,
+            self.near_nullspace,
+            *(c.M for c in couplings),
+        )
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = R(x) = K x − b."""
@@ -188,18 +194,18 @@ class FrictionSet:
     Arrays are per owned contact node, in the order of ``problem.constraint.dofs``; m is the
     number of tangential directions (gdim − 1)."""
 
-    law: str                       # "tresca" | "coulomb"
-    n_comp: int                    # position of the normal unknown in the node's block
-    t_comps: np.ndarray            # (m,) positions of the tangential unknowns in the block
-    tangent: np.ndarray            # (n, m) owned local indices of the tangential unknowns
-    free: np.ndarray               # (n, m) bool: not fixed by a Dirichlet/symmetry condition
-    frames: np.ndarray             # (n, gdim, m) the tangent vectors t_i in global axes
-    c_t: np.ndarray                # (n,) tangential scaling (stress per length)
-    threshold: np.ndarray | None   # (n,) Tresca: s(x_i, t) (stress)
-    coefficient: float | None      # Coulomb: F
-    x_prev: np.ndarray             # (n, m) tangential unknowns at the previous load step
-    form: str = "hsw"              # tangential NCP: hsw | projection
-    coulomb: str = "ssn"           # Coulomb solver: ssn | fixed_point
+    law: str  # "tresca" | "coulomb"
+    n_comp: int  # position of the normal unknown in the node's block
+    t_comps: np.ndarray  # (m,) positions of the tangential unknowns in the block
+    tangent: np.ndarray  # (n, m) owned local indices of the tangential unknowns
+    free: np.ndarray  # (n, m) bool: not fixed by a Dirichlet/symmetry condition
+    frames: np.ndarray  # (n, gdim, m) the tangent vectors t_i in global axes
+    c_t: np.ndarray  # (n,) tangential scaling (stress per length)
+    threshold: np.ndarray | None  # (n,) Tresca: s(x_i, t) (stress)
+    coefficient: float | None  # Coulomb: F
+    x_prev: np.ndarray  # (n, m) tangential unknowns at the previous load step
+    form: str = "hsw"  # tangential NCP: hsw | projection
+    coulomb: str = "ssn"  # Coulomb solver: ssn | fixed_point
     fixed_point_rtol: float = 1e-10
     fixed_point_max_it: int = 100
 

@@ -46,6 +46,7 @@ and the step is solved to that stopping value at once: one more step ends the it
 This applies to diagonal laws only; a block law (friction, H = B K + D) uses the
 assembled system of :mod:`.linear`.
 """
+
 from __future__ import annotations
 
 import time
@@ -58,11 +59,11 @@ from ..base.norms import norm2
 
 # s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
 FIXED = 1e-8
-ETA_MAX = 0.1     # the loosest forcing term
+ETA_MAX = 0.1  # the loosest forcing term
 POOR_PROGRESS = 0.5  # ‖Φ_k‖ > 0.5 ‖Φ_{k−1}‖: the next forcing term is at most a tenth of the last
 GAMMA, ALPHA = 0.9, 2.0
 EXACT_RTOL = 1e-10
-LAG_MIN_ITS = 5     # a lagged preconditioner may always take this many iterations more
+LAG_MIN_ITS = 5  # a lagged preconditioner may always take this many iterations more
 #: what one GAMG set-up costs, in CG iterations of the system it preconditions (measured:
 #: 5.6-6.8 on the 512² square, 10 on hertz_3d, 12 on hertz_2d after the first set-up).  A
 #: constant, not a clock reading: the lagging decisions, hence the Newton path, must be the
@@ -72,8 +73,14 @@ SETUP_ITERATIONS = 8
 #: PETSc options of the inner solve (``solver.petsc_options`` override them)
 #: (``pc_use_amat false``: GAMG's smoothers use P, not the operator A that changes under a
 #: lagged preconditioner — with A their Chebyshev bounds would not fit and CG breaks down)
-REDUCED_PETSC_OPTIONS = {"ksp_type": "cg", "ksp_norm_type": "unpreconditioned", "pc_type": "gamg",
-                         "pc_gamg_reuse_interpolation": True, "pc_use_amat": False, "ksp_rtol": EXACT_RTOL}
+REDUCED_PETSC_OPTIONS = {
+    "ksp_type": "cg",
+    "ksp_norm_type": "unpreconditioned",
+    "pc_type": "gamg",
+    "pc_gamg_reuse_interpolation": True,
+    "pc_use_amat": False,
+    "ksp_rtol": EXACT_RTOL,
+}
 
 
 class ReducedSystem:
@@ -84,10 +91,15 @@ class ReducedSystem:
     side.  ``J`` is a matrix-free H (y = s ⊙ K x + d ⊙ x) for SNES, whose own KSP is a
     single application of :meth:`solve` (:meth:`configure`)."""
 
-    def __init__(self, K: PETSc.Mat, near_nullspace: PETSc.NullSpace | None, prefix: str,
-                 forcing: bool = True):
+    def __init__(
+        self,
+        K: PETSc.Mat,
+        near_nullspace: PETSc.NullSpace | None,
+        prefix: str,
+        forcing: bool = True,
+    ):
         self.K = K
-        self.A = K.duplicate(copy=True)   # the reduced operator
+        self.A = K.duplicate(copy=True)  # the reduced operator
         # the matrix GAMG was last built from (= A, or an earlier A)
         self.P = K.duplicate(copy=True)
         if near_nullspace is not None:
@@ -99,14 +111,14 @@ class ReducedSystem:
         self.ksp.setOptionsPrefix(prefix)
         self.ksp.setOperators(self.A, self.P)
         self.forcing = forcing
-        self.stop = 0.0                  # SNES's stopping value of ‖Φ‖ (set by the solver)
+        self.stop = 0.0  # SNES's stopping value of ‖Φ‖ (set by the solver)
         self.previous: tuple[float, float] | None = None  # ‖Φ‖ and η of the last Newton solve
-        self.guess = False               # the iteration starts from a guess: first step exact
+        self.guess = False  # the iteration starts from a guess: first step exact
         # the law A holds, the law of the last Newton solve
         self._held: tuple[np.ndarray, np.ndarray] | None = None
         self._newton: tuple[np.ndarray, np.ndarray] | None = None
         self.krylov_iterations = 0
-        self.log: list[dict] = []        # one entry per inner solve: rtol, iterations, seconds
+        self.log: list[dict] = []  # one entry per inner solve: rtol, iterations, seconds
         self.fixed_rows = 0
         self.fixed = np.zeros(K.getLocalSize()[0], dtype=bool)
         self._rtol, self._max_it = EXACT_RTOL, 10000
@@ -114,8 +126,8 @@ class ReducedSystem:
         self.lag = True
         self._fresh_rate: float | None = None
         self._lag_ok, self._lagged = False, False
-        self.rebuilds = 0                # lagged solves that had to rebuild GAMG midway
-        self.restarts = 0                # solves started over with a new GAMG after a breakdown
+        self.rebuilds = 0  # lagged solves that had to rebuild GAMG midway
+        self.restarts = 0  # solves started over with a new GAMG after a breakdown
         m, n = K.getSizes()
         self.J = PETSc.Mat().createPython((m, n), context=_MatrixFreeH(self), comm=K.getComm())  # type: ignore[arg-type]
         self.J.setUp()
@@ -170,8 +182,14 @@ class ReducedSystem:
         self.ksp.getPC().setReusePreconditioner(False)
         self._lagged = False
 
-    def solve(self, F: PETSc.Vec, y: PETSc.Vec, newton: bool = False, rtol: float | None = None,
-              resume: bool = False) -> None:
+    def solve(
+        self,
+        F: PETSc.Vec,
+        y: PETSc.Vec,
+        newton: bool = False,
+        rtol: float | None = None,
+        resume: bool = False,
+    ) -> None:
         """y = H⁻¹ F for the current law; ``newton`` marks a Newton step (forcing applies).
         ``rtol`` loosens a solve that is not a Newton step (a first look, :meth:`resume`
         may finish it); ``resume`` goes on from y, the last solve's result for this F and
@@ -181,7 +199,7 @@ class ReducedSystem:
         sa, da, fa = self.s.array_r, self.d.array_r, F.array_r
         yx = self.y_fixed.array_w
         yx[:] = np.where(fixed, fa / np.where(fixed, da, 1.0), 0.0)
-        self.K.mult(self.y_fixed, self.work)                       # K y_X
+        self.K.mult(self.y_fixed, self.work)  # K y_X
         r = self.r.array_w
         with np.errstate(divide="ignore", invalid="ignore"):
             r[:] = np.where(fixed, yx, fa / np.where(fixed, 1.0, sa) - self.work.array_r)
@@ -192,7 +210,7 @@ class ReducedSystem:
             same = self._same(self._newton, sa, da)
             rtol = self._rtol if same else self._forcing(norm2(F))
             self._newton = (sa.copy(), da.copy())
-        atol = 0.05 * self.stop                                    # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
+        atol = 0.05 * self.stop  # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
         t0 = time.perf_counter()
         r0 = norm2(self.r)
         if not newton and not resume and self._lagged:
@@ -200,7 +218,7 @@ class ReducedSystem:
             # for loose Newton solves, which overrate it (hertz_3d's 865k-DoF level on 2 ranks:
             # the final polish took 115 iterations with a rebuild midway, 61 on a fresh set-up)
             self._rebuild()
-        if resume:   # the exact solve's target, reached from y
+        if resume:  # the exact solve's target, reached from y
             atol, rtol = max(atol, self._rtol * r0), 0.0
             self.ksp.setInitialGuessNonzero(True)
         try:
@@ -212,8 +230,16 @@ class ReducedSystem:
         # large d makes r = F/d on those rows small while Φ = F is not)
         y.array_w[fixed] = yx[fixed]
         self.krylov_iterations += its
-        self.log.append({"rtol": rtol, "iterations": its, "seconds": time.perf_counter() - t0,
-                         "reason": self.last_reason, "fixed_rows": self.fixed_rows, "resume": resume})
+        self.log.append(
+            {
+                "rtol": rtol,
+                "iterations": its,
+                "seconds": time.perf_counter() - t0,
+                "reason": self.last_reason,
+                "fixed_rows": self.fixed_rows,
+                "resume": resume,
+            }
+        )
 
     def _krylov(self, y: PETSc.Vec, rtol: float, atol: float, r0: float) -> int:
         """The Krylov solve A y = r; returns the iterations.
@@ -311,8 +337,19 @@ class ReducedSystem:
         return eta
 
     def destroy(self) -> None:
-        for obj in (self.A, self.P, self.Kdiag, self.s, self.d, self.p, self.y_fixed, self.r, self.work,
-                    self.ksp, self.J):
+        for obj in (
+            self.A,
+            self.P,
+            self.Kdiag,
+            self.s,
+            self.d,
+            self.p,
+            self.y_fixed,
+            self.r,
+            self.work,
+            self.ksp,
+            self.J,
+        ):
             obj.destroy()
 
 

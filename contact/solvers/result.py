@@ -1,5 +1,6 @@
 """The outcome of one solve: :class:`Result`, built by :func:`finish` from the final
 iterate (u_h, the multiplier λ_h, the gap, the active set, the iteration history)."""
+
 from __future__ import annotations
 
 import functools
@@ -7,10 +8,9 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-from dolfinx import fem
 
 from .problem import DiscreteProblem
 
@@ -43,12 +43,12 @@ class Result:
     active_mask: np.ndarray
     options: dict = field(default_factory=dict)
     polish_solves: int = 0
-    backtracked: int = 0          # min, line search auto: steps shortened once a cycle showed
-    linear: str = ""              # the linear solver used (direct, gamg, bcgs)
-    krylov_iterations: int = 0    # Krylov iterations of all linear solves (0 for direct)
+    backtracked: int = 0  # min, line search auto: steps shortened once a cycle showed
+    linear: str = ""  # the linear solver used (direct, gamg, bcgs)
+    krylov_iterations: int = 0  # Krylov iterations of all linear solves (0 for direct)
     krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve
-    sequence: list = field(default_factory=list)   # coarse levels of grid sequencing (CoarseLevel)
-    sequence_note: str = ""       # why there are fewer coarse levels than asked, or none
+    sequence: list = field(default_factory=list)  # coarse levels of grid sequencing (CoarseLevel)
+    sequence_note: str = ""  # why there are fewer coarse levels than asked, or none
     contact_force: float = 0.0
     # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
     friction: dict | None = None
@@ -74,7 +74,9 @@ class Result:
     @property
     def weighted_linear_solves(self) -> float:
         """All linear solves, each weighted by its level's DoFs / the fine DoFs."""
-        return self.linear_solves + sum(lv.linear_solves * lv.dofs for lv in self.sequence) / self.dofs
+        return (
+            self.linear_solves + sum(lv.linear_solves * lv.dofs for lv in self.sequence) / self.dofs
+        )
 
     @functools.cached_property
     def dofs(self) -> int:
@@ -90,7 +92,7 @@ class Result:
         result once the next step is done (:meth:`contact.drivers.load_path.Step.release`)."""
         if self.problem is None:
             return
-        _ = self.dofs   # cached while u_h is there
+        _ = self.dofs  # cached while u_h is there
         self.problem.destroy()
         # released (the doc above): these fields are None from here on
         self.u_h = self.lmbda_h = self.gap = self.active = None  # type: ignore[assignment]
@@ -102,14 +104,18 @@ class Result:
 def not_converged_text(result: Result) -> str:
     """'did not converge (reason) after n Newton iterations, last |Phi| = r' and the
     result's hint, for the messages of a failed solve."""
-    text = (f"did not converge ({result.reason}) after {result.iterations} Newton iterations, "
-            f"last |Phi| = {result.residual:.3e}")
+    text = (
+        f"did not converge ({result.reason}) after {result.iterations} Newton iterations, "
+        f"last |Phi| = {result.residual:.3e}"
+    )
     return f"{text} ({result.hint})" if result.hint else text
 
 
 #: the hint of a failed solve on a semi-coercive scene (DiscreteProblem.semicoercive)
-SEMICOERCIVE_HINT = ("no dirichlet boundary: K is singular while no contact node is active, as in a cold "
-                     "min or vinewtonrsls step; fb and blend avoid it")
+SEMICOERCIVE_HINT = (
+    "no dirichlet boundary: K is singular while no contact node is active, as in a cold "
+    "min or vinewtonrsls step; fb and blend avoid it"
+)
 
 
 def floating_hint(floating: list[tuple[str, int]]) -> str:
@@ -118,8 +124,10 @@ def floating_hint(floating: list[tuple[str, int]]) -> str:
     name, free = floating[0]
     what = f"body {name}" if name else "the body"
     what += f" (and {len(floating) - 1} more)" if floating[1:] else ""
-    return (f"{what}: no dirichlet or symmetry part holds it, {free} rigid motion(s) free: K is "
-            "singular until contact holds it (frictionless contact never holds a sliding motion)")
+    return (
+        f"{what}: no dirichlet or symmetry part holds it, {free} rigid motion(s) free: K is "
+        "singular until contact holds it (frictionless contact never holds a sliding motion)"
+    )
 
 
 def newton_text(result: Result) -> str:
@@ -153,8 +161,9 @@ def owned_residual(result: Result) -> np.ndarray:
     return out
 
 
-def finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
-           reason_code) -> Result:
+def finish(
+    comm, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code
+) -> Result:
     """Copy the iterate into functions: u_h, and λ_h, the gap and the active set.  Timings
     count from ``t_start`` (shifted back by the assembly when this solve built the problem)."""
     u_h = problem.u_h
@@ -164,14 +173,33 @@ def finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
     active = cp.active_set(a, b)
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
     timers["total"] = time.perf_counter() - t_start
-    timers["other"] = max(timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0)
+    timers["other"] = max(
+        timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0
+    )
     converged = reason_code > 0
-    hint = "" if converged else SEMICOERCIVE_HINT if problem.semicoercive else (
-        floating_hint(problem.floating) if problem.floating else "")
-    return Result(u_h=u_h, lmbda_h=lmbda, gap=gap, active=active_fn, history=history,
-                  converged=converged, reason=REASONS.get(reason_code, str(reason_code)),
-                  iterations=snes.getIterationNumber(),
-                  residual=history[-1]["residual"] if history else float("nan"),
-                  method=method, n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
-                  timings=timers, problem=problem, active_mask=active, options=opts,
-                  contact_force=problem.contact_force(r), hint=hint)
+    hint = (
+        ""
+        if converged
+        else SEMICOERCIVE_HINT
+        if problem.semicoercive
+        else (floating_hint(problem.floating) if problem.floating else "")
+    )
+    return Result(
+        u_h=u_h,
+        lmbda_h=lmbda,
+        gap=gap,
+        active=active_fn,
+        history=history,
+        converged=converged,
+        reason=REASONS.get(reason_code, str(reason_code)),
+        iterations=snes.getIterationNumber(),
+        residual=history[-1]["residual"] if history else float("nan"),
+        method=method,
+        n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
+        timings=timers,
+        problem=problem,
+        active_mask=active,
+        options=opts,
+        contact_force=problem.contact_force(r),
+        hint=hint,
+    )

@@ -2,6 +2,7 @@
 (semismooth Newton on an NCP function, or one of PETSc's VI solvers) with a monitor that
 records the history, and the :class:`~contact.solvers.result.Result`.  The scene's part of
 a solve (its problem, options and initial guess) is :func:`contact.drivers.solve.solve`."""
+
 from __future__ import annotations
 
 import itertools
@@ -9,30 +10,37 @@ import time
 from typing import Any
 
 import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-from dolfinx import fem
 
 from ..base import progress
 from ..base.lifetime import Owner
 from . import ncp
-from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .globalize import GuardedMin
+from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .newton import Complementarity, setup_newton
-from .polish import Polisher
-from .reduced import ReducedSystem
 from .options import check_petsc_options, petsc_value, set_from_options
+from .polish import Polisher
 from .problem import DiscreteProblem, nodal_scaling
+from .reduced import ReducedSystem
 from .result import Result, finish
 from .vi import setup_vi
 
 _counter = itertools.count()
 
 
-def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: MPI.Comm,
-                  verbose: bool, guess: bool, timers: dict, t_start: float,
-                  check_options: bool = False) -> Result:
+def solve_problem(
+    problem: DiscreteProblem,
+    u0: fem.Function,
+    opts: dict,
+    comm: MPI.Comm,
+    verbose: bool,
+    guess: bool,
+    timers: dict,
+    t_start: float,
+    check_options: bool = False,
+) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
     the validated ``solver`` options ``opts``; return a :class:`Result` (never raises on
@@ -43,12 +51,19 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     method = opts["method"]
     friction = problem.friction
     if friction is not None:
-        from .friction import (FrictionalComplementarity, friction_fields, setup_friction_newton,
-                               status_counts)
+        from .friction import (
+            FrictionalComplementarity,
+            friction_fields,
+            setup_friction_newton,
+            status_counts,
+        )
 
     con = problem.constraint  # the NCP scaling follows the options of this solve
-    problem.c = (nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"]) if opts["c"] == "auto"
-                 else float(opts["c"]))
+    problem.c = (
+        nodal_scaling(problem.K, con.dofs, con.w, opts["kappa"])
+        if opts["c"] == "auto"
+        else float(opts["c"])
+    )
     user = {str(k): v for k, v in opts["petsc_options"].items()}
     # friction's block law and the VI baselines keep an assembled matrix (their own linear algebra)
     diagonal_law = friction is None and method in ncp.METHODS
@@ -58,25 +73,28 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
     if check_options:
         check_petsc_options(opts["petsc_options"], defaults, comm)
 
-    owner = Owner()   # this solve's PETSc objects, destroyed when it is done
+    owner = Owner()  # this solve's PETSc objects, destroyed when it is done
     x = owner.own(problem.b.duplicate())
     problem.to_unknowns(u0.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
     cp = owner.own((Complementarity if friction is None else FrictionalComplementarity)(problem))
     # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
-    atol = opts["atol"] * force_scale(cp, problem, method if method in ncp.METHODS else "fb",
-                                      opts["mu"])
+    atol = opts["atol"] * force_scale(
+        cp, problem, method if method in ncp.METHODS else "fb", opts["mu"]
+    )
     snes = owner.own(PETSc.SNES().create(comm))
     prefix = f"contact{next(_counter)}_"
     snes.setOptionsPrefix(prefix)
     state = {"t_jac": None, "dir_norm": np.nan}
     polisher, guard, system = None, None, None
-    if friction is not None:   # the block law H = B K + D (no polishing)
+    if friction is not None:  # the block law H = B K + D (no polishing)
         owner.own(setup_friction_newton(snes, problem, cp, opts, timers, state, petsc_opts))
     elif method in ncp.METHODS:
         system = owner.own(newton_system(problem, linear, prefix, forcing=opts["inexact"]))
         system.configure(snes, prefix + "newton_" if linear == "gamg" else prefix)
-        precheck = owner.own(setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose))
+        precheck = owner.own(
+            setup_newton(snes, cp, system, opts, timers, state, petsc_opts, verbose)
+        )
         polisher = precheck if isinstance(precheck, Polisher) else None
         guard = precheck if isinstance(precheck, GuardedMin) else None
     else:
@@ -101,7 +119,11 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         xk = snes.getSolution()
         active = cp.active(xk)
         n_active = comm.allreduce(int(active.sum()), op=MPI.SUM)
-        changed = 0 if prev["active"] is None else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
+        changed = (
+            0
+            if prev["active"] is None
+            else comm.allreduce(int((active != prev["active"]).sum()), op=MPI.SUM)
+        )
         step = np.nan
         if its > 0:
             prev["x"].axpy(-1.0, xk)
@@ -116,9 +138,17 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
                 system.stop = done
         xk.copy(prev["x"])
         prev["active"] = active
-        polished = polisher is not None and (polisher.accepted if its > 0 else polisher.initial_accepted)
-        row = {"iteration": its, "residual": float(fnorm), "step": float(step),
-               "active": n_active, "changed": changed, "polished": polished}
+        polished = polisher is not None and (
+            polisher.accepted if its > 0 else polisher.initial_accepted
+        )
+        row = {
+            "iteration": its,
+            "residual": float(fnorm),
+            "step": float(step),
+            "active": n_active,
+            "changed": changed,
+            "polished": polished,
+        }
         extra = ""
         if friction is not None:
             counts = status_counts(comm, cp.status(xk))
@@ -127,19 +157,22 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
         history.append(row)
         if verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
-            print(f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
-                  f"active {n_active:7d}  changed "
-                  f"{changed:6d}{extra}{'  polished' if row['polished'] else ''}",
-                  flush=True)
+            print(
+                f"  {method:>12s} it {its:3d}  |Phi| = {fnorm:10.3e}  step {st}  "
+                f"active {n_active:7d}  changed "
+                f"{changed:6d}{extra}{'  polished' if row['polished'] else ''}",
+                flush=True,
+            )
             progress.heard()
         else:
             progress.note(lambda: f"{method} Newton iteration {its}, |Phi| = {fnorm:.3e}")
 
     snes.setMonitor(monitor)
-    progress.watch(system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(),
-                   f"{method} linear solve")
+    progress.watch(
+        system.ksp if isinstance(system, ReducedSystem) else snes.getKSP(), f"{method} linear solve"
+    )
     popts = PETSc.Options()
-    try:   # the options stay until the solve is done: some are read at set-up (GAMG's
+    try:  # the options stay until the solve is done: some are read at set-up (GAMG's
         # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
         for key, val in petsc_opts.items():
             popts[prefix + key] = petsc_value(val)
@@ -159,8 +192,9 @@ def solve_problem(problem: DiscreteProblem, u0: fem.Function, opts: dict, comm: 
             snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts["max_it"])
         snes.solve(None, x)
         reason_code = snes.getConvergedReason()
-        result = finish(comm, problem, cp, x, snes, history, method, opts, timers, t_start,
-                        reason_code)
+        result = finish(
+            comm, problem, cp, x, snes, history, method, opts, timers, t_start, reason_code
+        )
         result.linear = linear
         if friction is not None:
             result.friction = friction_fields(problem, cp, x)
@@ -211,14 +245,22 @@ def check_guess(u0: Any, problem: DiscreteProblem) -> None:
     element and layout); else one ValueError line on every rank."""
     V = problem.V
     if not isinstance(u0, fem.Function):
-        raise ValueError(f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}")
+        raise ValueError(
+            f"u0: expected a dolfinx.fem.Function on the scene's mesh, got {type(u0).__name__}"
+        )
     W = u0.function_space
-    local = W.mesh is not V.mesh or W.ufl_element() != V.ufl_element() or \
-        W.dofmap.index_map.size_local * W.dofmap.index_map_bs != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    local = (
+        W.mesh is not V.mesh
+        or W.ufl_element() != V.ufl_element()
+        or W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+        != V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    )
     if V.mesh.comm.allreduce(bool(local), op=MPI.LOR):
         where = "another mesh" if W.mesh is not V.mesh else "another function space"
-        raise ValueError(f"u0: lives on {where} than the scene's problem; interpolate it first "
-                         "(contact.refine returns the guess on the refined mesh)")
+        raise ValueError(
+            f"u0: lives on {where} than the scene's problem; interpolate it first "
+            "(contact.refine returns the guess on the refined mesh)"
+        )
 
 
 def set_dirichlet(x: PETSc.Vec, bcs: list) -> None:

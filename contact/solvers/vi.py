@@ -6,22 +6,25 @@ with ``PETSc.INFINITY`` / ``PETSc.NINFINITY`` where a component is unbounded (la
 finite stand-ins make the FB merit cancel catastrophically).  They keep PETSc's own
 linear algebra: the Jacobian is K.
 """
+
 from __future__ import annotations
 
 import time
 
 from petsc4py import PETSc
 
-from .problem import DiscreteProblem
 from .linear import attach_near_nullspace
+from .problem import DiscreteProblem
 
 METHODS = ("vinewtonrsls", "vinewtonssls")
 
 
-def setup_vi(snes: PETSc.SNES, problem: DiscreteProblem, method: str, timers: dict,
-             state: dict) -> PETSc.Mat:
+def setup_vi(
+    snes: PETSc.SNES, problem: DiscreteProblem, method: str, timers: dict, state: dict
+) -> PETSc.Mat:
     """Make ``snes`` PETSc's VI solver ``method`` on F(x) = K x − b with the constraint
     set's bounds; returns the Jacobian matrix."""
+
     def residual(snes, x, f):
         t0 = time.perf_counter()
         problem.residual(x, f)

@@ -15,6 +15,7 @@ run times ``--repeat`` rounds and reports the fastest (the ceiling) and the medi
 Each run adds its row to ``--out`` (ranks, DoFs, repeats, the fastest and the median
 seconds of the products and of the scalings).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -23,19 +24,23 @@ import time
 from pathlib import Path
 
 import dolfinx_solver  # noqa: F401  (before dolfinx / petsc4py with the solver wheel)
-import numpy as np
-from mpi4py import MPI
 
 import dolfinx.fem.petsc
+import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--cells", type=int, default=1024)
-    ap.add_argument("--repeat", type=int, default=7, help="rounds timed (fastest and median reported)")
+    ap.add_argument(
+        "--repeat", type=int, default=7, help="rounds timed (fastest and median reported)"
+    )
     ap.add_argument("--out", default="demos/results/bandwidth.csv")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
@@ -48,7 +53,7 @@ def main() -> None:
     x.set(1.0)
     a = np.random.default_rng(comm.rank).random(20_000_000 // comm.size)
     b = np.empty_like(a)
-    K.mult(x, y)                                     # warm up
+    K.mult(x, y)  # warm up
     products, scalings = [], []
     for _ in range(args.repeat):
         comm.Barrier()
@@ -62,15 +67,24 @@ def main() -> None:
         comm.Barrier()
         products.append(t1 - t0)
         scalings.append(time.perf_counter() - t1)
-    row = {"ranks": comm.size, "dofs": K.getSize()[0], "repeat": args.repeat,
-           "matvec_100_s": round(min(products), 4), "array_scale_20_s": round(min(scalings), 4),
-           "matvec_100_median_s": round(float(np.median(products)), 4),
-           "array_scale_20_median_s": round(float(np.median(scalings)), 4)}
+    row = {
+        "ranks": comm.size,
+        "dofs": K.getSize()[0],
+        "repeat": args.repeat,
+        "matvec_100_s": round(min(products), 4),
+        "array_scale_20_s": round(min(scalings), 4),
+        "matvec_100_median_s": round(float(np.median(products)), 4),
+        "array_scale_20_median_s": round(float(np.median(scalings)), 4),
+    }
     if comm.rank == 0:
-        print(f"{comm.size} rank(s), {row['dofs']} DoFs, fastest (median) of {args.repeat}: 100 " f"products "
-              f"{row['matvec_100_s']:.3f} s ({row['matvec_100_median_s']:.3f} s), 20 scalings of "
-              f"20M entries "
-              f"{row['array_scale_20_s']:.3f} s ({row['array_scale_20_median_s']:.3f} s)", flush=True)
+        print(
+            f"{comm.size} rank(s), {row['dofs']} DoFs, fastest (median) of {args.repeat}: 100 "
+            f"products "
+            f"{row['matvec_100_s']:.3f} s ({row['matvec_100_median_s']:.3f} s), 20 scalings of "
+            f"20M entries "
+            f"{row['array_scale_20_s']:.3f} s ({row['array_scale_20_median_s']:.3f} s)",
+            flush=True,
+        )
         out = Path(args.out)
         out.parent.mkdir(parents=True, exist_ok=True)
         new = not out.exists()

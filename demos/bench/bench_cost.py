@@ -30,6 +30,7 @@ measures one solve of ``--scene`` on the mesh its ``--set`` options give (e.g. t
 configs/friction_box_3d.yaml without friction at 96×96×48 cells, 1.38M DoFs, whose coarser
 levels are boxes of cells/2^k).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,14 +38,14 @@ import statistics
 import time
 from pathlib import Path
 
+import contact
+from contact.models import build_problem
+from contact.output.folder import gather_nodal
+
 import numpy as np
+from common import save_csv
 from mpi4py import MPI
 from petsc4py import PETSc
-
-import contact
-from common import save_csv
-from contact.output.folder import gather_nodal
-from contact.models import build_problem
 
 
 def one_linear_solve(scene) -> tuple[float, float, int]:
@@ -80,15 +81,20 @@ def contact_solve(scene, method: str, sequence: str, **options):
     return max_over_ranks(time.perf_counter() - t0), max_over_ranks(time.process_time() - c0), r
 
 
-def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: int,
-            reference: dict | None) -> list[dict]:
+def measure(
+    case: str, scene, methods: list[str], sequences: list[str], repeat: int, reference: dict | None
+) -> list[dict]:
     """Rows for one scene: every method × sequencing setting, ``repeat`` alternations of
     one linear solve and one contact solve; the largest nodal difference to the solve of
     options ``reference`` (None: not compared)."""
     rows = []
     say = MPI.COMM_WORLD.rank == 0
     contact_solve(scene, methods[0], "auto")  # warm-up: JIT compilation, first-touch
-    u_ref = None if reference is None else gather_nodal(contact.solve(scene, verbose=False, **reference).u_h)[1]
+    u_ref = (
+        None
+        if reference is None
+        else gather_nodal(contact.solve(scene, verbose=False, **reference).u_h)[1]
+    )
     for method in methods:
         for sequence in sequences:
             refs, runs = [], []
@@ -102,23 +108,44 @@ def measure(case: str, scene, methods: list[str], sequences: list[str], repeat: 
             ref_cpu = statistics.median(c for _, c, _ in refs)
             wall = statistics.median(w for w, _, _ in runs)
             cpu = statistics.median(c for _, c, _ in runs)
-            row = {"case": case, "dofs": r.dofs, "ranks": MPI.COMM_WORLD.size, "method": method,
-                   "sequence": sequence, "levels": len(r.sequence) + 1,
-                   "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
-                   "coarse_solves": r.coarse_linear_solves, "newton": r.iterations, "polish": r.polish_solves,
-                   "weighted_solves": round(r.weighted_linear_solves, 3), "krylov": r.krylov_iterations,
-                   "linear": r.linear, "converged": r.converged,
-                   "ref_its": refs[-1][2], "ref_wall_s": round(ref_wall, 3), "solve_wall_s": round(wall, 3),
-                   "ratio_wall": round(wall / ref_wall, 3), "ref_cpu_s": round(ref_cpu, 3),
-                   "solve_cpu_s": round(cpu, 3), "ratio_cpu": round(cpu / ref_cpu, 3),
-                   "ratio_wall_runs": " ".join(f"{w / rw:.2f}" for (w, _, _), (rw, _, _) in zip(runs, refs)),
-                   "max_diff_vs_before": diff, "repeat": repeat}
+            row = {
+                "case": case,
+                "dofs": r.dofs,
+                "ranks": MPI.COMM_WORLD.size,
+                "method": method,
+                "sequence": sequence,
+                "levels": len(r.sequence) + 1,
+                "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
+                "coarse_solves": r.coarse_linear_solves,
+                "newton": r.iterations,
+                "polish": r.polish_solves,
+                "weighted_solves": round(r.weighted_linear_solves, 3),
+                "krylov": r.krylov_iterations,
+                "linear": r.linear,
+                "converged": r.converged,
+                "ref_its": refs[-1][2],
+                "ref_wall_s": round(ref_wall, 3),
+                "solve_wall_s": round(wall, 3),
+                "ratio_wall": round(wall / ref_wall, 3),
+                "ref_cpu_s": round(ref_cpu, 3),
+                "solve_cpu_s": round(cpu, 3),
+                "ratio_cpu": round(cpu / ref_cpu, 3),
+                "ratio_wall_runs": " ".join(
+                    f"{w / rw:.2f}" for (w, _, _), (rw, _, _) in zip(runs, refs)
+                ),
+                "max_diff_vs_before": diff,
+                "repeat": repeat,
+            }
             rows.append(row)
             if say:
-                print(f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine " f"{r.iterations}+{r.polish_solves} "
-                      f"coarse {row['coarse_solves']:3d} weighted {row['weighted_solves']:5.2f}  "
-                      f"ref {ref_wall:6.2f} s  solve {wall:7.2f} s  ratio {row['ratio_wall']:5.2f} "
-                      f"(cpu {row['ratio_cpu']:5.2f})  diff {diff:.1e}", flush=True)
+                print(
+                    f"{case:>10s} {r.dofs:9d} {method:>5s} seq {sequence:>4s}  fine "
+                    f"{r.iterations}+{r.polish_solves} "
+                    f"coarse {row['coarse_solves']:3d} weighted {row['weighted_solves']:5.2f}  "
+                    f"ref {ref_wall:6.2f} s  solve {wall:7.2f} s  ratio {row['ratio_wall']:5.2f} "
+                    f"(cpu {row['ratio_cpu']:5.2f})  diff {diff:.1e}",
+                    flush=True,
+                )
     return rows
 
 
@@ -128,6 +155,7 @@ def chart(folder: Path) -> Path:
     import csv
 
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -135,7 +163,11 @@ def chart(folder: Path) -> Path:
     for path in sorted(folder.glob("*.csv")):
         with open(path, newline="") as fh:
             for r in csv.DictReader(fh):
-                label = (f"{r['case']} ({r['ranks']} rank{'s' if r['ranks'] != '1' else ''})", r["method"], r["sequence"])
+                label = (
+                    f"{r['case']} ({r['ranks']} rank{'s' if r['ranks'] != '1' else ''})",
+                    r["method"],
+                    r["sequence"],
+                )
                 curves.setdefault(label, []).append((int(r["dofs"]), float(r["ratio_wall"])))
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     colours = {"fb": "tab:blue", "min": "tab:orange", "blend": "tab:green"}
@@ -143,9 +175,14 @@ def chart(folder: Path) -> Path:
     cases = sorted({k[0] for k in curves})
     for (case, method, sequence), pts in sorted(curves.items()):
         pts.sort()
-        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=markers[cases.index(case) % len(markers)],
-                color=colours.get(method, "k"), linestyle="-" if sequence != "off" else "--",
-                label=f"{case} {method}, sequence {sequence}")
+        ax.plot(
+            [p[0] for p in pts],
+            [p[1] for p in pts],
+            marker=markers[cases.index(case) % len(markers)],
+            color=colours.get(method, "k"),
+            linestyle="-" if sequence != "off" else "--",
+            label=f"{case} {method}, sequence {sequence}",
+        )
     ax.axhline(3.0, color="grey", lw=0.8, ls=":")
     ax.axhline(4.0, color="grey", lw=0.8, ls="-.")
     ax.set_xscale("log")
@@ -164,19 +201,35 @@ def chart(folder: Path) -> Path:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("case", choices=("square", "hertz3d", "scene", "chart"))
-    ap.add_argument("--scene", default="configs/friction_box_3d.yaml", help="scene: its file (with --set)")
-    ap.add_argument("folder", nargs="?", default="demos/results/cost", help="chart: the folder of the CSVs")
+    ap.add_argument(
+        "--scene", default="configs/friction_box_3d.yaml", help="scene: its file (with --set)"
+    )
+    ap.add_argument(
+        "folder", nargs="?", default="demos/results/cost", help="chart: the folder of the CSVs"
+    )
     ap.add_argument("--cells", type=int, nargs="+", default=[128, 256, 512, 1024])
     ap.add_argument("--methods", default="fb,min")
     ap.add_argument("--sequence", default="auto,off", help="sequencing settings to compare")
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--max-dofs", type=int, default=300000, help="hertz3d: DoF budget of the adaptive loop")
-    ap.add_argument("--set", dest="overrides", action="append", default=[],
-                    help="hertz3d: scene overrides (e.g. adapt.theta=0.3 for a finer last step)")
-    ap.add_argument("--no-before", action="store_true",
-                    help="skip the comparison with the solver as it was before (a cold solve: long in 3D)")
+    ap.add_argument(
+        "--max-dofs", type=int, default=300000, help="hertz3d: DoF budget of the adaptive loop"
+    )
+    ap.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        help="hertz3d: scene overrides (e.g. adapt.theta=0.3 for a finer last step)",
+    )
+    ap.add_argument(
+        "--no-before",
+        action="store_true",
+        help="skip the comparison with the solver as it was before (a cold solve: long in 3D)",
+    )
     ap.add_argument("--out", default="bench/cost.csv")
     args = ap.parse_args()
     if args.case == "chart":
@@ -186,25 +239,51 @@ def main() -> None:
     methods, sequences = args.methods.split(","), args.sequence.split(",")
     rows = []
     if args.case == "square":
-        before = {"method": "fb", "linear": "direct", "sequence": "off", "kappa": 100.0, "max_it": 200}
+        before = {
+            "method": "fb",
+            "linear": "direct",
+            "sequence": "off",
+            "kappa": 100.0,
+            "max_it": 200,
+        }
         for n in args.cells:
-            scene = contact.load_scene("configs/signorini_square.yaml", [f"mesh.cells=[{n},{n}]", "output.verbose=false"])
+            scene = contact.load_scene(
+                "configs/signorini_square.yaml", [f"mesh.cells=[{n},{n}]", "output.verbose=false"]
+            )
             rows += measure("square", scene, methods, sequences, args.repeat, before)
     elif args.case == "scene":  # one solve of a scene file on the mesh its --set options give
         scene = contact.load_scene(args.scene, ["output.verbose=false", *args.overrides])
         before = {"method": "fb", "linear": "bcgs", "sequence": "off", "max_it": 200}
-        rows += measure(scene.name, scene, methods, sequences, args.repeat, None if args.no_before else before)
+        rows += measure(
+            scene.name, scene, methods, sequences, args.repeat, None if args.no_before else before
+        )
     else:
-        scene = contact.load_scene("configs/hertz_3d.yaml", ["output.verbose=false", f"adapt.max_dofs={args.max_dofs}",
-                                                             "adapt.max_levels=20", *args.overrides])
+        scene = contact.load_scene(
+            "configs/hertz_3d.yaml",
+            [
+                "output.verbose=false",
+                f"adapt.max_dofs={args.max_dofs}",
+                "adapt.max_levels=20",
+                *args.overrides,
+            ],
+        )
         t0 = time.perf_counter()
         res = contact.adapt(scene, verbose=False)
         if MPI.COMM_WORLD.rank == 0:
-            print(f"hertz_3d adaptive loop: {[lv.result.dofs for lv in res.levels]} DoFs, "
-                  f"{time.perf_counter() - t0:.1f} s", flush=True)
+            print(
+                f"hertz_3d adaptive loop: {[lv.result.dofs for lv in res.levels]} DoFs, "
+                f"{time.perf_counter() - t0:.1f} s",
+                flush=True,
+            )
         before = {"method": "fb", "linear": "bcgs", "sequence": "off", "max_it": 200}
-        rows += measure("hertz3d", res.levels[-1].scene, methods, sequences, args.repeat,
-                        None if args.no_before else before)
+        rows += measure(
+            "hertz3d",
+            res.levels[-1].scene,
+            methods,
+            sequences,
+            args.repeat,
+            None if args.no_before else before,
+        )
     save_csv(args.out, rows)
 
 

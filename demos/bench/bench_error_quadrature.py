@@ -12,29 +12,34 @@ two digits an effectivity index is read to.
     python demos/bench/bench_error_quadrature.py --max-dofs 500000 --out
     demos/results/error_quadrature.csv
 """
+
 from __future__ import annotations
 
 import argparse
 import time
 
-import dolfinx_solver  # noqa: F401  (before dolfinx / petsc4py with the solver wheel)
-
 import contact
-from common import save_csv
-from contact.drivers.adaptive import Level
+import dolfinx_solver  # noqa: F401  (before dolfinx / petsc4py with the solver wheel)
 from contact.adaptivity.energy_error import energy_error
+from contact.drivers.adaptive import Level
+
+from common import save_csv
 
 DEGREES = (2, 3, 4, 5, 6, 8)
 REFERENCE = 12
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--max-dofs", type=int, default=500_000)
     ap.add_argument("--out", default="demos/results/error_quadrature.csv")
     args = ap.parse_args()
-    scene = contact.load_scene("configs/signorini_free_boundary.yaml",
-                               overrides=[f"adapt.max_dofs={args.max_dofs}", "adapt.max_levels=40"])
+    scene = contact.load_scene(
+        "configs/signorini_free_boundary.yaml",
+        overrides=[f"adapt.max_dofs={args.max_dofs}", "adapt.max_levels=40"],
+    )
     exact, rows = scene.cfg["data"]["exact"], []
 
     def on_level(level: Level) -> None:
@@ -47,8 +52,13 @@ def main() -> None:
             row[f"change_q{q}"] = abs(e / ref - 1.0)
             row[f"seconds_q{q}"] = time.perf_counter() - t0
         rows.append(row)
-        print(f"{row['level']:3d} {row['dofs']:8d}  " + "  ".join(
-            f"q{q} {row[f'change_q{q}']:.1e} {row[f'seconds_q{q}']:.2f}s" for q in DEGREES), flush=True)
+        print(
+            f"{row['level']:3d} {row['dofs']:8d}  "
+            + "  ".join(
+                f"q{q} {row[f'change_q{q}']:.1e} {row[f'seconds_q{q}']:.2f}s" for q in DEGREES
+            ),
+            flush=True,
+        )
 
     print("level     DoFs  relative change against degree 12, seconds", flush=True)
     contact.adapt(scene, on_level=on_level, verbose=False)

@@ -9,6 +9,7 @@ switches from MUMPS to GAMG at the size where the medians cross
 
     python demos/bench/bench_linear.py --out demos/results/linear/linear.csv
 """
+
 from __future__ import annotations
 
 import argparse
@@ -17,6 +18,7 @@ import time
 from pathlib import Path
 
 import contact
+
 from common import save_csv
 
 CASES = [  # (scene, overrides per size)
@@ -33,7 +35,9 @@ def timed(scene, linear: str, method: str) -> tuple[float, float, object]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--out", default="bench/linear.csv")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--method", default="fb")
@@ -53,14 +57,27 @@ def main() -> None:
                     samples[linear].append(timed(scene, linear, args.method))
             for linear, runs in samples.items():
                 r = runs[-1][2]
-                row = {"scene": Path(path).stem, "dofs": r.dofs, "dim": scene.mesh.topology.dim, "linear": linear,
-                       "method": args.method, "newton": r.iterations, "polish": r.polish_solves,
-                       "sequence_levels": len(r.sequence), "converged": r.converged,
-                       "wall_s": round(statistics.median(w for w, _, _ in runs), 4),
-                       "cpu_s": round(statistics.median(c for _, c, _ in runs), 4), "repeat": args.repeat}
+                row = {
+                    "scene": Path(path).stem,
+                    "dofs": r.dofs,
+                    "dim": scene.mesh.topology.dim,
+                    "linear": linear,
+                    "method": args.method,
+                    "newton": r.iterations,
+                    "polish": r.polish_solves,
+                    "sequence_levels": len(r.sequence),
+                    "converged": r.converged,
+                    "wall_s": round(statistics.median(w for w, _, _ in runs), 4),
+                    "cpu_s": round(statistics.median(c for _, c, _ in runs), 4),
+                    "repeat": args.repeat,
+                }
                 rows.append(row)
-                print(f"{row['scene']:>18s} {row['dofs']:8d} {linear:>7s} " f"{r.iterations:3d}+{r.polish_solves:<1d} "
-                      f"{row['wall_s']:8.3f} {row['cpu_s']:8.3f}", flush=True)
+                print(
+                    f"{row['scene']:>18s} {row['dofs']:8d} {linear:>7s} "
+                    f"{r.iterations:3d}+{r.polish_solves:<1d} "
+                    f"{row['wall_s']:8.3f} {row['cpu_s']:8.3f}",
+                    flush=True,
+                )
     save_csv(args.out, rows)
 
 

@@ -21,6 +21,7 @@ live PETSc objects (:func:`contact.base.lifetime.petsc_objects`) and the entries
 options database (the largest counts over the ranks).  Prints one row per sample and a
 summary, writes CSV (default demos/results/long_path/<scene>_<mode>_np<ranks>.csv).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,11 +32,11 @@ import time
 from pathlib import Path
 
 import contact  # noqa: F401  (before petsc4py)
-from mpi4py import MPI
-from petsc4py import PETSc
+from contact.base.lifetime import free_communicators, petsc_objects, rss_mib
 
 from common import save_csv
-from contact.base.lifetime import free_communicators, petsc_objects, rss_mib
+from mpi4py import MPI
+from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -54,13 +55,16 @@ class Sampler:
         if self.collect:
             gc.collect()
         comm = self.comm
-        row = {"step": step.index, "converged": bool(step.result.converged),
-               "seconds": round(time.perf_counter() - self.wall, 2),
-               "cpu_seconds": round(comm.allreduce(time.process_time() - self.cpu, op=MPI.MAX), 2),
-               "rss_mib": round(comm.allreduce(rss_mib(), op=MPI.MAX), 2),
-               "free_communicators": free_communicators(comm),
-               "petsc_objects": comm.allreduce(sum(petsc_objects().values()), op=MPI.MAX),
-               "petsc_options": comm.allreduce(len(PETSc.Options().getAll()), op=MPI.MAX)}
+        row = {
+            "step": step.index,
+            "converged": bool(step.result.converged),
+            "seconds": round(time.perf_counter() - self.wall, 2),
+            "cpu_seconds": round(comm.allreduce(time.process_time() - self.cpu, op=MPI.MAX), 2),
+            "rss_mib": round(comm.allreduce(rss_mib(), op=MPI.MAX), 2),
+            "free_communicators": free_communicators(comm),
+            "petsc_objects": comm.allreduce(sum(petsc_objects().values()), op=MPI.MAX),
+            "petsc_options": comm.allreduce(len(PETSc.Options().getAll()), op=MPI.MAX),
+        }
         self.rows.append(row)
         if comm.rank == 0:
             print("  ".join(f"{k} {v}" for k, v in row.items()), flush=True)
@@ -105,32 +109,46 @@ def summary(rows: list[dict], steps: int, start: int) -> str:
     first = next(r for r in rows if r["step"] >= start)
     last = rows[-1]
     span = max(last["step"] - first["step"], 1)
+
     def change(key: str) -> str:
         return f"{first[key]} -> {last[key]}"
 
     cpu = last["cpu_seconds"]
     growth = 1024 * (last["rss_mib"] - first["rss_mib"]) / span
-    return (f"{last['step']} of {steps} steps in {last['seconds']:.1f} s ({cpu:.1f} s CPU, "
-            f"{1000 * cpu / last['step']:.1f} ms CPU per step); from step {first['step']} to "
-            f"{last['step']}: free communicators {change('free_communicators')}, live PETSc "
-            f"objects {change('petsc_objects')}, PETSc options {change('petsc_options')}, RSS "
-            f"{change('rss_mib')} MiB ({growth:.2f} KiB per step)")
+    return (
+        f"{last['step']} of {steps} steps in {last['seconds']:.1f} s ({cpu:.1f} s CPU, "
+        f"{1000 * cpu / last['step']:.1f} ms CPU per step); from step {first['step']} to "
+        f"{last['step']}: free communicators {change('free_communicators')}, live PETSc "
+        f"objects {change('petsc_objects')}, PETSc options {change('petsc_options')}, RSS "
+        f"{change('rss_mib')} MiB ({growth:.2f} KiB per step)"
+    )
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scene", default=str(ROOT / "configs" / "signorini_square.yaml"))
-    p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
-                   help="scene overrides (default for the default scene: mesh.cells=[4,4])")
+    p.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="scene overrides (default for the default scene: mesh.cells=[4,4])",
+    )
     p.add_argument("--steps", type=int, default=2000)
     p.add_argument("--every", type=int, default=100, help="steps between two samples")
-    p.add_argument("--start", type=int, default=200,
-                   help="the summary's changes count from this step")
+    p.add_argument(
+        "--start", type=int, default=200, help="the summary's changes count from this step"
+    )
     p.add_argument("--cli", action="store_true", help="run `contact run` instead of the API")
-    p.add_argument("--no-collect", action="store_true",
-                   help="no garbage collection before a sample (what is left to Python's own)")
-    p.add_argument("--out", help="CSV file (default: demos/results/long_path/"
-                                 "<scene>_<mode>_np<ranks>.csv)")
+    p.add_argument(
+        "--no-collect",
+        action="store_true",
+        help="no garbage collection before a sample (what is left to Python's own)",
+    )
+    p.add_argument(
+        "--out", help="CSV file (default: demos/results/long_path/<scene>_<mode>_np<ranks>.csv)"
+    )
     args = p.parse_args()
     comm = MPI.COMM_WORLD
     default_scene = args.scene.endswith("signorini_square.yaml")
@@ -138,8 +156,11 @@ def main() -> None:
     sets = [*sets, f"load.steps={args.steps}"]
     mode = "cli" if args.cli else "api"
     if comm.rank == 0:
-        print(f"bench_long_path: {Path(args.scene).name} {' '.join(sets)}, {mode}, "
-              f"{comm.size} rank(s)", flush=True)
+        print(
+            f"bench_long_path: {Path(args.scene).name} {' '.join(sets)}, {mode}, "
+            f"{comm.size} rank(s)",
+            flush=True,
+        )
     sample = Sampler(args.every, comm, collect=not args.no_collect)
     if args.cli:
         run_cli(args.scene, sets, sample, comm)
@@ -153,5 +174,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    PETSc.Log.begin()   # petsc_objects counts from here
+    PETSc.Log.begin()  # petsc_objects counts from here
     main()

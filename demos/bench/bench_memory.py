@@ -14,6 +14,7 @@ interpreter and libraries take whatever the size; ``bytes_per_dof`` is the peak 
 Prints one row per run and writes CSV (kind, cells, dofs, linear, seconds, peak_rss_mib,
 bytes_per_dof, slope_bytes_per_dof).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,22 +36,35 @@ KINDS = {
 
 # A block pressed onto a rigid plane: the elastic scenes of this benchmark (no Hertz).
 BLOCK = {
-    "box2d": {"mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": ["{n}", "{n}"]},
-              "boundaries": {"floor": {"role": "contact", "where": "y < 1e-10"},
-                             "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"}},
-              "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
-              "obstacle": {"type": "plane", "point": [0, -0.001], "normal": [0, 1]},
-              "data": {"u_D": ["0", "-0.01"]}},
-    "box3d_elastic": {"mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": ["{n}", "{n}", "{n}"]},
-                      "boundaries": {"floor": {"role": "contact", "where": "z < 1e-10"},
-                                     "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"}},
-                      "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
-                      "obstacle": {"type": "plane", "point": [0, 0, -0.001], "normal": [0, 0, 1]},
-                      "data": {"u_D": ["0", "0", "-0.01"]}},
-    "box3d_scalar": {"mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": ["{n}", "{n}", "{n}"]},
-                     "boundaries": {"floor": {"role": "contact", "where": "z < 1e-10"},
-                                    "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"}},
-                     "model": "signorini", "data": {"f": "-10", "g": "0.01", "u_D": "0"}},
+    "box2d": {
+        "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": ["{n}", "{n}"]},
+        "boundaries": {
+            "floor": {"role": "contact", "where": "y < 1e-10"},
+            "top": {"role": "dirichlet", "where": "y > 1 - 1e-10"},
+        },
+        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+        "obstacle": {"type": "plane", "point": [0, -0.001], "normal": [0, 1]},
+        "data": {"u_D": ["0", "-0.01"]},
+    },
+    "box3d_elastic": {
+        "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": ["{n}", "{n}", "{n}"]},
+        "boundaries": {
+            "floor": {"role": "contact", "where": "z < 1e-10"},
+            "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"},
+        },
+        "model": {"type": "elasticity", "E": 1.0, "nu": 0.3},
+        "obstacle": {"type": "plane", "point": [0, 0, -0.001], "normal": [0, 0, 1]},
+        "data": {"u_D": ["0", "0", "-0.01"]},
+    },
+    "box3d_scalar": {
+        "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": ["{n}", "{n}", "{n}"]},
+        "boundaries": {
+            "floor": {"role": "contact", "where": "z < 1e-10"},
+            "top": {"role": "dirichlet", "where": "z > 1 - 1e-10"},
+        },
+        "model": "signorini",
+        "data": {"f": "-10", "g": "0.01", "u_D": "0"},
+    },
 }
 
 CHILD = r"""
@@ -76,14 +90,25 @@ def _spec(kind: str, n: int) -> dict:
 
 
 def measure(kind: str, n: int) -> dict:
-    proc = subprocess.run([sys.executable, "-c", CHILD, json.dumps(_spec(kind, n))], capture_output=True,
-                          text=True, cwd=ROOT)
+    proc = subprocess.run(
+        [sys.executable, "-c", CHILD, json.dumps(_spec(kind, n))],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
     if proc.returncode != 0:
         raise SystemExit(f"{kind} n={n} failed:\n{proc.stderr}")
     out = json.loads(proc.stdout.strip().splitlines()[-1])
-    return {"kind": kind, "cells": n, "dofs": out["dofs"], "linear": out["linear"], "converged": out["converged"],
-            "seconds": round(out["seconds"], 2), "peak_rss_mib": round(out["rss_mib"], 1),
-            "bytes_per_dof": round(out["rss_mib"] * 2**20 / out["dofs"])}
+    return {
+        "kind": kind,
+        "cells": n,
+        "dofs": out["dofs"],
+        "linear": out["linear"],
+        "converged": out["converged"],
+        "seconds": round(out["seconds"], 2),
+        "peak_rss_mib": round(out["rss_mib"], 1),
+        "bytes_per_dof": round(out["rss_mib"] * 2**20 / out["dofs"]),
+    }
 
 
 def main() -> int:
@@ -95,11 +120,17 @@ def main() -> int:
     for kind in args.kinds:
         runs = [measure(kind, n) for n in KINDS[kind][2]]
         for a, b in zip(runs, runs[1:]):
-            b["slope_bytes_per_dof"] = round((b["peak_rss_mib"] - a["peak_rss_mib"]) * 2**20 / (b["dofs"] - a["dofs"]))
+            b["slope_bytes_per_dof"] = round(
+                (b["peak_rss_mib"] - a["peak_rss_mib"]) * 2**20 / (b["dofs"] - a["dofs"])
+            )
         for r in runs:
-            print(f"{r['kind']:13s} n={r['cells']:5d} {r['dofs']:9d} DoFs  {r['linear']:6s} " f"{r['seconds']:7.1f} s  "
-                  f"{r['peak_rss_mib']:8.0f} MiB  {r['bytes_per_dof']:6d} B/DoF  "
-                  f"slope {r.get('slope_bytes_per_dof', '-')} B/DoF", flush=True)
+            print(
+                f"{r['kind']:13s} n={r['cells']:5d} {r['dofs']:9d} DoFs  {r['linear']:6s} "
+                f"{r['seconds']:7.1f} s  "
+                f"{r['peak_rss_mib']:8.0f} MiB  {r['bytes_per_dof']:6d} B/DoF  "
+                f"slope {r.get('slope_bytes_per_dof', '-')} B/DoF",
+                flush=True,
+            )
         rows += runs
     out = ROOT / args.out
     out.parent.mkdir(parents=True, exist_ok=True)

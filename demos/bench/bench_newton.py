@@ -10,6 +10,7 @@ that the peak memory (max RSS) is its own.  Prints a table and writes CSV.
     python demos/bench/bench_newton.py --cells 512 --out bench/newton_512.csv
     python demos/bench/bench_newton.py --cells 512 --np 2 --out bench/newton_512_np2.csv
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,6 +31,7 @@ def one(scene: str, cells: int, method: str, extra: list[str]) -> dict:
     """Solve once (in this process) and return the figures."""
     import contact
     from contact.solvers import method_variant
+
     from mpi4py import MPI
 
     t0 = time.perf_counter()
@@ -37,19 +39,34 @@ def one(scene: str, cells: int, method: str, extra: list[str]) -> dict:
     s = contact.load_scene(scene, [f"mesh.cells=[{cells},{cells}]", "solver.max_it=200", *extra])
     r = contact.solve(s, method=name, verbose=False, **variant)
     wall = time.perf_counter() - t0
-    rss = MPI.COMM_WORLD.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.SUM) / 1024
-    return {"method": method, "cells": cells, "dofs": r.dofs, "ranks": MPI.COMM_WORLD.size,
-            "converged": r.converged, "reason": r.reason, "iterations": r.iterations,
-            "polish": r.polish_solves, "linear_solves": r.linear_solves,
-            "active": r.n_active, "seconds": round(wall, 3),
-            "seconds_solve": round(r.timings["total"], 3),
-            "seconds_per_iteration": round(r.timings["total"] / max(r.linear_solves, 1), 3),
-            "linear_solve_seconds": round(r.timings["solve"], 3),
-            "peak_rss_mib": round(rss, 1), "c": r.options["c"]}
+    rss = (
+        MPI.COMM_WORLD.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.SUM)
+        / 1024
+    )
+    return {
+        "method": method,
+        "cells": cells,
+        "dofs": r.dofs,
+        "ranks": MPI.COMM_WORLD.size,
+        "converged": r.converged,
+        "reason": r.reason,
+        "iterations": r.iterations,
+        "polish": r.polish_solves,
+        "linear_solves": r.linear_solves,
+        "active": r.n_active,
+        "seconds": round(wall, 3),
+        "seconds_solve": round(r.timings["total"], 3),
+        "seconds_per_iteration": round(r.timings["total"] / max(r.linear_solves, 1), 3),
+        "linear_solve_seconds": round(r.timings["solve"], 3),
+        "peak_rss_mib": round(rss, 1),
+        "c": r.options["c"],
+    }
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--scene", default="configs/signorini_square.yaml")
     ap.add_argument("--cells", type=int, default=512)
     ap.add_argument("--methods", default=",".join(METHODS))
@@ -61,17 +78,32 @@ def main() -> None:
     if args.one:
         row = one(args.scene, args.cells, args.one, args.extra)
         from mpi4py import MPI
+
         if MPI.COMM_WORLD.rank == 0:
             print("ROW " + json.dumps(row), flush=True)
         return
-    launcher = [str(Path(sys.executable).parent / "mpirun"), "-n", str(args.np)] if args.np > 1 else []
+    launcher = (
+        [str(Path(sys.executable).parent / "mpirun"), "-n", str(args.np)] if args.np > 1 else []
+    )
     if "PMI_SIZE" in os.environ or "OMPI_COMM_WORLD_SIZE" in os.environ:
         sys.exit("run the benchmark driver serially; use --np N to give each solve N ranks")
     rows = []
-    print(f"{'method':>14s} {'DoFs':>8s} {'its':>4s} {'pol':>3s} {'seconds':>8s} " f"{'s/solve':>7s} {'lin.solve':>9s} "
-          f"{'peak MiB':>9s}  reason")
+    print(
+        f"{'method':>14s} {'DoFs':>8s} {'its':>4s} {'pol':>3s} {'seconds':>8s} "
+        f"{'s/solve':>7s} {'lin.solve':>9s} "
+        f"{'peak MiB':>9s}  reason"
+    )
     for m in args.methods.split(","):
-        cmd = launcher + [sys.executable, __file__, "--one", m, "--scene", args.scene, "--cells", str(args.cells)]
+        cmd = launcher + [
+            sys.executable,
+            __file__,
+            "--one",
+            m,
+            "--scene",
+            args.scene,
+            "--cells",
+            str(args.cells),
+        ]
         for e in args.extra:
             cmd += ["--set", e]
         proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -81,16 +113,21 @@ def main() -> None:
             continue
         row = json.loads(line[0][4:])
         rows.append(row)
-        print(f"{m:>14s} {row['dofs']:8d} {row['iterations']:4d} {row['polish']:3d} " f"{row['seconds']:8.2f} "
-              f"{row['seconds_per_iteration']:7.2f} {row['linear_solve_seconds']:9.2f} "
-              f"{row['peak_rss_mib']:9.1f}  {row['reason']}",
-              flush=True)
+        print(
+            f"{m:>14s} {row['dofs']:8d} {row['iterations']:4d} {row['polish']:3d} "
+            f"{row['seconds']:8.2f} "
+            f"{row['seconds_per_iteration']:7.2f} {row['linear_solve_seconds']:9.2f} "
+            f"{row['peak_rss_mib']:9.1f}  {row['reason']}",
+            flush=True,
+        )
     ref = {r["method"]: r for r in rows}.get("vinewtonrsls")
     if ref:
         for r in rows:
             r["speedup_vs_vinewtonrsls"] = round(ref["seconds"] / r["seconds"], 2)
-        print("speed-up against vinewtonrsls (end to end): " +
-              ", ".join(f"{r['method']} {r['speedup_vs_vinewtonrsls']:.2f}x" for r in rows))
+        print(
+            "speed-up against vinewtonrsls (end to end): "
+            + ", ".join(f"{r['method']} {r['speedup_vs_vinewtonrsls']:.2f}x" for r in rows)
+        )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     write_csv(out, rows)

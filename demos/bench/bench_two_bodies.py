@@ -29,6 +29,7 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   tangential traction; ``cattaneo_traction.csv`` and ``cattaneo_traction.png`` the computed
   and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,14 +38,14 @@ import sys
 import time
 from pathlib import Path
 
+import contact
+from contact.models import build_problem
+from contact.models.mortar import master_pressure
+from contact.post.interface import interface_resultants, output_dofs
+from contact.post.reference import compare
+
 import numpy as np
 from mpi4py import MPI
-
-import contact
-from contact.post.interface import output_dofs, interface_resultants
-from contact.models.mortar import master_pressure
-from contact.models import build_problem
-from contact.post.reference import compare
 
 ROOT = Path(__file__).resolve().parents[2]
 OUT = ROOT / "demos" / "results" / "two_bodies"
@@ -63,9 +64,16 @@ def write(name: str, rows: list[dict], key: tuple[str, ...] = ()) -> None:
     are kept (a run of one more mesh size adds its rows)."""
     if comm.rank == 0 and key and (OUT / name).is_file():
         with open(OUT / name) as fh:
-            old = [r for r in csv.DictReader(fh)
-                   if tuple(str(r[k]) for k in key) not in {tuple(str(n[k]) for k in key) for n in rows}]
-        rows = sorted(old + [{k: str(v) for k, v in r.items()} for r in rows], key=lambda r: [float(r[k]) for k in key])
+            old = [
+                r
+                for r in csv.DictReader(fh)
+                if tuple(str(r[k]) for k in key)
+                not in {tuple(str(n[k]) for k in key) for n in rows}
+            ]
+        rows = sorted(
+            old + [{k: str(v) for k, v in r.items()} for r in rows],
+            key=lambda r: [float(r[k]) for k in key],
+        )
     if comm.rank == 0 and rows:
         OUT.mkdir(parents=True, exist_ok=True)
         with open(OUT / name, "w", newline="") as fh:
@@ -81,7 +89,11 @@ def table(rows: list[dict]) -> None:
     keys = list(rows[0])
     say("  ".join(f"{k:>12s}" for k in keys))
     for r in rows:
-        say("  ".join(f"{v:>12.4g}" if isinstance(v, float) else f"{str(v):>12s}" for v in r.values()))
+        say(
+            "  ".join(
+                f"{v:>12.4g}" if isinstance(v, float) else f"{str(v):>12s}" for v in r.values()
+            )
+        )
 
 
 def slave_pressure(result) -> tuple[np.ndarray, np.ndarray]:
@@ -107,10 +119,26 @@ def patch() -> None:
             lam = r.lmbda_h.x.array[problem.output_nodes]
             lam_m = master_pressure(r).x.array
             err = comm.allreduce(float(np.max(np.abs(lam + 0.01))), op=MPI.MAX) / 0.01
-            err_m = comm.allreduce(float(np.max(np.abs(lam_m[lam_m != 0] + 0.01), initial=0.0)), op=MPI.MAX) / 0.01
-            rows.append({"dim": dim, "method": method, "dofs": r.dofs, "ranks": comm.size,
-                         "converged": r.converged, "newton": r.iterations, "polish": r.polish_solves,
-                         "seconds": round(seconds, 3), "slave_error": err, "master_error": err_m})
+            err_m = (
+                comm.allreduce(
+                    float(np.max(np.abs(lam_m[lam_m != 0] + 0.01), initial=0.0)), op=MPI.MAX
+                )
+                / 0.01
+            )
+            rows.append(
+                {
+                    "dim": dim,
+                    "method": method,
+                    "dofs": r.dofs,
+                    "ranks": comm.size,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "polish": r.polish_solves,
+                    "seconds": round(seconds, 3),
+                    "slave_error": err,
+                    "master_error": err_m,
+                }
+            )
     table(rows)
     write("patch.csv", rows)
 
@@ -120,15 +148,36 @@ def cylinders(max_dofs: int) -> None:
     rows, start = [], time.perf_counter()
 
     def on_level(level):
-        res = {**interface_resultants(level.scene, level.result), **compare(level.scene, level.result).values}
-        rows.append({"level": level.index, "dofs": level.result.dofs, "newton": level.result.iterations,
-                     "polish": level.result.polish_solves, "seconds_solve": round(level.seconds["solve"], 3),
-                     "seconds_total": round(time.perf_counter() - start, 2), "eta": level.estimate.eta,
-                     "a_error": res["a_error"], "p0_error": res["p0_error"], "a_over_Rc": res["contact_half_width"] / 8.0,
-                     "balance": res["interface_balance_error"]})
+        res = {
+            **interface_resultants(level.scene, level.result),
+            **compare(level.scene, level.result).values,
+        }
+        rows.append(
+            {
+                "level": level.index,
+                "dofs": level.result.dofs,
+                "newton": level.result.iterations,
+                "polish": level.result.polish_solves,
+                "seconds_solve": round(level.seconds["solve"], 3),
+                "seconds_total": round(time.perf_counter() - start, 2),
+                "eta": level.estimate.eta,
+                "a_error": res["a_error"],
+                "p0_error": res["p0_error"],
+                "a_over_Rc": res["contact_half_width"] / 8.0,
+                "balance": res["interface_balance_error"],
+            }
+        )
 
-    levels = contact.adapt(scene, method="fb", strategy="dorfler", theta=0.5, max_levels=12, max_dofs=max_dofs,
-                           on_level=on_level, verbose=False).levels
+    levels = contact.adapt(
+        scene,
+        method="fb",
+        strategy="dorfler",
+        theta=0.5,
+        max_levels=12,
+        max_dofs=max_dofs,
+        on_level=on_level,
+        verbose=False,
+    ).levels
     say("two cylinders, Dörfler (θ = 0.5), fb, nested iteration")
     table(rows)
     write("cylinders_levels.csv", rows)
@@ -136,8 +185,9 @@ def cylinders(max_dofs: int) -> None:
     # every method on the final mesh (refined again from the previous level, with the nested
     # guess on it), cold and nested
     previous = levels[-2]
-    final_scene, nested = contact.refine(previous.scene, contact.mark(previous.estimate.eta_T, "dorfler", 0.5),
-                                         previous.result.u_h)
+    final_scene, nested = contact.refine(
+        previous.scene, contact.mark(previous.estimate.eta_T, "dorfler", 0.5), previous.result.u_h
+    )
     problem = build_problem(final_scene)
     # from u = 0
     ref = contact.solve(final_scene, method="vinewtonrsls", problem=problem, verbose=False)
@@ -146,36 +196,72 @@ def cylinders(max_dofs: int) -> None:
     for method in METHODS:
         for start_name, u0 in (("cold", None), ("nested", nested)):
             t0 = time.perf_counter()
-            r = contact.solve(final_scene, method=method, problem=problem, u0=u0, verbose=False, max_it=100)
+            r = contact.solve(
+                final_scene, method=method, problem=problem, u0=u0, verbose=False, max_it=100
+            )
             seconds = time.perf_counter() - t0
             diff = comm.allreduce(float(np.max(np.abs(r.u_h.x.array - u_ref))), op=MPI.MAX)
-            methods.append({"method": method, "start": start_name, "dofs": r.dofs, "converged": r.converged,
-                            "newton": r.iterations, "polish": r.polish_solves, "seconds": round(seconds, 3),
-                            "max_diff_to_vinewtonrsls": diff})
+            methods.append(
+                {
+                    "method": method,
+                    "start": start_name,
+                    "dofs": r.dofs,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "polish": r.polish_solves,
+                    "seconds": round(seconds, 3),
+                    "max_diff_to_vinewtonrsls": diff,
+                }
+            )
     say(f"\nevery method on the final mesh ({ref.dofs} DoFs)")
     table(methods)
     write("cylinders_methods.csv", methods)
-    swap("2d", ROOT / "configs" / "two_body_hertz_2d.yaml", ["mesh.h_contact=0.01", "mesh.zone=1.0"],
-         ["boundaries.slave.where=abs(x) < 3 and y < 1", "boundaries.master.where=abs(x) < 2 and y > -1"],
-         "slave_master.csv")
+    swap(
+        "2d",
+        ROOT / "configs" / "two_body_hertz_2d.yaml",
+        ["mesh.h_contact=0.01", "mesh.zone=1.0"],
+        [
+            "boundaries.slave.where=abs(x) < 3 and y < 1",
+            "boundaries.master.where=abs(x) < 2 and y > -1",
+        ],
+        "slave_master.csv",
+    )
 
 
 def swap(label: str, path: Path, mesh: list[str], parts: list[str], csv_name: str) -> None:
     """The scene as shipped against the other surface as slave (same meshes)."""
     rows, profiles = [], []
-    for which, extra in (("as shipped", []), ("swapped", parts + ["pairs=[{slave: master, master: slave}]"])):
+    for which, extra in (
+        ("as shipped", []),
+        ("swapped", parts + ["pairs=[{slave: master, master: slave}]"]),
+    ):
         scene = contact.load_scene(path, QUIET + mesh + extra + ["adapt=null"])
         t0 = time.perf_counter()
         r = contact.solve(scene, method="min", verbose=False)
         seconds = time.perf_counter() - t0
         res = {**interface_resultants(scene, r), **compare(scene, r).values}
         X, pressure = slave_pressure(r)
-        rho = np.linalg.norm(X[:, :-1], axis=1) if X.shape[1] == 3 and label == "3d" else np.abs(X[:, 0])
+        rho = (
+            np.linalg.norm(X[:, :-1], axis=1)
+            if X.shape[1] == 3 and label == "3d"
+            else np.abs(X[:, 0])
+        )
         order = np.argsort(rho)
         profiles.append((rho[order], pressure[order], res["hertz_a"]))
-        rows.append({"case": label, "slave": which, "dofs": r.dofs, "newton": r.iterations, "seconds": round(seconds, 2),
-                     "force": res["contact_force"], "a": res.get("contact_half_width", res.get("contact_radius")),
-                     "p0": res["peak_pressure"], "a_error": res["a_error"], "p0_error": res["p0_error"]})
+        rows.append(
+            {
+                "case": label,
+                "slave": which,
+                "dofs": r.dofs,
+                "newton": r.iterations,
+                "seconds": round(seconds, 2),
+                "force": res["contact_force"],
+                "a": res.get("contact_half_width", res.get("contact_radius")),
+                "p0": res["peak_pressure"],
+                "a_error": res["a_error"],
+                "p0_error": res["p0_error"],
+            }
+        )
     # relative L² difference of the two profiles on [0, a] (each interpolated to a common grid)
     a = min(p[2] for p in profiles)
     grid = np.linspace(0.0, a, 400)
@@ -192,7 +278,9 @@ def swap(label: str, path: Path, mesh: list[str], parts: list[str], csv_name: st
 def sphere(sizes: list[float], swap_size: float | None) -> None:
     rows = []
     for h_contact in sizes:
-        scene = contact.load_scene(ROOT / "configs" / "two_body_hertz_3d.yaml", QUIET + [f"mesh.h_contact={h_contact}"])
+        scene = contact.load_scene(
+            ROOT / "configs" / "two_body_hertz_3d.yaml", QUIET + [f"mesh.h_contact={h_contact}"]
+        )
         t0 = time.perf_counter()
         r = contact.solve(scene, method="fb", verbose=False)
         seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
@@ -202,55 +290,91 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
         hertz = res["hertz_p0"] * np.sqrt(np.maximum(0.0, 1 - (rho / res["hertz_a"]) ** 2))
         inside = rho < 0.8 * res["hertz_a"]
         rms = float(np.sqrt(np.mean((pressure - hertz)[inside] ** 2)) / res["hertz_p0"])
-        rows.append({"h_contact": h_contact, "dofs": r.dofs, "ranks": comm.size, "converged": r.converged,
-                     "newton": r.iterations, "polish": r.polish_solves, "seconds": round(seconds, 1),
-                     "a_error": res["a_error"], "p0_error": res["p0_error"], "pressure_rms": rms,
-                     "a_over_R": res["a_over_R"], "balance": res["interface_balance_error"]})
-        say(f"h_contact {h_contact}: {r.dofs} DoFs, {r.iterations}+{r.polish_solves} its, " f"{seconds:.1f} s, "
+        rows.append(
+            {
+                "h_contact": h_contact,
+                "dofs": r.dofs,
+                "ranks": comm.size,
+                "converged": r.converged,
+                "newton": r.iterations,
+                "polish": r.polish_solves,
+                "seconds": round(seconds, 1),
+                "a_error": res["a_error"],
+                "p0_error": res["p0_error"],
+                "pressure_rms": rms,
+                "a_over_R": res["a_over_R"],
+                "balance": res["interface_balance_error"],
+            }
+        )
+        say(
+            f"h_contact {h_contact}: {r.dofs} DoFs, {r.iterations}+{r.polish_solves} its, "
+            f"{seconds:.1f} s, "
             f"a {100 * res['a_error']:+.2f}%, p0 {100 * res['p0_error']:+.2f}%, rms "
-            f"{100 * rms:.2f}%")
+            f"{100 * rms:.2f}%"
+        )
     table(rows)
     write("sphere.csv", rows, key=("h_contact", "ranks"))
     if swap_size is not None:
-        swap("3d", ROOT / "configs" / "two_body_hertz_3d.yaml", [f"mesh.h_contact={swap_size}"],
-             # the block's top becomes the slave: the sphere's part must now cover it
-             ["boundaries.slave.where=x*x + y*y < 0.16", "boundaries.master.where=x*x + y*y < 0.09"],
-             "slave_master_3d.csv")
+        swap(
+            "3d",
+            ROOT / "configs" / "two_body_hertz_3d.yaml",
+            [f"mesh.h_contact={swap_size}"],
+            # the block's top becomes the slave: the sphere's part must now cover it
+            ["boundaries.slave.where=x*x + y*y < 0.16", "boundaries.master.where=x*x + y*y < 0.09"],
+            "slave_master_3d.csv",
+        )
 
 
 def cattaneo(sizes: list[float]) -> None:
-    from contact.post.cattaneo import traction
     from contact.drivers.load_path import run_load_path
+    from contact.post.cattaneo import traction
 
     rows, profiles = [], None
     for h_contact in sizes:
-        scene = contact.load_scene(ROOT / "configs" / "two_body_cattaneo_2d.yaml", QUIET + [f"mesh.h_contact={h_contact}"])
+        scene = contact.load_scene(
+            ROOT / "configs" / "two_body_cattaneo_2d.yaml", QUIET + [f"mesh.h_contact={h_contact}"]
+        )
         t0 = time.perf_counter()
         path = run_load_path(scene, verbose=False, keep_all=True)
         seconds = time.perf_counter() - t0
         profiles = []
         for step in path.steps:
             r, v = step.result, compare(step.scene, step.result).values
-            rows.append({"h_contact": h_contact, "dofs": r.dofs, "t": step.time, "newton": r.iterations,
-                         "seconds_path": round(seconds, 2), "Q_over_FP": v["Q_over_FP"], "c_over_a": v["c_over_a"],
-                         "c_over_a_theory": v["c_over_a_theory"], "c_error": v["c_error"], "q_error": v["q_error"],
-                         "a_error": v["contact_half_width"] / v["hertz_a"] - 1.0})
+            rows.append(
+                {
+                    "h_contact": h_contact,
+                    "dofs": r.dofs,
+                    "t": step.time,
+                    "newton": r.iterations,
+                    "seconds_path": round(seconds, 2),
+                    "Q_over_FP": v["Q_over_FP"],
+                    "c_over_a": v["c_over_a"],
+                    "c_over_a_theory": v["c_over_a_theory"],
+                    "c_error": v["c_error"],
+                    "q_error": v["q_error"],
+                    "a_error": v["contact_half_width"] / v["hertz_a"] - 1.0,
+                }
+            )
             p = r.problem
             on = slice(0, p.data["pair_nodes"])
             X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // p.V.dofmap.index_map_bs]
             lam_t = np.vstack(comm.allgather(r.friction["lambda_t_vec"][on]))
-            profiles.append((v, np.concatenate(comm.allgather(X[:, 0])), np.linalg.norm(lam_t, axis=1)))
+            profiles.append(
+                (v, np.concatenate(comm.allgather(X[:, 0])), np.linalg.norm(lam_t, axis=1))
+            )
     say("two cylinders, Coulomb F = 0.3: Cattaneo–Mindlin partial slip")
     table(rows)
     write("cattaneo.csv", rows)
     F = 0.3
     out = []
-    for v, x, q in profiles[1:]:   # the finest mesh, Q > 0
+    for v, x, q in profiles[1:]:  # the finest mesh, Q > 0
         order = np.argsort(x)
         c = v["c_over_a_theory"] * v["hertz_a"]
         exact = traction(np.abs(x[order]), v["hertz_a"], c, v["hertz_p0"], F)
-        out += [{"Q_over_FP": round(v["Q_over_FP"], 4), "x": xi, "q_h": qi, "q": ei}
-                for xi, qi, ei in zip(x[order], q[order], exact)]
+        out += [
+            {"Q_over_FP": round(v["Q_over_FP"], 4), "x": xi, "q_h": qi, "q": ei}
+            for xi, qi, ei in zip(x[order], q[order], exact)
+        ]
     write("cattaneo_traction.csv", out)
     if comm.rank == 0:
         import matplotlib
@@ -263,14 +387,34 @@ def cattaneo(sizes: list[float]) -> None:
             order = np.argsort(x)
             a = v["hertz_a"]
             xs = np.linspace(-a, a, 600)
-            ax.plot(xs, traction(np.abs(xs), a, v["c_over_a_theory"] * a, v["hertz_p0"], F), "-", color=f"C{k}", lw=1,
-                    label=f"Cattaneo–Mindlin, Q/(F P) = {v['Q_over_FP']:.2f} (c/a = " f"{v['c_over_a_theory']:.3f})")
+            ax.plot(
+                xs,
+                traction(np.abs(xs), a, v["c_over_a_theory"] * a, v["hertz_p0"], F),
+                "-",
+                color=f"C{k}",
+                lw=1,
+                label=f"Cattaneo–Mindlin, Q/(F P) = {v['Q_over_FP']:.2f} (c/a = "
+                f"{v['c_over_a_theory']:.3f})",
+            )
             near = np.abs(x[order]) <= 1.3 * a
-            ax.plot(x[order][near], q[order][near], "o", ms=2.5, color=f"C{k}",
-                    label=f"computed |λ_t| (c/a = {v['c_over_a']:.3f}, L² error " f"{100 * v['q_error']:.1f}%)")
+            ax.plot(
+                x[order][near],
+                q[order][near],
+                "o",
+                ms=2.5,
+                color=f"C{k}",
+                label=f"computed |λ_t| (c/a = {v['c_over_a']:.3f}, L² error "
+                f"{100 * v['q_error']:.1f}%)",
+            )
         v = profiles[-1][0]
         xs = np.linspace(-v["hertz_a"], v["hertz_a"], 600)
-        ax.plot(xs, F * v["hertz_p0"] * np.sqrt(1 - (xs / v["hertz_a"]) ** 2), "k--", lw=0.8, label="F p(x) (Hertz)")
+        ax.plot(
+            xs,
+            F * v["hertz_p0"] * np.sqrt(1 - (xs / v["hertz_a"]) ** 2),
+            "k--",
+            lw=0.8,
+            label="F p(x) (Hertz)",
+        )
         ax.set_xlabel("x (along the contact)")
         ax.set_ylabel("tangential traction")
         ax.set_title(f"two cylinders, Coulomb F = {F}, {path.steps[-1].result.dofs} DoFs")
@@ -284,11 +428,20 @@ def cattaneo(sizes: list[float]) -> None:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("part", choices=("patch", "cylinders", "sphere", "cattaneo"))
-    parser.add_argument("--max-dofs", type=int, default=100000, help="cylinders: DoF budget of the adaptive run")
-    parser.add_argument("--h-contact", type=float, nargs="+", default=None,
-                        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01): "
-                             "gmsh mesh sizes at the contact point")
-    parser.add_argument("--swap", type=float, default=None, help="sphere: h_contact of the slave/master comparison")
+    parser.add_argument(
+        "--max-dofs", type=int, default=100000, help="cylinders: DoF budget of the adaptive run"
+    )
+    parser.add_argument(
+        "--h-contact",
+        type=float,
+        nargs="+",
+        default=None,
+        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01): "
+        "gmsh mesh sizes at the contact point",
+    )
+    parser.add_argument(
+        "--swap", type=float, default=None, help="sphere: h_contact of the slave/master comparison"
+    )
     args = parser.parse_args(argv)
     if args.part == "patch":
         patch()

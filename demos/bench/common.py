@@ -1,11 +1,12 @@
 """Helpers shared by the benchmark scripts of this folder."""
+
 from __future__ import annotations
 
 from pathlib import Path
 
-from mpi4py import MPI
-
 from contact.output.folder import write_csv
+
+from mpi4py import MPI
 
 
 def save_csv(path: str | Path, rows: list[dict]) -> None:

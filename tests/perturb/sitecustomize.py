@@ -13,6 +13,7 @@ knows of it: an import hook wraps ``contact.models.problem.assemble_system`` whe
 module is first executed, before the models import the name.  ``CONTACT_TEST_PERTURB_SEED``
 changes the seed (default 20261125).
 """
+
 from __future__ import annotations
 
 import functools
@@ -25,9 +26,9 @@ TARGET = "contact.models.problem"
 
 def perturbed(assemble_system, eps: float, seed: int):
     """``assemble_system`` with its b multiplied by (1 + ε ξ) off the Dirichlet rows."""
+
     @functools.wraps(assemble_system)
     def wrapper(a, L, bcs):
-        import numpy as np
 
         K, b = assemble_system(a, L, bcs)
         xi = _hash(L.function_spaces[0], seed)[: b.getLocalSize()]
@@ -36,6 +37,7 @@ def perturbed(assemble_system, eps: float, seed: int):
             xi[dofs[dofs < len(xi)]] = 0.0
         b.array[:] *= 1.0 + eps * xi
         return K, b
+
     return wrapper
 
 
@@ -87,7 +89,9 @@ def install() -> float:
         return eps
     if TARGET in sys.modules:
         raise RuntimeError(f"CONTACT_TEST_PERTURB: {TARGET} was imported before the hook")
-    sys.meta_path.insert(0, _Hook(eps, int(os.environ.get("CONTACT_TEST_PERTURB_SEED", "20261125"))))
+    sys.meta_path.insert(
+        0, _Hook(eps, int(os.environ.get("CONTACT_TEST_PERTURB_SEED", "20261125")))
+    )
     return eps
 
 

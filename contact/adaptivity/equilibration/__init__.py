@@ -7,6 +7,7 @@
 * :mod:`.flux` — :func:`reconstruct_flux`, σ_h ∈ RT_p from plain inputs;
 * :mod:`.bound` — the guaranteed bound for the scalar Signorini and obstacle problems.
 """
+
 from .flux import Flux, FluxData, reconstruct_flux
 
 __all__ = ["Flux", "FluxData", "reconstruct_flux"]

@@ -71,16 +71,16 @@ bound) are DG0 forms, so marking is unchanged; η is the bound, not (Σ η_T²)^
 terms reported are Σ_T ‖k^{-1/2}(σ_h − k∇u_h)‖²_T ("flux"), Σ osc_T² ("oscillation"), B
 ("complementarity"), W² ("feasibility") and D² ("dirichlet").
 """
+
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from mpi4py import MPI
-
 import ufl
 from dolfinx import fem, la
+from mpi4py import MPI
 
 from ...setup import expressions
 from ...setup.scene import Scene
@@ -107,13 +107,22 @@ def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
     """The inputs of :func:`reconstruct_flux` for a scalar scene: (data, multiplier, sign)."""
     model = scene.cfg["model"]["type"]
     if model not in ("signorini", "obstacle"):
-        raise ValueError(f"estimator: equilibrated works for the scalar models, not model type {model!r}")
+        raise ValueError(
+            f"estimator: equilibrated works for the scalar models, not model type {model!r}"
+        )
     p, bnd = result.problem, scene.boundary
     data = p.data
     contact = {i: data["t_C"] for i in bnd.ids_with_role("contact")}
-    flux = FluxData(result.u_h, data["f"], data["k"], bnd.tags, dirichlet=bnd.ids_with_role("dirichlet"),
-                    neumann={i: data["t"] for i in bnd.ids_with_role("neumann")}, contact=contact,
-                    lmbda_h=result.lmbda_h)
+    flux = FluxData(
+        result.u_h,
+        data["f"],
+        data["k"],
+        bnd.tags,
+        dirichlet=bnd.ids_with_role("dirichlet"),
+        neumann={i: data["t"] for i in bnd.ids_with_role("neumann")},
+        contact=contact,
+        lmbda_h=result.lmbda_h,
+    )
     return flux, ("cells" if model == "obstacle" else "facets"), -p.constraint.sign
 
 
@@ -122,14 +131,14 @@ def guaranteed_bound(scene: Scene, result: Result) -> Bound:
     seconds = {}
     t0 = time.perf_counter()
     data, multiplier, sign = flux_data(scene, result)
-    sigma = -sign            # the constraint sign: σ(u − g) ≤ 0
+    sigma = -sign  # the constraint sign: σ(u − g) ≤ 0
     msh = scene.mesh
     u_h, k = result.u_h, data.k
     DG0 = fem.functionspace(msh, ("DG", 0))
     v = ufl.TestFunction(DG0)
     lift = _feasibility(scene, result, sigma, k, v)
     grad_w = lift.grad
-    data.target = k * (ufl.grad(u_h) - sigma * grad_w)       # k∇s_h: fit σ_h to the feasible s_h
+    data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
     flux = reconstruct_flux(data, multiplier, sign)
     seconds["flux"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -137,32 +146,64 @@ def guaranteed_bound(scene: Scene, result: Result) -> Bound:
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * p + 6})
     B_form = lift.complementarity(flux.lmbda)
     q = flux.sigma_h - k * ufl.grad(u_h)
-    q_s = q + sigma * k * grad_w              # σ_h − k∇s_h, s_h = u_h − σ w feasible
-    local = {"F": _cellwise(ufl.inner(q, q) / k * v * dx), "Fs": _cellwise(ufl.inner(q_s, q_s) / k * v * dx),
-             "W2": _cellwise(k * ufl.inner(grad_w, grad_w) * v * dx), "B": _cellwise(B_form),
-             "D2": _dirichlet(scene, result, v, k)}
+    q_s = q + sigma * k * grad_w  # σ_h − k∇s_h, s_h = u_h − σ w feasible
+    local = {
+        "F": _cellwise(ufl.inner(q, q) / k * v * dx),
+        "Fs": _cellwise(ufl.inner(q_s, q_s) / k * v * dx),
+        "W2": _cellwise(k * ufl.inner(grad_w, grad_w) * v * dx),
+        "B": _cellwise(B_form),
+        "D2": _dirichlet(scene, result, v, k),
+    }
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
-    cross = msh.comm.allreduce(float(np.sum(_cellwise(lift.cross))), op=MPI.SUM) if lift.cross else np.inf
+    cross = (
+        msh.comm.allreduce(float(np.sum(_cellwise(lift.cross))), op=MPI.SUM)
+        if lift.cross
+        else np.inf
+    )
     A_T, As_T = np.sqrt(local["F"]) + flux.osc, np.sqrt(local["Fs"]) + flux.osc
     comm = msh.comm
-    total = {name: comm.allreduce(float(np.sum(val)), op=MPI.SUM) for name, val in
-             (("A2", A_T**2), ("As2", As_T**2), ("flux", local["F"]), ("oscillation", flux.osc**2),
-              ("complementarity", local["B"]), ("feasibility", local["W2"]), ("dirichlet", local["D2"]))}
+    total = {
+        name: comm.allreduce(float(np.sum(val)), op=MPI.SUM)
+        for name, val in (
+            ("A2", A_T**2),
+            ("As2", As_T**2),
+            ("flux", local["F"]),
+            ("oscillation", flux.osc**2),
+            ("complementarity", local["B"]),
+            ("feasibility", local["W2"]),
+            ("dirichlet", local["D2"]),
+        )
+    }
     A, As, B = np.sqrt(total["A2"]), np.sqrt(total["As2"]), total["complementarity"]
     W, D = np.sqrt(total["feasibility"]), np.sqrt(total["dirichlet"])
     direct = _root(A + W + D, A * (W + D) + B)
-    s_bound = _root(As + D, As * D + B)     # |||u − s_h|||
+    s_bound = _root(As + D, As * D + B)  # |||u − s_h|||
     feasible = s_bound + W
     split = np.sqrt(max(s_bound**2 + 2 * cross + W**2, 0.0))
     eta = min(direct, feasible, split)
     eta_T = fem.Function(DG0, name="eta_T")
     n = len(A_T)
-    eta_T.x.array[:n] = np.sqrt((A_T if direct <= min(feasible, split) else As_T) ** 2 + local["W2"] + local["D2"] + local["B"])
+    eta_T.x.array[:n] = np.sqrt(
+        (A_T if direct <= min(feasible, split) else As_T) ** 2
+        + local["W2"]
+        + local["D2"]
+        + local["B"]
+    )
     eta_T.x.scatter_forward()
     seconds["terms"] = time.perf_counter() - t0
     terms = {name: total[name] for name in TERMS}
-    parts = {"A": A, "A_s": As, "B": B, "W": W, "D": D, "X": cross, "direct": direct, "feasible": feasible,
-             "split": split, "defect": flux.defect}
+    parts = {
+        "A": A,
+        "A_s": As,
+        "B": B,
+        "W": W,
+        "D": D,
+        "X": cross,
+        "direct": direct,
+        "feasible": feasible,
+        "split": split,
+        "defect": flux.defect,
+    }
     return Bound(float(eta), eta_T, terms, parts, flux, {**flux.seconds, **seconds})
 
 
@@ -196,23 +237,39 @@ def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lift
     u_h = result.u_h
     msh = scene.mesh
     if scene.cfg["model"]["type"] == "obstacle":
-        psi = expressions.to_ufl(scene.cfg["data"]["psi"], msh, scene.cfg["constants"], t=scene.t_constant)
+        psi = expressions.to_ufl(
+            scene.cfg["data"]["psi"], msh, scene.cfg["constants"], t=scene.t_constant
+        )
         f = result.problem.data["f"]
         s = sigma * (u_h - psi)
         # kinks
         dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * _degree(u_h) + 6})
         w = ufl.conditional(ufl.gt(s, 0), s, 0)
         grad_w = ufl.conditional(ufl.gt(s, 0), ufl.grad(s), ufl.zero(msh.geometry.dim))
-        L = -ufl.div(k * ufl.grad(psi)) - f                     # Lewy–Stampacchia: 0 ≤ −σλ ≤ (−σL)⁺
+        L = -ufl.div(k * ufl.grad(psi)) - f  # Lewy–Stampacchia: 0 ≤ −σλ ≤ (−σL)⁺
         grad_s = ufl.grad(u_h) - sigma * grad_w
-        cross = (-sigma * f * w + ufl.max_value(-sigma * L, 0) * w + sigma * k * ufl.inner(grad_s, grad_w)) * w_test * dx
-        return _Lifting(grad_w, lambda lmbda: (-sigma * lmbda) * ufl.conditional(ufl.lt(s, 0), -s, 0) * w_test * dx,
-                        cross)
+        cross = (
+            (
+                -sigma * f * w
+                + ufl.max_value(-sigma * L, 0) * w
+                + sigma * k * ufl.inner(grad_s, grad_w)
+            )
+            * w_test
+            * dx
+        )
+        return _Lifting(
+            grad_w,
+            lambda lmbda: (-sigma * lmbda) * ufl.conditional(ufl.lt(s, 0), -s, 0) * w_test * dx,
+            cross,
+        )
     g_h = result.problem.data["g_h"]
     w = _bernstein_lifting(scene, u_h, g_h)
     ds = result.problem.data["ds"]
     contact = scene.boundary.ids_with_role("contact")
-    return _Lifting(ufl.grad(w), lambda lmbda: sum((-lmbda) * (w - (u_h - g_h)) * w_test * ds(i) for i in contact))
+    return _Lifting(
+        ufl.grad(w),
+        lambda lmbda: sum((-lmbda) * (w - (u_h - g_h)) * w_test * ds(i) for i in contact),
+    )
 
 
 def _bernstein_lifting(scene: Scene, u_h: fem.Function, g_h: fem.Function) -> fem.Function:
@@ -230,15 +287,23 @@ def _bernstein_lifting(scene: Scene, u_h: fem.Function, g_h: fem.Function) -> fe
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
     c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
-    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32) if len(facets) else np.zeros(0, np.int32)
+    cells = (
+        np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+        if len(facets)
+        else np.zeros(0, np.int32)
+    )
     local = np.argmax(c2f[cells] == facets[:, None], axis=1) if len(facets) else np.zeros(0, int)
     layout = V.dofmap.dof_layout
     closure = np.array([layout.entity_closure_dofs(tdim - 1, j) for j in range(tdim + 1)])
-    fdofs = V.dofmap.list[cells[:, None], closure[local]] if len(facets) else np.zeros((0, closure.shape[1]), int)
-    nv = tdim                                         # vertex DoFs of a facet come first
+    fdofs = (
+        V.dofmap.list[cells[:, None], closure[local]]
+        if len(facets)
+        else np.zeros((0, closure.shape[1]), int)
+    )
+    nv = tdim  # vertex DoFs of a facet come first
     vdofs = np.unique(fdofs[:, :nv])
     w.x.array[vdofs] = np.maximum(dvals[vdofs], 0.0)
-    if fdofs.shape[1] > nv:                           # P2 on segments: one midpoint per facet
+    if fdofs.shape[1] > nv:  # P2 on segments: one midpoint per facet
         d0, d1, dm = dvals[fdofs[:, 0]], dvals[fdofs[:, 1]], dvals[fdofs[:, 2]]
         w0, w1 = w.x.array[fdofs[:, 0]], w.x.array[fdofs[:, 1]]
         w.x.array[fdofs[:, 2]] = np.maximum(0.0, dm + (w0 - d0 + w1 - d1) / 4)
@@ -256,12 +321,16 @@ def _dirichlet(scene: Scene, result: Result, w_test, k) -> np.ndarray:
     tdim = msh.topology.dim
     bnd = scene.boundary
     V2 = fem.functionspace(msh, ("Lagrange", _degree(u_h) + 1))
-    dofs = np.setdiff1d(fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet")),
-                        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact")))
+    dofs = np.setdiff1d(
+        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet")),
+        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact")),
+    )
     e_D = fem.Function(V2)
     u2 = fem.Function(V2)
     u2.interpolate(u_h)
-    e_D.x.array[dofs] = interpolate_expression(V2, scene.cfg["data"]["u_D"], scene).x.array[dofs] - u2.x.array[dofs]
+    e_D.x.array[dofs] = (
+        interpolate_expression(V2, scene.cfg["data"]["u_D"], scene).x.array[dofs] - u2.x.array[dofs]
+    )
     e_D.x.scatter_forward()
     dx = ufl.Measure("dx", domain=msh)
     return _cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)

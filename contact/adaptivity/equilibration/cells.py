@@ -9,48 +9,52 @@ Everything downstream is computed from rows, so a rank can solve the patch of a 
 whose cells live on other ranks once it has received their rows (:func:`complete`), and
 send back what it computed for them (:func:`return_to_owners`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
 
 import numpy as np
-from mpi4py import MPI
-
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
 from .reference import Reference
 
-INTERIOR, DIRICHLET, FLUX, CONTACT = 0, 1, 2, 3   # facet kinds (FLUX: Neumann / natural)
+INTERIOR, DIRICHLET, FLUX, CONTACT = 0, 1, 2, 3  # facet kinds (FLUX: Neumann / natural)
 
 
 @dataclass
 class CellTable:
     """Rows of cells (see the module docstring); all arrays share the first axis."""
 
-    gcell: np.ndarray   # (n,) int64 global cell index
-    gvert: np.ndarray   # (n, d+1) int64 global vertex indices
+    gcell: np.ndarray  # (n,) int64 global cell index
+    gvert: np.ndarray  # (n, d+1) int64 global vertex indices
     vowner: np.ndarray  # (n, d+1) int32 rank owning each vertex
-    x: np.ndarray       # (n, d+1, d) vertex coordinates
-    U: np.ndarray       # (n, nu) coefficients of u_h (the element's local order)
-    f: np.ndarray       # (n, nq) f at the cell quadrature points
-    k: np.ndarray       # (n, nq) k at the cell quadrature points
-    kind: np.ndarray    # (n, d+1) int8 facet kinds
-    t: np.ndarray       # (n, d+1, nqf) flux data on FLUX / CONTACT facets (0 elsewhere)
-    lam: np.ndarray     # (n, nu) coefficients of λ_h in the element of u_h (0 without one)
-    tau: np.ndarray     # (n, nq, d) the target flux at the points, or (n, 0, d): k∇u_h
+    x: np.ndarray  # (n, d+1, d) vertex coordinates
+    U: np.ndarray  # (n, nu) coefficients of u_h (the element's local order)
+    f: np.ndarray  # (n, nq) f at the cell quadrature points
+    k: np.ndarray  # (n, nq) k at the cell quadrature points
+    kind: np.ndarray  # (n, d+1) int8 facet kinds
+    t: np.ndarray  # (n, d+1, nqf) flux data on FLUX / CONTACT facets (0 elsewhere)
+    lam: np.ndarray  # (n, nu) coefficients of λ_h in the element of u_h (0 without one)
+    tau: np.ndarray  # (n, nq, d) the target flux at the points, or (n, 0, d): k∇u_h
 
     def __len__(self) -> int:
         return len(self.gcell)
 
-    def take(self, rows: np.ndarray) -> "CellTable":
+    def take(self, rows: np.ndarray) -> CellTable:
         return CellTable(**{fl.name: getattr(self, fl.name)[rows] for fl in fields(self)})
 
     @staticmethod
-    def concatenate(tables: list["CellTable"]) -> "CellTable":
-        return CellTable(**{fl.name: np.concatenate([getattr(t, fl.name) for t in tables])
-                            for fl in fields(CellTable)})
+    def concatenate(tables: list[CellTable]) -> CellTable:
+        return CellTable(
+            **{
+                fl.name: np.concatenate([getattr(t, fl.name) for t in tables])
+                for fl in fields(CellTable)
+            }
+        )
 
 
 @dataclass
@@ -82,12 +86,18 @@ def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
     msh.topology.create_connectivity(tdim - 1, tdim)
     msh.topology.create_connectivity(tdim, tdim - 1)
     c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
-    n_facets = msh.topology.index_map(tdim - 1).size_local + msh.topology.index_map(tdim - 1).num_ghosts
+    n_facets = (
+        msh.topology.index_map(tdim - 1).size_local + msh.topology.index_map(tdim - 1).num_ghosts
+    )
     facet_kind = np.zeros(n_facets, dtype=np.int8)
     facet_tag = np.full(n_facets, -1, dtype=np.int64)
     facet_kind[dmesh.exterior_facet_indices(msh.topology)] = FLUX
     tags = data.facet_tags
-    for values, kind in ((data.neumann or {}, FLUX), (data.contact or {}, CONTACT), (data.dirichlet, DIRICHLET)):
+    for values, kind in (
+        (data.neumann or {}, FLUX),
+        (data.contact or {}, CONTACT),
+        (data.dirichlet, DIRICHLET),
+    ):
         for v in values:
             facets = tags.indices[tags.values == v]
             facet_kind[facets] = kind
@@ -101,7 +111,7 @@ def _at_points(expr, msh: dmesh.Mesh, X: np.ndarray, cells: np.ndarray) -> np.nd
     even when it is constant after differentiation (e.g. −div ∇ of a linear function)."""
     one = fem.Function(fem.functionspace(msh, ("DG", 0)))
     one.x.array[:] = 1.0
-    expr = one * ufl.as_ufl(expr)   # collective: the expression is compiled (also for no cells)
+    expr = one * ufl.as_ufl(expr)  # collective: the expression is compiled (also for no cells)
     values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
     return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
 
@@ -143,9 +153,14 @@ def local_table(data: FluxData, ref: Reference) -> tuple[CellTable, int]:
         in_V = fem.Function(V)
         in_V.interpolate(data.lmbda_h)
         lam = in_V.x.array[V.dofmap.list[:n_owned]]
-    tau = np.zeros((n_owned, 0, d)) if data.target is None else _at_points(data.target, msh, ref.X, cells)
-    return CellTable(gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam,
-                     tau), n_owned
+    tau = (
+        np.zeros((n_owned, 0, d))
+        if data.target is None
+        else _at_points(data.target, msh, ref.X, cells)
+    )
+    return CellTable(
+        gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam, tau
+    ), n_owned
 
 
 # ---------------------------------------------------------------------------------------
@@ -183,8 +198,14 @@ def complete(comm: MPI.Comm, table: CellTable, source: np.ndarray) -> tuple[Cell
     return CellTable.concatenate([table, CellTable(*received)]), np.concatenate([source, src])
 
 
-def return_to_owners(comm: MPI.Comm, gcell: np.ndarray, source: np.ndarray, values: np.ndarray,
-                     n_owned: int, offset: int) -> np.ndarray:
+def return_to_owners(
+    comm: MPI.Comm,
+    gcell: np.ndarray,
+    source: np.ndarray,
+    values: np.ndarray,
+    n_owned: int,
+    offset: int,
+) -> np.ndarray:
     """Sum the rows of ``values`` (one per work row) into the cells' owners: returns the
     (n_owned, …) sums of this rank's cells, whose global indices are offset … offset +
     n_owned − 1 in the order of the first n_owned work rows."""

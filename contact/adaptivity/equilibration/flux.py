@@ -14,14 +14,14 @@ its nodes (P2) replaced by a function of one sign with the same lumped moments
 inputs are DOLFINx functions, UFL expressions and facet tags (:class:`FluxData`), so the
 same reconstruction serves other models (row-wise for elasticity).
 """
+
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
-
 import basix.ufl
+import numpy as np
 from dolfinx import fem
 
 from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
@@ -48,9 +48,9 @@ class Flux:
     sigma_h: fem.Function
     sigma_cells: fem.Function  # the same cell by cell in vector DG_{p+1} (before interpolation)
     lmbda_clip: fem.Function  # λ_h with wrong-signed nodal values clipped (the element of u_h)
-    bubble: fem.Function      # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
-    kappa: fem.Function       # DG0: κ of the cell's contact entity (the largest of its facets')
-    osc: np.ndarray      # (owned cells,) osc_T
+    bubble: fem.Function  # Σ_e β_e φ_{m_e}: the removed Bernstein coefficients (P2)
+    kappa: fem.Function  # DG0: κ of the cell's contact entity (the largest of its facets')
+    osc: np.ndarray  # (owned cells,) osc_T
     defect: float
     seconds: dict = field(default_factory=dict)
 
@@ -100,8 +100,9 @@ def reconstruct_flux(data: FluxData, multiplier: str | None = None, sign: float 
 def _interpolated(msh, ref: Reference, sigma_cells: fem.Function) -> fem.Function:
     """σ_h in RT_p: the cellwise field interpolated by DOLFINx (exact where it is normal-
     continuous, which the patch problems make it)."""
-    RT = fem.functionspace(msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1,
-                                                  basix.LagrangeVariant.legendre))
+    RT = fem.functionspace(
+        msh, basix.ufl.element("RT", msh.basix_cell(), ref.p + 1, basix.LagrangeVariant.legendre)
+    )
     sigma_h = fem.Function(RT, name="sigma_h")
     sigma_h.interpolate(sigma_cells)
     sigma_h.x.scatter_forward()
@@ -115,7 +116,7 @@ def cellwise(msh, ref: Reference, table: CellTable, alpha: np.ndarray) -> fem.Fu
     W = fem.functionspace(msh, ("DG", p + 1, (d,)))
     W0 = fem.functionspace(msh, ("DG", p + 1))
     points = W0.element.basix_element.points
-    phi = _rt_element(d, p).tabulate(0, points)[0]                     # (npts, m, d)
+    phi = _rt_element(d, p).tabulate(0, points)[0]  # (npts, m, d)
     x = table.x
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     det = np.linalg.det(J)
@@ -134,7 +135,9 @@ def _rt_element(d: int, p: int):
 
     from .reference import CELLS
 
-    return basix.create_element(basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre)
+    return basix.create_element(
+        basix.ElementFamily.RT, CELLS[d], p + 1, basix.LagrangeVariant.legendre
+    )
 
 
 def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign):
@@ -147,8 +150,14 @@ def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign)
     kappa = np.ones(n)
     if multiplier is not None:
         kappa[:] = 0.0 if multiplier == "facets" else 1.0
-        entities = [(cell_rule(ref), np.arange(n))] if multiplier == "cells" else \
-            [(facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT)) for j in range(ref.d + 1)]
+        entities = (
+            [(cell_rule(ref), np.arange(n))]
+            if multiplier == "cells"
+            else [
+                (facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT))
+                for j in range(ref.d + 1)
+            ]
+        )
         for rule, rows in entities:
             _, k, beta = shares(nodal[rows], rule, sign)
             kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
@@ -178,16 +187,18 @@ def _oscillation(table: CellTable, ref: Reference) -> np.ndarray:
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     absdet = np.abs(det_inv(J)[0])
     vol = absdet / np.prod(np.arange(1, d + 1))
-    h = np.max([np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0)
+    h = np.max(
+        [np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0
+    )
     Q, w = ref.Q, ref.w
-    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q              # f − Π_p f at the points
+    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q  # f − Π_p f at the points
     osc = h / np.pi * np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
     q, wS = ref.q, ref.wS
-    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q            # t − Π_p t, (n, D, nqf)
+    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q  # t − Π_p t, (n, D, nqf)
     for j in range(D):
         E = x[:, [v for v in range(D) if v != j]]
         E = E[:, 1:] - E[:, :1]
-        size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))    # |F| / |F̂|
+        size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))  # |F| / |F̂|
         area = size / np.prod(np.arange(1, d))
         norm = np.sqrt(size * (trest[:, j] ** 2 @ wS))
         osc += h * np.sqrt(area / vol * (1 / np.pi**2 + 2 / (d * np.pi))) * norm

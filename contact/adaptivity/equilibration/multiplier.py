@@ -29,13 +29,13 @@ lumped value alone (the obvious choice) would leave each patch an O(h λ') imbal
 flux carries sideways, an O(h) error that costs P2 a factor 4 in the effectivity.
 Nodal values of the wrong sign (round-off at inactive nodes) are clipped first.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 import basix
+import numpy as np
 
 from .reference import CELLS
 
@@ -45,18 +45,19 @@ class EntityRule:
     """Reference data of a contact entity (the facet j of the cell, or the cell itself):
     the P_p basis of λ_h at the entity's quadrature points and its lumped weights."""
 
-    phi: np.ndarray      # (nq, nu) Lagrange basis at the points
-    lam: np.ndarray      # (nq, D) barycentric coordinates (the hats) at the points
-    w: np.ndarray        # (nq,) weights (reference entity measure)
-    basis: np.ndarray    # (nk, nq) test polynomials (q̂ on facets, Q̂ on cells)
-    W: np.ndarray        # (nu,) ∫ φ_u over the reference entity
-    hat: np.ndarray      # (nu, D) ψ_a at the Lagrange nodes
+    phi: np.ndarray  # (nq, nu) Lagrange basis at the points
+    lam: np.ndarray  # (nq, D) barycentric coordinates (the hats) at the points
+    w: np.ndarray  # (nq,) weights (reference entity measure)
+    basis: np.ndarray  # (nk, nq) test polynomials (q̂ on facets, Q̂ on cells)
+    W: np.ndarray  # (nu,) ∫ φ_u over the reference entity
+    hat: np.ndarray  # (nu, D) ψ_a at the Lagrange nodes
     vertices: np.ndarray  # the entity's vertices (local indices)
-    edges: list          # (v0, v1, midpoint DoF) of the entity's edges (P2)
+    edges: list  # (v0, v1, midpoint DoF) of the entity's edges (P2)
 
 
-def entity_rule(d: int, p: int, points: np.ndarray, w: np.ndarray, basis: np.ndarray,
-                vertices: np.ndarray) -> EntityRule:
+def entity_rule(
+    d: int, p: int, points: np.ndarray, w: np.ndarray, basis: np.ndarray, vertices: np.ndarray
+) -> EntityRule:
     lag = basix.create_element(basix.ElementFamily.P, CELLS[d], p, basix.LagrangeVariant.gll_warped)
     phi = lag.tabulate(0, points)[0, :, :, 0]
     lam = np.column_stack([1.0 - points.sum(axis=1), points])
@@ -70,11 +71,13 @@ def entity_rule(d: int, p: int, points: np.ndarray, w: np.ndarray, basis: np.nda
     return EntityRule(phi, lam, w, basis, w @ phi, hat, np.asarray(vertices), edges)
 
 
-def shares(nodal: np.ndarray, rule: EntityRule, sign: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def shares(
+    nodal: np.ndarray, rule: EntityRule, sign: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The moments ∫ (ψ_a λ̃_E + g_a b_E/∫b_E) b̂_k of each vertex a against the entity's
     test polynomials, per reference measure: (n, D, nk); and κ_E (n,) and the removed
     Bernstein coefficients β_e (n, edges).  ``nodal``: the clipped nodal values (n, nu)."""
-    lam_q = nodal @ rule.phi.T                                        # (n, nq)
+    lam_q = nodal @ rule.phi.T  # (n, nq)
     beta = np.zeros((len(nodal), len(rule.edges)))
     bminus = lam_q.copy()
     for e, (v0, v1, m) in enumerate(rule.edges):
@@ -85,13 +88,16 @@ def shares(nodal: np.ndarray, rule: EntityRule, sign: float) -> tuple[np.ndarray
     integral = bminus @ rule.w
     tiny = 1e-14 * (np.abs(nodal) @ rule.W) + 1e-300
     kappa = np.where(np.abs(integral) > tiny, total / np.where(integral == 0, 1, integral), 1.0)
-    lt = kappa[:, None] * bminus                                      # λ̃_E at the points
-    m = (nodal * rule.W[None]) @ rule.hat                             # m_a (n, D)
-    own = lt @ (rule.w[:, None] * rule.lam)                           # ∫ ψ_a λ̃_E
+    lt = kappa[:, None] * bminus  # λ̃_E at the points
+    m = (nodal * rule.W[None]) @ rule.hat  # m_a (n, D)
+    own = lt @ (rule.w[:, None] * rule.lam)  # ∫ ψ_a λ̃_E
     g = m - own
     bubble = np.prod(rule.lam[:, rule.vertices], axis=1)
-    bub_mom = rule.basis @ (rule.w * bubble) / (rule.w @ bubble)      # (nk,)
-    mom = np.einsum("kq,q,qa,nq->nak", rule.basis, rule.w, rule.lam, lt) + g[:, :, None] * bub_mom[None, None]
+    bub_mom = rule.basis @ (rule.w * bubble) / (rule.w @ bubble)  # (nk,)
+    mom = (
+        np.einsum("kq,q,qa,nq->nak", rule.basis, rule.w, rule.lam, lt)
+        + g[:, :, None] * bub_mom[None, None]
+    )
     return mom, kappa, beta
 
 

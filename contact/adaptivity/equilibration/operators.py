@@ -16,6 +16,7 @@ and ∫_T ∇u_h·σ = s ∫_T̂ ∇̂û·σ̂: only M and the data integrals se
 moments are taken against P_p(F) in the facet coordinates of its vertices sorted by
 global index (the same on both sides of a facet and on every rank): O_j = s P_πᵀ N̂_j.
 """
+
 from __future__ import annotations
 
 import functools
@@ -77,8 +78,8 @@ class CellOperators:
     table: CellTable
     rows: np.ndarray
     ref: Reference
-    multiplier: str | None = None    # where λ lives: None, "facets" (Γ_C) or "cells" (Ω)
-    sign: float = 0.0                # its admissible sign
+    multiplier: str | None = None  # where λ lives: None, "facets" (Γ_C) or "cells" (Ω)
+    sign: float = 0.0  # its admissible sign
 
     @cached_property
     def nodal(self) -> np.ndarray:
@@ -90,9 +91,12 @@ class CellOperators:
         x = self.table.x[self.rows]
         J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
         det, Jinv = det_inv(J)
-        return {"s": np.sign(det), "absdet": np.abs(det),
-                "GM": np.einsum("nki,nkj->nij", J, J) / np.abs(det)[:, None, None],
-                "KS": np.einsum("nik,njk->nij", Jinv, Jinv) * np.abs(det)[:, None, None]}
+        return {
+            "s": np.sign(det),
+            "absdet": np.abs(det),
+            "GM": np.einsum("nki,nkj->nij", J, J) / np.abs(det)[:, None, None],
+            "KS": np.einsum("nik,njk->nij", Jinv, Jinv) * np.abs(det)[:, None, None],
+        }
 
     @cached_property
     def kT(self) -> np.ndarray:
@@ -102,12 +106,18 @@ class CellOperators:
     @cached_property
     def MZinv(self) -> np.ndarray:
         r = self.ref
-        MZ = np.einsum("nij,ijab->nab", self.geometry["GM"], _projected(r, "ZZ")) / self.kT[:, None, None]
+        MZ = (
+            np.einsum("nij,ijab->nab", self.geometry["GM"], _projected(r, "ZZ"))
+            / self.kT[:, None, None]
+        )
         return np.linalg.inv(MZ)
 
     @cached_property
     def ZMR(self) -> np.ndarray:
-        return np.einsum("nij,ijab->nab", self.geometry["GM"], _projected(self.ref, "ZR")) / self.kT[:, None, None]
+        return (
+            np.einsum("nij,ijab->nab", self.geometry["GM"], _projected(self.ref, "ZR"))
+            / self.kT[:, None, None]
+        )
 
     @cached_property
     def perm(self) -> np.ndarray:
@@ -115,18 +125,22 @@ class CellOperators:
 
     def _oriented(self, NX: np.ndarray) -> np.ndarray:
         """s P_πᵀ (N̂_j X) for every facet j: (n, d+1, nf, ·)."""
-        P = self.ref.P[self.perm]                                   # (n, D, nf, nf)
+        P = self.ref.P[self.perm]  # (n, D, nf, nf)
         return self.geometry["s"][:, None, None, None] * np.einsum("njkl,jka->njla", P, NX)
 
     @cached_property
     def OZ(self) -> np.ndarray:
         r = self.ref
-        return self._oriented(np.einsum("jkm,mz->jkz", r.N, r.Z)).reshape(len(self.rows), -1, r.Z.shape[1])
+        return self._oriented(np.einsum("jkm,mz->jkz", r.N, r.Z)).reshape(
+            len(self.rows), -1, r.Z.shape[1]
+        )
 
     @cached_property
     def OR(self) -> np.ndarray:
         r = self.ref
-        return self._oriented(np.einsum("jkm,mz->jkz", r.N, r.R)).reshape(len(self.rows), -1, r.R.shape[1])
+        return self._oriented(np.einsum("jkm,mz->jkz", r.N, r.R)).reshape(
+            len(self.rows), -1, r.R.shape[1]
+        )
 
     @cached_property
     def Yt(self) -> np.ndarray:
@@ -156,8 +170,10 @@ class CellOperators:
         else:
             ref_tau = self.grad_u * self.table.k[self.rows][:, :, None]
         lhs = (ref_tau / self.kT[:, None, None]).reshape(n, nq * d)
-        ZG = self.ref_tables["ZG"]                       # (nq, d, D, mz): w λ_a (φ̂ Z)
-        return self.geometry["s"][:, None, None] * (lhs @ ZG.reshape(nq * d, -1)).reshape(n, d + 1, -1)
+        ZG = self.ref_tables["ZG"]  # (nq, d, D, mz): w λ_a (φ̂ Z)
+        return self.geometry["s"][:, None, None] * (lhs @ ZG.reshape(nq * d, -1)).reshape(
+            n, d + 1, -1
+        )
 
     @cached_property
     def ref_tables(self) -> dict:
@@ -171,8 +187,9 @@ class CellOperators:
         rows = self.rows
         g = self.geometry
         v = np.einsum("nqi,nik,ak->nqa", self.grad_u, g["KS"], r.dlam)
-        R0 = g["absdet"][:, None, None] * np.einsum("nq,qaj->naj", self.table.f[rows], t["wlamQ"]) \
-            - np.einsum("nqa,nq,qj->naj", v, self.table.k[rows], t["wQ"])
+        R0 = g["absdet"][:, None, None] * np.einsum(
+            "nq,qaj->naj", self.table.f[rows], t["wlamQ"]
+        ) - np.einsum("nqa,nq,qj->naj", v, self.table.k[rows], t["wQ"])
         src = np.zeros_like(R0)
         if self.multiplier == "cells":
             src = g["absdet"][:, None, None] * shares(self.nodal, cell_rule(r), self.sign)[0]
@@ -201,7 +218,7 @@ class CellOperators:
                 on = np.flatnonzero(kind[:, j] == CONTACT)
                 mom = shares(self.nodal[on], facet_rule(r, j), self.sign)[0]
                 data[on, j] += size[on, j][:, None, None] * mom
-        P = r.P[self.perm]                                     # (n, D, nf, nf): m_glob = Pᵀ m_loc
+        P = r.P[self.perm]  # (n, D, nf, nf): m_glob = Pᵀ m_loc
         return np.einsum("njkl,njak->njal", P, data)
 
 
@@ -216,15 +233,18 @@ def _data_tables(r: Reference, nu: int) -> dict:
 
     from .reference import CELLS
 
-    lag = basix.create_element(basix.ElementFamily.P, CELLS[r.d], r.p, basix.LagrangeVariant.gll_warped)
+    lag = basix.create_element(
+        basix.ElementFamily.P, CELLS[r.d], r.p, basix.LagrangeVariant.gll_warped
+    )
     assert lag.dim == nu
-    dphi_u = np.moveaxis(lag.tabulate(1, r.X)[1:, :, :, 0], 0, -1)          # (nq, nu, d)
+    dphi_u = np.moveaxis(lag.tabulate(1, r.X)[1:, :, :, 0], 0, -1)  # (nq, nu, d)
     phiZ = np.einsum("qmd,mz->qzd", r.phi, r.Z)
-    return {"dphi_u": dphi_u,
-            "ZG": np.einsum("q,qa,qzd->qdaz", r.w, r.lam, phiZ),
-            "wlamQ": np.einsum("q,qa,jq->qaj", r.w, r.lam, r.Q),
-            "wQ": np.einsum("q,jq->qj", r.w, r.Q),
-            }
+    return {
+        "dphi_u": dphi_u,
+        "ZG": np.einsum("q,qa,qzd->qdaz", r.w, r.lam, phiZ),
+        "wlamQ": np.einsum("q,qa,jq->qaj", r.w, r.lam, r.Q),
+        "wQ": np.einsum("q,jq->qj", r.w, r.Q),
+    }
 
 
 def facet_rule(r: Reference, j: int):

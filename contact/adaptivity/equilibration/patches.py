@@ -19,6 +19,7 @@ sign); what remains is projected out and reported as ``defect``.
 All patches of one size (number of unknown spokes) are solved in one batched dense solve;
 no loop runs over vertices.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -32,12 +33,18 @@ from .reference import Reference
 
 @dataclass
 class PatchOutput:
-    alpha: np.ndarray     # (rows, m): the RT_p coefficients Σ_a σ_a|_T (of the patches solved here)
-    defect: float         # Σ_a |balance defect| (flux units) projected out
+    alpha: np.ndarray  # (rows, m): the RT_p coefficients Σ_a σ_a|_T (of the patches solved here)
+    defect: float  # Σ_a |balance defect| (flux units) projected out
 
 
-def solve_patches(table: CellTable, owned_vertex: np.ndarray, ref: Reference, multiplier: str | None,
-                  sign: float, chunk: int = 50_000) -> PatchOutput:
+def solve_patches(
+    table: CellTable,
+    owned_vertex: np.ndarray,
+    ref: Reference,
+    multiplier: str | None,
+    sign: float,
+    chunk: int = 50_000,
+) -> PatchOutput:
     """Solve the patches of the vertices ``owned_vertex`` (global indices, complete in
     ``table``).  ``multiplier``: None, "facets" (λ on Γ_C) or "cells" (λ in Ω); ``sign``:
     the admissible sign of λ (−1: λ ≤ 0, +1: λ ≥ 0)."""
@@ -52,8 +59,17 @@ def solve_patches(table: CellTable, owned_vertex: np.ndarray, ref: Reference, mu
     ends = np.append(starts, len(verts))
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         sl = slice(ends[lo], ends[hi])
-        defect += _solve_chunk(table, rows[sl], locs[sl], np.searchsorted(uniq[lo:hi], verts[sl]),
-                               hi - lo, ref, multiplier, sign, alpha)
+        defect += _solve_chunk(
+            table,
+            rows[sl],
+            locs[sl],
+            np.searchsorted(uniq[lo:hi], verts[sl]),
+            hi - lo,
+            ref,
+            multiplier,
+            sign,
+            alpha,
+        )
     return PatchOutput(alpha, defect)
 
 
@@ -65,9 +81,9 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     npair = len(prow)
     ar = np.arange(npair)
     # the spokes of each pair: facets j != ploc; key = the other vertices of the facet
-    spoke_facets = np.array([[j for j in range(D) if j != i] for i in range(D)])      # (D, d)
-    sf = spoke_facets[ploc]                                                             # (npair, d)
-    _, gv = np.unique(table.gvert[prow], return_inverse=True)                          # compact ids
+    spoke_facets = np.array([[j for j in range(D) if j != i] for i in range(D)])  # (D, d)
+    sf = spoke_facets[ploc]  # (npair, d)
+    _, gv = np.unique(table.gvert[prow], return_inverse=True)  # compact ids
     gv = gv.reshape(npair, D).astype(np.int64)
     nv = int(gv.max()) + 1 if npair else 1
     keys = []
@@ -77,10 +93,10 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
         for col in others.T:
             key = key * nv + col
         keys.append(key)
-    keys = np.concatenate(keys)                                                         # (npair*d,)
+    keys = np.concatenate(keys)  # (npair*d,)
     kinds = np.concatenate([table.kind[prow, sf[:, s]] for s in range(ref.d)])
     ukeys, first_of, spoke = np.unique(keys, return_index=True, return_inverse=True)
-    spoke = spoke.reshape(ref.d, npair).T                                               # (npair, d)
+    spoke = spoke.reshape(ref.d, npair).T  # (npair, d)
     spoke_patch = np.tile(patch, ref.d)[first_of]
     spoke_kind = np.zeros(len(ukeys), dtype=np.int8)
     spoke_kind[spoke.T.ravel()] = kinds
@@ -128,7 +144,9 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
         where = np.full(n_patches, -1)
         where[members] = np.arange(len(members))
         sel = np.flatnonzero(where[patch] >= 0)
-        A, rhs = _assemble(where[patch[sel]], pair_local[sel], Shat[sel], b[sel], len(members), size, nf)
+        A, rhs = _assemble(
+            where[patch[sel]], pair_local[sel], Shat[sel], b[sel], len(members), size, nf
+        )
         pure = ~has_dirichlet[members]
         # regularize the constant multiplier; project out what is left of the balance
         if np.any(pure):
@@ -143,11 +161,15 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
         got = sol[where[patch[sel]][:, None], np.maximum(pl, 0)]
         mu_s[sel] = np.where(pl[..., None] >= 0, got, 0.0)
     mu_s = mu_s.reshape(npair, -1)
-    mu_o = np.einsum("nab,nb->na", Soo_inv, h[ar[:, None], I_o] - np.einsum("nba,nb->na", Sso, mu_s))
+    mu_o = np.einsum(
+        "nab,nb->na", Soo_inv, h[ar[:, None], I_o] - np.einsum("nba,nb->na", Sso, mu_s)
+    )
     mu = np.zeros((npair, D * nf))
     mu[ar[:, None], I_s] = mu_s
     mu[ar[:, None], I_o] = mu_o
-    rhs_g = ZTg - np.einsum("nab,nb->na", ops.ZMR[inv], beta) - np.einsum("nka,nk->na", ops.OZ[inv], mu)
+    rhs_g = (
+        ZTg - np.einsum("nab,nb->na", ops.ZMR[inv], beta) - np.einsum("nka,nk->na", ops.OZ[inv], mu)
+    )
     gamma = np.einsum("nab,nb->na", ops.MZinv[inv], rhs_g)
     contrib = beta @ ref.R.T + gamma @ ref.Z.T
     for col in range(ref.m):
@@ -168,8 +190,9 @@ def _others(ploc, facet, D):
 
 def _h(ops: CellOperators, inv, beta, ZTg):
     """h_a = O R̂ β + (O Z) M_Z⁻¹ (Zᵀ g_a − Zᵀ M R̂ β) for each pair: (npair, (d+1) nf)."""
-    return np.einsum("nka,na->nk", ops.OR[inv], beta) + \
-        np.einsum("nkz,nz->nk", ops.Yt[inv], ZTg - np.einsum("nzb,nb->nz", ops.ZMR[inv], beta))
+    return np.einsum("nka,na->nk", ops.OR[inv], beta) + np.einsum(
+        "nkz,nz->nk", ops.Yt[inv], ZTg - np.einsum("nzb,nb->nz", ops.ZMR[inv], beta)
+    )
 
 
 def _condense(h, I_s, I_o, T):

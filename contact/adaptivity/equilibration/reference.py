@@ -12,15 +12,15 @@ The tables split RT_p into a right inverse R̂ of the divergence and its kernel 
 B̂ R̂ = I and B̂ Z = 0 with B̂_jl = ∫_T̂ div̂ φ̂_l Q̂_j, so a flux with prescribed divergence
 moments β is R̂ β + Z γ and only γ (dimension m − dim P_p) is free in a cell.
 """
+
 from __future__ import annotations
 
 import functools
 import itertools
 from dataclasses import dataclass
 
-import numpy as np
-
 import basix
+import numpy as np
 
 CELLS = {2: basix.CellType.triangle, 3: basix.CellType.tetrahedron}
 FACETS = {2: basix.CellType.interval, 3: basix.CellType.triangle}
@@ -35,24 +35,24 @@ class Reference:
     # cell quadrature (points (nq, d), weights (nq,)) and facet-simplex quadrature
     X: np.ndarray
     w: np.ndarray
-    S: np.ndarray          # facet-simplex points (nqf, d - 1)
+    S: np.ndarray  # facet-simplex points (nqf, d - 1)
     wS: np.ndarray
-    XF: np.ndarray         # the facet points mapped into the reference cell, (d + 1, nqf, d)
+    XF: np.ndarray  # the facet points mapped into the reference cell, (d + 1, nqf, d)
     # RT_p: values (nq, m, d) and the divergence split
     phi: np.ndarray
-    R: np.ndarray          # (m, np) right inverse of the divergence moments
-    Z: np.ndarray          # (m, mz) kernel of the divergence moments
-    mass: np.ndarray       # (d, d, m, m): mass[i, j] = ∫ φ̂_·,i φ̂_·,j
-    N: np.ndarray          # (d + 1, nf, m) outward normal moments ∫_F̂ φ̂·n̂ q̂_k dS
-    Q: np.ndarray          # (np, nq) orthonormal P_p on the cell at the points
-    q: np.ndarray          # (nf, nqf) orthonormal P_p on the facet simplex at its points
-    lam: np.ndarray        # (nq, d + 1) barycentric coordinates (the hats ψ_a) at the points
-    lamF: np.ndarray       # (d + 1, nqf, d + 1) the same at the facet points of each facet
+    R: np.ndarray  # (m, np) right inverse of the divergence moments
+    Z: np.ndarray  # (m, mz) kernel of the divergence moments
+    mass: np.ndarray  # (d, d, m, m): mass[i, j] = ∫ φ̂_·,i φ̂_·,j
+    N: np.ndarray  # (d + 1, nf, m) outward normal moments ∫_F̂ φ̂·n̂ q̂_k dS
+    Q: np.ndarray  # (np, nq) orthonormal P_p on the cell at the points
+    q: np.ndarray  # (nf, nqf) orthonormal P_p on the facet simplex at its points
+    lam: np.ndarray  # (nq, d + 1) barycentric coordinates (the hats ψ_a) at the points
+    lamF: np.ndarray  # (d + 1, nqf, d + 1) the same at the facet points of each facet
     facet_area: np.ndarray  # (d + 1,) |F̂_j| / |facet simplex|
-    dlam: np.ndarray       # (d + 1, d) reference gradients of the hats
-    perms: tuple           # the d! orders of a facet's vertices
-    P: np.ndarray          # (d!, nf, nf) q̂(local order) = P q̂(global order)
-    kappa: np.ndarray      # (nf,) the constant function 1 in the facet basis
+    dlam: np.ndarray  # (d + 1, d) reference gradients of the hats
+    perms: tuple  # the d! orders of a facet's vertices
+    P: np.ndarray  # (d!, nf, nf) q̂(local order) = P q̂(global order)
+    kappa: np.ndarray  # (nf,) the constant function 1 in the facet basis
 
     @property
     def m(self) -> int:
@@ -80,25 +80,27 @@ def reference(d: int, p: int) -> Reference:
     X, w = basix.make_quadrature(cell, deg)
     S, wS = basix.make_quadrature(facet, deg)
     verts = basix.geometry(cell)
-    facets = basix.topology(cell)[d - 1]            # facet j: the sorted vertices other than j
-    bary_S = np.column_stack([1.0 - S.sum(axis=1), S])      # (nqf, d): barycentrics on the facet
-    XF = np.array([bary_S @ verts[f] for f in facets])      # (d + 1, nqf, d)
+    facets = basix.topology(cell)[d - 1]  # facet j: the sorted vertices other than j
+    bary_S = np.column_stack([1.0 - S.sum(axis=1), S])  # (nqf, d): barycentrics on the facet
+    XF = np.array([bary_S @ verts[f] for f in facets])  # (d + 1, nqf, d)
     normals = basix.cell.facet_outward_normals(cell)
-    facet_area = np.array([_simplex_volume(verts[f]) for f in facets]) / _simplex_volume(basix.geometry(facet))
+    facet_area = np.array([_simplex_volume(verts[f]) for f in facets]) / _simplex_volume(
+        basix.geometry(facet)
+    )
 
     rt = basix.create_element(basix.ElementFamily.RT, cell, p + 1, basix.LagrangeVariant.legendre)
-    tab = rt.tabulate(1, X)                                  # (1 + d, nq, m, d)
+    tab = rt.tabulate(1, X)  # (1 + d, nq, m, d)
     phi = tab[0]
-    div = sum(tab[1 + i][:, :, i] for i in range(d))        # (nq, m)
-    Q = basix.tabulate_polynomials(basix.PolynomialType.legendre, cell, p, X)      # (np, nq)
-    q = basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S)     # (nf, nqf)
+    div = sum(tab[1 + i][:, :, i] for i in range(d))  # (nq, m)
+    Q = basix.tabulate_polynomials(basix.PolynomialType.legendre, cell, p, X)  # (np, nq)
+    q = basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S)  # (nf, nqf)
     B = np.einsum("q,jq,ql->jl", w, Q, div)
-    R = np.linalg.pinv(B)                                    # B R = I (B has full row rank)
+    R = np.linalg.pinv(B)  # B R = I (B has full row rank)
     Z = _kernel(B)
     mass = np.einsum("q,qli,qmj->ijlm", w, phi, phi)
     N = np.empty((d + 1, q.shape[0], phi.shape[1]))
     for j in range(d + 1):
-        vals = rt.tabulate(0, XF[j])[0] @ normals[j]         # (nqf, m)
+        vals = rt.tabulate(0, XF[j])[0] @ normals[j]  # (nqf, m)
         N[j] = facet_area[j] * np.einsum("q,kq,ql->kl", wS, q, vals)
     lam = _barycentric(X)
     lamF = np.array([_barycentric(XF[j]) for j in range(d + 1)])
@@ -106,8 +108,29 @@ def reference(d: int, p: int) -> Reference:
     perms = tuple(itertools.permutations(range(d)))
     P = np.array([_facet_permutation(facet, S, wS, bary_S, pi, p) for pi in perms])
     kappa = np.einsum("q,kq->k", wS, q)
-    return Reference(d, p, X, w, S, wS, XF, phi, R, Z, mass, N, Q, q, lam, lamF, facet_area, dlam,
-                     perms, P, kappa)
+    return Reference(
+        d,
+        p,
+        X,
+        w,
+        S,
+        wS,
+        XF,
+        phi,
+        R,
+        Z,
+        mass,
+        N,
+        Q,
+        q,
+        lam,
+        lamF,
+        facet_area,
+        dlam,
+        perms,
+        P,
+        kappa,
+    )
 
 
 def _simplex_volume(v: np.ndarray) -> float:
@@ -129,7 +152,7 @@ def _facet_permutation(facet, S, wS, bary_S, pi, p) -> np.ndarray:
     """P[k, l] = ∫ q̂_k(ŝ) q̂_l(ŝ') dŝ, where ŝ' is the same point in the facet coordinates of
     the vertices reordered so that local vertex r sits at position pi[r]: the local basis
     function q̂_k is Σ_l P[k, l] (q̂_l in the global order) (P is orthogonal)."""
-    ref = basix.geometry(facet)                       # (d, d - 1) vertices of the facet simplex
+    ref = basix.geometry(facet)  # (d, d - 1) vertices of the facet simplex
     bary_global = np.empty_like(bary_S)
     bary_global[:, list(pi)] = bary_S
     S_global = bary_global @ ref
