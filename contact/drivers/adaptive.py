@@ -129,7 +129,8 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
         seconds["assembly"] = problem.assembly_time
         progress.note(lambda: f"level {index}: assembled, {problem.assembly_time:.0f} s")
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-        result, est, passes = solve_level(scene, problem, u0, seconds, method=method,
+        result, est, passes = solve_level(scene, problem, u0, seconds, f"level {index}",
+                                          method=method,
                                           rtol=opts["newton_rtol"],
                                           sequence=None if opts["nested"] else "off",
                                           previous=out.levels[-1] if out.levels else None)
@@ -191,10 +192,11 @@ def adapt(scene: Scene, method: str | None = None, on_level: Callable[[Level], N
 MAX_PASSES = 3
 
 
-def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict,
+def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict, label: str,
                 previous: Level | None = None, **options: Any) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
-    of :func:`~contact.drivers.solve.solve`); returns (result, estimate, solves).
+    of :func:`~contact.drivers.solve.solve`; ``label`` names it in progress lines); returns
+    (result, estimate, solves).
 
     With ``solver.stopping: adaptive`` (:mod:`contact.solvers.stopping`) a level after the
     first is solved against the discretization error it should reach, predicted from the
@@ -219,7 +221,8 @@ def solve_level(scene: Scene, problem, u0: fem.Function | None, seconds: dict,
         t0 = time.perf_counter()
         result = solve(scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options)
         seconds["solve"] += time.perf_counter() - t0
-        progress.note(lambda: f"solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
+        progress.note(lambda: f"{label}: solved ({result.dofs} DoFs), "
+                              f"{seconds['solve']:.0f} s; estimating")
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] += time.perf_counter() - t0
