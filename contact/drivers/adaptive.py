@@ -160,6 +160,7 @@ def adapt(
             problem,
             u0,
             seconds,
+            f"level {index}",
             method=method,
             rtol=opts["newton_rtol"],
             sequence=None if opts["nested"] else "off",
@@ -244,11 +245,13 @@ def solve_level(
     problem,
     u0: fem.Function | None,
     seconds: dict,
+    label: str,
     previous: Level | None = None,
     **options: Any,
 ) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
-    of :func:`~contact.drivers.solve.solve`); returns (result, estimate, solves).
+    of :func:`~contact.drivers.solve.solve`; ``label`` names it in progress lines); returns
+    (result, estimate, solves).
 
     With ``solver.stopping: adaptive`` (:mod:`contact.solvers.stopping`) a level after the
     first is solved against the discretization error it should reach, predicted from the
@@ -275,7 +278,7 @@ def solve_level(
         t0 = time.perf_counter()
         result = solve(scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options)
         seconds["solve"] += time.perf_counter() - t0
-        progress.note(f"solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
+        progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
         t0 = time.perf_counter()
         est = estimate(scene, result)
         seconds["estimate"] += time.perf_counter() - t0
