@@ -276,6 +276,13 @@ def estimate(scene: Scene, result: Result) -> Estimate:
 
         bound = guaranteed_bound(scene, result)
         return Estimate(bound.eta_T, bound.eta, bound.terms)
+    return residual_estimate(scene, result)
+
+
+def residual_estimate(scene: Scene, result: Result) -> Estimate:
+    """The residual estimator (docs/theory.md §5) of a solve of ``scene``, whatever the
+    scene's ``estimator`` says (collective): each term of η_T² assembled once as a DG0
+    vector, η_T² their sum, each term's total the sum of its owned entries."""
     terms = indicator_terms(scene, result)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())
