@@ -107,7 +107,41 @@ def solve(
         stopping=criterion,
     )
     result.sequence, result.sequence_note = levels, note
+    if result.converged and problem.floating:
+        warn_if_not_unique(scene, problem, result)
     return result
+
+
+def warn_if_not_unique(scene: Scene, problem: DiscreteProblem, result: Result) -> None:
+    """A body that only frictionless contact holds may slide: the displacement of a
+    converged ``result`` is then one of infinitely many (any sliding of the body along its
+    free rigid motions solves the problem as well, :func:`contact.models.floating.free_in_contact`);
+    its strains, stresses and contact forces are unique.  Say so in one ContactWarning line
+    (rank 0) naming the body — which copy the solver returned depends on the linear
+    solver's null pivots, i.e. on rounding."""
+    from ..models.floating import free_in_contact
+
+    named = bool(scene.cfg.get("bodies"))
+    free = free_in_contact(
+        problem,
+        scene.bodies if named else None,
+        list(scene.cfg["bodies"]) if named else [],
+        result.active_mask,
+    )
+    if free and scene.comm.rank == 0:
+        import warnings
+
+        from ..setup.surfaces import ContactWarning
+
+        name, n = free[0]
+        warnings.warn(
+            f"the displacement is not unique: {'body ' + name if name else 'the body'} keeps "
+            f"{n} free rigid motion(s) with its contact nodes active (no dirichlet or symmetry "
+            "part holds it, and frictionless contact never holds a sliding motion); the "
+            "stresses and contact forces are unique, u_h is one of the solutions",
+            ContactWarning,
+            stacklevel=2,
+        )
 
 
 def solver_options(cfg: Mapping[str, Any], **overrides: Any) -> dict:

@@ -34,6 +34,61 @@ def floating_bodies(
     None, named ``''``) that the local DoFs ``fixed`` (Dirichlet and symmetry) do not hold,
     as (name, number of free rigid motions); names of joined bodies joined by '+'.
     Collective; the same list on every rank."""
+    gdim, n_owned = V.mesh.geometry.dim, V.dofmap.index_map.size_local
+    fixed = np.unique(fixed[fixed < n_owned * gdim])
+    node, comp = fixed // gdim, fixed % gdim
+    out = []
+    for name, on, centre, size in _units(V, bodies, names):
+        held = on[node]
+        modes = _rigid_modes((_coordinates(V)[node[held]] - centre) / size, comp[held], gdim)
+        free = _free(V.mesh.comm, modes)
+        if free:
+            out.append((name, free))
+    return out
+
+
+def free_in_contact(
+    problem, bodies: dmesh.MeshTags | None, names: list[str], active: np.ndarray
+) -> list[tuple[str, int]]:
+    """The floating units of ``problem`` (:attr:`DiscreteProblem.floating`) that a solution
+    with the active set ``active`` (a mask of ``problem.constraint.dofs``) still leaves free,
+    as (name, number of free rigid motions).  A rigid motion m is held where its unknowns
+    x = Q⁻¹ m are nonzero at a Dirichlet DoF or at an active constraint row (a normal or
+    gap component); frictionless contact holds no sliding, so a body held by contact alone
+    keeps its tangential motions and the solution is not unique (any sliding of it solves
+    the problem as well).  Collective; the same list on every rank."""
+    V = problem.V
+    gdim, n_owned = V.mesh.geometry.dim, V.dofmap.index_map.size_local
+    rows = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in problem.bcs]
+    con = problem.constraint
+    held = np.unique(np.concatenate([*rows, con.dofs[np.asarray(active, dtype=bool)]]))
+    held = held[held < n_owned * gdim].astype(np.int64)
+    floating = dict(problem.floating)
+    m, x = fem.Function(V), problem.b.duplicate()
+    X, comp = _coordinates(V), np.arange(n_owned * gdim) % gdim
+    out = []
+    for name, on, centre, size in _units(V, bodies, names):
+        if name not in floating:
+            continue
+        dofs = np.flatnonzero(np.repeat(on, gdim))
+        modes = _rigid_modes((X[dofs // gdim] - centre) / size, comp[dofs], gdim)
+        columns = []
+        for k in range(modes.shape[1]):  # each motion as the solver's unknowns x = Q⁻¹ m
+            m.x.array[:] = 0.0
+            m.x.array[dofs] = modes[:, k]
+            m.x.scatter_forward()
+            problem.to_unknowns(m.x.petsc_vec, x)
+            columns.append(x.array_r[held].copy())
+        free = _free(V.mesh.comm, np.column_stack(columns))
+        if free:
+            out.append((name, free))
+    x.destroy()
+    return out
+
+
+def _units(V: fem.FunctionSpace, bodies: dmesh.MeshTags | None, names: list[str]):
+    """(name, owned-node mask, centre, size) of each rigid unit (bodies joined where they
+    share a node), the same on every rank."""
     msh, comm = V.mesh, V.mesh.comm
     gdim, imap = msh.geometry.dim, V.dofmap.index_map
     n_owned = imap.size_local
@@ -50,25 +105,30 @@ def floating_bodies(
             flag.array[cells[body == k + 1].ravel()] = 1.0
             flag.scatter_reverse(la.InsertMode.add)
             member[k] = flag.array[:n_owned] > 0
-    units = _join(comm, member)
-    X = V.tabulate_dof_coordinates()[:n_owned, :gdim]
-    fixed = np.unique(fixed[fixed < n_owned * gdim])
-    node, comp = fixed // gdim, fixed % gdim
+    X = _coordinates(V)
     out = []
-    for unit in units:
+    for unit in _join(comm, member):
         on = member[unit].any(axis=0)
         lo, hi = np.empty(gdim), np.empty(gdim)
         comm.Allreduce(X[on].min(axis=0, initial=np.inf), lo, op=MPI.MIN)
         comm.Allreduce(X[on].max(axis=0, initial=-np.inf), hi, op=MPI.MAX)
         size = max(float(np.max(hi - lo)), np.finfo(float).tiny)
-        held = on[node]
-        modes = _rigid_modes((X[node[held]] - 0.5 * (lo + hi)) / size, comp[held], gdim)
-        G = comm.allreduce(modes.T @ modes, op=MPI.SUM)
-        eig = np.linalg.eigvalsh(G)
-        free = int(np.sum(eig <= FREE_RTOL * max(float(np.trace(G)), 1.0)))
-        if free:
-            out.append(("+".join(names[k] for k in unit), free))
+        out.append(("+".join(names[k] for k in unit), on, 0.5 * (lo + hi), size))
     return out
+
+
+def _coordinates(V: fem.FunctionSpace) -> np.ndarray:
+    """The owned nodes' coordinates (n_owned × gdim)."""
+    gdim = V.mesh.geometry.dim
+    return V.tabulate_dof_coordinates()[: V.dofmap.index_map.size_local, :gdim]
+
+
+def _free(comm: MPI.Comm, rows: np.ndarray) -> int:
+    """How many motions (columns) the rows leave free: the eigenvalues of the Gram matrix
+    Σ rows ᵀ rows (summed over ranks) at most FREE_RTOL · its trace."""
+    G = comm.allreduce(rows.T @ rows, op=MPI.SUM)
+    eig = np.linalg.eigvalsh(G)
+    return int(np.sum(eig <= FREE_RTOL * max(float(np.trace(G)), 1.0)))
 
 
 def _rigid_modes(x: np.ndarray, comp: np.ndarray, gdim: int) -> np.ndarray:

@@ -193,6 +193,11 @@ class ResidualProblem(DiscreteProblem):
         b.set(0.0)
         return K, b
 
+    def _forms(self) -> tuple[fem.Form, fem.Form]:
+        """(F, J): always given (the builders pass them; None only as dataclass defaults)."""
+        assert self.F_form is not None and self.J_form is not None, "F_form, J_form not set"
+        return self.F_form, self.J_form
+
     def _set_iterate(self, x: PETSc.Vec) -> None:
         u = self.u_h.x
         u.petsc_vec.array_w[:] = x.array_r
@@ -204,20 +209,32 @@ class ResidualProblem(DiscreteProblem):
         if self._F is None:
             self._F = dolfinx.fem.petsc.create_vector(self.V)
         F, u = self._F, self.u_h.x.petsc_vec
+        F_form, J_form = self._forms()
         with F.localForm() as local:
             local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(F, self.F_form)
-        dolfinx.fem.petsc.apply_lifting(F, [self.J_form], bcs=[self.bcs], x0=[u], alpha=-1.0)
-        F.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        # assemble_vector(Vec, form): the overload into an existing vector (not in the stubs)
+        dolfinx.fem.petsc.assemble_vector(F, F_form)  # type: ignore[arg-type]
+        dolfinx.fem.petsc.apply_lifting(F, [J_form], bcs=[self.bcs], x0=[u], alpha=-1.0)
+        add, reverse = PETSc.InsertMode.ADD, PETSc.ScatterMode.REVERSE
+        F.ghostUpdate(addv=add, mode=reverse)  # type: ignore[arg-type]
         dolfinx.fem.petsc.set_bc(F, self.bcs, u, -1.0)
         out.array_w[:] = F.array_r
+
+    def _assemble_tangent(self, A: PETSc.Mat) -> None:
+        """A = J(u_h) at the current ``u_h`` into A's pattern (that of :meth:`matrices`),
+        Dirichlet rows and columns identity."""
+        J_form = self._forms()[1]
+        A.zeroEntries()
+        # assemble_matrix(Mat, form, bcs): the overload into an existing matrix (not in the
+        # stubs, which read the Mat as the form and the form as bcs)
+        assemble = dolfinx.fem.petsc.assemble_matrix
+        assemble(A, J_form, bcs=self.bcs)  # type: ignore[arg-type, misc]
+        A.assemble()
 
     def linearize(self, x: PETSc.Vec) -> None:
         """K = J(x), Dirichlet rows and columns identity (same sparsity each time)."""
         self._set_iterate(x)
-        self.K.zeroEntries()
-        dolfinx.fem.petsc.assemble_matrix(self.K, self.J_form, bcs=self.bcs)
-        self.K.assemble()
+        self._assemble_tangent(self.K)
 
     def destroy(self) -> None:
         super().destroy()
@@ -232,7 +249,7 @@ class ComplementarityProblem:
     :meth:`solve`; it owns PETSc objects (K, b): :meth:`close` it, or use ``with``."""
 
     def __init__(self, problem: DiscreteProblem):
-        self.problem = problem
+        self.problem: DiscreteProblem | None = problem  # None once closed
 
     @classmethod
     def from_forms(
@@ -280,6 +297,7 @@ class ComplementarityProblem:
         user's u), ``lmbda_h``, ``active``, ``history``, ``converged``, ``reason``."""
         opts = SolverOptions.parse({"method": method, **options})
         p = self.problem
+        assert p is not None, "ComplementarityProblem.solve: the problem is closed"
         timers = {"assembly": p.assembly_time, "solve": 0.0}
         return solve_problem(
             p,
@@ -306,15 +324,15 @@ class ComplementarityProblem:
         self.close()
 
 
-def _discrete(
-    kind: type,
+def _discrete[P: DiscreteProblem](
+    kind: type[P],
     u: fem.Function,
     bcs: list,
     K: PETSc.Mat,
     b: PETSc.Vec,
     constraint: Unilateral,
     t0: float,
-) -> DiscreteProblem:
+) -> P:
     """The solver's problem: the constraint's nodes, weights and bound on u's space."""
     V = u.function_space
     dofs, w = constraint.nodes(V, bcs)

@@ -43,7 +43,6 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import dolfinx.fem.petsc
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -111,10 +110,11 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
     K, b = ResidualProblem.matrices(J_form, s.bcs)
     contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
-    kind, tangent = ResidualProblem, {}
+    kind: type[ResidualProblem] = ResidualProblem
+    K_T: PETSc.Mat | None = None  # the tangent in u when K holds K̃ instead
     if "K" in contact:  # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
         b.destroy()
-        kind, tangent = RotatedResidualProblem, {"K_T": K}
+        kind, K_T = RotatedResidualProblem, K
         K, b = contact.pop("K"), contact.pop("b")
     con = contact.pop("constraint")
 
@@ -129,7 +129,7 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
         "law": model["law"],
         **contact.pop("data"),
     }
-    return kind(
+    problem = kind(
         V,
         u_h,
         s.bcs,
@@ -145,8 +145,10 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
         assembly_time=time.perf_counter() - t0,
         F_form=F_form,
         J_form=J_form,
-        **tangent,
     )
+    if isinstance(problem, RotatedResidualProblem):
+        problem.K_T = K_T
+    return problem
 
 
 @dataclass
@@ -163,9 +165,14 @@ class RotatedResidualProblem(ResidualProblem):
     K_T: PETSc.Mat | None = None  # the tangent in the displacement unknowns
     _R: PETSc.Vec | None = field(default=None, repr=False)
 
+    def _rotation(self) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """(Q, K_T): always given (the builder passes both; None only as defaults)."""
+        assert self.basis is not None and self.K_T is not None, "basis (Q), K_T not set"
+        return self.basis, self.K_T
+
     def _set_iterate(self, x: PETSc.Vec) -> None:
         u = self.u_h.x
-        self.basis.mult(x, u.petsc_vec)  # u = Q x
+        self._rotation()[0].mult(x, u.petsc_vec)  # u = Q x
         u.scatter_forward()
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
@@ -173,15 +180,14 @@ class RotatedResidualProblem(ResidualProblem):
         if self._R is None:
             self._R = out.duplicate()
         super().residual(x, self._R)
-        self.basis.multTranspose(self._R, out)
+        self._rotation()[0].multTranspose(self._R, out)
 
     def linearize(self, x: PETSc.Vec) -> None:
         """K = Qᵀ K_T(Q x) Q."""
         self._set_iterate(x)
-        self.K_T.zeroEntries()
-        dolfinx.fem.petsc.assemble_matrix(self.K_T, self.J_form, bcs=self.bcs)
-        self.K_T.assemble()
-        self.K_T.PtAP(self.basis, result=self.K)
+        Q, K_T = self._rotation()
+        self._assemble_tangent(K_T)
+        K_T.PtAP(Q, result=self.K)
 
     def destroy(self) -> None:
         super().destroy()
