@@ -229,6 +229,10 @@ def _interrupt(tmp: Path, ranks: int) -> tuple[subprocess.Popen, str, float]:
         text=True,
         start_new_session=True,
         env={**os.environ, "OMP_NUM_THREADS": "1"},
+        # a terminal's foreground job: SIGINT at its default. A suite started in the
+        # background of a non-interactive shell (`make test &`) ignores SIGINT, the children
+        # inherit that and Python then keeps it ignored: the Ctrl-C never arrived (240 s)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     for line in proc.stdout:
         if line.startswith("contact: step 2 "):
