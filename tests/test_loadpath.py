@@ -121,6 +121,12 @@ def test_run_writes_every_step(tmp_path):
     assert set(np.unique(grid.point_data["status"])) <= {-1.0, 0.0, 2.0}
     steps = list(csv.DictReader(open(out / "steps.csv")))
     assert [float(s["time"]) for s in steps] == pytest.approx([1 / 3, 2 / 3, 1.0])
+    # history.csv: every step's Newton rows under its load_step, each starting at iteration
+    # 0 (the Newton rows' own `step`, the step length, had overwritten the load step's index)
+    history = list(csv.DictReader(open(out / "history.csv")))
+    starts = [int(h["load_step"]) for h in history if h["iteration"] == "0"]
+    assert starts == [int(s["step"]) for s in steps] and len(set(starts)) == 3
+    assert [int(h["load_step"]) for h in history] == sorted(int(h["load_step"]) for h in history)
     for s in steps:
         for ax in "xy":
             assert float(s[f"contact_force_{ax}"]) == pytest.approx(

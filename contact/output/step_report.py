@@ -16,7 +16,8 @@ resultants and zone measures of :func:`contact.post.friction_resultants.surface_
 ``contact.csv`` and ``pressure.png`` of the last step
 (:func:`contact.output.run_report.write_contact`), ``traction.png`` (λ_n and λ_t along Γ_C
 at every step, with the declared reference's or the exact solution's curves),
-``solution.png``, ``history.csv`` (every step's Newton iterations) and, when steps ran the
+``solution.png``, ``history.csv`` (every step's Newton iterations, with a ``load_step``
+column) and, when steps ran the
 adaptive loop, ``convergence.csv`` (one row per level, with its step).
 """
 
@@ -61,7 +62,9 @@ class StepWriter:
 
     def __call__(self, step: Step) -> None:
         r, scene, k = step.result, step.scene, step.index
-        self.history += [{"step": k, **h} for h in r.history]
+        # `load_step` beside the Newton rows' own `step` (the step length, as in one solve's
+        # history.csv): {"step": k, **h} let the step length overwrite the load step's index
+        self.history += [{"load_step": k, **h} for h in r.history]
         if not r.converged:
             return
         est = step.levels[-1].estimate if step.levels else estimate(scene, r)
