@@ -214,12 +214,22 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
         con,
         data=data,
         **contact,
-        symmetric_copies=2 ** len(system.symmetry_axes),
-        symmetry_axes=system.symmetry_axes,
-        near_nullspace=rigid_body_modes(V, contact.get("basis")),
-        floating=floating_bodies(V, fixed, None, []),
+        **body_fields(system, contact.get("basis")),
         assembly_time=time.perf_counter() - t0,
     )
+
+
+def body_fields(system, basis: PETSc.Mat | None) -> dict:
+    """The DiscreteProblem fields of one elastic body (linear or hyperelastic) that follow
+    from its setting: the symmetric copies it stands for, the rigid-body near-nullspace (in
+    the contact basis Q) and the rigid motions no Dirichlet or symmetry part holds."""
+    V = system.V
+    return {
+        "symmetric_copies": 2 ** len(system.symmetry_axes),
+        "symmetry_axes": system.symmetry_axes,
+        "near_nullspace": rigid_body_modes(V, basis),
+        "floating": floating_bodies(V, system.fixed, None, []),
+    }
 
 
 def rigid_body_modes(

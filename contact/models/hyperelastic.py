@@ -51,8 +51,7 @@ from petsc4py import PETSc
 from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
-from .elasticity import elastic_setting, lame, rigid_body_modes
-from .floating import floating_bodies
+from .elasticity import body_fields, elastic_setting, lame
 from .forms import ResidualProblem
 from .obstacles import plane_contact
 
@@ -138,10 +137,7 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
         con,
         data=data,
         **contact,
-        symmetric_copies=2 ** len(s.symmetry_axes),
-        symmetry_axes=s.symmetry_axes,
-        near_nullspace=rigid_body_modes(V, contact.get("basis")),
-        floating=floating_bodies(V, s.fixed, None, []),
+        **body_fields(s, contact.get("basis")),
         assembly_time=time.perf_counter() - t0,
         F_form=F_form,
         J_form=J_form,
