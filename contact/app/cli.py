@@ -296,6 +296,7 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     from ..output import folder
     from ..output.run_report import files_text
     from ..output.step_report import StepWriter
+    from ..solvers.energy_search import tangent_text
 
     with folder.atomic_folder(outdir, comm, label) as tmp:
         writer = StepWriter(tmp, scene)
@@ -311,10 +312,12 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                     for code, name in enumerate(("separated", "stick", "slip"))
                 )
             )
+            tangent = tangent_text(s.result.tangent_log)  # what the energy search did
             _say(
                 comm,
                 f"contact: step {s.index} t = {s.time:g}: {s.result.dofs} DoFs, "
-                f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}",
+                f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}"
+                + (f"; {tangent}" if tangent else ""),
             )
             writer(s)
 
@@ -338,7 +341,12 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                 raise _Failed()
             failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
             path = LoadPath(
-                path.steps[:-1], stop=path.stop, cuts=path.cuts, indefinite=path.indefinite
+                path.steps[:-1],
+                stop=path.stop,
+                cuts=path.cuts,
+                indefinite=path.indefinite,
+                inverted=path.inverted,
+                tangent_events=path.tangent_events,
             )
         info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")

@@ -30,6 +30,7 @@ from dolfinx import fem
 
 from ..setup.scene import Scene
 from ..solvers import Result
+from ..solvers.energy_search import tangent_text
 from .adaptive import adapt
 from .solve import solve
 
@@ -46,6 +47,7 @@ class Step:
     levels: list = field(default_factory=list)  # adapt.Level of an adaptive step
     seconds: float = 0.0
     negative_eigenvalues: int | None = None  # of K_T at the solution (hyperelastic bodies)
+    min_det_F: float | None = None  # the smallest det F of the solution (hyperelastic bodies)
 
     def release(self) -> None:
         """Keep the step's figures only: its result and its adaptive levels' results are
@@ -65,6 +67,9 @@ class LoadPath:
     stop: str = ""
     cuts: list[str] = field(default_factory=list)  # step cutting: 't = … (reason) cut to t = …'
     indefinite: str = ""  # the first step whose K_T is not positive definite (hyperelastic)
+    inverted: str = ""  # the first step whose solution inverts matter (det F <= 0)
+    # what the energy search did, one line per step where it did anything (hyperelastic)
+    tangent_events: list[str] = field(default_factory=list)
 
     @property
     def converged(self) -> bool:
@@ -168,6 +173,9 @@ def run_load_path(
             pending[:0] = [(mid, depth + 1), (t, depth + 1)]
             continue
         step = Step(k, t, step_scene, result, levels, time.perf_counter() - t0)
+        text = tangent_text(result.tangent_log)  # what the energy search did (hyperelastic)
+        if text:
+            out.tangent_events.append(f"step {k} (t = {t:g}): {text}")
         if result.converged and scene.cfg["model"]["type"] == "hyperelastic":
             check_tangent(step, out, verbose)
         out.steps.append(step)
@@ -187,10 +195,21 @@ def run_load_path(
 
 def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
     """Count the negative eigenvalues of a hyperelastic step's tangent K_T at its solution
-    (:func:`contact.models.hyperelastic.negative_eigenvalues`); the first step where K_T is
-    not positive definite is reported (``LoadPath.indefinite``, the stop text, verbose)."""
-    from ..models.hyperelastic import negative_eigenvalues
+    (:func:`contact.models.hyperelastic.negative_eigenvalues`) and its smallest det F; the
+    first step where K_T is not positive definite is reported (``LoadPath.indefinite``, the
+    stop text, verbose), and the first whose solution inverts matter (``inverted``: an
+    equilibrium of the discrete equations that no body reaches — plain Newton on St
+    Venant–Kirchhoff in strong compression converges to such states)."""
+    from ..models.hyperelastic import min_det_F, negative_eigenvalues
 
+    J = step.min_det_F = min_det_F(step.result)
+    if J <= 0 and not path.inverted:
+        path.inverted = (
+            f"step {step.index} (t = {step.time:g}) inverts matter (min det F = {J:.3g}): "
+            "not a physical deformation"
+        )
+        if verbose and step.scene.comm.rank == 0:
+            print(f"contact: {path.inverted}", flush=True)
     n = step.negative_eigenvalues = negative_eigenvalues(step.result)
     if n and not path.indefinite:
         path.indefinite = (
@@ -209,4 +228,5 @@ def _notes(path: LoadPath) -> str:
     """', 2 step cut(s): t = 1 (diverged_fnorm_nan) cut to t = 0.5; …' and '; K_T not
     positive definite from step k (…)' ('' without either)."""
     cuts = f", {len(path.cuts)} step cut(s): " + "; ".join(path.cuts) if path.cuts else ""
-    return cuts + (f"; {path.indefinite}" if path.indefinite else "")
+    notes = [note for note in (path.indefinite, path.inverted) if note]
+    return cuts + "".join(f"; {note}" for note in notes)

@@ -179,9 +179,34 @@ class ResidualProblem(DiscreteProblem):
 
     F_form: fem.Form | None = None
     J_form: fem.Form | None = None
+    #: Π(u) with F = ∂Π/∂u, when the residual is the gradient of an energy (hyperelasticity)
+    energy_form: fem.Form | None = None
+    #: the smallest det F of the current u_h (collective), where Π is +∞ for det F ≤ 0
+    min_jacobian: Callable[[], float] | None = None
     _F: PETSc.Vec | None = field(default=None, repr=False)
 
     nonlinear = True
+
+    @property
+    def has_energy(self) -> bool:  # type: ignore[override]
+        return self.energy_form is not None
+
+    def admissible(self, x: PETSc.Vec) -> bool:
+        """Whether u = x inverts no matter: det F > 0 at every point :attr:`min_jacobian`
+        checks (True without it; collective).  Leaves u_h = x."""
+        self._set_iterate(x)
+        return self.min_jacobian is None or self.min_jacobian() > 0
+
+    def energy(self, x: PETSc.Vec) -> float:
+        """Π(x) = ∫ ψ dX − L(u) at u = x (the Dirichlet values are x's own); +∞ where u
+        inverts matter (det F ≤ 0 somewhere, with :attr:`min_jacobian`): no deformation is
+        admissible there, whatever a law's ψ says (St Venant–Kirchhoff's is finite, even
+        zero for a reflection)."""
+        assert self.energy_form is not None, "energy: the problem has no energy form"
+        if not self.admissible(x):
+            return np.inf
+        local = fem.assemble_scalar(self.energy_form)
+        return float(self.V.mesh.comm.allreduce(local, op=MPI.SUM))
 
     @staticmethod
     def matrices(J_form: fem.Form, bcs: list) -> tuple[PETSc.Mat, PETSc.Vec]:

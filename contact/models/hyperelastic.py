@@ -41,11 +41,14 @@ refuses them.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
+import basix
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.lifetime import destroy
@@ -107,6 +110,8 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     energy = strain_energy(deformation_gradient(u_h), model["law"], mu, lmbda_L) * dx
     R = ufl.derivative(energy, u_h, v) - s.L_ufl
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
+    potential = fem.form(energy - ufl.action(s.L_ufl, u_h))  # Π(u) = ∫ ψ dX − L(u)
+    min_jacobian = jacobian_check(u_h, 2 * degree)
     K, b = ResidualProblem.matrices(J_form, s.bcs)
     contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
     kind: type[ResidualProblem] = ResidualProblem
@@ -141,10 +146,29 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
         assembly_time=time.perf_counter() - t0,
         F_form=F_form,
         J_form=J_form,
+        energy_form=potential,
+        min_jacobian=min_jacobian,
     )
     if isinstance(problem, RotatedResidualProblem):
         problem.K_T = K_T
     return problem
+
+
+def jacobian_check(u: fem.Function, degree: int) -> Callable[[], float]:
+    """A function returning min J, J = det F of ``u`` (its current values) at the points of
+    the quadrature rule of ``degree`` on every owned cell, over all ranks (collective): a
+    deformation is admissible where J > 0."""
+    msh = u.function_space.mesh
+    cell = msh.basix_cell()
+    points, _ = basix.make_quadrature(cell, degree)
+    expr = fem.Expression(ufl.det(deformation_gradient(u)), np.asarray(points))
+    cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
+
+    def min_jacobian() -> float:
+        local = float(np.min(expr.eval(msh, cells), initial=np.inf))
+        return msh.comm.allreduce(local, op=MPI.MIN)
+
+    return min_jacobian
 
 
 @dataclass
@@ -223,6 +247,19 @@ def negative_eigenvalues(result) -> int:
         A.destroy()
         x.destroy()
     return int(negative)
+
+
+def min_det_F(result) -> float:
+    """The smallest det F of a result's u_h (over the quadrature points of every cell and
+    all ranks; collective): ≤ 0 means the solution inverts matter."""
+    p = result.problem
+    x = p.b.duplicate()
+    try:
+        p.to_unknowns(result.u_h.x.petsc_vec, x)
+        p.admissible(x)  # puts x into u_h
+        return p.min_jacobian()
+    finally:
+        x.destroy()
 
 
 def uniaxial_stretch(

@@ -664,8 +664,46 @@ def plot_traction(
     axes[1].set_xlabel("arc length s along Γ_C (scene length unit)")
     for ax in axes:
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        if ax.get_legend_handles_labels()[0]:  # a frictionless panel may have no curve
+            ax.legend(fontsize=8)
     axes[0].set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_force_displacement(
+    path: str | Path,
+    x: Sequence[float],
+    force: Sequence[float],
+    xlabel: str,
+    title: str = "",
+    indefinite: Sequence[bool] = (),
+    unstable: Sequence[bool] = (),
+) -> None:
+    """The contact force of each load step against the load's displacement ``x`` (the
+    obstacle's approach, or a prescribed displacement): one marker per step, joined, from
+    (0, 0).  ``indefinite[k]``: the Newton iteration of step k met an indefinite tangent
+    (the energy search acted: a buckle or a snap happens there); ``unstable[k]``: K_T has
+    negative eigenvalues at step k's solution (an unstable equilibrium)."""
+    plt = _pyplot()
+    x, force = np.r_[0.0, np.asarray(x, float)], np.r_[0.0, np.asarray(force, float)]
+    fig, ax = plt.subplots(figsize=(7, 5))
+    ax.plot(x, force, "o-", color="C0", ms=4, label="contact force per step")
+    for flags, marker, color, label in (
+        (indefinite, "s", "C3", "K_T indefinite during the step (energy search acted)"),
+        (unstable, "x", "k", "K_T indefinite at the solution (unstable)"),
+    ):
+        mask = np.r_[False, np.asarray(flags, dtype=bool)] if len(flags) else None
+        if mask is not None and mask.any():
+            ax.plot(
+                x[mask], force[mask], marker, mfc="none", mec=color, color=color, ms=10, label=label
+            )
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("contact force (per unit depth in 2D)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -14,7 +14,9 @@ After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations
 resultants and zone measures of :func:`contact.post.friction_resultants.surface_figures`,
 η), ``summary.json`` (the run, with the same figures per step under ``steps``),
 ``contact.csv`` and ``pressure.png`` of the last step
-(:func:`contact.output.run_report.write_contact`), ``traction.png`` (λ_n and λ_t along Γ_C
+(:func:`contact.output.run_report.write_contact`), for a hyperelastic body ``force.png``
+(the force–displacement curve, :func:`plot_load_curve`; steps.csv holds its columns
+``obstacle_approach`` and ``prescribed_displacement``), ``traction.png`` (λ_n and λ_t along Γ_C
 at every step, with the declared reference's or the exact solution's curves),
 ``solution.png``, ``history.csv`` (every step's Newton iterations, with a ``load_step``
 column) and, when steps ran the
@@ -86,7 +88,13 @@ class StepWriter:
         else:
             row["contact_force"] = r.contact_force
         if step.negative_eigenvalues is not None:  # hyperelastic: K_T's stability
+            from ..post.load_curve import load_displacements
+            from ..solvers.energy_search import tangent_figures
+
+            row.update(load_displacements(scene, r))  # the force–displacement curve
             row["tangent_negative_eigenvalues"] = step.negative_eigenvalues
+            row["min_det_F"] = step.min_det_F
+            row.update(tangent_figures(r.tangent_log))
         self.rows.append(row)
         self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
         self.tables.append((step.time, table))
@@ -140,6 +148,10 @@ class StepWriter:
             info["step_cuts"] = path.cuts
         if path.indefinite:
             info["tangent_indefinite"] = path.indefinite
+        if path.inverted:
+            info["inverted"] = path.inverted
+        if path.tangent_events:  # what the energy search did, per step (one line each)
+            info["tangent_events"] = path.tangent_events
         if friction != "none":
             info["tangential_form"] = self.scene.cfg["friction"]["form"]
         if is_elastic(self.scene.cfg):  # the forces are of the whole body
@@ -160,6 +172,8 @@ class StepWriter:
                         last.scene, self.tables[-1][1], comparison, origin, t0
                     ),
                 )
+            if comm.rank == 0 and self.rows and "obstacle_approach" in self.rows[0]:
+                plot_load_curve(tmp / "force.png", self.rows, self.scene.name, r.dofs)
             plot_solution(
                 tmp / "solution.png",
                 last.scene,
@@ -168,6 +182,31 @@ class StepWriter:
             )
         _finish(tmp, info, comm)
         return info
+
+
+def plot_load_curve(path: Path, rows: list[dict[str, Any]], name: str, dofs: int) -> None:
+    """force.png: the contact force of each step against the obstacle's approach if the
+    obstacle moves, else the prescribed displacement if there is one, else the pseudo-time
+    (:mod:`contact.post.load_curve`); steps where the energy search met an indefinite
+    tangent, and unstable solutions, marked."""
+    axes = (
+        ("obstacle_approach", "obstacle's approach (displacement towards the body)"),
+        ("prescribed_displacement", "largest prescribed displacement |u_D|"),
+        ("time", "pseudo-time t"),
+    )
+    key, label = next(
+        (k, lb) for k, lb in axes if k == "time" or np.ptp([0.0, *(row[k] for row in rows)]) > 0
+    )
+    x = [row[key] for row in rows]
+    plots.plot_force_displacement(
+        path,
+        x,
+        [row["contact_force"] for row in rows],
+        label,
+        title=f"{name}: force–displacement ({dofs} DoFs)",
+        indefinite=[row.get("indefinite_newton_steps", 0) > 0 for row in rows],
+        unstable=[row.get("tangent_negative_eigenvalues", 0) > 0 for row in rows],
+    )
 
 
 def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:

@@ -544,8 +544,11 @@ SCENE: dict[str, Field] = {
                 "auto",
                 choices=LINE_SEARCHES,
                 doc="auto: plain Newton steps, for min backtracking once a cycle "
-                "shows (contact/solvers/globalize.py); basic: plain Newton; "
-                "bt: backtracking on ½‖Φ‖² from the first step",
+                "shows (contact/solvers/globalize.py), energy for a hyperelastic body; "
+                "basic: plain Newton; bt: backtracking on ½‖Φ‖² from the first step; "
+                "energy: the tangent's inertia checked, shifted where it is not definite, "
+                "backtracking on the energy and steps of negative curvature "
+                "(contact/solvers/energy_search.py)",
             ),
             "polish": Field(
                 "bool",

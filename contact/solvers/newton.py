@@ -29,6 +29,7 @@ definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from mpi4py import MPI
@@ -39,6 +40,9 @@ from .globalize import GuardedMin
 from .options import SolverOptions
 from .polish import Polisher
 from .problem import DiscreteProblem
+
+if TYPE_CHECKING:
+    from .energy_search import EnergySearch
 
 
 class Complementarity:
@@ -122,7 +126,7 @@ def setup_newton(
     state: dict,
     petsc_opts: dict,
     verbose: bool = False,
-) -> Polisher | GuardedMin | None:
+) -> Polisher | GuardedMin | EnergySearch | None:
     """Make ``snes`` semismooth Newton on Φ of ``opts.method`` ∈ {fb, min, blend}:
     residual Φ and Jacobian callbacks (the Jacobian callback hands the law (s, d) to the
     Newton ``system`` of :mod:`.linear`, which builds its operator), the line search, and
@@ -130,7 +134,9 @@ def setup_newton(
     ``opts.polish``) or, for min with line search ``auto``, the cycle guard of
     :mod:`.globalize`.  Time spent in the callbacks is added to ``timers['assembly']``;
     ``state['t_jac']`` marks the end of the Jacobian (the linear solve's clock starts
-    there).  Returns the pre-check object (Polisher or GuardedMin) or None."""
+    there).  With ``opts.line_search`` energy the pre-check is :mod:`.energy_search`'s
+    (``system`` a :class:`.curvature.CurvatureSystem`; polishing, if any, inside it).
+    Returns the pre-check object (Polisher, GuardedMin, EnergySearch) or None."""
     method, mu = opts.method, opts.mu
 
     def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
@@ -149,14 +155,31 @@ def setup_newton(
         state,
         petsc_opts,
     )
-    precheck: Polisher | GuardedMin | None = None
-    if opts.polish and method != "min":
-        precheck = Polisher(cp, method, mu, system, timers)
+    precheck: Polisher | GuardedMin | EnergySearch | None = None
+    polisher = Polisher(cp, method, mu, system, timers) if opts.polish and method != "min" else None
+    if opts.line_search == "energy":  # polishing first, then the energy's line search
+        from .energy_search import EnergySearch
+
+        precheck = EnergySearch(cp, method, mu, system, timers, body_size(cp.p), polisher)
+    elif polisher is not None:
+        precheck = polisher
     elif method == "min" and opts.line_search == "auto":
         precheck = GuardedMin(cp, mu, timers, verbose)
     if precheck is not None:
         snes.setLineSearchPreCheck(precheck)
     return precheck
+
+
+def body_size(problem: DiscreteProblem) -> float:
+    """The diagonal of the mesh's bounding box (collective): the length scale of the energy
+    search's curvature steps."""
+    X = problem.V.mesh.geometry.x
+    comm = problem.V.mesh.comm
+    lo = np.min(X, axis=0, initial=np.inf)
+    hi = np.max(X, axis=0, initial=-np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    return float(np.linalg.norm(hi - lo))
 
 
 def set_newton(
@@ -192,5 +215,6 @@ def set_newton(
     snes.setType("newtonls")
     snes.setFunction(residual, problem.b.duplicate())
     snes.setJacobian(jac, J)
-    line_search = "basic" if opts.line_search == "auto" else opts.line_search
+    # auto's cycle guard and the energy search are pre-checks of PETSc's basic line search
+    line_search = "basic" if opts.line_search in ("auto", "energy") else opts.line_search
     petsc_opts.setdefault("snes_linesearch_type", line_search)

@@ -35,7 +35,7 @@ from .reduced import REDUCED_PETSC_OPTIONS
 VI_METHODS = ("vinewtonrsls", "vinewtonssls")
 #: every method: semismooth Newton on an NCP function, or one of PETSc's VI solvers
 METHODS = ncp.METHODS + VI_METHODS
-LINE_SEARCHES = ("auto", "basic", "bt")
+LINE_SEARCHES = ("auto", "basic", "bt", "energy")
 LINEAR = ("auto", "direct", "gamg", "bcgs")
 
 
@@ -46,11 +46,12 @@ class SolverOptions(BaseModel):
     vinewtonssls (PETSc's VI solvers); ``mu`` — blend's weight of φ_min, in (0, 1);
     ``c`` — the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
     :func:`~contact.solvers.problem.nodal_scaling`) or a number > 0; ``kappa`` — κ;
-    ``line_search`` — auto (plain Newton, for min backtracking once a cycle shows), basic,
-    bt; ``polish`` — active-set polishing of fb / blend steps; ``rtol`` — relative to
-    ‖Φ(x_0)‖; ``atol`` — relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless
-    both); ``max_it`` — Newton iterations; ``linear`` — direct, gamg, bcgs or auto
-    (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
+    ``line_search`` — auto (plain Newton, for min backtracking once a cycle shows; energy
+    for a problem with an energy and a direct solver), basic, bt, energy
+    (:mod:`.energy_search`); ``polish`` — active-set polishing of fb / blend steps;
+    ``rtol`` — relative to ‖Φ(x_0)‖; ``atol`` — relative to the force scale ‖Φ(x_D)‖_∞ of
+    the data (dimensionless both); ``max_it`` — Newton iterations; ``linear`` — direct,
+    gamg, bcgs or auto (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
     ``petsc_options`` — PETSc options over the linear solver's defaults.
 
     Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is

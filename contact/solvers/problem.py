@@ -107,6 +107,19 @@ class DiscreteProblem:
         self.K.mult(x, out)
         out.axpy(-1.0, self.b)
 
+    #: whether :meth:`energy` knows the total potential Π with R = ∂Π/∂x (a hyperelastic
+    #: body: the energy line search of :mod:`contact.solvers.energy_search`)
+    has_energy = False
+
+    def admissible(self, x: PETSc.Vec) -> bool:
+        """Whether x is an admissible state (a hyperelastic body: no inverted matter)."""
+        return True
+
+    def energy(self, x: PETSc.Vec) -> float:
+        """Π(x), the total potential whose gradient is R (collective); only where
+        :attr:`has_energy`."""
+        raise NotImplementedError(f"{type(self).__name__} has no energy")
+
     def linearize(self, x: PETSc.Vec) -> None:
         """K = K_T(x), the tangent of R at x: nothing to do for R(x) = K x − b.  The solvers
         call it at every iterate before they use K (Jacobian, polishing)."""

@@ -45,6 +45,9 @@ class Result:
     options: dict = field(default_factory=dict)  # the solve's SolverOptions as a dict
     polish_solves: int = 0
     backtracked: int = 0  # min, line search auto: steps shortened once a cycle showed
+    # line search energy: the Newton steps whose tangent was not definite or that were
+    # shortened (iteration, negative, shift, t, merit, curvature, along; .energy_search)
+    tangent_log: list = field(default_factory=list)
     linear: str = ""  # the linear solver used (direct, gamg, bcgs)
     krylov_iterations: int = 0  # Krylov iterations of all linear solves (0 for direct)
     krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve

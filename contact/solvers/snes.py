@@ -18,8 +18,11 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base import progress
+from ..base.errors import ConfigError
 from ..base.lifetime import Owner
 from . import ncp
+from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
+from .energy_search import EnergySearch
 from .globalize import GuardedMin
 from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .newton import Complementarity, setup_newton
@@ -93,19 +96,22 @@ class SemismoothNewton:
         check_options: bool = False,
         stopping: AdaptiveStopping | None = None,
     ):
+        user = {str(k): v for k, v in options.petsc_options.items()}
+        options = energy_line_search(problem, options, user)
         self.problem, self.opts, self.verbose = problem, options, verbose
         self.stopping = stopping
         self.comm = comm = problem.V.mesh.comm if comm is None else comm
         self.timers = {"assembly": 0.0, "solve": 0.0} if timers is None else timers
         method = self.method = options.method
         friction = problem.friction
-        user = {str(k): v for k, v in options.petsc_options.items()}
+        energy = options.line_search == "energy"
         # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
-        # keep an assembled matrix (their own linear algebra)
+        # keep an assembled matrix (their own linear algebra); the energy search factorizes
+        # the reduced system by LDLᵀ (.curvature)
         diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
         choose = choose_linear if diagonal_law else assembled_kind
-        self.linear = choose(problem, options.linear, user)
-        defaults = petsc_defaults(problem, self.linear)
+        self.linear = "direct" if energy else choose(problem, options.linear, user)
+        defaults = dict(CURVATURE_PETSC_OPTIONS) if energy else petsc_defaults(problem, self.linear)
         if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
             defaults["ksp_norm_type"] = "natural"
         self.petsc_options = {**defaults, **user}
@@ -125,6 +131,7 @@ class SemismoothNewton:
         self.state: dict[str, Any] = {"t_jac": None, "dir_norm": np.nan}
         self.polisher: Polisher | None = None
         self.guard: GuardedMin | None = None
+        self.search: EnergySearch | None = None
         self.system = None
         if friction is not None:  # the block law H = B K + D (no polishing)
             from .friction import setup_friction_newton
@@ -136,9 +143,13 @@ class SemismoothNewton:
             )
         elif method in ncp.METHODS:
             system = self.system = owner.own(
-                newton_system(problem, self.linear, self.prefix, forcing=options.inexact)
+                CurvatureSystem(problem, self.prefix)
+                if energy
+                else newton_system(problem, self.linear, self.prefix, forcing=options.inexact)
             )
-            inner = self.prefix + "newton_" if self.linear == "gamg" else self.prefix
+            # a system with a KSP of its own: SNES's KSP gets another prefix (the options
+            # of ``prefix`` are the inner KSP's)
+            inner = self.prefix + "newton_" if isinstance(system, ReducedSystem) else self.prefix
             system.configure(snes, inner)
             precheck = owner.own(
                 setup_newton(
@@ -152,7 +163,10 @@ class SemismoothNewton:
                     verbose,
                 )
             )
-            self.polisher = precheck if isinstance(precheck, Polisher) else None
+            self.search = precheck if isinstance(precheck, EnergySearch) else None
+            self.polisher = self.search.polisher if self.search is not None else None
+            if isinstance(precheck, Polisher):
+                self.polisher = precheck
             self.guard = precheck if isinstance(precheck, GuardedMin) else None
             self.J = system.J
             if isinstance(system, ReducedSystem):
@@ -194,6 +208,8 @@ class SemismoothNewton:
         self.solves += 1
         if guard is not None:
             guard.restart()
+        if self.search is not None:
+            self.search.restart()
         x = problem.b.duplicate()
         try:
             problem.to_unknowns(u0.x.petsc_vec, x)
@@ -271,6 +287,8 @@ class SemismoothNewton:
                 result.polish_solves = polisher.solves - counts[0]
             if guard is not None:
                 result.backtracked = guard.backtracked - counts[1]
+            if self.search is not None:
+                result.tangent_log = list(self.search.log)
             if system is not None:
                 result.krylov_iterations = system.krylov_iterations - counts[2]
                 result.krylov_log = getattr(system, "log", [])[counts[3] :]
@@ -352,6 +370,11 @@ class SemismoothNewton:
             counts = status_counts(comm, cp.status(xk))
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
+        search = self.search
+        if its > 0 and search is not None and search.log and search.log[-1]["iteration"] == its - 1:
+            extra += "  " + step_note(search.log[-1])
+        if search is not None and search.stalled:  # no admissible step: stop here
+            snes.setConvergedReason(PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH)
         self.history.append(row)
         if stopping is not None:
             # an active-set step (min's, or polishing) that kept its active set: η_lin = 0
@@ -384,6 +407,39 @@ class SemismoothNewton:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+def step_note(event: dict) -> str:
+    """What the energy search did at one Newton step (:mod:`.energy_search`), one phrase:
+    'K_T: 1 neg. eig., shift 1e-04, t 0.5 (energy), curvature step 0.02'."""
+    parts = []
+    if event["negative"]:
+        parts.append(f"K_T: {event['negative']} neg. eig., shift {event['shift']:.0e}")
+    parts.append(f"t {event['t']:.3g} ({event['merit']})")
+    if event.get("along"):
+        parts.append(f"curvature step {event['along']:.3g}")
+    return ", ".join(parts)
+
+
+def energy_line_search(
+    problem: DiscreteProblem, options: SolverOptions, user: dict
+) -> SolverOptions:
+    """``options`` with ``line_search: auto`` resolved to ``energy`` where the energy search
+    applies (:mod:`.energy_search`: a problem with an energy, fb / min / blend without
+    friction, and the direct solver its inertia needs); an explicit ``energy`` where it
+    does not is a ConfigError naming the key."""
+    applies = problem.has_energy and options.method in ncp.METHODS and problem.friction is None
+    direct = assembled_kind(problem, options.linear, user) == "direct"
+    if options.line_search == "energy" and not (applies and direct):
+        why = (
+            "a direct solver (its tangent's inertia): solver.linear direct"
+            if applies
+            else "a body with an energy (model.type hyperelastic) and method fb, min or blend"
+        )
+        raise ConfigError(f"solver.line_search: energy needs {why}")
+    if options.line_search == "auto" and applies and direct:
+        return options.model_copy(update={"line_search": "energy"})
+    return options
 
 
 def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:

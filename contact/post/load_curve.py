@@ -1,0 +1,58 @@
+"""The load of a load path's step as a displacement: the x-axis of the force–displacement
+curve (steps.csv, force.png; :mod:`contact.output.step_report`).
+
+A step's scene is driven by a moving obstacle, by prescribed displacements, or both.  The
+obstacle's **approach** at a point X is how far it has moved towards the body there since
+t = 0, in the reference gap g_t(X) of the obstacle at the step's pseudo-time t,
+
+    a(t) = g_0(X) − g_t(X),
+
+the same at every X for a plane translated along its normal (indentation of the
+hyperelastic cylinder, the wall pushing the buckling strip), measured at the first point
+of contact otherwise.  The **prescribed displacement** is the largest |u_i| over the
+Dirichlet DoFs of the step's solution (u = u_D there).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from mpi4py import MPI
+
+from ..models.obstacles import first_contact_point, obstacle_shape
+from ..setup.scene import Scene
+
+
+def obstacle_approach(scene: Scene, point: np.ndarray) -> float:
+    """a(t) = g_0(X) − g_t(X) at ``point`` X (module doc), t the scene's pseudo-time."""
+    X = np.asarray(point, dtype=float)[None, : scene.mesh.geometry.dim]
+    start = dataclasses.replace(scene, time=0.0, _t_constant=None)
+    return float(obstacle_shape(start)[1](X)[0] - obstacle_shape(scene)[1](X)[0])
+
+
+def prescribed_displacement(result) -> float:
+    """The largest |u_i| over the owned Dirichlet DoFs of ``result.u_h`` (all ranks)."""
+    p = result.problem
+    n_owned = p.V.dofmap.index_map.size_local * p.V.dofmap.index_map_bs
+    u = result.u_h.x.array
+    local = 0.0
+    for bc in p.bcs:
+        dofs, _ = bc.dof_indices()
+        dofs = dofs[dofs < n_owned]
+        local = max(local, float(np.max(np.abs(u[dofs]), initial=0.0)))
+    return p.V.mesh.comm.allreduce(local, op=MPI.MAX)
+
+
+def load_displacements(scene: Scene, result) -> dict[str, float]:
+    """{'obstacle_approach': a(t) at the first point of contact (module doc),
+    'prescribed_displacement': max |u_D|} of a step (collective)."""
+    p = result.problem
+    con = p.constraint
+    gdim = scene.mesh.geometry.dim
+    X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
+    origin = first_contact_point(scene.comm, X, con.sign * con.g)
+    return {
+        "obstacle_approach": obstacle_approach(scene, origin),
+        "prescribed_displacement": prescribed_displacement(result),
+    }

@@ -1,0 +1,199 @@
+"""The Newton system of a problem with an energy: the tangent's inertia, a shifted tangent
+and a direction of negative curvature (issue 31).
+
+A hyperelastic body's residual is the gradient of its total potential Π
+(:mod:`contact.models.hyperelastic`): R = ∂Π/∂x, K_T = ∂²Π/∂x².  The Newton system of fb,
+min and blend, H = diag(s) K_T + diag(d), is equivalent to the symmetric system of
+:mod:`.reduced`,
+
+    A y = r,     A = P K_T P + diag(d/s on the free rows, 1 on the fixed rows),
+
+K_T on the free rows plus the law's non-negative diagonal.  Factorized by LDLᵀ (MUMPS,
+``ICNTL(13) = 1``: the inertia of the whole matrix on any number of ranks) its inertia
+(n₋, n₀, n₊) comes with the solve.  With n₋ = n₀ = 0 the Newton step is a descent direction
+of Π on the free rows; with n₋ > 0 — St Venant–Kirchhoff in strong compression, a strip
+past its buckling load — Newton's method heads for a saddle of Π (an unstable equilibrium)
+as readily as for a minimum, and its steps may wander (the SVK arch pressed 40 % in one
+step: 30–50 iterations).  Then (:class:`CurvatureSystem`):
+
+1. **shifted tangent** (inertia correction: Nocedal & Wright, *Numerical Optimization*,
+   Alg. 3.3; Wächter & Biegler, Math. Program. 106, 2006, §3.1): A_τ = A + τ D with
+   D = diag(|K_ii|) on the free rows outside the contact set (the contact rows keep the
+   exact linearization of φ), τ = τ₀, 10 τ₀, … until A_τ has no negative or zero
+   eigenvalue; τ₀ = max(:data:`TAU_MIN`, τ_last / 4) (the last Newton step's τ, as IPOPT
+   does).  The step y = A_τ⁻¹ r is a descent direction of Π on the free rows.
+2. **direction of negative curvature** (Moré & Sorensen, Math. Program. 16, 1979):
+   v, the eigenvector of the pencil (A, D) of its most negative eigenvalue μ₁, by inverse
+   iteration with A_τ's factorization, v ← A_τ⁻¹ D v (A_τ is positive definite, so the
+   largest eigenvalue 1/(μ + τ) of A_τ⁻¹ D is that of μ₁; rate (μ₁ + τ)/(μ₂ + τ)).  Along
+   v the energy falls quadratically, vᵀ A v = μ₁ vᵀ D v < 0: the line search of
+   :mod:`.energy_search` follows it off a saddle (a strip buckles; a perfect one would
+   otherwise stay straight).  Its sign is fixed by the data alone: the sign of the energy
+   slope R·v, or where that is round-off (a symmetric saddle), of v's projection on a
+   fixed generic field of the DoF coordinates — the same on any number of ranks.
+
+The inertia is the count of :func:`contact.models.hyperelastic.negative_eigenvalues` at an
+iterate (with the law's diagonal on the contact rows), so no extra factorization is made
+when the tangent is definite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..base.norms import norm2
+from .linear import ReducedNewtonSystem
+from .problem import DiscreteProblem
+
+TAU_MIN = 1e-6  # the first shift, relative to diag(K)
+TAU_GROWTH = 10.0  # the shift grows by this factor until the inertia is right
+MAX_SHIFTS = 12  # τ up to TAU_MIN · 10¹¹: beyond it the step is a scaled gradient step anyway
+INVERSE_ITERATIONS = 60  # most; stops when the residual of the pencil ...
+EIGEN_RTOL = 1e-8  # ... ‖A v − μ D v‖ ≤ EIGEN_RTOL ‖A_τ v‖
+
+#: PETSc options of the LDLᵀ factorization (the user's ``solver.petsc_options`` may add to them)
+CURVATURE_PETSC_OPTIONS = {
+    "ksp_type": "preonly",
+    "pc_type": "cholesky",
+    "pc_factor_mat_solver_type": "mumps",
+    "mat_mumps_icntl_13": 1,  # the root node without ScaLAPACK: the global inertia
+    "mat_mumps_icntl_24": 1,  # null pivots detected (a singular A counts as not definite)
+}
+
+
+class CurvatureSystem(ReducedNewtonSystem):
+    """:class:`.linear.ReducedNewtonSystem` factorized by LDLᵀ, with the inertia of each
+    Newton step's A, the shift that makes it positive definite and, on request, the
+    direction of negative curvature (module doc).  After each Newton law: ``negative``
+    (n₋ + n₀ of the unshifted A), ``shift`` (τ, 0 if none), ``factorizations`` (this law's)."""
+
+    def __init__(self, problem: DiscreteProblem, prefix: str):
+        super().__init__(problem, prefix, forcing=False)
+        self.lag = False
+        n = self.K.getLocalSize()[0]
+        outside = np.ones(n, dtype=bool)  # free rows outside the contact set and Γ_D
+        outside[problem.constraint.dofs] = False
+        for bc in problem.bcs:
+            idx, owned = bc.dof_indices()
+            outside[idx[idx < n]] = False
+        self.outside = outside
+        self.D = self.K.createVecLeft()  # τ's diagonal: |K_ii| on the rows outside
+        self.z = self.K.createVecLeft()  # the generic field that fixes v's sign
+        X = problem.V.tabulate_dof_coordinates()
+        bs = problem.V.dofmap.index_map_bs
+        node, comp = np.divmod(np.arange(n), bs)
+        self.z.array_w[:] = X[node] @ np.array([1.0, np.sqrt(2.0), np.sqrt(3.0)]) + np.pi * comp
+        self.negative, self.shift, self.factorizations = 0, 0.0, 0
+        self.total_factorizations = 0
+        self._tau_last = 0.0
+        self._polishing = False
+        self._direction: PETSc.Vec | None = None  # v of the current law, once computed
+        self.curvature = np.nan  # μ₁ of the current law (the Rayleigh quotient of v)
+        self.inverse_iterations = 0  # of the last direction
+
+    def set_options(self) -> None:
+        super().set_options()
+        self.lag = False  # a factorization, not a preconditioner to lag
+
+    def set_law(self, s: PETSc.Vec, d: PETSc.Vec) -> None:
+        """A for the law (s, d) at the current K_T, factorized; the Newton step's law (not a
+        polishing law) gets the inertia test and the shift (module doc)."""
+        self._held = None  # K = K_T(x) changed since: A is always rebuilt
+        self.K.getDiagonal(self.Kdiag)
+        super().set_law(s, d)
+        self._set_shift_diagonal()
+        self.ksp.setOperators(self.A, self.A)
+        negative = self._factor()
+        self.factorizations = 1
+        if self._direction is not None:
+            self._direction.destroy()
+            self._direction = None
+        self.curvature = np.nan
+        if self._polishing:
+            return
+        self.negative, self.shift = negative, 0.0
+        tau, added = max(TAU_MIN, self._tau_last / 4), 0.0
+        while negative and self.factorizations <= MAX_SHIFTS:
+            self.A.setDiagonal(self._scaled(self.D, tau - added), addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
+            added = tau
+            negative = self._factor()
+            self.factorizations += 1
+            tau *= TAU_GROWTH
+        self.shift = added
+        self._tau_last = added
+
+    #: a factorization: a polishing solve is exact at once (not staged, :mod:`.polish`)
+    resumable = False
+
+    def solve_law(self, s, d, F, y, rtol=None, resume=False) -> None:
+        """Polishing: its law's solve, without the inertia test (module doc)."""
+        self._polishing = True
+        try:
+            super().solve_law(s, d, F, y, rtol=rtol, resume=resume)
+        finally:
+            self._polishing = False
+
+    def negative_direction(self) -> PETSc.Vec | None:
+        """v (D-normalized, vᵀ D v = 1) of the most negative eigenvalue μ₁ of the pencil
+        (A, D) of the current Newton law, by inverse iteration with A_τ's factorization
+        (module doc); ``curvature`` = μ₁.  None when the tangent was definite (no shift)."""
+        if not self.shift:
+            return None
+        if self._direction is not None:
+            return self._direction
+        v, w, Dv = self.D.duplicate(), self.D.duplicate(), self.D.duplicate()
+        v.pointwiseMult(self.D, self.z)  # a generic start in the rows D acts on
+        mu = np.nan
+        for self.inverse_iterations in range(1, INVERSE_ITERATIONS + 1):
+            Dv.pointwiseMult(self.D, v)
+            self.ksp.solve(Dv, w)  # w = A_τ⁻¹ D v
+            w.copy(v)
+            Dv.pointwiseMult(self.D, v)
+            vDv = float(v.dot(Dv).real)
+            if not vDv > 0:
+                break
+            v.scale(1.0 / np.sqrt(vDv))
+            Dv.scale(1.0 / np.sqrt(vDv))
+            self.A.mult(v, w)
+            size = norm2(w)  # ‖A_τ v‖: the scale of its round-off
+            w.axpy(-self.shift, Dv)  # w = A v = A_τ v − τ D v
+            mu = float(v.dot(w).real)  # vᵀ A v / vᵀ D v
+            w.axpy(-mu, Dv)  # the pencil's residual A v − μ D v
+            if norm2(w) <= EIGEN_RTOL * size:
+                break
+        w.destroy()
+        Dv.destroy()
+        self.curvature = mu
+        if not mu < 0:  # the shift made a zero pivot definite: no direction of descent
+            v.destroy()
+            return None
+        self._direction = v
+        return v
+
+    def orientation(self, v: PETSc.Vec) -> float:
+        """vᵀ z: v's projection on the fixed generic field (sign of a direction on a saddle)."""
+        return float(v.dot(self.z).real)
+
+    def _set_shift_diagonal(self) -> None:
+        D = self.D.array_w
+        D[:] = np.where(self.outside & ~self.fixed, np.abs(self.Kdiag.array_r), 0.0)
+
+    def _scaled(self, D: PETSc.Vec, tau: float) -> PETSc.Vec:
+        self.work.array_w[:] = tau * D.array_r
+        return self.work
+
+    def _factor(self) -> int:
+        """Factorize A (its current values); the number of its negative and zero eigenvalues."""
+        pc = self.ksp.getPC()
+        self.ksp.setOperators(self.A, self.A)  # new values: a new numerical factorization
+        self.ksp.setUp()
+        self.total_factorizations += 1
+        negative, zero, _ = pc.getFactorMatrix().getInertia()
+        return int(negative) + int(zero)
+
+    def destroy(self) -> None:
+        super().destroy()
+        for obj in (self.D, self.z, self._direction):
+            if obj is not None:
+                obj.destroy()

@@ -1,0 +1,139 @@
+"""The energy line search of hyperelastic bodies (``solver.line_search: energy``, the default
+``auto`` there; contact/solvers/energy_search.py, contact/solvers/curvature.py; issue 31).
+
+Checked: the inertia the Newton factorization reads equals the independent count of
+:func:`contact.models.hyperelastic.negative_eigenvalues`, and the direction of negative
+curvature is an eigenvector of the pencil (A, D) with a negative eigenvalue; where the
+tangent is definite the search takes Newton's steps whole (the same solution as plain
+Newton, nothing logged); past St Venant–Kirchhoff's material limit plain Newton returns
+inverted or unstable equilibria (reported), while the energy search never leaves the
+admissible set (det F > 0) and says why it stops; bad input names the key."""
+
+from __future__ import annotations
+
+import contact
+from contact import ConfigError
+from contact.models.hyperelastic import min_det_F
+from contact.solvers.curvature import CurvatureSystem
+from contact.solvers.newton import Complementarity
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+from petsc4py import PETSc
+from test_hyperelastic import arch, block
+
+
+def test_the_newton_factorization_counts_the_negative_eigenvalues_and_finds_their_direction():
+    """The SVK block pressed to 50 % (5 steps, plain Newton: the homogeneous state, past the
+    material's limit point): the LDLᵀ factorization of the reduced Newton matrix of min's
+    law at the solution has as many negative eigenvalues as the independent count of K_T on
+    the free unknowns (> 0); the shift τ D makes it definite; and the inverse iteration's
+    v satisfies A v = μ₁ D v (residual ≤ 1e-6 ‖A v‖) with μ₁ < 0."""
+    cfg = block("saint_venant_kirchhoff")
+    cfg["obstacle"]["point"] = [0, "1 - 0.5*t"]
+    scene = contact.load_scene({**cfg, "load": {"steps": 5}})
+    path = contact.run_load_path(scene, method="min", line_search="basic")
+    step = path.steps[-1]
+    r, p = step.result, step.result.problem
+    assert path.converged and step.negative_eigenvalues > 0
+    system = CurvatureSystem(p, "test_curvature_")
+    opts = {
+        "ksp_type": "preonly",
+        "pc_type": "cholesky",
+        "pc_factor_mat_solver_type": "mumps",
+        "mat_mumps_icntl_13": 1,
+        "mat_mumps_icntl_24": 1,
+    }
+    db = PETSc.Options()
+    for key, value in opts.items():
+        db["test_curvature_" + key] = value
+    try:
+        system.ksp.setFromOptions()
+        x = p.b.duplicate()
+        p.to_unknowns(r.u_h.x.petsc_vec, x)
+        p.linearize(x)
+        cp = Complementarity(p)
+        p.c = 1.0
+        a, b, _ = cp.pair(x)
+        system.set_law(*cp.law(a, b, "min", 0.5))
+        assert system.negative == step.negative_eigenvalues
+        assert system.shift > 0 and system.factorizations >= 2
+        v = system.negative_direction()
+        assert v is not None and system.curvature < 0
+        Av, Dv = v.duplicate(), v.duplicate()
+        Dv.pointwiseMult(system.D, v)
+        system.A.mult(v, Av)
+        Av.axpy(-system.shift, Dv)  # A v = A_τ v − τ D v
+        res = Av.copy()
+        res.axpy(-system.curvature, Dv)
+        assert res.norm() <= 1e-6 * Av.norm()
+        for obj in (x, Av, Dv, res):
+            obj.destroy()
+        cp.destroy()
+    finally:
+        for key in opts:
+            db.delValue("test_curvature_" + key)
+        system.destroy()
+
+
+def test_where_the_tangent_is_definite_the_energy_search_takes_newtons_steps():
+    """The neo-Hookean arch pressed in 4 steps (K_T definite throughout): the energy search
+    logs nothing, and its solution is plain Newton's (1e-10 of max |u|) with no more
+    Newton steps per load step than plain Newton's + 1 (the factorizations differ: LDLᵀ
+    against LU, so the last residual may cross the tolerance one step apart)."""
+    scene = contact.load_scene({**arch("neo_hookean"), "load": {"steps": 4}})
+    paths = {ls: contact.run_load_path(scene, line_search=ls) for ls in ("basic", "energy")}
+    assert all(p.converged for p in paths.values())
+    energy, basic = paths["energy"].steps, paths["basic"].steps
+    assert all(s.result.options["line_search"] == "energy" for s in energy)
+    assert all(s.result.tangent_log == [] for s in energy)
+    assert paths["energy"].tangent_events == []
+    for e, b in zip(energy, basic):
+        assert e.result.iterations <= b.result.iterations + 1
+    u_e, u_b = energy[-1].result.u_h.x.array, basic[-1].result.u_h.x.array
+    scale = scene.comm.allreduce(float(np.max(np.abs(u_b))), op=MPI.MAX)
+    assert scene.comm.allreduce(float(np.max(np.abs(u_e - u_b))), op=MPI.MAX) <= 1e-10 * scale
+
+
+@pytest.mark.parametrize("method", ["fb", "min"])
+def test_past_the_material_limit_the_energy_search_keeps_matter_whole(method):
+    """The SVK arch pressed 0.18 (36 % of its height) in one step, past the end of its
+    stable branch (at about 0.165 on this mesh; 0.16 converges in 5–6 steps either way):
+    whatever plain Newton returns is no stable admissible state (measured: fb and min
+    converge in 19 and 37 steps to det F = −1.02, inverted cells, reported in the load
+    path's notes), while the energy search never returns one either — it stops with every
+    iterate admissible (det F > 0) and says so, or (on another CPU) converges to a stable
+    admissible equilibrium."""
+    cfg = {**arch("saint_venant_kirchhoff", delta=0.18, cells=(8, 4)), "load": {"steps": 1}}
+    cfg["load"]["cuts"] = 0
+    scene = contact.load_scene(cfg)
+    basic = contact.run_load_path(scene, method=method, line_search="basic")
+    step = basic.steps[-1]
+    if step.result.converged:
+        assert step.min_det_F <= 0 or step.negative_eigenvalues > 0
+        if step.min_det_F <= 0:
+            assert basic.inverted.startswith("step 1 (t = 1) inverts matter (min det F = ")
+            assert basic.inverted in basic.stop
+    energy = contact.run_load_path(scene, method=method, line_search="energy")
+    r = energy.steps[-1].result
+    if r.converged:
+        step = energy.steps[-1]
+        assert step.min_det_F > 0 and step.negative_eigenvalues == 0
+    else:
+        assert r.reason == "diverged_line_search"
+        assert min_det_F(r) > 0
+        assert r.tangent_log[-1]["merit"] == "none"
+        assert "no step keeps det F > 0: stopped" in energy.tangent_events[-1]
+
+
+def test_the_energy_search_needs_an_energy_and_a_factorization():
+    """line_search energy on a linear elastic scene, or with an iterative linear solver:
+    one ConfigError naming solver.line_search."""
+    cfg = {**arch(model="elasticity"), "solver": {"line_search": "energy"}}
+    with pytest.raises(ConfigError, match="^solver.line_search: energy needs a body"):
+        contact.solve(contact.load_scene(cfg))
+    cfg = {**arch(), "solver": {"line_search": "energy", "linear": "gamg"}}
+    with pytest.raises(ConfigError, match="^solver.line_search: energy needs a direct"):
+        contact.solve(contact.load_scene(cfg))
+
