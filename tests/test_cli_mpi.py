@@ -42,6 +42,8 @@ SCENES: dict[str, list[str]] = {
     # a body load: the estimator of the exactly represented homogeneous state is round-off
     "hyperelastic_block.yaml": ["data.f=[0,-0.5]", *SMALL],
     "hyperelastic_cylinder.yaml": ["mesh.h=0.3", "mesh.h_contact=0.05", "load.steps=2", *SMALL],
+    # buckles in the second step (its tangent turns indefinite at t ≈ 1.16 on 40 × 2 cells)
+    "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]", *SMALL],
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],
     "obstacle_membrane.yaml": ["mesh.cells=[8,8]", *SMALL],
@@ -90,6 +92,12 @@ VOLATILE = {
     "newton_iterations_coarse",
     "polish_solves_coarse",
     "backtracked_steps",
+    # the energy search's path (contact/solvers/energy_search.py): what it did per step
+    "indefinite_newton_steps",
+    "largest_shift",
+    "curvature_steps",
+    "shortened_steps",
+    "tangent_events",
     "krylov_iterations_total",
     "krylov_iterations_per_level",
     "eta_lin_per_level",

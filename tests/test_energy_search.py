@@ -11,6 +11,9 @@ admissible set (det F > 0) and says why it stops; bad input names the key."""
 
 from __future__ import annotations
 
+import csv
+import json
+
 import contact
 from contact import ConfigError
 from contact.models.hyperelastic import min_det_F
@@ -137,3 +140,55 @@ def test_the_energy_search_needs_an_energy_and_a_factorization():
     with pytest.raises(ConfigError, match="^solver.line_search: energy needs a direct"):
         contact.solve(contact.load_scene(cfg))
 
+
+#: Euler's load of the strip (configs/hyperelastic_strip.yaml): fixed–guided, effective
+#: length L, P_E = π² E' I / L², E' = E / (1 − ν²), I = h³/12 (per unit depth)
+STRIP_EULER = np.pi**2 * (1.0 / (1 - 0.3**2)) * 0.05**3 / 12
+
+
+def test_the_strip_buckles_at_the_step_its_tangent_turns_indefinite(tmp_path):
+    """``contact run configs/hyperelastic_strip.yaml`` (SVK, L/h = 20, the wall pushed in
+    10 steps to 1.2 δ_E): the energy search meets the indefinite tangent at Newton step 0
+    of step 7 (t = 1.04) and no earlier, says so on that step's terminal line and in
+    summary.json, and takes a step along the direction of negative curvature: the strip
+    buckles (lateral deflection > 0.02 L at t = 1.2) and the force stops rising.  The
+    buckling load (the largest force) is Euler's within the P1 mesh's stiffness, 1–6 %
+    above (measured 3.2 %; the inertia brackets the discrete load in t ∈ (1.033, 1.034]).
+    Plain Newton (line_search basic) finds the same step by the count of negative
+    eigenvalues at its solutions and stays straight (deflection < 1e-3 L), its force
+    rising past 1.15 P_E: an unstable equilibrium, reported as such."""
+    from clirun import ROOT
+    from clirun import contact as cli
+
+    scene = ROOT / "configs" / "hyperelastic_strip.yaml"
+    proc = cli(tmp_path, "run", str(scene), "-o", "out", "--set", "output.png=false")
+    assert proc.returncode == 0, proc.stderr
+    lines = [ln for ln in proc.stdout.splitlines() if "K_T indefinite" in ln]
+    assert len(lines) == 1 and lines[0].startswith("contact: step 7 t = 1.04: "), lines
+    assert "negative-curvature step" in lines[0]
+    rows = list(csv.DictReader(open(tmp_path / "out" / "steps.csv")))
+    flagged = [float(r["time"]) for r in rows if int(r["indefinite_newton_steps"])]
+    assert flagged[0] == 1.04
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["tangent_events"][0].startswith(
+        "step 7 (t = 1.04): K_T indefinite at Newton step(s) 0 (up to 1 negative eigenvalue"
+    )
+    force = np.array([float(r["contact_force"]) for r in rows])
+    assert 1.0 <= force.max() / STRIP_EULER <= 1.06
+    assert force[-1] <= force[6] * (1 + 1e-3)  # past the buckle the force stops rising
+    assert [int(r["tangent_negative_eigenvalues"]) for r in rows] == [0] * len(rows)
+
+    strip = contact.load_scene(scene, ["output.verbose=false"])
+    deflection = {}
+    for ls in ("basic", "energy"):
+        path = contact.run_load_path(strip, line_search=ls)
+        assert path.converged
+        u = path.steps[-1].result.u_h.x.array.reshape(-1, 2)
+        deflection[ls] = strip.comm.allreduce(float(np.max(np.abs(u[:, 1]))), op=MPI.MAX)
+        if ls == "basic":
+            first = next(s for s in path.steps if s.negative_eigenvalues)
+            assert first.time == 1.04 and path.indefinite.startswith(
+                "K_T not positive definite from step 7 "
+            )
+            assert path.steps[-1].result.contact_force / STRIP_EULER > 1.15
+    assert deflection["basic"] < 1e-3 and deflection["energy"] > 0.02
