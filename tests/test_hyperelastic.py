@@ -384,11 +384,27 @@ def test_cli_block_writes_the_force_of_every_step(tmp_path):
     for r in rows:
         _, P22 = uniaxial_stretch("neo_hookean", E, NU, 1 - 0.3 * float(r["time"]), 2)
         assert float(r["contact_force"]) == pytest.approx(-4 * P22, rel=1e-8)
+        # the force–displacement columns: the plate moved 0.3 t towards the block
+        assert float(r["obstacle_approach"]) == pytest.approx(0.3 * float(r["time"]), rel=1e-12)
+        assert float(r["prescribed_displacement"]) == 0.0
     assert "u_h" in (tmp_path / "out" / "solution_002.xdmf").read_text()
     bad = cli(tmp_path, "run", scene, "-o", "bad", "-q", "--set", "model.law=mooney")
     lines = [ln for ln in bad.stderr.splitlines() if ln.strip()]
     assert bad.returncode == 2 and len(lines) == 1 and "model.law" in lines[0], bad.stderr
     assert not (tmp_path / "bad").exists()
+
+
+def test_cli_draws_the_force_displacement_curve(tmp_path):
+    """A hyperelastic load path writes force.png: the contact force against the obstacle's
+    approach (the coarse cylinder, 2 steps; steps.csv's approach is delta·t = 0.2 t)."""
+    scene = str(ROOT / "configs" / "hyperelastic_cylinder.yaml")
+    sets = ["mesh.h=0.3", "mesh.h_contact=0.05", "load.steps=2", "output.formats=[]"]
+    proc = cli(tmp_path, "run", scene, "-o", "out", "-q", *sum((["--set", s] for s in sets), []))
+    assert proc.returncode == 0, proc.stderr
+    rows = list(csv.DictReader(open(tmp_path / "out" / "steps.csv")))
+    assert [float(r["obstacle_approach"]) for r in rows] == pytest.approx([0.1, 0.2], rel=1e-12)
+    png = (tmp_path / "out" / "force.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and len(png) > 10_000
 
 
 API_RUN = """
