@@ -26,6 +26,10 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    and on 2 ranks) the 2D floor of the finest level: refinement, ``create_mesh`` and
    assembly against one CG + GAMG solve;
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
+   ``demos/bench/bench_hyperelastic.py`` — finite deformation (issue 31): plain Newton against
+   the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
+   the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls (about
+   15 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -214,6 +218,10 @@ STEPS = {
             ]
         )
         for n in (0, 1, 2)
+    ],
+    "hyperelastic": [
+        [PY, "demos/bench/bench_hyperelastic.py", part, "--out", "demos/results/hyperelastic"]
+        for part in ("line_search", "strip", "refinement")
     ],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]

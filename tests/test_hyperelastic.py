@@ -467,3 +467,34 @@ def test_a_linear_scene_never_imports_the_hyperelastic_model():
     )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-1] == "False"
+
+
+def test_large_indentation_is_the_vi_solution_and_converges_under_refinement():
+    """The neo-Hookean cylinder pressed to indentation 0.5 R (configs/hyperelastic_cylinder.yaml
+    on a uniform h = 0.1 mesh, 5 steps; the contact width grows to about R): PETSc's
+    vinewtonrsls on the same discrete problem (the plane's constraint is a bound; it needs
+    step cuts) gives fb's u_h to 1e-8 of max |u_h| and its force at every step both reach;
+    the force–indentation curve stiffens (increasing, convex); one uniform refinement moves
+    F(0.5 R) by less than 1 % (demos/RESULTS.md §11.3: the study to 4 levels)."""
+    from contact.adaptivity.refine import refine
+
+    sets = ["mesh.h=0.1", "mesh.h_contact=0.1", "constants.delta=0.5", "load.steps=5"]
+    scene = contact.load_scene(ROOT / "configs" / "hyperelastic_cylinder.yaml", sets)
+    fb = contact.run_load_path(scene, method="fb", keep_all=True)
+    vi = contact.run_load_path(scene, method="vinewtonrsls", keep_all=True)
+    assert fb.converged and vi.converged, (fb.stop, vi.stop)
+    by_time = {round(s.time, 12): s for s in vi.steps}
+    comm = scene.comm
+    for s in fb.steps:
+        other = by_time[round(s.time, 12)]
+        u, v = s.result.u_h.x.array, other.result.u_h.x.array
+        top = comm.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
+        assert comm.allreduce(float(np.max(np.abs(u - v))), op=MPI.MAX) <= 1e-8 * top
+        assert other.result.contact_force == pytest.approx(s.result.contact_force, rel=1e-8)
+    force = np.r_[0.0, [s.result.contact_force for s in fb.steps]]
+    assert np.all(np.diff(force) > 0) and np.all(np.diff(force, 2) > 0)
+    n = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    fine, _ = refine(scene, np.arange(n, dtype=np.int32))
+    finer = contact.run_load_path(fine, method="fb")
+    assert finer.converged
+    assert abs(finer.steps[-1].result.contact_force / force[-1] - 1) < 1e-2

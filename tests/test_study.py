@@ -408,6 +408,12 @@ def test_outcome_classes() -> None:
     assert outcome({"converged": False, "reason": "diverged_function_nanorinf"}) == "diverged"
     assert outcome({"converged": False, "reason": "diverged_linear_solve"}) == "diverged"
     assert outcome({"converged": False, "reason": ""}) == "error"
+    # a hyperelastic run that converged to no stable state (study rows of load paths)
+    ok = {"converged": True, "reason": "converged_fnorm_abs"}
+    assert outcome({**ok, "min_det_F": 0.5, "tangent_negative_eigenvalues": 0}) == "converged"
+    assert outcome({**ok, "min_det_F": 0.5, "tangent_negative_eigenvalues": 2}) == "unstable"
+    assert outcome({**ok, "min_det_F": -1.1, "tangent_negative_eigenvalues": 0}) == "inverted"
+    assert outcome({**ok, "min_det_F": "", "tangent_negative_eigenvalues": ""}) == "converged"
 
 
 def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
@@ -451,3 +457,35 @@ def test_cases_stability_and_iterations_charts(tmp_path: Path) -> None:
         assert (tmp_path / "out" / f"{chart}.png").stat().st_size > 10_000
     header = (tmp_path / "out" / "levels.csv").read_text().splitlines()[0].split(",")
     assert header[:4] == ["run", "case", "method", "repeat"] and "level" in header
+
+
+def test_a_hyperelastic_stability_map_tells_unstable_answers(tmp_path: Path) -> None:
+    """The SVK block pressed to 50 % in one step (past its material limit): plain Newton
+    converges to the homogeneous state, a saddle of the energy — the row says ``unstable``
+    and carries K_T's negative eigenvalues and det F > 0; the energy search (the default)
+    does not return that state; the neo-Hookean block converges to a stable state."""
+    from contact.app.study import run_study
+
+    block = ROOT / "configs" / "hyperelastic_block.yaml"
+    svk = ["model.law=saint_venant_kirchhoff", "constants.compression=0.5", "load.cuts=0"]
+    study = {
+        "name": "hyper",
+        "scene": str(block),
+        "set": ["constants.compression=0.5", "load.cuts=0", "output.png=false"],
+        "axes": {"method": ["fb"], "steps": [1]},
+        "cases": {
+            "NH": {},
+            "SVK plain": {"scene": str(block), "set": svk, "line_search": "basic"},
+            "SVK": {"scene": str(block), "set": svk},
+        },
+        "adapt": {"strategy": "none"},
+        "charts": ["stability"],
+    }
+    rows, _ = run_study(study, tmp_path / "out", verbose=False)
+    by = {r["case"]: r for r in rows}
+    assert by["NH"]["outcome"] == "converged" and by["NH"]["tangent_negative_eigenvalues"] == 0
+    plain = by["SVK plain"]
+    assert plain["outcome"] == "unstable" and plain["tangent_negative_eigenvalues"] > 0
+    assert plain["min_det_F"] > 0
+    assert by["SVK"]["outcome"] != "converged" or by["SVK"]["tangent_negative_eigenvalues"] == 0
+    assert (tmp_path / "out" / "stability.png").stat().st_size > 10_000

@@ -494,9 +494,15 @@ def outcome(row: Mapping[str, Any]) -> str:
     ``max iterations`` (the iteration limit, e.g. an active set that cycles); ``stalled``
     (no step reduces the merit ½‖Φ‖²: line search failure, local minimum of the merit);
     ``diverged`` (NaN/Inf, a failed linear solve, any other divergence); ``error`` (the run
-    raised, e.g. bad options)."""
+    raised, e.g. bad options).  A hyperelastic run that converged to no stable state is
+    ``inverted`` (its solution has det F ≤ 0 somewhere: no deformation) or ``unstable``
+    (K_T has negative eigenvalues there: a saddle of the energy)."""
     reason = str(row.get("reason") or "")
     if row.get("converged") is True or reason.startswith("converged"):
+        if row.get("min_det_F") not in (None, "") and float(row["min_det_F"]) <= 0:
+            return "inverted"
+        if row.get("tangent_negative_eigenvalues") not in (None, "", 0):
+            return "unstable"
         return "converged"
     # Newton's or the fixed point's limit
     if reason.startswith("diverged") and reason.endswith("max_it"):
@@ -762,6 +768,8 @@ def _run_path(
     )
     if study.adaptive_possible:
         out["stop"] = path.stop
+    if last.negative_eigenvalues is not None:  # hyperelastic: is the answer a stable state?
+        out.update(min_det_F=last.min_det_F, tangent_negative_eigenvalues=last.negative_eigenvalues)
     if not path.converged:
         return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
     est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)

@@ -36,12 +36,16 @@ ACCURACY_LABELS = {
 }
 #: outcome classes of a run, in the order of the stability map's legend
 OUTCOMES = ("converged", "max iterations", "stalled", "diverged", "error")
+#: classes of converged hyperelastic runs whose answer is no stable state (study.outcome)
+STATE_OUTCOMES = ("unstable", "inverted")
 OUTCOME_COLOURS = {
     "converged": "#4daf4a",
     "max iterations": "#ff7f00",
     "stalled": "#ffd92f",
     "diverged": "#e41a1c",
     "error": "#999999",
+    "unstable": "#80b1d3",
+    "inverted": "#984ea3",
 }
 MARKERS = "osD^v<>pPX*h"
 
@@ -213,11 +217,12 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
     ax.tick_params(length=0)
     for side in ax.spines.values():
         side.set_visible(False)
+    shown = [*OUTCOMES, *(o for o in STATE_OUTCOMES if any(r["outcome"] == o for r in rows))]
     ax.legend(
-        handles=[Patch(color=OUTCOME_COLOURS[o], label=o) for o in OUTCOMES],
+        handles=[Patch(color=OUTCOME_COLOURS[o], label=o) for o in shown],
         loc="upper center",
         bbox_to_anchor=(0.5, -0.01),
-        ncol=len(OUTCOMES),
+        ncol=len(shown),
         fontsize=8,
         frameon=False,
     )
