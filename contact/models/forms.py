@@ -261,6 +261,15 @@ class ResidualProblem(DiscreteProblem):
         self._set_iterate(x)
         self._assemble_tangent(self.K)
 
+    def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
+        """A new matrix J(x) with the Dirichlet rows and columns kept (the coupling of a
+        prescribed increment into the free rows: the tangent predictor,
+        :mod:`contact.solvers.predictor`); the caller destroys it."""
+        self._set_iterate(x)
+        A = dolfinx.fem.petsc.assemble_matrix(self._forms()[1])
+        A.assemble()
+        return A
+
     def destroy(self) -> None:
         super().destroy()
         if self._F is not None:

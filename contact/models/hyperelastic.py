@@ -209,6 +209,13 @@ class RotatedResidualProblem(ResidualProblem):
         self._assemble_tangent(K_T)
         K_T.PtAP(Q, result=self.K)
 
+    def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
+        """Qᵀ J(Q x) Q with the Dirichlet rows and columns kept (a new matrix)."""
+        A = super().full_tangent(x)
+        out = A.PtAP(self._rotation()[0])
+        A.destroy()
+        return out
+
     def destroy(self) -> None:
         super().destroy()
         destroy(self.K_T, self._R)

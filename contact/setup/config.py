@@ -29,7 +29,7 @@ from ..base.validation import open_unit as _open_unit
 from ..base.validation import petsc_value as _petsc_value
 from ..base.validation import positive as _positive
 from ..base.validation import typename as _typename
-from ..solvers.options import LINE_SEARCHES, LINEAR
+from ..solvers.options import LINE_SEARCHES, LINEAR, PREDICTORS
 from ..solvers.options import METHODS as SOLVER_METHODS
 from . import expressions
 
@@ -555,6 +555,15 @@ SCENE: dict[str, Field] = {
                 True,
                 doc="fb / blend: active-set polishing (one extra linear solve once the active set "
                 "settles)",
+            ),
+            "predictor": Field(
+                "str",
+                "auto",
+                choices=PREDICTORS,
+                doc="a nonlinear solve (hyperelastic body) starts from the previous state plus "
+                "the tangent's response to the step's increments of the prescribed "
+                "displacements and obstacle (contact/solvers/predictor.py): tangent, none, or "
+                "auto (tangent for a hyperelastic body)",
             ),
             "rtol": Field("number", 1e-12, check=_nonnegative),
             "atol": Field("number", 1e-12, check=_nonnegative),

@@ -139,7 +139,10 @@ class EnergySearch:
         self.cp.R.copy(self.R0)
         self.F.copy(self.F0)
         W = self._at(x, y, 1.0)
-        if definite and self._phi_norm(W) <= (1.0 - ARMIJO) * f0 and self.cp.p.admissible(W):
+        # Newton's own step where it lowers ‖Φ‖ enough, or where x already meets SNES's
+        # stopping test (a step forced from a solution: round-off either way)
+        good = max((1.0 - ARMIJO) * f0, sy.stop)
+        if definite and self._phi_norm(W) <= good and self.cp.p.admissible(W):
             self.timers["assembly"] += time.perf_counter() - t0
             return  # Newton's own step
         event: dict = {"iteration": it, "negative": sy.negative, "shift": sy.shift}

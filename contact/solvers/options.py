@@ -37,6 +37,7 @@ VI_METHODS = ("vinewtonrsls", "vinewtonssls")
 METHODS = ncp.METHODS + VI_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt", "energy")
 LINEAR = ("auto", "direct", "gamg", "bcgs")
+PREDICTORS = ("auto", "tangent", "none")
 
 
 class SolverOptions(BaseModel):
@@ -52,7 +53,9 @@ class SolverOptions(BaseModel):
     ``rtol`` — relative to ‖Φ(x_0)‖; ``atol`` — relative to the force scale ‖Φ(x_D)‖_∞ of
     the data (dimensionless both); ``max_it`` — Newton iterations; ``linear`` — direct,
     gamg, bcgs or auto (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
-    ``petsc_options`` — PETSc options over the linear solver's defaults.
+    ``petsc_options`` — PETSc options over the linear solver's defaults; ``predictor`` —
+    the start of a nonlinear solve lifted by the tangent (:mod:`.predictor`): tangent,
+    none, or auto (tangent for a problem with an energy).
 
     Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
     one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
@@ -76,6 +79,7 @@ class SolverOptions(BaseModel):
     linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
     petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = {}
+    predictor: Annotated[str, BeforeValidator(one_of(PREDICTORS))] = "auto"
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "solver") -> SolverOptions:

@@ -124,6 +124,11 @@ class DiscreteProblem:
         """K = K_T(x), the tangent of R at x: nothing to do for R(x) = K x − b.  The solvers
         call it at every iterate before they use K (Jacobian, polishing)."""
 
+    def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
+        """A new matrix: the tangent at x with its Dirichlet rows and columns kept (a nonlinear
+        residual only: :mod:`contact.solvers.predictor`)."""
+        raise NotImplementedError(f"{type(self).__name__} has no full tangent")
+
     def to_unknowns(self, u: PETSc.Vec, x: PETSc.Vec) -> None:
         """x = Q⁻¹ u (the solver's unknowns from displacements; Qᵀ u for a rotation, a copy
         when Q = I)."""

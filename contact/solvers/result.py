@@ -48,6 +48,9 @@ class Result:
     # line search energy: the Newton steps whose tangent was not definite or that were
     # shortened (iteration, negative, shift, t, merit, curvature, along; .energy_search)
     tangent_log: list = field(default_factory=list)
+    # solver.predictor: whether the solve started from the tangent predictor's point (None:
+    # no predictor; False: it was not admissible, the plain start was taken; .predictor)
+    predicted: bool | None = None
     linear: str = ""  # the linear solver used (direct, gamg, bcgs)
     krylov_iterations: int = 0  # Krylov iterations of all linear solves (0 for direct)
     krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve

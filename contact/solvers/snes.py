@@ -28,6 +28,7 @@ from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
 from .newton import Complementarity, setup_newton
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .polish import Polisher
+from .predictor import tangent_predictor
 from .problem import DiscreteProblem, nodal_scaling
 from .reduced import ReducedSystem
 from .result import Result, finish
@@ -176,11 +177,22 @@ class SemismoothNewton:
         snes.getKSP().setPostSolve(self._post_solve)
         # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
         snes.setDivergenceTolerance(PETSc.UNLIMITED)
+        if self.search is not None:
+            # at least one Newton step, so its factorization tests the tangent's inertia: a
+            # start that is already an equilibrium (the predictor's straight strip past its
+            # buckling load) may be a saddle that the energy search leaves (.energy_search)
+            snes.setForceIteration(True)
         snes.setMonitor(self._monitor)
         progress.watch(
             system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
             f"{method} linear solve",
         )
+        # the tangent predictor (.predictor): a nonlinear problem's start, by default where
+        # the problem has an energy (a hyperelastic body)
+        self.predict = problem.nonlinear and (
+            options.predictor == "tangent" or (options.predictor == "auto" and problem.has_energy)
+        )
+        self.predicted: bool | None = None  # whether the last solve took the predictor's start
         self._prev = owner.own(problem.b.duplicate())  # the previous iterate (step lengths)
         self.history: list[dict] = []
         self.solves = 0  # solves done by this object
@@ -213,14 +225,14 @@ class SemismoothNewton:
         x = problem.b.duplicate()
         try:
             problem.to_unknowns(u0.x.petsc_vec, x)
+            self.predicted = None
+            if self.predict:  # the step's increments lifted by the tangent at u0
+                problem.linearize(x)
+                self._scaling()
+                self.predicted = tangent_predictor(cp, x, problem.bcs)
             set_dirichlet(x, problem.bcs)
             problem.linearize(x)
-            con = problem.constraint  # the NCP scaling follows the options of this solve
-            problem.c = (
-                nodal_scaling(problem.K, con.dofs, con.w, opts.kappa)
-                if opts.c == "auto"
-                else float(opts.c)
-            )
+            self._scaling()
             # solver.atol is relative to the data's force scale (force_scale), rtol to ‖Φ(x_0)‖
             scale, self._total = force_scale(
                 cp, problem, method if method in ncp.METHODS else "fb", opts.mu
@@ -234,6 +246,16 @@ class SemismoothNewton:
             return self._run(x, guess, t_start, counts)
         finally:
             x.destroy()
+
+    def _scaling(self) -> None:
+        """The NCP scaling c of the problem at its current K (it follows the solve's options)."""
+        problem, opts = self.problem, self.opts
+        con = problem.constraint
+        problem.c = (
+            nodal_scaling(problem.K, con.dofs, con.w, opts.kappa)
+            if opts.c == "auto"
+            else float(opts.c)
+        )
 
     def _run(self, x: PETSc.Vec, guess: bool, t_start: float, counts: tuple) -> Result:
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
@@ -289,6 +311,7 @@ class SemismoothNewton:
                 result.backtracked = guard.backtracked - counts[1]
             if self.search is not None:
                 result.tangent_log = list(self.search.log)
+            result.predicted = self.predicted
             if system is not None:
                 result.krylov_iterations = system.krylov_iterations - counts[2]
                 result.krylov_log = getattr(system, "log", [])[counts[3] :]
