@@ -220,8 +220,14 @@ STEPS = {
         for n in (0, 1, 2)
     ],
     "hyperelastic": [
-        [PY, "demos/bench/bench_hyperelastic.py", part, "--out", "demos/results/hyperelastic"]
-        for part in ("line_search", "strip", "refinement")
+        [PY, "demos/bench/bench_hyperelastic.py", *part, "--out", "demos/results/hyperelastic"]
+        for part in (
+            ["line_search"],
+            ["predictor"],
+            ["strip"],
+            ["refinement", "--levels", "5"],
+            ["refinement", "--top", "symmetry"],
+        )
     ],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]

@@ -85,6 +85,7 @@ class CurvatureSystem(ReducedNewtonSystem):
         node, comp = np.divmod(np.arange(n), bs)
         self.z.array_w[:] = X[node] @ np.array([1.0, np.sqrt(2.0), np.sqrt(3.0)]) + np.pi * comp
         self.negative, self.shift, self.factorizations = 0, 0.0, 0
+        self.Kmax = 0.0  # the largest entry of D (overflow guard of the shift)
         self.total_factorizations = 0
         self._tau_last = 0.0
         self._polishing = False
@@ -115,6 +116,8 @@ class CurvatureSystem(ReducedNewtonSystem):
         self.negative, self.shift = negative, 0.0
         tau, added = max(TAU_MIN, self._tau_last / 4), 0.0
         while negative and self.factorizations <= MAX_SHIFTS:
+            if not np.isfinite(tau * self.Kmax):  # K_T's entries overflow (cells collapsed)
+                break
             self.A.setDiagonal(self._scaled(self.D, tau - added), addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
             added = tau
             negative = self._factor()
@@ -178,6 +181,7 @@ class CurvatureSystem(ReducedNewtonSystem):
     def _set_shift_diagonal(self) -> None:
         D = self.D.array_w
         D[:] = np.where(self.outside & ~self.fixed, np.abs(self.Kdiag.array_r), 0.0)
+        self.Kmax = float(self.D.norm(PETSc.NormType.INFINITY))  # type: ignore[arg-type]
 
     def _scaled(self, D: PETSc.Vec, tau: float) -> PETSc.Vec:
         self.work.array_w[:] = tau * D.array_r

@@ -2,9 +2,11 @@
 buckling strip against Euler, and the refinement study of the neo-Hookean cylinder.
 
     python demos/bench/bench_hyperelastic.py line_search   # plain Newton vs the energy search
+    python demos/bench/bench_hyperelastic.py predictor     # tangent predictor vs plain start
     python demos/bench/bench_hyperelastic.py strip         # the strip's buckling load vs Euler
     python demos/bench/bench_hyperelastic.py refinement    # cylinder to 0.5 R, uniform refinement
-    python demos/bench/bench_hyperelastic.py refinement --levels 5   # a level more (~110k DoFs)
+    python demos/bench/bench_hyperelastic.py refinement --levels 5   # a level more (50k DoFs)
+    python demos/bench/bench_hyperelastic.py refinement --top symmetry  # between two plates
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -20,20 +22,30 @@ smallest det F and negative eigenvalues of K_T, and the outcome: ``stable`` (det
 definite), ``inverted`` (det F ≤ 0 somewhere: not a deformation), ``unstable`` (K_T
 indefinite), ``stopped`` (the energy search found no admissible step), or the SNES reason.
 
-``strip`` — the strip's critical load on P1 / P2 meshes: a load path of plain Newton along
-the straight branch (t ∈ [0.97, 1.07] in steps of 0.002, in units of Euler's δ_E) and the
-first step whose tangent has a negative eigenvalue: the critical load lies between it and
-the step before; with the energy search, the step where it acts and the largest force.
+``predictor`` — ``solver.predictor`` none (each load step starts from the previous solution
+with the new Dirichlet values and bounds) against auto (the tangent predictor, the default
+for this model: contact/solvers/predictor.py): the arch's clamped top pushed 0.1 in one
+step (the plain start inverts cells: a step cut), the neo-Hookean cylinder to 0.5 R in 1,
+2, 5, 10 steps (fb, and vinewtonrsls in 10), the buckling strip; steps, cuts, Newton
+iterations, CPU seconds.
+
+``strip`` — the strip's critical load on P1 / P2 meshes: plain Newton's straight state at a
+wall displacement t δ_E (one step from the reference state) and the inertia of its tangent,
+t bisected in [0.9, 1.3] until the bracket between a definite and an indefinite tangent is
+1e-4 wide.
 Euler's load of a fixed–guided column (effective length L): P_E = π² E' I / L²,
 E' = E / (1 − ν²) (plane strain), I = h³ / 12.
 
 ``refinement`` — configs/hyperelastic_cylinder.yaml (neo-Hookean) pressed to indentation
 δ = 0.5 R in 10 steps on a uniform mesh (h = h_contact = 0.1) refined uniformly 0 … levels−1
-times (``contact.refine``: new arc nodes moved onto the circle); per level the contact force
-at each step, and the same discrete problem solved by PETSc's vinewtonrsls (the plane's
-constraint is a bound): the largest difference of u_h (relative to max |u_h|) and of the
-forces at the load steps both reach.  The observed rate of the force at δ = 0.5 R,
-log₂(|F_l − F_{l−1}| / |F_{l+1} − F_l|).
+times, its flat top held (``--top clamped``, the shipped scene) or a symmetry plane
+(``--top symmetry``: a whole cylinder squeezed between two plates, each indenting it by δ;
+no corner where the held top meets the free arc; ``contact.refine``: new arc nodes moved
+onto the circle); per level the contact force at each step, and the same discrete problem
+solved by PETSc's vinewtonrsls (the plane's constraint is a bound): the largest difference
+of u_h (relative to max |u_h|) and of the forces at the load steps both reach.  The
+observed rate of the force at δ = 0.5 R, log₂(|F_l − F_{l−1}| / |F_{l+1} − F_l|).
+Writes refinement_<top>.csv and refinement_<top>.png.
 
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
@@ -186,34 +198,89 @@ def line_search(out: Path) -> None:
     save_csv(out / "line_search.csv", rows)
 
 
-def strip(out: Path) -> None:
+def predictor(out: Path) -> None:
+    """solver.predictor none (the plain start: the previous solution with the step's new
+    data) against auto (the tangent predictor, the default for this model)."""
+    pushed = arch("neo_hookean", 0.1, 1, 4)
+    pushed["mesh"]["cells"] = [8, 4]
+    pushed["obstacle"]["point"], pushed["data"] = [0, 0], {"u_D": ["0", "-delta*t"]}
+    cyl = ["mesh.h=0.1", "mesh.h_contact=0.04", "mesh.zone=0.9", "constants.delta=0.5"]
+    cases: list[tuple[str, object, list[str], str]] = [
+        ("NH arch, top pushed 0.1 in 1 step", pushed, [], "fb"),
+        *(
+            (f"NH cylinder to 0.5 R, {n} steps", CYLINDER, [*cyl, f"load.steps={n}"], "fb")
+            for n in (1, 2, 5, 10)
+        ),
+        ("NH cylinder to 0.5 R, 10 steps", CYLINDER, [*cyl, "load.steps=10"], "vinewtonrsls"),
+        ("SVK strip to 1.2 P_E", STRIP, [], "fb"),
+    ]
     rows = []
-    times = [round(t, 4) for t in np.arange(0.97, 1.0701, 0.002)]
+    for name, source, sets, method in cases:
+        for choice in ("none", "auto"):
+            scene = contact.load_scene(copy.deepcopy(source), [*sets, "output.verbose=false"])
+            t0 = time.process_time()
+            path = contact.run_load_path(scene, method=method, predictor=choice)
+            cpu = COMM.allreduce(time.process_time() - t0, op=MPI.MAX)
+            its = [s.result.iterations for s in path.steps]
+            row = {
+                "case": name,
+                "method": method,
+                "predictor": choice,
+                "converged": path.converged,
+                "steps": len(path.steps),
+                "cuts": len(path.cuts),
+                "newton_iterations": sum(its),
+                "max_step_iterations": max(its),
+                "contact_force": path.steps[-1].result.contact_force,
+                "cpu_seconds": round(cpu, 3),
+            }
+            rows.append(row)
+            say(
+                f"{name:34s} {method:12s} predictor {choice:4s}: {path.stop}; Newton {its}, "
+                f"cpu {cpu:.2f} s"
+            )
+    save_csv(out / "predictor.csv", rows)
+
+
+def strip_state(sets: list[str], t: float) -> tuple[int, float, int]:
+    """(negative eigenvalues of K_T, contact force, DoFs) of the strip's straight state at t."""
+    scene = contact.load_scene(STRIP, [*sets, f"load.times=[{t!r}]", "output.verbose=false"])
+    path = contact.run_load_path(scene, line_search="basic")
+    if not path.converged:
+        raise SystemExit(f"bench_hyperelastic strip: {sets} t = {t}: {path.stop}")
+    step = path.steps[-1]
+    return step.negative_eigenvalues or 0, step.result.contact_force, step.result.dofs
+
+
+def strip(out: Path) -> None:
+    """The critical load of each mesh by bisection on the inertia of the straight state: the
+    solve at wall displacement t δ_E (one step from the reference state, plain Newton — the
+    straight solution) has K_T definite below the critical t and one negative eigenvalue
+    above; the bracket [0.9, 1.3] is halved until it is 1e-4 wide."""
+    rows = []
     for cells, degree in (((40, 2), 1), ((80, 4), 1), ((160, 8), 1), ((40, 2), 2), ((80, 4), 2)):
-        sets = [
-            f"mesh.cells=[{cells[0]},{cells[1]}]",
-            f"mesh.degree={degree}",
-            "load.times=[" + ",".join(str(t) for t in times) + "]",
-            "output.verbose=false",
-        ]
-        scene = contact.load_scene(STRIP, sets)
         t0 = time.perf_counter()
-        path = contact.run_load_path(scene, line_search="basic")
-        first = next((s for s in path.steps if s.negative_eigenvalues), None)
-        k = path.steps.index(first) if first is not None else None
-        before = path.steps[k - 1] if k else None
+        base = [f"mesh.cells=[{cells[0]},{cells[1]}]", f"mesh.degree={degree}"]
+
+        lo, hi = 0.9, 1.3
+        (n_lo, f_lo, dofs), (n_hi, f_hi, _) = strip_state(base, lo), strip_state(base, hi)
+        if n_lo or not n_hi:
+            raise SystemExit(f"bench_hyperelastic strip: {cells} P{degree}: not bracketed")
+        while hi - lo > 1e-4:
+            mid = round(0.5 * (lo + hi), 6)
+            n, f, _ = strip_state(base, mid)
+            if n:
+                hi, f_hi = mid, f
+            else:
+                lo, f_lo = mid, f
         row = {
             "cells": f"{cells[0]}x{cells[1]}",
             "degree": degree,
-            "dofs": path.steps[-1].result.dofs,
-            "t_definite": before.time if before else "",
-            "t_indefinite": first.time if first else "",
-            "force_definite_over_euler": before.result.contact_force / STRIP_EULER
-            if before
-            else "",
-            "force_indefinite_over_euler": first.result.contact_force / STRIP_EULER
-            if first
-            else "",
+            "dofs": dofs,
+            "t_definite": lo,
+            "t_indefinite": hi,
+            "force_definite_over_euler": f_lo / STRIP_EULER,
+            "force_indefinite_over_euler": f_hi / STRIP_EULER,
             "seconds": round(time.perf_counter() - t0, 2),
         }
         rows.append(row)
@@ -225,13 +292,14 @@ def strip(out: Path) -> None:
     save_csv(out / "strip.csv", rows)
 
 
-def refinement(out: Path, levels: int, steps: int) -> None:
+def refinement(out: Path, levels: int, steps: int, top: str) -> None:
     base = [
         "mesh.h=0.1",
         "mesh.h_contact=0.1",
         "constants.delta=0.5",
         f"load.steps={steps}",
         "output.verbose=false",
+        *(["boundaries.top.role=symmetry"] if top == "symmetry" else []),
     ]
     scene = contact.load_scene(CYLINDER, base)
     rows = []
@@ -258,6 +326,13 @@ def refinement(out: Path, levels: int, steps: int) -> None:
             top = COMM.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
             du = max(du, COMM.allreduce(float(np.max(np.abs(u - v))), op=MPI.MAX) / top)
             df = max(df, abs(s.result.contact_force / other.result.contact_force - 1))
+        energy = {}
+        for method, p in paths.items():  # Π of each solver's last state (stable minima differ)
+            r = p.steps[-1].result
+            x = r.problem.b.duplicate()
+            r.problem.to_unknowns(r.u_h.x.petsc_vec, x)
+            energy[method] = r.problem.energy(x)
+            x.destroy()
         for s in fb:
             rows.append(
                 {
@@ -273,6 +348,11 @@ def refinement(out: Path, levels: int, steps: int) -> None:
                     "seconds_fb": round(seconds["fb"], 2),
                     "seconds_vinewtonrsls": round(seconds["vinewtonrsls"], 2),
                     "vi_steps": len(paths["vinewtonrsls"].steps),
+                    "energy_fb": energy["fb"],
+                    "energy_vinewtonrsls": energy["vinewtonrsls"],
+                    "negative_eigenvalues_vinewtonrsls": paths["vinewtonrsls"]
+                    .steps[-1]
+                    .negative_eigenvalues,
                 }
             )
         last = fb[-1].result
@@ -289,9 +369,9 @@ def refinement(out: Path, levels: int, steps: int) -> None:
     diffs = np.abs(np.diff(force))
     rates = np.log2(diffs[:-1] / diffs[1:]) if len(diffs) > 1 else []
     say("observed rates of F(0.5 R):", " ".join(f"{r:.2f}" for r in rates))
-    save_csv(out / "refinement.csv", rows)
+    save_csv(out / f"refinement_{top}.csv", rows)
     if COMM.rank == 0:
-        chart_refinement(out / "refinement.png", rows)
+        chart_refinement(out / f"refinement_{top}.png", rows)
 
 
 def chart_refinement(path: Path, rows: list[dict]) -> None:
@@ -324,6 +404,22 @@ def chart_refinement(path: Path, rows: list[dict]) -> None:
     N = np.array([d for d, _ in last[1:]], dtype=float)
     diff = np.abs(np.diff([f for _, f in last]))
     right.loglog(N, diff, "o-", label="|F_l − F_{l−1}| at δ = 0.5 R")
+    curve = np.array(
+        [
+            [
+                r["contact_force"]
+                for r in rows
+                if r["level"] == lv and r["indentation"] <= 0.4 + 1e-9
+            ]
+            for lv in levels
+        ]
+    )
+    right.loglog(
+        N,
+        np.max(np.abs(np.diff(curve, axis=0)), axis=1),
+        "s-",
+        label="largest |F_l − F_{l−1}| over δ ≤ 0.4 R",
+    )
     if len(N):
         right.loglog(N, diff[0] * (N / N[0]) ** -1.0, "k--", lw=1, label="N⁻¹ (h²)")
         right.loglog(N, diff[0] * (N / N[0]) ** -0.5, "k:", lw=1, label="N⁻¹ᐟ² (h)")
@@ -340,17 +436,26 @@ def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("part", choices=("line_search", "strip", "refinement"))
+    ap.add_argument("part", choices=("line_search", "predictor", "strip", "refinement"))
     ap.add_argument("--out", type=Path, default=ROOT / "demos" / "results" / "hyperelastic")
     ap.add_argument("--levels", type=int, default=4, help="refinement: mesh levels")
     ap.add_argument("--steps", type=int, default=10, help="refinement: load steps to 0.5 R")
+    ap.add_argument(
+        "--top",
+        choices=("clamped", "symmetry"),
+        default="clamped",
+        help="refinement: the cylinder's flat top held (the shipped scene) or a symmetry "
+        "plane (a whole cylinder squeezed between two plates)",
+    )
     args = ap.parse_args()
     if args.part == "line_search":
         line_search(args.out)
+    elif args.part == "predictor":
+        predictor(args.out)
     elif args.part == "strip":
         strip(args.out)
     else:
-        refinement(args.out, args.levels, args.steps)
+        refinement(args.out, args.levels, args.steps, args.top)
 
 
 if __name__ == "__main__":
