@@ -97,6 +97,7 @@ class EnergySearch:
     def restart(self) -> None:
         """A new solve: ρ from zero, iterations from 0, an empty log."""
         self.rho, self.iteration, self.log = 0.0, 0, []
+        self.fnorm = np.nan  # ‖Φ‖ of the current iterate, told by the solver's monitor
         self.stalled = False  # no admissible step: the solve stops (diverged_line_search)
 
     # -- the merit -------------------------------------------------------------------------
@@ -135,16 +136,18 @@ class EnergySearch:
         if definite and polisher is not None and polisher.accepted:
             self.timers["assembly"] += time.perf_counter() - t0
             return
+        if definite and not np.isnan(self.fnorm):
+            # Newton's own step where it lowers ‖Φ‖ enough, or where x already meets SNES's
+            # stopping test (a step forced from a solution: round-off either way); ‖Φ(x)‖ is
+            # the monitor's (SemismoothNewton._monitor), one residual saved
+            W = self._at(x, y, 1.0)
+            good = max((1.0 - ARMIJO) * self.fnorm, sy.stop)
+            if self._phi_norm(W) <= good and self.cp.p.admissible(W):
+                self.timers["assembly"] += time.perf_counter() - t0
+                return
         f0 = self._phi_norm(x)
         self.cp.R.copy(self.R0)
         self.F.copy(self.F0)
-        W = self._at(x, y, 1.0)
-        # Newton's own step where it lowers ‖Φ‖ enough, or where x already meets SNES's
-        # stopping test (a step forced from a solution: round-off either way)
-        good = max((1.0 - ARMIJO) * f0, sy.stop)
-        if definite and self._phi_norm(W) <= good and self.cp.p.admissible(W):
-            self.timers["assembly"] += time.perf_counter() - t0
-            return  # Newton's own step
         event: dict = {"iteration": it, "negative": sy.negative, "shift": sy.shift}
         t, merit = self._energy_step(x, y, f0)
         if merit == "residual":

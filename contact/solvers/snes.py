@@ -394,6 +394,8 @@ class SemismoothNewton:
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         search = self.search
+        if search is not None:
+            search.fnorm = float(fnorm)  # ‖Φ(x_k)‖ for the next step's line search
         if its > 0 and search is not None and search.log and search.log[-1]["iteration"] == its - 1:
             extra += "  " + step_note(search.log[-1])
         if search is not None and search.stalled:  # no admissible step: stop here

@@ -323,8 +323,8 @@ def refinement(out: Path, levels: int, steps: int, top: str) -> None:
             if other is None:
                 continue
             u, v = s.result.u_h.x.array, other.result.u_h.x.array
-            top = COMM.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
-            du = max(du, COMM.allreduce(float(np.max(np.abs(u - v))), op=MPI.MAX) / top)
+            largest = COMM.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
+            du = max(du, COMM.allreduce(float(np.max(np.abs(u - v))), op=MPI.MAX) / largest)
             df = max(df, abs(s.result.contact_force / other.result.contact_force - 1))
         energy = {}
         for method, p in paths.items():  # Π of each solver's last state (stable minima differ)
