@@ -2040,6 +2040,8 @@ DESIGN_MEASUREMENTS = [
 
 
 HYPER = "hyperelastic"
+#: the strip's Euler load (configs/hyperelastic_strip.yaml): π² E/(1 − ν²) h³/12 / L²
+STRIP_EULER = math.pi**2 / (1 - 0.3**2) * 0.05**3 / 12
 
 
 def hyperelastic() -> str:
@@ -2072,7 +2074,8 @@ def _hyper_line_search() -> str:
         "without step cutting; outcome: *stable* (det F > 0 and K_T definite at the answer), "
         "*inverted* (det F ≤ 0 somewhere: no deformation), *unstable* (K_T indefinite: a saddle "
         "of the energy), *stopped* (no step keeps det F > 0), or the SNES reason. Newton "
-        "iterations of all steps; det F the smallest at the last iterate.",
+        "iterations of all steps; det F the smallest at the last iterate. Both columns run the "
+        "other defaults (the tangent predictor, 11.5).",
         "",
     ]
     body = []
@@ -2110,20 +2113,27 @@ def _hyper_line_search() -> str:
             f"({cpu['energy'] / cpu['basic']:.2f}×, the smaller of two runs each, same "
             "process): LDLᵀ instead of LU, one more residual and a det F check per Newton step.",
         ]
+    path = {r["line_search"]: r for r in data if r["case"].startswith("SVK arch d=0.2, 10")}
+    reached = (
+        f"; on the load path to δ = 0.2 in 10 steps plain Newton ends {path['basic']['outcome']} "
+        f"at t = {g(path['basic']['reached_t'])}, the energy search stops after its step cuts at "
+        f"t = {g(path['energy']['reached_t'])}"
+        if {"basic", "energy"} <= set(path)
+        else ""
+    )
     out += [
         "",
-        "What the table says. Up to the end of SVK's stable branch (δ ≈ 0.165 on this arch) both "
-        "solvers take the same 5–6 Newton steps to the same answer. Past it, the 30–50 Newton "
-        "steps plain Newton spends are no globalization problem: it converges, when it does, to "
-        "states that invert cells (det F ≈ −1: SVK's energy is finite there, zero for a "
-        "reflection) or to saddles of the energy (the SVK block at 50 %: 6 negative "
-        "eigenvalues). No stable state of positive det F is near: the energy search follows the "
-        "energy down towards collapsing cells (det F → 0) and stops there, saying so, or runs "
-        "out of iterations, never returning an inverted state. On the load path (10 steps) plain "
-        "Newton passes the limit at t = 0.9 by inverting cells and 'reaches' t = 1; the energy "
-        "search stops after its step cuts at the limit. Where a stable state exists beyond an "
-        "instability — the strip past its buckling load — plain Newton stays on the unstable "
-        "straight branch and the energy search buckles it (11.2).",
+        "What the table says. Where SVK's stable branch reaches (δ = 0.1 and 0.16 here) both "
+        "solvers take the same Newton steps to the same answer. Beyond it (δ = 0.2, 0.3, the "
+        "block at 50 %) the Newton steps plain Newton spends are no globalization problem: it "
+        "converges, when it does, to states that invert cells (det F < 0: SVK's energy is "
+        "finite there, zero for a reflection) or to saddles of the energy (the homogeneous block "
+        "at 50 %), and otherwise runs out of iterations among such states. No stable state of "
+        "positive det F is near: the energy search follows the energy down towards collapsing "
+        "cells (det F → 0) and stops there, saying so, or runs out of iterations — it never "
+        f"returns an inverted state{reached}. Where a stable state exists beyond an instability "
+        "— the strip past its buckling load — plain Newton stays on the unstable straight "
+        "branch and the energy search buckles it (11.2).",
         "",
     ]
     return "\n".join(out)
@@ -2140,9 +2150,9 @@ def _hyper_strip() -> str:
         "frictionless wall: a fixed–guided column of effective length L, Euler load "
         "P_E = π² E' I / L² with E' = E/(1 − ν²), I = h³/12, i.e. the strain "
         "ε_E = π² h² / (12 L²) = 2.056e-3; the pseudo-time t counts the wall's displacement in "
-        "units of ε_E L. `python demos/bench/bench_hyperelastic.py strip`: plain Newton along the "
-        "straight branch in steps of 0.002 and the inertia of K_T at each solution; the critical "
-        "load lies between the last definite and the first indefinite step.",
+        "units of ε_E L. `python demos/bench/bench_hyperelastic.py strip`: plain Newton's "
+        "straight state at t and the inertia of its tangent K_T, t bisected until a definite "
+        "and an indefinite state are 1e-4 apart.",
         "",
         table(
             ["mesh", "degree", "DoFs", "critical t in", "critical force / P_E in"],
@@ -2159,15 +2169,35 @@ def _hyper_strip() -> str:
             ],
         ),
         "",
-        "Euler's estimate agrees with the converged discrete load to about 0.5 % (P2: 0.994–0.996 "
-        "ε_E; shear flexibility and the current length lower it, as Timoshenko's correction "
-        "does); P1 triangles are stiff in bending, 3.2 % on the shipped 80 × 4 mesh. With the "
-        "default solver the scene's run (10 steps to t = 1.2) meets the indefinite tangent at "
-        "Newton step 0 of step 7 (t = 1.04, the first step past 1.034), says so on that step's "
-        "line, takes a step of negative curvature, and the strip buckles: its force stops at "
-        "1.032 P_E (`tests/test_energy_search.py`).",
-        "",
     ]
+    p2 = [r for r in data if r["degree"] == 2]
+    shipped = next((r for r in data if r["cells"] == "80x4" and r["degree"] == 1), None)
+    if p2 and shipped:
+        fine = p2[-1]
+        out += [
+            f"Euler's estimate agrees with the converged discrete load to "
+            f"{100 * (1 - fine['force_indefinite_over_euler']):.1f} % (P2, {fine['cells']}: "
+            f"{fine['force_indefinite_over_euler']:.4f} P_E; shear flexibility, the Poisson "
+            "thickening and the current length move it, as Timoshenko's correction does); P1 "
+            "triangles are stiff in bending: "
+            f"{100 * (shipped['force_indefinite_over_euler'] - 1):.1f} % on the shipped "
+            f"80 × 4 mesh (critical t in ({shipped['t_definite']}, {shipped['t_indefinite']}]).",
+        ]
+    runs = rows(RES / HYPER / "line_search.csv") or []
+    strip = {r["line_search"]: r for r in runs if r["case"].startswith("SVK strip")}
+    if {"basic", "energy"} <= set(strip):
+        out += [
+            "",
+            "With the default solver the scene's run (10 steps to t = 1.2) meets the indefinite "
+            "tangent at Newton step 0 of step 7 (t = 1.04, the first step past the critical t), "
+            "says so on that step's line, takes a step of negative curvature and the strip "
+            "buckles (`tests/test_energy_search.py`): at t = 1.2 its force is "
+            f"{strip['energy']['contact_force'] / STRIP_EULER:.4f} P_E and K_T definite, against "
+            f"{strip['basic']['contact_force'] / STRIP_EULER:.4f} P_E and "
+            f"{strip['basic']['negative_eigenvalues']} negative eigenvalue on plain Newton's "
+            "straight branch (11.1).",
+        ]
+    out.append("")
     return "\n".join(out)
 
 
@@ -2232,7 +2262,8 @@ def _hyper_refinement() -> str:
         "onto the circle). Each level is also solved by PETSc's vinewtonrsls on the same "
         "discrete problem (the plane's constraint is a bound): the largest differences of u_h "
         "(relative to max |u_h|) and of the force at the load steps. Rate: log₂ of the ratio "
-        "of successive largest changes of the force over δ ≤ 0.4 R.",
+        "of successive largest changes of the force over δ ≤ 0.4 R. Seconds: wall time of the "
+        "whole path, measured while other work shared the machine (compare within a row).",
         "",
     ]
     text, rates = _refinement_table(clamped)
@@ -2366,6 +2397,22 @@ def _hyper_stability() -> str:
         "how the other step counts end.",
         "",
     ]
+    ten = {r["method"]: r for r in runs if r["case"].startswith("(a)") and r["steps"] == 10}
+    if ten:
+        its = ", ".join(f"{m} {r['newton_iterations_total']}" for m, r in ten.items())
+        out += [
+            "Why. The neo-Hookean scenes and SVK below its instability converge with every method "
+            f"and step count (the cylinder in 10 steps: {its} Newton steps in all; fb and blend "
+            "need the fewest). SVK pressed past its "
+            "material limit — the cylinder to 0.5 R, whose contact zone is squeezed beyond the "
+            "stretch where SVK's stress peaks, and the block at 50 % — has no stable state of "
+            "positive det F near the path: plain Newton and vinewtonrsls run out of iterations "
+            "or stop at saddles (unstable), the energy search stalls where no step keeps det F > "
+            "0 (or runs out of iterations on the way there). The strip past its buckling load "
+            "has a stable buckled state, which only the energy search finds (from one step); "
+            "plain Newton and vinewtonrsls stay on the straight, unstable branch.",
+            "",
+        ]
     return "\n".join(out)
 
 

@@ -36,8 +36,9 @@ def _demo_module(name: str):
 def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
-    # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost
-    assert text.count("*Not available:") == 13
+    # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, and §11's
+    # line search, strip, refinement, stability map at finite strain, predictor
+    assert text.count("*Not available:") == 18
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
