@@ -27,6 +27,7 @@ KNOBS = {
     "linear",
     "inexact",
     "petsc_options",
+    "predictor",
 }
 
 
