@@ -2058,11 +2058,30 @@ def hyperelastic() -> str:
     return "\n".join(out)
 
 
+def _hyper_open(title: str, name: str) -> tuple[list[str], list[dict] | None]:
+    """A §11 subsection's heading lines and the rows of its CSV (None, and the "not
+    available" line, if it is missing)."""
+    data = rows(RES / HYPER / name)
+    return [title, "", *([] if data else [missing(f"demos/results/{HYPER}/{name}")])], data
+
+
+def _pairs(data: list[dict], key: str, a: str, b: str) -> list[tuple[str, str, dict, dict]]:
+    """(case, method, row with key = a, row with key = b) for each case and method that has
+    both, in the CSV's order."""
+    out = []
+    for case, method in dict.fromkeys((r["case"], r["method"]) for r in data):
+        pair = {r[key]: r for r in data if r["case"] == case and r["method"] == method}
+        if a in pair and b in pair:
+            out.append((case, method, pair[a], pair[b]))
+    return out
+
+
 def _hyper_line_search() -> str:
-    out = ["### 11.1 Nonconvex laws and buckling: the energy line search", ""]
-    data = rows(RES / HYPER / "line_search.csv")
+    out, data = _hyper_open(
+        "### 11.1 Nonconvex laws and buckling: the energy line search", "line_search.csv"
+    )
     if not data:
-        return "\n".join(out + [missing(f"demos/results/{HYPER}/line_search.csv")])
+        return "\n".join(out)
     out += [
         "`python demos/bench/bench_hyperelastic.py line_search`: St Venant–Kirchhoff (SVK) "
         "bodies with `solver.line_search: basic` (plain Newton, MUMPS LU: the solver before the "
@@ -2078,21 +2097,16 @@ def _hyper_line_search() -> str:
         "other defaults (the tangent predictor, 11.5).",
         "",
     ]
+
+    def what(r: dict) -> str:
+        t = "" if r["converged"] else f", t = {g(r['reached_t'])}"
+        return (
+            f"{r['outcome']}, {r['newton_iterations']} its, det F {g(r['min_det_F'], 2)}, "
+            f"{r['negative_eigenvalues']} neg.{t}"
+        )
+
     body = []
-    keys = list(dict.fromkeys((r["case"], r["method"]) for r in data))
-    for case, method in keys:
-        pair = {r["line_search"]: r for r in data if r["case"] == case and r["method"] == method}
-        if "basic" not in pair or "energy" not in pair:
-            continue
-        b, e = pair["basic"], pair["energy"]
-
-        def what(r: dict) -> str:
-            t = "" if r["converged"] else f", t = {g(r['reached_t'])}"
-            return (
-                f"{r['outcome']}, {r['newton_iterations']} its, det F {g(r['min_det_F'], 2)}, "
-                f"{r['negative_eigenvalues']} neg.{t}"
-            )
-
+    for case, method, b, e in _pairs(data, "line_search", "basic", "energy"):
         body.append([case, method, what(b), what(e), g(e["curvature_steps"])])
         if case.startswith("NH cylinder"):
             break  # the timing pair: shown once, its CPU times below
@@ -2140,10 +2154,9 @@ def _hyper_line_search() -> str:
 
 
 def _hyper_strip() -> str:
-    out = ["### 11.2 The buckling strip against Euler", ""]
-    data = rows(RES / HYPER / "strip.csv")
+    out, data = _hyper_open("### 11.2 The buckling strip against Euler", "strip.csv")
     if not data:
-        return "\n".join(out + [missing(f"demos/results/{HYPER}/strip.csv")])
+        return "\n".join(out)
     out += [
         "[`configs/hyperelastic_strip.yaml`](../configs/hyperelastic_strip.yaml): a SVK strip "
         "(L = 1, h = 0.05, plane strain, E = 1, ν = 0.3) clamped at x = 0 and pushed by a "
@@ -2318,10 +2331,9 @@ def _hyper_refinement() -> str:
 
 
 def _hyper_predictor() -> str:
-    out = ["### 11.5 The tangent predictor of a load step", ""]
-    data = rows(RES / HYPER / "predictor.csv")
+    out, data = _hyper_open("### 11.5 The tangent predictor of a load step", "predictor.csv")
     if not data:
-        return "\n".join(out + [missing(f"demos/results/{HYPER}/predictor.csv")])
+        return "\n".join(out)
     out += [
         "`python demos/bench/bench_hyperelastic.py predictor`: `solver.predictor: none` (each "
         "step starts from the previous solution with the step's new Dirichlet values and "
@@ -2331,21 +2343,18 @@ def _hyper_predictor() -> str:
         "of the whole path, one run each.",
         "",
     ]
-    body = []
-    keys = list(dict.fromkeys((r["case"], r["method"]) for r in data))
-    for case, method in keys:
-        pair = {r["predictor"]: r for r in data if r["case"] == case and r["method"] == method}
-        if "none" not in pair or "auto" not in pair:
-            continue
 
-        def what(r: dict) -> str:
-            ok = "" if r["converged"] else " (failed)"
-            return (
-                f"{r['steps']} steps, {r['cuts']} cuts, {r['newton_iterations']} its, "
-                f"{r['cpu_seconds']:.2f} s{ok}"
-            )
+    def what(r: dict) -> str:
+        ok = "" if r["converged"] else " (failed)"
+        return (
+            f"{r['steps']} steps, {r['cuts']} cuts, {r['newton_iterations']} its, "
+            f"{r['cpu_seconds']:.2f} s{ok}"
+        )
 
-        body.append([case, method, what(pair["none"]), what(pair["auto"])])
+    body = [
+        [case, method, what(a), what(b)]
+        for case, method, a, b in _pairs(data, "predictor", "none", "auto")
+    ]
     out += [
         table(["case", "method", "plain start (none)", "tangent predictor (auto)"], body),
         "",

@@ -54,6 +54,7 @@ from petsc4py import PETSc
 from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..solvers.linear import mumps_ksp
 from .elasticity import body_fields, elastic_setting, lame
 from .forms import ResidualProblem
 from .obstacles import plane_contact
@@ -236,19 +237,11 @@ def negative_eigenvalues(result) -> int:
     lo = A.getOwnershipRange()[0]
     A.zeroRowsColumns((p.constraint.dofs[result.active_mask] + lo).astype(PETSc.IntType), diag=1.0)
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    ksp = PETSc.KSP().create(A.getComm())
+    ksp = mumps_ksp(A, "cholesky")  # LDLᵀ: its inertia over all ranks
     try:
-        ksp.setOperators(A)
-        ksp.setType("preonly")
         pc = ksp.getPC()
-        pc.setType("cholesky")
-        pc.setFactorSolverType("mumps")
-        pc.setFactorSetUpSolverType()
-        factor = pc.getFactorMatrix()
-        factor.setMumpsIcntl(13, 1)  # the root node without ScaLAPACK: the global inertia
-        factor.setMumpsIcntl(24, 1)  # null pivots detected (a singular K_T counts as zero)
         pc.setUp()
-        negative, _, _ = factor.getInertia()
+        negative, _, _ = pc.getFactorMatrix().getInertia()
     finally:
         ksp.destroy()
         A.destroy()

@@ -72,6 +72,24 @@ def petsc_defaults(problem: DiscreteProblem, kind: str) -> dict:
     return default_options(kind, problem.V.mesh.topology.dim, problem.V.mesh.comm.size)
 
 
+def mumps_ksp(A: PETSc.Mat, factor: str = "lu") -> PETSc.KSP:
+    """A KSP solving with A by one MUMPS factorization (``lu``, or ``cholesky`` = LDLᵀ for a
+    symmetric A, set up so that the factor's ``getInertia`` counts over all ranks and a null
+    pivot counts as a zero eigenvalue), its operators set; the caller destroys it."""
+    ksp = PETSc.KSP().create(A.getComm())
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    pc = ksp.getPC()
+    pc.setType(factor)
+    pc.setFactorSolverType("mumps")
+    if factor == "cholesky":
+        pc.setFactorSetUpSolverType()
+        mumps = pc.getFactorMatrix()
+        mumps.setMumpsIcntl(13, 1)  # the root node without ScaLAPACK: the global inertia
+        mumps.setMumpsIcntl(24, 1)  # null pivots detected (a singular A counts as zero)
+    return ksp
+
+
 def attach_near_nullspace(problem: DiscreteProblem, J: PETSc.Mat) -> None:
     """Rigid-body modes for GAMG on elasticity (kept by J across its re-copies)."""
     if problem.near_nullspace is not None:

@@ -29,6 +29,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from .linear import mumps_ksp
+
 if TYPE_CHECKING:
     from .newton import Complementarity
 
@@ -56,14 +58,9 @@ def tangent_predictor(cp: Complementarity, x: PETSc.Vec, dirichlet: list) -> boo
     lo = A.getOwnershipRange()[0]
     rows_global = (np.flatnonzero(fixed) + lo).astype(PETSc.IntType)
     A.zeroRowsColumns(rows_global, 1.0, delta, rhs)  # type: ignore[arg-type]
-    ksp = PETSc.KSP().create(A.getComm())
+    ksp = mumps_ksp(A)
     trial = x.duplicate()
     try:
-        ksp.setOperators(A)
-        ksp.setType("preonly")
-        pc = ksp.getPC()
-        pc.setType("lu")
-        pc.setFactorSolverType("mumps")
         ksp.solve(rhs, delta)
         x.copy(trial)
         trial.axpy(1.0, delta)

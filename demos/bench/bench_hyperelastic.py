@@ -55,6 +55,7 @@ from __future__ import annotations
 import argparse
 import copy
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -67,6 +68,9 @@ from common import save_csv
 from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests"))  # the scenes the tests check, measured here too
+import test_hyperelastic  # noqa: E402
+
 COMM = MPI.COMM_WORLD
 CYLINDER = ROOT / "configs" / "hyperelastic_cylinder.yaml"
 STRIP = ROOT / "configs" / "hyperelastic_strip.yaml"
@@ -80,44 +84,17 @@ def say(*args) -> None:
 
 
 def arch(law: str, delta: float, steps: int, cuts: int) -> dict:
-    """The arch of tests/test_hyperelastic.py (12 × 6 cells): bottom y = 0.2 x², top y = 0.5
-    clamped, the plane y = δ t rising into it."""
-    return {
-        "name": "arch",
-        "constants": {"delta": delta},
-        "mesh": {
-            "type": "rectangle",
-            "corners": [[0, 0], [1, 0.5]],
-            "cells": [12, 6],
-            "map": ["x", "y + 0.2*x*x*(1 - 2*y)"],
-        },
-        "boundaries": {
-            "axis": {"role": "symmetry", "where": "x < 1e-10"},
-            "bottom": {"role": "contact", "where": "y < 0.2*x*x + 1e-10"},
-            "top": {"role": "dirichlet", "where": "y > 0.5 - 1e-10"},
-        },
-        "model": {"type": "hyperelastic", "law": law, "E": 1.0, "nu": 0.3},
-        "obstacle": {"type": "plane", "point": [0, "delta*t"], "normal": [0, 1]},
-        "load": {"steps": steps, "cuts": cuts},
-        "output": {"verbose": False},
-    }
+    """The arch of tests/test_hyperelastic.py (12 × 6 cells: bottom y = 0.2 x², top y = 0.5
+    clamped, the plane y = δ t rising into it; the tests' own builder) on a load path."""
+    return {**test_hyperelastic.arch(law, delta=delta), "load": {"steps": steps, "cuts": cuts}}
 
 
 def block(law: str, compression: float) -> dict:
-    """The quarter block of configs/hyperelastic_block.yaml (3 × 3 cells) pressed to
+    """The quarter block of tests/test_hyperelastic.py (3 × 3 cells) pressed to
     ``compression`` in one step."""
     return {
-        "name": "block",
-        "mesh": {"type": "rectangle", "corners": [[0, 0], [1, 1]], "cells": [3, 3]},
-        "boundaries": {
-            "left": {"role": "symmetry", "where": "x < 1e-10"},
-            "bottom": {"role": "symmetry", "where": "y < 1e-10"},
-            "top": {"role": "contact", "where": "y > 1 - 1e-10"},
-        },
-        "model": {"type": "hyperelastic", "law": law, "E": 1.0, "nu": 0.3},
-        "obstacle": {"type": "plane", "point": [0, f"1 - {compression}*t"], "normal": [0, -1]},
+        **test_hyperelastic.block(law, compression=compression),
         "load": {"steps": 1, "cuts": 0},
-        "output": {"verbose": False},
     }
 
 
