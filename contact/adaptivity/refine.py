@@ -63,7 +63,8 @@ def refine(
             "contact.solve on this scene)"
         )
     if rebalance is None:
-        rebalance = (scene.cfg.get("adapt") or {}).get("rebalance", True)
+        adapt = scene.config.adapt
+        rebalance = adapt.rebalance if adapt is not None else True
     if not isinstance(rebalance, bool):
         raise ValueError(f"rebalance: expected true or false, got {rebalance!r}")
     msh = scene.mesh
@@ -89,7 +90,7 @@ def refine(
         else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
     )
     child = Scene(
-        scene.cfg,
+        scene.config,
         new,
         Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
         time=scene.time,
@@ -100,10 +101,11 @@ def refine(
     )
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     clock.append(time.perf_counter())
-    warn_undeclared_curves(scene.cfg, scene.mesh, scene.boundary)
-    for surface in boundary_surfaces(scene.cfg, scene.mesh.geometry.dim, scene.boundary):
+    warn_undeclared_curves(scene.config, scene.mesh, scene.boundary)
+    for surface in boundary_surfaces(scene.config, scene.mesh.geometry.dim, scene.boundary):
         surface.snap(new, tags)
-    for surface in builder_surfaces(scene.cfg):  # by the mesh's own tags of its curved surfaces
+    # by the mesh's own tags of its curved surfaces
+    for surface in builder_surfaces(scene.config.mesh):
         assert surfaces is not None  # a mesh builder with curved surfaces tags them
         surface.snap(new, surfaces)
     clock.append(time.perf_counter())

@@ -79,6 +79,7 @@ from ..setup.config import (
     read_yaml,
     switch_off,
 )
+from ..setup.scene_config import SceneConfig
 from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
@@ -188,7 +189,7 @@ STUDY: dict[str, Field] = {
         "dict",
         None,
         schema={
-            "strategy": _optional(_ADAPT["strategy"], choices=STRATEGIES),
+            "strategy": Field("str", None, choices=STRATEGIES),
             "theta": _optional(_ADAPT["theta"]),
             "tol": _optional(_ADAPT["tol"]),
             "max_dofs": _optional(_ADAPT["max_dofs"]),
@@ -210,7 +211,7 @@ class Case:
 
     label: str | None
     raw: dict = field(repr=False)
-    cfg: dict = field(repr=False)
+    config: SceneConfig = field(repr=False)
     params: dict = field(default_factory=dict)
 
 
@@ -231,8 +232,8 @@ class Study:
     warmup: bool = True
 
     @property
-    def base_cfg(self) -> dict:
-        return next(iter(self.cases.values())).cfg
+    def base_config(self) -> SceneConfig:
+        return next(iter(self.cases.values())).config
 
     @property
     def named_cases(self) -> bool:
@@ -241,7 +242,7 @@ class Study:
     @functools.cached_property
     def has_exact(self) -> bool:
         """Whether some case knows its exact solution (then rows carry the energy error)."""
-        return any(bool(c.cfg["data"].get("exact")) for c in self.cases.values())
+        return any(bool(c.config.data.exact) for c in self.cases.values())
 
     @functools.cached_property
     def reference_columns(self) -> tuple[str, ...]:
@@ -251,7 +252,7 @@ class Study:
 
         cols: list[str] = []
         for c in self.cases.values():
-            cols += [k for k in error_columns(c.cfg) if k not in cols]
+            cols += [k for k in error_columns(c.config.reference) if k not in cols]
         return tuple(cols)
 
     @property
@@ -303,7 +304,7 @@ class Study:
         strategy = adapt.pop("strategy", None)
         strategy = params.get("strategy", strategy)
         if strategy is None:
-            adaptive = case.cfg.get("adapt") is not None
+            adaptive = case.config.adapt is not None
         else:
             adaptive = strategy != "none"
             if adaptive:
@@ -316,7 +317,6 @@ class Study:
         return any(self.plan(params)[2] is not None for params in self.runs())
 
     def as_dict(self) -> dict[str, Any]:
-        cfg = {k: v for k, v in self.base_cfg.items() if not k.startswith("_")}
         out = {
             "name": self.name,
             "scene": self.scene,
@@ -326,11 +326,11 @@ class Study:
             "charts": self.charts,
             "repeat": self.repeat,
             "runs": len(self.runs()) * self.repeat,
-            "base_scene": cfg,
+            "base_scene": self.base_config.as_dict(),
         }
         if self.named_cases:
             out["cases"] = {
-                label: {**c.params, "scene": c.cfg.get("name")} for label, c in self.cases.items()
+                label: {**c.params, "scene": c.config.name} for label, c in self.cases.items()
             }
         return out
 
@@ -343,7 +343,7 @@ def _reference_types() -> tuple[str, ...]:
 
 def _read_scene(
     ref: str | dict, sets: list, base_dir: Path, path: str, extra: tuple[str, ...] = ()
-) -> tuple[dict, dict, str]:
+) -> tuple[dict, SceneConfig, str]:
     """Read a scene reference (a path relative to ``base_dir``, or a mapping), apply the
     ``set`` overrides, then the command line's ``extra`` ones (``contact study --set``), make
     a relative mesh file absolute and validate: (raw, cfg, label).  Errors name the study
@@ -409,7 +409,7 @@ def load_study(
     st = _validate_mapping(data, Field("dict", schema=STUDY), "", {})
     extra = tuple(overrides)
     base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "", extra)
-    axes = _validate_axes(st["axes"], base_cfg["constants"])
+    axes = _validate_axes(st["axes"], base_cfg.constants)
     cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
     if st["cases"]:
         cases = {
@@ -435,7 +435,7 @@ def _validate_case(
     spec: dict,
     st: dict,
     base_raw: dict,
-    base_cfg: dict,
+    base_cfg: SceneConfig,
     base_dir: Path,
     axes: dict,
     extra: tuple[str, ...] = (),
@@ -457,7 +457,7 @@ def _validate_case(
             )
         if key in axes:
             raise ConfigError(f"{path}{key}: is also an axis of the study; set it in one place")
-        params[key] = _validate(value, AXES[key], path + key, cfg["constants"])
+        params[key] = _validate(value, AXES[key], path + key, cfg.constants)
     return Case(name, raw, cfg, params)
 
 
@@ -536,12 +536,12 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     if study.has_exact:
         out["error"] = "" if error is None else error
     out.update({k: "" for k in study.reference_columns})
-    if scene.cfg.get("reference"):
+    if scene.config.reference is not None:
         from ..post.reference import compare, error_values
 
         comparison = compare(scene, result)
         assert comparison is not None  # the scene declares a reference
-        out.update(error_values(scene.cfg, comparison))
+        out.update(error_values(scene.config.reference, comparison))
     out["eta"] = "" if eta is None else eta
     out["active_measure"] = active_measure(result)
     return out
@@ -598,7 +598,7 @@ def run_one(
         raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
-        if _path_scene(scene.cfg):
+        if _path_scene(scene.config):
             seconds, failure = _run_path(study, scene, adapt_opts, out, levels, t0)
         elif adapt_opts is None:
             result = solve(scene, verbose=False)
@@ -704,9 +704,9 @@ def run_one(
     return out, levels
 
 
-def _path_scene(cfg: Mapping) -> bool:
+def _path_scene(cfg: SceneConfig) -> bool:
     """A load path or a frictional scene: solved step by step (:mod:`contact.drivers.load_path`)."""
-    return bool(cfg.get("load")) or (cfg.get("friction") or {}).get("law", "none") != "none"
+    return cfg.load is not None or cfg.frictional
 
 
 def _run_path(

@@ -40,7 +40,7 @@ def coulomb_fixed_point(
     ``solve`` is :func:`contact.drivers.solve.solve`, passed in by it (it calls this module)."""
     fs: FrictionSet = problem.friction
     comm = scene.comm
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    verbose = scene.config.output.verbose if verbose is None else verbose
     x = problem.b.duplicate()
     if u0 is not None:
         problem.to_unknowns(u0.x.petsc_vec, x)

@@ -11,6 +11,7 @@ facet ``MeshTags`` whose values are the part ids.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import basix.ufl
@@ -31,6 +32,7 @@ from .geometry import (
     sphere_on_block,
     vertex_nodes,
 )
+from .scene_config import Block, SceneConfig
 
 _DIAGONALS = {
     "left": dmesh.DiagonalType.left,
@@ -63,11 +65,12 @@ class Boundary:
         return np.sort(self.tags.indices[np.isin(self.tags.values, ids)]).astype(np.int32)
 
 
-def mesh_dimension(cfg: dict) -> int | None:
+def mesh_dimension(cfg: SceneConfig) -> int | None:
     """The geometric dimension of the scene's mesh, from its type (None for a gmsh file)."""
-    mesh = cfg["mesh"]
-    if mesh["type"] == "blocks":
-        return len(mesh["blocks"][0]["corners"][0])
+    mesh = cfg.mesh
+    if mesh.type == "blocks":
+        assert mesh.blocks  # required for this type (checked at load)
+        return len(mesh.blocks[0].corners[0])
     return {
         "rectangle": 2,
         "unit_square": 2,
@@ -77,18 +80,18 @@ def mesh_dimension(cfg: dict) -> int | None:
         "box": 3,
         "sphere_octant": 3,
         "sphere_on_block": 3,
-    }.get(mesh["type"])
+    }.get(mesh.type)
 
 
 def build_mesh(
-    cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
+    cfg: SceneConfig, comm: MPI.Comm = MPI.COMM_WORLD
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
-    """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given), its facet
+    """The mesh described by ``cfg.mesh`` (mapped by ``mesh.map`` if given), its facet
     tags (gmsh files and builders) and cell tags (gmsh physical volumes / surfaces, the
     block numbers of mesh type blocks), ``None`` where the mesh has none."""
     msh, tags, *cells = _built_mesh(cfg, comm)
-    if cfg["mesh"].get("map") is not None:
-        map_geometry(msh, cfg["mesh"]["map"], cfg["constants"])
+    if cfg.mesh.map is not None:
+        map_geometry(msh, cfg.mesh.map, cfg.constants)
     return msh, tags, (cells[0] if cells else None)
 
 
@@ -133,46 +136,46 @@ def map_geometry(
         )
 
 
-def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    """The mesh of ``cfg['mesh']`` as built, before any map."""
-    m = cfg["mesh"]
-    kind = m["type"]
+def _built_mesh(cfg: SceneConfig, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
+    """The mesh of ``cfg.mesh`` as built, before any map."""
+    m = cfg.mesh
+    kind = m.type
     if kind in ("rectangle", "unit_square"):
-        corners = m["corners"] if kind == "rectangle" else [[0.0, 0.0], [1.0, 1.0]]
+        corners = m.corners if kind == "rectangle" else [[0.0, 0.0], [1.0, 1.0]]
         return dmesh.create_rectangle(
             comm,
             [np.array(c, dtype=float) for c in corners],
-            m["cells"],
+            m.cells,
             cell_type=dmesh.CellType.triangle,
-            diagonal=_DIAGONALS[m["diagonal"]],
+            diagonal=_DIAGONALS[m.diagonal],
         ), None
     if kind == "box":
         return dmesh.create_box(
             comm,
-            [np.array(c, dtype=float) for c in m["corners"]],
-            m["cells"],
+            [np.array(c, dtype=float) for c in m.corners],
+            m.cells,
             cell_type=dmesh.CellType.tetrahedron,
         ), None
     if kind == "lshape":
-        return lshape(comm, m["cells"][0], m["diagonal"]), None
+        return lshape(comm, m.cells[0], m.diagonal), None
     if kind in ("quarter_disk", "sphere_octant"):  # gmsh, built from the parameters
         build = quarter_disk if kind == "quarter_disk" else sphere_octant
-        return build(comm, m["radius"], m["h"], m["h_contact"], m["zone"])
+        return build(comm, m.radius, m.h, m.h_contact, m.zone)
     if kind == "blocks":
-        return blocks(comm, m["blocks"], m["diagonal"])
+        return blocks(comm, m.blocks, m.diagonal)
     if kind in ("half_disks", "sphere_on_block"):  # two gmsh bodies, built from the parameters
         if kind == "half_disks":
             return half_disks(
                 comm,
-                m["radius"],
-                m["radius2"] or m["radius"],
-                m["h"],
-                m["h_contact"],
-                m["zone"],
-                m["overlap"] or 0.0,
+                m.radius,
+                m.radius2 or m.radius,
+                m.h,
+                m.h_contact,
+                m.zone,
+                m.overlap or 0.0,
             )
-        return sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
-    return _read_gmsh(m["file"], comm)
+        return sphere_on_block(comm, m.radius, m.block, m.h, m.h_contact, m.zone)
+    return _read_gmsh(m.file, comm)
 
 
 def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
@@ -205,18 +208,18 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
 
 
 def blocks(
-    comm: MPI.Comm, specs: list[dict], diagonal: str = "right"
+    comm: MPI.Comm, specs: Sequence[Block], diagonal: str = "right"
 ) -> tuple[dmesh.Mesh, None, dmesh.MeshTags]:
     """Structured blocks meshed independently into one mesh (disconnected components, no
     shared nodes, so their meshes need not match where they touch): triangles (2D, each
     rectangle split along its ``diagonal``, left or right) or tetrahedra (3D, six per box,
     Kuhn's subdivision along the main diagonal).  Built on rank 0 and distributed; the cell
     tag of block k (in the order given) is k + 1."""
-    gdim = len(specs[0]["corners"][0])
+    gdim = len(specs[0].corners[0])
     if comm.rank == 0:
         points, cells, offset = [], [], 0
         for spec in specs:
-            X, T = _structured(np.asarray(spec["corners"], dtype=float), spec["cells"], diagonal)
+            X, T = _structured(np.asarray(spec.corners, dtype=float), spec.cells, diagonal)
             points.append(X)
             cells.append(T + offset)
             offset += len(X)
@@ -276,13 +279,13 @@ def _read_gmsh(
 
 
 def tag_bodies(
-    msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = None
+    msh: dmesh.Mesh, cfg: SceneConfig, cell_tags: dmesh.MeshTags | None = None
 ) -> dmesh.MeshTags | None:
     """Cell tags of the scene's ``bodies`` (value k + 1 for the k-th body, on every local
     cell, ghosts included), or None for a scene without bodies.  A body takes the cells of
     a mesh cell tag (``tag``) or those whose midpoint satisfies ``where``.  A body with no
     cell, an unknown tag, a cell in two bodies or in none is a ConfigError."""
-    bodies = cfg.get("bodies")
+    bodies = cfg.bodies
     if not bodies:
         return None
     comm, tdim = msh.comm, msh.topology.dim
@@ -294,21 +297,21 @@ def tag_bodies(
     n_owned = msh.topology.index_map(tdim).size_local
     value = np.zeros(n_all, dtype=np.int32)
     for k, (name, body) in enumerate(bodies.items()):
-        if body["tag"] is not None:
-            if body["tag"] not in file_ids:
+        if body.tag is not None:
+            if body.tag not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
                 raise ConfigError(
-                    f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell "
+                    f"bodies.{name}.tag: tag {body.tag} does not exist in the mesh (cell "
                     f"tags: {known})"
                 )
-            cells = cell_tags.indices[cell_tags.values == body["tag"]]
+            cells = cell_tags.indices[cell_tags.values == body.tag]
         else:
             if midpoints is None:
                 midpoints = dmesh.compute_midpoints(msh, tdim, np.arange(n_all, dtype=np.int32))
-            pred = expressions.to_numpy(body["where"], cfg["constants"])
+            pred = expressions.to_numpy(body.where, cfg.constants)
             cells = np.flatnonzero(pred(midpoints.T).astype(bool))
         if comm.allreduce(int(np.count_nonzero(cells < n_owned)), op=MPI.SUM) == 0:
-            what = f"where {body['where']!r}" if body["tag"] is None else f"tag {body['tag']}"
+            what = f"where {body.where!r}" if body.tag is None else f"tag {body.tag}"
             raise ConfigError(f"bodies.{name}: {what} selects no cell")
         twice = comm.allreduce(int(np.count_nonzero(value[cells[cells < n_owned]])), op=MPI.SUM)
         if twice:
@@ -332,11 +335,11 @@ def body_facets(
 
 def tag_boundaries(
     msh: dmesh.Mesh,
-    cfg: dict,
+    cfg: SceneConfig,
     file_tags: dmesh.MeshTags | None = None,
     bodies: dmesh.MeshTags | None = None,
 ) -> Boundary:
-    """Mark every boundary part of ``cfg['boundaries']`` on the exterior facets.
+    """Mark every boundary part of ``cfg.boundaries`` on the exterior facets.
 
     A ``where`` predicate selects exterior facets all of whose vertices satisfy it; a
     ``tag`` selects the gmsh physical facet group (with ``where`` too: those of its facets
@@ -353,37 +356,37 @@ def tag_boundaries(
         file_ids = set(int(v) for v in np.concatenate(comm.allgather(np.unique(file_tags.values))))
     next_id = max(file_ids, default=0) + 1
     ids, roles, chunks = {}, {}, []
-    for name, part in cfg["boundaries"].items():
+    for name, part in cfg.boundaries.items():
         facets = exterior
-        if part["tag"] is not None:
-            if file_tags is None or part["tag"] not in file_ids:
+        if part.tag is not None:
+            if file_tags is None or part.tag not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
                 raise ConfigError(
-                    f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh "
+                    f"boundaries.{name}.tag: tag {part.tag} does not exist in the mesh "
                     f"file (facet tags: {known})"
                 )
-            facets = file_tags.indices[file_tags.values == part["tag"]]
-        if part["where"] is not None:
-            pred = expressions.to_numpy(part["where"], cfg["constants"])
+            facets = file_tags.indices[file_tags.values == part.tag]
+        if part.where is not None:
+            pred = expressions.to_numpy(part.where, cfg.constants)
             located = dmesh.locate_entities_boundary(
                 msh, tdim - 1, lambda x, pred=pred: pred(x).astype(bool)
             )
             facets = np.intersect1d(facets, located)
-        if part.get("body") is not None:
-            facets = body_facets(msh, bodies, list(cfg["bodies"]).index(part["body"]) + 1, facets)
-        if part["tag"] is not None and part["where"] is None and part.get("body") is None:
-            pid = part["tag"]  # the whole gmsh group keeps its tag
+        if part.body is not None:
+            facets = body_facets(msh, bodies, list(cfg.bodies).index(part.body) + 1, facets)
+        if part.tag is not None and part.where is None and part.body is None:
+            pid = part.tag  # the whole gmsh group keeps its tag
         else:
             pid = next_id
             next_id += 1
         if comm.allreduce(len(facets), op=MPI.SUM) == 0:
             what = " and ".join(
-                ([f"tag {part['tag']}"] if part["tag"] is not None else [])
-                + ([f"where {part['where']!r}"] if part["where"] is not None else [])
+                ([f"tag {part.tag}"] if part.tag is not None else [])
+                + ([f"where {part.where!r}"] if part.where is not None else [])
             )
-            what += f" on body {part['body']}" if part.get("body") is not None else ""
+            what += f" on body {part.body}" if part.body is not None else ""
             raise ConfigError(f"boundaries.{name}: {what} selects no boundary facet")
-        ids[name], roles[name] = pid, part["role"]
+        ids[name], roles[name] = pid, part.role
         chunks.append((facets.astype(np.int32), np.full(len(facets), pid, dtype=np.int32), name))
     all_facets = np.concatenate([c[0] for c in chunks])
     uniq, counts = np.unique(all_facets, return_counts=True)

@@ -105,7 +105,7 @@ class Bound:
 
 def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
     """The inputs of :func:`reconstruct_flux` for a scalar scene: (data, multiplier, sign)."""
-    model = scene.cfg["model"]["type"]
+    model = scene.config.model.type
     if model not in ("signorini", "obstacle"):
         raise ValueError(
             f"estimator: equilibrated works for the scalar models, not model type {model!r}"
@@ -237,9 +237,9 @@ class _Lifting:
 def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lifting:
     u_h = result.u_h
     msh = scene.mesh
-    if scene.cfg["model"]["type"] == "obstacle":
+    if scene.config.model.type == "obstacle":
         psi = expressions.to_ufl(
-            scene.cfg["data"]["psi"], msh, scene.cfg["constants"], t=scene.t_constant
+            scene.config.data.psi, msh, scene.config.constants, t=scene.t_constant
         )
         f = result.problem.data["f"]
         s = sigma * (u_h - psi)
@@ -330,7 +330,7 @@ def _dirichlet(scene: Scene, result: Result, w_test, k) -> np.ndarray:
     u2 = fem.Function(V2)
     u2.interpolate(u_h)
     e_D.x.array[dofs] = (
-        interpolate_expression(V2, scene.cfg["data"]["u_D"], scene).x.array[dofs] - u2.x.array[dofs]
+        interpolate_expression(V2, scene.config.data.u_D, scene).x.array[dofs] - u2.x.array[dofs]
     )
     e_D.x.scatter_forward()
     dx = ufl.Measure("dx", domain=msh)
