@@ -36,8 +36,9 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..solvers import Result
+from ..solvers.problem import DiscreteProblem
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
 
@@ -176,17 +177,7 @@ def friction_data(scene: Scene, result: Result):
 
     p = result.problem
     lam_t = surface_functions(result)[0]
-    cfg = scene.config.friction
-    assert cfg is not None  # a frictional scene
-    if cfg.law == "coulomb":
-        rho = cfg.coefficient * ufl.max_value(-result.lmbda_h, 0)
-    else:
-        from ..setup import expressions
-
-        assert cfg.threshold is not None  # Tresca's, required at load
-        rho = expressions.to_ufl(
-            cfg.threshold, scene.mesh, scene.config.constants, t=scene.t_constant
-        )
+    rho = friction_bound(p, result.lmbda_h)
     n_c = p.data["n_ufl"]
     du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
     return lam_t, rho, du - ufl.dot(du, n_c) * n_c
@@ -224,7 +215,7 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
 
         lam_t, slip = surface_functions(result)[:2]
         Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
-        rho = friction_bound(scene, lam)
+        rho = friction_bound(p, lam)
         extra.update(friction_bound=zero, slip=zero)
     for i in slave_ids:
         extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
@@ -244,17 +235,15 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     return {**extra, **terms}
 
 
-def friction_bound(scene: Scene, lam: fem.Function):
-    """ρ of the scene's friction law on the slave surface (UFL): Coulomb F·(−λ_h)⁺, Tresca
-    the threshold expression s(x, t)."""
-    cfg = scene.config.friction
-    assert cfg is not None  # a frictional scene
-    if cfg.law == "coulomb":
-        return cfg.coefficient * ufl.max_value(-lam, 0)
-    from ..setup import expressions
-
-    assert cfg.threshold is not None  # Tresca's, required at load
-    return expressions.to_ufl(cfg.threshold, scene.mesh, scene.config.constants, t=scene.t_constant)
+def friction_bound(problem: DiscreteProblem, lam: fem.Function):
+    """ρ of the problem's friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca the threshold
+    s(x, t) as the friction model wrote it (``problem.data['threshold']``)."""
+    fs = problem.friction
+    assert fs is not None  # a frictional problem
+    if fs.law == "coulomb":
+        assert fs.coefficient is not None  # Coulomb's F
+        return fs.coefficient * ufl.max_value(-lam, 0)
+    return problem.data["threshold"]
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:
@@ -268,7 +257,6 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     """Assemble each term of η_T² once as a DG0 vector; η_T² is their sum, and each term's
     global total Σ_T is the sum of its owned entries.  ``result`` must be a solve of this
     scene (on its mesh), else a ValueError."""
-    require_scene(scene)
     if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
         raise ValueError(
             "result: expected the contact.Result of contact.solve on this scene (same mesh)"

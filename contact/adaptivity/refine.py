@@ -14,7 +14,7 @@ from mpi4py import MPI
 
 from ..setup.geometry import builder_surfaces
 from ..setup.meshes import Boundary
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
@@ -53,7 +53,6 @@ def refine(
     ``timings``, if given, receives the seconds of the parts: ``mesh`` (the marked edges and
     ``dolfinx.mesh.refine`` itself, with the redistribution and the ghost layer),
     ``transfer`` (facets, tags and functions carried over) and ``snap`` (curved boundaries)."""
-    require_scene(scene)
     cells = _owned_cells(scene, cells)
     if u_h is not None and (
         not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh

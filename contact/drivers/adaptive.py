@@ -31,7 +31,7 @@ from ..base import progress
 from ..base.timing import Timer
 from ..models import build_problem
 from ..setup.budget import max_dofs
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..setup.scene_config import AdaptConfig
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
@@ -137,7 +137,6 @@ def adapt(
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
     called after each level is estimated (used by the CLI to write output as it goes);
     ``u0`` is the first level's initial guess (a load step's previous solution)."""
-    require_scene(scene)
     if on_level is not None and not callable(on_level):
         raise ValueError(
             f"on_level: expected a function of one Level, got {type(on_level).__name__}"

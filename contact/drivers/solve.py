@@ -15,8 +15,7 @@ from ..base.errors import ConfigError
 from ..base.timing import Timer
 from ..models import build_problem
 from ..models.problem import interpolate_expression
-from ..setup.checks import check_data, data_items
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..solvers import ncp
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
@@ -52,7 +51,6 @@ def solve(
     loop makes one per level for ``solver.stopping: adaptive``, which a single solve
     ignores: it has no discretization error to balance against).
     """
-    require_scene(scene)
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
     config = scene.config  # validated at load, immutable: only the call's overrides are checked
@@ -87,8 +85,7 @@ def solve(
             u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
     guess = u0 is not None  # given, or the coarse levels' solution
     if u0 is None:
-        check_data(scene, data_items("solver.u0", opts.u0))
-        u0 = interpolate_expression(problem.V, opts.u0, scene)
+        u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
     else:
         check_guess(u0, problem)
     result = solve_problem(

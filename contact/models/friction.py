@@ -51,7 +51,9 @@ from ..solvers.problem import DiscreteProblem, FrictionSet
 
 
 def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
-    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity)."""
+    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity); a
+    Tresca threshold s(x, t) also goes into ``problem.data['threshold']`` as UFL (the bound
+    ρ of the estimator's friction terms)."""
     cfg = scene.config.friction
     assert cfg is not None  # a frictional scene
     V, con = problem.V, problem.constraint
@@ -80,6 +82,9 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         assert cfg.threshold is not None  # Tresca's, required at load
         X = V.tabulate_dof_coordinates()[nodes]
         threshold = expressions.to_numpy(cfg.threshold, scene.config.constants, t=scene.time)(X.T)
+        problem.data["threshold"] = expressions.to_ufl(
+            cfg.threshold, scene.mesh, scene.config.constants, t=scene.t_constant
+        )
         bad = scene.comm.allreduce(int(np.sum(~(threshold >= 0))), op=MPI.SUM)
         if bad:
             raise ConfigError(

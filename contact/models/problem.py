@@ -16,6 +16,7 @@ from petsc4py import PETSc
 
 from ..base.errors import ConfigError
 from ..setup import expressions
+from ..setup.checks import check_data, data_items
 from ..setup.scene import Scene
 
 
@@ -50,13 +51,17 @@ def coefficient(text: str, scene: Scene) -> Any:
 
 
 def interpolate_expression(
-    V: fem.FunctionSpace, text: str | Sequence[str], scene: Scene
+    V: fem.FunctionSpace, text: str | Sequence[str], scene: Scene, key: str | None = None
 ) -> fem.Function:
     """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
     vector space one expression is every component, a tuple gives one per component.
     Lagrange interpolation is evaluation at the DoF points, so each expression is evaluated
     once per DoF point (not once per cell and point, as ``Function.interpolate`` does), and
-    a constant is just assigned."""
+    a constant is just assigned.  With a scene ``key`` (``solver.u0``) the expressions are
+    first checked finite at the mesh vertices (:func:`contact.setup.checks.check_data`:
+    a ConfigError naming the key)."""
+    if key is not None:
+        check_data(scene, data_items(key, text if isinstance(text, str) else tuple(text)))
     fn = fem.Function(V)
     consts = scene.config.constants
     bs = V.dofmap.index_map_bs

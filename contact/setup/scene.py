@@ -5,7 +5,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import functools
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -75,6 +76,19 @@ def require_scene(scene: Any) -> None:
         raise ValueError(
             f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}"
         )
+
+
+def public[**P, R](function: Callable[P, R]) -> Callable[P, R]:
+    """``function`` (whose first argument is a scene) as the package exports it: the user's
+    scene argument checked first (:func:`require_scene`).  The drivers call the unchecked
+    functions with the Scenes the package built."""
+
+    @functools.wraps(function)
+    def checked(*args: P.args, **kwargs: P.kwargs) -> R:
+        require_scene(args[0] if args else kwargs.get("scene"))
+        return function(*args, **kwargs)
+
+    return checked
 
 
 def load_scene(
