@@ -66,7 +66,7 @@ def solve(
                 f"solver.method: {method} cannot solve frictional contact "
                 f"(friction.law: {friction.law}); use fb, min or blend"
             )
-        if friction.law == "coulomb" and friction.coulomb == "fixed_point":
+        if friction.law == "coulomb" and friction.options.coulomb == "fixed_point":
             from .fixed_point import coulomb_fixed_point
 
             return coulomb_fixed_point(

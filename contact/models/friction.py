@@ -102,10 +102,7 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         threshold=threshold,
         coefficient=cfg.coefficient,
         x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
-        form=cfg.form,
-        coulomb=cfg.coulomb,
-        fixed_point_rtol=cfg.fixed_point_rtol,
-        fixed_point_max_it=cfg.fixed_point_max_it,
+        options=cfg.knobs(),
     )
 
 
