@@ -55,7 +55,6 @@ import functools
 import itertools
 import math
 import resource
-import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,6 +64,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+from ..base.timing import Stopwatch
 from ..setup.config import (
     SCENE,
     Field,
@@ -592,17 +592,17 @@ def run_one(
     levels: list[dict[str, Any]] = []
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     comm.barrier()
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     failure = ""
     try:
         raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
         if _path_scene(scene.config):
-            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, t0)
+            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, clock)
         elif adapt_opts is None:
             result = solve(scene, verbose=False)
-            seconds = time.perf_counter() - t0
+            seconds = clock.seconds
             out.update(
                 dofs=result.dofs,
                 levels=1,
@@ -656,11 +656,11 @@ def run_one(
                     else _empty_figures(study)
                 )
                 # reduced over ranks with the others below
-                row["seconds"] = time.perf_counter() - t0
+                row["seconds"] = clock.seconds
                 levels.append(row)
 
             res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
-            seconds = time.perf_counter() - t0
+            seconds = clock.seconds
             last = levels[-1]
             its = [lv.result.iterations for lv in res.levels]
             polish = [lv.result.polish_solves for lv in res.levels]
@@ -685,7 +685,7 @@ def run_one(
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         if interrupted(err):
             raise
-        seconds = time.perf_counter() - t0
+        seconds = clock.seconds
         out["converged"] = False
         failure = str(err) if isinstance(err, ConfigError) else describe(err)
         if not all_failed(agree):  # this rank's alone: the others wait in a collective
@@ -710,7 +710,7 @@ def _path_scene(cfg: SceneConfig) -> bool:
 
 
 def _run_path(
-    study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, t0: float
+    study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, clock: Stopwatch
 ) -> tuple[float, str]:
     """Run a load path for :func:`run_one`: one level row per step; the run's row has the last
     step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
@@ -734,7 +734,7 @@ def _run_path(
                 "converged": bool(r.converged),
                 "reason": r.reason,
                 **_empty_figures(study),
-                "seconds": time.perf_counter() - t0,
+                "seconds": clock.seconds,
             }
         )
 
@@ -745,7 +745,7 @@ def _run_path(
         adaptive=adapt_opts is not None,
         adapt_options=adapt_opts,
     )
-    seconds = time.perf_counter() - t0
+    seconds = clock.seconds
     last, its = path.steps[-1], [s.result.iterations for s in path.steps]
     out.update(
         dofs=last.result.dofs,
@@ -832,9 +832,9 @@ def iter_study(
         _warm_up(study, comm)
     spent = 0.0
     for k, (params, rep) in enumerate(combos, start=1):
-        t0 = time.perf_counter()
+        watch = Stopwatch()
         figures, levels = run_one(study, params, comm)
-        spent += comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        spent += comm.allreduce(watch.seconds, op=MPI.MAX)
         row = {"run": k, **params, "repeat": rep, **figures}
         if verbose and comm.rank == 0:
             label = {**params, **({"repeat": rep} if study.repeat > 1 else {})}

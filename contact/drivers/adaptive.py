@@ -15,7 +15,6 @@ The pieces are plain functions so a user can write their own loop in a few lines
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -162,9 +161,8 @@ def adapt(
             sequence=None if opts.nested else "off",
             previous=out.levels[-1] if out.levels else None,
         )
-        t0 = time.perf_counter()
-        error = solution_error(scene, result)
-        seconds["error"] = time.perf_counter() - t0
+        with Timer(seconds, "error"):
+            error = solution_error(scene, result)
         level = Level(
             index,
             scene,
@@ -271,13 +269,13 @@ def solve_level(
         stopping = (  # eta is known exactly when the stopping is adaptive
             None if eta is None else AdaptiveStopping(eta, solver.gamma_lin, solver.gamma_alg)
         )
-        t0 = time.perf_counter()
-        result = solve(scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options)
-        seconds["solve"] += time.perf_counter() - t0
+        with Timer(seconds, "solve"):
+            result = solve(
+                scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options
+            )
         progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
-        t0 = time.perf_counter()
-        est = estimate(scene, result)
-        seconds["estimate"] += time.perf_counter() - t0
+        with Timer(seconds, "estimate"):
+            est = estimate(scene, result)
         krylov += result.krylov_iterations
         passes += 1
         if (

@@ -6,13 +6,12 @@
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from dolfinx import fem
 
 from ..base.errors import ConfigError
-from ..base.timing import Timer
+from ..base.timing import Stopwatch, Timer
 from ..models import build_problem
 from ..models.problem import interpolate_expression
 from ..setup.scene import Scene
@@ -72,9 +71,9 @@ def solve(
             return coulomb_fixed_point(
                 scene, problem, u0, verbose, built_here, solve, method=method, **options
             )
-    t_start = time.perf_counter()
     # the problem's assembly counts once: in the solve that built it
     built = problem.assembly_time if built_here else 0.0
+    clock = Stopwatch(before=built)
     timers = {"assembly": built, "solve": 0.0}
 
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
@@ -96,7 +95,7 @@ def solve(
         verbose,
         guess,
         timers,
-        t_start - built,
+        clock,
         check_options=bool(options.get("petsc_options")),
         stopping=criterion,
     )

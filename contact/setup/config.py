@@ -807,7 +807,7 @@ def validate_scene(
         "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"},
     }[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
-    for key in SCENE["mesh"].schema:
+    for key in SCENE["mesh"].schema or {}:
         if key in given and key not in allowed | {"type", "degree"}:
             raise ConfigError(f"mesh.{key}: not used by mesh type {mesh['type']!r}")
     if mesh["type"] == "gmsh":
@@ -819,7 +819,7 @@ def validate_scene(
             raise ConfigError(f"mesh.file: no such file {str(path)!r}")
         mesh["file"] = str(path)
     dims = {"rectangle": 2, "unit_square": 2, "lshape": 2, "box": 3}.get(mesh["type"])
-    if mesh["type"] in ("rectangle", "box"):
+    if dims is not None and mesh["type"] in ("rectangle", "box"):
         if mesh["corners"] is None:
             mesh["corners"] = [[0.0] * dims, [1.0] * dims]
         if len(mesh["corners"][0]) != dims:
@@ -945,13 +945,6 @@ def validate_scene(
     return SceneConfig.of_checked(cfg)
 
 
-def is_elastic(cfg: Mapping | SceneConfig) -> bool:
-    """Whether the scene's unknown is a displacement vector (:data:`ELASTIC_MODELS`)."""
-    if isinstance(cfg, SceneConfig):
-        return cfg.elastic
-    return cfg["model"]["type"] in ELASTIC_MODELS
-
-
 def _check_hyperelastic(cfg: dict, model: str) -> None:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: a curved
@@ -1012,7 +1005,7 @@ def _check_blocks(mesh: dict) -> int:
         raise ConfigError(
             "mesh.blocks: required for mesh type 'blocks' (a list of {corners, cells})"
         )
-    dims = None
+    dims = 0
     for i, raw in enumerate(blocks):
         block = _validate(raw, BLOCK, f"mesh.blocks[{i}]", {})
         d = len(block["corners"][0])
@@ -1022,7 +1015,7 @@ def _check_blocks(mesh: dict) -> int:
                 f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got "
                 f"{block['cells']!r}"
             )
-        if dims not in (None, d):
+        if dims not in (0, d):
             raise ConfigError(f"mesh.blocks[{i}].corners: every block needs {dims}D points")
         dims = d
         blocks[i] = {"corners": block["corners"], "cells": cells}

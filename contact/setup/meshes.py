@@ -11,7 +11,7 @@ facet ``MeshTags`` whose values are the part ids.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import basix.ufl
@@ -32,7 +32,7 @@ from .geometry import (
     sphere_on_block,
     vertex_nodes,
 )
-from .scene_config import Block, SceneConfig
+from .scene_config import Block, MeshConfig, SceneConfig
 
 _DIAGONALS = {
     "left": dmesh.DiagonalType.left,
@@ -89,16 +89,16 @@ def build_mesh(
     """The mesh described by ``cfg.mesh`` (mapped by ``mesh.map`` if given), its facet
     tags (gmsh files and builders) and cell tags (gmsh physical volumes / surfaces, the
     block numbers of mesh type blocks), ``None`` where the mesh has none."""
-    msh, tags, *cells = _built_mesh(cfg, comm)
+    msh, tags, cells = _built_mesh(cfg, comm)
     if cfg.mesh.map is not None:
         map_geometry(msh, cfg.mesh.map, cfg.constants)
-    return msh, tags, (cells[0] if cells else None)
+    return msh, tags, cells
 
 
 def map_geometry(
     msh: dmesh.Mesh,
-    exprs: list[str],
-    constants: dict[str, float] | None = None,
+    exprs: Sequence[str],
+    constants: Mapping[str, float] | None = None,
     key: str = "mesh.map",
     tol: float = 1e-12,
 ) -> None:
@@ -136,54 +136,70 @@ def map_geometry(
         )
 
 
-def _built_mesh(cfg: SceneConfig, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    """The mesh of ``cfg.mesh`` as built, before any map."""
+Tags = dmesh.MeshTags | None
+
+
+def _built_mesh(cfg: SceneConfig, comm: MPI.Comm) -> tuple[dmesh.Mesh, Tags, Tags]:
+    """The mesh of ``cfg.mesh`` as built, before any map: (mesh, facet tags, cell tags)."""
     m = cfg.mesh
     kind = m.type
+    # structured types: one cell count per axis (lshape: one), made a tuple by the loader
+    cells = m.cells if isinstance(m.cells, tuple) else (m.cells,)
     if kind in ("rectangle", "unit_square"):
-        corners = m.corners if kind == "rectangle" else [[0.0, 0.0], [1.0, 1.0]]
-        return dmesh.create_rectangle(
-            comm,
-            [np.array(c, dtype=float) for c in corners],
-            m.cells,
-            cell_type=dmesh.CellType.triangle,
-            diagonal=_DIAGONALS[m.diagonal],
-        ), None
+        corners = m.corners if kind == "rectangle" else ((0.0, 0.0), (1.0, 1.0))
+        assert corners is not None  # the loader fills in the default
+        return (
+            dmesh.create_rectangle(
+                comm,
+                [np.array(c, dtype=float) for c in corners],
+                cells,
+                cell_type=dmesh.CellType.triangle,
+                diagonal=_DIAGONALS[m.diagonal],
+            ),
+            None,
+            None,
+        )
     if kind == "box":
-        return dmesh.create_box(
+        assert m.corners is not None  # the loader fills in the default
+        box = dmesh.create_box(
             comm,
             [np.array(c, dtype=float) for c in m.corners],
-            m.cells,
+            cells,
             cell_type=dmesh.CellType.tetrahedron,
-        ), None
+        )
+        return box, None, None
     if kind == "lshape":
-        return lshape(comm, m.cells[0], m.diagonal), None
-    if kind in ("quarter_disk", "sphere_octant"):  # gmsh, built from the parameters
-        build = quarter_disk if kind == "quarter_disk" else sphere_octant
-        return build(comm, m.radius, m.h, m.h_contact, m.zone)
+        return lshape(comm, cells[0], m.diagonal), None, None
     if kind == "blocks":
+        assert m.blocks  # required for this type (checked at load)
         return blocks(comm, m.blocks, m.diagonal)
-    if kind in ("half_disks", "sphere_on_block"):  # two gmsh bodies, built from the parameters
-        if kind == "half_disks":
-            return half_disks(
-                comm,
-                m.radius,
-                m.radius2 or m.radius,
-                m.h,
-                m.h_contact,
-                m.zone,
-                m.overlap or 0.0,
-            )
-        return sphere_on_block(comm, m.radius, m.block, m.h, m.h_contact, m.zone)
-    return _read_gmsh(m.file, comm)
+    if kind == "gmsh":
+        assert m.file is not None  # required for this type (checked at load)
+        return _read_gmsh(m.file, comm)
+    radius, h, h_contact, zone = _sizes(m)  # the parametric gmsh bodies
+    if kind in ("quarter_disk", "sphere_octant"):
+        build = quarter_disk if kind == "quarter_disk" else sphere_octant
+        return (*build(comm, radius, h, h_contact, zone), None)
+    if kind == "half_disks":
+        radius2, overlap = m.radius2 or radius, m.overlap or 0.0
+        return half_disks(comm, radius, radius2, h, h_contact, zone, overlap)
+    assert m.block is not None  # sphere_on_block's (checked at load)
+    return sphere_on_block(comm, radius, m.block, h, h_contact, zone)
+
+
+def _sizes(m: MeshConfig) -> tuple[float, float, float, float]:
+    """radius, h, h_contact, zone of a parametric gmsh mesh (required: checked at load)."""
+    assert m.radius is not None and m.h is not None
+    assert m.h_contact is not None and m.zone is not None
+    return m.radius, m.h, m.h_contact, m.zone
 
 
 def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
     """Structured triangulation of (−1,1)² ∖ [0,1]×[−1,0] with ``n`` cells per unit length."""
     if comm.rank == 0:
         h = 1.0 / n
-        i, j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
-        i, j = i.ravel(), j.ravel()
+        grid_i, grid_j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
+        i, j = grid_i.ravel(), grid_j.ravel()
         keep = ~((i >= n) & (j < n))  # drop the squares of the cut quadrant x > 0, y < 0
         i, j = i[keep], j[keep]
         vid = lambda a, b: a * (2 * n + 1) + b  # noqa: E731
@@ -203,7 +219,7 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
         cells,
         element,
         X,
-        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),  # type: ignore[call-arg]
     )
 
 
@@ -217,14 +233,14 @@ def blocks(
     tag of block k (in the order given) is k + 1."""
     gdim = len(specs[0].corners[0])
     if comm.rank == 0:
-        points, cells, offset = [], [], 0
+        points, simplices, offset = [], [], 0
         for spec in specs:
             X, T = _structured(np.asarray(spec.corners, dtype=float), spec.cells, diagonal)
             points.append(X)
-            cells.append(T + offset)
+            simplices.append(T + offset)
             offset += len(X)
-        counts = [len(T) for T in cells]
-        X, cells = np.vstack(points), np.vstack(cells).astype(np.int64)
+        counts = [len(T) for T in simplices]
+        X, cells = np.vstack(points), np.vstack(simplices).astype(np.int64)
     else:
         X, cells, counts = np.zeros((0, gdim)), np.zeros((0, gdim + 1), dtype=np.int64), None
     counts = comm.bcast(counts, root=0)
@@ -235,7 +251,7 @@ def blocks(
         cells,
         element,
         X,
-        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),  # type: ignore[call-arg]
     )
     tdim = msh.topology.dim
     n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
@@ -248,7 +264,9 @@ def blocks(
     )
 
 
-def _structured(corners: np.ndarray, n: list[int], diagonal: str) -> tuple[np.ndarray, np.ndarray]:
+def _structured(
+    corners: np.ndarray, n: Sequence[int], diagonal: str
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and simplices of one structured block with ``n`` cells per direction."""
     axes = [np.linspace(lo, hi, k + 1) for lo, hi, k in zip(corners[0], corners[1], n)]
     X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(n))
@@ -304,10 +322,12 @@ def tag_bodies(
                     f"bodies.{name}.tag: tag {body.tag} does not exist in the mesh (cell "
                     f"tags: {known})"
                 )
+            assert cell_tags is not None  # file_ids are its values
             cells = cell_tags.indices[cell_tags.values == body.tag]
         else:
             if midpoints is None:
                 midpoints = dmesh.compute_midpoints(msh, tdim, np.arange(n_all, dtype=np.int32))
+            assert body.where is not None  # one of tag / where (checked at load)
             pred = expressions.to_numpy(body.where, cfg.constants)
             cells = np.flatnonzero(pred(midpoints.T).astype(bool))
         if comm.allreduce(int(np.count_nonzero(cells < n_owned)), op=MPI.SUM) == 0:
@@ -372,7 +392,8 @@ def tag_boundaries(
                 msh, tdim - 1, lambda x, pred=pred: pred(x).astype(bool)
             )
             facets = np.intersect1d(facets, located)
-        if part.body is not None:
+        if part.body is not None:  # a body of the scene's bodies (checked at load)
+            assert bodies is not None and cfg.bodies is not None
             facets = body_facets(msh, bodies, list(cfg.bodies).index(part.body) + 1, facets)
         if part.tag is not None and part.where is None and part.body is None:
             pid = part.tag  # the whole gmsh group keeps its tag

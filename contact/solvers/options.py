@@ -137,7 +137,10 @@ DEFAULT_PETSC_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
-ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
+ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
+    "direct": DEFAULT_PETSC_OPTIONS,
+    "bcgs": ELASTICITY_3D_PETSC_OPTIONS,
+}
 
 
 def method_variant(name: str) -> tuple[str, dict]:
@@ -232,12 +235,13 @@ def check_petsc_options(
 def _tiny_solve(options: Mapping[str, Any], comm: MPI.Comm) -> str | None:
     """PETSc's message if ``options`` fail on the tiny system (on any rank), else None."""
     n = 4
-    A = PETSc.Mat().createAIJ(((n, PETSc.DECIDE), (n, PETSc.DECIDE)), nnz=(3, 1), comm=comm)
+    sizes = ((n, PETSc.DECIDE), (n, PETSc.DECIDE))
+    A = PETSc.Mat().createAIJ(sizes, nnz=(3, 1), comm=comm)  # type: ignore[arg-type]
     lo, hi = A.getOwnershipRange()
     size = A.getSize()[0]
     for i in range(lo, hi):
         A.setValues(
-            i,
+            [i],
             [j for j in (i - 1, i, i + 1) if 0 <= j < size],
             [-1.0 if j != i else 2.0 for j in (i - 1, i, i + 1) if 0 <= j < size],
         )
@@ -245,15 +249,20 @@ def _tiny_solve(options: Mapping[str, Any], comm: MPI.Comm) -> str | None:
     b, x, f = A.createVecLeft(), A.createVecRight(), A.createVecLeft()
     b.set(1.0)
     x.set(0.0)
-    snes = PETSc.SNES().create(comm)
+    snes = PETSc.SNES().create(comm)  # type: ignore[arg-type]
     prefix = f"contactcheck{next(_checks)}_"
     snes.setOptionsPrefix(prefix)
     snes.setType("newtonls")
-    snes.setFunction(lambda s, X, F: (A.mult(X, F), F.axpy(-1.0, b)), f)
+
+    def residual(s: PETSc.SNES, X: PETSc.Vec, F: PETSc.Vec) -> None:  # F = A x − b
+        A.mult(X, F)
+        F.axpy(-1.0, b)
+
+    snes.setFunction(residual, f)
     snes.setJacobian(lambda s, X, J, P: None, A)
     db = PETSc.Options()
     for key, value in options.items():
-        db[prefix + key] = petsc_value(value)
+        db.setValue(prefix + key, petsc_value(value))
     problem = None
     PETSc.Sys.pushErrorHandler("python")
     try:

@@ -75,7 +75,9 @@ terms reported are Σ_T ‖k^{-1/2}(σ_h − k∇u_h)‖²_T ("flux"), Σ osc_T�
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import ufl
@@ -229,9 +231,9 @@ class _Lifting:
     """w of the module docstring: its gradient, λ̃ ↦ the DG0 form of B_T, and (obstacle) the
     DG0 form of the cross term X, or None."""
 
-    grad: object
-    complementarity: object
-    cross: object = None
+    grad: Any  # UFL
+    complementarity: Callable[[Any], Any]
+    cross: Any = None
 
 
 def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lifting:
