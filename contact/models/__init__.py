@@ -44,12 +44,14 @@ def build_problem(scene: Scene) -> DiscreteProblem:
         "mesh",
         "the mesh gives",
     )
-    if cfg["model"]["type"] == "hyperelastic":
-        from .hyperelastic import hyperelastic_problem
+    frictional = (cfg.get("friction") or {}).get("law", "none") != "none"
+    if cfg["model"]["type"] in ("elasticity", "hyperelastic"):
+        problem: DiscreteProblem
+        if cfg["model"]["type"] == "hyperelastic":
+            from .hyperelastic import hyperelastic_problem
 
-        return hyperelastic_problem(scene)
-    if scene.cfg["model"]["type"] == "elasticity":
-        if scene.cfg.get("bodies"):
+            problem = hyperelastic_problem(scene, frictional)
+        elif scene.cfg.get("bodies"):
             from .bodies import bodies_problem
 
             problem = bodies_problem(scene)
@@ -57,7 +59,7 @@ def build_problem(scene: Scene) -> DiscreteProblem:
             from .elasticity import elasticity_problem
 
             problem = elasticity_problem(scene)
-        if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        if frictional:
             from .friction import friction_set
 
             problem.friction = friction_set(scene, problem)

@@ -46,14 +46,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..solvers.current import nodal_geometry
+from ..solvers.problem import Constraint, NodeBlockMatrix
 from .elasticity import body_fields, elastic_setting, lame
 from .forms import ResidualProblem
-from .obstacles import plane_contact
+from .obstacles import current_contact, plane_contact, scene_obstacle
 
 LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 
@@ -90,9 +93,11 @@ def piola_and_cauchy(u, law: str, mu, lmbda_L) -> tuple:
     return ufl.as_matrix([[P[i, j] for j in range(gdim)] for i in range(gdim)]), sigma
 
 
-def hyperelastic_problem(scene: Scene) -> ResidualProblem:
-    """The frictionless contact problem of a hyperelastic body against the scene's rigid
-    plane (module doc): R(u; v) and K_T = ∂R/∂u from the energy, the plane's nodal bound."""
+def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProblem:
+    """The contact problem of a hyperelastic body against the scene's rigid obstacle (module
+    doc): R(u; v) and K_T = ∂R/∂u from the energy; a plane's nodal bound, or — for a circle
+    or sphere, and with friction (``frictional``: the caller adds the friction set) — the
+    gap of the deformed point on the current configuration."""
     t0 = time.perf_counter()
     check_scene_data(scene)
     model = scene.cfg["model"]
@@ -108,8 +113,13 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     R = ufl.derivative(energy, u_h, v) - s.L_ufl
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
     K, b = ResidualProblem.matrices(J_form, s.bcs)
-    contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
+    obstacle = scene_obstacle(scene)
     kind: type[ResidualProblem] = ResidualProblem
+    if obstacle.kind == "plane" and not frictional:
+        contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
+    else:
+        contact = current_contact(scene, V, s.fixed, s.data["ds"], obstacle)
+        kind = CurrentResidualProblem
     K_T: PETSc.Mat | None = None  # the tangent in u when K holds K̃ instead
     if "K" in contact:  # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
         b.destroy()
@@ -188,6 +198,101 @@ class RotatedResidualProblem(ResidualProblem):
     def destroy(self) -> None:
         super().destroy()
         destroy(self.K_T, self._R)
+
+
+@dataclass
+class CurrentResidualProblem(ResidualProblem):
+    """The residual problem with contact on the current configuration
+    (:mod:`contact.solvers.current`, ``current`` set): the unknowns are the displacements,
+    a contact node's residual block is read in the frame of its current normal ñ(x_i).
+    The nodal quantities below are those of the iterate in ``u_h`` (the residual ``r``
+    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it)."""
+
+    def _rows(self) -> np.ndarray:
+        bs = self.V.dofmap.index_map_bs
+        return self.current.nodes[:, None] * bs + np.arange(bs)
+
+    def multiplier(self, r: np.ndarray) -> np.ndarray:
+        """λ_i = ñ_i·R_i / w_i (≤ 0 in contact): the normal nodal force per reference area."""
+        rows = self._rows()
+        geo = nodal_geometry(self.current, self.u_h.x.array[rows])
+        return np.einsum("ka,ka->k", geo.frames[:, :, 0], r[rows]) / self.constraint.w
+
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """The nominal contact pressure p_i = −λ_i (force per reference area, ≥ 0)."""
+        return -self.multiplier(r)
+
+    def nodal_gap(self, x: np.ndarray) -> np.ndarray:
+        """g(X_i + u_i): the gap of the deformed contact node (x holds the displacements)."""
+        cc = self.current
+        return cc.surface.project(cc.X + x[self._rows()])[0]
+
+    def gap_output(self, x: np.ndarray) -> fem.Function:
+        """The current gap g(X_i + u_i) at the contact nodes, NaN elsewhere."""
+        gap = self.nodal_output("gap", self.nodal_gap(x))
+        on = self.nodal_output("on", np.ones(len(self.constraint.dofs)))
+        gap.x.array[on.x.array < 0.5] = np.nan
+        return gap
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """F = −m Σ_i R_i·n: the resultant of the nodal contact forces along the normal n at
+        the first point of contact (m the symmetric copies; frictionless: Σ w_i p_i ñ_i·n)."""
+        n = np.asarray(self.data["n"], dtype=float)
+        local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
+        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
+def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProblem:
+    """The same body with the obstacle's gap linearized at the displacement u^k in
+    ``problem.u_h``: each contact node i meets the plane tangent to the obstacle at the
+    closest point of its deformed position x_i^k = X_i + u_i^k,
+
+        ñ_i^k · u_i ≤ g(x_i^k) + ñ_i^k · u_i^k,
+
+    a bound on the rotated unknown x_i,0 (u = Q_k x, Q_k the frames of the normals ñ^k), so
+    that PETSc's VI solvers apply (:class:`RotatedResidualProblem`, K_T re-assembled as
+    usual).  A fixed point u^{k+1} = u^k of this sequence solves the problem on the current
+    configuration: the linearized gap is then g(X + u) itself, and the multiplier acts along
+    ñ(X + u).  An independent solver of the same discrete problem (sequential linearization;
+    tests and benchmarks).  Contact nodes with a fixed component are refused (their
+    rotated unknowns would not carry the Dirichlet values).  ``u_h`` is shared."""
+    cc = problem.current
+    if np.any(cc.fixed):
+        raise ValueError("linearized_problem: contact nodes with fixed components")
+    bs = problem.V.dofmap.index_map_bs
+    rows = problem._rows()
+    u = problem.u_h.x.array[rows]
+    geo = nodal_geometry(cc, u)
+    K_T = problem.K.duplicate(copy=True)
+    Q = NodeBlockMatrix(K_T, bs)
+    blocks = Q.identity()
+    blocks[cc.nodes] = geo.frames
+    basis = Q.set(blocks)
+    normals = geo.frames[:, :, 0]
+    con = problem.constraint
+    bound = geo.g + np.einsum("ka,ka->k", normals, u)
+    constraint = Constraint(con.dofs, bound, con.w, 1.0, con.scale)
+    out = RotatedResidualProblem(
+        problem.V,
+        problem.u_h,
+        problem.bcs,
+        K_T.PtAP(basis),
+        problem.b.duplicate(),
+        constraint,
+        output_space=problem.output_space,
+        output_map=problem.output_map,
+        output_bound=problem.output_bound,
+        lambda_sign=1.0,
+        basis=basis,
+        data={**problem.data, "normals": normals},
+        F_form=problem.F_form,
+        J_form=problem.J_form,
+        symmetric_copies=problem.symmetric_copies,
+        symmetry_axes=problem.symmetry_axes,
+    )
+    out.b.set(0.0)
+    out.K_T = K_T
+    return out
 
 
 def negative_eigenvalues(result) -> int:

@@ -66,7 +66,7 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
     if gdim == 3 and not p.in_domain:
         cols.update(_polar(scene, result, X))
-    cols[value_name(scene)] = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
+    cols[value_name(scene)] = p.multiplier(owned_residual(result))
     cols["gap"] = nodal_gap(result)
     cols["active"] = result.active_mask.astype(np.int8)
     if result.friction is not None:  # λ_t, bound, slip, status, weight

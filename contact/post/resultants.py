@@ -56,12 +56,12 @@ def reaction_force(result: Result) -> list[float]:
 
 
 def nodal_gap(result: Result) -> np.ndarray:
-    """g_i − (Qᵀu)_i, the gap at the owned constrained nodes (≥ 0 when feasible)."""
+    """g_i − (Qᵀu)_i, the gap at the owned constrained nodes (≥ 0 when feasible; on the
+    current configuration the gap of the deformed node, :meth:`DiscreteProblem.nodal_gap`)."""
     p = result.problem
-    con = p.constraint
     unknowns = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, unknowns)
-    gap = con.sign * (con.g - unknowns.array_r[con.dofs])
+    gap = p.nodal_gap(unknowns.array_r)
     unknowns.destroy()
     return gap
 

@@ -22,7 +22,7 @@ from ..base.lifetime import Owner
 from . import ncp
 from .globalize import GuardedMin
 from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
-from .newton import Complementarity, setup_newton
+from .newton import Complementarity, setup_block_newton, setup_newton
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .polish import Polisher
 from .problem import DiscreteProblem, nodal_scaling
@@ -113,7 +113,11 @@ class SemismoothNewton:
             check_petsc_options(options.petsc_options, defaults, comm)
 
         self._owner = owner = Owner()  # the solver's PETSc objects, destroyed by close()
-        if friction is None:
+        if problem.current is not None:  # a gap nonlinear in u, the normal followed
+            from .current import CurrentComplementarity
+
+            self.cp = owner.own(CurrentComplementarity(problem))
+        elif friction is None:
             self.cp = owner.own(Complementarity(problem))
         else:
             from .friction import FrictionalComplementarity
@@ -126,11 +130,9 @@ class SemismoothNewton:
         self.polisher: Polisher | None = None
         self.guard: GuardedMin | None = None
         self.system = None
-        if friction is not None:  # the block law H = B K + D (no polishing)
-            from .friction import setup_friction_newton
-
+        if friction is not None or problem.current is not None:  # H = B K + D (no polishing)
             self.J = owner.own(
-                setup_friction_newton(
+                setup_block_newton(
                     snes, problem, self.cp, options, self.timers, self.state, self.petsc_options
                 )
             )
@@ -302,7 +304,10 @@ class SemismoothNewton:
         floor = (
             0.0
             if self.problem.floating
-            else min(roundoff_floor(self._k_norm, xk), opts.atol * self._total)
+            else max(
+                min(roundoff_floor(self._k_norm, xk), opts.atol * self._total),
+                cp.gap_roundoff(xk),  # gaps of coordinates: bounded by the data, not by x
+            )
         )
         if floor > snes.getTolerances()[1]:  # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
