@@ -1,4 +1,4 @@
-"""Hyperelastic bodies (finite strain) against a rigid plane, frictionless (issue 31).
+"""Hyperelastic bodies (finite strain) against rigid obstacles (issue 31).
 
 In the reference configuration Ω (coordinates X, displacement u, deformation gradient
 F = I + ∇u, C = FᵀF, J = det F, E = ½(C − I)) the body stores the strain energy
@@ -33,9 +33,19 @@ A plane whose normal is not a coordinate direction rotates the contact nodes to 
 (n, t) axes, u = Q x, as the linear model does: R̃(x) = Qᵀ R(Q x), K̃ = Qᵀ K_T Q
 (:class:`RotatedResidualProblem`).
 
-Not in this model (yet): curved obstacles (a gap that is nonlinear in u: normal and gap
-updated each Newton step), friction, several bodies, the adaptive loop.  The configuration
-refuses them.
+A circle or sphere — and any obstacle once there is friction — is met on the current
+configuration instead (:func:`contact.models.obstacles.current_contact`,
+:mod:`contact.solvers.current`): the gap g(X + u) of the deformed node is nonlinear in u,
+the normal and the node's (n, t) frame follow the obstacle's closest point at every Newton
+iterate (large sliding), the unknowns stay u and the contact node's residual block is read
+in its current frame; the generalized Jacobian H = B K_T + D carries the obstacle's
+curvature term (:class:`CurrentResidualProblem`).  Friction there is the linear model's
+HSW / projection law on the current tangent plane, the slip the increment of the deformed
+position along it.  :func:`linearized_problem` (the gap linearized at an iterate: a bound
+again) gives an independent solver of the same problem through PETSc's VI solvers.
+
+Not in this model (yet): several bodies, the adaptive loop, friction against a moving
+obstacle.  The configuration refuses them.
 """
 
 from __future__ import annotations
