@@ -17,7 +17,7 @@ from contact import ConfigError
 from contact.models import build_problem
 from contact.models.hyperelastic import linearized_problem
 from contact.output.run_report import active_measure
-from contact.post.resultants import contact_resultants
+from contact.post.resultants import contact_resultants, reaction_force
 from contact.solvers import owned_residual
 from contact.solvers.current import CurrentComplementarity
 
@@ -326,3 +326,79 @@ def test_an_api_call_with_a_vi_method_names_the_key():
     scene = contact.load_scene(indentation())
     with pytest.raises(ConfigError, match="^solver.method: vinewtonrsls needs a gap"):
         contact.solve(scene, method="vinewtonrsls")
+
+
+# ------------------------------------------------------------------- Coulomb friction
+def dragged_block(method: str, form: str = "hsw"):
+    """configs/hyperelastic_drag.yaml on 20 × 5 cells: pressed by 0.05 (t ≤ 0.2), then
+    dragged by 0.3 — six times the press — in 8 steps; every step kept."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "hyperelastic_drag.yaml",
+        ["mesh.cells=[20,5]", "output.verbose=false", f"friction.form={form}"],
+    )
+    return contact.run_load_path(scene, method=method, keep_all=True)
+
+
+@pytest.mark.parametrize("method, form", [("fb", "hsw"), ("min", "hsw"), ("fb", "projection")])
+def test_a_dragged_block_slides_with_F_times_the_normal_force(method, form):
+    """Coulomb friction on the current tangent plane, a known answer: the block pressed onto
+    the plane sticks (most nodes), goes through partial slip and then slides as a whole:
+    there the friction force is F = 0.3 times the normal force (1e-8, from the nodal
+    tractions), the supports' reaction balances both (1e-8), and each step is the previous
+    state translated by the drag's step (1e-10: the slip is the increment of the deformed
+    position, the same at every node)."""
+    path = dragged_block(method, form)
+    assert path.converged, path.stop
+    full = 0
+    previous = None
+    for step in path.steps:
+        r = step.result
+        f = r.friction
+        Fn = r.u_h.function_space.mesh.comm.allreduce(float(np.sum(f["w"] * f["lambda_n"])))
+        Ft = r.u_h.function_space.mesh.comm.allreduce(float(np.sum(f["w"] * f["lambda_t"][:, 0])))
+        reaction = reaction_force(r)
+        assert reaction[0] == pytest.approx(-Ft, rel=1e-8, abs=1e-12)
+        assert reaction[1] == pytest.approx(Fn, rel=1e-8)
+        pressed = f["lambda_n"] < -1e-8 * np.max(np.abs(f["lambda_n"]))
+        if step.time <= 0.2 + 1e-12:
+            assert np.sum(f["status"][pressed] == 1) > pressed.sum() / 2  # mostly stick
+        if np.all(f["status"][pressed] == 2):
+            full += 1
+            assert Ft == pytest.approx(0.3 * Fn, rel=1e-8)
+            if previous is not None and previous[1]:
+                shift = r.u_h.x.array.reshape(-1, 2) - previous[0].reshape(-1, 2)
+                assert np.max(np.abs(shift - [0.3 * (step.time - previous[2]) / 0.8, 0])) < 1e-10
+        previous = (r.u_h.x.array.copy(), bool(np.all(f["status"][pressed] == 2)), step.time)
+    assert full >= 5
+
+
+def test_sliding_round_a_circle_with_friction_is_steady():
+    """The block pressed onto the circle with Coulomb friction (F = 0.3) sticks; turned about
+    the circle's centre it slides round it, and once every contact node slips each step is
+    the previous state turned by the step's angle (1e-10; measured 1e-14): friction acts on
+    the current tangent of the circle, however far the nodes have slid; at each slipping
+    node |λ_t| = F |λ_n| (the law, in the current frame)."""
+    cfg = turned_block(0.6)
+    cfg["friction"] = {"law": "coulomb", "coefficient": 0.3}
+    path = contact.run_load_path(contact.load_scene(cfg), keep_all=True)
+    assert path.converged, path.stop
+    c = np.array([0.0, -0.5])
+    steady, previous = 0, None
+    for step in path.steps:
+        r, f = step.result, step.result.friction
+        X = r.u_h.function_space.tabulate_dof_coordinates()[:, :2]
+        x = X + r.u_h.x.array.reshape(-1, 2)
+        touching = f["status"] > 0
+        if step.time == 0.5:
+            assert np.sum(f["status"] == 1) >= 3  # pressed: stick
+        sliding = bool(touching.sum() >= 4 and np.all(f["status"][touching] == 2))
+        if sliding:
+            lam_t = np.linalg.norm(f["lambda_t"], axis=1)[touching]
+            assert np.max(np.abs(lam_t - 0.3 * np.abs(f["lambda_n"][touching]))) < 1e-10
+        if sliding and previous is not None and previous[2]:
+            angle = 0.6 * (max(0.0, 2 * step.time - 1) - max(0.0, 2 * previous[0] - 1))
+            rot = np.array([[np.cos(angle), np.sin(angle)], [-np.sin(angle), np.cos(angle)]])
+            assert np.max(np.abs(x - ((previous[1] - c) @ rot.T + c))) <= 1e-10
+            steady += 1
+        previous = (step.time, x, sliding)
+    assert steady >= 5
