@@ -402,3 +402,56 @@ def test_sliding_round_a_circle_with_friction_is_steady():
             steady += 1
         previous = (step.time, x, sliding)
     assert steady >= 5
+
+
+# ------------------------------------------------------------- pressure on the deformed surface
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_pressure_per_deformed_area_is_the_cauchy_traction(dim):
+    """The homogeneous 30 % compression of tests/test_hyperelastic.py (P1 represents it
+    exactly): the nominal pressure is −P₂₂ and the pressure per deformed area
+    (contact.csv's pressure_current, w_i p_i / ∫ φ_i J |F⁻ᵀN| dA) is the Cauchy stress
+    −σ₂₂ = −P₂₂ / λ₁^(d−1) at every contact node, λ₁ the lateral stretch (1e-8)."""
+    from contact.models.hyperelastic import uniaxial_stretch
+    from contact.post.contact_table import contact_columns
+    from contact.post.resultants import current_pressure
+
+    from test_hyperelastic import block
+
+    scene = contact.load_scene(block("neo_hookean", 1, dim))
+    r = contact.solve(scene, method="fb")
+    assert r.converged
+    l1, P22 = uniaxial_stretch("neo_hookean", E, NU, 0.7, dim)
+    current = current_pressure(r)
+    assert len(current) and np.max(np.abs(current / (-P22 / l1 ** (dim - 1)) - 1)) < 1e-8
+    cols = contact_columns(scene, r)
+    assert np.array_equal(cols["pressure_current"], current)
+    assert np.max(np.abs(cols["lambda_n"] / P22 - 1)) < 1e-8  # nominal: λ = P₂₂ < 0
+
+
+def test_cli_sphere_indentation_writes_both_pressures(tmp_path):
+    """``contact run configs/hyperelastic_sphere.yaml`` (a rubber block under a rigid sphere,
+    3D, quarter model) on a coarse mesh: exit 0; steps.csv has per step the force of the
+    whole block (growing with the indentation) and the peak pressures, nominal and per
+    deformed area; contact.csv both at every node; the XDMF holds pressure_current.  The
+    contact force equals the bottom's reaction (equilibrium, 1e-8)."""
+    import csv
+
+    from clirun import contact as cli
+
+    scene = str(ROOT / "configs" / "hyperelastic_sphere.yaml")
+    sets = ["mesh.cells=[6,6,4]", "load.steps=3", "output.png=false"]
+    proc = cli(tmp_path, "run", scene, "-o", "out", "-q", *[a for s in sets for a in ("--set", s)])
+    assert proc.returncode == 0, proc.stderr
+    rows = list(csv.DictReader(open(tmp_path / "out" / "steps.csv")))
+    forces = [float(r["contact_force"]) for r in rows]
+    assert len(rows) == 3 and 0 < forces[0] < forces[1] < forces[2]
+    assert all(
+        float(r["peak_pressure_current"]) > 0 and float(r["peak_pressure"]) > 0 for r in rows
+    )
+    table = list(csv.DictReader(open(tmp_path / "out" / "contact.csv")))
+    assert {"lambda_n", "pressure_current", "gap"} <= set(table[0])
+    assert "pressure_current" in (tmp_path / "out" / "solution_002.xdmf").read_text()
+    loaded = contact.load_scene(scene, sets)
+    r = contact.run_load_path(loaded).steps[-1].result
+    res = contact_resultants(loaded, r)
+    assert res["force_balance_error"] < 1e-8 and r.contact_force == pytest.approx(forces[-1])

@@ -103,6 +103,18 @@ def piola_and_cauchy(u, law: str, mu, lmbda_L) -> tuple:
     return ufl.as_matrix([[P[i, j] for j in range(gdim)] for i in range(gdim)]), sigma
 
 
+def deformed_area(u, v, measure) -> ufl.Form:
+    """L(v) = ∫ v·(1, …, 1) da over ``measure`` in the deformed configuration: each
+    component's entry is the lumped current area w_i^cur = ∫ φ_i da of node i, with Nanson's
+    formula da = J |F⁻ᵀ N| dA (F = I + ∇u, gdim × gdim: in plane strain a length per unit
+    thickness, the out-of-plane stretch being 1; N the reference unit normal).  P1: F is
+    constant per cell, the default quadrature is exact."""
+    gdim = len(u)
+    F = ufl.Identity(gdim) + ufl.grad(u)
+    n = ufl.inv(F).T * ufl.FacetNormal(u.function_space.mesh)
+    return ufl.dot(v, ufl.as_vector([1.0] * gdim)) * ufl.det(F) * ufl.sqrt(ufl.dot(n, n)) * measure
+
+
 def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProblem:
     """The contact problem of a hyperelastic body against the scene's rigid obstacle (module
     doc): R(u; v) and K_T = ∂R/∂u from the energy; a plane's nodal bound, or — for a circle
@@ -140,12 +152,14 @@ def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProb
     def stresses(u):
         return piola_and_cauchy(u, model["law"], mu, lmbda_L)
 
+    contact_ds = s.data["ds"](scene.boundary.ids_with_role("contact"))
     data = {
         **s.data,
         "exact": None,
         "reaction_form": F_form,
         "stresses": stresses,
         "law": model["law"],
+        "deformed_area": fem.form(deformed_area(u_h, v, contact_ds)),
         **contact.pop("data"),
     }
     problem = kind(

@@ -34,6 +34,7 @@ from ..drivers.load_path import LoadPath, Step
 from ..post.contact_table import Table, contact_table, tangent_2d, write_table
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
+from ..post.resultants import pressure_peaks
 from ..setup.config import is_elastic
 from ..setup.scene import Scene
 from . import folder, plots
@@ -85,6 +86,7 @@ class StepWriter:
             row.update(surface_figures(scene, r, table))
         else:
             row["contact_force"] = r.contact_force
+        row.update(pressure_peaks(r))  # a finite-strain body: nominal and per deformed area
         if step.negative_eigenvalues is not None:  # hyperelastic: K_T's stability
             row["tangent_negative_eigenvalues"] = step.negative_eigenvalues
         self.rows.append(row)
