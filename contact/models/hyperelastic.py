@@ -44,8 +44,8 @@ HSW / projection law on the current tangent plane, the slip the increment of the
 position along it.  :func:`linearized_problem` (the gap linearized at an iterate: a bound
 again) gives an independent solver of the same problem through PETSc's VI solvers.
 
-Not in this model (yet): several bodies, the adaptive loop, friction against a moving
-obstacle.  The configuration refuses them.
+Not in this model (yet): several bodies, the adaptive loop.  The configuration refuses
+them.
 """
 
 from __future__ import annotations

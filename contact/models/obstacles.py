@@ -327,14 +327,20 @@ def current_contact(
         if u_prev is None
         else u_prev.x.array[nodes[:, None] * bs + np.arange(gdim)]
     )
+    # the obstacle's translation since the state the slip starts from: the previous step's
+    # solution, or the unloaded body at t = 0
+    motion = np.zeros(gdim)
+    if obstacle.moving:
+        start = scene.previous_time if u_prev is not None and scene.previous_time else 0.0
+        before = rigid_obstacle(scene.cfg, start)
+        assert before is not None
+        motion = obstacle.position - before.position
     w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = surface.project(Xs)[0]
     first = first_contact_row(msh.comm, X, g0, n0)
     return {
-        "current": CurrentContact(
-            nodes.astype(np.int32), X, node_fixed, surface, previous, np.zeros(gdim)
-        ),
+        "current": CurrentContact(nodes.astype(np.int32), X, node_fixed, surface, previous, motion),
         "constraint": Constraint((nodes * bs).astype(np.int32), g0, w, 1.0, coordinate_scale(msh)),
         "output_space": S,
         "output_map": s_to_v,

@@ -1098,7 +1098,7 @@ def _check_hyperelastic(cfg: dict, model: str) -> None:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs,
     the adaptive loop, a reference solution, an exact solution, grid sequencing, Coulomb's
-    fixed point, friction against a moving obstacle."""
+    fixed point."""
     if model != "hyperelastic":
         if cfg["model"]["law"] is not None:
             raise ConfigError("model.law: only for model type hyperelastic")
@@ -1129,14 +1129,6 @@ def _check_hyperelastic(cfg: dict, model: str) -> None:
             raise ConfigError(
                 "friction.coulomb: fixed_point is not available for model type hyperelastic "
                 "(use ssn)"
-            )
-        key = "point" if obstacle.get("type", "plane") == "plane" else "center"
-        constants = cfg["constants"]
-        if any(expressions.uses_time(c, constants) for c in obstacle.get(key) or []):
-            raise ConfigError(
-                f"obstacle.{key}: a moving obstacle with friction is not available for model "
-                "type hyperelastic (move the body instead: the slip is measured against a "
-                "fixed obstacle)"
             )
     if cfg["data"]["exact"] is not None:
         raise ConfigError("data.exact: not available for model type hyperelastic")

@@ -47,8 +47,9 @@ Tresca / Coulomb) in the current frame: μ_t = −R̃_t / w and the slip
 
     s_i = F_i,tᵀ (x_i − x_i^prev − Δc) = F_i,tᵀ (u_i − u_i^prev − Δc),
 
-the increment of the deformed position since the previous load step, relative to the
-obstacle's own translation Δc, along the current tangent plane.
+the increment of the deformed position since the previous load step (since the unloaded
+start on the first), relative to the obstacle's own translation Δc over the same interval,
+along the current tangent plane.
 
 Generalized Jacobian.  With dR̃_i = F_iᵀ K_i du + M(R_i) Dñ_i du_i (K_i the node's rows of
 K_T(u)) and the law's derivative S_i = ∂Φ_i/∂R̃_i (bs × bs: φ_b on the normal row, I or
