@@ -323,3 +323,7 @@ class CurrentComplementarity(BlockComplementarity):
         Dv[nodes] = E + (S @ frame_rate(st["R"], geo) @ geo.dn if self.curvature else 0.0)
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
+
+    def destroy(self) -> None:
+        self._last = None  # holds a view of R's array
+        super().destroy()
