@@ -258,6 +258,42 @@ class CurrentResidualProblem(ResidualProblem):
         gap.x.array[on.x.array < 0.5] = np.nan
         return gap
 
+    def constrained_hessian(self, x: PETSc.Vec, active: np.ndarray) -> tuple[PETSc.Mat, np.ndarray]:
+        """(Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
+        solution x, on the tangent space of the active constraints — what decides the
+        stability of a constrained equilibrium (:func:`negative_eigenvalues`).  With
+        μ_i = ñ_i·R_i (= w_i λ_i ≤ 0; R_i = μ_i ñ_i at a frictionless solution) and
+        ∇²g = −Dn,
+
+            ∇²L = K_T − Σ_{i active} μ_i P_i Dn_i P_i,
+
+        (against a circle or sphere −μ Dn = −w p (I − n nᵀ)/|x − c|: a convex obstacle
+        softens the body's tangential motion — it can roll off), rotated to the active nodes'
+        current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
+        matrix (the caller destroys it); K becomes K_T(x)."""
+        cc, bs = self.current, self.V.dofmap.index_map_bs
+        rows = self._rows()
+        r = x.duplicate()
+        self.residual(x, r)
+        self.linearize(x)
+        u = x.array_r[rows]
+        geo = nodal_geometry(cc, u)
+        Dn = cc.surface.project(cc.X + u)[2]
+        free = ~cc.fixed
+        mu = np.einsum("ka,ka->k", geo.frames[:, :, 0], r.array_r[rows])
+        nodes = cc.nodes[active]
+        curvature, frames = NodeBlockMatrix(self.K, bs), NodeBlockMatrix(self.K, bs)
+        blocks = np.zeros((curvature.local_nodes, bs, bs))
+        blocks[nodes] = (-mu[:, None, None] * (free[:, :, None] * Dn * free[:, None, :]))[active]
+        hessian = self.K.duplicate(copy=True)
+        subset = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+        hessian.axpy(1.0, curvature.set(blocks), structure=subset)  # type: ignore[arg-type]
+        Q = frames.identity()
+        Q[nodes] = geo.frames[active]
+        out = hessian.PtAP(frames.set(Q))
+        destroy(hessian, curvature.mat, frames.mat, r)
+        return out, (nodes * bs).astype(np.int32)
+
     def contact_force(self, r: np.ndarray) -> float:
         """F = −m Σ_i R_i·n: the resultant of the nodal contact forces along the normal n at
         the first point of contact (m the symmetric copies; frictionless: Σ w_i p_i ñ_i·n)."""
@@ -322,18 +358,23 @@ def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProble
 def negative_eigenvalues(result) -> int:
     """The number of negative eigenvalues of the tangent K_T(u_h) on the free unknowns (the
     Dirichlet rows and the active contact nodes held), from the inertia of its Cholesky
-    factorization (MUMPS, LDLᵀ; collective).  0: u_h is a stable equilibrium of the
+    factorization (MUMPS, LDLᵀ; collective).  On the current configuration the Hessian of
+    the Lagrangian in the active nodes' current frames, their normal unknowns held
+    (:meth:`CurrentResidualProblem.constrained_hessian`).  0: u_h is a stable equilibrium of the
     constrained problem; > 0: K_T lost positive definiteness — past a limit point, or
     St Venant–Kirchhoff in strong compression (its energy is not convex) — and the
     solution may be unstable (buckling, localisation).  One factorization per call."""
     p = result.problem
     x = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, x)
-    p.linearize(x)
-    A = p.K.duplicate(copy=True)
+    if isinstance(p, CurrentResidualProblem):  # the constraint's normal and curvature
+        A, held = p.constrained_hessian(x, result.active_mask)
+    else:
+        p.linearize(x)
+        A, held = p.K.duplicate(copy=True), p.constraint.dofs[result.active_mask]
     lo = A.getOwnershipRange()[0]
-    A.zeroRowsColumns((p.constraint.dofs[result.active_mask] + lo).astype(PETSc.IntType), diag=1.0)
-    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    A.zeroRowsColumns((held + lo).astype(PETSc.IntType), diag=1.0)  # type: ignore[arg-type]
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)  # type: ignore[arg-type]
     ksp = PETSc.KSP().create(A.getComm())
     try:
         ksp.setOperators(A)

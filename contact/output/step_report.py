@@ -12,9 +12,8 @@ Per step k (numbered 000, 001, …):
 
 After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations, the
 resultants and zone measures of :func:`contact.post.friction_resultants.surface_figures`,
-η; a moving obstacle's travel into the body, ``obstacle_travel``: with the contact force
-the force–indentation curve; a finite-strain body's peak pressures, nominal and per
-deformed area), ``summary.json`` (the run, with the same figures per step under ``steps``),
+η; a finite-strain body's peak pressures, nominal and per deformed area),
+``summary.json`` (the run, with the same figures per step under ``steps``),
 ``contact.csv`` and ``pressure.png`` of the last step
 (:func:`contact.output.run_report.write_contact`), ``traction.png`` (λ_n and λ_t along Γ_C
 at every step, with the declared reference's or the exact solution's curves),
@@ -36,7 +35,7 @@ from ..drivers.load_path import LoadPath, Step
 from ..post.contact_table import Table, contact_table, tangent_2d, write_table
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
-from ..post.resultants import obstacle_travel, pressure_peaks
+from ..post.resultants import pressure_peaks
 from ..setup.config import is_elastic
 from ..setup.scene import Scene
 from . import folder, plots
@@ -88,9 +87,6 @@ class StepWriter:
             row.update(surface_figures(scene, r, table))
         else:
             row["contact_force"] = r.contact_force
-        travel = obstacle_travel(scene, r)
-        if travel is not None:  # a moving obstacle: force against its travel (indentation)
-            row["obstacle_travel"] = travel
         row.update(pressure_peaks(r))  # a finite-strain body: nominal and per deformed area
         if step.negative_eigenvalues is not None:  # hyperelastic: K_T's stability
             row["tangent_negative_eigenvalues"] = step.negative_eigenvalues

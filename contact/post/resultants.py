@@ -25,7 +25,6 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..setup.obstacle import rigid_obstacle
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
 
@@ -90,20 +89,6 @@ def current_pressure(result: Result) -> np.ndarray | None:
     out = p.pressure(r) * con.w / area.array_r[con.dofs]
     area.destroy()
     return out
-
-
-def obstacle_travel(scene: Scene, result: Result) -> float | None:
-    """How far a moving rigid obstacle (``obstacle.point`` / ``center`` in t) has advanced
-    into the body since t = 0, along the contact normal n at the first point of contact
-    (n points from the body to the obstacle): (p(0) − p(t))·n, the indentation of an
-    indenter, the travel of a plate.  None for an obstacle that does not move."""
-    obstacle = rigid_obstacle(scene.cfg, scene.time)
-    if obstacle is None or not obstacle.moving or result.problem.data.get("n") is None:
-        return None
-    start = rigid_obstacle(scene.cfg, 0.0)
-    assert start is not None
-    n = np.asarray(result.problem.data["n"], dtype=float)
-    return float((start.position - obstacle.position) @ n)
 
 
 def pressure_peaks(result: Result) -> dict:
