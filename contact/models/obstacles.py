@@ -155,8 +155,10 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     Xs = S.tabulate_dof_coordinates()[:, :gdim]
     g_all = gap(Xs)
     inside = g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs))))
-    # a plane may have moved into the body (obstacle.point in t): a prescribed penetration
-    if scene.cfg["obstacle"]["type"] != "plane" and msh.comm.allreduce(int(np.sum(inside))):
+    # an obstacle may have moved into the body (obstacle.point / center in t): a prescribed
+    # penetration
+    obstacle = scene_obstacle(scene)
+    if obstacle.kind != "plane" and not obstacle.moving and msh.comm.allreduce(int(np.sum(inside))):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
     normals = normal(Xs[sd])
     Q = _rotation(V, K, nodes, normals)
