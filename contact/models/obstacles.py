@@ -49,11 +49,12 @@ def obstacle_shape(scene: Scene) -> tuple:
     coordinates (n, gdim) to the unit normals n (towards the obstacle) and the initial gaps
     g, the UFL expressions are the same for forms.  Plane: n = −ν, g = (x − p)·ν; circle /
     sphere: n = (c − x)/|c − x|, g = |x − c| − R_o."""
-    obstacle, msh = scene.cfg["obstacle"], scene.mesh
+    obstacle, msh = scene.config.obstacle, scene.mesh
+    assert obstacle is not None  # the scene's rigid obstacle
     gdim = msh.geometry.dim
     X = ufl.SpatialCoordinate(msh)
-    if obstacle["type"] == "plane":
-        nu_o = np.asarray(obstacle["normal"], dtype=float)
+    if obstacle.type == "plane":
+        nu_o = np.asarray(obstacle.normal, dtype=float)
         nu_o = nu_o / np.linalg.norm(nu_o)
         p = plane_point(scene)
         if len(nu_o) != gdim or len(p) != gdim:
@@ -68,10 +69,11 @@ def obstacle_shape(scene: Scene) -> tuple:
             ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())),
         )
     want = "circle" if gdim == 2 else "sphere"
-    if obstacle["type"] != want:
-        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
-    centre, R_o = scene_obstacle(scene).center, float(obstacle["radius"])
-    assert centre is not None  # a circle / sphere has its centre
+    if obstacle.type != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle.type}")
+    assert obstacle.radius is not None  # checked at load
+    centre, R_o = scene_obstacle(scene).center, float(obstacle.radius)
+    assert centre is not None  # a circle / sphere has its centre (at t)
     if len(centre) != gdim:
         raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
     c_ufl = ufl.as_vector(centre.tolist())
@@ -83,12 +85,12 @@ def obstacle_shape(scene: Scene) -> tuple:
     )
 
 
-def scene_obstacle(scene: Scene) -> RigidObstacle:
-    """The scene's rigid obstacle at its pseudo-time (a plane's point or a circle's centre may
-    be expressions of t: an obstacle moved along a load path)."""
-    obstacle = rigid_obstacle(scene.cfg, scene.time)
-    assert obstacle is not None  # an elastic scene with an obstacle (validated)
-    return obstacle
+def scene_obstacle(scene: Scene, time: float | None = None) -> RigidObstacle:
+    """The scene's rigid obstacle at its pseudo-time (or at ``time``): a plane's point or a
+    circle's centre may be expressions of t, an obstacle moved along a load path."""
+    config = scene.config
+    assert config.obstacle is not None  # an elastic scene with an obstacle (checked at load)
+    return rigid_obstacle(config.obstacle, config.constants, scene.time if time is None else time)
 
 
 def plane_point(scene: Scene) -> np.ndarray:
@@ -99,9 +101,10 @@ def plane_point(scene: Scene) -> np.ndarray:
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
-    obstacle, gdim = scene.cfg["obstacle"], scene.mesh.geometry.dim
+    obstacle, gdim = scene.config.obstacle, scene.mesh.geometry.dim
+    assert obstacle is not None  # the scene's rigid plane
     normal, gap, n_ufl, g_ufl = obstacle_shape(scene)
-    nu_o = np.asarray(obstacle["normal"], dtype=float)
+    nu_o = np.asarray(obstacle.normal, dtype=float)
     nu_o = nu_o / np.linalg.norm(nu_o)
     p = plane_point(scene)
     k = int(np.argmax(np.abs(nu_o)))
@@ -334,9 +337,7 @@ def current_contact(
     motion = np.zeros(gdim)
     if obstacle.moving:
         start = scene.previous_time if u_prev is not None and scene.previous_time else 0.0
-        before = rigid_obstacle(scene.cfg, start)
-        assert before is not None
-        motion = obstacle.position - before.position
+        motion = obstacle.position - scene_obstacle(scene, start).position
     w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = surface.project(Xs)[0]

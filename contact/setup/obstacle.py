@@ -1,15 +1,16 @@
-"""The scene's rigid obstacle at one pseudo-time, as a typed value (read from the validated
-``obstacle`` section once; the models take it, not the config)."""
+"""The scene's rigid obstacle at one pseudo-time, as a typed value: the ``obstacle`` section
+(:class:`~contact.setup.scene_config.ObstacleConfig`) with its point or centre evaluated at t
+(the models take it)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from . import expressions
+from .scene_config import ObstacleConfig
 
 
 @dataclass(frozen=True)
@@ -35,31 +36,29 @@ class RigidObstacle:
         return position
 
 
-def rigid_obstacle(cfg: Mapping[str, Any], time: float) -> RigidObstacle | None:
-    """The validated scene config's obstacle at pseudo-time ``time`` (None without one)."""
-    obstacle = cfg.get("obstacle")
-    if not obstacle:
-        return None
-    constants = cfg["constants"]
-    key = "point" if obstacle["type"] == "plane" else "center"
-    coords = obstacle[key]
+def rigid_obstacle(
+    obstacle: ObstacleConfig, constants: Mapping[str, float], time: float
+) -> RigidObstacle:
+    """The scene's obstacle section at pseudo-time ``time`` (``constants`` for its
+    expressions)."""
+    coords = obstacle.point if obstacle.type == "plane" else obstacle.center
+    assert coords is not None  # required for its type at load
     position = vector_at(coords, constants, time)
     moving = any(expressions.uses_time(c, constants) for c in coords)
-    if obstacle["type"] == "plane":
-        nu = np.asarray(obstacle["normal"], dtype=float)
+    if obstacle.type == "plane":
+        nu = np.asarray(obstacle.normal, dtype=float)
         return RigidObstacle(
             "plane", point=position, normal=nu / np.linalg.norm(nu), moving=moving, time=time
         )
+    assert obstacle.radius is not None  # required for a circle / sphere at load
     return RigidObstacle(
-        obstacle["type"],
-        center=position,
-        radius=float(obstacle["radius"]),
-        moving=moving,
-        time=time,
+        obstacle.type, center=position, radius=float(obstacle.radius), moving=moving, time=time
     )
 
 
-def vector_at(coords: list, constants: Mapping[str, float], time: float) -> np.ndarray:
+def vector_at(
+    coords: Sequence[float | str], constants: Mapping[str, float], time: float
+) -> np.ndarray:
     """Coordinates given as numbers or expressions of the pseudo-time t, evaluated at t."""
     origin = np.zeros((3, 1))
     return np.array([float(expressions.to_numpy(c, constants, t=time)(origin)[0]) for c in coords])

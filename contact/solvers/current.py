@@ -244,7 +244,7 @@ class CurrentComplementarity(BlockComplementarity):
         d = u - self.cc.u_prev - self.cc.motion
         s = np.einsum("kat,ka->kt", geo.frames[:, :, 1:], d)
         fs.frames = geo.frames[:, :, 1:]  # the current tangents (friction_fields' vectors)
-        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
+        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.options.form)
         st.update(
             mu_n=-Rt[:, 0] / self.w,
             xi=xi,

@@ -175,7 +175,7 @@ class FrictionalComplementarity(BlockComplementarity):
             rho = self.threshold
         mu_t = -r[fs.tangent] / self.w[:, None]
         s = x.array_r[fs.tangent] - fs.x_prev
-        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
+        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.options.form)
         return {
             "a": a,
             "b": b,
@@ -238,10 +238,13 @@ def setup_friction_newton(
     return setup_block_newton(snes, problem, cp, opts, timers, state, petsc_opts)
 
 
-def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: PETSc.Vec) -> dict:
+def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc.Vec) -> dict:
     """Nodal results of a frictional solve (owned contact nodes): λ_n, λ_t (n, m), ρ, the
     slip increment s (n, m), the status, the gap, the weights w, and λ_t, s as vectors in
-    global axes (n, gdim)."""
+    global axes (n, gdim).  ``cp``: :class:`FrictionalComplementarity`, or
+    :class:`contact.solvers.current.CurrentComplementarity` with friction (its tangents
+    those of the last evaluation)."""
+    fs: FrictionSet = problem.friction
     st = cp.evaluate(x)
     status = cp.status(x, st)
     lam_t = -st["mu_t"]
@@ -252,8 +255,8 @@ def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: 
         "slip": st["s"],
         "status": status,
         "gap": st["a"],
-        "lambda_t_vec": tangential_vector(cp.fs, lam_t),
-        "slip_vec": tangential_vector(cp.fs, st["s"]),
+        "lambda_t_vec": tangential_vector(fs, lam_t),
+        "slip_vec": tangential_vector(fs, st["s"]),
         "w": cp.w,
     }
 
