@@ -94,6 +94,7 @@ def refine(
         Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
         time=scene.time,
         history=history,
+        previous_time=scene.previous_time,
         bodies=bodies,
         surfaces=surfaces,
         parent=(scene, parent_cell),

@@ -146,6 +146,7 @@ def run_load_path(
             scene.boundary,
             time=t,
             history={} if u_prev is None else {"u_prev": u_prev},
+            previous_time=None if u_prev is None else t_prev,
             bodies=scene.bodies,
             surfaces=scene.surfaces,
         )

@@ -59,6 +59,12 @@ def solve(
     built_here = problem is None
     problem = problem or build_problem(scene)
     friction = problem.friction
+    if problem.current is not None and method not in ncp.METHODS:
+        raise ConfigError(
+            f"solver.method: {method} needs a gap affine in u (PETSc's VI bounds); contact on "
+            "the current configuration (a hyperelastic body against a circle or sphere, or "
+            "with friction) takes fb, min or blend"
+        )
     if friction is not None:
         if method not in ncp.METHODS:
             raise ConfigError(

@@ -43,12 +43,13 @@ def build_problem(scene: Scene) -> DiscreteProblem:
         "mesh",
         "the mesh gives",
     )
-    if cfg.model.type == "hyperelastic":
-        from .hyperelastic import hyperelastic_problem
+    if cfg.model.type in ("elasticity", "hyperelastic"):
+        problem: DiscreteProblem
+        if cfg.model.type == "hyperelastic":
+            from .hyperelastic import hyperelastic_problem
 
-        return hyperelastic_problem(scene)
-    if scene.config.model.type == "elasticity":
-        if scene.config.bodies:
+            problem = hyperelastic_problem(scene, cfg.frictional)
+        elif cfg.bodies:
             from .bodies import bodies_problem
 
             problem = bodies_problem(scene)
@@ -56,7 +57,7 @@ def build_problem(scene: Scene) -> DiscreteProblem:
             from .elasticity import elasticity_problem
 
             problem = elasticity_problem(scene)
-        if scene.config.frictional:
+        if cfg.frictional:
             from .friction import friction_set
 
             problem.friction = friction_set(scene, problem)

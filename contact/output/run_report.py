@@ -27,6 +27,7 @@ from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
 from ..post.comparison import Comparison
 from ..post.reference import compare
+from ..post.resultants import current_pressure
 from ..setup.scene import Scene
 from ..solvers import Result
 from . import folder, plots
@@ -163,8 +164,13 @@ def summary(
 
 def point_fields(result: Result) -> list:
     """The nodal output fields: u_h, λ_h, the gap (on Γ_C only) and the active set; with
-    contact pairs also the pressure the master surfaces see (``lambda_master``)."""
+    contact pairs also the pressure the master surfaces see (``lambda_master``); for a
+    finite-strain body the contact pressure per deformed area (``pressure_current``,
+    :func:`contact.post.resultants.current_pressure`; λ_h is per reference area)."""
     fields = [result.u_h, result.lmbda_h, result.gap, result.active]
+    current = current_pressure(result)
+    if current is not None:  # a finite-strain body: the pressure per deformed area
+        fields.append(result.problem.nodal_output("pressure_current", current))
     if result.problem.data.get("couplings"):
         from ..models.mortar import master_pressure
 

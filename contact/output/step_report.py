@@ -12,7 +12,8 @@ Per step k (numbered 000, 001, …):
 
 After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations, the
 resultants and zone measures of :func:`contact.post.friction_resultants.surface_figures`,
-η), ``summary.json`` (the run, with the same figures per step under ``steps``),
+η; a finite-strain body's peak pressures, nominal and per deformed area),
+``summary.json`` (the run, with the same figures per step under ``steps``),
 ``contact.csv`` and ``pressure.png`` of the last step
 (:func:`contact.output.run_report.write_contact`), for a hyperelastic body ``force.png``
 (the force–displacement curve, :func:`plot_load_curve`; steps.csv holds its columns
@@ -36,6 +37,7 @@ from ..drivers.load_path import LoadPath, Step
 from ..post.contact_table import Table, contact_table, tangent_2d, write_table
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
+from ..post.resultants import pressure_peaks
 from ..setup.scene import Scene
 from . import folder, plots
 from .fields import FieldFiles
@@ -86,6 +88,7 @@ class StepWriter:
             row.update(surface_figures(scene, r, table))
         else:
             row["contact_force"] = r.contact_force
+        row.update(pressure_peaks(r))  # a finite-strain body: nominal and per deformed area
         if step.negative_eigenvalues is not None:  # hyperelastic: K_T's stability
             from ..post.load_curve import load_displacements
             from ..solvers.energy_search import tangent_figures

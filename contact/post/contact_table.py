@@ -60,12 +60,15 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     con = p.constraint
     gdim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    from .resultants import nodal_gap
+    from .resultants import current_pressure, nodal_gap
 
     cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
     if gdim == 3 and not p.in_domain:
         cols.update(_polar(scene, result, X))
-    cols[value_name(scene)] = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
+    cols[value_name(scene)] = p.multiplier(owned_residual(result))
+    current = current_pressure(result)
+    if current is not None:  # a finite-strain body: the pressure per deformed area
+        cols["pressure_current"] = current
     cols["gap"] = nodal_gap(result)
     cols["active"] = result.active_mask.astype(np.int8)
     if result.friction is not None:  # λ_t, bound, slip, status, weight

@@ -497,7 +497,12 @@ SCENE: dict[str, Field] = {
             "normal": Field(
                 "list", None, doc="plane: its outward normal, pointing towards the body"
             ),
-            "center": Field("list", None, doc="circle / sphere: the centre"),
+            "center": Field(
+                "list",
+                None,
+                doc="circle / sphere: the centre; its coordinates may be expressions of the "
+                "pseudo-time t (an indenter moved along a load path)",
+            ),
             "radius": Field("number", None, check=_positive, doc="circle / sphere: the radius"),
         },
     ),
@@ -947,9 +952,9 @@ def validate_scene(
 
 def _check_hyperelastic(cfg: dict, model: str) -> None:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
-    does not do yet (contact/models/hyperelastic.py) is refused by name: a curved
-    obstacle, contact pairs, friction, the adaptive loop, a reference solution, an
-    exact solution, grid sequencing."""
+    does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs,
+    the adaptive loop, a reference solution, an exact solution, grid sequencing, Coulomb's
+    fixed point."""
     if model != "hyperelastic":
         if cfg["model"]["law"] is not None:
             raise ConfigError("model.law: only for model type hyperelastic")
@@ -959,11 +964,6 @@ def _check_hyperelastic(cfg: dict, model: str) -> None:
             f"model.law: required for model type hyperelastic ({', '.join(HYPERELASTIC_LAWS)})"
         )
     obstacle = cfg.get("obstacle") or {}
-    if obstacle.get("type", "plane") != "plane":
-        raise ConfigError(
-            f"obstacle.type: a hyperelastic body meets rigid planes only (not a "
-            f"{obstacle['type']}: its gap is not affine in u)"
-        )
     for key, what in (
         ("bodies", "several bodies"),
         ("pairs", "contact pairs"),
@@ -972,8 +972,23 @@ def _check_hyperelastic(cfg: dict, model: str) -> None:
     ):
         if cfg.get(key):
             raise ConfigError(f"{key}: not available for model type hyperelastic ({what})")
-    if cfg["friction"] is not None and cfg["friction"].law != "none":
-        raise ConfigError("friction.law: a hyperelastic body's contact is frictionless (none)")
+    friction = cfg["friction"]
+    frictional = friction is not None and friction.law != "none"
+    method = cfg["solver"].method
+    if (obstacle.get("type", "plane") != "plane" or frictional) and method not in (
+        "fb",
+        "min",
+        "blend",
+    ):
+        raise ConfigError(
+            f"solver.method: {method} needs a gap affine in u (PETSc's VI bounds); a "
+            "hyperelastic body against a circle or sphere, or with friction, takes fb, min "
+            "or blend"
+        )
+    if frictional and friction.coulomb == "fixed_point":
+        raise ConfigError(
+            "friction.coulomb: fixed_point is not available for model type hyperelastic (use ssn)"
+        )
     if cfg["data"]["exact"] is not None:
         raise ConfigError("data.exact: not available for model type hyperelastic")
     if cfg["solver"].sequence not in ("auto", "off", 0):
@@ -1116,9 +1131,9 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
     # frictionless: the other keys are ignored (--set friction.law=none switches it off)
     if law == "none":
         return
-    if cfg["model"]["type"] != "elasticity":
+    if cfg["model"]["type"] not in ELASTIC_MODELS:
         raise ConfigError(
-            f"friction.law: {law} friction needs model type elasticity "
+            f"friction.law: {law} friction needs model type elasticity or hyperelastic "
             f"(a {cfg['model']['type']} scene has no tangential direction)"
         )
     need = {"tresca": "threshold", "coulomb": "coefficient"}.get(law)
@@ -1200,10 +1215,10 @@ def _check_elasticity(cfg: dict) -> None:
             raise ConfigError(f"obstacle.{key}: not used by an obstacle of type {obstacle['type']}")
     for key in keys[:2] if obstacle["type"] == "plane" else ("center",):
         vec = obstacle[key]
-        if key == "point" and all(
+        if key in ("point", "center") and all(
             isinstance(c, (str, int, float)) and not isinstance(c, bool) for c in vec
         ):
-            _check_moving_point(vec, cfg["constants"])
+            _check_moving_point(vec, cfg["constants"], key)
             continue
         if not all(
             isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
@@ -1214,16 +1229,17 @@ def _check_elasticity(cfg: dict) -> None:
         raise ConfigError("obstacle.normal: must not be the zero vector")
 
 
-def _check_moving_point(point: list, constants: Mapping[str, float]) -> None:
-    """obstacle.point: numbers, or expressions of constants and the pseudo-time t only."""
+def _check_moving_point(point: list, constants: Mapping[str, float], key: str = "point") -> None:
+    """obstacle.point / obstacle.center: numbers, or expressions of constants and the
+    pseudo-time t only."""
     for c in point:
         try:
             tree = expressions.parse(c, constants)
         except expressions.ExpressionError as err:
-            raise ConfigError(f"obstacle.point: {err}") from None
+            raise ConfigError(f"obstacle.{key}: {err}") from None
         names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
         if names & set(expressions.COORDINATES + expressions.HELPERS):
-            raise ConfigError(f"obstacle.point: {c!r} may use the pseudo-time t, not x, y, z")
+            raise ConfigError(f"obstacle.{key}: {c!r} may use the pseudo-time t, not x, y, z")
 
 
 def load_config(

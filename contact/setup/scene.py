@@ -37,6 +37,9 @@ class Scene:
     boundary: Boundary
     time: float = 1.0
     history: dict = field(default_factory=dict)
+    #: the pseudo-time of the load step whose solution is ``history["u_prev"]`` (None
+    #: without one): how far a moving obstacle went since then (friction's relative slip)
+    previous_time: float | None = None
     _t_constant: Any = field(default=None, repr=False)
     bodies: dmesh.MeshTags | None = None  # cell tags k + 1 of the k-th body (scenes with bodies)
     # the mesh's own facet tags (gmsh groups), carried by refinement

@@ -305,13 +305,14 @@ class PairConfig(_Section):
 
 
 class ObstacleConfig(_Section):
-    """A rigid obstacle: a plane (``point``, whose coordinates may be expressions of the
-    pseudo-time t, and ``normal``), a circle or a sphere (``center``, ``radius``)."""
+    """A rigid obstacle: a plane (``point`` and ``normal``), a circle or a sphere (``center``,
+    ``radius``); the point's or centre's coordinates may be expressions of the pseudo-time t
+    (an obstacle moved along a load path)."""
 
     type: str = "plane"
     point: tuple[Number | str, ...] | None = None
     normal: tuple[Number, ...] | None = None
-    center: tuple[Number, ...] | None = None
+    center: tuple[Number | str, ...] | None = None
     radius: float | None = None
 
 

@@ -37,9 +37,10 @@ from petsc4py import PETSc
 from ..base.timing import Timer
 from . import ncp
 from .globalize import GuardedMin
+from .linear import attach_near_nullspace
 from .options import SolverOptions
 from .polish import Polisher
-from .problem import DiscreteProblem
+from .problem import DiscreteProblem, NodeBlockMatrix
 
 if TYPE_CHECKING:
     from .energy_search import EnergySearch
@@ -79,6 +80,13 @@ class Complementarity:
         scale = self.p.b.getComm().tompi4py().allreduce(local, op=MPI.MAX)
         return ncp.TIE_RTOL * max(scale, self.p.constraint.scale)
 
+    def gap_roundoff(self, x: PETSc.Vec) -> float:
+        """The round-off floor of the gap rows of ‖Φ(x)‖ beyond that of K x − b
+        (:func:`contact.solvers.snes.roundoff_floor`): none for a gap given as a bound;
+        :class:`contact.solvers.current.CurrentComplementarity` computes its gaps from
+        coordinates (collective)."""
+        return 0.0
+
     def active_set(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Active nodes: the scaled multiplier exceeds the gap, b_i − a_i > τ, or the node
         touches with zero pressure, |a_i|, |b_i| ≤ τ (other ties inactive; collective)."""
@@ -114,6 +122,48 @@ class Complementarity:
 
     def destroy(self) -> None:
         for obj in (self.R, self.s, self.d):
+            obj.destroy()
+
+
+#: a node's state under a friction law (:meth:`BlockComplementarity.status`)
+SEPARATED, STICK, SLIP = 0, 1, 2
+
+
+class BlockComplementarity(Complementarity):
+    """A :class:`Complementarity` whose generalized-Jacobian element is a block law
+    H = B K + D, B and D node-block matrices (one bs × bs block per node, identity / zero off
+    the contact nodes) that ``block_jacobian(x, H, method, mu)`` fills at each iterate:
+    friction (:mod:`.friction`), contact on the current configuration (:mod:`.current`).
+    ``evaluate(x)`` returns the nodal quantities (a, b and, with friction, the law)."""
+
+    def __init__(self, problem: DiscreteProblem):
+        super().__init__(problem)
+        self.bs = bs = problem.V.dofmap.index_map_bs
+        self.B, self.D = NodeBlockMatrix(problem.K, bs), NodeBlockMatrix(problem.K, bs)
+
+    def evaluate(self, x: PETSc.Vec) -> dict:
+        raise NotImplementedError
+
+    def block_jacobian(self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float) -> None:
+        """H = B K + D, the generalized-Jacobian element at x."""
+        raise NotImplementedError
+
+    def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
+        """Per node of a friction law: SEPARATED (normal inactive, :meth:`active_set`), STICK
+        or SLIP (a node touching with zero pressure slips: ρ = 0; collective); ``st`` the
+        :meth:`evaluate` of x if at hand."""
+        st = self.evaluate(x) if st is None else st
+        touching = self.active_set(st["a"], st["b"])
+        return np.where(touching, np.where(st["law"].stick, STICK, SLIP), SEPARATED)
+
+    def matrix(self) -> PETSc.Mat:
+        """A Jacobian matrix with the pattern of B K (created by the product, for reuse)."""
+        B = self.B.set(self.B.identity())
+        return B.matMult(self.p.K)
+
+    def destroy(self) -> None:
+        super().destroy()
+        for obj in (self.B.mat, self.D.mat):
             obj.destroy()
 
 
@@ -180,6 +230,37 @@ def body_size(problem: DiscreteProblem) -> float:
     comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
     comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
     return float(np.linalg.norm(hi - lo))
+
+
+def setup_block_newton(
+    snes: PETSc.SNES,
+    problem: DiscreteProblem,
+    cp: BlockComplementarity,
+    opts: SolverOptions,
+    timers: dict,
+    state: dict,
+    petsc_opts: dict,
+) -> PETSc.Mat:
+    """Make ``snes`` semismooth Newton on the Φ of ``cp`` with a block law H = B K + D:
+    ``cp.matrix()`` gives a matrix of the pattern of B K, ``cp.block_jacobian(x, H, method,
+    mu)`` writes the element at x (friction, :mod:`.friction`; contact on the current
+    configuration, :mod:`.current`).  Plain Newton or ``bt``, no polishing; returns the
+    Jacobian matrix (the caller destroys it)."""
+    method, mu = opts.method, opts.mu
+    J = cp.matrix()
+    attach_near_nullspace(problem, J)
+    set_newton(
+        snes,
+        problem,
+        J,
+        lambda x, f: cp.phi(x, f, method, mu),
+        lambda x, P: cp.block_jacobian(x, P, method, mu),
+        opts,
+        timers,
+        state,
+        petsc_opts,
+    )
+    return J
 
 
 def set_newton(

@@ -26,7 +26,7 @@ from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
 from .energy_search import EnergySearch
 from .globalize import GuardedMin
 from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
-from .newton import Complementarity, setup_newton
+from .newton import BlockComplementarity, Complementarity, setup_block_newton, setup_newton
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .polish import Polisher
 from .predictor import tangent_predictor
@@ -122,12 +122,16 @@ class SemismoothNewton:
 
         self._owner = owner = Owner()  # the solver's PETSc objects, destroyed by close()
         self.cp: Complementarity
-        if friction is None:
+        if problem.current is not None:  # a gap nonlinear in u, the normal followed
+            from .current import CurrentComplementarity
+
+            self.cp = owner.own(CurrentComplementarity(problem))
+        elif friction is None:
             self.cp = owner.own(Complementarity(problem))
         else:
             from .friction import FrictionalComplementarity
 
-            fcp = self.cp = owner.own(FrictionalComplementarity(problem))
+            self.cp = owner.own(FrictionalComplementarity(problem))
         self.snes = snes = owner.own(PETSc.SNES().create(comm))  # type: ignore[arg-type]
         self.prefix = f"contact{next(_counter)}_" if prefix is None else prefix
         snes.setOptionsPrefix(self.prefix)
@@ -136,12 +140,12 @@ class SemismoothNewton:
         self.guard: GuardedMin | None = None
         self.search: EnergySearch | None = None
         self.system = None
-        if friction is not None:  # the block law H = B K + D (no polishing)
-            from .friction import setup_friction_newton
-
+        if friction is not None or problem.current is not None:  # H = B K + D (no polishing)
+            block = self.cp
+            assert isinstance(block, BlockComplementarity)  # friction's or .current's
             self.J = owner.own(
-                setup_friction_newton(
-                    snes, problem, fcp, options, self.timers, self.state, self.petsc_options
+                setup_block_newton(
+                    snes, problem, block, options, self.timers, self.state, self.petsc_options
                 )
             )
         elif method in ncp.METHODS:
@@ -191,8 +195,14 @@ class SemismoothNewton:
         )
         # the tangent predictor (.predictor): a nonlinear problem's start, by default where
         # the problem has an energy (a hyperelastic body)
-        self.predict = problem.nonlinear and (
-            options.predictor == "tangent" or (options.predictor == "auto" and problem.has_energy)
+        # (a bound constraint: not contact on the current configuration, .current)
+        self.predict = (
+            problem.nonlinear
+            and problem.current is None
+            and (
+                options.predictor == "tangent"
+                or (options.predictor == "auto" and problem.has_energy)
+            )
         )
         self.predicted: bool | None = None  # whether the last solve took the predictor's start
         self._prev = owner.own(problem.b.duplicate())  # the previous iterate (step lengths)
@@ -308,9 +318,9 @@ class SemismoothNewton:
                 result.stopping = self.stopping
                 result.reason = "converged_adaptive" if self.stopping.stopped else result.reason
             if problem.friction is not None:
-                from .friction import FrictionalComplementarity, friction_fields
+                from .friction import friction_fields
 
-                assert isinstance(cp, FrictionalComplementarity)  # a frictional problem's
+                assert isinstance(cp, BlockComplementarity)  # a frictional problem's
                 result.friction = friction_fields(problem, cp, x)
             if polisher is not None:
                 result.polish_solves = polisher.solves - counts[0]
@@ -350,7 +360,10 @@ class SemismoothNewton:
         floor = (
             0.0
             if self.problem.floating
-            else min(roundoff_floor(self._k_norm, xk), opts.atol * self._total)
+            else max(
+                min(roundoff_floor(self._k_norm, xk), opts.atol * self._total),
+                cp.gap_roundoff(xk),  # gaps of coordinates: bounded by the data, not by x
+            )
         )
         if floor > snes.getTolerances()[1]:  # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
@@ -457,16 +470,24 @@ def energy_line_search(
     problem: DiscreteProblem, options: SolverOptions, user: dict
 ) -> SolverOptions:
     """``options`` with ``line_search: auto`` resolved to ``energy`` where the energy search
-    applies (:mod:`.energy_search`: a problem with an energy, fb / min / blend without
-    friction, and the direct solver its inertia needs); an explicit ``energy`` where it
-    does not is a ConfigError naming the key."""
-    applies = problem.has_energy and options.method in ncp.METHODS and problem.friction is None
+    applies (:mod:`.energy_search`: a problem with an energy, fb / min / blend, a diagonal
+    law — no friction, a constraint that is a bound: not contact on the current
+    configuration, whose block law :mod:`.current` solves — and the direct solver its
+    inertia needs); an explicit ``energy`` where it does not is a ConfigError naming the
+    key."""
+    applies = (
+        problem.has_energy
+        and options.method in ncp.METHODS
+        and problem.friction is None
+        and problem.current is None
+    )
     direct = assembled_kind(problem, options.linear, user) == "direct"
     if options.line_search == "energy" and not (applies and direct):
         why = (
             "a direct solver (its tangent's inertia): solver.linear direct"
             if applies
-            else "a body with an energy (model.type hyperelastic) and method fb, min or blend"
+            else "a body with an energy (model.type hyperelastic) against a plane, without "
+            "friction, and method fb, min or blend"
         )
         raise ConfigError(f"solver.line_search: energy needs {why}")
     if options.line_search == "auto" and applies and direct:
