@@ -45,7 +45,7 @@ def test_config_errors_name_the_key() -> None:
         contact.load_scene(SCENE, ["solver.stopping=adaptive"])
     with pytest.raises(ConfigError, match=r"^solver\.stopping: 'exact' is not one of fixed, adapt"):
         contact.load_scene(SCENE, ["solver.stopping=exact"])
-    # elasticity has no equilibrated estimator yet: no η_disc to balance against (hertz_2d)
+    # hertz_2d keeps the residual estimator by default: no η_disc to balance against
     with pytest.raises(ConfigError, match=needs):
         contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", ["solver.stopping=adaptive"])
     for key in ("gamma_lin", "gamma_alg"):

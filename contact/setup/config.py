@@ -617,7 +617,7 @@ SCENE: dict[str, Field] = {
         choices=("residual", "equilibrated"),
         doc="a posteriori error estimator: residual (docs/theory.md §5, reliable up "
         "to a constant) or equilibrated (docs/theory.md §9: a guaranteed "
-        "bound, scalar models only)",
+        "bound; scalar models, and one elastic body against a rigid plane)",
     ),
     "adapt": Field(
         "dict",
@@ -1041,16 +1041,11 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
     _check_vector_data(cfg, model)
     _check_time(cfg)
     _check_friction(cfg, data)
-    if cfg["estimator"] == "equilibrated" and model == "elasticity":
-        raise ConfigError(
-            "estimator: equilibrated is implemented for model types signorini and obstacle; "
-            "use residual for elasticity"
-        )
+    _check_equilibrated(cfg)
     if cfg["solver"]["stopping"] == "adaptive" and cfg["estimator"] != "equilibrated":
         raise ConfigError(
             "solver.stopping: adaptive needs estimator: equilibrated (the "
-            "discretization error it balances against; signorini and obstacle "
-            "scenes)"
+            "discretization error it balances against)"
         )
     if model == "elasticity":
         _check_bodies(cfg, constants)
@@ -1087,6 +1082,35 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
 def is_elastic(cfg: Mapping) -> bool:
     """Whether the scene's unknown is a displacement vector (:data:`ELASTIC_MODELS`)."""
     return cfg["model"]["type"] in ELASTIC_MODELS
+
+
+def _check_equilibrated(cfg: dict) -> None:
+    """``estimator: equilibrated`` covers the scalar models and one linear elastic body
+    against a rigid plane, frictionless or with Tresca friction (docs/theory.md §9); what
+    it does not cover is refused by the key that asks for it."""
+    model = cfg["model"]["type"]
+    if cfg["estimator"] != "equilibrated" or model in ("signorini", "obstacle"):
+        return
+    if model != "elasticity":
+        raise ConfigError(
+            "estimator: equilibrated is implemented for model types signorini, obstacle "
+            f"and elasticity, not {model}; use residual"
+        )
+    if cfg["pairs"] or cfg["bodies"]:
+        raise ConfigError(
+            f"{'pairs' if cfg['pairs'] else 'bodies'}: estimator: equilibrated takes one "
+            "elastic body against a rigid plane (two bodies: not implemented); use residual"
+        )
+    if (cfg.get("obstacle") or {}).get("type") != "plane":
+        raise ConfigError(
+            "obstacle.type: estimator: equilibrated needs a rigid plane (a circle's or "
+            "sphere's normal varies along the contact surface: not implemented); use residual"
+        )
+    if (cfg.get("friction") or {}).get("law", "none") == "coulomb":
+        raise ConfigError(
+            "friction.law: estimator: equilibrated covers frictionless contact and Tresca "
+            "friction, not coulomb; use residual"
+        )
 
 
 def _check_hyperelastic(cfg: dict, model: str) -> None:

@@ -182,15 +182,8 @@ def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") ->
     feasible = s_bound + W
     split = np.sqrt(max(s_bound**2 + 2 * cross + W**2, 0.0))
     eta = min(direct, feasible, split)
-    eta_T = fem.Function(DG0, name="eta_T")
-    n = len(A_T)
-    eta_T.x.array[:n] = np.sqrt(
-        (A_T if direct <= min(feasible, split) else As_T) ** 2
-        + local["W2"]
-        + local["D2"]
-        + local["B"]
-    )
-    eta_T.x.scatter_forward()
+    A_T = A_T if direct <= min(feasible, split) else As_T
+    eta_T = indicators(DG0, A_T**2, local["W2"], local["D2"], local["B"])
     seconds["terms"] = time.perf_counter() - t0
     terms = {name: total[name] for name in TERMS}
     parts = {
@@ -206,6 +199,14 @@ def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") ->
         "defect": flux.defect,
     }
     return Bound(float(eta), eta_T, terms, parts, flux, {**flux.seconds, **seconds})
+
+
+def indicators(DG0: fem.FunctionSpace, *squares: np.ndarray) -> fem.Function:
+    """η_T = (Σ of the owned cells' ``squares``)^{1/2} as a DG0 function (ghosts updated)."""
+    eta_T = fem.Function(DG0, name="eta_T")
+    eta_T.x.array[: len(squares[0])] = np.sqrt(sum(squares))
+    eta_T.x.scatter_forward()
+    return eta_T
 
 
 def _root(S: float, P: float) -> float:
