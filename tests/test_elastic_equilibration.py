@@ -7,7 +7,7 @@ bound (contact/adaptivity/equilibration/stress.py, elastic.py, rotations.py, kor
    polynomials): −div σ_h = Π f cell by cell, σ_h ν = Π t on Γ_N and λ̃_h n + λ_t on Γ_C,
    ∫_T as σ_h = 0 on every cell, all to round-off.
 3. η ≥ the energy error against the exact solution on every level of a small adaptive run
-   of the Tresca scene, and the effectivity stays below 1.6 past level 2.
+   of the Tresca scene, and the effectivity is at most 1.5 past level 2.
 4. The same η on 2 ranks as on 1 (1e-7); scenes the bound does not cover are refused by key.
 """
 
@@ -127,7 +127,7 @@ def test_bound_above_the_error_on_every_level() -> None:
         eff.append(bound.eta / err)
         cells = contact.mark(bound.eta_T, "dorfler", 0.5)
         scene, u0 = contact.refine(scene, cells, result.u_h)
-    assert max(eff[3:]) < 1.6, eff
+    assert max(eff[3:]) <= 1.5, eff
 
 
 PARALLEL = """

@@ -5,45 +5,47 @@ symmetric equilibrated stress of :mod:`.stress`.
 Notation: |||v|||² = a(v, v) = ∫ C ε(v) : ε(v) (C ε = 2μ ε + λ_L tr ε I, plane strain in 2D),
 e = u − u_h, n the obstacle's normal (towards it), g the gap, λ ≤ 0 the contact pressure
 (σ(u)ν = λ n + λ_t on Γ_C), ρ the Tresca bound, s_t = (u − u_prev)_t the slip of the step.
-σ_h (:mod:`.stress`) has −div σ_h = Π_p f, σ_h ν = Π_p t on Γ_N, λ̃_h n + λ̃_t on Γ_C, zero
-in the free components elsewhere, and weakly symmetric rows.  Per cell T
+σ_h (:mod:`.stress`) has −div σ_h = Π f, σ_h ν = Π t on Γ_N, λ̃_h n + λ̃_t on Γ_C, zero in
+the free components elsewhere, and weakly symmetric rows.  With e_D the lifting of the
+Dirichlet interpolation error (:func:`_dirichlet_lifting`, D = |||e_D|||), ū = u_h + e_D
+(= u_D on Γ_D, = u_h on Γ_C) and per cell T
 
-    F_T = ‖C^{-1/2}(sym σ_h − C ε(u_h))‖_T,   Y_T = ‖skw σ_h‖_T,   osc_T (:class:`.stress.Stress`),
+    F_T = ‖C^{-1/2}(sym σ_h − C ε(ū))‖_T,   Y_T = ‖skw σ_h‖_T,   osc_T (:class:`.stress.Stress`),
     A = (Σ F_T²)^{1/2} + C_K (2μ)^{-1/2} (Σ Y_T²)^{1/2}
         + (1 + C_K²)^{1/2} (2μ)^{-1/2} (Σ osc_T²)^{1/2},
 
 C_K the Korn-type constant of :mod:`.korn` (‖skw ∇v‖ ≤ C_K ‖ε(v)‖ on H¹ functions vanishing
 where u is prescribed).  With w ≥ (u_h·n − g) on Γ_C (w = 0 on Γ_D) its lifting W = |||w n|||,
-D = |||e_D||| (the Dirichlet interpolation, as in :mod:`.bound`), and
 
     B   = ∫_{Γ_C} (−λ̃_h)(w − (u_h·n − g)) ≥ 0,
     B_t = ∫_{Γ_C} ρ |s_t,h| + λ̃_t·s_t,h ≥ 0       (Tresca; 0 without friction),
 
-each of η_1 = R(A + W + D, A(W + D) + B + B_t) and η_2 = R(A_s + D, A_s D + B + B_t) + W
-bounds |||u − u_h||| (R(S, P) = ½(S + (S² + 4P)^{1/2}), A_s: A with u_h − w n), and η is
-the smaller.
+each of η_1 = R(A + W, A W + B + B_t) + D and η_2 = R(A_s, B + B_t) + W + D bounds
+|||u − u_h||| (R(S, P) = ½(S + (S² + 4P)^{1/2}), A_s: A with ū − w n), and η is the smaller.
 
 Proof.  For v = u_D on Γ_D (componentwise on symmetry planes), integrating by parts against
 σ_h and with σ(u) symmetric,
 
     |||u − v|||² = ∫ (sym σ_h − C ε(v)) : ε(u − v) − ∫ skw σ_h : skw ∇(u − v)
-                   + (f − Π_p f, u − v) + ⟨t − Π_p t, u − v⟩_{Γ_N}
+                   + (f − Π f, u − v) + ⟨t − Π t, u − v⟩_{Γ_N}
                    + ⟨λ − λ̃_h, (u − v)·n⟩_{Γ_C} + ⟨λ_t − λ̃_t, (u − v)_t⟩_{Γ_C}.
 
 The first term is ≤ F |||u − v|||; the second ≤ Y C_K ‖ε(u − v)‖ ≤ Y C_K (2μ)^{-1/2} |||u − v|||
-(2μ‖ε‖² ≤ a); the oscillations (orthogonal to P_p ⊃ the rigid motions, cell by cell) are
+(2μ‖ε‖² ≤ a); the oscillations (orthogonal to P_{p+1} ⊃ the rigid motions, cell by cell) are
 ≤ Σ osc_T ‖∇(u − v)‖_T (Poincaré and the trace inequality of :func:`.flux._oscillation`,
 per component) and ‖∇z‖² = ‖ε(z)‖² + ‖skw ∇z‖² ≤ (1 + C_K²)‖ε(z)‖².  The normal contact
 term is the scalar one of :mod:`.bound` for the component u·n ≤ g.  The tangential one,
 with |λ_t| ≤ ρ, λ_t·s_t + ρ|s_t| = 0 and |λ̃_t| ≤ ρ:  ⟨λ_t − λ̃_t, s_t − s_t,h⟩ ≤ −∫ρ|s_t| +
-∫ρ|s_t,h| + ∫|λ̃_t||s_t| + ⟨λ̃_t, s_t,h⟩ ≤ B_t.  Then (i) and (ii) follow as in :mod:`.bound`. ∎
+∫ρ|s_t,h| + ∫|λ̃_t||s_t| + ⟨λ̃_t, s_t,h⟩ ≤ B_t.  (i) and (ii) of :mod:`.bound` with v = ū
+(and ū − w n), where D = 0, then the triangle inequality |||u − u_h||| ≤ |||u − ū||| + D. ∎
 
 What is not guaranteed: C_K is a Rayleigh–Ritz value (from below, :mod:`.korn`); it weighs
 the asymmetry, which the weak symmetry makes small, and the data oscillation (zero for
-data in P_p).  The Tresca bound enters through its nodal interpolant ρ_h and the discrete
-law gives |λ_t,h| ≤ ρ_h at the nodes: exact when ρ is linear between contact nodes.  As
-for the scalar bound: the Dirichlet datum through D, quadrature of the data, and the
-algebraic residual (:attr:`.stress.Stress.defect`, reported).
+data in P_{p+1}).  The Tresca bound enters through its nodal interpolant ρ_h and the
+discrete law gives |λ_t,h| ≤ ρ_h at the nodes: exact when ρ is linear between contact
+nodes.  As for the scalar bound: ū = u_D on Γ_D exactly when u_D ∈ P_{p+1} there,
+quadrature of the data, and the algebraic residual (:attr:`.stress.Stress.defect`,
+reported).
 
 η_T² = A_T² + W_T² + D_T² + B_T + B_t,T with A_T = F_T + C_K (2μ)^{-1/2} Y_T + (1 +
 C_K²)^{1/2}(2μ)^{-1/2} osc_T, a DG0 form (marking unchanged); η is the bound.
@@ -55,7 +57,7 @@ import time
 
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 
 from ...setup.scene import Scene
 from ...solvers import Result
@@ -146,8 +148,9 @@ def elastic_bound(scene: Scene, result: Result) -> Bound:
         e = ufl.sym(ufl.grad(z))
         return 2.0 * mu * e + lam * ufl.tr(e) * ufl.Identity(d)
 
-    q = sym - stress_of(u_h)
-    q_s = q + stress_of(w * n)  # s_h = u_h − w n
+    e_D = _dirichlet_lifting(scene, result, stress_of)
+    q = sym - stress_of(u_h if e_D is None else u_h + e_D)  # against u_h + e_D: u_D on Γ_D
+    q_s = q + stress_of(w * n)  # s_h = u_h + e_D − w n
     local = {
         "F": _cellwise(compliance(q) * v * dx),
         "Fs": _cellwise(compliance(q_s) * v * dx),
@@ -155,7 +158,9 @@ def elastic_bound(scene: Scene, result: Result) -> Bound:
         "W2": W_form,
         "B": B_form,
         "Bt": _friction(scene, result, stress, v),
-        "D2": _dirichlet(scene, result, v, stress_of),
+        "D2": np.zeros(len(W_form))
+        if e_D is None
+        else _cellwise(ufl.inner(stress_of(e_D), ufl.sym(ufl.grad(e_D))) * v * dx),
     }
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
     k_as = korn / np.sqrt(2.0 * mu)
@@ -179,8 +184,8 @@ def elastic_bound(scene: Scene, result: Result) -> Bound:
     As = np.sqrt(total["flux_s"]) + extra
     B = total["complementarity"] + total["friction"]
     W, D = np.sqrt(total["feasibility"]), np.sqrt(total["dirichlet"])
-    direct = _root(A + W + D, A * (W + D) + B)
-    feasible = _root(As + D, As * D + B) + W
+    direct = _root(A + W, A * W + B) + D
+    feasible = _root(As, B) + W + D
     eta = min(direct, feasible)
     F_T = np.sqrt(local["F"] if direct <= feasible else local["Fs"])
     A_T = F_T + k_as * np.sqrt(local["Y"]) + k_osc * stress.osc
@@ -239,34 +244,86 @@ def _friction(scene: Scene, result: Result, stress, v) -> np.ndarray:
     return _cellwise(form)
 
 
-def _dirichlet(scene: Scene, result: Result, v, stress_of) -> np.ndarray:
-    """D_T² = a(e_D, e_D)_T, e_D ∈ P_{p+1}^d equal to I_{p+1}u_D − u_h at the Γ_D DoFs off Γ_C
-    (zero elsewhere; zero without a datum ``u_D`` in the problem's data)."""
+def _dirichlet_lifting(scene: Scene, result: Result, stress_of) -> fem.Function | None:
+    """e_D ∈ P_{p+1}^d lifting the Dirichlet interpolation error: e_D = I_{p+1}u_D − u_h at the
+    Γ_D DoFs off Γ_C, 0 on Γ_C and in the prescribed component on symmetry planes, and of
+    least energy over the DoFs of the cells with a vertex on Γ_D (0 beyond): one sparse
+    solve; |||e_D||| is at most that of the extension by zero (measured on the Tresca scene:
+    0.6–0.95 of it).  None without a datum ``u_D`` in the problem's data."""
     p = result.problem
     msh = scene.mesh
-    n_cells = msh.topology.index_map(msh.topology.dim).size_local
+    tdim = msh.topology.dim
     u_D = p.data.get("u_D")
     if u_D is None:
-        return np.zeros(n_cells)
-    u_h = result.u_h
-    tdim = msh.topology.dim
-    deg = u_h.function_space.element.basix_element.degree + 1
+        return None
+    deg = result.u_h.function_space.element.basix_element.degree + 1
     V2 = fem.functionspace(msh, ("Lagrange", deg, (msh.geometry.dim,)))
+    bs = V2.dofmap.index_map_bs
     bnd = scene.boundary
-    dofs = np.setdiff1d(
-        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet")),
-        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact")),
-    )
-    e_D, u2, d2 = fem.Function(V2), fem.Function(V2), fem.Function(V2)
-    u2.interpolate(u_h)
+    on_D = fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet"))
+    on_C = fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact"))
+    u2, d2 = fem.Function(V2), fem.Function(V2)
+    u2.interpolate(result.u_h)
     if isinstance(u_D, fem.Constant):
-        d2.x.array.reshape(-1, msh.geometry.dim)[:] = u_D.value
+        d2.x.array.reshape(-1, bs)[:] = u_D.value
     else:
         d2.interpolate(fem.Expression(u_D, V2.element.interpolation_points))
-    bs = V2.dofmap.index_map_bs
-    idx = (dofs[:, None] * bs + np.arange(bs)).ravel()
-    e_D.x.array[idx] = d2.x.array[idx] - u2.x.array[idx]
-    e_D.x.scatter_forward()
-    e = ufl.sym(ufl.grad(e_D))
-    dx = ufl.Measure("dx", domain=msh)
-    return _cellwise(ufl.inner(stress_of(e_D), e) * v * dx)
+    lift = fem.Function(V2)
+    given = (np.setdiff1d(on_D, on_C)[:, None] * bs + np.arange(bs)).ravel()
+    lift.x.array[given] = d2.x.array[given] - u2.x.array[given]
+    # fixed: Γ_D, Γ_C, the symmetry planes' prescribed component, all but the layer
+    fixed = ~np.repeat(_layer_dofs(V2, bnd.facets("dirichlet")), bs)
+    fixed[(np.union1d(on_D, on_C)[:, None] * bs + np.arange(bs)).ravel()] = True
+    planes = [n for n, role in bnd.roles.items() if role == "symmetry"]
+    for name, axis in zip(planes, p.symmetry_axes):
+        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
+        fixed[fem.locate_dofs_topological(V2, tdim - 1, facets) * bs + axis] = True
+    return _least_energy(lift, fixed, stress_of)
+
+
+def _layer_dofs(V, facets: np.ndarray) -> np.ndarray:
+    """Per (unblocked, local) DoF of V: whether a cell with a vertex on ``facets`` holds it —
+    on every rank that has the DoF, whichever rank has the cell (collective)."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, 0)
+    msh.topology.create_connectivity(0, tdim)
+    f2v, v2c = msh.topology.connectivity(tdim - 1, 0), msh.topology.connectivity(0, tdim)
+    verts = np.unique(np.concatenate([f2v.links(f) for f in facets] or [np.zeros(0, np.int32)]))
+    cells = np.unique(np.concatenate([v2c.links(x) for x in verts] or [np.zeros(0, np.int32)]))
+    mark = la.vector(V.dofmap.index_map, 1)
+    mark.array[V.dofmap.list[cells].ravel()] = 1.0
+    mark.scatter_reverse(la.InsertMode.add)
+    mark.scatter_forward()
+    return mark.array > 0.5
+
+
+def _least_energy(lift: fem.Function, fixed: np.ndarray, stress_of) -> fem.Function:
+    """The function equal to ``lift`` at the DoFs ``fixed`` (local, blocked indices) of least
+    energy a(e, e) over the others (MUMPS; collective)."""
+    from dolfinx.fem import petsc as fem_petsc
+    from petsc4py import PETSc
+
+    V = lift.function_space
+    u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
+    A = fem_petsc.assemble_matrix(fem.form(ufl.inner(stress_of(u), ufl.sym(ufl.grad(w))) * ufl.dx))
+    A.assemble()
+    x = lift.x.petsc_vec
+    b = A.createVecLeft()
+    A.mult(x, b)  # the free rows: A_free,fixed x_fixed (x is 0 on the free DoFs)
+    b.scale(-1.0)
+    owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    rows = np.flatnonzero(fixed[:owned])
+    A.zeroRowsColumns((rows + A.getOwnershipRange()[0]).astype(PETSc.IntType), 1.0)
+    b.array[rows] = x.array[rows]
+    ksp = PETSc.KSP().create(V.mesh.comm)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    out = fem.Function(V)
+    ksp.solve(b, out.x.petsc_vec)
+    out.x.scatter_forward()
+    for obj in (A, b, ksp):
+        obj.destroy()
+    return out
