@@ -278,6 +278,8 @@ def _dirichlet_lifting(scene: Scene, result: Result, stress_of) -> fem.Function 
     for name, axis in zip(planes, p.symmetry_axes):
         facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
         fixed[fem.locate_dofs_topological(V2, tdim - 1, facets) * bs + axis] = True
+    if not msh.comm.allreduce(bool(np.any(lift.x.array != 0.0))):
+        return lift  # u_h interpolates u_D exactly (u_D ∈ P_p on Γ_D): no solve
     return _least_energy(lift, fixed, stress_of)
 
 
