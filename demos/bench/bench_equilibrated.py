@@ -17,16 +17,17 @@ every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off).
     python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
 
-Elasticity (issue 30 item 2; contact/adaptivity/equilibration/elastic.py): ``tresca_P1``, the
-manufactured Tresca scene (configs/friction_tresca_manufactured.yaml, exact solution: the
-same checks), and ``hertz_P1`` (configs/hertz_2d.yaml), whose error on every level is taken
-against a reference solution on the final mesh refined uniformly twice (4× finer; each
-level's u_h transferred to it by point location, exact on the nested part and linear
-extrapolation in the slivers the snapped arc adds): there η ≥ that error on every level
-is checked.  Their rows add the Korn-type constant ``korn`` (C_K) and the bound's terms.
+Elasticity (issue 30 item 2; contact/adaptivity/equilibration/elastic.py): ``tresca_P1``
+and ``tresca_P2``, the manufactured Tresca scene (configs/friction_tresca_manufactured.yaml,
+exact solution: the same checks), and ``hertz_P1`` (configs/hertz_2d.yaml), whose error on
+every level is taken against a reference solution on the final mesh refined uniformly
+twice (4× finer; each level's u_h transferred to it by point location, exact on the nested
+part and linear extrapolation in the slivers the snapped arc adds): there η ≥ that error
+on every level is checked.  Their rows add the Korn-type constant ``part_korn`` (C_K) and
+the bound's terms (``term_*``); run alone they go to ``effectivity_elastic*.csv``.
 
-    python demos/bench/bench_equilibrated.py --problems hertz_P1 tresca_P1 --max-dofs 50000 \
-        --out demos/results/equilibrated
+    python demos/bench/bench_equilibrated.py --problems tresca_P1 tresca_P2 hertz_P1 \
+        --max-dofs 50000 --out demos/results/equilibrated
 
 Cost (``--cost N``): problem A on [2N, N] cells (N = 720: 1.04M DoFs; ``--cost3d N``: its
 extrusion u(x, y, z) = u_A(x, y) on [−1, 1] × [0, 1]² with [2N, N, N] cells, N = 63: 520k
@@ -78,12 +79,13 @@ PROBLEMS = {  # name: (scene, overrides)
     "D_P1": ("lshape_corner.yaml", []),
     "ex9_P1": ("peers/petsc_ex9.yaml", ["mesh.cells=[8,8]"]),
     "tresca_P1": ("friction_tresca_manufactured.yaml", []),
+    "tresca_P2": ("friction_tresca_manufactured.yaml", ["mesh.degree=2", "mesh.cells=[4,4]"]),
     "hertz_P1": ("hertz_2d.yaml", []),
 }
 #: problems whose error is measured against a reference solution 4× finer (no exact one)
 REFERENCE = ("hertz_P1",)
 #: the elastic problems (their rows go to effectivity_elastic*.csv when run alone)
-ELASTIC = ("tresca_P1", "hertz_P1")
+ELASTIC = ("tresca_P1", "tresca_P2", "hertz_P1")
 #: effectivity bound past the first LEVELS_EXEMPT levels (issue 30's acceptance)
 BOUND, LEVELS_EXEMPT = 1.5, 3
 
