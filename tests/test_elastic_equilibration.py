@@ -165,3 +165,10 @@ def test_same_bound_on_two_ranks(tmp_path) -> None:
 def test_what_the_bound_does_not_cover_is_refused_by_key(sets, key) -> None:
     with pytest.raises(ConfigError, match=rf"^{key}\.\w+: estimator: equilibrated"):
         _scene(["estimator=equilibrated", *sets])
+
+
+def test_three_dimensions_are_refused_by_key() -> None:
+    """3D runs (the patch test is exact there too) but a vertex patch of the stress is a
+    dense system of ~400 unknowns: refused, naming the key."""
+    with pytest.raises(ConfigError, match=r"^mesh\.type: estimator: equilibrated for elasticity"):
+        contact.load_scene(ROOT / "configs" / "hertz_3d.yaml", ["estimator=equilibrated"])

@@ -1084,6 +1084,14 @@ def is_elastic(cfg: Mapping) -> bool:
     return cfg["model"]["type"] in ELASTIC_MODELS
 
 
+#: the message for an elastic 3D scene with the equilibrated estimator (also raised at
+#: estimate time for a gmsh mesh, whose dimension the configuration does not show)
+STRESS_3D = (
+    "mesh.type: estimator: equilibrated for elasticity is 2D only (in 3D each vertex "
+    "patch of the stress is a dense system of ~400 unknowns: too slow); use residual"
+)
+
+
 def _check_equilibrated(cfg: dict) -> None:
     """``estimator: equilibrated`` covers the scalar models and one linear elastic body
     against a rigid plane, frictionless or with Tresca friction (docs/theory.md §9); what
@@ -1111,6 +1119,10 @@ def _check_equilibrated(cfg: dict) -> None:
             "friction.law: estimator: equilibrated covers frictionless contact and Tresca "
             "friction, not coulomb; use residual"
         )
+    from .meshes import mesh_dimension
+
+    if mesh_dimension(cfg) == 3:
+        raise ConfigError(STRESS_3D)
 
 
 def _check_hyperelastic(cfg: dict, model: str) -> None:

@@ -92,6 +92,11 @@ def stress_data(scene: Scene, result: Result) -> StressData:
             "estimator: equilibrated for elasticity needs one body against a rigid plane"
         )
     d = scene.mesh.topology.dim
+    if d == 3:
+        from ...base.errors import ConfigError
+        from ...setup.config import STRESS_3D
+
+        raise ConfigError(STRESS_3D)
     dirichlet = [list(bnd.ids_with_role("dirichlet")) for _ in range(d)]
     planes = [n for n, role in bnd.roles.items() if role == "symmetry"]
     for name, axis in zip(planes, p.symmetry_axes):
