@@ -526,16 +526,22 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     hp = mom.hq[prow, ploc] + np.einsum(
         "nfz,nzk,nk->nf", cells.OZ[prow], cells.HaG[prow], c, optimize=True
     )  # (npair, D B): the normal moments of σ_a at μ = 0
-    # per pair: condense the opposite facet (its block: rows ploc·B … ploc·B + B − 1)
+    # per pair: condense the opposite facet (its block: rows ploc·B … ploc·B + B − 1), for
+    # each cell and local vertex at once (static index sets per local vertex)
     blocks = np.arange(D * B).reshape(D, B)
     I_o = blocks[ploc]  # (npair, B)
     I_s = blocks[sf].reshape(npair, d * B)
-    S = cells.S[prow]
-    Sss = S[ar[:, None, None], I_s[:, :, None], I_s[:, None, :]]
-    Sso = S[ar[:, None, None], I_s[:, :, None], I_o[:, None, :]]
-    Soo_inv = np.linalg.inv(S[ar[:, None, None], I_o[:, :, None], I_o[:, None, :]])
+    Sso_all = np.empty((len(cells.S), D, d * B, B))
+    Soo_inv_all = np.empty((len(cells.S), D, B, B))
+    Shat_all = np.empty((len(cells.S), D, d * B, d * B))
+    for j in range(D):  # the cells' patches of their local vertex j
+        i_s, i_o = blocks[others[j]].ravel(), blocks[j]
+        Sso_all[:, j] = cells.S[:, i_s][:, :, i_o]
+        Soo_inv_all[:, j] = np.linalg.inv(cells.S[:, i_o][:, :, i_o])
+        Tj = Sso_all[:, j] @ Soo_inv_all[:, j]
+        Shat_all[:, j] = cells.S[:, i_s][:, :, i_s] - Tj @ np.transpose(Sso_all[:, j], (0, 2, 1))
+    Sso, Soo_inv, Shat = Sso_all[prow, ploc], Soo_inv_all[prow, ploc], Shat_all[prow, ploc]
     T = Sso @ Soo_inv
-    Shat = Sss - T @ np.transpose(Sso, (0, 2, 1))
     dp = dglob[prow, ploc]
     b = (hp[ar[:, None], I_s] - np.einsum("nab,nb->na", T, hp[ar[:, None], I_o])) - dp[
         ar[:, None], I_s
