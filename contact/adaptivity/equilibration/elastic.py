@@ -58,6 +58,7 @@ import time
 import numpy as np
 import ufl
 from dolfinx import fem, la
+from mpi4py import MPI
 
 from ...setup.scene import Scene
 from ...solvers import Result
@@ -283,8 +284,11 @@ def _dirichlet_lifting(scene: Scene, result: Result, stress_of) -> fem.Function 
     for name, axis in zip(planes, p.symmetry_axes):
         facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
         fixed[fem.locate_dofs_topological(V2, tdim - 1, facets) * bs + axis] = True
-    if not msh.comm.allreduce(bool(np.any(lift.x.array != 0.0))):
-        return lift  # u_h interpolates u_D exactly (u_D ∈ P_p on Γ_D): no solve
+    scale = msh.comm.allreduce(float(np.max(np.abs(d2.x.array), initial=0.0)), op=MPI.MAX)
+    if msh.comm.allreduce(float(np.max(np.abs(lift.x.array), initial=0.0)), op=MPI.MAX) <= (
+        1e-13 * scale
+    ):
+        return None  # u_h interpolates u_D to round-off (u_D ∈ P_p on Γ_D): D = 0, no solve
     return _least_energy(lift, fixed, stress_of)
 
 

@@ -75,7 +75,8 @@ from .cells import (
 )
 from .flux import _multiplier_functions, _oscillation, rt_function
 from .multiplier import clipped, entity_rule, shares
-from .operators import CellOperators, det_inv
+from .operators import CellOperators, _projected, det_inv
+from .patches import _assemble
 from .reference import CELLS, Reference, reference
 
 __all__ = ["Stress", "StressData", "reconstruct_stress", "skew_pairs"]
@@ -267,6 +268,8 @@ class _Cells:
     OZ: np.ndarray  # (n, D d nf, d mz): normal moments of Zγ, rows (facet, row, k)
     OR: np.ndarray  # (n, D d nf, d np)
     S: np.ndarray  # (n, D d nf, D d nf)
+    OHaG: np.ndarray  # (n, D d nf, nas): O H a_Zᵀ G⁻¹
+    POt: np.ndarray  # (n, d mz, D d nf): P Oᵀ
 
 
 def _block_diag(X: np.ndarray, d: int, D: int, nf: int) -> np.ndarray:
@@ -279,6 +282,24 @@ def _block_diag(X: np.ndarray, d: int, D: int, nf: int) -> np.ndarray:
     return out.reshape(n, D * d * nf, d * k)
 
 
+def _objective(T: np.ndarray, mu: float, lam: float, skew_weight: float) -> np.ndarray:
+    """The mass of the patch objective ∫ C⁻¹σ:τ + κ ∫ skw σ : skw τ, C⁻¹σ = (σ − c tr σ I)/(2μ),
+    c = λ/(2μ + dλ), from the row blocks T (n, d, d, a, b) of ∫ (φ·e_r)(φ·e_s): (n, d a, d b)."""
+    n, d, _, a, b = T.shape
+    c_lam = lam / (2.0 * mu + d * lam)
+    trace = np.einsum("nrrab->nab", T)
+    M = np.zeros((n, d, a, d, b))
+    for r in range(d):
+        for s in range(d):
+            M[:, r, :, s, :] = ((r == s) * trace - c_lam * T[:, r, s]) / (2.0 * mu)
+    for i, j in skew_pairs(d):  # + κ ∫ skw σ : skw τ = κ/2 ∫ (σ_ij − σ_ji)(τ_ij − τ_ji)
+        M[:, i, :, i, :] += 0.5 * skew_weight * T[:, j, j]
+        M[:, j, :, j, :] += 0.5 * skew_weight * T[:, i, i]
+        M[:, i, :, j, :] -= 0.5 * skew_weight * T[:, j, i]
+        M[:, j, :, i, :] -= 0.5 * skew_weight * T[:, i, j]
+    return M.reshape(n, d * a, d * b)
+
+
 def _cell_operators(
     table: CellTable, ref: Reference, mu: float, lam: float, skew_weight: float
 ) -> _Cells:
@@ -289,33 +310,23 @@ def _cell_operators(
     x = table.x
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     absdet = g["absdet"]
-    # T_rs = ∫_T (φ·e_r)(φ·e_s) of the Piola-mapped basis: Σ_ij J_ri J_sj mass_ij / |det J|
-    T = (
-        np.einsum("nri,nsj,ijab->nrsab", J, J, ref.mass, optimize=True)
-        / absdet[:, None, None, None, None]
-    )
-    c_lam = lam / (2.0 * mu + d * lam)
-    trace = np.einsum("nrrab->nab", T)
-    m = ref.m
-    M = np.zeros((n, d, m, d, m))
-    for r in range(d):
-        for s in range(d):
-            M[:, r, :, s, :] = ((r == s) * trace - c_lam * T[:, r, s]) / (2.0 * mu)
-    for i, j in skew_pairs(d):  # + κ ∫ skw σ : skw τ = κ/2 ∫ (σ_ij − σ_ji)(τ_ij − τ_ji)
-        M[:, i, :, i, :] += 0.5 * skew_weight * T[:, j, j]
-        M[:, j, :, j, :] += 0.5 * skew_weight * T[:, i, i]
-        M[:, i, :, j, :] -= 0.5 * skew_weight * T[:, j, i]
-        M[:, j, :, i, :] -= 0.5 * skew_weight * T[:, i, j]
-    M = M.reshape(n, d * m, d * m)
+    # the objective's mass M (rows r, s) only enters projected: M_Z = Z_bᵀ M Z_b and
+    # Z_bᵀ M R_b, each a combination of T_rs = ∫_T (φ·e_r)(φ·e_s) of the Piola-mapped basis,
+    # Σ_ij J_ri J_sj mass_ij / |det J|, projected on the reference (Zᵀ mass_ij Z, Zᵀ mass_ij R)
     Zb = np.kron(np.eye(d), ref.Z)  # (d m, d mz)
     Rb = np.kron(np.eye(d), ref.R)  # (d m, d np)
-    MZ = Zb.T @ M @ Zb
+    JJ = np.einsum("nri,nsj->nrsij", J, J) / absdet[:, None, None, None, None]
+    blocks = {
+        right: np.einsum("nrsij,ijab->nrsab", JJ, _projected(ref, right), optimize=True)
+        for right in ("ZZ", "ZR")
+    }
+    MZ = _objective(blocks["ZZ"], mu, lam, skew_weight)
     H = np.linalg.inv(MZ)
-    ZMR = Zb.T @ M @ Rb
+    ZMR = _objective(blocks["ZR"], mu, lam, skew_weight)
     # ∫_T σ_ij − σ_ji: ∫_T (φ·e_c) = s (J M1)_c with M1[k, l] = ∫̂ φ̂_l,k
     M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
     JM1 = g["s"][:, None, None] * np.einsum("nck,kl->ncl", J, M1)  # (n, d, m)
-    pairs = skew_pairs(d)
+    pairs, m = skew_pairs(d), ref.m
     A = np.zeros((n, len(pairs), d, m))
     for k, (i, j) in enumerate(pairs):
         A[:, k, i] += JM1[:, j]
@@ -328,8 +339,8 @@ def _cell_operators(
     P = H - HaG @ np.transpose(HaT, (0, 2, 1))
     OZ = _block_diag(ops.OZ, d, D, nf)
     OR = _block_diag(ops.OR, d, D, nf)
-    S = OZ @ P @ np.transpose(OZ, (0, 2, 1))
-    return _Cells(ops, P, HaG, ZMR, aR, OZ, OR, S)
+    POt = P @ np.transpose(OZ, (0, 2, 1))
+    return _Cells(ops, P, HaG, ZMR, aR, OZ, OR, OZ @ POt, OZ @ HaG, POt)
 
 
 @dataclass
@@ -524,7 +535,7 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     c = mom.c[prow, ploc]
     gamma0 = mom.Pq[prow, ploc] + np.einsum("nzk,nk->nz", cells.HaG[prow], c)
     hp = mom.hq[prow, ploc] + np.einsum(
-        "nfz,nzk,nk->nf", cells.OZ[prow], cells.HaG[prow], c, optimize=True
+        "nfk,nk->nf", cells.OHaG[prow], c
     )  # (npair, D B): the normal moments of σ_a at μ = 0
     # per pair: condense the opposite facet (its block: rows ploc·B … ploc·B + B − 1), for
     # each cell and local vertex at once (static index sets per local vertex)
@@ -562,17 +573,11 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
         where[members] = np.arange(len(members))
         sel = np.flatnonzero(where[patch] >= 0)
         dim = n_slots * nf
-        A = np.zeros((len(members), dim, dim))
-        rhs = np.zeros((len(members), dim))
         pi, ii = where[patch[sel]], idx[sel]
         ok = ii >= 0
         rows = np.where(ok, ii, 0)
-        np.add.at(rhs, (np.repeat(pi[:, None], ii.shape[1], 1)[ok], rows[ok]), b[sel][ok])
-        both = ok[:, :, None] & ok[:, None, :]
-        pp = np.broadcast_to(pi[:, None, None], both.shape)
-        rr = np.broadcast_to(rows[:, :, None], both.shape)
-        cc = np.broadcast_to(rows[:, None, :], both.shape)
-        np.add.at(A, (pp[both], rr[both], cc[both]), Shat[sel][both])
+        # the pairs' blocks summed into the patch systems (slot = (spoke, row), nf moments)
+        A, rhs = _assemble(pi, loc[sel], Shat[sel], b[sel], len(members), n_slots, nf)
         # the rigid motions of a closed patch span the kernel of A and the right-hand side
         # is orthogonal to them (up to the solve's residual): a shift of 1e-12 of the
         # diagonal's scale makes A regular; the kernel part of μ does not change σ_a
@@ -588,9 +593,8 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     mu = np.zeros((npair, D * B))
     mu[ar[:, None], I_s] = mu_s
     mu[ar[:, None], I_o] = mu_o
-    gamma = gamma0 - np.einsum(
-        "nyz,nfz,nf->ny", cells.P[prow], cells.OZ[prow], mu, optimize=True
-    )  # γ = γ⁰ − P Oᵀ μ
+    gamma = gamma0 - np.einsum("nyf,nf->ny", cells.POt[prow], mu)  # γ = γ⁰ − P Oᵀ μ
+
     m, npp, mz = ref.m, ref.np_, ref.Z.shape[1]
     contrib = np.einsum("nrj,lj->nrl", beta[prow, ploc], ref.R) + np.einsum(
         "nrz,lz->nrl", gamma.reshape(npair, d, mz), ref.Z
