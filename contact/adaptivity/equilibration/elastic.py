@@ -93,11 +93,17 @@ def stress_data(scene: Scene, result: Result) -> StressData:
             "estimator: equilibrated for elasticity needs one body against a rigid plane"
         )
     d = scene.mesh.topology.dim
+    from ...base.errors import ConfigError
+
     if d == 3:
-        from ...base.errors import ConfigError
         from ...setup.config import STRESS_3D
 
         raise ConfigError(STRESS_3D)
+    if p.floating or p.semicoercive:  # no Korn inequality on H¹_D: C_K does not exist
+        raise ConfigError(
+            "estimator: equilibrated needs the elastic body held by Dirichlet or symmetry "
+            "conditions (this one has rigid motions only contact holds); use residual"
+        )
     dirichlet = [list(bnd.ids_with_role("dirichlet")) for _ in range(d)]
     planes = [n for n, role in bnd.roles.items() if role == "symmetry"]
     for name, axis in zip(planes, p.symmetry_axes):

@@ -187,14 +187,15 @@ def reconstruct_stress(data: StressData) -> Stress:
     seconds["rotations"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     source = np.full(n_owned, comm.rank)
-    extra = replace(tables[0], U=np.concatenate([m.reshape(n_owned, -1)] + lam_t, axis=1))
     work = [complete(comm, t, source)[0] for t in tables]
+    # the as-moments and the tangential traction's coefficients ride along to the patches'
+    # ranks in the U column of a copy of the first table
+    extra = replace(tables[0], U=np.concatenate([m.reshape(n_owned, -1), *lam_t], axis=1))
     extra_w, src = complete(comm, extra, source)
     nm = m.shape[1] * m.shape[2]
+    nu = lam_t[0].shape[1] if lam_t else 0
     m_w = extra_w.U[:, :nm].reshape(-1, *m.shape[1:])
-    lam_t_w = [
-        extra_w.U[:, nm + k * len(lam_t[0][0]) :][:, : len(lam_t[0][0])] for k in range(len(lam_t))
-    ]
+    lam_t_w = [extra_w.U[:, nm + k * nu : nm + (k + 1) * nu] for k in range(len(lam_t))]
     seconds["gather"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     vmap = msh.topology.index_map(0)
@@ -595,11 +596,10 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     mu[ar[:, None], I_o] = mu_o
     gamma = gamma0 - np.einsum("nyf,nf->ny", cells.POt[prow], mu)  # γ = γ⁰ − P Oᵀ μ
 
-    m, npp, mz = ref.m, ref.np_, ref.Z.shape[1]
+    m, mz = ref.m, ref.Z.shape[1]
     contrib = np.einsum("nrj,lj->nrl", beta[prow, ploc], ref.R) + np.einsum(
         "nrz,lz->nrl", gamma.reshape(npair, d, mz), ref.Z
     )  # (npair, d, m)
-    del npp
     for r in range(d):
         for col in range(m):
             alpha[:, r, col] += np.bincount(
