@@ -13,6 +13,8 @@ bound (contact/adaptivity/equilibration/stress.py, elastic.py, rotations.py, kor
 
 from __future__ import annotations
 
+import csv
+
 import contact  # noqa: F401  (before dolfinx)
 from contact.adaptivity.energy_error import solution_error
 from contact.adaptivity.equilibration.elastic import elastic_bound, stress_data
@@ -22,7 +24,8 @@ from contact.base.errors import ConfigError
 import numpy as np
 import pytest
 import ufl
-from clirun import ROOT, script_json
+from clirun import ROOT, error_lines, script_json
+from clirun import contact as cli
 from dolfinx import fem
 
 TRESCA = ROOT / "configs" / "friction_tresca_manufactured.yaml"
@@ -172,3 +175,47 @@ def test_three_dimensions_are_refused_by_key() -> None:
     dense system of ~400 unknowns: refused, naming the key."""
     with pytest.raises(ConfigError, match=r"^mesh\.type: estimator: equilibrated for elasticity"):
         contact.load_scene(ROOT / "configs" / "hertz_3d.yaml", ["estimator=equilibrated"])
+
+
+def test_cli_run_reports_the_bound_and_its_terms(tmp_path) -> None:
+    """As users run it: ``contact run`` of the Tresca scene with the equilibrated estimator,
+    two levels: exit 0, and convergence.csv has η ≥ the error (effectivity ≥ 1) on both
+    levels and the elastic terms among its columns."""
+    proc = cli(
+        ROOT,
+        "run",
+        str(TRESCA),
+        "-o",
+        str(tmp_path / "out"),
+        "--set",
+        "estimator=equilibrated",
+        "--set",
+        "adapt.max_levels=2",
+        "--set",
+        "output.png=false",
+    )
+    assert proc.returncode == 0, proc.stderr
+    with open(tmp_path / "out" / "convergence.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2
+    for row in rows:
+        assert float(row["effectivity"]) >= 1.0
+        assert float(row["eta2_asymmetry"]) > 0 and float(row["eta2_friction"]) >= 0
+
+
+def test_cli_a_coulomb_scene_is_one_line_exit_2(tmp_path) -> None:
+    proc = cli(
+        ROOT,
+        "run",
+        str(ROOT / "configs" / "hertz_2d.yaml"),
+        "-o",
+        str(tmp_path / "out"),
+        "--set",
+        "estimator=equilibrated",
+        "--set",
+        "friction={law: coulomb, coefficient: 0.3}",
+    )
+    assert proc.returncode == 2
+    lines = error_lines(proc)
+    assert len(lines) == 1 and "friction.law" in lines[0], proc.stderr
+    assert not (tmp_path / "out").exists()

@@ -20,7 +20,11 @@ final errors within 5 %) and writes ``stopping.csv`` (one row per run) and
 with the rigid-body near-nullspace; η_disc the weakly symmetric equilibrated stress's bound
 of contact/adaptivity/equilibration/elastic.py), writing ``stopping_hertz_2d*.csv``:
 
-    python demos/bench/bench_stopping.py --scene hertz_2d --tol 1e-4 --out demos/results/stopping
+    python demos/bench/bench_stopping.py --scene hertz_2d --tol 1.2e-4 --out demos/results/stopping
+
+Measured there (2 runs of each, 7 levels to 32k DoFs): Krylov iterations 126 → 22, final
+error against a reference with 502k DoFs 8.825e-5 → 8.834e-5 (+0.11 %), CPU 28.6 → 40.3 s
+(the estimate is 95 % of it, and level 4 needed a second pass).
 """
 
 from __future__ import annotations
