@@ -130,8 +130,10 @@ class Stress:
         return ufl.as_matrix([[row[j] for j in range(len(self.rows))] for row in self.rows])
 
 
-#: the rows of σ_h lie in RT_{p+EXTRA} for u_h ∈ P_p: with RT_p the weak symmetry leaves
-#: ‖skw σ_h‖ at a floor that no weight removes (hertz_2d …, docs/theory.md §9.2)
+#: the rows of σ_h lie in RT_{p+EXTRA} for u_h ∈ P_p.  With RT_p the asymmetry that the
+#: weak symmetry leaves inside the cells is larger: the Tresca scene's effectivity on levels
+#: 3–7 (P1, κ = 4 C_K²/(2μ), before the Dirichlet lifting of :mod:`.elastic`) was 1.72–1.87
+#: with RT_1 rows and 1.43–1.54 with RT_2 (docs/theory.md §9.2)
 EXTRA = 1
 
 
