@@ -62,7 +62,6 @@ from contact.adaptivity.equilibration.elastic import elastic_bound
 from contact.adaptivity.equilibration.flux import BACKENDS, reconstruct_flux
 from contact.adaptivity.estimate import estimate
 from contact.adaptivity.refine import next_dofs_bound
-from contact.setup.config import is_elastic
 from contact.solvers.options import default_options
 
 import numpy as np
@@ -93,7 +92,10 @@ BOUND, LEVELS_EXEMPT = 1.5, 3
 def residual_eta(scene: contact.Scene, result) -> float:
     """The residual estimator (docs/theory.md §5) of the same solve."""
     return estimate(
-        dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result
+        dataclasses.replace(
+            scene, config=scene.config.model_copy(update={"estimator": "residual"})
+        ),
+        result,
     ).eta
 
 
@@ -108,7 +110,7 @@ def effectivity(
         ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"]
     )
     rows, u0, solves = [], None, []
-    bound_of = elastic_bound if is_elastic(scene.cfg) else guaranteed_bound
+    bound_of = elastic_bound if scene.config.elastic else guaranteed_bound
     for level in range(max_levels):
         t0 = time.perf_counter()
         result = contact.solve(scene, u0=u0, verbose=False)

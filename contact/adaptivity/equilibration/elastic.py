@@ -147,6 +147,7 @@ def elastic_bound(scene: Scene, result: Result) -> Bound:
     v = ufl.TestFunction(DG0)
     p = u_h.function_space.element.basix_element.degree
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * p + 4})
+    assert data.normal is not None  # a plane (stress_data)
     n = ufl.as_vector(data.normal.tolist())
     w, W_form, B_form = _normal_lifting(scene, result, n, stress.lmbda, v)
     sigma_h = stress.sigma
@@ -223,6 +224,7 @@ def _normal_lifting(scene: Scene, result: Result, n, lmbda, v):
     the DG0 vectors of W_T² = ‖C^{1/2} ε(w n)‖²_T and of B_T."""
     p = result.problem
     S = p.output_space
+    assert S is not None  # the rigid obstacle's scalar output space
     u_n, g_h = fem.Function(S), fem.Function(S)
     u_n.interpolate(fem.Expression(ufl.dot(result.u_h, n), S.element.interpolation_points))
     g_h.interpolate(fem.Expression(p.data["g_ufl"], S.element.interpolation_points))

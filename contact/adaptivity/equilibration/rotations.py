@@ -43,7 +43,7 @@ def spread(msh, free_facets: np.ndarray, area: np.ndarray, r: np.ndarray) -> np.
     centroid = ufl.dx(domain=msh, metadata={"quadrature_degree": 0})
     form = fem.form((tdim + 1) * (u * v * vertex - u * v * centroid))
     free = fem.locate_dofs_topological(V, tdim - 1, free_facets)
-    bc = fem.dirichletbc(PETSc.ScalarType(0.0), free, V)  # type: ignore[arg-type]
+    bc = fem.dirichletbc(np.float64(0.0), free, V)
     L = fem_petsc.assemble_matrix(form, bcs=[bc], diag=1.0)
     L.assemble()
     ksp = PETSc.KSP().create(msh.comm)
@@ -59,7 +59,8 @@ def spread(msh, free_facets: np.ndarray, area: np.ndarray, r: np.ndarray) -> np.
         np.add.at(b.array, dofs.ravel(), r[:, :, k].ravel())
         b.scatter_reverse(la.InsertMode.add)
         b.array[free] = 0.0
-        rhs = PETSc.Vec().createWithArray(b.array[: V.dofmap.index_map.size_local], comm=msh.comm)
+        owned = b.array[: V.dofmap.index_map.size_local]
+        rhs = PETSc.Vec().createWithArray(owned, comm=msh.comm)  # type: ignore[arg-type]
         sol = phi.x.petsc_vec
         ksp.solve(rhs, sol)
         rhs.destroy()

@@ -154,7 +154,7 @@ def _data(d: int, p_u: int, p_s: int) -> dict:
         basix.ElementFamily.P, CELLS[d], p_u, basix.LagrangeVariant.gll_warped
     )
     return {
-        "dphi_u": np.moveaxis(lag.tabulate(1, r.X)[1:, :, :, 0], 0, -1),  # (nq, nu, d)
+        "dphi_u": np.moveaxis(np.asarray(lag.tabulate(1, r.X))[1:, :, :, 0], 0, -1),  # (nq, nu, d)
         "wlamQ": np.einsum("q,qa,jq->qaj", r.w, r.lam, r.Q),
         "wQ": np.einsum("q,jq->qj", r.w, r.Q),
     }
@@ -330,11 +330,11 @@ def _cell_operators(
     M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
     JM1 = g["s"][:, None, None] * np.einsum("nck,kl->ncl", J, M1)  # (n, d, m)
     pairs, m = skew_pairs(d), ref.m
-    A = np.zeros((n, len(pairs), d, m))
+    A4 = np.zeros((n, len(pairs), d, m))
     for k, (i, j) in enumerate(pairs):
-        A[:, k, i] += JM1[:, j]
-        A[:, k, j] -= JM1[:, i]
-    A = A.reshape(n, len(pairs), d * m)
+        A4[:, k, i] += JM1[:, j]
+        A4[:, k, j] -= JM1[:, i]
+    A = A4.reshape(n, len(pairs), d * m)
     aZ, aR = A @ Zb, A @ Rb
     HaT = H @ np.transpose(aZ, (0, 2, 1))
     Ginv = np.linalg.inv(aZ @ HaT)
