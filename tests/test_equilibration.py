@@ -202,7 +202,7 @@ def test_estimator_key() -> None:
         "estimator": "equilibrated",
         "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]},
     }
-    assert contact.load_scene(elastic).cfg["estimator"] == "equilibrated"  # issue 30 item 2
+    assert contact.load_scene(elastic).config.estimator == "equilibrated"  # issue 30 item 2
     with pytest.raises(
         ConfigError, match=r"^estimator: equilibrated is implemented for model types signorini"
     ):
