@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import os
 import subprocess
 import sys
@@ -31,6 +32,22 @@ def contact(
     return subprocess.run(
         [*prefix, *cmd], cwd=cwd, env=full_env, capture_output=True, text=True, timeout=timeout
     )
+
+
+def script_json(script: str, folder: Path, *args: str, ranks: int = 1) -> object:
+    """Run the Python ``script`` (text) under ``mpirun -n ranks`` in ``folder`` with ``args``;
+    the JSON its rank 0 prints last (the run must exit 0)."""
+    path = folder / "script.py"
+    path.write_text(script)
+    proc = subprocess.run(
+        [str(MPIRUN), "-n", str(ranks), sys.executable, str(path), *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=folder,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def small_scene(path: Path, cells: int = 8, **changes) -> Path:

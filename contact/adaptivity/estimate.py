@@ -262,9 +262,12 @@ def estimate(scene: Scene, result: Result) -> Estimate:
             "result: expected the contact.Result of contact.solve on this scene (same mesh)"
         )
     if scene.config.estimator == "equilibrated":  # docs/theory.md §9: a guaranteed bound
-        from .equilibration.bound import guaranteed_bound
+        if scene.config.elastic:
+            from .equilibration.elastic import elastic_bound as bound_of
+        else:
+            from .equilibration.bound import guaranteed_bound as bound_of
 
-        bound = guaranteed_bound(scene, result)
+        bound = bound_of(scene, result)
         return Estimate(bound.eta_T, bound.eta, bound.terms)
     return residual_estimate(scene, result)
 

@@ -154,7 +154,10 @@ def elastic_setting(scene: Scene) -> ElasticSetting:
             zero = PETSc.ScalarType(0.0)  # type: ignore[operator]
             bcs.append(fem.dirichletbc(zero, dofs, V.sub(k)))
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs])
-    return ElasticSetting(V, L_ufl, bcs, fixed, {"f": f, "t": t, "ds": ds}, tuple(axes))
+    # u_D as UFL beside its interpolant in the conditions: the equilibrated bound measures the
+    # interpolation error on Γ_D (contact.adaptivity.equilibration.elastic)
+    fields = {"f": f, "t": t, "ds": ds, "u_D": _vector(data["u_D"], scene)}
+    return ElasticSetting(V, L_ufl, bcs, fixed, fields, tuple(axes))
 
 
 def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:

@@ -77,7 +77,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import ufl
@@ -88,6 +88,9 @@ from ...setup import expressions
 from ...setup.scene import Scene
 from ...solvers import Result
 from .flux import Flux, FluxData, reconstruct_flux
+
+if TYPE_CHECKING:
+    from .stress import Stress
 
 TERMS = ("flux", "oscillation", "complementarity", "feasibility", "dirichlet")
 
@@ -101,7 +104,7 @@ class Bound:
     eta_T: fem.Function
     terms: dict
     parts: dict
-    flux: Flux
+    flux: Flux | Stress  # the scalar flux, or the elastic stress (:mod:`.elastic`)
     seconds: dict = field(default_factory=dict)
 
 
@@ -184,15 +187,8 @@ def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") ->
     feasible = s_bound + W
     split = np.sqrt(max(s_bound**2 + 2 * cross + W**2, 0.0))
     eta = min(direct, feasible, split)
-    eta_T = fem.Function(DG0, name="eta_T")
-    n = len(A_T)
-    eta_T.x.array[:n] = np.sqrt(
-        (A_T if direct <= min(feasible, split) else As_T) ** 2
-        + local["W2"]
-        + local["D2"]
-        + local["B"]
-    )
-    eta_T.x.scatter_forward()
+    A_T = A_T if direct <= min(feasible, split) else As_T
+    eta_T = indicators(DG0, A_T**2, local["W2"], local["D2"], local["B"])
     seconds["terms"] = time.perf_counter() - t0
     terms = {name: total[name] for name in TERMS}
     parts = {
@@ -208,6 +204,14 @@ def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") ->
         "defect": flux.defect,
     }
     return Bound(float(eta), eta_T, terms, parts, flux, {**flux.seconds, **seconds})
+
+
+def indicators(DG0: fem.FunctionSpace, *squares: np.ndarray) -> fem.Function:
+    """η_T = (Σ of the owned cells' ``squares``)^{1/2} as a DG0 function (ghosts updated)."""
+    eta_T = fem.Function(DG0, name="eta_T")
+    eta_T.x.array[: len(squares[0])] = np.sqrt(sum(squares))
+    eta_T.x.scatter_forward()
+    return eta_T
 
 
 def _root(S: float, P: float) -> float:

@@ -1,0 +1,610 @@
+"""An equilibrated stress for linear elasticity: row-wise Raviart–Thomas with weak symmetry on
+vertex patches (docs/theory.md §9.2), the elastic counterpart of :mod:`.flux`.
+
+Given u_h ∈ P_p^d (plane strain in 2D), the load f, the tractions t on Γ_N and the contact
+traction the solve produced on Γ_C (the normal pressure λ_h along the obstacle's normal n,
+and with friction the tangential traction λ_t,h), it returns σ_h whose rows σ_h,r lie in
+RT_{p+1} (:data:`EXTRA`), with, exactly up to round-off,
+
+    −div σ_h = Π_{p+1} f    in every cell,
+    σ_h ν = Π_{p+1} t  on Γ_N,    σ_h ν = λ̃_h n + λ̃_t   on Γ_C,    (σ_h ν)_k = 0 for each
+    component k that is neither prescribed (Γ_D, a symmetry plane x_k = const) nor loaded,
+    ∫_T as(σ_h) = 0 on every cell T       (weak symmetry, as σ = σ_ij − σ_ji),
+
+λ̃_h, λ̃_t the discrete multipliers as :mod:`.multiplier` carries them (σλ̃_h ≤ 0 pointwise;
+shared among a facet's vertices with the solve's own lumping, so each patch balances).
+
+**Patch problems** (Ern & Vohralík, SINUM 53, 2015, row by row; weak symmetry against
+piecewise constants as in Arnold–Falk–Winther's lowest-order element, cf. Riedlbeck, Di
+Pietro, Ern, Granet & Kazymyrenko, Comput. Math. Appl. 73, 2017, and Bertrand, Kober,
+Moldenhauer & Starke, NMPDE 37, 2021).  For a vertex a with hat ψ_a and patch ω_a,
+
+    σ_a = argmin ‖C^{-1/2}(σ − ψ_a σ(u_h))‖²_{ω_a} + κ ‖skw σ‖²_{ω_a}   over σ with rows in
+    RT_{p+1}(ω_a),  −div σ = Π(ψ_a f − σ(u_h)∇ψ_a) in each cell,  σν = Π(ψ_a t) on Γ_N, the
+    share of vertex a of λ̃_h n + λ̃_t on Γ_C, σν = 0 on the rest of ∂ω_a (row r free on a
+    facet where component r is prescribed),  ∫_T as σ = m_{a,T} on each cell T ⊂ ω_a,
+
+and σ_h = Σ_a σ_a.  A closed patch (no free facet) must carry ∫_{ω_a} as σ_a = R_a, its
+rotational balance: for any admissible σ, ∫_{ω_a} σ : W = −∫ div σ·W(x − x_a) + ∫_{∂ω_a} σν·
+W(x − x_a) (∇(W(x − x_a)) = W, W skew); R_a is the residual of the discrete equation
+against ψ_a W(x − x_a), not zero for P_1.  :mod:`.rotations` splits each R_a over the
+patch's cells so that every cell's as-moments add up to zero over its vertices: the
+weak symmetry holds on every cell.  The penalty κ (``skew_weight``) then reduces what
+remains of skw σ_h inside the cells.  Why the pieces: without the split, 99 % of ‖as σ_h‖
+was cell means (hertz_2d, the Tresca scene); with RT_p rows, or without κ, the remaining
+asymmetry stalls the effectivity near 1.6–1.8 on the Tresca scene; weak symmetry against
+P_1 per cell over-constrains the patches (inconsistent systems: a defect of 1e-2).
+
+The cells of a patch meet only through the Lagrange multipliers μ of the normal moments,
+one block per (facet through a, row) that is not free; per cell, with σ_r = R̂β_r + Zγ_r
+(β fixed by the divergence, :mod:`.reference`), the mass M of the objective (rows
+coupled through the compliance's trace and the penalty), the as-constraint a_Z γ = c and
+H = M_Z⁻¹,
+
+    γ = P (q − Oᵀμ) + H a_Zᵀ G⁻¹ c,   P = H − H a_Zᵀ G⁻¹ a_Z H,   G = a_Z H a_Zᵀ,
+
+so that O σ = h − S μ with S = O P Oᵀ, as in :mod:`.operators` with P for M_Z⁻¹.  A
+closed patch has the rigid motions (d(d+1)/2) in the kernel of its μ-system and a
+consistent right-hand side up to the algebraic residual of the solve; they do not change
+σ_a.  The residual the solves leave is reported as ``defect``.  No loop runs over
+vertices: the patches of one size are solved in one batched call.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from dataclasses import dataclass, field, replace
+
+import basix
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+
+from . import rotations
+from .cells import (
+    CONTACT,
+    DIRICHLET,
+    FLUX,
+    CellTable,
+    FluxData,
+    complete,
+    local_table,
+    return_to_owners,
+)
+from .flux import _multiplier_functions, _oscillation, rt_function
+from .multiplier import clipped, entity_rule, shares
+from .operators import CellOperators, _projected, det_inv
+from .patches import _assemble
+from .reference import CELLS, Reference, reference
+
+__all__ = ["Stress", "StressData", "reconstruct_stress", "skew_pairs"]
+
+
+def skew_pairs(d: int) -> list[tuple[int, int]]:
+    """The components (i, j) of as σ = σ_ij − σ_ji: one in 2D, three in 3D."""
+    return [(0, 1)] if d == 2 else [(1, 2), (2, 0), (0, 1)]
+
+
+@dataclass
+class StressData:
+    """What the stress reconstruction is given (DOLFINx objects, UFL and numbers).
+
+    ``dirichlet[r]``: the facet tags where component r is prescribed (Γ_D and the symmetry
+    planes normal to e_r); ``neumann``: tag → the traction t (a UFL vector); ``contact``:
+    the Γ_C tags, where the traction is λ_h n (+ λ_t with friction); ``normal``: the
+    obstacle's unit normal n (constant: a plane); ``lmbda_h``: the normal pressure (a
+    scalar Lagrange function, ≤ 0); ``lmbda_t``: the tangential traction (a vector Lagrange
+    function, or None).  Exterior facets no tag names carry σν = 0."""
+
+    u_h: fem.Function
+    f: ufl.core.expr.Expr
+    mu: float
+    lmbda_L: float
+    facet_tags: dmesh.MeshTags
+    dirichlet: tuple[tuple[int, ...], ...]
+    neumann: dict = field(default_factory=dict)
+    contact: tuple[int, ...] = ()
+    normal: np.ndarray | None = None
+    lmbda_h: fem.Function | None = None
+    lmbda_t: fem.Function | None = None
+    skew_weight: float = 0.0
+
+
+@dataclass
+class Stress:
+    """σ_h as d RT_p rows (:attr:`rows`) and as a UFL matrix (:attr:`sigma`), the multipliers
+    it carries on Γ_C (λ̃_h as UFL, :attr:`lmbda`), osc_T of each owned cell (the vector
+    version of :class:`.flux.Flux`'s: (Σ_r osc_T,r²)^{1/2} with k = 1), the residual the
+    least-squares patch solves left (:attr:`defect`, force units) and timings (seconds)."""
+
+    rows: list[fem.Function]
+    lmbda: ufl.core.expr.Expr | None
+    osc: np.ndarray
+    defect: float
+    seconds: dict = field(default_factory=dict)
+
+    @property
+    def sigma(self):
+        return ufl.as_matrix([[row[j] for j in range(len(self.rows))] for row in self.rows])
+
+
+#: the rows of σ_h lie in RT_{p+EXTRA} for u_h ∈ P_p.  With RT_p the asymmetry that the
+#: weak symmetry leaves inside the cells is larger: the Tresca scene's effectivity on levels
+#: 3–7 (P1, κ = 4 C_K²/(2μ), before the Dirichlet lifting of :mod:`.elastic`) was 1.72–1.87
+#: with RT_1 rows and 1.43–1.54 with RT_2 (docs/theory.md §9.2)
+EXTRA = 1
+
+
+@functools.cache
+def _rule(d: int, p_u: int, p_s: int, j: int):
+    """The contact-facet rule (:mod:`.multiplier`) of facet j: λ_h's Lagrange basis of degree
+    p_u (the solve's lumping), the points and test polynomials of RT_{p_s}'s reference."""
+    r = reference(d, p_s)
+    return entity_rule(d, p_u, r.XF[j], r.wS, r.q, np.array([v for v in range(d + 1) if v != j]))
+
+
+@functools.cache
+def _data(d: int, p_u: int, p_s: int) -> dict:
+    """Reference tables of the data terms: the gradients of u_h's Lagrange basis (degree
+    p_u) at RT_{p_s}'s cell points, and the weighted hats times the divergence tests."""
+    r = reference(d, p_s)
+    lag = basix.create_element(
+        basix.ElementFamily.P, CELLS[d], p_u, basix.LagrangeVariant.gll_warped
+    )
+    return {
+        "dphi_u": np.moveaxis(np.asarray(lag.tabulate(1, r.X))[1:, :, :, 0], 0, -1),  # (nq, nu, d)
+        "wlamQ": np.einsum("q,qa,jq->qaj", r.w, r.lam, r.Q),
+        "wQ": np.einsum("q,jq->qj", r.w, r.Q),
+    }
+
+
+def reconstruct_stress(data: StressData) -> Stress:
+    """σ_h of the module docstring (collective)."""
+    t0 = time.perf_counter()
+    u_h = data.u_h
+    V = u_h.function_space
+    msh = V.mesh
+    d = msh.topology.dim
+    p = V.element.basix_element.degree
+    ref = reference(d, p + EXTRA)
+    comm = msh.comm
+    tables, lam_t, n_owned = _row_tables(data, ref)
+    seconds = {"tables": time.perf_counter() - t0}
+    t0 = time.perf_counter()
+    # the as-moments of every (owned cell, vertex): each patch's balance spread over its cells
+    div = _Divergence(tables, ref, p, data.mu, data.lmbda_L)
+    bdata = _boundary_data(tables, lam_t, ref, p, data.normal)
+    free = np.unique(
+        np.concatenate(
+            [
+                data.facet_tags.indices[np.isin(data.facet_tags.values, ids)]
+                for ids in data.dirichlet
+            ]
+        )
+    ).astype(np.int32)
+    area = div.geometry["absdet"] / np.prod(np.arange(1, d + 1))
+    m = rotations.spread(msh, free, area, _rotation_moments(tables[0], ref, div.beta, bdata))
+    seconds["rotations"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    source = np.full(n_owned, comm.rank)
+    work = [complete(comm, t, source)[0] for t in tables]
+    # the as-moments and the tangential traction's coefficients ride along to the patches'
+    # ranks in the U column of a copy of the first table
+    extra = replace(tables[0], U=np.concatenate([m.reshape(n_owned, -1), *lam_t], axis=1))
+    extra_w, src = complete(comm, extra, source)
+    nm = m.shape[1] * m.shape[2]
+    nu = lam_t[0].shape[1] if lam_t else 0
+    m_w = extra_w.U[:, :nm].reshape(-1, *m.shape[1:])
+    lam_t_w = [extra_w.U[:, nm + k * nu : nm + (k + 1) * nu] for k in range(len(lam_t))]
+    seconds["gather"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    vmap = msh.topology.index_map(0)
+    owned = np.arange(*vmap.local_range, dtype=np.int64)
+    alpha, defect = _solve(work, lam_t_w, m_w, owned, ref, data)
+    seconds["patches"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    offset = msh.topology.index_map(d).local_range[0]
+    rows = []
+    for r in range(d):
+        a_r = return_to_owners(comm, work[0].gcell, src, alpha[:, r], n_owned, offset)
+        row = rt_function(msh, ref, np.ascontiguousarray(a_r))
+        row.name = f"sigma_h_{r}"
+        rows.append(row)
+    osc = np.sqrt(sum(_oscillation(t, ref) ** 2 for t in tables))
+    lmbda = None
+    if data.lmbda_h is not None and data.contact:
+        S = data.lmbda_h.function_space
+        DG0 = fem.functionspace(msh, ("DG", 0))
+        ref_u = reference(d, p)
+        clip, bubble, kappa = _multiplier_functions(S, tables[0], ref_u, "facets", -1.0, DG0)
+        lmbda = kappa * (clip - 0.5 * bubble)
+    seconds["assemble"] = time.perf_counter() - t0
+    return Stress(rows, lmbda, osc, comm.allreduce(defect), seconds)
+
+
+def _row_tables(data: StressData, ref: Reference) -> tuple[list[CellTable], list[np.ndarray], int]:
+    """One cell table per row r (:mod:`.cells`): component r of u_h, f_r, k = 1, the facet
+    kinds of component r, t_r on Γ_N, λ_h (the normal pressure) in ``lam``; and with friction
+    the nodal coefficients of each component of the tangential traction (n, nu)."""
+    V = data.u_h.function_space
+    d = V.mesh.topology.dim
+    tables, lam_t, n_owned = [], [], 0
+    for r in range(d):
+        Vr, _ = V.sub(r).collapse()
+        u_r = fem.Function(Vr)
+        u_r.interpolate(data.u_h.sub(r))
+        zero = fem.Constant(V.mesh, 0.0)  # + 0: a component UFL simplified to Zero stays
+        flux = FluxData(  # tied to the mesh
+            u_r,
+            data.f[r] + zero,
+            fem.Constant(V.mesh, 1.0),
+            data.facet_tags,
+            dirichlet=data.dirichlet[r],
+            neumann={tag: t[r] + zero for tag, t in data.neumann.items()},
+            contact={tag: fem.Constant(V.mesh, 0.0) for tag in data.contact},
+            lmbda_h=data.lmbda_h,
+        )
+        table, n_owned = local_table(flux, ref)
+        tables.append(table)
+        if data.lmbda_t is not None:
+            lt = fem.Function(Vr)
+            lt.interpolate(data.lmbda_t.sub(r))
+            lam_t.append(lt.x.array[Vr.dofmap.list[:n_owned]])
+    return tables, lam_t, n_owned
+
+
+# ---------------------------------------------------------------------------------------
+# the cell operators of the coupled rows
+# ---------------------------------------------------------------------------------------
+@dataclass
+class _Cells:
+    """Per cell of the work rows (module docstring): S (n, D·d·nf, D·d·nf), the maps of β and
+    γ⁰ to the normal moments, and what β, q, c of a vertex need."""
+
+    ops: CellOperators
+    P: np.ndarray  # (n, d mz, d mz)
+    HaG: np.ndarray  # (n, d mz, nas): H a_Zᵀ G⁻¹
+    ZMR: np.ndarray  # (n, d mz, d np)
+    aR: np.ndarray  # (n, nas, d np)
+    OZ: np.ndarray  # (n, D d nf, d mz): normal moments of Zγ, rows (facet, row, k)
+    OR: np.ndarray  # (n, D d nf, d np)
+    S: np.ndarray  # (n, D d nf, D d nf)
+    OHaG: np.ndarray  # (n, D d nf, nas): O H a_Zᵀ G⁻¹
+    POt: np.ndarray  # (n, d mz, D d nf): P Oᵀ
+
+
+def _block_diag(X: np.ndarray, d: int, D: int, nf: int) -> np.ndarray:
+    """(n, D nf, k) per-row normal moments → (n, D d nf, d k), rows (facet, row, moment)."""
+    n, _, k = X.shape
+    out = np.zeros((n, D, d, nf, d, k))
+    Xr = X.reshape(n, D, nf, k)
+    for r in range(d):
+        out[:, :, r, :, r, :] = Xr
+    return out.reshape(n, D * d * nf, d * k)
+
+
+def _objective(T: np.ndarray, mu: float, lam: float, skew_weight: float) -> np.ndarray:
+    """The mass of the patch objective ∫ C⁻¹σ:τ + κ ∫ skw σ : skw τ, C⁻¹σ = (σ − c tr σ I)/(2μ),
+    c = λ/(2μ + dλ), from the row blocks T (n, d, d, a, b) of ∫ (φ·e_r)(φ·e_s): (n, d a, d b)."""
+    n, d, _, a, b = T.shape
+    c_lam = lam / (2.0 * mu + d * lam)
+    trace = np.einsum("nrrab->nab", T)
+    M = np.zeros((n, d, a, d, b))
+    for r in range(d):
+        for s in range(d):
+            M[:, r, :, s, :] = ((r == s) * trace - c_lam * T[:, r, s]) / (2.0 * mu)
+    for i, j in skew_pairs(d):  # + κ ∫ skw σ : skw τ = κ/2 ∫ (σ_ij − σ_ji)(τ_ij − τ_ji)
+        M[:, i, :, i, :] += 0.5 * skew_weight * T[:, j, j]
+        M[:, j, :, j, :] += 0.5 * skew_weight * T[:, i, i]
+        M[:, i, :, j, :] -= 0.5 * skew_weight * T[:, j, i]
+        M[:, j, :, i, :] -= 0.5 * skew_weight * T[:, i, j]
+    return M.reshape(n, d * a, d * b)
+
+
+def _cell_operators(
+    table: CellTable, ref: Reference, mu: float, lam: float, skew_weight: float
+) -> _Cells:
+    d, D, nf = ref.d, ref.d + 1, ref.nf
+    n = len(table)
+    ops = CellOperators(table, np.arange(n), ref)
+    g = ops.geometry
+    x = table.x
+    J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+    absdet = g["absdet"]
+    # the objective's mass M (rows r, s) only enters projected: M_Z = Z_bᵀ M Z_b and
+    # Z_bᵀ M R_b, each a combination of T_rs = ∫_T (φ·e_r)(φ·e_s) of the Piola-mapped basis,
+    # Σ_ij J_ri J_sj mass_ij / |det J|, projected on the reference (Zᵀ mass_ij Z, Zᵀ mass_ij R)
+    Zb = np.kron(np.eye(d), ref.Z)  # (d m, d mz)
+    Rb = np.kron(np.eye(d), ref.R)  # (d m, d np)
+    JJ = np.einsum("nri,nsj->nrsij", J, J) / absdet[:, None, None, None, None]
+    blocks = {
+        right: np.einsum("nrsij,ijab->nrsab", JJ, _projected(ref, right), optimize=True)
+        for right in ("ZZ", "ZR")
+    }
+    MZ = _objective(blocks["ZZ"], mu, lam, skew_weight)
+    H = np.linalg.inv(MZ)
+    ZMR = _objective(blocks["ZR"], mu, lam, skew_weight)
+    # ∫_T σ_ij − σ_ji: ∫_T (φ·e_c) = s (J M1)_c with M1[k, l] = ∫̂ φ̂_l,k
+    M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
+    JM1 = g["s"][:, None, None] * np.einsum("nck,kl->ncl", J, M1)  # (n, d, m)
+    pairs, m = skew_pairs(d), ref.m
+    A4 = np.zeros((n, len(pairs), d, m))
+    for k, (i, j) in enumerate(pairs):
+        A4[:, k, i] += JM1[:, j]
+        A4[:, k, j] -= JM1[:, i]
+    A = A4.reshape(n, len(pairs), d * m)
+    aZ, aR = A @ Zb, A @ Rb
+    HaT = H @ np.transpose(aZ, (0, 2, 1))
+    Ginv = np.linalg.inv(aZ @ HaT)
+    HaG = HaT @ Ginv
+    P = H - HaG @ np.transpose(HaT, (0, 2, 1))
+    OZ = _block_diag(ops.OZ, d, D, nf)
+    OR = _block_diag(ops.OR, d, D, nf)
+    POt = P @ np.transpose(OZ, (0, 2, 1))
+    return _Cells(ops, P, HaG, ZMR, aR, OZ, OR, OZ @ POt, OZ @ HaG, POt)
+
+
+@dataclass
+class _Divergence:
+    """The cell data every patch of a cell shares: the geometry, ε(u_h) at the points and
+    the divergence moments β (n, d+1 vertices, d rows, np) of each vertex's share,
+    B̂ α = β = −s ∫_T Π_p(ψ_a f_r − σ_r(u_h)·∇ψ_a) Q_j."""
+
+    beta: np.ndarray
+    eps: np.ndarray  # (n, nq, d, d)
+    geometry: dict  # J, s, absdet
+
+    def __init__(self, tables: list[CellTable], ref: Reference, p_u: int, mu, lam) -> None:
+        d = ref.d
+        x = tables[0].x
+        J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+        det, Jinv = det_inv(J)
+        t = _data(d, p_u, ref.p)
+        grad = np.stack(
+            [np.einsum("nu,qud,ndi->nqi", tb.U, t["dphi_u"], Jinv, optimize=True) for tb in tables],
+            axis=2,
+        )  # (n, nq, r, i) = ∂u_r/∂x_i
+        self.eps = 0.5 * (grad + np.swapaxes(grad, 2, 3))
+        tr = np.einsum("nqii->nq", self.eps)
+        sig = 2.0 * mu * self.eps + lam * tr[:, :, None, None] * np.eye(d)
+        absdet = np.abs(det)
+        grad_psi = np.einsum("nki,ak->nai", Jinv, ref.dlam)  # (n, D, d) physical ∇ψ_a
+        flux_psi = np.einsum("nqri,nai->nqar", sig, grad_psi)
+        R0 = np.stack(
+            [
+                np.einsum("nq,qaj->naj", tb.f, t["wlamQ"])
+                - np.einsum("nqa,qj->naj", flux_psi[..., r], t["wQ"])
+                for r, tb in enumerate(tables)
+            ],
+            axis=2,
+        )  # (n, D, d, np) per reference measure
+        self.beta = -(np.sign(det) * absdet)[:, None, None, None] * R0
+        self.geometry = {"J": J, "s": np.sign(det), "absdet": absdet}
+
+
+def _boundary_data(
+    tables: list[CellTable], lam_t: list[np.ndarray], ref: Reference, p_u: int, normal
+) -> np.ndarray:
+    """The prescribed outward-flux moments of each vertex's share, per row, in the facet's
+    local basis: (n, D facets, D vertices, d rows, nf), per physical measure; zero on the
+    facets a row does not prescribe.  On Γ_C: n_r λ̃_h + λ̃_t,r (``lam_t``: the tangential
+    traction's nodal coefficients per row, or empty)."""
+    d, D = ref.d, ref.d + 1
+    n = len(tables[0])
+    x = tables[0].x
+    size = np.empty((n, D))
+    for j in range(D):
+        E = x[:, [v for v in range(D) if v != j]]
+        E = E[:, 1:] - E[:, :1]
+        size[:, j] = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))
+    base = np.einsum("q,jqa,kq->jakq", ref.wS, ref.lamF, ref.q)
+    out = np.zeros((n, D, D, d, ref.nf))
+    normal = np.zeros(d) if normal is None else np.asarray(normal, dtype=float)
+    for r, t in enumerate(tables):
+        prescribed = (t.kind == FLUX) | (t.kind == CONTACT)
+        out[:, :, :, r] = np.einsum(
+            "nj,jakq,njq->njak", size * prescribed, base, t.t, optimize=True
+        )
+        for j in range(D):
+            on = np.flatnonzero(t.kind[:, j] == CONTACT)
+            if not len(on):
+                continue
+            rule = _rule(d, p_u, ref.p, j)
+            mom = normal[r] * shares(clipped(t.lam[on], -1.0), rule, -1.0)[0]
+            if lam_t:  # the tangential traction's component r (no sign)
+                mom = mom + shares(lam_t[r][on], rule, 0.0)[0]
+            out[on, j, :, r] += size[on, j][:, None, None] * mom
+    return out
+
+
+def _rotation_moments(table: CellTable, ref: Reference, beta: np.ndarray, bdata: np.ndarray):
+    """m_{a,T} of the module docstring for each cell and vertex: (n, D, nas).  ``beta``:
+    (n, D, d, np) the reference divergence moments of σ_a (B̂ α = β); ``bdata``: the
+    prescribed moments of :func:`_boundary_data`."""
+    d, D = ref.d, ref.d + 1
+    x = table.x
+    n = len(x)
+    J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+    s = np.sign(np.linalg.det(J))
+    pts = x[:, :1] + np.einsum("nij,qj->nqi", J, ref.X)  # (n, nq, d)
+    fpts = x[:, None, :1] + np.einsum("nij,fqj->nfqi", J, ref.XF)  # (n, D, nqf, d)
+    out = np.zeros((n, D, len(skew_pairs(d))))
+    for k, (i, j) in enumerate(skew_pairs(d)):
+        for a in range(D):
+            rel = pts - x[:, a][:, None, :]  # x − x_a
+            w = np.zeros(rel.shape)  # W(x − x_a): w_i = (x − x_a)_j, w_j = −(x − x_a)_i
+            w[..., i], w[..., j] = rel[..., j], -rel[..., i]
+            cw = np.einsum("q,jq,nqr->nrj", ref.w, ref.Q, w, optimize=True)  # ∫̂ Q̂_j ŵ_r
+            out[:, a, k] = -s * np.einsum("nrj,nrj->n", beta[:, a], cw)
+            frel = fpts - x[:, a][:, None, None, :]
+            fw = np.zeros(frel.shape)
+            fw[..., i], fw[..., j] = frel[..., j], -frel[..., i]
+            wq = np.einsum("q,kq,nfqr->nfrk", ref.wS, ref.q, fw, optimize=True)  # ∫̂ q̂_k ŵ_r dŝ
+            out[:, a, k] += np.einsum("nfrk,nfrk->n", bdata[:, :, a], wq)
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# the patches
+# ---------------------------------------------------------------------------------------
+def _solve(
+    tables: list[CellTable],
+    lam_t: list[np.ndarray],
+    m_as: np.ndarray,
+    owned: np.ndarray,
+    ref: Reference,
+    data: StressData,
+):
+    """α (n, d, m): Σ_a σ_a|_T over the owned vertices a (``m_as``: the as-moments of each
+    (cell, vertex), :mod:`.rotations`), and the summed defect."""
+    d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
+    n = len(tables[0])
+    mu, lam = float(data.mu), float(data.lmbda_L)
+    cells = _cell_operators(tables[0], ref, mu, lam, float(data.skew_weight))
+    p_u = data.u_h.function_space.element.basix_element.degree
+    div = _Divergence(tables, ref, p_u, mu, lam)
+    beta = div.beta
+    # load: g_a = ∫_T ψ_a ε(u_h) : φ = s Σ_q w ψ_a (Jᵀ ε_r)·φ̂  (C⁻¹ σ(u_h) = ε(u_h))
+    ref_eps = np.einsum("nji,nqrj->nqri", div.geometry["J"], div.eps)  # (n, nq, r, i)
+    gl = div.geometry["s"][:, None, None, None] * np.einsum(
+        "q,qa,nqri,qli->narl", ref.w, ref.lam, ref_eps, ref.phi, optimize=True
+    )  # (n, D, d, m)
+    Zb = np.kron(np.eye(d), ref.Z)
+    bflat = beta.reshape(n, D, -1)
+    q = gl.reshape(n, D, d * m) @ Zb - np.einsum("nzb,nab->naz", cells.ZMR, bflat)
+    Pq = np.einsum("nyz,naz->nay", cells.P, q)
+    hq = np.einsum("nfb,nab->naf", cells.OR, bflat) + np.einsum("nfz,naz->naf", cells.OZ, Pq)
+    aRb = np.einsum("nkb,nab->nak", cells.aR, bflat)
+    # the prescribed data in the global facet basis, rows (facet, row, k)
+    bdata = _boundary_data(tables, lam_t, ref, p_u, data.normal)
+    Pm = ref.P[cells.ops.perm]  # (n, D, nf, nf)
+    dglob = np.einsum("njkl,njark->najrl", Pm, bdata).reshape(n, D, D * d * nf)
+    kinds = np.stack([tb.kind for tb in tables], axis=2)  # (n, D facets, d rows)
+    alpha = np.zeros((n, d, m))
+    moments = _Moments(hq, Pq, m_as - aRb)
+    defect = _patches(tables[0], owned, ref, cells, moments, dglob, kinds, beta, alpha)
+    return alpha, defect
+
+
+@dataclass
+class _Moments:
+    """Per (cell, vertex a), σ_a's cell problem: the normal moments hq and P q at c = 0, and
+    the right-hand side c = m_{a,T} − a_R β of its as-constraint a_Z γ = c (γ⁰ = P q +
+    H a_Zᵀ G⁻¹ c)."""
+
+    hq: np.ndarray  # (n, D, D d nf)
+    Pq: np.ndarray  # (n, D, d mz)
+    c: np.ndarray  # (n, D, nas)
+
+
+def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta, alpha):
+    """Assemble and solve the μ-systems of the vertices ``owned`` (module docstring); adds
+    σ_a to ``alpha``; returns the summed residual of the least-squares solves."""
+    d, D, nf = ref.d, ref.d + 1, ref.nf
+    B = d * nf  # one facet's block (rows × moments)
+    prow, ploc = np.nonzero(np.isin(table.gvert, owned))
+    if not len(prow):
+        return 0.0
+    verts = table.gvert[prow, ploc]
+    order = np.argsort(verts, kind="stable")
+    prow, ploc, verts = prow[order], ploc[order], verts[order]
+    uniq, patch = np.unique(verts, return_inverse=True)
+    npair = len(prow)
+    ar = np.arange(npair)
+    others = np.array([[j for j in range(D) if j != i] for i in range(D)])  # spokes of a
+    sf = others[ploc]  # (npair, d) the facets through a
+    # a spoke is (patch, the facet's vertices): key them through the sorted global vertices
+    fverts = np.stack(
+        [np.sort(table.gvert[prow[:, None], others[sf[:, s]]], axis=1) for s in range(d)], 1
+    )  # (npair, d, d)
+    keys = np.concatenate([np.repeat(patch[:, None], d, 1)[..., None], fverts], axis=2)
+    _, spoke = np.unique(keys.reshape(-1, d + 1), axis=0, return_inverse=True)
+    spoke = spoke.reshape(npair, d)
+    n_spokes = spoke.max() + 1
+    spoke_patch = np.zeros(n_spokes, dtype=np.int64)
+    spoke_patch[spoke] = patch[:, None]
+    # (spoke, row) is unknown unless row r is prescribed-free (Dirichlet) on that facet
+    skind = np.zeros((n_spokes, d), dtype=np.int8)
+    skind[spoke] = kinds[prow[:, None], sf]
+    unknown = (skind != DIRICHLET).reshape(-1)  # slots (spoke, row)
+    slot_patch = np.repeat(spoke_patch, d)
+    size = np.bincount(slot_patch[unknown], minlength=len(uniq))
+    first = np.concatenate([[0], np.cumsum(size)[:-1]])
+    local = np.full(n_spokes * d, -1)
+    us = np.flatnonzero(unknown)
+    local[us] = np.arange(len(us)) - first[slot_patch[us]]
+    c = mom.c[prow, ploc]
+    gamma0 = mom.Pq[prow, ploc] + np.einsum("nzk,nk->nz", cells.HaG[prow], c)
+    hp = mom.hq[prow, ploc] + np.einsum(
+        "nfk,nk->nf", cells.OHaG[prow], c
+    )  # (npair, D B): the normal moments of σ_a at μ = 0
+    # per pair: condense the opposite facet (its block: rows ploc·B … ploc·B + B − 1), for
+    # each cell and local vertex at once (static index sets per local vertex)
+    blocks = np.arange(D * B).reshape(D, B)
+    I_o = blocks[ploc]  # (npair, B)
+    I_s = blocks[sf].reshape(npair, d * B)
+    Sso_all = np.empty((len(cells.S), D, d * B, B))
+    Soo_inv_all = np.empty((len(cells.S), D, B, B))
+    Shat_all = np.empty((len(cells.S), D, d * B, d * B))
+    for j in range(D):  # the cells' patches of their local vertex j
+        i_s, i_o = blocks[others[j]].ravel(), blocks[j]
+        Sso_all[:, j] = cells.S[:, i_s][:, :, i_o]
+        Soo_inv_all[:, j] = np.linalg.inv(cells.S[:, i_o][:, :, i_o])
+        Tj = Sso_all[:, j] @ Soo_inv_all[:, j]
+        Shat_all[:, j] = cells.S[:, i_s][:, :, i_s] - Tj @ np.transpose(Sso_all[:, j], (0, 2, 1))
+    Sso, Soo_inv, Shat = Sso_all[prow, ploc], Soo_inv_all[prow, ploc], Shat_all[prow, ploc]
+    T = Sso @ Soo_inv
+    dp = dglob[prow, ploc]
+    b = (hp[ar[:, None], I_s] - np.einsum("nab,nb->na", T, hp[ar[:, None], I_o])) - dp[
+        ar[:, None], I_s
+    ]
+    # the slot of each of the pair's d·B spoke rows: slot (spoke, row), moment k
+    slot = (spoke[:, :, None] * d + np.arange(d)[None, None, :]).reshape(npair, d * d)
+    loc = local[slot]  # (npair, d·d) local slot or −1
+    idx = np.where(
+        np.repeat(loc >= 0, nf, axis=1),
+        (np.repeat(loc, nf, axis=1) * nf + np.tile(np.arange(nf), d * d)),
+        -1,
+    )  # (npair, d B)
+    mu_s = np.zeros((npair, d * B))
+    defect = 0.0
+    for n_slots in np.unique(size[size > 0]):
+        members = np.flatnonzero(size == n_slots)
+        where = np.full(len(uniq), -1)
+        where[members] = np.arange(len(members))
+        sel = np.flatnonzero(where[patch] >= 0)
+        dim = n_slots * nf
+        pi, ii = where[patch[sel]], idx[sel]
+        ok = ii >= 0
+        rows = np.where(ok, ii, 0)
+        # the pairs' blocks summed into the patch systems (slot = (spoke, row), nf moments)
+        A, rhs = _assemble(pi, loc[sel], Shat[sel], b[sel], len(members), n_slots, nf)
+        # the rigid motions of a closed patch span the kernel of A and the right-hand side
+        # is orthogonal to them (up to the solve's residual): a shift of 1e-12 of the
+        # diagonal's scale makes A regular; the kernel part of μ does not change σ_a
+        # (P Oᵀ μ = 0 there) and what the shift leaves in A μ − b is reported
+        shift = 1e-12 * np.abs(np.einsum("nii->n", A)).max(initial=0.0) / dim
+        sol = np.linalg.solve(A + shift * np.eye(dim), rhs[..., None])[..., 0]
+        defect += float(np.linalg.norm(np.einsum("nab,nb->na", A, sol) - rhs, axis=1).sum())
+        got = sol[pi[:, None], rows]
+        mu_s[sel] = np.where(ok, got, 0.0)
+    mu_o = np.einsum(
+        "nab,nb->na", Soo_inv, hp[ar[:, None], I_o] - np.einsum("nba,nb->na", Sso, mu_s)
+    )
+    mu = np.zeros((npair, D * B))
+    mu[ar[:, None], I_s] = mu_s
+    mu[ar[:, None], I_o] = mu_o
+    gamma = gamma0 - np.einsum("nyf,nf->ny", cells.POt[prow], mu)  # γ = γ⁰ − P Oᵀ μ
+
+    m, mz = ref.m, ref.Z.shape[1]
+    contrib = np.einsum("nrj,lj->nrl", beta[prow, ploc], ref.R) + np.einsum(
+        "nrz,lz->nrl", gamma.reshape(npair, d, mz), ref.Z
+    )  # (npair, d, m)
+    for r in range(d):
+        for col in range(m):
+            alpha[:, r, col] += np.bincount(
+                prow, weights=contrib[:, r, col], minlength=alpha.shape[0]
+            )
+    return defect
