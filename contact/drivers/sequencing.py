@@ -43,6 +43,7 @@ from dolfinx import fem
 from dolfinx.mesh import MeshTags
 from mpi4py import MPI
 
+from ..base.buckets import box_point_pairs
 from ..base.errors import ConfigError
 from ..models import build_problem
 from ..setup.scene import Scene
@@ -512,35 +513,10 @@ def _bucket_candidates(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
     ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
-    cells' mean extent over their common bounding box (at most ~4 buckets a cell)."""
-    lo_k, hi_k = lo_c[cells], hi_c[cells]
-    dim = lo_c.shape[1]
-    size = max(0.5 * float(np.mean(hi_k - lo_k)), 1e-300)
-    lo, hi = lo_k.min(axis=0) - grow * size, hi_k.max(axis=0) + grow * size
-    size = max(size, float(np.prod(hi - lo) / (4 * len(cells))) ** (1 / dim))
-    shape = np.maximum(np.ceil((hi - lo) / size).astype(np.int64), 1)
-    # every cell into the buckets its grown box overlaps
-    first = np.clip(np.floor((lo_k - lo) / size - grow).astype(np.int64), 0, shape - 1)
-    last = np.clip(np.floor((hi_k - lo) / size + grow).astype(np.int64), 0, shape - 1)
-    span = last - first + 1
-    count = np.prod(span, axis=1)
-    cell_of = np.repeat(np.arange(len(cells)), count)
-    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    offset = np.empty((len(cell_of), dim), dtype=np.int64)
-    for axis in range(dim - 1, -1, -1):
-        k, offset[:, axis] = np.divmod(k, span[cell_of, axis])
-    bucket = np.ravel_multi_index(tuple((first[cell_of] + offset).T), shape)
-    order = np.argsort(bucket, kind="stable")
-    bucket, cell_of = bucket[order], cell_of[order]
-    start = np.searchsorted(bucket, np.arange(np.prod(shape) + 1))
-    # the points inside the class's box, with the cells of their bucket
-    inside = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
-    at = np.clip(np.floor((points[inside] - lo) / size).astype(np.int64), 0, shape - 1)
-    pb = np.ravel_multi_index(tuple(at.T), shape)
-    n_cand = start[pb + 1] - start[pb]
-    point_of = np.repeat(inside, n_cand)
-    j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
-    return point_of, cells[cell_of[np.repeat(start[pb], n_cand) + j]]
+    cells' mean extent over their common bounding box
+    (:func:`~contact.base.buckets.box_point_pairs`)."""
+    point_of, box_of = box_point_pairs(lo_c[cells], hi_c[cells], points, grow)
+    return point_of, cells[box_of]
 
 
 def weighted_solves(levels: list[CoarseLevel], fine_dofs: int) -> float:
