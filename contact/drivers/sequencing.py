@@ -23,6 +23,15 @@ levels that cost a fraction of one fine step each.  The levels, coarsest first:
 * a user's ``.msh`` file (and P2 on a built-in mesh), several bodies on any other mesh:
   no coarser mesh — a cold start, reported in ``Result.sequence_note``.
 
+A frictional load step after the first carries its history to the coarse levels: the
+previous step's displacement u_prev (from which the slip increments are measured) is
+interpolated onto each coarse mesh (:func:`restrict`), the coarsest solve starts from it,
+and each finer level from the coarser solution as above — the stick/slip front moves
+across the contact zone on the coarse meshes, where a fine Newton iteration moves it by
+about one node per step.  The coarse meshes of a scene are built once and kept for its later
+steps (:func:`_with_mesh`).  A refined scene with history (an adaptive load step) starts
+from the step before.
+
 ``auto`` sequences when the finest level has at least :data:`AUTO_MIN_DOFS` DoFs, with as
 many levels as keep the coarsest at ≥ :data:`COARSEST_DOFS`; an integer N asks for N
 coarser levels; ``off`` starts cold.  Every coarse solve is an ordinary solve (its own
@@ -35,6 +44,7 @@ from __future__ import annotations
 import copy
 import functools
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -102,12 +112,8 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     floor = COARSEST_DOFS if wanted is None else 1
     ratio = 2**dim
 
-    if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
-        return (
-            [],
-            "grid sequencing: not for frictional scenes (slip depends on the load history); "
-            "cold start",
-        )
+    if scene.parent is not None and scene.history:
+        return [], "grid sequencing: a refined scene's history stays on its mesh; warm start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [functools.partial(_same, s) for s in reversed(chain)], ""
@@ -166,22 +172,26 @@ def _same(scene: Scene) -> Scene:
     return scene
 
 
+#: the coarse meshes built for a fine mesh (a load path solves every step on the same mesh):
+#: fine mesh → {mesh changes: (cfg, mesh, boundary, bodies, surfaces)}
+_COARSE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def _with_mesh(scene: Scene, changes: dict) -> Scene:
-    """The scene with other mesh parameters (a coarse level)."""
+    """The scene with other mesh parameters (a coarse level) at the scene's time; the mesh
+    is built once per fine mesh and kept while that mesh lives."""
     from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
 
-    cfg = copy.deepcopy(scene.cfg)
-    cfg["mesh"].update(changes)
-    msh, tags, cell_tags = build_mesh(cfg, scene.comm)
-    bodies = tag_bodies(msh, cfg, cell_tags)
-    return Scene(
-        cfg,
-        msh,
-        tag_boundaries(msh, cfg, tags, bodies),
-        time=scene.time,
-        bodies=bodies,
-        surfaces=tags,
-    )
+    built = _COARSE.setdefault(scene.mesh, {})
+    key = repr(sorted(changes.items()))
+    if key not in built:
+        cfg = copy.deepcopy(scene.cfg)
+        cfg["mesh"].update(changes)
+        msh, tags, cell_tags = build_mesh(cfg, scene.comm)
+        bodies = tag_bodies(msh, cfg, cell_tags)
+        built[key] = (cfg, msh, tag_boundaries(msh, cfg, tags, bodies), bodies, tags)
+    cfg, msh, boundary, bodies, tags = built[key]
+    return Scene(cfg, msh, boundary, time=scene.time, bodies=bodies, surfaces=tags)
 
 
 def initial_guess(
@@ -197,10 +207,13 @@ def initial_guess(
     levels: list[CoarseLevel] = []
     u, prev = None, None
     coarse_opts = {k: v for k, v in opts.items() if k not in ("sequence", "rtol", "u0")}
+    u_prev = scene.history.get("u_prev")
     for k, build in enumerate(builders, start=1):
         t0 = time.perf_counter()
         try:
             coarse = build()
+            if u_prev is not None:  # a load step's history, on the coarse mesh
+                coarse.history = {"u_prev": restrict(u_prev, scene, coarse)}
             problem = build_problem(coarse)
         except ConfigError as err:  # e.g. a boundary part too thin for the coarse mesh
             note = f"grid sequencing: coarse level {k} skipped ({err})"
@@ -208,6 +221,9 @@ def initial_guess(
         u0: fem.Function | None = None
         if u is not None and prev is not None:
             u0 = transfer(u, prev, coarse, problem.V)
+        elif u_prev is not None:  # the coarsest level starts from the previous step
+            u0 = fem.Function(problem.V)
+            u0.x.array[:] = coarse.history["u_prev"].x.array
         r = solve(
             coarse,
             problem=problem,
@@ -261,6 +277,17 @@ def transfer(
     if fine.cfg["mesh"]["type"] in BUILT_IN:
         return GridTransfer(coarse).apply(u, fine, V)
     return point_transfer(u, V, coarse.bodies, fine.bodies)
+
+
+def restrict(u: fem.Function, fine: Scene, coarse: Scene) -> fem.Function:
+    """A fine solution ``u`` (the previous load step's) interpolated onto the coarse scene's
+    mesh (same element): on built-in meshes the coarse vertices are grid points of the fine
+    grid (:class:`GridTransfer`: exact), on gmsh meshes the coarse points are located in
+    the fine cells (:func:`point_transfer`)."""
+    V = fem.functionspace(coarse.mesh, u.function_space.ufl_element())
+    if fine.cfg["mesh"]["type"] in BUILT_IN:
+        return GridTransfer(fine).apply(u, coarse, V)
+    return point_transfer(u, V, fine.bodies, coarse.bodies)
 
 
 def _prolong_chain(

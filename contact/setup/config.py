@@ -567,8 +567,8 @@ SCENE: dict[str, Field] = {
                 "auto",
                 choices=LINEAR,
                 doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
-                "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and "
-                "dimension)",
+                "reduced SPD system), bcgs (BiCGStab + GAMG), gmres (friction: GMRES + GAMG on "
+                "the reduced block system), auto (by size and dimension)",
             ),
             "inexact": Field(
                 "bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"
@@ -729,6 +729,14 @@ SCENE: dict[str, Field] = {
                 doc="step cutting: a step that does not converge is halved (t_k → "
                 "(t_{k-1} + t_k)/2) and retried, at most this many times in a row "
                 "(default: 4 for model type hyperelastic, 0 otherwise)",
+            ),
+            "predictor": Field(
+                "str",
+                "secant",
+                choices=("secant", "none"),
+                doc="the guess of step k ≥ 3: secant (u_{k-1} extrapolated along the last "
+                "increment, taken if its |Phi| is below that of u_{k-1}; linear models) or "
+                "none (u_{k-1})",
             ),
         },
     ),

@@ -69,6 +69,7 @@ over nodes.  Components fixed by a symmetry or Dirichlet condition keep their ro
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import fem
@@ -81,6 +82,9 @@ from .newton import Complementarity, set_newton
 from .options import SolverOptions
 from .problem import DiscreteProblem, FrictionSet, NodeBlockMatrix
 from .result import Result
+
+if TYPE_CHECKING:
+    from .block_system import BlockReducedSystem
 
 FORMS = ("projection", "hsw")
 SEPARATED, STICK, SLIP = 0, 1, 2
@@ -204,8 +208,11 @@ class FrictionalComplementarity(Complementarity):
         out[self.fs.tangent[free]] = (-self.w[:, None] * st["law"].C)[free]
         return a, b
 
-    def block_jacobian(self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float) -> None:
-        """H = B K + D, the generalized-Jacobian element at x (module doc)."""
+    def block_jacobian(
+        self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H = B K + D, the generalized-Jacobian element at x (module doc); returns the
+        blocks of B and D, (local nodes, bs, bs) each."""
         fs, st = self.fs, self.evaluate(x)
         law = st["law"]
         tau = self.tie_tolerance(st["a"], st["b"])  # kinks of φ and of ρ = F·max(0, ξ)
@@ -225,6 +232,7 @@ class FrictionalComplementarity(Complementarity):
             Dv[nodes[:, None], t[None, :], k] = -(self.w * gate / self.c)[:, None] * law.J_rho
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
+        return Bv, Dv
 
     def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
         """Per node: SEPARATED (normal inactive, :meth:`active_set`), STICK or SLIP (a node
@@ -253,18 +261,32 @@ def setup_friction_newton(
     timers: dict,
     state: dict,
     petsc_opts: dict,
+    system: BlockReducedSystem | None = None,
 ) -> PETSc.Mat:
     """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts.method``):
-    the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix."""
+    the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix
+    (a new one, or the ``system``'s H, which then builds its reduced operator from each
+    Jacobian's blocks: :mod:`.block_system`)."""
     method, mu = opts.method, opts.mu
-    J = cp.matrix()
-    attach_near_nullspace(problem, J)
+    if system is None:
+        J = cp.matrix()
+        attach_near_nullspace(problem, J)
+
+        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+            cp.block_jacobian(x, P, method, mu)
+
+    else:
+        J, reduced = system.J, system
+
+        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+            reduced.set_block(*cp.block_jacobian(x, P, method, mu))
+
     set_newton(
         snes,
         problem,
         J,
         lambda x, f: cp.phi(x, f, method, mu),
-        lambda x, P: cp.block_jacobian(x, P, method, mu),
+        jacobian,
         opts,
         timers,
         state,

@@ -21,7 +21,13 @@ from ..base import progress
 from ..base.lifetime import Owner
 from . import ncp
 from .globalize import GuardedMin
-from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
+from .linear import (
+    assembled_kind,
+    choose_linear,
+    friction_kind,
+    newton_system,
+    petsc_defaults,
+)
 from .newton import Complementarity, setup_newton
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .polish import Polisher
@@ -45,6 +51,7 @@ def solve_problem(
     t_start: float,
     check_options: bool = False,
     stopping: AdaptiveStopping | None = None,
+    alternatives: tuple[fem.Function, ...] = (),
 ) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
@@ -53,7 +60,9 @@ def solve_problem(
     ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
     when it was loaded); ``stopping``: adaptive stopping (:mod:`.stopping`), consulted by
-    the Newton monitor and the reduced system's Krylov solves."""
+    the Newton monitor and the reduced system's Krylov solves; ``alternatives``: other
+    guesses (a load path's predictor), the one of smallest ‖Φ‖ is taken
+    (:meth:`SemismoothNewton.solve`)."""
     with SemismoothNewton(
         problem,
         opts,
@@ -63,7 +72,7 @@ def solve_problem(
         check_options=check_options,
         stopping=stopping,
     ) as solver:
-        return solver.solve(u0, guess=guess, t_start=t_start)
+        return solver.solve(u0, guess=guess, t_start=t_start, alternatives=alternatives)
 
 
 class SemismoothNewton:
@@ -103,7 +112,13 @@ class SemismoothNewton:
         # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
         # keep an assembled matrix (their own linear algebra)
         diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
-        choose = choose_linear if diagonal_law else assembled_kind
+        choose = (
+            friction_kind
+            if friction is not None
+            else choose_linear
+            if diagonal_law
+            else assembled_kind
+        )
         self.linear = choose(problem, options.linear, user)
         defaults = petsc_defaults(problem, self.linear)
         if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
@@ -129,11 +144,27 @@ class SemismoothNewton:
         if friction is not None:  # the block law H = B K + D (no polishing)
             from .friction import setup_friction_newton
 
-            self.J = owner.own(
-                setup_friction_newton(
-                    snes, problem, self.cp, options, self.timers, self.state, self.petsc_options
+            block = None
+            if self.linear == "gmres":  # reduced, GMRES + GAMG (.block_system)
+                from .block_system import BlockReducedSystem
+
+                block = self.system = owner.own(
+                    BlockReducedSystem(
+                        problem, self.cp.matrix(), self.prefix, forcing=options.inexact
+                    )
                 )
+                block.configure(snes, self.prefix + "newton_")
+            J = setup_friction_newton(
+                snes,
+                problem,
+                self.cp,
+                options,
+                self.timers,
+                self.state,
+                self.petsc_options,
+                block,
             )
+            self.J = J if block is not None else owner.own(J)
         elif method in ncp.METHODS:
             system = self.system = owner.own(
                 newton_system(problem, self.linear, self.prefix, forcing=options.inexact)
@@ -164,19 +195,28 @@ class SemismoothNewton:
         snes.setDivergenceTolerance(PETSc.UNLIMITED)
         snes.setMonitor(self._monitor)
         progress.watch(
-            system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
+            self.system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
             f"{method} linear solve",
         )
         self._prev = owner.own(problem.b.duplicate())  # the previous iterate (step lengths)
         self.history: list[dict] = []
         self.solves = 0  # solves done by this object
 
-    def solve(self, u0: fem.Function, guess: bool = False, t_start: float | None = None) -> Result:
+    def solve(
+        self,
+        u0: fem.Function,
+        guess: bool = False,
+        t_start: float | None = None,
+        alternatives: tuple[fem.Function, ...] = (),
+    ) -> Result:
         """Solve from ``u0`` (a function of ``problem.V``; the Dirichlet values are put in);
         ``guess``: a real initial guess, given or from coarser levels, not a cold start (it is
         polished first, and the gamg path takes an exact first step); ``t_start``: the start
-        of the whole solve for the timings (default now).  Returns the :class:`Result`
-        (never raises on divergence)."""
+        of the whole solve for the timings (default now); ``alternatives``: other guesses
+        (functions of ``problem.V``): the solve starts from the one of u0 and these whose
+        ‖Φ‖ is smallest (``Result.predictor``: whether an alternative won; a linear problem's
+        only: a nonlinear one keeps u0).  Returns the :class:`Result` (never raises on
+        divergence)."""
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
         t_start = time.perf_counter() if t_start is None else t_start
         polisher, guard, system = self.polisher, self.guard, self.system
@@ -210,14 +250,40 @@ class SemismoothNewton:
                 cp, problem, method if method in ncp.METHODS else "fb", opts.mu
             )
             self.atol = opts.atol * scale
+            chosen = None
+            if alternatives and not problem.nonlinear:
+                x, chosen = self._best_guess(x, alternatives)
             snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
             # for the round-off floor of ‖Φ‖
             self._k_norm = problem.K.norm(PETSc.NormType.INFINITY)
             self.history, self._prev_active = [], None
             self.state.update(t_jac=None, dir_norm=np.nan, stop=None)
-            return self._run(x, guess, t_start, counts)
+            result = self._run(x, guess, t_start, counts)
+            result.predictor = None if chosen is None else chosen > 0
+            return result
         finally:
             x.destroy()
+
+    def _best_guess(
+        self, x: PETSc.Vec, alternatives: tuple[fem.Function, ...]
+    ) -> tuple[PETSc.Vec, int]:
+        """The guess of smallest ‖Φ‖ among x and ``alternatives`` (their Dirichlet values put
+        in; ties keep the earlier one) and its index (0: x); the others are destroyed."""
+        problem, cp, opts = self.problem, self.cp, self.opts
+        method = self.method if self.method in ncp.METHODS else "fb"
+        best, norm, which = x, cp_norm(cp, x, method, opts.mu), 0
+        for k, u in enumerate(alternatives, start=1):
+            check_guess(u, problem)
+            y = problem.b.duplicate()
+            problem.to_unknowns(u.x.petsc_vec, y)
+            set_dirichlet(y, problem.bcs)
+            value = cp_norm(cp, y, method, opts.mu)
+            if value < norm:
+                best.destroy()
+                best, norm, which = y, value, k
+            else:
+                y.destroy()
+        return best, which
 
     def _run(self, x: PETSc.Vec, guess: bool, t_start: float, counts: tuple) -> Result:
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
@@ -233,8 +299,10 @@ class SemismoothNewton:
             if isinstance(system, ReducedSystem):
                 # the first Newton step from a guess is exact — unless the guess is polished
                 # first: that exact solve on the guess's active set is then done, and a Newton
-                # step still needed means the active set moves, where a loose step does as well
-                system.guess = guess and polisher is None
+                # step still needed means the active set moves, where a loose step does as well.
+                # A frictional guess (the previous load step, a coarse level) seldom has the
+                # final stick and slip sets: its first step is loose too
+                system.guess = guess and polisher is None and problem.friction is None
             if self.stopping is not None:
                 self.stopping.start(cp.active(x))
             if polisher is not None and guess:
