@@ -164,3 +164,16 @@ def test_predictor_path_equals_the_warm_started_one():
     assert [s.result.predictor is not None for s in pred.steps] == [False, False, True, True]
     for a, b in zip(warm.steps, pred.steps):
         assert _close(a.result.u_h.x.array, b.result.u_h.x.array)
+
+
+@pytest.mark.parametrize("method", ["fb", "min"])
+def test_gmres_on_a_frictionless_scene_agrees_with_vinewtonrsls(method):
+    """``solver.linear: gmres`` on a diagonal law (GMRES + GAMG on the assembled H) against
+    PETSc's VI solver: the same solution."""
+    scene = contact.load_scene(
+        "configs/signorini_square.yaml", ["mesh.cells=[24,24]", "output.verbose=false"]
+    )
+    vi = contact.solve(scene, method="vinewtonrsls", linear="direct", sequence="off")
+    r = contact.solve(scene, method=method, linear="gmres", sequence="off")
+    assert vi.converged and r.converged and r.linear == "gmres"
+    assert _close(vi.u_h.x.array, r.u_h.x.array)
