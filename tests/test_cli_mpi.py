@@ -42,6 +42,9 @@ SCENES: dict[str, list[str]] = {
     # a body load: the estimator of the exactly represented homogeneous state is round-off
     "hyperelastic_block.yaml": ["data.f=[0,-0.5]", *SMALL],
     "hyperelastic_cylinder.yaml": ["mesh.h=0.3", "mesh.h_contact=0.05", "load.steps=2", *SMALL],
+    "hyperelastic_drag.yaml": ["mesh.cells=[20,5]", "load.steps=4", *SMALL],
+    "hyperelastic_indentation.yaml": ["mesh.cells=[20,10]", "load.steps=2", *SMALL],
+    "hyperelastic_sphere.yaml": ["mesh.cells=[6,6,4]", "load.steps=2", *SMALL],
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],
     "obstacle_membrane.yaml": ["mesh.cells=[8,8]", *SMALL],

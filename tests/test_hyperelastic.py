@@ -228,6 +228,13 @@ def test_newton_converges_superlinearly(law):
     scene = contact.load_scene({**arch(law), "load": {"steps": 4}})
     path = contact.run_load_path(scene, method="fb")
     assert path.converged
+    assert superlinear_steps(path) >= len(path.steps) // 2
+
+
+def superlinear_steps(path) -> int:
+    """Assert ≤ 8 Newton iterations in every step of a load path and, in each step with ≥ 3
+    residuals above round-off (r > 1e-11 r_0), a last contraction factor ≥ 10× below the one
+    before (superlinear); return how many steps that checked."""
     checked = 0
     for step in path.steps:
         r = [h["residual"] for h in step.result.history]
@@ -237,7 +244,7 @@ def test_newton_converges_superlinearly(law):
             q = [b / a for a, b in zip(r, r[1:])]
             assert q[-1] <= 0.1 * q[-2], r
             checked += 1
-    assert checked >= len(path.steps) // 2
+    return checked
 
 
 def test_step_cutting_halves_a_step_whose_start_inverts_cells():
@@ -352,14 +359,13 @@ def test_small_indentation_of_a_neo_hookean_cylinder_is_the_linear_hertz_scene()
         ({"model": {"type": "elasticity", "E": 1.0, "law": "neo_hookean"}}, "model.law: only for"),
         ({"model": {"type": "hyperelastic", "law": "mooney", "E": 1.0}}, "model.law:"),
         (
-            {"obstacle": {"type": "circle", "center": [0.5, 2], "radius": 1}},
-            "obstacle.type: a hyperelastic",
-        ),
-        (
             {"obstacle": {"type": "plane", "point": [0, "1 - x"], "normal": [0, -1]}},
             "obstacle.point:",
         ),
-        ({"friction": {"law": "coulomb", "coefficient": 0.3}}, "friction.law: a hyperelastic"),
+        (
+            {"friction": {"law": "coulomb", "coefficient": 0.3, "coulomb": "fixed_point"}},
+            "friction.coulomb: fixed_point",
+        ),
         ({"adapt": {"strategy": "dorfler"}}, "adapt: not available"),
         ({"load": {"steps": 2, "cuts": -1}}, "load.cuts:"),
     ],

@@ -33,23 +33,23 @@ def build_problem(scene: Scene) -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
     from ..setup.budget import check_dofs, mesh_dofs
-    from ..setup.config import is_elastic
 
-    cfg, msh = scene.cfg, scene.mesh
-    components = msh.geometry.dim if is_elastic(cfg) else 1
+    cfg, msh = scene.config, scene.mesh
+    components = msh.geometry.dim if cfg.elastic else 1
     check_dofs(
-        cfg,
-        mesh_dofs(msh, cfg["mesh"]["degree"], components),
+        cfg.solver,
+        mesh_dofs(msh, cfg.mesh.degree, components),
         msh.geometry.dim,
         "mesh",
         "the mesh gives",
     )
-    if cfg["model"]["type"] == "hyperelastic":
-        from .hyperelastic import hyperelastic_problem
+    if cfg.model.type in ("elasticity", "hyperelastic"):
+        problem: DiscreteProblem
+        if cfg.model.type == "hyperelastic":
+            from .hyperelastic import hyperelastic_problem
 
-        return hyperelastic_problem(scene)
-    if scene.cfg["model"]["type"] == "elasticity":
-        if scene.cfg.get("bodies"):
+            problem = hyperelastic_problem(scene, cfg.frictional)
+        elif cfg.bodies:
             from .bodies import bodies_problem
 
             problem = bodies_problem(scene)
@@ -57,7 +57,7 @@ def build_problem(scene: Scene) -> DiscreteProblem:
             from .elasticity import elasticity_problem
 
             problem = elasticity_problem(scene)
-        if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        if cfg.frictional:
             from .friction import friction_set
 
             problem.friction = friction_set(scene, problem)

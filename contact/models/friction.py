@@ -51,12 +51,19 @@ from ..solvers.problem import DiscreteProblem, FrictionSet
 
 
 def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
-    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity)."""
-    cfg = scene.cfg["friction"]
+    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity); a
+    Tresca threshold s(x, t) also goes into ``problem.data['threshold']`` as UFL (the bound
+    ρ of the estimator's friction terms)."""
+    cfg = scene.config.friction
+    assert cfg is not None  # a frictional scene
     V, con = problem.V, problem.constraint
     gdim, bs = scene.mesh.geometry.dim, V.dofmap.index_map_bs
     nodes = con.dofs // bs
-    if problem.basis is None:  # coordinate plane: the normal is the component k
+    current = problem.current
+    if current is not None:  # the current frame's rows [n t (t2)] (contact.solvers.current)
+        n_comp, t_comps = 0, np.arange(1, bs, dtype=np.int32)
+        frames = np.zeros((len(nodes), gdim, bs - 1))  # set at each iterate
+    elif problem.basis is None:  # coordinate plane: the normal is the component k
         n_comp = int(np.asarray(problem.data["n"]).nonzero()[0][0])
         t_comps = np.array([j for j in range(bs) if j != n_comp], dtype=np.int32)
         frames = np.broadcast_to(np.eye(gdim)[:, t_comps], (len(nodes), gdim, len(t_comps))).copy()
@@ -66,23 +73,29 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
     tangent = (nodes[:, None] * bs + t_comps[None, :]).astype(np.int32)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in problem.bcs])
     free = ~np.isin(tangent, fixed)
+    stiff, stiff_free = tangent, free  # the DoFs whose stiffness K_tt averages
+    if current is not None:  # the node's fixed axes are the first tangent columns
+        count = current.fixed.sum(axis=1)
+        free = np.arange(bs - 1)[None, :] >= count[:, None]
+        stiff = nodes[:, None] * bs + np.arange(bs)
+        stiff_free = ~current.fixed
     _check_symmetry_drag(scene, problem)
 
     w = con.w
     diag = problem.K.getDiagonal()
-    K_tt = np.where(free, diag.array_r[tangent], 0.0).sum(axis=1) / np.maximum(free.sum(axis=1), 1)
-    diag.destroy()
-    c_t = (
-        K_tt / (cfg["kappa_t"] * w)
-        if cfg["c_t"] == "auto"
-        else np.full(len(nodes), float(cfg["c_t"]))
+    K_tt = np.where(stiff_free, diag.array_r[stiff], 0.0).sum(axis=1) / np.maximum(
+        stiff_free.sum(axis=1), 1
     )
+    diag.destroy()
+    c_t = K_tt / (cfg.kappa_t * w) if cfg.c_t == "auto" else np.full(len(nodes), float(cfg.c_t))
 
     threshold = None
-    if cfg["law"] == "tresca":
+    if cfg.law == "tresca":
+        assert cfg.threshold is not None  # Tresca's, required at load
         X = V.tabulate_dof_coordinates()[nodes]
-        threshold = expressions.to_numpy(cfg["threshold"], scene.cfg["constants"], t=scene.time)(
-            X.T
+        threshold = expressions.to_numpy(cfg.threshold, scene.config.constants, t=scene.time)(X.T)
+        problem.data["threshold"] = expressions.to_ufl(
+            cfg.threshold, scene.mesh, scene.config.constants, t=scene.t_constant
         )
         bad = scene.comm.allreduce(int(np.sum(~(threshold >= 0))), op=MPI.SUM)
         if bad:
@@ -91,7 +104,7 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
                 f"at t = {scene.time:g} (a slip threshold is >= 0)"
             )
     return FrictionSet(
-        law=cfg["law"],
+        law=cfg.law,
         n_comp=n_comp,
         t_comps=t_comps,
         tangent=tangent,
@@ -99,12 +112,10 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         frames=frames,
         c_t=c_t,
         threshold=threshold,
-        coefficient=cfg["coefficient"],
+        coefficient=cfg.coefficient,
+        # (on the current configuration the slip is the solver's: CurrentContact.u_prev)
         x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
-        form=cfg["form"],
-        coulomb=cfg["coulomb"],
-        fixed_point_rtol=cfg["fixed_point_rtol"],
-        fixed_point_max_it=cfg["fixed_point_max_it"],
+        options=cfg.knobs(),
     )
 
 

@@ -1,4 +1,4 @@
-"""Hyperelastic bodies (finite strain) against a rigid plane, frictionless (issue 31).
+"""Hyperelastic bodies (finite strain) against rigid obstacles (issue 31).
 
 In the reference configuration Ω (coordinates X, displacement u, deformation gradient
 F = I + ∇u, C = FᵀF, J = det F, E = ½(C − I)) the body stores the strain energy
@@ -33,9 +33,19 @@ A plane whose normal is not a coordinate direction rotates the contact nodes to 
 (n, t) axes, u = Q x, as the linear model does: R̃(x) = Qᵀ R(Q x), K̃ = Qᵀ K_T Q
 (:class:`RotatedResidualProblem`).
 
-Not in this model (yet): curved obstacles (a gap that is nonlinear in u: normal and gap
-updated each Newton step), friction, several bodies, the adaptive loop.  The configuration
-refuses them.
+A circle or sphere — and any obstacle once there is friction — is met on the current
+configuration instead (:func:`contact.models.obstacles.current_contact`,
+:mod:`contact.solvers.current`): the gap g(X + u) of the deformed node is nonlinear in u,
+the normal and the node's (n, t) frame follow the obstacle's closest point at every Newton
+iterate (large sliding), the unknowns stay u and the contact node's residual block is read
+in its current frame; the generalized Jacobian H = B K_T + D carries the obstacle's
+curvature term (:class:`CurrentResidualProblem`).  Friction there is the linear model's
+HSW / projection law on the current tangent plane, the slip the increment of the deformed
+position along it.  :func:`linearized_problem` (the gap linearized at an iterate: a bound
+again) gives an independent solver of the same problem through PETSc's VI solvers.
+
+Not in this model (yet): several bodies, the adaptive loop.  The configuration refuses
+them.
 """
 
 from __future__ import annotations
@@ -46,14 +56,17 @@ from dataclasses import dataclass, field
 import numpy as np
 import ufl
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..solvers.current import nodal_geometry
+from ..solvers.problem import Constraint, NodeBlockMatrix
 from .elasticity import body_fields, elastic_setting, lame
 from .forms import ResidualProblem
-from .obstacles import plane_contact
+from .obstacles import current_contact, plane_contact, scene_obstacle
 
 LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 
@@ -90,26 +103,46 @@ def piola_and_cauchy(u, law: str, mu, lmbda_L) -> tuple:
     return ufl.as_matrix([[P[i, j] for j in range(gdim)] for i in range(gdim)]), sigma
 
 
-def hyperelastic_problem(scene: Scene) -> ResidualProblem:
-    """The frictionless contact problem of a hyperelastic body against the scene's rigid
-    plane (module doc): R(u; v) and K_T = ∂R/∂u from the energy, the plane's nodal bound."""
+def deformed_area(u, v, measure) -> ufl.Form:
+    """L(v) = ∫ v·(1, …, 1) da over ``measure`` in the deformed configuration: each
+    component's entry is the lumped current area w_i^cur = ∫ φ_i da of node i, with Nanson's
+    formula da = J |F⁻ᵀ N| dA (F = I + ∇u, gdim × gdim: in plane strain a length per unit
+    thickness, the out-of-plane stretch being 1; N the reference unit normal).  P1: F is
+    constant per cell, the default quadrature is exact."""
+    gdim = len(u)
+    F = ufl.Identity(gdim) + ufl.grad(u)
+    n = ufl.inv(F).T * ufl.FacetNormal(u.function_space.mesh)
+    return ufl.dot(v, ufl.as_vector([1.0] * gdim)) * ufl.det(F) * ufl.sqrt(ufl.dot(n, n)) * measure
+
+
+def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProblem:
+    """The contact problem of a hyperelastic body against the scene's rigid obstacle (module
+    doc): R(u; v) and K_T = ∂R/∂u from the energy; a plane's nodal bound, or — for a circle
+    or sphere, and with friction (``frictional``: the caller adds the friction set) — the
+    gap of the deformed point on the current configuration."""
     t0 = time.perf_counter()
     check_scene_data(scene)
-    model = scene.cfg["model"]
-    mu, lmbda_L = lame(model["E"], model["nu"])
+    model = scene.config.model
+    assert model.E is not None and model.law is not None  # required by the loader
+    mu, lmbda_L = lame(model.E, model.nu)
     s = elastic_setting(scene)
     V, msh = s.V, scene.mesh
     u_h = fem.Function(V, name="u_h")
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     # P1: F is constant per cell, any rule is exact; P2: degree 2p for the nonpolynomial ψ
-    degree = scene.cfg["mesh"]["degree"]
+    degree = scene.config.mesh.degree
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * degree})
-    energy = strain_energy(deformation_gradient(u_h), model["law"], mu, lmbda_L) * dx
+    energy = strain_energy(deformation_gradient(u_h), model.law, mu, lmbda_L) * dx
     R = ufl.derivative(energy, u_h, v) - s.L_ufl
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
     K, b = ResidualProblem.matrices(J_form, s.bcs)
-    contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
+    obstacle = scene_obstacle(scene)
     kind: type[ResidualProblem] = ResidualProblem
+    if obstacle.kind == "plane" and not frictional:
+        contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
+    else:
+        contact = current_contact(scene, V, s.fixed, s.data["ds"], obstacle)
+        kind = CurrentResidualProblem
     K_T: PETSc.Mat | None = None  # the tangent in u when K holds K̃ instead
     if "K" in contact:  # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
         b.destroy()
@@ -117,15 +150,19 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
         K, b = contact.pop("K"), contact.pop("b")
     con = contact.pop("constraint")
 
-    def stresses(u):
-        return piola_and_cauchy(u, model["law"], mu, lmbda_L)
+    law = model.law
 
+    def stresses(u):
+        return piola_and_cauchy(u, law, mu, lmbda_L)
+
+    contact_ds = s.data["ds"](scene.boundary.ids_with_role("contact"))
     data = {
         **s.data,
         "exact": None,
         "reaction_form": F_form,
         "stresses": stresses,
-        "law": model["law"],
+        "law": model.law,
+        "deformed_area": fem.form(deformed_area(u_h, v, contact_ds)),
         **contact.pop("data"),
     }
     problem = kind(
@@ -190,21 +227,157 @@ class RotatedResidualProblem(ResidualProblem):
         destroy(self.K_T, self._R)
 
 
+@dataclass
+class CurrentResidualProblem(ResidualProblem):
+    """The residual problem with contact on the current configuration
+    (:mod:`contact.solvers.current`, ``current`` set): the unknowns are the displacements,
+    a contact node's residual block is read in the frame of its current normal ñ(x_i).
+    The nodal quantities below are those of the iterate in ``u_h`` (the residual ``r``
+    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it)."""
+
+    def _rows(self) -> np.ndarray:
+        bs = self.V.dofmap.index_map_bs
+        return self.current.nodes[:, None] * bs + np.arange(bs)
+
+    def multiplier(self, r: np.ndarray) -> np.ndarray:
+        """λ_i = ñ_i·R_i / w_i (≤ 0 in contact): the normal nodal force per reference area."""
+        rows = self._rows()
+        geo = nodal_geometry(self.current, self.u_h.x.array[rows])
+        return np.einsum("ka,ka->k", geo.frames[:, :, 0], r[rows]) / self.constraint.w
+
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """The nominal contact pressure p_i = −λ_i (force per reference area, ≥ 0)."""
+        return -self.multiplier(r)
+
+    def nodal_gap(self, x: np.ndarray) -> np.ndarray:
+        """g(X_i + u_i): the gap of the deformed contact node (x holds the displacements)."""
+        cc = self.current
+        return cc.surface.project(cc.X + x[self._rows()])[0]
+
+    def gap_output(self, x: np.ndarray) -> fem.Function:
+        """The current gap g(X_i + u_i) at the contact nodes, NaN elsewhere."""
+        gap = self.nodal_output("gap", self.nodal_gap(x))
+        on = self.nodal_output("on", np.ones(len(self.constraint.dofs)))
+        gap.x.array[on.x.array < 0.5] = np.nan
+        return gap
+
+    def constrained_hessian(self, x: PETSc.Vec, active: np.ndarray) -> tuple[PETSc.Mat, np.ndarray]:
+        """(Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
+        solution x, on the tangent space of the active constraints — what decides the
+        stability of a constrained equilibrium (:func:`negative_eigenvalues`).  With
+        μ_i = ñ_i·R_i (= w_i λ_i ≤ 0; R_i = μ_i ñ_i at a frictionless solution) and
+        ∇²g = −Dn,
+
+            ∇²L = K_T − Σ_{i active} μ_i P_i Dn_i P_i,
+
+        (against a circle or sphere −μ Dn = −w p (I − n nᵀ)/|x − c|: a convex obstacle
+        softens the body's tangential motion — it can roll off), rotated to the active nodes'
+        current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
+        matrix (the caller destroys it); K becomes K_T(x)."""
+        cc, bs = self.current, self.V.dofmap.index_map_bs
+        rows = self._rows()
+        r = x.duplicate()
+        self.residual(x, r)
+        self.linearize(x)
+        u = x.array_r[rows]
+        geo = nodal_geometry(cc, u)
+        Dn = cc.surface.project(cc.X + u)[2]
+        free = ~cc.fixed
+        mu = np.einsum("ka,ka->k", geo.frames[:, :, 0], r.array_r[rows])
+        nodes = cc.nodes[active]
+        curvature, frames = NodeBlockMatrix(self.K, bs), NodeBlockMatrix(self.K, bs)
+        blocks = np.zeros((curvature.local_nodes, bs, bs))
+        blocks[nodes] = (-mu[:, None, None] * (free[:, :, None] * Dn * free[:, None, :]))[active]
+        hessian = self.K.duplicate(copy=True)
+        subset = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+        hessian.axpy(1.0, curvature.set(blocks), structure=subset)  # type: ignore[arg-type]
+        Q = frames.identity()
+        Q[nodes] = geo.frames[active]
+        out = hessian.PtAP(frames.set(Q))
+        destroy(hessian, curvature.mat, frames.mat, r)
+        return out, (nodes * bs).astype(np.int32)
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """F = −m Σ_i R_i·n: the resultant of the nodal contact forces along the normal n at
+        the first point of contact (m the symmetric copies; frictionless: Σ w_i p_i ñ_i·n)."""
+        n = np.asarray(self.data["n"], dtype=float)
+        local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
+        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
+def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProblem:
+    """The same body with the obstacle's gap linearized at the displacement u^k in
+    ``problem.u_h``: each contact node i meets the plane tangent to the obstacle at the
+    closest point of its deformed position x_i^k = X_i + u_i^k,
+
+        ñ_i^k · u_i ≤ g(x_i^k) + ñ_i^k · u_i^k,
+
+    a bound on the rotated unknown x_i,0 (u = Q_k x, Q_k the frames of the normals ñ^k), so
+    that PETSc's VI solvers apply (:class:`RotatedResidualProblem`, K_T re-assembled as
+    usual).  A fixed point u^{k+1} = u^k of this sequence solves the problem on the current
+    configuration: the linearized gap is then g(X + u) itself, and the multiplier acts along
+    ñ(X + u).  An independent solver of the same discrete problem (sequential linearization;
+    tests and benchmarks).  Contact nodes with a fixed component are refused (their
+    rotated unknowns would not carry the Dirichlet values).  ``u_h`` is shared."""
+    cc = problem.current
+    if np.any(cc.fixed):
+        raise ValueError("linearized_problem: contact nodes with fixed components")
+    bs = problem.V.dofmap.index_map_bs
+    rows = problem._rows()
+    u = problem.u_h.x.array[rows]
+    geo = nodal_geometry(cc, u)
+    K_T = problem.K.duplicate(copy=True)
+    Q = NodeBlockMatrix(K_T, bs)
+    blocks = Q.identity()
+    blocks[cc.nodes] = geo.frames
+    basis = Q.set(blocks)
+    normals = geo.frames[:, :, 0]
+    con = problem.constraint
+    bound = geo.g + np.einsum("ka,ka->k", normals, u)
+    constraint = Constraint(con.dofs, bound, con.w, 1.0, con.scale)
+    out = RotatedResidualProblem(
+        problem.V,
+        problem.u_h,
+        problem.bcs,
+        K_T.PtAP(basis),
+        problem.b.duplicate(),
+        constraint,
+        output_space=problem.output_space,
+        output_map=problem.output_map,
+        output_bound=problem.output_bound,
+        lambda_sign=1.0,
+        basis=basis,
+        data={**problem.data, "normals": normals},
+        F_form=problem.F_form,
+        J_form=problem.J_form,
+        symmetric_copies=problem.symmetric_copies,
+        symmetry_axes=problem.symmetry_axes,
+    )
+    out.b.set(0.0)
+    out.K_T = K_T
+    return out
+
+
 def negative_eigenvalues(result) -> int:
     """The number of negative eigenvalues of the tangent K_T(u_h) on the free unknowns (the
     Dirichlet rows and the active contact nodes held), from the inertia of its Cholesky
-    factorization (MUMPS, LDLᵀ; collective).  0: u_h is a stable equilibrium of the
+    factorization (MUMPS, LDLᵀ; collective).  On the current configuration the Hessian of
+    the Lagrangian in the active nodes' current frames, their normal unknowns held
+    (:meth:`CurrentResidualProblem.constrained_hessian`).  0: u_h is a stable equilibrium of the
     constrained problem; > 0: K_T lost positive definiteness — past a limit point, or
     St Venant–Kirchhoff in strong compression (its energy is not convex) — and the
     solution may be unstable (buckling, localisation).  One factorization per call."""
     p = result.problem
     x = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, x)
-    p.linearize(x)
-    A = p.K.duplicate(copy=True)
+    if isinstance(p, CurrentResidualProblem):  # the constraint's normal and curvature
+        A, held = p.constrained_hessian(x, result.active_mask)
+    else:
+        p.linearize(x)
+        A, held = p.K.duplicate(copy=True), p.constraint.dofs[result.active_mask]
     lo = A.getOwnershipRange()[0]
-    A.zeroRowsColumns((p.constraint.dofs[result.active_mask] + lo).astype(PETSc.IntType), diag=1.0)
-    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    A.zeroRowsColumns((held + lo).astype(PETSc.IntType), diag=1.0)  # type: ignore[arg-type]
+    A.setOption(PETSc.Mat.Option.SYMMETRIC, True)  # type: ignore[arg-type]
     ksp = PETSc.KSP().create(A.getComm())
     try:
         ksp.setOperators(A)

@@ -9,9 +9,16 @@ contact node's displacement is rotated to its (n, t) axes, u = Q x with Q orthog
 block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, so that it is a bound on one unknown again.
 Each function returns the pieces of :class:`contact.solvers.problem.DiscreteProblem` that
 the obstacle determines (constraint, output space, basis, contact data).
+
+A finite-strain body meets the obstacle on the current configuration instead
+(:func:`current_contact`): the obstacle is a signed distance (:class:`RigidPlane`,
+:class:`RigidBall`) evaluated at the deformed nodes x = X + u at every Newton iterate, and
+the normal and frame follow it (:mod:`contact.solvers.current`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import ufl
@@ -20,7 +27,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
-from ..setup import expressions
+from ..setup.obstacle import RigidObstacle, rigid_obstacle
 from ..setup.scene import Scene
 from ..solvers.problem import Constraint, NodeBlockMatrix
 from .basis import frame
@@ -42,11 +49,12 @@ def obstacle_shape(scene: Scene) -> tuple:
     coordinates (n, gdim) to the unit normals n (towards the obstacle) and the initial gaps
     g, the UFL expressions are the same for forms.  Plane: n = −ν, g = (x − p)·ν; circle /
     sphere: n = (c − x)/|c − x|, g = |x − c| − R_o."""
-    obstacle, msh = scene.cfg["obstacle"], scene.mesh
+    obstacle, msh = scene.config.obstacle, scene.mesh
+    assert obstacle is not None  # the scene's rigid obstacle
     gdim = msh.geometry.dim
     X = ufl.SpatialCoordinate(msh)
-    if obstacle["type"] == "plane":
-        nu_o = np.asarray(obstacle["normal"], dtype=float)
+    if obstacle.type == "plane":
+        nu_o = np.asarray(obstacle.normal, dtype=float)
         nu_o = nu_o / np.linalg.norm(nu_o)
         p = plane_point(scene)
         if len(nu_o) != gdim or len(p) != gdim:
@@ -61,9 +69,11 @@ def obstacle_shape(scene: Scene) -> tuple:
             ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())),
         )
     want = "circle" if gdim == 2 else "sphere"
-    if obstacle["type"] != want:
-        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
-    centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
+    if obstacle.type != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle.type}")
+    assert obstacle.radius is not None  # checked at load
+    centre, R_o = scene_obstacle(scene).center, float(obstacle.radius)
+    assert centre is not None  # a circle / sphere has its centre (at t)
     if len(centre) != gdim:
         raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
     c_ufl = ufl.as_vector(centre.tolist())
@@ -75,24 +85,26 @@ def obstacle_shape(scene: Scene) -> tuple:
     )
 
 
+def scene_obstacle(scene: Scene, time: float | None = None) -> RigidObstacle:
+    """The scene's rigid obstacle at its pseudo-time (or at ``time``): a plane's point or a
+    circle's centre may be expressions of t, an obstacle moved along a load path."""
+    config = scene.config
+    assert config.obstacle is not None  # an elastic scene with an obstacle (checked at load)
+    return rigid_obstacle(config.obstacle, config.constants, scene.time if time is None else time)
+
+
 def plane_point(scene: Scene) -> np.ndarray:
-    """The plane's point p at the scene's pseudo-time (its coordinates may be expressions
-    of t: a plane moved along a load path)."""
-    consts = scene.cfg["constants"]
-    return np.array(
-        [
-            float(expressions.to_numpy(c, consts, t=scene.time)(np.zeros((3, 1)))[0])
-            for c in scene.cfg["obstacle"]["point"]
-        ]
-    )
+    """The plane's point p at the scene's pseudo-time."""
+    return scene_obstacle(scene).position
 
 
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
-    obstacle, gdim = scene.cfg["obstacle"], scene.mesh.geometry.dim
+    obstacle, gdim = scene.config.obstacle, scene.mesh.geometry.dim
+    assert obstacle is not None  # the scene's rigid plane
     normal, gap, n_ufl, g_ufl = obstacle_shape(scene)
-    nu_o = np.asarray(obstacle["normal"], dtype=float)
+    nu_o = np.asarray(obstacle.normal, dtype=float)
     nu_o = nu_o / np.linalg.norm(nu_o)
     p = plane_point(scene)
     k = int(np.argmax(np.abs(nu_o)))
@@ -146,8 +158,10 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     Xs = S.tabulate_dof_coordinates()[:, :gdim]
     g_all = gap(Xs)
     inside = g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs))))
-    # a plane may have moved into the body (obstacle.point in t): a prescribed penetration
-    if scene.cfg["obstacle"]["type"] != "plane" and msh.comm.allreduce(int(np.sum(inside))):
+    # an obstacle may have moved into the body (obstacle.point / center in t): a prescribed
+    # penetration
+    obstacle = scene_obstacle(scene)
+    if obstacle.kind != "plane" and not obstacle.moving and msh.comm.allreduce(int(np.sum(inside))):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
     normals = normal(Xs[sd])
     Q = _rotation(V, K, nodes, normals)
@@ -231,3 +245,109 @@ def _rotation(
     for node, n in zip(nodes, normals):
         blocks[node] = frame(n)
     return Q.set(blocks)
+
+
+@dataclass(frozen=True)
+class RigidPlane:
+    """The rigid plane through p with unit normal ν (towards the body) as a signed distance
+    (:class:`contact.solvers.current.RigidSurface`): g = (x − p)·ν, n = −ν, Dn = 0."""
+
+    point: np.ndarray
+    normal: np.ndarray
+
+    @property
+    def scale(self) -> float:
+        return float(np.max(np.abs(self.point), initial=0.0))
+
+    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        k, d = x.shape
+        return (x - self.point) @ self.normal, np.tile(-self.normal, (k, 1)), np.zeros((k, d, d))
+
+
+@dataclass(frozen=True)
+class RigidBall:
+    """The rigid circle (2D) / sphere (3D) of centre c and radius R_o, the body outside, as a
+    signed distance (:class:`contact.solvers.current.RigidSurface`): with r = |x − c|,
+    g = r − R_o, n = (c − x)/r, Dn = −(I − n nᵀ)/r (the closest point c − R_o n is the
+    point of the obstacle under x, wherever x has slid to)."""
+
+    center: np.ndarray
+    radius: float
+
+    @property
+    def scale(self) -> float:
+        return float(np.max(np.abs(self.center), initial=0.0)) + self.radius
+
+    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        rel = x - self.center
+        r = np.linalg.norm(rel, axis=1)
+        n = -rel / r[:, None]
+        d = x.shape[1]
+        Dn = -(np.eye(d)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
+        return r - self.radius, n, Dn
+
+
+def rigid_surface(obstacle: RigidObstacle) -> RigidPlane | RigidBall:
+    """The signed distance of a rigid obstacle (plane, circle or sphere)."""
+    if obstacle.kind == "plane":
+        assert obstacle.point is not None and obstacle.normal is not None
+        return RigidPlane(obstacle.point, obstacle.normal)
+    assert obstacle.center is not None and obstacle.radius is not None
+    return RigidBall(obstacle.center, obstacle.radius)
+
+
+def current_contact(
+    scene: Scene, V: fem.FunctionSpace, fixed: np.ndarray, ds, obstacle: RigidObstacle
+) -> dict:
+    """Contact on the current configuration (:mod:`contact.solvers.current`): the gap of the
+    deformed node x = X + u to ``obstacle``, normal and frame followed at every Newton
+    iterate; the unknowns stay the displacements (no change of basis).  Contact nodes
+    fixed in every component are left out; one with some components fixed (a symmetry
+    plane) is refused when the obstacle's normal there lies mostly along them (its
+    constrained normal ñ = P n / |P n| would not be the obstacle's).  The constraint's g
+    are the reference gaps g(X) (the first point of contact, the output's bound); λ_i is
+    the normal component of the nodal force per reference area (nominal pressure)."""
+    from ..solvers.current import CurrentContact
+
+    msh = scene.mesh
+    gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
+    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, 0, scene.boundary.facets("contact"))
+    nodes = v_dofs // bs
+    node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
+    keep = (nodes < V.dofmap.index_map.size_local) & ~node_fixed.all(axis=1)
+    nodes, sd, node_fixed = nodes[keep], s_dofs[keep], node_fixed[keep]
+    Xs = S.tabulate_dof_coordinates()[:, :gdim]
+    X = Xs[sd]
+    surface = rigid_surface(obstacle)
+    g0, n0, _ = surface.project(X)
+    along_fixed = np.linalg.norm(np.where(node_fixed, 0.0, n0), axis=1) <= 0.5
+    if msh.comm.allreduce(int(np.sum(along_fixed))):
+        raise ConfigError(
+            "obstacle: at contact nodes on a symmetry or Dirichlet part the obstacle's normal "
+            "lies mostly along the fixed components (the obstacle is not symmetric about it)"
+        )
+    u_prev = scene.history.get("u_prev")
+    previous = (
+        np.zeros((len(nodes), gdim))
+        if u_prev is None
+        else u_prev.x.array[nodes[:, None] * bs + np.arange(gdim)]
+    )
+    # the obstacle's translation since the state the slip starts from: the previous step's
+    # solution, or the unloaded body at t = 0
+    motion = np.zeros(gdim)
+    if obstacle.moving:
+        start = scene.previous_time if u_prev is not None and scene.previous_time else 0.0
+        motion = obstacle.position - scene_obstacle(scene, start).position
+    w = lumped_weights(S, ds(scene.boundary.ids_with_role("contact")))[sd]
+    bound = fem.Function(S, name="bound")
+    bound.x.array[:] = surface.project(Xs)[0]
+    first = first_contact_row(msh.comm, X, g0, n0)
+    return {
+        "current": CurrentContact(nodes.astype(np.int32), X, node_fixed, surface, previous, motion),
+        "constraint": Constraint((nodes * bs).astype(np.int32), g0, w, 1.0, coordinate_scale(msh)),
+        "output_space": S,
+        "output_map": s_to_v,
+        "output_bound": bound,
+        "lambda_sign": 1.0,
+        "data": {"n": first},
+    }

@@ -41,7 +41,6 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ..setup.config import is_elastic
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
 
@@ -51,7 +50,7 @@ STATUS = ("separated", "stick", "slip")
 
 def value_name(scene: Scene) -> str:
     """The multiplier column: ``lambda_n`` for elasticity, ``lambda`` for scalar models."""
-    return "lambda_n" if is_elastic(scene.cfg) else "lambda"
+    return "lambda_n" if scene.config.elastic else "lambda"
 
 
 def contact_columns(scene: Scene, result: Result) -> Table:
@@ -61,12 +60,15 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     con = p.constraint
     gdim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    from .resultants import nodal_gap
+    from .resultants import current_pressure, nodal_gap
 
     cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
     if gdim == 3 and not p.in_domain:
         cols.update(_polar(scene, result, X))
-    cols[value_name(scene)] = p.lambda_sign * owned_residual(result)[con.dofs] / con.w
+    cols[value_name(scene)] = p.multiplier(owned_residual(result))
+    current = current_pressure(result)
+    if current is not None:  # a finite-strain body: the pressure per deformed area
+        cols["pressure_current"] = current
     cols["gap"] = nodal_gap(result)
     cols["active"] = result.active_mask.astype(np.int8)
     if result.friction is not None:  # λ_t, bound, slip, status, weight
@@ -189,13 +191,13 @@ def _contact_segments(scene: Scene) -> np.ndarray | None:
     msh = scene.mesh
     tdim = msh.topology.dim
     facets = scene.boundary.facets("contact")
-    if scene.cfg.get("pairs"):
+    if scene.config.pairs:
         from ..models.mortar import part_facets
 
         facets = np.union1d(
             facets,
             np.concatenate(
-                [part_facets(scene.boundary, pair["slave"]) for pair in scene.cfg["pairs"]]
+                [part_facets(scene.boundary, pair.slave) for pair in scene.config.pairs]
             ),
         ).astype(np.int32)
     facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]

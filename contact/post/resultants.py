@@ -56,14 +56,53 @@ def reaction_force(result: Result) -> list[float]:
 
 
 def nodal_gap(result: Result) -> np.ndarray:
-    """g_i − (Qᵀu)_i, the gap at the owned constrained nodes (≥ 0 when feasible)."""
+    """g_i − (Qᵀu)_i, the gap at the owned constrained nodes (≥ 0 when feasible; on the
+    current configuration the gap of the deformed node, :meth:`DiscreteProblem.nodal_gap`)."""
     p = result.problem
-    con = p.constraint
     unknowns = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, unknowns)
-    gap = con.sign * (con.g - unknowns.array_r[con.dofs])
+    gap = p.nodal_gap(unknowns.array_r)
     unknowns.destroy()
     return gap
+
+
+def current_pressure(result: Result) -> np.ndarray | None:
+    """The contact pressure on the deformed surface of a finite-strain body at the owned
+    contact nodes (None for a linear model, whose one configuration is the reference):
+
+        p_i^cur = w_i p_i / w_i^cur,
+
+    the node's normal contact force w_i p_i (p_i the nominal pressure of
+    :meth:`DiscreteProblem.pressure`, force per reference area) over its lumped deformed
+    area w_i^cur = ∫ φ_i da, da = J |F⁻ᵀ N| dA (Nanson; ``data["deformed_area"]``,
+    :func:`contact.models.hyperelastic.deformed_area`): the discrete Cauchy normal traction
+    −σn·n on the current surface, the counterpart of the nominal one; Σ_i w_i^cur p_i^cur =
+    Σ_i w_i p_i, the same force.  Collective (assembly)."""
+    p = result.problem
+    form = p.data.get("deformed_area")
+    if form is None:
+        return None
+    r = owned_residual(result)  # puts u_h in place for the form too
+    area = dolfinx.fem.petsc.assemble_vector(form)
+    area.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
+    con = p.constraint
+    out = p.pressure(r) * con.w / area.array_r[con.dofs]
+    area.destroy()
+    return out
+
+
+def pressure_peaks(result: Result) -> dict:
+    """``peak_pressure`` (nominal) and ``peak_pressure_current`` (per deformed area,
+    :func:`current_pressure`) of a finite-strain body, {} for a linear model (collective)."""
+    current = current_pressure(result)
+    if current is None:
+        return {}
+    comm = result.problem.V.mesh.comm
+    nominal = result.problem.pressure(owned_residual(result))
+    return {
+        "peak_pressure": comm.allreduce(float(np.max(nominal, initial=0.0)), op=MPI.MAX),
+        "peak_pressure_current": comm.allreduce(float(np.max(current, initial=0.0)), op=MPI.MAX),
+    }
 
 
 def contact_resultants(scene: Scene, result: Result) -> dict:

@@ -77,17 +77,15 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import ncp
-from .linear import attach_near_nullspace
-from .newton import Complementarity, set_newton
+from .newton import SEPARATED, SLIP, STICK, BlockComplementarity, setup_block_newton
 from .options import SolverOptions
-from .problem import DiscreteProblem, FrictionSet, NodeBlockMatrix
+from .problem import DiscreteProblem, FrictionSet
 from .result import Result
 
 if TYPE_CHECKING:
     from .block_system import BlockReducedSystem
 
 FORMS = ("projection", "hsw")
-SEPARATED, STICK, SLIP = 0, 1, 2
 SLIP_TIE = 1e-11  # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
 STATUS_NAMES = {SEPARATED: "separated", STICK: "stick", SLIP: "slip"}
 
@@ -155,7 +153,7 @@ def tangential_law(
     return TangentialLaw(C * mask, J_mu, J_s, J_rho, stick)
 
 
-class FrictionalComplementarity(Complementarity):
+class FrictionalComplementarity(BlockComplementarity):
     """The normal NCP of :class:`~contact.solvers.newton.Complementarity` and the
     tangential rows of the friction law, at an iterate x (vectorised over nodes)."""
 
@@ -163,11 +161,9 @@ class FrictionalComplementarity(Complementarity):
         super().__init__(problem)
         fs: FrictionSet = problem.friction
         self.fs = fs
-        self.bs = problem.V.dofmap.index_map_bs
         self.nodes = self.dofs // self.bs
         self.threshold = fs.threshold  # Tresca's ρ (the fixed point replaces it)
         self.coulomb = fs.law == "coulomb" and self.threshold is None
-        self.B, self.D = NodeBlockMatrix(problem.K, self.bs), NodeBlockMatrix(problem.K, self.bs)
 
     def evaluate(self, x: PETSc.Vec) -> dict:
         """Every nodal quantity at x: a, b, μ_n, ξ, ρ, μ_t, s and the tangential law."""
@@ -183,7 +179,7 @@ class FrictionalComplementarity(Complementarity):
             rho = self.threshold
         mu_t = -r[fs.tangent] / self.w[:, None]
         s = x.array_r[fs.tangent] - fs.x_prev
-        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
+        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.options.form)
         return {
             "a": a,
             "b": b,
@@ -234,24 +230,6 @@ class FrictionalComplementarity(Complementarity):
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
         return Bv, Dv
 
-    def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
-        """Per node: SEPARATED (normal inactive, :meth:`active_set`), STICK or SLIP (a node
-        touching with zero pressure slips: ρ = 0; collective); ``st`` the :meth:`evaluate`
-        of x if at hand."""
-        st = self.evaluate(x) if st is None else st
-        touching = self.active_set(st["a"], st["b"])
-        return np.where(touching, np.where(st["law"].stick, STICK, SLIP), SEPARATED)
-
-    def matrix(self) -> PETSc.Mat:
-        """A Jacobian matrix with the pattern of B K (created by the product, for reuse)."""
-        B = self.B.set(self.B.identity())
-        return B.matMult(self.p.K)
-
-    def destroy(self) -> None:
-        super().destroy()
-        for obj in (self.B.mat, self.D.mat):
-            obj.destroy()
-
 
 def setup_friction_newton(
     snes: PETSc.SNES,
@@ -265,40 +243,17 @@ def setup_friction_newton(
 ) -> PETSc.Mat:
     """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts.method``):
     the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix
-    (a new one, or the ``system``'s H, which then builds its reduced operator from each
-    Jacobian's blocks: :mod:`.block_system`)."""
-    method, mu = opts.method, opts.mu
-    if system is None:
-        J = cp.matrix()
-        attach_near_nullspace(problem, J)
-
-        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
-            cp.block_jacobian(x, P, method, mu)
-
-    else:
-        J, reduced = system.J, system
-
-        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
-            reduced.set_block(*cp.block_jacobian(x, P, method, mu))
-
-    set_newton(
-        snes,
-        problem,
-        J,
-        lambda x, f: cp.phi(x, f, method, mu),
-        jacobian,
-        opts,
-        timers,
-        state,
-        petsc_opts,
-    )
-    return J
+    (a new one, or the ``system``'s H: :func:`contact.solvers.newton.setup_block_newton`)."""
+    return setup_block_newton(snes, problem, cp, opts, timers, state, petsc_opts, system)
 
 
-def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: PETSc.Vec) -> dict:
+def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc.Vec) -> dict:
     """Nodal results of a frictional solve (owned contact nodes): λ_n, λ_t (n, m), ρ, the
     slip increment s (n, m), the status, the gap, the weights w, and λ_t, s as vectors in
-    global axes (n, gdim)."""
+    global axes (n, gdim).  ``cp``: :class:`FrictionalComplementarity`, or
+    :class:`contact.solvers.current.CurrentComplementarity` with friction (its tangents
+    those of the last evaluation)."""
+    fs: FrictionSet = problem.friction
     st = cp.evaluate(x)
     status = cp.status(x, st)
     lam_t = -st["mu_t"]
@@ -309,8 +264,8 @@ def friction_fields(problem: DiscreteProblem, cp: FrictionalComplementarity, x: 
         "slip": st["s"],
         "status": status,
         "gap": st["a"],
-        "lambda_t_vec": tangential_vector(cp.fs, lam_t),
-        "slip_vec": tangential_vector(cp.fs, st["s"]),
+        "lambda_t_vec": tangential_vector(fs, lam_t),
+        "slip_vec": tangential_vector(fs, st["s"]),
         "w": cp.w,
     }
 

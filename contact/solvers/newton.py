@@ -28,17 +28,22 @@ definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
 
 from __future__ import annotations
 
-import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.timing import Timer
 from . import ncp
 from .globalize import GuardedMin
+from .linear import attach_near_nullspace
 from .options import SolverOptions
 from .polish import Polisher
-from .problem import DiscreteProblem
+from .problem import DiscreteProblem, NodeBlockMatrix
+
+if TYPE_CHECKING:
+    from .block_system import BlockReducedSystem
 
 
 class Complementarity:
@@ -74,6 +79,13 @@ class Complementarity:
         local = float(max(np.max(np.abs(a), initial=0.0), np.max(np.abs(b), initial=0.0)))
         scale = self.p.b.getComm().tompi4py().allreduce(local, op=MPI.MAX)
         return ncp.TIE_RTOL * max(scale, self.p.constraint.scale)
+
+    def gap_roundoff(self, x: PETSc.Vec) -> float:
+        """The round-off floor of the gap rows of ‖Φ(x)‖ beyond that of K x − b
+        (:func:`contact.solvers.snes.roundoff_floor`): none for a gap given as a bound;
+        :class:`contact.solvers.current.CurrentComplementarity` computes its gaps from
+        coordinates (collective)."""
+        return 0.0
 
     def active_set(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Active nodes: the scaled multiplier exceeds the gap, b_i − a_i > τ, or the node
@@ -113,6 +125,51 @@ class Complementarity:
             obj.destroy()
 
 
+#: a node's state under a friction law (:meth:`BlockComplementarity.status`)
+SEPARATED, STICK, SLIP = 0, 1, 2
+
+
+class BlockComplementarity(Complementarity):
+    """A :class:`Complementarity` whose generalized-Jacobian element is a block law
+    H = B K + D, B and D node-block matrices (one bs × bs block per node, identity / zero off
+    the contact nodes) that ``block_jacobian(x, H, method, mu)`` fills at each iterate:
+    friction (:mod:`.friction`), contact on the current configuration (:mod:`.current`).
+    ``evaluate(x)`` returns the nodal quantities (a, b and, with friction, the law)."""
+
+    def __init__(self, problem: DiscreteProblem):
+        super().__init__(problem)
+        self.bs = bs = problem.V.dofmap.index_map_bs
+        self.B, self.D = NodeBlockMatrix(problem.K, bs), NodeBlockMatrix(problem.K, bs)
+
+    def evaluate(self, x: PETSc.Vec) -> dict:
+        raise NotImplementedError
+
+    def block_jacobian(
+        self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H = B K + D, the generalized-Jacobian element at x; returns the blocks of B and D,
+        (local nodes, bs, bs) each."""
+        raise NotImplementedError
+
+    def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
+        """Per node of a friction law: SEPARATED (normal inactive, :meth:`active_set`), STICK
+        or SLIP (a node touching with zero pressure slips: ρ = 0; collective); ``st`` the
+        :meth:`evaluate` of x if at hand."""
+        st = self.evaluate(x) if st is None else st
+        touching = self.active_set(st["a"], st["b"])
+        return np.where(touching, np.where(st["law"].stick, STICK, SLIP), SEPARATED)
+
+    def matrix(self) -> PETSc.Mat:
+        """A Jacobian matrix with the pattern of B K (created by the product, for reuse)."""
+        B = self.B.set(self.B.identity())
+        return B.matMult(self.p.K)
+
+    def destroy(self) -> None:
+        super().destroy()
+        for obj in (self.B.mat, self.D.mat):
+            obj.destroy()
+
+
 def setup_newton(
     snes: PETSc.SNES,
     cp: Complementarity,
@@ -129,8 +186,8 @@ def setup_newton(
     as the line-search pre-check either active-set polishing (fb / blend with
     ``opts.polish``) or, for min with line search ``auto``, the cycle guard of
     :mod:`.globalize`.  Time spent in the callbacks is added to ``timers['assembly']``;
-    ``state['t_jac']`` marks the end of the Jacobian (the linear solve's clock starts
-    there).  Returns the pre-check object (Polisher or GuardedMin) or None."""
+    ``state['t_jac']`` is the linear solve's Timer, started at the end of the Jacobian.
+    Returns the pre-check object (Polisher or GuardedMin) or None."""
     method, mu = opts.method, opts.mu
 
     def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
@@ -159,6 +216,51 @@ def setup_newton(
     return precheck
 
 
+def setup_block_newton(
+    snes: PETSc.SNES,
+    problem: DiscreteProblem,
+    cp: BlockComplementarity,
+    opts: SolverOptions,
+    timers: dict,
+    state: dict,
+    petsc_opts: dict,
+    system: BlockReducedSystem | None = None,
+) -> PETSc.Mat:
+    """Make ``snes`` semismooth Newton on the Φ of ``cp`` with a block law H = B K + D:
+    ``cp.matrix()`` gives a matrix of the pattern of B K, ``cp.block_jacobian(x, H, method,
+    mu)`` writes the element at x (friction, :mod:`.friction`; contact on the current
+    configuration, :mod:`.current`) and returns the blocks of B and D.  Plain Newton or
+    ``bt``, no polishing; returns the Jacobian matrix: a new one (the caller destroys it),
+    or the ``system``'s H, which then builds its reduced operator from each Jacobian's
+    blocks (:mod:`.block_system`, ``solver.linear: gmres``)."""
+    method, mu = opts.method, opts.mu
+    if system is None:
+        J = cp.matrix()
+        attach_near_nullspace(problem, J)
+
+        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+            cp.block_jacobian(x, P, method, mu)
+
+    else:
+        J, reduced = system.J, system
+
+        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+            reduced.set_block(*cp.block_jacobian(x, P, method, mu))
+
+    set_newton(
+        snes,
+        problem,
+        J,
+        lambda x, f: cp.phi(x, f, method, mu),
+        jacobian,
+        opts,
+        timers,
+        state,
+        petsc_opts,
+    )
+    return J
+
+
 def set_newton(
     snes: PETSc.SNES,
     problem: DiscreteProblem,
@@ -172,22 +274,19 @@ def set_newton(
 ) -> None:
     """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
     ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
-    both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
-    (the linear solve's clock starts there).  PETSc's line search ``opts.line_search``
-    (``auto``: ``basic``, the cycle guard being a pre-check) unless the PETSc options say
-    otherwise."""
+    both is added to ``timers['assembly']``; ``state['t_jac']`` is the linear solve's Timer
+    (``timers['solve']``), started at the end of the Jacobian.  PETSc's line search
+    ``opts.line_search`` (``auto``: ``basic``, the cycle guard being a pre-check) unless the
+    PETSc options say otherwise."""
 
     def residual(snes, x, f):
-        t0 = time.perf_counter()
-        phi(x, f)
-        timers["assembly"] += time.perf_counter() - t0
+        with Timer(timers, "assembly"):
+            phi(x, f)
 
     def jac(snes, x, J_, P):
-        t0 = time.perf_counter()
-        jacobian(x, P)
-        now = time.perf_counter()
-        timers["assembly"] += now - t0
-        state["t_jac"] = now
+        with Timer(timers, "assembly"):
+            jacobian(x, P)
+        state["t_jac"] = Timer(timers, "solve").start()  # stopped after the linear solve
 
     snes.setType("newtonls")
     snes.setFunction(residual, problem.b.duplicate())

@@ -27,6 +27,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.lifetime import destroy
+from .options import FrictionOptions
 
 
 @dataclass
@@ -83,6 +84,9 @@ class DiscreteProblem:
     symmetric_copies: int = 1  # copies of the modelled part the body stands for (symmetry)
     symmetry_axes: tuple[int, ...] = ()  # k of the mirror planes x_k = c behind those copies
     friction: Any = None  # FrictionSet (below) of a frictional scene, else None
+    # contact on the current configuration (a gap nonlinear in u): the nodes and the rigid
+    # surface (:class:`contact.solvers.current.CurrentContact`), else None
+    current: Any = None
 
     def destroy(self) -> None:
         """Destroy the PETSc objects of the problem (K, b, Q, Q⁻¹, the near-nullspace, the
@@ -134,6 +138,16 @@ class DiscreteProblem:
         con = self.constraint
         return -con.sign * r[con.dofs] / con.w
 
+    def multiplier(self, r: np.ndarray) -> np.ndarray:
+        """λ_i = ±R_i / w_i (``lambda_sign``) on the constrained DoFs (owned residual ``r``)."""
+        con = self.constraint
+        return self.lambda_sign * r[con.dofs] / con.w
+
+    def nodal_gap(self, x: np.ndarray) -> np.ndarray:
+        """σ(g_i − x_i) on the constrained DoFs (owned unknowns ``x``): ≥ 0 when feasible."""
+        con = self.constraint
+        return con.sign * (con.g - x[con.dofs])
+
     def contact_force(self, r: np.ndarray) -> float:
         """The resultant contact force over all ranks (collective),
 
@@ -149,27 +163,32 @@ class DiscreteProblem:
         return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
     def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
-        """Nodal fields on the output space S: the multiplier λ_h (λ_i = ±R_i / w_i on the
-        constrained DoFs, 0 elsewhere), the gap σ(bound − u) (≥ 0 when feasible) and the
-        0/1 active set.  ``x`` and ``r`` are the owned unknowns and residual at the
-        solution, ``active`` the mask over the constrained DoFs.  The gap is NaN off the
-        constrained DoFs of a contact boundary Γ_C (g − u inside Ω is no gap); for an
-        obstacle (constraint in Ω) it is ψ − u everywhere."""
+        """Nodal fields on the output space S: the multiplier λ_h (:meth:`multiplier` on the
+        constrained DoFs, 0 elsewhere), the gap (:meth:`gap_output`) and the 0/1 active
+        set.  ``x`` and ``r`` are the owned unknowns and residual at the solution,
+        ``active`` the mask over the constrained DoFs."""
+        lmbda = self.nodal_output("lambda_h", self.multiplier(r))
+        return lmbda, self.gap_output(x), self.nodal_output("active", active.astype(float))
+
+    def nodal_output(self, name: str, values: np.ndarray) -> fem.Function:
+        """A function ``name`` on the output space S with ``values`` at the constrained DoFs
+        and 0 elsewhere (λ_h also at the ends of Γ_C, :meth:`_extend_to_ends`)."""
+        V, con = self.V, self.constraint
+        fn = fem.Function(V)
+        fn.x.array[con.dofs] = values
+        fn.x.scatter_forward()
+        if name == "lambda_h":
+            self._extend_to_ends(fn)
+        out = fem.Function(self.output_space or V, name=name)
+        out.x.array[:] = fn.x.array if self.output_map is None else fn.x.array[self.output_map]
+        return out
+
+    def gap_output(self, x: np.ndarray) -> fem.Function:
+        """The gap σ(bound − u) on S (≥ 0 when feasible), NaN off the constrained DoFs of a
+        contact boundary Γ_C (g − u inside Ω is no gap); for an obstacle (constraint in Ω)
+        it is ψ − u everywhere.  ``x``: the owned unknowns."""
         V, con = self.V, self.constraint
         S = self.output_space or V
-
-        def nodal(name: str, values: np.ndarray) -> fem.Function:
-            fn = fem.Function(V)
-            fn.x.array[con.dofs] = values
-            fn.x.scatter_forward()
-            if name == "lambda_h":
-                self._extend_to_ends(fn)
-            out = fem.Function(S, name=name)
-            out.x.array[:] = fn.x.array if self.output_map is None else fn.x.array[self.output_map]
-            return out
-
-        lmbda = nodal("lambda_h", self.lambda_sign * r[con.dofs] / con.w)
-        active_fn = nodal("active", active.astype(float))
         unknowns = fem.Function(V)
         unknowns.x.array[: len(x)] = x
         unknowns.x.scatter_forward()
@@ -177,9 +196,9 @@ class DiscreteProblem:
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
         if not self.in_domain:
-            on = nodal("on", np.ones(len(con.dofs)))
+            on = self.nodal_output("on", np.ones(len(con.dofs)))
             gap.x.array[on.x.array < 0.5] = np.nan
-        return lmbda, gap, active_fn
+        return gap
 
     def _extend_to_ends(self, lmbda: fem.Function) -> None:
         """The ends of Γ_C on the closure of Γ_D carry no constraint, and their residual row
@@ -212,10 +231,8 @@ class FrictionSet:
     threshold: np.ndarray | None  # (n,) Tresca: s(x_i, t) (stress)
     coefficient: float | None  # Coulomb: F
     x_prev: np.ndarray  # (n, m) tangential unknowns at the previous load step
-    form: str = "hsw"  # tangential NCP: hsw | projection
-    coulomb: str = "ssn"  # Coulomb solver: ssn | fixed_point
-    fixed_point_rtol: float = 1e-10
-    fixed_point_max_it: int = 100
+    #: the knobs of the tangential rows (form, Coulomb solver, fixed point; c_t is above)
+    options: FrictionOptions = field(default_factory=FrictionOptions)
 
     @property
     def m(self) -> int:

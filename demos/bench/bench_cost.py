@@ -237,7 +237,7 @@ def measure_path(
             row = {
                 "case": scene.name,
                 "ranks": MPI.COMM_WORLD.size,
-                "method": scene.cfg["solver"]["method"],
+                "method": scene.config.solver.method,
                 "variant": variant,
                 "sequence": "off" if "solver.sequence=off" in VARIANTS[variant] else "auto",
                 **{k: v for k, v in st.items() if k not in ("wall", "cpu")},

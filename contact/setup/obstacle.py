@@ -1,0 +1,64 @@
+"""The scene's rigid obstacle at one pseudo-time, as a typed value: the ``obstacle`` section
+(:class:`~contact.setup.scene_config.ObstacleConfig`) with its point or centre evaluated at t
+(the models take it)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import expressions
+from .scene_config import ObstacleConfig
+
+
+@dataclass(frozen=True)
+class RigidObstacle:
+    """A rigid plane (through ``point``, unit ``normal`` ν pointing towards the body) or a
+    circle / sphere (``center``, ``radius``; the body outside it) at pseudo-time ``time``.
+    ``moving``: its position depends on t (``obstacle.point`` / ``obstacle.center`` are
+    expressions of t)."""
+
+    kind: str  # plane | circle | sphere
+    point: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    center: np.ndarray | None = None
+    radius: float | None = None
+    moving: bool = False
+    time: float = 1.0
+
+    @property
+    def position(self) -> np.ndarray:
+        """The obstacle's reference point: the plane's point, the circle's / sphere's centre."""
+        position = self.point if self.kind == "plane" else self.center
+        assert position is not None  # a validated obstacle has it
+        return position
+
+
+def rigid_obstacle(
+    obstacle: ObstacleConfig, constants: Mapping[str, float], time: float
+) -> RigidObstacle:
+    """The scene's obstacle section at pseudo-time ``time`` (``constants`` for its
+    expressions)."""
+    coords = obstacle.point if obstacle.type == "plane" else obstacle.center
+    assert coords is not None  # required for its type at load
+    position = vector_at(coords, constants, time)
+    moving = any(expressions.uses_time(c, constants) for c in coords)
+    if obstacle.type == "plane":
+        nu = np.asarray(obstacle.normal, dtype=float)
+        return RigidObstacle(
+            "plane", point=position, normal=nu / np.linalg.norm(nu), moving=moving, time=time
+        )
+    assert obstacle.radius is not None  # required for a circle / sphere at load
+    return RigidObstacle(
+        obstacle.type, center=position, radius=float(obstacle.radius), moving=moving, time=time
+    )
+
+
+def vector_at(
+    coords: Sequence[float | str], constants: Mapping[str, float], time: float
+) -> np.ndarray:
+    """Coordinates given as numbers or expressions of the pseudo-time t, evaluated at t."""
+    origin = np.zeros((3, 1))
+    return np.array([float(expressions.to_numpy(c, constants, t=time)(origin)[0]) for c in coords])
