@@ -1621,6 +1621,68 @@ def two_bodies() -> str:
     return "\n".join(out) + "\n"
 
 
+def friction_paths(path_rows: list[dict]) -> list[str]:
+    """§9's rows of frictional load paths (``bench_cost.py path``): every step against one
+    CG + GAMG solve of K, CPU time (and wall)."""
+    body = [
+        [
+            r["case"],
+            r["dofs"],
+            r["ranks"],
+            r["variant"],
+            r["step"],
+            g(r["t"]),
+            r["linear"],
+            r["levels"],
+            r["newton"],
+            r["krylov"],
+            r["predictor"] or "",
+            g(r["ref_cpu_s"]),
+            g(r["step_cpu_s"]),
+            g(r["ratio_cpu"]),
+            g(r["ratio_wall"]),
+            g(r["max_diff_vs_first"], 2),
+        ]
+        for r in path_rows
+    ]
+    return [
+        "**Frictional load paths** (issue 29; `bench_cost.py path`, commands in its docstring): "
+        "each load step — its problem, the coarse levels of grid sequencing, its Newton steps — "
+        "timed from the end of the step before, divided by one CG + GAMG solve of K measured "
+        "in the same process (CPU time: the fair figure on a shared machine; wall beside it). "
+        "Variants: `new` the defaults (every step sequenced — later steps with the previous "
+        "displacement interpolated onto the coarse meshes —, the secant predictor from the "
+        "third step where it lowers ‖Φ‖, `solver.linear: auto`); `direct` / `gmres` the same "
+        "with MUMPS on H or GMRES + GAMG on the reduced block system; `old` / `old-bcgs` the "
+        "path before issue 29 (cold, warm-started steps, MUMPS or BiCGStab + GAMG on H). "
+        '"levels" counts the mesh asked for and its coarse levels; "max |Δu|" is the last '
+        "step's largest nodal difference to the first variant listed.",
+        "",
+        table(
+            [
+                "case",
+                "DoFs",
+                "ranks",
+                "variant",
+                "step",
+                "t",
+                "linear",
+                "levels",
+                "Newton",
+                "Krylov",
+                "predictor",
+                "one CG+GAMG s (CPU)",
+                "step s (CPU)",
+                "ratio (CPU)",
+                "ratio (wall)",
+                "max |Δu|",
+            ],
+            body,
+        ),
+        "",
+    ]
+
+
 def cost() -> str:
     """Section 9: a contact solve in units of one linear solve (demos/bench/bench_cost.py)."""
     out = ["## 9. Cost against one linear solve", ""]
@@ -1650,7 +1712,9 @@ def cost() -> str:
         "![cost of a contact solve in linear solves](results/cost/cost.png)",
         "",
     ]
-    all_rows = [r for rs in runs.values() for r in rs]
+    every_row = [r for rs in runs.values() for r in rs]
+    all_rows = [r for r in every_row if not r.get("step")]  # single solves
+    path_rows = [r for r in every_row if r.get("step")]  # frictional load paths, per step
     body = [
         [
             r["case"],
@@ -1716,6 +1780,8 @@ def cost() -> str:
             "more Newton steps on the finest mesh.",
             "",
         ]
+    if path_rows:
+        out += friction_paths(path_rows)
     scale = rows(RES / "scale.csv") or []
     if scale:
         out += [

@@ -29,12 +29,14 @@ def test_pseudo_time_in_expressions():
     assert load_times(block().config) == [1.0]
 
 
-def test_proportional_stick_loading_does_not_depend_on_the_steps():
+@pytest.mark.parametrize("predictor", ["none", "secant"])
+def test_proportional_stick_loading_does_not_depend_on_the_steps(predictor):
     """F = 1 and a small drag: every node sticks at every step, the problem is linear in t,
-    and 10 steps end where 1 step does (warm starts: 1 Newton step after the first)."""
+    and 10 steps end where 1 step does (warm starts: 1 Newton step after the first; with
+    the secant predictor none from the third step on: it is exact on a linear path)."""
     sets = [*coulomb(1.0), 'data.u_D=["0.002*t", "-0.01*t"]']
     one = run_load_path(block(*sets))
-    ten = run_load_path(block(*sets, "load.steps=10"), keep_all=True)
+    ten = run_load_path(block(*sets, "load.steps=10", f"load.predictor={predictor}"), keep_all=True)
     assert one.converged and ten.converged and len(ten.steps) == 10
     for step in ten.steps:
         f = step.result.friction
@@ -44,7 +46,13 @@ def test_proportional_stick_loading_does_not_depend_on_the_steps():
         # (its ‖Φ‖ ~ 1e-17, 100× below the stopping test): a count rounding cannot move
         assert np.all(np.linalg.norm(f["lambda_t"], axis=1) <= 0.9 * np.abs(f["lambda_n"]))
         assert np.all(np.abs(f["lambda_n"]) >= 0.1 * np.max(np.abs(f["lambda_n"])))
-    assert [s.result.iterations for s in ten.steps][1:] == [1] * 9
+    its = [s.result.iterations for s in ten.steps]
+    if predictor == "none":
+        assert its[1:] == [1] * 9
+        assert all(s.result.predictor is None for s in ten.steps)
+    else:  # the predictor's ‖Φ‖ is round-off (~1e-17, 100× below the stopping test)
+        assert its[1:] == [1] + [0] * 8
+        assert [s.result.predictor for s in ten.steps] == [None, None] + [True] * 8
     u1, u10 = one.steps[-1].result.u_h.x.array, ten.steps[-1].result.u_h.x.array
     assert np.max(np.abs(u1 - u10)) <= 1e-8 * np.max(np.abs(u1))
 

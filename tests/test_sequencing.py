@@ -124,11 +124,15 @@ def test_iterative_newton_systems_equal_direct(scene_name, linear):
     assert it.n_active == direct.n_active
 
 
-def test_frictional_scene_does_not_sequence():
-    scene = contact.load_scene("configs/friction_block_2d.yaml")
+def test_frictional_single_solve_sequences_and_equals_the_cold_solve():
+    """A frictional solve without history (the first load step) sequences like a frictionless
+    one (issue 29; before, frictional scenes always started cold)."""
+    scene = contact.load_scene("configs/friction_block_2d.yaml", ["load=none"])
     r = contact.solve(scene, verbose=False, sequence=2)
-    assert r.sequence == [] and "frictional" in r.sequence_note
-    assert r.linear in ("direct", "bcgs")
+    cold = contact.solve(scene, verbose=False, sequence="off")
+    assert len(r.sequence) == 2 and not cold.sequence and r.converged and cold.converged
+    u = cold.u_h.x.array
+    assert np.max(np.abs(r.u_h.x.array - u)) <= 1e-8 * np.max(np.abs(u))
 
 
 def test_bad_sequence_value_is_a_config_error():

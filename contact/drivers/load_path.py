@@ -104,6 +104,28 @@ def step_cuts(cfg: SceneConfig) -> int:
     return HYPERELASTIC_CUTS if cfg.model.type == "hyperelastic" else 0
 
 
+def secant_predictor(cfg: SceneConfig) -> bool:
+    """Whether steps k ≥ 3 are offered the secant predictor (``load.predictor``; linear models:
+    a hyperelastic step keeps its warm start, :func:`step_cuts` handles its failures)."""
+    predictor = cfg.load.predictor if cfg.load is not None else "secant"
+    return predictor == "secant" and cfg.model.type != "hyperelastic"
+
+
+def extrapolate(
+    u_prev: fem.Function, u_prev2: fem.Function, t: float, t_prev: float, t_prev2: float
+) -> fem.Function | None:
+    """The secant predictor
+    u_k ≈ u_{k−1} + (t_k − t_{k−1}) / (t_{k−1} − t_{k−2}) (u_{k−1} − u_{k−2})
+    (None when the two steps live on different meshes: ``load.adapt: each``)."""
+    V, W = u_prev.function_space, u_prev2.function_space
+    if V.mesh is not W.mesh or len(u_prev.x.array) != len(u_prev2.x.array) or t_prev <= t_prev2:
+        return None
+    ratio = (t - t_prev) / (t_prev - t_prev2)
+    out = fem.Function(u_prev.function_space, name="u_predicted")
+    out.x.array[:] = u_prev.x.array + ratio * (u_prev.x.array - u_prev2.x.array)
+    return out
+
+
 def run_load_path(
     scene: Scene,
     method: str | None = None,
@@ -125,16 +147,22 @@ def run_load_path(
     are released when the next one is solved (:meth:`Step.release`), unless ``keep_all``.
     ``adaptive``: run the adaptive loop (default: when the scene has an ``adapt``
     section), with ``adapt_options`` overriding that section; ``options`` are solver
-    options as for :func:`contact.solve`."""
+    options as for :func:`contact.solve`.
+
+    From the third step on, a step is offered the secant predictor (:func:`extrapolate`,
+    ``load.predictor``) beside the previous solution: Newton starts from the one of
+    smaller ‖Φ‖ (``Result.predictor``)."""
 
     verbose = scene.config.output.verbose if verbose is None else verbose
     times = load_times(scene.config)
     max_cuts = step_cuts(scene.config)
+    predict = secant_predictor(scene.config)
     mode = scene.config.load.adapt if scene.config.load is not None else "end"
     if adaptive is None:
         adaptive = scene.config.adapt is not None
     comm = scene.comm
     out, u_prev, t_prev = LoadPath(), None, 0.0
+    u_prev2, t_prev2 = None, 0.0  # the step before the previous one (the predictor)
     pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
     while pending:
         t, depth = pending.pop(0)
@@ -160,7 +188,12 @@ def run_load_path(
             levels = run.levels
             step_scene, result = levels[-1].scene, levels[-1].result
         else:
-            result = solve(step_scene, method=method, u0=u_prev, verbose=verbose, **options)
+            guess = None
+            if predict and u_prev is not None and u_prev2 is not None:
+                guess = extrapolate(u_prev, u_prev2, t, t_prev, t_prev2)
+            result = solve(
+                step_scene, method=method, u0=u_prev, verbose=verbose, predictor=guess, **options
+            )
         if not result.converged and depth < max_cuts:
             mid = t_prev + (t - t_prev) / 2
             out.cuts.append(f"t = {t:g} ({result.reason}) cut to t = {mid:g}")
@@ -185,6 +218,7 @@ def run_load_path(
         if not result.converged:
             out.stop = f"step {k} (t = {t:g}) did not converge ({result.reason})" + _notes(out)
             break
+        u_prev2, t_prev2 = u_prev, t_prev
         scene, t_prev = step_scene, t  # 'each': the next step continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:

@@ -23,6 +23,15 @@ levels that cost a fraction of one fine step each.  The levels, coarsest first:
 * a user's ``.msh`` file (and P2 on a built-in mesh), several bodies on any other mesh:
   no coarser mesh — a cold start, reported in ``Result.sequence_note``.
 
+A frictional load step after the first carries its history to the coarse levels: the
+previous step's displacement u_prev (from which the slip increments are measured) is
+interpolated onto each coarse mesh (:func:`restrict`), the coarsest solve starts from it,
+and each finer level from the coarser solution as above — the stick/slip front moves
+across the contact zone on the coarse meshes, where a fine Newton iteration moves it by
+about one node per step.  The coarse meshes of a scene are built once and kept for its later
+steps (:func:`_with_mesh`).  A refined scene with history (an adaptive load step) starts
+from the step before.
+
 ``auto`` sequences when the finest level has at least :data:`AUTO_MIN_DOFS` DoFs, with as
 many levels as keep the coarsest at ≥ :data:`COARSEST_DOFS`; an integer N asks for N
 coarser levels; ``off`` starts cold.  Every coarse solve is an ordinary solve (its own
@@ -35,6 +44,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -43,6 +53,7 @@ from dolfinx import fem
 from dolfinx.mesh import MeshTags
 from mpi4py import MPI
 
+from ..base.buckets import box_point_pairs
 from ..base.errors import ConfigError
 from ..models import build_problem
 from ..setup.scene import Scene
@@ -102,12 +113,8 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     floor = COARSEST_DOFS if wanted is None else 1
     ratio = 2**dim
 
-    if scene.config.frictional:
-        return (
-            [],
-            "grid sequencing: not for frictional scenes (slip depends on the load history); "
-            "cold start",
-        )
+    if scene.parent is not None and scene.history:
+        return [], "grid sequencing: a refined scene's history stays on its mesh; warm start"
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [functools.partial(_same, s) for s in reversed(chain)], ""
@@ -167,12 +174,22 @@ def _same(scene: Scene) -> Scene:
     return scene
 
 
+#: the coarse meshes built for a fine mesh (a load path solves every step on the same mesh):
+#: fine mesh → {the coarse mesh section: (mesh, facet tags, cell tags)}
+_COARSE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def _with_mesh(scene: Scene, changes: dict) -> Scene:
-    """The scene with other mesh parameters (a coarse level)."""
+    """The scene with other mesh parameters (a coarse level) at the scene's time; the mesh
+    is built once per fine mesh and kept while that mesh lives."""
     from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
 
     cfg = scene.config.with_mesh(**changes)
-    msh, tags, cell_tags = build_mesh(cfg, scene.comm)
+    built = _COARSE.setdefault(scene.mesh, {})
+    key = repr(cfg.mesh)
+    if key not in built:
+        built[key] = build_mesh(cfg, scene.comm)
+    msh, tags, cell_tags = built[key]
     bodies = tag_bodies(msh, cfg, cell_tags)
     return Scene(
         cfg,
@@ -199,6 +216,7 @@ def initial_guess(
     levels: list[CoarseLevel] = []
     u, prev = None, None
     coarse_solver = opts.model_copy(update={"sequence": "off", "rtol": COARSE_RTOL})
+    u_prev = scene.history.get("u_prev")
     for k, build in enumerate(builders, start=1):
         t0 = time.perf_counter()
         try:
@@ -206,6 +224,8 @@ def initial_guess(
             coarse = dataclasses.replace(
                 coarse, config=coarse.config.model_copy(update={"solver": coarse_solver})
             )
+            if u_prev is not None:  # a load step's history, on the coarse mesh
+                coarse.history = {"u_prev": restrict(u_prev, scene, coarse)}
             problem = build_problem(coarse)
         except ConfigError as err:  # e.g. a boundary part too thin for the coarse mesh
             note = f"grid sequencing: coarse level {k} skipped ({err})"
@@ -213,6 +233,9 @@ def initial_guess(
         u0: fem.Function | None = None
         if u is not None and prev is not None:
             u0 = transfer(u, prev, coarse, problem.V)
+        elif u_prev is not None:  # the coarsest level starts from the previous step
+            u0 = fem.Function(problem.V)
+            u0.x.array[:] = coarse.history["u_prev"].x.array
         r = solve(coarse, problem=problem, u0=u0, verbose=False)
         levels.append(
             CoarseLevel(
@@ -258,6 +281,17 @@ def transfer(
     if fine.config.mesh.type in BUILT_IN:
         return GridTransfer(coarse).apply(u, fine, V)
     return point_transfer(u, V, coarse.bodies, fine.bodies)
+
+
+def restrict(u: fem.Function, fine: Scene, coarse: Scene) -> fem.Function:
+    """A fine solution ``u`` (the previous load step's) interpolated onto the coarse scene's
+    mesh (same element): on built-in meshes the coarse vertices are grid points of the fine
+    grid (:class:`GridTransfer`: exact), on gmsh meshes the coarse points are located in
+    the fine cells (:func:`point_transfer`)."""
+    V = fem.functionspace(coarse.mesh, u.function_space.ufl_element())
+    if fine.config.mesh.type in BUILT_IN:
+        return GridTransfer(fine).apply(u, coarse, V)
+    return point_transfer(u, V, fine.bodies, coarse.bodies)
 
 
 def _prolong_chain(
@@ -515,35 +549,10 @@ def _bucket_candidates(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
     ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
-    cells' mean extent over their common bounding box (at most ~4 buckets a cell)."""
-    lo_k, hi_k = lo_c[cells], hi_c[cells]
-    dim = lo_c.shape[1]
-    size = max(0.5 * float(np.mean(hi_k - lo_k)), 1e-300)
-    lo, hi = lo_k.min(axis=0) - grow * size, hi_k.max(axis=0) + grow * size
-    size = max(size, float(np.prod(hi - lo) / (4 * len(cells))) ** (1 / dim))
-    shape = np.maximum(np.ceil((hi - lo) / size).astype(np.int64), 1)
-    # every cell into the buckets its grown box overlaps
-    first = np.clip(np.floor((lo_k - lo) / size - grow).astype(np.int64), 0, shape - 1)
-    last = np.clip(np.floor((hi_k - lo) / size + grow).astype(np.int64), 0, shape - 1)
-    span = last - first + 1
-    count = np.prod(span, axis=1)
-    cell_of = np.repeat(np.arange(len(cells)), count)
-    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    offset = np.empty((len(cell_of), dim), dtype=np.int64)
-    for axis in range(dim - 1, -1, -1):
-        k, offset[:, axis] = np.divmod(k, span[cell_of, axis])
-    bucket = np.ravel_multi_index(tuple((first[cell_of] + offset).T), shape)
-    order = np.argsort(bucket, kind="stable")
-    bucket, cell_of = bucket[order], cell_of[order]
-    start = np.searchsorted(bucket, np.arange(np.prod(shape) + 1))
-    # the points inside the class's box, with the cells of their bucket
-    inside = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
-    at = np.clip(np.floor((points[inside] - lo) / size).astype(np.int64), 0, shape - 1)
-    pb = np.ravel_multi_index(tuple(at.T), shape)
-    n_cand = start[pb + 1] - start[pb]
-    point_of = np.repeat(inside, n_cand)
-    j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
-    return point_of, cells[cell_of[np.repeat(start[pb], n_cand) + j]]
+    cells' mean extent over their common bounding box
+    (:func:`~contact.base.buckets.box_point_pairs`)."""
+    point_of, box_of = box_point_pairs(lo_c[cells], hi_c[cells], points, grow)
+    return point_of, cells[box_of]
 
 
 def weighted_solves(levels: list[CoarseLevel], fine_dofs: int) -> float:

@@ -30,6 +30,7 @@ def solve(
     u0: fem.Function | None = None,
     verbose: bool | None = None,
     criterion: AdaptiveStopping | None = None,
+    predictor: fem.Function | None = None,
     **options: Any,
 ) -> Result:
     """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
@@ -48,7 +49,9 @@ def solve(
     (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).  ``criterion``: adaptive
     stopping against a discretization error (:mod:`contact.solvers.stopping`; the adaptive
     loop makes one per level for ``solver.stopping: adaptive``, which a single solve
-    ignores: it has no discretization error to balance against).
+    ignores: it has no discretization error to balance against).  ``predictor``: another
+    guess beside ``u0`` (a load path's extrapolation, :mod:`.load_path`); Newton starts from
+    the one whose ‖Φ‖ is smaller (``Result.predictor`` says which).
     """
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
@@ -85,9 +88,14 @@ def solve(
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
     levels: list[sequencing.CoarseLevel] = []
     note = ""
-    if u0 is None:
+    # A frictional load step after the first is sequenced too, its history carried to the
+    # coarse meshes (.sequencing): its guess replaces the previous step's solution and the
+    # predictor; without coarse levels the step starts from those
+    if u0 is None or (scene.history and friction is not None):
         with Timer(timers, "coarse"):
-            u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
+            coarse, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
+        if coarse is not None:
+            u0, predictor = coarse, None
     guess = u0 is not None  # given, or the coarse levels' solution
     if u0 is None:
         u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
@@ -104,6 +112,7 @@ def solve(
         clock,
         check_options=bool(options.get("petsc_options")),
         stopping=criterion,
+        alternatives=() if predictor is None else (predictor,),
     )
     result.sequence, result.sequence_note = levels, note
     if result.converged and problem.floating:

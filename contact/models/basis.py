@@ -58,10 +58,13 @@ def node_frames(n: np.ndarray, fixed: np.ndarray, bs: int) -> tuple:
     norm = np.linalg.norm(n, axis=1)
     bad = norm <= 0.5 * length
     n /= np.where(norm > 0, norm, 1.0)[:, None]
-    frames = np.zeros((len(n), bs, bs))
-    projectors = np.zeros((len(n), bs, bs))
-    absolute = []
-    for i in range(len(n)):
+    assert bs == n.shape[1], "a frame per node of a vector field of gdim components"
+    with np.errstate(invalid="ignore", divide="ignore"):  # degenerate normals: set below
+        frames = _frames(n)
+    projectors = np.tile(np.eye(bs), (len(n), 1, 1))  # every axis relative: P = R Rᵀ = I
+    absolute: list[tuple[int, ...]] = [()] * len(n)
+    # nodes with fixed components or a degenerate normal: one by one (a few, on symmetry planes)
+    for i in np.flatnonzero(bad | fixed.any(axis=1)):
         axes = tuple(int(k) for k in np.flatnonzero(fixed[i]))
         if bad[i]:
             R = np.eye(bs)
@@ -72,8 +75,19 @@ def node_frames(n: np.ndarray, fixed: np.ndarray, bs: int) -> tuple:
         frames[i] = R
         relative = [0] + list(range(1 + len(axes), bs))
         projectors[i] = R[:, relative] @ R[:, relative].T
-        absolute.append(axes)
+        absolute[i] = axes
     return n, frames, projectors, absolute, bad
+
+
+def _frames(n: np.ndarray) -> np.ndarray:
+    """:func:`frame` of every row of the unit normals n (k, gdim), no fixed axes:
+    (k, gdim, gdim)."""
+    if n.shape[1] == 2:
+        return np.stack([np.stack([n[:, 0], -n[:, 1]], 1), np.stack([n[:, 1], n[:, 0]], 1)], 1)
+    helper = np.where((np.abs(n[:, 0]) < 0.9)[:, None], np.eye(3)[0], np.eye(3)[1])
+    t1 = np.cross(n, helper)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return np.stack([n, t1, np.cross(n, t1)], axis=2)
 
 
 def change_of_basis(

@@ -587,6 +587,14 @@ SCENE: dict[str, Field] = {
                 "(t_{k-1} + t_k)/2) and retried, at most this many times in a row "
                 "(default: 4 for model type hyperelastic, 0 otherwise)",
             ),
+            "predictor": Field(
+                "str",
+                "secant",
+                choices=("secant", "none"),
+                doc="the guess of step k ≥ 3: secant (u_{k-1} extrapolated along the last "
+                "increment, taken if its |Phi| is below that of u_{k-1}; linear models) or "
+                "none (u_{k-1})",
+            ),
         },
     ),
     "output": Field(

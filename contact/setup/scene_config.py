@@ -340,12 +340,14 @@ class DataConfig(_Section):
 
 class LoadConfig(_Section):
     """A quasi-static load path: the pseudo-times of its steps (``steps`` N fills them in
-    as 1/N, …, 1), ``adapt`` at each step or the end, step ``cuts``."""
+    as 1/N, …, 1), ``adapt`` at each step or the end, step ``cuts``, the ``predictor`` of
+    steps ≥ 3."""
 
     steps: int | None = None
     times: tuple[float, ...]
     adapt: str = "end"
     cuts: int | None = None
+    predictor: str = "secant"
 
 
 class OutputConfig(_Section):

@@ -290,8 +290,11 @@ class CurrentComplementarity(BlockComplementarity):
         out[self.rows[:, 1:]] = tangential
         return a, b
 
-    def block_jacobian(self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float) -> None:
-        """H = B K_T(x) + D, the generalized-Jacobian element at x (module doc)."""
+    def block_jacobian(
+        self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H = B K_T(x) + D, the generalized-Jacobian element at x (module doc); returns the
+        blocks of B and D."""
         self.p.linearize(x)
         st = self.evaluate(x)
         geo, a, b = st["geo"], st["a"], st["b"]
@@ -323,6 +326,7 @@ class CurrentComplementarity(BlockComplementarity):
         Dv[nodes] = E + (S @ frame_rate(st["R"], geo) @ geo.dn if self.curvature else 0.0)
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
+        return Bv, Dv
 
     def destroy(self) -> None:
         self._last = None  # holds a view of R's array

@@ -69,6 +69,7 @@ over nodes.  Components fixed by a symmetry or Dirichlet condition keep their ro
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import fem
@@ -80,6 +81,9 @@ from .newton import SEPARATED, SLIP, STICK, BlockComplementarity, setup_block_ne
 from .options import SolverOptions
 from .problem import DiscreteProblem, FrictionSet
 from .result import Result
+
+if TYPE_CHECKING:
+    from .block_system import BlockReducedSystem
 
 FORMS = ("projection", "hsw")
 SLIP_TIE = 1e-11  # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
@@ -200,8 +204,11 @@ class FrictionalComplementarity(BlockComplementarity):
         out[self.fs.tangent[free]] = (-self.w[:, None] * st["law"].C)[free]
         return a, b
 
-    def block_jacobian(self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float) -> None:
-        """H = B K + D, the generalized-Jacobian element at x (module doc)."""
+    def block_jacobian(
+        self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H = B K + D, the generalized-Jacobian element at x (module doc); returns the
+        blocks of B and D, (local nodes, bs, bs) each."""
         fs, st = self.fs, self.evaluate(x)
         law = st["law"]
         tau = self.tie_tolerance(st["a"], st["b"])  # kinks of φ and of ρ = F·max(0, ξ)
@@ -221,6 +228,7 @@ class FrictionalComplementarity(BlockComplementarity):
             Dv[nodes[:, None], t[None, :], k] = -(self.w * gate / self.c)[:, None] * law.J_rho
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
+        return Bv, Dv
 
 
 def setup_friction_newton(
@@ -231,11 +239,12 @@ def setup_friction_newton(
     timers: dict,
     state: dict,
     petsc_opts: dict,
+    system: BlockReducedSystem | None = None,
 ) -> PETSc.Mat:
     """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts.method``):
     the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix
-    (:func:`contact.solvers.newton.setup_block_newton`)."""
-    return setup_block_newton(snes, problem, cp, opts, timers, state, petsc_opts)
+    (a new one, or the ``system``'s H: :func:`contact.solvers.newton.setup_block_newton`)."""
+    return setup_block_newton(snes, problem, cp, opts, timers, state, petsc_opts, system)
 
 
 def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc.Vec) -> dict:

@@ -60,12 +60,39 @@ def assembled_kind(
     without converging) where MUMPS took 5 Newton steps per load step."""
     if linear == "direct" or _user_solver(petsc_options):
         return "direct"
-    if linear in ("gamg", "bcgs"):
-        return "bcgs"
+    if linear in ("gamg", "bcgs", "gmres"):
+        return linear if linear == "gmres" else "bcgs"
     if problem.current is not None:
         return "direct"
     elastic_3d = problem.near_nullspace is not None and problem.V.mesh.geometry.dim == 3
     return "bcgs" if elastic_3d else "direct"
+
+
+#: friction's ``auto`` uses MUMPS on H for 2D problems below this many DoFs, the reduced block
+#: system with GMRES + GAMG above and in 3D (measured: demos/bench/bench_cost.py friction cases)
+FRICTION_DIRECT_MAX_DOFS_2D = 5_000
+
+
+def friction_kind(
+    problem: DiscreteProblem, linear: str = "auto", petsc_options: dict | None = None
+) -> str:
+    """The linear solver of friction's block law H = B K + D: ``direct`` (MUMPS on H), ``bcgs``
+    (BiCGStab + GAMG on H, the 3D default before issue 29), ``gmres`` (the reduced block
+    system, :mod:`.block_system`); ``auto`` (and ``gamg``, the Krylov choice of the
+    frictionless path) resolved by size and dimension; the user's ksp/pc options select the
+    assembled H with exactly those options."""
+    if linear in ("direct", "bcgs", "gmres"):
+        return linear
+    if _user_solver(petsc_options):
+        return "direct"
+    if linear == "gamg":
+        return "gmres"
+    if problem.current is not None:  # turned frames on the current configuration (assembled_kind)
+        return "direct"
+    V = problem.V
+    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    small_2d = V.mesh.geometry.dim == 2 and dofs < FRICTION_DIRECT_MAX_DOFS_2D
+    return "direct" if small_2d else "gmres"
 
 
 def default_linear_solver(problem: DiscreteProblem, linear: str = "auto") -> dict:

@@ -43,6 +43,7 @@ from .polish import Polisher
 from .problem import DiscreteProblem, NodeBlockMatrix
 
 if TYPE_CHECKING:
+    from .block_system import BlockReducedSystem
     from .energy_search import EnergySearch
 
 
@@ -144,8 +145,11 @@ class BlockComplementarity(Complementarity):
     def evaluate(self, x: PETSc.Vec) -> dict:
         raise NotImplementedError
 
-    def block_jacobian(self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float) -> None:
-        """H = B K + D, the generalized-Jacobian element at x."""
+    def block_jacobian(
+        self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """H = B K + D, the generalized-Jacobian element at x; returns the blocks of B and D,
+        (local nodes, bs, bs) each."""
         raise NotImplementedError
 
     def status(self, x: PETSc.Vec, st: dict | None = None) -> np.ndarray:
@@ -240,21 +244,35 @@ def setup_block_newton(
     timers: dict,
     state: dict,
     petsc_opts: dict,
+    system: BlockReducedSystem | None = None,
 ) -> PETSc.Mat:
     """Make ``snes`` semismooth Newton on the Φ of ``cp`` with a block law H = B K + D:
     ``cp.matrix()`` gives a matrix of the pattern of B K, ``cp.block_jacobian(x, H, method,
     mu)`` writes the element at x (friction, :mod:`.friction`; contact on the current
-    configuration, :mod:`.current`).  Plain Newton or ``bt``, no polishing; returns the
-    Jacobian matrix (the caller destroys it)."""
+    configuration, :mod:`.current`) and returns the blocks of B and D.  Plain Newton or
+    ``bt``, no polishing; returns the Jacobian matrix: a new one (the caller destroys it),
+    or the ``system``'s H, which then builds its reduced operator from each Jacobian's
+    blocks (:mod:`.block_system`, ``solver.linear: gmres``)."""
     method, mu = opts.method, opts.mu
-    J = cp.matrix()
-    attach_near_nullspace(problem, J)
+    if system is None:
+        J = cp.matrix()
+        attach_near_nullspace(problem, J)
+
+        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+            cp.block_jacobian(x, P, method, mu)
+
+    else:
+        J, reduced = system.J, system
+
+        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
+            reduced.set_block(*cp.block_jacobian(x, P, method, mu))
+
     set_newton(
         snes,
         problem,
         J,
         lambda x, f: cp.phi(x, f, method, mu),
-        lambda x, P: cp.block_jacobian(x, P, method, mu),
+        jacobian,
         opts,
         timers,
         state,

@@ -37,7 +37,7 @@ VI_METHODS = ("vinewtonrsls", "vinewtonssls")
 #: every method: semismooth Newton on an NCP function, or one of PETSc's VI solvers
 METHODS = ncp.METHODS + VI_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt", "energy")
-LINEAR = ("auto", "direct", "gamg", "bcgs")
+LINEAR = ("auto", "direct", "gamg", "bcgs", "gmres")
 PREDICTORS = ("auto", "tangent", "none")
 #: the tangential NCP of friction: Alart–Curnier's projection, or Hüeber–Stadler–Wohlmuth's max
 FRICTION_FORMS = ("projection", "hsw")
@@ -142,6 +142,9 @@ DEFAULT_PETSC_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
+#: friction's reduced block system (:mod:`.block_system`): GMRES, right preconditioned so that
+#: its residual norm is the unpreconditioned one the stopping test reads; GAMG as for ``gamg``
+BLOCK_PETSC_OPTIONS = {"ksp_type": "gmres", "ksp_pc_side": "right", "ksp_gmres_restart": 100}
 ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
     "direct": DEFAULT_PETSC_OPTIONS,
     "bcgs": ELASTICITY_3D_PETSC_OPTIONS,
@@ -184,6 +187,8 @@ def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
         else:
             extra = {}
         return {**REDUCED_PETSC_OPTIONS, **extra}
+    if kind == "gmres":
+        return {**default_options("gamg", tdim, ranks), **BLOCK_PETSC_OPTIONS}
     return dict(ASSEMBLED_PETSC_OPTIONS[kind])
 
 

@@ -101,11 +101,13 @@ class ReducedSystem:
         near_nullspace: PETSc.NullSpace | None,
         prefix: str,
         forcing: bool = True,
+        pattern: PETSc.Mat | None = None,
     ):
         self.K = K
-        self.A = K.duplicate(copy=True)  # the reduced operator
+        pattern = K if pattern is None else pattern  # the pattern of H (block laws: B K's)
+        self.A = pattern.duplicate(copy=True)  # the reduced operator
         # the matrix GAMG was last built from (= A, or an earlier A)
-        self.P = K.duplicate(copy=True)
+        self.P = pattern.duplicate(copy=True)
         if near_nullspace is not None:
             self.P.setNearNullSpace(near_nullspace)
         self.Kdiag = K.getDiagonal()
@@ -134,9 +136,14 @@ class ReducedSystem:
         self._lag_ok, self._lagged = False, False
         self.rebuilds = 0  # lagged solves that had to rebuild GAMG midway
         self.restarts = 0  # solves started over with a new GAMG after a breakdown
-        m, n = K.getSizes()
-        self.J = PETSc.Mat().createPython((m, n), context=_MatrixFreeH(self), comm=K.getComm())  # type: ignore[arg-type]
-        self.J.setUp()
+        self.J = self._jacobian()
+
+    def _jacobian(self) -> PETSc.Mat:
+        """SNES's Jacobian: H applied matrix-free (y = s ⊙ K x + d ⊙ x)."""
+        K = self.K
+        J = PETSc.Mat().createPython(K.getSizes(), context=_MatrixFreeH(self), comm=K.getComm())  # type: ignore[arg-type]
+        J.setUp()
+        return J
 
     def set_options(self) -> None:
         """Take the inner KSP's tolerance after it has read the options database, and the
@@ -176,6 +183,10 @@ class ReducedSystem:
         with np.errstate(divide="ignore", invalid="ignore"):
             diag[:] = np.where(fixed, 1.0, da / np.where(fixed, 1.0, sa))
         self.A.setDiagonal(self.work, addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
+        self._operator_changed()
+
+    def _operator_changed(self) -> None:
+        """After A changed: lag the preconditioner or rebuild it."""
         # lag the preconditioner (GAMG of an earlier A, kept in P) while it converges well
         self._lagged = self.lag and self._fresh_rate is not None and self._lag_ok
         if not self._lagged:
@@ -204,20 +215,15 @@ class ReducedSystem:
         law, to the exact tolerance (the Krylov method restarts from y: no iteration is
         lost but the Krylov space)."""
         fixed = self.fixed
-        sa, da, fa = self.s.array_r, self.d.array_r, F.array_r
-        yx = self.y_fixed.array_w
-        yx[:] = np.where(fixed, fa / np.where(fixed, da, 1.0), 0.0)
-        self.K.mult(self.y_fixed, self.work)  # K y_X
-        r = self.r.array_w
-        with np.errstate(divide="ignore", invalid="ignore"):
-            r[:] = np.where(fixed, yx, fa / np.where(fixed, 1.0, sa) - self.work.array_r)
+        yx = self._right_hand_side(F)
         rtol = self._rtol if rtol is None else max(rtol, self._rtol)
         if newton and self.forcing and self.stopping is None:
             # the law of the last Newton step again: the linear model is exact on this piece
             # of Φ, so solve to SNES's stopping value at once (atol below) instead of forcing
-            same = self._same(self._newton, sa, da)
+            law = self._law()
+            same = self._same(self._newton, *law)
             rtol = self._rtol if same else self._forcing(norm2(F))
-            self._newton = (sa.copy(), da.copy())
+            self._newton = (law[0].copy(), law[1].copy())
         atol = 0.05 * self.stop  # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
         if self.stopping is not None:  # natural norm: η_alg ≤ γ_alg (η_disc + η_lin)
             atol = self.stopping.krylov_atol()
@@ -252,6 +258,23 @@ class ReducedSystem:
                 "resume": resume,
             }
         )
+
+    def _right_hand_side(self, F: PETSc.Vec) -> np.ndarray:
+        """r of A y = r for the right-hand side F (module doc): y_X = F / d on the fixed rows,
+        F / s − K y_X on the free ones; returns y_X (an array of ``y_fixed``)."""
+        fixed = self.fixed
+        sa, da, fa = self.s.array_r, self.d.array_r, F.array_r
+        yx = self.y_fixed.array_w
+        yx[:] = np.where(fixed, fa / np.where(fixed, da, 1.0), 0.0)
+        self.K.mult(self.y_fixed, self.work)  # K y_X
+        r = self.r.array_w
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r[:] = np.where(fixed, yx, fa / np.where(fixed, 1.0, sa) - self.work.array_r)
+        return yx
+
+    def _law(self) -> tuple[np.ndarray, np.ndarray]:
+        """The law A was built from, as two arrays ((s, d) here)."""
+        return self.s.array_r, self.d.array_r
 
     def _krylov(self, y: PETSc.Vec, rtol: float, atol: float, r0: float) -> int:
         """The Krylov solve A y = r; returns the iterations.

@@ -60,6 +60,9 @@ class Result:
     friction: dict | None = (
         None  # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
     )
+    #: a load path's predictor: None (none offered), True (it started the solve: a smaller ‖Φ‖
+    #: than the previous step's solution), False (the previous step's solution did)
+    predictor: bool | None = None
     hint: str = ""  # a failed solve: what in the scene makes it hard ('' if nothing known)
     stopping: AdaptiveStopping | None = None  # solver.stopping adaptive: its criteria (.stopping)
 

@@ -9,7 +9,7 @@ with one solver.  The scene's part of a solve (its problem, options and initial 
 from __future__ import annotations
 
 import itertools
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from dolfinx import fem
@@ -25,7 +25,15 @@ from . import ncp
 from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
 from .energy_search import EnergySearch
 from .globalize import GuardedMin
-from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
+from .linear import (
+    AssembledSystem,
+    ReducedNewtonSystem,
+    assembled_kind,
+    choose_linear,
+    friction_kind,
+    newton_system,
+    petsc_defaults,
+)
 from .newton import BlockComplementarity, Complementarity, setup_block_newton, setup_newton
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .polish import Polisher
@@ -35,6 +43,9 @@ from .reduced import ReducedSystem
 from .result import Result, finish
 from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
 from .vi import setup_vi
+
+if TYPE_CHECKING:
+    from .block_system import BlockReducedSystem
 
 _counter = itertools.count()
 
@@ -50,6 +61,7 @@ def solve_problem(
     clock: Stopwatch,
     check_options: bool = False,
     stopping: AdaptiveStopping | None = None,
+    alternatives: tuple[fem.Function, ...] = (),
 ) -> Result:
     """Solve ``problem`` from ``u0`` (a function of ``problem.V`` holding the Dirichlet values;
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
@@ -58,7 +70,9 @@ def solve_problem(
     ``coarse``), ``clock`` runs since the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
     when it was loaded); ``stopping``: adaptive stopping (:mod:`.stopping`), consulted by
-    the Newton monitor and the reduced system's Krylov solves."""
+    the Newton monitor and the reduced system's Krylov solves; ``alternatives``: other
+    guesses (a load path's predictor), the one of smallest ‖Φ‖ is taken
+    (:meth:`SemismoothNewton.solve`)."""
     with SemismoothNewton(
         problem,
         opts,
@@ -68,7 +82,7 @@ def solve_problem(
         check_options=check_options,
         stopping=stopping,
     ) as solver:
-        return solver.solve(u0, guess=guess, clock=clock)
+        return solver.solve(u0, guess=guess, clock=clock, alternatives=alternatives)
 
 
 class SemismoothNewton:
@@ -111,7 +125,13 @@ class SemismoothNewton:
         # keep an assembled matrix (their own linear algebra); the energy search factorizes
         # the reduced system by LDLᵀ (.curvature)
         diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
-        choose = choose_linear if diagonal_law else assembled_kind
+        choose = (
+            friction_kind
+            if friction is not None
+            else choose_linear
+            if diagonal_law
+            else assembled_kind
+        )
         self.linear = "direct" if energy else choose(problem, options.linear, user)
         defaults = dict(CURVATURE_PETSC_OPTIONS) if energy else petsc_defaults(problem, self.linear)
         if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
@@ -139,15 +159,22 @@ class SemismoothNewton:
         self.polisher: Polisher | None = None
         self.guard: GuardedMin | None = None
         self.search: EnergySearch | None = None
-        self.system = None
+        self.system: ReducedNewtonSystem | BlockReducedSystem | AssembledSystem | None = None
         if friction is not None or problem.current is not None:  # H = B K + D (no polishing)
-            block = self.cp
-            assert isinstance(block, BlockComplementarity)  # friction's or .current's
-            self.J = owner.own(
-                setup_block_newton(
-                    snes, problem, block, options, self.timers, self.state, self.petsc_options
+            cp = self.cp
+            assert isinstance(cp, BlockComplementarity)  # friction's or .current's
+            block = None
+            if self.linear == "gmres":  # reduced, GMRES + GAMG (.block_system)
+                from .block_system import BlockReducedSystem
+
+                block = self.system = owner.own(
+                    BlockReducedSystem(problem, cp.matrix(), self.prefix, forcing=options.inexact)
                 )
+                block.configure(snes, self.prefix + "newton_")
+            J = setup_block_newton(
+                snes, problem, cp, options, self.timers, self.state, self.petsc_options, block
             )
+            self.J = J if block is not None else owner.own(J)
         elif method in ncp.METHODS:
             system = self.system = owner.own(
                 CurvatureSystem(problem, self.prefix)
@@ -190,7 +217,7 @@ class SemismoothNewton:
             snes.setForceIteration(True)
         snes.setMonitor(self._monitor)
         progress.watch(
-            system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
+            self.system.ksp if isinstance(self.system, ReducedSystem) else snes.getKSP(),
             f"{method} linear solve",
         )
         # the tangent predictor (.predictor): a nonlinear problem's start, by default where
@@ -211,13 +238,20 @@ class SemismoothNewton:
         self.solves = 0  # solves done by this object
 
     def solve(
-        self, u0: fem.Function, guess: bool = False, clock: Stopwatch | None = None
+        self,
+        u0: fem.Function,
+        guess: bool = False,
+        clock: Stopwatch | None = None,
+        alternatives: tuple[fem.Function, ...] = (),
     ) -> Result:
         """Solve from ``u0`` (a function of ``problem.V``; the Dirichlet values are put in);
         ``guess``: a real initial guess, given or from coarser levels, not a cold start (it is
         polished first, and the gamg path takes an exact first step); ``clock``: the
-        :class:`~contact.base.timing.Stopwatch` of the whole solve (default: one from now).
-        Returns the :class:`Result` (never raises on divergence)."""
+        :class:`~contact.base.timing.Stopwatch` of the whole solve (default: one from now);
+        ``alternatives``: other guesses (functions of ``problem.V``): the solve starts from
+        the one of u0 and these whose ‖Φ‖ is smallest (``Result.predictor``: whether an
+        alternative won; a linear problem's only: a nonlinear one keeps u0).  Returns the
+        :class:`Result` (never raises on divergence)."""
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
         clock = Stopwatch() if clock is None else clock
         polisher, guard, system = self.polisher, self.guard, self.system
@@ -253,13 +287,18 @@ class SemismoothNewton:
                 cp, problem, method if method in ncp.METHODS else "fb", opts.mu
             )
             self.atol = opts.atol * scale
+            chosen = None
+            if alternatives and not problem.nonlinear:
+                x, chosen = self._best_guess(x, alternatives)
             snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
             # for the round-off floor of ‖Φ‖
             # the Mat's infinity norm is one float (the stubs: a pair for every norm type)
             self._k_norm: float = problem.K.norm(PETSc.NormType.INFINITY)  # type: ignore[arg-type,assignment]
             self.history, self._prev_active = [], None
             self.state.update(t_jac=None, dir_norm=np.nan, stop=None)
-            return self._run(x, guess, clock, counts)
+            result = self._run(x, guess, clock, counts)
+            result.predictor = None if chosen is None else chosen > 0
+            return result
         finally:
             x.destroy()
 
@@ -272,6 +311,27 @@ class SemismoothNewton:
             if opts.c == "auto"
             else float(opts.c)
         )
+
+    def _best_guess(
+        self, x: PETSc.Vec, alternatives: tuple[fem.Function, ...]
+    ) -> tuple[PETSc.Vec, int]:
+        """The guess of smallest ‖Φ‖ among x and ``alternatives`` (their Dirichlet values put
+        in; ties keep the earlier one) and its index (0: x); the others are destroyed."""
+        problem, cp, opts = self.problem, self.cp, self.opts
+        method = self.method if self.method in ncp.METHODS else "fb"
+        best, norm, which = x, cp_norm(cp, x, method, opts.mu), 0
+        for k, u in enumerate(alternatives, start=1):
+            check_guess(u, problem)
+            y = problem.b.duplicate()
+            problem.to_unknowns(u.x.petsc_vec, y)
+            set_dirichlet(y, problem.bcs)
+            value = cp_norm(cp, y, method, opts.mu)
+            if value < norm:
+                best.destroy()
+                best, norm, which = y, value, k
+            else:
+                y.destroy()
+        return best, which
 
     def _run(self, x: PETSc.Vec, guess: bool, clock: Stopwatch, counts: tuple) -> Result:
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
@@ -287,8 +347,10 @@ class SemismoothNewton:
             if isinstance(system, ReducedSystem):
                 # the first Newton step from a guess is exact — unless the guess is polished
                 # first: that exact solve on the guess's active set is then done, and a Newton
-                # step still needed means the active set moves, where a loose step does as well
-                system.guess = guess and polisher is None
+                # step still needed means the active set moves, where a loose step does as well.
+                # A frictional guess (the previous load step, a coarse level) seldom has the
+                # final stick and slip sets: its first step is loose too
+                system.guess = guess and polisher is None and problem.friction is None
             if self.stopping is not None:
                 self.stopping.start(cp.active(x))
             if polisher is not None and guess:

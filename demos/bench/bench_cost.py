@@ -27,6 +27,23 @@ square; BiCGStab + GAMG in 3D).
         two_body_hertz_2d.yaml, mesh.h_contact=0.00265, about 1M DoFs)
     python demos/bench/bench_cost.py chart demos/results/cost      (cost.png from every CSV there)
 
+Frictional load paths (issue 29), ``path``: every load step of ``--scene`` timed on its own
+(CPU and wall from the end of the step before: the step's problem, its coarse levels, its
+Newton steps) against one CG + GAMG solve of K of the scene measured in the same process
+before and after the path (medians), per ``--variants``: ``new`` (the defaults: the first
+step and every later step grid-sequenced, the secant predictor, ``solver.linear: auto``),
+``old`` (the path before issue 29: no sequencing, no predictor, MUMPS on H; ``old-bcgs``
+with BiCGStab + GAMG, the old 3D default), ``gmres`` / ``direct`` (the defaults with that
+linear solver), ``noseq`` (no sequencing), ``nopred`` (no predictor); the last step's
+largest nodal difference to the first variant's:
+
+    mpirun -n 2 python demos/bench/bench_cost.py path --scene configs/friction_box_3d.yaml \
+        --set "mesh.cells=[72,72,36]" --times 0.5,0.75,1 --variants new,old-bcgs \
+        --out demos/results/cost/friction_box_3d_np2.csv
+    mpirun -n 2 python demos/bench/bench_cost.py path --scene configs/two_body_cattaneo_2d.yaml \
+        --set mesh.h_contact=0.0022 --times 0.5,0.625,0.75 --variants direct,gmres \
+        --out demos/results/cost/two_body_cattaneo_2d_np2.csv
+
 ``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
 ``hertz3d`` runs configs/hertz_3d.yaml's adaptive loop (up to ``--max-dofs``) and
 measures on its final mesh, whose coarser levels are the loop's earlier meshes; ``scene``
@@ -154,9 +171,105 @@ def measure(
     return rows
 
 
+#: load-path variants: --set options over the scene's (``path``)
+VARIANTS = {
+    "new": [],
+    "gmres": ["solver.linear=gmres"],
+    "direct": ["solver.linear=direct"],
+    "noseq": ["solver.sequence=off"],
+    "nopred": ["load.predictor=none"],
+    "old": ["solver.sequence=off", "load.predictor=none", "solver.linear=direct"],
+    "old-bcgs": ["solver.sequence=off", "load.predictor=none", "solver.linear=bcgs"],
+}
+
+
+def measure_path(
+    path: str, overrides: list[str], times: list[float], variants: list[str], repeat: int
+) -> list[dict]:
+    """Rows for a load path of scene file ``path``: one per variant and step (module doc)."""
+    say = MPI.COMM_WORLD.rank == 0
+    load = ["load=none", "load={times: [" + ", ".join(f"{t:g}" for t in times) + "]}"]
+    base = ["output.verbose=false", *overrides, *load]
+    scene = contact.load_scene(path, base)
+    # warm-up: first touch, and K's forms compiled (a first run on an empty JIT cache still
+    # pays the friction and estimator forms in the first variant's first step)
+    one_linear_solve(scene)
+    rows, u_first = [], None
+    for variant in variants:
+        refs = [one_linear_solve(scene) for _ in range(repeat)]
+        clock = [time.perf_counter(), time.process_time()]
+        steps: list[dict] = []
+
+        def on_step(step, clock=clock, steps=steps) -> None:
+            wall, cpu = time.perf_counter() - clock[0], time.process_time() - clock[1]
+            r = step.result
+            steps.append(
+                {
+                    "step": step.index,
+                    "t": step.time,
+                    "dofs": r.dofs,
+                    "newton": r.iterations,
+                    "krylov": r.krylov_iterations,
+                    "linear": r.linear,
+                    "levels": len(r.sequence) + 1,
+                    "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
+                    "coarse_solves": r.coarse_linear_solves,
+                    "predictor": r.predictor,
+                    "converged": r.converged,
+                    "wall": max_over_ranks(wall),
+                    "cpu": max_over_ranks(cpu),
+                }
+            )
+            clock[:] = [time.perf_counter(), time.process_time()]
+
+        variant_scene = contact.load_scene(path, [*base, *VARIANTS[variant]])
+        MPI.COMM_WORLD.barrier()
+        clock[:] = [time.perf_counter(), time.process_time()]  # the mesh exists: not timed
+        run = contact.run_load_path(variant_scene, on_step=on_step)
+        refs += [one_linear_solve(scene) for _ in range(repeat)]
+        _, u = gather_nodal(run.steps[-1].result.u_h)
+        if u_first is None:
+            u_first = u
+        diff = float(np.max(np.abs(u - u_first))) if say else float("nan")
+        ref_wall = statistics.median(w for w, _, _ in refs)
+        ref_cpu = statistics.median(c for _, c, _ in refs)
+        for st in steps:
+            row = {
+                "case": scene.name,
+                "ranks": MPI.COMM_WORLD.size,
+                "method": scene.config.solver.method,
+                "variant": variant,
+                "sequence": "off" if "solver.sequence=off" in VARIANTS[variant] else "auto",
+                **{k: v for k, v in st.items() if k not in ("wall", "cpu")},
+                "ref_its": refs[-1][2],
+                "ref_wall_s": round(ref_wall, 3),
+                "step_wall_s": round(st["wall"], 3),
+                "ratio_wall": round(st["wall"] / ref_wall, 3),
+                "ref_cpu_s": round(ref_cpu, 3),
+                "step_cpu_s": round(st["cpu"], 3),
+                "ratio_cpu": round(st["cpu"] / ref_cpu, 3),
+                "max_diff_vs_first": diff,
+                "repeat": repeat,
+            }
+            rows.append(row)
+            if say:
+                print(
+                    f"{scene.name:>22s} {row['dofs']:9d} {variant:>8s} step {row['step']} "
+                    f"t={row['t']:g}: newton {row['newton']:2d} krylov {row['krylov']:4d} "
+                    f"({row['linear']}, {row['levels']} levels, predictor {row['predictor']})  "
+                    f"ref {ref_cpu:6.2f} s cpu  step {st['cpu']:7.2f} s cpu  ratio "
+                    f"{row['ratio_cpu']:5.2f} (wall {row['ratio_wall']:5.2f})  diff {diff:.1e}",
+                    flush=True,
+                )
+    return rows
+
+
 def chart(folder: Path) -> Path:
-    """cost.png: the wall-time ratio (contact solve / one CG + GAMG solve of K) against the
-    DoFs, one line per scene × method × sequencing setting, from every CSV in ``folder``."""
+    """cost.png from every CSV in ``folder``.  Left: the wall-time ratio of one solve (contact
+    solve / one CG + GAMG solve of K) against the DoFs, one line per scene × method ×
+    sequencing setting.  Right (``path`` rows): the CPU-time ratio of each load step of a
+    frictional path — its first step and the worst later one — per variant (CPU: the fair
+    figure on a shared machine, where the wall time of a long path drifts with the load)."""
     import csv
 
     import matplotlib
@@ -165,18 +278,21 @@ def chart(folder: Path) -> Path:
     import matplotlib.pyplot as plt
 
     curves: dict[tuple, list[tuple[int, float]]] = {}
+    paths: dict[tuple, dict[int, dict[int, float]]] = {}  # (case, variant) → dofs → step → ratio
     for path in sorted(folder.glob("*.csv")):
         with open(path, newline="") as fh:
             for r in csv.DictReader(fh):
-                label = (
-                    f"{r['case']} ({r['ranks']} rank{'s' if r['ranks'] != '1' else ''})",
-                    r["method"],
-                    r["sequence"],
-                )
+                ranks = f"{r['ranks']} rank{'s' if r['ranks'] != '1' else ''}"
+                if r.get("step"):
+                    key = (f"{r['case']} ({ranks})", r["variant"])
+                    steps = paths.setdefault(key, {}).setdefault(int(r["dofs"]), {})
+                    steps[int(r["step"])] = float(r["ratio_cpu"])
+                    continue
+                label = (f"{r['case']} ({ranks})", r["method"], r["sequence"])
                 curves.setdefault(label, []).append((int(r["dofs"]), float(r["ratio_wall"])))
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 5.2))
     colours = {"fb": "tab:blue", "min": "tab:orange", "blend": "tab:green"}
-    markers = ["o", "s", "^", "D"]
+    markers = ["o", "s", "^", "D", "v", "P"]
     cases = sorted({k[0] for k in curves})
     for (case, method, sequence), pts in sorted(curves.items()):
         pts.sort()
@@ -193,10 +309,33 @@ def chart(folder: Path) -> Path:
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("DoFs of the mesh asked for")
-    ax.set_ylabel("contact solve / one CG + GAMG solve of K")
-    ax.set_title("Cost of a cold contact solve in linear solves (targets 3×: 2D, 4×: 3D)")
+    ax.set_ylabel("contact solve / one CG + GAMG solve of K (wall)")
+    ax.set_title("One solve (targets 3×: 2D, 4×: 3D)", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=6, ncol=2)
+    path_cases = sorted({k[0] for k in paths})
+    for i, ((case, variant), by_dofs) in enumerate(sorted(paths.items())):
+        dofs = sorted(by_dofs)
+        mark = markers[path_cases.index(case) % len(markers)]
+        colour = f"C{i % 10}"
+        first = [by_dofs[n].get(1, float("nan")) for n in dofs]
+        later = [max((v for k, v in by_dofs[n].items() if k > 1), default=np.nan) for n in dofs]
+        bx.plot(dofs, first, marker=mark, color=colour, ls="none", mfc="none", ms=9)
+        bx.plot(dofs, later, marker=mark, color=colour, ls="none", label=f"{case} {variant}")
+    bx.axhline(3.0, color="grey", lw=0.8, ls=":")
+    bx.axhline(6.0, color="grey", lw=0.8, ls="-.")
+    bx.set_xscale("log")
+    bx.set_yscale("log")
+    bx.set_xlabel("DoFs")
+    bx.set_ylabel("load step / one CG + GAMG solve of K (CPU)")
+    bx.set_title(
+        "Frictional load paths: first step (open) ≤ 6×, worst later step (filled) ≤ 3×",
+        fontsize=10,
+    )
+    bx.grid(True, which="both", alpha=0.3)
+    if paths:
+        bx.legend(fontsize=7)
+    fig.suptitle("Cost in linear solves")
     fig.tight_layout()
     out = folder / "cost.png"
     fig.savefig(out, dpi=120)
@@ -209,7 +348,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("case", choices=("square", "hertz3d", "scene", "chart"))
+    ap.add_argument("case", choices=("square", "hertz3d", "scene", "path", "chart"))
     ap.add_argument(
         "--scene", default="configs/friction_box_3d.yaml", help="scene: its file (with --set)"
     )
@@ -235,6 +374,10 @@ def main() -> None:
         action="store_true",
         help="skip the comparison with the solver as it was before (a cold solve: long in 3D)",
     )
+    ap.add_argument("--times", default="0.5,0.75,1", help="path: the load steps' pseudo-times")
+    ap.add_argument(
+        "--variants", default="new,old", help=f"path: of {', '.join(VARIANTS)} (module doc)"
+    )
     ap.add_argument("--out", default="bench/cost.csv")
     args = ap.parse_args()
     if args.case == "chart":
@@ -256,6 +399,11 @@ def main() -> None:
                 "configs/signorini_square.yaml", [f"mesh.cells=[{n},{n}]", "output.verbose=false"]
             )
             rows += measure("square", scene, methods, sequences, args.repeat, before)
+    elif args.case == "path":  # a load path, every step against one linear solve
+        times = [float(t) for t in args.times.split(",")]
+        rows += measure_path(
+            args.scene, args.overrides, times, args.variants.split(","), args.repeat
+        )
     elif args.case == "scene":  # one solve of a scene file on the mesh its --set options give
         scene = contact.load_scene(args.scene, ["output.verbose=false", *args.overrides])
         before = {"method": "fb", "linear": "bcgs", "sequence": "off", "max_it": 200}
