@@ -192,7 +192,7 @@ def run_load_path(
             if predict and u_prev is not None and u_prev2 is not None:
                 guess = extrapolate(u_prev, u_prev2, t, t_prev, t_prev2)
             result = solve(
-                step_scene, method=method, u0=u_prev, verbose=verbose, predictor=guess, **options
+                step_scene, method=method, u0=u_prev, verbose=verbose, alternative=guess, **options
             )
         if not result.converged and depth < max_cuts:
             mid = t_prev + (t - t_prev) / 2

@@ -30,7 +30,7 @@ def solve(
     u0: fem.Function | None = None,
     verbose: bool | None = None,
     criterion: AdaptiveStopping | None = None,
-    predictor: fem.Function | None = None,
+    alternative: fem.Function | None = None,
     **options: Any,
 ) -> Result:
     """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
@@ -49,7 +49,7 @@ def solve(
     (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).  ``criterion``: adaptive
     stopping against a discretization error (:mod:`contact.solvers.stopping`; the adaptive
     loop makes one per level for ``solver.stopping: adaptive``, which a single solve
-    ignores: it has no discretization error to balance against).  ``predictor``: another
+    ignores: it has no discretization error to balance against).  ``alternative``: another
     guess beside ``u0`` (a load path's extrapolation, :mod:`.load_path`); Newton starts from
     the one whose ‖Φ‖ is smaller (``Result.predictor`` says which).
     """
@@ -95,7 +95,7 @@ def solve(
         with Timer(timers, "coarse"):
             coarse, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
         if coarse is not None:
-            u0, predictor = coarse, None
+            u0, alternative = coarse, None
     guess = u0 is not None  # given, or the coarse levels' solution
     if u0 is None:
         u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
@@ -112,7 +112,7 @@ def solve(
         clock,
         check_options=bool(options.get("petsc_options")),
         stopping=criterion,
-        alternatives=() if predictor is None else (predictor,),
+        alternatives=() if alternative is None else (alternative,),
     )
     result.sequence, result.sequence_note = levels, note
     if result.converged and problem.floating:
