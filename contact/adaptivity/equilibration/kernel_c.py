@@ -24,14 +24,12 @@ Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out o
 """
 
 #: the per-cell work row of cell_block, in this order (sizes in the macros of SOURCE): σ_h|_T
-#: = C + G Σ_a μ_a, then per vertex a the condensed patch block Ŝ_a (packed lower triangle)
-#: and load b_a, then per a T_a and ho_a (μ_o = ho_a − T_a μ_s)
+#: = C − Z Ytᵀ Σ_a μ_a, then per vertex a (contiguous: what its patch reads) the condensed
+#: patch block Ŝ_a (packed lower triangle), its load b_a, and T_a, ho_a (μ_o = ho_a − T_a μ_s)
 WORK_LAYOUT = (
-    "G: M*DNF",
+    "Yt: DNF*MZ",
     "C: M",
-    "Sb: NV*(SYM + SNF)",
-    "T: NV*NF*SNF",
-    "ho: NV*NF",
+    "per vertex a: Ŝ_a SYM, b_a SNF, T_a NF*SNF, ho_a NF",
 )
 
 CDEF = """
@@ -72,16 +70,19 @@ enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
 
 /* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
    μ_o = ho_a − Ta_a μ_s) and the final map to alpha need: σ_h|_T = Σ_a σ_a|_T, σ_a|_T =
-   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C + G Σ_a μ_a with G = −Z M_Z⁻¹ (O Z)ᵀ and
-   C the rest, summed over the vertices a whose patches are solved here */
-#define W_G 0
-#define W_C (W_G + M * DNF)             /* right after G (cell_block stores them as one) */
+   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C − Z Ytᵀ Σ_a μ_a with Yt = (O Z) M_Z⁻¹
+   and C the rest, summed over the vertices a whose patches are solved here */
+#define W_YT 0
+#define W_C (W_YT + DNF * MZ)
 #define SYM (SNF * (SNF + 1) / 2)      /* a packed symmetric SNF x SNF matrix */
 #define SYMIDX(i, j) ((i) >= (j) ? (i) * ((i) + 1) / 2 + (j) : (j) * ((j) + 1) / 2 + (i))
-#define W_SB (W_C + M)                  /* per vertex a: Ŝ_a (packed lower triangle), b_a */
-#define W_TA (W_SB + NV * (SYM + SNF))
-#define W_HO (W_TA + NV * NF * SNF)
-#define W_SIZE (W_HO + NV * NF)
+/* per vertex a, contiguous (what its patch reads): Ŝ_a (packed lower triangle), b_a, T_a, ho_a */
+#define A_B SYM
+#define A_TA (A_B + SNF)
+#define A_HO (A_TA + NF * SNF)
+#define A_SIZE (A_HO + NF)
+#define W_A(a) (W_C + M + (a) * A_SIZE)
+#define W_SIZE W_A(NV)
 #define DENSE 24                        /* patch systems up to this size: no reordering */
 #define LB 8                            /* cells per block: the SIMD lanes of cell_block */
 #define LANES for (int b = 0; b < LB; ++b)
@@ -566,13 +567,13 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     }
     for (int b = 0; b < nb; ++b) {
       double *row = rows[b];
-      double *sb = row + W_SB + a * (SYM + SNF);
+      double *sb = row + W_A(a);
       for (int i = 0, k = 0; i < SNF; ++i)
         for (int j = 0; j <= i; ++j) sb[k++] = Sh[i * SNF + j][b];
       for (int i = 0; i < SNF; ++i) sb[SYM + i] = bv[i][b];
       for (int k = 0; k < NF; ++k)
-        for (int i = 0; i < SNF; ++i) row[W_TA + (a * NF + k) * SNF + i] = T[i * NF + k][b];
-      for (int k = 0; k < NF; ++k) row[W_HO + a * NF + k] = ho[k][b];
+        for (int i = 0; i < SNF; ++i) sb[A_TA + k * SNF + i] = T[i * NF + k][b];
+      for (int k = 0; k < NF; ++k) sb[A_HO + k] = ho[k][b];
     }
   }
   /* C = R Σ_a β_a + Z M_Z⁻¹ (Σ_a Zᵀg_a − ZMR Σ_a β_a) over the vertices solved here */
@@ -590,25 +591,16 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int y = 0; y < MZ; ++y) LANES v[b] += MZi[(z * MZ + y) * LB + b] * Gs[y][b];
     LANES gam[z][b] = v[b];
   }
-  double ZM[MZ][LB], GC[M * DNF + M][LB];     /* G then C, the layout of the work row */
+  double C[M][LB];
   for (int l = 0; l < M; ++l) {
-    LANES GC[M * DNF + l][b] = 0.0;
-    for (int j = 0; j < NP; ++j) LANES GC[M * DNF + l][b] += r->R[l * NP + j] * Bs[j][b];
-    for (int z = 0; z < MZ; ++z) LANES GC[M * DNF + l][b] += r->Z[l * MZ + z] * gam[z][b];
-    /* G_l = −(Z M_Z⁻¹)_l (O Z)ᵀ */
-    for (int z = 0; z < MZ; ++z) {
-      double u[LB] = {0.0};
-      for (int y = 0; y < MZ; ++y) LANES u[b] += r->Z[l * MZ + y] * MZi[(y * MZ + z) * LB + b];
-      LANES ZM[z][b] = u[b];
-    }
-    for (int i = 0; i < DNF; ++i) {
-      double u[LB] = {0.0};
-      for (int z = 0; z < MZ; ++z) LANES u[b] -= ZM[z][b] * OZ[i * MZ + z][b];
-      LANES GC[l * DNF + i][b] = u[b];
-    }
+    LANES C[l][b] = 0.0;
+    for (int j = 0; j < NP; ++j) LANES C[l][b] += r->R[l * NP + j] * Bs[j][b];
+    for (int z = 0; z < MZ; ++z) LANES C[l][b] += r->Z[l * MZ + z] * gam[z][b];
   }
-  for (int b = 0; b < nb; ++b)
-    for (int k = 0; k < M * DNF + M; ++k) rows[b][W_G + k] = GC[k][b];
+  for (int b = 0; b < nb; ++b) {
+    for (int k = 0; k < DNF * MZ; ++k) rows[b][W_YT + k] = Yt[k][b];
+    for (int l = 0; l < M; ++l) rows[b][W_C + l] = C[l][b];
+  }
   for (int b = 0; b < nb; ++b) osc[b] = oscillation(r, t, cl[b], absdet[b], size, b);
   return 0;
 }
@@ -663,6 +655,7 @@ typedef struct {
   int64_t *freel, nfree;          /* the work rows free for reuse */
   int *map;                       /* (np, DIM): the dof of each pair's spokes, or -1 */
   double *alpha, *defect;
+  const eq_ref *r;
   struct batch_s **big;           /* per dim > DENSE: the open batch of that size, or NULL */
   double *P, *dinvl, *mu;         /* big batches: the packed lanes, 1 / L_ii, one lane's μ */
   int64_t Pcap, *off;
@@ -772,8 +765,8 @@ static void assemble(scratch_t *w, int dense)
       memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
   memset(rhs, 0, sizeof(double) * dim);
   for (int p = 0; p < w->np; ++p) {
-    const double *Shat = CELL_WORK(w, w->prow[p]) + W_SB + w->ploc[p] * (SYM + SNF);
-    const double *b = Shat + SYM;
+    const double *Shat = CELL_WORK(w, w->prow[p]) + W_A(w->ploc[p]);
+    const double *b = Shat + A_B;
     int row[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
       int u = w->spoke[p * DIM + s1];
@@ -789,13 +782,16 @@ static void assemble(scratch_t *w, int dense)
   }
 }
 
-/* alpha[c] += C + G Σ_a μ_a */
-static void finish_cell(const double *cw, const double *msum, double *al)
+/* alpha[c] += C − Z Ytᵀ Σ_a μ_a */
+static void finish_cell(const eq_ref *r, const double *cw, const double *msum, double *al)
 {
-  const double *G = cw + W_G;
+  const double *Yt = cw + W_YT;
+  double g[MZ] = {0.0};
+  for (int i = 0; i < DNF; ++i)
+    for (int z = 0; z < MZ; ++z) g[z] += Yt[i * MZ + z] * msum[i];
   for (int l = 0; l < M; ++l) {
     double v = cw[W_C + l];
-    for (int i = 0; i < DNF; ++i) v += G[l * DNF + i] * msum[i];
+    for (int z = 0; z < MZ; ++z) v -= r->Z[l * MZ + z] * g[z];
     al[l] += v;
   }
 }
@@ -916,7 +912,7 @@ static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
     int64_t c = prow[p];
     int a = ploc[p];
     const double *cw = CELL_WORK(w, c);
-    const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
+    const double *Ta = cw + W_A(a) + A_TA, *ho = cw + W_A(a) + A_HO;
     double m[DNF], mus[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
       int d0 = map[p * DIM + s1];
@@ -934,7 +930,7 @@ static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
     double *acc = w->acc + i * ACC_SIZE;
     for (int k = 0; k < DNF; ++k) acc[k] += m[k];
     if (--w->left[i] == 0) {
-      finish_cell(cw, acc, w->alpha + c * M);
+      finish_cell(w->r, cw, acc, w->alpha + c * M);
       w->freel[w->nfree++] = i;
     }
   }
@@ -1058,7 +1054,7 @@ static int flush_big(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *
     }
     const int *map = bt->map + b * w->maxraw;
     for (int p = 0; p < bt->np[b]; ++p) {
-      const double *Shat = CELL_WORK(w, bt->prow[b][p]) + W_SB + bt->ploc[b][p] * (SYM + SNF);
+      const double *Shat = CELL_WORK(w, bt->prow[b][p]) + W_A(bt->ploc[b][p]);
       int row[SNF];
       for (int s1 = 0; s1 < DIM; ++s1) {
         int d0 = map[p * DIM + s1];
@@ -1067,7 +1063,7 @@ static int flush_big(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *
       for (int i = 0; i < SNF; ++i) {
         int ri = row[i];
         if (ri < 0) continue;
-        x[ri * LB + b] += Shat[SYM + i];
+        x[ri * LB + b] += Shat[A_B + i];
         double *Pi = P + (off[ri] - fu[ri]) * LB + b;
         for (int j = 0; j < SNF; ++j)
           if (row[j] >= 0 && row[j] <= ri) Pi[row[j] * LB] += Shat[SYMIDX(i, j)];
@@ -1158,6 +1154,11 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
     }
   else
     memcpy(bt->first + b * dim, w->first, sizeof(int) * dim);
+  if (dim > DENSE)   /* flush_big and backsub read the pairs' blocks: start the loads now */
+    for (int p = 0; p < w->np; ++p) {
+      const char *sb = (const char *)(CELL_WORK(w, w->prow[p]) + W_A(w->ploc[p]));
+      for (int k = 0; k < (int)sizeof(double) * A_SIZE; k += 64) __builtin_prefetch(sb + k);
+    }
   bt->np[b] = w->np;
   bt->prow[b] = w->prow;
   bt->ploc[b] = w->ploc;
@@ -1219,6 +1220,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.maxraw = nraw;
   w.map = malloc(sizeof(int) * nraw);
   w.defect = stats;
+  w.r = r;
   w.big = calloc(maxdim + 1, sizeof(batch_t *));
   w.P = NULL;
   w.Pcap = 0;
