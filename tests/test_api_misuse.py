@@ -121,7 +121,7 @@ def test_scene_and_result_arguments(solved) -> None:
     other = contact.load_scene(SCENE, ["mesh.cells=[6,6]"])
     for call in (
         lambda: contact.solve("configs/x.yaml"),
-        lambda: contact.adapt(scene.cfg),
+        lambda: contact.adapt(scene.config),
         lambda: contact.estimate(None, result),
         lambda: contact.refine("scene", [0]),
     ):
@@ -140,24 +140,34 @@ def test_scene_and_result_arguments(solved) -> None:
 
 
 # ------------------------------------------------------------------------- issue 26
-def test_solve_validates_a_changed_config_again() -> None:
-    """A Scene's cfg changed after loading is checked like the YAML: a friction law typo was
-    a bare PETSc "error code 101"."""
-    scene = contact.load_scene(ROOT / "configs" / "friction_block_2d.yaml", ["mesh.cells=[8,4]"])
+def test_a_bad_config_never_reaches_the_solver() -> None:
+    """A friction law typo in a Scene's config changed after loading was a bare PETSc "error
+    code 101".  The config is validated once and frozen (issue 28): changing it in place is
+    refused at the assignment (so nothing unchecked reaches a solve), and the same values
+    given the way a config is changed — overrides when loading — are the one-line
+    ConfigErrors of the YAML."""
+    import pydantic
+
+    path = ROOT / "configs" / "friction_block_2d.yaml"
+    scene = contact.load_scene(path, ["mesh.cells=[8,4]"])
     for key, value, message in [
         ("law", "coulom", r"^friction\.law: 'coulom' is not one of none, tresca, coulomb$"),
         ("law", "tresca", r"^friction\.threshold: required for friction law tresca$"),
         ("coefficient", -1, r"^friction\.coefficient: must be >= 0, got -1"),
     ]:
-        old = scene.cfg["friction"][key]
-        scene.cfg["friction"][key] = value
+        with pytest.raises(pydantic.ValidationError, match="frozen"):
+            setattr(scene.config.friction, key, value)
         with pytest.raises(ConfigError, match=message) as err:
-            contact.solve(scene, verbose=False)
+            contact.load_scene(path, ["mesh.cells=[8,4]", f"friction.{key}={value}"])
         _one_line(err)
-        scene.cfg["friction"][key] = old
-    scene.cfg["model"]["nu"] = 0.5
+    with pytest.raises(pydantic.ValidationError, match="frozen"):
+        scene.config.model.nu = 0.5
     with pytest.raises(ConfigError, match=r"^model\.nu: must lie in \(-1, 0\.5\), got 0\.5"):
-        contact.solve(scene, verbose=False)
+        contact.load_scene(path, ["mesh.cells=[8,4]", "model.nu=0.5"])
+    for mapping in (scene.config.boundaries, scene.config.constants):  # mappings too
+        with pytest.raises(TypeError, match="immutable"):
+            mapping["x"] = 1
+    assert scene.config.friction.law == "coulomb" and contact.solve(scene, verbose=False).converged
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -1.0])

@@ -111,8 +111,8 @@ def test_elasticity_data_checked(override: str, expect: str) -> None:
 
 
 def test_negative_poisson_ratio_is_allowed() -> None:
-    cfg = ct.load_scene(ROOT / "configs" / "hertz_2d.yaml", [*HERTZ, "model.nu=-0.5"]).cfg
-    assert cfg["model"]["nu"] == -0.5
+    config = ct.load_scene(ROOT / "configs" / "hertz_2d.yaml", [*HERTZ, "model.nu=-0.5"]).config
+    assert config.model.nu == -0.5
 
 
 def test_u0_checked_in_the_api() -> None:

@@ -59,7 +59,8 @@ def test_budget_value_is_checked(value) -> None:
 def test_gmsh_mesh_is_checked_before_assembly() -> None:
     """A parametric gmsh mesh whose estimate (7822 DoFs, at least 0.95 of it) fits the
     budget is meshed, and the mesh itself (8004 DoFs) is checked before assembly."""
-    estimate = budget.parametric_dofs(load_config(ROOT / "configs" / "hertz_2d.yaml"))
+    hertz = load_config(ROOT / "configs" / "hertz_2d.yaml")
+    estimate = budget.parametric_dofs(hertz.mesh, hertz.elastic)
     assert budget.ESTIMATE_RANGE[0] * estimate < 7800 < 8004
     scene = ct.load_scene(ROOT / "configs" / "hertz_2d.yaml", ["solver.max_dofs=7800"])
     with pytest.raises(
@@ -89,7 +90,7 @@ def test_estimate_is_exact_for_built_in_meshes(source: str, overrides: list) -> 
     scene = ct.load_scene(ROOT / "configs" / source, overrides)
     problem = build_problem(scene)
     dofs = problem.V.dofmap.index_map.size_global * problem.V.dofmap.index_map_bs
-    assert budget.estimate_dofs(scene.cfg) == dofs
+    assert budget.estimate_dofs(scene.config.mesh, scene.config.elastic) == dofs
 
 
 def test_box_estimate_is_exact() -> None:
@@ -103,7 +104,11 @@ def test_box_estimate_is_exact() -> None:
         "obstacle": {"type": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]},
     }
     scene = ct.load_scene(raw)
-    assert budget.estimate_dofs(scene.cfg) == 4 * 5 * 6 * 3 == budget.mesh_dofs(scene.mesh, 1, 3)
+    assert (
+        budget.estimate_dofs(scene.config.mesh, True)
+        == 4 * 5 * 6 * 3
+        == budget.mesh_dofs(scene.mesh, 1, 3)
+    )
 
 
 def test_default_budget_on_a_24_gib_machine(monkeypatch) -> None:
@@ -111,13 +116,15 @@ def test_default_budget_on_a_24_gib_machine(monkeypatch) -> None:
     (solver.linear: direct) is limited to about 0.5 M DoFs (fill-in ∝ N^{4/3})."""
     monkeypatch.setattr(budget, "physical_memory", lambda: 24 * 2**30)
     scalar = load_config(ROOT / "configs" / "signorini_square.yaml", ["mesh.cells=[1024,1024]"])
-    assert budget.estimate_dofs(scalar) == 1050625 <= budget.max_dofs(scalar, 2)
-    elastic = load_config(ROOT / "configs" / "hertz_3d.yaml")
+    assert budget.estimate_dofs(scalar.mesh, False) == 1050625 <= budget.max_dofs(scalar.solver, 2)
+    elastic = load_config(ROOT / "configs" / "hertz_3d.yaml").solver
     assert not budget.direct_3d(elastic, 3) and budget.max_dofs(elastic, 3) >= 1_029_000
-    assert not budget.direct_3d(scalar, 3)  # solver.linear auto: CG + GAMG in 3D
+    assert not budget.direct_3d(scalar.solver, 3)  # solver.linear auto: CG + GAMG in 3D
     direct = load_config(ROOT / "configs" / "signorini_square.yaml", ["solver.linear=direct"])
-    assert budget.direct_3d(direct, 3) and 450_000 < budget.max_dofs(direct, 3) < 550_000
-    assert budget.max_dofs(scalar, 2) == int(0.5 * 24 * 2**30 / budget.BYTES_PER_DOF)
+    assert (
+        budget.direct_3d(direct.solver, 3) and 450_000 < budget.max_dofs(direct.solver, 3) < 550_000
+    )
+    assert budget.max_dofs(scalar.solver, 2) == int(0.5 * 24 * 2**30 / budget.BYTES_PER_DOF)
 
 
 # ------------------------------------------------------------------------- issue 26
@@ -137,16 +144,14 @@ BLOCKS_3D = [
 def test_blocks_estimate_is_exact(blocks: list, degree: int) -> None:
     """Mesh type blocks had no estimate: the budget skipped it."""
     from contact.setup.meshes import blocks as build_blocks
+    from contact.setup.scene_config import MeshConfig
 
     from mpi4py import MPI
 
-    cfg = {
-        "mesh": {"type": "blocks", "blocks": blocks, "degree": degree},
-        "model": {"type": "elasticity"},
-    }
-    msh, _, _ = build_blocks(MPI.COMM_WORLD, blocks)
+    mesh = MeshConfig(type="blocks", blocks=blocks, degree=degree)
+    msh, _, _ = build_blocks(MPI.COMM_WORLD, mesh.blocks)
     gdim = msh.geometry.dim
-    assert budget.estimate_dofs(cfg) == budget.mesh_dofs(msh, degree, gdim)
+    assert budget.estimate_dofs(mesh, elastic=True) == budget.mesh_dofs(msh, degree, gdim)
 
 
 def _blocks_scene(path: Path, cells: list[int]) -> None:
@@ -220,9 +225,9 @@ def test_parametric_estimate_brackets_the_mesh(source: str, overrides: list) -> 
     within ESTIMATE_RANGE (0.95–1.25; measured 0.99–1.22 on 19 meshes of 119 to 57 119
     vertices, 2D and 3D, one and two bodies)."""
     scene = ct.load_scene(ROOT / "configs" / source, overrides)
-    cfg = scene.cfg
+    config = scene.config
     components = scene.mesh.geometry.dim
-    dofs = budget.mesh_dofs(scene.mesh, cfg["mesh"]["degree"], components)
-    ratio = dofs / budget.parametric_dofs(cfg)
+    dofs = budget.mesh_dofs(scene.mesh, config.mesh.degree, components)
+    ratio = dofs / budget.parametric_dofs(config.mesh, config.elastic)
     low, high = budget.ESTIMATE_RANGE
     assert low <= ratio <= high, ratio

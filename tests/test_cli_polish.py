@@ -91,9 +91,9 @@ def test_adapt_none_in_python_is_one_level():
     res = contact.adapt(scene, strategy="none")
     assert len(res.levels) == 1 and res.stop == "strategy none: one solve"
     assert (
-        contact.load_scene(ROOT / "configs" / "signorini_free_boundary.yaml", ["adapt=none"]).cfg[
-            "adapt"
-        ]
+        contact.load_scene(
+            ROOT / "configs" / "signorini_free_boundary.yaml", ["adapt=none"]
+        ).config.adapt
         is None
     )
 
@@ -103,7 +103,7 @@ def test_output_xdmf_and_vtk_switch_one_format():
 
     def formats(*sets: str) -> list[str]:
         scene = contact.load_scene(ROOT / "configs" / "signorini_square.yaml", list(sets))
-        return scene.cfg["output"]["formats"]
+        return list(scene.config.output.formats)
 
     assert formats() == formats("output.xdmf=true") == ["xdmf", "vtk"]
     assert formats("output.xdmf=false") == ["vtk"] and formats("output.vtk=false") == ["xdmf"]
@@ -146,8 +146,8 @@ def test_set_none_switches_a_section_off(tmp_path, overrides, steps, friction):
 )
 def test_none_in_the_api_and_the_scene_file(source, section):
     cfg = contact.setup.config.load_config(ROOT / "configs" / source)
-    assert cfg[section] is not None
+    assert getattr(cfg, section) is not None
     off = contact.setup.config.load_config(ROOT / "configs" / source, [f"{section}=none"])
-    assert off[section] is None
+    assert getattr(off, section) is None
     raw = contact.setup.config.read_yaml(ROOT / "configs" / source)
-    assert contact.setup.config.validate_scene({**raw, section: "none"})[section] is None
+    assert getattr(contact.setup.config.validate_scene({**raw, section: "none"}), section) is None

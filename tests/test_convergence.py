@@ -17,7 +17,7 @@ def test_problem_A_energy_error_rate():
         scene = contact.load_scene(SCENE, [f"mesh.cells=[{2 * n},{n}]"])
         result = contact.solve(scene, method="min", verbose=False)
         assert result.converged, result.reason
-        errors.append(energy_error(result.u_h, scene.cfg["data"]["exact"]))
+        errors.append(energy_error(result.u_h, scene.config.data.exact))
         hs.append(1.0 / n)
     rates = np.diff(np.log(errors)) / np.diff(np.log(hs))
     assert np.all(rates[-3:] >= 0.9), f"errors {errors}, rates {rates}"
@@ -31,7 +31,7 @@ def test_exact_seminorm_matches_spec():
     from mpi4py import MPI
 
     scene = contact.load_scene(SCENE, ["mesh.cells=[64,32]"])
-    u = contact.setup.expressions.to_ufl(scene.cfg["data"]["exact"], scene.mesh)
+    u = contact.setup.expressions.to_ufl(scene.config.data.exact, scene.mesh)
     dx = ufl.dx(domain=scene.mesh, metadata={"quadrature_degree": 10})
     val = scene.comm.allreduce(
         fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)), op=MPI.SUM

@@ -194,7 +194,7 @@ def test_estimator_key() -> None:
         },
         "model": "signorini",
     }
-    assert contact.load_scene(base).cfg["estimator"] == "residual"
+    assert contact.load_scene(base).config.estimator == "residual"
     with pytest.raises(
         ConfigError, match=r"^estimator: 'fancy' is not one of residual, equilibrated$"
     ):

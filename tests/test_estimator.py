@@ -479,7 +479,7 @@ def test_refine_keeps_boundary_tags_and_interpolates(source):
         assert 0 < len(cells) < scene.mesh.topology.index_map(2).size_local
         child, u0 = refine(scene, cells, result.u_h)
         # the transferred tags are those the predicates give on the new mesh
-        fresh = tag_boundaries(child.mesh, scene.cfg)
+        fresh = tag_boundaries(child.mesh, scene.config)
         assert child.boundary.ids == fresh.ids and child.boundary.roles == fresh.roles
         got, want = tags_by_value(child.boundary), tags_by_value(fresh)
         assert got.keys() == want.keys() == set(fresh.ids.values())
@@ -530,7 +530,7 @@ def problem_A():
             assert result.u_h.function_space.ufl_element().embedded_superdegree == degree
             est = estimate(scene, result)
             out[degree].append(
-                (est.eta, energy_error(result.u_h, scene.cfg["data"]["exact"]), est.terms)
+                (est.eta, energy_error(result.u_h, scene.config.data.exact), est.terms)
             )
     return out
 

@@ -137,6 +137,11 @@ def test_fixed_components_and_zero_bound():
     assert np.allclose(law.C[1], mu[1]) and np.allclose(law.J_mu[1], np.eye(2)) and not law.stick[1]
 
 
+def with_form(fs, form: str):
+    """The friction set with another tangential NCP (its FrictionOptions copied)."""
+    return dataclasses.replace(fs, options=fs.options.model_copy(update={"form": form}))
+
+
 def test_block_jacobian_is_the_directional_derivative_of_phi():
     """H = B K + D of a Coulomb scene (normal fb, projection form) against central
     differences of Φ at a point with stick and slip nodes.  The point is the
@@ -147,9 +152,9 @@ def test_block_jacobian_is_the_directional_derivative_of_phi():
 
     scene = block(*coulomb(0.3), 'data.u_D=["0.004", "-0.01"]', "friction.form=projection")
     problem = build_problem(scene)
-    problem.friction = dataclasses.replace(problem.friction, form="hsw")
+    problem.friction = with_form(problem.friction, "hsw")
     r = contact.solve(scene, problem=problem)
-    problem.friction = dataclasses.replace(problem.friction, form="projection")
+    problem.friction = with_form(problem.friction, "projection")
     assert r.converged and {1, 2} <= set(r.friction["status"].tolist())
     cp = FrictionalComplementarity(problem)
     x = problem.b.duplicate()

@@ -25,18 +25,18 @@ QUIET = ["output.verbose=false"]
 
 
 def _ufl_vector(texts, scene):
-    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, scene.cfg["constants"]) for t in texts])
+    return ufl.as_vector([expressions.to_ufl(t, scene.mesh, scene.config.constants) for t in texts])
 
 
 def test_manufactured_data_are_those_of_the_exact_solution():
     """f = −div σ(u), t = σ(u)n on the sides, u_D = u, the Lamé constants those of E, ν; on
     Γ_C u_y = 0, σ_yy < 0, σ_xy = μα and the threshold is μα (slip side) / > μα (stick side)."""
     scene = contact.load_scene(SCENE, QUIET + ["mesh.cells=[16,16]"])
-    c, d = scene.cfg["constants"], scene.cfg["data"]
+    c, d = scene.config.constants, scene.config.data
     mu, lmbda = lame(1.0, 0.3)
     assert np.isclose(c["mu"], mu, rtol=1e-15) and np.isclose(c["lam"], lmbda, rtol=1e-15)
-    assert d["u_D"] == d["exact"]
-    u, f, t = (_ufl_vector(d[k], scene) for k in ("exact", "f", "t"))
+    assert d.u_D == d.exact
+    u, f, t = (_ufl_vector(getattr(d, k), scene) for k in ("exact", "f", "t"))
     sigma = stress(u, mu, lmbda)
     dx = ufl.Measure("dx", domain=scene.mesh, metadata={"quadrature_degree": 10})
     n = ufl.FacetNormal(scene.mesh)
@@ -56,7 +56,7 @@ def test_manufactured_data_are_those_of_the_exact_solution():
     e = t - ufl.dot(sigma, n)
     assert integral(ufl.inner(e, e), ds(sides)) < 1e-20 * integral(ufl.inner(t, t), ds(sides))
     x = ufl.SpatialCoordinate(scene.mesh)
-    rho = expressions.to_ufl(scene.cfg["friction"]["threshold"], scene.mesh, c)
+    rho = expressions.to_ufl(scene.config.friction.threshold, scene.mesh, c)
     assert integral(u[1] ** 2, ds(floor)) < 1e-28
     assert integral((sigma[0, 1] - mu * c["alpha"]) ** 2, ds(floor)) < 1e-28
     slip_side = ufl.conditional(ufl.gt(x[0], c["x0"]), 1.0, 0.0)

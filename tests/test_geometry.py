@@ -262,7 +262,7 @@ def test_other_meshes_are_refined_as_dolfinx_does():
     scene = contact.load_scene(
         ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
     )
-    assert curved_boundary(scene.cfg) is None and scene.boundary.ids["contact"] == CONTACT
+    assert curved_boundary(scene.config.mesh) is None and scene.boundary.ids["contact"] == CONTACT
     msh = scene.mesh
     cells = near_contact(msh, 0.5)
     child, _ = refine(scene, cells)

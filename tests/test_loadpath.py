@@ -24,9 +24,9 @@ def test_pseudo_time_in_expressions():
     assert np.allclose(f(np.array([[1.0, 2.0], [0, 0], [0, 0]])), [1.005, 2.005])
     assert expressions.uses_time("2*t") and not expressions.uses_time("x")
     assert not expressions.is_constant("2*t") and expressions.is_constant("2")
-    assert load_times(block("load.steps=4").cfg) == [0.25, 0.5, 0.75, 1.0]
-    assert load_times(block("load.times=[0.1, 0.5, 2]").cfg) == [0.1, 0.5, 2.0]
-    assert load_times(block().cfg) == [1.0]
+    assert load_times(block("load.steps=4").config) == [0.25, 0.5, 0.75, 1.0]
+    assert load_times(block("load.times=[0.1, 0.5, 2]").config) == [0.1, 0.5, 2.0]
+    assert load_times(block().config) == [1.0]
 
 
 def test_proportional_stick_loading_does_not_depend_on_the_steps():

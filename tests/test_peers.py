@@ -33,7 +33,7 @@ def _solve_ex9(cells: int) -> tuple[float, contact.Scene, contact.Result]:
 
 
 def _energy_error(scene: contact.Scene, result: contact.Result) -> float:
-    return energy_error(result.u_h, scene.cfg["data"]["exact"], 1.0, scene.cfg["constants"])
+    return energy_error(result.u_h, scene.config.data.exact, 1.0, scene.config.constants)
 
 
 def test_ex9_reproduces_petsc_published_errors():
@@ -44,7 +44,7 @@ def test_ex9_reproduces_petsc_published_errors():
     _, scene, result = _solve_ex9(16)
     V = result.u_h.function_space
     exact = fem.Function(V)
-    exact.interpolate(expressions.to_numpy(scene.cfg["data"]["exact"], scene.cfg["constants"]))
+    exact.interpolate(expressions.to_numpy(scene.config.data.exact, scene.config.constants))
     err = np.abs(result.u_h.x.array - exact.x.array)
     assert (f"{err.mean():.3e}", f"{err.max():.3e}") == ("2.707e-03", "1.428e-02")
     assert tie_margin(result) >= 1e-6  # no node near a tie: the published count cannot move

@@ -6,7 +6,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import contact
-from contact.drivers.solve import solver_options
 from contact.models import build_problem
 from contact.solvers.linear import AssembledSystem
 from contact.solvers.newton import Complementarity
@@ -60,7 +59,7 @@ def test_min_is_never_polished(scene):
 def _state(scene, method="fb"):
     problem = build_problem(scene)
     problem.c = nodal_scaling(
-        problem.K, problem.constraint.dofs, problem.constraint.w, solver_options(scene.cfg)["kappa"]
+        problem.K, problem.constraint.dofs, problem.constraint.w, scene.config.solver.kappa
     )
     cp = Complementarity(problem)
     timers = {"solve": 0.0, "assembly": 0.0}

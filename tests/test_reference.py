@@ -89,12 +89,12 @@ def test_hertz_radius_defaults_to_the_built_in_mesh_radius_and_is_required_elsew
     scene = contact.load_scene(
         ROOT / "configs" / "hertz_2d.yaml", SMALL_HERTZ + ["mesh.radius=2.0", "mesh.zone=0.3"]
     )
-    assert scene.cfg["reference"] == {"type": "hertz", "radius": 2.0}
+    assert scene.config.reference.model_dump() == {"type": "hertz", "radius": 2.0}
     block = ROOT / "configs" / "block_on_plane.yaml"
     with pytest.raises(ConfigError, match=r"^reference.radius: required for type hertz"):
         contact.load_scene(block, ["reference={type: hertz}"])
     assert (
-        contact.load_scene(block, ["reference={type: hertz, radius: 3}"]).cfg["reference"]["radius"]
+        contact.load_scene(block, ["reference={type: hertz, radius: 3}"]).config.reference.radius
         == 3.0
     )
 

@@ -9,6 +9,7 @@ import gc
 
 import contact
 from contact.base.lifetime import petsc_objects
+from contact.base.timing import Stopwatch
 from contact.models import build_problem
 from contact.solvers.options import SolverOptions
 from contact.solvers.snes import SemismoothNewton, solve_problem
@@ -49,7 +50,7 @@ def test_one_solver_solves_twice_as_two_fresh_ones(problem, method):
         False,
         False,
         {"assembly": 0.0, "solve": 0.0},
-        0.0,
+        Stopwatch(),
     )
     u_fresh = fresh.u_h.x.array.copy()
     with SemismoothNewton(problem, options) as solver:

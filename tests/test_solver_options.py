@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contact
 from contact import ConfigError
-from contact.drivers.solve import solver_knobs
 from contact.solvers.options import SolverOptions
 
 import pydantic
@@ -42,10 +41,10 @@ def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
         }
     )
     assert set(SolverOptions.model_fields) == KNOBS
-    section = scene.cfg["solver"]
+    section = scene.config.solver
     # the scene's section = the solver's knobs + the driver's (initial guess, sequencing, budget,
     # and the adaptive loop's stopping rule, which the driver hands the solver as an object)
-    assert set(section) - KNOBS == {
+    assert set(section.model_dump()) - KNOBS == {
         "u0",
         "sequence",
         "max_dofs",
@@ -53,8 +52,8 @@ def test_exactly_the_solvers_knobs_with_the_scenes_defaults():
         "gamma_lin",
         "gamma_alg",
     }
-    assert SolverOptions().model_dump() == {key: section[key] for key in KNOBS}
-    assert solver_knobs(section) == SolverOptions()
+    assert SolverOptions().model_dump() == {key: getattr(section, key) for key in KNOBS}
+    assert section.knobs() == SolverOptions()
 
 
 @pytest.mark.parametrize(
@@ -121,6 +120,6 @@ def test_the_solver_receives_the_typed_options(monkeypatch):
     result = contact.solve(scene, method="min", rtol=1e-9, verbose=False)
     (options,) = seen
     assert isinstance(options, SolverOptions)
-    kappa = scene.cfg["solver"]["kappa"]
+    kappa = scene.config.solver.kappa
     assert (options.method, options.rtol, options.kappa) == ("min", 1e-9, kappa)
     assert result.converged and result.options == options.model_dump()

@@ -181,7 +181,7 @@ def test_exceptions_are_rows(monkeypatch) -> None:
     real = contact.drivers.solve.solve
 
     def fake(scene, *args, **kw):
-        method = scene.cfg["solver"]["method"]
+        method = scene.config.solver.method
         if method == "min":
             raise ConfigError("solver.method: min cannot do this")
         if method == "blend":
@@ -271,15 +271,17 @@ def test_shipped_studies_validate() -> None:
         "(k) kappa=1e4 at 128², plain Newton",
         "(q) two-body stack, plain Newton",
     }
-    assert stab.cases["(q) two-body stack"].cfg["solver"]["line_search"] == "auto"  # the default
+    assert stab.cases["(q) two-body stack"].config.solver.line_search == "auto"  # the default
     assert len(stab.runs()) == 5 * len(stab.cases) and stab.charts == ["stability"]
     assert all(
-        c.cfg["solver"]["sequence"] in ("off", False)
+        c.config.solver.sequence in ("off", False)
         for label, c in stab.cases.items()
         if not label.startswith(("(h)", "(i)", "(j)"))
     )  # friction is never sequenced
     scale = load_study(ROOT / "configs" / "studies" / "stability_scale.yaml")
-    assert scale.axes["method"] == ["fb", "min", "blend"] and scale.base_cfg["mesh"]["cells"] == [
+    assert scale.axes["method"] == ["fb", "min", "blend"] and list(
+        scale.base_config.mesh.cells
+    ) == [
         1024,
         1024,
     ]

@@ -222,5 +222,5 @@ def test_readme_scene_keys_match(tmp_path):
     import contact
 
     sets = [f"output.{k}={json.dumps(v)}" for k, v in section.items() if k != "dir"]
-    cfg = contact.load_scene(SQUARE, sets).cfg
-    assert cfg["output"]["formats"] == section["formats"]
+    config = contact.load_scene(SQUARE, sets).config
+    assert list(config.output.formats) == section["formats"]

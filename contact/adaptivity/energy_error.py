@@ -62,7 +62,7 @@ def elastic_energy_error(
     msh = u_h.function_space.mesh
     quadrature_degree = quadrature_degree or default_degree(u_h)
     gdim = msh.geometry.dim
-    texts = exact if isinstance(exact, list) else [exact] * gdim
+    texts = [exact] * gdim if isinstance(exact, str) else list(exact)
     if len(texts) != gdim:
         from ..base.errors import ConfigError
 
@@ -84,11 +84,11 @@ def elastic_energy_error(
 def solution_error(scene, result) -> float | None:
     """The energy error of ``result`` against the scene's ``data.exact`` (None without one):
     k-weighted for the scalar models, the elastic energy norm for elasticity."""
-    exact = scene.cfg["data"]["exact"]
+    exact = scene.config.data.exact
     if exact is None:
         return None
-    data, constants = result.problem.data, scene.cfg["constants"]
-    if scene.cfg["model"]["type"] == "elasticity":
+    data, constants = result.problem.data, scene.config.constants
+    if scene.config.model.type == "elasticity":
         return elastic_energy_error(
             result.u_h, exact, data["mu"], data["lmbda_L"], constants, scene.time
         )

@@ -36,9 +36,9 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ..setup.config import is_elastic
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..solvers import Result
+from ..solvers.problem import DiscreteProblem
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
 
@@ -64,7 +64,7 @@ def _cellwise(msh):
 
 def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     """The terms as UFL forms linear in a DG0 test function (SPEC §5)."""
-    if is_elastic(scene.cfg):
+    if scene.config.elastic:
         return elasticity_terms(scene, result)
     msh = scene.mesh
     p = result.problem
@@ -74,7 +74,7 @@ def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     sigma = p.constraint.sign
     flux = k * ufl.grad(u_h)  # k ∇u_h
-    obstacle = scene.cfg["model"]["type"] == "obstacle"
+    obstacle = scene.config.model.type == "obstacle"
 
     residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
     terms = {
@@ -163,7 +163,7 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
                 terms["slip"] += (
                     abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
                 )
-    if scene.cfg.get("pairs"):  # several bodies: the interface terms on both sides of each pair
+    if scene.config.pairs:  # several bodies: the interface terms on both sides of each pair
         for key, form in interface_terms(scene, result, w, n, h_E, T).items():
             terms[key] = terms.get(key, zero) + form
     return terms
@@ -177,15 +177,7 @@ def friction_data(scene: Scene, result: Result):
 
     p = result.problem
     lam_t = surface_functions(result)[0]
-    cfg = scene.cfg["friction"]
-    if cfg["law"] == "coulomb":
-        rho = cfg["coefficient"] * ufl.max_value(-result.lmbda_h, 0)
-    else:
-        from ..setup import expressions
-
-        rho = expressions.to_ufl(
-            cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant
-        )
+    rho = friction_bound(p, result.lmbda_h)
     n_c = p.data["n_ufl"]
     du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
     return lam_t, rho, du - ufl.dot(du, n_c) * n_c
@@ -212,8 +204,9 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     Tt = T - Tn * n
     zero = fem.Constant(scene.mesh, 0.0) * w * ufl.dx(domain=scene.mesh)
     terms = {"consistency_master": zero}
-    slave_ids = [bnd.ids[pair["slave"]] for pair in scene.cfg["pairs"]]
-    master_ids = [bnd.ids[pair["master"]] for pair in scene.cfg["pairs"]]
+    pairs = scene.config.pairs or ()
+    slave_ids = [bnd.ids[pair.slave] for pair in pairs]
+    master_ids = [bnd.ids[pair.master] for pair in pairs]
     extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
     Tt_s, Tt_m = Tt, Tt
     # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
@@ -222,7 +215,7 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
 
         lam_t, slip = surface_functions(result)[:2]
         Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
-        rho = friction_bound(scene, lam)
+        rho = friction_bound(p, lam)
         extra.update(friction_bound=zero, slip=zero)
     for i in slave_ids:
         extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
@@ -242,17 +235,15 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     return {**extra, **terms}
 
 
-def friction_bound(scene: Scene, lam: fem.Function):
-    """ρ of the scene's friction law on the slave surface (UFL): Coulomb F·(−λ_h)⁺, Tresca
-    the threshold expression s(x, t)."""
-    cfg = scene.cfg["friction"]
-    if cfg["law"] == "coulomb":
-        return cfg["coefficient"] * ufl.max_value(-lam, 0)
-    from ..setup import expressions
-
-    return expressions.to_ufl(
-        cfg["threshold"], scene.mesh, scene.cfg["constants"], t=scene.t_constant
-    )
+def friction_bound(problem: DiscreteProblem, lam: fem.Function):
+    """ρ of the problem's friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca the threshold
+    s(x, t) as the friction model wrote it (``problem.data['threshold']``)."""
+    fs = problem.friction
+    assert fs is not None  # a frictional problem
+    if fs.law == "coulomb":
+        assert fs.coefficient is not None  # Coulomb's F
+        return fs.coefficient * ufl.max_value(-lam, 0)
+    return problem.data["threshold"]
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:
@@ -266,12 +257,11 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     """Assemble each term of η_T² once as a DG0 vector; η_T² is their sum, and each term's
     global total Σ_T is the sum of its owned entries.  ``result`` must be a solve of this
     scene (on its mesh), else a ValueError."""
-    require_scene(scene)
     if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
         raise ValueError(
             "result: expected the contact.Result of contact.solve on this scene (same mesh)"
         )
-    if scene.cfg.get("estimator") == "equilibrated":  # docs/theory.md §9: a guaranteed bound
+    if scene.config.estimator == "equilibrated":  # docs/theory.md §9: a guaranteed bound
         from .equilibration.bound import guaranteed_bound
 
         bound = guaranteed_bound(scene, result)

@@ -14,7 +14,7 @@ from mpi4py import MPI
 
 from ..setup.geometry import builder_surfaces
 from ..setup.meshes import Boundary
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
@@ -53,7 +53,6 @@ def refine(
     ``timings``, if given, receives the seconds of the parts: ``mesh`` (the marked edges and
     ``dolfinx.mesh.refine`` itself, with the redistribution and the ghost layer),
     ``transfer`` (facets, tags and functions carried over) and ``snap`` (curved boundaries)."""
-    require_scene(scene)
     cells = _owned_cells(scene, cells)
     if u_h is not None and (
         not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh
@@ -63,7 +62,8 @@ def refine(
             "contact.solve on this scene)"
         )
     if rebalance is None:
-        rebalance = (scene.cfg.get("adapt") or {}).get("rebalance", True)
+        adapt = scene.config.adapt
+        rebalance = adapt.rebalance if adapt is not None else True
     if not isinstance(rebalance, bool):
         raise ValueError(f"rebalance: expected true or false, got {rebalance!r}")
     msh = scene.mesh
@@ -89,7 +89,7 @@ def refine(
         else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
     )
     child = Scene(
-        scene.cfg,
+        scene.config,
         new,
         Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
         time=scene.time,
@@ -100,10 +100,11 @@ def refine(
     )
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     clock.append(time.perf_counter())
-    warn_undeclared_curves(scene.cfg, scene.mesh, scene.boundary)
-    for surface in boundary_surfaces(scene.cfg, scene.mesh.geometry.dim, scene.boundary):
+    warn_undeclared_curves(scene.config, scene.mesh, scene.boundary)
+    for surface in boundary_surfaces(scene.config, scene.mesh.geometry.dim, scene.boundary):
         surface.snap(new, tags)
-    for surface in builder_surfaces(scene.cfg):  # by the mesh's own tags of its curved surfaces
+    # by the mesh's own tags of its curved surfaces
+    for surface in builder_surfaces(scene.config.mesh):
         assert surfaces is not None  # a mesh builder with curved surfaces tags them
         surface.snap(new, surfaces)
     clock.append(time.perf_counter())

@@ -20,13 +20,16 @@ import time
 import traceback
 import warnings
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
 from . import failures
+
+if TYPE_CHECKING:
+    from ..setup.scene_config import SceneConfig
 
 
 class _Parser(argparse.ArgumentParser):
@@ -175,22 +178,18 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     outdir, label = _output_folder(args.output, cfg)
     folder.check_output(outdir, label, comm)  # before meshing and solving
     scene = build_scene(cfg, comm)
-    if scene.cfg["output"]["verbose"]:
+    if scene.config.output.verbose:
         progress.enable(comm)
-    method = scene.cfg["solver"]["method"]
+    method = scene.config.solver.method
     _say(
         comm,
-        f"contact: scene {scene.name!r}, model {scene.cfg['model']['type']}, method {method}, "
+        f"contact: scene {scene.name!r}, model {scene.config.model.type}, method {method}, "
         f"{comm.size} MPI rank(s)",
     )
     # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
-    if (
-        scene.cfg.get("load")
-        or (scene.cfg.get("friction") or {}).get("law", "none") != "none"
-        or scene.cfg["model"]["type"] == "hyperelastic"
-    ):
+    if scene.config.load or scene.config.frictional or scene.config.model.type == "hyperelastic":
         return _run_steps(scene, outdir, label, comm, t0)
-    if scene.cfg.get("adapt"):
+    if scene.config.adapt:
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
     _say(
@@ -214,15 +213,15 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     return failures.SOLVED
 
 
-def _output_folder(option: str | None, cfg: dict) -> tuple[Path, str]:
+def _output_folder(option: str | None, cfg: SceneConfig) -> tuple[Path, str]:
     """The output folder and how it was chosen (for messages): ``-o``, ``output.dir``
     (relative to the current directory), or ``results/<name>``."""
     if option is not None:
         return _output_option(option), f"-o {option}"
-    if cfg["output"]["dir"]:
-        return Path(cfg["output"]["dir"]), f"output.dir {cfg['output']['dir']}"
-    path = Path("results") / cfg["name"]
-    return path, f"output folder {path} (from name {cfg['name']!r})"
+    if cfg.output.dir:
+        return Path(cfg.output.dir), f"output.dir {cfg.output.dir}"
+    path = Path("results") / cfg.name
+    return path, f"output folder {path} (from name {cfg.name!r})"
 
 
 def _output_option(option: str) -> Path:
@@ -240,11 +239,12 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
 
-    a = scene.cfg["adapt"]
+    a = scene.config.adapt
+    assert a is not None  # _run chose the adaptive loop for it
     _say(
         comm,
-        f"contact: adaptive loop, strategy {a['strategy']} (theta {a['theta']}), "
-        f"at most {a['max_levels']} levels / {a['max_dofs']} DoFs",
+        f"contact: adaptive loop, strategy {a.strategy} (theta {a.theta}), "
+        f"at most {a.max_levels} levels / {a.max_dofs} DoFs",
     )
     with folder.atomic_folder(outdir, comm, label) as tmp:
         write_level = level_writer(tmp, scene)
@@ -281,7 +281,7 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
             files=write_level.files,
         )
     _say(comm, f"contact: stopped: {result.stop}")
-    if not scene.cfg["output"]["verbose"]:  # the loop printed the table as it went otherwise
+    if not scene.config.output.verbose:  # the loop printed the table as it went otherwise
         _say(comm, format_table(result.rows))
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED

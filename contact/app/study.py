@@ -55,7 +55,6 @@ import functools
 import itertools
 import math
 import resource
-import time
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -65,6 +64,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+from ..base.timing import Stopwatch
 from ..setup.config import (
     SCENE,
     Field,
@@ -79,6 +79,7 @@ from ..setup.config import (
     read_yaml,
     switch_off,
 )
+from ..setup.scene_config import SceneConfig
 from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
@@ -188,7 +189,7 @@ STUDY: dict[str, Field] = {
         "dict",
         None,
         schema={
-            "strategy": _optional(_ADAPT["strategy"], choices=STRATEGIES),
+            "strategy": Field("str", None, choices=STRATEGIES),
             "theta": _optional(_ADAPT["theta"]),
             "tol": _optional(_ADAPT["tol"]),
             "max_dofs": _optional(_ADAPT["max_dofs"]),
@@ -210,7 +211,7 @@ class Case:
 
     label: str | None
     raw: dict = field(repr=False)
-    cfg: dict = field(repr=False)
+    config: SceneConfig = field(repr=False)
     params: dict = field(default_factory=dict)
 
 
@@ -231,8 +232,8 @@ class Study:
     warmup: bool = True
 
     @property
-    def base_cfg(self) -> dict:
-        return next(iter(self.cases.values())).cfg
+    def base_config(self) -> SceneConfig:
+        return next(iter(self.cases.values())).config
 
     @property
     def named_cases(self) -> bool:
@@ -241,7 +242,7 @@ class Study:
     @functools.cached_property
     def has_exact(self) -> bool:
         """Whether some case knows its exact solution (then rows carry the energy error)."""
-        return any(bool(c.cfg["data"].get("exact")) for c in self.cases.values())
+        return any(bool(c.config.data.exact) for c in self.cases.values())
 
     @functools.cached_property
     def reference_columns(self) -> tuple[str, ...]:
@@ -251,7 +252,7 @@ class Study:
 
         cols: list[str] = []
         for c in self.cases.values():
-            cols += [k for k in error_columns(c.cfg) if k not in cols]
+            cols += [k for k in error_columns(c.config.reference) if k not in cols]
         return tuple(cols)
 
     @property
@@ -303,7 +304,7 @@ class Study:
         strategy = adapt.pop("strategy", None)
         strategy = params.get("strategy", strategy)
         if strategy is None:
-            adaptive = case.cfg.get("adapt") is not None
+            adaptive = case.config.adapt is not None
         else:
             adaptive = strategy != "none"
             if adaptive:
@@ -316,7 +317,6 @@ class Study:
         return any(self.plan(params)[2] is not None for params in self.runs())
 
     def as_dict(self) -> dict[str, Any]:
-        cfg = {k: v for k, v in self.base_cfg.items() if not k.startswith("_")}
         out = {
             "name": self.name,
             "scene": self.scene,
@@ -326,11 +326,11 @@ class Study:
             "charts": self.charts,
             "repeat": self.repeat,
             "runs": len(self.runs()) * self.repeat,
-            "base_scene": cfg,
+            "base_scene": self.base_config.as_dict(),
         }
         if self.named_cases:
             out["cases"] = {
-                label: {**c.params, "scene": c.cfg.get("name")} for label, c in self.cases.items()
+                label: {**c.params, "scene": c.config.name} for label, c in self.cases.items()
             }
         return out
 
@@ -343,7 +343,7 @@ def _reference_types() -> tuple[str, ...]:
 
 def _read_scene(
     ref: str | dict, sets: list, base_dir: Path, path: str, extra: tuple[str, ...] = ()
-) -> tuple[dict, dict, str]:
+) -> tuple[dict, SceneConfig, str]:
     """Read a scene reference (a path relative to ``base_dir``, or a mapping), apply the
     ``set`` overrides, then the command line's ``extra`` ones (``contact study --set``), make
     a relative mesh file absolute and validate: (raw, cfg, label).  Errors name the study
@@ -409,7 +409,7 @@ def load_study(
     st = _validate_mapping(data, Field("dict", schema=STUDY), "", {})
     extra = tuple(overrides)
     base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "", extra)
-    axes = _validate_axes(st["axes"], base_cfg["constants"])
+    axes = _validate_axes(st["axes"], base_cfg.constants)
     cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
     if st["cases"]:
         cases = {
@@ -435,7 +435,7 @@ def _validate_case(
     spec: dict,
     st: dict,
     base_raw: dict,
-    base_cfg: dict,
+    base_cfg: SceneConfig,
     base_dir: Path,
     axes: dict,
     extra: tuple[str, ...] = (),
@@ -457,7 +457,7 @@ def _validate_case(
             )
         if key in axes:
             raise ConfigError(f"{path}{key}: is also an axis of the study; set it in one place")
-        params[key] = _validate(value, AXES[key], path + key, cfg["constants"])
+        params[key] = _validate(value, AXES[key], path + key, cfg.constants)
     return Case(name, raw, cfg, params)
 
 
@@ -536,12 +536,12 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     if study.has_exact:
         out["error"] = "" if error is None else error
     out.update({k: "" for k in study.reference_columns})
-    if scene.cfg.get("reference"):
+    if scene.config.reference is not None:
         from ..post.reference import compare, error_values
 
         comparison = compare(scene, result)
         assert comparison is not None  # the scene declares a reference
-        out.update(error_values(scene.cfg, comparison))
+        out.update(error_values(scene.config.reference, comparison))
     out["eta"] = "" if eta is None else eta
     out["active_measure"] = active_measure(result)
     return out
@@ -592,17 +592,17 @@ def run_one(
     levels: list[dict[str, Any]] = []
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     comm.barrier()
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     failure = ""
     try:
         raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
-        if _path_scene(scene.cfg):
-            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, t0)
+        if _path_scene(scene.config):
+            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, clock)
         elif adapt_opts is None:
             result = solve(scene, verbose=False)
-            seconds = time.perf_counter() - t0
+            seconds = clock.seconds
             out.update(
                 dofs=result.dofs,
                 levels=1,
@@ -656,11 +656,11 @@ def run_one(
                     else _empty_figures(study)
                 )
                 # reduced over ranks with the others below
-                row["seconds"] = time.perf_counter() - t0
+                row["seconds"] = clock.seconds
                 levels.append(row)
 
             res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
-            seconds = time.perf_counter() - t0
+            seconds = clock.seconds
             last = levels[-1]
             its = [lv.result.iterations for lv in res.levels]
             polish = [lv.result.polish_solves for lv in res.levels]
@@ -685,7 +685,7 @@ def run_one(
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         if interrupted(err):
             raise
-        seconds = time.perf_counter() - t0
+        seconds = clock.seconds
         out["converged"] = False
         failure = str(err) if isinstance(err, ConfigError) else describe(err)
         if not all_failed(agree):  # this rank's alone: the others wait in a collective
@@ -704,13 +704,13 @@ def run_one(
     return out, levels
 
 
-def _path_scene(cfg: Mapping) -> bool:
+def _path_scene(cfg: SceneConfig) -> bool:
     """A load path or a frictional scene: solved step by step (:mod:`contact.drivers.load_path`)."""
-    return bool(cfg.get("load")) or (cfg.get("friction") or {}).get("law", "none") != "none"
+    return cfg.load is not None or cfg.frictional
 
 
 def _run_path(
-    study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, t0: float
+    study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, clock: Stopwatch
 ) -> tuple[float, str]:
     """Run a load path for :func:`run_one`: one level row per step; the run's row has the last
     step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
@@ -734,7 +734,7 @@ def _run_path(
                 "converged": bool(r.converged),
                 "reason": r.reason,
                 **_empty_figures(study),
-                "seconds": time.perf_counter() - t0,
+                "seconds": clock.seconds,
             }
         )
 
@@ -745,7 +745,7 @@ def _run_path(
         adaptive=adapt_opts is not None,
         adapt_options=adapt_opts,
     )
-    seconds = time.perf_counter() - t0
+    seconds = clock.seconds
     last, its = path.steps[-1], [s.result.iterations for s in path.steps]
     out.update(
         dofs=last.result.dofs,
@@ -832,9 +832,9 @@ def iter_study(
         _warm_up(study, comm)
     spent = 0.0
     for k, (params, rep) in enumerate(combos, start=1):
-        t0 = time.perf_counter()
+        watch = Stopwatch()
         figures, levels = run_one(study, params, comm)
-        spent += comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        spent += comm.allreduce(watch.seconds, op=MPI.MAX)
         row = {"run": k, **params, "repeat": rep, **figures}
         if verbose and comm.rank == 0:
             label = {**params, **({"repeat": rep} if study.repeat > 1 else {})}

@@ -12,3 +12,13 @@ from petsc4py import PETSc
 def norm2(v: PETSc.Vec) -> float:
     """‖v‖₂ over all ranks (collective)."""
     return v.norm()  # type: ignore[return-value]  # NORM_2, the default: one float
+
+
+def norm_inf(v: PETSc.Vec) -> float:
+    """‖v‖_∞ over all ranks (collective)."""
+    return v.norm(PETSc.NormType.INFINITY)  # type: ignore[arg-type,return-value]
+
+
+def norm1(v: PETSc.Vec) -> float:
+    """‖v‖₁ over all ranks (collective)."""
+    return v.norm(PETSc.NormType.NORM_1)  # type: ignore[arg-type,return-value]

@@ -16,7 +16,7 @@ import math
 from collections.abc import Callable, Iterable
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 from pydantic_core import PydanticCustomError
 
 from .errors import ConfigError
@@ -26,6 +26,8 @@ Check = Callable[[Any], "str | None"]
 
 def typename(v: Any) -> str:
     """'a mapping', 'a list', 'a string', … for messages."""
+    if isinstance(v, dict):
+        return "a mapping"
     return {
         dict: "a mapping",
         list: "a list",
@@ -35,6 +37,29 @@ def typename(v: Any) -> str:
         float: "a number",
         type(None): "empty",
     }.get(type(v), type(v).__name__)
+
+
+class FrozenDict(dict):
+    """A mapping of the config: a dict (JSON, ``==``, iteration as usual) that refuses
+    every change in place."""
+
+    def _refuse(self, *args: Any, **kwargs: Any) -> Any:
+        raise TypeError(
+            "a validated config is immutable (load the scene again with overrides: "
+            "contact.load_scene(path, ['key.path=value']))"
+        )
+
+    __setitem__ = __delitem__ = __ior__ = _refuse
+    clear = pop = popitem = setdefault = update = _refuse
+
+    def __reduce__(self) -> tuple:
+        return FrozenDict, (dict(self),)
+
+    def __copy__(self) -> FrozenDict:
+        return self
+
+    def __deepcopy__(self, memo: dict) -> FrozenDict:
+        return self
 
 
 def positive(v: Any) -> str | None:
@@ -69,14 +94,15 @@ def petsc_value(v: Any) -> str | None:
     return f"must be a string, number or boolean, got {typename(v)} {v!r}"
 
 
-def _fail(text: str, key: str = "") -> PydanticCustomError:
-    """The error of one value; ``key`` a sub-key below the field (a mapping's entry)."""
+def fail(text: str, key: str = "") -> PydanticCustomError:
+    """The error of one value; ``key`` a sub-key below the field (a mapping's entry, or
+    ``[i]``: a list's item)."""
     return PydanticCustomError("config", "{text}", {"text": text, "key": key})
 
 
 def _then(check: Check | None, v: Any) -> Any:
     if check is not None and (problem := check(v)):
-        raise _fail(problem)
+        raise fail(problem)
     return v
 
 
@@ -85,9 +111,9 @@ def number(check: Check | None = None) -> Callable[[Any], float]:
 
     def validate(v: Any) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise _fail(f"expected a number, got {typename(v)} {v!r}")
+            raise fail(f"expected a number, got {typename(v)} {v!r}")
         if not math.isfinite(v):
-            raise _fail(f"must be finite, got {v}")
+            raise fail(f"must be finite, got {v}")
         return _then(check, float(v))
 
     return validate
@@ -96,7 +122,7 @@ def number(check: Check | None = None) -> Callable[[Any], float]:
 def integer(check: Check | None = None) -> Callable[[Any], int]:
     def validate(v: Any) -> int:
         if isinstance(v, bool) or not isinstance(v, int):
-            raise _fail(f"expected an integer, got {typename(v)} {v!r}")
+            raise fail(f"expected an integer, got {typename(v)} {v!r}")
         return _then(check, v)
 
     return validate
@@ -104,7 +130,7 @@ def integer(check: Check | None = None) -> Callable[[Any], int]:
 
 def boolean(v: Any) -> bool:
     if not isinstance(v, bool):
-        raise _fail(f"expected true or false, got {typename(v)} {v!r}")
+        raise fail(f"expected true or false, got {typename(v)} {v!r}")
     return v
 
 
@@ -114,9 +140,9 @@ def one_of(choices: Iterable[str]) -> Callable[[Any], str]:
 
     def validate(v: Any) -> str:
         if not isinstance(v, str):
-            raise _fail(f"expected a string, got {typename(v)} {v!r}")
+            raise fail(f"expected a string, got {typename(v)} {v!r}")
         if v not in choices:
-            raise _fail(f"{v!r} is not one of {', '.join(choices)}")
+            raise fail(f"{v!r} is not one of {', '.join(choices)}")
         return v
 
     return validate
@@ -127,35 +153,75 @@ def checked(check: Check) -> Callable[[Any], Any]:
     return lambda v: _then(check, v)
 
 
-def mapping_of(check: Check) -> Callable[[Any], dict]:
-    """A mapping with string keys whose values pass ``check`` (empty: ``{}``)."""
+def mapping_of(check: Check) -> Callable[[Any], FrozenDict]:
+    """A mapping with string keys whose values pass ``check`` (empty: ``{}``), frozen."""
 
-    def validate(v: Any) -> dict:
+    def validate(v: Any) -> FrozenDict:
         if v is None:
-            return {}
+            return FrozenDict()
         if not isinstance(v, dict):
-            raise _fail(f"expected a mapping, got {typename(v)} {v!r}")
+            raise fail(f"expected a mapping, got {typename(v)} {v!r}")
         for key, item in v.items():
             if not isinstance(key, str):
-                raise _fail("keys must be strings", key=str(key))
+                raise fail("keys must be strings", key=str(key))
             if problem := check(item):
-                raise _fail(problem, key=key)
-        return dict(v)
+                raise fail(problem, key=key)
+        return FrozenDict(v)
 
     return validate
 
 
-def config_error(err: ValidationError, path: str, keys: Iterable[str]) -> ConfigError:
+def config_error(
+    err: ValidationError, path: str, keys: Iterable[str], rename: bool = False
+) -> ConfigError:
     """The one-line ConfigError of a model's ValidationError: ``<path>.<key>: <text>``.
     An unknown key comes first (as the scene's config reports it), naming ``keys``, the
-    keys the section may hold."""
-    errors = err.errors()
+    keys the section may hold.  ``rename``: ``path`` names the field itself (not its
+    section)."""
+    keys = tuple(keys)
+    # the first error in the order of ``keys`` (the order of the section's schema), as a
+    # schema that checks key by key reports it
+    errors = sorted(err.errors(), key=lambda e: _rank(e["loc"], keys))
     unknown = [e for e in errors if e["type"] == "extra_forbidden"]
     e = (unknown or errors)[0]
-    where = ".".join(str(part) for part in (path, *e["loc"]) if part != "")
+    loc = e["loc"][1:] if rename else e["loc"]
+    where = ".".join(str(part) for part in (path, *loc) if part != "")
     if unknown:
         return ConfigError(f"{where}: unknown key (expected one of {', '.join(keys)})")
     ctx = e.get("ctx") or {}
-    if ctx.get("key"):
-        where = f"{where}.{ctx['key']}"
+    if key := ctx.get("key"):
+        where = f"{where}{key}" if key.startswith("[") else f"{where}.{key}"
     return ConfigError(f"{where}: {ctx.get('text', e['msg'])}")
+
+
+def _rank(loc: tuple, keys: tuple[str, ...]) -> int:
+    return keys.index(loc[0]) if loc and loc[0] in keys else len(keys)
+
+
+def parse_section[Section: BaseModel](
+    cls: type[Section],
+    values: Any,
+    path: str,
+    context: dict[str, Any] | None = None,
+    keys: Iterable[str] | None = None,
+) -> Section:
+    """A frozen model ``cls`` of keyword ``values`` (a key given as None: the default),
+    validated: one ConfigError line ``<path>.<key>: …`` naming an unknown key with ``keys``
+    (default: the model's fields, in their order).  ``context``: the validators' (e.g. a
+    scene's ``constants`` for expressions)."""
+    given = {k: v for k, v in values.items() if v is not None}
+    try:
+        return cls.model_validate(given, context=context)
+    except ValidationError as err:
+        raise config_error(err, path, cls.model_fields if keys is None else keys) from None
+
+
+def parse_member(
+    cls: type[BaseModel], key: str, value: Any, path: str, context: dict[str, Any] | None = None
+) -> Any:
+    """``value`` validated as field ``key`` of model ``cls`` (its type, its message), the
+    error line naming ``path`` (e.g. a study's axis value ``axes.mu[2]``)."""
+    try:
+        return getattr(cls.model_validate({key: value}, context=context), key)
+    except ValidationError as err:
+        raise config_error(err, path, (key,), rename=True) from None

@@ -15,7 +15,6 @@ The pieces are plain functions so a user can write their own loop in a few lines
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -31,8 +30,8 @@ from ..base import progress
 from ..base.timing import Timer
 from ..models import build_problem
 from ..setup.budget import max_dofs
-from ..setup.config import SCENE, _validate
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
+from ..setup.scene_config import AdaptConfig
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
 from .solve import solve
@@ -119,13 +118,10 @@ def busiest_share(comm: MPI.Comm, owned: int) -> float:
     return comm.allreduce(owned, op=MPI.MAX) * comm.size / max(comm.allreduce(owned, op=MPI.SUM), 1)
 
 
-def adapt_options(scene: Scene, **overrides: Any) -> dict:
-    """The scene's ``adapt`` section (defaults if absent) with keyword overrides, validated."""
-    raw = {
-        **(scene.cfg.get("adapt") or {}),
-        **{k: v for k, v in overrides.items() if v is not None},
-    }
-    return _validate(raw, SCENE["adapt"], "adapt", scene.cfg["constants"])
+def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
+    """The scene's ``adapt`` section (defaults if absent) with keyword overrides (each
+    validated as in the scene file; the section itself was at load)."""
+    return (scene.config.adapt or AdaptConfig()).updated(**overrides)
 
 
 def adapt(
@@ -140,16 +136,15 @@ def adapt(
     budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
     called after each level is estimated (used by the CLI to write output as it goes);
     ``u0`` is the first level's initial guess (a load step's previous solution)."""
-    require_scene(scene)
     if on_level is not None and not callable(on_level):
         raise ValueError(
             f"on_level: expected a function of one Level, got {type(on_level).__name__}"
         )
     opts = adapt_options(scene, **options)
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    verbose = scene.config.output.verbose if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()
-    for index in range(opts["max_levels"]):
+    for index in range(opts.max_levels):
         seconds = {}
         problem = build_problem(scene)
         seconds["assembly"] = problem.assembly_time
@@ -162,13 +157,12 @@ def adapt(
             seconds,
             f"level {index}",
             method=method,
-            rtol=opts["newton_rtol"],
-            sequence=None if opts["nested"] else "off",
+            rtol=opts.newton_rtol,
+            sequence=None if opts.nested else "off",
             previous=out.levels[-1] if out.levels else None,
         )
-        t0 = time.perf_counter()
-        error = solution_error(scene, result)
-        seconds["error"] = time.perf_counter() - t0
+        with Timer(seconds, "error"):
+            error = solution_error(scene, result)
         level = Level(
             index,
             scene,
@@ -190,21 +184,21 @@ def adapt(
         if not result.converged:
             out.stop = f"solver did not converge on level {index} ({result.reason})"
             break
-        if est.eta <= opts["tol"]:
-            out.stop = f"eta = {est.eta:.3e} <= tol = {opts['tol']:.3e}"
+        if est.eta <= opts.tol:
+            out.stop = f"eta = {est.eta:.3e} <= tol = {opts.tol:.3e}"
             break
-        if index + 1 >= opts["max_levels"]:
-            out.stop = f"reached max_levels = {opts['max_levels']}"
+        if index + 1 >= opts.max_levels:
+            out.stop = f"reached max_levels = {opts.max_levels}"
             break
-        if opts["strategy"] == "none":
+        if opts.strategy == "none":
             out.stop = "strategy none: one solve"
             break
         with Timer(seconds, "mark"):
-            cells = mark(est.eta_T, opts["strategy"], opts["theta"])
+            cells = mark(est.eta_T, opts.strategy, opts.theta)
         bound = next_dofs_bound(scene, cells, result.u_h.function_space)
-        if bound is not None and bound > opts["max_dofs"]:  # refining would be wasted work
+        if bound is not None and bound > opts.max_dofs:  # refining would be wasted work
             out.stop = (
-                f"the next level would have at least {bound} DoFs > max_dofs = {opts['max_dofs']}"
+                f"the next level would have at least {bound} DoFs > max_dofs = {opts.max_dofs}"
             )
             break
         parts: dict[str, float] = {}
@@ -213,8 +207,8 @@ def adapt(
             new_scene, new_u0 = refine(
                 scene,
                 cells,
-                result.u_h if opts["nested"] else None,
-                opts["rebalance"],
+                result.u_h if opts.nested else None,
+                opts.rebalance,
                 timings=parts,
             )
         seconds["refine_mesh"] = parts["mesh"]  # of which dolfinx.mesh.refine
@@ -225,11 +219,11 @@ def adapt(
             else fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
         )
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
-        if new_dofs > opts["max_dofs"]:
-            out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts['max_dofs']}"
+        if new_dofs > opts.max_dofs:
+            out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
             break
         # memory budget of one solve
-        if new_dofs > (budget := max_dofs(scene.cfg, scene.mesh.geometry.dim)):
+        if new_dofs > (budget := max_dofs(scene.config.solver, scene.mesh.geometry.dim)):
             out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
         scene, u0 = new_scene, new_u0
@@ -260,8 +254,8 @@ def solve_level(
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
     level, with no η known yet, uses the fixed tolerances."""
-    solver = scene.cfg["solver"]
-    adaptive = solver["stopping"] == "adaptive" and previous is not None
+    solver = scene.config.solver
+    adaptive = solver.stopping == "adaptive" and previous is not None
     eta = None
     if adaptive:
         assert previous is not None  # adaptive needs the previous level's η
@@ -273,15 +267,15 @@ def solve_level(
     krylov, passes = 0, 0
     while True:
         stopping = (  # eta is known exactly when the stopping is adaptive
-            None if eta is None else AdaptiveStopping(eta, solver["gamma_lin"], solver["gamma_alg"])
+            None if eta is None else AdaptiveStopping(eta, solver.gamma_lin, solver.gamma_alg)
         )
-        t0 = time.perf_counter()
-        result = solve(scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options)
-        seconds["solve"] += time.perf_counter() - t0
+        with Timer(seconds, "solve"):
+            result = solve(
+                scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options
+            )
         progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
-        t0 = time.perf_counter()
-        est = estimate(scene, result)
-        seconds["estimate"] += time.perf_counter() - t0
+        with Timer(seconds, "estimate"):
+            est = estimate(scene, result)
         krylov += result.krylov_iterations
         passes += 1
         if (

@@ -40,7 +40,7 @@ def coulomb_fixed_point(
     ``solve`` is :func:`contact.drivers.solve.solve`, passed in by it (it calls this module)."""
     fs: FrictionSet = problem.friction
     comm = scene.comm
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    verbose = scene.config.output.verbose if verbose is None else verbose
     x = problem.b.duplicate()
     if u0 is not None:
         problem.to_unknowns(u0.x.petsc_vec, x)
@@ -54,7 +54,7 @@ def coulomb_fixed_point(
     total, result, t0, converged = 0, None, time.perf_counter(), False
     timers = {"assembly": 0.0, "solve": 0.0}
     try:
-        for k in range(1, fs.fixed_point_max_it + 1):
+        for k in range(1, fs.options.fixed_point_max_it + 1):
             problem.friction = with_threshold(fs, rho)
             result = solve(scene, problem=problem, u0=u0, verbose=False, **options)
             total += result.iterations
@@ -72,7 +72,7 @@ def coulomb_fixed_point(
                     f"({result.iterations} Newton its)",
                     flush=True,
                 )
-            if change <= fs.fixed_point_rtol * scale:
+            if change <= fs.options.fixed_point_rtol * scale:
                 converged = True
                 break
     finally:

@@ -29,6 +29,7 @@ from typing import Any
 from dolfinx import fem
 
 from ..setup.scene import Scene
+from ..setup.scene_config import SceneConfig
 from ..solvers import Result
 from .adaptive import adapt
 from .solve import solve
@@ -71,10 +72,9 @@ class LoadPath:
         return bool(self.steps) and all(s.result.converged for s in self.steps)
 
 
-def load_times(cfg: dict) -> list[float]:
+def load_times(cfg: SceneConfig) -> list[float]:
     """The pseudo-times of the scene's load path ([1.0] without a ``load:`` section)."""
-    load = cfg.get("load")
-    return list(load["times"]) if load else [1.0]
+    return list(cfg.load.times) if cfg.load is not None else [1.0]
 
 
 def copy_function(fn: fem.Function, name: str) -> fem.Function:
@@ -88,15 +88,15 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
 HYPERELASTIC_CUTS = 4
 
 
-def step_cuts(cfg: dict) -> int:
+def step_cuts(cfg: SceneConfig) -> int:
     """How many times in a row a step that does not converge is halved (``load.cuts``;
     default :data:`HYPERELASTIC_CUTS` for a hyperelastic body, whose Newton iteration
     converges only near enough to the solution, 0 for the linear models, whose solution
     does not depend on the path but for friction)."""
-    cuts = (cfg.get("load") or {}).get("cuts")
+    cuts = cfg.load.cuts if cfg.load is not None else None
     if cuts is not None:
         return int(cuts)
-    return HYPERELASTIC_CUTS if cfg["model"]["type"] == "hyperelastic" else 0
+    return HYPERELASTIC_CUTS if cfg.model.type == "hyperelastic" else 0
 
 
 def run_load_path(
@@ -122,12 +122,12 @@ def run_load_path(
     section), with ``adapt_options`` overriding that section; ``options`` are solver
     options as for :func:`contact.solve`."""
 
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
-    times = load_times(scene.cfg)
-    max_cuts = step_cuts(scene.cfg)
-    mode = (scene.cfg.get("load") or {}).get("adapt", "end")
+    verbose = scene.config.output.verbose if verbose is None else verbose
+    times = load_times(scene.config)
+    max_cuts = step_cuts(scene.config)
+    mode = scene.config.load.adapt if scene.config.load is not None else "end"
     if adaptive is None:
-        adaptive = scene.cfg.get("adapt") is not None
+        adaptive = scene.config.adapt is not None
     comm = scene.comm
     out, u_prev, t_prev = LoadPath(), None, 0.0
     pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
@@ -136,7 +136,7 @@ def run_load_path(
         k = len(out.steps) + 1
         t0 = time.perf_counter()
         step_scene = Scene(
-            scene.cfg,
+            scene.config,
             scene.mesh,
             scene.boundary,
             time=t,
@@ -168,7 +168,7 @@ def run_load_path(
             pending[:0] = [(mid, depth + 1), (t, depth + 1)]
             continue
         step = Step(k, t, step_scene, result, levels, time.perf_counter() - t0)
-        if result.converged and scene.cfg["model"]["type"] == "hyperelastic":
+        if result.converged and scene.config.model.type == "hyperelastic":
             check_tangent(step, out, verbose)
         out.steps.append(step)
         if on_step is not None:

@@ -32,7 +32,7 @@ linear solver choice, counted in ``Result.sequence``); the coarse Newton toleran
 
 from __future__ import annotations
 
-import copy
+import dataclasses
 import functools
 import time
 from collections.abc import Callable
@@ -46,6 +46,7 @@ from mpi4py import MPI
 from ..base.errors import ConfigError
 from ..models import build_problem
 from ..setup.scene import Scene
+from ..setup.scene_config import MeshConfig, SolverConfig
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 AUTO_MIN_DOFS = 4_000
@@ -101,7 +102,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     floor = COARSEST_DOFS if wanted is None else 1
     ratio = 2**dim
 
-    if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+    if scene.config.frictional:
         return (
             [],
             "grid sequencing: not for frictional scenes (slip depends on the load history); "
@@ -110,7 +111,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [functools.partial(_same, s) for s in reversed(chain)], ""
-    kind = scene.cfg["mesh"]["type"]
+    kind = scene.config.mesh.type
     if scene.bodies is not None and kind not in GMSH_BUILT:
         return [], (
             f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; cold start"
@@ -118,10 +119,10 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     if degree != 1 and kind in BUILT_IN:
         return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
-        cells = scene.cfg["mesh"]["cells"]
+        cells = list(_grid_axes(scene.config.mesh))
         builders: list[Callable[[], Scene]] = []
         for k in range(1, limit + 1):
-            coarse = [c // 2**k for c in cells]
+            coarse = tuple(c // 2**k for c in cells)
             if min(coarse) < 1 or fine_dofs / ratio**k < floor:
                 break
             builders.append(functools.partial(_with_mesh, scene, {"cells": coarse}))
@@ -132,11 +133,12 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         )
         return builders[::-1], note
     if kind in GMSH_BUILT:
-        m = scene.cfg["mesh"]
+        m = scene.config.mesh
+        assert m.h is not None and m.h_contact is not None and m.zone is not None
         builders = []
         for k in range(1, limit + 1):
-            h, hc = m["h"] * 2**k, m["h_contact"] * 2**k
-            if hc > m["zone"] or fine_dofs / ratio**k < floor:
+            h, hc = m.h * 2**k, m.h_contact * 2**k
+            if hc > m.zone or fine_dofs / ratio**k < floor:
                 break
             builders.append(functools.partial(_with_mesh, scene, {"h": h, "h_contact": min(hc, h)}))
         return builders[::-1], ""
@@ -169,8 +171,7 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
     """The scene with other mesh parameters (a coarse level)."""
     from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
 
-    cfg = copy.deepcopy(scene.cfg)
-    cfg["mesh"].update(changes)
+    cfg = scene.config.with_mesh(**changes)
     msh, tags, cell_tags = build_mesh(cfg, scene.comm)
     bodies = tag_bodies(msh, cfg, cell_tags)
     return Scene(
@@ -184,22 +185,27 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
 
 
 def initial_guess(
-    scene: Scene, V: fem.FunctionSpace, opts: dict, solve: Callable, verbose: bool
+    scene: Scene, V: fem.FunctionSpace, opts: SolverConfig, solve: Callable, verbose: bool
 ) -> tuple[fem.Function | None, list[CoarseLevel], str]:
-    """Solve the coarse levels of ``opts['sequence']``; return the last coarse solution on
-    the fine space V (None if there is no coarse level), the levels and a note."""
+    """Solve the coarse levels of ``opts.sequence`` (``opts``: the fine solve's solver
+    section with its call's overrides; the coarse solves take it with no sequencing and
+    :data:`COARSE_RTOL`); return the last coarse solution on the fine space V (None if
+    there is no coarse level), the levels and a note."""
     bs = V.dofmap.index_map_bs
     degree = V.element.basix_element.degree
-    builders, note = plan(scene, opts["sequence"], bs, degree)
+    builders, note = plan(scene, opts.sequence, bs, degree)
     if note and verbose and scene.comm.rank == 0:
         print(f"  {note}", flush=True)
     levels: list[CoarseLevel] = []
     u, prev = None, None
-    coarse_opts = {k: v for k, v in opts.items() if k not in ("sequence", "rtol", "u0")}
+    coarse_solver = opts.model_copy(update={"sequence": "off", "rtol": COARSE_RTOL})
     for k, build in enumerate(builders, start=1):
         t0 = time.perf_counter()
         try:
             coarse = build()
+            coarse = dataclasses.replace(
+                coarse, config=coarse.config.model_copy(update={"solver": coarse_solver})
+            )
             problem = build_problem(coarse)
         except ConfigError as err:  # e.g. a boundary part too thin for the coarse mesh
             note = f"grid sequencing: coarse level {k} skipped ({err})"
@@ -207,15 +213,7 @@ def initial_guess(
         u0: fem.Function | None = None
         if u is not None and prev is not None:
             u0 = transfer(u, prev, coarse, problem.V)
-        r = solve(
-            coarse,
-            problem=problem,
-            u0=u0,
-            verbose=False,
-            sequence="off",
-            rtol=COARSE_RTOL,
-            **coarse_opts,
-        )
+        r = solve(coarse, problem=problem, u0=u0, verbose=False)
         levels.append(
             CoarseLevel(
                 r.dofs,
@@ -237,7 +235,7 @@ def initial_guess(
                 else f"{lv.newton_iterations}"
             )
             print(
-                f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts['method']} {solves} its "
+                f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts.method} {solves} its "
                 f"({lv.linear})  {lv.seconds:.2f} s",
                 flush=True,
             )
@@ -257,7 +255,7 @@ def transfer(
     V = V or fem.functionspace(fine.mesh, u.function_space.ufl_element())
     if fine.parent is not None:
         return _prolong_chain(u, coarse, fine, V)
-    if fine.cfg["mesh"]["type"] in BUILT_IN:
+    if fine.config.mesh.type in BUILT_IN:
         return GridTransfer(coarse).apply(u, fine, V)
     return point_transfer(u, V, coarse.bodies, fine.bodies)
 
@@ -271,7 +269,7 @@ def _prolong_chain(
 
     chain = []
     s = fine
-    while s is not coarse:
+    while s.mesh is not coarse.mesh:  # a level is its mesh (its scene may carry other options)
         chain.append(s)
         assert s.parent is not None  # coarse is an ancestor of fine
         s = s.parent[0]
@@ -303,8 +301,8 @@ class GridTransfer:
     def apply(self, u: fem.Function, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
         cs, comm = self.coarse, fine.comm
         bs = V.dofmap.index_map_bs
-        n_c = _grid_cells(cs.cfg)
-        n_f = _grid_cells(fine.cfg)
+        n_c = _grid_cells(cs.config.mesh)
+        n_f = _grid_cells(fine.config.mesh)
         shape = tuple(n + 1 for n in n_c)
         # coarse grid array: owned vertices only, summed over ranks
         Vc = u.function_space
@@ -339,13 +337,18 @@ def _multilinear(grid: np.ndarray, xi: np.ndarray, n: np.ndarray) -> np.ndarray:
     return out
 
 
-def _grid_cells(cfg: dict) -> list[int]:
+def _grid_axes(m: MeshConfig) -> tuple[int, ...]:
+    """The cell counts of a built-in mesh (one per axis; lshape: one, per unit length)."""
+    assert isinstance(m.cells, tuple)  # the loader makes them a tuple for these types
+    return m.cells
+
+
+def _grid_cells(m: MeshConfig) -> list[int]:
     """Cells per axis of the structured grid under a built-in mesh (lshape: the 2n × 2n
     grid of its bounding box)."""
-    m = cfg["mesh"]
-    if m["type"] == "lshape":
-        return [2 * m["cells"][0]] * 2
-    return list(m["cells"])
+    if m.type == "lshape":
+        return [2 * _grid_axes(m)[0]] * 2
+    return list(_grid_axes(m))
 
 
 def _dof_positions(scene: Scene, V: fem.FunctionSpace) -> np.ndarray:
@@ -361,14 +364,14 @@ def _dof_positions(scene: Scene, V: fem.FunctionSpace) -> np.ndarray:
 
 def _node_positions(scene: Scene) -> np.ndarray:
     """Grid position of every local geometry node, from its input index."""
-    m = scene.cfg["mesh"]
+    m = scene.config.mesh
     idx = np.asarray(scene.mesh.geometry.input_global_indices, dtype=np.int64)
-    if m["type"] == "lshape":
-        n = m["cells"][0]
+    if m.type == "lshape":
+        n = _grid_axes(m)[0]
         used = _lshape_vertices(n)
         a, b = np.divmod(used[idx], 2 * n + 1)
         return np.column_stack([a, b]).astype(float)
-    cells = list(m["cells"])
+    cells = list(_grid_axes(m))
     if len(cells) == 2:
         nx, ny = cells
         corners = (nx + 1) * (ny + 1)

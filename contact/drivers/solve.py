@@ -6,21 +6,16 @@
 
 from __future__ import annotations
 
-import time
-from collections.abc import Mapping
 from typing import Any
 
 from dolfinx import fem
 
 from ..base.errors import ConfigError
-from ..base.timing import Timer
+from ..base.timing import Stopwatch, Timer
 from ..models import build_problem
 from ..models.problem import interpolate_expression
-from ..setup.checks import check_data, data_items
-from ..setup.config import SCENE, _validate, check_sections
-from ..setup.scene import Scene, require_scene
+from ..setup.scene import Scene
 from ..solvers import ncp
-from ..solvers.options import SolverOptions
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import check_guess, solve_problem
@@ -55,13 +50,12 @@ def solve(
     loop makes one per level for ``solver.stopping: adaptive``, which a single solve
     ignores: it has no discretization error to balance against).
     """
-    require_scene(scene)
-    check_sections(scene.cfg)  # as loaded, or changed since (Python API)
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
-    opts = solver_options(scene.cfg, method=method, **options)
-    method = opts["method"]
-    verbose = scene.cfg["output"]["verbose"] if verbose is None else verbose
+    config = scene.config  # validated at load, immutable: only the call's overrides are checked
+    opts = config.solver.updated(config.constants, method=method, **options)
+    method = opts.method
+    verbose = config.output.verbose if verbose is None else verbose
     built_here = problem is None
     problem = problem or build_problem(scene)
     friction = problem.friction
@@ -71,15 +65,15 @@ def solve(
                 f"solver.method: {method} cannot solve frictional contact "
                 f"(friction.law: {friction.law}); use fb, min or blend"
             )
-        if friction.law == "coulomb" and friction.coulomb == "fixed_point":
+        if friction.law == "coulomb" and friction.options.coulomb == "fixed_point":
             from .fixed_point import coulomb_fixed_point
 
             return coulomb_fixed_point(
                 scene, problem, u0, verbose, built_here, solve, method=method, **options
             )
-    t_start = time.perf_counter()
     # the problem's assembly counts once: in the solve that built it
     built = problem.assembly_time if built_here else 0.0
+    clock = Stopwatch(before=built)
     timers = {"assembly": built, "solve": 0.0}
 
     # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
@@ -90,19 +84,18 @@ def solve(
             u0, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
     guess = u0 is not None  # given, or the coarse levels' solution
     if u0 is None:
-        check_data(scene, data_items("solver.u0", opts["u0"]))
-        u0 = interpolate_expression(problem.V, opts["u0"], scene)
+        u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
     else:
         check_guess(u0, problem)
     result = solve_problem(
         problem,
         u0,
-        solver_knobs(opts),
+        opts.knobs(),
         scene.comm,
         verbose,
         guess,
         timers,
-        t_start - built,
+        clock,
         check_options=bool(options.get("petsc_options")),
         stopping=criterion,
     )
@@ -121,11 +114,11 @@ def warn_if_not_unique(scene: Scene, problem: DiscreteProblem, result: Result) -
     solver's null pivots, i.e. on rounding."""
     from ..models.floating import free_in_contact
 
-    named = bool(scene.cfg.get("bodies"))
+    bodies = scene.config.bodies
     free = free_in_contact(
         problem,
-        scene.bodies if named else None,
-        list(scene.cfg["bodies"]) if named else [],
+        scene.bodies if bodies else None,
+        list(bodies) if bodies else [],
         result.active_mask,
     )
     if free and scene.comm.rank == 0:
@@ -142,16 +135,3 @@ def warn_if_not_unique(scene: Scene, problem: DiscreteProblem, result: Result) -
             ContactWarning,
             stacklevel=2,
         )
-
-
-def solver_options(cfg: Mapping[str, Any], **overrides: Any) -> dict:
-    """The ``solver`` section of a validated scene config with keyword overrides, validated
-    like the YAML: the solver's knobs and the driver's (``u0``, ``sequence``, ``max_dofs``)."""
-    raw = {**cfg["solver"], **{k: v for k, v in overrides.items() if v is not None}}
-    return _validate(raw, SCENE["solver"], "solver", cfg["constants"])
-
-
-def solver_knobs(opts: Mapping[str, Any]) -> SolverOptions:
-    """The solver's :class:`SolverOptions` of a validated ``solver`` section (the driver's
-    keys left out): the one typed object the solver receives."""
-    return SolverOptions.parse({key: opts[key] for key in SolverOptions.model_fields})

@@ -33,23 +33,22 @@ def build_problem(scene: Scene) -> DiscreteProblem:
     """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
     an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
     from ..setup.budget import check_dofs, mesh_dofs
-    from ..setup.config import is_elastic
 
-    cfg, msh = scene.cfg, scene.mesh
-    components = msh.geometry.dim if is_elastic(cfg) else 1
+    cfg, msh = scene.config, scene.mesh
+    components = msh.geometry.dim if cfg.elastic else 1
     check_dofs(
-        cfg,
-        mesh_dofs(msh, cfg["mesh"]["degree"], components),
+        cfg.solver,
+        mesh_dofs(msh, cfg.mesh.degree, components),
         msh.geometry.dim,
         "mesh",
         "the mesh gives",
     )
-    if cfg["model"]["type"] == "hyperelastic":
+    if cfg.model.type == "hyperelastic":
         from .hyperelastic import hyperelastic_problem
 
         return hyperelastic_problem(scene)
-    if scene.cfg["model"]["type"] == "elasticity":
-        if scene.cfg.get("bodies"):
+    if scene.config.model.type == "elasticity":
+        if scene.config.bodies:
             from .bodies import bodies_problem
 
             problem = bodies_problem(scene)
@@ -57,7 +56,7 @@ def build_problem(scene: Scene) -> DiscreteProblem:
             from .elasticity import elasticity_problem
 
             problem = elasticity_problem(scene)
-        if (scene.cfg.get("friction") or {}).get("law", "none") != "none":
+        if scene.config.frictional:
             from .friction import friction_set
 
             problem.friction = friction_set(scene, problem)

@@ -48,7 +48,9 @@ def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
     assert tags is not None  # a scene of several bodies has its body tags
     W = fem.functionspace(msh, ("DG", 0))
     mu, lmbda_L, body = (fem.Function(W, name=name) for name in ("mu", "lmbda_L", "body"))
-    values = [lame(b["E"], b["nu"]) for b in scene.cfg["bodies"].values()]
+    bodies = scene.config.bodies
+    assert bodies is not None  # a scene with bodies
+    values = [lame(b.E, b.nu) for b in bodies.values()]
     k = tags.values - 1
     dofs = W.dofmap.list[tags.indices].ravel()
     mu.x.array[dofs] = np.array([v[0] for v in values])[k]
@@ -68,9 +70,9 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
     bs = V.dofmap.index_map_bs
     mortar.check_disjoint(scene, V)
     couplings = [
-        mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.cfg["pairs"] or []))
+        mortar.couple(scene, V, i, system.fixed) for i in range(len(scene.config.pairs or []))
     ]
-    rigid = obstacle_nodes(scene, V, system) if scene.cfg.get("obstacle") else None
+    rigid = obstacle_nodes(scene, V, system) if scene.config.obstacle else None
     sets = couplings + ([rigid] if rigid is not None else [])
 
     nodes = np.concatenate([c.nodes for c in sets]).astype(np.int32)
@@ -153,7 +155,7 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
         symmetric_copies=2 ** len(mirrors),
         symmetry_axes=mirrors,
         near_nullspace=rigid_body_modes(V, inverse=Q_inv),
-        floating=floating_bodies(V, system.fixed, scene.bodies, list(scene.cfg["bodies"])),
+        floating=floating_bodies(V, system.fixed, scene.bodies, list(scene.config.bodies or ())),
         assembly_time=time.perf_counter() - t0,
     )
 

@@ -29,6 +29,7 @@ from ..base.lifetime import destroy
 from ..setup import expressions
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..setup.scene_config import components
 from ..solvers.problem import DiscreteProblem
 from .floating import floating_bodies
 from .obstacles import curved_contact, plane_contact
@@ -54,7 +55,7 @@ def stress(u, mu: float, lmbda_L: float):
 def _vector(texts: list[str], scene: Scene):
     """Vector data: a ``fem.Constant`` when every component is constant (so a zero load
     still gives a non-empty form), else a UFL vector of the expressions."""
-    consts = scene.cfg["constants"]
+    consts = scene.config.constants
     if all(expressions.is_constant(t, consts) for t in texts):
         values = [float(expressions.to_numpy(t, consts)(np.zeros((3, 1)))[0]) for t in texts]
         return fem.Constant(scene.mesh, np.array(values, dtype=PETSc.ScalarType))
@@ -64,7 +65,7 @@ def _vector(texts: list[str], scene: Scene):
 
 
 def _vector_numpy(texts: list[str], scene: Scene):
-    fns = [expressions.to_numpy(t, scene.cfg["constants"], t=scene.time) for t in texts]
+    fns = [expressions.to_numpy(t, scene.config.constants, t=scene.time) for t in texts]
     return lambda x: np.vstack([f(x) for f in fns])
 
 
@@ -122,19 +123,15 @@ def elastic_setting(scene: Scene) -> ElasticSetting:
     """The space (Lagrange of ``mesh.degree``, gdim components), the load
     L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds, u = u_D on Γ_D and u_k = 0 on each symmetry plane
     x_k = const."""
-    cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
-    data = cfg["data"]
+    cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
     gdim, tdim = msh.geometry.dim, msh.topology.dim
-    data = {
-        key: (data[key] if isinstance(data[key], list) else [data[key]] * gdim)
-        for key in ("f", "u_D", "t")
-    }
+    data = {key: list(components(getattr(cfg.data, key), gdim)) for key in ("f", "u_D", "t")}
     for key, texts in data.items():
         if len(texts) != gdim:
             raise ConfigError(
                 f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
             )
-    degree = cfg["mesh"]["degree"]
+    degree = cfg.mesh.degree
     V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
     v = ufl.TestFunction(V)
     f, t = _vector(data["f"], scene), _vector(data["t"], scene)
@@ -192,10 +189,11 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     :func:`contact.models.bodies.bodies_problem`)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used (ConfigError)
-    model, obstacle = scene.cfg["model"], scene.cfg["obstacle"]
-    system = elastic_system(scene, *lame(model["E"], model["nu"]))
+    model, obstacle = scene.config.model, scene.config.obstacle
+    assert model.E is not None and obstacle is not None  # one body against an obstacle
+    system = elastic_system(scene, *lame(model.E, model.nu))
     V, K, b, fixed, ds = system.V, system.K, system.b, system.fixed, system.data["ds"]
-    if obstacle["type"] == "plane":
+    if obstacle.type == "plane":
         contact = plane_contact(scene, V, K, b, fixed, ds)
     else:
         contact = curved_contact(scene, V, K, b, fixed, ds)

@@ -34,6 +34,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.timing import Stopwatch
 from ..solvers.options import SolverOptions
 from ..solvers.problem import Constraint, DiscreteProblem
 from ..solvers.result import Result
@@ -307,7 +308,7 @@ class ComplementarityProblem:
             verbose,
             False,
             timers,
-            time.perf_counter() - p.assembly_time,
+            Stopwatch(before=p.assembly_time),
             check_options=bool(opts.petsc_options),
         )
 

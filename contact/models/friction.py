@@ -51,8 +51,11 @@ from ..solvers.problem import DiscreteProblem, FrictionSet
 
 
 def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
-    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity)."""
-    cfg = scene.cfg["friction"]
+    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity); a
+    Tresca threshold s(x, t) also goes into ``problem.data['threshold']`` as UFL (the bound
+    ρ of the estimator's friction terms)."""
+    cfg = scene.config.friction
+    assert cfg is not None  # a frictional scene
     V, con = problem.V, problem.constraint
     gdim, bs = scene.mesh.geometry.dim, V.dofmap.index_map_bs
     nodes = con.dofs // bs
@@ -72,17 +75,15 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
     diag = problem.K.getDiagonal()
     K_tt = np.where(free, diag.array_r[tangent], 0.0).sum(axis=1) / np.maximum(free.sum(axis=1), 1)
     diag.destroy()
-    c_t = (
-        K_tt / (cfg["kappa_t"] * w)
-        if cfg["c_t"] == "auto"
-        else np.full(len(nodes), float(cfg["c_t"]))
-    )
+    c_t = K_tt / (cfg.kappa_t * w) if cfg.c_t == "auto" else np.full(len(nodes), float(cfg.c_t))
 
     threshold = None
-    if cfg["law"] == "tresca":
+    if cfg.law == "tresca":
+        assert cfg.threshold is not None  # Tresca's, required at load
         X = V.tabulate_dof_coordinates()[nodes]
-        threshold = expressions.to_numpy(cfg["threshold"], scene.cfg["constants"], t=scene.time)(
-            X.T
+        threshold = expressions.to_numpy(cfg.threshold, scene.config.constants, t=scene.time)(X.T)
+        problem.data["threshold"] = expressions.to_ufl(
+            cfg.threshold, scene.mesh, scene.config.constants, t=scene.t_constant
         )
         bad = scene.comm.allreduce(int(np.sum(~(threshold >= 0))), op=MPI.SUM)
         if bad:
@@ -91,7 +92,7 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
                 f"at t = {scene.time:g} (a slip threshold is >= 0)"
             )
     return FrictionSet(
-        law=cfg["law"],
+        law=cfg.law,
         n_comp=n_comp,
         t_comps=t_comps,
         tangent=tangent,
@@ -99,12 +100,9 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         frames=frames,
         c_t=c_t,
         threshold=threshold,
-        coefficient=cfg["coefficient"],
+        coefficient=cfg.coefficient,
         x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
-        form=cfg["form"],
-        coulomb=cfg["coulomb"],
-        fixed_point_rtol=cfg["fixed_point_rtol"],
-        fixed_point_max_it=cfg["fixed_point_max_it"],
+        options=cfg.knobs(),
     )
 
 

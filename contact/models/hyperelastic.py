@@ -95,16 +95,17 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
     plane (module doc): R(u; v) and K_T = ∂R/∂u from the energy, the plane's nodal bound."""
     t0 = time.perf_counter()
     check_scene_data(scene)
-    model = scene.cfg["model"]
-    mu, lmbda_L = lame(model["E"], model["nu"])
+    model = scene.config.model
+    assert model.E is not None and model.law is not None  # required by the loader
+    mu, lmbda_L = lame(model.E, model.nu)
     s = elastic_setting(scene)
     V, msh = s.V, scene.mesh
     u_h = fem.Function(V, name="u_h")
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     # P1: F is constant per cell, any rule is exact; P2: degree 2p for the nonpolynomial ψ
-    degree = scene.cfg["mesh"]["degree"]
+    degree = scene.config.mesh.degree
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * degree})
-    energy = strain_energy(deformation_gradient(u_h), model["law"], mu, lmbda_L) * dx
+    energy = strain_energy(deformation_gradient(u_h), model.law, mu, lmbda_L) * dx
     R = ufl.derivative(energy, u_h, v) - s.L_ufl
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
     K, b = ResidualProblem.matrices(J_form, s.bcs)
@@ -117,15 +118,17 @@ def hyperelastic_problem(scene: Scene) -> ResidualProblem:
         K, b = contact.pop("K"), contact.pop("b")
     con = contact.pop("constraint")
 
+    law = model.law
+
     def stresses(u):
-        return piola_and_cauchy(u, model["law"], mu, lmbda_L)
+        return piola_and_cauchy(u, law, mu, lmbda_L)
 
     data = {
         **s.data,
         "exact": None,
         "reaction_form": F_form,
         "stresses": stresses,
-        "law": model["law"],
+        "law": model.law,
         **contact.pop("data"),
     }
     problem = kind(

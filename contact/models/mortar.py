@@ -46,6 +46,7 @@ from petsc4py import PETSc
 
 from ..base.errors import ConfigError
 from ..setup.scene import Scene
+from ..setup.scene_config import PairConfig
 from ..solvers.result import Result
 from . import overlap
 from .basis import node_frames
@@ -121,16 +122,18 @@ def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
 
 
 def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) -> Coupling:
-    """The mortar coupling of ``scene.cfg['pairs'][index]``; ``fixed`` are the local DoFs with
+    """The mortar coupling of ``scene.config.pairs[index]``; ``fixed`` are the local DoFs with
     a Dirichlet or symmetry condition.  Raises ConfigError (one line, every rank) for a
     slave node without master facet within the search distance."""
-    pair = scene.cfg["pairs"][index]
+    pairs = scene.config.pairs
+    assert pairs is not None  # a scene with contact pairs
+    pair = pairs[index]
     comm, bnd = scene.comm, scene.boundary
     key = f"pairs[{index}]"
-    slave = surface_facets(V, part_facets(bnd, pair["slave"]))
-    master = surface_facets(V, part_facets(bnd, pair["master"]))
+    slave = surface_facets(V, part_facets(bnd, pair.slave))
+    master = surface_facets(V, part_facets(bnd, pair.master))
     gdim = slave.X.shape[2]
-    search = pair["search"] or _diameter(comm, slave, master)
+    search = pair.search or _diameter(comm, slave, master)
     imap = V.dofmap.index_map
     master.vertex_normals = _vertex_normals(imap, master, gdim)
     remote = _gather_master(comm, slave, master, search)
@@ -269,9 +272,9 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
         flag.scatter_reverse(la.InsertMode.add)
         owned[:, column] += flag.array[: imap.size_local] > 0
 
-    for pair in scene.cfg["pairs"] or []:
-        count(0, part_facets(bnd, pair["slave"]))
-        count(1, part_facets(bnd, pair["master"]))
+    for pair in scene.config.pairs or []:
+        count(0, part_facets(bnd, pair.slave))
+        count(1, part_facets(bnd, pair.master))
     if bnd.ids_with_role("contact"):
         count(2, bnd.facets("contact"))
     bad = np.flatnonzero(
@@ -460,13 +463,13 @@ def _first_point(
     return "(" + ", ".join(f"{c:.6g}" for c in point) + ")"
 
 
-def _no_master(comm, V, nodes: np.ndarray, key: str, pair: dict, search: float) -> None:
+def _no_master(comm, V, nodes: np.ndarray, key: str, pair: PairConfig, search: float) -> None:
     if comm.allreduce(len(nodes), op=MPI.SUM):
         total = comm.allreduce(len(nodes), op=MPI.SUM)
         where = _first_point(comm, V, nodes)
         raise ConfigError(
-            f"{key}.slave: {total} slave node(s) of {pair['slave']!r}, e.g. at {where}, have no "
-            f"master facet of {pair['master']!r} within the search distance "
+            f"{key}.slave: {total} slave node(s) of {pair.slave!r}, e.g. at {where}, have no "
+            f"master facet of {pair.master!r} within the search distance "
             f"{search:.4g} ({key}.search) facing (at least half of) their facets; "
             f"restrict the slave part "
             "to lie within the master surface, or raise the search distance"

@@ -22,6 +22,7 @@ from petsc4py import PETSc
 from ..base.errors import ConfigError
 from ..setup import expressions
 from ..setup.scene import Scene
+from ..setup.scene_config import ObstacleConfig
 from ..solvers.problem import Constraint, NodeBlockMatrix
 from .basis import frame
 from .problem import coordinate_scale, lumped_weights
@@ -42,11 +43,12 @@ def obstacle_shape(scene: Scene) -> tuple:
     coordinates (n, gdim) to the unit normals n (towards the obstacle) and the initial gaps
     g, the UFL expressions are the same for forms.  Plane: n = −ν, g = (x − p)·ν; circle /
     sphere: n = (c − x)/|c − x|, g = |x − c| − R_o."""
-    obstacle, msh = scene.cfg["obstacle"], scene.mesh
+    obstacle, msh = scene.config.obstacle, scene.mesh
+    assert obstacle is not None  # the scene's rigid obstacle
     gdim = msh.geometry.dim
     X = ufl.SpatialCoordinate(msh)
-    if obstacle["type"] == "plane":
-        nu_o = np.asarray(obstacle["normal"], dtype=float)
+    if obstacle.type == "plane":
+        nu_o = np.asarray(obstacle.normal, dtype=float)
         nu_o = nu_o / np.linalg.norm(nu_o)
         p = plane_point(scene)
         if len(nu_o) != gdim or len(p) != gdim:
@@ -61,9 +63,10 @@ def obstacle_shape(scene: Scene) -> tuple:
             ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())),
         )
     want = "circle" if gdim == 2 else "sphere"
-    if obstacle["type"] != want:
-        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle['type']}")
-    centre, R_o = np.asarray(obstacle["center"], dtype=float), float(obstacle["radius"])
+    if obstacle.type != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle.type}")
+    assert obstacle.center is not None and obstacle.radius is not None  # checked at load
+    centre, R_o = np.asarray(obstacle.center, dtype=float), float(obstacle.radius)
     if len(centre) != gdim:
         raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
     c_ufl = ufl.as_vector(centre.tolist())
@@ -75,14 +78,20 @@ def obstacle_shape(scene: Scene) -> tuple:
     )
 
 
+def _obstacle(scene: Scene) -> ObstacleConfig:
+    """The scene's rigid obstacle (an elastic scene against one: checked at load)."""
+    assert scene.config.obstacle is not None
+    return scene.config.obstacle
+
+
 def plane_point(scene: Scene) -> np.ndarray:
     """The plane's point p at the scene's pseudo-time (its coordinates may be expressions
     of t: a plane moved along a load path)."""
-    consts = scene.cfg["constants"]
+    consts = scene.config.constants
     return np.array(
         [
             float(expressions.to_numpy(c, consts, t=scene.time)(np.zeros((3, 1)))[0])
-            for c in scene.cfg["obstacle"]["point"]
+            for c in _obstacle(scene).point or ()
         ]
     )
 
@@ -90,9 +99,10 @@ def plane_point(scene: Scene) -> np.ndarray:
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
-    obstacle, gdim = scene.cfg["obstacle"], scene.mesh.geometry.dim
+    obstacle, gdim = scene.config.obstacle, scene.mesh.geometry.dim
+    assert obstacle is not None  # the scene's rigid plane
     normal, gap, n_ufl, g_ufl = obstacle_shape(scene)
-    nu_o = np.asarray(obstacle["normal"], dtype=float)
+    nu_o = np.asarray(obstacle.normal, dtype=float)
     nu_o = nu_o / np.linalg.norm(nu_o)
     p = plane_point(scene)
     k = int(np.argmax(np.abs(nu_o)))
@@ -147,7 +157,8 @@ def _rotated_contact(scene: Scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl
     g_all = gap(Xs)
     inside = g_all[sd] < -1e-12 * max(1.0, float(np.max(np.abs(Xs))))
     # a plane may have moved into the body (obstacle.point in t): a prescribed penetration
-    if scene.cfg["obstacle"]["type"] != "plane" and msh.comm.allreduce(int(np.sum(inside))):
+    curved = _obstacle(scene).type != "plane"
+    if curved and msh.comm.allreduce(int(np.sum(inside))):
         raise ConfigError("obstacle: contact nodes lie inside the obstacle (negative initial gap)")
     normals = normal(Xs[sd])
     Q = _rotation(V, K, nodes, normals)

@@ -4,6 +4,7 @@ weights, the ends of Γ_C, the scene's expressions as UFL data or interpolated f
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import dolfinx.fem.petsc
@@ -15,6 +16,7 @@ from petsc4py import PETSc
 
 from ..base.errors import ConfigError
 from ..setup import expressions
+from ..setup.checks import check_data, data_items
 from ..setup.scene import Scene
 
 
@@ -41,7 +43,7 @@ def contact_ends(
 def coefficient(text: str, scene: Scene) -> Any:
     """UFL data: a ``fem.Constant`` when the expression is constant (in space and in the
     pseudo-time t), else a UFL expression (t enters as ``scene.t_constant``)."""
-    consts = scene.cfg["constants"]
+    consts = scene.config.constants
     if expressions.is_constant(text, consts):
         value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
         return fem.Constant(scene.mesh, PETSc.ScalarType(value))  # type: ignore[operator]
@@ -49,17 +51,21 @@ def coefficient(text: str, scene: Scene) -> Any:
 
 
 def interpolate_expression(
-    V: fem.FunctionSpace, text: str | list[str], scene: Scene
+    V: fem.FunctionSpace, text: str | Sequence[str], scene: Scene, key: str | None = None
 ) -> fem.Function:
     """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
-    vector space one expression is every component, a list gives one per component.
+    vector space one expression is every component, a tuple gives one per component.
     Lagrange interpolation is evaluation at the DoF points, so each expression is evaluated
     once per DoF point (not once per cell and point, as ``Function.interpolate`` does), and
-    a constant is just assigned."""
+    a constant is just assigned.  With a scene ``key`` (``solver.u0``) the expressions are
+    first checked finite at the mesh vertices (:func:`contact.setup.checks.check_data`:
+    a ConfigError naming the key)."""
+    if key is not None:
+        check_data(scene, data_items(key, text if isinstance(text, str) else tuple(text)))
     fn = fem.Function(V)
-    consts = scene.cfg["constants"]
+    consts = scene.config.constants
     bs = V.dofmap.index_map_bs
-    texts = text if isinstance(text, list) else [text] * bs
+    texts = [text] * bs if isinstance(text, str) else list(text)
     if len(texts) != bs:
         raise ConfigError(
             f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}"

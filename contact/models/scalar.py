@@ -38,14 +38,16 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     §1.1–1.2, §2)."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used, k > 0 (ConfigError)
-    cfg, msh, bnd = scene.cfg, scene.mesh, scene.boundary
-    degree = degree or cfg["mesh"]["degree"]
-    data = cfg["data"]
+    cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
+    degree = degree or cfg.mesh.degree
+    data = cfg.data
     V = fem.functionspace(msh, ("Lagrange", degree))
     tdim = msh.topology.dim
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    k, f = coefficient(data["k"], scene), coefficient(data["f"], scene)
-    t, t_C = coefficient(data["t"], scene), coefficient(data["t_C"], scene)
+    # a scalar model's data are single expressions (a list is refused at load)
+    assert isinstance(data.f, str) and isinstance(data.t, str)
+    k, f = coefficient(data.k, scene), coefficient(data.f, scene)
+    t, t_C = coefficient(data.t, scene), coefficient(data.t_C, scene)
     ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
     dx = ufl.Measure("dx", domain=msh)
 
@@ -60,7 +62,7 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     L = fem.form(L)
 
     # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
-    u_D = interpolate_expression(V, data["u_D"], scene)
+    u_D = interpolate_expression(V, data.u_D, scene)
     dirichlet_dofs = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
     bcs = [fem.dirichletbc(u_D, dirichlet_dofs)]
 
@@ -68,15 +70,15 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
 
     # The constraint set and its lumped weights w_i = ∫ φ_i (Γ_C or Ω).
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-    if cfg["model"]["type"] == "signorini":
+    if cfg.model.type == "signorini":
         contact = bnd.ids_with_role("contact")
         candidates = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("contact"))
         measure = ds(contact)
-        bound_text, sign = data["g"], 1.0
+        bound_text, sign = data.g, 1.0
     else:
         candidates = np.arange(n_owned, dtype=np.int32)
         measure = dx
-        bound_text, sign = data["psi"], 1.0 if cfg["model"]["bound"] == "upper" else -1.0
+        bound_text, sign = data.psi, 1.0 if cfg.model.bound == "upper" else -1.0
     owned = candidates[candidates < n_owned]
     dofs = np.setdiff1d(owned, dirichlet_dofs).astype(np.int32)
     w = lumped_weights(V, measure)[dofs]
@@ -90,11 +92,11 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     # no Dirichlet DoF on any rank: only the constraint holds the body (K is singular)
     semicoercive = msh.comm.allreduce(len(dirichlet_dofs), op=MPI.SUM) == 0
     if semicoercive:
-        check_semicoercive(b, sign, cfg["model"]["type"])
+        check_semicoercive(b, sign, cfg.model.type)
 
     u_h = fem.Function(V, name="u_h")
     ends: dict[str, Any] = {}
-    if cfg["model"]["type"] == "signorini":
+    if cfg.model.type == "signorini":
         ends = dict(
             zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs))
         )
@@ -106,9 +108,9 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         b,
         constraint,
         **ends,
-        in_domain=cfg["model"]["type"] == "obstacle",
+        in_domain=cfg.model.type == "obstacle",
         semicoercive=semicoercive,
-        data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds, "exact": data["exact"]},
+        data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds, "exact": data.exact},
         assembly_time=time.perf_counter() - t0,
     )
 

@@ -27,7 +27,6 @@ from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
 from ..post.comparison import Comparison
 from ..post.reference import compare
-from ..setup.config import is_elastic
 from ..setup.scene import Scene
 from ..solvers import Result
 from . import folder, plots
@@ -38,9 +37,9 @@ def resultants(scene: Scene, result: Result) -> dict | None:
     """Contact force, reaction, balance, peak pressure of an elasticity run (None for
     scalar models; :mod:`contact.post.resultants`; with contact pairs the forces on both sides
     of each interface and the reactions, :func:`contact.post.interface.interface_resultants`)."""
-    if not is_elastic(scene.cfg):
+    if not scene.config.elastic:
         return None
-    if scene.cfg.get("pairs"):
+    if scene.config.pairs:
         from ..post.interface import interface_resultants
 
         return interface_resultants(scene, result)
@@ -115,7 +114,7 @@ def summary(
     comm = scene.comm
     out = {
         "scene": scene.name,
-        "model": scene.cfg["model"]["type"],
+        "model": scene.config.model.type,
         "method": result.method,
         "dofs": result.dofs,
         "cells": scene.mesh.topology.index_map(scene.mesh.topology.dim).size_global,
@@ -152,8 +151,8 @@ def summary(
         out["sequence_note"] = result.sequence_note
     if res is not None:
         out.update(res)
-    if comparison is not None:
-        out["reference"] = scene.cfg["reference"]["type"]
+    if comparison is not None and scene.config.reference is not None:
+        out["reference"] = scene.config.reference.type
         out.update(comparison.values)
     # the adaptive loop's, if known
     error = solution_error(scene, result) if error is None else error
@@ -176,7 +175,7 @@ def point_fields(result: Result) -> list:
 def cell_fields(scene: Scene, result: Result) -> list:
     """Cellwise output fields: the von Mises stress for elasticity (of the Cauchy stress
     for a hyperelastic body), and the ``body`` number of each cell in a scene with bodies."""
-    if not is_elastic(scene.cfg):
+    if not scene.config.elastic:
         return []
     from ..models.elasticity import von_mises
 
@@ -223,7 +222,7 @@ def write_contact(
     if table is None:  # not rank 0
         return
     write_table(folder / "contact.csv", table)
-    if scene.cfg["output"]["png"] and not result.problem.in_domain:
+    if scene.config.output.png and not result.problem.in_domain:
         plots.plot_pressure(
             folder / "pressure.png",
             table,
@@ -240,13 +239,13 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     comparison = compare(scene, result)
     info = summary(scene, result, wall, res, comparison)
     warn_coarse_zone(scene, result)
-    out_cfg = scene.cfg["output"]
+    out_cfg = scene.config.output
     with folder.atomic_folder(outdir, comm) as tmp:
-        files = FieldFiles(tmp, "solution", out_cfg["formats"], comm)
+        files = FieldFiles(tmp, "solution", out_cfg.formats, comm)
         files.write_one(point_fields(result), cell_fields(scene, result))
         info.update(files.timings())
         folder.write_csv(tmp / "history.csv", result.history, comm)
-        if out_cfg["png"]:
+        if out_cfg.png:
             plot_solution(
                 tmp / "solution.png",
                 scene,
@@ -301,7 +300,7 @@ class LevelWriter:
     fields); ``files`` keeps the seconds per format."""
 
     def __init__(self, tmp: Path, scene: Scene):
-        self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
+        self.files = FieldFiles(tmp, "solution", scene.config.output.formats, scene.comm)
 
     def __call__(self, level: Level) -> None:
         r = level.result
@@ -346,7 +345,7 @@ def write_adaptive(
             "levels": len(rows),
             "stop": adaptive.stop,
             "eta": last.estimate.eta,
-            "strategy": (scene.cfg.get("adapt") or {}).get("strategy"),
+            "strategy": scene.config.adapt.strategy if scene.config.adapt else None,
             "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
             "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
             "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
@@ -362,7 +361,7 @@ def write_adaptive(
         [{"level": lv.index, **h} for lv in adaptive.levels for h in lv.result.history],
         comm,
     )
-    if scene.cfg["output"]["png"]:
+    if scene.config.output.png:
         # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
         # together), the convergence chart last: on 2 ranks beside the first level's mesh
         pictures = [
@@ -374,7 +373,7 @@ def write_adaptive(
             )
         ]
         for lv in reversed(
-            picture_levels(adaptive, (scene.cfg.get("adapt") or {}).get("pictures", 3))
+            picture_levels(adaptive, scene.config.adapt.pictures if scene.config.adapt else 3)
         ):
             pictures.append(
                 plots.mesh_picture(

@@ -34,7 +34,6 @@ from ..drivers.load_path import LoadPath, Step
 from ..post.contact_table import Table, contact_table, tangent_2d, write_table
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
-from ..setup.config import is_elastic
 from ..setup.scene import Scene
 from . import folder, plots
 from .fields import FieldFiles
@@ -54,7 +53,7 @@ class StepWriter:
 
     def __init__(self, tmp: Path, scene: Scene):
         self.tmp, self.scene = tmp, scene
-        self.files = FieldFiles(tmp, "solution", scene.cfg["output"]["formats"], scene.comm)
+        self.files = FieldFiles(tmp, "solution", scene.config.output.formats, scene.comm)
         self.rows: list[dict[str, Any]] = []
         self.tables: list[tuple[float, Table | None]] = []  # the tables on rank 0
         self.levels: list[dict[str, Any]] = []
@@ -117,11 +116,12 @@ class StepWriter:
         if failure is None:  # a failed run's last line is its error
             warn_coarse_zone(last.scene, r)
         write_contact(tmp, last.scene, r, comparison)
-        friction = (self.scene.cfg.get("friction") or {}).get("law", "none")
+        config = self.scene.config
+        friction = config.friction.law if config.friction is not None else "none"
         its = [s["newton_iterations"] for s in self.rows]
         info = {
             "scene": self.scene.name,
-            "model": self.scene.cfg["model"]["type"],
+            "model": self.scene.config.model.type,
             "method": r.method,
             "friction": friction,
             "steps_total": len(path.steps),
@@ -140,15 +140,15 @@ class StepWriter:
             info["step_cuts"] = path.cuts
         if path.indefinite:
             info["tangent_indefinite"] = path.indefinite
-        if friction != "none":
-            info["tangential_form"] = self.scene.cfg["friction"]["form"]
-        if is_elastic(self.scene.cfg):  # the forces are of the whole body
+        if config.friction is not None and friction != "none":
+            info["tangential_form"] = config.friction.form
+        if self.scene.config.elastic:  # the forces are of the whole body
             info["symmetric_copies"] = r.problem.symmetric_copies
         info.update(failure or {})
-        if comparison is not None:
-            info["reference"] = self.scene.cfg["reference"]["type"]
+        if comparison is not None and config.reference is not None:
+            info["reference"] = config.reference.type
             info.update(comparison.values)
-        if self.scene.cfg["output"]["png"]:
+        if self.scene.config.output.png:
             origin, t0 = first_contact(last.scene, r)
             if comm.rank == 0:
                 tables = [(t, table) for t, table in self.tables if table is not None]
@@ -209,7 +209,7 @@ def reference_curves(
     contact ``origin`` (2D; in 3D against r)."""
     if table is None or scene.comm.rank != 0:
         return []
-    if scene.cfg["data"]["exact"] is not None:
+    if scene.config.data.exact is not None:
         return exact_tractions(scene, table, t0)
     if comparison is None or not (comparison.curves or comparison.traction_curves):
         return []
@@ -232,34 +232,36 @@ def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float 
     from ..models.elasticity import lame
     from ..setup import expressions
 
-    cfg = scene.cfg
-    exact = cfg["data"]["exact"]
+    cfg = scene.config
+    exact = cfg.data.exact
     if (
         scene.mesh.geometry.dim != 2
-        or not isinstance(exact, list)
+        or not isinstance(exact, tuple)
         or "s" not in table
         or t0 is None
     ):
         return []
     X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
-    u = [expressions.to_numpy(e, cfg["constants"], t=scene.time) for e in exact]
+    u = [expressions.to_numpy(e, cfg.constants, t=scene.time) for e in exact]
     grad = np.empty((X.shape[1], 2, 2))
     for j in range(2):
         e = np.zeros((3, 1))
         e[j] = h
         for i in range(2):
             grad[:, i, j] = (u[i](X + e) - u[i](X - e)) / (2 * h)
-    mu, lmbda = lame(cfg["model"]["E"], cfg["model"]["nu"])
+    assert cfg.model.E is not None and cfg.obstacle is not None  # one body, an obstacle
+    mu, lmbda = lame(cfg.model.E, cfg.model.nu)
     eps = 0.5 * (grad + grad.transpose(0, 2, 1))
     sigma = 2 * mu * eps + lmbda * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
-    obstacle = cfg["obstacle"]
-    if obstacle["type"] == "plane":
+    obstacle = cfg.obstacle
+    if obstacle.type == "plane":
+        nu_o = np.asarray(obstacle.normal, float)
         n = np.tile(
-            -np.asarray(obstacle["normal"], float) / np.linalg.norm(obstacle["normal"]),
+            -nu_o / np.linalg.norm(nu_o),
             (X.shape[1], 1),
         )
     else:
-        d = np.asarray(obstacle["center"], float)[:, None] - X[:2]
+        d = np.asarray(obstacle.center, float)[:, None] - X[:2]
         n = (d / np.linalg.norm(d, axis=0)).T
     T = np.einsum("nij,nj->ni", sigma, n)
     lam_n = np.einsum("ni,ni->n", T, n)

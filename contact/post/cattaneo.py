@@ -24,6 +24,7 @@ from mpi4py import MPI
 
 from ..models.obstacles import first_contact_point
 from ..setup.scene import Scene
+from ..setup.scene_config import ReferenceConfig
 from ..solvers import Result
 from .comparison import Comparison
 from .hertz import contact_extent, contact_modulus, hertz_values
@@ -42,14 +43,14 @@ def traction(rho: np.ndarray, a: float, c: float, p0: float, F: float) -> np.nda
     return outer - inner
 
 
-def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
+def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     """The partial-slip state against Cattaneo–Mindlin for the computed P and Q (collective)."""
     comm = scene.comm
     p, fr = result.problem, result.friction
     if fr is None:
         raise ValueError("reference cattaneo_mindlin: the solve has no friction")
     con = p.constraint
-    on = slice(0, p.data["pair_nodes"]) if scene.cfg.get("pairs") else slice(None)
+    on = slice(0, p.data["pair_nodes"]) if scene.config.pairs else slice(None)
     dim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs[on] // p.V.dofmap.index_map_bs, :dim]
     n = np.asarray(p.data["n"])
@@ -61,8 +62,10 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     Q = float(
         np.linalg.norm(whole_body(p, comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM)))
     )
-    F = float(scene.cfg["friction"]["coefficient"])
-    a_H, p0_H = hertz_values(float(ref["radius"]), contact_modulus(scene), P, dim)
+    friction = scene.config.friction
+    assert friction is not None and friction.coefficient is not None  # Coulomb's (load)
+    F = friction.coefficient
+    a_H, p0_H = hertz_values(ref.radius, contact_modulus(scene), P, dim)
     ratio = Q / (F * P)
     c_over_a = stick_ratio(min(ratio, 1.0), dim)
     a_h = contact_extent(comm, rho, result.active_mask[on])
@@ -82,7 +85,7 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
         "c_over_a_theory": c_over_a,
         "stick_half_width": c_h,
         "contact_half_width" if dim == 2 else "contact_radius": a_h,
-        "hertz_radius": float(ref["radius"]),
+        "hertz_radius": ref.radius,
         "hertz_a": a_H,
         "hertz_p0": p0_H,
         "tangential_force": Q,

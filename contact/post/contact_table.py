@@ -41,7 +41,6 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ..setup.config import is_elastic
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
 
@@ -51,7 +50,7 @@ STATUS = ("separated", "stick", "slip")
 
 def value_name(scene: Scene) -> str:
     """The multiplier column: ``lambda_n`` for elasticity, ``lambda`` for scalar models."""
-    return "lambda_n" if is_elastic(scene.cfg) else "lambda"
+    return "lambda_n" if scene.config.elastic else "lambda"
 
 
 def contact_columns(scene: Scene, result: Result) -> Table:
@@ -189,13 +188,13 @@ def _contact_segments(scene: Scene) -> np.ndarray | None:
     msh = scene.mesh
     tdim = msh.topology.dim
     facets = scene.boundary.facets("contact")
-    if scene.cfg.get("pairs"):
+    if scene.config.pairs:
         from ..models.mortar import part_facets
 
         facets = np.union1d(
             facets,
             np.concatenate(
-                [part_facets(scene.boundary, pair["slave"]) for pair in scene.cfg["pairs"]]
+                [part_facets(scene.boundary, pair.slave) for pair in scene.config.pairs]
             ),
         ).astype(np.int32)
     facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]

@@ -35,6 +35,7 @@ from ..models.mortar import part_facets, surface_facets
 from ..models.obstacles import first_contact_point
 from ..models.overlap import facet_measures
 from ..setup.scene import Scene
+from ..setup.scene_config import ReferenceConfig
 from ..solvers import Result, owned_residual
 from .comparison import Comparison
 
@@ -53,7 +54,7 @@ def hertz_values(R: float, Es: float, force: float, dim: int) -> tuple[float, fl
     return a, 3.0 * force / (2.0 * np.pi * a**2)
 
 
-def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
+def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     """Contact half-width / radius and peak pressure against Hertz's for the computed force
     (collective).  With contact pairs: on the slave nodes of the pairs, R the declared
     effective radius and E* of the first pair's two bodies, 1/E* = Σ (1 − ν_k²)/E_k.  The
@@ -62,7 +63,7 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     comm = scene.comm
     p = result.problem
     con = p.constraint
-    on = slice(0, p.data["pair_nodes"]) if scene.cfg.get("pairs") else slice(None)
+    on = slice(0, p.data["pair_nodes"]) if scene.config.pairs else slice(None)
     n = np.asarray(p.data["n"])
     V = p.V
     nodes = con.dofs[on] // V.dofmap.index_map_bs
@@ -71,7 +72,7 @@ def compare(scene: Scene, result: Result, ref: dict) -> Comparison:
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     pressure = p.pressure(owned_residual(result))[on]
     a = contact_extent(comm, rho, result.active_mask[on])  # the solver's rule: b_i > a_i
-    dim, R = scene.mesh.geometry.dim, float(ref["radius"])
+    dim, R = scene.mesh.geometry.dim, ref.radius
     p0_nodal = _largest(comm, pressure)
     p0 = _largest(comm, patch_average(scene, V, nodes, pressure)) if dim == 3 else p0_nodal
     a_H, p0_H = hertz_values(R, contact_modulus(scene), result.contact_force, dim)
@@ -116,9 +117,9 @@ def patch_average(
     every component) is left out of p̄_F, and a node whose patch has no valued facet keeps
     p_i.  Returns p̄_i at ``nodes``."""
     bnd, imap = scene.boundary, V.dofmap.index_map
-    pairs = scene.cfg.get("pairs") or []
+    pairs = scene.config.pairs or ()
     facets = (
-        np.concatenate([part_facets(bnd, pair["slave"]) for pair in pairs])
+        np.concatenate([part_facets(bnd, pair.slave) for pair in pairs])
         if pairs
         else bnd.facets("contact")
     )
@@ -150,13 +151,15 @@ def _largest(comm: MPI.Comm, values: np.ndarray) -> float:
 def contact_modulus(scene: Scene) -> float:
     """E* = E / (1 − ν²) of the body against a rigid plane; for contact pairs that of the
     first pair's two bodies, 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (docs/theory.md §7)."""
-    if not scene.cfg.get("pairs"):
-        model = scene.cfg["model"]
-        return model["E"] / (1.0 - model["nu"] ** 2)
+    if not scene.config.pairs:
+        model = scene.config.model
+        assert model.E is not None  # one body: model.E is required
+        return model.E / (1.0 - model.nu**2)
     from .interface import effective_modulus, pair_bodies
 
-    bodies = scene.cfg["bodies"]
-    return effective_modulus([(bodies[b]["E"], bodies[b]["nu"]) for b in pair_bodies(scene, 0)])
+    bodies = scene.config.bodies
+    assert bodies is not None  # pairs join bodies
+    return effective_modulus([(bodies[b].E, bodies[b].nu) for b in pair_bodies(scene, 0)])
 
 
 def contact_extent(comm: MPI.Comm, rho: np.ndarray, active: np.ndarray) -> float:

@@ -35,14 +35,15 @@ def pair_bodies(scene: Scene, index: int) -> list[str]:
     """Names of the bodies of pair ``index``'s slave and master surfaces (from the cells
     of their facets)."""
     msh, bnd, comm = scene.mesh, scene.boundary, scene.comm
-    assert scene.bodies is not None  # a pair joins two bodies
+    pairs, bodies = scene.config.pairs, scene.config.bodies
+    assert scene.bodies is not None and pairs and bodies  # a pair joins two bodies
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
-    names = list(scene.cfg["bodies"])
+    names = list(bodies)
     out = []
     for side in ("slave", "master"):
-        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[scene.cfg["pairs"][index][side]]]
+        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[getattr(pairs[index], side)]]
         local = (
             int(scene.bodies.values[f2c.array[f2c.offsets[facets[:1]]]][0]) if len(facets) else 0
         )
@@ -86,9 +87,9 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     from ..models.mortar import part_facets, surface_facets
 
     F_s, F_m = np.zeros(gdim), np.zeros(gdim)
-    for pair in scene.cfg["pairs"] or []:
+    for pair in scene.config.pairs or []:
         for side, F in (("slave", F_s), ("master", F_m)):
-            facets = surface_facets(V, part_facets(scene.boundary, pair[side]))
+            facets = surface_facets(V, part_facets(scene.boundary, getattr(pair, side)))
             mark = la.vector(V.dofmap.index_map, 1)
             mark.array[np.unique(facets.nodes)] = 1.0
             mark.scatter_reverse(la.InsertMode.add)
@@ -121,7 +122,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
         "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
         "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
     }
-    if scene.cfg.get("obstacle"):
+    if scene.config.obstacle:
         out["obstacle_force"] = whole_body(
             p,
             comm.allreduce(

@@ -16,10 +16,11 @@ from .comparison import Comparison
 
 if TYPE_CHECKING:
     from ..setup.scene import Scene
+    from ..setup.scene_config import ReferenceConfig
     from ..solvers import Result
 
 
-def _hertz(scene: Scene, result: Result, ref: dict) -> Comparison:
+def _hertz(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     from .hertz import compare
 
     return compare(scene, result, ref)
@@ -30,11 +31,11 @@ class ReferenceType:
     """How to compare with one type of reference: the function, and the names of the
     relative errors it reports (their largest magnitude is the column ``<type>_error``)."""
 
-    compare: Callable[[Scene, Result, dict], Comparison]
+    compare: Callable[[Scene, Result, ReferenceConfig], Comparison]
     errors: tuple[str, ...]
 
 
-def _cattaneo_mindlin(scene: Scene, result: Result, ref: dict) -> Comparison:
+def _cattaneo_mindlin(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     from .cattaneo import compare
 
     return compare(scene, result, ref)
@@ -49,18 +50,17 @@ REFERENCES: dict[str, ReferenceType] = {
 
 def compare(scene: Scene, result: Result) -> Comparison | None:
     """The comparison with the scene's declared reference, None without one (collective)."""
-    ref = scene.cfg.get("reference")
-    return None if not ref else REFERENCES[ref["type"]].compare(scene, result, ref)
+    ref = scene.config.reference
+    return None if ref is None else REFERENCES[ref.type].compare(scene, result, ref)
 
 
-def error_columns(cfg: dict) -> tuple[str, ...]:
-    """The columns a study gets for a scene config: each relative error of its declared
-    reference and ``<type>_error``, the largest magnitude; empty without a reference."""
-    ref = cfg.get("reference")
-    return (*REFERENCES[ref["type"]].errors, f"{ref['type']}_error") if ref else ()
+def error_columns(ref: ReferenceConfig | None) -> tuple[str, ...]:
+    """The columns a study gets for a scene's declared reference ``ref``: each relative
+    error and ``<type>_error``, the largest magnitude; empty without a reference."""
+    return (*REFERENCES[ref.type].errors, f"{ref.type}_error") if ref is not None else ()
 
 
-def error_values(cfg: dict, comparison: Comparison) -> dict[str, float]:
+def error_values(ref: ReferenceConfig, comparison: Comparison) -> dict[str, float]:
     """The values of :func:`error_columns` for one comparison."""
     errors = dict(comparison.errors)
-    return {**errors, f"{cfg['reference']['type']}_error": max(abs(v) for v in errors.values())}
+    return {**errors, f"{ref.type}_error": max(abs(v) for v in errors.values())}

@@ -42,7 +42,7 @@ import os
 from typing import Any
 
 from ..base.errors import ConfigError
-from .config import is_elastic
+from .scene_config import MeshConfig, SceneConfig, SolverConfig
 
 BYTES_PER_DOF = 3600  # >= 1.2 x every measured per-DoF peak (bench_memory.py)
 BYTES_PER_DOF_3D_DIRECT = 15700  # a 3D direct solve at N_REF_3D_DIRECT DoFs ...
@@ -58,14 +58,11 @@ def physical_memory() -> int:
         return 8 * 2**30
 
 
-def direct_3d(cfg: dict, gdim: int) -> bool:
+def direct_3d(solver: SolverConfig, gdim: int) -> bool:
     """Whether the scene's linear solver is a direct factorization of a 3D problem."""
     from ..solvers.options import default_options
 
-    options = {
-        **default_options(cfg["solver"].get("linear", "auto"), gdim),
-        **cfg["solver"]["petsc_options"],
-    }
+    options = {**default_options(solver.linear, gdim), **solver.petsc_options}
     return gdim == 3 and str(options.get("pc_type")) in ("lu", "cholesky")
 
 
@@ -84,41 +81,40 @@ def default_max_dofs(direct3d: bool = False) -> int:
     return int(budget / BYTES_PER_DOF)
 
 
-def max_dofs(cfg: dict, gdim: int) -> int:
+def max_dofs(solver: SolverConfig, gdim: int) -> int:
     """The scene's DoF budget: ``solver.max_dofs``, or :func:`default_max_dofs` for auto."""
-    value = cfg["solver"].get("max_dofs", "auto")
-    return default_max_dofs(direct_3d(cfg, gdim)) if value == "auto" else int(value)
+    value = solver.max_dofs
+    return default_max_dofs(direct_3d(solver, gdim)) if value == "auto" else int(value)
 
 
-def estimate_dofs(cfg: dict) -> int | None:
+def estimate_dofs(mesh: MeshConfig, elastic: bool) -> int | None:
     """DoFs of the scene's problem from its mesh parameters, exact for the structured meshes
     (rectangle, unit_square, lshape, box, blocks; None for the others).  Vertices V and
     cells F of the structured triangulations / tetrahedralizations, P2 adds one node per
     edge (E = V + F − 1 for a triangulated polygon, Euler; :func:`_kuhn_edges` for the
-    tetrahedra of a 3D block), times the components (elasticity: the dimension)."""
-    mesh = cfg["mesh"]
-    kind, cells, p2 = mesh["type"], mesh.get("cells"), mesh.get("degree", 1) == 2
+    tetrahedra of a 3D block), times the components (``elastic``: the dimension)."""
+    kind, cells, p2 = mesh.type, mesh.cells, mesh.degree == 2
     if kind in ("rectangle", "unit_square"):
-        nx, ny = cells
-        crossed = mesh.get("diagonal") == "crossed"
+        nx, ny = cells  # type: ignore[misc]
+        crossed = mesh.diagonal == "crossed"
         vertices = (nx + 1) * (ny + 1) + (nx * ny if crossed else 0)
         nodes, gdim = vertices + p2 * (vertices + (4 if crossed else 2) * nx * ny - 1), 2
     elif kind == "lshape":
-        (n,) = cells
+        (n,) = cells  # type: ignore[misc]
         vertices = (2 * n + 1) ** 2 - n * n
         nodes, gdim = vertices + p2 * (vertices + 6 * n * n - 1), 2
     elif kind == "box":
-        nx, ny, nz = cells
+        nx, ny, nz = cells  # type: ignore[misc]
         nodes, gdim = (nx + 1) * (ny + 1) * (nz + 1), 3  # P2 boxes are refused (config)
-    elif kind == "blocks":
-        gdim = len(mesh["blocks"][0]["corners"][0])
-        nodes = sum(_block_nodes(block["cells"], p2) for block in mesh["blocks"])
+    elif kind == "blocks" and mesh.blocks:
+        gdim = len(mesh.blocks[0].corners[0])
+        nodes = sum(_block_nodes(block.cells, p2) for block in mesh.blocks)
     else:
         return None
-    return nodes * (gdim if is_elastic(cfg) else 1)
+    return nodes * (gdim if elastic else 1)
 
 
-def _block_nodes(n: list[int], p2: bool) -> int:
+def _block_nodes(n: tuple[int, ...], p2: bool) -> int:
     """Nodes of one structured block of :func:`contact.setup.meshes.blocks` (``n`` cells per
     direction): its vertices, and with ``p2`` its edges too."""
     vertices = math.prod(k + 1 for k in n)
@@ -144,39 +140,39 @@ ESTIMATE_RANGE = (0.95, 1.25)
 P2_NODES_PER_VERTEX = {2: 4, 3: 7}
 
 
-def parametric_dofs(cfg: dict) -> float | None:
+def parametric_dofs(mesh: MeshConfig, elastic: bool) -> float | None:
     """The DoFs of a parametric gmsh mesh (quarter_disk, sphere_octant, half_disks,
     sphere_on_block; None for the others), estimated from its sizes h, h_contact, zone
     before gmsh meshes it (:func:`contact.setup.geometry.estimated_vertices`); the true number
     lies in :data:`ESTIMATE_RANGE` times it."""
     from .geometry import estimated_vertices
 
-    mesh = cfg["mesh"]
-    if mesh["type"] not in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
+    if mesh.type not in ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block"):
         return None
-    gdim = 2 if mesh["type"] in ("quarter_disk", "half_disks") else 3
-    per_vertex = P2_NODES_PER_VERTEX[gdim] if mesh.get("degree", 1) == 2 else 1
+    gdim = 2 if mesh.type in ("quarter_disk", "half_disks") else 3
+    per_vertex = P2_NODES_PER_VERTEX[gdim] if mesh.degree == 2 else 1
     nodes = estimated_vertices(mesh) * per_vertex
-    return nodes * (gdim if is_elastic(cfg) else 1)
+    return nodes * (gdim if elastic else 1)
 
 
-def check_parameters(cfg: dict, gdim: int | None) -> None:
+def check_parameters(cfg: SceneConfig, gdim: int | None) -> None:
     """The DoF budget from the mesh parameters, before any mesh is built (every rank finds
     the same): exact for the structured meshes; for the parametric gmsh meshes refused
     at once when the least number of DoFs the estimate N of :func:`parametric_dofs` allows
     exceeds the budget, else meshed (and the mesh checked exactly before assembly)."""
-    mesh = cfg["mesh"]
-    if mesh["type"] == "blocks":
-        cells = [block["cells"] for block in mesh["blocks"]]
-        check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.blocks", f"cells {cells} give")
-    elif (estimate := parametric_dofs(cfg)) is not None:
-        sizes = ", ".join(f"{k} = {mesh[k]:g}" for k in ("h", "h_contact", "zone"))
+    mesh, solver = cfg.mesh, cfg.solver
+    dofs = estimate_dofs(mesh, cfg.elastic)
+    if mesh.type == "blocks":
+        cells = [list(block.cells) for block in mesh.blocks or ()]
+        check_dofs(solver, dofs, gdim, "mesh.blocks", f"cells {cells} give")
+    elif (estimate := parametric_dofs(mesh, cfg.elastic)) is not None:
+        sizes = ", ".join(f"{k} = {getattr(mesh, k):g}" for k in ("h", "h_contact", "zone"))
         low, high = (f * estimate for f in ESTIMATE_RANGE)
-        check_dofs(
-            cfg, math.floor(low), gdim, "mesh.h", f"{sizes} give at least", enough=math.ceil(high)
-        )
+        at_least = f"{sizes} give at least"
+        check_dofs(solver, math.floor(low), gdim, "mesh.h", at_least, enough=math.ceil(high))
     else:
-        check_dofs(cfg, estimate_dofs(cfg), gdim, "mesh.cells", f"{mesh['cells']} cells give")
+        cells_ = list(mesh.cells) if isinstance(mesh.cells, tuple) else mesh.cells
+        check_dofs(solver, dofs, gdim, "mesh.cells", f"{cells_} cells give")
 
 
 def mesh_dofs(msh: Any, degree: int, components: int) -> int:
@@ -190,16 +186,21 @@ def mesh_dofs(msh: Any, degree: int, components: int) -> int:
 
 
 def check_dofs(
-    cfg: dict, dofs: int | None, gdim: int | None, key: str, what: str, enough: int | None = None
+    solver: SolverConfig,
+    dofs: int | None,
+    gdim: int | None,
+    key: str,
+    what: str,
+    enough: int | None = None,
 ) -> None:
     """ConfigError ``<key>: <what> N DoFs, more than solver.max_dofs = M …`` when N > M,
     with the hint of a budget that would admit it (N, or ``enough`` for a lower bound N)."""
     if dofs is None or gdim is None:
         return
-    limit = max_dofs(cfg, gdim)
+    limit = max_dofs(solver, gdim)
     if dofs <= limit:
         return
-    gib = predicted_memory(dofs, direct_3d(cfg, gdim)) / 2**30
+    gib = predicted_memory(dofs, direct_3d(solver, gdim)) / 2**30
     raise ConfigError(
         f"{key}: {what} {dofs} DoFs, more than solver.max_dofs = {limit} (predicted peak memory "
         f"{gib:.1f} GiB; this machine has {physical_memory() / 2**30:.0f} GiB); use "

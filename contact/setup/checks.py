@@ -26,7 +26,7 @@ from mpi4py import MPI
 
 from ..base.errors import ConfigError
 from . import expressions
-from .config import ELASTIC_MODELS
+from .scene_config import SceneConfig
 
 
 @dataclass(frozen=True)
@@ -41,42 +41,42 @@ class Datum:
 
 
 def data_items(
-    key: str, value: str | list[str], role: str | None = None, positive: bool = False
+    key: str, value: str | tuple[str, ...], role: str | None = None, positive: bool = False
 ) -> list[Datum]:
-    """The :class:`Datum` of a scene key: one, or one per component of a list
+    """The :class:`Datum` of a scene key: one, or one per component of a tuple
     (``data.u_D[1]``)."""
-    if isinstance(value, list):
+    if not isinstance(value, str):
         return [Datum(f"{key}[{i}]", text, role, positive) for i, text in enumerate(value)]
     return [Datum(key, value, role, positive)]
 
 
-def scene_data(cfg: dict) -> list[Datum]:
+def scene_data(cfg: SceneConfig) -> list[Datum]:
     """Every data expression of a scene's model and where it is used (docs/theory.md §1): f, exact
     in Ω; t on Γ_N; u_D on Γ_D; scalar models also k > 0 in Ω, and g, t_C on Γ_C
     (Signorini) or ψ in Ω (obstacle)."""
-    data, model = cfg["data"], cfg["model"]["type"]
+    data, model = cfg.data, cfg.model.type
     items = [
-        *data_items("data.f", data["f"]),
-        *data_items("data.t", data["t"], "neumann"),
-        *data_items("data.u_D", data["u_D"], "dirichlet"),
+        *data_items("data.f", data.f),
+        *data_items("data.t", data.t, "neumann"),
+        *data_items("data.u_D", data.u_D, "dirichlet"),
     ]
-    if data.get("exact") is not None:
-        items += data_items("data.exact", data["exact"])
+    if data.exact is not None:
+        items += data_items("data.exact", data.exact)
     if model == "signorini":
         items += [
-            *data_items("data.g", data["g"], "contact"),
-            *data_items("data.t_C", data["t_C"], "contact"),
+            *data_items("data.g", data.g, "contact"),
+            *data_items("data.t_C", data.t_C, "contact"),
         ]
     elif model == "obstacle":
-        items += data_items("data.psi", data["psi"])
-    if model not in ELASTIC_MODELS:
-        items += data_items("data.k", data["k"], positive=True)
+        items += data_items("data.psi", data.psi)
+    if not cfg.elastic:
+        items += data_items("data.k", data.k, positive=True)
     return items
 
 
 def check_scene_data(scene) -> None:
     """:func:`check_data` of :func:`scene_data` (collective): call before assembling."""
-    check_data(scene, scene_data(scene.cfg))
+    check_data(scene, scene_data(scene.config))
 
 
 def check_data(scene, items: Iterable[Datum]) -> None:
@@ -91,8 +91,9 @@ def check_data(scene, items: Iterable[Datum]) -> None:
         if item.role not in nodes_of:
             nodes_of[item.role] = _nodes(scene, item.role, n_owned)
         nodes = nodes_of[item.role]
-        values = expressions.to_numpy(item.text, scene.cfg["constants"], t=scene.time)(X[nodes].T)
-        if expressions.uses_time(item.text, scene.cfg["constants"]):  # name the load step's time
+        constants = scene.config.constants
+        values = expressions.to_numpy(item.text, constants, t=scene.time)(X[nodes].T)
+        if expressions.uses_time(item.text, constants):  # name the load step's time
             item = Datum(f"{item.key} (at t = {scene.time:g})", item.text, item.role, item.positive)
         with np.errstate(invalid="ignore"):
             finite = np.isfinite(values)

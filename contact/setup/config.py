@@ -1,11 +1,17 @@
-"""Scene configuration: YAML → validated, defaulted plain dict.
+"""Scene configuration: YAML → checked once → the typed, immutable
+:class:`~contact.setup.scene_config.SceneConfig` (:func:`load_config`).
 
 Every check runs before any mesh is built or any solve starts, and every failure is a
 :class:`ConfigError` whose message is one line ``<key path>: <what is wrong>``, e.g.
 ``solver.method: 'fbb' is not one of fb, min, blend, vinewtonrsls, vinewtonssls``.
+``--set`` overrides are applied to the raw mapping before anything is checked.
 
-The schema is data (:data:`SCENE`): nested :class:`Field` s.  A scene describes only what it
-needs; everything else has a default that works.
+The schema is data (:data:`SCENE`): nested :class:`Field` s, checked key by key in order,
+then the cross-key rules (:func:`validate_scene`).  The sections a caller may override in
+the Python API — ``solver``, ``adapt``, ``friction`` — are pydantic models with the same
+messages (:mod:`contact.setup.scene_config`), which the schema checks them through; why
+pydantic, and how the checked mapping becomes typed objects, is said there.  A scene
+describes only what it needs; everything else has a default that works.
 """
 
 from __future__ import annotations
@@ -22,23 +28,26 @@ from typing import Any
 import yaml
 
 from ..base.errors import ConfigError  # also contact.base.errors.ConfigError, as before
-from ..base.validation import auto_or_positive as _c_value
-from ..base.validation import half_open_unit as _half_open_unit
 from ..base.validation import nonnegative as _nonnegative
-from ..base.validation import open_unit as _open_unit
-from ..base.validation import petsc_value as _petsc_value
+from ..base.validation import parse_member, parse_section
 from ..base.validation import positive as _positive
 from ..base.validation import typename as _typename
-from ..solvers.options import LINE_SEARCHES, LINEAR
-from ..solvers.options import METHODS as SOLVER_METHODS
 from . import expressions
+from .geometry import block_pair
+from .scene_config import (
+    ELASTIC_MODELS,
+    FRICTION_KEYS,
+    FRICTION_LAWS,
+    SOLVER_KEYS,
+    AdaptConfig,
+    FrictionConfig,
+    SceneConfig,
+    SolverConfig,
+)
 
-FRICTION_LAWS = ("none", "tresca", "coulomb")
-#: models whose unknown is a displacement vector: linear elasticity (small strain) and
-#: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)
-ELASTIC_MODELS = ("elasticity", "hyperelastic")
+__all__ = ["ELASTIC_MODELS", "FRICTION_LAWS", "ConfigError", "SceneConfig", "load_config"]
+
 HYPERELASTIC_LAWS = ("neo_hookean", "saint_venant_kirchhoff")
-FRICTION_FORMS = ("projection", "hsw")
 _REQUIRED = object()
 
 
@@ -164,8 +173,11 @@ def _check_duplicates(root: yaml.Node) -> None:
 class Field:
     """One key of the schema.
 
-    ``kind`` is one of ``str int float number bool expr dict list any``; ``schema`` gives
-    the keys of a ``dict`` (``None`` = free-form mapping whose values follow ``item``);
+    ``kind`` is one of ``str int float number bool expr dict list any``, ``model`` (a
+    section that is a pydantic ``model`` of :mod:`.scene_config`, whose messages it keeps)
+    or ``member`` (one field ``key`` of a ``model``); ``schema`` gives the keys of a
+    ``dict`` (``None`` = free-form mapping whose values follow ``item``) or of a ``model``
+    (its members, for code that validates one key: :mod:`contact.app.study`'s axes);
     ``check`` returns an error text or ``None``.
     """
 
@@ -176,23 +188,17 @@ class Field:
     schema: Mapping[str, Field] | None = None
     item: Field | None = None
     doc: str = ""
+    model: Any = None
+    key: str = ""
 
 
-def _sequence(v: Any) -> str | None:
-    # YAML 1.1 reads an unquoted `off` (`sequence: off`, `--set solver.sequence=off`) as false
-    if (
-        v in ("auto", "off")
-        or v is False
-        or (isinstance(v, int) and not isinstance(v, bool) and v >= 0)
-    ):
-        return None
-    return f"must be auto, off or a number of coarser levels >= 0, got {v!r}"
-
-
-def _max_dofs(v: Any) -> str | None:
-    if v == "auto" or isinstance(v, int) and not isinstance(v, bool) and v > 0:
-        return None
-    return f"must be 'auto' or a positive integer, got {v!r}"
+def section(model: Any, keys: tuple[str, ...], default: Any = _REQUIRED, doc: str = "") -> Field:
+    """The schema of a section that is a pydantic ``model``: ``keys`` in the order its
+    messages list them, each a ``member`` Field with the model's default."""
+    members = {
+        key: Field("member", model.model_fields[key].default, model=model, key=key) for key in keys
+    }
+    return Field("model", default, schema=members, model=model, doc=doc)
 
 
 def _cells(v: Any) -> str | None:
@@ -419,7 +425,12 @@ SCENE: dict[str, Field] = {
                 doc="half_disks: the lower disk moved up by this much (the "
                 "bodies interpenetrate: an interference load)",
             ),
-            "block": Field("list", None, doc="sphere_on_block: [half-width, depth] of the block"),
+            "block": Field(
+                "list",
+                None,
+                check=block_pair,
+                doc="sphere_on_block: [half-width, depth] of the block",
+            ),
             "blocks": Field(
                 "list",
                 None,
@@ -530,87 +541,8 @@ SCENE: dict[str, Field] = {
             ),
         },
     ),
-    "solver": Field(
-        "dict",
-        schema={
-            "method": Field("str", "fb", choices=SOLVER_METHODS),
-            "mu": Field("number", 0.5, check=_open_unit),
-            "c": Field("any", "auto", check=_c_value),
-            "kappa": Field(
-                "number", 1.0, check=_positive, doc="factor of the nodal scaling c: auto"
-            ),
-            "line_search": Field(
-                "str",
-                "auto",
-                choices=LINE_SEARCHES,
-                doc="auto: plain Newton steps, for min backtracking once a cycle "
-                "shows (contact/solvers/globalize.py); basic: plain Newton; "
-                "bt: backtracking on ½‖Φ‖² from the first step",
-            ),
-            "polish": Field(
-                "bool",
-                True,
-                doc="fb / blend: active-set polishing (one extra linear solve once the active set "
-                "settles)",
-            ),
-            "rtol": Field("number", 1e-12, check=_nonnegative),
-            "atol": Field("number", 1e-12, check=_nonnegative),
-            "max_it": Field("int", 50, check=_positive),
-            "u0": Field(
-                "exprs",
-                "0",
-                doc="initial guess: an expression (every component), or one per "
-                "component for elasticity",
-            ),
-            "linear": Field(
-                "str",
-                "auto",
-                choices=LINEAR,
-                doc="linear solver of the Newton steps: direct (MUMPS LU), gamg (CG + GAMG on the "
-                "reduced SPD system), bcgs (BiCGStab + GAMG), auto (by size and "
-                "dimension)",
-            ),
-            "inexact": Field(
-                "bool", True, doc="gamg: Eisenstat-Walker forcing of the Krylov tolerance"
-            ),
-            "sequence": Field(
-                "any",
-                "auto",
-                check=_sequence,
-                doc="grid sequencing of a single solve: auto, off, or the number of coarser levels",
-            ),
-            "max_dofs": Field(
-                "any",
-                "auto",
-                check=_max_dofs,
-                doc="DoF budget of one solve: auto (sized to this machine's memory, see "
-                "contact/setup/budget.py) or a positive integer",
-            ),
-            "petsc_options": Field("dict", schema=None, item=Field("any", check=_petsc_value)),
-            "stopping": Field(
-                "str",
-                "fixed",
-                choices=("fixed", "adaptive"),
-                doc="fixed: Newton and Krylov stop at rtol / atol / forcing terms; "
-                "adaptive (the adaptive loop's levels after the first): when the "
-                "linearization and algebraic errors are small against the "
-                "discretization error (contact/solvers/stopping.py; needs "
-                "estimator: equilibrated)",
-            ),
-            "gamma_lin": Field(
-                "number",
-                0.1,
-                check=_open_unit,
-                doc="stopping adaptive: Newton stops once eta_lin <= gamma_lin eta_disc",
-            ),
-            "gamma_alg": Field(
-                "number",
-                0.1,
-                check=_open_unit,
-                doc="stopping adaptive: CG stops once eta_alg <= gamma_alg (eta_disc + eta_lin)",
-            ),
-        },
-    ),
+    # the solver's knobs and the driver's (contact/setup/scene_config.py: SolverConfig)
+    "solver": section(SolverConfig, SOLVER_KEYS),
     "estimator": Field(
         "str",
         "residual",
@@ -619,90 +551,10 @@ SCENE: dict[str, Field] = {
         "to a constant) or equilibrated (docs/theory.md §9: a guaranteed "
         "bound, scalar models only)",
     ),
-    "adapt": Field(
-        "dict",
-        None,
-        schema={
-            "strategy": Field(
-                "str",
-                "dorfler",
-                choices=("dorfler", "maximum", "uniform", "none"),
-                doc="none: one solve on the given mesh (as if there were no adapt section)",
-            ),
-            "theta": Field("number", 0.5, check=_half_open_unit),
-            "tol": Field("number", 0.0, check=_nonnegative),
-            "max_dofs": Field("int", 200000, check=_positive),
-            "max_levels": Field("int", 8, check=_positive),
-            "nested": Field("bool", True),
-            "rebalance": Field(
-                "bool",
-                True,
-                doc="in parallel, let dolfinx's graph partitioner spread each refined mesh "
-                "evenly over the ranks (false: children stay on their parent's "
-                "rank)",
-            ),
-            "newton_rtol": Field(
-                "number",
-                1e-10,
-                check=_positive,
-                doc="Newton's relative tolerance inside the loop: the algebraic error "
-                "only has to be small against the discretization error",
-            ),
-            "pictures": Field("int", 3, check=_nonnegative),
-        },
-    ),
-    "friction": Field(
-        "dict",
-        None,
-        schema={
-            "law": Field(
-                "str",
-                "none",
-                choices=FRICTION_LAWS,
-                doc="none (frictionless), tresca (given slip threshold) or coulomb",
-            ),
-            "coefficient": Field(
-                "number",
-                None,
-                check=_nonnegative,
-                doc="coulomb: the friction coefficient F (dimensionless)",
-            ),
-            "threshold": Field(
-                "expr",
-                None,
-                doc="tresca: the slip threshold s(x, t) >= 0, a stress (the unit of E)",
-            ),
-            "c_t": Field(
-                "any",
-                "auto",
-                check=_c_value,
-                doc="tangential NCP scaling, stress per length: auto (nodal, "
-                "c_t,i = K_tt,i / (kappa_t w_i)) or a number",
-            ),
-            "kappa_t": Field("number", 1.0, check=_positive, doc="factor of c_t: auto"),
-            "form": Field(
-                "str",
-                "hsw",
-                choices=FRICTION_FORMS,
-                doc="tangential NCP: projection (Alart-Curnier) or hsw (Hueber-Stadler-Wohlmuth "
-                "max form)",
-            ),
-            "coulomb": Field(
-                "str",
-                "ssn",
-                choices=("ssn", "fixed_point"),
-                doc="coulomb: full semismooth Newton, or the fixed point on the normal "
-                "pressure (a sequence of Tresca problems)",
-            ),
-            "fixed_point_rtol": Field(
-                "number",
-                1e-10,
-                check=_positive,
-                doc="fixed point: stop when |rho_new - rho| <= rtol |rho|",
-            ),
-            "fixed_point_max_it": Field("int", 100, check=_positive),
-        },
-    ),
+    # the adaptive loop (AdaptConfig; strategy none: one solve, as without the section)
+    "adapt": section(AdaptConfig, tuple(AdaptConfig.model_fields), None),
+    # the friction law, its data and the tangential knobs (FrictionConfig)
+    "friction": section(FrictionConfig, FRICTION_KEYS, None),
     "load": Field(
         "dict",
         None,
@@ -754,7 +606,7 @@ SCENE: dict[str, Field] = {
 
 #: the optional sections: ``<section>: none`` (``--set load=none``) switches one off
 OPTIONAL_SECTIONS = tuple(
-    key for key, f in SCENE.items() if f.default is None and f.kind in ("dict", "list")
+    key for key, f in SCENE.items() if f.default is None and f.kind in ("dict", "list", "model")
 )
 
 
@@ -798,12 +650,18 @@ def _validate(value: Any, spec: Field, path: str, constants: Mapping[str, float]
         except expressions.ExpressionError as err:
             raise ConfigError(f"{path}: {err}") from None
         value = str(value)
-    elif kind == "dict":
+    elif kind in ("dict", "model"):
         if value is None:
             value = {}
         if not isinstance(value, dict):
             raise ConfigError(f"{path}: expected a mapping, got {_typename(value)} {value!r}")
-        value = _validate_mapping(value, spec, path, constants)
+        if kind == "dict":
+            value = _validate_mapping(value, spec, path, constants)
+        else:
+            context = {"constants": constants}
+            value = parse_section(spec.model, value, path, context, spec.schema)
+    elif kind == "member":
+        value = parse_member(spec.model, spec.key, value, path, {"constants": constants})
     if spec.choices is not None and value not in spec.choices:
         raise ConfigError(f"{path}: {value!r} is not one of {', '.join(map(str, spec.choices))}")
     if spec.check is not None and (problem := spec.check(value)):
@@ -831,7 +689,7 @@ def _validate_mapping(
         if key in data and data[key] is not None:
             out[key] = _validate(data[key], sub, prefix + key, constants)
         elif sub.default is _REQUIRED:
-            if sub.kind == "dict":
+            if sub.kind in ("dict", "model"):
                 out[key] = _validate({}, sub, prefix + key, constants)
             else:
                 raise ConfigError(f"{prefix}{key}: required key is missing")
@@ -899,8 +757,11 @@ def apply_overrides(data: dict, overrides: list[str] | tuple[str, ...]) -> dict:
     return data
 
 
-def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None = None) -> dict:
-    """Validate a raw scene mapping; return the completed config (defaults filled in).
+def validate_scene(
+    data: Mapping, base_dir: str | Path = ".", name: str | None = None
+) -> SceneConfig:
+    """Validate a raw scene mapping; return the completed config (defaults filled in),
+    typed and immutable (:class:`~contact.setup.scene_config.SceneConfig`).
 
     Cross-key rules checked here: mesh keys that fit the mesh type, a mesh file that
     exists, one ``mesh.map`` expression per coordinate (whether the map inverts cells is
@@ -928,7 +789,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
             raise ConfigError(f"constants.{key}: is not a usable constant name")
     cfg = _validate_mapping(data, Field("dict", schema=SCENE), "", constants)
     cfg["name"] = cfg["name"] or name or "scene"
-    if cfg["adapt"] is not None and cfg["adapt"]["strategy"] == "none":
+    if cfg["adapt"] is not None and cfg["adapt"].strategy == "none":
         cfg["adapt"] = None
     cfg["_base_dir"] = str(Path(base_dir).resolve())
 
@@ -946,7 +807,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"},
     }[mesh["type"]]
     given = {k for k, v in (data.get("mesh") or {}).items() if v is not None}
-    for key in SCENE["mesh"].schema:
+    for key in SCENE["mesh"].schema or {}:
         if key in given and key not in allowed | {"type", "degree"}:
             raise ConfigError(f"mesh.{key}: not used by mesh type {mesh['type']!r}")
     if mesh["type"] == "gmsh":
@@ -958,7 +819,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
             raise ConfigError(f"mesh.file: no such file {str(path)!r}")
         mesh["file"] = str(path)
     dims = {"rectangle": 2, "unit_square": 2, "lshape": 2, "box": 3}.get(mesh["type"])
-    if mesh["type"] in ("rectangle", "box"):
+    if dims is not None and mesh["type"] in ("rectangle", "box"):
         if mesh["corners"] is None:
             mesh["corners"] = [[0.0] * dims, [1.0] * dims]
         if len(mesh["corners"][0]) != dims:
@@ -1046,7 +907,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
             "estimator: equilibrated is implemented for model types signorini and obstacle; "
             "use residual for elasticity"
         )
-    if cfg["solver"]["stopping"] == "adaptive" and cfg["estimator"] != "equilibrated":
+    if cfg["solver"].stopping == "adaptive" and cfg["estimator"] != "equilibrated":
         raise ConfigError(
             "solver.stopping: adaptive needs estimator: equilibrated (the "
             "discretization error it balances against; signorini and obstacle "
@@ -1081,12 +942,7 @@ def validate_scene(data: Mapping, base_dir: str | Path = ".", name: str | None =
         )
     _resolve_formats(cfg["output"])
     cfg["constants"] = constants
-    return cfg
-
-
-def is_elastic(cfg: Mapping) -> bool:
-    """Whether the scene's unknown is a displacement vector (:data:`ELASTIC_MODELS`)."""
-    return cfg["model"]["type"] in ELASTIC_MODELS
+    return SceneConfig.of_checked(cfg)
 
 
 def _check_hyperelastic(cfg: dict, model: str) -> None:
@@ -1116,16 +972,16 @@ def _check_hyperelastic(cfg: dict, model: str) -> None:
     ):
         if cfg.get(key):
             raise ConfigError(f"{key}: not available for model type hyperelastic ({what})")
-    if (cfg.get("friction") or {}).get("law", "none") != "none":
+    if cfg["friction"] is not None and cfg["friction"].law != "none":
         raise ConfigError("friction.law: a hyperelastic body's contact is frictionless (none)")
     if cfg["data"]["exact"] is not None:
         raise ConfigError("data.exact: not available for model type hyperelastic")
-    if cfg["solver"]["sequence"] not in ("auto", "off", 0):
+    if cfg["solver"].sequence not in ("auto", "off", 0):
         raise ConfigError(
             "solver.sequence: grid sequencing is not available for model type "
             "hyperelastic (use off)"
         )
-    cfg["solver"]["sequence"] = "off"
+    cfg["solver"] = cfg["solver"].model_copy(update={"sequence": "off"})
 
 
 def _resolve_formats(output: dict) -> None:
@@ -1149,7 +1005,7 @@ def _check_blocks(mesh: dict) -> int:
         raise ConfigError(
             "mesh.blocks: required for mesh type 'blocks' (a list of {corners, cells})"
         )
-    dims = None
+    dims = 0
     for i, raw in enumerate(blocks):
         block = _validate(raw, BLOCK, f"mesh.blocks[{i}]", {})
         d = len(block["corners"][0])
@@ -1159,7 +1015,7 @@ def _check_blocks(mesh: dict) -> int:
                 f"mesh.blocks[{i}].cells: a {d}D block needs {d} cell counts, got "
                 f"{block['cells']!r}"
             )
-        if dims not in (None, d):
+        if dims not in (0, d):
             raise ConfigError(f"mesh.blocks[{i}].corners: every block needs {dims}D points")
         dims = d
         blocks[i] = {"corners": block["corners"], "cells": cells}
@@ -1223,7 +1079,7 @@ def _check_vector_data(cfg: dict, model: str) -> None:
     for key in ("f", "u_D", "t", "exact"):
         if isinstance(cfg["data"][key], list) and model != "elasticity":
             raise ConfigError(f"data.{key}: a list of components is only for model type elasticity")
-    if isinstance(cfg["solver"]["u0"], list) and model != "elasticity":
+    if isinstance(cfg["solver"].u0, tuple) and model != "elasticity":
         raise ConfigError("solver.u0: a list of components is only for model type elasticity")
 
 
@@ -1256,7 +1112,7 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
     if fr is None:
         return
     given = {k for k, v in (data.get("friction") or {}).items() if v is not None}
-    law = fr["law"]
+    law = fr.law
     # frictionless: the other keys are ignored (--set friction.law=none switches it off)
     if law == "none":
         return
@@ -1266,7 +1122,7 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
             f"(a {cfg['model']['type']} scene has no tangential direction)"
         )
     need = {"tresca": "threshold", "coulomb": "coefficient"}.get(law)
-    if need is not None and fr[need] is None:
+    if need is not None and getattr(fr, need) is None:
         raise ConfigError(f"friction.{need}: required for friction law {law}")
     unused = sorted(
         given
@@ -1275,9 +1131,9 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
     )
     if unused:
         raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")
-    if law != "none" and cfg["solver"]["method"] not in ("fb", "min", "blend"):
+    if law != "none" and cfg["solver"].method not in ("fb", "min", "blend"):
         raise ConfigError(
-            f"solver.method: {cfg['solver']['method']} cannot solve frictional contact "
+            f"solver.method: {cfg['solver'].method} cannot solve frictional contact "
             f"(friction.law: {law}); use fb, min or blend"
         )
 
@@ -1288,7 +1144,9 @@ def _check_reference(cfg: dict) -> None:
     radius R1 R2 / (R1 + R2) of half_disks, filled in here).  With contact pairs the radius is
     the effective one, 1/R = 1/R1 + 1/R2, and E* comes from the two bodies of the first pair."""
     ref = cfg["reference"]
-    if ref["type"] == "cattaneo_mindlin" and (cfg.get("friction") or {}).get("law") != "coulomb":
+    if ref["type"] == "cattaneo_mindlin" and (
+        cfg["friction"] is None or cfg["friction"].law != "coulomb"
+    ):
         raise ConfigError(
             "reference.type: cattaneo_mindlin needs Coulomb friction (friction.law: coulomb)"
         )
@@ -1368,36 +1226,11 @@ def _check_moving_point(point: list, constants: Mapping[str, float]) -> None:
             raise ConfigError(f"obstacle.point: {c!r} may use the pseudo-time t, not x, y, z")
 
 
-#: the sections a solve reads from a built scene's config (:func:`check_sections`)
-SOLVE_SECTIONS = (
-    "model",
-    "bodies",
-    "obstacle",
-    "data",
-    "solver",
-    "friction",
-    "load",
-    "adapt",
-    "output",
-)
-
-
-def check_sections(cfg: Mapping) -> None:
-    """Validate again the sections of a validated config that a solve reads (a Scene's
-    ``cfg``, which a caller of the Python API may have changed since it was loaded): the
-    same ConfigError naming the key as at load, instead of a failure deep inside the solver
-    (``scene.cfg['friction']['law'] = 'coulom'`` was a bare PETSc "error code 101").
-    Cheap (no mesh, no file): run at the start of every solve."""
-    constants = cfg.get("constants") or {}
-    for key in SOLVE_SECTIONS:
-        if cfg.get(key) is not None:
-            _validate(cfg[key], SCENE[key], key, constants)
-    if cfg.get("friction") is not None:
-        _check_friction(cfg, {})
-
-
-def load_config(source: str | Path | Mapping, overrides: list[str] | tuple[str, ...] = ()) -> dict:
-    """Read (if a path), apply ``--set`` overrides and validate a scene."""
+def load_config(
+    source: str | Path | Mapping, overrides: list[str] | tuple[str, ...] = ()
+) -> SceneConfig:
+    """Read (if a path), apply ``--set`` overrides and validate a scene: its typed,
+    immutable config."""
     if isinstance(source, Mapping):
         return validate_scene(apply_overrides(dict(source), overrides))
     path = Path(source)

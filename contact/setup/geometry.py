@@ -33,7 +33,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from dolfinx import la
@@ -41,6 +43,9 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+
+if TYPE_CHECKING:
+    from .scene_config import MeshConfig
 
 CONTACT, TOP, AXIS, PLANE_Y, BODY = 1, 2, 3, 4, 10
 GRADING = 0.3  # growth of the mesh size per unit distance between the zone and size h
@@ -293,8 +298,25 @@ def half_disks(
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
 
 
+def block_pair(block: Any) -> str | None:
+    """``mesh.block`` of sphere_on_block: [half-width, depth], two positive numbers."""
+    if (
+        isinstance(block, (list, tuple))
+        and len(block) == 2
+        and all(isinstance(v, (int, float)) and v > 0 for v in block)
+    ):
+        return None
+    shown = list(block) if isinstance(block, tuple) else block
+    return f"must be [half-width, depth] with positive numbers, got {shown!r}"
+
+
 def sphere_on_block(
-    comm: MPI.Comm, radius: float, block: list, h: float, h_contact: float, zone: float
+    comm: MPI.Comm,
+    radius: float,
+    block: Sequence[float],
+    h: float,
+    h_contact: float,
+    zone: float,
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """A sphere of radius R resting on an elastic block at the origin, the quarter x, y ≥ 0
     of both (3D tetrahedra, meshed independently): the octant of the sphere's lower half
@@ -303,14 +325,8 @@ def sphere_on_block(
     y = W tag 7); the symmetry planes x = 0 (tag 5) and y = 0 (tag 6) of both bodies.  Mesh
     size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
-    if not (
-        isinstance(block, list)
-        and len(block) == 2
-        and all(isinstance(v, (int, float)) and v > 0 for v in block)
-    ):
-        raise ConfigError(
-            f"mesh.block: must be [half-width, depth] with positive numbers, got {block!r}"
-        )
+    if problem := block_pair(block):
+        raise ConfigError(f"mesh.block: {problem}")
     W, H = float(block[0]), float(block[1])
 
     def build(gmsh):
@@ -438,36 +454,36 @@ class CurvedBoundary:
         return msh.comm.allreduce(len(owned), op=MPI.SUM)
 
 
-def builder_surfaces(cfg: dict) -> list[CurvedBoundary]:
+def builder_surfaces(m: MeshConfig) -> list[CurvedBoundary]:
     """The curved surfaces of the two-body builders, by the mesh's own facet tags: the two
     arcs of ``half_disks`` (tags 1 and 3) and the sphere of ``sphere_on_block`` (tag 1);
-    empty for every other mesh."""
-    m = cfg["mesh"]
-    if m["type"] == "half_disks":
-        R1 = float(m["radius"])
-        R2 = float(m["radius2"] or R1)
-        d = float(m.get("overlap") or 0.0)
+    empty for every other mesh (``m``: the scene's mesh section)."""
+    if m.type not in ("half_disks", "sphere_on_block"):
+        return []
+    assert m.radius is not None  # required for these types (checked at load)
+    if m.type == "half_disks":
+        R1 = float(m.radius)
+        R2 = float(m.radius2 or R1)
+        d = float(m.overlap or 0.0)
         return [
             CurvedBoundary((0.0, R1), R1, UPPER_ARC),
             CurvedBoundary((0.0, d - R2), R2, LOWER_ARC),
         ]
-    if m["type"] == "sphere_on_block":
-        R = float(m["radius"])
-        return [CurvedBoundary((0.0, 0.0, R), R, SPHERE)]
-    return []
+    R = float(m.radius)  # sphere_on_block
+    return [CurvedBoundary((0.0, 0.0, R), R, SPHERE)]
 
 
-def curved_boundary(cfg: dict) -> CurvedBoundary | None:
-    """The curved surface of the scene's mesh (validated config ``cfg``): for
+def curved_boundary(m: MeshConfig) -> CurvedBoundary | None:
+    """The curved surface of the scene's mesh (its mesh section ``m``): for
     ``quarter_disk`` the circle of radius R about (0, R), for ``sphere_octant`` the sphere
     of radius R about (0, 0, R), tag 1 (CONTACT) in both; ``None`` for every other mesh
     (its refinement is left as dolfinx makes it)."""
-    m = cfg["mesh"]
     centres = {"quarter_disk": 2, "sphere_octant": 3}
-    if m["type"] not in centres:
+    if m.type not in centres:
         return None
-    R = float(m["radius"])
-    return CurvedBoundary(centre=(0.0,) * (centres[m["type"]] - 1) + (R,), radius=R)
+    assert m.radius is not None  # required for these types (checked at load)
+    R = float(m.radius)
+    return CurvedBoundary(centre=(0.0,) * (centres[m.type] - 1) + (R,), radius=R)
 
 
 #: gmsh's vertices per unit area (2D) / volume (3D) at mesh size s, times s^d, and per unit
@@ -478,7 +494,7 @@ def curved_boundary(cfg: dict) -> CurvedBoundary | None:
 VERTEX_DENSITY = {2: (1.153, 0.665), 3: (0.616, 0.808)}
 
 
-def estimated_vertices(mesh: dict) -> float:
+def estimated_vertices(mesh: MeshConfig) -> float:
     """The number of vertices gmsh makes for the parametric mesh ``mesh`` (the ``mesh``
     section of a scene: quarter_disk, sphere_octant, half_disks, sphere_on_block), from its
     parameters alone, before meshing (the DoF budget, :mod:`contact.budget`):
@@ -492,12 +508,12 @@ def estimated_vertices(mesh: dict) -> float:
     spheres about the body's contact point, sampled by directions on radii spaced
     geometrically, the boundary's as the band |φ| < s/2 divided by its width s.
     Parameters are checked first (ConfigError as the builders raise)."""
-    kind = mesh["type"]
-    R, h, h_c, zone = _check(mesh["radius"], mesh["h"], mesh["h_contact"], mesh["zone"])
+    kind = mesh.type
+    R, h, h_c, zone = _check(mesh.radius, mesh.h, mesh.h_contact, mesh.zone)
     bodies: list[tuple] = []  # (φ(x) for points x of shape (gdim, ...), contact point, reach)
     if kind in ("quarter_disk", "half_disks"):
-        R2 = _check(mesh["radius2"] or R, h, h_c, zone, "radius2")[0] if kind == "half_disks" else R
-        d = float(mesh.get("overlap") or 0.0)
+        R2 = _check(mesh.radius2 or R, h, h_c, zone, "radius2")[0] if kind == "half_disks" else R
+        d = float(mesh.overlap or 0.0)
         for Rk, s, y0 in ((R, 1.0, 0.0),) + (((R2, -1.0, d),) if kind == "half_disks" else ()):
 
             def disk(x, Rk=Rk, s=s, y0=y0, half=kind == "quarter_disk"):
@@ -514,7 +530,7 @@ def estimated_vertices(mesh: dict) -> float:
 
         bodies.append((octant, np.zeros(3), 2 * R))
         if kind == "sphere_on_block":
-            W, H = (float(v) for v in mesh["block"])
+            W, H = (float(v) for v in mesh.block or ())
 
             def block(x):
                 return np.maximum.reduce([-x[0], x[0] - W, -x[1], x[1] - W, x[2], -H - x[2]])

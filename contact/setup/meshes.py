@@ -11,6 +11,7 @@ facet ``MeshTags`` whose values are the part ids.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import basix.ufl
@@ -31,6 +32,7 @@ from .geometry import (
     sphere_on_block,
     vertex_nodes,
 )
+from .scene_config import Block, MeshConfig, SceneConfig
 
 _DIAGONALS = {
     "left": dmesh.DiagonalType.left,
@@ -63,11 +65,12 @@ class Boundary:
         return np.sort(self.tags.indices[np.isin(self.tags.values, ids)]).astype(np.int32)
 
 
-def mesh_dimension(cfg: dict) -> int | None:
+def mesh_dimension(cfg: SceneConfig) -> int | None:
     """The geometric dimension of the scene's mesh, from its type (None for a gmsh file)."""
-    mesh = cfg["mesh"]
-    if mesh["type"] == "blocks":
-        return len(mesh["blocks"][0]["corners"][0])
+    mesh = cfg.mesh
+    if mesh.type == "blocks":
+        assert mesh.blocks  # required for this type (checked at load)
+        return len(mesh.blocks[0].corners[0])
     return {
         "rectangle": 2,
         "unit_square": 2,
@@ -77,25 +80,25 @@ def mesh_dimension(cfg: dict) -> int | None:
         "box": 3,
         "sphere_octant": 3,
         "sphere_on_block": 3,
-    }.get(mesh["type"])
+    }.get(mesh.type)
 
 
 def build_mesh(
-    cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD
+    cfg: SceneConfig, comm: MPI.Comm = MPI.COMM_WORLD
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags | None, dmesh.MeshTags | None]:
-    """The mesh described by ``cfg['mesh']`` (mapped by ``mesh.map`` if given), its facet
+    """The mesh described by ``cfg.mesh`` (mapped by ``mesh.map`` if given), its facet
     tags (gmsh files and builders) and cell tags (gmsh physical volumes / surfaces, the
     block numbers of mesh type blocks), ``None`` where the mesh has none."""
-    msh, tags, *cells = _built_mesh(cfg, comm)
-    if cfg["mesh"].get("map") is not None:
-        map_geometry(msh, cfg["mesh"]["map"], cfg["constants"])
-    return msh, tags, (cells[0] if cells else None)
+    msh, tags, cells = _built_mesh(cfg, comm)
+    if cfg.mesh.map is not None:
+        map_geometry(msh, cfg.mesh.map, cfg.constants)
+    return msh, tags, cells
 
 
 def map_geometry(
     msh: dmesh.Mesh,
-    exprs: list[str],
-    constants: dict[str, float] | None = None,
+    exprs: Sequence[str],
+    constants: Mapping[str, float] | None = None,
     key: str = "mesh.map",
     tol: float = 1e-12,
 ) -> None:
@@ -133,54 +136,70 @@ def map_geometry(
         )
 
 
-def _built_mesh(cfg: dict, comm: MPI.Comm) -> tuple[dmesh.Mesh, dmesh.MeshTags | None]:
-    """The mesh of ``cfg['mesh']`` as built, before any map."""
-    m = cfg["mesh"]
-    kind = m["type"]
+Tags = dmesh.MeshTags | None
+
+
+def _built_mesh(cfg: SceneConfig, comm: MPI.Comm) -> tuple[dmesh.Mesh, Tags, Tags]:
+    """The mesh of ``cfg.mesh`` as built, before any map: (mesh, facet tags, cell tags)."""
+    m = cfg.mesh
+    kind = m.type
+    # structured types: one cell count per axis (lshape: one), made a tuple by the loader
+    cells = m.cells if isinstance(m.cells, tuple) else (m.cells,)
     if kind in ("rectangle", "unit_square"):
-        corners = m["corners"] if kind == "rectangle" else [[0.0, 0.0], [1.0, 1.0]]
-        return dmesh.create_rectangle(
-            comm,
-            [np.array(c, dtype=float) for c in corners],
-            m["cells"],
-            cell_type=dmesh.CellType.triangle,
-            diagonal=_DIAGONALS[m["diagonal"]],
-        ), None
-    if kind == "box":
-        return dmesh.create_box(
-            comm,
-            [np.array(c, dtype=float) for c in m["corners"]],
-            m["cells"],
-            cell_type=dmesh.CellType.tetrahedron,
-        ), None
-    if kind == "lshape":
-        return lshape(comm, m["cells"][0], m["diagonal"]), None
-    if kind in ("quarter_disk", "sphere_octant"):  # gmsh, built from the parameters
-        build = quarter_disk if kind == "quarter_disk" else sphere_octant
-        return build(comm, m["radius"], m["h"], m["h_contact"], m["zone"])
-    if kind == "blocks":
-        return blocks(comm, m["blocks"], m["diagonal"])
-    if kind in ("half_disks", "sphere_on_block"):  # two gmsh bodies, built from the parameters
-        if kind == "half_disks":
-            return half_disks(
+        corners = m.corners if kind == "rectangle" else ((0.0, 0.0), (1.0, 1.0))
+        assert corners is not None  # the loader fills in the default
+        return (
+            dmesh.create_rectangle(
                 comm,
-                m["radius"],
-                m["radius2"] or m["radius"],
-                m["h"],
-                m["h_contact"],
-                m["zone"],
-                m["overlap"] or 0.0,
-            )
-        return sphere_on_block(comm, m["radius"], m["block"], m["h"], m["h_contact"], m["zone"])
-    return _read_gmsh(m["file"], comm)
+                [np.array(c, dtype=float) for c in corners],
+                cells,
+                cell_type=dmesh.CellType.triangle,
+                diagonal=_DIAGONALS[m.diagonal],
+            ),
+            None,
+            None,
+        )
+    if kind == "box":
+        assert m.corners is not None  # the loader fills in the default
+        box = dmesh.create_box(
+            comm,
+            [np.array(c, dtype=float) for c in m.corners],
+            cells,
+            cell_type=dmesh.CellType.tetrahedron,
+        )
+        return box, None, None
+    if kind == "lshape":
+        return lshape(comm, cells[0], m.diagonal), None, None
+    if kind == "blocks":
+        assert m.blocks  # required for this type (checked at load)
+        return blocks(comm, m.blocks, m.diagonal)
+    if kind == "gmsh":
+        assert m.file is not None  # required for this type (checked at load)
+        return _read_gmsh(m.file, comm)
+    radius, h, h_contact, zone = _sizes(m)  # the parametric gmsh bodies
+    if kind in ("quarter_disk", "sphere_octant"):
+        build = quarter_disk if kind == "quarter_disk" else sphere_octant
+        return (*build(comm, radius, h, h_contact, zone), None)
+    if kind == "half_disks":
+        radius2, overlap = m.radius2 or radius, m.overlap or 0.0
+        return half_disks(comm, radius, radius2, h, h_contact, zone, overlap)
+    assert m.block is not None  # sphere_on_block's (checked at load)
+    return sphere_on_block(comm, radius, m.block, h, h_contact, zone)
+
+
+def _sizes(m: MeshConfig) -> tuple[float, float, float, float]:
+    """radius, h, h_contact, zone of a parametric gmsh mesh (required: checked at load)."""
+    assert m.radius is not None and m.h is not None
+    assert m.h_contact is not None and m.zone is not None
+    return m.radius, m.h, m.h_contact, m.zone
 
 
 def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
     """Structured triangulation of (−1,1)² ∖ [0,1]×[−1,0] with ``n`` cells per unit length."""
     if comm.rank == 0:
         h = 1.0 / n
-        i, j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
-        i, j = i.ravel(), j.ravel()
+        grid_i, grid_j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
+        i, j = grid_i.ravel(), grid_j.ravel()
         keep = ~((i >= n) & (j < n))  # drop the squares of the cut quadrant x > 0, y < 0
         i, j = i[keep], j[keep]
         vid = lambda a, b: a * (2 * n + 1) + b  # noqa: E731
@@ -200,28 +219,28 @@ def lshape(comm: MPI.Comm, n: int, diagonal: str = "right") -> dmesh.Mesh:
         cells,
         element,
         X,
-        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),  # type: ignore[call-arg]
     )
 
 
 def blocks(
-    comm: MPI.Comm, specs: list[dict], diagonal: str = "right"
+    comm: MPI.Comm, specs: Sequence[Block], diagonal: str = "right"
 ) -> tuple[dmesh.Mesh, None, dmesh.MeshTags]:
     """Structured blocks meshed independently into one mesh (disconnected components, no
     shared nodes, so their meshes need not match where they touch): triangles (2D, each
     rectangle split along its ``diagonal``, left or right) or tetrahedra (3D, six per box,
     Kuhn's subdivision along the main diagonal).  Built on rank 0 and distributed; the cell
     tag of block k (in the order given) is k + 1."""
-    gdim = len(specs[0]["corners"][0])
+    gdim = len(specs[0].corners[0])
     if comm.rank == 0:
-        points, cells, offset = [], [], 0
+        points, simplices, offset = [], [], 0
         for spec in specs:
-            X, T = _structured(np.asarray(spec["corners"], dtype=float), spec["cells"], diagonal)
+            X, T = _structured(np.asarray(spec.corners, dtype=float), spec.cells, diagonal)
             points.append(X)
-            cells.append(T + offset)
+            simplices.append(T + offset)
             offset += len(X)
-        counts = [len(T) for T in cells]
-        X, cells = np.vstack(points), np.vstack(cells).astype(np.int64)
+        counts = [len(T) for T in simplices]
+        X, cells = np.vstack(points), np.vstack(simplices).astype(np.int64)
     else:
         X, cells, counts = np.zeros((0, gdim)), np.zeros((0, gdim + 1), dtype=np.int64), None
     counts = comm.bcast(counts, root=0)
@@ -232,7 +251,7 @@ def blocks(
         cells,
         element,
         X,
-        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),  # type: ignore[call-arg]
     )
     tdim = msh.topology.dim
     n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
@@ -245,7 +264,9 @@ def blocks(
     )
 
 
-def _structured(corners: np.ndarray, n: list[int], diagonal: str) -> tuple[np.ndarray, np.ndarray]:
+def _structured(
+    corners: np.ndarray, n: Sequence[int], diagonal: str
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and simplices of one structured block with ``n`` cells per direction."""
     axes = [np.linspace(lo, hi, k + 1) for lo, hi, k in zip(corners[0], corners[1], n)]
     X = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(n))
@@ -276,13 +297,13 @@ def _read_gmsh(
 
 
 def tag_bodies(
-    msh: dmesh.Mesh, cfg: dict, cell_tags: dmesh.MeshTags | None = None
+    msh: dmesh.Mesh, cfg: SceneConfig, cell_tags: dmesh.MeshTags | None = None
 ) -> dmesh.MeshTags | None:
     """Cell tags of the scene's ``bodies`` (value k + 1 for the k-th body, on every local
     cell, ghosts included), or None for a scene without bodies.  A body takes the cells of
     a mesh cell tag (``tag``) or those whose midpoint satisfies ``where``.  A body with no
     cell, an unknown tag, a cell in two bodies or in none is a ConfigError."""
-    bodies = cfg.get("bodies")
+    bodies = cfg.bodies
     if not bodies:
         return None
     comm, tdim = msh.comm, msh.topology.dim
@@ -294,21 +315,23 @@ def tag_bodies(
     n_owned = msh.topology.index_map(tdim).size_local
     value = np.zeros(n_all, dtype=np.int32)
     for k, (name, body) in enumerate(bodies.items()):
-        if body["tag"] is not None:
-            if body["tag"] not in file_ids:
+        if body.tag is not None:
+            if body.tag not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
                 raise ConfigError(
-                    f"bodies.{name}.tag: tag {body['tag']} does not exist in the mesh (cell "
+                    f"bodies.{name}.tag: tag {body.tag} does not exist in the mesh (cell "
                     f"tags: {known})"
                 )
-            cells = cell_tags.indices[cell_tags.values == body["tag"]]
+            assert cell_tags is not None  # file_ids are its values
+            cells = cell_tags.indices[cell_tags.values == body.tag]
         else:
             if midpoints is None:
                 midpoints = dmesh.compute_midpoints(msh, tdim, np.arange(n_all, dtype=np.int32))
-            pred = expressions.to_numpy(body["where"], cfg["constants"])
+            assert body.where is not None  # one of tag / where (checked at load)
+            pred = expressions.to_numpy(body.where, cfg.constants)
             cells = np.flatnonzero(pred(midpoints.T).astype(bool))
         if comm.allreduce(int(np.count_nonzero(cells < n_owned)), op=MPI.SUM) == 0:
-            what = f"where {body['where']!r}" if body["tag"] is None else f"tag {body['tag']}"
+            what = f"where {body.where!r}" if body.tag is None else f"tag {body.tag}"
             raise ConfigError(f"bodies.{name}: {what} selects no cell")
         twice = comm.allreduce(int(np.count_nonzero(value[cells[cells < n_owned]])), op=MPI.SUM)
         if twice:
@@ -332,11 +355,11 @@ def body_facets(
 
 def tag_boundaries(
     msh: dmesh.Mesh,
-    cfg: dict,
+    cfg: SceneConfig,
     file_tags: dmesh.MeshTags | None = None,
     bodies: dmesh.MeshTags | None = None,
 ) -> Boundary:
-    """Mark every boundary part of ``cfg['boundaries']`` on the exterior facets.
+    """Mark every boundary part of ``cfg.boundaries`` on the exterior facets.
 
     A ``where`` predicate selects exterior facets all of whose vertices satisfy it; a
     ``tag`` selects the gmsh physical facet group (with ``where`` too: those of its facets
@@ -353,37 +376,38 @@ def tag_boundaries(
         file_ids = set(int(v) for v in np.concatenate(comm.allgather(np.unique(file_tags.values))))
     next_id = max(file_ids, default=0) + 1
     ids, roles, chunks = {}, {}, []
-    for name, part in cfg["boundaries"].items():
+    for name, part in cfg.boundaries.items():
         facets = exterior
-        if part["tag"] is not None:
-            if file_tags is None or part["tag"] not in file_ids:
+        if part.tag is not None:
+            if file_tags is None or part.tag not in file_ids:
                 known = ", ".join(map(str, sorted(file_ids))) or "none"
                 raise ConfigError(
-                    f"boundaries.{name}.tag: tag {part['tag']} does not exist in the mesh "
+                    f"boundaries.{name}.tag: tag {part.tag} does not exist in the mesh "
                     f"file (facet tags: {known})"
                 )
-            facets = file_tags.indices[file_tags.values == part["tag"]]
-        if part["where"] is not None:
-            pred = expressions.to_numpy(part["where"], cfg["constants"])
+            facets = file_tags.indices[file_tags.values == part.tag]
+        if part.where is not None:
+            pred = expressions.to_numpy(part.where, cfg.constants)
             located = dmesh.locate_entities_boundary(
                 msh, tdim - 1, lambda x, pred=pred: pred(x).astype(bool)
             )
             facets = np.intersect1d(facets, located)
-        if part.get("body") is not None:
-            facets = body_facets(msh, bodies, list(cfg["bodies"]).index(part["body"]) + 1, facets)
-        if part["tag"] is not None and part["where"] is None and part.get("body") is None:
-            pid = part["tag"]  # the whole gmsh group keeps its tag
+        if part.body is not None:  # a body of the scene's bodies (checked at load)
+            assert bodies is not None and cfg.bodies is not None
+            facets = body_facets(msh, bodies, list(cfg.bodies).index(part.body) + 1, facets)
+        if part.tag is not None and part.where is None and part.body is None:
+            pid = part.tag  # the whole gmsh group keeps its tag
         else:
             pid = next_id
             next_id += 1
         if comm.allreduce(len(facets), op=MPI.SUM) == 0:
             what = " and ".join(
-                ([f"tag {part['tag']}"] if part["tag"] is not None else [])
-                + ([f"where {part['where']!r}"] if part["where"] is not None else [])
+                ([f"tag {part.tag}"] if part.tag is not None else [])
+                + ([f"where {part.where!r}"] if part.where is not None else [])
             )
-            what += f" on body {part['body']}" if part.get("body") is not None else ""
+            what += f" on body {part.body}" if part.body is not None else ""
             raise ConfigError(f"boundaries.{name}: {what} selects no boundary facet")
-        ids[name], roles[name] = pid, part["role"]
+        ids[name], roles[name] = pid, part.role
         chunks.append((facets.astype(np.int32), np.full(len(facets), pid, dtype=np.int32), name))
     all_facets = np.concatenate([c[0] for c in chunks])
     uniq, counts = np.unique(all_facets, return_counts=True)

@@ -5,7 +5,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import functools
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,6 +18,7 @@ from mpi4py import MPI
 from ..base.errors import ConfigError
 from .config import load_config
 from .meshes import Boundary, build_mesh, mesh_dimension, tag_bodies, tag_boundaries
+from .scene_config import SceneConfig
 
 
 @dataclass
@@ -30,7 +32,7 @@ class Scene:
     previous one (friction: the previous displacement ``u_prev``); refinement carries them
     to the refined mesh."""
 
-    cfg: dict
+    config: SceneConfig
     mesh: dmesh.Mesh
     boundary: Boundary
     time: float = 1.0
@@ -61,7 +63,7 @@ class Scene:
 
     @property
     def name(self) -> str:
-        return self.cfg["name"]
+        return self.config.name
 
     @property
     def comm(self) -> MPI.Comm:
@@ -74,6 +76,19 @@ def require_scene(scene: Any) -> None:
         raise ValueError(
             f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}"
         )
+
+
+def public[**P, R](function: Callable[P, R]) -> Callable[P, R]:
+    """``function`` (whose first argument is a scene) as the package exports it: the user's
+    scene argument checked first (:func:`require_scene`).  The drivers call the unchecked
+    functions with the Scenes the package built."""
+
+    @functools.wraps(function)
+    def checked(*args: P.args, **kwargs: P.kwargs) -> R:
+        require_scene(args[0] if args else kwargs.get("scene"))
+        return function(*args, **kwargs)
+
+    return checked
 
 
 def load_scene(
@@ -101,7 +116,7 @@ def load_scene(
     return build_scene(load_config(source, overrides), comm)
 
 
-def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
+def build_scene(cfg: SceneConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     """The scene of a validated config (:func:`contact.setup.config.load_config`): its mesh and
     tagged boundary.  Before the mesh is built: the DoF budget (from the mesh parameters)
     and the PETSc options; after: the declared boundary surfaces."""
@@ -124,12 +139,9 @@ def build_scene(cfg: dict, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     return scene
 
 
-def _check_solver(cfg: dict, gdim: int, comm: MPI.Comm) -> None:
+def _check_solver(cfg: SceneConfig, gdim: int, comm: MPI.Comm) -> None:
     """The scene's PETSc options work with the model's default linear solver."""
     from ..solvers.options import check_petsc_options, default_options
 
-    check_petsc_options(
-        cfg["solver"]["petsc_options"],
-        default_options(cfg["solver"].get("linear", "auto"), gdim, comm.size),
-        comm,
-    )
+    solver = cfg.solver
+    check_petsc_options(solver.petsc_options, default_options(solver.linear, gdim, comm.size), comm)

@@ -25,6 +25,7 @@ from dolfinx import mesh as dmesh
 from ..base.errors import ConfigError
 from .geometry import CurvedBoundary, curved_boundary
 from .meshes import Boundary
+from .scene_config import SceneConfig, SurfaceSpec
 
 #: a ridge (vertex in 2D, edge in 3D) between two facets bends if their normals differ by more
 BEND = 1e-4  # radians
@@ -35,43 +36,43 @@ class ContactWarning(UserWarning):
     """A one-line warning about a scene (printed as ``contact: warning: ...`` by the CLI)."""
 
 
-def declared_surface(name: str, spec: dict, gdim: int, tag: int) -> CurvedBoundary:
+def declared_surface(name: str, spec: SurfaceSpec, gdim: int, tag: int) -> CurvedBoundary:
     """The CurvedBoundary of ``boundaries.<name>.surface`` on a ``gdim``-dimensional mesh;
     a ConfigError naming the key if it does not fit."""
     key = f"boundaries.{name}.surface"
-    want = {"circle": 2, "sphere": 3, "cylinder": 3}[spec["type"]]
+    want = {"circle": 2, "sphere": 3, "cylinder": 3}[spec.type]
     if gdim != want:
-        raise ConfigError(f"{key}.type: a {spec['type']} needs a {want}D mesh, this one is {gdim}D")
-    centre = spec["center"]
+        raise ConfigError(f"{key}.type: a {spec.type} needs a {want}D mesh, this one is {gdim}D")
+    centre = spec.center
     if len(centre) != gdim:
         raise ConfigError(f"{key}.center: needs {gdim} coordinates, got {len(centre)}")
-    axis = spec.get("axis")
-    if (axis is not None) != (spec["type"] == "cylinder"):
+    axis = spec.axis
+    if (axis is not None) != (spec.type == "cylinder"):
         raise ConfigError(
             f"{key}.axis: "
             + (
                 "required for a cylinder"
                 if axis is None
-                else f"only for a cylinder, not a {spec['type']}"
+                else f"only for a cylinder, not a {spec.type}"
             )
         )
     if axis is not None and (len(axis) != 3 or not np.any(axis)):
-        raise ConfigError(f"{key}.axis: must be a non-zero vector of 3 numbers, got {axis!r}")
+        raise ConfigError(f"{key}.axis: must be a non-zero vector of 3 numbers, got {list(axis)!r}")
     return CurvedBoundary(
         centre=tuple(float(c) for c in centre),
-        radius=float(spec["radius"]),
+        radius=float(spec.radius),
         tag=tag,
         axis=None if axis is None else tuple(float(a) for a in axis),
     )
 
 
-def boundary_surfaces(cfg: dict, gdim: int, boundary: Boundary) -> list[CurvedBoundary]:
+def boundary_surfaces(cfg: SceneConfig, gdim: int, boundary: Boundary) -> list[CurvedBoundary]:
     """The exact surfaces refinement snaps to, in ``gdim`` dimensions: the built-in Hertz
     meshes' curved tag, and every part of ``boundary`` with a declared ``surface``."""
-    out = [s for s in (curved_boundary(cfg),) if s is not None]
-    for name, part in cfg["boundaries"].items():
-        if part.get("surface"):
-            out.append(declared_surface(name, part["surface"], gdim, boundary.ids[name]))
+    out = [s for s in (curved_boundary(cfg.mesh),) if s is not None]
+    for name, part in cfg.boundaries.items():
+        if part.surface is not None:
+            out.append(declared_surface(name, part.surface, gdim, boundary.ids[name]))
     return out
 
 
@@ -120,19 +121,19 @@ def looks_curved(msh: dmesh.Mesh, boundary: Boundary, name: str) -> bool:
     return msh.comm.bcast(curved, root=0)
 
 
-def warn_undeclared_curves(cfg: dict, msh: dmesh.Mesh, boundary: Boundary) -> None:
+def warn_undeclared_curves(cfg: SceneConfig, msh: dmesh.Mesh, boundary: Boundary) -> None:
     """Warn once per gmsh file and part when a contact part of a gmsh mesh looks curved and
     declares no ``surface``: refinement keeps its chords (collective; rank 0 warns)."""
-    if cfg["mesh"]["type"] != "gmsh":
+    if cfg.mesh.type != "gmsh":
         return
-    for name, part in cfg["boundaries"].items():
-        key = (cfg["mesh"]["file"], name)
-        if part["role"] != "contact" or part.get("surface") or key in _checked:
+    for name, part in cfg.boundaries.items():
+        key = (cfg.mesh.file, name)
+        if part.role != "contact" or part.surface is not None or key in _checked:
             continue
         _checked[key] = looks_curved(msh, boundary, name)
         if _checked[key] and msh.comm.rank == 0:
             warnings.warn(
-                f"boundaries.{name}: the contact boundary of {cfg['mesh']['file']} looks curved "
+                f"boundaries.{name}: the contact boundary of {cfg.mesh.file} looks curved "
                 "but declares no surface; refinement keeps its chords (declare "
                 "boundaries."
                 f"{name}.surface: {{type: circle|sphere|cylinder, center, radius}})",

@@ -179,7 +179,7 @@ class FrictionalComplementarity(Complementarity):
             rho = self.threshold
         mu_t = -r[fs.tangent] / self.w[:, None]
         s = x.array_r[fs.tangent] - fs.x_prev
-        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.form)
+        law = tangential_law(mu_t, s, rho, fs.c_t, fs.free, fs.options.form)
         return {
             "a": a,
             "b": b,

@@ -28,12 +28,11 @@ definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.timing import Timer
 from . import ncp
 from .globalize import GuardedMin
 from .options import SolverOptions
@@ -129,8 +128,8 @@ def setup_newton(
     as the line-search pre-check either active-set polishing (fb / blend with
     ``opts.polish``) or, for min with line search ``auto``, the cycle guard of
     :mod:`.globalize`.  Time spent in the callbacks is added to ``timers['assembly']``;
-    ``state['t_jac']`` marks the end of the Jacobian (the linear solve's clock starts
-    there).  Returns the pre-check object (Polisher or GuardedMin) or None."""
+    ``state['t_jac']`` is the linear solve's Timer, started at the end of the Jacobian.
+    Returns the pre-check object (Polisher or GuardedMin) or None."""
     method, mu = opts.method, opts.mu
 
     def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
@@ -172,22 +171,19 @@ def set_newton(
 ) -> None:
     """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
     ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
-    both is added to ``timers['assembly']``; ``state['t_jac']`` marks the end of the Jacobian
-    (the linear solve's clock starts there).  PETSc's line search ``opts.line_search``
-    (``auto``: ``basic``, the cycle guard being a pre-check) unless the PETSc options say
-    otherwise."""
+    both is added to ``timers['assembly']``; ``state['t_jac']`` is the linear solve's Timer
+    (``timers['solve']``), started at the end of the Jacobian.  PETSc's line search
+    ``opts.line_search`` (``auto``: ``basic``, the cycle guard being a pre-check) unless the
+    PETSc options say otherwise."""
 
     def residual(snes, x, f):
-        t0 = time.perf_counter()
-        phi(x, f)
-        timers["assembly"] += time.perf_counter() - t0
+        with Timer(timers, "assembly"):
+            phi(x, f)
 
     def jac(snes, x, J_, P):
-        t0 = time.perf_counter()
-        jacobian(x, P)
-        now = time.perf_counter()
-        timers["assembly"] += now - t0
-        state["t_jac"] = now
+        with Timer(timers, "assembly"):
+            jacobian(x, P)
+        state["t_jac"] = Timer(timers, "solve").start()  # stopped after the linear solve
 
     snes.setType("newtonls")
     snes.setFunction(residual, problem.b.duplicate())

@@ -12,20 +12,21 @@ from typing import Annotated, Any, Literal
 
 from mpi4py import MPI
 from petsc4py import PETSc
-from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict
 
 from ..base.errors import ConfigError, petsc_message
 from ..base.validation import (
+    FrozenDict,
     auto_or_positive,
     boolean,
     checked,
-    config_error,
     integer,
     mapping_of,
     nonnegative,
     number,
     one_of,
     open_unit,
+    parse_section,
     positive,
 )
 from ..base.validation import petsc_value as valid_petsc_value
@@ -37,6 +38,10 @@ VI_METHODS = ("vinewtonrsls", "vinewtonssls")
 METHODS = ncp.METHODS + VI_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt")
 LINEAR = ("auto", "direct", "gamg", "bcgs")
+#: the tangential NCP of friction: Alart–Curnier's projection, or Hüeber–Stadler–Wohlmuth's max
+FRICTION_FORMS = ("projection", "hsw")
+#: how Coulomb friction is solved: semismooth Newton on all rows, or the fixed point on ρ
+COULOMB_SOLVERS = ("ssn", "fixed_point")
 
 
 class SolverOptions(BaseModel):
@@ -58,8 +63,7 @@ class SolverOptions(BaseModel):
     ValidationError); a scene's driver builds it once from its ``solver`` section
     (:func:`contact.drivers.solve.solve`).  A changed copy:
     ``options.model_copy(update={"rtol": 1e-6})`` (unchecked: use :meth:`parse`).
-    Friction's tangential knobs (form, c_t) are data of the friction law on the problem
-    (:class:`~contact.solvers.problem.FrictionSet`), not options of a solve."""
+    Friction's tangential knobs (form, c_t, …) are :class:`FrictionOptions`."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -74,17 +78,57 @@ class SolverOptions(BaseModel):
     max_it: Annotated[int, BeforeValidator(integer(positive))] = 50
     linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
-    petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = {}
+    petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = FrozenDict()
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "solver") -> SolverOptions:
         """The options of keyword ``values`` (None: the default), validated: one ConfigError
         line ``<path>.<key>: …`` with the scene's messages, an unknown key named too."""
-        given = {k: v for k, v in values.items() if v is not None}
-        try:
-            return cls.model_validate(given)
-        except ValidationError as err:
-            raise config_error(err, path, cls.model_fields) from None
+        return parse_section(cls, values, path)
+
+    def knobs(self) -> SolverOptions:
+        """These options as the plain :class:`SolverOptions` (a subclass's extra fields, such
+        as a scene section's driver keys, left out; not validated again)."""
+        return SolverOptions.model_construct(
+            **{key: getattr(self, key) for key in SolverOptions.model_fields}
+        )
+
+
+class FrictionOptions(BaseModel):
+    """The knobs of the tangential (friction) rows of a solve (docs/theory.md §1.4, §4.3), validated
+    once and immutable, like :class:`SolverOptions`.
+
+    ``c_t`` — the tangential NCP scaling, a stress per length: ``auto`` (nodal,
+    c_t,i = K_tt,i / (κ_t w_i)) or a number > 0; ``kappa_t`` — κ_t; ``form`` — the
+    tangential NCP, ``projection`` (Alart–Curnier) or ``hsw`` (Hüeber–Stadler–Wohlmuth's max
+    form); ``coulomb`` — ``ssn`` (semismooth Newton on all rows) or ``fixed_point`` (a
+    sequence of Tresca problems on the normal pressure); ``fixed_point_rtol`` — it stops at
+    |ρ_new − ρ| ≤ rtol |ρ|; ``fixed_point_max_it`` — at most this many Tresca solves.
+    The friction law's data (the law, F, the Tresca threshold) are the scene's, not
+    options: a scene's ``friction`` section is these knobs plus them
+    (:class:`contact.setup.scene_config.FrictionConfig`)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    c_t: Annotated[Literal["auto"] | float, BeforeValidator(checked(auto_or_positive))] = "auto"
+    kappa_t: Annotated[float, BeforeValidator(number(positive))] = 1.0
+    form: Annotated[str, BeforeValidator(one_of(FRICTION_FORMS))] = "hsw"
+    coulomb: Annotated[str, BeforeValidator(one_of(COULOMB_SOLVERS))] = "ssn"
+    fixed_point_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10
+    fixed_point_max_it: Annotated[int, BeforeValidator(integer(positive))] = 100
+
+    @classmethod
+    def parse(cls, values: Mapping[str, Any], path: str = "friction") -> FrictionOptions:
+        """The options of keyword ``values`` (None: the default), validated: one ConfigError
+        line ``<path>.<key>: …``."""
+        return parse_section(cls, values, path)
+
+    def knobs(self) -> FrictionOptions:
+        """These options as the plain :class:`FrictionOptions` (a subclass's extra fields,
+        such as a scene section's data, left out; not validated again)."""
+        return FrictionOptions.model_construct(
+            **{key: getattr(self, key) for key in FrictionOptions.model_fields}
+        )
 
 
 DEFAULT_PETSC_OPTIONS = {
@@ -93,7 +137,10 @@ DEFAULT_PETSC_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol": 1e-10}
-ASSEMBLED_PETSC_OPTIONS = {"direct": DEFAULT_PETSC_OPTIONS, "bcgs": ELASTICITY_3D_PETSC_OPTIONS}
+ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
+    "direct": DEFAULT_PETSC_OPTIONS,
+    "bcgs": ELASTICITY_3D_PETSC_OPTIONS,
+}
 
 
 def method_variant(name: str) -> tuple[str, dict]:
@@ -188,12 +235,13 @@ def check_petsc_options(
 def _tiny_solve(options: Mapping[str, Any], comm: MPI.Comm) -> str | None:
     """PETSc's message if ``options`` fail on the tiny system (on any rank), else None."""
     n = 4
-    A = PETSc.Mat().createAIJ(((n, PETSc.DECIDE), (n, PETSc.DECIDE)), nnz=(3, 1), comm=comm)
+    sizes = ((n, PETSc.DECIDE), (n, PETSc.DECIDE))
+    A = PETSc.Mat().createAIJ(sizes, nnz=(3, 1), comm=comm)  # type: ignore[arg-type]
     lo, hi = A.getOwnershipRange()
     size = A.getSize()[0]
     for i in range(lo, hi):
         A.setValues(
-            i,
+            [i],
             [j for j in (i - 1, i, i + 1) if 0 <= j < size],
             [-1.0 if j != i else 2.0 for j in (i - 1, i, i + 1) if 0 <= j < size],
         )
@@ -201,15 +249,20 @@ def _tiny_solve(options: Mapping[str, Any], comm: MPI.Comm) -> str | None:
     b, x, f = A.createVecLeft(), A.createVecRight(), A.createVecLeft()
     b.set(1.0)
     x.set(0.0)
-    snes = PETSc.SNES().create(comm)
+    snes = PETSc.SNES().create(comm)  # type: ignore[arg-type]
     prefix = f"contactcheck{next(_checks)}_"
     snes.setOptionsPrefix(prefix)
     snes.setType("newtonls")
-    snes.setFunction(lambda s, X, F: (A.mult(X, F), F.axpy(-1.0, b)), f)
+
+    def residual(s: PETSc.SNES, X: PETSc.Vec, F: PETSc.Vec) -> None:  # F = A x − b
+        A.mult(X, F)
+        F.axpy(-1.0, b)
+
+    snes.setFunction(residual, f)
     snes.setJacobian(lambda s, X, J, P: None, A)
     db = PETSc.Options()
     for key, value in options.items():
-        db[prefix + key] = petsc_value(value)
+        db.setValue(prefix + key, petsc_value(value))
     problem = None
     PETSc.Sys.pushErrorHandler("python")
     try:

@@ -27,6 +27,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.lifetime import destroy
+from .options import FrictionOptions
 
 
 @dataclass
@@ -212,10 +213,8 @@ class FrictionSet:
     threshold: np.ndarray | None  # (n,) Tresca: s(x_i, t) (stress)
     coefficient: float | None  # Coulomb: F
     x_prev: np.ndarray  # (n, m) tangential unknowns at the previous load step
-    form: str = "hsw"  # tangential NCP: hsw | projection
-    coulomb: str = "ssn"  # Coulomb solver: ssn | fixed_point
-    fixed_point_rtol: float = 1e-10
-    fixed_point_max_it: int = 100
+    #: the knobs of the tangential rows (form, Coulomb solver, fixed point; c_t is above)
+    options: FrictionOptions = field(default_factory=FrictionOptions)
 
     @property
     def m(self) -> int:

@@ -49,13 +49,17 @@ assembled system of :mod:`.linear`.
 
 from __future__ import annotations
 
-import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.norms import norm2
+from ..base.timing import Stopwatch
+
+if TYPE_CHECKING:
+    from .stopping import AdaptiveStopping
 
 # s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
 FIXED = 1e-8
@@ -114,7 +118,8 @@ class ReducedSystem:
         self.stop = 0.0  # SNES's stopping value of ‖Φ‖ (set by the solver)
         self.previous: tuple[float, float] | None = None  # ‖Φ‖ and η of the last Newton solve
         self.guess = False  # the iteration starts from a guess: first step exact
-        self.stopping = None  # adaptive stopping (.stopping): the Krylov tolerance
+        # adaptive stopping (.stopping): the Krylov tolerance
+        self.stopping: AdaptiveStopping | None = None
         # the law A holds, the law of the last Newton solve: (s, d)
         self._held: tuple[np.ndarray, np.ndarray] | None = None
         self._newton: tuple[np.ndarray, np.ndarray] | None = None
@@ -216,7 +221,7 @@ class ReducedSystem:
         atol = 0.05 * self.stop  # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
         if self.stopping is not None:  # natural norm: η_alg ≤ γ_alg (η_disc + η_lin)
             atol = self.stopping.krylov_atol()
-        t0 = time.perf_counter()
+        watch = Stopwatch()
         r0 = norm2(self.r)
         if not newton and not resume and self._lagged:
             # an exact solve (polishing) on a lagged preconditioner: its rate is only known
@@ -241,7 +246,7 @@ class ReducedSystem:
             {
                 "rtol": rtol,
                 "iterations": its,
-                "seconds": time.perf_counter() - t0,
+                "seconds": watch.seconds,
                 "reason": self.last_reason,
                 "fixed_rows": self.fixed_rows,
                 "resume": resume,

@@ -9,7 +9,6 @@ with one solver.  The scene's part of a solve (its problem, options and initial 
 from __future__ import annotations
 
 import itertools
-import time
 from typing import Any
 
 import numpy as np
@@ -19,6 +18,8 @@ from petsc4py import PETSc
 
 from ..base import progress
 from ..base.lifetime import Owner
+from ..base.norms import norm1, norm2, norm_inf
+from ..base.timing import Stopwatch
 from . import ncp
 from .globalize import GuardedMin
 from .linear import assembled_kind, choose_linear, newton_system, petsc_defaults
@@ -42,7 +43,7 @@ def solve_problem(
     verbose: bool,
     guess: bool,
     timers: dict,
-    t_start: float,
+    clock: Stopwatch,
     check_options: bool = False,
     stopping: AdaptiveStopping | None = None,
 ) -> Result:
@@ -50,7 +51,7 @@ def solve_problem(
     ``guess``: a real initial guess, given or from coarser levels, not a cold start) with
     the :class:`~.options.SolverOptions` ``opts``; return a :class:`Result` (never raises on
     divergence).  ``timers`` holds the seconds counted so far (``assembly``, ``solve``,
-    ``coarse``), ``t_start`` the start of the whole solve; ``check_options``: the PETSc
+    ``coarse``), ``clock`` runs since the start of the whole solve; ``check_options``: the PETSc
     options were given for this solve and are checked first (a scene's were checked
     when it was loaded); ``stopping``: adaptive stopping (:mod:`.stopping`), consulted by
     the Newton monitor and the reduced system's Krylov solves."""
@@ -63,7 +64,7 @@ def solve_problem(
         check_options=check_options,
         stopping=stopping,
     ) as solver:
-        return solver.solve(u0, guess=guess, t_start=t_start)
+        return solver.solve(u0, guess=guess, clock=clock)
 
 
 class SemismoothNewton:
@@ -118,13 +119,14 @@ class SemismoothNewton:
             check_petsc_options(options.petsc_options, defaults, comm)
 
         self._owner = owner = Owner()  # the solver's PETSc objects, destroyed by close()
+        self.cp: Complementarity
         if friction is None:
             self.cp = owner.own(Complementarity(problem))
         else:
             from .friction import FrictionalComplementarity
 
-            self.cp = owner.own(FrictionalComplementarity(problem))
-        self.snes = snes = owner.own(PETSc.SNES().create(comm))
+            fcp = self.cp = owner.own(FrictionalComplementarity(problem))
+        self.snes = snes = owner.own(PETSc.SNES().create(comm))  # type: ignore[arg-type]
         self.prefix = f"contact{next(_counter)}_" if prefix is None else prefix
         snes.setOptionsPrefix(self.prefix)
         self.state: dict[str, Any] = {"t_jac": None, "dir_norm": np.nan}
@@ -136,7 +138,7 @@ class SemismoothNewton:
 
             self.J = owner.own(
                 setup_friction_newton(
-                    snes, problem, self.cp, options, self.timers, self.state, self.petsc_options
+                    snes, problem, fcp, options, self.timers, self.state, self.petsc_options
                 )
             )
         elif method in ncp.METHODS:
@@ -174,16 +176,19 @@ class SemismoothNewton:
         )
         self._prev = owner.own(problem.b.duplicate())  # the previous iterate (step lengths)
         self.history: list[dict] = []
+        self._prev_active: np.ndarray | None = None  # the active set of the previous iterate
         self.solves = 0  # solves done by this object
 
-    def solve(self, u0: fem.Function, guess: bool = False, t_start: float | None = None) -> Result:
+    def solve(
+        self, u0: fem.Function, guess: bool = False, clock: Stopwatch | None = None
+    ) -> Result:
         """Solve from ``u0`` (a function of ``problem.V``; the Dirichlet values are put in);
         ``guess``: a real initial guess, given or from coarser levels, not a cold start (it is
-        polished first, and the gamg path takes an exact first step); ``t_start``: the start
-        of the whole solve for the timings (default now).  Returns the :class:`Result`
-        (never raises on divergence)."""
+        polished first, and the gamg path takes an exact first step); ``clock``: the
+        :class:`~contact.base.timing.Stopwatch` of the whole solve (default: one from now).
+        Returns the :class:`Result` (never raises on divergence)."""
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
-        t_start = time.perf_counter() if t_start is None else t_start
+        clock = Stopwatch() if clock is None else clock
         polisher, guard, system = self.polisher, self.guard, self.system
         counts = (
             polisher.solves if polisher else 0,
@@ -217,21 +222,22 @@ class SemismoothNewton:
             self.atol = opts.atol * scale
             snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
             # for the round-off floor of ‖Φ‖
-            self._k_norm = problem.K.norm(PETSc.NormType.INFINITY)
+            # the Mat's infinity norm is one float (the stubs: a pair for every norm type)
+            self._k_norm: float = problem.K.norm(PETSc.NormType.INFINITY)  # type: ignore[arg-type,assignment]
             self.history, self._prev_active = [], None
             self.state.update(t_jac=None, dir_norm=np.nan, stop=None)
-            return self._run(x, guess, t_start, counts)
+            return self._run(x, guess, clock, counts)
         finally:
             x.destroy()
 
-    def _run(self, x: PETSc.Vec, guess: bool, t_start: float, counts: tuple) -> Result:
+    def _run(self, x: PETSc.Vec, guess: bool, clock: Stopwatch, counts: tuple) -> Result:
         problem, opts, snes, cp, method = self.problem, self.opts, self.snes, self.cp, self.method
         polisher, guard, system, prefix = self.polisher, self.guard, self.system, self.prefix
         popts = PETSc.Options()
         try:  # the options stay until the solve is done: some are read at set-up (GAMG's
             # mg_levels_*, MUMPS's mat_mumps_*), which happens in the first linear solve
             for key, val in self.petsc_options.items():
-                popts[prefix + key] = petsc_value(val)
+                popts.setValue(prefix + key, petsc_value(val))
             set_from_options(snes, *([system.ksp] if isinstance(system, ReducedSystem) else []))
             if system is not None:
                 system.set_options()
@@ -260,7 +266,7 @@ class SemismoothNewton:
                 method,
                 opts,
                 self.timers,
-                t_start,
+                clock,
                 reason_code,
                 inexact=self.stopping is not None,
             )
@@ -269,8 +275,9 @@ class SemismoothNewton:
                 result.stopping = self.stopping
                 result.reason = "converged_adaptive" if self.stopping.stopped else result.reason
             if problem.friction is not None:
-                from .friction import friction_fields
+                from .friction import FrictionalComplementarity, friction_fields
 
+                assert isinstance(cp, FrictionalComplementarity)  # a frictional problem's
                 result.friction = friction_fields(problem, cp, x)
             if polisher is not None:
                 result.polish_solves = polisher.solves - counts[0]
@@ -291,8 +298,8 @@ class SemismoothNewton:
         state = self.state
         if self.system is not None:
             self.system.count(ksp)
-        if state["t_jac"] is not None:
-            self.timers["solve"] += time.perf_counter() - state["t_jac"]
+        if state["t_jac"] is not None:  # the linear solve's Timer, started after the Jacobian
+            state["t_jac"].stop()
             state["t_jac"] = None
         state["dir_norm"] = sol.norm()
 
@@ -326,10 +333,10 @@ class SemismoothNewton:
         stopping = self.stopping
         if its > 0:
             prev.axpy(-1.0, xk)
-            polished = polisher is not None and polisher.taken is not None
-            # the direction actually taken
-            dn = polisher.taken if polished else self.state["dir_norm"]
-            step = prev.norm() / dn if dn > 0 else 0.0
+            # the direction actually taken: the polished one, or Newton's
+            taken = polisher.taken if polisher is not None else None
+            dn = taken if taken is not None else self.state["dir_norm"]
+            step = norm2(prev) / dn if dn > 0 else 0.0
             energy = energy_norm(self.problem.K, prev) if stopping is not None else np.inf
         else:  # SNES's stopping test, newtonls: ‖Φ‖ ≤ max(atol, rtol ‖Φ_0‖)
             done = self.state.get("stop") or max(self.atol, opts.rtol * fnorm)
@@ -354,7 +361,7 @@ class SemismoothNewton:
         if self.problem.friction is not None:
             from .friction import status_counts
 
-            counts = status_counts(comm, cp.status(xk))
+            counts = status_counts(comm, cp.status(xk))  # type: ignore[attr-defined]
             row.update(stick=counts["stick"], slip=counts["slip"])
             extra = f"  stick {counts['stick']:6d}  slip {counts['slip']:6d}"
         self.history.append(row)
@@ -366,7 +373,7 @@ class SemismoothNewton:
                 else polished and stopping.guess_kept(active)
             )
             if stopping.newton_done(its, comm.allreduce(bool(same), op=MPI.LAND), energy):
-                snes.setConvergedReason(STOPPED_REASON)
+                snes.setConvergedReason(STOPPED_REASON)  # type: ignore[arg-type]
         if self.verbose and comm.rank == 0:
             st = "    -" if its == 0 else f"{step:5.2f}"
             print(
@@ -395,7 +402,7 @@ def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:
     """‖Φ(x)‖."""
     f = x.duplicate()
     cp.phi(x, f, method, mu)
-    out = f.norm()
+    out = norm2(f)
     f.destroy()
     return out
 
@@ -415,12 +422,12 @@ def force_scale(
     x.set(0.0)
     set_dirichlet(x, problem.bcs)
     cp.phi(x, f, method, mu)
-    peak = total = f.norm(PETSc.NormType.INFINITY)
+    peak = total = norm_inf(f)
     if np.isnan(peak):  # a nonlinear residual undefined at x_D (cells a finite-strain body's
         peak = total = 0.0  # prescribed displacement inverts while the rest stays): rtol alone
     if 0.0 < peak < np.inf:  # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
         f.scale(1.0 / peak)
-        total = peak * f.norm(PETSc.NormType.NORM_1)
+        total = peak * norm1(f)
     x.destroy()
     f.destroy()
     return peak, total
@@ -439,7 +446,7 @@ def roundoff_floor(k_norm: float, x: PETSc.Vec) -> float:
     atol · F₁ (the total force of the data, :func:`force_scale`): the floor grows with ‖x‖,
     and a body that nothing holds drifts to ‖x‖ ~ 1e13 (singular K), which must stay a
     failure, not a "converged" at ‖Φ‖ = 1e-2."""
-    return ROUNDOFF * np.finfo(float).eps * k_norm * x.norm()
+    return ROUNDOFF * np.finfo(float).eps * k_norm * norm2(x)
 
 
 def check_guess(u0: Any, problem: DiscreteProblem) -> None:

@@ -9,10 +9,9 @@ linear algebra: the Jacobian is K.
 
 from __future__ import annotations
 
-import time
-
 from petsc4py import PETSc
 
+from ..base.timing import Timer
 from .linear import attach_near_nullspace
 from .problem import DiscreteProblem
 
@@ -26,18 +25,16 @@ def setup_vi(
     set's bounds; returns the Jacobian matrix."""
 
     def residual(snes, x, f):
-        t0 = time.perf_counter()
-        problem.residual(x, f)
-        timers["assembly"] += time.perf_counter() - t0
+        with Timer(timers, "assembly"):
+            problem.residual(x, f)
 
     def jacobian(snes, x, J_, P):
         # vinewtonssls scales the Jacobian in place: hand it a fresh copy of K each time
-        t0 = time.perf_counter()
-        problem.linearize(x)
-        same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
-        problem.K.copy(P, structure=same)  # type: ignore[arg-type]
-        state["t_jac"] = now = time.perf_counter()
-        timers["assembly"] += now - t0
+        with Timer(timers, "assembly"):
+            problem.linearize(x)
+            same = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+            problem.K.copy(P, structure=same)  # type: ignore[arg-type]
+        state["t_jac"] = Timer(timers, "solve").start()  # stopped after the linear solve
 
     snes.setType(method)
     snes.setFunction(residual, problem.b.duplicate())

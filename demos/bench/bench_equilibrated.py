@@ -72,7 +72,10 @@ BOUND, LEVELS_EXEMPT = 1.5, 3
 def residual_eta(scene: contact.Scene, result) -> float:
     """The residual estimator (docs/theory.md §5) of the same solve."""
     return estimate(
-        dataclasses.replace(scene, cfg={**scene.cfg, "estimator": "residual"}), result
+        dataclasses.replace(
+            scene, config=scene.config.model_copy(update={"estimator": "residual"})
+        ),
+        result,
     ).eta
 
 

@@ -40,7 +40,7 @@ def main() -> None:
         "configs/signorini_free_boundary.yaml",
         overrides=[f"adapt.max_dofs={args.max_dofs}", "adapt.max_levels=40"],
     )
-    exact, rows = scene.cfg["data"]["exact"], []
+    exact, rows = scene.config.data.exact, []
 
     def on_level(level: Level) -> None:
         u_h, k = level.result.u_h, level.result.problem.data["k"]

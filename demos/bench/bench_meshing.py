@@ -155,15 +155,15 @@ def options(dim: int, variant: str):
 def build(kind: str, h_contact: float):
     """The builder's mesh at ``h_contact`` (one process), the rest of the sizes from its scene."""
     cfg = load_config(ROOT / "configs" / KINDS[kind][0], QUIET + [f"mesh.h_contact={h_contact}"])
-    m = cfg["mesh"]
-    sizes = (m["h"], m["h_contact"], m["zone"])
+    m = cfg.mesh
+    sizes = (m.h, m.h_contact, m.zone)
     if kind == "sphere_on_block":
-        return geometry.sphere_on_block(MPI.COMM_SELF, m["radius"], m["block"], *sizes)[0]
+        return geometry.sphere_on_block(MPI.COMM_SELF, m.radius, m.block, *sizes)[0]
     if kind == "half_disks":
         return geometry.half_disks(
-            MPI.COMM_SELF, m["radius"], m["radius2"] or m["radius"], *sizes, m["overlap"] or 0.0
+            MPI.COMM_SELF, m.radius, m.radius2 or m.radius, *sizes, m.overlap or 0.0
         )[0]
-    return getattr(geometry, kind)(MPI.COMM_SELF, m["radius"], *sizes)[0]
+    return getattr(geometry, kind)(MPI.COMM_SELF, m.radius, *sizes)[0]
 
 
 def fingerprint(msh) -> str:

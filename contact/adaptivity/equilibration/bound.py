@@ -75,7 +75,9 @@ terms reported are Σ_T ‖k^{-1/2}(σ_h − k∇u_h)‖²_T ("flux"), Σ osc_T�
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import ufl
@@ -105,7 +107,7 @@ class Bound:
 
 def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
     """The inputs of :func:`reconstruct_flux` for a scalar scene: (data, multiplier, sign)."""
-    model = scene.cfg["model"]["type"]
+    model = scene.config.model.type
     if model not in ("signorini", "obstacle"):
         raise ValueError(
             f"estimator: equilibrated works for the scalar models, not model type {model!r}"
@@ -229,17 +231,17 @@ class _Lifting:
     """w of the module docstring: its gradient, λ̃ ↦ the DG0 form of B_T, and (obstacle) the
     DG0 form of the cross term X, or None."""
 
-    grad: object
-    complementarity: object
-    cross: object = None
+    grad: Any  # UFL
+    complementarity: Callable[[Any], Any]
+    cross: Any = None
 
 
 def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lifting:
     u_h = result.u_h
     msh = scene.mesh
-    if scene.cfg["model"]["type"] == "obstacle":
+    if scene.config.model.type == "obstacle":
         psi = expressions.to_ufl(
-            scene.cfg["data"]["psi"], msh, scene.cfg["constants"], t=scene.t_constant
+            scene.config.data.psi, msh, scene.config.constants, t=scene.t_constant
         )
         f = result.problem.data["f"]
         s = sigma * (u_h - psi)
@@ -330,7 +332,7 @@ def _dirichlet(scene: Scene, result: Result, w_test, k) -> np.ndarray:
     u2 = fem.Function(V2)
     u2.interpolate(u_h)
     e_D.x.array[dofs] = (
-        interpolate_expression(V2, scene.cfg["data"]["u_D"], scene).x.array[dofs] - u2.x.array[dofs]
+        interpolate_expression(V2, scene.config.data.u_D, scene).x.array[dofs] - u2.x.array[dofs]
     )
     e_D.x.scatter_forward()
     dx = ufl.Measure("dx", domain=msh)

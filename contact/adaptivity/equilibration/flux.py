@@ -67,6 +67,7 @@ class Flux:
 
     @cached_property
     def sigma_cells(self) -> fem.Function:
+        assert self.cells is not None  # set by reconstruct_flux
         return self.cells()
 
     @property

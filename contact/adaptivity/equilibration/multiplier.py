@@ -59,9 +59,9 @@ def entity_rule(
     d: int, p: int, points: np.ndarray, w: np.ndarray, basis: np.ndarray, vertices: np.ndarray
 ) -> EntityRule:
     lag = basix.create_element(basix.ElementFamily.P, CELLS[d], p, basix.LagrangeVariant.gll_warped)
-    phi = lag.tabulate(0, points)[0, :, :, 0]
+    phi = np.asarray(lag.tabulate(0, points))[0, :, :, 0]
     lam = np.column_stack([1.0 - points.sum(axis=1), points])
-    nodes = lag.points
+    nodes = np.asarray(lag.points)
     hat = np.column_stack([1.0 - nodes.sum(axis=1), nodes])
     edges = []
     if p == 2:

@@ -237,7 +237,7 @@ def _data_tables(r: Reference, nu: int) -> dict:
         basix.ElementFamily.P, CELLS[r.d], r.p, basix.LagrangeVariant.gll_warped
     )
     assert lag.dim == nu
-    dphi_u = np.moveaxis(lag.tabulate(1, r.X)[1:, :, :, 0], 0, -1)  # (nq, nu, d)
+    dphi_u = np.moveaxis(np.asarray(lag.tabulate(1, r.X))[1:, :, :, 0], 0, -1)  # (nq, nu, d)
     phiZ = np.einsum("qmd,mz->qzd", r.phi, r.Z)
     return {
         "dphi_u": dphi_u,

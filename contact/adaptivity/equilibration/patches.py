@@ -87,14 +87,14 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     _, gv = np.unique(table.gvert[prow], return_inverse=True)  # compact ids
     gv = gv.reshape(npair, D).astype(np.int64)
     nv = int(gv.max()) + 1 if npair else 1
-    keys = []
+    spoke_keys = []
     for s in range(ref.d):
         others = np.sort(np.stack([gv[ar, v] for v in _others(ploc, sf[:, s], D)], axis=1), axis=1)
         key = patch.astype(np.int64)
         for col in others.T:
             key = key * nv + col
-        keys.append(key)
-    keys = np.concatenate(keys)  # (npair*d,)
+        spoke_keys.append(key)
+    keys = np.concatenate(spoke_keys)  # (npair*d,)
     kinds = np.concatenate([table.kind[prow, sf[:, s]] for s in range(ref.d)])
     ukeys, first_of, spoke = np.unique(keys, return_index=True, return_inverse=True)
     spoke = spoke.reshape(ref.d, npair).T  # (npair, d)
@@ -161,12 +161,12 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
         pl = pair_local[sel]
         got = sol[where[patch[sel]][:, None], np.maximum(pl, 0)]
         mu_s[sel] = np.where(pl[..., None] >= 0, got, 0.0)
-    mu_s = mu_s.reshape(npair, -1)
+    mu_flat = mu_s.reshape(npair, -1)
     mu_o = np.einsum(
-        "nab,nb->na", Soo_inv, h[ar[:, None], I_o] - np.einsum("nba,nb->na", Sso, mu_s)
+        "nab,nb->na", Soo_inv, h[ar[:, None], I_o] - np.einsum("nba,nb->na", Sso, mu_flat)
     )
     mu = np.zeros((npair, D * nf))
-    mu[ar[:, None], I_s] = mu_s
+    mu[ar[:, None], I_s] = mu_flat
     mu[ar[:, None], I_o] = mu_o
     rhs_g = (
         ZTg - np.einsum("nab,nb->na", ops.ZMR[inv], beta) - np.einsum("nka,nk->na", ops.OZ[inv], mu)

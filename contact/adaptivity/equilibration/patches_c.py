@@ -73,7 +73,7 @@ def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: 
     """The shares of λ̃_h the patches carry: ``src`` (n, D, np) per reference measure for the
     obstacle; ``cidx`` (n,) and ``cmom`` (rows with a contact facet, D facets, D, nf) for
     Signorini; None where absent."""
-    out = {"src": None, "cidx": None, "cmom": None}
+    out: dict[str, np.ndarray | None] = {"src": None, "cidx": None, "cmom": None}
     if multiplier is None:
         return out
     if multiplier == "cells":

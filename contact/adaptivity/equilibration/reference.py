@@ -77,30 +77,30 @@ def quadrature_degree(p: int) -> int:
 def reference(d: int, p: int) -> Reference:
     cell, facet = CELLS[d], FACETS[d]
     deg = quadrature_degree(p)
-    X, w = basix.make_quadrature(cell, deg)
-    S, wS = basix.make_quadrature(facet, deg)
-    verts = basix.geometry(cell)
+    X, w = (np.asarray(a) for a in basix.make_quadrature(cell, deg))
+    S, wS = (np.asarray(a) for a in basix.make_quadrature(facet, deg))
+    verts = np.asarray(basix.geometry(cell))
     facets = basix.topology(cell)[d - 1]  # facet j: the sorted vertices other than j
     bary_S = np.column_stack([1.0 - S.sum(axis=1), S])  # (nqf, d): barycentrics on the facet
     XF = np.array([bary_S @ verts[f] for f in facets])  # (d + 1, nqf, d)
-    normals = basix.cell.facet_outward_normals(cell)
+    normals = np.asarray(basix.cell.facet_outward_normals(cell))
     facet_area = np.array([_simplex_volume(verts[f]) for f in facets]) / _simplex_volume(
         basix.geometry(facet)
     )
 
     rt = basix.create_element(basix.ElementFamily.RT, cell, p + 1, basix.LagrangeVariant.legendre)
-    tab = rt.tabulate(1, X)  # (1 + d, nq, m, d)
+    tab = np.asarray(rt.tabulate(1, X))  # (1 + d, nq, m, d)
     phi = tab[0]
     div = sum(tab[1 + i][:, :, i] for i in range(d))  # (nq, m)
-    Q = basix.tabulate_polynomials(basix.PolynomialType.legendre, cell, p, X)  # (np, nq)
-    q = basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S)  # (nf, nqf)
+    Q = np.asarray(basix.tabulate_polynomials(basix.PolynomialType.legendre, cell, p, X))
+    q = np.asarray(basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S))
     B = np.einsum("q,jq,ql->jl", w, Q, div)
     R = np.linalg.pinv(B)  # B R = I (B has full row rank)
     Z = _kernel(B)
     mass = np.einsum("q,qli,qmj->ijlm", w, phi, phi)
     N = np.empty((d + 1, q.shape[0], phi.shape[1]))
     for j in range(d + 1):
-        vals = rt.tabulate(0, XF[j])[0] @ normals[j]  # (nqf, m)
+        vals = np.asarray(rt.tabulate(0, XF[j]))[0] @ normals[j]  # (nqf, m)
         N[j] = facet_area[j] * np.einsum("q,kq,ql->kl", wS, q, vals)
     lam = _barycentric(X)
     lamF = np.array([_barycentric(XF[j]) for j in range(d + 1)])
@@ -152,10 +152,12 @@ def _facet_permutation(facet, S, wS, bary_S, pi, p) -> np.ndarray:
     """P[k, l] = ∫ q̂_k(ŝ) q̂_l(ŝ') dŝ, where ŝ' is the same point in the facet coordinates of
     the vertices reordered so that local vertex r sits at position pi[r]: the local basis
     function q̂_k is Σ_l P[k, l] (q̂_l in the global order) (P is orthogonal)."""
-    ref = basix.geometry(facet)  # (d, d - 1) vertices of the facet simplex
+    ref = np.asarray(basix.geometry(facet))  # (d, d - 1) vertices of the facet simplex
     bary_global = np.empty_like(bary_S)
     bary_global[:, list(pi)] = bary_S
     S_global = bary_global @ ref
-    q_loc = basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S)
-    q_glob = basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S_global)
+    q_loc = np.asarray(basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S))
+    q_glob = np.asarray(
+        basix.tabulate_polynomials(basix.PolynomialType.legendre, facet, p, S_global)
+    )
     return np.einsum("q,kq,lq->kl", wS, q_loc, q_glob)
