@@ -12,7 +12,8 @@ compares the best run of each.
 Prints each mode's CPU seconds (min / median / max over the runs) and a verdict against the
 acceptance (≥ 2× fewer Krylov iterations, less wall time, final errors within 5 %);
 ``--modes fixed adaptive adaptive_sa`` also runs adaptive stopping with smoothed-aggregation
-GAMG, its preconditioner before it took plain aggregation.  Writes ``stopping.csv`` (one row per run) and
+GAMG, its preconditioner before it took plain aggregation.  Writes ``stopping.csv`` (one
+row per run) and
 ``stopping_levels.csv`` (one row per level: η_disc, η_lin, η_alg, Krylov iterations).
 
     python demos/bench/bench_stopping.py --tol 2e-3 --out demos/results/stopping
