@@ -26,6 +26,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    and on 2 ranks) the 2D floor of the finest level: refinement, ``create_mesh`` and
    assembly against one CG + GAMG solve;
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
+   ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
+   ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
+   the two estimators, adaptive stopping (issue 30, RESULTS §11; about 40 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -214,6 +217,54 @@ STEPS = {
             ]
         )
         for n in (0, 1, 2)
+    ],
+    # RESULTS §11: both estimators per level, the reconstruction's cost, the tolerance each
+    # estimator certifies at what cost, adaptive stopping
+    "bounds": [
+        [PY, "demos/bench/bench_equilibrated.py", "--out", "demos/results/equilibrated"],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_equilibrated.py",
+            "--out",
+            "demos/results/equilibrated",
+        ],
+        *(
+            [
+                PY,
+                "demos/bench/bench_equilibrated.py",
+                *size,
+                "--backends",
+                "compiled",
+                "--out",
+                "demos/results/equilibrated",
+            ]
+            for size in (["--cost", "720"], ["--cost3d", "63"])
+        ),
+        [PY, "demos/bench/bench_estimators.py", "--out", "demos/results/equilibrated"],
+        [
+            PY,
+            "demos/bench/bench_stopping.py",
+            "--tol",
+            "2e-3",
+            "--repeat",
+            "3",
+            "--out",
+            "demos/results/stopping",
+        ],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_stopping.py",
+            "--tol",
+            "2e-3",
+            "--out",
+            "demos/results/stopping",
+        ],
     ],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
