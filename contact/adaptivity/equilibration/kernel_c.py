@@ -216,6 +216,8 @@ static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double 
   double rest = l2_rest(f, r->w, r->Q, NQ, NP);
   double osc = h / PI_ * sqrt(fmax(absdet * rest, 0.0));
   for (int j = 0; j < NV; ++j) {
+    int kind = t->kind[c * NV + j];
+    if (kind != FLUX && kind != CONTACT) continue;   /* no data there: t = 0 in the table */
     const double *tj = t->t + (c * NV + j) * NQF;
     double tr = l2_rest(tj, r->wS, r->q, NQF, NF);
     double area = size[j][lane] / fact1, norm = sqrt(size[j][lane] * tr);
