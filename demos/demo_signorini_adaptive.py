@@ -57,6 +57,9 @@ scene = contact.load_scene(
         "model": "signorini",
         "data": {"f": "0", "g": "0", "u_D": exact, "exact": exact},
         "solver": {"method": "min"},
+        # the residual estimator of docs/theory.md §5 (the scalar models' default is the
+        # guaranteed bound of §9: demos/demo_guaranteed_bound.py shows it)
+        "estimator": "residual",
         "output": {"verbose": False},
     }
 )

@@ -30,6 +30,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
    the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls (about
    15 minutes);
+   ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
+   ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
+   the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -228,6 +231,54 @@ STEPS = {
             ["refinement", "--levels", "5"],
             ["refinement", "--top", "symmetry"],
         )
+    ],
+    # RESULTS §12: both estimators per level, the reconstruction's cost, the tolerance each
+    # estimator certifies at what cost, adaptive stopping
+    "bounds": [
+        [PY, "demos/bench/bench_equilibrated.py", "--out", "demos/results/equilibrated"],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_equilibrated.py",
+            "--out",
+            "demos/results/equilibrated",
+        ],
+        *(
+            [
+                PY,
+                "demos/bench/bench_equilibrated.py",
+                *size,
+                "--backends",
+                "compiled",
+                "--out",
+                "demos/results/equilibrated",
+            ]
+            for size in (["--cost", "720"], ["--cost3d", "63"])
+        ),
+        [PY, "demos/bench/bench_estimators.py", "--out", "demos/results/equilibrated"],
+        [
+            PY,
+            "demos/bench/bench_stopping.py",
+            "--tol",
+            "2e-3",
+            "--repeat",
+            "3",
+            "--out",
+            "demos/results/stopping",
+        ],
+        [
+            MPIRUN,
+            "-n",
+            "2",
+            PY,
+            "demos/bench/bench_stopping.py",
+            "--tol",
+            "2e-3",
+            "--out",
+            "demos/results/stopping",
+        ],
     ],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]

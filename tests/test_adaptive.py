@@ -132,6 +132,8 @@ def test_cli_writes_adaptive_folder(tmp_path):
             "adapt.max_levels=4",
             "--set",
             "adapt.pictures=2",
+            "--set",
+            "estimator=residual",  # its terms are the eta2_ columns asserted below
         ],
         cwd=ROOT,
         capture_output=True,

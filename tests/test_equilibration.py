@@ -8,9 +8,10 @@
 2. The bound η ≥ the energy error against the exact solution on problems A, C (P1, P2), D
    and PETSc ex9's obstacle, with effectivity ≤ 1.6 already on coarse meshes; η ≥ error
    also when the sign-changing P2 multiplier or an infeasible u_h is in play.
-3. ``estimator: equilibrated`` dispatches (and the residual stays the default), is refused for
-   hyperelastic bodies with a one-line error (linear elasticity:
-   tests/test_elastic_equilibration.py), and gives the same η on 2 ranks as on 1.
+3. ``estimator: equilibrated`` dispatches (``auto``, the default, picks it for the scalar
+   models and the residual estimator for elasticity), is refused for hyperelastic bodies
+   with a one-line error (linear elasticity: tests/test_elastic_equilibration.py), and
+   gives the same η on 2 ranks as on 1.
 """
 
 from __future__ import annotations
@@ -191,17 +192,27 @@ def test_estimator_key() -> None:
         },
         "model": "signorini",
     }
-    assert contact.load_scene(base).config.estimator == "residual"
+    # the default (auto): the guaranteed bound for the scalar models, residual for elasticity
+    assert contact.load_scene(base).config.estimator == "equilibrated"
+    obstacle = {
+        **base,
+        "boundaries": {"all": {"role": "dirichlet", "where": "x > -1"}},
+        "model": {"type": "obstacle"},
+        "data": {"psi": "1"},
+    }
+    assert contact.load_scene(obstacle).config.estimator == "equilibrated"
+    assert contact.load_scene({**base, "estimator": "residual"}).config.estimator == "residual"
     with pytest.raises(
-        ConfigError, match=r"^estimator: 'fancy' is not one of residual, equilibrated$"
+        ConfigError, match=r"^estimator: 'fancy' is not one of auto, residual, equilibrated$"
     ):
         contact.load_scene({**base, "estimator": "fancy"})
     elastic = {
         **base,
         "model": {"type": "elasticity", "E": 1.0},
-        "estimator": "equilibrated",
         "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]},
     }
+    assert contact.load_scene(elastic).config.estimator == "residual"
+    elastic["estimator"] = "equilibrated"
     assert contact.load_scene(elastic).config.estimator == "equilibrated"  # issue 30 item 2
     with pytest.raises(
         ConfigError, match=r"^estimator: equilibrated is implemented for model types signorini"

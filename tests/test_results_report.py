@@ -36,9 +36,9 @@ def _demo_module(name: str):
 def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
-    # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, and §11's
-    # line search, strip, refinement, stability map at finite strain, predictor
-    assert text.count("*Not available:") == 18
+    # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, §11's line
+    # search, strip, refinement, stability map at finite strain, predictor, and §12 bounds
+    assert text.count("*Not available:") == 19
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -66,6 +66,51 @@ def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
     assert failed and all(
         f"| {r['case']} | {r['method']} | max iterations | 2 |" in section for r in failed
     )
+
+
+def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None:
+    """§12 (demos/bench/bench_equilibrated.py, bench_stopping.py): the effectivity ranges of
+    both estimators per problem, whether η ≥ error on every level, the cost rows and each
+    stopping mode's CPU spread come from the CSVs; the chart is drawn from them."""
+    eq = tmp_path / "res" / "equilibrated"
+    eq.mkdir(parents=True)
+    head = "problem,ranks,strategy,level,dofs,error,eta,effectivity,residual_effectivity"
+    lines = [head]
+    for level, (eff, res) in enumerate([(1.6, 4.0), (1.2, 3.5), (1.3, 3.6), (1.25, 3.4)]):
+        lines.append(f"A_P1,1,dorfler,{level},{100 * 2**level},1.0,{eff},{eff},{res}")
+    for level, (eff, res) in enumerate([(1.1, 9.0), (0.9, 9.5)]):  # a level below the error
+        lines.append(f"C_P2,1,dorfler,{level},{50 * 2**level},1.0,{eff},{eff},{res}")
+    (eq / "effectivity.csv").write_text("\n".join(lines) + "\n")
+    (eq / "cost.csv").write_text(
+        "dim,ranks,dofs,backend,reconstruction_cpu,solve_cpu,ratio_cpu,estimate_cpu,"
+        "estimate_ratio_cpu,residual_cpu,residual_ratio_cpu\n"
+        "2,1,1038961,compiled,2.9,3.0,0.97,7.2,2.4,0.9,0.3\n"
+    )
+    stop = tmp_path / "res" / "stopping"
+    stop.mkdir()
+    (stop / "stopping.csv").write_text(
+        "run,mode,tol,dofs,error,krylov_iterations,cpu_solve,cpu\n"
+        "0,fixed,0.002,413467,0.00155,251,3.6,15.9\n"
+        "0,adaptive,0.002,447055,0.00149,48,2.1,14.1\n"
+        "1,fixed,0.002,413467,0.00155,251,3.5,15.5\n"
+        "1,adaptive,0.002,447055,0.00149,48,2.2,14.6\n"
+    )
+    (eq / "estimators.csv").write_text(
+        "run,scene,estimator,tol,levels,dofs,eta,error,effectivity,cpu\n"
+        "0,a.yaml,residual,0.004,18,1230966,0.0034,0.00094,3.57,54.6\n"
+        "0,a.yaml,equilibrated,0.004,13,93637,0.0037,0.0033,1.13,4.3\n"
+    )
+    text = _report(tmp_path / "res", tmp_path / "R.md")
+    section = text.split("## 12.", 1)[1]
+    assert "stops on the equilibrated bound at 93637 DoFs (4.3 s CPU)" in section
+    assert "overstates the error 3.57×, refines on to 1230966 DoFs (54.6 s CPU)" in section
+    assert "| A_P1 | 1 | 4 | 800 | 1.2–1.6 | 1.25 | yes | 3.4–4 | 3.4 |" in section
+    assert "| C_P2 | 1 | 2 | 100 | 0.9–1.1 | – | no (levels [1]) | 9–9.5 | – |" in section
+    assert "the flux reconstruction 2.9 s = 0.97× (target 1×)" in section
+    assert "the residual estimate 0.9 s = 0.3×" in section
+    assert "| fixed | 2 | 251 | 3.5–3.6 | 15.5 / 15.7 / 15.9 | 413467 |" in section
+    assert "| adaptive | 2 | 48 | 2.1–2.2 | 14.1 / 14.3 / 14.6 | 447055 |" in section
+    assert (eq / "effectivity.png").stat().st_size > 0
 
 
 def test_design_measurements_are_in_the_report_and_out_of_the_docstrings() -> None:

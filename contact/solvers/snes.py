@@ -136,6 +136,11 @@ class SemismoothNewton:
         defaults = dict(CURVATURE_PETSC_OPTIONS) if energy else petsc_defaults(problem, self.linear)
         if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
             defaults["ksp_norm_type"] = "natural"
+            # a solve to γ_alg η_disc takes a few CG iterations (problem A: 3 a level), so GAMG's
+            # set-up is most of its cost: the plain aggregation of 3D (options.default_options)
+            # sets up in about half the time, and its few more iterations stay cheaper
+            # (demos/RESULTS.md §12)
+            defaults["pc_gamg_agg_nsmooths"] = 0
         self.petsc_options = {**defaults, **user}
         if check_options:
             check_petsc_options(options.petsc_options, defaults, comm)

@@ -35,12 +35,14 @@ DoFs), the reconstruction
 (:func:`contact.adaptivity.equilibration.reconstruct_flux`) with each patch
 solver (``--backends``: ``compiled``, the default C kernel, and ``numpy``, the reference;
 each after a warm-up call that compiles) against one CG + GAMG solve of the stiffness matrix K
-(rtol 1e-8 from zero, the loop's options) in the same process: wall and CPU seconds (the
+(rtol 1e-8 from zero, the loop's options) in the same process, all of them ``--repeat``
+times in turn (medians; ``ratio_cpu_min``: the fastest runs'): wall and CPU seconds (the
 machine is shared: CPU seconds are the steadier measure), the phases (gather: the cell data;
 patches: the patch problems; assemble: σ_h, λ̃_h and the DG0 fields) and the largest
 difference of σ_h between the backends, and the whole estimate (``estimate_*``:
 :func:`~contact.adaptivity.equilibration.bound.guaranteed_bound`, the feasible lifting and the
-terms besides the reconstruction); ``cost.csv`` / ``cost_3d.csv`` (``_np2`` on 2 ranks).
+terms besides the reconstruction) and the residual estimate (``residual_*``); ``cost.csv``
+/ ``cost_3d.csv`` (``_np2`` on 2 ranks).
 
     python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
@@ -211,9 +213,12 @@ def _timed(fn):
     return out, time.perf_counter() - t, time.process_time() - c
 
 
-def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
+def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
     """The reconstruction with each backend (after a warm-up call that compiles the data
-    expressions and the kernel) and one CG + GAMG solve of K, in this process."""
+    expressions and the kernel), the whole equilibrated estimate, the residual estimate and
+    one CG + GAMG solve of K (a new KSP each time: GAMG's set-up included), in this process,
+    ``repeat`` times in turn (a shared machine's load hits all of them); the medians and
+    their ratios to the solve's (``*_min``: the fastest run of each)."""
     comm = MPI.COMM_WORLD
     scene = cost_scene(n, dim)
     result = contact.solve(scene, verbose=False)
@@ -221,27 +226,49 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
     options = PETSc.Options()
     for key, value in {**default_options("gamg", dim, comm.size), "ksp_rtol": 1e-8}.items():
         options[f"eqcost_{key}"] = value
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOptionsPrefix("eqcost_")
-    ksp.setOperators(result.problem.K)
-    ksp.setFromOptions()
     x = result.problem.b.duplicate()
-    x.set(0.0)
-    _, sol_wall, sol_cpu = _timed(lambda: ksp.solve(result.problem.b, x))
-    sol_cpu = comm.allreduce(sol_cpu, op=MPI.MAX)
-    rows, etas = [], {}
+
+    def solve_K() -> int:
+        ksp = PETSc.KSP().create(comm)
+        ksp.setOptionsPrefix("eqcost_")
+        ksp.setOperators(result.problem.K)
+        ksp.setFromOptions()
+        x.set(0.0)
+        ksp.solve(result.problem.b, x)
+        its = ksp.getIterationNumber()
+        ksp.destroy()
+        return its
+
     for backend in backends:
         reconstruct_flux(data, multiplier, sign, backend=backend)  # warm-up (JIT)
-        flux, wall, cpu = _timed(
-            lambda b=backend: reconstruct_flux(data, multiplier, sign, backend=b)
-        )
-        cpu = comm.allreduce(cpu, op=MPI.MAX)
-        etas[backend] = flux
-        # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
-        _, bound_wall, bound_cpu = _timed(
-            lambda b=backend: guaranteed_bound(scene, result, backend=b)
-        )
-        bound_cpu = comm.allreduce(bound_cpu, op=MPI.MAX)
+    residual_eta(scene, result)
+    times: dict = {}
+
+    def timed(key: str, fn):
+        out, wall, cpu = _timed(fn)
+        times.setdefault(key, []).append((wall, comm.allreduce(cpu, op=MPI.MAX)))
+        return out
+
+    etas = {}
+    for _ in range(repeat):
+        its = timed("solve", solve_K)
+        timed("residual", lambda: residual_eta(scene, result))
+        for b in backends:
+            etas[b] = timed(b, lambda b=b: reconstruct_flux(data, multiplier, sign, backend=b))
+            # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
+            timed(f"estimate_{b}", lambda b=b: guaranteed_bound(scene, result, backend=b))
+
+    def med(key: str, j: int) -> float:
+        return float(np.median([t[j] for t in times[key]]))
+
+    def fastest(key: str) -> float:
+        return min(t[1] for t in times[key])
+
+    sol_wall, sol_cpu = med("solve", 0), med("solve", 1)
+    rows = []
+    for backend in backends:
+        wall, cpu = med(backend, 0), med(backend, 1)
+        flux = etas[backend]
         rows.append(
             {
                 "dim": dim,
@@ -249,16 +276,20 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
                 "dofs": result.dofs,
                 "cells": scene.mesh.topology.index_map(dim).size_global,
                 "backend": backend,
+                "repeat": repeat,
                 "reconstruction_wall": round(wall, 3),
                 "reconstruction_cpu": round(cpu, 3),
                 "solve_wall": round(sol_wall, 3),
                 "solve_cpu": round(sol_cpu, 3),
-                "cg_iterations": ksp.getIterationNumber(),
+                "cg_iterations": its,
                 "ratio_wall": round(wall / sol_wall, 2),
                 "ratio_cpu": round(cpu / sol_cpu, 2),
-                "estimate_wall": round(bound_wall, 3),
-                "estimate_cpu": round(bound_cpu, 3),
-                "estimate_ratio_cpu": round(bound_cpu / sol_cpu, 2),
+                "ratio_cpu_min": round(fastest(backend) / fastest("solve"), 2),
+                "estimate_wall": round(med(f"estimate_{backend}", 0), 3),
+                "estimate_cpu": round(med(f"estimate_{backend}", 1), 3),
+                "estimate_ratio_cpu": round(med(f"estimate_{backend}", 1) / sol_cpu, 2),
+                "residual_cpu": round(med("residual", 1), 3),
+                "residual_ratio_cpu": round(med("residual", 1) / sol_cpu, 2),
                 **{
                     f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
                     for k, v in flux.seconds.items()
@@ -275,9 +306,10 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
     if comm.rank == 0:
         r0 = rows[0]
         print(
-            f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s); "
-            f"one CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
-            f"({r0['cg_iterations']} iterations); CPU seconds of the phases:"
+            f"cost, {dim}D, {r0['dofs']} DoFs, {r0['cells']} cells, {comm.size} rank(s), "
+            f"medians of {repeat} runs in turn; one CG + GAMG solve of K: {sol_wall:.2f} s wall, "
+            f"{sol_cpu:.2f} s CPU ({r0['cg_iterations']} iterations); CPU seconds of the phases "
+            f"(the fastest runs' ratio: {', '.join(str(r['ratio_cpu_min']) for r in rows)}):"
         )
         head = (
             "backend",
@@ -289,6 +321,7 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
             "assemble",
             "estimate",
             "est/solve",
+            "residual",
         )
         print(f"{head[0]:9s}" + "".join(f" {h:>9s}" for h in head[1:]))
         for r in rows:
@@ -301,6 +334,7 @@ def cost(n: int, dim: int, backends: list[str]) -> list[dict]:
                 "seconds_assemble_cpu",
                 "estimate_cpu",
                 "estimate_ratio_cpu",
+                "residual_cpu",
             )
             print(f"{r['backend']:9s}" + "".join(f" {r[c]:9.2f}" for c in cols), flush=True)
     return rows
@@ -334,13 +368,14 @@ def main() -> None:
         choices=list(BACKENDS),
         help="the reconstruction backends to time (cost)",
     )
+    ap.add_argument("--repeat", type=int, default=3, help="cost: runs of each measurement, in turn")
     ap.add_argument("--out", default="demos/results/equilibrated")
     args = ap.parse_args()
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"
     if args.cost or args.cost3d:
         dim, n = (2, args.cost) if args.cost else (3, args.cost3d)
         name = f"cost{'' if dim == 2 else '_3d'}{suffix}.csv"
-        save_csv(Path(args.out) / name, cost(n, dim, args.backends))
+        save_csv(Path(args.out) / name, cost(n, dim, args.backends, args.repeat))
         return
     rows, verdicts = [], []
     for name in args.problems:

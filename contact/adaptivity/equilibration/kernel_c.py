@@ -8,41 +8,41 @@ The dimensions of the reference element are compile-time constants (one library 
     NU   dim P_p        M    dim RT_p     NP  dim P_p (div moments)    MZ  M − NP
     NF   dim P_p(F)     NPERM  d!        NLOOK  d^d (facet-permutation codes)
 
-``eq_cells`` computes, per cell row c, the operators the patch problems need (the work row
-of :data:`WORK_LAYOUT`) and osc_T; ``eq_patches`` solves the patch of every vertex of a
-global index range and adds σ_a|_T to alpha.  A patch system is ordered by reverse
-Cuthill–McKee and factorized by an envelope Cholesky (the spokes of a 3D patch couple
-only through the cells they share); a patch without a Dirichlet spoke has the constant
-multiplier as its kernel: one constant moment is pinned and the solution projected
-orthogonal to the kernel, which is the solution of the regularized system of
+``cell_block`` computes, for LB cells at once (SIMD lanes), the operators the patch problems
+need (a work row: :data:`WORK_LAYOUT`) and osc_T; ``eq_patches`` solves the patch of every
+vertex of a global index range and adds σ_a|_T to alpha.  The load Zᵀg_a is a table
+contraction where k is one constant and the target flux is k∇ of a function of the element
+of u_h, else a sum over the quadrature points.  A patch system is ordered by reverse
+Cuthill–McKee and factorized by Cholesky in batches of LB systems of one size (SIMD lanes:
+dense up to DENSE dofs, else in the union of the lanes' envelopes — the spokes of a 3D
+patch couple only through the cells they share); a patch without a Dirichlet spoke has
+the constant multiplier as its kernel: one constant moment is pinned and the solution
+projected orthogonal to the kernel, which is the solution of the regularized system of
 :mod:`.patches`.  Where the Cholesky meets a non-positive pivot the patch falls back to
 that regularized system and an LU factorization with partial pivoting.
 Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out of memory.
 """
 
-#: the per-cell work row of eq_cells, in this order (sizes in the macros above)
+#: the per-cell work row of cell_block, in this order (sizes in the macros of SOURCE): σ_h|_T
+#: = C − Z Ytᵀ Σ_a μ_a, then per vertex a (contiguous: what its patch reads) the condensed
+#: patch block Ŝ_a (packed lower triangle), its load b_a, and T_a, ho_a (μ_o = ho_a − T_a μ_s)
 WORK_LAYOUT = (
-    "S: DNF*DNF",
-    "OZ: DNF*MZ",
-    "MZinv: MZ*MZ",
-    "ZMR: MZ*NP",
-    "beta: NV*NP",
-    "ZTg: NV*MZ",
-    "h: NV*DNF",
-    "data: NV*NV*NF",
+    "Yt: DNF*MZ",
+    "C: M",
+    "per vertex a: Ŝ_a SYM, b_a SNF, T_a NF*SNF, ho_a NF",
 )
 
 CDEF = """
 typedef struct {
-  const double *w, *ZZ, *ZR, *NZ, *NR, *P, *ZG, *wlamQ, *wQ, *dphi, *dlam, *base, *R, *Z,
-               *kappa, *Q, *q, *wS;
+  const double *w, *ZZ, *ZR, *NZ, *NR, *P, *phiZ, *wlam, *DZG, *wlamQ, *wQ, *dphi, *dlam,
+               *base, *R, *Z, *kappa, *Q, *q, *wS;
   const int64_t *lookup;
   double wsum;
 } eq_ref;
 typedef struct {
   int64_t n;
   const int64_t *gvert;
-  const double *x, *U, *f, *k;
+  const double *x, *U, *Ut, *f, *k;   /* Ut: the target's coefficients (τ = k∇(Σ Ut φ)), or NULL */
   int64_t fstride, kstride;       /* NQ, or 0 where f or k is one row for all cells */
   const int8_t *kind;
   const double *t, *tau, *src;
@@ -70,15 +70,19 @@ enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
 
 /* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
    μ_o = ho_a − Ta_a μ_s) and the final map to alpha need: σ_h|_T = Σ_a σ_a|_T, σ_a|_T =
-   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C + G Σ_a μ_a with G = −Z M_Z⁻¹ (O Z)ᵀ and
-   C the rest, summed over the vertices a whose patches are solved here */
-#define W_G 0
-#define W_C (W_G + M * DNF)             /* right after G (cell_block stores them as one) */
-#define W_SHAT (W_C + M)
-#define W_B (W_SHAT + NV * SNF * SNF)
-#define W_TA (W_B + NV * SNF)
-#define W_HO (W_TA + NV * NF * SNF)
-#define W_SIZE (W_HO + NV * NF)
+   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C − Z Ytᵀ Σ_a μ_a with Yt = (O Z) M_Z⁻¹
+   and C the rest, summed over the vertices a whose patches are solved here */
+#define W_YT 0
+#define W_C (W_YT + DNF * MZ)
+#define SYM (SNF * (SNF + 1) / 2)      /* a packed symmetric SNF x SNF matrix */
+#define SYMIDX(i, j) ((i) >= (j) ? (i) * ((i) + 1) / 2 + (j) : (j) * ((j) + 1) / 2 + (i))
+/* per vertex a, contiguous (what its patch reads): Ŝ_a (packed lower triangle), b_a, T_a, ho_a */
+#define A_B SYM
+#define A_TA (A_B + SNF)
+#define A_HO (A_TA + NF * SNF)
+#define A_SIZE (A_HO + NF)
+#define W_A(a) (W_C + M + (a) * A_SIZE)
+#define W_SIZE W_A(NV)
 #define DENSE 24                        /* patch systems up to this size: no reordering */
 #define LB 8                            /* cells per block: the SIMD lanes of cell_block */
 #define LANES for (int b = 0; b < LB; ++b)
@@ -212,6 +216,8 @@ static double oscillation(const eq_ref *r, const eq_table *t, int64_t c, double 
   double rest = l2_rest(f, r->w, r->Q, NQ, NP);
   double osc = h / PI_ * sqrt(fmax(absdet * rest, 0.0));
   for (int j = 0; j < NV; ++j) {
+    int kind = t->kind[c * NV + j];
+    if (kind != FLUX && kind != CONTACT) continue;   /* no data there: t = 0 in the table */
     const double *tj = t->t + (c * NV + j) * NQF;
     double tr = l2_rest(tj, r->wS, r->q, NQF, NF);
     double area = size[j][lane] / fact1, norm = sqrt(size[j][lane] * tr);
@@ -398,31 +404,59 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
       LANES S[i * DNF + j][b] = S[j * DNF + i][b] = v[b];
     }
   /* the data at the points: ∇̂û, the load Zᵀg_a and the divergence moments */
-  double gu[NQ * DIM][LB], lhs[NQ * DIM][LB];
+  double gu[NQ * DIM][LB];
   for (int q = 0; q < NQ; ++q)
     for (int i = 0; i < DIM; ++i) {
       double v[LB] = {0.0};
       for (int u = 0; u < NU; ++u) LANES v[b] += Uc[u][b] * r->dphi[(q * NU + u) * DIM + i];
       LANES gu[q * DIM + i][b] = v[b];
     }
-  if (t->tau) {
-    double TAU[NQ * DIM][LB];
-    for (int qj = 0; qj < NQ * DIM; ++qj) LANES TAU[qj][b] = t->tau[cl[b] * NQ * DIM + qj];
-    for (int q = 0; q < NQ; ++q)
-      for (int i = 0; i < DIM; ++i) {
-        double v[LB] = {0.0};
-        for (int j = 0; j < DIM; ++j) LANES v[b] += J[j][i][b] * TAU[q * DIM + j][b];
-        LANES lhs[q * DIM + i][b] = v[b] / kT[b];
-      }
-  } else {
-    for (int q = 0; q < NQ; ++q)
-      for (int i = 0; i < DIM; ++i)
-        LANES lhs[q * DIM + i][b] = gu[q * DIM + i][b] * K[q][b] / kT[b];
-  }
+  /* Zᵀg_a = s ∫ ψ̂_a lhs·(φ̂ Z), lhs = Jᵀτ / k_T: where k is one constant and τ = k∇ of a
+     function of the element of u_h (u_h itself, or the coefficients Ut), lhs is the reference
+     gradient of those coefficients and Zᵀg_a = s Σ_u c_u DZG_u (exact); else at the points,
+     first over the components (y_q = lhs_q·(φ̂ Z)(x_q)), then over the points */
   double ZTg[NV * MZ][LB] = {{0.0}};
-  for (int qi = 0; qi < NQ * DIM; ++qi) {
-    const double *zg = r->ZG + qi * NV * MZ;
-    for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] += lhs[qi][b] * zg[az];
+  if (t->kstride == 0 && !t->tau) {
+    double Vc[NU][LB];
+    if (t->Ut) for (int u = 0; u < NU; ++u) LANES Vc[u][b] = t->Ut[cl[b] * NU + u];
+    else for (int u = 0; u < NU; ++u) LANES Vc[u][b] = Uc[u][b];
+    for (int u = 0; u < NU; ++u) {
+      const double *dz = r->DZG + u * NV * MZ;
+      for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] += Vc[u][b] * dz[az];
+    }
+  } else {
+    double lhs[NQ * DIM][LB];
+    if (t->tau) {
+      double TAU[NQ * DIM][LB];
+      for (int qj = 0; qj < NQ * DIM; ++qj) LANES TAU[qj][b] = t->tau[cl[b] * NQ * DIM + qj];
+      for (int q = 0; q < NQ; ++q)
+        for (int i = 0; i < DIM; ++i) {
+          double v[LB] = {0.0};
+          for (int j = 0; j < DIM; ++j) LANES v[b] += J[j][i][b] * TAU[q * DIM + j][b];
+          LANES lhs[q * DIM + i][b] = v[b] / kT[b];
+        }
+    } else {
+      for (int q = 0; q < NQ; ++q)
+        for (int i = 0; i < DIM; ++i) {
+          double v[LB] = {0.0};
+          if (t->Ut)
+            for (int u = 0; u < NU; ++u)
+              LANES v[b] += t->Ut[cl[b] * NU + u] * r->dphi[(q * NU + u) * DIM + i];
+          else LANES v[b] = gu[q * DIM + i][b];
+          LANES lhs[q * DIM + i][b] = v[b] * K[q][b] / kT[b];
+        }
+    }
+    for (int q = 0; q < NQ; ++q) {
+      double y[MZ][LB] = {{0.0}};
+      for (int i = 0; i < DIM; ++i) {
+        const double *pz = r->phiZ + (q * DIM + i) * MZ;
+        for (int z = 0; z < MZ; ++z) LANES y[z][b] += lhs[q * DIM + i][b] * pz[z];
+      }
+      for (int a = 0; a < NV; ++a) {
+        double wl = r->wlam[q * NV + a];
+        for (int z = 0; z < MZ; ++z) LANES ZTg[a * MZ + z][b] += wl * y[z][b];
+      }
+    }
   }
   for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] *= s[b];
   double KSd[DIM * NV][LB], R0[NV * NP][LB] = {{0.0}}, beta[NV * NP][LB];
@@ -535,11 +569,13 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     }
     for (int b = 0; b < nb; ++b) {
       double *row = rows[b];
-      for (int k = 0; k < SNF * SNF; ++k) row[W_SHAT + a * SNF * SNF + k] = Sh[k][b];
-      for (int i = 0; i < SNF; ++i) row[W_B + a * SNF + i] = bv[i][b];
+      double *sb = row + W_A(a);
+      for (int i = 0, k = 0; i < SNF; ++i)
+        for (int j = 0; j <= i; ++j) sb[k++] = Sh[i * SNF + j][b];
+      for (int i = 0; i < SNF; ++i) sb[SYM + i] = bv[i][b];
       for (int k = 0; k < NF; ++k)
-        for (int i = 0; i < SNF; ++i) row[W_TA + (a * NF + k) * SNF + i] = T[i * NF + k][b];
-      for (int k = 0; k < NF; ++k) row[W_HO + a * NF + k] = ho[k][b];
+        for (int i = 0; i < SNF; ++i) sb[A_TA + k * SNF + i] = T[i * NF + k][b];
+      for (int k = 0; k < NF; ++k) sb[A_HO + k] = ho[k][b];
     }
   }
   /* C = R Σ_a β_a + Z M_Z⁻¹ (Σ_a Zᵀg_a − ZMR Σ_a β_a) over the vertices solved here */
@@ -557,25 +593,16 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int y = 0; y < MZ; ++y) LANES v[b] += MZi[(z * MZ + y) * LB + b] * Gs[y][b];
     LANES gam[z][b] = v[b];
   }
-  double ZM[MZ][LB], GC[M * DNF + M][LB];     /* G then C, the layout of the work row */
+  double C[M][LB];
   for (int l = 0; l < M; ++l) {
-    LANES GC[M * DNF + l][b] = 0.0;
-    for (int j = 0; j < NP; ++j) LANES GC[M * DNF + l][b] += r->R[l * NP + j] * Bs[j][b];
-    for (int z = 0; z < MZ; ++z) LANES GC[M * DNF + l][b] += r->Z[l * MZ + z] * gam[z][b];
-    /* G_l = −(Z M_Z⁻¹)_l (O Z)ᵀ */
-    for (int z = 0; z < MZ; ++z) {
-      double u[LB] = {0.0};
-      for (int y = 0; y < MZ; ++y) LANES u[b] += r->Z[l * MZ + y] * MZi[(y * MZ + z) * LB + b];
-      LANES ZM[z][b] = u[b];
-    }
-    for (int i = 0; i < DNF; ++i) {
-      double u[LB] = {0.0};
-      for (int z = 0; z < MZ; ++z) LANES u[b] -= ZM[z][b] * OZ[i * MZ + z][b];
-      LANES GC[l * DNF + i][b] = u[b];
-    }
+    LANES C[l][b] = 0.0;
+    for (int j = 0; j < NP; ++j) LANES C[l][b] += r->R[l * NP + j] * Bs[j][b];
+    for (int z = 0; z < MZ; ++z) LANES C[l][b] += r->Z[l * MZ + z] * gam[z][b];
   }
-  for (int b = 0; b < nb; ++b)
-    for (int k = 0; k < M * DNF + M; ++k) rows[b][W_G + k] = GC[k][b];
+  for (int b = 0; b < nb; ++b) {
+    for (int k = 0; k < DNF * MZ; ++k) rows[b][W_YT + k] = Yt[k][b];
+    for (int l = 0; l < M; ++l) rows[b][W_C + l] = C[l][b];
+  }
   for (int b = 0; b < nb; ++b) osc[b] = oscillation(r, t, cl[b], absdet[b], size, b);
   return 0;
 }
@@ -622,14 +649,19 @@ typedef struct {
   spoke_t *raw;
   int *unknown;                   /* per spoke: position of its first dof / NF, or -1 */
   int *adj, *deg, *pos, *queue, *first;
-  double *A, *rhs, *dinv;
+  double *A, *rhs;
   const double *work;             /* the operators of the live cells, one row each */
   double *acc;                    /* per work row: Σ μ_a over its cell's pairs solved so far */
   const int64_t *slot;            /* table row -> its work row, or -1 */
   int *left;                      /* per work row: its cell's pairs not yet solved */
   int64_t *freel, nfree;          /* the work rows free for reuse */
   int *map;                       /* (np, DIM): the dof of each pair's spokes, or -1 */
-  double *alpha;
+  double *alpha, *defect;
+  const eq_ref *r;
+  struct batch_s **big;           /* per dim > DENSE: the open batch of that size, or NULL */
+  double *P, *dinvl, *mu;         /* big batches: the packed lanes, 1 / L_ii, one lane's μ */
+  int64_t Pcap, *off;
+  int *fu;
 } scratch_t;
 
 #define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
@@ -724,6 +756,7 @@ static void rcm(scratch_t *w)
   for (int x = 0; x < tail; ++x) w->pos[queue[x]] = tail - 1 - x;
 }
 
+/* the patch system: rhs and A (dense: the whole matrix; else its lower envelope) */
 static void assemble(scratch_t *w, int dense)
 {
   int dim = w->dim;
@@ -734,8 +767,8 @@ static void assemble(scratch_t *w, int dense)
       memset(A + i * dim + w->first[i], 0, sizeof(double) * (i + 1 - w->first[i]));
   memset(rhs, 0, sizeof(double) * dim);
   for (int p = 0; p < w->np; ++p) {
-    const double *cw = CELL_WORK(w, w->prow[p]), *Shat = cw + W_SHAT + w->ploc[p] * SNF * SNF;
-    const double *b = cw + W_B + w->ploc[p] * SNF;
+    const double *Shat = CELL_WORK(w, w->prow[p]) + W_A(w->ploc[p]);
+    const double *b = Shat + A_B;
     int row[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
       int u = w->spoke[p * DIM + s1];
@@ -746,62 +779,32 @@ static void assemble(scratch_t *w, int dense)
       rhs[row[i]] += b[i];
       for (int j = 0; j < SNF; ++j)
         if (row[j] >= 0 && (dense || row[j] <= row[i]))
-          A[row[i] * dim + row[j]] += Shat[i * SNF + j];
+          A[row[i] * dim + row[j]] += Shat[SYMIDX(i, j)];
     }
   }
 }
 
-/* Σ_k a_k b_k with four partial sums (the compiler keeps one chain of dependent adds
-   otherwise, four times slower) */
-static inline double dot(const double *restrict a, const double *restrict b, int n)
+/* alpha[c] += C − Z Ytᵀ Σ_a μ_a */
+static void finish_cell(const eq_ref *r, const double *cw, const double *msum, double *al)
 {
-  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
-  int k = 0;
-  for (; k + 4 <= n; k += 4) {
-    s0 += a[k] * b[k];
-    s1 += a[k + 1] * b[k + 1];
-    s2 += a[k + 2] * b[k + 2];
-    s3 += a[k + 3] * b[k + 3];
-  }
-  for (; k < n; ++k) s0 += a[k] * b[k];
-  return (s0 + s1) + (s2 + s3);
-}
-
-/* envelope Cholesky of the lower triangle and solve, in place; 1 on a non-positive pivot
-   (dinv: scratch for the reciprocals of the diagonal, one division per row) */
-static int envelope_solve(int n, double *A, const int *first, double *x, double *dinv)
-{
-  for (int i = 0; i < n; ++i) {
-    double *Ai = A + i * n;
-    for (int j = first[i]; j < i; ++j) {
-      const double *Aj = A + j * n;
-      double s = Ai[j];
-      int k0 = first[i] > first[j] ? first[i] : first[j];
-      s -= dot(Ai + k0, Aj + k0, j - k0);
-      Ai[j] = s * dinv[j];
-    }
-    double s = Ai[i] - dot(Ai + first[i], Ai + first[i], i - first[i]);
-    if (!(s > 0.0)) return 1;
-    dinv[i] = 1.0 / sqrt(s);
-  }
-  for (int i = 0; i < n; ++i)
-    x[i] = (x[i] - dot(A + i * n + first[i], x + first[i], i - first[i])) * dinv[i];
-  for (int i = n - 1; i >= 0; --i) {
-    x[i] *= dinv[i];
-    for (int k = first[i]; k < i; ++k) x[k] -= A[i * n + k] * x[i];
-  }
-  return 0;
-}
-
-/* alpha[c] += C + G Σ_a μ_a */
-static void finish_cell(const double *cw, const double *msum, double *al)
-{
-  const double *G = cw + W_G;
+  const double *Yt = cw + W_YT;
+  double g[MZ] = {0.0};
+  for (int i = 0; i < DNF; ++i)
+    for (int z = 0; z < MZ; ++z) g[z] += Yt[i * MZ + z] * msum[i];
   for (int l = 0; l < M; ++l) {
     double v = cw[W_C + l];
-    for (int i = 0; i < DNF; ++i) v += G[l * DNF + i] * msum[i];
+    for (int z = 0; z < MZ; ++z) v -= r->Z[l * MZ + z] * g[z];
     al[l] += v;
   }
+}
+
+/* the pinned constant moment of a patch without a Dirichlet spoke: the largest constant
+   moment of block position 0 */
+static int pin_dof(const eq_ref *r)
+{
+  int pin = 0;
+  for (int k = 0; k < NF; ++k) if (fabs(r->kappa[k]) > fabs(r->kappa[pin])) pin = k;
+  return pin;
 }
 
 /* the dof of each pair's spokes in the patch system: map[p DIM + s] = pos NF, or -1 (Dirichlet) */
@@ -818,7 +821,7 @@ static void dof_map(scratch_t *w)
    its envelope), assemble the patch system, project out the balance defect and pin one
    constant moment of a patch without a Dirichlet spoke (its kernel).  w->dim = 0: nothing to
    solve. */
-static void setup_patch(const eq_ref *r, scratch_t *w, double *defect)
+static void setup_patch(const eq_ref *r, scratch_t *w, double *defect, int lanes)
 {
   int nu = 0;
   w->pure = 1;
@@ -852,18 +855,17 @@ static void setup_patch(const eq_ref *r, scratch_t *w, double *defect)
   }
   dof_map(w);
   if (dim == 0) return;
+  if (lanes && dim > DENSE) return;     /* flush_big assembles, projects and pins */
   assemble(w, 0);
   if (w->pure) {
     double kk = 0.0, bal = 0.0;
-    int pin = 0;                        /* the largest constant moment of block position 0 */
-    for (int k = 0; k < NF; ++k) {
-      kk += r->kappa[k] * r->kappa[k];
-      if (fabs(r->kappa[k]) > fabs(r->kappa[pin])) pin = k;
-    }
+    int pin = pin_dof(r);
+    for (int k = 0; k < NF; ++k) kk += r->kappa[k] * r->kappa[k];
     kk *= nu;
     for (int i = 0; i < dim; ++i) bal += w->rhs[i] * r->kappa[i % NF];
     *defect += fabs(bal) / kk * sqrt(kk);
     for (int i = 0; i < dim; ++i) w->rhs[i] -= bal / kk * r->kappa[i % NF];
+    w->rhs[pin] = 0.0;
     for (int j = w->first[pin]; j < pin; ++j) w->A[pin * dim + j] = 0.0;
     for (int i = pin + 1; i < dim; ++i) if (w->first[i] <= pin) w->A[i * dim + pin] = 0.0;
     w->A[pin * dim + pin] = 1.0;
@@ -885,7 +887,7 @@ static void project_kernel(const eq_ref *r, int dim, double *x)
 static int regularized_solve(const eq_ref *r, scratch_t *w)
 {
   double ignore = 0.0;
-  setup_patch(r, w, &ignore);
+  setup_patch(r, w, &ignore, 0);
   int dim = w->dim;
   assemble(w, 1);
   if (w->pure) {
@@ -912,7 +914,7 @@ static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
     int64_t c = prow[p];
     int a = ploc[p];
     const double *cw = CELL_WORK(w, c);
-    const double *Ta = cw + W_TA + a * NF * SNF, *ho = cw + W_HO + a * NF;
+    const double *Ta = cw + W_A(a) + A_TA, *ho = cw + W_A(a) + A_HO;
     double m[DNF], mus[SNF];
     for (int s1 = 0; s1 < DIM; ++s1) {
       int d0 = map[p * DIM + s1];
@@ -930,22 +932,51 @@ static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
     double *acc = w->acc + i * ACC_SIZE;
     for (int k = 0; k < DNF; ++k) acc[k] += m[k];
     if (--w->left[i] == 0) {
-      finish_cell(cw, acc, w->alpha + c * M);
+      finish_cell(w->r, cw, acc, w->alpha + c * M);
       w->freel[w->nfree++] = i;
     }
   }
 }
 
-/* Patch systems of DENSE dofs or fewer are factorized LB at a time (the lanes of one size):
-   the Cholesky of a small system is a chain of dependent divisions and square roots, which
-   the lanes overlap. */
-typedef struct {
+/* Patch systems are factorized LB at a time (the lanes of one size): the Cholesky of a
+   small system is a chain of dependent divisions and square roots, which the lanes overlap,
+   and the inner products of a big one are vector operations across the lanes.  Systems of
+   DENSE dofs or fewer are dense; bigger ones keep the union of the lanes' envelopes. */
+typedef struct batch_s {
   int count, np[LB], pure[LB];
   const int64_t *prow[LB];
   const int *ploc[LB];
   int *map;                /* (LB, maxraw) */
-  double *A, *x;           /* [(i dim + j) LB + b], [i LB + b] */
+  int *first;              /* big: (LB, dim) the envelope of each lane */
+  double *A, *x;           /* small: [(i dim + j) LB + b]; [i LB + b] */
 } batch_t;
+
+/* μ of each lane from x (a lane whose Cholesky met a non-positive pivot: the regularized
+   system by LU), mapped back to its cells */
+static int finish_lanes(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, int dim,
+                        const double *x, const int *bad)
+{
+  int nraw = w->maxraw;
+  double *mu = w->mu;
+  for (int b = 0; b < bt->count; ++b) {
+    const int *map = bt->map + b * nraw;
+    if (bad[b]) {
+      w->np = bt->np[b];
+      w->prow = (int64_t *)bt->prow[b];
+      w->ploc = (int *)bt->ploc[b];
+      spokes(t, w);
+      if (regularized_solve(r, w)) return 2;
+      memcpy(mu, w->rhs, sizeof(double) * dim);
+      map = w->map;
+    } else {
+      for (int i = 0; i < dim; ++i) mu[i] = x[i * LB + b];
+      if (bt->pure[b]) project_kernel(r, dim, mu);
+    }
+    backsub(w, bt->np[b], bt->prow[b], bt->ploc[b], map, mu);
+  }
+  bt->count = 0;
+  return 0;
+}
 
 static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, int dim)
 {
@@ -975,59 +1006,168 @@ static int flush(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, 
     LANES x[i * LB + b] *= dinv[i][b];
     for (int k = 0; k < i; ++k) LANES x[k * LB + b] -= A[(i * dim + k) * LB + b] * x[i * LB + b];
   }
-  int nraw = w->maxraw;
-  for (int b = 0; b < bt->count; ++b) {
-    double mu[DENSE];
-    const int *map = bt->map + b * nraw;
-    if (bad[b]) {
-      w->np = bt->np[b];
-      w->prow = (int64_t *)bt->prow[b];
-      w->ploc = (int *)bt->ploc[b];
-      spokes(t, w);
-      if (regularized_solve(r, w)) return 2;
-      memcpy(mu, w->rhs, sizeof(double) * dim);
-      map = w->map;
-    } else {
-      for (int i = 0; i < dim; ++i) mu[i] = x[i * LB + b];
-      if (bt->pure[b]) project_kernel(r, dim, mu);
-    }
-    backsub(w, bt->np[b], bt->prow[b], bt->ploc[b], map, mu);
-  }
-  bt->count = 0;
-  return 0;
+  for (int b = bt->count; b < LB; ++b) bad[b] = 0;
+  return finish_lanes(r, t, w, bt, dim, x, bad);
 }
 
-/* the patch in w (spokes() done): batched if small, else the envelope Cholesky now */
+/* Σ_{k0 <= k < j} a[k LB + b] c[k LB + b] subtracted from v, two partial sums per lane */
+static inline void lanes_dot(double *restrict v, const double *restrict a,
+                             const double *restrict c, int k0, int j)
+{
+  double v1[LB] = {0.0};
+  int k = k0;
+  for (; k + 1 < j; k += 2)
+    LANES {
+      v[b] -= a[k * LB + b] * c[k * LB + b];
+      v1[b] -= a[(k + 1) * LB + b] * c[(k + 1) * LB + b];
+    }
+  if (k < j) LANES v[b] -= a[k * LB + b] * c[k * LB + b];
+  LANES v[b] += v1[b];
+}
+
+/* A big batch: the lanes' systems assembled into the union of their envelopes (entry (i, j),
+   fu[i] <= j <= i, of lane b at P[(off[i] + j − fu[i]) LB + b]; lanes past count are the
+   identity), pinned where pure (setup_patch), factorized by Cholesky and solved */
+static int flush_big(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *bt, int dim)
+{
+  int n = bt->count, *fu = w->fu;
+  if (n == 0) return 0;
+  int64_t *off = w->off;
+  for (int i = 0; i < dim; ++i) {
+    int f = i;
+    for (int b = 0; b < n; ++b) if (bt->first[b * dim + i] < f) f = bt->first[b * dim + i];
+    fu[i] = f;
+  }
+  off[0] = 0;
+  for (int i = 0; i < dim; ++i) off[i + 1] = off[i] + (i + 1 - fu[i]);
+  if (off[dim] > w->Pcap) {
+    double *P = realloc(w->P, sizeof(double) * off[dim] * LB);
+    if (!P) return 3;
+    w->P = P;
+    w->Pcap = off[dim];
+  }
+  double *P = w->P, *x = bt->x, *dinv = w->dinvl;
+  memset(P, 0, sizeof(double) * off[dim] * LB);
+  memset(x, 0, sizeof(double) * dim * LB);
+  for (int b = 0; b < LB; ++b) {
+    if (b >= n) {
+      for (int i = 0; i < dim; ++i) P[(off[i] + i - fu[i]) * LB + b] = 1.0;
+      continue;
+    }
+    const int *map = bt->map + b * w->maxraw;
+    for (int p = 0; p < bt->np[b]; ++p) {
+      const double *Shat = CELL_WORK(w, bt->prow[b][p]) + W_A(bt->ploc[b][p]);
+      int row[SNF];
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int d0 = map[p * DIM + s1];
+        for (int k = 0; k < NF; ++k) row[s1 * NF + k] = d0 < 0 ? -1 : d0 + k;
+      }
+      for (int i = 0; i < SNF; ++i) {
+        int ri = row[i];
+        if (ri < 0) continue;
+        x[ri * LB + b] += Shat[A_B + i];
+        double *Pi = P + (off[ri] - fu[ri]) * LB + b;
+        for (int j = 0; j < SNF; ++j)
+          if (row[j] >= 0 && row[j] <= ri) Pi[row[j] * LB] += Shat[SYMIDX(i, j)];
+      }
+    }
+    if (bt->pure[b]) {           /* setup_patch: the balance defect, the pinned moment */
+      int pin = pin_dof(r);
+      double kk = 0.0, bal = 0.0;
+      for (int k = 0; k < NF; ++k) kk += r->kappa[k] * r->kappa[k];
+      kk *= dim / NF;
+      for (int i = 0; i < dim; ++i) bal += x[i * LB + b] * r->kappa[i % NF];
+      *w->defect += fabs(bal) / kk * sqrt(kk);
+      for (int i = 0; i < dim; ++i) x[i * LB + b] -= bal / kk * r->kappa[i % NF];
+      x[pin * LB + b] = 0.0;
+      for (int j = fu[pin]; j < pin; ++j) P[(off[pin] + j - fu[pin]) * LB + b] = 0.0;
+      for (int i = pin + 1; i < dim; ++i)
+        if (fu[i] <= pin) P[(off[i] + pin - fu[i]) * LB + b] = 0.0;
+      P[(off[pin] + pin - fu[pin]) * LB + b] = 1.0;
+    }
+  }
+  int bad[LB] = {0};
+  for (int i = 0; i < dim; ++i) {
+    double *Pi = P + (off[i] - fu[i]) * LB;          /* Pi[j LB + b]: entry (i, j) */
+    for (int j = fu[i]; j < i; ++j) {
+      const double *Pj = P + (off[j] - fu[j]) * LB;
+      double v[LB];
+      LANES v[b] = Pi[j * LB + b];
+      lanes_dot(v, Pi, Pj, fu[i] > fu[j] ? fu[i] : fu[j], j);
+      LANES Pi[j * LB + b] = v[b] * dinv[j * LB + b];
+    }
+    double v[LB];
+    LANES v[b] = Pi[i * LB + b];
+    lanes_dot(v, Pi, Pi, fu[i], i);
+    LANES {
+      if (!(v[b] > 0.0)) { bad[b] = 1; v[b] = 1.0; }
+      dinv[i * LB + b] = 1.0 / sqrt(v[b]);
+    }
+  }
+  for (int i = 0; i < dim; ++i) {
+    const double *Pi = P + (off[i] - fu[i]) * LB;
+    double v[LB];
+    LANES v[b] = x[i * LB + b];
+    lanes_dot(v, Pi, x, fu[i], i);
+    LANES x[i * LB + b] = v[b] * dinv[i * LB + b];
+  }
+  for (int i = dim - 1; i >= 0; --i) {
+    const double *Pi = P + (off[i] - fu[i]) * LB;
+    LANES x[i * LB + b] *= dinv[i * LB + b];
+    for (int k = fu[i]; k < i; ++k) LANES x[k * LB + b] -= Pi[k * LB + b] * x[i * LB + b];
+  }
+  return finish_lanes(r, t, w, bt, dim, x, bad);
+}
+
+/* the open batch of big systems of size dim (made at first use), or NULL: out of memory */
+static batch_t *big_batch(scratch_t *w, int dim)
+{
+  if (w->big[dim]) return w->big[dim];
+  batch_t *bt = calloc(1, sizeof(batch_t));
+  if (!bt) return NULL;
+  bt->map = malloc(sizeof(int) * w->maxraw * LB);
+  bt->first = malloc(sizeof(int) * dim * LB);
+  bt->x = malloc(sizeof(double) * dim * LB);
+  if (!bt->map || !bt->first || !bt->x) {
+    free(bt->map); free(bt->first); free(bt->x); free(bt);
+    return NULL;
+  }
+  w->big[dim] = bt;
+  return bt;
+}
+
+/* the patch in w (spokes() done) joins the batch of its size, which is solved when full */
 static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t *batches,
                        double *defect)
 {
-  setup_patch(r, w, defect);
+  setup_patch(r, w, defect, 1);
   int dim = w->dim;
   if (dim == 0) {
     backsub(w, w->np, w->prow, w->ploc, w->map, w->rhs);
     return 0;
   }
-  if (dim <= DENSE) {
-    batch_t *bt = batches + dim;
-    int b = bt->count++;
+  batch_t *bt = dim <= DENSE ? batches + dim : big_batch(w, dim);
+  if (!bt) return 3;
+  int b = bt->count++;
+  if (dim <= DENSE)
     for (int i = 0; i < dim; ++i) {
       bt->x[i * LB + b] = w->rhs[i];
       for (int j = 0; j <= i; ++j) bt->A[(i * dim + j) * LB + b] = w->A[i * dim + j];
     }
-    bt->np[b] = w->np;
-    bt->prow[b] = w->prow;
-    bt->ploc[b] = w->ploc;
-    bt->pure[b] = w->pure;
-    memcpy(bt->map + b * w->maxraw, w->map, sizeof(int) * w->np * DIM);
-    return bt->count == LB ? flush(r, t, w, bt, dim) : 0;
-  }
-  if (envelope_solve(dim, w->A, w->first, w->rhs, w->dinv)) {
-    if (regularized_solve(r, w)) return 2;
-  } else if (w->pure) {
-    project_kernel(r, dim, w->rhs);
-  }
-  backsub(w, w->np, w->prow, w->ploc, w->map, w->rhs);
-  return 0;
+  else
+    memcpy(bt->first + b * dim, w->first, sizeof(int) * dim);
+  if (dim > DENSE)   /* flush_big and backsub read the pairs' blocks: start the loads now */
+    for (int p = 0; p < w->np; ++p) {
+      const char *sb = (const char *)(CELL_WORK(w, w->prow[p]) + W_A(w->ploc[p]));
+      for (int k = 0; k < (int)sizeof(double) * A_SIZE; k += 64) __builtin_prefetch(sb + k);
+    }
+  bt->np[b] = w->np;
+  bt->prow[b] = w->prow;
+  bt->ploc[b] = w->ploc;
+  bt->pure[b] = w->pure;
+  memcpy(bt->map + b * w->maxraw, w->map, sizeof(int) * w->np * DIM);
+  if (bt->count < LB) return 0;
+  return dim <= DENSE ? flush(r, t, w, bt, dim) : flush_big(r, t, w, bt, dim);
 }
 
 /* The patches of the vertices vlo <= g < vhi, in their order.  A cell's operators are
@@ -1077,11 +1217,19 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   w.first = malloc(sizeof(int) * maxdim + nraw);
   w.A = malloc(sizeof(double) * (size_t)maxdim * maxdim);
   w.rhs = malloc(sizeof(double) * maxdim);
-  w.dinv = malloc(sizeof(double) * maxdim);
   w.slot = slot;
   w.alpha = alpha;
   w.maxraw = nraw;
   w.map = malloc(sizeof(int) * nraw);
+  w.defect = stats;
+  w.r = r;
+  w.big = calloc(maxdim + 1, sizeof(batch_t *));
+  w.P = NULL;
+  w.Pcap = 0;
+  w.off = malloc(sizeof(int64_t) * (maxdim + 1));
+  w.fu = malloc(sizeof(int) * (maxdim + 1));
+  w.dinvl = malloc(sizeof(double) * (maxdim + 1) * LB);
+  w.mu = malloc(sizeof(double) * (maxdim + 1));
   batch_t batches[DENSE + 1];
   int ok = 1;
   for (int d = 0; d <= DENSE; ++d) {
@@ -1093,7 +1241,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   }
   ok &= prow && ploc && cur && slot && pend && w.work && w.acc && w.left && w.freel && w.spoke;
   ok &= w.keys && w.raw && w.order && w.unknown && w.adj && w.deg && w.pos && w.queue && w.first;
-  ok &= w.A && w.rhs && w.dinv && w.map;
+  ok &= w.A && w.rhs && w.map && w.big && w.off && w.fu && w.dinvl && w.mu;
   int err = ok ? 0 : 3;
   if (!err) {
     memcpy(cur, start, sizeof(int64_t) * nv);
@@ -1151,12 +1299,17 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
     err = solve_patch(r, t, &w, batches, stats);
   }
   for (int d = 1; d <= DENSE && !err; ++d) err = flush(r, t, &w, batches + d, d);
+  for (int d = DENSE + 1; d <= maxdim && !err; ++d)
+    if (w.big && w.big[d]) err = flush_big(r, t, &w, w.big[d], d);
   stats[2] = (double)used;
   for (int d = 0; d <= DENSE; ++d) { free(batches[d].map); free(batches[d].A); free(batches[d].x); }
   free(w.map);
+  for (int d = 0; w.big && d <= maxdim; ++d)
+    if (w.big[d]) { free(w.big[d]->map); free(w.big[d]->first); free(w.big[d]->x); free(w.big[d]); }
+  free(w.big); free(w.P); free(w.off); free(w.fu); free(w.dinvl); free(w.mu);
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj);
   free(w.deg);
-  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs); free(w.dinv);
+  free(w.pos); free(w.queue); free(w.first); free(w.A); free(w.rhs);
   free((void *)w.work); free(w.acc); free(w.left); free(w.freel);
   free(start); free(prow); free(ploc); free(cur); free(slot); free(pend);
   return err;

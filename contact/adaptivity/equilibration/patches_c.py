@@ -48,7 +48,9 @@ def _tables(d: int, p: int, nu: int) -> dict:
         "NZ": np.einsum("jkm,mz->jkz", r.N, r.Z),
         "NR": np.einsum("jkm,mz->jkz", r.N, r.R),
         "P": r.P,
-        "ZG": t["ZG"],
+        "phiZ": np.einsum("qmd,mz->qdz", r.phi, r.Z),
+        "wlam": r.w[:, None] * r.lam,
+        "DZG": np.einsum("qud,qdaz->uaz", t["dphi_u"], t["ZG"]),
         "wlamQ": t["wlamQ"],
         "wQ": t["wQ"],
         "dphi": t["dphi_u"],
@@ -124,6 +126,7 @@ def solve_patches_compiled(
     t.kind = ptr(table.kind.astype(np.int8, copy=False), "int8_t")
     for name in ("x", "U", "t"):
         setattr(t, name, ptr(getattr(table, name).astype(np.float64, copy=False)))
+    t.Ut = ffi.NULL
     for name in ("f", "k"):  # a constant is a stride-0 view (cells._at_points)
         a = getattr(table, name)
         constant = len(a) > 0 and a.strides[0] == 0
