@@ -63,9 +63,15 @@ def _cellwise(msh):
 
 
 def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """The terms as UFL forms linear in a DG0 test function (SPEC §5)."""
-    if scene.config.elastic:
-        return elasticity_terms(scene, result)
+    """The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar models
+    (:func:`scalar_terms`) or of elasticity (:func:`elasticity_terms`)."""
+    if not scene.config.elastic:
+        return scalar_terms(scene, result)
+    return elasticity_terms(scene, result)
+
+
+def scalar_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
+    """The terms of the scalar Signorini and obstacle problems (module doc)."""
     msh = scene.mesh
     p = result.problem
     u_h, lmbda_h = result.u_h, result.lmbda_h
@@ -118,10 +124,17 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     n_c = p.data.get("n_ufl")  # normal towards the obstacle
+    rho = friction_bound(p, lam) if result.friction is not None else None
     if "stresses" in p.data:  # a hyperelastic body: P(u_h), tractions per reference area
         sigma = p.data["stresses"](u_h)[0]
     else:
         sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
+    friction = None
+    if rho is not None:  # the solver's nodal λ_t,i and slip increments as P1 vectors
+        from ..solvers.friction import surface_functions
+
+        lam_t, slip = surface_functions(result)[:2]
+        friction = FrictionFields(lam_t, slip, rho)
     T = ufl.dot(sigma, n)  # traction σ(u_h) n
     terms = {
         "volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
@@ -140,14 +153,13 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
     for i in bnd.ids_with_role("natural"):
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
-    friction = (
-        friction_data(scene, result) if result.friction is not None and n_c is not None else None
-    )
     if n_c is not None:  # the rigid obstacle's contact parts
         Tn = ufl.dot(T, n_c)
         Tt = T - Tn * n_c
         if friction is not None:  # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
-            lam_t, rho, slip = friction
+            # the slip s_t = (I − n nᵀ)(u_h − u_prev) of the load step
+            du = u_h - scene.history["u_prev"] if "u_prev" in scene.history else u_h
+            lam_t, slip_t = friction.lam_t, du - ufl.dot(du, n_c) * n_c
             Tt = Tt - lam_t
             terms.update(friction_bound=zero, slip=zero)
         for i in bnd.ids_with_role("contact"):
@@ -161,29 +173,32 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
                 norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
                 terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)
                 terms["slip"] += (
-                    abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
+                    abs(rho * ufl.sqrt(ufl.inner(slip_t, slip_t)) + ufl.inner(lam_t, slip_t))
+                    * w
+                    * ds(i)
                 )
     if scene.config.pairs:  # several bodies: the interface terms on both sides of each pair
-        for key, form in interface_terms(scene, result, w, n, h_E, T).items():
+        for key, form in interface_terms(scene, result, w, n, h_E, T, friction).items():
             terms[key] = terms.get(key, zero) + form
     return terms
 
 
-def friction_data(scene: Scene, result: Result):
-    """UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on Γ_C: the tangential
-    multiplier λ_t (P1 vector of the nodal λ_t,i), the bound ρ (Tresca: the threshold
-    expression s(x, t); Coulomb: F·(−λ_n,h)⁺) and the slip s_t = (I − n nᵀ)(u_h − u_prev)."""
-    from ..solvers.friction import surface_functions
+@dataclass(frozen=True)
+class FrictionFields:
+    """UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on the contact
+    surfaces: the tangential multiplier λ_t and the solver's slip increment s_t (P1 vectors
+    of the nodal λ_t,i and s_t,i, :func:`contact.solvers.friction.surface_functions`) and
+    the bound ρ (Tresca: the threshold expression s(x, t); Coulomb: F·(−λ_n,h)⁺,
+    :func:`friction_bound`)."""
 
-    p = result.problem
-    lam_t = surface_functions(result)[0]
-    rho = friction_bound(p, result.lmbda_h)
-    n_c = p.data["n_ufl"]
-    du = result.u_h - scene.history["u_prev"] if "u_prev" in scene.history else result.u_h
-    return lam_t, rho, du - ufl.dot(du, n_c) * n_c
+    lam_t: fem.Function
+    slip: fem.Function
+    rho: ufl.core.expr.Expr
 
 
-def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl.Form]:
+def interface_terms(
+    scene: Scene, result: Result, w, n, h_E, T, friction: FrictionFields | None = None
+) -> dict[str, ufl.Form]:
     """Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on the
     slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
     with friction h_E ‖T_t − λ_t‖² and the terms ‖(|λ_t| − ρ)⁺‖², ∫ |ρ|s_t| + λ_t·s_t| of
@@ -191,7 +206,7 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
     (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
     like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
-    T_t = T − (T·n) n."""
+    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve."""
     from ..models.mortar import master_pressure, master_vector
 
     p = result.problem
@@ -210,19 +225,16 @@ def interface_terms(scene: Scene, result: Result, w, n, h_E, T) -> dict[str, ufl
     extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
     Tt_s, Tt_m = Tt, Tt
     # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
-    if result.friction is not None:
-        from ..solvers.friction import surface_functions
-
-        lam_t, slip = surface_functions(result)[:2]
+    if friction is not None:
+        lam_t, slip, rho = friction.lam_t, friction.slip, friction.rho
         Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
-        rho = friction_bound(p, lam)
         extra.update(friction_bound=zero, slip=zero)
     for i in slave_ids:
         extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
         extra["tangential"] += h_E * ufl.inner(Tt_s, Tt_s) * w * ds(i)
         extra["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
         extra["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
-        if result.friction is not None:  # Hild–Lleras: the bound and the slip's direction
+        if friction is not None:  # Hild–Lleras: the bound and the slip's direction
             extra["friction_bound"] += (
                 ufl.max_value(ufl.sqrt(ufl.inner(lam_t, lam_t)) - rho, 0) ** 2 * w * ds(i)
             )
