@@ -40,6 +40,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
@@ -313,6 +314,17 @@ def write_csv(
         writer = csv.DictWriter(fh, fieldnames=keys)
         writer.writeheader()
         writer.writerows(rows)
+
+
+def write_table(path: str | Path, table: Mapping[str, np.ndarray]) -> None:
+    """Named columns (a table of :mod:`contact.post.contact_table`) to CSV (call on the rank
+    that holds the table)."""
+    names = list(table)
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(names)
+        for row in zip(*(table[k].tolist() for k in names)):
+            writer.writerow(row)
 
 
 def _jsonable(obj: Any) -> Any:

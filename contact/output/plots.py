@@ -239,7 +239,7 @@ def solution_picture(
     active: fem.Function | None = None,
     title: str = "",
     lmbda: fem.Function | None = None,
-    normal: Sequence[float] | None = None,
+    normal: Sequence[float] | np.ndarray | None = None,
 ) -> Picture:
     """u_h (|u_h| for vectors) over the domain with the active contact nodes in red.
 
@@ -258,7 +258,7 @@ def plot_solution(
     active: fem.Function | None = None,
     title: str = "",
     lmbda: fem.Function | None = None,
-    normal: Sequence[float] | None = None,
+    normal: Sequence[float] | np.ndarray | None = None,
 ) -> None:
     """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
     draw_in_turn(
@@ -298,7 +298,7 @@ def mesh_picture(
     u_h: fem.Function,
     title: str = "",
     max_edges: int = MAX_EDGES,
-    normal: Sequence[float] | None = None,
+    normal: Sequence[float] | np.ndarray | None = None,
     active: fem.Function | None = None,
 ) -> Picture:
     """Two panels: the mesh (its edges, or the cell size log10 h_T on meshes of more than
@@ -315,7 +315,7 @@ def plot_mesh(
     u_h: fem.Function,
     title: str = "",
     max_edges: int = MAX_EDGES,
-    normal: Sequence[float] | None = None,
+    normal: Sequence[float] | np.ndarray | None = None,
     active: fem.Function | None = None,
 ) -> None:
     """mesh.png (:func:`mesh_picture`), drawn on rank 0 (collective)."""

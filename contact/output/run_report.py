@@ -26,6 +26,7 @@ from mpi4py import MPI
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
 from ..post.comparison import Comparison
+from ..post.contact_table import Table, contact_table, value_name, view_normal
 from ..post.reference import compare
 from ..post.resultants import current_pressure
 from ..setup.scene import Scene
@@ -191,46 +192,38 @@ def cell_fields(scene: Scene, result: Result) -> list:
     )
 
 
-def _view_normal(scene: Scene, result: Result):
-    """The direction 3D pictures look along (from the obstacle's side), None in 2D."""
-    if scene.mesh.geometry.dim != 3:
-        return None
-    from ..post.contact_table import contact_normal
-
-    return contact_normal(scene, result)
-
-
-def solution_picture(path: Path, scene: Scene, result: Result, title: str) -> plots.Picture:
-    """solution.png: u_h with the active set (3D: and the contact zone with λ_h)."""
+def solution_picture(
+    path: Path, result: Result, title: str, normal: np.ndarray | None
+) -> plots.Picture:
+    """solution.png: u_h with the active set (3D: and the contact zone with λ_h, seen along
+    ``normal``, :func:`contact.post.contact_table.view_normal`)."""
     return plots.solution_picture(
-        path,
-        result.u_h,
-        result.active,
-        title=title,
-        lmbda=result.lmbda_h,
-        normal=_view_normal(scene, result),
+        path, result.u_h, result.active, title=title, lmbda=result.lmbda_h, normal=normal
     )
 
 
 def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
     """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
-    plots.draw_in_turn([solution_picture(path, scene, result, title)], scene.comm)
+    picture = solution_picture(path, result, title, view_normal(scene, result))
+    plots.draw_in_turn([picture], scene.comm)
 
 
 def write_contact(
-    folder: Path, scene: Scene, result: Result, comparison: Comparison | None
+    out: Path,
+    scene: Scene,
+    result: Result,
+    comparison: Comparison | None,
+    table: Table | None,
 ) -> None:
-    """``contact.csv`` (:mod:`contact.post.contact_table`) and, for a contact boundary Γ_C (not an
-    obstacle in Ω), ``pressure.png`` (collective)."""
-    from ..post.contact_table import contact_table, value_name, write_table
-
-    table = contact_table(scene, result)
+    """``contact.csv``, the rows ``table`` of :func:`contact.post.contact_table.contact_table`
+    (gathered on rank 0, None on the others), and, for a contact boundary Γ_C (not an
+    obstacle in Ω), ``pressure.png``."""
     if table is None:  # not rank 0
         return
-    write_table(folder / "contact.csv", table)
+    folder.write_table(out / "contact.csv", table)
     if scene.config.output.png and not result.problem.in_domain:
         plots.plot_pressure(
-            folder / "pressure.png",
+            out / "pressure.png",
             table,
             value_name(scene),
             comparison,
@@ -258,7 +251,7 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
                 result,
                 title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)",
             )
-        write_contact(tmp, scene, result, comparison)
+        write_contact(tmp, scene, result, comparison, contact_table(scene, result))
         _finish(tmp, info, comm)
     return info
 
@@ -341,8 +334,16 @@ def write_adaptive(
     rows = adaptive.rows
     folder.write_csv(tmp / "convergence.csv", rows, comm)
     last = adaptive.levels[-1]
+    png = scene.config.output.png
+    shown = picture_levels(adaptive, scene.config.adapt.pictures if scene.config.adapt else 3)
+    # the final level's figures and the pictures' view directions (contact.post, collective)
+    # first, then the files
     res = resultants(last.scene, last.result)
     comparison = compare(last.scene, last.result)
+    table = contact_table(last.scene, last.result)
+    normals: dict[int, np.ndarray | None] = {}
+    for lv in (last, *shown) if png else ():
+        normals[lv.index] = view_normal(lv.scene, lv.result)
     info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
     if failure is None:  # a failed run's last line is its error
         warn_coarse_zone(last.scene, last.result)
@@ -367,26 +368,24 @@ def write_adaptive(
         [{"level": lv.index, **h} for lv in adaptive.levels for h in lv.result.history],
         comm,
     )
-    if scene.config.output.png:
+    if png:
         # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
         # together), the convergence chart last: on 2 ranks beside the first level's mesh
         pictures = [
             solution_picture(
                 tmp / "solution.png",
-                last.scene,
                 last.result,
-                title=f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)",
+                f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)",
+                normals[last.index],
             )
         ]
-        for lv in reversed(
-            picture_levels(adaptive, scene.config.adapt.pictures if scene.config.adapt else 3)
-        ):
+        for lv in reversed(shown):
             pictures.append(
                 plots.mesh_picture(
                     tmp / f"mesh_level_{lv.index}.png",
                     lv.result.u_h,
                     title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
-                    normal=_view_normal(lv.scene, lv.result),
+                    normal=normals[lv.index],
                     active=lv.result.active,
                 )
             )
@@ -397,7 +396,7 @@ def write_adaptive(
             )
         )
         plots.draw_in_turn(pictures, comm)
-    write_contact(tmp, last.scene, last.result, comparison)
+    write_contact(tmp, last.scene, last.result, comparison, table)
     _finish(tmp, info, comm)
     return info
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..adaptivity.estimate import estimate
 from ..drivers.load_path import LoadPath, Step
-from ..post.contact_table import Table, contact_table, tangent_2d, write_table
+from ..post.contact_table import Table, contact_table, tangent_2d
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
@@ -101,7 +101,7 @@ class StepWriter:
         self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
         self.tables.append((step.time, table))
         if table is not None:  # rank 0
-            write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
+            folder.write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
         if self.files.formats:
             nodal = point_fields(r)
             if r.friction is not None:
@@ -126,7 +126,7 @@ class StepWriter:
         comparison = compare(last.scene, r)
         if failure is None:  # a failed run's last line is its error
             warn_coarse_zone(last.scene, r)
-        write_contact(tmp, last.scene, r, comparison)
+        write_contact(tmp, last.scene, r, comparison, contact_table(last.scene, r))
         config = self.scene.config
         friction = config.friction.law if config.friction is not None else "none"
         its = [s["newton_iterations"] for s in self.rows]

@@ -27,13 +27,11 @@ the status separated / stick / slip, and w_i.  Their resultants are
 
 :func:`contact_columns` gives this rank's rows as named NumPy columns; a model with more
 data per contact node (friction: λ_t, slip, status) adds columns there.  :func:`gather`
-collects them on rank 0 with the arc length, :func:`write_table` writes any such table.
+collects them on rank 0 with the arc length; :func:`contact.output.folder.write_table` writes
+any such table.
 """
 
 from __future__ import annotations
-
-import csv
-from pathlib import Path
 
 import numpy as np
 import ufl
@@ -131,6 +129,12 @@ def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
     if p.in_domain:
         return None
     return np.asarray(p.data["n"], dtype=float) if "n" in p.data else _mean_normal(scene)
+
+
+def view_normal(scene: Scene, result: Result) -> np.ndarray | None:
+    """The direction the pictures of a 3D scene look along, from the obstacle's side:
+    :func:`contact_normal` (collective); None in 2D."""
+    return contact_normal(scene, result) if scene.mesh.geometry.dim == 3 else None
 
 
 def _mean_normal(scene: Scene) -> np.ndarray:
@@ -258,13 +262,3 @@ def arc_length(points: np.ndarray, segments: np.ndarray, digits: int = 9) -> np.
     mids = key(0.5 * (coords[vid[:, 0]] + coords[vid[:, 1]]))
     lookup.update(zip(mids, 0.5 * (s_vertex[vid[:, 0]] + s_vertex[vid[:, 1]])))
     return np.array([lookup.get(k, np.nan) for k in key(points)])
-
-
-def write_table(path: str | Path, table: Table) -> None:
-    """Named columns to CSV (call on the rank that holds the table)."""
-    names = list(table)
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(names)
-        for row in zip(*(table[k].tolist() for k in names)):
-            writer.writerow(row)
