@@ -17,7 +17,7 @@ from ..models.problem import interpolate_expression
 from ..setup.scene import Scene
 from ..solvers import ncp
 from ..solvers.problem import DiscreteProblem
-from ..solvers.result import Result
+from ..solvers.result import Result, not_unique_text
 from ..solvers.snes import check_guess, solve_problem
 from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
@@ -116,37 +116,16 @@ def solve(
     )
     result.sequence, result.sequence_note = levels, note
     if result.converged and problem.floating:
-        warn_if_not_unique(scene, problem, result)
-    return result
-
-
-def warn_if_not_unique(scene: Scene, problem: DiscreteProblem, result: Result) -> None:
-    """A body that only frictionless contact holds may slide: the displacement of a
-    converged ``result`` is then one of infinitely many (any sliding of the body along its
-    free rigid motions solves the problem as well, :func:`contact.models.floating.free_in_contact`);
-    its strains, stresses and contact forces are unique.  Say so in one ContactWarning line
-    (rank 0) naming the body — which copy the solver returned depends on the linear
-    solver's null pivots, i.e. on rounding."""
-    from ..models.floating import free_in_contact
-
-    bodies = scene.config.bodies
-    free = free_in_contact(
-        problem,
-        scene.bodies if bodies else None,
-        list(bodies) if bodies else [],
-        result.active_mask,
-    )
-    if free and scene.comm.rank == 0:
+        # a body only frictionless contact holds may slide: u_h is then one of many
         import warnings
 
         from ..setup.surfaces import ContactWarning
+        from ..solvers.floating import free_in_contact
 
-        name, n = free[0]
-        warnings.warn(
-            f"the displacement is not unique: {'body ' + name if name else 'the body'} keeps "
-            f"{n} free rigid motion(s) with its contact nodes active (no dirichlet or symmetry "
-            "part holds it, and frictionless contact never holds a sliding motion); the "
-            "stresses and contact forces are unique, u_h is one of the solutions",
-            ContactWarning,
-            stacklevel=2,
+        bodies = config.bodies
+        free = free_in_contact(
+            problem, scene.bodies if bodies else None, list(bodies or ()), result.active_mask
         )
+        if free and scene.comm.rank == 0:
+            warnings.warn(not_unique_text(free), ContactWarning, stacklevel=2)
+    return result

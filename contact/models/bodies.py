@@ -33,11 +33,11 @@ from petsc4py import PETSc
 from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
+from ..solvers.floating import floating_bodies
 from ..solvers.problem import Constraint, DiscreteProblem
 from . import mortar
 from .basis import change_of_basis, node_frames
 from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
-from .floating import floating_bodies
 from .problem import contact_ends, coordinate_scale
 
 

@@ -30,8 +30,8 @@ from ..setup import expressions
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
 from ..setup.scene_config import components
+from ..solvers.floating import floating_bodies
 from ..solvers.problem import DiscreteProblem
-from .floating import floating_bodies
 from .obstacles import curved_contact, plane_contact
 from .problem import assemble_system
 

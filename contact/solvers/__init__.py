@@ -12,6 +12,7 @@ that build a scene's problem and run them live above, in :mod:`contact.drivers`.
   :mod:`.globalize` — line searches and the cycle guard; :mod:`.lcp` — small LCPs;
 * :mod:`.friction` — the tangential rows of Tresca / Coulomb friction and their block
   Jacobian H = B K + D (frictional problems only);
+* :mod:`.floating` — rigid motions of elastic bodies that no condition holds (K singular);
 * :mod:`.vi` — PETSc's VI solvers (vinewtonrsls, vinewtonssls) as baselines;
 * :mod:`.linear` — the linear solver of each step; :mod:`.reduced` — the symmetric
   reduction of the diagonal law solved by CG + GAMG;

@@ -131,13 +131,29 @@ SEMICOERCIVE_HINT = (
 
 def floating_hint(floating: list[tuple[str, int]]) -> str:
     """The hint of a failed solve with elastic bodies no condition holds
-    (DiscreteProblem.floating, :mod:`contact.models.floating`)."""
+    (DiscreteProblem.floating, :mod:`contact.solvers.floating`)."""
     name, free = floating[0]
     what = f"body {name}" if name else "the body"
     what += f" (and {len(floating) - 1} more)" if floating[1:] else ""
     return (
         f"{what}: no dirichlet or symmetry part holds it, {free} rigid motion(s) free: K is "
         "singular until contact holds it (frictionless contact never holds a sliding motion)"
+    )
+
+
+def not_unique_text(free: list[tuple[str, int]]) -> str:
+    """The warning of a converged solve whose body only frictionless contact holds (``free``:
+    (body, free rigid motions) of :func:`contact.solvers.floating.free_in_contact`, the
+    first named): its displacement is one of infinitely many — any sliding of the body along
+    its free rigid motions solves the problem as well, and which copy the solver returned
+    depends on the linear solver's null pivots, i.e. on rounding —, while its strains,
+    stresses and contact forces are unique."""
+    name, n = free[0]
+    return (
+        f"the displacement is not unique: {'body ' + name if name else 'the body'} keeps "
+        f"{n} free rigid motion(s) with its contact nodes active (no dirichlet or symmetry "
+        "part holds it, and frictionless contact never holds a sliding motion); the "
+        "stresses and contact forces are unique, u_h is one of the solutions"
     )
 
 
