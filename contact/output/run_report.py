@@ -342,8 +342,9 @@ def write_adaptive(
     comparison = compare(last.scene, last.result)
     table = contact_table(last.scene, last.result)
     normals: dict[int, np.ndarray | None] = {}
-    for lv in (last, *shown) if png else ():
-        normals[lv.index] = view_normal(lv.scene, lv.result)
+    if png:
+        for lv in (last, *shown):
+            normals[lv.index] = view_normal(lv.scene, lv.result)
     info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
     if failure is None:  # a failed run's last line is its error
         warn_coarse_zone(last.scene, last.result)
