@@ -187,9 +187,10 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
 class FrictionFields:
     """UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on the contact
     surfaces: the tangential multiplier λ_t and the solver's slip increment s_t (P1 vectors
-    of the nodal λ_t,i and s_t,i, :func:`contact.solvers.friction.surface_functions`) and
-    the bound ρ (Tresca: the threshold expression s(x, t); Coulomb: F·(−λ_n,h)⁺,
-    :func:`friction_bound`)."""
+    of the nodal λ_t,i and s_t,i, :func:`contact.solvers.friction.surface_functions`; the
+    pairs' terms take this s_t, a rigid obstacle's the slip (I − n nᵀ)(u_h − u_prev) of the
+    load step) and the bound ρ (Tresca: the threshold expression s(x, t); Coulomb:
+    F·(−λ_n,h)⁺, :func:`friction_bound`)."""
 
     lam_t: fem.Function
     slip: fem.Function
@@ -197,7 +198,7 @@ class FrictionFields:
 
 
 def interface_terms(
-    scene: Scene, result: Result, w, n, h_E, T, friction: FrictionFields | None = None
+    scene: Scene, result: Result, w, n, h_E, T, friction: FrictionFields | None
 ) -> dict[str, ufl.Form]:
     """Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on the
     slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
@@ -206,7 +207,7 @@ def interface_terms(
     |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
     (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
     like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
-    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve."""
+    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None."""
     from ..models.mortar import master_pressure, master_vector
 
     p = result.problem
