@@ -127,5 +127,5 @@ def solve(
             problem, scene.bodies if bodies else None, list(bodies or ()), result.active_mask
         )
         if free and scene.comm.rank == 0:
-            warnings.warn(not_unique_text(free), ContactWarning, stacklevel=2)
+            warnings.warn(not_unique_text(free), ContactWarning, stacklevel=1)
     return result
