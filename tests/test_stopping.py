@@ -41,8 +41,12 @@ def _loop(mode: str, method: str) -> list:
 
 def test_config_errors_name_the_key() -> None:
     needs = r"^solver\.stopping: adaptive needs estimator: equilibrated"
+    # the scalar scenes' default (auto) is the bound; the residual estimator has no η_disc
     with pytest.raises(ConfigError, match=needs):
-        contact.load_scene(SCENE, ["solver.stopping=adaptive"])
+        contact.load_scene(SCENE, ["estimator=residual", "solver.stopping=adaptive"])
+    assert contact.load_scene(SCENE, ["solver.stopping=adaptive"]).config.estimator == (
+        "equilibrated"
+    )
     with pytest.raises(ConfigError, match=r"^solver\.stopping: 'exact' is not one of fixed, adapt"):
         contact.load_scene(SCENE, ["solver.stopping=exact"])
     # hertz_2d keeps the residual estimator by default: no η_disc to balance against
@@ -63,6 +67,8 @@ def test_cli_exit_2_names_the_key(tmp_path) -> None:
             str(SCENE),
             "-o",
             str(tmp_path / "out"),
+            "--set",
+            "estimator=residual",
             "--set",
             "solver.stopping=adaptive",
         ],

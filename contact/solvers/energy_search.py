@@ -46,7 +46,6 @@ factorization is then MUMPS LU of the assembled H, as before).
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -55,6 +54,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.norms import norm2
+from ..base.timing import Timer
 from .curvature import CurvatureSystem
 from .globalize import backtrack
 
@@ -128,13 +128,18 @@ class EnergySearch:
     def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         it = self.iteration
         self.iteration += 1
-        polisher, sy = self.polisher, self.system
+        polisher = self.polisher
         if polisher is not None:
             polisher(x, y)
-        t0 = time.perf_counter()
+        with Timer(self.timers, "assembly"):
+            self._search(x, y, it)
+
+    def _search(self, x: PETSc.Vec, y: PETSc.Vec, it: int) -> None:
+        """The step y of Newton iteration ``it`` from x: taken whole, shortened, or bent
+        along negative curvature (module doc)."""
+        polisher, sy = self.polisher, self.system
         definite = not sy.shift
         if definite and polisher is not None and polisher.accepted:
-            self.timers["assembly"] += time.perf_counter() - t0
             return
         if definite and not np.isnan(self.fnorm):
             # Newton's own step where it lowers ‖Φ‖ enough, or where x already meets SNES's
@@ -143,7 +148,6 @@ class EnergySearch:
             W = self._at(x, y, 1.0)
             good = max((1.0 - ARMIJO) * self.fnorm, sy.stop)
             if self._phi_norm(W) <= good and self.cp.p.admissible(W):
-                self.timers["assembly"] += time.perf_counter() - t0
                 return
         f0 = self._phi_norm(x)
         self.cp.R.copy(self.R0)
@@ -161,7 +165,6 @@ class EnergySearch:
         if not definite:
             event.update(self._curvature_step(x, y))
         self.log.append(event)
-        self.timers["assembly"] += time.perf_counter() - t0
 
     def _energy_step(self, x: PETSc.Vec, y: PETSc.Vec, f0: float) -> tuple[float, str]:
         """(t, "energy") of the Armijo backtracking on θ_ρ, or (1, "residual") where the
