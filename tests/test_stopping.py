@@ -18,7 +18,9 @@ from contact.adaptivity.energy_error import solution_error
 from contact.base.errors import ConfigError
 from contact.solvers.stopping import AdaptiveStopping, energy_norm
 
+import numpy as np
 import pytest
+from dolfinx import fem
 
 ROOT = Path(__file__).resolve().parents[1]
 MPIRUN = Path(sys.executable).parent / "mpirun"
@@ -139,6 +141,13 @@ def test_elastic_hertz_spends_fewer_krylov_iterations() -> None:
         st, eta = lv.result.stopping, lv.estimate.eta
         assert st is not None and st.eta_lin <= st.gamma_lin * eta
         assert st.eta_alg <= st.gamma_alg * (eta + st.eta_lin)
+        # a loose CG solve keeps u_h = u_D on Γ_D (before: off by up to 2e-5 · δ, which also
+        # cost the elastic bound a Dirichlet lifting per level)
+        V, scene = lv.result.u_h.function_space, lv.scene
+        top = fem.locate_dofs_topological(V, 1, scene.boundary.facets("dirichlet"))
+        u = lv.result.u_h.x.array.reshape(-1, 2)[top]
+        delta = scene.config.constants["delta"]
+        assert np.max(np.abs(u - [0.0, -delta])) <= 1e-14 * delta
 
 
 def test_eta_alg_measures_the_algebraic_error() -> None:

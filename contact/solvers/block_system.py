@@ -45,7 +45,14 @@ class BlockReducedSystem(ReducedSystem):
 
     def __init__(self, problem: DiscreteProblem, H: PETSc.Mat, prefix: str, forcing: bool = True):
         self.H = H
-        super().__init__(problem.K, problem.near_nullspace, prefix, forcing, pattern=H)
+        super().__init__(
+            problem.K,
+            problem.near_nullspace,
+            prefix,
+            forcing,
+            pattern=H,
+            dirichlet=problem.dirichlet_rows(),
+        )
         self.l = self.K.createVecLeft()  # L: the free rows' scaling
         self._d_fixed = np.ones(self.fixed.shape)  # D_ii on the fixed rows (1 elsewhere)
         self._blocks: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
@@ -66,9 +73,13 @@ class BlockReducedSystem(ReducedSystem):
         kdiag = np.maximum(np.abs(self.Kdiag.array_r), np.finfo(float).tiny)
         fixed = (d_ii != 0) & (b_row <= FIXED * np.abs(d_ii) / kdiag)
         fixed &= d_off <= FIXED * np.abs(d_ii)
+        # a Dirichlet row (an identity row and column of K) whose B and D rows are diagonal:
+        # its row of H is H_ii = B_ii K_ii + D_ii alone, so y_i = F_i / H_ii exactly
+        known = self.dirichlet & (b_row <= np.abs(b_ii)) & (d_off == 0) & (b_ii * kdiag + d_ii != 0)
+        fixed |= known
         self.fixed = fixed
         self.fixed_rows = int(fixed.sum())
-        self._d_fixed = np.where(fixed, d_ii, 1.0)
+        self._d_fixed = np.where(known, b_ii * kdiag + d_ii, np.where(fixed, d_ii, 1.0))
         self.p.array_w[:] = np.where(fixed, 0.0, 1.0)
         pivot = np.where(np.abs(b_ii) >= SCALE_FLOOR * b_row, b_ii, b_row)
         with np.errstate(divide="ignore", invalid="ignore"):

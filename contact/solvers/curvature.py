@@ -74,9 +74,7 @@ class CurvatureSystem(ReducedNewtonSystem):
         n = self.K.getLocalSize()[0]
         outside = np.ones(n, dtype=bool)  # free rows outside the contact set and Γ_D
         outside[problem.constraint.dofs] = False
-        for bc in problem.bcs:
-            idx, owned = bc.dof_indices()
-            outside[idx[idx < n]] = False
+        outside[problem.dirichlet_rows()] = False
         self.outside = outside
         self.D = self.K.createVecLeft()  # τ's diagonal: |K_ii| on the rows outside
         self.z = self.K.createVecLeft()  # the generic field that fixes v's sign

@@ -59,9 +59,10 @@ def free_in_contact(
     the problem as well).  Collective; the same list on every rank."""
     V = problem.V
     gdim, n_owned = V.mesh.geometry.dim, V.dofmap.index_map.size_local
-    rows = [dofs[:owned] for dofs, owned in (bc.dof_indices() for bc in problem.bcs)]
     con = problem.constraint
-    held = np.unique(np.concatenate([*rows, con.dofs[np.asarray(active, dtype=bool)]]))
+    held = np.unique(
+        np.concatenate([problem.dirichlet_rows(), con.dofs[np.asarray(active, dtype=bool)]])
+    )
     held = held[held < n_owned * gdim].astype(np.int64)
     floating = dict(problem.floating)
     m, x = fem.Function(V), problem.b.duplicate()

@@ -192,7 +192,9 @@ class ReducedNewtonSystem(ReducedSystem):
     """:class:`.reduced.ReducedSystem` with the interface of :class:`AssembledSystem`."""
 
     def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = True):
-        super().__init__(problem.K, problem.near_nullspace, prefix, forcing)
+        super().__init__(
+            problem.K, problem.near_nullspace, prefix, forcing, dirichlet=problem.dirichlet_rows()
+        )
 
     resumable = True
 

@@ -102,6 +102,12 @@ class DiscreteProblem:
             *(c.M for c in couplings),
         )
 
+    def dirichlet_rows(self) -> np.ndarray:
+        """The owned rows of the unknowns that Dirichlet conditions (and the symmetry planes'
+        prescribed components) hold: local indices, sorted."""
+        rows = [dofs[:owned] for dofs, owned in (bc.dof_indices() for bc in self.bcs)]
+        return np.unique(np.concatenate([np.zeros(0, np.int32), *rows]))
+
     #: R(x) = K x − b is affine; a nonlinear residual re-assembles R and K = K_T(x)
     #: (:class:`contact.models.forms.ResidualProblem`)
     nonlinear = False
