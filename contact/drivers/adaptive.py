@@ -232,6 +232,11 @@ def adapt(
 
 #: adaptive stopping: at most this many solves of a level (each from the last one's solution)
 MAX_PASSES = 3
+#: the prediction of a level's η_disc is taken this much smaller: an iterate that fails the
+#: criteria against the η_disc computed at it costs another solve and another estimate, and
+#: the estimate is most of a level's cost (demos/RESULTS.md §12); a stricter target costs a
+#: Krylov iteration or two
+PREDICTION_SAFETY = 0.5
 
 
 def solve_level(
@@ -249,7 +254,8 @@ def solve_level(
 
     With ``solver.stopping: adaptive`` (:mod:`contact.solvers.stopping`) a level after the
     first is solved against the discretization error it should reach, predicted from the
-    previous level at the optimal rate, η_prev (N_prev / N)^{p/d}; the level's η_disc is then
+    previous level at the optimal rate, :data:`PREDICTION_SAFETY` · η_prev (N_prev / N)^{p/d};
+    the level's η_disc is then
     computed at the final iterate, and where the iterate fails either criterion against it
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
@@ -262,7 +268,7 @@ def solve_level(
         V = problem.V
         dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
         rate = V.element.basix_element.degree / V.mesh.geometry.dim
-        eta = previous.estimate.eta * (previous.result.dofs / dofs) ** rate
+        eta = PREDICTION_SAFETY * previous.estimate.eta * (previous.result.dofs / dofs) ** rate
     seconds["solve"] = seconds["estimate"] = 0.0
     krylov, passes = 0, 0
     while True:

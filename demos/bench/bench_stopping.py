@@ -25,9 +25,7 @@ of contact/adaptivity/equilibration/elastic.py), writing ``stopping_hertz_2d*.cs
 
     python demos/bench/bench_stopping.py --scene hertz_2d --tol 1.2e-4 --out demos/results/stopping
 
-Measured there (2 runs of each, 7 levels to 32k DoFs): Krylov iterations 126 → 22, final
-error against a reference with 502k DoFs 8.825e-5 → 8.834e-5 (+0.11 %), CPU 28.6 → 40.3 s
-(the estimate is 95 % of it, and level 4 needed a second pass).
+Figures: README ("Adaptive stopping") and demos/RESULTS.md §12.
 """
 
 from __future__ import annotations
