@@ -69,7 +69,6 @@ over nodes.  Components fixed by a symmetry or Dirichlet condition keep their ro
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import fem
@@ -77,13 +76,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import ncp
-from .newton import SEPARATED, SLIP, STICK, BlockComplementarity, setup_block_newton
-from .options import SolverOptions
+from .newton import SEPARATED, SLIP, STICK, BlockComplementarity
 from .problem import DiscreteProblem, FrictionSet
 from .result import Result
-
-if TYPE_CHECKING:
-    from .block_system import BlockReducedSystem
 
 FORMS = ("projection", "hsw")
 SLIP_TIE = 1e-11  # |z| ≥ (1 − SLIP_TIE) ρ counts as slip (module doc)
@@ -229,22 +224,6 @@ class FrictionalComplementarity(BlockComplementarity):
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
         return Bv, Dv
-
-
-def setup_friction_newton(
-    snes: PETSc.SNES,
-    problem: DiscreteProblem,
-    cp: FrictionalComplementarity,
-    opts: SolverOptions,
-    timers: dict,
-    state: dict,
-    petsc_opts: dict,
-    system: BlockReducedSystem | None = None,
-) -> PETSc.Mat:
-    """Make ``snes`` semismooth Newton on the frictional Φ (normal NCP ``opts.method``):
-    the block Jacobian H = B K + D, plain Newton or ``bt``; returns the Jacobian matrix
-    (a new one, or the ``system``'s H: :func:`contact.solvers.newton.setup_block_newton`)."""
-    return setup_block_newton(snes, problem, cp, opts, timers, state, petsc_opts, system)
 
 
 def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc.Vec) -> dict:

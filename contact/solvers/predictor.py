@@ -35,18 +35,15 @@ if TYPE_CHECKING:
     from .newton import Complementarity
 
 
-def tangent_predictor(cp: Complementarity, x: PETSc.Vec, dirichlet: list) -> bool:
+def tangent_predictor(cp: Complementarity, x: PETSc.Vec) -> bool:
     """x += δ of the module doc when x + δ is admissible (True), else x unchanged (False).
-    ``dirichlet`` are the problem's Dirichlet conditions (their values are the step's); the
-    NCP scaling ``cp.c`` must be set (collective)."""
+    The problem's Dirichlet conditions carry the step's values; the NCP scaling ``cp.c``
+    must be set (collective)."""
     p = cp.p
     a, b, r = cp.pair(x)  # r = R_k(x); Dirichlet rows x_i − g_i
     active = cp.active_set(a, b)
-    n = x.getLocalSize()
-    fixed = np.zeros(n, dtype=bool)
-    for bc in dirichlet:
-        idx = bc.dof_indices()[0]
-        fixed[idx[idx < n]] = True
+    fixed = np.zeros(x.getLocalSize(), dtype=bool)
+    fixed[p.dirichlet_rows()] = True
     delta = x.duplicate()
     delta.array_w[:] = np.where(fixed, -r, 0.0)
     rows = cp.dofs[active]

@@ -283,7 +283,7 @@ class SemismoothNewton:
             if self.predict:  # the step's increments lifted by the tangent at u0
                 problem.linearize(x)
                 self._scaling()
-                self.predicted = tangent_predictor(cp, x, problem.bcs)
+                self.predicted = tangent_predictor(cp, x)
             set_dirichlet(x, problem.bcs)
             problem.linearize(x)
             self._scaling()
