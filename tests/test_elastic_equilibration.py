@@ -118,6 +118,30 @@ def test_weak_symmetry_on_every_cell(tresca) -> None:
     assert np.abs(means).max() < 1e-9 * scale
 
 
+def test_compiled_patches_agree_with_numpy(tresca) -> None:
+    """The C kernel of the patch stage (stress_c.py) and the NumPy reference give the same
+    σ_h to round-off (each patch's minimizer is unique; the two regularize the kernel of a
+    closed patch differently, which moves only μ's kernel part)."""
+    scene, result, stress = tresca
+    ref = reconstruct_stress(stress_data(scene, result), backend="numpy")
+    got, want = (np.concatenate([r.x.array for r in s.rows]) for s in (stress, ref))
+    assert np.abs(got - want).max() < 1e-11 * np.abs(want).max()
+    assert stress.defect < 1e-9 and ref.defect < 1e-9
+
+
+def test_without_a_compiler_the_numpy_patches_answer(tresca, tmp_path, monkeypatch) -> None:
+    from contact.adaptivity.equilibration import compiled
+
+    scene, result, stress = tresca
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(compiled, "_LOADED", {})
+    with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
+        got = reconstruct_stress(stress_data(scene, result))
+    want = reconstruct_stress(stress_data(scene, result), backend="numpy")
+    assert all(np.array_equal(a.x.array, b.x.array) for a, b in zip(got.rows, want.rows))
+
+
 def test_bound_above_the_error_on_every_level() -> None:
     scene = _scene(["estimator=equilibrated"])
     u0, eff = None, []

@@ -77,26 +77,26 @@ def _cpu() -> str:
         return platform.platform() + platform.processor()
 
 
-def _source(dims: dict) -> str:
-    return "".join(f"#define {k} {v}\n" for k, v in dims.items()) + SOURCE
+def _source(dims: dict, source: str = SOURCE) -> str:
+    return "".join(f"#define {k} {v}\n" for k, v in dims.items()) + source
 
 
-def _path(dims: dict) -> Path:
+def _path(dims: dict, name: str = "eqlb", source: str = SOURCE) -> Path:
     command = " ".join(" ".join(_command(Path("s"), Path("o"), f)) for f in FLAGS)
-    digest = hashlib.sha256((_source(dims) + command + _cpu()).encode()).hexdigest()
-    tag = "_".join(f"{dims[k]}" for k in ("DIM", "NU"))
-    return cache_dir() / f"eqlb_{tag}_{digest[:16]}.so"
+    digest = hashlib.sha256((_source(dims, source) + command + _cpu()).encode()).hexdigest()
+    tag = "_".join(str(v) for v in dims.values())
+    return cache_dir() / f"{name}_{tag}_{digest[:16]}.so"
 
 
-def _compile(dims: dict, path: Path) -> str:
-    """Compile into ``path`` unless it exists; returns '' or the error message."""
+def _compile(source: str, path: Path) -> str:
+    """Compile ``source`` into ``path`` unless it exists; returns '' or the error message."""
     if path.exists():
         return ""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
             src = Path(tmp) / "eqlb.c"
-            src.write_text(_source(dims))
+            src.write_text(source)
             out = Path(tmp) / path.name
             for flags in FLAGS:
                 run = subprocess.run(_command(src, out, flags), capture_output=True, text=True)
@@ -110,22 +110,23 @@ def _compile(dims: dict, path: Path) -> str:
     return ""
 
 
-def library(comm: MPI.Comm, ref: Reference, nu: int):
-    """(ffi, lib) of the kernel for ``ref`` (collective over ``comm``)."""
+def load(comm: MPI.Comm, name: str, cdef: str, source: str, dims: dict):
+    """(ffi, lib) of the C ``source`` (its declarations ``cdef``) compiled with the
+    constants ``dims`` (``#define``s), cached on disk under ``name`` (collective)."""
     import cffi
 
-    dims = dimensions(ref, nu)
-    key = tuple(dims.values())
+    key = (name, *dims.items())
     missing = comm.allreduce(key not in _LOADED, op=MPI.LOR)
     if missing:
-        path = _path(dims)
-        error = comm.bcast(_compile(dims, path) if comm.rank == 0 else "", root=0)
+        path = _path(dims, name, source)
+        text = _source(dims, source)
+        error = comm.bcast(_compile(text, path) if comm.rank == 0 else "", root=0)
         if not error and key not in _LOADED:
-            error = _compile(dims, path)  # a no-op where rank 0's file is seen
+            error = _compile(text, path)  # a no-op where rank 0's file is seen
             if not error:
                 try:
                     ffi = cffi.FFI()
-                    ffi.cdef(CDEF)
+                    ffi.cdef(cdef)
                     _LOADED[key] = (ffi, ffi.dlopen(str(path)))
                 except OSError as err:
                     error = f"loading the equilibration kernel {path} failed: {err}"
@@ -133,3 +134,8 @@ def library(comm: MPI.Comm, ref: Reference, nu: int):
         if error:
             raise RuntimeError(error)
     return _LOADED[key]
+
+
+def library(comm: MPI.Comm, ref: Reference, nu: int):
+    """(ffi, lib) of the flux kernel of :mod:`.kernel_c` for ``ref`` (collective)."""
+    return load(comm, "eqlb", CDEF, SOURCE, dimensions(ref, nu))

@@ -128,8 +128,9 @@ def stress_data(scene: Scene, result: Result) -> StressData:
     )
 
 
-def elastic_bound(scene: Scene, result: Result) -> Bound:
-    """The bound of the module docstring for a solve of an elastic scene (collective)."""
+def elastic_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bound:
+    """The bound of the module docstring for a solve of an elastic scene (collective);
+    ``backend``: the patch stage of the stress (:data:`.stress.BACKENDS`)."""
     seconds = {}
     t0 = time.perf_counter()
     korn = korn_constant(result.problem.V, result.problem.bcs)
@@ -137,7 +138,7 @@ def elastic_bound(scene: Scene, result: Result) -> Bound:
     t0 = time.perf_counter()
     data = stress_data(scene, result)
     data.skew_weight = SKEW * korn**2 / (2.0 * data.mu)
-    stress = reconstruct_stress(data)
+    stress = reconstruct_stress(data, backend)
     seconds["stress"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     msh = scene.mesh

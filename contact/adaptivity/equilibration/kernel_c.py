@@ -56,39 +56,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
 """
 
 HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n"
-SOURCE = (
-    HEADERS
-    + CDEF
-    + r"""
-
-#define PI_ 3.14159265358979323846
-#define MAXN (MZ > NF ? MZ : NF)
-#define MAXB (NP > NF ? NP : NF)
-#define DNF (NV * NF)
-#define SNF (DIM * NF)
-enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
-
-/* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
-   μ_o = ho_a − Ta_a μ_s) and the final map to alpha need: σ_h|_T = Σ_a σ_a|_T, σ_a|_T =
-   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C − Z Ytᵀ Σ_a μ_a with Yt = (O Z) M_Z⁻¹
-   and C the rest, summed over the vertices a whose patches are solved here */
-#define W_YT 0
-#define W_C (W_YT + DNF * MZ)
-#define SYM (SNF * (SNF + 1) / 2)      /* a packed symmetric SNF x SNF matrix */
-#define SYMIDX(i, j) ((i) >= (j) ? (i) * ((i) + 1) / 2 + (j) : (j) * ((j) + 1) / 2 + (i))
-/* per vertex a, contiguous (what its patch reads): Ŝ_a (packed lower triangle), b_a, T_a, ho_a */
-#define A_B SYM
-#define A_TA (A_B + SNF)
-#define A_HO (A_TA + NF * SNF)
-#define A_SIZE (A_HO + NF)
-#define W_A(a) (W_C + M + (a) * A_SIZE)
-#define W_SIZE W_A(NV)
-#define DENSE 24                        /* patch systems up to this size: no reordering */
-#define LB 8                            /* cells per block: the SIMD lanes of cell_block */
-#define LANES for (int b = 0; b < LB; ++b)
-
-int64_t eq_work_size(void) { return W_SIZE; }
-
+#: dense LU with partial pivoting, shared with the stress kernel of :mod:`.stress_c`
+LU_SOLVE = r"""
 /* Solve A X = B (n x n, row-major, nrhs columns) by LU with partial pivoting, in place;
    returns 1 if a pivot is exactly zero. */
 static int lu_solve(int n, double *A, double *B, int nrhs)
@@ -121,6 +90,40 @@ static int lu_solve(int n, double *A, double *B, int nrhs)
     }
   return 0;
 }
+"""
+SOURCE = (
+    HEADERS
+    + CDEF
+    + LU_SOLVE
+    + r"""
+
+#define PI_ 3.14159265358979323846
+#define MAXN (MZ > NF ? MZ : NF)
+#define MAXB (NP > NF ? NP : NF)
+#define DNF (NV * NF)
+#define SNF (DIM * NF)
+enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
+
+/* the work row of a cell: what the patch systems (per vertex a: the condensed Ŝ_a, b_a and
+   μ_o = ho_a − Ta_a μ_s) and the final map to alpha need: σ_h|_T = Σ_a σ_a|_T, σ_a|_T =
+   R β_a + Z M_Z⁻¹ (Zᵀg_a − ZMR β_a − (O Z)ᵀ μ_a) is C − Z Ytᵀ Σ_a μ_a with Yt = (O Z) M_Z⁻¹
+   and C the rest, summed over the vertices a whose patches are solved here */
+#define W_YT 0
+#define W_C (W_YT + DNF * MZ)
+#define SYM (SNF * (SNF + 1) / 2)      /* a packed symmetric SNF x SNF matrix */
+#define SYMIDX(i, j) ((i) >= (j) ? (i) * ((i) + 1) / 2 + (j) : (j) * ((j) + 1) / 2 + (i))
+/* per vertex a, contiguous (what its patch reads): Ŝ_a (packed lower triangle), b_a, T_a, ho_a */
+#define A_B SYM
+#define A_TA (A_B + SNF)
+#define A_HO (A_TA + NF * SNF)
+#define A_SIZE (A_HO + NF)
+#define W_A(a) (W_C + M + (a) * A_SIZE)
+#define W_SIZE W_A(NV)
+#define DENSE 24                        /* patch systems up to this size: no reordering */
+#define LB 8                            /* cells per block: the SIMD lanes of cell_block */
+#define LANES for (int b = 0; b < LB; ++b)
+
+int64_t eq_work_size(void) { return W_SIZE; }
 
 static double det_inv(const double J[DIM][DIM], double Ji[DIM][DIM])
 {

@@ -68,8 +68,10 @@ def _start(V: fem.FunctionSpace) -> np.ndarray:
 
 
 def _largest(A: PETSc.Mat, B: PETSc.Mat, start: np.ndarray) -> float:
-    """The largest θ of B x = θ A x (A SPD, B PSD) by subspace iteration; the block lives
-    in NumPy (rows: the owned entries), one work vector pair in PETSc."""
+    """The largest θ of B x = θ A x (A SPD, B PSD) by subspace iteration; the block is a
+    dense PETSc matrix (owned rows × BLOCK), so each step is one product with B and one
+    factorized solve with BLOCK right-hand sides (MUMPS: half the time of BLOCK single
+    solves at 64k DoFs)."""
     comm = A.getComm().tompi4py()
     ksp = PETSc.KSP().create(A.getComm())
     ksp.setOperators(A)
@@ -77,28 +79,27 @@ def _largest(A: PETSc.Mat, B: PETSc.Mat, start: np.ndarray) -> float:
     pc = ksp.getPC()
     pc.setType("cholesky")
     pc.setFactorSolverType("mumps")
-    x, y = A.createVecRight(), A.createVecRight()
-    X = start.copy()
-    AX, BX = np.empty_like(X), np.empty_like(X)
+    n, N = A.getLocalSize()[0], A.getSize()[0]
+    X = PETSc.Mat().createDense(((n, N), (BLOCK, BLOCK)), comm=A.getComm())
+    X.setUp()
+    X.getDenseArray()[:] = start.T
+    X.assemble()
+    Y, AX, BX = X.duplicate(), X.duplicate(), X.duplicate()
     theta = 0.0
     for _ in range(STEPS):
-        for i in range(BLOCK):
-            x.array[:] = X[i]
-            B.mult(x, y)
-            ksp.solve(y, x)  # x ← A⁻¹ B x
-            X[i] = x.array
-            A.mult(x, y)
-            AX[i] = y.array
-            B.mult(x, y)
-            BX[i] = y.array
-        Ab = comm.allreduce(X @ AX.T)
-        Bb = comm.allreduce(X @ BX.T)
+        B.matMult(X, Y)
+        ksp.matSolve(Y, X)  # X ← A⁻¹ B X
+        A.matMult(X, AX)
+        B.matMult(X, BX)
+        x = X.getDenseArray(readonly=True)
+        Ab = comm.allreduce(x.T @ AX.getDenseArray(readonly=True))
+        Bb = comm.allreduce(x.T @ BX.getDenseArray(readonly=True))
         # Rayleigh–Ritz: B_s y = θ A_s y through A_s = L Lᵀ; the Ritz vectors A-orthonormal
         Li = np.linalg.inv(np.linalg.cholesky(Ab))
-        w, Y = np.linalg.eigh(Li @ Bb @ Li.T)
+        w, V = np.linalg.eigh(Li @ Bb @ Li.T)
         theta = float(w[-1])
-        X = (Li.T @ Y[:, ::-1]).T @ X
-    for vec in (x, y):
-        vec.destroy()
-    ksp.destroy()
+        X.getDenseArray()[:] = x @ (Li.T @ V[:, ::-1])
+        X.assemble()
+    for obj in (X, Y, AX, BX, ksp):
+        obj.destroy()
     return theta

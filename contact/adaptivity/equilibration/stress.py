@@ -54,6 +54,7 @@ from __future__ import annotations
 
 import functools
 import time
+import warnings
 from dataclasses import dataclass, field, replace
 
 import basix
@@ -61,8 +62,9 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx import mesh as dmesh
+from mpi4py import MPI
 
-from . import rotations
+from . import rotations, stress_c
 from .cells import (
     CONTACT,
     DIRICHLET,
@@ -79,7 +81,11 @@ from .operators import CellOperators, _projected, det_inv
 from .patches import _assemble
 from .reference import CELLS, Reference, reference
 
-__all__ = ["Stress", "StressData", "reconstruct_stress", "skew_pairs"]
+__all__ = ["BACKENDS", "Stress", "StressData", "reconstruct_stress", "skew_pairs"]
+
+#: the patch stage: "compiled" (the C kernel of :mod:`.stress_c`) or "numpy" (the reference,
+#: :func:`_multipliers`; batched over the patches of one size)
+BACKENDS = ("compiled", "numpy")
 
 
 def skew_pairs(d: int) -> list[tuple[int, int]]:
@@ -160,8 +166,11 @@ def _data(d: int, p_u: int, p_s: int) -> dict:
     }
 
 
-def reconstruct_stress(data: StressData) -> Stress:
-    """σ_h of the module docstring (collective)."""
+def reconstruct_stress(data: StressData, backend: str = "compiled") -> Stress:
+    """σ_h of the module docstring (collective).  ``backend``: the patch stage, one of
+    :data:`BACKENDS` (the same σ_h to round-off)."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}")
     t0 = time.perf_counter()
     u_h = data.u_h
     V = u_h.function_space
@@ -171,10 +180,20 @@ def reconstruct_stress(data: StressData) -> Stress:
     ref = reference(d, p + EXTRA)
     comm = msh.comm
     tables, lam_t, n_owned = _row_tables(data, ref)
+    source = np.full(n_owned, comm.rank)
+    work = [complete(comm, t, source)[0] for t in tables]  # this rank's rows first
+    kernel = None
+    if backend == "compiled":
+        try:
+            kernel = stress_c.library(comm, d, ref.nf)
+        except RuntimeError as err:  # no C compiler: the NumPy solver, same numbers, slower
+            warnings.warn(
+                f"{err}; the stress reconstruction falls back to backend='numpy'", stacklevel=2
+            )
     seconds = {"tables": time.perf_counter() - t0}
     t0 = time.perf_counter()
     # the as-moments of every (owned cell, vertex): each patch's balance spread over its cells
-    div = _Divergence(tables, ref, p, data.mu, data.lmbda_L)
+    div = _Divergence(work, ref, p, data.mu, data.lmbda_L)
     bdata = _boundary_data(tables, lam_t, ref, p, data.normal)
     free = np.unique(
         np.concatenate(
@@ -184,12 +203,11 @@ def reconstruct_stress(data: StressData) -> Stress:
             ]
         )
     ).astype(np.int32)
-    area = div.geometry["absdet"] / np.prod(np.arange(1, d + 1))
-    m = rotations.spread(msh, free, area, _rotation_moments(tables[0], ref, div.beta, bdata))
+    area = div.geometry["absdet"][:n_owned] / np.prod(np.arange(1, d + 1))
+    moments = _rotation_moments(tables[0], ref, div.beta[:n_owned], bdata)
+    m = rotations.spread(msh, free, area, moments)
     seconds["rotations"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    source = np.full(n_owned, comm.rank)
-    work = [complete(comm, t, source)[0] for t in tables]
     # the as-moments and the tangential traction's coefficients ride along to the patches'
     # ranks in the U column of a copy of the first table
     extra = replace(tables[0], U=np.concatenate([m.reshape(n_owned, -1), *lam_t], axis=1))
@@ -202,7 +220,11 @@ def reconstruct_stress(data: StressData) -> Stress:
     t0 = time.perf_counter()
     vmap = msh.topology.index_map(0)
     owned = np.arange(*vmap.local_range, dtype=np.int64)
-    alpha, defect = _solve(work, lam_t_w, m_w, owned, ref, data)
+    alpha, defect, code = _solve(work, div, lam_t_w, m_w, owned, ref, data, kernel)
+    code = comm.allreduce(code, op=MPI.MAX)
+    if code:
+        what = {1: "a singular cell block", 2: "a singular patch system", 3: "out of memory"}
+        raise RuntimeError(f"stress reconstruction: {what.get(code, f'error {code}')}")
     seconds["patches"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     offset = msh.topology.index_map(d).local_range[0]
@@ -287,20 +309,31 @@ def _block_diag(X: np.ndarray, d: int, D: int, nf: int) -> np.ndarray:
 
 def _objective(T: np.ndarray, mu: float, lam: float, skew_weight: float) -> np.ndarray:
     """The mass of the patch objective ∫ C⁻¹σ:τ + κ ∫ skw σ : skw τ, C⁻¹σ = (σ − c tr σ I)/(2μ),
-    c = λ/(2μ + dλ), from the row blocks T (n, d, d, a, b) of ∫ (φ·e_r)(φ·e_s): (n, d a, d b)."""
+    c = λ/(2μ + dλ), from the row blocks T (n, d, d, a, b) of ∫ (φ·e_r)(φ·e_s): (n, d a, d b),
+    M_rs = Σ_tu W[r, s, t, u] T_tu with the constant weights W of :func:`_weights`."""
     n, d, _, a, b = T.shape
+    W = _weights(d, mu, lam, skew_weight).reshape(d * d, d * d)
+    M = (W @ T.reshape(n, d * d, a * b)).reshape(n, d, d, a, b)
+    return np.ascontiguousarray(M.transpose(0, 1, 3, 2, 4)).reshape(n, d * a, d * b)
+
+
+@functools.cache
+def _weights(d: int, mu: float, lam: float, skew_weight: float) -> np.ndarray:
+    """W[r, s, t, u]: the weight of T_tu in the block (r, s) of :func:`_objective`."""
     c_lam = lam / (2.0 * mu + d * lam)
-    trace = np.einsum("nrrab->nab", T)
-    M = np.zeros((n, d, a, d, b))
+    W = np.zeros((d, d, d, d))
     for r in range(d):
         for s in range(d):
-            M[:, r, :, s, :] = ((r == s) * trace - c_lam * T[:, r, s]) / (2.0 * mu)
+            W[r, s, r, s] -= c_lam / (2.0 * mu)
+            if r == s:
+                for t in range(d):
+                    W[r, s, t, t] += 1.0 / (2.0 * mu)
     for i, j in skew_pairs(d):  # + κ ∫ skw σ : skw τ = κ/2 ∫ (σ_ij − σ_ji)(τ_ij − τ_ji)
-        M[:, i, :, i, :] += 0.5 * skew_weight * T[:, j, j]
-        M[:, j, :, j, :] += 0.5 * skew_weight * T[:, i, i]
-        M[:, i, :, j, :] -= 0.5 * skew_weight * T[:, j, i]
-        M[:, j, :, i, :] -= 0.5 * skew_weight * T[:, i, j]
-    return M.reshape(n, d * a, d * b)
+        W[i, i, j, j] += 0.5 * skew_weight
+        W[j, j, i, i] += 0.5 * skew_weight
+        W[i, j, j, i] -= 0.5 * skew_weight
+        W[j, i, i, j] -= 0.5 * skew_weight
+    return W
 
 
 def _cell_operators(
@@ -451,20 +484,22 @@ def _rotation_moments(table: CellTable, ref: Reference, beta: np.ndarray, bdata:
 # ---------------------------------------------------------------------------------------
 def _solve(
     tables: list[CellTable],
+    div: _Divergence,
     lam_t: list[np.ndarray],
     m_as: np.ndarray,
     owned: np.ndarray,
     ref: Reference,
     data: StressData,
+    kernel,
 ):
     """α (n, d, m): Σ_a σ_a|_T over the owned vertices a (``m_as``: the as-moments of each
-    (cell, vertex), :mod:`.rotations`), and the summed defect."""
+    (cell, vertex), :mod:`.rotations`; ``div``: the divergence data of the rows), the summed
+    defect and the compiled kernel's error code (``kernel``: None for NumPy)."""
     d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
     n = len(tables[0])
     mu, lam = float(data.mu), float(data.lmbda_L)
     cells = _cell_operators(tables[0], ref, mu, lam, float(data.skew_weight))
     p_u = data.u_h.function_space.element.basix_element.degree
-    div = _Divergence(tables, ref, p_u, mu, lam)
     beta = div.beta
     # load: g_a = ∫_T ψ_a ε(u_h) : φ = s Σ_q w ψ_a (Jᵀ ε_r)·φ̂  (C⁻¹ σ(u_h) = ε(u_h))
     ref_eps = np.einsum("nji,nqrj->nqri", div.geometry["J"], div.eps)  # (n, nq, r, i)
@@ -484,8 +519,8 @@ def _solve(
     kinds = np.stack([tb.kind for tb in tables], axis=2)  # (n, D facets, d rows)
     alpha = np.zeros((n, d, m))
     moments = _Moments(hq, Pq, m_as - aRb)
-    defect = _patches(tables[0], owned, ref, cells, moments, dglob, kinds, beta, alpha)
-    return alpha, defect
+    defect, err = _patches(tables[0], owned, ref, cells, moments, dglob, kinds, beta, alpha, kernel)
+    return alpha, defect, err
 
 
 @dataclass
@@ -499,20 +534,20 @@ class _Moments:
     c: np.ndarray  # (n, D, nas)
 
 
-def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta, alpha):
+def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta, alpha, kernel):
     """Assemble and solve the μ-systems of the vertices ``owned`` (module docstring); adds
-    σ_a to ``alpha``; returns the summed residual of the least-squares solves."""
+    σ_a to ``alpha``; returns the summed residual of the least-squares solves and the
+    kernel's error code.  ``kernel``: None (NumPy, :func:`_multipliers`) or the compiled
+    library of :mod:`.stress_c`."""
     d, D, nf = ref.d, ref.d + 1, ref.nf
-    B = d * nf  # one facet's block (rows × moments)
     prow, ploc = np.nonzero(np.isin(table.gvert, owned))
     if not len(prow):
-        return 0.0
+        return 0.0, 0
     verts = table.gvert[prow, ploc]
     order = np.argsort(verts, kind="stable")
     prow, ploc, verts = prow[order], ploc[order], verts[order]
     uniq, patch = np.unique(verts, return_inverse=True)
     npair = len(prow)
-    ar = np.arange(npair)
     others = np.array([[j for j in range(D) if j != i] for i in range(D)])  # spokes of a
     sf = others[ploc]  # (npair, d) the facets through a
     # a spoke is (patch, the facet's vertices): key them through the sorted global vertices
@@ -540,29 +575,66 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     hp = mom.hq[prow, ploc] + np.einsum(
         "nfk,nk->nf", cells.OHaG[prow], c
     )  # (npair, D B): the normal moments of σ_a at μ = 0
+    dp = dglob[prow, ploc]
+    # the slot of each of the pair's d·B spoke rows: slot (spoke, row), moment k
+    slot = (spoke[:, :, None] * d + np.arange(d)[None, None, :]).reshape(npair, d * d)
+    loc = local[slot]  # (npair, d·d) local slot or −1
+    idx = np.where(
+        np.repeat(loc >= 0, nf, axis=1),
+        (np.repeat(loc, nf, axis=1) * nf + np.tile(np.arange(nf), d * d)),
+        -1,
+    )  # (npair, d B)
+    if kernel is None:
+        mu, defect = _multipliers(cells.S, prow, ploc, patch, size, loc, hp, dp, ref)
+        err = 0
+    else:  # the pairs are sorted by patch
+        pstart = np.searchsorted(patch, np.arange(len(uniq) + 1))
+        mu, defect, err = stress_c.patch_multipliers(
+            kernel, d, nf, pstart, prow, ploc, idx, size * nf, cells.S, hp, dp
+        )
+    # Σ_a σ_a|_T = R Σ_a β_a + Z Σ_a γ_a with γ_a = γ⁰_a − P Oᵀ μ_a: the pairs summed per
+    # cell first, so P Oᵀ is applied once per cell
+    n = alpha.shape[0]
+
+    def per_cell(v: np.ndarray) -> np.ndarray:  # (npair, k) → (n, k): Σ over the cell's pairs
+        return np.stack([np.bincount(prow, weights=c, minlength=n) for c in v.T], axis=1)
+
+    mz = ref.Z.shape[1]
+    gamma = per_cell(gamma0) - np.einsum("nyf,nf->ny", cells.POt, per_cell(mu))
+    alpha += np.einsum(
+        "nrj,lj->nrl", per_cell(beta[prow, ploc].reshape(npair, -1)).reshape(n, d, -1), ref.R
+    ) + np.einsum("nrz,lz->nrl", gamma.reshape(n, d, mz), ref.Z)
+    return defect, err
+
+
+def _multipliers(S, prow, ploc, patch, size, loc, hp, dp, ref: Reference):
+    """The NumPy patch stage of :func:`_patches` (the reference of :mod:`.stress_c`): μ
+    (npair, D d nf) of every pair and the summed defect; each size class of patches
+    (``size``: unknown (spoke, row) slots) assembled and solved in one batched call."""
+    d, D, nf = ref.d, ref.d + 1, ref.nf
+    B = d * nf
+    npair = len(prow)
+    ar = np.arange(npair)
+    others = np.array([[j for j in range(D) if j != i] for i in range(D)])
     # per pair: condense the opposite facet (its block: rows ploc·B … ploc·B + B − 1), for
     # each cell and local vertex at once (static index sets per local vertex)
     blocks = np.arange(D * B).reshape(D, B)
     I_o = blocks[ploc]  # (npair, B)
-    I_s = blocks[sf].reshape(npair, d * B)
-    Sso_all = np.empty((len(cells.S), D, d * B, B))
-    Soo_inv_all = np.empty((len(cells.S), D, B, B))
-    Shat_all = np.empty((len(cells.S), D, d * B, d * B))
+    I_s = blocks[others[ploc]].reshape(npair, d * B)
+    Sso_all = np.empty((len(S), D, d * B, B))
+    Soo_inv_all = np.empty((len(S), D, B, B))
+    Shat_all = np.empty((len(S), D, d * B, d * B))
     for j in range(D):  # the cells' patches of their local vertex j
         i_s, i_o = blocks[others[j]].ravel(), blocks[j]
-        Sso_all[:, j] = cells.S[:, i_s][:, :, i_o]
-        Soo_inv_all[:, j] = np.linalg.inv(cells.S[:, i_o][:, :, i_o])
+        Sso_all[:, j] = S[:, i_s][:, :, i_o]
+        Soo_inv_all[:, j] = np.linalg.inv(S[:, i_o][:, :, i_o])
         Tj = Sso_all[:, j] @ Soo_inv_all[:, j]
-        Shat_all[:, j] = cells.S[:, i_s][:, :, i_s] - Tj @ np.transpose(Sso_all[:, j], (0, 2, 1))
+        Shat_all[:, j] = S[:, i_s][:, :, i_s] - Tj @ np.transpose(Sso_all[:, j], (0, 2, 1))
     Sso, Soo_inv, Shat = Sso_all[prow, ploc], Soo_inv_all[prow, ploc], Shat_all[prow, ploc]
     T = Sso @ Soo_inv
-    dp = dglob[prow, ploc]
     b = (hp[ar[:, None], I_s] - np.einsum("nab,nb->na", T, hp[ar[:, None], I_o])) - dp[
         ar[:, None], I_s
     ]
-    # the slot of each of the pair's d·B spoke rows: slot (spoke, row), moment k
-    slot = (spoke[:, :, None] * d + np.arange(d)[None, None, :]).reshape(npair, d * d)
-    loc = local[slot]  # (npair, d·d) local slot or −1
     idx = np.where(
         np.repeat(loc >= 0, nf, axis=1),
         (np.repeat(loc, nf, axis=1) * nf + np.tile(np.arange(nf), d * d)),
@@ -572,7 +644,7 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     defect = 0.0
     for n_slots in np.unique(size[size > 0]):
         members = np.flatnonzero(size == n_slots)
-        where = np.full(len(uniq), -1)
+        where = np.full(len(size), -1)
         where[members] = np.arange(len(members))
         sel = np.flatnonzero(where[patch] >= 0)
         dim = n_slots * nf
@@ -596,15 +668,4 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     mu = np.zeros((npair, D * B))
     mu[ar[:, None], I_s] = mu_s
     mu[ar[:, None], I_o] = mu_o
-    gamma = gamma0 - np.einsum("nyf,nf->ny", cells.POt[prow], mu)  # γ = γ⁰ − P Oᵀ μ
-
-    m, mz = ref.m, ref.Z.shape[1]
-    contrib = np.einsum("nrj,lj->nrl", beta[prow, ploc], ref.R) + np.einsum(
-        "nrz,lz->nrl", gamma.reshape(npair, d, mz), ref.Z
-    )  # (npair, d, m)
-    for r in range(d):
-        for col in range(m):
-            alpha[:, r, col] += np.bincount(
-                prow, weights=contrib[:, r, col], minlength=alpha.shape[0]
-            )
-    return defect
+    return mu, defect
