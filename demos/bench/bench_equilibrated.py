@@ -213,42 +213,69 @@ def _timed(fn):
     return out, time.perf_counter() - t, time.process_time() - c
 
 
-def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
-    """The reconstruction with each backend (after a warm-up call that compiles the data
-    expressions and the kernel), the whole equilibrated estimate, the residual estimate and
-    one CG + GAMG solve of K (a new KSP each time: GAMG's set-up included), in this process,
-    ``repeat`` times in turn (a shared machine's load hits all of them); the medians and
-    their ratios to the solve's (``*_min``: the fastest run of each)."""
+def k_solver(result, dim: int):
+    """One CG + GAMG solve of the stiffness matrix K of ``result`` (rtol 1e-8 from zero, the
+    loop's options; a new KSP each time: GAMG's set-up included; the rigid-body
+    near-nullspace for elasticity): a function returning the iteration count."""
     comm = MPI.COMM_WORLD
-    scene = cost_scene(n, dim)
-    result = contact.solve(scene, verbose=False)
-    data, multiplier, sign = flux_data(scene, result)
     options = PETSc.Options()
     for key, value in {**default_options("gamg", dim, comm.size), "ksp_rtol": 1e-8}.items():
         options[f"eqcost_{key}"] = value
-    x = result.problem.b.duplicate()
+    problem = result.problem
+    if problem.near_nullspace is not None:
+        problem.K.setNearNullSpace(problem.near_nullspace)
+    x = problem.b.duplicate()
 
     def solve_K() -> int:
         ksp = PETSc.KSP().create(comm)
         ksp.setOptionsPrefix("eqcost_")
-        ksp.setOperators(result.problem.K)
+        ksp.setOperators(problem.K)
         ksp.setFromOptions()
         x.set(0.0)
-        ksp.solve(result.problem.b, x)
+        ksp.solve(problem.b, x)
         its = ksp.getIterationNumber()
         ksp.destroy()
         return its
 
+    return solve_K
+
+
+class Timings:
+    """Wall and CPU seconds (CPU: the busiest rank's) of each measured call, by key."""
+
+    def __init__(self) -> None:
+        self.times: dict = {}
+
+    def __call__(self, key: str, fn):
+        out, wall, cpu = _timed(fn)
+        self.times.setdefault(key, []).append((wall, MPI.COMM_WORLD.allreduce(cpu, op=MPI.MAX)))
+        return out
+
+    def med(self, key: str, j: int) -> float:
+        """The median wall (j = 0) or CPU (j = 1) seconds."""
+        return float(np.median([t[j] for t in self.times[key]]))
+
+    def fastest(self, key: str) -> float:
+        """The fastest run's CPU seconds."""
+        return min(t[1] for t in self.times[key])
+
+
+def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
+    """The reconstruction with each backend (after a warm-up call that compiles the data
+    expressions and the kernel), the whole equilibrated estimate, the residual estimate and
+    one CG + GAMG solve of K (:func:`k_solver`), in this process, ``repeat`` times in turn (a
+    shared machine's load hits all of them); the medians and their ratios to the solve's
+    (``*_min``: the fastest run of each)."""
+    comm = MPI.COMM_WORLD
+    scene = cost_scene(n, dim)
+    result = contact.solve(scene, verbose=False)
+    data, multiplier, sign = flux_data(scene, result)
+    solve_K = k_solver(result, dim)
     for backend in backends:
         reconstruct_flux(data, multiplier, sign, backend=backend)  # warm-up (JIT)
     residual_eta(scene, result)
-    times: dict = {}
-
-    def timed(key: str, fn):
-        out, wall, cpu = _timed(fn)
-        times.setdefault(key, []).append((wall, comm.allreduce(cpu, op=MPI.MAX)))
-        return out
-
+    timed = Timings()
+    med, fastest = timed.med, timed.fastest
     etas = {}
     for _ in range(repeat):
         its = timed("solve", solve_K)
@@ -257,12 +284,6 @@ def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
             etas[b] = timed(b, lambda b=b: reconstruct_flux(data, multiplier, sign, backend=b))
             # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
             timed(f"estimate_{b}", lambda b=b: guaranteed_bound(scene, result, backend=b))
-
-    def med(key: str, j: int) -> float:
-        return float(np.median([t[j] for t in times[key]]))
-
-    def fastest(key: str) -> float:
-        return min(t[1] for t in times[key])
 
     sol_wall, sol_cpu = med("solve", 0), med("solve", 1)
     rows = []
@@ -340,6 +361,91 @@ def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
     return rows
 
 
+def elastic_scene(refinements: int) -> tuple[contact.Scene, object]:
+    """hertz_2d (configs/hertz_2d.yaml, CG + GAMG) refined uniformly ``refinements`` times
+    from its initial mesh (8004 DoFs; 2: 127k), solved on each mesh from the last: (scene,
+    result) of the finest."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "hertz_2d.yaml",
+        ["estimator=equilibrated", "output.verbose=false", "solver.linear=gamg"],
+    )
+    result = contact.solve(scene, verbose=False)
+    for _ in range(refinements):
+        every = np.arange(scene.mesh.topology.index_map(2).size_local, dtype=np.int32)
+        scene, u0 = contact.refine(scene, every, result.u_h)
+        result = contact.solve(scene, u0=u0, verbose=False)
+    return scene, result
+
+
+def cost_elastic(refinements: int, backends: list[str], repeat: int = 3) -> list[dict]:
+    """The elastic estimate (:func:`elastic_bound`: the Korn constant, the stress
+    reconstruction with each patch backend, the terms) against one CG + GAMG solve of K
+    (:func:`k_solver`) on hertz_2d refined uniformly ``refinements`` times, ``repeat``
+    times in turn in this process after a warm-up call of each (JIT); medians of the CPU
+    seconds and their ratio to the solve's (``*_min``: the fastest runs')."""
+    comm = MPI.COMM_WORLD
+    scene, result = elastic_scene(refinements)
+    solve_K = k_solver(result, 2)
+    bounds = {b: elastic_bound(scene, result, backend=b) for b in backends}  # warm-up
+    residual_eta(scene, result)
+    timed = Timings()
+    for _ in range(repeat):
+        its = timed("solve", solve_K)
+        timed("residual", lambda: residual_eta(scene, result))
+        for b in backends:
+            bounds[b] = timed(b, lambda b=b: elastic_bound(scene, result, backend=b))
+    sol_wall, sol_cpu = timed.med("solve", 0), timed.med("solve", 1)
+    rows = []
+    for b in backends:
+        cpu = timed.med(b, 1)
+        rows.append(
+            {
+                "scene": "hertz_2d",
+                "refinements": refinements,
+                "ranks": comm.size,
+                "dofs": result.dofs,
+                "cells": scene.mesh.topology.index_map(2).size_global,
+                "backend": b,
+                "repeat": repeat,
+                "estimate_wall": round(timed.med(b, 0), 3),
+                "estimate_cpu": round(cpu, 3),
+                "solve_wall": round(sol_wall, 3),
+                "solve_cpu": round(sol_cpu, 3),
+                "cg_iterations": its,
+                "ratio_cpu": round(cpu / sol_cpu, 2),
+                "ratio_cpu_min": round(timed.fastest(b) / timed.fastest("solve"), 2),
+                "residual_cpu": round(timed.med("residual", 1), 3),
+                "residual_ratio_cpu": round(timed.med("residual", 1) / sol_cpu, 2),
+                "eta": bounds[b].eta,
+                "korn": bounds[b].parts["korn"],
+                **{
+                    f"seconds_{k}": round(comm.allreduce(v, op=MPI.MAX), 3)
+                    for k, v in bounds[b].seconds.items()
+                },
+            }
+        )
+    if comm.rank == 0:
+        r0 = rows[0]
+        print(
+            f"cost of the elastic estimate, hertz_2d refined {refinements}x, {r0['dofs']} DoFs, "
+            f"{r0['cells']} cells, {comm.size} rank(s), medians of {repeat} runs in turn; one "
+            f"CG + GAMG solve of K: {sol_wall:.2f} s wall, {sol_cpu:.2f} s CPU "
+            f"({r0['cg_iterations']} iterations); the residual estimate "
+            f"{r0['residual_cpu']:.2f} s CPU ({r0['residual_ratio_cpu']}x)"
+        )
+        phases = ("korn", "tables", "rotations", "patches", "assemble", "terms")
+        head = ("backend", "CPU", "CPU/solve", "fastest", *phases, "eta")
+        print(f"{head[0]:9s}" + "".join(f" {h:>9s}" for h in head[1:]) + "  (phases: wall s)")
+        for r in rows:
+            vals = [r["estimate_cpu"], r["ratio_cpu"], r["ratio_cpu_min"]]
+            vals += [r.get(f"seconds_{k}", float("nan")) for k in phases]
+            print(
+                f"{r['backend']:9s}" + "".join(f" {v:9.2f}" for v in vals) + f" {r['eta']:.6e}",
+                flush=True,
+            )
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -362,6 +468,13 @@ def main() -> None:
         "--cost3d", type=int, default=0, help="... or on its 3D extrusion with [2N, N, N] cells"
     )
     ap.add_argument(
+        "--cost-elastic",
+        type=int,
+        default=0,
+        metavar="N",
+        help="... or the elastic estimate's on hertz_2d refined uniformly N times (2: 127k DoFs)",
+    )
+    ap.add_argument(
         "--backends",
         nargs="*",
         default=list(BACKENDS),
@@ -372,6 +485,10 @@ def main() -> None:
     ap.add_argument("--out", default="demos/results/equilibrated")
     args = ap.parse_args()
     suffix = "" if MPI.COMM_WORLD.size == 1 else f"_np{MPI.COMM_WORLD.size}"
+    if args.cost_elastic:
+        rows = cost_elastic(args.cost_elastic, args.backends, args.repeat)
+        save_csv(Path(args.out) / f"cost_elastic{suffix}.csv", rows)
+        return
     if args.cost or args.cost3d:
         dim, n = (2, args.cost) if args.cost else (3, args.cost3d)
         name = f"cost{'' if dim == 2 else '_3d'}{suffix}.csv"

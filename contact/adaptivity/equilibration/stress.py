@@ -55,7 +55,7 @@ from __future__ import annotations
 import functools
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import basix
 import numpy as np
@@ -282,18 +282,15 @@ def _row_tables(data: StressData, ref: Reference) -> tuple[list[CellTable], list
 # ---------------------------------------------------------------------------------------
 @dataclass
 class _Cells:
-    """Per cell of the work rows (module docstring): S (n, D·d·nf, D·d·nf), the maps of β and
-    γ⁰ to the normal moments, and what β, q, c of a vertex need."""
+    """Per cell of the work rows (module docstring), what the patches read: S (n, D·d·nf,
+    D·d·nf), and per vertex a of the cell σ_a's cell problem at μ = 0 — γ⁰ = P q + H a_Zᵀ
+    G⁻¹ c with c = m_{a,T} − a_R β its as-constraint's right-hand side, the normal moments
+    h of Rβ + Zγ⁰ and the prescribed data in the global facet basis — and P Oᵀ."""
 
-    ops: CellOperators
-    P: np.ndarray  # (n, d mz, d mz)
-    HaG: np.ndarray  # (n, d mz, nas): H a_Zᵀ G⁻¹
-    ZMR: np.ndarray  # (n, d mz, d np)
-    aR: np.ndarray  # (n, nas, d np)
-    OZ: np.ndarray  # (n, D d nf, d mz): normal moments of Zγ, rows (facet, row, k)
-    OR: np.ndarray  # (n, D d nf, d np)
     S: np.ndarray  # (n, D d nf, D d nf)
-    OHaG: np.ndarray  # (n, D d nf, nas): O H a_Zᵀ G⁻¹
+    gamma0: np.ndarray  # (n, D, d mz)
+    h: np.ndarray  # (n, D, D d nf), rows (facet, row, k)
+    data: np.ndarray  # (n, D, D d nf)
     POt: np.ndarray  # (n, d mz, D d nf): P Oᵀ
 
 
@@ -336,15 +333,52 @@ def _weights(d: int, mu: float, lam: float, skew_weight: float) -> np.ndarray:
     return W
 
 
+#: cells per block of :func:`_cell_operators`: the batched small-matrix products of one block
+#: keep their temporaries in cache, and only what the patches read is kept (hertz_2d, 125k
+#: cells: FIXME)
+CHUNK = 4096
+
+
 def _cell_operators(
-    table: CellTable, ref: Reference, mu: float, lam: float, skew_weight: float
+    table: CellTable,
+    div: _Divergence,
+    bdata: np.ndarray,
+    m_as: np.ndarray,
+    ref: Reference,
+    data: StressData,
 ) -> _Cells:
-    d, D, nf = ref.d, ref.d + 1, ref.nf
+    """The :class:`_Cells` of every row of ``table``, :data:`CHUNK` cells at a time
+    (``div``: the rows' divergence data, ``bdata``: their prescribed moments of
+    :func:`_boundary_data`, ``m_as``: their as-moments)."""
     n = len(table)
-    ops = CellOperators(table, np.arange(n), ref)
+    out: dict[str, np.ndarray] = {}
+    for lo in range(0, n, CHUNK):
+        rows = np.arange(lo, min(lo + CHUNK, n))
+        part = _cell_block(table, rows, div, bdata[rows], m_as[rows], ref, data)
+        for f in fields(_Cells):
+            block = getattr(part, f.name)
+            if f.name not in out:
+                out[f.name] = np.empty((n, *block.shape[1:]))
+            out[f.name][rows] = block
+    return _Cells(**out)
+
+
+def _cell_block(
+    table: CellTable,
+    rows: np.ndarray,
+    div: _Divergence,
+    bdata: np.ndarray,
+    m_as: np.ndarray,
+    ref: Reference,
+    data: StressData,
+) -> _Cells:
+    """The :class:`_Cells` of the rows ``rows`` of ``table``."""
+    d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
+    mu, lam, skew_weight = float(data.mu), float(data.lmbda_L), float(data.skew_weight)
+    n = len(rows)
+    ops = CellOperators(table, rows, ref)
     g = ops.geometry
-    x = table.x
-    J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
+    J = div.geometry["J"][rows]
     absdet = g["absdet"]
     # the objective's mass M (rows r, s) only enters projected: M_Z = Z_bᵀ M Z_b and
     # Z_bᵀ M R_b, each a combination of T_rs = ∫_T (φ·e_r)(φ·e_s) of the Piola-mapped basis,
@@ -362,7 +396,7 @@ def _cell_operators(
     # ∫_T σ_ij − σ_ji: ∫_T (φ·e_c) = s (J M1)_c with M1[k, l] = ∫̂ φ̂_l,k
     M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
     JM1 = g["s"][:, None, None] * np.einsum("nck,kl->ncl", J, M1)  # (n, d, m)
-    pairs, m = skew_pairs(d), ref.m
+    pairs = skew_pairs(d)
     A4 = np.zeros((n, len(pairs), d, m))
     for k, (i, j) in enumerate(pairs):
         A4[:, k, i] += JM1[:, j]
@@ -376,7 +410,22 @@ def _cell_operators(
     OZ = _block_diag(ops.OZ, d, D, nf)
     OR = _block_diag(ops.OR, d, D, nf)
     POt = P @ np.transpose(OZ, (0, 2, 1))
-    return _Cells(ops, P, HaG, ZMR, aR, OZ, OR, OZ @ POt, OZ @ HaG, POt)
+    # σ_a's cell problem at μ = 0, per vertex a: the load g_a = ∫_T ψ_a ε(u_h) : φ =
+    # s Σ_q w ψ_a (Jᵀ ε_r)·φ̂ (C⁻¹ σ(u_h) = ε(u_h)), q = Z_bᵀ g_a − Z_bᵀ M R_b β
+    ref_eps = np.einsum("nji,nqrj->nqri", J, div.eps[rows])  # (n, nq, r, i)
+    gl = g["s"][:, None, None, None] * np.einsum(
+        "q,qa,nqri,qli->narl", ref.w, ref.lam, ref_eps, ref.phi, optimize=True
+    )  # (n, D, d, m)
+    bflat = div.beta[rows].reshape(n, D, -1)
+    q = gl.reshape(n, D, d * m) @ Zb - np.einsum("nzb,nab->naz", ZMR, bflat)
+    Pq = np.einsum("nyz,naz->nay", P, q)
+    c = m_as - np.einsum("nkb,nab->nak", aR, bflat)
+    h = np.einsum("nfb,nab->naf", OR, bflat) + np.einsum("nfz,naz->naf", OZ, Pq)
+    h += np.einsum("nfk,nak->naf", OZ @ HaG, c)
+    gamma0 = Pq + np.einsum("nzk,nak->naz", HaG, c)
+    Pm = ref.P[ops.perm]  # (n, D, nf, nf): the data in the global facet basis
+    dglob = np.einsum("njkl,njark->najrl", Pm, bdata).reshape(n, D, D * d * nf)
+    return _Cells(OZ @ POt, gamma0, h, dglob, POt)
 
 
 @dataclass
@@ -495,46 +544,18 @@ def _solve(
     """α (n, d, m): Σ_a σ_a|_T over the owned vertices a (``m_as``: the as-moments of each
     (cell, vertex), :mod:`.rotations`; ``div``: the divergence data of the rows), the summed
     defect and the compiled kernel's error code (``kernel``: None for NumPy)."""
-    d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
+    d, m = ref.d, ref.m
     n = len(tables[0])
-    mu, lam = float(data.mu), float(data.lmbda_L)
-    cells = _cell_operators(tables[0], ref, mu, lam, float(data.skew_weight))
     p_u = data.u_h.function_space.element.basix_element.degree
-    beta = div.beta
-    # load: g_a = ∫_T ψ_a ε(u_h) : φ = s Σ_q w ψ_a (Jᵀ ε_r)·φ̂  (C⁻¹ σ(u_h) = ε(u_h))
-    ref_eps = np.einsum("nji,nqrj->nqri", div.geometry["J"], div.eps)  # (n, nq, r, i)
-    gl = div.geometry["s"][:, None, None, None] * np.einsum(
-        "q,qa,nqri,qli->narl", ref.w, ref.lam, ref_eps, ref.phi, optimize=True
-    )  # (n, D, d, m)
-    Zb = np.kron(np.eye(d), ref.Z)
-    bflat = beta.reshape(n, D, -1)
-    q = gl.reshape(n, D, d * m) @ Zb - np.einsum("nzb,nab->naz", cells.ZMR, bflat)
-    Pq = np.einsum("nyz,naz->nay", cells.P, q)
-    hq = np.einsum("nfb,nab->naf", cells.OR, bflat) + np.einsum("nfz,naz->naf", cells.OZ, Pq)
-    aRb = np.einsum("nkb,nab->nak", cells.aR, bflat)
-    # the prescribed data in the global facet basis, rows (facet, row, k)
     bdata = _boundary_data(tables, lam_t, ref, p_u, data.normal)
-    Pm = ref.P[cells.ops.perm]  # (n, D, nf, nf)
-    dglob = np.einsum("njkl,njark->najrl", Pm, bdata).reshape(n, D, D * d * nf)
+    cells = _cell_operators(tables[0], div, bdata, m_as, ref, data)
     kinds = np.stack([tb.kind for tb in tables], axis=2)  # (n, D facets, d rows)
     alpha = np.zeros((n, d, m))
-    moments = _Moments(hq, Pq, m_as - aRb)
-    defect, err = _patches(tables[0], owned, ref, cells, moments, dglob, kinds, beta, alpha, kernel)
+    defect, err = _patches(tables[0], owned, ref, cells, kinds, div.beta, alpha, kernel)
     return alpha, defect, err
 
 
-@dataclass
-class _Moments:
-    """Per (cell, vertex a), σ_a's cell problem: the normal moments hq and P q at c = 0, and
-    the right-hand side c = m_{a,T} − a_R β of its as-constraint a_Z γ = c (γ⁰ = P q +
-    H a_Zᵀ G⁻¹ c)."""
-
-    hq: np.ndarray  # (n, D, D d nf)
-    Pq: np.ndarray  # (n, D, d mz)
-    c: np.ndarray  # (n, D, nas)
-
-
-def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta, alpha, kernel):
+def _patches(table, owned, ref, cells: _Cells, kinds, beta, alpha, kernel):
     """Assemble and solve the μ-systems of the vertices ``owned`` (module docstring); adds
     σ_a to ``alpha``; returns the summed residual of the least-squares solves and the
     kernel's error code.  ``kernel``: None (NumPy, :func:`_multipliers`) or the compiled
@@ -570,12 +591,9 @@ def _patches(table, owned, ref, cells: _Cells, mom: _Moments, dglob, kinds, beta
     local = np.full(n_spokes * d, -1)
     us = np.flatnonzero(unknown)
     local[us] = np.arange(len(us)) - first[slot_patch[us]]
-    c = mom.c[prow, ploc]
-    gamma0 = mom.Pq[prow, ploc] + np.einsum("nzk,nk->nz", cells.HaG[prow], c)
-    hp = mom.hq[prow, ploc] + np.einsum(
-        "nfk,nk->nf", cells.OHaG[prow], c
-    )  # (npair, D B): the normal moments of σ_a at μ = 0
-    dp = dglob[prow, ploc]
+    gamma0 = cells.gamma0[prow, ploc]
+    hp = cells.h[prow, ploc]  # (npair, D B): the normal moments of σ_a at μ = 0
+    dp = cells.data[prow, ploc]
     # the slot of each of the pair's d·B spoke rows: slot (spoke, row), moment k
     slot = (spoke[:, :, None] * d + np.arange(d)[None, None, :]).reshape(npair, d * d)
     loc = local[slot]  # (npair, d·d) local slot or −1
