@@ -55,7 +55,7 @@ from __future__ import annotations
 import functools
 import time
 import warnings
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 import basix
 import numpy as np
@@ -185,7 +185,7 @@ def reconstruct_stress(data: StressData, backend: str = "compiled") -> Stress:
     kernel = None
     if backend == "compiled":
         try:
-            kernel = stress_c.library(comm, d, ref.nf)
+            kernel = stress_c.library(comm, ref)
         except RuntimeError as err:  # no C compiler: the NumPy solver, same numbers, slower
             warnings.warn(
                 f"{err}; the stress reconstruction falls back to backend='numpy'", stacklevel=2
@@ -333,34 +333,35 @@ def _weights(d: int, mu: float, lam: float, skew_weight: float) -> np.ndarray:
     return W
 
 
-#: cells per block of :func:`_cell_operators`: the batched small-matrix products of one block
-#: keep their temporaries in cache, and only what the patches read is kept (hertz_2d, 125k
-#: cells: FIXME)
-CHUNK = 4096
+#: vertex patches solved per block (:func:`_solve`): the cell operators of a block's cells
+#: are computed, used and dropped (a cell that touches two blocks' vertices is computed in
+#: both), so the per-cell arrays (810 doubles per cell for P1) never exist for the whole
+#: mesh (hertz_2d, 125k cells: the first touch of their memory cost more than the work)
+PATCHES = 2048
 
 
 def _cell_operators(
     table: CellTable,
+    rows: np.ndarray,
     div: _Divergence,
     bdata: np.ndarray,
     m_as: np.ndarray,
     ref: Reference,
     data: StressData,
-) -> _Cells:
-    """The :class:`_Cells` of every row of ``table``, :data:`CHUNK` cells at a time
-    (``div``: the rows' divergence data, ``bdata``: their prescribed moments of
-    :func:`_boundary_data`, ``m_as``: their as-moments)."""
-    n = len(table)
-    out: dict[str, np.ndarray] = {}
-    for lo in range(0, n, CHUNK):
-        rows = np.arange(lo, min(lo + CHUNK, n))
-        part = _cell_block(table, rows, div, bdata[rows], m_as[rows], ref, data)
-        for f in fields(_Cells):
-            block = getattr(part, f.name)
-            if f.name not in out:
-                out[f.name] = np.empty((n, *block.shape[1:]))
-            out[f.name][rows] = block
-    return _Cells(**out)
+    kernel,
+) -> tuple[_Cells, int]:
+    """The :class:`_Cells` of the rows ``rows`` of ``table`` (``div``: the table's
+    divergence data, ``bdata``: its prescribed moments of :func:`_boundary_data`,
+    ``m_as``: its as-moments; ``kernel``: :mod:`.stress_c`'s library or None for NumPy),
+    and the kernel's error code."""
+    d, D, nf = ref.d, ref.d + 1, ref.nf
+    n, DB, dmz = len(rows), D * d * nf, d * ref.Z.shape[1]
+    out = _Cells(
+        np.empty((n, DB, DB)), np.empty((n, D, dmz)), np.empty((n, D, DB)),
+        np.empty((n, D, DB)), np.empty((n, dmz, DB)),
+    )  # fmt: skip
+    err = _cell_block(table, rows, div, bdata[rows], m_as[rows], ref, data, kernel, out)
+    return out, err
 
 
 def _cell_block(
@@ -371,30 +372,57 @@ def _cell_block(
     m_as: np.ndarray,
     ref: Reference,
     data: StressData,
-) -> _Cells:
-    """The :class:`_Cells` of the rows ``rows`` of ``table``."""
+    kernel,
+    out: _Cells,
+) -> int:
+    """The :class:`_Cells` of the rows ``rows`` of ``table``, written into ``out``: in C
+    (``kernel``: :mod:`.stress_c`'s library) or NumPy (None); the kernel's error code."""
     d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
     mu, lam, skew_weight = float(data.mu), float(data.lmbda_L), float(data.skew_weight)
-    n = len(rows)
     ops = CellOperators(table, rows, ref)
+    n = len(ops.rows)
     g = ops.geometry
     J = div.geometry["J"][rows]
-    absdet = g["absdet"]
+    Zb = np.kron(np.eye(d), ref.Z)  # (d m, d mz)
+    Rb = np.kron(np.eye(d), ref.R)  # (d m, d np)
+    # ∫_T σ_ij − σ_ji: ∫_T (φ·e_c) = s (J M1)_c with M1[k, l] = ∫̂ φ̂_l,k
+    M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
+    # σ_a's cell problem at μ = 0, per vertex a: the load g_a = ∫_T ψ_a ε(u_h) : φ =
+    # s Σ_q w ψ_a (Jᵀ ε_r)·φ̂ (C⁻¹ σ(u_h) = ε(u_h)), q = Z_bᵀ g_a − Z_bᵀ M R_b β
+    ref_eps = np.einsum("nji,nqrj->nqri", J, div.eps[rows])  # (n, nq, r, i)
+    gl = g["s"][:, None, None, None] * np.einsum(
+        "q,qa,nqri,qli->narl", ref.w, ref.lam, ref_eps, ref.phi, optimize=True
+    )  # (n, D, d, m)
+    bflat = div.beta[rows].reshape(n, D, -1)
+    Pm = ref.P[ops.perm]  # (n, D, nf, nf): the data in the global facet basis
+    out.data[:] = np.einsum("njkl,njark->najrl", Pm, bdata).reshape(n, D, D * d * nf)
+    if kernel is not None:
+        arrays = {
+            "J": J,
+            "s": g["s"],
+            "absdet": g["absdet"],
+            "ZZ": _projected(ref, "ZZ"),
+            "ZR": _projected(ref, "ZR"),
+            "W": _weights(d, mu, lam, skew_weight),
+            "M1Z": M1 @ ref.Z,
+            "M1R": M1 @ ref.R,
+            "OZ": ops.OZ,
+            "OR": ops.OR,
+            "q0": gl.reshape(n, D, d * m) @ Zb,
+            "beta": bflat,
+            "m": m_as,
+        }
+        return stress_c.cell_operators(kernel, ref, arrays, vars(out))
     # the objective's mass M (rows r, s) only enters projected: M_Z = Z_bᵀ M Z_b and
     # Z_bᵀ M R_b, each a combination of T_rs = ∫_T (φ·e_r)(φ·e_s) of the Piola-mapped basis,
     # Σ_ij J_ri J_sj mass_ij / |det J|, projected on the reference (Zᵀ mass_ij Z, Zᵀ mass_ij R)
-    Zb = np.kron(np.eye(d), ref.Z)  # (d m, d mz)
-    Rb = np.kron(np.eye(d), ref.R)  # (d m, d np)
-    JJ = np.einsum("nri,nsj->nrsij", J, J) / absdet[:, None, None, None, None]
+    JJ = np.einsum("nri,nsj->nrsij", J, J) / g["absdet"][:, None, None, None, None]
     blocks = {
         right: np.einsum("nrsij,ijab->nrsab", JJ, _projected(ref, right), optimize=True)
         for right in ("ZZ", "ZR")
     }
-    MZ = _objective(blocks["ZZ"], mu, lam, skew_weight)
-    H = np.linalg.inv(MZ)
+    H = np.linalg.inv(_objective(blocks["ZZ"], mu, lam, skew_weight))
     ZMR = _objective(blocks["ZR"], mu, lam, skew_weight)
-    # ∫_T σ_ij − σ_ji: ∫_T (φ·e_c) = s (J M1)_c with M1[k, l] = ∫̂ φ̂_l,k
-    M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
     JM1 = g["s"][:, None, None] * np.einsum("nck,kl->ncl", J, M1)  # (n, d, m)
     pairs = skew_pairs(d)
     A4 = np.zeros((n, len(pairs), d, m))
@@ -404,28 +432,19 @@ def _cell_block(
     A = A4.reshape(n, len(pairs), d * m)
     aZ, aR = A @ Zb, A @ Rb
     HaT = H @ np.transpose(aZ, (0, 2, 1))
-    Ginv = np.linalg.inv(aZ @ HaT)
-    HaG = HaT @ Ginv
+    HaG = HaT @ np.linalg.inv(aZ @ HaT)
     P = H - HaG @ np.transpose(HaT, (0, 2, 1))
     OZ = _block_diag(ops.OZ, d, D, nf)
     OR = _block_diag(ops.OR, d, D, nf)
-    POt = P @ np.transpose(OZ, (0, 2, 1))
-    # σ_a's cell problem at μ = 0, per vertex a: the load g_a = ∫_T ψ_a ε(u_h) : φ =
-    # s Σ_q w ψ_a (Jᵀ ε_r)·φ̂ (C⁻¹ σ(u_h) = ε(u_h)), q = Z_bᵀ g_a − Z_bᵀ M R_b β
-    ref_eps = np.einsum("nji,nqrj->nqri", J, div.eps[rows])  # (n, nq, r, i)
-    gl = g["s"][:, None, None, None] * np.einsum(
-        "q,qa,nqri,qli->narl", ref.w, ref.lam, ref_eps, ref.phi, optimize=True
-    )  # (n, D, d, m)
-    bflat = div.beta[rows].reshape(n, D, -1)
+    out.POt[:] = P @ np.transpose(OZ, (0, 2, 1))
+    out.S[:] = OZ @ out.POt
     q = gl.reshape(n, D, d * m) @ Zb - np.einsum("nzb,nab->naz", ZMR, bflat)
     Pq = np.einsum("nyz,naz->nay", P, q)
     c = m_as - np.einsum("nkb,nab->nak", aR, bflat)
-    h = np.einsum("nfb,nab->naf", OR, bflat) + np.einsum("nfz,naz->naf", OZ, Pq)
-    h += np.einsum("nfk,nak->naf", OZ @ HaG, c)
-    gamma0 = Pq + np.einsum("nzk,nak->naz", HaG, c)
-    Pm = ref.P[ops.perm]  # (n, D, nf, nf): the data in the global facet basis
-    dglob = np.einsum("njkl,njark->najrl", Pm, bdata).reshape(n, D, D * d * nf)
-    return _Cells(OZ @ POt, gamma0, h, dglob, POt)
+    out.h[:] = np.einsum("nfb,nab->naf", OR, bflat) + np.einsum("nfz,naz->naf", OZ, Pq)
+    out.h[:] += np.einsum("nfk,nak->naf", OZ @ HaG, c)
+    out.gamma0[:] = Pq + np.einsum("nzk,nak->naz", HaG, c)
+    return 0
 
 
 @dataclass
@@ -548,27 +567,57 @@ def _solve(
     n = len(tables[0])
     p_u = data.u_h.function_space.element.basix_element.degree
     bdata = _boundary_data(tables, lam_t, ref, p_u, data.normal)
-    cells = _cell_operators(tables[0], div, bdata, m_as, ref, data)
     kinds = np.stack([tb.kind for tb in tables], axis=2)  # (n, D facets, d rows)
     alpha = np.zeros((n, d, m))
-    defect, err = _patches(tables[0], owned, ref, cells, kinds, div.beta, alpha, kernel)
+    pairs = _pairs(tables[0], owned, ref, kinds)
+    defect, err = 0.0, 0
+    for p0 in range(0, len(pairs.size), PATCHES):  # blocks of whole patches
+        p1 = min(p0 + PATCHES, len(pairs.size))
+        sel = slice(pairs.pstart[p0], pairs.pstart[p1])
+        rows, local = np.unique(pairs.prow[sel], return_inverse=True)
+        cells, code = _cell_operators(tables[0], rows, div, bdata, m_as, ref, data, kernel)
+        block = _Pairs(
+            local,
+            pairs.ploc[sel],
+            pairs.patch[sel] - p0,
+            pairs.pstart[p0 : p1 + 1] - pairs.pstart[p0],
+            pairs.size[p0:p1],
+            pairs.loc[sel],
+        )
+        got, code2 = _patches(block, ref, cells, div.beta[pairs.prow[sel], pairs.ploc[sel]],
+                              rows, alpha, kernel)  # fmt: skip
+        defect += got
+        err = max(err, code, code2)
     return alpha, defect, err
 
 
-def _patches(table, owned, ref, cells: _Cells, kinds, beta, alpha, kernel):
-    """Assemble and solve the μ-systems of the vertices ``owned`` (module docstring); adds
-    σ_a to ``alpha``; returns the summed residual of the least-squares solves and the
-    kernel's error code.  ``kernel``: None (NumPy, :func:`_multipliers`) or the compiled
-    library of :mod:`.stress_c`."""
-    d, D, nf = ref.d, ref.d + 1, ref.nf
+@dataclass
+class _Pairs:
+    """The pairs (cell row, local vertex a) of the patches, sorted by patch: ``prow``,
+    ``ploc``, the patch of each (``patch``; ``pstart``: the offsets of each patch's pairs),
+    the unknown (spoke, row) slots of each patch (``size``) and the patch-local slot of
+    each of a pair's (spoke, row) (``loc`` (npair, d·d), −1 where the row is prescribed)."""
+
+    prow: np.ndarray
+    ploc: np.ndarray
+    patch: np.ndarray
+    pstart: np.ndarray
+    size: np.ndarray
+    loc: np.ndarray
+
+
+def _pairs(table: CellTable, owned: np.ndarray, ref: Reference, kinds: np.ndarray) -> _Pairs:
+    """The :class:`_Pairs` of the vertices ``owned`` (``kinds``: (n, D facets, d rows))."""
+    d, D = ref.d, ref.d + 1
     prow, ploc = np.nonzero(np.isin(table.gvert, owned))
-    if not len(prow):
-        return 0.0, 0
     verts = table.gvert[prow, ploc]
     order = np.argsort(verts, kind="stable")
     prow, ploc, verts = prow[order], ploc[order], verts[order]
     uniq, patch = np.unique(verts, return_inverse=True)
     npair = len(prow)
+    if not npair:
+        empty = np.zeros(0, dtype=np.int64)
+        return _Pairs(empty, empty, empty, np.zeros(1, np.int64), empty, empty.reshape(0, d * d))
     others = np.array([[j for j in range(D) if j != i] for i in range(D)])  # spokes of a
     sf = others[ploc]  # (npair, d) the facets through a
     # a spoke is (patch, the facet's vertices): key them through the sorted global vertices
@@ -591,36 +640,47 @@ def _patches(table, owned, ref, cells: _Cells, kinds, beta, alpha, kernel):
     local = np.full(n_spokes * d, -1)
     us = np.flatnonzero(unknown)
     local[us] = np.arange(len(us)) - first[slot_patch[us]]
+    # the slot of each of the pair's d·B spoke rows: slot (spoke, row), moment k
+    slot = (spoke[:, :, None] * d + np.arange(d)[None, None, :]).reshape(npair, d * d)
+    pstart = np.searchsorted(patch, np.arange(len(uniq) + 1))
+    return _Pairs(prow, ploc, patch, pstart, size, local[slot])
+
+
+def _patches(pairs: _Pairs, ref, cells: _Cells, beta: np.ndarray, rows, alpha, kernel):
+    """Assemble and solve the μ-systems of the patches ``pairs`` (module docstring; their
+    ``prow`` index ``cells``, the operators of the cells ``rows``; ``beta``: (npair, d, np)
+    the pairs' divergence moments); adds σ_a to ``alpha`` (rows ``rows``); returns the
+    summed residual of the least-squares solves and the kernel's error code.  ``kernel``:
+    None (NumPy, :func:`_multipliers`) or the compiled library of :mod:`.stress_c`."""
+    d, nf = ref.d, ref.nf
+    prow, ploc, loc = pairs.prow, pairs.ploc, pairs.loc
+    npair = len(prow)
     gamma0 = cells.gamma0[prow, ploc]
     hp = cells.h[prow, ploc]  # (npair, D B): the normal moments of σ_a at μ = 0
     dp = cells.data[prow, ploc]
-    # the slot of each of the pair's d·B spoke rows: slot (spoke, row), moment k
-    slot = (spoke[:, :, None] * d + np.arange(d)[None, None, :]).reshape(npair, d * d)
-    loc = local[slot]  # (npair, d·d) local slot or −1
-    idx = np.where(
-        np.repeat(loc >= 0, nf, axis=1),
-        (np.repeat(loc, nf, axis=1) * nf + np.tile(np.arange(nf), d * d)),
-        -1,
-    )  # (npair, d B)
     if kernel is None:
-        mu, defect = _multipliers(cells.S, prow, ploc, patch, size, loc, hp, dp, ref)
+        mu, defect = _multipliers(cells.S, prow, ploc, pairs.patch, pairs.size, loc, hp, dp, ref)
         err = 0
-    else:  # the pairs are sorted by patch
-        pstart = np.searchsorted(patch, np.arange(len(uniq) + 1))
+    else:
+        idx = np.where(
+            np.repeat(loc >= 0, nf, axis=1),
+            (np.repeat(loc, nf, axis=1) * nf + np.tile(np.arange(nf), d * d)),
+            -1,
+        )  # (npair, d B): the patch-local unknown of each spoke moment
         mu, defect, err = stress_c.patch_multipliers(
-            kernel, d, nf, pstart, prow, ploc, idx, size * nf, cells.S, hp, dp
+            kernel, d, nf, pairs.pstart, prow, ploc, idx, pairs.size * nf, cells.S, hp, dp
         )
     # Σ_a σ_a|_T = R Σ_a β_a + Z Σ_a γ_a with γ_a = γ⁰_a − P Oᵀ μ_a: the pairs summed per
     # cell first, so P Oᵀ is applied once per cell
-    n = alpha.shape[0]
+    n = len(rows)
 
     def per_cell(v: np.ndarray) -> np.ndarray:  # (npair, k) → (n, k): Σ over the cell's pairs
         return np.stack([np.bincount(prow, weights=c, minlength=n) for c in v.T], axis=1)
 
     mz = ref.Z.shape[1]
     gamma = per_cell(gamma0) - np.einsum("nyf,nf->ny", cells.POt, per_cell(mu))
-    alpha += np.einsum(
-        "nrj,lj->nrl", per_cell(beta[prow, ploc].reshape(npair, -1)).reshape(n, d, -1), ref.R
+    alpha[rows] += np.einsum(
+        "nrj,lj->nrl", per_cell(beta.reshape(npair, -1)).reshape(n, d, -1), ref.R
     ) + np.einsum("nrz,lz->nrl", gamma.reshape(n, d, mz), ref.Z)
     return defect, err
 

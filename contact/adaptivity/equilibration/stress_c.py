@@ -25,8 +25,13 @@ from mpi4py import MPI
 
 from .compiled import load
 from .kernel_c import HEADERS, LU_SOLVE
+from .reference import Reference
 
 CDEF = """
+int st_cells(int64_t n, const double *J, const double *s, const double *absdet, const double *ZZ,
+             const double *ZR, const double *W, const double *M1Z, const double *M1R,
+             const double *OZ, const double *OR, const double *q0, const double *beta,
+             const double *mas, double *S, double *gamma0, double *h, double *POt);
 int st_patches(int64_t npatch, const int64_t *pstart, const int64_t *prow, const int32_t *ploc,
                const int64_t *idx, const int64_t *pdim, const double *S, const double *hp,
                const double *dp, double *mu, double *defect);
@@ -40,6 +45,185 @@ SOURCE = (
 /* NV facets per cell (d + 1), BF = d nf moments per facet block (rows × moments) */
 #define DB (NV * BF)                     /* a cell's normal moments */
 #define SB ((NV - 1) * BF)               /* the spokes of a pair: the facets through a */
+
+#define DMZ (DIM * MZ)
+#define DNP (DIM * NP)
+#define NFV (NV * NF)                    /* a cell's normal moments of one row */
+
+/* H = A⁻¹ for an SPD n × n matrix A through its Cholesky factor L: L⁻¹ by forward
+   substitution, H = L⁻ᵀ L⁻¹ (a fraction of the flops of an LU with n right-hand sides);
+   returns 1 at a non-positive pivot. */
+static int spd_inv(int n, const double *A, double *H)
+{
+  double L[n * n], Li[n * n];
+  for (int j = 0; j < n; ++j) {
+    double d = A[j * n + j];
+    for (int k = 0; k < j; ++k) d -= L[j * n + k] * L[j * n + k];
+    if (!(d > 0.0)) return 1;
+    L[j * n + j] = sqrt(d);
+    for (int i = j + 1; i < n; ++i) {
+      double v = A[i * n + j];
+      for (int k = 0; k < j; ++k) v -= L[i * n + k] * L[j * n + k];
+      L[i * n + j] = v / L[j * n + j];
+    }
+  }
+  for (int j = 0; j < n; ++j) {
+    Li[j * n + j] = 1.0 / L[j * n + j];
+    for (int i = j + 1; i < n; ++i) {
+      double v = 0.0;
+      for (int k = j; k < i; ++k) v += L[i * n + k] * Li[k * n + j];
+      Li[i * n + j] = -v / L[i * n + i];
+    }
+  }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v = 0.0;
+      for (int k = i; k < n; ++k) v += Li[k * n + i] * Li[k * n + j];
+      H[i * n + j] = H[j * n + i] = v;
+    }
+  return 0;
+}
+
+/* The cell operators of :func:`.stress._cell_block`, cell by cell (the same algebra; the
+   index conventions of the NumPy arrays, row-major). */
+int st_cells(int64_t n, const double *J, const double *s, const double *absdet, const double *ZZ,
+             const double *ZR, const double *W, const double *M1Z, const double *M1R,
+             const double *OZ, const double *OR, const double *q0, const double *beta,
+             const double *mas, double *S, double *gamma0, double *h, double *POt)
+{
+  static const int pi[3] = {1, 2, 0}, pj[3] = {2, 0, 1};   /* the skew pairs (i, j) */
+  for (int64_t c = 0; c < n; ++c) {
+    const double *Jc = J + c * DIM * DIM, *OZc = OZ + c * NFV * MZ, *ORc = OR + c * NFV * NP;
+    double coef[DIM][DIM][DIM][DIM], MZm[DMZ * DMZ], H[DMZ * DMZ], ZMR[DMZ * DNP];
+    /* coef[r][s][i][j] = Σ_tu W[r][s][t][u] J_ti J_uj / |det J| */
+    for (int r = 0; r < DIM; ++r) for (int q = 0; q < DIM; ++q)
+      for (int i = 0; i < DIM; ++i) for (int j = 0; j < DIM; ++j) {
+        double v = 0.0;
+        for (int t = 0; t < DIM; ++t) for (int u = 0; u < DIM; ++u)
+          v += W[((r * DIM + q) * DIM + t) * DIM + u] * Jc[t * DIM + i] * Jc[u * DIM + j];
+        coef[r][q][i][j] = v / absdet[c];
+      }
+    for (int r = 0; r < DIM; ++r) for (int q = 0; q < DIM; ++q)
+      for (int a = 0; a < MZ; ++a) {
+        for (int b = 0; b < MZ; ++b) {
+          double v = 0.0;
+          for (int i = 0; i < DIM; ++i) for (int j = 0; j < DIM; ++j)
+            v += coef[r][q][i][j] * ZZ[((i * DIM + j) * MZ + a) * MZ + b];
+          MZm[(r * MZ + a) * DMZ + q * MZ + b] = v;
+        }
+        for (int b = 0; b < NP; ++b) {
+          double v = 0.0;
+          for (int i = 0; i < DIM; ++i) for (int j = 0; j < DIM; ++j)
+            v += coef[r][q][i][j] * ZR[((i * DIM + j) * MZ + a) * NP + b];
+          ZMR[(r * MZ + a) * DNP + q * NP + b] = v;
+        }
+      }
+    if (spd_inv(DMZ, MZm, H)) return 1;                     /* H = M_Z⁻¹ */
+    /* a_Z, a_R: ∫_T σ_ij − σ_ji = s (J M1 Z)_j·γ_i − s (J M1 Z)_i·γ_j (+ R β alike) */
+    double JZ[DIM][MZ], JR[DIM][NP], aZ[NAS][DMZ], aR[NAS][DNP];
+    for (int q = 0; q < DIM; ++q) {
+      for (int z = 0; z < MZ; ++z) {
+        double v = 0.0;
+        for (int k = 0; k < DIM; ++k) v += Jc[q * DIM + k] * M1Z[k * MZ + z];
+        JZ[q][z] = s[c] * v;
+      }
+      for (int z = 0; z < NP; ++z) {
+        double v = 0.0;
+        for (int k = 0; k < DIM; ++k) v += Jc[q * DIM + k] * M1R[k * NP + z];
+        JR[q][z] = s[c] * v;
+      }
+    }
+    for (int k = 0; k < NAS; ++k) {
+      const int i = NAS == 1 ? 0 : pi[k], j = NAS == 1 ? 1 : pj[k];
+      for (int x = 0; x < DMZ; ++x) aZ[k][x] = 0.0;
+      for (int x = 0; x < DNP; ++x) aR[k][x] = 0.0;
+      for (int z = 0; z < MZ; ++z) { aZ[k][i * MZ + z] += JZ[j][z]; aZ[k][j * MZ + z] -= JZ[i][z]; }
+      for (int z = 0; z < NP; ++z) { aR[k][i * NP + z] += JR[j][z]; aR[k][j * NP + z] -= JR[i][z]; }
+    }
+    /* H a_Zᵀ, G = a_Z H a_Zᵀ, H a_Zᵀ G⁻¹, P = H − H a_Zᵀ G⁻¹ a_Z H */
+    double HaT[DMZ][NAS], G[NAS * NAS], Gi[NAS * NAS], HaG[DMZ][NAS], P[DMZ * DMZ];
+    for (int x = 0; x < DMZ; ++x) for (int k = 0; k < NAS; ++k) {
+      double v = 0.0;
+      for (int y = 0; y < DMZ; ++y) v += H[x * DMZ + y] * aZ[k][y];
+      HaT[x][k] = v;
+    }
+    for (int k = 0; k < NAS; ++k) for (int l = 0; l < NAS; ++l) {
+      double v = 0.0;
+      for (int x = 0; x < DMZ; ++x) v += aZ[k][x] * HaT[x][l];
+      G[k * NAS + l] = v;
+      Gi[k * NAS + l] = k == l;
+    }
+    if (lu_solve(NAS, G, Gi, NAS)) return 1;
+    for (int x = 0; x < DMZ; ++x) for (int k = 0; k < NAS; ++k) {
+      double v = 0.0;
+      for (int l = 0; l < NAS; ++l) v += HaT[x][l] * Gi[l * NAS + k];
+      HaG[x][k] = v;
+    }
+    for (int x = 0; x < DMZ; ++x) for (int y = 0; y < DMZ; ++y) {
+      double v = H[x * DMZ + y];
+      for (int k = 0; k < NAS; ++k) v -= HaG[x][k] * HaT[y][k];
+      P[x * DMZ + y] = v;
+    }
+    /* P Oᵀ (rows (r, z), columns (f, q, k)) and S = O P Oᵀ; O is block diagonal in the rows */
+    double *POc = POt + c * DMZ * DB, *Sc = S + c * DB * DB, OHaG[DB][NAS];
+    for (int x = 0; x < DMZ; ++x)
+      for (int f = 0; f < NV; ++f) for (int q = 0; q < DIM; ++q) for (int k = 0; k < NF; ++k) {
+        double v = 0.0;
+        for (int z = 0; z < MZ; ++z) v += P[x * DMZ + q * MZ + z] * OZc[(f * NF + k) * MZ + z];
+        POc[x * DB + (f * DIM + q) * NF + k] = v;
+      }
+    for (int f = 0; f < NV; ++f) for (int r = 0; r < DIM; ++r) for (int k = 0; k < NF; ++k) {
+      const int row = (f * DIM + r) * NF + k;
+      for (int col = 0; col < DB; ++col) {
+        double v = 0.0;
+        for (int z = 0; z < MZ; ++z) v += OZc[(f * NF + k) * MZ + z] * POc[(r * MZ + z) * DB + col];
+        Sc[row * DB + col] = v;
+      }
+      for (int kk = 0; kk < NAS; ++kk) {
+        double v = 0.0;
+        for (int z = 0; z < MZ; ++z) v += OZc[(f * NF + k) * MZ + z] * HaG[r * MZ + z][kk];
+        OHaG[row][kk] = v;
+      }
+    }
+    /* per vertex a: q = q⁰ − Z_bᵀ M R_b β, P q, c = m − a_R β, γ⁰ = P q + H a_Zᵀ G⁻¹ c,
+       h = O R_b β + O Z_b P q + O H a_Zᵀ G⁻¹ c */
+    for (int a = 0; a < NV; ++a) {
+      const double *bc = beta + (c * NV + a) * DNP, *qc = q0 + (c * NV + a) * DMZ;
+      const double *mc = mas + (c * NV + a) * NAS;
+      double qv[DMZ], Pq[DMZ], cc[NAS];
+      for (int x = 0; x < DMZ; ++x) {
+        double v = qc[x];
+        for (int b = 0; b < DNP; ++b) v -= ZMR[x * DNP + b] * bc[b];
+        qv[x] = v;
+      }
+      for (int x = 0; x < DMZ; ++x) {
+        double v = 0.0;
+        for (int y = 0; y < DMZ; ++y) v += P[x * DMZ + y] * qv[y];
+        Pq[x] = v;
+      }
+      for (int k = 0; k < NAS; ++k) {
+        double v = mc[k];
+        for (int b = 0; b < DNP; ++b) v -= aR[k][b] * bc[b];
+        cc[k] = v;
+      }
+      double *gc = gamma0 + (c * NV + a) * DMZ, *hc = h + (c * NV + a) * DB;
+      for (int x = 0; x < DMZ; ++x) {
+        double v = Pq[x];
+        for (int k = 0; k < NAS; ++k) v += HaG[x][k] * cc[k];
+        gc[x] = v;
+      }
+      for (int f = 0; f < NV; ++f) for (int r = 0; r < DIM; ++r) for (int k = 0; k < NF; ++k) {
+        const int row = (f * DIM + r) * NF + k;
+        double v = 0.0;
+        for (int j = 0; j < NP; ++j) v += ORc[(f * NF + k) * NP + j] * bc[r * NP + j];
+        for (int z = 0; z < MZ; ++z) v += OZc[(f * NF + k) * MZ + z] * Pq[r * MZ + z];
+        for (int kk = 0; kk < NAS; ++kk) v += OHaG[row][kk] * cc[kk];
+        hc[row] = v;
+      }
+    }
+  }
+  return 0;
+}
 
 int st_patches(int64_t npatch, const int64_t *pstart, const int64_t *prow, const int32_t *ploc,
                const int64_t *idx, const int64_t *pdim, const double *S, const double *hp,
@@ -129,10 +313,35 @@ int st_patches(int64_t npatch, const int64_t *pstart, const int64_t *prow, const
 )
 
 
-def library(comm: MPI.Comm, d: int, nf: int):
-    """(ffi, lib) of the kernel for cells of dimension ``d`` with ``nf`` moments per facet
-    and row (collective)."""
-    return load(comm, "stress", CDEF, SOURCE, {"NV": d + 1, "BF": d * nf})
+def library(comm: MPI.Comm, ref: Reference):
+    """(ffi, lib) of the kernel for the rows' reference element ``ref`` (collective)."""
+    d = ref.d
+    dims = {"DIM": d, "NV": d + 1, "NF": ref.nf, "BF": d * ref.nf, "MZ": ref.Z.shape[1]}
+    dims.update(NP=ref.np_, NAS=d * (d - 1) // 2)
+    return load(comm, "stress", CDEF, SOURCE, dims)
+
+
+def _ptr(ffi, keep: list, a: np.ndarray, ctype: str = "double"):
+    """A C pointer to ``a`` (contiguous, of ``ctype``), kept alive in ``keep``."""
+    dtype = {"double": np.float64, "int64_t": np.int64, "int32_t": np.int32}[ctype]
+    a = np.ascontiguousarray(a, dtype=dtype)
+    keep.append(a)
+    return ffi.cast(f"{ctype} *", ffi.from_buffer(a))
+
+
+def cell_operators(kernel: tuple, ref: Reference, arrays: dict, out: dict) -> int:
+    """The per-cell arrays of :func:`.stress._cell_block` (``out``: S, gamma0, h, POt,
+    C-contiguous, written in place) from its inputs (``arrays``: J, s, absdet, the
+    reference tables ZZ, ZR, W, M1Z, M1R, the oriented OZ, OR, and q0, beta, m); the
+    kernel's error code (1: a singular cell matrix)."""
+    ffi, lib = kernel
+    keep: list = []
+    names = ("J", "s", "absdet", "ZZ", "ZR", "W", "M1Z", "M1R", "OZ", "OR", "q0", "beta", "m")
+    args = [_ptr(ffi, keep, arrays[k]) for k in names]
+    for k in ("S", "gamma0", "h", "POt"):
+        assert out[k].flags.c_contiguous and out[k].dtype == np.float64
+        args.append(ffi.cast("double *", ffi.from_buffer(out[k])))
+    return int(lib.st_cells(len(arrays["s"]), *args))
 
 
 def patch_multipliers(
@@ -157,31 +366,20 @@ def patch_multipliers(
     μ, the defect and the kernel's error code (0: none; 1: a singular cell block, 2: a
     singular patch system, 3: out of memory): the caller decides collectively."""
     ffi, lib = kernel
-    keep = []
-
-    def ptr(a, ctype):
-        keep.append(a)
-        return ffi.cast(f"{ctype} *", ffi.from_buffer(a))
-
-    def f64(a):
-        return ptr(np.ascontiguousarray(a, dtype=np.float64), "double")
-
-    def i64(a):
-        return ptr(np.ascontiguousarray(a, dtype=np.int64), "int64_t")
-
+    keep: list = []
     mu = np.zeros((len(prow), (d + 1) * d * nf))
     defect = np.zeros(1)
     err = lib.st_patches(
         len(pdim),
-        i64(pstart),
-        i64(prow),
-        ptr(np.ascontiguousarray(ploc, dtype=np.int32), "int32_t"),
-        i64(idx),
-        i64(pdim),
-        f64(S),
-        f64(hp),
-        f64(dp),
-        ptr(mu, "double"),
-        ptr(defect, "double"),
+        _ptr(ffi, keep, pstart, "int64_t"),
+        _ptr(ffi, keep, prow, "int64_t"),
+        _ptr(ffi, keep, ploc, "int32_t"),
+        _ptr(ffi, keep, idx, "int64_t"),
+        _ptr(ffi, keep, pdim, "int64_t"),
+        _ptr(ffi, keep, S),
+        _ptr(ffi, keep, hp),
+        _ptr(ffi, keep, dp),
+        ffi.cast("double *", ffi.from_buffer(mu)),
+        ffi.cast("double *", ffi.from_buffer(defect)),
     )
     return mu, float(defect[0]), int(err)
