@@ -472,11 +472,12 @@ class _Divergence:
         sig = 2.0 * mu * self.eps + lam * tr[:, :, None, None] * np.eye(d)
         absdet = np.abs(det)
         grad_psi = np.einsum("nki,ak->nai", Jinv, ref.dlam)  # (n, D, d) physical ∇ψ_a
-        flux_psi = np.einsum("nqri,nai->nqar", sig, grad_psi)
+        # Σ_q w_q σ_ri Q_j first (the points contracted before ∇ψ_a: no (n, nq, D, d) array)
+        sigQ = np.tensordot(sig, t["wQ"], axes=([1], [0]))  # (n, r, i, j)
         R0 = np.stack(
             [
                 np.einsum("nq,qaj->naj", tb.f, t["wlamQ"])
-                - np.einsum("nqa,qj->naj", flux_psi[..., r], t["wQ"])
+                - np.einsum("nij,nai->naj", sigQ[:, r], grad_psi)
                 for r, tb in enumerate(tables)
             ],
             axis=2,
@@ -529,21 +530,25 @@ def _rotation_moments(table: CellTable, ref: Reference, beta: np.ndarray, bdata:
     n = len(x)
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     s = np.sign(np.linalg.det(J))
-    pts = x[:, :1] + np.einsum("nij,qj->nqi", J, ref.X)  # (n, nq, d)
-    fpts = x[:, None, :1] + np.einsum("nij,fqj->nfqi", J, ref.XF)  # (n, D, nqf, d)
+    # x − x_a is affine on the reference: its moments against Q̂_j (cells) and q̂_k (facets)
+    # are (x_0 − x_a) ∫̂ Q̂_j + J ∫̂ Q̂_j X̂, from the reference tables
+    m0, m1 = ref.Q @ ref.w, np.einsum("q,jq,ql->jl", ref.w, ref.Q, ref.X)
+    f0, f1 = ref.q @ ref.wS, np.einsum("q,kq,fql->fkl", ref.wS, ref.q, ref.XF)
+    Jm1 = np.einsum("ncl,jl->njc", J, m1)  # (n, np, d)
+    Jf1 = np.einsum("ncl,fkl->nfkc", J, f1)  # (n, D, nf, d)
     out = np.zeros((n, D, len(skew_pairs(d))))
-    for k, (i, j) in enumerate(skew_pairs(d)):
-        for a in range(D):
-            rel = pts - x[:, a][:, None, :]  # x − x_a
-            w = np.zeros(rel.shape)  # W(x − x_a): w_i = (x − x_a)_j, w_j = −(x − x_a)_i
-            w[..., i], w[..., j] = rel[..., j], -rel[..., i]
-            cw = np.einsum("q,jq,nqr->nrj", ref.w, ref.Q, w, optimize=True)  # ∫̂ Q̂_j ŵ_r
-            out[:, a, k] = -s * np.einsum("nrj,nrj->n", beta[:, a], cw)
-            frel = fpts - x[:, a][:, None, None, :]
-            fw = np.zeros(frel.shape)
-            fw[..., i], fw[..., j] = frel[..., j], -frel[..., i]
-            wq = np.einsum("q,kq,nfqr->nfrk", ref.wS, ref.q, fw, optimize=True)  # ∫̂ q̂_k ŵ_r dŝ
-            out[:, a, k] += np.einsum("nfrk,nfrk->n", bdata[:, :, a], wq)
+    for a in range(D):
+        x0a = x[:, 0] - x[:, a]  # (n, d)
+        rel = x0a[:, None, :] * m0[None, :, None] + Jm1  # ∫̂ Q̂_j (x − x_a): (n, np, d)
+        frel = x0a[:, None, None, :] * f0[None, None, :, None] + Jf1  # (n, D, nf, d)
+        for k, (i, j) in enumerate(skew_pairs(d)):
+            # W(x − x_a): w_i = (x − x_a)_j, w_j = −(x − x_a)_i
+            cw = np.einsum("nj,nj->n", beta[:, a, i], rel[..., j]) - np.einsum(
+                "nj,nj->n", beta[:, a, j], rel[..., i]
+            )
+            out[:, a, k] = -s * cw
+            out[:, a, k] += np.einsum("nfk,nfk->n", bdata[:, :, a, i], frel[..., j])
+            out[:, a, k] -= np.einsum("nfk,nfk->n", bdata[:, :, a, j], frel[..., i])
     return out
 
 
