@@ -84,17 +84,7 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     # the spokes of each pair: facets j != ploc; key = the other vertices of the facet
     spoke_facets = np.array([[j for j in range(D) if j != i] for i in range(D)])  # (D, d)
     sf = spoke_facets[ploc]  # (npair, d)
-    _, gv = np.unique(table.gvert[prow], return_inverse=True)  # compact ids
-    gv = gv.reshape(npair, D).astype(np.int64)
-    nv = int(gv.max()) + 1 if npair else 1
-    spoke_keys = []
-    for s in range(ref.d):
-        others = np.sort(np.stack([gv[ar, v] for v in _others(ploc, sf[:, s], D)], axis=1), axis=1)
-        key = patch.astype(np.int64)
-        for col in others.T:
-            key = key * nv + col
-        spoke_keys.append(key)
-    keys = np.concatenate(spoke_keys)  # (npair*d,)
+    keys = spoke_keys(table.gvert[prow], ploc, sf, patch)  # (npair*d,)
     kinds = np.concatenate([table.kind[prow, sf[:, s]] for s in range(ref.d)])
     ukeys, first_of, spoke = np.unique(keys, return_index=True, return_inverse=True)
     spoke = spoke.reshape(ref.d, npair).T  # (npair, d)
@@ -176,6 +166,26 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
     for col in range(ref.m):
         alpha[:, col] += np.bincount(prow, weights=contrib[:, col], minlength=len(alpha))
     return defect
+
+
+def spoke_keys(gvert: np.ndarray, ploc: np.ndarray, sf: np.ndarray, patch: np.ndarray):
+    """One int64 key per (spoke s, pair), s-major: (npair·d,).  A spoke is the facet sf[:, s]
+    of the pair's cell through its vertex ploc, in the patch ``patch``; the key combines
+    the patch and the facet's other vertices (compact ids of ``gvert`` (npair, D), the
+    cells' global vertices), so the pairs of one spoke share it."""
+    npair, D = gvert.shape
+    ar = np.arange(npair)
+    _, gv = np.unique(gvert, return_inverse=True)  # compact ids
+    gv = gv.reshape(npair, D).astype(np.int64)
+    nv = int(gv.max()) + 1 if npair else 1
+    keys = []
+    for s in range(D - 1):
+        others = np.sort(np.stack([gv[ar, v] for v in _others(ploc, sf[:, s], D)], axis=1), axis=1)
+        key = patch.astype(np.int64)
+        for col in others.T:
+            key = key * nv + col
+        keys.append(key)
+    return np.concatenate(keys)
 
 
 def _others(ploc, facet, D):

@@ -78,7 +78,7 @@ from .cells import (
 from .flux import _multiplier_functions, _oscillation, rt_function
 from .multiplier import clipped, entity_rule, shares
 from .operators import CellOperators, _projected, det_inv
-from .patches import _assemble
+from .patches import _assemble, spoke_keys
 from .reference import CELLS, Reference, reference
 
 __all__ = ["BACKENDS", "Stress", "StressData", "reconstruct_stress", "skew_pairs"]
@@ -625,13 +625,9 @@ def _pairs(table: CellTable, owned: np.ndarray, ref: Reference, kinds: np.ndarra
         return _Pairs(empty, empty, empty, np.zeros(1, np.int64), empty, empty.reshape(0, d * d))
     others = np.array([[j for j in range(D) if j != i] for i in range(D)])  # spokes of a
     sf = others[ploc]  # (npair, d) the facets through a
-    # a spoke is (patch, the facet's vertices): key them through the sorted global vertices
-    fverts = np.stack(
-        [np.sort(table.gvert[prow[:, None], others[sf[:, s]]], axis=1) for s in range(d)], 1
-    )  # (npair, d, d)
-    keys = np.concatenate([np.repeat(patch[:, None], d, 1)[..., None], fverts], axis=2)
-    _, spoke = np.unique(keys.reshape(-1, d + 1), axis=0, return_inverse=True)
-    spoke = spoke.reshape(npair, d)
+    # a spoke is (patch, the facet's other vertices)
+    _, spoke = np.unique(spoke_keys(table.gvert[prow], ploc, sf, patch), return_inverse=True)
+    spoke = spoke.reshape(d, npair).T
     n_spokes = spoke.max() + 1
     spoke_patch = np.zeros(n_spokes, dtype=np.int64)
     spoke_patch[spoke] = patch[:, None]
