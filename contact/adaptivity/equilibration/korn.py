@@ -17,8 +17,9 @@ rotations the boundary conditions hold only weakly — smooth eigenfunctions tha
 meshes already resolve — though on hertz_2d the top of the discrete spectrum is a cluster
 (2.94, 2.97, 2.98, 2.99 at 8k DoFs) that creeps up under refinement.  Solved by
 :data:`STEPS` steps of subspace iteration with Rayleigh–Ritz on a block of
-:data:`BLOCK` vectors (the stiffness factorized once by MUMPS), from start vectors that are
-functions of the coordinates (the same on any number of ranks).
+:data:`BLOCK` vectors (the stiffness factorized once by MUMPS, each step one solve with
+BLOCK right-hand sides), from start vectors that are functions of the coordinates (the
+same on any number of ranks).
 """
 
 from __future__ import annotations

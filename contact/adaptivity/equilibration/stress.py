@@ -46,8 +46,16 @@ H = M_Z⁻¹,
 so that O σ = h − S μ with S = O P Oᵀ, as in :mod:`.operators` with P for M_Z⁻¹.  A
 closed patch has the rigid motions (d(d+1)/2) in the kernel of its μ-system and a
 consistent right-hand side up to the algebraic residual of the solve; they do not change
-σ_a.  The residual the solves leave is reported as ``defect``.  No loop runs over
-vertices: the patches of one size are solved in one batched call.
+σ_a.  The residual the solves leave is reported as ``defect``.
+
+**Cost.**  The patches are taken in blocks of :data:`PATCHES` vertices: the operators of
+the block's cells (S, P Oᵀ and σ_a's cell problem at μ = 0 per vertex) are computed, the
+block's μ-systems solved and σ_a added, then the cell arrays dropped (for the whole mesh
+they would be 810 doubles per cell with P1; writing them the first time cost more than
+computing them).  ``backend="compiled"`` (the default) computes the cell operators and
+solves the patches in C (:mod:`.stress_c`), ``"numpy"`` with batched NumPy (the
+reference: the patches of one size in one call); no Python loop runs over vertices or
+cells.  Measured on hertz_2d (``bench_equilibrated.py --cost-elastic``): RESULTS §12.
 """
 
 from __future__ import annotations
@@ -389,13 +397,15 @@ def _cell_block(
     M1 = np.einsum("q,qlk->kl", ref.w, ref.phi)
     # σ_a's cell problem at μ = 0, per vertex a: the load g_a = ∫_T ψ_a ε(u_h) : φ =
     # s Σ_q w ψ_a (Jᵀ ε_r)·φ̂ (C⁻¹ σ(u_h) = ε(u_h)), q = Z_bᵀ g_a − Z_bᵀ M R_b β
-    ref_eps = np.einsum("nji,nqrj->nqri", J, div.eps[rows])  # (n, nq, r, i)
-    gl = g["s"][:, None, None, None] * np.einsum(
-        "q,qa,nqri,qli->narl", ref.w, ref.lam, ref_eps, ref.phi, optimize=True
-    )  # (n, D, d, m)
+    nq, mz = len(ref.w), ref.Z.shape[1]
+    ref_eps = np.matmul(div.eps[rows].reshape(n, nq * d, d), J)  # (n, nq·r, i): Jᵀ ε_r
+    ref_eps = ref_eps.reshape(n, nq, d, d).transpose(0, 2, 1, 3).reshape(n, d, nq * d)
+    q0 = (ref_eps @ _load_table(d, ref.p)).reshape(n, d, D, mz).transpose(0, 2, 1, 3)
+    q0 = g["s"][:, None, None] * q0.reshape(n, D, d * mz)  # Z_bᵀ g_a
     bflat = div.beta[rows].reshape(n, D, -1)
     Pm = ref.P[ops.perm]  # (n, D, nf, nf): the data in the global facet basis
-    out.data[:] = np.einsum("njkl,njark->najrl", Pm, bdata).reshape(n, D, D * d * nf)
+    glob = np.matmul(bdata.reshape(n, D, D * d, nf), Pm)  # (n, facet j, (a, r), l)
+    out.data[:] = glob.reshape(n, D, D, d, nf).transpose(0, 2, 1, 3, 4).reshape(n, D, -1)
     if kernel is not None:
         arrays = {
             "J": J,
@@ -408,7 +418,7 @@ def _cell_block(
             "M1R": M1 @ ref.R,
             "OZ": ops.OZ,
             "OR": ops.OR,
-            "q0": gl.reshape(n, D, d * m) @ Zb,
+            "q0": q0,
             "beta": bflat,
             "m": m_as,
         }
@@ -438,13 +448,22 @@ def _cell_block(
     OR = _block_diag(ops.OR, d, D, nf)
     out.POt[:] = P @ np.transpose(OZ, (0, 2, 1))
     out.S[:] = OZ @ out.POt
-    q = gl.reshape(n, D, d * m) @ Zb - np.einsum("nzb,nab->naz", ZMR, bflat)
+    q = q0 - np.einsum("nzb,nab->naz", ZMR, bflat)
     Pq = np.einsum("nyz,naz->nay", P, q)
     c = m_as - np.einsum("nkb,nab->nak", aR, bflat)
     out.h[:] = np.einsum("nfb,nab->naf", OR, bflat) + np.einsum("nfz,naz->naf", OZ, Pq)
     out.h[:] += np.einsum("nfk,nak->naf", OZ @ HaG, c)
     out.gamma0[:] = Pq + np.einsum("nzk,nak->naz", HaG, c)
     return 0
+
+
+@functools.cache
+def _load_table(d: int, p: int) -> np.ndarray:
+    """T[(q, i), (a, z)] = w_q ψ_a(q) Σ_l φ̂_l,i(q) Z_lz of RT_p's reference (d, p): the load
+    Z_bᵀ g_a of σ_a's cell problem is s (Jᵀ ε_r)(q)_i T per row r."""
+    r = reference(d, p)
+    T = np.einsum("q,qa,qli,lz->qiaz", r.w, r.lam, r.phi, r.Z)
+    return T.reshape(len(r.w) * d, -1)
 
 
 @dataclass
