@@ -48,6 +48,19 @@ terms besides the reconstruction) and the residual estimate (``residual_*``); ``
     mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
     python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled \
         --out demos/results/equilibrated
+
+Cost of the elastic estimate (``--cost-elastic N``): hertz_2d (configs/hertz_2d.yaml, CG +
+GAMG) refined uniformly N times from its initial mesh (N = 2: 126k DoFs), the whole
+:func:`elastic_bound` (the Korn constant, the stress reconstruction, the terms) with each
+patch backend of contact/adaptivity/equilibration/stress.py (``compiled``: the C kernels of
+stress_c.py; ``numpy``: the reference) against one CG + GAMG solve of K with the
+rigid-body near-nullspace, ``--repeat`` times in turn after a warm-up call of each: the
+medians of the CPU seconds, their ratio to the solve's (``ratio_cpu_min``: the fastest
+runs'), η of each backend (the same to round-off) and the phases' wall seconds
+(``seconds_korn``, ``seconds_patches``: the cell operators and the patch problems, …);
+``cost_elastic.csv``.
+
+    python demos/bench/bench_equilibrated.py --cost-elastic 2 --out demos/results/equilibrated
 """
 
 from __future__ import annotations
