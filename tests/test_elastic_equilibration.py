@@ -129,6 +129,20 @@ def test_compiled_patches_agree_with_numpy(tresca) -> None:
     assert stress.defect < 1e-9 and ref.defect < 1e-9
 
 
+@pytest.mark.parametrize("backend", ["compiled", "numpy"])
+def test_patches_in_blocks_give_the_same_stress(tresca, monkeypatch, backend) -> None:
+    """The patches taken a few at a time (stress.PATCHES: the cells of each block computed
+    again where blocks share them) give the σ_h of one block."""
+    from contact.adaptivity.equilibration import stress as module
+
+    scene, result, _ = tresca
+    whole = reconstruct_stress(stress_data(scene, result), backend=backend)
+    monkeypatch.setattr(module, "PATCHES", 7)
+    blocks = reconstruct_stress(stress_data(scene, result), backend=backend)
+    got, want = (np.concatenate([r.x.array for r in s.rows]) for s in (blocks, whole))
+    assert np.abs(got - want).max() < 1e-11 * np.abs(want).max()
+
+
 def test_without_a_compiler_the_numpy_patches_answer(tresca, tmp_path, monkeypatch) -> None:
     from contact.adaptivity.equilibration import compiled
 
