@@ -65,6 +65,13 @@ def test_gmres_block_system_equals_mumps_3d(form):
     status = ref.friction["status"]
     assert (status == 1).sum() > 20 and (status == 2).sum() > 20
     assert _close(ref.u_h.x.array, new.u_h.x.array)
+    # GAMG is set up for every Newton step's A (block_system.py: BlockReducedSystem.LAG)
+    assert new.krylov_log and all(entry["setups"] >= 1 for entry in new.krylov_log)
+    if form == "hsw":  # the lagged hierarchy (the old default) reaches the same answer
+        lag = {"reduced_lag_pc": True}
+        old = contact.load_scene(BOX, [f"friction.form={form}"])
+        lagged = contact.solve(old, linear="gmres", petsc_options=lag)
+        assert lagged.converged and _close(ref.u_h.x.array, lagged.u_h.x.array)
 
 
 def test_gmres_path_agrees_with_the_coulomb_fixed_point():

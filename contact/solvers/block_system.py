@@ -16,10 +16,20 @@ slipping nodes, whose tangential rows keep the Coulomb coupling B_tn (K y)_n + D
 their normal row and HSW's non-symmetric 2 × 2 blocks.  Those are a few rows of the contact
 surface: A is K restricted to the free rows up to a perturbation of low rank, GMRES (right
 preconditioned, unpreconditioned residual norm) with GAMG on A converges about as CG does on
-the frictionless system, and GAMG's hierarchy lags across Newton steps by the rule of
-:class:`~.reduced.ReducedSystem` (an earlier A is a good preconditioner while the stick/slip
-sets move on the surface only).  The forcing terms of inexact Newton are the diagonal law's
+the frictionless system.  The forcing terms of inexact Newton are the diagonal law's
 (Eisenstat–Walker, exact once a Newton step repeats the law).
+
+GAMG is set up for each Newton step's A (``LAG = False``), its interpolation reused
+(``pc_gamg_reuse_interpolation``): such a set-up is the Galerkin products alone, about 3
+GMRES iterations (friction_box_3d, 180k DoFs, 2 ranks: 0.19 s against 0.6 s for a first
+set-up and 0.06 s per iteration).  Every Newton step moves the stick/slip sets, and a row
+that changes sides changes A by a row and column of K: a hierarchy lagged from an earlier A
+(``reduced_lag_pc true``, the rule of :class:`~.reduced.ReducedSystem`, which pays where a
+set-up costs 8 CG iterations) stalls on those few directions — the same step took 18 GMRES
+iterations lagged against 10 fresh.  Measured (``bench_cost.py path --variants new,nolag``,
+friction_box_3d at [72, 72, 36] cells, 591519 DoFs, 2 ranks, CPU time over one CG + GAMG
+solve of K in the same process): load steps 3.02×, 3.70×, 4.20× lagged, 2.29×, 2.49×, 2.77×
+with a set-up per step (65–84 GMRES iterations a step instead of 115–160).
 
 ``solver.linear: direct`` (MUMPS on H) and ``bcgs`` (BiCGStab + GAMG on H) keep the assembled
 paths of :mod:`.linear`.
@@ -42,6 +52,8 @@ class BlockReducedSystem(ReducedSystem):
     the assembled Jacobian (the pattern of B K: :meth:`FrictionalComplementarity.matrix`),
     SNES's Jacobian, owned by this object; :meth:`set_block` builds A from the blocks the
     Jacobian callback wrote into it."""
+
+    LAG = False  # a GAMG set-up per Newton step (module doc)
 
     def __init__(self, problem: DiscreteProblem, H: PETSc.Mat, prefix: str, forcing: bool = True):
         self.H = H

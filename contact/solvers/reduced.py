@@ -139,6 +139,7 @@ class ReducedSystem:
         self.lag = True
         self._fresh_rate: float | None = None
         self._lag_ok, self._lagged = False, False
+        self.setups = 0  # GAMG set-ups (fresh solves, rebuilds midway, restarts)
         self.rebuilds = 0  # lagged solves that had to rebuild GAMG midway
         self.restarts = 0  # solves started over with a new GAMG after a breakdown
         self.J = self._jacobian()
@@ -150,11 +151,15 @@ class ReducedSystem:
         J.setUp()
         return J
 
+    #: lag GAMG across Newton steps unless ``reduced_lag_pc`` says otherwise
+    LAG = True
+
     def set_options(self) -> None:
         """Take the inner KSP's tolerance after it has read the options database, and the
-        lagging switch ``reduced_lag_pc`` (default true)."""
+        lagging switch ``reduced_lag_pc`` (default :attr:`LAG`)."""
         self._rtol, _, _, self._max_it = self.ksp.getTolerances()
-        self.lag = PETSc.Options(self.ksp.getOptionsPrefix()).getBool("reduced_lag_pc", True)
+        prefix = self.ksp.getOptionsPrefix()
+        self.lag = PETSc.Options(prefix).getBool("reduced_lag_pc", self.LAG)
         # adaptive stopping measures CG's natural norm, which the lagging's rates do not use
         self.lag = self.lag and self.stopping is None
 
@@ -235,6 +240,7 @@ class ReducedSystem:
             atol = self.stopping.krylov_atol()
         watch = Stopwatch()
         r0 = norm2(self.r)
+        setups = self.setups
         if not newton and not resume and self._lagged:
             # an exact solve (polishing) on a lagged preconditioner: its rate is only known
             # for loose Newton solves, which overrate it (hertz_3d's 865k-DoF level on 2 ranks:
@@ -262,6 +268,7 @@ class ReducedSystem:
                 "reason": self.last_reason,
                 "fixed_rows": self.fixed_rows,
                 "resume": resume,
+                "setups": self.setups - setups,
             }
         )
 
@@ -305,6 +312,7 @@ class ReducedSystem:
         ksp.setTolerances(rtol=rtol, atol=atol, max_it=max_it)
         if not lagged:
             ksp.setUp()
+            self.setups += 1
         ksp.solve(self.r, y)
         its = ksp.getIterationNumber()
         self.last_reason = ksp.getConvergedReason()  # type: ignore[assignment]
@@ -318,6 +326,7 @@ class ReducedSystem:
             ksp.setTolerances(rtol=rtol, atol=atol, max_it=self._max_it)
             try:
                 ksp.setUp()
+                self.setups += 1
                 ksp.solve(self.r, y)
             finally:
                 ksp.setInitialGuessNonzero(False)
@@ -344,6 +353,7 @@ class ReducedSystem:
         ksp.setTolerances(rtol=rtol, atol=atol, max_it=self._max_it)
         ksp.solve(self.r, y)
         self.restarts += 1
+        self.setups += 1
         n = ksp.getIterationNumber()
         self.last_reason = ksp.getConvergedReason()  # type: ignore[assignment]
         self._fresh(n, r0)

@@ -34,11 +34,12 @@ before and after the path (medians), per ``--variants``: ``new`` (the defaults: 
 step and every later step grid-sequenced, the secant predictor, ``solver.linear: auto``),
 ``old`` (the path before issue 29: no sequencing, no predictor, MUMPS on H; ``old-bcgs``
 with BiCGStab + GAMG, the old 3D default), ``gmres`` / ``direct`` (the defaults with that
-linear solver), ``noseq`` (no sequencing), ``nopred`` (no predictor); the last step's
-largest nodal difference to the first variant's:
+linear solver), ``noseq`` (no sequencing), ``nopred`` (no predictor), ``lag`` (GAMG lagged
+across Newton steps, the block system's default before it took a set-up per step); the
+last step's largest nodal difference to the first variant's:
 
     mpirun -n 2 python demos/bench/bench_cost.py path --scene configs/friction_box_3d.yaml \
-        --set "mesh.cells=[72,72,36]" --times 0.5,0.75,1 --variants new,old-bcgs \
+        --set "mesh.cells=[72,72,36]" --times 0.5,0.75,1 --variants new,lag \
         --out demos/results/cost/friction_box_3d_np2.csv
     mpirun -n 2 python demos/bench/bench_cost.py path --scene configs/two_body_cattaneo_2d.yaml \
         --set mesh.h_contact=0.0022 --times 0.5,0.625,0.75 --variants direct,gmres \
@@ -178,6 +179,7 @@ VARIANTS = {
     "direct": ["solver.linear=direct"],
     "noseq": ["solver.sequence=off"],
     "nopred": ["load.predictor=none"],
+    "lag": ["solver.petsc_options.reduced_lag_pc=true"],
     "old": ["solver.sequence=off", "load.predictor=none", "solver.linear=direct"],
     "old-bcgs": ["solver.sequence=off", "load.predictor=none", "solver.linear=bcgs"],
 }
