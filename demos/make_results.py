@@ -2544,7 +2544,7 @@ def guaranteed() -> str:
     levels = [
         r
         for path in sorted(folder.glob("effectivity*.csv"))
-        if "uniform" not in path.stem
+        if not any(tag in path.stem for tag in ("uniform", "_3d", "_flow"))
         for r in rows(path) or []
     ]
     if not levels:
@@ -2603,12 +2603,8 @@ def guaranteed() -> str:
         ),
         "",
     ]
-    cost_rows = [
-        r
-        for name in ("cost.csv", "cost_3d.csv")
-        for r in rows(folder / name) or []
-        if r["backend"] == "compiled"
-    ]
+    all_cost = [r for name in ("cost.csv", "cost_3d.csv") for r in rows(folder / name) or []]
+    cost_rows = [r for r in all_cost if r["backend"] == "compiled"]
     for r in cost_rows:
         line = (
             f"**Cost, {r['dim']}D, {r['dofs']} DoFs, {r['ranks']} rank(s)** "
@@ -2622,7 +2618,30 @@ def guaranteed() -> str:
             line += (
                 f"; the residual estimate {g(r['residual_cpu'])} s = {g(r['residual_ratio_cpu'])}×"
             )
+        for f in (f for f in all_cost if f["backend"] == "flow" and f["dim"] == r["dim"]):
+            line += (
+                f"; with the cheaper P1 fit (`backend: flow`) the reconstruction "
+                f"{g(f['reconstruction_cpu'])} s = {g(f['ratio_cpu'])}×, the whole estimate "
+                f"{g(f['estimate_cpu'])} s = {g(f['estimate_ratio_cpu'])}×"
+            )
         out += [line + ".", ""]
+    eff3d = rows(folder / "effectivity_3d.csv") or []
+    if eff3d:
+        cells = [
+            f"{r['dofs']} DoFs: "
+            + ", ".join(
+                f"{b['backend']} {b['effectivity']:.3f}"
+                for b in eff3d
+                if (b["n"], b["ranks"]) == (r["n"], r["ranks"])
+            )
+            for r in eff3d
+            if r["backend"] == eff3d[0]["backend"]
+        ]
+        out += [
+            "**Effectivity, 3D** (problem A extruded, the cost scene with [2N, N, N] cells, "
+            "`bench_equilibrated.py --uniform3d`): " + "; ".join(cells) + ".",
+            "",
+        ]
     stop = rows(RES / "stopping" / "stopping.csv") or []
     if stop:
         body = []

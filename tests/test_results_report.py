@@ -86,6 +86,16 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
         "estimate_ratio_cpu,residual_cpu,residual_ratio_cpu\n"
         "2,1,1038961,compiled,2.9,3.0,0.97,7.2,2.4,0.9,0.3\n"
     )
+    (eq / "cost_3d.csv").write_text(
+        "dim,ranks,dofs,backend,reconstruction_cpu,solve_cpu,ratio_cpu,estimate_cpu,"
+        "estimate_ratio_cpu,residual_cpu,residual_ratio_cpu\n"
+        "3,1,520192,compiled,30.0,3.0,10.0,45.0,15.0,3.0,1.0\n"
+        "3,1,520192,flow,24.0,3.0,8.0,39.0,13.0,3.0,1.0\n"
+    )
+    (eq / "effectivity_3d.csv").write_text(
+        "ranks,n,dofs,backend,error,eta,effectivity\n"
+        "1,8,1377,compiled,0.1,0.125,1.25\n1,8,1377,flow,0.1,0.13,1.3\n"
+    )
     stop = tmp_path / "res" / "stopping"
     stop.mkdir()
     (stop / "stopping.csv").write_text(
@@ -108,6 +118,11 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
     assert "| C_P2 | 1 | 2 | 100 | 0.9–1.1 | – | no (levels [1]) | 9–9.5 | – |" in section
     assert "the flux reconstruction 2.9 s = 0.97× (target 1×)" in section
     assert "the residual estimate 0.9 s = 0.3×" in section
+    assert "the flux reconstruction 30 s = 10× (target 2×)" in section
+    assert (
+        "(`backend: flow`) the reconstruction 24 s = 8×, the whole estimate 39 s = 13×" in section
+    )
+    assert "--uniform3d`): 1377 DoFs: compiled 1.250, flow 1.300." in section
     assert "| fixed | 2 | 251 | 3.5–3.6 | 15.5 / 15.7 / 15.9 | 413467 |" in section
     assert "| adaptive | 2 | 48 | 2.1–2.2 | 14.1 / 14.3 / 14.6 | 447055 |" in section
     assert (eq / "effectivity.png").stat().st_size > 0

@@ -12,10 +12,20 @@ contact/adaptivity/equilibration/bound.py) and the estimate's and the solve's se
 η ≥ error on every level and η / error ≤ 1.5 on every level past the first three, prints
 each level and a verdict per problem, and writes ``effectivity.csv`` (``effectivity_np2.csv``
 under ``mpirun -n 2``); ``--compare-backends`` also computes η with the NumPy patch solver on
-every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off).
+every level (``eta_numpy``, ``eta_rel_diff``: the two must agree to round-off);
+``--backend flow`` estimates with the cheaper P1 patch fit of contact/adaptivity/equilibration/
+flux.py (the P1 problems only; ``effectivity_flow*.csv``).
 
     python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --out demos/results/equilibrated
+
+3D (``--uniform3d N ...``): problem A's extrusion of the cost scene below on [2N, N, N] cells,
+one solve per N, the effectivity of η with each ``--backends`` (the energy error by a rule of
+degree 6: the default degree 4 puts a point on the line r = 0, where ∇u is 0/0);
+``effectivity_3d.csv``.
+
+    python demos/bench/bench_equilibrated.py --uniform3d 8 16 24 --backends compiled flow \
+        --out demos/results/equilibrated
 
 Elasticity (issue 30 item 2; contact/adaptivity/equilibration/elastic.py): ``tresca_P1``
 and ``tresca_P2``, the manufactured Tresca scene (configs/friction_tresca_manufactured.yaml,
@@ -46,8 +56,8 @@ terms besides the reconstruction) and the residual estimate (``residual_*``); ``
 
     python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
     mpirun -n 2 python demos/bench/bench_equilibrated.py --cost 720 --out demos/results/equilibrated
-    python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled \
-        --out demos/results/equilibrated
+    python demos/bench/bench_equilibrated.py --cost3d 63 --backends compiled flow \
+        --repeat 2 --out demos/results/equilibrated
 
 Cost of the elastic estimate (``--cost-elastic N``): hertz_2d (configs/hertz_2d.yaml, CG +
 GAMG) refined uniformly N times from its initial mesh (N = 2: 126k DoFs), the whole
@@ -71,7 +81,7 @@ import time
 from pathlib import Path
 
 import contact
-from contact.adaptivity.energy_error import solution_error
+from contact.adaptivity.energy_error import energy_error, solution_error
 from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
 from contact.adaptivity.equilibration.elastic import elastic_bound
 from contact.adaptivity.equilibration.flux import BACKENDS, reconstruct_flux
@@ -116,17 +126,27 @@ def residual_eta(scene: contact.Scene, result) -> float:
 
 
 def effectivity(
-    name: str, strategy: str, max_dofs: int, max_levels: int = 30, compare: bool = False
+    name: str,
+    strategy: str,
+    max_dofs: int,
+    max_levels: int = 30,
+    compare: bool = False,
+    backend: str = "compiled",
 ) -> list[dict]:
     """The loop SOLVE → ESTIMATE (both estimators) → MARK → REFINE of contact/drivers/adaptive.py's
     docstring, with nested iteration, until the next level would exceed ``max_dofs``;
-    ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference)."""
+    ``compare``: also η with the NumPy patch solver (``eta_numpy``, the relative difference);
+    ``backend``: the patch solver of the scalar problems' η."""
     path, sets = PROBLEMS[name]
     scene = contact.load_scene(
         ROOT / "configs" / path, sets + ["estimator=equilibrated", "output.verbose=false"]
     )
     rows, u0, solves = [], None, []
-    bound_of = elastic_bound if scene.config.elastic else guaranteed_bound
+    bound_of = (
+        elastic_bound
+        if scene.config.elastic
+        else lambda sc, res: guaranteed_bound(sc, res, backend=backend)
+    )
     for level in range(max_levels):
         t0 = time.perf_counter()
         result = contact.solve(scene, u0=u0, verbose=False)
@@ -145,6 +165,7 @@ def effectivity(
                 "problem": name,
                 "ranks": MPI.COMM_WORLD.size,
                 "strategy": strategy,
+                "backend": backend,
                 "level": level,
                 "dofs": result.dofs,
                 "error": err,
@@ -219,6 +240,39 @@ def cost_scene(n: int, dim: int) -> contact.Scene:
         ROOT / "configs" / "signorini_free_boundary.yaml",
         sets + ["output.verbose=false", "solver.max_dofs=30000000"],
     )
+
+
+def uniform3d(sizes: list[int], backends: list[str]) -> list[dict]:
+    """The effectivity η / error of each backend on the 3D cost scene with [2N, N, N] cells, one
+    solve per N (the energy error by a rule of degree 6)."""
+    rows = []
+    for n in sizes:
+        scene = cost_scene(n, 3)
+        result = contact.solve(scene, verbose=False)
+        k = result.problem.data["k"]
+        error = energy_error(result.u_h, scene.config.data.exact, k, quadrature_degree=6)
+        for backend in backends:
+            eta = guaranteed_bound(scene, result, backend=backend).eta
+            rows.append(
+                {
+                    "ranks": MPI.COMM_WORLD.size,
+                    "n": n,
+                    "dofs": result.dofs,
+                    "backend": backend,
+                    "error": error,
+                    "eta": eta,
+                    "effectivity": eta / error,
+                }
+            )
+        if MPI.COMM_WORLD.rank == 0:
+            print(
+                f"3D N = {n}: {result.dofs} DoFs, error {error:.4e}, effectivity "
+                + ", ".join(
+                    f"{r['backend']} {r['effectivity']:.3f}" for r in rows[-len(backends) :]
+                ),
+                flush=True,
+            )
+    return rows
 
 
 def _timed(fn):
@@ -495,6 +549,15 @@ def main() -> None:
         choices=list(BACKENDS),
         help="the reconstruction backends to time (cost)",
     )
+    ap.add_argument(
+        "--backend",
+        default="compiled",
+        choices=list(BACKENDS),
+        help="the patch solver of the scalar problems' η (effectivity)",
+    )
+    ap.add_argument(
+        "--uniform3d", type=int, nargs="*", default=[], help="3D effectivity of --backends, per N"
+    )
     ap.add_argument("--repeat", type=int, default=3, help="cost: runs of each measurement, in turn")
     ap.add_argument("--out", default="demos/results/equilibrated")
     args = ap.parse_args()
@@ -504,19 +567,33 @@ def main() -> None:
         rows = cost_elastic(args.cost_elastic, backends, args.repeat)
         save_csv(Path(args.out) / f"cost_elastic{suffix}.csv", rows)
         return
+    if args.uniform3d:
+        save_csv(
+            Path(args.out) / f"effectivity_3d{suffix}.csv", uniform3d(args.uniform3d, args.backends)
+        )
+        return
     if args.cost or args.cost3d:
         dim, n = (2, args.cost) if args.cost else (3, args.cost3d)
         name = f"cost{'' if dim == 2 else '_3d'}{suffix}.csv"
         save_csv(Path(args.out) / name, cost(n, dim, args.backends, args.repeat))
         return
+    if args.backend == "flow":  # a P1 fit of the scalar problems' patches
+        skipped = [p for p in args.problems if not p.endswith("_P1") or p in ELASTIC]
+        args.problems = [p for p in args.problems if p not in skipped]
+        if skipped and MPI.COMM_WORLD.rank == 0:
+            print(f"--backend flow serves the scalar P1 problems: {', '.join(skipped)} left out")
     rows, verdicts = [], []
     for name in args.problems:
-        got = effectivity(name, args.strategy, args.max_dofs, compare=args.compare_backends)
+        got = effectivity(
+            name, args.strategy, args.max_dofs, compare=args.compare_backends, backend=args.backend
+        )
         rows += got
         verdicts.append(verdict(got))
     if MPI.COMM_WORLD.rank == 0:
         print("\n".join(verdicts), flush=True)
     tag = "" if args.strategy == "dorfler" else f"_{args.strategy}"
+    if args.backend != "compiled":
+        tag = f"_{args.backend}{tag}"
     if all(name in ELASTIC for name in args.problems):  # beside the scalar problems' file
         tag = f"_elastic{tag}"
     save_csv(Path(args.out) / f"effectivity{tag}{suffix}.csv", rows)

@@ -5,7 +5,8 @@
 * :mod:`.operators` — the hybridized cell operators of a patch problem;
 * :mod:`.patches` — the vertex-patch problems, batched by size (NumPy: ``backend="numpy"``);
 * :mod:`.patches_c`, :mod:`.kernel_c`, :mod:`.compiled` — the same patch problems in a C
-  kernel compiled at first use (the default backend: ≈ 20× faster, the same σ_h to round-off);
+  kernel compiled at first use (the default backend: ≈ 20× faster, the same σ_h to round-off),
+  and there a cheaper P1 fit of the same constraints (``backend="flow"``);
 * :mod:`.flux` — :func:`reconstruct_flux`, σ_h ∈ RT_p from plain inputs;
 * :mod:`.bound` — the guaranteed bound for the scalar Signorini and obstacle problems.
 """

@@ -37,9 +37,15 @@ from .reference import Reference, reference
 
 __all__ = ["Flux", "FluxData", "reconstruct_flux"]
 
-#: the patch solver: "compiled" (the C kernel of :mod:`.patches_c`) or "numpy" (:mod:`.patches`,
-#: the reference implementation, kept to measure and cross-check the kernel)
-BACKENDS = ("compiled", "numpy")
+#: the patch solver: "compiled" (the C kernel of :mod:`.patches_c`), "numpy" (:mod:`.patches`,
+#: the reference implementation, kept to measure and cross-check the kernel) or "flow" (P1
+#: only, compiled: the same constraints and so the same guarantee, the patch minimization only
+#: approximated — block coordinate descent in the facet moments, the constant fluxes under the
+#: constraints, then ``rounds`` times the higher moments facet by facet and the constant
+#: fluxes again; ``solve_flow`` in :mod:`.kernel_c`)
+BACKENDS = ("compiled", "numpy", "flow")
+#: the default rounds of the "flow" backend (docs/theory.md §9: effectivity against cost)
+FLOW_ROUNDS = 1
 
 
 @dataclass
@@ -78,11 +84,16 @@ class Flux:
 
 
 def reconstruct_flux(
-    data: FluxData, multiplier: str | None = None, sign: float = 0.0, backend: str = "compiled"
+    data: FluxData,
+    multiplier: str | None = None,
+    sign: float = 0.0,
+    backend: str = "compiled",
+    rounds: int = FLOW_ROUNDS,
 ) -> Flux:
     """σ_h of the module docstring.  ``multiplier``: None, "facets" (λ on the ``contact``
     facets, Signorini) or "cells" (λ in Ω, obstacle); ``sign``: the sign λ̃ must have
-    (−1: ≤ 0, +1: ≥ 0, 0: any); ``backend``: one of :data:`BACKENDS`.  Collective."""
+    (−1: ≤ 0, +1: ≥ 0, 0: any); ``backend``: one of :data:`BACKENDS`; ``rounds``: those of
+    the "flow" backend (≥ 0).  Collective."""
     if multiplier not in (None, "facets", "cells"):
         raise ValueError(f"multiplier: expected None, 'facets' or 'cells', got {multiplier!r}")
     if backend not in BACKENDS:
@@ -92,6 +103,8 @@ def reconstruct_flux(
     d = msh.topology.dim
     p = V.element.basix_element.degree
     ref = reference(d, p)
+    if backend == "flow" and (p != 1 or rounds < 0):
+        raise ValueError(f"backend 'flow': P1 and rounds >= 0 only, got P{p} and {rounds}")
     comm = msh.comm
     clock = _Clock()
     if multiplier is not None and data.lmbda_h is None:
@@ -101,16 +114,25 @@ def reconstruct_flux(
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
     vmap = msh.topology.index_map(0)
-    if backend == "compiled":
+    compiled = backend in ("compiled", "flow")
+    if compiled:
         try:
             library(comm, ref, table.U.shape[1])
         except RuntimeError as err:  # no C compiler: the NumPy solver, same numbers, slower
             warnings.warn(
                 f"{err}; the flux reconstruction falls back to backend='numpy'", stacklevel=2
             )
-            backend = "numpy"
-    if backend == "compiled":
-        out, osc = solve_patches_compiled(comm, work, vmap.local_range, ref, multiplier, sign)
+            backend, compiled = "numpy", False
+    if compiled:
+        out, osc = solve_patches_compiled(
+            comm,
+            work,
+            vmap.local_range,
+            ref,
+            multiplier,
+            sign,
+            flow=rounds if backend == "flow" else -1,
+        )
         osc = osc[:n_owned]
     else:
         owned = np.arange(*vmap.local_range, dtype=np.int64)
@@ -118,7 +140,7 @@ def reconstruct_flux(
     clock.lap("patches")
     offset = msh.topology.index_map(d).local_range[0]
     alpha = return_to_owners(comm, work.gcell, source, out.alpha, n_owned, offset)
-    if backend == "compiled":
+    if compiled:
         sigma_h = rt_function(msh, ref, alpha)  # transforms alpha in place
         sigma_cells = None
     else:

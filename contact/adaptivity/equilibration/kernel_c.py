@@ -20,6 +20,17 @@ the constant multiplier as its kernel: one constant moment is pinned and the sol
 projected orthogonal to the kernel, which is the solution of the regularized system of
 :mod:`.patches`.  Where the Cholesky meets a non-positive pivot the patch falls back to
 that regularized system and an LU factorization with partial pivoting.
+
+``eq_flow`` (backend "flow", P1) runs the same driver with a cheaper fit.  For p = 1 a flux
+in RT_p(T) is determined by its facet moments and divergence moments (σ̂ = GL m̂ + RL β), so
+σ_a is sought in the reference facet moments m̂ of each pair's cell: ``flow_block`` computes
+the cell's energy ½‖σ_a − ψ_a τ‖²_{k_T⁻¹} = ½ m̂ᵀA m̂ − b_aᵀm̂ + const (no inverse per cell), and
+``solve_flow`` descends it patch by patch in blocks: the constant fluxes of the spokes, on
+which all the constraints act (a spoke system with the sparsity of the patch's spoke graph,
+factorized once), then, ``rounds`` times, the higher moments spoke by spoke (unconstrained)
+and the constant fluxes again, from the higher moments of the mean of the two cells' ψ_a τ̄.
+Every iterate has the divergence and normal data of the reference, so the bound stays
+guaranteed; the rounds converge to the reference minimizer (tests/test_equilibration_backends).
 Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out of memory.
 """
 
@@ -35,7 +46,7 @@ WORK_LAYOUT = (
 CDEF = """
 typedef struct {
   const double *w, *ZZ, *ZR, *NZ, *NR, *P, *phiZ, *wlam, *DZG, *wlamQ, *wQ, *dphi, *dlam,
-               *base, *R, *Z, *kappa, *Q, *q, *wS;
+               *base, *R, *Z, *kappa, *Q, *q, *wS, *GL, *RL, *qint, *AR, *BR, *GT, *TB;
   const int64_t *lookup;
   double wsum;
 } eq_ref;
@@ -53,6 +64,8 @@ int64_t eq_work_size(void);
 void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc);
 int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
                double *alpha, double *osc, double *stats);
+int eq_flow(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+            double *alpha, double *osc, double *stats, int sweeps);
 """
 
 HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n"
@@ -119,11 +132,30 @@ enum { INTERIOR = 0, DIRICHLET = 1, FLUX = 2, CONTACT = 3 };
 #define A_SIZE (A_HO + NF)
 #define W_A(a) (W_C + M + (a) * A_SIZE)
 #define W_SIZE W_A(NV)
+/* the work row of flow_block (the moment path): per vertex a the divergence moments β_a and
+   the data moments, s, the facet permutations, the cell's energy in its reference facet
+   moments (A, DNF x DNF), per vertex a the load b_a (DNF) and the outward moments of ψ_a τ̄
+   on every facet (global bases); the patches' scratch per pair: FA_* (flow_pair) */
+#define FW_DATA (NV * NP)
+#define FW_S (FW_DATA + NV * NV * NF)
+#define FW_PERM (FW_S + 1)
+#define FW_AM (FW_PERM + NV)
+#define FW_B (FW_AM + DNF * DNF)
+#define FW_TM (FW_B + NV * DNF)
+#define FW_SIZE (FW_TM + NV * NV * NF)
+#define FA_P 0
+#define NH (NF > 1 ? NF - 1 : 1)      /* the higher moments of a facet */
+#define FA_Q (DIM * DIM)
+#define FA_H (FA_Q + DIM)
+#define FA_F (FA_H + DIM)
+#define FA_G (FA_F + DIM)
+#define FA_SIZE (FA_G + 1)
 #define DENSE 24                        /* patch systems up to this size: no reordering */
 #define LB 8                            /* cells per block: the SIMD lanes of cell_block */
 #define LANES for (int b = 0; b < LB; ++b)
 
 int64_t eq_work_size(void) { return W_SIZE; }
+
 
 static double det_inv(const double J[DIM][DIM], double Ji[DIM][DIM])
 {
@@ -291,20 +323,22 @@ fallback:
   return 0;
 }
 
-/* The operators of the cells cells[0 .. nb) (operators.py), condensed per vertex (patches.py),
-   into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
-   fills the lanes nb .. LB - 1 and is not stored twice). */
-static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells,
-                      int nb, double *const *rows, int64_t vlo, int64_t vhi, double *osc)
+/* ---------------------------------------------------------------------------------- */
+/* lane helpers shared by cell_block and flow_block (LB cells cl[b] at once)           */
+/* ---------------------------------------------------------------------------------- */
+static inline void load_lanes(const eq_table *restrict t, const int64_t *cl, double X[][LB],
+                              double K[][LB], double F[][LB], double Uc[][LB])
 {
-  int64_t cl[LB];
-  LANES cl[b] = cells[b < nb ? b : nb - 1];
-  double X[NV * DIM][LB], K[NQ][LB], F[NQ][LB], Uc[NU][LB];
   for (int v = 0; v < NV * DIM; ++v) LANES X[v][b] = t->x[cl[b] * NV * DIM + v];
   for (int q = 0; q < NQ; ++q)
     LANES { K[q][b] = t->k[cl[b] * t->kstride + q]; F[q][b] = t->f[cl[b] * t->fstride + q]; }
   for (int u = 0; u < NU; ++u) LANES Uc[u][b] = t->U[cl[b] * NU + u];
-  double J[DIM][DIM][LB], Ji[DIM][DIM][LB], det[LB], s[LB], absdet[LB];
+}
+
+/* J (x = x_0 + J x̂), J⁻¹, det J, s = sign det J and |det J| */
+static inline void geometry_lanes(const double X[][LB], double J[][DIM][LB], double Ji[][DIM][LB],
+                                  double *det, double *s, double *absdet)
+{
   for (int i = 0; i < DIM; ++i)
     for (int j = 0; j < DIM; ++j) LANES J[i][j][b] = X[(j + 1) * DIM + i][b] - X[i][b];
 #if DIM == 2
@@ -328,7 +362,12 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     for (int j = 0; j < 3; ++j) LANES Ji[i][j][b] = adj[i][j][b] / det[b];
 #endif
   LANES { s[b] = (det[b] > 0) - (det[b] < 0); absdet[b] = fabs(det[b]); }
-  double GM[DIM * DIM][LB], KS[DIM][DIM][LB], kT[LB] = {0.0};
+}
+
+/* GM = Jᵀ J / |det J| and KS = J⁻¹ J⁻ᵀ |det J| */
+static inline void metric_lanes(const double J[][DIM][LB], const double Ji[][DIM][LB],
+                                const double *absdet, double GM[][LB], double KS[][DIM][LB])
+{
   for (int i = 0; i < DIM; ++i)
     for (int j = 0; j < DIM; ++j) {
       double g[LB] = {0.0}, h[LB] = {0.0};
@@ -336,23 +375,14 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
         LANES { g[b] += J[l][i][b] * J[l][j][b]; h[b] += Ji[i][l][b] * Ji[j][l][b]; }
       LANES { GM[i * DIM + j][b] = g[b] / absdet[b]; KS[i][j][b] = h[b] * absdet[b]; }
     }
-  for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
-  LANES kT[b] /= r->wsum;
-  /* M_Z = Zᵀ M Z, M_Z⁻¹ and Zᵀ M R (the weight k_T⁻¹) */
-  double MZm[MZ * MZ * LB], MZi[MZ * MZ * LB], ZMR[MZ * NP][LB];
-  for (int a = 0; a < MZ * MZ; ++a) {
-    double v[LB] = {0.0};
-    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZZ[ij * MZ * MZ + a];
-    LANES MZm[a * LB + b] = v[b] / kT[b];
-  }
-  if (spd_inverse_lanes(MZ, MZm, MZi)) return 1;
-  for (int a = 0; a < MZ * NP; ++a) {
-    double v[LB] = {0.0};
-    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZR[ij * MZ * NP + a];
-    LANES ZMR[a][b] = v[b] / kT[b];
-  }
-  /* facet orientations and sizes; O Z and O R in the global facet bases */
-  double Pl[NV][NF * NF][LB], size[NV][LB];
+}
+
+/* the facet permutations Pl[j] (q̂ in the local order = P q̂ in the global order) and the
+   facet sizes |F_j| / |F̂| */
+static inline void facets_lanes(const eq_ref *restrict r, const eq_table *restrict t,
+                                const int64_t *cl, const double X[][LB], double Pl[][NF * NF][LB],
+                                double size[][LB])
+{
   for (int b = 0; b < LB; ++b)
     for (int j = 0; j < NV; ++j) {
       const double *P = r->P + facet_perm(r, t->gvert + cl[b] * NV, j) * NF * NF;
@@ -376,49 +406,101 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     LANES size[j][b] = sqrt(fabs(G[0][0][b] * G[1][1][b] - G[0][1][b] * G[1][0][b]));
 #endif
   }
-  double OZ[DNF * MZ][LB], OR[DNF * NP][LB];
-  for (int j = 0; j < NV; ++j)
-    for (int l = 0; l < NF; ++l) {
-      for (int z = 0; z < MZ; ++z) {
-        double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k)
-          LANES v[b] += Pl[j][k * NF + l][b] * r->NZ[(j * NF + k) * MZ + z];
-        LANES OZ[(j * NF + l) * MZ + z][b] = s[b] * v[b];
-      }
-      for (int z = 0; z < NP; ++z) {
-        double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k)
-          LANES v[b] += Pl[j][k * NF + l][b] * r->NR[(j * NF + k) * NP + z];
-        LANES OR[(j * NF + l) * NP + z][b] = s[b] * v[b];
-      }
-    }
-  /* Yt = (O Z) M_Z⁻¹, S = Yt (O Z)ᵀ */
-  double Yt[DNF * MZ][LB], S[DNF * DNF][LB];
-  for (int i = 0; i < DNF; ++i)
-    for (int c = 0; c < MZ; ++c) {
-      double v[LB] = {0.0};
-      for (int a = 0; a < MZ; ++a) LANES v[b] += OZ[i * MZ + a][b] * MZi[(a * MZ + c) * LB + b];
-      LANES Yt[i * MZ + c][b] = v[b];
-    }
-  for (int i = 0; i < DNF; ++i)
-    for (int j = 0; j <= i; ++j) {
-      double v[LB] = {0.0};
-      for (int a = 0; a < MZ; ++a) LANES v[b] += Yt[i * MZ + a][b] * OZ[j * MZ + a][b];
-      LANES S[i * DNF + j][b] = S[j * DNF + i][b] = v[b];
-    }
-  /* the data at the points: ∇̂û, the load Zᵀg_a and the divergence moments */
-  double gu[NQ * DIM][LB];
+}
+
+/* ∇̂û at the cell points */
+static inline void gradient_lanes(const eq_ref *restrict r, const double Uc[][LB], double gu[][LB])
+{
   for (int q = 0; q < NQ; ++q)
     for (int i = 0; i < DIM; ++i) {
       double v[LB] = {0.0};
       for (int u = 0; u < NU; ++u) LANES v[b] += Uc[u][b] * r->dphi[(q * NU + u) * DIM + i];
       LANES gu[q * DIM + i][b] = v[b];
     }
+}
+
+/* the reference divergence moments β_a = −s ∫ (ψ_a f − k∇u_h·∇ψ_a [+ ψ_a λ̃]) Q_j of
+   each vertex's share */
+static inline void divergence_lanes(const eq_ref *restrict r, const eq_table *restrict t,
+                                    const int64_t *cl, const double gu[][LB],
+                                    const double KS[][DIM][LB], const double *absdet,
+                                    const double *s, const double K[][LB], const double F[][LB],
+                                    double beta[][LB])
+{
+  double KSd[DIM * NV][LB], R0[NV * NP][LB] = {{0.0}};
+  for (int i = 0; i < DIM; ++i)
+    for (int a = 0; a < NV; ++a) {
+      double v[LB] = {0.0};
+      for (int k = 0; k < DIM; ++k) LANES v[b] += KS[i][k][b] * r->dlam[a * DIM + k];
+      LANES KSd[i * NV + a][b] = v[b];
+    }
+  for (int q = 0; q < NQ; ++q) {
+    const double *wl = r->wlamQ + q * NV * NP;
+    for (int a = 0; a < NV; ++a) {
+      double v[LB] = {0.0};
+      for (int i = 0; i < DIM; ++i) LANES v[b] += gu[q * DIM + i][b] * KSd[i * NV + a][b];
+      for (int j = 0; j < NP; ++j)
+        LANES R0[a * NP + j][b] +=
+            absdet[b] * F[q][b] * wl[a * NP + j] - v[b] * K[q][b] * r->wQ[q * NP + j];
+    }
+  }
+  if (t->src)
+    for (int aj = 0; aj < NV * NP; ++aj)
+      LANES R0[aj][b] += absdet[b] * t->src[cl[b] * NV * NP + aj];
+  for (int aj = 0; aj < NV * NP; ++aj) LANES beta[aj][b] = -s[b] * R0[aj][b];
+}
+
+/* the outward-flux data moments of each vertex's share, in the global facet bases:
+   data[(j NV + a) NF + l] on facet j for vertex a */
+static inline void data_lanes(const eq_ref *restrict r, const eq_table *restrict t,
+                              const int64_t *cl, const double size[][LB],
+                              const double Pl[][NF * NF][LB], double data[][LB])
+{
+  for (int j = 0; j < NV; ++j) {
+    double factor[LB], Tq[NQF][LB];
+    int any = 0;
+    LANES {
+      int kind = t->kind[cl[b] * NV + j];
+      factor[b] = (kind == FLUX || kind == CONTACT) ? size[j][b] : 0.0;
+      any |= kind == FLUX || kind == CONTACT;
+    }
+    if (any)
+      for (int q = 0; q < NQF; ++q) LANES Tq[q][b] = t->t[(cl[b] * NV + j) * NQF + q];
+    for (int a = 0; a < NV; ++a) {
+      double loc[NF][LB] = {{0.0}};
+      if (any)
+        for (int k = 0; k < NF; ++k) {
+          const double *bs = r->base + ((j * NV + a) * NF + k) * NQF;
+          for (int q = 0; q < NQF; ++q) LANES loc[k][b] += bs[q] * Tq[q][b];
+          LANES loc[k][b] *= factor[b];
+        }
+      if (t->cidx)
+        for (int b = 0; b < LB; ++b) {
+          int64_t ci = t->cidx[cl[b]];
+          if (ci >= 0 && t->kind[cl[b] * NV + j] == CONTACT)
+            for (int k = 0; k < NF; ++k)
+              loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
+        }
+      for (int l = 0; l < NF; ++l) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * loc[k][b];
+        LANES data[(j * NV + a) * NF + l][b] = v[b];
+      }
+    }
+  }
+}
+
+/* the load Zᵀg_a of each vertex a, g_a = ∫_T k_T⁻¹ ψ_a τ·φ (τ: k∇u_h, k∇(Σ Ut φ) or given) */
+static inline void target_lanes(const eq_ref *restrict r, const eq_table *restrict t,
+                                const int64_t *cl, const double J[][DIM][LB], const double K[][LB],
+                                const double Uc[][LB], const double gu[][LB], const double *kT,
+                                const double *s, double ZTg[][LB])
+{
   /* Zᵀg_a = s ∫ ψ̂_a lhs·(φ̂ Z), lhs = Jᵀτ / k_T: where k is one constant and τ = k∇ of a
      function of the element of u_h (u_h itself, or the coefficients Ut), lhs is the reference
      gradient of those coefficients and Zᵀg_a = s Σ_u c_u DZG_u (exact); else at the points,
      first over the components (y_q = lhs_q·(φ̂ Z)(x_q)), then over the points */
-  double ZTg[NV * MZ][LB] = {{0.0}};
+  memset(ZTg, 0, sizeof(double) * NV * MZ * LB);
   if (t->kstride == 0 && !t->tau) {
     double Vc[NU][LB];
     if (t->Ut) for (int u = 0; u < NU; ++u) LANES Vc[u][b] = t->Ut[cl[b] * NU + u];
@@ -462,27 +544,223 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
     }
   }
   for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] *= s[b];
-  double KSd[DIM * NV][LB], R0[NV * NP][LB] = {{0.0}}, beta[NV * NP][LB];
-  for (int i = 0; i < DIM; ++i)
-    for (int a = 0; a < NV; ++a) {
-      double v[LB] = {0.0};
-      for (int k = 0; k < DIM; ++k) LANES v[b] += KS[i][k][b] * r->dlam[a * DIM + k];
-      LANES KSd[i * NV + a][b] = v[b];
-    }
-  for (int q = 0; q < NQ; ++q) {
-    const double *wl = r->wlamQ + q * NV * NP;
-    for (int a = 0; a < NV; ++a) {
-      double v[LB] = {0.0};
-      for (int i = 0; i < DIM; ++i) LANES v[b] += gu[q * DIM + i][b] * KSd[i * NV + a][b];
-      for (int j = 0; j < NP; ++j)
-        LANES R0[a * NP + j][b] +=
-            absdet[b] * F[q][b] * wl[a * NP + j] - v[b] * K[q][b] * r->wQ[q * NP + j];
+}
+
+/* the first of cell_block and flow_block: the cells cl of the lanes (the last cell fills the
+   lanes past nb), their data (load_lanes) and geometry (geometry_lanes) */
+#define CELL_LANES                                                                    \
+  int64_t cl[LB];                                                                     \
+  LANES cl[b] = cells[b < nb ? b : nb - 1];                                           \
+  double X[NV * DIM][LB], K[NQ][LB], F[NQ][LB], Uc[NU][LB];                           \
+  load_lanes(t, cl, X, K, F, Uc);                                                     \
+  double J[DIM][DIM][LB], Ji[DIM][DIM][LB], det[LB], s[LB], absdet[LB];               \
+  geometry_lanes(X, J, Ji, det, s, absdet)
+
+/* The cell's part of the constant-flux step of the patch of its vertex a (solve_flow): over the
+   outward fluxes Φ of the free spokes (facets j ≠ a not on Γ_N, Γ_C; those carry their data
+   flux, the facet a none), min ½ΦᵀHΦ − gᵀΦ subject to ΣΦ = G' (the cell's divergence less
+   the data fluxes) and the continuity multipliers μ of the interior spokes gives
+   Φ = q − P μ, P = H⁻¹ − H⁻¹11ᵀH⁻¹ / 1ᵀH⁻¹1, q = P (g − f) + h G', h = H⁻¹1 / 1ᵀH⁻¹1
+   (f: the data fluxes' part of the gradient), into fa (FA_* layout, spoke order; 0 for the
+   data spokes).  Returns 1 if H is singular. */
+static int flow_pair(const eq_ref *r, const int8_t *kind, int a, double G[NV][NV],
+                     const double *g, double gb, const double *data, double *fa)
+{
+  int fr[DIM], nf = 0, slot[NV];
+  double fixed[NV] = {0.0}, gp = gb;
+  for (int j = 0, s1 = 0; j < NV; ++j) {
+    if (j == a) continue;
+    slot[j] = s1++;
+    if (kind[j] == FLUX || kind[j] == CONTACT) {
+      for (int l = 0; l < NF; ++l) fixed[j] += r->kappa[l] * data[(j * NV + a) * NF + l];
+      gp -= fixed[j];
+    } else {
+      fr[nf++] = j;
     }
   }
-  if (t->src)
-    for (int aj = 0; aj < NV * NP; ++aj)
-      LANES R0[aj][b] += absdet[b] * t->src[cl[b] * NV * NP + aj];
-  for (int aj = 0; aj < NV * NP; ++aj) LANES beta[aj][b] = -s[b] * R0[aj][b];
+  memset(fa, 0, sizeof(double) * FA_SIZE);
+  fa[FA_G] = gp;
+  if (nf == 0) return 0;
+  double H[DIM * DIM], Hi[DIM * DIM], ge[DIM], v[DIM], c = 0.0;
+  for (int x = 0; x < nf; ++x) {
+    ge[x] = g[fr[x]];
+    for (int k = 0; k < NV; ++k) ge[x] -= G[fr[x]][k] * fixed[k];
+    for (int y = 0; y < nf; ++y) { H[x * nf + y] = G[fr[x]][fr[y]]; Hi[x * nf + y] = x == y; }
+  }
+  if (lu_solve(nf, H, Hi, nf)) return 1;
+  for (int x = 0; x < nf; ++x) {
+    v[x] = 0.0;
+    for (int y = 0; y < nf; ++y) v[x] += Hi[x * nf + y];
+    c += v[x];
+  }
+  double Pm[DIM * DIM];
+  for (int x = 0; x < nf; ++x)
+    for (int y = 0; y < nf; ++y) Pm[x * nf + y] = nf == 1 ? 0.0 : Hi[x * nf + y] - v[x] * v[y] / c;
+  for (int x = 0; x < nf; ++x) {
+    double q = v[x] / c * gp;
+    for (int y = 0; y < nf; ++y) q += Pm[x * nf + y] * ge[y];
+    fa[FA_Q + slot[fr[x]]] = q;
+    fa[FA_H + slot[fr[x]]] = v[x] / c;
+    fa[FA_F + slot[fr[x]]] = g[fr[x]] - ge[x];
+    for (int y = 0; y < nf; ++y) fa[FA_P + slot[fr[x]] * DIM + slot[fr[y]]] = Pm[x * nf + y];
+  }
+  return 0;
+}
+
+/* The moment path (eq_flow): what the patches of the cells cells[0 .. nb) need, into rows[b]
+   (FW_* layout): β_a and the data moments as cell_block's, and the cell's energy in its
+   facet moments (A, b_a); osc_T as cell_block. */
+static int flow_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells,
+                      int nb, double *const *rows, double *osc)
+{
+  CELL_LANES;
+  double GM[DIM * DIM][LB], KS[DIM][DIM][LB];
+  metric_lanes(J, Ji, absdet, GM, KS);
+  double Pl[NV][NF * NF][LB], size[NV][LB];
+  facets_lanes(r, t, cl, X, Pl, size);
+  double gu[NQ * DIM][LB];
+  gradient_lanes(r, Uc, gu);
+  double beta[NV * NP][LB];
+  divergence_lanes(r, t, cl, gu, KS, absdet, s, K, F, beta);
+  double data[NV * NV * NF][LB];
+  data_lanes(r, t, cl, size, Pl, data);
+  double kT[LB] = {0.0};
+  for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
+  LANES kT[b] /= r->wsum;
+  double ZTg[NV * MZ][LB];
+  target_lanes(r, t, cl, J, K, Uc, gu, kT, s, ZTg);
+  /* the cell mean τ̄ of the target (k∇u_h = k J⁻ᵀ ∇̂û, or τ) and τ̄·A_j, A_j = −(|det J| /
+     (d − 1)!) J⁻ᵀ ∇̂λ_j the outward area vector of facet j: the moments ∫_F ψ_a τ̄·n q_l =
+     τ̄·A_j Σ_k P_kl TB_jak start the higher moments */
+  double tau[DIM][LB] = {{0.0}}, tA[NV][LB], fact1 = 1.0;
+  for (int i = 2; i <= DIM - 1; ++i) fact1 *= i;
+  if (t->tau) {
+    for (int q = 0; q < NQ; ++q)
+      for (int i = 0; i < DIM; ++i)
+        LANES tau[i][b] += r->w[q] * t->tau[(cl[b] * NQ + q) * DIM + i];
+  } else {
+    double g[DIM][LB] = {{0.0}};
+    for (int q = 0; q < NQ; ++q)
+      for (int k = 0; k < DIM; ++k) LANES g[k][b] += r->w[q] * K[q][b] * gu[q * DIM + k][b];
+    for (int i = 0; i < DIM; ++i)
+      for (int k = 0; k < DIM; ++k) LANES tau[i][b] += Ji[k][i][b] * g[k][b];
+  }
+  for (int j = 0; j < NV; ++j) {
+    double v[LB] = {0.0};
+    for (int i = 0; i < DIM; ++i) {
+      double gi[LB] = {0.0};
+      for (int k = 0; k < DIM; ++k) LANES gi[b] += Ji[k][i][b] * r->dlam[j * DIM + k];
+      LANES v[b] += tau[i][b] * gi[b];
+    }
+    LANES tA[j][b] = -absdet[b] / (fact1 * r->wsum) * v[b];
+  }
+  /* the energy ½‖σ − ψ_a τ‖²_{k_T⁻¹} in the reference facet moments m̂ of σ̂ = GL m̂ + RL β_a:
+     ½ m̂ᵀ A m̂ − b_aᵀ m̂ + const, A = GLᵀ M GL, b_a = Gᵀ Zᵀg_a − GLᵀ M RL β_a, M = Σ GM_ij
+     mass_ij / k_T (AR, BR: the reference GLᵀ mass_ij GL and GLᵀ mass_ij RL) */
+  double A[DNF * DNF][LB], BT[DNF * NP][LB], bv[NV * DNF][LB];
+  for (int x = 0; x < DNF; ++x)
+    for (int y = 0; y <= x; ++y) {
+      double v[LB] = {0.0};
+      for (int ij = 0; ij < DIM * DIM; ++ij)
+        LANES v[b] += GM[ij][b] * r->AR[(ij * DNF + x) * DNF + y];
+      LANES A[x * DNF + y][b] = A[y * DNF + x][b] = v[b] / kT[b];
+    }
+  for (int xj = 0; xj < DNF * NP; ++xj) {
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->BR[ij * DNF * NP + xj];
+    LANES BT[xj][b] = v[b] / kT[b];
+  }
+  for (int a = 0; a < NV; ++a)
+    for (int x = 0; x < DNF; ++x) {
+      double v[LB] = {0.0};
+      for (int z = 0; z < MZ; ++z) LANES v[b] += r->GT[x * MZ + z] * ZTg[a * MZ + z][b];
+      for (int j = 0; j < NP; ++j) LANES v[b] -= BT[x * NP + j][b] * beta[a * NP + j][b];
+      LANES bv[a * DNF + x][b] = v[b];
+    }
+  for (int b = 0; b < nb; ++b) {
+    double *row = rows[b];
+    for (int k = 0; k < NV * NP; ++k) row[k] = beta[k][b];
+    for (int k = 0; k < NV * NV * NF; ++k) row[FW_DATA + k] = data[k][b];
+    row[FW_S] = s[b];
+    for (int j = 0; j < NV; ++j) row[FW_PERM + j] = facet_perm(r, t->gvert + cl[b] * NV, j);
+    for (int k = 0; k < DNF * DNF; ++k) row[FW_AM + k] = A[k][b];
+    for (int k = 0; k < NV * DNF; ++k) row[FW_B + k] = bv[k][b];
+    for (int a = 0; a < NV; ++a)
+      for (int j = 0; j < NV; ++j)
+        for (int l = 0; l < NF; ++l) {
+          double v = 0.0;
+          for (int k = 0; k < NF; ++k) v += Pl[j][k * NF + l][b] * r->TB[(j * NV + a) * NF + k];
+          row[FW_TM + (a * NV + j) * NF + l] = tA[j][b] * v;
+        }
+    osc[b] = oscillation(r, t, cl[b], absdet[b], size, b);
+  }
+  return 0;
+}
+
+/* The operators of the cells cells[0 .. nb) (operators.py), condensed per vertex (patches.py),
+   into rows[b]: LB cells at a time, every operation a loop over the lanes b (the last cell
+   fills the lanes nb .. LB - 1 and is not stored twice). */
+static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, const int64_t *cells,
+                      int nb, double *const *rows, int64_t vlo, int64_t vhi, double *osc)
+{
+  CELL_LANES;
+  double GM[DIM * DIM][LB], KS[DIM][DIM][LB], kT[LB] = {0.0};
+  metric_lanes(J, Ji, absdet, GM, KS);
+  for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
+  LANES kT[b] /= r->wsum;
+  /* M_Z = Zᵀ M Z, M_Z⁻¹ and Zᵀ M R (the weight k_T⁻¹) */
+  double MZm[MZ * MZ * LB], MZi[MZ * MZ * LB], ZMR[MZ * NP][LB];
+  for (int a = 0; a < MZ * MZ; ++a) {
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZZ[ij * MZ * MZ + a];
+    LANES MZm[a * LB + b] = v[b] / kT[b];
+  }
+  if (spd_inverse_lanes(MZ, MZm, MZi)) return 1;
+  for (int a = 0; a < MZ * NP; ++a) {
+    double v[LB] = {0.0};
+    for (int ij = 0; ij < DIM * DIM; ++ij) LANES v[b] += GM[ij][b] * r->ZR[ij * MZ * NP + a];
+    LANES ZMR[a][b] = v[b] / kT[b];
+  }
+  /* facet orientations and sizes; O Z and O R in the global facet bases */
+  double Pl[NV][NF * NF][LB], size[NV][LB];
+  facets_lanes(r, t, cl, X, Pl, size);
+  double OZ[DNF * MZ][LB], OR[DNF * NP][LB];
+  for (int j = 0; j < NV; ++j)
+    for (int l = 0; l < NF; ++l) {
+      for (int z = 0; z < MZ; ++z) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += Pl[j][k * NF + l][b] * r->NZ[(j * NF + k) * MZ + z];
+        LANES OZ[(j * NF + l) * MZ + z][b] = s[b] * v[b];
+      }
+      for (int z = 0; z < NP; ++z) {
+        double v[LB] = {0.0};
+        for (int k = 0; k < NF; ++k)
+          LANES v[b] += Pl[j][k * NF + l][b] * r->NR[(j * NF + k) * NP + z];
+        LANES OR[(j * NF + l) * NP + z][b] = s[b] * v[b];
+      }
+    }
+  /* Yt = (O Z) M_Z⁻¹, S = Yt (O Z)ᵀ */
+  double Yt[DNF * MZ][LB], S[DNF * DNF][LB];
+  for (int i = 0; i < DNF; ++i)
+    for (int c = 0; c < MZ; ++c) {
+      double v[LB] = {0.0};
+      for (int a = 0; a < MZ; ++a) LANES v[b] += OZ[i * MZ + a][b] * MZi[(a * MZ + c) * LB + b];
+      LANES Yt[i * MZ + c][b] = v[b];
+    }
+  for (int i = 0; i < DNF; ++i)
+    for (int j = 0; j <= i; ++j) {
+      double v[LB] = {0.0};
+      for (int a = 0; a < MZ; ++a) LANES v[b] += Yt[i * MZ + a][b] * OZ[j * MZ + a][b];
+      LANES S[i * DNF + j][b] = S[j * DNF + i][b] = v[b];
+    }
+  /* the data at the points: ∇̂û, the load Zᵀg_a and the divergence moments */
+  double gu[NQ * DIM][LB];
+  gradient_lanes(r, Uc, gu);
+  double ZTg[NV * MZ][LB];
+  target_lanes(r, t, cl, J, K, Uc, gu, kT, s, ZTg);
+  double beta[NV * NP][LB];
+  divergence_lanes(r, t, cl, gu, KS, absdet, s, K, F, beta);
   /* h_a = O R β_a + Yt (Zᵀg_a − ZMR β_a) */
   double h[NV * DNF][LB];
   for (int a = 0; a < NV; ++a) {
@@ -500,38 +778,7 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
   }
   /* outward-flux data of each vertex's share, in the global facet bases */
   double data[NV * NV * NF][LB];
-  for (int j = 0; j < NV; ++j) {
-    double factor[LB], Tq[NQF][LB];
-    int any = 0;
-    LANES {
-      int kind = t->kind[cl[b] * NV + j];
-      factor[b] = (kind == FLUX || kind == CONTACT) ? size[j][b] : 0.0;
-      any |= kind == FLUX || kind == CONTACT;
-    }
-    if (any)
-      for (int q = 0; q < NQF; ++q) LANES Tq[q][b] = t->t[(cl[b] * NV + j) * NQF + q];
-    for (int a = 0; a < NV; ++a) {
-      double loc[NF][LB] = {{0.0}};
-      if (any)
-        for (int k = 0; k < NF; ++k) {
-          const double *bs = r->base + ((j * NV + a) * NF + k) * NQF;
-          for (int q = 0; q < NQF; ++q) LANES loc[k][b] += bs[q] * Tq[q][b];
-          LANES loc[k][b] *= factor[b];
-        }
-      if (t->cidx)
-        for (int b = 0; b < LB; ++b) {
-          int64_t ci = t->cidx[cl[b]];
-          if (ci >= 0 && t->kind[cl[b] * NV + j] == CONTACT)
-            for (int k = 0; k < NF; ++k)
-              loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
-        }
-      for (int l = 0; l < NF; ++l) {
-        double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * loc[k][b];
-        LANES data[(j * NV + a) * NF + l][b] = v[b];
-      }
-    }
-  }
+  data_lanes(r, t, cl, size, Pl, data);
   /* condensation of the facet opposite each vertex a (patches.py):
      Ŝ_a = S_ss − T S_soᵀ, b_a = h_s − T h_o − data, T = S_so S_oo⁻¹; μ_o = S_oo⁻¹ h_o − Tᵀ μ_s */
   for (int a = 0; a < NV; ++a) {
@@ -654,7 +901,16 @@ typedef struct {
   int *adj, *deg, *pos, *queue, *first;
   double *A, *rhs;
   const double *work;             /* the operators of the live cells, one row each */
-  double *acc;                    /* per work row: Σ μ_a over its cell's pairs solved so far */
+  double *acc;                    /* per work row: Σ μ_a over its cell's pairs solved so far
+                                     (eq_flow: Σ of the facet moments and β_a) */
+  int64_t wsize;                  /* the doubles of a work row: W_SIZE, or FW_SIZE (eq_flow) */
+  int sweeps;                     /* eq_flow: the rounds of (higher moments, constant fluxes) */
+  double *fm, *fg, *ffa;          /* eq_flow, per pair: m̂, the energy's gradient, FA_* */
+  double *fs;                     /* eq_flow, per spoke: 2 NH x NH (solve_flow) */
+  int *fr1, *fr2, *fenv;          /* eq_flow, per spoke: its raw entries; the envelope */
+  double *fmid;                   /* eq_flow, per spoke: its midpoint (times d) */
+  const double *x;                /* the table's vertex coordinates */
+  const int8_t *kind;             /* the table's facet kinds */
   const int64_t *slot;            /* table row -> its work row, or -1 */
   int *left;                      /* per work row: its cell's pairs not yet solved */
   int64_t *freel, nfree;          /* the work rows free for reuse */
@@ -667,8 +923,11 @@ typedef struct {
   int *fu;
 } scratch_t;
 
-#define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * W_SIZE)
-#define ACC_SIZE DNF
+#define CELL_WORK(w, c) ((w)->work + (w)->slot[c] * (w)->wsize)
+/* the kind of facet j of pair p's cell; the facet of raw spoke entry x of a pair at vertex a */
+#define FACET(x, a) ((x) % DIM < (a) ? (x) % DIM : (x) % DIM + 1)
+#define t_kind(w, p, j) ((w)->kind[(w)->prow[p] * NV + (j)])
+#define ACC_SIZE (DNF + NP)
 
 /* the spokes of the patch: sorted unique keys (the facet's vertices other than a) */
 static void spokes(const eq_table *t, scratch_t *w)
@@ -941,6 +1200,341 @@ static void backsub(scratch_t *w, int np, const int64_t *prow, const int *ploc,
   }
 }
 
+/* eq_flow: σ_h|_T += Σ_a σ_a|_T from the summed reference facet moments m̂ and divergence
+   moments β of the cell: σ̂ = GL m̂ + RL β (GL = Z G, RL = R̂ − Z G N̂R̂, G a left inverse of
+   N̂Z: for p = 1 the moments determine σ̂) */
+static void finish_flow(const eq_ref *r, const double *acc, double *al)
+{
+  for (int l = 0; l < M; ++l) {
+    double v = 0.0;
+    for (int i = 0; i < DNF; ++i) v += r->GL[l * DNF + i] * acc[i];
+    for (int j = 0; j < NP; ++j) v += r->RL[l * NP + j] * acc[DNF + j];
+    al[l] += v;
+  }
+}
+
+/* m̂_F of the cell on the other side of the spoke from m̂ of this side, higher moments only:
+   m̂' = −s s' P' Pᵀ m̂ (the outward moments are opposite; P = diag(1, P_h)) */
+static void across(const eq_ref *r, const double *cw, int j, const double *co, int jo,
+                   const double *hi, double *out)
+{
+  const double *P = r->P + (int)cw[FW_PERM + j] * NF * NF;
+  const double *Po = r->P + (int)co[FW_PERM + jo] * NF * NF;
+  double sg = -cw[FW_S] * co[FW_S], glob[NF];
+  for (int l = 1; l < NF; ++l) {
+    glob[l] = 0.0;
+    for (int k = 1; k < NF; ++k) glob[l] += P[k * NF + l] * hi[k - 1];
+  }
+  for (int k = 1; k < NF; ++k) {
+    double v = 0.0;
+    for (int l = 1; l < NF; ++l) v += Po[k * NF + l] * glob[l];
+    out[k - 1] = sg * v;
+  }
+}
+
+/* a before b in the lexicographic order of points */
+static int before(const double *a, const double *b)
+{
+  for (int i = 0; i < DIM; ++i)
+    if (a[i] != b[i]) return a[i] < b[i];
+  return 0;
+}
+
+/* m̂_j += dm at the moments idx[0 .. n) of facet j, the gradient g += A[:, those] dm */
+static void move(const double *cw, double *mh, double *g, int j, const int *idx, int n,
+                 const double *dm)
+{
+  const double *A = cw + FW_AM;
+  for (int x = 0; x < n; ++x) {
+    int c = j * NF + idx[x];
+    mh[c] += dm[x];
+    for (int y = 0; y < DNF; ++y) g[y] += A[y * DNF + c] * dm[x];
+  }
+}
+
+/* The patch of w (spokes() done) in the reference facet moments m̂ of σ_a on each pair's cell
+   (σ̂_a = GL m̂ + RL β_a; the facet opposite a: 0; Γ_N, Γ_C: the data), minimizing the patch's
+   Σ_T ½‖σ_a − ψ_a τ‖²_{k_T⁻¹} = Σ_T ½ m̂ᵀA_T m̂ − b_aᵀ m̂ (+ const) by block coordinate
+   descent from m̂ = 0: (1) the constant outward fluxes Φ of the free spokes, over which the
+   constraints act (the balance of every cell and continuity): with each cell's part
+   Φ = q − P μ (flow_pair), the multipliers μ of the interior spokes solve Σ_T P_T μ = Σ_T q_T
+   (a patch without a Dirichlet spoke: its balance defect is shared out over its cells first
+   and one μ pinned); (2) the higher moments of each free spoke in turn (unconstrained: the
+   two cells' energy minimized over them, a (NF − 1)-square system); then w->sweeps rounds of
+   (2), (1).  Every iterate after the first (1) is admissible; the rounds only bring it
+   closer to the patch minimizer of :mod:`.patches`.  Each pair's m̂ and β_a are summed into
+   its cell's accumulator, mapped to alpha after the cell's last pair (finish_flow). */
+static int solve_flow(const eq_ref *r, scratch_t *w, double *defect)
+{
+  int np = w->np, ns = w->ns, pure = 1, ni = 0, hidx[NH], zero = 0;
+  int *r1 = w->fr1, *r2 = w->fr2, *idx = w->pos, *fe = w->fenv;  /* raw entries, dof, envelope */
+  double *S = w->A, *mu = w->rhs, *dinv = w->dinvl, bal = 0.0, k0 = r->kappa[0];
+  for (int l = 1; l < NF; ++l) hidx[l - 1] = l;
+  for (int u = 0; u < ns; ++u) r1[u] = r2[u] = -1;
+  for (int x = 0; x < np * DIM; ++x) {
+    int u = w->spoke[x];
+    if (r1[u] < 0) r1[u] = x; else r2[u] = x;
+  }
+  for (int u = 0; u < ns; ++u) {           /* the interior spokes, by reverse Cuthill-McKee */
+    pure &= w->keys[u].kind != DIRICHLET;
+    w->unknown[u] = w->keys[u].kind == INTERIOR && r2[u] >= 0 ? ni++ : -1;
+  }
+  rcm(w);
+  for (int i = 0; i < ni; ++i) fe[i] = i;
+  for (int p = 0; p < np; ++p) {
+    int lo = ni;
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int i = idx[w->spoke[p * DIM + s1]];
+      if (i >= 0 && i < lo) lo = i;
+    }
+    for (int s1 = 0; s1 < DIM; ++s1) {
+      int i = idx[w->spoke[p * DIM + s1]];
+      if (i >= 0 && lo < fe[i]) fe[i] = lo;
+    }
+  }
+  /* m̂ = the data on Γ_N, Γ_C spokes, else 0; the gradient A m̂ − b_a */
+  for (int p = 0; p < np; ++p) {
+    const double *cw = CELL_WORK(w, w->prow[p]);
+    int a = w->ploc[p];
+    double *mh = w->fm + p * DNF, *g = w->fg + p * DNF;
+    memset(mh, 0, sizeof(double) * DNF);
+    for (int y = 0; y < DNF; ++y) g[y] = -cw[FW_B + a * DNF + y];
+    for (int j = 0; j < NV; ++j) {
+      int kind = t_kind(w, p, j);
+      if (j == a || (kind != FLUX && kind != CONTACT)) continue;
+      const double *P = r->P + (int)cw[FW_PERM + j] * NF * NF;
+      double dm[NF];
+      for (int k = 0; k < NF; ++k) {
+        dm[k] = 0.0;
+        for (int l = 0; l < NF; ++l) dm[k] += P[k * NF + l] * cw[FW_DATA + (j * NV + a) * NF + l];
+        dm[k] *= cw[FW_S];
+      }
+      int all[NF];
+      for (int k = 0; k < NF; ++k) all[k] = k;
+      move(cw, mh, g, j, all, NF, dm);
+    }
+  }
+  /* the higher moments of the free spokes start at the mean of the two cells' ψ_a τ̄ (Γ_D: the
+     one cell's): the fit of σ_a to ψ_a τ is then O(h) from the first round */
+  if (NF > 1)
+    for (int u = 0; u < ns; ++u) {
+      int kind = w->keys[u].kind;
+      if (kind == FLUX || kind == CONTACT) continue;
+      int xs[2] = {r1[u], r2[u]};
+      double glob[NF];
+      for (int side = 0; side < 2; ++side) {
+        if (xs[side] < 0) continue;
+        int p = xs[side] / DIM, a = w->ploc[p], j = FACET(xs[side], a);
+        const double *cw = CELL_WORK(w, w->prow[p]), *own = cw + FW_TM + (a * NV + j) * NF;
+        if (side == 0)
+          for (int l = 0; l < NF; ++l) glob[l] = own[l];
+        if (xs[1] >= 0) {             /* ½ (own − other), outward from each side */
+          int po = xs[1 - side] / DIM, ao = w->ploc[po];
+          int jo = FACET(xs[1 - side], ao);
+          const double *oth = CELL_WORK(w, w->prow[po]) + FW_TM + (ao * NV + jo) * NF;
+          for (int l = 0; l < NF; ++l) glob[l] = 0.5 * (own[l] - oth[l]);
+        }
+        const double *P = r->P + (int)cw[FW_PERM + j] * NF * NF;
+        double dm[NH];
+        for (int k = 1; k < NF; ++k) {
+          double v = 0.0;
+          for (int l = 1; l < NF; ++l) v += P[k * NF + l] * glob[l];
+          dm[k - 1] = cw[FW_S] * v;
+        }
+        move(cw, w->fm + p * DNF, w->fg + p * DNF, j, hidx, NH, dm);
+      }
+    }
+  /* the spokes in the order of their midpoints (x, then y, then z): the sweeps of (2), and so
+     σ_h, do not depend on the vertex numbering (another partition, another numbering) */
+  int *order = w->order;
+  double *mid = w->fmid;
+  for (int u = 0; u < ns; ++u) {
+    int x1 = r1[u], p1 = x1 / DIM, j1 = FACET(x1, w->ploc[p1]);
+    const double *xc = w->x + w->prow[p1] * NV * DIM;
+    for (int i = 0; i < DIM; ++i) {
+      mid[u * DIM + i] = 0.0;
+      for (int v = 0; v < NV; ++v) if (v != j1) mid[u * DIM + i] += xc[v * DIM + i];
+    }
+    int y = u;
+    for (; y > 0 && before(mid + u * DIM, mid + order[y - 1] * DIM); --y) order[y] = order[y - 1];
+    order[y] = u;
+  }
+  int factored = 0;
+  for (int round = 0; round <= w->sweeps; ++round) {
+    if (round > 0 && NF > 1) {           /* (2) the higher moments, spoke by spoke */
+      for (int o = 0; o < ns; ++o) {
+        int u = order[o], kind = w->keys[u].kind;
+        if (kind == FLUX || kind == CONTACT) continue;
+        /* per spoke (first round; kept): Hi = (A_1 + Qᵀ A_2 Q)⁻¹ over the higher moments and
+           Q (column x: across(e_x)) */
+        double *Hi = w->fs + u * 2 * NH * NH, *Q = Hi + NH * NH;
+        int x1 = r1[u], p1 = x1 / DIM, a1 = w->ploc[p1];
+        int j1 = FACET(x1, a1), p2 = -1, j2 = 0;
+        const double *c1 = CELL_WORK(w, w->prow[p1]), *c2 = NULL;
+        if (r2[u] >= 0) {
+          int x2 = r2[u], a2;
+          p2 = x2 / DIM;
+          a2 = w->ploc[p2];
+          j2 = FACET(x2, a2);
+          c2 = CELL_WORK(w, w->prow[p2]);
+        }
+        if (round == 1) {
+          const double *A1 = c1 + FW_AM;
+          double H[NH * NH];
+          for (int x = 0; x < NH; ++x)
+            for (int y = 0; y < NH; ++y) {
+              H[x * NH + y] = A1[(j1 * NF + x + 1) * DNF + j1 * NF + y + 1];
+              Hi[x * NH + y] = x == y;
+            }
+          if (p2 >= 0) {
+            const double *A2 = c2 + FW_AM;
+            for (int x = 0; x < NH; ++x) {
+              double e[NH];
+              for (int y = 0; y < NH; ++y) e[y] = x == y;
+              across(r, c1, j1, c2, j2, e, Q + x * NH);
+            }
+            for (int x = 0; x < NH; ++x)
+              for (int y = 0; y < NH; ++y)
+                for (int k = 0; k < NH; ++k)
+                  for (int l = 0; l < NH; ++l)
+                    H[x * NH + y] += Q[x * NH + k] * A2[(j2 * NF + k + 1) * DNF + j2 * NF + l + 1]
+                                     * Q[y * NH + l];
+          }
+          if (lu_solve(NH, H, Hi, NH)) return 2;
+        }
+        double rhs[NH], dz[NH], dz2[NH];
+        for (int x = 0; x < NH; ++x) {
+          rhs[x] = -w->fg[p1 * DNF + j1 * NF + x + 1];
+          if (p2 >= 0)
+            for (int y = 0; y < NH; ++y)
+              rhs[x] -= Q[x * NH + y] * w->fg[p2 * DNF + j2 * NF + y + 1];
+        }
+        for (int x = 0; x < NH; ++x) {
+          dz[x] = 0.0;
+          for (int y = 0; y < NH; ++y) dz[x] += Hi[x * NH + y] * rhs[y];
+        }
+        move(c1, w->fm + p1 * DNF, w->fg + p1 * DNF, j1, hidx, NH, dz);
+        if (p2 >= 0) {
+          for (int y = 0; y < NH; ++y) {
+            dz2[y] = 0.0;
+            for (int x = 0; x < NH; ++x) dz2[y] += Q[x * NH + y] * dz[x];
+          }
+          move(c2, w->fm + p2 * DNF, w->fg + p2 * DNF, j2, hidx, NH, dz2);
+        }
+      }
+    }
+    /* (1) the constant fluxes: each cell's part (flow_pair), the spoke system, Φ */
+    for (int p = 0; p < np; ++p) {
+      const double *cw = CELL_WORK(w, w->prow[p]), *A = cw + FW_AM;
+      int a = w->ploc[p];
+      double G[NV][NV], g[NV], gb = 0.0, sg = cw[FW_S], *mh = w->fm + p * DNF;
+      for (int i = 0; i < NV; ++i) {   /* the energy in Φ: m̂_j[0] = s Φ_j / κ_0 */
+        g[i] = w->fg[p * DNF + i * NF];
+        for (int j = 0; j < NV; ++j) {
+          G[i][j] = A[i * NF * DNF + j * NF] / (k0 * k0);
+          g[i] -= A[i * NF * DNF + j * NF] * mh[j * NF];
+        }
+        g[i] *= -sg / k0;
+      }
+      for (int j = 0; j < NP; ++j) gb += cw[a * NP + j] * r->qint[j];
+      double *fa = w->ffa + p * FA_SIZE;
+      if (round == 0) {
+        int8_t kinds[NV];
+        for (int j = 0; j < NV; ++j) kinds[j] = t_kind(w, p, j);
+        if (flow_pair(r, kinds, a, G, g, sg * gb, cw + FW_DATA, fa)) return 1;
+        bal += fa[FA_G];
+      } else {                          /* the same H: q = P (g − f) + h G' */
+        double ge[DIM];
+        for (int s1 = 0; s1 < DIM; ++s1) ge[s1] = g[s1 < a ? s1 : s1 + 1] - fa[FA_F + s1];
+        for (int s1 = 0; s1 < DIM; ++s1) {
+          double q = fa[FA_H + s1] * fa[FA_G];
+          for (int s2 = 0; s2 < DIM; ++s2) q += fa[FA_P + s1 * DIM + s2] * ge[s2];
+          fa[FA_Q + s1] = q;
+        }
+      }
+    }
+    if (round == 0 && pure) *defect += fabs(bal);
+    double delta = pure ? -bal / np : 0.0;
+    if (!factored)
+      for (int i = 0; i < ni; ++i) memset(S + i * ni + fe[i], 0, sizeof(double) * (i + 1 - fe[i]));
+    memset(mu, 0, sizeof(double) * ni);
+    for (int p = 0; p < np; ++p) {
+      const double *fa = w->ffa + p * FA_SIZE;
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int i1 = idx[w->spoke[p * DIM + s1]];
+        if (i1 < 0) continue;
+        mu[i1] += fa[FA_Q + s1] + fa[FA_H + s1] * delta;
+        if (factored) continue;
+        for (int s2 = 0; s2 < DIM; ++s2) {
+          int i2 = idx[w->spoke[p * DIM + s2]];
+          if (i2 >= 0 && i2 <= i1) S[i1 * ni + i2] += fa[FA_P + s1 * DIM + s2];
+        }
+      }
+    }
+    if (!factored) {
+      for (int i = 0; i < ni; ++i)      /* a spoke between two cells with one free flux each */
+        if (S[i * ni + i] == 0.0) S[i * ni + i] = 1.0;
+      if (pure && ni) {
+        for (int i = 0; i < ni; ++i) if (fe[i] == 0) S[i * ni] = 0.0;
+        S[0] = 1.0;
+      }
+      for (int i = 0; i < ni; ++i) {        /* Cholesky in the envelope, lower triangle */
+        double *Si = S + i * ni;
+        for (int j = fe[i]; j < i; ++j) {
+          const double *Sj = S + j * ni;
+          double v = Si[j];
+          for (int k = fe[i] > fe[j] ? fe[i] : fe[j]; k < j; ++k) v -= Si[k] * Sj[k];
+          Si[j] = v * dinv[j];
+        }
+        double v = Si[i];
+        for (int k = fe[i]; k < i; ++k) v -= Si[k] * Si[k];
+        if (!(v > 0.0)) return 2;
+        dinv[i] = 1.0 / sqrt(v);
+      }
+      factored = 1;
+    }
+    if (pure && ni) mu[0] = 0.0;
+    for (int i = 0; i < ni; ++i) {
+      double v = mu[i];
+      for (int k = fe[i]; k < i; ++k) v -= S[i * ni + k] * mu[k];
+      mu[i] = v * dinv[i];
+    }
+    for (int i = ni - 1; i >= 0; --i) {
+      mu[i] *= dinv[i];
+      for (int k = fe[i]; k < i; ++k) mu[k] -= S[i * ni + k] * mu[i];
+    }
+    for (int p = 0; p < np; ++p) {
+      const double *cw = CELL_WORK(w, w->prow[p]), *fa = w->ffa + p * FA_SIZE;
+      int a = w->ploc[p];
+      for (int s1 = 0; s1 < DIM; ++s1) {
+        int kind = w->keys[w->spoke[p * DIM + s1]].kind, j = s1 < a ? s1 : s1 + 1;
+        if (kind == FLUX || kind == CONTACT) continue;
+        double phi = fa[FA_Q + s1] + fa[FA_H + s1] * delta;
+        for (int s2 = 0; s2 < DIM; ++s2) {
+          int i2 = idx[w->spoke[p * DIM + s2]];
+          if (i2 >= 0) phi -= fa[FA_P + s1 * DIM + s2] * mu[i2];
+        }
+        double dm = cw[FW_S] * phi / k0 - w->fm[p * DNF + j * NF];
+        move(cw, w->fm + p * DNF, w->fg + p * DNF, j, &zero, 1, &dm);
+      }
+    }
+  }
+  for (int p = 0; p < np; ++p) {
+    int64_t c = w->prow[p];
+    const double *cw = CELL_WORK(w, c);
+    int a = w->ploc[p];
+    int64_t i = w->slot[c];
+    double *acc = w->acc + i * ACC_SIZE;
+    for (int k = 0; k < DNF; ++k) acc[k] += w->fm[p * DNF + k];
+    for (int j = 0; j < NP; ++j) acc[DNF + j] += cw[a * NP + j];
+    if (--w->left[i] == 0) {
+      finish_flow(r, acc, w->alpha + c * M);
+      w->freel[w->nfree++] = i;
+    }
+  }
+  return 0;
+}
+
 /* Patch systems are factorized LB at a time (the lanes of one size): the Cholesky of a
    small system is a chain of dependent divisions and square roots, which the lanes overlap,
    and the inner products of a big one are vector operations across the lanes.  Systems of
@@ -1180,9 +1774,11 @@ static int solve_patch(const eq_ref *r, const eq_table *t, scratch_t *w, batch_t
    come, which stays in cache where the vertex order is local (DOLFINx orders vertices by
    Gibbs-Poole-Stockmeyer).  ``capacity``: the initial number of work rows (doubled when
    needed).  osc[c] = osc_T of each row evaluated.  stats[0] += the projected balance
-   defect, stats[1] += the cell evaluations, stats[2] = the most work rows in use. */
-int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
-               double *alpha, double *osc, double *stats)
+   defect, stats[1] += the cell evaluations, stats[2] = the most work rows in use.  ``flow``:
+   the dual-graph path (flow_block, solve_flow) instead of the hybridized patch systems. */
+static int run_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi,
+                       int64_t capacity, double *alpha, double *osc, double *stats, int flow,
+                       int sweeps)
 {
   int64_t nv = vhi - vlo, total = 0;
   int64_t *start = calloc(nv + 1, sizeof(int64_t));
@@ -1202,7 +1798,20 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   int64_t *pend = malloc(sizeof(int64_t) * (maxp + LB));
   int nraw = maxp * DIM > 0 ? maxp * DIM : 1, maxdim = nraw * NF;
   scratch_t w;
-  w.work = malloc(sizeof(double) * W_SIZE * cap);
+  w.wsize = flow ? FW_SIZE : W_SIZE;
+  w.sweeps = sweeps;
+  w.kind = t->kind;
+  w.fm = malloc(sizeof(double) * (maxp + 1) * DNF);
+  w.fg = malloc(sizeof(double) * (maxp + 1) * DNF);
+  w.ffa = malloc(sizeof(double) * (maxp + 1) * FA_SIZE);
+  w.fs = malloc(sizeof(double) * nraw * 2 * NH * NH);
+  w.fr1 = malloc(sizeof(int) * nraw);
+  w.fmid = malloc(sizeof(double) * nraw * DIM);
+  w.x = t->x;
+  w.fr2 = malloc(sizeof(int) * nraw);
+  w.fenv = malloc(sizeof(int) * nraw);
+  w.work = malloc(sizeof(double) * w.wsize * cap);
+
   w.acc = malloc(sizeof(double) * ACC_SIZE * cap);
   w.left = malloc(sizeof(int) * cap);
   w.freel = malloc(sizeof(int64_t) * cap);
@@ -1244,7 +1853,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   }
   ok &= prow && ploc && cur && slot && pend && w.work && w.acc && w.left && w.freel && w.spoke;
   ok &= w.keys && w.raw && w.order && w.unknown && w.adj && w.deg && w.pos && w.queue && w.first;
-  ok &= w.A && w.rhs && w.map && w.big && w.off && w.fu && w.dinvl && w.mu;
+  ok &= w.A && w.rhs && w.map && w.big && w.off && w.fu && w.dinvl && w.mu && w.fm && w.fg;
+  ok &= w.ffa && w.fs && w.fmid && w.fr1 && w.fr2 && w.fenv;
   int err = ok ? 0 : 3;
   if (!err) {
     memcpy(cur, start, sizeof(int64_t) * nv);
@@ -1265,7 +1875,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
           if (slot[c] >= 0) continue;
           if (w.nfree == 0 && used == cap) {          /* grow the work rows */
             cap *= 2;
-            double *wk = realloc((void *)w.work, sizeof(double) * W_SIZE * cap);
+            double *wk = realloc((void *)w.work, sizeof(double) * w.wsize * cap);
             double *ac = realloc(w.acc, sizeof(double) * ACC_SIZE * cap);
             int *lf = realloc(w.left, sizeof(int) * cap);
             int64_t *fr = realloc(w.freel, sizeof(int64_t) * cap);
@@ -1288,8 +1898,10 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
       for (int i = 0; i < npend && !err; i += LB) {
         int nb = npend - i < LB ? npend - i : LB;
         double *rows[LB], os[LB];
-        LANES rows[b] = (double *)w.work + slot[pend[i + (b < nb ? b : 0)]] * W_SIZE;
-        if (cell_block(r, t, pend + i, nb, rows, vlo, vhi, os)) err = 1;
+        LANES rows[b] = (double *)w.work + slot[pend[i + (b < nb ? b : 0)]] * w.wsize;
+        if (flow ? flow_block(r, t, pend + i, nb, rows, os)
+                 : cell_block(r, t, pend + i, nb, rows, vlo, vhi, os))
+          err = 1;
         for (int b = 0; b < nb; ++b) osc[pend[i + b]] = os[b];
       }
       if (ahead == nv) break;
@@ -1299,7 +1911,7 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
     w.prow = prow + start[v];
     w.ploc = ploc + start[v];
     spokes(t, &w);
-    err = solve_patch(r, t, &w, batches, stats);
+    err = flow ? solve_flow(r, &w, stats) : solve_patch(r, t, &w, batches, stats);
   }
   for (int d = 1; d <= DENSE && !err; ++d) err = flush(r, t, &w, batches + d, d);
   for (int d = DENSE + 1; d <= maxdim && !err; ++d)
@@ -1309,6 +1921,8 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   free(w.map);
   for (int d = 0; w.big && d <= maxdim; ++d)
     if (w.big[d]) { free(w.big[d]->map); free(w.big[d]->first); free(w.big[d]->x); free(w.big[d]); }
+  free(w.fm); free(w.fg); free(w.ffa); free(w.fs); free(w.fmid);
+  free(w.fr1); free(w.fr2); free(w.fenv);
   free(w.big); free(w.P); free(w.off); free(w.fu); free(w.dinvl); free(w.mu);
   free(w.spoke); free(w.keys); free(w.raw); free(w.order); free(w.unknown); free(w.adj);
   free(w.deg);
@@ -1316,6 +1930,18 @@ int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int
   free((void *)w.work); free(w.acc); free(w.left); free(w.freel);
   free(start); free(prow); free(ploc); free(cur); free(slot); free(pend);
   return err;
+}
+
+int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+               double *alpha, double *osc, double *stats)
+{
+  return run_patches(r, t, vlo, vhi, capacity, alpha, osc, stats, 0, 0);
+}
+
+int eq_flow(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
+            double *alpha, double *osc, double *stats, int sweeps)
+{
+  return run_patches(r, t, vlo, vhi, capacity, alpha, osc, stats, 1, sweeps);
 }
 """
 )

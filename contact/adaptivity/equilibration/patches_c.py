@@ -62,11 +62,34 @@ def _tables(d: int, p: int, nu: int) -> dict:
         "Q": r.Q,
         "q": r.q,
         "wS": r.wS,
+        **_flow_tables(r),
     }
     out = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
     assert out["base"].shape == (D, D, r.nf, len(r.wS))
     out["lookup"] = lookup
     return out
+
+
+def _flow_tables(r: Reference) -> dict:
+    """The reference arrays of the moment path (``eq_flow``, p = 1): with G the left inverse of
+    N̂Z, the flux of reference facet moments m̂ and divergence moments β is GL m̂ + RL β
+    (GL = Z G, RL = R̂ − Z G N̂R̂: for p = 1 the moments determine it); AR_ij = GLᵀ mass_ij GL
+    and BR_ij = GLᵀ mass_ij RL give its energy, GT = Gᵀ the load; qint_j = ∫_T̂ Q̂_j;
+    TB[j, a, k] = ∫_F̂ λ_a q̂_k / |F̂| on facet j (the target's facet moments)."""
+    D = r.d + 1
+    NZ = np.einsum("jkm,mz->jkz", r.N, r.Z).reshape(D * r.nf, -1)
+    NR = np.einsum("jkm,mz->jkz", r.N, r.R).reshape(D * r.nf, -1)
+    G = np.linalg.pinv(NZ)
+    GL, RL = r.Z @ G, r.R - r.Z @ G @ NR
+    return {
+        "GL": GL,
+        "RL": RL,
+        "AR": np.einsum("mx,ijmn,ny->ijxy", GL, r.mass, GL),
+        "BR": np.einsum("mx,ijmn,ny->ijxy", GL, r.mass, RL),
+        "GT": G.T,
+        "TB": np.einsum("q,jqa,kq->jak", r.wS, r.lamF, r.q) / r.wS.sum(),
+        "qint": r.Q @ r.w,
+    }
 
 
 def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: float) -> dict:
@@ -100,9 +123,12 @@ def solve_patches_compiled(
     ref: Reference,
     multiplier: str | None,
     sign: float,
+    flow: int = -1,
 ) -> tuple[PatchOutput, np.ndarray]:
     """The patches of the vertices with global index in [vertices[0], vertices[1]) (complete in
-    ``table``), and osc_T of every row.  Collective (the kernel is loaded collectively)."""
+    ``table``), and osc_T of every row; ``flow`` ≥ 0: by the moment path of :mod:`.kernel_c`
+    (``eq_flow``, p = 1, that many rounds) instead of the patch minimizations.  Collective
+    (the kernel is loaded collectively)."""
     nu = table.U.shape[1]
     ffi, lib = library(comm, ref, nu)
     tabs = _tables(ref.d, ref.p, nu)
@@ -139,9 +165,8 @@ def solve_patches_compiled(
     alpha = np.zeros((len(table), ref.m))
     osc = np.full(len(table), np.nan)
     stats = np.zeros(3)
-    err = lib.eq_patches(
-        r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc), ptr(stats)
-    )
+    args = (r, t, int(vertices[0]), int(vertices[1]), CAPACITY, ptr(alpha), ptr(osc), ptr(stats))
+    err = lib.eq_flow(*args, flow) if flow >= 0 else lib.eq_patches(*args)
     lib.eq_oscillation(r, t, ptr(osc))
     err = comm.allreduce(err, op=MPI.MAX)
     if err:
