@@ -1654,7 +1654,10 @@ def friction_paths(path_rows: list[dict]) -> list[str]:
         "displacement interpolated onto the coarse meshes —, the secant predictor from the "
         "third step where it lowers ‖Φ‖, `solver.linear: auto`); `direct` / `gmres` the same "
         "with MUMPS on H or GMRES + GAMG on the reduced block system; `old` / `old-bcgs` the "
-        "path before issue 29 (cold, warm-started steps, MUMPS or BiCGStab + GAMG on H). "
+        "path before issue 29 (cold, warm-started steps, MUMPS or BiCGStab + GAMG on H); "
+        "`noseq` the defaults without sequencing; `lag` the defaults with GAMG's hierarchy "
+        "lagged across Newton steps (`reduced_lag_pc true`: the block system before it took "
+        "a set-up per Newton step, contact/solvers/block_system.py). "
         '"levels" counts the mesh asked for and its coarse levels; "max |Δu|" is the last '
         "step's largest nodal difference to the first variant listed.",
         "",

@@ -26,10 +26,11 @@ set-up and 0.06 s per iteration).  Every Newton step moves the stick/slip sets, 
 that changes sides changes A by a row and column of K: a hierarchy lagged from an earlier A
 (``reduced_lag_pc true``, the rule of :class:`~.reduced.ReducedSystem`, which pays where a
 set-up costs 8 CG iterations) stalls on those few directions — the same step took 18 GMRES
-iterations lagged against 10 fresh.  Measured (``bench_cost.py path --variants new,nolag``,
+iterations lagged against 10 fresh.  Measured (``bench_cost.py path --variants new,lag``,
 friction_box_3d at [72, 72, 36] cells, 591519 DoFs, 2 ranks, CPU time over one CG + GAMG
-solve of K in the same process): load steps 3.02×, 3.70×, 4.20× lagged, 2.29×, 2.49×, 2.77×
-with a set-up per step (65–84 GMRES iterations a step instead of 115–160).
+solve of K in the same process, demos/RESULTS.md §9): load steps 2.06×, 2.19×, 2.49× with a
+set-up per Newton step (65–84 GMRES iterations a step), 3.48×, 4.13×, 3.98× lagged (115–160);
+an earlier run 2.29×, 2.49×, 2.77× against 3.15×, 3.66×, 4.04×.
 
 ``solver.linear: direct`` (MUMPS on H) and ``bcgs`` (BiCGStab + GAMG on H) keep the assembled
 paths of :mod:`.linear`.

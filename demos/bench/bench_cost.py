@@ -42,7 +42,7 @@ last step's largest nodal difference to the first variant's:
         --set "mesh.cells=[72,72,36]" --times 0.5,0.75,1 --variants new,lag \
         --out demos/results/cost/friction_box_3d_np2.csv
     mpirun -n 2 python demos/bench/bench_cost.py path --scene configs/two_body_cattaneo_2d.yaml \
-        --set mesh.h_contact=0.0022 --times 0.5,0.625,0.75 --variants direct,gmres \
+        --set mesh.h_contact=0.0022 --times 0.5,0.625,0.75 --variants new,lag \
         --out demos/results/cost/two_body_cattaneo_2d_np2.csv
 
 ``square`` uses configs/signorini_square.yaml with its defaults (cells changed);
