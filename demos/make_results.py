@@ -2623,9 +2623,9 @@ def guaranteed() -> str:
             )
         for f in (f for f in all_cost if f["backend"] == "flow" and f["dim"] == r["dim"]):
             line += (
-                f"; with the cheaper P1 fit (`backend: flow`) the reconstruction "
-                f"{g(f['reconstruction_cpu'])} s = {g(f['ratio_cpu'])}×, the whole estimate "
-                f"{g(f['estimate_cpu'])} s = {g(f['estimate_ratio_cpu'])}×"
+                "; with the cheaper P1 fit (`reconstruct_flux(backend='flow')`, an API argument) "
+                f"the reconstruction {g(f['reconstruction_cpu'])} s = {g(f['ratio_cpu'])}×, "
+                f"the whole estimate {g(f['estimate_cpu'])} s = {g(f['estimate_ratio_cpu'])}×"
             )
         out += [line + ".", ""]
     eff3d = rows(folder / "effectivity_3d.csv") or []

@@ -120,7 +120,8 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
     assert "the residual estimate 0.9 s = 0.3×" in section
     assert "the flux reconstruction 30 s = 10× (target 2×)" in section
     assert (
-        "(`backend: flow`) the reconstruction 24 s = 8×, the whole estimate 39 s = 13×" in section
+        "(`reconstruct_flux(backend='flow')`, an API argument) the reconstruction 24 s = 8×, "
+        "the whole estimate 39 s = 13×" in section
     )
     assert "--uniform3d`): 1377 DoFs: compiled 1.250, flow 1.300." in section
     assert "| fixed | 2 | 251 | 3.5–3.6 | 15.5 / 15.7 / 15.9 | 413467 |" in section
