@@ -360,32 +360,15 @@ def _cell_operators(
 ) -> tuple[_Cells, int]:
     """The :class:`_Cells` of the rows ``rows`` of ``table`` (``div``: the table's
     divergence data, ``bdata``: its prescribed moments of :func:`_boundary_data`,
-    ``m_as``: its as-moments; ``kernel``: :mod:`.stress_c`'s library or None for NumPy),
-    and the kernel's error code."""
-    d, D, nf = ref.d, ref.d + 1, ref.nf
+    ``m_as``: its as-moments), in C (``kernel``: :mod:`.stress_c`'s library) or NumPy
+    (None), and the kernel's error code."""
+    d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
     n, DB, dmz = len(rows), D * d * nf, d * ref.Z.shape[1]
     out = _Cells(
         np.empty((n, DB, DB)), np.empty((n, D, dmz)), np.empty((n, D, DB)),
         np.empty((n, D, DB)), np.empty((n, dmz, DB)),
     )  # fmt: skip
-    err = _cell_block(table, rows, div, bdata[rows], m_as[rows], ref, data, kernel, out)
-    return out, err
-
-
-def _cell_block(
-    table: CellTable,
-    rows: np.ndarray,
-    div: _Divergence,
-    bdata: np.ndarray,
-    m_as: np.ndarray,
-    ref: Reference,
-    data: StressData,
-    kernel,
-    out: _Cells,
-) -> int:
-    """The :class:`_Cells` of the rows ``rows`` of ``table``, written into ``out``: in C
-    (``kernel``: :mod:`.stress_c`'s library) or NumPy (None); the kernel's error code."""
-    d, D, nf, m = ref.d, ref.d + 1, ref.nf, ref.m
+    bdata, m_as = bdata[rows], m_as[rows]
     mu, lam, skew_weight = float(data.mu), float(data.lmbda_L), float(data.skew_weight)
     ops = CellOperators(table, rows, ref)
     n = len(ops.rows)
@@ -422,7 +405,7 @@ def _cell_block(
             "beta": bflat,
             "m": m_as,
         }
-        return stress_c.cell_operators(kernel, ref, arrays, vars(out))
+        return out, stress_c.cell_operators(kernel, ref, arrays, vars(out))
     # the objective's mass M (rows r, s) only enters projected: M_Z = Z_bᵀ M Z_b and
     # Z_bᵀ M R_b, each a combination of T_rs = ∫_T (φ·e_r)(φ·e_s) of the Piola-mapped basis,
     # Σ_ij J_ri J_sj mass_ij / |det J|, projected on the reference (Zᵀ mass_ij Z, Zᵀ mass_ij R)
@@ -454,7 +437,7 @@ def _cell_block(
     out.h[:] = np.einsum("nfb,nab->naf", OR, bflat) + np.einsum("nfz,naz->naf", OZ, Pq)
     out.h[:] += np.einsum("nfk,nak->naf", OZ @ HaG, c)
     out.gamma0[:] = Pq + np.einsum("nzk,nak->naz", HaG, c)
-    return 0
+    return out, 0
 
 
 @functools.cache

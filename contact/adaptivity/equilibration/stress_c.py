@@ -84,7 +84,7 @@ static int spd_inv(int n, const double *A, double *H)
   return 0;
 }
 
-/* The cell operators of :func:`.stress._cell_block`, cell by cell (the same algebra; the
+/* The cell operators of :func:`.stress._cell_operators`, cell by cell (the same algebra; the
    index conventions of the NumPy arrays, row-major). */
 int st_cells(int64_t n, const double *J, const double *s, const double *absdet, const double *ZZ,
              const double *ZR, const double *W, const double *M1Z, const double *M1R,
@@ -330,7 +330,7 @@ def _ptr(ffi, keep: list, a: np.ndarray, ctype: str = "double"):
 
 
 def cell_operators(kernel: tuple, ref: Reference, arrays: dict, out: dict) -> int:
-    """The per-cell arrays of :func:`.stress._cell_block` (``out``: S, gamma0, h, POt,
+    """The per-cell arrays of :func:`.stress._cell_operators` (``out``: S, gamma0, h, POt,
     C-contiguous, written in place) from its inputs (``arrays``: J, s, absdet, the
     reference tables ZZ, ZR, W, M1Z, M1R, the oriented OZ, OR, and q0, beta, m); the
     kernel's error code (1: a singular cell matrix)."""
