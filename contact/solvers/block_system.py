@@ -20,17 +20,18 @@ the frictionless system.  The forcing terms of inexact Newton are the diagonal l
 (Eisenstat–Walker, exact once a Newton step repeats the law).
 
 GAMG is set up for each Newton step's A (``LAG = False``), its interpolation reused
-(``pc_gamg_reuse_interpolation``): such a set-up is the Galerkin products alone, about 3
-GMRES iterations (friction_box_3d, 180k DoFs, 2 ranks: 0.19 s against 0.6 s for a first
-set-up and 0.06 s per iteration).  Every Newton step moves the stick/slip sets, and a row
-that changes sides changes A by a row and column of K: a hierarchy lagged from an earlier A
+(``pc_gamg_reuse_interpolation``): such a set-up is the Galerkin products alone, a few
+GMRES iterations' worth.  Every Newton step moves the stick/slip sets, and a row that changes
+sides changes A by a row and column of K: a hierarchy lagged from an earlier A
 (``reduced_lag_pc true``, the rule of :class:`~.reduced.ReducedSystem`, which pays where a
-set-up costs 8 CG iterations) stalls on those few directions — the same step took 18 GMRES
-iterations lagged against 10 fresh.  Measured (``bench_cost.py path --variants new,lag``,
-friction_box_3d at [72, 72, 36] cells, 591519 DoFs, 2 ranks, CPU time over one CG + GAMG
-solve of K in the same process, demos/RESULTS.md §9): load steps 2.06×, 2.19×, 2.49× with a
-set-up per Newton step (65–84 GMRES iterations a step), 3.48×, 4.13×, 3.98× lagged (115–160);
-an earlier run 2.29×, 2.49×, 2.77× against 3.15×, 3.66×, 4.04×.
+set-up costs 8 CG iterations) stalls on those few directions — friction_box_3d at [48, 48,
+24] cells, 2 ranks, the first load step's second Newton solve took 18 GMRES iterations lagged
+against 10 fresh (``Result.krylov_log``: iterations and GAMG ``setups`` per solve).
+Measured (``bench_cost.py path --variants new,lag``, friction_box_3d at [72, 72, 36] cells,
+591519 DoFs, 2 ranks, CPU time over one CG + GAMG solve of K in the same process,
+demos/RESULTS.md §9): load steps 2.06×, 2.19×, 2.49× with a set-up per Newton step (65–84
+GMRES iterations a step), 3.48×, 4.13×, 3.98× lagged (115–160); an earlier run 2.29×,
+2.49×, 2.77× against 3.15×, 3.66×, 4.04×.
 
 ``solver.linear: direct`` (MUMPS on H) and ``bcgs`` (BiCGStab + GAMG on H) keep the assembled
 paths of :mod:`.linear`.
