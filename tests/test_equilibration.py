@@ -203,15 +203,23 @@ def test_estimator_key() -> None:
     assert contact.load_scene(obstacle).config.estimator == "equilibrated"
     assert contact.load_scene({**base, "estimator": "residual"}).config.estimator == "residual"
     with pytest.raises(
-        ConfigError, match=r"^estimator: 'fancy' is not one of auto, residual, equilibrated$"
+        ConfigError,
+        match=r"^estimator: 'fancy' is not one of auto, residual, equilibrated, equilibrated_rt0$",
     ):
         contact.load_scene({**base, "estimator": "fancy"})
+    # the lowest-order flux: P1 solutions of the scalar models only
+    rt0 = {**base, "estimator": "equilibrated_rt0"}
+    assert contact.load_scene(rt0).config.estimator == "equilibrated_rt0"
+    with pytest.raises(ConfigError, match=r"^mesh.degree: estimator: equilibrated_rt0 is the "):
+        contact.load_scene({**rt0, "mesh": {**base["mesh"], "degree": 2}})
     elastic = {
         **base,
         "model": {"type": "elasticity", "E": 1.0},
         "obstacle": {"type": "plane", "point": [0, 0], "normal": [0, 1]},
     }
     assert contact.load_scene(elastic).config.estimator == "residual"
+    with pytest.raises(ConfigError, match=r"^estimator: equilibrated_rt0 is the lowest-order"):
+        contact.load_scene({**elastic, "estimator": "equilibrated_rt0"})
     elastic["estimator"] = "equilibrated"
     assert contact.load_scene(elastic).config.estimator == "equilibrated"  # issue 30 item 2
     with pytest.raises(
@@ -234,6 +242,8 @@ for path, sets in [("signorini_free_boundary.yaml", ["mesh.cells=[16,8]"]),
     scene = contact.load_scene(sys.argv[1] + "/" + path, sets + ["output.verbose=false"])
     r = contact.solve(scene, verbose=False, linear="direct")
     out[path + str(sets)] = guaranteed_bound(scene, r).eta
+    if "mesh.degree=2" not in sets:  # P1: also the lowest-order flux
+        out[path + str(sets) + "RT0"] = guaranteed_bound(scene, r, degree=0).eta
 if MPI.COMM_WORLD.rank == 0:
     print(json.dumps(out))
 """
@@ -244,3 +254,26 @@ def test_same_bound_on_two_ranks(tmp_path) -> None:
     runs = {n: script_json(PARALLEL, tmp_path, str(ROOT / "configs"), ranks=n) for n in (1, 2)}
     for key, eta in runs[1].items():
         assert runs[2][key] == pytest.approx(eta, rel=1e-8), key
+
+
+@pytest.mark.mpi
+def test_rt0_estimator_through_the_cli_on_one_and_two_ranks(tmp_path) -> None:
+    """``contact run`` with ``estimator: equilibrated_rt0`` (problem A, adaptive to 3000 DoFs):
+    η ≥ the energy error on every level, and the same levels, DoFs and η on 2 ranks."""
+    import csv
+
+    from clirun import contact as run
+
+    sets = ["estimator=equilibrated_rt0", "adapt.max_dofs=3000", "output.png=false"]
+    levels = {}
+    for n in (1, 2):
+        out = tmp_path / f"np{n}"
+        args = ["run", "configs/signorini_free_boundary.yaml", "-o", str(out), "-q"]
+        proc = run(ROOT, *args, *[a for s in sets for a in ("--set", s)], ranks=n)
+        assert proc.returncode == 0, proc.stderr
+        levels[n] = list(csv.DictReader(open(out / "convergence.csv")))
+    assert len(levels[1]) >= 4 and len(levels[2]) == len(levels[1])
+    for one, two in zip(levels[1], levels[2], strict=True):
+        assert float(one["eta"]) >= float(one["error"]) > 0
+        assert int(two["dofs"]) == int(one["dofs"])
+        assert float(two["eta"]) == pytest.approx(float(one["eta"]), rel=1e-6)

@@ -4,7 +4,10 @@ minimizers are unique: σ_h, osc_T and η agree to round-off on Signorini (λ on
 (λ in Ω) scenes, P1 and P2, 2D and 3D; where no C compiler works the reconstruction falls back
 to NumPy with a warning.  The cheaper backend="flow" (P1: the patch minimization approximated
 by a few rounds of block coordinate descent) gives an H(div) flux with the same divergence and
-normal data, a bound ≥ the error, and the reference σ_h when its rounds go on.
+normal data, a bound ≥ the error, and the reference σ_h when its rounds go on.  The lowest-order
+flux of a P1 solution (``degree=0``: σ_h ∈ RT_0, each patch fitted to the RT_0 interpolant of
+ψ_a τ) is the same in both solvers, equilibrated with Π_0 of the data, exact for a linear u_h,
+and its bound (with the multiplier's rest λ̃_h − Π_0 λ̃_h in osc_T) is ≥ the error.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ from pathlib import Path
 import contact
 from contact.adaptivity.equilibration import compiled
 from contact.adaptivity.equilibration.bound import flux_data, guaranteed_bound
-from contact.adaptivity.equilibration.flux import reconstruct_flux
+from contact.adaptivity.equilibration.flux import FluxData, reconstruct_flux
 from contact.adaptivity.equilibration.reference import reference
 
 import numpy as np
@@ -154,3 +157,93 @@ def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
     monkeypatch.undo()
     monkeypatch.setenv("CC", "clang")
     assert compiled._path(dims) != here
+
+
+LOWEST = ["A_P1", "ex9", "A_3D"]
+
+
+@pytest.mark.parametrize("name", LOWEST)
+def test_lowest_order_agrees_and_bounds_the_error(name: str) -> None:
+    """Signorini (2D, 3D) and the obstacle: compiled = NumPy for degree=0; η ≥ the error, and
+    no more than 2.2 times the error on these coarse meshes (measured 1.74, 2.09, 1.88; the
+    reference patch minimizer's η is 1.25-1.4 times smaller)."""
+    from contact.adaptivity.energy_error import energy_error, solution_error
+
+    scene, result = _solved(name)
+    data, multiplier, sign = flux_data(scene, result)
+    fast, ref = (
+        reconstruct_flux(data, multiplier, sign, backend=b, degree=0) for b in ("compiled", "numpy")
+    )
+    _agree(fast, ref)
+    assert fast.sigma_h.function_space.element.basix_element.degree == 1  # RT_0
+    bound = guaranteed_bound(scene, result, degree=0)
+    # 3D: a rule of degree 6 (test_flow_bound_is_guaranteed_in_3d)
+    error = (
+        energy_error(
+            result.u_h, scene.config.data.exact, result.problem.data["k"], quadrature_degree=6
+        )
+        if name == "A_3D"
+        else solution_error(scene, result)
+    )
+    assert error <= bound.eta <= 2.2 * error, (bound.eta, error)
+    # the flux carries Π_0 λ̃_h only: the rest λ̃_h − Π_0 λ̃_h enters osc_T
+    assert bound.terms["oscillation"] > 0
+
+
+@pytest.mark.parametrize("d, n", [(2, 8), (3, 3)])
+def test_lowest_order_is_equilibrated(d: int, n: int) -> None:
+    """−div σ_h = Π_0 f in every cell and σ_h·n = Π_0 t on each Γ_N facet (a cell has at most
+    one facet on the plane x = 1, so a DG0 test function tests each facet)."""
+    from dolfinx import fem
+    from test_equilibration import _poisson
+
+    data, _, ds_N = _poisson(d, 1, n)
+    msh = data.u_h.function_space.mesh
+    for backend in ("compiled", "numpy"):
+        sigma = reconstruct_flux(data, backend=backend, degree=0).sigma_h
+        q = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
+        div = fem.assemble_vector(
+            fem.form((ufl.div(sigma) + data.f) * q * ufl.dx(metadata={"quadrature_degree": 8}))
+        )
+        scale = np.abs(fem.assemble_vector(fem.form(abs(data.f) * q * ufl.dx)).array).max()
+        assert np.abs(div.array).max() < 1e-11 * scale
+        n_vec = ufl.FacetNormal(msh)
+        neu = fem.assemble_vector(fem.form((ufl.dot(sigma, n_vec) - data.neumann[2]) * q * ds_N))
+        assert np.abs(neu.array).max() < 1e-12 * np.abs(sigma.x.array).max()
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_lowest_order_reproduces_a_linear_flux(d: int) -> None:
+    """u_h = u linear, f = 0: each patch's target, the RT_0 interpolant of ψ_a ∇u, meets the
+    patch's constraints, so the patch minimizer is the target and σ_h = Σ_a I(ψ_a ∇u) = ∇u
+    exactly (fitting ψ_a ∇u itself, which RT_0 does not contain, misses it by O(|∇u|))."""
+    from dolfinx import fem, mesh
+    from mpi4py import MPI
+
+    msh = (
+        mesh.create_unit_square(MPI.COMM_WORLD, 5, 4)
+        if d == 2
+        else mesh.create_unit_cube(MPI.COMM_WORLD, 3, 2, 2)
+    )
+    V = fem.functionspace(msh, ("Lagrange", 1))
+    x = ufl.SpatialCoordinate(msh)
+    u = 1 + 2 * x[0] - 3 * x[1] + (0.5 * x[2] if d == 3 else 0)
+    u_h = fem.Function(V)
+    u_h.interpolate(fem.Expression(u, V.element.interpolation_points))
+    msh.topology.create_connectivity(d - 1, d)
+    facets = mesh.exterior_facet_indices(msh.topology)
+    tags = mesh.meshtags(msh, d - 1, facets, np.ones(len(facets), dtype=np.int32))
+    data = FluxData(u_h, fem.Constant(msh, 0.0), fem.Constant(msh, 1.0), tags, dirichlet=(1,))
+    for backend in ("compiled", "numpy"):
+        q = reconstruct_flux(data, backend=backend, degree=0).sigma_h - ufl.grad(u_h)
+        dx = ufl.dx(domain=msh, metadata={"quadrature_degree": 4})
+        assert np.sqrt(abs(fem.assemble_scalar(fem.form(ufl.inner(q, q) * dx)))) < 1e-12
+
+
+def test_lowest_order_refuses_what_it_does_not_cover() -> None:
+    from test_equilibration import _poisson
+
+    with pytest.raises(ValueError, match=r"^degree: 2 \(that of u_h\) or, for P1, 0"):
+        reconstruct_flux(_poisson(2, 2, 2)[0], degree=0)
+    with pytest.raises(ValueError, match="P1, degree 1 and rounds >= 0 only"):
+        reconstruct_flux(_poisson(2, 1, 2)[0], backend="flow", degree=0)

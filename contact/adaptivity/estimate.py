@@ -36,6 +36,7 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
+from ..setup.config import EQUILIBRATED
 from ..setup.scene import Scene
 from ..solvers import Result
 from ..solvers.problem import DiscreteProblem
@@ -274,13 +275,16 @@ def estimate(scene: Scene, result: Result) -> Estimate:
         raise ValueError(
             "result: expected the contact.Result of contact.solve on this scene (same mesh)"
         )
-    if scene.config.estimator == "equilibrated":  # docs/theory.md §9: a guaranteed bound
+    if scene.config.estimator in EQUILIBRATED:  # docs/theory.md §9: a guaranteed bound
         if scene.config.elastic:
-            from .equilibration.elastic import elastic_bound as bound_of
-        else:
-            from .equilibration.bound import guaranteed_bound as bound_of
+            from .equilibration.elastic import elastic_bound
 
-        bound = bound_of(scene, result)
+            bound = elastic_bound(scene, result)
+        else:
+            from .equilibration.bound import guaranteed_bound
+
+            lowest = scene.config.estimator == "equilibrated_rt0"  # σ_h ∈ RT_0 (P1)
+            bound = guaranteed_bound(scene, result, degree=0 if lowest else None)
         return Estimate(bound.eta_T, bound.eta, bound.terms)
     return residual_estimate(scene, result)
 

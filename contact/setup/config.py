@@ -52,6 +52,8 @@ __all__ = ["ELASTIC_MODELS", "FRICTION_LAWS", "ConfigError", "SceneConfig", "loa
 #: tolerance it needs an order of magnitude fewer DoFs: demos/RESULTS.md §12); elasticity
 #: keeps the residual estimator
 EQUILIBRATED_MODELS = ("signorini", "obstacle")
+#: the guaranteed bounds (docs/theory.md §9): σ_h ∈ RT_p, or RT_0 for a P1 solution
+EQUILIBRATED = ("equilibrated", "equilibrated_rt0")
 HYPERELASTIC_LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 _REQUIRED = object()
 
@@ -556,10 +558,12 @@ SCENE: dict[str, Field] = {
     "estimator": Field(
         "str",
         "auto",
-        choices=("auto", "residual", "equilibrated"),
+        choices=("auto", "residual", *EQUILIBRATED),
         doc="a posteriori error estimator: residual (docs/theory.md §5, reliable up "
         "to a constant), equilibrated (docs/theory.md §9: a guaranteed "
-        "bound; scalar models, and one elastic body against a rigid plane) or auto: "
+        "bound; scalar models, and one elastic body against a rigid plane), "
+        "equilibrated_rt0 (the same bound from the lowest-order flux of a P1 solution of "
+        "the scalar models: cheaper, larger) or auto: "
         "equilibrated for the scalar models (signorini, obstacle), residual for elasticity "
         "(demos/RESULTS.md §12)",
     ),
@@ -925,7 +929,7 @@ def validate_scene(
     if cfg["estimator"] == "auto":  # the guaranteed bound where it is cheap (RESULTS.md §12)
         cfg["estimator"] = "equilibrated" if model in EQUILIBRATED_MODELS else "residual"
     _check_equilibrated(cfg)
-    if cfg["solver"].stopping == "adaptive" and cfg["estimator"] != "equilibrated":
+    if cfg["solver"].stopping == "adaptive" and cfg["estimator"] not in EQUILIBRATED:
         raise ConfigError(
             "solver.stopping: adaptive needs estimator: equilibrated (the "
             "discretization error it balances against)"
@@ -975,7 +979,19 @@ def _check_equilibrated(cfg: dict) -> None:
     against a rigid plane, frictionless or with Tresca friction (docs/theory.md §9); what
     it does not cover is refused by the key that asks for it."""
     model = cfg["model"]["type"]
-    if cfg["estimator"] != "equilibrated" or model in ("signorini", "obstacle"):
+    if cfg["estimator"] == "equilibrated_rt0":
+        if model not in EQUILIBRATED_MODELS:
+            raise ConfigError(
+                "estimator: equilibrated_rt0 is the lowest-order flux of the scalar models "
+                f"(signorini, obstacle), not model type {model}; use equilibrated or residual"
+            )
+        if cfg["mesh"]["degree"] != 1:
+            raise ConfigError(
+                "mesh.degree: estimator: equilibrated_rt0 is the lowest-order flux of a P1 "
+                "solution; use 1, or estimator: equilibrated"
+            )
+        return
+    if cfg["estimator"] != "equilibrated" or model in EQUILIBRATED_MODELS:
         return
     if model != "elasticity":
         raise ConfigError(

@@ -131,9 +131,12 @@ def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
     return flux, ("cells" if model == "obstacle" else "facets"), -p.constraint.sign
 
 
-def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bound:
+def guaranteed_bound(
+    scene: Scene, result: Result, backend: str = "compiled", degree: int | None = None
+) -> Bound:
     """The bound of the module docstring for a solve of a scalar scene (collective);
-    ``backend``: the patch solver of :func:`.flux.reconstruct_flux`."""
+    ``backend`` and ``degree``: the patch solver and the flux's degree of
+    :func:`.flux.reconstruct_flux`."""
     seconds = {}
     t0 = time.perf_counter()
     data, multiplier, sign = flux_data(scene, result)
@@ -145,7 +148,7 @@ def guaranteed_bound(scene: Scene, result: Result, backend: str = "compiled") ->
     lift = _feasibility(scene, result, sigma, k, v)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
-    flux = reconstruct_flux(data, multiplier, sign, backend=backend)
+    flux = reconstruct_flux(data, multiplier, sign, backend=backend, degree=degree)
     seconds["flux"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     p = _degree(u_h)

@@ -44,6 +44,12 @@ __all__ = ["Flux", "FluxData", "reconstruct_flux"]
 #: constraints, then ``rounds`` times the higher moments facet by facet and the constant
 #: fluxes again; ``solve_flow`` in :mod:`.kernel_c`)
 BACKENDS = ("compiled", "numpy", "flow")
+#: ``degree=0`` for a P1 solution: σ_h ∈ RT_0 (Braess & Schöberl 2008), each patch's target
+#: the RT_0 interpolant of ψ_a τ (τ: k∇u_h or the given target, its cell mean), so that
+#: the targets still sum to τ; Π_0 of the data and of λ̃_h, and osc_T adds the multiplier's
+#: rest λ̃_h − Π_0 λ̃_h (:func:`_multiplier_oscillation`).  A third of the unknowns of RT_1
+#: per patch in 3D (4.5× cheaper patch problems), a larger η (docs/theory.md §9).
+LOWEST = 0
 #: the default rounds of the "flow" backend (docs/theory.md §9: effectivity against cost)
 FLOW_ROUNDS = 1
 
@@ -89,11 +95,14 @@ def reconstruct_flux(
     sign: float = 0.0,
     backend: str = "compiled",
     rounds: int = FLOW_ROUNDS,
+    degree: int | None = None,
 ) -> Flux:
     """σ_h of the module docstring.  ``multiplier``: None, "facets" (λ on the ``contact``
     facets, Signorini) or "cells" (λ in Ω, obstacle); ``sign``: the sign λ̃ must have
     (−1: ≤ 0, +1: ≥ 0, 0: any); ``backend``: one of :data:`BACKENDS`; ``rounds``: those of
-    the "flow" backend (≥ 0).  Collective."""
+    the "flow" backend (≥ 0); ``degree``: that of σ_h ∈ RT_degree, None for p, the degree
+    of u_h (Ern & Vohralík: robust in p), or 0 for P1, the lowest order (:data:`LOWEST`).
+    Collective."""
     if multiplier not in (None, "facets", "cells"):
         raise ValueError(f"multiplier: expected None, 'facets' or 'cells', got {multiplier!r}")
     if backend not in BACKENDS:
@@ -102,9 +111,14 @@ def reconstruct_flux(
     msh = V.mesh
     d = msh.topology.dim
     p = V.element.basix_element.degree
-    ref = reference(d, p)
-    if backend == "flow" and (p != 1 or rounds < 0):
-        raise ValueError(f"backend 'flow': P1 and rounds >= 0 only, got P{p} and {rounds}")
+    q = p if degree is None else degree
+    if q != p and (p, q) != (1, 0):
+        raise ValueError(f"degree: {p} (that of u_h) or, for P1, 0 (the lowest order), got {q}")
+    ref = reference(d, q, p)
+    if backend == "flow" and (p != 1 or q != 1 or rounds < 0):
+        raise ValueError(
+            f"backend 'flow': P1, degree 1 and rounds >= 0 only, got P{p}, {q} and {rounds}"
+        )
     comm = msh.comm
     clock = _Clock()
     if multiplier is not None and data.lmbda_h is None:
@@ -114,7 +128,7 @@ def reconstruct_flux(
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
     vmap = msh.topology.index_map(0)
-    compiled = backend in ("compiled", "flow")
+    compiled = backend in ("compiled", "flow", "lowest")
     if compiled:
         try:
             library(comm, ref, table.U.shape[1])
@@ -148,6 +162,7 @@ def reconstruct_flux(
         sigma_h = _interpolated(msh, ref, sigma_cells)
         osc = _oscillation(table, ref)
     lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
+    osc = osc + _multiplier_oscillation(table, ref, multiplier, sign)
     clock.lap("assemble")
     defect = comm.allreduce(out.defect)
     cells = (
@@ -285,26 +300,67 @@ def _oscillation(table: CellTable, ref: Reference) -> np.ndarray:
     x − x_F has normal component d|T|/|F| on F and 0 on the other facets and divergence d,
     so (d|T|/|F|)‖v‖²_F = ∫_T d v² + 2v ∇v·(x − x_F) ≤ d‖v‖²_T + 2h_T‖v‖_T‖∇v‖_T; with v − v̄_T
     (‖v − v̄_T‖_T ≤ h_T/π ‖∇v‖_T) and t − Π_p t ⊥ constants on F this gives C_{T,F}."""
+    absdet, h, size, C = _measures(table.x, ref.d)
+    Q, w = ref.Q, ref.w
+    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q  # f − Π_p f at the points
+    osc = h / np.pi * np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
+    q, wS = ref.q, ref.wS
+    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q  # t − Π_p t, (n, D, nqf)
+    for j in range(ref.d + 1):
+        osc += C[:, j] * np.sqrt(size[:, j] * (trest[:, j] ** 2 @ wS))
+    return osc / np.sqrt(table.k.min(axis=1))
+
+
+def _measures(x: np.ndarray, d: int) -> tuple[np.ndarray, ...]:
+    """|det J|, h_T, |F_j| / |F̂| and the trace constants C_{T,F_j} of :class:`Flux` of the
+    cells with vertices ``x`` (n, d + 1, d)."""
     from .operators import det_inv
 
-    d, D = ref.d, ref.d + 1
-    x = table.x
+    D = d + 1
     J = np.transpose(x[:, 1:] - x[:, :1], (0, 2, 1))
     absdet = np.abs(det_inv(J)[0])
     vol = absdet / np.prod(np.arange(1, d + 1))
     h = np.max(
         [np.linalg.norm(x[:, i] - x[:, j], axis=1) for i in range(D) for j in range(i)], axis=0
     )
-    Q, w = ref.Q, ref.w
-    rest = table.f - (table.f @ (w[:, None] * Q.T)) @ Q  # f − Π_p f at the points
-    osc = h / np.pi * np.sqrt(np.maximum(absdet * (rest**2 @ w), 0.0))
-    q, wS = ref.q, ref.wS
-    trest = table.t - (table.t @ (wS[:, None] * q.T)) @ q  # t − Π_p t, (n, D, nqf)
+    size = np.empty((len(x), D))
     for j in range(D):
         E = x[:, [v for v in range(D) if v != j]]
         E = E[:, 1:] - E[:, :1]
-        size = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))  # |F| / |F̂|
-        area = size / np.prod(np.arange(1, d))
-        norm = np.sqrt(size * (trest[:, j] ** 2 @ wS))
-        osc += h * np.sqrt(area / vol * (1 / np.pi**2 + 2 / (d * np.pi))) * norm
+        size[:, j] = np.sqrt(np.abs(np.linalg.det(np.einsum("nad,nbd->nab", E, E))))
+    area = size / np.prod(np.arange(1, d))
+    C = h[:, None] * np.sqrt(area / vol[:, None] * (1 / np.pi**2 + 2 / (d * np.pi)))
+    return absdet, h, size, C
+
+
+def _multiplier_oscillation(
+    table: CellTable, ref: Reference, multiplier: str | None, sign: float
+) -> np.ndarray:
+    """The part of osc_T the multiplier adds when the flux is of lower degree than λ_h (the
+    lowest-order flux of a P1 solution carries Π_p λ̃_h, not λ̃_h itself):
+
+        k_T,min^{-1/2} h_T/π ‖λ̃_h − Π_p λ̃_h‖_T                  (obstacle),
+        k_T,min^{-1/2} Σ_{F ⊂ ∂T ∩ Γ_C} C_{T,F} ‖λ̃_h − Π_p λ̃_h‖_F   (Signorini),
+
+    bounds ⟨λ̃_h − Π_p λ̃_h, v⟩ by ‖k^{1/2}∇v‖_T as the data oscillation does (:func:`_oscillation`:
+    the rest is orthogonal to constants); zero when p is the degree of λ_h."""
+    osc = np.zeros(len(table))
+    if multiplier is None or ref.p == ref.pu:
+        return osc
+    nodal = clipped(table.lam, sign)
+    if multiplier == "cells":
+        absdet, h, _, _ = _measures(table.x, ref.d)
+        entities = [(cell_rule(ref), np.arange(len(table)), h / np.pi, absdet)]
+    else:  # the cells with a contact facet only
+        crow = np.flatnonzero(np.any(table.kind == CONTACT, axis=1))
+        _, _, size, C = _measures(table.x[crow], ref.d)
+        entities = []
+        for j in range(ref.d + 1):
+            on = np.flatnonzero(table.kind[crow, j] == CONTACT)
+            entities.append((facet_rule(ref, j), crow[on], C[on, j], size[on, j]))
+    for rule, rows, factor, measure in entities:
+        kappa = shares(nodal[rows], rule, sign)[1]  # P1: λ̃ = κ λ_h on the entity, no bubble
+        lt = kappa[:, None] * (nodal[rows] @ rule.phi.T)
+        rest = lt - (lt @ (rule.w[:, None] * rule.basis.T)) @ rule.basis
+        osc[rows] += factor * np.sqrt(np.maximum(measure * (rest**2 @ rule.w), 0.0))
     return osc / np.sqrt(table.k.min(axis=1))

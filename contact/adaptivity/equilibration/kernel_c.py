@@ -7,6 +7,8 @@ The dimensions of the reference element are compile-time constants (one library 
     DIM  d              NV   d + 1 (vertices = facets)     NQ, NQF  cell / facet points
     NU   dim P_p        M    dim RT_p     NP  dim P_p (div moments)    MZ  M − NP
     NF   dim P_p(F)     NPERM  d!        NLOOK  d^d (facet-permutation codes)
+    LOWEST  1 for the lowest-order flux of a P1 solution (p = 0, NU = d + 1): each patch is
+            fitted to the RT_0 interpolant of ψ_a w (``target_lanes``; docs/theory.md §9)
 
 ``cell_block`` computes, for LB cells at once (SIMD lanes), the operators the patch problems
 need (a work row: :data:`WORK_LAYOUT`) and osc_T; ``eq_patches`` solves the patch of every
@@ -46,7 +48,7 @@ WORK_LAYOUT = (
 CDEF = """
 typedef struct {
   const double *w, *ZZ, *ZR, *NZ, *NR, *P, *phiZ, *wlam, *DZG, *wlamQ, *wQ, *dphi, *dlam,
-               *base, *R, *Z, *kappa, *Q, *q, *wS, *GL, *RL, *qint, *AR, *BR, *GT, *TB;
+               *base, *R, *Z, *kappa, *Q, *q, *wS, *GL, *RL, *qint, *AR, *BR, *GT, *TB, *IZ, *EZ;
   const int64_t *lookup;
   double wsum;
 } eq_ref;
@@ -492,7 +494,8 @@ static inline void data_lanes(const eq_ref *restrict r, const eq_table *restrict
 
 /* the load Zᵀg_a of each vertex a, g_a = ∫_T k_T⁻¹ ψ_a τ·φ (τ: k∇u_h, k∇(Σ Ut φ) or given) */
 static inline void target_lanes(const eq_ref *restrict r, const eq_table *restrict t,
-                                const int64_t *cl, const double J[][DIM][LB], const double K[][LB],
+                                const int64_t *cl, const double J[][DIM][LB],
+                                const double Ji[][DIM][LB], const double K[][LB],
                                 const double Uc[][LB], const double gu[][LB], const double *kT,
                                 const double *s, double ZTg[][LB])
 {
@@ -501,7 +504,7 @@ static inline void target_lanes(const eq_ref *restrict r, const eq_table *restri
      gradient of those coefficients and Zᵀg_a = s Σ_u c_u DZG_u (exact); else at the points,
      first over the components (y_q = lhs_q·(φ̂ Z)(x_q)), then over the points */
   memset(ZTg, 0, sizeof(double) * NV * MZ * LB);
-  if (t->kstride == 0 && !t->tau) {
+  if (t->kstride == 0 && !t->tau && !LOWEST) {
     double Vc[NU][LB];
     if (t->Ut) for (int u = 0; u < NU; ++u) LANES Vc[u][b] = t->Ut[cl[b] * NU + u];
     else for (int u = 0; u < NU; ++u) LANES Vc[u][b] = Uc[u][b];
@@ -531,6 +534,37 @@ static inline void target_lanes(const eq_ref *restrict r, const eq_table *restri
           LANES lhs[q * DIM + i][b] = v[b] * K[q][b] / kT[b];
         }
     }
+#if LOWEST
+    /* the lowest-order flux of a P1 solution (Braess & Schöberl): the target is the RT_0
+       interpolant of ψ_a w, w = J⁻ᵀ ŵ the cell mean of τ / k_T (ŵ = the mean of lhs),
+       I(ψ_a w) = (w + (∇ψ_a·w)(x − x_a)) / d, so Zᵀg_a = s (ŵ·IZ + c_a Σ_ij (JᵀJ)_ij EZ_aij) / d
+       with c_a = ∇ψ_a·w = ∇̂λ_aᵀ J⁻¹ J⁻ᵀ ŵ */
+    double wh[DIM][LB] = {{0.0}}, JJ[DIM][DIM][LB], wp[DIM][LB];
+    for (int q = 0; q < NQ; ++q)
+      for (int i = 0; i < DIM; ++i) LANES wh[i][b] += r->w[q] * lhs[q * DIM + i][b] / r->wsum;
+    for (int i = 0; i < DIM; ++i) {
+      for (int j = 0; j < DIM; ++j) {
+        LANES JJ[i][j][b] = 0.0;
+        for (int l = 0; l < DIM; ++l) LANES JJ[i][j][b] += J[l][i][b] * J[l][j][b];
+      }
+      LANES wp[i][b] = 0.0;
+      for (int l = 0; l < DIM; ++l) LANES wp[i][b] += Ji[l][i][b] * wh[l][b];  /* w = J⁻ᵀ ŵ */
+    }
+    for (int a = 0; a < NV; ++a) {
+      double c[LB] = {0.0};
+      for (int i = 0; i < DIM; ++i)
+        for (int l = 0; l < DIM; ++l) LANES c[b] += r->dlam[a * DIM + l] * Ji[l][i][b] * wp[i][b];
+      for (int z = 0; z < MZ; ++z) {
+        double v[LB] = {0.0};
+        for (int i = 0; i < DIM; ++i) {
+          LANES v[b] += wh[i][b] * r->IZ[i * MZ + z];
+          for (int j = 0; j < DIM; ++j)
+            LANES v[b] += c[b] * JJ[i][j][b] * r->EZ[((a * DIM + i) * DIM + j) * MZ + z];
+        }
+        LANES ZTg[a * MZ + z][b] = v[b] / DIM;
+      }
+    }
+#else
     for (int q = 0; q < NQ; ++q) {
       double y[MZ][LB] = {{0.0}};
       for (int i = 0; i < DIM; ++i) {
@@ -542,6 +576,7 @@ static inline void target_lanes(const eq_ref *restrict r, const eq_table *restri
         for (int z = 0; z < MZ; ++z) LANES ZTg[a * MZ + z][b] += wl * y[z][b];
       }
     }
+#endif
   }
   for (int az = 0; az < NV * MZ; ++az) LANES ZTg[az][b] *= s[b];
 }
@@ -628,7 +663,7 @@ static int flow_block(const eq_ref *restrict r, const eq_table *restrict t, cons
   for (int q = 0; q < NQ; ++q) LANES kT[b] += K[q][b] * r->w[q];
   LANES kT[b] /= r->wsum;
   double ZTg[NV * MZ][LB];
-  target_lanes(r, t, cl, J, K, Uc, gu, kT, s, ZTg);
+  target_lanes(r, t, cl, J, Ji, K, Uc, gu, kT, s, ZTg);
   /* the cell mean τ̄ of the target (k∇u_h = k J⁻ᵀ ∇̂û, or τ) and τ̄·A_j, A_j = −(|det J| /
      (d − 1)!) J⁻ᵀ ∇̂λ_j the outward area vector of facet j: the moments ∫_F ψ_a τ̄·n q_l =
      τ̄·A_j Σ_k P_kl TB_jak start the higher moments */
@@ -758,7 +793,7 @@ static int cell_block(const eq_ref *restrict r, const eq_table *restrict t, cons
   double gu[NQ * DIM][LB];
   gradient_lanes(r, Uc, gu);
   double ZTg[NV * MZ][LB];
-  target_lanes(r, t, cl, J, K, Uc, gu, kT, s, ZTg);
+  target_lanes(r, t, cl, J, Ji, K, Uc, gu, kT, s, ZTg);
   double beta[NV * NP][LB];
   divergence_lanes(r, t, cl, gu, KS, absdet, s, K, F, beta);
   /* h_a = O R β_a + Yt (Zᵀg_a − ZMR β_a) */

@@ -169,11 +169,34 @@ class CellOperators:
             ref_tau = np.einsum("nji,nqj->nqi", J, tau)
         else:
             ref_tau = self.grad_u * self.table.k[self.rows][:, :, None]
-        lhs = (ref_tau / self.kT[:, None, None]).reshape(n, nq * d)
+        lhs = ref_tau / self.kT[:, None, None]
+        if self.ref.p < self.ref.pu:
+            return self._lowest_load(lhs)
+        lhs = lhs.reshape(n, nq * d)
         ZG = self.ref_tables["ZG"]  # (nq, d, D, mz): w λ_a (φ̂ Z)
         return self.geometry["s"][:, None, None] * (lhs @ ZG.reshape(nq * d, -1)).reshape(
             n, d + 1, -1
         )
+
+    def _lowest_load(self, lhs: np.ndarray) -> np.ndarray:
+        """Zᵀg_a of the lowest-order flux of a P1 solution (RT_0; Braess & Schöberl): the
+        target is the RT_0 interpolant of ψ_a w, w = J⁻ᵀŵ the cell mean of τ/k_T,
+
+            I(ψ_a w) = (w + (∇ψ_a·w)(x − x_a)) / d,
+
+        so Zᵀg_a = s (ŵ·IZ + (∇ψ_a·w) Σ_ij (JᵀJ)_ij EZ_aij) / d (the tables of
+        :func:`lowest_tables`)."""
+        r = self.ref
+        g = self.geometry
+        w_ref = lhs.reshape(len(lhs), -1, r.d).transpose(0, 2, 1) @ r.w / r.w.sum()  # ŵ (n, d)
+        JtJ = g["GM"] * g["absdet"][:, None, None]
+        inv = g["KS"] / g["absdet"][:, None, None]  # (JᵀJ)⁻¹
+        c = np.einsum("ak,nkl,nl->na", r.dlam, inv, w_ref)  # ∇ψ_a·w
+        tab = lowest_tables(r)
+        load = (w_ref @ tab["IZ"])[:, None, :] + c[:, :, None] * np.einsum(
+            "nij,aijz->naz", JtJ, tab["EZ"]
+        )
+        return g["s"][:, None, None] * load / r.d
 
     @cached_property
     def ref_tables(self) -> dict:
@@ -222,6 +245,19 @@ class CellOperators:
         return np.einsum("njkl,njak->njal", P, data)
 
 
+def lowest_tables(r: Reference) -> dict:
+    """The reference integrals of the lowest-order target (:meth:`CellOperators._lowest_load`,
+    ``LOWEST`` in :mod:`.kernel_c`): IZ[i, z] = ∫_T̂ (φ̂Z)_i and
+    EZ[a, i, j, z] = ∫_T̂ (x̂ − x̂_a)_i (φ̂Z)_j."""
+    phiZ = np.einsum("qmd,mz->qdz", r.phi, r.Z)
+    verts = np.vstack([np.zeros(r.d), np.eye(r.d)])
+    rel = r.X[None, :, :] - verts[:, None, :]  # (D, nq, d)
+    return {
+        "IZ": np.einsum("q,qiz->iz", r.w, phiZ),
+        "EZ": np.einsum("q,aqi,qjz->aijz", r.w, rel, phiZ),
+    }
+
+
 def _projected(r: Reference, which: str) -> np.ndarray:
     right = r.Z if which == "ZZ" else r.R
     return np.einsum("ma,ijmn,nb->ijab", r.Z, r.mass, right)
@@ -234,7 +270,7 @@ def _data_tables(r: Reference, nu: int) -> dict:
     from .reference import CELLS
 
     lag = basix.create_element(
-        basix.ElementFamily.P, CELLS[r.d], r.p, basix.LagrangeVariant.gll_warped
+        basix.ElementFamily.P, CELLS[r.d], r.pu, basix.LagrangeVariant.gll_warped
     )
     assert lag.dim == nu
     dphi_u = np.moveaxis(np.asarray(lag.tabulate(1, r.X))[1:, :, :, 0], 0, -1)  # (nq, nu, d)
@@ -249,17 +285,17 @@ def _data_tables(r: Reference, nu: int) -> dict:
 
 def facet_rule(r: Reference, j: int):
     """The contact-entity rule (:mod:`.multiplier`) of the cell's facet j."""
-    return _entity(r.d, r.p, j)
+    return _entity(r.d, r.p, r.pu, j)
 
 
 def cell_rule(r: Reference):
     """The contact-entity rule of the cell itself (the obstacle)."""
-    return _entity(r.d, r.p, None)
+    return _entity(r.d, r.p, r.pu, None)
 
 
 @functools.cache
-def _entity(d: int, p: int, j: int | None):
-    r = reference(d, p)
+def _entity(d: int, p: int, pu: int, j: int | None):
+    r = reference(d, p, pu)
     if j is None:
-        return entity_rule(d, p, r.X, r.w, r.Q, np.arange(d + 1))
-    return entity_rule(d, p, r.XF[j], r.wS, r.q, np.array([v for v in range(d + 1) if v != j]))
+        return entity_rule(d, pu, r.X, r.w, r.Q, np.arange(d + 1))
+    return entity_rule(d, pu, r.XF[j], r.wS, r.q, np.array([v for v in range(d + 1) if v != j]))

@@ -18,7 +18,7 @@ from mpi4py import MPI
 from .cells import CONTACT, CellTable
 from .compiled import library
 from .multiplier import clipped, shares
-from .operators import _data_tables, _projected, cell_rule, facet_rule
+from .operators import _data_tables, _projected, cell_rule, facet_rule, lowest_tables
 from .patches import PatchOutput
 from .reference import Reference
 
@@ -28,11 +28,11 @@ CAPACITY = 4096
 
 
 @functools.cache
-def _tables(d: int, p: int, nu: int) -> dict:
+def _tables(d: int, p: int, pu: int, nu: int) -> dict:
     """The reference arrays of ``eq_ref`` (contiguous float64, the layouts of :mod:`.kernel_c`)."""
     from .reference import reference
 
-    r = reference(d, p)
+    r = reference(d, p, pu)
     t = _data_tables(r, nu)
     D = d + 1
     lookup = np.full(max(d**d, 1), -1, dtype=np.int64)
@@ -63,6 +63,7 @@ def _tables(d: int, p: int, nu: int) -> dict:
         "q": r.q,
         "wS": r.wS,
         **_flow_tables(r),
+        **lowest_tables(r),
     }
     out = {k: np.ascontiguousarray(v, dtype=np.float64) for k, v in arrays.items()}
     assert out["base"].shape == (D, D, r.nf, len(r.wS))
@@ -131,7 +132,7 @@ def solve_patches_compiled(
     (the kernel is loaded collectively)."""
     nu = table.U.shape[1]
     ffi, lib = library(comm, ref, nu)
-    tabs = _tables(ref.d, ref.p, nu)
+    tabs = _tables(ref.d, ref.p, ref.pu, nu)
     keep = []  # the buffers must outlive the call
 
     def ptr(a, ctype="double"):

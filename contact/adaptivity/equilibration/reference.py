@@ -28,7 +28,8 @@ FACETS = {2: basix.CellType.interval, 3: basix.CellType.triangle}
 
 @dataclass(frozen=True)
 class Reference:
-    """Reference tables for dimension ``d`` and degree ``p`` (u_h ∈ P_p, σ_h ∈ RT_p)."""
+    """Reference tables for dimension ``d`` and flux degree ``p`` (σ_h ∈ RT_p) of a solution
+    u_h ∈ P_pu (``pu`` = p, or p + 1: the lowest-order flux of a P1 solution)."""
 
     d: int
     p: int
@@ -53,6 +54,7 @@ class Reference:
     perms: tuple  # the d! orders of a facet's vertices
     P: np.ndarray  # (d!, nf, nf) q̂(local order) = P q̂(global order)
     kappa: np.ndarray  # (nf,) the constant function 1 in the facet basis
+    pu: int  # the degree of u_h (and of the multiplier λ_h)
 
     @property
     def m(self) -> int:
@@ -74,7 +76,11 @@ def quadrature_degree(p: int) -> int:
 
 
 @functools.cache
-def reference(d: int, p: int) -> Reference:
+def reference(d: int, p: int, pu: int | None = None) -> Reference:
+    """The tables of RT_p on the reference d-simplex for u_h ∈ P_pu (default pu = p)."""
+    pu = p if pu is None else pu
+    if pu not in (p, p + 1):
+        raise ValueError(f"flux degree {p} for u_h of degree {pu}: expected {pu} or {pu - 1}")
     cell, facet = CELLS[d], FACETS[d]
     deg = quadrature_degree(p)
     X, w = (np.asarray(a) for a in basix.make_quadrature(cell, deg))
@@ -130,6 +136,7 @@ def reference(d: int, p: int) -> Reference:
         perms,
         P,
         kappa,
+        pu,
     )
 
 
