@@ -1,5 +1,6 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
-# make test  — set up .venv if needed, lint (below), run the test suite
+# make test  — set up .venv if needed, lint (below), run the test suite (JOBS=2 pytest-xdist
+#              workers, a test file per worker at a time; JOBS=1: one process)
 # make lint  — ruff (lint, format) on contact/ tests/ demos/ and mypy on contact/ (pyproject.toml)
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
 # make venv-latest — the newest release of every dependency in .venv-latest (test-latest: its tests)
@@ -11,6 +12,7 @@ LOCK  := constraints.txt
 LATEST ?= .venv-latest
 NP    ?= 2
 SCENE ?= configs/signorini_free_boundary.yaml
+JOBS  ?= 2
 
 .PHONY: demo test lint bench venv venv-latest test-latest lock clean
 
@@ -29,7 +31,7 @@ demo: venv
 	$(VENV)/bin/mpirun -n $(NP) $(VENV)/bin/contact run $(SCENE) -o results/demo
 
 test: venv lint
-	$(VENV)/bin/python -m pytest -q tests
+	$(VENV)/bin/python -m pytest -q $(if $(filter 1,$(JOBS)),,-n $(JOBS) --dist loadfile) tests
 
 lint: venv
 	$(VENV)/bin/ruff check contact tests demos
