@@ -108,7 +108,7 @@ def test_flow_is_equilibrated_and_converges_to_the_minimizer() -> None:
         diffs.append(np.abs(sigma.x.array - ref).max() / scale)
     # measured 0.13, 0.036, 1.3e-7: an approximation, then the minimizer itself
     assert diffs[0] > 1e-2 and diffs[0] > diffs[1] > 1e3 * diffs[2] and diffs[2] < 1e-6
-    with pytest.raises(ValueError, match="P1 and rounds >= 0 only"):
+    with pytest.raises(ValueError, match="P1, degree 1 and rounds >= 0 only"):
         reconstruct_flux(_poisson(2, 2, 2)[0], backend="flow")
 
 

@@ -91,6 +91,7 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
         "estimate_ratio_cpu,residual_cpu,residual_ratio_cpu\n"
         "3,1,520192,compiled,30.0,3.0,10.0,45.0,15.0,3.0,1.0\n"
         "3,1,520192,flow,24.0,3.0,8.0,39.0,13.0,3.0,1.0\n"
+        "3,1,520192,lowest,3.9,3.0,1.3,10.5,3.5,3.0,1.0\n"
     )
     (eq / "effectivity_3d.csv").write_text(
         "ranks,n,dofs,backend,error,eta,effectivity\n"
@@ -122,6 +123,10 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
     assert (
         "(`reconstruct_flux(backend='flow')`, an API argument) the reconstruction 24 s = 8×, "
         "the whole estimate 39 s = 13×" in section
+    )
+    assert (
+        "(`reconstruct_flux(degree=0)`: σ_h ∈ RT_0, docs/theory.md §9) the reconstruction "
+        "3.9 s = 1.3×, the whole estimate 10.5 s = 3.5×" in section
     )
     assert "--uniform3d`): 1377 DoFs: compiled 1.250, flow 1.300." in section
     assert "| fixed | 2 | 251 | 3.5–3.6 | 15.5 / 15.7 / 15.9 | 413467 |" in section
