@@ -39,7 +39,8 @@ class CellTable:
     kind: np.ndarray  # (n, d+1) int8 facet kinds
     t: np.ndarray  # (n, d+1, nqf) flux data on FLUX / CONTACT facets (0 elsewhere)
     lam: np.ndarray  # (n, nu) coefficients of λ_h in the element of u_h (0 without one)
-    tau: np.ndarray  # (n, nq, d) the target flux at the points, or (n, 0, d): k∇u_h
+    tau: np.ndarray  # (n, nq, d) the target flux at the points (the lowest-order flux: at
+    # the centroid only, (n, 1, d): only its cell mean enters), or (n, 0, d): k∇u_h
 
     def __len__(self) -> int:
         return len(self.gcell)
@@ -160,10 +161,11 @@ def local_table(
         in_V = fem.Function(V)
         in_V.interpolate(data.lmbda_h)
         lam = in_V.x.array[V.dofmap.list[:n_owned]]
+    centroid = np.full((1, d), 1.0 / (d + 1))
     tau = (
         np.zeros((n_owned, 0, d))
         if data.target is None
-        else _at_points(data.target, one, ref.X, cells)
+        else _at_points(data.target, one, ref.X if ref.p == ref.pu else centroid, cells)
     )
     return CellTable(
         gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam, tau

@@ -516,7 +516,11 @@ static inline void target_lanes(const eq_ref *restrict r, const eq_table *restri
     double lhs[NQ * DIM][LB];
     if (t->tau) {
       double TAU[NQ * DIM][LB];
+#if LOWEST  /* one point per cell, the centroid: only the cell mean of τ enters */
+      for (int qj = 0; qj < NQ * DIM; ++qj) LANES TAU[qj][b] = t->tau[cl[b] * DIM + qj % DIM];
+#else
       for (int qj = 0; qj < NQ * DIM; ++qj) LANES TAU[qj][b] = t->tau[cl[b] * NQ * DIM + qj];
+#endif
       for (int q = 0; q < NQ; ++q)
         for (int i = 0; i < DIM; ++i) {
           double v[LB] = {0.0};

@@ -188,7 +188,8 @@ class CellOperators:
         :func:`lowest_tables`)."""
         r = self.ref
         g = self.geometry
-        w_ref = lhs.reshape(len(lhs), -1, r.d).transpose(0, 2, 1) @ r.w / r.w.sum()  # ŵ (n, d)
+        wq = r.w if lhs.shape[1] == len(r.w) else np.ones(1)  # a given τ: at the centroid
+        w_ref = np.einsum("nqd,q->nd", lhs, wq) / wq.sum()  # ŵ (n, d)
         JtJ = g["GM"] * g["absdet"][:, None, None]
         inv = g["KS"] / g["absdet"][:, None, None]  # (JᵀJ)⁻¹
         c = np.einsum("ak,nkl,nl->na", r.dlam, inv, w_ref)  # ∇ψ_a·w
