@@ -2652,6 +2652,29 @@ def guaranteed() -> str:
             "`bench_equilibrated.py --uniform3d`): " + "; ".join(cells) + ".",
             "",
         ]
+    cheaper = {
+        "flow": "the cheaper P1 fit (`reconstruct_flux(backend='flow')`)",
+        "lowest": "the lowest-order flux (`estimator: equilibrated_rt0`, σ_h ∈ RT_0)",
+    }
+    for variant, what in cheaper.items():
+        fit = rows(folder / f"effectivity_{variant}.csv") or []
+        if not fit:
+            continue
+        parts = []
+        for problem in dict.fromkeys(r["problem"] for r in fit):
+            rs = [r for r in fit if r["problem"] == problem]
+            below = [r["level"] for r in rs if r["eta"] < r["error"]]
+            late = _span([r["effectivity"] for r in rs if r["level"] >= 3])
+            parts.append(
+                f"{problem} {late}" + ("" if not below else f" (η < error on levels {below})")
+            )
+        out += [
+            f"**Effectivity of {what}, 2D** (the same adaptive loops, `bench_equilibrated.py "
+            f"--backend {variant}`; η ≥ error on every level unless stated), from level 3: "
+            + "; ".join(parts)
+            + ".",
+            "",
+        ]
     stop = rows(RES / "stopping" / "stopping.csv") or []
     if stop:
         body = []

@@ -97,6 +97,10 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
         "ranks,n,dofs,backend,error,eta,effectivity\n"
         "1,8,1377,compiled,0.1,0.125,1.25\n1,8,1377,flow,0.1,0.13,1.3\n"
     )
+    (eq / "effectivity_lowest.csv").write_text(
+        "problem,ranks,level,dofs,error,eta,effectivity\n"
+        "A_P1,1,2,300,0.1,0.16,1.6\nA_P1,1,3,600,0.1,0.155,1.55\nA_P1,1,4,900,0.1,0.15,1.5\n"
+    )
     stop = tmp_path / "res" / "stopping"
     stop.mkdir()
     (stop / "stopping.csv").write_text(
@@ -129,6 +133,11 @@ def test_report_guaranteed_bounds_section_reads_the_csvs(tmp_path: Path) -> None
         "3.9 s = 1.3×, the whole estimate 10.5 s = 3.5×" in section
     )
     assert "--uniform3d`): 1377 DoFs: compiled 1.250, flow 1.300." in section
+    assert (
+        "**Effectivity of the lowest-order flux (`estimator: equilibrated_rt0`, σ_h ∈ RT_0), 2D**"
+        " (the same adaptive loops, `bench_equilibrated.py --backend lowest`; η ≥ error on every "
+        "level unless stated), from level 3: A_P1 1.5–1.55." in section
+    )
     assert "| fixed | 2 | 251 | 3.5–3.6 | 15.5 / 15.7 / 15.9 | 413467 |" in section
     assert "| adaptive | 2 | 48 | 2.1–2.2 | 14.1 / 14.3 / 14.6 | 447055 |" in section
     assert (eq / "effectivity.png").stat().st_size > 0
