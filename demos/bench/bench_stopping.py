@@ -26,8 +26,9 @@ of contact/adaptivity/equilibration/elastic.py), writing ``stopping_hertz_2d*.cs
     python demos/bench/bench_stopping.py --scene hertz_2d --tol 1.2e-4 --out demos/results/stopping
 
 There the estimate (the C kernels of contact/adaptivity/equilibration/stress_c.py) is still
-75–85 % of the loop's CPU, so the solve time adaptive stopping saves (0.35–0.39 s, 6 %) is
-about the size of the estimate's run-to-run noise on a loaded machine.
+80 % of the loop's CPU, so adaptive stopping saves 6 % of the loop (0.35–0.4 s of solve): on an
+idle machine less CPU and wall time in every pair of ``--repeat 5``; on a loaded one the
+estimate's run-to-run spread can be larger than that.
 
 Figures: README ("Adaptive stopping") and demos/RESULTS.md §12.
 """
