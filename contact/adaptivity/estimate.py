@@ -282,9 +282,10 @@ def estimate(scene: Scene, result: Result) -> Estimate:
             bound = elastic_bound(scene, result)
         else:
             from .equilibration.bound import guaranteed_bound
+            from .equilibration.flux import LOWEST
 
             lowest = scene.config.estimator == "equilibrated_rt0"  # σ_h ∈ RT_0 (P1)
-            bound = guaranteed_bound(scene, result, degree=0 if lowest else None)
+            bound = guaranteed_bound(scene, result, degree=LOWEST if lowest else None)
         return Estimate(bound.eta_T, bound.eta, bound.terms)
     return residual_estimate(scene, result)
 

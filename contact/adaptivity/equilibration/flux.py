@@ -128,7 +128,7 @@ def reconstruct_flux(
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
     vmap = msh.topology.index_map(0)
-    compiled = backend in ("compiled", "flow", "lowest")
+    compiled = backend in ("compiled", "flow")
     if compiled:
         try:
             library(comm, ref, table.U.shape[1])
