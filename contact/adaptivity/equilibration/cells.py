@@ -165,7 +165,7 @@ def local_table(
     tau = (
         np.zeros((n_owned, 0, d))
         if data.target is None
-        else _at_points(data.target, one, ref.X if ref.p == ref.pu else centroid, cells)
+        else _at_points(data.target, one, centroid if ref.lowest else ref.X, cells)
     )
     return CellTable(
         gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam, tau

@@ -47,7 +47,7 @@ def dimensions(ref: Reference, nu: int) -> dict:
         "NF": ref.nf,
         "NPERM": len(ref.perms),
         "NLOOK": d**d,
-        "LOWEST": int(ref.p < ref.pu),
+        "LOWEST": int(ref.lowest),
     }
 
 

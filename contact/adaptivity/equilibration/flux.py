@@ -48,7 +48,8 @@ BACKENDS = ("compiled", "numpy", "flow")
 #: the RT_0 interpolant of ψ_a τ (τ: k∇u_h or the given target, its cell mean), so that
 #: the targets still sum to τ; Π_0 of the data and of λ̃_h, and osc_T adds the multiplier's
 #: rest λ̃_h − Π_0 λ̃_h (:func:`_multiplier_oscillation`).  A third of the unknowns of RT_1
-#: per patch in 3D (4.5× cheaper patch problems), a larger η (docs/theory.md §9).
+#: per patch; in 3D at 520k DoFs the patch problems 5.5× cheaper (cost_3d.csv of
+#: demos/results/equilibrated/), a larger η (docs/theory.md §9).
 LOWEST = 0
 #: the default rounds of the "flow" backend (docs/theory.md §9: effectivity against cost)
 FLOW_ROUNDS = 1
@@ -345,7 +346,7 @@ def _multiplier_oscillation(
     bounds ⟨λ̃_h − Π_p λ̃_h, v⟩ by ‖k^{1/2}∇v‖_T as the data oscillation does (:func:`_oscillation`:
     the rest is orthogonal to constants); zero when p is the degree of λ_h."""
     osc = np.zeros(len(table))
-    if multiplier is None or ref.p == ref.pu:
+    if multiplier is None or not ref.lowest:
         return osc
     nodal = clipped(table.lam, sign)
     if multiplier == "cells":

@@ -170,7 +170,7 @@ class CellOperators:
         else:
             ref_tau = self.grad_u * self.table.k[self.rows][:, :, None]
         lhs = ref_tau / self.kT[:, None, None]
-        if self.ref.p < self.ref.pu:
+        if self.ref.lowest:
             return self._lowest_load(lhs)
         lhs = lhs.reshape(n, nq * d)
         ZG = self.ref_tables["ZG"]  # (nq, d, D, mz): w λ_a (φ̂ Z)

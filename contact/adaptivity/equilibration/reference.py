@@ -57,6 +57,11 @@ class Reference:
     pu: int  # the degree of u_h (and of the multiplier λ_h)
 
     @property
+    def lowest(self) -> bool:
+        """The lowest-order flux of a P1 solution (σ_h ∈ RT_0 for u_h ∈ P1)."""
+        return self.p < self.pu
+
+    @property
     def m(self) -> int:
         return self.phi.shape[1]
 
