@@ -39,6 +39,7 @@ from ..solvers.options import SolverOptions
 from ..solvers.problem import Constraint, DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import solve_problem
+from . import form_checks as checks
 from .problem import assemble_system, lumped_weights
 
 #: a bound: a number, a Function on V, values at the constrained DoFs, or f(x) → values
@@ -57,7 +58,13 @@ class Unilateral:
     plane): its DoFs there, and a bound given as a number, values at those DoFs, or a
     scalar f(x).  Or explicit ``dofs`` (owned local indices of V, any components) with
     ``weights`` (default 1: λ_i is then the nodal reaction R_i).  Dirichlet DoFs are never
-    constrained."""
+    constrained.
+
+    A record: its fields are checked against u's space when a problem is built
+    (:func:`~contact.models.form_checks.check_constraint`), on every rank alike — the
+    side, a bound that is finite (a callable's values of shape (n,) for points of shape
+    (3, n)), a measure that selects some facet or cell, ``dofs`` that are owned integer
+    indices given once each, ``weights`` finite and > 0."""
 
     bound: Bound
     side: str = "upper"
@@ -65,18 +72,6 @@ class Unilateral:
     dofs: np.ndarray | None = None
     weights: np.ndarray | None = None
     component: int | None = None
-
-    def __post_init__(self) -> None:
-        if self.side not in ("upper", "lower"):
-            raise ValueError(
-                f"Unilateral.side: expected 'upper' (u <= g) or 'lower' (u >= g), got {self.side!r}"
-            )
-        if self.dofs is not None and self.measure is not None:
-            raise ValueError("Unilateral: give either a measure or dofs, not both")
-        if self.weights is not None and self.dofs is None:
-            raise ValueError("Unilateral: weights go with dofs (a measure makes its own)")
-        if self.component is not None and self.dofs is not None:
-            raise ValueError("Unilateral: a component goes with a measure (dofs name their own)")
 
     @property
     def sign(self) -> float:
@@ -86,31 +81,25 @@ class Unilateral:
     def nodes(
         self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC]
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights."""
+        """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights.
+        Collective; the constraint is checked first (:func:`~.form_checks.check_constraint`).
+        A measure that selects nothing, or a constraint left with no DoF on any rank, is a
+        ValueError (on every rank)."""
+        comm = V.mesh.comm
         n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
         if self.dofs is not None:
             dofs = np.asarray(self.dofs, dtype=np.int32)
-            if np.any((dofs < 0) | (dofs >= n_owned)):
-                raise ValueError(f"Unilateral.dofs: owned local indices lie in [0, {n_owned})")
             w = np.ones(len(dofs)) if self.weights is None else np.asarray(self.weights, float)
-            if w.shape != dofs.shape:
-                raise ValueError(f"Unilateral.weights: expected {len(dofs)} values, got {w.shape}")
             keep = ~np.isin(dofs, fixed)
+            checks.check_constrained(comm, dofs[keep], by_dofs=True)
             return dofs[keep], w[keep]
-        bs = V.dofmap.index_map_bs
-        if bs == 1 and self.component is not None:
-            raise ValueError("Unilateral.component: V is scalar: give no component")
-        if bs > 1 and self.component not in range(bs):
-            raise ValueError(
-                f"Unilateral.component: a vector space needs one of 0 … {bs - 1}, "
-                f"got {self.component}"
-            )
         measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
         dofs = _dofs_of(V, measure, self.component)
         dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
+        checks.check_constrained(comm, dofs, by_dofs=False)
         w = lumped_weights(V, measure, self.component)[dofs]
-        if V.mesh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
+        if comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
             raise ValueError(
                 "Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
                 "(e.g. P2 vertices); use P1 or give dofs and weights"
@@ -118,54 +107,64 @@ class Unilateral:
         return dofs, w
 
     def bound_function(self, V: fem.FunctionSpace, dofs: np.ndarray) -> fem.Function:
-        """g on V (at the constrained DoFs at least)."""
+        """g on V (at the constrained DoFs at least).  Collective: a callable bound that
+        fails or returns the wrong shape, values of the wrong length, or a bound that is
+        not finite at some constrained DoF, is a ValueError on every rank."""
+        comm = V.mesh.comm
         g = fem.Function(V, name="bound")
-        if (
-            isinstance(self.bound, fem.Function) or callable(self.bound)
-        ) and self.component is not None:  # a scalar bound on one component's DoFs
+        interpolated = isinstance(self.bound, fem.Function) or callable(self.bound)
+        if interpolated and self.component is not None:  # a scalar bound on u_k's DoFs
             S, to_parent = V.sub(self.component).collapse()
-            g_k = fem.Function(S)
-            g_k.interpolate(self.bound)
-            g.x.array[to_parent] = g_k.x.array
-        elif isinstance(self.bound, fem.Function) or callable(self.bound):
-            g.interpolate(self.bound)
-        elif np.ndim(self.bound) == 0:
-            g.x.array[:] = float(self.bound)
+            into = fem.Function(S)
         else:
-            values = np.asarray(self.bound, dtype=float)
-            if values.shape != dofs.shape:
-                raise ValueError(
-                    "Unilateral.bound: expected one value per constrained DoF "
-                    f"({len(dofs)}), got shape {values.shape}"
-                )
-            g.x.array[dofs] = values
+            S, to_parent, into = V, None, g
+
+        def assign() -> None:  # local: no collective
+            bound = self.bound
+            if isinstance(bound, fem.Function):
+                into.interpolate(bound)
+            elif callable(bound):
+                into.interpolate(checks.shaped(bound, S))
+            elif np.ndim(bound) == 0:
+                g.x.array[:] = float(bound)
+            else:
+                values = np.asarray(bound, dtype=float)
+                if values.shape != dofs.shape:
+                    raise ValueError(
+                        "Unilateral.bound: expected one value per constrained DoF "
+                        f"({len(dofs)}), got shape {values.shape}"
+                    )
+                g.x.array[dofs] = values
+            if to_parent is not None:
+                g.x.array[to_parent] = into.x.array
+
+        checks.agree(comm, assign)
         g.x.scatter_forward()
+        checks.check_finite_bound(comm, g.x.array[dofs])
         return g
 
 
 def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) -> np.ndarray:
     """The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
-    exterior facets (``ds``) a measure covers."""
+    exterior facets (``ds``) a measure covers (checked:
+    :func:`~.form_checks.check_constraint`).  Collective; a tagged measure that selects no
+    entity on any rank is a ValueError."""
     msh, tdim = V.mesh, V.mesh.topology.dim
     kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
-    if kind not in ("cell", "exterior_facet"):
-        raise ValueError(f"Unilateral.measure: expected dx or ds, got {kind}")
     dim = tdim if kind == "cell" else tdim - 1
+    if dim < tdim:
+        msh.topology.create_connectivity(dim, tdim)
     if tag == "everywhere":
         if kind == "cell" and component is not None:
             return np.asarray(V.sub(component).collapse()[1], dtype=np.int32)
         if kind == "cell":
             index_map = V.dofmap.index_map
             return np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32)
-        msh.topology.create_connectivity(tdim - 1, tdim)
         entities = dolfinx.mesh.exterior_facet_indices(msh.topology)
     else:
-        if tags is None:
-            raise ValueError(
-                f"Unilateral.measure: {kind} with subdomain {tag} needs subdomain_data (mesh tags)"
-            )
         ids = tag if isinstance(tag, tuple) else (tag,)
         entities = np.concatenate([tags.find(i) for i in ids])
+        checks.check_selects(msh.comm, measure, tags, ids, entities)
     if component is None:
         return fem.locate_dofs_topological(V, dim, entities)
     S = V.sub(component).collapse()[0]
@@ -281,10 +280,18 @@ class ComplementarityProblem:
     """A complementarity problem of the user's forms (module docstring) and its solver.
 
     Build it with :meth:`from_forms` (linear: a, L) or :meth:`from_residual` (F, J), then
-    :meth:`solve`; it owns PETSc objects (K, b): :meth:`close` it, or use ``with``."""
+    :meth:`solve`; it owns PETSc objects (K, b): :meth:`close` it, or use ``with``.
+
+    The builders check every argument before assembling anything
+    (:mod:`~contact.models.form_checks`), on every rank alike: a form of the wrong rank,
+    on another space or mesh, a Dirichlet condition on another space, a measure that
+    selects nothing, DoFs that are not owned integer indices, weights that are not finite
+    and positive, a bound that is not finite or a callable bound of the wrong shape is one
+    ``TypeError`` or ``ValueError`` line naming the argument, raised on all ranks."""
 
     def __init__(self, problem: DiscreteProblem):
         self.problem: DiscreteProblem | None = problem  # None once closed
+        self._comm = problem.V.mesh.comm
 
     @classmethod
     def from_forms(
@@ -295,11 +302,30 @@ class ComplementarityProblem:
         constraint: Unilateral,
         bcs: Sequence[fem.DirichletBC] = (),
     ) -> ComplementarityProblem:
-        """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h)."""
+        """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h).
+
+        Args:
+            a: the bilinear form a(w, v) (a trial function w and a test function v on u's
+                space), a UFL form or a compiled ``dolfinx.fem.Form``.
+            L: the linear form L(v) (a test function on u's space).
+            u: the Function that receives the solution (and is the initial guess).
+            constraint: where and how u is bounded.
+            bcs: Dirichlet conditions on u's space (or its subspaces).
+
+        Returns:
+            The problem, K and b assembled once; close it (or use ``with``)."""
         t0 = time.perf_counter()
-        bcs = list(bcs)
-        K, b = assemble_system(fem.form(a), fem.form(L), bcs)
-        return cls(_discrete(DiscreteProblem, u, bcs, K, b, constraint, t0))
+        V, bcs = _checked(u, bcs, constraint, [("a", a, 2), ("L", L, 1)])
+        return cls(
+            _discrete(
+                DiscreteProblem,
+                u,
+                bcs,
+                lambda: assemble_system(fem.form(a), fem.form(L), bcs),
+                constraint,
+                t0,
+            )
+        )
 
     @classmethod
     def from_residual(
@@ -312,27 +338,63 @@ class ComplementarityProblem:
     ) -> ComplementarityProblem:
         """R(u) = w λ from a residual F(u; v), nonlinear in the Function ``u`` it is written
         in, and J = ∂F/∂u (default ``ufl.derivative(F, u)``); ``u``'s values are the initial
-        guess and receive the solution."""
+        guess and receive the solution.
+
+        Args:
+            F: the residual F(u; v), a linear form in the test function v on u's space,
+                written in u.
+            u: the Function F is written in: the initial guess, then the solution.
+            constraint: where and how u is bounded.
+            bcs: Dirichlet conditions on u's space (or its subspaces).
+            J: the bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
+                is a compiled ``dolfinx.fem.Form``).
+
+        Returns:
+            The problem, R and its tangent re-assembled at every Newton iterate; close it
+            (or use ``with``)."""
         t0 = time.perf_counter()
-        bcs = list(bcs)
+        forms = [("F", F, 1)] + ([("J", J, 2)] if J is not None else [])
+        V, bcs = _checked(u, bcs, constraint, forms, residual=(F, J))
         J = ufl.derivative(F, u) if J is None else J
         F_form, J_form = fem.form(F), fem.form(J)
         problem = _discrete(
-            ResidualProblem, u, bcs, *ResidualProblem.matrices(J_form, bcs), constraint, t0
+            ResidualProblem,
+            u,
+            bcs,
+            lambda: ResidualProblem.matrices(J_form, bcs),
+            constraint,
+            t0,
         )
         problem.F_form, problem.J_form = F_form, J_form
         return cls(problem)
 
     def solve(self, method: str = "fb", verbose: bool = False, **options: Any) -> Result:
-        """Solve from u's current values (Dirichlet values put in); ``method`` ∈ {fb, min,
-        blend, vinewtonrsls, vinewtonssls}, ``options`` any other field of
-        :class:`~contact.solvers.options.SolverOptions` (``rtol``, ``max_it``,
-        ``petsc_options``, …; a bad one: ConfigError naming it).  Returns the
-        :class:`~contact.solvers.result.Result` (never raises on divergence): ``u_h`` (the
-        user's u), ``lmbda_h``, ``active``, ``history``, ``converged``, ``reason``."""
+        """Solve from u's current values (Dirichlet values put in).
+
+        Args:
+            method: fb, min, blend, vinewtonrsls or vinewtonssls.
+            verbose: print the Newton history (rank 0).
+            options: any other field of :class:`~contact.solvers.options.SolverOptions`
+                (``rtol``, ``max_it``, ``petsc_options``, …; a bad one: ConfigError naming
+                it).
+
+        Returns:
+            The :class:`~contact.solvers.result.Result` (never raises on divergence):
+            ``u_h`` (the user's u), ``lmbda_h``, ``active``, ``history``, ``converged``,
+            ``reason``.  After :meth:`close` a RuntimeError; an initial guess that is not
+            finite a ValueError (on every rank)."""
         opts = SolverOptions.parse({"method": method, **options})
-        p = self.problem
-        assert p is not None, "ComplementarityProblem.solve: the problem is closed"
+
+        def ready() -> DiscreteProblem:
+            if self.problem is None:
+                raise RuntimeError(
+                    "ComplementarityProblem.solve: the problem is closed (close(), or the end "
+                    "of its with-block, destroyed K and b); build a new one"
+                )
+            checks.check_initial_guess(self.problem.u_h)
+            return self.problem
+
+        p = checks.agree(self._comm, ready)
         timers = {"assembly": p.assembly_time, "solve": 0.0}
         return solve_problem(
             p,
@@ -359,16 +421,47 @@ class ComplementarityProblem:
         self.close()
 
 
+def _checked(
+    u: Any,
+    bcs: Any,
+    constraint: Any,
+    forms: list[tuple[str, Any, int]],
+    residual: tuple[Any, Any] | None = None,
+) -> tuple[fem.FunctionSpace, list]:
+    """(V, bcs as a list) once every argument passed its local checks on every rank
+    (:mod:`~contact.models.form_checks`): the forms' (name, form, rank), F written in u
+    (``residual`` = (F, J)), the Dirichlet conditions, the constraint — and the number of
+    Dirichlet conditions and the constraint's shape are the same on every rank."""
+    V = checks.check_unknown(u).function_space
+    bc_list = checks.bcs_list(bcs)
+
+    def local() -> dict[str, object]:
+        for name, form, rank in forms:
+            checks.check_form(name, form, rank, V)
+        if residual is not None:
+            checks.check_written_in(*residual, u=u)
+        checks.check_bcs(bc_list, V)
+        if not isinstance(constraint, Unilateral):
+            raise TypeError(
+                f"constraint: expected a contact.Unilateral, got {type(constraint).__name__}"
+            )
+        return {"bcs": len(bc_list or ()), **checks.check_constraint(constraint, V)}
+
+    checks.agree(V.mesh.comm, local, same=True)
+    assert bc_list is not None  # check_bcs refused None
+    return V, bc_list
+
+
 def _discrete[P: DiscreteProblem](
     kind: type[P],
     u: fem.Function,
     bcs: list,
-    K: PETSc.Mat,
-    b: PETSc.Vec,
+    matrices: Callable[[], tuple[PETSc.Mat, PETSc.Vec]],
     constraint: Unilateral,
     t0: float,
 ) -> P:
-    """The solver's problem: the constraint's nodes, weights and bound on u's space."""
+    """The solver's problem: the constraint's nodes, weights and bound on u's space (checked
+    collectively), then K and b from ``matrices()``."""
     V = u.function_space
     dofs, w = constraint.nodes(V, bcs)
     g = constraint.bound_function(V, dofs)
@@ -376,6 +469,7 @@ def _discrete[P: DiscreteProblem](
     in_domain = constraint.dofs is None and (
         constraint.measure is None or constraint.measure.integral_type() == "cell"
     )
+    K, b = matrices()
     return kind(
         V,
         u,
