@@ -17,25 +17,24 @@ except ImportError:  # a conda / Debian DOLFINx needs nothing
     pass
 
 # the public API, bottom (setup) to top (drivers) of the layers (README, "Layout")
-from .adaptivity import estimate as _estimate  # noqa: E402
-from .adaptivity import refine as _refine  # noqa: E402
 from .adaptivity.estimate import Estimate  # noqa: E402
 from .adaptivity.mark import mark  # noqa: E402
 from .base.errors import ConfigError  # noqa: E402
 from .drivers import adaptive as _adaptive  # noqa: E402
 from .drivers import load_path as _load_path  # noqa: E402
+from .drivers import scene as _scene  # noqa: E402
 from .drivers import solve as _solve  # noqa: E402
 from .drivers.adaptive import AdaptResult  # noqa: E402
 from .drivers.load_path import LoadPath  # noqa: E402
+from .drivers.scene import estimate  # noqa: E402
 from .models.forms import ComplementarityProblem, Unilateral  # noqa: E402
 from .setup.scene import Scene, load_scene, public  # noqa: E402
 from .solvers.result import Result  # noqa: E402
 
 # a user's scene argument is checked here, once; inside, the drivers hand on Scenes they got
 solve = public(_solve.solve)
-estimate = public(_estimate.estimate)
 adapt = public(_adaptive.adapt)
-refine = public(_refine.refine)
+refine = public(_scene.refine)
 run_load_path = public(_load_path.run_load_path)
 
 __all__ = [

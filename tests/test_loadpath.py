@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 import contact
+from contact.base import expressions
 from contact.drivers.load_path import load_times, run_load_path
-from contact.setup import expressions
 
 import numpy as np
 import pytest

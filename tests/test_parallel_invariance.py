@@ -146,7 +146,7 @@ rows = []
 for level in range(4):
     r = contact.solve(scene, verbose=False)
     cells = mark(contact.estimate(scene, r).eta_T, "dorfler", 0.5)
-    bound = next_dofs_bound(scene, cells, r.u_h.function_space)
+    bound = next_dofs_bound(scene.mesh, cells, r.u_h.function_space)
     scene, u0 = refine(scene, cells, r.u_h)
     rows.append([bound, u0.function_space.dofmap.index_map.size_global])
 if MPI.COMM_WORLD.rank == 0:

@@ -524,7 +524,7 @@ def _peak_rss_mib(comm: MPI.Comm) -> float:
 
 
 def _refine_uniformly(scene, times: int):
-    from ..adaptivity.refine import refine
+    from ..drivers.scene import refine
 
     for _ in range(times):
         tdim = scene.mesh.topology.dim
@@ -576,8 +576,8 @@ def run_one(
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
-    from ..adaptivity.estimate import estimate
     from ..drivers.adaptive import adapt
+    from ..drivers.scene import estimate
     from ..drivers.solve import solve
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
@@ -622,7 +622,7 @@ def run_one(
                 reason=result.reason,
             )
             if result.converged:
-                error = solution_error(scene, result)
+                error = solution_error(result.problem, result)
                 out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
                 failure = not_converged_text(result)
@@ -723,8 +723,8 @@ def _run_path(
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
     (seconds, failure text)."""
     from ..adaptivity.energy_error import solution_error
-    from ..adaptivity.estimate import estimate
     from ..drivers.load_path import run_load_path
+    from ..drivers.scene import estimate
     from ..post.friction_resultants import surface_figures
 
     def on_step(step) -> None:
@@ -774,7 +774,7 @@ def _run_path(
         return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
     est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
     figures = _figures(
-        study, last.scene, last.result, est.eta, solution_error(last.scene, last.result)
+        study, last.scene, last.result, est.eta, solution_error(last.result.problem, last.result)
     )
     if last.result.friction is not None:
         surface = surface_figures(last.scene, last.result)

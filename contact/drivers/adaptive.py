@@ -23,9 +23,9 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
-from ..adaptivity.estimate import Estimate, estimate
+from ..adaptivity.estimate import Estimate
 from ..adaptivity.mark import mark
-from ..adaptivity.refine import next_dofs_bound, refine
+from ..adaptivity.refine import next_dofs_bound
 from ..base import progress
 from ..base.timing import Timer
 from ..models import build_problem
@@ -34,6 +34,7 @@ from ..setup.scene import Scene
 from ..setup.scene_config import AdaptConfig
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
+from .scene import estimate, refine
 from .solve import solve
 
 
@@ -162,7 +163,7 @@ def adapt(
             previous=out.levels[-1] if out.levels else None,
         )
         with Timer(seconds, "error"):
-            error = solution_error(scene, result)
+            error = solution_error(result.problem, result)
         level = Level(
             index,
             scene,
@@ -195,7 +196,7 @@ def adapt(
             break
         with Timer(seconds, "mark"):
             cells = mark(est.eta_T, opts.strategy, opts.theta)
-        bound = next_dofs_bound(scene, cells, result.u_h.function_space)
+        bound = next_dofs_bound(scene.mesh, cells, result.u_h.function_space)
         if bound is not None and bound > opts.max_dofs:  # refining would be wasted work
             out.stop = (
                 f"the next level would have at least {bound} DoFs > max_dofs = {opts.max_dofs}"

@@ -19,9 +19,12 @@ linear one never the hyperelastic module.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from ..solvers.problem import DiscreteProblem
+from .constraints import Unilateral
+from .discrete import Problem
 
 if TYPE_CHECKING:
     from ..setup.scene import Scene
@@ -58,9 +61,16 @@ def build_problem(scene: Scene) -> DiscreteProblem:
 
             problem = elasticity_problem(scene)
         if cfg.frictional:
-            from .friction import friction_set
+            from .friction import friction_law, friction_set
 
             problem.friction = friction_set(scene, problem)
+            assert isinstance(problem, Problem)  # every model's
+            law = friction_law(scene, problem)
+            problem.contacts = tuple(
+                c if isinstance(c, Unilateral) else replace(c, friction=law)
+                for c in problem.contacts
+            )
+            problem.u_prev = scene.history.get("u_prev")
         return problem
     from .scalar import scalar_problem
 

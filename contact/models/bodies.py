@@ -34,10 +34,20 @@ from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
 from ..solvers.floating import floating_bodies
-from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.problem import Constraint
 from . import mortar
 from .basis import change_of_basis, node_frames
-from .elasticity import elastic_system, lame, reaction_form, rigid_body_modes
+from .constraints import MortarPair, RigidObstacle
+from .discrete import Problem
+from .elasticity import (
+    contact_measure,
+    elastic_physics,
+    elastic_system,
+    lame,
+    reaction_form,
+    rigid_body_modes,
+)
+from .obstacles import scene_surface
 from .problem import contact_ends, coordinate_scale
 
 
@@ -59,7 +69,7 @@ def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
     return mu, lmbda_L, body
 
 
-def bodies_problem(scene: Scene) -> DiscreteProblem:
+def bodies_problem(scene: Scene) -> Problem:
     """The multi-body contact problem of ``scene``: elasticity with one material per body,
     mortar pairs (and a rigid obstacle's nodes) as the change of basis u = Q x."""
     t0 = time.perf_counter()
@@ -135,6 +145,14 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
         # the contact normal at the first point of contact (of the pairs, if any)
         "n": first_contact_normal(scene.comm, X[on_pairs], gap[on_pairs], normals[on_pairs]),
     }
+    ds = system.data["ds"]
+    bnd = scene.boundary
+    contacts: tuple = tuple(
+        MortarPair(ds(bnd.ids[pair.slave]), ds(bnd.ids[pair.master]), search=pair.search)
+        for pair in scene.config.pairs or ()
+    )
+    if rigid is not None:
+        contacts += (RigidObstacle(scene_surface(scene), contact_measure(scene, ds)),)
     return BodiesProblem(
         V,
         u_h,
@@ -157,10 +175,12 @@ def bodies_problem(scene: Scene) -> DiscreteProblem:
         near_nullspace=rigid_body_modes(V, inverse=Q_inv),
         floating=floating_bodies(V, system.fixed, scene.bodies, list(scene.config.bodies or ())),
         assembly_time=time.perf_counter() - t0,
+        physics=elastic_physics(scene, system, mu, lmbda_L),
+        contacts=contacts,
     )
 
 
-class BodiesProblem(DiscreteProblem):
+class BodiesProblem(Problem):
     """The multi-body problem: its contact force is the one the pairs transmit (the slave
     nodes' pressures; an obstacle's nodes, if any, are left out)."""
 

@@ -24,32 +24,23 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from ..base import expressions
 from ..base.errors import ConfigError
 from ..base.lifetime import destroy
-from ..setup import expressions
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
 from ..setup.scene_config import components
 from ..solvers.floating import floating_bodies
-from ..solvers.problem import DiscreteProblem
-from .obstacles import curved_contact, plane_contact
+from .constraints import RigidObstacle
+from .discrete import Problem
+from .obstacles import curved_contact, plane_contact, scene_surface
+from .physics import BoundaryData, Elasticity, epsilon, stress
 from .problem import assemble_system
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
     """Lamé parameters (μ, λ_L) of Young's modulus E and Poisson's ratio ν."""
     return E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
-
-
-def epsilon(u):
-    """ε(u) = sym ∇u."""
-    return ufl.sym(ufl.grad(u))
-
-
-def stress(u, mu: float, lmbda_L: float):
-    """σ(u) = 2μ ε(u) + λ_L tr ε(u) I (plane strain when 2D)."""
-    eps = epsilon(u)
-    return 2.0 * mu * eps + lmbda_L * ufl.tr(eps) * ufl.Identity(len(u))
 
 
 def _vector(texts: list[str], scene: Scene):
@@ -181,12 +172,49 @@ def elastic_system(scene: Scene, mu, lmbda_L) -> ElasticSystem:
     )
 
 
+def elastic_physics(
+    scene: Scene, setting: ElasticSetting | ElasticSystem, mu, lmbda_L, law: str | None = None
+) -> Elasticity:
+    """The equations of the scene's elastic body (bodies): Lamé parameters, load, the
+    boundary parts and their tractions, the Dirichlet datum and the exact solution."""
+    bnd, cfg = scene.boundary, scene.config
+    planes = [bnd.ids[name] for name, role in bnd.roles.items() if role == "symmetry"]
+    exact = None
+    if cfg.data.exact is not None:
+        gdim = scene.mesh.geometry.dim
+        texts = components(cfg.data.exact, gdim)
+        exact = ufl.as_vector(
+            [expressions.to_ufl(e, scene.mesh, cfg.constants, t=scene.time) for e in texts]
+        )
+    t = setting.data["t"]
+    return Elasticity(
+        mu,
+        lmbda_L,
+        setting.data["f"],
+        BoundaryData(
+            bnd.tags,
+            dirichlet=bnd.ids_with_role("dirichlet"),
+            neumann={i: t for i in bnd.ids_with_role("neumann")},
+            free=bnd.ids_with_role("natural"),
+            symmetry=tuple(zip(planes, setting.symmetry_axes)),
+        ),
+        law=law,
+        dirichlet_value=setting.data["u_D"],
+        exact=exact,
+    )
+
+
+def contact_measure(scene: Scene, ds) -> ufl.Measure:
+    """``ds`` over the scene's contact parts (the facets a rigid obstacle meets)."""
+    return ds(scene.boundary.ids_with_role("contact"))
+
+
 def reaction_form(system: ElasticSystem, u_h: fem.Function) -> fem.Form:
     """The residual without Dirichlet rows, a(u_h, v) − L(v), for reaction forces."""
     return fem.form(ufl.action(system.a_ufl, u_h) - system.L_ufl)
 
 
-def elasticity_problem(scene: Scene) -> DiscreteProblem:
+def elasticity_problem(scene: Scene) -> Problem:
     """Assemble the frictionless elastic contact problem of ``scene`` (docs/theory.md §1.3,
     §2) against its rigid obstacle (a scene with ``bodies`` is
     :func:`contact.models.bodies.bodies_problem`)."""
@@ -206,7 +234,8 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
     con = contact.pop("constraint")
     u_h = fem.Function(V, name="u_h")
     data = {**system.data, "reaction_form": reaction_form(system, u_h), **contact.pop("data")}
-    return DiscreteProblem(
+    rigid = RigidObstacle(scene_surface(scene), contact_measure(scene, ds))
+    return Problem(
         V,
         u_h,
         system.bcs,
@@ -217,6 +246,8 @@ def elasticity_problem(scene: Scene) -> DiscreteProblem:
         **contact,
         **body_fields(system, contact.get("basis")),
         assembly_time=time.perf_counter() - t0,
+        physics=elastic_physics(scene, system, system.data["mu"], system.data["lmbda_L"]),
+        contacts=(rigid,),
     )
 
 

@@ -253,6 +253,8 @@ def shape_of(c: Any) -> dict[str, object]:
         "Unilateral.bound": (
             "a Function"
             if isinstance(bound, fem.Function)
+            else "a UFL expression"
+            if isinstance(bound, ufl.core.expr.Expr)
             else "a callable"
             if callable(bound)
             else "a number"
@@ -369,6 +371,13 @@ def _check_bound_kind(bound: Any, W: fem.FunctionSpace) -> None:
             raise ValueError(
                 f"Unilateral.bound: a Function of value shape {bound.function_space.value_shape}"
                 f", the constraint needs {W.value_shape}"
+            )
+        return
+    if isinstance(bound, ufl.core.expr.Expr):
+        if bound.ufl_shape != W.value_shape:
+            raise ValueError(
+                f"Unilateral.bound: a UFL expression of shape {bound.ufl_shape}, the "
+                f"constraint needs {W.value_shape}"
             )
         return
     if callable(bound):

@@ -44,10 +44,11 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from ..setup import expressions
 from ..setup.scene import Scene
 from ..solvers.problem import DiscreteProblem, FrictionSet
+from .constraints import Coulomb, Tresca
 
 
 def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
@@ -116,6 +117,22 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         # (on the current configuration the slip is the solver's: CurrentContact.u_prev)
         x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
         options=cfg.knobs(),
+    )
+
+
+def friction_law(scene: Scene, problem: DiscreteProblem) -> Tresca | Coulomb:
+    """The scene's friction law as the contact conditions carry it: Coulomb's coefficient, or
+    Tresca's threshold as UFL (the estimators' ρ) with its values at the nodes from the
+    scene's expression (:func:`friction_set` wrote the UFL into ``problem.data``)."""
+    cfg = scene.config.friction
+    assert cfg is not None  # a frictional scene
+    if cfg.law == "coulomb":
+        assert cfg.coefficient is not None  # Coulomb's, required at load
+        return Coulomb(cfg.coefficient)
+    assert cfg.threshold is not None  # Tresca's, required at load
+    return Tresca(
+        problem.data["threshold"],
+        at_nodes=expressions.to_numpy(cfg.threshold, scene.config.constants, t=scene.time),
     )
 
 

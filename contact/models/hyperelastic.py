@@ -67,43 +67,11 @@ from ..setup.scene import Scene
 from ..solvers.current import nodal_geometry
 from ..solvers.linear import mumps_ksp
 from ..solvers.problem import Constraint, NodeBlockMatrix
-from .elasticity import body_fields, elastic_setting, lame
+from .constraints import RigidObstacle
+from .elasticity import body_fields, contact_measure, elastic_physics, elastic_setting, lame
 from .forms import ResidualProblem
-from .obstacles import current_contact, plane_contact, scene_obstacle
-
-LAWS = ("neo_hookean", "saint_venant_kirchhoff")
-
-
-def deformation_gradient(u) -> ufl.core.expr.Expr:
-    """F = I + ∇u as a 3 × 3 tensor (2D: plane strain, F_33 = 1)."""
-    gdim = len(u)
-    F = ufl.Identity(gdim) + ufl.grad(u)
-    if gdim == 3:
-        return F
-    return ufl.as_matrix([[F[0, 0], F[0, 1], 0], [F[1, 0], F[1, 1], 0], [0, 0, 1]])
-
-
-def strain_energy(F, law: str, mu, lmbda_L) -> ufl.core.expr.Expr:
-    """ψ(F) per unit reference volume (the module doc's laws; F 3 × 3)."""
-    C = F.T * F
-    if law == "neo_hookean":
-        lnJ = ufl.ln(ufl.det(F))
-        return mu / 2 * (ufl.tr(C) - 3 - 2 * lnJ) + lmbda_L / 2 * lnJ**2
-    if law == "saint_venant_kirchhoff":
-        E = (C - ufl.Identity(3)) / 2
-        return lmbda_L / 2 * ufl.tr(E) ** 2 + mu * ufl.inner(E, E)
-    raise ValueError(f"model.law: expected one of {', '.join(LAWS)}, got {law!r}")
-
-
-def piola_and_cauchy(u, law: str, mu, lmbda_L) -> tuple:
-    """(P, σ): the first Piola–Kirchhoff stress P = ∂ψ/∂F (gdim × gdim, for the residual's
-    tractions in the reference configuration) and the Cauchy stress σ = J⁻¹ P Fᵀ (3 × 3,
-    σ_33 ≠ 0 in plane strain), both in the unit of E."""
-    gdim = len(u)
-    F = ufl.variable(deformation_gradient(u))
-    P = ufl.diff(strain_energy(F, law, mu, lmbda_L), F)
-    sigma = P * F.T / ufl.det(F)
-    return ufl.as_matrix([[P[i, j] for j in range(gdim)] for i in range(gdim)]), sigma
+from .obstacles import current_contact, plane_contact, scene_obstacle, scene_surface
+from .physics import deformation_gradient, piola_and_cauchy, strain_energy
 
 
 def deformed_area(u, v, measure) -> ufl.Form:
@@ -185,6 +153,8 @@ def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProb
         J_form=J_form,
         energy_form=potential,
         min_jacobian=min_jacobian,
+        physics=elastic_physics(scene, s, mu, lmbda_L, law=model.law),
+        contacts=(RigidObstacle(scene_surface(scene), contact_measure(scene, s.data["ds"])),),
     )
     if isinstance(problem, RotatedResidualProblem):
         problem.K_T = K_T

@@ -18,8 +18,6 @@ the normal and frame follow it (:mod:`contact.solvers.current`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -31,6 +29,7 @@ from ..setup.obstacle import RigidObstacle, rigid_obstacle
 from ..setup.scene import Scene
 from ..solvers.problem import Constraint, NodeBlockMatrix
 from .basis import frame
+from .constraints import Ball, Plane
 from .problem import coordinate_scale, lumped_weights
 
 
@@ -44,44 +43,42 @@ def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
     return S, s_to_v, v_dofs, s_dofs
 
 
-def obstacle_shape(scene: Scene) -> tuple:
-    """(normal, gap, n_ufl, g_ufl) of the scene's obstacle: ``normal``/``gap`` map node
-    coordinates (n, gdim) to the unit normals n (towards the obstacle) and the initial gaps
-    g, the UFL expressions are the same for forms.  Plane: n = −ν, g = (x − p)·ν; circle /
-    sphere: n = (c − x)/|c − x|, g = |x − c| − R_o."""
-    obstacle, msh = scene.config.obstacle, scene.mesh
-    assert obstacle is not None  # the scene's rigid obstacle
-    gdim = msh.geometry.dim
-    X = ufl.SpatialCoordinate(msh)
-    if obstacle.type == "plane":
-        nu_o = np.asarray(obstacle.normal, dtype=float)
-        nu_o = nu_o / np.linalg.norm(nu_o)
-        p = plane_point(scene)
-        if len(nu_o) != gdim or len(p) != gdim:
+def scene_surface(scene: Scene, time: float | None = None) -> Plane | Ball:
+    """The scene's rigid obstacle at its pseudo-time (or at ``time``) as a surface: a
+    :class:`~.constraints.Plane` through p with the normal ν of the scene, or a
+    :class:`~.constraints.Ball` (circle in 2D, sphere in 3D).  Coordinates of the wrong
+    length, or a circle in 3D (a sphere in 2D), are a ConfigError naming the key."""
+    config, gdim = scene.config.obstacle, scene.mesh.geometry.dim
+    assert config is not None  # the scene's rigid obstacle
+    obstacle = scene_obstacle(scene, time)
+    if config.type == "plane":
+        assert config.normal is not None  # required for a plane at load
+        plane = Plane(obstacle.position, np.asarray(config.normal, dtype=float))
+        if len(plane.normal) != gdim or len(plane.point) != gdim:
             raise ConfigError(
                 f"obstacle: point and normal need {gdim} components in a {gdim}D scene"
             )
-        return (
-            lambda x: np.tile(-nu_o, (len(x), 1)),
-            lambda x: (x - p) @ nu_o,
-            ufl.as_vector((-nu_o).tolist()),  # n = −ν
-            # g = (x − p)·ν
-            ufl.dot(X - ufl.as_vector(p.tolist()), ufl.as_vector(nu_o.tolist())),
-        )
+        return plane
     want = "circle" if gdim == 2 else "sphere"
-    if obstacle.type != want:
-        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {obstacle.type}")
-    assert obstacle.radius is not None  # checked at load
-    centre, R_o = scene_obstacle(scene).center, float(obstacle.radius)
-    assert centre is not None  # a circle / sphere has its centre (at t)
-    if len(centre) != gdim:
+    if config.type != want:
+        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {config.type}")
+    assert config.radius is not None  # checked at load
+    if len(obstacle.position) != gdim:
         raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
-    c_ufl = ufl.as_vector(centre.tolist())
+    return Ball(obstacle.position, float(config.radius))
+
+
+def obstacle_shape(scene: Scene) -> tuple:
+    """(normal, gap, n_ufl, g_ufl) of the scene's obstacle: ``normal``/``gap`` map node
+    coordinates (n, gdim) to the unit normals n (towards the obstacle) and the initial gaps
+    g, the UFL expressions are the same for forms (:func:`scene_surface`)."""
+    surface = scene_surface(scene)
+    n_ufl, g_ufl = surface.expression(ufl.SpatialCoordinate(scene.mesh))
     return (
-        lambda x: (centre - x) / np.linalg.norm(centre - x, axis=1)[:, None],
-        lambda x: np.linalg.norm(x - centre, axis=1) - R_o,
-        (c_ufl - X) / ufl.sqrt(ufl.dot(c_ufl - X, c_ufl - X)),
-        ufl.sqrt(ufl.dot(X - c_ufl, X - c_ufl)) - R_o,
+        lambda x: surface.project(x)[1],
+        lambda x: surface.project(x)[0],
+        n_ufl,
+        g_ufl,
     )
 
 
@@ -101,14 +98,13 @@ def plane_point(scene: Scene) -> np.ndarray:
 def plane_contact(scene: Scene, V, K, b, fixed, ds) -> dict:
     """Rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
-    obstacle, gdim = scene.config.obstacle, scene.mesh.geometry.dim
-    assert obstacle is not None  # the scene's rigid plane
+    gdim = scene.mesh.geometry.dim
     normal, gap, n_ufl, g_ufl = obstacle_shape(scene)
-    nu_o = np.asarray(obstacle.normal, dtype=float)
-    nu_o = nu_o / np.linalg.norm(nu_o)
-    p = plane_point(scene)
+    plane = scene_surface(scene)
+    assert isinstance(plane, Plane)  # the scene's rigid plane
+    nu_o, p = plane.normal, plane.point
     k = int(np.argmax(np.abs(nu_o)))
-    if abs(abs(nu_o[k]) - 1.0) > 1e-12:  # a tilted plane: rotate the contact nodes
+    if plane.axis() is None:  # a tilted plane: rotate the contact nodes
         return _rotated_contact(scene, V, K, b, fixed, ds, normal, gap, n_ufl, g_ufl)
     n_k = float(np.sign(-nu_o[k]))
     S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, scene.boundary.facets("contact"))
@@ -247,55 +243,6 @@ def _rotation(
     return Q.set(blocks)
 
 
-@dataclass(frozen=True)
-class RigidPlane:
-    """The rigid plane through p with unit normal ν (towards the body) as a signed distance
-    (:class:`contact.solvers.current.RigidSurface`): g = (x − p)·ν, n = −ν, Dn = 0."""
-
-    point: np.ndarray
-    normal: np.ndarray
-
-    @property
-    def scale(self) -> float:
-        return float(np.max(np.abs(self.point), initial=0.0))
-
-    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        k, d = x.shape
-        return (x - self.point) @ self.normal, np.tile(-self.normal, (k, 1)), np.zeros((k, d, d))
-
-
-@dataclass(frozen=True)
-class RigidBall:
-    """The rigid circle (2D) / sphere (3D) of centre c and radius R_o, the body outside, as a
-    signed distance (:class:`contact.solvers.current.RigidSurface`): with r = |x − c|,
-    g = r − R_o, n = (c − x)/r, Dn = −(I − n nᵀ)/r (the closest point c − R_o n is the
-    point of the obstacle under x, wherever x has slid to)."""
-
-    center: np.ndarray
-    radius: float
-
-    @property
-    def scale(self) -> float:
-        return float(np.max(np.abs(self.center), initial=0.0)) + self.radius
-
-    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        rel = x - self.center
-        r = np.linalg.norm(rel, axis=1)
-        n = -rel / r[:, None]
-        d = x.shape[1]
-        Dn = -(np.eye(d)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
-        return r - self.radius, n, Dn
-
-
-def rigid_surface(obstacle: RigidObstacle) -> RigidPlane | RigidBall:
-    """The signed distance of a rigid obstacle (plane, circle or sphere)."""
-    if obstacle.kind == "plane":
-        assert obstacle.point is not None and obstacle.normal is not None
-        return RigidPlane(obstacle.point, obstacle.normal)
-    assert obstacle.center is not None and obstacle.radius is not None
-    return RigidBall(obstacle.center, obstacle.radius)
-
-
 def current_contact(
     scene: Scene, V: fem.FunctionSpace, fixed: np.ndarray, ds, obstacle: RigidObstacle
 ) -> dict:
@@ -318,7 +265,7 @@ def current_contact(
     nodes, sd, node_fixed = nodes[keep], s_dofs[keep], node_fixed[keep]
     Xs = S.tabulate_dof_coordinates()[:, :gdim]
     X = Xs[sd]
-    surface = rigid_surface(obstacle)
+    surface = scene_surface(scene)
     g0, n0, _ = surface.project(X)
     along_fixed = np.linalg.norm(np.where(node_fixed, 0.0, n0), axis=1) <= 0.5
     if msh.comm.allreduce(int(np.sum(along_fixed))):

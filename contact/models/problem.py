@@ -14,8 +14,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from ..setup import expressions
 from ..setup.checks import check_data, data_items
 from ..setup.scene import Scene
 

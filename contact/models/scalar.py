@@ -20,10 +20,14 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
+from ..base import expressions
 from ..base.errors import ConfigError
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
-from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.problem import Constraint
+from .constraints import Unilateral
+from .discrete import Problem
+from .physics import BoundaryData, Diffusion
 from .problem import (
     assemble_system,
     coefficient,
@@ -33,7 +37,7 @@ from .problem import (
 )
 
 
-def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
+def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     """Assemble the scalar Signorini or obstacle problem of ``scene`` (docs/theory.md
     §1.1–1.2, §2)."""
     t0 = time.perf_counter()
@@ -100,7 +104,36 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         ends = dict(
             zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs))
         )
-    return DiscreteProblem(
+    contact_ids = bnd.ids_with_role("contact")
+    physics = Diffusion(
+        k,
+        f,
+        BoundaryData(
+            bnd.tags,
+            dirichlet=bnd.ids_with_role("dirichlet"),
+            neumann={
+                **{i: t for i in bnd.ids_with_role("neumann")},
+                **({i: t_C for i in contact_ids} if cfg.model.type == "signorini" else {}),
+            },
+            free=bnd.ids_with_role("natural"),
+        ),
+        exact=None
+        if data.exact is None
+        else expressions.to_ufl(str(data.exact), msh, cfg.constants, t=scene.time),
+        dirichlet_value=lambda space: interpolate_expression(space, data.u_D, scene),
+    )
+    bound = (
+        g_h
+        if cfg.model.type == "signorini"
+        else expressions.to_ufl(data.psi, msh, cfg.constants, t=scene.t_constant)
+    )
+    condition = Unilateral(
+        bound,
+        side="upper" if sign > 0 else "lower",
+        measure=measure,
+        nodal=lambda _: g_h,
+    )
+    return Problem(
         V,
         u_h,
         bcs,
@@ -112,6 +145,8 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         semicoercive=semicoercive,
         data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds, "exact": data.exact},
         assembly_time=time.perf_counter() - t0,
+        physics=physics,
+        contacts=(condition,),
     )
 
 

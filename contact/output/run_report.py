@@ -157,7 +157,7 @@ def summary(
         out["reference"] = scene.config.reference.type
         out.update(comparison.values)
     # the adaptive loop's, if known
-    error = solution_error(scene, result) if error is None else error
+    error = solution_error(result.problem, result) if error is None else error
     if error is not None:
         out["error_energy"] = error
     return out

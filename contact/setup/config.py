@@ -27,12 +27,12 @@ from typing import Any
 
 import yaml
 
+from ..base import expressions
 from ..base.errors import ConfigError  # also contact.base.errors.ConfigError, as before
 from ..base.validation import nonnegative as _nonnegative
 from ..base.validation import parse_member, parse_section
 from ..base.validation import positive as _positive
 from ..base.validation import typename as _typename
-from . import expressions
 from .geometry import block_pair
 from .scene_config import (
     ELASTIC_MODELS,

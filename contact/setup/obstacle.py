@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import expressions
+from ..base import expressions
 from .scene_config import ObstacleConfig
 
 

@@ -38,6 +38,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from ..base import expressions
 from ..base.errors import ConfigError
 from ..base.validation import (
     FrozenDict,
@@ -55,7 +56,6 @@ from ..base.validation import (
     positive,
 )
 from ..solvers.options import FrictionOptions, SolverOptions
-from . import expressions
 
 #: models whose unknown is a displacement vector: linear elasticity (small strain) and
 #: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)

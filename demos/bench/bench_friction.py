@@ -265,7 +265,7 @@ def manufactured(quick: bool) -> tuple[list[dict], dict]:
         sc = scene("friction_tresca_manufactured", f"mesh.cells=[{n},{n}]")
         r = contact.solve(sc)
         est = contact.estimate(sc, r)
-        err = solution_error(sc, r)
+        err = solution_error(r.problem, r)
         rows.append(
             {
                 "strategy": "uniform",
