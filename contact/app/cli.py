@@ -4,7 +4,8 @@
 Exit codes (:mod:`contact.app.failures`): 0 solved and written; 1 the solver did not converge
 (an adaptive run keeps its completed levels); 2 bad input (one line on stderr naming the
 key, file or option); 3 internal error (one line; ``--debug`` or ``CONTACT_DEBUG=1`` adds
-the traceback); 130 interrupted (Ctrl-C; one line).  Under MPI a failure raised on every
+the traceback); 130 interrupted (Ctrl-C; one line); 143 terminated (SIGTERM; one line, as
+Ctrl-C).  Under MPI a failure raised on every
 rank is reported once by rank 0; a failure on some ranks only is reported by each of them
 and ends the job with ``MPI_Abort`` and the same exit code (the other ranks would wait
 forever; the rules are in :mod:`contact.app.failures`).
@@ -106,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
+    # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort)
+    previous = _handle(signal.SIGTERM, failures.on_sigterm)
     try:
         code = _study(args, comm) if args.command == "study" else _run(args, comm)
     except _Failed:  # raised on every rank alike, after its message
@@ -114,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         code = _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
     except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - MemoryError, PETSc errors, bugs: one line, exit 3
         if failures.interrupted(err):
-            code = _interrupted(comm, agree, debug)
+            code = _interrupted(comm, agree, debug, *failures.interrupt_report(err))
         else:
             head, tail = (
                 "contact: internal error: ",
@@ -124,22 +127,31 @@ def main(argv: list[str] | None = None) -> int:
             code = _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
     if agree is not None:  # every rank is here: a failure that was not agreed on aborted
         agree.Free()
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
     return code
 
 
-def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool) -> int:
-    """Ctrl-C: one line and exit code 130, agreed on like any failure (:func:`_fail`); a
-    second Ctrl-C while the ranks agree is ignored (mpiexec's own handling of a second
-    Ctrl-C still ends the job at once)."""
+def _handle(signum: int, handler) -> object:
+    """Install ``handler`` for ``signum``; the previous one (None where main() runs outside
+    the main thread, which cannot handle signals)."""
     try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # main() called outside the main thread
-        previous = None
+        return signal.signal(signum, handler)
+    except ValueError:
+        return None
+
+
+def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool, code: int, line: str) -> int:
+    """Ctrl-C (SIGTERM): one line and exit code 130 (143), agreed on like any failure
+    (:func:`_fail`); a second Ctrl-C or SIGTERM while the ranks agree is ignored (mpiexec's
+    own handling of a second Ctrl-C still ends the job at once)."""
+    previous = {s: _handle(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return _fail(comm, agree, failures.INTERRUPTED, "contact: interrupted", debug)
+        return _fail(comm, agree, code, line, debug)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            if handler is not None:
+                signal.signal(signum, handler)
 
 
 def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: bool) -> int:
@@ -157,7 +169,8 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
     if not failures.all_failed(agree):
         failures.abort(comm, code, line)
     outcomes = agree.allgather((code, line))  # every rank is in this call now
-    code, line = next((o for o in outcomes if o[0] == failures.INTERRUPTED), outcomes[0])
+    stops = (failures.INTERRUPTED, failures.TERMINATED)
+    code, line = next((o for o in outcomes if o[0] in stops), outcomes[0])
     if comm.rank == 0:
         print(failures.one_line(line), file=sys.stderr, flush=True)
     return code
