@@ -21,7 +21,7 @@ import time
 import traceback
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 from mpi4py import MPI
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
-def _handle(signum: int, handler) -> object:
+def _handle(signum: int, handler: Any) -> Any:
     """Install ``handler`` for ``signum``; the previous one (None where main() runs outside
     the main thread, which cannot handle signals)."""
     try:
