@@ -14,6 +14,7 @@ forever; the rules are in :mod:`contact.app.failures`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import signal
 import sys
@@ -88,17 +89,27 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
-def _one_line_warning(
-    message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning
-):
-    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints
-    them."""
+def _error(comm: MPI.Comm, line: str) -> None:
+    """A failure's message, said by rank 0 on stderr as one line of at most
+    :data:`~contact.app.failures.MAX_LINE` characters (:func:`~contact.app.failures.one_line`,
+    as every message the command prints on stderr)."""
+    if comm.rank == 0:
+        print(failures.one_line(line), file=sys.stderr, flush=True)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """Every warning as one line on stderr (at most MAX_LINE characters): the project's
+    (ContactWarning) ``contact: warning: <message>``, any other (a library's)
+    ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
+    with the source line."""
     from ..setup.surfaces import ContactWarning
 
-    if issubclass(category, ContactWarning):
-        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
-    else:
-        _default(message, category, filename, lineno, file, line)
+    text = (
+        f"contact: warning: {message}"
+        if issubclass(category, ContactWarning)
+        else f"contact: warning: {category.__name__}: {message} ({Path(filename).name}:{lineno})"
+    )
+    print(failures.one_line(text), file=sys.stderr, flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -212,14 +223,9 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"nodes",
     )
     if not result.converged:
-        if comm.rank == 0:
-            print(
-                failures.one_line(
-                    f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
-                ),
-                file=sys.stderr,
-                flush=True,
-            )
+        _error(
+            comm, f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
+        )
         return failures.NOT_CONVERGED
     info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
@@ -271,16 +277,12 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 if k
                 else "nothing written"
             )
-            if comm.rank == 0:
-                hint = f" ({last.hint})" if last.hint else ""
-                print(
-                    failures.one_line(
-                        f"contact: error: solver did not converge on level {k} ({last.reason}), "
-                        f"last |Phi| = {last.residual:.3e}{hint}; {kept}"
-                    ),
-                    file=sys.stderr,
-                    flush=True,
-                )
+            hint = f" ({last.hint})" if last.hint else ""
+            _error(
+                comm,
+                f"contact: error: solver did not converge on level {k} ({last.reason}), "
+                f"last |Phi| = {last.residual:.3e}{hint}; {kept}",
+            )
             if k == 0:
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
@@ -305,7 +307,7 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
-    from ..drivers.load_path import LoadPath, run_load_path
+    from ..drivers.load_path import run_load_path
     from ..output import folder
     from ..output.run_report import files_text
     from ..output.step_report import StepWriter
@@ -332,6 +334,8 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                 f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}"
                 + (f"; {tangent}" if tangent else ""),
             )
+            if s.branch:  # the energy search found no stable state: the branch followed
+                _say(comm, f"contact: {s.branch}")
             writer(s)
 
         path = run_load_path(scene, on_step=on_step)
@@ -344,23 +348,13 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                 if k > 1
                 else "nothing written"
             )
-            if comm.rank == 0:
-                print(
-                    f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; {kept}",
-                    file=sys.stderr,
-                    flush=True,
-                )
+            _error(
+                comm, f"contact: error: {path.failure}; last |Phi| = {last.residual:.3e}; {kept}"
+            )
             if k == 1:
                 raise _Failed()
             failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
-            path = LoadPath(
-                path.steps[:-1],
-                stop=path.stop,
-                cuts=path.cuts,
-                indefinite=path.indefinite,
-                inverted=path.inverted,
-                tangent_events=path.tangent_events,
-            )
+            path = dataclasses.replace(path, steps=path.steps[:-1])
         info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED
