@@ -290,21 +290,33 @@ def test_the_svk_block_loses_stability_at_its_free_surface_before_40_percent():
     assert counts[4][2] > 0 and counts[8][2] > 0  # t = 0.8 (40 %): unstable on both
 
 
-def test_the_svk_block_at_50_percent_follows_its_equilibrium_branch(tmp_path):
+@pytest.mark.parametrize("ranks", [0, pytest.param(2, marks=pytest.mark.mpi)])
+def test_the_svk_block_at_50_percent_follows_its_equilibrium_branch(tmp_path, ranks):
     """``contact run configs/hyperelastic_block.yaml`` with St Venant–Kirchhoff to 50 % in
     5 steps (default solver): at step 4 (t = 0.8, 40 %) the homogeneous state is unstable
     (above): the energy search leaves it and finds no stable equilibrium that keeps
     det F > 0; the load path then takes the equilibrium branch by plain Newton, says so in
     one line naming the step and the negative eigenvalue count of K_T there (1), lists it
     in summary.json (``bifurcation``, ``equilibrium_branch``) and finishes: exit 0, every
-    step's plate force the analytic homogeneous one (1e-8), nothing on stderr."""
+    step's plate force the analytic homogeneous one (1e-8), nothing on stderr; the same on
+    2 ranks (every decision on the branch is collective)."""
     from clirun import ROOT
     from clirun import contact as cli
 
     scene = ROOT / "configs" / "hyperelastic_block.yaml"
     sets = ["model.law=saint_venant_kirchhoff", "constants.compression=0.5", "load.steps=5"]
     args = [a for item in [*sets, "output.png=false"] for a in ("--set", item)]
-    proc = cli(tmp_path, "run", str(scene), "-o", "out", "-q", *args, env={"PYTHONWARNINGS": ""})
+    proc = cli(
+        tmp_path,
+        "run",
+        str(scene),
+        "-o",
+        "out",
+        "-q",
+        *args,
+        ranks=ranks,
+        env={"PYTHONWARNINGS": ""},
+    )
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     lines = [ln for ln in proc.stdout.splitlines() if "equilibrium branch" in ln]
     assert len(lines) == 2 and len(lines[0]) <= 300, proc.stdout
