@@ -71,7 +71,7 @@ WERROR = ("-Wall", "-Wextra", "-Werror")
 #: the longest a compile may take, seconds (a hung compiler is a failed build)
 TIMEOUT = 600
 #: the longest reason in a warning line, characters (the line stays within 300)
-REASON = 165
+REASON = 170
 
 
 def dimensions(ref: Reference, nu: int) -> dict[str, int]:
@@ -254,7 +254,7 @@ def _verified(build: Build) -> tuple[Path | None, str]:
     the manifest's SHA-256; else (None, what is wrong) — '' where there is no manifest."""
     try:
         text = build.manifest.read_text()
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # not built yet, or no cache folder
         return None, ""
     except OSError as err:
         return None, f"cannot read {build.manifest.name} ({err.strerror})"
@@ -271,7 +271,7 @@ def _verified(build: Build) -> tuple[Path | None, str]:
     except OSError as err:
         return None, f"cannot read {name} ({err.strerror})"
     if _sha256(data) != digest:
-        return None, f"{name} does not match its SHA-256"
+        return None, f"{name} does not match the SHA-256 of its manifest"
     return library, ""
 
 
@@ -293,6 +293,8 @@ def build(b: Build) -> Path:
     """Compile ``b`` into the cache (module docstring: temporary files, fsync, renames;
     the manifest last) and return the library; BuildError with a one-line reason."""
     folder = cache_dir()
+    if folder.exists() and not folder.is_dir():
+        raise BuildError(f"the cache {folder} is not a folder")
     try:
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
