@@ -270,12 +270,15 @@ class Ball:
         return self.center
 
     def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(g, n, Dn) at the points x (k, gdim)."""
+        """(g, n, Dn) at the points x (k, gdim).  A point at the centre or not finite (an
+        iterate that diverged) gives NaN there, without a warning: the solver stops on it
+        (``diverged_function_nanorinf``) and says so."""
         rel = x - self.center
         r = np.linalg.norm(rel, axis=1)
-        n = -rel / r[:, None]
-        d = x.shape[1]
-        Dn = -(np.eye(d)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n = -rel / r[:, None]
+            d = x.shape[1]
+            Dn = -(np.eye(d)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
         return r - self.radius, n, Dn
 
     def expression(self, X: Any) -> tuple[Any, Any]:
@@ -316,10 +319,11 @@ class Cylinder:
         rel = x - self.point
         perp = rel - (rel @ a)[:, None] * a
         r = np.linalg.norm(perp, axis=1)
-        n = -perp / r[:, None]
-        d = x.shape[1]
-        P = np.eye(d) - np.outer(a, a)
-        Dn = -(P[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
+        with np.errstate(divide="ignore", invalid="ignore"):  # a point on the axis: NaN
+            n = -perp / r[:, None]
+            d = x.shape[1]
+            P = np.eye(d) - np.outer(a, a)
+            Dn = -(P[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
         return r - self.radius, n, Dn
 
     def expression(self, X: Any) -> tuple[Any, Any]:

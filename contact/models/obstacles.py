@@ -11,8 +11,8 @@ Each function returns the pieces of :class:`contact.solvers.problem.DiscreteProb
 the obstacle determines (constraint, output space, basis, contact data).
 
 A finite-strain body meets the obstacle on the current configuration instead
-(:func:`current_contact`): the obstacle is a signed distance (:class:`RigidPlane`,
-:class:`RigidBall`) evaluated at the deformed nodes x = X + u at every Newton iterate, and
+(:func:`current_contact`): the obstacle is a signed distance (:class:`~.constraints.Plane`,
+:class:`~.constraints.Ball`) evaluated at the deformed nodes x = X + u at every Newton iterate, and
 the normal and frame follow it (:mod:`contact.solvers.current`).
 """
 

@@ -46,6 +46,7 @@ from .run_report import (
     cell_fields,
     plot_solution,
     point_fields,
+    posed_problem,
     warn_coarse_zone,
     write_contact,
 )
@@ -145,6 +146,7 @@ class StepWriter:
             "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
             "host": platform.node(),
             **self.files.timings(),
+            **posed_problem(last.scene),
             "steps": self.rows,
         }
         if path.cuts:  # step cutting (load.cuts): the steps that were halved
@@ -155,6 +157,11 @@ class StepWriter:
             info["inverted"] = path.inverted
         if path.tangent_events:  # what the energy search did, per step (one line each)
             info["tangent_events"] = path.tangent_events
+        if path.bifurcation:  # no stable state found: the equilibrium branch followed
+            info["bifurcation"] = path.bifurcation
+            info["equilibrium_branch"] = [
+                {"step": k, "time": t, "negative_eigenvalues": n} for k, t, n in path.branch_steps
+            ]
         if config.friction is not None and friction != "none":
             info["tangential_form"] = config.friction.form
         if self.scene.config.elastic:  # the forces are of the whole body
