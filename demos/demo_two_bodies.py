@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 
 import contact
-from contact.drivers.load_path import run_load_path
+from contact.drivers.scene import run_load_path
 from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
 from contact.post.interface import interface_resultants

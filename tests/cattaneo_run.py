@@ -8,7 +8,7 @@ under mpirun to compare rank counts.
 import sys
 
 import contact
-from contact.drivers.load_path import run_load_path
+from contact.drivers.scene import run_load_path
 from contact.post.reference import compare
 
 import numpy as np

@@ -10,7 +10,7 @@ Newton iterations of every step; tests compare serial and parallel runs.
 import sys
 
 import contact
-from contact.drivers.load_path import run_load_path
+from contact.drivers.scene import run_load_path
 from contact.output.folder import gather_nodal
 from contact.post.contact_table import STATUS, contact_table
 

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import contact
-from contact.drivers.adaptive import adapt
+from contact.drivers.scene import adapt
 from contact.post.reference import compare
 
 import numpy as np

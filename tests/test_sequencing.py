@@ -5,7 +5,8 @@ is solved: the answer must be the cold direct solve's to solver tolerance, and t
 counts the result reports must be those of the levels actually solved."""
 
 import contact
-from contact.drivers.sequencing import COARSEST_DOFS, transfer
+from contact.drivers.levels import transfer
+from contact.drivers.sequencing import COARSEST_DOFS
 from contact.models import build_problem
 
 import numpy as np

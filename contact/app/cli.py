@@ -102,7 +102,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     (ContactWarning) ``contact: warning: <message>``, any other (a library's)
     ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
     with the source line."""
-    from ..setup.surfaces import ContactWarning
+    from ..base.errors import ContactWarning
 
     text = (
         f"contact: warning: {message}"
@@ -267,7 +267,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     """The adaptive loop, writing into one atomic folder.  If the solver fails on level
     k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
-    from ..drivers.adaptive import AdaptResult, adapt, format_table
+    from ..drivers.adaptive import AdaptResult, format_table
+    from ..drivers.scene import adapt
     from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
 
@@ -320,7 +321,7 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
-    from ..drivers.load_path import run_load_path
+    from ..drivers.scene import run_load_path
     from ..output import folder
     from ..output.run_report import files_text
     from ..output.step_report import StepWriter

@@ -576,9 +576,7 @@ def run_one(
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
-    from ..drivers.adaptive import adapt
-    from ..drivers.scene import estimate
-    from ..drivers.solve import solve
+    from ..drivers.scene import adapt, estimate, solve
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 
@@ -723,8 +721,7 @@ def _run_path(
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
     (seconds, failure text)."""
     from ..adaptivity.energy_error import solution_error
-    from ..drivers.load_path import run_load_path
-    from ..drivers.scene import estimate
+    from ..drivers.scene import estimate, run_load_path
     from ..post.friction_resultants import surface_figures
 
     def on_step(step) -> None:

@@ -1,5 +1,6 @@
-"""Errors every layer raises or reads: :class:`ConfigError` (bad input, one line) and
-:func:`petsc_message` (PETSc's own message of a ``petsc4py.PETSc.Error``, one line)."""
+"""Errors every layer raises or reads: :class:`ConfigError` (bad input, one line),
+:class:`ContactWarning` (a one-line warning) and :func:`petsc_message` (PETSc's own message
+of a ``petsc4py.PETSc.Error``, one line)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,11 @@ import re
 
 class ConfigError(ValueError):
     """Invalid scene or study input; ``str(err)`` is the one-line message for the user."""
+
+
+class ContactWarning(UserWarning):
+    """A one-line warning about a problem or a scene (printed as ``contact: warning: ...`` by
+    the CLI)."""
 
 
 def petsc_message(err: BaseException) -> str:

@@ -1,15 +1,20 @@
-"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6), of
-:func:`contact.solve`, :mod:`contact.adaptivity.estimate`, :mod:`contact.adaptivity.mark`
-and :mod:`contact.adaptivity.refine`.
+"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6) over a user's
+builder: ``build(mesh)`` (or ``build(domain)``) gives the problem on each level's mesh, and
+the loop solves it (:func:`contact.drivers.solve.solve`), estimates the error
+(:func:`contact.adaptivity.estimate.estimate`), marks cells
+(:func:`contact.adaptivity.mark.mark`) and refines them
+(:func:`contact.adaptivity.refine.refine`), carrying the solution to the refined mesh as the
+next level's initial guess (nested iteration).
 
 The pieces are plain functions so a user can write their own loop in a few lines::
 
-    scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+    domain, u0 = contact.Domain(mesh, facet_tags), None
     for level in range(6):
-        result = contact.solve(scene)
-        est = contact.estimate(scene, result)
+        problem = build(domain)
+        result = contact.solve(problem, u0=u0)
+        est = contact.estimate(problem, result)
         cells = contact.mark(est.eta_T, "dorfler", theta=0.5)
-        scene, u0 = contact.refine(scene, cells, result.u_h)
+        domain, u0 = contact.refine(domain, cells, result.u_h)
 """
 
 from __future__ import annotations
@@ -20,30 +25,32 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
-from ..adaptivity.estimate import Estimate
+from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
-from ..adaptivity.refine import next_dofs_bound
+from ..adaptivity.refine import Domain, next_dofs_bound, refine
 from ..base import progress
 from ..base.timing import Timer
-from ..models import build_problem
-from ..setup.budget import max_dofs
-from ..setup.scene import Scene
-from ..setup.scene_config import AdaptConfig
+from ..solvers.options import AdaptOptions, SolverOptions
+from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
-from .scene import estimate, refine
-from .solve import solve
+from . import sequencing
+from .solve import discrete, options_of
+from .solve import solve as solve_problem
 
 
 @dataclass
 class Level:
-    """One level of the adaptive loop."""
+    """One level of the adaptive loop: its domain, problem, solve, estimate, the true error
+    (if the problem's physics declares an exact solution) and the seconds of each phase."""
 
     index: int
-    scene: Scene
+    domain: Domain
+    problem: DiscreteProblem
     result: Result
     estimate: Estimate
     error: float | None
@@ -52,7 +59,7 @@ class Level:
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
 
     def row(self) -> dict[str, Any]:
-        msh = self.scene.mesh
+        msh = self.result.u_h.function_space.mesh
         row = {
             "level": self.index,
             "dofs": self.result.dofs,
@@ -94,10 +101,16 @@ class Level:
             "solve_passes": self.passes,
         }
 
+    def release(self) -> None:
+        """Keep the level's figures only (:meth:`contact.solvers.result.Result.release`): its
+        result released, its domain, problem and η_T dropped."""
+        self.result.release()
+        self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
+
 
 @dataclass
 class AdaptResult:
-    levels: list[Level] = field(default_factory=list)
+    levels: list[Any] = field(default_factory=list)  # the Level records (a scene's: SceneLevel)
     stop: str = ""
 
     @property
@@ -108,7 +121,7 @@ class AdaptResult:
 def rank_imbalance(V: fem.FunctionSpace) -> float:
     """max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial):
     1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain at most
-    2/1.15 = 1.74×.  Near 1 with ``adapt.rebalance`` (the default); without it a refined
+    2/1.15 = 1.74×.  Near 1 with ``rebalance`` (the default); without it a refined
     mesh keeps its parents' partition, and refinement concentrated on one rank's part of
     the domain unbalances the work."""
     return busiest_share(V.mesh.comm, V.dofmap.index_map.size_local)
@@ -119,54 +132,91 @@ def busiest_share(comm: MPI.Comm, owned: int) -> float:
     return comm.allreduce(owned, op=MPI.MAX) * comm.size / max(comm.allreduce(owned, op=MPI.SUM), 1)
 
 
-def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
-    """The scene's ``adapt`` section (defaults if absent) with keyword overrides (each
-    validated as in the scene file; the section itself was at load)."""
-    return (scene.config.adapt or AdaptConfig()).updated(**overrides)
+#: a level's solve: (problem, its domain, initial guess or None, adaptive stopping or None)
+LevelSolve = Callable[
+    [DiscreteProblem, Domain, fem.Function | None, AdaptiveStopping | None], Result
+]
 
 
 def adapt(
-    scene: Scene,
+    build: Callable[[Any], Any],
+    domain: dmesh.Mesh | Domain,
     method: str | None = None,
-    on_level: Callable[[Level], None] | None = None,
-    verbose: bool | None = None,
+    *,
+    options: AdaptOptions | None = None,
+    solver: SolverOptions | None = None,
+    kind: str = "residual",
     u0: fem.Function | None = None,
-    **options: Any,
+    on_level: Callable[[Level], None] | None = None,
+    solve: LevelSolve | None = None,
+    budget: int | None = None,
+    stopping: tuple[float, float] | None = None,
+    verbose: bool = False,
+    **overrides: Any,
 ) -> AdaptResult:
     """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
-    budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
-    called after each level is estimated (used by the CLI to write output as it goes);
-    ``u0`` is the first level's initial guess (a load step's previous solution)."""
+    budget is reached.
+
+    Args:
+        build: the problem on a level: ``build(mesh)`` when ``domain`` is a mesh,
+            ``build(domain)`` when it is a :class:`~contact.adaptivity.refine.Domain` (its
+            facet and cell tags carried through refinement); a
+            :class:`~contact.models.forms.ComplementarityProblem` or a model's problem,
+            with its physics declared (the estimator reads it).
+        domain: the first level's mesh or domain.
+        method: the solver's method (fb, min, blend, …).
+        options: the loop's :class:`~contact.solvers.options.AdaptOptions` (strategy,
+            theta, tol, max_dofs, max_levels, nested, rebalance, newton_rtol); keyword
+            ``overrides`` change single ones.
+        solver: the solver's options (default: the defaults); each level solves to
+            ``newton_rtol``.
+        kind: the estimator (``residual``, ``equilibrated``, ``equilibrated_rt0``).
+        u0: the first level's initial guess (e.g. a load step's previous solution).
+        on_level: called with each :class:`Level` once it is estimated (output as it goes).
+        solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
+            of :func:`contact.drivers.solve.solve`, a first level without a guess sequenced
+            over the domain's ancestors).
+        budget: the most DoFs one solve may have (a memory budget), or None.
+        stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
+            needs an equilibrated ``kind``), or None: fixed tolerances.
+        verbose: print the convergence table as it goes (rank 0).
+
+    Returns:
+        The :class:`AdaptResult`: the levels and why the loop stopped."""
     if on_level is not None and not callable(on_level):
         raise ValueError(
             f"on_level: expected a function of one Level, got {type(on_level).__name__}"
         )
-    opts = adapt_options(scene, **options)
-    verbose = scene.config.output.verbose if verbose is None else verbose
-    comm = scene.comm
+    opts = (options or AdaptOptions()).updated(**overrides)
+    knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
+    meshes = not isinstance(domain, Domain)  # the builder takes meshes
+    level_domain = Domain(domain) if isinstance(domain, dmesh.Mesh) else domain
+    if solve is None:
+        solve = _default_solve(build, knobs, meshes, opts.nested)
+    comm = level_domain.comm
     out = AdaptResult()
     for index in range(opts.max_levels):
-        seconds = {}
-        problem = build_problem(scene)
+        seconds: dict[str, float] = {}
+        problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
-        # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
         result, est, passes = solve_level(
-            scene,
             problem,
+            level_domain,
             u0,
             seconds,
             f"level {index}",
-            method=method,
-            rtol=opts.newton_rtol,
-            sequence=None if opts.nested else "off",
+            solve,
+            kind,
+            stopping,
             previous=out.levels[-1] if out.levels else None,
         )
         with Timer(seconds, "error"):
-            error = solution_error(result.problem, result)
+            error = solution_error(problem, result)
         level = Level(
             index,
-            scene,
+            level_domain,
+            problem,
             result,
             est,
             error,
@@ -196,7 +246,7 @@ def adapt(
             break
         with Timer(seconds, "mark"):
             cells = mark(est.eta_T, opts.strategy, opts.theta)
-        bound = next_dofs_bound(scene.mesh, cells, result.u_h.function_space)
+        bound = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space)
         if bound is not None and bound > opts.max_dofs:  # refining would be wasted work
             out.stop = (
                 f"the next level would have at least {bound} DoFs > max_dofs = {opts.max_dofs}"
@@ -205,8 +255,8 @@ def adapt(
         parts: dict[str, float] = {}
         with Timer(seconds, "refine"):
             progress.note(f"level {index}: refining the marked cells")
-            new_scene, new_u0 = refine(
-                scene,
+            child, new_u0 = refine(
+                level_domain,
                 cells,
                 result.u_h if opts.nested else None,
                 opts.rebalance,
@@ -217,18 +267,42 @@ def adapt(
         V_next = (
             new_u0.function_space
             if new_u0 is not None
-            else fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+            else fem.functionspace(child.mesh, result.u_h.function_space.ufl_element())
         )
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts.max_dofs:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
             break
-        # memory budget of one solve
-        if new_dofs > (budget := max_dofs(scene.config.solver, scene.mesh.geometry.dim)):
+        if budget is not None and new_dofs > budget:  # the memory budget of one solve
             out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
-        scene, u0 = new_scene, new_u0
+        level_domain, u0 = child, new_u0
     return out
+
+
+def _default_solve(build: Callable, knobs: SolverOptions, meshes: bool, nested: bool) -> LevelSolve:
+    """A level's solve of a user's builder: one :func:`~contact.drivers.solve.solve`; a level
+    without a guess (the first, or every level when not ``nested``) is sequenced over the
+    domain's ancestors with ≥ 4× fewer DoFs each (:func:`~.sequencing.ancestors`)."""
+    coarse_knobs = knobs.model_copy(update={"rtol": sequencing.COARSE_RTOL})
+
+    def solve(problem, domain: Domain, u0, criterion) -> Result:
+        coarse = None
+        if u0 is None and nested:
+            V = problem.V
+            levels = sequencing.ancestors(
+                domain, sequencing.ANCESTOR_RATIO, sequencing.COARSEST_DOFS, V.dofmap.index_map_bs
+            )[::-1]
+            if levels:
+                coarse = sequencing.hierarchy(
+                    lambda d: build(d.mesh if meshes else d),
+                    levels,
+                    domain,
+                    lambda p, guess: solve_problem(p, options=coarse_knobs, u0=guess),
+                )
+        return solve_problem(problem, options=knobs, u0=u0, coarse=coarse, criterion=criterion)
+
+    return solve
 
 
 #: adaptive stopping: at most this many solves of a level (each from the last one's solution)
@@ -241,28 +315,29 @@ PREDICTION_SAFETY = 0.5
 
 
 def solve_level(
-    scene: Scene,
-    problem,
+    problem: DiscreteProblem,
+    domain: Domain,
     u0: fem.Function | None,
     seconds: dict,
     label: str,
+    solve: LevelSolve,
+    kind: str,
+    stopping: tuple[float, float] | None,
     previous: Level | None = None,
-    **options: Any,
 ) -> tuple[Result, Estimate, int]:
-    """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
-    of :func:`~contact.drivers.solve.solve`; ``label`` names it in progress lines); returns
-    (result, estimate, solves).
+    """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``;
+    ``solve`` the level's solve, ``kind`` the estimator; ``label`` names it in progress
+    lines); returns (result, estimate, solves).
 
-    With ``solver.stopping: adaptive`` (:mod:`contact.solvers.stopping`) a level after the
-    first is solved against the discretization error it should reach, predicted from the
-    previous level at the optimal rate, :data:`PREDICTION_SAFETY` · η_prev (N_prev / N)^{p/d};
-    the level's η_disc is then
+    With adaptive stopping (``stopping`` = (γ_lin, γ_alg), :mod:`contact.solvers.stopping`)
+    a level after the first is solved against the discretization error it should reach,
+    predicted from the previous level at the optimal rate,
+    :data:`PREDICTION_SAFETY` · η_prev (N_prev / N)^{p/d}; the level's η_disc is then
     computed at the final iterate, and where the iterate fails either criterion against it
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
     level, with no η known yet, uses the fixed tolerances."""
-    solver = scene.config.solver
-    adaptive = solver.stopping == "adaptive" and previous is not None
+    adaptive = stopping is not None and previous is not None
     eta = None
     if adaptive:
         assert previous is not None  # adaptive needs the previous level's η
@@ -273,22 +348,20 @@ def solve_level(
     seconds["solve"] = seconds["estimate"] = 0.0
     krylov, passes = 0, 0
     while True:
-        stopping = (  # eta is known exactly when the stopping is adaptive
-            None if eta is None else AdaptiveStopping(eta, solver.gamma_lin, solver.gamma_alg)
+        criterion = (  # eta is known exactly when the stopping is adaptive
+            None if eta is None or stopping is None else AdaptiveStopping(eta, *stopping)
         )
         with Timer(seconds, "solve"):
-            result = solve(
-                scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options
-            )
+            result = solve(problem, domain, u0, criterion)
         progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
         with Timer(seconds, "estimate"):
-            est = estimate(scene, result)
+            est = estimate(problem, result, kind)
         krylov += result.krylov_iterations
         passes += 1
         if (
-            stopping is None
+            criterion is None
             or not result.converged
-            or stopping.balanced(est.eta)
+            or criterion.balanced(est.eta)
             or passes == MAX_PASSES
         ):
             break

@@ -42,6 +42,7 @@ from ..solvers.snes import solve_problem
 from . import form_checks as checks
 from .constraints import Unilateral
 from .discrete import Problem
+from .physics import Physics
 from .problem import assemble_system
 
 
@@ -175,6 +176,7 @@ class ComplementarityProblem:
         u: fem.Function,
         constraint: Unilateral,
         bcs: Sequence[fem.DirichletBC] = (),
+        physics: Physics | None = None,
     ) -> ComplementarityProblem:
         """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h).
 
@@ -185,6 +187,8 @@ class ComplementarityProblem:
             u: the Function that receives the solution (and is the initial guess).
             constraint: where and how u is bounded.
             bcs: Dirichlet conditions on u's space (or its subspaces).
+            physics: the equations the forms discretise (:mod:`~contact.models.physics`),
+                which the estimators read; None: no estimate.
 
         Returns:
             The problem, K and b assembled once; close it (or use ``with``)."""
@@ -192,12 +196,13 @@ class ComplementarityProblem:
         V, bcs = _checked(u, bcs, constraint, [("a", a, 2), ("L", L, 1)])
         return cls(
             _discrete(
-                DiscreteProblem,
+                Problem,
                 u,
                 bcs,
                 lambda: assemble_system(fem.form(a), fem.form(L), bcs),
                 constraint,
                 t0,
+                physics,
             )
         )
 
@@ -209,6 +214,7 @@ class ComplementarityProblem:
         constraint: Unilateral,
         bcs: Sequence[fem.DirichletBC] = (),
         J: ufl.Form | None = None,
+        physics: Physics | None = None,
     ) -> ComplementarityProblem:
         """R(u) = w λ from a residual F(u; v), nonlinear in the Function ``u`` it is written
         in, and J = ∂F/∂u (default ``ufl.derivative(F, u)``); ``u``'s values are the initial
@@ -222,6 +228,8 @@ class ComplementarityProblem:
             bcs: Dirichlet conditions on u's space (or its subspaces).
             J: the bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
                 is a compiled ``dolfinx.fem.Form``).
+            physics: the equations F discretises (:mod:`~contact.models.physics`), which the
+                estimators read; None: no estimate.
 
         Returns:
             The problem, R and its tangent re-assembled at every Newton iterate; close it
@@ -238,6 +246,7 @@ class ComplementarityProblem:
             lambda: ResidualProblem.matrices(J_form, bcs),
             constraint,
             t0,
+            physics,
         )
         problem.F_form, problem.J_form = F_form, J_form
         return cls(problem)
@@ -326,13 +335,14 @@ def _checked(
     return V, bc_list
 
 
-def _discrete[P: DiscreteProblem](
+def _discrete[P: Problem](
     kind: type[P],
     u: fem.Function,
     bcs: list,
     matrices: Callable[[], tuple[PETSc.Mat, PETSc.Vec]],
     constraint: Unilateral,
     t0: float,
+    physics: Physics | None = None,
 ) -> P:
     """The solver's problem: the constraint's nodes, weights and bound on u's space (checked
     collectively), then K and b from ``matrices()``."""
@@ -355,4 +365,6 @@ def _discrete[P: DiscreteProblem](
         semicoercive=fixed == 0,
         data={"g_h": g},
         assembly_time=time.perf_counter() - t0,
+        physics=physics,
+        contacts=(constraint,),
     )

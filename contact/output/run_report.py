@@ -24,7 +24,8 @@ import numpy as np
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
-from ..drivers.adaptive import AdaptResult, Level
+from ..drivers.adaptive import AdaptResult
+from ..drivers.scene import SceneLevel as Level
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, value_name, view_normal
 from ..post.exact_data import exact_mismatches
@@ -90,7 +91,7 @@ def warn_coarse_zone(scene: Scene, result: Result) -> None:
     force)."""
     across = nodes_across(result)
     if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
-        from ..setup.surfaces import ContactWarning
+        from ..base.errors import ContactWarning
 
         warnings.warn(
             f"the contact zone holds {result.n_active} active node(s), about "

@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from ..drivers.load_path import LoadPath, Step
+from ..drivers.load_path import LoadPath
+from ..drivers.scene import SceneStep as Step
 from ..drivers.scene import estimate
 from ..post.contact_table import Table, contact_table, tangent_2d
 from ..post.friction_resultants import surface_figures

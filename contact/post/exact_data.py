@@ -29,11 +29,11 @@ from dolfinx import fem, la
 from mpi4py import MPI
 
 from ..base import expressions
+from ..base.errors import ContactWarning
 from ..models.elasticity import lame, stress
 from ..setup.meshes import NATURAL
 from ..setup.scene import Scene
 from ..setup.scene_config import components
-from ..setup.surfaces import ContactWarning
 
 #: relative round-off floor of the test d_P > max(i_P, RTOL (‖B u‖ + ‖b‖))
 RTOL = 1e-8

@@ -42,26 +42,22 @@ from ..base import expressions
 from ..base.errors import ConfigError
 from ..base.validation import (
     FrozenDict,
-    boolean,
     checked,
     config_error,
     fail,
-    half_open_unit,
     integer,
     nonnegative,
     number,
     one_of,
     open_unit,
     parse_section,
-    positive,
 )
-from ..solvers.options import FrictionOptions, SolverOptions
+from ..solvers.options import AdaptOptions, FrictionOptions, SolverOptions
 
 #: models whose unknown is a displacement vector: linear elasticity (small strain) and
 #: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)
 ELASTIC_MODELS = ("elasticity", "hyperelastic")
 FRICTION_LAWS = ("none", "tresca", "coulomb")
-STRATEGIES = ("dorfler", "maximum", "uniform", "none")
 
 
 class _Section(BaseModel):
@@ -183,35 +179,15 @@ class SolverConfig(SolverOptions):
 
 
 # -------------------------------------------------------------------- the adapt section
-class AdaptConfig(_Section):
-    """A scene's ``adapt`` section (docs/theory.md §6): ``strategy`` — dorfler, maximum,
-    uniform or none (one solve); ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop
-    at η ≤ tol; ``max_dofs``, ``max_levels`` — budgets; ``nested`` — each level starts from
-    the previous solution; ``rebalance`` — repartition refined meshes; ``newton_rtol`` —
-    Newton's relative tolerance inside the loop; ``pictures`` — levels drawn."""
+class AdaptConfig(AdaptOptions):
+    """A scene's ``adapt`` section (docs/theory.md §6): the loop's knobs
+    (:class:`~contact.solvers.options.AdaptOptions`) and ``pictures`` — levels drawn."""
 
-    strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
-    theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
-    tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
-    max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
-    max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8
-    nested: Annotated[bool, BeforeValidator(boolean)] = True
-    rebalance: Annotated[bool, BeforeValidator(boolean)] = True
-    newton_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10
     pictures: Annotated[int, BeforeValidator(integer(nonnegative))] = 3
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptConfig:
         return parse_section(cls, values, path)
-
-    def updated(self, **changes: Any) -> AdaptConfig:
-        """A copy with keyword ``changes`` (None: unchanged), each validated as in the scene
-        file (``adapt.<key>: …``)."""
-        given = {k: v for k, v in changes.items() if v is not None}
-        if not given:
-            return self
-        checked_ = AdaptConfig.parse(given)
-        return self.model_copy(update={k: getattr(checked_, k) for k in given})
 
 
 # ----------------------------------------------------------------- the friction section

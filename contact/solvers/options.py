@@ -20,6 +20,7 @@ from ..base.validation import (
     auto_or_positive,
     boolean,
     checked,
+    half_open_unit,
     integer,
     mapping_of,
     nonnegative,
@@ -134,6 +135,47 @@ class FrictionOptions(BaseModel):
         return FrictionOptions.model_construct(
             **{key: getattr(self, key) for key in FrictionOptions.model_fields}
         )
+
+
+#: the adaptive loop's marking: Dörfler's bulk criterion, the maximum strategy, every cell,
+#: or none (one solve)
+STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+
+
+class AdaptOptions(BaseModel):
+    """The knobs of an adaptive loop (docs/theory.md §6), validated once and immutable, like
+    :class:`SolverOptions`: ``strategy`` — dorfler, maximum, uniform or none (one solve);
+    ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop at η ≤ tol; ``max_dofs``,
+    ``max_levels`` — budgets; ``nested`` — each level starts from the previous solution;
+    ``rebalance`` — repartition refined meshes; ``newton_rtol`` — Newton's relative
+    tolerance inside the loop.  A scene's ``adapt`` section is these knobs and its output's
+    (:class:`contact.setup.scene_config.AdaptConfig`)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
+    theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
+    tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
+    max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
+    max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8
+    nested: Annotated[bool, BeforeValidator(boolean)] = True
+    rebalance: Annotated[bool, BeforeValidator(boolean)] = True
+    newton_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10
+
+    @classmethod
+    def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptOptions:
+        """The options of keyword ``values``, validated: one ConfigError line
+        ``<path>.<key>: …``."""
+        return parse_section(cls, values, path)
+
+    def updated(self, **changes: Any) -> Any:
+        """A copy with keyword ``changes`` (None: unchanged), each validated (``adapt.<key>:
+        …`` on a bad one)."""
+        given = {k: v for k, v in changes.items() if v is not None}
+        if not given:
+            return self
+        checked_ = type(self).parse(given)
+        return self.model_copy(update={k: getattr(checked_, k) for k in given})
 
 
 DEFAULT_PETSC_OPTIONS = {

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import contact
-from contact.drivers.adaptive import adapt
+from contact.drivers.scene import adapt
 from contact.output.folder import write_csv
 
 import numpy as np

@@ -326,7 +326,7 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
 
 
 def cattaneo(sizes: list[float]) -> None:
-    from contact.drivers.load_path import run_load_path
+    from contact.drivers.scene import run_load_path
     from contact.post.cattaneo import traction
 
     rows, profiles = [], None
