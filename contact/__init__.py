@@ -28,11 +28,9 @@ from .adaptivity.refine import Domain  # noqa: E402
 from .base.errors import ConfigError  # noqa: E402
 from .drivers import adaptive as _adaptive  # noqa: E402
 from .drivers import load_path as _load_path  # noqa: E402
-from .drivers import scene as _scene  # noqa: E402
 from .drivers import solve as _solve  # noqa: E402
 from .drivers.adaptive import AdaptResult  # noqa: E402
 from .drivers.load_path import LoadPath  # noqa: E402
-from .drivers.scene import estimate, is_problem  # noqa: E402
 from .drivers.sequencing import Hierarchy  # noqa: E402
 from .drivers.solve import sequence  # noqa: E402
 from .models.constraints import (  # noqa: E402
@@ -48,6 +46,8 @@ from .models.constraints import (  # noqa: E402
 )
 from .models.forms import ComplementarityProblem  # noqa: E402
 from .models.physics import BoundaryData, Diffusion, Elasticity  # noqa: E402
+from .setup import run as _scene  # noqa: E402
+from .setup.run import estimate, is_problem  # noqa: E402
 from .setup.scene import Scene, load_scene  # noqa: E402
 from .solvers.options import AdaptOptions, SolverOptions  # noqa: E402
 from .solvers.result import Result  # noqa: E402

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import contact
 from contact.base import expressions
-from contact.drivers.scene import load_times, run_load_path
+from contact.setup.run import load_times, run_load_path
 
 import numpy as np
 import pytest

@@ -141,7 +141,7 @@ from mpi4py import MPI
 import contact
 from contact.adaptivity.mark import mark
 from contact.adaptivity.refine import next_dofs_bound
-from contact.drivers.scene import refine
+from contact.setup.run import refine
 from dolfinx import fem
 scene = contact.load_scene(sys.argv[1])
 rows = []
@@ -174,7 +174,7 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem
 import contact
-from contact.drivers.levels import transfer
+from contact.setup.levels import transfer
 comm = MPI.COMM_WORLD
 scene = first = contact.load_scene(sys.argv[1], ["mesh.cells=[16,16]"])
 for _ in range(5):     # Dörfler: local refinement, each child mesh redistributed (adapt.rebalance)

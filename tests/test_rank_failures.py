@@ -125,7 +125,7 @@ def _friction_scene(tmp: Path) -> Path:
 # (target, rank, scene) — scene "square": the 8 × 8 Signorini square, one solve;
 # "adaptive": it with two uniform levels and pictures; "friction": _friction_scene
 CASES = {
-    "solve of a load step": ("contact.drivers.scene.solve", 1, "friction"),
+    "solve of a load step": ("contact.setup.run.solve", 1, "friction"),
     "step writer (surface figures)": ("contact.output.step_report.surface_figures", 1, "friction"),
     "VTK gather": ("contact.output.vtk._gather_rows", 1, "square"),
     "writing a file (disk full)": ("contact.output.vtk.save_vtu", 0, "square"),
@@ -168,7 +168,7 @@ def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> No
     """A study catches a failing run as a row — but only a failure on every rank: one
     rank's alone ends the job."""
     proc, seconds = _planted(
-        tmp_path, "contact.drivers.scene.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out"
+        tmp_path, "contact.setup.run.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out"
     )
     _ended_by(
         proc, seconds, 1, 3, "internal error: study run method=fb: RuntimeError: planted in solve"
@@ -181,7 +181,7 @@ def test_exception_on_every_rank_in_a_study_run_is_a_row(tmp_path: Path) -> None
 
     proc, seconds = _planted(
         tmp_path,
-        "contact.drivers.scene.solve",
+        "contact.setup.run.solve",
         -1,
         "study",
         str(_tiny_study(tmp_path)),

@@ -268,9 +268,9 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
     from ..drivers.adaptive import AdaptResult, format_table
-    from ..drivers.scene import adapt
     from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
+    from ..setup.run import adapt
 
     a = scene.config.adapt
     assert a is not None  # _run chose the adaptive loop for it
@@ -321,10 +321,10 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
-    from ..drivers.scene import run_load_path
     from ..output import folder
     from ..output.run_report import files_text
     from ..output.step_report import StepWriter
+    from ..setup.run import run_load_path
     from ..solvers.energy_search import tangent_text
 
     with folder.atomic_folder(outdir, comm, label) as tmp:

@@ -524,7 +524,7 @@ def _peak_rss_mib(comm: MPI.Comm) -> float:
 
 
 def _refine_uniformly(scene, times: int):
-    from ..drivers.scene import refine
+    from ..setup.run import refine
 
     for _ in range(times):
         tdim = scene.mesh.topology.dim
@@ -576,7 +576,7 @@ def run_one(
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
-    from ..drivers.scene import adapt, estimate, solve
+    from ..setup.run import adapt, estimate, solve
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 
@@ -721,8 +721,8 @@ def _run_path(
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
     (seconds, failure text)."""
     from ..adaptivity.energy_error import solution_error
-    from ..drivers.scene import estimate, run_load_path
     from ..post.friction_resultants import surface_figures
+    from ..setup.run import estimate, run_load_path
 
     def on_step(step) -> None:
         r = step.result

@@ -34,12 +34,13 @@ from ..adaptivity.mark import mark
 from ..adaptivity.refine import Domain, next_dofs_bound, refine
 from ..base import progress
 from ..base.timing import Timer
+from ..models.discrete import discrete
 from ..solvers.options import AdaptOptions, SolverOptions
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
-from .solve import discrete, options_of
+from .solve import options_of
 from .solve import solve as solve_problem
 
 

@@ -25,7 +25,7 @@ per vector on more than one rank) and MPI has a few thousand, so keeping every s
 
 :func:`load_path` runs a user's builder ``build(t, u_prev)``; :func:`run_steps` is the loop
 itself, over a step's solve and, optionally, an adaptive loop at a step (the scene's:
-:mod:`contact.drivers.scene`).
+:mod:`contact.setup.run`).
 """
 
 from __future__ import annotations
@@ -38,10 +38,11 @@ from typing import Any
 from dolfinx import fem
 from mpi4py import MPI
 
+from ..models.discrete import discrete
 from ..solvers.energy_search import tangent_text
 from ..solvers.options import SolverOptions
 from ..solvers.result import Result
-from .solve import discrete, options_of, solve
+from .solve import options_of, solve
 
 #: no cut makes a step shorter than this fraction of the path's last pseudo-time (a scene's
 #: schema bounds ``load.cuts`` too: ``contact.setup.config.MAX_STEP_CUTS``)

@@ -31,6 +31,7 @@ from dolfinx.mesh import MeshTags
 
 from ..adaptivity.transfer import prolong
 from ..base.buckets import box_point_pairs
+from ..models.discrete import discrete
 from ..solvers.result import Result
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
@@ -170,7 +171,7 @@ def hierarchy(
     refinements, point location otherwise)."""
 
     def built(level: Any) -> Callable[[], tuple[Any, Any]]:
-        return lambda: (level, build(level))
+        return lambda: (level, discrete(build(level)))
 
     return Hierarchy(
         [built(level) for level in levels],

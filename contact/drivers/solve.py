@@ -12,26 +12,13 @@ from dolfinx import fem
 
 from ..base.errors import ConfigError
 from ..base.timing import Stopwatch, Timer
+from ..models.discrete import discrete
 from ..solvers import ncp
 from ..solvers.options import SolverOptions
-from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import check_guess, solve_problem
 from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
-
-
-def discrete(problem: Any) -> DiscreteProblem:
-    """The solver's problem of ``problem``: itself, or what a
-    :class:`~contact.models.forms.ComplementarityProblem` holds; anything else is a
-    ValueError naming the argument."""
-    inner = getattr(problem, "problem", problem)
-    if not isinstance(inner, DiscreteProblem):
-        raise ValueError(
-            "problem: expected a contact.ComplementarityProblem or the problem of a model, "
-            f"got {type(problem).__name__}"
-        )
-    return inner
 
 
 def options_of(options: SolverOptions | None, method: str | None, overrides: dict) -> SolverOptions:

@@ -25,7 +25,7 @@ siblings give them at points (NumPy, every Newton iterate on the current configu
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import dolfinx
@@ -34,8 +34,36 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
+from ..solvers.options import FrictionOptions
+from ..solvers.problem import Constraint
 from . import form_checks as checks
-from .problem import lumped_weights
+from .problem import contact_ends, lumped_weights
+
+
+@dataclass
+class ContactSet:
+    """What a problem's contact conditions make of its assembled K and b: the constraint set,
+    the :class:`~contact.solvers.problem.DiscreteProblem` fields they decide (``fields``:
+    output space, basis, ends, the current configuration's nodes …), the data the estimators
+    and reports read (``data``), and — where a change of basis replaced them — the new K̃, b̃
+    and the Dirichlet conditions on the unknowns."""
+
+    constraint: Constraint
+    fields: dict[str, Any] = field(default_factory=dict)
+    data: dict[str, Any] = field(default_factory=dict)
+    K: Any = None  # PETSc.Mat K̃ = Qᵀ K Q, or None
+    b: Any = None  # PETSc.Vec b̃ = Qᵀ b, or None
+    bcs: list | None = None
+
+    @property
+    def kind(self) -> str:
+        """How a residual problem reads its unknowns: ``plain`` (u), ``rotated`` (x = Qᵀ u,
+        contact nodes on their (n, t) axes) or ``current`` (contact on the current
+        configuration)."""
+        if self.fields.get("current") is not None:
+            return "current"
+        return "rotated" if self.fields.get("basis") is not None else "plain"
+
 
 #: a bound: a number, a Function on V, a UFL expression (of ``ufl.SpatialCoordinate``), values
 #: at the constrained DoFs, or f(x) → values at points x of shape (3, n) (as
@@ -92,13 +120,34 @@ class Unilateral:
             return ()
         return measure_ids(self.measure)
 
+    def discretise(
+        self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC], allow_empty: bool = False
+    ) -> ContactSet:
+        """The constraint set of this condition on u's space V: its DoFs, weights and bound
+        (:meth:`nodes`, :meth:`bound_function`); on facets of a scalar space, the ends of
+        Γ_C on the closure of Γ_D, which get the multiplier of their nearest contact DoF
+        (:func:`~.problem.contact_ends`).  Collective."""
+        dofs, w = self.nodes(V, bcs, allow_empty)
+        g = self.bound_function(V, dofs)
+        fields: dict[str, Any] = {"in_domain": self.in_domain}
+        if self.ids and self.component is None and self.dofs is None:
+            n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+            tdim = V.mesh.topology.dim
+            assert self.measure is not None  # a facet condition
+            candidates = fem.locate_dofs_topological(V, tdim - 1, measure_facets(self.measure))
+            fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
+            ends = contact_ends(V, candidates[candidates < n_owned], candidates, fixed)
+            fields.update(zip(("end_dofs", "end_neighbours"), ends))
+        constraint = Constraint(dofs, g.x.array[dofs].copy(), w, self.sign)
+        return ContactSet(constraint, fields, {"g_h": g})
+
     def nodes(
-        self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC]
+        self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC], allow_empty: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
         """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights.
         Collective; the constraint is checked first (:func:`~.form_checks.check_constraint`).
-        A measure that selects nothing, or a constraint left with no DoF on any rank, is a
-        ValueError (on every rank)."""
+        A measure that selects nothing, or (unless ``allow_empty``) a constraint left with no
+        DoF on any rank, is a ValueError (on every rank)."""
         comm = V.mesh.comm
         n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
@@ -106,12 +155,14 @@ class Unilateral:
             dofs = np.asarray(self.dofs, dtype=np.int32)
             w = np.ones(len(dofs)) if self.weights is None else np.asarray(self.weights, float)
             keep = ~np.isin(dofs, fixed)
-            checks.check_constrained(comm, dofs[keep], by_dofs=True)
+            if not allow_empty:
+                checks.check_constrained(comm, dofs[keep], by_dofs=True)
             return dofs[keep], w[keep]
         measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
         dofs = _dofs_of(V, measure, self.component)
         dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
-        checks.check_constrained(comm, dofs, by_dofs=False)
+        if not allow_empty:
+            checks.check_constrained(comm, dofs, by_dofs=False)
         w = lumped_weights(V, measure, self.component)[dofs]
         if comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
             raise ValueError(
@@ -386,12 +437,34 @@ class Tresca:
             the spatial coordinate; the estimators read it as written.
         at_nodes: s at points x of shape (3, n) → (n,), where the nodal values should come
             from elsewhere than the UFL expression (None: evaluated from it).
+        options: the knobs of the tangential rows (:class:`~contact.solvers.options.
+            FrictionOptions`).
     """
 
     threshold: Any
     at_nodes: Callable[[np.ndarray], np.ndarray] | None = None
+    options: FrictionOptions = FrictionOptions()
+    #: the names its messages give: the threshold's, and when it is evaluated
+    key: str = "Tresca.threshold"
+    when: str = ""
 
     law = "tresca"
+
+    def values(self, V: fem.FunctionSpace, nodes: np.ndarray) -> np.ndarray:
+        """s at the nodes (blocks of V's DoFs): from ``at_nodes`` at their coordinates, or
+        the threshold itself interpolated at them."""
+        X = V.tabulate_dof_coordinates()[nodes]
+        if self.at_nodes is not None:
+            return np.asarray(self.at_nodes(X.T), dtype=float)
+        if not isinstance(self.threshold, ufl.core.expr.Expr):
+            return np.full(len(nodes), float(self.threshold))
+        S, to_parent = V.sub(0).collapse()
+        s = fem.Function(S)
+        s.interpolate(fem.Expression(self.threshold, S.element.interpolation_points))
+        node_of = np.asarray(to_parent, dtype=np.int64) // V.dofmap.index_map_bs
+        values = np.empty(len(node_of))
+        values[node_of] = s.x.array
+        return values[nodes]
 
 
 @dataclass(frozen=True)
@@ -400,9 +473,12 @@ class Coulomb:
 
     Args:
         coefficient: the friction coefficient F ≥ 0.
+        options: the knobs of the tangential rows (:class:`~contact.solvers.options.
+            FrictionOptions`: c_t, the HSW or projection form, Newton or the fixed point).
     """
 
     coefficient: float
+    options: FrictionOptions = FrictionOptions()
 
     law = "coulomb"
 
@@ -423,12 +499,15 @@ class RigidObstacle:
         friction: :class:`Tresca`, :class:`Coulomb` or None (frictionless).
         motion: the surface's translation since the previous load step (the slip of contact
             on the current configuration is relative to it); None: at rest.
+        moving: the surface moves with the load: contact nodes may start inside it (a
+            prescribed penetration; a curved obstacle at rest refuses them).
     """
 
     surface: Surface
     measure: ufl.Measure
     friction: Friction | None = None
     motion: np.ndarray | None = None
+    moving: bool = False
 
     @property
     def ids(self) -> tuple[int, ...]:
@@ -447,12 +526,14 @@ class MortarPair:
         friction: :class:`Tresca`, :class:`Coulomb` or None.
         search: the largest distance between a slave facet and a master facet it meets
             (None: the diameter of the pair's surfaces).
+        names: the slave and master surfaces' names in messages.
     """
 
     slave: ufl.Measure
     master: ufl.Measure
     friction: Friction | None = None
     search: float | None = None
+    names: tuple[str, str] = ("slave", "master")
 
     @property
     def ids(self) -> tuple[int, ...]:
@@ -469,5 +550,58 @@ def measure_ids(measure: ufl.Measure) -> tuple[int, ...]:
     return tuple(tag) if isinstance(tag, tuple) else (tag,)
 
 
+def measure_facets(measure: ufl.Measure) -> np.ndarray:
+    """The local facets (sorted) a tagged ``ds`` measure integrates over."""
+    tags = measure.subdomain_data()
+    return np.sort(tags.indices[np.isin(tags.values, measure_ids(measure))]).astype(np.int32)
+
+
 #: a contact condition of a problem
 Condition = Unilateral | RigidObstacle | MortarPair
+
+
+def check_condition(c: Any, V: fem.FunctionSpace) -> dict[str, object]:
+    """A contact condition ``c`` on its own and against u's space ``V`` (local data; a
+    one-line TypeError or ValueError naming the argument): a :class:`Unilateral`
+    (:func:`~.form_checks.check_constraint`), or a :class:`RigidObstacle` /
+    :class:`MortarPair` on a vector space of gdim components, over tagged facets of u's
+    mesh, with a surface and a friction law of the kinds above.  Returns what decides the
+    collectives it enters (for :func:`~.form_checks.agree` with ``same``)."""
+    if isinstance(c, Unilateral):
+        return checks.check_constraint(c, V)
+    if not isinstance(c, (RigidObstacle, MortarPair)):
+        raise TypeError(
+            f"constraint: expected a contact.Unilateral, got {type(c).__name__} (or a "
+            "RigidObstacle, a MortarPair, or a list of conditions)"
+        )
+    name = type(c).__name__
+    if V.dofmap.index_map_bs != V.mesh.geometry.dim:
+        raise ValueError(f"{name}: u must be a displacement (a vector of gdim components)")
+    measures = (
+        {"measure": c.measure}
+        if isinstance(c, RigidObstacle)
+        else {
+            "slave": c.slave,
+            "master": c.master,
+        }
+    )
+    for key, measure in measures.items():
+        checks.check_measure(measure, V, f"{name}.{key}")
+        if measure is None or measure.integral_type() != "exterior_facet":
+            raise ValueError(f"{name}.{key}: expected ds(tag) of the contact facets")
+        if measure.subdomain_id() == "everywhere":
+            raise ValueError(f"{name}.{key}: expected ds(tag) with the facet tags")
+    if isinstance(c, RigidObstacle) and not isinstance(
+        c.surface, (Plane, Ball, Cylinder, SignedDistance)
+    ):
+        raise TypeError(
+            f"RigidObstacle.surface: expected a Plane, Ball, Cylinder or SignedDistance, "
+            f"got {type(c.surface).__name__}"
+        )
+    if c.friction is not None and not isinstance(c.friction, (Tresca, Coulomb)):
+        raise TypeError(
+            f"{name}.friction: expected a Tresca or Coulomb law, got {type(c.friction).__name__}"
+        )
+    return {
+        f"{name}.{key}": f"{m.integral_type()}({m.subdomain_id()})" for key, m in measures.items()
+    }

@@ -6,6 +6,7 @@ reports read."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from dolfinx import fem
 
@@ -26,3 +27,16 @@ class Problem(DiscreteProblem):
     contacts: tuple[Condition, ...] = ()
     #: the previous load step's displacement, from which friction's slips are measured
     u_prev: fem.Function | None = None
+
+
+def discrete(problem: Any) -> DiscreteProblem:
+    """The solver's problem of ``problem``: itself, or what a
+    :class:`~contact.models.forms.ComplementarityProblem` holds; anything else is a
+    ValueError naming the argument."""
+    inner = getattr(problem, "problem", problem)
+    if not isinstance(inner, DiscreteProblem):
+        raise ValueError(
+            "problem: expected a contact.ComplementarityProblem or the problem of a model, "
+            f"got {type(problem).__name__}"
+        )
+    return inner

@@ -34,13 +34,17 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.lifetime import destroy
 from ..base.timing import Stopwatch
+from ..solvers.current import nodal_geometry
+from ..solvers.floating import floating_bodies
 from ..solvers.options import SolverOptions
-from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.problem import DiscreteProblem, NodeBlockMatrix
 from ..solvers.result import Result
 from ..solvers.snes import solve_problem
 from . import form_checks as checks
-from .constraints import Unilateral
+from .constraints import Condition, ContactSet, Unilateral, check_condition
+from .contacts import BodiesProblem, contact_set, mirror_axes
 from .discrete import Problem
 from .physics import Physics
 from .problem import assemble_system
@@ -151,6 +155,136 @@ class ResidualProblem(Problem):
             self._F.destroy()
 
 
+@dataclass
+class RotatedResidualProblem(ResidualProblem):
+    """The residual problem in rotated unknowns x = Qᵀ u (Q orthogonal and block-diagonal:
+    the contact nodes of a tilted plane on their (n, t) axes, the others unrotated, as in
+    :func:`contact.models.obstacles.plane_contact`):
+
+        R̃(x) = Qᵀ R(Q x),     K̃(x) = Qᵀ K_T(Q x) Q,
+
+    so that u·n ≤ g is a bound on one unknown per contact node.  K̃ is written into ``K``
+    (MatPtAP reusing its pattern: the solvers keep their references to it)."""
+
+    K_T: PETSc.Mat | None = None  # the tangent in the displacement unknowns
+    _R: PETSc.Vec | None = field(default=None, repr=False)
+
+    def _rotation(self) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """(Q, K_T): always given (the builder passes both; None only as defaults)."""
+        assert self.basis is not None and self.K_T is not None, "basis (Q), K_T not set"
+        return self.basis, self.K_T
+
+    def _set_iterate(self, x: PETSc.Vec) -> None:
+        u = self.u_h.x
+        self._rotation()[0].mult(x, u.petsc_vec)  # u = Q x
+        u.scatter_forward()
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """out = Qᵀ R(Q x)."""
+        if self._R is None:
+            self._R = out.duplicate()
+        super().residual(x, self._R)
+        self._rotation()[0].multTranspose(self._R, out)
+
+    def linearize(self, x: PETSc.Vec) -> None:
+        """K = Qᵀ K_T(Q x) Q."""
+        self._set_iterate(x)
+        Q, K_T = self._rotation()
+        self._assemble_tangent(K_T)
+        K_T.PtAP(Q, result=self.K)
+
+    def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
+        """Qᵀ J(Q x) Q with the Dirichlet rows and columns kept (a new matrix)."""
+        A = super().full_tangent(x)
+        out = A.PtAP(self._rotation()[0])
+        A.destroy()
+        return out
+
+    def destroy(self) -> None:
+        super().destroy()
+        destroy(self.K_T, self._R)
+
+
+@dataclass
+class CurrentResidualProblem(ResidualProblem):
+    """The residual problem with contact on the current configuration
+    (:mod:`contact.solvers.current`, ``current`` set): the unknowns are the displacements,
+    a contact node's residual block is read in the frame of its current normal ñ(x_i).
+    The nodal quantities below are those of the iterate in ``u_h`` (the residual ``r``
+    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it)."""
+
+    def _rows(self) -> np.ndarray:
+        bs = self.V.dofmap.index_map_bs
+        return self.current.nodes[:, None] * bs + np.arange(bs)
+
+    def multiplier(self, r: np.ndarray) -> np.ndarray:
+        """λ_i = ñ_i·R_i / w_i (≤ 0 in contact): the normal nodal force per reference area."""
+        rows = self._rows()
+        geo = nodal_geometry(self.current, self.u_h.x.array[rows])
+        return np.einsum("ka,ka->k", geo.frames[:, :, 0], r[rows]) / self.constraint.w
+
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """The nominal contact pressure p_i = −λ_i (force per reference area, ≥ 0)."""
+        return -self.multiplier(r)
+
+    def nodal_gap(self, x: np.ndarray) -> np.ndarray:
+        """g(X_i + u_i): the gap of the deformed contact node (x holds the displacements)."""
+        cc = self.current
+        return cc.surface.project(cc.X + x[self._rows()])[0]
+
+    def gap_output(self, x: np.ndarray) -> fem.Function:
+        """The current gap g(X_i + u_i) at the contact nodes, NaN elsewhere."""
+        gap = self.nodal_output("gap", self.nodal_gap(x))
+        on = self.nodal_output("on", np.ones(len(self.constraint.dofs)))
+        gap.x.array[on.x.array < 0.5] = np.nan
+        return gap
+
+    def constrained_hessian(self, x: PETSc.Vec, active: np.ndarray) -> tuple[PETSc.Mat, np.ndarray]:
+        """(Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
+        solution x, on the tangent space of the active constraints — what decides the
+        stability of a constrained equilibrium (:func:`negative_eigenvalues`).  With
+        μ_i = ñ_i·R_i (= w_i λ_i ≤ 0; R_i = μ_i ñ_i at a frictionless solution) and
+        ∇²g = −Dn,
+
+            ∇²L = K_T − Σ_{i active} μ_i P_i Dn_i P_i,
+
+        (against a circle or sphere −μ Dn = −w p (I − n nᵀ)/|x − c|: a convex obstacle
+        softens the body's tangential motion — it can roll off), rotated to the active nodes'
+        current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
+        matrix (the caller destroys it); K becomes K_T(x)."""
+        cc, bs = self.current, self.V.dofmap.index_map_bs
+        rows = self._rows()
+        r = x.duplicate()
+        self.residual(x, r)
+        self.linearize(x)
+        u = x.array_r[rows]
+        geo = nodal_geometry(cc, u)
+        Dn = cc.surface.project(cc.X + u)[2]
+        free = ~cc.fixed
+        mu = np.einsum("ka,ka->k", geo.frames[:, :, 0], r.array_r[rows])
+        nodes = cc.nodes[active]
+        curvature, frames = NodeBlockMatrix(self.K, bs), NodeBlockMatrix(self.K, bs)
+        blocks = np.zeros((curvature.local_nodes, bs, bs))
+        blocks[nodes] = (-mu[:, None, None] * (free[:, :, None] * Dn * free[:, None, :]))[active]
+        hessian = self.K.duplicate(copy=True)
+        subset = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+        hessian.axpy(1.0, curvature.set(blocks), structure=subset)  # type: ignore[arg-type]
+        Q = frames.identity()
+        Q[nodes] = geo.frames[active]
+        out = hessian.PtAP(frames.set(Q))
+        destroy(hessian, curvature.mat, frames.mat, r)
+        return out, (nodes * bs).astype(np.int32)
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """F = −m_n Σ_i R_i·n: the resultant of the nodal contact forces along the normal n
+        at the first point of contact (m_n the mirror images pressing along n,
+        :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`; frictionless:
+        Σ w_i p_i ñ_i·n)."""
+        n = np.asarray(self.data["n"], dtype=float)
+        local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
+        return self.copies_along(n) * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
 class ComplementarityProblem:
     """A complementarity problem of the user's forms (module docstring) and its solver.
 
@@ -174,9 +308,10 @@ class ComplementarityProblem:
         a: ufl.Form,
         L: ufl.Form,
         u: fem.Function,
-        constraint: Unilateral,
+        constraint: Condition | Sequence[Condition],
         bcs: Sequence[fem.DirichletBC] = (),
         physics: Physics | None = None,
+        u_prev: fem.Function | None = None,
     ) -> ComplementarityProblem:
         """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h).
 
@@ -185,24 +320,30 @@ class ComplementarityProblem:
                 space), a UFL form or a compiled ``dolfinx.fem.Form``.
             L: the linear form L(v) (a test function on u's space).
             u: the Function that receives the solution (and is the initial guess).
-            constraint: where and how u is bounded.
+            constraint: where and how u is bounded: a :class:`~.constraints.Unilateral`, a
+                :class:`~.constraints.RigidObstacle`, or :class:`~.constraints.MortarPair`
+                s (a list, with at most one rigid obstacle); a rigid obstacle's or a
+                pair's friction law is part of it.
             bcs: Dirichlet conditions on u's space (or its subspaces).
             physics: the equations the forms discretise (:mod:`~contact.models.physics`),
                 which the estimators read; None: no estimate.
+            u_prev: the previous load step's solution (friction's slips start there).
 
         Returns:
             The problem, K and b assembled once; close it (or use ``with``)."""
         t0 = time.perf_counter()
         V, bcs = _checked(u, bcs, constraint, [("a", a, 2), ("L", L, 1)])
         return cls(
-            _discrete(
-                Problem,
+            make_problem(
+                "linear",
+                V,
                 u,
                 bcs,
                 lambda: assemble_system(fem.form(a), fem.form(L), bcs),
-                constraint,
+                conditions_of(constraint),
                 t0,
-                physics,
+                physics=physics,
+                u_prev=u_prev,
             )
         )
 
@@ -211,10 +352,13 @@ class ComplementarityProblem:
         cls,
         F: ufl.Form,
         u: fem.Function,
-        constraint: Unilateral,
+        constraint: Condition | Sequence[Condition],
         bcs: Sequence[fem.DirichletBC] = (),
         J: ufl.Form | None = None,
         physics: Physics | None = None,
+        u_prev: fem.Function | None = None,
+        energy: ufl.Form | None = None,
+        current: bool = True,
     ) -> ComplementarityProblem:
         """R(u) = w λ from a residual F(u; v), nonlinear in the Function ``u`` it is written
         in, and J = ∂F/∂u (default ``ufl.derivative(F, u)``); ``u``'s values are the initial
@@ -224,12 +368,18 @@ class ComplementarityProblem:
             F: the residual F(u; v), a linear form in the test function v on u's space,
                 written in u.
             u: the Function F is written in: the initial guess, then the solution.
-            constraint: where and how u is bounded.
+            constraint: where and how u is bounded (as for :meth:`from_forms`).
             bcs: Dirichlet conditions on u's space (or its subspaces).
             J: the bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
                 is a compiled ``dolfinx.fem.Form``).
             physics: the equations F discretises (:mod:`~contact.models.physics`), which the
                 estimators read; None: no estimate.
+            u_prev: the previous load step's solution (friction's slips start there).
+            energy: Π(u) with F = ∂Π/∂u, if F is the gradient of an energy (the energy line
+                search of :mod:`contact.solvers.energy_search`).
+            current: a rigid obstacle whose gap is not affine in u (a curved surface, or
+                friction) is met on the current configuration (finite strain); False: on the
+                reference configuration.
 
         Returns:
             The problem, R and its tangent re-assembled at every Newton iterate; close it
@@ -239,17 +389,25 @@ class ComplementarityProblem:
         V, bcs = _checked(u, bcs, constraint, forms, residual=(F, J))
         J = ufl.derivative(F, u) if J is None else J
         F_form, J_form = fem.form(F), fem.form(J)
-        problem = _discrete(
-            ResidualProblem,
-            u,
-            bcs,
-            lambda: ResidualProblem.matrices(J_form, bcs),
-            constraint,
-            t0,
-            physics,
+        return cls(
+            make_problem(
+                "residual",
+                V,
+                u,
+                bcs,
+                lambda: ResidualProblem.matrices(J_form, bcs),
+                conditions_of(constraint),
+                t0,
+                physics=physics,
+                residual={
+                    "F_form": F_form,
+                    "J_form": J_form,
+                    "energy_form": None if energy is None else fem.form(energy),
+                },
+                current=current,
+                u_prev=u_prev,
+            )
         )
-        problem.F_form, problem.J_form = F_form, J_form
-        return cls(problem)
 
     def solve(self, method: str = "fb", verbose: bool = False, **options: Any) -> Result:
         """Solve from u's current values (Dirichlet values put in).
@@ -304,6 +462,13 @@ class ComplementarityProblem:
         self.close()
 
 
+def conditions_of(constraint: Any) -> tuple:
+    """The contact conditions of a ``constraint`` argument: one condition or a sequence."""
+    if isinstance(constraint, (list, tuple)):
+        return tuple(constraint)
+    return (constraint,)
+
+
 def _checked(
     u: Any,
     bcs: Any,
@@ -313,8 +478,8 @@ def _checked(
 ) -> tuple[fem.FunctionSpace, list]:
     """(V, bcs as a list) once every argument passed its local checks on every rank
     (:mod:`~contact.models.form_checks`): the forms' (name, form, rank), F written in u
-    (``residual`` = (F, J)), the Dirichlet conditions, the constraint — and the number of
-    Dirichlet conditions and the constraint's shape are the same on every rank."""
+    (``residual`` = (F, J)), the Dirichlet conditions, the contact conditions — and the
+    number of Dirichlet conditions and the conditions' shapes are the same on every rank."""
     V = checks.check_unknown(u).function_space
     bc_list = checks.bcs_list(bcs)
 
@@ -324,47 +489,145 @@ def _checked(
         if residual is not None:
             checks.check_written_in(*residual, u=u)
         checks.check_bcs(bc_list, V)
-        if not isinstance(constraint, Unilateral):
-            raise TypeError(
-                f"constraint: expected a contact.Unilateral, got {type(constraint).__name__}"
-            )
-        return {"bcs": len(bc_list or ()), **checks.check_constraint(constraint, V)}
+        shape: dict[str, object] = {"bcs": len(bc_list or ())}
+        for condition in conditions_of(constraint):
+            shape.update(check_condition(condition, V))
+        return shape
 
     checks.agree(V.mesh.comm, local, same=True)
     assert bc_list is not None  # check_bcs refused None
     return V, bc_list
 
 
-def _discrete[P: Problem](
-    kind: type[P],
-    u: fem.Function,
+def make_problem(
+    kind: str,
+    V: fem.FunctionSpace,
+    u_h: fem.Function,
     bcs: list,
     matrices: Callable[[], tuple[PETSc.Mat, PETSc.Vec]],
-    constraint: Unilateral,
+    conditions: Sequence[Condition],
     t0: float,
+    *,
     physics: Physics | None = None,
-) -> P:
-    """The solver's problem: the constraint's nodes, weights and bound on u's space (checked
-    collectively), then K and b from ``matrices()``."""
-    V = u.function_space
-    dofs, w = constraint.nodes(V, bcs)
-    g = constraint.bound_function(V, dofs)
-    fixed = V.mesh.comm.allreduce(sum(len(bc.dof_indices()[0]) for bc in bcs), op=MPI.SUM)
-    in_domain = constraint.dofs is None and (
-        constraint.measure is None or constraint.measure.integral_type() == "cell"
-    )
-    K, b = matrices()
-    return kind(
+    data: dict | None = None,
+    residual: dict | None = None,
+    current: bool = False,
+    u_prev: fem.Function | None = None,
+    allow_empty: bool = False,
+    bodies: tuple[Any, list[str]] = (None, []),
+) -> Problem:
+    """The problem of an assembled system and its contact conditions — how every builder
+    makes one (the own forms of :class:`ComplementarityProblem`, the scene's models).
+
+    Args:
+        kind: ``linear`` (R(x) = K x − b) or ``residual`` (R and K_T re-assembled at every
+            iterate, ``residual`` the :class:`ResidualProblem` fields: F_form, J_form,
+            energy_form, min_jacobian).
+        V: the unknown's space; ``u_h`` the function the solution goes into.
+        bcs: the Dirichlet conditions K and b were assembled with.
+        matrices: K and b (K_T at u_h's values and a zero b for a residual problem), called
+            after a unilateral condition's nodes are known (their checks come first).
+        conditions: the contact conditions (:func:`~.contacts.contact_set`).
+        t0: when building began (``assembly_time``).
+        physics: the equations (what the estimators read), or None.
+        data: more data for the reports (the scene's: f, t, ds, the reaction form …).
+        current: a residual problem meets a rigid obstacle on its current configuration
+            where the gap is not affine in u.
+        u_prev: the previous load step's displacement (friction's slips start there).
+        allow_empty: a unilateral condition may constrain no DoF.
+        bodies: (cell tags, names) of several bodies in one mesh: the rigid motions each
+            body keeps free (:func:`~contact.solvers.floating.floating_bodies`).
+
+    Returns:
+        The problem (its friction set from the conditions' friction law, if any)."""
+    conditions = tuple(conditions)
+    if len(conditions) == 1 and isinstance(conditions[0], Unilateral):
+        # the condition's checks come before anything is assembled
+        cs = conditions[0].discretise(V, bcs, allow_empty)
+        K, b = matrices()
+    else:
+        K, b = matrices()
+        cs = contact_set(V, K, b, bcs, conditions, current=current, u_prev=u_prev)
+    K_T = None
+    if cs.K is not None:  # a change of basis: K̃ = Qᵀ K Q and b̃ = Qᵀ b replace K and b
+        if kind == "residual":  # K keeps the pattern of K_T(u)
+            K_T = K
+            b.destroy()
+        else:
+            destroy(K, b)
+        K, b = cs.K, cs.b
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
+    comm = V.mesh.comm
+    bs = V.dofmap.index_map_bs
+    fields: dict[str, Any] = dict(cs.fields)
+    if bs == 1:  # no Dirichlet DoF on any rank: only the constraint holds the body
+        fields["semicoercive"] = comm.allreduce(len(fixed), op=MPI.SUM) == 0
+    else:  # an elastic body: its near-nullspace, rigid motions, mirror images
+        fields.update(_body_fields(V, fixed, cs, physics, bodies))
+    problem_class: type[Problem]
+    if kind == "residual":
+        problem_class = {
+            "plain": ResidualProblem,
+            "rotated": RotatedResidualProblem,
+            "current": CurrentResidualProblem,
+        }[cs.kind]
+    else:
+        problem_class = BodiesProblem if "couplings" in cs.data else Problem
+    problem = problem_class(
         V,
-        u,
-        bcs,
+        u_h,
+        cs.bcs or bcs,
         K,
         b,
-        Constraint(dofs, g.x.array[dofs].copy(), w, constraint.sign),
-        in_domain=in_domain,
-        semicoercive=fixed == 0,
-        data={"g_h": g},
+        cs.constraint,
+        data={**(data or {}), **cs.data},
+        **fields,
         assembly_time=time.perf_counter() - t0,
         physics=physics,
-        contacts=(constraint,),
+        contacts=conditions,
+        u_prev=u_prev,
+        **(residual or {}),
     )
+    if isinstance(problem, RotatedResidualProblem):
+        problem.K_T = K_T
+    laws = {
+        c.friction for c in conditions if not isinstance(c, Unilateral) and c.friction is not None
+    }
+    if len(laws) > 1:
+        raise ValueError("friction: the conditions of one problem share one friction law")
+    if laws:  # (only a frictional problem loads the friction modules)
+        from .friction import friction_set
+
+        problem.friction = friction_set(problem, laws.pop(), u_prev)
+    return problem
+
+
+def _body_fields(
+    V: fem.FunctionSpace,
+    fixed: np.ndarray,
+    cs: ContactSet,
+    physics: Physics | None,
+    bodies: tuple[Any, list[str]],
+) -> dict[str, Any]:
+    """The DiscreteProblem fields of an elastic body (or several in one mesh) that follow
+    from its conditions: the rigid-body near-nullspace (in the unknowns of the change of
+    basis, if any), the rigid motions no Dirichlet or symmetry condition holds, and the
+    mirror images its symmetry planes stand for (every plane for one body; with mortar
+    pairs the planes through the pairs' contact nodes)."""
+    from .elasticity import rigid_body_modes
+
+    basis, inverse = cs.fields.get("basis"), cs.fields.get("basis_inverse")
+    planes = [] if physics is None else list(physics.boundary.symmetry)
+    if "couplings" in cs.data:
+        boundary = physics.boundary if physics is not None else None
+        facets = [(boundary.facets((tag,)), k) for tag, k in planes] if boundary else []
+        axes = tuple(sorted(mirror_axes(V.mesh, facets, cs.data["contact_nodes"])))
+    else:
+        axes = tuple(k for _, k in planes)
+    tags, names = bodies
+    return {
+        "symmetric_copies": 2 ** len(axes),
+        "symmetry_axes": axes,
+        "near_nullspace": rigid_body_modes(V, None if inverse is not None else basis, inverse),
+        "floating": floating_bodies(V, fixed, tags, names),
+    }

@@ -25,12 +25,12 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult
-from ..drivers.scene import SceneLevel as Level
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, value_name, view_normal
 from ..post.exact_data import exact_mismatches
 from ..post.reference import compare
 from ..post.resultants import current_pressure
+from ..setup.run import SceneLevel as Level
 from ..setup.scene import Scene
 from ..setup.untagged import untagged_boundary
 from ..solvers import Result

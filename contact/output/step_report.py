@@ -33,12 +33,12 @@ from typing import Any
 import numpy as np
 
 from ..drivers.load_path import LoadPath
-from ..drivers.scene import SceneStep as Step
-from ..drivers.scene import estimate
 from ..post.contact_table import Table, contact_table, tangent_2d
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
+from ..setup.run import SceneStep as Step
+from ..setup.run import estimate
 from ..setup.scene import Scene
 from . import folder, plots
 from .fields import FieldFiles

@@ -30,7 +30,7 @@ from mpi4py import MPI
 
 from ..base import expressions
 from ..base.errors import ContactWarning
-from ..models.elasticity import lame, stress
+from ..models.physics import stress
 from ..setup.meshes import NATURAL
 from ..setup.scene import Scene
 from ..setup.scene_config import components
@@ -109,6 +109,8 @@ def exact_mismatches(scene: Scene) -> list[Mismatch] | None:
     flux = None
     if elastic and not cfg.bodies:
         assert cfg.model.E is not None  # one linear elastic body (checked at load)
+        from ..models.elasticity import lame  # (a scalar scene never loads elasticity)
+
         mu, lmbda_L = lame(cfg.model.E, cfg.model.nu)
         flux = lambda w: stress(w, mu, lmbda_L) * n  # noqa: E731
     elif not elastic:

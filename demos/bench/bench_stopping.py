@@ -42,7 +42,7 @@ from pathlib import Path
 
 import contact
 from contact.drivers import adaptive as loop
-from contact.drivers import scene as scene_loop
+from contact.setup import run as scene_loop
 
 from common import elastic_reference, energy_distance, save_csv
 from mpi4py import MPI
@@ -55,7 +55,7 @@ VARIANTS = {
     "adaptive_sa": ["solver.stopping=adaptive", "solver.petsc_options.pc_gamg_agg_nsmooths=1"]
 }
 #: the loop's phases (functions of contact.drivers.adaptive, and of the scene's level:
-#: contact.drivers.scene) whose CPU seconds are counted
+#: contact.setup.run) whose CPU seconds are counted
 PHASES = {
     (scene_loop, "build_problem"): "assembly",
     (scene_loop, "solve"): "solve",

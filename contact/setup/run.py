@@ -22,24 +22,24 @@ from ..adaptivity.estimate import estimate as estimate_problem
 from ..adaptivity.refine import Domain
 from ..adaptivity.refine import refine as refine_domain
 from ..base.errors import ContactWarning
-from ..models import build_problem
-from ..models.problem import interpolate_expression
-from ..setup.budget import max_dofs
-from ..setup.geometry import builder_surfaces
-from ..setup.meshes import Boundary
-from ..setup.scene import Scene, require_scene
-from ..setup.scene_config import AdaptConfig, SceneConfig
-from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
+from ..drivers.adaptive import AdaptResult, Level
+from ..drivers.adaptive import adapt as adapt_domain
+from ..drivers.load_path import LoadPath, Previous, Step, run_steps
+from ..drivers.solve import solve as solve_problem
 from ..solvers import Result
 from ..solvers.floating import free_in_contact
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import not_unique_text
 from ..solvers.stopping import AdaptiveStopping
-from .adaptive import AdaptResult, Level
-from .adaptive import adapt as adapt_domain
+from .budget import max_dofs
+from .build import build_problem
+from .data import interpolate_expression
+from .geometry import builder_surfaces
 from .levels import scene_hierarchy
-from .load_path import LoadPath, Previous, Step, run_steps
-from .solve import solve as solve_problem
+from .meshes import Boundary
+from .scene import Scene, require_scene
+from .scene_config import AdaptConfig, SceneConfig
+from .surfaces import boundary_surfaces, warn_undeclared_curves
 
 
 def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:

@@ -43,11 +43,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from ..models import build_problem
-from ..setup.scene import Scene
-from ..setup.scene_config import MeshConfig, SolverConfig
-from ..solvers.problem import DiscreteProblem
-from .sequencing import (
+from ..drivers.sequencing import (
     ANCESTOR_RATIO,
     COARSE_RTOL,
     COARSEST_DOFS,
@@ -57,6 +53,10 @@ from .sequencing import (
     point_transfer,
     prolong_chain,
 )
+from ..solvers.problem import DiscreteProblem
+from .build import build_problem
+from .scene import Scene
+from .scene_config import MeshConfig, SolverConfig
 
 BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
 #: the gmsh-built meshes, whose sizes h and h_contact give the coarse levels
@@ -132,7 +132,7 @@ _COARSE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def _with_mesh(scene: Scene, changes: dict) -> Scene:
     """The scene with other mesh parameters (a coarse level) at the scene's time; the mesh
     is built once per fine mesh and kept while that mesh lives."""
-    from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
+    from .meshes import build_mesh, tag_bodies, tag_boundaries
 
     cfg = scene.config.with_mesh(**changes)
     built = _COARSE.setdefault(scene.mesh, {})
@@ -157,7 +157,7 @@ def scene_hierarchy(
     """The coarse levels of ``opts.sequence`` (``opts``: the fine solve's solver section with
     its call's overrides) as a :class:`~.sequencing.Hierarchy`: each a scene on a coarser mesh
     whose solver section has no sequencing and :data:`~.sequencing.COARSE_RTOL`, solved by
-    ``solve`` (:func:`contact.drivers.scene.solve`), a load step's history restricted to it
+    ``solve`` (:func:`contact.setup.run.solve`), a load step's history restricted to it
     (its coarsest level starts from the previous step's solution, and the levels' solution
     replaces a frictional step's guess)."""
     bs = V.dofmap.index_map_bs
