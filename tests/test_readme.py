@@ -130,7 +130,9 @@ def test_readme_pyvista_snippets_load_results(results):
     text = (ROOT / "README.md").read_text()
     for section in ("## Running a scene", "## Adaptive refinement"):
         code = re.search(r"```python\n(.*?)```", text.split(section, 1)[1], re.S).group(1)
-        assert len(code.strip().splitlines()) == 3
+        # the first line names the run it reads (tests/test_docs_examples.py runs it first)
+        assert code.startswith("# after: contact run ")
+        assert len(code.strip().splitlines()) == 4
         proc = subprocess.run(
             [sys.executable, "-c", code + "\nprint('loaded', grid.n_points)"],
             cwd=results,
@@ -182,11 +184,12 @@ def _locked() -> dict[str, str]:
 
 def test_lock_pins_every_dependency() -> None:
     """constraints.txt (what `make venv` installs) pins every dependency of pyproject.toml,
-    the test extra included, and pip."""
+    the test and docs extras included, and pip."""
     import tomllib
 
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
-    wanted = project["dependencies"] + project["optional-dependencies"]["test"] + ["pip"]
+    extras = project["optional-dependencies"]
+    wanted = project["dependencies"] + extras["test"] + extras["docs"] + ["pip"]
     names = {
         re.sub(r"[-_.]+", "-", re.split(r"[<>=!~\[; ]", req, maxsplit=1)[0]).lower()
         for req in wanted
@@ -194,7 +197,7 @@ def test_lock_pins_every_dependency() -> None:
     assert names - set(_locked()) == set()
     makefile = (ROOT / "Makefile").read_text()
     assert "$(VENV)/.installed: pyproject.toml $(LOCK)" in makefile
-    assert "-c $(LOCK) -e '.[test]'" in makefile
+    assert "-c $(LOCK) -e '.[test,docs]'" in makefile
 
 
 def test_readme_lists_the_locked_versions() -> None:
