@@ -127,7 +127,8 @@ def check_step(
 def check_contact_csv(rows: list[dict], summary: dict, value: str = "lambda") -> None:
     assert len(rows) == summary["constrained_nodes"]
     pos = "s" if "s" in rows[0] else "r"
-    assert list(rows[0])[-3:] == [value, "gap", "active"]
+    exact = ["lambda_exact"] if "lambda_exact" in rows[0] else []  # a declared data.exact
+    assert list(rows[0])[-3 - len(exact) :] == [value, *exact, "gap", "active"]
     s = np.array([float(r[pos]) for r in rows])
     assert np.all(np.isfinite(s)) and np.all(np.diff(s) >= 0), "rows sorted along Γ_C"
     lam = np.array([float(r[value]) for r in rows])
