@@ -113,3 +113,18 @@ def test_obstacle_in_the_domain_writes_no_surface(tmp_path):
     out = tmp_path / "membrane"
     summary = _run(out, "obstacle_membrane.yaml", "mesh.cells=[8,8]")
     assert not any(name.startswith("contact_surface") for name in summary["files"])
+
+
+def test_surface_nodes_match_body_nodes_across_rounding_boundaries():
+    """Points that differ in their last bits match even where they straddle a boundary of
+    the grid the matching rounds to; points farther apart than the tolerance do not."""
+    from contact.output.surface import match_points
+
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-1.0, 1.0, (500, 3))
+    Y = X[::-1] * (1 + 1e-15)
+    assert np.array_equal(match_points(X, Y, 1e-12), np.arange(500)[::-1])
+    size = 100 * 1e-12  # the grid: points at its half-spacings round apart
+    B = (np.arange(20)[:, None] + 0.5) * size * np.ones((1, 2))
+    assert np.array_equal(match_points(B + 1e-16, B - 1e-16, 1e-12), np.arange(20))
+    assert np.all(match_points(B, B + 0.37 * size, 1e-12) == -1)

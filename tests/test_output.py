@@ -146,6 +146,8 @@ def test_run_writes_complete_folder(tmp_path, nproc):
         "solution.h5",
         "solution.vtu",
         "solution.xdmf",
+        "contact_surface.h5",
+        "contact_surface.xdmf",
         "summary.json",
         "history.csv",
         "solution.png",
@@ -291,7 +293,9 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     assert set(summary["files"]) == set(files) - {".contact-result"}  # the marker is written last
     wrote = proc.stdout.splitlines()[-1]
     assert all(f"solution_000…002.{ext}" in wrote for ext in ("vtu", "h5", "xdmf"))
-    assert all(n in wrote for n in summary["files"] if not n.startswith("solution_"))
+    assert all(f"contact_surface_000…002.{ext}" in wrote for ext in ("h5", "xdmf"))
+    numbered = ("solution_", "contact_surface_")
+    assert all(n in wrote for n in summary["files"] if not n.startswith(numbered))
     headers = [line for line in proc.stdout.splitlines() if line.split()[:2] == ["level", "DoFs"]]
     assert len(headers) == 1, "the level table is printed once"
     check_contact_csv(files["contact.csv"], summary)

@@ -50,10 +50,37 @@ def surface_facets(boundary: Boundary) -> np.ndarray:
     return np.unique(np.concatenate([boundary.facets(role) for role in ROLES])).astype(np.int32)
 
 
-def _keys(X: np.ndarray, scale: float) -> list[bytes]:
-    """Coordinates as exact keys: a node of the submesh is a node of the body (the same
-    numbers up to the last bits of a midpoint's arithmetic, hence the rounding)."""
-    return [row.tobytes() for row in np.round(X / scale, 9) + 0.0]
+def match_points(X: np.ndarray, Y: np.ndarray, tol: float) -> np.ndarray:
+    """For each point of ``Y``, the index of a point of ``X`` within ``tol`` (−1 if none).
+
+    A node of the submesh is a node of the body: the same numbers up to the last bits of a
+    midpoint's arithmetic. Both sets are rounded to a grid of spacing 100 ``tol`` and equal
+    grid points matched at once (vectorized); a point whose twin rounded to a neighbouring
+    grid point (the two straddle a rounding boundary: rare) is looked up among them.
+    """
+    size = 100.0 * tol
+    qx, qy = np.round(X / size).astype(np.int64), np.round(Y / size).astype(np.int64)
+    _, ids = np.unique(np.vstack([qx, qy]), axis=0, return_inverse=True)
+    ids = ids.ravel()
+    owner = np.full(ids.max() + 1 if len(ids) else 0, -1, dtype=np.int64)
+    owner[ids[: len(X)]] = np.arange(len(X))
+    out = owner[ids[len(X) :]]
+    close = np.zeros(len(Y), dtype=bool)
+    hit = out >= 0
+    close[hit] = np.max(np.abs(X[out[hit]] - Y[hit]), axis=1) <= tol
+    out[~close] = -1
+    if close.all():
+        return out
+    where = {tuple(k): i for i, k in enumerate(qx)}
+    dim = X.shape[1]
+    offsets = np.array(np.meshgrid(*[[-1, 0, 1]] * dim, indexing="ij")).reshape(dim, -1).T
+    for j in np.flatnonzero(~close):
+        for offset in offsets:
+            i = where.get(tuple(qy[j] + offset))
+            if i is not None and np.max(np.abs(X[i] - Y[j])) <= tol:
+                out[j] = i
+                break
+    return out
 
 
 class Restriction:
@@ -73,7 +100,7 @@ class Restriction:
         self.scalar = fem.functionspace(self.mesh, ("Lagrange", self.degree))
         self.vector = fem.functionspace(self.mesh, ("Lagrange", self.degree, (msh.geometry.dim,)))
         extent = float(np.ptp(msh.geometry.x, axis=0).max()) or 1.0
-        self._scale = extent
+        self._tol = 1e-10 * extent
         self._maps: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._tags = boundary.tags
 
@@ -83,17 +110,12 @@ class Restriction:
         if key not in self._maps:
             fdim = self.mesh.topology.dim
             body = fem.locate_dofs_topological(W, fdim, self.facets)
-            X = W.tabulate_dof_coordinates()
-            where = dict(zip(_keys(X[body], self._scale), body))
-            Xs = self.scalar.tabulate_dof_coordinates()
-            sub = [(i, where.get(k)) for i, k in enumerate(_keys(Xs, self._scale))]
-            missing = sum(b is None for _, b in sub)
-            if missing:
+            X = W.tabulate_dof_coordinates()[body]
+            found = match_points(X, self.scalar.tabulate_dof_coordinates(), self._tol)
+            if np.any(found < 0):
+                missing = int(np.sum(found < 0))
                 raise ValueError(f"contact surface: {missing} surface nodes are no body node")
-            self._maps[key] = (
-                np.array([i for i, _ in sub], dtype=np.int64),
-                np.array([b for _, b in sub], dtype=np.int64),
-            )
+            self._maps[key] = (np.arange(len(found)), np.asarray(body, np.int64)[found])
         return self._maps[key]
 
     def restrict(self, fn: fem.Function, name: str, scale: float = 1.0) -> fem.Function:
