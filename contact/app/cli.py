@@ -186,6 +186,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"contact: scene {scene.name!r}, model {scene.config.model.type}, method {method}, "
         f"{comm.size} MPI rank(s)",
     )
+    _report_posed(scene, comm)
     # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
     if scene.config.load or scene.config.frictional or scene.config.model.type == "hyperelastic":
         return _run_steps(scene, outdir, label, comm, t0)
@@ -211,6 +212,18 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED
+
+
+def _report_posed(scene, comm: MPI.Comm) -> None:
+    """One line on the exterior facets in no boundary part (the natural condition they
+    carry is then a visible choice), and a warning line per boundary part on which a
+    declared exact solution misses the scene's condition (collective)."""
+    from ..post.exact_data import warn_exact_mismatches
+    from ..setup.untagged import untagged_boundary
+
+    untagged = untagged_boundary(scene.mesh, scene.boundary)
+    _say(comm, f"contact: {untagged.line(scene.config.elastic)}")
+    warn_exact_mismatches(scene)
 
 
 def _output_folder(option: str | None, cfg: SceneConfig) -> tuple[Path, str]:

@@ -40,6 +40,7 @@ from ..solvers.options import SolverOptions
 from ..solvers.problem import Constraint, DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import solve_problem
+from . import form_checks as checks
 from .problem import assemble_system, lumped_weights
 
 #: a bound: a number, a Function on V, values at the constrained DoFs, or f(x) → values
@@ -54,7 +55,12 @@ class Unilateral:
     It holds at the nodes of a measure's cells or facets, with the lumped weights
     w_i = ∫ φ_i d(measure), or at explicit DoFs with given weights; the multiplier λ_h of
     the solve is then the density F(u_h; v) = Σ_i w_i λ_i v_i. Dirichlet DoFs are never
-    constrained. Frozen: a constraint is a value, reusable across problems.
+    constrained. A record: its fields are checked against u's space when a problem is built
+    (:func:`~contact.models.form_checks.check_constraint`), on every rank alike — the side,
+    a bound that is finite (a callable's values of shape (n,) for points of shape (3, n)), a
+    measure that selects some facet or cell, ``dofs`` that are owned integer indices given
+    once each, ``weights`` finite and > 0; each a ``ValueError`` or ``TypeError`` naming the
+    field.
 
     Args:
         bound: g: a number, a Function on V, values at the constrained DoFs, or a callable
@@ -69,18 +75,11 @@ class Unilateral:
         component: On a vector space, the component k the constraint acts on (u_k ≤ g or
             u_k ≥ g, e.g. the normal displacement against a plane).
 
-    Raises:
-        ValueError: For an unknown side, or a measure given with dofs, weights without
-            dofs, or a component with dofs.
-
     Example:
-        >>> import contact, ufl
+        >>> import contact
         >>> floor = contact.Unilateral(-0.1, side="lower")
         >>> floor.sign, floor.measure is None
         (-1.0, True)
-        >>> contact.Unilateral(0.0, side="below")
-        Traceback (most recent call last):
-        ValueError: Unilateral.side: expected 'upper' (u <= g) or 'lower' (u >= g), got 'below'
     """
 
     bound: Bound
@@ -89,19 +88,6 @@ class Unilateral:
     dofs: np.ndarray | None = None
     weights: np.ndarray | None = None
     component: int | None = None
-
-    def __post_init__(self) -> None:
-        """Check the combination of arguments (see Raises)."""
-        if self.side not in ("upper", "lower"):
-            raise ValueError(
-                f"Unilateral.side: expected 'upper' (u <= g) or 'lower' (u >= g), got {self.side!r}"
-            )
-        if self.dofs is not None and self.measure is not None:
-            raise ValueError("Unilateral: give either a measure or dofs, not both")
-        if self.weights is not None and self.dofs is None:
-            raise ValueError("Unilateral: weights go with dofs (a measure makes its own)")
-        if self.component is not None and self.dofs is not None:
-            raise ValueError("Unilateral: a component goes with a measure (dofs name their own)")
 
     @property
     def sign(self) -> float:
@@ -113,6 +99,9 @@ class Unilateral:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Return the constrained owned DoFs (no Dirichlet DoF) and their weights.
 
+        Collective; the constraint is checked first
+        (:func:`~contact.models.form_checks.check_constraint`).
+
         Args:
             V: The space of u.
             bcs: The Dirichlet conditions (their DoFs are not constrained).
@@ -121,33 +110,25 @@ class Unilateral:
             (dofs, w): owned local DoF indices and their weights.
 
         Raises:
-            ValueError: For DoFs out of range, weights of the wrong shape, a component that
-                does not fit V, or constrained DoFs whose weight is not positive.
+            ValueError: On every rank, for a measure that selects nothing, a constraint
+                left with no DoF on any rank, or constrained DoFs whose weight is not
+                positive.
         """
+        comm = V.mesh.comm
         n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
         if self.dofs is not None:
             dofs = np.asarray(self.dofs, dtype=np.int32)
-            if np.any((dofs < 0) | (dofs >= n_owned)):
-                raise ValueError(f"Unilateral.dofs: owned local indices lie in [0, {n_owned})")
             w = np.ones(len(dofs)) if self.weights is None else np.asarray(self.weights, float)
-            if w.shape != dofs.shape:
-                raise ValueError(f"Unilateral.weights: expected {len(dofs)} values, got {w.shape}")
             keep = ~np.isin(dofs, fixed)
+            checks.check_constrained(comm, dofs[keep], by_dofs=True)
             return dofs[keep], w[keep]
-        bs = V.dofmap.index_map_bs
-        if bs == 1 and self.component is not None:
-            raise ValueError("Unilateral.component: V is scalar: give no component")
-        if bs > 1 and self.component not in range(bs):
-            raise ValueError(
-                f"Unilateral.component: a vector space needs one of 0 … {bs - 1}, "
-                f"got {self.component}"
-            )
         measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
         dofs = _dofs_of(V, measure, self.component)
         dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
+        checks.check_constrained(comm, dofs, by_dofs=False)
         w = lumped_weights(V, measure, self.component)[dofs]
-        if V.mesh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
+        if comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
             raise ValueError(
                 "Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
                 "(e.g. P2 vertices); use P1 or give dofs and weights"
@@ -165,29 +146,41 @@ class Unilateral:
             g on V.
 
         Raises:
-            ValueError: If values given at the DoFs do not match their number.
+            ValueError: On every rank (collective), for a callable bound that fails or
+                returns the wrong shape, values of the wrong length, or a bound that is not
+                finite at some constrained DoF.
         """
+        comm = V.mesh.comm
         g = fem.Function(V, name="bound")
-        if (
-            isinstance(self.bound, fem.Function) or callable(self.bound)
-        ) and self.component is not None:  # a scalar bound on one component's DoFs
+        interpolated = isinstance(self.bound, fem.Function) or callable(self.bound)
+        if interpolated and self.component is not None:  # a scalar bound on u_k's DoFs
             S, to_parent = V.sub(self.component).collapse()
-            g_k = fem.Function(S)
-            g_k.interpolate(self.bound)
-            g.x.array[to_parent] = g_k.x.array
-        elif isinstance(self.bound, fem.Function) or callable(self.bound):
-            g.interpolate(self.bound)
-        elif np.ndim(self.bound) == 0:
-            g.x.array[:] = float(self.bound)
+            into = fem.Function(S)
         else:
-            values = np.asarray(self.bound, dtype=float)
-            if values.shape != dofs.shape:
-                raise ValueError(
-                    "Unilateral.bound: expected one value per constrained DoF "
-                    f"({len(dofs)}), got shape {values.shape}"
-                )
-            g.x.array[dofs] = values
+            S, to_parent, into = V, None, g
+
+        def assign() -> None:  # local: no collective
+            bound = self.bound
+            if isinstance(bound, fem.Function):
+                into.interpolate(bound)
+            elif callable(bound):
+                into.interpolate(checks.shaped(bound, S))
+            elif np.ndim(bound) == 0:
+                g.x.array[:] = float(bound)
+            else:
+                values = np.asarray(bound, dtype=float)
+                if values.shape != dofs.shape:
+                    raise ValueError(
+                        "Unilateral.bound: expected one value per constrained DoF "
+                        f"({len(dofs)}), got shape {values.shape}"
+                    )
+                g.x.array[dofs] = values
+            if to_parent is not None:
+                g.x.array[to_parent] = into.x.array
+
+        checks.agree(comm, assign)
         g.x.scatter_forward()
+        checks.check_finite_bound(comm, g.x.array[dofs])
         return g
 
 
@@ -195,28 +188,26 @@ def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) 
     """Return the constrained DoFs of a measure's cells or facets.
 
     The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
-    exterior facets (``ds``) a measure covers.
+    exterior facets (``ds``) a measure covers (checked:
+    :func:`~contact.models.form_checks.check_constraint`). Collective; a tagged measure
+    that selects no entity on any rank is a ValueError.
     """
     msh, tdim = V.mesh, V.mesh.topology.dim
     kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
-    if kind not in ("cell", "exterior_facet"):
-        raise ValueError(f"Unilateral.measure: expected dx or ds, got {kind}")
     dim = tdim if kind == "cell" else tdim - 1
+    if dim < tdim:
+        msh.topology.create_connectivity(dim, tdim)
     if tag == "everywhere":
         if kind == "cell" and component is not None:
             return np.asarray(V.sub(component).collapse()[1], dtype=np.int32)
         if kind == "cell":
             index_map = V.dofmap.index_map
             return np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32)
-        msh.topology.create_connectivity(tdim - 1, tdim)
         entities = dolfinx.mesh.exterior_facet_indices(msh.topology)
     else:
-        if tags is None:
-            raise ValueError(
-                f"Unilateral.measure: {kind} with subdomain {tag} needs subdomain_data (mesh tags)"
-            )
         ids = tag if isinstance(tag, tuple) else (tag,)
         entities = np.concatenate([tags.find(i) for i in ids])
+        checks.check_selects(msh.comm, measure, tags, ids, entities)
     if component is None:
         return fem.locate_dofs_topological(V, dim, entities)
     S = V.sub(component).collapse()[0]
@@ -363,6 +354,13 @@ class ComplementarityProblem:
     tangent re-assembled at every Newton iterate), then :meth:`solve`. It owns PETSc
     objects: :meth:`close` it, or use it in a ``with`` block.
 
+    The builders check every argument before assembling anything
+    (:mod:`~contact.models.form_checks`), on every rank alike: a form of the wrong rank,
+    on another space or mesh, a Dirichlet condition on another space, a measure that
+    selects nothing, DoFs that are not owned integer indices, weights that are not finite
+    and positive, a bound that is not finite or a callable bound of the wrong shape is one
+    ``TypeError`` or ``ValueError`` line naming the argument, raised on all ranks.
+
     Args:
         problem: The discrete problem (made by the two builders; not built by hand).
 
@@ -387,6 +385,7 @@ class ComplementarityProblem:
 
     def __init__(self, problem: DiscreteProblem):
         self.problem: DiscreteProblem | None = problem  # None once closed
+        self._comm = problem.V.mesh.comm
 
     @classmethod
     def from_forms(
@@ -399,23 +398,36 @@ class ComplementarityProblem:
     ) -> ComplementarityProblem:
         """Build the problem K u − b = w λ of a linear form pair a(u, v) = L(v).
 
-        K and b are assembled once, here.
+        K and b are assembled once, here, after every argument is checked.
 
         Args:
-            a: The bilinear form a(u, v) (trial and test functions on V).
-            L: The linear form L(v).
+            a: The bilinear form a(w, v) (a trial function w and a test function v on u's
+                space), a UFL form or a compiled ``dolfinx.fem.Form``.
+            L: The linear form L(v) (a test function on u's space).
             u: A Function on V: its values are the initial guess, and it receives the
                 solution (``Result.u_h`` is ``u``).
             constraint: Where and how u is bounded.
-            bcs: Dirichlet conditions on V.
+            bcs: Dirichlet conditions on u's space (or its subspaces).
 
         Returns:
-            The problem, ready to :meth:`solve`.
+            The problem, ready to :meth:`solve`; close it (or use ``with``).
+
+        Raises:
+            TypeError: For a form of the wrong rank or kind (one line naming it).
+            ValueError: For forms, conditions or a constraint that do not fit u's space.
         """
         t0 = time.perf_counter()
-        bcs = list(bcs)
-        K, b = assemble_system(fem.form(a), fem.form(L), bcs)
-        return cls(_discrete(DiscreteProblem, u, bcs, K, b, constraint, t0))
+        V, bcs = _checked(u, bcs, constraint, [("a", a, 2), ("L", L, 1)])
+        return cls(
+            _discrete(
+                DiscreteProblem,
+                u,
+                bcs,
+                lambda: assemble_system(fem.form(a), fem.form(L), bcs),
+                constraint,
+                t0,
+            )
+        )
 
     @classmethod
     def from_residual(
@@ -431,22 +443,34 @@ class ComplementarityProblem:
         R and its tangent J are re-assembled at every Newton iterate.
 
         Args:
-            F: The residual form F(u; v), written in the Function ``u``.
-            u: A Function on V: its values are the initial guess, and it receives the
-                solution (``Result.u_h`` is ``u``).
+            F: The residual F(u; v), a linear form in the test function v on u's space,
+                written in u.
+            u: The Function F is written in: its values are the initial guess, and it
+                receives the solution (``Result.u_h`` is ``u``).
             constraint: Where and how u is bounded.
-            bcs: Dirichlet conditions on V.
-            J: The tangent ∂F/∂u (default ``ufl.derivative(F, u)``).
+            bcs: Dirichlet conditions on u's space (or its subspaces).
+            J: The bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
+                is a compiled ``dolfinx.fem.Form``).
 
         Returns:
-            The problem, ready to :meth:`solve`.
+            The problem, ready to :meth:`solve`; close it (or use ``with``).
+
+        Raises:
+            TypeError: For a form of the wrong rank or kind (one line naming it).
+            ValueError: For forms, conditions or a constraint that do not fit u's space.
         """
         t0 = time.perf_counter()
-        bcs = list(bcs)
+        forms = [("F", F, 1)] + ([("J", J, 2)] if J is not None else [])
+        V, bcs = _checked(u, bcs, constraint, forms, residual=(F, J))
         J = ufl.derivative(F, u) if J is None else J
         F_form, J_form = fem.form(F), fem.form(J)
         problem = _discrete(
-            ResidualProblem, u, bcs, *ResidualProblem.matrices(J_form, bcs), constraint, t0
+            ResidualProblem,
+            u,
+            bcs,
+            lambda: ResidualProblem.matrices(J_form, bcs),
+            constraint,
+            t0,
         )
         problem.F_form, problem.J_form = F_form, J_form
         return cls(problem)
@@ -458,7 +482,7 @@ class ComplementarityProblem:
 
         Args:
             method: fb, min, blend, vinewtonrsls or vinewtonssls.
-            verbose: Print a line per Newton iteration.
+            verbose: Print a line per Newton iteration (rank 0).
             **options: The ``solver`` options of a scene: ``rtol``, ``atol``, ``max_it``,
                 ``line_search``, ``polish``, ``linear``, ``petsc_options``, …
 
@@ -469,10 +493,21 @@ class ComplementarityProblem:
 
         Raises:
             ConfigError: For an unknown or invalid option (one line naming it).
+            RuntimeError: After :meth:`close`.
+            ValueError: On every rank, for an initial guess that is not finite.
         """
         opts = SolverOptions.parse({"method": method, **options})
-        p = self.problem
-        assert p is not None, "ComplementarityProblem.solve: the problem is closed"
+
+        def ready() -> DiscreteProblem:
+            if self.problem is None:
+                raise RuntimeError(
+                    "ComplementarityProblem.solve: the problem is closed (close(), or the end "
+                    "of its with-block, destroyed K and b); build a new one"
+                )
+            checks.check_initial_guess(self.problem.u_h)
+            return self.problem
+
+        p = checks.agree(self._comm, ready)
         timers = {"assembly": p.assembly_time, "solve": 0.0}
         return solve_problem(
             p,
@@ -501,16 +536,53 @@ class ComplementarityProblem:
         self.close()
 
 
+def _checked(
+    u: Any,
+    bcs: Any,
+    constraint: Any,
+    forms: list[tuple[str, Any, int]],
+    residual: tuple[Any, Any] | None = None,
+) -> tuple[fem.FunctionSpace, list]:
+    """Return (V, bcs as a list) once every argument passed its checks on every rank.
+
+    (V, bcs as a list) once every argument passed its local checks on every rank
+    (:mod:`~contact.models.form_checks`): the forms' (name, form, rank), F written in u
+    (``residual`` = (F, J)), the Dirichlet conditions, the constraint — and the number of
+    Dirichlet conditions and the constraint's shape are the same on every rank.
+    """
+    V = checks.check_unknown(u).function_space
+    bc_list = checks.bcs_list(bcs)
+
+    def local() -> dict[str, object]:
+        for name, form, rank in forms:
+            checks.check_form(name, form, rank, V)
+        if residual is not None:
+            checks.check_written_in(*residual, u=u)
+        checks.check_bcs(bc_list, V)
+        if not isinstance(constraint, Unilateral):
+            raise TypeError(
+                f"constraint: expected a contact.Unilateral, got {type(constraint).__name__}"
+            )
+        return {"bcs": len(bc_list or ()), **checks.check_constraint(constraint, V)}
+
+    checks.agree(V.mesh.comm, local, same=True)
+    assert bc_list is not None  # check_bcs refused None
+    return V, bc_list
+
+
 def _discrete[P: DiscreteProblem](
     kind: type[P],
     u: fem.Function,
     bcs: list,
-    K: PETSc.Mat,
-    b: PETSc.Vec,
+    matrices: Callable[[], tuple[PETSc.Mat, PETSc.Vec]],
     constraint: Unilateral,
     t0: float,
 ) -> P:
-    """The solver's problem: the constraint's nodes, weights and bound on u's space."""
+    """Return the solver's problem, the constraint checked collectively first.
+
+    The solver's problem: the constraint's nodes, weights and bound on u's space (checked
+    collectively), then K and b from ``matrices()``.
+    """
     V = u.function_space
     dofs, w = constraint.nodes(V, bcs)
     g = constraint.bound_function(V, dofs)
@@ -518,6 +590,7 @@ def _discrete[P: DiscreteProblem](
     in_domain = constraint.dofs is None and (
         constraint.measure is None or constraint.measure.integral_type() == "cell"
     )
+    K, b = matrices()
     return kind(
         V,
         u,

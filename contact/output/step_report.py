@@ -46,6 +46,7 @@ from .run_report import (
     cell_fields,
     plot_solution,
     point_fields,
+    posed_problem,
     warn_coarse_zone,
     write_contact,
 )
@@ -148,6 +149,7 @@ class StepWriter:
             "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
             "host": platform.node(),
             **self.files.timings(),
+            **posed_problem(last.scene),
             "steps": self.rows,
         }
         if path.cuts:  # step cutting (load.cuts): the steps that were halved

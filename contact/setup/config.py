@@ -310,10 +310,12 @@ BOUNDARY = Field(
     schema={
         "role": Field(
             "str",
-            choices=("dirichlet", "neumann", "contact", "symmetry", "interface"),
-            doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact (with the "
-            "rigid obstacle), symmetry (elasticity: zero normal displacement on a plane "
-            "x_k = const), or interface (a slave or master surface of a contact pair)",
+            choices=("dirichlet", "neumann", "contact", "symmetry", "interface", "natural"),
+            doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), natural (zero flux "
+            "k ∂u/∂n = 0, elasticity traction-free: as an exterior facet in no part, but "
+            "declared), contact (with the rigid obstacle), symmetry (elasticity: zero normal "
+            "displacement on a plane x_k = const), or interface (a slave or master surface of "
+            "a contact pair)",
         ),
         "where": Field(
             "str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"
