@@ -259,8 +259,8 @@ if comm.rank == 0:
         f"({result.dofs} DoFs)"
     )
     for ax in axes[:2]:
-        ax.set_xlabel("x (length, units of R)")
-        ax.set_ylabel("y (length, units of R)")
+        ax.set_xlabel("x (length, scene units)")
+        ax.set_ylabel("y (length, scene units)")
     a_H, p0_H = hz["hertz_a"], hz["hertz_p0"]
     near = np.abs(X[:, 0]) <= 2 * a_H
     slave, master = near & (lam_s != 0), near & (lam_m != 0)
@@ -274,7 +274,7 @@ if comm.rank == 0:
         lw=1,
         label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}",
     )
-    axes[2].set_xlabel("x (length, units of R; undeformed position)")
+    axes[2].set_xlabel("x (length, scene units; undeformed position)")
     axes[2].set_ylabel("contact pressure (stress, units of E)")
     axes[2].set_title("pressure on both sides of the interface")
     axes[2].grid(alpha=0.3)

@@ -56,7 +56,7 @@ class Unilateral:
     w_i = ∫ φ_i d(measure), or at explicit DoFs with given weights; the multiplier λ_h of
     the solve is then the density F(u_h; v) = Σ_i w_i λ_i v_i. Dirichlet DoFs are never
     constrained. A record: its fields are checked against u's space when a problem is built
-    (:func:`~contact.models.form_checks.check_constraint`), on every rank alike — the side,
+    (``form_checks.check_constraint``), on every rank alike — the side,
     a bound that is finite (a callable's values of shape (n,) for points of shape (3, n)), a
     measure that selects some facet or cell, ``dofs`` that are owned integer indices given
     once each, ``weights`` finite and > 0; each a ``ValueError`` or ``TypeError`` naming the
@@ -100,7 +100,7 @@ class Unilateral:
         """Return the constrained owned DoFs (no Dirichlet DoF) and their weights.
 
         Collective; the constraint is checked first
-        (:func:`~contact.models.form_checks.check_constraint`).
+        (``form_checks.check_constraint``).
 
         Args:
             V: The space of u.
@@ -355,7 +355,7 @@ class ComplementarityProblem:
     objects: :meth:`close` it, or use it in a ``with`` block.
 
     The builders check every argument before assembling anything
-    (:mod:`~contact.models.form_checks`), on every rank alike: a form of the wrong rank,
+    (``contact.models.form_checks``), on every rank alike: a form of the wrong rank,
     on another space or mesh, a Dirichlet condition on another space, a measure that
     selects nothing, DoFs that are not owned integer indices, weights that are not finite
     and positive, a bound that is not finite or a callable bound of the wrong shape is one
@@ -546,7 +546,7 @@ def _checked(
     """Return (V, bcs as a list) once every argument passed its checks on every rank.
 
     (V, bcs as a list) once every argument passed its local checks on every rank
-    (:mod:`~contact.models.form_checks`): the forms' (name, form, rank), F written in u
+    (``contact.models.form_checks``): the forms' (name, form, rank), F written in u
     (``residual`` = (F, J)), the Dirichlet conditions, the constraint — and the number of
     Dirichlet conditions and the constraint's shape are the same on every rank.
     """
