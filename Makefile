@@ -1,7 +1,9 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, lint (below), run the test suite (JOBS=2 pytest-xdist
 #              workers, a test file per worker at a time; JOBS=1: one process)
-# make lint  — ruff (lint, format) on contact/ tests/ demos/ docs/ and mypy on contact/ (pyproject.toml)
+# make lint  — ruff (lint, format) on contact/ tests/ demos/ docs/ and mypy on contact/ (pyproject.toml);
+#              every variant of the C kernels compiled with -Wall -Wextra -Werror
+#              (tools/check_kernels.py; again only when the sources or the compiler changed)
 # make docs  — the documentation site into docs/_build/html (Sphinx; warnings are errors, the
 #              demos executed at small sizes; docs/README.md)
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
@@ -36,9 +38,10 @@ test: venv lint
 	$(VENV)/bin/python -m pytest -q $(if $(filter 1,$(JOBS)),,-n $(JOBS) --dist loadfile) tests
 
 lint: venv
-	$(VENV)/bin/ruff check contact tests demos docs/conf.py docs/paraview
-	$(VENV)/bin/ruff format --check contact tests demos docs/conf.py docs/paraview
+	$(VENV)/bin/ruff check contact tests demos docs/conf.py docs/paraview tools/check_kernels.py
+	$(VENV)/bin/ruff format --check contact tests demos docs/conf.py docs/paraview tools/check_kernels.py
 	$(VENV)/bin/mypy
+	$(PY) tools/check_kernels.py --stamp $(VENV)/.kernels-checked
 
 # the newest releases, in a venv of their own (never the tested .venv): upgrades are deliberate
 venv-latest:

@@ -160,6 +160,11 @@ class StepWriter:
             info["inverted"] = path.inverted
         if path.tangent_events:  # what the energy search did, per step (one line each)
             info["tangent_events"] = path.tangent_events
+        if path.bifurcation:  # no stable state found: the equilibrium branch followed
+            info["bifurcation"] = path.bifurcation
+            info["equilibrium_branch"] = [
+                {"step": k, "time": t, "negative_eigenvalues": n} for k, t, n in path.branch_steps
+            ]
         if config.friction is not None and friction != "none":
             info["tangential_form"] = config.friction.form
         if self.scene.config.elastic:  # the forces are of the whole body

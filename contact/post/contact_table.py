@@ -139,6 +139,10 @@ def friction_columns(scene: Scene, result: Result) -> Table:
     return cols
 
 
+#: in-plane coordinates below this fraction of the contact zone's extent are round-off: 0
+POLAR_ROUNDOFF = 1e-12
+
+
 def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     """r, theta about the first point of contact in the plane ⟂ n (collective)."""
     from ..models.obstacles import first_contact_point
@@ -152,7 +156,23 @@ def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(n, t1)
     rel = X - origin
-    return {"r": np.hypot(rel @ t1, rel @ t2), "theta": np.arctan2(rel @ t2, rel @ t1)}
+    extent = scene.comm.allreduce(float(np.max(np.abs(rel), initial=0.0)), op=MPI.MAX)
+    return polar(rel, t1, t2, POLAR_ROUNDOFF * extent)
+
+
+def polar(rel: np.ndarray, t1: np.ndarray, t2: np.ndarray, roundoff: float) -> Table:
+    """r and theta ∈ (−π, π] of the points ``rel`` (rows, relative to the origin) in the
+    plane of the unit vectors t1, t2.  The in-plane coordinates are summed component by
+    component (the same for a row on any number of ranks, whatever the array's length) and
+    those of magnitude ≤ ``roundoff`` become +0: a point on the axis −t1 gets θ = +π,
+    never −π from a signed zero or a round-off −1e-18 (which the partition decides)."""
+
+    def along(t: np.ndarray) -> np.ndarray:
+        value = sum(rel[:, i] * t[i] for i in range(rel.shape[1]))
+        return np.where(np.abs(value) <= roundoff, 0.0, value)
+
+    a, b = along(t1), along(t2)
+    return {"r": np.hypot(a, b), "theta": np.arctan2(b, a)}
 
 
 def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
@@ -203,7 +223,8 @@ def contact_table(scene: Scene, result: Result, columns: Table | None = None) ->
         keys = list(table)
         table = {**{k: table[k] for k in keys[:2]}, "s": s, **{k: table[k] for k in keys[2:]}}
     order = _order(table)
-    return {k: v[order] for k, v in table.items()}
+    # no signed zeros in the files: −0.0 + 0.0 = +0.0 (a value's sign is no property of a zero)
+    return {k: v[order] + 0.0 if v.dtype.kind == "f" else v[order] for k, v in table.items()}
 
 
 def _order(table: Table) -> np.ndarray:
