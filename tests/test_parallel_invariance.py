@@ -238,3 +238,117 @@ def test_two_body_grid_sequencing_same_answer_on_1_2_and_3_ranks(tmp_path: Path)
         assert runs[n]["force"] == pytest.approx(serial["force"], rel=1e-8)
         assert runs[n]["a"] == pytest.approx(serial["a"], rel=1e-12)
         assert runs[n]["p0_error"] == pytest.approx(serial["p0_error"], abs=1e-8)
+
+
+MESH_DIGESTS = '''
+import hashlib
+import numpy as np
+from mpi4py import MPI
+from dolfinx import mesh as dmesh
+
+def gathered(a):
+    """The rows of all ranks' ``a``, sorted lexicographically, on rank 0."""
+    parts = MPI.COMM_WORLD.gather(np.ascontiguousarray(a, dtype=float), root=0)
+    if parts is not None:
+        rows = np.concatenate(parts)
+        return rows[np.lexsort(rows.T[::-1])]
+
+def mesh_digest(scene):
+    """[vertices, cells, SHA-256 of the sorted vertex coordinates, of the sorted cell
+    midpoints with their body tags] on rank 0: the same mesh, the same digest."""
+    msh = scene.mesh
+    tdim = msh.topology.dim
+    owned = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
+    body = np.zeros(len(owned))
+    if scene.bodies is not None:
+        keep = scene.bodies.indices < len(owned)
+        body[scene.bodies.indices[keep]] = scene.bodies.values[keep]
+    cells = np.column_stack([dmesh.compute_midpoints(msh, tdim, owned), body])
+    X = gathered(msh.geometry.x[: msh.geometry.index_map().size_local])
+    C = gathered(cells)
+    if X is not None:
+        digest = lambda a: hashlib.sha256(a.tobytes()).hexdigest()[:16]
+        return [len(X), len(C), digest(X), digest(C)]
+'''
+
+TIED_REFINEMENT = (
+    MESH_DIGESTS
+    + """
+import json, sys
+import contact
+comm = MPI.COMM_WORLD
+scene = contact.load_scene(sys.argv[1])
+rows = []
+for level in range(3):
+    msh = scene.mesh
+    for dim in (1, 2):
+        msh.topology.create_entities(dim)
+    msh.topology.create_connectivity(2, 0)
+    # faces (owned) whose two longest edges have exactly the same length
+    f2v = msh.topology.connectivity(2, 0).array.reshape(-1, 3)
+    f2v = f2v[: msh.topology.index_map(2).size_local]
+    vertices = msh.topology.index_map(0)
+    node = np.empty(vertices.size_local + vertices.num_ghosts, dtype=np.int64)
+    node[msh.topology.connectivity(3, 0).array] = msh.geometry.dofmaps[0].ravel()
+    p = msh.geometry.x[node[f2v]]
+    sides = np.sort(np.linalg.norm(p - p[:, [1, 2, 0]], axis=2), axis=1)
+    ties = comm.allreduce(int(np.count_nonzero(sides[:, 2] == sides[:, 1])), op=MPI.SUM)
+    rows.append([mesh_digest(scene), ties])
+    # marked by position: the same cells on any partition
+    n = msh.topology.index_map(3).size_local
+    mid = dmesh.compute_midpoints(msh, 3, np.arange(n, dtype=np.int32))
+    cells = np.flatnonzero(np.linalg.norm(mid, axis=1) < 0.08).astype(np.int32)
+    scene, _ = contact.refine(scene, cells)
+if comm.rank == 0:
+    print(json.dumps(rows))
+"""
+)
+
+
+def test_refinement_of_tied_faces_identical_on_1_2_and_3_ranks(tmp_path: Path) -> None:
+    """The sphere on a block (3D, two bodies): its gmsh mesh has faces whose two longest edges
+    have exactly the same length, which DOLFINx's refinement decided by partition-dependent
+    global vertex numbers — the cells around the origin refined twice gave other cells on 2
+    ranks (level 1) and 3 ranks (level 2) than on one, the adaptive two_body_hertz_3d other
+    DoFs (level 2: 67,464 on 1 rank, 67,461 on 2).  Now the longest edge of a tied face is
+    chosen by the coordinates (contact.adaptivity.longest_edge): the same vertices, cells and
+    body tags on 1, 2 and 3 ranks."""
+    runs = _run_script(tmp_path, TIED_REFINEMENT, "two_body_hertz_3d.yaml", (1, 2, 3))
+    serial = runs[1]
+    assert [row[1] > 0 for row in serial] == [True] * 3  # tied faces at every level
+    assert serial[2][0][1] > 4 * serial[0][0][1]  # refined cells around the origin
+    assert runs[2] == serial and runs[3] == serial
+
+
+TWO_BODY_ADAPTIVE = (
+    MESH_DIGESTS
+    + """
+import json, sys
+import contact
+scene = contact.load_scene(sys.argv[1], ["output.verbose=false"])
+rows = []
+def record(level):
+    rows.append({"mesh": mesh_digest(level.scene), "dofs": level.result.dofs,
+                 "eta": level.estimate.eta, "force": level.result.contact_force,
+                 "converged": bool(level.result.converged)})
+contact.adapt(scene, max_levels=4, verbose=False, on_level=record)
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps(rows))
+"""
+)
+
+
+def test_two_body_adaptive_meshes_identical_on_1_2_and_3_ranks(tmp_path: Path) -> None:
+    """two_body_hertz_2d through the adaptive loop (two bodies, mortar pairs, body and
+    interface tags carried to each refined mesh): per level the same DoFs, vertices, cells
+    and body tags on 1, 2 and 3 ranks, and η and the contact force to solver tolerance."""
+    runs = _run_script(tmp_path, TWO_BODY_ADAPTIVE, "two_body_hertz_2d.yaml", (1, 2, 3))
+    serial = runs[1]
+    assert len(serial) == 4 and all(row["converged"] for row in serial)
+    assert serial[-1]["dofs"] > 2 * serial[0]["dofs"]
+    for n in (2, 3):
+        assert len(runs[n]) == 4
+        for one, many in zip(serial, runs[n]):
+            assert many["mesh"] == one["mesh"] and many["dofs"] == one["dofs"], (n, many, one)
+            assert many["eta"] == pytest.approx(one["eta"], rel=1e-8)
+            assert many["force"] == pytest.approx(one["force"], rel=1e-8)

@@ -16,6 +16,7 @@ from ..setup.geometry import builder_surfaces
 from ..setup.meshes import Boundary
 from ..setup.scene import Scene
 from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
+from . import longest_edge
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 
@@ -45,13 +46,15 @@ def refine(
 
     In parallel the refined mesh is redistributed evenly over the ranks unless
     ``rebalance`` is false (default: the scene's ``adapt.rebalance``, true; see
-    :func:`refine_partitioner`); the mesh itself does not depend on it.
+    :func:`refine_partitioner`); the mesh itself does not depend on it, nor on the number of
+    ranks: a face's longest edge among edges of equal length is chosen by the coordinates,
+    not by DOLFINx's partition-dependent vertex numbers (:mod:`.longest_edge`).
 
     ``cells`` are owned local cell indices (as :func:`mark` returns them); anything else,
     or a ``u_h`` on another mesh, is a ValueError (on every rank).
 
     ``timings``, if given, receives the seconds of the parts: ``mesh`` (the marked edges and
-    ``dolfinx.mesh.refine`` itself, with the redistribution and the ghost layer),
+    ``dolfinx.mesh.refine`` itself, with the redistribution, the ghost layer and the ties),
     ``transfer`` (facets, tags and functions carried over) and ``snap`` (curved boundaries)."""
     cells = _owned_cells(scene, cells)
     if u_h is not None and (
@@ -71,11 +74,8 @@ def refine(
     clock = [time.perf_counter()]  # the start, then the end of each part
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    new, parent_cell, parent_facet = dmesh.refine(
-        msh,
-        edges,
-        partitioner=refine_partitioner(msh, rebalance),
-        option=dmesh.RefinementOption.parent_cell_and_facet,
+    new, parent_cell, parent_facet = longest_edge.refine(
+        msh, edges, refine_partitioner(msh, rebalance)
     )
     clock.append(time.perf_counter())
     new.topology.create_entities(tdim - 1)
