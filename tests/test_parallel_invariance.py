@@ -1,7 +1,10 @@
 """The same answer on any number of MPI ranks (issue 10, defect 5): adaptive meshes do not
 depend on how round-off split mirror-image indicators (marking within a relative 1e-10 of
-its threshold), and Newton's generalized-Jacobian element at a kink does not depend on the
-sign of round-off (ties within 1e-12 of the global scale of (a, b), contact.solvers.ncp).
+its threshold) nor on DOLFINx's vertex numbers (equally long edges of a face decided by the
+coordinates, contact.adaptivity.longest_edge), and Newton's generalized-Jacobian element at
+a kink does not depend on the sign of round-off (ties within 1e-12 of the global scale of
+(a, b), contact.solvers.ncp): with Newton steps solved to the linear solver's tolerance the
+Newton path is the same; inexact GAMG steps depend on the partition, the answer does not.
 """
 
 from __future__ import annotations
@@ -352,3 +355,51 @@ def test_two_body_adaptive_meshes_identical_on_1_2_and_3_ranks(tmp_path: Path) -
             assert many["mesh"] == one["mesh"] and many["dofs"] == one["dofs"], (n, many, one)
             assert many["eta"] == pytest.approx(one["eta"], rel=1e-8)
             assert many["force"] == pytest.approx(one["force"], rel=1e-8)
+
+
+NEWTON_3D = """
+import json, sys
+from mpi4py import MPI
+import contact
+scene = contact.load_scene(sys.argv[1], ["mesh.h=0.5", "mesh.h_contact=0.04"])
+out = {}
+for name, options in (("direct", {"linear": "direct"}),
+                      ("gamg_exact", {"linear": "gamg", "inexact": False}),
+                      ("gamg_inexact", {"linear": "gamg"})):
+    r = contact.solve(scene, verbose=False, **options)
+    out[name] = {"converged": bool(r.converged), "iterations": r.iterations,
+                 "polish": r.polish_solves, "active": r.n_active, "force": r.contact_force,
+                 "history": [(h["active"], h["residual"]) for h in r.history]}
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps(out))
+"""
+
+
+def test_newton_path_on_any_number_of_ranks_when_steps_are_exact(tmp_path: Path) -> None:
+    """two_body_hertz_3d's first level, on a coarse mesh, on 1 and 3 ranks.  Each Newton
+    step solved to the linear solver's tolerance — MUMPS, or CG + GAMG without the
+    inexact-Newton forcing — gives the same Newton path: the active set and ‖Φ‖ of every
+    iterate, the iterations and the polishing solves.  The default inexact steps stop CG
+    at the forcing tolerance, and GAMG's aggregates depend on the partition, so the iterates
+    do too (on the scene's own mesh: 9 Newton steps + 2 polishing solves on one rank, 8 + 1
+    on two).  What holds there is the answer: the same active set and contact force to
+    solver tolerance."""
+    runs = _run_script(tmp_path, NEWTON_3D, "two_body_hertz_3d.yaml", (1, 3))
+    for name in ("direct", "gamg_exact"):
+        _same_newton_path(runs[1][name], runs[3][name])
+    _same_newton_path(runs[1]["direct"], runs[1]["gamg_exact"])
+    reference = runs[1]["direct"]
+    for run in runs.values():
+        for solve in run.values():
+            assert solve["converged"] and solve["active"] == reference["active"], solve
+            assert solve["force"] == pytest.approx(reference["force"], rel=1e-10), solve
+
+
+def _same_newton_path(one: dict, other: dict) -> None:
+    """The same iterations, polishing solves, active sets and ‖Φ‖ (to 10⁻⁶; the last one is
+    round-off about 0)."""
+    assert one["converged"] and other["converged"]
+    assert (other["iterations"], other["polish"]) == (one["iterations"], one["polish"])
+    assert [a for a, _ in other["history"]] == [a for a, _ in one["history"]]
+    residuals = [[r for _, r in run["history"][:-1]] for run in (one, other)]
+    assert residuals[1] == pytest.approx(residuals[0], rel=1e-6)
