@@ -20,7 +20,7 @@ try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before do
 except ImportError:  # a conda / Debian DOLFINx needs nothing
     pass
 
-# the public API, bottom to top of the layers (README, "Layout")
+# the public API, bottom to top of the layers (docs/development.md, "Layout")
 from .adaptivity import refine as _refine  # noqa: E402
 from .adaptivity.estimate import Estimate  # noqa: E402
 from .adaptivity.mark import mark  # noqa: E402

@@ -51,7 +51,17 @@ KINDS = ("residual", "equilibrated", "equilibrated_rt0")
 
 @dataclass
 class Estimate:
-    """η_T as a DG0 function, the global η, and the global total Σ_T of each term."""
+    """The a posteriori error estimate of one solve (:func:`contact.estimate`).
+
+    Attributes:
+        eta_T: The cell indicators η_T as a DG0 function (what :func:`contact.mark` takes).
+        eta: The global estimate η = (Σ_T η_T²)^{1/2} for the residual estimator, the
+            guaranteed bound for the equilibrated ones (an energy norm, in the units of
+            (force × length)^{1/2}).
+        terms: The global total Σ_T of each term of η_T² (residual: ``volume``, ``jump``,
+            ``neumann``, ``consistency``, ``sign``, ``complementarity``, plus the friction
+            and pair terms where they apply; equilibrated: the parts of the bound).
+    """
 
     eta_T: fem.Function
     eta: float
@@ -59,8 +69,11 @@ class Estimate:
 
 
 def _cellwise(msh):
-    """What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
-    diameter), h_E (facet size), dx, dS, and a zero form to start sums from."""
+    """Return what every indicator form needs.
+
+    What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
+    diameter), h_E (facet size), dx, dS, and a zero form to start sums from.
+    """
     w = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
     dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
     h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
@@ -69,8 +82,11 @@ def _cellwise(msh):
 
 
 def indicator_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
-    """The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar
-    equations (:func:`scalar_terms`) or of an elastic body (:func:`elasticity_terms`)."""
+    """Return the estimator's terms as UFL forms linear in a DG0 test function.
+
+    The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar
+    equations (:func:`scalar_terms`) or of an elastic body (:func:`elasticity_terms`).
+    """
     if isinstance(problem.physics, Diffusion):
         return scalar_terms(problem, result)
     return elasticity_terms(problem, result)
@@ -133,12 +149,15 @@ def scalar_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
 
 
 def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
-    """docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
+    """Return the terms of an elastic body (docs/theory.md §5).
+
+    docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
     n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
 
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
 
-    (consistency, tangential — frictionless —, sign, complementarity)."""
+    (consistency, tangential — frictionless —, sign, complementarity).
+    """
     physics = _physics(problem, Elasticity)
     msh = problem.V.mesh
     u_h, lam = result.u_h, result.lmbda_h
@@ -216,12 +235,15 @@ def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
 
 @dataclass(frozen=True)
 class FrictionFields:
-    """UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on the contact
+    """Return the UFL data of the friction terms on the contact surfaces.
+
+    UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on the contact
     surfaces: the tangential multiplier λ_t and the solver's slip increment s_t (P1 vectors
     of the nodal λ_t,i and s_t,i, :func:`contact.solvers.friction.surface_functions`; the
     pairs' terms take this s_t, a rigid obstacle's the slip (I − n nᵀ)(u_h − u_prev) of the
     load step) and the bound ρ (Tresca: the threshold expression s(x, t); Coulomb:
-    F·(−λ_n,h)⁺, :func:`friction_bound`)."""
+    F·(−λ_n,h)⁺, :func:`friction_bound`).
+    """
 
     lam_t: fem.Function
     slip: fem.Function
@@ -238,14 +260,17 @@ def interface_terms(
     T,
     friction: FrictionFields | None,
 ) -> dict[str, ufl.Form]:
-    """Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on the
-    slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
+    """Return the estimator terms on the pairs' surfaces, both sides measured.
+
+    Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on
+    the slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
     with friction h_E ‖T_t − λ_t‖² and the terms ‖(|λ_t| − ρ)⁺‖², ∫ |ρ|s_t| + λ_t·s_t| of
     docs/theory.md §1.4, s_t the nodal relative slip increment), ‖λ_h⁺‖² (sign) and
-    |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
-    (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
-    like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
-    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None."""
+    |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m −
+    T·n‖² (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried
+    over like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
+    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None.
+    """
     from ..models.mortar import master_pressure, master_vector
 
     physics = _physics(problem, Elasticity)
@@ -287,8 +312,11 @@ def interface_terms(
 
 
 def friction_bound(law: Friction, problem: Problem, lam: fem.Function):
-    """ρ of a friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca its threshold s(x, t) as
-    written."""
+    """Return ρ of a friction law as UFL.
+
+    ρ of a friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca its threshold s(x, t) as
+    written.
+    """
     if law.law == "coulomb":
         return law.coefficient * ufl.max_value(-lam, 0)  # type: ignore[union-attr]
     return law.threshold  # type: ignore[union-attr]
@@ -302,7 +330,9 @@ def _assemble_cellwise(form: ufl.Form) -> la.Vector:
 
 
 def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
-    """η_T and η of a solve of ``problem`` (collective): the residual estimator
+    """Estimate the error of a solve of ``problem`` (the ESTIMATE step).
+
+    η_T and η of a solve of ``problem`` (collective): the residual estimator
     (docs/theory.md §5) or a guaranteed bound from an equilibrated flux (§9).
 
     Args:
@@ -314,7 +344,8 @@ def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
 
     Returns:
         The :class:`Estimate`: η_T (DG0), η and each term's total.  A result of another
-        problem, or a kind that is not one of :data:`KINDS`, is a ValueError."""
+        problem, or a kind that is not one of :data:`KINDS`, is a ValueError.
+    """
     problem = getattr(problem, "problem", None) or problem
     if (
         not isinstance(result, Result)
@@ -343,9 +374,12 @@ def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
 
 
 def residual_estimate(problem: Problem, result: Result) -> Estimate:
-    """The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
+    """Return the residual estimator of a solve of ``problem``.
+
+    The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
     term of η_T² assembled once as a DG0 vector, η_T² their sum, each term's total the sum
-    of its owned entries."""
+    of its owned entries.
+    """
     terms = indicator_terms(problem, result)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())

@@ -1,6 +1,9 @@
-"""REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), a
-:class:`Domain` carried to the new mesh (its tags and functions, the nested-iteration guess,
-curved boundaries snapped to their exact surfaces), and the refined mesh's partition."""
+"""REFINE (docs/theory.md §6): refine the marked cells and carry a domain over.
+
+The marked cells' edges refined (``dolfinx.mesh.refine``), a :class:`Domain` carried to the
+new mesh (its tags and functions, the nested-iteration guess, curved boundaries snapped to
+their exact surfaces), and the refined mesh's partition.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +17,7 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from . import longest_edge
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 
@@ -33,6 +37,16 @@ class Domain:
             boundary vertices onto exact surfaces (None: they stay at edge midpoints).
         parent: (the domain this one was refined from, the parent cell of each new cell),
             or None: the coarser domains grid sequencing may solve on first.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> from dolfinx import mesh
+        >>> from mpi4py import MPI
+        >>> domain = contact.Domain(mesh.create_unit_square(MPI.COMM_WORLD, 4, 4))
+        >>> owned = domain.mesh.topology.index_map(2).size_local
+        >>> fine, _ = contact.refine(domain, np.arange(owned, dtype=np.int32))
+        >>> fine.mesh.topology.index_map(2).size_global, fine.parent[0] is domain
+        (128, True)
     """
 
     mesh: dmesh.Mesh
@@ -45,6 +59,7 @@ class Domain:
 
     @property
     def comm(self) -> MPI.Comm:
+        """The mesh's communicator."""
         return self.mesh.comm
 
 
@@ -56,13 +71,19 @@ def refine(
     *,
     timings: dict[str, float] | None = None,
 ) -> tuple[Domain, fem.Function | None]:
-    """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
+    """Refine the marked cells and carry the domain over (the REFINE step).
+
+    Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
     domain's tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), prolong
     the domain's functions, and snap the new boundary vertices (:attr:`Domain.snap`).
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
-    the surface shifts by at most the sagitta h²/(8R) of the old edge).
+    the surface shifts by at most the sagitta h²/(8R) of the old edge). Collective.
+
+    The refined mesh does not depend on the number of ranks: a face's longest edge among
+    edges of equal length is chosen by the coordinates, not by DOLFINx's
+    partition-dependent vertex numbers (:mod:`.longest_edge`).
 
     Args:
         domain: the domain to refine.
@@ -76,7 +97,8 @@ def refine(
 
     Returns:
         (the refined domain, u_h on it or None).  Cells that are not owned indices, or a
-        ``u_h`` on another mesh, are a ValueError (on every rank)."""
+        ``u_h`` on another mesh, are a ValueError (on every rank).
+    """
     cells = _owned_cells(domain, cells)
     if u_h is not None and (
         not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not domain.mesh
@@ -89,11 +111,8 @@ def refine(
     clock = [time.perf_counter()]  # the start, then the end of each part
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    new, parent_cell, parent_facet = dmesh.refine(
-        msh,
-        edges,
-        partitioner=refine_partitioner(msh, rebalance),
-        option=dmesh.RefinementOption.parent_cell_and_facet,
+    new, parent_cell, parent_facet = longest_edge.refine(
+        msh, edges, refine_partitioner(msh, rebalance)
     )
     clock.append(time.perf_counter())
     new.topology.create_entities(tdim - 1)
@@ -122,10 +141,12 @@ def refine(
 
 
 def next_dofs_bound(msh: dmesh.Mesh, cells: np.ndarray, V: fem.FunctionSpace) -> int | None:
-    """A lower bound of the DoFs after refining ``cells`` (P1: one new vertex per marked
-    edge; refinement may split more edges for conformity), or None for P2.  An edge counts
-    once, on its owning rank, whichever rank's cells marked it (the same bound on any
-    number of ranks)."""
+    """Return a lower bound of the DoFs after refining ``cells``.
+
+    P1: one new vertex per marked edge (refinement may split more edges for conformity);
+    None for P2.  An edge counts once, on its owning rank, whichever rank's cells marked it
+    (the same bound on any number of ranks).
+    """
     if V.element.basix_element.degree != 1:
         return None
     tdim = msh.topology.dim
@@ -151,7 +172,8 @@ def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     * parallel, not ``rebalance``: the identity partitioner (children stay on their parent's
       rank).
 
-    Both parallel ones rebuild the ghost layer the estimator's interior-facet jumps need."""
+    Both parallel ones rebuild the ghost layer the estimator's interior-facet jumps need.
+    """
     if msh.comm.size == 1:
         return None
     if rebalance:

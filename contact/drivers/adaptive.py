@@ -1,4 +1,6 @@
-"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6) over a user's
+"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6).
+
+The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6) over a user's
 builder: ``build(mesh)`` (or ``build(domain)``) gives the problem on each level's mesh, and
 the loop solves it (:func:`contact.drivers.solve.solve`), estimates the error
 (:func:`contact.adaptivity.estimate.estimate`), marks cells
@@ -46,8 +48,11 @@ from .solve import solve as solve_problem
 
 @dataclass
 class Level:
-    """One level of the adaptive loop: its domain, problem, solve, estimate, the true error
-    (if the problem's physics declares an exact solution) and the seconds of each phase."""
+    """One level of the adaptive loop.
+
+    One level of the adaptive loop: its domain, problem, solve, estimate, the true error
+    (if the problem's physics declares an exact solution) and the seconds of each phase.
+    """
 
     index: int
     domain: Domain
@@ -60,6 +65,7 @@ class Level:
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
 
     def row(self) -> dict[str, Any]:
+        """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
         msh = self.result.u_h.function_space.mesh
         row = {
             "level": self.index,
@@ -85,9 +91,11 @@ class Level:
         return row
 
     def errors(self) -> dict[str, Any]:
-        """The error components and the solver's work (:mod:`contact.solvers.stopping`):
+        """Return the error components and the solver's work of adaptive stopping.
+
         η_disc (the level's η), η_lin and η_alg of the final iterate (adaptive stopping
-        only; '' otherwise, or where not defined), the Krylov iterations of all its solves."""
+        only; '' otherwise, or where not defined), the Krylov iterations of all its solves.
+        """
         st = self.result.stopping
 
         def finite(v: float) -> float | str:
@@ -103,28 +111,44 @@ class Level:
         }
 
     def release(self) -> None:
-        """Keep the level's figures only (:meth:`contact.solvers.result.Result.release`): its
-        result released, its domain, problem and η_T dropped."""
+        """Keep the level's figures only.
+
+        Keep the level's figures only (:meth:`contact.solvers.result.Result.release`): its
+        result released, its domain, problem and η_T dropped.
+        """
         self.result.release()
         self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
 
 
 @dataclass
 class AdaptResult:
+    """The levels of an adaptive loop (:func:`contact.adapt`) and why it stopped.
+
+    Attributes:
+        levels: The levels solved, first to last (each a
+            :class:`~contact.drivers.adaptive.Level`, or a scene's level).
+        stop: Why the loop stopped, e.g. ``"eta = 3.1e-03 <= tol = 4.0e-03"`` or
+            ``"reached max_levels = 6"``.
+    """
+
     levels: list[Any] = field(default_factory=list)  # the Level records (a scene's: SceneLevel)
     stop: str = ""
 
     @property
     def rows(self) -> list[dict]:
+        """The levels' rows of ``convergence.csv`` (:meth:`~contact.drivers.adaptive.Level.row`)."""
         return [lv.row() for lv in self.levels]
 
 
 def rank_imbalance(V: fem.FunctionSpace) -> float:
-    """max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial):
+    """Return max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective).
+
+    max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial):
     1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain at most
     2/1.15 = 1.74×.  Near 1 with ``rebalance`` (the default); without it a refined
     mesh keeps its parents' partition, and refinement concentrated on one rank's part of
-    the domain unbalances the work."""
+    the domain unbalances the work.
+    """
     return busiest_share(V.mesh.comm, V.dofmap.index_map.size_local)
 
 
@@ -155,7 +179,9 @@ def adapt(
     verbose: bool = False,
     **overrides: Any,
 ) -> AdaptResult:
-    """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
+    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE over a user's builder.
+
+    Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached.
 
     Args:
@@ -181,9 +207,11 @@ def adapt(
         stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
             needs an equilibrated ``kind``), or None: fixed tolerances.
         verbose: print the convergence table as it goes (rank 0).
+        **overrides: single options of ``options`` (``theta=0.3``, ``max_levels=6``, …).
 
     Returns:
-        The :class:`AdaptResult`: the levels and why the loop stopped."""
+        The :class:`AdaptResult`: the levels and why the loop stopped.
+    """
     if on_level is not None and not callable(on_level):
         raise ValueError(
             f"on_level: expected a function of one Level, got {type(on_level).__name__}"
@@ -282,9 +310,12 @@ def adapt(
 
 
 def _default_solve(build: Callable, knobs: SolverOptions, meshes: bool, nested: bool) -> LevelSolve:
-    """A level's solve of a user's builder: one :func:`~contact.drivers.solve.solve`; a level
+    """Return the default level solve of a user's builder.
+
+    A level's solve of a user's builder: one :func:`~contact.drivers.solve.solve`; a level
     without a guess (the first, or every level when not ``nested``) is sequenced over the
-    domain's ancestors with ≥ 4× fewer DoFs each (:func:`~.sequencing.ancestors`)."""
+    domain's ancestors with ≥ 4× fewer DoFs each (:func:`~.sequencing.ancestors`).
+    """
     coarse_knobs = knobs.model_copy(update={"rtol": sequencing.COARSE_RTOL})
 
     def solve(problem, domain: Domain, u0, criterion) -> Result:
@@ -326,7 +357,9 @@ def solve_level(
     stopping: tuple[float, float] | None,
     previous: Level | None = None,
 ) -> tuple[Result, Estimate, int]:
-    """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``;
+    """SOLVE and ESTIMATE one level.
+
+    SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``;
     ``solve`` the level's solve, ``kind`` the estimator; ``label`` names it in progress
     lines); returns (result, estimate, solves).
 
@@ -337,7 +370,8 @@ def solve_level(
     computed at the final iterate, and where the iterate fails either criterion against it
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
-    level, with no η known yet, uses the fixed tolerances."""
+    level, with no η known yet, uses the fixed tolerances.
+    """
     adaptive = stopping is not None and previous is not None
     eta = None
     if adaptive:

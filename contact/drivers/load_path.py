@@ -1,4 +1,6 @@
-"""Quasi-static load paths: a sequence of pseudo-times t_1 < t_2 < … < t_N, one contact solve
+"""Quasi-static load paths over a problem whose data depend on the pseudo-time t.
+
+Quasi-static load paths: a sequence of pseudo-times t_1 < t_2 < … < t_N, one contact solve
 per step, over a problem whose data depend on t.
 
 Step k solves the problem at t = t_k, starting from the solution of step k − 1 (a warm
@@ -51,8 +53,22 @@ MIN_STEP = 1e-9
 
 @dataclass
 class Step:
-    """One load step: its pseudo-time, the result, the adaptive loop's levels (if any), the
-    wall time and, for a body with an energy, the stability of its solution."""
+    """One load step, as a load path hands it to ``on_step``.
+
+    Attributes:
+        index: The step's number, 1 … N.
+        time: Its pseudo-time t.
+        result: The solve (of the final level, for an adaptive step).
+        levels: The adaptive loop's levels (:class:`~contact.drivers.adaptive.Level`), empty
+            for a step without one.
+        seconds: The step's wall time.
+        negative_eigenvalues: A body with an energy: the negative eigenvalues of the tangent
+            K_T at the solution (None otherwise).
+        min_det_F: Hyperelastic bodies: the smallest det F of the solution.
+        branch: Hyperelastic bodies: how the step was solved on the equilibrium branch by
+            plain Newton where the energy search found no stable state, in one phrase
+            ("" otherwise).
+    """
 
     index: int  # 1 … N
     time: float
@@ -66,9 +82,12 @@ class Step:
     branch: str = ""
 
     def release(self) -> None:
-        """Keep the step's figures only: its result and its adaptive levels' results are
-        released (:meth:`contact.solvers.result.Result.release`: iterations, residual,
-        history, contact force stay; functions, nodal arrays and PETSc objects go)."""
+        """Keep the step's figures only.
+
+        Its result and its adaptive levels' results are released
+        (:meth:`contact.solvers.result.Result.release`: iterations, residual, history,
+        contact force stay; functions, nodal arrays and PETSc objects go).
+        """
         for level in self.levels:
             level.release()
         self.result.release()
@@ -76,6 +95,28 @@ class Step:
 
 @dataclass
 class LoadPath:
+    """The steps of a quasi-static load path (:func:`contact.run_load_path`).
+
+    Attributes:
+        steps: The steps solved, in order (each a :class:`~contact.drivers.load_path.Step`,
+            or a scene's step; all but the last converged ones are released unless
+            ``keep_all``).
+        stop: Why the path stopped early, with the path's notes ("" when every step
+            converged).
+        failure: Why the path stopped short, in one short phrase (the step, t, the
+            reason, the limit of step cutting reached); "" when it reached its end.
+        cuts: Step cutting: one line per cut, ``'t = … (reason) cut to t = …'``.
+        indefinite: Hyperelastic bodies: the first step whose tangent K_T is not positive
+            definite ("" if none).
+        inverted: Hyperelastic bodies: the first step whose solution inverts matter
+            (det F ≤ 0; "" if none).
+        tangent_events: What the energy search did, one line per step where it did
+            anything (hyperelastic bodies).
+        bifurcation: The first step solved on the equilibrium branch where the energy
+            search found no stable state ("" if none).
+        branch_steps: Every step on that branch: (step, t, negative eigenvalues of K_T).
+    """
+
     steps: list = field(default_factory=list)
     stop: str = ""
     # why the path stopped short, in one short phrase (the step, t, the reason, the limit
@@ -94,14 +135,18 @@ class LoadPath:
 
     @property
     def converged(self) -> bool:
+        """Whether the path has steps and every one converged."""
         return bool(self.steps) and all(s.result.converged for s in self.steps)
 
 
 @dataclass
 class Previous:
-    """What a step starts from: the previous step's solution ``u`` (None before the first),
+    """What a load step starts from.
+
+    What a step starts from: the previous step's solution ``u`` (None before the first),
     its pseudo-time ``time``, the secant predictor's ``guess`` (or None), and what the
-    previous step was solved on (``where``: its mesh, scene…; None before the first)."""
+    previous step was solved on (``where``: its mesh, scene…; None before the first).
+    """
 
     u: fem.Function | None
     time: float
@@ -116,6 +161,7 @@ StepAdapt = Callable[[float, Previous], tuple[Any, Result, list]]
 
 
 def copy_function(fn: fem.Function, name: str) -> fem.Function:
+    """Return a copy of ``fn`` named ``name`` on the same space."""
     out = fem.Function(fn.function_space, name=name)
     out.x.array[:] = fn.x.array
     return out
@@ -124,9 +170,11 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
 def extrapolate(
     u_prev: fem.Function, u_prev2: fem.Function, t: float, t_prev: float, t_prev2: float
 ) -> fem.Function | None:
-    """The secant predictor
-    u_k ≈ u_{k−1} + (t_k − t_{k−1}) / (t_{k−1} − t_{k−2}) (u_{k−1} − u_{k−2})
-    (None when the two steps live on different meshes: an adaptive path)."""
+    """Return the secant predictor of step k from the two previous solutions.
+
+    u_k ≈ u_{k−1} + (t_k − t_{k−1}) / (t_{k−1} − t_{k−2}) (u_{k−1} − u_{k−2}) (None when the
+    two steps live on different meshes: an adaptive path).
+    """
     V, W = u_prev.function_space, u_prev2.function_space
     if V.mesh is not W.mesh or len(u_prev.x.array) != len(u_prev2.x.array) or t_prev <= t_prev2:
         return None
@@ -162,6 +210,8 @@ def run_steps(
         adapt_step: ``adapt_step(t, previous)`` → (what the last level was solved on, its
             result, the levels): the adaptive loop at a step, at the last step only or at
             every step (``adapt_each``); None: every step is one solve.
+        adapt_each: run ``adapt_step`` at every step (each refining on from the previous
+            step's final mesh), not only at the last.
         cuts: how many times in a row a failed step is halved.
         predictor: offer the secant predictor from the third step on.
         branches: follow the equilibrium branch where the energy search found no stable
@@ -174,7 +224,8 @@ def run_steps(
 
     Returns:
         The :class:`LoadPath`; it stops at the first step that does not converge and may
-        not be cut."""
+        not be cut.
+    """
     make = make_step or _step
     smallest = MIN_STEP * abs(times[-1])
     following = False  # on an unstable equilibrium branch: plain Newton (follow_branch)
@@ -292,11 +343,13 @@ def load_path(
         predictor: offer the secant predictor from the third step on.
         on_step: called with each :class:`Step` as it is done.
         verbose: a line per step (rank 0 of ``MPI.COMM_WORLD``).
+        **overrides: single knobs of ``options``, validated.
         keep_all: keep every step's functions (else each step is released once the next
             one is done).
 
     Returns:
-        The :class:`LoadPath`."""
+        The :class:`LoadPath`.
+    """
     opts = options_of(options, method, overrides)
 
     def solve_step(t: float, previous: Previous, **extra: Any) -> tuple[Any, Result]:
@@ -325,12 +378,15 @@ def load_path(
 
 
 def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
-    """Count the negative eigenvalues of a hyperelastic step's tangent K_T at its solution
+    """Count the negative eigenvalues of a hyperelastic step's tangent at its solution.
+
+    Count the negative eigenvalues of a hyperelastic step's tangent K_T at its solution
     (:func:`contact.models.hyperelastic.negative_eigenvalues`) and its smallest det F; the
     first step where K_T is not positive definite is reported (``LoadPath.indefinite``, the
     stop text, verbose), and the first whose solution inverts matter (``inverted``: an
     equilibrium of the discrete equations that no body reaches — plain Newton on St
-    Venant–Kirchhoff in strong compression converges to such states)."""
+    Venant–Kirchhoff in strong compression converges to such states).
+    """
     from ..models.hyperelastic import min_det_F, negative_eigenvalues
 
     comm = step.result.u_h.function_space.mesh.comm
@@ -357,21 +413,27 @@ def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
 
 
 def searched_indefinite(result: Result) -> bool:
-    """Whether a solve that failed was the energy search's and met a tangent that is not
-    positive definite (:mod:`contact.solvers.energy_search`'s log)."""
+    """Return whether a failed solve was the energy search's and met an indefinite tangent.
+
+    Whether a solve that failed was the energy search's and met a tangent that is not
+    positive definite (:mod:`contact.solvers.energy_search`'s log).
+    """
     return any(event["negative"] for event in result.tangent_log)
 
 
 def follow_branch(failed: Result, attempt: Callable[..., Result]) -> tuple[Result, str]:
-    """Where the energy search found no stable state that keeps det F > 0 (it met an
-    indefinite tangent and stopped or ran out of iterations), the equilibrium branch the
-    path was on: the same step by plain Newton (``attempt(line_search="basic")``, from the
-    same start).  Its solution is taken if it keeps matter whole (det F > 0 everywhere);
-    the load path then counts K_T's negative eigenvalues there (:func:`on_branch`): past a
-    bifurcation (St Venant–Kirchhoff's homogeneous compression past the loss of stability
-    of its free surface) that state is an unstable equilibrium, reported as such.
-    Returns (the result to keep, a phrase for the report; '' and ``failed`` if plain Newton
-    gives no admissible equilibrium either)."""
+    """Solve a step on the equilibrium branch where the energy search found no stable state.
+
+    Where the energy search found no stable state that keeps det F > 0 (it met an indefinite
+    tangent and stopped or ran out of iterations), the equilibrium branch the path was on:
+    the same step by plain Newton (``attempt(line_search="basic")``, from the same start).
+    Its solution is taken if it keeps matter whole (det F > 0 everywhere); the load path
+    then counts K_T's negative eigenvalues there (:func:`on_branch`): past a bifurcation (St
+    Venant–Kirchhoff's homogeneous compression past the loss of stability of its free
+    surface) that state is an unstable equilibrium, reported as such. Returns (the result to
+    keep, a phrase for the report; '' and ``failed`` if plain Newton gives no admissible
+    equilibrium either).
+    """
     plain = keep_to_branch(attempt)
     if plain is None:
         return failed, ""
@@ -385,9 +447,12 @@ def follow_branch(failed: Result, attempt: Callable[..., Result]) -> tuple[Resul
 
 
 def keep_to_branch(attempt: Callable[..., Result]) -> Result | None:
-    """The step by plain Newton (the equilibrium branch; :func:`follow_branch`, and the next
+    """Return the step solved by plain Newton if it converges and keeps det F > 0, else None.
+
+    The step by plain Newton (the equilibrium branch; :func:`follow_branch`, and the next
     steps on an unstable branch, :func:`on_branch`): its solution if it converges and keeps
-    det F > 0, else None (the energy search's answer stands, or takes the step)."""
+    det F > 0, else None (the energy search's answer stands, or takes the step).
+    """
     from ..models.hyperelastic import min_det_F
 
     plain = attempt(line_search="basic")
@@ -398,11 +463,14 @@ def keep_to_branch(attempt: Callable[..., Result]) -> Result | None:
 
 
 def on_branch(step: Step, how: str, path: LoadPath) -> bool:
-    """Record a step solved on the equilibrium branch (:func:`follow_branch`) with the
-    negative eigenvalues of K_T there (``LoadPath.branch_steps``; the first one's phrase is
+    """Record a step solved on the equilibrium branch; return whether the next keeps to it.
+
+    Record a step solved on the equilibrium branch (:func:`follow_branch`) with the negative
+    eigenvalues of K_T there (``LoadPath.branch_steps``; the first one's phrase is
     ``LoadPath.bifurcation``, ``Step.branch`` each one's).  Returns whether the next step
     keeps to the branch: while K_T is not positive definite there (the energy search would
-    leave it again and find no stable state), plain Newton follows it."""
+    leave it again and find no stable state), plain Newton follows it.
+    """
     n = int(step.negative_eigenvalues or 0)
     state = (
         f"unstable, K_T has {n} negative eigenvalue(s) there"
@@ -417,9 +485,12 @@ def on_branch(step: Step, how: str, path: LoadPath) -> bool:
 
 
 def _notes(path: LoadPath) -> str:
-    """', 2 step cut(s) (the last: t = 1 (diverged_fnorm_nan) cut to t = 0.5)' and '; K_T not
+    """Return the terminal's note on a load path's step cuts and tangent events.
+
+    ', 2 step cut(s) (the last: t = 1 (diverged_fnorm_nan) cut to t = 0.5)' and '; K_T not
     positive definite from step k (…)' ('' without either; every cut is in
-    ``LoadPath.cuts``)."""
+    ``LoadPath.cuts``).
+    """
     cuts = f", {len(path.cuts)} step cut(s) (the last: {path.cuts[-1]})" if path.cuts else ""
     notes = [note for note in (path.indefinite, path.inverted) if note]
     if path.branch_steps:

@@ -76,6 +76,32 @@ class Hierarchy:
         start: ``start(level, problem)``: the coarsest solved level's guess (e.g. a load
             step's previous solution), or None.
         note: why there are fewer levels than asked, or none ('' if nothing to say).
+
+    Example:
+        >>> import contact, numpy as np, ufl
+        >>> from dolfinx import fem, mesh
+        >>> from mpi4py import MPI
+        >>> def build(msh):  # −Δu = 10 in Ω, u = 0 on ∂Ω, u ≤ 0.05
+        ...     V = fem.functionspace(msh, ("Lagrange", 1))
+        ...     u, v = fem.Function(V), ufl.TestFunction(V)
+        ...     F = ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx - 10 * v * ufl.dx
+        ...     edge = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+        ...     bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, edge), V)
+        ...     cap = contact.Unilateral(0.05)
+        ...     return contact.ComplementarityProblem.from_residual(F, u, cap, [bc])
+        >>> from contact.drivers.sequencing import transfer
+        >>> coarse = mesh.create_unit_square(MPI.COMM_WORLD, 8, 8)
+        >>> fine = build(mesh.create_unit_square(MPI.COMM_WORLD, 32, 32))
+        >>> levels = contact.Hierarchy(
+        ...     [lambda: (coarse, build(coarse).problem)],
+        ...     solve=lambda level, problem, u0: contact.solve(problem, u0=u0, rtol=1e-6),
+        ...     transfer=transfer,
+        ...     fine=fine,
+        ... )
+        >>> result = contact.solve(fine, coarse=levels)
+        >>> result.converged, [level.dofs for level in result.sequence]
+        (True, [81])
+        >>> fine.close()
     """
 
     levels: Sequence[Callable[[], tuple[Any, Any]]]
@@ -91,7 +117,8 @@ class Hierarchy:
 
 def levels_wanted(option: str | int, fine_dofs: int) -> int | None:
     """Number of coarse levels to try for ``solver.sequence`` = ``option`` (``auto``, ``off``
-    or a number): 0, a number, or None (as many as ``auto`` allows)."""
+    or a number): 0, a number, or None (as many as ``auto`` allows).
+    """
     if option == "off" or option == 0:
         return 0
     if option == "auto":
@@ -105,7 +132,8 @@ def initial_guess(
     """Solve the levels of ``h``, coarsest first, each from the coarser solution carried over
     (the first from ``h.start``, or its cold start); return the last coarse solution on the
     fine space V (None if no level converged), the levels and the note.  ``label`` names
-    the method in verbose lines."""
+    the method in verbose lines.
+    """
     comm = V.mesh.comm
     note = h.note
     if note and verbose and comm.rank == 0:
@@ -168,7 +196,8 @@ def hierarchy(
     """The hierarchy of a user's builder: ``build(level)`` on each of ``levels`` (meshes or
     domains, coarsest first, all coarser than ``fine``), each solved by ``solve(problem,
     u0)``, solutions carried by :func:`transfer` (exact prolongation along a chain of
-    refinements, point location otherwise)."""
+    refinements, point location otherwise).
+    """
 
     def built(level: Any) -> Callable[[], tuple[Any, Any]]:
         return lambda: (level, discrete(build(level)))
@@ -184,7 +213,8 @@ def hierarchy(
 def transfer(u: fem.Function, coarse: Any, fine: Any, V: fem.FunctionSpace) -> fem.Function:
     """A coarser level's solution ``u`` on a finer level's space V: exact along a chain of
     refinements (``fine`` a domain refined from ``coarse``: :func:`prolong_chain`), else
-    by point location (:func:`point_transfer`, P1)."""
+    by point location (:func:`point_transfer`, P1).
+    """
     if _mesh(coarse) in (_mesh(level) for level in _chain(fine)):
         return prolong_chain(u, coarse, fine, V)
     return point_transfer(u, V)
@@ -207,7 +237,8 @@ def ancestors(level: Any, ratio: int, floor: int, bs: int) -> list:
     """The levels ``level`` was refined from (its ``parent`` chain), finest first, each with
     ≥ ``ratio`` times fewer DoFs (P1, block size ``bs``) than the one chosen before it and
     ≥ ``floor`` DoFs: the coarse levels of a refined mesh (adaptive hierarchies grow slowly:
-    every ``ratio``× in DoFs)."""
+    every ``ratio``× in DoFs).
+    """
     out, last = [], _dofs(level, bs)
     for s in _chain(level)[1:]:
         n = _dofs(s, bs)
@@ -227,7 +258,8 @@ def _dofs(level: Any, bs: int) -> int:
 def prolong_chain(u: fem.Function, coarse: Any, fine: Any, V: fem.FunctionSpace) -> fem.Function:
     """Prolong ``u`` through the refinements from ``coarse`` down to ``fine`` (levels with a
     ``mesh`` and a ``parent`` = (the level refined, parent cells); exact for nested
-    Lagrange spaces)."""
+    Lagrange spaces).
+    """
     chain = []
     s = fine
     while _mesh(s) is not _mesh(coarse):  # a level is its mesh (it may carry other options)
@@ -263,7 +295,8 @@ def point_transfer(
     its smallest barycentric coordinate is largest — the containing cell, or for a point
     just outside a curved boundary's coarse polygon the nearest one (linear
     extrapolation).  ``interpolate_nonmatching`` does the same through a collision search
-    per point and is orders of magnitude slower here (demos/RESULTS.md §10)."""
+    per point and is orders of magnitude slower here (demos/RESULTS.md §10).
+    """
     Vc = u.function_space
     msh, comm = Vc.mesh, V.mesh.comm
     tdim, gdim = msh.topology.dim, msh.geometry.dim
@@ -306,7 +339,8 @@ def _barycentric(
     verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray
 ) -> np.ndarray:
     """Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
-    simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``."""
+    simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``.
+    """
     dp = points - verts[cells, 0]
     inv_c = inv[cells]
     lam = sum(inv_c[:, :, j] * dp[:, j, None] for j in range(dp.shape[1]))
@@ -324,7 +358,8 @@ def _locate(
     extents lie within a factor 2 (:data:`SIZE_CLASS`), and each class gets buckets of
     half its mean extent over its own bounding box, so a cell spans a few buckets of its
     class whatever the others' sizes (one grid of the mean size made a large cell span
-    ~10⁶ buckets: 70 s for sphere_on_block's 480k points)."""
+    ~10⁶ buckets: 70 s for sphere_on_block's 480k points).
+    """
     lo_c, hi_c = verts.min(axis=1), verts.max(axis=1)
     extent = np.max(hi_c - lo_c, axis=1)
     smallest = max(float(extent.min(initial=1.0)), 1e-300)
@@ -361,7 +396,8 @@ def _bucket_candidates(
     """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
     ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
     cells' mean extent over their common bounding box
-    (:func:`~contact.base.buckets.box_point_pairs`)."""
+    (:func:`~contact.base.buckets.box_point_pairs`).
+    """
     point_of, box_of = box_point_pairs(lo_c[cells], hi_c[cells], points, grow)
     return point_of, cells[box_of]
 

@@ -1,7 +1,10 @@
-"""One contact solve of a problem: its options, an initial guess (given, from the coarser
-levels of a :class:`~.sequencing.Hierarchy`, or the problem's own start), then the solve
-itself (:func:`contact.solvers.snes.solve_problem`), or the Coulomb fixed point
-(:mod:`.fixed_point`)."""
+"""One contact solve of a problem.
+
+Its options, an initial guess (given, from the coarser levels of a
+:class:`~.sequencing.Hierarchy`, or the problem's own start), then the solve itself
+(:func:`contact.solvers.snes.solve_problem`), or the Coulomb fixed point
+(:mod:`.fixed_point`).
+"""
 
 from __future__ import annotations
 
@@ -22,8 +25,11 @@ from . import sequencing
 
 
 def options_of(options: SolverOptions | None, method: str | None, overrides: dict) -> SolverOptions:
-    """``options`` (default: the defaults) with ``method`` and keyword ``overrides``, each
-    validated (one ConfigError line naming the key)."""
+    """Return solver options with the call's method and overrides, validated.
+
+    ``options`` (default: the defaults) with ``method`` and keyword ``overrides``, each
+    validated (one ConfigError line naming the key).
+    """
     base = options if options is not None else SolverOptions()
     given = {k: v for k, v in {"method": method, **overrides}.items() if v is not None}
     if not given:
@@ -47,7 +53,9 @@ def solve(
     check_options: bool = False,
     **overrides: Any,
 ) -> Result:
-    """Solve a contact problem; return its :class:`~contact.solvers.result.Result` (never
+    """Solve a contact problem once.
+
+    Solve a contact problem; return its :class:`~contact.solvers.result.Result` (never
     raises on divergence).
 
     Args:
@@ -69,12 +77,14 @@ def solve(
         assembly: seconds already spent assembling the problem for this solve (counted in
             its timings).
         check_options: check ``options.petsc_options`` on a tiny system first.
+        **overrides: single knobs of ``options`` (``rtol``, ``linear``, …), validated.
 
     Returns:
         The result.  A frictional problem (its law Tresca or Coulomb) takes fb, min or blend
         and returns the nodal friction fields in ``Result.friction``; Coulomb with
         ``friction.coulomb: fixed_point`` is solved as a sequence of Tresca problems
-        (:func:`~.fixed_point.coulomb_fixed_point`)."""
+        (:func:`~.fixed_point.coulomb_fixed_point`).
+    """
     p = discrete(problem)
     opts = options_of(options, method, overrides)
     method = opts.method
@@ -148,7 +158,9 @@ def sequence(
     verbose: bool = False,
     **overrides: Any,
 ) -> tuple[Any, Result]:
-    """Grid sequencing of a user's problem (docs/theory.md §8): ``build(level)`` on each of
+    """Grid-sequence a user's problem over a list of meshes (docs/theory.md §8).
+
+    Grid sequencing of a user's problem (docs/theory.md §8): ``build(level)`` on each of
     ``levels`` (meshes or :class:`~contact.adaptivity.refine.Domain` objects, coarsest
     first), each solved from the coarser solution carried over (exact prolongation along
     refinements, point location between other meshes), the coarse ones to
@@ -162,10 +174,30 @@ def sequence(
         options: the :class:`~contact.solvers.options.SolverOptions` of the finest solve;
             ``overrides`` change single knobs.
         verbose: print each level's Newton history (rank 0).
+        **overrides: single knobs of ``options``, validated.
 
     Returns:
         (the finest level's problem, its result; ``Result.sequence`` lists the coarse
-        levels' solves)."""
+        levels' solves).
+
+    Example:
+        >>> import contact, numpy as np, ufl
+        >>> from dolfinx import fem, mesh
+        >>> from mpi4py import MPI
+        >>> def build(msh):  # −Δu = 10 in Ω, u = 0 on ∂Ω, u ≤ 0.05
+        ...     V = fem.functionspace(msh, ("Lagrange", 1))
+        ...     u, v = fem.Function(V), ufl.TestFunction(V)
+        ...     F = ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx - 10 * v * ufl.dx
+        ...     edge = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+        ...     bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, edge), V)
+        ...     cap = contact.Unilateral(0.05)
+        ...     return contact.ComplementarityProblem.from_residual(F, u, cap, [bc])
+        >>> meshes = [mesh.create_unit_square(MPI.COMM_WORLD, n, n) for n in (8, 16, 32)]
+        >>> problem, result = contact.sequence(build, meshes)
+        >>> result.converged, [level.dofs for level in result.sequence], result.dofs
+        (True, [81, 289], 1089)
+        >>> problem.close()
+    """
     opts = options_of(options, method, overrides)
     coarse_opts = opts.model_copy(update={"rtol": sequencing.COARSE_RTOL})
     *coarse, fine = list(levels)

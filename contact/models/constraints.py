@@ -46,7 +46,8 @@ class ContactSet:
     the :class:`~contact.solvers.problem.DiscreteProblem` fields they decide (``fields``:
     output space, basis, ends, the current configuration's nodes …), the data the estimators
     and reports read (``data``), and — where a change of basis replaced them — the new K̃, b̃
-    and the Dirichlet conditions on the unknowns."""
+    and the Dirichlet conditions on the unknowns.
+    """
 
     constraint: Constraint
     fields: dict[str, Any] = field(default_factory=dict)
@@ -59,7 +60,8 @@ class ContactSet:
     def kind(self) -> str:
         """How a residual problem reads its unknowns: ``plain`` (u), ``rotated`` (x = Qᵀ u,
         contact nodes on their (n, t) axes) or ``current`` (contact on the current
-        configuration)."""
+        configuration).
+        """
         if self.fields.get("current") is not None:
             return "current"
         return "rotated" if self.fields.get("basis") is not None else "plain"
@@ -91,7 +93,26 @@ class Unilateral:
     (:func:`~contact.models.form_checks.check_constraint`), on every rank alike — the
     side, a bound that is finite (a callable's values of shape (n,) for points of shape
     (3, n)), a measure that selects some facet or cell, ``dofs`` that are owned integer
-    indices given once each, ``weights`` finite and > 0."""
+    indices given once each, ``weights`` finite and > 0.
+
+    Args:
+        bound: g: a number, a Function on V, values at the constrained DoFs, a callable
+            ``x -> values`` on points of shape (3, n), or a UFL expression. On a vector
+            space with ``component``, a scalar bound of that component.
+        side: ``"upper"`` for u ≤ g, ``"lower"`` for u ≥ g.
+        measure: ``ufl.dx`` (the default) or ``ds(tag)``.
+        dofs: Explicit owned local DoF indices of V, instead of a measure.
+        weights: The weights w_i of ``dofs`` (default 1).
+        component: On a vector space, the component k the constraint acts on.
+        nodal: g on a space, when the bound's interpolant should come from elsewhere than
+            the bound as written.
+
+    Example:
+        >>> import contact
+        >>> floor = contact.Unilateral(-0.1, side="lower")
+        >>> floor.sign, floor.measure is None
+        (-1.0, True)
+    """
 
     bound: Bound
     side: str = "upper"
@@ -123,10 +144,13 @@ class Unilateral:
     def discretise(
         self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC], allow_empty: bool = False
     ) -> ContactSet:
-        """The constraint set of this condition on u's space V: its DoFs, weights and bound
+        """Return the constraint set of this condition on u's space V.
+
+        Its DoFs, weights and bound
         (:meth:`nodes`, :meth:`bound_function`); on facets of a scalar space, the ends of
         Γ_C on the closure of Γ_D, which get the multiplier of their nearest contact DoF
-        (:func:`~.problem.contact_ends`).  Collective."""
+        (:func:`~.problem.contact_ends`).  Collective.
+        """
         dofs, w = self.nodes(V, bcs, allow_empty)
         g = self.bound_function(V, dofs)
         fields: dict[str, Any] = {"in_domain": self.in_domain}
@@ -147,7 +171,8 @@ class Unilateral:
         """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights.
         Collective; the constraint is checked first (:func:`~.form_checks.check_constraint`).
         A measure that selects nothing, or (unless ``allow_empty``) a constraint left with no
-        DoF on any rank, is a ValueError (on every rank)."""
+        DoF on any rank, is a ValueError (on every rank).
+        """
         comm = V.mesh.comm
         n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
@@ -172,9 +197,12 @@ class Unilateral:
         return dofs, w
 
     def bound_function(self, V: fem.FunctionSpace, dofs: np.ndarray) -> fem.Function:
-        """g on V (at the constrained DoFs at least).  Collective: a callable bound that
+        """Return the bound g as a Function on V (at the constrained DoFs at least).
+
+        Collective: a callable bound that
         fails or returns the wrong shape, values of the wrong length, or a bound that is
-        not finite at some constrained DoF, is a ValueError on every rank."""
+        not finite at some constrained DoF, is a ValueError on every rank.
+        """
         comm = V.mesh.comm
         if self.nodal is not None:
             g = self.nodal(V)
@@ -223,7 +251,8 @@ def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) 
     """The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
     exterior facets (``ds``) a measure covers (checked:
     :func:`~.form_checks.check_constraint`).  Collective; a tagged measure that selects no
-    entity on any rank is a ValueError."""
+    entity on any rank is a ValueError.
+    """
     msh, tdim = V.mesh, V.mesh.topology.dim
     kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
     dim = tdim if kind == "cell" else tdim - 1
@@ -252,13 +281,20 @@ def _vector(x: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Plane:
-    """The rigid plane through ``point`` with the unit ``normal`` ν pointing towards the body:
+    """A rigid plane through ``point`` with the normal ν pointing towards the body.
+
     g(x) = (x − p)·ν, n = −ν, Dn = 0 (``normal`` is normalised).
 
     Args:
         point: a point p of the plane (gdim coordinates).
         normal: the plane's normal ν, towards the body (any length; any direction: a tilted
             plane rotates its contact nodes to their (n, t) axes).
+
+    Example:
+        >>> import contact
+        >>> floor = contact.Plane(point=[0.0, -0.1], normal=[1.0, 2.0])  # tilted
+        >>> floor.normal.round(4).tolist()
+        [0.4472, 0.8944]
     """
 
     point: np.ndarray
@@ -293,16 +329,31 @@ class Plane:
         )
 
     def axis(self) -> int | None:
-        """k when the normal is a coordinate direction ±e_k (u·n ≤ g is then a bound on the
-        single component u_k), else None."""
+        """Return k when the normal is a coordinate direction ±e_k, else None.
+
+        u·n ≤ g is then a bound on the single component u_k.
+        """
         k = int(np.argmax(np.abs(self.normal)))
         return k if abs(abs(self.normal[k]) - 1.0) <= 1e-12 else None
 
 
 @dataclass(frozen=True)
 class Ball:
-    """The rigid circle (2D) or sphere (3D) of ``center`` c and ``radius`` R, the body outside:
-    with r = |x − c|, g = r − R, n = (c − x)/r, Dn = −(I − n nᵀ)/r."""
+    """A rigid circle (2D) or sphere (3D), the body outside.
+
+    With r = |x − c|: g = r − R, n = (c − x)/r, Dn = −(I − n nᵀ)/r.
+
+    Args:
+        center: the centre c (gdim coordinates).
+        radius: the radius R > 0.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> ball = contact.Ball(center=[0.0, 2.0], radius=1.0)
+        >>> g, n, Dn = ball.project(np.array([[0.0, 0.5]]))
+        >>> g.tolist(), (n + 0.0).tolist()
+        ([0.5], [[0.0, 1.0]])
+    """
 
     center: np.ndarray
     radius: float
@@ -318,12 +369,16 @@ class Ball:
 
     @property
     def position(self) -> np.ndarray:
+        """The centre c (a moving ball's translation is that of c)."""
         return self.center
 
     def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(g, n, Dn) at the points x (k, gdim).  A point at the centre or not finite (an
+        """Return (g, n, Dn) at the points x (k, gdim).
+
+        A point at the centre or not finite (an
         iterate that diverged) gives NaN there, without a warning: the solver stops on it
-        (``diverged_function_nanorinf``) and says so."""
+        (``diverged_function_nanorinf``) and says so.
+        """
         rel = x - self.center
         r = np.linalg.norm(rel, axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -342,9 +397,23 @@ class Ball:
 
 @dataclass(frozen=True)
 class Cylinder:
-    """The rigid circular cylinder (3D) of ``radius`` R about the line through ``point`` c
-    along ``axis`` a (normalised), the body outside: with p = (x − c) − ((x − c)·a) a and
-    r = |p|, g = r − R, n = −p/r, Dn = −(I − a aᵀ − n nᵀ)/r."""
+    """A rigid circular cylinder (3D), the body outside.
+
+    With p = (x − c) − ((x − c)·a) a and r = |p|: g = r − R, n = −p/r,
+    Dn = −(I − a aᵀ − n nᵀ)/r.
+
+    Args:
+        point: a point c of the cylinder's axis.
+        axis: the axis' direction a (normalised).
+        radius: the radius R > 0.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> roller = contact.Cylinder(point=[0, 0, 2], axis=[0, 1, 0], radius=1.0)
+        >>> g, n, Dn = roller.project(np.array([[0.0, 5.0, 0.5]]))
+        >>> g.tolist(), (n + 0.0).tolist()
+        ([0.5], [[0.0, 0.0, 1.0]])
+    """
 
     point: np.ndarray
     axis: np.ndarray
@@ -358,10 +427,12 @@ class Cylinder:
 
     @property
     def scale(self) -> float:
+        """The size of the numbers g subtracts beyond the coordinates: |c| + R."""
         return float(np.max(np.abs(self.point), initial=0.0)) + self.radius
 
     @property
     def position(self) -> np.ndarray:
+        """The axis' point c (a moving cylinder's translation is that of c)."""
         return self.point
 
     def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -393,11 +464,21 @@ class SignedDistance:
     Args:
         gap: g at points.
         normal: n at points.
-        expression: g as UFL in the spatial coordinate X, for the estimators (n = −∇g/|∇g|);
+        expression_of: g as UFL of the spatial coordinate X, for the estimators (n = −∇g/|∇g|);
             None: the estimators refuse this obstacle.
         curvature: Dn = dn/dx at points (k, gdim, gdim), for contact on the current
             configuration (None: 0, a Jacobian without the obstacle's curvature term).
         scale: the size of the numbers g subtracts beyond the point's coordinates.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> wall = contact.SignedDistance(  # the plane x = 1, the body on its left
+        ...     gap=lambda x: 1.0 - x[:, 0],
+        ...     normal=lambda x: np.tile([1.0, 0.0], (len(x), 1)),
+        ...     expression_of=lambda X: 1.0 - X[0],
+        ... )
+        >>> wall.project(np.array([[0.25, 0.0]]))[0].tolist()
+        [0.75]
     """
 
     gap: Callable[[np.ndarray], np.ndarray]
@@ -439,6 +520,11 @@ class Tresca:
             from elsewhere than the UFL expression (None: evaluated from it).
         options: the knobs of the tangential rows (:class:`~contact.solvers.options.
             FrictionOptions`).
+
+    Example:
+        >>> import contact
+        >>> contact.Tresca(0.3).law
+        'tresca'
     """
 
     threshold: Any
@@ -451,8 +537,11 @@ class Tresca:
     law = "tresca"
 
     def values(self, V: fem.FunctionSpace, nodes: np.ndarray) -> np.ndarray:
-        """s at the nodes (blocks of V's DoFs): from ``at_nodes`` at their coordinates, or
-        the threshold itself interpolated at them."""
+        """Return the threshold s at the nodes (blocks of V's DoFs).
+
+        From ``at_nodes`` at their coordinates, or the threshold itself interpolated at
+        them.
+        """
         X = V.tabulate_dof_coordinates()[nodes]
         if self.at_nodes is not None:
             return np.asarray(self.at_nodes(X.T), dtype=float)
@@ -475,6 +564,12 @@ class Coulomb:
         coefficient: the friction coefficient F ≥ 0.
         options: the knobs of the tangential rows (:class:`~contact.solvers.options.
             FrictionOptions`: c_t, the HSW or projection form, Newton or the fixed point).
+
+    Example:
+        >>> import contact
+        >>> law = contact.Coulomb(0.3)
+        >>> law.law, law.coefficient
+        ('coulomb', 0.3)
     """
 
     coefficient: float
@@ -489,9 +584,10 @@ Friction = Tresca | Coulomb
 
 @dataclass(frozen=True)
 class RigidObstacle:
-    """An elastic body's contact facets against a rigid surface: u·n ≤ g (small strain:
-    the normal and gap of the reference configuration; finite strain: the gap of the
-    deformed point, where the gap is not affine in u).
+    """An elastic body's contact facets against a rigid surface: u·n ≤ g.
+
+    Small strain: the normal and gap of the reference configuration; finite strain: the
+    gap of the deformed point, where the gap is not affine in u.
 
     Args:
         surface: :class:`Plane`, :class:`Ball`, :class:`Cylinder` or :class:`SignedDistance`.
@@ -501,6 +597,18 @@ class RigidObstacle:
             on the current configuration is relative to it); None: at rest.
         moving: the surface moves with the load: contact nodes may start inside it (a
             prescribed penetration; a curved obstacle at rest refuses them).
+
+    Example:
+        >>> import contact, ufl
+        >>> from dolfinx import mesh
+        >>> from mpi4py import MPI
+        >>> msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+        >>> bottom = mesh.locate_entities_boundary(msh, 1, lambda x: x[1] < 1e-12)
+        >>> tags = mesh.meshtags(msh, 1, bottom, 3)
+        >>> ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+        >>> floor = contact.Plane(point=[0.0, -0.01], normal=[0.2, 1.0])
+        >>> contact.RigidObstacle(floor, ds(3), friction=contact.Coulomb(0.3)).ids
+        (3,)
     """
 
     surface: Surface
@@ -511,14 +619,16 @@ class RigidObstacle:
 
     @property
     def ids(self) -> tuple[int, ...]:
+        """The facet tags of the contact facets."""
         return measure_ids(self.measure)
 
 
 @dataclass(frozen=True)
 class MortarPair:
-    """Two tagged surfaces of bodies in one mesh, in contact through dual mortar
-    (docs/theory.md §1.5): the ``slave`` surface's nodes carry the constraint
-    g_i − x_{i,n} ≥ 0 on their displacement relative to the ``master`` surface.
+    """Two tagged surfaces of bodies in one mesh, in contact through dual mortar.
+
+    The ``slave`` surface's nodes carry the constraint g_i − x_{i,n} ≥ 0 on their
+    displacement relative to the ``master`` surface (docs/theory.md §1.5).
 
     Args:
         slave: ``ds(tag)`` of the slave facets.
@@ -527,6 +637,16 @@ class MortarPair:
         search: the largest distance between a slave facet and a master facet it meets
             (None: the diameter of the pair's surfaces).
         names: the slave and master surfaces' names in messages.
+
+    Example:
+        >>> import contact, ufl
+        >>> from dolfinx import mesh
+        >>> from mpi4py import MPI
+        >>> msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+        >>> ds = ufl.Measure("ds", domain=msh)
+        >>> pair = contact.MortarPair(slave=ds(5), master=ds(6), names=("upper", "lower"))
+        >>> pair.ids, pair.master_ids
+        ((5,), (6,))
     """
 
     slave: ufl.Measure
@@ -537,10 +657,12 @@ class MortarPair:
 
     @property
     def ids(self) -> tuple[int, ...]:
+        """The facet tags of the slave surface."""
         return measure_ids(self.slave)
 
     @property
     def master_ids(self) -> tuple[int, ...]:
+        """The facet tags of the master surface."""
         return measure_ids(self.master)
 
 
@@ -566,7 +688,8 @@ def check_condition(c: Any, V: fem.FunctionSpace) -> dict[str, object]:
     (:func:`~.form_checks.check_constraint`), or a :class:`RigidObstacle` /
     :class:`MortarPair` on a vector space of gdim components, over tagged facets of u's
     mesh, with a surface and a friction law of the kinds above.  Returns what decides the
-    collectives it enters (for :func:`~.form_checks.agree` with ``same``)."""
+    collectives it enters (for :func:`~.form_checks.agree` with ``same``).
+    """
     if isinstance(c, Unilateral):
         return checks.check_constraint(c, V)
     if not isinstance(c, (RigidObstacle, MortarPair)):

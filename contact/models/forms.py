@@ -1,5 +1,6 @@
-"""Bring your own forms: the complementarity problem of any UFL forms, solved by our
-semismooth Newton (or PETSc's VI solvers), with no scene.
+"""Bring your own forms: the complementarity problem of any UFL forms.
+
+Solved by our semismooth Newton (or PETSc's VI solvers), with no scene.
 
 Given a residual F(u; v) on a space V (Lagrange, one value per node) — a bilinear form
 a(u, v) with a load L(v), F = a(u, v) − L(v), or any form nonlinear in u with its
@@ -52,9 +53,12 @@ from .problem import assemble_system
 
 @dataclass
 class ResidualProblem(Problem):
-    """A discrete problem with a nonlinear residual: R(x) = F(x; ·) and K = J(x) are
+    """A discrete problem with a nonlinear residual, re-assembled at every iterate.
+
+    A discrete problem with a nonlinear residual: R(x) = F(x; ·) and K = J(x) are
     re-assembled at each iterate (x is copied into ``u_h``, the function F is written in).
-    Dirichlet rows: R_i = x_i − g_i and J's identity rows, as for K x − b."""
+    Dirichlet rows: R_i = x_i − g_i and J's identity rows, as for K x − b.
+    """
 
     F_form: fem.Form | None = None
     J_form: fem.Form | None = None
@@ -68,19 +72,26 @@ class ResidualProblem(Problem):
 
     @property
     def has_energy(self) -> bool:  # type: ignore[override]
+        """Whether the residual is the gradient of an energy (``energy_form`` given)."""
         return self.energy_form is not None
 
     def admissible(self, x: PETSc.Vec) -> bool:
-        """Whether u = x inverts no matter: det F > 0 at every point :attr:`min_jacobian`
-        checks (True without it; collective).  Leaves u_h = x."""
+        """Return whether u = x inverts no matter (det F > 0 where checked).
+
+        Whether u = x inverts no matter: det F > 0 at every point :attr:`min_jacobian`
+        checks (True without it; collective).  Leaves u_h = x.
+        """
         self._set_iterate(x)
         return self.min_jacobian is None or self.min_jacobian() > 0
 
     def energy(self, x: PETSc.Vec) -> float:
-        """Π(x) = ∫ ψ dX − L(u) at u = x (the Dirichlet values are x's own); +∞ where u
-        inverts matter (det F ≤ 0 somewhere, with :attr:`min_jacobian`): no deformation is
+        """Return the energy Π(x) = ∫ ψ dX − L(u) at u = x.
+
+        Π(x) = ∫ ψ dX − L(u) at u = x (the Dirichlet values are x's own); +∞ where u inverts
+        matter (det F ≤ 0 somewhere, with :attr:`min_jacobian`): no deformation is
         admissible there, whatever a law's ψ says (St Venant–Kirchhoff's is finite, even
-        zero for a reflection)."""
+        zero for a reflection).
+        """
         assert self.energy_form is not None, "energy: the problem has no energy form"
         if not self.admissible(x):
             return np.inf
@@ -89,8 +100,11 @@ class ResidualProblem(Problem):
 
     @staticmethod
     def matrices(J_form: fem.Form, bcs: list) -> tuple[PETSc.Mat, PETSc.Vec]:
-        """(K, b) to build it with: K = J(u) at the current u (the pattern of every K_T(x)),
-        b = 0 (R(x) = K x − b is never used)."""
+        """Return the matrix and vector to build the problem with.
+
+        (K, b) to build it with: K = J(u) at the current u (the pattern of every K_T(x)), b
+        = 0 (R(x) = K x − b is never used).
+        """
         K = dolfinx.fem.petsc.assemble_matrix(J_form, bcs=bcs)
         K.assemble()
         b = dolfinx.fem.petsc.create_vector(J_form.function_spaces[0])
@@ -108,7 +122,7 @@ class ResidualProblem(Problem):
         u.scatter_forward()
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
-        """out = R(x) = F(x; φ_i), x_i − g_i on Dirichlet rows."""
+        """Set ``out`` = R(x) = F(x; φ_i), with x_i − g_i on Dirichlet rows."""
         self._set_iterate(x)
         if self._F is None:
             self._F = dolfinx.fem.petsc.create_vector(self.V)
@@ -125,8 +139,11 @@ class ResidualProblem(Problem):
         out.array_w[:] = F.array_r
 
     def _assemble_tangent(self, A: PETSc.Mat) -> None:
-        """A = J(u_h) at the current ``u_h`` into A's pattern (that of :meth:`matrices`),
-        Dirichlet rows and columns identity."""
+        """Assemble A = J(u_h) at the current ``u_h`` into A's pattern.
+
+        A = J(u_h) at the current ``u_h`` into A's pattern (that of :meth:`matrices`),
+        Dirichlet rows and columns identity.
+        """
         J_form = self._forms()[1]
         A.zeroEntries()
         # assemble_matrix(Mat, form, bcs): the overload into an existing matrix (not in the
@@ -141,15 +158,19 @@ class ResidualProblem(Problem):
         self._assemble_tangent(self.K)
 
     def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
-        """A new matrix J(x) with the Dirichlet rows and columns kept (the coupling of a
+        """Return a new matrix J(x) with the Dirichlet rows and columns kept.
+
+        A new matrix J(x) with the Dirichlet rows and columns kept (the coupling of a
         prescribed increment into the free rows: the tangent predictor,
-        :mod:`contact.solvers.predictor`); the caller destroys it."""
+        :mod:`contact.solvers.predictor`); the caller destroys it.
+        """
         self._set_iterate(x)
         A = dolfinx.fem.petsc.assemble_matrix(self._forms()[1])
         A.assemble()
         return A
 
     def destroy(self) -> None:
+        """Destroy the PETSc objects, the residual vector's too."""
         super().destroy()
         if self._F is not None:
             self._F.destroy()
@@ -157,14 +178,17 @@ class ResidualProblem(Problem):
 
 @dataclass
 class RotatedResidualProblem(ResidualProblem):
-    """The residual problem in rotated unknowns x = Qᵀ u (Q orthogonal and block-diagonal:
+    """The residual problem in rotated unknowns x = Qᵀ u.
+
+    The residual problem in rotated unknowns x = Qᵀ u (Q orthogonal and block-diagonal:
     the contact nodes of a tilted plane on their (n, t) axes, the others unrotated, as in
     :func:`contact.models.obstacles.plane_contact`):
 
         R̃(x) = Qᵀ R(Q x),     K̃(x) = Qᵀ K_T(Q x) Q,
 
     so that u·n ≤ g is a bound on one unknown per contact node.  K̃ is written into ``K``
-    (MatPtAP reusing its pattern: the solvers keep their references to it)."""
+    (MatPtAP reusing its pattern: the solvers keep their references to it).
+    """
 
     K_T: PETSc.Mat | None = None  # the tangent in the displacement unknowns
     _R: PETSc.Vec | None = field(default=None, repr=False)
@@ -180,7 +204,7 @@ class RotatedResidualProblem(ResidualProblem):
         u.scatter_forward()
 
     def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
-        """out = Qᵀ R(Q x)."""
+        """Write Qᵀ R(Q x) into out."""
         if self._R is None:
             self._R = out.duplicate()
         super().residual(x, self._R)
@@ -201,17 +225,21 @@ class RotatedResidualProblem(ResidualProblem):
         return out
 
     def destroy(self) -> None:
+        """Destroy the problem's PETSc objects, the tangent and the residual included."""
         super().destroy()
         destroy(self.K_T, self._R)
 
 
 @dataclass
 class CurrentResidualProblem(ResidualProblem):
-    """The residual problem with contact on the current configuration
+    """The residual problem with contact on the current configuration.
+
+    The residual problem with contact on the current configuration
     (:mod:`contact.solvers.current`, ``current`` set): the unknowns are the displacements,
     a contact node's residual block is read in the frame of its current normal ñ(x_i).
     The nodal quantities below are those of the iterate in ``u_h`` (the residual ``r``
-    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it)."""
+    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it).
+    """
 
     def _rows(self) -> np.ndarray:
         bs = self.V.dofmap.index_map_bs
@@ -240,7 +268,9 @@ class CurrentResidualProblem(ResidualProblem):
         return gap
 
     def constrained_hessian(self, x: PETSc.Vec, active: np.ndarray) -> tuple[PETSc.Mat, np.ndarray]:
-        """(Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
+        """Return the Hessian of the Lagrangian on the active constraints' tangent space.
+
+        (Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
         solution x, on the tangent space of the active constraints — what decides the
         stability of a constrained equilibrium (:func:`negative_eigenvalues`).  With
         μ_i = ñ_i·R_i (= w_i λ_i ≤ 0; R_i = μ_i ñ_i at a frictionless solution) and
@@ -251,7 +281,8 @@ class CurrentResidualProblem(ResidualProblem):
         (against a circle or sphere −μ Dn = −w p (I − n nᵀ)/|x − c|: a convex obstacle
         softens the body's tangential motion — it can roll off), rotated to the active nodes'
         current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
-        matrix (the caller destroys it); K becomes K_T(x)."""
+        matrix (the caller destroys it); K becomes K_T(x).
+        """
         cc, bs = self.current, self.V.dofmap.index_map_bs
         rows = self._rows()
         r = x.duplicate()
@@ -276,27 +307,61 @@ class CurrentResidualProblem(ResidualProblem):
         return out, (nodes * bs).astype(np.int32)
 
     def contact_force(self, r: np.ndarray) -> float:
-        """F = −m_n Σ_i R_i·n: the resultant of the nodal contact forces along the normal n
+        """Return the resultant of the nodal contact forces along the normal n.
+
+        F = −m_n Σ_i R_i·n: the resultant of the nodal contact forces along the normal n
         at the first point of contact (m_n the mirror images pressing along n,
         :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`; frictionless:
-        Σ w_i p_i ñ_i·n)."""
+        Σ w_i p_i ñ_i·n).
+        """
         n = np.asarray(self.data["n"], dtype=float)
         local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
         return self.copies_along(n) * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
 class ComplementarityProblem:
-    """A complementarity problem of the user's forms (module docstring) and its solver.
+    """The complementarity problem of your own UFL forms, and its solver.
 
-    Build it with :meth:`from_forms` (linear: a, L) or :meth:`from_residual` (F, J), then
-    :meth:`solve`; it owns PETSc objects (K, b): :meth:`close` it, or use ``with``.
+    Given a residual F(u; v) on a Lagrange space V — a bilinear form a(u, v) with a load
+    L(v), or any form nonlinear in u with its derivative J = ∂F/∂u —, Dirichlet conditions
+    and a :class:`Unilateral` constraint at a set of nodes C, the problem is
+
+        R_i(u) = w_i λ_i (i ∈ C),  R_i(u) = 0 (i ∉ C, not Dirichlet),
+        σ (g_i − u_i) ≥ 0,  −σ λ_i ≥ 0,  (g_i − u_i) λ_i = 0 (i ∈ C),
+
+    with R_i(u) = F(u; φ_i) and σ = +1 for u ≤ g, −1 for u ≥ g. Build it with
+    :meth:`from_forms` (linear: K and b assembled once) or :meth:`from_residual` (R and its
+    tangent re-assembled at every Newton iterate), then :meth:`solve`. It owns PETSc
+    objects: :meth:`close` it, or use it in a ``with`` block.
 
     The builders check every argument before assembling anything
-    (:mod:`~contact.models.form_checks`), on every rank alike: a form of the wrong rank,
+    (``contact.models.form_checks``), on every rank alike: a form of the wrong rank,
     on another space or mesh, a Dirichlet condition on another space, a measure that
     selects nothing, DoFs that are not owned integer indices, weights that are not finite
     and positive, a bound that is not finite or a callable bound of the wrong shape is one
-    ``TypeError`` or ``ValueError`` line naming the argument, raised on all ranks."""
+    ``TypeError`` or ``ValueError`` line naming the argument, raised on all ranks.
+
+    Args:
+        problem: The discrete problem (made by the two builders; not built by hand).
+
+    Example:
+        >>> import numpy as np, ufl
+        >>> from mpi4py import MPI
+        >>> import contact
+        >>> from dolfinx import fem, mesh
+        >>> msh = mesh.create_unit_square(MPI.COMM_WORLD, 16, 16)
+        >>> V = fem.functionspace(msh, ("Lagrange", 1))
+        >>> u, v = fem.Function(V), ufl.TestFunction(V)
+        >>> a = ufl.inner(ufl.grad(ufl.TrialFunction(V)), ufl.grad(v)) * ufl.dx
+        >>> L = -10 * v * ufl.dx
+        >>> facets = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+        >>> bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, facets), V)
+        >>> floor = contact.Unilateral(-0.1, side="lower")
+        >>> with contact.ComplementarityProblem.from_forms(a, L, u, floor, [bc]) as problem:
+        ...     result = problem.solve("min")
+        >>> result.converged, result.n_active > 0, float(u.x.array.min()) >= -0.1 - 1e-12
+        (True, True, True)
+    """
 
     def __init__(self, problem: DiscreteProblem):
         self.problem: DiscreteProblem | None = problem  # None once closed
@@ -313,10 +378,12 @@ class ComplementarityProblem:
         physics: Physics | None = None,
         u_prev: fem.Function | None = None,
     ) -> ComplementarityProblem:
-        """K u − b = w λ from a(u, v) = L(v) (``u`` receives the solution: u_h).
+        """Build the problem K u − b = w λ of a linear form pair a(u, v) = L(v).
+
+        K and b are assembled once, here, after every argument is checked.
 
         Args:
-            a: the bilinear form a(w, v) (a trial function w and a test function v on u's
+            a: The bilinear form a(w, v) (a trial function w and a test function v on u's
                 space), a UFL form or a compiled ``dolfinx.fem.Form``.
             L: the linear form L(v) (a test function on u's space).
             u: the Function that receives the solution (and is the initial guess).
@@ -330,7 +397,12 @@ class ComplementarityProblem:
             u_prev: the previous load step's solution (friction's slips start there).
 
         Returns:
-            The problem, K and b assembled once; close it (or use ``with``)."""
+            The problem, ready to :meth:`solve`; close it (or use ``with``).
+
+        Raises:
+            TypeError: For a form of the wrong rank or kind (one line naming it).
+            ValueError: For forms, conditions or a constraint that do not fit u's space.
+        """
         t0 = time.perf_counter()
         V, bcs = _checked(u, bcs, constraint, [("a", a, 2), ("L", L, 1)])
         return cls(
@@ -360,17 +432,17 @@ class ComplementarityProblem:
         energy: ufl.Form | None = None,
         current: bool = True,
     ) -> ComplementarityProblem:
-        """R(u) = w λ from a residual F(u; v), nonlinear in the Function ``u`` it is written
-        in, and J = ∂F/∂u (default ``ufl.derivative(F, u)``); ``u``'s values are the initial
-        guess and receive the solution.
+        """Build the problem R(u) = w λ of a residual F(u; v), nonlinear in ``u``.
+
+        R and its tangent J are re-assembled at every Newton iterate.
 
         Args:
-            F: the residual F(u; v), a linear form in the test function v on u's space,
+            F: The residual F(u; v), a linear form in the test function v on u's space,
                 written in u.
             u: the Function F is written in: the initial guess, then the solution.
             constraint: where and how u is bounded (as for :meth:`from_forms`).
             bcs: Dirichlet conditions on u's space (or its subspaces).
-            J: the bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
+            J: The bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
                 is a compiled ``dolfinx.fem.Form``).
             physics: the equations F discretises (:mod:`~contact.models.physics`), which the
                 estimators read; None: no estimate.
@@ -382,8 +454,12 @@ class ComplementarityProblem:
                 reference configuration.
 
         Returns:
-            The problem, R and its tangent re-assembled at every Newton iterate; close it
-            (or use ``with``)."""
+            The problem, ready to :meth:`solve`; close it (or use ``with``).
+
+        Raises:
+            TypeError: For a form of the wrong rank or kind (one line naming it).
+            ValueError: For forms, conditions or a constraint that do not fit u's space.
+        """
         t0 = time.perf_counter()
         forms = [("F", F, 1)] + ([("J", J, 2)] if J is not None else [])
         V, bcs = _checked(u, bcs, constraint, forms, residual=(F, J))
@@ -412,18 +488,24 @@ class ComplementarityProblem:
     def solve(self, method: str = "fb", verbose: bool = False, **options: Any) -> Result:
         """Solve from u's current values (Dirichlet values put in).
 
+        Collective; never raises on divergence (``Result.converged``).
+
         Args:
             method: fb, min, blend, vinewtonrsls or vinewtonssls.
-            verbose: print the Newton history (rank 0).
-            options: any other field of :class:`~contact.solvers.options.SolverOptions`
-                (``rtol``, ``max_it``, ``petsc_options``, …; a bad one: ConfigError naming
-                it).
+            verbose: Print a line per Newton iteration (rank 0).
+            **options: The ``solver`` options of a scene: ``rtol``, ``atol``, ``max_it``,
+                ``line_search``, ``polish``, ``linear``, ``petsc_options``, …
 
         Returns:
-            The :class:`~contact.solvers.result.Result` (never raises on divergence):
+            The same :class:`~contact.solvers.result.Result` as :func:`contact.solve`:
             ``u_h`` (the user's u), ``lmbda_h``, ``active``, ``history``, ``converged``,
-            ``reason``.  After :meth:`close` a RuntimeError; an initial guess that is not
-            finite a ValueError (on every rank)."""
+            ``reason``.
+
+        Raises:
+            ConfigError: For an unknown or invalid option (one line naming it).
+            RuntimeError: After :meth:`close`.
+            ValueError: On every rank, for an initial guess that is not finite.
+        """
         opts = SolverOptions.parse({"method": method, **options})
 
         def ready() -> DiscreteProblem:
@@ -456,9 +538,11 @@ class ComplementarityProblem:
             self.problem = None
 
     def __enter__(self) -> ComplementarityProblem:
+        """Return the problem (a ``with`` block closes it at its end)."""
         return self
 
     def __exit__(self, *exc: Any) -> None:
+        """Close the problem."""
         self.close()
 
 
@@ -476,10 +560,13 @@ def _checked(
     forms: list[tuple[str, Any, int]],
     residual: tuple[Any, Any] | None = None,
 ) -> tuple[fem.FunctionSpace, list]:
-    """(V, bcs as a list) once every argument passed its local checks on every rank
+    """Return (V, bcs as a list) once every argument passed its checks on every rank.
+
+    (V, bcs as a list) once every argument passed its local checks on every rank
     (:mod:`~contact.models.form_checks`): the forms' (name, form, rank), F written in u
     (``residual`` = (F, J)), the Dirichlet conditions, the contact conditions — and the
-    number of Dirichlet conditions and the conditions' shapes are the same on every rank."""
+    number of Dirichlet conditions and the conditions' shapes are the same on every rank.
+    """
     V = checks.check_unknown(u).function_space
     bc_list = checks.bcs_list(bcs)
 
@@ -516,14 +603,16 @@ def make_problem(
     allow_empty: bool = False,
     bodies: tuple[Any, list[str]] = (None, []),
 ) -> Problem:
-    """The problem of an assembled system and its contact conditions — how every builder
-    makes one (the own forms of :class:`ComplementarityProblem`, the scene's models).
+    """Return the problem of an assembled system and its contact conditions.
+
+    How every builder makes one (the own forms of :class:`ComplementarityProblem`, the
+    scene's models).
 
     Args:
         kind: ``linear`` (R(x) = K x − b) or ``residual`` (R and K_T re-assembled at every
-            iterate, ``residual`` the :class:`ResidualProblem` fields: F_form, J_form,
-            energy_form, min_jacobian).
-        V: the unknown's space; ``u_h`` the function the solution goes into.
+            iterate).
+        V: the unknown's space.
+        u_h: the function the solution goes into.
         bcs: the Dirichlet conditions K and b were assembled with.
         matrices: K and b (K_T at u_h's values and a zero b for a residual problem), called
             after a unilateral condition's nodes are known (their checks come first).
@@ -531,6 +620,8 @@ def make_problem(
         t0: when building began (``assembly_time``).
         physics: the equations (what the estimators read), or None.
         data: more data for the reports (the scene's: f, t, ds, the reaction form …).
+        residual: a residual problem's :class:`ResidualProblem` fields (F_form, J_form,
+            energy_form, min_jacobian).
         current: a residual problem meets a rigid obstacle on its current configuration
             where the gap is not affine in u.
         u_prev: the previous load step's displacement (friction's slips start there).
@@ -539,7 +630,8 @@ def make_problem(
             body keeps free (:func:`~contact.solvers.floating.floating_bodies`).
 
     Returns:
-        The problem (its friction set from the conditions' friction law, if any)."""
+        The problem (its friction set from the conditions' friction law, if any).
+    """
     conditions = tuple(conditions)
     if len(conditions) == 1 and isinstance(conditions[0], Unilateral):
         # the condition's checks come before anything is assembled
@@ -609,11 +701,14 @@ def _body_fields(
     physics: Physics | None,
     bodies: tuple[Any, list[str]],
 ) -> dict[str, Any]:
-    """The DiscreteProblem fields of an elastic body (or several in one mesh) that follow
+    """Return the DiscreteProblem fields of an elastic body that follow from its conditions.
+
+    The DiscreteProblem fields of an elastic body (or several in one mesh) that follow
     from its conditions: the rigid-body near-nullspace (in the unknowns of the change of
     basis, if any), the rigid motions no Dirichlet or symmetry condition holds, and the
     mirror images its symmetry planes stand for (every plane for one body; with mortar
-    pairs the planes through the pairs' contact nodes)."""
+    pairs the planes through the pairs' contact nodes).
+    """
     from .elasticity import rigid_body_modes
 
     basis, inverse = cs.fields.get("basis"), cs.fields.get("basis_inverse")

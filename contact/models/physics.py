@@ -63,7 +63,8 @@ def strain_energy(F: Any, law: str, mu: Coefficient, lmbda_L: Coefficient) -> An
         neo-Hookean (compressible):   ψ = μ/2 (tr C − 3 − 2 ln J) + λ_L/2 (ln J)²,
         St Venant–Kirchhoff:          ψ = λ_L/2 (tr E)² + μ E:E,
 
-    C = FᵀF, J = det F, E = ½(C − I) (:mod:`.hyperelastic`)."""
+    C = FᵀF, J = det F, E = ½(C − I) (:mod:`.hyperelastic`).
+    """
     C = F.T * F
     if law == "neo_hookean":
         lnJ = ufl.ln(ufl.det(F))
@@ -77,7 +78,8 @@ def strain_energy(F: Any, law: str, mu: Coefficient, lmbda_L: Coefficient) -> An
 def piola_and_cauchy(u: Any, law: str, mu: Coefficient, lmbda_L: Coefficient) -> tuple:
     """(P, σ): the first Piola–Kirchhoff stress P = ∂ψ/∂F (gdim × gdim, for the residual's
     tractions in the reference configuration) and the Cauchy stress σ = J⁻¹ P Fᵀ (3 × 3,
-    σ_33 ≠ 0 in plane strain), both in the unit of E."""
+    σ_33 ≠ 0 in plane strain), both in the unit of E.
+    """
     gdim = len(u)
     F = ufl.variable(deformation_gradient(u))
     P = ufl.diff(strain_energy(F, law, mu, lmbda_L), F)
@@ -96,6 +98,17 @@ class BoundaryData:
             contact part Γ_C).
         free: tags of traction-free parts (σ(u) n = 0).
         symmetry: (tag, k) pairs: a symmetry plane x_k = const, u_k = 0 there (elasticity).
+
+    Example:
+        >>> import contact, numpy as np
+        >>> from dolfinx import mesh
+        >>> from mpi4py import MPI
+        >>> msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+        >>> top = mesh.locate_entities_boundary(msh, 1, lambda x: x[1] > 1 - 1e-12)
+        >>> tags = mesh.meshtags(msh, 1, np.sort(top), 1)
+        >>> parts = contact.BoundaryData(tags, dirichlet=(1,))
+        >>> MPI.COMM_WORLD.allreduce(len(parts.facets((1,))))
+        4
     """
 
     tags: dmesh.MeshTags
@@ -124,6 +137,18 @@ class Diffusion:
         exact: the exact solution u, if known (the true error beside the estimate).
         dirichlet_value: u_D interpolated into a given Lagrange space (the equilibrated
             bound's Dirichlet term); None: u_h's own values on Γ_D are exact.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> from dolfinx import fem, mesh
+        >>> from mpi4py import MPI
+        >>> msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+        >>> facets = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+        >>> tags = mesh.meshtags(msh, 1, np.sort(facets), 1)
+        >>> one = fem.Constant(msh, 1.0)
+        >>> physics = contact.Diffusion(one, one, contact.BoundaryData(tags, dirichlet=(1,)))
+        >>> physics.flux(fem.Function(fem.functionspace(msh, ("Lagrange", 1)))).ufl_shape
+        (2,)
     """
 
     k: Coefficient
@@ -139,9 +164,11 @@ class Diffusion:
 
 @dataclass(frozen=True)
 class Elasticity:
-    """−div σ(u) = f in Ω for an elastic body: σ(u) = 2μ ε(u) + λ_L tr ε(u) I (plane strain
-    in 2D) when ``law`` is None, else the first Piola–Kirchhoff stress P(u) of the
-    hyperelastic ``law`` (neo_hookean, saint_venant_kirchhoff; :mod:`.hyperelastic`).
+    """The equations of an elastic body: −div σ(u) = f in Ω.
+
+    σ(u) = 2μ ε(u) + λ_L tr ε(u) I (plane strain in 2D) when ``law`` is None, else the
+    first Piola–Kirchhoff stress P(u) of the hyperelastic ``law`` (neo_hookean,
+    saint_venant_kirchhoff; :mod:`.hyperelastic`).
 
     Args:
         mu: the Lamé parameter μ (a number, or a DG0 function for several bodies).
@@ -151,6 +178,18 @@ class Elasticity:
         law: None (linear, small strain) or the hyperelastic law.
         dirichlet_value: u_D as UFL (the equilibrated bound's Dirichlet lifting), or None.
         exact: the exact displacement, if known.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> from dolfinx import fem, mesh
+        >>> from mpi4py import MPI
+        >>> msh = mesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
+        >>> bottom = mesh.locate_entities_boundary(msh, 1, lambda x: x[1] < 1e-12)
+        >>> tags = mesh.meshtags(msh, 1, np.sort(bottom), 1)
+        >>> f = fem.Constant(msh, np.zeros(2))
+        >>> body = contact.Elasticity(1.0, 1.5, f, contact.BoundaryData(tags, dirichlet=(1,)))
+        >>> body.flux(fem.Function(fem.functionspace(msh, ("Lagrange", 1, (2,))))).ufl_shape
+        (2, 2)
     """
 
     mu: Coefficient

@@ -4,7 +4,8 @@ drivers of problems (:func:`contact.drivers.solve.solve`,
 :func:`contact.adaptivity.estimate.estimate`, :func:`contact.adaptivity.refine.refine` on the
 scene's mesh as a :class:`~contact.adaptivity.refine.Domain`,
 :func:`contact.drivers.adaptive.adapt`, :func:`contact.drivers.load_path.run_steps`); the
-scene's grid sequencing is :mod:`.levels`."""
+scene's grid sequencing is :mod:`.levels`.
+"""
 
 from __future__ import annotations
 
@@ -43,18 +44,35 @@ from .surfaces import boundary_surfaces, warn_undeclared_curves
 
 
 def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:
-    """η_T and η of a solve (collective).
+    """Estimate the error of a solve (the ESTIMATE step of the adaptive loop).
+
+    ``residual`` assembles each term of η_T² once as a DG0 vector (docs/theory.md §5;
+    reliable up to an unknown constant); ``equilibrated`` and ``equilibrated_rt0``
+    reconstruct an equilibrated flux and return a guaranteed bound ‖u − u_h‖_E ≤ η
+    (docs/theory.md §9). For a scene the default kind is its ``estimator`` (``auto``:
+    ``equilibrated`` for the scalar models, ``residual`` for elasticity); for a problem
+    (:func:`contact.adaptivity.estimate.estimate`) it is ``residual``, and the problem must
+    declare its physics. Collective.
 
     Args:
-        subject: the :class:`~contact.setup.scene.Scene` that was solved (its ``estimator``
-            is the default kind), or a problem with its physics declared
-            (:func:`contact.adaptivity.estimate.estimate`; the default kind ``residual``).
-        result: the solve's :class:`~contact.solvers.result.Result`.
-        kind: ``residual``, ``equilibrated`` or ``equilibrated_rt0``.
+        subject: The :class:`~contact.setup.scene.Scene` that was solved, or a problem with
+            its physics declared (a :class:`~contact.models.forms.ComplementarityProblem`).
+        result: A solve of it on its mesh (:func:`contact.solve`).
+        kind: ``residual``, ``equilibrated`` or ``equilibrated_rt0``; None: the default.
 
     Returns:
-        The :class:`~contact.adaptivity.estimate.Estimate`.  A result of another scene or
-        problem is a ValueError."""
+        The indicators η_T, the global η and each term's total.
+
+    Raises:
+        ValueError: If ``result`` is not a solve of ``subject`` on its mesh.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> est = contact.estimate(scene, contact.solve(scene, verbose=False))
+        >>> est.eta > 0, sorted(est.terms)[:2]
+        (True, ['complementarity', 'dirichlet'])
+    """
     if not isinstance(subject, Scene):
         if subject is None or isinstance(subject, (str, bytes)) or not hasattr(subject, "V"):
             if getattr(subject, "problem", None) is None:
@@ -74,7 +92,8 @@ def scene_domain(scene: Scene) -> Domain:
     """The scene's mesh as a :class:`~contact.adaptivity.refine.Domain`: its boundary tags,
     body tags, the mesh builder's surface tags (``surfaces``), the history functions, and
     the snapping of curved boundary parts (the declared ``surface`` of a part, the curved
-    surfaces of the built-in Hertz meshes)."""
+    surfaces of the built-in Hertz meshes).
+    """
     cfg, bnd = scene.config, scene.boundary
     ids, roles = dict(bnd.ids), dict(bnd.roles)
 
@@ -101,7 +120,8 @@ def scene_domain(scene: Scene) -> Domain:
 def on_domain(scene: Scene, domain: Domain, parent: Scene | None = None) -> Scene:
     """The scene on another domain of its mesh's (a refinement of it): the same configuration,
     boundary parts and pseudo-time, the domain's tags and functions; ``parent`` the scene of
-    the domain's parent (the coarser levels of grid sequencing)."""
+    the domain's parent (the coarser levels of grid sequencing).
+    """
     bnd = scene.boundary
     assert domain.facets is not None  # a scene's domain has its boundary tags
     return Scene(
@@ -125,13 +145,46 @@ def refine(
     *,
     timings: dict[str, float] | None = None,
 ) -> tuple[Scene, fem.Function | None]:
-    """Refine the marked cells of the scene's mesh (:func:`contact.adaptivity.refine.refine`
-    on :func:`scene_domain`): the boundary and body tags carried over, ``u_h`` interpolated
-    onto the new mesh (nested iteration), the history functions prolonged, curved boundary
-    parts snapped to their surfaces (a gmsh contact part that looks curved and declares no
-    surface gets a one-line warning).  ``rebalance``: default the scene's
-    ``adapt.rebalance`` (true).  Returns (the refined scene, u_h on it or None); a ``u_h``
-    on another mesh, or cells that are not owned indices, is a ValueError."""
+    """Refine the marked cells and carry the scene over (the REFINE step).
+
+    :func:`contact.adaptivity.refine.refine` on the scene's mesh as a
+    :class:`~contact.adaptivity.refine.Domain`: the boundary and body tags carried over,
+    ``u_h`` interpolated onto the new mesh (nested iteration), the functions of
+    ``scene.history`` (a load step's state from the previous step) prolonged, the vertices
+    of a curved boundary part moved onto its exact surface (the built-in Hertz meshes and
+    parts that declare a ``surface``; a gmsh contact part that looks curved gets a one-line
+    warning). The refined scene keeps the pseudo-time. The refined mesh does not depend on
+    the number of ranks. Collective. (``contact.refine`` of a
+    :class:`~contact.adaptivity.refine.Domain` refines the domain itself.)
+
+    Args:
+        scene: The scene to refine.
+        cells: Owned local cell indices, as :func:`contact.mark` returns them.
+        u_h: A function on the scene's mesh to carry over (e.g. ``result.u_h``), or None.
+        rebalance: In parallel, redistribute the refined mesh evenly over the ranks
+            (default: the scene's ``adapt.rebalance``, true); the mesh itself does not
+            depend on it.
+        timings: If given, receives the seconds of the parts: ``mesh``, ``transfer`` and
+            ``snap``.
+
+    Returns:
+        The refined scene (its ``parent`` the scene and the parent cells) and ``u_h``
+        interpolated onto it (None if ``u_h`` was None).
+
+    Raises:
+        ValueError: On every rank, if ``cells`` are not owned local cell indices or
+            ``u_h`` is not a function on the scene's mesh.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> result = contact.solve(scene, verbose=False)
+        >>> cells = contact.mark(contact.estimate(scene, result).eta_T, "uniform")
+        >>> fine, u0 = contact.refine(scene, cells, result.u_h)
+        >>> cells_of = lambda s: s.mesh.topology.index_map(2).size_global
+        >>> cells_of(fine), cells_of(scene)
+        (1024, 256)
+    """
     if u_h is not None and (
         not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh
     ):
@@ -156,22 +209,53 @@ def solve(
     alternative: fem.Function | None = None,
     **options: Any,
 ) -> Result:
-    """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
+    """Solve the scene's contact problem once, on its mesh.
 
-    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
-    override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
-    ``polish``, ``rtol``, ``atol``, ``max_it``, ``linear``, ``inexact``, ``sequence``,
-    ``petsc_options``).  ``problem`` reuses an assembled problem, ``u0`` is an initial guess;
-    without one, grid sequencing (``sequence``, :mod:`.levels`) solves coarser meshes
+    Without an initial guess, grid sequencing (``solver.sequence``) solves coarser meshes
     first when it pays, and the coarsest level (or a cold start) begins from the scene's
-    ``solver.u0`` (zero by default).  The solve itself is
-    :func:`contact.drivers.solve.solve`'s (friction, the Coulomb fixed point).
-    ``criterion``: adaptive stopping against a discretization error
-    (:mod:`contact.solvers.stopping`; the adaptive loop makes one per level for
-    ``solver.stopping: adaptive``, which a single solve ignores: it has no discretization
-    error to balance against).  ``alternative``: another guess beside ``u0`` (a load
-    path's extrapolation); Newton starts from the one whose ‖Φ‖ is smaller
-    (``Result.predictor`` says which)."""
+    ``solver.u0`` (zero by default). A frictional scene (``friction.law`` tresca or
+    coulomb; fb, min or blend only) adds the tangential rows of the friction law (no
+    polishing, the assembled block Jacobian) and returns the nodal friction fields in
+    ``Result.friction``; ``friction.coulomb: fixed_point`` solves a sequence of Tresca
+    problems instead. Collective; never raises on divergence (``Result.converged``).
+    ``contact.solve`` of a problem (your own forms) is :func:`contact.drivers.solve.solve`.
+
+    Args:
+        scene: The scene to solve (:func:`contact.load_scene`).
+        method: fb, min, blend, vinewtonrsls or vinewtonssls; default the scene's
+            ``solver.method``.
+        problem: An assembled problem of this scene to reuse (built here if None).
+        u0: An initial guess on the scene's mesh (Dirichlet values are put in).
+        verbose: Print a line per Newton iteration (default: the scene's
+            ``output.verbose``).
+        criterion: Adaptive stopping against a discretization error (the adaptive loop
+            makes one per level for ``solver.stopping: adaptive``; a single solve has no
+            discretization error to balance against).
+        alternative: Another guess beside ``u0`` (a load path's extrapolation); Newton
+            starts from the one whose ‖Φ‖ is smaller (``Result.predictor`` says which).
+        **options: Overrides of the scene's ``solver`` section, validated as in the scene
+            file: ``mu``, ``c``, ``kappa``, ``line_search``, ``polish``, ``rtol``, ``atol``,
+            ``max_it``, ``linear``, ``inexact``, ``sequence``, ``petsc_options``, …
+
+    Returns:
+        The solution, multiplier, gap, active set, iteration history and resultants.
+
+    Raises:
+        ConfigError: For an unknown or invalid option (one line naming it).
+        ValueError: If ``scene`` is not a Scene, or ``problem`` or ``u0`` belong to
+            another mesh.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> fb = contact.solve(scene, method="fb", verbose=False)
+        >>> pdas = contact.solve(scene, method="min", line_search="basic", verbose=False)
+        >>> fb.converged, pdas.converged, fb.n_active == pdas.n_active, fb.dofs
+        (True, True, True, 153)
+        >>> contact.solve(scene, method="newton")
+        Traceback (most recent call last):
+        contact.base.errors.ConfigError: solver.method: 'newton' is not one of fb, min, ...
+    """
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
     config = scene.config  # validated at load, immutable: only the call's overrides are checked
@@ -217,7 +301,8 @@ def solve(
 @dataclass
 class SceneLevel(Level):
     """A level of a scene's adaptive loop: the core :class:`~.adaptive.Level` and the scene
-    on its mesh (what its output is written from)."""
+    on its mesh (what its output is written from).
+    """
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
@@ -228,7 +313,8 @@ class SceneLevel(Level):
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
     """The scene's ``adapt`` section (defaults if absent) with keyword overrides (each
-    validated as in the scene file; the section itself was at load)."""
+    validated as in the scene file; the section itself was at load).
+    """
     return (scene.config.adapt or AdaptConfig()).updated(**overrides)
 
 
@@ -240,14 +326,45 @@ def adapt(
     u0: fem.Function | None = None,
     **options: Any,
 ) -> AdaptResult:
-    """The adaptive loop of :func:`contact.drivers.adaptive.adapt` over the scene: each level
-    the scene on a refinement of its mesh (:func:`refine`), its problem built
-    (:func:`contact.models.build_problem`) and solved as :func:`solve` does, with the scene's
-    estimator, the scene's ``adapt`` section (keyword ``options`` override it; validated),
-    its solver's DoF budget (``solver.max_dofs``) and stopping (``solver.stopping``).
-    ``on_level`` is called with each :class:`SceneLevel` once it is estimated (used by the
-    CLI to write output as it goes); ``u0`` is the first level's initial guess (a load
-    step's previous solution).  Returns the levels as :class:`SceneLevel` objects."""
+    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+
+    The loop of :func:`contact.drivers.adaptive.adapt` over the scene: each level is the
+    scene on a refinement of its mesh, its problem built and solved as :func:`solve` does,
+    with the scene's estimator, DoF budget (``solver.max_dofs``) and stopping
+    (``solver.stopping``). The loop stops when η ≤ ``tol``, before a level would exceed
+    ``max_dofs`` or the DoF budget, after ``max_levels`` levels, or when a solve does not
+    converge (the levels before it are kept). Each level after the first starts from the
+    previous level's solution interpolated onto the refined mesh (``nested``). Collective.
+    ``contact.adapt(build, mesh)`` adapts your own problem (a builder of it on a mesh).
+
+    Args:
+        scene: The first level's scene.
+        method: The solver method (fb, min, blend, vinewtonrsls, vinewtonssls); default
+            the scene's ``solver.method``.
+        on_level: Called with each level (a :class:`SceneLevel`) once it is estimated (the
+            CLI writes the level's files there).
+        verbose: Print a table row per level (default: the scene's ``output.verbose``).
+        u0: The first level's initial guess (a load step's previous solution).
+        **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
+            maximum, uniform, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
+            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``.
+
+    Returns:
+        The levels and the reason the loop stopped.
+
+    Raises:
+        ConfigError: For an unknown or invalid option (one line naming it).
+        ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
+        >>> [level.index for level in run.levels], run.stop
+        ([0, 1, 2], 'reached max_levels = 3')
+        >>> run.levels[-1].error < run.levels[0].error
+        True
+    """
     if on_level is not None and not callable(on_level):
         raise ValueError(
             f"on_level: expected a function of one Level, got {type(on_level).__name__}"
@@ -307,7 +424,8 @@ def adapt(
 @dataclass
 class SceneStep(Step):
     """A step of a scene's load path: the core :class:`~.load_path.Step` and the scene it was
-    solved on (the final mesh of its adaptive loop, if any)."""
+    solved on (the final mesh of its adaptive loop, if any).
+    """
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
@@ -330,7 +448,8 @@ def step_cuts(cfg: SceneConfig) -> int:
     """How many times in a row a step that does not converge is halved (``load.cuts``;
     default :data:`HYPERELASTIC_CUTS` for a hyperelastic body, whose Newton iteration
     converges only near enough to the solution, 0 for the linear models, whose solution
-    does not depend on the path but for friction)."""
+    does not depend on the path but for friction).
+    """
     cuts = cfg.load.cuts if cfg.load is not None else None
     if cuts is not None:
         return int(cuts)
@@ -339,7 +458,8 @@ def step_cuts(cfg: SceneConfig) -> int:
 
 def secant_predictor(cfg: SceneConfig) -> bool:
     """Whether steps k ≥ 3 are offered the secant predictor (``load.predictor``; linear models:
-    a hyperelastic step keeps its warm start, :func:`step_cuts` handles its failures)."""
+    a hyperelastic step keeps its warm start, :func:`step_cuts` handles its failures).
+    """
     predictor = cfg.load.predictor if cfg.load is not None else "secant"
     return predictor == "secant" and cfg.model.type != "hyperelastic"
 
@@ -354,21 +474,49 @@ def run_load_path(
     keep_all: bool = False,
     **options: Any,
 ) -> LoadPath:
-    """Solve the scene's load path (``load:`` section; one step at t = 1 without one) step by
-    step (:func:`contact.drivers.load_path.run_steps`).
+    """Solve the scene's quasi-static load path step by step.
 
-    Data expressions may use the pseudo-time ``t`` (e.g. ``u_D: ["0.01*t", "-delta"]``);
-    each step is the scene at t_k with the previous step's solution as its history
+    Step k solves the scene at t = t_k (data expressions may use ``t``, e.g.
+    ``u_D: ["0.01*t", "-delta"]``), starting from step k − 1's solution, its history
     (``u_prev`` of :attr:`contact.setup.scene.Scene.history`: friction's slips are measured
-    from it), solved as :func:`solve` does, with the secant predictor (``load.predictor``),
-    step cutting (``load.cuts``, :func:`step_cuts`) and — for a hyperelastic body — the
-    equilibrium branch followed where the energy search finds no stable state.  With an
-    ``adapt:`` section (or ``adaptive``) the adaptive loop runs at every step
-    (``load.adapt: each``: step k refines on from the final mesh of step k − 1, so meshes
-    only get finer and u_prev is carried exactly by nested prolongation) or at the last
-    step only (``end``), ``adapt_options`` overriding that section.  ``on_step`` is called
-    with each :class:`SceneStep` (the CLI writes its output there); ``options`` are solver
-    options as for :func:`solve`."""
+    from it); the loop is :func:`contact.drivers.load_path.run_steps`. From the third step
+    on, a step is offered the secant predictor (``load.predictor``) beside the previous
+    solution; a step that does not converge may be halved (``load.cuts``,
+    :func:`step_cuts`); a hyperelastic body's equilibrium branch is followed where the
+    energy search finds no stable state. With an ``adapt:`` section (or ``adaptive``) the
+    adaptive loop runs at every step (``load.adapt: each``: step k refines on from the final
+    mesh of step k − 1) or at the last step only (``end``). The last step stays whole, and
+    the last converged one before a failed step; the others are released when the next one
+    is solved, unless ``keep_all``. Collective. ``contact.run_load_path(build, times)``
+    runs your own problem's path (:func:`contact.drivers.load_path.load_path`).
+
+    Args:
+        scene: The scene; its ``load:`` section gives the pseudo-times (one step at t = 1
+            without one).
+        method: The solver method; default the scene's ``solver.method``.
+        on_step: Called with each step (a :class:`SceneStep`) once it is solved (converged
+            steps and the final failure only): anything that needs a step's functions or
+            scene belongs there (the CLI writes its output there).
+        verbose: Print a line per step (default: the scene's ``output.verbose``).
+        adaptive: Run the adaptive loop (default: when the scene has an ``adapt`` section),
+            at every step or at the last (``load.adapt``).
+        adapt_options: Overrides of the scene's ``adapt`` section.
+        keep_all: Keep every step whole (for short paths: each whole step holds MPI
+            communicators, of which MPI has a few thousand).
+        **options: Solver options as for :func:`contact.solve`.
+
+    Returns:
+        The steps and, if it stopped early, why.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene(
+        ...     "configs/friction_block_2d.yaml", ["mesh.cells=[16,4]", "load.steps=4"]
+        ... )
+        >>> path = contact.run_load_path(scene, verbose=False)
+        >>> path.converged, [step.time for step in path.steps]
+        (True, [0.25, 0.5, 0.75, 1.0])
+    """
     config = scene.config
     verbose = config.output.verbose if verbose is None else verbose
     mode = config.load.adapt if config.load is not None else "end"
@@ -430,7 +578,8 @@ def run_load_path(
 
 def is_problem(subject: Any) -> bool:
     """Whether ``subject`` is a problem the drivers of problems take (a model's problem or a
-    :class:`~contact.models.forms.ComplementarityProblem`)."""
+    :class:`~contact.models.forms.ComplementarityProblem`).
+    """
     return isinstance(getattr(subject, "problem", subject), DiscreteProblem)
 
 
@@ -439,7 +588,8 @@ def either[**P, R](
 ) -> Callable[P, R]:
     """A public function of a scene or a problem: ``for_scene`` when the first argument is a
     :class:`Scene`, ``for_problem`` when ``takes`` it; anything else is the one-line
-    ValueError of :func:`contact.setup.scene.require_scene`."""
+    ValueError of :func:`contact.setup.scene.require_scene`.
+    """
 
     @functools.wraps(for_scene)
     def call(*args: P.args, **kwargs: P.kwargs) -> R:
