@@ -354,6 +354,30 @@ def test_load_path():
         agree(mine.result, theirs.result)
 
 
+def test_a_number_as_the_obstacle():
+    """The equilibrated bound of an obstacle problem whose obstacle is a number: the same η as
+    with that number as a fem.Constant (the bound as written, a constant)."""
+    msh = mesh.create_unit_square(comm, 12, 12)
+    edge = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+    tags = mesh.meshtags(msh, 1, np.sort(edge), 1)
+
+    def eta(bound) -> float:
+        V = fem.functionspace(msh, ("Lagrange", 1))
+        u, v, w = fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
+        bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, edge), V)
+        one, f = fem.Constant(msh, 1.0), fem.Constant(msh, 10.0)
+        physics = Diffusion(one, f, BoundaryData(tags, dirichlet=(1,)))
+        a, L = ufl.inner(ufl.grad(w), ufl.grad(v)) * ufl.dx, f * v * ufl.dx
+        cap = Unilateral(bound)
+        with ComplementarityProblem.from_forms(a, L, u, cap, [bc], physics=physics) as p:
+            result = contact.solve(p, **TIGHT)
+            assert result.converged and result.n_active > 0
+            return contact.estimate(p, result, kind="equilibrated").eta
+
+    number, constant = eta(0.05), eta(fem.Constant(msh, 0.05))
+    assert number > 0 and abs(number - constant) <= 1e-12 * constant
+
+
 def test_on_two_ranks():
     """The tests above on 2 MPI ranks (one mpirun)."""
     proc = pytest_on_ranks(__file__, "not two_ranks", timeout=900)

@@ -48,10 +48,19 @@ from .solve import solve as solve_problem
 
 @dataclass
 class Level:
-    """One level of the adaptive loop.
+    """One level of the adaptive loop, as :func:`contact.adapt` hands it to ``on_level``.
 
-    One level of the adaptive loop: its domain, problem, solve, estimate, the true error
-    (if the problem's physics declares an exact solution) and the seconds of each phase.
+    Attributes:
+        index: The level's number, 0 for the first mesh.
+        domain: The level's domain (its mesh and tags).
+        problem: The problem built on it.
+        result: The solve on this level.
+        estimate: The error estimate of that solve.
+        error: The energy error against the physics' exact solution, None without one.
+        seconds: Seconds spent per phase (``assembly``, ``solve``, ``estimate``, ``error``,
+            ``mark``, ``refine``, ``output``).
+        imbalance: Under MPI the busiest rank's owned DoFs over the mean (1 in serial).
+        passes: Solves of this level (adaptive stopping may solve on).
     """
 
     index: int
@@ -113,8 +122,8 @@ class Level:
     def release(self) -> None:
         """Keep the level's figures only.
 
-        Keep the level's figures only (:meth:`contact.solvers.result.Result.release`): its
-        result released, its domain, problem and η_T dropped.
+        Its result is released (:meth:`contact.solvers.result.Result.release`), its domain,
+        problem and η_T dropped.
         """
         self.result.release()
         self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]

@@ -263,13 +263,24 @@ class _Lifting:
     cross: Any = None
 
 
+def _obstacle(bound: Any, problem: Problem) -> Any:
+    """ψ as UFL: as written when it is a UFL expression or a Function (not its interpolant),
+    a number as a constant; values at the DoFs or a callable only through their
+    interpolant, the problem's bound function."""
+    if isinstance(bound, ufl.core.expr.Expr):
+        return bound
+    if np.ndim(bound) == 0 and not callable(bound):
+        return fem.Constant(problem.V.mesh, float(bound))
+    return problem.bound_function()
+
+
 def _feasibility(problem: Problem, result: Result, sigma: float, k, w_test) -> _Lifting:
     u_h = result.u_h
     physics, condition = _scalar(problem)
     msh = problem.V.mesh
     boundary = physics.boundary
     if condition.in_domain:
-        psi = condition.bound  # ψ as written (a UFL expression), not its interpolant
+        psi = _obstacle(condition.bound, problem)
         f = physics.f
         s = sigma * (u_h - psi)
         # kinks
