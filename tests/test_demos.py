@@ -66,6 +66,25 @@ def test_demo_hertz(tmp_path):
     assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 3.0
 
 
+def test_demo_hertz_on_two_ranks(tmp_path):
+    """The Hertz demo (own forms on the core, a gmsh mesh) under mpirun -n 2: the same
+    checks as serially."""
+    mpirun = Path(sys.executable).parent / "mpirun"
+    proc = subprocess.run(
+        [str(mpirun), "-n", "2", sys.executable, str(ROOT / "demos" / "demo_hertz.py"), "2"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(ROOT)},
+    )
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    assert _number(r"relative difference (\S+)", out) < 1e-8
+    assert abs(_number(r"peak pressure p0 = \S+ \(Hertz \S+, (\S+)%\)", out)) < 1.5
+    assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 3.0
+
+
 def test_demo_friction(tmp_path):
     out = _demo("friction", "40", tmp_path)
     assert abs(_number(r"\|F_t\| / \|F_n\| = (\S+)", out) - 0.3) <= 1e-9

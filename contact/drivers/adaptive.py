@@ -2,10 +2,10 @@
 
 The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6) over a user's
 builder: ``build(mesh)`` (or ``build(domain)``) gives the problem on each level's mesh, and
-the loop solves it (:func:`contact.drivers.solve.solve`), estimates the error
-(:func:`contact.adaptivity.estimate.estimate`), marks cells
+the loop solves it (``contact.drivers.solve.solve``), estimates the error
+(``contact.adaptivity.estimate.estimate``), marks cells
 (:func:`contact.adaptivity.mark.mark`) and refines them
-(:func:`contact.adaptivity.refine.refine`), carrying the solution to the refined mesh as the
+(``contact.adaptivity.refine.refine``), carrying the solution to the refined mesh as the
 next level's initial guess (nested iteration).
 
 The pieces are plain functions so a user can write their own loop in a few lines::
@@ -122,7 +122,7 @@ class Level:
     def release(self) -> None:
         """Keep the level's figures only.
 
-        Its result is released (:meth:`contact.solvers.result.Result.release`), its domain,
+        Its result is released (``contact.solvers.result.Result.release``), its domain,
         problem and η_T dropped.
         """
         self.result.release()
@@ -210,7 +210,7 @@ def adapt(
         u0: the first level's initial guess (e.g. a load step's previous solution).
         on_level: called with each :class:`Level` once it is estimated (output as it goes).
         solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
-            of :func:`contact.drivers.solve.solve`, a first level without a guess sequenced
+            of ``contact.drivers.solve.solve``, a first level without a guess sequenced
             over the domain's ancestors).
         budget: the most DoFs one solve may have (a memory budget), or None.
         stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
@@ -321,7 +321,7 @@ def adapt(
 def _default_solve(build: Callable, knobs: SolverOptions, meshes: bool, nested: bool) -> LevelSolve:
     """Return the default level solve of a user's builder.
 
-    A level's solve of a user's builder: one :func:`~contact.drivers.solve.solve`; a level
+    A level's solve of a user's builder: one ``solve``; a level
     without a guess (the first, or every level when not ``nested``) is sequenced over the
     domain's ancestors with ≥ 4× fewer DoFs each (:func:`~.sequencing.ancestors`).
     """

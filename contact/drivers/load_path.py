@@ -85,7 +85,7 @@ class Step:
         """Keep the step's figures only.
 
         Its result and its adaptive levels' results are released
-        (:meth:`contact.solvers.result.Result.release`: iterations, residual, history,
+        (``contact.solvers.result.Result.release``: iterations, residual, history,
         contact force stay; functions, nodal arrays and PETSc objects go).
         """
         for level in self.levels:
@@ -416,7 +416,7 @@ def searched_indefinite(result: Result) -> bool:
     """Return whether a failed solve was the energy search's and met an indefinite tangent.
 
     Whether a solve that failed was the energy search's and met a tangent that is not
-    positive definite (:mod:`contact.solvers.energy_search`'s log).
+    positive definite (``contact.solvers.energy_search``'s log).
     """
     return any(event["negative"] for event in result.tangent_log)
 

@@ -56,6 +56,7 @@ class CoarseLevel:
 
     @property
     def linear_solves(self) -> int:
+        """The level's linear solves: Newton's and polishing's."""
         return self.newton_iterations + self.polish_solves
 
 
@@ -110,13 +111,15 @@ class Hierarchy:
     fine: Any
     start: Callable[[Any, Any], fem.Function | None] | None = None
     note: str = ""
-    #: the levels' solution replaces a given guess too (a frictional load step's: its
+    #: whether the levels' solution replaces a given guess too (a frictional load step's
     #: history solved on the coarse levels moves the stick/slip front there)
     replaces_guess: bool = False
 
 
 def levels_wanted(option: str | int, fine_dofs: int) -> int | None:
-    """Number of coarse levels to try for ``solver.sequence`` = ``option`` (``auto``, ``off``
+    """Return how many coarse levels to try for a ``solver.sequence`` option.
+
+    Number of coarse levels to try for ``solver.sequence`` = ``option`` (``auto``, ``off``
     or a number): 0, a number, or None (as many as ``auto`` allows).
     """
     if option == "off" or option == 0:
@@ -129,7 +132,9 @@ def levels_wanted(option: str | int, fine_dofs: int) -> int | None:
 def initial_guess(
     h: Hierarchy, V: fem.FunctionSpace, verbose: bool = False, label: str = ""
 ) -> tuple[fem.Function | None, list[CoarseLevel], str]:
-    """Solve the levels of ``h``, coarsest first, each from the coarser solution carried over
+    """Solve the coarse levels of a hierarchy and return the fine level's guess.
+
+    Solve the levels of ``h``, coarsest first, each from the coarser solution carried over
     (the first from ``h.start``, or its cold start); return the last coarse solution on the
     fine space V (None if no level converged), the levels and the note.  ``label`` names
     the method in verbose lines.
@@ -193,7 +198,9 @@ def hierarchy(
     fine: Any,
     solve: Callable[[Any, fem.Function | None], Result],
 ) -> Hierarchy:
-    """The hierarchy of a user's builder: ``build(level)`` on each of ``levels`` (meshes or
+    """Return the hierarchy of a user's builder over coarser levels.
+
+    The hierarchy of a user's builder: ``build(level)`` on each of ``levels`` (meshes or
     domains, coarsest first, all coarser than ``fine``), each solved by ``solve(problem,
     u0)``, solutions carried by :func:`transfer` (exact prolongation along a chain of
     refinements, point location otherwise).
@@ -211,7 +218,9 @@ def hierarchy(
 
 
 def transfer(u: fem.Function, coarse: Any, fine: Any, V: fem.FunctionSpace) -> fem.Function:
-    """A coarser level's solution ``u`` on a finer level's space V: exact along a chain of
+    """Return a coarser level's solution on a finer level's space.
+
+    A coarser level's solution ``u`` on a finer level's space V: exact along a chain of
     refinements (``fine`` a domain refined from ``coarse``: :func:`prolong_chain`), else
     by point location (:func:`point_transfer`, P1).
     """
@@ -234,7 +243,9 @@ def _chain(level: Any) -> list:
 
 
 def ancestors(level: Any, ratio: int, floor: int, bs: int) -> list:
-    """The levels ``level`` was refined from (its ``parent`` chain), finest first, each with
+    """Return the coarse levels of a refined level: its ancestors, finest first.
+
+    The levels ``level`` was refined from (its ``parent`` chain), finest first, each with
     ≥ ``ratio`` times fewer DoFs (P1, block size ``bs``) than the one chosen before it and
     ≥ ``floor`` DoFs: the coarse levels of a refined mesh (adaptive hierarchies grow slowly:
     every ``ratio``× in DoFs).
@@ -256,7 +267,9 @@ def _dofs(level: Any, bs: int) -> int:
 
 
 def prolong_chain(u: fem.Function, coarse: Any, fine: Any, V: fem.FunctionSpace) -> fem.Function:
-    """Prolong ``u`` through the refinements from ``coarse`` down to ``fine`` (levels with a
+    """Prolong ``u`` through the refinements from ``coarse`` down to ``fine``.
+
+    Prolong ``u`` through the refinements from ``coarse`` down to ``fine`` (levels with a
     ``mesh`` and a ``parent`` = (the level refined, parent cells); exact for nested
     Lagrange spaces).
     """
@@ -282,7 +295,9 @@ def point_transfer(
     coarse_bodies: MeshTags | None = None,
     fine_bodies: MeshTags | None = None,
 ) -> fem.Function:
-    """The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
+    """Return a P1 function on another simplicial mesh's P1 space, by point location.
+
+    The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
     point of V in u's mesh (for meshes of one geometry that are not nested, e.g. gmsh
     meshes of two sizes).  With the cell tags of the bodies of both meshes
     (``Scene.bodies``), a point of body k is located among body k's coarse cells only:
@@ -338,7 +353,9 @@ def _cell_values(tags: MeshTags, n: int) -> np.ndarray:
 def _barycentric(
     verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray
 ) -> np.ndarray:
-    """Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
+    """Return the barycentric coordinates of points in their cells.
+
+    Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
     simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``.
     """
     dp = points - verts[cells, 0]
@@ -350,7 +367,9 @@ def _barycentric(
 def _locate(
     verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1
 ) -> np.ndarray:
-    """For each point the index of the simplex (of ``verts``) that contains it, or the one
+    """Return for each point the simplex that contains it, or the one it is least outside of.
+
+    For each point the index of the simplex (of ``verts``) that contains it, or the one
     it is least outside of among those whose bounding box, grown by ``grow`` buckets, holds
     it (points no box holds are located again with boxes grown by one more bucket).
 
@@ -393,7 +412,9 @@ def _locate(
 def _bucket_candidates(
     lo_c: np.ndarray, hi_c: np.ndarray, cells: np.ndarray, points: np.ndarray, grow: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
+    """Return the (point, cell) pairs whose grown bounding boxes overlap.
+
+    (point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
     ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
     cells' mean extent over their common bounding box
     (:func:`~contact.base.buckets.box_point_pairs`).

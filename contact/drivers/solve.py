@@ -164,7 +164,7 @@ def sequence(
     ``levels`` (meshes or :class:`~contact.adaptivity.refine.Domain` objects, coarsest
     first), each solved from the coarser solution carried over (exact prolongation along
     refinements, point location between other meshes), the coarse ones to
-    :data:`~.sequencing.COARSE_RTOL`.
+    ``COARSE_RTOL``.
 
     Args:
         build: the problem on a level (a :class:`~contact.models.forms.ComplementarityProblem`

@@ -1,4 +1,6 @@
-"""Contact conditions a problem is subject to, each an object over UFL measures and
+"""Contact conditions: the objects a user composes with their own forms.
+
+Contact conditions a problem is subject to, each an object over UFL measures and
 DOLFINx functions that a user composes with their own forms
 (:class:`~contact.models.forms.ComplementarityProblem`) and that the scene's models build
 alike (SPEC §1–2, docs/theory.md §1):
@@ -42,7 +44,9 @@ from .problem import contact_ends, lumped_weights
 
 @dataclass
 class ContactSet:
-    """What a problem's contact conditions make of its assembled K and b: the constraint set,
+    """What a problem's contact conditions make of its assembled K and b.
+
+    What a problem's contact conditions make of its assembled K and b: the constraint set,
     the :class:`~contact.solvers.problem.DiscreteProblem` fields they decide (``fields``:
     output space, basis, ends, the current configuration's nodes …), the data the estimators
     and reports read (``data``), and — where a change of basis replaced them — the new K̃, b̃
@@ -58,7 +62,9 @@ class ContactSet:
 
     @property
     def kind(self) -> str:
-        """How a residual problem reads its unknowns: ``plain`` (u), ``rotated`` (x = Qᵀ u,
+        """How a residual problem reads its unknowns.
+
+        How a residual problem reads its unknowns: ``plain`` (u), ``rotated`` (x = Qᵀ u,
         contact nodes on their (n, t) axes) or ``current`` (contact on the current
         configuration).
         """
@@ -90,7 +96,7 @@ class Unilateral:
     expressions evaluated at the DoF points).
 
     A record: its fields are checked against u's space when a problem is built
-    (:func:`~contact.models.form_checks.check_constraint`), on every rank alike — the
+    (``check_constraint``), on every rank alike — the
     side, a bound that is finite (a callable's values of shape (n,) for points of shape
     (3, n)), a measure that selects some facet or cell, ``dofs`` that are owned integer
     indices given once each, ``weights`` finite and > 0.
@@ -124,7 +130,7 @@ class Unilateral:
 
     @property
     def sign(self) -> float:
-        """σ: +1 for u ≤ g, −1 for u ≥ g."""
+        """The constraint's sign σ, +1 for u ≤ g and −1 for u ≥ g."""
         return 1.0 if self.side == "upper" else -1.0
 
     @property
@@ -149,7 +155,7 @@ class Unilateral:
         Its DoFs, weights and bound
         (:meth:`nodes`, :meth:`bound_function`); on facets of a scalar space, the ends of
         Γ_C on the closure of Γ_D, which get the multiplier of their nearest contact DoF
-        (:func:`~.problem.contact_ends`).  Collective.
+        (``contact_ends``).  Collective.
         """
         dofs, w = self.nodes(V, bcs, allow_empty)
         g = self.bound_function(V, dofs)
@@ -168,8 +174,10 @@ class Unilateral:
     def nodes(
         self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC], allow_empty: bool = False
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights.
-        Collective; the constraint is checked first (:func:`~.form_checks.check_constraint`).
+        """Return the constrained owned DoFs (no Dirichlet DoF) and their weights.
+
+        (dofs, w): the constrained owned DoFs (no Dirichlet DoF) and their weights.
+        Collective; the constraint is checked first (``check_constraint``).
         A measure that selects nothing, or (unless ``allow_empty``) a constraint left with no
         DoF on any rank, is a ValueError (on every rank).
         """
@@ -248,9 +256,11 @@ class Unilateral:
 
 
 def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) -> np.ndarray:
-    """The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
+    """Return the constrained DoFs of a measure's cells or facets.
+
+    The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
     exterior facets (``ds``) a measure covers (checked:
-    :func:`~.form_checks.check_constraint`).  Collective; a tagged measure that selects no
+    ``check_constraint``).  Collective; a tagged measure that selects no
     entity on any rank is a ValueError.
     """
     msh, tdim = V.mesh, V.mesh.topology.dim
@@ -301,13 +311,14 @@ class Plane:
     normal: np.ndarray
 
     def __post_init__(self) -> None:
+        """Store the point and the normalised normal as float arrays."""
         nu = _vector(self.normal)
         object.__setattr__(self, "point", _vector(self.point))
         object.__setattr__(self, "normal", nu / np.linalg.norm(nu))
 
     @property
     def scale(self) -> float:
-        """The size of the numbers g subtracts beyond the coordinates: |p|."""
+        """The size of the numbers g subtracts beyond the coordinates, ``|p|``."""
         return float(np.max(np.abs(self.point), initial=0.0))
 
     @property
@@ -341,7 +352,7 @@ class Plane:
 class Ball:
     """A rigid circle (2D) or sphere (3D), the body outside.
 
-    With r = |x − c|: g = r − R, n = (c − x)/r, Dn = −(I − n nᵀ)/r.
+    With ``r = |x − c|``: g = r − R, n = (c − x)/r, Dn = −(I − n nᵀ)/r.
 
     Args:
         center: the centre c (gdim coordinates).
@@ -359,12 +370,13 @@ class Ball:
     radius: float
 
     def __post_init__(self) -> None:
+        """Store the centre as a float array."""
         object.__setattr__(self, "center", _vector(self.center))
         object.__setattr__(self, "radius", float(self.radius))
 
     @property
     def scale(self) -> float:
-        """The size of the numbers g subtracts beyond the coordinates: |c| + R."""
+        """The size of the numbers g subtracts beyond the coordinates, ``|c| + R``."""
         return float(np.max(np.abs(self.center), initial=0.0)) + self.radius
 
     @property
@@ -399,7 +411,7 @@ class Ball:
 class Cylinder:
     """A rigid circular cylinder (3D), the body outside.
 
-    With p = (x − c) − ((x − c)·a) a and r = |p|: g = r − R, n = −p/r,
+    With p = (x − c) − ((x − c)·a) a and ``r = |p|``: g = r − R, n = −p/r,
     Dn = −(I − a aᵀ − n nᵀ)/r.
 
     Args:
@@ -420,6 +432,7 @@ class Cylinder:
     radius: float
 
     def __post_init__(self) -> None:
+        """Store the point and the normalised axis as float arrays."""
         a = _vector(self.axis)
         object.__setattr__(self, "point", _vector(self.point))
         object.__setattr__(self, "axis", a / np.linalg.norm(a))
@@ -427,7 +440,7 @@ class Cylinder:
 
     @property
     def scale(self) -> float:
-        """The size of the numbers g subtracts beyond the coordinates: |c| + R."""
+        """The size of the numbers g subtracts beyond the coordinates, ``|c| + R``."""
         return float(np.max(np.abs(self.point), initial=0.0)) + self.radius
 
     @property
@@ -458,13 +471,15 @@ class Cylinder:
 
 @dataclass(frozen=True)
 class SignedDistance:
-    """A rigid obstacle given by the user as its signed distance g(x) (> 0 on the body's side)
+    """A rigid obstacle given by its signed distance and normal.
+
+    A rigid obstacle given by the user as its signed distance g(x) (> 0 on the body's side)
     and unit normal n(x) = −∇g towards it (NumPy: points (k, gdim) → (k,) and (k, gdim)).
 
     Args:
         gap: g at points.
         normal: n at points.
-        expression_of: g as UFL of the spatial coordinate X, for the estimators (n = −∇g/|∇g|);
+        expression_of: g as UFL of the spatial coordinate X, for the estimators (``n = −∇g/|∇g|``);
             None: the estimators refuse this obstacle.
         curvature: Dn = dn/dx at points (k, gdim, gdim), for contact on the current
             configuration (None: 0, a Jacobian without the obstacle's curvature term).
@@ -495,7 +510,7 @@ class SignedDistance:
         return np.asarray(self.gap(x), float), np.asarray(self.normal(x), float), Dn
 
     def expression(self, X: Any) -> tuple[Any, Any]:
-        """(n, g) as UFL: n = −∇g/|∇g| of the user's expression."""
+        """Return (n, g) as UFL, ``n = −∇g/|∇g|`` of the user's expression."""
         if self.expression_of is None:
             raise ValueError(
                 "SignedDistance.expression_of: the estimators need g as a UFL expression"
@@ -511,15 +526,14 @@ Surface = Plane | Ball | Cylinder | SignedDistance
 
 @dataclass(frozen=True)
 class Tresca:
-    """Tresca friction: |λ_t| ≤ s, sticking below the threshold (docs/theory.md §1.4).
+    """Tresca friction: ``|λ_t| ≤ s``, sticking below the threshold (docs/theory.md §1.4).
 
     Args:
         threshold: the slip threshold s ≥ 0 (a stress): a number or a UFL expression of
             the spatial coordinate; the estimators read it as written.
         at_nodes: s at points x of shape (3, n) → (n,), where the nodal values should come
             from elsewhere than the UFL expression (None: evaluated from it).
-        options: the knobs of the tangential rows (:class:`~contact.solvers.options.
-            FrictionOptions`).
+        options: the knobs of the tangential rows (``FrictionOptions``).
 
     Example:
         >>> import contact
@@ -530,7 +544,7 @@ class Tresca:
     threshold: Any
     at_nodes: Callable[[np.ndarray], np.ndarray] | None = None
     options: FrictionOptions = FrictionOptions()
-    #: the names its messages give: the threshold's, and when it is evaluated
+    #: the names its messages give (the threshold's, and when it is evaluated)
     key: str = "Tresca.threshold"
     when: str = ""
 
@@ -558,12 +572,12 @@ class Tresca:
 
 @dataclass(frozen=True)
 class Coulomb:
-    """Coulomb friction: |λ_t| ≤ F |λ_n| (docs/theory.md §1.4).
+    """Coulomb friction: ``|λ_t| ≤ F |λ_n|`` (docs/theory.md §1.4).
 
     Args:
         coefficient: the friction coefficient F ≥ 0.
-        options: the knobs of the tangential rows (:class:`~contact.solvers.options.
-            FrictionOptions`: c_t, the HSW or projection form, Newton or the fixed point).
+        options: the knobs of the tangential rows (``FrictionOptions``: c_t, the HSW or
+            projection form, Newton or the fixed point).
 
     Example:
         >>> import contact
@@ -683,9 +697,11 @@ Condition = Unilateral | RigidObstacle | MortarPair
 
 
 def check_condition(c: Any, V: fem.FunctionSpace) -> dict[str, object]:
-    """A contact condition ``c`` on its own and against u's space ``V`` (local data; a
+    """Check a contact condition on its own and against u's space.
+
+    A contact condition ``c`` on its own and against u's space ``V`` (local data; a
     one-line TypeError or ValueError naming the argument): a :class:`Unilateral`
-    (:func:`~.form_checks.check_constraint`), or a :class:`RigidObstacle` /
+    (``check_constraint``), or a :class:`RigidObstacle` /
     :class:`MortarPair` on a vector space of gdim components, over tagged facets of u's
     mesh, with a surface and a friction law of the kinds above.  Returns what decides the
     collectives it enters (for :func:`~.form_checks.agree` with ``same``).

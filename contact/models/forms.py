@@ -162,7 +162,7 @@ class ResidualProblem(Problem):
 
         A new matrix J(x) with the Dirichlet rows and columns kept (the coupling of a
         prescribed increment into the free rows: the tangent predictor,
-        :mod:`contact.solvers.predictor`); the caller destroys it.
+        ``contact.solvers.predictor``); the caller destroys it.
         """
         self._set_iterate(x)
         A = dolfinx.fem.petsc.assemble_matrix(self._forms()[1])
@@ -392,7 +392,7 @@ class ComplementarityProblem:
                 s (a list, with at most one rigid obstacle); a rigid obstacle's or a
                 pair's friction law is part of it.
             bcs: Dirichlet conditions on u's space (or its subspaces).
-            physics: the equations the forms discretise (:mod:`~contact.models.physics`),
+            physics: the equations the forms discretise (``physics``),
                 which the estimators read; None: no estimate.
             u_prev: the previous load step's solution (friction's slips start there).
 
@@ -444,11 +444,11 @@ class ComplementarityProblem:
             bcs: Dirichlet conditions on u's space (or its subspaces).
             J: The bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
                 is a compiled ``dolfinx.fem.Form``).
-            physics: the equations F discretises (:mod:`~contact.models.physics`), which the
+            physics: the equations F discretises (``physics``), which the
                 estimators read; None: no estimate.
             u_prev: the previous load step's solution (friction's slips start there).
             energy: Π(u) with F = ∂Π/∂u, if F is the gradient of an energy (the energy line
-                search of :mod:`contact.solvers.energy_search`).
+                search of ``contact.solvers.energy_search``).
             current: a rigid obstacle whose gap is not affine in u (a curved surface, or
                 friction) is met on the current configuration (finite strain); False: on the
                 reference configuration.

@@ -58,12 +58,14 @@ def deformation_gradient(u: Any) -> Any:
 
 
 def strain_energy(F: Any, law: str, mu: Coefficient, lmbda_L: Coefficient) -> Any:
-    """ψ(F) per unit reference volume (F 3 × 3):
+    """Return the strain energy ψ(F) per unit reference volume.
+
+    ψ(F) per unit reference volume (F 3 × 3):
 
         neo-Hookean (compressible):   ψ = μ/2 (tr C − 3 − 2 ln J) + λ_L/2 (ln J)²,
         St Venant–Kirchhoff:          ψ = λ_L/2 (tr E)² + μ E:E,
 
-    C = FᵀF, J = det F, E = ½(C − I) (:mod:`.hyperelastic`).
+    C = FᵀF, J = det F, E = ½(C − I) (``hyperelastic``).
     """
     C = F.T * F
     if law == "neo_hookean":
@@ -76,7 +78,9 @@ def strain_energy(F: Any, law: str, mu: Coefficient, lmbda_L: Coefficient) -> An
 
 
 def piola_and_cauchy(u: Any, law: str, mu: Coefficient, lmbda_L: Coefficient) -> tuple:
-    """(P, σ): the first Piola–Kirchhoff stress P = ∂ψ/∂F (gdim × gdim, for the residual's
+    """Return the first Piola–Kirchhoff and the Cauchy stress of a hyperelastic law.
+
+    (P, σ): the first Piola–Kirchhoff stress P = ∂ψ/∂F (gdim × gdim, for the residual's
     tractions in the reference configuration) and the Cauchy stress σ = J⁻¹ P Fᵀ (3 × 3,
     σ_33 ≠ 0 in plane strain), both in the unit of E.
     """
@@ -168,7 +172,7 @@ class Elasticity:
 
     σ(u) = 2μ ε(u) + λ_L tr ε(u) I (plane strain in 2D) when ``law`` is None, else the
     first Piola–Kirchhoff stress P(u) of the hyperelastic ``law`` (neo_hookean,
-    saint_venant_kirchhoff; :mod:`.hyperelastic`).
+    saint_venant_kirchhoff; ``hyperelastic``).
 
     Args:
         mu: the Lamé parameter μ (a number, or a DG0 function for several bodies).
@@ -207,7 +211,7 @@ class Elasticity:
         return self.stresses(u)[0]
 
     def stresses(self, u: Any) -> tuple:
-        """(P, σ) of a hyperelastic law (:func:`piola_and_cauchy`)."""
+        """(P, σ) of a hyperelastic law (``piola_and_cauchy``)."""
         assert self.law is not None, "a linear body: flux() is its stress"
         return piola_and_cauchy(u, self.law, self.mu, self.lmbda)
 

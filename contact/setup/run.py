@@ -1,9 +1,11 @@
-"""A scene's solve, estimate, refinement, adaptive loop and load path: the scene's problem
-built (:func:`contact.models.build_problem`), its options and data read, and handed to the
-drivers of problems (:func:`contact.drivers.solve.solve`,
-:func:`contact.adaptivity.estimate.estimate`, :func:`contact.adaptivity.refine.refine` on the
+"""A scene's solve, estimate, refinement, adaptive loop and load path.
+
+A scene's solve, estimate, refinement, adaptive loop and load path: the scene's problem
+built (:func:`contact.setup.build.build_problem`), its options and data read, and handed to the
+drivers of problems (``contact.drivers.solve.solve``,
+``contact.adaptivity.estimate.estimate``, ``contact.adaptivity.refine.refine`` on the
 scene's mesh as a :class:`~contact.adaptivity.refine.Domain`,
-:func:`contact.drivers.adaptive.adapt`, :func:`contact.drivers.load_path.run_steps`); the
+``contact.drivers.adaptive.adapt``, ``contact.drivers.load_path.run_steps``); the
 scene's grid sequencing is :mod:`.levels`.
 """
 
@@ -51,7 +53,7 @@ def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:
     reconstruct an equilibrated flux and return a guaranteed bound ‖u − u_h‖_E ≤ η
     (docs/theory.md §9). For a scene the default kind is its ``estimator`` (``auto``:
     ``equilibrated`` for the scalar models, ``residual`` for elasticity); for a problem
-    (:func:`contact.adaptivity.estimate.estimate`) it is ``residual``, and the problem must
+    (``contact.adaptivity.estimate.estimate``) it is ``residual``, and the problem must
     declare its physics. Collective.
 
     Args:
@@ -89,7 +91,9 @@ def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:
 
 
 def scene_domain(scene: Scene) -> Domain:
-    """The scene's mesh as a :class:`~contact.adaptivity.refine.Domain`: its boundary tags,
+    """Return the scene's mesh as a :class:`~contact.adaptivity.refine.Domain`.
+
+    The scene's mesh as a :class:`~contact.adaptivity.refine.Domain`: its boundary tags,
     body tags, the mesh builder's surface tags (``surfaces``), the history functions, and
     the snapping of curved boundary parts (the declared ``surface`` of a part, the curved
     surfaces of the built-in Hertz meshes).
@@ -118,7 +122,9 @@ def scene_domain(scene: Scene) -> Domain:
 
 
 def on_domain(scene: Scene, domain: Domain, parent: Scene | None = None) -> Scene:
-    """The scene on another domain of its mesh's (a refinement of it): the same configuration,
+    """Return the scene on another domain of its mesh's (a refinement of it).
+
+    The scene on another domain of its mesh's (a refinement of it): the same configuration,
     boundary parts and pseudo-time, the domain's tags and functions; ``parent`` the scene of
     the domain's parent (the coarser levels of grid sequencing).
     """
@@ -147,7 +153,7 @@ def refine(
 ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells and carry the scene over (the REFINE step).
 
-    :func:`contact.adaptivity.refine.refine` on the scene's mesh as a
+    ``contact.adaptivity.refine.refine`` on the scene's mesh as a
     :class:`~contact.adaptivity.refine.Domain`: the boundary and body tags carried over,
     ``u_h`` interpolated onto the new mesh (nested iteration), the functions of
     ``scene.history`` (a load step's state from the previous step) prolonged, the vertices
@@ -218,7 +224,7 @@ def solve(
     polishing, the assembled block Jacobian) and returns the nodal friction fields in
     ``Result.friction``; ``friction.coulomb: fixed_point`` solves a sequence of Tresca
     problems instead. Collective; never raises on divergence (``Result.converged``).
-    ``contact.solve`` of a problem (your own forms) is :func:`contact.drivers.solve.solve`.
+    ``contact.solve`` of a problem (your own forms) is ``contact.drivers.solve.solve``.
 
     Args:
         scene: The scene to solve (:func:`contact.load_scene`).
@@ -300,19 +306,27 @@ def solve(
 
 @dataclass
 class SceneLevel(Level):
-    """A level of a scene's adaptive loop: the core :class:`~.adaptive.Level` and the scene
-    on its mesh (what its output is written from).
+    """A level of a scene's adaptive loop.
+
+    The core's :class:`~contact.drivers.adaptive.Level` and the scene on its mesh.
+
+    Attributes:
+        scene: The scene on the level's mesh (what its output is written from); None once
+            the level is released.
     """
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
     def release(self) -> None:
+        """Keep the figures only; the scene is dropped too."""
         super().release()
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
 
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
-    """The scene's ``adapt`` section (defaults if absent) with keyword overrides (each
+    """Return the scene's ``adapt`` section with keyword overrides, validated.
+
+    The scene's ``adapt`` section (defaults if absent) with keyword overrides (each
     validated as in the scene file; the section itself was at load).
     """
     return (scene.config.adapt or AdaptConfig()).updated(**overrides)
@@ -328,7 +342,7 @@ def adapt(
 ) -> AdaptResult:
     """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
-    The loop of :func:`contact.drivers.adaptive.adapt` over the scene: each level is the
+    The loop of ``contact.drivers.adaptive.adapt`` over the scene: each level is the
     scene on a refinement of its mesh, its problem built and solved as :func:`solve` does,
     with the scene's estimator, DoF budget (``solver.max_dofs``) and stopping
     (``solver.stopping``). The loop stops when η ≤ ``tol``, before a level would exceed
@@ -341,7 +355,7 @@ def adapt(
         scene: The first level's scene.
         method: The solver method (fb, min, blend, vinewtonrsls, vinewtonssls); default
             the scene's ``solver.method``.
-        on_level: Called with each level (a :class:`SceneLevel`) once it is estimated (the
+        on_level: Called with each level (a ``SceneLevel``) once it is estimated (the
             CLI writes the level's files there).
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The first level's initial guess (a load step's previous solution).
@@ -423,13 +437,19 @@ def adapt(
 
 @dataclass
 class SceneStep(Step):
-    """A step of a scene's load path: the core :class:`~.load_path.Step` and the scene it was
-    solved on (the final mesh of its adaptive loop, if any).
+    """A step of a scene's load path.
+
+    The core's :class:`~contact.drivers.load_path.Step` and the scene it was solved on.
+
+    Attributes:
+        scene: The scene at the step's pseudo-time on the mesh it was solved on (the final
+            mesh of its adaptive loop, if any); None once the step is released.
     """
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
     def release(self) -> None:
+        """Keep the figures only; the scene is dropped too."""
         super().release()
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
 
@@ -445,7 +465,9 @@ HYPERELASTIC_CUTS = 4
 
 
 def step_cuts(cfg: SceneConfig) -> int:
-    """How many times in a row a step that does not converge is halved (``load.cuts``;
+    """Return how many times in a row a step that does not converge is halved.
+
+    How many times in a row a step that does not converge is halved (``load.cuts``;
     default :data:`HYPERELASTIC_CUTS` for a hyperelastic body, whose Newton iteration
     converges only near enough to the solution, 0 for the linear models, whose solution
     does not depend on the path but for friction).
@@ -457,8 +479,10 @@ def step_cuts(cfg: SceneConfig) -> int:
 
 
 def secant_predictor(cfg: SceneConfig) -> bool:
-    """Whether steps k ≥ 3 are offered the secant predictor (``load.predictor``; linear models:
-    a hyperelastic step keeps its warm start, :func:`step_cuts` handles its failures).
+    """Return whether steps k ≥ 3 are offered the secant predictor.
+
+    Whether steps k ≥ 3 are offered the secant predictor (``load.predictor``; linear models:
+    a hyperelastic step keeps its warm start, ``step_cuts`` handles its failures).
     """
     predictor = cfg.load.predictor if cfg.load is not None else "secant"
     return predictor == "secant" and cfg.model.type != "hyperelastic"
@@ -478,23 +502,23 @@ def run_load_path(
 
     Step k solves the scene at t = t_k (data expressions may use ``t``, e.g.
     ``u_D: ["0.01*t", "-delta"]``), starting from step k − 1's solution, its history
-    (``u_prev`` of :attr:`contact.setup.scene.Scene.history`: friction's slips are measured
-    from it); the loop is :func:`contact.drivers.load_path.run_steps`. From the third step
+    (``u_prev`` of ``contact.setup.scene.Scene.history``: friction's slips are measured
+    from it); the loop is ``contact.drivers.load_path.run_steps``. From the third step
     on, a step is offered the secant predictor (``load.predictor``) beside the previous
     solution; a step that does not converge may be halved (``load.cuts``,
-    :func:`step_cuts`); a hyperelastic body's equilibrium branch is followed where the
+    ``step_cuts``); a hyperelastic body's equilibrium branch is followed where the
     energy search finds no stable state. With an ``adapt:`` section (or ``adaptive``) the
     adaptive loop runs at every step (``load.adapt: each``: step k refines on from the final
     mesh of step k − 1) or at the last step only (``end``). The last step stays whole, and
     the last converged one before a failed step; the others are released when the next one
     is solved, unless ``keep_all``. Collective. ``contact.run_load_path(build, times)``
-    runs your own problem's path (:func:`contact.drivers.load_path.load_path`).
+    runs your own problem's path (``contact.drivers.load_path.load_path``).
 
     Args:
         scene: The scene; its ``load:`` section gives the pseudo-times (one step at t = 1
             without one).
         method: The solver method; default the scene's ``solver.method``.
-        on_step: Called with each step (a :class:`SceneStep`) once it is solved (converged
+        on_step: Called with each step (a ``SceneStep``) once it is solved (converged
             steps and the final failure only): anything that needs a step's functions or
             scene belongs there (the CLI writes its output there).
         verbose: Print a line per step (default: the scene's ``output.verbose``).
@@ -577,7 +601,9 @@ def run_load_path(
 
 
 def is_problem(subject: Any) -> bool:
-    """Whether ``subject`` is a problem the drivers of problems take (a model's problem or a
+    """Return whether ``subject`` is a problem the drivers of problems take.
+
+    Whether ``subject`` is a problem the drivers of problems take (a model's problem or a
     :class:`~contact.models.forms.ComplementarityProblem`).
     """
     return isinstance(getattr(subject, "problem", subject), DiscreteProblem)
@@ -586,7 +612,9 @@ def is_problem(subject: Any) -> bool:
 def either[**P, R](
     for_scene: Callable[P, R], for_problem: Callable[..., Any], takes: Callable[[Any], bool]
 ) -> Callable[P, R]:
-    """A public function of a scene or a problem: ``for_scene`` when the first argument is a
+    """Return a public function of a scene or a problem.
+
+    A public function of a scene or a problem: ``for_scene`` when the first argument is a
     :class:`Scene`, ``for_problem`` when ``takes`` it; anything else is the one-line
     ValueError of :func:`contact.setup.scene.require_scene`.
     """

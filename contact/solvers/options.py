@@ -55,28 +55,28 @@ class SolverOptions(BaseModel):
             vinewtonssls (PETSc's VI solvers).
         mu: blend's weight of φ_min, in (0, 1).
         c: the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
-            :func:`~contact.solvers.problem.nodal_scaling`) or a number > 0.
+            ``nodal_scaling``) or a number > 0.
         kappa: κ of the nodal scaling.
         line_search: auto (plain Newton, for min backtracking once a cycle shows; energy for
             a problem with an energy and a direct solver), basic, bt, energy
-            (:mod:`.energy_search`).
+            (``energy_search``).
         polish: active-set polishing of fb / blend steps.
         rtol: Newton's tolerance relative to ‖Φ(x_0)‖.
         atol: relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless).
         max_it: Newton iterations.
-        linear: direct, gamg, bcgs or auto (:mod:`.linear`).
+        linear: direct, gamg, bcgs or auto (``linear``).
         inexact: Eisenstat–Walker forcing of the gamg path.
         petsc_options: PETSc options over the linear solver's defaults.
         predictor: the start of a nonlinear solve lifted by the tangent
-            (:mod:`.predictor`): tangent, none, or auto (tangent for a problem with an
+            (``predictor``): tangent, none, or auto (tangent for a problem with an
             energy).
 
     Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
     one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
     ValidationError); a scene's driver builds it once from its ``solver`` section
-    (:func:`contact.drivers.solve.solve`).  A changed copy:
+    (``contact.drivers.solve.solve``).  A changed copy:
     ``options.model_copy(update={"rtol": 1e-6})`` (unchecked: use :meth:`parse`).
-    Friction's tangential knobs (form, c_t, …) are :class:`FrictionOptions`.
+    Friction's tangential knobs (form, c_t, …) are ``FrictionOptions``.
 
     Example:
         >>> import contact
@@ -162,7 +162,7 @@ class FrictionOptions(BaseModel):
         return parse_section(cls, values, path)
 
     def knobs(self) -> FrictionOptions:
-        """These options as the plain :class:`FrictionOptions` (a subclass's extra fields,
+        """These options as the plain ``FrictionOptions`` (a subclass's extra fields,
         such as a scene section's data, left out; not validated again).
         """
         return FrictionOptions.model_construct(
@@ -179,7 +179,7 @@ class AdaptOptions(BaseModel):
     """The knobs of an adaptive loop (docs/theory.md §6), validated once and immutable.
 
     Like :class:`SolverOptions`; a scene's ``adapt`` section is these knobs and its output's
-    (:class:`contact.setup.scene_config.AdaptConfig`).
+    (``contact.setup.scene_config.AdaptConfig``).
 
     Attributes:
         strategy: dorfler, maximum, uniform or none (one solve).
