@@ -195,6 +195,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from ..setup.config import load_config
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
+    from .dispatch import choose_driver
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
@@ -211,10 +212,10 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"{comm.size} MPI rank(s)",
     )
     _report_posed(scene, comm)
-    # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
-    if scene.config.load or scene.config.frictional or scene.config.model.type == "hyperelastic":
+    driver = choose_driver(scene.config)
+    if driver == "load_path":
         return _run_steps(scene, outdir, label, comm, t0)
-    if scene.config.adapt:
+    if driver == "adapt":
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
     _say(

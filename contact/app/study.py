@@ -95,6 +95,7 @@ from ..setup.scene_config import (
     Switch,
 )
 from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
+from .dispatch import choose_driver
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -621,9 +622,10 @@ def run_one(
         raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
-        if _path_scene(scene.config):
+        driver = choose_driver(scene.config, adaptive=adapt_opts is not None)
+        if driver == "load_path":
             seconds, failure = _run_path(study, scene, adapt_opts, out, levels, clock)
-        elif adapt_opts is None:
+        elif driver == "solve":
             result = solve(scene, verbose=False)
             seconds = clock.seconds
             out.update(
@@ -682,6 +684,7 @@ def run_one(
                 row["seconds"] = clock.seconds
                 levels.append(row)
 
+            assert adapt_opts is not None  # the driver of an adaptive run
             res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
             seconds = clock.seconds
             last = levels[-1]
@@ -725,11 +728,6 @@ def run_one(
     for row in levels:
         row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
     return out, levels
-
-
-def _path_scene(cfg: SceneConfig) -> bool:
-    """A load path or a frictional scene: solved step by step (:mod:`contact.drivers.load_path`)."""
-    return cfg.load is not None or cfg.frictional
 
 
 def _run_path(
