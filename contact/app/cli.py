@@ -97,7 +97,7 @@ def _error(comm: MPI.Comm, line: str) -> None:
         print(failures.one_line(line), file=sys.stderr, flush=True)
 
 
-def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+def one_line_warning(message, category, filename, lineno, file=None, line=None):
     """Every warning as one line on stderr (at most MAX_LINE characters): the project's
     (ContactWarning) ``contact: warning: <message>``, any other (a library's)
     ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
@@ -114,7 +114,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    warnings.showwarning = _one_line_warning
+    warnings.showwarning = one_line_warning
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
