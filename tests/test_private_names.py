@@ -1,4 +1,4 @@
-"""No module uses another module's private names (docs/development.md, "Layout"): a name
+"""No module uses another module's private names: a name
 that starts with one underscore belongs to the module that defines it, so that module may
 change it freely.  Scanned statically over the package, the tests, the demos and the tools:
 
