@@ -16,6 +16,7 @@ from ..models import build_problem
 from ..models.problem import interpolate_expression
 from ..setup.scene import Scene
 from ..solvers import ncp
+from ..solvers.options import BASELINE_METHODS
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result, not_unique_text
 from ..solvers.snes import check_guess, solve_problem
@@ -35,7 +36,8 @@ def solve(
 ) -> Result:
     """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
 
-    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
+    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls} or a baseline enforcement
+    (penalty, augmented_lagrangian, nitsche: :mod:`.baselines`); further keyword options
     override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
     ``polish``, ``rtol``, ``atol``, ``max_it``, ``linear``, ``inexact``, ``sequence``,
     ``petsc_options``).  ``problem`` reuses an assembled problem, ``u0`` is an initial guess;
@@ -69,12 +71,16 @@ def solve(
             "with friction) takes fb, min or blend"
         )
     if friction is not None:
-        if method not in ncp.METHODS:
+        if method not in ncp.METHODS + BASELINE_METHODS:
             raise ConfigError(
                 f"solver.method: {method} cannot solve frictional contact "
                 f"(friction.law: {friction.law}); use fb, min or blend"
             )
-        if friction.law == "coulomb" and friction.options.coulomb == "fixed_point":
+        if (
+            friction.law == "coulomb"
+            and friction.options.coulomb == "fixed_point"
+            and method in ncp.METHODS
+        ):
             from .fixed_point import coulomb_fixed_point
 
             return coulomb_fixed_point(
@@ -101,19 +107,24 @@ def solve(
         u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
     else:
         check_guess(u0, problem)
-    result = solve_problem(
-        problem,
-        u0,
-        opts.knobs(),
-        scene.comm,
-        verbose,
-        guess,
-        timers,
-        clock,
-        check_options=bool(options.get("petsc_options")),
-        stopping=criterion,
-        alternatives=() if alternative is None else (alternative,),
-    )
+    if method in BASELINE_METHODS:
+        from .baselines import solve_baseline
+
+        result = solve_baseline(scene, problem, u0, opts.knobs(), verbose, timers, clock)
+    else:
+        result = solve_problem(
+            problem,
+            u0,
+            opts.knobs(),
+            scene.comm,
+            verbose,
+            guess,
+            timers,
+            clock,
+            check_options=bool(options.get("petsc_options")),
+            stopping=criterion,
+            alternatives=() if alternative is None else (alternative,),
+        )
     result.sequence, result.sequence_note = levels, note
     if result.converged and problem.floating:
         # a body only frictionless contact holds may slide: u_h is then one of many
