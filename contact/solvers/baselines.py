@@ -240,9 +240,12 @@ class Formulation:
                 self.tangential = q
         self.residual = C * self.measure
         self.jacobian = ufl.derivative(self.residual, u, du)
-        # the nodal force of the pressure, −∫ p d(v): K u − b at the solution for penalty and
-        # augmented Lagrangian (and Nitsche with θ = 0)
-        self.force = -self.pressure * d(v) * self.measure
+        # the contact traction's nodal force (normal −p n, tangential q on the body), what
+        # K u − b is at the solution for penalty and augmented Lagrangian (Nitsche with θ = 0)
+        force = -self.pressure * d(v)
+        if contact.friction is not None:
+            force += ufl.dot(self.tangential, contact.friction.tangential(v))
+        self.force = force * self.measure
         # a node is in contact where the argument of [·]₊ is positive there (its lumped mean:
         # nodal for the vertex rule; Nitsche's −P(u) averaged over the node's facets); ∫ φ_i
         # beside it.  Σ_k v_k: the same value at every component's DoF of a node
@@ -259,35 +262,33 @@ class Formulation:
         return fr.threshold
 
     def update_multipliers(self) -> tuple[float, float]:
-        """One Uzawa step at the current u: μ ← [μ + r(d(u) − g)]₊ (and ν ← the tangential
-        traction's projection, with friction) at the contact nodes; returns (max |Δμ|,
-        max μ) over all ranks."""
-        S, c = self.S, self.contact
-        expr = fem.Expression(
-            ufl.max_value(self.mu + self.value * self.scale * (c.normal_part(c.u) - c.gap), 0.0),
-            S.element.interpolation_points,
-        )
-        new = fem.Function(S)
-        new.interpolate(expr)
-        n = S.dofmap.index_map.size_local
-        on = self._contact_nodes()
-        old = self.mu.x.array[:n][on]
-        fresh = new.x.array[:n][on]
-        change = float(np.max(np.abs(fresh - old), initial=0.0))
-        size = float(np.max(fresh, initial=0.0))
-        self.mu.x.array[:n][on] = fresh
-        self.mu.x.scatter_forward()
-        if self.nu is not None:
-            W = self.nu.function_space
-            q = fem.Function(W)
-            q.interpolate(fem.Expression(-self.tangential, W.element.interpolation_points))
-            bs = W.dofmap.index_map_bs
-            nodes = np.flatnonzero(on)
-            idx = (nodes[:, None] * bs + np.arange(bs)).ravel()
-            moved = np.abs(q.x.array[idx] - self.nu.x.array[idx])
+        """One Uzawa step at the current u: μ ← [μ + r(d(u) − g)]₊ = p(u) (and ν ← −q(u), the
+        tangential traction, with friction) at the contact nodes, both from the same u and
+        μ; returns (the largest change of μ or ν, max μ) over all ranks."""
+        S = self.S
+        if not hasattr(self, "_updates"):  # compiled once: p(u), and −q(u) with friction
+            self._updates = [
+                (self.mu, fem.Expression(self.pressure, S.element.interpolation_points))
+            ]
+            if self.nu is not None:
+                points = self.nu.function_space.element.interpolation_points
+                self._updates.append((self.nu, fem.Expression(-self.tangential, points)))
+        fresh = []
+        for target, expr in self._updates:
+            new = fem.Function(target.function_space)
+            new.interpolate(expr)
+            fresh.append(new)
+        on = np.flatnonzero(self._contact_nodes())
+        change = size = 0.0
+        for (target, _), new in zip(self._updates, fresh):
+            bs = target.function_space.dofmap.index_map_bs
+            idx = (on[:, None] * bs + np.arange(bs)).ravel()
+            moved = np.abs(new.x.array[idx] - target.x.array[idx])
             change = max(change, float(np.max(moved, initial=0.0)))
-            self.nu.x.array[idx] = q.x.array[idx]
-            self.nu.x.scatter_forward()
+            if target is self.mu:
+                size = float(np.max(new.x.array[idx], initial=0.0))
+            target.x.array[idx] = new.x.array[idx]
+            target.x.scatter_forward()
         comm = S.mesh.comm
         return comm.allreduce(change, op=MPI.MAX), comm.allreduce(size, op=MPI.MAX)
 
@@ -608,6 +609,9 @@ def solve_enforced(
             x.destroy()
     lmbda, gap, active_fn = problem.outputs(xa, residual, active)
     close_timings(timers, clock)
+    friction = None
+    if problem.friction is not None and contact.friction is not None:
+        friction = friction_fields(problem, contact.friction, xa, residual, active)
     history = outcome.history
     comm = problem.V.mesh.comm
     result = Result(
@@ -631,6 +635,7 @@ def solve_enforced(
         krylov_iterations=outcome.krylov,
         contact_residual=residual,
         outer_iterations=outcome.outer,
+        friction=friction,
     )
     return result
 
@@ -641,9 +646,9 @@ def penetration(result: Result) -> float:
     p = result.problem
     x = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, x)
-    local = float(np.max(-p.nodal_gap(x.array_r), initial=0.0))
+    local = max(0.0, float(np.max(-p.nodal_gap(x.array_r), initial=0.0)))
     x.destroy()
-    return p.V.mesh.comm.allreduce(max(local, 0.0), op=MPI.MAX)
+    return p.V.mesh.comm.allreduce(local, op=MPI.MAX)
 
 
 def baseline_figures(result: Result) -> dict:
@@ -659,3 +664,49 @@ def baseline_figures(result: Result) -> dict:
         out["uzawa_iterations"] = result.outer_iterations
     out["penetration"] = penetration(result)
     return out
+
+
+#: |λ_t| ≥ (1 − SLIP_RTOL) ρ counts as slip: the penalty's and the augmented Lagrangian's
+#: regularized law has no exact stick, Nitsche's projection puts slipping nodes on the ball
+SLIP_RTOL = 1e-8
+
+
+def friction_fields(
+    problem: DiscreteProblem,
+    law: FrictionLaw,
+    x: np.ndarray,
+    residual: np.ndarray,
+    active: np.ndarray,
+) -> dict:
+    """The nodal friction results of a baseline solve, as the NCP methods report them
+    (:func:`contact.solvers.friction.friction_fields`): λ_n, λ_t (n, m) = the method's
+    nodal traction / w_i in the node's frame, ρ (Tresca's threshold, or F (−λ_n)), the
+    slip increment s = x_t − x_t^prev, the status (separated, stick where |λ_t| <
+    (1 − :data:`SLIP_RTOL`) ρ, else slip), the gap, w and the global-axes vectors.
+    ``x``, ``residual``: the owned unknowns and nodal contact force (the problem's basis)."""
+    from .friction import tangential_vector
+    from .newton import SEPARATED, SLIP, STICK
+
+    fs, con = problem.friction, problem.constraint
+    lam_n = problem.multiplier(residual)
+    lam_t = residual[fs.tangent] / con.w[:, None]
+    if law.coefficient is not None:
+        rho = law.coefficient * np.maximum(-lam_n, 0.0)
+    else:
+        rho = np.asarray(fs.threshold, dtype=float)
+    slip = np.where(fs.free, x[fs.tangent] - fs.x_prev, 0.0)
+    size = np.linalg.norm(np.where(fs.free, lam_t, 0.0), axis=1)
+    status = np.where(
+        ~active, SEPARATED, np.where(size < (1.0 - SLIP_RTOL) * rho, STICK, SLIP)
+    ).astype(np.int8)
+    return {
+        "lambda_n": lam_n,
+        "lambda_t": lam_t,
+        "rho": rho,
+        "slip": slip,
+        "status": status,
+        "gap": problem.nodal_gap(x),
+        "lambda_t_vec": tangential_vector(fs, lam_t),
+        "slip_vec": tangential_vector(fs, slip),
+        "w": con.w,
+    }
