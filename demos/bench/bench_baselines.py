@@ -233,6 +233,21 @@ def equal_accuracy(rows: list[dict]) -> list[dict]:
     return out
 
 
+def defaults(rows: list[dict], method: str, theta: float | None) -> list[dict]:
+    """The converged runs of a variant at its default parameter (fb: all), coarse to fine."""
+    return sorted(
+        (
+            r
+            for r in rows
+            if r["method"] == method
+            and (theta is None or r["theta"] == theta)
+            and (method == "fb" or r["value"] == DEFAULTS[method])
+            and r["converged"]
+        ),
+        key=lambda r: r["dofs"],
+    )
+
+
 def slope(x: list[float], y: list[float]) -> float:
     """Least-squares slope of log y against log x."""
     lx, ly = np.log(np.asarray(x)), np.log(np.asarray(y))
@@ -259,17 +274,7 @@ def orders(rows: list[dict]) -> list[str]:
             f"dist_fb ∝ ε₀^{dist:.2f}, penetration ∝ ε₀^{depth:.2f}"
         )
     for method, theta in [("fb", None), *VARIANTS]:
-        runs = sorted(
-            (
-                r
-                for r in rows
-                if r["method"] == method
-                and (theta is None or r["theta"] == theta)
-                and (method == "fb" or r["value"] == DEFAULTS[method])
-                and r["converged"]
-            ),
-            key=lambda r: r["dofs"],
-        )
+        runs = defaults(rows, method, theta)
         if len(runs) >= 2:
             rate = slope([r["h_min"] for r in runs], [r["error"] for r in runs])
             lines.append(f"{label(method, theta)} (default): error ∝ h^{rate:.2f}")
@@ -362,17 +367,7 @@ def convergence_chart(all_rows: dict[str, list[dict]], out: Path) -> None:
         rows = all_rows[problem]
         for method, theta in [("fb", None), *VARIANTS]:
             name = label(method, theta)
-            runs = sorted(
-                (
-                    r
-                    for r in rows
-                    if r["method"] == method
-                    and (theta is None or r["theta"] == theta)
-                    and (method == "fb" or r["value"] == DEFAULTS[method])
-                    and r["converged"]
-                ),
-                key=lambda r: r["dofs"],
-            )
+            runs = defaults(rows, method, theta)
             ax.loglog(
                 [r["dofs"] for r in runs],
                 [r["error"] for r in runs],
