@@ -1,4 +1,4 @@
-"""The baseline enforcements (contact.solvers.baselines, docs/theory.md §12): penalty,
+"""The baseline enforcements (contact.solvers.baselines, docs/theory.md §10): penalty,
 augmented Lagrangian (Uzawa) and Nitsche converge with their default parameters on problem A,
 Hertz 2D and Hertz 3D and agree with Fischer–Burmeister to O(their parameter); the penalty's
 error is O(1/ε₀), Nitsche's optimal in h; symmetric Nitsche loses coercivity for a small γ₀

@@ -1,5 +1,5 @@
 """One solve of a scene by a baseline enforcement — penalty, augmented Lagrangian (Uzawa)
-or Nitsche (:mod:`contact.solvers.baselines`, docs/theory.md §12): the scene's constraint as
+or Nitsche (:mod:`contact.solvers.baselines`, docs/theory.md §10): the scene's constraint as
 UFL (:func:`contact.models.baselines.unilateral_contact`), the solve from the initial guess
 the scene's driver chose, and the :class:`~contact.solvers.result.Result` on the scene's
 discrete problem, so that every output of a scene (fields, tables, forces, estimators)

@@ -1,5 +1,5 @@
 """A scene's contact constraint as UFL for the baseline enforcements (penalty, augmented
-Lagrangian, Nitsche; :mod:`contact.solvers.baselines`, docs/theory.md §12): the pieces of
+Lagrangian, Nitsche; :mod:`contact.solvers.baselines`, docs/theory.md §10): the pieces of
 :class:`~contact.solvers.baselines.UnilateralContact` read off the scene and its
 :class:`~contact.solvers.problem.DiscreteProblem`, whose space, Dirichlet conditions and
 outputs the baseline shares (its ``u_h`` is the unknown).

@@ -1,6 +1,6 @@
 """Penalty, augmented Lagrangian and Nitsche: the ways other contact codes enforce a
 unilateral constraint, as baselines beside semismooth Newton on an NCP function
-(docs/theory.md §12).  Scene-free: a problem hands over its stiffness and load, the
+(docs/theory.md §10).  Scene-free: a problem hands over its stiffness and load, the
 contact measure and the constraint as UFL (:class:`UnilateralContact`); each method adds
 its contact term to the residual, F(u; v) = a(u, v) − L(v) + C(u; v) = 0, solved by Newton
 through PETSc SNES (``newtonls``) with the generalized derivative of [·]₊ / [·]₋ (UFL's
@@ -84,7 +84,7 @@ from .options import (
 from .options import set_from_options as set_options_of
 from .problem import DiscreteProblem
 from .result import REASONS, Result, close_timings
-from .snes import roundoff_floor
+from .snes import ROUNDOFF, roundoff_floor
 
 #: the enforcement methods of this module (``solver.method``)
 METHODS = BASELINE_METHODS
@@ -246,12 +246,15 @@ class Formulation:
         if contact.friction is not None:
             force += ufl.dot(self.tangential, contact.friction.tangential(v))
         self.force = force * self.measure
-        # a node is in contact where the argument of [·]₊ is positive there (its lumped mean:
-        # nodal for the vertex rule; Nitsche's −P(u) averaged over the node's facets); ∫ φ_i
-        # beside it.  Σ_k v_k: the same value at every component's DoF of a node
+        # a node is in contact where the argument of [·]₊ is positive there: its lumped mean
+        # by the vertex rule (nodal for the penalty and the augmented Lagrangian; Nitsche's
+        # −P(u) at the node averaged over the node's facets — Gauss points would count a node
+        # next to the contact zone in it), ∫ φ_i beside it.  Σ_k v_k: the same value at every
+        # component's DoF of a node
         weight = v if V.dofmap.index_map_bs == 1 else sum(v[k] for k in range(gdim))
-        self.contact_form = self.indicator * weight * self.measure
-        self.weight_form = weight * self.measure
+        vertex = _vertex(contact.measure)
+        self.contact_form = self.indicator * weight * vertex
+        self.weight_form = weight * vertex
         self.symmetric = contact.friction is None and (method != "nitsche" or theta == 1.0)
 
     @staticmethod
@@ -261,10 +264,13 @@ class Formulation:
             return fr.coefficient * pressure
         return fr.threshold
 
-    def update_multipliers(self) -> tuple[float, float]:
+    def update_multipliers(self) -> tuple[float, float, float]:
         """One Uzawa step at the current u: μ ← [μ + r(d(u) − g)]₊ = p(u) (and ν ← −q(u), the
         tangential traction, with friction) at the contact nodes, both from the same u and
-        μ; returns (the largest change of μ or ν, max μ) over all ranks."""
+        μ; returns (the largest change of μ or ν, max μ, the round-off floor of the change:
+        16 ε max r max|u|) over all ranks.  Without the floor a large r never stops: the
+        inner solve leaves d(u) − g at round-off, and r magnifies it (r₀ = 1e7 on problem A
+        at 128 × 64: Δμ / μ ≈ 1e-7 at every outer iteration)."""
         S = self.S
         if not hasattr(self, "_updates"):  # compiled once: p(u), and −q(u) with friction
             self._updates = [
@@ -289,8 +295,16 @@ class Formulation:
                 size = float(np.max(new.x.array[idx], initial=0.0))
             target.x.array[idx] = new.x.array[idx]
             target.x.scatter_forward()
+        # what a change of μ can be measured to: r times the round-off of d(u) − g
+        r = float(self.value.value) * float(np.max(self.scale.x.array[on], initial=0.0))
+        u = float(np.max(np.abs(self.contact.u.x.array), initial=0.0))
         comm = S.mesh.comm
-        return comm.allreduce(change, op=MPI.MAX), comm.allreduce(size, op=MPI.MAX)
+        floor = ROUNDOFF * np.finfo(float).eps * r * comm.allreduce(u, op=MPI.MAX)
+        return (
+            comm.allreduce(change, op=MPI.MAX),
+            comm.allreduce(size, op=MPI.MAX),
+            comm.allreduce(floor, op=MPI.MAX),
+        )
 
     def _contact_nodes(self) -> np.ndarray:
         """The owned P1 nodes the contact measure weighs (w_i > 0), a mask."""
@@ -548,8 +562,8 @@ class EnforcedNewton:
                 if reason <= 0 or not uzawa:
                     break
                 self._set_iterate(x)
-                change, size = self.form.update_multipliers()
-                if change <= opts.uzawa_rtol * size:
+                change, size, floor = self.form.update_multipliers()
+                if change <= max(opts.uzawa_rtol * size, floor):
                     break
             else:
                 reason = -5  # PETSc's SNES_DIVERGED_MAX_IT

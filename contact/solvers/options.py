@@ -171,11 +171,18 @@ ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
 }
 
 
+#: method variants as studies and benchmarks list them, beside :data:`METHODS`
+METHOD_VARIANTS = ("fb-nopolish", "blend-nopolish", "nitsche-skew")
+
+
 def method_variant(name: str) -> tuple[str, dict]:
-    """A method name as benchmarks and tests list it: ``fb``, … or ``fb-nopolish`` /
-    ``blend-nopolish`` (the pure Newton method) → (method, options for :func:`solve`)."""
+    """A method name as benchmarks, studies and tests list it: ``fb``, … or ``fb-nopolish``
+    / ``blend-nopolish`` (the pure Newton method), ``nitsche-skew`` (Nitsche with θ = −1) →
+    (method, options for :func:`solve`)."""
     if name.endswith("-nopolish"):
         return name.removesuffix("-nopolish"), {"polish": False}
+    if name == "nitsche-skew":
+        return "nitsche", {"nitsche_theta": -1.0}
     return name, {}
 
 
