@@ -262,3 +262,27 @@ def test_bad_input_is_one_line(scene: str, sets: list[str], message: str) -> Non
         contact.load_scene(str(ROOT / "configs" / scene), sets)
     assert str(err.value).startswith(message), str(err.value)
     assert "\n" not in str(err.value)
+
+
+def test_readme_example_runs(tmp_path) -> None:
+    """The command of README's "Penalty, augmented Lagrangian and Nitsche" section, as written
+    (its output folder moved to tmp): exit 0, skew-symmetric Nitsche in summary.json."""
+    import re
+    import shlex
+    import subprocess
+
+    section = (ROOT / "README.md").read_text().split("## Penalty, augmented Lagrangian", 1)[1]
+    block = re.search(r"```bash\n(.*?)```", section, re.S)
+    assert block is not None
+    words = shlex.split(block.group(1).replace("\\\n", " "))
+    assert words[:2] == [".venv/bin/contact", "run"] and "-o" in words
+    out = tmp_path / "out"
+    words[words.index("-o") + 1] = str(out)
+    exe = ROOT / words[0]
+    proc = subprocess.run(
+        [str(exe), *words[1:], "-q"], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["method"] == "nitsche" and summary["nitsche_theta"] == -1.0
+    assert summary["converged"] and abs(summary["p0_error"]) < 0.02

@@ -369,7 +369,8 @@ def _assemble(form: fem.Form) -> PETSc.Vec:
 
 class EnforcedNewton:
     """Newton on K u − b + C(u) = 0 for one :class:`Formulation`, through a PETSc SNES
-    (``newtonls``; ``solver.line_search`` bt or basic — auto is basic) that it owns with its
+    (``newtonls``; ``solver.line_search`` bt or basic — auto is basic without friction, bt
+    with it) that it owns with its
     options prefix; :meth:`solve` runs it from an iterate (augmented Lagrangian: Uzawa's
     outer loop around it).  Stopping as for the NCP methods: ‖F‖ ≤ max(rtol ‖F(x₀)‖,
     atol ‖F(x_D)‖_∞, the round-off floor 16 ε ‖J‖_∞ ‖x‖)."""
@@ -531,7 +532,13 @@ class EnforcedNewton:
         popts = PETSc.Options()
         for key, val in self.petsc_options.items():
             popts.setValue(prefix + key, petsc_value(val))
-        line_search = "bt" if opts.line_search == "bt" else "basic"
+        # auto: plain Newton steps without friction (backtracking cut the penalty's active-set
+        # steps short: 100 steps against 7 on the stability map's square), backtracking with
+        # friction (plain steps cycled between slip directions on the Tresca manufactured
+        # solution: penalty 6 steps with bt, none without)
+        frictional = self.form.contact.friction is not None
+        auto = "bt" if frictional else "basic"
+        line_search = {"auto": auto, "bt": "bt"}.get(opts.line_search, "basic")
         popts.setValue(prefix + "snes_linesearch_type", line_search)
         try:
             set_options_of(snes)
