@@ -234,8 +234,11 @@ def solves_text(newton: int, polish: int) -> str:
 
 
 def owned_residual(result: Result) -> np.ndarray:
-    """R = K x − b at the solution (x = Qᵀ u_h, the solver's unknowns), owned entries; a
-    baseline enforcement's nodal contact force (``Result.contact_residual``) instead."""
+    """The nodal contact force at the solution, owned entries.
+
+    R = K x − b (x = Qᵀ u_h, the solver's unknowns); for a baseline enforcement its own nodal
+    contact force (``Result.contact_residual``) instead.
+    """
     if result.contact_residual is not None:
         return result.contact_residual.copy()
     p = result.problem
@@ -249,8 +252,11 @@ def owned_residual(result: Result) -> np.ndarray:
 
 
 def close_timings(timers: dict, clock: Stopwatch) -> None:
-    """A solve's ``total`` seconds (``clock``) and ``other``: what assembly, linear solves
-    and coarse levels leave of it."""
+    """Close a solve's timers.
+
+    ``total``: the seconds of ``clock``; ``other``: what assembly, linear solves and coarse
+    levels leave of it.
+    """
     timers["total"] = clock.seconds
     timers["other"] = max(
         timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0
