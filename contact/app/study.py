@@ -16,7 +16,9 @@ A study file (``configs/studies/*.yaml``)::
     charts: [speed_accuracy]             # which charts to draw (:data:`CHARTS`)
     repeat: 1                            # run every combination this many times
 
-Axes (:data:`AXES`): ``method``, ``mu``, ``c`` (number or ``auto``), ``kappa``,
+Axes (:data:`AXES`): ``method`` (a method or a variant: ``fb-nopolish``, ``blend-nopolish``,
+``nitsche-skew``), ``parameter`` (a baseline's ε₀, r₀ or γ₀), ``mu``, ``c`` (number or
+``auto``), ``kappa``,
 ``line_search``, ``max_it``, ``u0`` (initial-guess expression), ``linear`` (``solver.linear``:
 auto, direct, gamg, bcgs) and ``sequence`` (grid sequencing: auto, off or a number of coarser
 levels) set the scene's ``solver`` keys; ``linear_solver`` puts PETSc options on the
@@ -75,6 +77,7 @@ from ..base.validation import (
     config_error,
     integer,
     nonnegative,
+    number,
     one_of,
     parse_member,
     positive,
@@ -94,7 +97,9 @@ from ..setup.scene_config import (
     SolverConfig,
     Switch,
 )
-from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
+from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant
+from ..solvers.baselines import PARAMETERS as BASELINE_PARAMETERS
+from ..solvers.options import METHOD_VARIANTS, METHODS
 from .dispatch import choose_driver
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
@@ -107,20 +112,25 @@ CHARTS = ("speed_accuracy", "stability", "iterations")
 
 
 class StudyAxes(Section):
-    """The axes of a study that are no key of a scene section: ``linear_solver`` (a named
-    linear solver, :data:`LINEAR_SOLVERS`), ``strategy`` (none: one solve; or an adaptive
-    marking strategy), ``level`` (uniform refinements of the base mesh), ``steps`` (load
-    steps: ``load.steps``)."""
+    """The axes of a study that are no key of a scene section, or more than one: ``method``
+    (a method or a variant: ``fb-nopolish``, ``nitsche-skew``, …), ``linear_solver`` (a
+    named linear solver, :data:`LINEAR_SOLVERS`), ``strategy`` (none: one solve; or an
+    adaptive marking strategy), ``level`` (uniform refinements of the base mesh), ``steps``
+    (load steps: ``load.steps``), ``parameter`` (a baseline method's parameter: epsilon0
+    for penalty, r0 for augmented_lagrangian, gamma0 for nitsche)."""
 
+    method: Annotated[str, BeforeValidator(one_of((*METHODS, *METHOD_VARIANTS)))] = "fb"
     linear_solver: Annotated[str, BeforeValidator(one_of(tuple(LINEAR_SOLVERS)))] = "direct"
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "none"
     level: Annotated[int, BeforeValidator(integer(nonnegative))] = 0
     steps: Annotated[int, BeforeValidator(integer(positive))] = 1
+    parameter: Annotated[float, BeforeValidator(number(positive))] = 1.0
 
 
 #: axis name -> the section (and its key) each of its values is validated as
 AXES: dict[str, tuple[type[Section], str]] = {
-    **{key: (SolverConfig, key) for key in ("method", "mu", "c", "kappa", "line_search")},
+    "method": (StudyAxes, "method"),
+    **{key: (SolverConfig, key) for key in ("mu", "c", "kappa", "line_search")},
     **{key: (SolverConfig, key) for key in ("max_it", "u0", "linear", "sequence")},
     "linear_solver": (StudyAxes, "linear_solver"),
     "strategy": (StudyAxes, "strategy"),
@@ -135,6 +145,7 @@ AXES: dict[str, tuple[type[Section], str]] = {
     "friction_form": (FrictionConfig, "form"),
     "coulomb": (FrictionConfig, "coulomb"),
     "steps": (StudyAxes, "steps"),
+    "parameter": (StudyAxes, "parameter"),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
 _ADAPT_AXES = ("theta", "nested")
@@ -298,6 +309,11 @@ class Study:
         for key in _SOLVER_AXES:
             if key in params:
                 solver[key] = params[key]
+        if "method" in params:  # a variant (fb-nopolish, nitsche-skew): its method and options
+            solver["method"], variant = method_variant(params["method"])
+            solver.update(variant)
+        if "parameter" in params and solver.get("method") in BASELINE_PARAMETERS:
+            solver[BASELINE_PARAMETERS[solver["method"]]] = params["parameter"]
         if "linear_solver" in params:
             solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
         if any(axis in params for axis in _FRICTION_AXES):

@@ -20,6 +20,7 @@ from pydantic import ValidationError
 
 from ..base.errors import ConfigError
 from ..base.validation import config_error
+from ..solvers.options import BASELINE_METHODS
 from . import expressions
 from .scene_config import (
     CURVED_MESHES,
@@ -113,6 +114,7 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
     _check_vector_data(config, model)
     _check_time(config)
     _check_friction(config, data)
+    _check_baselines(config)
     estimator = config.estimator
     if estimator == "auto":  # the guaranteed bound where it is cheap
         estimator = updates["estimator"] = (
@@ -243,10 +245,35 @@ def _check_friction(config: SceneConfig, data: Mapping[str, Any]) -> None:
     )
     if unused:
         raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")
-    if config.solver.method not in NCP_METHODS:
+    if config.solver.method not in (*NCP_METHODS, *BASELINE_METHODS):
         raise ConfigError(
             f"solver.method: {config.solver.method} cannot solve frictional contact "
-            f"(friction.law: {law}); use fb, min or blend"
+            f"(friction.law: {law}); use fb, min, blend or a baseline (penalty, "
+            "augmented_lagrangian, nitsche)"
+        )
+
+
+def _check_baselines(config: SceneConfig) -> None:
+    """The baseline enforcements (penalty, augmented Lagrangian, Nitsche) cover the scalar
+    models and one linear elastic body against a rigid obstacle, P1 (penalty and augmented
+    Lagrangian integrate at the vertices); Nitsche needs a contact boundary."""
+    method, model = config.solver.method, config.model.type
+    if method not in BASELINE_METHODS:
+        return
+    if model == "hyperelastic" or config.bodies or config.pairs:
+        what = "a hyperelastic body" if model == "hyperelastic" else "several bodies"
+        raise ConfigError(
+            f"solver.method: {method} is available for scalar scenes and one linear elastic "
+            f"body against a rigid obstacle, not {what} (use fb, min or blend)"
+        )
+    if method == "nitsche" and model == "obstacle":
+        raise ConfigError(
+            "solver.method: nitsche needs a contact boundary; an obstacle scene constrains "
+            "the whole domain (use penalty or augmented_lagrangian)"
+        )
+    if config.mesh.degree != 1 and method != "nitsche":
+        raise ConfigError(
+            f"mesh.degree: {method} integrates its contact term at the vertices, P1 only; use 1"
         )
 
 
