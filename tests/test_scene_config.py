@@ -7,6 +7,7 @@ from __future__ import annotations
 import contact
 from contact import ConfigError
 from contact.setup import config as config_module
+from contact.setup.build import build_problem
 from contact.setup.scene_config import (
     AdaptConfig,
     FrictionConfig,
@@ -52,8 +53,9 @@ def test_a_solve_does_not_validate_the_scene_again(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the scene's schema ran again")
 
-    monkeypatch.setattr(config_module, "_validate", refuse)
     monkeypatch.setattr(config_module, "validate_scene", refuse)
+    monkeypatch.setattr(config_module, "complete", refuse)  # the rules across sections
+    monkeypatch.setattr(SceneConfig, "model_validate", refuse)  # each section's keys
     assert contact.solve(scene, method="min", verbose=False).converged
 
 
@@ -103,7 +105,7 @@ def test_friction_options_have_the_scene_files_messages(key, value):
 def test_the_friction_rows_receive_the_typed_options():
     scene = contact.load_scene(FRICTION, ["mesh.cells=[8,4]", "friction.form=projection"])
     assert isinstance(scene.config.friction, FrictionConfig)
-    problem = contact.models.build_problem(scene)
+    problem = build_problem(scene)
     options = problem.friction.options
     assert type(options) is FrictionOptions  # the knobs alone, not the scene's section
     assert options == scene.config.friction.knobs() and options.form == "projection"

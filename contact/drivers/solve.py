@@ -17,11 +17,15 @@ from ..base.errors import ConfigError
 from ..base.timing import Stopwatch, Timer
 from ..models.discrete import discrete
 from ..solvers import ncp
-from ..solvers.options import SolverOptions
+from ..solvers.options import BASELINE_METHODS, SolverOptions
+from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
 from ..solvers.snes import check_guess, solve_problem
 from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
+
+#: a baseline enforcement's solve: (problem, initial guess, options, verbose, timers, clock)
+Enforce = Callable[[DiscreteProblem, fem.Function, SolverOptions, bool, dict, Stopwatch], Result]
 
 
 def options_of(options: SolverOptions | None, method: str | None, overrides: dict) -> SolverOptions:
@@ -51,6 +55,7 @@ def solve(
     alternative: fem.Function | None = None,
     assembly: float = 0.0,
     check_options: bool = False,
+    enforce: Enforce | None = None,
     **overrides: Any,
 ) -> Result:
     """Solve a contact problem once.
@@ -77,6 +82,9 @@ def solve(
         assembly: seconds already spent assembling the problem for this solve (counted in
             its timings).
         check_options: check ``options.petsc_options`` on a tiny system first.
+        enforce: the solve of a baseline enforcement (penalty, augmented Lagrangian,
+            Nitsche: ``enforce(problem, u0, options, verbose, timers, clock)``) in place of
+            semismooth Newton, for those methods (a scene's solve gives it).
         **overrides: single knobs of ``options`` (``rtol``, ``linear``, …), validated.
 
     Returns:
@@ -96,12 +104,16 @@ def solve(
             "with friction) takes fb, min or blend"
         )
     if friction is not None:
-        if method not in ncp.METHODS:
+        if method not in ncp.METHODS + BASELINE_METHODS:
             raise ConfigError(
                 f"solver.method: {method} cannot solve frictional contact "
                 f"(friction.law: {friction.law}); use fb, min or blend"
             )
-        if friction.law == "coulomb" and friction.options.coulomb == "fixed_point":
+        if (
+            friction.law == "coulomb"
+            and friction.options.coulomb == "fixed_point"
+            and method in ncp.METHODS
+        ):
             from .fixed_point import coulomb_fixed_point
 
             def tresca(guess: fem.Function | None) -> Result:
@@ -132,19 +144,27 @@ def solve(
         u0 = start(p.V) if start is not None else p.u_h
     else:
         check_guess(u0, p)
-    result = solve_problem(
-        p,
-        u0,
-        opts,
-        p.V.mesh.comm,
-        verbose,
-        given,
-        timers,
-        clock,
-        check_options=check_options,
-        stopping=criterion,
-        alternatives=() if alternative is None else (alternative,),
-    )
+    if method in BASELINE_METHODS:
+        if enforce is None:
+            raise ConfigError(
+                f"solver.method: {method} needs the constraint as UFL, which a scene's "
+                "problem gives (contact.solve(scene, ...)); use fb, min or blend"
+            )
+        result = enforce(p, u0, opts, verbose, timers, clock)
+    else:
+        result = solve_problem(
+            p,
+            u0,
+            opts,
+            p.V.mesh.comm,
+            verbose,
+            given,
+            timers,
+            clock,
+            check_options=check_options,
+            stopping=criterion,
+            alternatives=() if alternative is None else (alternative,),
+        )
     result.sequence, result.sequence_note = levels, note
     return result
 

@@ -28,9 +28,11 @@ from ..base.errors import ContactWarning
 from ..drivers.adaptive import AdaptResult, Level
 from ..drivers.adaptive import adapt as adapt_domain
 from ..drivers.load_path import LoadPath, Previous, Step, run_steps
+from ..drivers.solve import Enforce
 from ..drivers.solve import solve as solve_problem
 from ..solvers import Result
 from ..solvers.floating import free_in_contact
+from ..solvers.options import BASELINE_METHODS
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import not_unique_text
 from ..solvers.stopping import AdaptiveStopping
@@ -292,6 +294,7 @@ def solve(
         alternative=alternative,
         assembly=problem.assembly_time if built_here else 0.0,
         check_options=bool(options.get("petsc_options")),
+        enforce=baseline(scene) if opts.method in BASELINE_METHODS else None,
     )
     if result.converged and problem.floating:
         # a body only frictionless contact holds may slide: u_h is then one of many
@@ -302,6 +305,20 @@ def solve(
         if free and scene.comm.rank == 0:
             warnings.warn(not_unique_text(free), ContactWarning, stacklevel=1)
     return result
+
+
+def baseline(scene: Scene) -> Enforce:
+    """Return the solve of the scene's problem by a baseline enforcement.
+
+    Penalty, augmented Lagrangian or Nitsche (:mod:`.baselines`): the scene's constraint as
+    UFL, solved from the guess the core chose.
+    """
+    from .baselines import solve_baseline
+
+    def enforce(problem, u0, options, verbose, timers, clock) -> Result:
+        return solve_baseline(scene, problem, u0, options, verbose, timers, clock)
+
+    return enforce
 
 
 @dataclass

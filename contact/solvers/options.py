@@ -36,8 +36,11 @@ from . import ncp
 from .reduced import REDUCED_PETSC_OPTIONS
 
 VI_METHODS = ("vinewtonrsls", "vinewtonssls")
-#: every method: semismooth Newton on an NCP function, or one of PETSc's VI solvers
-METHODS = ncp.METHODS + VI_METHODS
+#: the enforcements other contact codes use, as baselines (:mod:`.baselines`)
+BASELINE_METHODS = ("penalty", "augmented_lagrangian", "nitsche")
+#: every method: semismooth Newton on an NCP function, one of PETSc's VI solvers, or a
+#: baseline enforcement
+METHODS = ncp.METHODS + VI_METHODS + BASELINE_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt", "energy")
 LINEAR = ("auto", "direct", "gamg", "bcgs", "gmres")
 PREDICTORS = ("auto", "tangent", "none")
@@ -47,12 +50,18 @@ FRICTION_FORMS = ("projection", "hsw")
 COULOMB_SOLVERS = ("ssn", "fixed_point")
 
 
+def theta_value(value: float) -> str | None:
+    """θ of Nitsche's method: 1, 0 or −1."""
+    return None if value in (1.0, 0.0, -1.0) else f"must be 1, 0 or -1, got {value}"
+
+
 class SolverOptions(BaseModel):
     """The knobs of one solve (SPEC §3–4, §8), validated once and immutable.
 
     Attributes:
-        method: fb, min, blend (semismooth Newton on that NCP function) or vinewtonrsls /
-            vinewtonssls (PETSc's VI solvers).
+        method: fb, min, blend (semismooth Newton on that NCP function), vinewtonrsls /
+            vinewtonssls (PETSc's VI solvers) or a baseline enforcement (penalty,
+            augmented_lagrangian, nitsche).
         mu: blend's weight of φ_min, in (0, 1).
         c: the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
             ``nodal_scaling``) or a number > 0.
@@ -70,6 +79,14 @@ class SolverOptions(BaseModel):
         predictor: the start of a nonlinear solve lifted by the tangent
             (``predictor``): tangent, none, or auto (tangent for a problem with an
             energy).
+        epsilon0: the penalty baseline's ε = ε₀ E/h (E: Young's modulus, or k for scalar
+            models; h the cell diameter; ``baselines``).
+        r0: the augmented Lagrangian baseline's r = r₀ E/h.
+        gamma0: Nitsche's γ = γ₀ E/h.
+        nitsche_theta: Nitsche's θ ∈ {1, 0, −1} (symmetric, θ = 0, skew-symmetric).
+        uzawa_rtol: the augmented Lagrangian's outer loop stops at
+            max|μ_{k+1} − μ_k| ≤ uzawa_rtol · max μ_{k+1}.
+        uzawa_max_it: at most this many outer iterations.
 
     Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
     one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
@@ -102,6 +119,13 @@ class SolverOptions(BaseModel):
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
     petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = FrozenDict()
     predictor: Annotated[str, BeforeValidator(one_of(PREDICTORS))] = "auto"
+    # the baselines' parameters (:mod:`.baselines`), each scaled by E/h (k/h): ε = ε₀ E/h, …
+    epsilon0: Annotated[float, BeforeValidator(number(positive))] = 1e3
+    r0: Annotated[float, BeforeValidator(number(positive))] = 100.0
+    gamma0: Annotated[float, BeforeValidator(number(positive))] = 10.0
+    nitsche_theta: Annotated[float, BeforeValidator(number(theta_value))] = 1.0
+    uzawa_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-8
+    uzawa_max_it: Annotated[int, BeforeValidator(integer(positive))] = 100
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "solver") -> SolverOptions:
@@ -257,12 +281,20 @@ ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
 }
 
 
+#: method variants as studies and benchmarks list them, beside :data:`METHODS`
+METHOD_VARIANTS = ("fb-nopolish", "blend-nopolish", "nitsche-skew")
+
+
 def method_variant(name: str) -> tuple[str, dict]:
-    """A method name as benchmarks and tests list it: ``fb``, … or ``fb-nopolish`` /
-    ``blend-nopolish`` (the pure Newton method) → (method, options for :func:`solve`).
+    """Return (method, options) of a method name as benchmarks, studies and tests list it.
+
+    ``fb``, … or ``fb-nopolish`` / ``blend-nopolish`` (the pure Newton method),
+    ``nitsche-skew`` (Nitsche with θ = −1) → (method, options for ``contact.solve``).
     """
     if name.endswith("-nopolish"):
         return name.removesuffix("-nopolish"), {"polish": False}
+    if name == "nitsche-skew":
+        return "nitsche", {"nitsche_theta": -1.0}
     return name, {}
 
 
