@@ -969,10 +969,9 @@ def validate_scene(
         raise ConfigError("mesh.degree: contact pairs (mortar) are implemented for P1; use 1")
     if cfg.get("reference"):
         _check_reference(cfg)
-    if mesh["degree"] == 2 and (model == "obstacle" or mesh["type"] in ("box", "sphere_octant")):
-        where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
+    if mesh["degree"] == 2 and model == "obstacle":
         raise ConfigError(
-            f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
+            "mesh.degree: 2 does not work for an obstacle scene (P2 vertex basis functions "
             "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights "
             "vanish); use 1"
         )
