@@ -8,6 +8,7 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py refinement --levels 5   # a level more (50k DoFs)
     python demos/bench/bench_hyperelastic.py refinement --top symmetry  # between two plates
     python demos/bench/bench_hyperelastic.py adaptive      # Dörfler vs uniform refinement
+    mpirun -n 2 python demos/bench/bench_hyperelastic.py ball --mesh-size 0.0135  # 500k DoFs
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -59,6 +60,14 @@ strategy within it of F_ref and the ratio of their DoFs (errors against F_ref un
 both strategies' true errors alike), and the first Dörfler level whose force is below the
 finest uniform level's (closer to the limit than it, a reference-free comparison).  Writes
 adaptive.csv and adaptive.png.
+
+``ball`` — configs/hertz_3d.yaml made a neo-Hookean ball (the octant of a unit ball, its
+flat top pushed down, the symmetry planes x = 0, y = 0) pressed onto the rigid plane z = 0
+to δ = 0.2 R in ``--ball-steps`` steps, the gmsh mesh of size ``--mesh-size`` everywhere;
+3D takes the iterative Newton system (CG + GAMG with the rigid-body near-nullspace and the
+indefiniteness test, contact/solvers/krylov_curvature.py).  Per step: DoFs, Newton and
+Krylov iterations, the force, seconds; the mesh and path times and the peak resident memory
+summed over the ranks.  Writes ball_h<h>_np<ranks>.csv.
 
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
@@ -536,11 +545,77 @@ def chart_adaptive(path: Path, rows: list[dict], reference: float) -> None:
     plt.close(fig)
 
 
+BALL = ROOT / "configs" / "hertz_3d.yaml"
+
+
+def ball(out: Path, h: float, steps: int) -> None:
+    """A neo-Hookean ball pressed onto a rigid plane to 0.2 R, iterative Newton (module doc)."""
+    import resource
+
+    sets = [
+        "model.type=hyperelastic",
+        "model.law=neo_hookean",
+        "reference=none",
+        "adapt=none",
+        "constants.delta=0.2",
+        'data.u_D=["0", "0", "-delta*t"]',
+        f"load.steps={steps}",
+        f"mesh.h={h}",
+        f"mesh.h_contact={h}",
+        "output.verbose=false",
+    ]
+    t0 = time.perf_counter()
+    scene = contact.load_scene(BALL, sets)
+    t1 = time.perf_counter()
+    rows = []
+
+    def on_step(step) -> None:
+        r = step.result
+        rows.append(
+            {
+                "ranks": COMM.size,
+                "h": h,
+                "step": step.index,
+                "indentation": 0.2 * step.time,
+                "dofs": r.dofs,
+                "linear": r.linear,
+                "newton_iterations": r.iterations,
+                "krylov_iterations": r.krylov_iterations,
+                "contact_force": r.contact_force,
+                "negative_eigenvalues": step.negative_eigenvalues,
+                "seconds": round(step.seconds, 2),
+            }
+        )
+        say(
+            f"step {step.index} (t = {step.time:g}): {r.dofs} DoFs, {r.linear}, Newton "
+            f"{r.iterations}, Krylov {r.krylov_iterations}, F = {r.contact_force:.6g}, "
+            f"{step.seconds:.1f} s"
+        )
+
+    path = contact.run_load_path(scene, verbose=False, on_step=on_step)
+    t2 = time.perf_counter()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # MiB (Linux: KiB)
+    total, top = COMM.allreduce(rss, op=MPI.SUM), COMM.allreduce(rss, op=MPI.MAX)
+    say(
+        f"{path.stop}; mesh {t1 - t0:.1f} s, load path {t2 - t1:.1f} s, peak RSS "
+        f"{total:.0f} MiB over {COMM.size} rank(s) (largest {top:.0f} MiB)"
+    )
+    for r in rows:
+        r.update(
+            mesh_seconds=round(t1 - t0, 1),
+            path_seconds=round(t2 - t1, 1),
+            peak_rss_mib=round(total),
+        )
+    save_csv(out / f"ball_h{h:g}_np{COMM.size}.csv", rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("part", choices=("line_search", "predictor", "strip", "refinement", "adaptive"))
+    ap.add_argument(
+        "part", choices=("line_search", "predictor", "strip", "refinement", "adaptive", "ball")
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "demos" / "results" / "hyperelastic")
     ap.add_argument(
         "--levels",
@@ -549,6 +624,8 @@ def main() -> None:
         help="refinement: mesh levels (4); adaptive: Dörfler levels (12)",
     )
     ap.add_argument("--uniform-levels", type=int, default=6, help="adaptive: uniform levels")
+    ap.add_argument("--mesh-size", type=float, default=0.05, help="ball: the mesh size")
+    ap.add_argument("--ball-steps", type=int, default=4, help="ball: load steps to 0.2 R")
     ap.add_argument("--steps", type=int, default=10, help="refinement: load steps to 0.5 R")
     ap.add_argument(
         "--top",
@@ -564,6 +641,8 @@ def main() -> None:
         predictor(args.out)
     elif args.part == "strip":
         strip(args.out)
+    elif args.part == "ball":
+        ball(args.out, args.mesh_size, args.ball_steps)
     elif args.part == "adaptive":
         adaptive(args.out, args.levels or 12, args.uniform_levels)
     else:
