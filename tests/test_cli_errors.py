@@ -436,6 +436,8 @@ def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
             "solution.h5",
             "solution.vtu",
             "solution.xdmf",
+            "contact_surface.h5",
+            "contact_surface.xdmf",
             "summary.json",
             "history.csv",
             "solution.png",

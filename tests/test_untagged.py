@@ -21,14 +21,14 @@ from conftest import make_square_msh
 
 
 def readme_scene() -> dict:
-    """The scene example of README's "Scene files" section, as printed."""
-    section = (ROOT / "README.md").read_text().split("## Scene files", 1)[1]
+    """The scene example of docs/guide/scenes.md ("Every key"), as printed."""
+    section = (ROOT / "docs" / "guide" / "scenes.md").read_text().split("## Every key", 1)[1]
     return yaml.safe_load(re.search(r"```yaml\n(.*?)```", section, re.S).group(1))
 
 
 def corner_gap(scene: dict) -> dict:
-    """``scene`` with the README's former Dirichlet predicate ``y > 1e-10``: the side facets
-    touching the bottom corners are in no part (one vertex at y = 0)."""
+    """``scene`` with the Scene files example's former Dirichlet predicate ``y > 1e-10``:
+    the side facets touching the bottom corners are in no part (one vertex at y = 0)."""
     scene["boundaries"]["rest"]["where"] = "y > 1e-10"
     return scene
 
@@ -39,7 +39,7 @@ def report(scene):
 
 
 def test_where_selects_facets_all_of_whose_vertices_satisfy_it():
-    """The README's former predicate leaves the two side facets at the bottom corners out:
+    """The example's former predicate leaves the two side facets at the bottom corners out:
     2 facets of length h = 1/8 (cells [16, 8] on (-1, 1) × (0, 1)), next to both parts."""
     u, line = report(contact.load_scene(corner_gap(readme_scene())))
     assert (u.facets, u.measure) == (2, pytest.approx(0.25, rel=1e-14))
@@ -50,7 +50,7 @@ def test_where_selects_facets_all_of_whose_vertices_satisfy_it():
 
 
 def test_fully_tagged_scenes_report_none():
-    """The README example as printed, a 3D gmsh builder and a scene whose parts cover every
+    """The Scene files example as printed, a 3D gmsh builder and a scene whose parts cover every
     side report no untagged facet."""
     for source, sets in (
         (readme_scene(), []),
@@ -134,9 +134,9 @@ def test_untagged_report_is_rank_independent(tmp_path, config, sets, facets, mea
 
 @pytest.mark.parametrize("ranks", [0, 2])
 def test_cli_reports_the_readme_corner_gap(tmp_path, ranks):
-    """The README example with its former predicate through the CLI, serially and on 2
-    ranks: the one line the README quotes on stdout, the count and measure in summary.json,
-    and one warning that the exact solution's flux is not 0 on those facets."""
+    """The Scene files example with its former predicate through the CLI, serially and on 2
+    ranks: the one line docs/guide/boundaries.md quotes on stdout, the count and measure in
+    summary.json, and one warning that the exact solution's flux is not 0 on those facets."""
     (tmp_path / "scene.yaml").write_text(yaml.safe_dump(corner_gap(readme_scene())))
     proc = run_cli(
         tmp_path,
@@ -154,7 +154,7 @@ def test_cli_reports_the_readme_corner_gap(tmp_path, ranks):
     assert proc.returncode == 0, proc.stderr
     quoted = re.search(
         r"line, e\.g\. `(contact: boundary: .*?) \(…\)`",
-        (ROOT / "README.md").read_text().replace("\n", " "),
+        (ROOT / "docs" / "guide" / "boundaries.md").read_text().replace("\n", " "),
     ).group(1)
     lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("contact: boundary:")]
     assert len(lines) == 1 and lines[0].startswith(quoted), lines

@@ -4,7 +4,7 @@
 code   meaning
 =====  ==================================================================================
 0      solved (and written)
-1      the solver did not converge (completed adaptive levels are kept, see the README)
+1      the solver did not converge (the finished adaptive levels are kept: docs/guide/safe-runs.md)
 2      bad input: one line ``contact: error: <key path, file or option>: <problem>``
 3      internal error: one line ``contact: internal error: <what failed> (rerun with
        --debug for the traceback)``; ``--debug`` or ``CONTACT_DEBUG=1`` prints it

@@ -260,8 +260,8 @@ def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | No
     warn_coarse_zone(scene, result)
     out_cfg = scene.config.output
     with folder.atomic_folder(outdir, comm) as tmp:
-        files = FieldFiles(tmp, "solution", out_cfg.formats, comm)
-        files.write_one(point_fields(result), cell_fields(scene, result))
+        files = FieldFiles(tmp, "solution", out_cfg.formats, comm, scene.config.elastic)
+        files.write_one(point_fields(result), cell_fields(scene, result), scene.boundary)
         info.update(files.timings())
         folder.write_csv(tmp / "history.csv", result.history, comm)
         if out_cfg.png:
@@ -319,7 +319,8 @@ class LevelWriter:
     fields); ``files`` keeps the seconds per format."""
 
     def __init__(self, tmp: Path, scene: Scene):
-        self.files = FieldFiles(tmp, "solution", scene.config.output.formats, scene.comm)
+        formats, elastic = scene.config.output.formats, scene.config.elastic
+        self.files = FieldFiles(tmp, "solution", formats, scene.comm, elastic)
 
     def __call__(self, level: Level) -> None:
         r = level.result
@@ -330,6 +331,7 @@ class LevelWriter:
             point_fields(r),
             cells,
             field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
+            boundary=level.scene.boundary,
         )
 
 

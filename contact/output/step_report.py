@@ -58,7 +58,8 @@ class StepWriter:
 
     def __init__(self, tmp: Path, scene: Scene):
         self.tmp, self.scene = tmp, scene
-        self.files = FieldFiles(tmp, "solution", scene.config.output.formats, scene.comm)
+        formats, elastic = scene.config.output.formats, scene.config.elastic
+        self.files = FieldFiles(tmp, "solution", formats, scene.comm, elastic)
         self.rows: list[dict[str, Any]] = []
         self.tables: list[tuple[float, Table | None]] = []  # the tables on rank 0
         self.levels: list[dict[str, Any]] = []
@@ -110,7 +111,9 @@ class StepWriter:
 
                 nodal += surface_functions(r)
             cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
-            self.files.write_step(step.time, nodal, cells, field_data={"step": k, "dofs": r.dofs})
+            self.files.write_step(
+                step.time, nodal, cells, {"step": k, "dofs": r.dofs}, scene.boundary
+            )
 
     def finish(
         self, path: LoadPath, wall: float | None = None, failure: dict | None = None
