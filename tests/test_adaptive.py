@@ -191,6 +191,15 @@ def test_cli_writes_adaptive_folder(tmp_path):
     assert "level" in proc.stdout and "convergence.png" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert summary["levels"] == 4 and summary["dofs"] == int(rows[-1]["dofs"])
+    # time to accuracy: the loop's seconds up to each level (outputs not counted), growing,
+    # with the error and η reached there, as in convergence.csv
+    elapsed = [float(r["seconds_elapsed"]) for r in rows]
+    assert summary["seconds_to_error"] == elapsed
+    assert 0 < elapsed[0] and all(a < b for a, b in zip(elapsed, elapsed[1:]))
+    outputs = sum(float(r["seconds_output"]) for r in rows[:-1])
+    assert elapsed[-1] < summary["time_total"] - outputs
+    assert summary["error_per_level"] == pytest.approx([float(r["error"]) for r in rows])
+    assert summary["eta_per_level"] == pytest.approx(eta)
 
 
 def test_refine_reports_the_time_of_its_parts():

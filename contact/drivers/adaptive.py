@@ -17,6 +17,7 @@ The pieces are plain functions so a user can write their own loop in a few lines
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -53,6 +54,9 @@ class Level:
             ``mark``, ``refine``, ``output``).
         imbalance: Under MPI the busiest rank's owned DoFs over the mean (1 in serial).
         passes: Solves of this level (adaptive stopping may solve on).
+        elapsed: Wall seconds from the start of the loop to this level's solution, estimate
+            and error, the levels' outputs (``on_level``) not counted: the time to reach
+            ``error`` (the first level's includes its grid-sequencing solves).
     """
 
     index: int
@@ -63,6 +67,7 @@ class Level:
     seconds: dict[str, float]
     imbalance: float = 1.0  # max over ranks of the owned DoFs / their mean (1 in serial)
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
+    elapsed: float = 0.0  # wall seconds of the loop up to this level, outputs not counted
 
     def row(self) -> dict[str, Any]:
         """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
@@ -88,6 +93,7 @@ class Level:
         )
         row.update(self.errors())
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
+        row["seconds_elapsed"] = round(self.elapsed, 4)
         return row
 
     def errors(self) -> dict[str, Any]:
@@ -207,6 +213,7 @@ def adapt(
     verbose = scene.config.output.verbose if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()
+    start, outputs = time.perf_counter(), 0.0  # the loop's clock, and the outputs' share
     for index in range(opts.max_levels):
         seconds = {}
         problem = build_problem(scene)
@@ -235,12 +242,14 @@ def adapt(
             seconds,
             imbalance=rank_imbalance(result.u_h.function_space),
             passes=passes,
+            elapsed=time.perf_counter() - start - outputs,
         )
         out.levels.append(level)
         if on_level is not None:
             with Timer(seconds, "output"):
                 progress.note(f"level {index}: writing its files")
                 on_level(level)
+            outputs += seconds["output"]
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
             progress.heard()
