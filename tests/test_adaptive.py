@@ -217,6 +217,40 @@ def test_refine_reports_the_time_of_its_parts():
     )
 
 
+def test_released_levels_keep_their_figures_and_free_their_fields():
+    """keep=: the levels it refuses are released once the next level is estimated (their
+    solution fields, problem and η_T dropped), the others stay whole, the last always; the
+    loop's figures are those of the loop that keeps every level (the same meshes, η,
+    errors, iterations), and a released level's row is still complete."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    whole = adapt(scene, max_levels=4, verbose=False)
+    seen: list[tuple[int, bool]] = []  # (level, the one before it released) in on_level
+
+    def on_level(level):
+        before = run_levels[level.index - 1] if level.index else None
+        seen.append((level.index, before is not None and before.result.u_h is None))
+        run_levels.append(level)
+
+    run_levels: list = []
+    kept = adapt(
+        scene, max_levels=4, verbose=False, keep=lambda lv: lv.index == 0, on_level=on_level
+    )
+    assert [lv.released for lv in kept.levels] == [False, True, True, False]
+    assert seen == [(0, False), (1, False), (2, True), (3, True)]  # written, then released
+    for lv in kept.levels[1:3]:
+        assert lv.result.u_h is None and lv.result.problem is None and lv.estimate.eta_T is None
+    assert kept.levels[-1].result.u_h is not None and kept.levels[0].estimate.eta_T is not None
+
+    def figures(rows):
+        return [{k: v for k, v in r.items() if not k.startswith("seconds")} for r in rows]
+
+    assert figures(kept.rows) == figures(whole.rows)
+    with pytest.raises(ValueError, match="keep"):
+        adapt(scene, max_levels=1, verbose=False, keep=0)
+
+
 def test_loose_newton_tolerance_does_not_change_the_discretization():
     """adapt.newton_rtol = 1e-6 (the default) against 1e-12: same meshes, and η and the error
     agree far below the discretization error, so the looser algebraic tolerance is safe."""

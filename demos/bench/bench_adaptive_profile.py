@@ -11,7 +11,7 @@ levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP, PC).  Writes C
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
-    python demos/bench/bench_adaptive_profile.py A --max-dofs 1300000 --set adapt.growth=1
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep all
 
 Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_boundary.yaml),
 ``lshape`` (configs/lshape_corner.yaml), ``hertz_2d`` (configs/hertz_2d.yaml) or a path.
@@ -76,6 +76,12 @@ def main() -> None:
     ap.add_argument("--max-levels", type=int, default=40)
     ap.add_argument("--set", dest="overrides", nargs="*", default=[], metavar="KEY=VALUE")
     ap.add_argument("--output", action="store_true", help="write each level's files")
+    ap.add_argument(
+        "--keep",
+        choices=("all", "last"),
+        default="last",
+        help="all: every level stays whole (the old path); last: earlier levels are released",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
@@ -131,7 +137,11 @@ def main() -> None:
         clock.update(wall=time.perf_counter(), cpu=time.process_time())
 
     result = loop.adapt(
-        scene, on_level=on_level, max_dofs=args.max_dofs, max_levels=args.max_levels
+        scene,
+        on_level=on_level,
+        max_dofs=args.max_dofs,
+        max_levels=args.max_levels,
+        keep=None if args.keep == "all" else (lambda level: False),
     )
     print(f"stop: {result.stop}")
     if args.out:

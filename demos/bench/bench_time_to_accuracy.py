@@ -73,7 +73,7 @@ def adaptive(path: Path, target: float, max_dofs: int, sets: list[str]) -> list[
     """The adaptive loop until a level reaches ``target``: a row per level (its elapsed)."""
     scene = contact.load_scene(path, ["output.verbose=false", *sets])
     rows: list[dict] = []
-    run = contact.adapt(scene, tol=0.0, max_levels=60, max_dofs=max_dofs, on_level=None)
+    run = contact.adapt(scene, tol=0.0, max_levels=60, max_dofs=max_dofs, keep=lambda lv: False)
     for lv in run.levels:
         rows.append({"run": "adaptive", "level": lv.index, "dofs": lv.result.dofs})
         rows[-1].update(error=lv.error, seconds=round(lv.elapsed, 4))
