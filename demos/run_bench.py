@@ -33,6 +33,10 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
    ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
+   ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
+   equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
+   kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
+   ``import contact`` and a tiny run (issue 41, RESULTS §13; about 5 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -278,6 +282,37 @@ STEPS = {
             "2e-3",
             "--out",
             "demos/results/stopping",
+        ],
+    ],
+    "time_to_accuracy": [
+        [
+            PY,
+            "demos/bench/bench_time_to_accuracy.py",
+            "--out",
+            "demos/results/time_to_accuracy.csv",
+        ],
+        *(
+            [
+                PY,
+                "demos/bench/bench_adaptive_profile.py",
+                "ex9",
+                "--max-dofs",
+                "300000",
+                "--keep",
+                mode,
+                "--out",
+                f"demos/results/adaptive_cost/profile_ex9_keep_{mode}.csv",
+            ]
+            for mode in ("all", "last")
+        ),
+        [
+            PY,
+            "demos/bench/bench_startup.py",
+            "--repeat",
+            "5",
+            "--old-grid",
+            "--out",
+            "demos/results/startup.csv",
         ],
     ],
     "studies": [

@@ -7,7 +7,9 @@ configs/signorini_square.yaml --set mesh.cells=[8,8]`` with its default outputs 
 included); ``--old-grid`` runs alternate with the old output grid
 (``contact.output.vtk.PYVISTA_GRID``: pyvista and VTK imported for every file and
 picture), so the ratio is of one machine state.  Also prints ``python -X importtime``'s
-cumulative microseconds of ``import contact``.  Writes CSV.
+cumulative microseconds of ``import contact``, and the same tiny run without pictures
+(``output.png=false``) and as one ``contact.solve`` without files: what the pictures and
+the files cost.  Writes CSV.
 
     python demos/bench/bench_startup.py --repeat 5 --out demos/results/startup.csv
 """
@@ -31,7 +33,14 @@ RUN = (
     "import sys; import contact.output.vtk as vtk; vtk.PYVISTA_GRID = {old}\n"
     "from contact.app.cli import main\n"
     "sys.exit(main(['run', 'configs/signorini_square.yaml', '--set', 'mesh.cells=[8,8]',\n"
-    "               '--set', 'output.verbose=false', '-o', {out!r}]))"
+    "               '--set', 'output.verbose=false', *{sets!r}, '-o', {out!r}]))"
+)
+
+#: the scene solved by the API: the imports and the solve, no files
+SOLVE = (
+    "import contact\n"
+    "scene = contact.load_scene('configs/signorini_square.yaml', ['mesh.cells=[8,8]'])\n"
+    "assert contact.solve(scene, verbose=False).converged"
 )
 
 
@@ -63,13 +72,26 @@ def main() -> None:
         line = next(x for x in err.splitlines() if re.search(r"\|\s+contact$", x))
         self_us, cumulative_us = int(line.split("|")[0].split()[-1]), int(line.split("|")[1])
         rows.append(
-            {"case": "import contact", "repeat": k, "cpu": round(cpu, 3), "wall": round(wall, 3),
-             "importtime_self_s": self_us / 1e6, "importtime_cumulative_s": cumulative_us / 1e6}
+            {
+                "case": "import contact",
+                "repeat": k,
+                "cpu": round(cpu, 3),
+                "wall": round(wall, 3),
+                "importtime_self_s": self_us / 1e6,
+                "importtime_cumulative_s": cumulative_us / 1e6,
+            }
         )
-        for old in (False, True) if args.old_grid else (False,):
+        cases = [("tiny run", False, [])]
+        if args.old_grid:
+            cases.append(("tiny run, pyvista grid (old)", True, []))
+        cases.append(("tiny run, output.png=false", False, ["--set", "output.png=false"]))
+        cases.append(("solve only (API, no files)", False, ["--set", "output.png=false"]))
+        for case, old, sets in cases:
             with tempfile.TemporaryDirectory() as tmp:
-                cpu, wall, _ = child(RUN.format(old=old, out=f"{tmp}/tiny"))
-            case = "tiny run, pyvista grid (old)" if old else "tiny run"
+                code = RUN.format(old=old, sets=sets, out=f"{tmp}/tiny")
+                if case.startswith("solve only"):
+                    code = SOLVE
+                cpu, wall, _ = child(code)
             rows.append({"case": case, "repeat": k, "cpu": round(cpu, 3), "wall": round(wall, 3)})
     for case in dict.fromkeys(r["case"] for r in rows):
         mine = [r for r in rows if r["case"] == case]
