@@ -36,7 +36,7 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
    equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
    kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
-   ``import contact`` and a tiny run (issue 41, RESULTS §13; about 5 minutes);
+   ``import contact`` and a tiny run (issue 41, RESULTS §13; about 10 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -291,6 +291,19 @@ STEPS = {
             "--out",
             "demos/results/time_to_accuracy.csv",
         ],
+        *(
+            [
+                PY,
+                "demos/bench/bench_time_to_accuracy.py",
+                "ex9",
+                "A",
+                "--set",
+                option,
+                "--out",
+                f"demos/results/time_to_accuracy_{stem}.csv",
+            ]
+            for option, stem in (("adapt.theta=0.8", "theta08"), ("estimator=residual", "residual"))
+        ),
         *(
             [
                 PY,

@@ -51,6 +51,7 @@ def uniform(path: Path, target: float, max_dofs: int, sets: list[str]) -> list[d
     """Single solves on meshes 1, 2, 4, … times finer until one reaches ``target`` (or the
     next would exceed ``max_dofs``): a row each with its wall and CPU seconds (mesh + solve
     + error)."""
+    sets = [s for s in sets if not s.startswith("adapt.")]  # the loop's options
     base = contact.load_scene(path, ["output.verbose=false", "adapt=none", *sets])
     rows, factor = [], 1
     while True:
