@@ -33,10 +33,12 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
    ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
+   ``demos/bench/bench_baselines.py`` — penalty, augmented Lagrangian and Nitsche against fb
+   over their parameters and meshes (issue 44, RESULTS §13; about 25 minutes);
    ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
    equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
    kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
-   ``import contact`` and a tiny run (issue 41, RESULTS §13; about 10 minutes);
+   ``import contact`` and a tiny run (issue 41, RESULTS §14; about 10 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -283,6 +285,11 @@ STEPS = {
             "--out",
             "demos/results/stopping",
         ],
+    ],
+    # RESULTS §13: penalty, augmented Lagrangian and Nitsche against fb (the stability map's
+    # rows for them are the study stability_baselines.yaml, in "studies")
+    "baselines": [
+        [PY, "demos/bench/bench_baselines.py", "--out", "demos/results/baselines"],
     ],
     "time_to_accuracy": [
         [
