@@ -3381,23 +3381,30 @@ def time_to_accuracy() -> str:
         ]
     keep = {
         mode: rows(RES / "adaptive_cost" / f"profile_ex9_keep_{mode}.csv")
-        for mode in ("all", "last")
+        for mode in ("all", "last_notrim", "last")
     }
     if all(keep.values()):
-        a, b = keep["all"][-1], keep["last"][-1]  # type: ignore[index]
+        a, n, b = (keep[m][-1] for m in ("all", "last_notrim", "last"))  # type: ignore[index]
+
+        def per_dof(r: dict) -> str:
+            return f"{r['peak_mib'] * 2**20 / r['dofs']:.0f}"
+
         out += [
-            "**Memory of the adaptive loop** (ex9, `python demos/bench/bench_adaptive_profile.py "
-            "ex9 --max-dofs 300000 --keep all|last`): with every level kept whole (the old "
-            f"path) the last level ({a['dofs']} DoFs) ends at {a['rss_mib']:.0f} MiB resident, "
-            f"peak {a['peak_mib']:.0f} MiB ({a['peak_mib'] * 2**20 / a['dofs']:.0f} B per "
-            f"DoF), {a['petsc_Vector']} PETSc vectors alive; releasing the earlier levels "
-            f"(`adapt(keep=...)`, the CLI when its pictures need no level between the first and "
-            f"the last) {b['rss_mib']:.0f} MiB, peak {b['peak_mib']:.0f} MiB "
-            f"({b['peak_mib'] * 2**20 / b['dofs']:.0f} B per DoF), {b['petsc_Vector']} "
-            f"vectors. The {b['meshes']} meshes stay in both: each refined scene refers to its "
-            "parent (the chain grid sequencing solves a refined scene's coarse levels on), "
-            "a geometric sum below the last mesh's size. The peak comes during the level "
-            "(estimate and refinement), not from the levels before it.",
+            "**Memory of the adaptive loop** (ex9 to 300k DoFs, `python "
+            "demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep all`, `--keep "
+            "last --no-trim`, `--keep last`; three processes one after the other): with every "
+            f"level kept whole (the old path) the last level ({a['dofs']} DoFs) ends at "
+            f"{a['rss_mib']:.0f} MiB resident, peak {a['peak_mib']:.0f} MiB ({per_dof(a)} B "
+            f"per DoF), {a['petsc_Vector']} PETSc vectors alive; releasing the earlier levels "
+            "(`adapt(keep=...)`; the CLI does when its pictures need no level between the "
+            f"first and the last) {n['rss_mib']:.0f} MiB, peak {n['peak_mib']:.0f} MiB "
+            f"({per_dof(n)} B per DoF), {n['petsc_Vector']} vectors; and giving the freed heap "
+            "back to the system after each release (`contact.base.lifetime.TRIM`, glibc's "
+            f"`malloc_trim`) {b['rss_mib']:.0f} MiB, peak {b['peak_mib']:.0f} MiB "
+            f"({per_dof(b)} B per DoF). The {b['meshes']} meshes stay: each refined scene "
+            "refers to its parent (the chain grid sequencing solves a refined scene's coarse "
+            "levels on), a geometric sum below the last mesh's size. The peak comes during "
+            "the last level (its estimate and refinement), not from the levels before it.",
             "",
             table(
                 [
@@ -3408,7 +3415,8 @@ def time_to_accuracy() -> str:
                     "refine",
                     "CPU s",
                     "peak MiB (all)",
-                    "peak MiB (released)",
+                    "(released)",
+                    "(released, trimmed)",
                 ],
                 [
                     [
@@ -3420,8 +3428,9 @@ def time_to_accuracy() -> str:
                         f"{r['cpu_level']:.2f}",
                         f"{r['peak_mib']:.0f}",
                         f"{q['peak_mib']:.0f}",
+                        f"{t['peak_mib']:.0f}",
                     ]
-                    for r, q in zip(keep["all"], keep["last"])  # type: ignore[arg-type]
+                    for r, q, t in zip(*keep.values())  # type: ignore[arg-type]
                     if r["dofs"] >= 10_000
                 ],
             ),

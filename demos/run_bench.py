@@ -319,11 +319,15 @@ STEPS = {
                 "--max-dofs",
                 "300000",
                 "--keep",
-                mode,
+                *flags,
                 "--out",
-                f"demos/results/adaptive_cost/profile_ex9_keep_{mode}.csv",
+                f"demos/results/adaptive_cost/profile_ex9_keep_{stem}.csv",
             ]
-            for mode in ("all", "last")
+            for flags, stem in (
+                (["all"], "all"),
+                (["last", "--no-trim"], "last_notrim"),
+                (["last"], "last"),
+            )
         ),
         [
             PY,

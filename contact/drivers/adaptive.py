@@ -17,6 +17,7 @@ The pieces are plain functions so a user can write their own loop in a few lines
 from __future__ import annotations
 
 import functools
+import gc
 import math
 import time
 from collections.abc import Callable
@@ -31,6 +32,7 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
+from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models import build_problem
 from ..setup.budget import max_dofs
@@ -278,6 +280,8 @@ def adapt(
         # a failed level is dropped by the CLI: the one before it stays whole
         if keep is not None and index > 0 and result.converged and not keep(out.levels[-2]):
             out.levels[-2].release()
+            gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
+            return_freed_memory()
         if on_level is not None:
             with Timer(seconds, "output"):
                 progress.note(f"level {index}: writing its files")

@@ -12,6 +12,7 @@ levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP, PC).  Writes C
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep all
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep last --no-trim
 
 Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_boundary.yaml),
 ``lshape`` (configs/lshape_corner.yaml), ``hertz_2d`` (configs/hertz_2d.yaml) or a path.
@@ -27,6 +28,7 @@ import time
 from pathlib import Path
 
 import contact
+from contact.base import lifetime
 from contact.base.lifetime import petsc_objects, rss_mib
 from contact.drivers import adaptive as loop
 
@@ -82,9 +84,15 @@ def main() -> None:
         default="last",
         help="all: every level stays whole (the old path); last: earlier levels are released",
     )
+    ap.add_argument(
+        "--no-trim",
+        action="store_true",
+        help="released levels' memory stays with the allocator (contact.base.lifetime.TRIM)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
+    lifetime.TRIM = not args.no_trim
     path = ROOT / SCENES.get(args.scene, args.scene)
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
     CPU = count_phase_cpu()
