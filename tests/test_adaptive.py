@@ -202,6 +202,46 @@ def test_cli_writes_adaptive_folder(tmp_path):
     assert summary["eta_per_level"] == pytest.approx(eta)
 
 
+def test_cli_writes_the_last_level_only_when_asked(tmp_path):
+    """output.levels: last — the field files hold one step, the last level (its number as
+    the series' time and the .vtu's field data), while convergence.csv and summary.json
+    still have every level."""
+    import meshio
+
+    out = tmp_path / "last"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "contact.app.cli",
+            "run",
+            str(ROOT / "configs" / "lshape_corner.yaml"),
+            "-o",
+            str(out),
+            "--set",
+            "adapt.max_levels=3",
+            "--set",
+            "output.levels=last",
+            "--set",
+            "output.png=false",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=ENV,
+    )
+    assert proc.returncode == 0, proc.stderr
+    names = {p.name for p in out.iterdir()}
+    assert "solution_000.vtu" in names and "solution_001.vtu" not in names
+    assert "solution_000.h5" in names and "solution_001.h5" not in names
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["levels"] == 3 and len(summary["seconds_to_error"]) == 3
+    grid = meshio.read(out / "solution_000.vtu")
+    assert int(grid.field_data["level"][0]) == 2
+    assert len(grid.points) == summary["dofs"]
+
+
 def test_refine_reports_the_time_of_its_parts():
     scene = contact.load_scene(
         ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]

@@ -280,9 +280,10 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     )
     with folder.atomic_folder(outdir, comm, label) as tmp:
         write_level = level_writer(tmp, scene)
+        every = scene.config.output.levels == "all"  # else the last level's files only
         result = adapt(
             scene,
-            on_level=lambda lv: write_level(lv) if lv.result.converged else None,
+            on_level=lambda lv: write_level(lv) if every and lv.result.converged else None,
             keep=_kept_levels(scene),
         )
         last = result.levels[-1].result
@@ -304,6 +305,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
+        if not every:
+            write_level(result.levels[-1])
         info = write_adaptive(
             tmp,
             scene,

@@ -639,6 +639,13 @@ SCENE: dict[str, Field] = {
             "vtk": Field("bool", None, doc="true / false: add vtk to / drop it from formats"),
             "png": Field("bool", True),
             "verbose": Field("bool", True),
+            "levels": Field(
+                "str",
+                "all",
+                choices=("all", "last"),
+                doc="an adaptive run's field files: every level (a series, written as the "
+                "loop goes) or the last level only (written once the loop stops)",
+            ),
         },
     ),
 }

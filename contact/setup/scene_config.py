@@ -361,6 +361,7 @@ class OutputConfig(_Section):
     formats: tuple[str, ...] = ("xdmf", "vtk")
     png: bool = True
     verbose: bool = True
+    levels: str = "all"  # an adaptive run's field files: every level, or the last
 
 
 class SceneConfig(_Section):
