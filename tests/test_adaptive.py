@@ -207,29 +207,17 @@ def test_cli_writes_the_last_level_only_when_asked(tmp_path):
     the series' time and the .vtu's field data), while convergence.csv and summary.json
     still have every level."""
     import meshio
+    from clirun import contact as cli
 
     out = tmp_path / "last"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "contact.app.cli",
-            "run",
-            str(ROOT / "configs" / "lshape_corner.yaml"),
-            "-o",
-            str(out),
-            "--set",
-            "adapt.max_levels=3",
-            "--set",
-            "output.levels=last",
-            "--set",
-            "output.png=false",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        env=ENV,
+    sets = ["adapt.max_levels=3", "output.levels=last", "output.png=false"]
+    proc = cli(
+        tmp_path,
+        "run",
+        str(ROOT / "configs" / "lshape_corner.yaml"),
+        "-o",
+        str(out),
+        *(arg for s in sets for arg in ("--set", s)),
     )
     assert proc.returncode == 0, proc.stderr
     names = {p.name for p in out.iterdir()}
