@@ -186,7 +186,7 @@ def forms(quick: bool, line_search: str | None = None) -> list[dict]:
                         case,
                         method=method,
                         problem=problem,
-                        u0=_same_mesh(u0, problem.V),
+                        u0=same_mesh(u0, problem.V),
                         **searched,
                     )
                     row = {"case": label, "start": start, "form": form, "method": method}
@@ -208,7 +208,7 @@ def forms(quick: bool, line_search: str | None = None) -> list[dict]:
     return rows
 
 
-def _same_mesh(u0, V):
+def same_mesh(u0, V):
     """u0 copied into V: the scenes differ only in their friction keys, so their meshes and
     layouts are built identically (the bench runs serially); None stays None."""
     if u0 is None:
