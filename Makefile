@@ -31,7 +31,7 @@ PERTURBED ?= 1e-13:20261125:1 1e-12:7:2
 PERTURBED_TESTS ?= $(addprefix tests/test_,$(addsuffix .py,\
   semismooth_newton newton_min_cycle ncp convergence polish linear_solvers stress_scenes \
   semicoercive friction friction_cycle friction_speed friction_estimator loadpath sequencing \
-  energy_search hyperelastic current_contact bodies agreement))
+  energy_search hyperelastic current_contact bodies agreement baselines))
 
 .PHONY: demo test test-perturbed test-perturbed-full lint docs bench venv venv-latest test-latest \
   lock clean
