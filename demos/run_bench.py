@@ -38,6 +38,10 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
    ``demos/bench/bench_baselines.py`` — penalty, augmented Lagrangian and Nitsche against fb
    over their parameters and meshes (issue 44, RESULTS §13; about 25 minutes);
+   ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
+   equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
+   kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
+   ``import contact`` and a tiny run (issue 41, RESULTS §14; about 10 minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -304,6 +308,54 @@ STEPS = {
     # rows for them are the study stability_baselines.yaml, in "studies")
     "baselines": [
         [PY, "demos/bench/bench_baselines.py", "--out", "demos/results/baselines"],
+    ],
+    "time_to_accuracy": [
+        [
+            PY,
+            "demos/bench/bench_time_to_accuracy.py",
+            "--out",
+            "demos/results/time_to_accuracy.csv",
+        ],
+        *(
+            [
+                PY,
+                "demos/bench/bench_time_to_accuracy.py",
+                "ex9",
+                "A",
+                "--set",
+                option,
+                "--out",
+                f"demos/results/time_to_accuracy_{stem}.csv",
+            ]
+            for option, stem in (("adapt.theta=0.8", "theta08"), ("estimator=residual", "residual"))
+        ),
+        *(
+            [
+                PY,
+                "demos/bench/bench_adaptive_profile.py",
+                "ex9",
+                "--max-dofs",
+                "300000",
+                "--keep",
+                *flags,
+                "--out",
+                f"demos/results/adaptive_cost/profile_ex9_keep_{stem}.csv",
+            ]
+            for flags, stem in (
+                (["all"], "all"),
+                (["last", "--no-trim"], "last_notrim"),
+                (["last"], "last"),
+            )
+        ),
+        [
+            PY,
+            "demos/bench/bench_startup.py",
+            "--repeat",
+            "5",
+            "--old-grid",
+            "--out",
+            "demos/results/startup.csv",
+        ],
     ],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]

@@ -37,9 +37,9 @@ def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
     # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, §11's line
-    # search, strip, refinement, stability map at finite strain, predictor, §12 bounds, and
-    # §13's baselines and their stability map
-    assert text.count("*Not available:") == 21
+    # search, strip, refinement, stability map at finite strain, predictor, §12 bounds,
+    # §13's baselines and their stability map, and §14 time to accuracy
+    assert text.count("*Not available:") == 22
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:

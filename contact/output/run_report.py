@@ -381,6 +381,11 @@ def write_adaptive(
             "eta": last.estimate.eta,
             "strategy": scene.config.adapt.strategy if scene.config.adapt else None,
             "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
+            # time to accuracy: the loop's wall seconds up to level k (outputs not counted)
+            # and the energy error (None without data.exact) and η reached there
+            "seconds_to_error": [round(lv.elapsed, 4) for lv in adaptive.levels],
+            "error_per_level": [lv.error for lv in adaptive.levels],
+            "eta_per_level": [lv.estimate.eta for lv in adaptive.levels],
             "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
             "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
             "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),

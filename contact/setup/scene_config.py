@@ -795,10 +795,20 @@ class OutputConfig(Section):
     """The ``output`` section: the folder (``dir``; default ``results/<name>``), the field
     files (``formats``: xdmf — solution.xdmf + .h5, for ParaView —, vtk — solution.vtu,
     for pyvista; a series for levels and load steps), pictures (``png``), progress
-    (``verbose``).  ``xdmf`` / ``vtk`` true or false switch one format on or off; then
-    ``formats`` alone says what is written."""
+    (``verbose``), an adaptive run's field files of every level or of the last only
+    (``levels``: all, written as the loop goes; last, once it stops).  ``xdmf`` / ``vtk``
+    true or false switch one format on or off; then ``formats`` alone says what is
+    written."""
 
-    KEYS: ClassVar[tuple[str, ...]] = ("dir", "formats", "xdmf", "vtk", "png", "verbose")
+    KEYS: ClassVar[tuple[str, ...]] = (
+        "dir",
+        "formats",
+        "xdmf",
+        "vtk",
+        "png",
+        "verbose",
+        "levels",
+    )
 
     dir: Annotated[str | None, BeforeValidator(string(_not_empty))] = None
     xdmf: Switch | None = Field(None, exclude=True, repr=False)
@@ -808,6 +818,7 @@ class OutputConfig(Section):
     )
     png: Switch = True
     verbose: Switch = True
+    levels: Annotated[str, BeforeValidator(one_of(("all", "last")))] = "all"
 
     @field_validator("formats", mode="before")
     @classmethod
