@@ -14,6 +14,11 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 LINK = re.compile(r"(?<!!)\[[^\]]*\]\(([^)\s]+)\)")
 IMAGE = re.compile(r"!\[[^\]]*\]\(([^)\s]+)\)")
+#: pages docs/conf.py writes at build time (docs/.gitignore), and the file each is made from
+GENERATED = {DOCS / "results.md": ROOT / "demos" / "RESULTS.md"} | {
+    DOCS / "demos" / "generated" / f"{demo.stem}.ipynb": demo
+    for demo in (ROOT / "demos").glob("demo_*.py")
+}
 
 
 def slug(heading: str) -> str:
@@ -55,6 +60,7 @@ def test_every_page_links_resolve_on_github_too():
                 continue
             file, _, anchor = target.partition("#")
             path = (page.parent / file).resolve()
+            path = path if path.is_file() else GENERATED.get(path, path)
             assert path.is_file(), f"{page.relative_to(ROOT)}: missing {target}"
             if anchor and path.suffix == ".md":
                 assert anchor in anchors(path), f"{page.relative_to(ROOT)}: no #{anchor} in {file}"

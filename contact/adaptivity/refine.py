@@ -19,6 +19,7 @@ from ..setup.geometry import builder_surfaces
 from ..setup.meshes import Boundary
 from ..setup.scene import Scene
 from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
+from . import longest_edge
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 
@@ -47,6 +48,10 @@ def refine(
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
     the surface shifts by at most the sagitta h²/(8R) of the old edge). Collective.
 
+    The refined mesh does not depend on the number of ranks: a face's longest edge among
+    edges of equal length is chosen by the coordinates, not by DOLFINx's
+    partition-dependent vertex numbers (:mod:`.longest_edge`).
+
     Args:
         scene: The scene to refine.
         cells: Owned local cell indices, as :func:`contact.mark` returns them.
@@ -55,9 +60,9 @@ def refine(
             (default: the scene's ``adapt.rebalance``, true); the mesh itself does not
             depend on it.
         timings: If given, receives the seconds of the parts: ``mesh`` (the marked edges
-            and ``dolfinx.mesh.refine`` itself, with the redistribution and the ghost
-            layer), ``transfer`` (facets, tags and functions carried over) and ``snap``
-            (curved boundaries).
+            and ``dolfinx.mesh.refine`` itself, with the redistribution, the ghost layer
+            and the ties), ``transfer`` (facets, tags and functions carried over) and
+            ``snap`` (curved boundaries).
 
     Returns:
         The refined scene (its ``parent`` the scene and the parent cells) and ``u_h``
@@ -95,11 +100,8 @@ def refine(
     clock = [time.perf_counter()]  # the start, then the end of each part
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    new, parent_cell, parent_facet = dmesh.refine(
-        msh,
-        edges,
-        partitioner=refine_partitioner(msh, rebalance),
-        option=dmesh.RefinementOption.parent_cell_and_facet,
+    new, parent_cell, parent_facet = longest_edge.refine(
+        msh, edges, refine_partitioner(msh, rebalance)
     )
     clock.append(time.perf_counter())
     new.topology.create_entities(tdim - 1)

@@ -28,7 +28,6 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ..models.elasticity import lame, stress
 from ..setup import expressions
 from ..setup.meshes import NATURAL
 from ..setup.scene import Scene
@@ -109,6 +108,8 @@ def exact_mismatches(scene: Scene) -> list[Mismatch] | None:
     flux = None
     if elastic and not cfg.bodies:
         assert cfg.model.E is not None  # one linear elastic body (checked at load)
+        from ..models.elasticity import lame, stress  # a scalar scene never imports it
+
         mu, lmbda_L = lame(cfg.model.E, cfg.model.nu)
         flux = lambda w: stress(w, mu, lmbda_L) * n  # noqa: E731
     elif not elastic:
