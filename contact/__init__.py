@@ -3,6 +3,7 @@
 scene = contact.load_scene("configs/signorini_square.yaml")
 result = contact.solve(scene, method="fb")
 levels = contact.adapt(scene, strategy="dorfler", theta=0.5)   # SOLVE-ESTIMATE-MARK-REFINE
+levels = contact.adapt(scene, strategy="hp", p_max=6)   # h or p per marked cell (signorini)
 path = contact.run_load_path(scene)        # quasi-static steps (load: section), e.g. friction
 
 # your own UFL forms: a residual F(u; v) (or a, L) and a unilateral constraint, no scene
@@ -22,11 +23,11 @@ from .adaptivity import refine as _refine  # noqa: E402
 from .adaptivity.estimate import Estimate  # noqa: E402
 from .adaptivity.mark import mark  # noqa: E402
 from .base.errors import ConfigError  # noqa: E402
-from .drivers import adaptive as _adaptive  # noqa: E402
 from .drivers import load_path as _load_path  # noqa: E402
 from .drivers import solve as _solve  # noqa: E402
 from .drivers.adaptive import AdaptResult  # noqa: E402
 from .drivers.load_path import LoadPath  # noqa: E402
+from .hp import adapt as _hp_adapt  # noqa: E402
 from .models.forms import ComplementarityProblem, Unilateral  # noqa: E402
 from .setup.scene import Scene, load_scene, public  # noqa: E402
 from .solvers.result import Result  # noqa: E402
@@ -34,7 +35,7 @@ from .solvers.result import Result  # noqa: E402
 # a user's scene argument is checked here, once; inside, the drivers hand on Scenes they got
 solve = public(_solve.solve)
 estimate = public(_estimate.estimate)
-adapt = public(_adaptive.adapt)
+adapt = public(_hp_adapt.adapt)  # the h loop, or the hp loop for strategy hp
 refine = public(_refine.refine)
 run_load_path = public(_load_path.run_load_path)
 

@@ -29,6 +29,7 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
+from ..base.errors import ConfigError
 from ..base.timing import Timer
 from ..models import build_problem
 from ..setup.budget import max_dofs
@@ -156,6 +157,14 @@ def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
     return (scene.config.adapt or AdaptConfig()).updated(**overrides)
 
 
+def check_on_level(on_level: Callable | None) -> None:
+    """Raise ValueError unless ``on_level`` is None or callable (one line naming it)."""
+    if on_level is not None and not callable(on_level):
+        raise ValueError(
+            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
+        )
+
+
 def adapt(
     scene: Scene,
     method: str | None = None,
@@ -164,7 +173,7 @@ def adapt(
     u0: fem.Function | None = None,
     **options: Any,
 ) -> AdaptResult:
-    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
     The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` or the DoF
     budget (``solver.max_dofs``), after ``max_levels`` levels, or when a solve does not
@@ -180,8 +189,9 @@ def adapt(
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The first level's initial guess (a load step's previous solution).
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
-            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``.
+            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
+            ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
+            ``pictures``.
 
     Returns:
         The levels and the reason the loop stopped.
@@ -190,20 +200,12 @@ def adapt(
         ConfigError: For an unknown or invalid option (one line naming it).
         ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
 
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
-        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
-        >>> [level.index for level in run.levels], run.stop
-        ([0, 1, 2], 'reached max_levels = 3')
-        >>> run.levels[-1].error < run.levels[0].error
-        True
+    :func:`contact.adapt` (which also runs the hp loop) shows it at work.
     """
-    if on_level is not None and not callable(on_level):
-        raise ValueError(
-            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
-        )
+    check_on_level(on_level)
     opts = adapt_options(scene, **options)
+    if opts.strategy == "hp":  # contact.adapt and the CLI dispatch it to contact.hp
+        raise ConfigError("adapt.strategy: hp runs one solve per level (no load path, no study)")
     verbose = scene.config.output.verbose if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()

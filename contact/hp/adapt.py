@@ -24,8 +24,16 @@ from mpi4py import MPI
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import refine
+from ..base.errors import ConfigError
 from ..base.timing import Timer
-from ..drivers.adaptive import AdaptResult, Level, rank_imbalance
+from ..drivers import adaptive as h_adaptive
+from ..drivers.adaptive import (
+    AdaptResult,
+    Level,
+    adapt_options,
+    check_on_level,
+    rank_imbalance,
+)
 from ..drivers.solve import solve
 from ..setup.scene import Scene
 from .estimate import hp_estimate
@@ -174,6 +182,84 @@ def adapt_hp(
             break
         scene, u0 = new_scene, new_u0
     return out
+
+
+def adapt(
+    scene: Scene,
+    method: str | None = None,
+    on_level: Callable[[Level], None] | None = None,
+    verbose: bool | None = None,
+    u0: fem.Function | None = None,
+    **options: Any,
+) -> AdaptResult:
+    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+
+    h-refinement (:func:`contact.drivers.adaptive.adapt`), or with ``strategy="hp"`` h- or
+    p-refinement of each marked cell (:func:`adapt_hp`, the scalar signorini model).
+
+    The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` (or the DoF
+    budget ``solver.max_dofs`` of the h loop), after ``max_levels`` levels, or when a solve
+    does not converge (the levels before it are kept).  Each level after the first starts
+    from the previous level's solution.  Collective.
+
+    Args:
+        scene: The first level's scene.
+        method: The solver method of the h loop (fb, min, blend, vinewtonrsls,
+            vinewtonssls); default the scene's ``solver.method``.
+        on_level: Called with each :class:`~contact.drivers.adaptive.Level` once it is
+            estimated (the CLI writes the level's files there).
+        verbose: Print a table row per level (default: the scene's ``output.verbose``).
+        u0: The h loop's first initial guess (a load step's previous solution).
+        **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
+            maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
+            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the
+            largest degree) and ``p_start`` (every cell's first degree).  The hp loop takes
+            the scene's ``estimator`` (``residual``: the h/p-weighted residual estimator;
+            otherwise the guaranteed equilibrated bound).
+
+    Returns:
+        The levels (:class:`HPLevel`, with the degrees, for hp) and why the loop stopped.
+
+    Raises:
+        ConfigError: For an unknown or invalid option, or ``strategy="hp"`` on a model
+            other than signorini (one line naming it).
+        ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
+        >>> [level.index for level in run.levels], run.stop
+        ([0, 1, 2], 'reached max_levels = 3')
+        >>> run.levels[-1].error < run.levels[0].error
+        True
+        >>> smooth = contact.load_scene("configs/signorini_smooth.yaml")
+        >>> hp = contact.adapt(smooth, strategy="hp", p_max=4, max_levels=3, verbose=False)
+        >>> [(level.row()["p_min"], level.row()["p_max"]) for level in hp.levels]
+        [(2, 2), (1, 3), (1, 3)]
+    """
+    opts = adapt_options(scene, **options)
+    if opts.strategy != "hp":
+        return h_adaptive.adapt(scene, method, on_level, verbose, u0, **options)
+    check_on_level(on_level)
+    if scene.config.model.type != "signorini":
+        raise ConfigError(
+            f"adapt.strategy: hp solves the scalar signorini model, not {scene.config.model.type!r}"
+        )
+    if opts.p_start > opts.p_max:
+        raise ConfigError(f"adapt.p_start: must be <= p_max = {opts.p_max}, got {opts.p_start}")
+    return adapt_hp(
+        scene,
+        p_max=opts.p_max,
+        p_start=opts.p_start,
+        theta=opts.theta,
+        tol=opts.tol,
+        max_dofs=opts.max_dofs,
+        max_levels=opts.max_levels,
+        estimator="residual" if scene.config.estimator == "residual" else "equilibrated",
+        on_level=on_level,
+        verbose=scene.config.output.verbose if verbose is None else verbose,
+    )
 
 
 def _next_size(scene: Scene, degrees: np.ndarray, p_max: int) -> int:

@@ -158,9 +158,10 @@ def hp_mark(
     refine_front: bool = True,
 ) -> HPMarks:
     """Split the Dörfler-marked owned cells ``marked`` into h and p (module docstring) and
-    return the new degrees; ``front_degree``: the degree the free boundary's cells are set
-    to (None: they keep theirs); ``refine_front``: h-refine them on every level, marked or
-    not (a geometric mesh towards the free boundary)."""
+    return the new degrees; ``front_degree``: the largest degree of the free boundary's
+    cells (higher ones are lowered to it; None: they keep theirs); ``refine_front``:
+    h-refine them on every level, marked or not (a geometric mesh towards the free
+    boundary)."""
     degrees = np.asarray(degrees, dtype=np.int32).copy()
     at_front = np.zeros(len(degrees), dtype=bool)
     at_front[front] = True
@@ -176,7 +177,7 @@ def hp_mark(
     p = np.flatnonzero(choose_p).astype(np.int32)
     degrees[p] += 1
     if front_degree is not None:
-        degrees[at_front] = front_degree
+        degrees[at_front] = np.minimum(degrees[at_front], front_degree)
     return HPMarks(h, p, degrees, np.asarray(front, dtype=np.int32), sigma)
 
 

@@ -61,7 +61,13 @@ from . import expressions
 #: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)
 ELASTIC_MODELS = ("elasticity", "hyperelastic")
 FRICTION_LAWS = ("none", "tresca", "coulomb")
-STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+STRATEGIES = ("dorfler", "maximum", "uniform", "hp", "none")
+#: the largest polynomial degree ``adapt.p_max`` accepts (Lagrange P_{p_max} carries V_hp)
+MAX_DEGREE = 8
+
+
+def _degree(v: int) -> str | None:
+    return None if 1 <= v <= MAX_DEGREE else f"must lie in 1..{MAX_DEGREE}, got {v}"
 
 
 class _Section(BaseModel):
@@ -185,10 +191,12 @@ class SolverConfig(SolverOptions):
 # -------------------------------------------------------------------- the adapt section
 class AdaptConfig(_Section):
     """A scene's ``adapt`` section (docs/theory.md §6): ``strategy`` — dorfler, maximum,
-    uniform or none (one solve); ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop
-    at η ≤ tol; ``max_dofs``, ``max_levels`` — budgets; ``nested`` — each level starts from
-    the previous solution; ``rebalance`` — repartition refined meshes; ``newton_rtol`` —
-    Newton's relative tolerance inside the loop; ``pictures`` — levels drawn."""
+    uniform, hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`) or none (one
+    solve); ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop at η ≤ tol;
+    ``max_dofs``, ``max_levels`` — budgets; ``nested`` — each level starts from the previous
+    solution; ``rebalance`` — repartition refined meshes; ``newton_rtol`` — Newton's relative
+    tolerance inside the loop; ``pictures`` — levels drawn; ``p_max``, ``p_start`` — with
+    ``hp``, the largest degree and every cell's first degree."""
 
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
     theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
@@ -199,6 +207,8 @@ class AdaptConfig(_Section):
     rebalance: Annotated[bool, BeforeValidator(boolean)] = True
     newton_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10
     pictures: Annotated[int, BeforeValidator(integer(nonnegative))] = 3
+    p_max: Annotated[int, BeforeValidator(integer(_degree))] = 6
+    p_start: Annotated[int, BeforeValidator(integer(_degree))] = 2
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptConfig:

@@ -1,0 +1,147 @@
+"""hp against h-adaptive P1 and P2 on problems C and A (docs/theory.md §7, §10).
+
+What it shows, per problem and method: the energy error and η per level against the
+unknowns N (hp: the unknowns of V_hp, h: the DoFs) and the cumulative seconds of SOLVE,
+ESTIMATE, MARK and REFINE (the error's own computation excluded); per run, the first level
+whose error is ≤ the problem's target, its N and seconds, and the ratios to h-P2 measured in
+the same process; for hp, the least-squares fit log(error) ≈ c − b N^{1/3} over the levels
+past the third, with its r², and η / error on every level.  Writes levels.csv and
+summary.csv; prints a table.
+
+    python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import contact
+from contact.output.folder import write_csv
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+#: (problem, scene, the target energy error, h runs' DoF budget)
+PROBLEMS = [
+    ("C", "configs/signorini_smooth.yaml", 1e-6, 40_000),
+    ("A", "configs/signorini_free_boundary.yaml", 1e-4, 60_000),
+]
+#: (method, scene overrides, adapt options)
+METHODS = [
+    ("hp", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
+    ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
+    ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
+]
+TIMED = ("assembly", "solve", "estimate", "mark", "refine")
+
+
+def run(problem: str, path: str, target: float, budget: int, method: str, sets, options):
+    scene = contact.load_scene(
+        ROOT / path, [*sets, "output.verbose=false", "estimator=equilibrated"]
+    )
+    out = contact.adapt(
+        scene, tol=target, max_dofs=budget if method != "hp" else 200_000, **options
+    )
+    rows, seconds = [], 0.0
+    for lv in out.levels:
+        seconds += sum(lv.seconds.get(k, 0.0) for k in TIMED)
+        row = lv.row()
+        rows.append(
+            {
+                "problem": problem,
+                "method": method,
+                "level": lv.index,
+                "unknowns": row["dofs"],
+                "error": lv.error,
+                "eta": lv.estimate.eta,
+                "effectivity": lv.estimate.eta / lv.error,
+                "seconds": seconds,
+                "p_max": row.get("p_max", 2 if method == "h-P2" else 1),
+            }
+        )
+    return rows, out.stop
+
+
+def first_below(rows: list[dict], target: float) -> dict | None:
+    return next((r for r in rows if r["error"] <= target), None)
+
+
+def exponential_fit(rows: list[dict]) -> tuple[float, float]:
+    """(b, r²) of log(error) ≈ c − b N^{1/3} over the levels past the third."""
+    x = np.array([r["unknowns"] ** (1 / 3) for r in rows[3:]])
+    y = np.log([r["error"] for r in rows[3:]])
+    A = np.vstack([np.ones_like(x), x]).T
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y - A @ coef
+    r2 = 1 - float(resid @ resid) / float(((y - y.mean()) ** 2).sum())
+    return -float(coef[1]), r2
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="demos/results/hp")
+    parser.add_argument("--problems", default="C,A")
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    levels, summary = [], []
+    for problem, path, target, budget in PROBLEMS:
+        if problem not in args.problems.split(","):
+            continue
+        reached = {}
+        for method, sets, options in METHODS:
+            rows, stop = run(problem, path, target, budget, method, sets, options)
+            levels += rows
+            hit = first_below(rows, target)
+            last = rows[-1]
+            entry = {
+                "problem": problem,
+                "method": method,
+                "target": target,
+                "reached": hit is not None,
+                "unknowns": (hit or last)["unknowns"],
+                "seconds": (hit or last)["seconds"],
+                "error": (hit or last)["error"],
+                "levels": len(rows),
+                "effectivity_min": min(r["effectivity"] for r in rows),
+                "effectivity_max_past_3": max(
+                    (r["effectivity"] for r in rows[3:]), default=math.nan
+                ),
+                "bound_holds": all(r["eta"] >= r["error"] for r in rows),
+                "stop": stop,
+                "exp_rate_b": "",
+                "exp_fit_r2": "",
+            }
+            if method == "hp" and len(rows) > 5:
+                entry["exp_rate_b"], entry["exp_fit_r2"] = exponential_fit(rows)
+            reached[method] = entry
+            summary.append(entry)
+        p2 = reached["h-P2"]
+        for entry in reached.values():
+            # h-P2 short of the target: its last level's N and seconds bound the need below
+            entry["unknowns_ratio_P2"] = p2["unknowns"] / entry["unknowns"]
+            entry["seconds_ratio_P2"] = p2["seconds"] / entry["seconds"]
+    write_csv(out / "levels.csv", levels)
+    write_csv(out / "summary.csv", summary)
+    print(
+        f"{'problem':8}{'method':7}{'target':>8}{'reached':>8}{'N':>8}{'error':>11}{'s':>8}"
+        f"{'P2 N/N':>8}{'P2 s/s':>8}{'eff max':>8}  bound"
+    )
+    for e in summary:
+        print(
+            f"{e['problem']:8}{e['method']:7}{e['target']:8.0e}{str(e['reached']):>8}"
+            f"{e['unknowns']:8d}{e['error']:11.3e}{e['seconds']:8.2f}"
+            f"{e['unknowns_ratio_P2']:8.1f}{e['seconds_ratio_P2']:8.1f}"
+            f"{e['effectivity_max_past_3']:8.2f}  {e['bound_holds']}"
+        )
+        if e["exp_rate_b"] != "":
+            print(
+                f"        hp: log(error) ~ c - {e['exp_rate_b']:.3f} N^(1/3),"
+                f" r^2 = {e['exp_fit_r2']:.3f}"
+            )
+
+
+if __name__ == "__main__":
+    main()
