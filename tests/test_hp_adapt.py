@@ -38,10 +38,10 @@ def test_hp_bound_holds_on_every_level(hp_run) -> None:
     assert rows[-1][1] <= 1e-4
     for n, error, eta in rows:
         assert eta >= error, f"η = {eta:.3e} < error {error:.3e} at N = {n}"
-    # effectivity past the third level (the first levels' front cells drop to degree 1)
+    # effectivity past the third level
     assert max(eta / error for _, error, eta in rows[3:]) <= 1.5
     degrees = [lv.row()["p_max"] for lv in hp_run.levels]
-    assert degrees[0] == 2 and max(degrees) >= 5  # p went up where u_h is smooth
+    assert degrees[0] == 1 and max(degrees) >= 5  # p went up where u_h is smooth
 
 
 def test_hp_converges_exponentially_in_cube_root_of_unknowns(hp_run) -> None:

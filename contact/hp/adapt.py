@@ -1,4 +1,4 @@
-"""The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §11).
+"""The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §10).
 
 Each level builds V_hp for the cells' degrees (:class:`.space.HPSpace`), solves the
 Signorini problem in the hp unknowns (:func:`.problem.hp_problem`, the scene's solver),
@@ -81,7 +81,7 @@ class HPLevel(Level):
 def adapt_hp(
     scene: Scene,
     p_max: int = 6,
-    p_start: int = 2,
+    p_start: int = 1,
     theta: float = 0.5,
     tol: float = 0.0,
     max_dofs: int = 200_000,

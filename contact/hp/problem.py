@@ -1,4 +1,4 @@
-"""The scalar Signorini problem in V_hp (docs/theory.md §1.1, §11): the discrete problem of
+"""The scalar Signorini problem in V_hp (docs/theory.md §1.1, §10): the discrete problem of
 the solvers, in the hp unknowns x (u = Q x).
 
 K and b are assembled in V = P_{p_max} without boundary conditions and reduced,
@@ -7,7 +7,7 @@ K and b are assembled in V = P_{p_max} without boundary conditions and reduced,
 
 then the fixed unknowns — the inactive slots (x = 0) and the Dirichlet ones (x = the hp
 interpolant of u_D: vertex values and the values at the edge (face) nodes, docs/theory.md
-§11) — are eliminated symmetrically (identity rows and columns, the lifting moved into
+§10) — are eliminated symmetrically (identity rows and columns, the lifting moved into
 b_hp).  On Γ_C every unknown of an edge of degree p_E is the value of u_h at a Lagrange node
 of degree p_E (:mod:`.reference`), so the contact condition stays nodal: u_h(z_i) ≤ g(z_i) at
 the vertices and Lagrange nodes of the contact facets, with the lumped weights
@@ -123,10 +123,15 @@ def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
     values.x.array[dirichlet] = x_D[dirichlet]
     fixed = np.flatnonzero(fixed_mask).astype(np.int32)
     # the inactive rows are empty: give them a diagonal before the elimination
+    # (added as a matrix: the merged pattern is built once, where inserting into K_hp's rows
+    # reallocates its storage row by row)
     ones = K_hp.createVecRight()
     ones.array_w[:] = (~space.active[:n_owned]).astype(float)
-    K_hp.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    K_hp.setDiagonal(ones, addv=PETSc.InsertMode.ADD_VALUES)
+    D = PETSc.Mat().createAIJ(K_hp.getSizes(), nnz=1, comm=K_hp.getComm())
+    D.setDiagonal(ones)
+    D.assemble()
+    K_hp.axpy(1.0, D, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    D.destroy()
     ones.destroy()
     owned_fixed = fixed[fixed < n_owned]
     rows = imap.local_to_global(owned_fixed).astype(PETSc.IntType)

@@ -208,7 +208,7 @@ class AdaptConfig(_Section):
     newton_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10
     pictures: Annotated[int, BeforeValidator(integer(nonnegative))] = 3
     p_max: Annotated[int, BeforeValidator(integer(_degree))] = 6
-    p_start: Annotated[int, BeforeValidator(integer(_degree))] = 2
+    p_start: Annotated[int, BeforeValidator(integer(_degree))] = 1
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptConfig:

@@ -30,7 +30,8 @@ PROBLEMS = [
 ]
 #: (method, scene overrides, adapt options)
 METHODS = [
-    ("hp", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
+    ("hp", [], dict(strategy="hp", p_max=6, p_start=1, max_levels=60)),
+    ("hp-start2", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
     ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
     ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
 ]
@@ -59,6 +60,7 @@ def run(problem: str, path: str, target: float, budget: int, method: str, sets, 
                 "effectivity": lv.estimate.eta / lv.error,
                 "seconds": seconds,
                 "p_max": row.get("p_max", 2 if method == "h-P2" else 1),
+                "p_min": row.get("p_min", 2 if method == "h-P2" else 1),
             }
         )
     return rows, out.stop
@@ -114,7 +116,7 @@ def main() -> None:
                 "exp_rate_b": "",
                 "exp_fit_r2": "",
             }
-            if method == "hp" and len(rows) > 5:
+            if method.startswith("hp") and len(rows) > 5:
                 entry["exp_rate_b"], entry["exp_fit_r2"] = exponential_fit(rows)
             reached[method] = entry
             summary.append(entry)
@@ -126,12 +128,12 @@ def main() -> None:
     write_csv(out / "levels.csv", levels)
     write_csv(out / "summary.csv", summary)
     print(
-        f"{'problem':8}{'method':7}{'target':>8}{'reached':>8}{'N':>8}{'error':>11}{'s':>8}"
+        f"{'problem':8}{'method':10}{'target':>8}{'reached':>8}{'N':>8}{'error':>11}{'s':>8}"
         f"{'P2 N/N':>8}{'P2 s/s':>8}{'eff max':>8}  bound"
     )
     for e in summary:
         print(
-            f"{e['problem']:8}{e['method']:7}{e['target']:8.0e}{str(e['reached']):>8}"
+            f"{e['problem']:8}{e['method']:10}{e['target']:8.0e}{str(e['reached']):>8}"
             f"{e['unknowns']:8d}{e['error']:11.3e}{e['seconds']:8.2f}"
             f"{e['unknowns_ratio_P2']:8.1f}{e['seconds_ratio_P2']:8.1f}"
             f"{e['effectivity_max_past_3']:8.2f}  {e['bound_holds']}"
