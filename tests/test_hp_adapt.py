@@ -29,13 +29,13 @@ def _levels(run) -> list[tuple[int, float, float]]:
 @pytest.fixture(scope="module")
 def hp_run():
     scene = contact.load_scene(SMOOTH, ["output.verbose=false"])
-    return contact.adapt(scene, strategy="hp", p_max=6, tol=1e-4, max_levels=30)
+    return contact.adapt(scene, strategy="hp", p_max=6, tol=1e-5, max_levels=40)
 
 
 def test_hp_bound_holds_on_every_level(hp_run) -> None:
     assert hp_run.stop.startswith("eta = ") and all(isinstance(lv, HPLevel) for lv in hp_run.levels)
     rows = _levels(hp_run)
-    assert rows[-1][1] <= 1e-4
+    assert rows[-1][1] <= 1e-5
     for n, error, eta in rows:
         assert eta >= error, f"η = {eta:.3e} < error {error:.3e} at N = {n}"
     # effectivity past the third level
@@ -56,13 +56,13 @@ def test_hp_converges_exponentially_in_cube_root_of_unknowns(hp_run) -> None:
 
 
 def test_hp_beats_h_adaptive_p2(hp_run) -> None:
-    """h-adaptive P2 with twice hp's unknowns stays at > 3 × hp's error at 1e-4 (the gap
-    widens below: demos/bench/bench_hp.py, at 1e-6 P2 needs > 17 × hp's unknowns)."""
+    """h-adaptive P2 with twice hp's unknowns stays at > 5 × hp's error at 1e-5 (the gap
+    widens below: demos/bench/bench_hp.py, at 1e-6 P2 needs > 15 × hp's unknowns)."""
     n_hp, e_hp, _ = _levels(hp_run)[-1]
     scene = contact.load_scene(SMOOTH, ["mesh.degree=2", "output.verbose=false"])
     h = contact.adapt(scene, strategy="dorfler", max_dofs=3 * n_hp, max_levels=20)
     n_p2, e_p2, _ = _levels(h)[-1]
-    assert n_p2 >= 2 * n_hp and e_p2 > 3 * e_hp, (n_p2, e_p2, n_hp, e_hp)
+    assert n_p2 >= 2 * n_hp and e_p2 > 5 * e_hp, (n_p2, e_p2, n_hp, e_hp)
 
 
 def test_hp_options_are_checked() -> None:

@@ -236,7 +236,7 @@ def adapt(
         >>> smooth = contact.load_scene("configs/signorini_smooth.yaml")
         >>> hp = contact.adapt(smooth, strategy="hp", p_max=4, max_levels=3, verbose=False)
         >>> [(level.row()["p_min"], level.row()["p_max"]) for level in hp.levels]
-        [(2, 2), (1, 3), (1, 3)]
+        [(1, 1), (1, 2), (1, 3)]
     """
     opts = adapt_options(scene, **options)
     if opts.strategy != "hp":
