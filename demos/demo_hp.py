@@ -4,7 +4,7 @@
 # square: smooth everywhere but across the free boundary x = 1/2 on Γ_C = {y = 0}, where
 # contact ends. h-adaptive P2 converges like N^{-1} there. `adapt.strategy: hp` raises the
 # degree of the marked cells on which u_h's Legendre coefficients decay fast, and splits the
-# others, keeping the cells at the free boundary at degree 1 (docs/theory.md §10). The
+# others, keeping the cells at the free boundary at degree 1 (docs/theory.md §11). The
 # error then falls exponentially in N^{1/3}, and η, the guaranteed bound, stays above it.
 #
 # Run it with `python demos/demo_hp.py [TOL]` (default 1e-6: about 30 levels, 2 500

@@ -33,7 +33,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
    ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
-   ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §13, minutes);
+   ``demos/bench/bench_baselines.py`` — penalty, augmented Lagrangian and Nitsche against fb
+   over their parameters and meshes (issue 44, RESULTS §13; about 25 minutes);
+   ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §14, minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -280,6 +282,11 @@ STEPS = {
             "--out",
             "demos/results/stopping",
         ],
+    ],
+    # RESULTS §13: penalty, augmented Lagrangian and Nitsche against fb (the stability map's
+    # rows for them are the study stability_baselines.yaml, in "studies")
+    "baselines": [
+        [PY, "demos/bench/bench_baselines.py", "--out", "demos/results/baselines"],
     ],
     "hp": [[PY, "demos/bench/bench_hp.py", "--out", "demos/results/hp"]],
     "studies": [

@@ -1,4 +1,4 @@
-"""The hp-adaptive loop (contact.hp.adapt, docs/theory.md §10) against exact solutions: on
+"""The hp-adaptive loop (contact.hp.adapt, docs/theory.md §11) against exact solutions: on
 problem C (smooth but at the free boundary) the error falls exponentially in N^{1/3} and far
 below h-adaptive P2's at more DoFs; the equilibrated η bounds the error on every level; the
 scene key ``adapt.strategy: hp`` runs through the CLI with the same degrees, cells and η on

@@ -1,4 +1,4 @@
-"""The hp space V_hp ⊂ P_{p_max} (docs/theory.md §10, contact.hp.space): on every cell its
+"""The hp space V_hp ⊂ P_{p_max} (docs/theory.md §11, contact.hp.space): on every cell its
 functions are polynomials of degree p_T, on every edge of degree p_E (the minimum rule), the
 cellwise basis agrees across facets (C⁰), L Q = I, its dimension is the count of the
 minimum rule, and Qᵀ K Q solves Poisson's problem exactly for a solution of degree ≤ p_min

@@ -37,8 +37,9 @@ def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
     # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, §11's line
-    # search, strip, refinement, stability map at finite strain, predictor, §12 bounds, §13 hp
-    assert text.count("*Not available:") == 20
+    # search, strip, refinement, stability map at finite strain, predictor, §12 bounds, and
+    # §13's baselines and their stability map, §14 hp
+    assert text.count("*Not available:") == 22
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -305,8 +306,50 @@ def test_bench_hertz_runs_end_to_end_on_small_meshes(tmp_path: Path) -> None:
     assert cold_fb_2d == {"direct", "gamg", "bcgs"}
 
 
+def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
+    """§13 (demos/bench/bench_baselines.py, configs/studies/stability_baselines.yaml): the
+    parameter each method needs for fb's accuracy (|||u − u_fb||| ≤ 1 % of fb's error), the
+    time ratio then, the observed penalty order and the failures of a small stability study,
+    each explained."""
+    from contact.app.study import run_study
+
+    res = tmp_path / "res"
+    (res / "baselines").mkdir(parents=True)
+    head = (
+        "problem,dofs,h_min,method,theta,parameter,value,converged,reason,newton_iterations,"
+        "outer_iterations,coarse_iterations,krylov_iterations,linear_solver,seconds,fb_seconds,"
+        "ratio,error,error_fb,dist_fb,norm_fb,penetration,penetration_rel,force_rel"
+    )
+    fb = "A,100,0.1,fb,,,,True,converged_fnorm_abs,5,0,0,5,direct,1.0,1.0,1.0,0.1,0.1,0,2.0,0,0,0"
+    lines = [head, fb]
+    # |||u − u_fb||| = 2 dist: ≤ 1 % of fb's error 0.1 from ε₀ = 1000 on
+    for eps, dist in ((10.0, 1e-2), (100.0, 1e-3), (1000.0, 1e-4)):
+        lines.append(
+            f"A,100,0.1,penalty,,epsilon0,{eps},True,converged_fnorm_abs,5,1,0,5,direct,"
+            f"{1 + eps / 1e4},1.0,{1 + eps / 1e4},0.1,0.1,{dist},2.0,{dist},{dist},0"
+        )
+    (res / "baselines" / "A.csv").write_text("\n".join(lines) + "\n")
+    study = {
+        "name": "stability_baselines",
+        "scene": str(SQUARE),
+        "set": ["mesh.cells=[8,8]", "solver.max_it=20"],
+        "axes": {"method": ["fb", "penalty", "nitsche"]},
+        "cases": {"(g) level 1": {"level": 1}, "(r) A, parameter 1.0e-3": {"parameter": 1e-3}},
+        "charts": ["stability"],
+    }
+    rows, _ = run_study(study, res / "stability_baselines", verbose=False)
+    text = _report(res, tmp_path / "R.md")
+    section = text.split("## 13.", 1)[1]
+    assert "| A | 100 | penalty | ε₀ = 1e+03 | 1.10 | 5 |" in section
+    assert "|||u − u_fb||| ∝ ε₀^-1.00" in section
+    failed = [r for r in rows if not r["converged"]]
+    assert [(r["case"], r["method"]) for r in failed] == [("(r) A, parameter 1.0e-3", "nitsche")]
+    assert "| (r) A, parameter 1.0e-3 | nitsche | max iterations | 20 |" in section
+    assert "not yet explained" not in section
+
+
 def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
-    """§13 (demos/bench/bench_hp.py): the summary's figures per problem and method, the
+    """§14 (demos/bench/bench_hp.py): the summary's figures per problem and method, the
     exponential fit of the hp runs and the chart, from the CSVs."""
     hp = tmp_path / "res" / "hp"
     hp.mkdir(parents=True)
@@ -324,7 +367,7 @@ def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
         lines.append(f"C,h-P2,{k},{400 * (k + 1)},{10.0 ** (-k / 2)},1,1.1,{k + 1},2,2")
     (hp / "levels.csv").write_text("\n".join(lines) + "\n")
     text = _report(tmp_path / "res", tmp_path / "R.md")
-    section = text.split("## 13. hp-adaptivity", 1)[1]
+    section = text.split("## 14. hp-adaptivity", 1)[1]
     assert (
         "| C | hp | 1e-06 | yes | 2141 | 7.5e-07 | 39.50 | 17.7 | 0.45 | 1.1 | yes | 29 |"
         in section

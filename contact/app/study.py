@@ -16,7 +16,9 @@ A study file (``configs/studies/*.yaml``)::
     charts: [speed_accuracy]             # which charts to draw (:data:`CHARTS`)
     repeat: 1                            # run every combination this many times
 
-Axes (:data:`AXES`): ``method``, ``mu``, ``c`` (number or ``auto``), ``kappa``,
+Axes (:data:`AXES`): ``method`` (a method or a variant: ``fb-nopolish``, ``blend-nopolish``,
+``nitsche-skew``), ``parameter`` (a baseline's ε₀, r₀ or γ₀), ``mu``, ``c`` (number or
+``auto``), ``kappa``,
 ``line_search``, ``max_it``, ``u0`` (initial-guess expression), ``linear`` (``solver.linear``:
 auto, direct, gamg, bcgs) and ``sequence`` (grid sequencing: auto, off or a number of coarser
 levels) set the scene's ``solver`` keys; ``linear_solver`` puts PETSc options on the
@@ -80,7 +82,9 @@ from ..setup.config import (
     switch_off,
 )
 from ..setup.scene_config import SceneConfig
-from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
+from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant
+from ..solvers.baselines import PARAMETERS as BASELINE_PARAMETERS
+from ..solvers.options import METHOD_VARIANTS, METHODS
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -104,7 +108,7 @@ _FRICTION = _section("friction")
 
 #: axis name -> the Field each of its values is validated with
 AXES: dict[str, Field] = {
-    "method": _SOLVER["method"],
+    "method": Field("str", choices=(*METHODS, *METHOD_VARIANTS)),
     "mu": _SOLVER["mu"],
     "c": _SOLVER["c"],
     "kappa": _SOLVER["kappa"],
@@ -126,6 +130,12 @@ AXES: dict[str, Field] = {
     "friction_form": _FRICTION["form"],
     "coulomb": _FRICTION["coulomb"],
     "steps": Field("int", check=_positive, doc="load steps (load.steps)"),
+    "parameter": Field(
+        "number",
+        check=_positive,
+        doc="a baseline method's parameter: epsilon0 (penalty), r0 (augmented_lagrangian) "
+        "or gamma0 (nitsche)",
+    ),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
 _ADAPT_AXES = ("theta", "nested")
@@ -283,6 +293,11 @@ class Study:
         for key in _SOLVER_AXES:
             if key in params:
                 solver[key] = params[key]
+        if "method" in params:  # a variant (fb-nopolish, nitsche-skew): its method and options
+            solver["method"], variant = method_variant(params["method"])
+            solver.update(variant)
+        if "parameter" in params and solver.get("method") in BASELINE_PARAMETERS:
+            solver[BASELINE_PARAMETERS[solver["method"]]] = params["parameter"]
         if "linear_solver" in params:
             solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
         if any(axis in params for axis in _FRICTION_AXES):

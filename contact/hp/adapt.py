@@ -1,4 +1,4 @@
-"""The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §10).
+"""The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §11).
 
 Each level builds V_hp for the cells' degrees (:class:`.space.HPSpace`), solves the
 Signorini problem in the hp unknowns (:func:`.problem.hp_problem`, the scene's solver),

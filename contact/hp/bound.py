@@ -1,4 +1,4 @@
-"""The guaranteed bound of an hp solution (docs/theory.md §9, §10).
+"""The guaranteed bound of an hp solution (docs/theory.md §9, §11).
 
 The equilibrated flux of :mod:`contact.adaptivity.equilibration` with two hp pieces:
 

@@ -1,5 +1,5 @@
 """ESTIMATE for an hp solution: the residual estimator with h/p weights, or the guaranteed
-equilibrated bound (docs/theory.md §9, §10)."""
+equilibrated bound (docs/theory.md §9, §11)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""hp marking (docs/theory.md §10): Dörfler's bulk criterion chooses the cells, then each
+"""hp marking (docs/theory.md §11): Dörfler's bulk criterion chooses the cells, then each
 chosen cell is refined in h or in p.
 
 * Cells touching the free boundary — a vertex of Γ_C around which the solver's contact

@@ -1,4 +1,4 @@
-"""The scalar Signorini problem in V_hp (docs/theory.md §1.1, §10): the discrete problem of
+"""The scalar Signorini problem in V_hp (docs/theory.md §1.1, §11): the discrete problem of
 the solvers, in the hp unknowns x (u = Q x).
 
 K and b are assembled in V = P_{p_max} without boundary conditions and reduced,
@@ -7,7 +7,7 @@ K and b are assembled in V = P_{p_max} without boundary conditions and reduced,
 
 then the fixed unknowns — the inactive slots (x = 0) and the Dirichlet ones (x = the hp
 interpolant of u_D: vertex values and the values at the edge (face) nodes, docs/theory.md
-§10) — are eliminated symmetrically (identity rows and columns, the lifting moved into
+§11) — are eliminated symmetrically (identity rows and columns, the lifting moved into
 b_hp).  On Γ_C every unknown of an edge of degree p_E is the value of u_h at a Lagrange node
 of degree p_E (:mod:`.reference`), so the contact condition stays nodal: u_h(z_i) ≤ g(z_i) at
 the vertices and Lagrange nodes of the contact facets, with the lumped weights

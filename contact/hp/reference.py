@@ -1,7 +1,7 @@
 """The hp basis on the reference simplex, one cell configuration at a time.
 
 A cell T of degree p_T whose edges (and faces, 3D) carry the degrees p_e of the minimum
-rule (docs/theory.md §10) has, as its share of the basis of V_hp, one function per node of
+rule (docs/theory.md §11) has, as its share of the basis of V_hp, one function per node of
 the Lagrange element of degree p_e on each of its entities e (vertices: degree 1):
 
 * a node z of an edge, face or the cell's interior: φ_z, the Lagrange basis function of

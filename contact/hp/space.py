@@ -1,4 +1,4 @@
-"""The hp space V_hp ⊂ V = P_{p_max} on a DOLFINx mesh (docs/theory.md §10), its basis as the
+"""The hp space V_hp ⊂ V = P_{p_max} on a DOLFINx mesh (docs/theory.md §11), its basis as the
 columns of Q (u = Q x) and the left inverse L (x = L u for u ∈ V_hp).
 
 Each cell T carries a degree p_T ∈ {1, …, p_max}; each edge (and face, 3D) the minimum of

@@ -35,6 +35,8 @@ from ..post.resultants import current_pressure
 from ..setup.scene import Scene
 from ..setup.untagged import untagged_boundary
 from ..solvers import Result
+from ..solvers.baselines import baseline_figures
+from ..solvers.options import BASELINE_METHODS
 from . import folder, plots
 from .fields import FieldFiles
 
@@ -172,6 +174,8 @@ def summary(
     }
     if result.sequence_note:
         out["sequence_note"] = result.sequence_note
+    if result.method in BASELINE_METHODS:
+        out.update(baseline_figures(result))
     out.update(posed_problem(scene))
     if res is not None:
         out.update(res)

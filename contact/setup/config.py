@@ -32,6 +32,7 @@ from ..base.validation import nonnegative as _nonnegative  # noqa: F401 - the st
 from ..base.validation import parse_member, parse_section
 from ..base.validation import positive as _positive
 from ..base.validation import typename as _typename
+from ..solvers.options import BASELINE_METHODS
 from . import expressions
 from .geometry import block_pair
 from .scene_config import (
@@ -941,6 +942,7 @@ def validate_scene(
     _check_vector_data(cfg, model)
     _check_time(cfg)
     _check_friction(cfg, data)
+    _check_baselines(cfg, cfg["model"]["type"], mesh["degree"])
     if cfg["estimator"] == "auto":  # the guaranteed bound where it is cheap (RESULTS.md §12)
         cfg["estimator"] = "equilibrated" if model in EQUILIBRATED_MODELS else "residual"
     _check_equilibrated(cfg)
@@ -1232,10 +1234,35 @@ def _check_friction(cfg: dict, data: Mapping) -> None:
     )
     if unused:
         raise ConfigError(f"friction.{unused[0]}: not used by friction law {law}")
-    if law != "none" and cfg["solver"].method not in ("fb", "min", "blend"):
+    if law != "none" and cfg["solver"].method not in ("fb", "min", "blend", *BASELINE_METHODS):
         raise ConfigError(
             f"solver.method: {cfg['solver'].method} cannot solve frictional contact "
-            f"(friction.law: {law}); use fb, min or blend"
+            f"(friction.law: {law}); use fb, min, blend or a baseline (penalty, "
+            "augmented_lagrangian, nitsche)"
+        )
+
+
+def _check_baselines(cfg: dict, model: str, degree: int) -> None:
+    """The baseline enforcements (penalty, augmented Lagrangian, Nitsche) cover the scalar
+    models and one linear elastic body against a rigid obstacle, P1 (penalty and augmented
+    Lagrangian integrate at the vertices); Nitsche needs a contact boundary."""
+    method = cfg["solver"].method
+    if method not in BASELINE_METHODS:
+        return
+    if model == "hyperelastic" or cfg["bodies"] or cfg["pairs"]:
+        what = "a hyperelastic body" if model == "hyperelastic" else "several bodies"
+        raise ConfigError(
+            f"solver.method: {method} is available for scalar scenes and one linear elastic "
+            f"body against a rigid obstacle, not {what} (use fb, min or blend)"
+        )
+    if method == "nitsche" and model == "obstacle":
+        raise ConfigError(
+            "solver.method: nitsche needs a contact boundary; an obstacle scene constrains "
+            "the whole domain (use penalty or augmented_lagrangian)"
+        )
+    if degree != 1 and method != "nitsche":
+        raise ConfigError(
+            f"mesh.degree: {method} integrates its contact term at the vertices, P1 only; use 1"
         )
 
 

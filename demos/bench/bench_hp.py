@@ -1,4 +1,4 @@
-"""hp against h-adaptive P1 and P2 on problems C and A (docs/theory.md §7, §10).
+"""hp against h-adaptive P1 and P2 on problems C and A (docs/theory.md §7, §11).
 
 What it shows, per problem and method: the energy error and η per level against the
 unknowns N (hp: the unknowns of V_hp, h: the DoFs) and the cumulative seconds of SOLVE,
