@@ -355,11 +355,11 @@ def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
     hp.mkdir(parents=True)
     keys = "problem,method,target,reached,unknowns,seconds,error,levels,effectivity_min,"
     keys += "effectivity_max_past_3,bound_holds,stop,exp_rate_b,exp_fit_r2,"
-    keys += "unknowns_ratio_P2,seconds_ratio_P2"
+    keys += "unknowns_ratio_P2,seconds_ratio_P2,cpu_seconds,cpu_ratio_P2"
     (hp / "summary.csv").write_text(
         keys
-        + "\nC,hp,1e-06,True,2141,39.5,7.5e-07,29,1.03,1.1,True,eta,1.695,0.993,17.7,0.45"
-        + "\nC,h-P2,1e-06,False,37907,17.6,1.1e-05,14,1.1,1.4,True,dofs,,,1.0,1.0\n"
+        + "\nC,hp,1e-06,True,2141,39.5,7.5e-07,29,1.03,1.1,True,eta,1.695,0.993,17.7,0.45,6.0,0.5"
+        + "\nC,h-P2,1e-06,False,37907,17.6,1.1e-05,14,1.1,1.4,True,dofs,,,1.0,1.0,3.0,1.0\n"
     )
     lines = ["problem,method,level,unknowns,error,eta,effectivity,seconds,p_max,p_min"]
     for k in range(4):
@@ -369,8 +369,8 @@ def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
     text = _report(tmp_path / "res", tmp_path / "R.md")
     section = text.split("## 14. hp-adaptivity", 1)[1]
     assert (
-        "| C | hp | 1e-06 | yes | 2141 | 7.5e-07 | 39.50 | 17.7 | 0.45 | 1.1 | yes | 29 |"
-        in section
+        "| C | hp | 1e-06 | yes | 2141 | 7.5e-07 | 39.50 | 6.00 | 17.7 | 0.45 | 0.50 | 1.1 | yes"
+        " | 29 |" in section
     )
     assert "| C | h-P2 | 1e-06 | no (budget) | 37907 |" in section
     assert "log(error) ≈ c − 1.695 N^{1/3}" in section and "r² = 0.993" in section

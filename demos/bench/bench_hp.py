@@ -1,13 +1,14 @@
 """hp against h-adaptive P1 and P2 on problems C and A (docs/theory.md §7, §11).
 
 What it shows, per problem and method: the energy error and η per level against the
-unknowns N (hp: the unknowns of V_hp, h: the DoFs) and the cumulative seconds of SOLVE,
-ESTIMATE, MARK and REFINE (the error's own computation excluded); per run, the first level
-whose error is ≤ the problem's target, its N and seconds, and the ratios to h-P2 measured in
-the same process (each method first runs two untimed levels, so that no run pays for
-loading or compiling its forms); for hp, the least-squares fit log(error) ≈ c − b N^{1/3}
-over the levels past the third, with its r², and η / error on every level.  Writes levels.csv and
-summary.csv; prints a table.
+unknowns N (hp: the unknowns of V_hp, h: the DoFs), the cumulative wall seconds of SOLVE,
+ESTIMATE, MARK and REFINE (the error's own computation excluded) and the process's CPU
+seconds when the level is estimated (less disturbed by other jobs on a shared machine);
+per run, the first level whose error is ≤ the problem's target, its N and seconds, and the
+ratios to h-P2 measured in the same process (each method first runs two untimed levels, so
+that no run pays for loading or compiling its forms); for hp, the least-squares fit
+log(error) ≈ c − b N^{1/3} over the levels past the third, with its r², and η / error on
+every level.  Writes levels.csv and summary.csv; prints a table.
 
     python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
     python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 from pathlib import Path
 
 import contact
@@ -34,6 +36,7 @@ PROBLEMS = [
 METHODS = [
     ("hp", [], dict(strategy="hp", p_max=6, p_start=1, max_levels=60)),
     ("hp-start2", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
+    ("hp-theta0.9", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.9, max_levels=60)),
     ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
     ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
 ]
@@ -44,11 +47,17 @@ def run(problem: str, path: str, target: float, budget: int, method: str, sets, 
     scene = contact.load_scene(
         ROOT / path, [*sets, "output.verbose=false", "estimator=equilibrated"]
     )
+    cpu: list[float] = []  # the process's CPU seconds when each level is estimated
+    start = time.process_time()
     out = contact.adapt(
-        scene, tol=target, max_dofs=budget if method != "hp" else 200_000, **options
+        scene,
+        tol=target,
+        max_dofs=200_000 if method.startswith("hp") else budget,
+        on_level=lambda lv: cpu.append(time.process_time() - start),
+        **options,
     )
     rows, seconds = [], 0.0
-    for lv in out.levels:
+    for lv, cpu_seconds in zip(out.levels, cpu):
         seconds += sum(lv.seconds.get(k, 0.0) for k in TIMED)
         row = lv.row()
         rows.append(
@@ -61,6 +70,7 @@ def run(problem: str, path: str, target: float, budget: int, method: str, sets, 
                 "eta": lv.estimate.eta,
                 "effectivity": lv.estimate.eta / lv.error,
                 "seconds": seconds,
+                "cpu_seconds": cpu_seconds,
                 "p_max": row.get("p_max", 2 if method == "h-P2" else 1),
                 "p_min": row.get("p_min", 2 if method == "h-P2" else 1),
             }
@@ -155,6 +165,7 @@ def main() -> None:
                 "reached": hit is not None,
                 "unknowns": (hit or last)["unknowns"],
                 "seconds": (hit or last)["seconds"],
+                "cpu_seconds": (hit or last)["cpu_seconds"],
                 "error": (hit or last)["error"],
                 "levels": len(rows),
                 "effectivity_min": min(r["effectivity"] for r in rows),
@@ -175,17 +186,18 @@ def main() -> None:
             # h-P2 short of the target: its last level's N and seconds bound the need below
             entry["unknowns_ratio_P2"] = p2["unknowns"] / entry["unknowns"]
             entry["seconds_ratio_P2"] = p2["seconds"] / entry["seconds"]
+            entry["cpu_ratio_P2"] = p2["cpu_seconds"] / entry["cpu_seconds"]
     write_csv(out / "levels.csv", levels)
     write_csv(out / "summary.csv", summary)
     print(
-        f"{'problem':8}{'method':10}{'target':>8}{'reached':>8}{'N':>8}{'error':>11}{'s':>8}"
-        f"{'P2 N/N':>8}{'P2 s/s':>8}{'eff max':>8}  bound"
+        f"{'problem':8}{'method':12}{'target':>8}{'reached':>8}{'N':>8}{'error':>11}{'s':>8}"
+        f"{'cpu':>8}{'P2 N/N':>8}{'P2 s/s':>8}{'P2 cpu':>8}{'eff max':>8}  bound"
     )
     for e in summary:
         print(
-            f"{e['problem']:8}{e['method']:10}{e['target']:8.0e}{str(e['reached']):>8}"
-            f"{e['unknowns']:8d}{e['error']:11.3e}{e['seconds']:8.2f}"
-            f"{e['unknowns_ratio_P2']:8.1f}{e['seconds_ratio_P2']:8.1f}"
+            f"{e['problem']:8}{e['method']:12}{e['target']:8.0e}{str(e['reached']):>8}"
+            f"{e['unknowns']:8d}{e['error']:11.3e}{e['seconds']:8.2f}{e['cpu_seconds']:8.2f}"
+            f"{e['unknowns_ratio_P2']:8.1f}{e['seconds_ratio_P2']:8.2f}{e['cpu_ratio_P2']:8.2f}"
             f"{e['effectivity_max_past_3']:8.2f}  {e['bound_holds']}"
         )
         if e["exp_rate_b"] != "":
