@@ -97,7 +97,7 @@ def _error(comm: MPI.Comm, line: str) -> None:
         print(failures.one_line(line), file=sys.stderr, flush=True)
 
 
-def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+def one_line_warning(message, category, filename, lineno, file=None, line=None):
     """Every warning as one line on stderr (at most MAX_LINE characters): the project's
     (ContactWarning) ``contact: warning: <message>``, any other (a library's)
     ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
@@ -114,7 +114,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    warnings.showwarning = _one_line_warning
+    warnings.showwarning = one_line_warning
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
@@ -195,6 +195,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from ..setup.config import load_config
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
+    from .dispatch import choose_driver
 
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
@@ -211,10 +212,10 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"{comm.size} MPI rank(s)",
     )
     _report_posed(scene, comm)
-    # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
-    if scene.config.load or scene.config.frictional or scene.config.model.type == "hyperelastic":
+    driver = choose_driver(scene.config)
+    if driver == "load_path":
         return _run_steps(scene, outdir, label, comm, t0)
-    if scene.config.adapt:
+    if driver == "adapt":
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
     _say(
