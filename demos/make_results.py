@@ -412,6 +412,73 @@ def _line_search_verdict(its: dict) -> str:
     )
 
 
+def _its(r: dict) -> str:
+    """Newton steps of a row, the shortened ones in brackets; **fail** if it did not converge."""
+    if not r["converged"]:
+        return f"**fail** ({r['newton_iterations']})"
+    return f"{r['newton_iterations']}" + (f" ({r['backtracked']})" if r["backtracked"] else "")
+
+
+def _friction_line_search(folder: Path) -> list[str]:
+    """Frictional Newton and its cycles: line_search.csv and line_search_rounding.csv of
+    demos/bench/bench_friction_cycle.py."""
+    out: list[str] = []
+    runs = rows(folder / "line_search.csv") or []
+    if runs:
+        key = ("case", "start", "form", "method")
+        cases = list(dict.fromkeys(tuple(r[k] for k in key) for r in runs))
+        by = {(tuple(r[k] for k in key), r["line_search"]): r for r in runs}
+        searches = list(dict.fromkeys(r["line_search"] for r in runs))
+        body = [
+            [*c] + [_its(by[c, ls]) for ls in searches]
+            for c in cases
+            if any(not by[c, ls]["converged"] or by[c, ls]["backtracked"] for ls in searches)
+            or by[c, "basic"]["newton_iterations"] != by[c, "auto"]["newton_iterations"]
+        ]
+        plain = {c for c in cases if by[c, "basic"]["converged"]}
+        kept = sum(
+            by[c, "auto"]["newton_iterations"] == by[c, "basic"]["newton_iterations"]
+            and not by[c, "auto"]["backtracked"]
+            for c in plain
+        )
+        done = {ls: sum(by[c, ls]["converged"] for c in cases) for ls in searches}
+        out += [
+            "Frictional Newton and its cycles (`python demos/bench/bench_friction_cycle.py`): "
+            "the form cases above with `solver.line_search` basic (plain Newton steps), auto "
+            "(the default: plain steps until a cycle shows, then backtracking on ½‖Φ‖²; "
+            "`contact/solvers/friction.py`, `GuardedFriction`) and bt (PETSc's backtracking "
+            "from the first step). "
+            + ", ".join(f"{ls} converges in {done[ls]} of {len(cases)}" for ls in searches)
+            + f"; auto keeps plain Newton's iterates in {kept} of the {len(plain)} runs plain "
+            "steps converge in. The runs where a line search changes anything (Newton steps, "
+            "the shortened ones in brackets; **fail**: no convergence in 100):",
+            "",
+            table(["scene", "start", "form", "normal φ", *searches], body),
+            "",
+        ]
+    rounding = rows(folder / "line_search_rounding.csv") or []
+    if rounding:
+        key = ("case", "form", "linear", "method", "line_search")
+        cases = list(dict.fromkeys(tuple(r[k] for k in key) for r in rounding))
+        where = list(dict.fromkeys((r["perturbation"], r["threads"]) for r in rounding))
+        by = {(tuple(r[k] for k in key), (r["perturbation"], r["threads"])): r for r in rounding}
+        out += [
+            "Whether Newton converges, per rounding (`python demos/bench/bench_friction_cycle.py "
+            "--rounding`): the cases that cycle, with the load as assembled and perturbed by a "
+            "relative ε (the test suite's `CONTACT_TEST_PERTURB`, two seeds) with 1 and 2 "
+            "OpenBLAS threads; Newton steps (shortened ones in brackets), at most 50 (the box) "
+            "or 40 (the block):",
+            "",
+            table(
+                ["case", "form", "linear", "normal φ", "line search"]
+                + [f"ε = {g(e)}, {t} thr." if e else "as assembled" for e, t in where],
+                [[*c] + [_its(by[c, w]) for w in where] for c in cases],
+            ),
+            "",
+        ]
+    return out
+
+
 def _friction_rows(its: dict, cases: list[str]) -> str:
     """The paragraph on the friction cases (h)–(j) of the stability map."""
     friction = [c for c in cases if c.startswith(FRICTION_CASES)]
@@ -1279,6 +1346,7 @@ def friction() -> str:
             "`friction.form: hsw` by default; the projection form stays selectable.",
             "",
         ]
+    out += _friction_line_search(folder)
     steps = rows(folder / "steps.csv") or []
     if steps:
         scenes = list(dict.fromkeys(r["scene"] for r in steps))

@@ -9,6 +9,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_memory.py`` — peak memory per DoF, the figures of ``solver.max_dofs:
    auto`` (issue 10; about 12 minutes);
    ``demos/bench/bench_friction.py`` — friction (issue 12, about 5 minutes);
+   ``demos/bench/bench_friction_cycle.py`` — its tangential-form cases × line search basic /
+   auto / bt: the projection form's 2-cycle and the guard, and with ``--rounding`` the
+   cycling cases under perturbed loads and 1 / 2 BLAS threads (about 3 + 3 minutes);
    ``demos/bench/bench_two_bodies.py`` — two bodies (issue 13): patch tests, two cylinders,
    Cattaneo–Mindlin, and the sphere on a block on 2 MPI ranks (about 8 minutes; its
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
@@ -74,7 +77,22 @@ STEPS = {
     "adaptive": [[PY, "demos/bench/bench_adaptive.py", "--out", "demos/results/adaptive"]],
     "hertz": [[PY, "demos/bench/bench_hertz.py", "--out", "demos/results/hertz"]],
     "memory": [[PY, "demos/bench/bench_memory.py", "--out", "demos/results/memory.csv"]],
-    "friction": [[PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"]],
+    "friction": [
+        [PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"],
+        [
+            PY,
+            "demos/bench/bench_friction_cycle.py",
+            "--out",
+            "demos/results/friction/line_search.csv",
+        ],
+        [
+            PY,
+            "demos/bench/bench_friction_cycle.py",
+            "--rounding",
+            "--out",
+            "demos/results/friction/line_search_rounding.csv",
+        ],
+    ],
     "two_bodies": [
         [PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")
     ]
