@@ -31,9 +31,10 @@ if TYPE_CHECKING:  # the names as mypy and readers see them; at run time: __geta
     from .adaptivity.mark import mark
     from .adaptivity.refine import refine
     from .base.errors import ConfigError
-    from .drivers.adaptive import AdaptResult, adapt
+    from .drivers.adaptive import AdaptResult
     from .drivers.load_path import LoadPath, run_load_path
     from .drivers.solve import solve
+    from .hp.adapt import adapt
     from .models.forms import ComplementarityProblem, Unilateral
     from .setup.scene import Scene, load_scene
     from .solvers.result import Result
@@ -50,7 +51,7 @@ _API: dict[str, tuple[str, str, bool]] = {
     "Estimate": ("adaptivity.estimate", "Estimate", False),
     "estimate": ("adaptivity.estimate", "estimate", True),
     "AdaptResult": ("drivers.adaptive", "AdaptResult", False),
-    "adapt": ("drivers.adaptive", "adapt", True),
+    "adapt": ("hp.adapt", "adapt", True),  # the h loop, or the hp loop for strategy hp
     "mark": ("adaptivity.mark", "mark", False),
     "refine": ("adaptivity.refine", "refine", True),
     "LoadPath": ("drivers.load_path", "LoadPath", False),

@@ -42,6 +42,7 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
    kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
    ``import contact`` and a tiny run (issue 41, RESULTS §14; about 10 minutes);
+   ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §15, minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -357,6 +358,7 @@ STEPS = {
             "demos/results/startup.csv",
         ],
     ],
+    "hp": [[PY, "demos/bench/bench_hp.py", "--out", "demos/results/hp"]],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
         for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))

@@ -268,7 +268,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     """The adaptive loop, writing into one atomic folder.  If the solver fails on level
     k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
-    from ..drivers.adaptive import AdaptResult, adapt, format_table
+    from ..drivers.adaptive import AdaptResult, format_table
+    from ..hp.adapt import adapt
     from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
 

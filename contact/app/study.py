@@ -611,8 +611,8 @@ def run_one(
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
     from ..adaptivity.estimate import estimate
-    from ..drivers.adaptive import adapt
     from ..drivers.solve import solve
+    from ..hp.adapt import adapt
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 

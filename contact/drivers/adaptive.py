@@ -32,6 +32,7 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
+from ..base.errors import ConfigError
 from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models import build_problem
@@ -185,6 +186,14 @@ def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
     return (scene.config.adapt or AdaptConfig()).updated(**overrides)
 
 
+def check_on_level(on_level: Callable | None) -> None:
+    """Raise ValueError unless ``on_level`` is None or callable (one line naming it)."""
+    if on_level is not None and not callable(on_level):
+        raise ValueError(
+            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
+        )
+
+
 def adapt(
     scene: Scene,
     method: str | None = None,
@@ -194,7 +203,7 @@ def adapt(
     keep: Callable[[Level], bool] | None = None,
     **options: Any,
 ) -> AdaptResult:
-    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
     The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` or the DoF
     budget (``solver.max_dofs``), after ``max_levels`` levels, or when a solve does not
@@ -216,8 +225,9 @@ def adapt(
             default) keeps every level whole; ``lambda level: False`` releases all but
             the last.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
-            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``.
+            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
+            ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
+            ``pictures``.
 
     Returns:
         The levels and the reason the loop stopped.
@@ -226,22 +236,14 @@ def adapt(
         ConfigError: For an unknown or invalid option (one line naming it).
         ValueError: If ``scene`` is not a Scene or ``on_level`` or ``keep`` is not callable.
 
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
-        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
-        >>> [level.index for level in run.levels], run.stop
-        ([0, 1, 2], 'reached max_levels = 3')
-        >>> run.levels[-1].error < run.levels[0].error
-        True
+    :func:`contact.adapt` (which also runs the hp loop) shows it at work.
     """
-    if on_level is not None and not callable(on_level):
-        raise ValueError(
-            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
-        )
+    check_on_level(on_level)
     if keep is not None and not callable(keep):
         raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
     opts = adapt_options(scene, **options)
+    if opts.strategy == "hp":  # contact.adapt and the CLI dispatch it to contact.hp
+        raise ConfigError("adapt.strategy: hp runs one solve per level (no load path, no study)")
     verbose = scene.config.output.verbose if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()

@@ -25,6 +25,8 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
+from ..hp.adapt import HPLevel
+from ..hp.output import output_fields
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, value_name, view_normal
 from ..post.exact_data import exact_mismatches
@@ -319,8 +321,8 @@ def files_text(names: list[str]) -> str:
 
 class LevelWriter:
     """Callback for :func:`contact.drivers.adaptive.adapt`: level K as step K of the series
-    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell
-    fields); ``files`` keeps the seconds per format."""
+    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T, the elastic cell
+    fields, and an hp level's ``degree``); ``files`` keeps the seconds per format."""
 
     def __init__(self, tmp: Path, scene: Scene):
         formats, elastic = scene.config.output.formats, scene.config.elastic
@@ -330,9 +332,13 @@ class LevelWriter:
         r = level.result
         est = level.estimate
         cells = [est.eta_T, *cell_fields(level.scene, r)]
+        points = point_fields(r)
+        if isinstance(level, HPLevel) and level.space is not None:
+            cells.append(level.space.degree_function())  # p_T: the hp mesh in ParaView
+            points = output_fields(points)  # P_{p_max} → the degree the formats carry
         self.files.write_step(
             level.index,
-            point_fields(r),
+            points,
             cells,
             field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
             boundary=level.scene.boundary,

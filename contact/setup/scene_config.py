@@ -77,7 +77,9 @@ ELASTIC_MODELS = ("elasticity", "hyperelastic")
 MODELS = ("signorini", "obstacle", *ELASTIC_MODELS)
 HYPERELASTIC_LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 FRICTION_LAWS = ("none", "tresca", "coulomb")
-STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+STRATEGIES = ("dorfler", "maximum", "uniform", "hp", "none")
+#: the largest polynomial degree ``adapt.p_max`` accepts (Lagrange P_{p_max} carries V_hp)
+MAX_DEGREE = 8
 MESH_TYPES = (
     "rectangle",
     "unit_square",
@@ -375,15 +377,25 @@ class SolverConfig(SolverOptions, Section):
 Fraction = Annotated[float, BeforeValidator(number(half_open_unit))]
 NonNegative = Annotated[float, BeforeValidator(number(nonnegative))]
 Count = Annotated[int, BeforeValidator(integer(positive))]
+
+
+def _degree(v: int) -> str | None:
+    return None if 1 <= v <= MAX_DEGREE else f"must lie in 1..{MAX_DEGREE}, got {v}"
+
+
+#: a polynomial degree of V_hp (1 … MAX_DEGREE)
+Degree = Annotated[int, BeforeValidator(integer(_degree))]
 Switch = Annotated[bool, BeforeValidator(boolean)]
 
 
 class AdaptConfig(Section):
     """A scene's ``adapt`` section (docs/theory.md §6): ``strategy`` — dorfler, maximum,
-    uniform or none (one solve); ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop
-    at η ≤ tol; ``max_dofs``, ``max_levels`` — budgets; ``nested`` — each level starts from
-    the previous solution; ``rebalance`` — repartition refined meshes; ``newton_rtol`` —
-    Newton's relative tolerance inside the loop; ``pictures`` — levels drawn."""
+    uniform, hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`) or none (one
+    solve); ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop at η ≤ tol;
+    ``max_dofs``, ``max_levels`` — budgets; ``nested`` — each level starts from the previous
+    solution; ``rebalance`` — repartition refined meshes; ``newton_rtol`` — Newton's relative
+    tolerance inside the loop; ``pictures`` — levels drawn; ``p_max``, ``p_start`` — with
+    ``hp``, the largest degree and every cell's first degree."""
 
     KEYWORDS: ClassVar[bool] = True  # also the keywords of contact.adapt: None = not given
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
@@ -395,6 +407,8 @@ class AdaptConfig(Section):
     rebalance: Switch = True
     newton_rtol: Positive = 1e-10
     pictures: Annotated[int, BeforeValidator(integer(nonnegative))] = 3
+    p_max: Degree = 6
+    p_start: Degree = 1
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptConfig:
