@@ -153,8 +153,8 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs,
     the adaptive loop except against a plane without friction, a reference solution, an
-    exact solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is hyperelastic (then it solves without grid
-    sequencing)."""
+    exact solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is
+    hyperelastic (then it solves without grid sequencing)."""
     law = config.model.law
     if model != "hyperelastic":
         if law is not None:
