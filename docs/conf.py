@@ -111,6 +111,7 @@ DEMO_ARGS = {
     "guaranteed_bound": "8",
     "own_forms": "16",
     "torsion": "32",
+    "hp": "1e-3",
 }
 
 

@@ -1,5 +1,5 @@
 """The package's layout (docs/development.md, "Layout"): the import-linter contracts of
-pyproject.toml hold — the layers app > output > post > setup > drivers > adaptivity > models
+pyproject.toml hold — the layers app > output > post > hp > setup > drivers > adaptivity > models
 > solvers > base (a package imports only the packages below it), no two modules or packages
 importing each other, a core (drivers, adaptivity, models, solvers, base) that never imports
 a scene, a report or the application, solvers that never import a model or a driver, a

@@ -37,9 +37,10 @@ def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
     # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, §11's line
-    # search, strip, refinement, stability map at finite strain, predictor, §12 bounds, and
-    # §13's baselines and their stability map
-    assert text.count("*Not available:") == 21
+    # search, strip, refinement, stability map at finite strain, predictor, adapt at finite
+    # strain, the ball at scale, §12 bounds, §13's baselines and their stability map, §14 time
+    # to accuracy and §15 hp
+    assert text.count("*Not available:") == 25
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -346,3 +347,32 @@ def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
     assert [(r["case"], r["method"]) for r in failed] == [("(r) A, parameter 1.0e-3", "nitsche")]
     assert "| (r) A, parameter 1.0e-3 | nitsche | max iterations | 20 |" in section
     assert "not yet explained" not in section
+
+
+def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
+    """§15 (demos/bench/bench_hp.py): the summary's figures per problem and method, the
+    exponential fit of the hp runs and the chart, from the CSVs."""
+    hp = tmp_path / "res" / "hp"
+    hp.mkdir(parents=True)
+    keys = "problem,method,target,reached,unknowns,seconds,error,levels,effectivity_min,"
+    keys += "effectivity_max_past_3,bound_holds,stop,exp_rate_b,exp_fit_r2,"
+    keys += "unknowns_ratio_P2,seconds_ratio_P2,cpu_seconds,cpu_ratio_P2"
+    (hp / "summary.csv").write_text(
+        keys
+        + "\nC,hp,1e-06,True,2141,39.5,7.5e-07,29,1.03,1.1,True,eta,1.695,0.993,17.7,0.45,6.0,0.5"
+        + "\nC,h-P2,1e-06,False,37907,17.6,1.1e-05,14,1.1,1.4,True,dofs,,,1.0,1.0,3.0,1.0\n"
+    )
+    lines = ["problem,method,level,unknowns,error,eta,effectivity,seconds,p_max,p_min"]
+    for k in range(4):
+        lines.append(f"C,hp,{k},{100 * (k + 1)},{10.0**-k},{2 * 10.0**-k},2.0,{k + 1},{k + 1},1")
+        lines.append(f"C,h-P2,{k},{400 * (k + 1)},{10.0 ** (-k / 2)},1,1.1,{k + 1},2,2")
+    (hp / "levels.csv").write_text("\n".join(lines) + "\n")
+    text = _report(tmp_path / "res", tmp_path / "R.md")
+    section = text.split("## 15. hp-adaptivity", 1)[1]
+    assert (
+        "| C | hp | 1e-06 | yes | 2141 | 7.5e-07 | 39.50 | 6.00 | 17.7 | 0.45 | 0.50 | 1.1 | yes"
+        " | 29 |" in section
+    )
+    assert "| C | h-P2 | 1e-06 | no (budget) | 37907 |" in section
+    assert "log(error) ≈ c − 1.695 N^{1/3}" in section and "r² = 0.993" in section
+    assert (hp / "hp.png").read_bytes()[:4] == b"\x89PNG"

@@ -81,14 +81,17 @@ def _cellwise(msh):
     return w, ufl.FacetNormal(msh), ufl.CellDiameter(msh), h_E, dx, dS, zero
 
 
-def indicator_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
+def indicator_terms(
+    problem: Problem, result: Result, degree: fem.Function | None = None
+) -> dict[str, ufl.Form]:
     """Return the estimator's terms as UFL forms linear in a DG0 test function.
 
     The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar
-    equations (:func:`scalar_terms`) or of an elastic body (:func:`elasticity_terms`).
+    equations (:func:`scalar_terms`) or of an elastic body (:func:`elasticity_terms`);
+    ``degree``: the cells' polynomial degrees of an hp solution (DG0), scalar equations only.
     """
     if isinstance(problem.physics, Diffusion):
-        return scalar_terms(problem, result)
+        return scalar_terms(problem, result, degree)
     return elasticity_terms(problem, result)
 
 
@@ -103,8 +106,15 @@ def _physics[T](problem: Problem, kind: type[T]) -> T:
     return physics
 
 
-def scalar_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
-    """The terms of the scalar Signorini and obstacle problems (module doc)."""
+def scalar_terms(
+    problem: Problem, result: Result, degree: fem.Function | None = None
+) -> dict[str, ufl.Form]:
+    """The terms of the scalar Signorini and obstacle problems (module doc).
+
+    With the cells' ``degree`` p_T (an hp solution, DG0) the weights are h_T/p_T and
+    h_E/p_E, p_E the larger degree of the facet's cells (Melenk & Wohlmuth, Adv. Comput.
+    Math. 15, 2001).
+    """
     physics = _physics(problem, Diffusion)
     msh = problem.V.mesh
     u_h, lmbda_h = result.u_h, result.lmbda_h
@@ -116,6 +126,10 @@ def scalar_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
     g = problem.bound_function()
     ds = boundary.measure(msh)
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
+    h_S = ufl.avg(h_E)  # interior facets
+    if degree is not None:
+        h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
+        h_E = h_E / degree
     sigma = problem.constraint.sign
     flux = physics.flux(u_h)  # k ∇u_h
     obstacle = condition.in_domain
@@ -124,7 +138,7 @@ def scalar_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
     terms = {
         "volume": h_T**2 * residual**2 * w * dx,
         # ½ h_E ‖[k ∂u_h/∂n]‖²_E to each of the two cells of an interior facet
-        "jump": 0.5 * ufl.avg(h_E) * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
+        "jump": 0.5 * h_S * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
         "neumann": zero,
         "consistency": zero,
         "sign": zero,
@@ -373,14 +387,17 @@ def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
     return Estimate(bound.eta_T, bound.eta, bound.terms)
 
 
-def residual_estimate(problem: Problem, result: Result) -> Estimate:
+def residual_estimate(
+    problem: Problem, result: Result, degree: fem.Function | None = None
+) -> Estimate:
     """Return the residual estimator of a solve of ``problem``.
 
     The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
     term of η_T² assembled once as a DG0 vector, η_T² their sum, each term's total the sum
-    of its owned entries.
+    of its owned entries; ``degree``: the cells' degrees of an hp solution (DG0: the
+    weights h/p of :func:`scalar_terms`).
     """
-    terms = indicator_terms(problem, result)
+    terms = indicator_terms(problem, result, degree)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())
     W = next(iter(terms.values())).arguments()[0].ufl_function_space()  # the DG0 space of w

@@ -269,9 +269,9 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
     from ..drivers.adaptive import AdaptResult, format_table
+    from ..hp.adapt import adapt
     from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
-    from ..setup.run import adapt
 
     a = scene.config.adapt
     assert a is not None  # _run chose the adaptive loop for it
@@ -282,7 +282,12 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     )
     with folder.atomic_folder(outdir, comm, label) as tmp:
         write_level = level_writer(tmp, scene)
-        result = adapt(scene, on_level=lambda lv: write_level(lv) if lv.result.converged else None)
+        every = scene.config.output.levels == "all"  # else the last level's files only
+        result = adapt(
+            scene,
+            on_level=lambda lv: write_level(lv) if every and lv.result.converged else None,
+            keep=_kept_levels(scene),
+        )
         last = result.levels[-1].result
         failed = None
         if not last.converged:
@@ -302,6 +307,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
+        if not every:
+            write_level(result.levels[-1])
         info = write_adaptive(
             tmp,
             scene,
@@ -315,6 +322,18 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
         _say(comm, format_table(result.rows))
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED
+
+
+def _kept_levels(scene):
+    """Which levels the adaptive loop keeps whole for the pictures drawn after it: with
+    ``adapt.pictures`` ≤ 2 (the first level and the last) or no pictures, level 0 or
+    none, and the loop releases the others as it goes (the files of every level are
+    written as it goes); with more, the levels between are known only at the end, and it
+    keeps them all."""
+    count = scene.config.adapt.pictures if scene.config.output.png else 0
+    if count > 2:
+        return None
+    return lambda level: count > 0 and level.index == 0
 
 
 def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:

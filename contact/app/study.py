@@ -610,7 +610,8 @@ def run_one(
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
-    from ..setup.run import adapt, estimate, solve
+    from ..hp.adapt import adapt
+    from ..setup.run import estimate, solve
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 

@@ -21,7 +21,10 @@ The pieces are plain functions so a user can write their own loop in a few lines
 
 from __future__ import annotations
 
+import functools
+import gc
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -35,6 +38,7 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import Domain, next_dofs_bound, refine
 from ..base import progress
+from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models.discrete import discrete
 from ..solvers.options import AdaptOptions, SolverOptions
@@ -61,6 +65,9 @@ class Level:
             ``mark``, ``refine``, ``output``).
         imbalance: Under MPI the busiest rank's owned DoFs over the mean (1 in serial).
         passes: Solves of this level (adaptive stopping may solve on).
+        elapsed: Wall seconds from the start of the loop to this level's solution, estimate
+            and error, the levels' outputs (``on_level``) not counted: the time to reach
+            ``error`` (the first level's includes its grid-sequencing solves).
     """
 
     index: int
@@ -72,14 +79,35 @@ class Level:
     seconds: dict[str, float]
     imbalance: float = 1.0  # max over ranks of the owned DoFs / their mean (1 in serial)
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
+    elapsed: float = 0.0  # wall seconds of the loop up to this level, outputs not counted
+    released: bool = False  # the solution's fields and η_T dropped (release)
+
+    @functools.cached_property
+    def cells(self) -> int:
+        """Return the number of cells of the level's mesh, over all ranks."""
+        msh = self.domain.mesh
+        return msh.topology.index_map(msh.topology.dim).size_global
+
+    def release(self) -> None:
+        """Keep the level's figures only (its row, iterations, history, η and error).
+
+        Its solution's fields and PETSc objects
+        (:meth:`~contact.solvers.result.Result.release`) and the indicator field η_T are
+        dropped, and so are its domain and problem, so the loop's memory follows the last
+        level, not the sum of all. The mesh stays while a finer level refers to it (the
+        chain of coarser meshes :mod:`contact.drivers.sequencing` solves on).
+        """
+        _ = self.cells  # cached while the mesh is at hand
+        self.result.release()
+        self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
+        self.released = True
 
     def row(self) -> dict[str, Any]:
         """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
-        msh = self.result.u_h.function_space.mesh
-        row = {
+        row: dict[str, Any] = {
             "level": self.index,
             "dofs": self.result.dofs,
-            "cells": msh.topology.index_map(msh.topology.dim).size_global,
+            "cells": self.cells,
             "eta": self.estimate.eta,
         }
         # Σ_T of each term
@@ -97,6 +125,7 @@ class Level:
         )
         row.update(self.errors())
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
+        row["seconds_elapsed"] = round(self.elapsed, 4)
         return row
 
     def errors(self) -> dict[str, Any]:
@@ -118,15 +147,6 @@ class Level:
             "krylov_iterations": self.result.krylov_iterations,
             "solve_passes": self.passes,
         }
-
-    def release(self) -> None:
-        """Keep the level's figures only.
-
-        Its result is released (``contact.solvers.result.Result.release``), its domain,
-        problem and η_T dropped.
-        """
-        self.result.release()
-        self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
 
 
 @dataclass
@@ -172,6 +192,14 @@ LevelSolve = Callable[
 ]
 
 
+def check_on_level(on_level: Callable | None) -> None:
+    """Raise ValueError unless ``on_level`` is None or callable (one line naming it)."""
+    if on_level is not None and not callable(on_level):
+        raise ValueError(
+            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
+        )
+
+
 def adapt(
     build: Callable[[Any], Any],
     domain: dmesh.Mesh | Domain,
@@ -182,13 +210,15 @@ def adapt(
     kind: str = "residual",
     u0: fem.Function | None = None,
     on_level: Callable[[Level], None] | None = None,
+    keep: Callable[[Level], bool] | None = None,
     solve: LevelSolve | None = None,
     budget: int | None = None,
     stopping: tuple[float, float] | None = None,
     verbose: bool = False,
+    make_level: Callable[[Level], Level] | None = None,
     **overrides: Any,
 ) -> AdaptResult:
-    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE over a user's builder.
+    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE over a user's builder.
 
     Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
     budget is reached.
@@ -209,6 +239,11 @@ def adapt(
         kind: the estimator (``residual``, ``equilibrated``, ``equilibrated_rt0``).
         u0: the first level's initial guess (e.g. a load step's previous solution).
         on_level: called with each :class:`Level` once it is estimated (output as it goes).
+        keep: which levels keep their solution once the next level is estimated (and
+            ``on_level`` has written it): the others are released (:meth:`Level.release`:
+            their rows, iterations, η and errors stay) and the loop's memory follows its
+            last level. None (the default) keeps every level whole; ``lambda level:
+            False`` releases all but the last.
         solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
             of ``contact.drivers.solve.solve``, a first level without a guess sequenced
             over the domain's ancestors).
@@ -216,15 +251,16 @@ def adapt(
         stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
             needs an equilibrated ``kind``), or None: fixed tolerances.
         verbose: print the convergence table as it goes (rank 0).
+        make_level: the record of a level as the loop keeps and hands it on (default the
+            :class:`Level` itself; a scene's loop adds its scene).
         **overrides: single options of ``options`` (``theta=0.3``, ``max_levels=6``, …).
 
     Returns:
         The :class:`AdaptResult`: the levels and why the loop stopped.
     """
-    if on_level is not None and not callable(on_level):
-        raise ValueError(
-            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
-        )
+    check_on_level(on_level)
+    if keep is not None and not callable(keep):
+        raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
     opts = (options or AdaptOptions()).updated(**overrides)
     knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
     meshes = not isinstance(domain, Domain)  # the builder takes meshes
@@ -233,6 +269,7 @@ def adapt(
         solve = _default_solve(build, knobs, meshes, opts.nested)
     comm = level_domain.comm
     out = AdaptResult()
+    start, outputs = time.perf_counter(), 0.0  # the loop's clock, and the outputs' share
     for index in range(opts.max_levels):
         seconds: dict[str, float] = {}
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
@@ -261,12 +298,21 @@ def adapt(
             seconds,
             imbalance=rank_imbalance(result.u_h.function_space),
             passes=passes,
+            elapsed=time.perf_counter() - start - outputs,
         )
+        if make_level is not None:
+            level = make_level(level)
         out.levels.append(level)
+        # a failed level is dropped by the CLI: the one before it stays whole
+        if keep is not None and index > 0 and result.converged and not keep(out.levels[-2]):
+            out.levels[-2].release()
+            gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
+            return_freed_memory()
         if on_level is not None:
             with Timer(seconds, "output"):
                 progress.note(f"level {index}: writing its files")
                 on_level(level)
+            outputs += seconds["output"]
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
             progress.heard()

@@ -44,7 +44,7 @@ from .constraints import (
 )
 from .discrete import Problem
 from .obstacles import (
-    _contact_nodes,
+    contact_nodes,
     current_contact,
     first_contact_point,
     first_contact_row,
@@ -125,7 +125,7 @@ def obstacle_nodes(
     surface = obstacle.surface
     msh = V.mesh
     bs, gdim, comm = V.dofmap.index_map_bs, msh.geometry.dim, msh.comm
-    S, _, v_dofs, s_dofs = _contact_nodes(V, 0, measure_facets(obstacle.measure))
+    S, _, v_dofs, s_dofs = contact_nodes(V, 0, measure_facets(obstacle.measure))
     nodes = v_dofs // bs
     owned = nodes < V.dofmap.index_map.size_local
     nodes, s_dofs = nodes[owned], s_dofs[owned]

@@ -60,6 +60,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..solvers.current import nodal_geometry
+from ..solvers.krylov_curvature import lanczos_negative
 from ..solvers.linear import mumps_ksp
 from ..solvers.problem import Constraint, NodeBlockMatrix
 from .elasticity import lame
@@ -85,13 +86,21 @@ def hyperelastic_forms(
     """(R, J, Π) of a hyperelastic body (module doc) written in the displacement ``u``:
     R(u; v) = ∂Π/∂u [v] = ∫ P(F) : ∇v dX − L(v), its derivative J = ∂R/∂u, and the total
     potential Π(u) = ∫ ψ(F) dX − L(u); ``load`` L(v) (dead loads), ``degree`` the
-    quadrature degree of ψ (P1: F is constant per cell, any rule is exact; P_p: 2p)."""
+    quadrature degree of ψ (:func:`quadrature_degree`)."""
     V = u.function_space
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": degree})
     energy = strain_energy(deformation_gradient(u), law, mu, lmbda_L) * dx
     R = ufl.derivative(energy, u, v) - load
     return R, ufl.derivative(R, u, du), energy - ufl.action(load, u)
+
+
+def quadrature_degree(degree: int) -> int:
+    """The quadrature degree of the strain energy and its derivatives on Lagrange elements of
+    ``degree``: P1's F = I + ∇u is constant on each cell, so one point (degree 0) integrates
+    ψ(F), P(F) : ∇v and their tangent exactly (the degree 2 rule's four points in 3D cost four
+    times as much for the same numbers); P2: 2p = 4 for the nonpolynomial ψ."""
+    return 0 if degree == 1 else 2 * degree
 
 
 def jacobian_check(u: fem.Function, degree: int) -> Callable[[], float]:
@@ -172,7 +181,11 @@ def negative_eigenvalues(result) -> int:
     (:meth:`CurrentResidualProblem.constrained_hessian`).  0: u_h is a stable equilibrium of the
     constrained problem; > 0: K_T lost positive definiteness — past a limit point, or
     St Venant–Kirchhoff in strong compression (its energy is not convex) — and the
-    solution may be unstable (buckling, localisation).  One factorization per call."""
+    solution may be unstable (buckling, localisation).  One factorization per call — or,
+    where the solve itself did not factorize (``result.linear`` not ``direct``: CG + GAMG
+    on a large 3D body), the Lanczos estimate of one CG + GAMG solve
+    (:func:`contact.solvers.krylov_curvature.lanczos_negative`): then 1 means "at least
+    one" and 0 that none was seen."""
     p = result.problem
     x = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, x)
@@ -184,6 +197,13 @@ def negative_eigenvalues(result) -> int:
     lo = A.getOwnershipRange()[0]
     A.zeroRowsColumns((held + lo).astype(PETSc.IntType), diag=1.0)  # type: ignore[arg-type]
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)  # type: ignore[arg-type]
+    if getattr(result, "linear", "direct") != "direct":
+        try:
+            tdim = p.V.mesh.topology.dim
+            return lanczos_negative(A, p.near_nullspace, tdim, "contact_stability_")
+        finally:
+            A.destroy()
+            x.destroy()
     ksp = mumps_ksp(A, "cholesky")  # LDLᵀ: its inertia over all ranks
     try:
         pc = ksp.getPC()

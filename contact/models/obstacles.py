@@ -34,7 +34,7 @@ from .constraints import Plane, RigidObstacle, measure_facets
 from .problem import coordinate_scale, lumped_weights
 
 
-def _contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
+def contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
     """For component k: its collapsed space S, the S → V map, and the (V-DoF, S-DoF) pairs
     on the contact facets."""
     S, collapsed = V.sub(k).collapse()
@@ -54,7 +54,7 @@ def plane_contact(V: fem.FunctionSpace, fixed: np.ndarray, obstacle: RigidObstac
     nu_o, p = plane.normal, plane.point
     k = int(np.argmax(np.abs(nu_o)))
     n_k = float(np.sign(-nu_o[k]))
-    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, k, measure_facets(obstacle.measure))
+    S, s_to_v, v_dofs, s_dofs = contact_nodes(V, k, measure_facets(obstacle.measure))
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
     keep = (v_dofs < n_owned) & ~np.isin(v_dofs, fixed)
     dofs, sd = v_dofs[keep].astype(np.int32), s_dofs[keep]
@@ -87,7 +87,7 @@ def rotated_contact(
     msh = V.mesh
     gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
     surface = obstacle.surface
-    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, 0, measure_facets(obstacle.measure))
+    S, s_to_v, v_dofs, s_dofs = contact_nodes(V, 0, measure_facets(obstacle.measure))
     nodes = v_dofs // bs
     node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
     partial = node_fixed.any(axis=1) & ~node_fixed.all(axis=1)
@@ -209,7 +209,7 @@ def current_contact(
 
     msh = V.mesh
     gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
-    S, s_to_v, v_dofs, s_dofs = _contact_nodes(V, 0, measure_facets(obstacle.measure))
+    S, s_to_v, v_dofs, s_dofs = contact_nodes(V, 0, measure_facets(obstacle.measure))
     nodes = v_dofs // bs
     node_fixed = np.isin(nodes[:, None] * bs + np.arange(bs), fixed)
     keep = (nodes < V.dofmap.index_map.size_local) & ~node_fixed.all(axis=1)

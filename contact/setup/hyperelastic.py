@@ -14,7 +14,12 @@ from dolfinx import fem
 from ..models.discrete import Problem
 from ..models.elasticity import lame
 from ..models.forms import ResidualProblem, make_problem
-from ..models.hyperelastic import deformed_area, hyperelastic_forms, jacobian_check
+from ..models.hyperelastic import (
+    deformed_area,
+    hyperelastic_forms,
+    jacobian_check,
+    quadrature_degree,
+)
 from ..models.physics import piola_and_cauchy
 from .checks import check_scene_data
 from .elastic import elastic_physics, elastic_setting, scene_rigid
@@ -37,7 +42,8 @@ def hyperelastic_problem(scene: Scene) -> Problem:
     V = s.V
     u_h = fem.Function(V, name="u_h")
     v = ufl.TestFunction(V)
-    degree = 2 * scene.config.mesh.degree
+    # P1: F is constant per cell, one point is exact; P2: degree 2p for the nonpolynomial ψ
+    degree = quadrature_degree(scene.config.mesh.degree)
     R, J, potential = hyperelastic_forms(u_h, model.law, mu, lmbda_L, s.L_ufl, degree)
     F_form, J_form = fem.form(R), fem.form(J)
     law = model.law

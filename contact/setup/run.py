@@ -24,8 +24,8 @@ from ..adaptivity.estimate import Estimate
 from ..adaptivity.estimate import estimate as estimate_problem
 from ..adaptivity.refine import Domain
 from ..adaptivity.refine import refine as refine_domain
-from ..base.errors import ContactWarning
-from ..drivers.adaptive import AdaptResult, Level
+from ..base.errors import ConfigError, ContactWarning
+from ..drivers.adaptive import AdaptResult, Level, check_on_level
 from ..drivers.adaptive import adapt as adapt_domain
 from ..drivers.load_path import LoadPath, Previous, Step, run_steps
 from ..drivers.solve import Enforce
@@ -355,9 +355,10 @@ def adapt(
     on_level: Callable[[SceneLevel], None] | None = None,
     verbose: bool | None = None,
     u0: fem.Function | None = None,
+    keep: Callable[[SceneLevel], bool] | None = None,
     **options: Any,
 ) -> AdaptResult:
-    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
     The loop of ``contact.drivers.adaptive.adapt`` over the scene: each level is the
     scene on a refinement of its mesh, its problem built and solved as :func:`solve` does,
@@ -376,31 +377,30 @@ def adapt(
             CLI writes the level's files there).
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The first level's initial guess (a load step's previous solution).
+        keep: Which levels keep their solution once the next level is estimated (and
+            ``on_level`` has written it): the others are released
+            (:meth:`~contact.drivers.adaptive.Level.release`: their rows, iterations, η
+            and errors stay) and the loop's memory follows its last level. None (the
+            default) keeps every level whole; ``lambda level: False`` releases all but
+            the last.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
-            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``.
+            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
+            ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
+            ``pictures``.
 
     Returns:
         The levels and the reason the loop stopped.
 
     Raises:
         ConfigError: For an unknown or invalid option (one line naming it).
-        ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
+        ValueError: If ``scene`` is not a Scene or ``on_level`` or ``keep`` is not callable.
 
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
-        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
-        >>> [level.index for level in run.levels], run.stop
-        ([0, 1, 2], 'reached max_levels = 3')
-        >>> run.levels[-1].error < run.levels[0].error
-        True
+    :func:`contact.adapt` (which also runs the hp loop) shows it at work.
     """
-    if on_level is not None and not callable(on_level):
-        raise ValueError(
-            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
-        )
+    check_on_level(on_level)
     opts = adapt_options(scene, **options)
+    if opts.strategy == "hp":  # contact.adapt and the CLI dispatch it to contact.hp
+        raise ConfigError("adapt.strategy: hp runs one solve per level (no load path, no study)")
     config = scene.config
     verbose = config.output.verbose if verbose is None else verbose
     solver = config.solver
@@ -430,26 +430,21 @@ def adapt(
         fields = {f: getattr(level, f) for f in Level.__dataclass_fields__}
         return SceneLevel(**fields, scene=scene_of(level.domain))
 
-    levels: list[SceneLevel] = []
-
-    def seen(level: Level) -> None:
-        levels.append(scene_level(level))
-        if on_level is not None:
-            on_level(levels[-1])
-
     run = adapt_domain(
         lambda domain: build_problem(scene_of(domain)),
         root,
         options=opts,
         kind=config.estimator,
         u0=u0,
-        on_level=seen,
+        on_level=on_level,  # type: ignore[arg-type]  # called with the SceneLevels
+        keep=keep,  # type: ignore[arg-type]
+        make_level=scene_level,
         solve=level_solve,
         budget=max_dofs(solver, scene.mesh.geometry.dim),
         stopping=(solver.gamma_lin, solver.gamma_alg) if solver.stopping == "adaptive" else None,
         verbose=verbose,
     )
-    return AdaptResult(list(levels), run.stop)
+    return run
 
 
 @dataclass
@@ -624,6 +619,16 @@ def is_problem(subject: Any) -> bool:
     :class:`~contact.models.forms.ComplementarityProblem`).
     """
     return isinstance(getattr(subject, "problem", subject), DiscreteProblem)
+
+
+def is_builder(subject: Any) -> bool:
+    """Return whether ``subject`` is a user's builder of problems (a callable)."""
+    return callable(subject)
+
+
+def is_domain(subject: Any) -> bool:
+    """Return whether ``subject`` is a :class:`~contact.adaptivity.refine.Domain`."""
+    return isinstance(subject, Domain)
 
 
 def either[**P, R](

@@ -41,24 +41,10 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     data = cfg.data
     V = fem.functionspace(msh, ("Lagrange", degree))
     tdim = msh.topology.dim
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    # a scalar model's data are single expressions (a list is refused at load)
-    assert isinstance(data.f, str) and isinstance(data.t, str)
-    k, f = coefficient(data.k, scene), coefficient(data.f, scene)
-    t, t_C = coefficient(data.t, scene), coefficient(data.t_C, scene)
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
+    a, L, forms = scalar_forms(scene, V)
+    k, f, t, t_C, ds = (forms[key] for key in ("k", "f", "t", "t_C", "ds"))
     dx = ufl.Measure("dx", domain=msh)
     signorini = cfg.model.type == "signorini"
-
-    # a(u, v) = ∫ k ∇u·∇v dx
-    a = fem.form(k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx)
-    # L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} + ⟨t_C, v⟩_{Γ_C}
-    L = f * v * dx
-    for i in bnd.ids_with_role("neumann"):
-        L += t * v * ds(i)
-    for i in bnd.ids_with_role("contact"):
-        L += t_C * v * ds(i)
-    L = fem.form(L)
 
     # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
     u_D = interpolate_expression(V, data.u_D, scene)
@@ -81,8 +67,32 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     semicoercive = msh.comm.allreduce(len(dirichlet_dofs), op=MPI.SUM) == 0
     if semicoercive:
         check_semicoercive(b, condition.sign, cfg.model.type)
+    physics = scalar_physics(scene, forms)
+    return Problem(
+        V,
+        fem.Function(V, name="u_h"),
+        bcs,
+        K,
+        b,
+        contact.constraint,
+        **contact.fields,
+        semicoercive=semicoercive,
+        data={"k": k, "f": f, "t": t, "t_C": t_C, "ds": ds, "exact": data.exact, **contact.data},
+        assembly_time=time.perf_counter() - t0,
+        physics=physics,
+        contacts=(condition,),
+    )
+
+
+def scalar_physics(scene: Scene, forms: dict) -> Diffusion:
+    """The scene's :class:`~contact.models.physics.Diffusion` equations over the UFL data
+    ``forms`` of :func:`scalar_forms` (what the estimators check)."""
+    cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
+    data = cfg.data
+    k, f, t, t_C = (forms[key] for key in ("k", "f", "t", "t_C"))
+    signorini = cfg.model.type == "signorini"
     contact_ids = bnd.ids_with_role("contact")
-    physics = Diffusion(
+    return Diffusion(
         k,
         f,
         BoundaryData(
@@ -99,20 +109,27 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
         else expressions.to_ufl(str(data.exact), msh, cfg.constants, t=scene.time),
         dirichlet_value=lambda space: interpolate_expression(space, data.u_D, scene),
     )
-    return Problem(
-        V,
-        fem.Function(V, name="u_h"),
-        bcs,
-        K,
-        b,
-        contact.constraint,
-        **contact.fields,
-        semicoercive=semicoercive,
-        data={"k": k, "f": f, "t": t, "t_C": t_C, "ds": ds, "exact": data.exact, **contact.data},
-        assembly_time=time.perf_counter() - t0,
-        physics=physics,
-        contacts=(condition,),
-    )
+
+
+def scalar_forms(scene: Scene, V: fem.FunctionSpace) -> tuple[fem.Form, fem.Form, dict]:
+    """The compiled forms a(u, v) = ∫ k ∇u·∇v dx and L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} +
+    ⟨t_C, v⟩_{Γ_C} of the scene on the Lagrange space V, and the UFL data k, f, t, t_C and
+    the boundary measure ds (a dict)."""
+    data, msh, bnd = scene.config.data, scene.mesh, scene.boundary
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    # a scalar model's data are single expressions (a list is refused at load)
+    assert isinstance(data.f, str) and isinstance(data.t, str)
+    k, f = coefficient(data.k, scene), coefficient(data.f, scene)
+    t, t_C = coefficient(data.t, scene), coefficient(data.t_C, scene)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
+    dx = ufl.Measure("dx", domain=msh)
+    a = k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx
+    L = f * v * dx
+    for i in bnd.ids_with_role("neumann"):
+        L += t * v * ds(i)
+    for i in bnd.ids_with_role("contact"):
+        L += t_C * v * ds(i)
+    return fem.form(a), fem.form(L), {"k": k, "f": f, "t": t, "t_C": t_C, "ds": ds}
 
 
 #: |L(1)| below this fraction of Σ_i |b_i| counts as a zero resultant

@@ -77,7 +77,9 @@ ELASTIC_MODELS = ("elasticity", "hyperelastic")
 MODELS = ("signorini", "obstacle", *ELASTIC_MODELS)
 HYPERELASTIC_LAWS = ("neo_hookean", "saint_venant_kirchhoff")
 FRICTION_LAWS = ("none", "tresca", "coulomb")
-STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+STRATEGIES = ("dorfler", "maximum", "uniform", "hp", "none")
+#: the largest polynomial degree ``adapt.p_max`` accepts (Lagrange P_{p_max} carries V_hp)
+MAX_DEGREE = 8
 MESH_TYPES = (
     "rectangle",
     "unit_square",
@@ -375,17 +377,30 @@ class SolverConfig(SolverOptions, Section):
 Fraction = Annotated[float, BeforeValidator(number(half_open_unit))]
 NonNegative = Annotated[float, BeforeValidator(number(nonnegative))]
 Count = Annotated[int, BeforeValidator(integer(positive))]
+
+
+def _degree(v: int) -> str | None:
+    return None if 1 <= v <= MAX_DEGREE else f"must lie in 1..{MAX_DEGREE}, got {v}"
+
+
+#: a polynomial degree of V_hp (1 … MAX_DEGREE)
+Degree = Annotated[int, BeforeValidator(integer(_degree))]
 Switch = Annotated[bool, BeforeValidator(boolean)]
 
 
 class AdaptConfig(AdaptOptions, Section):
     """A scene's ``adapt`` section (docs/theory.md §6): the loop's knobs
     (:class:`~contact.solvers.options.AdaptOptions`: ``strategy``, ``theta``, ``tol``,
-    ``max_dofs``, ``max_levels``, ``nested``, ``rebalance``, ``newton_rtol``) and
-    ``pictures`` — levels drawn."""
+    ``max_dofs``, ``max_levels``, ``nested``, ``rebalance``, ``newton_rtol``), ``strategy``
+    also hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`), ``pictures`` —
+    levels drawn; ``p_max``, ``p_start`` — with ``hp``, the largest degree and every
+    cell's first degree."""
 
     KEYWORDS: ClassVar[bool] = True  # also the keywords of contact.adapt: None = not given
+    strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
     pictures: Annotated[int, BeforeValidator(integer(nonnegative))] = 3
+    p_max: Degree = 6
+    p_start: Degree = 1
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptConfig:
@@ -786,10 +801,20 @@ class OutputConfig(Section):
     """The ``output`` section: the folder (``dir``; default ``results/<name>``), the field
     files (``formats``: xdmf — solution.xdmf + .h5, for ParaView —, vtk — solution.vtu,
     for pyvista; a series for levels and load steps), pictures (``png``), progress
-    (``verbose``).  ``xdmf`` / ``vtk`` true or false switch one format on or off; then
-    ``formats`` alone says what is written."""
+    (``verbose``), an adaptive run's field files of every level or of the last only
+    (``levels``: all, written as the loop goes; last, once it stops).  ``xdmf`` / ``vtk``
+    true or false switch one format on or off; then ``formats`` alone says what is
+    written."""
 
-    KEYS: ClassVar[tuple[str, ...]] = ("dir", "formats", "xdmf", "vtk", "png", "verbose")
+    KEYS: ClassVar[tuple[str, ...]] = (
+        "dir",
+        "formats",
+        "xdmf",
+        "vtk",
+        "png",
+        "verbose",
+        "levels",
+    )
 
     dir: Annotated[str | None, BeforeValidator(string(_not_empty))] = None
     xdmf: Switch | None = Field(None, exclude=True, repr=False)
@@ -799,6 +824,7 @@ class OutputConfig(Section):
     )
     png: Switch = True
     verbose: Switch = True
+    levels: Annotated[str, BeforeValidator(one_of(("all", "last")))] = "all"
 
     @field_validator("formats", mode="before")
     @classmethod

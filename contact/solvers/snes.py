@@ -22,7 +22,7 @@ from ..base.lifetime import Owner
 from ..base.norms import norm1, norm2, norm_inf
 from ..base.timing import Stopwatch
 from . import ncp
-from .linear import assembled_kind
+from .krylov_curvature import KrylovCurvatureSystem
 from .newton import BlockComplementarity, Complementarity
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .predictor import tangent_predictor
@@ -30,7 +30,7 @@ from .problem import DiscreteProblem, nodal_scaling
 from .reduced import ReducedSystem
 from .result import Result, finish
 from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
-from .strategies import choose, complementarity
+from .strategies import choose, complementarity, energy_linear
 
 _counter = itertools.count()
 
@@ -212,7 +212,8 @@ class SemismoothNewton:
             if self.predict:  # the step's increments lifted by the tangent at u0
                 problem.linearize(x)
                 self._scaling()
-                self.predicted = tangent_predictor(cp, x)
+                krylov = isinstance(self.system, KrylovCurvatureSystem)
+                self.predicted = tangent_predictor(cp, x, krylov=krylov)
             set_dirichlet(x, problem.bcs)
             problem.linearize(x)
             self._scaling()
@@ -477,16 +478,17 @@ def energy_line_search(
         and problem.friction is None
         and problem.current is None
     )
-    direct = assembled_kind(problem, options.linear, user) == "direct"
-    if options.line_search == "energy" and not (applies and direct):
+    linear = energy_linear(problem, options, user)
+    if options.line_search == "energy" and not (applies and linear):
         why = (
-            "a direct solver (its tangent's inertia): solver.linear direct"
+            "a direct solver (its tangent's inertia) or CG + GAMG (its indefiniteness "
+            "test): solver.linear direct or gamg"
             if applies
             else "a body with an energy (model.type hyperelastic) against a plane, without "
             "friction, and method fb, min or blend"
         )
         raise ConfigError(f"solver.line_search: energy needs {why}")
-    if options.line_search == "auto" and applies and direct:
+    if options.line_search == "auto" and applies and linear:
         return options.model_copy(update={"line_search": "energy"})
     return options
 

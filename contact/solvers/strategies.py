@@ -7,7 +7,8 @@
   (:class:`~.current.CurrentComplementarity`, with or without friction);
 * the Newton method (a :class:`Strategy`): semismooth Newton on the diagonal law
   (:class:`DiagonalNewton`: the Newton system of :mod:`.linear` — assembled, reduced CG + GAMG,
-  or the energy search's factorized system of :mod:`.curvature` — and the line-search
+  or the energy search's system: factorized (:mod:`.curvature`) or CG + GAMG with an
+  indefiniteness test (:mod:`.krylov_curvature`) — and the line-search
   pre-check: active-set polishing, min's cycle guard or the energy search), on a block law
   (:class:`BlockNewton`: H = B K + D assembled, or the reduced block system of
   :mod:`.block_system`), or one of PETSc's VI solvers (:class:`PetscVI`);
@@ -31,7 +32,8 @@ from ..base.timing import Timer
 from . import ncp
 from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
 from .energy_search import EnergySearch
-from .globalize import GuardedMin
+from .globalize import Guarded, GuardedMin
+from .krylov_curvature import KrylovCurvatureSystem
 from .linear import (
     AssembledSystem,
     ReducedNewtonSystem,
@@ -76,7 +78,7 @@ class Strategy:
 
     system: ReducedNewtonSystem | BlockReducedSystem | AssembledSystem | None = None
     polisher: Polisher | None = None
-    guard: GuardedMin | None = None
+    guard: Guarded | None = None
     search: EnergySearch | None = None
     J: PETSc.Mat
 
@@ -138,21 +140,22 @@ class Strategy:
 class DiagonalNewton(Strategy):
     """Semismooth Newton on Φ of fb / min / blend with the diagonal law H = diag(s) K + diag(d)
     (:mod:`.newton`): the Newton system of :mod:`.linear` (or, with the energy line search,
-    the factorized system of :mod:`.curvature`), and as the line search's pre-check
-    active-set polishing (fb / blend with ``polish``), min's cycle guard (line search
-    ``auto``) or the energy search (:mod:`.energy_search`, polishing inside it)."""
+    the factorized system of :mod:`.curvature` or CG + GAMG of :mod:`.krylov_curvature`),
+    and as the line search's pre-check active-set polishing (fb / blend with ``polish``),
+    min's cycle guard (line search ``auto``) or the energy search (:mod:`.energy_search`,
+    polishing inside it)."""
 
     @staticmethod
     def linear_kind(problem: DiscreteProblem, options: SolverOptions, user: dict) -> str:
-        if options.line_search == "energy":  # the energy search factorizes (its inertia)
-            return "direct"
+        if options.line_search == "energy":  # LDLᵀ and its inertia, or CG + GAMG and its test
+            return energy_linear(problem, options, user) or "direct"
         if problem.nonlinear:  # K = K_T(x) changes: an assembled matrix
             return assembled_kind(problem, options.linear, user)
         return choose_linear(problem, options.linear, user)
 
     @staticmethod
     def defaults(problem: DiscreteProblem, options: SolverOptions, linear: str) -> dict:
-        if options.line_search == "energy":
+        if options.line_search == "energy" and linear == "direct":
             return dict(CURVATURE_PETSC_OPTIONS)
         return petsc_defaults(problem, linear)
 
@@ -160,7 +163,11 @@ class DiagonalNewton(Strategy):
         problem, cp, opts = self.problem, self.cp, self.options
         energy = opts.line_search == "energy"
         system = self.system = owner.own(
-            CurvatureSystem(problem, prefix)
+            (
+                CurvatureSystem(problem, prefix)
+                if linear == "direct"
+                else KrylovCurvatureSystem(problem, prefix, forcing=opts.inexact)
+            )
             if energy
             else newton_system(problem, linear, prefix, forcing=opts.inexact)
         )
@@ -199,8 +206,9 @@ class BlockNewton(Strategy):
     """Semismooth Newton on Φ of a block law H = B K + D (friction, :mod:`.friction`; contact
     on the current configuration, :mod:`.current`): ``cp.matrix()`` a matrix of the pattern of
     B K, ``cp.block_jacobian(x, H, method, mu)`` the element at x; plain Newton or ``bt``, no
-    polishing.  With ``gmres`` the reduced block system of :mod:`.block_system` solves with
-    GMRES + GAMG from each Jacobian's blocks."""
+    polishing (a friction law with line search ``auto``: the cycle guard of
+    :class:`~.friction.GuardedFriction`).  With ``gmres`` the reduced block system of
+    :mod:`.block_system` solves with GMRES + GAMG from each Jacobian's blocks."""
 
     @staticmethod
     def linear_kind(problem: DiscreteProblem, options: SolverOptions, user: dict) -> str:
@@ -234,6 +242,11 @@ class BlockNewton(Strategy):
 
         self.newton(snes, J, jacobian, timers, state, petsc_options)
         self.J = J
+        if problem.friction is not None and opts.line_search == "auto":
+            from .friction import GuardedFriction
+
+            self.guard = owner.own(GuardedFriction(cp, method, mu, timers, verbose))
+            snes.setLineSearchPreCheck(self.guard)
 
 
 class PetscVI(Strategy):
@@ -253,6 +266,20 @@ def choose(problem: DiscreteProblem, options: SolverOptions) -> type[Strategy]:
     if problem.friction is not None or problem.current is not None:
         return BlockNewton
     return DiagonalNewton
+
+
+def energy_linear(problem: DiscreteProblem, options: SolverOptions, user: dict) -> str | None:
+    """The Newton system of the energy search: ``direct`` (LDLᵀ and its inertia,
+    :mod:`.curvature`) where the assembled path would factorize, ``gamg`` (CG + GAMG and
+    an indefiniteness test, :mod:`.krylov_curvature`) where it would not — 3D elasticity by
+    default, or ``solver.linear: gamg`` —, None for an explicit ``bcgs`` / ``gmres``
+    (BiCGStab / GMRES on the assembled H, plain Newton)."""
+    kind = assembled_kind(problem, options.linear, user)
+    if kind == "direct":
+        return "direct"
+    if options.linear == "gamg" or (options.linear == "auto" and kind == "bcgs"):
+        return "gamg"
+    return None
 
 
 def body_size(problem: DiscreteProblem) -> float:

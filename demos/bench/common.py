@@ -2,11 +2,57 @@
 
 from __future__ import annotations
 
+import collections
+import time
 from pathlib import Path
 
 from contact.output.folder import write_csv
 
 from mpi4py import MPI
+
+#: the adaptive loop's phases (functions of contact.drivers.adaptive) and the key each
+#: one's CPU seconds add up under (:func:`count_phase_cpu`)
+PHASES = {
+    "build_problem": "assembly",
+    "solve": "solve",
+    "estimate": "estimate",
+    "solution_error": "error",
+    "mark": "mark",
+    "refine": "refine",
+}
+#: where the loop looks each phase up: a scene's level is built and solved by
+#: contact.setup.run, estimated, marked and refined by the core's loop (contact.drivers.adaptive)
+PHASE_MODULES = {
+    "build_problem": "contact.setup.run",
+    "solve": "contact.setup.run",
+    "estimate": "contact.drivers.adaptive",
+    "solution_error": "contact.drivers.adaptive",
+    "mark": "contact.drivers.adaptive",
+    "refine": "contact.drivers.adaptive",
+}
+
+
+def count_phase_cpu(cpu: dict[str, float] | None = None) -> dict[str, float]:
+    """Wrap the adaptive loop's phase functions (:data:`PHASES`) so that their CPU seconds
+    add up in ``cpu`` (a new dict if None; keys: the phases' names), which is returned."""
+    import importlib
+
+    cpu = collections.defaultdict(float) if cpu is None else cpu
+
+    def timed(fn, key):
+        def call(*args, **kwargs):
+            c = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                cpu[key] = cpu.get(key, 0.0) + time.process_time() - c
+
+        return call
+
+    for name, key in PHASES.items():
+        module = importlib.import_module(PHASE_MODULES[name])
+        setattr(module, name, timed(getattr(module, name), key))
+    return cpu
 
 
 def save_csv(path: str | Path, rows: list[dict]) -> None:

@@ -147,20 +147,28 @@ def _scalar(problem: Problem) -> tuple[Diffusion, Unilateral]:
 
 
 def guaranteed_bound(
-    problem: Problem, result: Result, backend: str = "compiled", degree: int | None = None
+    problem: Problem,
+    result: Result,
+    backend: str = "compiled",
+    degree: int | None = None,
+    lifting: fem.Function | None = None,
+    multiplier_rule: Any = None,
 ) -> Bound:
     """The bound of the module docstring for a solve of a scalar problem (collective);
     ``backend`` and ``degree``: the patch solver and the flux's degree of
-    :func:`.flux.reconstruct_flux`."""
+    :func:`.flux.reconstruct_flux`; ``lifting``: w of a Signorini scene, if the caller
+    has it (hp: Bernstein coefficients on facets of any degree), else
+    :func:`_bernstein_lifting`; ``multiplier_rule``: :class:`.cells.FluxData`'s."""
     seconds = {}
     t0 = time.perf_counter()
     data, multiplier, sign = flux_data(problem, result)
+    data.multiplier_rule = multiplier_rule
     sigma = -sign  # the constraint sign: σ(u − g) ≤ 0
     msh = problem.V.mesh
     u_h, k = result.u_h, data.k
     DG0 = fem.functionspace(msh, ("DG", 0))
     v = ufl.TestFunction(DG0)
-    lift = _feasibility(problem, result, sigma, k, v)
+    lift = _feasibility(problem, result, sigma, k, v, lifting)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
     flux = reconstruct_flux(data, multiplier, sign, backend=backend, degree=degree)
@@ -274,7 +282,9 @@ def _obstacle(bound: Any, problem: Problem) -> Any:
     return problem.bound_function()
 
 
-def _feasibility(problem: Problem, result: Result, sigma: float, k, w_test) -> _Lifting:
+def _feasibility(
+    problem: Problem, result: Result, sigma: float, k, w_test, lifting: fem.Function | None = None
+) -> _Lifting:
     u_h = result.u_h
     physics, condition = _scalar(problem)
     msh = problem.V.mesh
@@ -305,7 +315,11 @@ def _feasibility(problem: Problem, result: Result, sigma: float, k, w_test) -> _
         )
     g_h = problem.bound_function()
     contact = condition.ids
-    w = _bernstein_lifting(u_h, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
+    w = (
+        _bernstein_lifting(u_h, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
+        if lifting is None
+        else lifting
+    )
     ds = boundary.measure(msh)
     return _Lifting(
         ufl.grad(w),
