@@ -16,7 +16,10 @@ A path may have any number of steps: once step k is solved (and ``on_step`` has 
 output), step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its
 functions, scene and meshes dropped — and keeps only its figures.  Every live function holds
 MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
-keeping every step whole (``keep_all``) suits short paths only.
+keeping every step whole (``keep_all``) suits short paths only.  With ``forget`` a released
+step is dropped altogether (``LoadPath.forgotten`` counts them): the path's memory does not
+grow with its steps, for a caller whose ``on_step`` keeps what it needs (the CLI writes each
+step's figures to disk).
 """
 
 from __future__ import annotations
@@ -71,10 +74,16 @@ class LoadPath:
     inverted: str = ""  # the first step whose solution inverts matter (det F <= 0)
     # what the energy search did, one line per step where it did anything (hyperelastic)
     tangent_events: list[str] = field(default_factory=list)
+    forgotten: int = 0  # converged steps dropped before ``steps`` (run_load_path's forget)
 
     @property
     def converged(self) -> bool:
         return bool(self.steps) and all(s.result.converged for s in self.steps)
+
+    @property
+    def count(self) -> int:
+        """The number of steps, forgotten ones included."""
+        return self.forgotten + len(self.steps)
 
 
 def load_times(cfg: SceneConfig) -> list[float]:
@@ -134,6 +143,7 @@ def run_load_path(
     adaptive: bool | None = None,
     adapt_options: dict | None = None,
     keep_all: bool = False,
+    forget: bool = False,
     **options: Any,
 ) -> LoadPath:
     """Solve the scene's load path step by step (see the module doc); ``on_step`` is called
@@ -144,7 +154,8 @@ def run_load_path(
     times in a row; each cut is reported (``LoadPath.cuts``, verbose output) and the failed
     attempt is not a step (``on_step`` sees converged steps and the final failure only).
     The last step stays whole, and the last converged one before a failed step; the others
-    are released when the next one is solved (:meth:`Step.release`), unless ``keep_all``.
+    are released when the next one is solved (:meth:`Step.release`), unless ``keep_all``,
+    and with ``forget`` dropped from ``LoadPath.steps`` (counted in ``forgotten``).
     ``adaptive``: run the adaptive loop (default: when the scene has an ``adapt``
     section), with ``adapt_options`` overriding that section; ``options`` are solver
     options as for :func:`contact.solve`.
@@ -166,7 +177,7 @@ def run_load_path(
     pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
     while pending:
         t, depth = pending.pop(0)
-        k = len(out.steps) + 1
+        k = out.count + 1
         t0 = time.perf_counter()
         step_scene = Scene(
             scene.config,
@@ -223,8 +234,11 @@ def run_load_path(
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
+            if forget and len(out.steps) > 2:
+                del out.steps[0]
+                out.forgotten += 1
     else:
-        out.stop = f"reached t = {times[-1]:g} in {len(out.steps)} step(s)" + _notes(out)
+        out.stop = f"reached t = {times[-1]:g} in {out.count} step(s)" + _notes(out)
     return out
 
 

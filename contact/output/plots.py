@@ -9,7 +9,9 @@ gathered on one rank with :func:`contact.output.vtk.gather_grid` and drawn there
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import errno
+import warnings
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -195,42 +197,97 @@ def _active_points(grid) -> np.ndarray:
 @dataclass(frozen=True)
 class Picture:
     """A picture of fields: the point ``fields`` gathered on one grid (all ranks hold them)
-    and ``draw(grid)``, which writes the file on the rank that holds the grid.  A picture
-    without fields (a chart) is drawn by its rank with ``grid`` None."""
+    and ``draw(grid)``, which writes the file ``path`` on the rank that holds the grid.  A
+    picture without fields (a chart) is drawn by its rank with ``grid`` None; ``root``: its
+    data are held by rank 0 only (a contact table), so rank 0 draws it."""
 
     fields: list
     draw: Callable[[Any], None]
+    path: Path | None = None
+    root: bool = False
 
 
 #: how many ranks draw pictures at once (None: all; 1: rank 0 draws every picture, the old
 #: path, kept to measure the difference)
 DRAW_RANKS: int | None = None
+#: OS errors that are the folder's, not a picture's: a picture that meets one fails the run
+WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO}
+WRITTEN = "written"
 
 
-def draw_in_turn(pictures: Sequence[Picture], comm) -> None:
+def draw_in_turn(pictures: Sequence[Picture], comm) -> dict[str, str]:
     """Draw ``pictures`` (collective): picture k is gathered on rank k mod n and drawn
-    there, n = ``comm.size`` (or :data:`DRAW_RANKS`).  With n > 1 every rank first gathers
-    its pictures, then draws them, all ranks at once; put the largest first, so that the
-    two largest go to different ranks.  With n = 1 each picture is drawn as soon as it is
-    gathered (one grid held at a time).  Ends with a barrier: every file exists when it
-    returns."""
+    there, n = ``comm.size`` (or :data:`DRAW_RANKS`); a ``root`` picture on rank 0.  With
+    n > 1 every rank first gathers its pictures, then draws them, all ranks at once; put the
+    largest first, so that the two largest go to different ranks.  With n = 1 each picture
+    is drawn as soon as it is gathered (one grid held at a time).
+
+    A picture that fails costs one warning line naming it (a ContactWarning on the rank
+    that drew it; a partial file is removed) and nothing else: the run and its other files
+    go on.  A full disk (:data:`WRITE_ERRNOS`) is not the picture's failure but the
+    folder's: every rank raises :class:`contact.output.folder.OutputError`.
+
+    Returns, on every rank, ``{file name: "written" | "not written: <reason>"}`` of the
+    pictures with a ``path``; every file exists when it returns."""
     n = min(comm.size, DRAW_RANKS or comm.size)
-    mine = []
+    mine: list = []
+    done: dict[str, tuple[str, str]] = {}
     for k, picture in enumerate(pictures):
-        grid = gather_grid(picture.fields, root=k % n) if picture.fields else None
-        if comm.rank == k % n:
-            mine.append((picture, grid))
+        owner = 0 if picture.root else k % n
+        try:
+            grid = gather_grid(picture.fields, root=owner) if picture.fields else None
+        except Exception as err:  # noqa: BLE001 - the picture's failure, reported by its owner
+            grid = _Failed(err)
+        if comm.rank == owner:
+            name = Path(picture.path).name if picture.path is not None else f"picture {k}"
+            mine.append((name, picture, grid))
         if n == 1:
-            _draw(mine)
-    _draw(mine)
-    comm.Barrier()
+            _draw(mine, done)
+    _draw(mine, done)
+    outcomes: dict[str, tuple[str, str]] = {}
+    for part in comm.allgather(done):
+        outcomes.update(part)
+    full = [text for kind, text in outcomes.values() if kind == "disk"]
+    if full:
+        from .folder import OutputError
+
+        raise OutputError(full[0])
+    return {name: text for name, (_, text) in outcomes.items()}
 
 
-def _draw(held: list) -> None:
-    """Draw the (picture, grid) pairs of ``held`` and let go of their grids."""
+@dataclass(frozen=True)
+class _Failed:
+    """What a failed gather leaves for the picture's owner to report."""
+
+    error: BaseException
+
+
+def _draw(held: list, done: dict[str, tuple[str, str]]) -> None:
+    """Draw the (name, picture, grid) of ``held``, let go of their grids and note in
+    ``done`` how each went: (kind, text) by name, kind "ok", "failed" or "disk"."""
     while held:
-        picture, grid = held.pop(0)
-        picture.draw(grid)
+        name, picture, grid = held.pop(0)
+        try:
+            if isinstance(grid, _Failed):
+                raise grid.error
+            picture.draw(grid)
+            done[name] = ("ok", WRITTEN)
+        except Exception as err:  # noqa: BLE001 - a picture's failure costs a warning only
+            if picture.path is not None:
+                Path(picture.path).unlink(missing_ok=True)
+            if isinstance(err, OSError) and err.errno in WRITE_ERRNOS:
+                done[name] = ("disk", f"cannot write {name}: {err.strerror or err}")
+                continue
+            reason = _one_line(f"{type(err).__name__}: {err}")
+            done[name] = ("failed", f"not written: {reason}")
+            from ..setup.surfaces import ContactWarning
+
+            warnings.warn(f"{name} not written: {reason}", ContactWarning, stacklevel=2)
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    line = " ".join(text.split())
+    return line if len(line) <= limit else line[: limit - 1].rstrip() + "…"
 
 
 def solution_picture(
@@ -248,8 +305,10 @@ def solution_picture(
     pressure −λ_h when ``lmbda`` is given."""
     fields = [f for f in (u_h, active, lmbda) if f is not None]
     if u_h.function_space.mesh.geometry.dim == 3:
-        return Picture(fields, lambda grid: _solution_3d(path, grid, u_h, lmbda, normal, title))
-    return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title))
+        return Picture(
+            fields, lambda grid: _solution_3d(path, grid, u_h, lmbda, normal, title), Path(path)
+        )
+    return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title), Path(path))
 
 
 def plot_solution(
@@ -306,8 +365,8 @@ def mesh_picture(
     (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
     fields = [u_h] + ([active] if active is not None else [])
     if u_h.function_space.mesh.geometry.dim == 3:
-        return Picture(fields, lambda grid: _mesh_3d(path, grid, title, normal))
-    return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges))
+        return Picture(fields, lambda grid: _mesh_3d(path, grid, title, normal), Path(path))
+    return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges), Path(path))
 
 
 def plot_mesh(
@@ -675,7 +734,7 @@ def plot_traction(
 def plot_force_displacement(
     path: str | Path,
     x: Sequence[float],
-    force: Sequence[float],
+    force: Sequence[float] | Mapping[str, Sequence[float]],
     xlabel: str,
     title: str = "",
     indefinite: Sequence[bool] = (),
@@ -683,21 +742,30 @@ def plot_force_displacement(
 ) -> None:
     """The contact force of each load step against the load's displacement ``x`` (the
     obstacle's approach, or a prescribed displacement): one marker per step, joined, from
-    (0, 0).  ``indefinite[k]``: the Newton iteration of step k met an indefinite tangent
-    (the energy search acted: a buckle or a snap happens there); ``unstable[k]``: K_T has
-    negative eigenvalues at step k's solution (an unstable equilibrium)."""
+    (0, 0); ``force`` one value per step, or several curves by label (the normal and the
+    tangential force of a frictional path).  ``indefinite[k]``: the Newton iteration of
+    step k met an indefinite tangent (the energy search acted: a buckle or a snap happens
+    there); ``unstable[k]``: K_T has negative eigenvalues at step k's solution (an unstable
+    equilibrium).  The marks go on the first curve."""
     plt = _pyplot()
-    x, force = np.r_[0.0, np.asarray(x, float)], np.r_[0.0, np.asarray(force, float)]
+    curves = force if isinstance(force, Mapping) else {"contact force per step": force}
+    x = np.r_[0.0, np.asarray(x, float)]
     fig, ax = plt.subplots(figsize=(7, 5))
-    ax.plot(x, force, "o-", color="C0", ms=4, label="contact force per step")
+    first = None
+    for k, (label, values) in enumerate(curves.items()):
+        y = np.r_[0.0, np.asarray(values, float)]
+        if len(y) != len(x):
+            raise ValueError(f"force curve {label!r}: {len(y) - 1} values for {len(x) - 1} steps")
+        ax.plot(x, y, "o-", color=f"C{k}", ms=4, label=label)
+        first = y if first is None else first
     for flags, marker, color, label in (
         (indefinite, "s", "C3", "K_T indefinite during the step (energy search acted)"),
         (unstable, "x", "k", "K_T indefinite at the solution (unstable)"),
     ):
         mask = np.r_[False, np.asarray(flags, dtype=bool)] if len(flags) else None
-        if mask is not None and mask.any():
+        if first is not None and mask is not None and mask.any():
             ax.plot(
-                x[mask], force[mask], marker, mfc="none", mec=color, color=color, ms=10, label=label
+                x[mask], first[mask], marker, mfc="none", mec=color, color=color, ms=10, label=label
             )
     ax.set_xlabel(xlabel)
     ax.set_ylabel("contact force (per unit depth in 2D)")
