@@ -1,7 +1,11 @@
 # make demo  — set up .venv if needed, run the default scene on 2 MPI ranks
 # make test  — set up .venv if needed, lint (below), run the test suite (JOBS=2 pytest-xdist
 #              workers, a test file per worker at a time; JOBS=1: one process)
-# make lint  — ruff (lint, format) on contact/ tests/ demos/ and mypy on contact/ (pyproject.toml)
+# make lint  — ruff (lint, format) on contact/ tests/ demos/ docs/ and mypy on contact/ (pyproject.toml);
+#              every variant of the C kernels compiled with -Wall -Wextra -Werror
+#              (tools/check_kernels.py; again only when the sources or the compiler changed)
+# make docs  — the documentation site into docs/_build/html (Sphinx; warnings are errors, the
+#              demos executed at small sizes; docs/README.md)
 # make bench — every benchmark and study, then demos/RESULTS.md (demos/run_bench.py, about 2 hours)
 # make venv-latest — the newest release of every dependency in .venv-latest (test-latest: its tests)
 # make lock  — after test-latest passed: .venv-latest's versions become constraints.txt
@@ -14,7 +18,7 @@ NP    ?= 2
 SCENE ?= configs/signorini_free_boundary.yaml
 JOBS  ?= 2
 
-.PHONY: demo test lint bench venv venv-latest test-latest lock clean
+.PHONY: demo test lint docs bench venv venv-latest test-latest lock clean
 
 venv: $(VENV)/.installed
 
@@ -23,7 +27,7 @@ $(VENV)/.installed: pyproject.toml $(LOCK)
 	@tools/find-python >/dev/null || exit 1
 	@[ -x $(PY) ] || $$(tools/find-python) -m venv $(VENV)
 	$(PY) -m pip install --quiet -c $(LOCK) pip
-	$(PY) -m pip install --quiet -c $(LOCK) -e '.[test]'
+	$(PY) -m pip install --quiet -c $(LOCK) -e '.[test,docs]'
 	$(PY) -c "import contact, dolfinx; print('contact ready: DOLFINx', dolfinx.__version__)"
 	@touch $@
 
@@ -34,9 +38,10 @@ test: venv lint
 	$(VENV)/bin/python -m pytest -q $(if $(filter 1,$(JOBS)),,-n $(JOBS) --dist loadfile) tests
 
 lint: venv
-	$(VENV)/bin/ruff check contact tests demos
-	$(VENV)/bin/ruff format --check contact tests demos
+	$(VENV)/bin/ruff check contact tests demos docs/conf.py docs/paraview tools/check_kernels.py
+	$(VENV)/bin/ruff format --check contact tests demos docs/conf.py docs/paraview tools/check_kernels.py
 	$(VENV)/bin/mypy
+	$(PY) tools/check_kernels.py --stamp $(VENV)/.kernels-checked
 
 # the newest releases, in a venv of their own (never the tested .venv): upgrades are deliberate
 venv-latest:
@@ -44,7 +49,7 @@ venv-latest:
 	rm -rf $(LATEST)
 	$$(tools/find-python) -m venv $(LATEST)
 	$(LATEST)/bin/python -m pip install --quiet --upgrade pip
-	$(LATEST)/bin/python -m pip install --quiet --upgrade -e '.[test]'
+	$(LATEST)/bin/python -m pip install --quiet --upgrade -e '.[test,docs]'
 	$(LATEST)/bin/python -c "import contact, dolfinx; print('latest: DOLFINx', dolfinx.__version__)"
 	@tools/lock $(LATEST) | diff <(grep -v '^#' $(LOCK)) <(grep -v '^#' -) \
 	  && echo "same versions as $(LOCK)" || echo "(<: $(LOCK), >: $(LATEST))"
@@ -56,8 +61,14 @@ lock:
 	@[ -x $(LATEST)/bin/python ] || { echo "make lock: no $(LATEST) (make test-latest)" >&2; exit 1; }
 	tools/lock $(LATEST) > $(LOCK)
 
+# -E: a fresh environment, so that every page is read and every warning shown; -n: nitpicky
+# (every cross-reference must resolve); -W --keep-going: all warnings reported, then an error
+docs: venv
+	rm -rf docs/reference
+	OMP_NUM_THREADS=1 $(VENV)/bin/sphinx-build -b html -E -n -W --keep-going docs docs/_build/html
+
 bench: venv
 	$(VENV)/bin/python demos/run_bench.py
 
 clean:
-	rm -rf results bench .pytest_cache
+	rm -rf results bench .pytest_cache docs/_build docs/reference docs/demos/generated docs/results.md

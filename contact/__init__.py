@@ -16,7 +16,7 @@ try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before do
 except ImportError:  # a conda / Debian DOLFINx needs nothing
     pass
 
-# the public API, bottom (setup) to top (drivers) of the layers (README, "Layout")
+# the public API, bottom (setup) to top (drivers) of the layers (docs/development.md, "Layout")
 from .adaptivity import estimate as _estimate  # noqa: E402
 from .adaptivity import refine as _refine  # noqa: E402
 from .adaptivity.estimate import Estimate  # noqa: E402

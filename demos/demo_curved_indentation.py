@@ -129,7 +129,7 @@ if comm.rank == 0:
     d = [0.0] + [delta * s.time / R for s in nh.steps]
     for name, path in (("linear", lin), ("neo-Hookean", nh)):
         ax1.plot(d, [0.0] + [s.result.contact_force for s in path.steps], "o-", label=name)
-    ax1.set_xlabel("indentation / R")
+    ax1.set_xlabel("indentation / R (dimensionless)")
     ax1.set_ylabel("contact force P (per unit thickness, E = 1)")
     ax1.legend()
     ax1.grid(alpha=0.3)
@@ -141,7 +141,9 @@ if comm.rank == 0:
     ax2.set_xlim(-0.8, 0.8)
     ax2.set_ylim(-0.6, 0.5)
     ax2.set_aspect("equal")
-    ax2.set_title(f"deformed block under the cylinder at {delta / R:.1f} R")
+    ax2.set_xlabel("x (length, scene units)")
+    ax2.set_ylabel("y (length, scene units)")
+    ax2.set_title(f"deformed block under the cylinder at {delta / R:.1f} R (true scale)")
     fig.tight_layout()
     fig.savefig("demo_curved_indentation.png", dpi=100)
     say("wrote demo_curved_indentation.png")

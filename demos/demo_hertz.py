@@ -137,8 +137,8 @@ if comm.rank == 0:
         "k-",
         label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}",
     )
-    ax.set_xlabel("x")
-    ax.set_ylabel("contact pressure")
+    ax.set_xlabel("x, distance from the centre of contact (length, scene units)")
+    ax.set_ylabel("contact pressure −λ_n (stress, units of E)")
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()

@@ -142,7 +142,7 @@ if comm.rank == 0:
     d = [delta * s.time / R for s in nh]
     for name, steps in paths.items():
         ax1.plot([0] + d, [0] + [s.result.contact_force for s in steps.steps], "o-", label=name)
-    ax1.set_xlabel("indentation / R")
+    ax1.set_xlabel("indentation / R (dimensionless)")
     ax1.set_ylabel("contact force P (per unit thickness, E = 1)")
     ax1.legend()
     ax1.grid(alpha=0.3)
@@ -152,7 +152,9 @@ if comm.rank == 0:
     ax2.set_xlim(0, 1.4 * R)
     ax2.set_ylim(delta - 0.05, R)
     ax2.set_aspect("equal")
-    ax2.set_title(f"deformed neo-Hookean quarter at indentation {delta / R:.2f} R")
+    ax2.set_xlabel("x (length, scene units)")
+    ax2.set_ylabel("y (length, scene units)")
+    ax2.set_title(f"deformed neo-Hookean quarter at indentation {delta / R:.2f} R (true scale)")
     ax2.legend(loc="upper right")
     fig.tight_layout()
     fig.savefig("demo_large_deformation.png", dpi=100)

@@ -11,6 +11,7 @@
 # solves F(u_h; φ_i) = w_i λ_i, u_i ≥ ψ_i, λ_i ≥ 0, (u_i − ψ_i) λ_i = 0 at the nodes
 # (w_i = ∫ φ_i dx): λ_h is the force density the dome exerts.  Run it with
 # `python demos/demo_own_forms.py [N]` (N × N cells, default 32; also under `mpirun -n 2`).
+
 import sys
 
 import contact  # before dolfinx

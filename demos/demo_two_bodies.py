@@ -252,9 +252,15 @@ if comm.rank == 0:
         ax.set_xlim(window[:2])
         ax.set_ylim(window[2:])
         ax.set_aspect("equal")
-    axes[0].set_title(f"two cylinders, displacement × {scale:g}")
+    axes[0].set_title(f"two cylinders, displacement magnified × {scale:g}")
     axes[0].legend(loc="upper right", fontsize=8)
-    axes[1].set_title(f"the contact zone: non-matching meshes ({result.dofs} DoFs)")
+    axes[1].set_title(
+        f"the contact zone, displacement magnified × {scale:g}:\nnon-matching meshes "
+        f"({result.dofs} DoFs)"
+    )
+    for ax in axes[:2]:
+        ax.set_xlabel("x (length, scene units)")
+        ax.set_ylabel("y (length, scene units)")
     a_H, p0_H = hz["hertz_a"], hz["hertz_p0"]
     near = np.abs(X[:, 0]) <= 2 * a_H
     slave, master = near & (lam_s != 0), near & (lam_m != 0)
@@ -268,8 +274,8 @@ if comm.rank == 0:
         lw=1,
         label=f"Hertz: a = {a_H:.4f}, p0 = {p0_H:.4f}",
     )
-    axes[2].set_xlabel("x")
-    axes[2].set_ylabel("contact pressure")
+    axes[2].set_xlabel("x (length, scene units; undeformed position)")
+    axes[2].set_ylabel("contact pressure (stress, units of E)")
     axes[2].set_title("pressure on both sides of the interface")
     axes[2].grid(alpha=0.3)
     axes[2].legend(loc="lower center", fontsize=8)

@@ -50,6 +50,23 @@ def script_json(script: str, folder: Path, *args: str, ranks: int = 1) -> object
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def pytest_on_ranks(
+    test_file: str, select: str, ranks: int = 2, timeout: float = 600
+) -> subprocess.CompletedProcess:
+    """The tests of ``test_file`` that ``-k select`` picks, run by pytest on each of
+    ``ranks`` MPI ranks (one ``mpirun``), under ``timeout`` seconds: a rank left waiting
+    is a ``TimeoutExpired``, not a hung suite."""
+    return subprocess.run(
+        [str(MPIRUN), "-n", str(ranks), sys.executable, "-m", "pytest", "-q"]
+        + ["-p", "no:cacheprovider", test_file, "-k", select],
+        cwd=ROOT / "tests",
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"},
+    )
+
+
 def small_scene(path: Path, cells: int = 8, **changes) -> Path:
     """configs/signorini_square.yaml on a ``cells`` × ``cells`` mesh without pictures (they
     take most of a small run's time), with dotted-key ``changes`` (``data__f="1"`` sets

@@ -436,6 +436,8 @@ def test_valid_small_scene_writes_output(tmp_path: Path) -> None:
             "solution.h5",
             "solution.vtu",
             "solution.xdmf",
+            "contact_surface.h5",
+            "contact_surface.xdmf",
             "summary.json",
             "history.csv",
             "solution.png",
@@ -468,3 +470,84 @@ def test_yaml_reads_exponent_floats(text: str, value: Any) -> None:
 
     assert load_yaml(f"k: {text}") == {"k": value}
     assert apply_overrides({}, [f"solver.kappa={text}"]) == {"solver": {"kappa": value}}
+
+
+# ------------------------------------------------------------ every message: one short line
+def _plain_cli(tmp: Path, *args: str) -> subprocess.CompletedProcess:
+    """The CLI with Python's default warnings (not the suite's PYTHONWARNINGS=ignore): a
+    library's warning would show on stderr as a user sees it."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONWARNINGS"}
+    return subprocess.run(
+        [sys.executable, "-m", "contact.app.cli", *args],
+        cwd=tmp,
+        env={**env, "OMP_NUM_THREADS": "1"},
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+INDENT = str(ROOT / "configs" / "hyperelastic_indentation.yaml")
+SQUARE = str(ROOT / "configs" / "signorini_square.yaml")
+SMALL = ("--set", "mesh.cells=[8,4]", "--set", "output.png=false")
+#: (exit code, start of the line, arguments): bad input and failures of every kind
+BATTERY = [
+    (2, "contact: error: solver.methd: unknown key", (SQUARE, "--set", "solver.methd=fb")),
+    (
+        2,
+        "contact: error: load.cuts: must be at most 20",
+        (INDENT, *SMALL, "--set", "load.cuts=1000000"),
+    ),
+    (2, "contact: error: data.f: not a finite number", (SQUARE, "--set", "data.f=sqrt(x - 2)")),
+    (
+        2,
+        "contact: error: obstacle.center[1] (at t = 0.6): not a finite number (inf)",
+        (INDENT, *SMALL, "--set", 'obstacle.center=[0, "R - delta*t + 1/(t - 0.6)"]'),
+    ),
+    (
+        2,
+        "contact: error: obstacle.center[1] (at t = 0.6): not a finite number (nan)",
+        (INDENT, *SMALL, "--set", 'obstacle.center=[0, "R - delta*t + sqrt(0.5 - t)"]'),
+    ),
+    (2, "contact: error: ", ("missing.yaml",)),
+    (1, "contact: error: solver fb did not converge", (SQUARE, "--set", "solver.max_it=1")),
+    (
+        1,  # a load path failing at step 3 after 4 cuts, K_T indefinite from step 2
+        "contact: error: step 3 (t = 0.4125) did not converge (diverged_function_nanorinf)",
+        (INDENT, *SMALL, "--set", 'obstacle.center=[0, "R - delta*t + log(1 - t)"]'),
+    ),
+]
+
+
+@pytest.mark.parametrize("code, start, args", BATTERY, ids=[b[1][16:40] for b in BATTERY])
+def test_every_message_is_one_line_of_at_most_300_characters(tmp_path, code, start, args):
+    """Bad input and failures of the solver through the CLI, warnings shown as Python shows
+    them by default: stderr is exactly one line, ours, of at most 300 characters (no numpy
+    RuntimeWarning with its source line: a non-finite obstacle is named by its key and t,
+    not met by the contact search), and a failed load path keeps its last words: which
+    steps were kept where."""
+    proc = _plain_cli(tmp_path, "run", *args, "-o", "out", "-q")
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == code and len(lines) == 1, proc.stderr
+    assert lines[0].startswith(start) and len(lines[0]) <= 300, lines[0]
+    assert "Warning" not in proc.stderr
+    if code == 1 and "step" in start:
+        assert lines[0].endswith("kept steps 1-2 in out/ (summary.json: converged false)")
+
+
+def test_warnings_print_as_one_line(capsys):
+    """The CLI prints any warning — the project's and a library's — as one line of at most
+    300 characters, not Python's two (the message and its source line)."""
+    import warnings
+
+    from contact.app.cli import _one_line_warning
+    from contact.setup.surfaces import ContactWarning
+
+    _one_line_warning("zone too small " * 40, ContactWarning, "x.py", 3)
+    _one_line_warning("invalid value encountered in divide", RuntimeWarning, "/a/b/obst.py", 284)
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].startswith("contact: warning: zone too small") and len(lines[0]) == 300
+    assert lines[1] == (
+        "contact: warning: RuntimeWarning: invalid value encountered in divide (obst.py:284)"
+    )
+    assert len(lines) == 2 and warnings.showwarning is not _one_line_warning

@@ -76,8 +76,8 @@ def test_every_test_dependency_is_used() -> None:
 
 
 def test_make_test_lints_first() -> None:
-    """`make test` (and so CI) runs `make lint` first: ruff check, ruff format --check and mypy,
-    with the versions of constraints.txt."""
+    """`make test` (and so CI) runs `make lint` first: ruff check, ruff format --check, mypy
+    and the C kernels' -Werror compiles, with the versions of constraints.txt."""
     makefile = (ROOT / "Makefile").read_text()
     assert re.search(r"^test: venv lint$", makefile, re.M)
     lint = makefile.split("\nlint: venv\n", 1)[1].split("\n\n", 1)[0]
@@ -88,3 +88,5 @@ def test_make_test_lints_first() -> None:
     ):
         assert f"$(VENV)/bin/{command}" in lint, command
     assert {"ruff", "mypy"} <= _declared("test")
+    # and the C kernels, every variant with -Wall -Wextra -Werror (tests/test_kernel_cache.py)
+    assert "$(PY) tools/check_kernels.py" in lint

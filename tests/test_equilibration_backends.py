@@ -140,7 +140,7 @@ def test_no_compiler_falls_back(tmp_path, monkeypatch, missing: str) -> None:
     else:
         (tmp_path / "file").write_text("")
         monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "file" / "cache"))
-    monkeypatch.setattr(compiled, "_LOADED", {})
+    monkeypatch.setattr(compiled, "_RUN", compiled._Run())
     with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
         flux = reconstruct_flux(data, multiplier, sign)
     assert np.array_equal(flux.sigma_h.x.array, expected)
@@ -151,13 +151,13 @@ def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
     hands one machine's -march=native library to another: the file name hashes the CPU's
     model and flags and the compiler command; the same machine finds its own file again."""
     dims = compiled.dimensions(reference(2, 1), 3)  # P1 in 2D: dim P_1 = 3
-    here = compiled._path(dims)
-    assert compiled._path(dims) == here
+    here = compiled.entry("eqlb", dims).manifest
+    assert compiled.entry("eqlb", dims).manifest == here
     monkeypatch.setattr(compiled, "_cpu", lambda: "model name : other\nflags : sse2\n")
-    assert compiled._path(dims) != here
+    assert compiled.entry("eqlb", dims).manifest != here
     monkeypatch.undo()
     monkeypatch.setenv("CC", "clang")
-    assert compiled._path(dims) != here
+    assert compiled.entry("eqlb", dims).manifest != here
 
 
 LOWEST = ["A_P1", "ex9", "A_3D"]

@@ -434,6 +434,21 @@ def test_mark_maximum_uniform_and_unknown(dg0):
         mark(dg0, "bisection", 0.5)
 
 
+@pytest.mark.parametrize("strategy, theta", [("dorfler", 0.05), ("maximum", 1.0)])
+def test_mark_treats_indicators_apart_by_solver_tolerance_alike(dg0, strategy, theta):
+    """Mirror-image cells at the threshold, one of them taken by the threshold itself: their
+    η_T² differ by the solver's tolerance where the partition changed the solve (2e-8 near
+    the threshold: hertz_3d, CG + GAMG on 1 and 3 ranks), so both are marked on any
+    partition; a pair 1e-4 apart is not a tie and is split."""
+    n_owned = dg0.function_space.dofmap.index_map.size_local
+    for gap, marked in ((1e-8, 2), (1e-4, 1)):
+        dg0.x.array[:] = 1.0
+        dg0.x.array[[3, 77]] = 3.0, 3.0 * (1 - gap)  # η_T² = 9 and 9 (1 − 2 gap)
+        # Dörfler: 9 ≥ 0.05 Σ η_T² = 0.05 (18 + 138), so τ = 9; maximum: θ max η_T = 3
+        cells = mark(dg0, strategy, theta)
+        assert n_owned == 140 and len(cells) == marked and 3 in cells, (gap, cells)
+
+
 # ---------------------------------------------------------------------------------------
 # 4. REFINE: boundary tags and the nested-iteration interpolant
 # ---------------------------------------------------------------------------------------

@@ -237,13 +237,14 @@ def test_adaptive_run_failing_at_level_2_keeps_levels_0_and_1(tmp_path: Path, ra
 def test_readme_documents_the_exit_codes() -> None:
     from contact.app import failures
 
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "guide" / "safe-runs.md").read_text()
     rows = {
         line.split("|")[1].strip(): line
         for line in text.splitlines()
-        if line.startswith("| ") and line.split("|")[1].strip() in ("0", "1", "2", "3", "130")
+        if line.startswith("| ")
+        and line.split("|")[1].strip() in ("0", "1", "2", "3", "130", "143")
     }
-    assert set(rows) == {"0", "1", "2", "3", "130"}
+    assert set(rows) == {"0", "1", "2", "3", "130", "143"}
     assert (
         "solved" in rows[str(failures.SOLVED)]
         and "did not converge" in rows[str(failures.NOT_CONVERGED)]
@@ -253,4 +254,5 @@ def test_readme_documents_the_exit_codes() -> None:
         and "internal error" in rows[str(failures.INTERNAL)]
     )
     assert "interrupted (Ctrl-C" in rows[str(failures.INTERRUPTED)]
+    assert "terminated (SIGTERM" in rows[str(failures.TERMINATED)]
     assert "--debug" in text and "CONTACT_DEBUG=1" in text

@@ -12,6 +12,7 @@ scene configs/hyperelastic_block.yaml is in tests/test_cli_mpi.py."""
 from __future__ import annotations
 
 import csv
+import json
 import subprocess
 import sys
 
@@ -151,6 +152,11 @@ def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim)
     comm = scene.comm
     force, area = comm.allreduce(float(np.sum(w * p))), comm.allreduce(float(np.sum(w)))
     assert force / area == pytest.approx(-P22, rel=1e-8)
+    # the whole block's force: the images across x = 0 (and y = 0) press alongside, the one
+    # across the floor (normal to the force) is a second plate, not counted: 2^(dim-1) tops
+    assert r.problem.symmetric_copies == 2**dim and area == pytest.approx(1.0)
+    assert r.contact_force == pytest.approx(-(2 ** (dim - 1)) * P22, rel=1e-8)
+    assert r.problem.copies_along(np.eye(dim)[0]) == 2 ** (dim - 1)  # a force along x
     X = r.u_h.function_space.tabulate_dof_coordinates()[:, :dim]
     exact = X * np.r_[[l1 - 1] * (dim - 1), -0.3]
     assert np.max(np.abs(r.u_h.x.array.reshape(-1, dim) - exact)) < 1e-8
@@ -408,9 +414,11 @@ def test_bad_hyperelastic_input_names_the_key(change, key):
 
 def test_cli_block_writes_the_force_of_every_step(tmp_path):
     """``contact run configs/hyperelastic_block.yaml``: exit 0, steps.csv's contact force of
-    each step is the analytic plate force at λ₂ = 1 − 0.3 t (4 quarters × width 1 × −P₂₂)
-    to 1e-8, and the XDMF series holds u_h for ParaView's Warp By Vector; a bad law is
-    exit 2 with one line naming model.law."""
+    each step is the analytic plate force at λ₂ = 1 − 0.3 t to 1e-8: the whole block on its
+    floor, 2 quarters side by side × width 1 × −P₂₂ (the mirror image across the floor
+    y = 0, normal to the force, is a second plate pressing upwards: not added), the same in
+    summary.json and from contact.csv's pressures; the XDMF series holds u_h for ParaView's
+    Warp By Vector; a bad law is exit 2 with one line naming model.law."""
     scene = str(ROOT / "configs" / "hyperelastic_block.yaml")
     proc = cli(tmp_path, "run", scene, "-o", "out", "-q", "--set", "output.png=false")
     assert proc.returncode == 0, proc.stderr
@@ -420,11 +428,20 @@ def test_cli_block_writes_the_force_of_every_step(tmp_path):
     assert all(int(r["newton_iterations"]) <= 8 for r in rows)  # issue 31's bound per step
     for r in rows:
         _, P22 = uniaxial_stretch("neo_hookean", E, NU, 1 - 0.3 * float(r["time"]), 2)
-        assert float(r["contact_force"]) == pytest.approx(-4 * P22, rel=1e-8)
+        assert float(r["contact_force"]) == pytest.approx(-2 * P22, rel=1e-8)
         # the force–displacement columns: the plate moved 0.3 t towards the block
         assert float(r["obstacle_approach"]) == pytest.approx(0.3 * float(r["time"]), rel=1e-12)
         assert float(r["prescribed_displacement"]) == 0.0
     assert "u_h" in (tmp_path / "out" / "solution_002.xdmf").read_text()
+    info = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert info["symmetric_copies"] == 4 and info["steps"][-1]["contact_force"] == pytest.approx(
+        -2 * P22, rel=1e-8
+    )
+    table = list(csv.DictReader(open(tmp_path / "out" / "contact.csv")))
+    x = np.array([float(r["x"]) for r in table])
+    p = -np.array([float(r["lambda_n"]) for r in table])  # uniform: the quarter's top, width 1
+    assert np.ptp(x) == pytest.approx(1.0) and np.max(np.abs(p / -P22 - 1)) < 1e-8
+    assert float(rows[-1]["contact_force"]) == pytest.approx(2 * np.mean(p) * np.ptp(x), 1e-8)
     bad = cli(tmp_path, "run", scene, "-o", "bad", "-q", "--set", "model.law=mooney")
     lines = [ln for ln in bad.stderr.splitlines() if ln.strip()]
     assert bad.returncode == 2 and len(lines) == 1 and "model.law" in lines[0], bad.stderr

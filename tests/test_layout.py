@@ -1,9 +1,9 @@
-"""The package's layout (README, "Layout"): the import-linter contracts of pyproject.toml
-hold — the layers app > output > post > drivers > adaptivity > models > setup > solvers >
-base (a package imports only the packages below it), no two modules or packages importing
-each other, solvers that never import a scene, a model or a driver, a scalar model that
-never imports elasticity.  Function-level ("lazy") imports count; imports used only for
-annotations (``if TYPE_CHECKING:``) do not.  That a scalar *run* loads no elasticity module
+"""The package's layout (docs/development.md, "Layout"): the import-linter contracts of
+pyproject.toml hold — the layers app > output > post > drivers > adaptivity > models > setup
+> solvers > base (a package imports only the packages below it), no two modules or packages
+importing each other, solvers that never import a scene, a model or a driver, a scalar model
+that never imports elasticity. Function-level ("lazy") imports count; imports used only for
+annotations (``if TYPE_CHECKING:``) do not. That a scalar *run* loads no elasticity module
 is test_elasticity.py::test_a_run_imports_only_its_own_model."""
 
 from __future__ import annotations

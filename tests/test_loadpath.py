@@ -332,3 +332,60 @@ def test_data_checked_at_every_step():
         contact.ConfigError, match=r"data.u_D\[0\] \(at t = 0.25\): not a finite number"
     ):
         run_load_path(block('data.u_D=["log(t - 0.35)", "-0.01"]', "load.steps=4"))
+
+
+def _pushed_through(cuts: int) -> contact.Scene:
+    """configs/hyperelastic_block.yaml with its plate pushed through twice the block's
+    height in one step: no deformation reaches t = 1 (at t = 0.5 the quarter is flat), so
+    step cutting creeps towards t = 0.5, every cut halving the step again."""
+    scene = ROOT / "configs" / "hyperelastic_block.yaml"
+    sets = ["constants.compression=2", "load.steps=1", f"load.cuts={cuts}"]
+    return contact.load_scene(scene, [*sets, "output.verbose=false"])
+
+
+def test_load_cuts_are_bounded(tmp_path):
+    """``load.cuts`` beyond MAX_STEP_CUTS (20) is bad input naming the key (a million cuts
+    crept towards t = 0.5 for more than 300 s); at the bound the pushed-through block ends
+    with exit 1 and one line naming the step that could not be cut further."""
+    from contact.setup.config import MAX_STEP_CUTS
+
+    from clirun import contact as cli
+
+    assert MAX_STEP_CUTS == 20
+    scene = str(ROOT / "configs" / "hyperelastic_block.yaml")
+    sets = ["constants.compression=2", "load.steps=1", "output.png=false"]
+    args = [a for item in sets for a in ("--set", item)]
+    bad = cli(tmp_path, "run", scene, "-o", "bad", "-q", *args, "--set", "load.cuts=1000000")
+    lines = [ln for ln in bad.stderr.splitlines() if ln.strip()]
+    assert bad.returncode == 2 and len(lines) == 1, bad.stderr
+    assert (
+        lines[0]
+        == "contact: error: load.cuts: must be at most 20 (a step halved 20 times), got 1000000"
+    )
+    proc = cli(
+        tmp_path, "run", scene, "-o", "out", "-q", *args, "--set", "load.cuts=20", timeout=280
+    )
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 1 and len(lines) == 1 and len(lines[0]) <= 300, proc.stderr
+    assert lines[0].startswith("contact: error: step 20 (t = 0.5) did not converge (")
+    assert "cut 20 time(s) in a row (load.cuts: 20)" in lines[0]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["failed_step"] == 20 and len(summary["step_cuts"]) == 20
+
+
+def test_no_cut_below_the_smallest_step(monkeypatch):
+    """A cut that would make a step shorter than MIN_STEP × the last t stops the path
+    instead: here MIN_STEP = 0.01 so that the pushed-through block stops after a few cuts
+    (0.25, 0.375, …, 0.484375: the next cut would be a step of 0.0078), naming the step."""
+    from contact.drivers import load_path
+
+    assert load_path.MIN_STEP == 1e-9
+    monkeypatch.setattr(load_path, "MIN_STEP", 0.01)
+    path = run_load_path(_pushed_through(20))
+    assert not path.converged
+    assert [s.time for s in path.steps[:-1]] == [0.25, 0.375, 0.4375, 0.46875, 0.484375]
+    assert (
+        path.stop.startswith("step 6 (t = 0.5) did not converge (")
+        and "a cut would make the step 0.00781, below the smallest (0.01 of t = 1)" in path.stop
+    )
+    assert len(path.cuts) == 6  # 1 → 0.5, then 0.5 → 0.25 … → 0.484375

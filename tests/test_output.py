@@ -127,7 +127,8 @@ def check_step(
 def check_contact_csv(rows: list[dict], summary: dict, value: str = "lambda") -> None:
     assert len(rows) == summary["constrained_nodes"]
     pos = "s" if "s" in rows[0] else "r"
-    assert list(rows[0])[-3:] == [value, "gap", "active"]
+    exact = ["lambda_exact"] if "lambda_exact" in rows[0] else []  # a declared data.exact
+    assert list(rows[0])[-3 - len(exact) :] == [value, *exact, "gap", "active"]
     s = np.array([float(r[pos]) for r in rows])
     assert np.all(np.isfinite(s)) and np.all(np.diff(s) >= 0), "rows sorted along Γ_C"
     lam = np.array([float(r[value]) for r in rows])
@@ -145,6 +146,8 @@ def test_run_writes_complete_folder(tmp_path, nproc):
         "solution.h5",
         "solution.vtu",
         "solution.xdmf",
+        "contact_surface.h5",
+        "contact_surface.xdmf",
         "summary.json",
         "history.csv",
         "solution.png",
@@ -290,7 +293,9 @@ def test_adaptive_series_reads_as_one_series(tmp_path):
     assert set(summary["files"]) == set(files) - {".contact-result"}  # the marker is written last
     wrote = proc.stdout.splitlines()[-1]
     assert all(f"solution_000…002.{ext}" in wrote for ext in ("vtu", "h5", "xdmf"))
-    assert all(n in wrote for n in summary["files"] if not n.startswith("solution_"))
+    assert all(f"contact_surface_000…002.{ext}" in wrote for ext in ("h5", "xdmf"))
+    numbered = ("solution_", "contact_surface_")
+    assert all(n in wrote for n in summary["files"] if not n.startswith(numbered))
     headers = [line for line in proc.stdout.splitlines() if line.split()[:2] == ["level", "DoFs"]]
     assert len(headers) == 1, "the level table is printed once"
     check_contact_csv(files["contact.csv"], summary)

@@ -131,6 +131,8 @@ def test_rerun_replaces_its_own_result_only(workdir: Path) -> None:
         "summary.json",
         "history.csv",
         "contact.csv",
+        "contact_surface.h5",
+        "contact_surface.xdmf",
     }
     (workdir / "out" / "summary.json").write_text("{}")  # the tool's own file: replaced
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0

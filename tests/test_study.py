@@ -465,7 +465,9 @@ def test_a_hyperelastic_stability_map_tells_unstable_answers(tmp_path: Path) -> 
     """The SVK block pressed to 50 % in one step (past its material limit): plain Newton
     converges to the homogeneous state, a saddle of the energy — the row says ``unstable``
     and carries K_T's negative eigenvalues and det F > 0; the energy search (the default)
-    does not return that state; the neo-Hookean block converges to a stable state."""
+    never returns that state as a converged one: finding no stable state it takes the
+    equilibrium branch and the row says ``unstable`` too (or it finds a stable state); the
+    neo-Hookean block converges to a stable state."""
     from contact.app.study import run_study
 
     block = ROOT / "configs" / "hyperelastic_block.yaml"

@@ -215,8 +215,8 @@ def test_bad_formats_are_one_line_errors(tmp_path, value, got):
 
 
 def test_readme_scene_keys_match(tmp_path):
-    """The README's sample `output:` line is a valid scene section."""
-    readme = (ROOT / "README.md").read_text()
+    """The sample `output:` line of docs/guide/scenes.md is a valid scene section."""
+    readme = (ROOT / "docs" / "guide" / "scenes.md").read_text()
     line = next(ln for ln in readme.splitlines() if ln.startswith("output: {"))
     section = yaml.safe_load(line.split("#")[0])["output"]
     import contact

@@ -46,7 +46,17 @@ TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
 
 @dataclass
 class Estimate:
-    """η_T as a DG0 function, the global η, and the global total Σ_T of each term."""
+    """The a posteriori error estimate of one solve (:func:`contact.estimate`).
+
+    Attributes:
+        eta_T: The cell indicators η_T as a DG0 function (what :func:`contact.mark` takes).
+        eta: The global estimate η = (Σ_T η_T²)^{1/2} for the residual estimator, the
+            guaranteed bound for the equilibrated ones (an energy norm, in the units of
+            (force × length)^{1/2}).
+        terms: The global total Σ_T of each term of η_T² (residual: ``volume``, ``jump``,
+            ``neumann``, ``consistency``, ``sign``, ``complementarity``, plus the friction
+            and pair terms where they apply; equilibrated: the parts of the bound).
+    """
 
     eta_T: fem.Function
     eta: float
@@ -54,8 +64,11 @@ class Estimate:
 
 
 def _cellwise(msh):
-    """What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
-    diameter), h_E (facet size), dx, dS, and a zero form to start sums from."""
+    """Return what every indicator form needs.
+
+    What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
+    diameter), h_E (facet size), dx, dS, and a zero form to start sums from.
+    """
     w = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
     dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
     h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
@@ -64,8 +77,11 @@ def _cellwise(msh):
 
 
 def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar models
-    (:func:`scalar_terms`) or of elasticity (:func:`elasticity_terms`)."""
+    """Return the estimator's terms as UFL forms linear in a DG0 test function.
+
+    The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar models
+    (:func:`scalar_terms`) or of elasticity (:func:`elasticity_terms`).
+    """
     if not scene.config.elastic:
         return scalar_terms(scene, result)
     return elasticity_terms(scene, result)
@@ -111,12 +127,15 @@ def scalar_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
 
 
 def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
-    n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
+    """Return the terms of linear elasticity (docs/theory.md §5).
+
+    docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C
+    (normal n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
 
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
 
-    (consistency, tangential — frictionless —, sign, complementarity)."""
+    (consistency, tangential — frictionless —, sign, complementarity).
+    """
     from ..models.elasticity import stress
 
     msh = scene.mesh
@@ -186,12 +205,15 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
 
 @dataclass(frozen=True)
 class FrictionFields:
-    """UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on the contact
+    """Return the UFL data of the friction terms on the contact surfaces.
+
+    UFL data of the friction terms (docs/theory.md §1.4, Hild–Lleras) on the contact
     surfaces: the tangential multiplier λ_t and the solver's slip increment s_t (P1 vectors
     of the nodal λ_t,i and s_t,i, :func:`contact.solvers.friction.surface_functions`; the
     pairs' terms take this s_t, a rigid obstacle's the slip (I − n nᵀ)(u_h − u_prev) of the
     load step) and the bound ρ (Tresca: the threshold expression s(x, t); Coulomb:
-    F·(−λ_n,h)⁺, :func:`friction_bound`)."""
+    F·(−λ_n,h)⁺, :func:`friction_bound`).
+    """
 
     lam_t: fem.Function
     slip: fem.Function
@@ -201,14 +223,17 @@ class FrictionFields:
 def interface_terms(
     scene: Scene, result: Result, w, n, h_E, T, friction: FrictionFields | None
 ) -> dict[str, ufl.Form]:
-    """Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on the
-    slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
+    """Return the estimator terms on the pairs' surfaces, both sides measured.
+
+    Estimator terms on the pairs' surfaces (docs/theory.md §5 with both sides measured): on
+    the slave surface h_E ‖λ_h − T·n‖² (consistency), h_E ‖T_t‖² (tangential, frictionless;
     with friction h_E ‖T_t − λ_t‖² and the terms ‖(|λ_t| − ρ)⁺‖², ∫ |ρ|s_t| + λ_t·s_t| of
     docs/theory.md §1.4, s_t the nodal relative slip increment), ‖λ_h⁺‖² (sign) and
-    |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m − T·n‖²
-    (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried over
-    like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
-    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None."""
+    |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m −
+    T·n‖² (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried
+    over like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
+    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None.
+    """
     from ..models.mortar import master_pressure, master_vector
 
     p = result.problem
@@ -250,8 +275,11 @@ def interface_terms(
 
 
 def friction_bound(problem: DiscreteProblem, lam: fem.Function):
-    """ρ of the problem's friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca the threshold
-    s(x, t) as the friction model wrote it (``problem.data['threshold']``)."""
+    """Return ρ of the problem's friction law as UFL.
+
+    ρ of the problem's friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca the threshold s(x, t)
+    as the friction model wrote it (``problem.data['threshold']``).
+    """
     fs = problem.friction
     assert fs is not None  # a frictional problem
     if fs.law == "coulomb":
@@ -268,9 +296,31 @@ def _assemble_cellwise(form: ufl.Form) -> la.Vector:
 
 
 def estimate(scene: Scene, result: Result) -> Estimate:
-    """Assemble each term of η_T² once as a DG0 vector; η_T² is their sum, and each term's
-    global total Σ_T is the sum of its owned entries.  ``result`` must be a solve of this
-    scene (on its mesh), else a ValueError."""
+    """Estimate the error of a solve (the ESTIMATE step of the adaptive loop).
+
+    The scene's ``estimator`` chooses: ``residual`` assembles each term of η_T² once as a
+    DG0 vector (docs/theory.md §5; reliable up to an unknown constant); ``equilibrated``
+    and ``equilibrated_rt0`` reconstruct an equilibrated flux and return a guaranteed bound
+    ‖u − u_h‖_E ≤ η (docs/theory.md §9); ``auto`` is ``equilibrated`` for the scalar models
+    and ``residual`` for elasticity. Collective.
+
+    Args:
+        scene: The scene that was solved.
+        result: A solve of this scene on its mesh (:func:`contact.solve`).
+
+    Returns:
+        The indicators η_T, the global η and each term's total.
+
+    Raises:
+        ValueError: If ``result`` is not a solve of ``scene`` on its mesh.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> est = contact.estimate(scene, contact.solve(scene, verbose=False))
+        >>> est.eta > 0, sorted(est.terms)[:2]
+        (True, ['complementarity', 'dirichlet'])
+    """
     if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
         raise ValueError(
             "result: expected the contact.Result of contact.solve on this scene (same mesh)"
@@ -291,9 +341,12 @@ def estimate(scene: Scene, result: Result) -> Estimate:
 
 
 def residual_estimate(scene: Scene, result: Result) -> Estimate:
-    """The residual estimator (docs/theory.md §5) of a solve of ``scene``, whatever the
-    scene's ``estimator`` says (collective): each term of η_T² assembled once as a DG0
-    vector, η_T² their sum, each term's total the sum of its owned entries."""
+    """Return the residual estimator of a solve of ``scene``, whatever its ``estimator``.
+
+    The residual estimator (docs/theory.md §5) of a solve of ``scene``, whatever the scene's
+    ``estimator`` says (collective): each term of η_T² assembled once as a DG0 vector, η_T²
+    their sum, each term's total the sum of its owned entries.
+    """
     terms = indicator_terms(scene, result)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())

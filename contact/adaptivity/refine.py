@@ -1,6 +1,9 @@
-"""REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the scene
-carried to the new mesh (tags, history, nested-iteration guess, curved boundaries snapped
-to their exact surfaces), and the refined mesh's partition."""
+"""REFINE (docs/theory.md §6): refine the marked cells and carry the scene over.
+
+REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the
+scene carried to the new mesh (tags, history, nested-iteration guess, curved boundaries
+snapped to their exact surfaces), and the refined mesh's partition.
+"""
 
 from __future__ import annotations
 
@@ -16,6 +19,7 @@ from ..setup.geometry import builder_surfaces
 from ..setup.meshes import Boundary
 from ..setup.scene import Scene
 from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
+from . import longest_edge
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 
@@ -27,32 +31,57 @@ def refine(
     *,
     timings: dict[str, float] | None = None,
 ) -> tuple[Scene, fem.Function | None]:
-    """Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
-    boundary tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), and
-    move the vertices of a curved boundary part onto its exact surface
-    (:func:`contact.setup.surfaces.boundary_surfaces`: the built-in Hertz meshes and parts that
-    declare a ``surface``; other parts keep dolfinx's midpoints — a gmsh contact part that
-    looks curved gets a one-line warning).
-    The refined scene keeps the pseudo-time, and the functions of ``scene.history`` (a
-    load step's state from the previous step) are prolonged with u_h.
-    The two-body builders (``half_disks``, ``sphere_on_block``) snap their curved surfaces by
-    the mesh's own facet tags (``scene.surfaces``), whatever parts the scene cut them into,
-    and the body tags (``scene.bodies``) follow the cells.
+    """Refine the marked cells and carry the scene over (the REFINE step).
+
+    The marked cells' edges are refined (conforming, ``dolfinx.mesh.refine``), the boundary
+    tags carried to the new mesh, ``u_h`` interpolated onto it (nested iteration), and the
+    vertices of a curved boundary part moved onto its exact surface (the built-in Hertz
+    meshes and parts that declare a ``surface``; other parts keep dolfinx's midpoints — a
+    gmsh contact part that looks curved gets a one-line warning). The refined scene keeps
+    the pseudo-time, and the functions of ``scene.history`` (a load step's state from the
+    previous step) are prolonged with u_h. The two-body builders (``half_disks``,
+    ``sphere_on_block``) snap their curved surfaces by the mesh's own facet tags
+    (``scene.surfaces``), whatever parts the scene cut them into, and the body tags
+    (``scene.bodies``) follow the cells.
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
-    the surface shifts by at most the sagitta h²/(8R) of the old edge).
+    the surface shifts by at most the sagitta h²/(8R) of the old edge). Collective.
 
-    In parallel the refined mesh is redistributed evenly over the ranks unless
-    ``rebalance`` is false (default: the scene's ``adapt.rebalance``, true; see
-    :func:`refine_partitioner`); the mesh itself does not depend on it.
+    The refined mesh does not depend on the number of ranks: a face's longest edge among
+    edges of equal length is chosen by the coordinates, not by DOLFINx's
+    partition-dependent vertex numbers (:mod:`.longest_edge`).
 
-    ``cells`` are owned local cell indices (as :func:`mark` returns them); anything else,
-    or a ``u_h`` on another mesh, is a ValueError (on every rank).
+    Args:
+        scene: The scene to refine.
+        cells: Owned local cell indices, as :func:`contact.mark` returns them.
+        u_h: A function on the scene's mesh to carry over (e.g. ``result.u_h``), or None.
+        rebalance: In parallel, redistribute the refined mesh evenly over the ranks
+            (default: the scene's ``adapt.rebalance``, true); the mesh itself does not
+            depend on it.
+        timings: If given, receives the seconds of the parts: ``mesh`` (the marked edges
+            and ``dolfinx.mesh.refine`` itself, with the redistribution, the ghost layer
+            and the ties), ``transfer`` (facets, tags and functions carried over) and
+            ``snap`` (curved boundaries).
 
-    ``timings``, if given, receives the seconds of the parts: ``mesh`` (the marked edges and
-    ``dolfinx.mesh.refine`` itself, with the redistribution and the ghost layer),
-    ``transfer`` (facets, tags and functions carried over) and ``snap`` (curved boundaries)."""
+    Returns:
+        The refined scene (its ``parent`` the scene and the parent cells) and ``u_h``
+        interpolated onto it (None if ``u_h`` was None).
+
+    Raises:
+        ValueError: On every rank, if ``cells`` are not owned local cell indices or
+            ``u_h`` is not a function on the scene's mesh.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> result = contact.solve(scene, verbose=False)
+        >>> cells = contact.mark(contact.estimate(scene, result).eta_T, "uniform")
+        >>> fine, u0 = contact.refine(scene, cells, result.u_h)
+        >>> cells_of = lambda s: s.mesh.topology.index_map(2).size_global
+        >>> cells_of(fine), cells_of(scene)
+        (1024, 256)
+    """
     cells = _owned_cells(scene, cells)
     if u_h is not None and (
         not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh
@@ -71,11 +100,8 @@ def refine(
     clock = [time.perf_counter()]  # the start, then the end of each part
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    new, parent_cell, parent_facet = dmesh.refine(
-        msh,
-        edges,
-        partitioner=refine_partitioner(msh, rebalance),
-        option=dmesh.RefinementOption.parent_cell_and_facet,
+    new, parent_cell, parent_facet = longest_edge.refine(
+        msh, edges, refine_partitioner(msh, rebalance)
     )
     clock.append(time.perf_counter())
     new.topology.create_entities(tdim - 1)
@@ -115,10 +141,13 @@ def refine(
 
 
 def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> int | None:
-    """A lower bound of the DoFs after refining ``cells`` (P1: one new vertex per marked
-    edge; refinement may split more edges for conformity), or None for P2.  An edge counts
-    once, on its owning rank, whichever rank's cells marked it (the same bound on any
-    number of ranks)."""
+    """Return a lower bound of the DoFs after refining ``cells``.
+
+    A lower bound of the DoFs after refining ``cells`` (P1: one new vertex per marked edge;
+    refinement may split more edges for conformity), or None for P2.  An edge counts once,
+    on its owning rank, whichever rank's cells marked it (the same bound on any number of
+    ranks).
+    """
     if V.element.basix_element.degree != 1:
         return None
     msh = scene.mesh
@@ -145,7 +174,8 @@ def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     * parallel, not ``rebalance``: the identity partitioner (children stay on their parent's
       rank).
 
-    Both parallel ones rebuild the ghost layer the estimator's interior-facet jumps need."""
+    Both parallel ones rebuild the ghost layer the estimator's interior-facet jumps need.
+    """
     if msh.comm.size == 1:
         return None
     if rebalance:

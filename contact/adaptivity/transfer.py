@@ -9,7 +9,7 @@ The partitioner then decides where the child lives: the identity partitioner kee
 the creating rank, a graph partitioner may move it (to rebalance the work).  Either way the
 new mesh's ``original_cell_index`` is the child's global creation index, so every rank can
 name the creating rank of each of its cells and *pull* what it needs from there
-(:func:`_pull`: one ``Alltoallv`` out, one back).  With the identity partitioner every
+(:func:`pull`: one ``Alltoallv`` out, one back).  With the identity partitioner every
 request is local."""
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def _exchange(
     return out
 
 
-def _pull(
+def pull(
     comm: MPI.Comm,
     dest: np.ndarray,
     requests: list[np.ndarray],
@@ -89,7 +89,7 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     def evaluate(i: np.ndarray, x: np.ndarray) -> np.ndarray:  # on the creating rank
         return u_h.eval(x, parent_cell[i].astype(np.int32))
 
-    values = _pull(
+    values = pull(
         new.comm,
         rank[cell],
         [index[cell], V.tabulate_dof_coordinates()[dofs]],
@@ -114,7 +114,7 @@ def transfer_cell_tags(
     )
     old_value[tags.indices] = tags.values
     rank, index = creators(new, len(parent_cell))
-    values = _pull(new.comm, rank, [index], lambda i: old_value[parent_cell[i]], (), np.int32)
+    values = pull(new.comm, rank, [index], lambda i: old_value[parent_cell[i]], (), np.int32)
     return dmesh.meshtags(new, tdim, np.arange(len(values), dtype=np.int32), values)
 
 
@@ -148,7 +148,7 @@ def transfer_facet_tags(
 
     n_owned = new.topology.index_map(tdim).size_local
     rank, index = creators(new, len(parent_cell))
-    values = _pull(new.comm, rank[:n_owned], [index[:n_owned]], parent_tags, (nf,), np.int32)
+    values = pull(new.comm, rank[:n_owned], [index[:n_owned]], parent_tags, (nf,), np.int32)
     new.topology.create_connectivity(tdim, tdim - 1)
     new_facets = new.topology.connectivity(tdim, tdim - 1).array.reshape(-1, nf)[:n_owned]
     keep = values >= 0

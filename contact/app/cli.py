@@ -4,7 +4,8 @@
 Exit codes (:mod:`contact.app.failures`): 0 solved and written; 1 the solver did not converge
 (an adaptive run keeps its completed levels); 2 bad input (one line on stderr naming the
 key, file or option); 3 internal error (one line; ``--debug`` or ``CONTACT_DEBUG=1`` adds
-the traceback); 130 interrupted (Ctrl-C; one line).  Under MPI a failure raised on every
+the traceback); 130 interrupted (Ctrl-C; one line); 143 terminated (SIGTERM; one line, as
+Ctrl-C).  Under MPI a failure raised on every
 rank is reported once by rank 0; a failure on some ranks only is reported by each of them
 and ends the job with ``MPI_Abort`` and the same exit code (the other ranks would wait
 forever; the rules are in :mod:`contact.app.failures`).
@@ -13,6 +14,7 @@ forever; the rules are in :mod:`contact.app.failures`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import signal
 import sys
@@ -20,7 +22,7 @@ import time
 import traceback
 import warnings
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 from mpi4py import MPI
@@ -87,17 +89,27 @@ def _say(comm: MPI.Comm, *args, **kw) -> None:
         print(*args, **kw, flush=True)
 
 
-def _one_line_warning(
-    message, category, filename, lineno, file=None, line=None, _default=warnings.showwarning
-):
-    """The project's warnings (ContactWarning) as one line on stderr; others as Python prints
-    them."""
+def _error(comm: MPI.Comm, line: str) -> None:
+    """A failure's message, said by rank 0 on stderr as one line of at most
+    :data:`~contact.app.failures.MAX_LINE` characters (:func:`~contact.app.failures.one_line`,
+    as every message the command prints on stderr)."""
+    if comm.rank == 0:
+        print(failures.one_line(line), file=sys.stderr, flush=True)
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """Every warning as one line on stderr (at most MAX_LINE characters): the project's
+    (ContactWarning) ``contact: warning: <message>``, any other (a library's)
+    ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
+    with the source line."""
     from ..setup.surfaces import ContactWarning
 
-    if issubclass(category, ContactWarning):
-        print(f"contact: warning: {message}", file=sys.stderr, flush=True)
-    else:
-        _default(message, category, filename, lineno, file, line)
+    text = (
+        f"contact: warning: {message}"
+        if issubclass(category, ContactWarning)
+        else f"contact: warning: {category.__name__}: {message} ({Path(filename).name}:{lineno})"
+    )
+    print(failures.one_line(text), file=sys.stderr, flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -106,6 +118,8 @@ def main(argv: list[str] | None = None) -> int:
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
+    # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort)
+    previous = _handle(signal.SIGTERM, failures.on_sigterm)
     try:
         code = _study(args, comm) if args.command == "study" else _run(args, comm)
     except _Failed:  # raised on every rank alike, after its message
@@ -114,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         code = _fail(comm, agree, failures.BAD_INPUT, f"contact: error: {err}", debug)
     except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - MemoryError, PETSc errors, bugs: one line, exit 3
         if failures.interrupted(err):
-            code = _interrupted(comm, agree, debug)
+            code = _interrupted(comm, agree, debug, *failures.interrupt_report(err))
         else:
             head, tail = (
                 "contact: internal error: ",
@@ -124,22 +138,31 @@ def main(argv: list[str] | None = None) -> int:
             code = _fail(comm, agree, failures.INTERNAL, head + what + tail, debug)
     if agree is not None:  # every rank is here: a failure that was not agreed on aborted
         agree.Free()
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
     return code
 
 
-def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool) -> int:
-    """Ctrl-C: one line and exit code 130, agreed on like any failure (:func:`_fail`); a
-    second Ctrl-C while the ranks agree is ignored (mpiexec's own handling of a second
-    Ctrl-C still ends the job at once)."""
+def _handle(signum: int, handler: Any) -> Any:
+    """Install ``handler`` for ``signum``; the previous one (None where main() runs outside
+    the main thread, which cannot handle signals)."""
     try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # main() called outside the main thread
-        previous = None
+        return signal.signal(signum, handler)
+    except ValueError:
+        return None
+
+
+def _interrupted(comm: MPI.Comm, agree: MPI.Comm | None, debug: bool, code: int, line: str) -> int:
+    """Ctrl-C (SIGTERM): one line and exit code 130 (143), agreed on like any failure
+    (:func:`_fail`); a second Ctrl-C or SIGTERM while the ranks agree is ignored (mpiexec's
+    own handling of a second Ctrl-C still ends the job at once)."""
+    previous = {s: _handle(s, signal.SIG_IGN) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return _fail(comm, agree, failures.INTERRUPTED, "contact: interrupted", debug)
+        return _fail(comm, agree, code, line, debug)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGINT, previous)
+        for signum, handler in previous.items():
+            if handler is not None:
+                signal.signal(signum, handler)
 
 
 def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: bool) -> int:
@@ -157,7 +180,8 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
     if not failures.all_failed(agree):
         failures.abort(comm, code, line)
     outcomes = agree.allgather((code, line))  # every rank is in this call now
-    code, line = next((o for o in outcomes if o[0] == failures.INTERRUPTED), outcomes[0])
+    stops = (failures.INTERRUPTED, failures.TERMINATED)
+    code, line = next((o for o in outcomes if o[0] in stops), outcomes[0])
     if comm.rank == 0:
         print(failures.one_line(line), file=sys.stderr, flush=True)
     return code
@@ -187,6 +211,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"contact: scene {scene.name!r}, model {scene.config.model.type}, method {method}, "
         f"{comm.size} MPI rank(s)",
     )
+    _report_posed(scene, comm)
     # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
     if scene.config.load or scene.config.frictional or scene.config.model.type == "hyperelastic":
         return _run_steps(scene, outdir, label, comm, t0)
@@ -200,18 +225,25 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"nodes",
     )
     if not result.converged:
-        if comm.rank == 0:
-            print(
-                failures.one_line(
-                    f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
-                ),
-                file=sys.stderr,
-                flush=True,
-            )
+        _error(
+            comm, f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
+        )
         return failures.NOT_CONVERGED
     info = write_run(outdir, scene, result, wall=time.perf_counter() - t0, label=label)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED
+
+
+def _report_posed(scene, comm: MPI.Comm) -> None:
+    """One line on the exterior facets in no boundary part (the natural condition they
+    carry is then a visible choice), and a warning line per boundary part on which a
+    declared exact solution misses the scene's condition (collective)."""
+    from ..post.exact_data import warn_exact_mismatches
+    from ..setup.untagged import untagged_boundary
+
+    untagged = untagged_boundary(scene.mesh, scene.boundary)
+    _say(comm, f"contact: {untagged.line(scene.config.elastic)}")
+    warn_exact_mismatches(scene)
 
 
 def _output_folder(option: str | None, cfg: SceneConfig) -> tuple[Path, str]:
@@ -266,16 +298,12 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 if k
                 else "nothing written"
             )
-            if comm.rank == 0:
-                hint = f" ({last.hint})" if last.hint else ""
-                print(
-                    failures.one_line(
-                        f"contact: error: solver did not converge on level {k} ({last.reason}), "
-                        f"last |Phi| = {last.residual:.3e}{hint}; {kept}"
-                    ),
-                    file=sys.stderr,
-                    flush=True,
-                )
+            hint = f" ({last.hint})" if last.hint else ""
+            _error(
+                comm,
+                f"contact: error: solver did not converge on level {k} ({last.reason}), "
+                f"last |Phi| = {last.residual:.3e}{hint}; {kept}",
+            )
             if k == 0:
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
@@ -300,7 +328,7 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
-    from ..drivers.load_path import LoadPath, run_load_path
+    from ..drivers.load_path import run_load_path
     from ..output import folder
     from ..output.run_report import files_text
     from ..output.step_report import StepWriter
@@ -327,6 +355,8 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                 f"{s.result.iterations} Newton iterations, reason {s.result.reason}{counts}"
                 + (f"; {tangent}" if tangent else ""),
             )
+            if s.branch:  # the energy search found no stable state: the branch followed
+                _say(comm, f"contact: {s.branch}")
             writer(s)
 
         # each step's figures go to disk as it finishes (StepWriter): the path forgets them
@@ -340,24 +370,13 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                 if k > 1
                 else "nothing written"
             )
-            if comm.rank == 0:
-                print(
-                    f"contact: error: {path.stop}, last |Phi| = {last.residual:.3e}; {kept}",
-                    file=sys.stderr,
-                    flush=True,
-                )
+            _error(
+                comm, f"contact: error: {path.failure}; last |Phi| = {last.residual:.3e}; {kept}"
+            )
             if k == 1:
                 raise _Failed()
             failed = {"converged": False, "failed_step": k, "failed_reason": last.reason}
-            path = LoadPath(
-                path.steps[:-1],
-                stop=path.stop,
-                cuts=path.cuts,
-                indefinite=path.indefinite,
-                inverted=path.inverted,
-                tangent_events=path.tangent_events,
-                forgotten=path.forgotten,
-            )
+            path = dataclasses.replace(path, steps=path.steps[:-1])
         info = writer.finish(path, wall=time.perf_counter() - t0, failure=failed)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED

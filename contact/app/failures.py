@@ -4,11 +4,13 @@
 code   meaning
 =====  ==================================================================================
 0      solved (and written)
-1      the solver did not converge (completed adaptive levels are kept, see the README)
+1      the solver did not converge (the finished adaptive levels are kept: docs/guide/safe-runs.md)
 2      bad input: one line ``contact: error: <key path, file or option>: <problem>``
 3      internal error: one line ``contact: internal error: <what failed> (rerun with
        --debug for the traceback)``; ``--debug`` or ``CONTACT_DEBUG=1`` prints it
 130    interrupted (Ctrl-C, SIGINT): one line ``contact: interrupted``
+143    terminated (SIGTERM: ``kill``, a batch system's end of job): one line
+       ``contact: terminated (SIGTERM)``, handled as Ctrl-C is
 =====  ==================================================================================
 
 Every message the tool prints about a failure goes through :func:`one_line`: whitespace
@@ -50,6 +52,7 @@ from ..base.errors import petsc_message
 
 SOLVED, NOT_CONVERGED, BAD_INPUT, INTERNAL = 0, 1, 2, 3
 INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, what a shell reports for a program SIGINT ended
+TERMINATED = 143  # SIGTERM: 128 + 15
 MAX_LINE = 300  # characters of one failure message
 AGREE_SECONDS = 5.0  # how long a failing rank waits for the others to fail too (MPI)
 # a failing rank's pause between its line and MPI_Abort (once, the line was lost)
@@ -79,17 +82,45 @@ def describe(err: BaseException, limit: int = MAX_LINE) -> str:
     return one_line(text, limit)
 
 
-def interrupted(err: BaseException | None) -> bool:
-    """Whether ``err`` is Ctrl-C: a KeyboardInterrupt, or an error it caused (petsc4py turns
-    a KeyboardInterrupt raised in a Python callback of a PETSc solve into PETSc error 101
-    with the interrupt as its cause)."""
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised by the handler the command line installs (:func:`on_sigterm`) where
+    Python next runs — as Python raises KeyboardInterrupt for SIGINT — so that it takes
+    Ctrl-C's way out (the output folder left as it was, every rank agreeing), with its own
+    exit code :data:`TERMINATED`."""
+
+
+def on_sigterm(signum, frame) -> None:
+    """The SIGTERM handler of the command line (it replaces PETSc's, which prints its error
+    stack and calls MPI_Abort): raise :class:`Terminated`."""
+    raise Terminated()
+
+
+def interruption(err: BaseException | None) -> KeyboardInterrupt | None:
+    """The interrupt behind ``err`` (Ctrl-C's KeyboardInterrupt or SIGTERM's
+    :class:`Terminated`): ``err`` itself or an error it caused (petsc4py turns a
+    KeyboardInterrupt raised in a Python callback of a PETSc solve into PETSc error 101 with
+    the interrupt as its cause); None if there is none."""
     seen: set[int] = set()
     while err is not None and id(err) not in seen:
         if isinstance(err, KeyboardInterrupt):
-            return True
+            return err
         seen.add(id(err))
         err = err.__cause__ or err.__context__
-    return False
+    return None
+
+
+def interrupted(err: BaseException | None) -> bool:
+    """Whether ``err`` is Ctrl-C or SIGTERM, or an error one of them caused
+    (:func:`interruption`)."""
+    return interruption(err) is not None
+
+
+def interrupt_report(err: BaseException | None) -> tuple[int, str]:
+    """The exit code and the line of an interrupted run: SIGTERM's (143, ``contact:
+    terminated (SIGTERM)``) or Ctrl-C's (130, ``contact: interrupted``)."""
+    if isinstance(interruption(err), Terminated):
+        return TERMINATED, "contact: terminated (SIGTERM)"
+    return INTERRUPTED, "contact: interrupted"
 
 
 def all_failed(agree, seconds: float = AGREE_SECONDS) -> bool:

@@ -1,4 +1,6 @@
-"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6), of
+"""The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6).
+
+The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6), of
 :func:`contact.solve`, :mod:`contact.adaptivity.estimate`, :mod:`contact.adaptivity.mark`
 and :mod:`contact.adaptivity.refine`.
 
@@ -39,7 +41,19 @@ from .solve import solve
 
 @dataclass
 class Level:
-    """One level of the adaptive loop."""
+    """One level of the adaptive loop, as :func:`contact.adapt` hands it to ``on_level``.
+
+    Attributes:
+        index: The level's number, 0 for the first mesh.
+        scene: The level's scene (its mesh).
+        result: The solve on this level.
+        estimate: The error estimate of that solve.
+        error: The energy error against the scene's ``data.exact``, None without one.
+        seconds: Seconds spent per phase (``assembly``, ``solve``, ``estimate``, ``error``,
+            ``mark``, ``refine``, ``output``).
+        imbalance: Under MPI the busiest rank's owned DoFs over the mean (1 in serial).
+        passes: Solves of this level (adaptive stopping may solve on).
+    """
 
     index: int
     scene: Scene
@@ -51,6 +65,7 @@ class Level:
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
 
     def row(self) -> dict[str, Any]:
+        """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
         msh = self.scene.mesh
         row = {
             "level": self.index,
@@ -76,9 +91,11 @@ class Level:
         return row
 
     def errors(self) -> dict[str, Any]:
-        """The error components and the solver's work (:mod:`contact.solvers.stopping`):
+        """Return the error components and the solver's work of adaptive stopping.
+
         η_disc (the level's η), η_lin and η_alg of the final iterate (adaptive stopping
-        only; '' otherwise, or where not defined), the Krylov iterations of all its solves."""
+        only; '' otherwise, or where not defined), the Krylov iterations of all its solves.
+        """
         st = self.result.stopping
 
         def finite(v: float) -> float | str:
@@ -96,20 +113,32 @@ class Level:
 
 @dataclass
 class AdaptResult:
+    """The levels of an adaptive loop (:func:`contact.adapt`) and why it stopped.
+
+    Attributes:
+        levels: The levels solved, first to last (each a
+            :class:`~contact.drivers.adaptive.Level`).
+        stop: Why the loop stopped, e.g. ``"eta = 3.1e-03 <= tol = 4.0e-03"`` or
+            ``"reached max_levels = 6"``.
+    """
+
     levels: list[Level] = field(default_factory=list)
     stop: str = ""
 
     @property
     def rows(self) -> list[dict]:
+        """The levels' rows of ``convergence.csv`` (:meth:`~contact.drivers.adaptive.Level.row`)."""
         return [lv.row() for lv in self.levels]
 
 
 def rank_imbalance(V: fem.FunctionSpace) -> float:
-    """max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial):
-    1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain at most
-    2/1.15 = 1.74×.  Near 1 with ``adapt.rebalance`` (the default); without it a refined
-    mesh keeps its parents' partition, and refinement concentrated on one rank's part of
-    the domain unbalances the work."""
+    """Return max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective).
+
+    1 in serial; 1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain
+    at most 2/1.15 = 1.74×. Near 1 with ``adapt.rebalance`` (the default); without it a
+    refined mesh keeps its parents' partition, and refinement concentrated on one rank's
+    part of the domain unbalances the work.
+    """
     return busiest_share(V.mesh.comm, V.dofmap.index_map.size_local)
 
 
@@ -119,8 +148,11 @@ def busiest_share(comm: MPI.Comm, owned: int) -> float:
 
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
-    """The scene's ``adapt`` section (defaults if absent) with keyword overrides (each
-    validated as in the scene file; the section itself was at load)."""
+    """Return the scene's ``adapt`` section with keyword overrides, validated.
+
+    The section's defaults if the scene has none; each override is validated as in the
+    scene file (the section itself was at load).
+    """
     return (scene.config.adapt or AdaptConfig()).updated(**overrides)
 
 
@@ -132,10 +164,41 @@ def adapt(
     u0: fem.Function | None = None,
     **options: Any,
 ) -> AdaptResult:
-    """Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
-    budget is reached (options as in the scene's ``adapt`` section).  ``on_level`` is
-    called after each level is estimated (used by the CLI to write output as it goes);
-    ``u0`` is the first level's initial guess (a load step's previous solution)."""
+    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+
+    The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` or the DoF
+    budget (``solver.max_dofs``), after ``max_levels`` levels, or when a solve does not
+    converge (the levels before it are kept). Each level after the first starts from the
+    previous level's solution interpolated onto the refined mesh (``nested``). Collective.
+
+    Args:
+        scene: The first level's scene.
+        method: The solver method (fb, min, blend, vinewtonrsls, vinewtonssls); default
+            the scene's ``solver.method``.
+        on_level: Called with each :class:`~contact.drivers.adaptive.Level` once it is
+            estimated (the CLI writes the level's files there).
+        verbose: Print a table row per level (default: the scene's ``output.verbose``).
+        u0: The first level's initial guess (a load step's previous solution).
+        **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
+            maximum, uniform, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
+            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``.
+
+    Returns:
+        The levels and the reason the loop stopped.
+
+    Raises:
+        ConfigError: For an unknown or invalid option (one line naming it).
+        ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
+        >>> [level.index for level in run.levels], run.stop
+        ([0, 1, 2], 'reached max_levels = 3')
+        >>> run.levels[-1].error < run.levels[0].error
+        True
+    """
     if on_level is not None and not callable(on_level):
         raise ValueError(
             f"on_level: expected a function of one Level, got {type(on_level).__name__}"
@@ -248,7 +311,9 @@ def solve_level(
     previous: Level | None = None,
     **options: Any,
 ) -> tuple[Result, Estimate, int]:
-    """SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
+    """SOLVE and ESTIMATE one level.
+
+    SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
     of :func:`~contact.drivers.solve.solve`; ``label`` names it in progress lines); returns
     (result, estimate, solves).
 
@@ -259,7 +324,8 @@ def solve_level(
     computed at the final iterate, and where the iterate fails either criterion against it
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
-    level, with no η known yet, uses the fixed tolerances."""
+    level, with no η known yet, uses the fixed tolerances.
+    """
     solver = scene.config.solver
     adaptive = solver.stopping == "adaptive" and previous is not None
     eta = None

@@ -1,8 +1,10 @@
-"""One contact solve of a scene: its discrete problem (built here unless given), the
-``solver`` options with call-time overrides, an initial guess (grid sequencing,
-:mod:`.sequencing`, or ``solver.u0``), then the solve itself
-(:func:`contact.solvers.snes.solve_problem`), or the Coulomb fixed point
-(:mod:`.fixed_point`)."""
+"""One contact solve of a scene.
+
+Its discrete problem (built here unless given), the ``solver``
+options with call-time overrides, an initial guess (grid sequencing, :mod:`.sequencing`, or
+``solver.u0``), then the solve itself (:func:`contact.solvers.snes.solve_problem`), or the
+Coulomb fixed point (:mod:`.fixed_point`).
+"""
 
 from __future__ import annotations
 
@@ -33,25 +35,51 @@ def solve(
     alternative: fem.Function | None = None,
     **options: Any,
 ) -> Result:
-    """Solve the scene's contact problem; return a :class:`Result` (never raises on divergence).
+    """Solve the scene's contact problem once, on its mesh.
 
-    ``method`` ∈ {fb, min, blend, vinewtonrsls, vinewtonssls}; further keyword options
-    override the scene's ``solver`` section (``mu``, ``c``, ``kappa``, ``line_search``,
-    ``polish``, ``rtol``, ``atol``, ``max_it``, ``linear``, ``inexact``, ``sequence``,
-    ``petsc_options``).  ``problem`` reuses an assembled problem, ``u0`` is an initial guess;
-    without one, grid sequencing (``sequence``, :mod:`.sequencing`) solves coarser meshes
+    Without an initial guess, grid sequencing (``solver.sequence``) solves coarser meshes
     first when it pays, and the coarsest level (or a cold start) begins from the scene's
-    ``solver.u0`` (zero by default).
-    A frictional scene (``friction.law`` tresca / coulomb; fb, min or blend only) adds the
-    tangential rows of :mod:`contact.solvers.friction` (no polishing, the assembled block
-    Jacobian) and returns the nodal friction fields in ``Result.friction``;
-    ``friction.coulomb: fixed_point`` solves a sequence of Tresca problems instead
-    (:func:`~contact.drivers.fixed_point.coulomb_fixed_point`).  ``criterion``: adaptive
-    stopping against a discretization error (:mod:`contact.solvers.stopping`; the adaptive
-    loop makes one per level for ``solver.stopping: adaptive``, which a single solve
-    ignores: it has no discretization error to balance against).  ``alternative``: another
-    guess beside ``u0`` (a load path's extrapolation, :mod:`.load_path`); Newton starts from
-    the one whose ‖Φ‖ is smaller (``Result.predictor`` says which).
+    ``solver.u0`` (zero by default). A frictional scene (``friction.law`` tresca or
+    coulomb; fb, min or blend only) adds the tangential rows of the friction law (no
+    polishing, the assembled block Jacobian) and returns the nodal friction fields in
+    ``Result.friction``; ``friction.coulomb: fixed_point`` solves a sequence of Tresca
+    problems instead. Collective; never raises on divergence (``Result.converged``).
+
+    Args:
+        scene: The scene to solve (:func:`contact.load_scene`).
+        method: fb, min, blend, vinewtonrsls or vinewtonssls; default the scene's
+            ``solver.method``.
+        problem: An assembled problem of this scene to reuse (built here if None).
+        u0: An initial guess on the scene's mesh (Dirichlet values are put in).
+        verbose: Print a line per Newton iteration (default: the scene's
+            ``output.verbose``).
+        criterion: Adaptive stopping against a discretization error (the adaptive loop
+            makes one per level for ``solver.stopping: adaptive``; a single solve has no
+            discretization error to balance against).
+        alternative: Another guess beside ``u0`` (a load path's extrapolation); Newton
+            starts from the one whose ‖Φ‖ is smaller (``Result.predictor`` says which).
+        **options: Overrides of the scene's ``solver`` section, validated as in the scene
+            file: ``mu``, ``c``, ``kappa``, ``line_search``, ``polish``, ``rtol``, ``atol``,
+            ``max_it``, ``linear``, ``inexact``, ``sequence``, ``petsc_options``, …
+
+    Returns:
+        The solution, multiplier, gap, active set, iteration history and resultants.
+
+    Raises:
+        ConfigError: For an unknown or invalid option (one line naming it).
+        ValueError: If ``scene`` is not a Scene, or ``problem`` or ``u0`` belong to
+            another mesh.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> fb = contact.solve(scene, method="fb", verbose=False)
+        >>> pdas = contact.solve(scene, method="min", line_search="basic", verbose=False)
+        >>> fb.converged, pdas.converged, fb.n_active == pdas.n_active, fb.dofs
+        (True, True, True, 153)
+        >>> contact.solve(scene, method="newton")
+        Traceback (most recent call last):
+        contact.base.errors.ConfigError: solver.method: 'newton' is not one of fb, min, ...
     """
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")

@@ -165,9 +165,10 @@ class BodiesProblem(DiscreteProblem):
     nodes' pressures; an obstacle's nodes, if any, are left out)."""
 
     def contact_force(self, r: np.ndarray) -> float:
-        """F = m Σ_{slave i} D_ii p_i (n_i · n) over all ranks (collective): p_i = −λ_i the
-        interface pressure, n the normal at the first point of contact, m the symmetric
-        copies (:meth:`DiscreteProblem.contact_force` over all nodes without pairs)."""
+        """F = m_n Σ_{slave i} D_ii p_i (n_i · n) over all ranks (collective): p_i = −λ_i
+        the interface pressure, n the normal at the first point of contact, m_n the mirror
+        images pressing along n (:meth:`DiscreteProblem.copies_along`;
+        :meth:`DiscreteProblem.contact_force` over all nodes without pairs)."""
         if not self.data["couplings"]:
             return super().contact_force(r)
         on = slice(0, self.data["pair_nodes"])
@@ -178,7 +179,7 @@ class BodiesProblem(DiscreteProblem):
                 * (self.data["normals"][on] @ self.data["n"])
             )
         )
-        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+        return self.copies_along() * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
 def first_contact_normal(

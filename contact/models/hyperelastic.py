@@ -329,11 +329,13 @@ class CurrentResidualProblem(ResidualProblem):
         return out, (nodes * bs).astype(np.int32)
 
     def contact_force(self, r: np.ndarray) -> float:
-        """F = −m Σ_i R_i·n: the resultant of the nodal contact forces along the normal n at
-        the first point of contact (m the symmetric copies; frictionless: Σ w_i p_i ñ_i·n)."""
+        """F = −m_n Σ_i R_i·n: the resultant of the nodal contact forces along the normal n
+        at the first point of contact (m_n the mirror images pressing along n,
+        :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`; frictionless:
+        Σ w_i p_i ñ_i·n)."""
         n = np.asarray(self.data["n"], dtype=float)
         local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
-        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+        return self.copies_along(n) * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
 def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProblem:

@@ -279,11 +279,15 @@ class RigidBall:
         return float(np.max(np.abs(self.center), initial=0.0)) + self.radius
 
     def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(g, n, Dn) at the points x.  A point at the centre or not finite (an iterate that
+        diverged) gives NaN there, without a warning: the solver stops on it
+        (``diverged_function_nanorinf``) and says so."""
         rel = x - self.center
         r = np.linalg.norm(rel, axis=1)
-        n = -rel / r[:, None]
-        d = x.shape[1]
-        Dn = -(np.eye(d)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n = -rel / r[:, None]
+            d = x.shape[1]
+            Dn = -(np.eye(d)[None] - n[:, :, None] * n[:, None, :]) / r[:, None, None]
         return r - self.radius, n, Dn
 
 

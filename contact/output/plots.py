@@ -26,12 +26,22 @@ RASTER_CELLS = 200_000  # cells above which a nodal field is drawn as an image (
 RASTER_WIDTH = 1200  # its pixels across the domain (the axes are 700-1000 pixels wide)
 
 
+#: the units of the contact plots' axes: nothing is non-dimensionalized (docs/theory.md),
+#: so a pressure has the units of the scene's E (a stress), a flux those of k ∂u/∂n
+LENGTH = "length, scene units"
+PRESSURE_UNIT = "stress: the units of E"
+FLUX_UNIT = "the units of k ∂u/∂n"
+
+
 def _magnitude(values: np.ndarray) -> np.ndarray:
     return values if values.ndim == 1 else np.linalg.norm(values, axis=1)
 
 
 def _field_label(fn: fem.Function) -> str:
-    return f"{fn.name} magnitude" if fn.function_space.dofmap.index_map_bs > 1 else fn.name
+    """The colour bar's label of a field: a displacement's magnitude is a length."""
+    if fn.function_space.dofmap.index_map_bs > 1:
+        return f"{fn.name} magnitude ({LENGTH})"
+    return f"{fn.name} (scene units of u)"
 
 
 def _triangulation(grid):
@@ -181,8 +191,8 @@ def _colorbar(fig, mappable, ax, label: str) -> None:
 
 def _axes_2d(ax, title: str) -> None:
     ax.set_aspect("equal")
-    ax.set_xlabel("x (scene length unit)")
-    ax.set_ylabel("y")
+    ax.set_xlabel(f"x ({LENGTH})")
+    ax.set_ylabel(f"y ({LENGTH})")
     ax.set_title(title, fontsize=10)
 
 
@@ -528,7 +538,7 @@ def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
             show_edges=True,
             edge_color="#999999",
             line_width=0.5,
-            scalar_bar_args=_bar(f"contact pressure -{lmbda.name}"),
+            scalar_bar_args=_bar(f"contact pressure -{lmbda.name} (units of E)"),
         )
     else:
         _add_mesh(
@@ -594,8 +604,8 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     for p, style in ((0.5, "k--"), (1.0 / 3.0, "k:")):
         ref = eta[0] * (N / N[0]) ** (-p)
         ax.loglog(N, ref, style, lw=1, label=f"N^(-{'1/2' if p == 0.5 else '1/3'})")
-    ax.set_xlabel("degrees of freedom N")
-    ax.set_ylabel("energy norm")
+    ax.set_xlabel("degrees of freedom N (a count)")
+    ax.set_ylabel("energy norm ‖·‖_E (scene units)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     ax.set_title(title)
@@ -604,34 +614,55 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     plt.close(fig)
 
 
+def bin_average(
+    x: np.ndarray, y: np.ndarray, per_bin: int = 8, most: int = 30
+) -> tuple[np.ndarray, np.ndarray]:
+    """The mean of scattered values y over bins of x: equal widths from min(x) to max(x),
+    about ``per_bin`` values each (at most ``most`` bins); empty bins are left out.  The
+    profile of nodal pressures that scatter at one radius (3D, unstructured meshes)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if len(x) == 0:
+        return x, y
+    bins = int(np.clip(len(x) // per_bin, 1, most))
+    edges = np.linspace(x.min(), x.max(), bins + 1)
+    which = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
+    count = np.bincount(which, minlength=bins)
+    full = count > 0
+    mean_x = np.bincount(which, x, minlength=bins)[full] / count[full]
+    return mean_x, np.bincount(which, y, minlength=bins)[full] / count[full]
+
+
 def plot_pressure(
     path: str | Path, table: dict, value: str, comparison=None, title: str = ""
 ) -> None:
     """The contact pressure −λ_n (elasticity) or flux −λ (scalar) at the contact nodes along
     Γ_C: against the arc length s (2D) or the distance r from the first point of contact
-    (3D), active nodes filled; with a declared reference (``comparison``,
-    :class:`contact.post.comparison.Comparison`) against its position axis, with its curves."""
+    (3D), as points (nodal values; active nodes filled), with the reference curves as
+    lines: a declared reference (``comparison``, :class:`contact.post.comparison.Comparison`,
+    against its position axis) or the exact flux of a declared ``data.exact``
+    (``lambda_exact``).  In 3D the nodal values scatter at one r (the mesh is not symmetric
+    about the axis), so the profile drawn through them is their average over bins of r, not
+    a line joining them."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
-    name = "contact pressure −λ_n" if value == "lambda_n" else "contact flux −λ"
+    scalar = value != "lambda_n"
+    name = (
+        f"contact flux −λ ({FLUX_UNIT})" if scalar else f"contact pressure −λ_n ({PRESSURE_UNIT})"
+    )
+    what = "flux" if scalar else "pressure"
+    three_d = "r" in table
     if comparison is not None:
         prof = comparison.profile
         reach = max(
             [c[0].max() for c in comparison.curves] + [m[0] for m in comparison.marks] + [0.0]
         )
         keep = prof[:, 0] <= 2.0 * reach if reach > 0 else slice(None)
-        ax.plot(prof[keep, 0], prof[keep, 1], "o", ms=3, label=f"computed {name} (nodal)")
-        for x, y, label in comparison.curves:
-            ax.plot(x, y, "k-", label=label)
-        for x, label in comparison.marks:
-            ax.axvline(x, color="C1", ls="--", lw=1, label=label)
-        ax.set_xlabel(comparison.xlabel)
-        extra = ", ".join(f"{k} {100 * v:+.2f}%" for k, v in comparison.errors.items())
-        title = f"{title}\n{extra}" if extra else title
+        x, y = prof[keep, 0], prof[keep, 1]
+        ax.plot(x, y, "o", ms=3, color="C0", label=f"computed {what}: nodal values")
+        xlabel = comparison.xlabel
     else:
-        pos = "s" if "s" in table else "r"
+        pos = "r" if three_d else "s"
         x, y, act = table[pos], -table[value], table["active"] > 0
-        ax.plot(x, y, "-", color="C0", lw=0.8, alpha=0.6)
         ax.plot(x[act], y[act], "o", ms=3.5, color="C3", label=f"active ({int(act.sum())} nodes)")
         ax.plot(
             x[~act],
@@ -640,13 +671,35 @@ def plot_pressure(
             ms=3.5,
             mfc="none",
             color="C0",
-            label=f"inactive ({int((~act).sum())})",
+            label=f"inactive ({int((~act).sum())} nodes)",
         )
-        ax.set_xlabel(
-            "arc length s along Γ_C (scene length unit)"
-            if pos == "s"
-            else "distance r from the first point of contact (scene length unit)"
+        xlabel = (
+            f"distance r from the first point of contact ({LENGTH})"
+            if three_d
+            else f"arc length s along Γ_C ({LENGTH})"
         )
+    if three_d:
+        bx, by = bin_average(x, y)
+        ax.plot(bx, by, "-", color="C2", lw=1.5, label=f"computed {what}: average over bins of r")
+    elif comparison is None:
+        # a curve along Γ_C, in order of s (2D: consecutive nodes are neighbours)
+        ax.plot(x, y, "-", color="C0", lw=0.8, alpha=0.6, label=f"computed {what} along Γ_C")
+    if comparison is not None:
+        for cx, cy, label in comparison.curves:
+            ax.plot(cx, cy, "k-", lw=1.2, label=label)
+        for mx, label in comparison.marks:
+            ax.axvline(mx, color="C1", ls="--", lw=1, label=label)
+        extra = ", ".join(f"{k} {100 * v:+.2f}%" for k, v in comparison.errors.items())
+        title = f"{title}\n{extra}" if extra else title
+    if "lambda_exact" in table and comparison is None:
+        ax.plot(
+            x,
+            -np.asarray(table["lambda_exact"]),
+            "k-",
+            lw=1.2,
+            label="exact flux −λ of data.exact (averaged over each node's support)",
+        )
+    ax.set_xlabel(xlabel if "(" in xlabel else f"{xlabel} ({LENGTH})")
     ax.set_ylabel(name)
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
@@ -665,6 +718,18 @@ def _pyplot():
     return plt
 
 
+#: the most load steps whose curves a traction picture draws (each one in the legend)
+MAX_TRACTION_CURVES = 10
+
+
+def drawn_steps(count: int, most: int = MAX_TRACTION_CURVES) -> list[int]:
+    """The indices of the steps a traction picture draws: all of ``count`` up to ``most``,
+    else ``most`` of them evenly spaced, the first and the last included."""
+    if count <= most:
+        return list(range(count))
+    return sorted({int(round(k)) for k in np.linspace(0, count - 1, most)})
+
+
 def plot_traction(
     path: str | Path,
     steps: list[tuple[float, dict]],
@@ -672,34 +737,36 @@ def plot_traction(
     references: Sequence[tuple[int, np.ndarray, np.ndarray, str]] = (),
 ) -> None:
     """Contact tractions along Γ_C, one curve per load step coloured by the pseudo-time t
-    (``steps``: (t, contact table of :mod:`contact.post.contact_table` with the friction columns)):
-    the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its component along
-    t_0) against the arc length s, with the friction bound ±ρ of the last step dashed (where
-    λ_t reaches it the node slips) and the slipping nodes of the last step circled, zoomed on
-    the contact zone when it is less than half of Γ_C.  3D: :func:`plot_traction_map`.
+    (``steps``: (t, contact table of :mod:`contact.post.contact_table` with the friction
+    columns)): the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its
+    component along t_0) against the arc length s, with the friction bounds +ρ and −ρ of the
+    last step dashed on top (where λ_t reaches one the node slips) and the slipping nodes of
+    the last step circled, zoomed on the contact zone when it is less than half of Γ_C.
+    Every curve drawn is in the legend; of more than :data:`MAX_TRACTION_CURVES` steps that
+    many are drawn, evenly spaced (the title says so).  3D: :func:`plot_traction_map`.
     ``references``: (panel 0 | 1, x, y, label) curves such as the Hertz pressure or an exact
     traction."""
     table = steps[-1][1]
     if "s" not in table:
         return plot_traction_map(path, table, title, t=steps[-1][0])
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(9.0, 7.0), sharex=True)
     cmap = plt.get_cmap("viridis")
     t_max = max(t for t, _ in steps)
     friction = "lambda_t" in table
-    for t, tab in steps:
+    shown = drawn_steps(len(steps))
+    for k in shown:
+        t, tab = steps[k]
         colour = cmap(t / t_max if len(steps) > 1 else 0.0)
-        label = f"t = {t:g}" if len(steps) <= 8 or t in (steps[0][0], t_max) else None
-        axes[0].plot(
-            tab["s"], -np.asarray(tab["lambda_n"]), ".-", color=colour, ms=3, lw=1, label=label
-        )
+        kw = {"color": colour, "ms": 3, "lw": 1, "label": f"t = {t:.4g}"}
+        axes[0].plot(tab["s"], -np.asarray(tab["lambda_n"]), ".-", **kw)
         if friction:
-            axes[1].plot(tab["s"], tab["lambda_t"], ".-", color=colour, ms=3, lw=1, label=label)
+            axes[1].plot(tab["s"], tab["lambda_t"], ".-", **kw)
     x = np.asarray(table["s"])
     if friction:
         bound = np.asarray(table["bound"])
-        axes[1].plot(x, bound, "k--", lw=1, label="friction bound ±ρ")
-        axes[1].plot(x, -bound, "k--", lw=1)
+        axes[1].plot(x, bound, "k--", lw=1.2, zorder=4, label=f"friction bound +ρ at t = {t_max:g}")
+        axes[1].plot(x, -bound, "k:", lw=1.6, zorder=4, label=f"friction bound −ρ at t = {t_max:g}")
         slip = np.asarray(table["status"]) == "slip"
         axes[1].plot(
             x[slip],
@@ -708,6 +775,7 @@ def plot_traction(
             mfc="none",
             mec="C3",
             ms=6,
+            zorder=5,
             label=f"slipping at t = {t_max:g}",
         )
     for panel, rx, ry, label in references:
@@ -718,15 +786,29 @@ def plot_traction(
         lo, hi = x[pressed].min(), x[pressed].max()
         pad = 0.3 * max(hi - lo, 1e-12)
         axes[1].set_xlim(lo - pad, hi + pad)
-    axes[0].set_ylabel("pressure −λ_n")
-    axes[1].set_ylabel("tangential traction λ_t")
-    axes[1].set_xlabel("arc length s along Γ_C (scene length unit)")
+    axes[0].set_ylabel(f"pressure −λ_n ({PRESSURE_UNIT})")
+    axes[1].set_ylabel(f"tangential traction λ_t ({PRESSURE_UNIT})")
+    axes[1].set_xlabel(f"arc length s along Γ_C ({LENGTH})")
+    # the load steps: one legend beside both panels (the same curves in each); the bounds,
+    # the slipping nodes and the references: in their panel's legend
+    step_labels = {f"t = {steps[k][0]:.4g}" for k in shown}
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(
+        [h for h, lb in zip(handles, labels) if lb in step_labels],
+        [lb for lb in labels if lb in step_labels],
+        loc="center right",
+        fontsize=8,
+        title="load step",
+    )
     for ax in axes:
         ax.grid(alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:  # a frictionless panel may have no curve
-            ax.legend(fontsize=8)
-    axes[0].set_title(title)
-    fig.tight_layout()
+        own = [(h, lb) for h, lb in zip(*ax.get_legend_handles_labels()) if lb not in step_labels]
+        if own:
+            ax.legend(*zip(*own), fontsize=8)
+    if len(shown) < len(steps):
+        title = f"{title}\n{len(shown)} of {len(steps)} load steps drawn, evenly spaced"
+    axes[0].set_title(title, fontsize=10)
+    fig.tight_layout(rect=(0, 0, 0.83, 1))
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
@@ -792,15 +874,15 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
     )
     axes = axes[0]
     sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
-    fig.colorbar(sc, ax=axes[0], label="pressure −λ_n")
+    fig.colorbar(sc, ax=axes[0], label=f"pressure −λ_n ({PRESSURE_UNIT})")
     axes[0].set_title("contact pressure" if friction else f"contact pressure at t = {t:g}")
     if friction:
         _tangential_arrows(axes[1], P, table, keep, t)
     labels = ["xyz"[i] for i in keep]
     for ax in axes:
         ax.set_aspect("equal")
-        ax.set_xlabel(labels[0])
-        ax.set_ylabel(labels[1])
+        ax.set_xlabel(f"{labels[0]} ({LENGTH})")
+        ax.set_ylabel(f"{labels[1]} ({LENGTH})")
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -827,5 +909,5 @@ def _tangential_arrows(ax, P: np.ndarray, table: dict, keep: list[int], t: float
         )
     m = status == "separated"
     ax.plot(P[m, 0], P[m, 1], ".", color="0.6", ms=3, label=f"separated ({m.sum()})")
-    ax.set_title(f"tangential traction λ_t at t = {t:g}")
+    ax.set_title(f"tangential traction λ_t at t = {t:g} (arrow length ∝ |λ_t|)")
     ax.legend(loc="upper right", fontsize=8)

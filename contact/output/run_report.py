@@ -31,9 +31,11 @@ from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, value_name, view_normal
+from ..post.exact_data import exact_mismatches
 from ..post.reference import compare
 from ..post.resultants import current_pressure
 from ..setup.scene import Scene
+from ..setup.untagged import untagged_boundary
 from ..solvers import Result
 from . import folder, plots
 from .fields import FieldFiles
@@ -104,6 +106,22 @@ def warn_coarse_zone(scene: Scene, result: Result) -> None:
         )
 
 
+def posed_problem(scene: Scene) -> dict[str, Any]:
+    """What the scene poses beyond its parts (collective): ``untagged_boundary``, the
+    exterior facets in no boundary part, which carry the natural condition
+    (:func:`contact.setup.untagged.untagged_boundary`: ``facets``, ``measure``, ``where``,
+    ``next_to``), and for a scene with ``data.exact`` the parts where the exact solution
+    misses the scene's boundary condition (``exact_mismatch``,
+    :func:`contact.post.exact_data.exact_mismatches`; empty when it satisfies them all)."""
+    out: dict[str, Any] = {
+        "untagged_boundary": untagged_boundary(scene.mesh, scene.boundary).as_dict()
+    }
+    mismatches = exact_mismatches(scene)
+    if mismatches is not None:
+        out["exact_mismatch"] = [m.as_dict() for m in mismatches]
+    return out
+
+
 def summary(
     scene: Scene,
     result: Result,
@@ -115,6 +133,7 @@ def summary(
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
     ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
     Signorini / elasticity), the contact force, timings (seconds), errors if known, the
+    untagged boundary and the exact solution's mismatches (:func:`posed_problem`), the
     contact resultants ``res`` of an elasticity run and the values of a declared reference."""
     con = result.problem.constraint
     comm = scene.comm
@@ -155,6 +174,7 @@ def summary(
     }
     if result.sequence_note:
         out["sequence_note"] = result.sequence_note
+    out.update(posed_problem(scene))
     if res is not None:
         out.update(res)
     if comparison is not None and scene.config.reference is not None:
@@ -261,8 +281,8 @@ def write_run(
     warn_coarse_zone(scene, result)
     out_cfg = scene.config.output
     with folder.atomic_folder(outdir, comm, label) as tmp:
-        files = FieldFiles(tmp, "solution", out_cfg.formats, comm)
-        files.write_one(point_fields(result), cell_fields(scene, result))
+        files = FieldFiles(tmp, "solution", out_cfg.formats, comm, scene.config.elastic)
+        files.write_one(point_fields(result), cell_fields(scene, result), scene.boundary)
         info.update(files.timings())
         folder.csv_file(tmp / "history.csv", result.history, comm)
         table = contact_table(scene, result)
@@ -321,7 +341,8 @@ class LevelWriter:
     fields); ``files`` keeps the seconds per format."""
 
     def __init__(self, tmp: Path, scene: Scene):
-        self.files = FieldFiles(tmp, "solution", scene.config.output.formats, scene.comm)
+        formats, elastic = scene.config.output.formats, scene.config.elastic
+        self.files = FieldFiles(tmp, "solution", formats, scene.comm, elastic)
 
     def __call__(self, level: Level) -> None:
         r = level.result
@@ -332,6 +353,7 @@ class LevelWriter:
             point_fields(r),
             cells,
             field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
+            boundary=level.scene.boundary,
         )
 
 

@@ -49,6 +49,7 @@ from .run_report import (
     _finish,
     cell_fields,
     point_fields,
+    posed_problem,
     pressure_picture,
     solution_picture,
     warn_coarse_zone,
@@ -68,7 +69,8 @@ class StepWriter:
     def __init__(self, tmp: Path, scene: Scene):
         self.tmp, self.scene = tmp, scene
         comm = scene.comm
-        self.files = FieldFiles(tmp, "solution", scene.config.output.formats, comm)
+        formats, elastic = scene.config.output.formats, scene.config.elastic
+        self.files = FieldFiles(tmp, "solution", formats, comm, elastic)
         self.rows = folder.RowLog(tmp / ".steps.jsonl", comm)
         self.levels = folder.RowLog(tmp / ".levels.jsonl", comm)
         self.history = folder.RowLog(tmp / ".history.jsonl", comm)
@@ -120,7 +122,9 @@ class StepWriter:
 
                 nodal += surface_functions(r)
             cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
-            self.files.write_step(step.time, nodal, cells, field_data={"step": k, "dofs": r.dofs})
+            self.files.write_step(
+                step.time, nodal, cells, {"step": k, "dofs": r.dofs}, scene.boundary
+            )
 
     def finish(
         self, path: LoadPath, wall: float | None = None, failure: dict | None = None
@@ -159,6 +163,7 @@ class StepWriter:
             "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
             "host": platform.node(),
             **self.files.timings(),
+            **posed_problem(last.scene),
             "steps": rows,
         }
         if path.cuts:  # step cutting (load.cuts): the steps that were halved
@@ -169,6 +174,11 @@ class StepWriter:
             info["inverted"] = path.inverted
         if path.tangent_events:  # what the energy search did, per step (one line each)
             info["tangent_events"] = path.tangent_events
+        if path.bifurcation:  # no stable state found: the equilibrium branch followed
+            info["bifurcation"] = path.bifurcation
+            info["equilibrium_branch"] = [
+                {"step": k, "time": t, "negative_eigenvalues": n} for k, t, n in path.branch_steps
+            ]
         if config.friction is not None and friction != "none":
             info["tangential_form"] = config.friction.form
         if self.scene.config.elastic:  # the forces are of the whole body

@@ -205,7 +205,10 @@ def one_grid(path: Path, name: str) -> ET.Element:
     domain = _child(ET.parse(path).getroot(), "Domain")
     mesh_grid = _child(domain, "Grid[@GridType='Uniform']")
     grid = ET.Element("Grid", Name=name, GridType="Uniform")
-    grid.extend([_child(mesh_grid, "Topology"), _child(mesh_grid, "Geometry")])
+    topology = _child(mesh_grid, "Topology")
+    if topology.get("TopologyType") == "PolyLine":  # intervals (the facets of a 2D Γ_C):
+        topology.set("TopologyType", "Polyline")  # XDMF's spelling, which meshio reads too
+    grid.extend([topology, _child(mesh_grid, "Geometry")])
     grid.extend(domain.iterfind("Grid[@GridType='Collection']/Grid/Attribute"))
     _state_types(grid, path.parent)
     return grid

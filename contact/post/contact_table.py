@@ -11,6 +11,9 @@ of the contact set only — with the named columns
                         (smallest initial gap) in the plane ⟂ n (elasticity: the contact
                         normal there; scalar: the mean normal of Γ_C)
     lambda_n | lambda   the multiplier: normal pressure λ_n ≤ 0 (elasticity), flux λ (scalar)
+    lambda_exact        scalar Signorini with a declared ``data.exact``: the exact flux
+                        λ = k ∂u/∂n − t_C, averaged over each node's support on Γ_C
+                        (∫ φ_i λ ds / ∫ φ_i ds), to compare ``lambda`` with
     gap                 σ(g − u) ≥ 0 (elasticity: g − u·n)
     active              1 in the active set (the solver's rule b_i > a_i), else 0
     (friction)          lambda_t, slip (2D; 3D: their x, y, z components), lambda_t_norm,
@@ -35,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
@@ -64,6 +67,9 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     if gdim == 3 and not p.in_domain:
         cols.update(_polar(scene, result, X))
     cols[value_name(scene)] = p.multiplier(owned_residual(result))
+    exact = exact_multiplier(scene, result)
+    if exact is not None:
+        cols["lambda_exact"] = exact
     current = current_pressure(result)
     if current is not None:  # a finite-strain body: the pressure per deformed area
         cols["pressure_current"] = current
@@ -74,6 +80,34 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     if p.in_domain:  # obstacle: the contact set only
         cols = {k: v[result.active_mask] for k, v in cols.items()}
     return cols
+
+
+def exact_multiplier(scene: Scene, result: Result) -> np.ndarray | None:
+    """The exact flux λ = k ∇u·n − t_C of a scalar Signorini scene's declared ``data.exact``
+    at this rank's constrained nodes, averaged over each node's support on Γ_C:
+    ∫ φ_i λ ds / ∫ φ_i ds (collective; None for other scenes).  The average, not a point
+    value, because λ of a free boundary problem has a kink or a root singularity where the
+    contact zone ends (problem A: λ = −(3/2)|x|^{1/2} for x < 0)."""
+    from ..setup import expressions
+
+    p, cfg = result.problem, scene.config
+    exact = cfg.data.exact
+    if exact is None or cfg.elastic or p.in_domain:
+        return None
+    assert isinstance(exact, str)  # a scalar model's exact solution is one expression
+    msh, V = scene.mesh, p.V
+    u = expressions.to_ufl(exact, msh, cfg.constants, t=scene.time)
+    n, v = ufl.FacetNormal(msh), ufl.TestFunction(V)
+    degree = 2 * V.element.basix_element.degree + 4
+    ds = p.data["ds"](metadata={"quadrature_degree": degree})
+    flux = p.data["k"] * ufl.dot(ufl.grad(u), n) - p.data["t_C"]
+    ids = scene.boundary.ids_with_role("contact")
+    sums = []
+    for integrand in (flux * v, v):
+        vec = fem.assemble_vector(fem.form(sum(integrand * ds(i) for i in ids)))
+        vec.scatter_reverse(la.InsertMode.add)
+        sums.append(vec.array[p.constraint.dofs])
+    return sums[0] / sums[1]
 
 
 def tangent_2d(result: Result) -> np.ndarray:
@@ -105,6 +139,10 @@ def friction_columns(scene: Scene, result: Result) -> Table:
     return cols
 
 
+#: in-plane coordinates below this fraction of the contact zone's extent are round-off: 0
+POLAR_ROUNDOFF = 1e-12
+
+
 def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     """r, theta about the first point of contact in the plane ⟂ n (collective)."""
     from ..models.obstacles import first_contact_point
@@ -118,7 +156,23 @@ def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(n, t1)
     rel = X - origin
-    return {"r": np.hypot(rel @ t1, rel @ t2), "theta": np.arctan2(rel @ t2, rel @ t1)}
+    extent = scene.comm.allreduce(float(np.max(np.abs(rel), initial=0.0)), op=MPI.MAX)
+    return polar(rel, t1, t2, POLAR_ROUNDOFF * extent)
+
+
+def polar(rel: np.ndarray, t1: np.ndarray, t2: np.ndarray, roundoff: float) -> Table:
+    """r and theta ∈ (−π, π] of the points ``rel`` (rows, relative to the origin) in the
+    plane of the unit vectors t1, t2.  The in-plane coordinates are summed component by
+    component (the same for a row on any number of ranks, whatever the array's length) and
+    those of magnitude ≤ ``roundoff`` become +0: a point on the axis −t1 gets θ = +π,
+    never −π from a signed zero or a round-off −1e-18 (which the partition decides)."""
+
+    def along(t: np.ndarray) -> np.ndarray:
+        value = sum(rel[:, i] * t[i] for i in range(rel.shape[1]))
+        return np.where(np.abs(value) <= roundoff, 0.0, value)
+
+    a, b = along(t1), along(t2)
+    return {"r": np.hypot(a, b), "theta": np.arctan2(b, a)}
 
 
 def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
@@ -169,7 +223,8 @@ def contact_table(scene: Scene, result: Result, columns: Table | None = None) ->
         keys = list(table)
         table = {**{k: table[k] for k in keys[:2]}, "s": s, **{k: table[k] for k in keys[2:]}}
     order = _order(table)
-    return {k: v[order] for k, v in table.items()}
+    # no signed zeros in the files: −0.0 + 0.0 = +0.0 (a value's sign is no property of a zero)
+    return {k: v[order] + 0.0 if v.dtype.kind == "f" else v[order] for k, v in table.items()}
 
 
 def _order(table: Table) -> np.ndarray:

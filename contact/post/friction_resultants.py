@@ -5,7 +5,9 @@ node i: a length in 2D, an area in 3D) are :func:`contact.post.contact_table.fri
 
 Resultants (of the whole body when symmetry planes cut it:
 :func:`contact.post.resultants.whole_body`, m times the modelled part's along the planes, 0
-across them): the normal force m Σ w_i λ_n,i, the tangential force Σ w_i λ_t,i (vector), the
+across them): the normal force m_n Σ w_i λ_n,i (m_n the mirror images pressing along the
+contact normal, :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`), the
+tangential force Σ w_i λ_t,i (vector), the
 contact force on the body Σ w_i (λ_n,i n_i + λ_t,i) (vector; with no body or Neumann load it
 balances the Dirichlet reaction), the Dirichlet reaction per component
 (:func:`contact.post.resultants.reaction_force`: the force the supports exert on the body or
@@ -51,7 +53,7 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
 
     tangential = w[:, None] * fr["lambda_t_vec"]
     out: dict[str, Any] = {
-        "normal_force": p.symmetric_copies * float(total(w * lam_n)[0]),
+        "normal_force": p.copies_along() * float(total(w * lam_n)[0]),
         "tangential_force": whole_body(p, total(tangential)),
         "contact_force": whole_body(p, total(w[:, None] * lam_n[:, None] * normals + tangential)),
         "reaction_force": reaction_force(result),

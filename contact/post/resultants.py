@@ -1,18 +1,22 @@
 """Resultants of an elastic contact solve: the numbers every elastic contact scene reports.
 
-* contact force  F = m Σ_i w_i p_i (n_i · n)  (``Result.contact_force``: p_i = −λ_n,i the nodal
-  pressure, w_i the lumped weights, n_i the nodal normals, n the normal at the first point of
-  contact, m the symmetric copies the modelled part stands for);
+* contact force  F = m_n Σ_i w_i p_i (n_i · n)  (``Result.contact_force``: p_i = −λ_n,i the
+  nodal pressure, w_i the lumped weights, n_i the nodal normals, n the normal at the first
+  point of contact, m_n the mirror images pressing along n, below);
 * reaction on the Dirichlet boundary along n: the sum of the residual a(u_h, v) − L(v) over
-  its DoFs, times m — equal to F at equilibrium (``force_balance_error`` = |R − F| / F);
+  its DoFs, times m_n — equal to F at equilibrium (``force_balance_error`` = |R − F| / F);
 * peak pressure max_i p_i and the smallest gap min_i (g_i − u_i·n_i) (≥ 0: no penetration).
 
 **Every force is of the whole body** (:func:`whole_body`): when symmetry planes cut the
-body, the modelled part stands for m = 2^(number of planes) mirror images, so a force's
-components along the planes are m times the modelled part's, and its component normal to a
-plane is 0 (it cancels between mirror images).  The normal ``n`` lies in the planes, so the
-scalar forces along n are m times the modelled part's.  Measures (``active_measure``, the
-stick / slip measures) and node counts stay those of the modelled part.
+body, the modelled part stands for m = 2^(number of planes) mirror images, so a force
+vector's components along the planes are m times the modelled part's, and its component
+normal to a plane is 0 (it cancels between mirror images).  A scalar force along the
+contact normal n (the contact force, the reaction along n, friction's normal force) is
+m_n times the modelled part's, m_n = 2^(planes that contain n)
+(:meth:`~contact.solvers.problem.DiscreteProblem.copies_along`): the image across a plane
+normal to n is a second contact zone pressing the other way, not one alongside.  Measures
+(``active_measure``, the stick / slip measures) and node counts stay those of the modelled
+part.
 
 Units: forces per unit thickness (N/m) in 2D plane strain, forces (N) in 3D; pressures in
 the unit of E.  Reference solutions (Hertz, ...) are compared in :mod:`contact.post.reference`.
@@ -40,9 +44,15 @@ def whole_body(problem, force) -> list[float]:
 
 def reaction_force(result: Result) -> list[float]:
     """The reaction of the Dirichlet boundary (the force the supports exert on the body or
-    bodies), per component, of the whole body (:func:`whole_body`; collective): Σ over the
-    Dirichlet DoFs of the residual a(u_h, v) − L(v), in the displacement's own components
-    (with contact pairs the solver's unknowns are rotated; the reaction is not)."""
+    bodies), per component, of the whole body (:func:`whole_body`; collective)."""
+    return whole_body(result.problem, part_reaction(result))
+
+
+def part_reaction(result: Result) -> np.ndarray:
+    """The reaction of the Dirichlet boundary on the modelled part, per component (summed
+    over all ranks; collective): Σ over the Dirichlet DoFs of the residual a(u_h, v) − L(v),
+    in the displacement's own components (with contact pairs the solver's unknowns are
+    rotated; the reaction is not)."""
     p = result.problem
     full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
@@ -52,7 +62,7 @@ def reaction_force(result: Result) -> list[float]:
     dofs = dofs[dofs < n_owned]
     local = np.bincount(dofs % bs, weights=full.array_r[dofs], minlength=bs)
     full.destroy()
-    return whole_body(p, p.V.mesh.comm.allreduce(local, op=MPI.SUM))
+    return p.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
 def nodal_gap(result: Result) -> np.ndarray:
@@ -110,7 +120,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     comm = scene.comm
     p = result.problem
     n = np.asarray(p.data["n"])  # contact normal at the first point of contact
-    reaction = abs(reaction_force(result)[int(np.argmax(np.abs(n)))])
+    reaction = p.copies_along(n) * abs(float(part_reaction(result) @ n))
     force = result.contact_force
     pressure = p.pressure(owned_residual(result))
     return {

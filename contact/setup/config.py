@@ -28,7 +28,7 @@ from typing import Any
 import yaml
 
 from ..base.errors import ConfigError  # also contact.base.errors.ConfigError, as before
-from ..base.validation import nonnegative as _nonnegative
+from ..base.validation import nonnegative as _nonnegative  # noqa: F401 - the study schema uses it
 from ..base.validation import parse_member, parse_section
 from ..base.validation import positive as _positive
 from ..base.validation import typename as _typename
@@ -277,6 +277,18 @@ def _steps(v: Any) -> str | None:
     return None
 
 
+#: ``load.cuts`` at most: a step halved this many times in a row is 2^-20 ≈ 1e-6 of itself
+MAX_STEP_CUTS = 20
+
+
+def _cuts(v: Any) -> str | None:
+    if v < 0:
+        return f"must be >= 0, got {v}"
+    if v > MAX_STEP_CUTS:
+        return f"must be at most {MAX_STEP_CUTS} (a step halved {MAX_STEP_CUTS} times), got {v}"
+    return None
+
+
 def _not_empty(v: str) -> str | None:
     return None if v.strip() else "must not be empty (leave the key out for results/<name>)"
 
@@ -310,10 +322,12 @@ BOUNDARY = Field(
     schema={
         "role": Field(
             "str",
-            choices=("dirichlet", "neumann", "contact", "symmetry", "interface"),
-            doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), contact (with the "
-            "rigid obstacle), symmetry (elasticity: zero normal displacement on a plane "
-            "x_k = const), or interface (a slave or master surface of a contact pair)",
+            choices=("dirichlet", "neumann", "contact", "symmetry", "interface", "natural"),
+            doc="what the part is: Dirichlet (u = u_D), Neumann (flux t), natural (zero flux "
+            "k ∂u/∂n = 0, elasticity traction-free: as an exterior facet in no part, but "
+            "declared), contact (with the rigid obstacle), symmetry (elasticity: zero normal "
+            "displacement on a plane x_k = const), or interface (a slave or master surface of "
+            "a contact pair)",
         ),
         "where": Field(
             "str", None, doc="predicate in x, y, z selecting facets whose vertices all satisfy it"
@@ -593,10 +607,11 @@ SCENE: dict[str, Field] = {
             "cuts": Field(
                 "int",
                 None,
-                check=_nonnegative,
+                check=_cuts,
                 doc="step cutting: a step that does not converge is halved (t_k → "
                 "(t_{k-1} + t_k)/2) and retried, at most this many times in a row "
-                "(default: 4 for model type hyperelastic, 0 otherwise)",
+                "(default: 4 for model type hyperelastic, 0 otherwise; at most "
+                "MAX_STEP_CUTS = 20); no step is cut below 1e-9 of the path's last t",
             ),
             "predictor": Field(
                 "str",

@@ -49,8 +49,9 @@ NATURAL = "(natural)"  # name of the part of unmarked exterior facets
 @dataclass
 class Boundary:
     """Facet tags of the scene's boundary parts: ``ids[name]`` is the tag value of a part,
-    ``roles[name]`` its role (dirichlet, neumann, contact, or natural for the exterior
-    facets no part selects: k ∂u/∂n = 0)."""
+    ``roles[name]`` its role (dirichlet, neumann, contact, symmetry, interface, or natural:
+    k ∂u/∂n = 0, for the parts declared so and for the exterior facets no part selects,
+    the part named :data:`NATURAL`)."""
 
     tags: dmesh.MeshTags
     ids: dict[str, int]
@@ -365,7 +366,8 @@ def tag_boundaries(
     ``tag`` selects the gmsh physical facet group (with ``where`` too: those of its facets
     that satisfy it); ``body`` keeps only the facets of that body's cells (``bodies``:
     :func:`tag_bodies`).  A part selecting no facet anywhere, an unknown tag, or two parts sharing a
-    facet are ConfigErrors.  Exterior facets left unmarked carry the natural condition k ∂u/∂n = 0.
+    facet are ConfigErrors.  Exterior facets left unmarked carry the natural condition k ∂u/∂n = 0
+    (the part :data:`NATURAL`, reported by :func:`contact.setup.untagged.untagged_boundary`).
     """
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)

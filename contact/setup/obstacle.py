@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base.errors import ConfigError
 from . import expressions
 from .scene_config import ObstacleConfig
 
@@ -40,10 +41,18 @@ def rigid_obstacle(
     obstacle: ObstacleConfig, constants: Mapping[str, float], time: float
 ) -> RigidObstacle:
     """The scene's obstacle section at pseudo-time ``time`` (``constants`` for its
-    expressions)."""
+    expressions).  A point or centre that is not a finite number at that time (an expression
+    of t such as ``1/(t - 0.6)``) is a ConfigError naming the key, the component and t."""
     coords = obstacle.point if obstacle.type == "plane" else obstacle.center
     assert coords is not None  # required for its type at load
     position = vector_at(coords, constants, time)
+    key = "obstacle.point" if obstacle.type == "plane" else "obstacle.center"
+    for i, value in enumerate(position):
+        if not np.isfinite(value):
+            raise ConfigError(
+                f"{key}[{i}] (at t = {time:g}): not a finite number ({value}) for the "
+                f"{obstacle.type}'s position {coords[i]!r}"
+            )
     moving = any(expressions.uses_time(c, constants) for c in coords)
     if obstacle.type == "plane":
         nu = np.asarray(obstacle.normal, dtype=float)
@@ -61,4 +70,7 @@ def vector_at(
 ) -> np.ndarray:
     """Coordinates given as numbers or expressions of the pseudo-time t, evaluated at t."""
     origin = np.zeros((3, 1))
-    return np.array([float(expressions.to_numpy(c, constants, t=time)(origin)[0]) for c in coords])
+    with np.errstate(all="ignore"):  # a non-finite value is the caller's to report
+        return np.array(
+            [float(expressions.to_numpy(c, constants, t=time)(origin)[0]) for c in coords]
+        )

@@ -25,12 +25,31 @@ from .scene_config import SceneConfig
 class Scene:
     """What a scene file describes, turned into a mesh with tagged boundary parts.
 
-    ``time`` is the pseudo-time t of a quasi-static load path (the name ``t`` in data
-    expressions; 1 at the end of the path and for a scene without one); ``t_constant`` is
-    it as a ``fem.Constant`` on the mesh, so that forms with t-dependent data compile once
-    for all steps.  ``history`` holds functions on the mesh that a load step needs from the
-    previous one (friction: the previous displacement ``u_prev``); refinement carries them
-    to the refined mesh."""
+    Made by :func:`load_scene` (or by :func:`contact.refine` from a coarser scene), never by
+    hand: the drivers (:func:`contact.solve`, :func:`contact.adapt`,
+    :func:`contact.run_load_path`) take it as their first argument.
+
+    Attributes:
+        config: The validated scene as typed, frozen objects, one attribute per key of the
+            YAML (``scene.config.solver.rtol``); an optional section left out is ``None``.
+        mesh: The DOLFINx mesh (all bodies of a multi-body scene in one mesh).
+        boundary: The facet tags of the boundary parts, with their ids and roles.
+        time: The pseudo-time t of a quasi-static load path (the name ``t`` in data
+            expressions; 1 at the end of the path and for a scene without one).
+        history: Functions on the mesh that a load step needs from the previous one
+            (friction: the previous displacement ``u_prev``); refinement carries them to
+            the refined mesh.
+        bodies: Cell tags k + 1 of the k-th body (scenes with ``bodies``), else ``None``.
+        surfaces: The facet tags of a gmsh mesh (file or built-in body), else ``None``.
+        parent: The coarser scene this one was refined from and the parent cell of each
+            cell, else ``None``.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[8,8]"])
+        >>> scene.name, scene.config.model.type, scene.time
+        ('signorini_square', 'signorini', 1.0)
+    """
 
     config: SceneConfig
     mesh: dmesh.Mesh
@@ -50,7 +69,10 @@ class Scene:
 
     @property
     def t_constant(self):
-        """The pseudo-time as a ``fem.Constant`` on the mesh (created once, kept in step)."""
+        """The pseudo-time as a ``fem.Constant`` on the mesh (created once, kept in step).
+
+        Forms with t-dependent data use it, so that they compile once for all load steps.
+        """
         if self._t_constant is None:
             from dolfinx import fem
             from petsc4py import PETSc
@@ -59,22 +81,28 @@ class Scene:
         return self._t_constant
 
     def set_time(self, t: float) -> None:
-        """Move the scene to pseudo-time ``t`` (the number and the constant forms see)."""
+        """Move the scene to pseudo-time ``t`` (the number and the constant forms see).
+
+        Args:
+            t: The new pseudo-time.
+        """
         self.time = float(t)
         if self._t_constant is not None:
             self._t_constant.value = self.time
 
     @property
     def name(self) -> str:
+        """The scene's ``name`` (default: the scene file's stem)."""
         return self.config.name
 
     @property
     def comm(self) -> MPI.Comm:
+        """The MPI communicator of the mesh."""
         return self.mesh.comm
 
 
 def require_scene(scene: Any) -> None:
-    """ValueError unless ``scene`` is a :class:`Scene` (argument check of the public API)."""
+    """Raise ValueError unless ``scene`` is a :class:`Scene` (the public API's check)."""
     if not isinstance(scene, Scene):
         raise ValueError(
             f"scene: expected a contact.Scene (from contact.load_scene), got {type(scene).__name__}"
@@ -82,9 +110,11 @@ def require_scene(scene: Any) -> None:
 
 
 def public[**P, R](function: Callable[P, R]) -> Callable[P, R]:
-    """``function`` (whose first argument is a scene) as the package exports it: the user's
-    scene argument checked first (:func:`require_scene`).  The drivers call the unchecked
-    functions with the Scenes the package built."""
+    """Return ``function`` (whose first argument is a scene) as the package exports it.
+
+    The user's scene argument is checked first (:func:`require_scene`); the drivers call
+    the unchecked functions with the Scenes the package built.
+    """
 
     @functools.wraps(function)
     def checked(*args: P.args, **kwargs: P.kwargs) -> R:
@@ -99,10 +129,34 @@ def load_scene(
     overrides: list[str] | tuple[str, ...] = (),
     comm: MPI.Comm = MPI.COMM_WORLD,
 ) -> Scene:
-    """Read and validate a scene (YAML path or dict), build its mesh and tag its boundary.
+    """Read and validate a scene, build its mesh and tag its boundary parts.
 
-    ``overrides`` are ``"key.path=value"`` strings as given to ``contact run --set``.
-    Raises :class:`contact.ConfigError` with a one-line message on any bad input.
+    Collective: call it on every rank of ``comm``. Everything is checked before anything
+    is solved: keys and values, expressions, files, the DoF budget, the PETSc options, and
+    that every boundary part selects facets (the user guide's Scene files page).
+
+    Args:
+        source: A scene file (YAML; a relative ``mesh.file`` is taken relative to it), or
+            a mapping with the same keys (a relative ``mesh.file`` is taken relative to the
+            current directory).
+        overrides: ``"key.path=value"`` strings as given to ``contact run --set``, applied
+            in order after the file, e.g. ``["mesh.cells=[32,32]", "adapt=none"]``.
+        comm: The MPI communicator of the mesh.
+
+    Returns:
+        The scene: its frozen config, mesh and tagged boundary parts.
+
+    Raises:
+        ConfigError: On any bad input, with a one-line message naming the key or file.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
+        >>> scene.config.mesh.cells, scene.config.adapt
+        ((16, 8), None)
+        >>> contact.load_scene("configs/signorini_free_boundary.yaml", ["solver.method=fbb"])
+        Traceback (most recent call last):
+        contact.base.errors.ConfigError: solver.method: 'fbb' is not one of fb, min, ...
     """
     if isinstance(source, bool) or not isinstance(source, (str, Path, Mapping)):
         raise ConfigError(
@@ -120,9 +174,12 @@ def load_scene(
 
 
 def build_scene(cfg: SceneConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
-    """The scene of a validated config (:func:`contact.setup.config.load_config`): its mesh and
-    tagged boundary.  Before the mesh is built: the DoF budget (from the mesh parameters)
-    and the PETSc options; after: the declared boundary surfaces."""
+    """Return the scene of a validated config: its mesh and tagged boundary.
+
+    The config comes from :func:`contact.setup.config.load_config`. Before the mesh is
+    built the DoF budget (from the mesh parameters) and the PETSc options are checked;
+    after, the declared boundary surfaces.
+    """
     from .budget import check_parameters
     from .surfaces import boundary_surfaces
 

@@ -29,7 +29,9 @@ then decides how much of it to take:
    enough) the step backtracks on ½‖Φ‖² instead (:func:`.globalize.backtrack`, inverting
    steps rejected); if no step keeps the matter whole the solve stops
    (``diverged_line_search``, :attr:`stalled`): past a material limit point (SVK in strong
-   compression) the only equilibria nearby may invert cells;
+   compression) the only equilibria nearby may invert cells, or the only admissible one is
+   the unstable branch the search left (a load path then follows that branch by plain
+   Newton and reports it: :func:`contact.drivers.load_path.follow_branch`);
 4. when A had negative eigenvalues, from the point reached, a step along the direction of
    negative curvature v (:meth:`.curvature.CurvatureSystem.negative_direction`) with
    the sign that descends (R·v, or the fixed field's sign on a symmetric saddle): its

@@ -175,16 +175,33 @@ class DiscreteProblem:
     def contact_force(self, r: np.ndarray) -> float:
         """The resultant contact force over all ranks (collective),
 
-            F = m Σ_i w_i p_i (n_i · n),
+            F = m_n Σ_i w_i p_i (n_i · n),
 
         p_i from :meth:`pressure`, n_i the nodal contact normals and n the one at the first
-        point of contact (n_i · n = 1 against a plane, and for scalar models), m the
-        symmetric copies the modelled part stands for.  Units: force per unit thickness in
-        2D elasticity (N/m), force in 3D (N); ∫ flux over Γ_C (or Ω) for scalar models."""
+        point of contact (n_i · n = 1 against a plane, and for scalar models), m_n the
+        mirror images that press along n (:meth:`copies_along`).  Units: force per unit
+        thickness in 2D elasticity (N/m), force in 3D (N); ∫ flux over Γ_C (or Ω) for
+        scalar models."""
         con = self.constraint
         along = self.data["normals"] @ self.data["n"] if "normals" in self.data else 1.0
         local = float(np.sum(con.w * self.pressure(r) * along))
-        return self.symmetric_copies * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+        return self.copies_along() * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+
+    def copies_along(self, n: np.ndarray | None = None) -> int:
+        """The factor of a scalar force along the direction ``n`` (default: the contact
+        normal at the first point of contact; scalar models: :attr:`symmetric_copies`):
+        2^(number of symmetry planes x_k = c that contain n, n_k = 0).  The mirror image
+        across such a plane presses alongside the modelled part; the image across a plane
+        normal to n (a frictionless floor under a block pressed from above) is a second
+        contact zone pressing the other way — the force through the body is that of one
+        zone, so that plane does not multiply it."""
+        n = self.data.get("n") if n is None else n
+        if n is None:
+            return self.symmetric_copies
+        n = np.asarray(n, dtype=float)
+        size = float(np.max(np.abs(n), initial=0.0))
+        planes = sum(1 for k in self.symmetry_axes if abs(n[k]) <= 1e-12 * size)
+        return 2**planes
 
     def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
         """Nodal fields on the output space S: the multiplier λ_h (:meth:`multiplier` on the

@@ -1,5 +1,8 @@
-"""The outcome of one solve: :class:`Result`, built by :func:`finish` from the final
-iterate (u_h, the multiplier λ_h, the gap, the active set, the iteration history)."""
+"""The outcome of one solve: :class:`Result`.
+
+:func:`finish` builds it from the final iterate: u_h, the multiplier λ_h, the gap, the
+active set, the iteration history.
+"""
 
 from __future__ import annotations
 
@@ -20,13 +23,45 @@ REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if 
 
 @dataclass
 class Result:
-    """The outcome of one solve.  ``lmbda_h`` holds λ_i at constrained DoFs (0 elsewhere);
-    ``active_mask`` marks the active ones among ``problem.constraint.dofs`` (owned) by the
-    solver's rule at the solution (``Complementarity.active_set``: b_i − a_i > τ, or both
-    within τ of 0), the set
-    ``active`` and ``n_active`` show.  ``contact_force`` is the resultant contact force
-    summed over all ranks (:meth:`contact.solvers.problem.DiscreteProblem.contact_force`), the same
-    number on every rank."""
+    """The outcome of one solve (:func:`contact.solve`, ``ComplementarityProblem.solve``).
+
+    A solve that did not converge returns a Result too (``converged`` false, ``reason``
+    says why); nothing raises on divergence. Every number is global (the same on every
+    rank); the functions' arrays hold a rank's own part.
+
+    Attributes:
+        u_h: The solution (displacement, or the scalar u).
+        lmbda_h: The multiplier λ_i at the constrained DoFs, 0 elsewhere: the contact
+            pressure or flux density (force per length in 2D, per area in 3D; λ_n ≤ 0 is
+            a pressure for elasticity).
+        gap: σ(g − u_h) at the constrained DoFs of Γ_C, NaN elsewhere (obstacle scenes:
+            ψ − u_h everywhere).
+        active: 1 at the active constrained DoFs, 0 elsewhere.
+        history: One dict per Newton iteration: residual ‖Φ‖, step length, active-set size,
+            status changes, polishing.
+        converged: Whether the solver met its tolerance.
+        reason: PETSc's converged or diverged reason, lower case (``converged_fnorm_abs``,
+            ``diverged_max_it``, …).
+        iterations: Newton iterations on the final mesh.
+        residual: The last ‖Φ‖ (a force, in the units of K x − b).
+        method: The method solved with (fb, min, blend, vinewtonrsls, vinewtonssls).
+        n_active: The number of active constrained DoFs, summed over the ranks.
+        timings: Seconds spent in ``assembly``, ``solve``, ``other`` and ``total``.
+        problem: The discrete problem solved (released by :meth:`release`).
+        active_mask: The active ones among the constraint's owned DoFs, by the solver's
+            rule at the solution (b_i − a_i > τ, or both within τ of 0).
+        polish_solves: Active-set polishing solves besides the Newton steps.
+        contact_force: The resultant contact force summed over all ranks (elasticity: of
+            the whole body, symmetric copies counted).
+        friction: Frictional scenes: the nodal λ_n, λ_t, ρ, slip and status (0 separated,
+            1 stick, 2 slip); ``None`` otherwise.
+        linear: The linear solver used (direct, gamg, bcgs, gmres).
+        krylov_iterations: Krylov iterations of all linear solves (0 for a direct solver).
+        sequence: The coarse levels of grid sequencing, coarsest first.
+        predictor: A load step's secant predictor: ``None`` (none offered), ``True`` (it
+            started the solve) or ``False`` (the previous step's solution did).
+        hint: For a failed solve, what in the scene makes it hard ("" if nothing known).
+    """
 
     u_h: fem.Function
     lmbda_h: fem.Function
@@ -60,21 +95,24 @@ class Result:
     friction: dict | None = (
         None  # frictional scenes: nodal λ_n, λ_t, ρ, slip, status (solvers.friction)
     )
-    #: a load path's predictor: None (none offered), True (it started the solve: a smaller ‖Φ‖
-    #: than the previous step's solution), False (the previous step's solution did)
+    # a load path's predictor: None (none offered), True (it started the solve: a smaller ‖Φ‖
+    # than the previous step's solution), False (the previous step's solution did)
     predictor: bool | None = None
     hint: str = ""  # a failed solve: what in the scene makes it hard ('' if nothing known)
     stopping: AdaptiveStopping | None = None  # solver.stopping adaptive: its criteria (.stopping)
 
     @property
     def linear_solves(self) -> int:
-        """Newton steps plus active-set polishing solves: the linear systems solved."""
+        """The linear systems solved, Newton steps plus active-set polishing solves."""
         return self.iterations + self.polish_solves
 
     @property
     def coarse_iterations(self) -> int:
-        """Newton iterations on the coarse levels of grid sequencing (0 without): the work
-        that let the final mesh's Newton (``iterations``) start from a near solution."""
+        """Newton iterations on the coarse levels of grid sequencing (0 without).
+
+        The work that let the final mesh's Newton (``iterations``) start from a near
+        solution.
+        """
         return sum(lv.newton_iterations for lv in self.sequence)
 
     @property
@@ -91,16 +129,19 @@ class Result:
 
     @functools.cached_property
     def dofs(self) -> int:
+        """The number of degrees of freedom of u_h, over all ranks."""
         V = self.u_h.function_space
         return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
 
     def release(self) -> None:
-        """Keep the figures only: the problem's PETSc objects are destroyed
-        (:meth:`~contact.solvers.problem.DiscreteProblem.destroy`), the functions, the problem
-        and the nodal arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps
-        its numbers).  What stays — iterations, residual, history, timings, contact force,
-        DoFs — takes no memory that grows with the mesh.  A load path releases each step's
-        result once the next step is done (:meth:`contact.drivers.load_path.Step.release`)."""
+        """Keep the figures only, and release the memory that grows with the mesh.
+
+        The problem's PETSc objects are destroyed, the functions, the problem and the nodal
+        arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps its
+        numbers). What stays — iterations, residual, history, timings, contact force, DoFs
+        — takes no memory that grows with the mesh. A load path releases each step's result
+        once the next step is done.
+        """
         if self.problem is None:
             return
         _ = self.dofs  # cached while u_h is there
@@ -113,8 +154,11 @@ class Result:
 
 
 def not_converged_text(result: Result) -> str:
-    """'did not converge (reason) after n Newton iterations, last |Phi| = r' and the
-    result's hint, for the messages of a failed solve."""
+    """Return the message of a failed solve.
+
+    'did not converge (reason) after n Newton iterations, last |Phi| = r' and the result's
+    hint.
+    """
     text = (
         f"did not converge ({result.reason}) after {result.iterations} Newton iterations, "
         f"last |Phi| = {result.residual:.3e}"
@@ -130,8 +174,10 @@ SEMICOERCIVE_HINT = (
 
 
 def floating_hint(floating: list[tuple[str, int]]) -> str:
-    """The hint of a failed solve with elastic bodies no condition holds
-    (DiscreteProblem.floating, :mod:`contact.solvers.floating`)."""
+    """Return the hint of a failed solve with elastic bodies that no condition holds.
+
+    ``floating`` is ``DiscreteProblem.floating`` (:mod:`contact.solvers.floating`).
+    """
     name, free = floating[0]
     what = f"body {name}" if name else "the body"
     what += f" (and {len(floating) - 1} more)" if floating[1:] else ""
@@ -142,12 +188,14 @@ def floating_hint(floating: list[tuple[str, int]]) -> str:
 
 
 def not_unique_text(free: list[tuple[str, int]]) -> str:
-    """The warning of a converged solve whose body only frictionless contact holds (``free``:
-    (body, free rigid motions) of :func:`contact.solvers.floating.free_in_contact`, the
-    first named): its displacement is one of infinitely many — any sliding of the body along
-    its free rigid motions solves the problem as well, and which copy the solver returned
-    depends on the linear solver's null pivots, i.e. on rounding —, while its strains,
-    stresses and contact forces are unique."""
+    """Return the warning of a converged solve whose body only frictionless contact holds.
+
+    ``free``: (body, free rigid motions) of :func:`contact.solvers.floating.free_in_contact`,
+    the first named. The displacement is one of infinitely many — any sliding of the body
+    along its free rigid motions solves the problem as well, and which copy the solver
+    returned depends on the linear solver's null pivots, i.e. on rounding —, while its
+    strains, stresses and contact forces are unique.
+    """
     name, n = free[0]
     return (
         f"the displacement is not unique: {'body ' + name if name else 'the body'} keeps "
@@ -158,9 +206,12 @@ def not_unique_text(free: list[tuple[str, int]]) -> str:
 
 
 def newton_text(result: Result) -> str:
-    """The Newton iterations of a solve for one line: '5 Newton iterations (+1 polishing)',
-    and after grid sequencing the final mesh's beside the coarse levels' total: '0 Newton
-    iterations (+1 polishing) on the final mesh, 14 (+2) on 3 coarser meshes'."""
+    """Return the Newton iterations of a solve for one line.
+
+    '5 Newton iterations (+1 polishing)', and after grid sequencing the final mesh's beside
+    the coarse levels' total: '0 Newton iterations (+1 polishing) on the final mesh, 14 (+2)
+    on 3 coarser meshes'.
+    """
     polish = f" (+{result.polish_solves} polishing)" if result.polish_solves else ""
     text = f"{result.iterations} Newton iterations{polish}"
     if not result.sequence:
@@ -202,12 +253,14 @@ def finish(
     reason_code,
     inexact: bool = False,
 ) -> Result:
-    """Copy the iterate into functions: u_h, and λ_h, the gap and the active set.  Timings
-    count on ``clock`` (started the assembly earlier when this solve built the problem).
-    ``inexact``: the iterate keeps an algebraic residual (adaptive stopping), and λ_h is the
-    complementarity law's, 0 off the active set, not the residual there (the algebraic
-    residual on inactive rows is no contact force: in the bound's complementarity term it
-    would weigh like a multiplier times the gap)."""
+    """Copy the iterate into functions: u_h, and λ_h, the gap and the active set.
+
+    Timings count on ``clock`` (started the assembly earlier when this solve built the
+    problem). ``inexact``: the iterate keeps an algebraic residual (adaptive stopping), and
+    λ_h is the complementarity law's, 0 off the active set, not the residual there (the
+    algebraic residual on inactive rows is no contact force: in the bound's complementarity
+    term it would weigh like a multiplier times the gap).
+    """
     u_h = problem.u_h
     problem.to_displacement(x, u_h.x.petsc_vec)
     u_h.x.scatter_forward()

@@ -4,9 +4,10 @@
 * :mod:`.cells` — the per-cell data rows and their exchange between ranks;
 * :mod:`.operators` — the hybridized cell operators of a patch problem;
 * :mod:`.patches` — the vertex-patch problems, batched by size (NumPy: ``backend="numpy"``);
-* :mod:`.patches_c`, :mod:`.kernel_c`, :mod:`.compiled` — the same patch problems in a C
-  kernel compiled at first use (the default backend: ≈ 20× faster, the same σ_h to round-off),
-  and there a cheaper P1 fit of the same constraints (``backend="flow"``);
+* :mod:`.patches_c`, :mod:`.compiled` — the same patch problems in a C kernel
+  (``kernels/eqlb.c``) compiled at first use into a verified cache (the default backend: ≈ 20×
+  faster, the same σ_h to round-off), and there a cheaper P1 fit of the same constraints
+  (``backend="flow"``);
 * :mod:`.flux` — :func:`reconstruct_flux`, σ_h ∈ RT_p from plain inputs;
 * :mod:`.bound` — the guaranteed bound for the scalar Signorini and obstacle problems.
 """

@@ -1,39 +1,81 @@
-"""The compiled patch solver: builds the C library of :mod:`.kernel_c` for a reference
-element (one per (d, p)), caches it on disk and loads it through cffi.
+"""The compiled kernels of the equilibration: C sources shipped with the package, built on
+first use for one reference element at a time, kept in a verified on-disk cache, and loaded
+through cffi.
 
-The library is compiled at first use with the C compiler DOLFINx's JIT already needs
-(``$CC``, else ``cc``; ``-O3 -march=native``: the lane loops of the cell kernel vectorize,
-≈ 25 % faster than ``-O2`` here; ``-O2`` where the compiler refuses ``-march=native``) into
-``$CONTACT_CACHE_DIR`` (default ``$XDG_CACHE_HOME/contact``, ``~/.cache/contact``) under a
-name hashing the source, the dimensions, the compiler command and the CPU's model and
-feature flags (so a cache shared by different machines never hands one another's
-instructions); it is written to a temporary file and renamed, so concurrent processes
-never load half a library.  Under MPI, rank 0 compiles while the
-others wait, the outcome is broadcast (an error ends every rank with the same message),
-and a rank that does not see rank 0's file (a node-local cache) compiles its own.
+The sources are ``kernels/eqlb.c`` (the flux's patch solver, called by :mod:`.patches_c`) and
+``kernels/stress.c`` (the stress's cell operators and patch systems, :mod:`.stress_c`), with
+the headers they include (``eqlb.h``, ``stress.h``: the interfaces cffi reads; ``lu.h``).
+The dimensions of the reference element are ``-D`` flags (:func:`dimensions`,
+:func:`stress_dimensions`), so the compiler unrolls the small loops.
+
+**Build.** ``$CC`` (else ``cc``: the compiler DOLFINx's JIT already needs) with ``-O3
+-march=native`` (the lane loops of the cell kernels vectorize), ``-O2`` where the compiler
+refuses ``-march=native``.  Warnings are errors in the lint step (``tools/check_kernels.py``
+compiles every variant with :data:`WERROR`), not on a user's machine, where a newer
+compiler's new warning would cost the compiled backend.
+
+**Cache.** ``$CONTACT_CACHE_DIR`` (default ``$XDG_CACHE_HOME/contact``, else
+``~/.cache/contact``).  A build is known by its key: the SHA-256 of the sources, the
+dimensions, the flags, the compiler command and its ``--version`` line, and the CPU's model
+and feature flags (a cache shared by machines never hands one another's ``-march=native``
+instructions).  The library is written to a temporary file in the cache folder, flushed to
+disk and renamed under a name carrying its own SHA-256; then the manifest
+``<name>_<dims>_<key>.json`` (the key, the library's file name and SHA-256) is written the
+same way.  Before a library is opened, the manifest's key is compared with the key of this
+build and the library's bytes are hashed: a truncated or corrupted library, a corrupted
+manifest or a missing file is rebuilt once (one warning line).  When the build or the
+load fails — no compiler, a cache folder that cannot be written, a rebuilt library that
+still does not load — :func:`load` returns None and the caller uses the NumPy backend (the
+reference: the same σ_h to round-off), after one warning line per process.  Concurrent
+builds (processes, ranks) write their own temporary files and rename whole files, so a
+reader sees a complete library or none.
+
+**MPI.** :func:`load` is collective: rank 0 builds while the others wait, then every rank
+verifies and opens the library (a rank that does not see rank 0's file, a node-local
+cache, builds its own); the ranks agree, so either every rank has the library or every
+rank falls back to NumPy, and rank 0 gives the one warning.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import json
 import os
 import platform
+import re
 import shlex
 import subprocess
 import tempfile
+import warnings
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from mpi4py import MPI
 
-from .kernel_c import CDEF, SOURCE
 from .reference import Reference
 
-_LOADED: dict = {}
+#: the folder of the C sources (package data)
+SOURCES = Path(__file__).with_name("kernels")
+#: the kernels by name: the C file (its interface: the header of the same stem)
+KERNELS = {"eqlb": "eqlb.c", "stress": "stress.c"}
+#: what each kernel computes (in the warning lines)
+PURPOSE = {"eqlb": "flux", "stress": "stress"}
+#: the optimization flags, in order of preference
+FLAGS = (("-O3", "-march=native"), ("-O2",))
+#: the flags of every build: C99, a shared library
+COMMON = ("-std=c99", "-fPIC", "-shared")
+#: the warnings that fail the lint step
+WERROR = ("-Wall", "-Wextra", "-Werror")
+#: the longest a compile may take, seconds (a hung compiler is a failed build)
+TIMEOUT = 600
+#: the longest reason in a warning line, characters (the line stays within 300)
+REASON = 170
 
 
-def dimensions(ref: Reference, nu: int) -> dict:
-    """The compile-time constants of :mod:`.kernel_c` for ``ref`` and dim P_p = ``nu``."""
+def dimensions(ref: Reference, nu: int) -> dict[str, int]:
+    """The compile-time constants of ``kernels/eqlb.c`` for ``ref`` and dim P_p = ``nu``."""
     d = ref.d
     return {
         "DIM": d,
@@ -51,7 +93,23 @@ def dimensions(ref: Reference, nu: int) -> dict:
     }
 
 
+def stress_dimensions(ref: Reference) -> dict[str, int]:
+    """The compile-time constants of ``kernels/stress.c`` for the rows' reference element."""
+    d = ref.d
+    return {
+        "DIM": d,
+        "NV": d + 1,
+        "NF": ref.nf,
+        "BF": d * ref.nf,
+        "MZ": ref.Z.shape[1],
+        "NP": ref.np_,
+        "NAS": d * (d - 1) // 2,
+    }
+
+
 def cache_dir() -> Path:
+    """The cache folder: ``$CONTACT_CACHE_DIR``, else ``$XDG_CACHE_HOME/contact``, else
+    ``~/.cache/contact``."""
     base = (
         os.environ.get("CONTACT_CACHE_DIR")
         or Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "contact"
@@ -59,12 +117,69 @@ def cache_dir() -> Path:
     return Path(base)
 
 
-FLAGS = (["-O3", "-march=native"], ["-O2"])
+def compiler() -> tuple[str, ...]:
+    """The C compiler command: ``$CC`` split as a shell would, else ``cc``."""
+    return tuple(shlex.split(os.environ.get("CC") or "cc"))
 
 
-def _command(src: Path, out: Path, flags: list[str]) -> list[str]:
-    cc = shlex.split(os.environ.get("CC", "cc"))
-    return cc + flags + ["-std=c99", "-fPIC", "-shared", str(src), "-o", str(out), "-lm"]
+def sources(name: str) -> dict[str, bytes]:
+    """The files kernel ``name`` is built from: its C file and the local headers it
+    includes (``#include "..."``, recursively), by file name."""
+    out: dict[str, bytes] = {}
+    todo = [KERNELS[name]]
+    while todo:
+        file = todo.pop()
+        if file not in out:
+            out[file] = (SOURCES / file).read_bytes()
+            todo += [
+                m.decode() for m in re.findall(rb'^\s*#\s*include\s+"([^"]+)"', out[file], re.M)
+            ]
+    return dict(sorted(out.items()))
+
+
+def cdef(name: str) -> str:
+    """The declarations of kernel ``name`` for cffi: its header without comments and
+    preprocessor lines (the include guard, the includes)."""
+    text = (SOURCES / KERNELS[name]).with_suffix(".h").read_text()
+    text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
+    return "".join(line for line in text.splitlines(True) if not line.lstrip().startswith("#"))
+
+
+def command(
+    cc: tuple[str, ...], name: str, dims: dict[str, int], flags: tuple[str, ...]
+) -> list[str]:
+    """The compile command of kernel ``name`` into ``lib.so``, run in a folder holding
+    :func:`sources` (relative names: the library does not depend on the folder)."""
+    defines = [f"-D{k}={v}" for k, v in dims.items()]
+    return [*cc, *flags, *COMMON, *defines, KERNELS[name], "-o", "lib.so", "-lm"]
+
+
+def compile_in(
+    folder: Path, name: str, dims: dict[str, int], flags: tuple[str, ...], cc: tuple[str, ...]
+) -> subprocess.CompletedProcess:
+    """Write the sources of kernel ``name`` into ``folder`` and compile them there into
+    ``folder/lib.so`` (:func:`command`); OSError where the compiler cannot be started,
+    subprocess.TimeoutExpired after :data:`TIMEOUT` seconds."""
+    for file, text in sources(name).items():
+        (folder / file).write_bytes(text)
+    return subprocess.run(
+        command(cc, name, dims, flags),
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT,
+    )
+
+
+@functools.cache
+def compiler_version(cc: tuple[str, ...]) -> str:
+    """The first line of ``cc --version`` ('' where it does not run)."""
+    try:
+        run = subprocess.run([*cc, "--version"], capture_output=True, text=True, timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    lines = run.stdout.strip().splitlines() if run.returncode == 0 else []
+    return lines[0] if lines else ""
 
 
 @functools.cache
@@ -78,65 +193,255 @@ def _cpu() -> str:
         return platform.platform() + platform.processor()
 
 
-def _source(dims: dict, source: str = SOURCE) -> str:
-    return "".join(f"#define {k} {v}\n" for k, v in dims.items()) + source
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
 
 
-def _path(dims: dict, name: str = "eqlb", source: str = SOURCE) -> Path:
-    command = " ".join(" ".join(_command(Path("s"), Path("o"), f)) for f in FLAGS)
-    digest = hashlib.sha256((_source(dims, source) + command + _cpu()).encode()).hexdigest()
-    tag = "_".join(str(v) for v in dims.values())
-    return cache_dir() / f"{name}_{tag}_{digest[:16]}.so"
+@dataclass(frozen=True)
+class Build:
+    """One library: kernel ``name`` for the constants ``dims``, built by ``cc`` (whose
+    ``--version`` line is ``version``), and its place in the cache."""
+
+    name: str
+    dims: tuple[tuple[str, int], ...]
+    cc: tuple[str, ...]
+    version: str
+
+    @functools.cached_property
+    def key(self) -> str:
+        """The SHA-256 of everything the library depends on (module docstring)."""
+        recipe = {
+            "sources": {f: _sha256(text) for f, text in sources(self.name).items()},
+            "dims": self.dims,
+            "flags": FLAGS,
+            "common": COMMON,
+            "cc": self.cc,
+            "version": self.version,
+            "cpu": _cpu(),
+        }
+        return _sha256(json.dumps(recipe, sort_keys=True).encode())
+
+    @property
+    def stem(self) -> str:
+        return "_".join([self.name, *(str(v) for _, v in self.dims), self.key[:16]])
+
+    @property
+    def manifest(self) -> Path:
+        """The cache entry: the manifest naming the library and its SHA-256."""
+        return cache_dir() / f"{self.stem}.json"
 
 
-def _compile(source: str, path: Path) -> str:
-    """Compile ``source`` into ``path`` unless it exists; returns '' or the error message."""
-    if path.exists():
-        return ""
+def entry(name: str, dims: dict[str, int], version: str | None = None) -> Build:
+    """The build of kernel ``name`` for ``dims`` with this process's compiler (``version``:
+    its ``--version`` line, found here when None)."""
+    cc = compiler()
+    return Build(
+        name, tuple(dims.items()), cc, compiler_version(cc) if version is None else version
+    )
+
+
+class BuildError(Exception):
+    """A library could not be built, verified or opened (the message: one line)."""
+
+
+def _one_line(text: str, limit: int = REASON) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _verified(build: Build) -> tuple[Path | None, str]:
+    """The library of ``build``'s manifest if its key is this build's and its bytes hash to
+    the manifest's SHA-256; else (None, what is wrong) — '' where there is no manifest."""
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=path.parent) as tmp:
-            src = Path(tmp) / "eqlb.c"
-            src.write_text(source)
-            out = Path(tmp) / path.name
+        text = build.manifest.read_text()
+    except (FileNotFoundError, NotADirectoryError):  # not built yet, or no cache folder
+        return None, ""
+    except OSError as err:
+        return None, f"cannot read {build.manifest.name} ({err.strerror})"
+    try:
+        manifest = json.loads(text)
+        key, name, digest = manifest["key"], manifest["library"], manifest["sha256"]
+    except (ValueError, TypeError, KeyError):
+        return None, f"{build.manifest.name} is not a manifest"
+    if key != build.key or not isinstance(name, str) or Path(name).name != name:
+        return None, f"{build.manifest.name} names another build"
+    library = build.manifest.with_name(name)
+    try:
+        data = library.read_bytes()
+    except OSError as err:
+        return None, f"cannot read {name} ({err.strerror})"
+    if _sha256(data) != digest:
+        return None, f"{name} does not match the SHA-256 of its manifest"
+    return library, ""
+
+
+def _sync(path: Path, folder: bool = False) -> None:
+    """Flush the file ``path`` to disk; a ``folder`` (its entries: the renames) where the
+    file system can (some refuse a folder's fsync: then the renames are as durable as it
+    makes them)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    except OSError:
+        if not folder:
+            raise
+    finally:
+        os.close(fd)
+
+
+def build(b: Build) -> Path:
+    """Compile ``b`` into the cache (module docstring: temporary files, fsync, renames;
+    the manifest last) and return the library; BuildError with a one-line reason."""
+    folder = cache_dir()
+    if folder.exists() and not folder.is_dir():
+        raise BuildError(f"the cache {folder} is not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
+            work = Path(tmp)
+            errors = []
             for flags in FLAGS:
-                run = subprocess.run(_command(src, out, flags), capture_output=True, text=True)
+                try:
+                    run = compile_in(work, b.name, dict(b.dims), flags, b.cc)
+                except OSError as err:
+                    what = f"no C compiler {shlex.join(b.cc)!r} ({err.strerror})"
+                    raise BuildError(what) from err
+                except subprocess.TimeoutExpired as err:
+                    raise BuildError(f"{shlex.join(b.cc)} took over {TIMEOUT} s") from err
                 if run.returncode == 0:
                     break
-            if run.returncode != 0:
-                return f"compiling the equilibration kernel failed: {run.stderr.strip()[:500]}"
-            os.replace(out, path)
+                lines = run.stderr.strip().splitlines() or [f"exit {run.returncode}"]
+                errors.append(next((s for s in lines if "error" in s), lines[0]))
+            else:
+                raise BuildError(f"{shlex.join(b.cc)} failed: {errors[0]}")
+            built = work / "lib.so"
+            digest = _sha256(built.read_bytes())
+            _sync(built)
+            library = folder / f"{b.stem}_{digest[:16]}.so"
+            os.replace(built, library)
+            manifest = {
+                "key": b.key,
+                "library": library.name,
+                "sha256": digest,
+                "kernel": b.name,
+                "dims": dict(b.dims),
+                "flags": list(flags),
+                "compiler": list(b.cc),
+                "version": b.version,
+            }
+            note = work / "manifest.json"
+            note.write_text(json.dumps(manifest, indent=1) + "\n")
+            _sync(note)
+            os.replace(note, b.manifest)
+            _sync(folder, folder=True)
     except OSError as err:
-        return f"compiling the equilibration kernel into {path.parent} failed: {err}"
-    return ""
+        raise BuildError(f"cannot write the cache {folder} ({err.strerror or err})") from err
+    return library
 
 
-def load(comm: MPI.Comm, name: str, cdef: str, source: str, dims: dict):
-    """(ffi, lib) of the C ``source`` (its declarations ``cdef``) compiled with the
-    constants ``dims`` (``#define``s), cached on disk under ``name`` (collective)."""
+def _dlopen(b: Build, library: Path) -> tuple[Any, Any]:
+    """(ffi, lib) of ``library`` with every function of its interface resolved."""
     import cffi
 
+    ffi = cffi.FFI()
+    declarations = cdef(b.name)
+    ffi.cdef(declarations)
+    lib = ffi.dlopen(str(library))
+    for function in re.findall(r"(\w+)\s*\(", declarations):
+        getattr(lib, function)  # AttributeError where the library lacks it
+    return ffi, lib
+
+
+def open_library(b: Build) -> tuple[tuple[Any, Any] | None, str]:
+    """(ffi, lib) of ``b`` from the cache, built where it is missing; an entry that does not
+    verify or load is rebuilt once.  Returns the pair (None where it failed) and a note: ''
+    where all went as usual, else what went wrong (one line)."""
+    library, problem = _verified(b)
+    if library is not None:
+        try:
+            return _dlopen(b, library), ""
+        except (OSError, AttributeError) as err:
+            problem = f"{library.name} does not load ({_one_line(str(err), 60)})"
+    try:
+        library = build(b)
+        checked, why = _verified(b)
+        if checked is None:
+            raise BuildError(why or f"{b.manifest.name} vanished")
+        kernel = _dlopen(b, checked)
+    except (BuildError, OSError, AttributeError) as err:
+        reason = f"{problem}; rebuilding it: {err}" if problem else str(err)
+        return None, _one_line(reason)
+    if problem:
+        note = f"the cached {PURPOSE[b.name]} kernel was rebuilt: {problem}"
+        return kernel, _one_line(note, 280)
+    return kernel, ""
+
+
+def _attempt(b: Build) -> tuple[tuple[Any, Any] | None, str]:
+    """:func:`open_library`, with any error a failure like the others: one rank's error
+    must reach the collectives the other ranks wait in, not end this rank alone."""
+    try:
+        return open_library(b)
+    except Exception as err:  # noqa: BLE001 - cffi's CDefError, MemoryError, a bug: all ranks hear
+        return None, _one_line(f"{type(err).__name__}: {err}")
+
+
+class _Run:
+    """What this process has loaded ((ffi, lib) per (name, dims); None: the NumPy backend)
+    and whether it has warned (one warning line per process)."""
+
+    def __init__(self) -> None:
+        self.kernels: dict[tuple, tuple[Any, Any] | None] = {}
+        self.warned = False
+
+
+_RUN = _Run()
+
+
+def _warn(comm: MPI.Comm, message: str) -> None:
+    """One warning line per process, from rank 0 (a ContactWarning: the CLI prints it as
+    ``contact: warning: ...``)."""
+    from ...setup.surfaces import ContactWarning
+
+    if not _RUN.warned and comm.rank == 0:
+        warnings.warn(message, ContactWarning, stacklevel=4)
+    _RUN.warned = True
+
+
+def load(comm: MPI.Comm, name: str, dims: dict[str, int]) -> tuple[Any, Any] | None:
+    """(ffi, lib) of kernel ``name`` compiled with the constants ``dims``, or None where
+    it cannot be had on every rank: then the caller uses the NumPy backend (one warning
+    line per process).  Collective; every rank returns the same kind of answer."""
     key = (name, *dims.items())
-    missing = comm.allreduce(key not in _LOADED, op=MPI.LOR)
-    if missing:
-        path = _path(dims, name, source)
-        text = _source(dims, source)
-        error = comm.bcast(_compile(text, path) if comm.rank == 0 else "", root=0)
-        if not error and key not in _LOADED:
-            error = _compile(text, path)  # a no-op where rank 0's file is seen
-            if not error:
-                try:
-                    ffi = cffi.FFI()
-                    ffi.cdef(cdef)
-                    _LOADED[key] = (ffi, ffi.dlopen(str(path)))
-                except OSError as err:
-                    error = f"loading the equilibration kernel {path} failed: {err}"
-        error = next((e for e in comm.allgather(error) if e), "")
-        if error:
-            raise RuntimeError(error)
-    return _LOADED[key]
+    known = key in _RUN.kernels
+    here = _RUN.kernels.get(key)  # None: not loaded here (not tried, or given up on)
+    status = comm.allreduce(0 if here is not None else 2 if known else 1, op=MPI.MAX)
+    if status != 1:  # every rank has it, or some rank has given up on it
+        if status == 2:
+            _RUN.kernels[key] = None
+        return _RUN.kernels[key]
+    version = comm.bcast(compiler_version(compiler()) if comm.rank == 0 else None, root=0)
+    b = entry(name, dims, version)
+    mine: tuple[tuple[Any, Any] | None, str] = (here, "")
+    if comm.rank == 0 and here is None:
+        mine = _attempt(b)
+    first = comm.bcast(mine[0] is not None if comm.rank == 0 else None, root=0)
+    if comm.rank != 0 and here is None and first:
+        mine = _attempt(b)  # rank 0's file where the cache is shared
+    outcomes = comm.allgather((mine[0] is not None, mine[1]))
+    ok = all(o for o, _ in outcomes)
+    note = next((n for _, n in outcomes if n), "")
+    _RUN.kernels[key] = mine[0] if ok else None
+    if not ok:
+        reason = note or "it did not load on every rank"
+        _warn(comm, f"the compiled {PURPOSE[name]} kernel is unavailable ({reason}); the "
+              "estimate falls back to backend='numpy' (same result, slower)")  # fmt: skip
+    elif note:
+        _warn(comm, note)
+    return _RUN.kernels[key]
 
 
-def library(comm: MPI.Comm, ref: Reference, nu: int):
-    """(ffi, lib) of the flux kernel of :mod:`.kernel_c` for ``ref`` (collective)."""
-    return load(comm, "eqlb", CDEF, SOURCE, dimensions(ref, nu))
+def library(comm: MPI.Comm, ref: Reference, nu: int) -> tuple[Any, Any] | None:
+    """(ffi, lib) of the flux kernel for ``ref`` and dim P_p = ``nu``, or None: the NumPy
+    backend (collective, :func:`load`)."""
+    return load(comm, "eqlb", dimensions(ref, nu))

@@ -18,7 +18,6 @@ same reconstruction serves other models (row-wise for elasticity).
 from __future__ import annotations
 
 import time
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -42,7 +41,7 @@ __all__ = ["Flux", "FluxData", "reconstruct_flux"]
 #: only, compiled: the same constraints and so the same guarantee, the patch minimization only
 #: approximated — block coordinate descent in the facet moments, the constant fluxes under the
 #: constraints, then ``rounds`` times the higher moments facet by facet and the constant
-#: fluxes again; ``solve_flow`` in :mod:`.kernel_c`)
+#: fluxes again; ``solve_flow`` in ``kernels/eqlb.c``)
 BACKENDS = ("compiled", "numpy", "flow")
 #: ``degree=0`` for a P1 solution: σ_h ∈ RT_0 (Braess & Schöberl 2008), each patch's target
 #: the RT_0 interpolant of ψ_a τ (τ: k∇u_h or the given target, its cell mean), so that
@@ -129,18 +128,14 @@ def reconstruct_flux(
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
     vmap = msh.topology.index_map(0)
-    compiled = backend in ("compiled", "flow")
-    if compiled:
-        try:
-            library(comm, ref, table.U.shape[1])
-        except RuntimeError as err:  # no C compiler: the NumPy solver, same numbers, slower
-            warnings.warn(
-                f"{err}; the flux reconstruction falls back to backend='numpy'", stacklevel=2
-            )
-            backend, compiled = "numpy", False
-    if compiled:
+    # None where the kernel cannot be had (no C compiler, say): the NumPy solver, the same
+    # numbers, slower (compiled.load has warned once)
+    kernel = library(comm, ref, table.U.shape[1]) if backend in ("compiled", "flow") else None
+    compiled = kernel is not None
+    if kernel is not None:
         out, osc = solve_patches_compiled(
             comm,
+            kernel,
             work,
             vmap.local_range,
             ref,

@@ -248,7 +248,7 @@ class CellOperators:
 
 def lowest_tables(r: Reference) -> dict:
     """The reference integrals of the lowest-order target (:meth:`CellOperators._lowest_load`,
-    ``LOWEST`` in :mod:`.kernel_c`): IZ[i, z] = ∫_T̂ (φ̂Z)_i and
+    ``LOWEST`` in ``kernels/eqlb.c``): IZ[i, z] = ∫_T̂ (φ̂Z)_i and
     EZ[a, i, j, z] = ∫_T̂ (x̂ − x̂_a)_i (φ̂Z)_j."""
     phiZ = np.einsum("qmd,mz->qdz", r.phi, r.Z)
     verts = np.vstack([np.zeros(r.d), np.eye(r.d)])

@@ -1,4 +1,4 @@
-"""The vertex-patch problems of :mod:`.patches` through the compiled kernel (:mod:`.kernel_c`).
+"""The vertex-patch problems of :mod:`.patches` through the compiled kernel (``kernels/eqlb.c``).
 
 The same mathematics (the patch minimization of :mod:`.patches`, the cell operators of
 :mod:`.operators`, osc_T of :class:`.flux.Flux`), one patch at a time in C: each patch's
@@ -11,12 +11,12 @@ shares of :mod:`.multiplier` (vectorized, only on contact entities), and the cal
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
 
 from .cells import CONTACT, CellTable
-from .compiled import library
 from .multiplier import clipped, shares
 from .operators import _data_tables, _projected, cell_rule, facet_rule, lowest_tables
 from .patches import PatchOutput
@@ -29,7 +29,7 @@ CAPACITY = 4096
 
 @functools.cache
 def _tables(d: int, p: int, pu: int, nu: int) -> dict:
-    """The reference arrays of ``eq_ref`` (contiguous float64, the layouts of :mod:`.kernel_c`)."""
+    """The reference arrays of ``eq_ref`` (contiguous float64, the layouts of ``eqlb.h``)."""
     from .reference import reference
 
     r = reference(d, p, pu)
@@ -119,6 +119,7 @@ def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: 
 
 def solve_patches_compiled(
     comm: MPI.Comm,
+    kernel: tuple[Any, Any],
     table: CellTable,
     vertices: tuple[int, int],
     ref: Reference,
@@ -127,11 +128,11 @@ def solve_patches_compiled(
     flow: int = -1,
 ) -> tuple[PatchOutput, np.ndarray]:
     """The patches of the vertices with global index in [vertices[0], vertices[1]) (complete in
-    ``table``), and osc_T of every row; ``flow`` ≥ 0: by the moment path of :mod:`.kernel_c`
-    (``eq_flow``, p = 1, that many rounds) instead of the patch minimizations.  Collective
-    (the kernel is loaded collectively)."""
+    ``table``), and osc_T of every row; ``flow`` ≥ 0: by the moment path of ``eqlb.c``
+    (``eq_flow``, p = 1, that many rounds) instead of the patch minimizations; ``kernel``:
+    :func:`.compiled.library`'s (ffi, lib) for ``ref``.  Collective (the error codes)."""
     nu = table.U.shape[1]
-    ffi, lib = library(comm, ref, nu)
+    ffi, lib = kernel
     tabs = _tables(ref.d, ref.p, ref.pu, nu)
     keep = []  # the buffers must outlive the call
 

@@ -62,7 +62,6 @@ from __future__ import annotations
 
 import functools
 import time
-import warnings
 from dataclasses import dataclass, field, replace
 
 import basix
@@ -190,14 +189,9 @@ def reconstruct_stress(data: StressData, backend: str = "compiled") -> Stress:
     tables, lam_t, n_owned = _row_tables(data, ref)
     source = np.full(n_owned, comm.rank)
     work = [complete(comm, t, source)[0] for t in tables]  # this rank's rows first
-    kernel = None
-    if backend == "compiled":
-        try:
-            kernel = stress_c.library(comm, ref)
-        except RuntimeError as err:  # no C compiler: the NumPy solver, same numbers, slower
-            warnings.warn(
-                f"{err}; the stress reconstruction falls back to backend='numpy'", stacklevel=2
-            )
+    # None for NumPy, also where the kernel cannot be had (no C compiler, say): the same
+    # numbers, slower (compiled.load has warned once)
+    kernel = stress_c.library(comm, ref) if backend == "compiled" else None
     seconds = {"tables": time.perf_counter() - t0}
     t0 = time.perf_counter()
     # the as-moments of every (owned cell, vertex): each patch's balance spread over its cells

@@ -1,116 +1,62 @@
-"""The C source of the compiled patch solver (:mod:`.compiled`): the algebra of
-:mod:`.operators` and :mod:`.patches`, cell by cell and patch by patch, in plain C99.
+/* The compiled patch solver of the flux reconstruction: the algebra of operators.py and
+   patches.py, cell by cell and patch by patch, in plain C99 (built, verified and loaded by
+   compiled.py; called by patches_c.py).
 
-The dimensions of the reference element are compile-time constants (one library per
-(d, p)), so the compiler unrolls the small loops:
+   The dimensions of the reference element are compile-time constants (-D flags, one library
+   per reference element: compiled.dimensions), so the compiler unrolls the small loops:
 
-    DIM  d              NV   d + 1 (vertices = facets)     NQ, NQF  cell / facet points
-    NU   dim P_p        M    dim RT_p     NP  dim P_p (div moments)    MZ  M − NP
-    NF   dim P_p(F)     NPERM  d!        NLOOK  d^d (facet-permutation codes)
-    LOWEST  1 for the lowest-order flux of a P1 solution (p = 0, NU = d + 1): each patch is
-            fitted to the RT_0 interpolant of ψ_a w (``target_lanes``; docs/theory.md §9)
+       DIM  d              NV   d + 1 (vertices = facets)     NQ, NQF  cell / facet points
+       NU   dim P_p        M    dim RT_p     NP  dim P_p (div moments)    MZ  M − NP
+       NF   dim P_p(F)     NPERM  d!        NLOOK  d^d (facet-permutation codes)
+       LOWEST  1 for the lowest-order flux of a P1 solution (p = 0, NU = d + 1): each patch is
+               fitted to the RT_0 interpolant of ψ_a w (target_lanes; docs/theory.md §9)
 
-``cell_block`` computes, for LB cells at once (SIMD lanes), the operators the patch problems
-need (a work row: :data:`WORK_LAYOUT`) and osc_T; ``eq_patches`` solves the patch of every
-vertex of a global index range and adds σ_a|_T to alpha.  The load Zᵀg_a is a table
-contraction where k is one constant and the target flux is k∇ of a function of the element
-of u_h, else a sum over the quadrature points.  A patch system is ordered by reverse
-Cuthill–McKee and factorized by Cholesky in batches of LB systems of one size (SIMD lanes:
-dense up to DENSE dofs, else in the union of the lanes' envelopes — the spokes of a 3D
-patch couple only through the cells they share); a patch without a Dirichlet spoke has
-the constant multiplier as its kernel: one constant moment is pinned and the solution
-projected orthogonal to the kernel, which is the solution of the regularized system of
-:mod:`.patches`.  Where the Cholesky meets a non-positive pivot the patch falls back to
-that regularized system and an LU factorization with partial pivoting.
+   cell_block computes, for LB cells at once (SIMD lanes), the operators the patch problems
+   need (a work row: W_* below) and osc_T; eq_patches solves the patch of every vertex of a
+   global index range and adds σ_a|_T to alpha.  The load Zᵀg_a is a table contraction where
+   k is one constant and the target flux is k∇ of a function of the element of u_h, else a
+   sum over the quadrature points.  A patch system is ordered by reverse Cuthill–McKee and
+   factorized by Cholesky in batches of LB systems of one size (SIMD lanes: dense up to
+   DENSE dofs, else in the union of the lanes' envelopes — the spokes of a 3D patch couple
+   only through the cells they share); a patch without a Dirichlet spoke has the constant
+   multiplier as its kernel: one constant moment is pinned and the solution projected
+   orthogonal to the kernel, which is the solution of the regularized system of patches.py.
+   Where the Cholesky meets a non-positive pivot the patch falls back to that regularized
+   system and an LU factorization with partial pivoting.
 
-``eq_flow`` (backend "flow", P1) runs the same driver with a cheaper fit.  For p = 1 a flux
-in RT_p(T) is determined by its facet moments and divergence moments (σ̂ = GL m̂ + RL β), so
-σ_a is sought in the reference facet moments m̂ of each pair's cell: ``flow_block`` computes
-the cell's energy ½‖σ_a − ψ_a τ‖²_{k_T⁻¹} = ½ m̂ᵀA m̂ − b_aᵀm̂ + const (no inverse per cell), and
-``solve_flow`` descends it patch by patch in blocks: the constant fluxes of the spokes, on
-which all the constraints act (a spoke system with the sparsity of the patch's spoke graph,
-factorized once), then, ``rounds`` times, the higher moments spoke by spoke (unconstrained)
-and the constant fluxes again, from the higher moments of the mean of the two cells' ψ_a τ̄.
-Every iterate has the divergence and normal data of the reference, so the bound stays
-guaranteed; the rounds converge to the reference minimizer (tests/test_equilibration_backends).
-Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out of memory.
-"""
+   eq_flow (backend "flow", P1) runs the same driver with a cheaper fit.  For p = 1 a flux in
+   RT_p(T) is determined by its facet moments and divergence moments (σ̂ = GL m̂ + RL β), so
+   σ_a is sought in the reference facet moments m̂ of each pair's cell: flow_block computes
+   the cell's energy ½‖σ_a − ψ_a τ‖²_{k_T⁻¹} = ½ m̂ᵀA m̂ − b_aᵀm̂ + const (no inverse per
+   cell), and solve_flow descends it patch by patch in blocks: the constant fluxes of the
+   spokes, on which all the constraints act (a spoke system with the sparsity of the patch's
+   spoke graph, factorized once), then, `rounds` times, the higher moments spoke by spoke
+   (unconstrained) and the constant fluxes again, from the higher moments of the mean of the
+   two cells' ψ_a τ̄.  Every iterate has the divergence and normal data of the reference, so
+   the bound stays guaranteed; the rounds converge to the reference minimizer
+   (tests/test_equilibration_backends.py).
 
-#: the per-cell work row of cell_block, in this order (sizes in the macros of SOURCE): σ_h|_T
-#: = C − Z Ytᵀ Σ_a μ_a, then per vertex a (contiguous: what its patch reads) the condensed
-#: patch block Ŝ_a (packed lower triangle), its load b_a, and T_a, ho_a (μ_o = ho_a − T_a μ_s)
-WORK_LAYOUT = (
-    "Yt: DNF*MZ",
-    "C: M",
-    "per vertex a: Ŝ_a SYM, b_a SNF, T_a NF*SNF, ho_a NF",
-)
+   Return codes: 0 ok, 1 a singular cell matrix, 2 a singular patch system, 3 out of memory.
 
-CDEF = """
-typedef struct {
-  const double *w, *ZZ, *ZR, *NZ, *NR, *P, *phiZ, *wlam, *DZG, *wlamQ, *wQ, *dphi, *dlam,
-               *base, *R, *Z, *kappa, *Q, *q, *wS, *GL, *RL, *qint, *AR, *BR, *GT, *TB, *IZ, *EZ;
-  const int64_t *lookup;
-  double wsum;
-} eq_ref;
-typedef struct {
-  int64_t n;
-  const int64_t *gvert;
-  const double *x, *U, *Ut, *f, *k;   /* Ut: the target's coefficients (τ = k∇(Σ Ut φ)), or NULL */
-  int64_t fstride, kstride;       /* NQ, or 0 where f or k is one row for all cells */
-  const int8_t *kind;
-  const double *t, *tau, *src;
-  const int64_t *cidx;
-  const double *cmom;
-} eq_table;
-int64_t eq_work_size(void);
-void eq_oscillation(const eq_ref *r, const eq_table *t, double *osc);
-int eq_patches(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
-               double *alpha, double *osc, double *stats);
-int eq_flow(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_t capacity,
-            double *alpha, double *osc, double *stats, int sweeps);
-"""
+   The per-cell work row of cell_block, in this order: Yt (DNF*MZ) and C (M), with σ_h|_T =
+   C − Z Ytᵀ Σ_a μ_a; then per vertex a (contiguous: what its patch reads) the condensed
+   patch block Ŝ_a (SYM, packed lower triangle), its load b_a (SNF), and T_a (NF*SNF), ho_a
+   (NF), with μ_o = ho_a − T_a μ_s. */
 
-HEADERS = "#include <math.h>\n#include <stdint.h>\n#include <stdlib.h>\n#include <string.h>\n"
-#: dense LU with partial pivoting, shared with the stress kernel of :mod:`.stress_c`
-LU_SOLVE = r"""
-/* Solve A X = B (n x n, row-major, nrhs columns) by LU with partial pivoting, in place;
-   returns 1 if a pivot is exactly zero. */
-static int lu_solve(int n, double *A, double *B, int nrhs)
-{
-  for (int k = 0; k < n; ++k) {
-    int piv = k;
-    double best = fabs(A[k * n + k]);
-    for (int i = k + 1; i < n; ++i)
-      if (fabs(A[i * n + k]) > best) { best = fabs(A[i * n + k]); piv = i; }
-    if (best == 0.0) return 1;
-    if (piv != k) {
-      for (int j = 0; j < n; ++j)
-        { double s = A[k * n + j]; A[k * n + j] = A[piv * n + j]; A[piv * n + j] = s; }
-      for (int j = 0; j < nrhs; ++j)
-        { double s = B[k * nrhs + j]; B[k * nrhs + j] = B[piv * nrhs + j]; B[piv * nrhs + j] = s; }
-    }
-    double inv = 1.0 / A[k * n + k];
-    for (int i = k + 1; i < n; ++i) {
-      double l = A[i * n + k] * inv;
-      if (l == 0.0) continue;
-      for (int j = k + 1; j < n; ++j) A[i * n + j] -= l * A[k * n + j];
-      for (int j = 0; j < nrhs; ++j) B[i * nrhs + j] -= l * B[k * nrhs + j];
-    }
-  }
-  for (int k = n - 1; k >= 0; --k)
-    for (int j = 0; j < nrhs; ++j) {
-      double s = B[k * nrhs + j];
-      for (int i = k + 1; i < n; ++i) s -= A[k * n + i] * B[i * nrhs + j];
-      B[k * nrhs + j] = s / A[k * n + k];
-    }
-  return 0;
-}
-"""
-SOURCE = (
-    HEADERS
-    + CDEF
-    + LU_SOLVE
-    + r"""
+#if !defined(DIM) || !defined(NV) || !defined(NQ) || !defined(NQF) || !defined(NU) \
+    || !defined(M) || !defined(NP) || !defined(MZ) || !defined(NF) || !defined(NPERM) \
+    || !defined(NLOOK) || !defined(LOWEST)
+#error "eqlb.c: compile with -DDIM=.. -DNV=.. -DNQ=.. -DNQF=.. -DNU=.. -DM=.. -DNP=.. -DMZ=.. -DNF=.. -DNPERM=.. -DNLOOK=.. -DLOWEST=.. (compiled.dimensions)"
+#endif
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "eqlb.h"
+#include "lu.h"
+
 
 #define PI_ 3.14159265358979323846
 #define MAXN (MZ > NF ? MZ : NF)
@@ -459,33 +405,34 @@ static inline void data_lanes(const eq_ref *restrict r, const eq_table *restrict
                               const double Pl[][NF * NF][LB], double data[][LB])
 {
   for (int j = 0; j < NV; ++j) {
-    double factor[LB], Tq[NQF][LB];
+    double factor[LB], loc[NV][NF][LB] = {{{0.0}}};  /* the moments in facet j's local basis */
     int any = 0;
     LANES {
       int kind = t->kind[cl[b] * NV + j];
       factor[b] = (kind == FLUX || kind == CONTACT) ? size[j][b] : 0.0;
       any |= kind == FLUX || kind == CONTACT;
     }
-    if (any)
+    if (any) {  /* a flux or contact facet in some lane: the moments of its data t */
+      double Tq[NQF][LB];
       for (int q = 0; q < NQF; ++q) LANES Tq[q][b] = t->t[(cl[b] * NV + j) * NQF + q];
-    for (int a = 0; a < NV; ++a) {
-      double loc[NF][LB] = {{0.0}};
-      if (any)
+      for (int a = 0; a < NV; ++a)
         for (int k = 0; k < NF; ++k) {
           const double *bs = r->base + ((j * NV + a) * NF + k) * NQF;
-          for (int q = 0; q < NQF; ++q) LANES loc[k][b] += bs[q] * Tq[q][b];
-          LANES loc[k][b] *= factor[b];
+          for (int q = 0; q < NQF; ++q) LANES loc[a][k][b] += bs[q] * Tq[q][b];
+          LANES loc[a][k][b] *= factor[b];
         }
+    }
+    for (int a = 0; a < NV; ++a) {
       if (t->cidx)
         for (int b = 0; b < LB; ++b) {
           int64_t ci = t->cidx[cl[b]];
           if (ci >= 0 && t->kind[cl[b] * NV + j] == CONTACT)
             for (int k = 0; k < NF; ++k)
-              loc[k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
+              loc[a][k][b] += size[j][b] * t->cmom[((ci * NV + j) * NV + a) * NF + k];
         }
       for (int l = 0; l < NF; ++l) {
         double v[LB] = {0.0};
-        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * loc[k][b];
+        for (int k = 0; k < NF; ++k) LANES v[b] += Pl[j][k * NF + l][b] * loc[a][k][b];
         LANES data[(j * NV + a) * NF + l][b] = v[b];
       }
     }
@@ -569,6 +516,7 @@ static inline void target_lanes(const eq_ref *restrict r, const eq_table *restri
       }
     }
 #else
+    (void)Ji;  /* only the lowest-order fit maps by J⁻¹ */
     for (int q = 0; q < NQ; ++q) {
       double y[MZ][LB] = {{0.0}};
       for (int i = 0; i < DIM; ++i) {
@@ -977,7 +925,7 @@ static void spokes(const eq_table *t, scratch_t *w)
     int a = w->ploc[p];
     for (int j = 0; j < NV; ++j) {
       if (j == a) continue;
-      int64_t o[DIM > 1 ? DIM - 1 : 1];
+      int64_t o[DIM > 1 ? DIM - 1 : 1] = {0};
       int m = 0;
       for (int v = 0; v < NV; ++v) if (v != a && v != j) o[m++] = g[v];
       for (int x = 1; x < m; ++x)           /* sort the d - 1 others */
@@ -1982,5 +1930,3 @@ int eq_flow(const eq_ref *r, const eq_table *t, int64_t vlo, int64_t vhi, int64_
 {
   return run_patches(r, t, vlo, vhi, capacity, alpha, osc, stats, 1, sweeps);
 }
-"""
-)
