@@ -5,7 +5,10 @@ XDMF with meshio and h5py (:mod:`readback`, which checks each against the other)
 files with h5py, .vtu with meshio and pyvista, the .pvd's XML and the files it lists, PNG
 with matplotlib's image reader, CSV and JSON with their modules.  summary.json lists
 exactly the folder's files and says every picture was written; every load path writes
-force.png and the ``obstacle_approach`` column of steps.csv.  The 2-rank run gives the
+force.png and the ``obstacle_approach`` column of steps.csv; every scene with a contact
+boundary writes the contact-surface dataset, as one grid or as a series with the steps of
+solution.xdmf.  A load path on a scalar scene (which ships none) and on an obstacle in Ω:
+the same, with ``load.steps`` set.  The 2-rank run gives the
 serial answer (summary.json and the contact tables, as tests/test_cli_mpi.py compares them;
 that file checks 3 ranks, without pictures).
 
@@ -24,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from clirun import ROOT, contact
-from readback import read_vtu, read_xdmf
+from readback import read_vtu, read_xdmf, xdmf_steps
 from test_cli_mpi import _same, _same_table
 
 pytestmark = pytest.mark.mpi
@@ -61,6 +64,14 @@ SCENES: dict[str, list[str]] = {
     "two_body_patch_3d.yaml": [],
     "two_body_stack_2d.yaml": [],
 }
+#: scenes whose constraint lives in Ω: no contact boundary, no contact_surface.xdmf
+IN_DOMAIN = {"obstacle_membrane.yaml"}
+#: load paths on scenes that ship none (scene -> its overrides, load.steps added)
+PATHS: dict[str, list[str]] = {
+    "signorini_square.yaml": ["mesh.cells=[4,4]", "load.steps=3"],
+    "obstacle_membrane.yaml": ["mesh.cells=[8,8]", "load.steps=2"],
+}
+NAMES = ("solution", "contact_surface")  # the field datasets of one result
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
@@ -81,16 +92,18 @@ def serial(tmp_path_factory):
     return get
 
 
-def _run(tmp: Path, scene: str, ranks: int) -> Path:
-    """``contact run`` of the shipped scene with its outputs; its folder, every file read."""
+def _run(tmp: Path, scene: str, ranks: int, sets: list[str] | None = None) -> Path:
+    """``contact run`` of the shipped scene with its outputs (``sets``: default its
+    SCENES overrides); its folder, every file read."""
     out = tmp / f"np{ranks}"
     args = ["run", str(ROOT / "configs" / scene), "-o", str(out), "-q"]
-    for item in SCENES[scene]:
+    for item in SCENES[scene] if sets is None else sets:
         args += ["--set", item]
     proc = contact(tmp, *args, ranks=ranks, timeout=TIMEOUT[ranks])
     assert proc.returncode == 0, f"{scene} on {ranks or 1} rank(s): {proc.stderr[-2000:]}"
     assert "not written" not in proc.stderr, proc.stderr
     read_folder(out)
+    assert (out / "contact_surface.xdmf").exists() == (scene not in IN_DOMAIN), scene
     return out
 
 
@@ -124,8 +137,13 @@ def read_folder(out: Path) -> dict:
     pictures = summary.get("pictures", {})
     assert pictures and set(pictures.values()) == {"written"}, pictures
     assert set(pictures) == {n for n in names if n.endswith(".png")}
+    if "contact_surface.xdmf" in names:  # the same grids as solution.xdmf: one, or a series
+        times = [[s["time"] for s in xdmf_steps(out / f"{n}.xdmf")] for n in NAMES]
+        assert times[1] == times[0], times
     if "steps" in summary:  # a load path: its force–displacement curve
         assert "force.png" in names
+        if "solution.xdmf" in names:
+            assert len(xdmf_steps(out / "solution.xdmf")) == len(summary["steps"])
         with open(out / "steps.csv", newline="") as fh:
             header = next(csv.reader(fh))
         assert {"obstacle_approach", "prescribed_displacement"} <= set(header)
@@ -188,6 +206,16 @@ def test_shipped_scene_with_its_outputs_on_two_ranks(tmp_path: Path, serial, sce
     for name in names:
         if name == "contact.csv" or name.startswith("contact_step_"):
             _same_table(ref / name, out / name)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ranks", [0, 2])
+@pytest.mark.parametrize("scene", list(PATHS))
+def test_load_path_on_a_scene_without_one(tmp_path: Path, scene: str, ranks: int) -> None:
+    """A scalar scene's load path (traction.png: its flux per step) and an obstacle in Ω's
+    (no contact boundary: no traction.png, no contact surface) with the default outputs."""
+    out = _run(tmp_path, scene, ranks, PATHS[scene])
+    assert (out / "traction.png").exists() == (scene not in IN_DOMAIN)
 
 
 def test_hyperelastic_drag_draws_its_vector_force(serial) -> None:

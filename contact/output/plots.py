@@ -741,16 +741,22 @@ def plot_traction(
     columns)): the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its
     component along t_0) against the arc length s, with the friction bounds +ρ and −ρ of the
     last step dashed on top (where λ_t reaches one the node slips) and the slipping nodes of
-    the last step circled, zoomed on the contact zone when it is less than half of Γ_C.
-    Every curve drawn is in the legend; of more than :data:`MAX_TRACTION_CURVES` steps that
-    many are drawn, evenly spaced (the title says so).  3D: :func:`plot_traction_map`.
+    the last step circled, zoomed on the contact zone when it is less than half of Γ_C; a
+    scalar model's table (column ``lambda``): its flux −λ, one panel.  Every curve drawn is
+    in the legend; of more than :data:`MAX_TRACTION_CURVES` steps that many are drawn, evenly
+    spaced (the title says so).  3D: :func:`plot_traction_map`.
     ``references``: (panel 0 | 1, x, y, label) curves such as the Hertz pressure or an exact
     traction."""
     table = steps[-1][1]
     if "s" not in table:
         return plot_traction_map(path, table, title, t=steps[-1][0])
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, figsize=(9.0, 7.0), sharex=True)
+    scalar = "lambda_n" not in table  # a scalar model: the flux −λ, no tangential panel
+    value = "lambda" if scalar else "lambda_n"
+    fig, grid = plt.subplots(
+        1 if scalar else 2, 1, figsize=(9.0, 4.5 if scalar else 7.0), sharex=True, squeeze=False
+    )
+    axes = grid[:, 0]
     cmap = plt.get_cmap("viridis")
     t_max = max(t for t, _ in steps)
     friction = "lambda_t" in table
@@ -759,7 +765,7 @@ def plot_traction(
         t, tab = steps[k]
         colour = cmap(t / t_max if len(steps) > 1 else 0.0)
         kw = {"color": colour, "ms": 3, "lw": 1, "label": f"t = {t:.4g}"}
-        axes[0].plot(tab["s"], -np.asarray(tab["lambda_n"]), ".-", **kw)
+        axes[0].plot(tab["s"], -np.asarray(tab[value]), ".-", **kw)
         if friction:
             axes[1].plot(tab["s"], tab["lambda_t"], ".-", **kw)
     x = np.asarray(table["s"])
@@ -779,16 +785,20 @@ def plot_traction(
             label=f"slipping at t = {t_max:g}",
         )
     for panel, rx, ry, label in references:
-        axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
-    lam_n = np.asarray(table["lambda_n"])
+        if panel < len(axes):
+            axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
+    lam_n = np.asarray(table[value])
     pressed = lam_n < -1e-9 * np.max(np.abs(lam_n), initial=0.0)
     if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):  # a small contact zone: zoom on it
         lo, hi = x[pressed].min(), x[pressed].max()
         pad = 0.3 * max(hi - lo, 1e-12)
-        axes[1].set_xlim(lo - pad, hi + pad)
-    axes[0].set_ylabel(f"pressure −λ_n ({PRESSURE_UNIT})")
-    axes[1].set_ylabel(f"tangential traction λ_t ({PRESSURE_UNIT})")
-    axes[1].set_xlabel(f"arc length s along Γ_C ({LENGTH})")
+        axes[-1].set_xlim(lo - pad, hi + pad)
+    if scalar:
+        axes[0].set_ylabel(f"flux −λ ({FLUX_UNIT})")
+    else:
+        axes[0].set_ylabel(f"pressure −λ_n ({PRESSURE_UNIT})")
+        axes[1].set_ylabel(f"tangential traction λ_t ({PRESSURE_UNIT})")
+    axes[-1].set_xlabel(f"arc length s along Γ_C ({LENGTH})")
     # the load steps: one legend beside both panels (the same curves in each); the bounds,
     # the slipping nodes and the references: in their panel's legend
     step_labels = {f"t = {steps[k][0]:.4g}" for k in shown}
@@ -873,8 +883,11 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
         1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False
     )
     axes = axes[0]
-    sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
-    fig.colorbar(sc, ax=axes[0], label=f"pressure −λ_n ({PRESSURE_UNIT})")
+    scalar = "lambda_n" not in table  # a scalar model: the flux −λ
+    value = -np.asarray(table["lambda" if scalar else "lambda_n"])
+    sc = axes[0].scatter(P[:, 0], P[:, 1], c=value, s=12, cmap="viridis")
+    label = f"flux −λ ({FLUX_UNIT})" if scalar else f"pressure −λ_n ({PRESSURE_UNIT})"
+    fig.colorbar(sc, ax=axes[0], label=label)
     axes[0].set_title("contact pressure" if friction else f"contact pressure at t = {t:g}")
     if friction:
         _tangential_arrows(axes[1], P, table, keep, t)

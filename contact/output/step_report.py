@@ -201,7 +201,11 @@ class StepWriter:
                 )
 
             pictures = [
-                plots.Picture([], traction, tmp / "traction.png", root=True),
+                *(
+                    []
+                    if r.problem.in_domain  # an obstacle in Ω: no contact boundary
+                    else [plots.Picture([], traction, tmp / "traction.png", root=True)]
+                ),
                 solution_picture(
                     tmp / "solution.png",
                     r,
@@ -287,7 +291,8 @@ def load_forces(rows: list[dict[str, Any]]) -> dict[str, list[float]]:
 
 def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     """The first point of contact (smallest initial gap, over all ranks; collective) and, in
-    2D, the tangent t_0 of the position's sign convention."""
+    2D with a contact normal (elasticity), the tangent t_0 of the position's sign convention
+    (None for the scalar models, whose tractions have no tangential part)."""
     from ..models.obstacles import first_contact_point
 
     p = result.problem
@@ -295,7 +300,7 @@ def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     gdim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
     return first_contact_point(scene.comm, X, con.sign * con.g), (
-        tangent_2d(result) if gdim == 2 else None
+        tangent_2d(result) if gdim == 2 and "n" in p.data else None
     )
 
 

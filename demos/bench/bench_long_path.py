@@ -13,20 +13,21 @@ communicators ran out (MPICH has 2048) and a path ended at step 509 with an MPI 
 
 The API mode runs :func:`contact.run_load_path`; the CLI mode runs ``contact run`` in this
 process with the scene's outputs (every format and the pictures unless ``--set`` turns
-them off), taking its figures after each step's files are written.  Every ``--every``
+them off), taking its figures after each step's files are written. Every ``--every``
 steps, and at the ends of the first and the last ``--window`` steps, after Python's
 garbage collection (``--no-collect``: without; reference cycles, e.g. UFL's, then wait for
 Python's own): the wall and CPU seconds so far, the resident set size (MiB, the largest
 over the ranks), the communicators MPI can still create
 (:func:`contact.base.lifetime.free_communicators`), the live PETSc objects
-(:func:`contact.base.lifetime.petsc_objects`) and the entries of PETSc's options database
-(the largest counts over the ranks), and in CLI mode the seconds spent writing the steps'
-files.  Prints one row per sample and a summary — with the time per step of the last
-``--window`` steps over that of the first (wall and CPU, of the whole step and of writing
-its files: the cost of a step must not grow with the steps before it; the solve's own
-cost changes along a path with its Newton iterations) and the RSS growth per step from
-the end of the first window on — and writes CSV (default
-demos/results/long_path/<scene>_<mode>_np<ranks>.csv).
+(:func:`contact.base.lifetime.petsc_objects`), the objects Python's garbage collector
+tracks and the entries of PETSc's options database (the largest counts over the ranks),
+and in CLI mode the seconds spent writing the steps' files. Prints one row per sample and
+a summary — with the time per step of the last ``--window`` steps over that of the first
+(wall and CPU, of the whole step and of writing its files: the cost of a step must not
+grow with the steps before it; the solve's own cost changes along a path with its Newton
+iterations; per window also the median and the fastest step, which the load of other jobs
+on a shared machine sways less) and the RSS growth per step from the end of the first
+window on — and writes CSV (default demos/results/long_path/<scene>_<mode>_np<ranks>.csv).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from pathlib import Path
 import contact  # noqa: F401  (before petsc4py)
 from contact.base.lifetime import free_communicators, petsc_objects, rss_mib
 
+import numpy as np
 from common import save_csv
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -48,17 +50,57 @@ from petsc4py import PETSc
 ROOT = Path(__file__).resolve().parents[2]
 
 
+#: the per-step series kept for the two windows: the whole step and writing its files
+SERIES = ("step_wall", "step_cpu", "output_wall", "output_cpu")
+
+
 class Sampler:
     """The figures of the steps ``every``, 2·``every``, … and of the steps in ``also`` (and
-    step 1)."""
+    step 1); and the seconds of each step of the first and the last ``window`` steps of a
+    path of ``steps`` (the first window from step 2: step 1 compiles the forms), the
+    sampling itself left out."""
 
-    def __init__(self, every: int, comm: MPI.Comm, collect: bool = True, also: tuple = ()):
+    def __init__(
+        self,
+        every: int,
+        comm: MPI.Comm,
+        collect: bool = True,
+        also: tuple = (),
+        window: int = 0,
+        steps: int = 0,
+    ):
         self.every, self.comm, self.collect, self.also = every, comm, collect, set(also)
         self.rows: list[dict] = []
         self.wall, self.cpu = time.perf_counter(), time.process_time()
         self.output = [0.0, 0.0]  # wall and CPU seconds in the step writer (CLI mode)
+        self.window, self.steps = window, steps
+        self.series: dict[str, dict[str, list[float]]] = {"first": {}, "last": {}}
+        self.previous = self._clock()
+
+    def _clock(self) -> np.ndarray:
+        return np.array([time.perf_counter(), time.process_time(), *self.output])
+
+    def _track(self, k: int) -> None:
+        """Keep step k's seconds (the largest over the ranks) if it is in a window."""
+        if 1 < k <= self.window:
+            which = "first"
+        elif k > self.steps - self.window and self.window:
+            which = "last"
+        else:
+            return
+        seconds = np.empty(4)
+        self.comm.Allreduce(self._clock() - self.previous, seconds, op=MPI.MAX)
+        for name, value in zip(SERIES, seconds):
+            self.series[which].setdefault(name, []).append(float(value))
 
     def __call__(self, step) -> None:
+        self._track(step.index)
+        try:
+            self._sample(step)
+        finally:
+            self.previous = self._clock()  # the next step's seconds start after the sample
+
+    def _sample(self, step) -> None:
         if step.index != 1 and step.index % self.every and step.index not in self.also:
             return
         if self.collect:
@@ -72,6 +114,9 @@ class Sampler:
             "output_seconds": round(comm.allreduce(self.output[0], op=MPI.MAX), 3),
             "output_cpu_seconds": round(comm.allreduce(self.output[1], op=MPI.MAX), 3),
             "rss_mib": round(comm.allreduce(rss_mib(), op=MPI.MAX), 2),
+            # the objects Python's garbage collector tracks (the most over the ranks): an
+            # exact count, the same on any machine, where the RSS depends on the allocator
+            "python_objects": comm.allreduce(len(gc.get_objects()), op=MPI.MAX),
             "free_communicators": free_communicators(comm),
             "petsc_objects": comm.allreduce(sum(petsc_objects().values()), op=MPI.MAX),
             "petsc_options": comm.allreduce(len(PETSc.Options().getAll()), op=MPI.MAX),
@@ -116,6 +161,23 @@ def run_cli(scene_file: str, sets: list[str], sample: Sampler, comm: MPI.Comm) -
             shutil.rmtree(folder, ignore_errors=True)
     if code != 0:
         raise SystemExit(f"bench_long_path: contact run exited with {code}")
+
+
+def step_statistics(series: dict[str, dict[str, list[float]]]) -> dict:
+    """Median and fastest seconds of a step (whole, and writing its files; wall and CPU) in
+    the first and the last window, and last over first.  On a shared machine the load of
+    other jobs changes along a long run: the fastest step of a window is the cost of a step
+    when the machine lets it run, the median what it cost in that window's load."""
+    out = {}
+    for name in SERIES:
+        first, last = series["first"].get(name), series["last"].get(name)
+        if not first or not last:
+            continue
+        for stat, f in (("median", np.median), ("min", np.min)):
+            a, b = float(f(first)), float(f(last))
+            out[f"{name}_{stat}_first"], out[f"{name}_{stat}_last"] = round(a, 5), round(b, 5)
+            out[f"{name}_{stat}_ratio"] = round(b / a, 3) if a > 0 else float("nan")
+    return out
 
 
 def windows(rows: list[dict], steps: int, window: int) -> dict:
@@ -201,12 +263,16 @@ def main() -> None:
         )
     window = min(args.window, args.steps // 2)
     also = (window, args.steps - window, args.steps)
-    sample = Sampler(args.every, comm, collect=not args.no_collect, also=also)
+    sample = Sampler(
+        args.every, comm, collect=not args.no_collect, also=also, window=window, steps=args.steps
+    )
     if args.cli:
         run_cli(args.scene, sets, sample, comm)
     else:
         run_api(args.scene, sets, sample)
     flat = windows(sample.rows, args.steps, window) if window > 1 else {}
+    stats = step_statistics(sample.series) if window > 1 else {}
+    flat.update(stats)
     if comm.rank == 0:
         print(summary(sample.rows, args.steps, args.start), flush=True)
         if flat:
@@ -226,6 +292,18 @@ def main() -> None:
                 f"{flat['rss_kib_per_step']:.2f} KiB per step",
                 flush=True,
             )
+            for name in SERIES:
+                if f"{name}_median_ratio" in stats:
+                    print(
+                        f"  {name} (ms, last {window} / first {window}): median "
+                        f"{1000 * stats[f'{name}_median_last']:.1f} / "
+                        f"{1000 * stats[f'{name}_median_first']:.1f} = "
+                        f"{stats[f'{name}_median_ratio']:.3f}, fastest "
+                        f"{1000 * stats[f'{name}_min_last']:.1f} / "
+                        f"{1000 * stats[f'{name}_min_first']:.1f} = "
+                        f"{stats[f'{name}_min_ratio']:.3f}",
+                        flush=True,
+                    )
     name = Path(args.scene).stem
     out = args.out or ROOT / "demos" / "results" / "long_path" / f"{name}_{mode}_np{comm.size}.csv"
     save_csv(
