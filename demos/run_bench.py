@@ -9,6 +9,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_memory.py`` — peak memory per DoF, the figures of ``solver.max_dofs:
    auto`` (issue 10; about 12 minutes);
    ``demos/bench/bench_friction.py`` — friction (issue 12, about 5 minutes);
+   ``demos/bench/bench_friction_cycle.py`` — its tangential-form cases × line search basic /
+   auto / bt: the projection form's 2-cycle and the guard, and with ``--rounding`` the
+   cycling cases under perturbed loads and 1 / 2 BLAS threads (about 3 + 3 minutes);
    ``demos/bench/bench_two_bodies.py`` — two bodies (issue 13): patch tests, two cylinders,
    Cattaneo–Mindlin, and the sphere on a block on 2 MPI ranks (about 8 minutes; its
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
@@ -33,6 +36,13 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
    ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
+   ``demos/bench/bench_baselines.py`` — penalty, augmented Lagrangian and Nitsche against fb
+   over their parameters and meshes (issue 44, RESULTS §13; about 25 minutes);
+   ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
+   equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
+   kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
+   ``import contact`` and a tiny run (issue 41, RESULTS §14; about 10 minutes);
+   ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §15, minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
    minutes, iterations per level, peer problems);
@@ -71,7 +81,22 @@ STEPS = {
     "adaptive": [[PY, "demos/bench/bench_adaptive.py", "--out", "demos/results/adaptive"]],
     "hertz": [[PY, "demos/bench/bench_hertz.py", "--out", "demos/results/hertz"]],
     "memory": [[PY, "demos/bench/bench_memory.py", "--out", "demos/results/memory.csv"]],
-    "friction": [[PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"]],
+    "friction": [
+        [PY, "demos/bench/bench_friction.py", "--out", "demos/results/friction"],
+        [
+            PY,
+            "demos/bench/bench_friction_cycle.py",
+            "--out",
+            "demos/results/friction/line_search.csv",
+        ],
+        [
+            PY,
+            "demos/bench/bench_friction_cycle.py",
+            "--rounding",
+            "--out",
+            "demos/results/friction/line_search_rounding.csv",
+        ],
+    ],
     "two_bodies": [
         [PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")
     ]
@@ -280,6 +305,60 @@ STEPS = {
             "demos/results/stopping",
         ],
     ],
+    # RESULTS §13: penalty, augmented Lagrangian and Nitsche against fb (the stability map's
+    # rows for them are the study stability_baselines.yaml, in "studies")
+    "baselines": [
+        [PY, "demos/bench/bench_baselines.py", "--out", "demos/results/baselines"],
+    ],
+    "time_to_accuracy": [
+        [
+            PY,
+            "demos/bench/bench_time_to_accuracy.py",
+            "--out",
+            "demos/results/time_to_accuracy.csv",
+        ],
+        *(
+            [
+                PY,
+                "demos/bench/bench_time_to_accuracy.py",
+                "ex9",
+                "A",
+                "--set",
+                option,
+                "--out",
+                f"demos/results/time_to_accuracy_{stem}.csv",
+            ]
+            for option, stem in (("adapt.theta=0.8", "theta08"), ("estimator=residual", "residual"))
+        ),
+        *(
+            [
+                PY,
+                "demos/bench/bench_adaptive_profile.py",
+                "ex9",
+                "--max-dofs",
+                "300000",
+                "--keep",
+                *flags,
+                "--out",
+                f"demos/results/adaptive_cost/profile_ex9_keep_{stem}.csv",
+            ]
+            for flags, stem in (
+                (["all"], "all"),
+                (["last", "--no-trim"], "last_notrim"),
+                (["last"], "last"),
+            )
+        ),
+        [
+            PY,
+            "demos/bench/bench_startup.py",
+            "--repeat",
+            "5",
+            "--old-grid",
+            "--out",
+            "demos/results/startup.csv",
+        ],
+    ],
+    "hp": [[PY, "demos/bench/bench_hp.py", "--out", "demos/results/hp"]],
     "studies": [
         [CONTACT, "study", str(p.relative_to(ROOT)), "-o", f"demos/results/{p.stem}"]
         for p in sorted((ROOT / "configs" / "studies").glob("*.yaml"))

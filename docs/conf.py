@@ -103,6 +103,7 @@ DEMO_ARGS = {
     "curved_indentation": "5",
     "guaranteed_bound": "8",
     "own_forms": "16",
+    "hp": "1e-3",
 }
 
 

@@ -191,6 +191,43 @@ def test_cli_writes_adaptive_folder(tmp_path):
     assert "level" in proc.stdout and "convergence.png" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert summary["levels"] == 4 and summary["dofs"] == int(rows[-1]["dofs"])
+    # time to accuracy: the loop's seconds up to each level (outputs not counted), growing,
+    # with the error and η reached there, as in convergence.csv
+    elapsed = [float(r["seconds_elapsed"]) for r in rows]
+    assert summary["seconds_to_error"] == elapsed
+    assert 0 < elapsed[0] and all(a < b for a, b in zip(elapsed, elapsed[1:]))
+    outputs = sum(float(r["seconds_output"]) for r in rows[:-1])
+    assert elapsed[-1] < summary["time_total"] - outputs
+    assert summary["error_per_level"] == pytest.approx([float(r["error"]) for r in rows])
+    assert summary["eta_per_level"] == pytest.approx(eta)
+
+
+def test_cli_writes_the_last_level_only_when_asked(tmp_path):
+    """output.levels: last — the field files hold one step, the last level (its number as
+    the series' time and the .vtu's field data), while convergence.csv and summary.json
+    still have every level."""
+    import meshio
+    from clirun import contact as cli
+
+    out = tmp_path / "last"
+    sets = ["adapt.max_levels=3", "output.levels=last", "output.png=false"]
+    proc = cli(
+        tmp_path,
+        "run",
+        str(ROOT / "configs" / "lshape_corner.yaml"),
+        "-o",
+        str(out),
+        *(arg for s in sets for arg in ("--set", s)),
+    )
+    assert proc.returncode == 0, proc.stderr
+    names = {p.name for p in out.iterdir()}
+    assert "solution_000.vtu" in names and "solution_001.vtu" not in names
+    assert "solution_000.h5" in names and "solution_001.h5" not in names
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["levels"] == 3 and len(summary["seconds_to_error"]) == 3
+    grid = meshio.read(out / "solution_000.vtu")
+    assert int(grid.field_data["level"][0]) == 2
+    assert len(grid.points) == summary["dofs"]
 
 
 def test_refine_reports_the_time_of_its_parts():
@@ -206,6 +243,40 @@ def test_refine_reports_the_time_of_its_parts():
     assert (
         child.mesh.topology.index_map(2).size_global > scene.mesh.topology.index_map(2).size_global
     )
+
+
+def test_released_levels_keep_their_figures_and_free_their_fields():
+    """keep=: the levels it refuses are released once the next level is estimated (their
+    solution fields, problem and η_T dropped), the others stay whole, the last always; the
+    loop's figures are those of the loop that keeps every level (the same meshes, η,
+    errors, iterations), and a released level's row is still complete."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    whole = adapt(scene, max_levels=4, verbose=False)
+    seen: list[tuple[int, bool]] = []  # (level, the one before it released) in on_level
+
+    def on_level(level):
+        before = run_levels[level.index - 1] if level.index else None
+        seen.append((level.index, before is not None and before.result.u_h is None))
+        run_levels.append(level)
+
+    run_levels: list = []
+    kept = adapt(
+        scene, max_levels=4, verbose=False, keep=lambda lv: lv.index == 0, on_level=on_level
+    )
+    assert [lv.released for lv in kept.levels] == [False, True, True, False]
+    assert seen == [(0, False), (1, False), (2, True), (3, True)]  # written, then released
+    for lv in kept.levels[1:3]:
+        assert lv.result.u_h is None and lv.result.problem is None and lv.estimate.eta_T is None
+    assert kept.levels[-1].result.u_h is not None and kept.levels[0].estimate.eta_T is not None
+
+    def figures(rows):
+        return [{k: v for k, v in r.items() if not k.startswith("seconds")} for r in rows]
+
+    assert figures(kept.rows) == figures(whole.rows)
+    with pytest.raises(ValueError, match="keep"):
+        adapt(scene, max_levels=1, verbose=False, keep=0)
 
 
 def test_loose_newton_tolerance_does_not_change_the_discretization():

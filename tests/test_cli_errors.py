@@ -540,14 +540,14 @@ def test_warnings_print_as_one_line(capsys):
     300 characters, not Python's two (the message and its source line)."""
     import warnings
 
-    from contact.app.cli import _one_line_warning
+    from contact.app.cli import one_line_warning
     from contact.setup.surfaces import ContactWarning
 
-    _one_line_warning("zone too small " * 40, ContactWarning, "x.py", 3)
-    _one_line_warning("invalid value encountered in divide", RuntimeWarning, "/a/b/obst.py", 284)
+    one_line_warning("zone too small " * 40, ContactWarning, "x.py", 3)
+    one_line_warning("invalid value encountered in divide", RuntimeWarning, "/a/b/obst.py", 284)
     lines = capsys.readouterr().err.splitlines()
     assert lines[0].startswith("contact: warning: zone too small") and len(lines[0]) == 300
     assert lines[1] == (
         "contact: warning: RuntimeWarning: invalid value encountered in divide (obst.py:284)"
     )
-    assert len(lines) == 2 and warnings.showwarning is not _one_line_warning
+    assert len(lines) == 2 and warnings.showwarning is not one_line_warning

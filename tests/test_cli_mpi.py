@@ -77,6 +77,7 @@ VOLATILE = {
     "time_other",
     "time_sequence",
     "seconds",
+    "seconds_to_error",
     "host",
     "mpi_ranks",
     "newton_iterations",

@@ -52,6 +52,14 @@ def test_demo_obstacle(tmp_path):
     assert "steps the cycle guard shortened: 0" in out
 
 
+def test_demo_hp(tmp_path):
+    out = _demo("hp", "1e-3", tmp_path)
+    assert "eta >= error on every level: True" in out
+    slope = _number(r"log\(error\) ~ \S+ - (\S+) N\^\(1/3\)", out)
+    r2 = _number(r"r\^2 = (\S+)", out)
+    assert slope > 1.0 and r2 > 0.9, (slope, r2)
+
+
 def test_demo_signorini_adaptive(tmp_path):
     out = _demo("signorini_adaptive", "7", tmp_path)
     rate = _number(r"error ~ N\^(\S+) over", out)

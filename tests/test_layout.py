@@ -1,5 +1,5 @@
 """The package's layout (docs/development.md, "Layout"): the import-linter contracts of
-pyproject.toml hold — the layers app > output > post > drivers > adaptivity > models > setup
+pyproject.toml hold — the layers app > output > post > hp > drivers > adaptivity > models > setup
 > solvers > base (a package imports only the packages below it), no two modules or packages
 importing each other, solvers that never import a scene, a model or a driver, a scalar model
 that never imports elasticity. Function-level ("lazy") imports count; imports used only for

@@ -166,6 +166,8 @@ MPIRUN = Path(sys.executable).parent / "mpirun"
     "scene,sets",
     [
         ("friction_block_2d.yaml", ["mesh.cells=[40,10]"]),
+        # its mesh: plain steps 2-cycle at t = 0.3, the guard (collective) catches it on 2 ranks
+        ("friction_block_2d.yaml", ["friction.form=projection"]),
         ("friction_cylinder_2d.yaml", ["mesh.cells=[64,16]", "load.steps=4"]),
         ("friction_box_3d.yaml", ["mesh.cells=[6,6,3]", "load.steps=4"]),
     ],
@@ -211,7 +213,10 @@ def test_serial_and_two_ranks_agree(tmp_path, scene, sets):
     )
     assert clear.sum() >= 0.9 * len(clear)
     assert np.array_equal(s["status"][clear], p["status"][clear])
-    assert s["its"].max() <= 10 and p["its"].max() <= 10  # a bound (round-off may change a count)
+    # a bound (round-off may change a count); a guarded step of the projection form takes
+    # its plain steps first, then backtracks (11 at t = 0.3 of the block on 1 and 2 ranks)
+    bound = 20 if "friction.form=projection" in sets else 10
+    assert s["its"].max() <= bound and p["its"].max() <= bound
 
 
 def test_study_sweeps_friction_axes_and_steps():

@@ -63,12 +63,12 @@ def test_displacement_is_a_function_of_the_coordinates(sphere_mesh):
     not on the partition), and -0.0 and 0.0 are one coordinate."""
     x = sphere_mesh.geometry.x
     assert np.any(x == 0.0)  # the symmetry planes
-    r = longest_edge._hash(x, 0)
+    r = longest_edge.coordinate_hash(x, 0)
     order = np.random.default_rng(1).permutation(len(x))
-    np.testing.assert_array_equal(longest_edge._hash(x[order], 0), r[order])
-    np.testing.assert_array_equal(longest_edge._hash(np.where(x == 0.0, -0.0, x), 0), r)
+    np.testing.assert_array_equal(longest_edge.coordinate_hash(x[order], 0), r[order])
+    np.testing.assert_array_equal(longest_edge.coordinate_hash(np.where(x == 0.0, -0.0, x), 0), r)
     assert np.all((r >= -1) & (r < 1)) and abs(r.mean()) < 0.05  # spread over [-1, 1)
-    assert not np.array_equal(longest_edge._hash(x, 1), r)  # another draw, other values
+    assert not np.array_equal(longest_edge.coordinate_hash(x, 1), r)  # another draw, other values
 
 
 def test_refined_vertices_are_dolfinx_s_bit_for_bit(sphere_mesh):

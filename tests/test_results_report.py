@@ -37,8 +37,9 @@ def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     text = _report(tmp_path / "none", tmp_path / "R.md")
     assert text.startswith("# Results")
     # §1, A, D, Hertz, §3, §3 at scale, §4, ex9, step-41, §6, §7, §8, §9 cost, §11's line
-    # search, strip, refinement, stability map at finite strain, predictor, and §12 bounds
-    assert text.count("*Not available:") == 19
+    # search, strip, refinement, stability map at finite strain, predictor, §12 bounds,
+    # §13's baselines and their stability map, §14 time to accuracy and §15 hp
+    assert text.count("*Not available:") == 22
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -303,3 +304,74 @@ def test_bench_hertz_runs_end_to_end_on_small_meshes(tmp_path: Path) -> None:
         if (r["scene"], r["method"], r["start"]) == ("hertz_2d", "fb", "cold")
     }
     assert cold_fb_2d == {"direct", "gamg", "bcgs"}
+
+
+def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
+    """§13 (demos/bench/bench_baselines.py, configs/studies/stability_baselines.yaml): the
+    parameter each method needs for fb's accuracy (|||u − u_fb||| ≤ 1 % of fb's error), the
+    time ratio then, the observed penalty order and the failures of a small stability study,
+    each explained."""
+    from contact.app.study import run_study
+
+    res = tmp_path / "res"
+    (res / "baselines").mkdir(parents=True)
+    head = (
+        "problem,dofs,h_min,method,theta,parameter,value,converged,reason,newton_iterations,"
+        "outer_iterations,coarse_iterations,krylov_iterations,linear_solver,seconds,fb_seconds,"
+        "ratio,error,error_fb,dist_fb,norm_fb,penetration,penetration_rel,force_rel"
+    )
+    fb = "A,100,0.1,fb,,,,True,converged_fnorm_abs,5,0,0,5,direct,1.0,1.0,1.0,0.1,0.1,0,2.0,0,0,0"
+    lines = [head, fb]
+    # |||u − u_fb||| = 2 dist: ≤ 1 % of fb's error 0.1 from ε₀ = 1000 on
+    for eps, dist in ((10.0, 1e-2), (100.0, 1e-3), (1000.0, 1e-4)):
+        lines.append(
+            f"A,100,0.1,penalty,,epsilon0,{eps},True,converged_fnorm_abs,5,1,0,5,direct,"
+            f"{1 + eps / 1e4},1.0,{1 + eps / 1e4},0.1,0.1,{dist},2.0,{dist},{dist},0"
+        )
+    (res / "baselines" / "A.csv").write_text("\n".join(lines) + "\n")
+    study = {
+        "name": "stability_baselines",
+        "scene": str(SQUARE),
+        "set": ["mesh.cells=[8,8]", "solver.max_it=20"],
+        "axes": {"method": ["fb", "penalty", "nitsche"]},
+        "cases": {"(g) level 1": {"level": 1}, "(r) A, parameter 1.0e-3": {"parameter": 1e-3}},
+        "charts": ["stability"],
+    }
+    rows, _ = run_study(study, res / "stability_baselines", verbose=False)
+    text = _report(res, tmp_path / "R.md")
+    section = text.split("## 13.", 1)[1]
+    assert "| A | 100 | penalty | ε₀ = 1e+03 | 1.10 | 5 |" in section
+    assert "|||u − u_fb||| ∝ ε₀^-1.00" in section
+    failed = [r for r in rows if not r["converged"]]
+    assert [(r["case"], r["method"]) for r in failed] == [("(r) A, parameter 1.0e-3", "nitsche")]
+    assert "| (r) A, parameter 1.0e-3 | nitsche | max iterations | 20 |" in section
+    assert "not yet explained" not in section
+
+
+def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
+    """§15 (demos/bench/bench_hp.py): the summary's figures per problem and method, the
+    exponential fit of the hp runs and the chart, from the CSVs."""
+    hp = tmp_path / "res" / "hp"
+    hp.mkdir(parents=True)
+    keys = "problem,method,target,reached,unknowns,seconds,error,levels,effectivity_min,"
+    keys += "effectivity_max_past_3,bound_holds,stop,exp_rate_b,exp_fit_r2,"
+    keys += "unknowns_ratio_P2,seconds_ratio_P2,cpu_seconds,cpu_ratio_P2"
+    (hp / "summary.csv").write_text(
+        keys
+        + "\nC,hp,1e-06,True,2141,39.5,7.5e-07,29,1.03,1.1,True,eta,1.695,0.993,17.7,0.45,6.0,0.5"
+        + "\nC,h-P2,1e-06,False,37907,17.6,1.1e-05,14,1.1,1.4,True,dofs,,,1.0,1.0,3.0,1.0\n"
+    )
+    lines = ["problem,method,level,unknowns,error,eta,effectivity,seconds,p_max,p_min"]
+    for k in range(4):
+        lines.append(f"C,hp,{k},{100 * (k + 1)},{10.0**-k},{2 * 10.0**-k},2.0,{k + 1},{k + 1},1")
+        lines.append(f"C,h-P2,{k},{400 * (k + 1)},{10.0 ** (-k / 2)},1,1.1,{k + 1},2,2")
+    (hp / "levels.csv").write_text("\n".join(lines) + "\n")
+    text = _report(tmp_path / "res", tmp_path / "R.md")
+    section = text.split("## 15. hp-adaptivity", 1)[1]
+    assert (
+        "| C | hp | 1e-06 | yes | 2141 | 7.5e-07 | 39.50 | 6.00 | 17.7 | 0.45 | 0.50 | 1.1 | yes"
+        " | 29 |" in section
+    )
+    assert "| C | h-P2 | 1e-06 | no (budget) | 37907 |" in section
+    assert "log(error) ≈ c − 1.695 N^{1/3}" in section and "r² = 0.993" in section
+    assert (hp / "hp.png").read_bytes()[:4] == b"\x89PNG"

@@ -52,8 +52,9 @@ def test_a_solve_does_not_validate_the_scene_again(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the scene's schema ran again")
 
-    monkeypatch.setattr(config_module, "_validate", refuse)
     monkeypatch.setattr(config_module, "validate_scene", refuse)
+    monkeypatch.setattr(config_module, "complete", refuse)  # the rules across sections
+    monkeypatch.setattr(SceneConfig, "model_validate", refuse)  # each section's keys
     assert contact.solve(scene, method="min", verbose=False).converged
 
 

@@ -27,6 +27,13 @@ KNOBS = {
     "inexact",
     "petsc_options",
     "predictor",
+    # the baselines' parameters (contact.solvers.baselines)
+    "epsilon0",
+    "r0",
+    "gamma0",
+    "nitsche_theta",
+    "uzawa_rtol",
+    "uzawa_max_it",
 }
 
 

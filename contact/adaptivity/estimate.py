@@ -76,25 +76,39 @@ def _cellwise(msh):
     return w, ufl.FacetNormal(msh), ufl.CellDiameter(msh), h_E, dx, dS, zero
 
 
-def indicator_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
+def indicator_terms(
+    scene: Scene, result: Result, degree: fem.Function | None = None
+) -> dict[str, ufl.Form]:
     """Return the estimator's terms as UFL forms linear in a DG0 test function.
 
     The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar models
-    (:func:`scalar_terms`) or of elasticity (:func:`elasticity_terms`).
+    (:func:`scalar_terms`) or of elasticity (:func:`elasticity_terms`); ``degree``: the
+    cells' polynomial degrees of an hp solution (DG0), scalar models only.
     """
     if not scene.config.elastic:
-        return scalar_terms(scene, result)
+        return scalar_terms(scene, result, degree)
     return elasticity_terms(scene, result)
 
 
-def scalar_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """The terms of the scalar Signorini and obstacle problems (module doc)."""
+def scalar_terms(
+    scene: Scene, result: Result, degree: fem.Function | None = None
+) -> dict[str, ufl.Form]:
+    """The terms of the scalar Signorini and obstacle problems (module doc).
+
+    With the cells' ``degree`` p_T (an hp solution, DG0) the weights are h_T/p_T and
+    h_E/p_E, p_E the larger degree of the facet's cells (Melenk & Wohlmuth, Adv. Comput.
+    Math. 15, 2001).
+    """
     msh = scene.mesh
     p = result.problem
     u_h, lmbda_h = result.u_h, result.lmbda_h
     k, f, t, t_C, g = (p.data[key] for key in ("k", "f", "t", "t_C", "g_h"))
     ds, bnd = p.data["ds"], scene.boundary
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
+    h_S = ufl.avg(h_E)  # interior facets
+    if degree is not None:
+        h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
+        h_E = h_E / degree
     sigma = p.constraint.sign
     flux = k * ufl.grad(u_h)  # k ∇u_h
     obstacle = scene.config.model.type == "obstacle"
@@ -103,7 +117,7 @@ def scalar_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
     terms = {
         "volume": h_T**2 * residual**2 * w * dx,
         # ½ h_E ‖[k ∂u_h/∂n]‖²_E to each of the two cells of an interior facet
-        "jump": 0.5 * ufl.avg(h_E) * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
+        "jump": 0.5 * h_S * ufl.jump(flux, n) ** 2 * (w("+") + w("-")) * dS,
         "neumann": zero,
         "consistency": zero,
         "sign": zero,
@@ -340,14 +354,15 @@ def estimate(scene: Scene, result: Result) -> Estimate:
     return residual_estimate(scene, result)
 
 
-def residual_estimate(scene: Scene, result: Result) -> Estimate:
+def residual_estimate(scene: Scene, result: Result, degree: fem.Function | None = None) -> Estimate:
     """Return the residual estimator of a solve of ``scene``, whatever its ``estimator``.
 
     The residual estimator (docs/theory.md §5) of a solve of ``scene``, whatever the scene's
     ``estimator`` says (collective): each term of η_T² assembled once as a DG0 vector, η_T²
-    their sum, each term's total the sum of its owned entries.
+    their sum, each term's total the sum of its owned entries; ``degree``: the cells'
+    degrees of an hp solution (DG0: the weights h/p of :func:`scalar_terms`).
     """
-    terms = indicator_terms(scene, result)
+    terms = indicator_terms(scene, result, degree)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())
     W = next(iter(terms.values())).arguments()[0].ufl_function_space()  # the DG0 space of w

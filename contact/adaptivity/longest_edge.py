@@ -100,7 +100,7 @@ def displacement(msh: dmesh.Mesh) -> np.ndarray | None:
         return None
     scale = DISPLACEMENT * comm.allreduce(float(lengths.min(initial=np.inf)), op=MPI.MIN)
     for draw in range(DRAWS):
-        shift = scale * _hash(x, draw)
+        shift = scale * coordinate_hash(x, draw)
         left = ties(_lengths(x + shift, a, b))
         if not left:
             return shift
@@ -133,9 +133,17 @@ def _lengths(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt(((x[a] - x[b]) ** 2).sum(axis=1))
 
 
-def _hash(x: np.ndarray, draw: int) -> np.ndarray:
+def coordinate_hash(x: np.ndarray, draw: int) -> np.ndarray:
     """r(x) ∈ [−1, 1)³ per row of ``x``: SplitMix64 of the coordinates' bits (−0.0 read as
-    0.0), so equal coordinates give equal values on any rank."""
+    0.0), so equal coordinates give equal values on any rank.
+
+    Args:
+        x: points, one per row.
+        draw: which of independent hashes (another draw, other values).
+
+    Returns:
+        One value in [−1, 1) per coordinate of each point, as ``x``'s shape.
+    """
     bits = np.ascontiguousarray(x + 0.0).view(np.uint64)
     key = np.full(len(x), np.uint64(draw), dtype=np.uint64)
     for j in range(bits.shape[1]):

@@ -97,7 +97,7 @@ def _error(comm: MPI.Comm, line: str) -> None:
         print(failures.one_line(line), file=sys.stderr, flush=True)
 
 
-def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+def one_line_warning(message, category, filename, lineno, file=None, line=None):
     """Every warning as one line on stderr (at most MAX_LINE characters): the project's
     (ContactWarning) ``contact: warning: <message>``, any other (a library's)
     ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
@@ -114,7 +114,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    warnings.showwarning = _one_line_warning
+    warnings.showwarning = one_line_warning
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
@@ -195,6 +195,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from ..setup.config import load_config
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
+    from .dispatch import choose_driver
 
     hdf5.silence()  # HDF5's error stacks: a failed write is one line (contact.output.folder)
     t0 = time.perf_counter()
@@ -212,10 +213,10 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         f"{comm.size} MPI rank(s)",
     )
     _report_posed(scene, comm)
-    # a hyperelastic body: one step at t = 1 without a load section, cut if it fails
-    if scene.config.load or scene.config.frictional or scene.config.model.type == "hyperelastic":
+    driver = choose_driver(scene.config)
+    if driver == "load_path":
         return _run_steps(scene, outdir, label, comm, t0)
-    if scene.config.adapt:
+    if driver == "adapt":
         return _run_adaptive(scene, outdir, label, comm, t0)
     result = solve(scene)
     _say(
@@ -275,7 +276,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     """The adaptive loop, writing into one atomic folder.  If the solver fails on level
     k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
     ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
-    from ..drivers.adaptive import AdaptResult, adapt, format_table
+    from ..drivers.adaptive import AdaptResult, format_table
+    from ..hp.adapt import adapt
     from ..output import folder
     from ..output.run_report import files_text, level_writer, write_adaptive
 
@@ -288,7 +290,12 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
     )
     with folder.atomic_folder(outdir, comm, label) as tmp:
         write_level = level_writer(tmp, scene)
-        result = adapt(scene, on_level=lambda lv: write_level(lv) if lv.result.converged else None)
+        every = scene.config.output.levels == "all"  # else the last level's files only
+        result = adapt(
+            scene,
+            on_level=lambda lv: write_level(lv) if every and lv.result.converged else None,
+            keep=_kept_levels(scene),
+        )
         last = result.levels[-1].result
         failed = None
         if not last.converged:
@@ -308,6 +315,8 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
                 raise _Failed()
             failed = {"converged": False, "failed_level": k, "failed_reason": last.reason}
             result = AdaptResult(result.levels[:-1], stop=result.stop)
+        if not every:
+            write_level(result.levels[-1])
         info = write_adaptive(
             tmp,
             scene,
@@ -321,6 +330,18 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
         _say(comm, format_table(result.rows))
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED
+
+
+def _kept_levels(scene):
+    """Which levels the adaptive loop keeps whole for the pictures drawn after it: with
+    ``adapt.pictures`` ≤ 2 (the first level and the last) or no pictures, level 0 or
+    none, and the loop releases the others as it goes (the files of every level are
+    written as it goes); with more, the levels between are known only at the end, and it
+    keeps them all."""
+    count = scene.config.adapt.pictures if scene.config.output.png else 0
+    if count > 2:
+        return None
+    return lambda level: count > 0 and level.index == 0
 
 
 def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:

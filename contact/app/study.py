@@ -16,7 +16,9 @@ A study file (``configs/studies/*.yaml``)::
     charts: [speed_accuracy]             # which charts to draw (:data:`CHARTS`)
     repeat: 1                            # run every combination this many times
 
-Axes (:data:`AXES`): ``method``, ``mu``, ``c`` (number or ``auto``), ``kappa``,
+Axes (:data:`AXES`): ``method`` (a method or a variant: ``fb-nopolish``, ``blend-nopolish``,
+``nitsche-skew``), ``parameter`` (a baseline's ε₀, r₀ or γ₀), ``mu``, ``c`` (number or
+``auto``), ``kappa``,
 ``line_search``, ``max_it``, ``u0`` (initial-guess expression), ``linear`` (``solver.linear``:
 auto, direct, gamg, bcgs) and ``sequence`` (grid sequencing: auto, off or a number of coarser
 levels) set the scene's ``solver`` keys; ``linear_solver`` puts PETSc options on the
@@ -43,8 +45,9 @@ the wall time since the start of the run (the x axis of speed-against-accuracy c
 that raises or does not converge is a row with ``converged=False`` and the reason in
 ``failure``; the study goes on.
 
-Validation uses the scene schema's machinery (:class:`contact.setup.config.Field`), so a bad
-study file fails before anything runs with one line ``<key path>: <problem>``.
+A study file is validated as a whole (:class:`StudyConfig`, the scene's field types and
+messages), so a bad study file fails before anything runs with one line
+``<key path>: <problem>``.
 """
 
 from __future__ import annotations
@@ -58,29 +61,46 @@ import resource
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import numpy as np
 from mpi4py import MPI
+from pydantic import BeforeValidator, Field, ValidationError
 
 from ..base.errors import ConfigError
 from ..base.timing import Stopwatch
-from ..setup.config import (
-    SCENE,
-    Field,
-    _nonnegative,
-    _positive,
-    _typename,
-    _validate,
-    _validate_mapping,
-    apply_overrides,
-    folder_name,
-    load_config,
-    read_yaml,
-    switch_off,
+from ..base.validation import (
+    Section,
+    a_list,
+    boolean,
+    checked,
+    config_error,
+    integer,
+    nonnegative,
+    number,
+    one_of,
+    parse_member,
+    positive,
+    string,
+    string_keys,
+    typename,
 )
-from ..setup.scene_config import SceneConfig
-from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS
+from ..setup.config import apply_overrides, folder_name, load_config, read_yaml, switch_off
+from ..setup.scene_config import (
+    AdaptConfig,
+    Count,
+    Fraction,
+    FrictionConfig,
+    NonNegative,
+    Positive,
+    SceneConfig,
+    SolverConfig,
+    Switch,
+)
+from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant
+from ..solvers.baselines import PARAMETERS as BASELINE_PARAMETERS
+from ..solvers.options import METHOD_VARIANTS, METHODS
+from .dispatch import choose_driver
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
 LINEAR_SOLVERS: dict[str, dict] = {  # named linear solvers (PETSc options) of the axis
@@ -91,54 +111,46 @@ STRATEGIES = ("none", "uniform", "dorfler", "maximum")
 CHARTS = ("speed_accuracy", "stability", "iterations")
 
 
-def _section(name: str) -> Mapping[str, Field]:
-    """The fields of the scene section ``name`` (a section has a schema)."""
-    schema = SCENE[name].schema
-    assert schema is not None, f"scene section {name} has no schema"
-    return schema
+class StudyAxes(Section):
+    """The axes of a study that are no key of a scene section, or more than one: ``method``
+    (a method or a variant: ``fb-nopolish``, ``nitsche-skew``, …), ``linear_solver`` (a
+    named linear solver, :data:`LINEAR_SOLVERS`), ``strategy`` (none: one solve; or an
+    adaptive marking strategy), ``level`` (uniform refinements of the base mesh), ``steps``
+    (load steps: ``load.steps``), ``parameter`` (a baseline method's parameter: epsilon0
+    for penalty, r0 for augmented_lagrangian, gamma0 for nitsche)."""
+
+    method: Annotated[str, BeforeValidator(one_of((*METHODS, *METHOD_VARIANTS)))] = "fb"
+    linear_solver: Annotated[str, BeforeValidator(one_of(tuple(LINEAR_SOLVERS)))] = "direct"
+    strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "none"
+    level: Annotated[int, BeforeValidator(integer(nonnegative))] = 0
+    steps: Annotated[int, BeforeValidator(integer(positive))] = 1
+    parameter: Annotated[float, BeforeValidator(number(positive))] = 1.0
 
 
-_SOLVER = _section("solver")
-_ADAPT = _section("adapt")
-_FRICTION = _section("friction")
-
-#: axis name -> the Field each of its values is validated with
-AXES: dict[str, Field] = {
-    "method": _SOLVER["method"],
-    "mu": _SOLVER["mu"],
-    "c": _SOLVER["c"],
-    "kappa": _SOLVER["kappa"],
-    "line_search": _SOLVER["line_search"],
-    "max_it": _SOLVER["max_it"],
-    "u0": _SOLVER["u0"],
-    "linear": _SOLVER["linear"],
-    "sequence": _SOLVER["sequence"],
-    "linear_solver": Field("str", choices=tuple(LINEAR_SOLVERS)),
-    "strategy": Field("str", choices=STRATEGIES),
-    "theta": _ADAPT["theta"],
-    "nested": _ADAPT["nested"],
-    "level": Field("int", check=_nonnegative, doc="uniform refinements of the base mesh"),
-    "friction": _FRICTION["law"],
-    "coefficient": _FRICTION["coefficient"],
-    "threshold": _FRICTION["threshold"],
-    "c_t": _FRICTION["c_t"],
-    "kappa_t": _FRICTION["kappa_t"],
-    "friction_form": _FRICTION["form"],
-    "coulomb": _FRICTION["coulomb"],
-    "steps": Field("int", check=_positive, doc="load steps (load.steps)"),
+#: axis name -> the section (and its key) each of its values is validated as
+AXES: dict[str, tuple[type[Section], str]] = {
+    "method": (StudyAxes, "method"),
+    **{key: (SolverConfig, key) for key in ("mu", "c", "kappa", "line_search")},
+    **{key: (SolverConfig, key) for key in ("max_it", "u0", "linear", "sequence")},
+    "linear_solver": (StudyAxes, "linear_solver"),
+    "strategy": (StudyAxes, "strategy"),
+    "theta": (AdaptConfig, "theta"),
+    "nested": (AdaptConfig, "nested"),
+    "level": (StudyAxes, "level"),
+    "friction": (FrictionConfig, "law"),
+    "coefficient": (FrictionConfig, "coefficient"),
+    "threshold": (FrictionConfig, "threshold"),
+    "c_t": (FrictionConfig, "c_t"),
+    "kappa_t": (FrictionConfig, "kappa_t"),
+    "friction_form": (FrictionConfig, "form"),
+    "coulomb": (FrictionConfig, "coulomb"),
+    "steps": (StudyAxes, "steps"),
+    "parameter": (StudyAxes, "parameter"),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
 _ADAPT_AXES = ("theta", "nested")
 #: friction axes -> keys of the scene's friction section
-_FRICTION_AXES = {
-    "friction": "law",
-    "coefficient": "coefficient",
-    "threshold": "threshold",
-    "c_t": "c_t",
-    "kappa_t": "kappa_t",
-    "friction_form": "form",
-    "coulomb": "coulomb",
-}
+_FRICTION_AXES = {axis: key for axis, (model, key) in AXES.items() if model is FrictionConfig}
 #: friction keys each law uses (the others are dropped when an axis switches the law)
 _LAW_KEYS = {
     "none": {"law"},
@@ -156,14 +168,16 @@ _LAW_KEYS = {
 }
 
 
-def _optional(f: Field, **changes: Any) -> Field:
-    return dataclasses.replace(f, default=None, **changes)
+def _axis_value(axis: str, value: Any, path: str, constants: Mapping[str, float]) -> Any:
+    """One value of an axis, validated as the key it sets (its message naming ``path``)."""
+    model, key = AXES[axis]
+    return parse_member(model, key, value, path, {"constants": constants})
 
 
 def _scene_ref(v: Any) -> str | None:
     if isinstance(v, str) and v.strip() or isinstance(v, dict):
         return None
-    return f"expected a path to a scene YAML file (or a scene mapping), got {_typename(v)} {v!r}"
+    return f"expected a path to a scene YAML file (or a scene mapping), got {typename(v)} {v!r}"
 
 
 def _charts(v: list) -> str | None:
@@ -173,35 +187,47 @@ def _charts(v: list) -> str | None:
     return None
 
 
-STUDY: dict[str, Field] = {
-    "name": Field("str", None, check=folder_name),
-    "scene": Field("any", check=_scene_ref, doc="scene YAML, relative to the study file"),
-    "set": Field("list", [], doc="overrides of the base scene, as contact run --set"),
-    "axes": Field("any", None, doc="axis name -> list of values (validated by AXES)"),
-    "cases": Field(
-        "dict",
-        None,
-        schema=None,
-        item=Field("dict", schema=None),
-        doc="label -> {scene, set, <axis>: value}: named variants crossed with the axes",
-    ),
-    "adapt": Field(
-        "dict",
-        None,
-        schema={
-            "strategy": Field("str", None, choices=STRATEGIES),
-            "theta": _optional(_ADAPT["theta"]),
-            "tol": _optional(_ADAPT["tol"]),
-            "max_dofs": _optional(_ADAPT["max_dofs"]),
-            "max_levels": _optional(_ADAPT["max_levels"]),
-            "nested": _optional(_ADAPT["nested"]),
-            "newton_rtol": _optional(_ADAPT["newton_rtol"]),
-        },
-    ),
-    "charts": Field("list", ["speed_accuracy"], check=_charts, doc=f"some of {', '.join(CHARTS)}"),
-    "repeat": Field("int", 1, check=_positive),
-    "warmup": Field("bool", True, doc="solve each case once, untimed, before the timed runs"),
-}
+#: a free-form mapping (a case: its scene, set and axis values, checked by load_study)
+_Mapping = Annotated[dict, BeforeValidator(string_keys)]
+
+
+class StudyAdapt(Section):
+    """A study's ``adapt`` section: the adaptive loop's options of its adaptive runs (only
+    the keys given; the others are the scene's or the defaults)."""
+
+    strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] | None = None
+    theta: Fraction | None = None
+    tol: NonNegative | None = None
+    max_dofs: Count | None = None
+    max_levels: Count | None = None
+    nested: Switch | None = None
+    newton_rtol: Positive | None = None
+
+
+class StudyConfig(Section):
+    """A study file, validated (the scenes it names are validated by :func:`load_study`)."""
+
+    name: Annotated[str, BeforeValidator(string(folder_name))] | None = None
+    #: the scene: a YAML file relative to the study file, or an inline mapping
+    scene: Annotated[Any, BeforeValidator(checked(_scene_ref))]
+    #: overrides of the base scene, as contact run --set
+    set: Annotated[list, BeforeValidator(a_list())] = Field(default_factory=list)
+    #: axis name -> list of values (validated by AXES)
+    axes: Any = None
+    #: label -> {scene, set, <axis>: value}: named variants crossed with the axes
+    cases: (
+        Annotated[
+            dict[str, Annotated[dict, BeforeValidator(string_keys)]], BeforeValidator(string_keys)
+        ]
+        | None
+    ) = None
+    adapt: StudyAdapt | None = None
+    charts: Annotated[list, BeforeValidator(a_list(_charts))] = Field(
+        default_factory=lambda: ["speed_accuracy"]
+    )
+    repeat: Annotated[int, BeforeValidator(integer(positive))] = 1
+    #: solve each case once, untimed, before the timed runs
+    warmup: Annotated[bool, BeforeValidator(boolean)] = True
 
 
 @dataclass
@@ -283,6 +309,11 @@ class Study:
         for key in _SOLVER_AXES:
             if key in params:
                 solver[key] = params[key]
+        if "method" in params:  # a variant (fb-nopolish, nitsche-skew): its method and options
+            solver["method"], variant = method_variant(params["method"])
+            solver.update(variant)
+        if "parameter" in params and solver.get("method") in BASELINE_PARAMETERS:
+            solver[BASELINE_PARAMETERS[solver["method"]]] = params["parameter"]
         if "linear_solver" in params:
             solver["petsc_options"] = dict(LINEAR_SOLVERS[params["linear_solver"]])
         if any(axis in params for axis in _FRICTION_AXES):
@@ -365,12 +396,12 @@ def _read_scene(
         )
     if not isinstance(sets, list):
         raise ConfigError(
-            f"{path}set: expected a list of KEY.PATH=VALUE strings, got {_typename(sets)} {sets!r}"
+            f"{path}set: expected a list of KEY.PATH=VALUE strings, got {typename(sets)} {sets!r}"
         )
     for i, item in enumerate(sets):
         if not isinstance(item, str) or "=" not in item:
             raise ConfigError(
-                f"{path}set[{i}]: expected a string KEY.PATH=VALUE, got {_typename(item)} {item!r}"
+                f"{path}set[{i}]: expected a string KEY.PATH=VALUE, got {typename(item)} {item!r}"
             )
         try:
             raw = apply_overrides(raw, [item])
@@ -406,34 +437,37 @@ def load_study(
     else:
         path = Path(source)
         data, base_dir, stem = read_yaml(path), path.parent, path.stem
-    st = _validate_mapping(data, Field("dict", schema=STUDY), "", {})
+    try:
+        st = StudyConfig.model_validate(data)
+    except ValidationError as err:
+        raise config_error(err, "", StudyConfig) from None
     extra = tuple(overrides)
-    base_raw, base_cfg, label = _read_scene(st["scene"], st["set"], base_dir, "", extra)
-    axes = _validate_axes(st["axes"], base_cfg.constants)
+    base_raw, base_cfg, label = _read_scene(st.scene, st.set, base_dir, "", extra)
+    axes = _validate_axes(st.axes, base_cfg.constants)
     cases: dict[str | None, Case] = {None: Case(None, base_raw, base_cfg)}
-    if st["cases"]:
+    if st.cases:
         cases = {
             name: _validate_case(name, spec, st, base_raw, base_cfg, base_dir, axes, extra)
-            for name, spec in st["cases"].items()
+            for name, spec in st.cases.items()
         }
-    adapt = {k: v for k, v in st["adapt"].items() if v is not None} if st["adapt"] else {}
+    adapt = st.adapt.model_dump(exclude_none=True) if st.adapt is not None else {}
     return Study(
-        name=st["name"] or stem or "study",
+        name=st.name or stem or "study",
         scene=label,
-        set=list(st["set"]) + list(extra),
+        set=list(st.set) + list(extra),
         axes=axes,
         adapt=adapt,
-        repeat=st["repeat"],
+        repeat=st.repeat,
         cases=cases,
-        charts=list(st["charts"]),
-        warmup=st["warmup"],
+        charts=list(st.charts),
+        warmup=st.warmup,
     )
 
 
 def _validate_case(
     name: str,
     spec: dict,
-    st: dict,
+    st: StudyConfig,
     base_raw: dict,
     base_cfg: SceneConfig,
     base_dir: Path,
@@ -444,8 +478,8 @@ def _validate_case(
     raw, cfg = base_raw, base_cfg
     # the case's own scene (default: the study's), then its `set`
     if "scene" in spec or "set" in spec:
-        ref = spec.get("scene", st["scene"])
-        sets = ([] if "scene" in spec else list(st["set"])) + list(spec.get("set") or [])
+        ref = spec.get("scene", st.scene)
+        sets = ([] if "scene" in spec else list(st.set)) + list(spec.get("set") or [])
         raw, cfg, _ = _read_scene(ref, sets, base_dir, path, extra)
     params = {}
     for key, value in spec.items():
@@ -457,7 +491,7 @@ def _validate_case(
             )
         if key in axes:
             raise ConfigError(f"{path}{key}: is also an axis of the study; set it in one place")
-        params[key] = _validate(value, AXES[key], path + key, cfg.constants)
+        params[key] = _axis_value(key, value, path + key, cfg.constants)
     return Case(name, raw, cfg, params)
 
 
@@ -467,7 +501,7 @@ def _validate_axes(axes: Any, constants: Mapping[str, float]) -> dict[str, list]
     if not isinstance(axes, dict):
         raise ConfigError(
             f"axes: expected a mapping of axis name to a list of values, got "
-            f"{_typename(axes)} {axes!r}"
+            f"{typename(axes)} {axes!r}"
         )
     out: dict[str, list] = {}
     for name, values in axes.items():
@@ -475,11 +509,11 @@ def _validate_axes(axes: Any, constants: Mapping[str, float]) -> dict[str, list]
             raise ConfigError(f"axes.{name}: unknown axis (expected one of {', '.join(AXES)})")
         if not isinstance(values, list) or not values:
             raise ConfigError(
-                f"axes.{name}: expected a non-empty list of values, got {_typename(values)} "
+                f"axes.{name}: expected a non-empty list of values, got {typename(values)} "
                 f"{values!r}"
             )
         checked = [
-            _validate(v, AXES[name], f"axes.{name}[{i}]", constants) for i, v in enumerate(values)
+            _axis_value(name, v, f"axes.{name}[{i}]", constants) for i, v in enumerate(values)
         ]
         for i, v in enumerate(checked):
             if v in checked[:i]:
@@ -577,8 +611,8 @@ def run_one(
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
     from ..adaptivity.estimate import estimate
-    from ..drivers.adaptive import adapt
     from ..drivers.solve import solve
+    from ..hp.adapt import adapt
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 
@@ -604,9 +638,10 @@ def run_one(
         raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
-        if _path_scene(scene.config):
+        driver = choose_driver(scene.config, adaptive=adapt_opts is not None)
+        if driver == "load_path":
             seconds, failure = _run_path(study, scene, adapt_opts, out, levels, clock)
-        elif adapt_opts is None:
+        elif driver == "solve":
             result = solve(scene, verbose=False)
             seconds = clock.seconds
             out.update(
@@ -665,6 +700,7 @@ def run_one(
                 row["seconds"] = clock.seconds
                 levels.append(row)
 
+            assert adapt_opts is not None  # the driver of an adaptive run
             res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
             seconds = clock.seconds
             last = levels[-1]
@@ -708,11 +744,6 @@ def run_one(
     for row in levels:
         row["seconds"] = round(comm.allreduce(row["seconds"], op=MPI.MAX), 4)
     return out, levels
-
-
-def _path_scene(cfg: SceneConfig) -> bool:
-    """A load path or a frictional scene: solved step by step (:mod:`contact.drivers.load_path`)."""
-    return cfg.load is not None or cfg.frictional
 
 
 def _run_path(

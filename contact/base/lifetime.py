@@ -21,6 +21,7 @@ each finished step (``Result.release``, ``Step.release``).  Before, a path ended
 
 from __future__ import annotations
 
+import ctypes
 import re
 import tempfile
 from pathlib import Path
@@ -108,3 +109,26 @@ def rss_mib() -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024.0
     return float("nan")
+
+
+#: give freed heap memory back to the system after a level is released (glibc only;
+#: False: the old path, where the allocator keeps it for later requests)
+TRIM = True
+
+
+def return_freed_memory() -> bool:
+    """Ask the C allocator to give its free heap pages back to the system (glibc's
+    ``malloc_trim(0)``); returns whether it could be asked (glibc) and :data:`TRIM` is on.
+
+    Freed arrays of a released level stay in the process as free heap that a later, larger
+    level can rarely reuse whole (its arrays are bigger), so the resident size keeps
+    growing with the levels without this (demos/RESULTS.md §14)."""
+    if not TRIM:
+        return False
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        trim = libc.malloc_trim
+    except (OSError, AttributeError):  # not glibc
+        return False
+    trim(0)
+    return True

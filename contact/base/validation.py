@@ -13,10 +13,11 @@ text or None and serve the scene's schema as well (:mod:`contact.setup.config`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
-from typing import Any
+from collections.abc import Callable, Iterable, Mapping
+from types import UnionType
+from typing import Annotated, Any, Union, get_args, get_origin
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, model_validator
 from pydantic_core import PydanticCustomError
 
 from .errors import ConfigError
@@ -100,6 +101,12 @@ def fail(text: str, key: str = "") -> PydanticCustomError:
     return PydanticCustomError("config", "{text}", {"text": text, "key": key})
 
 
+def rule(text: str, key: str = "") -> PydanticCustomError:
+    """The error of a rule among a section's keys (which keys a mesh type takes, …): it is
+    reported after every value of a wrong type or range (:func:`config_error`)."""
+    return PydanticCustomError("config", "{text}", {"text": text, "key": key, "rule": True})
+
+
 def _then(check: Check | None, v: Any) -> Any:
     if check is not None and (problem := check(v)):
         raise fail(problem)
@@ -171,31 +178,211 @@ def mapping_of(check: Check) -> Callable[[Any], FrozenDict]:
     return validate
 
 
-def config_error(
-    err: ValidationError, path: str, keys: Iterable[str], rename: bool = False
-) -> ConfigError:
-    """The one-line ConfigError of a model's ValidationError: ``<path>.<key>: <text>``.
-    An unknown key comes first (as the scene's config reports it), naming ``keys``, the
-    keys the section may hold.  ``rename``: ``path`` names the field itself (not its
-    section)."""
-    keys = tuple(keys)
-    # the first error in the order of ``keys`` (the order of the section's schema), as a
-    # schema that checks key by key reports it
-    errors = sorted(err.errors(), key=lambda e: _rank(e["loc"], keys))
-    unknown = [e for e in errors if e["type"] == "extra_forbidden"]
-    e = (unknown or errors)[0]
-    loc = e["loc"][1:] if rename else e["loc"]
-    where = ".".join(str(part) for part in (path, *loc) if part != "")
-    if unknown:
-        return ConfigError(f"{where}: unknown key (expected one of {', '.join(keys)})")
+def string(check: Check | None = None) -> Callable[[Any], str]:
+    """A string, then ``check``."""
+
+    def validate(v: Any) -> str:
+        if not isinstance(v, str):
+            raise fail(f"expected a string, got {typename(v)} {v!r}")
+        return _then(check, v)
+
+    return validate
+
+
+def a_list(check: Check | None = None) -> Callable[[Any], list]:
+    """A list, then ``check``."""
+
+    def validate(v: Any) -> list:
+        if not isinstance(v, list):
+            raise fail(f"expected a list, got {typename(v)} {v!r}")
+        return _then(check, v)
+
+    return validate
+
+
+def among(choices: Iterable[Any]) -> Check:
+    """The check that a value is one of ``choices`` (e.g. the integers 1, 2)."""
+    choices = tuple(choices)
+    listed = ", ".join(map(str, choices))
+    return lambda v: None if v in choices else f"{v!r} is not one of {listed}"
+
+
+def section_keys(cls: type[BaseModel]) -> tuple[str, ...]:
+    """The keys of a section as its messages list them: the model's ``KEYS`` if it names
+    them in another order than its fields, else its fields."""
+    return tuple(getattr(cls, "KEYS", None) or cls.model_fields)
+
+
+def section_input(cls: type[BaseModel], data: Any, info: ValidationInfo) -> Any:
+    """The input of a section (a model's *before* validator): a mapping with string keys,
+    its keys given as None left out (they take their defaults; :func:`parse_member` keeps
+    them, to check a value alone); nothing (None) is the empty mapping.  Anything else is
+    the error ``expected a mapping``."""
+    if data is None:
+        return {}
+    if isinstance(data, BaseModel):
+        return data
+    if not isinstance(data, dict):
+        raise fail(f"expected a mapping, got {typename(data)} {data!r}")
+    for key in data:
+        if not isinstance(key, str):
+            raise fail(_unknown(section_keys(cls)), key=str(key))
+    if (info.context or {}).get(_MEMBER):
+        return data
+    # an unknown key is one whatever its value, but for the sections that are keywords of
+    # the Python API too (solver, adapt, friction: None = not given)
+    keywords = getattr(cls, "KEYWORDS", False)
+    return {
+        key: value
+        for key, value in data.items()
+        if value is not None or not (keywords or key in cls.model_fields)
+    }
+
+
+_MEMBER = "contact.validation.member"  # the context key of parse_member
+
+
+class Section(BaseModel):
+    """A section of an input file: frozen, no unknown keys, a key given as None takes its
+    default (:func:`section_input`)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _input(cls, data: Any, info: ValidationInfo) -> Any:
+        return section_input(cls, data, info)
+
+
+def string_keys(v: Any) -> Any:
+    """A free-form mapping (names of the scene's choosing): string keys; nothing is empty."""
+    if v is None:
+        return {}
+    if not isinstance(v, dict):
+        raise fail(f"expected a mapping, got {typename(v)} {v!r}")
+    for key in v:
+        if not isinstance(key, str):
+            raise fail("keys must be strings", key=str(key))
+    return v
+
+
+def _unknown(keys: Iterable[str]) -> str:
+    return f"unknown key (expected one of {', '.join(keys)})"
+
+
+def config_error(err: ValidationError, path: str, model: type[BaseModel]) -> ConfigError:
+    """The one-line ConfigError of a ``model``'s ValidationError: ``<path>.<key>: <text>``.
+
+    Of several errors, the one a reader meets first: a value of a wrong type or range
+    before a broken :func:`rule`, each in the order of the sections' keys
+    (:func:`section_keys`), depth first, an unknown key of a mapping before its other
+    errors.  A ConfigError a validator raised (a whole line, e.g. a rule across sections)
+    is that error.
+
+    Args:
+        err: pydantic's error.
+        path: the key path of ``model``'s input (``""``: the top level).
+        model: the model that raised it.
+
+    Returns:
+        The error to raise.
+    """
+    line = _first(err, model)
+    if isinstance(line, ConfigError):
+        return line
+    loc, text = line
+    return ConfigError(f"{_join(path, loc)}: {text}")
+
+
+def below(err: ValidationError, model: type[BaseModel], key: str) -> PydanticCustomError:
+    """The error of a section validated by a rule of another (e.g. the blocks of a mesh of
+    type blocks), as the outer section's :func:`rule` error at sub-key ``key`` (``[i]``)."""
+    line = _first(err, model)
+    if isinstance(line, ConfigError):
+        raise line
+    loc, text = line
+    return rule(text, key=_join(key, loc))
+
+
+def _first(err: ValidationError, model: type[BaseModel]) -> tuple[tuple, str] | ConfigError:
+    """The first error (:func:`config_error`): its location and text, or the ConfigError
+    a validator raised."""
+    seen: dict[tuple, int] = {}  # a free-form mapping's entries: in their given order
+    ranked = [
+        (_walk(model, e["loc"], e["type"] == "extra_forbidden", seen), e) for e in err.errors()
+    ]
+    (_, keys), e = min(
+        ranked, key=lambda item: (bool((item[1].get("ctx") or {}).get("rule")), item[0][0])
+    )
     ctx = e.get("ctx") or {}
-    if key := ctx.get("key"):
-        where = f"{where}{key}" if key.startswith("[") else f"{where}.{key}"
-    return ConfigError(f"{where}: {ctx.get('text', e['msg'])}")
+    if isinstance(ctx.get("error"), ConfigError):
+        return ctx["error"]
+    if e["type"] == "extra_forbidden":
+        return e["loc"], _unknown(keys)
+    if e["type"] == "missing":
+        return e["loc"], "required key is missing"
+    key = ctx.get("key")
+    return (*e["loc"], *([key] if key else [])), ctx.get("text", e["msg"])
 
 
-def _rank(loc: tuple, keys: tuple[str, ...]) -> int:
-    return keys.index(loc[0]) if loc and loc[0] in keys else len(keys)
+def _join(path: str, loc: Iterable[Any]) -> str:
+    """``a.b[2].c`` of a path and the location below it (an item: ``2`` or ``"[2]…"``)."""
+    for part in loc:
+        if isinstance(part, int):
+            path = f"{path}[{part}]"
+        elif isinstance(part, str) and part.startswith("["):
+            path = f"{path}{part}"
+        elif part != "":
+            path = f"{path}.{part}" if path else str(part)
+    return path
+
+
+def _walk(
+    model: type[BaseModel] | None, loc: tuple, unknown: bool, seen: dict[tuple, int]
+) -> tuple[tuple[int, ...], tuple[str, ...]]:
+    """The rank of an error at ``loc`` below ``model`` (one entry per level: the key's
+    place among its section's keys, -1 for an unknown key) and the keys of the section
+    it is in."""
+    ranks: list[int] = []
+    keys: tuple[str, ...] = ()
+    node: tuple[str, Any] = ("model", model)
+    for depth, part in enumerate(loc):
+        kind, cls = node
+        if kind == "model" and cls is not None and isinstance(part, str):
+            keys = section_keys(cls)
+            last = depth == len(loc) - 1
+            ranks.append(
+                -1 if unknown and last else keys.index(part) if part in keys else len(keys)
+            )
+            field = cls.model_fields.get(part)
+            node = _inner(field.annotation) if field is not None else ("", None)
+        elif kind == "dict":
+            ranks.append(seen.setdefault((*loc[:depth], part), len(seen)))
+            node = ("model", cls)
+        elif kind == "seq" and isinstance(part, int):
+            ranks.append(part)
+            node = ("model", cls)
+        else:
+            ranks.append(0)
+            node = ("", None)
+    return tuple(ranks), keys
+
+
+def _inner(annotation: Any) -> tuple[str, Any]:
+    """What a field holds: a section (``model``), a mapping of sections (``dict``), a
+    sequence of them (``seq``) or values (``""``)."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return "model", annotation
+    if origin is Annotated:
+        return _inner(args[0])
+    if origin in (dict, Mapping):
+        return "dict", _inner(args[-1])[1]
+    if origin in (tuple, list):
+        return "seq", _inner(args[0])[1]
+    if origin in (Union, UnionType):
+        return next((inner for arg in args if (inner := _inner(arg))[0]), ("", None))
+    return "", None
 
 
 def parse_section[Section: BaseModel](
@@ -203,17 +390,15 @@ def parse_section[Section: BaseModel](
     values: Any,
     path: str,
     context: dict[str, Any] | None = None,
-    keys: Iterable[str] | None = None,
 ) -> Section:
     """A frozen model ``cls`` of keyword ``values`` (a key given as None: the default),
-    validated: one ConfigError line ``<path>.<key>: …`` naming an unknown key with ``keys``
-    (default: the model's fields, in their order).  ``context``: the validators' (e.g. a
-    scene's ``constants`` for expressions)."""
+    validated: one ConfigError line ``<path>.<key>: …`` (:func:`config_error`).
+    ``context``: the validators' (e.g. a scene's ``constants`` for expressions)."""
     given = {k: v for k, v in values.items() if v is not None}
     try:
         return cls.model_validate(given, context=context)
     except ValidationError as err:
-        raise config_error(err, path, cls.model_fields if keys is None else keys) from None
+        raise config_error(err, path, cls) from None
 
 
 def parse_member(
@@ -222,6 +407,8 @@ def parse_member(
     """``value`` validated as field ``key`` of model ``cls`` (its type, its message), the
     error line naming ``path`` (e.g. a study's axis value ``axes.mu[2]``)."""
     try:
-        return getattr(cls.model_validate({key: value}, context=context), key)
+        checked = cls.model_validate({key: value}, context={**(context or {}), _MEMBER: True})
+        return getattr(checked, key)
     except ValidationError as err:
-        raise config_error(err, path, (key,), rename=True) from None
+        message = str(config_error(err, "", cls))
+        raise ConfigError(path + message.removeprefix(key)) from None

@@ -16,7 +16,10 @@ The pieces are plain functions so a user can write their own loop in a few lines
 
 from __future__ import annotations
 
+import functools
+import gc
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -29,6 +32,8 @@ from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import next_dofs_bound, refine
 from ..base import progress
+from ..base.errors import ConfigError
+from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models import build_problem
 from ..setup.budget import max_dofs
@@ -53,6 +58,9 @@ class Level:
             ``mark``, ``refine``, ``output``).
         imbalance: Under MPI the busiest rank's owned DoFs over the mean (1 in serial).
         passes: Solves of this level (adaptive stopping may solve on).
+        elapsed: Wall seconds from the start of the loop to this level's solution, estimate
+            and error, the levels' outputs (``on_level``) not counted: the time to reach
+            ``error`` (the first level's includes its grid-sequencing solves).
     """
 
     index: int
@@ -63,14 +71,35 @@ class Level:
     seconds: dict[str, float]
     imbalance: float = 1.0  # max over ranks of the owned DoFs / their mean (1 in serial)
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
+    elapsed: float = 0.0  # wall seconds of the loop up to this level, outputs not counted
+    released: bool = False  # the solution's fields and η_T dropped (release)
+
+    @functools.cached_property
+    def cells(self) -> int:
+        """Return the number of cells of the level's mesh, over all ranks."""
+        msh = self.scene.mesh
+        return msh.topology.index_map(msh.topology.dim).size_global
+
+    def release(self) -> None:
+        """Keep the level's figures only (its row, iterations, history, η and error).
+
+        Its solution's fields and PETSc objects
+        (:meth:`~contact.solvers.result.Result.release`) and the indicator field η_T are
+        dropped, so the loop's memory follows the last level, not the sum of all. The mesh
+        stays while a finer level refers to it (the chain of coarser meshes
+        :mod:`contact.drivers.sequencing` solves on).
+        """
+        _ = self.cells  # cached while the mesh is at hand
+        self.result.release()
+        self.estimate.eta_T = None  # type: ignore[assignment]
+        self.released = True
 
     def row(self) -> dict[str, Any]:
         """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
-        msh = self.scene.mesh
-        row = {
+        row: dict[str, Any] = {
             "level": self.index,
             "dofs": self.result.dofs,
-            "cells": msh.topology.index_map(msh.topology.dim).size_global,
+            "cells": self.cells,
             "eta": self.estimate.eta,
         }
         # Σ_T of each term
@@ -88,6 +117,7 @@ class Level:
         )
         row.update(self.errors())
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
+        row["seconds_elapsed"] = round(self.elapsed, 4)
         return row
 
     def errors(self) -> dict[str, Any]:
@@ -156,15 +186,24 @@ def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
     return (scene.config.adapt or AdaptConfig()).updated(**overrides)
 
 
+def check_on_level(on_level: Callable | None) -> None:
+    """Raise ValueError unless ``on_level`` is None or callable (one line naming it)."""
+    if on_level is not None and not callable(on_level):
+        raise ValueError(
+            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
+        )
+
+
 def adapt(
     scene: Scene,
     method: str | None = None,
     on_level: Callable[[Level], None] | None = None,
     verbose: bool | None = None,
     u0: fem.Function | None = None,
+    keep: Callable[[Level], bool] | None = None,
     **options: Any,
 ) -> AdaptResult:
-    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
     The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` or the DoF
     budget (``solver.max_dofs``), after ``max_levels`` levels, or when a solve does not
@@ -179,34 +218,36 @@ def adapt(
             estimated (the CLI writes the level's files there).
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The first level's initial guess (a load step's previous solution).
+        keep: Which levels keep their solution once the next level is estimated (and
+            ``on_level`` has written it): the others are released
+            (:meth:`~contact.drivers.adaptive.Level.release`: their rows, iterations, η
+            and errors stay) and the loop's memory follows its last level. None (the
+            default) keeps every level whole; ``lambda level: False`` releases all but
+            the last.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
-            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``.
+            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
+            ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
+            ``pictures``.
 
     Returns:
         The levels and the reason the loop stopped.
 
     Raises:
         ConfigError: For an unknown or invalid option (one line naming it).
-        ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
+        ValueError: If ``scene`` is not a Scene or ``on_level`` or ``keep`` is not callable.
 
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
-        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
-        >>> [level.index for level in run.levels], run.stop
-        ([0, 1, 2], 'reached max_levels = 3')
-        >>> run.levels[-1].error < run.levels[0].error
-        True
+    :func:`contact.adapt` (which also runs the hp loop) shows it at work.
     """
-    if on_level is not None and not callable(on_level):
-        raise ValueError(
-            f"on_level: expected a function of one Level, got {type(on_level).__name__}"
-        )
+    check_on_level(on_level)
+    if keep is not None and not callable(keep):
+        raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
     opts = adapt_options(scene, **options)
+    if opts.strategy == "hp":  # contact.adapt and the CLI dispatch it to contact.hp
+        raise ConfigError("adapt.strategy: hp runs one solve per level (no load path, no study)")
     verbose = scene.config.output.verbose if verbose is None else verbose
     comm = scene.comm
     out = AdaptResult()
+    start, outputs = time.perf_counter(), 0.0  # the loop's clock, and the outputs' share
     for index in range(opts.max_levels):
         seconds = {}
         problem = build_problem(scene)
@@ -235,12 +276,19 @@ def adapt(
             seconds,
             imbalance=rank_imbalance(result.u_h.function_space),
             passes=passes,
+            elapsed=time.perf_counter() - start - outputs,
         )
         out.levels.append(level)
+        # a failed level is dropped by the CLI: the one before it stays whole
+        if keep is not None and index > 0 and result.converged and not keep(out.levels[-2]):
+            out.levels[-2].release()
+            gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
+            return_freed_memory()
         if on_level is not None:
             with Timer(seconds, "output"):
                 progress.note(f"level {index}: writing its files")
                 on_level(level)
+            outputs += seconds["output"]
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
             progress.heard()

@@ -18,6 +18,7 @@ from ..models import build_problem
 from ..models.problem import interpolate_expression
 from ..setup.scene import Scene
 from ..solvers import ncp
+from ..solvers.options import BASELINE_METHODS
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result, not_unique_text
 from ..solvers.snes import check_guess, solve_problem
@@ -40,15 +41,16 @@ def solve(
     Without an initial guess, grid sequencing (``solver.sequence``) solves coarser meshes
     first when it pays, and the coarsest level (or a cold start) begins from the scene's
     ``solver.u0`` (zero by default). A frictional scene (``friction.law`` tresca or
-    coulomb; fb, min or blend only) adds the tangential rows of the friction law (no
+    coulomb; fb, min, blend or a baseline) adds the tangential rows of the friction law (no
     polishing, the assembled block Jacobian) and returns the nodal friction fields in
     ``Result.friction``; ``friction.coulomb: fixed_point`` solves a sequence of Tresca
     problems instead. Collective; never raises on divergence (``Result.converged``).
 
     Args:
         scene: The scene to solve (:func:`contact.load_scene`).
-        method: fb, min, blend, vinewtonrsls or vinewtonssls; default the scene's
-            ``solver.method``.
+        method: fb, min, blend, vinewtonrsls, vinewtonssls or a baseline enforcement
+            (penalty, augmented_lagrangian, nitsche: :mod:`contact.solvers.baselines`);
+            default the scene's ``solver.method``.
         problem: An assembled problem of this scene to reuse (built here if None).
         u0: An initial guess on the scene's mesh (Dirichlet values are put in).
         verbose: Print a line per Newton iteration (default: the scene's
@@ -97,12 +99,16 @@ def solve(
             "with friction) takes fb, min or blend"
         )
     if friction is not None:
-        if method not in ncp.METHODS:
+        if method not in ncp.METHODS + BASELINE_METHODS:
             raise ConfigError(
                 f"solver.method: {method} cannot solve frictional contact "
                 f"(friction.law: {friction.law}); use fb, min or blend"
             )
-        if friction.law == "coulomb" and friction.options.coulomb == "fixed_point":
+        if (
+            friction.law == "coulomb"
+            and friction.options.coulomb == "fixed_point"
+            and method in ncp.METHODS
+        ):
             from .fixed_point import coulomb_fixed_point
 
             return coulomb_fixed_point(
@@ -129,19 +135,24 @@ def solve(
         u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
     else:
         check_guess(u0, problem)
-    result = solve_problem(
-        problem,
-        u0,
-        opts.knobs(),
-        scene.comm,
-        verbose,
-        guess,
-        timers,
-        clock,
-        check_options=bool(options.get("petsc_options")),
-        stopping=criterion,
-        alternatives=() if alternative is None else (alternative,),
-    )
+    if method in BASELINE_METHODS:
+        from .baselines import solve_baseline
+
+        result = solve_baseline(scene, problem, u0, opts.knobs(), verbose, timers, clock)
+    else:
+        result = solve_problem(
+            problem,
+            u0,
+            opts.knobs(),
+            scene.comm,
+            verbose,
+            guess,
+            timers,
+            clock,
+            check_options=bool(options.get("petsc_options")),
+            stopping=criterion,
+            alternatives=() if alternative is None else (alternative,),
+        )
     result.sequence, result.sequence_note = levels, note
     if result.converged and problem.floating:
         # a body only frictionless contact holds may slide: u_h is then one of many

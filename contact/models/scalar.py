@@ -43,23 +43,8 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     data = cfg.data
     V = fem.functionspace(msh, ("Lagrange", degree))
     tdim = msh.topology.dim
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    # a scalar model's data are single expressions (a list is refused at load)
-    assert isinstance(data.f, str) and isinstance(data.t, str)
-    k, f = coefficient(data.k, scene), coefficient(data.f, scene)
-    t, t_C = coefficient(data.t, scene), coefficient(data.t_C, scene)
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
-    dx = ufl.Measure("dx", domain=msh)
-
-    # a(u, v) = ∫ k ∇u·∇v dx
-    a = fem.form(k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx)
-    # L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} + ⟨t_C, v⟩_{Γ_C}
-    L = f * v * dx
-    for i in bnd.ids_with_role("neumann"):
-        L += t * v * ds(i)
-    for i in bnd.ids_with_role("contact"):
-        L += t_C * v * ds(i)
-    L = fem.form(L)
+    a, L, forms = scalar_forms(scene, V)
+    k, f, t, t_C, ds = (forms[key] for key in ("k", "f", "t", "t_C", "ds"))
 
     # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
     u_D = interpolate_expression(V, data.u_D, scene)
@@ -77,7 +62,7 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         bound_text, sign = data.g, 1.0
     else:
         candidates = np.arange(n_owned, dtype=np.int32)
-        measure = dx
+        measure = ufl.Measure("dx", domain=msh)
         bound_text, sign = data.psi, 1.0 if cfg.model.bound == "upper" else -1.0
     owned = candidates[candidates < n_owned]
     dofs = np.setdiff1d(owned, dirichlet_dofs).astype(np.int32)
@@ -113,6 +98,27 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
         data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds, "exact": data.exact},
         assembly_time=time.perf_counter() - t0,
     )
+
+
+def scalar_forms(scene: Scene, V: fem.FunctionSpace) -> tuple[fem.Form, fem.Form, dict]:
+    """The compiled forms a(u, v) = ∫ k ∇u·∇v dx and L(v) = (f, v)_Ω + ⟨t, v⟩_{Γ_N} +
+    ⟨t_C, v⟩_{Γ_C} of the scene on the Lagrange space V, and the UFL data k, f, t, t_C and
+    the boundary measure ds (a dict)."""
+    data, msh, bnd = scene.config.data, scene.mesh, scene.boundary
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    # a scalar model's data are single expressions (a list is refused at load)
+    assert isinstance(data.f, str) and isinstance(data.t, str)
+    k, f = coefficient(data.k, scene), coefficient(data.f, scene)
+    t, t_C = coefficient(data.t, scene), coefficient(data.t_C, scene)
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
+    dx = ufl.Measure("dx", domain=msh)
+    a = k * ufl.inner(ufl.grad(u), ufl.grad(v)) * dx
+    L = f * v * dx
+    for i in bnd.ids_with_role("neumann"):
+        L += t * v * ds(i)
+    for i in bnd.ids_with_role("contact"):
+        L += t_C * v * ds(i)
+    return fem.form(a), fem.form(L), {"k": k, "f": f, "t": t, "t_C": t_C, "ds": ds}
 
 
 #: |L(1)| below this fraction of Σ_i |b_i| counts as a zero resultant

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from dolfinx import fem
 
-from .vtk import gather_grid
+from .vtk import Grid, gather_grid
 
 MAX_EDGES = 20000  # cells above which mesh edges would paint everything black
 RASTER_CELLS = 200_000  # cells above which a nodal field is drawn as an image (cells < pixels)
@@ -507,6 +507,7 @@ def _contact_view(grid, normal) -> tuple[np.ndarray, np.ndarray, float]:
 def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
     import pyvista
 
+    grid = _vtk_grid(grid)
     p = _plotter()
     label = _field_label(u_h)
     grid.point_data["shown"] = _magnitude(grid.point_data[u_h.name])
@@ -563,7 +564,13 @@ def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
     _save(p, path, title)
 
 
+def _vtk_grid(grid):
+    """A pyvista grid of ``grid`` (a :class:`~contact.output.vtk.Grid` or one already)."""
+    return grid.pyvista() if isinstance(grid, Grid) else grid
+
+
 def _mesh_3d(path, grid, title, normal) -> None:
+    grid = _vtk_grid(grid)
     p = _plotter()
     focus, n, extent = _contact_view(grid, normal)
     whole = 0.6 * float(np.linalg.norm(np.ptp(grid.points, axis=0)))

@@ -29,6 +29,8 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult, Level
+from ..hp.adapt import HPLevel
+from ..hp.output import output_fields
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, value_name, view_normal
 from ..post.exact_data import exact_mismatches
@@ -37,6 +39,8 @@ from ..post.resultants import current_pressure
 from ..setup.scene import Scene
 from ..setup.untagged import untagged_boundary
 from ..solvers import Result
+from ..solvers.baselines import baseline_figures
+from ..solvers.options import BASELINE_METHODS
 from . import folder, plots
 from .fields import FieldFiles
 
@@ -174,6 +178,8 @@ def summary(
     }
     if result.sequence_note:
         out["sequence_note"] = result.sequence_note
+    if result.method in BASELINE_METHODS:
+        out.update(baseline_figures(result))
     out.update(posed_problem(scene))
     if res is not None:
         out.update(res)
@@ -337,8 +343,8 @@ def files_text(names: list[str]) -> str:
 
 class LevelWriter:
     """Callback for :func:`contact.drivers.adaptive.adapt`: level K as step K of the series
-    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T and the elastic cell
-    fields); ``files`` keeps the seconds per format."""
+    ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T, the elastic cell
+    fields, and an hp level's ``degree``); ``files`` keeps the seconds per format."""
 
     def __init__(self, tmp: Path, scene: Scene):
         formats, elastic = scene.config.output.formats, scene.config.elastic
@@ -348,9 +354,13 @@ class LevelWriter:
         r = level.result
         est = level.estimate
         cells = [est.eta_T, *cell_fields(level.scene, r)]
+        points = point_fields(r)
+        if isinstance(level, HPLevel) and level.space is not None:
+            cells.append(level.space.degree_function())  # p_T: the hp mesh in ParaView
+            points = output_fields(points)  # P_{p_max} → the degree the formats carry
         self.files.write_step(
             level.index,
-            point_fields(r),
+            points,
             cells,
             field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
             boundary=level.scene.boundary,
@@ -399,6 +409,11 @@ def write_adaptive(
             "eta": last.estimate.eta,
             "strategy": scene.config.adapt.strategy if scene.config.adapt else None,
             "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
+            # time to accuracy: the loop's wall seconds up to level k (outputs not counted)
+            # and the energy error (None without data.exact) and η reached there
+            "seconds_to_error": [round(lv.elapsed, 4) for lv in adaptive.levels],
+            "error_per_level": [lv.error for lv in adaptive.levels],
+            "eta_per_level": [lv.estimate.eta for lv in adaptive.levels],
             "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
             "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
             "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),

@@ -27,6 +27,7 @@ Reading back in Python::
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -67,10 +68,67 @@ def cell_rows(fn: fem.Function, n_cells: int | None = None) -> np.ndarray:
     return fn.x.array.real.reshape(-1, bs)[V.dofmap.list[:n_cells, 0]]
 
 
+@dataclass
+class Grid:
+    """An unstructured grid of cells of one type with its data, in numpy arrays: what the
+    .vtu writer (:func:`save_vtu`) and the 2D pictures read, with the attribute names of a
+    pyvista grid; :meth:`pyvista` makes one (for the 3D pictures).  Neither pyvista nor VTK
+    is imported to build it: a run that draws in 2D loads neither."""
+
+    points: np.ndarray  # (n_points, 3)
+    connectivity: np.ndarray  # (n_cells, nodes per cell), VTK's node order
+    cell_type: int  # the VTK cell type of every cell
+    point_data: dict[str, np.ndarray] = field(default_factory=dict)
+    cell_data: dict[str, np.ndarray] = field(default_factory=dict)
+    field_data: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_points(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.connectivity)
+
+    @property
+    def cells_dict(self) -> dict[int, np.ndarray]:
+        return {self.cell_type: self.connectivity}
+
+    @property
+    def cell_connectivity(self) -> np.ndarray:
+        return self.connectivity.ravel()
+
+    @property
+    def cell_offsets(self) -> np.ndarray:
+        per_cell = self.connectivity.shape[1]
+        return np.arange(0, self.n_cells * per_cell + 1, per_cell, dtype=np.int64)
+
+    @property
+    def celltypes(self) -> np.ndarray:
+        return np.full(self.n_cells, self.cell_type, dtype=np.uint8)
+
+    def pyvista(self):
+        """The same grid and data as a ``pyvista.UnstructuredGrid``."""
+        grid = _grid(self.points, self.connectivity, self.cell_type)
+        for ours, theirs in (
+            (self.point_data, grid.point_data),
+            (self.cell_data, grid.cell_data),
+            (self.field_data, grid.field_data),
+        ):
+            for name, values in ours.items():
+                theirs[name] = values
+        return grid
+
+
+#: gather_grid returns a pyvista grid (True: the old path, which imports pyvista and VTK
+#: for every file and picture) or a :class:`Grid` (False)
+PYVISTA_GRID = False
+
+
 def gather_grid(
     point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0
 ):
-    """The fields on one pyvista grid on rank ``root`` (None elsewhere; collective).
+    """The fields on one :class:`Grid` on rank ``root`` (None elsewhere; collective).
 
     All point fields must be Lagrange of one degree on one mesh (scalar or vector valued);
     the grid's points are that space's nodes (in global DoF order), its cells the owned
@@ -94,7 +152,7 @@ def gather_grid(
     if comm.rank != root:
         return None
     assert x is not None and connectivity is not None  # gathered on root
-    grid = _grid(x, connectivity, _vtk_cell_type(msh, _degree(W)))
+    grid = Grid(x, connectivity.astype(np.int64), _vtk_cell_type(msh, _degree(W)))
     gdim = msh.geometry.dim
     for fields, where in ((points, grid.point_data), (cells, grid.cell_data)):
         for name, values in fields.items():
@@ -104,7 +162,7 @@ def gather_grid(
             elif values.shape[1] == gdim == 2:
                 values = np.c_[values, np.zeros(len(values))]
             where[name] = values
-    return grid
+    return grid.pyvista() if PYVISTA_GRID else grid
 
 
 def _scalar_space(point_fields: Sequence[fem.Function]) -> fem.FunctionSpace:
@@ -187,9 +245,9 @@ def write_vtu(
 
 
 def save_vtu(path: str | Path, grid) -> None:
-    """Write a pyvista/VTK unstructured grid as ``.vtu`` (VTK XML: the arrays uncompressed in
-    one raw appended block, each as its byte count, UInt64, and its little-endian bytes),
-    which VTK's readers (ParaView, pyvista) and meshio read.
+    """Write a :class:`Grid` (or a pyvista/VTK unstructured grid) as ``.vtu`` (VTK XML: the
+    arrays uncompressed in one raw appended block, each as its byte count, UInt64, and its
+    little-endian bytes), which VTK's readers (ParaView, pyvista) and meshio read.
 
     The block holds the arrays in the reverse of their order in the XML: meshio 5.3.5
     re-encodes the arrays one by one in block order and looks each up as the first

@@ -278,7 +278,13 @@ class CurrentComplementarity(BlockComplementarity):
         self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """f = Φ(x): R off the contact nodes, their rows in the current frame (module doc)."""
-        st = self.evaluate(x)
+        return self.phi_of(self.evaluate(x), f, method, mu)
+
+    def phi_of(
+        self, st: dict, f: PETSc.Vec, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """f = Φ at the iterate of ``st``, the :meth:`evaluate` just done (its residual R is
+        still this object's); returns (a, b)."""
         a, b, Rt = st["a"], st["b"], st["Rt"]
         self.R.copy(f)
         out = f.array_w

@@ -45,7 +45,9 @@ Without HSW's modification (μ̃_t = μ_t) Newton cycled on the pulled block of 
 projection's element 2-cycles: from a frictionless initial guess the projection form flips
 every node between sliding left and right (the linear all-slip problem it solves moves the
 block the other way), HSW's element turns such a node back to stick (Newton steps from the
-frictionless solution of a partial-slip drag: hsw 8, projection no convergence in 50).
+frictionless solution of a partial-slip drag, plain Newton: hsw 8, projection no
+convergence in 50; the default ``line_search: auto`` catches the cycle and backtracks,
+:class:`GuardedFriction`).
 A node with |z| ≥ (1 − 10⁻¹¹) ρ, ρ > 0, counts as slipping (``SLIP_TIE``): a node that ended
 the previous load step on the friction bound starts the next one (s = 0, z = μ_t^prev)
 sliding on in the same direction.  With the exact tie rule round-off in |μ_t^prev| − ρ
@@ -76,6 +78,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import ncp
+from .globalize import FRICTION_STALL, Guarded
 from .newton import SEPARATED, SLIP, STICK, BlockComplementarity
 from .problem import DiscreteProblem, FrictionSet
 from .result import Result
@@ -190,7 +193,13 @@ class FrictionalComplementarity(BlockComplementarity):
         self, x: PETSc.Vec, f: PETSc.Vec, method: str, mu: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """f = Φ(x): R on free rows, the normal NCP rows and Φ_t = −w C on tangential rows."""
-        st = self.evaluate(x)
+        return self.phi_of(self.evaluate(x), f, method, mu)
+
+    def phi_of(
+        self, st: dict, f: PETSc.Vec, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """f = Φ at the iterate of ``st``, the :meth:`evaluate` just done (its residual R is
+        still this object's); returns (a, b)."""
         a, b = st["a"], st["b"]
         self.R.copy(f)
         out = f.array_w
@@ -224,6 +233,25 @@ class FrictionalComplementarity(BlockComplementarity):
         self.B.set(Bv).matMult(self.p.K, result=H)
         H.axpy(1.0, self.D.set(Dv), structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)  # type: ignore[arg-type]
         return Bv, Dv
+
+
+class GuardedFriction(Guarded):
+    """``line_search: auto`` of a frictional solve (any normal φ, either tangential form):
+    plain Newton steps until a cycle shows, then backtracking on ½‖Φ‖² (the rules of
+    :mod:`contact.solvers.globalize`).  The piece of Φ at x is every contact node's state
+    (separated, stick, slip); a state set seen before tells a cycle only if ‖Φ‖ has not
+    fallen below FRICTION_STALL times its value at that visit."""
+
+    label, seen = "friction", "its stick/slip set was seen before, |Phi| not halved since"
+    stall = FRICTION_STALL
+
+    def piece(self, x: PETSc.Vec) -> np.ndarray:
+        cp = self.cp
+        assert isinstance(cp, BlockComplementarity)  # friction's or .current's
+        st = cp.evaluate(x)  # once: Φ and the states from the same evaluation
+        cp.phi_of(st, self.F, self.method, self.mu)
+        status = cp.status(x, st)
+        return np.concatenate([status == SEPARATED, status == SLIP])
 
 
 def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc.Vec) -> dict:

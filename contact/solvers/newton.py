@@ -145,6 +145,12 @@ class BlockComplementarity(Complementarity):
     def evaluate(self, x: PETSc.Vec) -> dict:
         raise NotImplementedError
 
+    def phi_of(
+        self, st: dict, f: PETSc.Vec, method: str, mu: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """f = Φ at the iterate of ``st``, the :meth:`evaluate` just done; returns (a, b)."""
+        raise NotImplementedError
+
     def block_jacobian(
         self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
     ) -> tuple[np.ndarray, np.ndarray]:

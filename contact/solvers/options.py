@@ -34,8 +34,11 @@ from . import ncp
 from .reduced import REDUCED_PETSC_OPTIONS
 
 VI_METHODS = ("vinewtonrsls", "vinewtonssls")
-#: every method: semismooth Newton on an NCP function, or one of PETSc's VI solvers
-METHODS = ncp.METHODS + VI_METHODS
+#: the enforcements other contact codes use, as baselines (:mod:`.baselines`)
+BASELINE_METHODS = ("penalty", "augmented_lagrangian", "nitsche")
+#: every method: semismooth Newton on an NCP function, one of PETSc's VI solvers, or a
+#: baseline enforcement
+METHODS = ncp.METHODS + VI_METHODS + BASELINE_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt", "energy")
 LINEAR = ("auto", "direct", "gamg", "bcgs", "gmres")
 PREDICTORS = ("auto", "tangent", "none")
@@ -43,6 +46,11 @@ PREDICTORS = ("auto", "tangent", "none")
 FRICTION_FORMS = ("projection", "hsw")
 #: how Coulomb friction is solved: semismooth Newton on all rows, or the fixed point on ρ
 COULOMB_SOLVERS = ("ssn", "fixed_point")
+
+
+def theta_value(value: float) -> str | None:
+    """θ of Nitsche's method: 1, 0 or −1."""
+    return None if value in (1.0, 0.0, -1.0) else f"must be 1, 0 or -1, got {value}"
 
 
 class SolverOptions(BaseModel):
@@ -60,7 +68,12 @@ class SolverOptions(BaseModel):
     gamg, bcgs or auto (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
     ``petsc_options`` — PETSc options over the linear solver's defaults; ``predictor`` —
     the start of a nonlinear solve lifted by the tangent (:mod:`.predictor`): tangent,
-    none, or auto (tangent for a problem with an energy).
+    none, or auto (tangent for a problem with an energy).  The baselines
+    (:mod:`.baselines`): ``epsilon0`` — penalty ε = ε₀ E/h; ``r0`` — augmented Lagrangian
+    r = r₀ E/h; ``gamma0`` — Nitsche γ = γ₀ E/h (E: Young's modulus, or k for scalar
+    models; h the cell diameter); ``nitsche_theta`` — θ ∈ {1, 0, −1} (symmetric, θ = 0,
+    skew-symmetric); ``uzawa_rtol``, ``uzawa_max_it`` — the augmented Lagrangian's outer loop
+    stops at max|μ_{k+1} − μ_k| ≤ uzawa_rtol · max μ_{k+1}.
 
     Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
     one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
@@ -84,6 +97,13 @@ class SolverOptions(BaseModel):
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
     petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = FrozenDict()
     predictor: Annotated[str, BeforeValidator(one_of(PREDICTORS))] = "auto"
+    # the baselines' parameters (:mod:`.baselines`), each scaled by E/h (k/h): ε = ε₀ E/h, …
+    epsilon0: Annotated[float, BeforeValidator(number(positive))] = 1e3
+    r0: Annotated[float, BeforeValidator(number(positive))] = 100.0
+    gamma0: Annotated[float, BeforeValidator(number(positive))] = 10.0
+    nitsche_theta: Annotated[float, BeforeValidator(number(theta_value))] = 1.0
+    uzawa_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-8
+    uzawa_max_it: Annotated[int, BeforeValidator(integer(positive))] = 100
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "solver") -> SolverOptions:
@@ -151,11 +171,18 @@ ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
 }
 
 
+#: method variants as studies and benchmarks list them, beside :data:`METHODS`
+METHOD_VARIANTS = ("fb-nopolish", "blend-nopolish", "nitsche-skew")
+
+
 def method_variant(name: str) -> tuple[str, dict]:
-    """A method name as benchmarks and tests list it: ``fb``, … or ``fb-nopolish`` /
-    ``blend-nopolish`` (the pure Newton method) → (method, options for :func:`solve`)."""
+    """A method name as benchmarks, studies and tests list it: ``fb``, … or ``fb-nopolish``
+    / ``blend-nopolish`` (the pure Newton method), ``nitsche-skew`` (Nitsche with θ = −1) →
+    (method, options for :func:`solve`)."""
     if name.endswith("-nopolish"):
         return name.removesuffix("-nopolish"), {"polish": False}
+    if name == "nitsche-skew":
+        return "nitsche", {"nitsche_theta": -1.0}
     return name, {}
 
 

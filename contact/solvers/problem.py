@@ -214,15 +214,21 @@ class DiscreteProblem:
     def nodal_output(self, name: str, values: np.ndarray) -> fem.Function:
         """A function ``name`` on the output space S with ``values`` at the constrained DoFs
         and 0 elsewhere (λ_h also at the ends of Γ_C, :meth:`_extend_to_ends`)."""
-        V, con = self.V, self.constraint
-        fn = fem.Function(V)
-        fn.x.array[con.dofs] = values
-        fn.x.scatter_forward()
-        if name == "lambda_h":
-            self._extend_to_ends(fn)
+        V = self.V
+        fn = self.unknowns_function(name, values)
         out = fem.Function(self.output_space or V, name=name)
         out.x.array[:] = fn.x.array if self.output_map is None else fn.x.array[self.output_map]
         return out
+
+    def unknowns_function(self, name: str, values: np.ndarray) -> fem.Function:
+        """A function of V holding ``values`` at the constrained unknowns and 0 at the others
+        (λ_h also at the ends of Γ_C, :meth:`_extend_to_ends`): the unknowns x, before Q."""
+        fn = fem.Function(self.V)
+        fn.x.array[self.constraint.dofs] = values
+        fn.x.scatter_forward()
+        if name == "lambda_h":
+            self._extend_to_ends(fn)
+        return fn
 
     def gap_output(self, x: np.ndarray) -> fem.Function:
         """The gap σ(bound − u) on S (≥ 0 when feasible), NaN off the constrained DoFs of a

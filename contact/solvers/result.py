@@ -100,6 +100,11 @@ class Result:
     predictor: bool | None = None
     hint: str = ""  # a failed solve: what in the scene makes it hard ('' if nothing known)
     stopping: AdaptiveStopping | None = None  # solver.stopping adaptive: its criteria (.stopping)
+    #: a baseline enforcement (:mod:`.baselines`): its nodal contact force in the solver's
+    #: unknowns (owned), which :func:`owned_residual` returns — the method's own multiplier,
+    #: not the Galerkin residual K x − b (they differ for Nitsche with θ ≠ 0)
+    contact_residual: np.ndarray | None = None
+    outer_iterations: int = 0  # the augmented Lagrangian's Uzawa iterations (0: none)
 
     @property
     def linear_solves(self) -> int:
@@ -149,6 +154,7 @@ class Result:
         # released (the doc above): these fields are None from here on
         self.u_h = self.lmbda_h = self.gap = self.active = None  # type: ignore[assignment]
         self.problem = self.active_mask = None  # type: ignore[assignment]
+        self.contact_residual = None
         if self.friction is not None:
             self.friction = {k: v for k, v in self.friction.items() if np.ndim(v) == 0}
 
@@ -228,7 +234,13 @@ def solves_text(newton: int, polish: int) -> str:
 
 
 def owned_residual(result: Result) -> np.ndarray:
-    """R = K x − b at the solution (x = Qᵀ u_h, the solver's unknowns), owned entries."""
+    """The nodal contact force at the solution, owned entries.
+
+    R = K x − b (x = Qᵀ u_h, the solver's unknowns); for a baseline enforcement its own nodal
+    contact force (``Result.contact_residual``) instead.
+    """
+    if result.contact_residual is not None:
+        return result.contact_residual.copy()
     p = result.problem
     x, r = p.b.duplicate(), p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, x)
@@ -237,6 +249,18 @@ def owned_residual(result: Result) -> np.ndarray:
     x.destroy()
     r.destroy()
     return out
+
+
+def close_timings(timers: dict, clock: Stopwatch) -> None:
+    """Close a solve's timers.
+
+    ``total``: the seconds of ``clock``; ``other``: what assembly, linear solves and coarse
+    levels leave of it.
+    """
+    timers["total"] = clock.seconds
+    timers["other"] = max(
+        timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0
+    )
 
 
 def finish(
@@ -270,10 +294,7 @@ def finish(
         r = r.copy()
         r[cp.dofs[~active]] = 0.0
     lmbda, gap, active_fn = problem.outputs(x.array_r, r, active)
-    timers["total"] = clock.seconds
-    timers["other"] = max(
-        timers["total"] - timers["assembly"] - timers["solve"] - timers.get("coarse", 0.0), 0.0
-    )
+    close_timings(timers, clock)
     converged = reason_code > 0
     hint = (
         ""

@@ -24,7 +24,7 @@ from ..base.timing import Stopwatch
 from . import ncp
 from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
 from .energy_search import EnergySearch
-from .globalize import GuardedMin
+from .globalize import Guarded, GuardedMin
 from .linear import (
     AssembledSystem,
     ReducedNewtonSystem,
@@ -162,7 +162,7 @@ class SemismoothNewton:
         snes.setOptionsPrefix(self.prefix)
         self.state: dict[str, Any] = {"t_jac": None, "dir_norm": np.nan}
         self.polisher: Polisher | None = None
-        self.guard: GuardedMin | None = None
+        self.guard: Guarded | None = None
         self.search: EnergySearch | None = None
         self.system: ReducedNewtonSystem | BlockReducedSystem | AssembledSystem | None = None
         if friction is not None or problem.current is not None:  # H = B K + D (no polishing)
@@ -180,6 +180,13 @@ class SemismoothNewton:
                 snes, problem, cp, options, self.timers, self.state, self.petsc_options, block
             )
             self.J = J if block is not None else owner.own(J)
+            if friction is not None and options.line_search == "auto":
+                from .friction import GuardedFriction
+
+                self.guard = owner.own(
+                    GuardedFriction(cp, method, options.mu, self.timers, verbose)
+                )
+                snes.setLineSearchPreCheck(self.guard)
         elif method in ncp.METHODS:
             system = self.system = owner.own(
                 CurvatureSystem(problem, self.prefix)

@@ -153,9 +153,11 @@ def jacobian_cost(quick: bool) -> list[dict]:
 
 
 # ------------------------------------------------------------------ tangential forms
-def forms(quick: bool) -> list[dict]:
+def forms(quick: bool, line_search: str | None = None) -> list[dict]:
     """Each form × normal NCP on four scenes (coarser with --quick), one step from u = 0 and
-    from the frictionless solution (the hard warm start: every node starts sliding)."""
+    from the frictionless solution (the hard warm start: every node starts sliding);
+    ``line_search``: the solver's (default: the scene's), then a column of its own with the
+    steps it shortened (demos/bench/bench_friction_cycle.py)."""
     block, cylinder, box = (
         ("[20,5]", "[40,10]", "[4,4,2]") if quick else ("[40,10]", "[80,20]", "[8,8,4]")
     )
@@ -178,34 +180,35 @@ def forms(quick: bool) -> list[dict]:
                 for method in ("fb", "min", "blend"):
                     case = scene(name, *sets, f"friction.form={form}", "solver.max_it=100")
                     problem = build_problem(case)
+                    searched = {} if line_search is None else {"line_search": line_search}
                     r, t = timed(
                         contact.solve,
                         case,
                         method=method,
                         problem=problem,
-                        u0=_same_mesh(u0, problem.V),
+                        u0=same_mesh(u0, problem.V),
+                        **searched,
                     )
-                    rows.append(
-                        {
-                            "case": label,
-                            "start": start,
-                            "form": form,
-                            "method": method,
-                            "dofs": r.dofs,
-                            "converged": r.converged,
-                            "newton_iterations": r.iterations,
-                            "seconds": round(t, 3),
-                        }
+                    row = {"case": label, "start": start, "form": form, "method": method}
+                    if line_search is not None:
+                        row.update(line_search=line_search, backtracked=r.backtracked)
+                    row.update(
+                        dofs=r.dofs,
+                        converged=r.converged,
+                        newton_iterations=r.iterations,
+                        seconds=round(t, 3),
                     )
+                    rows.append(row)
                     print(
                         f"forms: {label:12s} {start:12s} {form:10s} {method:5s} "
+                        f"{line_search or '':6s} "
                         f"{'converged' if r.converged else 'FAILED'} {r.iterations} its",
                         flush=True,
                     )
     return rows
 
 
-def _same_mesh(u0, V):
+def same_mesh(u0, V):
     """u0 copied into V: the scenes differ only in their friction keys, so their meshes and
     layouts are built identically (the bench runs serially); None stays None."""
     if u0 is None:

@@ -41,9 +41,8 @@ import time
 from pathlib import Path
 
 import contact
-from contact.drivers import adaptive as loop
 
-from common import elastic_reference, energy_distance, save_csv
+from common import PHASES, count_phase_cpu, elastic_reference, energy_distance, save_csv
 from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,35 +52,10 @@ MODES = ("fixed", "adaptive")
 VARIANTS = {
     "adaptive_sa": ["solver.stopping=adaptive", "solver.petsc_options.pc_gamg_agg_nsmooths=1"]
 }
-#: the loop's phases (functions of contact.drivers.adaptive) whose CPU seconds are counted
-PHASES = {
-    "build_problem": "assembly",
-    "solve": "solve",
-    "estimate": "estimate",
-    "solution_error": "error",
-    "mark": "mark",
-    "refine": "refine",
-}
+#: the CPU seconds of the loop's phases (common.count_phase_cpu)
 CPU: dict[str, float] = collections.defaultdict(float)
 #: the final (scene, u_h) of each run, for the errors against a reference (hertz_2d)
 FINAL: list = []
-
-
-def _count_cpu() -> None:
-    """Wrap the loop's phase functions so that their CPU seconds add up in :data:`CPU`."""
-
-    def timed(fn, key):
-        def call(*args, **kwargs):
-            c = time.process_time()
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                CPU[key] += time.process_time() - c
-
-        return call
-
-    for name, key in PHASES.items():
-        setattr(loop, name, timed(getattr(loop, name), key))
 
 
 def run(mode: str, tol: float, extra: list[str], scene_name: str) -> tuple[dict, list[dict]]:
@@ -180,7 +154,7 @@ def main() -> None:
     )
     ap.add_argument("--out", default="demos/results/stopping")
     args = ap.parse_args()
-    _count_cpu()
+    count_phase_cpu(CPU)
     rows, levels = [], []
     for k in range(args.repeat):
         for mode in args.modes:

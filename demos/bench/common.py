@@ -2,11 +2,46 @@
 
 from __future__ import annotations
 
+import collections
+import time
 from pathlib import Path
 
 from contact.output.folder import write_csv
 
 from mpi4py import MPI
+
+#: the adaptive loop's phases (functions of contact.drivers.adaptive) and the key each
+#: one's CPU seconds add up under (:func:`count_phase_cpu`)
+PHASES = {
+    "build_problem": "assembly",
+    "solve": "solve",
+    "estimate": "estimate",
+    "solution_error": "error",
+    "mark": "mark",
+    "refine": "refine",
+}
+
+
+def count_phase_cpu(cpu: dict[str, float] | None = None) -> dict[str, float]:
+    """Wrap the adaptive loop's phase functions (:data:`PHASES`) so that their CPU seconds
+    add up in ``cpu`` (a new dict if None; keys: the phases' names), which is returned."""
+    from contact.drivers import adaptive as loop
+
+    cpu = collections.defaultdict(float) if cpu is None else cpu
+
+    def timed(fn, key):
+        def call(*args, **kwargs):
+            c = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                cpu[key] = cpu.get(key, 0.0) + time.process_time() - c
+
+        return call
+
+    for name, key in PHASES.items():
+        setattr(loop, name, timed(getattr(loop, name), key))
+    return cpu
 
 
 def save_csv(path: str | Path, rows: list[dict]) -> None:

@@ -132,20 +132,28 @@ def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
 
 
 def guaranteed_bound(
-    scene: Scene, result: Result, backend: str = "compiled", degree: int | None = None
+    scene: Scene,
+    result: Result,
+    backend: str = "compiled",
+    degree: int | None = None,
+    lifting: fem.Function | None = None,
+    multiplier_rule: Any = None,
 ) -> Bound:
     """The bound of the module docstring for a solve of a scalar scene (collective);
     ``backend`` and ``degree``: the patch solver and the flux's degree of
-    :func:`.flux.reconstruct_flux`."""
+    :func:`.flux.reconstruct_flux`; ``lifting``: w of a Signorini scene, if the caller
+    has it (hp: Bernstein coefficients on facets of any degree), else
+    :func:`_bernstein_lifting`; ``multiplier_rule``: :class:`.cells.FluxData`'s."""
     seconds = {}
     t0 = time.perf_counter()
     data, multiplier, sign = flux_data(scene, result)
+    data.multiplier_rule = multiplier_rule
     sigma = -sign  # the constraint sign: σ(u − g) ≤ 0
     msh = scene.mesh
     u_h, k = result.u_h, data.k
     DG0 = fem.functionspace(msh, ("DG", 0))
     v = ufl.TestFunction(DG0)
-    lift = _feasibility(scene, result, sigma, k, v)
+    lift = _feasibility(scene, result, sigma, k, v, lifting)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
     flux = reconstruct_flux(data, multiplier, sign, backend=backend, degree=degree)
@@ -248,7 +256,9 @@ class _Lifting:
     cross: Any = None
 
 
-def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lifting:
+def _feasibility(
+    scene: Scene, result: Result, sigma: float, k, w_test, lifting: fem.Function | None = None
+) -> _Lifting:
     u_h = result.u_h
     msh = scene.mesh
     if scene.config.model.type == "obstacle":
@@ -278,7 +288,7 @@ def _feasibility(scene: Scene, result: Result, sigma: float, k, w_test) -> _Lift
             cross,
         )
     g_h = result.problem.data["g_h"]
-    w = _bernstein_lifting(scene, u_h, g_h)
+    w = _bernstein_lifting(scene, u_h, g_h) if lifting is None else lifting
     ds = result.problem.data["ds"]
     contact = scene.boundary.ids_with_role("contact")
     return _Lifting(

@@ -13,6 +13,7 @@ send back what it computed for them (:func:`return_to_owners`).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 import ufl
@@ -41,6 +42,9 @@ class CellTable:
     lam: np.ndarray  # (n, nu) coefficients of λ_h in the element of u_h (0 without one)
     tau: np.ndarray  # (n, nq, d) the target flux at the points (the lowest-order flux: at
     # the centroid only, (n, 1, d): only its cell mean enters), or (n, 0, d): k∇u_h
+    # (n, d+1 facets, d+1 vertices, nf): the multiplier's share of each vertex on each
+    # contact facet, per reference measure (FluxData.multiplier_rule), or (n, 0): from lam
+    cmom: np.ndarray
 
     def __len__(self) -> int:
         return len(self.gcell)
@@ -79,6 +83,11 @@ class FluxData:
     contact: dict | None = None
     lmbda_h: fem.Function | None = None
     target: ufl.core.expr.Expr | None = None
+    #: an object that gives the multiplier's shares itself (hp: a degree per contact facet),
+    #: with ``moments(cells, kind, ref)`` → (n, d+1, d+1, nf) per reference measure (the
+    #: ``shares`` of :mod:`.multiplier`) and ``function()`` → λ̃_h (UFL, on Γ_C); None: from
+    #: ``lmbda_h`` in the element of u_h
+    multiplier_rule: Any = None
 
 
 def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
@@ -167,8 +176,24 @@ def local_table(
         if data.target is None
         else _at_points(data.target, one, centroid if ref.lowest else ref.X, cells)
     )
+    cmom = (
+        np.zeros((n_owned, 0))
+        if data.multiplier_rule is None
+        else data.multiplier_rule.moments(cells, kind, ref)
+    )
     return CellTable(
-        gcell.astype(np.int64), gvert.astype(np.int64), owners[c2v], x, U, f, k, kind, t, lam, tau
+        gcell.astype(np.int64),
+        gvert.astype(np.int64),
+        owners[c2v],
+        x,
+        U,
+        f,
+        k,
+        kind,
+        t,
+        lam,
+        tau,
+        cmom,
     ), n_owned
 
 

@@ -112,8 +112,11 @@ def reconstruct_flux(
     d = msh.topology.dim
     p = V.element.basix_element.degree
     q = p if degree is None else degree
-    if q != p and (p, q) != (1, 0):
-        raise ValueError(f"degree: {p} (that of u_h) or, for P1, 0 (the lowest order), got {q}")
+    if q < p and (p, q) != (1, 0):
+        raise ValueError(
+            f"degree: {p} (that of u_h) or, for P1, 0 (the lowest order), or more than {p} "
+            f"(a richer flux), got {q}"
+        )
     ref = reference(d, q, p)
     if backend == "flow" and (p != 1 or q != 1 or rounds < 0):
         raise ValueError(
@@ -157,7 +160,15 @@ def reconstruct_flux(
         sigma_cells = cellwise(msh, ref, table, alpha)
         sigma_h = _interpolated(msh, ref, sigma_cells)
         osc = _oscillation(table, ref)
-    lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
+    if data.multiplier_rule is None:
+        lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
+    else:  # the rule's λ̃_h itself: κ = 1, no bubble
+        lmbda_clip, bubble, kappa = (
+            data.multiplier_rule.function(),
+            fem.Function(V),
+            fem.Function(DG0),
+        )
+        kappa.x.array[:] = 1.0
     osc = osc + _multiplier_oscillation(table, ref, multiplier, sign)
     clock.lap("assemble")
     defect = comm.allreduce(out.defect)

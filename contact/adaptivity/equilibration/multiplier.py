@@ -33,6 +33,7 @@ Nodal values of the wrong sign (round-off at inactive nodes) are clipped first.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import basix
 import numpy as np
@@ -53,6 +54,17 @@ class EntityRule:
     hat: np.ndarray  # (nu, D) ψ_a at the Lagrange nodes
     vertices: np.ndarray  # the entity's vertices (local indices)
     edges: list  # (v0, v1, midpoint DoF) of the entity's edges (P2)
+
+    @cached_property
+    def linear(self) -> np.ndarray:
+        """(nu, D·nk): the moments of :func:`shares` as a linear map of the nodal values
+        where λ̃_E = λ_h (no edges): ∫ ψ_a λ_h b̂_k + (m_a − ∫ ψ_a λ_h) ∫ b̂_k b_E / ∫ b_E."""
+        nq, D = self.lam.shape
+        table = np.einsum("kq,q,qa->qak", self.basis, self.w, self.lam).reshape(nq, -1)
+        g = self.W[:, None] * self.hat - self.phi.T @ (self.w[:, None] * self.lam)  # (nu, D)
+        bubble = np.prod(self.lam[:, self.vertices], axis=1)
+        bub_mom = self.basis @ (self.w * bubble) / (self.w @ bubble)  # (nk,)
+        return self.phi.T @ table + (g[:, :, None] * bub_mom[None, None]).reshape(len(g), -1)
 
 
 def entity_rule(
@@ -76,7 +88,27 @@ def shares(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The moments ∫ (ψ_a λ̃_E + g_a b_E/∫b_E) b̂_k of each vertex a against the entity's
     test polynomials, per reference measure: (n, D, nk); and κ_E (n,) and the removed
-    Bernstein coefficients β_e (n, edges).  ``nodal``: the clipped nodal values (n, nu)."""
+    Bernstein coefficients β_e (n, edges).  ``nodal``: the clipped nodal values (n, nu).
+
+    Without edge coefficients to remove (P1) λ̃_E = λ_h, κ_E = 1 and the moments are linear
+    in the nodal values: one product with :attr:`EntityRule.linear`.  Otherwise an entity
+    whose nodal values are all zero (no contact there) has zero moments, κ_E = 1 and β = 0,
+    and only the others are computed."""
+    n, D = len(nodal), rule.lam.shape[1]
+    kappa, beta = np.ones(n), np.zeros((n, len(rule.edges)))
+    if not rule.edges:
+        return (nodal @ rule.linear).reshape(n, D, len(rule.basis)), kappa, beta
+    mom = np.zeros((n, D, len(rule.basis)))
+    rows = np.flatnonzero(np.any(nodal != 0.0, axis=1))
+    if len(rows):
+        mom[rows], kappa[rows], beta[rows] = _shares(nodal[rows], rule, sign)
+    return mom, kappa, beta
+
+
+def _shares(
+    nodal: np.ndarray, rule: EntityRule, sign: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`shares` of entities with a nonzero nodal value."""
     lam_q = nodal @ rule.phi.T  # (n, nq)
     beta = np.zeros((len(nodal), len(rule.edges)))
     bminus = lam_q.copy()
@@ -94,10 +126,10 @@ def shares(
     g = m - own
     bubble = np.prod(rule.lam[:, rule.vertices], axis=1)
     bub_mom = rule.basis @ (rule.w * bubble) / (rule.w @ bubble)  # (nk,)
-    mom = (
-        np.einsum("kq,q,qa,nq->nak", rule.basis, rule.w, rule.lam, lt)
-        + g[:, :, None] * bub_mom[None, None]
-    )
+    nq, D = rule.lam.shape
+    # ∫ ψ_a λ̃_E b̂_k by quadrature: one product with the (q, a·k) table
+    table = np.einsum("kq,q,qa->qak", rule.basis, rule.w, rule.lam).reshape(nq, -1)
+    mom = (lt @ table).reshape(len(lt), D, -1) + g[:, :, None] * bub_mom[None, None]
     return mom, kappa, beta
 
 

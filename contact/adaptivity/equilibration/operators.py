@@ -238,9 +238,14 @@ class CellOperators:
         base = np.einsum("q,jqa,kq->jakq", r.wS, r.lamF, r.q)  # (D, D, nf, nqf)
         data = np.einsum("nj,jakq,njq->njak", factor, base, self.table.t[rows])
         if self.multiplier == "facets":
+            given = self.table.cmom[rows] if self.table.cmom.ndim == 4 else None
             for j in range(D):
                 on = np.flatnonzero(kind[:, j] == CONTACT)
-                mom = shares(self.nodal[on], facet_rule(r, j), self.sign)[0]
+                mom = (
+                    given[on, j]
+                    if given is not None
+                    else shares(self.nodal[on], facet_rule(r, j), self.sign)[0]
+                )
                 data[on, j] += size[on, j][:, None, None] * mom
         P = r.P[self.perm]  # (n, D, nf, nf): m_glob = Pᵀ m_loc
         return np.einsum("njkl,njak->njal", P, data)

@@ -105,9 +105,12 @@ def _multiplier(table: CellTable, ref: Reference, multiplier: str | None, sign: 
         return out
     D = ref.d + 1
     crow = np.flatnonzero(np.any(table.kind == CONTACT, axis=1))
-    nodal = clipped(table.lam[crow], sign)
     cidx = np.full(len(table), -1, dtype=np.int64)
     cidx[crow] = np.arange(len(crow))
+    if table.cmom.ndim == 4:  # given (FluxData.multiplier_rule)
+        out.update(cidx=cidx, cmom=np.ascontiguousarray(table.cmom[crow]))
+        return out
+    nodal = clipped(table.lam[crow], sign)
     cmom = np.zeros((len(crow), D, D, ref.nf))
     for j in range(D):
         on = np.flatnonzero(table.kind[crow, j] == CONTACT)

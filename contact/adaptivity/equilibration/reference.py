@@ -29,7 +29,8 @@ FACETS = {2: basix.CellType.interval, 3: basix.CellType.triangle}
 @dataclass(frozen=True)
 class Reference:
     """Reference tables for dimension ``d`` and flux degree ``p`` (σ_h ∈ RT_p) of a solution
-    u_h ∈ P_pu (``pu`` = p, or p + 1: the lowest-order flux of a P1 solution)."""
+    u_h ∈ P_pu (``pu`` = p; p + 1: the lowest-order flux of a P1 solution; pu < p: a flux
+    richer than u_h, as hp's patch degree p_a + 1)."""
 
     d: int
     p: int
@@ -84,8 +85,11 @@ def quadrature_degree(p: int) -> int:
 def reference(d: int, p: int, pu: int | None = None) -> Reference:
     """The tables of RT_p on the reference d-simplex for u_h ∈ P_pu (default pu = p)."""
     pu = p if pu is None else pu
-    if pu not in (p, p + 1):
-        raise ValueError(f"flux degree {p} for u_h of degree {pu}: expected {pu} or {pu - 1}")
+    if not 1 <= pu <= p + 1:
+        raise ValueError(
+            f"flux degree {p} for u_h of degree {pu}: expected {pu - 1} or more (hp: the "
+            "flux of a patch may be of higher degree than u_h)"
+        )
     cell, facet = CELLS[d], FACETS[d]
     deg = quadrature_degree(p)
     X, w = (np.asarray(a) for a in basix.make_quadrature(cell, deg))

@@ -1,0 +1,284 @@
+"""The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §11).
+
+Each level builds V_hp for the cells' degrees (:class:`.space.HPSpace`), solves the
+Signorini problem in the hp unknowns (:func:`.problem.hp_problem`, the scene's solver),
+estimates (:func:`.estimate.hp_estimate`: the equilibrated bound, or the residual
+estimator with h/p weights), marks by Dörfler and splits the marks into h and p
+(:mod:`.mark`), then refines the h cells' edges (their children keep the degree) and
+raises the p cells' degree.  The previous level's u_h, interpolated onto the new mesh, is
+the next initial guess (nested iteration, also when only degrees changed: V_hp grows, u_h
+stays in it), so Newton needs few steps per level.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from ..adaptivity.energy_error import solution_error
+from ..adaptivity.mark import mark
+from ..adaptivity.refine import refine
+from ..base.errors import ConfigError
+from ..base.timing import Timer
+from ..drivers import adaptive as h_adaptive
+from ..drivers.adaptive import (
+    AdaptResult,
+    Level,
+    adapt_options,
+    check_on_level,
+    rank_imbalance,
+)
+from ..drivers.solve import solve
+from ..setup.scene import Scene
+from .estimate import hp_estimate
+from .mark import SIGMA0, child_degrees, decay_rates, front_cells, hp_mark
+from .problem import hp_problem
+from .space import HPSpace
+
+#: Newton's tolerances in the hp loop (relative, and absolute against the force scale): an hp
+#: loop goes on to errors of 1e-7 on cells of size 1e-6, where a nodal multiplier
+#: λ_i = R_i / w_i turns an algebraic residual R_i of 1e-12 at an inactive node into a
+#: multiplier the bound's complementarity term sees (problem A, p_max 6, 30 levels: with
+#: 1e-10 the error stalled at 2.8e-7 and η rose to 5e-7; with these it went on to 1.8e-7,
+#: effectivity 1.28).  The solver's round-off floor keeps them attainable.
+NEWTON_RTOL, NEWTON_ATOL = 1e-14, 1e-15
+
+
+@dataclass
+class HPLevel(Level):
+    """A level of the hp loop: a :class:`~contact.drivers.adaptive.Level` and its space.
+
+    Attributes:
+        space: The level's hp space (its degrees: ``space.cell_degrees``).
+        h_cells: Cells refined in h after this level (global count).
+        p_cells: Cells refined in p after this level (global count).
+    """
+
+    space: HPSpace | None = None
+    h_cells: int = 0
+    p_cells: int = 0
+
+    def row(self) -> dict[str, Any]:
+        """The level's row (:meth:`Level.row`) with the hp columns: p_min, p_max, the
+        cells refined in h and in p."""
+        row = super().row()
+        assert self.space is not None
+        comm = self.scene.comm
+        n = self.scene.mesh.topology.index_map(self.scene.mesh.topology.dim).size_local
+        degs = self.space.cell_degrees[:n]
+        row["p_min"] = comm.allreduce(int(degs.min(initial=99)), op=MPI.MIN)
+        row["p_max"] = comm.allreduce(int(degs.max(initial=0)), op=MPI.MAX)
+        row["h_cells"], row["p_cells"] = self.h_cells, self.p_cells
+        return row
+
+
+def adapt_hp(
+    scene: Scene,
+    p_max: int = 6,
+    p_start: int = 1,
+    theta: float = 0.5,
+    tol: float = 0.0,
+    max_dofs: int = 200_000,
+    max_levels: int = 30,
+    sigma0: float = SIGMA0,
+    estimator: str = "equilibrated",
+    on_level: Callable[[HPLevel], None] | None = None,
+    verbose: bool = False,
+    newton_rtol: float | None = None,
+    front_degree: int | None = 1,
+    refine_front: bool = False,
+) -> AdaptResult:
+    """Run the hp-adaptive loop (module docstring) on a scalar Signorini scene.
+
+    Args:
+        scene: The first level's scene (its mesh: the coarse mesh).
+        p_max: The largest degree (V_hp ⊂ P_{p_max}).
+        p_start: The first level's degree of every cell.
+        theta: Dörfler's θ.
+        tol: Stop when η ≤ tol.
+        max_dofs: Stop before a level with more hp unknowns.
+        max_levels: Stop after this many levels.
+        sigma0: The decay rate above which a marked cell is p-refined (:mod:`.mark`).
+        estimator: ``equilibrated`` (the guaranteed bound) or ``residual`` (h/p weights).
+        on_level: Called with each level once it is estimated.
+        verbose: Print a row per level.
+        newton_rtol: Newton's relative tolerance (default :data:`NEWTON_RTOL`).
+
+    Returns:
+        The levels (:class:`HPLevel`) and why the loop stopped.
+    """
+    comm = scene.comm
+    tdim = scene.mesh.topology.dim
+    rtol = newton_rtol or NEWTON_RTOL
+    n = scene.mesh.topology.index_map(tdim).size_local
+    degrees = np.full(n, min(p_start, p_max), dtype=np.int32)
+    out = AdaptResult()
+    u0: fem.Function | None = None
+    for index in range(max_levels):
+        seconds: dict[str, float] = {}
+        t0 = time.perf_counter()
+        caps = scene.boundary.facets("contact") if tdim == 3 else None
+        space = HPSpace(scene.mesh, p_max, degrees, caps=caps)
+        problem = hp_problem(scene, space)
+        seconds["assembly"] = time.perf_counter() - t0
+        if u0 is None:
+            u0 = fem.Function(space.V)
+        with Timer(seconds, "solve"):
+            atol = min(NEWTON_ATOL, scene.config.solver.atol)
+            result = solve(
+                scene, problem=problem, u0=u0, verbose=False, rtol=rtol, atol=atol, sequence="off"
+            )
+        result.__dict__["dofs"] = space.dimension  # the hp unknowns, not V's DoFs
+        with Timer(seconds, "estimate"):
+            est = hp_estimate(scene, result, space, estimator)
+        with Timer(seconds, "error"):
+            error = solution_error(scene, result)
+        imbalance = rank_imbalance(space.V)
+        level = HPLevel(index, scene, result, est, error, seconds, imbalance, space=space)
+        out.levels.append(level)
+        stop = _stop(result, est.eta, tol, index, max_levels)
+        if not stop:
+            with Timer(seconds, "mark"):
+                marked = mark(est.eta_T, "dorfler", theta)
+                front = front_cells(problem, result.active_mask, scene.boundary.facets("contact"))
+                sigma = decay_rates(result.u_h, degrees)
+                marks = hp_mark(
+                    marked, degrees, sigma, front, p_max, sigma0, front_degree, refine_front
+                )
+            level.h_cells = comm.allreduce(len(marks.h))
+            level.p_cells = comm.allreduce(len(marks.p))
+        if on_level is not None:
+            with Timer(seconds, "output"):
+                on_level(level)
+        if verbose and comm.rank == 0:
+            r = level.row()
+            print(
+                f"{index:3d} {r['dofs']:8d} {r['cells']:7d} p {r['p_min']}-{r['p_max']} "
+                f"eta {r['eta']:.3e} err {r['error'] if r['error'] != '' else '-'} "
+                f"h {level.h_cells} p {level.p_cells} solve {seconds['solve']:.2f} "
+                f"est {seconds['estimate']:.2f}",
+                flush=True,
+            )
+        if stop:
+            out.stop = stop
+            break
+        with Timer(seconds, "refine"):
+            if level.h_cells:
+                new_scene, new_u0 = refine(scene, marks.h, result.u_h)
+                assert new_scene.parent is not None and new_u0 is not None
+                degrees = child_degrees(
+                    marks.degrees, scene.mesh, new_scene.mesh, new_scene.parent[1]
+                )
+            else:  # only degrees change: the same mesh, u_h stays in the larger V_hp
+                new_scene, new_u0, degrees = scene, result.u_h, marks.degrees
+        if comm.allreduce(_next_size(new_scene, degrees, p_max), op=MPI.SUM) > max_dofs:
+            out.stop = f"the next level would have more than max_dofs = {max_dofs} unknowns"
+            break
+        scene, u0 = new_scene, new_u0
+    return out
+
+
+def adapt(
+    scene: Scene,
+    method: str | None = None,
+    on_level: Callable[[Level], None] | None = None,
+    verbose: bool | None = None,
+    u0: fem.Function | None = None,
+    keep: Callable[[Level], bool] | None = None,
+    **options: Any,
+) -> AdaptResult:
+    """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+
+    h-refinement (:func:`contact.drivers.adaptive.adapt`), or with ``strategy="hp"`` h- or
+    p-refinement of each marked cell (:func:`adapt_hp`, the scalar signorini model).
+
+    The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` (or the DoF
+    budget ``solver.max_dofs`` of the h loop), after ``max_levels`` levels, or when a solve
+    does not converge (the levels before it are kept).  Each level after the first starts
+    from the previous level's solution.  Collective.
+
+    Args:
+        scene: The first level's scene.
+        method: The solver method of the h loop (fb, min, blend, vinewtonrsls,
+            vinewtonssls); default the scene's ``solver.method``.
+        on_level: Called with each :class:`~contact.drivers.adaptive.Level` once it is
+            estimated (the CLI writes the level's files there).
+        verbose: Print a table row per level (default: the scene's ``output.verbose``).
+        u0: The h loop's first initial guess (a load step's previous solution).
+        keep: Which levels of the h loop keep their solution once the next level is
+            estimated (:func:`contact.drivers.adaptive.adapt`); the hp loop keeps every level.
+        **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
+            maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
+            ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the
+            largest degree) and ``p_start`` (every cell's first degree).  The hp loop takes
+            the scene's ``estimator`` (``residual``: the h/p-weighted residual estimator;
+            otherwise the guaranteed equilibrated bound).
+
+    Returns:
+        The levels (:class:`HPLevel`, with the degrees, for hp) and why the loop stopped.
+
+    Raises:
+        ConfigError: For an unknown or invalid option, or ``strategy="hp"`` on a model
+            other than signorini (one line naming it).
+        ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
+
+    Example:
+        >>> import contact
+        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+        >>> run = contact.adapt(scene, max_levels=3, verbose=False)
+        >>> [level.index for level in run.levels], run.stop
+        ([0, 1, 2], 'reached max_levels = 3')
+        >>> run.levels[-1].error < run.levels[0].error
+        True
+        >>> smooth = contact.load_scene("configs/signorini_smooth.yaml")
+        >>> hp = contact.adapt(smooth, strategy="hp", p_max=4, max_levels=3, verbose=False)
+        >>> [(level.row()["p_min"], level.row()["p_max"]) for level in hp.levels]
+        [(1, 1), (1, 2), (1, 3)]
+    """
+    opts = adapt_options(scene, **options)
+    if opts.strategy != "hp":
+        return h_adaptive.adapt(scene, method, on_level, verbose, u0, keep=keep, **options)
+    check_on_level(on_level)
+    if scene.config.model.type != "signorini":
+        raise ConfigError(
+            f"adapt.strategy: hp solves the scalar signorini model, not {scene.config.model.type!r}"
+        )
+    if opts.p_start > opts.p_max:
+        raise ConfigError(f"adapt.p_start: must be <= p_max = {opts.p_max}, got {opts.p_start}")
+    return adapt_hp(
+        scene,
+        p_max=opts.p_max,
+        p_start=opts.p_start,
+        theta=opts.theta,
+        tol=opts.tol,
+        max_dofs=opts.max_dofs,
+        max_levels=opts.max_levels,
+        estimator="residual" if scene.config.estimator == "residual" else "equilibrated",
+        on_level=on_level,
+        verbose=scene.config.output.verbose if verbose is None else verbose,
+    )
+
+
+def _next_size(scene: Scene, degrees: np.ndarray, p_max: int) -> int:
+    """A rank's share of a lower bound of the next level's unknowns: Σ over its owned cells
+    of their interior nodes (a cheap bound; the vertices and edges come on top)."""
+    d = scene.mesh.topology.dim
+    p = degrees.astype(np.int64)
+    inner = (p - 1) * (p - 2) // 2 if d == 2 else (p - 1) * (p - 2) * (p - 3) // 6
+    return int(np.sum(np.maximum(inner, 0)))
+
+
+def _stop(result, eta: float, tol: float, index: int, max_levels: int) -> str:
+    if not result.converged:
+        return f"solver did not converge on level {index} ({result.reason})"
+    if eta <= tol:
+        return f"eta = {eta:.3e} <= tol = {tol:.3e}"
+    if index + 1 >= max_levels:
+        return f"reached max_levels = {max_levels}"
+    return ""

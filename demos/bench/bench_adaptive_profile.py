@@ -1,0 +1,164 @@
+"""Where the adaptive loop's time and memory go, level by level.
+
+Runs SOLVE → ESTIMATE → MARK → REFINE (:func:`contact.drivers.adaptive.adapt`, the scene's
+defaults unless ``--set``) up to ``--max-dofs`` in this process and prints, per level: the
+DoFs and energy error, the CPU seconds of each phase (assembly, solve, estimate, error,
+mark, refine, output: the level's files as ``contact run`` writes them, with ``--output``;
+``other``: the rest of the level, Python between the phases), the level's wall and CPU
+seconds and their running totals, the resident memory after the level (garbage collected)
+and its peak during the level (sampled every 2 ms), and what is still alive of earlier
+levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP, PC).  Writes CSV.
+
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
+        --out demos/results/adaptive_cost/profile_ex9.csv
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep all
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep last --no-trim
+
+Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_boundary.yaml),
+``lshape`` (configs/lshape_corner.yaml), ``hertz_2d`` (configs/hertz_2d.yaml) or a path.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import contact
+from contact.base import lifetime
+from contact.base.lifetime import petsc_objects, rss_mib
+from contact.drivers import adaptive as loop
+
+from common import PHASES, count_phase_cpu, save_csv
+from petsc4py import PETSc
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = {
+    "ex9": "configs/peers/petsc_ex9.yaml",
+    "A": "configs/signorini_free_boundary.yaml",
+    "lshape": "configs/lshape_corner.yaml",
+    "hertz_2d": "configs/hertz_2d.yaml",
+}
+
+
+class PeakSampler:
+    """The largest resident set size since :meth:`reset` (MiB), sampled by a thread."""
+
+    def __init__(self, interval: float = 0.002):
+        self.peak = rss_mib()
+        self.interval = interval
+        threading.Thread(target=self._run, daemon=True).start()
+
+    def _run(self) -> None:
+        while True:
+            self.peak = max(self.peak, rss_mib())
+            time.sleep(self.interval)
+
+    def reset(self) -> float:
+        peak, self.peak = self.peak, rss_mib()
+        return peak
+
+
+def live_meshes() -> int:
+    """dolfinx meshes alive in this process (found by the garbage collector)."""
+    from dolfinx.mesh import Mesh
+
+    return sum(1 for obj in gc.get_objects() if isinstance(obj, Mesh))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("scene", help=f"one of {', '.join(SCENES)} or a scene file")
+    ap.add_argument("--max-dofs", type=int, default=1_300_000)
+    ap.add_argument("--max-levels", type=int, default=40)
+    ap.add_argument("--set", dest="overrides", nargs="*", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--output", action="store_true", help="write each level's files")
+    ap.add_argument(
+        "--keep",
+        choices=("all", "last"),
+        default="last",
+        help="all: every level stays whole (the old path); last: earlier levels are released",
+    )
+    ap.add_argument(
+        "--no-trim",
+        action="store_true",
+        help="released levels' memory stays with the allocator (contact.base.lifetime.TRIM)",
+    )
+    ap.add_argument("--out", default=None, help="CSV file")
+    args = ap.parse_args()
+    PETSc.Log.begin()  # petsc_objects counts from here
+    lifetime.TRIM = not args.no_trim
+    path = ROOT / SCENES.get(args.scene, args.scene)
+    scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
+    CPU = count_phase_cpu()
+    sampler = PeakSampler()
+    rows: list[dict] = []
+    clock = {"wall": time.perf_counter(), "cpu": time.process_time()}
+    start = dict(clock)
+    writer = None
+    if args.output:
+        from contact.output.run_report import level_writer
+
+        folder = tempfile.TemporaryDirectory()
+        writer = level_writer(Path(folder.name), scene)
+
+    def on_level(level) -> None:
+        if writer is not None:
+            c = time.process_time()
+            writer(level)
+            CPU["output"] += time.process_time() - c
+        wall, cpu = time.perf_counter(), time.process_time()
+        phases = {k: CPU.pop(k, 0.0) for k in (*PHASES.values(), "output")}
+        gc.collect()
+        row = {
+            "level": level.index,
+            "dofs": level.result.dofs,
+            "error": level.error,
+            "eta": level.estimate.eta,
+            **{f"cpu_{k}": round(v, 3) for k, v in phases.items()},
+            "cpu_other": round(cpu - clock["cpu"] - sum(phases.values()), 3),
+            "cpu_level": round(cpu - clock["cpu"], 3),
+            "wall_level": round(wall - clock["wall"], 3),
+            "cpu_total": round(cpu - start["cpu"], 3),
+            "wall_total": round(wall - start["wall"], 3),
+            "rss_mib": round(rss_mib(), 1),
+            "peak_mib": round(sampler.reset(), 1),
+            "meshes": live_meshes(),
+            **{f"petsc_{k}": v for k, v in sorted(petsc_objects().items())},
+        }
+        rows.append(row)
+        print(
+            f"L{row['level']:2d} {row['dofs']:8d} DoFs err {row['error']:.3e}  cpu "
+            + " ".join(f"{k} {v:.2f}" for k, v in phases.items() if v >= 0.005)
+            + f" other {row['cpu_other']:.2f} | level {row['cpu_level']:.2f} cpu "
+            f"{row['wall_level']:.2f} wall, total {row['cpu_total']:.1f} cpu | rss "
+            f"{row['rss_mib']:.0f} peak {row['peak_mib']:.0f} MiB "
+            f"({row['peak_mib'] * 2**20 / row['dofs']:.0f} B/DoF) meshes {row['meshes']} "
+            f"mats {row.get('petsc_Mat', 0)} vecs {row.get('petsc_Vector', 0)}",
+            flush=True,
+        )
+        clock.update(wall=time.perf_counter(), cpu=time.process_time())
+
+    result = loop.adapt(
+        scene,
+        on_level=on_level,
+        max_dofs=args.max_dofs,
+        max_levels=args.max_levels,
+        keep=None if args.keep == "all" else (lambda level: False),
+    )
+    print(f"stop: {result.stop}")
+    if args.out:
+        keys = sorted(
+            {k for r in rows for k in r},
+            key=lambda k: list(rows[-1]).index(k) if k in rows[-1] else 999,
+        )
+        save_csv(args.out, [{k: r.get(k, 0) for k in keys} for r in rows])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,211 @@
+"""hp against h-adaptive P1 and P2 on problems C and A (docs/theory.md §7, §11).
+
+What it shows, per problem and method: the energy error and η per level against the
+unknowns N (hp: the unknowns of V_hp, h: the DoFs), the cumulative wall seconds of SOLVE,
+ESTIMATE, MARK and REFINE (the error's own computation excluded) and the process's CPU
+seconds when the level is estimated (less disturbed by other jobs on a shared machine);
+per run, the first level whose error is ≤ the problem's target, its N and seconds, and the
+ratios to h-P2 measured in the same process (each method first runs two untimed levels, so
+that no run pays for loading or compiling its forms); for hp, the least-squares fit
+log(error) ≈ c − b N^{1/3} over the levels past the third, with its r², and η / error on
+every level.  Writes levels.csv and summary.csv; prints a table.
+
+    python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
+    python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import contact
+from contact.output.folder import write_csv
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+#: (problem, scene, the target energy error, h runs' DoF budget)
+PROBLEMS = [
+    ("C", "configs/signorini_smooth.yaml", 1e-6, 40_000),
+    ("A", "configs/signorini_free_boundary.yaml", 1e-4, 60_000),
+]
+#: (method, scene overrides, adapt options)
+METHODS = [
+    ("hp", [], dict(strategy="hp", p_max=6, p_start=1, max_levels=60)),
+    ("hp-start2", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
+    ("hp-theta0.9", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.9, max_levels=60)),
+    ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
+    ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
+]
+TIMED = ("assembly", "solve", "estimate", "mark", "refine")
+
+
+def run(problem: str, path: str, target: float, budget: int, method: str, sets, options):
+    scene = contact.load_scene(
+        ROOT / path, [*sets, "output.verbose=false", "estimator=equilibrated"]
+    )
+    cpu: list[float] = []  # the process's CPU seconds when each level is estimated
+    start = time.process_time()
+    out = contact.adapt(
+        scene,
+        tol=target,
+        max_dofs=200_000 if method.startswith("hp") else budget,
+        on_level=lambda lv: cpu.append(time.process_time() - start),
+        **options,
+    )
+    rows, seconds = [], 0.0
+    for lv, cpu_seconds in zip(out.levels, cpu):
+        seconds += sum(lv.seconds.get(k, 0.0) for k in TIMED)
+        row = lv.row()
+        rows.append(
+            {
+                "problem": problem,
+                "method": method,
+                "level": lv.index,
+                "unknowns": row["dofs"],
+                "error": lv.error,
+                "eta": lv.estimate.eta,
+                "effectivity": lv.estimate.eta / lv.error,
+                "seconds": seconds,
+                "cpu_seconds": cpu_seconds,
+                "p_max": row.get("p_max", 2 if method == "h-P2" else 1),
+                "p_min": row.get("p_min", 2 if method == "h-P2" else 1),
+            }
+        )
+    return rows, out.stop
+
+
+def first_below(rows: list[dict], target: float) -> dict | None:
+    return next((r for r in rows if r["error"] <= target), None)
+
+
+def exponential_fit(rows: list[dict]) -> tuple[float, float]:
+    """(b, r²) of log(error) ≈ c − b N^{1/3} over the levels past the third."""
+    x = np.array([r["unknowns"] ** (1 / 3) for r in rows[3:]])
+    y = np.log([r["error"] for r in rows[3:]])
+    A = np.vstack([np.ones_like(x), x]).T
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y - A @ coef
+    r2 = 1 - float(resid @ resid) / float(((y - y.mean()) ** 2).sum())
+    return -float(coef[1]), r2
+
+
+#: the largest degrees of the p-robustness runs, and their targets (the energy error)
+P_MAXES = (2, 3, 4, 6)
+P_ROBUST_TARGETS = {"C": 1e-4, "A": 1e-3}
+
+
+def p_robust(out: Path, problems: list[str]) -> None:
+    """η / error of the hp bound against p_max: per problem and p_max the largest and the
+    median effectivity past level 3 of a run to :data:`P_ROBUST_TARGETS` (p_robust.csv)."""
+    found = []
+    for problem, path, _, _ in PROBLEMS:
+        if problem not in problems:
+            continue
+        for p_max in P_MAXES:
+            options = dict(strategy="hp", p_max=p_max, p_start=1, max_levels=60)
+            rows, stop = run(problem, path, P_ROBUST_TARGETS[problem], 30_000, "hp", [], options)
+            eff = [r["effectivity"] for r in rows[3:]]
+            found.append(
+                {
+                    "problem": problem,
+                    "p_max": p_max,
+                    "levels": len(rows),
+                    "unknowns": rows[-1]["unknowns"],
+                    "error": rows[-1]["error"],
+                    "effectivity_max_past_3": max(eff),
+                    "effectivity_median_past_3": float(np.median(eff)),
+                    "bound_holds": all(r["eta"] >= r["error"] for r in rows),
+                    "stop": stop,
+                }
+            )
+            r = found[-1]
+            print(
+                f"{problem} p_max {p_max}: {r['levels']} levels, N {r['unknowns']}, error "
+                f"{r['error']:.2e}, eta/error past level 3 max {r['effectivity_max_past_3']:.3f} "
+                f"median {r['effectivity_median_past_3']:.3f}, bound {r['bound_holds']}"
+            )
+    write_csv(out / "p_robust.csv", found)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="demos/results/hp")
+    parser.add_argument("--problems", default="C,A")
+    parser.add_argument(
+        "--p-robust",
+        action="store_true",
+        help="only the effectivity of the bound against p_max (p_robust.csv)",
+    )
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if args.p_robust:
+        p_robust(out, args.problems.split(","))
+        return
+    levels, summary = [], []
+    for problem, path, target, budget in PROBLEMS:
+        if problem not in args.problems.split(","):
+            continue
+        reached = {}
+        for method, sets, options in METHODS:  # the compiled forms loaded before any timing
+            run(problem, path, target, budget, method, sets, {**options, "max_levels": 2})
+        for method, sets, options in METHODS:
+            rows, stop = run(problem, path, target, budget, method, sets, options)
+            levels += rows
+            hit = first_below(rows, target)
+            last = rows[-1]
+            entry = {
+                "problem": problem,
+                "method": method,
+                "target": target,
+                "reached": hit is not None,
+                "unknowns": (hit or last)["unknowns"],
+                "seconds": (hit or last)["seconds"],
+                "cpu_seconds": (hit or last)["cpu_seconds"],
+                "error": (hit or last)["error"],
+                "levels": len(rows),
+                "effectivity_min": min(r["effectivity"] for r in rows),
+                "effectivity_max_past_3": max(
+                    (r["effectivity"] for r in rows[3:]), default=math.nan
+                ),
+                "bound_holds": all(r["eta"] >= r["error"] for r in rows),
+                "stop": stop,
+                "exp_rate_b": "",
+                "exp_fit_r2": "",
+            }
+            if method.startswith("hp") and len(rows) > 5:
+                entry["exp_rate_b"], entry["exp_fit_r2"] = exponential_fit(rows)
+            reached[method] = entry
+            summary.append(entry)
+        p2 = reached["h-P2"]
+        for entry in reached.values():
+            # h-P2 short of the target: its last level's N and seconds bound the need below
+            entry["unknowns_ratio_P2"] = p2["unknowns"] / entry["unknowns"]
+            entry["seconds_ratio_P2"] = p2["seconds"] / entry["seconds"]
+            entry["cpu_ratio_P2"] = p2["cpu_seconds"] / entry["cpu_seconds"]
+    write_csv(out / "levels.csv", levels)
+    write_csv(out / "summary.csv", summary)
+    print(
+        f"{'problem':8}{'method':12}{'target':>8}{'reached':>8}{'N':>8}{'error':>11}{'s':>8}"
+        f"{'cpu':>8}{'P2 N/N':>8}{'P2 s/s':>8}{'P2 cpu':>8}{'eff max':>8}  bound"
+    )
+    for e in summary:
+        print(
+            f"{e['problem']:8}{e['method']:12}{e['target']:8.0e}{str(e['reached']):>8}"
+            f"{e['unknowns']:8d}{e['error']:11.3e}{e['seconds']:8.2f}{e['cpu_seconds']:8.2f}"
+            f"{e['unknowns_ratio_P2']:8.1f}{e['seconds_ratio_P2']:8.2f}{e['cpu_ratio_P2']:8.2f}"
+            f"{e['effectivity_max_past_3']:8.2f}  {e['bound_holds']}"
+        )
+        if e["exp_rate_b"] != "":
+            print(
+                f"        hp: log(error) ~ c - {e['exp_rate_b']:.3f} N^(1/3),"
+                f" r^2 = {e['exp_fit_r2']:.3f}"
+            )
+
+
+if __name__ == "__main__":
+    main()
