@@ -3711,7 +3711,7 @@ def long_paths() -> str:
         if data and "step_wall_median_first" in data[0]:
             runs.append((ranks, data))
     if not runs:
-        return "\n".join([*out, "*(missing: demos/results/long_path/*_cli_np*.csv)*", ""])
+        return "\n".join([*out, missing("long_path/friction_block_2d_cli_np2.csv")])
     out += [
         "`contact run configs/friction_block_2d.yaml --set mesh.cells=[8,2] --set "
         "load.steps=2000` with its default outputs (the field series solution.xdmf, "
