@@ -255,6 +255,7 @@ STEPS = {
             ["strip"],
             ["refinement", "--levels", "5"],
             ["refinement", "--top", "symmetry"],
+            ["adaptive"],
         )
     ],
     # RESULTS §12: both estimators per level, the reconstruction's cost, the tolerance each

@@ -65,6 +65,7 @@ from ..base.lifetime import destroy
 from ..setup.checks import check_scene_data
 from ..setup.scene import Scene
 from ..solvers.current import nodal_geometry
+from ..solvers.krylov_curvature import lanczos_negative
 from ..solvers.linear import mumps_ksp
 from ..solvers.problem import Constraint, NodeBlockMatrix
 from .elasticity import body_fields, elastic_setting, lame
@@ -132,14 +133,15 @@ def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProb
     V, msh = s.V, scene.mesh
     u_h = fem.Function(V, name="u_h")
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
-    # P1: F is constant per cell, any rule is exact; P2: degree 2p for the nonpolynomial ψ
+    # P1: F is constant per cell, one point is exact; P2: degree 2p for the nonpolynomial ψ
     degree = scene.config.mesh.degree
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * degree})
+    quadrature = quadrature_degree(degree)
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": quadrature})
     energy = strain_energy(deformation_gradient(u_h), model.law, mu, lmbda_L) * dx
     R = ufl.derivative(energy, u_h, v) - s.L_ufl
     F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
     potential = fem.form(energy - ufl.action(s.L_ufl, u_h))  # Π(u) = ∫ ψ dX − L(u)
-    min_jacobian = jacobian_check(u_h, 2 * degree)
+    min_jacobian = jacobian_check(u_h, quadrature)
     K, b = ResidualProblem.matrices(J_form, s.bcs)
     obstacle = scene_obstacle(scene)
     kind: type[ResidualProblem] = ResidualProblem
@@ -189,6 +191,14 @@ def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProb
     if isinstance(problem, RotatedResidualProblem):
         problem.K_T = K_T
     return problem
+
+
+def quadrature_degree(degree: int) -> int:
+    """The quadrature degree of the strain energy and its derivatives on Lagrange elements of
+    ``degree``: P1's F = I + ∇u is constant on each cell, so one point (degree 0) integrates
+    ψ(F), P(F) : ∇v and their tangent exactly (the degree 2 rule's four points in 3D cost four
+    times as much for the same numbers); P2: 2p = 4 for the nonpolynomial ψ."""
+    return 0 if degree == 1 else 2 * degree
 
 
 def jacobian_check(u: fem.Function, degree: int) -> Callable[[], float]:
@@ -399,7 +409,11 @@ def negative_eigenvalues(result) -> int:
     (:meth:`CurrentResidualProblem.constrained_hessian`).  0: u_h is a stable equilibrium of the
     constrained problem; > 0: K_T lost positive definiteness — past a limit point, or
     St Venant–Kirchhoff in strong compression (its energy is not convex) — and the
-    solution may be unstable (buckling, localisation).  One factorization per call."""
+    solution may be unstable (buckling, localisation).  One factorization per call — or,
+    where the solve itself did not factorize (``result.linear`` not ``direct``: CG + GAMG
+    on a large 3D body), the Lanczos estimate of one CG + GAMG solve
+    (:func:`contact.solvers.krylov_curvature.lanczos_negative`): then 1 means "at least
+    one" and 0 that none was seen."""
     p = result.problem
     x = p.b.duplicate()
     p.to_unknowns(result.u_h.x.petsc_vec, x)
@@ -411,6 +425,13 @@ def negative_eigenvalues(result) -> int:
     lo = A.getOwnershipRange()[0]
     A.zeroRowsColumns((held + lo).astype(PETSc.IntType), diag=1.0)  # type: ignore[arg-type]
     A.setOption(PETSc.Mat.Option.SYMMETRIC, True)  # type: ignore[arg-type]
+    if getattr(result, "linear", "direct") != "direct":
+        try:
+            tdim = p.V.mesh.topology.dim
+            return lanczos_negative(A, p.near_nullspace, tdim, "contact_stability_")
+        finally:
+            A.destroy()
+            x.destroy()
     ksp = mumps_ksp(A, "cholesky")  # LDLᵀ: its inertia over all ranks
     try:
         pc = ksp.getPC()

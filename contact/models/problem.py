@@ -141,7 +141,25 @@ def lumped_weights(
     V: fem.FunctionSpace, measure: ufl.Measure, component: int | None = None
 ) -> np.ndarray:
     """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed); for a
-    vector space, of the DoFs of one ``component`` (0 at the others)."""
+    vector space, of the DoFs of one ``component`` (0 at the others).
+
+    P2 on the triangles of a 3D boundary: ∫ φ_i = 0 at the vertices (the P2 vertex functions
+    integrate to zero over a triangle), so a vertex would carry no weight.  There the weights
+    are those of the P1-iso-P2 lumping instead — the P1 hats of the triangle split into four
+    at its edge midpoints, i.e. the positive rule with the P2 nodes as points and weights
+    |T|/12 (vertices), |T|/4 (edge midpoints), exact for affine functions
+    (:data:`ISO_P2_TRIANGLE`): a uniform pressure p then gives the nodal forces p ∫ φ_i,
+    which vanish at the vertices, so λ_i = R_i / w_i alternates between 0 (vertices) and
+    4p/3 (edge midpoints) of an interior patch while the force Σ R_i is exact."""
+    if _iso_p2_facets(V, measure):
+        points, weights = ISO_P2_TRIANGLE
+        measure = measure.reconstruct(
+            metadata={
+                "quadrature_rule": "custom",
+                "quadrature_points": points,
+                "quadrature_weights": weights,
+            }
+        )
     v = ufl.TestFunction(V)
     w = dolfinx.fem.petsc.assemble_vector(
         fem.form((v if component is None else v[component]) * measure)
@@ -151,3 +169,21 @@ def lumped_weights(
     out = w.array.copy()
     w.destroy()
     return out
+
+
+#: the P1-iso-P2 lumping rule on the reference triangle (area 1/2): the six P2 nodes, weights
+#: 1/12 and 1/4 of the area (:func:`lumped_weights`)
+ISO_P2_TRIANGLE = (
+    np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]]),
+    np.array([1.0 / 24] * 3 + [1.0 / 8] * 3),
+)
+
+
+def _iso_p2_facets(V: fem.FunctionSpace, measure: ufl.Measure) -> bool:
+    """Whether ``measure`` integrates over the triangles of a tetrahedral mesh's boundary
+    and V is P2 (:func:`lumped_weights`)."""
+    return (
+        measure.integral_type() == "exterior_facet"
+        and V.mesh.topology.cell_name() == "tetrahedron"
+        and V.ufl_element().embedded_superdegree == 2
+    )

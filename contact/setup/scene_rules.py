@@ -140,10 +140,9 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
         raise ConfigError("mesh.degree: contact pairs (mortar) are implemented for P1; use 1")
     if config.reference is not None:
         updates["reference"] = _check_reference(config)
-    if mesh.degree == 2 and (model == "obstacle" or mesh.type in ("box", "sphere_octant")):
-        where = "an obstacle scene" if model == "obstacle" else "contact on a 3D mesh"
+    if mesh.degree == 2 and model == "obstacle":
         raise ConfigError(
-            f"mesh.degree: 2 does not work for {where} (P2 vertex basis functions "
+            "mesh.degree: 2 does not work for an obstacle scene (P2 vertex basis functions "
             "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights "
             "vanish); use 1"
         )
@@ -153,9 +152,9 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
 def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs,
-    the adaptive loop, a reference solution, an exact solution, grid sequencing, Coulomb's
-    fixed point.  Returns whether the scene is hyperelastic (then it solves without grid
-    sequencing)."""
+    the adaptive loop except against a plane without friction, a reference solution, an
+    exact solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is
+    hyperelastic (then it solves without grid sequencing)."""
     law = config.model.law
     if model != "hyperelastic":
         if law is not None:
@@ -168,7 +167,6 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     for key, what in (
         ("bodies", "several bodies"),
         ("pairs", "contact pairs"),
-        ("adapt", "the adaptive loop"),
         ("reference", "a reference solution"),
     ):
         if getattr(config, key):
@@ -177,6 +175,12 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     frictional = friction is not None and friction.law != "none"
     method = config.solver.method
     obstacle = config.obstacle.type if config.obstacle is not None else "plane"
+    if config.adapt is not None and (obstacle != "plane" or frictional):
+        raise ConfigError(
+            "adapt: the adaptive loop of model type hyperelastic takes a rigid plane "
+            "without friction (a curved obstacle's or friction's estimator terms on the "
+            "current configuration: not implemented)"
+        )
     if (obstacle != "plane" or frictional) and method not in NCP_METHODS:
         raise ConfigError(
             f"solver.method: {method} needs a gap affine in u (PETSc's VI bounds); a "

@@ -68,8 +68,8 @@ class CurvatureSystem(ReducedNewtonSystem):
     direction of negative curvature (module doc).  After each Newton law: ``negative``
     (n₋ + n₀ of the unshifted A), ``shift`` (τ, 0 if none), ``factorizations`` (this law's)."""
 
-    def __init__(self, problem: DiscreteProblem, prefix: str):
-        super().__init__(problem, prefix, forcing=False)
+    def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = False):
+        super().__init__(problem, prefix, forcing=forcing)
         self.lag = False
         n = self.K.getLocalSize()[0]
         outside = np.ones(n, dtype=bool)  # free rows outside the contact set and Γ_D

@@ -25,6 +25,7 @@ from . import ncp
 from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
 from .energy_search import EnergySearch
 from .globalize import Guarded, GuardedMin
+from .krylov_curvature import KrylovCurvatureSystem
 from .linear import (
     AssembledSystem,
     ReducedNewtonSystem,
@@ -132,8 +133,16 @@ class SemismoothNewton:
             if diagonal_law
             else assembled_kind
         )
-        self.linear = "direct" if energy else choose(problem, options.linear, user)
-        defaults = dict(CURVATURE_PETSC_OPTIONS) if energy else petsc_defaults(problem, self.linear)
+        self.linear = (
+            energy_linear(problem, options, user) or "direct"
+            if energy
+            else choose(problem, options.linear, user)
+        )
+        defaults = (
+            dict(CURVATURE_PETSC_OPTIONS)
+            if energy and self.linear == "direct"
+            else petsc_defaults(problem, self.linear)
+        )
         if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
             defaults["ksp_norm_type"] = "natural"
             # a solve to γ_alg η_disc takes a few CG iterations (problem A: 3 a level), so GAMG's
@@ -189,7 +198,11 @@ class SemismoothNewton:
                 snes.setLineSearchPreCheck(self.guard)
         elif method in ncp.METHODS:
             system = self.system = owner.own(
-                CurvatureSystem(problem, self.prefix)
+                (
+                    CurvatureSystem(problem, self.prefix)
+                    if self.linear == "direct"
+                    else KrylovCurvatureSystem(problem, self.prefix, forcing=options.inexact)
+                )
                 if energy
                 else newton_system(problem, self.linear, self.prefix, forcing=options.inexact)
             )
@@ -290,7 +303,8 @@ class SemismoothNewton:
             if self.predict:  # the step's increments lifted by the tangent at u0
                 problem.linearize(x)
                 self._scaling()
-                self.predicted = tangent_predictor(cp, x)
+                krylov = isinstance(self.system, KrylovCurvatureSystem)
+                self.predicted = tangent_predictor(cp, x, krylov=krylov)
             set_dirichlet(x, problem.bcs)
             problem.linearize(x)
             self._scaling()
@@ -555,18 +569,33 @@ def energy_line_search(
         and problem.friction is None
         and problem.current is None
     )
-    direct = assembled_kind(problem, options.linear, user) == "direct"
-    if options.line_search == "energy" and not (applies and direct):
+    linear = energy_linear(problem, options, user)
+    if options.line_search == "energy" and not (applies and linear):
         why = (
-            "a direct solver (its tangent's inertia): solver.linear direct"
+            "a direct solver (its tangent's inertia) or CG + GAMG (its indefiniteness "
+            "test): solver.linear direct or gamg"
             if applies
             else "a body with an energy (model.type hyperelastic) against a plane, without "
             "friction, and method fb, min or blend"
         )
         raise ConfigError(f"solver.line_search: energy needs {why}")
-    if options.line_search == "auto" and applies and direct:
+    if options.line_search == "auto" and applies and linear:
         return options.model_copy(update={"line_search": "energy"})
     return options
+
+
+def energy_linear(problem: DiscreteProblem, options: SolverOptions, user: dict) -> str | None:
+    """The Newton system of the energy search: ``direct`` (LDLᵀ and its inertia,
+    :mod:`.curvature`) where the assembled path would factorize, ``gamg`` (CG + GAMG and
+    an indefiniteness test, :mod:`.krylov_curvature`) where it would not — 3D elasticity by
+    default, or ``solver.linear: gamg`` —, None for an explicit ``bcgs`` / ``gmres``
+    (BiCGStab / GMRES on the assembled H, plain Newton)."""
+    kind = assembled_kind(problem, options.linear, user)
+    if kind == "direct":
+        return "direct"
+    if options.linear == "gamg" or (options.linear == "auto" and kind == "bcgs"):
+        return "gamg"
+    return None
 
 
 def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:

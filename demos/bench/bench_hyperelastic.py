@@ -7,6 +7,8 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py refinement    # cylinder to 0.5 R, uniform refinement
     python demos/bench/bench_hyperelastic.py refinement --levels 5   # a level more (50k DoFs)
     python demos/bench/bench_hyperelastic.py refinement --top symmetry  # between two plates
+    python demos/bench/bench_hyperelastic.py adaptive      # Dörfler vs uniform refinement
+    mpirun -n 2 python demos/bench/bench_hyperelastic.py ball --mesh-size 0.0135  # 500k DoFs
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -46,6 +48,26 @@ solved by PETSc's vinewtonrsls (the plane's constraint is a bound): the largest 
 of u_h (relative to max |u_h|) and of the forces at the load steps both reach.  The
 observed rate of the force at δ = 0.5 R, log₂(|F_l − F_{l−1}| / |F_{l+1} − F_l|).
 Writes refinement_<top>.csv and refinement_<top>.png.
+
+``adaptive`` — ``adapt`` at finite strain: configs/block_on_plane.yaml made neo-Hookean
+(E = 1, ν = 0.3), its clamped top pushed down by 10 % of the height in 2 load steps
+(``load.adapt: end``: the adaptive loop at the last step, u and the step's state prolonged
+to every level and the step solved again), from a coarse 8 × 2 mesh, refined uniformly
+(``adapt.strategy: uniform``, 0 … uniform-levels − 1) and by Dörfler marking of the residual
+estimator (θ = 0.5, 0 … levels − 1).  Both forces decrease monotonically under refinement,
+so the finest force F_ref bounds the limit from above: per tolerance, the first level of each
+strategy within it of F_ref and the ratio of their DoFs (errors against F_ref understate
+both strategies' true errors alike), and the first Dörfler level whose force is below the
+finest uniform level's (closer to the limit than it, a reference-free comparison).  Writes
+adaptive.csv and adaptive.png.
+
+``ball`` — configs/hertz_3d.yaml made a neo-Hookean ball (the octant of a unit ball, its
+flat top pushed down, the symmetry planes x = 0, y = 0) pressed onto the rigid plane z = 0
+to δ = 0.2 R in ``--ball-steps`` steps, the gmsh mesh of size ``--mesh-size`` everywhere;
+3D takes the iterative Newton system (CG + GAMG with the rigid-body near-nullspace and the
+indefiniteness test, contact/solvers/krylov_curvature.py).  Per step: DoFs, Newton and
+Krylov iterations, the force, seconds; the mesh and path times and the peak resident memory
+summed over the ranks.  Writes ball_h<h>_np<ranks>.csv.
 
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
@@ -409,13 +431,201 @@ def chart_refinement(path: Path, rows: list[dict]) -> None:
     plt.close(fig)
 
 
+BLOCK = ROOT / "configs" / "block_on_plane.yaml"
+#: the adaptive study's scene: configs/block_on_plane.yaml made neo-Hookean, its clamped top
+#: pushed down by 10 % of the height, on a coarse start mesh
+ADAPTIVE_SETS = [
+    "model.type=hyperelastic",
+    "model.law=neo_hookean",
+    "constants.delta=0.05",
+    "mesh.cells=[8,2]",
+    "load.steps=2",
+    "load.adapt=end",
+    "adapt.theta=0.5",
+    "adapt.max_dofs=400000",
+    "output.verbose=false",
+]
+#: the force tolerances of the adaptive study's comparison
+ADAPTIVE_TOLERANCES = (5e-3, 1e-3, 5e-4)
+
+
+def adaptive(out: Path, levels: int, uniform_levels: int) -> None:
+    """Dörfler against uniform refinement on the neo-Hookean block (module doc)."""
+    runs: dict[str, list] = {}
+    rows = []
+    for strategy, n in (("uniform", uniform_levels), ("dorfler", levels)):
+        scene = contact.load_scene(
+            BLOCK, [*ADAPTIVE_SETS, f"adapt.strategy={strategy}", f"adapt.max_levels={n}"]
+        )
+        t0 = time.perf_counter()
+        path = contact.run_load_path(scene, verbose=False)
+        if not path.converged:
+            raise SystemExit(f"bench_hyperelastic: adaptive, {strategy}: {path.stop}")
+        runs[strategy] = path.steps[-1].levels
+        say(f"{strategy}: {len(runs[strategy])} levels, {time.perf_counter() - t0:.1f} s")
+        for lv in runs[strategy]:
+            rows.append(
+                {
+                    "strategy": strategy,
+                    "level": lv.index,
+                    "dofs": lv.result.dofs,
+                    "eta": lv.estimate.eta,
+                    "contact_force": lv.result.contact_force,
+                    "newton_iterations": lv.result.iterations,
+                    "seconds_solve": round(lv.seconds["solve"], 2),
+                }
+            )
+            say(
+                f"  level {lv.index}: {lv.result.dofs} DoFs, eta {lv.estimate.eta:.4e}, "
+                f"F = {lv.result.contact_force:.9f}, Newton {lv.result.iterations}"
+            )
+    # both sequences decrease monotonically: the finest force bounds the limit from above
+    reference = min(r["contact_force"] for r in rows)
+    for r in rows:
+        r["force_above_reference"] = r["contact_force"] / reference - 1
+    for tol in ADAPTIVE_TOLERANCES:
+        first = {}
+        for strategy in runs:
+            hit = [
+                r["dofs"]
+                for r in rows
+                if r["strategy"] == strategy and r["force_above_reference"] <= tol
+            ]
+            first[strategy] = min(hit) if hit else None
+        ratio = (
+            f"{first['uniform'] / first['dorfler']:.1f}x fewer"
+            if first["uniform"] and first["dorfler"]
+            else "-"
+        )
+        say(
+            f"within {tol:.2%} of F_ref = {reference:.9f}: uniform {first['uniform']} DoFs, "
+            f"dorfler {first['dorfler']} DoFs ({ratio})"
+        )
+    finest = runs["uniform"][-1].result
+    below = [
+        lv.result.dofs for lv in runs["dorfler"] if lv.result.contact_force <= finest.contact_force
+    ]
+    if below:
+        say(
+            f"dorfler's force is below uniform's finest ({finest.dofs} DoFs) from "
+            f"{below[0]} DoFs on: {finest.dofs / below[0]:.1f}x fewer"
+        )
+    save_csv(out / "adaptive.csv", rows)
+    if COMM.rank == 0:
+        chart_adaptive(out / "adaptive.png", rows, reference)
+
+
+def chart_adaptive(path: Path, rows: list[dict], reference: float) -> None:
+    """Left: F − F_ref against the DoFs, uniform and Dörfler; right: η against the DoFs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for strategy, style in (("uniform", "s-"), ("dorfler", "o-")):
+        lv = [r for r in rows if r["strategy"] == strategy and r["force_above_reference"] > 0]
+        N = [r["dofs"] for r in lv]
+        left.loglog(N, [r["force_above_reference"] for r in lv], style, ms=4, label=strategy)
+        lv = [r for r in rows if r["strategy"] == strategy]
+        right.loglog([r["dofs"] for r in lv], [r["eta"] for r in lv], style, ms=4, label=strategy)
+    for tol in ADAPTIVE_TOLERANCES:
+        left.axhline(tol, color="k", lw=0.6, ls=":")
+    left.set_xlabel("DoFs")
+    left.set_ylabel(f"F / F_ref − 1  (F_ref = {reference:.7f}, the finest)")
+    left.set_title("neo-Hookean block pressed 10 %: contact force")
+    right.set_xlabel("DoFs")
+    right.set_ylabel("η (residual estimator)")
+    right.set_title("estimated error")
+    for ax in (left, right):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+BALL = ROOT / "configs" / "hertz_3d.yaml"
+
+
+def ball(out: Path, h: float, steps: int) -> None:
+    """A neo-Hookean ball pressed onto a rigid plane to 0.2 R, iterative Newton (module doc)."""
+    import resource
+
+    sets = [
+        "model.type=hyperelastic",
+        "model.law=neo_hookean",
+        "reference=none",
+        "adapt=none",
+        "constants.delta=0.2",
+        'data.u_D=["0", "0", "-delta*t"]',
+        f"load.steps={steps}",
+        f"mesh.h={h}",
+        f"mesh.h_contact={h}",
+        "output.verbose=false",
+    ]
+    t0 = time.perf_counter()
+    scene = contact.load_scene(BALL, sets)
+    t1 = time.perf_counter()
+    rows = []
+
+    def on_step(step) -> None:
+        r = step.result
+        rows.append(
+            {
+                "ranks": COMM.size,
+                "h": h,
+                "step": step.index,
+                "indentation": 0.2 * step.time,
+                "dofs": r.dofs,
+                "linear": r.linear,
+                "newton_iterations": r.iterations,
+                "krylov_iterations": r.krylov_iterations,
+                "contact_force": r.contact_force,
+                "negative_eigenvalues": step.negative_eigenvalues,
+                "seconds": round(step.seconds, 2),
+            }
+        )
+        say(
+            f"step {step.index} (t = {step.time:g}): {r.dofs} DoFs, {r.linear}, Newton "
+            f"{r.iterations}, Krylov {r.krylov_iterations}, F = {r.contact_force:.6g}, "
+            f"{step.seconds:.1f} s"
+        )
+
+    path = contact.run_load_path(scene, verbose=False, on_step=on_step)
+    t2 = time.perf_counter()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # MiB (Linux: KiB)
+    total, top = COMM.allreduce(rss, op=MPI.SUM), COMM.allreduce(rss, op=MPI.MAX)
+    say(
+        f"{path.stop}; mesh {t1 - t0:.1f} s, load path {t2 - t1:.1f} s, peak RSS "
+        f"{total:.0f} MiB over {COMM.size} rank(s) (largest {top:.0f} MiB)"
+    )
+    for r in rows:
+        r.update(
+            mesh_seconds=round(t1 - t0, 1),
+            path_seconds=round(t2 - t1, 1),
+            peak_rss_mib=round(total),
+        )
+    save_csv(out / f"ball_h{h:g}_np{COMM.size}.csv", rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("part", choices=("line_search", "predictor", "strip", "refinement"))
+    ap.add_argument(
+        "part", choices=("line_search", "predictor", "strip", "refinement", "adaptive", "ball")
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "demos" / "results" / "hyperelastic")
-    ap.add_argument("--levels", type=int, default=4, help="refinement: mesh levels")
+    ap.add_argument(
+        "--levels",
+        type=int,
+        default=None,
+        help="refinement: mesh levels (4); adaptive: Dörfler levels (12)",
+    )
+    ap.add_argument("--uniform-levels", type=int, default=6, help="adaptive: uniform levels")
+    ap.add_argument("--mesh-size", type=float, default=0.05, help="ball: the mesh size")
+    ap.add_argument("--ball-steps", type=int, default=4, help="ball: load steps to 0.2 R")
     ap.add_argument("--steps", type=int, default=10, help="refinement: load steps to 0.5 R")
     ap.add_argument(
         "--top",
@@ -431,8 +641,12 @@ def main() -> None:
         predictor(args.out)
     elif args.part == "strip":
         strip(args.out)
+    elif args.part == "ball":
+        ball(args.out, args.mesh_size, args.ball_steps)
+    elif args.part == "adaptive":
+        adaptive(args.out, args.levels or 12, args.uniform_levels)
     else:
-        refinement(args.out, args.levels, args.steps, args.top)
+        refinement(args.out, args.levels or 4, args.steps, args.top)
 
 
 if __name__ == "__main__":
