@@ -12,6 +12,9 @@ first point of contact and a reference curve, pressure.png, solution.png); the o
 write everything else (VTK files, CSV, JSON), which is gathered the same way — pictures
 are most of a small run's time.  Before issue 26 the frictional scenes
 hung under MPI after their first step (a collective entered on ranks 1… only).
+
+The scenes of configs/ run here on 3 ranks: their serial and 2-rank runs with every
+output, pictures included, every file read back, are tests/test_shipped_scenes.py's.
 """
 
 from __future__ import annotations
@@ -247,8 +250,12 @@ def _same_table(a: Path, b: Path) -> None:
         assert cols["status"][0] == cols["status"][1], f"{a.name}: column status"
 
 
-@pytest.mark.parametrize("ranks", [2, 3])
-@pytest.mark.parametrize("scene", list(SCENES))
+#: (scene, ranks): the peers' scenes on 2 and 3 ranks, configs/*.yaml on 3 (their 2-rank
+#: runs, with pictures: tests/test_shipped_scenes.py)
+RUNS = [(s, r) for s in SCENES for r in ((2, 3) if s.startswith("peers/") else (3,))]
+
+
+@pytest.mark.parametrize("scene, ranks", RUNS)
 def test_scene_under_mpirun_matches_serial(tmp_path: Path, serial, scene: str, ranks: int) -> None:
     ref = serial(scene)
     out = _run(tmp_path, scene, ranks)

@@ -17,7 +17,10 @@ A path may have any number of steps: once step k is solved (and ``on_step`` has 
 output), step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its
 functions, scene and meshes dropped — and keeps only its figures.  Every live function holds
 MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
-keeping every step whole (``keep_all``) suits short paths only.
+keeping every step whole (``keep_all``) suits short paths only.  With ``forget`` a released
+step is dropped altogether (``LoadPath.forgotten`` counts them): the path's memory does not
+grow with its steps, for a caller whose ``on_step`` keeps what it needs (the CLI writes each
+step's figures to disk).
 """
 
 from __future__ import annotations
@@ -122,11 +125,17 @@ class LoadPath:
     # eigenvalues of K_T there)
     bifurcation: str = ""
     branch_steps: list[tuple[int, float, int]] = field(default_factory=list)
+    forgotten: int = 0  # converged steps dropped before ``steps`` (run_load_path's forget)
 
     @property
     def converged(self) -> bool:
         """Whether the path has steps and every one converged."""
         return bool(self.steps) and all(s.result.converged for s in self.steps)
+
+    @property
+    def count(self) -> int:
+        """The number of steps, forgotten ones included."""
+        return self.forgotten + len(self.steps)
 
 
 def load_times(cfg: SceneConfig) -> list[float]:
@@ -197,6 +206,7 @@ def run_load_path(
     adaptive: bool | None = None,
     adapt_options: dict | None = None,
     keep_all: bool = False,
+    forget: bool = False,
     **options: Any,
 ) -> LoadPath:
     """Solve the scene's quasi-static load path step by step.
@@ -231,6 +241,9 @@ def run_load_path(
         adapt_options: Overrides of the scene's ``adapt`` section.
         keep_all: Keep every step whole (for short paths: each whole step holds MPI
             communicators, of which MPI has a few thousand).
+        forget: Drop released steps from ``LoadPath.steps`` altogether (counted in
+            ``LoadPath.forgotten``), for a caller that keeps each step's figures itself as
+            it goes (the CLI's step writer): the path's memory then stays flat.
         **options: Solver options as for :func:`contact.solve`.
 
     Returns:
@@ -261,7 +274,7 @@ def run_load_path(
     pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
     while pending:
         t, depth = pending.pop(0)
-        k = len(out.steps) + 1
+        k = out.count + 1
         t0 = time.perf_counter()
         step_scene = Scene(
             scene.config,
@@ -338,8 +351,11 @@ def run_load_path(
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
+            if forget and len(out.steps) > 2:
+                del out.steps[0]
+                out.forgotten += 1
     else:
-        out.stop = f"reached t = {times[-1]:g} in {len(out.steps)} step(s)" + _notes(out)
+        out.stop = f"reached t = {times[-1]:g} in {out.count} step(s)" + _notes(out)
     return out
 
 
