@@ -118,7 +118,10 @@ def main(argv: list[str] | None = None) -> int:
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
-    # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort)
+    # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort).  PETSc
+    # installs that handler when it starts, so it starts first: ours replaces it.
+    from petsc4py import PETSc  # noqa: F401
+
     previous = _handle(signal.SIGTERM, failures.on_sigterm)
     try:
         code = _study(args, comm) if args.command == "study" else _run(args, comm)
