@@ -3835,6 +3835,82 @@ def time_to_accuracy() -> str:
     return "\n".join(out)
 
 
+def long_paths() -> str:
+    """Section 16: the time and the memory of a step along a long load path written by
+    `contact run` with its default outputs (demos/bench/bench_long_path.py --cli)."""
+    out = ["## 16. Long load paths: time and memory per step", ""]
+    runs = []
+    for ranks in (2,):  # the acceptance run (other CSVs there: earlier runs, other modes)
+        data = rows(RES / "long_path" / f"friction_block_2d_cli_np{ranks}.csv")
+        if data and "step_wall_median_first" in data[0]:
+            runs.append((ranks, data))
+    if not runs:
+        return "\n".join([*out, missing("long_path/friction_block_2d_cli_np2.csv")])
+    out += [
+        "`contact run configs/friction_block_2d.yaml --set mesh.cells=[8,2] --set "
+        "load.steps=2000` with its default outputs (the field series solution.xdmf, "
+        "contact_surface.xdmf and solution.pvd, a contact table per step, the pictures at the "
+        "end): each step is appended to the collections, its figures to hidden JSON-lines "
+        "files, and the path forgets released steps, so the cost of a step must not grow with "
+        "the steps before it. Seconds per step (the largest over the ranks) of the first and "
+        "the last window of steps (the first from step 2: step 1 compiles the forms), as the "
+        "mean, the median and the fastest step (on a machine shared with other jobs the load "
+        "changes along a run of half an hour: the median and the fastest step are swayed less "
+        "than the mean), and the RSS growth per step from the end of the first window "
+        "(`mpirun -n R python demos/bench/bench_long_path.py --cli --scene "
+        'configs/friction_block_2d.yaml --set "mesh.cells=[8,2]" --steps 2000`).',
+        "",
+    ]
+    body = []
+    for ranks, data in runs:
+        r = data[0]
+        last = data[-1]
+        for label, key, mean in (
+            ("wall", "step_wall", "seconds"),
+            ("CPU", "step_cpu", "cpu_seconds"),
+            ("writing files, CPU", "output_cpu", "output_cpu_seconds"),
+        ):
+            first, late = r[f"{mean}_per_step_first"], r[f"{mean}_per_step_last"]
+            body.append(
+                [
+                    ranks,
+                    int(last["step"]),
+                    label,
+                    f"{1000 * first:.0f} / {1000 * late:.0f}",
+                    f"{r[f'{mean}_ratio']:.2f}",
+                    f"{1000 * r[f'{key}_median_first']:.0f} / {1000 * r[f'{key}_median_last']:.0f}",
+                    f"{r[f'{key}_median_ratio']:.2f}",
+                    f"{1000 * r[f'{key}_min_first']:.0f} / {1000 * r[f'{key}_min_last']:.0f}",
+                    f"{r[f'{key}_min_ratio']:.2f}",
+                    f"{r['rss_kib_per_step']:.2f}" if label == "wall" else "",
+                ]
+            )
+    out += [
+        table(
+            [
+                "ranks",
+                "steps",
+                "seconds of a step",
+                "mean first / last (ms)",
+                "ratio",
+                "median first / last (ms)",
+                "ratio",
+                "fastest first / last (ms)",
+                "ratio",
+                "RSS KiB per step",
+            ],
+            body,
+        ),
+        "",
+        "Wall seconds count a rank's waits for a core of a machine shared with other jobs, "
+        "whose load changes along the run; the CPU seconds are closer to the step's own cost "
+        "(on 2 ranks they too count the waits of one rank for the other). A ratio below 1: "
+        "the machine was busier in the first window than in the last.",
+        "",
+    ]
+    return "\n".join(out)
+
+
 def main() -> None:
     global RES
     ap = argparse.ArgumentParser(
@@ -3886,6 +3962,7 @@ def main() -> None:
         stability_baselines(),
         time_to_accuracy(),
         hp_section(),
+        long_paths(),
     ]
     args.out.write_text("\n".join(parts))
     print(f"make_results: wrote {args.out}")

@@ -12,6 +12,9 @@ first point of contact and a reference curve, pressure.png, solution.png); the o
 write everything else (VTK files, CSV, JSON), which is gathered the same way — pictures
 are most of a small run's time.  Before issue 26 the frictional scenes
 hung under MPI after their first step (a collective entered on ranks 1… only).
+
+The scenes of configs/ run here on 3 ranks: their serial and 2-rank runs with every
+output, pictures included, every file read back, are tests/test_shipped_scenes.py's.
 """
 
 from __future__ import annotations
@@ -165,7 +168,7 @@ def _answer_keys(summary: dict) -> set[str]:
     return {k for k in summary if k not in VOLATILE and not k.startswith("time_")}
 
 
-def _same(a, b, where: str) -> None:
+def same(a, b, where: str) -> None:
     """JSON values a (serial) and b (parallel) agree: sizes exactly, figures to RTOL."""
     key = where.rsplit(".", 1)[-1].split("[")[0]
     if isinstance(a, dict):
@@ -173,7 +176,7 @@ def _same(a, b, where: str) -> None:
         keys, other = _answer_keys(a), _answer_keys(b)
         assert keys == other, f"{where}: {sorted(keys ^ other)}"
         for k in sorted(keys):
-            _same(a[k], b[k], f"{where}.{k}")
+            same(a[k], b[k], f"{where}.{k}")
     elif isinstance(a, list):
         assert isinstance(b, list) and len(a) == len(b), where
         if a and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in a + b):
@@ -184,7 +187,7 @@ def _same(a, b, where: str) -> None:
                 )
         else:
             for i, (x, y) in enumerate(zip(a, b)):
-                _same(x, y, f"{where}[{i}]")
+                same(x, y, f"{where}[{i}]")
     elif isinstance(a, float) or isinstance(b, float):
         # relative errors may be a balance of round-off (force_balance_error ~ 1e-15)
         atol = 1e-8 if key.endswith("_error") else ATOL
@@ -205,7 +208,7 @@ def _table(path: Path) -> tuple[list[str], list[list[str]]]:
     return header, sorted(body, key=lambda r: [round(float(r[i]), 10) for i in axes])
 
 
-def _same_table(a: Path, b: Path) -> None:
+def same_table(a: Path, b: Path) -> None:
     """Every column of two contact tables agrees to RTOL of its unit's scale: lengths (the
     coordinates, s, r, gap, slip) of the largest coordinate, tractions (λ, λ_n, λ_t, the
     bound) of the largest |λ_n| or |λ| — columns of round-off zeros (y on a plane y = 0, λ_t
@@ -247,8 +250,12 @@ def _same_table(a: Path, b: Path) -> None:
         assert cols["status"][0] == cols["status"][1], f"{a.name}: column status"
 
 
-@pytest.mark.parametrize("ranks", [2, 3])
-@pytest.mark.parametrize("scene", list(SCENES))
+#: (scene, ranks): the peers' scenes on 2 and 3 ranks, configs/*.yaml on 3 (their 2-rank
+#: runs, with pictures: tests/test_shipped_scenes.py)
+RUNS = [(s, r) for s in SCENES for r in ((2, 3) if s.startswith("peers/") else (3,))]
+
+
+@pytest.mark.parametrize("scene, ranks", RUNS)
 def test_scene_under_mpirun_matches_serial(tmp_path: Path, serial, scene: str, ranks: int) -> None:
     ref = serial(scene)
     out = _run(tmp_path, scene, ranks)
@@ -256,10 +263,10 @@ def test_scene_under_mpirun_matches_serial(tmp_path: Path, serial, scene: str, r
     assert sorted(p.name for p in out.iterdir()) == names
     a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
     assert b["mpi_ranks"] == ranks
-    _same(a, b, "summary")
+    same(a, b, "summary")
     for name in names:
         if name == "contact.csv" or name.startswith("contact_step_"):
-            _same_table(ref / name, out / name)
+            same_table(ref / name, out / name)
 
 
 #: frictional load paths on issue 29's paths: every step grid-sequenced (the later ones with
@@ -286,10 +293,10 @@ def test_sequenced_gmres_friction_under_mpirun_matches_serial(tmp_path: Path, sc
         scale = abs(sa["normal_force"])
         ta, tb = sa.pop("tangential_force"), sb.pop("tangential_force")
         assert all(abs(x - y) <= RTOL * scale for x, y in zip(ta, tb)), (ta, tb)
-    _same(a, b, "summary")
+    same(a, b, "summary")
     for name in sorted(p.name for p in ref.iterdir()):
         if name == "contact.csv" or name.startswith("contact_step_"):
-            _same_table(ref / name, out / name)
+            same_table(ref / name, out / name)
     steps = list(csv.DictReader((ref / "steps.csv").read_text().splitlines()))
     assert len(steps) == 3
 

@@ -118,7 +118,10 @@ def main(argv: list[str] | None = None) -> int:
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
-    # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort)
+    # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort).  PETSc
+    # installs that handler when it starts, so it starts first: ours replaces it.
+    from petsc4py import PETSc  # noqa: F401
+
     previous = _handle(signal.SIGTERM, failures.on_sigterm)
     try:
         code = _study(args, comm) if args.command == "study" else _run(args, comm)
@@ -190,13 +193,14 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from .. import solve
     from ..base import progress
-    from ..output import folder
+    from ..output import folder, hdf5
     from ..output.run_report import files_text, write_run
     from ..setup.config import load_config
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
     from .dispatch import choose_driver
 
+    hdf5.silence()  # HDF5's error stacks: a failed write is one line (contact.output.folder)
     t0 = time.perf_counter()
     overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
     cfg = load_config(args.scene, overrides)
@@ -229,7 +233,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
             comm, f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
         )
         return failures.NOT_CONVERGED
-    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0)
+    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0, label=label)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED
 
@@ -250,11 +254,18 @@ def _output_folder(option: str | None, cfg: SceneConfig) -> tuple[Path, str]:
     """The output folder and how it was chosen (for messages): ``-o``, ``output.dir``
     (relative to the current directory), or ``results/<name>``."""
     if option is not None:
-        return _output_option(option), f"-o {option}"
+        return _output_option(option), f"-o {_shown(option)}"
     if cfg.output.dir:
-        return Path(cfg.output.dir), f"output.dir {cfg.output.dir}"
+        return Path(cfg.output.dir), f"output.dir {_shown(cfg.output.dir)}"
     path = Path("results") / cfg.name
-    return path, f"output folder {path} (from name {cfg.name!r})"
+    return path, f"output folder {_shown(str(path))} (from name {_shown(cfg.name)!r})"
+
+
+def _shown(text: str, limit: int = 80) -> str:
+    """``text`` for a message: its start and end around '…' when longer than ``limit``
+    characters (the one-line message keeps room for the problem)."""
+    half = (limit - 1) // 2
+    return text if len(text) <= limit else f"{text[:half]}…{text[-half:]}"
 
 
 def _output_option(option: str) -> Path:
@@ -372,10 +383,11 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
                 _say(comm, f"contact: {s.branch}")
             writer(s)
 
-        path = run_load_path(scene, on_step=on_step)
+        # each step's figures go to disk as it finishes (StepWriter): the path forgets them
+        path = run_load_path(scene, on_step=on_step, forget=True)
         failed = None
         if not path.converged:
-            k, last = len(path.steps), path.steps[-1].result
+            k, last = path.count, path.steps[-1].result
             steps = "step 1" if k == 2 else f"steps 1-{k - 1}"
             kept = (
                 f"kept {steps} in {outdir}/ (summary.json: converged false)"
@@ -396,12 +408,18 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
 
 def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
+    from ..output import hdf5
     from .study import load_study, run_study
 
+    hdf5.silence()
     study = load_study(args.study, overrides=args.overrides)
     given = args.output is not None
     outdir = _output_option(args.output) if given else Path("results") / "studies" / study.name
-    label = f"-o {args.output}" if given else f"output folder {outdir} (from name {study.name!r})"
+    label = (
+        f"-o {_shown(args.output)}"
+        if given
+        else f"output folder {_shown(str(outdir))} (from name {study.name!r})"
+    )
     run_study(study, outdir, comm=comm, verbose=not args.quiet, label=label)
     return failures.SOLVED
 

@@ -912,6 +912,18 @@ def mark_pareto(rows: list[dict], key: str) -> None:
             row["failure"] = failure  # keep the failure text the last column
 
 
+def _chart(tmp: Path, chart: str, study: Study, rows: list[dict], level_rows: list[dict]):
+    """The study's chart ``chart`` as a picture drawn by rank 0 (:mod:`contact.output.charts`)."""
+    from ..output import charts, plots
+
+    path = tmp / f"{chart}.png"
+
+    def draw(_) -> None:
+        charts.DRAW[chart](path, study, rows, level_rows)
+
+    return plots.Picture([], draw, path, root=True)
+
+
 def run_study(
     source: str | Path | Mapping | Study,
     outdir: str | Path | None = None,
@@ -930,7 +942,7 @@ def run_study(
     with ``outdir=None`` nothing is written.  Bad input raises :class:`ConfigError` before
     any run; failing runs are rows with ``converged=False`` and a ``failure`` text.
     Progress (one line per run, with an ETA) goes to rank 0's stdout when ``verbose``."""
-    from ..output import charts, folder
+    from ..output import folder, plots
 
     study = load_study(source)
     if outdir is not None:  # refuse a folder it may not write before any run (ConfigError)
@@ -949,16 +961,17 @@ def run_study(
     mark_pareto(level_rows, study.accuracy)
     if outdir is not None:
         with folder.atomic_folder(outdir, comm, label) as tmp:
-            folder.write_csv(tmp / "study.csv", rows, comm)
-            folder.write_csv(tmp / "levels.csv", level_rows, comm)
-            folder.write_json(tmp / "study.json", study.as_dict(), comm)
-            if comm.rank == 0:
-                for chart in study.charts:
-                    charts.DRAW[chart](tmp / f"{chart}.png", study, rows, level_rows)
+            folder.csv_file(tmp / "study.csv", rows, comm)
+            folder.csv_file(tmp / "levels.csv", level_rows, comm)
+            folder.json_file(tmp / "study.json", study.as_dict(), comm)
+            # the charts after the data, on rank 0 (it holds the rows alike); one that
+            # fails is a warning line (contact.output.plots.draw_in_turn)
+            drawn = plots.draw_in_turn(
+                [_chart(tmp, chart, study, rows, level_rows) for chart in study.charts], comm
+            )
         if verbose and comm.rank == 0:
             ok = sum(1 for r in rows if r["converged"])
-            files = ", ".join(
-                ["study.csv", "levels.csv", "study.json", *(f"{c}.png" for c in study.charts)]
-            )
+            pictures = [name for name, outcome in drawn.items() if outcome == plots.WRITTEN]
+            files = ", ".join(["study.csv", "levels.csv", "study.json", *pictures])
             print(f"contact: {ok}/{n} runs converged; wrote {outdir}/ ({files})", flush=True)
     return rows, level_rows

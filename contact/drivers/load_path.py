@@ -23,7 +23,10 @@ A path may have any number of steps: once step k is solved (and ``on_step`` has 
 step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its functions
 dropped — and keeps only its figures.  Every live function holds MPI communicators (two
 per vector on more than one rank) and MPI has a few thousand, so keeping every step whole
-(``keep_all``) suits short paths only.
+(``keep_all``) suits short paths only.  With ``forget`` a released step is dropped
+altogether (``LoadPath.forgotten`` counts them): the path's memory does not grow with its
+steps, for a caller whose ``on_step`` keeps what it needs (the CLI writes each step's
+figures to disk).
 
 :func:`load_path` runs a user's builder ``build(t, u_prev)``; :func:`run_steps` is the loop
 itself, over a step's solve and, optionally, an adaptive loop at a step (the scene's:
@@ -132,11 +135,17 @@ class LoadPath:
     # eigenvalues of K_T there)
     bifurcation: str = ""
     branch_steps: list[tuple[int, float, int]] = field(default_factory=list)
+    forgotten: int = 0  # converged steps dropped before ``steps`` (run_load_path's forget)
 
     @property
     def converged(self) -> bool:
         """Whether the path has steps and every one converged."""
         return bool(self.steps) and all(s.result.converged for s in self.steps)
+
+    @property
+    def count(self) -> int:
+        """The number of steps, forgotten ones included."""
+        return self.forgotten + len(self.steps)
 
 
 @dataclass
@@ -198,6 +207,7 @@ def run_steps(
     make_step: Callable[..., Step] | None = None,
     verbose: bool = False,
     keep_all: bool = False,
+    forget: bool = False,
 ) -> LoadPath:
     """The load path of the module doc.
 
@@ -221,6 +231,9 @@ def run_steps(
             (default :class:`Step`, ``where`` left out).
         verbose: a line per step and per cut (rank 0).
         keep_all: keep every step whole (else each is released once the next is done).
+        forget: drop released steps from ``LoadPath.steps`` altogether (counted in
+            ``LoadPath.forgotten``), for a caller that keeps each step's figures itself as
+            it goes (the CLI's step writer): the path's memory then stays flat.
 
     Returns:
         The :class:`LoadPath`; it stops at the first step that does not converge and may
@@ -234,7 +247,7 @@ def run_steps(
     pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
     while pending:
         t, depth = pending.pop(0)
-        k = len(out.steps) + 1
+        k = out.count + 1
         t0 = time.perf_counter()
         if verbose and comm.rank == 0 and len(times) > 1:
             print(f"contact: load step {k}/{k + len(pending)}, t = {t:g}", flush=True)
@@ -305,8 +318,11 @@ def run_steps(
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
+            if forget and len(out.steps) > 2:
+                del out.steps[0]
+                out.forgotten += 1
     else:
-        out.stop = f"reached t = {times[-1]:g} in {len(out.steps)} step(s)" + _notes(out)
+        out.stop = f"reached t = {times[-1]:g} in {out.count} step(s)" + _notes(out)
     return out
 
 

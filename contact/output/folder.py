@@ -21,6 +21,14 @@ the same ``NAME`` (on the same host) repairs that (:func:`tidy_temporaries`): te
 whose writer is gone are deleted, after the newest complete one (carrying the marker) is
 moved back to ``NAME`` if ``NAME`` is missing.  Temporaries of a live process or of another
 host are left alone.
+
+Writing is collective and agreed: every file is written by rank 0 (or, for the HDF5 data of
+the XDMF files, by every rank through MPI-IO) inside :func:`write_on_root`, and a failure there —
+a full disk, a quota, a file too large — becomes an :class:`OutputError` on every rank,
+which :func:`atomic_folder` turns into one :class:`~contact.base.errors.ConfigError` naming
+the option that chose the folder; the temporary folder is deleted, a previous result stays.
+A folder name too long for its temporary siblings is refused by :func:`check_output`,
+before anything is solved.
 """
 
 from __future__ import annotations
@@ -36,7 +44,7 @@ import shutil
 import socket
 import sys
 import tempfile
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +57,34 @@ from ..base.errors import ConfigError
 MARKER = ".contact-result"  # the marker file of every folder the tool writes
 
 
+class OutputError(OSError):
+    """A file of the output folder could not be written (raised on every rank alike by
+    :func:`write_on_root`, or by the collective HDF5 writer); ``str(err)`` names the file and the
+    cause, e.g. ``cannot write solution.vtu: No space left on device``."""
+
+
+def write_on_root[T](comm: MPI.Comm, action: Callable[[], T], name: str) -> T | None:
+    """``action()`` — the writing of the file ``name`` — on rank 0 (collective): its value
+    there, None elsewhere.  If it fails, every rank raises: an :class:`OutputError` naming
+    the file for an OSError (a full disk), else a RuntimeError naming the file and the
+    error (a bug: exit code 3), so that no rank goes on into a collective the others left.
+    """
+    value, problem = None, None
+    if comm.rank == 0:
+        try:
+            value = action()
+        except OSError as err:
+            problem = ("os", f"cannot write {name}: {err.strerror or err}")
+        except Exception as err:  # noqa: BLE001 - reported on every rank below
+            problem = ("bug", f"writing {name} failed: {type(err).__name__}: {err}")
+    if comm.size > 1:
+        problem = comm.bcast(problem, root=0)
+    if problem is not None:
+        kind, text = problem
+        raise OutputError(text) if kind == "os" else RuntimeError(text)
+    return value
+
+
 def check_output(outdir: str | Path, label: str, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """Refuse (ConfigError ``<label>: <problem>``, on every rank) an output folder the tool
     may not write: see :func:`output_problem`.  Stale temporaries of the same target are
@@ -56,6 +92,8 @@ def check_output(outdir: str | Path, label: str, comm: MPI.Comm = MPI.COMM_WORLD
     target = _absolute(outdir)
 
     def check() -> str | None:
+        if too_long := name_too_long(target, _existing_ancestor(target.parent)):
+            return too_long  # before any file system call that would fail on the name
         tidy_temporaries(target)
         return output_problem(target)
 
@@ -89,6 +127,9 @@ def output_problem(outdir: Path) -> str | None:
     ``.``, a folder with files added to a result), a path below a file, a place without
     write permission."""
     outdir = _absolute(outdir)
+    anc = _existing_ancestor(outdir.parent)
+    if too_long := name_too_long(outdir, anc):
+        return too_long
     if outdir.is_symlink():
         return "is a symbolic link; give the folder itself"
     if outdir.exists():
@@ -109,9 +150,6 @@ def output_problem(outdir: Path) -> str | None:
                 f"is a contact result, but holds {len(foreign)} file(s) contact did not write "
                 f"({', '.join(foreign[:3])}); nothing was changed"
             )
-    anc = outdir.parent
-    while not anc.exists() and not anc.is_symlink() and anc != anc.parent:
-        anc = anc.parent
     if not anc.is_dir():
         return f"cannot be created: {anc} is a file, not a folder"
     try:
@@ -119,6 +157,47 @@ def output_problem(outdir: Path) -> str | None:
     except OSError as err:
         return (
             f"cannot be written: no permission to create entries in {anc} ({err.strerror or err})"
+        )
+    return None
+
+
+def _existing_ancestor(path: Path) -> Path:
+    """``path`` or its nearest ancestor that exists (or is a symbolic link)."""
+    while path != path.parent:
+        try:
+            if path.exists() or path.is_symlink():
+                return path
+        except OSError:  # a component too long: not there
+            pass
+        path = path.parent
+    return path
+
+
+def name_too_long(outdir: Path, existing: Path) -> str | None:
+    """Why the last component of ``outdir`` is too long for the file system of its nearest
+    ``existing`` ancestor — the folder itself or its temporary sibling
+    ``.NAME.partial-HOST-PID-XXXXXXXX`` (:func:`atomic_folder`) would exceed the longest
+    file name there (``NAME_MAX``, 255 bytes on Linux) — or None.  Components of ``outdir``
+    that do not exist yet are checked too."""
+    try:
+        limit = os.pathconf(existing, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    rest = outdir.relative_to(existing).parts if outdir.is_relative_to(existing) else ()
+    for part in rest[:-1]:
+        if len(os.fsencode(part)) > limit:
+            return (
+                f"a folder name on the way is {len(os.fsencode(part))} bytes long, more than "
+                f"the {limit} the file system allows"
+            )
+    # mkdtemp adds "-" and 8 random characters to the temporary sibling's prefix
+    need = len(os.fsencode(_temp_name(outdir, "partial"))) + 9
+    if need > limit:
+        most = limit - (need - len(os.fsencode(outdir.name)))
+        return (
+            f"the folder name is {len(os.fsencode(outdir.name))} bytes long; at most {most} "
+            f"here (the file system allows {limit}, and contact writes beside it first, as "
+            f".NAME.partial-…); give a shorter name"
         )
     return None
 
@@ -255,6 +334,9 @@ def _replace(tmp: Path, outdir: Path) -> None:
         shutil.rmtree(old)
 
 
+_KEPT = "nothing was written (a previous result there is kept)"
+
+
 @contextlib.contextmanager
 def atomic_folder(
     outdir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, label: str | None = None
@@ -277,6 +359,10 @@ def atomic_folder(
     tmp = _on_root(comm, create, label)
     try:
         yield tmp
+    except OutputError as err:  # raised on every rank alike: the folder's one-line error
+        if comm.rank == 0:
+            shutil.rmtree(tmp, ignore_errors=True)
+        raise ConfigError(f"{label}: {err}; {_KEPT}") from err
     except BaseException:
         if comm.rank == 0:  # local: no collective on the way out of an exception (app.failures)
             shutil.rmtree(tmp, ignore_errors=True)
@@ -286,14 +372,109 @@ def atomic_folder(
     comm.Barrier()
 
     def commit() -> str | None:  # the target may have changed during the run
-        if problem := output_problem(target):
-            shutil.rmtree(tmp, ignore_errors=True)
-            return problem
-        _write_marker(tmp)
-        _replace(tmp, target)
+        try:
+            if problem := output_problem(target):
+                return problem
+            _write_marker(tmp)
+            _replace(tmp, target)
+        except OSError as err:
+            return f"cannot write {MARKER}: {err.strerror or err}; {_KEPT}"
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)  # gone once moved: the previous result
         return None
 
     _on_root(comm, commit, label)
+
+
+class Collection:
+    """A text file of entries between a fixed ``head`` and ``tail`` — an XML collection such
+    as a .pvd or a temporal XDMF file — valid after every :meth:`append` (call on the rank
+    that writes it).  An append writes the new entry and the tail over the old tail: its cost
+    is that of the entry however many came before, and nothing is kept in memory but the
+    tail's byte offset."""
+
+    def __init__(self, path: str | Path, head: str, tail: str):
+        self.path, self.head, self.tail = Path(path), head.encode(), tail.encode()
+        self._end: int | None = None  # where the tail starts, once the file exists
+
+    def append(self, entry: str) -> None:
+        data = entry.encode()
+        if self._end is None:
+            with open(self.path, "wb") as fh:
+                fh.write(self.head + data + self.tail)
+            self._end = len(self.head) + len(data)
+            return
+        with open(self.path, "r+b") as fh:
+            fh.seek(self._end)
+            fh.write(data + self.tail)
+            fh.truncate()
+        self._end += len(data)
+
+
+class RowLog:
+    """Rows of figures (dicts) appended one by one to a JSON-lines file ``path`` by rank 0
+    (collective: :func:`write_on_root`), so that a load path of any length keeps none of
+    them in memory; :meth:`rows` reads them back (rank 0) and :meth:`write_csv` writes them
+    as CSV with the union of their keys as header.  A hidden file of the output folder,
+    deleted by :meth:`remove` before the folder is listed."""
+
+    def __init__(self, path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD):
+        self.path, self.comm, self.count = Path(path), comm, 0
+
+    def add(self, rows: Sequence[Mapping[str, Any]]) -> None:
+        """Append ``rows`` (the same on every rank; rank 0 writes them)."""
+        if not rows:
+            return
+        text = "".join(json.dumps(row, default=_jsonable) + "\n" for row in rows)
+
+        def append() -> None:
+            with open(self.path, "a") as fh:
+                fh.write(text)
+
+        write_on_root(self.comm, append, self.path.name)
+        self.count += len(rows)
+
+    def rows(self) -> Iterator[dict[str, Any]]:
+        """The rows, read back one at a time (rank 0)."""
+        if not self.path.exists():
+            return
+        with open(self.path) as fh:
+            for line in fh:
+                yield json.loads(line)
+
+    def write_csv(self, path: str | Path, flat: Callable[[dict], dict] = lambda row: row) -> None:
+        """The rows (each through ``flat``) as CSV at ``path`` (collective; rank 0 reads and
+        writes, twice through the rows: the header, then the rows)."""
+
+        def write() -> None:
+            keys: dict[str, None] = {}
+            for row in self.rows():
+                keys.update(dict.fromkeys(flat(row)))
+            with open(path, "w", newline="") as fh:
+                writer = csv.DictWriter(fh, fieldnames=list(keys))
+                writer.writeheader()
+                writer.writerows(flat(row) for row in self.rows())
+
+        write_on_root(self.comm, write, Path(path).name)
+
+    def remove(self) -> None:
+        if self.comm.rank == 0:
+            self.path.unlink(missing_ok=True)
+
+
+def read_table(path: str | Path) -> dict[str, np.ndarray]:
+    """A table that :func:`write_table` wrote, read back: its columns as float arrays, or
+    string arrays where a column holds text (``status``)."""
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    out: dict[str, np.ndarray] = {}
+    for j, name in enumerate(rows[0] if rows else []):
+        column = [row[j] for row in rows[1:]]
+        try:
+            out[name] = np.array(column, dtype=float)
+        except ValueError:
+            out[name] = np.array(column)
+    return out
 
 
 def write_json(path: str | Path, data: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD) -> None:
@@ -325,6 +506,27 @@ def write_table(path: str | Path, table: Mapping[str, np.ndarray]) -> None:
         writer.writerow(names)
         for row in zip(*(table[k].tolist() for k in names)):
             writer.writerow(row)
+
+
+def json_file(path: Path, data: Mapping[str, Any], comm: MPI.Comm) -> None:
+    """:func:`write_json` of ``data`` at ``path``, agreed (collective, :func:`write_on_root`)."""
+    write_on_root(comm, lambda: write_json(path, data, comm), path.name)
+
+
+def csv_file(path: Path, rows: Sequence[Mapping[str, Any]], comm: MPI.Comm) -> None:
+    """:func:`write_csv` of ``rows`` at ``path``, agreed (collective, :func:`write_on_root`)."""
+    write_on_root(comm, lambda: write_csv(path, rows, comm), path.name)
+
+
+def table_file(path: Path, table: Mapping[str, np.ndarray] | None, comm: MPI.Comm) -> None:
+    """:func:`write_table` of ``table`` (held by rank 0, None elsewhere) at ``path``, agreed
+    (collective, :func:`write_on_root`); nothing when rank 0 holds no table either."""
+
+    def write() -> None:
+        if table is not None:
+            write_table(path, table)
+
+    write_on_root(comm, write, path.name)
 
 
 def _jsonable(obj: Any) -> Any:

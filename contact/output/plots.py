@@ -9,7 +9,9 @@ gathered on one rank with :func:`contact.output.vtk.gather_grid` and drawn there
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import errno
+import warnings
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -205,42 +207,97 @@ def _active_points(grid) -> np.ndarray:
 @dataclass(frozen=True)
 class Picture:
     """A picture of fields: the point ``fields`` gathered on one grid (all ranks hold them)
-    and ``draw(grid)``, which writes the file on the rank that holds the grid.  A picture
-    without fields (a chart) is drawn by its rank with ``grid`` None."""
+    and ``draw(grid)``, which writes the file ``path`` on the rank that holds the grid.  A
+    picture without fields (a chart) is drawn by its rank with ``grid`` None; ``root``: its
+    data are held by rank 0 only (a contact table), so rank 0 draws it."""
 
     fields: list
     draw: Callable[[Any], None]
+    path: Path | None = None
+    root: bool = False
 
 
 #: how many ranks draw pictures at once (None: all; 1: rank 0 draws every picture, the old
 #: path, kept to measure the difference)
 DRAW_RANKS: int | None = None
+#: OS errors that are the folder's, not a picture's: a picture that meets one fails the run
+WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO}
+WRITTEN = "written"
 
 
-def draw_in_turn(pictures: Sequence[Picture], comm) -> None:
+def draw_in_turn(pictures: Sequence[Picture], comm) -> dict[str, str]:
     """Draw ``pictures`` (collective): picture k is gathered on rank k mod n and drawn
-    there, n = ``comm.size`` (or :data:`DRAW_RANKS`).  With n > 1 every rank first gathers
-    its pictures, then draws them, all ranks at once; put the largest first, so that the
-    two largest go to different ranks.  With n = 1 each picture is drawn as soon as it is
-    gathered (one grid held at a time).  Ends with a barrier: every file exists when it
-    returns."""
+    there, n = ``comm.size`` (or :data:`DRAW_RANKS`); a ``root`` picture on rank 0.  With
+    n > 1 every rank first gathers its pictures, then draws them, all ranks at once; put the
+    largest first, so that the two largest go to different ranks.  With n = 1 each picture
+    is drawn as soon as it is gathered (one grid held at a time).
+
+    A picture that fails costs one warning line naming it (a ContactWarning on the rank
+    that drew it; a partial file is removed) and nothing else: the run and its other files
+    go on.  A full disk (:data:`WRITE_ERRNOS`) is not the picture's failure but the
+    folder's: every rank raises :class:`contact.output.folder.OutputError`.
+
+    Returns, on every rank, ``{file name: "written" | "not written: <reason>"}`` of the
+    pictures with a ``path``; every file exists when it returns."""
     n = min(comm.size, DRAW_RANKS or comm.size)
-    mine = []
+    mine: list = []
+    done: dict[str, tuple[str, str]] = {}
     for k, picture in enumerate(pictures):
-        grid = gather_grid(picture.fields, root=k % n) if picture.fields else None
-        if comm.rank == k % n:
-            mine.append((picture, grid))
+        owner = 0 if picture.root else k % n
+        try:
+            grid = gather_grid(picture.fields, root=owner) if picture.fields else None
+        except Exception as err:  # noqa: BLE001 - the picture's failure, reported by its owner
+            grid = _Failed(err)
+        if comm.rank == owner:
+            name = Path(picture.path).name if picture.path is not None else f"picture {k}"
+            mine.append((name, picture, grid))
         if n == 1:
-            _draw(mine)
-    _draw(mine)
-    comm.Barrier()
+            _draw(mine, done)
+    _draw(mine, done)
+    outcomes: dict[str, tuple[str, str]] = {}
+    for part in comm.allgather(done):
+        outcomes.update(part)
+    full = [text for kind, text in outcomes.values() if kind == "disk"]
+    if full:
+        from .folder import OutputError
+
+        raise OutputError(full[0])
+    return {name: text for name, (_, text) in outcomes.items()}
 
 
-def _draw(held: list) -> None:
-    """Draw the (picture, grid) pairs of ``held`` and let go of their grids."""
+@dataclass(frozen=True)
+class _Failed:
+    """What a failed gather leaves for the picture's owner to report."""
+
+    error: BaseException
+
+
+def _draw(held: list, done: dict[str, tuple[str, str]]) -> None:
+    """Draw the (name, picture, grid) of ``held``, let go of their grids and note in
+    ``done`` how each went: (kind, text) by name, kind "ok", "failed" or "disk"."""
     while held:
-        picture, grid = held.pop(0)
-        picture.draw(grid)
+        name, picture, grid = held.pop(0)
+        try:
+            if isinstance(grid, _Failed):
+                raise grid.error
+            picture.draw(grid)
+            done[name] = ("ok", WRITTEN)
+        except Exception as err:  # noqa: BLE001 - a picture's failure costs a warning only
+            if picture.path is not None:
+                Path(picture.path).unlink(missing_ok=True)
+            if isinstance(err, OSError) and err.errno in WRITE_ERRNOS:
+                done[name] = ("disk", f"cannot write {name}: {err.strerror or err}")
+                continue
+            reason = _one_line(f"{type(err).__name__}: {err}")
+            done[name] = ("failed", f"not written: {reason}")
+            from ..setup.surfaces import ContactWarning
+
+            warnings.warn(f"{name} not written: {reason}", ContactWarning, stacklevel=2)
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    line = " ".join(text.split())
+    return line if len(line) <= limit else line[: limit - 1].rstrip() + "…"
 
 
 def solution_picture(
@@ -258,8 +315,10 @@ def solution_picture(
     pressure −λ_h when ``lmbda`` is given."""
     fields = [f for f in (u_h, active, lmbda) if f is not None]
     if u_h.function_space.mesh.geometry.dim == 3:
-        return Picture(fields, lambda grid: _solution_3d(path, grid, u_h, lmbda, normal, title))
-    return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title))
+        return Picture(
+            fields, lambda grid: _solution_3d(path, grid, u_h, lmbda, normal, title), Path(path)
+        )
+    return Picture(fields, lambda grid: _solution_2d(path, grid, u_h, title), Path(path))
 
 
 def plot_solution(
@@ -316,8 +375,8 @@ def mesh_picture(
     (``normal``), whole and zoomed to the contact zone (the ``active`` nodes)."""
     fields = [u_h] + ([active] if active is not None else [])
     if u_h.function_space.mesh.geometry.dim == 3:
-        return Picture(fields, lambda grid: _mesh_3d(path, grid, title, normal))
-    return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges))
+        return Picture(fields, lambda grid: _mesh_3d(path, grid, title, normal), Path(path))
+    return Picture(fields, lambda grid: _mesh_2d(path, grid, u_h, title, max_edges), Path(path))
 
 
 def plot_mesh(
@@ -689,16 +748,22 @@ def plot_traction(
     columns)): the pressure −λ_n (top) and the tangential traction λ_t (bottom, 2D: its
     component along t_0) against the arc length s, with the friction bounds +ρ and −ρ of the
     last step dashed on top (where λ_t reaches one the node slips) and the slipping nodes of
-    the last step circled, zoomed on the contact zone when it is less than half of Γ_C.
-    Every curve drawn is in the legend; of more than :data:`MAX_TRACTION_CURVES` steps that
-    many are drawn, evenly spaced (the title says so).  3D: :func:`plot_traction_map`.
+    the last step circled, zoomed on the contact zone when it is less than half of Γ_C; a
+    scalar model's table (column ``lambda``): its flux −λ, one panel.  Every curve drawn is
+    in the legend; of more than :data:`MAX_TRACTION_CURVES` steps that many are drawn, evenly
+    spaced (the title says so).  3D: :func:`plot_traction_map`.
     ``references``: (panel 0 | 1, x, y, label) curves such as the Hertz pressure or an exact
     traction."""
     table = steps[-1][1]
     if "s" not in table:
         return plot_traction_map(path, table, title, t=steps[-1][0])
     plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, figsize=(9.0, 7.0), sharex=True)
+    scalar = "lambda_n" not in table  # a scalar model: the flux −λ, no tangential panel
+    value = "lambda" if scalar else "lambda_n"
+    fig, grid = plt.subplots(
+        1 if scalar else 2, 1, figsize=(9.0, 4.5 if scalar else 7.0), sharex=True, squeeze=False
+    )
+    axes = grid[:, 0]
     cmap = plt.get_cmap("viridis")
     t_max = max(t for t, _ in steps)
     friction = "lambda_t" in table
@@ -707,7 +772,7 @@ def plot_traction(
         t, tab = steps[k]
         colour = cmap(t / t_max if len(steps) > 1 else 0.0)
         kw = {"color": colour, "ms": 3, "lw": 1, "label": f"t = {t:.4g}"}
-        axes[0].plot(tab["s"], -np.asarray(tab["lambda_n"]), ".-", **kw)
+        axes[0].plot(tab["s"], -np.asarray(tab[value]), ".-", **kw)
         if friction:
             axes[1].plot(tab["s"], tab["lambda_t"], ".-", **kw)
     x = np.asarray(table["s"])
@@ -727,16 +792,20 @@ def plot_traction(
             label=f"slipping at t = {t_max:g}",
         )
     for panel, rx, ry, label in references:
-        axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
-    lam_n = np.asarray(table["lambda_n"])
+        if panel < len(axes):
+            axes[panel].plot(rx, ry, "k-", lw=1.5, label=label)
+    lam_n = np.asarray(table[value])
     pressed = lam_n < -1e-9 * np.max(np.abs(lam_n), initial=0.0)
     if pressed.any() and np.ptp(x[pressed]) < 0.5 * np.ptp(x):  # a small contact zone: zoom on it
         lo, hi = x[pressed].min(), x[pressed].max()
         pad = 0.3 * max(hi - lo, 1e-12)
-        axes[1].set_xlim(lo - pad, hi + pad)
-    axes[0].set_ylabel(f"pressure −λ_n ({PRESSURE_UNIT})")
-    axes[1].set_ylabel(f"tangential traction λ_t ({PRESSURE_UNIT})")
-    axes[1].set_xlabel(f"arc length s along Γ_C ({LENGTH})")
+        axes[-1].set_xlim(lo - pad, hi + pad)
+    if scalar:
+        axes[0].set_ylabel(f"flux −λ ({FLUX_UNIT})")
+    else:
+        axes[0].set_ylabel(f"pressure −λ_n ({PRESSURE_UNIT})")
+        axes[1].set_ylabel(f"tangential traction λ_t ({PRESSURE_UNIT})")
+    axes[-1].set_xlabel(f"arc length s along Γ_C ({LENGTH})")
     # the load steps: one legend beside both panels (the same curves in each); the bounds,
     # the slipping nodes and the references: in their panel's legend
     step_labels = {f"t = {steps[k][0]:.4g}" for k in shown}
@@ -764,7 +833,7 @@ def plot_traction(
 def plot_force_displacement(
     path: str | Path,
     x: Sequence[float],
-    force: Sequence[float],
+    force: Sequence[float] | Mapping[str, Sequence[float]],
     xlabel: str,
     title: str = "",
     indefinite: Sequence[bool] = (),
@@ -772,21 +841,30 @@ def plot_force_displacement(
 ) -> None:
     """The contact force of each load step against the load's displacement ``x`` (the
     obstacle's approach, or a prescribed displacement): one marker per step, joined, from
-    (0, 0).  ``indefinite[k]``: the Newton iteration of step k met an indefinite tangent
-    (the energy search acted: a buckle or a snap happens there); ``unstable[k]``: K_T has
-    negative eigenvalues at step k's solution (an unstable equilibrium)."""
+    (0, 0); ``force`` one value per step, or several curves by label (the normal and the
+    tangential force of a frictional path).  ``indefinite[k]``: the Newton iteration of
+    step k met an indefinite tangent (the energy search acted: a buckle or a snap happens
+    there); ``unstable[k]``: K_T has negative eigenvalues at step k's solution (an unstable
+    equilibrium).  The marks go on the first curve."""
     plt = _pyplot()
-    x, force = np.r_[0.0, np.asarray(x, float)], np.r_[0.0, np.asarray(force, float)]
+    curves = force if isinstance(force, Mapping) else {"contact force per step": force}
+    x = np.r_[0.0, np.asarray(x, float)]
     fig, ax = plt.subplots(figsize=(7, 5))
-    ax.plot(x, force, "o-", color="C0", ms=4, label="contact force per step")
+    first = None
+    for k, (label, values) in enumerate(curves.items()):
+        y = np.r_[0.0, np.asarray(values, float)]
+        if len(y) != len(x):
+            raise ValueError(f"force curve {label!r}: {len(y) - 1} values for {len(x) - 1} steps")
+        ax.plot(x, y, "o-", color=f"C{k}", ms=4, label=label)
+        first = y if first is None else first
     for flags, marker, color, label in (
         (indefinite, "s", "C3", "K_T indefinite during the step (energy search acted)"),
         (unstable, "x", "k", "K_T indefinite at the solution (unstable)"),
     ):
         mask = np.r_[False, np.asarray(flags, dtype=bool)] if len(flags) else None
-        if mask is not None and mask.any():
+        if first is not None and mask is not None and mask.any():
             ax.plot(
-                x[mask], force[mask], marker, mfc="none", mec=color, color=color, ms=10, label=label
+                x[mask], first[mask], marker, mfc="none", mec=color, color=color, ms=10, label=label
             )
     ax.set_xlabel(xlabel)
     ax.set_ylabel("contact force (per unit depth in 2D)")
@@ -812,8 +890,11 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
         1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False
     )
     axes = axes[0]
-    sc = axes[0].scatter(P[:, 0], P[:, 1], c=-np.asarray(table["lambda_n"]), s=12, cmap="viridis")
-    fig.colorbar(sc, ax=axes[0], label=f"pressure −λ_n ({PRESSURE_UNIT})")
+    scalar = "lambda_n" not in table  # a scalar model: the flux −λ
+    value = -np.asarray(table["lambda" if scalar else "lambda_n"])
+    sc = axes[0].scatter(P[:, 0], P[:, 1], c=value, s=12, cmap="viridis")
+    label = f"flux −λ ({FLUX_UNIT})" if scalar else f"pressure −λ_n ({PRESSURE_UNIT})"
+    fig.colorbar(sc, ax=axes[0], label=label)
     axes[0].set_title("contact pressure" if friction else f"contact pressure at t = {t:g}")
     if friction:
         _tangential_arrows(axes[1], P, table, keep, t)

@@ -9,6 +9,10 @@ series ``solution.xdmf`` over ``solution_KKK.xdmf`` + ``.h5`` and ``solution.pvd
 ``.png``, ``mesh_level_K.png`` and the final level's ``solution.png``, ``contact.csv`` and
 ``pressure.png``; its ``history.csv`` lists the Newton iterations of every level (column
 ``level``).
+
+The data files come first, the pictures after them (:func:`contact.output.plots.draw_in_turn`:
+a picture that fails is one warning line, and ``summary.json``'s ``pictures`` says which
+were written), ``summary.json`` last.
 """
 
 from __future__ import annotations
@@ -229,56 +233,74 @@ def solution_picture(
     )
 
 
-def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> None:
-    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective)."""
+def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> dict[str, str]:
+    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective); returns
+    :func:`contact.output.plots.draw_in_turn`'s outcome."""
     picture = solution_picture(path, result, title, view_normal(scene, result))
-    plots.draw_in_turn([picture], scene.comm)
+    return plots.draw_in_turn([picture], scene.comm)
 
 
-def write_contact(
-    out: Path,
+def write_contact(out: Path, scene: Scene, table: Table | None) -> None:
+    """``contact.csv``, the rows ``table`` of :func:`contact.post.contact_table.contact_table`
+    (gathered on rank 0, None on the others; collective)."""
+    folder.table_file(out / "contact.csv", table, scene.comm)
+
+
+def pressure_picture(
+    out: Path, scene: Scene, result: Result, comparison: Comparison | None, table: Table | None
+) -> list[plots.Picture]:
+    """``pressure.png`` along a contact boundary Γ_C (not for an obstacle in Ω), drawn by
+    rank 0 from ``table``: a list of one picture, or none."""
+    if not scene.config.output.png or result.problem.in_domain:
+        return []
+    path = out / "pressure.png"
+    title = f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)"
+    value = value_name(scene)
+
+    def draw(_) -> None:  # rank 0, which holds the table
+        assert table is not None
+        plots.plot_pressure(path, table, value, comparison, title=title)
+
+    return [
+        plots.Picture(
+            [],
+            draw,
+            path,
+            root=True,
+        )
+    ]
+
+
+def write_run(
+    outdir: str | Path,
     scene: Scene,
     result: Result,
-    comparison: Comparison | None,
-    table: Table | None,
-) -> None:
-    """``contact.csv``, the rows ``table`` of :func:`contact.post.contact_table.contact_table`
-    (gathered on rank 0, None on the others), and, for a contact boundary Γ_C (not an
-    obstacle in Ω), ``pressure.png``."""
-    if table is None:  # not rank 0
-        return
-    folder.write_table(out / "contact.csv", table)
-    if scene.config.output.png and not result.problem.in_domain:
-        plots.plot_pressure(
-            out / "pressure.png",
-            table,
-            value_name(scene),
-            comparison,
-            title=f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)",
-        )
-
-
-def write_run(outdir: str | Path, scene: Scene, result: Result, wall: float | None = None) -> dict:
-    """Write the complete output folder atomically; return the summary (with ``files``)."""
+    wall: float | None = None,
+    label: str | None = None,
+) -> dict:
+    """Write the complete output folder atomically (``label``: the option that chose it, for
+    messages); return the summary (with ``files`` and, with pictures, ``pictures``).  The
+    data files are written first, the pictures after them, summary.json last."""
     comm = scene.comm
     res = resultants(scene, result)
     comparison = compare(scene, result)
     info = summary(scene, result, wall, res, comparison)
     warn_coarse_zone(scene, result)
     out_cfg = scene.config.output
-    with folder.atomic_folder(outdir, comm) as tmp:
+    with folder.atomic_folder(outdir, comm, label) as tmp:
         files = FieldFiles(tmp, "solution", out_cfg.formats, comm, scene.config.elastic)
         files.write_one(point_fields(result), cell_fields(scene, result), scene.boundary)
         info.update(files.timings())
-        folder.write_csv(tmp / "history.csv", result.history, comm)
+        folder.csv_file(tmp / "history.csv", result.history, comm)
+        table = contact_table(scene, result)
+        write_contact(tmp, scene, table)
         if out_cfg.png:
-            plot_solution(
-                tmp / "solution.png",
-                scene,
-                result,
-                title=f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)",
-            )
-        write_contact(tmp, scene, result, comparison, contact_table(scene, result))
+            title = f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)"
+            pictures = [
+                solution_picture(tmp / "solution.png", result, title, view_normal(scene, result)),
+                *pressure_picture(tmp, scene, result, comparison, table),
+            ]
+            info["pictures"] = plots.draw_in_turn(pictures, comm)
         _finish(tmp, info, comm)
     return info
 
@@ -288,7 +310,7 @@ def _finish(tmp: Path, info: dict, comm: MPI.Comm) -> None:
     names = [p.name for p in tmp.iterdir()] if comm.rank == 0 else None
     natural = lambda name: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]  # noqa: E731
     info["files"] = sorted(set(comm.bcast(names, root=0)) | {"summary.json"}, key=natural)
-    folder.write_json(tmp / "summary.json", info, comm)
+    folder.json_file(tmp / "summary.json", info, comm)
 
 
 def files_text(names: list[str]) -> str:
@@ -365,7 +387,7 @@ def write_adaptive(
     files) adds the seconds each format took."""
     comm = scene.comm
     rows = adaptive.rows
-    folder.write_csv(tmp / "convergence.csv", rows, comm)
+    folder.csv_file(tmp / "convergence.csv", rows, comm)
     last = adaptive.levels[-1]
     png = scene.config.output.png
     shown = picture_levels(adaptive, scene.config.adapt.pictures if scene.config.adapt else 3)
@@ -402,14 +424,16 @@ def write_adaptive(
             **(failure or {}),
         }
     )
-    folder.write_csv(
+    folder.csv_file(
         tmp / "history.csv",
         [{"level": lv.index, **h} for lv in adaptive.levels for h in lv.result.history],
         comm,
     )
+    write_contact(tmp, last.scene, table)
     if png:
         # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
-        # together), the convergence chart last: on 2 ranks beside the first level's mesh
+        # together), the convergence chart last: on 2 ranks beside the first level's mesh;
+        # pressure.png (its table is on rank 0) by rank 0
         pictures = [
             solution_picture(
                 tmp / "solution.png",
@@ -429,13 +453,12 @@ def write_adaptive(
                 )
             )
         title = f"{scene.name}: adaptive convergence"
+        chart = tmp / "convergence.png"
         pictures.append(
-            plots.Picture(
-                [], lambda grid: plots.plot_convergence(tmp / "convergence.png", rows, title)
-            )
+            plots.Picture([], lambda grid: plots.plot_convergence(chart, rows, title), chart)
         )
-        plots.draw_in_turn(pictures, comm)
-    write_contact(tmp, last.scene, last.result, comparison, table)
+        pictures += pressure_picture(tmp, last.scene, last.result, comparison, table)
+        info["pictures"] = plots.draw_in_turn(pictures, comm)
     _finish(tmp, info, comm)
     return info
 

@@ -12,16 +12,20 @@ Per step k (numbered 000, 001, …):
 
 After the last step: ``steps.csv`` (one row per step: t, DoFs, Newton iterations, the
 resultants and zone measures of :func:`contact.post.friction_resultants.surface_figures`,
-η; a finite-strain body's peak pressures, nominal and per deformed area),
-``summary.json`` (the run, with the same figures per step under ``steps``),
-``contact.csv`` and ``pressure.png`` of the last step
-(:func:`contact.output.run_report.write_contact`), for a hyperelastic body ``force.png``
-(the force–displacement curve, :func:`plot_load_curve`; steps.csv holds its columns
-``obstacle_approach`` and ``prescribed_displacement``), ``traction.png`` (λ_n and λ_t along Γ_C
-at every step, with the declared reference's or the exact solution's curves),
-``solution.png``, ``history.csv`` (every step's Newton iterations, with a ``load_step``
-column) and, when steps ran the
-adaptive loop, ``convergence.csv`` (one row per level, with its step).
+η; a finite-strain body's peak pressures, nominal and per deformed area; the columns
+``obstacle_approach`` and ``prescribed_displacement`` of the force–displacement curve),
+``history.csv`` (every step's Newton iterations, with a ``load_step`` column), when steps
+ran the adaptive loop ``convergence.csv`` (one row per level, with its step), and
+``contact.csv`` of the last step (:func:`contact.output.run_report.write_contact`); then
+the pictures — ``traction.png`` (λ_n and λ_t along Γ_C at up to :data:`TRACTION_CURVES`
+steps, with the declared reference's or the exact solution's curves), ``solution.png``,
+``force.png`` (the force–displacement curve, :func:`plot_load_curve`) and ``pressure.png``
+of the last step —, a picture that fails costing a warning; ``summary.json`` (the run,
+with the same figures per step under ``steps`` and the pictures' outcome) last.
+
+The figures of the steps go to hidden JSON-lines files of the folder as the steps finish
+(:class:`contact.output.folder.RowLog`), read back at the end: nothing kept in memory
+grows with the number of steps.
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from ..drivers.load_path import LoadPath
-from ..post.contact_table import Table, contact_table, tangent_2d
+from ..post.contact_table import Table, contact_table, tangent_2d, view_normal
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
@@ -45,34 +49,43 @@ from .fields import FieldFiles
 from .run_report import (
     _finish,
     cell_fields,
-    plot_solution,
     point_fields,
     posed_problem,
+    pressure_picture,
+    solution_picture,
     warn_coarse_zone,
     write_contact,
 )
 
+#: the most load steps traction.png draws a curve of (evenly spread, first and last included)
+TRACTION_CURVES = 25
+
 
 class StepWriter:
     """``on_step`` callback of :func:`contact.drivers.load_path.run_load_path`: writes a
-    step's files into ``tmp`` and keeps its figures for :meth:`finish`."""
+    step's files into ``tmp`` and appends its figures to the run's tables (hidden JSON-lines
+    files of the folder, :class:`contact.output.folder.RowLog`), so that nothing it keeps in
+    memory grows with the steps; :meth:`finish` writes the run's files from them."""
 
     def __init__(self, tmp: Path, scene: Scene):
         self.tmp, self.scene = tmp, scene
+        comm = scene.comm
         formats, elastic = scene.config.output.formats, scene.config.elastic
-        self.files = FieldFiles(tmp, "solution", formats, scene.comm, elastic)
-        self.rows: list[dict[str, Any]] = []
-        self.tables: list[tuple[float, Table | None]] = []  # the tables on rank 0
-        self.levels: list[dict[str, Any]] = []
-        self.history: list[dict[str, Any]] = []
+        self.files = FieldFiles(tmp, "solution", formats, comm, elastic)
+        self.rows = folder.RowLog(tmp / ".steps.jsonl", comm)
+        self.levels = folder.RowLog(tmp / ".levels.jsonl", comm)
+        self.history = folder.RowLog(tmp / ".history.jsonl", comm)
+        self.iterations = [0, 0]  # the Newton iterations of the converged steps: sum, largest
 
     def __call__(self, step: Step) -> None:
         r, scene, k = step.result, step.scene, step.index
         # `load_step` beside the Newton rows' own `step` (the step length, as in one solve's
         # history.csv): {"step": k, **h} let the step length overwrite the load step's index
-        self.history += [{"load_step": k, **h} for h in r.history]
+        self.history.add([{"load_step": k, **h} for h in r.history])
         if not r.converged:
             return
+        from ..post.load_curve import load_displacements
+
         est = step.levels[-1].estimate if step.levels else estimate(scene, r)
         row = {
             "step": k,
@@ -92,19 +105,17 @@ class StepWriter:
         else:
             row["contact_force"] = r.contact_force
         row.update(pressure_peaks(r))  # a finite-strain body: nominal and per deformed area
+        row.update(load_displacements(scene, r))  # the force–displacement curve
         if step.negative_eigenvalues is not None:  # hyperelastic: K_T's stability
-            from ..post.load_curve import load_displacements
             from ..solvers.energy_search import tangent_figures
 
-            row.update(load_displacements(scene, r))  # the force–displacement curve
             row["tangent_negative_eigenvalues"] = step.negative_eigenvalues
             row["min_det_F"] = step.min_det_F
             row.update(tangent_figures(r.tangent_log))
-        self.rows.append(row)
-        self.levels += [{"step": k, "time": step.time, **lv.row()} for lv in step.levels]
-        self.tables.append((step.time, table))
-        if table is not None:  # rank 0
-            folder.write_table(self.tmp / f"contact_step_{k - 1:03d}.csv", table)
+        self.rows.add([row])
+        self.iterations = [self.iterations[0] + r.iterations, max(self.iterations[1], r.iterations)]
+        self.levels.add([{"step": k, "time": step.time, **lv.row()} for lv in step.levels])
+        folder.table_file(self.tmp / table_name(k), table, scene.comm)
         if self.files.formats:
             nodal = point_fields(r)
             if r.friction is not None:
@@ -120,38 +131,41 @@ class StepWriter:
         self, path: LoadPath, wall: float | None = None, failure: dict | None = None
     ) -> dict[str, Any]:
         """The run's files after the last (converged) step; ``failure`` (``converged:
-        false``, the failed step) goes into summary.json.  Returns the summary."""
+        false``, the failed step) goes into summary.json.  The data files come first, the
+        pictures after them (a picture that fails is a warning, ``pictures`` in
+        summary.json), summary.json last.  Returns the summary."""
         tmp, comm = self.tmp, self.scene.comm
         last = path.steps[-1]
         r = last.result
-        folder.write_csv(tmp / "steps.csv", [_flat(row) for row in self.rows], comm)
-        folder.write_csv(tmp / "history.csv", self.history, comm)
-        if self.levels:
-            folder.write_csv(tmp / "convergence.csv", self.levels, comm)
+        self.rows.write_csv(tmp / "steps.csv", _flat)
+        self.history.write_csv(tmp / "history.csv")
+        if self.levels.count:
+            self.levels.write_csv(tmp / "convergence.csv")
         comparison = compare(last.scene, r)
         if failure is None:  # a failed run's last line is its error
             warn_coarse_zone(last.scene, r)
-        write_contact(tmp, last.scene, r, comparison, contact_table(last.scene, r))
+        table = contact_table(last.scene, r)
+        write_contact(tmp, last.scene, table)
         config = self.scene.config
         friction = config.friction.law if config.friction is not None else "none"
-        its = [s["newton_iterations"] for s in self.rows]
-        info = {
+        rows = list(self.rows.rows()) if comm.rank == 0 else []  # rank 0 writes summary.json
+        info: dict[str, Any] = {
             "scene": self.scene.name,
             "model": self.scene.config.model.type,
             "method": r.method,
             "friction": friction,
-            "steps_total": len(path.steps),
+            "steps_total": path.count,
             "stop": path.stop,
             "dofs": r.dofs,
             "mpi_ranks": comm.size,
             "converged": path.converged,
-            "newton_iterations": sum(its),
-            "newton_iterations_max_per_step": max(its),
+            "newton_iterations": self.iterations[0],
+            "newton_iterations_max_per_step": self.iterations[1],
             "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
             "host": platform.node(),
             **self.files.timings(),
             **posed_problem(last.scene),
-            "steps": self.rows,
+            "steps": rows,
         }
         if path.cuts:  # step cutting (load.cuts): the steps that were halved
             info["step_cuts"] = path.cuts
@@ -174,48 +188,82 @@ class StepWriter:
         if comparison is not None and config.reference is not None:
             info["reference"] = config.reference.type
             info.update(comparison.values)
-        if self.scene.config.output.png:
+        if config.output.png:
             origin, t0 = first_contact(last.scene, r)
-            if comm.rank == 0:
-                tables = [(t, table) for t, table in self.tables if table is not None]
+            normal = view_normal(last.scene, r)
+            name, dofs = self.scene.name, r.dofs
+
+            def traction(_) -> None:  # rank 0: the tables of the steps drawn, read back
                 plots.plot_traction(
                     tmp / "traction.png",
-                    tables,
-                    title=f"{self.scene.name}: contact tractions ({r.dofs} DoFs)",
-                    references=reference_curves(
-                        last.scene, self.tables[-1][1], comparison, origin, t0
-                    ),
+                    self.traction_tables(rows),
+                    title=f"{name}: contact tractions ({dofs} DoFs)",
+                    references=reference_curves(last.scene, table, comparison, origin, t0),
                 )
-            if comm.rank == 0 and self.rows and "obstacle_approach" in self.rows[0]:
-                plot_load_curve(tmp / "force.png", self.rows, self.scene.name, r.dofs)
-            plot_solution(
-                tmp / "solution.png",
-                last.scene,
-                r,
-                title=f"{self.scene.name}: u_h at t = {last.time:g} ({r.dofs} DoFs)",
-            )
+
+            pictures = [
+                *(
+                    []
+                    if r.problem.in_domain  # an obstacle in Ω: no contact boundary
+                    else [plots.Picture([], traction, tmp / "traction.png", root=True)]
+                ),
+                solution_picture(
+                    tmp / "solution.png",
+                    r,
+                    f"{name}: u_h at t = {last.time:g} ({dofs} DoFs)",
+                    normal,
+                ),
+                plots.Picture(
+                    [],
+                    lambda _: plot_load_curve(tmp / "force.png", rows, name, dofs),
+                    tmp / "force.png",
+                    root=True,
+                ),
+                *pressure_picture(tmp, last.scene, r, comparison, table),
+            ]
+            info["pictures"] = plots.draw_in_turn(pictures, comm)
+        for log in (self.rows, self.levels, self.history):
+            log.remove()
         _finish(tmp, info, comm)
         return info
+
+    def traction_tables(self, rows: list[dict[str, Any]]) -> list[tuple[float, Table]]:
+        """(t, contact table) of at most :data:`TRACTION_CURVES` steps, evenly spread from the
+        first to the last (rank 0: read back from the steps' contact_step_KKK.csv)."""
+        picked = sorted({int(round(i)) for i in np.linspace(0, len(rows) - 1, TRACTION_CURVES)})
+        out = []
+        for i in picked if rows else []:
+            file = self.tmp / table_name(rows[i]["step"])
+            if file.exists():
+                out.append((rows[i]["time"], folder.read_table(file)))
+        return out
+
+
+def table_name(step: int) -> str:
+    """The contact table of load step ``step`` (1, 2, …): contact_step_000.csv, …"""
+    return f"contact_step_{step - 1:03d}.csv"
 
 
 def plot_load_curve(path: Path, rows: list[dict[str, Any]], name: str, dofs: int) -> None:
     """force.png: the contact force of each step against the obstacle's approach if the
     obstacle moves, else the prescribed displacement if there is one, else the pseudo-time
     (:mod:`contact.post.load_curve`); steps where the energy search met an indefinite
-    tangent, and unstable solutions, marked."""
+    tangent, and unstable solutions, marked.  With friction the normal force −Σ w λ_n
+    and the magnitude of the tangential (friction) force, each a curve."""
     axes = (
         ("obstacle_approach", "obstacle's approach (displacement towards the body)"),
         ("prescribed_displacement", "largest prescribed displacement |u_D|"),
         ("time", "pseudo-time t"),
     )
     key, label = next(
-        (k, lb) for k, lb in axes if k == "time" or np.ptp([0.0, *(row[k] for row in rows)]) > 0
+        (k, lb)
+        for k, lb in axes
+        if k == "time" or np.ptp([0.0, *(row.get(k, 0.0) for row in rows)]) > 0
     )
-    x = [row[key] for row in rows]
     plots.plot_force_displacement(
         path,
-        x,
-        [row["contact_force"] for row in rows],
+        [row[key] for row in rows],
+        load_forces(rows),
         label,
         title=f"{name}: force–displacement ({dofs} DoFs)",
         indefinite=[row.get("indefinite_newton_steps", 0) > 0 for row in rows],
@@ -223,9 +271,29 @@ def plot_load_curve(path: Path, rows: list[dict[str, Any]], name: str, dofs: int
     )
 
 
+def load_forces(rows: list[dict[str, Any]]) -> dict[str, list[float]]:
+    """The forces of the force–displacement curve, by label, one value per step: with
+    friction the normal force (−Σ w λ_n: the pressure's resultant, ≥ 0 in contact) and
+    |tangential force|; otherwise ``contact_force`` (its magnitude if it is a vector)."""
+    if rows and "normal_force" in rows[0]:
+        return {
+            "normal force (pressure resultant)": [-float(row["normal_force"]) for row in rows],
+            "|tangential force| (friction)": [
+                float(np.linalg.norm(row["tangential_force"])) for row in rows
+            ],
+        }
+    return {
+        "contact force": [
+            float(np.linalg.norm(f)) if np.ndim(f) else float(f)
+            for f in (row["contact_force"] for row in rows)
+        ]
+    }
+
+
 def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     """The first point of contact (smallest initial gap, over all ranks; collective) and, in
-    2D, the tangent t_0 of the position's sign convention."""
+    2D with a contact normal (elasticity), the tangent t_0 of the position's sign convention
+    (None for the scalar models, whose tractions have no tangential part)."""
     from ..models.obstacles import first_contact_point
 
     p = result.problem
@@ -233,7 +301,7 @@ def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     gdim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
     return first_contact_point(scene.comm, X, con.sign * con.g), (
-        tangent_2d(result) if gdim == 2 else None
+        tangent_2d(result) if gdim == 2 and "n" in p.data else None
     )
 
 

@@ -35,6 +35,8 @@ import numpy as np
 from dolfinx import cpp, fem
 from mpi4py import MPI
 
+from .folder import Collection, write_on_root
+
 
 def _degree(V: fem.FunctionSpace) -> int:
     return V.element.basix_element.degree
@@ -233,10 +235,13 @@ def write_vtu(
     """One ``.vtu`` file with the fields (collective; rank 0 writes).  ``field_data`` adds
     global numbers (e.g. the level and the DoFs) as VTK field data."""
     grid = gather_grid(point_fields, cell_fields)
-    if grid is not None:
+
+    def save() -> None:
         for key, value in (field_data or {}).items():
             grid.field_data[key] = np.atleast_1d(value)
         save_vtu(path, grid)
+
+    write_on_root(point_fields[0].function_space.mesh.comm, save, Path(path).name)
 
 
 def save_vtu(path: str | Path, grid) -> None:
@@ -321,12 +326,15 @@ VTK_TYPES = {
 class Series:
     """A time series ``<folder>/<name>.pvd`` of ``<name>_KKK.vtu`` files (collective).
 
-    ``write(t, ...)`` adds one step with time value ``t`` and rewrites the collection, so
-    the .pvd always lists every file written so far."""
+    ``write(t, ...)`` adds one step with time value ``t`` and appends it to the collection
+    (:class:`contact.output.folder.Collection`: a step's cost does not grow with the steps
+    before it), so that the .pvd always lists every file written so far."""
 
     def __init__(self, folder: str | Path, name: str, comm: MPI.Comm = MPI.COMM_WORLD):
         self.folder, self.name, self.comm = Path(folder), name, comm
-        self.steps: list[tuple[float, str]] = []
+        self.count = 0
+        head, tail = pvd([]).split(PVD_ROWS)
+        self._collection = Collection(self.path, head, tail)
 
     @property
     def path(self) -> Path:
@@ -339,21 +347,29 @@ class Series:
         cell_fields: Sequence[fem.Function] = (),
         field_data: dict | None = None,
     ) -> Path:
-        file = f"{self.name}_{len(self.steps):03d}.vtu"
+        file = f"{self.name}_{self.count:03d}.vtu"
         write_vtu(self.folder / file, point_fields, cell_fields, {"time": t, **(field_data or {})})
-        self.steps.append((float(t), file))
-        if self.comm.rank == 0:
-            self.path.write_text(pvd(self.steps))
+        write_on_root(
+            self.comm, lambda: self._collection.append(pvd_row(float(t), file)), self.path.name
+        )
+        self.count += 1
         return self.folder / file
 
 
+PVD_ROWS = "<!-- rows -->\n"  # where the rows go in the empty collection
+
+
 def pvd(steps: Sequence[tuple[float, str]]) -> str:
-    """The ParaView collection file of (time value, file name) pairs."""
-    rows = "\n".join(
-        f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(f)}/>' for t, f in steps
-    )
+    """The ParaView collection file of (time value, file name) pairs (with none, the
+    placeholder :data:`PVD_ROWS` where the rows go)."""
+    rows = "".join(pvd_row(t, f) for t, f in steps) or PVD_ROWS
     return (
         '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '
         'byte_order="LittleEndian">\n'
-        f"  <Collection>\n{rows}\n  </Collection>\n</VTKFile>\n"
+        f"  <Collection>\n{rows}  </Collection>\n</VTKFile>\n"
     )
+
+
+def pvd_row(t: float, file: str) -> str:
+    """One line of a .pvd: the file of time value ``t``."""
+    return f'    <DataSet timestep="{t!r}" part="0" file={quoteattr(file)}/>\n'

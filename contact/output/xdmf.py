@@ -12,7 +12,14 @@ that every field of a step sits on one grid:
   ``<name>.xdmf``, the temporal collection ``<Grid GridType="Collection"
   CollectionType="Temporal">`` of those grids, each with its ``<Time Value="t"/>`` (the level,
   or the load step's pseudo-time) and DataItems pointing into the step's ``.h5``.  ParaView
-  opens it as one animation; meshio's ``xdmf.TimeSeriesReader`` reads the steps.
+  opens it as one animation; meshio's ``xdmf.TimeSeriesReader`` reads the steps.  Each step
+  is appended to the collection (:class:`contact.output.folder.Collection`): the cost of a
+  step does not grow with the steps before it, and no step's XML is kept in memory.
+
+A failed HDF5 write (a full disk) fails on every rank alike — each operation of
+``XDMFFile`` is agreed on by all ranks — and raises :class:`contact.output.folder.OutputError`
+naming the ``.h5`` file and the cause, after the file is released and closed
+(:mod:`contact.output.hdf5`).
 
 DOLFINx's own XML gives each function its own temporal collection beside the mesh, which
 ParaView shows as one block per field and meshio reads one field of; its DataItems (HDF5
@@ -25,10 +32,13 @@ every DoF kept; ParaView draws them as quadratic cells.
 
 from __future__ import annotations
 
-import copy
+import errno
+import os
+import shutil
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import basix.ufl
 import numpy as np
@@ -36,6 +46,8 @@ from dolfinx import fem, graph, io
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from . import hdf5
+from .folder import Collection, OutputError, write_on_root
 from .vtk import cell_rows, nodal_rows
 
 HEADER = '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
@@ -50,29 +62,115 @@ def write_xdmf(
     path = Path(path)
     points, cells = on_output_mesh(point_fields, cell_fields)
     msh = (points or cells)[0].function_space.mesh
-    with io.XDMFFile(msh.comm, str(path), "w") as xdmf:
-        xdmf.write_mesh(msh)
-        for fn in (*points, *cells):
-            xdmf.write_function(fn)
+    write_h5(path, msh, (*points, *cells))
 
     def rewrite() -> ET.Element:
-        grid = one_grid(path, path.stem)
+        try:
+            grid = one_grid(path, path.stem)
+        except ET.ParseError:  # DOLFINx's XML is cut short where the disk filled up
+            if _no_space(path):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)) from None
+            raise
+        finally:  # after the XML: the claim's unused space kept until then
+            hdf5.trim(path.with_suffix(".h5"))
         _write_document(path, grid)
         return grid
 
-    return _on_root(msh.comm, rewrite)
+    return write_on_root(msh.comm, rewrite, path.name)
+
+
+def write_h5(path: Path, msh: dmesh.Mesh, fields: Sequence[fem.Function]) -> None:
+    """The mesh and ``fields`` into ``path`` (.xdmf) and its .h5 by ``dolfinx.io.XDMFFile``
+    (collective; HDF5 through MPI-IO), into the space :func:`contact.output.hdf5.claim`
+    allocated (:func:`h5_bytes`; a full disk is an OutputError before HDF5 writes).  Every
+    rank agrees on the outcome of each operation: if one fails on any rank, every rank
+    releases the file (:func:`contact.output.hdf5.release`: its open datasets closed, its
+    data cut), closes it and raises an OutputError naming the .h5 file and the cause."""
+    comm = msh.comm
+    h5 = path.with_suffix(".h5")
+    nbytes = h5_bytes(msh, fields)
+
+    def prepare() -> None:  # HDF5 must never meet a full disk (contact.output.hdf5)
+        path.unlink(missing_ok=True)
+        hdf5.claim(h5, nbytes)
+
+    write_on_root(comm, prepare, h5.name)
+    xdmf: io.XDMFFile | None = None
+    reason: str | None = None
+
+    def agreed(operation: Callable[[], object]) -> bool:
+        nonlocal reason
+        try:
+            operation()
+        except RuntimeError as err:  # DOLFINx's message; HDF5's reason is in its error stack
+            reason = hdf5.cause() or _no_space(path) or str(err)
+        return not comm.allreduce(reason is not None, op=MPI.LOR)
+
+    def create() -> None:  # "a": into the file claim() made
+        nonlocal xdmf
+        xdmf = io.XDMFFile(comm, str(path), "a")
+
+    def write(fn: fem.Function) -> Callable[[], object]:
+        assert xdmf is not None  # created by the first agreed operation
+        return lambda: xdmf.write_function(fn)
+
+    if agreed(create):
+        assert xdmf is not None
+        if agreed(lambda: xdmf.write_mesh(msh)) and all(agreed(write(fn)) for fn in fields):
+            if agreed(xdmf.close):
+                return  # the caller trims the claim (hdf5.trim) once it has read the XML
+    if xdmf is not None:  # a failure, agreed on by every rank: release and close the file
+        hdf5.release(h5, truncate=comm.rank == 0)
+        comm.Barrier()  # the data are cut before any rank closes
+        try:
+            xdmf.close()
+        except RuntimeError:
+            pass
+    reasons = [r for r in comm.allgather(reason) if r is not None]
+    raise OutputError(f"cannot write {h5.name}: {reasons[0]}")
+
+
+def h5_bytes(msh: dmesh.Mesh, fields: Sequence[fem.Function]) -> int:
+    """An upper bound of the bytes of the .h5 file of ``msh`` and ``fields``: all ranks'
+    datasets of 8-byte numbers (2D vectors padded to 3 components) and 5 % more, 64 KiB and
+    4 KiB a dataset for HDF5's own structures (measured: 12 KiB for 6 datasets)."""
+    cells = msh.topology.index_map(msh.topology.dim).size_global
+    nodes = msh.geometry.index_map().size_global
+    numbers = nodes * msh.geometry.dim + cells * msh.geometry.dofmaps[0].shape[1]
+    for fn in fields:
+        V = fn.function_space
+        bs = V.dofmap.index_map_bs
+        numbers += V.dofmap.index_map.size_global * (3 if bs == 2 else bs)
+    return int(8.4 * numbers) + 65536 + 4096 * (2 + len(fields))
+
+
+def _no_space(path: Path) -> str | None:
+    """'No space left on device' when the file system of ``path`` has less than
+    :data:`FULL` bytes free (what a failed write there most likely met), else None."""
+    try:
+        full = shutil.disk_usage(path.parent).free < FULL
+    except OSError:
+        return None
+    return os.strerror(errno.ENOSPC) if full else None
+
+
+FULL = 1 << 20  # free bytes below which a file system counts as full
 
 
 class XdmfSeries:
     """A time series ``<folder>/<name>.xdmf`` of the steps ``<name>_KKK.xdmf`` (collective).
 
-    ``write(t, ...)`` adds one step with time value ``t`` and rewrites the collection, so it
-    always lists every step written so far."""
+    ``write(t, ...)`` adds one step with time value ``t`` and appends its grid to the
+    collection, which therefore lists every step written so far."""
 
     def __init__(self, folder: str | Path, name: str, comm: MPI.Comm = MPI.COMM_WORLD):
         self.folder, self.name, self.comm = Path(folder), name, comm
         self.count = 0
-        self.steps: list[ET.Element] = []  # rank 0: the grids of the collection
+        head = (
+            f'{HEADER}<Xdmf Version="3.0">\n  <Domain>\n    <Grid Name={quoteattr(name)} '
+            'GridType="Collection" CollectionType="Temporal">\n'
+        )
+        self._collection = Collection(self.path, head, "    </Grid>\n  </Domain>\n</Xdmf>\n")
 
     @property
     def path(self) -> Path:
@@ -87,19 +185,15 @@ class XdmfSeries:
         file = self.folder / f"{self.name}_{self.count:03d}.xdmf"
         grid = write_xdmf(file, point_fields, cell_fields)
 
-        def collect() -> None:
-            assert grid is not None  # collect runs on rank 0, where write_xdmf returns the grid
-            step = copy.deepcopy(grid)
-            step.set("Name", self.name)  # one name for every step: one grid in ParaView's list
-            step.insert(0, ET.Element("Time", Value=repr(float(t))))
-            self.steps.append(step)
-            series = ET.Element(
-                "Grid", Name=self.name, GridType="Collection", CollectionType="Temporal"
-            )
-            series.extend(self.steps)
-            _write_document(self.path, series)
+        def append() -> None:
+            assert grid is not None  # append runs on rank 0, where write_xdmf returns the grid
+            grid.set("Name", self.name)  # one name for every step: one grid in ParaView's list
+            grid.insert(0, ET.Element("Time", Value=repr(float(t))))
+            ET.indent(grid, level=3)  # its place in the collection: Xdmf/Domain/Grid/Grid
+            grid.tail = None  # the step file's layout after it
+            self._collection.append(f"      {ET.tostring(grid, encoding='unicode')}\n")
 
-        _on_root(self.comm, collect)
+        write_on_root(self.comm, append, self.path.name)
         self.count += 1
         return file
 
@@ -154,21 +248,6 @@ def _write_document(path: Path, grid: ET.Element) -> None:
     ET.SubElement(root, "Domain").append(grid)
     ET.indent(root)
     path.write_text(HEADER + ET.tostring(root, encoding="unicode") + "\n")
-
-
-def _on_root(comm: MPI.Comm, action: Callable):
-    """``action()`` on rank 0 (collective): its value there, None elsewhere; if it fails,
-    an OSError with its message on every rank."""
-    value, problem = None, None
-    if comm.rank == 0:
-        try:
-            value = action()
-        except Exception as err:  # noqa: BLE001 - reported on every rank below
-            problem = f"{type(err).__name__}: {err}"
-    problem = comm.bcast(problem, root=0)
-    if problem is not None:
-        raise OSError(f"writing XDMF failed on rank 0: {problem}")
-    return value
 
 
 # ------------------------------------------------------------------ P2 on a quadratic mesh

@@ -46,14 +46,18 @@ def prescribed_displacement(result) -> float:
 
 
 def load_displacements(scene: Scene, result) -> dict[str, float]:
-    """{'obstacle_approach': a(t) at the first point of contact (module doc),
-    'prescribed_displacement': max |u_D|} of a step (collective)."""
-    p = result.problem
-    con = p.constraint
-    gdim = scene.mesh.geometry.dim
-    X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    origin = first_contact_point(scene.comm, X, con.sign * con.g)
+    """{'obstacle_approach': a(t) at the first point of contact (module doc; 0 for a scene
+    whose contact is not with one rigid obstacle — bodies against each other, a scalar
+    scene's gap or obstacle function), 'prescribed_displacement': max |u_D|} of a step
+    (collective)."""
+    approach = 0.0
+    if scene.config.obstacle is not None and not scene.config.pairs:
+        p = result.problem
+        con = p.constraint
+        gdim = scene.mesh.geometry.dim
+        X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
+        approach = obstacle_approach(scene, first_contact_point(scene.comm, X, con.sign * con.g))
     return {
-        "obstacle_approach": obstacle_approach(scene, origin),
+        "obstacle_approach": approach,
         "prescribed_displacement": prescribed_displacement(result),
     }

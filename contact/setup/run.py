@@ -508,6 +508,7 @@ def run_load_path(
     adaptive: bool | None = None,
     adapt_options: dict | None = None,
     keep_all: bool = False,
+    forget: bool = False,
     **options: Any,
 ) -> LoadPath:
     """Solve the scene's quasi-static load path step by step.
@@ -539,6 +540,9 @@ def run_load_path(
         adapt_options: Overrides of the scene's ``adapt`` section.
         keep_all: Keep every step whole (for short paths: each whole step holds MPI
             communicators, of which MPI has a few thousand).
+        forget: Drop released steps from ``LoadPath.steps`` altogether (counted in
+            ``LoadPath.forgotten``), for a caller that keeps each step's figures itself as
+            it goes (the CLI's step writer): the path's memory then stays flat.
         **options: Solver options as for :func:`contact.solve`.
 
     Returns:
@@ -609,6 +613,7 @@ def run_load_path(
         make_step=make_step,
         verbose=verbose,
         keep_all=keep_all,
+        forget=forget,
     )
 
 
