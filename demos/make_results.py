@@ -2785,6 +2785,37 @@ def _stopping_table(runs: list[dict], estimate: bool = False) -> list[str]:
     return out
 
 
+def _cost_elastic(rs: list[dict]) -> list[str]:
+    """The elastic estimate's cost against one CG + GAMG solve of K, compiled and NumPy
+    patch backends (``bench_equilibrated.py --cost-elastic``), with its phases."""
+    by = {r["backend"]: r for r in rs}
+    c, n = by.get("compiled"), by.get("numpy")
+    if c is None:
+        return []
+    numpy_text = ""
+    if n is not None:
+        same = abs(c["eta"] - n["eta"]) / abs(c["eta"])
+        numpy_text = (
+            f", {g(n['estimate_cpu'])} s = {g(n['ratio_cpu'])}× with the NumPy patch backend, "
+            f"the same η to {same:.0e}"
+        )
+    return [
+        f"**Cost of the elastic estimate, {c['dofs']} DoFs "
+        f"({c['scene']} refined uniformly {c['refinements']} times), {c['ranks']} rank(s)** "
+        f"(`bench_equilibrated.py --cost-elastic {c['refinements']}`, CPU seconds in one "
+        f"process, medians of {c['repeat']} runs in turn; "
+        "[`cost_elastic.csv`](results/equilibrated/cost_elastic.csv)): one CG + GAMG solve of K "
+        f"(rigid-body near-nullspace, {c['cg_iterations']} iterations) {g(c['solve_cpu'])} s; "
+        "the whole elastic estimate (the Korn constant, the weakly symmetric stress, the "
+        f"terms; `elastic_bound`) {g(c['estimate_cpu'])} s = **{g(c['ratio_cpu'])}×** with the "
+        f"C kernels (the default){numpy_text}.  Wall seconds of its phases: the Korn constant "
+        f"{g(c['seconds_korn'])}, the cell operators and patches {g(c['seconds_patches'])}, "
+        f"the divergence and rotation moments {g(c['seconds_rotations'])}, the terms "
+        f"{g(c['seconds_terms'])}.",
+        "",
+    ]
+
+
 def guaranteed() -> str:
     """Section 12: the equilibrated bound against the residual estimator per level
     (demos/bench/bench_equilibrated.py), the reconstruction's cost, adaptive stopping
@@ -2922,6 +2953,7 @@ def guaranteed() -> str:
             + ".",
             "",
         ]
+    out += _cost_elastic(rows(folder / "cost_elastic.csv") or [])
     stop = rows(RES / "stopping" / "stopping.csv") or []
     if stop:
         out += [
