@@ -42,7 +42,7 @@ rows, u0 = [], None
 for level in range(LEVELS):
     result = contact.solve(scene, u0=u0)
     bound = contact.estimate(scene, result)
-    residual = residual_estimate(scene, result)
+    residual = residual_estimate(result.problem, result)
     error = energy_error(result.u_h, exact)
     rows.append((result.dofs, error, bound.eta, residual.eta))
     if level + 1 < LEVELS:

@@ -31,11 +31,11 @@ import sys
 from pathlib import Path
 
 import contact
-from contact.drivers.load_path import run_load_path
 from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
 from contact.post.interface import interface_resultants
 from contact.post.reference import compare
+from contact.setup.run import run_load_path
 
 import numpy as np
 from mpi4py import MPI

@@ -61,6 +61,13 @@ nitpick_ignore = [
     ("py:class", "contact.solvers.problem.DiscreteProblem"),
     ("py:class", "DiscreteProblem"),
     ("py:class", "contact.solvers.stopping.AdaptiveStopping"),
+    ("py:class", "contact.solvers.options.FrictionOptions"),
+]
+# The validators of the typed options' fields (Annotated[..., BeforeValidator(...)]), which
+# autodoc shows with each field's type: functions and constants of contact.base.validation
+# and contact.solvers.options, not API.
+nitpick_ignore_regex += [
+    (r"py:class", r"BeforeValidator|[A-Z_]+|[a-z_]+"),
 ]
 
 # MyST: $…$ math, definition lists, heading anchors for [text](page.md#anchor) links.
@@ -103,6 +110,7 @@ DEMO_ARGS = {
     "curved_indentation": "5",
     "guaranteed_bound": "8",
     "own_forms": "16",
+    "torsion": "32",
     "hp": "1e-3",
 }
 

@@ -8,7 +8,7 @@ import json
 import sys
 
 import contact
-from contact.drivers.adaptive import adapt
+from contact.setup.run import adapt
 
 from mpi4py import MPI
 from ties import tie_margin

@@ -12,10 +12,10 @@ margin (tests/ties.py)].
 import sys
 
 import contact
-from contact.models import build_problem
 from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
 from contact.output.run_report import resultants
+from contact.setup.build import build_problem
 
 import numpy as np
 from dolfinx import fem

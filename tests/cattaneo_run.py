@@ -8,8 +8,8 @@ under mpirun to compare rank counts.
 import sys
 
 import contact
-from contact.drivers.load_path import run_load_path
 from contact.post.reference import compare
+from contact.setup.run import run_load_path
 
 import numpy as np
 from mpi4py import MPI

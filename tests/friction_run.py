@@ -10,9 +10,9 @@ Newton iterations of every step; tests compare serial and parallel runs.
 import sys
 
 import contact
-from contact.drivers.load_path import run_load_path
 from contact.output.folder import gather_nodal
 from contact.post.contact_table import STATUS, contact_table
+from contact.setup.run import run_load_path
 
 import numpy as np
 from mpi4py import MPI

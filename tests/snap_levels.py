@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 import contact
-from contact.adaptivity.refine import refine
+from contact import refine
 
 import numpy as np
 from dolfinx import la

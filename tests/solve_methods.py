@@ -11,8 +11,8 @@ methods and across MPI sizes.
 import sys
 
 import contact
-from contact.models import build_problem
 from contact.output.folder import gather_nodal
+from contact.setup.build import build_problem
 from contact.solvers import method_variant, owned_residual
 
 import numpy as np

@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 
 import contact
-from contact.drivers.adaptive import adapt
 from contact.post.reference import compare
+from contact.setup.run import adapt
 
 import numpy as np
 import pytest

@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import contact as ct
-from contact.models import build_problem
+from contact.setup.build import build_problem
 
 import pytest
 from clirun import ROOT, contact, error_lines, small_scene

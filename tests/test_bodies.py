@@ -10,10 +10,10 @@ from pathlib import Path
 
 import contact
 from contact.base.errors import ConfigError
-from contact.models import build_problem
 from contact.models.mortar import master_pressure
 from contact.output.run_report import resultants
 from contact.post.reference import compare
+from contact.setup.build import build_problem
 
 import numpy as np
 import pytest

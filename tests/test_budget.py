@@ -9,8 +9,8 @@ import time
 from pathlib import Path
 
 import contact as ct
-from contact.models import build_problem
 from contact.setup import budget
+from contact.setup.build import build_problem
 from contact.setup.config import load_config
 
 import pytest

@@ -168,7 +168,7 @@ def _answer_keys(summary: dict) -> set[str]:
     return {k for k in summary if k not in VOLATILE and not k.startswith("time_")}
 
 
-def _same(a, b, where: str) -> None:
+def same(a, b, where: str) -> None:
     """JSON values a (serial) and b (parallel) agree: sizes exactly, figures to RTOL."""
     key = where.rsplit(".", 1)[-1].split("[")[0]
     if isinstance(a, dict):
@@ -176,7 +176,7 @@ def _same(a, b, where: str) -> None:
         keys, other = _answer_keys(a), _answer_keys(b)
         assert keys == other, f"{where}: {sorted(keys ^ other)}"
         for k in sorted(keys):
-            _same(a[k], b[k], f"{where}.{k}")
+            same(a[k], b[k], f"{where}.{k}")
     elif isinstance(a, list):
         assert isinstance(b, list) and len(a) == len(b), where
         if a and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in a + b):
@@ -187,7 +187,7 @@ def _same(a, b, where: str) -> None:
                 )
         else:
             for i, (x, y) in enumerate(zip(a, b)):
-                _same(x, y, f"{where}[{i}]")
+                same(x, y, f"{where}[{i}]")
     elif isinstance(a, float) or isinstance(b, float):
         # relative errors may be a balance of round-off (force_balance_error ~ 1e-15)
         atol = 1e-8 if key.endswith("_error") else ATOL
@@ -208,7 +208,7 @@ def _table(path: Path) -> tuple[list[str], list[list[str]]]:
     return header, sorted(body, key=lambda r: [round(float(r[i]), 10) for i in axes])
 
 
-def _same_table(a: Path, b: Path) -> None:
+def same_table(a: Path, b: Path) -> None:
     """Every column of two contact tables agrees to RTOL of its unit's scale: lengths (the
     coordinates, s, r, gap, slip) of the largest coordinate, tractions (λ, λ_n, λ_t, the
     bound) of the largest |λ_n| or |λ| — columns of round-off zeros (y on a plane y = 0, λ_t
@@ -263,10 +263,10 @@ def test_scene_under_mpirun_matches_serial(tmp_path: Path, serial, scene: str, r
     assert sorted(p.name for p in out.iterdir()) == names
     a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
     assert b["mpi_ranks"] == ranks
-    _same(a, b, "summary")
+    same(a, b, "summary")
     for name in names:
         if name == "contact.csv" or name.startswith("contact_step_"):
-            _same_table(ref / name, out / name)
+            same_table(ref / name, out / name)
 
 
 #: frictional load paths on issue 29's paths: every step grid-sequenced (the later ones with
@@ -293,10 +293,10 @@ def test_sequenced_gmres_friction_under_mpirun_matches_serial(tmp_path: Path, sc
         scale = abs(sa["normal_force"])
         ta, tb = sa.pop("tangential_force"), sb.pop("tangential_force")
         assert all(abs(x - y) <= RTOL * scale for x, y in zip(ta, tb)), (ta, tb)
-    _same(a, b, "summary")
+    same(a, b, "summary")
     for name in sorted(p.name for p in ref.iterdir()):
         if name == "contact.csv" or name.startswith("contact_step_"):
-            _same_table(ref / name, out / name)
+            same_table(ref / name, out / name)
     steps = list(csv.DictReader((ref / "steps.csv").read_text().splitlines()))
     assert len(steps) == 3
 

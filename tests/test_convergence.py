@@ -31,7 +31,7 @@ def test_exact_seminorm_matches_spec():
     from mpi4py import MPI
 
     scene = contact.load_scene(SCENE, ["mesh.cells=[64,32]"])
-    u = contact.setup.expressions.to_ufl(scene.config.data.exact, scene.mesh)
+    u = contact.base.expressions.to_ufl(scene.config.data.exact, scene.mesh)
     dx = ufl.dx(domain=scene.mesh, metadata={"quadrature_degree": 10})
     val = scene.comm.allreduce(
         fem.assemble_scalar(fem.form(ufl.inner(ufl.grad(u), ufl.grad(u)) * dx)), op=MPI.SUM

@@ -14,10 +14,10 @@ from __future__ import annotations
 
 import contact
 from contact import ConfigError
-from contact.models import build_problem
 from contact.models.hyperelastic import linearized_problem
 from contact.output.run_report import active_measure
 from contact.post.resultants import contact_resultants, reaction_force
+from contact.setup.build import build_problem
 from contact.solvers import owned_residual
 from contact.solvers.current import CurrentComplementarity, nodal_geometry
 

@@ -15,9 +15,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _demo(name: str, arg: str, cwd: Path) -> str:
+def _demo(name: str, arg: str, cwd: Path, ranks: int = 1) -> str:
+    cmd = [sys.executable, str(ROOT / "demos" / f"demo_{name}.py"), arg]
+    mpirun = [str(Path(sys.executable).parent / "mpirun"), "-n", str(ranks)]
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "demos" / f"demo_{name}.py"), arg],
+        mpirun + cmd if ranks > 1 else cmd,
         cwd=cwd,
         capture_output=True,
         text=True,
@@ -68,10 +70,19 @@ def test_demo_signorini_adaptive(tmp_path):
 
 
 def test_demo_hertz(tmp_path):
-    out = _demo("hertz", "2", tmp_path)
+    _hertz_checks(_demo("hertz", "2", tmp_path))
+
+
+def _hertz_checks(out: str) -> None:
     assert _number(r"relative difference (\S+)", out) < 1e-8
     assert abs(_number(r"peak pressure p0 = \S+ \(Hertz \S+, (\S+)%\)", out)) < 1.5
     assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 3.0
+
+
+def test_demo_hertz_on_two_ranks(tmp_path):
+    """The Hertz demo (own forms on the core, a gmsh mesh) under mpirun -n 2: the same
+    checks as serially."""
+    _hertz_checks(_demo("hertz", "2", tmp_path, ranks=2))
 
 
 def test_demo_friction(tmp_path):

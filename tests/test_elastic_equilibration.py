@@ -55,7 +55,7 @@ def test_a_constant_stress_is_reproduced() -> None:
     scene = _scene(LINEAR)
     result = contact.solve(scene, verbose=False)
     assert np.all(result.lmbda_h.x.array <= 1e-12) and result.lmbda_h.x.array.min() < -0.01
-    stress = reconstruct_stress(stress_data(scene, result))
+    stress = reconstruct_stress(stress_data(result.problem, result))
     p = result.problem
     mu, lam = p.data["mu"], p.data["lmbda_L"]
     eps = ufl.sym(ufl.grad(result.u_h))
@@ -63,14 +63,14 @@ def test_a_constant_stress_is_reproduced() -> None:
     dx = ufl.dx(domain=scene.mesh)
     err = np.sqrt(fem.assemble_scalar(fem.form(ufl.inner(diff, diff) * dx)))
     assert err < 1e-11
-    assert elastic_bound(scene, result).eta < 1e-8  # √(round-off of the complementarity)
+    assert elastic_bound(result.problem, result).eta < 1e-8  # √(round-off of the complementarity)
 
 
 @pytest.fixture(scope="module")
 def tresca():
     scene = _scene(["estimator=equilibrated"])
     result = contact.solve(scene, verbose=False)
-    return scene, result, reconstruct_stress(stress_data(scene, result))
+    return scene, result, reconstruct_stress(stress_data(result.problem, result))
 
 
 def test_equilibrium_cell_by_cell(tresca) -> None:
@@ -123,7 +123,7 @@ def test_compiled_patches_agree_with_numpy(tresca) -> None:
     σ_h to round-off (each patch's minimizer is unique; the two regularize the kernel of a
     closed patch differently, which moves only μ's kernel part)."""
     scene, result, stress = tresca
-    ref = reconstruct_stress(stress_data(scene, result), backend="numpy")
+    ref = reconstruct_stress(stress_data(result.problem, result), backend="numpy")
     got, want = (np.concatenate([r.x.array for r in s.rows]) for s in (stress, ref))
     assert np.abs(got - want).max() < 1e-11 * np.abs(want).max()
     assert stress.defect < 1e-9 and ref.defect < 1e-9
@@ -136,9 +136,9 @@ def test_patches_in_blocks_give_the_same_stress(tresca, monkeypatch, backend) ->
     from contact.adaptivity.equilibration import stress as module
 
     scene, result, _ = tresca
-    whole = reconstruct_stress(stress_data(scene, result), backend=backend)
+    whole = reconstruct_stress(stress_data(result.problem, result), backend=backend)
     monkeypatch.setattr(module, "PATCHES", 7)
-    blocks = reconstruct_stress(stress_data(scene, result), backend=backend)
+    blocks = reconstruct_stress(stress_data(result.problem, result), backend=backend)
     got, want = (np.concatenate([r.x.array for r in s.rows]) for s in (blocks, whole))
     assert np.abs(got - want).max() < 1e-11 * np.abs(want).max()
 
@@ -151,8 +151,8 @@ def test_without_a_compiler_the_numpy_patches_answer(tresca, tmp_path, monkeypat
     monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(compiled, "_RUN", compiled._Run())
     with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
-        got = reconstruct_stress(stress_data(scene, result))
-    want = reconstruct_stress(stress_data(scene, result), backend="numpy")
+        got = reconstruct_stress(stress_data(result.problem, result))
+    want = reconstruct_stress(stress_data(result.problem, result), backend="numpy")
     assert all(np.array_equal(a.x.array, b.x.array) for a, b in zip(got.rows, want.rows))
 
 
@@ -161,8 +161,8 @@ def test_bound_above_the_error_on_every_level() -> None:
     u0, eff = None, []
     for _ in range(5):
         result = contact.solve(scene, u0=u0, verbose=False)
-        bound = elastic_bound(scene, result)
-        err = solution_error(scene, result)
+        bound = elastic_bound(result.problem, result)
+        err = solution_error(result.problem, result)
         assert bound.eta >= err
         assert bound.parts["defect"] < 1e-9
         eff.append(bound.eta / err)
@@ -181,7 +181,7 @@ for path, sets in [("friction_tresca_manufactured.yaml", ["mesh.cells=[12,12]"])
                    ("hertz_2d.yaml", ["mesh.h=0.2", "mesh.h_contact=0.02"])]:
     scene = contact.load_scene(sys.argv[1] + "/" + path, sets + ["output.verbose=false"])
     r = contact.solve(scene, verbose=False, linear="direct")
-    b = elastic_bound(scene, r)
+    b = elastic_bound(r.problem, r)
     out[path] = [b.eta, b.parts["korn"]]
 if MPI.COMM_WORLD.rank == 0:
     print(json.dumps(out))

@@ -9,10 +9,10 @@ import sys
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
 from contact.post.hertz import hertz
 from contact.post.reference import compare
 from contact.post.resultants import contact_resultants
+from contact.setup.build import build_problem
 
 import numpy as np
 import pytest

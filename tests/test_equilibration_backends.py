@@ -44,7 +44,7 @@ def _solved(name: str):
 @pytest.mark.parametrize("name", list(SCENES))
 def test_backends_agree(name: str) -> None:
     scene, result = _solved(name)
-    data, multiplier, sign = flux_data(scene, result)
+    data, multiplier, sign = flux_data(result.problem, result)
     fast, ref = (reconstruct_flux(data, multiplier, sign, backend=b) for b in ("compiled", "numpy"))
     scale = np.abs(ref.sigma_h.x.array).max()
     # the same patch systems solved in another order (SIMD lanes, reciprocal pivots): they
@@ -56,7 +56,7 @@ def test_backends_agree(name: str) -> None:
     assert np.abs(fast.sigma_cells.x.array - ref.sigma_cells.x.array).max() < tol
     # osc_T is f − Π_p f: round-off (~1e-17) where f is a polynomial of degree ≤ p
     assert np.abs(fast.osc - ref.osc).max() <= 1e-10 * np.abs(ref.osc).max() + 1e-12 * scale
-    eta = [guaranteed_bound(scene, result, backend=b).eta for b in ("compiled", "numpy")]
+    eta = [guaranteed_bound(result.problem, result, backend=b).eta for b in ("compiled", "numpy")]
     assert abs(eta[0] - eta[1]) < 1e-10 * eta[1]
 
 
@@ -123,7 +123,7 @@ def test_flow_bound_is_guaranteed_in_3d() -> None:
     # where ∇u of the exact solution is 0/0
     data = result.problem.data
     error = energy_error(result.u_h, scene.config.data.exact, data["k"], quadrature_degree=6)
-    eta = {b: guaranteed_bound(scene, result, backend=b).eta for b in ("compiled", "flow")}
+    eta = {b: guaranteed_bound(result.problem, result, backend=b).eta for b in ("compiled", "flow")}
     assert error <= eta["flow"] <= 1.2 * eta["compiled"], (error, eta)  # measured 1.16
 
 
@@ -132,7 +132,7 @@ def test_no_compiler_falls_back(tmp_path, monkeypatch, missing: str) -> None:
     """A fresh machine without a C compiler, or whose cache folder cannot be made (a
     read-only home on CI: here a file where the folder should be), still estimates."""
     scene, result = _solved("A_P1")
-    data, multiplier, sign = flux_data(scene, result)
+    data, multiplier, sign = flux_data(result.problem, result)
     expected = reconstruct_flux(data, multiplier, sign, backend="numpy").sigma_h.x.array
     if missing == "compiler":
         monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
@@ -171,20 +171,20 @@ def test_lowest_order_agrees_and_bounds_the_error(name: str) -> None:
     from contact.adaptivity.energy_error import energy_error, solution_error
 
     scene, result = _solved(name)
-    data, multiplier, sign = flux_data(scene, result)
+    data, multiplier, sign = flux_data(result.problem, result)
     fast, ref = (
         reconstruct_flux(data, multiplier, sign, backend=b, degree=0) for b in ("compiled", "numpy")
     )
     _agree(fast, ref)
     assert fast.sigma_h.function_space.element.basix_element.degree == 1  # RT_0
-    bound = guaranteed_bound(scene, result, degree=0)
+    bound = guaranteed_bound(result.problem, result, degree=0)
     # 3D: a rule of degree 6 (test_flow_bound_is_guaranteed_in_3d)
     error = (
         energy_error(
             result.u_h, scene.config.data.exact, result.problem.data["k"], quadrature_degree=6
         )
         if name == "A_3D"
-        else solution_error(scene, result)
+        else solution_error(result.problem, result)
     )
     assert error <= bound.eta <= 2.2 * error, (bound.eta, error)
     # the flux carries Π_0 λ̃_h only: the rest λ̃_h − Π_0 λ̃_h enters osc_T

@@ -13,10 +13,10 @@ MARK / REFINE (contact/drivers/adaptive.py).
 import math
 
 import contact  # noqa: F401  (sets up the DOLFINx libraries before dolfinx is imported)
+from contact import refine
 from contact.adaptivity.energy_error import energy_error
 from contact.adaptivity.estimate import TERMS, indicator_terms, residual_estimate
 from contact.adaptivity.mark import dorfler_threshold, mark
-from contact.adaptivity.refine import refine
 from contact.setup.meshes import tag_boundaries
 
 import numpy as np
@@ -94,7 +94,7 @@ def test_estimator_vanishes_at_exact_discrete_solution(neumann_t):
     assert energy_error(result.u_h, "1 + x + 2*y") < 1e-10
     lam = np.abs(result.lmbda_h.x.array).max()
     assert lam < 1e-9
-    est = residual_estimate(scene, result)
+    est = residual_estimate(result.problem, result)
     assert set(est.terms) == set(TERMS)
     for name in QUADRATIC:
         assert abs(est.terms[name]) < 1e-20, (name, est.terms)
@@ -107,7 +107,7 @@ def test_estimator_vanishes_at_exact_discrete_solution(neumann_t):
     # the same with the exact data in place (λ_h = 0 exactly): η vanishes to round-off
     interp(result.u_h, exact_linear)
     result.lmbda_h.x.array[:] = 0.0
-    est = residual_estimate(scene, result)
+    est = residual_estimate(result.problem, result)
     for name, value in est.terms.items():
         assert abs(value) < 1e-20, (name, est.terms)
     assert est.eta < 1e-10
@@ -119,7 +119,7 @@ def test_wrong_neumann_flux_is_detected():
     scene = linear_scene(str(t_wrong))
     result = contact.solve(scene, verbose=False)
     assert result.converged and result.n_active == 0  # g = 10: far from contact, no tie
-    est = residual_estimate(scene, result)
+    est = residual_estimate(result.problem, result)
     assert est.terms["neumann"] > 1e-4
     assert est.terms["jump"] > 1e-4  # u_h is no longer linear
     assert est.eta > 1e-2
@@ -127,7 +127,7 @@ def test_wrong_neumann_flux_is_detected():
     # Σ_E h_E ‖t − k ∂u_h/∂n‖²_E = h_E (t − k)² |Γ_N| = (1/8)·1·1.
     interp(result.u_h, exact_linear)
     result.lmbda_h.x.array[:] = 0.0
-    est = residual_estimate(scene, result)
+    est = residual_estimate(result.problem, result)
     assert est.terms["neumann"] == pytest.approx((1 / 8) * (t_wrong - K1) ** 2, rel=1e-12)
     for name in TERMS:
         if name != "neumann":
@@ -193,7 +193,7 @@ def hand_made(signorini, lam, u="g - 0.5"):
     result.u_h.x.scatter_forward()
     result.lmbda_h.x.array[:] = 0.0
     set_values(result.lmbda_h, dofs, np.broadcast_to(lam(x) if callable(lam) else lam, x.shape))
-    return residual_estimate(scene, result)
+    return residual_estimate(result.problem, result)
 
 
 def test_sign_term(signorini):
@@ -207,7 +207,7 @@ def test_sign_term(signorini):
     # cellwise: λ_h ≡ 2 gives 4 h_E = 1/2 on each of the N2 cells with an edge on Γ_C
     scene, result, _, _ = signorini
     hand_made(signorini, 2.0)
-    per_cell = cellwise(indicator_terms(scene, result)["sign"])
+    per_cell = cellwise(indicator_terms(result.problem, result)["sign"])
     assert np.sort(per_cell)[-N2:] == pytest.approx(np.full(N2, 4 / N2), rel=1e-12)
     assert np.all(np.sort(per_cell)[:-N2] == 0.0)
 
@@ -275,7 +275,7 @@ def test_jump_term_exact(signorini):
     # |k ∂u_h/∂n| = k on x = 0, 1
     assert est.terms["neumann"] == pytest.approx(2 * K2**2 / N2, rel=1e-12)
     scene, result, _, _ = signorini
-    per_cell = cellwise(indicator_terms(scene, result)["jump"])
+    per_cell = cellwise(indicator_terms(result.problem, result)["jump"])
     mid = scene.mesh.geometry.x[
         dmesh.entities_to_geometry(scene.mesh, 2, np.arange(len(per_cell), dtype=np.int32))
     ].mean(axis=1)
@@ -324,7 +324,7 @@ def test_obstacle_sign_complementarity_and_volume(bound):
         result.u_h.x.scatter_forward()
         result.lmbda_h.x.array[:] = lam
         result.lmbda_h.x.scatter_forward()
-        return residual_estimate(scene, result).terms
+        return residual_estimate(result.problem, result).terms
 
     good = -sigma  # the admissible sign of λ
     feasible = -sigma * 0.5
@@ -490,7 +490,7 @@ def test_refine_keeps_boundary_tags_and_interpolates(source):
     for _ in range(3):
         result = contact.solve(scene, verbose=False)
         assert result.converged, result.reason
-        cells = mark(residual_estimate(scene, result).eta_T, "dorfler", 0.3)
+        cells = mark(residual_estimate(result.problem, result).eta_T, "dorfler", 0.3)
         assert 0 < len(cells) < scene.mesh.topology.index_map(2).size_local
         child, u0 = refine(scene, cells, result.u_h)
         # the transferred tags are those the predicates give on the new mesh
@@ -521,7 +521,7 @@ def test_refine_keeps_boundary_tags_and_interpolates(source):
     assert scene.mesh.topology.index_map(2).size_local < 4 * n_cells0  # local, not uniform
     # the refined scene still solves and estimates
     result = contact.solve(scene, verbose=False)
-    assert result.converged and np.isfinite(residual_estimate(scene, result).eta)
+    assert result.converged and np.isfinite(residual_estimate(result.problem, result).eta)
 
 
 # ---------------------------------------------------------------------------------------
@@ -543,7 +543,7 @@ def problem_A():
             result = contact.solve(scene, verbose=False)
             assert result.converged, result.reason
             assert result.u_h.function_space.ufl_element().embedded_superdegree == degree
-            est = residual_estimate(scene, result)
+            est = residual_estimate(result.problem, result)
             out[degree].append(
                 (est.eta, energy_error(result.u_h, scene.config.data.exact), est.terms)
             )

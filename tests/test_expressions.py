@@ -1,12 +1,12 @@
-"""Tests of the safe scene-data expressions (contact.setup.expressions)."""
+"""Tests of the safe scene-data expressions (contact.base.expressions)."""
 
 from __future__ import annotations
 
 import math
 
 import contact  # noqa: F401  (sets up dolfinx_solver before dolfinx is imported)
-from contact.setup import expressions as E
-from contact.setup.expressions import ExpressionError
+from contact.base import expressions as E
+from contact.base.expressions import ExpressionError
 
 import numpy as np
 import pytest

@@ -7,7 +7,7 @@ import dataclasses
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
+from contact.setup.build import build_problem
 from contact.solvers.friction import FrictionalComplementarity, tangential_law
 
 import numpy as np

@@ -16,8 +16,8 @@ import sys
 from pathlib import Path
 
 import contact
-from contact.drivers.load_path import run_load_path
-from contact.models import build_problem
+from contact.setup.build import build_problem
+from contact.setup.run import run_load_path
 from contact.solvers.friction import FrictionalComplementarity, GuardedFriction
 from contact.solvers.globalize import FRICTION_STALL, CycleGuard
 

@@ -8,8 +8,9 @@ algorithm) agrees with the new path."""
 
 import contact
 from contact.base.errors import ConfigError
-from contact.drivers.load_path import extrapolate, run_load_path
-from contact.models import build_problem
+from contact.drivers.load_path import extrapolate
+from contact.setup.build import build_problem
+from contact.setup.run import run_load_path
 from contact.solvers.block_system import BlockReducedSystem
 from contact.solvers.friction import FrictionalComplementarity
 

@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 import contact  # noqa: F401  (must precede dolfinx)
-from contact.adaptivity.refine import refine, refine_partitioner
+from contact import refine
+from contact.adaptivity.refine import refine_partitioner
 from contact.base.errors import ConfigError
 from contact.setup.geometry import (
     CONTACT,

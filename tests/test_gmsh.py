@@ -3,7 +3,7 @@ same answer as by predicate on the same mesh, semismooth Newton agrees with vine
 and the adaptive loop refines a gmsh mesh keeping its tags."""
 
 import contact
-from contact.models.scalar import scalar_problem
+from contact.setup.scalar import scalar_problem
 
 import numpy as np
 import pytest

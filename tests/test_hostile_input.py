@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 import contact as ct
-from contact.setup import expressions
+from contact.base import expressions
 from contact.setup.config import MAX_YAML_NODES, YAMLTooLarge, load_yaml
 
 import pytest

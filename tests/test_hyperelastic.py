@@ -554,7 +554,7 @@ def test_large_indentation_is_the_vi_solution_and_converges_under_refinement():
     step cuts) gives fb's u_h to 1e-8 of max |u_h| and its force at every step both reach;
     the force–indentation curve stiffens (increasing, convex); one uniform refinement moves
     F(0.5 R) by less than 1 % (demos/RESULTS.md §11.3: the study to 4 levels)."""
-    from contact.adaptivity.refine import refine
+    from contact import refine
 
     sets = ["mesh.h=0.1", "mesh.h_contact=0.1", "constants.delta=0.5", "load.steps=5"]
     scene = contact.load_scene(ROOT / "configs" / "hyperelastic_cylinder.yaml", sets)

@@ -17,8 +17,8 @@ import json
 
 import contact
 from contact import ConfigError
-from contact.adaptivity.refine import refine
 from contact.post.resultants import contact_resultants
+from contact.setup.run import refine
 
 import numpy as np
 import pytest

@@ -46,7 +46,7 @@ def solved():
     """The scene solved once, and η of the NumPy backend (the reference)."""
     scene = contact.load_scene(SCENE, ["output.verbose=false"])
     result = contact.solve(scene, verbose=False)
-    return scene, result, guaranteed_bound(scene, result, backend="numpy").eta
+    return scene, result, guaranteed_bound(result.problem, result, backend="numpy").eta
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +65,7 @@ def _estimate(scene, result, monkeypatch, levels: int = 2):
     monkeypatch.setattr(compiled, "_RUN", compiled._Run())
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        etas = [guaranteed_bound(scene, result).eta for _ in range(levels)]
+        etas = [guaranteed_bound(result.problem, result).eta for _ in range(levels)]
     return etas, [w for w in caught]
 
 
@@ -248,10 +248,10 @@ comm = MPI.COMM_WORLD
 os.environ["CONTACT_CACHE_DIR"] = sys.argv[2] if comm.rank == 0 else sys.argv[3]
 scene = contact.load_scene(sys.argv[1], ["output.verbose=false"])
 result = contact.solve(scene, verbose=False)
-reference = guaranteed_bound(scene, result, backend="numpy").eta
+reference = guaranteed_bound(result.problem, result, backend="numpy").eta
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    etas = [guaranteed_bound(scene, result).eta for _ in range(2)]
+    etas = [guaranteed_bound(result.problem, result).eta for _ in range(2)]
 backends = comm.allgather([v is not None for v in compiled._RUN.kernels.values()])
 lines = comm.allgather([str(w.message) for w in caught])
 if comm.rank == 0:

@@ -1,7 +1,7 @@
 """Krylov + GAMG gives the same discrete solution as the direct solver (issue #2)."""
 
 import contact
-from contact.models.scalar import scalar_problem
+from contact.setup.scalar import scalar_problem
 
 import numpy as np
 import pytest
@@ -71,7 +71,7 @@ import json
 import numpy as np
 from mpi4py import MPI
 import contact
-from contact.models.scalar import scalar_problem
+from contact.setup.scalar import scalar_problem
 from contact.solvers.linear import default_linear_solver
 from dolfinx import fem
 import ufl

@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 
 import contact
-from contact.drivers.load_path import load_times, run_load_path
-from contact.setup import expressions
+from contact.base import expressions
+from contact.setup.run import load_times, run_load_path
 
 import numpy as np
 import pytest

@@ -15,10 +15,10 @@ from pathlib import Path
 from unittest import mock
 
 import contact
-from contact.models import build_problem
 from contact.post.hertz import patch_average
 from contact.post.reference import compare
 from contact.setup import geometry
+from contact.setup.build import build_problem
 
 import numpy as np
 import pytest

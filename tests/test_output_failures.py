@@ -30,7 +30,7 @@ from pathlib import Path
 
 import pytest
 from clirun import MPIRUN, contact, error_lines, small_scene
-from test_rank_failures import _friction_scene
+from test_rank_failures import friction_scene
 
 PLANT = """
 import os, sys
@@ -113,7 +113,7 @@ PICTURES = {
 def test_a_failing_picture_is_one_warning(tmp_path: Path, case: str, ranks: int) -> None:
     what, picture, kind = PICTURES[case]
     scene = (
-        _friction_scene(tmp_path)
+        friction_scene(tmp_path)
         if kind == "friction"
         else small_scene(tmp_path / "scene.yaml", output={"png": True})
     )

@@ -2,7 +2,7 @@
 complementarity problem of the user's UFL forms with no scene.
 
 Checked against independent solvers: the scene path (``contact.solve`` of the same obstacle
-problem, built by models/scalar.py), PETSc's vinewtonrsls on the same forms, and the linear
+problem, built by setup/scalar.py), PETSc's vinewtonrsls on the same forms, and the linear
 path (a, L assembled once) against the nonlinear one (F = a(u, ·) − L re-assembled at
 every iterate, with non-zero Dirichlet values through the lifting).  The demo runs as a user
 runs it, serially and on 2 ranks, and agrees with vinewtonrsls to 1e-8."""
@@ -70,7 +70,7 @@ def membrane_forms(V):
 @pytest.mark.parametrize("method", METHODS)
 def test_forms_agree_with_the_scene_path(scene, method):
     """The same obstacle problem in plain UFL on the scene's mesh gives the scene's u_h, λ_h
-    and active set (models/scalar.py builds K, b, the weights and the bound on its own)."""
+    and active set (setup/scalar.py builds K, b, the weights and the bound on its own)."""
     reference = contact.solve(scene, method="vinewtonrsls", rtol=1e-12, atol=1e-14)
     V = reference.u_h.function_space
     a, L = membrane_forms(V)

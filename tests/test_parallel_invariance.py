@@ -142,14 +142,16 @@ NEXT_DOFS = """
 import json, sys
 from mpi4py import MPI
 import contact
-from contact.drivers.adaptive import mark, next_dofs_bound, refine
+from contact.adaptivity.mark import mark
+from contact.adaptivity.refine import next_dofs_bound
+from contact.setup.run import refine
 from dolfinx import fem
 scene = contact.load_scene(sys.argv[1])
 rows = []
 for level in range(4):
     r = contact.solve(scene, verbose=False)
     cells = mark(contact.estimate(scene, r).eta_T, "dorfler", 0.5)
-    bound = next_dofs_bound(scene, cells, r.u_h.function_space)
+    bound = next_dofs_bound(scene.mesh, cells, r.u_h.function_space)
     scene, u0 = refine(scene, cells, r.u_h)
     rows.append([bound, u0.function_space.dofmap.index_map.size_global])
 if MPI.COMM_WORLD.rank == 0:
@@ -175,7 +177,7 @@ from mpi4py import MPI
 import ufl
 from dolfinx import fem
 import contact
-from contact.drivers.sequencing import transfer
+from contact.setup.levels import transfer
 comm = MPI.COMM_WORLD
 scene = first = contact.load_scene(sys.argv[1], ["mesh.cells=[16,16]"])
 for _ in range(5):     # Dörfler: local refinement, each child mesh redistributed (adapt.rebalance)

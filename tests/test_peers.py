@@ -9,8 +9,8 @@ from pathlib import Path
 
 import contact  # sets up the DOLFINx libraries before dolfinx is imported
 from contact.adaptivity.energy_error import energy_error
+from contact.base import expressions
 from contact.output.run_report import active_measure, summary
-from contact.setup import expressions
 
 import numpy as np
 import pytest

@@ -18,7 +18,7 @@ SCRIPT = """
 import json
 import numpy as np
 import contact
-from contact.models import build_problem
+from contact.setup.build import build_problem
 scene = contact.load_scene("configs/signorini_square.yaml", ["mesh.cells=[8,8]", "data.f=1 + x"])
 p = build_problem(scene)
 fixed = np.zeros(p.b.getLocalSize(), bool)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
+from contact.setup.build import build_problem
 from contact.solvers.linear import AssembledSystem
 from contact.solvers.newton import Complementarity
 from contact.solvers.polish import Polisher

@@ -43,10 +43,6 @@ KNOWN: set[str] = {
             "contact.adaptivity.equilibration.operators._projected",
             "contact.adaptivity.equilibration.patches._assemble",
         ),
-        "contact/models/bodies.py": (
-            "contact.models.elasticity._facet_normal_axis",
-            "contact.models.obstacles._contact_nodes",
-        ),
         "contact/output/step_report.py": ("contact.output.run_report._finish",),
         "demos/bench/bench_kernels.py": ("contact.output.plots._smooth",),
         "tests/test_elastic_equilibration.py": (

@@ -111,7 +111,7 @@ def _ended_by(
     assert len(line) <= 300 and "Traceback" not in proc.stderr
 
 
-def _friction_scene(tmp: Path) -> Path:
+def friction_scene(tmp: Path) -> Path:
     """friction_block_2d on a 20 × 5 mesh, two load steps, traction.png kept (its data are
     gathered through the collectives under test)."""
     import yaml
@@ -124,9 +124,9 @@ def _friction_scene(tmp: Path) -> Path:
 
 
 # (target, rank, scene) — scene "square": the 8 × 8 Signorini square, one solve;
-# "adaptive": it with two uniform levels and pictures; "friction": _friction_scene
+# "adaptive": it with two uniform levels and pictures; "friction": friction_scene
 CASES = {
-    "solve of a load step": ("contact.drivers.load_path.solve", 1, "friction"),
+    "solve of a load step": ("contact.setup.run.solve", 1, "friction"),
     "step writer (surface figures)": ("contact.output.step_report.surface_figures", 1, "friction"),
     "VTK gather": ("contact.output.vtk._gather_rows", 1, "square"),
 }
@@ -136,7 +136,7 @@ CASES = {
 def test_exception_on_one_rank_ends_the_job(tmp_path: Path, case: str) -> None:
     target, rank, kind = CASES[case]
     if kind == "friction":
-        scene = _friction_scene(tmp_path)
+        scene = friction_scene(tmp_path)
     else:
         scene = small_scene(
             tmp_path / "scene.yaml",
@@ -199,7 +199,7 @@ def test_exception_on_one_rank_in_a_study_run_ends_the_job(tmp_path: Path) -> No
     """A study catches a failing run as a row — but only a failure on every rank: one
     rank's alone ends the job."""
     proc, seconds = _planted(
-        tmp_path, "contact.drivers.solve.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out"
+        tmp_path, "contact.setup.run.solve", 1, "study", str(_tiny_study(tmp_path)), "-o", "out"
     )
     _ended_by(
         proc, seconds, 1, 3, "internal error: study run method=fb: RuntimeError: planted in solve"
@@ -212,7 +212,7 @@ def test_exception_on_every_rank_in_a_study_run_is_a_row(tmp_path: Path) -> None
 
     proc, seconds = _planted(
         tmp_path,
-        "contact.drivers.solve.solve",
+        "contact.setup.run.solve",
         -1,
         "study",
         str(_tiny_study(tmp_path)),
@@ -237,7 +237,7 @@ def _interrupt(
     own) — or, for ``signum`` SIGTERM, ``kill -TERM`` of the command alone (mpiexec
     forwards it too).  Returns the process, its stderr and the seconds from the signal to
     its end."""
-    scene = _friction_scene(tmp)
+    scene = friction_scene(tmp)
     cmd = [
         sys.executable,
         "-m",

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contact
 from contact import ConfigError
 from contact.setup import config as config_module
+from contact.setup.build import build_problem
 from contact.setup.scene_config import (
     AdaptConfig,
     FrictionConfig,
@@ -104,7 +105,7 @@ def test_friction_options_have_the_scene_files_messages(key, value):
 def test_the_friction_rows_receive_the_typed_options():
     scene = contact.load_scene(FRICTION, ["mesh.cells=[8,4]", "friction.form=projection"])
     assert isinstance(scene.config.friction, FrictionConfig)
-    problem = contact.models.build_problem(scene)
+    problem = build_problem(scene)
     options = problem.friction.options
     assert type(options) is FrictionOptions  # the knobs alone, not the scene's section
     assert options == scene.config.friction.knobs() and options.form == "projection"

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import contact
 from contact.base.errors import ConfigError
-from contact.models import build_problem
+from contact.setup.build import build_problem
 from contact.solvers.result import SEMICOERCIVE_HINT, not_converged_text
 
 import numpy as np

@@ -10,7 +10,7 @@ import gc
 import contact
 from contact.base.lifetime import petsc_objects
 from contact.base.timing import Stopwatch
-from contact.models import build_problem
+from contact.setup.build import build_problem
 from contact.solvers.options import SolverOptions
 from contact.solvers.snes import SemismoothNewton, solve_problem
 

@@ -5,8 +5,9 @@ is solved: the answer must be the cold direct solve's to solver tolerance, and t
 counts the result reports must be those of the levels actually solved."""
 
 import contact
-from contact.drivers.sequencing import COARSEST_DOFS, transfer
-from contact.models import build_problem
+from contact.drivers.sequencing import COARSEST_DOFS
+from contact.setup.build import build_problem
+from contact.setup.levels import transfer
 
 import numpy as np
 import pytest

@@ -28,7 +28,7 @@ import numpy as np
 import pytest
 from clirun import ROOT, contact
 from readback import read_vtu, read_xdmf, xdmf_steps
-from test_cli_mpi import _same, _same_table
+from test_cli_mpi import same, same_table
 
 pytestmark = pytest.mark.mpi
 
@@ -202,10 +202,10 @@ def test_shipped_scene_with_its_outputs_on_two_ranks(tmp_path: Path, serial, sce
     assert sorted(p.name for p in out.iterdir()) == names
     a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
     assert b["mpi_ranks"] == 2
-    _same(a, b, "summary")
+    same(a, b, "summary")
     for name in names:
         if name == "contact.csv" or name.startswith("contact_step_"):
-            _same_table(ref / name, out / name)
+            same_table(ref / name, out / name)
 
 
 @pytest.mark.slow

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import contact
 from contact.adaptivity.energy_error import energy_error
-from contact.models import build_problem
+from contact.setup.build import build_problem
 from contact.solvers import owned_residual
 
 import numpy as np

@@ -174,11 +174,11 @@ def test_failing_runs_are_rows(tmp_path: Path) -> None:
 def test_exceptions_are_rows(monkeypatch) -> None:
     """A run that raises (a ConfigError from an impossible combination or anything else)
     is a failure row; the next run still happens."""
-    import contact.drivers.solve
+    import contact.setup.run
     from contact.app.study import run_study
     from contact.base.errors import ConfigError
 
-    real = contact.drivers.solve.solve
+    real = contact.setup.run.solve
 
     def fake(scene, *args, **kw):
         method = scene.config.solver.method
@@ -188,7 +188,7 @@ def test_exceptions_are_rows(monkeypatch) -> None:
             raise RuntimeError("boom\nsecond line")
         return real(scene, *args, **kw)
 
-    monkeypatch.setattr(contact.drivers.solve, "solve", fake)
+    monkeypatch.setattr(contact.setup.run, "solve", fake)
     rows, _ = run_study(
         {
             "scene": str(SQUARE),

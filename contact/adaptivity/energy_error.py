@@ -7,7 +7,10 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from ..setup import expressions
+from ..base import expressions
+from ..models.discrete import Problem
+from ..models.physics import Elasticity
+from ..solvers.problem import DiscreteProblem
 
 
 def default_degree(u_h: fem.Function) -> int:
@@ -27,27 +30,28 @@ def _integrate(expr, msh, degree: int) -> float:
 
 def energy_error(
     u_h: fem.Function,
-    exact: str,
+    exact: str | ufl.core.expr.Expr,
     k=1.0,
     constants: dict | None = None,
     quadrature_degree: int | None = None,
     t: float = 1.0,
 ) -> float:
-    """‖u − u_h‖_E = (∫ k |∇(u − u_h)|² dx)^{1/2}, u given as an expression string.
+    """‖u − u_h‖_E = (∫ k |∇(u − u_h)|² dx)^{1/2}, u a UFL expression or an expression
+    string (in x, y, z, t and ``constants``, :mod:`contact.base.expressions`).
 
     The exact solution enters as a UFL expression (not an interpolant), so the error is
     exact up to quadrature of degree ``quadrature_degree`` (default :func:`default_degree`).
     """
     msh = u_h.function_space.mesh
     quadrature_degree = quadrature_degree or default_degree(u_h)
-    u = expressions.to_ufl(exact, msh, constants or {}, t=t)
+    u = expressions.to_ufl(exact, msh, constants or {}, t=t) if isinstance(exact, str) else exact
     e = ufl.grad(u - u_h)
     return float(np.sqrt(max(_integrate(k * ufl.inner(e, e), msh, quadrature_degree), 0.0)))
 
 
 def elastic_energy_error(
     u_h: fem.Function,
-    exact: list[str],
+    exact: str | list[str] | ufl.core.expr.Expr,
     mu: float,
     lmbda_L: float,
     constants: dict | None = None,
@@ -56,21 +60,13 @@ def elastic_energy_error(
 ) -> float:
     """‖u − u_h‖_E = a(u − u_h, u − u_h)^{1/2} = (∫ σ(e) : ε(e) dx)^{1/2}, e = u − u_h, for linear
     elasticity (Lamé μ, λ_L; plane strain in 2D), u given per component (energy per unit
-    thickness in 2D, its square root in the unit √(E·L^d))."""
-    from ..models.elasticity import epsilon, stress
+    thickness in 2D, its square root in the unit √(E·L^d)); u a UFL vector, or its
+    components as expression strings (one for all)."""
+    from ..models.physics import epsilon, stress
 
     msh = u_h.function_space.mesh
     quadrature_degree = quadrature_degree or default_degree(u_h)
-    gdim = msh.geometry.dim
-    texts = [exact] * gdim if isinstance(exact, str) else list(exact)
-    if len(texts) != gdim:
-        from ..base.errors import ConfigError
-
-        raise ConfigError(
-            f"data.exact: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
-        )
-    u = ufl.as_vector([expressions.to_ufl(e, msh, constants or {}, t=t) for e in texts])
-    e = u - u_h
+    e = _exact_vector(exact, msh, constants or {}, t) - u_h
     return float(
         np.sqrt(
             max(
@@ -81,18 +77,31 @@ def elastic_energy_error(
     )
 
 
-def solution_error(scene, result) -> float | None:
-    """The energy error of ``result`` against the scene's ``data.exact`` (None without one):
-    k-weighted for the scalar models, the elastic energy norm for elasticity."""
-    exact = scene.config.data.exact
-    if exact is None:
-        return None
-    data, constants = result.problem.data, scene.config.constants
-    if scene.config.model.type == "elasticity":
-        return elastic_energy_error(
-            result.u_h, exact, data["mu"], data["lmbda_L"], constants, scene.time
+def _exact_vector(exact, msh, constants: dict, t: float):
+    """A vector exact solution as UFL (given so, or one expression string per component)."""
+    if not isinstance(exact, (str, list, tuple)):
+        return exact
+    gdim = msh.geometry.dim
+    texts = [exact] * gdim if isinstance(exact, str) else list(exact)
+    if len(texts) != gdim:
+        from ..base.errors import ConfigError
+
+        raise ConfigError(
+            f"data.exact: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
         )
-    return energy_error(result.u_h, exact, data["k"], constants, t=scene.time)
+    return ufl.as_vector([expressions.to_ufl(e, msh, constants, t=t) for e in texts])
+
+
+def solution_error(problem: DiscreteProblem, result) -> float | None:
+    """The energy error of ``result`` against the exact solution the problem's physics
+    declares (None without one): k-weighted for the scalar equations, the elastic energy
+    norm for elasticity."""
+    physics = problem.physics if isinstance(problem, Problem) else None
+    if physics is None or physics.exact is None:
+        return None
+    if isinstance(physics, Elasticity):
+        return elastic_energy_error(result.u_h, physics.exact, physics.mu, physics.lmbda)
+    return energy_error(result.u_h, physics.exact, physics.k)
 
 
 def l2_error(

@@ -30,18 +30,23 @@ that did not converge.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ..setup.config import EQUILIBRATED
-from ..setup.scene import Scene
+from ..models.constraints import Friction, MortarPair, RigidObstacle, Unilateral
+from ..models.discrete import Problem
+from ..models.physics import Diffusion, Elasticity
 from ..solvers import Result
-from ..solvers.problem import DiscreteProblem
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
+#: the estimators of :func:`estimate`: the residual estimator (this module) and the guaranteed
+#: bounds of an equilibrated flux (:mod:`.equilibration`), σ_h ∈ RT_p or, for a P1 solution,
+#: the lowest-order flux σ_h ∈ RT_0
+KINDS = ("residual", "equilibrated", "equilibrated_rt0")
 
 
 @dataclass
@@ -77,21 +82,32 @@ def _cellwise(msh):
 
 
 def indicator_terms(
-    scene: Scene, result: Result, degree: fem.Function | None = None
+    problem: Problem, result: Result, degree: fem.Function | None = None
 ) -> dict[str, ufl.Form]:
     """Return the estimator's terms as UFL forms linear in a DG0 test function.
 
-    The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar models
-    (:func:`scalar_terms`) or of elasticity (:func:`elasticity_terms`); ``degree``: the
-    cells' polynomial degrees of an hp solution (DG0), scalar models only.
+    The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar
+    equations (:func:`scalar_terms`) or of an elastic body (:func:`elasticity_terms`);
+    ``degree``: the cells' polynomial degrees of an hp solution (DG0), scalar equations only.
     """
-    if not scene.config.elastic:
-        return scalar_terms(scene, result, degree)
-    return elasticity_terms(scene, result)
+    if isinstance(problem.physics, Diffusion):
+        return scalar_terms(problem, result, degree)
+    return elasticity_terms(problem, result)
+
+
+def _physics[T](problem: Problem, kind: type[T]) -> T:
+    """The problem's physics, which must be a ``kind``."""
+    physics = problem.physics
+    if not isinstance(physics, kind):
+        raise ValueError(
+            f"problem: its physics is {type(physics).__name__}, not {kind.__name__} "
+            "(declare it when the problem is built: physics=...)"
+        )
+    return physics
 
 
 def scalar_terms(
-    scene: Scene, result: Result, degree: fem.Function | None = None
+    problem: Problem, result: Result, degree: fem.Function | None = None
 ) -> dict[str, ufl.Form]:
     """The terms of the scalar Signorini and obstacle problems (module doc).
 
@@ -99,19 +115,24 @@ def scalar_terms(
     h_E/p_E, p_E the larger degree of the facet's cells (Melenk & Wohlmuth, Adv. Comput.
     Math. 15, 2001).
     """
-    msh = scene.mesh
-    p = result.problem
+    physics = _physics(problem, Diffusion)
+    msh = problem.V.mesh
     u_h, lmbda_h = result.u_h, result.lmbda_h
-    k, f, t, t_C, g = (p.data[key] for key in ("k", "f", "t", "t_C", "g_h"))
-    ds, bnd = p.data["ds"], scene.boundary
+    f, boundary = physics.f, physics.boundary
+    (condition,) = problem.contacts
+    assert isinstance(condition, Unilateral)  # a scalar problem's one condition
+    contact = () if condition.in_domain else condition.ids
+    loads = boundary.neumann
+    g = problem.bound_function()
+    ds = boundary.measure(msh)
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     h_S = ufl.avg(h_E)  # interior facets
     if degree is not None:
         h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
         h_E = h_E / degree
-    sigma = p.constraint.sign
-    flux = k * ufl.grad(u_h)  # k ∇u_h
-    obstacle = scene.config.model.type == "obstacle"
+    sigma = problem.constraint.sign
+    flux = physics.flux(u_h)  # k ∇u_h
+    obstacle = condition.in_domain
 
     residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
     terms = {
@@ -123,9 +144,9 @@ def scalar_terms(
         "sign": zero,
         "complementarity": zero,
     }
-    for i in bnd.ids_with_role("neumann"):
-        terms["neumann"] += h_E * (t - ufl.dot(flux, n)) ** 2 * w * ds(i)
-    for i in bnd.ids_with_role("natural"):
+    for i in (i for i in loads if i not in contact):
+        terms["neumann"] += h_E * (loads[i] - ufl.dot(flux, n)) ** 2 * w * ds(i)
+    for i in boundary.free:
         terms["neumann"] += h_E * ufl.dot(flux, n) ** 2 * w * ds(i)
     if obstacle:
         terms["sign"] = h_T**2 * ufl.max_value(sigma * lmbda_h, 0) ** 2 * w * dx
@@ -133,42 +154,34 @@ def scalar_terms(
             abs(ufl.min_value(sigma * lmbda_h, 0) * sigma * (u_h - g)) * w * dx
         )
     else:
-        for i in bnd.ids_with_role("contact"):
+        for i in contact:
+            t_C = loads.get(i, 0)
             terms["consistency"] += h_E * (lmbda_h + t_C - ufl.dot(flux, n)) ** 2 * w * ds(i)
             terms["sign"] += ufl.max_value(lmbda_h, 0) ** 2 * w * ds(i)
             terms["complementarity"] += abs(ufl.min_value(lmbda_h, 0) * (u_h - g)) * w * ds(i)
     return terms
 
 
-def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
-    """Return the terms of linear elasticity (docs/theory.md §5).
+def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
+    """Return the terms of an elastic body (docs/theory.md §5).
 
-    docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C
-    (normal n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
+    docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
+    n_c towards the obstacle, λ_n the contact pressure, g the initial gap)
 
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
 
     (consistency, tangential — frictionless —, sign, complementarity).
     """
-    from ..models.elasticity import stress
-
-    msh = scene.mesh
-    p = result.problem
+    physics = _physics(problem, Elasticity)
+    msh = problem.V.mesh
     u_h, lam = result.u_h, result.lmbda_h
-    f, t, ds, bnd = p.data["f"], p.data["t"], p.data["ds"], scene.boundary
+    f, boundary = physics.f, physics.boundary
+    ds = boundary.measure(msh)
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
-    n_c = p.data.get("n_ufl")  # normal towards the obstacle
-    rho = friction_bound(p, lam) if result.friction is not None else None
-    if "stresses" in p.data:  # a hyperelastic body: P(u_h), tractions per reference area
-        sigma = p.data["stresses"](u_h)[0]
-    else:
-        sigma = stress(u_h, p.data["mu"], p.data["lmbda_L"])
-    friction = None
-    if rho is not None:  # the solver's nodal λ_t,i and slip increments as P1 vectors
-        from ..solvers.friction import surface_functions
-
-        lam_t, slip = surface_functions(result)[:2]
-        friction = FrictionFields(lam_t, slip, rho)
+    rigid = [c for c in problem.contacts if isinstance(c, RigidObstacle)]
+    pairs = [c for c in problem.contacts if isinstance(c, MortarPair)]
+    sigma = physics.flux(u_h)  # σ(u_h), or P(u_h) of a hyperelastic body
+    frictional = result.friction is not None
     T = ufl.dot(sigma, n)  # traction σ(u_h) n
     terms = {
         "volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
@@ -183,25 +196,36 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
         "sign": zero,
         "complementarity": zero,
     }
-    for i in bnd.ids_with_role("neumann"):
+    for i, t in boundary.neumann.items():
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
-    for i in bnd.ids_with_role("natural"):
+    for i in boundary.free:
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
-    if n_c is not None:  # the rigid obstacle's contact parts
+    surface_fields = None
+    if frictional:  # the solver's nodal λ_t,i and slip increments as P1 vectors
+        from ..solvers.friction import surface_functions
+
+        surface_fields = surface_functions(result)[:2]
+    for obstacle in rigid:  # the rigid obstacle's contact parts
+        n_c, g_c = obstacle.surface.expression(ufl.SpatialCoordinate(msh))
         Tn = ufl.dot(T, n_c)
         Tt = T - Tn * n_c
-        if friction is not None:  # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms
-            # the slip s_t = (I − n nᵀ)(u_h − u_prev) of the load step
-            du = u_h - scene.history["u_prev"] if "u_prev" in scene.history else u_h
+        friction = None
+        if frictional and obstacle.friction is not None:
+            assert surface_fields is not None
+            rho = friction_bound(obstacle.friction, problem, lam)
+            friction = FrictionFields(surface_fields[0], surface_fields[1], rho)
+            # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms; the slip
+            # s_t = (I − n nᵀ)(u_h − u_prev) of the load step
+            du = u_h - problem.u_prev if problem.u_prev is not None else u_h
             lam_t, slip_t = friction.lam_t, du - ufl.dot(du, n_c) * n_c
             Tt = Tt - lam_t
             terms.update(friction_bound=zero, slip=zero)
-        for i in bnd.ids_with_role("contact"):
+        for i in obstacle.ids:
             terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
             terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
             terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
             terms["complementarity"] += (
-                abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - p.data["g_ufl"])) * w * ds(i)
+                abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - g_c)) * w * ds(i)
             )
             if friction is not None:
                 norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
@@ -211,8 +235,14 @@ def elasticity_terms(scene: Scene, result: Result) -> dict[str, ufl.Form]:
                     * w
                     * ds(i)
                 )
-    if scene.config.pairs:  # several bodies: the interface terms on both sides of each pair
-        for key, form in interface_terms(scene, result, w, n, h_E, T, friction).items():
+    if pairs:  # several bodies: the interface terms on both sides of each pair
+        friction = None
+        law = pairs[0].friction
+        if frictional and law is not None:
+            assert surface_fields is not None
+            rho = friction_bound(law, problem, lam)
+            friction = FrictionFields(surface_fields[0], surface_fields[1], rho)
+        for key, form in interface_terms(problem, result, pairs, w, n, h_E, T, friction).items():
             terms[key] = terms.get(key, zero) + form
     return terms
 
@@ -235,7 +265,14 @@ class FrictionFields:
 
 
 def interface_terms(
-    scene: Scene, result: Result, w, n, h_E, T, friction: FrictionFields | None
+    problem: Problem,
+    result: Result,
+    pairs: list[MortarPair],
+    w,
+    n,
+    h_E,
+    T,
+    friction: FrictionFields | None,
 ) -> dict[str, ufl.Form]:
     """Return the estimator terms on the pairs' surfaces, both sides measured.
 
@@ -250,19 +287,19 @@ def interface_terms(
     """
     from ..models.mortar import master_pressure, master_vector
 
-    p = result.problem
-    ds, bnd = p.data["ds"], scene.boundary
+    physics = _physics(problem, Elasticity)
+    msh = problem.V.mesh
+    ds = physics.boundary.measure(msh)
     lam = result.lmbda_h
     gap = result.gap.copy()  # the nodal gap, NaN off the constrained nodes → 0
     gap.x.array[np.isnan(gap.x.array)] = 0.0
     lam_m = master_pressure(result)
     Tn = ufl.dot(T, n)
     Tt = T - Tn * n
-    zero = fem.Constant(scene.mesh, 0.0) * w * ufl.dx(domain=scene.mesh)
+    zero = fem.Constant(msh, 0.0) * w * ufl.dx(domain=msh)
     terms = {"consistency_master": zero}
-    pairs = scene.config.pairs or ()
-    slave_ids = [bnd.ids[pair.slave] for pair in pairs]
-    master_ids = [bnd.ids[pair.master] for pair in pairs]
+    slave_ids = [i for pair in pairs for i in pair.ids]
+    master_ids = [i for pair in pairs for i in pair.master_ids]
     extra = {"consistency": zero, "tangential": zero, "sign": zero, "complementarity": zero}
     Tt_s, Tt_m = Tt, Tt
     # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
@@ -288,18 +325,15 @@ def interface_terms(
     return {**extra, **terms}
 
 
-def friction_bound(problem: DiscreteProblem, lam: fem.Function):
-    """Return ρ of the problem's friction law as UFL.
+def friction_bound(law: Friction, problem: Problem, lam: fem.Function):
+    """Return ρ of a friction law as UFL.
 
-    ρ of the problem's friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca the threshold s(x, t)
-    as the friction model wrote it (``problem.data['threshold']``).
+    ρ of a friction law (UFL): Coulomb F·(−λ_h)⁺, Tresca its threshold s(x, t) as
+    written.
     """
-    fs = problem.friction
-    assert fs is not None  # a frictional problem
-    if fs.law == "coulomb":
-        assert fs.coefficient is not None  # Coulomb's F
-        return fs.coefficient * ufl.max_value(-lam, 0)
-    return problem.data["threshold"]
+    if law.law == "coulomb":
+        return law.coefficient * ufl.max_value(-lam, 0)  # type: ignore[union-attr]
+    return law.threshold  # type: ignore[union-attr]
 
 
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:
@@ -309,66 +343,67 @@ def _assemble_cellwise(form: ufl.Form) -> la.Vector:
     return vec
 
 
-def estimate(scene: Scene, result: Result) -> Estimate:
-    """Estimate the error of a solve (the ESTIMATE step of the adaptive loop).
+def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
+    """Estimate the error of a solve of ``problem`` (the ESTIMATE step).
 
-    The scene's ``estimator`` chooses: ``residual`` assembles each term of η_T² once as a
-    DG0 vector (docs/theory.md §5; reliable up to an unknown constant); ``equilibrated``
-    and ``equilibrated_rt0`` reconstruct an equilibrated flux and return a guaranteed bound
-    ‖u − u_h‖_E ≤ η (docs/theory.md §9); ``auto`` is ``equilibrated`` for the scalar models
-    and ``residual`` for elasticity. Collective.
+    η_T and η of a solve of ``problem`` (collective): the residual estimator
+    (docs/theory.md §5) or a guaranteed bound from an equilibrated flux (§9).
 
     Args:
-        scene: The scene that was solved.
-        result: A solve of this scene on its mesh (:func:`contact.solve`).
+        problem: the solved problem (a :class:`~contact.models.forms.ComplementarityProblem`
+            or the problem of a result), with its physics declared.
+        result: its :class:`~contact.solvers.result.Result`.
+        kind: ``residual``, ``equilibrated`` (σ_h ∈ RT_p) or ``equilibrated_rt0`` (the
+            lowest-order flux of a P1 solution; scalar equations only).
 
     Returns:
-        The indicators η_T, the global η and each term's total.
-
-    Raises:
-        ValueError: If ``result`` is not a solve of ``scene`` on its mesh.
-
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
-        >>> est = contact.estimate(scene, contact.solve(scene, verbose=False))
-        >>> est.eta > 0, sorted(est.terms)[:2]
-        (True, ['complementarity', 'dirichlet'])
+        The :class:`Estimate`: η_T (DG0), η and each term's total.  A result of another
+        problem, or a kind that is not one of :data:`KINDS`, is a ValueError.
     """
-    if not isinstance(result, Result) or result.u_h.function_space.mesh is not scene.mesh:
+    problem = getattr(problem, "problem", None) or problem
+    if (
+        not isinstance(result, Result)
+        or not isinstance(problem, Problem)
+        or result.u_h.function_space.mesh is not problem.V.mesh
+    ):
         raise ValueError(
-            "result: expected the contact.Result of contact.solve on this scene (same mesh)"
+            "result: expected the contact.Result of a solve of this problem (same mesh)"
         )
-    if scene.config.estimator in EQUILIBRATED:  # docs/theory.md §9: a guaranteed bound
-        if scene.config.elastic:
-            from .equilibration.elastic import elastic_bound
+    if kind not in KINDS:
+        raise ValueError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
+    if kind == "residual":
+        return residual_estimate(problem, result)
+    # docs/theory.md §9: a guaranteed bound
+    if isinstance(problem.physics, Elasticity):
+        from .equilibration.elastic import elastic_bound
 
-            bound = elastic_bound(scene, result)
-        else:
-            from .equilibration.bound import guaranteed_bound
-            from .equilibration.flux import LOWEST
+        bound = elastic_bound(problem, result)
+    else:
+        from .equilibration.bound import guaranteed_bound
+        from .equilibration.flux import LOWEST
 
-            lowest = scene.config.estimator == "equilibrated_rt0"  # σ_h ∈ RT_0 (P1)
-            bound = guaranteed_bound(scene, result, degree=LOWEST if lowest else None)
-        return Estimate(bound.eta_T, bound.eta, bound.terms)
-    return residual_estimate(scene, result)
+        lowest = kind == "equilibrated_rt0"  # σ_h ∈ RT_0 (P1)
+        bound = guaranteed_bound(problem, result, degree=LOWEST if lowest else None)
+    return Estimate(bound.eta_T, bound.eta, bound.terms)
 
 
-def residual_estimate(scene: Scene, result: Result, degree: fem.Function | None = None) -> Estimate:
-    """Return the residual estimator of a solve of ``scene``, whatever its ``estimator``.
+def residual_estimate(
+    problem: Problem, result: Result, degree: fem.Function | None = None
+) -> Estimate:
+    """Return the residual estimator of a solve of ``problem``.
 
-    The residual estimator (docs/theory.md §5) of a solve of ``scene``, whatever the scene's
-    ``estimator`` says (collective): each term of η_T² assembled once as a DG0 vector, η_T²
-    their sum, each term's total the sum of its owned entries; ``degree``: the cells'
-    degrees of an hp solution (DG0: the weights h/p of :func:`scalar_terms`).
+    The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
+    term of η_T² assembled once as a DG0 vector, η_T² their sum, each term's total the sum
+    of its owned entries; ``degree``: the cells' degrees of an hp solution (DG0: the
+    weights h/p of :func:`scalar_terms`).
     """
-    terms = indicator_terms(scene, result, degree)
+    terms = indicator_terms(problem, result, degree)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())
     W = next(iter(terms.values())).arguments()[0].ufl_function_space()  # the DG0 space of w
     eta_T = fem.Function(W, name="eta_T")
     eta_T.x.array[:] = np.sqrt(np.maximum(eta_sq, 0.0))
-    comm = scene.comm
+    comm = problem.V.mesh.comm
     n_owned = W.dofmap.index_map.size_local
     totals = {
         name: comm.allreduce(float(np.sum(v.array[:n_owned])), op=MPI.SUM)

@@ -46,7 +46,7 @@ def dorfler_threshold(eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COM
 def mark(eta_T: fem.Function, strategy: str = "dorfler", theta: float = 0.5) -> np.ndarray:
     """Choose the cells to refine from the indicators η_T (the MARK step).
 
-    Values within a relative :data:`MARK_RTOL` (1e-6) below the threshold are marked too:
+    Values within a relative ``MARK_RTOL`` (1e-6) below the threshold are marked too:
     cells that are equal up to round-off and solver tolerance (symmetric ones, whose η_T
     differ by ~1e-16 depending on how the partition summed them, and by ~1e-8 where the
     partition changed GAMG's aggregates) are treated alike, so the refined meshes are the

@@ -1,13 +1,15 @@
-"""REFINE (docs/theory.md §6): refine the marked cells and carry the scene over.
+"""REFINE (docs/theory.md §6): refine the marked cells and carry a domain over.
 
-REFINE (docs/theory.md §6): the marked cells' edges refined (``dolfinx.mesh.refine``), the
-scene carried to the new mesh (tags, history, nested-iteration guess, curved boundaries
-snapped to their exact surfaces), and the refined mesh's partition.
+The marked cells' edges refined (``dolfinx.mesh.refine``), a :class:`Domain` carried to the
+new mesh (its tags and functions, the nested-iteration guess, curved boundaries snapped to
+their exact surfaces), and the refined mesh's partition.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -15,34 +17,65 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ..setup.geometry import builder_surfaces
-from ..setup.meshes import Boundary
-from ..setup.scene import Scene
-from ..setup.surfaces import boundary_surfaces, warn_undeclared_curves
 from . import longest_edge
 from .transfer import prolong, transfer_cell_tags, transfer_facet_tags
 
 
+@dataclass
+class Domain:
+    """A mesh and what refinement carries from it to its refined children.
+
+    Args:
+        mesh: the mesh.
+        facets: facet tags (the boundary parts a problem's measures read), or None.
+        cells: cell tags (bodies, materials), or None.
+        tags: more facet tags carried along by name (e.g. the curved surfaces a mesh
+            generator tagged).
+        functions: functions on the mesh carried along by prolongation (e.g. a load step's
+            previous displacement).
+        snap: called after each refinement as ``snap(parent, child)``: moves the child's new
+            boundary vertices onto exact surfaces (None: they stay at edge midpoints).
+        parent: (the domain this one was refined from, the parent cell of each new cell),
+            or None: the coarser domains grid sequencing may solve on first.
+
+    Example:
+        >>> import contact, numpy as np
+        >>> from dolfinx import mesh
+        >>> from mpi4py import MPI
+        >>> domain = contact.Domain(mesh.create_unit_square(MPI.COMM_WORLD, 4, 4))
+        >>> owned = domain.mesh.topology.index_map(2).size_local
+        >>> fine, _ = contact.refine(domain, np.arange(owned, dtype=np.int32))
+        >>> fine.mesh.topology.index_map(2).size_global, fine.parent[0] is domain
+        (128, True)
+    """
+
+    mesh: dmesh.Mesh
+    facets: dmesh.MeshTags | None = None
+    cells: dmesh.MeshTags | None = None
+    tags: dict[str, dmesh.MeshTags] = field(default_factory=dict)
+    functions: dict[str, fem.Function] = field(default_factory=dict)
+    snap: Callable[[Domain, Domain], None] | None = None
+    parent: tuple[Domain, np.ndarray] | None = None
+
+    @property
+    def comm(self) -> MPI.Comm:
+        """The mesh's communicator."""
+        return self.mesh.comm
+
+
 def refine(
-    scene: Scene,
+    domain: Domain,
     cells: np.ndarray,
     u_h: fem.Function | None = None,
-    rebalance: bool | None = None,
+    rebalance: bool = True,
     *,
     timings: dict[str, float] | None = None,
-) -> tuple[Scene, fem.Function | None]:
-    """Refine the marked cells and carry the scene over (the REFINE step).
+) -> tuple[Domain, fem.Function | None]:
+    """Refine the marked cells and carry the domain over (the REFINE step).
 
-    The marked cells' edges are refined (conforming, ``dolfinx.mesh.refine``), the boundary
-    tags carried to the new mesh, ``u_h`` interpolated onto it (nested iteration), and the
-    vertices of a curved boundary part moved onto its exact surface (the built-in Hertz
-    meshes and parts that declare a ``surface``; other parts keep dolfinx's midpoints — a
-    gmsh contact part that looks curved gets a one-line warning). The refined scene keeps
-    the pseudo-time, and the functions of ``scene.history`` (a load step's state from the
-    previous step) are prolonged with u_h. The two-body builders (``half_disks``,
-    ``sphere_on_block``) snap their curved surfaces by the mesh's own facet tags
-    (``scene.surfaces``), whatever parts the scene cut them into, and the body tags
-    (``scene.bodies``) follow the cells.
+    Refine the marked cells' edges (conforming, ``dolfinx.mesh.refine``), carry the
+    domain's tags to the new mesh, interpolate ``u_h`` onto it (nested iteration), prolong
+    the domain's functions, and snap the new boundary vertices (:attr:`Domain.snap`).
 
     The interpolation comes first: it evaluates u_h at the new nodes where dolfinx put
     them, inside the old mesh; a snapped node then keeps that value (u0(π(x)) = u_h(x),
@@ -53,49 +86,27 @@ def refine(
     partition-dependent vertex numbers (:mod:`.longest_edge`).
 
     Args:
-        scene: The scene to refine.
-        cells: Owned local cell indices, as :func:`contact.mark` returns them.
-        u_h: A function on the scene's mesh to carry over (e.g. ``result.u_h``), or None.
-        rebalance: In parallel, redistribute the refined mesh evenly over the ranks
-            (default: the scene's ``adapt.rebalance``, true); the mesh itself does not
-            depend on it.
-        timings: If given, receives the seconds of the parts: ``mesh`` (the marked edges
-            and ``dolfinx.mesh.refine`` itself, with the redistribution, the ghost layer
-            and the ties), ``transfer`` (facets, tags and functions carried over) and
-            ``snap`` (curved boundaries).
+        domain: the domain to refine.
+        cells: owned local cell indices to refine (as :func:`~.mark.mark` returns them).
+        u_h: a function on the domain's mesh to carry over (nested iteration), or None.
+        rebalance: in parallel, redistribute the refined mesh evenly over the ranks
+            (:func:`refine_partitioner`; the mesh itself does not depend on it).
+        timings: if given, receives the seconds of the parts: ``mesh`` (the marked edges
+            and ``dolfinx.mesh.refine`` with the redistribution and the ghost layer),
+            ``transfer`` (tags and functions carried over) and ``snap``.
 
     Returns:
-        The refined scene (its ``parent`` the scene and the parent cells) and ``u_h``
-        interpolated onto it (None if ``u_h`` was None).
-
-    Raises:
-        ValueError: On every rank, if ``cells`` are not owned local cell indices or
-            ``u_h`` is not a function on the scene's mesh.
-
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
-        >>> result = contact.solve(scene, verbose=False)
-        >>> cells = contact.mark(contact.estimate(scene, result).eta_T, "uniform")
-        >>> fine, u0 = contact.refine(scene, cells, result.u_h)
-        >>> cells_of = lambda s: s.mesh.topology.index_map(2).size_global
-        >>> cells_of(fine), cells_of(scene)
-        (1024, 256)
+        (the refined domain, u_h on it or None).  Cells that are not owned indices, or a
+        ``u_h`` on another mesh, are a ValueError (on every rank).
     """
-    cells = _owned_cells(scene, cells)
+    cells = _owned_cells(domain, cells)
     if u_h is not None and (
-        not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not scene.mesh
+        not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not domain.mesh
     ):
-        raise ValueError(
-            "u_h: expected a dolfinx.fem.Function on the scene's mesh (e.g. result.u_h of "
-            "contact.solve on this scene)"
-        )
-    if rebalance is None:
-        adapt = scene.config.adapt
-        rebalance = adapt.rebalance if adapt is not None else True
+        raise ValueError("u_h: expected a dolfinx.fem.Function on the domain's mesh")
     if not isinstance(rebalance, bool):
         raise ValueError(f"rebalance: expected true or false, got {rebalance!r}")
-    msh = scene.mesh
+    msh = domain.mesh
     tdim = msh.topology.dim
     clock = [time.perf_counter()]  # the start, then the end of each part
     msh.topology.create_entities(1)
@@ -106,51 +117,38 @@ def refine(
     clock.append(time.perf_counter())
     new.topology.create_entities(tdim - 1)
     new.topology.create_connectivity(tdim - 1, tdim)
-    tags = transfer_facet_tags(scene.boundary.tags, new, parent_cell, parent_facet)
-    history = {name: prolong(fn, new, parent_cell) for name, fn in scene.history.items()}
-    bodies = None if scene.bodies is None else transfer_cell_tags(scene.bodies, new, parent_cell)
-    surfaces = (
-        None
-        if scene.surfaces is None
-        else transfer_facet_tags(scene.surfaces, new, parent_cell, parent_facet)
-    )
-    child = Scene(
-        scene.config,
+
+    def facet_tags(tags: dmesh.MeshTags) -> dmesh.MeshTags:
+        return transfer_facet_tags(tags, new, parent_cell, parent_facet)
+
+    child = Domain(
         new,
-        Boundary(tags, dict(scene.boundary.ids), dict(scene.boundary.roles)),
-        time=scene.time,
-        history=history,
-        previous_time=scene.previous_time,
-        bodies=bodies,
-        surfaces=surfaces,
-        parent=(scene, parent_cell),
+        None if domain.facets is None else facet_tags(domain.facets),
+        None if domain.cells is None else transfer_cell_tags(domain.cells, new, parent_cell),
+        {name: facet_tags(tags) for name, tags in domain.tags.items()},
+        {name: prolong(fn, new, parent_cell) for name, fn in domain.functions.items()},
+        domain.snap,
+        (domain, parent_cell),
     )
     u0 = None if u_h is None else prolong(u_h, new, parent_cell)
     clock.append(time.perf_counter())
-    warn_undeclared_curves(scene.config, scene.mesh, scene.boundary)
-    for surface in boundary_surfaces(scene.config, scene.mesh.geometry.dim, scene.boundary):
-        surface.snap(new, tags)
-    # by the mesh's own tags of its curved surfaces
-    for surface in builder_surfaces(scene.config.mesh):
-        assert surfaces is not None  # a mesh builder with curved surfaces tags them
-        surface.snap(new, surfaces)
+    if domain.snap is not None:
+        domain.snap(domain, child)
     clock.append(time.perf_counter())
     if timings is not None:
         timings.update(zip(("mesh", "transfer", "snap"), np.diff(clock).tolist()))
     return child, u0
 
 
-def next_dofs_bound(scene: Scene, cells: np.ndarray, V: fem.FunctionSpace) -> int | None:
+def next_dofs_bound(msh: dmesh.Mesh, cells: np.ndarray, V: fem.FunctionSpace) -> int | None:
     """Return a lower bound of the DoFs after refining ``cells``.
 
-    A lower bound of the DoFs after refining ``cells`` (P1: one new vertex per marked edge;
-    refinement may split more edges for conformity), or None for P2.  An edge counts once,
-    on its owning rank, whichever rank's cells marked it (the same bound on any number of
-    ranks).
+    P1: one new vertex per marked edge (refinement may split more edges for conformity);
+    None for P2.  An edge counts once, on its owning rank, whichever rank's cells marked it
+    (the same bound on any number of ranks).
     """
     if V.element.basix_element.degree != 1:
         return None
-    msh = scene.mesh
     tdim = msh.topology.dim
     msh.topology.create_entities(1)
     edges = dmesh.compute_incident_entities(msh.topology, cells.astype(np.int32), tdim, 1)
@@ -183,11 +181,11 @@ def refine_partitioner(msh: dmesh.Mesh, rebalance: bool = True) -> Any:
     return dmesh.IdentityPartitionerPlaceholder()
 
 
-def _owned_cells(scene: Scene, cells: Any) -> np.ndarray:
+def _owned_cells(domain: Domain, cells: Any) -> np.ndarray:
     """``cells`` as int32 owned local cell indices; ValueError (collective) otherwise."""
     arr = np.asarray(cells)
-    comm = scene.comm
-    n_owned = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    comm = domain.comm
+    n_owned = domain.mesh.topology.index_map(domain.mesh.topology.dim).size_local
     problem: str | None
     if arr.ndim != 1 or (arr.size and not np.issubdtype(arr.dtype, np.integer)):
         problem = (

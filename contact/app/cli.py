@@ -102,7 +102,7 @@ def one_line_warning(message, category, filename, lineno, file=None, line=None):
     (ContactWarning) ``contact: warning: <message>``, any other (a library's)
     ``contact: warning: <Category>: <message> (<file>:<line>)`` — not Python's two lines
     with the source line."""
-    from ..setup.surfaces import ContactWarning
+    from ..base.errors import ContactWarning
 
     text = (
         f"contact: warning: {message}"
@@ -352,10 +352,10 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
     ``failed_step: k``) and the exit code is 1; a failing first step writes nothing."""
-    from ..drivers.load_path import run_load_path
     from ..output import folder
     from ..output.run_report import files_text
     from ..output.step_report import StepWriter
+    from ..setup.run import run_load_path
     from ..solvers.energy_search import tangent_text
 
     with folder.atomic_folder(outdir, comm, label) as tmp:

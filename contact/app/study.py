@@ -558,7 +558,7 @@ def _peak_rss_mib(comm: MPI.Comm) -> float:
 
 
 def _refine_uniformly(scene, times: int):
-    from ..adaptivity.refine import refine
+    from ..setup.run import refine
 
     for _ in range(times):
         tdim = scene.mesh.topology.dim
@@ -610,9 +610,8 @@ def run_one(
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
     other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
     from ..adaptivity.energy_error import solution_error
-    from ..adaptivity.estimate import estimate
-    from ..drivers.solve import solve
     from ..hp.adapt import adapt
+    from ..setup.run import estimate, solve
     from ..setup.scene import load_scene
     from ..solvers.result import not_converged_text
 
@@ -657,7 +656,7 @@ def run_one(
                 reason=result.reason,
             )
             if result.converged:
-                error = solution_error(scene, result)
+                error = solution_error(result.problem, result)
                 out.update(_figures(study, scene, result, estimate(scene, result).eta, error))
             else:
                 failure = not_converged_text(result)
@@ -754,9 +753,8 @@ def _run_path(
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
     (seconds, failure text)."""
     from ..adaptivity.energy_error import solution_error
-    from ..adaptivity.estimate import estimate
-    from ..drivers.load_path import run_load_path
     from ..post.friction_resultants import surface_figures
+    from ..setup.run import estimate, run_load_path
 
     def on_step(step) -> None:
         r = step.result
@@ -805,7 +803,7 @@ def _run_path(
         return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
     est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
     figures = _figures(
-        study, last.scene, last.result, est.eta, solution_error(last.scene, last.result)
+        study, last.scene, last.result, est.eta, solution_error(last.result.problem, last.result)
     )
     if last.result.friction is not None:
         surface = surface_figures(last.scene, last.result)

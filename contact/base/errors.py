@@ -1,7 +1,7 @@
 """Errors every layer raises or reads.
 
-:class:`ConfigError` is bad input (one line); :func:`petsc_message` is PETSc's own message
-of a ``petsc4py.PETSc.Error`` (one line).
+:class:`ConfigError` is bad input (one line); :class:`ContactWarning` a one-line warning;
+:func:`petsc_message` is PETSc's own message of a ``petsc4py.PETSc.Error`` (one line).
 """
 
 from __future__ import annotations
@@ -17,6 +17,13 @@ class ConfigError(ValueError):
     names it, e.g. ``solver.method: 'fbb' is not one of fb, min, blend, vinewtonrsls,
     vinewtonssls``. ``contact run`` prints it as one line and exits with code 2. A
     ``ValueError``, so code that catches those catches it too.
+    """
+
+
+class ContactWarning(UserWarning):
+    """A one-line warning about a problem or a scene.
+
+    The CLI prints it as ``contact: warning: ...``.
     """
 
 

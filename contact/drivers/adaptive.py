@@ -1,17 +1,22 @@
 """The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6).
 
-The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6), of
-:func:`contact.solve`, :mod:`contact.adaptivity.estimate`, :mod:`contact.adaptivity.mark`
-and :mod:`contact.adaptivity.refine`.
+The adaptive loop SOLVE → ESTIMATE → MARK → REFINE (docs/theory.md §6) over a user's
+builder: ``build(mesh)`` (or ``build(domain)``) gives the problem on each level's mesh, and
+the loop solves it (``contact.drivers.solve.solve``), estimates the error
+(``contact.adaptivity.estimate.estimate``), marks cells
+(:func:`contact.adaptivity.mark.mark`) and refines them
+(``contact.adaptivity.refine.refine``), carrying the solution to the refined mesh as the
+next level's initial guess (nested iteration).
 
 The pieces are plain functions so a user can write their own loop in a few lines::
 
-    scene = contact.load_scene("configs/signorini_free_boundary.yaml")
+    domain, u0 = contact.Domain(mesh, facet_tags), None
     for level in range(6):
-        result = contact.solve(scene)
-        est = contact.estimate(scene, result)
+        problem = build(domain)
+        result = contact.solve(problem, u0=u0)
+        est = contact.estimate(problem, result)
         cells = contact.mark(est.eta_T, "dorfler", theta=0.5)
-        scene, u0 = contact.refine(scene, cells, result.u_h)
+        domain, u0 = contact.refine(domain, cells, result.u_h)
 """
 
 from __future__ import annotations
@@ -25,23 +30,24 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from dolfinx import fem
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, estimate
 from ..adaptivity.mark import mark
-from ..adaptivity.refine import next_dofs_bound, refine
+from ..adaptivity.refine import Domain, next_dofs_bound, refine
 from ..base import progress
-from ..base.errors import ConfigError
 from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
-from ..models import build_problem
-from ..setup.budget import max_dofs
-from ..setup.scene import Scene
-from ..setup.scene_config import AdaptConfig
+from ..models.discrete import discrete
+from ..solvers.options import AdaptOptions, SolverOptions
+from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
-from .solve import solve
+from . import sequencing
+from .solve import options_of
+from .solve import solve as solve_problem
 
 
 @dataclass
@@ -50,10 +56,11 @@ class Level:
 
     Attributes:
         index: The level's number, 0 for the first mesh.
-        scene: The level's scene (its mesh).
+        domain: The level's domain (its mesh and tags).
+        problem: The problem built on it.
         result: The solve on this level.
         estimate: The error estimate of that solve.
-        error: The energy error against the scene's ``data.exact``, None without one.
+        error: The energy error against the physics' exact solution, None without one.
         seconds: Seconds spent per phase (``assembly``, ``solve``, ``estimate``, ``error``,
             ``mark``, ``refine``, ``output``).
         imbalance: Under MPI the busiest rank's owned DoFs over the mean (1 in serial).
@@ -64,7 +71,8 @@ class Level:
     """
 
     index: int
-    scene: Scene
+    domain: Domain
+    problem: DiscreteProblem
     result: Result
     estimate: Estimate
     error: float | None
@@ -77,7 +85,7 @@ class Level:
     @functools.cached_property
     def cells(self) -> int:
         """Return the number of cells of the level's mesh, over all ranks."""
-        msh = self.scene.mesh
+        msh = self.domain.mesh
         return msh.topology.index_map(msh.topology.dim).size_global
 
     def release(self) -> None:
@@ -85,13 +93,13 @@ class Level:
 
         Its solution's fields and PETSc objects
         (:meth:`~contact.solvers.result.Result.release`) and the indicator field η_T are
-        dropped, so the loop's memory follows the last level, not the sum of all. The mesh
-        stays while a finer level refers to it (the chain of coarser meshes
-        :mod:`contact.drivers.sequencing` solves on).
+        dropped, and so are its domain and problem, so the loop's memory follows the last
+        level, not the sum of all. The mesh stays while a finer level refers to it (the
+        chain of coarser meshes :mod:`contact.drivers.sequencing` solves on).
         """
         _ = self.cells  # cached while the mesh is at hand
         self.result.release()
-        self.estimate.eta_T = None  # type: ignore[assignment]
+        self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
         self.released = True
 
     def row(self) -> dict[str, Any]:
@@ -147,12 +155,12 @@ class AdaptResult:
 
     Attributes:
         levels: The levels solved, first to last (each a
-            :class:`~contact.drivers.adaptive.Level`).
+            :class:`~contact.drivers.adaptive.Level`, or a scene's level).
         stop: Why the loop stopped, e.g. ``"eta = 3.1e-03 <= tol = 4.0e-03"`` or
             ``"reached max_levels = 6"``.
     """
 
-    levels: list[Level] = field(default_factory=list)
+    levels: list[Any] = field(default_factory=list)  # the Level records (a scene's: SceneLevel)
     stop: str = ""
 
     @property
@@ -164,10 +172,11 @@ class AdaptResult:
 def rank_imbalance(V: fem.FunctionSpace) -> float:
     """Return max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective).
 
-    1 in serial; 1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain
-    at most 2/1.15 = 1.74×. Near 1 with ``adapt.rebalance`` (the default); without it a
-    refined mesh keeps its parents' partition, and refinement concentrated on one rank's
-    part of the domain unbalances the work.
+    max_r N_r / mean_r N_r of the DoFs N_r each rank owns (collective; 1 in serial):
+    1.15 means the busiest rank has 15 % more than its share, and 2 ranks gain at most
+    2/1.15 = 1.74×.  Near 1 with ``rebalance`` (the default); without it a refined
+    mesh keeps its parents' partition, and refinement concentrated on one rank's part of
+    the domain unbalances the work.
     """
     return busiest_share(V.mesh.comm, V.dofmap.index_map.size_local)
 
@@ -177,13 +186,10 @@ def busiest_share(comm: MPI.Comm, owned: int) -> float:
     return comm.allreduce(owned, op=MPI.MAX) * comm.size / max(comm.allreduce(owned, op=MPI.SUM), 1)
 
 
-def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
-    """Return the scene's ``adapt`` section with keyword overrides, validated.
-
-    The section's defaults if the scene has none; each override is validated as in the
-    scene file (the section itself was at load).
-    """
-    return (scene.config.adapt or AdaptConfig()).updated(**overrides)
+#: a level's solve: (problem, its domain, initial guess or None, adaptive stopping or None)
+LevelSolve = Callable[
+    [DiscreteProblem, Domain, fem.Function | None, AdaptiveStopping | None], Result
+]
 
 
 def check_on_level(on_level: Callable | None) -> None:
@@ -195,81 +201,97 @@ def check_on_level(on_level: Callable | None) -> None:
 
 
 def adapt(
-    scene: Scene,
+    build: Callable[[Any], Any],
+    domain: dmesh.Mesh | Domain,
     method: str | None = None,
-    on_level: Callable[[Level], None] | None = None,
-    verbose: bool | None = None,
+    *,
+    options: AdaptOptions | None = None,
+    solver: SolverOptions | None = None,
+    kind: str = "residual",
     u0: fem.Function | None = None,
+    on_level: Callable[[Level], None] | None = None,
     keep: Callable[[Level], bool] | None = None,
-    **options: Any,
+    solve: LevelSolve | None = None,
+    budget: int | None = None,
+    stopping: tuple[float, float] | None = None,
+    verbose: bool = False,
+    make_level: Callable[[Level], Level] | None = None,
+    **overrides: Any,
 ) -> AdaptResult:
-    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
+    """Run the h-adaptive loop SOLVE → ESTIMATE → MARK → REFINE over a user's builder.
 
-    The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` or the DoF
-    budget (``solver.max_dofs``), after ``max_levels`` levels, or when a solve does not
-    converge (the levels before it are kept). Each level after the first starts from the
-    previous level's solution interpolated onto the refined mesh (``nested``). Collective.
+    Run SOLVE → ESTIMATE → MARK → REFINE until η ≤ tol, the DoF budget or the level
+    budget is reached.
 
     Args:
-        scene: The first level's scene.
-        method: The solver method (fb, min, blend, vinewtonrsls, vinewtonssls); default
-            the scene's ``solver.method``.
-        on_level: Called with each :class:`~contact.drivers.adaptive.Level` once it is
-            estimated (the CLI writes the level's files there).
-        verbose: Print a table row per level (default: the scene's ``output.verbose``).
-        u0: The first level's initial guess (a load step's previous solution).
-        keep: Which levels keep their solution once the next level is estimated (and
-            ``on_level`` has written it): the others are released
-            (:meth:`~contact.drivers.adaptive.Level.release`: their rows, iterations, η
-            and errors stay) and the loop's memory follows its last level. None (the
-            default) keeps every level whole; ``lambda level: False`` releases all but
-            the last.
-        **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
-            ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
-            ``pictures``.
+        build: the problem on a level: ``build(mesh)`` when ``domain`` is a mesh,
+            ``build(domain)`` when it is a :class:`~contact.adaptivity.refine.Domain` (its
+            facet and cell tags carried through refinement); a
+            :class:`~contact.models.forms.ComplementarityProblem` or a model's problem,
+            with its physics declared (the estimator reads it).
+        domain: the first level's mesh or domain.
+        method: the solver's method (fb, min, blend, …).
+        options: the loop's :class:`~contact.solvers.options.AdaptOptions` (strategy,
+            theta, tol, max_dofs, max_levels, nested, rebalance, newton_rtol); keyword
+            ``overrides`` change single ones.
+        solver: the solver's options (default: the defaults); each level solves to
+            ``newton_rtol``.
+        kind: the estimator (``residual``, ``equilibrated``, ``equilibrated_rt0``).
+        u0: the first level's initial guess (e.g. a load step's previous solution).
+        on_level: called with each :class:`Level` once it is estimated (output as it goes).
+        keep: which levels keep their solution once the next level is estimated (and
+            ``on_level`` has written it): the others are released (:meth:`Level.release`:
+            their rows, iterations, η and errors stay) and the loop's memory follows its
+            last level. None (the default) keeps every level whole; ``lambda level:
+            False`` releases all but the last.
+        solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
+            of ``contact.drivers.solve.solve``, a first level without a guess sequenced
+            over the domain's ancestors).
+        budget: the most DoFs one solve may have (a memory budget), or None.
+        stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
+            needs an equilibrated ``kind``), or None: fixed tolerances.
+        verbose: print the convergence table as it goes (rank 0).
+        make_level: the record of a level as the loop keeps and hands it on (default the
+            :class:`Level` itself; a scene's loop adds its scene).
+        **overrides: single options of ``options`` (``theta=0.3``, ``max_levels=6``, …).
 
     Returns:
-        The levels and the reason the loop stopped.
-
-    Raises:
-        ConfigError: For an unknown or invalid option (one line naming it).
-        ValueError: If ``scene`` is not a Scene or ``on_level`` or ``keep`` is not callable.
-
-    :func:`contact.adapt` (which also runs the hp loop) shows it at work.
+        The :class:`AdaptResult`: the levels and why the loop stopped.
     """
     check_on_level(on_level)
     if keep is not None and not callable(keep):
         raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
-    opts = adapt_options(scene, **options)
-    if opts.strategy == "hp":  # contact.adapt and the CLI dispatch it to contact.hp
-        raise ConfigError("adapt.strategy: hp runs one solve per level (no load path, no study)")
-    verbose = scene.config.output.verbose if verbose is None else verbose
-    comm = scene.comm
+    opts = (options or AdaptOptions()).updated(**overrides)
+    knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
+    meshes = not isinstance(domain, Domain)  # the builder takes meshes
+    level_domain = Domain(domain) if isinstance(domain, dmesh.Mesh) else domain
+    if solve is None:
+        solve = _default_solve(build, knobs, meshes, opts.nested)
+    comm = level_domain.comm
     out = AdaptResult()
     start, outputs = time.perf_counter(), 0.0  # the loop's clock, and the outputs' share
     for index in range(opts.max_levels):
-        seconds = {}
-        problem = build_problem(scene)
+        seconds: dict[str, float] = {}
+        problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
-        # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
         result, est, passes = solve_level(
-            scene,
             problem,
+            level_domain,
             u0,
             seconds,
             f"level {index}",
-            method=method,
-            rtol=opts.newton_rtol,
-            sequence=None if opts.nested else "off",
+            solve,
+            kind,
+            stopping,
             previous=out.levels[-1] if out.levels else None,
         )
         with Timer(seconds, "error"):
-            error = solution_error(scene, result)
+            error = solution_error(problem, result)
         level = Level(
             index,
-            scene,
+            level_domain,
+            problem,
             result,
             est,
             error,
@@ -278,6 +300,8 @@ def adapt(
             passes=passes,
             elapsed=time.perf_counter() - start - outputs,
         )
+        if make_level is not None:
+            level = make_level(level)
         out.levels.append(level)
         # a failed level is dropped by the CLI: the one before it stays whole
         if keep is not None and index > 0 and result.converged and not keep(out.levels[-2]):
@@ -306,7 +330,7 @@ def adapt(
             break
         with Timer(seconds, "mark"):
             cells = mark(est.eta_T, opts.strategy, opts.theta)
-        bound = next_dofs_bound(scene, cells, result.u_h.function_space)
+        bound = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space)
         if bound is not None and bound > opts.max_dofs:  # refining would be wasted work
             out.stop = (
                 f"the next level would have at least {bound} DoFs > max_dofs = {opts.max_dofs}"
@@ -315,8 +339,8 @@ def adapt(
         parts: dict[str, float] = {}
         with Timer(seconds, "refine"):
             progress.note(f"level {index}: refining the marked cells")
-            new_scene, new_u0 = refine(
-                scene,
+            child, new_u0 = refine(
+                level_domain,
                 cells,
                 result.u_h if opts.nested else None,
                 opts.rebalance,
@@ -327,18 +351,45 @@ def adapt(
         V_next = (
             new_u0.function_space
             if new_u0 is not None
-            else fem.functionspace(new_scene.mesh, result.u_h.function_space.ufl_element())
+            else fem.functionspace(child.mesh, result.u_h.function_space.ufl_element())
         )
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
         if new_dofs > opts.max_dofs:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
             break
-        # memory budget of one solve
-        if new_dofs > (budget := max_dofs(scene.config.solver, scene.mesh.geometry.dim)):
+        if budget is not None and new_dofs > budget:  # the memory budget of one solve
             out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
             break
-        scene, u0 = new_scene, new_u0
+        level_domain, u0 = child, new_u0
     return out
+
+
+def _default_solve(build: Callable, knobs: SolverOptions, meshes: bool, nested: bool) -> LevelSolve:
+    """Return the default level solve of a user's builder.
+
+    A level's solve of a user's builder: one ``solve``; a level
+    without a guess (the first, or every level when not ``nested``) is sequenced over the
+    domain's ancestors with ≥ 4× fewer DoFs each (:func:`~.sequencing.ancestors`).
+    """
+    coarse_knobs = knobs.model_copy(update={"rtol": sequencing.COARSE_RTOL})
+
+    def solve(problem, domain: Domain, u0, criterion) -> Result:
+        coarse = None
+        if u0 is None and nested:
+            V = problem.V
+            levels = sequencing.ancestors(
+                domain, sequencing.ANCESTOR_RATIO, sequencing.COARSEST_DOFS, V.dofmap.index_map_bs
+            )[::-1]
+            if levels:
+                coarse = sequencing.hierarchy(
+                    lambda d: build(d.mesh if meshes else d),
+                    levels,
+                    domain,
+                    lambda p, guess: solve_problem(p, options=coarse_knobs, u0=guess),
+                )
+        return solve_problem(problem, options=knobs, u0=u0, coarse=coarse, criterion=criterion)
+
+    return solve
 
 
 #: adaptive stopping: at most this many solves of a level (each from the last one's solution)
@@ -351,31 +402,32 @@ PREDICTION_SAFETY = 0.5
 
 
 def solve_level(
-    scene: Scene,
-    problem,
+    problem: DiscreteProblem,
+    domain: Domain,
     u0: fem.Function | None,
     seconds: dict,
     label: str,
+    solve: LevelSolve,
+    kind: str,
+    stopping: tuple[float, float] | None,
     previous: Level | None = None,
-    **options: Any,
 ) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE one level.
 
-    SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``; options
-    of :func:`~contact.drivers.solve.solve`; ``label`` names it in progress lines); returns
-    (result, estimate, solves).
+    SOLVE and ESTIMATE of one level (``seconds['solve']``, ``seconds['estimate']``;
+    ``solve`` the level's solve, ``kind`` the estimator; ``label`` names it in progress
+    lines); returns (result, estimate, solves).
 
-    With ``solver.stopping: adaptive`` (:mod:`contact.solvers.stopping`) a level after the
-    first is solved against the discretization error it should reach, predicted from the
-    previous level at the optimal rate, :data:`PREDICTION_SAFETY` · η_prev (N_prev / N)^{p/d};
-    the level's η_disc is then
+    With adaptive stopping (``stopping`` = (γ_lin, γ_alg), :mod:`contact.solvers.stopping`)
+    a level after the first is solved against the discretization error it should reach,
+    predicted from the previous level at the optimal rate,
+    :data:`PREDICTION_SAFETY` · η_prev (N_prev / N)^{p/d}; the level's η_disc is then
     computed at the final iterate, and where the iterate fails either criterion against it
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
     level, with no η known yet, uses the fixed tolerances.
     """
-    solver = scene.config.solver
-    adaptive = solver.stopping == "adaptive" and previous is not None
+    adaptive = stopping is not None and previous is not None
     eta = None
     if adaptive:
         assert previous is not None  # adaptive needs the previous level's η
@@ -386,22 +438,20 @@ def solve_level(
     seconds["solve"] = seconds["estimate"] = 0.0
     krylov, passes = 0, 0
     while True:
-        stopping = (  # eta is known exactly when the stopping is adaptive
-            None if eta is None else AdaptiveStopping(eta, solver.gamma_lin, solver.gamma_alg)
+        criterion = (  # eta is known exactly when the stopping is adaptive
+            None if eta is None or stopping is None else AdaptiveStopping(eta, *stopping)
         )
         with Timer(seconds, "solve"):
-            result = solve(
-                scene, problem=problem, u0=u0, verbose=False, criterion=stopping, **options
-            )
+            result = solve(problem, domain, u0, criterion)
         progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
         with Timer(seconds, "estimate"):
-            est = estimate(scene, result)
+            est = estimate(problem, result, kind)
         krylov += result.krylov_iterations
         passes += 1
         if (
-            stopping is None
+            criterion is None
             or not result.converged
-            or stopping.balanced(est.eta)
+            or criterion.balanced(est.eta)
             or passes == MAX_PASSES
         ):
             break

@@ -1,59 +1,71 @@
-"""Quasi-static load paths (the ``load:`` section of a scene).
+"""Quasi-static load paths over a problem whose data depend on the pseudo-time t.
 
-A sequence of pseudo-times t_1 < t_2 < … < t_N, one contact solve per step.
+Quasi-static load paths: a sequence of pseudo-times t_1 < t_2 < … < t_N, one contact solve
+per step, over a problem whose data depend on t.
 
-Data expressions may use the pseudo-time ``t`` (e.g. ``u_D: ["0.01*t", "-delta"]``); step k
-solves the problem at t = t_k, starting from the solution of step k − 1 (a warm start), and
-friction's slip increments s_t = u_t − u_t^prev are measured from that solution (the state
-``u_prev`` of ``Scene.history``; zero before the first step).  A scene
-without a ``load:`` section is one step at t = 1.
+Step k solves the problem at t = t_k, starting from the solution of step k − 1 (a warm
+start); friction's slip increments s_t = u_t − u_t^prev are measured from that solution
+(the builder receives it).  From the third step on a step is offered the secant predictor
+(:func:`extrapolate`) beside the previous solution: Newton starts from the one of smaller
+‖Φ‖ (``Result.predictor``).
 
-With an ``adapt:`` section the adaptive loop runs at every step (``load.adapt: each``: step
-k refines on from the final mesh of step k − 1, so meshes only get finer and u_prev is
-carried exactly by nested prolongation) or at the last step only (``end``: steps 1 … N−1
-on the scene's mesh, the adaptive loop at t_N with u_prev prolonged to every level).
+A step that does not converge may be cut (``cuts``): the step from t_{k−1} to t_k is
+retried as two, to (t_{k−1} + t_k)/2 first, at most ``cuts`` times in a row; each cut is
+reported (``LoadPath.cuts``) and the failed attempt is not a step.  No cut makes a step
+shorter than :data:`MIN_STEP` × the last t.  Where a body's energy search met an
+indefinite tangent and found no stable state (``branches``: a hyperelastic body), the step
+is solved by plain Newton before it is cut (:func:`follow_branch`): an admissible
+equilibrium there is kept and reported with K_T's negative eigenvalues (``Step.branch``,
+``LoadPath.bifurcation``, ``LoadPath.branch_steps``), and plain Newton follows that branch
+while K_T stays indefinite (:func:`on_branch`).
 
-A path may have any number of steps: once step k is solved (and ``on_step`` has written its
-output), step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its
-functions, scene and meshes dropped — and keeps only its figures.  Every live function holds
-MPI communicators (two per vector on more than one rank) and MPI has a few thousand, so
-keeping every step whole (``keep_all``) suits short paths only.  With ``forget`` a released
-step is dropped altogether (``LoadPath.forgotten`` counts them): the path's memory does not
-grow with its steps, for a caller whose ``on_step`` keeps what it needs (the CLI writes each
-step's figures to disk).
+A path may have any number of steps: once step k is solved (and ``on_step`` has seen it),
+step k − 1 is released (:meth:`Step.release`) — its PETSc objects destroyed, its functions
+dropped — and keeps only its figures.  Every live function holds MPI communicators (two
+per vector on more than one rank) and MPI has a few thousand, so keeping every step whole
+(``keep_all``) suits short paths only.  With ``forget`` a released step is dropped
+altogether (``LoadPath.forgotten`` counts them): the path's memory does not grow with its
+steps, for a caller whose ``on_step`` keeps what it needs (the CLI writes each step's
+figures to disk).
+
+:func:`load_path` runs a user's builder ``build(t, u_prev)``; :func:`run_steps` is the loop
+itself, over a step's solve and, optionally, an adaptive loop at a step (the scene's:
+:mod:`contact.setup.run`).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from dolfinx import fem
+from mpi4py import MPI
 
-from ..setup.scene import Scene
-from ..setup.scene_config import SceneConfig
-from ..solvers import Result
+from ..models.discrete import discrete
 from ..solvers.energy_search import tangent_text
-from .adaptive import adapt
-from .solve import solve
+from ..solvers.options import SolverOptions
+from ..solvers.result import Result
+from .solve import options_of, solve
+
+#: no cut makes a step shorter than this fraction of the path's last pseudo-time (a scene's
+#: schema bounds ``load.cuts`` too: ``contact.setup.config.MAX_STEP_CUTS``)
+MIN_STEP = 1e-9
 
 
 @dataclass
 class Step:
-    """One load step, as :func:`contact.run_load_path` hands it to ``on_step``.
+    """One load step, as a load path hands it to ``on_step``.
 
     Attributes:
         index: The step's number, 1 … N.
         time: Its pseudo-time t.
-        scene: The scene it was solved on (the final mesh of its adaptive loop, if any);
-            None once the step is released.
         result: The solve (of the final level, for an adaptive step).
         levels: The adaptive loop's levels (:class:`~contact.drivers.adaptive.Level`), empty
             for a step without one.
         seconds: The step's wall time.
-        negative_eigenvalues: Hyperelastic bodies: the negative eigenvalues of the tangent
+        negative_eigenvalues: A body with an energy: the negative eigenvalues of the tangent
             K_T at the solution (None otherwise).
         min_det_F: Hyperelastic bodies: the smallest det F of the solution.
         branch: Hyperelastic bodies: how the step was solved on the equilibrium branch by
@@ -63,9 +75,8 @@ class Step:
 
     index: int  # 1 … N
     time: float
-    scene: Scene
     result: Result
-    levels: list = field(default_factory=list)  # adapt.Level of an adaptive step
+    levels: list = field(default_factory=list)  # adaptive.Level of an adaptive step
     seconds: float = 0.0
     negative_eigenvalues: int | None = None  # of K_T at the solution (hyperelastic bodies)
     min_det_F: float | None = None  # the smallest det F of the solution (hyperelastic bodies)
@@ -76,15 +87,13 @@ class Step:
     def release(self) -> None:
         """Keep the step's figures only.
 
-        Its result and its adaptive levels' results are released (``Result.release``:
-        iterations, residual, history, contact force stay; functions, nodal arrays and PETSc
-        objects go), its scene and the levels' scenes and η_T functions dropped.
+        Its result and its adaptive levels' results are released
+        (``contact.solvers.result.Result.release``: iterations, residual, history,
+        contact force stay; functions, nodal arrays and PETSc objects go).
         """
         for level in self.levels:
-            level.result.release()
-            level.scene, level.estimate.eta_T = None, None
+            level.release()
         self.result.release()
-        self.scene = None  # type: ignore[assignment]  # released: unused afterwards
 
 
 @dataclass
@@ -92,8 +101,9 @@ class LoadPath:
     """The steps of a quasi-static load path (:func:`contact.run_load_path`).
 
     Attributes:
-        steps: The steps solved, in order (each a :class:`~contact.drivers.load_path.Step`;
-            all but the last converged ones are released unless ``keep_all``).
+        steps: The steps solved, in order (each a :class:`~contact.drivers.load_path.Step`,
+            or a scene's step; all but the last converged ones are released unless
+            ``keep_all``).
         stop: Why the path stopped early, with the path's notes ("" when every step
             converged).
         failure: Why the path stopped short, in one short phrase (the step, t, the
@@ -110,7 +120,7 @@ class LoadPath:
         branch_steps: Every step on that branch: (step, t, negative eigenvalues of K_T).
     """
 
-    steps: list[Step] = field(default_factory=list)
+    steps: list = field(default_factory=list)
     stop: str = ""
     # why the path stopped short, in one short phrase (the step, t, the reason, the limit
     # of step cutting reached); `stop` adds the path's notes; '' when it reached its end
@@ -138,9 +148,25 @@ class LoadPath:
         return self.forgotten + len(self.steps)
 
 
-def load_times(cfg: SceneConfig) -> list[float]:
-    """The pseudo-times of the scene's load path ([1.0] without a ``load:`` section)."""
-    return list(cfg.load.times) if cfg.load is not None else [1.0]
+@dataclass
+class Previous:
+    """What a load step starts from.
+
+    What a step starts from: the previous step's solution ``u`` (None before the first),
+    its pseudo-time ``time``, the secant predictor's ``guess`` (or None), and what the
+    previous step was solved on (``where``: its mesh, scene…; None before the first).
+    """
+
+    u: fem.Function | None
+    time: float
+    guess: fem.Function | None
+    where: Any
+
+
+#: a step's solve: (t, what it starts from, solver overrides) → (what it was solved on, result)
+StepSolve = Callable[..., tuple[Any, Result]]
+#: the adaptive loop at a step: (t, what it starts from) → (its final mesh's…, result, levels)
+StepAdapt = Callable[[float, Previous], tuple[Any, Result, list]]
 
 
 def copy_function(fn: fem.Function, name: str) -> fem.Function:
@@ -150,44 +176,13 @@ def copy_function(fn: fem.Function, name: str) -> fem.Function:
     return out
 
 
-#: ``load.cuts`` of a hyperelastic scene (none given): a step may be halved 4 times in a row
-#: (to 1/16 of its length)
-HYPERELASTIC_CUTS = 4
-#: no cut makes a step shorter than this fraction of the path's last pseudo-time (the
-#: schema bounds ``load.cuts`` too: ``contact.setup.config.MAX_STEP_CUTS``)
-MIN_STEP = 1e-9
-
-
-def step_cuts(cfg: SceneConfig) -> int:
-    """Return how many times in a row a step that does not converge is halved.
-
-    ``load.cuts``; default :data:`HYPERELASTIC_CUTS` for a hyperelastic body, whose Newton
-    iteration converges only near enough to the solution, 0 for the linear models, whose
-    solution does not depend on the path but for friction.
-    """
-    cuts = cfg.load.cuts if cfg.load is not None else None
-    if cuts is not None:
-        return int(cuts)
-    return HYPERELASTIC_CUTS if cfg.model.type == "hyperelastic" else 0
-
-
-def secant_predictor(cfg: SceneConfig) -> bool:
-    """Return whether steps k ≥ 3 are offered the secant predictor.
-
-    ``load.predictor``, for the linear models: a hyperelastic step keeps its warm start,
-    and :func:`step_cuts` handles its failures.
-    """
-    predictor = cfg.load.predictor if cfg.load is not None else "secant"
-    return predictor == "secant" and cfg.model.type != "hyperelastic"
-
-
 def extrapolate(
     u_prev: fem.Function, u_prev2: fem.Function, t: float, t_prev: float, t_prev2: float
 ) -> fem.Function | None:
     """Return the secant predictor of step k from the two previous solutions.
 
-    The secant predictor u_k ≈ u_{k−1} + (t_k − t_{k−1}) / (t_{k−1} − t_{k−2}) (u_{k−1} −
-    u_{k−2}) (None when the two steps live on different meshes: ``load.adapt: each``).
+    u_k ≈ u_{k−1} + (t_k − t_{k−1}) / (t_{k−1} − t_{k−2}) (u_{k−1} − u_{k−2}) (None when the
+    two steps live on different meshes: an adaptive path).
     """
     V, W = u_prev.function_space, u_prev2.function_space
     if V.mesh is not W.mesh or len(u_prev.x.array) != len(u_prev2.x.array) or t_prev <= t_prev2:
@@ -198,124 +193,96 @@ def extrapolate(
     return out
 
 
-def run_load_path(
-    scene: Scene,
-    method: str | None = None,
-    on_step: Callable[[Step], None] | None = None,
-    verbose: bool | None = None,
-    adaptive: bool | None = None,
-    adapt_options: dict | None = None,
+def run_steps(
+    solve_step: StepSolve,
+    times: Sequence[float],
+    comm: MPI.Comm,
+    *,
+    adapt_step: StepAdapt | None = None,
+    adapt_each: bool = False,
+    cuts: int = 0,
+    predictor: bool = True,
+    branches: bool = False,
+    on_step: Callable[[Any], None] | None = None,
+    make_step: Callable[..., Step] | None = None,
+    verbose: bool = False,
     keep_all: bool = False,
     forget: bool = False,
-    **options: Any,
 ) -> LoadPath:
-    """Solve the scene's quasi-static load path step by step.
-
-    Step k solves the problem at t = t_k (data expressions may use ``t``), starting from
-    step k − 1's solution; friction's slip increments are measured from it. From the third
-    step on, a step is offered the secant predictor beside the previous solution: Newton
-    starts from the one of smaller ‖Φ‖ (``Result.predictor``). The path stops at the first
-    step that does not converge — unless step cutting (``load.cuts``) may halve it: the
-    step from t_{k−1} to t_k is then retried as two, to (t_{k−1} + t_k)/2 first, at most
-    ``cuts`` times in a row, and no cut makes a step shorter than ``MIN_STEP`` × the last
-    t; each cut is reported (``LoadPath.cuts``, verbose output) and the failed attempt is
-    not a step. A hyperelastic step whose energy search met an indefinite tangent and found
-    no stable state is solved by plain Newton before it is cut: an admissible equilibrium
-    there is kept and reported with K_T's negative eigenvalues (``Step.branch``,
-    ``LoadPath.bifurcation``, ``LoadPath.branch_steps``), and plain Newton follows that
-    branch while K_T stays indefinite. The last step stays whole, and the last converged
-    one before a failed step; the others are released when the next one is solved, unless
-    ``keep_all``: memory and MPI communicators do not grow with the number of steps.
-    Collective.
+    """The load path of the module doc.
 
     Args:
-        scene: The scene; its ``load:`` section gives the pseudo-times (one step at t = 1
-            without one).
-        method: The solver method; default the scene's ``solver.method``.
-        on_step: Called with each :class:`~contact.drivers.load_path.Step` once it is
-            solved (converged steps and the final failure only): anything that needs a
-            step's functions or scene belongs there (the CLI writes its output there).
-        verbose: Print a line per step (default: the scene's ``output.verbose``).
-        adaptive: Run the adaptive loop (default: when the scene has an ``adapt`` section),
-            at every step or at the last (``load.adapt``).
-        adapt_options: Overrides of the scene's ``adapt`` section.
-        keep_all: Keep every step whole (for short paths: each whole step holds MPI
-            communicators, of which MPI has a few thousand).
-        forget: Drop released steps from ``LoadPath.steps`` altogether (counted in
+        solve_step: ``solve_step(t, previous, **overrides)`` → (what it was solved on, its
+            result): one solve of the step to t (``overrides``: solver options, plain Newton
+            for :func:`follow_branch`).
+        times: the pseudo-times.
+        comm: the problem's communicator (who prints).
+        adapt_step: ``adapt_step(t, previous)`` → (what the last level was solved on, its
+            result, the levels): the adaptive loop at a step, at the last step only or at
+            every step (``adapt_each``); None: every step is one solve.
+        adapt_each: run ``adapt_step`` at every step (each refining on from the previous
+            step's final mesh), not only at the last.
+        cuts: how many times in a row a failed step is halved.
+        predictor: offer the secant predictor from the third step on.
+        branches: follow the equilibrium branch where the energy search found no stable
+            state, and check the stability of every solution (a body with an energy).
+        on_step: called with each step record as it is done.
+        make_step: ``make_step(index, t, where, result, levels, seconds)`` → the step record
+            (default :class:`Step`, ``where`` left out).
+        verbose: a line per step and per cut (rank 0).
+        keep_all: keep every step whole (else each is released once the next is done).
+        forget: drop released steps from ``LoadPath.steps`` altogether (counted in
             ``LoadPath.forgotten``), for a caller that keeps each step's figures itself as
             it goes (the CLI's step writer): the path's memory then stays flat.
-        **options: Solver options as for :func:`contact.solve`.
 
     Returns:
-        The steps and, if it stopped early, why.
-
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene(
-        ...     "configs/friction_block_2d.yaml", ["mesh.cells=[16,4]", "load.steps=4"]
-        ... )
-        >>> path = contact.run_load_path(scene, verbose=False)
-        >>> path.converged, [step.time for step in path.steps]
-        (True, [0.25, 0.5, 0.75, 1.0])
+        The :class:`LoadPath`; it stops at the first step that does not converge and may
+        not be cut.
     """
-    verbose = scene.config.output.verbose if verbose is None else verbose
-    times = load_times(scene.config)
-    max_cuts = step_cuts(scene.config)
+    make = make_step or _step
     smallest = MIN_STEP * abs(times[-1])
-    hyperelastic = scene.config.model.type == "hyperelastic"
     following = False  # on an unstable equilibrium branch: plain Newton (follow_branch)
-    predict = secant_predictor(scene.config)
-    mode = scene.config.load.adapt if scene.config.load is not None else "end"
-    if adaptive is None:
-        adaptive = scene.config.adapt is not None
-    comm = scene.comm
-    out, u_prev, t_prev = LoadPath(), None, 0.0
+    out, u_prev, t_prev, where = LoadPath(), None, 0.0, None
     u_prev2, t_prev2 = None, 0.0  # the step before the previous one (the predictor)
     pending = [(t, 0) for t in times]  # (pseudo-time, cuts that led to it)
     while pending:
         t, depth = pending.pop(0)
         k = out.count + 1
         t0 = time.perf_counter()
-        step_scene = Scene(
-            scene.config,
-            scene.mesh,
-            scene.boundary,
-            time=t,
-            history={} if u_prev is None else {"u_prev": u_prev},
-            previous_time=None if u_prev is None else t_prev,
-            bodies=scene.bodies,
-            surfaces=scene.surfaces,
-        )
         if verbose and comm.rank == 0 and len(times) > 1:
             print(f"contact: load step {k}/{k + len(pending)}, t = {t:g}", flush=True)
-        levels, branch = [], ""
-        if adaptive and (mode == "each" or not pending):
-            run = adapt(
-                step_scene, method=method, verbose=verbose, u0=u_prev, **(adapt_options or {})
-            )
-            levels = run.levels
-            step_scene, result = levels[-1].scene, levels[-1].result
+        levels: list = []
+        branch = ""
+        if adapt_step is not None and (adapt_each or not pending):
+            solved_on, result, levels = adapt_step(t, Previous(u_prev, t_prev, None, where))
         else:
             guess = None
-            if predict and u_prev is not None and u_prev2 is not None:
+            if predictor and u_prev is not None and u_prev2 is not None:
                 guess = extrapolate(u_prev, u_prev2, t, t_prev, t_prev2)
-            attempt = _attempt(step_scene, method, u_prev, verbose, guess, options)
+            previous = Previous(u_prev, t_prev, guess, where)
+
+            def attempt(previous: Previous = previous, t: float = t, **extra: Any) -> Result:
+                nonlocal solved_on
+                solved_on, r = solve_step(t, previous, **extra)
+                return r
+
+            solved_on = None
             kept = keep_to_branch(attempt) if following else None
             if kept is not None:
                 result, branch = kept, "on the equilibrium branch (plain Newton)"
             else:
                 result = attempt()
-                if hyperelastic and not result.converged and searched_indefinite(result):
+                if branches and not result.converged and searched_indefinite(result):
                     result, branch = follow_branch(result, attempt)
         why = ""
         if not result.converged:
             mid = t_prev + (t - t_prev) / 2
-            if depth < max_cuts and mid - t_prev >= smallest:
+            if depth < cuts and mid - t_prev >= smallest:
                 out.cuts.append(f"t = {t:g} ({result.reason}) cut to t = {mid:g}")
                 if verbose and comm.rank == 0:
                     print(
                         f"contact: step {k} to t = {t:g} did not converge ({result.reason}): "
-                        f"cut to t = {mid:g} (cut {depth + 1} of at most {max_cuts} in a row)",
+                        f"cut to t = {mid:g} (cut {depth + 1} of at most {cuts} in a row)",
                         flush=True,
                     )
                 result.release()
@@ -324,16 +291,16 @@ def run_load_path(
             why = (
                 f"a cut would make the step {mid - t_prev:.3g}, below the smallest "
                 f"({MIN_STEP:g} of t = {times[-1]:g})"
-                if depth < max_cuts
-                else f"cut {depth} time(s) in a row (load.cuts: {max_cuts})"
-                if max_cuts
+                if depth < cuts
+                else f"cut {depth} time(s) in a row (load.cuts: {cuts})"
+                if cuts
                 else ""
             )
-        step = Step(k, t, step_scene, result, levels, time.perf_counter() - t0)
+        step = make(k, t, solved_on, result, levels, time.perf_counter() - t0)
         text = tangent_text(result.tangent_log)  # what the energy search did (hyperelastic)
         if text:
             out.tangent_events.append(f"step {k} (t = {t:g}): {text}")
-        if result.converged and hyperelastic:
+        if result.converged and branches:
             check_tangent(step, out, verbose)
             if branch:
                 following = on_branch(step, branch, out)
@@ -347,7 +314,7 @@ def run_load_path(
             out.stop = out.failure + _notes(out)
             break
         u_prev2, t_prev2 = u_prev, t_prev
-        scene, t_prev = step_scene, t  # 'each': the next step continues on this step's final mesh
+        where, t_prev = solved_on, t  # an adaptive path continues on this step's final mesh
         u_prev = copy_function(result.u_h, "u_prev")
         if len(out.steps) > 1 and not keep_all:
             out.steps[-2].release()
@@ -357,6 +324,73 @@ def run_load_path(
     else:
         out.stop = f"reached t = {times[-1]:g} in {out.count} step(s)" + _notes(out)
     return out
+
+
+def _step(k: int, t: float, where: Any, result: Result, levels: list, seconds: float) -> Step:
+    """A :class:`Step` record (``where`` left out)."""
+    return Step(k, t, result, levels, seconds)
+
+
+def load_path(
+    build: Callable[[float, fem.Function | None], Any],
+    times: Sequence[float],
+    method: str | None = None,
+    *,
+    options: SolverOptions | None = None,
+    cuts: int = 0,
+    predictor: bool = True,
+    on_step: Callable[[Step], None] | None = None,
+    verbose: bool = False,
+    keep_all: bool = False,
+    **overrides: Any,
+) -> LoadPath:
+    """The load path of a user's problem whose data depend on the pseudo-time t.
+
+    Args:
+        build: ``build(t, u_prev)``: the problem at t (a
+            :class:`~contact.models.forms.ComplementarityProblem` or a model's problem),
+            given the previous step's solution (None on the first step; friction measures
+            its slips from it).
+        times: the pseudo-times t_1 < … < t_N.
+        method: the solver's method (fb, min, blend, …).
+        options: the :class:`~contact.solvers.options.SolverOptions` of every step;
+            ``overrides`` change single knobs.
+        cuts: how many times in a row a step that does not converge is halved.
+        predictor: offer the secant predictor from the third step on.
+        on_step: called with each :class:`Step` as it is done.
+        verbose: a line per step (rank 0 of ``MPI.COMM_WORLD``).
+        **overrides: single knobs of ``options``, validated.
+        keep_all: keep every step's functions (else each step is released once the next
+            one is done).
+
+    Returns:
+        The :class:`LoadPath`.
+    """
+    opts = options_of(options, method, overrides)
+
+    def solve_step(t: float, previous: Previous, **extra: Any) -> tuple[Any, Result]:
+        problem = discrete(build(t, previous.u))
+        knobs = options_of(opts, None, extra)
+        return problem.V.mesh, solve(
+            problem,
+            options=knobs,
+            u0=previous.u,
+            alternative=previous.guess,
+            assembly=problem.assembly_time,
+            verbose=verbose,
+        )
+
+    return run_steps(
+        solve_step,
+        times,
+        MPI.COMM_WORLD,
+        cuts=cuts,
+        predictor=predictor,
+        branches=False,
+        on_step=on_step,
+        verbose=verbose,
+        keep_all=keep_all,
+    )
 
 
 def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
@@ -371,13 +405,14 @@ def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
     """
     from ..models.hyperelastic import min_det_F, negative_eigenvalues
 
+    comm = step.result.u_h.function_space.mesh.comm
     J = step.min_det_F = min_det_F(step.result)
     if J <= 0 and not path.inverted:
         path.inverted = (
             f"step {step.index} (t = {step.time:g}) inverts matter (min det F = {J:.3g}): "
             "not a physical deformation"
         )
-        if verbose and step.scene.comm.rank == 0:
+        if verbose and comm.rank == 0:
             print(f"contact: {path.inverted}", flush=True)
     n = step.negative_eigenvalues = negative_eigenvalues(step.result)
     if n and not path.indefinite:
@@ -385,7 +420,7 @@ def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
             f"K_T not positive definite from step {step.index} (t = {step.time:g}: "
             f"{n} negative eigenvalue(s) on the free unknowns)"
         )
-        if verbose and step.scene.comm.rank == 0:
+        if verbose and comm.rank == 0:
             print(
                 f"contact: step {step.index}: {path.indefinite}: the solution may be unstable "
                 "(past a limit point, or a nonconvex law)",
@@ -393,33 +428,11 @@ def check_tangent(step: Step, path: LoadPath, verbose: bool) -> None:
             )
 
 
-def _attempt(
-    scene: Scene,
-    method: str | None,
-    u0: fem.Function | None,
-    verbose: bool,
-    guess: fem.Function | None,
-    options: dict,
-) -> Callable[..., Result]:
-    """Return the solve of one load step from ``u0`` as a call with keyword overrides.
-
-    The solve of one load step from ``u0`` (``guess`` beside it), as a call whose keywords
-    override ``options`` (:func:`follow_branch` asks for plain Newton).
-    """
-
-    def attempt(**extra: Any) -> Result:
-        return solve(
-            scene, method=method, u0=u0, verbose=verbose, alternative=guess, **{**options, **extra}
-        )
-
-    return attempt
-
-
 def searched_indefinite(result: Result) -> bool:
     """Return whether a failed solve was the energy search's and met an indefinite tangent.
 
     Whether a solve that failed was the energy search's and met a tangent that is not
-    positive definite (:mod:`contact.solvers.energy_search`'s log).
+    positive definite (``contact.solvers.energy_search``'s log).
     """
     return any(event["negative"] for event in result.tangent_log)
 

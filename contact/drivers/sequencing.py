@@ -1,73 +1,45 @@
-"""Grid sequencing of a single solve (``solver.sequence``; docs/theory.md §8).
+"""Grid sequencing of a single solve (docs/theory.md §8).
 
 From a cold start semismooth Newton needs about log₂(1/h) active-set steps: the first
-steps move the free boundary across the whole contact zone.  Solving the same scene on
+steps move the free boundary across the whole contact zone.  Solving the same problem on
 coarser meshes first and starting each finer solve from the coarser solution (what PETSc's
 ``-snes_grid_sequence`` does for ex9, and nested iteration does in the adaptive loop)
 leaves only local corrections on the finest mesh: O(1) Newton steps there, and coarse
-levels that cost a fraction of one fine step each.  The levels, coarsest first:
+levels that cost a fraction of one fine step each.
 
-* built-in meshes (rectangle, unit_square, box, lshape): the same mesh type with
-  cells / 2^k (``mesh.map`` applied on every level); the solution is carried to the next
-  level by multilinear interpolation of the coarse nodal values on the structured grid
-  (:class:`GridTransfer`: P1, exact for nested levels where the coarse mesh's diagonals
-  line up, a second-order accurate guess otherwise, and the same on every MPI rank);
-* ``quarter_disk`` / ``sphere_octant`` and the two-body ``half_disks`` / ``sphere_on_block``:
-  gmsh with mesh sizes h·2^k and h_contact·2^k, carried over by locating the fine DoF
-  points in the coarse mesh (:func:`point_transfer`; with several bodies each body's
-  points in that body's coarse cells only, so a point of one body's contact surface never
-  takes the other body's displacement), the mortar coupling built anew on every level;
-* a scene made by :func:`contact.refine`: the scenes it was refined from (those whose
-  DoFs fall by ≥ 4× from one chosen level to the next), carried over by
-  the exact prolongation of nested refinement (:func:`contact.adaptivity.transfer.prolong`);
-* a user's ``.msh`` file (and P2 on a built-in mesh), several bodies on any other mesh:
-  no coarser mesh — a cold start, reported in ``Result.sequence_note``.
-
-A frictional load step after the first carries its history to the coarse levels: the
-previous step's displacement u_prev (from which the slip increments are measured) is
-interpolated onto each coarse mesh (:func:`restrict`), the coarsest solve starts from it,
-and each finer level from the coarser solution as above — the stick/slip front moves
-across the contact zone on the coarse meshes, where a fine Newton iteration moves it by
-about one node per step.  The coarse meshes of a scene are built once and kept for its later
-steps (:func:`_with_mesh`).  A refined scene with history (an adaptive load step) starts
-from the step before.
-
-``auto`` sequences when the finest level has at least :data:`AUTO_MIN_DOFS` DoFs, with as
-many levels as keep the coarsest at ≥ :data:`COARSEST_DOFS`; an integer N asks for N
-coarser levels; ``off`` starts cold.  Every coarse solve is an ordinary solve (its own
-linear solver choice, counted in ``Result.sequence``); the coarse Newton tolerance is
+A :class:`Hierarchy` holds the coarser levels of a problem, coarsest first: how to build
+each level's problem (the same builder on a coarser mesh), how to solve it, and how to
+carry a solution from one level to the next — by the exact prolongation of nested
+refinement (:func:`prolong_chain`) or by locating the finer DoF points in the coarser mesh
+(:func:`point_transfer`).  :func:`initial_guess` solves the levels and returns the last
+solution on the fine space; :func:`hierarchy` makes the hierarchy of a user's builder on a
+list of meshes or domains.  Every coarse solve is an ordinary solve (its own linear solver
+choice, counted in ``Result.sequence``); the coarse Newton tolerance is
 :data:`COARSE_RTOL` (a guess only needs the coarse active set, not round-off).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import functools
 import time
-import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from dolfinx import fem
 from dolfinx.mesh import MeshTags
-from mpi4py import MPI
 
+from ..adaptivity.transfer import prolong
 from ..base.buckets import box_point_pairs
-from ..base.errors import ConfigError
-from ..models import build_problem
-from ..setup.scene import Scene
-from ..setup.scene_config import MeshConfig, SolverConfig
+from ..models.discrete import discrete
+from ..solvers.result import Result
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 AUTO_MIN_DOFS = 4_000
 COARSEST_DOFS = 1_000  # auto: the coarsest level keeps at least this many DoFs
 COARSE_RTOL = 1e-6  # Newton's relative tolerance on the coarse levels
-ANCESTOR_RATIO = 4  # a refined scene's coarse levels: ancestors with ≥ 4× fewer DoFs each
-BUILT_IN = ("rectangle", "unit_square", "box", "lshape")
+ANCESTOR_RATIO = 4  # a refined mesh's coarse levels: ancestors with ≥ 4× fewer DoFs each
 SIZE_CLASS = 2.0  # point location: cell extents within one size class differ by < 2×
-#: the gmsh-built meshes, whose sizes h and h_contact give the coarse levels
-GMSH_BUILT = ("quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")
 
 
 @dataclass
@@ -84,16 +56,72 @@ class CoarseLevel:
 
     @property
     def linear_solves(self) -> int:
+        """The level's linear solves: Newton's and polishing's."""
         return self.newton_iterations + self.polish_solves
 
 
-def _dofs(scene: Scene, bs: int) -> int:
-    """P1 DoFs of a scene's mesh (vertices × block size)."""
-    return scene.mesh.geometry.index_map().size_global * bs
+@dataclass
+class Hierarchy:
+    """The coarser levels of a problem for grid sequencing, coarsest first.
+
+    A level is whatever a builder works on (a mesh, a :class:`~contact.adaptivity.refine.Domain`,
+    a scene); the hierarchy knows it through four callables.
+
+    Args:
+        levels: one callable per coarse level, coarsest first, returning (level, its problem);
+            a ``ValueError`` (e.g. a boundary part too thin for that mesh) skips the level.
+        solve: ``solve(level, problem, u0)``: the level's solve (u0 None: its cold start).
+        transfer: ``transfer(u, coarse, fine, V)``: a coarser level's solution on the space V
+            of a finer level.
+        fine: the fine level (the problem being sequenced).
+        start: ``start(level, problem)``: the coarsest solved level's guess (e.g. a load
+            step's previous solution), or None.
+        note: why there are fewer levels than asked, or none ('' if nothing to say).
+
+    Example:
+        >>> import contact, numpy as np, ufl
+        >>> from dolfinx import fem, mesh
+        >>> from mpi4py import MPI
+        >>> def build(msh):  # −Δu = 10 in Ω, u = 0 on ∂Ω, u ≤ 0.05
+        ...     V = fem.functionspace(msh, ("Lagrange", 1))
+        ...     u, v = fem.Function(V), ufl.TestFunction(V)
+        ...     F = ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx - 10 * v * ufl.dx
+        ...     edge = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+        ...     bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, edge), V)
+        ...     cap = contact.Unilateral(0.05)
+        ...     return contact.ComplementarityProblem.from_residual(F, u, cap, [bc])
+        >>> from contact.drivers.sequencing import transfer
+        >>> coarse = mesh.create_unit_square(MPI.COMM_WORLD, 8, 8)
+        >>> fine = build(mesh.create_unit_square(MPI.COMM_WORLD, 32, 32))
+        >>> levels = contact.Hierarchy(
+        ...     [lambda: (coarse, build(coarse).problem)],
+        ...     solve=lambda level, problem, u0: contact.solve(problem, u0=u0, rtol=1e-6),
+        ...     transfer=transfer,
+        ...     fine=fine,
+        ... )
+        >>> result = contact.solve(fine, coarse=levels)
+        >>> result.converged, [level.dofs for level in result.sequence]
+        (True, [81])
+        >>> fine.close()
+    """
+
+    levels: Sequence[Callable[[], tuple[Any, Any]]]
+    solve: Callable[[Any, Any, fem.Function | None], Result]
+    transfer: Callable[[fem.Function, Any, Any, fem.FunctionSpace], fem.Function]
+    fine: Any
+    start: Callable[[Any, Any], fem.Function | None] | None = None
+    note: str = ""
+    #: whether the levels' solution replaces a given guess too (a frictional load step's
+    #: history solved on the coarse levels moves the stick/slip front there)
+    replaces_guess: bool = False
 
 
-def _levels_wanted(option, fine_dofs: int, dim: int) -> int | None:
-    """Number of coarse levels to try (None: as many as ``auto`` allows)."""
+def levels_wanted(option: str | int, fine_dofs: int) -> int | None:
+    """Return how many coarse levels to try for a ``solver.sequence`` option.
+
+    Number of coarse levels to try for ``solver.sequence`` = ``option`` (``auto``, ``off``
+    or a number): 0, a number, or None (as many as ``auto`` allows).
+    """
     if option == "off" or option == 0:
         return 0
     if option == "auto":
@@ -101,142 +129,35 @@ def _levels_wanted(option, fine_dofs: int, dim: int) -> int | None:
     return int(option)
 
 
-def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], Scene]], str]:
-    """Builders of the coarse scenes (coarsest first) and a note ('' or why there are
-    fewer levels than asked / none)."""
-    fine_dofs = _dofs(scene, bs)
-    dim = scene.mesh.topology.dim
-    wanted = _levels_wanted(option, fine_dofs, dim)
-    if wanted == 0:
-        return [], ""
-    limit = wanted if wanted is not None else 64
-    floor = COARSEST_DOFS if wanted is None else 1
-    ratio = 2**dim
-
-    if scene.parent is not None and scene.history:
-        return [], "grid sequencing: a refined scene's history stays on its mesh; warm start"
-    if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
-        chain = _ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
-        return [functools.partial(_same, s) for s in reversed(chain)], ""
-    kind = scene.config.mesh.type
-    if scene.bodies is not None and kind not in GMSH_BUILT:
-        return [], (
-            f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; cold start"
-        )
-    if degree != 1 and kind in BUILT_IN:
-        return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
-    if kind in BUILT_IN:
-        cells = list(_grid_axes(scene.config.mesh))
-        builders: list[Callable[[], Scene]] = []
-        for k in range(1, limit + 1):
-            coarse = tuple(c // 2**k for c in cells)
-            if min(coarse) < 1 or fine_dofs / ratio**k < floor:
-                break
-            builders.append(functools.partial(_with_mesh, scene, {"cells": coarse}))
-        note = (
-            ""
-            if wanted is None or len(builders) == wanted
-            else f"grid sequencing: only {len(builders)} coarser level(s) of {cells} cells exist"
-        )
-        return builders[::-1], note
-    if kind in GMSH_BUILT:
-        m = scene.config.mesh
-        assert m.h is not None and m.h_contact is not None and m.zone is not None
-        builders = []
-        for k in range(1, limit + 1):
-            h, hc = m.h * 2**k, m.h_contact * 2**k
-            if hc > m.zone or fine_dofs / ratio**k < floor:
-                break
-            builders.append(functools.partial(_with_mesh, scene, {"h": h, "h_contact": min(hc, h)}))
-        return builders[::-1], ""
-    return [], "grid sequencing: a mesh file has no coarser mesh; cold start"
-
-
-def _ancestors(scene: Scene, ratio: int, floor: int, bs: int) -> list[Scene]:
-    """The scenes ``scene`` was refined from, finest first, each with ≥ ``ratio`` times
-    fewer DoFs than the one chosen before it and ≥ ``floor`` DoFs."""
-    out, last = [], _dofs(scene, bs)
-    assert scene.parent is not None  # called for a refined scene
-    s: Scene | None = scene.parent[0]
-    while s is not None:
-        n = _dofs(s, bs)
-        if n < floor:
-            break
-        if n * ratio <= last:
-            out.append(s)
-            last = n
-        s = s.parent[0] if s.parent is not None else None
-    return out
-
-
-def _same(scene: Scene) -> Scene:
-    """``scene`` itself (the builder of a level that exists already)."""
-    return scene
-
-
-#: the coarse meshes built for a fine mesh (a load path solves every step on the same mesh):
-#: fine mesh → {the coarse mesh section: (mesh, facet tags, cell tags)}
-_COARSE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def _with_mesh(scene: Scene, changes: dict) -> Scene:
-    """The scene with other mesh parameters (a coarse level) at the scene's time; the mesh
-    is built once per fine mesh and kept while that mesh lives."""
-    from ..setup.meshes import build_mesh, tag_bodies, tag_boundaries
-
-    cfg = scene.config.with_mesh(**changes)
-    built = _COARSE.setdefault(scene.mesh, {})
-    key = repr(cfg.mesh)
-    if key not in built:
-        built[key] = build_mesh(cfg, scene.comm)
-    msh, tags, cell_tags = built[key]
-    bodies = tag_bodies(msh, cfg, cell_tags)
-    return Scene(
-        cfg,
-        msh,
-        tag_boundaries(msh, cfg, tags, bodies),
-        time=scene.time,
-        bodies=bodies,
-        surfaces=tags,
-    )
-
-
 def initial_guess(
-    scene: Scene, V: fem.FunctionSpace, opts: SolverConfig, solve: Callable, verbose: bool
+    h: Hierarchy, V: fem.FunctionSpace, verbose: bool = False, label: str = ""
 ) -> tuple[fem.Function | None, list[CoarseLevel], str]:
-    """Solve the coarse levels of ``opts.sequence`` (``opts``: the fine solve's solver
-    section with its call's overrides; the coarse solves take it with no sequencing and
-    :data:`COARSE_RTOL`); return the last coarse solution on the fine space V (None if
-    there is no coarse level), the levels and a note."""
-    bs = V.dofmap.index_map_bs
-    degree = V.element.basix_element.degree
-    builders, note = plan(scene, opts.sequence, bs, degree)
-    if note and verbose and scene.comm.rank == 0:
+    """Solve the coarse levels of a hierarchy and return the fine level's guess.
+
+    Solve the levels of ``h``, coarsest first, each from the coarser solution carried over
+    (the first from ``h.start``, or its cold start); return the last coarse solution on the
+    fine space V (None if no level converged), the levels and the note.  ``label`` names
+    the method in verbose lines.
+    """
+    comm = V.mesh.comm
+    note = h.note
+    if note and verbose and comm.rank == 0:
         print(f"  {note}", flush=True)
     levels: list[CoarseLevel] = []
     u, prev = None, None
-    coarse_solver = opts.model_copy(update={"sequence": "off", "rtol": COARSE_RTOL})
-    u_prev = scene.history.get("u_prev")
-    for k, build in enumerate(builders, start=1):
+    for k, build in enumerate(h.levels, start=1):
         t0 = time.perf_counter()
         try:
-            coarse = build()
-            coarse = dataclasses.replace(
-                coarse, config=coarse.config.model_copy(update={"solver": coarse_solver})
-            )
-            if u_prev is not None:  # a load step's history, on the coarse mesh
-                coarse.history = {"u_prev": restrict(u_prev, scene, coarse)}
-            problem = build_problem(coarse)
-        except ConfigError as err:  # e.g. a boundary part too thin for the coarse mesh
+            level, problem = build()
+        except ValueError as err:  # e.g. a boundary part too thin for the coarse mesh
             note = f"grid sequencing: coarse level {k} skipped ({err})"
             continue
         u0: fem.Function | None = None
         if u is not None and prev is not None:
-            u0 = transfer(u, prev, coarse, problem.V)
-        elif u_prev is not None:  # the coarsest level starts from the previous step
-            u0 = fem.Function(problem.V)
-            u0.x.array[:] = coarse.history["u_prev"].x.array
-        r = solve(coarse, problem=problem, u0=u0, verbose=False)
+            u0 = h.transfer(u, prev, level, problem.V)
+        elif h.start is not None:
+            u0 = h.start(level, problem)
+        r = h.solve(level, problem, u0)
         levels.append(
             CoarseLevel(
                 r.dofs,
@@ -250,7 +171,7 @@ def initial_guess(
         )
         solution = r.u_h
         r.release()  # the coarse problem's PETSc objects: only u_h goes on
-        if verbose and scene.comm.rank == 0:
+        if verbose and comm.rank == 0:
             lv = levels[-1]
             solves = (
                 f"{lv.newton_iterations}+{lv.polish_solves}"
@@ -258,179 +179,114 @@ def initial_guess(
                 else f"{lv.newton_iterations}"
             )
             print(
-                f"  sequence {k}/{len(builders)}: {lv.dofs:9d} DoFs  {opts.method} {solves} its "
+                f"  sequence {k}/{len(h.levels)}: {lv.dofs:9d} DoFs  {label} {solves} its "
                 f"({lv.linear})  {lv.seconds:.2f} s",
                 flush=True,
             )
         if not r.converged:  # a bad coarse solution is no guess: restart from the next level
             u, prev = None, None
             continue
-        u, prev = solution, coarse
+        u, prev = solution, level
     if u is None or prev is None:
         return None, levels, note
-    return transfer(u, prev, scene, V), levels, note
+    return h.transfer(u, prev, h.fine, V), levels, note
 
 
-def transfer(
-    u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace | None = None
-) -> fem.Function:
-    """The coarse solution ``u`` on the fine scene's space (same element)."""
-    V = V or fem.functionspace(fine.mesh, u.function_space.ufl_element())
-    if fine.parent is not None:
-        return _prolong_chain(u, coarse, fine, V)
-    if fine.config.mesh.type in BUILT_IN:
-        return GridTransfer(coarse).apply(u, fine, V)
-    return point_transfer(u, V, coarse.bodies, fine.bodies)
+def hierarchy(
+    build: Callable[[Any], Any],
+    levels: Sequence[Any],
+    fine: Any,
+    solve: Callable[[Any, fem.Function | None], Result],
+) -> Hierarchy:
+    """Return the hierarchy of a user's builder over coarser levels.
+
+    The hierarchy of a user's builder: ``build(level)`` on each of ``levels`` (meshes or
+    domains, coarsest first, all coarser than ``fine``), each solved by ``solve(problem,
+    u0)``, solutions carried by :func:`transfer` (exact prolongation along a chain of
+    refinements, point location otherwise).
+    """
+
+    def built(level: Any) -> Callable[[], tuple[Any, Any]]:
+        return lambda: (level, discrete(build(level)))
+
+    return Hierarchy(
+        [built(level) for level in levels],
+        lambda level, problem, u0: solve(problem, u0),
+        transfer,
+        fine,
+    )
 
 
-def restrict(u: fem.Function, fine: Scene, coarse: Scene) -> fem.Function:
-    """A fine solution ``u`` (the previous load step's) interpolated onto the coarse scene's
-    mesh (same element): on built-in meshes the coarse vertices are grid points of the fine
-    grid (:class:`GridTransfer`: exact), on gmsh meshes the coarse points are located in
-    the fine cells (:func:`point_transfer`)."""
-    V = fem.functionspace(coarse.mesh, u.function_space.ufl_element())
-    if fine.config.mesh.type in BUILT_IN:
-        return GridTransfer(fine).apply(u, coarse, V)
-    return point_transfer(u, V, fine.bodies, coarse.bodies)
+def transfer(u: fem.Function, coarse: Any, fine: Any, V: fem.FunctionSpace) -> fem.Function:
+    """Return a coarser level's solution on a finer level's space.
+
+    A coarser level's solution ``u`` on a finer level's space V: exact along a chain of
+    refinements (``fine`` a domain refined from ``coarse``: :func:`prolong_chain`), else
+    by point location (:func:`point_transfer`, P1).
+    """
+    if _mesh(coarse) in (_mesh(level) for level in _chain(fine)):
+        return prolong_chain(u, coarse, fine, V)
+    return point_transfer(u, V)
 
 
-def _prolong_chain(
-    u: fem.Function, coarse: Scene, fine: Scene, V: fem.FunctionSpace
-) -> fem.Function:
-    """Prolong through the refinements from ``coarse`` down to ``fine`` (exact for nested
-    Lagrange spaces)."""
-    from ..adaptivity.transfer import prolong
+def _mesh(level: Any) -> Any:
+    """A level's mesh (a mesh is its own)."""
+    return getattr(level, "mesh", level)
 
+
+def _chain(level: Any) -> list:
+    """``level`` and the levels it was refined from (its ``parent`` chain), finest first."""
+    out = [level]
+    while getattr(out[-1], "parent", None) is not None:
+        out.append(out[-1].parent[0])
+    return out
+
+
+def ancestors(level: Any, ratio: int, floor: int, bs: int) -> list:
+    """Return the coarse levels of a refined level: its ancestors, finest first.
+
+    The levels ``level`` was refined from (its ``parent`` chain), finest first, each with
+    ≥ ``ratio`` times fewer DoFs (P1, block size ``bs``) than the one chosen before it and
+    ≥ ``floor`` DoFs: the coarse levels of a refined mesh (adaptive hierarchies grow slowly:
+    every ``ratio``× in DoFs).
+    """
+    out, last = [], _dofs(level, bs)
+    for s in _chain(level)[1:]:
+        n = _dofs(s, bs)
+        if n < floor:
+            break
+        if n * ratio <= last:
+            out.append(s)
+            last = n
+    return out
+
+
+def _dofs(level: Any, bs: int) -> int:
+    """P1 DoFs of a level's mesh (vertices × block size)."""
+    return _mesh(level).geometry.index_map().size_global * bs
+
+
+def prolong_chain(u: fem.Function, coarse: Any, fine: Any, V: fem.FunctionSpace) -> fem.Function:
+    """Prolong ``u`` through the refinements from ``coarse`` down to ``fine``.
+
+    Prolong ``u`` through the refinements from ``coarse`` down to ``fine`` (levels with a
+    ``mesh`` and a ``parent`` = (the level refined, parent cells); exact for nested
+    Lagrange spaces).
+    """
     chain = []
     s = fine
-    while s.mesh is not coarse.mesh:  # a level is its mesh (its scene may carry other options)
+    while _mesh(s) is not _mesh(coarse):  # a level is its mesh (it may carry other options)
         chain.append(s)
         assert s.parent is not None  # coarse is an ancestor of fine
         s = s.parent[0]
     for child in reversed(chain):
         assert child.parent is not None
         u = prolong(u, child.mesh, child.parent[1])
-    if u.function_space.mesh is not fine.mesh:  # pragma: no cover - chain ends on fine
-        raise RuntimeError("grid sequencing: the refinement chain does not end on the scene")
+    if u.function_space.mesh is not _mesh(fine):  # pragma: no cover - chain ends on fine
+        raise RuntimeError("grid sequencing: the refinement chain does not end on the fine mesh")
     out = fem.Function(V)
     out.x.array[:] = u.x.array
     return out
-
-
-class GridTransfer:
-    """Multilinear interpolation between structured built-in meshes of one scene.
-
-    The input numbering of ``create_rectangle`` / ``create_box`` /
-    :func:`contact.setup.meshes.lshape` is that of a grid
-    (``geometry.input_global_indices``), so every vertex knows its grid position (i, j[, k])
-    whatever ``mesh.map`` did to its coordinates.  The coarse P1 nodal values are summed
-    into one grid array on every rank (each vertex from its owner), and every fine vertex
-    takes the multilinear interpolant at its position in coarse cell units.  Crossed meshes'
-    cell-centre vertices are left out of the coarse grid (the corners alone define the
-    interpolant) and interpolated like any other fine point."""
-
-    def __init__(self, coarse: Scene):
-        self.coarse = coarse
-
-    def apply(self, u: fem.Function, fine: Scene, V: fem.FunctionSpace) -> fem.Function:
-        cs, comm = self.coarse, fine.comm
-        bs = V.dofmap.index_map_bs
-        n_c = _grid_cells(cs.config.mesh)
-        n_f = _grid_cells(fine.config.mesh)
-        shape = tuple(n + 1 for n in n_c)
-        # coarse grid array: owned vertices only, summed over ranks
-        Vc = u.function_space
-        pos_c = _dof_positions(cs, Vc)
-        owned = Vc.dofmap.index_map.size_local
-        ints = np.rint(pos_c[:owned]).astype(np.int64)
-        on_grid = np.all(np.abs(pos_c[:owned] - ints) < 1e-9, axis=1)
-        flat = np.ravel_multi_index(tuple(ints[on_grid].T), shape)
-        grid = np.zeros((int(np.prod(shape)), bs))
-        grid[flat] = u.x.array[: owned * bs].reshape(owned, bs)[on_grid]
-        comm.Allreduce(MPI.IN_PLACE, grid, op=MPI.SUM)
-        grid = grid.reshape(*shape, bs)
-        # fine points in coarse cell units, multilinear weights
-        xi = _dof_positions(fine, V) * (np.array(n_c, dtype=float) / np.array(n_f, dtype=float))
-        out = fem.Function(V)
-        out.x.array[:] = _multilinear(grid, xi, np.array(n_c)).ravel()
-        return out
-
-
-def _multilinear(grid: np.ndarray, xi: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """Values of the multilinear interpolant of ``grid`` (shape (n+1)..., bs) at ``xi``
-    (points × dim, in cell units)."""
-    dim = xi.shape[1]
-    i0 = np.clip(np.floor(xi).astype(np.int64), 0, n - 1)
-    t = xi - i0
-    out = np.zeros((len(xi), grid.shape[-1]))
-    for corner in np.ndindex(*(2,) * dim):
-        c = np.array(corner)
-        w = np.prod(np.where(c == 1, t, 1.0 - t), axis=1)
-        idx = tuple((i0 + c).T)
-        out += w[:, None] * grid[idx]
-    return out
-
-
-def _grid_axes(m: MeshConfig) -> tuple[int, ...]:
-    """The cell counts of a built-in mesh (one per axis; lshape: one, per unit length)."""
-    assert isinstance(m.cells, tuple)  # the loader makes them a tuple for these types
-    return m.cells
-
-
-def _grid_cells(m: MeshConfig) -> list[int]:
-    """Cells per axis of the structured grid under a built-in mesh (lshape: the 2n × 2n
-    grid of its bounding box)."""
-    if m.type == "lshape":
-        return [2 * _grid_axes(m)[0]] * 2
-    return list(_grid_axes(m))
-
-
-def _dof_positions(scene: Scene, V: fem.FunctionSpace) -> np.ndarray:
-    """Grid position (in cell units) of every local P1 DoF of V (owned and ghost)."""
-    msh = scene.mesh
-    dim = msh.topology.dim
-    node_pos = _node_positions(scene)
-    n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
-    node_of_dof = np.empty(n_dofs, dtype=np.int64)
-    node_of_dof[V.dofmap.list.ravel()] = msh.geometry.dofmaps[0][:, : dim + 1].ravel()
-    return node_pos[node_of_dof]
-
-
-def _node_positions(scene: Scene) -> np.ndarray:
-    """Grid position of every local geometry node, from its input index."""
-    m = scene.config.mesh
-    idx = np.asarray(scene.mesh.geometry.input_global_indices, dtype=np.int64)
-    if m.type == "lshape":
-        n = _grid_axes(m)[0]
-        used = _lshape_vertices(n)
-        a, b = np.divmod(used[idx], 2 * n + 1)
-        return np.column_stack([a, b]).astype(float)
-    cells = list(_grid_axes(m))
-    if len(cells) == 2:
-        nx, ny = cells
-        corners = (nx + 1) * (ny + 1)
-        iy, ix = np.divmod(np.minimum(idx, corners - 1), nx + 1)
-        pos = np.column_stack([ix, iy]).astype(float)
-        centre = idx >= corners  # crossed: cell centres after the corners
-        cy, cx = np.divmod(idx[centre] - corners, nx)
-        pos[centre] = np.column_stack([cx + 0.5, cy + 0.5])
-        return pos
-    nx, ny, nz = cells
-    iz, rest = np.divmod(idx, (nx + 1) * (ny + 1))
-    iy, ix = np.divmod(rest, nx + 1)
-    return np.column_stack([ix, iy, iz]).astype(float)
-
-
-def _lshape_vertices(n: int) -> np.ndarray:
-    """The vertex ids a * (2n + 1) + b that :func:`contact.setup.meshes.lshape` keeps, in its
-    input order (sorted)."""
-    i, j = np.meshgrid(np.arange(2 * n), np.arange(2 * n), indexing="ij")
-    keep = ~((i >= n) & (j < n))
-    i, j = i[keep], j[keep]
-    corners = np.concatenate(
-        [a * (2 * n + 1) + b for a, b in ((i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1))]
-    )
-    return np.unique(corners)
 
 
 def point_transfer(
@@ -439,7 +295,9 @@ def point_transfer(
     coarse_bodies: MeshTags | None = None,
     fine_bodies: MeshTags | None = None,
 ) -> fem.Function:
-    """The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
+    """Return a P1 function on another simplicial mesh's P1 space, by point location.
+
+    The P1 function ``u`` on another simplicial mesh's P1 space V, by locating every DoF
     point of V in u's mesh (for meshes of one geometry that are not nested, e.g. gmsh
     meshes of two sizes).  With the cell tags of the bodies of both meshes
     (``Scene.bodies``), a point of body k is located among body k's coarse cells only:
@@ -452,7 +310,8 @@ def point_transfer(
     its smallest barycentric coordinate is largest — the containing cell, or for a point
     just outside a curved boundary's coarse polygon the nearest one (linear
     extrapolation).  ``interpolate_nonmatching`` does the same through a collision search
-    per point and is orders of magnitude slower here (demos/RESULTS.md §10)."""
+    per point and is orders of magnitude slower here (demos/RESULTS.md §10).
+    """
     Vc = u.function_space
     msh, comm = Vc.mesh, V.mesh.comm
     tdim, gdim = msh.topology.dim, msh.geometry.dim
@@ -494,8 +353,11 @@ def _cell_values(tags: MeshTags, n: int) -> np.ndarray:
 def _barycentric(
     verts: np.ndarray, inv: np.ndarray, cells: np.ndarray, points: np.ndarray
 ) -> np.ndarray:
-    """Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
-    simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``."""
+    """Return the barycentric coordinates of points in their cells.
+
+    Barycentric coordinates (n, d+1) of ``points`` (n, d) in ``cells`` (n) of the
+    simplices ``verts`` (cells, d+1, d) with inverse edge matrices ``inv``.
+    """
     dp = points - verts[cells, 0]
     inv_c = inv[cells]
     lam = sum(inv_c[:, :, j] * dp[:, j, None] for j in range(dp.shape[1]))
@@ -505,7 +367,9 @@ def _barycentric(
 def _locate(
     verts: np.ndarray, inv: np.ndarray, points: np.ndarray, grow: float = 0.1
 ) -> np.ndarray:
-    """For each point the index of the simplex (of ``verts``) that contains it, or the one
+    """Return for each point the simplex that contains it, or the one it is least outside of.
+
+    For each point the index of the simplex (of ``verts``) that contains it, or the one
     it is least outside of among those whose bounding box, grown by ``grow`` buckets, holds
     it (points no box holds are located again with boxes grown by one more bucket).
 
@@ -513,7 +377,8 @@ def _locate(
     extents lie within a factor 2 (:data:`SIZE_CLASS`), and each class gets buckets of
     half its mean extent over its own bounding box, so a cell spans a few buckets of its
     class whatever the others' sizes (one grid of the mean size made a large cell span
-    ~10⁶ buckets: 70 s for sphere_on_block's 480k points)."""
+    ~10⁶ buckets: 70 s for sphere_on_block's 480k points).
+    """
     lo_c, hi_c = verts.min(axis=1), verts.max(axis=1)
     extent = np.max(hi_c - lo_c, axis=1)
     smallest = max(float(extent.min(initial=1.0)), 1e-300)
@@ -547,10 +412,13 @@ def _locate(
 def _bucket_candidates(
     lo_c: np.ndarray, hi_c: np.ndarray, cells: np.ndarray, points: np.ndarray, grow: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
+    """Return the (point, cell) pairs whose grown bounding boxes overlap.
+
+    (point, cell) pairs: every point with each of ``cells`` whose bounding box (``lo_c``,
     ``hi_c``), grown by ``grow`` buckets, overlaps the point's bucket; buckets of half the
     cells' mean extent over their common bounding box
-    (:func:`~contact.base.buckets.box_point_pairs`)."""
+    (:func:`~contact.base.buckets.box_point_pairs`).
+    """
     point_of, box_of = box_point_pairs(lo_c[cells], hi_c[cells], points, grow)
     return point_of, cells[box_of]
 
@@ -564,9 +432,11 @@ __all__ = [
     "AUTO_MIN_DOFS",
     "COARSEST_DOFS",
     "CoarseLevel",
-    "GridTransfer",
+    "Hierarchy",
+    "hierarchy",
     "initial_guess",
-    "plan",
+    "point_transfer",
+    "prolong_chain",
     "transfer",
     "weighted_solves",
 ]

@@ -1,98 +1,103 @@
-"""One contact solve of a scene.
+"""One contact solve of a problem.
 
-Its discrete problem (built here unless given), the ``solver``
-options with call-time overrides, an initial guess (grid sequencing, :mod:`.sequencing`, or
-``solver.u0``), then the solve itself (:func:`contact.solvers.snes.solve_problem`), or the
-Coulomb fixed point (:mod:`.fixed_point`).
+Its options, an initial guess (given, from the coarser levels of a
+:class:`~.sequencing.Hierarchy`, or the problem's own start), then the solve itself
+(:func:`contact.solvers.snes.solve_problem`), or the Coulomb fixed point
+(:mod:`.fixed_point`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from dolfinx import fem
 
 from ..base.errors import ConfigError
 from ..base.timing import Stopwatch, Timer
-from ..models import build_problem
-from ..models.problem import interpolate_expression
-from ..setup.scene import Scene
+from ..models.discrete import discrete
 from ..solvers import ncp
-from ..solvers.options import BASELINE_METHODS
+from ..solvers.options import BASELINE_METHODS, SolverOptions
 from ..solvers.problem import DiscreteProblem
-from ..solvers.result import Result, not_unique_text
+from ..solvers.result import Result
 from ..solvers.snes import check_guess, solve_problem
 from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
 
+#: a baseline enforcement's solve: (problem, initial guess, options, verbose, timers, clock)
+Enforce = Callable[[DiscreteProblem, fem.Function, SolverOptions, bool, dict, Stopwatch], Result]
+
+
+def options_of(options: SolverOptions | None, method: str | None, overrides: dict) -> SolverOptions:
+    """Return solver options with the call's method and overrides, validated.
+
+    ``options`` (default: the defaults) with ``method`` and keyword ``overrides``, each
+    validated (one ConfigError line naming the key).
+    """
+    base = options if options is not None else SolverOptions()
+    given = {k: v for k, v in {"method": method, **overrides}.items() if v is not None}
+    if not given:
+        return base
+    checked = SolverOptions.parse(given)
+    return base.model_copy(update={k: getattr(checked, k) for k in given})
+
 
 def solve(
-    scene: Scene,
+    problem: Any,
     method: str | None = None,
-    problem: DiscreteProblem | None = None,
+    *,
+    options: SolverOptions | None = None,
     u0: fem.Function | None = None,
-    verbose: bool | None = None,
+    start: Callable[[fem.FunctionSpace], fem.Function] | None = None,
+    coarse: sequencing.Hierarchy | None = None,
+    verbose: bool = False,
     criterion: AdaptiveStopping | None = None,
     alternative: fem.Function | None = None,
-    **options: Any,
+    assembly: float = 0.0,
+    check_options: bool = False,
+    enforce: Enforce | None = None,
+    **overrides: Any,
 ) -> Result:
-    """Solve the scene's contact problem once, on its mesh.
+    """Solve a contact problem once.
 
-    Without an initial guess, grid sequencing (``solver.sequence``) solves coarser meshes
-    first when it pays, and the coarsest level (or a cold start) begins from the scene's
-    ``solver.u0`` (zero by default). A frictional scene (``friction.law`` tresca or
-    coulomb; fb, min, blend or a baseline) adds the tangential rows of the friction law (no
-    polishing, the assembled block Jacobian) and returns the nodal friction fields in
-    ``Result.friction``; ``friction.coulomb: fixed_point`` solves a sequence of Tresca
-    problems instead. Collective; never raises on divergence (``Result.converged``).
+    Solve a contact problem; return its :class:`~contact.solvers.result.Result` (never
+    raises on divergence).
 
     Args:
-        scene: The scene to solve (:func:`contact.load_scene`).
-        method: fb, min, blend, vinewtonrsls, vinewtonssls or a baseline enforcement
-            (penalty, augmented_lagrangian, nitsche: :mod:`contact.solvers.baselines`);
-            default the scene's ``solver.method``.
-        problem: An assembled problem of this scene to reuse (built here if None).
-        u0: An initial guess on the scene's mesh (Dirichlet values are put in).
-        verbose: Print a line per Newton iteration (default: the scene's
-            ``output.verbose``).
-        criterion: Adaptive stopping against a discretization error (the adaptive loop
-            makes one per level for ``solver.stopping: adaptive``; a single solve has no
-            discretization error to balance against).
-        alternative: Another guess beside ``u0`` (a load path's extrapolation); Newton
-            starts from the one whose ‖Φ‖ is smaller (``Result.predictor`` says which).
-        **options: Overrides of the scene's ``solver`` section, validated as in the scene
-            file: ``mu``, ``c``, ``kappa``, ``line_search``, ``polish``, ``rtol``, ``atol``,
-            ``max_it``, ``linear``, ``inexact``, ``sequence``, ``petsc_options``, …
+        problem: a :class:`~contact.models.forms.ComplementarityProblem` or a model's problem.
+        method: fb, min, blend, vinewtonrsls or vinewtonssls (default: ``options``').
+        options: the solver's :class:`~contact.solvers.options.SolverOptions` (default: the
+            defaults); ``overrides`` (``rtol``, ``linear``, …) change single knobs.
+        u0: the initial guess, a function on the problem's space (a real guess: it is
+            polished first, and the gamg path takes an exact first step).
+        start: the cold start on a space when there is no guess (default: the problem's
+            ``u_h`` as it is).
+        coarse: grid sequencing: its coarser levels are solved first and the last one's
+            solution is the guess, when there is no ``u0`` or ``coarse.replaces_guess``.
+        verbose: print the Newton history (rank 0).
+        criterion: adaptive stopping against a discretization error
+            (:mod:`contact.solvers.stopping`).
+        alternative: another guess beside ``u0``; Newton starts from the one of smaller ‖Φ‖
+            (``Result.predictor`` says which).
+        assembly: seconds already spent assembling the problem for this solve (counted in
+            its timings).
+        check_options: check ``options.petsc_options`` on a tiny system first.
+        enforce: the solve of a baseline enforcement (penalty, augmented Lagrangian,
+            Nitsche: ``enforce(problem, u0, options, verbose, timers, clock)``) in place of
+            semismooth Newton, for those methods (a scene's solve gives it).
+        **overrides: single knobs of ``options`` (``rtol``, ``linear``, …), validated.
 
     Returns:
-        The solution, multiplier, gap, active set, iteration history and resultants.
-
-    Raises:
-        ConfigError: For an unknown or invalid option (one line naming it).
-        ValueError: If ``scene`` is not a Scene, or ``problem`` or ``u0`` belong to
-            another mesh.
-
-    Example:
-        >>> import contact
-        >>> scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["adapt=none"])
-        >>> fb = contact.solve(scene, method="fb", verbose=False)
-        >>> pdas = contact.solve(scene, method="min", line_search="basic", verbose=False)
-        >>> fb.converged, pdas.converged, fb.n_active == pdas.n_active, fb.dofs
-        (True, True, True, 153)
-        >>> contact.solve(scene, method="newton")
-        Traceback (most recent call last):
-        contact.base.errors.ConfigError: solver.method: 'newton' is not one of fb, min, ...
+        The result.  A frictional problem (its law Tresca or Coulomb) takes fb, min or blend
+        and returns the nodal friction fields in ``Result.friction``; Coulomb with
+        ``friction.coulomb: fixed_point`` is solved as a sequence of Tresca problems
+        (:func:`~.fixed_point.coulomb_fixed_point`).
     """
-    if problem is not None and problem.V.mesh is not scene.mesh:
-        raise ValueError("problem: was built for another scene's mesh")
-    config = scene.config  # validated at load, immutable: only the call's overrides are checked
-    opts = config.solver.updated(config.constants, method=method, **options)
+    p = discrete(problem)
+    opts = options_of(options, method, overrides)
     method = opts.method
-    verbose = config.output.verbose if verbose is None else verbose
-    built_here = problem is None
-    problem = problem or build_problem(scene)
-    friction = problem.friction
-    if problem.current is not None and method not in ncp.METHODS:
+    friction = p.friction
+    if p.current is not None and method not in ncp.METHODS:
         raise ConfigError(
             f"solver.method: {method} needs a gap affine in u (PETSc's VI bounds); contact on "
             "the current configuration (a hyperelastic body against a circle or sphere, or "
@@ -111,60 +116,116 @@ def solve(
         ):
             from .fixed_point import coulomb_fixed_point
 
-            return coulomb_fixed_point(
-                scene, problem, u0, verbose, built_here, solve, method=method, **options
-            )
-    # the problem's assembly counts once: in the solve that built it
-    built = problem.assembly_time if built_here else 0.0
-    clock = Stopwatch(before=built)
-    timers = {"assembly": built, "solve": 0.0}
+            def tresca(guess: fem.Function | None) -> Result:
+                return solve(
+                    p,
+                    options=opts,
+                    u0=guess,
+                    start=start,
+                    coarse=coarse,
+                    check_options=check_options,
+                )
 
-    # Initial guess with the Dirichlet values in place: grid sequencing, or solver.u0.
+            return coulomb_fixed_point(p, u0, verbose, assembly, tresca)
+    # the problem's assembly counts once: in the solve that built it
+    clock = Stopwatch(before=assembly)
+    timers = {"assembly": assembly, "solve": 0.0}
+
+    # the initial guess with the Dirichlet values in place: given, sequenced, or the start
     levels: list[sequencing.CoarseLevel] = []
     note = ""
-    # A frictional load step after the first is sequenced too, its history carried to the
-    # coarse meshes (.sequencing): its guess replaces the previous step's solution and the
-    # predictor; without coarse levels the step starts from those
-    if u0 is None or (scene.history and friction is not None):
+    if coarse is not None and (u0 is None or coarse.replaces_guess):
         with Timer(timers, "coarse"):
-            coarse, levels, note = sequencing.initial_guess(scene, problem.V, opts, solve, verbose)
-        if coarse is not None:
-            u0, alternative = coarse, None
-    guess = u0 is not None  # given, or the coarse levels' solution
+            guess, levels, note = sequencing.initial_guess(coarse, p.V, verbose, method)
+        if guess is not None:
+            u0, alternative = guess, None
+    given = u0 is not None  # given, or the coarse levels' solution
     if u0 is None:
-        u0 = interpolate_expression(problem.V, opts.u0, scene, key="solver.u0")
+        u0 = start(p.V) if start is not None else p.u_h
     else:
-        check_guess(u0, problem)
+        check_guess(u0, p)
     if method in BASELINE_METHODS:
-        from .baselines import solve_baseline
-
-        result = solve_baseline(scene, problem, u0, opts.knobs(), verbose, timers, clock)
+        if enforce is None:
+            raise ConfigError(
+                f"solver.method: {method} needs the constraint as UFL, which a scene's "
+                "problem gives (contact.solve(scene, ...)); use fb, min or blend"
+            )
+        result = enforce(p, u0, opts, verbose, timers, clock)
     else:
         result = solve_problem(
-            problem,
+            p,
             u0,
-            opts.knobs(),
-            scene.comm,
+            opts,
+            p.V.mesh.comm,
             verbose,
-            guess,
+            given,
             timers,
             clock,
-            check_options=bool(options.get("petsc_options")),
+            check_options=check_options,
             stopping=criterion,
             alternatives=() if alternative is None else (alternative,),
         )
     result.sequence, result.sequence_note = levels, note
-    if result.converged and problem.floating:
-        # a body only frictionless contact holds may slide: u_h is then one of many
-        import warnings
-
-        from ..setup.surfaces import ContactWarning
-        from ..solvers.floating import free_in_contact
-
-        bodies = config.bodies
-        free = free_in_contact(
-            problem, scene.bodies if bodies else None, list(bodies or ()), result.active_mask
-        )
-        if free and scene.comm.rank == 0:
-            warnings.warn(not_unique_text(free), ContactWarning, stacklevel=1)
     return result
+
+
+def sequence(
+    build: Callable[[Any], Any],
+    levels: Sequence[Any],
+    method: str | None = None,
+    *,
+    options: SolverOptions | None = None,
+    verbose: bool = False,
+    **overrides: Any,
+) -> tuple[Any, Result]:
+    """Grid-sequence a user's problem over a list of meshes (docs/theory.md §8).
+
+    Grid sequencing of a user's problem (docs/theory.md §8): ``build(level)`` on each of
+    ``levels`` (meshes or :class:`~contact.adaptivity.refine.Domain` objects, coarsest
+    first), each solved from the coarser solution carried over (exact prolongation along
+    refinements, point location between other meshes), the coarse ones to
+    ``COARSE_RTOL``.
+
+    Args:
+        build: the problem on a level (a :class:`~contact.models.forms.ComplementarityProblem`
+            or a model's problem).
+        levels: the meshes (or domains), coarsest first; the last is the one to solve on.
+        method: fb, min, blend, vinewtonrsls or vinewtonssls.
+        options: the :class:`~contact.solvers.options.SolverOptions` of the finest solve;
+            ``overrides`` change single knobs.
+        verbose: print each level's Newton history (rank 0).
+        **overrides: single knobs of ``options``, validated.
+
+    Returns:
+        (the finest level's problem, its result; ``Result.sequence`` lists the coarse
+        levels' solves).
+
+    Example:
+        >>> import contact, numpy as np, ufl
+        >>> from dolfinx import fem, mesh
+        >>> from mpi4py import MPI
+        >>> def build(msh):  # −Δu = 10 in Ω, u = 0 on ∂Ω, u ≤ 0.05
+        ...     V = fem.functionspace(msh, ("Lagrange", 1))
+        ...     u, v = fem.Function(V), ufl.TestFunction(V)
+        ...     F = ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx - 10 * v * ufl.dx
+        ...     edge = mesh.locate_entities_boundary(msh, 1, lambda x: np.full(x.shape[1], True))
+        ...     bc = fem.dirichletbc(0.0, fem.locate_dofs_topological(V, 1, edge), V)
+        ...     cap = contact.Unilateral(0.05)
+        ...     return contact.ComplementarityProblem.from_residual(F, u, cap, [bc])
+        >>> meshes = [mesh.create_unit_square(MPI.COMM_WORLD, n, n) for n in (8, 16, 32)]
+        >>> problem, result = contact.sequence(build, meshes)
+        >>> result.converged, [level.dofs for level in result.sequence], result.dofs
+        (True, [81, 289], 1089)
+        >>> problem.close()
+    """
+    opts = options_of(options, method, overrides)
+    coarse_opts = opts.model_copy(update={"rtol": sequencing.COARSE_RTOL})
+    *coarse, fine = list(levels)
+    problem = build(fine)
+    h = sequencing.hierarchy(
+        build,
+        coarse,
+        fine,
+        lambda p, u0: solve(p, options=coarse_opts, u0=u0),
+    )
+    return problem, solve(problem, options=opts, coarse=h, verbose=verbose)

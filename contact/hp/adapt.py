@@ -23,18 +23,11 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.mark import mark
-from ..adaptivity.refine import refine
 from ..base.errors import ConfigError
 from ..base.timing import Timer
-from ..drivers import adaptive as h_adaptive
-from ..drivers.adaptive import (
-    AdaptResult,
-    Level,
-    adapt_options,
-    check_on_level,
-    rank_imbalance,
-)
-from ..drivers.solve import solve
+from ..drivers.adaptive import AdaptResult, check_on_level, rank_imbalance
+from ..setup import run as h_adaptive
+from ..setup.run import SceneLevel, adapt_options, refine, scene_domain, solve
 from ..setup.scene import Scene
 from .estimate import hp_estimate
 from .mark import SIGMA0, child_degrees, decay_rates, front_cells, hp_mark
@@ -51,8 +44,9 @@ NEWTON_RTOL, NEWTON_ATOL = 1e-14, 1e-15
 
 
 @dataclass
-class HPLevel(Level):
-    """A level of the hp loop: a :class:`~contact.drivers.adaptive.Level` and its space.
+class HPLevel(SceneLevel):
+    """A level of the hp loop: a scene's level (:class:`~contact.setup.run.SceneLevel`) and
+    its space.
 
     Attributes:
         space: The level's hp space (its degrees: ``space.cell_degrees``).
@@ -138,9 +132,20 @@ def adapt_hp(
         with Timer(seconds, "estimate"):
             est = hp_estimate(scene, result, space, estimator)
         with Timer(seconds, "error"):
-            error = solution_error(scene, result)
+            error = solution_error(problem, result)
         imbalance = rank_imbalance(space.V)
-        level = HPLevel(index, scene, result, est, error, seconds, imbalance, space=space)
+        level = HPLevel(
+            index,
+            scene_domain(scene),
+            problem,
+            result,
+            est,
+            error,
+            seconds,
+            imbalance,
+            scene=scene,
+            space=space,
+        )
         out.levels.append(level)
         stop = _stop(result, est.eta, tol, index, max_levels)
         if not stop:
@@ -187,15 +192,15 @@ def adapt_hp(
 def adapt(
     scene: Scene,
     method: str | None = None,
-    on_level: Callable[[Level], None] | None = None,
+    on_level: Callable[[SceneLevel], None] | None = None,
     verbose: bool | None = None,
     u0: fem.Function | None = None,
-    keep: Callable[[Level], bool] | None = None,
+    keep: Callable[[SceneLevel], bool] | None = None,
     **options: Any,
 ) -> AdaptResult:
     """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
-    h-refinement (:func:`contact.drivers.adaptive.adapt`), or with ``strategy="hp"`` h- or
+    h-refinement (:func:`contact.setup.run.adapt`), or with ``strategy="hp"`` h- or
     p-refinement of each marked cell (:func:`adapt_hp`, the scalar signorini model).
 
     The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` (or the DoF
@@ -207,7 +212,7 @@ def adapt(
         scene: The first level's scene.
         method: The solver method of the h loop (fb, min, blend, vinewtonrsls,
             vinewtonssls); default the scene's ``solver.method``.
-        on_level: Called with each :class:`~contact.drivers.adaptive.Level` once it is
+        on_level: Called with each level (:class:`~contact.setup.run.SceneLevel`) once it is
             estimated (the CLI writes the level's files there).
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The h loop's first initial guess (a load step's previous solution).

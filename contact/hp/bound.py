@@ -34,6 +34,7 @@ from ..adaptivity.equilibration.bound import Bound, guaranteed_bound
 from ..adaptivity.equilibration.cells import CONTACT
 from ..adaptivity.equilibration.multiplier import clipped
 from ..adaptivity.equilibration.reference import Reference
+from ..models.discrete import Problem
 from ..setup.scene import Scene
 from ..solvers import Result
 from .reference import lagrange
@@ -196,6 +197,8 @@ def hp_bound(scene: Scene, result: Result, space: HPSpace, extra: int = EXTRA) -
     :mod:`contact.adaptivity.equilibration.bound`).  Collective."""
     rule = HPMultiplier(result, space, sign=-1.0)
     lifting = hp_lifting(scene, result, space)
+    problem = result.problem
+    assert isinstance(problem, Problem)  # hp_problem's, with its physics and condition
     return guaranteed_bound(
-        scene, result, degree=space.p_max + extra, lifting=lifting, multiplier_rule=rule
+        problem, result, degree=space.p_max + extra, lifting=lifting, multiplier_rule=rule
     )

@@ -4,6 +4,7 @@ equilibrated bound (docs/theory.md §9, §11)."""
 from __future__ import annotations
 
 from ..adaptivity.estimate import Estimate, residual_estimate
+from ..models.discrete import Problem
 from ..setup.scene import Scene
 from ..solvers import Result
 from .space import HPSpace
@@ -19,7 +20,9 @@ def hp_estimate(
     if kind not in ESTIMATORS:
         raise ValueError(f"estimator: expected one of {ESTIMATORS}, got {kind!r}")
     if kind == "residual":
-        return residual_estimate(scene, result, space.degree_function())
+        problem = result.problem
+        assert isinstance(problem, Problem)  # hp_problem's, with its physics and condition
+        return residual_estimate(problem, result, space.degree_function())
     from .bound import hp_bound
 
     bound = hp_bound(scene, result, space)

@@ -31,18 +31,21 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from ..models.problem import contact_ends, interpolate_expression, lumped_weights
-from ..models.scalar import scalar_forms
-from ..setup import expressions
+from ..models.constraints import Unilateral
+from ..models.discrete import Problem
+from ..models.problem import contact_ends, lumped_weights
 from ..setup.checks import check_scene_data
+from ..setup.data import interpolate_expression
+from ..setup.scalar import scalar_forms, scalar_physics
 from ..setup.scene import Scene
-from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.problem import Constraint
 from .space import HPSpace
 
 
-class HPProblem(DiscreteProblem):
-    """A :class:`~contact.solvers.problem.DiscreteProblem` in the hp unknowns x: its nodal
+class HPProblem(Problem):
+    """A problem (:class:`~contact.models.discrete.Problem`) in the hp unknowns x: its nodal
     outputs (λ_h, gap, active set) are hp functions mapped to V by Q, so that λ_h is the
     Lagrange interpolant of degree p_E of the nodal multipliers on each contact facet."""
 
@@ -177,6 +180,10 @@ def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
             "contact_mask": contact_mask,
         },
         assembly_time=time.perf_counter() - t0,
+        physics=scalar_physics(scene, forms),
+        contacts=(
+            Unilateral(g_h, side="upper", measure=forms["ds"](contact_ids), nodal=lambda _: g_h),
+        ),
     )
     problem.space = space
     return problem

@@ -1,67 +1,20 @@
-"""Models: a scene's mesh and data → the discrete contact problem (K, b, constraint set).
+"""Models: the pieces of a contact problem a DOLFINx user composes with their own UFL forms,
+and that a scene's models build alike (:mod:`contact.setup.build`).
 
-* :mod:`.problem` — what every model shares (assembly, lumped weights, the scene's
-  expressions) to build the solvers' :class:`~contact.solvers.problem.DiscreteProblem`;
-* :mod:`.scalar` — scalar Signorini and obstacle problems (docs/theory.md §1.1–1.2);
-* :mod:`.elasticity` — linear elasticity (docs/theory.md §1.3), with its rigid
-  :mod:`.obstacles` (plane, circle, sphere; the rotation u = Q x);
-* :mod:`.bodies` — several elastic bodies in contact through :mod:`.mortar` pairs (SPEC §1.5);
-* :mod:`.hyperelastic` — hyperelastic bodies (finite strain, neo-Hookean / St Venant–
-  Kirchhoff) against rigid planes: a residual re-assembled at each Newton iterate;
-* :mod:`.friction` — Tresca / Coulomb friction on the contact nodes (SPEC §1.4): tangential
-  unknowns, thresholds, c_t (only a frictional scene imports it);
-* :mod:`.forms` — bring your own forms: the problem of the user's UFL forms and a
-  unilateral constraint, with no scene (``contact.ComplementarityProblem``).
-
-A scene imports only its own model: a scalar scene never loads the elasticity modules, a
-linear one never the hyperelastic module.
+* :mod:`.physics` — the equations a problem discretises (:class:`~.physics.Diffusion`,
+  :class:`~.physics.Elasticity`: fluxes, loads, boundary parts, exact solutions), which the
+  estimators read;
+* :mod:`.constraints` — the contact conditions: :class:`~.constraints.Unilateral`,
+  :class:`~.constraints.RigidObstacle` (plane, ball, cylinder, a signed distance),
+  :class:`~.constraints.MortarPair`, the friction laws :class:`~.constraints.Tresca` and
+  :class:`~.constraints.Coulomb`;
+* :mod:`.contacts` — their constraint set on an assembled system (:mod:`.obstacles`: a rigid
+  obstacle's nodes and rotations; :mod:`.mortar`, :mod:`.overlap`, :mod:`.basis`: the mortar
+  coupling and the change of basis u = Q x; :mod:`.friction`: the tangential unknowns);
+* :mod:`.discrete` — :class:`~.discrete.Problem`, the solver's discrete problem with its
+  physics and conditions; :mod:`.forms` — the problem of a user's forms
+  (:class:`~.forms.ComplementarityProblem`, :func:`~.forms.make_problem` that every builder
+  calls) and the residual problems of finite strain; :mod:`.problem` — assembly;
+* :mod:`.elasticity`, :mod:`.hyperelastic` — what an elastic body needs beyond its forms (the
+  near-nullspace, von Mises, the finite-strain energy and stability).
 """
-
-from __future__ import annotations
-
-from typing import TYPE_CHECKING
-
-from ..solvers.problem import DiscreteProblem
-
-if TYPE_CHECKING:
-    from ..setup.scene import Scene
-
-__all__ = ["build_problem"]
-
-
-def build_problem(scene: Scene) -> DiscreteProblem:
-    """The discrete problem of the scene's model (within the DoF budget, else ConfigError);
-    an elasticity scene with ``bodies`` is the multi-body model of :mod:`.bodies`."""
-    from ..setup.budget import check_dofs, mesh_dofs
-
-    cfg, msh = scene.config, scene.mesh
-    components = msh.geometry.dim if cfg.elastic else 1
-    check_dofs(
-        cfg.solver,
-        mesh_dofs(msh, cfg.mesh.degree, components),
-        msh.geometry.dim,
-        "mesh",
-        "the mesh gives",
-    )
-    if cfg.model.type in ("elasticity", "hyperelastic"):
-        problem: DiscreteProblem
-        if cfg.model.type == "hyperelastic":
-            from .hyperelastic import hyperelastic_problem
-
-            problem = hyperelastic_problem(scene, cfg.frictional)
-        elif cfg.bodies:
-            from .bodies import bodies_problem
-
-            problem = bodies_problem(scene)
-        else:
-            from .elasticity import elasticity_problem
-
-            problem = elasticity_problem(scene)
-        if cfg.frictional:
-            from .friction import friction_set
-
-            problem.friction = friction_set(scene, problem)
-        return problem
-    from .scalar import scalar_problem
-
-    return scalar_problem(scene)

@@ -231,7 +231,7 @@ def check_constraint(c: Any, V: fem.FunctionSpace) -> dict[str, object]:
     if c.component is not None and c.dofs is not None:
         raise ValueError("Unilateral: a component goes with a measure (dofs name their own)")
     if c.dofs is None:
-        _check_measure(c.measure, V)
+        check_measure(c.measure, V)
         _check_component(c.component, V)
     else:
         _check_dofs(c.dofs, c.weights, V)
@@ -253,6 +253,8 @@ def shape_of(c: Any) -> dict[str, object]:
         "Unilateral.bound": (
             "a Function"
             if isinstance(bound, fem.Function)
+            else "a UFL expression"
+            if isinstance(bound, ufl.core.expr.Expr)
             else "a callable"
             if callable(bound)
             else "a number"
@@ -262,40 +264,37 @@ def shape_of(c: Any) -> dict[str, object]:
     }
 
 
-def _check_measure(measure: Any, V: fem.FunctionSpace) -> None:
+def check_measure(measure: Any, V: fem.FunctionSpace, name: str = "Unilateral.measure") -> None:
+    """``measure`` is dx or a tagged ds on u's mesh, its tags of the right dimension (a
+    one-line error naming ``name``)."""
     if measure is None:
         return
     if not isinstance(measure, ufl.Measure):
-        raise TypeError(
-            f"Unilateral.measure: expected ufl.dx or ds(tag), got {type(measure).__name__}"
-        )
+        raise TypeError(f"{name}: expected ufl.dx or ds(tag), got {type(measure).__name__}")
     kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
     if kind not in ("cell", "exterior_facet"):
-        raise ValueError(f"Unilateral.measure: expected dx or ds, got {kind}")
+        raise ValueError(f"{name}: expected dx or ds, got {kind}")
     domain = measure.ufl_domain()
     if domain is not None and domain.ufl_cargo() is not V.mesh._cpp_object:
-        raise ValueError("Unilateral.measure: defined on another mesh than u's")
+        raise ValueError(f"{name}: defined on another mesh than u's")
     if tag == "everywhere":
         return
     ids = tag if isinstance(tag, tuple) else (tag,)
     if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) for i in ids):
-        raise ValueError(f"Unilateral.measure: subdomain ids are integer tags, got {tag!r}")
+        raise ValueError(f"{name}: subdomain ids are integer tags, got {tag!r}")
     if tags is None:
-        raise ValueError(
-            f"Unilateral.measure: {kind} with subdomain {tag} needs subdomain_data (mesh tags)"
-        )
+        raise ValueError(f"{name}: {kind} with subdomain {tag} needs subdomain_data (mesh tags)")
     topology = getattr(tags, "topology", None)
     if topology is None or not hasattr(tags, "find"):
         raise TypeError(
-            "Unilateral.measure: its subdomain_data must be dolfinx mesh tags, "
-            f"got {type(tags).__name__}"
+            f"{name}: its subdomain_data must be dolfinx mesh tags, got {type(tags).__name__}"
         )
     if topology is not V.mesh.topology._cpp_object:
-        raise ValueError("Unilateral.measure: its mesh tags belong to another mesh than u's")
+        raise ValueError(f"{name}: its mesh tags belong to another mesh than u's")
     dim = V.mesh.topology.dim - (kind == "exterior_facet")
     if tags.dim != dim:
         raise ValueError(
-            f"Unilateral.measure: {'ds' if dim < V.mesh.topology.dim else 'dx'} needs tags of "
+            f"{name}: {'ds' if dim < V.mesh.topology.dim else 'dx'} needs tags of "
             f"dimension {dim}, got tags of dimension {tags.dim}"
         )
 
@@ -369,6 +368,13 @@ def _check_bound_kind(bound: Any, W: fem.FunctionSpace) -> None:
             raise ValueError(
                 f"Unilateral.bound: a Function of value shape {bound.function_space.value_shape}"
                 f", the constraint needs {W.value_shape}"
+            )
+        return
+    if isinstance(bound, ufl.core.expr.Expr):
+        if bound.ufl_shape != W.value_shape:
+            raise ValueError(
+                f"Unilateral.bound: a UFL expression of shape {bound.ufl_shape}, the "
+                f"constraint needs {W.value_shape}"
             )
         return
     if callable(bound):

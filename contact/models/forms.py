@@ -35,187 +35,24 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.lifetime import destroy
 from ..base.timing import Stopwatch
+from ..solvers.current import nodal_geometry
+from ..solvers.floating import floating_bodies
 from ..solvers.options import SolverOptions
-from ..solvers.problem import Constraint, DiscreteProblem
+from ..solvers.problem import DiscreteProblem, NodeBlockMatrix
 from ..solvers.result import Result
 from ..solvers.snes import solve_problem
 from . import form_checks as checks
-from .problem import assemble_system, lumped_weights
-
-#: a bound: a number, a Function on V, values at the constrained DoFs, or f(x) → values
-#: at points x of shape (3, n) (as ``Function.interpolate`` takes it)
-Bound = float | fem.Function | np.ndarray | Callable[[np.ndarray], np.ndarray]
-
-
-@dataclass(frozen=True)
-class Unilateral:
-    """A unilateral constraint u ≤ g (``side="upper"``) or u ≥ g (``side="lower"``).
-
-    It holds at the nodes of a measure's cells or facets, with the lumped weights
-    w_i = ∫ φ_i d(measure), or at explicit DoFs with given weights; the multiplier λ_h of
-    the solve is then the density F(u_h; v) = Σ_i w_i λ_i v_i. Dirichlet DoFs are never
-    constrained. A record: its fields are checked against u's space when a problem is built
-    (``form_checks.check_constraint``), on every rank alike — the side,
-    a bound that is finite (a callable's values of shape (n,) for points of shape (3, n)), a
-    measure that selects some facet or cell, ``dofs`` that are owned integer indices given
-    once each, ``weights`` finite and > 0; each a ``ValueError`` or ``TypeError`` naming the
-    field.
-
-    Args:
-        bound: g: a number, a Function on V, values at the constrained DoFs, or a callable
-            ``x -> values`` on points of shape (3, n) (as ``Function.interpolate`` takes it).
-            On a vector space with ``component``, a scalar bound of that component.
-        side: ``"upper"`` for u ≤ g, ``"lower"`` for u ≥ g.
-        measure: ``ufl.dx`` (the default: every node of Ω, the obstacle problem) or
-            ``ds(tag)`` with the facet tags as its ``subdomain_data`` (the nodes of those
-            facets: a Signorini condition).
-        dofs: Explicit owned local DoF indices of V (any components), instead of a measure.
-        weights: The weights w_i of ``dofs`` (default 1: λ_i is then the nodal reaction).
-        component: On a vector space, the component k the constraint acts on (u_k ≤ g or
-            u_k ≥ g, e.g. the normal displacement against a plane).
-
-    Example:
-        >>> import contact
-        >>> floor = contact.Unilateral(-0.1, side="lower")
-        >>> floor.sign, floor.measure is None
-        (-1.0, True)
-    """
-
-    bound: Bound
-    side: str = "upper"
-    measure: ufl.Measure | None = None
-    dofs: np.ndarray | None = None
-    weights: np.ndarray | None = None
-    component: int | None = None
-
-    @property
-    def sign(self) -> float:
-        """The constraint's sign σ, +1 for u ≤ g and −1 for u ≥ g."""
-        return 1.0 if self.side == "upper" else -1.0
-
-    def nodes(
-        self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC]
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Return the constrained owned DoFs (no Dirichlet DoF) and their weights.
-
-        Collective; the constraint is checked first
-        (``form_checks.check_constraint``).
-
-        Args:
-            V: The space of u.
-            bcs: The Dirichlet conditions (their DoFs are not constrained).
-
-        Returns:
-            (dofs, w): owned local DoF indices and their weights.
-
-        Raises:
-            ValueError: On every rank, for a measure that selects nothing, a constraint
-                left with no DoF on any rank, or constrained DoFs whose weight is not
-                positive.
-        """
-        comm = V.mesh.comm
-        n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-        fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
-        if self.dofs is not None:
-            dofs = np.asarray(self.dofs, dtype=np.int32)
-            w = np.ones(len(dofs)) if self.weights is None else np.asarray(self.weights, float)
-            keep = ~np.isin(dofs, fixed)
-            checks.check_constrained(comm, dofs[keep], by_dofs=True)
-            return dofs[keep], w[keep]
-        measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
-        dofs = _dofs_of(V, measure, self.component)
-        dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
-        checks.check_constrained(comm, dofs, by_dofs=False)
-        w = lumped_weights(V, measure, self.component)[dofs]
-        if comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
-            raise ValueError(
-                "Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
-                "(e.g. P2 vertices); use P1 or give dofs and weights"
-            )
-        return dofs, w
-
-    def bound_function(self, V: fem.FunctionSpace, dofs: np.ndarray) -> fem.Function:
-        """Return the bound g as a Function on V (at the constrained DoFs at least).
-
-        Args:
-            V: The space of u.
-            dofs: The constrained DoFs (of :meth:`nodes`).
-
-        Returns:
-            g on V.
-
-        Raises:
-            ValueError: On every rank (collective), for a callable bound that fails or
-                returns the wrong shape, values of the wrong length, or a bound that is not
-                finite at some constrained DoF.
-        """
-        comm = V.mesh.comm
-        g = fem.Function(V, name="bound")
-        interpolated = isinstance(self.bound, fem.Function) or callable(self.bound)
-        if interpolated and self.component is not None:  # a scalar bound on u_k's DoFs
-            S, to_parent = V.sub(self.component).collapse()
-            into = fem.Function(S)
-        else:
-            S, to_parent, into = V, None, g
-
-        def assign() -> None:  # local: no collective
-            bound = self.bound
-            if isinstance(bound, fem.Function):
-                into.interpolate(bound)
-            elif callable(bound):
-                into.interpolate(checks.shaped(bound, S))
-            elif np.ndim(bound) == 0:
-                g.x.array[:] = float(bound)
-            else:
-                values = np.asarray(bound, dtype=float)
-                if values.shape != dofs.shape:
-                    raise ValueError(
-                        "Unilateral.bound: expected one value per constrained DoF "
-                        f"({len(dofs)}), got shape {values.shape}"
-                    )
-                g.x.array[dofs] = values
-            if to_parent is not None:
-                g.x.array[to_parent] = into.x.array
-
-        checks.agree(comm, assign)
-        g.x.scatter_forward()
-        checks.check_finite_bound(comm, g.x.array[dofs])
-        return g
-
-
-def _dofs_of(V: fem.FunctionSpace, measure: ufl.Measure, component: int | None) -> np.ndarray:
-    """Return the constrained DoFs of a measure's cells or facets.
-
-    The DoFs (local; of one ``component`` of a vector space) of the cells (``dx``) or
-    exterior facets (``ds``) a measure covers (checked:
-    :func:`~contact.models.form_checks.check_constraint`). Collective; a tagged measure
-    that selects no entity on any rank is a ValueError.
-    """
-    msh, tdim = V.mesh, V.mesh.topology.dim
-    kind, tag, tags = measure.integral_type(), measure.subdomain_id(), measure.subdomain_data()
-    dim = tdim if kind == "cell" else tdim - 1
-    if dim < tdim:
-        msh.topology.create_connectivity(dim, tdim)
-    if tag == "everywhere":
-        if kind == "cell" and component is not None:
-            return np.asarray(V.sub(component).collapse()[1], dtype=np.int32)
-        if kind == "cell":
-            index_map = V.dofmap.index_map
-            return np.arange(index_map.size_local + index_map.num_ghosts, dtype=np.int32)
-        entities = dolfinx.mesh.exterior_facet_indices(msh.topology)
-    else:
-        ids = tag if isinstance(tag, tuple) else (tag,)
-        entities = np.concatenate([tags.find(i) for i in ids])
-        checks.check_selects(msh.comm, measure, tags, ids, entities)
-    if component is None:
-        return fem.locate_dofs_topological(V, dim, entities)
-    S = V.sub(component).collapse()[0]
-    return fem.locate_dofs_topological((V.sub(component), S), dim, entities)[0]
+from .constraints import Condition, ContactSet, Unilateral, check_condition
+from .contacts import BodiesProblem, contact_set, mirror_axes
+from .discrete import Problem
+from .physics import Physics
+from .problem import assemble_system
 
 
 @dataclass
-class ResidualProblem(DiscreteProblem):
+class ResidualProblem(Problem):
     """A discrete problem with a nonlinear residual, re-assembled at every iterate.
 
     A discrete problem with a nonlinear residual: R(x) = F(x; ·) and K = J(x) are
@@ -343,7 +180,7 @@ class ResidualProblem(DiscreteProblem):
 
         A new matrix J(x) with the Dirichlet rows and columns kept (the coupling of a
         prescribed increment into the free rows: the tangent predictor,
-        :mod:`contact.solvers.predictor`); the caller destroys it.
+        ``contact.solvers.predictor``); the caller destroys it.
         """
         self._set_iterate(x)
         A = dolfinx.fem.petsc.assemble_matrix(self._forms()[1])
@@ -355,6 +192,149 @@ class ResidualProblem(DiscreteProblem):
         super().destroy()
         if self._F is not None:
             self._F.destroy()
+
+
+@dataclass
+class RotatedResidualProblem(ResidualProblem):
+    """The residual problem in rotated unknowns x = Qᵀ u.
+
+    The residual problem in rotated unknowns x = Qᵀ u (Q orthogonal and block-diagonal:
+    the contact nodes of a tilted plane on their (n, t) axes, the others unrotated, as in
+    :func:`contact.models.obstacles.plane_contact`):
+
+        R̃(x) = Qᵀ R(Q x),     K̃(x) = Qᵀ K_T(Q x) Q,
+
+    so that u·n ≤ g is a bound on one unknown per contact node.  K̃ is written into ``K``
+    (MatPtAP reusing its pattern: the solvers keep their references to it).
+    """
+
+    K_T: PETSc.Mat | None = None  # the tangent in the displacement unknowns
+    _R: PETSc.Vec | None = field(default=None, repr=False)
+
+    def _rotation(self) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """(Q, K_T): always given (the builder passes both; None only as defaults)."""
+        assert self.basis is not None and self.K_T is not None, "basis (Q), K_T not set"
+        return self.basis, self.K_T
+
+    def _set_iterate(self, x: PETSc.Vec) -> None:
+        u = self.u_h.x
+        self._rotation()[0].mult(x, u.petsc_vec)  # u = Q x
+        u.scatter_forward()
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """Write Qᵀ R(Q x) into out."""
+        if self._R is None:
+            self._R = out.duplicate()
+        super().residual(x, self._R)
+        self._rotation()[0].multTranspose(self._R, out)
+
+    def linearize(self, x: PETSc.Vec) -> None:
+        """K = Qᵀ K_T(Q x) Q."""
+        self._set_iterate(x)
+        Q, K_T = self._rotation()
+        self._assemble_tangent(K_T)
+        K_T.PtAP(Q, result=self.K)
+
+    def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
+        """Qᵀ J(Q x) Q with the Dirichlet rows and columns kept (a new matrix)."""
+        A = super().full_tangent(x)
+        out = A.PtAP(self._rotation()[0])
+        A.destroy()
+        return out
+
+    def destroy(self) -> None:
+        """Destroy the problem's PETSc objects, the tangent and the residual included."""
+        super().destroy()
+        destroy(self.K_T, self._R)
+
+
+@dataclass
+class CurrentResidualProblem(ResidualProblem):
+    """The residual problem with contact on the current configuration.
+
+    The residual problem with contact on the current configuration
+    (:mod:`contact.solvers.current`, ``current`` set): the unknowns are the displacements,
+    a contact node's residual block is read in the frame of its current normal ñ(x_i).
+    The nodal quantities below are those of the iterate in ``u_h`` (the residual ``r``
+    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it).
+    """
+
+    def _rows(self) -> np.ndarray:
+        bs = self.V.dofmap.index_map_bs
+        return self.current.nodes[:, None] * bs + np.arange(bs)
+
+    def multiplier(self, r: np.ndarray) -> np.ndarray:
+        """λ_i = ñ_i·R_i / w_i (≤ 0 in contact): the normal nodal force per reference area."""
+        rows = self._rows()
+        geo = nodal_geometry(self.current, self.u_h.x.array[rows])
+        return np.einsum("ka,ka->k", geo.frames[:, :, 0], r[rows]) / self.constraint.w
+
+    def pressure(self, r: np.ndarray) -> np.ndarray:
+        """The nominal contact pressure p_i = −λ_i (force per reference area, ≥ 0)."""
+        return -self.multiplier(r)
+
+    def nodal_gap(self, x: np.ndarray) -> np.ndarray:
+        """g(X_i + u_i): the gap of the deformed contact node (x holds the displacements)."""
+        cc = self.current
+        return cc.surface.project(cc.X + x[self._rows()])[0]
+
+    def gap_output(self, x: np.ndarray) -> fem.Function:
+        """The current gap g(X_i + u_i) at the contact nodes, NaN elsewhere."""
+        gap = self.nodal_output("gap", self.nodal_gap(x))
+        on = self.nodal_output("on", np.ones(len(self.constraint.dofs)))
+        gap.x.array[on.x.array < 0.5] = np.nan
+        return gap
+
+    def constrained_hessian(self, x: PETSc.Vec, active: np.ndarray) -> tuple[PETSc.Mat, np.ndarray]:
+        """Return the Hessian of the Lagrangian on the active constraints' tangent space.
+
+        (Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
+        solution x, on the tangent space of the active constraints — what decides the
+        stability of a constrained equilibrium (:func:`negative_eigenvalues`).  With
+        μ_i = ñ_i·R_i (= w_i λ_i ≤ 0; R_i = μ_i ñ_i at a frictionless solution) and
+        ∇²g = −Dn,
+
+            ∇²L = K_T − Σ_{i active} μ_i P_i Dn_i P_i,
+
+        (against a circle or sphere −μ Dn = −w p (I − n nᵀ)/|x − c|: a convex obstacle
+        softens the body's tangential motion — it can roll off), rotated to the active nodes'
+        current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
+        matrix (the caller destroys it); K becomes K_T(x).
+        """
+        cc, bs = self.current, self.V.dofmap.index_map_bs
+        rows = self._rows()
+        r = x.duplicate()
+        self.residual(x, r)
+        self.linearize(x)
+        u = x.array_r[rows]
+        geo = nodal_geometry(cc, u)
+        Dn = cc.surface.project(cc.X + u)[2]
+        free = ~cc.fixed
+        mu = np.einsum("ka,ka->k", geo.frames[:, :, 0], r.array_r[rows])
+        nodes = cc.nodes[active]
+        curvature, frames = NodeBlockMatrix(self.K, bs), NodeBlockMatrix(self.K, bs)
+        blocks = np.zeros((curvature.local_nodes, bs, bs))
+        blocks[nodes] = (-mu[:, None, None] * (free[:, :, None] * Dn * free[:, None, :]))[active]
+        hessian = self.K.duplicate(copy=True)
+        subset = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
+        hessian.axpy(1.0, curvature.set(blocks), structure=subset)  # type: ignore[arg-type]
+        Q = frames.identity()
+        Q[nodes] = geo.frames[active]
+        out = hessian.PtAP(frames.set(Q))
+        destroy(hessian, curvature.mat, frames.mat, r)
+        return out, (nodes * bs).astype(np.int32)
+
+    def contact_force(self, r: np.ndarray) -> float:
+        """Return the resultant of the nodal contact forces along the normal n.
+
+        F = −m_n Σ_i R_i·n: the resultant of the nodal contact forces along the normal n
+        at the first point of contact (m_n the mirror images pressing along n,
+        :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`; frictionless:
+        Σ w_i p_i ñ_i·n).
+        """
+        n = np.asarray(self.data["n"], dtype=float)
+        local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
+        return self.copies_along(n) * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
 class ComplementarityProblem:
@@ -411,8 +391,10 @@ class ComplementarityProblem:
         a: ufl.Form,
         L: ufl.Form,
         u: fem.Function,
-        constraint: Unilateral,
+        constraint: Condition | Sequence[Condition],
         bcs: Sequence[fem.DirichletBC] = (),
+        physics: Physics | None = None,
+        u_prev: fem.Function | None = None,
     ) -> ComplementarityProblem:
         """Build the problem K u − b = w λ of a linear form pair a(u, v) = L(v).
 
@@ -421,11 +403,16 @@ class ComplementarityProblem:
         Args:
             a: The bilinear form a(w, v) (a trial function w and a test function v on u's
                 space), a UFL form or a compiled ``dolfinx.fem.Form``.
-            L: The linear form L(v) (a test function on u's space).
-            u: A Function on V: its values are the initial guess, and it receives the
-                solution (``Result.u_h`` is ``u``).
-            constraint: Where and how u is bounded.
+            L: the linear form L(v) (a test function on u's space).
+            u: the Function that receives the solution (and is the initial guess).
+            constraint: where and how u is bounded: a :class:`~.constraints.Unilateral`, a
+                :class:`~.constraints.RigidObstacle`, or :class:`~.constraints.MortarPair`
+                s (a list, with at most one rigid obstacle); a rigid obstacle's or a
+                pair's friction law is part of it.
             bcs: Dirichlet conditions on u's space (or its subspaces).
+            physics: the equations the forms discretise (``physics``),
+                which the estimators read; None: no estimate.
+            u_prev: the previous load step's solution (friction's slips start there).
 
         Returns:
             The problem, ready to :meth:`solve`; close it (or use ``with``).
@@ -437,13 +424,16 @@ class ComplementarityProblem:
         t0 = time.perf_counter()
         V, bcs = _checked(u, bcs, constraint, [("a", a, 2), ("L", L, 1)])
         return cls(
-            _discrete(
-                DiscreteProblem,
+            make_problem(
+                "linear",
+                V,
                 u,
                 bcs,
                 lambda: assemble_system(fem.form(a), fem.form(L), bcs),
-                constraint,
+                conditions_of(constraint),
                 t0,
+                physics=physics,
+                u_prev=u_prev,
             )
         )
 
@@ -452,9 +442,13 @@ class ComplementarityProblem:
         cls,
         F: ufl.Form,
         u: fem.Function,
-        constraint: Unilateral,
+        constraint: Condition | Sequence[Condition],
         bcs: Sequence[fem.DirichletBC] = (),
         J: ufl.Form | None = None,
+        physics: Physics | None = None,
+        u_prev: fem.Function | None = None,
+        energy: ufl.Form | None = None,
+        current: bool = True,
     ) -> ComplementarityProblem:
         """Build the problem R(u) = w λ of a residual F(u; v), nonlinear in ``u``.
 
@@ -463,12 +457,19 @@ class ComplementarityProblem:
         Args:
             F: The residual F(u; v), a linear form in the test function v on u's space,
                 written in u.
-            u: The Function F is written in: its values are the initial guess, and it
-                receives the solution (``Result.u_h`` is ``u``).
-            constraint: Where and how u is bounded.
+            u: the Function F is written in: the initial guess, then the solution.
+            constraint: where and how u is bounded (as for :meth:`from_forms`).
             bcs: Dirichlet conditions on u's space (or its subspaces).
             J: The bilinear form ∂F/∂u (default ``ufl.derivative(F, u)``; required when F
                 is a compiled ``dolfinx.fem.Form``).
+            physics: the equations F discretises (``physics``), which the
+                estimators read; None: no estimate.
+            u_prev: the previous load step's solution (friction's slips start there).
+            energy: Π(u) with F = ∂Π/∂u, if F is the gradient of an energy (the energy line
+                search of ``contact.solvers.energy_search``).
+            current: a rigid obstacle whose gap is not affine in u (a curved surface, or
+                friction) is met on the current configuration (finite strain); False: on the
+                reference configuration.
 
         Returns:
             The problem, ready to :meth:`solve`; close it (or use ``with``).
@@ -482,16 +483,25 @@ class ComplementarityProblem:
         V, bcs = _checked(u, bcs, constraint, forms, residual=(F, J))
         J = ufl.derivative(F, u) if J is None else J
         F_form, J_form = fem.form(F), fem.form(J)
-        problem = _discrete(
-            ResidualProblem,
-            u,
-            bcs,
-            lambda: ResidualProblem.matrices(J_form, bcs),
-            constraint,
-            t0,
+        return cls(
+            make_problem(
+                "residual",
+                V,
+                u,
+                bcs,
+                lambda: ResidualProblem.matrices(J_form, bcs),
+                conditions_of(constraint),
+                t0,
+                physics=physics,
+                residual={
+                    "F_form": F_form,
+                    "J_form": J_form,
+                    "energy_form": None if energy is None else fem.form(energy),
+                },
+                current=current,
+                u_prev=u_prev,
+            )
         )
-        problem.F_form, problem.J_form = F_form, J_form
-        return cls(problem)
 
     def solve(self, method: str = "fb", verbose: bool = False, **options: Any) -> Result:
         """Solve from u's current values (Dirichlet values put in).
@@ -554,6 +564,13 @@ class ComplementarityProblem:
         self.close()
 
 
+def conditions_of(constraint: Any) -> tuple:
+    """The contact conditions of a ``constraint`` argument: one condition or a sequence."""
+    if isinstance(constraint, (list, tuple)):
+        return tuple(constraint)
+    return (constraint,)
+
+
 def _checked(
     u: Any,
     bcs: Any,
@@ -564,9 +581,9 @@ def _checked(
     """Return (V, bcs as a list) once every argument passed its checks on every rank.
 
     (V, bcs as a list) once every argument passed its local checks on every rank
-    (``contact.models.form_checks``): the forms' (name, form, rank), F written in u
-    (``residual`` = (F, J)), the Dirichlet conditions, the constraint — and the number of
-    Dirichlet conditions and the constraint's shape are the same on every rank.
+    (:mod:`~contact.models.form_checks`): the forms' (name, form, rank), F written in u
+    (``residual`` = (F, J)), the Dirichlet conditions, the contact conditions — and the
+    number of Dirichlet conditions and the conditions' shapes are the same on every rank.
     """
     V = checks.check_unknown(u).function_space
     bc_list = checks.bcs_list(bcs)
@@ -577,47 +594,153 @@ def _checked(
         if residual is not None:
             checks.check_written_in(*residual, u=u)
         checks.check_bcs(bc_list, V)
-        if not isinstance(constraint, Unilateral):
-            raise TypeError(
-                f"constraint: expected a contact.Unilateral, got {type(constraint).__name__}"
-            )
-        return {"bcs": len(bc_list or ()), **checks.check_constraint(constraint, V)}
+        shape: dict[str, object] = {"bcs": len(bc_list or ())}
+        for condition in conditions_of(constraint):
+            shape.update(check_condition(condition, V))
+        return shape
 
     checks.agree(V.mesh.comm, local, same=True)
     assert bc_list is not None  # check_bcs refused None
     return V, bc_list
 
 
-def _discrete[P: DiscreteProblem](
-    kind: type[P],
-    u: fem.Function,
+def make_problem(
+    kind: str,
+    V: fem.FunctionSpace,
+    u_h: fem.Function,
     bcs: list,
     matrices: Callable[[], tuple[PETSc.Mat, PETSc.Vec]],
-    constraint: Unilateral,
+    conditions: Sequence[Condition],
     t0: float,
-) -> P:
-    """Return the solver's problem, the constraint checked collectively first.
+    *,
+    physics: Physics | None = None,
+    data: dict | None = None,
+    residual: dict | None = None,
+    current: bool = False,
+    u_prev: fem.Function | None = None,
+    allow_empty: bool = False,
+    bodies: tuple[Any, list[str]] = (None, []),
+) -> Problem:
+    """Return the problem of an assembled system and its contact conditions.
 
-    The solver's problem: the constraint's nodes, weights and bound on u's space (checked
-    collectively), then K and b from ``matrices()``.
+    How every builder makes one (the own forms of :class:`ComplementarityProblem`, the
+    scene's models).
+
+    Args:
+        kind: ``linear`` (R(x) = K x − b) or ``residual`` (R and K_T re-assembled at every
+            iterate).
+        V: the unknown's space.
+        u_h: the function the solution goes into.
+        bcs: the Dirichlet conditions K and b were assembled with.
+        matrices: K and b (K_T at u_h's values and a zero b for a residual problem), called
+            after a unilateral condition's nodes are known (their checks come first).
+        conditions: the contact conditions (:func:`~.contacts.contact_set`).
+        t0: when building began (``assembly_time``).
+        physics: the equations (what the estimators read), or None.
+        data: more data for the reports (the scene's: f, t, ds, the reaction form …).
+        residual: a residual problem's :class:`ResidualProblem` fields (F_form, J_form,
+            energy_form, min_jacobian).
+        current: a residual problem meets a rigid obstacle on its current configuration
+            where the gap is not affine in u.
+        u_prev: the previous load step's displacement (friction's slips start there).
+        allow_empty: a unilateral condition may constrain no DoF.
+        bodies: (cell tags, names) of several bodies in one mesh: the rigid motions each
+            body keeps free (:func:`~contact.solvers.floating.floating_bodies`).
+
+    Returns:
+        The problem (its friction set from the conditions' friction law, if any).
     """
-    V = u.function_space
-    dofs, w = constraint.nodes(V, bcs)
-    g = constraint.bound_function(V, dofs)
-    fixed = V.mesh.comm.allreduce(sum(len(bc.dof_indices()[0]) for bc in bcs), op=MPI.SUM)
-    in_domain = constraint.dofs is None and (
-        constraint.measure is None or constraint.measure.integral_type() == "cell"
-    )
-    K, b = matrices()
-    return kind(
+    conditions = tuple(conditions)
+    if len(conditions) == 1 and isinstance(conditions[0], Unilateral):
+        # the condition's checks come before anything is assembled
+        cs = conditions[0].discretise(V, bcs, allow_empty)
+        K, b = matrices()
+    else:
+        K, b = matrices()
+        cs = contact_set(V, K, b, bcs, conditions, current=current, u_prev=u_prev)
+    K_T = None
+    if cs.K is not None:  # a change of basis: K̃ = Qᵀ K Q and b̃ = Qᵀ b replace K and b
+        if kind == "residual":  # K keeps the pattern of K_T(u)
+            K_T = K
+            b.destroy()
+        else:
+            destroy(K, b)
+        K, b = cs.K, cs.b
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
+    comm = V.mesh.comm
+    bs = V.dofmap.index_map_bs
+    fields: dict[str, Any] = dict(cs.fields)
+    if bs == 1:  # no Dirichlet DoF on any rank: only the constraint holds the body
+        fields["semicoercive"] = comm.allreduce(len(fixed), op=MPI.SUM) == 0
+    else:  # an elastic body: its near-nullspace, rigid motions, mirror images
+        fields.update(_body_fields(V, fixed, cs, physics, bodies))
+    problem_class: type[Problem]
+    if kind == "residual":
+        problem_class = {
+            "plain": ResidualProblem,
+            "rotated": RotatedResidualProblem,
+            "current": CurrentResidualProblem,
+        }[cs.kind]
+    else:
+        problem_class = BodiesProblem if "couplings" in cs.data else Problem
+    problem = problem_class(
         V,
-        u,
-        bcs,
+        u_h,
+        cs.bcs or bcs,
         K,
         b,
-        Constraint(dofs, g.x.array[dofs].copy(), w, constraint.sign),
-        in_domain=in_domain,
-        semicoercive=fixed == 0,
-        data={"g_h": g},
+        cs.constraint,
+        data={**(data or {}), **cs.data},
+        **fields,
         assembly_time=time.perf_counter() - t0,
+        physics=physics,
+        contacts=conditions,
+        u_prev=u_prev,
+        **(residual or {}),
     )
+    if isinstance(problem, RotatedResidualProblem):
+        problem.K_T = K_T
+    laws = {
+        c.friction for c in conditions if not isinstance(c, Unilateral) and c.friction is not None
+    }
+    if len(laws) > 1:
+        raise ValueError("friction: the conditions of one problem share one friction law")
+    if laws:  # (only a frictional problem loads the friction modules)
+        from .friction import friction_set
+
+        problem.friction = friction_set(problem, laws.pop(), u_prev)
+    return problem
+
+
+def _body_fields(
+    V: fem.FunctionSpace,
+    fixed: np.ndarray,
+    cs: ContactSet,
+    physics: Physics | None,
+    bodies: tuple[Any, list[str]],
+) -> dict[str, Any]:
+    """Return the DiscreteProblem fields of an elastic body that follow from its conditions.
+
+    The DiscreteProblem fields of an elastic body (or several in one mesh) that follow
+    from its conditions: the rigid-body near-nullspace (in the unknowns of the change of
+    basis, if any), the rigid motions no Dirichlet or symmetry condition holds, and the
+    mirror images its symmetry planes stand for (every plane for one body; with mortar
+    pairs the planes through the pairs' contact nodes).
+    """
+    from .elasticity import rigid_body_modes
+
+    basis, inverse = cs.fields.get("basis"), cs.fields.get("basis_inverse")
+    planes = [] if physics is None else list(physics.boundary.symmetry)
+    if "couplings" in cs.data:
+        boundary = physics.boundary if physics is not None else None
+        facets = [(boundary.facets((tag,)), k) for tag, k in planes] if boundary else []
+        axes = tuple(sorted(mirror_axes(V.mesh, facets, cs.data["contact_nodes"])))
+    else:
+        axes = tuple(k for _, k in planes)
+    tags, names = bodies
+    return {
+        "symmetric_copies": 2 ** len(axes),
+        "symmetry_axes": axes,
+        "near_nullspace": rigid_body_modes(V, None if inverse is not None else basis, inverse),
+        "floating": floating_bodies(V, fixed, tags, names),
+    }

@@ -1,4 +1,6 @@
-"""Friction on the contact nodes of the elastic model (docs/theory.md §1.4): the scene side.
+"""Friction on the contact nodes of an elastic body (docs/theory.md §1.4): the friction law of
+a rigid obstacle's or a mortar pair's contact nodes (:class:`~.constraints.Tresca`,
+:class:`~.constraints.Coulomb`) as the solver's :class:`~contact.solvers.problem.FrictionSet`.
 
 Per contact node i (the constrained nodes of :class:`~contact.solvers.problem.Constraint`)
 with normal n_i and tangent(s) t_i (1 in 2D, 2 in 3D), in the solver's unknowns x:
@@ -45,19 +47,20 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
-from ..setup import expressions
-from ..setup.scene import Scene
 from ..solvers.problem import DiscreteProblem, FrictionSet
+from .constraints import Coulomb, Tresca
 
 
-def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
-    """The friction data of ``scene`` on the contact nodes of ``problem`` (elasticity); a
-    Tresca threshold s(x, t) also goes into ``problem.data['threshold']`` as UFL (the bound
-    ρ of the estimator's friction terms)."""
-    cfg = scene.config.friction
-    assert cfg is not None  # a frictional scene
+def friction_set(
+    problem: DiscreteProblem, law: Tresca | Coulomb, u_prev: fem.Function | None = None
+) -> FrictionSet:
+    """The friction data of ``law`` on the contact nodes of ``problem`` (elasticity: its
+    constraint set's nodes); ``u_prev`` the previous load step's displacement, from which
+    the slips are measured.  A Tresca threshold that is negative or undefined at a contact
+    node is a ConfigError naming ``law.key``."""
     V, con = problem.V, problem.constraint
-    gdim, bs = scene.mesh.geometry.dim, V.dofmap.index_map_bs
+    comm = V.mesh.comm
+    gdim, bs = V.mesh.geometry.dim, V.dofmap.index_map_bs
     nodes = con.dofs // bs
     current = problem.current
     if current is not None:  # the current frame's rows [n t (t2)] (contact.solvers.current)
@@ -79,32 +82,32 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         free = np.arange(bs - 1)[None, :] >= count[:, None]
         stiff = nodes[:, None] * bs + np.arange(bs)
         stiff_free = ~current.fixed
-    _check_symmetry_drag(scene, problem)
+    _check_symmetry_drag(problem)
 
+    options = law.options
     w = con.w
     diag = problem.K.getDiagonal()
     K_tt = np.where(stiff_free, diag.array_r[stiff], 0.0).sum(axis=1) / np.maximum(
         stiff_free.sum(axis=1), 1
     )
     diag.destroy()
-    c_t = K_tt / (cfg.kappa_t * w) if cfg.c_t == "auto" else np.full(len(nodes), float(cfg.c_t))
+    c_t = (
+        K_tt / (options.kappa_t * w)
+        if options.c_t == "auto"
+        else np.full(len(nodes), float(options.c_t))
+    )
 
     threshold = None
-    if cfg.law == "tresca":
-        assert cfg.threshold is not None  # Tresca's, required at load
-        X = V.tabulate_dof_coordinates()[nodes]
-        threshold = expressions.to_numpy(cfg.threshold, scene.config.constants, t=scene.time)(X.T)
-        problem.data["threshold"] = expressions.to_ufl(
-            cfg.threshold, scene.mesh, scene.config.constants, t=scene.t_constant
-        )
-        bad = scene.comm.allreduce(int(np.sum(~(threshold >= 0))), op=MPI.SUM)
+    if isinstance(law, Tresca):
+        threshold = law.values(V, nodes)
+        bad = comm.allreduce(int(np.sum(~(threshold >= 0))), op=MPI.SUM)
         if bad:
             raise ConfigError(
-                f"friction.threshold: negative or undefined at {bad} contact node(s) "
-                f"at t = {scene.time:g} (a slip threshold is >= 0)"
+                f"{law.key}: negative or undefined at {bad} contact node(s){law.when} "
+                "(a slip threshold is >= 0)"
             )
     return FrictionSet(
-        law=cfg.law,
+        law=law.law,
         n_comp=n_comp,
         t_comps=t_comps,
         tangent=tangent,
@@ -112,10 +115,10 @@ def friction_set(scene: Scene, problem: DiscreteProblem) -> FrictionSet:
         frames=frames,
         c_t=c_t,
         threshold=threshold,
-        coefficient=cfg.coefficient,
+        coefficient=law.coefficient if isinstance(law, Coulomb) else None,
         # (on the current configuration the slip is the solver's: CurrentContact.u_prev)
-        x_prev=previous_tangential(problem, tangent, scene.history.get("u_prev")),
-        options=cfg.knobs(),
+        x_prev=previous_tangential(problem, tangent, u_prev),
+        options=options.knobs(),
     )
 
 
@@ -145,7 +148,7 @@ def previous_tangential(
     return out
 
 
-def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
+def _check_symmetry_drag(problem: DiscreteProblem) -> None:
     """A symmetry plane x_k = c keeps u_k = 0; Dirichlet data that moves its nodes along e_k
     (a drag across the plane) contradicts it: one line naming the data component."""
     bcs = problem.bcs
@@ -160,7 +163,7 @@ def _check_symmetry_drag(scene: Scene, problem: DiscreteProblem) -> None:
     clash = clash[clash < n_owned]
     scale = max(1.0, float(np.max(np.abs(values), initial=0.0)))
     bad = clash[np.abs(values[clash]) > 1e-12 * scale]
-    comps = scene.comm.allgather(sorted(set((bad % bs).tolist())))
+    comps = problem.V.mesh.comm.allgather(sorted(set((bad % bs).tolist())))
     comps = sorted(set(c for part in comps for c in part))
     if comps:
         raise ConfigError(

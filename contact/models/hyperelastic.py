@@ -50,9 +50,7 @@ them.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import basix
 import numpy as np
@@ -61,50 +59,13 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..base.lifetime import destroy
-from ..setup.checks import check_scene_data
-from ..setup.scene import Scene
 from ..solvers.current import nodal_geometry
 from ..solvers.krylov_curvature import lanczos_negative
 from ..solvers.linear import mumps_ksp
 from ..solvers.problem import Constraint, NodeBlockMatrix
-from .elasticity import body_fields, elastic_setting, lame
-from .forms import ResidualProblem
-from .obstacles import current_contact, plane_contact, scene_obstacle
-
-LAWS = ("neo_hookean", "saint_venant_kirchhoff")
-
-
-def deformation_gradient(u) -> ufl.core.expr.Expr:
-    """F = I + ∇u as a 3 × 3 tensor (2D: plane strain, F_33 = 1)."""
-    gdim = len(u)
-    F = ufl.Identity(gdim) + ufl.grad(u)
-    if gdim == 3:
-        return F
-    return ufl.as_matrix([[F[0, 0], F[0, 1], 0], [F[1, 0], F[1, 1], 0], [0, 0, 1]])
-
-
-def strain_energy(F, law: str, mu, lmbda_L) -> ufl.core.expr.Expr:
-    """ψ(F) per unit reference volume (the module doc's laws; F 3 × 3)."""
-    C = F.T * F
-    if law == "neo_hookean":
-        lnJ = ufl.ln(ufl.det(F))
-        return mu / 2 * (ufl.tr(C) - 3 - 2 * lnJ) + lmbda_L / 2 * lnJ**2
-    if law == "saint_venant_kirchhoff":
-        E = (C - ufl.Identity(3)) / 2
-        return lmbda_L / 2 * ufl.tr(E) ** 2 + mu * ufl.inner(E, E)
-    raise ValueError(f"model.law: expected one of {', '.join(LAWS)}, got {law!r}")
-
-
-def piola_and_cauchy(u, law: str, mu, lmbda_L) -> tuple:
-    """(P, σ): the first Piola–Kirchhoff stress P = ∂ψ/∂F (gdim × gdim, for the residual's
-    tractions in the reference configuration) and the Cauchy stress σ = J⁻¹ P Fᵀ (3 × 3,
-    σ_33 ≠ 0 in plane strain), both in the unit of E."""
-    gdim = len(u)
-    F = ufl.variable(deformation_gradient(u))
-    P = ufl.diff(strain_energy(F, law, mu, lmbda_L), F)
-    sigma = P * F.T / ufl.det(F)
-    return ufl.as_matrix([[P[i, j] for j in range(gdim)] for i in range(gdim)]), sigma
+from .elasticity import lame
+from .forms import CurrentResidualProblem, RotatedResidualProblem
+from .physics import deformation_gradient, strain_energy
 
 
 def deformed_area(u, v, measure) -> ufl.Form:
@@ -119,78 +80,19 @@ def deformed_area(u, v, measure) -> ufl.Form:
     return ufl.dot(v, ufl.as_vector([1.0] * gdim)) * ufl.det(F) * ufl.sqrt(ufl.dot(n, n)) * measure
 
 
-def hyperelastic_problem(scene: Scene, frictional: bool = False) -> ResidualProblem:
-    """The contact problem of a hyperelastic body against the scene's rigid obstacle (module
-    doc): R(u; v) and K_T = ∂R/∂u from the energy; a plane's nodal bound, or — for a circle
-    or sphere, and with friction (``frictional``: the caller adds the friction set) — the
-    gap of the deformed point on the current configuration."""
-    t0 = time.perf_counter()
-    check_scene_data(scene)
-    model = scene.config.model
-    assert model.E is not None and model.law is not None  # required by the loader
-    mu, lmbda_L = lame(model.E, model.nu)
-    s = elastic_setting(scene)
-    V, msh = s.V, scene.mesh
-    u_h = fem.Function(V, name="u_h")
+def hyperelastic_forms(
+    u: fem.Function, law: str, mu, lmbda_L, load: ufl.Form, degree: int
+) -> tuple[ufl.Form, ufl.Form, ufl.Form]:
+    """(R, J, Π) of a hyperelastic body (module doc) written in the displacement ``u``:
+    R(u; v) = ∂Π/∂u [v] = ∫ P(F) : ∇v dX − L(v), its derivative J = ∂R/∂u, and the total
+    potential Π(u) = ∫ ψ(F) dX − L(u); ``load`` L(v) (dead loads), ``degree`` the
+    quadrature degree of ψ (:func:`quadrature_degree`)."""
+    V = u.function_space
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
-    # P1: F is constant per cell, one point is exact; P2: degree 2p for the nonpolynomial ψ
-    degree = scene.config.mesh.degree
-    quadrature = quadrature_degree(degree)
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": quadrature})
-    energy = strain_energy(deformation_gradient(u_h), model.law, mu, lmbda_L) * dx
-    R = ufl.derivative(energy, u_h, v) - s.L_ufl
-    F_form, J_form = fem.form(R), fem.form(ufl.derivative(R, u_h, du))
-    potential = fem.form(energy - ufl.action(s.L_ufl, u_h))  # Π(u) = ∫ ψ dX − L(u)
-    min_jacobian = jacobian_check(u_h, quadrature)
-    K, b = ResidualProblem.matrices(J_form, s.bcs)
-    obstacle = scene_obstacle(scene)
-    kind: type[ResidualProblem] = ResidualProblem
-    if obstacle.kind == "plane" and not frictional:
-        contact = plane_contact(scene, V, K, b, s.fixed, s.data["ds"])
-    else:
-        contact = current_contact(scene, V, s.fixed, s.data["ds"], obstacle)
-        kind = CurrentResidualProblem
-    K_T: PETSc.Mat | None = None  # the tangent in u when K holds K̃ instead
-    if "K" in contact:  # a tilted plane: x = Qᵀ u, K̃ = Qᵀ K_T Q (its pattern) replaces K
-        b.destroy()
-        kind, K_T = RotatedResidualProblem, K
-        K, b = contact.pop("K"), contact.pop("b")
-    con = contact.pop("constraint")
-
-    law = model.law
-
-    def stresses(u):
-        return piola_and_cauchy(u, law, mu, lmbda_L)
-
-    contact_ds = s.data["ds"](scene.boundary.ids_with_role("contact"))
-    data = {
-        **s.data,
-        "exact": None,
-        "reaction_form": F_form,
-        "stresses": stresses,
-        "law": model.law,
-        "deformed_area": fem.form(deformed_area(u_h, v, contact_ds)),
-        **contact.pop("data"),
-    }
-    problem = kind(
-        V,
-        u_h,
-        s.bcs,
-        K,
-        b,
-        con,
-        data=data,
-        **contact,
-        **body_fields(s, contact.get("basis")),
-        assembly_time=time.perf_counter() - t0,
-        F_form=F_form,
-        J_form=J_form,
-        energy_form=potential,
-        min_jacobian=min_jacobian,
-    )
-    if isinstance(problem, RotatedResidualProblem):
-        problem.K_T = K_T
-    return problem
+    dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": degree})
+    energy = strain_energy(deformation_gradient(u), law, mu, lmbda_L) * dx
+    R = ufl.derivative(energy, u, v) - load
+    return R, ufl.derivative(R, u, du), energy - ufl.action(load, u)
 
 
 def quadrature_degree(degree: int) -> int:
@@ -216,136 +118,6 @@ def jacobian_check(u: fem.Function, degree: int) -> Callable[[], float]:
         return msh.comm.allreduce(local, op=MPI.MIN)
 
     return min_jacobian
-
-
-@dataclass
-class RotatedResidualProblem(ResidualProblem):
-    """The residual problem in rotated unknowns x = Qᵀ u (Q orthogonal and block-diagonal:
-    the contact nodes of a tilted plane on their (n, t) axes, the others unrotated, as in
-    :func:`contact.models.obstacles.plane_contact`):
-
-        R̃(x) = Qᵀ R(Q x),     K̃(x) = Qᵀ K_T(Q x) Q,
-
-    so that u·n ≤ g is a bound on one unknown per contact node.  K̃ is written into ``K``
-    (MatPtAP reusing its pattern: the solvers keep their references to it)."""
-
-    K_T: PETSc.Mat | None = None  # the tangent in the displacement unknowns
-    _R: PETSc.Vec | None = field(default=None, repr=False)
-
-    def _rotation(self) -> tuple[PETSc.Mat, PETSc.Mat]:
-        """(Q, K_T): always given (the builder passes both; None only as defaults)."""
-        assert self.basis is not None and self.K_T is not None, "basis (Q), K_T not set"
-        return self.basis, self.K_T
-
-    def _set_iterate(self, x: PETSc.Vec) -> None:
-        u = self.u_h.x
-        self._rotation()[0].mult(x, u.petsc_vec)  # u = Q x
-        u.scatter_forward()
-
-    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
-        """out = Qᵀ R(Q x)."""
-        if self._R is None:
-            self._R = out.duplicate()
-        super().residual(x, self._R)
-        self._rotation()[0].multTranspose(self._R, out)
-
-    def linearize(self, x: PETSc.Vec) -> None:
-        """K = Qᵀ K_T(Q x) Q."""
-        self._set_iterate(x)
-        Q, K_T = self._rotation()
-        self._assemble_tangent(K_T)
-        K_T.PtAP(Q, result=self.K)
-
-    def full_tangent(self, x: PETSc.Vec) -> PETSc.Mat:
-        """Qᵀ J(Q x) Q with the Dirichlet rows and columns kept (a new matrix)."""
-        A = super().full_tangent(x)
-        out = A.PtAP(self._rotation()[0])
-        A.destroy()
-        return out
-
-    def destroy(self) -> None:
-        super().destroy()
-        destroy(self.K_T, self._R)
-
-
-@dataclass
-class CurrentResidualProblem(ResidualProblem):
-    """The residual problem with contact on the current configuration
-    (:mod:`contact.solvers.current`, ``current`` set): the unknowns are the displacements,
-    a contact node's residual block is read in the frame of its current normal ñ(x_i).
-    The nodal quantities below are those of the iterate in ``u_h`` (the residual ``r``
-    passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it)."""
-
-    def _rows(self) -> np.ndarray:
-        bs = self.V.dofmap.index_map_bs
-        return self.current.nodes[:, None] * bs + np.arange(bs)
-
-    def multiplier(self, r: np.ndarray) -> np.ndarray:
-        """λ_i = ñ_i·R_i / w_i (≤ 0 in contact): the normal nodal force per reference area."""
-        rows = self._rows()
-        geo = nodal_geometry(self.current, self.u_h.x.array[rows])
-        return np.einsum("ka,ka->k", geo.frames[:, :, 0], r[rows]) / self.constraint.w
-
-    def pressure(self, r: np.ndarray) -> np.ndarray:
-        """The nominal contact pressure p_i = −λ_i (force per reference area, ≥ 0)."""
-        return -self.multiplier(r)
-
-    def nodal_gap(self, x: np.ndarray) -> np.ndarray:
-        """g(X_i + u_i): the gap of the deformed contact node (x holds the displacements)."""
-        cc = self.current
-        return cc.surface.project(cc.X + x[self._rows()])[0]
-
-    def gap_output(self, x: np.ndarray) -> fem.Function:
-        """The current gap g(X_i + u_i) at the contact nodes, NaN elsewhere."""
-        gap = self.nodal_output("gap", self.nodal_gap(x))
-        on = self.nodal_output("on", np.ones(len(self.constraint.dofs)))
-        gap.x.array[on.x.array < 0.5] = np.nan
-        return gap
-
-    def constrained_hessian(self, x: PETSc.Vec, active: np.ndarray) -> tuple[PETSc.Mat, np.ndarray]:
-        """(Ã, held rows): the Hessian of the Lagrangian L = Π + Σ_i μ_i g_i(u) at the
-        solution x, on the tangent space of the active constraints — what decides the
-        stability of a constrained equilibrium (:func:`negative_eigenvalues`).  With
-        μ_i = ñ_i·R_i (= w_i λ_i ≤ 0; R_i = μ_i ñ_i at a frictionless solution) and
-        ∇²g = −Dn,
-
-            ∇²L = K_T − Σ_{i active} μ_i P_i Dn_i P_i,
-
-        (against a circle or sphere −μ Dn = −w p (I − n nᵀ)/|x − c|: a convex obstacle
-        softens the body's tangential motion — it can roll off), rotated to the active nodes'
-        current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
-        matrix (the caller destroys it); K becomes K_T(x)."""
-        cc, bs = self.current, self.V.dofmap.index_map_bs
-        rows = self._rows()
-        r = x.duplicate()
-        self.residual(x, r)
-        self.linearize(x)
-        u = x.array_r[rows]
-        geo = nodal_geometry(cc, u)
-        Dn = cc.surface.project(cc.X + u)[2]
-        free = ~cc.fixed
-        mu = np.einsum("ka,ka->k", geo.frames[:, :, 0], r.array_r[rows])
-        nodes = cc.nodes[active]
-        curvature, frames = NodeBlockMatrix(self.K, bs), NodeBlockMatrix(self.K, bs)
-        blocks = np.zeros((curvature.local_nodes, bs, bs))
-        blocks[nodes] = (-mu[:, None, None] * (free[:, :, None] * Dn * free[:, None, :]))[active]
-        hessian = self.K.duplicate(copy=True)
-        subset = PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN
-        hessian.axpy(1.0, curvature.set(blocks), structure=subset)  # type: ignore[arg-type]
-        Q = frames.identity()
-        Q[nodes] = geo.frames[active]
-        out = hessian.PtAP(frames.set(Q))
-        destroy(hessian, curvature.mat, frames.mat, r)
-        return out, (nodes * bs).astype(np.int32)
-
-    def contact_force(self, r: np.ndarray) -> float:
-        """F = −m_n Σ_i R_i·n: the resultant of the nodal contact forces along the normal n
-        at the first point of contact (m_n the mirror images pressing along n,
-        :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`; frictionless:
-        Σ w_i p_i ñ_i·n)."""
-        n = np.asarray(self.data["n"], dtype=float)
-        local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
-        return self.copies_along(n) * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
 
 def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProblem:

@@ -46,11 +46,10 @@ from petsc4py import PETSc
 
 from ..base.buckets import box_point_pairs
 from ..base.errors import ConfigError
-from ..setup.scene import Scene
-from ..setup.scene_config import PairConfig
 from ..solvers.result import Result
 from . import overlap
 from .basis import node_frames
+from .constraints import MortarPair, measure_facets
 
 FACING = 0.0  # a master facet is paired only if n_S · n_M < FACING (the surfaces face each other)
 # Σ_j M_ij / D_ii below which slave node i counts as uncovered: where a master surface ends
@@ -121,17 +120,16 @@ def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
     return Facets(Xf, nodes, gnodes, normals)
 
 
-def couple(scene: Scene, V: fem.FunctionSpace, index: int, fixed: np.ndarray) -> Coupling:
-    """The mortar coupling of ``scene.config.pairs[index]``; ``fixed`` are the local DoFs with
-    a Dirichlet or symmetry condition.  Raises ConfigError (one line, every rank) for a
-    slave node without master facet within the search distance."""
-    pairs = scene.config.pairs
-    assert pairs is not None  # a scene with contact pairs
-    pair = pairs[index]
-    comm, bnd = scene.comm, scene.boundary
-    key = f"pairs[{index}]"
-    slave = surface_facets(V, part_facets(bnd, pair.slave))
-    master = surface_facets(V, part_facets(bnd, pair.master))
+def couple(
+    V: fem.FunctionSpace, pair: MortarPair, fixed: np.ndarray, key: str = "pairs[0]"
+) -> Coupling:
+    """The mortar coupling of a :class:`~.constraints.MortarPair`; ``fixed`` are the local DoFs
+    with a Dirichlet or symmetry condition, ``key`` names the pair in messages.  Raises
+    ConfigError (one line, every rank) for a slave node without master facet within the
+    search distance."""
+    comm = V.mesh.comm
+    slave = surface_facets(V, measure_facets(pair.slave))
+    master = surface_facets(V, measure_facets(pair.master))
     gdim = slave.X.shape[2]
     search = pair.search or _diameter(comm, slave, master)
     imap = V.dofmap.index_map
@@ -258,11 +256,17 @@ def _owned_rows(
     )
 
 
-def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
+def check_disjoint(
+    V: fem.FunctionSpace,
+    pairs: list[tuple[np.ndarray, np.ndarray]],
+    obstacle: np.ndarray | None = None,
+) -> None:
     """No node may be a slave node twice or both a slave and a master node (Q would not be
-    unit triangular); a one-line ConfigError otherwise.  Checked on the surfaces, before
-    any coupling is computed."""
-    comm, imap, bnd = scene.comm, V.dofmap.index_map, scene.boundary
+    unit triangular), nor a pair's node and a rigid obstacle's contact node; a one-line
+    ConfigError otherwise.  ``pairs``: the (slave, master) facets of each pair;
+    ``obstacle``: the facets a rigid obstacle meets, or None.  Checked on the surfaces,
+    before any coupling is computed."""
+    comm, imap = V.mesh.comm, V.dofmap.index_map
     # per owned node: slave, master, obstacle parts through it
     owned = np.zeros((imap.size_local, 3), dtype=int)
 
@@ -272,11 +276,11 @@ def check_disjoint(scene: Scene, V: fem.FunctionSpace) -> None:
         flag.scatter_reverse(la.InsertMode.add)
         owned[:, column] += flag.array[: imap.size_local] > 0
 
-    for pair in scene.config.pairs or []:
-        count(0, part_facets(bnd, pair.slave))
-        count(1, part_facets(bnd, pair.master))
-    if bnd.ids_with_role("contact"):
-        count(2, bnd.facets("contact"))
+    for slave, master in pairs:
+        count(0, slave)
+        count(1, master)
+    if obstacle is not None:
+        count(2, obstacle)
     bad = np.flatnonzero(
         (owned[:, 0] > 1)
         | ((owned[:, 0] > 0) & (owned[:, 1] > 0))
@@ -494,13 +498,14 @@ def _first_point(
     return "(" + ", ".join(f"{c:.6g}" for c in point) + ")"
 
 
-def _no_master(comm, V, nodes: np.ndarray, key: str, pair: PairConfig, search: float) -> None:
+def _no_master(comm, V, nodes: np.ndarray, key: str, pair: MortarPair, search: float) -> None:
     if comm.allreduce(len(nodes), op=MPI.SUM):
         total = comm.allreduce(len(nodes), op=MPI.SUM)
         where = _first_point(comm, V, nodes)
+        slave, master = pair.names
         raise ConfigError(
-            f"{key}.slave: {total} slave node(s) of {pair.slave!r}, e.g. at {where}, have no "
-            f"master facet of {pair.master!r} within the search distance "
+            f"{key}.slave: {total} slave node(s) of {slave!r}, e.g. at {where}, have no "
+            f"master facet of {master!r} within the search distance "
             f"{search:.4g} ({key}.search) facing (at least half of) their facets; "
             f"restrict the slave part "
             "to lie within the master surface, or raise the search distance"

@@ -1,10 +1,9 @@
-"""What every model shares when it builds the discrete problem of a scene
+"""What every builder of a discrete problem shares
 (:class:`~contact.solvers.problem.DiscreteProblem`): K and the lifted load b, lumped
-weights, the ends of Γ_C, the scene's expressions as UFL data or interpolated functions."""
+weights, the ends of Γ_C, the size of the coordinates."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Any
 
 import dolfinx.fem.petsc
@@ -13,11 +12,6 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
-
-from ..base.errors import ConfigError
-from ..setup import expressions
-from ..setup.checks import check_data, data_items
-from ..setup.scene import Scene
 
 
 def coordinate_scale(msh: Any) -> float:
@@ -38,48 +32,6 @@ def contact_ends(
     X = V.tabulate_dof_coordinates()
     nearest = [free[np.argmin(np.linalg.norm(X[free] - X[e], axis=1))] for e in ends]
     return ends, np.asarray(nearest, dtype=np.int32)
-
-
-def coefficient(text: str, scene: Scene) -> Any:
-    """UFL data: a ``fem.Constant`` when the expression is constant (in space and in the
-    pseudo-time t), else a UFL expression (t enters as ``scene.t_constant``)."""
-    consts = scene.config.constants
-    if expressions.is_constant(text, consts):
-        value = float(expressions.to_numpy(text, consts)(np.zeros((3, 1)))[0])
-        return fem.Constant(scene.mesh, PETSc.ScalarType(value))  # type: ignore[operator]
-    return expressions.to_ufl(text, scene.mesh, consts, t=scene.t_constant)
-
-
-def interpolate_expression(
-    V: fem.FunctionSpace, text: str | Sequence[str], scene: Scene, key: str | None = None
-) -> fem.Function:
-    """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
-    vector space one expression is every component, a tuple gives one per component.
-    Lagrange interpolation is evaluation at the DoF points, so each expression is evaluated
-    once per DoF point (not once per cell and point, as ``Function.interpolate`` does), and
-    a constant is just assigned.  With a scene ``key`` (``solver.u0``) the expressions are
-    first checked finite at the mesh vertices (:func:`contact.setup.checks.check_data`:
-    a ConfigError naming the key)."""
-    if key is not None:
-        check_data(scene, data_items(key, text if isinstance(text, str) else tuple(text)))
-    fn = fem.Function(V)
-    consts = scene.config.constants
-    bs = V.dofmap.index_map_bs
-    texts = [text] * bs if isinstance(text, str) else list(text)
-    if len(texts) != bs:
-        raise ConfigError(
-            f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}"
-        )
-    values = fn.x.array.reshape(-1, bs)
-    points = None
-    for c, t in enumerate(texts):
-        f = expressions.to_numpy(t, consts, t=scene.time)
-        if expressions.is_constant(t, consts):
-            values[:, c] = f(np.zeros((3, 1)))[0]
-        else:
-            points = V.tabulate_dof_coordinates().T if points is None else points
-            values[:, c] = f(points)
-    return fn
 
 
 #: vector-valued K through dolfinx's block CSR matrix (:func:`assemble_matrix`); False: PETSc's

@@ -28,7 +28,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
-from ..drivers.adaptive import AdaptResult, Level
+from ..drivers.adaptive import AdaptResult
 from ..hp.adapt import HPLevel
 from ..hp.output import output_fields
 from ..post.comparison import Comparison
@@ -36,6 +36,7 @@ from ..post.contact_table import Table, contact_table, value_name, view_normal
 from ..post.exact_data import exact_mismatches
 from ..post.reference import compare
 from ..post.resultants import current_pressure
+from ..setup.run import SceneLevel as Level
 from ..setup.scene import Scene
 from ..setup.untagged import untagged_boundary
 from ..solvers import Result
@@ -98,7 +99,7 @@ def warn_coarse_zone(scene: Scene, result: Result) -> None:
     force)."""
     across = nodes_across(result)
     if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
-        from ..setup.surfaces import ContactWarning
+        from ..base.errors import ContactWarning
 
         warnings.warn(
             f"the contact zone holds {result.n_active} active node(s), about "
@@ -187,7 +188,7 @@ def summary(
         out["reference"] = scene.config.reference.type
         out.update(comparison.values)
     # the adaptive loop's, if known
-    error = solution_error(scene, result) if error is None else error
+    error = solution_error(result.problem, result) if error is None else error
     if error is not None:
         out["error_energy"] = error
     return out

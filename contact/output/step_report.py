@@ -36,12 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from ..adaptivity.estimate import estimate
-from ..drivers.load_path import LoadPath, Step
+from ..drivers.load_path import LoadPath
 from ..post.contact_table import Table, contact_table, tangent_2d, view_normal
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
+from ..setup.run import SceneStep as Step
+from ..setup.run import estimate
 from ..setup.scene import Scene
 from . import folder, plots
 from .fields import FieldFiles
@@ -349,8 +350,8 @@ def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float 
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
     nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
     obstacle's normal at the node, t_0 of :func:`contact.post.contact_table.tangent_2d`)."""
+    from ..base import expressions
     from ..models.elasticity import lame
-    from ..setup import expressions
 
     cfg = scene.config
     exact = cfg.data.exact

@@ -88,7 +88,7 @@ def exact_multiplier(scene: Scene, result: Result) -> np.ndarray | None:
     ∫ φ_i λ ds / ∫ φ_i ds (collective; None for other scenes).  The average, not a point
     value, because λ of a free boundary problem has a kink or a root singularity where the
     contact zone ends (problem A: λ = −(3/2)|x|^{1/2} for x < 0)."""
-    from ..setup import expressions
+    from ..base import expressions
 
     p, cfg = result.problem, scene.config
     exact = cfg.data.exact

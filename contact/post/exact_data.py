@@ -28,11 +28,12 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ..setup import expressions
+from ..base import expressions
+from ..base.errors import ContactWarning
+from ..models.physics import stress
 from ..setup.meshes import NATURAL
 from ..setup.scene import Scene
 from ..setup.scene_config import components
-from ..setup.surfaces import ContactWarning
 
 #: relative round-off floor of the test d_P > max(i_P, RTOL (‖B u‖ + ‖b‖))
 RTOL = 1e-8
@@ -108,7 +109,7 @@ def exact_mismatches(scene: Scene) -> list[Mismatch] | None:
     flux = None
     if elastic and not cfg.bodies:
         assert cfg.model.E is not None  # one linear elastic body (checked at load)
-        from ..models.elasticity import lame, stress  # a scalar scene never imports it
+        from ..models.elasticity import lame  # (a scalar scene never loads elasticity)
 
         mu, lmbda_L = lame(cfg.model.E, cfg.model.nu)
         flux = lambda w: stress(w, mu, lmbda_L) * n  # noqa: E731

@@ -20,7 +20,8 @@ import dataclasses
 import numpy as np
 from mpi4py import MPI
 
-from ..models.obstacles import first_contact_point, obstacle_shape
+from ..models.obstacles import first_contact_point
+from ..setup.elastic import obstacle_shape
 from ..setup.scene import Scene
 
 

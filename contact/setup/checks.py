@@ -24,8 +24,8 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from . import expressions
 from .scene_config import SceneConfig
 
 

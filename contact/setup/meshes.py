@@ -20,8 +20,8 @@ import ufl
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from . import expressions
 from .geometry import (
     collapsed_cells,
     gmsh_to_mesh,

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from . import expressions
 from .scene_config import ObstacleConfig
 
 

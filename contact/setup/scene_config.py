@@ -44,6 +44,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from ..base import expressions
 from ..base.errors import ConfigError
 from ..base.validation import (
     FrozenDict,
@@ -67,8 +68,7 @@ from ..base.validation import (
     string_keys,
     typename,
 )
-from ..solvers.options import FrictionOptions, SolverOptions
-from . import expressions
+from ..solvers.options import AdaptOptions, FrictionOptions, SolverOptions
 from .geometry import block_pair
 
 #: models whose unknown is a displacement vector: linear elasticity (small strain) and
@@ -388,24 +388,16 @@ Degree = Annotated[int, BeforeValidator(integer(_degree))]
 Switch = Annotated[bool, BeforeValidator(boolean)]
 
 
-class AdaptConfig(Section):
-    """A scene's ``adapt`` section (docs/theory.md §6): ``strategy`` — dorfler, maximum,
-    uniform, hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`) or none (one
-    solve); ``theta`` — the marking fraction in (0, 1]; ``tol`` — stop at η ≤ tol;
-    ``max_dofs``, ``max_levels`` — budgets; ``nested`` — each level starts from the previous
-    solution; ``rebalance`` — repartition refined meshes; ``newton_rtol`` — Newton's relative
-    tolerance inside the loop; ``pictures`` — levels drawn; ``p_max``, ``p_start`` — with
-    ``hp``, the largest degree and every cell's first degree."""
+class AdaptConfig(AdaptOptions, Section):
+    """A scene's ``adapt`` section (docs/theory.md §6): the loop's knobs
+    (:class:`~contact.solvers.options.AdaptOptions`: ``strategy``, ``theta``, ``tol``,
+    ``max_dofs``, ``max_levels``, ``nested``, ``rebalance``, ``newton_rtol``), ``strategy``
+    also hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`), ``pictures`` —
+    levels drawn; ``p_max``, ``p_start`` — with ``hp``, the largest degree and every
+    cell's first degree."""
 
     KEYWORDS: ClassVar[bool] = True  # also the keywords of contact.adapt: None = not given
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
-    theta: Fraction = 0.5
-    tol: NonNegative = 0.0
-    max_dofs: Count = 200000
-    max_levels: Count = 8
-    nested: Switch = True
-    rebalance: Switch = True
-    newton_rtol: Positive = 1e-10
     pictures: Annotated[int, BeforeValidator(integer(nonnegative))] = 3
     p_max: Degree = 6
     p_start: Degree = 1

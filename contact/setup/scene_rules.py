@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import ValidationError
 
+from ..base import expressions
 from ..base.errors import ConfigError
 from ..base.validation import config_error
 from ..solvers.options import BASELINE_METHODS
-from . import expressions
 from .scene_config import (
     CURVED_MESHES,
     ELASTIC_MODELS,

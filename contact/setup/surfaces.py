@@ -22,7 +22,7 @@ import warnings
 import numpy as np
 from dolfinx import mesh as dmesh
 
-from ..base.errors import ConfigError
+from ..base.errors import ConfigError, ContactWarning
 from .geometry import CurvedBoundary, curved_boundary
 from .meshes import Boundary
 from .scene_config import SceneConfig, SurfaceSpec
@@ -30,10 +30,6 @@ from .scene_config import SceneConfig, SurfaceSpec
 #: a ridge (vertex in 2D, edge in 3D) between two facets bends if their normals differ by more
 BEND = 1e-4  # radians
 _checked: dict[tuple, bool] = {}
-
-
-class ContactWarning(UserWarning):
-    """A one-line warning about a scene (printed as ``contact: warning: ...`` by the CLI)."""
 
 
 def declared_surface(name: str, spec: SurfaceSpec, gdim: int, tag: int) -> CurvedBoundary:

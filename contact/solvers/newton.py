@@ -23,28 +23,17 @@ solver reuses its symbolic factorization) or solves the equivalent symmetric pos
 definite system of :mod:`.reduced`.  The Newton iteration itself is PETSc's SNES
 ``newtonls`` with these two callbacks (line search ``basic`` = plain Newton, or ``bt``;
 ``auto``, the default: plain Newton, and for min backtracking once a cycle shows,
-:mod:`.globalize`).
+:mod:`.globalize`), set up by :mod:`.strategies`.
 """
 
 from __future__ import annotations
-
-from typing import TYPE_CHECKING
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..base.timing import Timer
 from . import ncp
-from .globalize import GuardedMin
-from .linear import attach_near_nullspace
-from .options import SolverOptions
-from .polish import Polisher
 from .problem import DiscreteProblem, NodeBlockMatrix
-
-if TYPE_CHECKING:
-    from .block_system import BlockReducedSystem
-    from .energy_search import EnergySearch
 
 
 class Complementarity:
@@ -175,148 +164,3 @@ class BlockComplementarity(Complementarity):
         super().destroy()
         for obj in (self.B.mat, self.D.mat):
             obj.destroy()
-
-
-def setup_newton(
-    snes: PETSc.SNES,
-    cp: Complementarity,
-    system,
-    opts: SolverOptions,
-    timers: dict,
-    state: dict,
-    petsc_opts: dict,
-    verbose: bool = False,
-) -> Polisher | GuardedMin | EnergySearch | None:
-    """Make ``snes`` semismooth Newton on Φ of ``opts.method`` ∈ {fb, min, blend}:
-    residual Φ and Jacobian callbacks (the Jacobian callback hands the law (s, d) to the
-    Newton ``system`` of :mod:`.linear`, which builds its operator), the line search, and
-    as the line-search pre-check either active-set polishing (fb / blend with
-    ``opts.polish``) or, for min with line search ``auto``, the cycle guard of
-    :mod:`.globalize`.  Time spent in the callbacks is added to ``timers['assembly']``;
-    ``state['t_jac']`` is the linear solve's Timer, started at the end of the Jacobian.
-    With ``opts.line_search`` energy the pre-check is :mod:`.energy_search`'s (``system`` a
-    :class:`.curvature.CurvatureSystem`; polishing, if any, inside it).  Returns the
-    pre-check object (Polisher, GuardedMin, EnergySearch) or None."""
-    method, mu = opts.method, opts.mu
-
-    def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
-        cp.p.linearize(x)
-        a, b, _ = cp.pair(x)
-        system.set_law(*cp.law(a, b, method, mu))
-
-    set_newton(
-        snes,
-        cp.p,
-        system.J,
-        lambda x, f: cp.phi(x, f, method, mu),
-        jacobian,
-        opts,
-        timers,
-        state,
-        petsc_opts,
-    )
-    precheck: Polisher | GuardedMin | EnergySearch | None = None
-    polisher = Polisher(cp, method, mu, system, timers) if opts.polish and method != "min" else None
-    if opts.line_search == "energy":  # polishing first, then the energy's line search
-        from .energy_search import EnergySearch
-
-        precheck = EnergySearch(cp, method, mu, system, timers, body_size(cp.p), polisher)
-    elif polisher is not None:
-        precheck = polisher
-    elif method == "min" and opts.line_search == "auto":
-        precheck = GuardedMin(cp, mu, timers, verbose)
-    if precheck is not None:
-        snes.setLineSearchPreCheck(precheck)
-    return precheck
-
-
-def body_size(problem: DiscreteProblem) -> float:
-    """The diagonal of the mesh's bounding box (collective): the length scale of the energy
-    search's curvature steps."""
-    X = problem.V.mesh.geometry.x
-    comm = problem.V.mesh.comm
-    lo = np.min(X, axis=0, initial=np.inf)
-    hi = np.max(X, axis=0, initial=-np.inf)
-    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
-    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
-    return float(np.linalg.norm(hi - lo))
-
-
-def setup_block_newton(
-    snes: PETSc.SNES,
-    problem: DiscreteProblem,
-    cp: BlockComplementarity,
-    opts: SolverOptions,
-    timers: dict,
-    state: dict,
-    petsc_opts: dict,
-    system: BlockReducedSystem | None = None,
-) -> PETSc.Mat:
-    """Make ``snes`` semismooth Newton on the Φ of ``cp`` with a block law H = B K + D:
-    ``cp.matrix()`` gives a matrix of the pattern of B K, ``cp.block_jacobian(x, H, method,
-    mu)`` writes the element at x (friction, :mod:`.friction`; contact on the current
-    configuration, :mod:`.current`) and returns the blocks of B and D.  Plain Newton or
-    ``bt``, no polishing; returns the Jacobian matrix: a new one (the caller destroys it),
-    or the ``system``'s H, which then builds its reduced operator from each Jacobian's
-    blocks (:mod:`.block_system`, ``solver.linear: gmres``)."""
-    method, mu = opts.method, opts.mu
-    if system is None:
-        J = cp.matrix()
-        attach_near_nullspace(problem, J)
-
-        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
-            cp.block_jacobian(x, P, method, mu)
-
-    else:
-        J, reduced = system.J, system
-
-        def jacobian(x: PETSc.Vec, P: PETSc.Mat) -> None:
-            reduced.set_block(*cp.block_jacobian(x, P, method, mu))
-
-    set_newton(
-        snes,
-        problem,
-        J,
-        lambda x, f: cp.phi(x, f, method, mu),
-        jacobian,
-        opts,
-        timers,
-        state,
-        petsc_opts,
-    )
-    return J
-
-
-def set_newton(
-    snes: PETSc.SNES,
-    problem: DiscreteProblem,
-    J: PETSc.Mat,
-    phi,
-    jacobian,
-    opts: SolverOptions,
-    timers: dict,
-    state: dict,
-    petsc_opts: dict,
-) -> None:
-    """Make ``snes`` PETSc's ``newtonls`` on Φ: ``phi(x, f)`` writes Φ(x) into f and
-    ``jacobian(x, P)`` an element of its generalized Jacobian into P (the matrix J).  Time in
-    both is added to ``timers['assembly']``; ``state['t_jac']`` is the linear solve's Timer
-    (``timers['solve']``), started at the end of the Jacobian.  PETSc's line search
-    ``opts.line_search`` (``auto``: ``basic``, the cycle guard being a pre-check) unless the
-    PETSc options say otherwise."""
-
-    def residual(snes, x, f):
-        with Timer(timers, "assembly"):
-            phi(x, f)
-
-    def jac(snes, x, J_, P):
-        with Timer(timers, "assembly"):
-            jacobian(x, P)
-        state["t_jac"] = Timer(timers, "solve").start()  # stopped after the linear solve
-
-    snes.setType("newtonls")
-    snes.setFunction(residual, problem.b.duplicate())
-    snes.setJacobian(jac, J)
-    # auto's cycle guard and the energy search are pre-checks of PETSc's basic line search
-    line_search = "basic" if opts.line_search in ("auto", "energy") else opts.line_search
-    petsc_opts.setdefault("snes_linesearch_type", line_search)

@@ -2,7 +2,8 @@
 names as benchmarks list them, the default PETSc options of each linear solver (a function
 of its kind and the dimension alone, known before any mesh exists), and PETSc's options
 database (set, read, errors as one line).  Nothing here reads a scene: its ``solver``
-section with call-time overrides becomes SolverOptions in :mod:`contact.drivers.solve`."""
+section with call-time overrides becomes SolverOptions in :mod:`contact.drivers.solve`.
+"""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ from ..base.validation import (
     auto_or_positive,
     boolean,
     checked,
+    half_open_unit,
     integer,
     mapping_of,
     nonnegative,
@@ -56,31 +58,51 @@ def theta_value(value: float) -> str | None:
 class SolverOptions(BaseModel):
     """The knobs of one solve (SPEC §3–4, §8), validated once and immutable.
 
-    ``method`` — fb, min, blend (semismooth Newton on that NCP function) or vinewtonrsls /
-    vinewtonssls (PETSc's VI solvers); ``mu`` — blend's weight of φ_min, in (0, 1);
-    ``c`` — the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
-    :func:`~contact.solvers.problem.nodal_scaling`) or a number > 0; ``kappa`` — κ;
-    ``line_search`` — auto (plain Newton, for min backtracking once a cycle shows; energy
-    for a problem with an energy and a direct solver), basic, bt, energy
-    (:mod:`.energy_search`); ``polish`` — active-set polishing of fb / blend steps;
-    ``rtol`` — relative to ‖Φ(x_0)‖; ``atol`` — relative to the force scale ‖Φ(x_D)‖_∞ of
-    the data (dimensionless both); ``max_it`` — Newton iterations; ``linear`` — direct,
-    gamg, bcgs or auto (:mod:`.linear`); ``inexact`` — Eisenstat–Walker forcing of the gamg path;
-    ``petsc_options`` — PETSc options over the linear solver's defaults; ``predictor`` —
-    the start of a nonlinear solve lifted by the tangent (:mod:`.predictor`): tangent,
-    none, or auto (tangent for a problem with an energy).  The baselines
-    (:mod:`.baselines`): ``epsilon0`` — penalty ε = ε₀ E/h; ``r0`` — augmented Lagrangian
-    r = r₀ E/h; ``gamma0`` — Nitsche γ = γ₀ E/h (E: Young's modulus, or k for scalar
-    models; h the cell diameter); ``nitsche_theta`` — θ ∈ {1, 0, −1} (symmetric, θ = 0,
-    skew-symmetric); ``uzawa_rtol``, ``uzawa_max_it`` — the augmented Lagrangian's outer loop
-    stops at max|μ_{k+1} − μ_k| ≤ uzawa_rtol · max μ_{k+1}.
+    Attributes:
+        method: fb, min, blend (semismooth Newton on that NCP function), vinewtonrsls /
+            vinewtonssls (PETSc's VI solvers) or a baseline enforcement (penalty,
+            augmented_lagrangian, nitsche).
+        mu: blend's weight of φ_min, in (0, 1).
+        c: the NCP scaling (gap per multiplier): ``auto`` (nodal, c_i = κ w_i / K_ii,
+            ``nodal_scaling``) or a number > 0.
+        kappa: κ of the nodal scaling.
+        line_search: auto (plain Newton, for min backtracking once a cycle shows; energy for
+            a problem with an energy and a direct solver), basic, bt, energy
+            (``energy_search``).
+        polish: active-set polishing of fb / blend steps.
+        rtol: Newton's tolerance relative to ‖Φ(x_0)‖.
+        atol: relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless).
+        max_it: Newton iterations.
+        linear: direct, gamg, bcgs or auto (``linear``).
+        inexact: Eisenstat–Walker forcing of the gamg path.
+        petsc_options: PETSc options over the linear solver's defaults.
+        predictor: the start of a nonlinear solve lifted by the tangent
+            (``predictor``): tangent, none, or auto (tangent for a problem with an
+            energy).
+        epsilon0: the penalty baseline's ε = ε₀ E/h (E: Young's modulus, or k for scalar
+            models; h the cell diameter; ``baselines``).
+        r0: the augmented Lagrangian baseline's r = r₀ E/h.
+        gamma0: Nitsche's γ = γ₀ E/h.
+        nitsche_theta: Nitsche's θ ∈ {1, 0, −1} (symmetric, θ = 0, skew-symmetric).
+        uzawa_rtol: the augmented Lagrangian's outer loop stops at
+            max|μ_{k+1} − μ_k| ≤ uzawa_rtol · max μ_{k+1}.
+        uzawa_max_it: at most this many outer iterations.
 
     Build it from keywords: ``SolverOptions.parse({"method": "min"})`` (an invalid value is
     one ConfigError line naming the key) or ``SolverOptions(method="min")`` (pydantic's
     ValidationError); a scene's driver builds it once from its ``solver`` section
-    (:func:`contact.drivers.solve.solve`).  A changed copy:
+    (``contact.drivers.solve.solve``).  A changed copy:
     ``options.model_copy(update={"rtol": 1e-6})`` (unchecked: use :meth:`parse`).
-    Friction's tangential knobs (form, c_t, …) are :class:`FrictionOptions`."""
+    Friction's tangential knobs (form, c_t, …) are ``FrictionOptions``.
+
+    Example:
+        >>> import contact
+        >>> contact.SolverOptions.parse({"method": "min", "rtol": 1e-8}).method
+        'min'
+        >>> contact.SolverOptions.parse({"rtol": -1})
+        Traceback (most recent call last):
+        contact.base.errors.ConfigError: solver.rtol: ...
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -107,13 +129,26 @@ class SolverOptions(BaseModel):
 
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "solver") -> SolverOptions:
-        """The options of keyword ``values`` (None: the default), validated: one ConfigError
-        line ``<path>.<key>: …`` with the scene's messages, an unknown key named too."""
+        """Return the options of keyword ``values`` (None: the default), validated.
+
+        A bad value is one ConfigError line ``<path>.<key>: …`` with the scene's messages,
+        an unknown key named too.
+
+        Args:
+            values: the knobs by name.
+            path: the section's name in messages.
+
+        Returns:
+            The options.
+        """
         return parse_section(cls, values, path)
 
     def knobs(self) -> SolverOptions:
-        """These options as the plain :class:`SolverOptions` (a subclass's extra fields, such
-        as a scene section's driver keys, left out; not validated again)."""
+        """Return these options as the plain :class:`SolverOptions`.
+
+        A subclass's extra fields, such as a scene section's driver keys, are left out; not
+        validated again.
+        """
         return SolverOptions.model_construct(
             **{key: getattr(self, key) for key in SolverOptions.model_fields}
         )
@@ -131,7 +166,8 @@ class FrictionOptions(BaseModel):
     |ρ_new − ρ| ≤ rtol |ρ|; ``fixed_point_max_it`` — at most this many Tresca solves.
     The friction law's data (the law, F, the Tresca threshold) are the scene's, not
     options: a scene's ``friction`` section is these knobs plus them
-    (:class:`contact.setup.scene_config.FrictionConfig`)."""
+    (:class:`contact.setup.scene_config.FrictionConfig`).
+    """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -145,15 +181,89 @@ class FrictionOptions(BaseModel):
     @classmethod
     def parse(cls, values: Mapping[str, Any], path: str = "friction") -> FrictionOptions:
         """The options of keyword ``values`` (None: the default), validated: one ConfigError
-        line ``<path>.<key>: …``."""
+        line ``<path>.<key>: …``.
+        """
         return parse_section(cls, values, path)
 
     def knobs(self) -> FrictionOptions:
-        """These options as the plain :class:`FrictionOptions` (a subclass's extra fields,
-        such as a scene section's data, left out; not validated again)."""
+        """These options as the plain ``FrictionOptions`` (a subclass's extra fields,
+        such as a scene section's data, left out; not validated again).
+        """
         return FrictionOptions.model_construct(
             **{key: getattr(self, key) for key in FrictionOptions.model_fields}
         )
+
+
+#: the adaptive loop's marking: Dörfler's bulk criterion, the maximum strategy, every cell,
+#: or none (one solve)
+STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+
+
+class AdaptOptions(BaseModel):
+    """The knobs of an adaptive loop (docs/theory.md §6), validated once and immutable.
+
+    Like :class:`SolverOptions`; a scene's ``adapt`` section is these knobs and its output's
+    (``contact.setup.scene_config.AdaptConfig``).
+
+    Attributes:
+        strategy: dorfler, maximum, uniform or none (one solve).
+        theta: the marking fraction in (0, 1].
+        tol: stop at η ≤ tol.
+        max_dofs: the most DoFs of a level.
+        max_levels: the most levels.
+        nested: each level starts from the previous solution.
+        rebalance: repartition refined meshes.
+        newton_rtol: Newton's relative tolerance inside the loop.
+
+    Example:
+        >>> import contact
+        >>> contact.AdaptOptions().updated(theta=0.3, max_levels=4).theta
+        0.3
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
+    theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
+    tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
+    max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
+    max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8
+    nested: Annotated[bool, BeforeValidator(boolean)] = True
+    rebalance: Annotated[bool, BeforeValidator(boolean)] = True
+    newton_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10
+
+    @classmethod
+    def parse(cls, values: Mapping[str, Any], path: str = "adapt") -> AdaptOptions:
+        """Return the options of keyword ``values``, validated.
+
+        A bad value is one ConfigError line ``<path>.<key>: …``.
+
+        Args:
+            values: the knobs by name.
+            path: the section's name in messages.
+
+        Returns:
+            The options.
+        """
+        return parse_section(cls, values, path)
+
+    def updated(self, **changes: Any) -> Any:
+        """Return a copy with keyword ``changes``, each validated.
+
+        A change that is None leaves its knob unchanged; a bad one is a ConfigError
+        ``adapt.<key>: …``.
+
+        Args:
+            **changes: the knobs to change.
+
+        Returns:
+            The changed options.
+        """
+        given = {k: v for k, v in changes.items() if v is not None}
+        if not given:
+            return self
+        checked_ = type(self).parse(given)
+        return self.model_copy(update={k: getattr(checked_, k) for k in given})
 
 
 DEFAULT_PETSC_OPTIONS = {
@@ -176,9 +286,11 @@ METHOD_VARIANTS = ("fb-nopolish", "blend-nopolish", "nitsche-skew")
 
 
 def method_variant(name: str) -> tuple[str, dict]:
-    """A method name as benchmarks, studies and tests list it: ``fb``, … or ``fb-nopolish``
-    / ``blend-nopolish`` (the pure Newton method), ``nitsche-skew`` (Nitsche with θ = −1) →
-    (method, options for :func:`solve`)."""
+    """Return (method, options) of a method name as benchmarks, studies and tests list it.
+
+    ``fb``, … or ``fb-nopolish`` / ``blend-nopolish`` (the pure Newton method),
+    ``nitsche-skew`` (Nitsche with θ = −1) → (method, options for ``contact.solve``).
+    """
     if name.endswith("-nopolish"):
         return name.removesuffix("-nopolish"), {"polish": False}
     if name == "nitsche-skew":
@@ -203,7 +315,8 @@ def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
     2.68 s against 3.17 s).  Measured (the finest solve repeated from the same guess,
     alternating): 2 ranks 4.30–5.30 s against 5.01–5.72 s (21 against 19 CG iterations),
     but serially 6.55–7.25 s against 5.70–6.95 s, and in 3D on 2 ranks (hertz_3d, 865k DoFs)
-    31.4 s against 24.4 s: the squared graph stays there."""
+    31.4 s against 24.4 s: the squared graph stays there.
+    """
     if kind == "auto":
         kind = "direct" if tdim == 2 else "gamg"
     if kind == "gamg":
@@ -220,8 +333,9 @@ def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
 
 
 def set_from_options(snes: PETSc.SNES, *inner: PETSc.KSP) -> None:
-    """setFromOptions of SNES, its KSP and PC and the ``inner`` KSPs; a bad PETSc option
-    becomes a one-line ConfigError."""
+    """SetFromOptions of SNES, its KSP and PC and the ``inner`` KSPs; a bad PETSc option
+    becomes a one-line ConfigError.
+    """
     PETSc.Sys.pushErrorHandler("python")  # raise, do not print PETSc's trace
     try:
         snes.setFromOptions()
@@ -255,7 +369,8 @@ def check_petsc_options(
     an MPI matrix on ``comm`` — so that unknown solver, preconditioner or factorization
     types (``pc_factor_mat_solver_type: nonsense``) fail here and not after the assembly.
     The failure is one ConfigError line naming the option that fails on its own (or all
-    of them).  Collective."""
+    of them).  Collective.
+    """
     if not options:
         return
     problem = _tiny_solve({**defaults, **options}, comm)

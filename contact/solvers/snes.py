@@ -9,7 +9,7 @@ with one solver.  The scene's part of a solve (its problem, options and initial 
 from __future__ import annotations
 
 import itertools
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from dolfinx import fem
@@ -22,31 +22,15 @@ from ..base.lifetime import Owner
 from ..base.norms import norm1, norm2, norm_inf
 from ..base.timing import Stopwatch
 from . import ncp
-from .curvature import CURVATURE_PETSC_OPTIONS, CurvatureSystem
-from .energy_search import EnergySearch
-from .globalize import Guarded, GuardedMin
 from .krylov_curvature import KrylovCurvatureSystem
-from .linear import (
-    AssembledSystem,
-    ReducedNewtonSystem,
-    assembled_kind,
-    choose_linear,
-    friction_kind,
-    newton_system,
-    petsc_defaults,
-)
-from .newton import BlockComplementarity, Complementarity, setup_block_newton, setup_newton
+from .newton import BlockComplementarity, Complementarity
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
-from .polish import Polisher
 from .predictor import tangent_predictor
 from .problem import DiscreteProblem, nodal_scaling
 from .reduced import ReducedSystem
 from .result import Result, finish
 from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
-from .vi import setup_vi
-
-if TYPE_CHECKING:
-    from .block_system import BlockReducedSystem
+from .strategies import choose, complementarity, energy_linear
 
 _counter = itertools.count()
 
@@ -119,30 +103,11 @@ class SemismoothNewton:
         self.stopping = stopping
         self.comm = comm = problem.V.mesh.comm if comm is None else comm
         self.timers = {"assembly": 0.0, "solve": 0.0} if timers is None else timers
-        method = self.method = options.method
-        friction = problem.friction
-        energy = options.line_search == "energy"
-        # friction's block law, the VI baselines and a nonlinear residual (K = K_T(x) changes)
-        # keep an assembled matrix (their own linear algebra); the energy search factorizes
-        # the reduced system by LDLᵀ (.curvature)
-        diagonal_law = friction is None and method in ncp.METHODS and not problem.nonlinear
-        choose = (
-            friction_kind
-            if friction is not None
-            else choose_linear
-            if diagonal_law
-            else assembled_kind
-        )
-        self.linear = (
-            energy_linear(problem, options, user) or "direct"
-            if energy
-            else choose(problem, options.linear, user)
-        )
-        defaults = (
-            dict(CURVATURE_PETSC_OPTIONS)
-            if energy and self.linear == "direct"
-            else petsc_defaults(problem, self.linear)
-        )
+        self.method = method = options.method
+        # what runs the solve, chosen once from the problem's parts (.strategies)
+        kind = choose(problem, options)
+        self.linear = kind.linear_kind(problem, options, user)
+        defaults = kind.defaults(problem, options, self.linear)
         if stopping is not None and self.linear == "gamg":  # η_alg: CG's natural residual norm
             defaults["ksp_norm_type"] = "natural"
             # a solve to γ_alg η_disc takes a few CG iterations (problem A: 3 a level), so GAMG's
@@ -155,83 +120,27 @@ class SemismoothNewton:
             check_petsc_options(options.petsc_options, defaults, comm)
 
         self._owner = owner = Owner()  # the solver's PETSc objects, destroyed by close()
-        self.cp: Complementarity
-        if problem.current is not None:  # a gap nonlinear in u, the normal followed
-            from .current import CurrentComplementarity
-
-            self.cp = owner.own(CurrentComplementarity(problem))
-        elif friction is None:
-            self.cp = owner.own(Complementarity(problem))
-        else:
-            from .friction import FrictionalComplementarity
-
-            self.cp = owner.own(FrictionalComplementarity(problem))
+        self.cp: Complementarity = owner.own(complementarity(problem))
+        strategy = kind(problem, self.cp, options)
         self.snes = snes = owner.own(PETSc.SNES().create(comm))  # type: ignore[arg-type]
         self.prefix = f"contact{next(_counter)}_" if prefix is None else prefix
         snes.setOptionsPrefix(self.prefix)
         self.state: dict[str, Any] = {"t_jac": None, "dir_norm": np.nan}
-        self.polisher: Polisher | None = None
-        self.guard: Guarded | None = None
-        self.search: EnergySearch | None = None
-        self.system: ReducedNewtonSystem | BlockReducedSystem | AssembledSystem | None = None
-        if friction is not None or problem.current is not None:  # H = B K + D (no polishing)
-            cp = self.cp
-            assert isinstance(cp, BlockComplementarity)  # friction's or .current's
-            block = None
-            if self.linear == "gmres":  # reduced, GMRES + GAMG (.block_system)
-                from .block_system import BlockReducedSystem
-
-                block = self.system = owner.own(
-                    BlockReducedSystem(problem, cp.matrix(), self.prefix, forcing=options.inexact)
-                )
-                block.configure(snes, self.prefix + "newton_")
-            J = setup_block_newton(
-                snes, problem, cp, options, self.timers, self.state, self.petsc_options, block
-            )
-            self.J = J if block is not None else owner.own(J)
-            if friction is not None and options.line_search == "auto":
-                from .friction import GuardedFriction
-
-                self.guard = owner.own(
-                    GuardedFriction(cp, method, options.mu, self.timers, verbose)
-                )
-                snes.setLineSearchPreCheck(self.guard)
-        elif method in ncp.METHODS:
-            system = self.system = owner.own(
-                (
-                    CurvatureSystem(problem, self.prefix)
-                    if self.linear == "direct"
-                    else KrylovCurvatureSystem(problem, self.prefix, forcing=options.inexact)
-                )
-                if energy
-                else newton_system(problem, self.linear, self.prefix, forcing=options.inexact)
-            )
-            # a system with a KSP of its own: SNES's KSP gets another prefix (the options
-            # of ``prefix`` are the inner KSP's)
-            inner = self.prefix + "newton_" if isinstance(system, ReducedSystem) else self.prefix
-            system.configure(snes, inner)
-            precheck = owner.own(
-                setup_newton(
-                    snes,
-                    self.cp,
-                    system,
-                    options,
-                    self.timers,
-                    self.state,
-                    self.petsc_options,
-                    verbose,
-                )
-            )
-            self.search = precheck if isinstance(precheck, EnergySearch) else None
-            self.polisher = self.search.polisher if self.search is not None else None
-            if isinstance(precheck, Polisher):
-                self.polisher = precheck
-            self.guard = precheck if isinstance(precheck, GuardedMin) else None
-            self.J = system.J
-            if isinstance(system, ReducedSystem):
-                system.stopping = stopping
-        else:
-            self.J = owner.own(setup_vi(snes, problem, method, self.timers, self.state))
+        strategy.configure(
+            snes,
+            owner,
+            self.prefix,
+            self.linear,
+            self.timers,
+            self.state,
+            self.petsc_options,
+            verbose,
+        )
+        self.system = strategy.system
+        self.polisher, self.guard, self.search = strategy.polisher, strategy.guard, strategy.search
+        self.J = strategy.J
+        if isinstance(self.system, ReducedSystem):
+            self.system.stopping = stopping
         snes.getKSP().setPostSolve(self._post_solve)
         # semismooth Newton may raise ‖Φ‖ on its way: no dtol stop
         snes.setDivergenceTolerance(PETSc.UNLIMITED)
@@ -582,20 +491,6 @@ def energy_line_search(
     if options.line_search == "auto" and applies and linear:
         return options.model_copy(update={"line_search": "energy"})
     return options
-
-
-def energy_linear(problem: DiscreteProblem, options: SolverOptions, user: dict) -> str | None:
-    """The Newton system of the energy search: ``direct`` (LDLᵀ and its inertia,
-    :mod:`.curvature`) where the assembled path would factorize, ``gamg`` (CG + GAMG and
-    an indefiniteness test, :mod:`.krylov_curvature`) where it would not — 3D elasticity by
-    default, or ``solver.linear: gamg`` —, None for an explicit ``bcgs`` / ``gmres``
-    (BiCGStab / GMRES on the assembled H, plain Newton)."""
-    kind = assembled_kind(problem, options.linear, user)
-    if kind == "direct":
-        return "direct"
-    if options.linear == "gamg" or (options.linear == "auto" and kind == "bcgs"):
-        return "gamg"
-    return None
 
 
 def cp_norm(cp: Complementarity, x: PETSc.Vec, method: str, mu: float) -> float:

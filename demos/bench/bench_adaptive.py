@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 import contact
-from contact.drivers.adaptive import adapt
 from contact.output.folder import write_csv
+from contact.setup.run import adapt
 
 import numpy as np
 

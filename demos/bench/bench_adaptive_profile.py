@@ -1,6 +1,6 @@
 """Where the adaptive loop's time and memory go, level by level.
 
-Runs SOLVE → ESTIMATE → MARK → REFINE (:func:`contact.drivers.adaptive.adapt`, the scene's
+Runs SOLVE → ESTIMATE → MARK → REFINE (:func:`contact.setup.run.adapt`, the scene's
 defaults unless ``--set``) up to ``--max-dofs`` in this process and prints, per level: the
 DoFs and energy error, the CPU seconds of each phase (assembly, solve, estimate, error,
 mark, refine, output: the level's files as ``contact run`` writes them, with ``--output``;
@@ -30,7 +30,7 @@ from pathlib import Path
 import contact
 from contact.base import lifetime
 from contact.base.lifetime import petsc_objects, rss_mib
-from contact.drivers import adaptive as loop
+from contact.setup import run as loop
 
 from common import PHASES, count_phase_cpu, save_csv
 from petsc4py import PETSc

@@ -62,8 +62,8 @@ import time
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
 from contact.output.folder import gather_nodal
+from contact.setup.build import build_problem
 
 import numpy as np
 from common import save_csv

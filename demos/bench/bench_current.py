@@ -28,8 +28,8 @@ import time
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
 from contact.models.hyperelastic import linearized_problem
+from contact.setup.build import build_problem
 from contact.solvers.current import CurrentComplementarity
 
 import numpy as np

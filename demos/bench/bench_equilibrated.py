@@ -151,7 +151,7 @@ def effectivity(
     bound_of = (
         elastic_bound
         if scene.config.elastic
-        else lambda sc, res: guaranteed_bound(sc, res, **VARIANTS[backend])
+        else lambda sc, res: guaranteed_bound(res.problem, res, **VARIANTS[backend])
     )
     for level in range(max_levels):
         t0 = time.perf_counter()
@@ -159,13 +159,13 @@ def effectivity(
         t1 = time.perf_counter()
         bound = bound_of(scene, result)
         t2 = time.perf_counter()
-        err = np.nan if name in REFERENCE else solution_error(scene, result)
+        err = np.nan if name in REFERENCE else solution_error(result.problem, result)
         if name in REFERENCE:
             solves.append((scene, result))
         extra = {}
         if compare:
             numpy_args = {**VARIANTS[backend], "backend": "numpy"}
-            eta_np = guaranteed_bound(scene, result, **numpy_args).eta
+            eta_np = guaranteed_bound(result.problem, result, **numpy_args).eta
             extra = {"eta_numpy": eta_np, "eta_rel_diff": abs(bound.eta - eta_np) / eta_np}
         rows.append(
             {
@@ -189,7 +189,9 @@ def effectivity(
         if name not in REFERENCE:
             _print_row(rows[-1], compare)
         cells = contact.mark(bound.eta_T, strategy, 0.5)
-        if (next_dofs_bound(scene, cells, result.u_h.function_space) or 2 * result.dofs) > max_dofs:
+        if (
+            next_dofs_bound(scene.mesh, cells, result.u_h.function_space) or 2 * result.dofs
+        ) > max_dofs:
             break
         scene, u0 = contact.refine(scene, cells, result.u_h)
     if name in REFERENCE:
@@ -259,7 +261,7 @@ def uniform3d(sizes: list[int], backends: list[str]) -> list[dict]:
         k = result.problem.data["k"]
         error = energy_error(result.u_h, scene.config.data.exact, k, quadrature_degree=6)
         for backend in backends:
-            eta = guaranteed_bound(scene, result, **VARIANTS[backend]).eta
+            eta = guaranteed_bound(result.problem, result, **VARIANTS[backend]).eta
             rows.append(
                 {
                     "ranks": MPI.COMM_WORLD.size,
@@ -344,7 +346,7 @@ def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
     comm = MPI.COMM_WORLD
     scene = cost_scene(n, dim)
     result = contact.solve(scene, verbose=False)
-    data, multiplier, sign = flux_data(scene, result)
+    data, multiplier, sign = flux_data(result.problem, result)
     solve_K = k_solver(result, dim)
     for backend in backends:
         reconstruct_flux(data, multiplier, sign, **VARIANTS[backend])  # warm-up (JIT)
@@ -359,7 +361,7 @@ def cost(n: int, dim: int, backends: list[str], repeat: int = 3) -> list[dict]:
             etas[b] = timed(b, lambda b=b: reconstruct_flux(data, multiplier, sign, **VARIANTS[b]))
             # the whole estimate (flux_data, the feasible lifting, the reconstruction, the terms)
             bound = timed(
-                f"estimate_{b}", lambda b=b: guaranteed_bound(scene, result, **VARIANTS[b])
+                f"estimate_{b}", lambda b=b: guaranteed_bound(result.problem, result, **VARIANTS[b])
             )
             # the reconstruction inside the estimate (with its target k∇s_h): wall seconds
             timed.times.setdefault(f"estimate_flux_{b}", []).append((bound.seconds["flux"], 0))
@@ -468,14 +470,14 @@ def cost_elastic(refinements: int, backends: list[str], repeat: int = 3) -> list
     comm = MPI.COMM_WORLD
     scene, result = elastic_scene(refinements)
     solve_K = k_solver(result, 2)
-    bounds = {b: elastic_bound(scene, result, backend=b) for b in backends}  # warm-up
+    bounds = {b: elastic_bound(result.problem, result, backend=b) for b in backends}  # warm-up
     residual_eta(scene, result)
     timed = Timings()
     for _ in range(repeat):
         its = timed("solve", solve_K)
         timed("residual", lambda: residual_eta(scene, result))
         for b in backends:
-            bounds[b] = timed(b, lambda b=b: elastic_bound(scene, result, backend=b))
+            bounds[b] = timed(b, lambda b=b: elastic_bound(result.problem, result, backend=b))
     sol_wall, sol_cpu = timed.med("solve", 0), timed.med("solve", 1)
     rows = []
     for b in backends:

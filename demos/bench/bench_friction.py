@@ -29,11 +29,11 @@ from pathlib import Path
 
 import contact
 from contact.adaptivity.energy_error import solution_error
-from contact.models import build_problem
 from contact.output import folder
 from contact.output.plots import plot_traction
 from contact.post.contact_table import contact_table
 from contact.post.friction_resultants import surface_figures
+from contact.setup.build import build_problem
 
 import numpy as np
 from dolfinx import fem  # after contact, which imports dolfinx_solver first
@@ -268,7 +268,7 @@ def manufactured(quick: bool) -> tuple[list[dict], dict]:
         sc = scene("friction_tresca_manufactured", f"mesh.cells=[{n},{n}]")
         r = contact.solve(sc)
         est = contact.estimate(sc, r)
-        err = solution_error(sc, r)
+        err = solution_error(r.problem, r)
         rows.append(
             {
                 "strategy": "uniform",

@@ -33,7 +33,7 @@ import subprocess
 import sys
 
 import contact
-from contact.models import build_problem
+from contact.setup.build import build_problem
 
 from bench_friction import ROOT, forms, same_mesh, scene
 from common import save_csv

@@ -22,10 +22,10 @@ import time
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
 from contact.output.folder import write_csv
 from contact.post.reference import compare
 from contact.post.resultants import contact_resultants
+from contact.setup.build import build_problem
 from contact.solvers import method_variant
 from contact.solvers.linear import choose_linear
 

@@ -82,7 +82,7 @@ import time
 from pathlib import Path
 
 import contact  # noqa: F401  (before petsc4py)
-from contact.adaptivity.refine import refine
+from contact import refine
 from contact.models.hyperelastic import min_det_F, negative_eigenvalues
 
 import numpy as np

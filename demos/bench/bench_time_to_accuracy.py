@@ -60,7 +60,7 @@ def uniform(path: Path, target: float, max_dofs: int, sets: list[str]) -> list[d
             path, ["output.verbose=false", "adapt=none", *sets, scaled_cells(base, factor)]
         )
         result = contact.solve(scene, verbose=False)
-        error = solution_error(scene, result)
+        error = solution_error(result.problem, result)
         seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
         assert result.converged and error is not None, (path, factor)
         rows.append({"run": "uniform", "level": factor, "dofs": result.dofs, "error": error})

@@ -39,10 +39,10 @@ import time
 from pathlib import Path
 
 import contact
-from contact.models import build_problem
 from contact.models.mortar import master_pressure
 from contact.post.interface import interface_resultants, output_dofs
 from contact.post.reference import compare
+from contact.setup.build import build_problem
 
 import numpy as np
 from mpi4py import MPI
@@ -326,8 +326,8 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
 
 
 def cattaneo(sizes: list[float]) -> None:
-    from contact.drivers.load_path import run_load_path
     from contact.post.cattaneo import traction
+    from contact.setup.run import run_load_path
 
     rows, profiles = [], None
     for h_contact in sizes:

@@ -20,12 +20,22 @@ PHASES = {
     "mark": "mark",
     "refine": "refine",
 }
+#: where the loop looks each phase up: a scene's level is built and solved by
+#: contact.setup.run, estimated, marked and refined by the core's loop (contact.drivers.adaptive)
+PHASE_MODULES = {
+    "build_problem": "contact.setup.run",
+    "solve": "contact.setup.run",
+    "estimate": "contact.drivers.adaptive",
+    "solution_error": "contact.drivers.adaptive",
+    "mark": "contact.drivers.adaptive",
+    "refine": "contact.drivers.adaptive",
+}
 
 
 def count_phase_cpu(cpu: dict[str, float] | None = None) -> dict[str, float]:
     """Wrap the adaptive loop's phase functions (:data:`PHASES`) so that their CPU seconds
     add up in ``cpu`` (a new dict if None; keys: the phases' names), which is returned."""
-    from contact.drivers import adaptive as loop
+    import importlib
 
     cpu = collections.defaultdict(float) if cpu is None else cpu
 
@@ -40,7 +50,8 @@ def count_phase_cpu(cpu: dict[str, float] | None = None) -> dict[str, float]:
         return call
 
     for name, key in PHASES.items():
-        setattr(loop, name, timed(getattr(loop, name), key))
+        module = importlib.import_module(PHASE_MODULES[name])
+        setattr(module, name, timed(getattr(module, name), key))
     return cpu
 
 

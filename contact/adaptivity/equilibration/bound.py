@@ -84,8 +84,9 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ...setup import expressions
-from ...setup.scene import Scene
+from ...models.constraints import Unilateral
+from ...models.discrete import Problem
+from ...models.physics import Diffusion
 from ...solvers import Result
 from .flux import Flux, FluxData, reconstruct_flux
 
@@ -108,52 +109,66 @@ class Bound:
     seconds: dict = field(default_factory=dict)
 
 
-def flux_data(scene: Scene, result: Result) -> tuple[FluxData, str, float]:
-    """The inputs of :func:`reconstruct_flux` for a scalar scene: (data, multiplier, sign)."""
-    model = scene.config.model.type
-    if model not in ("signorini", "obstacle"):
-        raise ValueError(
-            f"estimator: equilibrated works for the scalar models, not model type {model!r}"
-        )
-    p, bnd = result.problem, scene.boundary
-    data = p.data
-    contact = {i: data["t_C"] for i in bnd.ids_with_role("contact")}
+def flux_data(problem: Problem, result: Result) -> tuple[FluxData, str, float]:
+    """The inputs of :func:`reconstruct_flux` for a solve of a scalar problem: (data,
+    multiplier, sign)."""
+    physics, condition = _scalar(problem)
+    boundary, loads = physics.boundary, physics.boundary.neumann
+    contact = {i: loads.get(i, 0) for i in condition.ids}
     flux = FluxData(
         result.u_h,
-        data["f"],
-        data["k"],
-        bnd.tags,
-        dirichlet=bnd.ids_with_role("dirichlet"),
-        neumann={i: data["t"] for i in bnd.ids_with_role("neumann")},
+        physics.f,
+        physics.k,
+        boundary.tags,
+        dirichlet=boundary.dirichlet,
+        neumann={i: t for i, t in loads.items() if i not in contact},
         contact=contact,
         lmbda_h=result.lmbda_h,
     )
-    return flux, ("cells" if model == "obstacle" else "facets"), -p.constraint.sign
+    return flux, ("cells" if condition.in_domain else "facets"), -problem.constraint.sign
+
+
+def _scalar(problem: Problem) -> tuple[Diffusion, Unilateral]:
+    """The scalar equations and the one unilateral condition of ``problem`` (else a
+    ValueError: the equilibrated flux of :mod:`.flux` is that of −div(k ∇u) = f)."""
+    physics = problem.physics
+    contacts = problem.contacts
+    if (
+        not isinstance(physics, Diffusion)
+        or len(contacts) != 1
+        or not isinstance(contacts[0], Unilateral)
+    ):
+        raise ValueError(
+            "estimator: equilibrated works for the scalar equations (Diffusion) with one "
+            f"Unilateral condition, not {type(physics).__name__} with "
+            f"{', '.join(type(c).__name__ for c in contacts) or 'no condition'}"
+        )
+    return physics, contacts[0]
 
 
 def guaranteed_bound(
-    scene: Scene,
+    problem: Problem,
     result: Result,
     backend: str = "compiled",
     degree: int | None = None,
     lifting: fem.Function | None = None,
     multiplier_rule: Any = None,
 ) -> Bound:
-    """The bound of the module docstring for a solve of a scalar scene (collective);
+    """The bound of the module docstring for a solve of a scalar problem (collective);
     ``backend`` and ``degree``: the patch solver and the flux's degree of
     :func:`.flux.reconstruct_flux`; ``lifting``: w of a Signorini scene, if the caller
     has it (hp: Bernstein coefficients on facets of any degree), else
     :func:`_bernstein_lifting`; ``multiplier_rule``: :class:`.cells.FluxData`'s."""
     seconds = {}
     t0 = time.perf_counter()
-    data, multiplier, sign = flux_data(scene, result)
+    data, multiplier, sign = flux_data(problem, result)
     data.multiplier_rule = multiplier_rule
     sigma = -sign  # the constraint sign: σ(u − g) ≤ 0
-    msh = scene.mesh
+    msh = problem.V.mesh
     u_h, k = result.u_h, data.k
     DG0 = fem.functionspace(msh, ("DG", 0))
     v = ufl.TestFunction(DG0)
-    lift = _feasibility(scene, result, sigma, k, v, lifting)
+    lift = _feasibility(problem, result, sigma, k, v, lifting)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
     flux = reconstruct_flux(data, multiplier, sign, backend=backend, degree=degree)
@@ -174,7 +189,7 @@ def guaranteed_bound(
         "Fs": _cellwise(ufl.inner(q_s, q_s) / k * v * dx),
         "W2": _cellwise(k * ufl.inner(grad_w, grad_w) * v * dx),
         "B": _cellwise(B_form),
-        "D2": _dirichlet(scene, result, v, k),
+        "D2": _dirichlet(problem, result, v, k),
     }
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
     cross = (
@@ -256,16 +271,27 @@ class _Lifting:
     cross: Any = None
 
 
+def _obstacle(bound: Any, problem: Problem) -> Any:
+    """ψ as UFL: as written when it is a UFL expression or a Function (not its interpolant),
+    a number as a constant; values at the DoFs or a callable only through their
+    interpolant, the problem's bound function."""
+    if isinstance(bound, ufl.core.expr.Expr):
+        return bound
+    if np.ndim(bound) == 0 and not callable(bound):
+        return fem.Constant(problem.V.mesh, float(bound))
+    return problem.bound_function()
+
+
 def _feasibility(
-    scene: Scene, result: Result, sigma: float, k, w_test, lifting: fem.Function | None = None
+    problem: Problem, result: Result, sigma: float, k, w_test, lifting: fem.Function | None = None
 ) -> _Lifting:
     u_h = result.u_h
-    msh = scene.mesh
-    if scene.config.model.type == "obstacle":
-        psi = expressions.to_ufl(
-            scene.config.data.psi, msh, scene.config.constants, t=scene.t_constant
-        )
-        f = result.problem.data["f"]
+    physics, condition = _scalar(problem)
+    msh = problem.V.mesh
+    boundary = physics.boundary
+    if condition.in_domain:
+        psi = _obstacle(condition.bound, problem)
+        f = physics.f
         s = sigma * (u_h - psi)
         # kinks
         dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * _degree(u_h) + 6})
@@ -287,28 +313,33 @@ def _feasibility(
             lambda lmbda: (-sigma * lmbda) * ufl.conditional(ufl.lt(s, 0), -s, 0) * w_test * dx,
             cross,
         )
-    g_h = result.problem.data["g_h"]
-    w = _bernstein_lifting(scene, u_h, g_h) if lifting is None else lifting
-    ds = result.problem.data["ds"]
-    contact = scene.boundary.ids_with_role("contact")
+    g_h = problem.bound_function()
+    contact = condition.ids
+    w = (
+        _bernstein_lifting(u_h, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
+        if lifting is None
+        else lifting
+    )
+    ds = boundary.measure(msh)
     return _Lifting(
         ufl.grad(w),
         lambda lmbda: sum((-lmbda) * (w - (u_h - g_h)) * w_test * ds(i) for i in contact),
     )
 
 
-def _bernstein_lifting(scene: Scene, u_h: fem.Function, g_h: fem.Function) -> fem.Function:
-    """The smallest nodal w ∈ V with u_h − g_h ≤ w on Γ_C and w = 0 on Γ_D: vertex values
-    max(u_h − g_h, 0); for P2 the midpoint value m of a contact facet with vertex values
-    w_0, w_1 is max(0, d_m + (w_0 − d_0 + w_1 − d_1)/4) (d = u_h − g_h), which makes the
-    Bernstein coefficients of w − d on the facet non-negative."""
+def _bernstein_lifting(
+    u_h: fem.Function, g_h: fem.Function, facets: np.ndarray, dirichlet: np.ndarray
+) -> fem.Function:
+    """The smallest nodal w ∈ V with u_h − g_h ≤ w on the contact ``facets`` and w = 0 on the
+    ``dirichlet`` facets: vertex values max(u_h − g_h, 0); for P2 the midpoint value m of a
+    contact facet with vertex values w_0, w_1 is max(0, d_m + (w_0 − d_0 + w_1 − d_1)/4)
+    (d = u_h − g_h), which makes the Bernstein coefficients of w − d on the facet
+    non-negative."""
     V = u_h.function_space
     msh = V.mesh
     tdim = msh.topology.dim
-    bnd = scene.boundary
     w = fem.Function(V, name="w")
     dvals = u_h.x.array - g_h.x.array
-    facets = bnd.facets("contact")
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
     c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
@@ -332,30 +363,27 @@ def _bernstein_lifting(scene: Scene, u_h: fem.Function, g_h: fem.Function) -> fe
         d0, d1, dm = dvals[fdofs[:, 0]], dvals[fdofs[:, 1]], dvals[fdofs[:, 2]]
         w0, w1 = w.x.array[fdofs[:, 0]], w.x.array[fdofs[:, 1]]
         w.x.array[fdofs[:, 2]] = np.maximum(0.0, dm + (w0 - d0 + w1 - d1) / 4)
-    dirichlet = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
-    w.x.array[dirichlet] = 0.0
+    w.x.array[fem.locate_dofs_topological(V, tdim - 1, dirichlet)] = 0.0
     return w
 
 
-def _dirichlet(scene: Scene, result: Result, w_test, k) -> np.ndarray:
+def _dirichlet(problem: Problem, result: Result, w_test, k) -> np.ndarray:
     """D_T² = ∫_T k |∇e_D|² of the module docstring (zero without a Dirichlet part)."""
-    from ...models.problem import interpolate_expression
-
+    physics, condition = _scalar(problem)
     u_h = result.u_h
-    msh = scene.mesh
+    msh = problem.V.mesh
     tdim = msh.topology.dim
-    bnd = scene.boundary
+    boundary = physics.boundary
     V2 = fem.functionspace(msh, ("Lagrange", _degree(u_h) + 1))
     dofs = np.setdiff1d(
-        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet")),
-        fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact")),
+        fem.locate_dofs_topological(V2, tdim - 1, boundary.facets(boundary.dirichlet)),
+        fem.locate_dofs_topological(V2, tdim - 1, boundary.facets(condition.ids)),
     )
     e_D = fem.Function(V2)
     u2 = fem.Function(V2)
     u2.interpolate(u_h)
-    e_D.x.array[dofs] = (
-        interpolate_expression(V2, scene.config.data.u_D, scene).x.array[dofs] - u2.x.array[dofs]
-    )
+    if physics.dirichlet_value is not None:
+        e_D.x.array[dofs] = physics.dirichlet_value(V2).x.array[dofs] - u2.x.array[dofs]
     e_D.x.scatter_forward()
     dx = ufl.Measure("dx", domain=msh)
     return _cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)

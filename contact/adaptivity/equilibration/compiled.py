@@ -401,7 +401,7 @@ _RUN = _Run()
 def _warn(comm: MPI.Comm, message: str) -> None:
     """One warning line per process, from rank 0 (a ContactWarning: the CLI prints it as
     ``contact: warning: ...``)."""
-    from ...setup.surfaces import ContactWarning
+    from ...base.errors import ContactWarning
 
     if not _RUN.warned and comm.rank == 0:
         warnings.warn(message, ContactWarning, stacklevel=4)

@@ -60,7 +60,10 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
-from ...setup.scene import Scene
+from ...base.errors import ConfigError
+from ...models.constraints import Plane, RigidObstacle
+from ...models.discrete import Problem
+from ...models.physics import Elasticity
 from ...solvers import Result
 from .bound import Bound, _bernstein_lifting, _cellwise, _root, indicators
 from .korn import korn_constant
@@ -84,30 +87,49 @@ TERMS = (
 )
 
 
-def stress_data(scene: Scene, result: Result) -> StressData:
-    """The inputs of :func:`.stress.reconstruct_stress` for a solve of an elastic scene
-    against a rigid plane (its boundary parts and the problem's data; no configuration)."""
-    p, bnd = result.problem, scene.boundary
-    if "normals" in p.data or "n" not in p.data or "mu" not in p.data:
+#: the refusal of a 3D elastic body (also raised by the scene's configuration when its mesh
+#: shows the dimension)
+STRESS_3D = (
+    "mesh.type: estimator: equilibrated for elasticity is 2D only (in 3D each vertex "
+    "patch of the stress is a dense system of ~400 unknowns: too slow); use residual"
+)
+
+
+def _plane_contact(problem: Problem) -> tuple[Elasticity, RigidObstacle, Plane]:
+    """The linear elastic body and its one rigid plane with a coordinate normal (else a
+    ValueError: what :mod:`.stress` reconstructs)."""
+    physics, contacts = problem.physics, problem.contacts
+    obstacle = contacts[0] if len(contacts) == 1 else None
+    if (
+        not isinstance(physics, Elasticity)
+        or physics.law is not None
+        or not isinstance(obstacle, RigidObstacle)
+        or not isinstance(obstacle.surface, Plane)
+        or obstacle.surface.axis() is None
+        or problem.current is not None
+    ):
         raise ValueError(
             "estimator: equilibrated for elasticity needs one body against a rigid plane"
         )
-    d = scene.mesh.topology.dim
-    from ...base.errors import ConfigError
+    return physics, obstacle, obstacle.surface
 
+
+def stress_data(problem: Problem, result: Result) -> StressData:
+    """The inputs of :func:`.stress.reconstruct_stress` for a solve of a linear elastic body
+    against a rigid plane (its boundary parts and data)."""
+    physics, obstacle, plane = _plane_contact(problem)
+    boundary = physics.boundary
+    d = problem.V.mesh.topology.dim
     if d == 3:
-        from ...setup.config import STRESS_3D
-
         raise ConfigError(STRESS_3D)
-    if p.floating or p.semicoercive:  # no Korn inequality on H¹_D: C_K does not exist
+    if problem.floating or problem.semicoercive:  # no Korn inequality on H¹_D: C_K does not exist
         raise ConfigError(
             "estimator: equilibrated needs the elastic body held by Dirichlet or symmetry "
             "conditions (this one has rigid motions only contact holds); use residual"
         )
-    dirichlet = [list(bnd.ids_with_role("dirichlet")) for _ in range(d)]
-    planes = [n for n, role in bnd.roles.items() if role == "symmetry"]
-    for name, axis in zip(planes, p.symmetry_axes):
-        dirichlet[axis].append(bnd.ids[name])
+    dirichlet = [list(boundary.dirichlet) for _ in range(d)]
+    for tag, axis in boundary.symmetry:
+        dirichlet[axis].append(tag)
     lam_t = None
     if result.friction is not None:
         from ...solvers.friction import surface_functions
@@ -115,33 +137,33 @@ def stress_data(scene: Scene, result: Result) -> StressData:
         lam_t = surface_functions(result)[0]
     return StressData(
         result.u_h,
-        p.data["f"],
-        float(p.data["mu"]),
-        float(p.data["lmbda_L"]),
-        bnd.tags,
+        physics.f,
+        float(physics.mu),
+        float(physics.lmbda),
+        boundary.tags,
         tuple(tuple(ids) for ids in dirichlet),
-        neumann={i: p.data["t"] for i in bnd.ids_with_role("neumann")},
-        contact=bnd.ids_with_role("contact"),
-        normal=np.asarray(p.data["n"], dtype=float),
+        neumann=dict(boundary.neumann),
+        contact=obstacle.ids,
+        normal=-plane.normal,
         lmbda_h=result.lmbda_h,
         lmbda_t=lam_t,
     )
 
 
-def elastic_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bound:
-    """The bound of the module docstring for a solve of an elastic scene (collective);
+def elastic_bound(problem: Problem, result: Result, backend: str = "compiled") -> Bound:
+    """The bound of the module docstring for a solve of an elastic body (collective);
     ``backend``: the patch stage of the stress (:data:`.stress.BACKENDS`)."""
     seconds = {}
     t0 = time.perf_counter()
     korn = korn_constant(result.problem.V, result.problem.bcs)
     seconds["korn"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    data = stress_data(scene, result)
+    data = stress_data(problem, result)
     data.skew_weight = SKEW * korn**2 / (2.0 * data.mu)
     stress = reconstruct_stress(data, backend)
     seconds["stress"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    msh = scene.mesh
+    msh = problem.V.mesh
     d = msh.topology.dim
     u_h, mu, lam = result.u_h, data.mu, data.lmbda_L
     DG0 = fem.functionspace(msh, ("DG", 0))
@@ -150,7 +172,7 @@ def elastic_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bo
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": 2 * p + 4})
     assert data.normal is not None  # a plane (stress_data)
     n = ufl.as_vector(data.normal.tolist())
-    w, W_form, B_form = _normal_lifting(scene, result, n, stress.lmbda, v)
+    w, W_form, B_form = _normal_lifting(problem, result, n, stress.lmbda, v)
     sigma_h = stress.sigma
     sym, skw = ufl.sym(sigma_h), ufl.skew(sigma_h)
     c_lam = lam / (2.0 * mu + d * lam)
@@ -162,7 +184,7 @@ def elastic_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bo
         e = ufl.sym(ufl.grad(z))
         return 2.0 * mu * e + lam * ufl.tr(e) * ufl.Identity(d)
 
-    e_D = _dirichlet_lifting(scene, result, stress_of)
+    e_D = _dirichlet_lifting(problem, result, stress_of)
     q = sym - stress_of(u_h if e_D is None else u_h + e_D)  # against u_h + e_D: u_D on Γ_D
     q_s = q + stress_of(w * n)  # s_h = u_h + e_D − w n
     local = {
@@ -171,7 +193,7 @@ def elastic_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bo
         "Y": _cellwise(ufl.inner(skw, skw) * v * dx),
         "W2": W_form,
         "B": B_form,
-        "Bt": _friction(scene, result, stress, v),
+        "Bt": _friction(problem, result, v),
         "D2": np.zeros(len(W_form))
         if e_D is None
         else _cellwise(ufl.inner(stress_of(e_D), ufl.sym(ufl.grad(e_D))) * v * dx),
@@ -220,33 +242,38 @@ def elastic_bound(scene: Scene, result: Result, backend: str = "compiled") -> Bo
     return Bound(float(eta), eta_T, terms, parts, stress, {**stress.seconds, **seconds})
 
 
-def _normal_lifting(scene: Scene, result: Result, n, lmbda, v):
+def _normal_lifting(problem: Problem, result: Result, n, lmbda, v):
     """w (the smallest nodal lifting of (u_h·n − g)⁺ on Γ_C, :func:`.bound._bernstein_lifting`),
     the DG0 vectors of W_T² = ‖C^{1/2} ε(w n)‖²_T and of B_T."""
-    p = result.problem
-    S = p.output_space
+    physics, obstacle, plane = _plane_contact(problem)
+    boundary = physics.boundary
+    msh = problem.V.mesh
+    S = problem.output_space
     assert S is not None  # the rigid obstacle's scalar output space
+    _, g_ufl = plane.expression(ufl.SpatialCoordinate(msh))
     u_n, g_h = fem.Function(S), fem.Function(S)
     u_n.interpolate(fem.Expression(ufl.dot(result.u_h, n), S.element.interpolation_points))
-    g_h.interpolate(fem.Expression(p.data["g_ufl"], S.element.interpolation_points))
-    w = _bernstein_lifting(scene, u_n, g_h)
-    mu, lam = float(p.data["mu"]), float(p.data["lmbda_L"])
+    g_h.interpolate(fem.Expression(g_ufl, S.element.interpolation_points))
+    contact = obstacle.ids
+    w = _bernstein_lifting(u_n, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
+    mu, lam = float(physics.mu), float(physics.lmbda)
     e = ufl.sym(ufl.grad(w * n))
-    dx = ufl.Measure("dx", domain=scene.mesh)
+    dx = ufl.Measure("dx", domain=msh)
     W2 = _cellwise((2.0 * mu * ufl.inner(e, e) + lam * ufl.tr(e) ** 2) * v * dx)
-    ds = p.data["ds"]
-    gap = ufl.dot(result.u_h, n) - p.data["g_ufl"]
+    ds = boundary.measure(msh)
+    gap = ufl.dot(result.u_h, n) - g_ufl
     B = np.zeros_like(W2)
     if lmbda is not None:
-        contact = scene.boundary.ids_with_role("contact")
         B = _cellwise(sum((-lmbda) * (w - gap) * v * ds(i) for i in contact))
     return w, W2, B
 
 
-def _friction(scene: Scene, result: Result, stress, v) -> np.ndarray:
+def _friction(problem: Problem, result: Result, v) -> np.ndarray:
     """B_t,T = ∫_{∂T ∩ Γ_C} ρ_h |s_t,h| + λ̃_t·s_t,h (zero without friction)."""
-    ds = result.problem.data["ds"]
-    n_cells = scene.mesh.topology.index_map(scene.mesh.topology.dim).size_local
+    physics, obstacle, _ = _plane_contact(problem)
+    msh = problem.V.mesh
+    ds = physics.boundary.measure(msh)
+    n_cells = msh.topology.index_map(msh.topology.dim).size_local
     if result.friction is None:
         return np.zeros(n_cells)
     from ...solvers.friction import surface_functions
@@ -254,29 +281,30 @@ def _friction(scene: Scene, result: Result, stress, v) -> np.ndarray:
     lam_t, slip, _, rho = surface_functions(result)
     form = sum(
         (rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * v * ds(i)
-        for i in scene.boundary.ids_with_role("contact")
+        for i in obstacle.ids
     )
     return _cellwise(form)
 
 
-def _dirichlet_lifting(scene: Scene, result: Result, stress_of) -> fem.Function | None:
+def _dirichlet_lifting(problem: Problem, result: Result, stress_of) -> fem.Function | None:
     """e_D ∈ P_{p+1}^d lifting the Dirichlet interpolation error: e_D = I_{p+1}u_D − u_h at the
     Γ_D DoFs off Γ_C, 0 on Γ_C and in the prescribed component on symmetry planes, and of
     least energy over the DoFs of the cells with a vertex on Γ_D (0 beyond): one sparse
     solve; |||e_D||| is at most that of the extension by zero (measured on the Tresca scene:
-    0.6–0.95 of it).  None without a datum ``u_D`` in the problem's data."""
-    p = result.problem
-    msh = scene.mesh
+    0.6–0.95 of it).  None without a Dirichlet datum in the problem's physics."""
+    physics, obstacle, _ = _plane_contact(problem)
+    msh = problem.V.mesh
     tdim = msh.topology.dim
-    u_D = p.data.get("u_D")
+    u_D = physics.dirichlet_value
     if u_D is None:
         return None
+    boundary = physics.boundary
     deg = result.u_h.function_space.element.basix_element.degree + 1
     V2 = fem.functionspace(msh, ("Lagrange", deg, (msh.geometry.dim,)))
     bs = V2.dofmap.index_map_bs
-    bnd = scene.boundary
-    on_D = fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("dirichlet"))
-    on_C = fem.locate_dofs_topological(V2, tdim - 1, bnd.facets("contact"))
+    dirichlet = boundary.facets(boundary.dirichlet)
+    on_D = fem.locate_dofs_topological(V2, tdim - 1, dirichlet)
+    on_C = fem.locate_dofs_topological(V2, tdim - 1, boundary.facets(obstacle.ids))
     u2, d2 = fem.Function(V2), fem.Function(V2)
     u2.interpolate(result.u_h)
     if isinstance(u_D, fem.Constant):
@@ -287,11 +315,10 @@ def _dirichlet_lifting(scene: Scene, result: Result, stress_of) -> fem.Function 
     given = (np.setdiff1d(on_D, on_C)[:, None] * bs + np.arange(bs)).ravel()
     lift.x.array[given] = d2.x.array[given] - u2.x.array[given]
     # fixed: Γ_D, Γ_C, the symmetry planes' prescribed component, all but the layer
-    fixed = ~np.repeat(_layer_dofs(V2, bnd.facets("dirichlet")), bs)
+    fixed = ~np.repeat(_layer_dofs(V2, dirichlet), bs)
     fixed[(np.union1d(on_D, on_C)[:, None] * bs + np.arange(bs)).ravel()] = True
-    planes = [n for n, role in bnd.roles.items() if role == "symmetry"]
-    for name, axis in zip(planes, p.symmetry_axes):
-        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
+    for tag, axis in boundary.symmetry:
+        facets = boundary.facets((tag,))
         fixed[fem.locate_dofs_topological(V2, tdim - 1, facets) * bs + axis] = True
     scale = msh.comm.allreduce(float(np.max(np.abs(d2.x.array), initial=0.0)), op=MPI.MAX)
     if msh.comm.allreduce(float(np.max(np.abs(lift.x.array), initial=0.0)), op=MPI.MAX) <= (

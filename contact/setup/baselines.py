@@ -1,5 +1,7 @@
-"""A scene's contact constraint as UFL for the baseline enforcements (penalty, augmented
-Lagrangian, Nitsche; :mod:`contact.solvers.baselines`, docs/theory.md §10): the pieces of
+"""One solve of a scene by a baseline enforcement (penalty, augmented Lagrangian, Nitsche).
+
+The scene's contact constraint as UFL for the baseline enforcements
+(:mod:`contact.solvers.baselines`, docs/theory.md §10): the pieces of
 :class:`~contact.solvers.baselines.UnilateralContact` read off the scene and its
 :class:`~contact.solvers.problem.DiscreteProblem`, whose space, Dirichlet conditions and
 outputs the baseline shares (its ``u_h`` is the unknown).
@@ -14,6 +16,9 @@ outputs the baseline shares (its ``u_h`` is the unknown).
 The bulk stiffness is the problem's own K where the problem's unknowns are the
 displacements (no change of basis: scalar models, coordinate planes); against a tilted
 plane, a circle or a sphere the problem holds K̃ = QᵀKQ, and K is assembled here anew.
+:func:`solve_baseline` solves from the initial guess the scene's solve chose and returns the
+:class:`~contact.solvers.result.Result` on the scene's discrete problem, so that every output
+of a scene (fields, tables, forces, estimators) reads it as it reads semismooth Newton's.
 """
 
 from __future__ import annotations
@@ -23,10 +28,15 @@ from dolfinx import fem
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
-from ..setup.scene import Scene
-from ..solvers.baselines import FrictionLaw, UnilateralContact
+from ..base.lifetime import destroy
+from ..base.timing import Stopwatch
+from ..models.problem import assemble_system
+from ..solvers.baselines import FrictionLaw, UnilateralContact, solve_enforced
+from ..solvers.options import SolverOptions
 from ..solvers.problem import DiscreteProblem
-from .problem import assemble_system, coefficient
+from ..solvers.result import Result
+from .data import coefficient
+from .scene import Scene
 
 
 def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[UnilateralContact, list]:
@@ -59,7 +69,7 @@ def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[Unilater
             f"solver.method: {cfg.solver.method} is available for scalar Signorini and "
             "obstacle scenes and one linear elastic body against a rigid obstacle"
         )
-    from .elasticity import epsilon, rigid_body_modes, stress
+    from ..models.elasticity import epsilon, rigid_body_modes, stress
 
     data = problem.data
     mu, lmbda_L = data["mu"], data["lmbda_L"]
@@ -125,3 +135,26 @@ def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[Unilater
         ),
         made,
     )
+
+
+def solve_baseline(
+    scene: Scene,
+    problem: DiscreteProblem,
+    u0: fem.Function,
+    opts: SolverOptions,
+    verbose: bool,
+    timers: dict,
+    clock: Stopwatch,
+) -> Result:
+    """Solve ``scene`` by ``opts.method`` from ``u0`` (a function of ``problem.V``; the
+    Dirichlet values are put in); never raises on divergence."""
+    u = problem.u_h
+    u.x.array[:] = u0.x.array
+    for bc in problem.bcs:
+        bc.set(u.x.array)
+    u.x.scatter_forward()
+    contact, made = unilateral_contact(scene, problem)
+    try:
+        return solve_enforced(problem, contact, opts, verbose, timers, clock)
+    finally:
+        destroy(*made)

@@ -13,29 +13,27 @@ with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²
 from __future__ import annotations
 
 import time
-from typing import Any
 
-import numpy as np
 import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
+from ..base import expressions
 from ..base.errors import ConfigError
-from ..setup.checks import check_scene_data
-from ..setup.scene import Scene
-from ..solvers.problem import Constraint, DiscreteProblem
-from .problem import (
-    assemble_system,
-    coefficient,
-    contact_ends,
-    interpolate_expression,
-    lumped_weights,
-)
+from ..models.constraints import Unilateral
+from ..models.discrete import Problem
+from ..models.physics import BoundaryData, Diffusion
+from ..models.problem import assemble_system
+from .checks import check_scene_data
+from .data import coefficient, interpolate_expression
+from .scene import Scene
 
 
-def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
+def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     """Assemble the scalar Signorini or obstacle problem of ``scene`` (docs/theory.md
-    §1.1–1.2, §2)."""
+    §1.1–1.2, §2): its forms, its :class:`~contact.models.constraints.Unilateral` condition
+    (:meth:`~contact.models.constraints.Unilateral.discretise`) and its
+    :class:`~contact.models.physics.Diffusion` equations."""
     t0 = time.perf_counter()
     check_scene_data(scene)  # every datum finite where it is used, k > 0 (ConfigError)
     cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
@@ -45,6 +43,8 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
     tdim = msh.topology.dim
     a, L, forms = scalar_forms(scene, V)
     k, f, t, t_C, ds = (forms[key] for key in ("k", "f", "t", "t_C", "ds"))
+    dx = ufl.Measure("dx", domain=msh)
+    signorini = cfg.model.type == "signorini"
 
     # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
     u_D = interpolate_expression(V, data.u_D, scene)
@@ -53,50 +53,61 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> DiscreteProblem:
 
     K, b = assemble_system(a, L, bcs)
 
-    # The constraint set and its lumped weights w_i = ∫ φ_i (Γ_C or Ω).
-    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-    if cfg.model.type == "signorini":
-        contact = bnd.ids_with_role("contact")
-        candidates = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("contact"))
-        measure = ds(contact)
-        bound_text, sign = data.g, 1.0
-    else:
-        candidates = np.arange(n_owned, dtype=np.int32)
-        measure = ufl.Measure("dx", domain=msh)
-        bound_text, sign = data.psi, 1.0 if cfg.model.bound == "upper" else -1.0
-    owned = candidates[candidates < n_owned]
-    dofs = np.setdiff1d(owned, dirichlet_dofs).astype(np.int32)
-    w = lumped_weights(V, measure)[dofs]
-    if msh.comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
-        raise ConfigError(
-            f"mesh.degree: {degree} gives constrained DoFs with lumped weight ∫ φ_i = 0 "
-            "on this mesh; use mesh.degree: 1"
-        )
+    # the condition u ≤ g on Γ_C, or σ(u − ψ) ≤ 0 in Ω, its lumped weights w_i = ∫ φ_i there
+    bound_text = data.g if signorini else data.psi
     g_h = interpolate_expression(V, bound_text, scene)
-    constraint = Constraint(dofs, g_h.x.array[dofs].copy(), w, sign)
+    condition = Unilateral(
+        g_h if signorini else expressions.to_ufl(data.psi, msh, cfg.constants, t=scene.t_constant),
+        side="upper" if signorini or cfg.model.bound == "upper" else "lower",
+        measure=ds(bnd.ids_with_role("contact")) if signorini else dx,
+        nodal=lambda _: g_h,
+    )
+    contact = condition.discretise(V, bcs, allow_empty=True)
     # no Dirichlet DoF on any rank: only the constraint holds the body (K is singular)
     semicoercive = msh.comm.allreduce(len(dirichlet_dofs), op=MPI.SUM) == 0
     if semicoercive:
-        check_semicoercive(b, sign, cfg.model.type)
-
-    u_h = fem.Function(V, name="u_h")
-    ends: dict[str, Any] = {}
-    if cfg.model.type == "signorini":
-        ends = dict(
-            zip(("end_dofs", "end_neighbours"), contact_ends(V, owned, candidates, dirichlet_dofs))
-        )
-    return DiscreteProblem(
+        check_semicoercive(b, condition.sign, cfg.model.type)
+    physics = scalar_physics(scene, forms)
+    return Problem(
         V,
-        u_h,
+        fem.Function(V, name="u_h"),
         bcs,
         K,
         b,
-        constraint,
-        **ends,
-        in_domain=cfg.model.type == "obstacle",
+        contact.constraint,
+        **contact.fields,
         semicoercive=semicoercive,
-        data={"k": k, "f": f, "t": t, "t_C": t_C, "g_h": g_h, "ds": ds, "exact": data.exact},
+        data={"k": k, "f": f, "t": t, "t_C": t_C, "ds": ds, "exact": data.exact, **contact.data},
         assembly_time=time.perf_counter() - t0,
+        physics=physics,
+        contacts=(condition,),
+    )
+
+
+def scalar_physics(scene: Scene, forms: dict) -> Diffusion:
+    """The scene's :class:`~contact.models.physics.Diffusion` equations over the UFL data
+    ``forms`` of :func:`scalar_forms` (what the estimators check)."""
+    cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
+    data = cfg.data
+    k, f, t, t_C = (forms[key] for key in ("k", "f", "t", "t_C"))
+    signorini = cfg.model.type == "signorini"
+    contact_ids = bnd.ids_with_role("contact")
+    return Diffusion(
+        k,
+        f,
+        BoundaryData(
+            bnd.tags,
+            dirichlet=bnd.ids_with_role("dirichlet"),
+            neumann={
+                **{i: t for i in bnd.ids_with_role("neumann")},
+                **({i: t_C for i in contact_ids} if signorini else {}),
+            },
+            free=bnd.ids_with_role("natural"),
+        ),
+        exact=None
+        if data.exact is None
+        else expressions.to_ufl(str(data.exact), msh, cfg.constants, t=scene.time),
+        dirichlet_value=lambda space: interpolate_expression(space, data.u_D, scene),
     )
 
 
