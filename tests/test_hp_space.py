@@ -13,6 +13,7 @@ from contact.hp.reference import lagrange
 from contact.hp.space import HPSpace
 
 import basix
+import dolfinx.fem.petsc  # noqa: F401  (fem.petsc)
 import numpy as np
 import pytest
 import ufl
