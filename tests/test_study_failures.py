@@ -51,7 +51,7 @@ def test_study_failure_cell_is_one_line(monkeypatch) -> None:
     def broken(scene, **kwargs):
         raise err
 
-    monkeypatch.setattr("contact.drivers.solve.solve", broken)
+    monkeypatch.setattr("contact.setup.run.solve", broken)
     study = {
         "name": "failing",
         "scene": SCENE,
@@ -70,7 +70,7 @@ def test_long_failure_texts_are_capped(monkeypatch) -> None:
     def broken(scene, **kwargs):
         raise RuntimeError("x" * 5000 + "\n" + "y" * 5000)
 
-    monkeypatch.setattr("contact.drivers.solve.solve", broken)
+    monkeypatch.setattr("contact.setup.run.solve", broken)
     study = {
         "name": "failing",
         "scene": SCENE,
