@@ -92,10 +92,10 @@ class Level:
         """Keep the level's figures only (its row, iterations, history, η and error).
 
         Its solution's fields and PETSc objects
-        (:meth:`~contact.solvers.result.Result.release`) and the indicator field η_T are
+        (``Result.release``) and the indicator field η_T are
         dropped, and so are its domain and problem, so the loop's memory follows the last
         level, not the sum of all. The mesh stays while a finer level refers to it (the
-        chain of coarser meshes :mod:`contact.drivers.sequencing` solves on).
+        chain of coarser meshes ``contact.drivers.sequencing`` solves on).
         """
         _ = self.cells  # cached while the mesh is at hand
         self.result.release()

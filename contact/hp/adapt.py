@@ -105,7 +105,7 @@ def adapt_hp(
         newton_rtol: Newton's relative tolerance (default :data:`NEWTON_RTOL`).
 
     Returns:
-        The levels (:class:`HPLevel`) and why the loop stopped.
+        The levels (``HPLevel``) and why the loop stopped.
     """
     comm = scene.comm
     tdim = scene.mesh.topology.dim
@@ -200,8 +200,8 @@ def adapt(
 ) -> AdaptResult:
     """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
-    h-refinement (:func:`contact.setup.run.adapt`), or with ``strategy="hp"`` h- or
-    p-refinement of each marked cell (:func:`adapt_hp`, the scalar signorini model).
+    h-refinement (``contact.setup.run.adapt``), or with ``strategy="hp"`` h- or
+    p-refinement of each marked cell (``adapt_hp``, the scalar signorini model).
 
     The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` (or the DoF
     budget ``solver.max_dofs`` of the h loop), after ``max_levels`` levels, or when a solve
@@ -217,7 +217,7 @@ def adapt(
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The h loop's first initial guess (a load step's previous solution).
         keep: Which levels of the h loop keep their solution once the next level is
-            estimated (:func:`contact.drivers.adaptive.adapt`); the hp loop keeps every level.
+            estimated (``contact.drivers.adaptive.adapt``); the hp loop keeps every level.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
             maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
             ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the
@@ -226,7 +226,7 @@ def adapt(
             otherwise the guaranteed equilibrated bound).
 
     Returns:
-        The levels (:class:`HPLevel`, with the degrees, for hp) and why the loop stopped.
+        The levels (``HPLevel``, with the degrees, for hp) and why the loop stopped.
 
     Raises:
         ConfigError: For an unknown or invalid option, or ``strategy="hp"`` on a model

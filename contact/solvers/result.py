@@ -100,8 +100,8 @@ class Result:
     predictor: bool | None = None
     hint: str = ""  # a failed solve: what in the scene makes it hard ('' if nothing known)
     stopping: AdaptiveStopping | None = None  # solver.stopping adaptive: its criteria (.stopping)
-    #: a baseline enforcement (:mod:`.baselines`): its nodal contact force in the solver's
-    #: unknowns (owned), which :func:`owned_residual` returns — the method's own multiplier,
+    #: a baseline enforcement (``contact.setup.baselines``): its nodal contact force in the solver's
+    #: unknowns (owned), which ``owned_residual`` returns — the method's own multiplier,
     #: not the Galerkin residual K x − b (they differ for Nitsche with θ ≠ 0)
     contact_residual: np.ndarray | None = None
     outer_iterations: int = 0  # the augmented Lagrangian's Uzawa iterations (0: none)
