@@ -63,6 +63,25 @@ def g(x, digits: int = 3) -> str:
     return "–" if x in ("", None) else f"{x:.{digits}g}" if isinstance(x, float) else str(x)
 
 
+def failure_table(fails: list[dict], explain) -> str:
+    """The failed runs of a stability map with why each failed (``explain(case, method,
+    outcome)``)."""
+    return table(
+        ["case", "method", "outcome", "iterations", "SNES reason", "why"],
+        [
+            [
+                r["case"],
+                r["method"],
+                r["outcome"],
+                r["newton_iterations"],
+                r["reason"],
+                explain(r["case"], r["method"], r["outcome"]),
+            ]
+            for r in fails
+        ],
+    )
+
+
 def pct(x) -> str:
     return "–" if x in ("", None) else f"{100 * x:+.2f} %"
 
@@ -838,20 +857,7 @@ def stability() -> str:
             "",
             "Every failure in the map:",
             "",
-            table(
-                ["case", "method", "outcome", "iterations", "SNES reason", "why"],
-                [
-                    [
-                        r["case"],
-                        r["method"],
-                        r["outcome"],
-                        r["newton_iterations"],
-                        r["reason"],
-                        _explain(r["case"], r["method"], r["outcome"]),
-                    ]
-                    for r in fails
-                ],
-            ),
+            failure_table(fails, _explain),
         ]
     return "\n".join(out) + "\n"
 
@@ -3658,20 +3664,7 @@ def stability_baselines() -> str:
         out += [
             "Every failure in the map:",
             "",
-            table(
-                ["case", "method", "outcome", "iterations", "SNES reason", "why"],
-                [
-                    [
-                        r["case"],
-                        r["method"],
-                        r["outcome"],
-                        r["newton_iterations"],
-                        r["reason"],
-                        _explain_baseline(r["case"], r["method"], r["outcome"]),
-                    ]
-                    for r in fails
-                ],
-            ),
+            failure_table(fails, _explain_baseline),
             "",
         ]
     return "\n".join(out)
