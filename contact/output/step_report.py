@@ -32,20 +32,20 @@ from __future__ import annotations
 
 import platform
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from mpi4py import MPI
 
 from ..drivers.load_path import LoadPath
 from ..post.contact_table import Table, contact_table, tangent_2d, view_normal
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
-from ..setup.run import SceneStep as Step
 from ..setup.run import estimate
-from ..setup.scene import Scene
 from . import folder, plots
 from .fields import FieldFiles
+from .report import Report
 from .run_report import (
     _finish,
     cell_fields,
@@ -57,6 +57,10 @@ from .run_report import (
     write_contact,
 )
 
+if TYPE_CHECKING:
+    from ..setup.run import SceneStep as Step
+    from ..setup.scene import Scene
+
 #: the most load steps traction.png draws a curve of (evenly spread, first and last included)
 TRACTION_CURVES = 25
 
@@ -67,11 +71,9 @@ class StepWriter:
     files of the folder, :class:`contact.output.folder.RowLog`), so that nothing it keeps in
     memory grows with the steps; :meth:`finish` writes the run's files from them."""
 
-    def __init__(self, tmp: Path, scene: Scene):
-        self.tmp, self.scene = tmp, scene
-        comm = scene.comm
-        formats, elastic = scene.config.output.formats, scene.config.elastic
-        self.files = FieldFiles(tmp, "solution", formats, comm, elastic)
+    def __init__(self, tmp: Path, report: Report, comm: MPI.Comm):
+        self.tmp, self.report, self.comm = tmp, report, comm
+        self.files = FieldFiles(tmp, "solution", report.formats, comm, report.elastic)
         self.rows = folder.RowLog(tmp / ".steps.jsonl", comm)
         self.levels = folder.RowLog(tmp / ".levels.jsonl", comm)
         self.history = folder.RowLog(tmp / ".history.jsonl", comm)
@@ -115,14 +117,14 @@ class StepWriter:
         self.rows.add([row])
         self.iterations = [self.iterations[0] + r.iterations, max(self.iterations[1], r.iterations)]
         self.levels.add([{"step": k, "time": step.time, **lv.row()} for lv in step.levels])
-        folder.table_file(self.tmp / table_name(k), table, scene.comm)
+        folder.table_file(self.tmp / table_name(k), table, self.comm)
         if self.files.formats:
             nodal = point_fields(r)
             if r.friction is not None:
                 from ..solvers.friction import surface_functions
 
                 nodal += surface_functions(r)
-            cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
+            cells = [*cell_fields(r, self.report.elastic), *([est.eta_T] if step.levels else [])]
             self.files.write_step(
                 step.time, nodal, cells, {"step": k, "dofs": r.dofs}, scene.boundary
             )
@@ -134,7 +136,7 @@ class StepWriter:
         false``, the failed step) goes into summary.json.  The data files come first, the
         pictures after them (a picture that fails is a warning, ``pictures`` in
         summary.json), summary.json last.  Returns the summary."""
-        tmp, comm = self.tmp, self.scene.comm
+        tmp, comm, report = self.tmp, self.comm, self.report
         last = path.steps[-1]
         r = last.result
         self.rows.write_csv(tmp / "steps.csv", _flat)
@@ -143,15 +145,14 @@ class StepWriter:
             self.levels.write_csv(tmp / "convergence.csv")
         comparison = compare(last.scene, r)
         if failure is None:  # a failed run's last line is its error
-            warn_coarse_zone(last.scene, r)
+            warn_coarse_zone(r)
         table = contact_table(last.scene, r)
-        write_contact(tmp, last.scene, table)
-        config = self.scene.config
-        friction = config.friction.law if config.friction is not None else "none"
+        write_contact(tmp, table, comm)
+        friction = report.friction
         rows = list(self.rows.rows()) if comm.rank == 0 else []  # rank 0 writes summary.json
         info: dict[str, Any] = {
-            "scene": self.scene.name,
-            "model": self.scene.config.model.type,
+            "scene": report.name,
+            "model": report.model,
             "method": r.method,
             "friction": friction,
             "steps_total": path.count,
@@ -180,18 +181,18 @@ class StepWriter:
             info["equilibrium_branch"] = [
                 {"step": k, "time": t, "negative_eigenvalues": n} for k, t, n in path.branch_steps
             ]
-        if config.friction is not None and friction != "none":
-            info["tangential_form"] = config.friction.form
-        if self.scene.config.elastic:  # the forces are of the whole body
+        if report.tangential_form is not None and friction != "none":
+            info["tangential_form"] = report.tangential_form
+        if report.elastic:  # the forces are of the whole body
             info["symmetric_copies"] = r.problem.symmetric_copies
         info.update(failure or {})
-        if comparison is not None and config.reference is not None:
-            info["reference"] = config.reference.type
+        if comparison is not None and report.reference is not None:
+            info["reference"] = report.reference
             info.update(comparison.values)
-        if config.output.png:
+        if report.png:
             origin, t0 = first_contact(last.scene, r)
             normal = view_normal(last.scene, r)
-            name, dofs = self.scene.name, r.dofs
+            name, dofs = report.name, r.dofs
 
             def traction(_) -> None:  # rank 0: the tables of the steps drawn, read back
                 plots.plot_traction(
@@ -219,7 +220,7 @@ class StepWriter:
                     tmp / "force.png",
                     root=True,
                 ),
-                *pressure_picture(tmp, last.scene, r, comparison, table),
+                *pressure_picture(tmp, report, r, comparison, table),
             ]
             info["pictures"] = plots.draw_in_turn(pictures, comm)
         for log in (self.rows, self.levels, self.history):
