@@ -63,5 +63,6 @@ def report_of(config: SceneConfig) -> Report:
         reference=config.reference.type if config.reference is not None else None,
         friction=friction.law if friction is not None else "none",
         tangential_form=friction.form if friction is not None else None,
+        estimator=config.estimator,
         verbose=out.verbose,
     )

@@ -28,6 +28,8 @@ class Report:
         reference: The type of the declared reference solution; None without one.
         friction: The friction law; ``none`` without friction.
         tangential_form: The friction law's tangential form; None without friction.
+        estimator: The error estimator's kind (``residual``, ``equilibrated``, …) of a
+            step that did not run the adaptive loop.
         verbose: Whether the run prints its progress as it goes.
     """
 
@@ -42,4 +44,5 @@ class Report:
     reference: str | None = None
     friction: str = "none"
     tangential_form: str | None = None
+    estimator: str = "residual"
     verbose: bool = True

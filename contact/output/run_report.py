@@ -29,38 +29,23 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult
-from ..hp.output import output_fields
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, view_normal
-from ..post.exact_data import exact_mismatches
+from ..post.exact_data import posed_problem
+from ..post.interface import resultants
 from ..post.reference import compare
 from ..post.resultants import current_pressure
-from ..setup.untagged import untagged_boundary
 from ..solvers import Result
 from ..solvers.baselines import baseline_figures
 from ..solvers.options import BASELINE_METHODS
 from . import folder, plots
+from .degree import output_fields
 from .fields import FieldFiles
 from .report import Report
 
 if TYPE_CHECKING:
     from ..setup.run import SceneLevel as Level
     from ..setup.scene import Scene
-
-
-def resultants(scene: Scene, result: Result) -> dict | None:
-    """Contact force, reaction, balance, peak pressure of an elasticity run (None for
-    scalar models; :mod:`contact.post.resultants`; with contact pairs the forces on both sides
-    of each interface and the reactions, :func:`contact.post.interface.interface_resultants`)."""
-    if not scene.config.elastic:
-        return None
-    if scene.config.pairs:
-        from ..post.interface import interface_resultants
-
-        return interface_resultants(scene, result)
-    from ..post.resultants import contact_resultants
-
-    return contact_resultants(scene, result)
 
 
 def active_measure(result: Result) -> float:
@@ -111,22 +96,6 @@ def warn_coarse_zone(result: Result) -> None:
             ContactWarning,
             stacklevel=2,
         )
-
-
-def posed_problem(scene: Scene) -> dict[str, Any]:
-    """What the scene poses beyond its parts (collective): ``untagged_boundary``, the
-    exterior facets in no boundary part, which carry the natural condition
-    (:func:`contact.setup.untagged.untagged_boundary`: ``facets``, ``measure``, ``where``,
-    ``next_to``), and for a scene with ``data.exact`` the parts where the exact solution
-    misses the scene's boundary condition (``exact_mismatch``,
-    :func:`contact.post.exact_data.exact_mismatches`; empty when it satisfies them all)."""
-    out: dict[str, Any] = {
-        "untagged_boundary": untagged_boundary(scene.mesh, scene.boundary).as_dict()
-    }
-    mismatches = exact_mismatches(scene)
-    if mismatches is not None:
-        out["exact_mismatch"] = [m.as_dict() for m in mismatches]
-    return out
 
 
 def summary(
