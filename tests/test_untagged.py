@@ -5,6 +5,7 @@ ranks; a declared exact solution is checked against the scene's boundary conditi
 import csv
 import json
 import re
+import warnings
 from pathlib import Path
 
 import contact
@@ -334,3 +335,29 @@ def test_study_reports_the_boundary_once_per_mesh(tmp_path: Path, ranks):
         for level in ("0", "1")
     ]
     assert all(r["converged"] == "True" for r in rows)
+
+
+def test_api_warns_once_per_scene():
+    """The Python API gives the line as one ContactWarning per scene: on the first public
+    call (contact.solve), not again for a second solve, a scene refined from it or its
+    adaptive loop; a fully tagged scene gives none."""
+    from contact.base.errors import ContactWarning
+
+    def boundary_warnings(scene) -> list[str]:
+        cells = np.arange(scene.mesh.topology.index_map(2).size_local, dtype=np.int32)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(2):
+                assert contact.solve(scene, verbose=False).converged
+            fine, _ = contact.refine(scene, cells)
+            assert contact.solve(fine, verbose=False).converged
+            assert len(contact.adapt(scene, max_levels=2).levels) == 2
+        return [
+            str(w.message)
+            for w in caught
+            if w.category is ContactWarning and str(w.message).startswith("boundary:")
+        ]
+
+    [line] = boundary_warnings(contact.load_scene(corner_gap(readme_scene()), ["adapt=none"]))
+    assert line == report(contact.load_scene(corner_gap(readme_scene())))[1]
+    assert boundary_warnings(contact.load_scene(readme_scene(), ["adapt=none"])) == []
