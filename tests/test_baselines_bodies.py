@@ -1,9 +1,10 @@
 """Penalty and augmented Lagrangian for two bodies through the mortar gap
 (contact.solvers.nodal_baselines): both converge with their defaults on the two-body Hertz
-scenes (2D and 3D) and agree with Fischer–Burmeister — the penalty to O(1/ε₀), observed
-order −1 (test_baselines.py), Uzawa to its tolerance; the interface transmits equal and opposite forces; serial =
-2 ranks; with Coulomb friction on the Cattaneo–Mindlin scene they reproduce the partial-slip
-solution as min does.  Coarse meshes: the sweeps are demos/bench/bench_baselines.py."""
+scenes (2D and 3D) and agree with Fischer–Burmeister — the penalty to O(1/ε₀) (its order:
+test_baselines.py), Uzawa to its tolerance; the interface transmits equal and opposite
+forces; serial = 2 ranks; with Coulomb friction on the Cattaneo–Mindlin scene they
+reproduce the partial-slip solution as min does.  Coarse meshes: the sweeps are
+demos/bench/bench_baselines.py."""
 
 from __future__ import annotations
 
