@@ -99,7 +99,8 @@ class NodalFormulation:
         z = np.where(fs.free, self.nu + self.k[:, None] * slip, 0.0)
         rho = fs.coefficient * p if fs.law == "coulomb" else np.asarray(fs.threshold, float)
         size = np.linalg.norm(z, axis=1)
-        factor = np.where(size > rho, rho / np.maximum(size, 1e-300), 1.0)
+        slip = size > rho
+        factor = np.where(slip, rho / np.where(slip, size, 1.0), 1.0)
         return z, rho, z * factor[:, None]
 
     def force(self, x: np.ndarray) -> np.ndarray:
