@@ -126,3 +126,31 @@ def test_cattaneo_mindlin_with_coulomb(cattaneo_min, method) -> None:
     ref = runs["min"].steps[-1].result.friction["lambda_t"]
     tol = 1e-2 if method == "penalty" else 1e-6
     assert np.max(np.abs(lam_t - ref)) <= tol * np.max(np.abs(ref))
+
+
+def test_tresca_through_the_mortar_gap_agrees_with_min() -> None:
+    """Tresca (threshold 1) on the Cattaneo scene's interface, coarse: the law holds at every
+    slave node, in contact or not, and the largest tangential traction of the last step
+    reaches the threshold; the tractions equal min's to O(1/ε₀) (penalty, measured 5.4e-4 of
+    the largest) or Uzawa's tolerance (3.5e-9), with the same status at every slave node."""
+    runs = {}
+    for m in ("min", "penalty", "augmented_lagrangian"):
+        scene = contact.load_scene(
+            CATTANEO,
+            [
+                "mesh.h_contact=0.08",
+                "output.verbose=false",
+                "reference=null",
+                "friction={law: tresca, threshold: '1.0'}",
+                f"solver.method={m}",
+            ],
+        )
+        path = run_load_path(scene, verbose=False)
+        assert path.converged, m
+        runs[m] = path.steps[-1].result.friction
+    ref = runs["min"]
+    assert np.max(np.abs(ref["lambda_t"])) == pytest.approx(1.0, rel=1e-8)
+    for m, tol in (("penalty", 1e-2), ("augmented_lagrangian", 1e-6)):
+        assert np.array_equal(runs[m]["status"], ref["status"]), m
+        gap = np.max(np.abs(runs[m]["lambda_t"] - ref["lambda_t"]))
+        assert gap <= tol * np.max(np.abs(ref["lambda_t"])), (m, gap)
