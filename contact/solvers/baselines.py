@@ -578,6 +578,11 @@ class EnforcedNewton:
             for outer in range(1, (opts.uzawa_max_it if uzawa else 1) + 1):
                 self._outer = outer
                 snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
+                # after a multiplier update at least one Newton step: the update may leave
+                # ‖F‖ below atol, and an inner solve that stops at once leaves u — and the
+                # next update's change — as they were (Uzawa creeping by 0.1 % per outer
+                # iteration on the fine Cattaneo–Mindlin mesh at r₀ = 1000)
+                snes.setForceIteration(outer > 1)
                 with Timer(self.timers, "solve"):
                     snes.solve(None, x)
                 reason = snes.getConvergedReason()  # type: ignore[assignment]
