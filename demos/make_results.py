@@ -466,7 +466,7 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
         f=f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere",
         span_proj=span(proj),
         len_bad_proj=len(bad_proj),
-        sum_1_for_c_in_friction_if_proj=sum(1 for c in friction if proj(c)) * len(newton),
+        n_projection_cases=sum(1 for c in friction if proj(c)) * len(newton),
         join_bad_proj_or_none=", ".join(bad_proj) or "none",
         projection_cycle=prose("friction_shared", "projection_cycle"),
         span_cured=span(cured),
@@ -511,7 +511,7 @@ def _issue11_rows(its: dict, cell, span) -> list[str]:
                 "l_semi_coercive_configs",
                 cells_l1=cells(l1),
                 cells_l2=cells(l2),
-                with_mumps_min_still_converges_t=prose("_issue11_rows", "with_mumps_min_still")
+                mumps_note=prose("_issue11_rows", "with_mumps_min_still")
                 if luck and luck["converged"]
                 else "With MUMPS min fails on that step too. ",
             )
@@ -533,7 +533,7 @@ def _issue11_rows(its: dict, cell, span) -> list[str]:
                 cells_m_0=cells(m[0]),
                 lifted=lifted,
                 cells_m_1=cells(m[1]),
-                cells_d_plain_newton_methods_3=cells("(d) plain Newton", METHODS[:3]),
+                plain_newton_cells=cells("(d) plain Newton", METHODS[:3]),
                 cells_m_2=cells(m[2]),
                 cells_g_level_6=cells("(g) level 6"),
                 cells_m_3=cells(m[3]),
@@ -659,7 +659,7 @@ def stability() -> str:
         prose(
             "stability",
             "runs_converge_what_each",
-            len_runs_len_fails_len_not_applicable=len(runs) - len(fails) - len(not_applicable),
+            n_converged=len(runs) - len(fails) - len(not_applicable),
             len_runs=len(runs),
             na=na,
         )
@@ -668,13 +668,11 @@ def stability() -> str:
         prose(
             "stability",
             "a_biactive_configs_biactive",
-            join_f_m_cell_a_biactive_m_for_m_in_meth=", ".join(
-                f"{m} {cell('(a) biactive', m)}" for m in METHODS
-            ),
-            join_f_m_cell_a_nearly_biactive_m_for_m=", ".join(
+            biactive_iterations=", ".join(f"{m} {cell('(a) biactive', m)}" for m in METHODS),
+            nearly_biactive_iterations=", ".join(
                 f"{m} {cell('(a) nearly biactive', m)}" for m in METHODS
             ),
-            join_f_m_span_b_m_for_m_in_methods=", ".join(f"{m} {span('(b)', m)}" for m in METHODS),
+            far_guess_iterations=", ".join(f"{m} {span('(b)', m)}" for m in METHODS),
             span_c_fb=span("(c)", "fb"),
             span_c_min=span("(c)", "min"),
             span_c_blend=span("(c)", "blend"),
@@ -683,8 +681,8 @@ def stability() -> str:
             cell_d_plain_newton_min=cell("(d) plain Newton", "min"),
             cell_d_line_search_bt_min=cell("(d) line search bt", "min"),
             line_search_verdict=_line_search_verdict(its),
-            join_f_m_span_e_m_for_m_in_methods=", ".join(f"{m} {span('(e)', m)}" for m in METHODS),
-            join_f_m_span_f_m_for_m_in_methods=", ".join(f"{m} {span('(f)', m)}" for m in METHODS),
+            case_e_iterations=", ".join(f"{m} {span('(e)', m)}" for m in METHODS),
+            case_f_iterations=", ".join(f"{m} {span('(f)', m)}" for m in METHODS),
             span_g_fb=span("(g)", "fb"),
             span_g_min=span("(g)", "min"),
             span_g_blend=span("(g)", "blend"),
@@ -810,7 +808,7 @@ def stability_scale() -> str:
             join="; ".join(
                 f"{m} {spread('auto', m)} sequenced, {spread('off', m)} cold" for m in methods
             ),
-            f_where_both_converge_the_cold_start_tak=prose(
+            cold_over_sequenced=prose(
                 "stability_scale",
                 "where_both_converge_the",
                 min_ratios=f"{min(ratios):.1f}",
@@ -829,7 +827,7 @@ def stability_scale() -> str:
             )
             if odd
             else "",
-            until_1e4_where_its_inexact_steps_fail_i=prose("stability_scale", "until_e4_where_its")
+            min_ending=prose("stability_scale", "until_e4_where_its")
             if any(r["method"] == "min" and not r["converged"] for r in runs)
             else ".",
         )
@@ -1690,7 +1688,7 @@ def cost() -> str:
                     "the_energy_error_per",
                     quad_0_change_q4=f"{quad[0]['change_q4']:.0e}",
                     quad_0_change_q8=f"{quad[0]['change_q8']:.0e}",
-                    max_r_change_q4_for_r_in_fine=f"{max(r['change_q4'] for r in fine):.0e}",
+                    max_change_q4=f"{max(r['change_q4'] for r in fine):.0e}",
                     last_seconds_q4=f"{last['seconds_q4']:.2f}",
                     last_seconds_q8=f"{last['seconds_q8']:.2f}",
                     last_dofs=last["dofs"],
@@ -1984,7 +1982,7 @@ def _hyper_refinement() -> str:
         prose(
             "_hyper_refinement",
             "the_force_indentation_curve",
-            join_f_r_2f_for_r_in_rates=", ".join(f"{r:.2f}" for r in rates),
+            rates=", ".join(f"{r:.2f}" for r in rates),
         )
     ]
     steps = max(r["step"] for r in clamped)
@@ -2015,7 +2013,7 @@ def _hyper_refinement() -> str:
                 "_hyper_refinement",
                 "refinement_between_two_plates",
                 text=text,
-                join_f_r_2f_for_r_in_rates_s=", ".join(f"{r:.2f}" for r in rates_s),
+                rates_s=", ".join(f"{r:.2f}" for r in rates_s),
             )
         ]
     return "\n".join(out)
@@ -3015,7 +3013,7 @@ def stability_baselines() -> str:
                 "stability_baselines",
                 "parameter_sweep_on",
                 what=what,
-                energy_error_if_key_error_else_hertz_err="energy error"
+                error_name="energy error"
                 if key == "error"
                 else "Hertz error max(|a_error|, |p0_error|)",
                 table=table(["parameter", *STABILITY_BASELINES[1:]], body),
@@ -3066,7 +3064,7 @@ def time_to_accuracy() -> str:
                             for r in mine
                         ],
                     ),
-                    if_ratio_error_ratio_target_else_f_the_u=""
+                    uniform_verdict=""
                     if ratio["error"] == ratio["target"]
                     else prose(
                         "time_to_accuracy",
