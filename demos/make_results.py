@@ -113,7 +113,7 @@ def its_text(r: dict) -> str:
 
 
 @functools.cache
-def _blocks(section: str) -> dict[str, str]:
+def template_blocks(section: str) -> dict[str, str]:
     """The blocks of demos/results_templates/<section>.md: each starts at a line
     ``<!-- name -->`` and ends before the next (without its final newline)."""
     text = (TEMPLATES / f"{section}.md").read_text(encoding="utf-8")
@@ -124,7 +124,7 @@ def _blocks(section: str) -> dict[str, str]:
 def prose(section: str, block: str, **values) -> str:
     """The block ``block`` of the section's template with its placeholders ($name) filled
     from ``values``."""
-    return string.Template(_blocks(section)[block]).substitute(values)
+    return string.Template(template_blocks(section)[block]).substitute(values)
 
 
 def missing(what: str) -> str:
