@@ -330,6 +330,9 @@ def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
             f"{1 + eps / 1e4},1.0,{1 + eps / 1e4},0.1,0.1,{dist},2.0,{dist},{dist},0"
         )
     (res / "baselines" / "A.csv").write_text("\n".join(lines) + "\n")
+    # two bodies (Cattaneo–Mindlin): penalty and augmented Lagrangian only, no Nitsche rows
+    two = [line.replace("A,", "cattaneo,", 1) for line in lines[1:]]
+    (res / "baselines" / "cattaneo.csv").write_text("\n".join([head, *two]) + "\n")
     study = {
         "name": "stability_baselines",
         "scene": str(SQUARE),
@@ -342,6 +345,9 @@ def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
     text = _report(res, tmp_path / "R.md")
     section = text.split("## 13.", 1)[1]
     assert "| A | 100 | penalty | ε₀ = 1e+03 | 1.10 | 5 |" in section
+    assert "| cattaneo | 100 | penalty | ε₀ = 1e+03 | 1.10 | 5 |" in section
+    cattaneo = section.split("### Cattaneo–Mindlin", 1)[1].split("###", 1)[0]
+    assert "| 100 | penalty |" in cattaneo and "| 100 | nitsche" not in cattaneo
     assert "|||u − u_fb||| ∝ ε₀^-1.00" in section
     failed = [r for r in rows if not r["converged"]]
     assert [(r["case"], r["method"]) for r in failed] == [("(r) A, parameter 1.0e-3", "nitsche")]
@@ -376,3 +382,33 @@ def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
     assert "| C | h-P2 | 1e-06 | no (budget) | 37907 |" in section
     assert "log(error) ≈ c − 1.695 N^{1/3}" in section and "r² = 0.993" in section
     assert (hp / "hp.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_every_prose_call_fills_exactly_its_blocks_placeholders() -> None:
+    """Statically, for every ``prose(section, block, **values)`` of demos/make_results.py:
+    the block exists in demos/results_templates/<section>.md and its placeholders are the
+    call's keywords, so that no branch a test run does not reach fails on a missing or a
+    forgotten name; and every block is used."""
+    import ast
+    import re
+    import string
+
+    module = _demo_module("make_results")
+    tree = ast.parse((ROOT / "demos" / "make_results.py").read_text(encoding="utf-8"))
+    used = set()
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "prose"):
+            continue
+        section, block = (a.value for a in node.args)
+        text = module.template_blocks(section)[block]
+        names = {
+            m.group("named") or m.group("braced")
+            for m in string.Template.pattern.finditer(text)
+            if m.group("named") or m.group("braced")
+        }
+        assert names == {k.arg for k in node.keywords}, (section, block)
+        used.add((section, block))
+    for path in (ROOT / "demos" / "results_templates").glob("*.md"):
+        if path.name != "README.md":
+            for block in re.findall(r"^<!-- (\w+) -->$", path.read_text(), re.MULTILINE):
+                assert (path.stem, block) in used, f"{path.name}: block {block} is not used"
