@@ -3110,7 +3110,12 @@ def time_to_accuracy() -> str:
                         f"{rs[-1]['cpu']:.2f}",
                         "—"
                         if ratio is None
-                        else f"{ratio['first_reaching_cpu']:.2f} / {ratio['interpolated_cpu']:.2f}",
+                        else f"{ratio['first_reaching_cpu']:.2f} / {ratio['interpolated_cpu']:.2f}"
+                        + (
+                            f" (at {ratio['error']:.2e})"
+                            if ratio["error"] != theirs[0]["error"]
+                            else ""
+                        ),
                         "—"
                         if extrapolated is None
                         else f"{extrapolated:.4f} ({1 / extrapolated:.0f}× faster)",
