@@ -3072,8 +3072,8 @@ def time_to_accuracy_chart(data: list[dict], out: Path) -> Path:
 
 #: what each variant of bench_time_to_accuracy.py is (its --variant name)
 TTA_VARIANTS = {
-    "adaptive": "the defaults (growth 2, Dörfler θ = 0.5, equilibrated estimator)",
-    "dorfler": "`adapt.growth=1` (Dörfler's set alone, the old marking)",
+    "adaptive": "`adapt.growth=2` (Dörfler θ = 0.5, equilibrated estimator)",
+    "dorfler": "`adapt.growth=1` (Dörfler's set alone, the default)",
     "rt0": "`estimator=equilibrated_rt0` (growth 2)",
     "g4rt0": "`adapt.growth=4 estimator=equilibrated_rt0`",
     "residual": "`estimator=residual` (growth 2)",

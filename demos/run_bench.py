@@ -327,6 +327,8 @@ STEPS = {
             "ex9",
             "--max-dofs",
             "700000",
+            "--set",
+            "adapt.growth=2",
             "--out",
             "demos/results/adaptive_cost/profile_ex9_growth2.csv",
         ],
