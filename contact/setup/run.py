@@ -385,7 +385,7 @@ def adapt(
             default) keeps every level whole; ``lambda level: False`` releases all but
             the last.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
+            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``growth``, ``tol``,
             ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
             ``pictures``.
 
