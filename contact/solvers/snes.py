@@ -518,8 +518,21 @@ def force_scale(
     set_dirichlet(x, problem.bcs)
     cp.phi(x, f, method, mu)
     peak = total = norm_inf(f)
-    if np.isnan(peak):  # a nonlinear residual undefined at x_D (cells a finite-strain body's
-        peak = total = 0.0  # prescribed displacement inverts while the rest stays): rtol alone
+    # a nonlinear residual undefined at x_D (cells a finite-strain body's prescribed
+    # displacement inverts while the rest stays): the largest fraction 2^-k x_D where it is
+    # defined gives the scale instead (at least 2^-k times the data's: a stricter atol);
+    # rtol alone would ask a start near the solution (a repeated load step, a re-coupled
+    # mortar problem) for rtol ‖Φ_0‖, below round-off, and run it to max_it
+    # (decided on every rank alike: a maximum over ranks with a NaN is not)
+    comm = problem.V.mesh.comm
+    for _ in range(FORCE_SCALE_HALVINGS):
+        if not comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR):
+            break
+        x.scale(0.5)
+        cp.phi(x, f, method, mu)
+        peak = total = norm_inf(f)
+    if comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR):
+        peak = total = 0.0  # undefined at every fraction tried: rtol alone
     if 0.0 < peak < np.inf:  # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
         f.scale(1.0 / peak)
         total = peak * norm1(f)
@@ -528,6 +541,8 @@ def force_scale(
     return peak, total
 
 
+#: halvings of the prescribed displacement x_D tried for the force scale (force_scale)
+FORCE_SCALE_HALVINGS = 20
 ROUNDOFF = 16.0  # the floor below: measured 0.7 ε ‖K‖_∞ ‖x‖ reached at 256² (Laplace, P1)
 
 
