@@ -5,7 +5,7 @@ finite-strain two-body tests compare between rank counts (run under mpirun).
 
 The npz holds the last step's slave nodes' coordinates and interface pressures (sorted by
 coordinate), the contact force, the couplings of each step's fixed point (Newton iterations,
-first and final ‖Φ‖) and converged.
+the displacement change and the error estimate) and converged.
 """
 
 import sys
@@ -34,7 +34,7 @@ def main(argv):
         X, pressure = np.concatenate(X), np.concatenate(pressure)
         order = np.lexsort(X.T[::-1])
         couplings = [
-            [c["newton"], c["first"], c["final"]] for s in run.steps for c in s.result.couplings
+            [c["newton"], c["change"], c["error"]] for s in run.steps for c in s.result.couplings
         ]
         np.savez(
             out,

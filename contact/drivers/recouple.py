@@ -17,17 +17,15 @@ the derivative of c_ij, n_i and D_ii with respect to u is not in the Jacobian, s
 sequence converges linearly, at a rate set by how much the coupling moves per unit of u
 (uniform stretching of flat surfaces: the projections move, the normals do not).
 
-Criterion.  The k-th solve starts from u^k with the coupling of u^k, so its first residual
-‖Φ_0^{(k)}‖ is the residual of u^k in its own current configuration.  The step is done when
-
-    ‖Φ_0^{(k)}‖ ≤ max(rtol ‖Φ_0^{(0)}‖, ROUNDOFF ‖Φ^{(0)}_final‖),
-
-the relative tolerance one Newton solve of the step is held to, or (within the round-off
-noise of a residual at its floor, :data:`ROUNDOFF`) the residual the first solve itself
-reached — a load step identical to the previous one starts at that floor: u^k then solves
-the current-configuration problem as well as a single solve solves its own; the k-th solve
-(run to its tolerance anyway) is returned.  At most :data:`MAX_COUPLINGS` couplings per
-solve (then not converged, reason ``diverged_couplings``).
+Criterion.  The outer sequence is stopped on the displacement it moves: with
+d_k = max|u^{k+1} − u^k| / max|u^{k+1}| and the observed contraction ρ_k = d_k / d_{k−1},
+the distance to the fixed point is about d_k ρ_k / (1 − ρ_k) (d_k itself before a rate is
+known, or where ρ_k ≥ 1), and the step is done when that is ≤ :data:`COUPLING_RTOL`.  (A
+residual test is blind here: every solve starts by polishing its guess on the guess's
+active set, so its first ‖Φ‖ is already that of the new coupling's solution.)  Every solve
+is run to its own tolerance, and the last one's result is returned.  At most
+:data:`MAX_COUPLINGS` couplings per solve (then not converged, reason
+``diverged_couplings``).
 """
 
 from __future__ import annotations
@@ -43,8 +41,8 @@ from ..solvers.result import Result
 
 #: the couplings of one load step at most (the outer fixed point's iterations)
 MAX_COUPLINGS = 30
-#: a residual at its round-off floor varies by this factor from one evaluation to the next
-ROUNDOFF = 10.0
+#: the fixed point's relative displacement error at which a solve's coupling is final
+COUPLING_RTOL = 1e-9
 
 
 def solve_recoupled(
@@ -66,12 +64,13 @@ def solve_recoupled(
 
     Returns:
         The last solve's result, with ``couplings``: one row per coupling (its Newton
-        iterations, ‖Φ_0‖, the final ‖Φ‖ and max |u^{k+1} − u^k| / max |u^{k+1}|).
-        Superseded problems are destroyed.
+        iterations, its first (polished) and final ‖Φ‖, d_k and the error estimate); its
+        ``history`` every solve's Newton iterates (a ``coupling`` column), ``iterations``
+        their sum.  Superseded problems are destroyed.
     """
     at = None if u0 is None else u0.x.array.copy()
     log: list[dict] = []
-    threshold = None
+    histories: list[list[dict]] = []
     result = None
     for k in range(max_couplings):
         problem = build(at)
@@ -82,29 +81,36 @@ def solve_recoupled(
         if result is not None:
             result.problem.destroy()
         result = solve(problem, guess)
-        first, final = result.history[0]["residual"], result.history[-1]["residual"]
+        histories.append(result.history)
         u = result.u_h.x.array
         comm = problem.V.mesh.comm
         size = comm.allreduce(float(np.max(np.abs(u), initial=0.0)), op=MPI.MAX)
-        moved = 0.0 if at is None else float(np.max(np.abs(u - at), initial=0.0))
+        moved = np.inf if at is None else float(np.max(np.abs(u - at), initial=0.0))
         change = comm.allreduce(moved, op=MPI.MAX) / size if size > 0 else 0.0
+        rate = change / log[-1]["change"] if k > 1 and log[-1]["change"] > 0 else np.nan
+        error = change * rate / (1.0 - rate) if 0.0 <= rate < 1.0 else change
         log.append(
             {
                 "coupling": k,
                 "newton": result.iterations,
-                "first": first,
-                "final": final,
+                "first": result.history[0]["residual"],
+                "final": result.history[-1]["residual"],
                 "change": change,
+                "error": error,
             }
         )
-        result.couplings = log
-        if not result.converged:
-            return result
-        if threshold is None:
-            threshold = max(result.options.get("rtol", 0.0) * first, ROUNDOFF * final)
-        elif first <= threshold:
-            return result
+        if not result.converged or (k > 0 and error <= COUPLING_RTOL):
+            return _whole(result, log, histories)
         at = u.copy()
     assert result is not None  # max_couplings ≥ 1
     result.converged, result.reason = False, "diverged_couplings"
+    return _whole(result, log, histories)
+
+
+def _whole(result: Result, log: list[dict], histories: list[list[dict]]) -> Result:
+    """The last solve's result as the whole fixed point's: its couplings, every solve's
+    Newton history (rows with their ``coupling``) and their iterations summed."""
+    result.couplings = log
+    result.history = [{"coupling": k, **row} for k, rows in enumerate(histories) for row in rows]
+    result.iterations = sum(row["newton"] for row in log)
     return result
