@@ -40,7 +40,7 @@ from ..models.discrete import Problem
 from ..solvers.result import Result
 
 #: the couplings of one load step at most (the outer fixed point's iterations)
-MAX_COUPLINGS = 30
+MAX_COUPLINGS = 60
 #: the fixed point's relative displacement error at which a solve's coupling is final
 COUPLING_RTOL = 1e-9
 
