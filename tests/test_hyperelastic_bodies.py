@@ -156,8 +156,9 @@ def test_coupling_fixed_point_converges_linearly_at_moderate_load(moderate):
 
 def test_identical_load_step_converges_from_the_solution():
     """Newton from a converged solution of the same problem converges at once.  Here the
-    prescribed displacement alone inverts cells (Φ(x_D) undefined): the force scale is
-    taken at a fraction of x_D; with rtol alone the repeated solve ran to max_it."""
+    prescribed displacement alone inverts cells (Φ(x_D) undefined): the round-off floor of
+    the stopping test is capped by the total force at a fraction of x_D; capped by 0 (rtol
+    alone) the repeated solve ran to max_it."""
     scene = contact.load_scene(HERTZ_2D, [*HYPERELASTIC, "constants.delta=0.8"])
     r1 = contact.solve(scene, verbose=False)
     assert r1.converged

@@ -519,23 +519,27 @@ def force_scale(
     cp.phi(x, f, method, mu)
     peak = total = norm_inf(f)
     # a nonlinear residual undefined at x_D (cells a finite-strain body's prescribed
-    # displacement inverts while the rest stays): the largest fraction 2^-k x_D where it is
-    # defined gives the scale instead (at least 2^-k times the data's: a stricter atol);
-    # rtol alone would ask a start near the solution (a repeated load step, a re-coupled
-    # mortar problem) for rtol ‖Φ_0‖, below round-off, and run it to max_it
-    # (decided on every rank alike: a maximum over ranks with a NaN is not)
+    # displacement inverts while the rest stays): no atol (F = 0, rtol decides), but the
+    # round-off floor's cap F₁ is the total force at the largest fraction 2^-k x_D where Φ
+    # is defined — with a cap of 0 a start near the solution (a repeated load step, a
+    # re-coupled mortar problem) was asked for rtol ‖Φ_0‖, below round-off, and ran to
+    # max_it (decided on every rank alike: a maximum over ranks with a NaN is not)
     comm = problem.V.mesh.comm
-    for _ in range(FORCE_SCALE_HALVINGS):
-        if not comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR):
-            break
+    undefined = comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR)
+    for _ in range(FORCE_SCALE_HALVINGS if undefined else 0):
         x.scale(0.5)
         cp.phi(x, f, method, mu)
-        peak = total = norm_inf(f)
-    if comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR):
-        peak = total = 0.0  # undefined at every fraction tried: rtol alone
+        if not comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR):
+            peak = total = norm_inf(f)
+            break
+    else:
+        if undefined:  # at every fraction tried: rtol alone
+            peak = total = 0.0
     if 0.0 < peak < np.inf:  # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
         f.scale(1.0 / peak)
         total = peak * norm1(f)
+    if undefined:
+        peak = 0.0
     x.destroy()
     f.destroy()
     return peak, total
