@@ -71,6 +71,10 @@ def nonnegative(v: Any) -> str | None:
     return None if v >= 0 else f"must be >= 0, got {v}"
 
 
+def at_least_one(v: Any) -> str | None:
+    return None if v >= 1 else f"must be >= 1, got {v}"
+
+
 def open_unit(v: Any) -> str | None:
     return None if 0 < v < 1 else f"must lie in (0, 1), got {v}"
 
