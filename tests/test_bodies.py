@@ -11,7 +11,7 @@ from pathlib import Path
 import contact
 from contact.base.errors import ConfigError
 from contact.models.mortar import master_pressure
-from contact.output.run_report import resultants
+from contact.post.interface import resultants
 from contact.post.reference import compare
 from contact.setup.build import build_problem
 

@@ -99,6 +99,18 @@ def petsc_value(v: Any) -> str | None:
     return f"must be a string, number or boolean, got {typename(v)} {v!r}"
 
 
+def block_pair(block: Any) -> str | None:
+    """``mesh.block`` of sphere_on_block: [half-width, depth], two positive numbers."""
+    if (
+        isinstance(block, (list, tuple))
+        and len(block) == 2
+        and all(isinstance(v, (int, float)) and v > 0 for v in block)
+    ):
+        return None
+    shown = list(block) if isinstance(block, tuple) else block
+    return f"must be [half-width, depth] with positive numbers, got {shown!r}"
+
+
 def fail(text: str, key: str = "") -> PydanticCustomError:
     """The error of one value; ``key`` a sub-key below the field (a mapping's entry, or
     ``[i]``: a list's item)."""

@@ -52,6 +52,7 @@ from ..base.validation import (
     a_list,
     among,
     below,
+    block_pair,
     boolean,
     checked,
     fail,
@@ -69,7 +70,6 @@ from ..base.validation import (
     typename,
 )
 from ..solvers.options import AdaptOptions, FrictionOptions, SolverOptions
-from .geometry import block_pair
 
 #: models whose unknown is a displacement vector: linear elasticity (small strain) and
 #: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)
