@@ -169,7 +169,7 @@ def test_replace_killed_between_renames_is_recovered(tmp_path: Path) -> None:
     result back and removes the leftovers of dead writers only."""
     from contact.output import folder
 
-    host, dead = folder._host(), _dead_pid()
+    host, dead = folder.host_tag(), _dead_pid()
     _fake_result(tmp_path / f".out.old-{host}-{dead}", "old", "2026-01-01T00:00:00+00:00")
     _fake_result(tmp_path / f".out.partial-{host}-{dead}-x1", "new", "2026-01-02T00:00:00+00:00")
     (tmp_path / f".out.partial-{host}-{dead}-x2").mkdir()  # an incomplete one
@@ -191,7 +191,7 @@ def test_next_run_cleans_stale_temporaries(workdir: Path) -> None:
     from contact.output import folder
 
     assert contact(workdir, "run", "scene.yaml", "-o", "out", "-q").returncode == 0
-    host, dead = folder._host(), _dead_pid()
+    host, dead = folder.host_tag(), _dead_pid()
     stale = [workdir / f".out.partial-{host}-{dead}-abcd", workdir / f".out.old-{host}-{dead}"]
     shutil.copytree(workdir / "out", stale[0])
     shutil.copytree(workdir / "out", stale[1])

@@ -91,7 +91,7 @@ def test_big_meshes_are_drawn_as_an_image(monkeypatch):
     for cells, kind in ((10**9, "TriMesh"), (10, "AxesImage")):
         monkeypatch.setattr(plots, "RASTER_CELLS", cells)
         fig, ax = plt.subplots()
-        assert type(plots._smooth(ax, tri, v, "viridis")).__name__ == kind
+        assert type(plots.smooth_shading(ax, tri, v, "viridis")).__name__ == kind
         plt.close(fig)
 
 

@@ -242,13 +242,14 @@ def _write_marker(folder: Path) -> None:
 
 
 # ------------------------------------------------------------------------- temporaries
-def _host() -> str:
+def host_tag() -> str:
+    """This machine's name as it appears in temporary folder names (letters, digits, dots)."""
     return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname())
 
 
 def _temp_name(outdir: Path, kind: str) -> str:
     """``.NAME.KIND-HOST-PID`` (KIND partial or old)."""
-    return f".{outdir.name}.{kind}-{_host()}-{os.getpid()}"
+    return f".{outdir.name}.{kind}-{host_tag()}-{os.getpid()}"
 
 
 def _alive(pid: int) -> bool:
@@ -276,7 +277,7 @@ def stale_temporaries(outdir: Path) -> list[Path]:
             m
             and entry.is_dir()
             and not entry.is_symlink()
-            and m[2] == _host()
+            and m[2] == host_tag()
             and not _alive(int(m[3]))
         ):
             out.append(entry)

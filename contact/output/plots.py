@@ -53,7 +53,7 @@ def _triangulation(grid):
     return mtri.Triangulation(grid.points[:, 0], grid.points[:, 1], cells)
 
 
-def _smooth(ax, tri, values: np.ndarray, cmap: str, plan: Raster | None = None):
+def smooth_shading(ax, tri, values: np.ndarray, cmap: str, plan: Raster | None = None):
     """Nodal ``values`` drawn smoothly: Gouraud shading (one triangle mesh for matplotlib, kept
     out of tight_layout, which would turn every triangle into a path), or on meshes of more
     than :data:`RASTER_CELLS` cells, whose cells are smaller than the pixels, the P1
@@ -339,7 +339,7 @@ def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
     plt = _pyplot()
     tri = _triangulation(grid)
     fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
-    shade = _smooth(ax, tri, _magnitude(grid.point_data[u_h.name]), "viridis")
+    shade = smooth_shading(ax, tri, _magnitude(grid.point_data[u_h.name]), "viridis")
     if grid.n_cells <= MAX_EDGES:
         ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
     pts = _active_points(grid)
@@ -407,10 +407,10 @@ def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: i
         h = np.max(np.linalg.norm(xy - np.roll(xy, 1, axis=1), axis=2), axis=1)
         h_v = np.zeros(len(grid.points))
         np.maximum.at(h_v, tri.triangles.ravel(), np.repeat(h, 3))
-        shade = _smooth(ax_m, tri, np.log10(h_v), "magma", plan)
+        shade = smooth_shading(ax_m, tri, np.log10(h_v), "magma", plan)
         _colorbar(fig, shade, ax_m, "cell size log10 h_T")
         _axes_2d(ax_m, f"cell size: {grid.n_cells} cells")
-    shade = _smooth(ax_u, tri, _magnitude(grid.point_data[u_h.name]), "viridis", plan)
+    shade = smooth_shading(ax_u, tri, _magnitude(grid.point_data[u_h.name]), "viridis", plan)
     _colorbar(fig, shade, ax_u, _field_label(u_h))
     _axes_2d(ax_u, _field_label(u_h))
     fig.suptitle(title)

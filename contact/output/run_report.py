@@ -269,7 +269,7 @@ def write_run(
                 *pressure_picture(tmp, report, result, comparison, table),
             ]
             info["pictures"] = plots.draw_in_turn(pictures, comm)
-        _finish(tmp, info, comm)
+        write_summary(tmp, info, comm)
     return info
 
 
@@ -278,7 +278,7 @@ def _comm(result: Result) -> MPI.Comm:
     return result.problem.V.mesh.comm
 
 
-def _finish(tmp: Path, info: dict, comm: MPI.Comm) -> None:
+def write_summary(tmp: Path, info: dict, comm: MPI.Comm) -> None:
     """Write summary.json, listing every file of the folder (itself included)."""
     names = [p.name for p in tmp.iterdir()] if comm.rank == 0 else None
     natural = lambda name: [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]  # noqa: E731
@@ -435,7 +435,7 @@ def write_adaptive(
         )
         pictures += pressure_picture(tmp, report, last.result, comparison, table)
         info["pictures"] = plots.draw_in_turn(pictures, comm)
-    _finish(tmp, info, comm)
+    write_summary(tmp, info, comm)
     return info
 
 

@@ -49,13 +49,13 @@ from . import folder, plots
 from .fields import FieldFiles
 from .report import Report
 from .run_report import (
-    _finish,
     cell_fields,
     point_fields,
     pressure_picture,
     solution_picture,
     warn_coarse_zone,
     write_contact,
+    write_summary,
 )
 
 if TYPE_CHECKING:
@@ -229,7 +229,7 @@ class StepWriter:
             info["pictures"] = plots.draw_in_turn(pictures, comm)
         for log in (self.rows, self.levels, self.history):
             log.remove()
-        _finish(tmp, info, comm)
+        write_summary(tmp, info, comm)
         return info
 
     def traction_tables(self, rows: list[dict[str, Any]]) -> list[tuple[float, Table]]:

@@ -126,7 +126,7 @@ def picture(cells: int) -> list[dict]:
             plots.RASTER_CELLS = limit
             fig, ax = plt.subplots(figsize=(8.5, 5))
             t0 = time.perf_counter()
-            plots._smooth(ax, tri, values, "viridis")
+            plots.smooth_shading(ax, tri, values, "viridis")
             fig.savefig(Path(tmp) / f"{path}.png", dpi=120)
             out.append(
                 {
