@@ -105,7 +105,7 @@ DEMO_ARGS = {
     "signorini_adaptive": "7",
     "hertz": "2",
     "friction": "40",
-    "two_bodies": "3",
+    "two_bodies": "0.04",
     "large_deformation": "6",
     "curved_indentation": "5",
     "guaranteed_bound": "8",

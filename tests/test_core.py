@@ -48,9 +48,12 @@ def close(a: np.ndarray, b: np.ndarray, rtol: float) -> bool:
 SIGNORINI = ["mesh.cells=[12,12]", "output.verbose=false", "solver.sequence=off"]
 
 
-def signorini(domain: Domain | mesh.Mesh, ids: dict[str, int]) -> ComplementarityProblem:
+def signorini(
+    domain: Domain | mesh.Mesh, ids: dict[str, int], loads: bool = True
+) -> ComplementarityProblem:
     """configs/signorini_square.yaml in UFL: −Δu = 1, u = 0 on the top, k∂u/∂n = 0 on the
-    sides, u ≤ g = 0.1 + 2(x − 0.5)² on the bottom."""
+    sides, u ≤ g = 0.1 + 2(x − 0.5)² on the bottom; ``loads``: the physics declares the zero
+    loads of the sides and the bottom (else it leaves them out: zero by default)."""
     msh = domain.mesh if isinstance(domain, Domain) else domain
     tags = domain.facets if isinstance(domain, Domain) else None
     V = fem.functionspace(msh, ("Lagrange", 1))
@@ -66,7 +69,7 @@ def signorini(domain: Domain | mesh.Mesh, ids: dict[str, int]) -> Complementarit
         BoundaryData(
             tags,
             dirichlet=(ids["top"],),
-            neumann={ids["sides"]: zero, ids["bottom"]: zero},
+            neumann={ids["sides"]: zero, ids["bottom"]: zero} if loads else {},
         ),
         dirichlet_value=lambda space: fem.Function(space),
     )
@@ -86,7 +89,10 @@ def square():
     return scene, contact.solve(scene, **TIGHT)
 
 
-@pytest.mark.parametrize("kind", ["residual", "equilibrated", "equilibrated_rt0"])
+KINDS = ["residual", "equilibrated", "equilibrated_rt0"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
 def test_estimates(square, kind):
     """η and η_T of both estimators from the own forms' physics equal the scene's."""
     scene, reference = square
@@ -376,6 +382,75 @@ def test_a_number_as_the_obstacle():
 
     number, constant = eta(0.05), eta(fem.Constant(msh, 0.05))
     assert number > 0 and abs(number - constant) <= 1e-12 * constant
+
+
+def square_domain(ghost_mode: mesh.GhostMode) -> Domain:
+    """The unit square on 8 × 8 cells with the parts of :func:`signorini` (top 1, sides 2,
+    bottom 3), created with ``ghost_mode``."""
+    msh = mesh.create_unit_square(comm, 8, 8, ghost_mode=ghost_mode)
+    parts = (
+        lambda x: np.isclose(x[1], 1.0),
+        lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], 1.0),
+        lambda x: np.isclose(x[1], 0.0),
+    )
+    found = [mesh.locate_entities_boundary(msh, 1, where) for where in parts]
+    facets = np.concatenate(found)
+    values = np.concatenate([np.full(len(f), i, dtype=np.int32) for i, f in enumerate(found, 1)])
+    order = np.argsort(facets)
+    return Domain(msh, mesh.meshtags(msh, 1, facets[order], values[order]))
+
+
+def test_a_mesh_without_ghost_cells():
+    """The residual estimator's jump terms need the cell across each facet between two ranks:
+    on 2 ranks a mesh created with ghost mode none is one ValueError on every rank naming
+    the fix, for contact.estimate and for contact.adapt before its first build; the
+    equilibrated bound needs no ghosts and is the same on both meshes, as the residual η
+    is serially."""
+    ids = {"top": 1, "sides": 2, "bottom": 3}
+    none, shared = square_domain(mesh.GhostMode.none), square_domain(mesh.GhostMode.shared_facet)
+    etas: dict[str, list[float]] = {"residual": [], "equilibrated": []}
+    for domain in (none, shared):
+        with signorini(domain, ids) as problem:
+            result = contact.solve(problem, **TIGHT)
+            assert result.converged and result.n_active > 0
+            for kind in etas:
+                if kind == "residual" and domain is none and comm.size > 1:
+                    with pytest.raises(ValueError) as err:
+                        contact.estimate(problem, result, kind=kind)
+                    message = str(err.value)
+                    assert message.startswith("problem: mesh 'mesh' has ") and "\n" not in message
+                    assert "ghost_mode=GhostMode.shared_facet" in message and len(message) <= 300
+                    continue
+                etas[kind].append(contact.estimate(problem, result, kind=kind).eta)
+    assert etas["equilibrated"][0] == pytest.approx(etas["equilibrated"][1], rel=1e-9)
+    if comm.size == 1:
+        assert etas["residual"][0] == pytest.approx(etas["residual"][1], rel=1e-12)
+        return
+    built: list[Domain] = []
+
+    def build(domain: Domain) -> ComplementarityProblem:
+        built.append(domain)
+        return signorini(domain, ids)
+
+    with pytest.raises(ValueError, match=r"^domain: mesh 'mesh' has \d+ facet\(s\) between"):
+        contact.adapt(build, none, max_levels=2)
+    assert built == []
+    run = contact.adapt(build, none, kind="equilibrated", max_levels=2, theta=0.5)
+    assert len(run.levels) == 2 and run.levels[1].result.converged  # refined: ghosted
+
+
+def test_loads_left_out_are_zero():
+    """A physics that leaves out the zero loads of the sides and the contact part gives the
+    equilibrated bounds of one that declares them (a contact part's traction defaults to
+    the number 0, which the bound evaluates without compiling)."""
+    ids = {"top": 1, "sides": 2, "bottom": 3}
+    domain = square_domain(mesh.GhostMode.shared_facet)
+    etas = []
+    for loads in (True, False):
+        with signorini(domain, ids, loads) as problem:
+            result = contact.solve(problem, **TIGHT)
+            etas.append([contact.estimate(problem, result, kind=k).eta for k in KINDS[1:]])
+    assert etas[1] == pytest.approx(etas[0], rel=1e-12) and min(etas[0]) > 0
 
 
 def test_on_two_ranks():

@@ -1,6 +1,7 @@
-"""demos/demo_two_bodies.py runs as written at a small size and prints its key figures:
-the patch test's pressure exact on both sides, action = reaction, Hertz's a and p0, the
-Cattaneo–Mindlin stick zones."""
+"""demos/demo_two_bodies.py (a mortar pair of own forms, no scene) runs as written at a coarse
+contact mesh, serially and on 2 ranks, and prints its checks: the interface forces on both
+sides opposite (action = reaction), equal to the core's contact force and to the reaction on
+the pushed top, and Hertz's peak pressure and half-width."""
 
 import os
 import re
@@ -8,16 +9,22 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
+H = 0.04  # the mesh size at the contact (1.9k DoFs)
 
 
 def _number(pattern: str, text: str) -> float:
     return float(re.search(pattern, text).group(1))
 
 
-def test_demo_two_bodies(tmp_path):
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_demo_two_bodies(tmp_path, ranks):
+    cmd = [sys.executable, str(ROOT / "demos" / "demo_two_bodies.py"), str(H)]
+    mpirun = [str(Path(sys.executable).parent / "mpirun"), "-n", str(ranks)]
     proc = subprocess.run(
-        [sys.executable, str(ROOT / "demos" / "demo_two_bodies.py"), "3"],
+        mpirun + cmd if ranks > 1 else cmd,
         cwd=tmp_path,
         capture_output=True,
         text=True,
@@ -26,13 +33,15 @@ def test_demo_two_bodies(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     out = proc.stdout
-    assert _number(r"largest \|λ_i \+ p\| / p = (\S+) \(slave side\)", out) < 1e-8
-    assert _number(r"(\S+) \(master side\)", out) < 1e-8
-    assert _number(r"balance error (\S+)\)", out) < 1e-9  # equilibrium to the CG + GAMG tolerance
-    assert abs(_number(r"peak pressure p0 = \S+ \(Hertz \S+, (\S+)%\)", out)) < 2.0
-    assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 4.0
-    ratios = [float(m) for m in re.findall(r"Q/\(F P\) = (\S+):", out)]
-    errors = [float(m) for m in re.findall(r"Cattaneo–Mindlin \S+, (\S+)%\)", out)]
-    # a coarse 7.6k-DoF mesh
-    assert ratios == [0.25, 0.5, 0.75] and all(abs(e) < 6.0 for e in errors)
+    P = _number(r"contact force P = (\S+)", out)
+    slave = _number(r"force on the slave surface (\S+),", out)
+    master = _number(r", master (\S+),", out)
+    top = _number(r", top (\S+)", out)
+    assert P > 0 and _number(r"action = reaction to (\S+)", out) < 1e-9
+    # the multipliers' force Σ D_ii λ_i is the residual's on the slave surface and on the top
+    # (equilibrium of the upper body to the solver's tolerance)
+    assert abs(slave - P) < 1e-6 * P and abs(master + P) < 1e-6 * P and abs(top + P) < 1e-6 * P
+    assert abs(_number(r"peak pressure p0 = \S+ \(Hertz \S+, (\S+)%\)", out)) < 1.5
+    assert abs(_number(r"half-width a = \S+ \(Hertz \S+, (\S+)%\)", out)) < 5.0  # h/a ≈ 8 %
     assert (tmp_path / "demo_two_bodies.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "wrote demo_two_bodies.png" in out

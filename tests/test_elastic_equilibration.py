@@ -149,7 +149,7 @@ def test_without_a_compiler_the_numpy_patches_answer(tresca, tmp_path, monkeypat
     scene, result, stress = tresca
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(compiled, "_RUN", compiled._Run())
+    monkeypatch.setattr(compiled, "LOADED", compiled.Loaded())
     with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
         got = reconstruct_stress(stress_data(result.problem, result))
     want = reconstruct_stress(stress_data(result.problem, result), backend="numpy")

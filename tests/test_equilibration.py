@@ -27,60 +27,13 @@ import pytest
 import ufl
 from clirun import ROOT, script_json
 from dolfinx import fem, mesh
-from dolfinx.fem.petsc import LinearProblem
+from equilibration_cases import integral, poisson
 from mpi4py import MPI
-
-
-def _integral(expr, msh, degree=8):
-    dx = ufl.dx(domain=msh, metadata={"quadrature_degree": degree})
-    return msh.comm.allreduce(fem.assemble_scalar(fem.form(expr * dx)), op=MPI.SUM)
-
-
-def _poisson(d: int, p: int, n: int):
-    """−div(k∇u) = f on the unit square / cube, u = u_D on x < 1 (tag 1), k∂u/∂n = t on x = 1
-    (tag 2), u cubic and k = 1 + x² (f and t polynomials that the reconstruction's quadrature
-    of degree 2p + 4 integrates exactly); returns (data, exact u, Neumann measure)."""
-    msh = (
-        mesh.create_unit_square(MPI.COMM_WORLD, n, n)
-        if d == 2
-        else mesh.create_unit_cube(MPI.COMM_WORLD, n, n, n)
-    )
-    V = fem.functionspace(msh, ("Lagrange", p))
-    x = ufl.SpatialCoordinate(msh)
-    k = 1 + x[0] ** 2
-    u_ex = (
-        x[0] ** 3
-        + x[0] ** 2 * x[1]
-        - x[1] ** 3 / 3
-        + (0 if d == 2 else x[2] ** 3 - x[0] * x[2] ** 2)
-    )
-    f = -ufl.div(k * ufl.grad(u_ex))
-    msh.topology.create_connectivity(d - 1, d)
-    facets = mesh.exterior_facet_indices(msh.topology)
-    values = np.where(mesh.compute_midpoints(msh, d - 1, facets)[:, 0] > 1 - 1e-10, 2, 1).astype(
-        np.int32
-    )
-    tags = mesh.meshtags(msh, d - 1, facets, values)
-    t = k * ufl.grad(u_ex)[0]
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
-    u_D = fem.Function(V)
-    u_D.interpolate(fem.Expression(u_ex, V.element.interpolation_points))
-    bc = fem.dirichletbc(u_D, fem.locate_dofs_topological(V, d - 1, facets[values == 1]))
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    problem = LinearProblem(
-        k * ufl.inner(ufl.grad(u), ufl.grad(v)) * ufl.dx,
-        f * v * ufl.dx + t * v * ds(2),
-        bcs=[bc],
-        petsc_options_prefix="eq_poisson_",
-        petsc_options={"ksp_type": "preonly", "pc_type": "lu"},
-    )
-    u_h = problem.solve()
-    return FluxData(u_h, f, k, tags, dirichlet=(1,), neumann={2: t}), u_ex, ds(2)
 
 
 @pytest.mark.parametrize("d, p, n", [(2, 1, 8), (2, 2, 4), (3, 1, 3)])
 def test_flux_is_equilibrated(d: int, p: int, n: int) -> None:
-    data, u_ex, ds_N = _poisson(d, p, n)
+    data, u_ex, ds_N = poisson(d, p, n)
     flux = reconstruct_flux(data)
     msh, sigma, k, u_h = data.u_h.function_space.mesh, flux.sigma_h, data.k, data.u_h
     # −div σ_h = Π_p f: (div σ_h + f, q)_T = 0 for every q ∈ P_p(T)
@@ -97,11 +50,11 @@ def test_flux_is_equilibrated(d: int, p: int, n: int) -> None:
     neu = fem.assemble_vector(fem.form((ufl.dot(sigma, n_vec) - data.neumann[2]) * v * ds_N))
     assert np.abs(neu.array).max() < 1e-10
     # the cell-by-cell field is normal-continuous: interpolating it into RT_p changes nothing
-    jump = _integral(ufl.inner(sigma - flux.sigma_cells, sigma - flux.sigma_cells), msh)
-    assert jump < 1e-20 * _integral(ufl.inner(sigma, sigma), msh)
-    error = np.sqrt(_integral(k * ufl.inner(ufl.grad(u_ex - u_h), ufl.grad(u_ex - u_h)), msh))
+    jump = integral(ufl.inner(sigma - flux.sigma_cells, sigma - flux.sigma_cells), msh)
+    assert jump < 1e-20 * integral(ufl.inner(sigma, sigma), msh)
+    error = np.sqrt(integral(k * ufl.inner(ufl.grad(u_ex - u_h), ufl.grad(u_ex - u_h)), msh))
     est = np.sqrt(
-        _integral(ufl.inner(sigma - k * ufl.grad(u_h), sigma - k * ufl.grad(u_h)) / k, msh)
+        integral(ufl.inner(sigma - k * ufl.grad(u_h), sigma - k * ufl.grad(u_h)) / k, msh)
     )
     assert 0.9 < est / error < 1.2  # (the data oscillation is left out here)
     assert flux.defect < 1e-9
@@ -121,7 +74,7 @@ def test_p2_reproduces_the_flux_of_a_quadratic() -> None:
         FluxData(u_h, -ufl.div(ufl.grad(u_ex)), fem.Constant(msh, 1.0), tags, dirichlet=(1,))
     )
     q = flux.sigma_h - ufl.grad(u_h)
-    assert np.sqrt(_integral(ufl.inner(q, q), msh)) < 1e-12
+    assert np.sqrt(integral(ufl.inner(q, q), msh)) < 1e-12
 
 
 PROBLEMS = [

@@ -71,22 +71,22 @@ def test_backends_agree_with_variable_k(d: int, p: int, n: int, degree: int | No
     """k = 1 + x²: the kernel's load Zᵀg_a is a sum over the quadrature points (the table
     contraction serves a constant k only), with and without a target flux τ (the
     lowest-order flux reads τ at the centroid)."""
-    from test_equilibration import _poisson
+    from equilibration_cases import poisson
 
-    data, _, _ = _poisson(d, p, n)
+    data, _, _ = poisson(d, p, n)
     _agree(*(reconstruct_flux(data, backend=b, degree=degree) for b in ("compiled", "numpy")))
     data.target = data.k * ufl.grad(data.u_h) * 0.9
     _agree(*(reconstruct_flux(data, backend=b, degree=degree) for b in ("compiled", "numpy")))
 
 
 def test_flow_is_equilibrated_and_converges_to_the_minimizer() -> None:
-    """3D, P1, variable k, Dirichlet and Neumann parts (test_equilibration._poisson): the
+    """3D, P1, variable k, Dirichlet and Neumann parts (equilibration_cases.poisson): the
     flow backend's σ_h is normal-continuous with −div σ_h = Π_1 f and σ_h·n = Π_1 t on Γ_N
     after any number of rounds; its rounds converge to the patch minimizer of the reference."""
     from dolfinx import fem
-    from test_equilibration import _integral, _poisson
+    from equilibration_cases import integral, poisson
 
-    data, _, ds_N = _poisson(3, 1, 3)
+    data, _, ds_N = poisson(3, 1, 3)
     msh = data.u_h.function_space.mesh
     ref = reconstruct_flux(data).sigma_h.x.array
     scale = np.abs(ref).max()
@@ -104,13 +104,13 @@ def test_flow_is_equilibrated_and_converges_to_the_minimizer() -> None:
         n = ufl.FacetNormal(msh)
         neu = fem.assemble_vector(fem.form((ufl.dot(sigma, n) - data.neumann[2]) * v * ds_N))
         assert np.abs(neu.array).max() < 1e-12 * scale
-        jump = _integral(ufl.inner(sigma - flux.sigma_cells, sigma - flux.sigma_cells), msh)
-        assert jump < 1e-20 * _integral(ufl.inner(sigma, sigma), msh)
+        jump = integral(ufl.inner(sigma - flux.sigma_cells, sigma - flux.sigma_cells), msh)
+        assert jump < 1e-20 * integral(ufl.inner(sigma, sigma), msh)
         diffs.append(np.abs(sigma.x.array - ref).max() / scale)
     # measured 0.13, 0.036, 1.3e-7: an approximation, then the minimizer itself
     assert diffs[0] > 1e-2 and diffs[0] > diffs[1] > 1e3 * diffs[2] and diffs[2] < 1e-6
     with pytest.raises(ValueError, match="P1, degree 1 and rounds >= 0 only"):
-        reconstruct_flux(_poisson(2, 2, 2)[0], backend="flow")
+        reconstruct_flux(poisson(2, 2, 2)[0], backend="flow")
 
 
 def test_flow_bound_is_guaranteed_in_3d() -> None:
@@ -140,7 +140,7 @@ def test_no_compiler_falls_back(tmp_path, monkeypatch, missing: str) -> None:
     else:
         (tmp_path / "file").write_text("")
         monkeypatch.setenv("CONTACT_CACHE_DIR", str(tmp_path / "file" / "cache"))
-    monkeypatch.setattr(compiled, "_RUN", compiled._Run())
+    monkeypatch.setattr(compiled, "LOADED", compiled.Loaded())
     with pytest.warns(UserWarning, match="falls back to backend='numpy'"):
         flux = reconstruct_flux(data, multiplier, sign)
     assert np.array_equal(flux.sigma_h.x.array, expected)
@@ -153,7 +153,7 @@ def test_cache_key_names_the_cpu_and_compiler(monkeypatch) -> None:
     dims = compiled.dimensions(reference(2, 1), 3)  # P1 in 2D: dim P_1 = 3
     here = compiled.entry("eqlb", dims).manifest
     assert compiled.entry("eqlb", dims).manifest == here
-    monkeypatch.setattr(compiled, "_cpu", lambda: "model name : other\nflags : sse2\n")
+    monkeypatch.setattr(compiled, "cpu_signature", lambda: "model name : other\nflags : sse2\n")
     assert compiled.entry("eqlb", dims).manifest != here
     monkeypatch.undo()
     monkeypatch.setenv("CC", "clang")
@@ -196,9 +196,9 @@ def test_lowest_order_is_equilibrated(d: int, n: int) -> None:
     """−div σ_h = Π_0 f in every cell and σ_h·n = Π_0 t on each Γ_N facet (a cell has at most
     one facet on the plane x = 1, so a DG0 test function tests each facet)."""
     from dolfinx import fem
-    from test_equilibration import _poisson
+    from equilibration_cases import poisson
 
-    data, _, ds_N = _poisson(d, 1, n)
+    data, _, ds_N = poisson(d, 1, n)
     msh = data.u_h.function_space.mesh
     for backend in ("compiled", "numpy"):
         sigma = reconstruct_flux(data, backend=backend, degree=0).sigma_h
@@ -242,9 +242,9 @@ def test_lowest_order_reproduces_a_linear_flux(d: int) -> None:
 
 
 def test_lowest_order_refuses_what_it_does_not_cover() -> None:
-    from test_equilibration import _poisson
+    from equilibration_cases import poisson
 
     with pytest.raises(ValueError, match=r"^degree: 2 \(that of u_h\) or, for P1, 0"):
-        reconstruct_flux(_poisson(2, 2, 2)[0], degree=0)
+        reconstruct_flux(poisson(2, 2, 2)[0], degree=0)
     with pytest.raises(ValueError, match="P1, degree 1 and rounds >= 0 only"):
-        reconstruct_flux(_poisson(2, 1, 2)[0], backend="flow", degree=0)
+        reconstruct_flux(poisson(2, 1, 2)[0], backend="flow", degree=0)

@@ -62,7 +62,7 @@ def warm(tmp_path_factory) -> Path:
 def _estimate(scene, result, monkeypatch, levels: int = 2):
     """η of ``levels`` estimates in one fresh run (nothing loaded or warned yet), and the
     warnings they gave."""
-    monkeypatch.setattr(compiled, "_RUN", compiled._Run())
+    monkeypatch.setattr(compiled, "LOADED", compiled.Loaded())
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         etas = [guaranteed_bound(result.problem, result).eta for _ in range(levels)]
@@ -182,14 +182,14 @@ def test_a_corrupted_cache_is_rebuilt_with_one_warning(case, solved, warm, tmp_p
         path.write_text(json.dumps({**manifest, "key": "0" * 64}))
     else:  # bytes that hash as the manifest says but are no library
         library.write_bytes(b"not an ELF file")
-        path.write_text(json.dumps({**manifest, "sha256": compiled._sha256(b"not an ELF file")}))
+        path.write_text(json.dumps({**manifest, "sha256": compiled.sha256_hex(b"not an ELF file")}))
     monkeypatch.setenv("CONTACT_CACHE_DIR", str(cache))
     etas, caught = _estimate(scene, result, monkeypatch)
     assert etas[0] == etas[1] and etas[0] == pytest.approx(eta, rel=1e-10)
     message = _the_line(caught)
     assert "was rebuilt" in message and REBUILT[case] in message, message
-    assert all(v is not None for v in compiled._RUN.kernels.values())  # the compiled backend
-    assert compiled._verified(compiled.entry("eqlb", DIMS))[0] is not None
+    assert all(v is not None for v in compiled.LOADED.kernels.values())  # the compiled backend
+    assert compiled.verified_library(compiled.entry("eqlb", DIMS))[0] is not None
 
 
 def test_a_warm_cache_loads_without_a_word(solved, warm, tmp_path, monkeypatch):
@@ -201,7 +201,7 @@ def test_a_warm_cache_loads_without_a_word(solved, warm, tmp_path, monkeypatch):
     etas, caught = _estimate(scene, result, monkeypatch)
     assert caught == []
     assert etas[0] == pytest.approx(eta, rel=1e-10)
-    assert all(v is not None for v in compiled._RUN.kernels.values())
+    assert all(v is not None for v in compiled.LOADED.kernels.values())
 
 
 CONCURRENT = """
@@ -234,7 +234,7 @@ def test_concurrent_builds_into_one_cache(tmp_path):
     assert not list(cache.glob(".build-*"))  # no temporary folder left behind
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("CONTACT_CACHE_DIR", str(cache))
-        assert compiled._verified(compiled.entry("eqlb", LOWEST))[0] is not None
+        assert compiled.verified_library(compiled.entry("eqlb", LOWEST))[0] is not None
 
 
 AGREE = """
@@ -252,7 +252,7 @@ reference = guaranteed_bound(result.problem, result, backend="numpy").eta
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     etas = [guaranteed_bound(result.problem, result).eta for _ in range(2)]
-backends = comm.allgather([v is not None for v in compiled._RUN.kernels.values()])
+backends = comm.allgather([v is not None for v in compiled.LOADED.kernels.values()])
 lines = comm.allgather([str(w.message) for w in caught])
 if comm.rank == 0:
     print(json.dumps({"etas": etas, "reference": reference, "backends": backends,

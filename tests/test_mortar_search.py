@@ -1,11 +1,11 @@
-"""The mortar facet-pair search (contact/models/mortar.py ``_candidates``) and the bucket
+"""The mortar facet-pair search (contact/models/mortar.py ``candidate_pairs``) and the bucket
 search under it (contact/base/buckets.py) find exactly the pairs a brute-force test over
 every (slave, master) pair finds: graded master facets (radii over a factor 8), curved
 slave normals, 2D and 3D, a search distance from the facet size to the whole diameter."""
 
 import contact  # noqa: F401  (dolfinx_solver before dolfinx)
 from contact.base.buckets import box_point_pairs
-from contact.models.mortar import Facets, _candidates
+from contact.models.mortar import Facets, candidate_pairs
 
 import numpy as np
 import pytest
@@ -56,7 +56,7 @@ def _surfaces(dim: int, rng) -> tuple[Facets, Facets]:
 @pytest.mark.parametrize("search", [0.02, 0.3, 3.0])
 def test_mortar_candidates_equal_brute_force(dim, search):
     slave, master = _surfaces(dim, np.random.default_rng(dim))
-    s, m = _candidates(slave, master, search)
+    s, m = candidate_pairs(slave, master, search)
     found = list(zip(s.tolist(), m.tolist()))
     assert len(found) == len(set(found))  # no pair twice
     assert found == sorted(found)  # sorted by slave, then master

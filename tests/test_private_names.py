@@ -22,47 +22,13 @@ ROOT = Path(__file__).resolve().parents[1]
 #: their own folder on sys.path: their modules are imported by their bare names)
 TREES = {"contact": "contact.", "tests": "", "demos": "", "tools": ""}
 
-#: uses left in modules other branches are rewriting now (the scene-free core, the C
-#: kernels' cache, the output folder and plots): each one must still exist (the list only
-#: shrinks), none may be added
+#: uses left in modules other branches are rewriting now (the output folder and plots): each
+#: one must still exist (the list only shrinks), none may be added
 KNOWN: set[str] = {
     f"{file}: {use}"
     for file, names in {
-        "contact/adaptivity/equilibration/elastic.py": (
-            "contact.adaptivity.equilibration.bound._bernstein_lifting",
-            "contact.adaptivity.equilibration.bound._cellwise",
-            "contact.adaptivity.equilibration.bound._root",
-        ),
-        "contact/adaptivity/equilibration/patches_c.py": (
-            "contact.adaptivity.equilibration.operators._data_tables",
-            "contact.adaptivity.equilibration.operators._projected",
-        ),
-        "contact/adaptivity/equilibration/stress.py": (
-            "contact.adaptivity.equilibration.flux._multiplier_functions",
-            "contact.adaptivity.equilibration.flux._oscillation",
-            "contact.adaptivity.equilibration.operators._projected",
-            "contact.adaptivity.equilibration.patches._assemble",
-        ),
         "contact/output/step_report.py": ("contact.output.run_report._finish",),
         "demos/bench/bench_kernels.py": ("contact.output.plots._smooth",),
-        "tests/test_elastic_equilibration.py": (
-            "contact.adaptivity.equilibration.compiled._RUN",
-            "contact.adaptivity.equilibration.compiled._Run",
-        ),
-        "tests/test_equilibration_backends.py": (
-            "contact.adaptivity.equilibration.compiled._RUN",
-            "contact.adaptivity.equilibration.compiled._Run",
-            "contact.adaptivity.equilibration.compiled._cpu",
-            "test_equilibration._integral",
-            "test_equilibration._poisson",
-        ),
-        "tests/test_kernel_cache.py": (
-            "contact.adaptivity.equilibration.compiled._RUN",
-            "contact.adaptivity.equilibration.compiled._Run",
-            "contact.adaptivity.equilibration.compiled._sha256",
-            "contact.adaptivity.equilibration.compiled._verified",
-        ),
-        "tests/test_mortar_search.py": ("contact.models.mortar._candidates",),
         "tests/test_output_safety.py": ("contact.output.folder._host",),
         "tests/test_plots.py": ("contact.output.plots._smooth",),
     }.items()

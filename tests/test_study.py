@@ -28,6 +28,7 @@ TINY_COLUMNS = [
     "line_search",
     "repeat",
     "dofs",
+    "untagged_facets",
     "levels",
     "newton_iterations",
     "newton_iterations_total",

@@ -2,8 +2,10 @@
 the natural condition) are reported on every run and in summary.json, the same on 1 and 2
 ranks; a declared exact solution is checked against the scene's boundary conditions."""
 
+import csv
 import json
 import re
+import warnings
 from pathlib import Path
 
 import contact
@@ -287,3 +289,75 @@ def test_load_path_summary_reports_the_boundary(tmp_path: Path):
     info = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert info["untagged_boundary"]["facets"] == 0 and info["exact_mismatch"] == []
     assert not [ln for ln in proc.stderr.splitlines() if "data.exact" in ln]
+
+
+@pytest.mark.parametrize("ranks", [0, 2])
+def test_study_reports_the_boundary_once_per_mesh(tmp_path: Path, ranks):
+    """``contact study`` over the Scene files example with its former predicate (case gap)
+    and as printed (case tagged), two methods and two uniform refinements: the line of
+    ``contact run`` once per mesh the runs start from (four meshes, eight runs), each just
+    before the first run on it, and study.csv's ``untagged_facets`` (refinement keeps the
+    parts: the halves of the two corner facets are untagged, the same length; none when
+    every facet is tagged)."""
+    (tmp_path / "gap.yaml").write_text(yaml.safe_dump(corner_gap(readme_scene())))
+    (tmp_path / "tagged.yaml").write_text(yaml.safe_dump(readme_scene()))
+    study = {
+        "name": "posed",
+        "scene": "gap.yaml",
+        "set": ["adapt=none"],
+        "axes": {"method": ["fb", "min"], "level": [0, 1]},
+        "cases": {"gap": {}, "tagged": {"scene": "tagged.yaml", "set": ["adapt=none"]}},
+        "charts": [],
+        "warmup": False,
+    }
+    (tmp_path / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
+    proc = run_cli(tmp_path, "study", "study.yaml", "-o", "out", ranks=ranks)
+    assert proc.returncode == 0, proc.stderr + proc.stdout
+    lines = proc.stdout.splitlines()
+    said = [(lines[i + 1][:5], ln) for i, ln in enumerate(lines) if ln.startswith("contact: b")]
+    gap = "contact: boundary: {} exterior facet(s) (length 0.25) in no part carry the natural "
+    tagged = "contact: boundary: every exterior facet is in a boundary part"
+    expected = [
+        ("[1/8]", gap.format(2)),
+        ("[2/8]", gap.format(4)),
+        ("[5/8]", tagged),
+        ("[6/8]", tagged),
+    ]
+    assert len(said) == len(expected), said
+    for (run, line), (first, start) in zip(said, expected):
+        assert run == first and line.startswith(start) and len(line) <= 300, said
+    with open(tmp_path / "out" / "study.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["case"], r["level"], r["untagged_facets"]) for r in rows] == [
+        (case, level, str(facets * (2 if level == "1" else 1)))
+        for case, facets in (("gap", 2), ("tagged", 0))
+        for _ in ("fb", "min")
+        for level in ("0", "1")
+    ]
+    assert all(r["converged"] == "True" for r in rows)
+
+
+def test_api_warns_once_per_scene():
+    """The Python API gives the line as one ContactWarning per scene: on the first public
+    call (contact.solve), not again for a second solve, a scene refined from it or its
+    adaptive loop; a fully tagged scene gives none."""
+    from contact.base.errors import ContactWarning
+
+    def boundary_warnings(scene) -> list[str]:
+        cells = np.arange(scene.mesh.topology.index_map(2).size_local, dtype=np.int32)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for _ in range(2):
+                assert contact.solve(scene, verbose=False).converged
+            fine, _ = contact.refine(scene, cells)
+            assert contact.solve(fine, verbose=False).converged
+            assert len(contact.adapt(scene, max_levels=2).levels) == 2
+        return [
+            str(w.message)
+            for w in caught
+            if w.category is ContactWarning and str(w.message).startswith("boundary:")
+        ]
+
+    [line] = boundary_warnings(contact.load_scene(corner_gap(readme_scene()), ["adapt=none"]))
+    assert line == report(contact.load_scene(corner_gap(readme_scene())))[1]
+    assert boundary_warnings(contact.load_scene(readme_scene(), ["adapt=none"])) == []

@@ -336,6 +336,39 @@ def friction_bound(law: Friction, problem: Problem, lam: fem.Function):
     return law.threshold  # type: ignore[union-attr]
 
 
+def check_shared_facets(msh: Any, name: str) -> None:
+    """Refuse a distributed mesh without ghost cells across the ranks' facets.
+
+    The residual estimator's jump terms integrate over every interior facet from the cells
+    on both sides, so on a facet between two ranks' cells the owning rank must hold the
+    other cell as a ghost: a mesh created with ``ghost_mode=GhostMode.shared_facet``
+    (``dolfinx.mesh.create_*`` and ``XDMFFile.read_mesh`` by default; ``create_mesh`` and
+    gmsh's ``model_to_mesh`` need that partitioner).  Collective: the owned facets between
+    ranks with a single local cell are counted over the ranks, so every rank raises alike.
+
+    Args:
+        msh: the mesh the estimator will integrate over.
+        name: the argument that brought it, for the message.
+    """
+    comm = msh.comm
+    if comm.size == 1:
+        return
+    topology, tdim = msh.topology, msh.topology.dim
+    topology.create_entities(tdim - 1)
+    topology.create_connectivity(tdim - 1, tdim)
+    cells = np.diff(topology.connectivity(tdim - 1, tdim).offsets)
+    facets = topology.interprocess_facets()
+    owned = facets[facets < topology.index_map(tdim - 1).size_local]  # each facet once
+    lonely = comm.allreduce(int(np.count_nonzero(cells[owned] == 1)), op=MPI.SUM)
+    if lonely:
+        raise ValueError(
+            f"{name}: mesh {msh.name!r} has {lonely} facet(s) between ranks without the "
+            "cell across (ghost mode none), which the residual estimator's jump terms "
+            "need: create it with ghost_mode=GhostMode.shared_facet (or partitioner="
+            "create_cell_partitioner(GhostMode.shared_facet, 2) for create_mesh, gmsh)"
+        )
+
+
 def _assemble_cellwise(form: ufl.Form) -> la.Vector:
     vec = fem.assemble_vector(fem.form(form))
     vec.scatter_reverse(la.InsertMode.add)  # interior facets on rank boundaries
@@ -358,7 +391,9 @@ def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
 
     Returns:
         The :class:`Estimate`: η_T (DG0), η and each term's total.  A result of another
-        problem, or a kind that is not one of :data:`KINDS`, is a ValueError.
+        problem, a kind that is not one of :data:`KINDS`, or for the residual estimator a
+        distributed mesh created without ghost cells across the ranks' facets
+        (:func:`check_shared_facets`), is a ValueError.
     """
     problem = getattr(problem, "problem", None) or problem
     if (
@@ -395,8 +430,10 @@ def residual_estimate(
     The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
     term of η_T² assembled once as a DG0 vector, η_T² their sum, each term's total the sum
     of its owned entries; ``degree``: the cells' degrees of an hp solution (DG0: the
-    weights h/p of :func:`scalar_terms`).
+    weights h/p of :func:`scalar_terms`).  A distributed mesh without ghost cells across
+    the ranks' facets is a ValueError on every rank (:func:`check_shared_facets`).
     """
+    check_shared_facets(problem.V.mesh, "problem")
     terms = indicator_terms(problem, result, degree)
     vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
     eta_sq = sum(v.array for v in vecs.values())

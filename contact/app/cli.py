@@ -243,10 +243,11 @@ def _report_posed(scene, comm: MPI.Comm) -> None:
     carry is then a visible choice), and a warning line per boundary part on which a
     declared exact solution misses the scene's condition (collective)."""
     from ..post.exact_data import warn_exact_mismatches
-    from ..setup.untagged import untagged_boundary
+    from ..setup.untagged import mark_reported, untagged_boundary
 
     untagged = untagged_boundary(scene.mesh, scene.boundary)
     _say(comm, f"contact: {untagged.line(scene.config.elastic)}")
+    mark_reported(scene)  # the public API the run calls warns no second time
     warn_exact_mismatches(scene)
 
 

@@ -33,7 +33,9 @@ adaptive when the study's ``adapt.strategy`` or the scene's ``adapt`` section sa
 A case fixes some axis values and may swap the scene (its own file and ``set``); the runs
 are every case × every combination of the axes, and each row names its ``case``.
 
-Every run is one row of ``study.csv``: the case and swept values, DoFs, Newton iterations
+Every run is one row of ``study.csv``: the case and swept values, DoFs, the exterior facets
+in no boundary part (``untagged_facets``: they carry the natural condition; the study prints
+the line of ``contact run`` on them once per mesh), Newton iterations
 and active-set polishing solves (for adaptive runs on the final level and summed over the
 levels), the linear solver and its Krylov iterations (MUMPS: one per solve; the final
 level's or step's), converged, the SNES
@@ -56,9 +58,10 @@ import copy
 import dataclasses
 import functools
 import itertools
+import json
 import math
 import resource
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
@@ -149,6 +152,8 @@ AXES: dict[str, tuple[type[Section], str]] = {
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
 _ADAPT_AXES = ("theta", "nested")
+#: the scene sections that decide a run's mesh and boundary parts (:meth:`Study.mesh_key`)
+_MESH_KEYS = ("mesh", "boundaries", "bodies", "pairs", "constants", "model")
 #: friction axes -> keys of the scene's friction section
 _FRICTION_AXES = {axis: key for axis, (model, key) in AXES.items() if model is FrictionConfig}
 #: friction keys each law uses (the others are dropped when an axis switches the law)
@@ -557,6 +562,15 @@ def _peak_rss_mib(comm: MPI.Comm) -> float:
     return round(comm.allreduce(kib, op=MPI.SUM) / 1024.0, 1)
 
 
+def _mesh_key(raw: Mapping[str, Any], level: int) -> str:
+    """What decides the mesh a run starts from, its boundary parts and the condition its
+    untagged facets carry (the scene's mesh, boundaries, bodies, pairs, constants and model,
+    and the run's uniform refinements): runs with equal keys pose the same boundary, which
+    the study reports once (:func:`iter_study`)."""
+    scene = {key: raw.get(key) for key in _MESH_KEYS}
+    return json.dumps([scene, level], sort_keys=True, default=str)
+
+
 def _refine_uniformly(scene, times: int):
     from ..setup.run import refine
 
@@ -594,7 +608,10 @@ def _empty_figures(study: Study) -> dict[str, Any]:
 
 
 def run_one(
-    study: Study, params: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD
+    study: Study,
+    params: Mapping[str, Any],
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    posed: Callable[[str, str], None] | None = None,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Build the scene for ``params``, solve (or run the adaptive loop); return the row's
     figures (without the swept values) and one row per level.  Never raises for a failing
@@ -608,15 +625,24 @@ def run_one(
     ``repeat: 2``).  Under MPI an exception raised on every rank (bad options, an error
     raised by all ranks) is a failed row; one raised on some ranks only ends the job
     (:func:`.failures.abort`, exit code 3) after :data:`~.failures.AGREE_SECONDS`, since the
-    other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`)."""
+    other ranks wait in a collective; Ctrl-C is raised on (:mod:`.failures`).
+
+    ``untagged_facets`` counts the exterior facets in no boundary part of the run's final
+    mesh (those carry the natural condition; summary.json's ``untagged_boundary`` of
+    ``contact run``).  ``posed(key, line)``, when given, receives the one line on the
+    untagged facets of the mesh the run starts from
+    (:meth:`contact.setup.untagged.Untagged.line`) with the key of that mesh
+    (:func:`_mesh_key`), before the solve."""
     from ..adaptivity.energy_error import solution_error
     from ..hp.adapt import adapt
     from ..setup.run import estimate, solve
     from ..setup.scene import load_scene
+    from ..setup.untagged import untagged_boundary
     from ..solvers.result import not_converged_text
 
     out: dict[str, Any] = {
         "dofs": "",
+        "untagged_facets": "",
         "levels": "",
         "newton_iterations": "",
         "newton_iterations_total": "",
@@ -637,9 +663,14 @@ def run_one(
         raw, level, adapt_opts = study.plan(params)
         scene = load_scene(raw, comm=comm)
         scene = _refine_uniformly(scene, level)
+        untagged = untagged_boundary(scene.mesh, scene.boundary)
+        out["untagged_facets"] = untagged.facets
+        if posed is not None:
+            posed(_mesh_key(raw, level), untagged.line(scene.config.elastic))
+        final = scene
         driver = choose_driver(scene.config, adaptive=adapt_opts is not None)
         if driver == "load_path":
-            seconds, failure = _run_path(study, scene, adapt_opts, out, levels, clock)
+            seconds, failure, final = _run_path(study, scene, adapt_opts, out, levels, clock)
         elif driver == "solve":
             result = solve(scene, verbose=False)
             seconds = clock.seconds
@@ -702,6 +733,7 @@ def run_one(
             assert adapt_opts is not None  # the driver of an adaptive run
             res = adapt(scene, verbose=False, on_level=on_level, **adapt_opts)
             seconds = clock.seconds
+            final = res.levels[-1].scene if res.levels else scene
             last = levels[-1]
             its = [lv.result.iterations for lv in res.levels]
             polish = [lv.result.polish_solves for lv in res.levels]
@@ -723,6 +755,8 @@ def run_one(
             else:
                 failure = f"{res.stop}, last |Phi| = {res.levels[-1].result.residual:.3e}"
             out["stop"] = res.stop
+        if final is not scene:  # refined by the loop: its final mesh's untagged facets
+            out["untagged_facets"] = untagged_boundary(final.mesh, final.boundary).facets
     except Exception as err:  # noqa: BLE001 - any failing run is a row, never a crashed study
         if interrupted(err):
             raise
@@ -747,11 +781,11 @@ def run_one(
 
 def _run_path(
     study: Study, scene, adapt_opts: dict | None, out: dict, levels: list, clock: Stopwatch
-) -> tuple[float, str]:
+) -> tuple[float, str, Any]:
     """Run a load path for :func:`run_one`: one level row per step; the run's row has the last
     step's Newton iterations, their total, ``max_step_iterations``, and the figures (and, with
     friction, the friction ratio and the stick / slip measures) of the last step.  Returns
-    (seconds, failure text)."""
+    (seconds, failure text, the last step's scene)."""
     from ..adaptivity.energy_error import solution_error
     from ..post.friction_resultants import surface_figures
     from ..setup.run import estimate, run_load_path
@@ -800,7 +834,7 @@ def _run_path(
     if last.negative_eigenvalues is not None:  # hyperelastic: is the answer a stable state?
         out.update(min_det_F=last.min_det_F, tangent_negative_eigenvalues=last.negative_eigenvalues)
     if not path.converged:
-        return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}"
+        return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}", last.scene
     est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
     figures = _figures(
         study, last.scene, last.result, est.eta, solution_error(last.result.problem, last.result)
@@ -812,7 +846,7 @@ def _run_path(
             figures["fixed_point_iterations"] = last.result.friction["fixed_point_iterations"]
     out.update(figures)
     levels[-1].update(figures)
-    return seconds, ""
+    return seconds, "", last.scene
 
 
 def _label(params: Mapping[str, Any]) -> str:
@@ -862,15 +896,25 @@ def iter_study(
     study: Study, comm: MPI.Comm = MPI.COMM_WORLD, verbose: bool = True
 ) -> Iterator[tuple[dict, list[dict]]]:
     """Run the study's combinations one by one; yield each finished row with its level rows
-    (which repeat the run number and swept values)."""
+    (which repeat the run number and swept values).  When ``verbose``, rank 0 prints the line
+    ``contact: boundary: …`` on the exterior facets in no boundary part (as ``contact run``)
+    once per distinct mesh the runs start from, before its first run's progress line."""
     combos = [(params, rep) for params in study.runs() for rep in range(1, study.repeat + 1)]
     n = len(combos)
     if study.warmup:
         _warm_up(study, comm)
+    reported: set[str] = set()
+
+    def posed(key: str, line: str) -> None:
+        if key not in reported:
+            reported.add(key)
+            if verbose and comm.rank == 0:
+                print(f"contact: {line}", flush=True)
+
     spent = 0.0
     for k, (params, rep) in enumerate(combos, start=1):
         watch = Stopwatch()
-        figures, levels = run_one(study, params, comm)
+        figures, levels = run_one(study, params, comm, posed)
         spent += comm.allreduce(watch.seconds, op=MPI.MAX)
         row = {"run": k, **params, "repeat": rep, **figures}
         if verbose and comm.rank == 0:

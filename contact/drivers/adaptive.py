@@ -34,7 +34,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
-from ..adaptivity.estimate import Estimate, estimate
+from ..adaptivity.estimate import Estimate, check_shared_facets, estimate
 from ..adaptivity.mark import mark
 from ..adaptivity.refine import Domain, next_dofs_bound, refine
 from ..base import progress
@@ -265,6 +265,8 @@ def adapt(
     knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
     meshes = not isinstance(domain, Domain)  # the builder takes meshes
     level_domain = Domain(domain) if isinstance(domain, dmesh.Mesh) else domain
+    if kind == "residual":  # before the first solve, not after it (refined levels are ghosted)
+        check_shared_facets(level_domain.mesh, "domain")
     if solve is None:
         solve = _default_solve(build, knobs, meshes, opts.nested)
     comm = level_domain.comm

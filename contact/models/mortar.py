@@ -137,7 +137,7 @@ def couple(
     remote = _gather_master(comm, slave, master, search)
 
     # pairs (slave facet, master facet) whose overlap is non-empty, facing and within reach
-    s_idx, m_idx = _candidates(slave, remote, search)
+    s_idx, m_idx = candidate_pairs(slave, remote, search)
     M_loc, meas, dist = overlap.mortar_pairs(slave.X[s_idx], slave.normals[s_idx], remote.X[m_idx])
     facing = np.einsum("pd,pd->p", slave.normals[s_idx], remote.normals[m_idx]) < FACING
     keep = (meas > 0) & facing & (np.abs(dist) <= search)
@@ -362,7 +362,7 @@ def _vertex_normals(imap, side: Facets, gdim: int) -> np.ndarray:
     return N / np.maximum(np.linalg.norm(N, axis=-1, keepdims=True), 1e-300)
 
 
-def _candidates(slave: Facets, master: Facets, search: float) -> tuple[np.ndarray, np.ndarray]:
+def candidate_pairs(slave: Facets, master: Facets, search: float) -> tuple[np.ndarray, np.ndarray]:
     """(slave facet, master facet) pairs whose master facet may meet the prism swept by the
     slave facet along its normal over [−search, search]: the master centroid within
     r_S + r_M of the slave facet's normal line, and within search + r_M along it (r the

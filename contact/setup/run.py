@@ -45,6 +45,7 @@ from .meshes import Boundary
 from .scene import Scene, require_scene
 from .scene_config import AdaptConfig, SceneConfig
 from .surfaces import boundary_surfaces, warn_undeclared_curves
+from .untagged import warn_untagged
 
 
 def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:
@@ -643,7 +644,8 @@ def either[**P, R](
 
     A public function of a scene or a problem: ``for_scene`` when the first argument is a
     :class:`Scene`, ``for_problem`` when ``takes`` it; anything else is the one-line
-    ValueError of :func:`contact.setup.scene.require_scene`.
+    ValueError of :func:`contact.setup.scene.require_scene`.  The first call with a scene
+    warns when facets of its boundary are in no part (:func:`.untagged.warn_untagged`).
     """
 
     @functools.wraps(for_scene)
@@ -652,6 +654,8 @@ def either[**P, R](
         if not isinstance(first, Scene) and takes(first):
             return for_problem(*args, **kwargs)
         require_scene(first)
+        assert isinstance(first, Scene)  # require_scene raised for anything else
+        warn_untagged(first)
         return for_scene(*args, **kwargs)
 
     return call

@@ -8,20 +8,27 @@ condition k ∂u/∂n = 0 (elasticity: σ(u) n = 0), whatever the scene meant.  
 always a visible choice, :func:`untagged_boundary` measures those facets — their number,
 total measure (length in 2D, area in 3D) and where they are (bounding box, and the parts
 they touch) — for the one line the command line prints on every run and for
-``summary.json``.  Parts declared with ``role: natural`` are a choice made in the scene and
-are not counted.
+``summary.json``; the Python API gives the same line as a warning (:func:`warn_untagged`).
+Parts declared with ``role: natural`` are a choice made in the scene and are not counted.
 """
 
 from __future__ import annotations
 
+import warnings
+import weakref
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base.errors import ContactWarning
 from .meshes import NATURAL, Boundary
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 
 @dataclass(frozen=True)
@@ -120,6 +127,46 @@ def untagged_boundary(msh: dmesh.Mesh, boundary: Boundary) -> Untagged:
         tuple(float(v) for v in upper),
         _neighbours(msh, boundary, facets),
     )
+
+
+#: the meshes of the scenes whose untagged facets were reported (the scenes loaded, not
+#: those refined from them): :func:`warn_untagged` warns once per scene
+_REPORTED: weakref.WeakSet = weakref.WeakSet()
+
+
+def _loaded(scene: Scene) -> Scene:
+    """The scene ``scene`` was refined from (itself if loaded)."""
+    while scene.parent is not None:
+        scene = scene.parent[0]
+    return scene
+
+
+def mark_reported(scene: Scene) -> None:
+    """Record that the untagged facets of ``scene`` (and of the scenes refined from the same
+    loaded scene) were reported: the command line printed its line, so the public API it
+    calls gives no warning."""
+    _REPORTED.add(_loaded(scene).mesh)
+
+
+def warn_untagged(scene: Scene) -> None:
+    """Warn once per scene when exterior facets are in no boundary part.
+
+    The line :meth:`Untagged.line` of ``scene`` as a :class:`ContactWarning` on rank 0, the
+    first time the public API (``contact.solve``, ``adapt``, ``run_load_path``,
+    ``estimate``, ``refine``) is called with the scene or with a scene refined from it (the
+    parts, and so the facets in none, are those of the scene loaded), unless the command
+    line reported them (:func:`mark_reported`).  Collective on that first call; the later
+    ones cost nothing.
+
+    Args:
+        scene: the scene a public function was called with.
+    """
+    if _loaded(scene).mesh in _REPORTED:
+        return
+    mark_reported(scene)
+    untagged = untagged_boundary(scene.mesh, scene.boundary)
+    if untagged.facets and scene.comm.rank == 0:
+        warnings.warn(untagged.line(scene.config.elastic), ContactWarning, stacklevel=3)
 
 
 def _neighbours(msh: dmesh.Mesh, boundary: Boundary, facets: np.ndarray) -> tuple[str, ...]:

@@ -38,7 +38,7 @@ Vohralík, SINUM 53, 2015).  For any v ∈ H¹ with v = u_D on Γ_D, integrating
 
 ⟨·,·⟩ on Γ_N ∪ Γ_C resp. Γ_C or Ω.  The first three terms are ≤ Σ_T A_T(v) |||u − v|||_T
 (the oscillations are orthogonal to constants: Poincaré h_T/π on convex cells and the trace
-inequality of :func:`.flux._oscillation`).  With λ(u − g) = 0, σλ ≤ 0, σλ̃_h ≤ 0, σ(u − g) ≤ 0:
+inequality of :func:`.flux.oscillation`).  With λ(u − g) = 0, σλ ≤ 0, σλ̃_h ≤ 0, σ(u − g) ≤ 0:
 
     ⟨λ − λ̃_h, u − v⟩ = −⟨λ, v − g⟩ − ⟨λ̃_h, u − g⟩ + ⟨λ̃_h, v − g⟩ ≤ −⟨λ, v − g⟩ + ⟨−σλ̃_h, −σ(v −
     g)⟩.
@@ -54,7 +54,7 @@ A_s |||u − s_h||| + B, then the triangle inequality with |||s_h − u_h||| = W
 ∎
 
 Realization.  Signorini: w is the smallest nodal w ∈ V_h above σ(u_h − g_h) on Γ_C
-(:func:`_bernstein_lifting`: P1 nodal values; P2 also the midpoint value that makes the
+(:func:`bernstein_lifting`: P1 nodal values; P2 also the midpoint value that makes the
 Bernstein coefficients non-negative), zero for a feasible P1 u_h.  Obstacle: w = (σ(u_h − ψ))⁺
 with the exact ψ (by quadrature of degree 2p + 6 across its kinks), s_h = max or min of u_h
 and ψ; σ_h is fitted to k∇s_h (:class:`.flux.FluxData` ``target``), which makes A_s small on
@@ -158,7 +158,7 @@ def guaranteed_bound(
     ``backend`` and ``degree``: the patch solver and the flux's degree of
     :func:`.flux.reconstruct_flux`; ``lifting``: w of a Signorini scene, if the caller
     has it (hp: Bernstein coefficients on facets of any degree), else
-    :func:`_bernstein_lifting`; ``multiplier_rule``: :class:`.cells.FluxData`'s."""
+    :func:`bernstein_lifting`; ``multiplier_rule``: :class:`.cells.FluxData`'s."""
     seconds = {}
     t0 = time.perf_counter()
     data, multiplier, sign = flux_data(problem, result)
@@ -185,15 +185,15 @@ def guaranteed_bound(
     q = flux.sigma_h - k * ufl.grad(u_h)
     q_s = q + sigma * k * grad_w  # σ_h − k∇s_h, s_h = u_h − σ w feasible
     local = {
-        "F": _cellwise(ufl.inner(q, q) / k * v * dx),
-        "Fs": _cellwise(ufl.inner(q_s, q_s) / k * v * dx),
-        "W2": _cellwise(k * ufl.inner(grad_w, grad_w) * v * dx),
-        "B": _cellwise(B_form),
+        "F": cellwise(ufl.inner(q, q) / k * v * dx),
+        "Fs": cellwise(ufl.inner(q_s, q_s) / k * v * dx),
+        "W2": cellwise(k * ufl.inner(grad_w, grad_w) * v * dx),
+        "B": cellwise(B_form),
         "D2": _dirichlet(problem, result, v, k),
     }
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
     cross = (
-        msh.comm.allreduce(float(np.sum(_cellwise(lift.cross))), op=MPI.SUM)
+        msh.comm.allreduce(float(np.sum(cellwise(lift.cross))), op=MPI.SUM)
         if lift.cross
         else np.inf
     )
@@ -213,8 +213,8 @@ def guaranteed_bound(
     }
     A, As, B = np.sqrt(total["A2"]), np.sqrt(total["As2"]), total["complementarity"]
     W, D = np.sqrt(total["feasibility"]), np.sqrt(total["dirichlet"])
-    direct = _root(A + W + D, A * (W + D) + B)
-    s_bound = _root(As + D, As * D + B)  # |||u − s_h|||
+    direct = root_bound(A + W + D, A * (W + D) + B)
+    s_bound = root_bound(As + D, As * D + B)  # |||u − s_h|||
     feasible = s_bound + W
     split = np.sqrt(max(s_bound**2 + 2 * cross + W**2, 0.0))
     eta = min(direct, feasible, split)
@@ -245,7 +245,7 @@ def indicators(DG0: fem.FunctionSpace, *squares: np.ndarray) -> fem.Function:
     return eta_T
 
 
-def _root(S: float, P: float) -> float:
+def root_bound(S: float, P: float) -> float:
     """The positive root bound of x² ≤ S x + P: x ≤ ½ (S + (S² + 4P)^{1/2})."""
     return 0.5 * (S + np.sqrt(S**2 + 4 * P))
 
@@ -254,7 +254,7 @@ def _degree(u_h: fem.Function) -> int:
     return u_h.function_space.element.basix_element.degree
 
 
-def _cellwise(form) -> np.ndarray:
+def cellwise(form) -> np.ndarray:
     """The owned entries of a DG0 form's vector (interior-facet terms summed over ranks)."""
     vec = fem.assemble_vector(fem.form(form))
     vec.scatter_reverse(la.InsertMode.add)
@@ -316,7 +316,7 @@ def _feasibility(
     g_h = problem.bound_function()
     contact = condition.ids
     w = (
-        _bernstein_lifting(u_h, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
+        bernstein_lifting(u_h, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
         if lifting is None
         else lifting
     )
@@ -327,7 +327,7 @@ def _feasibility(
     )
 
 
-def _bernstein_lifting(
+def bernstein_lifting(
     u_h: fem.Function, g_h: fem.Function, facets: np.ndarray, dirichlet: np.ndarray
 ) -> fem.Function:
     """The smallest nodal w ∈ V with u_h − g_h ≤ w on the contact ``facets`` and w = 0 on the
@@ -386,4 +386,4 @@ def _dirichlet(problem: Problem, result: Result, w_test, k) -> np.ndarray:
         e_D.x.array[dofs] = physics.dirichlet_value(V2).x.array[dofs] - u2.x.array[dofs]
     e_D.x.scatter_forward()
     dx = ufl.Measure("dx", domain=msh)
-    return _cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)
+    return cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)

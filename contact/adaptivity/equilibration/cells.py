@@ -120,11 +120,13 @@ def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.
     The expression is multiplied by ``one``, a DG0 function 1, so that DOLFINx ties it to
     the mesh even when it is constant after differentiation (e.g. −div ∇ of a linear
     function)."""
-    if isinstance(expr, fem.Constant):  # the same on every rank: nothing to compile
-        value = np.asarray(expr.value, dtype=np.float64)
+    if isinstance(expr, fem.Constant | int | float):  # the same on every rank: no compile
+        value = np.asarray(expr.value if isinstance(expr, fem.Constant) else expr, np.float64)
         return np.broadcast_to(value, (len(cells), len(X)) + value.shape)  # read-only, no memory
     msh = one.function_space.mesh
     expr = one * ufl.as_ufl(expr)  # collective: the expression is compiled (also for no cells)
+    if isinstance(expr, ufl.constantvalue.Zero):  # UFL's zero: nothing left to tie to the mesh
+        return np.zeros((len(cells), len(X)) + tuple(expr.ufl_shape))
     values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
     return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
 

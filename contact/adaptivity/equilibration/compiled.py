@@ -183,7 +183,7 @@ def compiler_version(cc: tuple[str, ...]) -> str:
 
 
 @functools.cache
-def _cpu() -> str:
+def cpu_signature() -> str:
     """What ``-march=native`` depends on: the CPU's model and feature flags."""
     try:
         with open("/proc/cpuinfo") as f:
@@ -193,7 +193,8 @@ def _cpu() -> str:
         return platform.platform() + platform.processor()
 
 
-def _sha256(data: bytes) -> str:
+def sha256_hex(data: bytes) -> str:
+    """The SHA-256 of ``data`` as 64 hexadecimal digits (cache keys, library names)."""
     return hashlib.sha256(data).hexdigest()
 
 
@@ -211,15 +212,15 @@ class Build:
     def key(self) -> str:
         """The SHA-256 of everything the library depends on (module docstring)."""
         recipe = {
-            "sources": {f: _sha256(text) for f, text in sources(self.name).items()},
+            "sources": {f: sha256_hex(text) for f, text in sources(self.name).items()},
             "dims": self.dims,
             "flags": FLAGS,
             "common": COMMON,
             "cc": self.cc,
             "version": self.version,
-            "cpu": _cpu(),
+            "cpu": cpu_signature(),
         }
-        return _sha256(json.dumps(recipe, sort_keys=True).encode())
+        return sha256_hex(json.dumps(recipe, sort_keys=True).encode())
 
     @property
     def stem(self) -> str:
@@ -249,7 +250,7 @@ def _one_line(text: str, limit: int = REASON) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _verified(build: Build) -> tuple[Path | None, str]:
+def verified_library(build: Build) -> tuple[Path | None, str]:
     """The library of ``build``'s manifest if its key is this build's and its bytes hash to
     the manifest's SHA-256; else (None, what is wrong) — '' where there is no manifest."""
     try:
@@ -270,7 +271,7 @@ def _verified(build: Build) -> tuple[Path | None, str]:
         data = library.read_bytes()
     except OSError as err:
         return None, f"cannot read {name} ({err.strerror})"
-    if _sha256(data) != digest:
+    if sha256_hex(data) != digest:
         return None, f"{name} does not match the SHA-256 of its manifest"
     return library, ""
 
@@ -315,7 +316,7 @@ def build(b: Build) -> Path:
             else:
                 raise BuildError(f"{shlex.join(b.cc)} failed: {errors[0]}")
             built = work / "lib.so"
-            digest = _sha256(built.read_bytes())
+            digest = sha256_hex(built.read_bytes())
             _sync(built)
             library = folder / f"{b.stem}_{digest[:16]}.so"
             os.replace(built, library)
@@ -356,7 +357,7 @@ def open_library(b: Build) -> tuple[tuple[Any, Any] | None, str]:
     """(ffi, lib) of ``b`` from the cache, built where it is missing; an entry that does not
     verify or load is rebuilt once.  Returns the pair (None where it failed) and a note: ''
     where all went as usual, else what went wrong (one line)."""
-    library, problem = _verified(b)
+    library, problem = verified_library(b)
     if library is not None:
         try:
             return _dlopen(b, library), ""
@@ -364,7 +365,7 @@ def open_library(b: Build) -> tuple[tuple[Any, Any] | None, str]:
             problem = f"{library.name} does not load ({_one_line(str(err), 60)})"
     try:
         library = build(b)
-        checked, why = _verified(b)
+        checked, why = verified_library(b)
         if checked is None:
             raise BuildError(why or f"{b.manifest.name} vanished")
         kernel = _dlopen(b, checked)
@@ -386,7 +387,7 @@ def _attempt(b: Build) -> tuple[tuple[Any, Any] | None, str]:
         return None, _one_line(f"{type(err).__name__}: {err}")
 
 
-class _Run:
+class Loaded:
     """What this process has loaded ((ffi, lib) per (name, dims); None: the NumPy backend)
     and whether it has warned (one warning line per process)."""
 
@@ -395,7 +396,7 @@ class _Run:
         self.warned = False
 
 
-_RUN = _Run()
+LOADED = Loaded()
 
 
 def _warn(comm: MPI.Comm, message: str) -> None:
@@ -403,9 +404,9 @@ def _warn(comm: MPI.Comm, message: str) -> None:
     ``contact: warning: ...``)."""
     from ...base.errors import ContactWarning
 
-    if not _RUN.warned and comm.rank == 0:
+    if not LOADED.warned and comm.rank == 0:
         warnings.warn(message, ContactWarning, stacklevel=4)
-    _RUN.warned = True
+    LOADED.warned = True
 
 
 def load(comm: MPI.Comm, name: str, dims: dict[str, int]) -> tuple[Any, Any] | None:
@@ -413,13 +414,13 @@ def load(comm: MPI.Comm, name: str, dims: dict[str, int]) -> tuple[Any, Any] | N
     it cannot be had on every rank: then the caller uses the NumPy backend (one warning
     line per process).  Collective; every rank returns the same kind of answer."""
     key = (name, *dims.items())
-    known = key in _RUN.kernels
-    here = _RUN.kernels.get(key)  # None: not loaded here (not tried, or given up on)
+    known = key in LOADED.kernels
+    here = LOADED.kernels.get(key)  # None: not loaded here (not tried, or given up on)
     status = comm.allreduce(0 if here is not None else 2 if known else 1, op=MPI.MAX)
     if status != 1:  # every rank has it, or some rank has given up on it
         if status == 2:
-            _RUN.kernels[key] = None
-        return _RUN.kernels[key]
+            LOADED.kernels[key] = None
+        return LOADED.kernels[key]
     version = comm.bcast(compiler_version(compiler()) if comm.rank == 0 else None, root=0)
     b = entry(name, dims, version)
     mine: tuple[tuple[Any, Any] | None, str] = (here, "")
@@ -431,14 +432,14 @@ def load(comm: MPI.Comm, name: str, dims: dict[str, int]) -> tuple[Any, Any] | N
     outcomes = comm.allgather((mine[0] is not None, mine[1]))
     ok = all(o for o, _ in outcomes)
     note = next((n for _, n in outcomes if n), "")
-    _RUN.kernels[key] = mine[0] if ok else None
+    LOADED.kernels[key] = mine[0] if ok else None
     if not ok:
         reason = note or "it did not load on every rank"
         _warn(comm, f"the compiled {PURPOSE[name]} kernel is unavailable ({reason}); the "
               "estimate falls back to backend='numpy' (same result, slower)")  # fmt: skip
     elif note:
         _warn(comm, note)
-    return _RUN.kernels[key]
+    return LOADED.kernels[key]
 
 
 def library(comm: MPI.Comm, ref: Reference, nu: int) -> tuple[Any, Any] | None:

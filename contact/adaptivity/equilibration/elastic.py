@@ -32,7 +32,7 @@ Proof.  For v = u_D on Γ_D (componentwise on symmetry planes), integrating by p
 
 The first term is ≤ F |||u − v|||; the second ≤ Y C_K ‖ε(u − v)‖ ≤ Y C_K (2μ)^{-1/2} |||u − v|||
 (2μ‖ε‖² ≤ a); the oscillations (orthogonal to P_{p+1} ⊃ the rigid motions, cell by cell) are
-≤ Σ osc_T ‖∇(u − v)‖_T (Poincaré and the trace inequality of :func:`.flux._oscillation`,
+≤ Σ osc_T ‖∇(u − v)‖_T (Poincaré and the trace inequality of :func:`.flux.oscillation`,
 per component) and ‖∇z‖² = ‖ε(z)‖² + ‖skw ∇z‖² ≤ (1 + C_K²)‖ε(z)‖².  The normal contact
 term is the scalar one of :mod:`.bound` for the component u·n ≤ g.  The tangential one,
 with |λ_t| ≤ ρ, λ_t·s_t + ρ|s_t| = 0 and |λ̃_t| ≤ ρ:  ⟨λ_t − λ̃_t, s_t − s_t,h⟩ ≤ −∫ρ|s_t| +
@@ -65,7 +65,7 @@ from ...models.constraints import Plane, RigidObstacle
 from ...models.discrete import Problem
 from ...models.physics import Elasticity
 from ...solvers import Result
-from .bound import Bound, _bernstein_lifting, _cellwise, _root, indicators
+from .bound import Bound, bernstein_lifting, cellwise, indicators, root_bound
 from .korn import korn_constant
 from .stress import StressData, reconstruct_stress
 
@@ -188,15 +188,15 @@ def elastic_bound(problem: Problem, result: Result, backend: str = "compiled") -
     q = sym - stress_of(u_h if e_D is None else u_h + e_D)  # against u_h + e_D: u_D on Γ_D
     q_s = q + stress_of(w * n)  # s_h = u_h + e_D − w n
     local = {
-        "F": _cellwise(compliance(q) * v * dx),
-        "Fs": _cellwise(compliance(q_s) * v * dx),
-        "Y": _cellwise(ufl.inner(skw, skw) * v * dx),
+        "F": cellwise(compliance(q) * v * dx),
+        "Fs": cellwise(compliance(q_s) * v * dx),
+        "Y": cellwise(ufl.inner(skw, skw) * v * dx),
         "W2": W_form,
         "B": B_form,
         "Bt": _friction(problem, result, v),
         "D2": np.zeros(len(W_form))
         if e_D is None
-        else _cellwise(ufl.inner(stress_of(e_D), ufl.sym(ufl.grad(e_D))) * v * dx),
+        else cellwise(ufl.inner(stress_of(e_D), ufl.sym(ufl.grad(e_D))) * v * dx),
     }
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
     k_as = korn / np.sqrt(2.0 * mu)
@@ -220,8 +220,8 @@ def elastic_bound(problem: Problem, result: Result, backend: str = "compiled") -
     As = np.sqrt(total["flux_s"]) + extra
     B = total["complementarity"] + total["friction"]
     W, D = np.sqrt(total["feasibility"]), np.sqrt(total["dirichlet"])
-    direct = _root(A + W, A * W + B) + D
-    feasible = _root(As, B) + W + D
+    direct = root_bound(A + W, A * W + B) + D
+    feasible = root_bound(As, B) + W + D
     eta = min(direct, feasible)
     F_T = np.sqrt(local["F"] if direct <= feasible else local["Fs"])
     A_T = F_T + k_as * np.sqrt(local["Y"]) + k_osc * stress.osc
@@ -243,7 +243,7 @@ def elastic_bound(problem: Problem, result: Result, backend: str = "compiled") -
 
 
 def _normal_lifting(problem: Problem, result: Result, n, lmbda, v):
-    """w (the smallest nodal lifting of (u_h·n − g)⁺ on Γ_C, :func:`.bound._bernstein_lifting`),
+    """w (the smallest nodal lifting of (u_h·n − g)⁺ on Γ_C, :func:`.bound.bernstein_lifting`),
     the DG0 vectors of W_T² = ‖C^{1/2} ε(w n)‖²_T and of B_T."""
     physics, obstacle, plane = _plane_contact(problem)
     boundary = physics.boundary
@@ -255,16 +255,16 @@ def _normal_lifting(problem: Problem, result: Result, n, lmbda, v):
     u_n.interpolate(fem.Expression(ufl.dot(result.u_h, n), S.element.interpolation_points))
     g_h.interpolate(fem.Expression(g_ufl, S.element.interpolation_points))
     contact = obstacle.ids
-    w = _bernstein_lifting(u_n, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
+    w = bernstein_lifting(u_n, g_h, boundary.facets(contact), boundary.facets(boundary.dirichlet))
     mu, lam = float(physics.mu), float(physics.lmbda)
     e = ufl.sym(ufl.grad(w * n))
     dx = ufl.Measure("dx", domain=msh)
-    W2 = _cellwise((2.0 * mu * ufl.inner(e, e) + lam * ufl.tr(e) ** 2) * v * dx)
+    W2 = cellwise((2.0 * mu * ufl.inner(e, e) + lam * ufl.tr(e) ** 2) * v * dx)
     ds = boundary.measure(msh)
     gap = ufl.dot(result.u_h, n) - g_ufl
     B = np.zeros_like(W2)
     if lmbda is not None:
-        B = _cellwise(sum((-lmbda) * (w - gap) * v * ds(i) for i in contact))
+        B = cellwise(sum((-lmbda) * (w - gap) * v * ds(i) for i in contact))
     return w, W2, B
 
 
@@ -283,7 +283,7 @@ def _friction(problem: Problem, result: Result, v) -> np.ndarray:
         (rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * v * ds(i)
         for i in obstacle.ids
     )
-    return _cellwise(form)
+    return cellwise(form)
 
 
 def _dirichlet_lifting(problem: Problem, result: Result, stress_of) -> fem.Function | None:

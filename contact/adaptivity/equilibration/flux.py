@@ -63,7 +63,7 @@ class Flux:
         C_{T,F} = h_T ((|F| / |T|)(1/π² + 2/(dπ)))^{1/2},
 
     (so that (f − Π_p f, v)_T + ⟨t − Π_p t, v⟩_{∂T} ≤ osc_T ‖k^{1/2}∇v‖_T for every v ∈ H¹(T):
-    Poincaré's h_T/π on convex cells, and the trace inequality of :func:`_oscillation`),
+    Poincaré's h_T/π on convex cells, and the trace inequality of :func:`oscillation`),
     the projected balance defect (algebraic residual, flux units) and timings (seconds).
     :attr:`sigma_cells`, the same field cell by cell in vector DG_{p+1} (no continuity
     imposed; σ_h is its RT_p interpolant), is built when first asked for."""
@@ -159,9 +159,9 @@ def reconstruct_flux(
     else:
         sigma_cells = cellwise(msh, ref, table, alpha)
         sigma_h = _interpolated(msh, ref, sigma_cells)
-        osc = _oscillation(table, ref)
+        osc = oscillation(table, ref)
     if data.multiplier_rule is None:
-        lmbda_clip, bubble, kappa = _multiplier_functions(V, table, ref, multiplier, sign, DG0)
+        lmbda_clip, bubble, kappa = multiplier_functions(V, table, ref, multiplier, sign, DG0)
     else:  # the rule's λ̃_h itself: κ = 1, no bubble
         lmbda_clip, bubble, kappa = (
             data.multiplier_rule.function(),
@@ -268,7 +268,7 @@ def _rt_element(d: int, p: int):
     )
 
 
-def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, DG0):
+def multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, DG0):
     """λ_h clipped, the Bernstein bubble and κ (:class:`Flux`) from the owned rows."""
     n = len(table)
     nodal = clipped(table.lam, sign)
@@ -300,7 +300,7 @@ def _multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign,
     return lmbda_clip, bubble, kap
 
 
-def _oscillation(table: CellTable, ref: Reference) -> np.ndarray:
+def oscillation(table: CellTable, ref: Reference) -> np.ndarray:
     """osc_T of :class:`Flux` for the table's cells.
 
     The trace inequality: for v ∈ H¹(T), F a facet and x_F the opposite vertex, the field
@@ -349,7 +349,7 @@ def _multiplier_oscillation(
         k_T,min^{-1/2} h_T/π ‖λ̃_h − Π_p λ̃_h‖_T                  (obstacle),
         k_T,min^{-1/2} Σ_{F ⊂ ∂T ∩ Γ_C} C_{T,F} ‖λ̃_h − Π_p λ̃_h‖_F   (Signorini),
 
-    bounds ⟨λ̃_h − Π_p λ̃_h, v⟩ by ‖k^{1/2}∇v‖_T as the data oscillation does (:func:`_oscillation`:
+    bounds ⟨λ̃_h − Π_p λ̃_h, v⟩ by ‖k^{1/2}∇v‖_T as the data oscillation does (:func:`oscillation`:
     the rest is orthogonal to constants); zero when p is the degree of λ_h."""
     osc = np.zeros(len(table))
     if multiplier is None or not ref.lowest:

@@ -107,7 +107,7 @@ class CellOperators:
     def MZinv(self) -> np.ndarray:
         r = self.ref
         MZ = (
-            np.einsum("nij,ijab->nab", self.geometry["GM"], _projected(r, "ZZ"))
+            np.einsum("nij,ijab->nab", self.geometry["GM"], projected_mass(r, "ZZ"))
             / self.kT[:, None, None]
         )
         return np.linalg.inv(MZ)
@@ -115,7 +115,7 @@ class CellOperators:
     @cached_property
     def ZMR(self) -> np.ndarray:
         return (
-            np.einsum("nij,ijab->nab", self.geometry["GM"], _projected(self.ref, "ZR"))
+            np.einsum("nij,ijab->nab", self.geometry["GM"], projected_mass(self.ref, "ZR"))
             / self.kT[:, None, None]
         )
 
@@ -201,7 +201,7 @@ class CellOperators:
 
     @cached_property
     def ref_tables(self) -> dict:
-        return _data_tables(self.ref, self.table.U.shape[1])
+        return data_tables(self.ref, self.table.U.shape[1])
 
     @cached_property
     def div_moments(self) -> tuple[np.ndarray, np.ndarray]:
@@ -264,12 +264,14 @@ def lowest_tables(r: Reference) -> dict:
     }
 
 
-def _projected(r: Reference, which: str) -> np.ndarray:
+def projected_mass(r: Reference, which: str) -> np.ndarray:
+    """The reference mass tensor between the Z basis (left) and the Z basis (``"ZZ"``) or the
+    R basis (``"ZR"``) on the right: Σ_mn Z_ma M_ijmn B_nb with B = Z or R."""
     right = r.Z if which == "ZZ" else r.R
     return np.einsum("ma,ijmn,nb->ijab", r.Z, r.mass, right)
 
 
-def _data_tables(r: Reference, nu: int) -> dict:
+def data_tables(r: Reference, nu: int) -> dict:
     """Reference integrals of the data terms (P_p Lagrange basis of u_h at the points)."""
     import basix
 

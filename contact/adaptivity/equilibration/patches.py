@@ -135,7 +135,7 @@ def _solve_chunk(table, prow, ploc, patch, n_patches, ref: Reference, multiplier
         where = np.full(n_patches, -1)
         where[members] = np.arange(len(members))
         sel = np.flatnonzero(where[patch] >= 0)
-        A, rhs = _assemble(
+        A, rhs = assemble_patches(
             where[patch[sel]], pair_local[sel], Shat[sel], b[sel], len(members), size, nf
         )
         pure = ~has_dirichlet[members]
@@ -211,7 +211,7 @@ def _condense(h, I_s, I_o, T):
     return h[ar[:, None], I_s] - np.einsum("nab,nb->na", T, h[ar[:, None], I_o])
 
 
-def _assemble(patch, local, Shat, b, n, size, nf):
+def assemble_patches(patch, local, Shat, b, n, size, nf):
     """Dense patch matrices (n, size nf, size nf) and right-hand sides from the pairs."""
     npair, d = local.shape
     dim = size * nf

@@ -18,7 +18,7 @@ from mpi4py import MPI
 
 from .cells import CONTACT, CellTable
 from .multiplier import clipped, shares
-from .operators import _data_tables, _projected, cell_rule, facet_rule, lowest_tables
+from .operators import cell_rule, data_tables, facet_rule, lowest_tables, projected_mass
 from .patches import PatchOutput
 from .reference import Reference
 
@@ -33,7 +33,7 @@ def _tables(d: int, p: int, pu: int, nu: int) -> dict:
     from .reference import reference
 
     r = reference(d, p, pu)
-    t = _data_tables(r, nu)
+    t = data_tables(r, nu)
     D = d + 1
     lookup = np.full(max(d**d, 1), -1, dtype=np.int64)
     for i, pi in enumerate(r.perms):
@@ -43,8 +43,8 @@ def _tables(d: int, p: int, pu: int, nu: int) -> dict:
         lookup[code] = i
     arrays = {
         "w": r.w,
-        "ZZ": _projected(r, "ZZ"),
-        "ZR": _projected(r, "ZR"),
+        "ZZ": projected_mass(r, "ZZ"),
+        "ZR": projected_mass(r, "ZR"),
         "NZ": np.einsum("jkm,mz->jkz", r.N, r.Z),
         "NR": np.einsum("jkm,mz->jkz", r.N, r.R),
         "P": r.P,

@@ -82,10 +82,10 @@ from .cells import (
     local_table,
     return_to_owners,
 )
-from .flux import _multiplier_functions, _oscillation, rt_function
+from .flux import multiplier_functions, oscillation, rt_function
 from .multiplier import clipped, entity_rule, shares
-from .operators import CellOperators, _projected, det_inv
-from .patches import _assemble, spoke_keys
+from .operators import CellOperators, det_inv, projected_mass
+from .patches import assemble_patches, spoke_keys
 from .reference import CELLS, Reference, reference
 
 __all__ = ["BACKENDS", "Stress", "StressData", "reconstruct_stress", "skew_pairs"]
@@ -236,13 +236,13 @@ def reconstruct_stress(data: StressData, backend: str = "compiled") -> Stress:
         row = rt_function(msh, ref, np.ascontiguousarray(a_r))
         row.name = f"sigma_h_{r}"
         rows.append(row)
-    osc = np.sqrt(sum(_oscillation(t, ref) ** 2 for t in tables))
+    osc = np.sqrt(sum(oscillation(t, ref) ** 2 for t in tables))
     lmbda = None
     if data.lmbda_h is not None and data.contact:
         S = data.lmbda_h.function_space
         DG0 = fem.functionspace(msh, ("DG", 0))
         ref_u = reference(d, p)
-        clip, bubble, kappa = _multiplier_functions(S, tables[0], ref_u, "facets", -1.0, DG0)
+        clip, bubble, kappa = multiplier_functions(S, tables[0], ref_u, "facets", -1.0, DG0)
         lmbda = kappa * (clip - 0.5 * bubble)
     seconds["assemble"] = time.perf_counter() - t0
     return Stress(rows, lmbda, osc, comm.allreduce(defect), seconds)
@@ -388,8 +388,8 @@ def _cell_operators(
             "J": J,
             "s": g["s"],
             "absdet": g["absdet"],
-            "ZZ": _projected(ref, "ZZ"),
-            "ZR": _projected(ref, "ZR"),
+            "ZZ": projected_mass(ref, "ZZ"),
+            "ZR": projected_mass(ref, "ZR"),
             "W": _weights(d, mu, lam, skew_weight),
             "M1Z": M1 @ ref.Z,
             "M1R": M1 @ ref.R,
@@ -405,7 +405,7 @@ def _cell_operators(
     # Σ_ij J_ri J_sj mass_ij / |det J|, projected on the reference (Zᵀ mass_ij Z, Zᵀ mass_ij R)
     JJ = np.einsum("nri,nsj->nrsij", J, J) / g["absdet"][:, None, None, None, None]
     blocks = {
-        right: np.einsum("nrsij,ijab->nrsab", JJ, _projected(ref, right), optimize=True)
+        right: np.einsum("nrsij,ijab->nrsab", JJ, projected_mass(ref, right), optimize=True)
         for right in ("ZZ", "ZR")
     }
     H = np.linalg.inv(_objective(blocks["ZZ"], mu, lam, skew_weight))
@@ -727,7 +727,7 @@ def _multipliers(S, prow, ploc, patch, size, loc, hp, dp, ref: Reference):
         ok = ii >= 0
         rows = np.where(ok, ii, 0)
         # the pairs' blocks summed into the patch systems (slot = (spoke, row), nf moments)
-        A, rhs = _assemble(pi, loc[sel], Shat[sel], b[sel], len(members), n_slots, nf)
+        A, rhs = assemble_patches(pi, loc[sel], Shat[sel], b[sel], len(members), n_slots, nf)
         # the rigid motions of a closed patch span the kernel of A and the right-hand side
         # is orthogonal to them (up to the solve's residual): a shift of 1e-12 of the
         # diagonal's scale makes A regular; the kernel part of μ does not change σ_a
