@@ -331,6 +331,9 @@ def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
             f"{1 + eps / 1e4},1.0,{1 + eps / 1e4},0.1,0.1,{dist},2.0,{dist},{dist},0"
         )
     (res / "baselines" / "A.csv").write_text("\n".join(lines) + "\n")
+    # two bodies (Cattaneo–Mindlin): penalty and augmented Lagrangian only, no Nitsche rows
+    two = [line.replace("A,", "cattaneo,", 1) for line in lines[1:]]
+    (res / "baselines" / "cattaneo.csv").write_text("\n".join([head, *two]) + "\n")
     study = {
         "name": "stability_baselines",
         "scene": str(SQUARE),
@@ -343,6 +346,9 @@ def test_report_baselines_sections_read_the_csvs(tmp_path: Path) -> None:
     text = _report(res, tmp_path / "R.md")
     section = text.split("## 13.", 1)[1]
     assert "| A | 100 | penalty | ε₀ = 1e+03 | 1.10 | 5 |" in section
+    assert "| cattaneo | 100 | penalty | ε₀ = 1e+03 | 1.10 | 5 |" in section
+    cattaneo = section.split("### Cattaneo–Mindlin", 1)[1].split("###", 1)[0]
+    assert "| 100 | penalty |" in cattaneo and "| 100 | nitsche" not in cattaneo
     assert "|||u − u_fb||| ∝ ε₀^-1.00" in section
     failed = [r for r in rows if not r["converged"]]
     assert [(r["case"], r["method"]) for r in failed] == [("(r) A, parameter 1.0e-3", "nitsche")]

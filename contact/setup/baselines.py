@@ -23,6 +23,7 @@ of a scene (fields, tables, forces, estimators) reads it as it reads semismooth 
 
 from __future__ import annotations
 
+import numpy as np
 import ufl
 from dolfinx import fem
 from petsc4py import PETSc
@@ -32,6 +33,7 @@ from ..base.lifetime import destroy
 from ..base.timing import Stopwatch
 from ..models.problem import assemble_system
 from ..solvers.baselines import FrictionLaw, UnilateralContact, solve_enforced
+from ..solvers.nodal_baselines import mortar_scale, solve_nodal
 from ..solvers.options import SolverOptions
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result
@@ -137,6 +139,19 @@ def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[Unilater
     )
 
 
+def pair_scale(scene: Scene, problem: DiscreteProblem) -> np.ndarray:
+    """s_i = E/h at the constrained nodes of a scene with mortar pairs: E = μ(3λ + 2μ)/(λ + μ)
+    of each body's material, h the diameter of the slave facets' cells (and of a rigid
+    obstacle's contact facets)."""
+    cfg, bnd = scene.config, scene.boundary
+    ids = [bnd.ids[pair.slave] for pair in cfg.pairs or ()]
+    if cfg.obstacle is not None:
+        ids += list(bnd.ids_with_role("contact"))
+    mu, lmbda_L = problem.data["mu"], problem.data["lmbda_L"]
+    E = mu * (3 * lmbda_L + 2 * mu) / (lmbda_L + mu)
+    return mortar_scale(problem, problem.data["ds"](tuple(ids)), E)
+
+
 def solve_baseline(
     scene: Scene,
     problem: DiscreteProblem,
@@ -150,6 +165,11 @@ def solve_baseline(
     Dirichlet values are put in); never raises on divergence."""
     u = problem.u_h
     u.x.array[:] = u0.x.array
+    if scene.config.pairs:  # the Dirichlet values in displacements, the solve in unknowns
+        for bc in problem.data["u_bcs"]:
+            bc.set(u.x.array)
+        u.x.scatter_forward()
+        return solve_nodal(problem, pair_scale(scene, problem), opts, verbose, timers, clock)
     for bc in problem.bcs:
         bc.set(u.x.array)
     u.x.scatter_forward()

@@ -260,15 +260,22 @@ def _check_friction(config: SceneConfig, data: Mapping[str, Any]) -> None:
 def _check_baselines(config: SceneConfig) -> None:
     """The baseline enforcements (penalty, augmented Lagrangian, Nitsche) cover the scalar
     models and one linear elastic body against a rigid obstacle, P1 (penalty and augmented
-    Lagrangian integrate at the vertices); Nitsche needs a contact boundary."""
+    Lagrangian integrate at the vertices); Nitsche needs a contact boundary.  Penalty and
+    augmented Lagrangian also take linear elastic bodies through mortar pairs, on the mortar
+    gap node by node (:mod:`contact.solvers.nodal_baselines`)."""
     method, model = config.solver.method, config.model.type
     if method not in BASELINE_METHODS:
         return
-    if model == "hyperelastic" or config.bodies or config.pairs:
-        what = "a hyperelastic body" if model == "hyperelastic" else "several bodies"
+    if model == "hyperelastic" or (config.bodies and not config.pairs):
+        what = "a hyperelastic body" if model == "hyperelastic" else "bodies without pairs"
         raise ConfigError(
-            f"solver.method: {method} is available for scalar scenes and one linear elastic "
-            f"body against a rigid obstacle, not {what} (use fb, min or blend)"
+            f"solver.method: {method} is available for scalar scenes and linear elastic "
+            f"bodies against a rigid obstacle or each other, not {what} (use fb, min or blend)"
+        )
+    if method == "nitsche" and config.pairs:
+        raise ConfigError(
+            "solver.method: nitsche takes one body against a rigid obstacle; two bodies "
+            "through mortar pairs take penalty or augmented_lagrangian (or fb, min, blend)"
         )
     if method == "nitsche" and model == "obstacle":
         raise ConfigError(

@@ -147,13 +147,17 @@ def nodal_scaling(contact: UnilateralContact, S: fem.FunctionSpace) -> fem.Funct
     contact nodes): the nodal value of E/h (h the cell diameter), so that the penalty and
     the augmented Lagrangian, integrated at the vertices, act with one scale per node (a
     cellwise E/h would give a node one scale per facet and no nodal multiplier)."""
+    return nodal_scale(contact.measure, contact.modulus, S)
+
+
+def nodal_scale(measure: ufl.Measure, modulus: Any, S: fem.FunctionSpace) -> fem.Function:
+    """s_i = ∫ (modulus / h) φ_i / ∫ φ_i over ``measure`` (vertex rule) on the P1 space S,
+    1 off the measure's nodes (:func:`nodal_scaling`)."""
     msh = S.mesh
     phi = ufl.TestFunction(S)
-    vertex = _vertex(contact.measure)
+    vertex = _vertex(measure)
     w = dolfinx.fem.petsc.assemble_vector(fem.form(phi * vertex))
-    sw = dolfinx.fem.petsc.assemble_vector(
-        fem.form(contact.modulus / ufl.CellDiameter(msh) * phi * vertex)
-    )
+    sw = dolfinx.fem.petsc.assemble_vector(fem.form(modulus / ufl.CellDiameter(msh) * phi * vertex))
     add, reverse = PETSc.InsertMode.ADD, PETSc.ScatterMode.REVERSE
     for vec in (w, sw):
         vec.ghostUpdate(addv=add, mode=reverse)  # type: ignore[arg-type]
@@ -386,19 +390,11 @@ class EnforcedNewton:
         c = form.contact
         self.form, self.opts, self.verbose = form, options, verbose
         self.timers = {"assembly": 0.0, "solve": 0.0} if timers is None else timers
-        V = c.u.function_space
+        V = self.space()
         self.comm = V.mesh.comm
         self._owner = owner = Owner()
         with Timer(self.timers, "assembly"):
-            self.F_form = fem.form(form.residual)
-            self.J_form = fem.form(form.jacobian)
-            self.force_form = fem.form(form.force)
-            self.indicator_form = fem.form(form.contact_form)
-            weights = _assemble(fem.form(form.weight_form))
-            self._weights = weights.array_r.copy()
-            weights.destroy()
-            self.Fc = owner.own(dolfinx.fem.petsc.create_vector(V))
-            self.Jc = owner.own(dolfinx.fem.petsc.create_matrix(self.J_form))
+            self.prepare(owner)
             self.J = owner.own(c.K.duplicate(copy=True))
             if c.near_nullspace is not None:
                 self.J.setNearNullSpace(c.near_nullspace)
@@ -430,6 +426,23 @@ class EnforcedNewton:
         self.atol = 0.0
         self._outer = 0
 
+    def space(self) -> fem.FunctionSpace:
+        """The space of the iterate (its layout, the size switch of the linear solver)."""
+        return self.form.contact.u.function_space
+
+    def prepare(self, owner: Owner) -> None:
+        """Compile the contact term's forms and create their vectors and matrix."""
+        form = self.form
+        self.F_form = fem.form(form.residual)
+        self.J_form = fem.form(form.jacobian)
+        self.force_form = fem.form(form.force)
+        self.indicator_form = fem.form(form.contact_form)
+        weights = _assemble(fem.form(form.weight_form))
+        self._weights = weights.array_r.copy()
+        weights.destroy()
+        self.Fc = owner.own(dolfinx.fem.petsc.create_vector(self.space()))
+        self.Jc = owner.own(dolfinx.fem.petsc.create_matrix(self.J_form))
+
     # --- callbacks ---------------------------------------------------------------------
     def _set_iterate(self, x: PETSc.Vec) -> None:
         u = self.form.contact.u.x
@@ -442,13 +455,17 @@ class EnforcedNewton:
             self._set_iterate(x)
             c.K.mult(x, F)
             F.axpy(-1.0, c.b)
-            Fc = self.Fc
-            with Fc.localForm() as local:
-                local.set(0.0)
-            dolfinx.fem.petsc.assemble_vector(Fc, self.F_form)  # type: ignore[arg-type]
-            Fc.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
-            Fc.array_w[self.dirichlet] = 0.0
-            F.axpy(1.0, Fc)
+            self.add_contact(F)
+
+    def add_contact(self, F: PETSc.Vec) -> None:
+        """F += C(u; ·) at the current iterate, Dirichlet rows untouched."""
+        Fc = self.Fc
+        with Fc.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(Fc, self.F_form)  # type: ignore[arg-type]
+        Fc.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
+        Fc.array_w[self.dirichlet] = 0.0
+        F.axpy(1.0, Fc)
 
     def _jacobian(self, snes: PETSc.SNES, x: PETSc.Vec, J: PETSc.Mat, P: PETSc.Mat) -> None:
         with Timer(self.timers, "assembly"):
@@ -561,6 +578,11 @@ class EnforcedNewton:
             for outer in range(1, (opts.uzawa_max_it if uzawa else 1) + 1):
                 self._outer = outer
                 snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
+                # after a multiplier update at least one Newton step: the update may leave
+                # ‖F‖ below atol, and an inner solve that stops at once leaves u — and the
+                # next update's change — as they were (Uzawa creeping by 0.1 % per outer
+                # iteration on the fine Cattaneo–Mindlin mesh at r₀ = 1000)
+                snes.setForceIteration(outer > 1)
                 with Timer(self.timers, "solve"):
                     snes.solve(None, x)
                 reason = snes.getConvergedReason()  # type: ignore[assignment]
@@ -628,15 +650,36 @@ def solve_enforced(
             xt.destroy()
         finally:
             x.destroy()
+    friction = contact.friction.coefficient if contact.friction is not None else None
+    return result_of(problem, residual, xa, active, outcome, options, timers, clock, friction)
+
+
+def result_of(
+    problem: DiscreteProblem,
+    residual: np.ndarray,
+    xa: np.ndarray,
+    active: np.ndarray,
+    outcome: Outcome,
+    options: SolverOptions,
+    timers: dict,
+    clock: Stopwatch,
+    coefficient: float | None = None,
+) -> Result:
+    """The :class:`Result` of a baseline solve on ``problem``: ``residual`` the nodal contact
+    force and ``xa`` the solution in the problem's unknowns (owned), ``active`` the mask of
+    the constrained DoFs in contact; ``coefficient`` Coulomb's F of the friction law (None:
+    the problem's own, Tresca's threshold otherwise)."""
     lmbda, gap, active_fn = problem.outputs(xa, residual, active)
     close_timings(timers, clock)
     friction = None
-    if problem.friction is not None and contact.friction is not None:
-        friction = friction_fields(problem, contact.friction, xa, residual, active)
+    if problem.friction is not None:
+        fs = problem.friction
+        F = coefficient if coefficient is not None else fs.coefficient
+        friction = friction_fields(problem, F, xa, residual, active)
     history = outcome.history
     comm = problem.V.mesh.comm
-    result = Result(
-        u_h=u,
+    return Result(
+        u_h=problem.u_h,
         lmbda_h=lmbda,
         gap=gap,
         active=active_fn,
@@ -645,7 +688,7 @@ def solve_enforced(
         reason=REASONS.get(outcome.reason, str(outcome.reason)),
         iterations=outcome.iterations,
         residual=history[-1]["residual"] if history else float("nan"),
-        method=method,
+        method=options.method,
         n_active=comm.allreduce(int(active.sum()), op=MPI.SUM),
         timings=timers,
         problem=problem,
@@ -658,7 +701,6 @@ def solve_enforced(
         outer_iterations=outcome.outer,
         friction=friction,
     )
-    return result
 
 
 def penetration(result: Result) -> float:
@@ -694,7 +736,7 @@ SLIP_RTOL = 1e-8
 
 def friction_fields(
     problem: DiscreteProblem,
-    law: FrictionLaw,
+    coefficient: float | None,
     x: np.ndarray,
     residual: np.ndarray,
     active: np.ndarray,
@@ -711,8 +753,8 @@ def friction_fields(
     fs, con = problem.friction, problem.constraint
     lam_n = problem.multiplier(residual)
     lam_t = residual[fs.tangent] / con.w[:, None]
-    if law.coefficient is not None:
-        rho = law.coefficient * np.maximum(-lam_n, 0.0)
+    if coefficient is not None:
+        rho = coefficient * np.maximum(-lam_n, 0.0)
     else:
         rho = np.asarray(fs.threshold, dtype=float)
     slip = np.where(fs.free, x[fs.tangent] - fs.x_prev, 0.0)

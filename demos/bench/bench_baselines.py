@@ -31,6 +31,7 @@ every problem).
 
     python demos/bench/bench_baselines.py --out demos/results/baselines        (~25 minutes)
     python demos/bench/bench_baselines.py --problems A --quick                   (~1 minute)
+    python demos/bench/bench_baselines.py --problems cattaneo                    (~5 minutes)
 """
 
 from __future__ import annotations
@@ -44,6 +45,8 @@ from pathlib import Path
 import contact
 from contact.adaptivity.energy_error import energy_error
 from contact.post.hertz import compare as hertz_compare
+from contact.post.reference import compare as reference_compare
+from contact.setup.run import run_load_path
 from contact.solvers.baselines import PARAMETERS, penetration
 
 import numpy as np
@@ -63,6 +66,7 @@ PROBLEMS = {
     "C": ("signorini_smooth", [[f"mesh.cells=[{n},{n}]"] for n in (8, 16, 32, 64)]),
     "hertz2d": ("hertz_2d", [[f"mesh.h_contact={h}"] for h in (0.008, 0.004, 0.002)]),
     "hertz3d": ("hertz_3d", [[f"mesh.h_contact={h}"] for h in (0.04, 0.02, 0.01)]),
+    "cattaneo": ("two_body_cattaneo_2d", [[f"mesh.h_contact={h}"] for h in (0.04, 0.02)]),
 }
 #: the swept values of each method's parameter (decades)
 SWEEPS = {
@@ -72,6 +76,14 @@ SWEEPS = {
 }
 #: the variants charted: (method, θ)
 VARIANTS = [("penalty", None), ("augmented_lagrangian", None), ("nitsche", 1.0), ("nitsche", -1.0)]
+#: two bodies through the mortar gap: penalty and augmented Lagrangian (Nitsche: one body), over
+#: fewer decades — each run is a 4-step load path (Uzawa below r₀ = 1 needs ~100 outer
+#: iterations per step)
+TWO_BODY_VARIANTS = VARIANTS[:2]
+TWO_BODY_SWEEPS = {
+    "penalty": [10.0**k for k in range(0, 8)],
+    "augmented_lagrangian": [10.0**k for k in range(0, 5)],
+}
 DEFAULTS = {"penalty": 1e3, "augmented_lagrangian": 1e2, "nitsche": 10.0}
 #: the penalty's order is fitted up to this ε₀: beyond, |||u − u_fb||| meets the floor that the
 #: Krylov tolerance 1e-10 leaves on a system ε₀ times stiffer (hertz_2d at 29k DoFs: 1e-9)
@@ -100,6 +112,8 @@ def energy_norm(scene, e) -> float:
 class Mesh:
     """One mesh of a problem: the scene, fb's solution and its reference figures."""
 
+    variants, sweeps = VARIANTS, SWEEPS
+
     def __init__(self, problem: str, scene_name: str, overrides: list[str], repeat: int):
         self.problem, self.repeat = problem, repeat
         self.scene = contact.load_scene(
@@ -118,6 +132,10 @@ class Mesh:
             self.reference = elastic_reference(self.scene, fb.u_h, refinements=1)
         self.error_fb = self.error(fb)
         self.fb_seconds = [fb.seconds]
+
+    def warm(self, method: str, options: dict) -> None:
+        """One untimed solve: the forms' JIT compilation."""
+        contact.solve(self.scene, method=method, verbose=False, **options)
 
     def timed(self, method: str, options: dict):
         t0 = time.perf_counter()
@@ -138,9 +156,21 @@ class Mesh:
         assert isinstance(cfg.data.exact, str)
         return energy_error(r.u_h, cfg.data.exact, 1.0, cfg.constants)
 
-    def row(self, r, method: str, theta: float | None, value: float | None, fb_seconds: float):
+    def distance(self, r) -> float:
+        """|||u_h − u_fb||| / |||u_fb|||."""
         e = fem.Function(self.u_fb.function_space)
         e.x.array[:] = r.u_h.x.array - self.u_fb.x.array
+        return energy_norm(self.scene, e) / self.norm_fb
+
+    def extra(self, r) -> dict:
+        """The problem's own figures: Hertz's a and p0 errors."""
+        out = {"a_error": float("nan"), "p0_error": float("nan")}
+        if r.converged and r.contact_force > 0:
+            errors = hertz_compare(self.scene, r, self.scene.config.reference).errors
+            out["a_error"], out["p0_error"] = errors["a_error"], errors["p0_error"]
+        return out if self.hertz else {}
+
+    def row(self, r, method: str, theta: float | None, value: float | None, fb_seconds: float):
         umax = self.scene.comm.allreduce(
             float(np.max(np.abs(self.u_fb.x.array), initial=0.0)), op=MPI.MAX
         )
@@ -165,18 +195,13 @@ class Mesh:
             "ratio": r.seconds / fb_seconds,
             "error": self.error(r) if r.converged else float("nan"),
             "error_fb": self.error_fb,
-            "dist_fb": energy_norm(self.scene, e) / self.norm_fb,
+            "dist_fb": self.distance(r),
             "norm_fb": self.norm_fb,
             "penetration": pen,
             "penetration_rel": pen / umax if umax > 0 else float("nan"),
             "force_rel": r.contact_force / self.fb.contact_force - 1.0,
         }
-        if self.hertz:
-            out["a_error"] = out["p0_error"] = float("nan")
-            if r.converged and r.contact_force > 0:
-                errors = hertz_compare(self.scene, r, self.scene.config.reference).errors
-                out["a_error"], out["p0_error"] = errors["a_error"], errors["p0_error"]
-        return out
+        return {**out, **self.extra(r)}
 
     def h_min(self) -> float:
         msh = self.scene.mesh
@@ -186,13 +211,73 @@ class Mesh:
         return msh.comm.allreduce(float(np.min(h, initial=np.inf)), op=MPI.MIN)
 
 
+class CattaneoMesh(Mesh):
+    """Cattaneo–Mindlin (two bodies, Coulomb F = 0.3 on the mortar interface): each run is
+    the scene's 4-step load path (P, then Q to Q/(F P) = 0.75), timed whole.  ``error`` — the
+    relative L² error of the tangential traction against Cattaneo–Mindlin's at the last step
+    (``q_error`` of :func:`contact.post.reference.compare`), ``c_error`` its stick zone's;
+    ``dist_fb`` — ‖λ_t − λ_t^fb‖ / ‖λ_t^fb‖ over the slave nodes at the last step (``norm_fb``
+    = 1: fb's accuracy is dist_fb ≤ TOLERANCE · fb's q_error); the penetration and the contact
+    force at the last step."""
+
+    variants, sweeps = TWO_BODY_VARIANTS, TWO_BODY_SWEEPS
+
+    def __init__(self, problem: str, scene_name: str, overrides: list[str], repeat: int):
+        self.problem, self.repeat = problem, repeat
+        self.scene = contact.load_scene(
+            f"configs/{scene_name}.yaml", ["output.verbose=false", *overrides]
+        )
+        self.hertz = False
+        self.warm("fb", {})
+        self.fb = fb = self.timed("fb", {})
+        self.lam_fb = fb.friction["lambda_t"].copy()
+        self.u_fb = fem.Function(fb.u_h.function_space)
+        self.u_fb.x.array[:] = fb.u_h.x.array
+        self.norm_fb = 1.0
+        self.error_fb = fb.q_error
+        self.fb_seconds = [fb.seconds]
+
+    def warm(self, method: str, options: dict) -> None:
+        self.timed(method, options).release()
+
+    def timed(self, method: str, options: dict):
+        """The load path by ``method``: its last step's result, with the path's wall time,
+        iterations summed over the steps and the last step's Cattaneo–Mindlin figures."""
+        t0 = time.perf_counter()
+        path = run_load_path(self.scene, method=method, verbose=False, keep_all=True, **options)
+        seconds = time.perf_counter() - t0
+        last = path.steps[-1]
+        r = last.result
+        r.seconds = seconds
+        r.converged = bool(path.converged)
+        steps = [s.result for s in path.steps]
+        r.iterations = sum(s.iterations for s in steps)
+        r.outer_iterations = sum(s.outer_iterations for s in steps)
+        r.krylov_iterations = sum(s.krylov_iterations for s in steps)
+        values = reference_compare(last.scene, r).values if r.converged else {}
+        r.q_error = values.get("q_error", float("nan"))
+        r.c_error = values.get("c_error", float("nan"))
+        return r
+
+    def error(self, r) -> float:
+        return r.q_error
+
+    def distance(self, r) -> float:
+        """‖λ_t − λ_t^fb‖ / ‖λ_t^fb‖ at the slave nodes, the last step."""
+        lam = r.friction["lambda_t"] if r.converged else self.lam_fb * np.nan
+        return float(np.linalg.norm(lam - self.lam_fb) / np.linalg.norm(self.lam_fb))
+
+    def extra(self, r) -> dict:
+        return {"c_error": r.c_error}
+
+
 def sweep(mesh: Mesh, quick: bool) -> list[dict]:
     rows = [mesh.row(mesh.fb, "fb", None, None, mesh.fb_seconds[0])]
     print_row(rows[-1])
-    for method, theta in VARIANTS:
-        values = SWEEPS[method][::3] if quick else SWEEPS[method]
+    for method, theta in mesh.variants:
+        values = mesh.sweeps[method][::3] if quick else mesh.sweeps[method]
         extra = {} if theta is None else {"nitsche_theta": theta}
-        contact.solve(mesh.scene, method=method, verbose=False, **extra)  # JIT, untimed
+        mesh.warm(method, extra)  # JIT, untimed
         runs = [(v, mesh.timed(method, {PARAMETERS[method]: v, **extra})) for v in values]
         fb_seconds = mesh.fb_time()
         for v, r in runs:
@@ -223,13 +308,20 @@ def reaches_fb(r: dict) -> bool:
     return bool(r["converged"]) and r["dist_fb"] * r["norm_fb"] <= TOLERANCE * r["error_fb"]
 
 
+def present(rows: list[dict]) -> list[tuple[str, float | None]]:
+    """The variants that have rows (two bodies: penalty and augmented Lagrangian)."""
+    return [
+        (m, t) for m, t in VARIANTS if any(r["method"] == m and r["theta"] in ("", t) for r in rows)
+    ]
+
+
 def equal_accuracy(rows: list[dict]) -> list[dict]:
     """Per mesh and variant: the smallest swept parameter that :func:`reaches_fb` (the
     fastest such run for the augmented Lagrangian, whose accuracy does not depend on r), its
     time ratio; None where no swept value reaches it."""
     out = []
     for dofs in sorted({r["dofs"] for r in rows}):
-        for method, theta in VARIANTS:
+        for method, theta in present(rows):
             runs = [
                 r
                 for r in rows
@@ -291,7 +383,7 @@ def orders(rows: list[dict]) -> list[str]:
             f"penalty on {finest} DoFs, ε₀ ∈ [{eps[0]:g}, {eps[-1]:g}]: "
             f"dist_fb ∝ ε₀^{dist:.2f}, penetration ∝ ε₀^{depth:.2f}"
         )
-    for method, theta in [("fb", None), *VARIANTS]:
+    for method, theta in [("fb", None), *present(rows)]:
         runs = defaults(rows, method, theta)
         if len(runs) >= 2:
             rate = slope([r["dofs"] for r in runs], [r["error"] for r in runs])
@@ -345,14 +437,20 @@ def chart(problem: str, rows: list[dict], out: Path) -> None:
         xscale="log",
         yscale="log",
         xlabel="wall time [s]",
-        ylabel="energy error" + (" (vs refined fb)" if "hertz" in problem else ""),
+        ylabel=(
+            "tangential traction error (L², vs Cattaneo–Mindlin)"
+            if problem == "cattaneo"
+            else "energy error" + (" (vs refined fb)" if "hertz" in problem else "")
+        ),
         title=f"{problem}: error against time (lighter: coarser mesh)",
     )
     axes[1].set(
         xscale="log",
         yscale="log",
         xlabel="parameter ε₀ / r₀ / γ₀",
-        ylabel="|||u − u_fb||| / |||u_fb|||",
+        ylabel="‖λ_t − λ_t,fb‖ / ‖λ_t,fb‖"
+        if problem == "cattaneo"
+        else "|||u − u_fb||| / |||u_fb|||",
         title="distance to the exact-constraint solution",
     )
     ref = np.array([1e1, 1e8])
@@ -380,6 +478,8 @@ def convergence_chart(all_rows: dict[str, list[dict]], out: Path) -> None:
     import matplotlib.pyplot as plt
 
     names = [p for p in ("A", "C", "hertz2d", "hertz3d") if p in all_rows]
+    if not names:  # Cattaneo–Mindlin alone: its error is a traction's, charted on its own
+        return
     fig, axes = plt.subplots(1, len(names), figsize=(5 * len(names), 4.5), squeeze=False)
     for ax, problem in zip(axes[0], names):
         rows = all_rows[problem]
@@ -436,7 +536,8 @@ def main() -> None:
         levels = levels[: 2 if args.quick else args.levels]
         rows: list[dict] = []
         for overrides in levels:
-            rows += sweep(Mesh(problem, scene_name, overrides, args.repeat), args.quick)
+            kind = CattaneoMesh if problem == "cattaneo" else Mesh
+            rows += sweep(kind(problem, scene_name, overrides, args.repeat), args.quick)
         all_rows[problem] = rows
         save_csv(out / f"{problem}.csv", rows)
         if MPI.COMM_WORLD.rank == 0:
