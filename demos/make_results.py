@@ -1030,7 +1030,10 @@ def _step41_cold() -> list[str]:
     data = [r for path in sorted((RES / "cold").glob("step41*.csv")) for r in rows(path) or []]
     # deal.II's runs that finished, by DoFs
     peers = {
-        r["dofs"]: r for r in rows(RES / "cold" / "dealii_step41.csv") or [] if r["returncode"] == 0
+        r["dofs"]: r
+        for path in sorted((RES / "cold").glob("dealii_step41*.csv"))
+        for r in rows(path) or []
+        if r["returncode"] == 0
     }
     if not data:
         return out + [missing("demos/results/cold (demos/bench/bench_cold.py)")]
