@@ -42,9 +42,10 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_baselines.py`` — penalty, augmented Lagrangian and Nitsche against fb
    over their parameters and meshes (issue 44, RESULTS §13; about 25 minutes);
    ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
-   equal error (ex9, problems A and D), ``bench_adaptive_profile.py ex9`` with every level
-   kept and with the earlier ones released (the loop's memory), ``bench_startup.py`` —
-   ``import contact`` and a tiny run (issue 41, RESULTS §14; about 10 minutes);
+   equal error (ex9, problem A and the L-shape; the loop's variants against the same uniform
+   runs), ``bench_adaptive_profile.py ex9`` with growth 2, with every level kept and with the
+   earlier ones released (the loop's memory), ``bench_startup.py`` — ``import contact`` and a
+   tiny run (issue 41, RESULTS §14; about 30 minutes);
    ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §15, minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
@@ -329,22 +330,22 @@ STEPS = {
         [
             PY,
             "demos/bench/bench_time_to_accuracy.py",
+            "--max-dofs",
+            "1400000",
             "--out",
             "demos/results/time_to_accuracy.csv",
         ],
-        *(
-            [
-                PY,
-                "demos/bench/bench_time_to_accuracy.py",
-                "ex9",
-                "A",
-                "--set",
-                option,
-                "--out",
-                f"demos/results/time_to_accuracy_{stem}.csv",
-            ]
-            for option, stem in (("adapt.theta=0.8", "theta08"), ("estimator=residual", "residual"))
-        ),
+        [
+            PY,
+            "demos/bench/bench_adaptive_profile.py",
+            "ex9",
+            "--max-dofs",
+            "700000",
+            "--set",
+            "adapt.growth=2",
+            "--out",
+            "demos/results/adaptive_cost/profile_ex9_growth2.csv",
+        ],
         *(
             [
                 PY,

@@ -14,7 +14,7 @@ import sys
 import contact
 from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
-from contact.output.run_report import resultants
+from contact.post.interface import resultants
 from contact.setup.build import build_problem
 
 import numpy as np

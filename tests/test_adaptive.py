@@ -341,3 +341,32 @@ def test_refinement_carries_functions_and_tags_with_either_partitioner(nproc):
         if nproc > 1:
             imbalance = max(cells) * nproc / sum(cells)
             assert (imbalance < 1.05) if name == "graph" else (imbalance > 1.2), line
+
+
+def test_growth_marks_enough_cells_to_double_the_dofs():
+    """adapt.growth = 2: each level has at least about twice its parent's
+    DoFs (the share of cells marked learnt from the last refinement), so problem A reaches
+    ~35k DoFs in 9 levels at the optimal rate N^{-1/2}; growth = 1, Dörfler's set alone,
+    grows by less than 1.9× per level on average and needs more levels for the same DoFs;
+    ``mark(…, fraction=f)`` marks at least the share f of the cells, the largest η_T."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    grown = adapt(scene, max_levels=9, max_dofs=10**6, growth=2, verbose=False).rows
+    dorfler = adapt(scene, max_levels=9, max_dofs=10**6, verbose=False).rows  # growth 1
+    N = np.array([r["dofs"] for r in grown], dtype=float)
+    assert np.all(N[2:] / N[1:-1] >= 1.7), N  # the rate learnt after the first refinement
+    assert np.exp(np.mean(np.diff(np.log(N)))) >= 1.9, N
+    err = np.array([r["error"] for r in grown])
+    assert -np.polyfit(np.log(N[-5:]), np.log(err[-5:]), 1)[0] >= 0.45
+    Nd = np.array([r["dofs"] for r in dorfler], dtype=float)
+    assert np.exp(np.mean(np.diff(np.log(Nd)))) < 1.9 and Nd[-1] < N[-1] / 3, Nd
+    est = contact.estimate(scene, contact.solve(scene, verbose=False))
+    cells = scene.mesh.topology.index_map(2).size_local
+    plain = contact.mark(est.eta_T, "dorfler", 0.5)
+    half = contact.mark(est.eta_T, "dorfler", 0.5, fraction=0.5)
+    assert len(plain) < cells / 2 <= len(half) and set(plain) <= set(half)
+    eta = est.eta_T.x.array[:cells]
+    assert eta[half].min() >= eta[np.setdiff1d(np.arange(cells), half)].max()
+    with pytest.raises(ValueError, match="fraction"):
+        contact.mark(est.eta_T, "dorfler", 0.5, fraction=1.5)

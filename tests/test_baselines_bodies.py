@@ -13,7 +13,7 @@ import subprocess
 import sys
 
 import contact
-from contact.output.run_report import resultants
+from contact.post.interface import resultants
 from contact.post.reference import compare
 from contact.setup.run import run_load_path
 from contact.solvers.baselines import penetration

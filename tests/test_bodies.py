@@ -11,7 +11,7 @@ from pathlib import Path
 import contact
 from contact.base.errors import ConfigError
 from contact.models.mortar import master_pressure
-from contact.output.run_report import resultants
+from contact.post.interface import resultants
 from contact.post.reference import compare
 from contact.setup.build import build_problem
 
@@ -32,9 +32,11 @@ COARSE_2D = ["mesh.h=2.0", "mesh.h_contact=0.1", "mesh.zone=1.0", "output.verbos
 P = 0.01  # the patch tests' applied pressure
 
 
-def run(tmp_path, scene, nproc, *args):
+def run(tmp_path, scene, nproc, *args, script=SCRIPT):
+    """The npz a runner ``script`` (default tests/bodies_run.py) writes for ``scene`` on
+    ``nproc`` ranks."""
     out = tmp_path / f"np{nproc}.npz"
-    cmd = [sys.executable, str(SCRIPT), str(out), str(scene), *args]
+    cmd = [sys.executable, str(script), str(out), str(scene), *args]
     if nproc > 1:
         cmd = [str(MPIRUN), "-n", str(nproc)] + cmd
     subprocess.run(

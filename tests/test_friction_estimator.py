@@ -10,8 +10,8 @@ import contact
 from contact.adaptivity.energy_error import solution_error
 from contact.base import expressions
 from contact.models.elasticity import lame, stress
-from contact.output.step_report import exact_tractions
 from contact.post.contact_table import contact_table, tangent_2d
+from contact.post.traction_curves import exact_tractions
 
 import numpy as np
 import pytest

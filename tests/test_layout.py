@@ -2,11 +2,11 @@
 pyproject.toml hold — the layers app > output > post > hp > setup > drivers > adaptivity > models
 > solvers > base (a package imports only the packages below it), no two modules or packages
 importing each other, a core (drivers, adaptivity, models, solvers, base) that never imports
-a scene, a report or the application, solvers that never import a model or a driver, a
-scalar model that never imports elasticity. Function-level ("lazy") imports count; imports
-used only for annotations (``if TYPE_CHECKING:``) do not. That a scalar *run* loads no
-elasticity module
-is test_elasticity.py::test_a_run_imports_only_its_own_model."""
+a scene, a report or the application, writers (output) that import no scene, hp loop or
+application module (they take results and a Report), solvers that never import a model or a
+driver, a scalar model that never imports elasticity. Function-level ("lazy") imports count;
+imports used only for annotations (``if TYPE_CHECKING:``) do not. That a scalar *run* loads
+no elasticity module is test_elasticity.py::test_a_run_imports_only_its_own_model."""
 
 from __future__ import annotations
 
@@ -53,6 +53,7 @@ def _copy(tmp_path: Path) -> Path:
 LAYERS, ACYCLIC = "app > output > post", "no two modules"
 SOLVERS, SCALAR = "the solvers take a problem", "a scalar model imports no elasticity"
 CORE = "the core takes problems and meshes, never a scene"
+OUTPUT = "the writers take results and a report"
 
 # (module, code appended to it, the contracts it breaks: an import up the layers closes a
 # loop too, since the lower package already imports the higher one's dependencies)
@@ -77,6 +78,16 @@ PLANTED = {
         "def _planted():\n    from ..setup.scene_config import SceneConfig\n"
         "    return SceneConfig\n",
         [LAYERS, ACYCLIC, CORE],
+    ),
+    "a writer reads a scene (lazy import)": (
+        "output/fields.py",
+        "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
+        [OUTPUT],
+    ),
+    "a writer asks the application": (
+        "output/folder.py",
+        "def _planted():\n    from ..app.dispatch import report_of\n    return report_of\n",
+        [LAYERS, ACYCLIC, OUTPUT],
     ),
     "two models import each other": (
         "models/basis.py",

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import contact  # sets up the DOLFINx libraries before dolfinx is imported
 from contact.adaptivity.energy_error import energy_error
+from contact.app.dispatch import report_of
 from contact.base import expressions
 from contact.output.run_report import active_measure, summary
 
@@ -118,4 +119,4 @@ def test_active_measure_is_the_exact_measure_under_full_contact(model):
     # every constrained node is pressed (full contact, margin ~1): no tie, no rounding can move it
     assert result.converged and result.n_active == n_constrained, (result.n_active, n_constrained)
     assert active_measure(result) == pytest.approx(exact, rel=1e-12)
-    assert summary(scene, result)["active_measure"] == active_measure(result)
+    assert summary(report_of(scene.config), result)["active_measure"] == active_measure(result)

@@ -413,3 +413,33 @@ def test_every_prose_call_fills_exactly_its_blocks_placeholders() -> None:
         if path.name != "README.md":
             for block in re.findall(r"^<!-- (\w+) -->$", path.read_text(), re.MULTILINE):
                 assert (path.stem, block) in used, f"{path.name}: block {block} is not used"
+
+
+def test_report_time_to_accuracy_section_reads_the_csv(tmp_path: Path) -> None:
+    """§14 (demos/bench/bench_time_to_accuracy.py): per scene and variant the last level, the
+    ratios adaptive / uniform and the extrapolated one, the honest summary and the chart
+    of error against CPU seconds, from the CSV."""
+    res = tmp_path / "res"
+    res.mkdir()
+    head = "scene,run,level,dofs,error,seconds,cpu,variant,target,first_reaching_seconds,"
+    head += "interpolated_seconds,first_reaching_cpu,interpolated_cpu,"
+    head += "uniform_extrapolated_cpu,extrapolated_cpu"
+    lines = [head]
+    for k, (dofs, err, cpu) in enumerate([(65, 0.19, 0.04), (225, 0.12, 0.05)]):
+        lines.append(f"lshape,uniform,{2**k},{dofs},{err},{cpu},{cpu},,,,,,,,")
+    for run, cpu in (("adaptive", 1.0), ("dorfler", 1.2)):
+        lines.append(f"lshape,{run},0,65,0.19,0.1,0.1,,,,,,,,")
+        lines.append(f"lshape,{run},1,900,0.0019,{cpu},{cpu},,,,,,,,")
+    lines.append("lshape,ratio,,,0.12,,,adaptive,0.002,2.0,2.0,0.4,0.4,944.2,0.0112")
+    lines.append("lshape,ratio,,,0.12,,,dorfler,0.002,2.0,2.0,0.47,0.44,944.2,0.0101")
+    (res / "time_to_accuracy.csv").write_text("\n".join(lines) + "\n")
+    text = _report(res, tmp_path / "R.md")
+    section = text.split("## 14.", 1)[1].split("## 15.", 1)[0]
+    assert "**lshape** to energy error 2.0e-03 (the uniform meshes stop short" in section
+    assert (
+        "| adaptive | 2 | 900 | 1.900e-03 | 1.00 | 0.40 / 0.40 | 0.0112 (89× faster) |" in section
+    )
+    assert "| dorfler | 2 | 900 | 1.900e-03 | 1.20 | 0.47 / 0.44 | 0.0101 (99× faster) |" in section
+    assert "would need about 944 s CPU for 2e-3" in section and "89× to 99× faster" in section
+    assert "`dorfler` `adapt.growth=1`" in section
+    assert (res / "time_to_accuracy.png").read_bytes()[:4] == b"\x89PNG"

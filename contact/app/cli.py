@@ -31,6 +31,7 @@ from ..base.errors import ConfigError
 from . import failures
 
 if TYPE_CHECKING:
+    from ..output.report import Report
     from ..setup.scene_config import SceneConfig
 
 
@@ -198,7 +199,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from ..setup.config import load_config
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
-    from .dispatch import choose_driver
+    from .dispatch import choose_driver, report_of
 
     hdf5.silence()  # HDF5's error stacks: a failed write is one line (contact.output.folder)
     t0 = time.perf_counter()
@@ -207,7 +208,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     outdir, label = _output_folder(args.output, cfg)
     folder.check_output(outdir, label, comm)  # before meshing and solving
     scene = build_scene(cfg, comm)
-    if scene.config.output.verbose:
+    report = report_of(cfg)  # what the run writes, read once from the configuration
+    if report.verbose:
         progress.enable(comm)
     method = scene.config.solver.method
     _say(
@@ -218,9 +220,9 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     _report_posed(scene, comm)
     driver = choose_driver(scene.config)
     if driver == "load_path":
-        return _run_steps(scene, outdir, label, comm, t0)
+        return _run_steps(scene, report, outdir, label, comm, t0)
     if driver == "adapt":
-        return _run_adaptive(scene, outdir, label, comm, t0)
+        return _run_adaptive(scene, report, outdir, label, comm, t0)
     result = solve(scene)
     _say(
         comm,
@@ -233,7 +235,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
             comm, f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
         )
         return failures.NOT_CONVERGED
-    info = write_run(outdir, scene, result, wall=time.perf_counter() - t0, label=label)
+    info = write_run(outdir, report, scene, result, wall=time.perf_counter() - t0, label=label)
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED
 
@@ -276,10 +278,13 @@ def _output_option(option: str) -> Path:
     return Path(option)
 
 
-def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
-    """The adaptive loop, writing into one atomic folder.  If the solver fails on level
-    k > 0, levels 0 … k−1 are kept: the folder is written as complete for them, with
-    ``converged: false`` and ``failed_level: k`` in summary.json, and the exit code is 1."""
+def _run_adaptive(
+    scene, report: Report, outdir: Path, label: str, comm: MPI.Comm, t0: float
+) -> int:
+    """The adaptive loop, writing what ``report`` says into one atomic folder.  If the
+    solver fails on level k > 0, levels 0 … k−1 are kept: the folder is written as complete
+    for them, with ``converged: false`` and ``failed_level: k`` in summary.json, and the
+    exit code is 1."""
     from ..drivers.adaptive import AdaptResult, format_table
     from ..hp.adapt import adapt
     from ..output import folder
@@ -293,12 +298,12 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
         f"at most {a.max_levels} levels / {a.max_dofs} DoFs",
     )
     with folder.atomic_folder(outdir, comm, label) as tmp:
-        write_level = level_writer(tmp, scene)
-        every = scene.config.output.levels == "all"  # else the last level's files only
+        write_level = level_writer(tmp, report, comm)
+        every = report.levels == "all"  # else the last level's files only
         result = adapt(
             scene,
             on_level=lambda lv: write_level(lv) if every and lv.result.converged else None,
-            keep=_kept_levels(scene),
+            keep=_kept_levels(report),
         )
         last = result.levels[-1].result
         failed = None
@@ -323,32 +328,32 @@ def _run_adaptive(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) ->
             write_level(result.levels[-1])
         info = write_adaptive(
             tmp,
-            scene,
+            report,
             result,
             wall=time.perf_counter() - t0,
             failure=failed,
             files=write_level.files,
         )
     _say(comm, f"contact: stopped: {result.stop}")
-    if not scene.config.output.verbose:  # the loop printed the table as it went otherwise
+    if not report.verbose:  # the loop printed the table as it went otherwise
         _say(comm, format_table(result.rows))
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.NOT_CONVERGED if failed else failures.SOLVED
 
 
-def _kept_levels(scene):
+def _kept_levels(report: Report):
     """Which levels the adaptive loop keeps whole for the pictures drawn after it: with
     ``adapt.pictures`` ≤ 2 (the first level and the last) or no pictures, level 0 or
     none, and the loop releases the others as it goes (the files of every level are
     written as it goes); with more, the levels between are known only at the end, and it
     keeps them all."""
-    count = scene.config.adapt.pictures if scene.config.output.png else 0
+    count = report.pictures if report.png else 0
     if count > 2:
         return None
     return lambda level: count > 0 and level.index == 0
 
 
-def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
+def _run_steps(scene, report: Report, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> int:
     """A load path (or a frictional or hyperelastic scene, one step at t = 1), writing into one
     atomic folder step by step.  If step k > 1 does not converge, steps 1 … k−1 are kept (the
     folder is complete for them, summary.json has ``converged: false`` and
@@ -360,7 +365,7 @@ def _run_steps(scene, outdir: Path, label: str, comm: MPI.Comm, t0: float) -> in
     from ..solvers.energy_search import tangent_text
 
     with folder.atomic_folder(outdir, comm, label) as tmp:
-        writer = StepWriter(tmp, scene)
+        writer = StepWriter(tmp, report, comm)
 
         def on_step(s) -> None:  # one line per step as it finishes, then its files
             fr = s.result.friction

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Literal
 
+from ..output.report import Report
 from ..setup.scene_config import SceneConfig
 
 Driver = Literal["solve", "adapt", "load_path"]
@@ -36,3 +37,32 @@ def choose_driver(config: SceneConfig, adaptive: bool | None = None) -> Driver:
     if config.load is not None or config.frictional or config.model.type == "hyperelastic":
         return "load_path"
     return "adapt" if adaptive else "solve"
+
+
+def report_of(config: SceneConfig) -> Report:
+    """What a run of the scene writes (:class:`contact.output.report.Report`), read from its
+    configuration: the ``output`` section, the adaptive loop's pictures and strategy, the
+    reference's and the friction law's names, and the labels (name, model).
+
+    Args:
+        config: the scene's config.
+
+    Returns:
+        The record the writers of :mod:`contact.output` take.
+    """
+    out, adapt, friction = config.output, config.adapt, config.friction
+    return Report(
+        name=config.name,
+        model=config.model.type,
+        elastic=config.elastic,
+        formats=tuple(out.formats),
+        png=out.png,
+        levels=out.levels,
+        pictures=adapt.pictures if adapt is not None else 3,
+        strategy=adapt.strategy if adapt is not None else None,
+        reference=config.reference.type if config.reference is not None else None,
+        friction=friction.law if friction is not None else "none",
+        tangential_form=friction.form if friction is not None else None,
+        estimator=config.estimator,
+        verbose=out.verbose,
+    )

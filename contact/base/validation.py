@@ -71,6 +71,10 @@ def nonnegative(v: Any) -> str | None:
     return None if v >= 0 else f"must be >= 0, got {v}"
 
 
+def at_least_one(v: Any) -> str | None:
+    return None if v >= 1 else f"must be >= 1, got {v}"
+
+
 def open_unit(v: Any) -> str | None:
     return None if 0 < v < 1 else f"must lie in (0, 1), got {v}"
 
@@ -93,6 +97,18 @@ def petsc_value(v: Any) -> str | None:
     if v is None or isinstance(v, (str, int, float)):
         return None
     return f"must be a string, number or boolean, got {typename(v)} {v!r}"
+
+
+def block_pair(block: Any) -> str | None:
+    """``mesh.block`` of sphere_on_block: [half-width, depth], two positive numbers."""
+    if (
+        isinstance(block, (list, tuple))
+        and len(block) == 2
+        and all(isinstance(v, (int, float)) and v > 0 for v in block)
+    ):
+        return None
+    shown = list(block) if isinstance(block, tuple) else block
+    return f"must be [half-width, depth] with positive numbers, got {shown!r}"
 
 
 def fail(text: str, key: str = "") -> PydanticCustomError:

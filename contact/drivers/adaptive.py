@@ -35,7 +35,7 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, check_shared_facets, estimate
-from ..adaptivity.mark import mark
+from ..adaptivity.mark import Growth, mark
 from ..adaptivity.refine import Domain, next_dofs_bound, refine
 from ..base import progress
 from ..base.lifetime import return_freed_memory
@@ -232,7 +232,7 @@ def adapt(
         domain: the first level's mesh or domain.
         method: the solver's method (fb, min, blend, …).
         options: the loop's :class:`~contact.solvers.options.AdaptOptions` (strategy,
-            theta, tol, max_dofs, max_levels, nested, rebalance, newton_rtol); keyword
+            theta, growth, tol, max_dofs, max_levels, nested, rebalance, newton_rtol); keyword
             ``overrides`` change single ones.
         solver: the solver's options (default: the defaults); each level solves to
             ``newton_rtol``.
@@ -270,6 +270,7 @@ def adapt(
     if solve is None:
         solve = _default_solve(build, knobs, meshes, opts.nested)
     comm = level_domain.comm
+    growth = Growth(opts.growth)  # the share of the cells marked, learnt level by level
     out = AdaptResult()
     start, outputs = time.perf_counter(), 0.0  # the loop's clock, and the outputs' share
     for index in range(opts.max_levels):
@@ -330,8 +331,11 @@ def adapt(
         if opts.strategy == "none":
             out.stop = "strategy none: one solve"
             break
+        tdim = level_domain.mesh.topology.dim
         with Timer(seconds, "mark"):
-            cells = mark(est.eta_T, opts.strategy, opts.theta)
+            fraction = growth.fraction(tdim) if opts.strategy == "dorfler" else 0.0
+            cells = mark(est.eta_T, opts.strategy, opts.theta, fraction)
+        marked = comm.allreduce(len(cells), op=MPI.SUM) / level.cells
         bound = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space)
         if bound is not None and bound > opts.max_dofs:  # refining would be wasted work
             out.stop = (
@@ -356,6 +360,7 @@ def adapt(
             else fem.functionspace(child.mesh, result.u_h.function_space.ufl_element())
         )
         new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
+        growth.observe(marked, result.dofs, new_dofs)
         if new_dofs > opts.max_dofs:
             out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
             break

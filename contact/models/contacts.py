@@ -64,14 +64,17 @@ def contact_set(
     current: bool = False,
     u_prev: fem.Function | None = None,
     allow_empty: bool = False,
+    coupled_at: np.ndarray | None = None,
 ) -> ContactSet:
     """The constraint set of ``conditions`` on the space V with the assembled K, b and the
     Dirichlet conditions ``bcs`` (module doc).  ``current``: a finite-strain body meets a
     rigid obstacle on its current configuration wherever the gap is not affine in u (a
     curved surface, or friction); ``u_prev``: the previous load step's displacement
     (friction's slips start there); ``allow_empty``: a unilateral condition may constrain
-    no DoF (else a ValueError).  K and b stay the caller's (a change of basis returns new
-    ones).  Conditions of kinds that do not go together are a ValueError."""
+    no DoF (else a ValueError); ``coupled_at``: mortar pairs coupled on the current
+    configuration of these nodal displacements (:func:`mortar_set`).  K and b stay the
+    caller's (a change of basis returns new ones).  Conditions of kinds that do not go
+    together are a ValueError."""
     conditions = tuple(conditions)
     kinds = {type(c) for c in conditions}
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
@@ -87,7 +90,7 @@ def contact_set(
             f"most one RigidObstacle; got {', '.join(type(c).__name__ for c in conditions)}"
         )
     if pairs:
-        return mortar_set(V, K, b, bcs, fixed, pairs, rigid[0] if rigid else None)
+        return mortar_set(V, K, b, bcs, fixed, pairs, rigid[0] if rigid else None, coupled_at)
     (obstacle,) = rigid
     surface = obstacle.surface
     if current and (not isinstance(surface, Plane) or obstacle.friction is not None):
@@ -168,11 +171,20 @@ def mortar_set(
     fixed: np.ndarray,
     pairs: Sequence[MortarPair],
     obstacle: RigidObstacle | None = None,
+    coupled_at: np.ndarray | None = None,
 ) -> ContactSet:
     """Mortar pairs (and a rigid obstacle's nodes) as the change of basis u = Q x
     (:mod:`.basis`): K̃ = Qᵀ K Q, b̃ = Qᵀ b, the Dirichlet and symmetry conditions imposed
     again on the unknowns x (:func:`dirichlet_on_unknowns`), the constraint x_{i,n} ≤ g_i
-    on every slave node (then the obstacle's nodes), its weights D_ii."""
+    on every slave node (then the obstacle's nodes), its weights D_ii.
+
+    ``coupled_at``: the nodal displacements u^k (V's function values, owned and ghost) of a
+    finite-strain body, whose pairs are then coupled on the current configuration
+    x^k = X + u^k (:func:`~.mortar.couple`: c_ij, n_i, D_ii and the gap g_i^k there).  The
+    bound on the unknown x = Q⁻¹ u is then g_i^k + x_{i,n}(u^k): non-penetration
+    n_i · (x_i − Σ_j c_ij x_j) ≤ 0 with the coupling frozen at u^k, exact at u = u^k
+    (the frozen coupling's fixed point, :mod:`contact.drivers.recouple`).  An obstacle's
+    nodes beside the pairs keep their reference gap (exact for a plane)."""
     msh = V.mesh
     bs = V.dofmap.index_map_bs
     mortar.check_disjoint(
@@ -180,7 +192,9 @@ def mortar_set(
         [(measure_facets(p.slave), measure_facets(p.master)) for p in pairs],
         None if obstacle is None else measure_facets(obstacle.measure),
     )
-    couplings = [mortar.couple(V, pair, fixed, f"pairs[{i}]") for i, pair in enumerate(pairs)]
+    couplings = [
+        mortar.couple(V, pair, fixed, f"pairs[{i}]", coupled_at) for i, pair in enumerate(pairs)
+    ]
     rigid = obstacle_nodes(V, fixed, obstacle) if obstacle is not None else None
     sets = couplings + ([rigid] if rigid is not None else [])
 
@@ -194,6 +208,9 @@ def mortar_set(
         np.concatenate([c.c for c in couplings] + [np.zeros(0)]),
     )
     Q, Q_inv = change_of_basis(V, K, nodes, frames, coupling, projectors)
+    if coupled_at is not None:  # the current gap as a bound on the total unknowns
+        for c, relative in zip(couplings, _relative_normal(V, b, Q_inv, coupled_at, couplings)):
+            c.gap = c.gap + relative
     Kt = K.PtAP(Q)  # K̃ = Qᵀ K Q
     bt = b.duplicate()
     Q.multTranspose(b, bt)  # b̃ = Qᵀ b
@@ -250,6 +267,26 @@ def mortar_set(
         "output_nodes": v_to_s[slave_nodes],
     }
     return ContactSet(constraint, fields, data, Kt, bt, on_unknowns)
+
+
+def _relative_normal(
+    V: fem.FunctionSpace,
+    b: PETSc.Vec,
+    Q_inv: PETSc.Mat,
+    displacement: np.ndarray,
+    couplings: list,
+) -> list[np.ndarray]:
+    """x_{i,n}(u) = n_i · (u_i − Σ_j c_ij P_i u_j) of each coupling's slave nodes for the
+    nodal ``displacement`` u: the normal components of x = Q⁻¹ u."""
+    bs = V.dofmap.index_map_bs
+    n_owned = V.dofmap.index_map.size_local * bs
+    u, x = b.duplicate(), b.duplicate()
+    u.array_w[:] = np.asarray(displacement)[:n_owned]
+    Q_inv.mult(u, x)
+    out = [x.array_r[c.nodes * bs].copy() for c in couplings]
+    for vec in (u, x):
+        vec.destroy()
+    return out
 
 
 def dirichlet_on_unknowns(

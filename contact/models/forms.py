@@ -249,6 +249,68 @@ class RotatedResidualProblem(ResidualProblem):
 
 
 @dataclass
+class MortarResidualProblem(RotatedResidualProblem, BodiesProblem):
+    """A residual problem of several bodies coupled by mortar pairs (finite strain).
+
+    The unknowns are x = Q⁻¹ u of the mortar change of basis u = Q x
+    (:func:`~.contacts.mortar_set`: each slave node's displacement relative to the master
+    surface, in its frame), so that
+
+        R̃(x) = Qᵀ F(Q x),     K̃(x) = Qᵀ J(Q x) Q,
+
+    F and J assembled *without* Dirichlet conditions (the conditions hold on the unknowns x,
+    ``bcs``: a fixed component of a slave node is one of its frame's axes there), and the
+    rows of the fixed unknowns replaced by x_d − x̄_d (residual) and the identity (tangent;
+    their columns zeroed: every iterate holds x̄_d, so the Newton step is the same).  Q is
+    that of the coupling the problem was built with (on the reference configuration, or on
+    the current one of a displacement u^k: :mod:`contact.drivers.recouple`).  The contact
+    force is the one the pairs transmit (:class:`BodiesProblem`).
+    """
+
+    _fixed: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+
+    def _fixed_unknowns(self) -> tuple[np.ndarray, np.ndarray]:
+        """(owned fixed unknowns d, their values x̄_d) of the conditions on x (``bcs``)."""
+        if self._fixed is None:
+            n_owned = self.V.dofmap.index_map.size_local * self.V.dofmap.index_map_bs
+            values = np.zeros(len(self.u_h.x.array))
+            dofs = [np.zeros(0, np.int32)]
+            for bc in self.bcs:
+                bc.set(values)
+                dofs.append(bc.dof_indices()[0])
+            d = np.unique(np.concatenate(dofs))
+            d = d[d < n_owned].astype(np.int32)
+            self._fixed = (d, values[d])
+        return self._fixed
+
+    def residual(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """Write Qᵀ F(Q x) into out, x_d − x̄_d on the fixed unknowns."""
+        self._set_iterate(x)
+        if self._F is None:
+            self._F = dolfinx.fem.petsc.create_vector(self.V)
+        F = self._F
+        with F.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(F, self._forms()[0])  # type: ignore[arg-type]
+        F.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
+        self._rotation()[0].multTranspose(F, out)
+        d, values = self._fixed_unknowns()
+        out.array_w[d] = x.array_r[d] - values
+
+    def linearize(self, x: PETSc.Vec) -> None:
+        """K = Qᵀ J(Q x) Q, the fixed unknowns' rows and columns the identity's."""
+        self._set_iterate(x)
+        Q, K_T = self._rotation()
+        K_T.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(K_T, self._forms()[1])  # type: ignore[arg-type]
+        K_T.assemble()
+        K_T.PtAP(Q, result=self.K)
+        lo = self.K.getOwnershipRange()[0]
+        d = self._fixed_unknowns()[0]
+        self.K.zeroRowsColumns((lo + d).astype(PETSc.IntType), diag=1.0)  # type: ignore[arg-type]
+
+
+@dataclass
 class CurrentResidualProblem(ResidualProblem):
     """The residual problem with contact on the current configuration.
 
@@ -620,6 +682,7 @@ def make_problem(
     u_prev: fem.Function | None = None,
     allow_empty: bool = False,
     bodies: tuple[Any, list[str]] = (None, []),
+    coupled_at: np.ndarray | None = None,
 ) -> Problem:
     """Return the problem of an assembled system and its contact conditions.
 
@@ -646,6 +709,9 @@ def make_problem(
         allow_empty: a unilateral condition may constrain no DoF.
         bodies: (cell tags, names) of several bodies in one mesh: the rigid motions each
             body keeps free (:func:`~contact.solvers.floating.floating_bodies`).
+        coupled_at: mortar pairs coupled on the current configuration of these nodal
+            displacements (finite strain; :func:`~.contacts.mortar_set`), or None: on the
+            reference configuration.
 
     Returns:
         The problem (its friction set from the conditions' friction law, if any).
@@ -657,7 +723,9 @@ def make_problem(
         K, b = matrices()
     else:
         K, b = matrices()
-        cs = contact_set(V, K, b, bcs, conditions, current=current, u_prev=u_prev)
+        cs = contact_set(
+            V, K, b, bcs, conditions, current=current, u_prev=u_prev, coupled_at=coupled_at
+        )
     K_T = None
     if cs.K is not None:  # a change of basis: K̃ = Qᵀ K Q and b̃ = Qᵀ b replace K and b
         if kind == "residual":  # K keeps the pattern of K_T(u)
@@ -675,7 +743,9 @@ def make_problem(
     else:  # an elastic body: its near-nullspace, rigid motions, mirror images
         fields.update(_body_fields(V, fixed, cs, physics, bodies))
     problem_class: type[Problem]
-    if kind == "residual":
+    if kind == "residual" and "couplings" in cs.data:
+        problem_class = MortarResidualProblem
+    elif kind == "residual":
         problem_class = {
             "plain": ResidualProblem,
             "rotated": RotatedResidualProblem,

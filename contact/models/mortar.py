@@ -91,9 +91,12 @@ class Coupling:
     search: float  # the search distance used
 
 
-def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
+def surface_facets(
+    V: fem.FunctionSpace, facets: np.ndarray, displacement: np.ndarray | None = None
+) -> Facets:
     """The exterior ``facets`` of V's mesh that belong to owned cells, as :class:`Facets`
-    (P1: the facet's vertex nodes)."""
+    (P1: the facet's vertex nodes), at the positions X + ``displacement`` (the nodal
+    displacements, owned and ghost nodes × gdim; None: the reference positions X)."""
     msh = V.mesh
     tdim, gdim = msh.topology.dim, msh.geometry.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -111,7 +114,7 @@ def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
         if len(cells)
         else np.zeros((0, tdim), np.int32)
     )
-    X = V.tabulate_dof_coordinates()[:, :gdim]
+    X = positions(V, displacement)
     Xf = X[nodes]
     normals = (
         overlap.facet_normals(Xf, X[cell_nodes].mean(axis=1)) if len(cells) else np.zeros((0, gdim))
@@ -120,16 +123,33 @@ def surface_facets(V: fem.FunctionSpace, facets: np.ndarray) -> Facets:
     return Facets(Xf, nodes, gnodes, normals)
 
 
+def positions(V: fem.FunctionSpace, displacement: np.ndarray | None = None) -> np.ndarray:
+    """The nodes' positions (owned and ghost nodes × gdim): the reference coordinates X, or
+    the current ones x = X + u for the nodal ``displacement`` u (V's node order)."""
+    gdim = V.mesh.geometry.dim
+    X = V.tabulate_dof_coordinates()[:, :gdim]
+    if displacement is None:
+        return X
+    return X + np.asarray(displacement).reshape(len(X), -1)[:, :gdim]
+
+
 def couple(
-    V: fem.FunctionSpace, pair: MortarPair, fixed: np.ndarray, key: str = "pairs[0]"
+    V: fem.FunctionSpace,
+    pair: MortarPair,
+    fixed: np.ndarray,
+    key: str = "pairs[0]",
+    displacement: np.ndarray | None = None,
 ) -> Coupling:
     """The mortar coupling of a :class:`~.constraints.MortarPair`; ``fixed`` are the local DoFs
-    with a Dirichlet or symmetry condition, ``key`` names the pair in messages.  Raises
-    ConfigError (one line, every rank) for a slave node without master facet within the
-    search distance."""
+    with a Dirichlet or symmetry condition, ``key`` names the pair in messages.  With a
+    ``displacement`` u (the nodal values of V's function, owned and ghost) the search,
+    projection, normals, D and M are those of the current configuration x = X + u and the
+    gap is the current one, g_i = n_i · (Σ_j c_ij x_j − x_i) (finite strain; the module
+    doc's formulas with X replaced by x).  Raises ConfigError (one line, every rank) for a
+    slave node without master facet within the search distance."""
     comm = V.mesh.comm
-    slave = surface_facets(V, measure_facets(pair.slave))
-    master = surface_facets(V, measure_facets(pair.master))
+    slave = surface_facets(V, measure_facets(pair.slave), displacement)
+    master = surface_facets(V, measure_facets(pair.master), displacement)
     gdim = slave.X.shape[2]
     search = pair.search or _diameter(comm, slave, master)
     imap = V.dofmap.index_map
@@ -189,7 +209,7 @@ def couple(
     use = position[M_rows] >= 0
     rows, cols_c = position[M_rows[use]], cols[use]
     c = M_vals[use] / covered[rows]
-    Xs = V.tabulate_dof_coordinates()[:n_owned, :gdim][nodes]
+    Xs = positions(V, displacement)[:n_owned][nodes]
     target = np.zeros((len(nodes), gdim))
     np.add.at(target, rows, c[:, None] * X_of[use])  # Σ_j c_ij X_j
     n_master = np.zeros((len(nodes), gdim))

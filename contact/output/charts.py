@@ -18,16 +18,32 @@ and is called on one rank.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..solvers import solves_text
 
-if TYPE_CHECKING:
-    from ..app.study import Study
+
+class Study(Protocol):
+    """What the charts read of a study (``contact.app.study.Study`` is one): its name, axes
+    (axis -> values), adaptive options, whether its cases are named, the accuracy column,
+    and the plan of a run (its raw scene, uniform refinements and adaptive options)."""
+
+    name: str
+    axes: dict[str, list]
+    adapt: dict[str, Any]
+
+    @property
+    def named_cases(self) -> bool: ...
+
+    @property
+    def accuracy(self) -> str: ...
+
+    def plan(self, params: Mapping[str, Any]) -> tuple[dict, int, dict | None]: ...
+
 
 ACCURACY_LABELS = {
     "error": "energy error ‖u − u_h‖_E",

@@ -19,14 +19,17 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from dolfinx import fem
 from mpi4py import MPI
 
-from ..setup.meshes import Boundary
 from .surface import SurfaceFiles, has_surface
 from .vtk import Series, write_vtu
 from .xdmf import XdmfSeries, write_xdmf
+
+if TYPE_CHECKING:
+    from ..setup.meshes import Boundary
 
 FORMATS = ("xdmf", "vtk")
 

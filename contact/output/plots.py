@@ -290,7 +290,7 @@ def _draw(held: list, done: dict[str, tuple[str, str]]) -> None:
                 continue
             reason = _one_line(f"{type(err).__name__}: {err}")
             done[name] = ("failed", f"not written: {reason}")
-            from ..setup.surfaces import ContactWarning
+            from ..base.errors import ContactWarning
 
             warnings.warn(f"{name} not written: {reason}", ContactWarning, stacklevel=2)
 

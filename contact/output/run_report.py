@@ -22,43 +22,30 @@ import re
 import warnings
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult
-from ..hp.adapt import HPLevel
-from ..hp.output import output_fields
 from ..post.comparison import Comparison
-from ..post.contact_table import Table, contact_table, value_name, view_normal
-from ..post.exact_data import exact_mismatches
+from ..post.contact_table import Table, contact_table, view_normal
+from ..post.exact_data import posed_problem
+from ..post.interface import resultants
 from ..post.reference import compare
 from ..post.resultants import current_pressure
-from ..setup.run import SceneLevel as Level
-from ..setup.scene import Scene
-from ..setup.untagged import untagged_boundary
 from ..solvers import Result
 from ..solvers.baselines import baseline_figures
 from ..solvers.options import BASELINE_METHODS
 from . import folder, plots
+from .degree import output_fields
 from .fields import FieldFiles
+from .report import Report
 
-
-def resultants(scene: Scene, result: Result) -> dict | None:
-    """Contact force, reaction, balance, peak pressure of an elasticity run (None for
-    scalar models; :mod:`contact.post.resultants`; with contact pairs the forces on both sides
-    of each interface and the reactions, :func:`contact.post.interface.interface_resultants`)."""
-    if not scene.config.elastic:
-        return None
-    if scene.config.pairs:
-        from ..post.interface import interface_resultants
-
-        return interface_resultants(scene, result)
-    from ..post.resultants import contact_resultants
-
-    return contact_resultants(scene, result)
+if TYPE_CHECKING:
+    from ..setup.run import SceneLevel as Level
+    from ..setup.scene import Scene
 
 
 def active_measure(result: Result) -> float:
@@ -92,13 +79,13 @@ def nodes_across(result: Result) -> float:
     return float({1: n, 2: 2 * np.sqrt(n / np.pi), 3: np.cbrt(6 * n / np.pi)}.get(dim, n))
 
 
-def warn_coarse_zone(scene: Scene, result: Result) -> None:
+def warn_coarse_zone(result: Result) -> None:
     """A one-line ContactWarning (rank 0) when the contact zone holds some but fewer than
     NODES_ACROSS nodes across: the pressure, and the forces and ratios from it, are then
     a mesh artefact (one node in contact can carry a sideways force of 10 % of the normal
     force)."""
     across = nodes_across(result)
-    if 0 < across < NODES_ACROSS and scene.comm.rank == 0:
+    if 0 < across < NODES_ACROSS and _comm(result).rank == 0:
         from ..base.errors import ContactWarning
 
         warnings.warn(
@@ -111,43 +98,30 @@ def warn_coarse_zone(scene: Scene, result: Result) -> None:
         )
 
 
-def posed_problem(scene: Scene) -> dict[str, Any]:
-    """What the scene poses beyond its parts (collective): ``untagged_boundary``, the
-    exterior facets in no boundary part, which carry the natural condition
-    (:func:`contact.setup.untagged.untagged_boundary`: ``facets``, ``measure``, ``where``,
-    ``next_to``), and for a scene with ``data.exact`` the parts where the exact solution
-    misses the scene's boundary condition (``exact_mismatch``,
-    :func:`contact.post.exact_data.exact_mismatches`; empty when it satisfies them all)."""
-    out: dict[str, Any] = {
-        "untagged_boundary": untagged_boundary(scene.mesh, scene.boundary).as_dict()
-    }
-    mismatches = exact_mismatches(scene)
-    if mismatches is not None:
-        out["exact_mismatch"] = [m.as_dict() for m in mismatches]
-    return out
-
-
 def summary(
-    scene: Scene,
+    report: Report,
     result: Result,
     wall: float | None = None,
     res: dict | None = None,
     comparison: Comparison | None = None,
     error: float | None = None,
+    posed: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
     ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
     Signorini / elasticity), the contact force, timings (seconds), errors if known, the
-    untagged boundary and the exact solution's mismatches (:func:`posed_problem`), the
-    contact resultants ``res`` of an elasticity run and the values of a declared reference."""
+    untagged boundary and the exact solution's mismatches ``posed`` (:func:`posed_problem`),
+    the contact resultants ``res`` of an elasticity run and the values of a declared
+    reference."""
     con = result.problem.constraint
-    comm = scene.comm
+    comm = _comm(result)
+    msh = result.problem.V.mesh
     out = {
-        "scene": scene.name,
-        "model": scene.config.model.type,
+        "scene": report.name,
+        "model": report.model,
         "method": result.method,
         "dofs": result.dofs,
-        "cells": scene.mesh.topology.index_map(scene.mesh.topology.dim).size_global,
+        "cells": msh.topology.index_map(msh.topology.dim).size_global,
         "degree": result.problem.V.element.basix_element.degree,
         "mpi_ranks": comm.size,
         "converged": result.converged,
@@ -181,11 +155,11 @@ def summary(
         out["sequence_note"] = result.sequence_note
     if result.method in BASELINE_METHODS:
         out.update(baseline_figures(result))
-    out.update(posed_problem(scene))
+    out.update(posed or {})
     if res is not None:
         out.update(res)
-    if comparison is not None and scene.config.reference is not None:
-        out["reference"] = scene.config.reference.type
+    if comparison is not None and report.reference is not None:
+        out["reference"] = report.reference
         out.update(comparison.values)
     # the adaptive loop's, if known
     error = solution_error(result.problem, result) if error is None else error
@@ -210,10 +184,10 @@ def point_fields(result: Result) -> list:
     return fields
 
 
-def cell_fields(scene: Scene, result: Result) -> list:
+def cell_fields(result: Result, elastic: bool) -> list:
     """Cellwise output fields: the von Mises stress for elasticity (of the Cauchy stress
     for a hyperelastic body), and the ``body`` number of each cell in a scene with bodies."""
-    if not scene.config.elastic:
+    if not elastic:
         return []
     from ..models.elasticity import von_mises
 
@@ -233,29 +207,22 @@ def solution_picture(
     )
 
 
-def plot_solution(path: Path, scene: Scene, result: Result, title: str) -> dict[str, str]:
-    """solution.png (:func:`solution_picture`), drawn on rank 0 (collective); returns
-    :func:`contact.output.plots.draw_in_turn`'s outcome."""
-    picture = solution_picture(path, result, title, view_normal(scene, result))
-    return plots.draw_in_turn([picture], scene.comm)
-
-
-def write_contact(out: Path, scene: Scene, table: Table | None) -> None:
+def write_contact(out: Path, table: Table | None, comm: MPI.Comm) -> None:
     """``contact.csv``, the rows ``table`` of :func:`contact.post.contact_table.contact_table`
     (gathered on rank 0, None on the others; collective)."""
-    folder.table_file(out / "contact.csv", table, scene.comm)
+    folder.table_file(out / "contact.csv", table, comm)
 
 
 def pressure_picture(
-    out: Path, scene: Scene, result: Result, comparison: Comparison | None, table: Table | None
+    out: Path, report: Report, result: Result, comparison: Comparison | None, table: Table | None
 ) -> list[plots.Picture]:
     """``pressure.png`` along a contact boundary Γ_C (not for an obstacle in Ω), drawn by
     rank 0 from ``table``: a list of one picture, or none."""
-    if not scene.config.output.png or result.problem.in_domain:
+    if not report.png or result.problem.in_domain:
         return []
     path = out / "pressure.png"
-    title = f"{scene.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)"
-    value = value_name(scene)
+    title = f"{report.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)"
+    value = "lambda_n" if report.elastic else "lambda"  # the table's column
 
     def draw(_) -> None:  # rank 0, which holds the table
         assert table is not None
@@ -273,36 +240,42 @@ def pressure_picture(
 
 def write_run(
     outdir: str | Path,
+    report: Report,
     scene: Scene,
     result: Result,
     wall: float | None = None,
     label: str | None = None,
 ) -> dict:
-    """Write the complete output folder atomically (``label``: the option that chose it, for
-    messages); return the summary (with ``files`` and, with pictures, ``pictures``).  The
-    data files are written first, the pictures after them, summary.json last."""
-    comm = scene.comm
+    """Write the complete output folder of ``report`` atomically (``label``: the option that
+    chose it, for messages; ``scene``: what was solved, for its figures); return the summary
+    (with ``files`` and, with pictures, ``pictures``).  The data files are written first,
+    the pictures after them, summary.json last."""
+    comm = _comm(result)
     res = resultants(scene, result)
     comparison = compare(scene, result)
-    info = summary(scene, result, wall, res, comparison)
-    warn_coarse_zone(scene, result)
-    out_cfg = scene.config.output
+    info = summary(report, result, wall, res, comparison, posed=posed_problem(scene))
+    warn_coarse_zone(result)
     with folder.atomic_folder(outdir, comm, label) as tmp:
-        files = FieldFiles(tmp, "solution", out_cfg.formats, comm, scene.config.elastic)
-        files.write_one(point_fields(result), cell_fields(scene, result), scene.boundary)
+        files = FieldFiles(tmp, "solution", report.formats, comm, report.elastic)
+        files.write_one(point_fields(result), cell_fields(result, report.elastic), scene.boundary)
         info.update(files.timings())
         folder.csv_file(tmp / "history.csv", result.history, comm)
         table = contact_table(scene, result)
-        write_contact(tmp, scene, table)
-        if out_cfg.png:
-            title = f"{scene.name}: u_h ({result.method}, {result.dofs} DoFs)"
+        write_contact(tmp, table, comm)
+        if report.png:
+            title = f"{report.name}: u_h ({result.method}, {result.dofs} DoFs)"
             pictures = [
                 solution_picture(tmp / "solution.png", result, title, view_normal(scene, result)),
-                *pressure_picture(tmp, scene, result, comparison, table),
+                *pressure_picture(tmp, report, result, comparison, table),
             ]
             info["pictures"] = plots.draw_in_turn(pictures, comm)
         _finish(tmp, info, comm)
     return info
+
+
+def _comm(result: Result) -> MPI.Comm:
+    """The communicator of a result's mesh (its solve's ranks)."""
+    return result.problem.V.mesh.comm
 
 
 def _finish(tmp: Path, info: dict, comm: MPI.Comm) -> None:
@@ -347,17 +320,18 @@ class LevelWriter:
     ``solution.xdmf`` / ``solution.pvd`` (u_h, λ_h, gap, active, η_T, the elastic cell
     fields, and an hp level's ``degree``); ``files`` keeps the seconds per format."""
 
-    def __init__(self, tmp: Path, scene: Scene):
-        formats, elastic = scene.config.output.formats, scene.config.elastic
-        self.files = FieldFiles(tmp, "solution", formats, scene.comm, elastic)
+    def __init__(self, tmp: Path, report: Report, comm: MPI.Comm):
+        self.elastic = report.elastic
+        self.files = FieldFiles(tmp, "solution", report.formats, comm, report.elastic)
 
     def __call__(self, level: Level) -> None:
         r = level.result
         est = level.estimate
-        cells = [est.eta_T, *cell_fields(level.scene, r)]
+        cells = [est.eta_T, *cell_fields(r, self.elastic)]
         points = point_fields(r)
-        if isinstance(level, HPLevel) and level.space is not None:
-            cells.append(level.space.degree_function())  # p_T: the hp mesh in ParaView
+        space = getattr(level, "space", None)  # an hp level's degrees
+        if space is not None:
+            cells.append(space.degree_function())  # p_T: the hp mesh in ParaView
             points = output_fields(points)  # P_{p_max} → the degree the formats carry
         self.files.write_step(
             level.index,
@@ -368,13 +342,13 @@ class LevelWriter:
         )
 
 
-def level_writer(tmp: Path, scene: Scene) -> LevelWriter:
-    return LevelWriter(tmp, scene)
+def level_writer(tmp: Path, report: Report, comm: MPI.Comm) -> LevelWriter:
+    return LevelWriter(tmp, report, comm)
 
 
 def write_adaptive(
     tmp: Path,
-    scene: Scene,
+    report: Report,
     adaptive: AdaptResult,
     wall: float | None = None,
     failure: dict | None = None,
@@ -385,12 +359,12 @@ def write_adaptive(
     run that failed on the level after the last of ``adaptive``) is added to summary.json:
     ``converged: false``, ``failed_level``, ``failed_reason``; ``files`` (the levels' field
     files) adds the seconds each format took."""
-    comm = scene.comm
+    last = adaptive.levels[-1]
+    comm = _comm(last.result)
     rows = adaptive.rows
     folder.csv_file(tmp / "convergence.csv", rows, comm)
-    last = adaptive.levels[-1]
-    png = scene.config.output.png
-    shown = picture_levels(adaptive, scene.config.adapt.pictures if scene.config.adapt else 3)
+    png = report.png
+    shown = picture_levels(adaptive, report.pictures)
     # the final level's figures and the pictures' view directions (contact.post, collective)
     # first, then the files
     res = resultants(last.scene, last.result)
@@ -400,15 +374,17 @@ def write_adaptive(
     if png:
         for lv in (last, *shown):
             normals[lv.index] = view_normal(lv.scene, lv.result)
-    info = summary(last.scene, last.result, wall, res, comparison, error=last.error)
+    info = summary(
+        report, last.result, wall, res, comparison, last.error, posed_problem(last.scene)
+    )
     if failure is None:  # a failed run's last line is its error
-        warn_coarse_zone(last.scene, last.result)
+        warn_coarse_zone(last.result)
     info.update(
         {
             "levels": len(rows),
             "stop": adaptive.stop,
             "eta": last.estimate.eta,
-            "strategy": scene.config.adapt.strategy if scene.config.adapt else None,
+            "strategy": report.strategy,
             "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
             # time to accuracy: the loop's wall seconds up to level k (outputs not counted)
             # and the energy error (None without data.exact) and η reached there
@@ -429,7 +405,7 @@ def write_adaptive(
         [{"level": lv.index, **h} for lv in adaptive.levels for h in lv.result.history],
         comm,
     )
-    write_contact(tmp, last.scene, table)
+    write_contact(tmp, table, comm)
     if png:
         # the largest first, drawn comm.size at a time (on 2 ranks the final solution and mesh
         # together), the convergence chart last: on 2 ranks beside the first level's mesh;
@@ -438,7 +414,7 @@ def write_adaptive(
             solution_picture(
                 tmp / "solution.png",
                 last.result,
-                f"{scene.name}: u_h on level {last.index} ({last.result.dofs} DoFs)",
+                f"{report.name}: u_h on level {last.index} ({last.result.dofs} DoFs)",
                 normals[last.index],
             )
         ]
@@ -447,17 +423,17 @@ def write_adaptive(
                 plots.mesh_picture(
                     tmp / f"mesh_level_{lv.index}.png",
                     lv.result.u_h,
-                    title=f"{scene.name}: level {lv.index}, {lv.result.dofs} DoFs",
+                    title=f"{report.name}: level {lv.index}, {lv.result.dofs} DoFs",
                     normal=normals[lv.index],
                     active=lv.result.active,
                 )
             )
-        title = f"{scene.name}: adaptive convergence"
+        title = f"{report.name}: adaptive convergence"
         chart = tmp / "convergence.png"
         pictures.append(
             plots.Picture([], lambda grid: plots.plot_convergence(chart, rows, title), chart)
         )
-        pictures += pressure_picture(tmp, last.scene, last.result, comparison, table)
+        pictures += pressure_picture(tmp, report, last.result, comparison, table)
         info["pictures"] = plots.draw_in_turn(pictures, comm)
     _finish(tmp, info, comm)
     return info

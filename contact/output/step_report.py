@@ -32,30 +32,34 @@ from __future__ import annotations
 
 import platform
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from mpi4py import MPI
 
+from ..adaptivity.estimate import estimate
 from ..drivers.load_path import LoadPath
-from ..post.contact_table import Table, contact_table, tangent_2d, view_normal
+from ..post.contact_table import Table, contact_table, view_normal
+from ..post.exact_data import posed_problem
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
-from ..setup.run import SceneStep as Step
-from ..setup.run import estimate
-from ..setup.scene import Scene
+from ..post.traction_curves import first_contact, reference_curves
 from . import folder, plots
 from .fields import FieldFiles
+from .report import Report
 from .run_report import (
     _finish,
     cell_fields,
     point_fields,
-    posed_problem,
     pressure_picture,
     solution_picture,
     warn_coarse_zone,
     write_contact,
 )
+
+if TYPE_CHECKING:
+    from ..setup.run import SceneStep as Step
 
 #: the most load steps traction.png draws a curve of (evenly spread, first and last included)
 TRACTION_CURVES = 25
@@ -67,11 +71,9 @@ class StepWriter:
     files of the folder, :class:`contact.output.folder.RowLog`), so that nothing it keeps in
     memory grows with the steps; :meth:`finish` writes the run's files from them."""
 
-    def __init__(self, tmp: Path, scene: Scene):
-        self.tmp, self.scene = tmp, scene
-        comm = scene.comm
-        formats, elastic = scene.config.output.formats, scene.config.elastic
-        self.files = FieldFiles(tmp, "solution", formats, comm, elastic)
+    def __init__(self, tmp: Path, report: Report, comm: MPI.Comm):
+        self.tmp, self.report, self.comm = tmp, report, comm
+        self.files = FieldFiles(tmp, "solution", report.formats, comm, report.elastic)
         self.rows = folder.RowLog(tmp / ".steps.jsonl", comm)
         self.levels = folder.RowLog(tmp / ".levels.jsonl", comm)
         self.history = folder.RowLog(tmp / ".history.jsonl", comm)
@@ -86,7 +88,11 @@ class StepWriter:
             return
         from ..post.load_curve import load_displacements
 
-        est = step.levels[-1].estimate if step.levels else estimate(scene, r)
+        est = (
+            step.levels[-1].estimate
+            if step.levels
+            else estimate(r.problem, r, self.report.estimator)
+        )
         row = {
             "step": k,
             "time": step.time,
@@ -115,14 +121,14 @@ class StepWriter:
         self.rows.add([row])
         self.iterations = [self.iterations[0] + r.iterations, max(self.iterations[1], r.iterations)]
         self.levels.add([{"step": k, "time": step.time, **lv.row()} for lv in step.levels])
-        folder.table_file(self.tmp / table_name(k), table, scene.comm)
+        folder.table_file(self.tmp / table_name(k), table, self.comm)
         if self.files.formats:
             nodal = point_fields(r)
             if r.friction is not None:
                 from ..solvers.friction import surface_functions
 
                 nodal += surface_functions(r)
-            cells = [*cell_fields(scene, r), *([est.eta_T] if step.levels else [])]
+            cells = [*cell_fields(r, self.report.elastic), *([est.eta_T] if step.levels else [])]
             self.files.write_step(
                 step.time, nodal, cells, {"step": k, "dofs": r.dofs}, scene.boundary
             )
@@ -134,7 +140,7 @@ class StepWriter:
         false``, the failed step) goes into summary.json.  The data files come first, the
         pictures after them (a picture that fails is a warning, ``pictures`` in
         summary.json), summary.json last.  Returns the summary."""
-        tmp, comm = self.tmp, self.scene.comm
+        tmp, comm, report = self.tmp, self.comm, self.report
         last = path.steps[-1]
         r = last.result
         self.rows.write_csv(tmp / "steps.csv", _flat)
@@ -143,15 +149,14 @@ class StepWriter:
             self.levels.write_csv(tmp / "convergence.csv")
         comparison = compare(last.scene, r)
         if failure is None:  # a failed run's last line is its error
-            warn_coarse_zone(last.scene, r)
+            warn_coarse_zone(r)
         table = contact_table(last.scene, r)
-        write_contact(tmp, last.scene, table)
-        config = self.scene.config
-        friction = config.friction.law if config.friction is not None else "none"
+        write_contact(tmp, table, comm)
+        friction = report.friction
         rows = list(self.rows.rows()) if comm.rank == 0 else []  # rank 0 writes summary.json
         info: dict[str, Any] = {
-            "scene": self.scene.name,
-            "model": self.scene.config.model.type,
+            "scene": report.name,
+            "model": report.model,
             "method": r.method,
             "friction": friction,
             "steps_total": path.count,
@@ -180,18 +185,18 @@ class StepWriter:
             info["equilibrium_branch"] = [
                 {"step": k, "time": t, "negative_eigenvalues": n} for k, t, n in path.branch_steps
             ]
-        if config.friction is not None and friction != "none":
-            info["tangential_form"] = config.friction.form
-        if self.scene.config.elastic:  # the forces are of the whole body
+        if report.tangential_form is not None and friction != "none":
+            info["tangential_form"] = report.tangential_form
+        if report.elastic:  # the forces are of the whole body
             info["symmetric_copies"] = r.problem.symmetric_copies
         info.update(failure or {})
-        if comparison is not None and config.reference is not None:
-            info["reference"] = config.reference.type
+        if comparison is not None and report.reference is not None:
+            info["reference"] = report.reference
             info.update(comparison.values)
-        if config.output.png:
+        if report.png:
             origin, t0 = first_contact(last.scene, r)
             normal = view_normal(last.scene, r)
-            name, dofs = self.scene.name, r.dofs
+            name, dofs = report.name, r.dofs
 
             def traction(_) -> None:  # rank 0: the tables of the steps drawn, read back
                 plots.plot_traction(
@@ -219,7 +224,7 @@ class StepWriter:
                     tmp / "force.png",
                     root=True,
                 ),
-                *pressure_picture(tmp, last.scene, r, comparison, table),
+                *pressure_picture(tmp, report, r, comparison, table),
             ]
             info["pictures"] = plots.draw_in_turn(pictures, comm)
         for log in (self.rows, self.levels, self.history):
@@ -290,21 +295,6 @@ def load_forces(rows: list[dict[str, Any]]) -> dict[str, list[float]]:
     }
 
 
-def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
-    """The first point of contact (smallest initial gap, over all ranks; collective) and, in
-    2D with a contact normal (elasticity), the tangent t_0 of the position's sign convention
-    (None for the scalar models, whose tractions have no tangential part)."""
-    from ..models.obstacles import first_contact_point
-
-    p = result.problem
-    con = p.constraint
-    gdim = scene.mesh.geometry.dim
-    X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    return first_contact_point(scene.comm, X, con.sign * con.g), (
-        tangent_2d(result) if gdim == 2 and "n" in p.data else None
-    )
-
-
 def _flat(row: dict[str, Any]) -> dict[str, Any]:
     """A CSV row: vectors as one column per component (``contact_force_x`` …)."""
     out = {}
@@ -315,76 +305,3 @@ def _flat(row: dict[str, Any]) -> dict[str, Any]:
         else:
             out[key] = value
     return out
-
-
-def reference_curves(
-    scene: Scene,
-    table: Table | None,
-    comparison=None,
-    origin: np.ndarray | None = None,
-    t0: np.ndarray | None = None,
-) -> list:
-    """Reference curves of the traction plot (rank 0): the exact tractions of a declared
-    exact solution (``data.exact``, 2D), or the pressure of a declared reference
-    (``reference:``, e.g. Hertz for the computed force) on both sides of the first point of
-    contact ``origin`` (2D; in 3D against r)."""
-    if table is None or scene.comm.rank != 0:
-        return []
-    if scene.config.data.exact is not None:
-        return exact_tractions(scene, table, t0)
-    if comparison is None or not (comparison.curves or comparison.traction_curves):
-        return []
-    curves = [(0, *c) for c in comparison.curves] + [(1, *c) for c in comparison.traction_curves]
-    if "s" not in table:
-        return curves
-    X = np.c_[table["x"], table["y"]]
-    assert origin is not None  # a table with arc lengths s has a first point of contact
-    s0 = float(table["s"][int(np.argmin(np.linalg.norm(X - origin[:2], axis=1)))])
-    return [
-        (panel, np.r_[s0 - x[::-1], s0 + x], np.r_[y[::-1], y], label)
-        for panel, x, y, label in curves
-    ]
-
-
-def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float = 1e-6) -> list:
-    """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
-    nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
-    obstacle's normal at the node, t_0 of :func:`contact.post.contact_table.tangent_2d`)."""
-    from ..base import expressions
-    from ..models.elasticity import lame
-
-    cfg = scene.config
-    exact = cfg.data.exact
-    if (
-        scene.mesh.geometry.dim != 2
-        or not isinstance(exact, tuple)
-        or "s" not in table
-        or t0 is None
-    ):
-        return []
-    X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
-    u = [expressions.to_numpy(e, cfg.constants, t=scene.time) for e in exact]
-    grad = np.empty((X.shape[1], 2, 2))
-    for j in range(2):
-        e = np.zeros((3, 1))
-        e[j] = h
-        for i in range(2):
-            grad[:, i, j] = (u[i](X + e) - u[i](X - e)) / (2 * h)
-    assert cfg.model.E is not None and cfg.obstacle is not None  # one body, an obstacle
-    mu, lmbda = lame(cfg.model.E, cfg.model.nu)
-    eps = 0.5 * (grad + grad.transpose(0, 2, 1))
-    sigma = 2 * mu * eps + lmbda * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
-    obstacle = cfg.obstacle
-    if obstacle.type == "plane":
-        nu_o = np.asarray(obstacle.normal, float)
-        n = np.tile(
-            -nu_o / np.linalg.norm(nu_o),
-            (X.shape[1], 1),
-        )
-    else:
-        d = np.asarray(obstacle.center, float)[:, None] - X[:2]
-        n = (d / np.linalg.norm(d, axis=0)).T
-    T = np.einsum("nij,nj->ni", sigma, n)
-    lam_n = np.einsum("ni,ni->n", T, n)
-    lam_t = (T - lam_n[:, None] * n) @ t0
-    return [(0, table["s"], -lam_n, "exact solution"), (1, table["s"], lam_t, "exact solution")]

@@ -31,14 +31,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ..setup.meshes import Boundary
 from .xdmf import XdmfSeries, write_xdmf
+
+if TYPE_CHECKING:
+    from ..setup.meshes import Boundary
 
 NAME = "contact_surface"
 #: the boundary roles whose facets make the contact surface

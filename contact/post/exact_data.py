@@ -34,6 +34,7 @@ from ..models.physics import stress
 from ..setup.meshes import NATURAL
 from ..setup.scene import Scene
 from ..setup.scene_config import components
+from ..setup.untagged import untagged_boundary
 
 #: relative round-off floor of the test d_P > max(i_P, RTOL (‖B u‖ + ‖b‖))
 RTOL = 1e-8
@@ -184,3 +185,19 @@ def facet_integrals(msh, tags, terms: list[tuple[int, Any]], degree: int) -> np.
 
 def _zero(f: Any) -> bool:
     return isinstance(f, (int, float)) and f == 0 or isinstance(f, ufl.constantvalue.Zero)
+
+
+def posed_problem(scene: Scene) -> dict[str, Any]:
+    """What the scene poses beyond its parts (collective): ``untagged_boundary``, the
+    exterior facets in no boundary part, which carry the natural condition
+    (:func:`contact.setup.untagged.untagged_boundary`: ``facets``, ``measure``, ``where``,
+    ``next_to``), and for a scene with ``data.exact`` the parts where the exact solution
+    misses the scene's boundary condition (``exact_mismatch``,
+    :func:`exact_mismatches`; empty when it satisfies them all)."""
+    out: dict[str, Any] = {
+        "untagged_boundary": untagged_boundary(scene.mesh, scene.boundary).as_dict()
+    }
+    mismatches = exact_mismatches(scene)
+    if mismatches is not None:
+        out["exact_mismatch"] = [m.as_dict() for m in mismatches]
+    return out

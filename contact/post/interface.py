@@ -23,7 +23,7 @@ from petsc4py import PETSc
 
 from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
-from .resultants import nodal_gap, whole_body
+from .resultants import contact_resultants, nodal_gap, whole_body
 
 
 def effective_modulus(materials: list[tuple[float, float]]) -> float:
@@ -138,3 +138,14 @@ def output_dofs(problem, nodes: np.ndarray) -> np.ndarray:
     s_of_node = np.empty(len(problem.output_map), dtype=np.int64)
     s_of_node[problem.output_map // bs] = np.arange(len(problem.output_map))
     return s_of_node[nodes]
+
+
+def resultants(scene: Scene, result: Result) -> dict | None:
+    """Contact force, reaction, balance, peak pressure of an elasticity run (None for
+    scalar models; :mod:`.resultants`; with contact pairs the forces on both sides
+    of each interface and the reactions, :func:`interface_resultants`)."""
+    if not scene.config.elastic:
+        return None
+    if scene.config.pairs:
+        return interface_resultants(scene, result)
+    return contact_resultants(scene, result)

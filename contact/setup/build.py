@@ -6,13 +6,17 @@ never loads the elasticity modules, a linear one never the hyperelastic module."
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..models.discrete import Problem
 from .scene import Scene
 
 
-def build_problem(scene: Scene) -> Problem:
+def build_problem(scene: Scene, coupled_at: np.ndarray | None = None) -> Problem:
     """The problem of the scene's model (within the DoF budget, else ConfigError): its
-    discrete problem with the physics and contact conditions the estimators read."""
+    discrete problem with the physics and contact conditions the estimators read;
+    ``coupled_at``: the nodal displacements on whose current configuration a hyperelastic
+    scene's mortar pairs are coupled (None: the reference configuration)."""
     from .budget import check_dofs, mesh_dofs
 
     cfg, msh = scene.config, scene.mesh
@@ -27,7 +31,7 @@ def build_problem(scene: Scene) -> Problem:
     if cfg.model.type == "hyperelastic":
         from .hyperelastic import hyperelastic_problem
 
-        return hyperelastic_problem(scene)
+        return hyperelastic_problem(scene, coupled_at)
     if cfg.model.type == "elasticity":
         from .elastic import bodies_problem, elasticity_problem
 

@@ -240,6 +240,22 @@ def scene_rigid(scene: Scene, ds: ufl.Measure) -> RigidObstacle:
     )
 
 
+def scene_pairs(scene: Scene, ds: ufl.Measure) -> tuple[MortarPair, ...]:
+    """The scene's contact pairs as :class:`~contact.models.constraints.MortarPair` s on
+    their boundary parts (``ds`` over the boundary tags), with the scene's friction law."""
+    bnd, law = scene.boundary, friction_law(scene)
+    return tuple(
+        MortarPair(
+            ds(bnd.ids[pair.slave]),
+            ds(bnd.ids[pair.master]),
+            friction=law,
+            search=pair.search,
+            names=(pair.slave, pair.master),
+        )
+        for pair in scene.config.pairs or ()
+    )
+
+
 def reaction_form(a_ufl: ufl.Form, L_ufl: ufl.Form, u_h: fem.Function) -> fem.Form:
     """The residual without Dirichlet rows, a(u_h, v) − L(v), for reaction forces."""
     return fem.form(ufl.action(a_ufl, u_h) - L_ufl)
@@ -258,21 +274,11 @@ def elasticity_problem(scene: Scene, mu=None, lmbda_L=None, body=None) -> Proble
         assert cfg.model.E is not None  # one body against an obstacle
         mu, lmbda_L = lame(cfg.model.E, cfg.model.nu)
     s = elastic_setting(scene)
-    V, ds, bnd = s.V, s.data["ds"], scene.boundary
+    V, ds = s.V, s.data["ds"]
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     a_ufl = ufl.inner(stress(u, mu, lmbda_L), epsilon(v)) * ufl.dx(domain=scene.mesh)
     u_h = fem.Function(V, name="u_h")
-    law = friction_law(scene)
-    conditions: tuple = tuple(
-        MortarPair(
-            ds(bnd.ids[pair.slave]),
-            ds(bnd.ids[pair.master]),
-            friction=law,
-            search=pair.search,
-            names=(pair.slave, pair.master),
-        )
-        for pair in cfg.pairs or ()
-    )
+    conditions: tuple = scene_pairs(scene, ds)
     if cfg.obstacle is not None:
         conditions += (scene_rigid(scene, ds),)
     data = {

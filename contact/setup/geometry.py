@@ -35,7 +35,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import la
@@ -43,6 +43,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+from ..base.validation import block_pair
 
 if TYPE_CHECKING:
     from .scene_config import MeshConfig
@@ -296,18 +297,6 @@ def half_disks(
         _generate(gmsh, 2)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
-
-
-def block_pair(block: Any) -> str | None:
-    """``mesh.block`` of sphere_on_block: [half-width, depth], two positive numbers."""
-    if (
-        isinstance(block, (list, tuple))
-        and len(block) == 2
-        and all(isinstance(v, (int, float)) and v > 0 for v in block)
-    ):
-        return None
-    shown = list(block) if isinstance(block, tuple) else block
-    return f"must be [half-width, depth] with positive numbers, got {shown!r}"
 
 
 def sphere_on_block(

@@ -7,7 +7,9 @@ configuration for a circle or sphere and with friction — built by the same
 from __future__ import annotations
 
 import time
+from typing import Any
 
+import numpy as np
 import ufl
 from dolfinx import fem
 
@@ -22,22 +24,33 @@ from ..models.hyperelastic import (
 )
 from ..models.physics import piola_and_cauchy
 from .checks import check_scene_data
-from .elastic import elastic_physics, elastic_setting, scene_rigid
+from .elastic import elastic_physics, elastic_setting, materials, scene_pairs, scene_rigid
 from .scene import Scene
 
 
-def hyperelastic_problem(scene: Scene) -> Problem:
-    """The contact problem of a hyperelastic body against the scene's rigid obstacle
+def hyperelastic_problem(scene: Scene, coupled_at: np.ndarray | None = None) -> Problem:
+    """The contact problem of a hyperelastic body against the scene's rigid obstacle, or of
+    several hyperelastic bodies in contact through the scene's mortar pairs
     (:mod:`contact.models.hyperelastic`): R(u; v) and K_T = ∂R/∂u from the energy
-    (quadrature of degree 2p), Π(u) for the energy line search, det F checked for
-    admissibility; the obstacle's bound, rotated bound or contact on the current
-    configuration (:func:`~contact.models.contacts.contact_set`), with the scene's friction
-    law."""
+    (quadrature of degree 2p; one law, Lamé parameters per body), Π(u) for the energy
+    line search, det F checked for admissibility; the obstacle's bound, rotated bound or
+    contact on the current configuration (:func:`~contact.models.contacts.contact_set`),
+    with the scene's friction law; the pairs coupled on the current configuration of the
+    nodal displacements ``coupled_at`` (None: the reference one;
+    :mod:`contact.drivers.recouple` iterates the coupling to its fixed point)."""
     t0 = time.perf_counter()
     check_scene_data(scene)
-    model = scene.config.model
-    assert model.E is not None and model.law is not None  # required by the loader
-    mu, lmbda_L = lame(model.E, model.nu)
+    config = scene.config
+    model = config.model
+    assert model.law is not None  # required by the loader
+    body = None
+    mu: Any
+    lmbda_L: Any
+    if config.bodies:  # one material per body (DG0 Lamé parameters)
+        mu, lmbda_L, body = materials(scene)
+    else:
+        assert model.E is not None  # required by the loader for one body
+        mu, lmbda_L = lame(model.E, model.nu)
     s = elastic_setting(scene)
     V = s.V
     u_h = fem.Function(V, name="u_h")
@@ -47,7 +60,10 @@ def hyperelastic_problem(scene: Scene) -> Problem:
     R, J, potential = hyperelastic_forms(u_h, model.law, mu, lmbda_L, s.L_ufl, degree)
     F_form, J_form = fem.form(R), fem.form(J)
     law = model.law
-    obstacle = scene_rigid(scene, s.data["ds"])
+    conditions: tuple = scene_pairs(scene, s.data["ds"])
+    obstacle = scene_rigid(scene, s.data["ds"]) if config.obstacle is not None else None
+    if obstacle is not None:
+        conditions += (obstacle,)
 
     def stresses(u):
         return piola_and_cauchy(u, law, mu, lmbda_L)
@@ -58,15 +74,17 @@ def hyperelastic_problem(scene: Scene) -> Problem:
         "reaction_form": F_form,
         "stresses": stresses,
         "law": model.law,
-        "deformed_area": fem.form(deformed_area(u_h, v, obstacle.measure)),
+        **({} if body is None else {"body": body, "mu": mu, "lmbda_L": lmbda_L}),
     }
+    if obstacle is not None:
+        data["deformed_area"] = fem.form(deformed_area(u_h, v, obstacle.measure))
     return make_problem(
         "residual",
         V,
         u_h,
         s.bcs,
         lambda: ResidualProblem.matrices(J_form, s.bcs),
-        (obstacle,),
+        conditions,
         t0,
         physics=elastic_physics(scene, s, mu, lmbda_L, law=model.law),
         data=data,
@@ -78,4 +96,6 @@ def hyperelastic_problem(scene: Scene) -> Problem:
         },
         current=True,
         u_prev=scene.history.get("u_prev"),
+        bodies=(scene.bodies, list(config.bodies or ())),
+        coupled_at=coupled_at,
     )

@@ -28,6 +28,7 @@ from ..base.errors import ConfigError, ContactWarning
 from ..drivers.adaptive import AdaptResult, Level, check_on_level
 from ..drivers.adaptive import adapt as adapt_domain
 from ..drivers.load_path import LoadPath, Previous, Step, run_steps
+from ..drivers.recouple import solve_recoupled
 from ..drivers.solve import Enforce
 from ..drivers.solve import solve as solve_problem
 from ..solvers import Result
@@ -268,6 +269,12 @@ def solve(
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
     config = scene.config  # validated at load, immutable: only the call's overrides are checked
+    if problem is None and config.model.type == "hyperelastic" and config.pairs:
+        # finite strain: the pairs' coupling follows the current configuration
+        def once(built: DiscreteProblem, guess: fem.Function | None) -> Result:
+            return solve(scene, method, built, guess, verbose, criterion, **options)
+
+        return solve_recoupled(functools.partial(build_problem, scene), once, u0)
     opts = config.solver.updated(config.constants, method=method, **options)
     verbose = config.output.verbose if verbose is None else verbose
     built_here = problem is None
@@ -385,7 +392,7 @@ def adapt(
             default) keeps every level whole; ``lambda level: False`` releases all but
             the last.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
-            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``tol``,
+            maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``growth``, ``tol``,
             ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
             ``pictures``.
 

@@ -52,6 +52,7 @@ from ..base.validation import (
     a_list,
     among,
     below,
+    block_pair,
     boolean,
     checked,
     fail,
@@ -69,7 +70,6 @@ from ..base.validation import (
     typename,
 )
 from ..solvers.options import AdaptOptions, FrictionOptions, SolverOptions
-from .geometry import block_pair
 
 #: models whose unknown is a displacement vector: linear elasticity (small strain) and
 #: hyperelastic bodies (finite strain, contact/models/hyperelastic.py)
@@ -391,7 +391,7 @@ Switch = Annotated[bool, BeforeValidator(boolean)]
 
 class AdaptConfig(AdaptOptions, Section):
     """A scene's ``adapt`` section (docs/theory.md §6): the loop's knobs
-    (:class:`~contact.solvers.options.AdaptOptions`: ``strategy``, ``theta``, ``tol``,
+    (:class:`~contact.solvers.options.AdaptOptions`: ``strategy``, ``theta``, ``growth``, ``tol``,
     ``max_dofs``, ``max_levels``, ``nested``, ``rebalance``, ``newton_rtol``), ``strategy``
     also hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`), ``pictures`` —
     levels drawn; ``p_max``, ``p_start`` — with ``hp``, the largest degree and every

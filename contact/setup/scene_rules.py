@@ -151,9 +151,10 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
 
 def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
-    does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs,
-    the adaptive loop except against a plane without friction, a reference solution, an
-    exact solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is
+    does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs with
+    friction, an obstacle or the adaptive loop, the adaptive loop except against a plane
+    without friction, a reference solution against an obstacle, an exact solution, grid
+    sequencing, Coulomb's fixed point.  Returns whether the scene is
     hyperelastic (then it solves without grid sequencing)."""
     law = config.model.law
     if model != "hyperelastic":
@@ -164,15 +165,18 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
         raise ConfigError(
             f"model.law: required for model type hyperelastic ({', '.join(HYPERELASTIC_LAWS)})"
         )
-    for key, what in (
-        ("bodies", "several bodies"),
-        ("pairs", "contact pairs"),
-        ("reference", "a reference solution"),
-    ):
-        if getattr(config, key):
-            raise ConfigError(f"{key}: not available for model type hyperelastic ({what})")
+    if config.reference is not None and not config.pairs:
+        raise ConfigError(
+            "reference: not available for model type hyperelastic against a rigid obstacle"
+        )
     friction = config.friction
     frictional = friction is not None and friction.law != "none"
+    if config.pairs and (frictional or config.obstacle is not None or config.adapt is not None):
+        key = "friction" if frictional else "obstacle" if config.obstacle is not None else "adapt"
+        raise ConfigError(
+            f"{key}: hyperelastic bodies in contact through pairs are frictionless, without a "
+            "rigid obstacle and without the adaptive loop (not implemented)"
+        )
     method = config.solver.method
     obstacle = config.obstacle.type if config.obstacle is not None else "plane"
     if config.adapt is not None and (obstacle != "plane" or frictional):
@@ -444,7 +448,8 @@ def _check_moving_point(point: tuple, constants: Mapping[str, float], key: str =
 
 
 def _check_reference(config: SceneConfig) -> ReferenceConfig:
-    """A declared reference fits the scene: Hertz needs elastic contact and a radius (given,
+    """A declared reference fits the scene: Hertz needs elastic contact (hyperelastic bodies:
+    the small-load limit, two bodies only) and a radius (given,
     or the radius of a built-in quarter_disk / sphere_octant / sphere_on_block, the effective
     radius R1 R2 / (R1 + R2) of half_disks, filled in here).  With contact pairs the radius is
     the effective one, 1/R = 1/R1 + 1/R2, and E* comes from the two bodies of the first pair.
@@ -457,7 +462,7 @@ def _check_reference(config: SceneConfig) -> ReferenceConfig:
         raise ConfigError(
             "reference.type: cattaneo_mindlin needs Coulomb friction (friction.law: coulomb)"
         )
-    if config.model.type != "elasticity":
+    if config.model.type not in ELASTIC_MODELS:  # hyperelastic: its small-load limit
         raise ConfigError(f"reference.type: {ref.type} needs model type elasticity")
     if ref.radius is not None:
         return ref

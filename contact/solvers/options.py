@@ -18,6 +18,7 @@ from pydantic import BaseModel, BeforeValidator, ConfigDict
 from ..base.errors import ConfigError, petsc_message
 from ..base.validation import (
     FrozenDict,
+    at_least_one,
     auto_or_positive,
     boolean,
     checked,
@@ -216,6 +217,11 @@ class AdaptOptions(BaseModel):
     Attributes:
         strategy: dorfler, maximum, uniform or none (one solve).
         theta: the marking fraction in (0, 1].
+        growth: each level has at least this many times its parent's DoFs: the cells of
+            largest η_T join Dörfler's set until the predicted DoFs grow by it
+            (:class:`~contact.adaptivity.mark.Growth`), so the levels are O(log N) and the
+            loop costs at most growth/(growth − 1) times its last level; 1 (the default):
+            Dörfler's set alone.
         tol: stop at η ≤ tol.
         max_dofs: the most DoFs of a level.
         max_levels: the most levels.
@@ -233,6 +239,7 @@ class AdaptOptions(BaseModel):
 
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
     theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
+    growth: Annotated[float, BeforeValidator(number(at_least_one))] = 1.0
     tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
     max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
     max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8

@@ -522,16 +522,35 @@ def force_scale(
     set_dirichlet(x, problem.bcs)
     cp.phi(x, f, method, mu)
     peak = total = norm_inf(f)
-    if np.isnan(peak):  # a nonlinear residual undefined at x_D (cells a finite-strain body's
-        peak = total = 0.0  # prescribed displacement inverts while the rest stays): rtol alone
+    # a nonlinear residual undefined at x_D (cells a finite-strain body's prescribed
+    # displacement inverts while the rest stays): no atol (F = 0, rtol decides), but the
+    # round-off floor's cap F₁ is the total force at the largest fraction 2^-k x_D where Φ
+    # is defined — with a cap of 0 a start near the solution (a repeated load step, a
+    # re-coupled mortar problem) was asked for rtol ‖Φ_0‖, below round-off, and ran to
+    # max_it (decided on every rank alike: a maximum over ranks with a NaN is not)
+    comm = problem.V.mesh.comm
+    undefined = comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR)
+    for _ in range(FORCE_SCALE_HALVINGS if undefined else 0):
+        x.scale(0.5)
+        cp.phi(x, f, method, mu)
+        if not comm.allreduce(bool(np.isnan(f.array_r).any()), op=MPI.LOR):
+            peak = total = norm_inf(f)
+            break
+    else:
+        if undefined:  # at every fraction tried: rtol alone
+            peak = total = 0.0
     if 0.0 < peak < np.inf:  # ‖f‖₁ as ‖f‖_∞ ‖f / ‖f‖_∞‖₁: huge data do not overflow
         f.scale(1.0 / peak)
         total = peak * norm1(f)
+    if undefined:
+        peak = 0.0
     x.destroy()
     f.destroy()
     return peak, total
 
 
+#: halvings of the prescribed displacement x_D tried for the force scale (force_scale)
+FORCE_SCALE_HALVINGS = 20
 ROUNDOFF = 16.0  # the floor below: measured 0.7 ε ‖K‖_∞ ‖x‖ reached at 256² (Laplace, P1)
 
 

@@ -102,10 +102,11 @@ def main() -> None:
     start = dict(clock)
     writer = None
     if args.output:
+        from contact.app.dispatch import report_of
         from contact.output.run_report import level_writer
 
         folder = tempfile.TemporaryDirectory()
-        writer = level_writer(Path(folder.name), scene)
+        writer = level_writer(Path(folder.name), report_of(scene.config), scene.comm)
 
     def on_level(level) -> None:
         if writer is not None:

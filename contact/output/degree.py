@@ -1,11 +1,11 @@
-"""The fields of an hp level as the output formats carry them.
+"""High-degree fields (an hp level's) as the output formats carry them.
 
 XDMF and VTK carry Lagrange fields up to degree :data:`OUTPUT_DEGREE` here (the output mesh
 takes the fields' degree as its geometry degree, and the XDMF cell types stop at 2), while
 an hp solution lives in P_{p_max}.  A level is written as the Lagrange interpolant of degree
 :data:`OUTPUT_DEGREE` of each field: at the vertices (and, for even p_max, at the edge
 midpoints, nodes of P_{p_max} too) the values are u_h's own nodal values; the cell field
-``degree`` (:meth:`.space.HPSpace.degree_function`) shows where the degrees went.  The
+``degree`` (``contact.hp.space.HPSpace.degree_function``) shows where the degrees went.  The
 P_{p_max} coefficients stay available from Python (``level.result.u_h``).
 """
 

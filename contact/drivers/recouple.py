@@ -1,0 +1,116 @@
+"""Mortar pairs of finite-strain bodies on the current configuration: the coupling's fixed point.
+
+The dual-mortar coupling of a pair (:mod:`contact.models.mortar`) — the segment search, the
+projection of the slave facets onto the master surface, D, M, c_ij, the nodal normals n_i
+and the gap — depends on where the surfaces are.  At finite strain they are where the
+displacement puts them, x = X + u.  One load step solves the sequence
+
+    u^{k+1} = the solution with the coupling frozen at x^k = X + u^k,     u^0 = the start,
+
+each a semismooth Newton solve of R̃(x) = Qᵀ F(Q x) on the unknowns x = Q_k⁻¹ u with the
+bound n_i^k · (u_i − Σ_j c_ij^k u_j) ≤ n_i^k · (Σ_j c_ij^k x_j^k − x_i^k) + (Q_k⁻¹ u^k)_{i,n}
+(:func:`contact.models.contacts.mortar_set`; exact non-penetration of the current surfaces at
+u = u^k, transmitted by the current c_ij along the current normals: action = reaction).  A
+fixed point u^{k+1} = u^k solves the contact problem of the deformed bodies: its coupling
+is that of its own configuration.  The Newton solves are quadratic in their own problem;
+the derivative of c_ij, n_i and D_ii with respect to u is not in the Jacobian, so the outer
+sequence converges linearly, at a rate set by how much the coupling moves per unit of u
+(uniform stretching of flat surfaces: the projections move, the normals do not).
+
+Criterion.  The outer sequence is stopped on the displacement it moves: with
+d_k = max|u^{k+1} − u^k| / max|u^{k+1}| and the observed contraction ρ_k = d_k / d_{k−1},
+the distance to the fixed point is about d_k ρ_k / (1 − ρ_k) (d_k itself before a rate is
+known, or where ρ_k ≥ 1), and the step is done when that is ≤ :data:`COUPLING_RTOL`.  (A
+residual test is blind here: every solve starts by polishing its guess on the guess's
+active set, so its first ‖Φ‖ is already that of the new coupling's solution.)  Every solve
+is run to its own tolerance, and the last one's result is returned.  At most
+:data:`MAX_COUPLINGS` couplings per solve (then not converged, reason
+``diverged_couplings``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+
+from ..models.discrete import Problem
+from ..solvers.result import Result
+
+#: the couplings of one load step at most (the outer fixed point's iterations)
+MAX_COUPLINGS = 60
+#: the fixed point's relative displacement error at which a solve's coupling is final
+COUPLING_RTOL = 1e-9
+
+
+def solve_recoupled(
+    build: Callable[[np.ndarray | None], Problem],
+    solve: Callable[[Problem, fem.Function | None], Result],
+    u0: fem.Function | None = None,
+    max_couplings: int = MAX_COUPLINGS,
+) -> Result:
+    """Solve a problem of mortar pairs on the current configuration (module doc).
+
+    Args:
+        build: The problem with its pairs coupled on the current configuration of the
+            given nodal displacements (V's function values, owned and ghost; None: the
+            reference configuration).
+        solve: One solve of a problem from a guess on its space (None: the cold start).
+        u0: The start u^0 (the previous load step's solution), or None (a cold start; the
+            first coupling is then that of the reference configuration).
+        max_couplings: The couplings at most.
+
+    Returns:
+        The last solve's result, with ``couplings``: one row per coupling (its Newton
+        iterations, its first (polished) and final ‖Φ‖, d_k and the error estimate); its
+        ``history`` every solve's Newton iterates (a ``coupling`` column), ``iterations``
+        their sum.  Superseded problems are destroyed.
+    """
+    at = None if u0 is None else u0.x.array.copy()
+    log: list[dict] = []
+    histories: list[list[dict]] = []
+    result = None
+    for k in range(max_couplings):
+        problem = build(at)
+        guess = None
+        if at is not None:
+            guess = fem.Function(problem.V)
+            guess.x.array[:] = at
+        if result is not None:
+            result.problem.destroy()
+        result = solve(problem, guess)
+        histories.append(result.history)
+        u = result.u_h.x.array
+        comm = problem.V.mesh.comm
+        size = comm.allreduce(float(np.max(np.abs(u), initial=0.0)), op=MPI.MAX)
+        moved = np.inf if at is None else float(np.max(np.abs(u - at), initial=0.0))
+        change = comm.allreduce(moved, op=MPI.MAX) / size if size > 0 else 0.0
+        rate = change / log[-1]["change"] if k > 1 and log[-1]["change"] > 0 else np.nan
+        error = change * rate / (1.0 - rate) if 0.0 <= rate < 1.0 else change
+        log.append(
+            {
+                "coupling": k,
+                "newton": result.iterations,
+                "first": result.history[0]["residual"],
+                "final": result.history[-1]["residual"],
+                "change": change,
+                "error": error,
+            }
+        )
+        if not result.converged or (k > 0 and error <= COUPLING_RTOL):
+            return _whole(result, log, histories)
+        at = u.copy()
+    assert result is not None  # max_couplings ≥ 1
+    result.converged, result.reason = False, "diverged_couplings"
+    return _whole(result, log, histories)
+
+
+def _whole(result: Result, log: list[dict], histories: list[list[dict]]) -> Result:
+    """The last solve's result as the whole fixed point's: its couplings, every solve's
+    Newton history (rows with their ``coupling``) and their iterations summed."""
+    result.couplings = log
+    result.history = [{"coupling": k, **row} for k, rows in enumerate(histories) for row in rows]
+    result.iterations = sum(row["newton"] for row in log)
+    return result
