@@ -1019,7 +1019,55 @@ def peers() -> str:
         ]
     else:
         out += [missing("demos/results/peer_step41")]
+    out += _step41_cold()
     return "\n".join(out) + "\n"
+
+
+def _step41_cold() -> list[str]:
+    """The step-41 problem from a cold start at 256² … 1024², by forcing rule
+    (demos/bench/bench_cold.py, demos/results/cold/*.csv)."""
+    out = ["", prose("_step41_cold", "heading"), ""]
+    data = [r for path in sorted((RES / "cold").glob("step41*.csv")) for r in rows(path) or []]
+    # deal.II's runs that finished, by DoFs
+    peers = {
+        r["dofs"]: r
+        for path in sorted((RES / "cold").glob("dealii_step41*.csv"))
+        for r in rows(path) or []
+        if r["returncode"] == 0
+    }
+    if not data:
+        return out + [missing("demos/results/cold (demos/bench/bench_cold.py)")]
+    data.sort(key=lambda r: (r["cells"], r["variant"] != "new", r["variant"]))
+    body = [
+        [
+            f"{r['cells']}²",
+            r["dofs"],
+            f"{r['variant']} ({r['forcing']}{', zero start' if r['variant'] == 'zero' else ''})",
+            r["newton"],
+            f"{r['krylov']} ({g(r['krylov_per_step'])})",
+            r["gamg_setups"],
+            g(r["cpu_s"]),
+            g(r["ratio_cpu_vs_one_solve"]),
+            g(r["cpu_s"] / peers[r["dofs"]]["cpu_s"]) if r["dofs"] in peers else "–",
+            r["converged"],
+        ]
+        for r in data
+    ]
+    runs = "; ".join(
+        f"{p['cells']}²: {g(p['cpu_s'])} s, {p['newton_iterations']} Newton and "
+        f"{p['cg_iterations']} CG iterations"
+        for p in sorted(peers.values(), key=lambda p: p["dofs"])
+    )
+    peer_text = prose("_step41_cold", "peer", peer_runs=runs).strip() if peers else ""
+    header = ["cells", "DoFs", "rule", "Newton", "Krylov (per step)", "GAMG set-ups", "CPU s"]
+    header += ["× one CG+GAMG", "× deal.II", "converged"]
+    return out + [
+        prose("_step41_cold", "intro", peer_text=peer_text),
+        "",
+        table(header, body),
+        "",
+        prose("_step41_cold", "verdict"),
+    ]
 
 
 def friction() -> str:

@@ -17,6 +17,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes);
    ``demos/bench/bench_newton_min_cycle.py`` — plain Newton-min cycling on a P-matrix LCP
    (the stability map's case (p), under a second);
+   ``demos/bench/bench_cold.py`` — deal.II's step-41 from a cold start at 256² and 512², by
+   inexact Newton's forcing rule (about 2 minutes; the 1024² rows and deal.II's own runs
+   are separate commands, in its docstring);
    ``demos/bench/bench_cost.py`` — a cold contact solve against one CG + GAMG solve of K:
    the square 128² … 1024² with and without grid sequencing, hertz_3d's final mesh, a 3D mesh
    of about 1M DoFs on 2 MPI ranks, and the chart ``cost/cost.png`` (issue 11; about 12 minutes);
@@ -119,6 +122,17 @@ STEPS = {
     ],
     "cycle": [
         [PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]
+    ],
+    "cold": [
+        [
+            PY,
+            "demos/bench/bench_cold.py",
+            "--cells",
+            "256",
+            "512",
+            "--out",
+            "demos/results/cold/step41.csv",
+        ]
     ],
     "cost": [
         [

@@ -25,6 +25,7 @@ KNOBS = {
     "max_it",
     "linear",
     "inexact",
+    "forcing",
     "petsc_options",
     "predictor",
     # the baselines' parameters (contact.solvers.baselines)

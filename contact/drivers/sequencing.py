@@ -1,7 +1,8 @@
 """Grid sequencing of a single solve (docs/theory.md §8).
 
-From a cold start semismooth Newton needs about log₂(1/h) active-set steps: the first
-steps move the free boundary across the whole contact zone.  Solving the same problem on
+From a cold start semismooth Newton needs as many active-set steps as the free boundary
+needs to cross the contact zone from where the first step puts it, up to O(1/h) (a band of
+cells per step where the zone is wide; docs/theory.md §8.2).  Solving the same problem on
 coarser meshes first and starting each finer solve from the coarser solution (what PETSc's
 ``-snes_grid_sequence`` does for ex9, and nested iteration does in the adaptive loop)
 leaves only local corrections on the finest mesh: O(1) Newton steps there, and coarse

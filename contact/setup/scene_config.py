@@ -302,6 +302,7 @@ SOLVER_KEYS = (
     "u0",
     "linear",
     "inexact",
+    "forcing",
     "predictor",
     "epsilon0",
     "r0",

@@ -45,6 +45,8 @@ METHODS = ncp.METHODS + VI_METHODS + BASELINE_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt", "energy")
 LINEAR = ("auto", "direct", "gamg", "bcgs", "gmres")
 PREDICTORS = ("auto", "tangent", "none")
+#: the forcing rule of inexact Newton on the gamg path (:mod:`.reduced`)
+FORCINGS = ("active_set", "eisenstat_walker")
 #: the tangential NCP of friction: Alart–Curnier's projection, or Hüeber–Stadler–Wohlmuth's max
 FRICTION_FORMS = ("projection", "hsw")
 #: how Coulomb friction is solved: semismooth Newton on all rows, or the fixed point on ρ
@@ -75,7 +77,12 @@ class SolverOptions(BaseModel):
         atol: relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless).
         max_it: Newton iterations.
         linear: direct, gamg, bcgs or auto (``linear``).
-        inexact: Eisenstat–Walker forcing of the gamg path.
+        inexact: inexact Newton on the gamg path (Krylov tolerances from a forcing rule).
+        forcing: the forcing rule of ``inexact`` for fb / min / blend without friction:
+            ``active_set`` (a step after one that changed statuses is solved loosely, at
+            most to a relative ``ETA_SET`` = 1e-2, and its Krylov solve starts from the
+            last step's direction) or ``eisenstat_walker`` (Eisenstat–Walker's forcing
+            alone, tightening towards exact Newton while ‖Φ‖ falls slowly; from zero).
         petsc_options: PETSc options over the linear solver's defaults.
         predictor: the start of a nonlinear solve lifted by the tangent
             (``predictor``): tangent, none, or auto (tangent for a problem with an
@@ -118,6 +125,7 @@ class SolverOptions(BaseModel):
     max_it: Annotated[int, BeforeValidator(integer(positive))] = 50
     linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
+    forcing: Annotated[str, BeforeValidator(one_of(FORCINGS))] = "active_set"
     petsc_options: Annotated[dict, BeforeValidator(mapping_of(valid_petsc_value))] = FrozenDict()
     predictor: Annotated[str, BeforeValidator(one_of(PREDICTORS))] = "auto"
     # the baselines' parameters (:mod:`.baselines`), each scaled by E/h (k/h): ε = ε₀ E/h, …

@@ -36,6 +36,22 @@ residual itself,
 and η_k ≤ η_{k−1} / 10 after a step that did not halve ‖Φ‖: a semismooth Newton method
 whose loose steps do not pay (fb can wander on them) becomes the exact method step by step,
 
+but for the rule ``active_set`` (``solver.forcing``, the default of the frictionless
+Newton system): after a Newton step that changed the status (active or not) of any node
+and lowered ‖Φ‖, η_k = min(max(η_k^EW, ETA_SET), ETA_MAX), without the ‖Φ_k‖ / ‖Φ_0‖
+bound and the tightening after poor progress.  From a cold start the active set moves
+across the contact zone a band of nodes per step while ‖Φ‖ falls slowly, and the
+tightening would ask ever more accurate solutions of steps that the next change of the
+active set discards, while the active sets the iteration visits hardly depend on it.
+Once the statuses stay, the rule is Eisenstat–Walker's and the same-law rule below, so the
+last steps are as tight as with it.  After ‖Φ‖ rose at two steps past the first
+(``MAX_RISES``) the rule is Eisenstat–Walker's for the rest of the solve: the active set
+cycles there (with a large NCP scaling κ, loose steps can keep fb between two active
+sets).  The Krylov solve of a loose step starts from the fixed rows' known values and, on
+the free rows, from the multiple α z of the last step's direction z closest to the
+solution in A's norm, α = (r, z) / (z, A z), never farther from it than the zero start
+(PETSc's option ``reduced_warm_start false`` starts from zero),
+
 and never below what SNES's stopping test needs: the residual of the linear model is the
 next ‖Φ‖ (when the law does not change), so the solve stops once ‖r‖ ≤ ``stop`` / 20
 (``stop`` = max(atol, rtol ‖Φ_0‖), set by the solver).  When a Newton step has the law of
@@ -64,6 +80,8 @@ if TYPE_CHECKING:
 # s_i ≤ FIXED d_i / K_ii: the row is eliminated (changes y_i by a relative ≤ ~1e-8)
 FIXED = 1e-8
 ETA_MAX = 0.1  # the loosest forcing term
+ETA_SET = 1e-2  # the forcing term of a step after one that changed statuses
+MAX_RISES = 1  # active_set: loose steps end after this many rises of ‖Φ‖ (a cycle)
 POOR_PROGRESS = 0.5  # ‖Φ_k‖ > 0.5 ‖Φ_{k−1}‖: the next forcing term is at most a tenth of the last
 GAMMA, ALPHA = 0.9, 2.0
 EXACT_RTOL = 1e-10
@@ -120,6 +138,15 @@ class ReducedSystem:
         self.forcing = forcing
         self.stop = 0.0  # SNES's stopping value of ‖Φ‖ (set by the solver)
         self.previous: tuple[float, float] | None = None  # ‖Φ‖ and η of the last Newton solve
+        # the forcing rule (module doc): "eisenstat_walker", or "active_set" (the frictionless
+        # Newton system's default, ``solver.forcing``)
+        self.policy = "eisenstat_walker"
+        self.warm = True  # active_set: warm-started Krylov solves (``reduced_warm_start``)
+        self.changed: int | None = None  # statuses the last Newton step changed (the monitor's)
+        self._rises = 0  # Newton steps after the first of this solve that raised ‖Φ‖
+        self._forced = 0  # Newton steps of this solve that took a forcing term
+        self._loose = False  # the current Newton step is a loose one of ``active_set``
+        self._direction: PETSc.Vec | None = None  # the last Newton step's y (warm starts)
         self.guess = False  # the iteration starts from a guess: first step exact
         # adaptive stopping (.stopping): the Krylov tolerance
         self.stopping: AdaptiveStopping | None = None
@@ -160,6 +187,7 @@ class ReducedSystem:
         self._rtol, _, _, self._max_it = self.ksp.getTolerances()
         prefix = self.ksp.getOptionsPrefix()
         self.lag = PETSc.Options(prefix).getBool("reduced_lag_pc", self.LAG)
+        self.warm = PETSc.Options(prefix).getBool("reduced_warm_start", True)
         # adaptive stopping measures CG's natural norm, which the lagging's rates do not use
         self.lag = self.lag and self.stopping is None
 
@@ -228,6 +256,7 @@ class ReducedSystem:
         fixed = self.fixed
         yx = self._right_hand_side(F)
         rtol = self._rtol if rtol is None else max(rtol, self._rtol)
+        self._loose = False
         if newton and self.forcing and self.stopping is None:
             # the law of the last Newton step again: the linear model is exact on this piece
             # of Φ, so solve to SNES's stopping value at once (atol below) instead of forcing
@@ -249,10 +278,16 @@ class ReducedSystem:
         if resume:  # the exact solve's target, reached from y
             atol, rtol = max(atol, self._rtol * r0), 0.0
             self.ksp.setInitialGuessNonzero(True)
+        elif newton and self._warm_start(y, yx):
+            self.ksp.setInitialGuessNonzero(True)
         try:
             its = self._krylov(y, rtol, atol, r0)
         finally:
             self.ksp.setInitialGuessNonzero(False)
+        if newton and self.policy == "active_set" and self.warm:
+            if self._direction is None:
+                self._direction = y.duplicate()
+            y.copy(self._direction)
         # the fixed rows are identity rows of A: their values are known exactly, whatever the
         # Krylov solve did (it stops at once when ‖r‖ ≤ atol, leaving y = 0 there too, and a
         # large d makes r = F/d on those rows small while Φ = F is not)
@@ -271,6 +306,35 @@ class ReducedSystem:
                 "setups": self.setups - setups,
             }
         )
+
+    def restart(self) -> None:
+        """Forget the last solve's Newton steps (a new solve starts)."""
+        self.changed = None
+        self._rises = self._forced = 0
+        self._loose = False
+        if self._direction is not None:
+            self._direction.destroy()
+            self._direction = None
+
+    def _warm_start(self, y: PETSc.Vec, yx: np.ndarray) -> bool:
+        """Put the Krylov start of a Newton step into y: the fixed rows' known values and, on
+        the free rows, the multiple α z of the last step's direction z (restricted to the
+        free rows) that is closest to the solution in the A-norm,
+        α = (r, z) / (z, A z) — never farther from it than the zero start.  Returns whether
+        there is such a start (a loose step of ``active_set`` with ``warm``, after a first
+        step)."""
+        z = self._direction
+        if not self._loose or not self.warm or z is None:
+            return False
+        free = ~self.fixed
+        z.array_w[self.fixed] = 0.0
+        self.A.mult(z, self.work)
+        zaz, rz = float(z.dot(self.work).real), float(self.r.dot(z).real)
+        alpha = rz / zaz if zaz > 0 else 0.0
+        ya = y.array_w
+        ya[:] = yx
+        ya[free] = alpha * z.array_r[free]
+        return True
 
     def _right_hand_side(self, F: PETSc.Vec) -> np.ndarray:
         """r of A y = r for the right-hand side F (module doc): y_X = F / d on the fixed rows
@@ -351,6 +415,7 @@ class ReducedSystem:
         ksp.setOperators(self.A, self.P)
         ksp.getPC().setReusePreconditioner(False)
         ksp.setTolerances(rtol=rtol, atol=atol, max_it=self._max_it)
+        ksp.setInitialGuessNonzero(False)
         ksp.solve(self.r, y)
         self.restarts += 1
         self.setups += 1
@@ -382,11 +447,23 @@ class ReducedSystem:
             safe = GAMMA * eta_old**ALPHA
             if safe > 0.1:
                 eta = max(eta, safe)
-            eta = min(eta, ETA_MAX, fnorm / self._f0 if self._f0 > 0 else ETA_MAX)
-            if ratio > POOR_PROGRESS:  # inexact steps that do not pay: towards exact Newton
-                eta = min(eta, eta_old * 0.1)
+            if ratio >= 1.0 and self._forced > 1:  # the first step from a cold start may
+                self._rises += 1  # raise ‖Φ‖ by design; later ones count
+            self._loose = bool(
+                self.policy == "active_set"
+                and self.changed
+                and ratio < 1.0
+                and self._rises <= MAX_RISES
+            )
+            if self._loose:
+                eta = min(max(eta, ETA_SET), ETA_MAX)
+            else:
+                eta = min(eta, ETA_MAX, fnorm / self._f0 if self._f0 > 0 else ETA_MAX)
+                if ratio > POOR_PROGRESS:  # inexact steps that do not pay: towards exact Newton
+                    eta = min(eta, eta_old * 0.1)
         eta = max(eta, self._rtol)
         self.previous = (fnorm, eta)
+        self._forced += 1
         return eta
 
     def destroy(self) -> None:
@@ -404,6 +481,7 @@ class ReducedSystem:
             self.J,
         ):
             obj.destroy()
+        self.restart()
 
 
 class _MatrixFreeH:

@@ -280,6 +280,8 @@ class SemismoothNewton:
             if system is not None:
                 system.set_options()
             if isinstance(system, ReducedSystem):
+                system.restart()
+            if isinstance(system, ReducedSystem):
                 # the first Newton step from a guess is exact — unless the guess is polished
                 # first: that exact solve on the guess's active set is then done, and a Newton
                 # step still needed means the active set moves, where a loose step does as well.
@@ -375,6 +377,8 @@ class SemismoothNewton:
             if self._prev_active is None
             else comm.allreduce(int((active != self._prev_active).sum()), op=MPI.SUM)
         )
+        if isinstance(system, ReducedSystem):  # the next step's forcing term (.reduced)
+            system.changed = changed if its > 0 else None
         step, energy = np.nan, np.inf
         stopping = self.stopping
         if its > 0:

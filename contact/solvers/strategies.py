@@ -171,6 +171,8 @@ class DiagonalNewton(Strategy):
             if energy
             else newton_system(problem, linear, prefix, forcing=opts.inexact)
         )
+        if isinstance(system, ReducedNewtonSystem) and not energy:
+            system.policy = opts.forcing  # the forcing rule of the Krylov tolerances
         # a system with a KSP of its own: SNES's KSP gets another prefix (the options
         # of ``prefix`` are the inner KSP's)
         inner = prefix + "newton_" if isinstance(system, ReducedSystem) else prefix
