@@ -66,7 +66,7 @@ def mark(
             ``uniform``: every cell.
         theta: θ ∈ (0, 1] of ``dorfler`` and ``maximum``.
         fraction: ``dorfler`` marks at least this share f ∈ [0, 1] of the cells, those of
-            largest η_T (:class:`Growth` chooses f so that each level's DoFs grow by a
+            largest η_T (``Growth`` chooses f so that each level's DoFs grow by a
             factor); 0: Dörfler's set alone.
 
     Returns:

@@ -219,7 +219,7 @@ class AdaptOptions(BaseModel):
         theta: the marking fraction in (0, 1].
         growth: each level has at least this many times its parent's DoFs: the cells of
             largest η_T join Dörfler's set until the predicted DoFs grow by it
-            (:class:`~contact.adaptivity.mark.Growth`), so the levels are O(log N) and the
+            (``contact.adaptivity.mark.Growth``), so the levels are O(log N) and the
             loop costs at most growth/(growth − 1) times its last level; 1 (the default):
             Dörfler's set alone.
         tol: stop at η ≤ tol.

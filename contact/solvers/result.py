@@ -105,8 +105,8 @@ class Result:
     #: not the Galerkin residual K x − b (they differ for Nitsche with θ ≠ 0)
     contact_residual: np.ndarray | None = None
     outer_iterations: int = 0  # the augmented Lagrangian's Uzawa iterations (0: none)
-    #: mortar pairs at finite strain: one row per coupling of the fixed point
-    #: (``contact.drivers.recouple``; empty otherwise)
+    #: One row per coupling of the fixed point of mortar pairs at finite strain
+    #: (``contact.drivers.recouple``); empty otherwise.
     couplings: list = field(default_factory=list)
 
     @property

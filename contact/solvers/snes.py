@@ -281,7 +281,6 @@ class SemismoothNewton:
                 system.set_options()
             if isinstance(system, ReducedSystem):
                 system.restart()
-            if isinstance(system, ReducedSystem):
                 # the first Newton step from a guess is exact — unless the guess is polished
                 # first: that exact solve on the guess's active set is then done, and a Newton
                 # step still needed means the active set moves, where a loose step does as well.
