@@ -2,7 +2,7 @@
 
 The writers of :mod:`contact.output` (:mod:`.run_report`, :mod:`.step_report`) take a
 solve's result and this record; the application reads it from the scene's configuration
-once (``contact.app.dispatch.report``), so the writers never read a scene's configuration.
+once (``contact.app.dispatch.report_of``), so the writers never read a scene's configuration.
 """
 
 from __future__ import annotations
