@@ -36,8 +36,6 @@ from ..post.interface import resultants
 from ..post.reference import compare
 from ..post.resultants import current_pressure
 from ..solvers import Result
-from ..solvers.baselines import baseline_figures
-from ..solvers.options import BASELINE_METHODS
 from . import folder, plots
 from .degree import output_fields
 from .fields import FieldFiles
@@ -153,8 +151,7 @@ def summary(
     }
     if result.sequence_note:
         out["sequence_note"] = result.sequence_note
-    if result.method in BASELINE_METHODS:
-        out.update(baseline_figures(result))
+    out.update(result.figures)  # a baseline method's own
     out.update(posed or {})
     if res is not None:
         out.update(res)

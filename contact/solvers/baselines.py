@@ -678,7 +678,7 @@ def result_of(
         friction = friction_fields(problem, F, xa, residual, active)
     history = outcome.history
     comm = problem.V.mesh.comm
-    return Result(
+    result = Result(
         u_h=problem.u_h,
         lmbda_h=lmbda,
         gap=gap,
@@ -701,6 +701,8 @@ def result_of(
         outer_iterations=outcome.outer,
         friction=friction,
     )
+    result.figures = baseline_figures(result)
+    return result
 
 
 def penetration(result: Result) -> float:
