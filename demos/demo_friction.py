@@ -92,8 +92,8 @@ tables = []  # (t, contact table) of every step, for the picture below
 
 
 def show(step):
-    tables.append((step.time, contact_table(step.scene, step.result)))
-    fig = surface_figures(step.scene, step.result)
+    tables.append((step.time, contact_table(step.posed, step.result)))
+    fig = surface_figures(step.posed, step.result)
     say(
         f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
         f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}"

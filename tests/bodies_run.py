@@ -51,7 +51,7 @@ def main(argv):
     data = {}
     for method in methods:
         r = contact.solve(scene, method=method, problem=problem, verbose=False, max_it=100)
-        res = resultants(scene, r)
+        res = resultants(scene.posed, r)
         margin = tie_margin(r)
         lam_m = master_pressure(r)
         S = lam_m.function_space

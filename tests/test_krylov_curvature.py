@@ -174,5 +174,5 @@ def test_p2_contact_on_3d_meshes():
     assert result.converged and result.n_active > 0
     from contact.post.resultants import contact_resultants
 
-    res = contact_resultants(scene, result)
+    res = contact_resultants(scene.posed, result)
     assert abs(res["force_balance_error"]) <= 1e-9, res

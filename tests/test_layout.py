@@ -3,7 +3,8 @@ pyproject.toml hold — the layers app > output > post > hp > setup > drivers > 
 > solvers > base (a package imports only the packages below it), no two modules or packages
 importing each other, a core (drivers, adaptivity, models, solvers, base) that never imports
 a scene, a report or the application, writers (output) that import no scene, hp loop or
-application module (they take results and a Report), solvers that never import a model or a
+application module (they take results and a Report), figures (post) that import none of
+them either (they take a Posed record and a result), solvers that never import a model or a
 driver, a scalar model that never imports elasticity. Function-level ("lazy") imports count;
 imports used only for annotations (``if TYPE_CHECKING:``) do not. That a scalar *run* loads
 no elasticity module is test_elasticity.py::test_a_run_imports_only_its_own_model."""
@@ -54,6 +55,7 @@ LAYERS, ACYCLIC = "app > output > post", "no two modules"
 SOLVERS, SCALAR = "the solvers take a problem", "a scalar model imports no elasticity"
 CORE = "the core takes problems and meshes, never a scene"
 OUTPUT = "the writers take results and a report"
+POST = "the figures take a posed record and a result"
 
 # (module, code appended to it, the contracts it breaks: an import up the layers closes a
 # loop too, since the lower package already imports the higher one's dependencies)
@@ -89,6 +91,11 @@ PLANTED = {
         "def _planted():\n    from ..app.dispatch import report_of\n    return report_of\n",
         [LAYERS, ACYCLIC, OUTPUT],
     ),
+    "a figure reads a scene (lazy import)": (
+        "post/hertz.py",
+        "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
+        [POST],
+    ),
     "two models import each other": (
         "models/basis.py",
         "def _planted():\n    from . import mortar\n    return mortar\n",
@@ -96,7 +103,7 @@ PLANTED = {
     ),
     "a scalar model imports elasticity through another module": (
         "models/problem.py",
-        "def _planted():\n    from .elasticity import lame\n    return lame\n",
+        "def _planted():\n    from .elasticity import von_mises\n    return von_mises\n",
         [SCALAR],
     ),
 }

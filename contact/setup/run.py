@@ -41,6 +41,7 @@ from .build import build_problem
 from .data import interpolate_expression
 from .levels import scene_hierarchy
 from .meshes import Boundary
+from .posed import PosedProblem
 from .scene import Scene, require_scene
 from .scene_config import AdaptConfig, SceneConfig
 from .untagged import warn_untagged
@@ -328,6 +329,11 @@ class SceneLevel(Level):
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
+    @property
+    def posed(self) -> PosedProblem:
+        """What its figures need (:mod:`contact.post`'s first argument): the scene's."""
+        return self.scene.posed
+
     def release(self) -> None:
         """Keep the figures only; the scene is dropped too."""
         super().release()
@@ -453,6 +459,11 @@ class SceneStep(Step):
     """
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
+
+    @property
+    def posed(self) -> PosedProblem:
+        """What its figures need (:mod:`contact.post`'s first argument): the scene's."""
+        return self.scene.posed
 
     def release(self) -> None:
         """Keep the figures only; the scene is dropped too."""

@@ -224,7 +224,7 @@ def sphere_pressures(scene, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     nodes = p.constraint.dofs[on] // p.V.dofmap.index_map_bs
     X = p.V.tabulate_dof_coordinates()[nodes]
     pressure = p.pressure(owned_residual(result))[on]
-    smooth = patch_average(scene, p.V, nodes, pressure)
+    smooth = patch_average(scene.posed, p.V, nodes, pressure)
     rho = np.hypot(X[:, 0], X[:, 1])
     return tuple(np.concatenate(comm.allgather(v)) for v in (rho, pressure, smooth))
 
@@ -261,7 +261,7 @@ def hertz_part(sizes: list[float], variants: list[str]) -> None:
             t, c = time.perf_counter(), time.process_time()
             r = contact.solve(scene, method="fb", verbose=False)
             solve_wall, solve_cpu = time.perf_counter() - t, time.process_time() - c
-            v = compare(scene, r).values
+            v = compare(scene.posed, r).values
             rho, pressure, smooth = sphere_pressures(scene, r)
             gmsh_wall, gmsh_cpu = comm.bcast((clock.wall, clock.cpu), root=0)
             row = {
@@ -299,7 +299,7 @@ def refined_part() -> None:
     scene = contact.load_scene(ROOT / "configs" / "two_body_hertz_3d.yaml", QUIET)
 
     def on_level(level):
-        v = compare(level.scene, level.result).values
+        v = compare(level.posed, level.result).values
         rho, pressure, smooth = sphere_pressures(level.scene, level.result)
         rows.append(
             {
