@@ -41,7 +41,6 @@ class Posed(Protocol):
         mesh: The mesh solved on (all bodies in one mesh).
         boundary: Its tagged boundary parts.
         bodies: Cell tags k + 1 of the k-th body (several bodies), else None.
-        time: The pseudo-time t of the load step (1 without a load path).
         elastic: Whether the unknown is a displacement (elasticity) or a scalar.
         pairs: The (slave, master) part names of each contact pair; empty without pairs.
         materials: Young's modulus E and Poisson's ratio ν of each body by name, in the
@@ -49,8 +48,10 @@ class Posed(Protocol):
             a scalar model).
         obstacle: The rigid obstacle as declared (``type``, and ``normal`` of a plane or
             ``center`` of a ball or cylinder), else None.
-        exact: The declared exact solution: one expression, or one per component.
-        constants: The named constants of the data expressions.
+        exact: The declared exact solution as a UFL expression on the mesh (a vector for
+            elasticity), else None.
+        exact_values: Its components as NumPy functions of the points x (3, n), one per
+            declared expression; empty without an exact solution.
         reference: The declared reference (``type``, ``radius``), else None.
         coefficient: Coulomb's friction coefficient F, else None.
         approach: For a load path against one rigid obstacle, its approach a(t) = g_0(X) −
@@ -68,8 +69,6 @@ class Posed(Protocol):
     @property
     def bodies(self) -> dmesh.MeshTags | None: ...  # noqa: D102
     @property
-    def time(self) -> float: ...  # noqa: D102
-    @property
     def elastic(self) -> bool: ...  # noqa: D102
     @property
     def pairs(self) -> tuple[tuple[str, str], ...]: ...  # noqa: D102
@@ -78,9 +77,9 @@ class Posed(Protocol):
     @property
     def obstacle(self) -> Any: ...  # noqa: D102
     @property
-    def exact(self) -> str | tuple[str, ...] | None: ...  # noqa: D102
+    def exact(self) -> Any: ...  # noqa: D102
     @property
-    def constants(self) -> Mapping[str, Any]: ...  # noqa: D102
+    def exact_values(self) -> tuple[Callable[[np.ndarray], np.ndarray], ...]: ...  # noqa: D102
     @property
     def reference(self) -> Any: ...  # noqa: D102
     @property

@@ -62,19 +62,12 @@ def exact_tractions(posed: Posed, table: Table, t0: np.ndarray | None, h: float 
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
     nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
     obstacle's normal at the node, t_0 of :func:`contact.post.contact_table.tangent_2d`)."""
-    from ..base import expressions
     from ..models.physics import lame
 
-    exact = posed.exact
-    if (
-        posed.mesh.geometry.dim != 2
-        or not isinstance(exact, tuple)
-        or "s" not in table
-        or t0 is None
-    ):
+    u = posed.exact_values  # one function per component of a displacement
+    if posed.mesh.geometry.dim != 2 or len(u) != 2 or "s" not in table or t0 is None:
         return []
     X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
-    u = [expressions.to_numpy(e, posed.constants, t=posed.time) for e in exact]
     grad = np.empty((X.shape[1], 2, 2))
     for j in range(2):
         e = np.zeros((3, 1))

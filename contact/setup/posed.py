@@ -9,9 +9,11 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import ufl
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base import expressions
 from .meshes import Boundary
 
 if TYPE_CHECKING:
@@ -26,13 +28,12 @@ class PosedProblem:
     mesh: dmesh.Mesh
     boundary: Boundary
     bodies: dmesh.MeshTags | None
-    time: float
     elastic: bool
     pairs: tuple[tuple[str, str], ...]
     materials: Mapping[str, tuple[float, float]]
     obstacle: Any
-    exact: str | tuple[str, ...] | None
-    constants: Mapping[str, Any]
+    exact: Any
+    exact_values: tuple[Callable[[np.ndarray], np.ndarray], ...]
     reference: Any
     coefficient: float | None
     approach: Callable[[np.ndarray], float] | None = field(default=None, repr=False)
@@ -65,17 +66,23 @@ def posed_of(scene: Scene) -> PosedProblem:
     else:
         materials = {}
     one_obstacle = cfg.obstacle is not None and not cfg.pairs
+    exact, constants, t = cfg.data.exact, cfg.constants, scene.time
+    texts = () if exact is None else exact if isinstance(exact, tuple) else (exact,)
+    parts = [expressions.to_ufl(e, scene.mesh, constants, t=t) for e in texts]
     return PosedProblem(
         mesh=scene.mesh,
         boundary=scene.boundary,
         bodies=scene.bodies,
-        time=scene.time,
         elastic=cfg.elastic,
         pairs=tuple((pair.slave, pair.master) for pair in cfg.pairs or ()),
         materials=materials,
         obstacle=cfg.obstacle,
-        exact=cfg.data.exact,
-        constants=cfg.constants,
+        exact=None
+        if exact is None
+        else ufl.as_vector(parts)
+        if isinstance(exact, tuple)
+        else parts[0],
+        exact_values=tuple(expressions.to_numpy(e, constants, t=t) for e in texts),
         reference=cfg.reference,
         coefficient=None if cfg.friction is None else cfg.friction.coefficient,
         approach=functools.partial(obstacle_approach, scene) if one_obstacle else None,
