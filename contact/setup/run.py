@@ -331,7 +331,7 @@ class SceneLevel(Level):
 
     @property
     def posed(self) -> PosedProblem:
-        """What its figures need (:mod:`contact.post`'s first argument): the scene's."""
+        """What its figures need (the first argument of ``contact.post``'s): the scene's."""
         return self.scene.posed
 
     def release(self) -> None:
@@ -462,7 +462,7 @@ class SceneStep(Step):
 
     @property
     def posed(self) -> PosedProblem:
-        """What its figures need (:mod:`contact.post`'s first argument): the scene's."""
+        """What its figures need (the first argument of ``contact.post``'s): the scene's."""
         return self.scene.posed
 
     def release(self) -> None:

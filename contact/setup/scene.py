@@ -47,10 +47,10 @@ class Scene:
         parent: The coarser scene this one was refined from and the parent cell of each
             cell, else ``None``.
         snap: How a refinement of the mesh keeps to the scene's curved surfaces
-            (:func:`contact.setup.surfaces.snapping`, the ``snap`` of its
+            (``contact.setup.surfaces.snapping``, the ``snap`` of its
             :class:`~contact.adaptivity.refine.Domain`), built with the scene.
         budget: The DoF budget, ``solver.max_dofs`` (resolved on this machine for
-            ``auto``, :func:`contact.setup.budget.max_dofs`), built with the scene.
+            ``auto``, ``contact.setup.budget.max_dofs``), built with the scene.
 
     Example:
         >>> import contact
@@ -105,8 +105,8 @@ class Scene:
     def posed(self) -> PosedProblem:
         """The scene's record for its figures, built once on first use.
 
-        The first argument of :mod:`contact.post`'s figures
-        (:func:`contact.setup.posed.posed_of`).
+        The first argument of the figures of ``contact.post``
+        (``contact.setup.posed.posed_of``).
         """
         from .posed import posed_of
 
