@@ -102,7 +102,7 @@ def show(step):
 
 say(" step     t  Newton   stick   slip   F_t / F_n")
 path = contact.run_load_path(scene, on_step=show)
-fig = surface_figures(path.steps[-1].scene, path.steps[-1].result)
+fig = surface_figures(path.steps[-1].posed, path.steps[-1].result)
 say(
     f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
     f"the support's reaction balances the contact force to "

@@ -197,6 +197,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
     from ..output import folder, hdf5
     from ..output.run_report import files_text, write_run
     from ..setup.config import load_config
+    from ..setup.posed import posed_of
     from ..setup.scene import build_scene
     from ..solvers.result import newton_text, not_converged_text
     from .dispatch import choose_driver, report_of
@@ -236,7 +237,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         )
         return failures.NOT_CONVERGED
     info = write_run(
-        outdir, report, scene.posed, result, wall=time.perf_counter() - t0, label=label
+        outdir, report, posed_of(scene), result, wall=time.perf_counter() - t0, label=label
     )
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED

@@ -592,8 +592,9 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     out.update({k: "" for k in study.reference_columns})
     if scene.config.reference is not None:
         from ..post.reference import compare, error_values
+        from ..setup.posed import posed_of
 
-        comparison = compare(scene.posed, result)
+        comparison = compare(posed_of(scene), result)
         assert comparison is not None  # the scene declares a reference
         out.update(error_values(scene.config.reference, comparison))
     out["eta"] = "" if eta is None else eta

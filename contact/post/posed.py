@@ -3,8 +3,8 @@
 The functions of :mod:`contact.post` take a :class:`Posed` record and a result: the mesh and
 its tagged boundary parts, the contact pairs and the bodies' materials, the declared exact
 solution, reference and friction coefficient, a rigid obstacle's approach.  A YAML scene
-builds its record once (``scene.posed``, :func:`contact.setup.posed.posed_of`); any object
-with these attributes will do.
+builds its record with :func:`contact.setup.posed.posed_of` (a level's or a load step's once:
+``level.posed``); any object with these attributes will do.
 """
 
 from __future__ import annotations

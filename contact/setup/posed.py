@@ -1,5 +1,6 @@
 """A scene's :class:`~contact.post.posed.Posed` record: what the figures of its solves need
-of the problem beyond the result, taken from the configuration once (``scene.posed``)."""
+of the problem beyond the result, taken from its configuration (for a level or a load step
+once, ``level.posed``)."""
 
 from __future__ import annotations
 

@@ -41,7 +41,7 @@ from .build import build_problem
 from .data import interpolate_expression
 from .levels import scene_hierarchy
 from .meshes import Boundary
-from .posed import PosedProblem
+from .posed import PosedProblem, posed_of
 from .scene import Scene, require_scene
 from .scene_config import AdaptConfig, SceneConfig
 from .untagged import warn_untagged
@@ -329,15 +329,19 @@ class SceneLevel(Level):
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
-    @property
+    @functools.cached_property
     def posed(self) -> PosedProblem:
-        """What its figures need (the first argument of ``contact.post``'s): the scene's."""
-        return self.scene.posed
+        """The record of its scene for the figures, built once.
+
+        The first argument of ``contact.post``'s figures (``contact.setup.posed.posed_of``).
+        """
+        return posed_of(self.scene)
 
     def release(self) -> None:
         """Keep the figures only; the scene is dropped too."""
         super().release()
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
+        self.__dict__.pop("posed", None)
 
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
@@ -460,15 +464,19 @@ class SceneStep(Step):
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
-    @property
+    @functools.cached_property
     def posed(self) -> PosedProblem:
-        """What its figures need (the first argument of ``contact.post``'s): the scene's."""
-        return self.scene.posed
+        """The record of its scene for the figures, built once.
+
+        The first argument of ``contact.post``'s figures (``contact.setup.posed.posed_of``).
+        """
+        return posed_of(self.scene)
 
     def release(self) -> None:
         """Keep the figures only; the scene is dropped too."""
         super().release()
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
+        self.__dict__.pop("posed", None)
 
 
 def load_times(cfg: SceneConfig) -> list[float]:

@@ -9,7 +9,7 @@ import functools
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from dolfinx import mesh as dmesh
@@ -19,9 +19,6 @@ from ..base.errors import ConfigError
 from .config import load_config
 from .meshes import Boundary, build_mesh, mesh_dimension, tag_bodies, tag_boundaries
 from .scene_config import SceneConfig
-
-if TYPE_CHECKING:
-    from .posed import PosedProblem
 
 
 @dataclass
@@ -97,20 +94,8 @@ class Scene:
             t: The new pseudo-time.
         """
         self.time = float(t)
-        self.__dict__.pop("posed", None)  # the record is of one pseudo-time
         if self._t_constant is not None:
             self._t_constant.value = self.time
-
-    @functools.cached_property
-    def posed(self) -> PosedProblem:
-        """The scene's record for its figures, built once on first use.
-
-        The first argument of the figures of ``contact.post``
-        (``contact.setup.posed.posed_of``).
-        """
-        from .posed import posed_of
-
-        return posed_of(self)
 
     @property
     def name(self) -> str:

@@ -34,6 +34,7 @@ from contact.output.plots import plot_traction
 from contact.post.contact_table import contact_table
 from contact.post.friction_resultants import surface_figures
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 from dolfinx import fem  # after contact, which imports dolfinx_solver first
@@ -341,7 +342,7 @@ def acceptance(quick: bool, cvf: list[dict], mms: dict, step_rows: list[dict]) -
 
     cells = ["mesh.cells=[40,10]"] if quick else []
     r = contact.solve(scene("friction_block_2d", "load.steps=1", *cells))
-    fig = surface_figures(scene("friction_block_2d", "load.steps=1", *cells).posed, r)
+    fig = surface_figures(posed_of(scene("friction_block_2d", "load.steps=1", *cells)), r)
     add(
         "full sliding, Coulomb: |F_t/F_n - F| / F",
         abs(fig["friction_ratio"] - 0.3) / 0.3,
