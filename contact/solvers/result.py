@@ -63,7 +63,7 @@ class Result:
         hint: For a failed solve, what in the scene makes it hard ("" if nothing known).
         figures: The method's own figures for the run's summary, measured at the solution
             (a baseline's parameter, Uzawa's outer iterations and the largest penetration,
-            :func:`contact.solvers.baselines.baseline_figures`); empty for the NCP methods.
+            ``contact.solvers.baselines.baseline_figures``); empty for the NCP methods.
     """
 
     u_h: fem.Function
