@@ -196,7 +196,8 @@ class CurrentComplementarity(BlockComplementarity):
 
     def __init__(self, problem: DiscreteProblem):
         super().__init__(problem)
-        cc: CurrentContact = problem.current
+        cc = problem.current
+        assert cc is not None, "a problem with contact on the current configuration"
         self.cc, bs = cc, self.bs
         self.rows = (cc.nodes[:, None] * bs + np.arange(bs)).astype(np.int32)  # (k, bs)
         self.fs = problem.friction
