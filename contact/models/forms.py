@@ -37,10 +37,16 @@ from petsc4py import PETSc
 
 from ..base.lifetime import destroy
 from ..base.timing import Stopwatch
-from ..solvers.current import CurrentContact, nodal_geometry
+from ..solvers.current import nodal_geometry
 from ..solvers.floating import floating_bodies
 from ..solvers.options import SolverOptions
-from ..solvers.problem import DiscreteProblem, NodeBlockMatrix, ProblemData, Symmetry
+from ..solvers.problem import (
+    CurrentContact,
+    DiscreteProblem,
+    NodeBlockMatrix,
+    ProblemData,
+    Symmetry,
+)
 from ..solvers.result import Result
 from ..solvers.snes import solve_problem
 from . import form_checks as checks

@@ -193,7 +193,7 @@ def current_contact(
     the normal component of the nodal force per reference area (nominal pressure).
     ``u_prev``: the previous load step's displacement (friction's slips start there), with
     the obstacle's translation since then (``obstacle.motion``)."""
-    from ..solvers.current import CurrentContact
+    from ..solvers.problem import CurrentContact
 
     msh = V.mesh
     gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from dolfinx import fem
@@ -29,9 +29,6 @@ from petsc4py import PETSc
 
 from ..base.lifetime import destroy
 from .options import FrictionOptions
-
-if TYPE_CHECKING:
-    from .current import CurrentContact
 
 
 @dataclass
@@ -179,7 +176,7 @@ class DiscreteProblem:
     near-nullspace) and optional parts: where the nodal fields are written
     (:class:`Output`), the symmetry planes (:class:`Symmetry`), a friction law's set
     (:class:`FrictionSet`), contact on the current configuration
-    (:class:`~contact.solvers.current.CurrentContact`) and the continuous problem's data
+    (:class:`CurrentContact`) and the continuous problem's data
     (:class:`ProblemData`).
     """
 
@@ -398,6 +395,32 @@ class FrictionSet:
     @property
     def m(self) -> int:
         return self.tangent.shape[1]
+
+
+class RigidSurface(Protocol):
+    """A rigid obstacle as a signed distance (module doc); ``scale`` is the size of the
+    numbers its distance subtracts beyond the point's coordinates (|c| + R_o, |p|)."""
+
+    @property
+    def scale(self) -> float: ...
+
+    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(g, n, Dn) at the points x (k, gdim): the signed distances (k,), the unit normals
+        towards the obstacle (k, gdim), their derivatives dn/dx (k, gdim, gdim)."""
+        ...
+
+
+@dataclass
+class CurrentContact:
+    """The contact nodes of a body against a rigid obstacle on the current configuration
+    (owned nodes, none fixed in every component; arrays row for row)."""
+
+    nodes: np.ndarray  # (k,) owned local node indices (the blocks of bs DoFs of V)
+    X: np.ndarray  # (k, gdim) reference positions
+    fixed: np.ndarray  # (k, bs) bool: components held by a Dirichlet / symmetry condition
+    surface: RigidSurface
+    u_prev: np.ndarray  # (k, gdim) displacement at the previous load step (friction's slip)
+    motion: np.ndarray  # (gdim,) the obstacle's translation Δc since the previous load step
 
 
 class NodeBlockMatrix:
