@@ -64,7 +64,7 @@ def contact_columns(posed: Posed, result: Result) -> Table:
     from .resultants import current_pressure, nodal_gap
 
     cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
-    if gdim == 3 and not p.in_domain:
+    if gdim == 3 and not p.constraint.in_domain:
         cols.update(_polar(posed, result, X))
     cols[value_name(posed)] = p.multiplier(owned_residual(result))
     exact = exact_multiplier(posed, result)
@@ -77,7 +77,7 @@ def contact_columns(posed: Posed, result: Result) -> Table:
     cols["active"] = result.active_mask.astype(np.int8)
     if result.friction is not None:  # λ_t, bound, slip, status, weight
         cols.update(friction_columns(posed, result))
-    if p.in_domain:  # obstacle: the contact set only
+    if p.constraint.in_domain:  # obstacle: the contact set only
         cols = {k: v[result.active_mask] for k, v in cols.items()}
     return cols
 
@@ -90,13 +90,13 @@ def exact_multiplier(posed: Posed, result: Result) -> np.ndarray | None:
     contact zone ends (problem A: λ = −(3/2)|x|^{1/2} for x < 0)."""
     p = result.problem
     u = posed.exact
-    if u is None or posed.elastic or p.in_domain:
+    if u is None or posed.elastic or p.constraint.in_domain:
         return None
     msh, V = posed.mesh, p.V
     n, v = ufl.FacetNormal(msh), ufl.TestFunction(V)
     degree = 2 * V.element.basix_element.degree + 4
-    ds = p.data["ds"](metadata={"quadrature_degree": degree})
-    flux = p.data["k"] * ufl.dot(ufl.grad(u), n) - p.data["t_C"]
+    ds = p.data.ds(metadata={"quadrature_degree": degree})
+    flux = p.data.k * ufl.dot(ufl.grad(u), n) - p.data.t_C
     ids = posed.boundary.ids_with_role("contact")
     sums = []
     for integrand in (flux * v, v):
@@ -108,7 +108,7 @@ def exact_multiplier(posed: Posed, result: Result) -> np.ndarray | None:
 
 def tangent_2d(result: Result) -> np.ndarray:
     """t_0 = (−n_y, n_x) of the contact normal n at the first point of contact (2D)."""
-    n = np.asarray(result.problem.data["n"], dtype=float)
+    n = np.asarray(result.problem.data.n, dtype=float)
     return np.array([-n[1], n[0]])
 
 
@@ -176,9 +176,9 @@ def contact_normal(posed: Posed, result: Result) -> np.ndarray | None:
     contact normal at the first point of contact; scalar Signorini, the mean outward normal
     of Γ_C; None for an obstacle in Ω."""
     p = result.problem
-    if p.in_domain:
+    if p.constraint.in_domain:
         return None
-    return np.asarray(p.data["n"], dtype=float) if "n" in p.data else _mean_normal(posed)
+    return np.asarray(p.data.n, dtype=float) if p.data.n is not None else _mean_normal(posed)
 
 
 def view_normal(posed: Posed, result: Result) -> np.ndarray | None:
@@ -208,7 +208,7 @@ def contact_table(posed: Posed, result: Result, columns: Table | None = None) ->
     :func:`contact_columns` (collective)."""
     columns = contact_columns(posed, result) if columns is None else columns
     segments = None
-    if posed.mesh.geometry.dim == 2 and not result.problem.in_domain:
+    if posed.mesh.geometry.dim == 2 and not result.problem.constraint.in_domain:
         segments = _contact_segments(posed)
     table = gather(columns, posed.comm)
     if posed.comm.rank != 0:

@@ -64,8 +64,8 @@ def compare(posed: Posed, result: Result, ref: Any) -> Comparison:
     comm = posed.comm
     p = result.problem
     con = p.constraint
-    on = slice(0, p.data["pair_nodes"]) if posed.pairs else slice(None)
-    n = np.asarray(p.data["n"])
+    on = slice(0, p.data.pair_nodes) if posed.pairs else slice(None)
+    n = np.asarray(p.data.n)
     V = p.V
     nodes = con.dofs[on] // V.dofmap.index_map_bs
     X = V.tabulate_dof_coordinates()[nodes, : posed.mesh.geometry.dim]

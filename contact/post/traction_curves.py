@@ -25,7 +25,7 @@ def first_contact(posed: Posed, result) -> tuple[np.ndarray, np.ndarray | None]:
     gdim = posed.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
     return first_contact_point(posed.comm, X, con.sign * con.g), (
-        tangent_2d(result) if gdim == 2 and "n" in p.data else None
+        tangent_2d(result) if gdim == 2 and p.data.n is not None else None
     )
 
 
