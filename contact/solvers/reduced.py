@@ -308,8 +308,13 @@ class ReducedSystem:
         )
 
     def restart(self) -> None:
-        """Forget the last solve's Newton steps (a new solve starts)."""
+        """Forget the last solve's Newton steps (a new solve starts): its last ‖Φ‖ and η,
+        on which the next forcing term would otherwise build (a new load step's first
+        step would be compared with the last one's converged ‖Φ‖, and a guess would not
+        get its exact first step), and the law of its last step."""
         self.changed = None
+        self.previous = None
+        self._newton = None
         self._rises = self._forced = 0
         self._loose = False
         if self._direction is not None:
