@@ -26,7 +26,7 @@ from .krylov_curvature import KrylovCurvatureSystem
 from .newton import BlockComplementarity, Complementarity
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .predictor import tangent_predictor
-from .problem import DiscreteProblem, nodal_scaling
+from .problem import DiscreteProblem, newton_max_it, nodal_scaling
 from .reduced import ReducedSystem
 from .result import Result, finish
 from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
@@ -170,6 +170,7 @@ class SemismoothNewton:
         self.history: list[dict] = []
         self._prev_active: np.ndarray | None = None  # the active set of the previous iterate
         self.solves = 0  # solves done by this object
+        self.max_it = 0  # the step limit of the current solve (solver.max_it, auto resolved)
 
     def solve(
         self,
@@ -225,7 +226,8 @@ class SemismoothNewton:
             chosen = None
             if alternatives and not problem.nonlinear:
                 x, chosen = self._best_guess(x, alternatives)
-            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
+            self.max_it = newton_max_it(opts.max_it, problem.nodes_across())
+            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=self.max_it)
             # for the round-off floor of ‖Φ‖
             # the Mat's infinity norm is one float (the stubs: a pair for every norm type)
             self._k_norm: float = problem.K.norm(PETSc.NormType.INFINITY)  # type: ignore[arg-type,assignment]
@@ -294,7 +296,7 @@ class SemismoothNewton:
                 stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
                 polisher.initial(x, stop)
                 self.state["stop"] = stop
-                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts.max_it)
+                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self.max_it)
             snes.solve(None, x)
             reason_code = snes.getConvergedReason()
             result = finish(
@@ -312,6 +314,7 @@ class SemismoothNewton:
                 inexact=self.stopping is not None,
             )
             result.linear = self.linear
+            result.max_it = self.max_it
             if self.stopping is not None:
                 result.stopping = self.stopping
                 result.reason = "converged_adaptive" if self.stopping.stopped else result.reason
