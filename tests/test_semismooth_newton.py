@@ -126,3 +126,17 @@ def test_inexact_newton_starts_afresh_on_each_solve(method):
             assert from_half.krylov_log[0]["rtol"] <= 1e-10
     finally:
         p.destroy()
+
+
+@pytest.mark.parametrize("cells", [128, 256])
+def test_a_sequenced_guess_ends_in_its_polishing_solve(cells):
+    """Grid sequencing hands the finest mesh a guess with the final active set: fb's
+    polishing solve of it lands on the solution to the round-off floor of ‖Φ‖, and the
+    solve ends there, 0 Newton steps + 1 polishing solve.  (SNES tests its stop at
+    iteration 0 before the monitor raises it to the floor; without the floor in the stop
+    the guess cost a Newton step and a second polishing solve.)"""
+    scene = contact.load_scene(SCENE, [f"mesh.cells=[{cells},{cells}]"])
+    r = contact.solve(scene, method="fb", verbose=False)
+    assert r.converged and r.linear == "gamg" and len(r.sequence) >= 2, r.reason
+    assert (r.iterations, r.polish_solves) == (0, 1), (r.iterations, r.polish_solves)
+    assert r.residual <= r.history[0]["residual"]

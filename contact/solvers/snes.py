@@ -293,7 +293,10 @@ class SemismoothNewton:
                 self.stopping.start(cp.active(x))
             if polisher is not None and guess:
                 # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
+                # SNES tests its stop at iteration 0 before the monitor raises it to the
+                # round-off floor: the floor is put in here, or a polished guess at the
+                # floor would cost a Newton step and a second polishing solve
+                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu), self._floor(x))
                 polisher.initial(x, stop)
                 self.state["stop"] = stop
                 snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self.max_it)
@@ -350,22 +353,25 @@ class SemismoothNewton:
             state["t_jac"] = None
         state["dir_norm"] = sol.norm()
 
+    def _floor(self, x: PETSc.Vec) -> float:
+        """The round-off floor of ‖Φ(x)‖ (:func:`roundoff_floor`) that SNES's stopping test
+        never asks to go below, capped at atol · F₁.  It grows with ‖x‖, which the data bound
+        only if no body floats (a body that nothing but frictionless contact holds may drift
+        along a free rigid motion): then 0."""
+        if self.problem.floating:
+            return 0.0
+        return max(
+            min(roundoff_floor(self._k_norm, x), self.opts.atol * self._total),
+            self.cp.gap_roundoff(x),  # gaps of coordinates: bounded by the data, not by x
+        )
+
     def _monitor(self, snes: PETSc.SNES, its: int, fnorm: float) -> None:
         """One row of the history per iterate (‖Φ‖, step length, active set, changes), the
         round-off floor of the stopping test, the verbose line or the progress note."""
         comm, cp, opts, method = self.comm, self.cp, self.opts, self.method
         polisher, system, prev = self.polisher, self.system, self._prev
         xk = snes.getSolution()
-        # the floor grows with ‖x‖, which the data bound only if no body floats (a body that
-        # nothing but frictionless contact holds may drift along a free rigid motion)
-        floor = (
-            0.0
-            if self.problem.floating
-            else max(
-                min(roundoff_floor(self._k_norm, xk), opts.atol * self._total),
-                cp.gap_roundoff(xk),  # gaps of coordinates: bounded by the data, not by x
-            )
-        )
+        floor = self._floor(xk)
         if floor > snes.getTolerances()[1]:  # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
             if polisher is not None:
