@@ -179,4 +179,23 @@ def test_a_cold_start_longer_than_fifty_steps_converges_with_the_defaults():
     assert not fixed.converged and fixed.reason == "diverged_max_it" and fixed.iterations == 50
     assert fixed.max_it == 50
     newton = contact.solve(scene, method="min", verbose=False)
-    assert newton.converged and newton.max_it == 127, newton.reason
+    assert newton.converged and newton.iterations < 50, newton.reason
+    assert newton.max_it == 50  # the limit by the mesh is only computed past the floor
+
+
+@pytest.mark.parametrize("method", ["min", "fb"])
+def test_newton_raises_its_step_limit_at_the_floor(monkeypatch, method):
+    """fb / min / blend start with the floor of ``auto`` and compute the limit by the mesh
+    only once a solve reaches it (the node coordinates are not read for the usual short
+    solve).  With the floor lowered to 10, the cold step-41 path at 128² (21 min steps)
+    converges with ``auto``, its limit raised to the 127 nodes across; an explicit 10
+    stops there."""
+    from contact.solvers import problem as problem_module
+
+    monkeypatch.setattr(problem_module, "MAX_IT_FLOOR", 10)
+    sets = ["mesh.cells=[128,128]", "solver.sequence=off"]
+    scene = contact.load_scene(str(ROOT / "configs" / "peers" / "dealii_step41.yaml"), sets)
+    auto = contact.solve(scene, method=method, verbose=False)
+    assert auto.converged and auto.iterations > 10 and auto.max_it == 127, auto.reason
+    fixed = contact.solve(scene, method=method, max_it=10, verbose=False)
+    assert not fixed.converged and fixed.reason == "diverged_max_it" and fixed.iterations == 10

@@ -359,7 +359,7 @@ def nodes_across(points: np.ndarray, dim: int, comm: MPI.Comm) -> float:
     a domain) at coordinates ``points`` (the owned ones, rows; collective):
     n = L (N / V)^(1/dim), with N the nodes, L the longest edge of their bounding box and V
     the product of its ``dim`` longest edges — the nodes along L if they are spread evenly
-    (a square: √N; a line: N; a 1024 × 8 strip: 1024).
+    (a square: √N; a line: N; a 1024 × 8 strip: 1024), at most N.
 
     Args:
         points: the owned nodes' coordinates, one row each.
@@ -381,7 +381,8 @@ def nodes_across(points: np.ndarray, dim: int, comm: MPI.Comm) -> float:
     edges = np.sort(hi - lo)[::-1][:dim]
     if len(edges) < dim or edges[-1] <= 0.0:  # degenerate: by the count alone
         return max(1.0, float(count) ** (1.0 / dim))
-    return max(1.0, float(edges[0] * (count / np.prod(edges)) ** (1.0 / dim)))
+    # (never more than the nodes: clusters far apart span a box they do not fill)
+    return min(float(count), max(1.0, float(edges[0] * (count / np.prod(edges)) ** (1.0 / dim))))
 
 
 def newton_max_it(max_it: int | str, across: float) -> int:

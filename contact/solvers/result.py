@@ -57,7 +57,9 @@ class Result:
             1 stick, 2 slip); ``None`` otherwise.
         linear: The linear solver used (direct, gamg, bcgs, gmres).
         krylov_iterations: Krylov iterations of all linear solves (0 for a direct solver).
-        max_it: The Newton step limit of the solve (``solver.max_it``, ``auto`` resolved).
+        max_it: The Newton step limit of the solve (``solver.max_it``; for ``auto`` and fb,
+            min or blend its floor of 50 unless the solve went that far, then the limit by
+            the mesh).
         sequence: The coarse levels of grid sequencing, coarsest first.
         predictor: A load step's secant predictor: ``None`` (none offered), ``True`` (it
             started the solve) or ``False`` (the previous step's solution did).

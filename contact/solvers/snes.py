@@ -171,6 +171,9 @@ class SemismoothNewton:
         self._prev_active: np.ndarray | None = None  # the active set of the previous iterate
         self.solves = 0  # solves done by this object
         self.max_it = 0  # the step limit of the current solve (solver.max_it, auto resolved)
+        self._auto_max_it = False  # max_it auto on a Newton solve: the monitor stops it
+        self._auto_resolved = False  # … and has computed the limit by the mesh
+        self._snes_max_it = 0  # SNES's own limit
 
     def solve(
         self,
@@ -226,8 +229,21 @@ class SemismoothNewton:
             chosen = None
             if alternatives and not problem.nonlinear:
                 x, chosen = self._best_guess(x, alternatives)
-            self.max_it = newton_max_it(opts.max_it, problem.nodes_across())
-            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=self.max_it)
+            # ``auto``: the floor first; the limit by the nodes across the constrained set is
+            # computed (collectively, from the node coordinates) only if a Newton solve gets
+            # there, and the monitor stops at it; SNES's own limit, which PETSc reads once,
+            # is then the number of constrained nodes, never fewer than the nodes across.
+            # (PETSc's VI solvers: the limit at once)
+            self._auto_max_it = opts.max_it == "auto" and method in ncp.METHODS
+            self._auto_resolved = False
+            self.max_it = newton_max_it(
+                opts.max_it, 0.0 if self._auto_max_it else problem.nodes_across()
+            )
+            self._snes_max_it = self.max_it
+            if self._auto_max_it:
+                nodes = problem.constraint.global_size(self.comm)
+                self._snes_max_it = max(self.max_it, nodes + 1)
+            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=self._snes_max_it)
             # for the round-off floor of ‖Φ‖
             # the Mat's infinity norm is one float (the stubs: a pair for every norm type)
             self._k_norm: float = problem.K.norm(PETSc.NormType.INFINITY)  # type: ignore[arg-type,assignment]
@@ -299,7 +315,7 @@ class SemismoothNewton:
                 stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu), self._floor(x))
                 polisher.initial(x, stop)
                 self.state["stop"] = stop
-                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self.max_it)
+                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self._snes_max_it)
             snes.solve(None, x)
             reason_code = snes.getConvergedReason()
             result = finish(
@@ -371,6 +387,12 @@ class SemismoothNewton:
         comm, cp, opts, method = self.comm, self.cp, self.opts, self.method
         polisher, system, prev = self.polisher, self.system, self._prev
         xk = snes.getSolution()
+        if self._auto_max_it and its >= self.max_it:  # max_it auto: the floor reached
+            if not self._auto_resolved:
+                self._auto_resolved = True
+                self.max_it = newton_max_it("auto", self.problem.nodes_across())
+            if its >= self.max_it and snes.getConvergedReason() == 0:
+                snes.setConvergedReason(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)  # type: ignore[arg-type]
         floor = self._floor(xk)
         if floor > snes.getTolerances()[1]:  # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
