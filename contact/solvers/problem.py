@@ -225,7 +225,8 @@ class DiscreteProblem:
         tdim, bs = V.mesh.topology.dim, V.dofmap.index_map_bs
         nodes = np.unique(self.constraint.dofs // bs)
         points = V.tabulate_dof_coordinates()[nodes]
-        return nodes_across(points, tdim if self.in_domain else tdim - 1, V.mesh.comm)
+        dim = tdim if self.constraint.in_domain else tdim - 1
+        return nodes_across(points, dim, V.mesh.comm)
 
     def dirichlet_rows(self) -> np.ndarray:
         """The owned rows of the unknowns that Dirichlet conditions (and the symmetry planes'
