@@ -403,3 +403,38 @@ def test_growth_cut_keeps_classes_of_equal_indicators_whole(noise):
     assert taken == set(range(len(taken)))  # the largest ones
     plain = contact.mark(eta_T, "dorfler", 0.5)
     assert len(plain) % 4 == 0 and len(plain) < count
+
+
+def test_residual_indicators_mark_and_the_bound_is_computed_where_reported():
+    """adapt.indicators = residual on problem A (equilibrated estimator): the residual
+    indicators mark every level — the same meshes as the loop with the residual estimator
+    — and the guaranteed bound is computed on the last level only: its η is the
+    equilibrated estimator's and bounds the energy error; the other levels' η are the
+    residual estimator's. With a tolerance the bound is also computed on the first level
+    (the ratio bound/residual) and on the level where it may meet tol, and the loop stops
+    at the first level whose bound is ≤ tol."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    cheap = adapt(scene, max_levels=4, indicators="residual", verbose=False)
+    rows = cheap.rows
+    assert [r["estimator"] for r in rows] == ["residual"] * 3 + ["equilibrated"]
+    residual_scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml",
+        ["output.verbose=false", "estimator=residual"],
+    )
+    reference = adapt(residual_scene, max_levels=4, verbose=False).rows
+    assert [r["dofs"] for r in rows] == [r["dofs"] for r in reference]
+    assert [r["eta"] for r in rows[:3]] == pytest.approx([r["eta"] for r in reference[:3]])
+    last = cheap.levels[-1]
+    bound = contact.estimate(last.problem, last.result, "equilibrated")
+    assert rows[-1]["eta"] == pytest.approx(bound.eta, rel=1e-12)
+    assert rows[-1]["error"] <= rows[-1]["eta"] < reference[-1]["eta"]
+    default = adapt(scene, max_levels=6, verbose=False).rows
+    assert "estimator" not in default[0]
+    tol = 0.5 * (default[2]["eta"] + default[3]["eta"])  # met on the default's level 3
+    stopped = adapt(scene, max_levels=8, tol=tol, indicators="residual", verbose=False)
+    last = stopped.rows[-1]
+    assert stopped.stop.startswith("eta =") and last["estimator"] == "equilibrated"
+    assert last["eta"] <= tol < stopped.rows[-2]["eta"]
+    assert stopped.rows[0]["estimator"] == "equilibrated"
