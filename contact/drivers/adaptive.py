@@ -364,6 +364,8 @@ def adapt(
                 out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
             elif budget is not None and new_dofs > budget:  # the memory budget of one solve
                 out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
+        if out.stop:  # the refined mesh, if any, is not needed (nor held during the bound)
+            child = new_u0 = None
         if bound is not None and out.stop:  # the last level: its bound
             if result.converged:
                 bound.compute(level)

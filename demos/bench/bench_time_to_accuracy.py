@@ -163,12 +163,14 @@ def at_error(rows: list[dict], target: float, clock: str = "seconds") -> float:
 #: the loop's variants compared by default, each against the same uniform runs: the
 #: scene's defaults, the old marking (Dörfler's set alone: ~1.7× the DoFs per level), and
 #: the two cheaper estimators (the guaranteed bound of the lowest-order flux; the residual
-#: estimator, a bound up to an unknown constant)
+#: estimator, a bound up to an unknown constant), and the residual indicators marking with
+#: the equilibrated bound on the last level only
 VARIANTS = (
     "adaptive:adapt.growth=2",
     "dorfler:adapt.growth=1",
     "rt0:adapt.growth=2,estimator=equilibrated_rt0",
     "residual:adapt.growth=2,estimator=residual",
+    "indicators:adapt.growth=2,adapt.indicators=residual",
 )
 
 
