@@ -511,6 +511,7 @@ class ComplementarityProblem:
         u_prev: fem.Function | None = None,
         energy: ufl.Form | None = None,
         current: bool = True,
+        coupled_at: np.ndarray | None = None,
     ) -> ComplementarityProblem:
         """Build the problem R(u) = w λ of a residual F(u; v), nonlinear in ``u``.
 
@@ -532,6 +533,11 @@ class ComplementarityProblem:
             current: a rigid obstacle whose gap is not affine in u (a curved surface, or
                 friction) is met on the current configuration (finite strain); False: on the
                 reference configuration.
+            coupled_at: :class:`~.constraints.MortarPair` s coupled on the current
+                configuration of these nodal displacements (u's array, owned and ghost
+                entries; finite strain: :func:`contact.drivers.recouple.solve_recoupled`
+                iterates the coupling to its fixed point), or None: on the reference
+                configuration.
 
         Returns:
             The problem, ready to :meth:`solve`; close it (or use ``with``).
@@ -562,6 +568,7 @@ class ComplementarityProblem:
                 },
                 current=current,
                 u_prev=u_prev,
+                coupled_at=coupled_at,
             )
         )
 
