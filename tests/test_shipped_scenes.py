@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clirun import ROOT, contact
+from clirun import ROOT, run_scene, serial_runs
 from readback import read_vtu, read_xdmf, xdmf_steps
 from test_cli_mpi import same, same_table
 
@@ -84,25 +84,14 @@ def test_every_shipped_scene_is_listed() -> None:
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     """The serial run of each scene, made when a test first needs it."""
-    done: dict[str, Path] = {}
-
-    def get(scene: str) -> Path:
-        if scene not in done:
-            done[scene] = _run(tmp_path_factory.mktemp(scene.removesuffix(".yaml")), scene, 0)
-        return done[scene]
-
-    return get
+    return serial_runs(tmp_path_factory, _run)
 
 
 def _run(tmp: Path, scene: str, ranks: int, sets: list[str] | None = None) -> Path:
     """``contact run`` of the shipped scene with its outputs (``sets``: default its
     SCENES overrides); its folder, every file read."""
-    out = tmp / f"np{ranks}"
-    args = ["run", str(ROOT / "configs" / scene), "-o", str(out), "-q"]
-    for item in SCENES[scene] if sets is None else sets:
-        args += ["--set", item]
-    proc = contact(tmp, *args, ranks=ranks, timeout=TIMEOUT[ranks])
-    assert proc.returncode == 0, f"{scene} on {ranks or 1} rank(s): {proc.stderr[-2000:]}"
+    items = SCENES[scene] if sets is None else sets
+    out, proc = run_scene(tmp, scene, ranks, items, TIMEOUT[ranks])
     assert "not written" not in proc.stderr, proc.stderr
     read_folder(out)
     assert (out / "contact_surface.xdmf").exists() == (scene not in IN_DOMAIN), scene
