@@ -19,6 +19,7 @@ from ..base.errors import ConfigError, petsc_message
 from ..base.validation import (
     FrozenDict,
     at_least_one,
+    auto_or,
     auto_or_positive,
     boolean,
     checked,
@@ -75,7 +76,10 @@ class SolverOptions(BaseModel):
         polish: active-set polishing of fb / blend steps.
         rtol: Newton's tolerance relative to ‖Φ(x_0)‖.
         atol: relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless).
-        max_it: Newton iterations.
+        max_it: the most Newton iterations: a number, or ``auto`` (the default):
+            max(50, n) with n the nodes across the constrained set
+            (``contact.solvers.problem.newton_max_it``), since a cold start's active-set
+            path takes O(1/h) steps.
         linear: direct, gamg, bcgs or auto (``linear``).
         inexact: inexact Newton on the gamg path (Krylov tolerances from a forcing rule).
         forcing: the forcing rule of ``inexact`` for fb / min / blend without friction:
@@ -122,7 +126,7 @@ class SolverOptions(BaseModel):
     polish: Annotated[bool, BeforeValidator(boolean)] = True
     rtol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
     atol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
-    max_it: Annotated[int, BeforeValidator(integer(positive))] = 50
+    max_it: Annotated[Literal["auto"] | int, BeforeValidator(auto_or(integer(positive)))] = "auto"
     linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
     forcing: Annotated[str, BeforeValidator(one_of(FORCINGS))] = "active_set"
