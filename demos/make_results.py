@@ -2726,6 +2726,74 @@ def hp_section() -> str:
                 ),
             )
         ]
+    hertz = rows(RES / "hp" / "hertz_summary.csv")
+    if hertz:
+        lines += [
+            prose(
+                "hp_section",
+                "hertz_hp",
+                table=table(
+                    [
+                        "method",
+                        "reached",
+                        "level",
+                        "N",
+                        "a / a_H − 1",
+                        "p0 / p0_H − 1",
+                        "CPU s",
+                        "N(P1) / N",
+                        "CPU(P1) / CPU",
+                    ],
+                    [
+                        [
+                            r["method"],
+                            "yes" if r["reached"] else "no",
+                            r["level"],
+                            r["unknowns"],
+                            f"{100 * r['a_error']:+.2f} %",
+                            f"{100 * r['p0_error']:+.2f} %",
+                            f"{r['cpu_seconds']:.2f}",
+                            f"{r['unknowns_ratio_P1']:.2f}",
+                            f"{r['cpu_ratio_P1']:.2f}",
+                        ]
+                        for r in hertz
+                    ],
+                ),
+            )
+        ]
+    solvers = rows(RES / "hp" / "solvers.csv")
+    if solvers:
+        lines += [
+            prose(
+                "hp_section",
+                "hp_solvers",
+                table=table(
+                    [
+                        "p",
+                        "N",
+                        "solver",
+                        "iterations",
+                        "setup CPU s",
+                        "solve CPU s",
+                        "CPU / direct",
+                    ],
+                    [
+                        [
+                            r["p"],
+                            r["unknowns"],
+                            r["solver"],
+                            r["iterations"]
+                            if r["converged"]
+                            else f"{r['iterations']} (**not converged**)",
+                            f"{r['setup_cpu']:.3f}",
+                            f"{r['solve_cpu']:.3f}",
+                            f"{r['cpu_ratio_direct']:.2f}",
+                        ]
+                        for r in solvers
+                    ],
+                ),
+            )
+        ]
     try:
         chart = hp_chart(levels, RES / "hp" / "hp.png")
         lines += ["", f"![hp against h]({chart.relative_to(RES.parent)})", ""]

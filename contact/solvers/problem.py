@@ -167,6 +167,12 @@ class DiscreteProblem:
         con = self.constraint
         return self.lambda_sign * r[con.dofs] / con.w
 
+    def node_coordinates(self) -> np.ndarray:
+        """The coordinates (gdim columns) of the nodes of the constrained DoFs."""
+        V = self.V
+        nodes = self.constraint.dofs // V.dofmap.index_map_bs
+        return V.tabulate_dof_coordinates()[nodes, : V.mesh.geometry.dim]
+
     def nodal_gap(self, x: np.ndarray) -> np.ndarray:
         """σ(g_i − x_i) on the constrained DoFs (owned unknowns ``x``): ≥ 0 when feasible."""
         con = self.constraint
