@@ -103,3 +103,21 @@ def test_hp_scene_serial_equals_two_ranks(tmp_path: Path) -> None:
     assert len(degree), "no degree field in solution_004.h5"
     assert len(degree) == int(one[-1]["cells"])
     assert degree.min() == int(one[-1]["p_min"]) and degree.max() == int(one[-1]["p_max"])
+
+
+def test_auto_linear_solver_counts_the_hp_unknowns() -> None:
+    """``solver.linear: auto`` sizes an hp system by its unknowns, not by the DoFs of
+    P_{p_max} it lives in (most of them unused at low degrees), and solves it directly in 2D
+    up to DIRECT_MAX_HP_2D unknowns (GAMG is not robust in p)."""
+    from contact.hp.problem import hp_problem
+    from contact.hp.space import HPSpace
+    from contact.solvers.linear import DIRECT_MAX_DOFS_2D, DIRECT_MAX_HP_2D, choose_linear
+
+    scene = contact.load_scene(SMOOTH, ["mesh.cells=[16,16]", "output.verbose=false"])
+    n = scene.mesh.topology.index_map(2).size_local
+    problem = hp_problem(scene, HPSpace(scene.mesh, 6, np.ones(n, dtype=np.int32)))
+    assert problem.V.dofmap.index_map.size_global > DIRECT_MAX_DOFS_2D  # P6's DoFs
+    assert problem.unknowns() == 17 * 17  # the P1 unknowns
+    assert choose_linear(problem, "auto") == "direct"
+    assert DIRECT_MAX_HP_2D > DIRECT_MAX_DOFS_2D and problem.variable_degree
+    problem.destroy()

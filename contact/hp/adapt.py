@@ -138,8 +138,7 @@ def adapt_hp(
             result = solve(
                 scene, problem=problem, u0=u0, verbose=False, rtol=rtol, atol=atol, sequence="off"
             )
-        # the hp unknowns (every component), not V's DoFs
-        result.__dict__["dofs"] = space.dimension * problem.V.dofmap.index_map_bs
+        result.__dict__["dofs"] = problem.unknowns()  # the hp unknowns, not V's DoFs
         with Timer(seconds, "estimate"):
             est = hp_estimate(scene, result, space, estimator)
         with Timer(seconds, "error"):

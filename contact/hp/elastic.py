@@ -58,6 +58,13 @@ class HPElasticProblem(Problem):
     space: HPSpace
     scalar_basis: PETSc.Mat
 
+    variable_degree = True
+
+    def unknowns(self) -> int:
+        """The hp unknowns (every component), not V's DoFs: the inactive slots are
+        eliminated rows (which size decides ``solver.linear: auto``)."""
+        return self.space.dimension * self.V.dofmap.index_map_bs
+
     def nodal_output(self, name: str, values: np.ndarray) -> fem.Function:
         """``values`` at the constrained nodes (0 at the other nodes) as the scalar function
         Q_hp x of P_{p_max}."""

@@ -51,6 +51,13 @@ class HPProblem(Problem):
 
     space: HPSpace
 
+    variable_degree = True
+
+    def unknowns(self) -> int:
+        """The hp unknowns (every component), not V's DoFs: the inactive slots are
+        eliminated rows (which size decides ``solver.linear: auto``)."""
+        return self.space.dimension * self.V.dofmap.index_map_bs
+
     def nodal_output(self, name: str, values: np.ndarray) -> fem.Function:
         """``values`` at the constrained unknowns (0 at the other unknowns), as the function
         Q x of V (λ_h also at the ends of Γ_C)."""

@@ -167,6 +167,16 @@ class DiscreteProblem:
         con = self.constraint
         return self.lambda_sign * r[con.dofs] / con.w
 
+    #: the unknowns carry polynomials of variable degree (an hp space): Krylov solvers with
+    #: GAMG lose their robustness, which ``solver.linear: auto`` takes into account
+    variable_degree = False
+
+    def unknowns(self) -> int:
+        """The number of unknowns the solver works on (all ranks): V's DoFs, or fewer where
+        the change of basis u = Q x leaves some of V's DoFs unused (an hp space)."""
+        V = self.V
+        return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
     def node_coordinates(self) -> np.ndarray:
         """The coordinates (gdim columns) of the nodes of the constrained DoFs."""
         V = self.V

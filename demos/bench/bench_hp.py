@@ -13,6 +13,11 @@ every level.  Writes levels.csv and summary.csv; prints a table.
     python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
     python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
     python demos/bench/bench_hp.py --hertz --out demos/results/hp      (Hertz 2D, elastic)
+    python demos/bench/bench_hp.py --three-d 8 --out demos/results/hp  (3D problem C, 8 levels)
+
+``--three-d``: problem C extruded to the unit cube (u = −(x − ½)₊³ + z², Γ_C = {z = 0},
+u_D = u on the other faces), hp with p_max 3 from the 4 × 4 × 4 box: per level N, the error, η
+and η / error (three_d.csv), the guaranteed bound in 3D.
 
 ``--hertz``: the elastic Hertz scene (configs/hertz_2d.yaml) with the h loop (P1, the
 scene's Dörfler θ) and the hp loop (residual estimator with h/p weights), per level the
@@ -232,6 +237,71 @@ def hertz(out: Path) -> None:
         )
 
 
+#: problem C in the unit cube (module docstring)
+CUBE = {
+    "name": "signorini_smooth_3d",
+    "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": [4, 4, 4]},
+    "boundaries": {
+        "contact": {"role": "contact", "where": "z < 1e-10"},
+        # one part per face: a facet of a face has all its vertices on it, and on no other
+        **{
+            name: {"role": "dirichlet", "where": where}
+            for name, where in (
+                ("x0", "x < 1e-10"),
+                ("x1", "x > 1 - 1e-10"),
+                ("y0", "y < 1e-10"),
+                ("y1", "y > 1 - 1e-10"),
+                ("top", "z > 1 - 1e-10"),
+            )
+        },
+    },
+    "model": "signorini",
+    "data": {
+        "f": "6*max(x - 0.5, 0) - 2",
+        "g": "0",
+        "t_C": "max(0.5 - x, 0)**2",
+        "u_D": "-max(x - 0.5, 0)**3 + z**2",
+        "exact": "-max(x - 0.5, 0)**3 + z**2",
+    },
+    "solver": {"method": "fb"},
+    "output": {"verbose": False},
+}
+
+
+def three_d(out: Path, levels: int) -> None:
+    """The hp loop on problem C in 3D (module docstring)."""
+    scene = contact.load_scene(CUBE)
+    rows = []
+    start = time.process_time()
+
+    def on_level(lv) -> None:
+        row = lv.row()
+        rows.append(
+            {
+                "level": lv.index,
+                "unknowns": row["dofs"],
+                "cells": row["cells"],
+                "p_min": row["p_min"],
+                "p_max": row["p_max"],
+                "error": lv.error,
+                "eta": lv.estimate.eta,
+                "effectivity": lv.estimate.eta / lv.error,
+                "cpu_seconds": time.process_time() - start,
+            }
+        )
+        r = rows[-1]
+        print(
+            f"{r['level']:3d} N {r['unknowns']:7d} cells {r['cells']:7d} p {r['p_min']}-"
+            f"{r['p_max']} error {r['error']:.3e} eta {r['eta']:.3e} eta/error "
+            f"{r['effectivity']:.3f} cpu {r['cpu_seconds']:.1f}",
+            flush=True,
+        )
+
+    run = contact.adapt(scene, strategy="hp", p_max=3, max_levels=levels, on_level=on_level)
+    write_csv(out / "three_d.csv", rows)
+    print(run.stop, "| eta >= error on every level:", all(r["eta"] >= r["error"] for r in rows))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="demos/results/hp")
@@ -244,23 +314,31 @@ def main() -> None:
     parser.add_argument(
         "--hertz", action="store_true", help="only Hertz 2D: hp against h-adaptive P1"
     )
+    parser.add_argument(
+        "--methods", default="", help="comma-separated subset of the methods (default: all)"
+    )
+    parser.add_argument("--three-d", type=int, default=0, metavar="LEVELS", help="3D problem C")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.three_d:
+        three_d(out, args.three_d)
+        return
     if args.hertz:
         hertz(out)
         return
     if args.p_robust:
         p_robust(out, args.problems.split(","))
         return
+    methods = [m for m in METHODS if not args.methods or m[0] in args.methods.split(",")]
     levels, summary = [], []
     for problem, path, target, budget in PROBLEMS:
         if problem not in args.problems.split(","):
             continue
         reached = {}
-        for method, sets, options in METHODS:  # the compiled forms loaded before any timing
+        for method, sets, options in methods:  # the compiled forms loaded before any timing
             run(problem, path, target, budget, method, sets, {**options, "max_levels": 2})
-        for method, sets, options in METHODS:
+        for method, sets, options in methods:
             rows, stop = run(problem, path, target, budget, method, sets, options)
             levels += rows
             hit = first_below(rows, target)
