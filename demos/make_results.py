@@ -2794,6 +2794,30 @@ def hp_section() -> str:
                 ),
             )
         ]
+    cube = rows(RES / "hp" / "three_d.csv")
+    if cube:
+        lines += [
+            prose(
+                "hp_section",
+                "three_d_hp",
+                table=table(
+                    ["level", "N", "cells", "degrees", "error", "η", "η / error", "CPU s"],
+                    [
+                        [
+                            r["level"],
+                            r["unknowns"],
+                            r["cells"],
+                            f"{r['p_min']}–{r['p_max']}",
+                            g(r["error"]),
+                            g(r["eta"]),
+                            f"{r['effectivity']:.3f}",
+                            f"{r['cpu_seconds']:.1f}",
+                        ]
+                        for r in cube
+                    ],
+                ),
+            )
+        ]
     try:
         chart = hp_chart(levels, RES / "hp" / "hp.png")
         lines += ["", f"![hp against h]({chart.relative_to(RES.parent)})", ""]

@@ -48,6 +48,7 @@ PROBLEMS = [
 METHODS = [
     ("hp", [], dict(strategy="hp", p_max=6, p_start=1, max_levels=60)),
     ("hp-start2", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
+    ("hp-theta0.7", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.7, max_levels=60)),
     ("hp-theta0.9", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.9, max_levels=60)),
     ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
     ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
