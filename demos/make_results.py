@@ -2623,6 +2623,13 @@ def hp_chart(levels: list[dict], out: Path) -> Path:
     return out
 
 
+def _rate(levels: list[dict]) -> float:
+    """r of error ≈ c N^−r, least squares over ``levels`` (unknowns, error)."""
+    x = [math.log(r["unknowns"]) for r in levels]
+    y = [math.log(r["error"]) for r in levels]
+    return -statistics.linear_regression(x, y).slope
+
+
 def hp_section() -> str:
     """§15: hp against h-adaptive P1 and P2 (demos/bench/bench_hp.py)."""
     head = [
@@ -2761,7 +2768,9 @@ def hp_section() -> str:
                 ),
             )
         ]
-    solvers = rows(RES / "hp" / "solvers.csv")
+    solvers = (rows(RES / "hp" / "solvers.csv") or []) + (
+        rows(RES / "hp" / "solvers_refined.csv") or []
+    )
     if solvers:
         lines += [
             prose(
@@ -2769,6 +2778,7 @@ def hp_section() -> str:
                 "hp_solvers",
                 table=table(
                     [
+                        "cells",
                         "p",
                         "N",
                         "solver",
@@ -2779,6 +2789,7 @@ def hp_section() -> str:
                     ],
                     [
                         [
+                            r["cells"],
                             r["p"],
                             r["unknowns"],
                             r["solver"],
@@ -2792,6 +2803,33 @@ def hp_section() -> str:
                         for r in solvers
                     ],
                 ),
+            )
+        ]
+    theta = rows(RES / "hp" / "theta_levels.csv")
+    if theta:
+        methods = list(dict.fromkeys(r["method"] for r in theta))
+        body = []
+        for problem, targets in (("C", (1e-3, 1e-4, 1.2e-5, 1e-6)), ("A", (1e-3, 3e-4, 1e-4))):
+            for target in targets:
+                cells = []
+                for method in methods:
+                    hit = next(
+                        (
+                            r
+                            for r in theta
+                            if r["problem"] == problem
+                            and r["method"] == method
+                            and r["error"] <= target
+                        ),
+                        None,
+                    )
+                    cells.append(f"{hit['cpu_seconds']:.2f} ({hit['unknowns']})" if hit else "–")
+                body.append([problem, g(target), *cells])
+        lines += [
+            prose(
+                "hp_section",
+                "equal_error",
+                table=table(["problem", "error ≤", *methods], body),
             )
         ]
     cube = rows(RES / "hp" / "three_d.csv")
@@ -2816,6 +2854,8 @@ def hp_section() -> str:
                         for r in cube
                     ],
                 ),
+                bound="yes" if all(r["eta"] >= r["error"] for r in cube) else "**no**",
+                rate=f"{_rate(cube[3:]):.2f}",
             )
         ]
     try:

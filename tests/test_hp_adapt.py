@@ -121,3 +121,25 @@ def test_auto_linear_solver_counts_the_hp_unknowns() -> None:
     assert choose_linear(problem, "auto") == "direct"
     assert DIRECT_MAX_HP_2D > DIRECT_MAX_DOFS_2D and problem.variable_degree
     problem.destroy()
+
+
+def test_hp_default_theta_applies_when_no_theta_is_given() -> None:
+    """Without ``adapt.theta`` in the scene or the call the hp loop marks with HP_THETA;
+    a θ given either way is kept."""
+    from contact.hp.adapt import HP_THETA
+
+    import yaml
+
+    config = yaml.safe_load(SMOOTH.read_text())
+    del config["adapt"]["theta"]
+    config["output"] = {"verbose": False}
+
+    def marked(theta: float | None) -> tuple[int, int]:
+        scene = contact.load_scene(config)
+        options = {} if theta is None else {"theta": theta}
+        level = contact.adapt(scene, strategy="hp", p_max=4, max_levels=2, **options).levels[0]
+        return level.h_cells, level.p_cells
+
+    default = marked(None)
+    assert default == marked(HP_THETA) and default != marked(0.3)
+    assert HP_THETA != 0.5

@@ -43,6 +43,9 @@ from .space import HPSpace
 #: 1e-10 the error stalled at 2.8e-7 and η rose to 5e-7; with these it went on to 1.8e-7,
 #: effectivity 1.28).  The solver's round-off floor keeps them attainable.
 NEWTON_RTOL, NEWTON_ATOL = 1e-14, 1e-15
+#: Dörfler's θ of the hp loop when neither the scene nor the caller gives one: larger than
+#: the h loop's 0.5, as a marked cell gains one degree per level (demos/RESULTS.md §15)
+HP_THETA = 0.7
 
 
 @dataclass
@@ -233,7 +236,8 @@ def adapt(
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
             maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
             ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the
-            largest degree) and ``p_start`` (every cell's first degree).  The hp loop takes
+            largest degree) and ``p_start`` (every cell's first degree); hp's ``theta`` is
+            :data:`HP_THETA` unless the scene or the call gives one.  The hp loop takes
             the scene's ``estimator`` (``residual``: the h/p-weighted residual estimator;
             otherwise the guaranteed equilibrated bound; elasticity: always the residual
             estimator).
@@ -274,13 +278,21 @@ def adapt(
         scene,
         p_max=opts.p_max,
         p_start=opts.p_start,
-        theta=opts.theta,
+        theta=opts.theta if _theta_given(scene, options) else HP_THETA,
         tol=opts.tol,
         max_dofs=opts.max_dofs,
         max_levels=opts.max_levels,
         estimator="residual" if scene.config.estimator == "residual" else "equilibrated",
         on_level=on_level,
         verbose=scene.config.output.verbose if verbose is None else verbose,
+    )
+
+
+def _theta_given(scene: Scene, options: dict[str, Any]) -> bool:
+    """Whether Dörfler's θ is the caller's or the scene's own (else the hp default)."""
+    section = scene.config.adapt
+    return options.get("theta") is not None or (
+        section is not None and "theta" in section.model_fields_set
     )
 
 

@@ -17,9 +17,11 @@ steps solve on the inactive set), solved for its right-hand side to a relative r
 
 Per solver and p: the Krylov iterations, the CPU seconds of setup and solve (the process's,
 measured in the same run, ratios to ``direct``), the unknowns.  Serial (the patches are
-built from the local mesh).  Writes solvers.csv.
+built from the local mesh).  Writes solvers.csv (or ``--csv``).
 
     python demos/bench/bench_hp_solvers.py --out demos/results/hp
+    python demos/bench/bench_hp_solvers.py --refine 3 --degrees 4,6 --csv solvers_refined.csv \
+        --out demos/results/hp
 """
 
 from __future__ import annotations
@@ -40,7 +42,6 @@ from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "configs" / "signorini_smooth.yaml"
-DEGREES = (2, 3, 4, 6)
 SOLVERS = ("direct", "gamg", "p1-jacobi", "p1-patch")
 RTOL = 1e-10
 
@@ -178,6 +179,8 @@ def main() -> None:
     parser.add_argument(
         "--refine", type=int, default=2, help="uniform refinements of C's 8 × 8 mesh"
     )
+    parser.add_argument("--degrees", default="2,3,4,6", help="comma-separated degrees p")
+    parser.add_argument("--csv", default="solvers.csv", help="the CSV's name in --out")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -186,7 +189,7 @@ def main() -> None:
         scene, _ = contact.refine(scene, np.arange(scene.mesh.topology.index_map(2).size_local))
     n = scene.mesh.topology.index_map(2).size_local
     rows = []
-    for p in DEGREES:
+    for p in (int(d) for d in args.degrees.split(",")):
         space = HPSpace(scene.mesh, p, np.full(n, p, dtype=np.int32))
         problem = hp_problem(scene, space)
         for kind in SOLVERS:
@@ -198,7 +201,7 @@ def main() -> None:
             if r["p"] == p:
                 r["cpu_ratio_direct"] = r["cpu"] / direct["cpu"]
         problem.destroy()
-    write_csv(out / "solvers.csv", rows)
+    write_csv(out / args.csv, rows)
     print(f"{'p':>3}{'N':>8} {'solver':10}{'its':>6}{'setup':>8}{'solve':>8}{'cpu/direct':>11}")
     for r in rows:
         print(
