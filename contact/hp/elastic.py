@@ -57,8 +57,9 @@ class HPElasticProblem(Problem):
 
     space: HPSpace
     scalar_basis: PETSc.Mat
-
-    variable_degree = True
+    #: with the rigid motions as its near-nullspace, CG + GAMG reached the Hertz 2D targets
+    #: in less CPU time than MUMPS (demos/RESULTS.md §15): ``solver.linear: auto`` as for P1
+    variable_degree = False
 
     def unknowns(self) -> int:
         """The hp unknowns (every component), not V's DoFs: the inactive slots are

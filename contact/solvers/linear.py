@@ -5,7 +5,7 @@
   GAMG's interpolation reused across Newton steps, inexact Newton (``solver.inexact``);
 * ``bcgs``   — BiCGStab + GAMG on the assembled H (the generic Krylov path, also for
   non-symmetric laws);
-* ``auto``   — :func:`choose_linear`: MUMPS for small 2D problems (hp problems: up to
+* ``auto``   — :func:`choose_linear`: MUMPS for small 2D problems (scalar hp problems: up to
   :data:`DIRECT_MAX_HP_2D` unknowns), ``gamg`` otherwise.
 
 ``solver.petsc_options`` go to the KSP that does the work: SNES's for ``direct`` / ``bcgs``,
