@@ -2805,7 +2805,7 @@ def hp_section() -> str:
                 ),
             )
         ]
-    theta = rows(RES / "hp" / "theta_levels.csv")
+    theta = [r for r in levels if r["method"] in ("hp", "hp-theta0.7", "hp-theta0.9", "h-P2")]
     if theta:
         methods = list(dict.fromkeys(r["method"] for r in theta))
         body = []
