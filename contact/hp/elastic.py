@@ -45,7 +45,7 @@ from ..setup.elastic import (
 from ..setup.scene import Scene
 from ..setup.scene_config import components
 from ..solvers.floating import floating_bodies
-from ..solvers.problem import Constraint
+from ..solvers.problem import Constraint, Output, ProblemData, Symmetry
 from .problem import eliminate, reduce_system
 from .space import HPSpace
 
@@ -83,7 +83,8 @@ class HPElasticProblem(Problem):
         the other DoFs of P_{p_max}."""
         con = self.constraint
         gap = self.nodal_output("gap", con.sign * (con.g - x[con.dofs]))
-        gap.x.array[~self.data["contact_mask"]] = np.nan
+        assert self.data.contact_mask is not None  # set when built
+        gap.x.array[~self.data.contact_mask] = np.nan
         return gap
 
     def node_coordinates(self) -> np.ndarray:
@@ -210,7 +211,6 @@ def hp_elastic_problem(scene: Scene, space: HPSpace) -> HPElasticProblem:
     bound.interpolate(lambda X: n_k * ((X[:gdim].T - plane.point) @ plane.normal))
     n_ufl, g_ufl = plane.expression(ufl.SpatialCoordinate(msh))
     u_h = fem.Function(V, name="u_h")
-    axes = tuple(s.symmetry_axes)
     problem = HPElasticProblem(
         V,
         u_h,
@@ -218,28 +218,26 @@ def hp_elastic_problem(scene: Scene, space: HPSpace) -> HPElasticProblem:
         K_hp,
         b_hp,
         constraint,
-        output_space=space.V,
-        output_bound=bound,
-        lambda_sign=n_k,
+        output=Output(space=space.V, bound=bound, lambda_sign=n_k),
         near_nullspace=rigid_body_modes(V, None, Linv),
         basis=Q,
         basis_inverse=Linv,
-        data={
-            **s.data,
-            "mu": mu,
-            "lmbda_L": lmbda_L,
-            "exact": None,
-            "n": -plane.normal,
-            "n_ufl": n_ufl,
-            "g_ufl": g_ufl,
-            "reaction_basis": Q,  # the reaction of the hp test functions (p.bcs[0])
-            "reaction_form": reaction_form(a_ufl, s.L_ufl, u_h),
-            "contact_mask": contact_mask,
-        },
+        data=ProblemData(
+            f=s.data["f"],
+            t=s.data["t"],
+            ds=ds,
+            mu=mu,
+            lmbda_L=lmbda_L,
+            n=-plane.normal,
+            n_ufl=n_ufl,
+            g_ufl=g_ufl,
+            contact_mask=contact_mask,
+            reaction_form=reaction_form(a_ufl, s.L_ufl, u_h),
+            reaction_basis=Q,  # the reaction of the hp test functions (p.bcs[0])
+        ),
         assembly_time=time.perf_counter() - t0,
         floating=floating_bodies(V, fixed_dofs, None, []),
-        symmetric_copies=2 ** len(axes),
-        symmetry_axes=axes,
+        symmetry=Symmetry(tuple(sorted(set(s.symmetry_axes)))),
         physics=elastic_physics(scene, s, mu, lmbda_L),
         contacts=(obstacle,),
     )
