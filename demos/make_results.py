@@ -3281,6 +3281,9 @@ TTA_VARIANTS = {
     "rt0": "`estimator=equilibrated_rt0` (growth 2)",
     "g4rt0": "`adapt.growth=4 estimator=equilibrated_rt0`",
     "residual": "`estimator=residual` (growth 2)",
+    "indicators": "`adapt.indicators=residual` (growth 2: the residual indicators mark, the "
+    "equilibrated bound is computed on the level that reaches the target only, and charged to it)",
+    "indicators_g1": "`adapt.indicators=residual` (growth 1)",
 }
 
 
@@ -3380,6 +3383,12 @@ def time_to_accuracy() -> str:
                 "honest_summary",
                 smooth=", ".join(smooth) or "—",
                 fastest=", ".join(f"{scene} {v:.2f} (`{name}`)" for v, name, scene in fastest),
+                cheap=", ".join(
+                    f"{scene} {ratio_of(scene, 'indicators'):.2f}"
+                    for scene in ("ex9", "A")
+                    if ratio_of(scene, "indicators") is not None
+                )
+                or "—",
                 singular=""
                 if not singular
                 else prose(

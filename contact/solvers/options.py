@@ -206,6 +206,8 @@ class FrictionOptions(BaseModel):
 #: the adaptive loop's marking: Dörfler's bulk criterion, the maximum strategy, every cell,
 #: or none (one solve)
 STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+#: the indicators that mark: the estimator's own, or the residual ones (the bound at the end)
+INDICATORS = ("estimator", "residual")
 
 
 class AdaptOptions(BaseModel):
@@ -222,6 +224,12 @@ class AdaptOptions(BaseModel):
             (``contact.adaptivity.mark.Growth``), so the levels are O(log N) and the
             loop costs at most growth/(growth − 1) times its last level; 1 (the default):
             Dörfler's set alone.
+        indicators: what marks the cells: ``estimator`` (the default: the estimator's own
+            η_T, its η on every level) or ``residual`` (the residual estimator's DG0
+            indicators mark every level; an equilibrated estimator's guaranteed bound is
+            computed only on the last level and where it may meet ``tol``, so the other
+            levels' η are the residual estimator's, not bounds; adaptive stopping, which
+            needs the bound on every level, keeps ``estimator``).
         tol: stop at η ≤ tol.
         max_dofs: the most DoFs of a level.
         max_levels: the most levels.
@@ -240,6 +248,7 @@ class AdaptOptions(BaseModel):
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
     theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
     growth: Annotated[float, BeforeValidator(number(at_least_one))] = 1.0
+    indicators: Annotated[str, BeforeValidator(one_of(INDICATORS))] = "estimator"
     tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
     max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
     max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8
