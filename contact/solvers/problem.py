@@ -137,6 +137,8 @@ class ProblemData:
         u_bcs: the Dirichlet conditions on u where the problem's own ``bcs`` act on the
             unknowns of a change of basis.
         reaction_form: the residual form whose value on Γ_D is the reaction force.
+        reaction_basis: Q of test functions that span a subspace of V (u = Q x, an hp
+            space): the reaction is Qᵀ of that residual on the unknowns ``bcs`` hold.
         deformed_area: the form of the lumped deformed areas of the contact nodes.
     """
 
@@ -160,6 +162,7 @@ class ProblemData:
     pair_nodes: int | None = None
     u_bcs: list | None = None
     reaction_form: fem.Form | None = None
+    reaction_basis: PETSc.Mat | None = None
     deformed_area: fem.Form | None = None
 
     def updated(self, other: ProblemData) -> ProblemData:
@@ -293,6 +296,22 @@ class DiscreteProblem:
         residual ``r``)."""
         con = self.constraint
         return self.output.lambda_sign * r[con.dofs] / con.w
+
+    #: the unknowns carry polynomials of variable degree (an hp space): Krylov solvers with
+    #: GAMG lose their robustness, which ``solver.linear: auto`` takes into account
+    variable_degree = False
+
+    def unknowns(self) -> int:
+        """The number of unknowns the solver works on (all ranks): V's DoFs, or fewer where
+        the change of basis u = Q x leaves some of V's DoFs unused (an hp space)."""
+        V = self.V
+        return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+    def node_coordinates(self) -> np.ndarray:
+        """The coordinates (gdim columns) of the nodes of the constrained DoFs."""
+        V = self.V
+        nodes = self.constraint.dofs // V.dofmap.index_map_bs
+        return V.tabulate_dof_coordinates()[nodes, : V.mesh.geometry.dim]
 
     def nodal_gap(self, x: np.ndarray) -> np.ndarray:
         """σ(g_i − x_i) on the constrained DoFs (owned unknowns ``x``): ≥ 0 when feasible."""
