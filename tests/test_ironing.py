@@ -111,3 +111,14 @@ def test_two_ranks_give_the_serial_forces(serial, tmp_path: Path) -> None:
     for key in FORCES:
         a, b = column(serial, key), column(parallel, key)
         assert np.max(np.abs(a - b)) <= 1e-8 * np.max(np.abs(a)), key
+
+
+def test_force_png_is_drawn_against_t_when_the_die_turns() -> None:
+    """force.png's axis: the obstacle's approach while it moves along one direction, the
+    pseudo-time once its translation turns (pressed in, then dragged)."""
+    from contact.output.step_report import translation_turns
+
+    down = [{"obstacle_translation": [0.0, -0.1 * k]} for k in range(4)]
+    assert not translation_turns(down)
+    assert not translation_turns([{"contact_force": 1.0}] * 3)  # no rigid obstacle
+    assert translation_turns([*down, {"obstacle_translation": [0.5, -0.3]}])
