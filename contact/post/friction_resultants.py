@@ -43,10 +43,10 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
     w, lam_n = fr["w"], fr["lambda_n"]
     if "normals" in fr:  # on the current configuration: each node's current normal
         normals = fr["normals"]
-    elif "normals" in p.data:
-        normals = p.data["normals"]
+    elif p.data.normals is not None:
+        normals = p.data.normals
     else:
-        normals = np.tile(np.asarray(p.data["n"], float), (len(w), 1))
+        normals = np.tile(np.asarray(p.data.n, float), (len(w), 1))
 
     def total(values) -> np.ndarray:  # Σ over the nodes of every rank, per column
         values = np.asarray(values, dtype=float)
