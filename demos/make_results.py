@@ -1841,6 +1841,7 @@ def hyperelastic() -> str:
         _hyper_predictor(),
         _hyper_adaptive(),
         _hyper_ball(),
+        _hyper_ironing(),
     ]
     return "\n".join(out)
 
@@ -2205,6 +2206,71 @@ def _hyper_ball() -> str:
         ),
         "",
     ]
+    return "\n".join(out)
+
+
+def _hyper_ironing() -> str:
+    """§11.8: the ironing benchmark on three meshes (demos/bench/bench_ironing.py)."""
+    out, data = _hyper_open(prose("_hyper_ironing", "the_ironing_benchmark"), "ironing_meshes.csv")
+    if not data:
+        return "\n".join(out)
+
+    def pct(x) -> str:
+        return "–" if x in ("", None) else f"{100 * x:.2g} %"
+
+    body = [
+        [
+            r["cells"],
+            r["dofs"],
+            r["steady_steps"],
+            f"{r['max_rel_dev_Ft_Fn']:.1e}",
+            f"{r['min_Fx_over_Fy']:.3f}–{r['max_Fx_over_Fy']:.3f}",
+            f"{r['max_balance']:.0e}",
+            r["newton_per_step"],
+            f"{r['press_force_y_at_2']:.4f}",
+            pct(r.get("press_force_y_diff_at_2")),
+            f"{r['drag_force_x_at_2']:.4f}",
+            pct(r.get("drag_force_x_diff_at_2")),
+            r["run_seconds"],
+        ]
+        for r in data
+    ]
+    header = [
+        "mesh",
+        "DoFs",
+        "steady steps",
+        "max |F_t/F_n − μ| / μ",
+        "F_x / F_y steady",
+        "balance",
+        "Newton its / step",
+        "F_y at s = 2",
+        "to finer",
+        "F_x at s = 2",
+        "to finer",
+        "wall s",
+    ]
+    out += [prose("_hyper_ironing", "python_demos_bench", table=table(header, body)), ""]
+    if len(data) >= 3 and "press_force_y_order" in data[0]:
+        first, second = data[0], data[1]
+        out += [
+            prose(
+                "_hyper_ironing",
+                "in_steady_sliding",
+                worst_dev=f"{max(r['max_rel_dev_Ft_Fn'] for r in data):.0e}",
+                fx_fy=f"{min(r['min_Fx_over_Fy'] for r in data):.3f}–"
+                f"{max(r['max_Fx_over_Fy'] for r in data):.3f}",
+                dfy=pct(first["press_force_y_diff_at_2"]),
+                dfx=pct(first["drag_force_x_diff_at_2"]),
+                dfy2=pct(second["press_force_y_diff_at_2"]),
+                dfx2=pct(second["drag_force_x_diff_at_2"]),
+                order_y=f"{first['press_force_y_order']:.2f}",
+                order_x=f"{first['drag_force_x_order']:.2f}",
+                pressure_share=pct(
+                    data[-1]["drag_by_pressure_at_2"] / data[-1]["drag_force_x_at_2"]
+                ),
+            ),
+            "",
+        ]
     return "\n".join(out)
 
 
