@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import contact
 
@@ -115,3 +116,89 @@ def test_later_levels_compile_no_form(monkeypatch):
     assert len(run.levels) == 3
     assert [c for c, _ in per_level[1:]] == [0, 0], per_level
     assert per_level[1][1] == per_level[2][1] > 0, per_level
+
+
+#: a tiny run through the CLI in a fresh process (output folder, then ``--set`` items);
+#: ``{before}`` is run first; prints (exit code, matplotlib's backend or None, pyplot
+#: loaded) as JSON
+TINY_RUN = """
+import json, sys
+{before}
+from contact.app.cli import main
+code = main(["run", "configs/signorini_square.yaml", "--set", "mesh.cells=[8,8]",
+             "--set", "output.verbose=false", *sys.argv[2:], "-o", sys.argv[1]])
+mpl = sys.modules.get("matplotlib")
+print(json.dumps([code, mpl and mpl.get_backend().lower(), "matplotlib.pyplot" in sys.modules]))
+"""
+
+
+def tiny_run(tmp_path, name: str, before: str = "", sets: tuple = ()) -> list:
+    """The JSON that :data:`TINY_RUN` prints, its output folder ``tmp_path / name``."""
+    script = tmp_path / f"{name}.py"
+    script.write_text(TINY_RUN.format(before=before))
+    proc = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / name), *sets],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.splitlines()[-1])
+
+
+def test_pictures_leave_matplotlib_alone(tmp_path):
+    """A tiny run draws its pictures without matplotlib.pyplot: it neither imports it nor
+    switches the backend the user chose (here svg); without pictures (output.png=false) it
+    imports no part of matplotlib."""
+    assert tiny_run(tmp_path, "svg", 'import matplotlib\nmatplotlib.use("svg")') == [
+        0,
+        "svg",
+        False,
+    ]
+    pngs = sorted(p.name for p in (tmp_path / "svg").glob("*.png"))
+    assert pngs == ["pressure.png", "solution.png"], pngs
+    for name in pngs:
+        assert (tmp_path / "svg" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    assert tiny_run(tmp_path, "bare", sets=("--set", "output.png=false")) == [0, None, False]
+    assert not list((tmp_path / "bare").glob("*.png"))
+
+
+def test_pictures_have_the_pixels_of_the_pyplot_path(tmp_path, monkeypatch):
+    """Every 2D picture kind drawn on a Figure of its own has the pixels the old path
+    (``figures.PYPLOT``, through matplotlib.pyplot) draws: the solution, the pressure along
+    Γ_C, the mesh panels, a convergence and a force curve, and a study's stability chart."""
+    from contact.app.cli import main
+    from contact.output import charts, figures, plots
+
+    import numpy as np
+    from PIL import Image
+
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_square.yaml", ["mesh.cells=[8, 8]", "output.verbose=false"]
+    )
+    result = contact.solve(scene, verbose=False)
+    rows = [{"dofs": n, "eta": 1.0 / n, "error": 0.8 / n} for n in (81, 289, 1089)]
+    study = SimpleNamespace(name="pixels", axes={"method": ["fb", "min"]}, named_cases=False)
+    cells = [
+        {"method": m, "repeat": 1, "outcome": o, "newton_iterations_total": k}
+        for m, o, k in (("fb", "converged", 4), ("min", "max iterations", 100))
+    ]
+    for old in (True, False):
+        monkeypatch.setattr(figures, "PYPLOT", old)
+        out = tmp_path / ("old" if old else "new")
+        code = main(
+            ["run", "configs/signorini_square.yaml", "--set", "mesh.cells=[8,8]"]
+            + ["--set", "output.verbose=false", "-o", str(out)]
+        )
+        assert code == 0
+        plots.plot_mesh(out / "mesh.png", result.u_h, title="mesh")
+        plots.plot_convergence(out / "convergence.png", rows, title="rates")
+        plots.plot_force_displacement(out / "force.png", [0.1, 0.2], [1.0, 1.5], "approach")
+        charts.stability(out / "stability.png", study, cells, [])
+    names = sorted(p.name for p in (tmp_path / "new").glob("*.png"))
+    assert names == sorted(p.name for p in (tmp_path / "old").glob("*.png"))
+    assert {"solution.png", "pressure.png", "mesh.png", "stability.png"} <= set(names)
+    for name in names:
+        new, old = (np.asarray(Image.open(tmp_path / d / name)) for d in ("new", "old"))
+        assert new.shape == old.shape and np.array_equal(new, old), name
