@@ -202,3 +202,46 @@ def test_pictures_have_the_pixels_of_the_pyplot_path(tmp_path, monkeypatch):
     for name in names:
         new, old = (np.asarray(Image.open(tmp_path / d / name)) for d in ("new", "old"))
         assert new.shape == old.shape and np.array_equal(new, old), name
+
+
+#: three commands in one fresh process: a tiny run, a bad scene key (exit 2 while loading),
+#: the tiny run again; prints per command (exit code, collector on, objects frozen by it)
+THREE_COMMANDS = """
+import gc, json, sys
+import contact.app.cli as cli
+cli.FREEZE_LOADED = sys.argv[2] == "new"
+tiny = ["run", "configs/signorini_square.yaml", "--set", "mesh.cells=[8,8]", "--set",
+        "output.verbose=false", "-o"]
+seen = []
+before = gc.get_freeze_count()  # (the libraries' own, if any)
+for k, extra in enumerate(([], ["--set", "solver.no_such_key=1"], [])):
+    code = cli.main(tiny + [f"{sys.argv[1]}/run{k}", *extra])
+    seen.append([code, gc.isenabled(), gc.get_freeze_count() - before])
+    before = gc.get_freeze_count()
+print(json.dumps(seen))
+"""
+
+
+def test_loading_is_frozen_once(tmp_path):
+    """The first command of a process runs its loading with the cyclic collector off and
+    then freezes what it loaded (objects in the permanent generation, collector on again);
+    a later command freezes nothing more, and a command that fails while loading (exit 2)
+    leaves the collector on.  With ``FREEZE_LOADED`` False (the old path) nothing is frozen."""
+    script = tmp_path / "three.py"
+    script.write_text(THREE_COMMANDS)
+    seen = {}
+    for path in ("new", "old"):
+        proc = subprocess.run(
+            [sys.executable, str(script), str(tmp_path), path],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert proc.returncode == 0, proc.stderr
+        seen[path] = json.loads(proc.stdout.splitlines()[-1])
+    (c0, on0, frozen0), (c1, on1, frozen1), (c2, on2, frozen2) = seen["new"]
+    assert (c0, c1, c2) == (0, 2, 0) and on0 and on1 and on2, seen
+    assert frozen0 > 10_000 and frozen1 == frozen2 == 0, seen
+    assert [row[:2] for row in seen["old"]] == [[0, True], [2, True], [0, True]], seen
+    assert [row[2] for row in seen["old"]] == [0, 0, 0], seen
