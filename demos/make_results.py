@@ -459,17 +459,31 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
         and its.get((c.replace(" fixed point", " hsw"), m), {}).get("converged")
     ]
     bad_proj, bad_hsw = failed(proj), failed(hsw)
+    n_proj = sum(1 for c in friction if proj(c)) * len(newton)
     return prose(
         "_friction_rows",
         "h_j_coulomb_friction",
         span_hsw=span(hsw),
         f=f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere",
-        span_proj=span(proj),
-        len_bad_proj=len(bad_proj),
-        n_projection_cases=sum(1 for c in friction if proj(c)) * len(newton),
-        join_bad_proj_or_none=", ".join(bad_proj) or "none",
-        projection_cycle=prose("friction_shared", "projection_cycle"),
-        span_cured=span(cured),
+        projection_outcome=prose(
+            "_friction_rows",
+            "projection_fails",
+            span_proj=span(proj),
+            len_bad_proj=len(bad_proj),
+            n_projection_cases=n_proj,
+            join_bad_proj=", ".join(bad_proj),
+            projection_cycle=prose("friction_shared", "projection_cycle"),
+            span_cured=span(cured),
+        )
+        if bad_proj
+        else prose(
+            "_friction_rows",
+            "projection_guarded",
+            span_proj=span(proj),
+            n_projection_cases=n_proj,
+            projection_cycle=prose("friction_shared", "projection_cycle"),
+            span_cured=span(cured),
+        ),
         min_fp_if_fp_else=min(fp) if fp else "–",
         max_fp_if_fp_else=max(fp) if fp else "–",
         span_fixed=span(fixed),
