@@ -3366,6 +3366,9 @@ def time_to_accuracy() -> str:
         def med(case: str, key: str) -> float:
             return statistics.median(r[key] for r in start if r["case"] == case)
 
+        tiny = med("tiny run", "cpu")
+        bare, floor = "tiny run, output.png=false", "libraries only"
+
         out += [
             prose(
                 "time_to_accuracy",
@@ -3376,6 +3379,18 @@ def time_to_accuracy() -> str:
                 ),
                 import_seconds=f"{med('import contact', 'importtime_cumulative_s'):.3f}",
                 import_self_seconds=f"{med('import contact', 'importtime_self_s'):.4f}",
+                tiny_cpu=f"{tiny:.2f}",
+                pictures_cpu=f"{tiny - med(bare, 'cpu'):.2f}" if bare in cases else "–",
+                libraries_cpu=f"{med(floor, 'cpu'):.2f}" if floor in cases else "–",
+                libraries_share=f"{100 * med(floor, 'cpu') / tiny:.0f} %"
+                if floor in cases
+                else "–",
+                old_ratios=", ".join(
+                    f"{tiny / med(c, 'cpu'):.2f} × that of the {c.split(', ', 1)[1][:-6]}"
+                    for c in cases
+                    if c.endswith(" (old)")
+                )
+                or "–",
             )
         ]
     return "\n".join(out)
