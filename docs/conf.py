@@ -112,6 +112,7 @@ DEMO_ARGS = {
     "own_forms": "16",
     "torsion": "32",
     "hp": "1e-3",
+    "self_contact": "4",
 }
 
 

@@ -47,7 +47,7 @@ def main(argv):
     scene = contact.load_scene(rest[0], overrides)
     problem = build_problem(scene)
     nodal_body = fem.Function(fem.functionspace(scene.mesh, ("Lagrange", 1)))
-    nodal_body.interpolate(problem.data["body"])
+    nodal_body.interpolate(problem.data.body)
     data = {}
     for method in methods:
         r = contact.solve(scene, method=method, problem=problem, verbose=False, max_it=100)
@@ -56,7 +56,7 @@ def main(argv):
         lam_m = master_pressure(r)
         S = lam_m.function_space
         master = np.flatnonzero(np.abs(lam_m.x.array) > 0)
-        Xs, ls = _restricted(r.lmbda_h, problem.output_nodes)
+        Xs, ls = _restricted(r.lmbda_h, problem.output.nodes)
         Xm, lm = _restricted(lam_m, master[master < S.dofmap.index_map.size_local])
         Xu, u = gather_nodal(r.u_h)
         _, body = gather_nodal(nodal_body)  # coincident nodes of two bodies: order by body

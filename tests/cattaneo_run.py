@@ -36,7 +36,7 @@ def main(argv):
         )
     r = run.steps[-1].result
     p = r.problem
-    on = slice(0, p.data["pair_nodes"])
+    on = slice(0, p.data.pair_nodes)
     X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // p.V.dofmap.index_map_bs]
     data = comm.gather(
         np.c_[X[:, :2], r.friction["lambda_t_vec"][on], r.friction["lambda_n"][on]], root=0

@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import yaml
@@ -32,6 +33,36 @@ def contact(
     return subprocess.run(
         [*prefix, *cmd], cwd=cwd, env=full_env, capture_output=True, text=True, timeout=timeout
     )
+
+
+def run_scene(
+    tmp: Path, scene: str, ranks: int, sets: Sequence[str], timeout: float
+) -> tuple[Path, subprocess.CompletedProcess]:
+    """``contact run configs/<scene> -o tmp/np<ranks> -q --set …`` (``sets``), serially
+    (``ranks`` 0) or under ``mpirun -n ranks``, which must exit 0 within ``timeout`` seconds:
+    the output folder and the finished process."""
+    out = tmp / f"np{ranks}"
+    args = ["run", str(ROOT / "configs" / scene), "-o", str(out), "-q"]
+    for item in sets:
+        args += ["--set", item]
+    proc = contact(tmp, *args, ranks=ranks, timeout=timeout)
+    assert proc.returncode == 0, f"{scene} on {ranks or 1} rank(s): {proc.stderr[-2000:]}"
+    return out, proc
+
+
+def serial_runs(factory, run: Callable[[Path, str, int], Path]) -> Callable[[str], Path]:
+    """The serial run of each scene, made by ``run(folder, scene, 0)`` when a test first
+    asks for it and kept (the value of a module-scoped fixture; ``factory``: pytest's
+    ``tmp_path_factory``)."""
+    done: dict[str, Path] = {}
+
+    def get(scene: str) -> Path:
+        if scene not in done:
+            folder = factory.mktemp(scene.replace("/", "_").removesuffix(".yaml"))
+            done[scene] = run(folder, scene, 0)
+        return done[scene]
+
+    return get
 
 
 def script_json(script: str, folder: Path, *args: str, ranks: int = 1) -> object:

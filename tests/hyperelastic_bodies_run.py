@@ -23,7 +23,7 @@ def main(argv):
     run = contact.run_load_path(scene, verbose=False)
     r = run.steps[-1].result
     p = r.problem
-    on = slice(0, p.data["pair_nodes"])
+    on = slice(0, p.data.pair_nodes)
     bs = p.V.dofmap.index_map_bs
     X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // bs, : scene.mesh.geometry.dim]
     pressure = p.pressure(owned_residual(r))[on]

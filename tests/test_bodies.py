@@ -58,7 +58,7 @@ def test_patch_2d_pressure_is_exact_at_every_slave_node(patch_2d, method):
     scene, problem = patch_2d
     r = contact.solve(scene, method=method, problem=problem, verbose=False)
     assert r.converged
-    lam = r.lmbda_h.x.array[problem.output_nodes]
+    lam = r.lmbda_h.x.array[problem.output.nodes]
     # every node pressed by p: no tie, no rounding can move it
     assert len(lam) == 32 and r.n_active == 32
     assert np.max(np.abs(lam + P)) <= 1e-8 * P
@@ -85,7 +85,7 @@ def test_patch_3d_pressure_is_exact_at_every_slave_node():
     problem = build_problem(scene)
     for method in ("min", "vinewtonrsls"):
         r = contact.solve(scene, method=method, problem=problem, verbose=False)
-        lam = r.lmbda_h.x.array[problem.output_nodes]
+        lam = r.lmbda_h.x.array[problem.output.nodes]
         # uniform p: every node far from a tie
         assert r.converged and len(lam) == 14 * 14 == r.n_active
         assert np.max(np.abs(lam + P)) <= 1e-6 * P, method
@@ -372,7 +372,7 @@ def test_three_blocks_two_pairs_patch_test():
     )
     scene = contact.load_scene(cfg)
     r = contact.solve(scene, method="min", verbose=False)
-    lam = r.lmbda_h.x.array[r.problem.output_nodes]
+    lam = r.lmbda_h.x.array[r.problem.output.nodes]
     # uniform p: every node far from a tie
     assert r.converged and len(lam) == 32 + 32 == r.n_active
     assert np.max(np.abs(lam + P)) <= 1e-8 * P
@@ -428,7 +428,7 @@ def test_gmsh_file_with_one_physical_surface_per_body(tmp_path):
     }
     scene = contact.load_scene(cfg)
     r = contact.solve(scene, method="min")
-    lam = r.lmbda_h.x.array[r.problem.output_nodes]
+    lam = r.lmbda_h.x.array[r.problem.output.nodes]
     assert r.converged and r.n_active == len(lam) > 20  # every slave node pressed by ≈ p: no tie
     # the bottom is clamped (not a roller): the stress is not uniform near the corners, but the
     # total force is p × width and it crosses the interface unchanged

@@ -157,6 +157,19 @@ def test_blocks_estimate_is_exact(blocks: list, degree: int) -> None:
     assert budget.estimate_dofs(mesh, elastic=True) == budget.mesh_dofs(msh, degree, gdim)
 
 
+@pytest.mark.parametrize("degree", [1, 2])
+def test_ring_estimate_is_exact(degree: int) -> None:
+    """Mesh type ring: V = n_θ (n_r + 1) vertices, E = V + F edges (an annulus)."""
+    from contact.setup.meshes import ring
+    from contact.setup.scene_config import MeshConfig
+
+    from mpi4py import MPI
+
+    mesh = MeshConfig(type="ring", radius=1.0, inner_radius=0.5, cells=[12, 3], degree=degree)
+    msh, _, _ = ring(MPI.COMM_WORLD, 0.5, 1.0, mesh.cells)
+    assert budget.estimate_dofs(mesh, elastic=True) == budget.mesh_dofs(msh, degree, 2)
+
+
 def _blocks_scene(path: Path, cells: list[int]) -> None:
     scene = yaml.safe_load((ROOT / "configs" / "two_body_patch_2d.yaml").read_text())
     for block in scene["mesh"]["blocks"]:

@@ -25,7 +25,7 @@ import math
 from pathlib import Path
 
 import pytest
-from clirun import ROOT, contact
+from clirun import ROOT, contact, run_scene, serial_runs
 
 pytestmark = pytest.mark.mpi
 
@@ -140,28 +140,15 @@ def test_every_shipped_scene_is_listed() -> None:
 
 
 def _run(tmp: Path, scene: str, ranks: int, items: list[str] | None = None) -> Path:
-    out = tmp / f"np{ranks}"
-    args = ["run", str(ROOT / "configs" / scene), "-o", str(out), "-q"]
-    for item in SCENES[scene] if items is None else items:
-        args += ["--set", item]
-    proc = contact(tmp, *args, ranks=ranks, timeout=TIMEOUT[ranks])
-    assert proc.returncode == 0, f"{scene} on {ranks or 1} rank(s): {proc.stderr[-2000:]}"
-    return out
+    """``contact run`` of the scene (``items``: default its SCENES overrides); its folder."""
+    sets = SCENES[scene] if items is None else items
+    return run_scene(tmp, scene, ranks, sets, TIMEOUT[ranks])[0]
 
 
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     """The serial run of each scene, made when a test first needs it."""
-    done: dict[str, Path] = {}
-
-    def get(scene: str) -> Path:
-        if scene not in done:
-            done[scene] = _run(
-                tmp_path_factory.mktemp(scene.replace("/", "_").removesuffix(".yaml")), scene, 0
-            )
-        return done[scene]
-
-    return get
+    return serial_runs(tmp_path_factory, _run)
 
 
 def _answer_keys(summary: dict) -> set[str]:

@@ -112,6 +112,16 @@ def test_demo_large_deformation(tmp_path):
     assert len(residuals) >= 3 and residuals[-1] <= 10 * residuals[-2] ** 2
 
 
+def test_demo_self_contact(tmp_path):
+    """The ring squeezed in 4 steps: no contact until the last one, then ≥ 6 slave nodes
+    pressed; the forces on the two faces opposite to 1e-12, every weighted gap ≥ −1e-9."""
+    out = _demo("self_contact", "4", tmp_path)
+    pressed = [int(n) for n in re.findall(r"^t = \S+: (\d+) slave nodes pressed", out, re.M)]
+    assert len(pressed) == 4 and pressed[:-1] == [0, 0, 0] and pressed[-1] >= 6
+    assert _number(r"action = reaction to (\S+);", out) < 1e-12
+    assert _number(r"smallest weighted gap (\S+)", out) >= -1e-9
+
+
 def test_demo_curved_indentation(tmp_path):
     """The neo-Hookean block under the rigid cylinder (contact on the current configuration):
     the linear model's force at small indentation (within 2 %), > 5 % stiffer at 0.4 R,

@@ -57,7 +57,7 @@ def test_a_constant_stress_is_reproduced() -> None:
     assert np.all(result.lmbda_h.x.array <= 1e-12) and result.lmbda_h.x.array.min() < -0.01
     stress = reconstruct_stress(stress_data(result.problem, result))
     p = result.problem
-    mu, lam = p.data["mu"], p.data["lmbda_L"]
+    mu, lam = p.data.mu, p.data.lmbda_L
     eps = ufl.sym(ufl.grad(result.u_h))
     diff = stress.sigma - (2 * mu * eps + lam * ufl.tr(eps) * ufl.Identity(2))
     dx = ufl.dx(domain=scene.mesh)
@@ -80,8 +80,8 @@ def test_equilibrium_cell_by_cell(tresca) -> None:
     W = fem.functionspace(msh, ("DG", 1 + EXTRA, (2,)))  # the divergence lies in P_{p+1}
     v = ufl.TestFunction(W)
     dx = ufl.dx(domain=msh, metadata={"quadrature_degree": 10})
-    residual = _cellwise(ufl.inner(ufl.div(stress.sigma) + p.data["f"], v) * dx)
-    scale = np.abs(_cellwise(ufl.inner(p.data["f"], v) * dx)).max()
+    residual = _cellwise(ufl.inner(ufl.div(stress.sigma) + p.data.f, v) * dx)
+    scale = np.abs(_cellwise(ufl.inner(p.data.f, v) * dx)).max()
     assert np.abs(residual).max() < 1e-9 * scale
 
 
@@ -98,12 +98,12 @@ def test_boundary_tractions(tresca) -> None:
 
     lam_t = surface_functions(result)[0]
     traction = ufl.dot(stress.sigma, n)
-    normal = ufl.as_vector(np.asarray(p.data["n"], dtype=float).tolist())
+    normal = ufl.as_vector(np.asarray(p.data.n, dtype=float).tolist())
     (c,) = bnd.ids_with_role("contact")
     (neumann,) = bnd.ids_with_role("neumann")
     on_contact = _cellwise(ufl.inner(traction - stress.lmbda * normal - lam_t, v) * ds(c))
-    on_sides = _cellwise(ufl.inner(traction - p.data["t"], v) * ds(neumann))
-    scale = np.abs(_cellwise(ufl.inner(p.data["t"], v) * ds(neumann))).max()
+    on_sides = _cellwise(ufl.inner(traction - p.data.t, v) * ds(neumann))
+    scale = np.abs(_cellwise(ufl.inner(p.data.t, v) * ds(neumann))).max()
     assert np.abs(on_contact).max() < 1e-9 * scale
     assert np.abs(on_sides).max() < 1e-9 * scale
 

@@ -115,7 +115,7 @@ def test_sign_changing_p2_multiplier_is_replaced() -> None:
     flux = bound.flux
     assert np.abs(flux.bubble.x.array).max() > 0  # a Bernstein coefficient was removed
     assert 0 < flux.kappa.x.array.min() < 1
-    ds = result.problem.data["ds"](
+    ds = result.problem.data.ds(
         scene.boundary.ids_with_role("contact")[0], metadata={"quadrature_degree": 8}
     )
     positive = fem.assemble_scalar(fem.form(ufl.max_value(flux.lmbda, 0) * ds))

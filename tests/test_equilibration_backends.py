@@ -122,7 +122,7 @@ def test_flow_bound_is_guaranteed_in_3d() -> None:
     # degree 6: the default rule of degree 4 on tetrahedra has a point on the line r = 0,
     # where ∇u of the exact solution is 0/0
     data = result.problem.data
-    error = energy_error(result.u_h, scene.config.data.exact, data["k"], quadrature_degree=6)
+    error = energy_error(result.u_h, scene.config.data.exact, data.k, quadrature_degree=6)
     eta = {b: guaranteed_bound(result.problem, result, backend=b).eta for b in ("compiled", "flow")}
     assert error <= eta["flow"] <= 1.2 * eta["compiled"], (error, eta)  # measured 1.16
 
@@ -181,7 +181,7 @@ def test_lowest_order_agrees_and_bounds_the_error(name: str) -> None:
     # 3D: a rule of degree 6 (test_flow_bound_is_guaranteed_in_3d)
     error = (
         energy_error(
-            result.u_h, scene.config.data.exact, result.problem.data["k"], quadrature_degree=6
+            result.u_h, scene.config.data.exact, result.problem.data.k, quadrature_degree=6
         )
         if name == "A_3D"
         else solution_error(result.problem, result)

@@ -183,7 +183,7 @@ def signorini():
 def hand_made(signorini, lam, u="g - 0.5"):
     """λ_h = lam at the contact nodes (0 elsewhere) and u_h = g_h − 0.5 / g_h / linear."""
     scene, result, dofs, x = signorini
-    g_h = result.problem.data["g_h"]
+    g_h = result.problem.data.g_h
     if u == "g - 0.5":
         result.u_h.x.array[:] = g_h.x.array - 0.5
     elif u == "g":
@@ -314,7 +314,7 @@ def test_obstacle_sign_complementarity_and_volume(bound):
     result = contact.solve(scene, verbose=False)
     assert result.converged and result.n_active > 0
     assert result.problem.constraint.sign == sigma
-    psi_h = result.problem.data["g_h"].x.array
+    psi_h = result.problem.data.g_h.x.array
     sum_hT2 = 2 / N3**2  # Σ_T h_T² |T|
     f = float(f)
 

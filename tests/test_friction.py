@@ -377,7 +377,7 @@ def test_curved_obstacle_uses_the_rotated_frames():
     ]
     path = ROOT / "configs" / "indentation_2d.yaml"
     problem = build_problem(contact.load_scene(path, sets))
-    frames, normals = problem.friction.frames, problem.data["normals"]
+    frames, normals = problem.friction.frames, problem.data.normals
     assert np.max(np.abs(np.einsum("ni,nim->nm", normals, frames))) < 1e-14
     assert np.allclose(np.linalg.norm(frames, axis=1), 1.0)
     ssn = contact.solve(contact.load_scene(path, sets))

@@ -154,7 +154,7 @@ def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim)
     assert force / area == pytest.approx(-P22, rel=1e-8)
     # the whole block's force: the images across x = 0 (and y = 0) press alongside, the one
     # across the floor (normal to the force) is a second plate, not counted: 2^(dim-1) tops
-    assert r.problem.symmetric_copies == 2**dim and area == pytest.approx(1.0)
+    assert r.problem.symmetry.copies == 2**dim and area == pytest.approx(1.0)
     assert r.contact_force == pytest.approx(-(2 ** (dim - 1)) * P22, rel=1e-8)
     assert r.problem.copies_along(np.eye(dim)[0]) == 2 ** (dim - 1)  # a force along x
     X = r.u_h.function_space.tabulate_dof_coordinates()[:, :dim]
@@ -163,7 +163,7 @@ def test_homogeneous_compression_matches_the_analytic_response(law, degree, dim)
     # the output's von Mises stress: of the Cauchy stress σ = J⁻¹ F S Fᵀ (σ_33 ≠ 0 in 2D)
     from contact.models.elasticity import lame, von_mises
 
-    vm = von_mises(r.u_h, None, None, r.problem.data["stresses"]).x.array
+    vm = von_mises(r.u_h, None, None, r.problem.data.stresses).x.array
     F = np.diag([l1] * (dim - 1) + [0.7] + [1.0] * (3 - dim))
     mu, lm = lame(E, NU)
     Ei = (F.T @ F - np.eye(3)) / 2

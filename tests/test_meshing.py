@@ -100,7 +100,7 @@ def test_patch_average_of_a_constant_is_the_constant():
     scene = contact.load_scene(SPHERE, ["output.verbose=false", "adapt=null"])
     problem = build_problem(scene)
     try:
-        slave = problem.constraint.dofs[: problem.data["pair_nodes"]]
+        slave = problem.constraint.dofs[: problem.data.pair_nodes]
         nodes = slave // problem.V.dofmap.index_map_bs
         assert len(nodes) > 100
         averaged = patch_average(scene, problem.V, nodes, np.full(len(nodes), 2.5))

@@ -168,7 +168,8 @@ def test_coarse_contact_zone_warns_once(tmp_path, nproc):
 class _Problem:
     def __init__(self, tdim, in_domain, copies):
         self.V = type("V", (), {"mesh": type("M", (), {"topology": type("T", (), {"dim": tdim})})})
-        self.in_domain, self.symmetric_copies = in_domain, copies
+        self.constraint = type("C", (), {"in_domain": in_domain})
+        self.symmetry = type("S", (), {"copies": copies})
 
 
 @pytest.mark.parametrize(

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from clirun import ROOT, contact
+from clirun import ROOT, run_scene, serial_runs
 from readback import read_vtu, read_xdmf, xdmf_steps
 from test_cli_mpi import same, same_table
 
@@ -50,6 +50,7 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_sphere.yaml": ["mesh.cells=[6,6,4]", "load.steps=2"],
     "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]"],
     "hyperelastic_two_body_patch_2d.yaml": [],
+    "hyperelastic_self_contact_ring.yaml": ["mesh.cells=[64,2]", "load.steps=2"],
     "indentation_2d.yaml": ["mesh.cells=[20,10]"],
     "lshape_corner.yaml": ["adapt.max_levels=2"],
     "obstacle_membrane.yaml": ["mesh.cells=[8,8]"],
@@ -83,25 +84,14 @@ def test_every_shipped_scene_is_listed() -> None:
 @pytest.fixture(scope="module")
 def serial(tmp_path_factory):
     """The serial run of each scene, made when a test first needs it."""
-    done: dict[str, Path] = {}
-
-    def get(scene: str) -> Path:
-        if scene not in done:
-            done[scene] = _run(tmp_path_factory.mktemp(scene.removesuffix(".yaml")), scene, 0)
-        return done[scene]
-
-    return get
+    return serial_runs(tmp_path_factory, _run)
 
 
 def _run(tmp: Path, scene: str, ranks: int, sets: list[str] | None = None) -> Path:
     """``contact run`` of the shipped scene with its outputs (``sets``: default its
     SCENES overrides); its folder, every file read."""
-    out = tmp / f"np{ranks}"
-    args = ["run", str(ROOT / "configs" / scene), "-o", str(out), "-q"]
-    for item in SCENES[scene] if sets is None else sets:
-        args += ["--set", item]
-    proc = contact(tmp, *args, ranks=ranks, timeout=TIMEOUT[ranks])
-    assert proc.returncode == 0, f"{scene} on {ranks or 1} rank(s): {proc.stderr[-2000:]}"
+    items = SCENES[scene] if sets is None else sets
+    out, proc = run_scene(tmp, scene, ranks, items, TIMEOUT[ranks])
     assert "not written" not in proc.stderr, proc.stderr
     read_folder(out)
     assert (out / "contact_surface.xdmf").exists() == (scene not in IN_DOMAIN), scene

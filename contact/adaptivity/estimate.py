@@ -35,11 +35,12 @@ from typing import Any
 import numpy as np
 import ufl
 from dolfinx import fem, la
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ..models.constraints import Friction, MortarPair, RigidObstacle, Unilateral
 from ..models.discrete import Problem
-from ..models.physics import Diffusion, Elasticity
+from ..models.physics import BoundaryData, Diffusion, Elasticity
 from ..solvers import Result
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
@@ -95,6 +96,50 @@ def indicator_terms(
     return elasticity_terms(problem, result)
 
 
+def natural_facets(
+    boundary: BoundaryData, msh: dmesh.Mesh, held: tuple[int, ...] = ()
+) -> tuple[ufl.Measure, int | None]:
+    """Return ``ds`` over the boundary parts with the undeclared exterior facets tagged.
+
+    The exterior facets that no part of ``boundary`` names (Γ_D, Γ_N, the free and
+    symmetry parts) and that are not in ``held`` (the contact parts' tags) carry the
+    natural condition σ(u)n = 0 in the problem solved, as the equilibrated bounds take
+    them (:class:`~.equilibration.cells.FluxData`); the residual estimator checks that
+    condition there too.  Collective.
+
+    Args:
+        boundary: the problem's boundary parts.
+        msh: the mesh.
+        held: the tags of the contact parts.
+
+    Returns:
+        (ds, tag): ``ds`` over the parts' tags and ``tag`` on those facets, a value no part
+        uses; ``boundary.measure(msh)`` and None when every exterior facet is declared.
+    """
+    tags, tdim = boundary.tags, msh.topology.dim
+    declared = {
+        *boundary.dirichlet,
+        *boundary.neumann,
+        *boundary.free,
+        *(tag for tag, _ in boundary.symmetry),
+        *held,
+    }
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    exterior = dmesh.exterior_facet_indices(msh.topology)
+    facet_map = msh.topology.index_map(tdim - 1)
+    value = np.full(facet_map.size_local + facet_map.num_ghosts, -1, dtype=np.int64)
+    value[tags.indices] = tags.values
+    undeclared = exterior[~np.isin(value[exterior], list(declared))]
+    comm = msh.comm
+    if comm.allreduce(len(undeclared), op=MPI.SUM) == 0:
+        return boundary.measure(msh), None
+    fresh = comm.allreduce(int(np.max(tags.values, initial=0)), op=MPI.MAX) + 1
+    value[undeclared] = fresh
+    facets = np.flatnonzero(value >= 0).astype(np.int32)
+    extended = dmesh.meshtags(msh, tdim - 1, facets, value[facets].astype(np.int32))
+    return ufl.Measure("ds", domain=msh, subdomain_data=extended), fresh
+
+
 def _physics[T](problem: Problem, kind: type[T]) -> T:
     """The problem's physics, which must be a ``kind``."""
     physics = problem.physics
@@ -124,7 +169,7 @@ def scalar_terms(
     contact = () if condition.in_domain else condition.ids
     loads = boundary.neumann
     g = problem.bound_function()
-    ds = boundary.measure(msh)
+    ds, natural = natural_facets(boundary, msh, contact)
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     h_S = ufl.avg(h_E)  # interior facets
     if degree is not None:
@@ -146,7 +191,7 @@ def scalar_terms(
     }
     for i in (i for i in loads if i not in contact):
         terms["neumann"] += h_E * (loads[i] - ufl.dot(flux, n)) ** 2 * w * ds(i)
-    for i in boundary.free:
+    for i in (*boundary.free, *([] if natural is None else [natural])):
         terms["neumann"] += h_E * ufl.dot(flux, n) ** 2 * w * ds(i)
     if obstacle:
         terms["sign"] = h_T**2 * ufl.max_value(sigma * lmbda_h, 0) ** 2 * w * dx
@@ -176,10 +221,11 @@ def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
     msh = problem.V.mesh
     u_h, lam = result.u_h, result.lmbda_h
     f, boundary = physics.f, physics.boundary
-    ds = boundary.measure(msh)
-    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     rigid = [c for c in problem.contacts if isinstance(c, RigidObstacle)]
     pairs = [c for c in problem.contacts if isinstance(c, MortarPair)]
+    held = (*(i for c in rigid for i in c.ids), *(i for c in pairs for i in c.ids + c.master_ids))
+    ds, natural = natural_facets(boundary, msh, held)
+    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
     sigma = physics.flux(u_h)  # σ(u_h), or P(u_h) of a hyperelastic body
     frictional = result.friction is not None
     T = ufl.dot(sigma, n)  # traction σ(u_h) n
@@ -198,7 +244,7 @@ def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
     }
     for i, t in boundary.neumann.items():
         terms["neumann"] += h_E * ufl.inner(t - T, t - T) * w * ds(i)
-    for i in boundary.free:
+    for i in (*boundary.free, *([] if natural is None else [natural])):
         terms["neumann"] += h_E * ufl.inner(T, T) * w * ds(i)
     surface_fields = None
     if frictional:  # the solver's nodal λ_t,i and slip increments as P1 vectors
@@ -242,7 +288,9 @@ def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
             assert surface_fields is not None
             rho = friction_bound(law, problem, lam)
             friction = FrictionFields(surface_fields[0], surface_fields[1], rho)
-        for key, form in interface_terms(problem, result, pairs, w, n, h_E, T, friction).items():
+        for key, form in interface_terms(
+            problem, result, pairs, w, n, h_E, T, friction, ds
+        ).items():
             terms[key] = terms.get(key, zero) + form
     return terms
 
@@ -273,6 +321,7 @@ def interface_terms(
     h_E,
     T,
     friction: FrictionFields | None,
+    ds: ufl.Measure | None = None,
 ) -> dict[str, ufl.Form]:
     """Return the estimator terms on the pairs' surfaces, both sides measured.
 
@@ -283,13 +332,14 @@ def interface_terms(
     |min(λ_h, 0) g_h| (complementarity, g_h the nodal gap); on the master surface h_E ‖λ^m −
     T·n‖² (consistency_master) and h_E ‖T_t‖² (with friction h_E ‖T_t + λ_t^m‖², λ_t carried
     over like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
-    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None.
+    T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None;
+    ``ds`` the measure of the other terms (default: over the boundary parts' tags).
     """
     from ..models.mortar import master_pressure, master_vector
 
     physics = _physics(problem, Elasticity)
     msh = problem.V.mesh
-    ds = physics.boundary.measure(msh)
+    ds = physics.boundary.measure(msh) if ds is None else ds
     lam = result.lmbda_h
     gap = result.gap.copy()  # the nodal gap, NaN off the constrained nodes → 0
     gap.x.array[np.isnan(gap.x.array)] = 0.0

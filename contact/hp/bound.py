@@ -167,7 +167,8 @@ def hp_lifting(scene: Scene, result: Result, space: HPSpace) -> fem.Function:
     degree p_max of max(u_h − g_h, 0) coefficientwise, 0 at the other DoFs and on Γ_D."""
     msh, d = space.mesh, space.tdim
     V = space.V
-    u_h, g_h = result.u_h, result.problem.data["g_h"]
+    u_h, g_h = result.u_h, result.problem.data.g_h
+    assert g_h is not None  # the bound of the hp problem
     w = fem.Function(V, name="w")
     facets = scene.boundary.facets("contact")
     msh.topology.create_connectivity(d - 1, d)

@@ -40,7 +40,7 @@ from ..setup.checks import check_scene_data
 from ..setup.data import interpolate_expression
 from ..setup.scalar import scalar_forms, scalar_physics
 from ..setup.scene import Scene
-from ..solvers.problem import Constraint
+from ..solvers.problem import Constraint, Output, ProblemData
 from .space import HPSpace
 
 
@@ -72,7 +72,8 @@ class HPProblem(Problem):
     @property
     def space_contact(self) -> np.ndarray:
         """Mask of the DoFs of V on the closure of Γ_C (local, owned and ghost)."""
-        return self.data["contact_mask"]
+        assert self.data.contact_mask is not None  # set when built
+        return self.data.contact_mask
 
 
 def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
@@ -169,16 +170,10 @@ def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
         K_hp,
         b_hp,
         constraint,
-        end_dofs=end_dofs,
-        end_neighbours=end_neighbours,
         basis=Q,
         basis_inverse=Linv,
-        data={
-            **forms,
-            "g_h": g_h,
-            "exact": data.exact,
-            "contact_mask": contact_mask,
-        },
+        output=Output(ends=end_dofs, end_neighbours=end_neighbours),
+        data=ProblemData(**forms, g_h=g_h, contact_mask=contact_mask),
         assembly_time=time.perf_counter() - t0,
         physics=scalar_physics(scene, forms),
         contacts=(

@@ -37,7 +37,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from ..solvers.options import FrictionOptions
-from ..solvers.problem import Constraint
+from ..solvers.problem import Constraint, Output, ProblemData
 from . import form_checks as checks
 from .problem import contact_ends, lumped_weights
 
@@ -47,18 +47,21 @@ class ContactSet:
     """What a problem's contact conditions make of its assembled K and b.
 
     What a problem's contact conditions make of its assembled K and b: the constraint set,
-    the :class:`~contact.solvers.problem.DiscreteProblem` fields they decide (``fields``:
-    output space, basis, ends, the current configuration's nodes …), the data the estimators
-    and reports read (``data``), and — where a change of basis replaced them — the new K̃, b̃
-    and the Dirichlet conditions on the unknowns.
+    the parts of the :class:`~contact.solvers.problem.DiscreteProblem` they decide (where
+    the nodal fields are written, the change of basis u = Q x, the current configuration's
+    nodes), the data the estimators and reports read (``data``), and — where a change of
+    basis replaced them — the new K̃, b̃ and the Dirichlet conditions on the unknowns.
     """
 
     constraint: Constraint
-    fields: dict[str, Any] = field(default_factory=dict)
-    data: dict[str, Any] = field(default_factory=dict)
+    output: Output = field(default_factory=Output)
+    data: ProblemData = field(default_factory=ProblemData)
     K: Any = None  # PETSc.Mat K̃ = Qᵀ K Q, or None
     b: Any = None  # PETSc.Vec b̃ = Qᵀ b, or None
     bcs: list | None = None
+    basis: Any = None  # PETSc.Mat Q with u = Q x, or None
+    basis_inverse: Any = None  # PETSc.Mat Q⁻¹ when Q is not orthogonal, or None
+    current: Any = None  # contact on the current configuration (CurrentContact), or None
 
     @property
     def kind(self) -> str:
@@ -68,9 +71,9 @@ class ContactSet:
         contact nodes on their (n, t) axes) or ``current`` (contact on the current
         configuration).
         """
-        if self.fields.get("current") is not None:
+        if self.current is not None:
             return "current"
-        return "rotated" if self.fields.get("basis") is not None else "plain"
+        return "rotated" if self.basis is not None else "plain"
 
 
 #: a bound: a number, a Function on V, a UFL expression (of ``ufl.SpatialCoordinate``), values
@@ -159,7 +162,7 @@ class Unilateral:
         """
         dofs, w = self.nodes(V, bcs, allow_empty)
         g = self.bound_function(V, dofs)
-        fields: dict[str, Any] = {"in_domain": self.in_domain}
+        output = Output()
         if self.ids and self.component is None and self.dofs is None:
             n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
             tdim = V.mesh.topology.dim
@@ -167,9 +170,11 @@ class Unilateral:
             candidates = fem.locate_dofs_topological(V, tdim - 1, measure_facets(self.measure))
             fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
             ends = contact_ends(V, candidates[candidates < n_owned], candidates, fixed)
-            fields.update(zip(("end_dofs", "end_neighbours"), ends))
-        constraint = Constraint(dofs, g.x.array[dofs].copy(), w, self.sign)
-        return ContactSet(constraint, fields, {"g_h": g})
+            output = Output(ends=ends[0], end_neighbours=ends[1])
+        constraint = Constraint(
+            dofs, g.x.array[dofs].copy(), w, self.sign, in_domain=self.in_domain
+        )
+        return ContactSet(constraint, output, ProblemData(g_h=g))
 
     def nodes(
         self, V: fem.FunctionSpace, bcs: Sequence[fem.DirichletBC], allow_empty: bool = False

@@ -20,7 +20,7 @@ conditions and call :func:`contact_set`.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import ufl
@@ -30,7 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
-from ..solvers.problem import Constraint
+from ..solvers.problem import Constraint, Output, ProblemData
 from . import mortar
 from .basis import change_of_basis, node_frames
 from .constraints import (
@@ -94,14 +94,10 @@ def contact_set(
     (obstacle,) = rigid
     surface = obstacle.surface
     if current and (not isinstance(surface, Plane) or obstacle.friction is not None):
-        pieces = current_contact(V, fixed, obstacle, u_prev)
-    elif isinstance(surface, Plane) and surface.axis() is not None:
-        pieces = plane_contact(V, fixed, obstacle)
-    else:
-        pieces = rotated_contact(V, K, b, fixed, obstacle)
-    constraint, data = pieces.pop("constraint"), pieces.pop("data")
-    Kt, bt = pieces.pop("K", None), pieces.pop("b", None)
-    return ContactSet(constraint, pieces, data, Kt, bt)
+        return current_contact(V, fixed, obstacle, u_prev)
+    if isinstance(surface, Plane) and surface.axis() is not None:
+        return plane_contact(V, fixed, obstacle)
+    return rotated_contact(V, K, b, fixed, obstacle)
 
 
 @dataclass
@@ -117,7 +113,7 @@ class ObstacleNodes:
     absolute: list
     gap: np.ndarray
     ends: np.ndarray
-    data: dict
+    data: ProblemData
 
 
 def obstacle_nodes(
@@ -159,7 +155,7 @@ def obstacle_nodes(
         absolute,
         g[~full],
         nodes[full],
-        {"n": surface.project(first[None, :])[1][0], "n_ufl": n_ufl, "g_ufl": g_ufl},
+        ProblemData(n=surface.project(first[None, :])[1][0], n_ufl=n_ufl, g_ufl=g_ufl),
     )
 
 
@@ -244,29 +240,25 @@ def mortar_set(
     pair_nodes = int(offsets[-1])  # the first pair_nodes constrained nodes are slave nodes
     X = V.tabulate_dof_coordinates()[nodes, : msh.geometry.dim]
     on_pairs = slice(0, pair_nodes) if couplings else slice(None)
-    data = {
-        **(rigid.data if rigid is not None else {}),
-        "u_bcs": bcs,
-        "couplings": couplings,
-        "normals": normals,
-        "frames": frames,
-        "pair_nodes": pair_nodes,
+    data = replace(
+        rigid.data if rigid is not None else ProblemData(),
+        u_bcs=bcs,
+        couplings=couplings,
+        normals=normals,
+        pair_nodes=pair_nodes,
         # the contact normal at the first point of contact (of the pairs, if any)
-        "n": first_contact_row(msh.comm, X[on_pairs], gap[on_pairs], normals[on_pairs]),
-        "contact_nodes": X[on_pairs],  # the pairs' slave nodes (this rank's): their mirrors
-    }
-    fields = {
-        "end_dofs": end_dofs,
-        "end_neighbours": end_neighbours,
-        "output_space": S,
-        "output_map": s_to_v,
-        "output_bound": bound,
-        "lambda_sign": 1.0,
-        "basis": Q,
-        "basis_inverse": Q_inv,
-        "output_nodes": v_to_s[slave_nodes],
-    }
-    return ContactSet(constraint, fields, data, Kt, bt, on_unknowns)
+        n=first_contact_row(msh.comm, X[on_pairs], gap[on_pairs], normals[on_pairs]),
+        contact_nodes=X[on_pairs],  # the pairs' slave nodes (this rank's): their mirrors
+    )
+    output = Output(
+        S,
+        s_to_v,
+        bound,
+        nodes=v_to_s[slave_nodes],
+        ends=end_dofs,
+        end_neighbours=end_neighbours,
+    )
+    return ContactSet(constraint, output, data, Kt, bt, on_unknowns, basis=Q, basis_inverse=Q_inv)
 
 
 def _relative_normal(
@@ -362,15 +354,13 @@ class BodiesProblem(Problem):
         the interface pressure, n the normal at the first point of contact, m_n the mirror
         images pressing along n (:meth:`DiscreteProblem.copies_along`;
         :meth:`DiscreteProblem.contact_force` over all nodes without pairs)."""
-        if not self.data["couplings"]:
+        data = self.data
+        if not data.couplings:
             return super().contact_force(r)
-        on = slice(0, self.data["pair_nodes"])
+        assert data.normals is not None and data.n is not None  # a mortar set's
+        on = slice(0, data.pair_nodes)
         local = float(
-            np.sum(
-                self.constraint.w[on]
-                * self.pressure(r)[on]
-                * (self.data["normals"][on] @ self.data["n"])
-            )
+            np.sum(self.constraint.w[on] * self.pressure(r)[on] * (data.normals[on] @ data.n))
         )
         return self.copies_along() * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 

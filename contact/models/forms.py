@@ -40,7 +40,13 @@ from ..base.timing import Stopwatch
 from ..solvers.current import nodal_geometry
 from ..solvers.floating import floating_bodies
 from ..solvers.options import SolverOptions
-from ..solvers.problem import DiscreteProblem, NodeBlockMatrix
+from ..solvers.problem import (
+    CurrentContact,
+    DiscreteProblem,
+    NodeBlockMatrix,
+    ProblemData,
+    Symmetry,
+)
 from ..solvers.result import Result
 from ..solvers.snes import solve_problem
 from . import form_checks as checks
@@ -321,14 +327,20 @@ class CurrentResidualProblem(ResidualProblem):
     passed in is R(u_h), as :func:`contact.solvers.owned_residual` gives it).
     """
 
+    @property
+    def cc(self) -> CurrentContact:
+        """The contact nodes and the rigid surface (always set on this problem)."""
+        assert self.current is not None, "built with contact on the current configuration"
+        return self.current
+
     def _rows(self) -> np.ndarray:
         bs = self.V.dofmap.index_map_bs
-        return self.current.nodes[:, None] * bs + np.arange(bs)
+        return self.cc.nodes[:, None] * bs + np.arange(bs)
 
     def multiplier(self, r: np.ndarray) -> np.ndarray:
         """λ_i = ñ_i·R_i / w_i (≤ 0 in contact): the normal nodal force per reference area."""
         rows = self._rows()
-        geo = nodal_geometry(self.current, self.u_h.x.array[rows])
+        geo = nodal_geometry(self.cc, self.u_h.x.array[rows])
         return np.einsum("ka,ka->k", geo.frames[:, :, 0], r[rows]) / self.constraint.w
 
     def pressure(self, r: np.ndarray) -> np.ndarray:
@@ -337,7 +349,7 @@ class CurrentResidualProblem(ResidualProblem):
 
     def nodal_gap(self, x: np.ndarray) -> np.ndarray:
         """g(X_i + u_i): the gap of the deformed contact node (x holds the displacements)."""
-        cc = self.current
+        cc = self.cc
         return cc.surface.project(cc.X + x[self._rows()])[0]
 
     def gap_output(self, x: np.ndarray) -> fem.Function:
@@ -363,7 +375,7 @@ class CurrentResidualProblem(ResidualProblem):
         current frames, Ã = Qᵀ ∇²L Q; the held rows are their normal unknowns.  A new
         matrix (the caller destroys it); K becomes K_T(x).
         """
-        cc, bs = self.current, self.V.dofmap.index_map_bs
+        cc, bs = self.cc, self.V.dofmap.index_map_bs
         rows = self._rows()
         r = x.duplicate()
         self.residual(x, r)
@@ -394,7 +406,7 @@ class CurrentResidualProblem(ResidualProblem):
         :meth:`~contact.solvers.problem.DiscreteProblem.copies_along`; frictionless:
         Σ w_i p_i ñ_i·n).
         """
-        n = np.asarray(self.data["n"], dtype=float)
+        n = np.asarray(self.data.n, dtype=float)
         local = -float(np.sum(r[self._rows()][:, : len(n)] @ n))
         return self.copies_along(n) * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
@@ -511,6 +523,7 @@ class ComplementarityProblem:
         u_prev: fem.Function | None = None,
         energy: ufl.Form | None = None,
         current: bool = True,
+        coupled_at: np.ndarray | None = None,
     ) -> ComplementarityProblem:
         """Build the problem R(u) = w λ of a residual F(u; v), nonlinear in ``u``.
 
@@ -532,6 +545,11 @@ class ComplementarityProblem:
             current: a rigid obstacle whose gap is not affine in u (a curved surface, or
                 friction) is met on the current configuration (finite strain); False: on the
                 reference configuration.
+            coupled_at: :class:`~.constraints.MortarPair` s coupled on the current
+                configuration of these nodal displacements (u's array, owned and ghost
+                entries; finite strain: :func:`contact.drivers.recouple.solve_recoupled`
+                iterates the coupling to its fixed point), or None: on the reference
+                configuration.
 
         Returns:
             The problem, ready to :meth:`solve`; close it (or use ``with``).
@@ -562,6 +580,7 @@ class ComplementarityProblem:
                 },
                 current=current,
                 u_prev=u_prev,
+                coupled_at=coupled_at,
             )
         )
 
@@ -676,7 +695,7 @@ def make_problem(
     t0: float,
     *,
     physics: Physics | None = None,
-    data: dict | None = None,
+    data: ProblemData | None = None,
     residual: dict | None = None,
     current: bool = False,
     u_prev: fem.Function | None = None,
@@ -737,13 +756,14 @@ def make_problem(
     fixed = np.concatenate([bc.dof_indices()[0] for bc in bcs] or [np.zeros(0, np.int32)])
     comm = V.mesh.comm
     bs = V.dofmap.index_map_bs
-    fields: dict[str, Any] = dict(cs.fields)
+    fields: dict[str, Any] = {}
     if bs == 1:  # no Dirichlet DoF on any rank: only the constraint holds the body
         fields["semicoercive"] = comm.allreduce(len(fixed), op=MPI.SUM) == 0
     else:  # an elastic body: its near-nullspace, rigid motions, mirror images
         fields.update(_body_fields(V, fixed, cs, physics, bodies))
+    mortar = cs.data.couplings is not None
     problem_class: type[Problem]
-    if kind == "residual" and "couplings" in cs.data:
+    if kind == "residual" and mortar:
         problem_class = MortarResidualProblem
     elif kind == "residual":
         problem_class = {
@@ -752,7 +772,7 @@ def make_problem(
             "current": CurrentResidualProblem,
         }[cs.kind]
     else:
-        problem_class = BodiesProblem if "couplings" in cs.data else Problem
+        problem_class = BodiesProblem if mortar else Problem
     problem = problem_class(
         V,
         u_h,
@@ -760,7 +780,11 @@ def make_problem(
         K,
         b,
         cs.constraint,
-        data={**(data or {}), **cs.data},
+        basis=cs.basis,
+        basis_inverse=cs.basis_inverse,
+        output=cs.output,
+        current=cs.current,
+        data=(data or ProblemData()).updated(cs.data),
         **fields,
         assembly_time=time.perf_counter() - t0,
         physics=physics,
@@ -799,18 +823,18 @@ def _body_fields(
     """
     from .elasticity import rigid_body_modes
 
-    basis, inverse = cs.fields.get("basis"), cs.fields.get("basis_inverse")
+    basis, inverse = cs.basis, cs.basis_inverse
     planes = [] if physics is None else list(physics.boundary.symmetry)
-    if "couplings" in cs.data:
+    if cs.data.couplings is not None:
         boundary = physics.boundary if physics is not None else None
         facets = [(boundary.facets((tag,)), k) for tag, k in planes] if boundary else []
-        axes = tuple(sorted(mirror_axes(V.mesh, facets, cs.data["contact_nodes"])))
+        assert cs.data.contact_nodes is not None  # a mortar set's
+        axes = tuple(sorted(mirror_axes(V.mesh, facets, cs.data.contact_nodes)))
     else:
         axes = tuple(k for _, k in planes)
     tags, names = bodies
     return {
-        "symmetric_copies": 2 ** len(axes),
-        "symmetry_axes": axes,
+        "symmetry": Symmetry(axes),
         "near_nullspace": rigid_body_modes(V, None if inverse is not None else basis, inverse),
         "floating": floating_bodies(V, fixed, tags, names),
     }

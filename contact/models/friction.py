@@ -67,7 +67,7 @@ def friction_set(
         n_comp, t_comps = 0, np.arange(1, bs, dtype=np.int32)
         frames = np.zeros((len(nodes), gdim, bs - 1))  # set at each iterate
     elif problem.basis is None:  # coordinate plane: the normal is the component k
-        n_comp = int(np.asarray(problem.data["n"]).nonzero()[0][0])
+        n_comp = int(np.asarray(problem.data.n).nonzero()[0][0])
         t_comps = np.array([j for j in range(bs) if j != n_comp], dtype=np.int32)
         frames = np.broadcast_to(np.eye(gdim)[:, t_comps], (len(nodes), gdim, len(t_comps))).copy()
     else:  # rotated frames [n t (t2)]: the columns of Q's node blocks

@@ -51,6 +51,7 @@ them.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import basix
 import numpy as np
@@ -62,7 +63,7 @@ from petsc4py import PETSc
 from ..solvers.current import nodal_geometry
 from ..solvers.krylov_curvature import lanczos_negative
 from ..solvers.linear import mumps_ksp
-from ..solvers.problem import Constraint, NodeBlockMatrix
+from ..solvers.problem import Constraint, NodeBlockMatrix, Output
 from .elasticity import lame
 from .forms import CurrentResidualProblem, RotatedResidualProblem
 from .physics import deformation_gradient, strain_energy
@@ -135,6 +136,7 @@ def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProble
     tests and benchmarks).  Contact nodes with a fixed component are refused (their
     rotated unknowns would not carry the Dirichlet values).  ``u_h`` is shared."""
     cc = problem.current
+    assert cc is not None, "a problem with contact on the current configuration"
     if np.any(cc.fixed):
         raise ValueError("linearized_problem: contact nodes with fixed components")
     bs = problem.V.dofmap.index_map_bs
@@ -157,16 +159,12 @@ def linearized_problem(problem: CurrentResidualProblem) -> RotatedResidualProble
         K_T.PtAP(basis),
         problem.b.duplicate(),
         constraint,
-        output_space=problem.output_space,
-        output_map=problem.output_map,
-        output_bound=problem.output_bound,
-        lambda_sign=1.0,
         basis=basis,
-        data={**problem.data, "normals": normals},
+        output=Output(problem.output.space, problem.output.map, problem.output.bound),
+        symmetry=problem.symmetry,
+        data=replace(problem.data, normals=normals),
         F_form=problem.F_form,
         J_form=problem.J_form,
-        symmetric_copies=problem.symmetric_copies,
-        symmetry_axes=problem.symmetry_axes,
     )
     out.b.set(0.0)
     out.K_T = K_T

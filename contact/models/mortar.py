@@ -545,11 +545,12 @@ def to_master(result: Result, values: np.ndarray) -> np.ndarray:
     out = la.vector(imap, k)
     arr = out.array.reshape(-1, k)
     weight = np.zeros(n_owned + imap.num_ghosts)
-    for coupling in p.data["couplings"]:
+    couplings = p.data.couplings or []
+    for coupling in couplings:
         weight += coupling.master_weights.array
     for comp in range(k):
         v.array[:] = values[:n_owned, comp]
-        for coupling in p.data["couplings"]:
+        for coupling in couplings:
             coupling.M.multTranspose(v, y)  # Σ_i M_ij v_i
             arr[:n_owned, comp] += y.array_r
     out.scatter_forward()
@@ -563,9 +564,9 @@ def master_pressure(result: Result) -> fem.Function:
     """λ^m on the output space (nodal; 0 away from the master surfaces), named
     ``lambda_master``."""
     p = result.problem
-    S, bs = p.output_space, p.V.dofmap.index_map_bs
-    assert S is not None and p.output_map is not None  # a bodies problem has its output space
-    node_of_s = p.output_map // bs
+    S, bs = p.output.space, p.V.dofmap.index_map_bs
+    assert S is not None and p.output.map is not None  # a bodies problem has its output space
+    node_of_s = p.output.map // bs
     lam_nodes = np.zeros((len(node_of_s), 1))
     lam_nodes[node_of_s, 0] = result.lmbda_h.x.array
     fn = fem.Function(S, name="lambda_master")

@@ -9,9 +9,8 @@ n and g).  When n is a coordinate direction ±e_k, u·n ≤ g is a bound on the 
 component u_k (σ = n_k, bound n_k g, :func:`plane_contact`); otherwise each contact node's
 displacement is rotated to its (n, t) axes, u = Q x with Q orthogonal and block-diagonal,
 K̃ = Qᵀ K Q, b̃ = Qᵀ b, so that it is a bound on one unknown again
-(:func:`rotated_contact`).  Each function returns the pieces of
-:class:`contact.solvers.problem.DiscreteProblem` that the obstacle determines (constraint,
-output space, basis, contact data).
+(:func:`rotated_contact`).  Each function returns the :class:`~.constraints.ContactSet`
+the obstacle determines (constraint, output space, basis, contact data).
 
 A finite-strain body meets the obstacle on the current configuration instead
 (:func:`current_contact`): the obstacle's signed distance is evaluated at the deformed
@@ -28,9 +27,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
-from ..solvers.problem import Constraint, NodeBlockMatrix
+from ..solvers.problem import Constraint, NodeBlockMatrix, Output, ProblemData
 from .basis import frame
-from .constraints import Plane, RigidObstacle, measure_facets
+from .constraints import ContactSet, Plane, RigidObstacle, measure_facets
 from .problem import coordinate_scale, lumped_weights
 
 
@@ -44,7 +43,7 @@ def contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
     return S, s_to_v, v_dofs, s_dofs
 
 
-def plane_contact(V: fem.FunctionSpace, fixed: np.ndarray, obstacle: RigidObstacle) -> dict:
+def plane_contact(V: fem.FunctionSpace, fixed: np.ndarray, obstacle: RigidObstacle) -> ContactSet:
     """A rigid plane with a coordinate normal n = −ν = ±e_k: u·n ≤ g is the bound
     σ(n_k g − u_k) ≥ 0 on one component (σ = n_k), g(x) = (x − p)·ν."""
     plane = obstacle.surface
@@ -63,19 +62,16 @@ def plane_contact(V: fem.FunctionSpace, fixed: np.ndarray, obstacle: RigidObstac
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = n_k * gap
     n_ufl, g_ufl = plane.expression(ufl.SpatialCoordinate(msh))
-    return {
-        "constraint": Constraint(dofs, n_k * gap[sd], w, n_k, coordinate_scale(msh)),
-        "output_space": S,
-        "output_map": s_to_v,
-        "output_bound": bound,
-        "lambda_sign": n_k,
-        "data": {"n": -nu_o, "n_ufl": n_ufl, "g_ufl": g_ufl},
-    }
+    return ContactSet(
+        Constraint(dofs, n_k * gap[sd], w, n_k, coordinate_scale(msh)),
+        Output(S, s_to_v, bound, lambda_sign=n_k),
+        ProblemData(n=-nu_o, n_ufl=n_ufl, g_ufl=g_ufl),
+    )
 
 
 def rotated_contact(
     V: fem.FunctionSpace, K: PETSc.Mat, b: PETSc.Vec, fixed: np.ndarray, obstacle: RigidObstacle
-) -> dict:
+) -> ContactSet:
     """Contact along a normal n(x) that is not a coordinate direction (a tilted plane, a
     circle, a sphere, any surface): each contact node's displacement is rotated to its own
     axes (n, t[, t2]): u = Q x with Q orthogonal block-diagonal, K̃ = Qᵀ K Q, b̃ = Qᵀ b, and
@@ -114,24 +110,16 @@ def rotated_contact(
     bound.x.array[:] = g_all
     first = first_contact_point(msh.comm, Xs[sd], g_all[sd])
     n_ufl, g_ufl = surface.expression(ufl.SpatialCoordinate(msh))
-    return {
-        "K": Kt,
-        "b": bt,
-        "basis": Q,
-        "constraint": Constraint(
-            (nodes * bs).astype(np.int32), g_all[sd], w, 1.0, coordinate_scale(msh)
+    return ContactSet(
+        Constraint((nodes * bs).astype(np.int32), g_all[sd], w, 1.0, coordinate_scale(msh)),
+        Output(S, s_to_v, bound),
+        ProblemData(
+            n=surface.project(first[None, :])[1][0], normals=normals, n_ufl=n_ufl, g_ufl=g_ufl
         ),
-        "output_space": S,
-        "output_map": s_to_v,
-        "output_bound": bound,
-        "lambda_sign": 1.0,
-        "data": {
-            "n": surface.project(first[None, :])[1][0],
-            "normals": normals,
-            "n_ufl": n_ufl,
-            "g_ufl": g_ufl,
-        },
-    }
+        K=Kt,
+        b=bt,
+        basis=Q,
+    )
 
 
 #: initial gaps within TIE_RTOL × (the largest coordinate, at least 1) of the smallest count as
@@ -194,7 +182,7 @@ def current_contact(
     fixed: np.ndarray,
     obstacle: RigidObstacle,
     u_prev: fem.Function | None = None,
-) -> dict:
+) -> ContactSet:
     """Contact on the current configuration (:mod:`contact.solvers.current`): the gap of the
     deformed node x = X + u to the obstacle's surface, normal and frame followed at every
     Newton iterate; the unknowns stay the displacements (no change of basis).  Contact
@@ -205,7 +193,7 @@ def current_contact(
     the normal component of the nodal force per reference area (nominal pressure).
     ``u_prev``: the previous load step's displacement (friction's slips start there), with
     the obstacle's translation since then (``obstacle.motion``)."""
-    from ..solvers.current import CurrentContact
+    from ..solvers.problem import CurrentContact
 
     msh = V.mesh
     gdim, bs = msh.geometry.dim, V.dofmap.index_map_bs
@@ -234,12 +222,9 @@ def current_contact(
     bound = fem.Function(S, name="bound")
     bound.x.array[:] = surface.project(Xs)[0]
     first = first_contact_row(msh.comm, X, g0, n0)
-    return {
-        "current": CurrentContact(nodes.astype(np.int32), X, node_fixed, surface, previous, motion),
-        "constraint": Constraint((nodes * bs).astype(np.int32), g0, w, 1.0, coordinate_scale(msh)),
-        "output_space": S,
-        "output_map": s_to_v,
-        "output_bound": bound,
-        "lambda_sign": 1.0,
-        "data": {"n": first},
-    }
+    return ContactSet(
+        Constraint((nodes * bs).astype(np.int32), g0, w, 1.0, coordinate_scale(msh)),
+        Output(S, s_to_v, bound),
+        ProblemData(n=first),
+        current=CurrentContact(nodes.astype(np.int32), X, node_fixed, surface, previous, motion),
+    )

@@ -74,8 +74,8 @@ def nodes_across(result: Result) -> float:
     diameter 2 √(n/π) of a disc of n nodes when it is a surface (3D on Γ_C, a 2D obstacle),
     (6n/π)^(1/3) for a volume (a 3D obstacle)."""
     p = result.problem
-    n = result.n_active * p.symmetric_copies
-    dim = p.V.mesh.topology.dim - (0 if p.in_domain else 1)
+    n = result.n_active * p.symmetry.copies
+    dim = p.V.mesh.topology.dim - (0 if p.constraint.in_domain else 1)
     return float({1: n, 2: 2 * np.sqrt(n / np.pi), 3: np.cbrt(6 * n / np.pi)}.get(dim, n))
 
 
@@ -177,7 +177,7 @@ def point_fields(result: Result) -> list:
     current = current_pressure(result)
     if current is not None:  # a finite-strain body: the pressure per deformed area
         fields.append(result.problem.nodal_output("pressure_current", current))
-    if result.problem.data.get("couplings"):
+    if result.problem.data.couplings:
         from ..models.mortar import master_pressure
 
         fields.append(master_pressure(result))
@@ -192,8 +192,8 @@ def cell_fields(result: Result, elastic: bool) -> list:
     from ..models.elasticity import von_mises
 
     data = result.problem.data
-    return [von_mises(result.u_h, data.get("mu"), data.get("lmbda_L"), data.get("stresses"))] + (
-        [data["body"]] if "body" in data else []
+    return [von_mises(result.u_h, data.mu, data.lmbda_L, data.stresses)] + (
+        [data.body] if data.body is not None else []
     )
 
 
@@ -218,7 +218,7 @@ def pressure_picture(
 ) -> list[plots.Picture]:
     """``pressure.png`` along a contact boundary Γ_C (not for an obstacle in Ω), drawn by
     rank 0 from ``table``: a list of one picture, or none."""
-    if not report.png or result.problem.in_domain:
+    if not report.png or result.problem.constraint.in_domain:
         return []
     path = out / "pressure.png"
     title = f"{report.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)"

@@ -188,7 +188,7 @@ class StepWriter:
         if report.tangential_form is not None and friction != "none":
             info["tangential_form"] = report.tangential_form
         if report.elastic:  # the forces are of the whole body
-            info["symmetric_copies"] = r.problem.symmetric_copies
+            info["symmetric_copies"] = r.problem.symmetry.copies
         info.update(failure or {})
         if comparison is not None and report.reference is not None:
             info["reference"] = report.reference
@@ -209,7 +209,7 @@ class StepWriter:
             pictures = [
                 *(
                     []
-                    if r.problem.in_domain  # an obstacle in Ω: no contact boundary
+                    if r.problem.constraint.in_domain  # an obstacle in Ω: no contact boundary
                     else [plots.Picture([], traction, tmp / "traction.png", root=True)]
                 ),
                 solution_picture(

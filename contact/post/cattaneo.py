@@ -50,10 +50,10 @@ def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     if fr is None:
         raise ValueError("reference cattaneo_mindlin: the solve has no friction")
     con = p.constraint
-    on = slice(0, p.data["pair_nodes"]) if scene.config.pairs else slice(None)
+    on = slice(0, p.data.pair_nodes) if scene.config.pairs else slice(None)
     dim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs[on] // p.V.dofmap.index_map_bs, :dim]
-    n = np.asarray(p.data["n"])
+    n = np.asarray(p.data.n)
     rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     w, lam_t = fr["w"][on], fr["lambda_t_vec"][on]

@@ -64,7 +64,7 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     from .resultants import current_pressure, nodal_gap
 
     cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
-    if gdim == 3 and not p.in_domain:
+    if gdim == 3 and not p.constraint.in_domain:
         cols.update(_polar(scene, result, X))
     cols[value_name(scene)] = p.multiplier(owned_residual(result))
     exact = exact_multiplier(scene, result)
@@ -77,7 +77,7 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     cols["active"] = result.active_mask.astype(np.int8)
     if result.friction is not None:  # λ_t, bound, slip, status, weight
         cols.update(friction_columns(scene, result))
-    if p.in_domain:  # obstacle: the contact set only
+    if p.constraint.in_domain:  # obstacle: the contact set only
         cols = {k: v[result.active_mask] for k, v in cols.items()}
     return cols
 
@@ -92,15 +92,15 @@ def exact_multiplier(scene: Scene, result: Result) -> np.ndarray | None:
 
     p, cfg = result.problem, scene.config
     exact = cfg.data.exact
-    if exact is None or cfg.elastic or p.in_domain:
+    if exact is None or cfg.elastic or p.constraint.in_domain:
         return None
     assert isinstance(exact, str)  # a scalar model's exact solution is one expression
     msh, V = scene.mesh, p.V
     u = expressions.to_ufl(exact, msh, cfg.constants, t=scene.time)
     n, v = ufl.FacetNormal(msh), ufl.TestFunction(V)
     degree = 2 * V.element.basix_element.degree + 4
-    ds = p.data["ds"](metadata={"quadrature_degree": degree})
-    flux = p.data["k"] * ufl.dot(ufl.grad(u), n) - p.data["t_C"]
+    ds = p.data.ds(metadata={"quadrature_degree": degree})
+    flux = p.data.k * ufl.dot(ufl.grad(u), n) - p.data.t_C
     ids = scene.boundary.ids_with_role("contact")
     sums = []
     for integrand in (flux * v, v):
@@ -112,7 +112,7 @@ def exact_multiplier(scene: Scene, result: Result) -> np.ndarray | None:
 
 def tangent_2d(result: Result) -> np.ndarray:
     """t_0 = (−n_y, n_x) of the contact normal n at the first point of contact (2D)."""
-    n = np.asarray(result.problem.data["n"], dtype=float)
+    n = np.asarray(result.problem.data.n, dtype=float)
     return np.array([-n[1], n[0]])
 
 
@@ -180,9 +180,9 @@ def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
     contact normal at the first point of contact; scalar Signorini, the mean outward normal
     of Γ_C; None for an obstacle in Ω."""
     p = result.problem
-    if p.in_domain:
+    if p.constraint.in_domain:
         return None
-    return np.asarray(p.data["n"], dtype=float) if "n" in p.data else _mean_normal(scene)
+    return np.asarray(p.data.n, dtype=float) if p.data.n is not None else _mean_normal(scene)
 
 
 def view_normal(scene: Scene, result: Result) -> np.ndarray | None:
@@ -212,7 +212,7 @@ def contact_table(scene: Scene, result: Result, columns: Table | None = None) ->
     :func:`contact_columns` (collective)."""
     columns = contact_columns(scene, result) if columns is None else columns
     segments = None
-    if scene.mesh.geometry.dim == 2 and not result.problem.in_domain:
+    if scene.mesh.geometry.dim == 2 and not result.problem.constraint.in_domain:
         segments = _contact_segments(scene)
     table = gather(columns, scene.comm)
     if scene.comm.rank != 0:

@@ -40,9 +40,9 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
         raise ValueError("friction figures of a frictionless result")
     w, lam_n = fr["w"], fr["lambda_n"]
     normals = (
-        p.data["normals"]
-        if "normals" in p.data
-        else np.tile(np.asarray(p.data["n"], float), (len(w), 1))
+        p.data.normals
+        if p.data.normals is not None
+        else np.tile(np.asarray(p.data.n, float), (len(w), 1))
     )
 
     def total(values) -> np.ndarray:  # Σ over the nodes of every rank, per column

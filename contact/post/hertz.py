@@ -63,8 +63,8 @@ def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     comm = scene.comm
     p = result.problem
     con = p.constraint
-    on = slice(0, p.data["pair_nodes"]) if scene.config.pairs else slice(None)
-    n = np.asarray(p.data["n"])
+    on = slice(0, p.data.pair_nodes) if scene.config.pairs else slice(None)
+    n = np.asarray(p.data.n)
     V = p.V
     nodes = con.dofs[on] // V.dofmap.index_map_bs
     X = V.tabulate_dof_coordinates()[nodes, : scene.mesh.geometry.dim]

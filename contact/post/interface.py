@@ -73,16 +73,18 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     bs = V.dofmap.index_map_bs
     gdim = scene.mesh.geometry.dim
     n_owned = V.dofmap.index_map.size_local
-    full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
+    data = p.data
+    assert data.reaction_form is not None and data.u_bcs is not None and data.normals is not None
+    full = dolfinx.fem.petsc.assemble_vector(data.reaction_form)
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     residual = full.array_r.reshape(-1, bs).copy()
     full.destroy()
     fixed = np.zeros(n_owned * bs, dtype=bool)
-    for bc in p.data["u_bcs"]:
+    for bc in data.u_bcs:
         dofs = bc.dof_indices()[0]
         fixed[dofs[dofs < n_owned * bs]] = True
     free_res = np.where(fixed.reshape(-1, bs), 0.0, residual)
-    n0 = np.asarray(p.data["n"])
+    n0 = np.asarray(p.data.n)
 
     from ..models.mortar import part_facets, surface_facets
 
@@ -107,7 +109,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
             reactions[name] = whole_body(p, comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM))
 
     con = p.constraint
-    slaves, rigid = slice(0, p.data["pair_nodes"]), slice(p.data["pair_nodes"], None)
+    slaves, rigid = slice(0, p.data.pair_nodes), slice(p.data.pair_nodes, None)
     pressure = p.pressure(owned_residual(result))
     gap = nodal_gap(result)
     out = {
@@ -118,16 +120,14 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
         "interface_balance_error": abs(F_s @ n0 + F_m @ n0) / max(abs(F_s @ n0), 1e-300),
         "reactions": reactions,
         "contact_normal": n0.tolist(),
-        "symmetric_copies": p.symmetric_copies,
-        "mortar_coverage": min((c.coverage for c in p.data["couplings"]), default=1.0),
+        "symmetric_copies": p.symmetry.copies,
+        "mortar_coverage": min((c.coverage for c in data.couplings or []), default=1.0),
         "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
     }
     if scene.config.obstacle:
         out["obstacle_force"] = whole_body(
             p,
-            comm.allreduce(
-                (con.w[rigid] * -pressure[rigid]) @ p.data["normals"][rigid], op=MPI.SUM
-            ),
+            comm.allreduce((con.w[rigid] * -pressure[rigid]) @ data.normals[rigid], op=MPI.SUM),
         )
     return out
 
@@ -135,8 +135,8 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
 def output_dofs(problem, nodes: np.ndarray) -> np.ndarray:
     """The output-space DoFs (of λ_h, the gap) of local nodes."""
     bs = problem.V.dofmap.index_map_bs
-    s_of_node = np.empty(len(problem.output_map), dtype=np.int64)
-    s_of_node[problem.output_map // bs] = np.arange(len(problem.output_map))
+    s_of_node = np.empty(len(problem.output.map), dtype=np.int64)
+    s_of_node[problem.output.map // bs] = np.arange(len(problem.output.map))
     return s_of_node[nodes]
 
 

@@ -37,8 +37,8 @@ def whole_body(problem, force) -> list[float]:
     """A force of the modelled part (a vector summed over all ranks) as the force on the whole
     body its symmetric copies stand for (module doc): component k is 0 for each symmetry
     plane x_k = c, m times the modelled part's otherwise (m = ``symmetric_copies``)."""
-    out = problem.symmetric_copies * np.asarray(force, dtype=float)
-    out[list(problem.symmetry_axes)] = 0.0
+    out = problem.symmetry.copies * np.asarray(force, dtype=float)
+    out[list(problem.symmetry.axes)] = 0.0
     return out.tolist()
 
 
@@ -54,11 +54,12 @@ def part_reaction(result: Result) -> np.ndarray:
     in the displacement's own components (with contact pairs the solver's unknowns are
     rotated; the reaction is not)."""
     p = result.problem
-    full = dolfinx.fem.petsc.assemble_vector(p.data["reaction_form"])
+    assert p.data.reaction_form is not None  # an elastic scene's
+    full = dolfinx.fem.petsc.assemble_vector(p.data.reaction_form)
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     bs = p.V.dofmap.index_map_bs
     n_owned = p.V.dofmap.index_map.size_local * bs
-    dofs = p.data.get("u_bcs", p.bcs)[0].dof_indices()[0]  # the Dirichlet condition on u
+    dofs = (p.data.u_bcs or p.bcs)[0].dof_indices()[0]  # the Dirichlet condition on u
     dofs = dofs[dofs < n_owned]
     local = np.bincount(dofs % bs, weights=full.array_r[dofs], minlength=bs)
     full.destroy()
@@ -89,7 +90,7 @@ def current_pressure(result: Result) -> np.ndarray | None:
     −σn·n on the current surface, the counterpart of the nominal one; Σ_i w_i^cur p_i^cur =
     Σ_i w_i p_i, the same force.  Collective (assembly)."""
     p = result.problem
-    form = p.data.get("deformed_area")
+    form = p.data.deformed_area
     if form is None:
         return None
     r = owned_residual(result)  # puts u_h in place for the form too
@@ -119,7 +120,7 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
     """Contact force, reaction, force balance, peak pressure and smallest gap (collective)."""
     comm = scene.comm
     p = result.problem
-    n = np.asarray(p.data["n"])  # contact normal at the first point of contact
+    n = np.asarray(p.data.n)  # contact normal at the first point of contact
     reaction = p.copies_along(n) * abs(float(part_reaction(result) @ n))
     force = result.contact_force
     pressure = p.pressure(owned_residual(result))
@@ -128,6 +129,6 @@ def contact_resultants(scene: Scene, result: Result) -> dict:
         "reaction_force": reaction,
         "force_balance_error": abs(reaction - force) / max(force, 1e-300),
         "peak_pressure": comm.allreduce(float(np.max(pressure, initial=0.0)), op=MPI.MAX),
-        "symmetric_copies": p.symmetric_copies,
+        "symmetric_copies": p.symmetry.copies,
         "min_gap": comm.allreduce(float(nodal_gap(result).min(initial=np.inf)), op=MPI.MIN),
     }

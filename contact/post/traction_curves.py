@@ -25,7 +25,7 @@ def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
     gdim = scene.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
     return first_contact_point(scene.comm, X, con.sign * con.g), (
-        tangent_2d(result) if gdim == 2 and "n" in p.data else None
+        tangent_2d(result) if gdim == 2 and p.data.n is not None else None
     )
 
 

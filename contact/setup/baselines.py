@@ -48,14 +48,14 @@ def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[Unilater
     msh = scene.mesh
     made: list = []
     if cfg.model.type in ("signorini", "obstacle"):
-        k = problem.data["k"]
+        k = problem.data.k
         if cfg.model.type == "signorini":
             n_facet = ufl.FacetNormal(msh)
             assert isinstance(cfg.data.g, str)  # a scalar scene's single expression
-            measure = problem.data["ds"](scene.boundary.ids_with_role("contact"))
+            measure = problem.data.ds(scene.boundary.ids_with_role("contact"))
             normal, gap = (lambda w: w), coefficient(cfg.data.g, scene)
             traction = lambda w: k * ufl.dot(ufl.grad(w), n_facet)  # noqa: E731
-            data = -problem.data["t_C"]
+            data = -problem.data.t_C
         else:  # u ≤ ψ (σ = 1) or u ≥ ψ (σ = −1) in Ω: σ u ≤ σ ψ
             sign = problem.constraint.sign
             assert isinstance(cfg.data.psi, str)
@@ -74,17 +74,17 @@ def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[Unilater
     from ..models.elasticity import epsilon, rigid_body_modes, stress
 
     data = problem.data
-    mu, lmbda_L = data["mu"], data["lmbda_L"]
-    n, g = data["n_ufl"], data["g_ufl"]
+    mu, lmbda_L = data.mu, data.lmbda_L
+    n, g = data.n_ufl, data.g_ufl
     n_facet = ufl.FacetNormal(msh)
     V = problem.V
     K, b, nullspace = problem.K, problem.b, problem.near_nullspace
     if problem.basis is not None:  # the problem's unknowns are rotated: K in displacements
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         a = ufl.inner(stress(u, mu, lmbda_L), epsilon(v)) * ufl.dx(domain=msh)
-        L = ufl.inner(data["f"], v) * ufl.dx(domain=msh)
+        L = ufl.inner(data.f, v) * ufl.dx(domain=msh)
         for i in scene.boundary.ids_with_role("neumann"):
-            L += ufl.inner(data["t"], v) * data["ds"](i)
+            L += ufl.inner(data.t, v) * data.ds(i)
         K, b = assemble_system(fem.form(a), fem.form(L), problem.bcs)
         nullspace = rigid_body_modes(V)
         made += [K, b, nullspace]
@@ -127,7 +127,7 @@ def unilateral_contact(scene: Scene, problem: DiscreteProblem) -> tuple[Unilater
             K,
             b,
             problem.bcs,
-            data["ds"](scene.boundary.ids_with_role("contact")),
+            data.ds(scene.boundary.ids_with_role("contact")),
             along_n,
             g,
             E,
@@ -147,9 +147,9 @@ def pair_scale(scene: Scene, problem: DiscreteProblem) -> np.ndarray:
     ids = [bnd.ids[pair.slave] for pair in cfg.pairs or ()]
     if cfg.obstacle is not None:
         ids += list(bnd.ids_with_role("contact"))
-    mu, lmbda_L = problem.data["mu"], problem.data["lmbda_L"]
+    mu, lmbda_L = problem.data.mu, problem.data.lmbda_L
     E = mu * (3 * lmbda_L + 2 * mu) / (lmbda_L + mu)
-    return mortar_scale(problem, problem.data["ds"](tuple(ids)), E)
+    return mortar_scale(problem, problem.data.ds(tuple(ids)), E)
 
 
 def solve_baseline(
@@ -166,7 +166,8 @@ def solve_baseline(
     u = problem.u_h
     u.x.array[:] = u0.x.array
     if scene.config.pairs:  # the Dirichlet values in displacements, the solve in unknowns
-        for bc in problem.data["u_bcs"]:
+        assert problem.data.u_bcs is not None  # a mortar set's
+        for bc in problem.data.u_bcs:
             bc.set(u.x.array)
         u.x.scatter_forward()
         return solve_nodal(problem, pair_scale(scene, problem), opts, verbose, timers, clock)

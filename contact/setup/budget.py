@@ -89,7 +89,7 @@ def max_dofs(solver: SolverConfig, gdim: int) -> int:
 
 def estimate_dofs(mesh: MeshConfig, elastic: bool) -> int | None:
     """DoFs of the scene's problem from its mesh parameters, exact for the structured meshes
-    (rectangle, unit_square, lshape, box, blocks; None for the others).  Vertices V and
+    (rectangle, unit_square, lshape, box, blocks, ring; None for the others).  Vertices V and
     cells F of the structured triangulations / tetrahedralizations, P2 adds one node per
     edge (E = V + F − 1 for a triangulated polygon, Euler; :func:`_kuhn_edges` for the
     tetrahedra of a 3D block), times the components (``elastic``: the dimension)."""
@@ -103,6 +103,10 @@ def estimate_dofs(mesh: MeshConfig, elastic: bool) -> int | None:
         (n,) = cells  # type: ignore[misc]
         vertices = (2 * n + 1) ** 2 - n * n
         nodes, gdim = vertices + p2 * (vertices + 6 * n * n - 1), 2
+    elif kind == "ring":
+        n_t, n_r = cells  # type: ignore[misc]
+        vertices = n_t * (n_r + 1)  # E = V + F on an annulus (Euler characteristic 0)
+        nodes, gdim = vertices + p2 * (vertices + 2 * n_t * n_r), 2
     elif kind == "box":
         nx, ny, nz = cells  # type: ignore[misc]
         nodes, gdim = (nx + 1) * (ny + 1) * (nz + 1), 3  # P2 boxes are refused (config)

@@ -38,6 +38,7 @@ from ..models.elasticity import lame
 from ..models.forms import make_problem
 from ..models.physics import BoundaryData, Elasticity, epsilon, stress
 from ..models.problem import assemble_system
+from ..solvers.problem import ProblemData
 from .checks import check_scene_data
 from .data import vector, vector_numpy
 from .obstacle import RigidObstacle as ObstacleAt
@@ -281,14 +282,15 @@ def elasticity_problem(scene: Scene, mu=None, lmbda_L=None, body=None) -> Proble
     conditions: tuple = scene_pairs(scene, ds)
     if cfg.obstacle is not None:
         conditions += (scene_rigid(scene, ds),)
-    data = {
-        **s.data,
-        "mu": mu,
-        "lmbda_L": lmbda_L,
-        "exact": None,
-        "reaction_form": reaction_form(a_ufl, s.L_ufl, u_h),
-        **({} if body is None else {"body": body}),
-    }
+    data = ProblemData(
+        f=s.data["f"],
+        t=s.data["t"],
+        ds=ds,
+        mu=mu,
+        lmbda_L=lmbda_L,
+        reaction_form=reaction_form(a_ufl, s.L_ufl, u_h),
+        body=body,
+    )
     return make_problem(
         "linear",
         V,

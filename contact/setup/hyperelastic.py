@@ -23,6 +23,7 @@ from ..models.hyperelastic import (
     quadrature_degree,
 )
 from ..models.physics import piola_and_cauchy
+from ..solvers.problem import ProblemData
 from .checks import check_scene_data
 from .elastic import elastic_physics, elastic_setting, materials, scene_pairs, scene_rigid
 from .scene import Scene
@@ -68,16 +69,16 @@ def hyperelastic_problem(scene: Scene, coupled_at: np.ndarray | None = None) -> 
     def stresses(u):
         return piola_and_cauchy(u, law, mu, lmbda_L)
 
-    data = {
-        **s.data,
-        "exact": None,
-        "reaction_form": F_form,
-        "stresses": stresses,
-        "law": model.law,
+    data = ProblemData(
+        f=s.data["f"],
+        t=s.data["t"],
+        ds=s.data["ds"],
+        reaction_form=F_form,
+        stresses=stresses,
         **({} if body is None else {"body": body, "mu": mu, "lmbda_L": lmbda_L}),
-    }
+    )
     if obstacle is not None:
-        data["deformed_area"] = fem.form(deformed_area(u_h, v, obstacle.measure))
+        data.deformed_area = fem.form(deformed_area(u_h, v, obstacle.measure))
     return make_problem(
         "residual",
         V,

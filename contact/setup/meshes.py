@@ -1,10 +1,11 @@
 """Meshes and boundary parts of a scene.
 
 Built-in meshes need nothing but DOLFINx: ``rectangle``/``unit_square`` and ``box``
-(structured simplices) and ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], docs/theory.md §7 D, built from
-NumPy arrays).  Only ``gmsh`` scenes import gmsh, to read a ``.msh`` file with physical
-tags (:func:`contact.setup.geometry.gmsh_to_mesh`, which also builds the parametric gmsh meshes of
-:mod:`contact.setup.geometry`).  A built-in mesh may be deformed by ``mesh.map``
+(structured simplices), ``lshape`` (Ω = (−1,1)² ∖ [0,1]×[−1,0], docs/theory.md §7 D) and
+``ring`` (an annulus in polar coordinates), built from NumPy arrays.  Only ``gmsh`` scenes
+import gmsh, to read a ``.msh`` file with physical tags
+(:func:`contact.setup.geometry.gmsh_to_mesh`, which also builds the parametric gmsh meshes
+of :mod:`contact.setup.geometry`).  A built-in mesh may be deformed by ``mesh.map``
 (:func:`map_geometry`) before its boundary parts are tagged.  Boundary parts become one
 facet ``MeshTags`` whose values are the part ids.
 """
@@ -81,6 +82,7 @@ def mesh_dimension(cfg: SceneConfig) -> int | None:
         "box": 3,
         "sphere_octant": 3,
         "sphere_on_block": 3,
+        "ring": 2,
     }.get(mesh.type)
 
 
@@ -174,6 +176,9 @@ def _built_mesh(cfg: SceneConfig, comm: MPI.Comm) -> tuple[dmesh.Mesh, Tags, Tag
     if kind == "blocks":
         assert m.blocks  # required for this type (checked at load)
         return blocks(comm, m.blocks, m.diagonal)
+    if kind == "ring":
+        assert m.radius is not None and m.inner_radius is not None  # checked at load
+        return ring(comm, m.inner_radius, m.radius, cells, m.diagonal)
     if kind == "gmsh":
         assert m.file is not None  # required for this type (checked at load)
         return _read_gmsh(m.file, comm)
@@ -245,15 +250,7 @@ def blocks(
     else:
         X, cells, counts = np.zeros((0, gdim)), np.zeros((0, gdim + 1), dtype=np.int64), None
     counts = comm.bcast(counts, root=0)
-    shape = "triangle" if gdim == 2 else "tetrahedron"
-    element = ufl.Mesh(basix.ufl.element("Lagrange", shape, 1, shape=(gdim,)))
-    msh = dmesh.create_mesh(
-        comm,
-        cells,
-        element,
-        X,
-        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),  # type: ignore[call-arg]
-    )
+    msh = _simplices(comm, X, cells)
     tdim = msh.topology.dim
     n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
     original = np.asarray(msh.topology.original_cell_index[:n_all])
@@ -262,6 +259,54 @@ def blocks(
         msh,
         None,
         dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), block.astype(np.int32)),
+    )
+
+
+def ring(
+    comm: MPI.Comm, inner: float, outer: float, cells: Sequence[int], diagonal: str = "right"
+) -> tuple[dmesh.Mesh, None, dmesh.MeshTags]:
+    """The annulus ``inner`` < |x| < ``outer`` centred at the origin, structured in polar
+    coordinates: ``cells`` = (n_θ, n_r) quadrilaterals around and across, each cut into two
+    triangles along its ``diagonal`` (left or right), the last column closing onto the
+    first (one connected body, no seam).  The vertices lie on the circles, so the polygonal
+    boundaries are inscribed in them.  Built on rank 0 and distributed; every cell has tag
+    1 (one body)."""
+    n_t, n_r = cells
+    if comm.rank == 0:
+        theta = 2.0 * np.pi * np.arange(n_t) / n_t
+        r = np.linspace(inner, outer, n_r + 1)
+        X = np.stack(
+            [np.outer(np.cos(theta), r).ravel(), np.outer(np.sin(theta), r).ravel()], axis=1
+        )
+        i, j = (a.ravel() for a in np.meshgrid(np.arange(n_t), np.arange(n_r), indexing="ij"))
+        node = lambda a, b: (a % n_t) * (n_r + 1) + b  # noqa: E731
+        v00, v10, v01, v11 = node(i, j), node(i + 1, j), node(i, j + 1), node(i + 1, j + 1)
+        if diagonal == "left":
+            T = np.vstack([np.c_[v00, v10, v01], np.c_[v10, v11, v01]])
+        else:
+            T = np.vstack([np.c_[v00, v10, v11], np.c_[v00, v11, v01]])
+        T = T.astype(np.int64)
+    else:
+        X, T = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+    msh = _simplices(comm, X, T)
+    tdim = msh.topology.dim
+    n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    ones = np.ones(n_all, dtype=np.int32)
+    return msh, None, dmesh.meshtags(msh, tdim, np.arange(n_all, dtype=np.int32), ones)
+
+
+def _simplices(comm: MPI.Comm, X: np.ndarray, cells: np.ndarray) -> dmesh.Mesh:
+    """The P1 simplex mesh of vertices X and ``cells`` given on rank 0 (empty on the
+    others), distributed over ``comm`` with shared-facet ghosts."""
+    gdim = X.shape[1]
+    shape = "triangle" if gdim == 2 else "tetrahedron"
+    element = ufl.Mesh(basix.ufl.element("Lagrange", shape, 1, shape=(gdim,)))
+    return dmesh.create_mesh(
+        comm,
+        cells,
+        element,
+        X,
+        partitioner=dmesh.create_cell_partitioner(dmesh.GhostMode.shared_facet, 2),  # type: ignore[call-arg]
     )
 
 

@@ -24,6 +24,7 @@ from ..models.constraints import Unilateral
 from ..models.discrete import Problem
 from ..models.physics import BoundaryData, Diffusion
 from ..models.problem import assemble_system
+from ..solvers.problem import ProblemData
 from .checks import check_scene_data
 from .data import coefficient, interpolate_expression
 from .scene import Scene
@@ -75,9 +76,9 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
         K,
         b,
         contact.constraint,
-        **contact.fields,
+        output=contact.output,
         semicoercive=semicoercive,
-        data={"k": k, "f": f, "t": t, "t_C": t_C, "ds": ds, "exact": data.exact, **contact.data},
+        data=ProblemData(k=k, f=f, t=t, t_C=t_C, ds=ds).updated(contact.data),
         assembly_time=time.perf_counter() - t0,
         physics=physics,
         contacts=(condition,),

@@ -91,6 +91,7 @@ MESH_TYPES = (
     "blocks",
     "half_disks",
     "sphere_on_block",
+    "ring",
 )
 #: the keys each mesh type takes (besides ``type`` and ``degree``)
 MESH_KEYS = {
@@ -104,6 +105,7 @@ MESH_KEYS = {
     "blocks": {"blocks", "diagonal"},
     "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap"},
     "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"},
+    "ring": {"radius", "inner_radius", "cells", "diagonal"},
 }
 #: the mesh types whose boundary parts may be gmsh tags
 GMSH_MESHES = ("gmsh", "quarter_disk", "sphere_octant", "half_disks", "sphere_on_block")
@@ -523,6 +525,8 @@ class MeshConfig(Section):
     radius2: Float | None = None
     #: half_disks: the lower disk moved up by this much (an interference load)
     overlap: Float | None = None
+    #: ring: the radius of the hole (``radius`` the outer one)
+    inner_radius: Positive | None = None
     #: sphere_on_block: [half-width, depth] of the block
     block: Annotated[tuple[Number, ...] | None, BeforeValidator(a_list(block_pair))] = None
     #: blocks: a list of {corners, cells}, one body each (cell tags 1, 2, …)
@@ -541,7 +545,7 @@ class MeshConfig(Section):
     @classmethod
     def _cells(cls, cells: Any, info: ValidationInfo) -> Any:
         """One count for every direction: a count per direction."""
-        dims = {"rectangle": 2, "unit_square": 2, "lshape": 1, "box": 3}.get(
+        dims = {"rectangle": 2, "unit_square": 2, "lshape": 1, "box": 3, "ring": 2}.get(
             info.data.get("type") or ""
         )
         return (cells,) * dims if dims and isinstance(cells, int) else cells
@@ -586,7 +590,9 @@ class MeshConfig(Section):
                 raise rule("required for mesh type 'gmsh'", key="file")
             if not Path(self.file).is_file():
                 raise rule(f"no such file {self.file!r}", key="file")
-        dims = {"rectangle": 2, "unit_square": 2, "lshape": 2, "box": 3}.get(self.type)
+        dims = {"rectangle": 2, "unit_square": 2, "lshape": 2, "box": 3, "ring": 2}.get(self.type)
+        if self.type == "ring":
+            self._check_ring()
         if self.type in ("rectangle", "box") and len((self.corners or ((),))[0]) != dims:
             raise rule(f"a {self.type} needs {dims}D points", key="corners")
         if dims is not None:
@@ -609,6 +615,24 @@ class MeshConfig(Section):
                 if getattr(self, key) is None:
                     raise rule(f"required for mesh type {self.type!r}", key=key)
         return self
+
+    def _check_ring(self) -> None:
+        """Mesh type ring: both radii, the hole inside, at least 3 cells around, left or
+        right diagonals."""
+        for key in ("radius", "inner_radius"):
+            if getattr(self, key) is None:
+                raise rule("required for mesh type 'ring'", key=key)
+        assert self.radius is not None and self.inner_radius is not None
+        if not 0 < self.inner_radius < self.radius:
+            raise rule(
+                f"must lie between 0 and radius {self.radius:g}, got {self.inner_radius:g}",
+                key="inner_radius",
+            )
+        cells = self.cells if isinstance(self.cells, tuple) else (self.cells,)
+        if len(cells) == 2 and cells[0] < 3:
+            raise rule(f"a ring needs at least 3 cells around, got {cells[0]}", key="cells")
+        if self.diagonal not in ("left", "right"):
+            raise rule(f"a ring takes left or right, got {self.diagonal!r}", key="diagonal")
 
     def _check_blocks(self) -> int:
         """Mesh type blocks: at least one block (all of one dimension); returns it."""

@@ -341,7 +341,8 @@ def _check_equilibrated(config: SceneConfig, estimator: str) -> None:
 
 def _check_bodies(config: SceneConfig) -> tuple[PairConfig, ...] | None:
     """bodies (each with exactly one of tag / where), boundary parts' ``body``, and pairs:
-    slave and master parts of role interface, of different bodies, each part in one pair.
+    slave and master parts of role interface (of two bodies, or of one: self-contact), each
+    part in one pair.
     Returns the pairs, typed."""
     bodies, parts = config.bodies or {}, config.boundaries
     for name, body in bodies.items():

@@ -751,6 +751,7 @@ def friction_fields(
     from .newton import SEPARATED, SLIP, STICK
 
     fs, con = problem.friction, problem.constraint
+    assert fs is not None, "a frictional problem"
     lam_n = problem.multiplier(residual)
     lam_t = residual[fs.tangent] / con.w[:, None]
     if coefficient is not None:

@@ -71,7 +71,6 @@ differences).  H is not symmetric: the Newton system stays assembled (MUMPS, or 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 from mpi4py import MPI
@@ -79,39 +78,13 @@ from petsc4py import PETSc
 
 from . import ncp
 from .newton import BlockComplementarity
-from .problem import DiscreteProblem
+from .problem import CurrentContact, DiscreteProblem
 
 #: 3D frames take the helper e_y instead of e_x where |ñ_x| reaches this (as basis.frame)
 HELPER_SWITCH = 0.9
 #: the gap rows' round-off floor in units of ε · (coordinate size) · ‖w / c‖₂
 #: (:meth:`CurrentComplementarity.gap_roundoff`; as snes.ROUNDOFF for K x − b)
 GAP_ROUNDOFF = 16.0
-
-
-class RigidSurface(Protocol):
-    """A rigid obstacle as a signed distance (module doc); ``scale`` is the size of the
-    numbers its distance subtracts beyond the point's coordinates (|c| + R_o, |p|)."""
-
-    @property
-    def scale(self) -> float: ...
-
-    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(g, n, Dn) at the points x (k, gdim): the signed distances (k,), the unit normals
-        towards the obstacle (k, gdim), their derivatives dn/dx (k, gdim, gdim)."""
-        ...
-
-
-@dataclass
-class CurrentContact:
-    """The contact nodes of a body against a rigid obstacle on the current configuration
-    (owned nodes, none fixed in every component; arrays row for row)."""
-
-    nodes: np.ndarray  # (k,) owned local node indices (the blocks of bs DoFs of V)
-    X: np.ndarray  # (k, gdim) reference positions
-    fixed: np.ndarray  # (k, bs) bool: components held by a Dirichlet / symmetry condition
-    surface: RigidSurface
-    u_prev: np.ndarray  # (k, gdim) displacement at the previous load step (friction's slip)
-    motion: np.ndarray  # (gdim,) the obstacle's translation Δc since the previous load step
 
 
 @dataclass
@@ -196,7 +169,8 @@ class CurrentComplementarity(BlockComplementarity):
 
     def __init__(self, problem: DiscreteProblem):
         super().__init__(problem)
-        cc: CurrentContact = problem.current
+        cc = problem.current
+        assert cc is not None, "a problem with contact on the current configuration"
         self.cc, bs = cc, self.bs
         self.rows = (cc.nodes[:, None] * bs + np.arange(bs)).astype(np.int32)  # (k, bs)
         self.fs = problem.friction

@@ -157,7 +157,8 @@ class FrictionalComplementarity(BlockComplementarity):
 
     def __init__(self, problem: DiscreteProblem):
         super().__init__(problem)
-        fs: FrictionSet = problem.friction
+        fs = problem.friction
+        assert fs is not None, "a frictional problem"
         self.fs = fs
         self.nodes = self.dofs // self.bs
         self.threshold = fs.threshold  # Tresca's ρ (the fixed point replaces it)
@@ -260,7 +261,8 @@ def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc
     global axes (n, gdim).  ``cp``: :class:`FrictionalComplementarity`, or
     :class:`contact.solvers.current.CurrentComplementarity` with friction (its tangents
     those of the last evaluation)."""
-    fs: FrictionSet = problem.friction
+    fs = problem.friction
+    assert fs is not None, "a frictional problem"
     st = cp.evaluate(x)
     status = cp.status(x, st)
     lam_t = -st["mu_t"]
@@ -314,8 +316,8 @@ def surface_functions(result: Result) -> list[fem.Function]:
         fn.x.array[:] = off
         fn.x.array[con.dofs] = values
         fn.x.scatter_forward()
-        S = p.output_space or V
+        S = p.output.space or V
         scalar = fem.Function(S, name=name)
-        scalar.x.array[:] = fn.x.array if p.output_map is None else fn.x.array[p.output_map]
+        scalar.x.array[:] = fn.x.array if p.output.map is None else fn.x.array[p.output.map]
         out.append(scalar)
     return out

@@ -95,6 +95,7 @@ class NodalFormulation:
         """(z, ρ, q): z_i = ν_i + k_i s_i (0 on fixed components), the bound ρ_i and
         q_i = [z_i]_ρ."""
         fs = self.problem.friction
+        assert fs is not None, "a frictional problem"
         slip = np.where(fs.free, x[fs.tangent] - fs.x_prev, 0.0)
         z = np.where(fs.free, self.nu + self.k[:, None] * slip, 0.0)
         rho = fs.coefficient * p if fs.law == "coulomb" else np.asarray(fs.threshold, float)

@@ -18,8 +18,9 @@ their friction law (:class:`FrictionSet`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, replace
+from typing import Any, Protocol
 
 import numpy as np
 from dolfinx import fem
@@ -43,14 +44,141 @@ class Constraint:
     # 0, its sign set by the partition), so kinks are decided relative to it too
     # (:meth:`contact.solvers.newton.Complementarity.tie_tolerance`); 0 for gaps given as data
     scale: float = 0.0
+    in_domain: bool = False  # the constraint holds in Ω (obstacle), not on Γ_C
 
     def global_size(self, comm: MPI.Comm) -> int:
         return comm.allreduce(len(self.dofs), op=MPI.SUM)
 
 
 @dataclass
+class Output:
+    """Where the nodal fields of a solution (λ_h, the gap, the active set) are written.
+
+    A scalar model writes them on V itself (every field None); an elastic body on the
+    contact component's collapsed scalar subspace S, with the S → V DoF map.
+
+    Attributes:
+        space: S, or None for V.
+        map: the V DoFs of S's DoFs (S → V), or None when S = V.
+        bound: the bound on S (g, ψ, or n_k g of a plane), or None: the data's ``g_h``.
+        lambda_sign: the multiplier reported, λ_i = lambda_sign · R_i / w_i (−1 against a
+            plane whose normal points along −e_k).
+        nodes: the S DoFs of the contact nodes (several bodies), or None.
+        ends: the owned contact DoFs on the closure of Γ_D (the ends of Γ_C), or None.
+        end_neighbours: the nearest constrained DoF of each end (local index).
+    """
+
+    space: fem.FunctionSpace | None = None
+    map: np.ndarray | None = None
+    bound: fem.Function | None = None
+    lambda_sign: float = 1.0
+    nodes: np.ndarray | None = None
+    ends: np.ndarray | None = None
+    end_neighbours: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class Symmetry:
+    """The mirror planes x_k = c behind a modelled part (an elastic body cut by its symmetry
+    planes): the body stands for 2^(number of planes) copies of the part.
+
+    Attributes:
+        axes: the k of each mirror plane x_k = c (sorted, each once).
+    """
+
+    axes: tuple[int, ...] = ()
+
+    @property
+    def copies(self) -> int:
+        """The copies of the modelled part the body stands for, 2^(number of planes)."""
+        return 2 ** len(self.axes)
+
+    def copies_along(self, n: np.ndarray | None) -> int:
+        """The factor of a scalar force along the direction ``n``: 2^(number of planes
+        x_k = c that contain n, n_k = 0); every copy (:attr:`copies`) when ``n`` is None.
+
+        The mirror image across such a plane presses alongside the modelled part; the
+        image across a plane normal to n (a frictionless floor under a block pressed from
+        above) is a second contact zone pressing the other way — the force through the body
+        is that of one zone, so that plane does not multiply it."""
+        if n is None:
+            return self.copies
+        n = np.asarray(n, dtype=float)
+        size = float(np.max(np.abs(n), initial=0.0))
+        return 2 ** sum(1 for k in self.axes if abs(n[k]) <= 1e-12 * size)
+
+
+@dataclass
+class ProblemData:
+    """The continuous problem's data beside the algebra: what the estimators, the baselines
+    and the reports read (the solvers read none of it).  Every field is optional: a builder
+    sets those its model has.
+
+    Attributes:
+        k: the conductivity of a scalar model (UFL).
+        f: the source or body load (UFL).
+        t: the flux or traction on Γ_N (UFL).
+        t_C: the load on Γ_C of a scalar Signorini model (UFL).
+        ds: ``ds`` over the boundary parts' facet tags.
+        mu: the Lamé parameter μ of an elastic body (a number or a DG0 function).
+        lmbda_L: the Lamé parameter λ_L (idem).
+        stresses: u ↦ (P, σ) of a hyperelastic law.
+        body: the body number of each cell (DG0) of several bodies in one mesh.
+        g_h: the bound on V of a unilateral condition.
+        n: the contact normal at the first point of contact (gdim,).
+        n_ufl: the rigid obstacle's normal as UFL of the spatial coordinate.
+        g_ufl: the rigid obstacle's initial gap as UFL of the spatial coordinate.
+        normals: the contact normal of each constrained node (nodes, gdim).
+        contact_nodes: the coordinates of the pairs' slave nodes (this rank's).
+        contact_mask: the hp DoFs on Γ_C (bool over the hp space's active DoFs).
+        couplings: the mortar couplings of the pairs (:class:`contact.models.mortar.Coupling`),
+            or None: no pair.
+        pair_nodes: the first ``pair_nodes`` constrained nodes are the pairs' slave nodes.
+        u_bcs: the Dirichlet conditions on u where the problem's own ``bcs`` act on the
+            unknowns of a change of basis.
+        reaction_form: the residual form whose value on Γ_D is the reaction force.
+        deformed_area: the form of the lumped deformed areas of the contact nodes.
+    """
+
+    k: Any = None
+    f: Any = None
+    t: Any = None
+    t_C: Any = None
+    ds: Any = None
+    mu: Any = None
+    lmbda_L: Any = None
+    stresses: Callable[[Any], tuple] | None = None
+    body: fem.Function | None = None
+    g_h: fem.Function | None = None
+    n: np.ndarray | None = None
+    n_ufl: Any = None
+    g_ufl: Any = None
+    normals: np.ndarray | None = None
+    contact_nodes: np.ndarray | None = None
+    contact_mask: np.ndarray | None = None
+    couplings: list | None = None
+    pair_nodes: int | None = None
+    u_bcs: list | None = None
+    reaction_form: fem.Form | None = None
+    deformed_area: fem.Form | None = None
+
+    def updated(self, other: ProblemData) -> ProblemData:
+        """A copy with the fields that ``other`` sets (not None) taken from it."""
+        changes = {f.name: getattr(other, f.name) for f in fields(other)}
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+
+@dataclass
 class DiscreteProblem:
-    """Everything the solver needs: K u − b = w λ on the constraint set, = 0 elsewhere."""
+    """Everything the solver needs: K u − b = w λ on the constraint set, = 0 elsewhere.
+
+    The algebraic core (V, u_h, bcs, K, b, the constraint, the change of basis, the
+    near-nullspace) and optional parts: where the nodal fields are written
+    (:class:`Output`), the symmetry planes (:class:`Symmetry`), a friction law's set
+    (:class:`FrictionSet`), contact on the current configuration
+    (:class:`CurrentContact`) and the continuous problem's data
+    (:class:`ProblemData`).
+    """
 
     V: fem.FunctionSpace
     u_h: fem.Function
@@ -60,39 +188,27 @@ class DiscreteProblem:
     constraint: Constraint
     # NCP scaling (gap per λ), nodal or one number; set by solve()
     c: np.ndarray | float | None = None
-    # owned contact DoFs on the closure of Γ_D (ends of Γ_C)
-    end_dofs: np.ndarray | None = None
-    end_neighbours: np.ndarray | None = None  # the nearest constrained DoF of each (local index)
-    # Output of nodal fields on a scalar space S (S = V for scalar models; the contact
-    # component's collapsed subspace for elasticity, with the S → V DoF map):
-    output_space: fem.FunctionSpace | None = None
-    output_map: np.ndarray | None = None
-    output_bound: fem.Function | None = None  # the bound (g, ψ or n_k g) on S
-    lambda_sign: float = 1.0  # λ reported = lambda_sign · R_i / w_i
-    near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
     basis: PETSc.Mat | None = None  # Q with u = Q x: per-node rotations to (n, t) axes, or None
     # Q⁻¹ when Q is not orthogonal (mortar coupling); else Qᵀ
     basis_inverse: PETSc.Mat | None = None
-    # output-space DoFs of the contact nodes (multi-body problems)
-    output_nodes: np.ndarray | None = None
-    data: dict = field(default_factory=dict)  # UFL data (k, f, t, t_C, g, exact) for estimators
-    assembly_time: float = 0.0
-    in_domain: bool = False  # the constraint holds in Ω (obstacle), not on Γ_C
+    near_nullspace: PETSc.NullSpace | None = None  # rigid-body modes (elasticity, for GAMG)
     # no Dirichlet DoF: K is singular (constants), held by the constraint alone
     semicoercive: bool = False
     floating: list = field(default_factory=list)  # (body, free rigid motions): bodies nothing holds
-    symmetric_copies: int = 1  # copies of the modelled part the body stands for (symmetry)
-    symmetry_axes: tuple[int, ...] = ()  # k of the mirror planes x_k = c behind those copies
-    friction: Any = None  # FrictionSet (below) of a frictional scene, else None
+    assembly_time: float = 0.0
+    output: Output = field(default_factory=Output)
+    symmetry: Symmetry = field(default_factory=Symmetry)
+    friction: FrictionSet | None = None  # the tangential unknowns of a frictional problem
     # contact on the current configuration (a gap nonlinear in u): the nodes and the rigid
-    # surface (:class:`contact.solvers.current.CurrentContact`), else None
-    current: Any = None
+    # surface, else None
+    current: CurrentContact | None = None
+    data: ProblemData = field(default_factory=ProblemData)
 
     def destroy(self) -> None:
         """Destroy the PETSc objects of the problem (K, b, Q, Q⁻¹, the near-nullspace, the
         mortar matrices); its functions stay usable.  Call it once the problem's last result
         is done with (:meth:`contact.solvers.result.Result.release`)."""
-        couplings = self.data.get("couplings") or []
+        couplings = self.data.couplings or []
         destroy(
             self.K,
             self.b,
@@ -163,9 +279,10 @@ class DiscreteProblem:
         return -con.sign * r[con.dofs] / con.w
 
     def multiplier(self, r: np.ndarray) -> np.ndarray:
-        """λ_i = ±R_i / w_i (``lambda_sign``) on the constrained DoFs (owned residual ``r``)."""
+        """λ_i = ±R_i / w_i (:attr:`Output.lambda_sign`) on the constrained DoFs (owned
+        residual ``r``)."""
         con = self.constraint
-        return self.lambda_sign * r[con.dofs] / con.w
+        return self.output.lambda_sign * r[con.dofs] / con.w
 
     def nodal_gap(self, x: np.ndarray) -> np.ndarray:
         """σ(g_i − x_i) on the constrained DoFs (owned unknowns ``x``): ≥ 0 when feasible."""
@@ -183,25 +300,16 @@ class DiscreteProblem:
         thickness in 2D elasticity (N/m), force in 3D (N); ∫ flux over Γ_C (or Ω) for
         scalar models."""
         con = self.constraint
-        along = self.data["normals"] @ self.data["n"] if "normals" in self.data else 1.0
+        normals, n = self.data.normals, self.data.n
+        along = normals @ n if normals is not None and n is not None else 1.0
         local = float(np.sum(con.w * self.pressure(r) * along))
         return self.copies_along() * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
 
     def copies_along(self, n: np.ndarray | None = None) -> int:
         """The factor of a scalar force along the direction ``n`` (default: the contact
-        normal at the first point of contact; scalar models: :attr:`symmetric_copies`):
-        2^(number of symmetry planes x_k = c that contain n, n_k = 0).  The mirror image
-        across such a plane presses alongside the modelled part; the image across a plane
-        normal to n (a frictionless floor under a block pressed from above) is a second
-        contact zone pressing the other way — the force through the body is that of one
-        zone, so that plane does not multiply it."""
-        n = self.data.get("n") if n is None else n
-        if n is None:
-            return self.symmetric_copies
-        n = np.asarray(n, dtype=float)
-        size = float(np.max(np.abs(n), initial=0.0))
-        planes = sum(1 for k in self.symmetry_axes if abs(n[k]) <= 1e-12 * size)
-        return 2**planes
+        normal at the first point of contact; without one, every copy):
+        :meth:`Symmetry.copies_along`."""
+        return self.symmetry.copies_along(self.data.n if n is None else n)
 
     def outputs(self, x: np.ndarray, r: np.ndarray, active: np.ndarray) -> tuple[fem.Function, ...]:
         """Nodal fields on the output space S: the multiplier λ_h (:meth:`multiplier` on the
@@ -215,9 +323,9 @@ class DiscreteProblem:
         """A function ``name`` on the output space S with ``values`` at the constrained DoFs
         and 0 elsewhere (λ_h also at the ends of Γ_C, :meth:`_extend_to_ends`)."""
         V = self.V
-        fn = self.unknowns_function(name, values)
-        out = fem.Function(self.output_space or V, name=name)
-        out.x.array[:] = fn.x.array if self.output_map is None else fn.x.array[self.output_map]
+        fn, where = self.unknowns_function(name, values), self.output
+        out = fem.Function(where.space or V, name=name)
+        out.x.array[:] = fn.x.array if where.map is None else fn.x.array[where.map]
         return out
 
     def unknowns_function(self, name: str, values: np.ndarray) -> fem.Function:
@@ -234,15 +342,15 @@ class DiscreteProblem:
         """The gap σ(bound − u) on S (≥ 0 when feasible), NaN off the constrained DoFs of a
         contact boundary Γ_C (g − u inside Ω is no gap); for an obstacle (constraint in Ω)
         it is ψ − u everywhere.  ``x``: the owned unknowns."""
-        V, con = self.V, self.constraint
-        S = self.output_space or V
+        V, con, where = self.V, self.constraint, self.output
+        S = where.space or V
         unknowns = fem.Function(V)
         unknowns.x.array[: len(x)] = x
         unknowns.x.scatter_forward()
-        u = unknowns.x.array if self.output_map is None else unknowns.x.array[self.output_map]
+        u = unknowns.x.array if where.map is None else unknowns.x.array[where.map]
         gap = fem.Function(S, name="gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
-        if not self.in_domain:
+        if not con.in_domain:
             on = self.nodal_output("on", np.ones(len(con.dofs)))
             gap.x.array[on.x.array < 0.5] = np.nan
         return gap
@@ -252,13 +360,16 @@ class DiscreteProblem:
         mixes the flux through Γ_C with that through Γ_D; give them the multiplier of the
         nearest contact node (constant extrapolation) so that λ_h is the discrete contact
         flux on all of Γ_C and the estimator sees no spurious jump there."""
-        if self.end_dofs is not None and len(self.end_dofs):
-            lmbda.x.array[self.end_dofs] = lmbda.x.array[self.end_neighbours]
+        ends = self.output.ends
+        if ends is not None and len(ends):
+            lmbda.x.array[ends] = lmbda.x.array[self.output.end_neighbours]
         lmbda.x.scatter_forward()
 
     def bound_function(self) -> fem.Function:
         """The bound (g or ψ; n_k g for elasticity) on the output space."""
-        return self.output_bound if self.output_bound is not None else self.data["g_h"]
+        bound = self.output.bound if self.output.bound is not None else self.data.g_h
+        assert bound is not None, "a problem has its bound on the output space or V"
+        return bound
 
 
 @dataclass
@@ -284,6 +395,32 @@ class FrictionSet:
     @property
     def m(self) -> int:
         return self.tangent.shape[1]
+
+
+class RigidSurface(Protocol):
+    """A rigid obstacle as a signed distance (module doc); ``scale`` is the size of the
+    numbers its distance subtracts beyond the point's coordinates (|c| + R_o, |p|)."""
+
+    @property
+    def scale(self) -> float: ...
+
+    def project(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(g, n, Dn) at the points x (k, gdim): the signed distances (k,), the unit normals
+        towards the obstacle (k, gdim), their derivatives dn/dx (k, gdim, gdim)."""
+        ...
+
+
+@dataclass
+class CurrentContact:
+    """The contact nodes of a body against a rigid obstacle on the current configuration
+    (owned nodes, none fixed in every component; arrays row for row)."""
+
+    nodes: np.ndarray  # (k,) owned local node indices (the blocks of bs DoFs of V)
+    X: np.ndarray  # (k, gdim) reference positions
+    fixed: np.ndarray  # (k, bs) bool: components held by a Dirichlet / symmetry condition
+    surface: RigidSurface
+    u_prev: np.ndarray  # (k, gdim) displacement at the previous load step (friction's slip)
+    motion: np.ndarray  # (gdim,) the obstacle's translation Δc since the previous load step
 
 
 class NodeBlockMatrix:

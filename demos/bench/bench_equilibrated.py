@@ -258,7 +258,7 @@ def uniform3d(sizes: list[int], backends: list[str]) -> list[dict]:
     for n in sizes:
         scene = cost_scene(n, 3)
         result = contact.solve(scene, verbose=False)
-        k = result.problem.data["k"]
+        k = result.problem.data.k
         error = energy_error(result.u_h, scene.config.data.exact, k, quadrature_degree=6)
         for backend in backends:
             eta = guaranteed_bound(result.problem, result, **VARIANTS[backend]).eta

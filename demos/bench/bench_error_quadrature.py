@@ -43,7 +43,7 @@ def main() -> None:
     exact, rows = scene.config.data.exact, []
 
     def on_level(level: Level) -> None:
-        u_h, k = level.result.u_h, level.result.problem.data["k"]
+        u_h, k = level.result.u_h, level.result.problem.data.k
         ref = energy_error(u_h, exact, k, quadrature_degree=REFERENCE)
         row = {"level": level.index, "dofs": level.result.dofs, "error_q12": ref}
         for q in DEGREES:

@@ -220,7 +220,7 @@ def mesh_part(
 def sphere_pressures(scene, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ρ, nodal pressure p_i, patch average p̄_i) of the slave nodes, gathered on every rank."""
     p = result.problem
-    on = slice(0, p.data["pair_nodes"])
+    on = slice(0, p.data.pair_nodes)
     nodes = p.constraint.dofs[on] // p.V.dofmap.index_map_bs
     X = p.V.tabulate_dof_coordinates()[nodes]
     pressure = p.pressure(owned_residual(result))[on]

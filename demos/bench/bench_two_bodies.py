@@ -100,7 +100,7 @@ def slave_pressure(result) -> tuple[np.ndarray, np.ndarray]:
     """(coordinates, pressure −λ_i) of the slave nodes, gathered on every rank."""
     p = result.problem
     bs = p.V.dofmap.index_map_bs
-    nodes = p.constraint.dofs[: p.data["pair_nodes"]] // bs
+    nodes = p.constraint.dofs[: p.data.pair_nodes] // bs
     X = p.V.tabulate_dof_coordinates()[nodes]
     lam = -result.lmbda_h.x.array[output_dofs(p, nodes)]
     X = np.vstack(comm.allgather(X))
@@ -116,7 +116,7 @@ def patch() -> None:
             t0 = time.perf_counter()
             r = contact.solve(scene, method=method, problem=problem, verbose=False)
             seconds = time.perf_counter() - t0
-            lam = r.lmbda_h.x.array[problem.output_nodes]
+            lam = r.lmbda_h.x.array[problem.output.nodes]
             lam_m = master_pressure(r).x.array
             err = comm.allreduce(float(np.max(np.abs(lam + 0.01))), op=MPI.MAX) / 0.01
             err_m = (
@@ -356,7 +356,7 @@ def cattaneo(sizes: list[float]) -> None:
                 }
             )
             p = r.problem
-            on = slice(0, p.data["pair_nodes"])
+            on = slice(0, p.data.pair_nodes)
             X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // p.V.dofmap.index_map_bs]
             lam_t = np.vstack(comm.allgather(r.friction["lambda_t_vec"][on]))
             profiles.append(

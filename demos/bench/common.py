@@ -89,7 +89,7 @@ def energy_distance(reference, u_h) -> float:
     from dolfinx import fem
 
     data = reference.problem.data
-    mu, lam = float(data["mu"]), float(data["lmbda_L"])
+    mu, lam = float(data.mu), float(data.lmbda_L)
     e = reference.u_h - point_transfer(u_h, reference.u_h.function_space)
     eps = ufl.sym(ufl.grad(e))
     energy = fem.form((2 * mu * ufl.inner(eps, eps) + lam * ufl.tr(eps) ** 2) * ufl.dx)

@@ -248,7 +248,7 @@ def _normal_lifting(problem: Problem, result: Result, n, lmbda, v):
     physics, obstacle, plane = _plane_contact(problem)
     boundary = physics.boundary
     msh = problem.V.mesh
-    S = problem.output_space
+    S = problem.output.space
     assert S is not None  # the rigid obstacle's scalar output space
     _, g_ufl = plane.expression(ufl.SpatialCoordinate(msh))
     u_n, g_h = fem.Function(S), fem.Function(S)

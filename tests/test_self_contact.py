@@ -1,0 +1,194 @@
+"""Self-contact at finite strain: a neo-Hookean ring squeezed until its inner faces touch
+(configs/hyperelastic_self_contact_ring.yaml), one body whose two boundary parts are a
+dual-mortar pair coupled on the current configuration.  Checked: the faces touch and do not
+interpenetrate (the mortar gap of the final configuration, and each slave node's signed
+distance to the deformed master polyline), action = reaction on the pair to 1e-8, serial =
+2 ranks; the Aitken-relaxed coupling against the plain fixed point; the ring mesh and the
+self-contact pair's one-line errors."""
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import contact
+from contact.base.errors import ConfigError
+from contact.drivers import recouple
+from contact.drivers.recouple import COUPLING_RTOL, solve_recoupled
+from contact.models import mortar
+from contact.models.mortar import part_facets, surface_facets
+from contact.setup.elastic import scene_pairs
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+from test_bodies import run as run_script
+from test_hyperelastic_bodies import interface_force
+
+ROOT = Path(__file__).resolve().parents[1]
+RING = ROOT / "configs" / "hyperelastic_self_contact_ring.yaml"
+SCRIPT = ROOT / "tests" / "hyperelastic_bodies_run.py"
+H = 2 * np.pi * 0.8 / 96  # the inner surface's facet length
+
+
+@pytest.fixture(scope="module")
+def ring():
+    scene = contact.load_scene(RING, ["output.verbose=false"])
+    run = contact.run_load_path(scene, verbose=False)
+    assert run.converged and run.steps[-1].time == 1.0
+    return scene, run.steps[-1].result
+
+
+def gathered(comm, a: np.ndarray) -> np.ndarray:
+    return np.concatenate(comm.allgather(a))
+
+
+def test_inner_faces_touch_and_do_not_interpenetrate(ring):
+    """At the end of the load path ≥ 6 slave nodes are pressed, their weighted gaps are 0
+    and no gap is below −COUPLING_RTOL; geometrically, no slave node lies deeper than
+    0.05 h² behind the deformed master polyline."""
+    scene, r = ring
+    p, comm = r.problem, scene.comm
+    u = r.u_h.x.array
+    assert r.n_active >= 6
+    # the pair coupled afresh on the final configuration: its weighted gaps (the contact
+    # condition the solver enforced, at the coupling of its own configuration)
+    (pair,) = scene_pairs(scene, p.data["ds"])
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in p.data["u_bcs"]])
+    gap = gathered(comm, mortar.couple(p.V, pair, fixed, displacement=u).gap)
+    assert gap.min() >= -COUPLING_RTOL and np.sum(np.abs(gap) <= 1e-8) >= 6  # touching
+    # independently of the mortar projection: each slave node's signed distance to the
+    # deformed master polyline (outward normals), ≥ 0 up to the mortar's weak enforcement,
+    # O(h²) where the master surface bends (measured −4.8e-5 = −0.018 h²)
+    slave = surface_facets(p.V, part_facets(scene.boundary, "inner_top"), u)
+    master = surface_facets(p.V, part_facets(scene.boundary, "inner_bottom"), u)
+    xs = gathered(comm, slave.X.reshape(-1, 2))
+    A, B, n = (gathered(comm, a) for a in (master.X[:, 0], master.X[:, 1], master.normals))
+    t = np.clip(np.einsum("sfd,fd->sf", xs[:, None] - A, B - A) / np.sum((B - A) ** 2, 1), 0, 1)
+    closest = A + t[..., None] * (B - A)
+    dist = np.linalg.norm(xs[:, None] - closest, axis=2)
+    k = np.argmin(dist, axis=1)
+    side = np.einsum("sd,sd->s", xs - closest[np.arange(len(xs)), k], n[k])
+    signed = np.sign(side) * dist[np.arange(len(xs)), k]
+    assert signed.min() >= -0.05 * H**2 and np.sum(np.abs(signed) <= 1e-3 * H) >= 3
+
+
+def test_contact_force_balances_on_the_pair(ring):
+    """The nodal forces on the slave part are those on the master part, reversed, to 1e-8
+    (Qᵀ hands the slave force to the master nodes through the same c_ij); the pair pushes
+    the upper wall up (the residual at a node: the force the rest of the world exerts
+    there), and the scene's contact force Σ D_ii p_i n_i·n is its size (the normals n_i
+    of the flattened contact zone are nearly n: measured 1.1e-5 apart)."""
+    scene, r = ring
+    slave, master = (interface_force(r, scene, part) for part in ("inner_top", "inner_bottom"))
+    assert slave[1] > 0.05
+    assert np.linalg.norm(slave + master) <= 1e-8 * np.linalg.norm(slave)
+    assert abs(r.contact_force - np.linalg.norm(slave)) <= 1e-4 * np.linalg.norm(slave)
+
+
+@pytest.mark.mpi
+def test_two_ranks_equal_serial(tmp_path):
+    s, p = (run_script(tmp_path, RING, n, script=SCRIPT) for n in (1, 2))
+    for res in (s, p):
+        assert res["converged"] and np.sum(res["pressure"] > 0) >= 6
+    assert np.allclose(s["X"], p["X"], atol=1e-14)
+    assert abs(s["force"] - p["force"]) <= 1e-10 * abs(s["force"])
+    assert np.max(np.abs(s["pressure"] - p["pressure"])) <= 1e-8 * np.max(s["pressure"])
+
+
+def fixed_point(A: np.ndarray, b: np.ndarray, relaxation: str, max_couplings: int = 60):
+    """solve_recoupled on the affine map ũ ↦ A ũ + b (a stand-in for 'solve with the
+    coupling frozen at ũ'): the driver's logic without a finite-element solve (its guess
+    functions are plain arrays, see the ``vectors`` fixture)."""
+    space = SimpleNamespace(
+        mesh=SimpleNamespace(comm=MPI.COMM_SELF),
+        dofmap=SimpleNamespace(index_map=SimpleNamespace(size_local=len(b)), index_map_bs=1),
+    )
+
+    def solve(problem, guess):
+        u = A @ problem.at + b
+        return SimpleNamespace(
+            u_h=SimpleNamespace(x=SimpleNamespace(array=u)),
+            problem=SimpleNamespace(destroy=lambda: None),
+            history=[{"residual": 0.0}],
+            iterations=1,
+            converged=True,
+        )
+
+    start = SimpleNamespace(x=SimpleNamespace(array=np.zeros(len(b))))
+    build = lambda at: SimpleNamespace(V=space, at=at)  # noqa: E731
+    return solve_recoupled(build, solve, start, max_couplings, relaxation)
+
+
+@pytest.fixture
+def vectors(monkeypatch):
+    """fem.Function(V) in the driver made a plain array of V's size."""
+
+    def function(V):
+        return SimpleNamespace(x=SimpleNamespace(array=np.zeros(V.dofmap.index_map.size_local)))
+
+    monkeypatch.setattr(recouple.fem, "Function", function)
+
+
+def test_aitken_relaxation_converges_where_the_plain_fixed_point_flips(vectors):
+    """Modes with multipliers −1.3 and 0.2 (the plain sequence flips between growing mirror
+    states, as the ring's lobes did): the plain sequence diverges, Aitken's relaxation
+    reaches the fixed point to COUPLING_RTOL.  Multipliers 0.9 and 0.5 (slow and monotone,
+    as two cylinders pressed far): Aitken needs a quarter of the plain couplings or less.
+    (One factor for all modes: a spectrum reaching both −1.3 and 0.9 is not helped.)"""
+    b = np.ones(2)
+    flips = np.diag([-1.3, 0.2])
+    plain = fixed_point(flips, b, "none")
+    assert not plain.converged and plain.reason == "diverged_couplings"
+    relaxed = fixed_point(flips, b, "aitken")
+    assert relaxed.converged and len(relaxed.couplings) <= 30
+    u, exact = relaxed.u_h.x.array, np.linalg.solve(np.eye(2) - flips, b)
+    assert np.max(np.abs(u - exact)) <= 10 * COUPLING_RTOL * np.max(np.abs(u))
+    slow = np.diag([0.9, 0.5])
+    n_plain = len(fixed_point(slow, b, "none", 400).couplings)
+    relaxed = fixed_point(slow, b, "aitken")
+    assert relaxed.converged and len(relaxed.couplings) * 4 <= n_plain
+    u, exact = relaxed.u_h.x.array, np.linalg.solve(np.eye(2) - slow, b)
+    assert np.max(np.abs(u - exact)) <= 10 * COUPLING_RTOL * np.max(np.abs(u))
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        (["mesh.inner_radius=1.2"], r"^mesh\.inner_radius: must lie between 0 and radius 1"),
+        (["mesh.cells=[96]"], r"^mesh\.cells: a ring mesh needs 2 cell count\(s\)"),
+        (["mesh.diagonal=crossed"], r"^mesh\.diagonal: a ring takes left or right"),
+        (["mesh.map=[x, y]"], r"^mesh\.map: not used by mesh type 'ring'"),
+    ],
+)
+def test_ring_mesh_errors_are_one_line(overrides, message):
+    with pytest.raises(ConfigError, match=message):
+        contact.load_scene(RING, overrides)
+
+
+def test_self_contact_parts_sharing_a_node_are_refused():
+    """The master part reaching the slave part's end node: one line naming the node."""
+    overrides = [
+        "boundaries.inner_bottom.where=x*x + y*y < 0.81 and (y < 1e-9 or x > 0.44)",
+        "boundaries.inner_sides.where=x*x + y*y < 0.81 and y > -1e-9 and x < -0.44",
+    ]
+    scene = contact.load_scene(RING, ["output.verbose=false", *overrides])
+    with pytest.raises(ConfigError, match=r"^pairs: the node at \(0\.44\d*, 0\.66\d*\) is both"):
+        contact.solve(scene, verbose=False)
+
+
+def test_ring_mesh_is_one_closed_body():
+    """The ring mesh closes on itself (no seam): n_θ (n_r + 1) vertices, its boundary two
+    closed polygons of n_θ facets each, area π (R² − r²) up to the inscribed polygons'."""
+    scene = contact.load_scene(RING, ["output.verbose=false"])
+    msh = scene.mesh
+    comm = msh.comm
+    assert msh.topology.index_map(0).size_global == 96 * 4
+    msh.topology.create_connectivity(1, 2)
+    exterior = dmesh.exterior_facet_indices(msh.topology)
+    owned = exterior[exterior < msh.topology.index_map(1).size_local]
+    assert comm.allreduce(len(owned), op=MPI.SUM) == 2 * 96
+    area = comm.allreduce(fem.assemble_scalar(fem.form(1.0 * ufl.dx(msh))))
+    polygon = 0.5 * 96 * np.sin(2 * np.pi / 96) * (1.0 - 0.8**2)
+    assert abs(area - polygon) <= 1e-12
