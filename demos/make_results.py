@@ -2637,6 +2637,13 @@ def hp_chart(levels: list[dict], out: Path) -> Path:
     return out
 
 
+def _rate(levels: list[dict]) -> float:
+    """r of error ≈ c N^−r, least squares over ``levels`` (unknowns, error)."""
+    x = [math.log(r["unknowns"]) for r in levels]
+    y = [math.log(r["error"]) for r in levels]
+    return -statistics.linear_regression(x, y).slope
+
+
 def hp_section() -> str:
     """§15: hp against h-adaptive P1 and P2 (demos/bench/bench_hp.py)."""
     head = [
@@ -2738,6 +2745,131 @@ def hp_section() -> str:
                         for r in robust
                     ],
                 ),
+            )
+        ]
+    hertz = rows(RES / "hp" / "hertz_summary.csv")
+    if hertz:
+        lines += [
+            prose(
+                "hp_section",
+                "hertz_hp",
+                table=table(
+                    [
+                        "method",
+                        "reached",
+                        "level",
+                        "N",
+                        "a / a_H − 1",
+                        "p0 / p0_H − 1",
+                        "CPU s",
+                        "N(P1) / N",
+                        "CPU(P1) / CPU",
+                    ],
+                    [
+                        [
+                            r["method"],
+                            "yes" if r["reached"] else "no",
+                            r["level"],
+                            r["unknowns"],
+                            f"{100 * r['a_error']:+.2f} %",
+                            f"{100 * r['p0_error']:+.2f} %",
+                            f"{r['cpu_seconds']:.2f}",
+                            f"{r['unknowns_ratio_P1']:.2f}",
+                            f"{r['cpu_ratio_P1']:.2f}",
+                        ]
+                        for r in hertz
+                    ],
+                ),
+            )
+        ]
+    solvers = (rows(RES / "hp" / "solvers.csv") or []) + (
+        rows(RES / "hp" / "solvers_refined.csv") or []
+    )
+    if solvers:
+        lines += [
+            prose(
+                "hp_section",
+                "hp_solvers",
+                table=table(
+                    [
+                        "cells",
+                        "p",
+                        "N",
+                        "solver",
+                        "iterations",
+                        "setup CPU s",
+                        "solve CPU s",
+                        "CPU / direct",
+                    ],
+                    [
+                        [
+                            r["cells"],
+                            r["p"],
+                            r["unknowns"],
+                            r["solver"],
+                            r["iterations"]
+                            if r["converged"]
+                            else f"{r['iterations']} (**not converged**)",
+                            f"{r['setup_cpu']:.3f}",
+                            f"{r['solve_cpu']:.3f}",
+                            f"{r['cpu_ratio_direct']:.2f}",
+                        ]
+                        for r in solvers
+                    ],
+                ),
+            )
+        ]
+    theta = [r for r in levels if r["method"] in ("hp", "hp-theta0.7", "hp-theta0.9", "h-P2")]
+    if theta:
+        methods = list(dict.fromkeys(r["method"] for r in theta))
+        body = []
+        for problem, targets in (("C", (1e-3, 1e-4, 1.2e-5, 1e-6)), ("A", (1e-3, 3e-4, 1e-4))):
+            for target in targets:
+                cells = []
+                for method in methods:
+                    hit = next(
+                        (
+                            r
+                            for r in theta
+                            if r["problem"] == problem
+                            and r["method"] == method
+                            and r["error"] <= target
+                        ),
+                        None,
+                    )
+                    cells.append(f"{hit['cpu_seconds']:.2f} ({hit['unknowns']})" if hit else "–")
+                body.append([problem, g(target), *cells])
+        lines += [
+            prose(
+                "hp_section",
+                "equal_error",
+                table=table(["problem", "error ≤", *methods], body),
+            )
+        ]
+    cube = rows(RES / "hp" / "three_d.csv")
+    if cube:
+        lines += [
+            prose(
+                "hp_section",
+                "three_d_hp",
+                table=table(
+                    ["level", "N", "cells", "degrees", "error", "η", "η / error", "CPU s"],
+                    [
+                        [
+                            r["level"],
+                            r["unknowns"],
+                            r["cells"],
+                            f"{r['p_min']}–{r['p_max']}",
+                            g(r["error"]),
+                            g(r["eta"]),
+                            f"{r['effectivity']:.3f}",
+                            f"{r['cpu_seconds']:.1f}",
+                        ]
+                        for r in cube
+                    ],
+                ),
+                bound="yes" if all(r["eta"] >= r["error"] for r in cube) else "**no**",
+                rate=f"{_rate(cube[3:]):.2f}",
             )
         ]
     try:
@@ -3163,6 +3295,9 @@ TTA_VARIANTS = {
     "rt0": "`estimator=equilibrated_rt0` (growth 2)",
     "g4rt0": "`adapt.growth=4 estimator=equilibrated_rt0`",
     "residual": "`estimator=residual` (growth 2)",
+    "indicators": "`adapt.indicators=residual` (growth 2: the residual indicators mark, the "
+    "equilibrated bound is computed on the level that reaches the target only, and charged to it)",
+    "indicators_g1": "`adapt.indicators=residual` (growth 1)",
 }
 
 
@@ -3262,6 +3397,12 @@ def time_to_accuracy() -> str:
                 "honest_summary",
                 smooth=", ".join(smooth) or "—",
                 fastest=", ".join(f"{scene} {v:.2f} (`{name}`)" for v, name, scene in fastest),
+                cheap=", ".join(
+                    f"{scene} {ratio_of(scene, 'indicators'):.2f}"
+                    for scene in ("ex9", "A")
+                    if ratio_of(scene, "indicators") is not None
+                )
+                or "—",
                 singular=""
                 if not singular
                 else prose(

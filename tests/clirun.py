@@ -10,6 +10,7 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -124,3 +125,20 @@ def tree(folder: Path) -> dict[str, bytes | None]:
         str(p.relative_to(folder)): (None if p.is_dir() else p.read_bytes())
         for p in folder.rglob("*")
     }
+
+
+def h5_field(path: Path, name: str) -> np.ndarray:
+    """The values of every dataset whose path contains ``name`` in the HDF5 file ``path`` (a
+    cell or point field of an XDMF output), concatenated; empty if there is none."""
+    import h5py
+
+    found: list = []
+    with h5py.File(path) as f:
+        f.visititems(
+            lambda key, obj: (
+                found.append(np.ravel(obj[()]))
+                if name in key and isinstance(obj, h5py.Dataset)
+                else None
+            )
+        )
+    return np.concatenate(found) if found else np.zeros(0)

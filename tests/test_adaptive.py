@@ -370,3 +370,71 @@ def test_growth_marks_enough_cells_to_double_the_dofs():
     assert eta[half].min() >= eta[np.setdiff1d(np.arange(cells), half)].max()
     with pytest.raises(ValueError, match="fraction"):
         contact.mark(est.eta_T, "dorfler", 0.5, fraction=1.5)
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-9, 1e-6])
+def test_growth_cut_keeps_classes_of_equal_indicators_whole(noise):
+    """``mark(…, fraction=f)`` on 200 cells whose η_T come in 50 classes of 4 equal values
+    (mirror-image cells, equal up to round-off), 1.5–6 % apart from class to class: the
+    count ⌈f N⌉ = 61 falls inside a class, yet the marked set is whole classes — the
+    same set when every η_T is perturbed by a relative 1e-9 or 1e-6 (far less than the
+    gaps, far more than round-off), at least ⌈f N⌉ cells and at most 25 % more; with
+    f = 0 Dörfler's set alone, also whole classes."""
+    from dolfinx import fem
+    from dolfinx.mesh import create_unit_square
+    from mpi4py import MPI
+
+    msh = create_unit_square(MPI.COMM_SELF, 10, 10)
+    eta_T = fem.Function(fem.functionspace(msh, ("DG", 0)))
+    rng = np.random.default_rng(7)
+    levels = np.cumprod(1 / (1 + rng.uniform(0.015, 0.06, 50)))  # descending class values
+    classes = rng.permutation(np.repeat(np.arange(50), 4))  # 4 cells per class, scattered
+    eta = levels[classes] * (1 + 1e-15 * rng.standard_normal(200))
+    eta_T.x.array[:] = eta * (1 + noise * rng.standard_normal(200))
+    assert eta_T.x.array.size == 200
+    marked = contact.mark(eta_T, "dorfler", 0.5, fraction=0.305)
+    eta_T.x.array[:] = eta
+    reference = contact.mark(eta_T, "dorfler", 0.5, fraction=0.305)
+    assert np.array_equal(marked, reference)
+    count = len(marked)
+    assert 60 < 61 <= count <= 61 * 1.25 + 4, count
+    taken = set(classes[marked])
+    assert count == 4 * len(taken)  # whole classes
+    assert taken == set(range(len(taken)))  # the largest ones
+    plain = contact.mark(eta_T, "dorfler", 0.5)
+    assert len(plain) % 4 == 0 and len(plain) < count
+
+
+def test_residual_indicators_mark_and_the_bound_is_computed_where_reported():
+    """adapt.indicators = residual on problem A (equilibrated estimator): the residual
+    indicators mark every level — the same meshes as the loop with the residual estimator
+    — and the guaranteed bound is computed on the last level only: its η is the
+    equilibrated estimator's and bounds the energy error; the other levels' η are the
+    residual estimator's. With a tolerance the bound is also computed on the first level
+    (the ratio bound/residual) and on the level where it may meet tol, and the loop stops
+    at the first level whose bound is ≤ tol."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    cheap = adapt(scene, max_levels=4, indicators="residual", verbose=False)
+    rows = cheap.rows
+    assert [r["estimator"] for r in rows] == ["residual"] * 3 + ["equilibrated"]
+    residual_scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml",
+        ["output.verbose=false", "estimator=residual"],
+    )
+    reference = adapt(residual_scene, max_levels=4, verbose=False).rows
+    assert [r["dofs"] for r in rows] == [r["dofs"] for r in reference]
+    assert [r["eta"] for r in rows[:3]] == pytest.approx([r["eta"] for r in reference[:3]])
+    last = cheap.levels[-1]
+    bound = contact.estimate(last.problem, last.result, "equilibrated")
+    assert rows[-1]["eta"] == pytest.approx(bound.eta, rel=1e-12)
+    assert rows[-1]["error"] <= rows[-1]["eta"] < reference[-1]["eta"]
+    default = adapt(scene, max_levels=6, verbose=False).rows
+    assert "estimator" not in default[0]
+    tol = 0.5 * (default[2]["eta"] + default[3]["eta"])  # met on the default's level 3
+    stopped = adapt(scene, max_levels=8, tol=tol, indicators="residual", verbose=False)
+    last = stopped.rows[-1]
+    assert stopped.stop.startswith("eta =") and last["estimator"] == "equilibrated"
+    assert last["eta"] <= tol < stopped.rows[-2]["eta"]
+    assert stopped.rows[0]["estimator"] == "equilibrated"

@@ -13,10 +13,9 @@ import contact
 from contact.base.errors import ConfigError
 from contact.hp.adapt import HPLevel
 
-import h5py
 import numpy as np
 import pytest
-from clirun import ROOT
+from clirun import ROOT, h5_field
 from clirun import contact as cli
 
 SMOOTH = ROOT / "configs" / "signorini_smooth.yaml"
@@ -71,9 +70,9 @@ def test_hp_options_are_checked() -> None:
         contact.adapt(scene, strategy="hp", p_max=9)
     with pytest.raises(ConfigError, match=r"adapt\.p_start: must be <= p_max"):
         contact.adapt(scene, strategy="hp", p_max=3, p_start=4)
-    hertz = contact.load_scene(ROOT / "configs" / "hertz_2d.yaml", ["output.verbose=false"])
-    with pytest.raises(ConfigError, match="adapt.strategy: hp solves the scalar signorini"):
-        contact.adapt(hertz, strategy="hp")
+    hyper = contact.load_scene(ROOT / "configs" / "hyperelastic_cylinder.yaml")
+    with pytest.raises(ConfigError, match="adapt.strategy: hp solves the signorini and"):
+        contact.adapt(hyper, strategy="hp")
 
 
 def _table(path: Path) -> list[dict]:
@@ -100,16 +99,47 @@ def test_hp_scene_serial_equals_two_ranks(tmp_path: Path) -> None:
             assert a[key] == b[key], (key, a, b)
         assert abs(float(a["eta"]) - float(b["eta"])) <= 1e-8 * float(a["eta"])
         assert float(a["eta"]) >= float(a["error"])
-    with h5py.File(tmp_path / "np0" / "solution_004.h5") as f:
-        found = []
-        f.visititems(
-            lambda name, obj: (
-                found.append(obj[()])
-                if "degree" in name and isinstance(obj, h5py.Dataset)
-                else None
-            )
-        )
-    assert found, "no degree field in solution_004.h5"
-    degree = np.concatenate([np.ravel(d) for d in found])
+    degree = h5_field(tmp_path / "np0" / "solution_004.h5", "degree")
+    assert len(degree), "no degree field in solution_004.h5"
     assert len(degree) == int(one[-1]["cells"])
     assert degree.min() == int(one[-1]["p_min"]) and degree.max() == int(one[-1]["p_max"])
+
+
+def test_auto_linear_solver_counts_the_hp_unknowns() -> None:
+    """``solver.linear: auto`` sizes an hp system by its unknowns, not by the DoFs of
+    P_{p_max} it lives in (most of them unused at low degrees), and solves it directly in 2D
+    up to DIRECT_MAX_HP_2D unknowns (GAMG is not robust in p)."""
+    from contact.hp.problem import hp_problem
+    from contact.hp.space import HPSpace
+    from contact.solvers.linear import DIRECT_MAX_DOFS_2D, DIRECT_MAX_HP_2D, choose_linear
+
+    scene = contact.load_scene(SMOOTH, ["mesh.cells=[16,16]", "output.verbose=false"])
+    n = scene.mesh.topology.index_map(2).size_local
+    problem = hp_problem(scene, HPSpace(scene.mesh, 6, np.ones(n, dtype=np.int32)))
+    assert problem.V.dofmap.index_map.size_global > DIRECT_MAX_DOFS_2D  # P6's DoFs
+    assert problem.unknowns() == 17 * 17  # the P1 unknowns
+    assert choose_linear(problem, "auto") == "direct"
+    assert DIRECT_MAX_HP_2D > DIRECT_MAX_DOFS_2D and problem.variable_degree
+    problem.destroy()
+
+
+def test_hp_default_theta_applies_when_no_theta_is_given() -> None:
+    """Without ``adapt.theta`` in the scene or the call the hp loop marks with HP_THETA;
+    a θ given either way is kept."""
+    from contact.hp.adapt import HP_THETA
+
+    import yaml
+
+    config = yaml.safe_load(SMOOTH.read_text())
+    del config["adapt"]["theta"]
+    config["output"] = {"verbose": False}
+
+    def marked(theta: float | None) -> tuple[int, int]:
+        scene = contact.load_scene(config)
+        options = {} if theta is None else {"theta": theta}
+        level = contact.adapt(scene, strategy="hp", p_max=4, max_levels=2, **options).levels[0]
+        return level.h_cells, level.p_cells
+
+    default = marked(None)
+    assert default == marked(HP_THETA) and default != marked(0.3)
+    assert HP_THETA != 0.5

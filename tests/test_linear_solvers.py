@@ -154,3 +154,35 @@ def test_active_set_forcing_takes_fewer_krylov_iterations_from_a_cold_start(meth
     u_old, u_new = old.u_h.x.array, new.u_h.x.array
     assert np.max(np.abs(u_new - u_old)) <= 1e-10 * np.max(np.abs(u_old))
     assert new.n_active == old.n_active
+
+
+def test_gamg_is_set_up_afresh_when_the_active_set_moves():
+    """The lagging rule ``active_set`` (the default) keeps an earlier GAMG hierarchy only
+    while the Newton system's fixed rows (the active set) are those it was built with: on
+    the cold step-41 path, whose every step moves the active set, each Newton solve after
+    a change of the fixed rows sets GAMG up.  The old rule (``reduced_lag_rule: rate``,
+    the convergence rate alone) lags across such changes; both reach the same solution."""
+    runs = {}
+    for rule in ("active_set", "rate"):
+        scene = contact.load_scene(
+            "configs/peers/dealii_step41.yaml",
+            ["mesh.cells=[64,64]", "solver.sequence=off", "solver.linear=gamg"],
+        )
+        runs[rule] = contact.solve(
+            scene, method="min", petsc_options={"reduced_lag_rule": rule}, verbose=False
+        )
+    for rule, r in runs.items():
+        assert r.converged, (rule, r.reason)
+    log = runs["active_set"].krylov_log
+    moved = [b for a, b in zip(log, log[1:], strict=False) if a["fixed_rows"] != b["fixed_rows"]]
+    assert moved and all(entry["setups"] >= 1 for entry in moved)
+    old = runs["rate"].krylov_log
+    assert any(
+        b["setups"] == 0 and a["fixed_rows"] != b["fixed_rows"]
+        for a, b in zip(old, old[1:], strict=False)
+    )
+    u_new, u_old = runs["active_set"].u_h.x.array, runs["rate"].u_h.x.array
+    assert np.max(np.abs(u_new - u_old)) <= 1e-10 * np.max(np.abs(u_old))
+    scene = contact.load_scene("configs/peers/dealii_step41.yaml", ["mesh.cells=[64,64]"])
+    with pytest.raises(contact.ConfigError, match="^solver.petsc_options.reduced_lag_rule: must"):
+        contact.solve(scene, method="min", linear="gamg", petsc_options={"reduced_lag_rule": "x"})

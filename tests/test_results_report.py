@@ -369,13 +369,35 @@ def test_report_hp_section_reads_the_csvs(tmp_path: Path) -> None:
         + "\nC,hp,1e-06,True,2141,39.5,7.5e-07,29,1.03,1.1,True,eta,1.695,0.993,17.7,0.45,6.0,0.5"
         + "\nC,h-P2,1e-06,False,37907,17.6,1.1e-05,14,1.1,1.4,True,dofs,,,1.0,1.0,3.0,1.0\n"
     )
-    lines = ["problem,method,level,unknowns,error,eta,effectivity,seconds,p_max,p_min"]
+    lines = ["problem,method,level,unknowns,error,eta,effectivity,seconds,p_max,p_min,cpu_seconds"]
     for k in range(4):
-        lines.append(f"C,hp,{k},{100 * (k + 1)},{10.0**-k},{2 * 10.0**-k},2.0,{k + 1},{k + 1},1")
-        lines.append(f"C,h-P2,{k},{400 * (k + 1)},{10.0 ** (-k / 2)},1,1.1,{k + 1},2,2")
+        lines.append(
+            f"C,hp,{k},{100 * (k + 1)},{10.0**-k},{2 * 10.0**-k},2.0,{k + 1},{k + 1},1,{k / 2}"
+        )
+        lines.append(f"C,h-P2,{k},{400 * (k + 1)},{10.0 ** (-k / 2)},1,1.1,{k + 1},2,2,{k / 4}")
     (hp / "levels.csv").write_text("\n".join(lines) + "\n")
+    (hp / "hertz_summary.csv").write_text(
+        "method,target,reached,level,unknowns,a_error,p0_error,cpu_seconds,levels,"
+        "unknowns_ratio_P1,cpu_ratio_P1\nhp-p4,0.005,True,5,11676,0.00286,0.00445,5.17,14,"
+        "1.82,0.22\n"
+    )
+    (hp / "solvers.csv").write_text(
+        "p,solver,unknowns,cells,iterations,converged,setup_cpu,solve_cpu,cpu,"
+        "relative_residual,cpu_ratio_direct\n6,p1-patch,37249,2048,12,True,0.41,0.61,1.02,"
+        "6e-11,5.37\n"
+    )
+    cube = ["level,unknowns,cells,p_min,p_max,error,eta,effectivity,cpu_seconds"]
+    for k in range(5):
+        cube.append(f"{k},{100 * 4**k},{50 * 4**k},1,3,{0.2 / 2**k},{0.3 / 2**k},1.5,{k + 1}")
+    (hp / "three_d.csv").write_text("\n".join(cube) + "\n")
     text = _report(tmp_path / "res", tmp_path / "R.md")
     section = text.split("## 15. hp-adaptivity", 1)[1]
+    assert "| hp-p4 | yes | 5 | 11676 | +0.29 % | +0.45 % | 5.17 | 1.82 | 0.22 |" in section
+    assert "| 2048 | 6 | 37249 | p1-patch | 12 | 0.410 | 0.610 | 5.37 |" in section
+    # CPU s (unknowns) at the first level at or below each error: hp's level 3, P2's none
+    assert "| C | 0.001 | 1.50 (400) | – |" in section
+    assert "| 4 | 25600 | 12800 | 1–3 | 0.0125 | 0.0187 | 1.500 | 5.0 |" in section
+    assert "η ≥ error on every level: yes" in section and "N^−0.50" in section
     assert (
         "| C | hp | 1e-06 | yes | 2141 | 7.5e-07 | 39.50 | 6.00 | 17.7 | 0.45 | 0.50 | 1.1 | yes"
         " | 29 |" in section

@@ -84,3 +84,59 @@ def test_close_destroys_what_the_solver_made(problem):
     grown = {k: v - before.get(k, 0) for k, v in after.items() if v != before.get(k, 0)}
     assert not grown, grown
     assert problem.K.handle != 0 and problem.b.handle != 0
+
+
+@pytest.mark.parametrize("method", ["fb", "min"])
+def test_inexact_newton_starts_afresh_on_each_solve(method):
+    """On the CG + GAMG path the forcing terms of inexact Newton build on the last step's
+    ‖Φ‖ and η.  A second solve of the same object — a load path's next step — starts
+    from nothing of the first: from a cold start and from a guess (half the solution,
+    whose first step min solves exactly) it takes the Krylov tolerances, Newton steps
+    and ‖Φ‖ history of a fresh solver from that start.  (GAMG is set up afresh at every
+    step here: a hierarchy the last solve left, lagged or with its interpolation reused,
+    changes the loose solves' iterates in their third digit.)"""
+    scene = contact.load_scene(SCENE, ["mesh.cells=[40,40]"])
+    p = build_problem(scene)
+    no_reuse = {"reduced_lag_pc": False, "pc_gamg_reuse_interpolation": False}
+    options = SolverOptions.parse({"method": method, "linear": "gamg", "petsc_options": no_reuse})
+    zero = fem.Function(p.V)
+
+    def fresh(u0: fem.Function, guess: bool):
+        with SemismoothNewton(p, options) as solver:
+            return solver.solve(u0, guess=guess)
+
+    try:
+        cold = fresh(zero, False)
+        assert cold.converged and cold.linear == "gamg"
+        half = fem.Function(p.V)
+        half.x.array[:] = 0.5 * cold.u_h.x.array
+        from_half = fresh(half, True)
+        with SemismoothNewton(p, options) as solver:
+            runs = [solver.solve(zero), solver.solve(half, guess=True), solver.solve(zero)]
+        for again, reference in zip(runs, (cold, from_half, cold), strict=True):
+            assert again.converged, again.reason
+            assert [e["rtol"] for e in again.krylov_log] == [
+                e["rtol"] for e in reference.krylov_log
+            ]
+            assert again.iterations == reference.iterations
+            residuals = np.array([h["residual"] for h in again.history])
+            expected = np.array([h["residual"] for h in reference.history])
+            assert np.allclose(residuals, expected, rtol=1e-8, atol=1e-12 * expected[0])
+        if method == "min":  # a guess's first Newton step is solved exactly
+            assert from_half.krylov_log[0]["rtol"] <= 1e-10
+    finally:
+        p.destroy()
+
+
+@pytest.mark.parametrize("cells", [128, 256])
+def test_a_sequenced_guess_ends_in_its_polishing_solve(cells):
+    """Grid sequencing hands the finest mesh a guess with the final active set: fb's
+    polishing solve of it lands on the solution to the round-off floor of ‖Φ‖, and the
+    solve ends there, 0 Newton steps + 1 polishing solve.  (SNES tests its stop at
+    iteration 0 before the monitor raises it to the floor; without the floor in the stop
+    the guess cost a Newton step and a second polishing solve.)"""
+    scene = contact.load_scene(SCENE, [f"mesh.cells=[{cells},{cells}]"])
+    r = contact.solve(scene, method="fb", verbose=False)
+    assert r.converged and r.linear == "gamg" and len(r.sequence) >= 2, r.reason
+    assert (r.iterations, r.polish_solves) == (0, 1), (r.iterations, r.polish_solves)
+    assert r.residual <= r.history[0]["residual"]

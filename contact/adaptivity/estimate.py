@@ -89,11 +89,11 @@ def indicator_terms(
 
     The terms as UFL forms linear in a DG0 test function (SPEC §5): of the scalar
     equations (:func:`scalar_terms`) or of an elastic body (:func:`elasticity_terms`);
-    ``degree``: the cells' polynomial degrees of an hp solution (DG0), scalar equations only.
+    ``degree``: the cells' polynomial degrees of an hp solution (DG0).
     """
     if isinstance(problem.physics, Diffusion):
         return scalar_terms(problem, result, degree)
-    return elasticity_terms(problem, result)
+    return elasticity_terms(problem, result, degree)
 
 
 def natural_facets(
@@ -207,7 +207,9 @@ def scalar_terms(
     return terms
 
 
-def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
+def elasticity_terms(
+    problem: Problem, result: Result, degree: fem.Function | None = None
+) -> dict[str, ufl.Form]:
     """Return the terms of an elastic body (docs/theory.md §5).
 
     docs/theory.md §5 for elasticity: k∂u/∂n becomes the traction T = σ(u_h)n, and on Γ_C (normal
@@ -215,7 +217,9 @@ def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
 
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
 
-    (consistency, tangential — frictionless —, sign, complementarity).
+    (consistency, tangential — frictionless —, sign, complementarity).  With the cells'
+    ``degree`` p_T (an hp solution, DG0) the weights are h_T/p_T and h_E/p_E, as in
+    :func:`scalar_terms`.
     """
     physics = _physics(problem, Elasticity)
     msh = problem.V.mesh
@@ -226,13 +230,17 @@ def elasticity_terms(problem: Problem, result: Result) -> dict[str, ufl.Form]:
     held = (*(i for c in rigid for i in c.ids), *(i for c in pairs for i in c.ids + c.master_ids))
     ds, natural = natural_facets(boundary, msh, held)
     w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
+    h_S = ufl.avg(h_E)  # interior facets
+    if degree is not None:
+        h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
+        h_E = h_E / degree
     sigma = physics.flux(u_h)  # σ(u_h), or P(u_h) of a hyperelastic body
     frictional = result.friction is not None
     T = ufl.dot(sigma, n)  # traction σ(u_h) n
     terms = {
         "volume": h_T**2 * ufl.inner(f + ufl.div(sigma), f + ufl.div(sigma)) * w * dx,
         "jump": 0.5
-        * ufl.avg(h_E)
+        * h_S
         * ufl.inner(ufl.jump(sigma, n), ufl.jump(sigma, n))
         * (w("+") + w("-"))
         * dS,

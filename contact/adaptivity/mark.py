@@ -21,13 +21,25 @@ STRATEGIES = ("dorfler", "maximum", "uniform")
 MARK_RTOL = 1e-6
 
 
+#: ``fraction`` marking may add up to this share more cells than asked, to cut at a gap
+SNAP_WINDOW = 0.25
+#: indicators within this share of max η_T of the cut are one class with it: all or none are
+#: marked (perturbations of the load or the model move η_T by more than round-off, and a cut
+#: inside such a class would move the marked set with them)
+CLASS_ATOL = 1e-8
+
+
 def dorfler_threshold(
     eta_sq: np.ndarray, theta: float, comm: MPI.Comm = MPI.COMM_WORLD, fraction: float = 0.0
 ) -> float:
     """Return the global threshold τ of Dörfler (bulk) marking.
 
-    The set {η_T² ≥ τ} is the smallest set M with Σ_M η_T² ≥ θ Σ_T η_T² and, with
-    ``fraction`` f > 0, at least ⌈f N⌉ of the N cells (ties at τ are all included).
+    The set {η_T² ≥ τ} is the smallest set M with Σ_M η_T² ≥ θ Σ_T η_T² (ties at τ are all
+    included). With ``fraction`` f > 0 it has at least ⌈f N⌉ of the N cells; where that
+    count decides, the cut is moved to the widest relative gap η_j/η_{j+1} of the sorted
+    indicators among the next ``SNAP_WINDOW`` · f N cells (:func:`snap_to_gap`): a cut at a
+    fixed count falls inside a cluster of nearly equal indicators, and a perturbation that
+    Dörfler's threshold ignores would move the marked set.
 
     The owned indicators of all ranks are gathered on rank 0, sorted once there and τ is
     broadcast: every rank marks against the same global threshold (no per-rank sorting).
@@ -43,9 +55,37 @@ def dorfler_threshold(
             tau = float(values[-1])  # everything
         else:
             k = int(np.searchsorted(cumulative, theta * cumulative[-1] * (1 - 1e-14)))
-            k = max(k, math.ceil(fraction * len(values)) - 1)  # the share of the cells
+            share = math.ceil(fraction * len(values)) - 1  # the share of the cells
+            if share > k:
+                k = snap_to_gap(np.sqrt(values), share, SNAP_WINDOW)
             tau = float(values[min(k, len(values) - 1)])
     return comm.bcast(tau, root=0)
+
+
+def snap_to_gap(eta: np.ndarray, k: int, window: float) -> int:
+    """Return the index j ∈ [k, k + window·(k + 1)] of the widest relative gap after it.
+
+    Args:
+        eta: the indicators η_T ≥ 0 sorted descending.
+        k: the index of the last cell a count-based cut would mark.
+        window: how many more cells (a share of k + 1) may be marked to cut at a gap.
+
+    Returns:
+        j maximising η_j / η_{j+1} (the cut between a cluster of nearly equal indicators and
+        the next, so that perturbations smaller than the gap leave the set alone); the
+        first such j on ties; the last index if the window reaches the end.
+    """
+    last = len(eta) - 1
+    if k >= last:
+        return last
+    hi = min(last, k + math.ceil(window * (k + 1)))
+    head, tail = eta[k:hi], eta[k + 1 : hi + 1]
+    # relative gaps, with the class tolerance: differences ≤ CLASS_ATOL·max are no gap
+    floor = CLASS_ATOL * eta[0]
+    gap = np.where(head - tail > floor, (head - tail) / np.maximum(head, floor), 0.0)
+    if not np.any(gap > 0):
+        return hi
+    return k + int(np.argmax(gap))
 
 
 def mark(
@@ -57,7 +97,8 @@ def mark(
     cells that are equal up to round-off and solver tolerance (symmetric ones, whose η_T
     differ by ~1e-16 depending on how the partition summed them, and by ~1e-8 where the
     partition changed GAMG's aggregates) are treated alike, so the refined meshes are the
-    same on any number of MPI ranks. Collective.
+    same on any number of MPI ranks; so are, for ``dorfler``, the values within
+    ``CLASS_ATOL`` · max η_T (1e-8) of the cut's √τ (a cut among small indicators). Collective.
 
     Args:
         eta_T: The DG0 indicators of :func:`contact.estimate` (``Estimate.eta_T``).
@@ -66,7 +107,8 @@ def mark(
             ``uniform``: every cell.
         theta: θ ∈ (0, 1] of ``dorfler`` and ``maximum``.
         fraction: ``dorfler`` marks at least this share f ∈ [0, 1] of the cells, those of
-            largest η_T (``Growth`` chooses f so that each level's DoFs grow by a
+            largest η_T, cut at the widest gap of the sorted η_T within ``SNAP_WINDOW``
+            (25 %) more cells (``Growth`` chooses f so that each level's DoFs grow by a
             factor); 0: Dörfler's set alone.
 
     Returns:
@@ -106,7 +148,12 @@ def mark(
         top = comm.allreduce(float(eta.max(initial=0.0)), op=MPI.MAX)
         return np.flatnonzero(eta >= theta * top * (1 - MARK_RTOL)).astype(np.int32)
     tau = dorfler_threshold(eta**2, theta, comm, fraction)
-    return np.flatnonzero(eta**2 >= tau * (1 - MARK_RTOL)).astype(np.int32)
+    if not math.isfinite(tau):
+        return np.zeros(0, dtype=np.int32)
+    # the class of the cut: within a relative MARK_RTOL of τ, or CLASS_ATOL·max η_T of √τ
+    top = comm.allreduce(float(eta.max(initial=0.0)), op=MPI.MAX)
+    cut = min(tau * (1 - MARK_RTOL), max(0.0, math.sqrt(tau) - CLASS_ATOL * top) ** 2)
+    return np.flatnonzero(eta**2 >= cut).astype(np.int32)
 
 
 def _check_mark_args(eta_T: Any, strategy: Any, theta: Any) -> None:

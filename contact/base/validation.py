@@ -151,6 +151,11 @@ def integer(check: Check | None = None) -> Callable[[Any], int]:
     return validate
 
 
+def auto_or(validate: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """``auto``, or a value that ``validate`` accepts (its messages)."""
+    return lambda v: v if v == "auto" else validate(v)
+
+
 def boolean(v: Any) -> bool:
     if not isinstance(v, bool):
         raise fail(f"expected true or false, got {typename(v)} {v!r}")

@@ -67,7 +67,9 @@ class Level:
         passes: Solves of this level (adaptive stopping may solve on).
         elapsed: Wall seconds from the start of the loop to this level's solution, estimate
             and error, the levels' outputs (``on_level``) not counted: the time to reach
-            ``error`` (the first level's includes its grid-sequencing solves).
+            ``error`` (the first level's includes its grid-sequencing solves; with
+            ``adapt.indicators: residual`` the last level's includes its bound).
+        cpu: The CPU seconds of this process likewise.
     """
 
     index: int
@@ -80,7 +82,9 @@ class Level:
     imbalance: float = 1.0  # max over ranks of the owned DoFs / their mean (1 in serial)
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
     elapsed: float = 0.0  # wall seconds of the loop up to this level, outputs not counted
+    cpu: float = 0.0  # this process's CPU seconds likewise
     released: bool = False  # the solution's fields and η_T dropped (release)
+    estimator: str = ""  # the estimator of ``estimate`` where it is not the loop's (Bound)
 
     @functools.cached_property
     def cells(self) -> int:
@@ -112,6 +116,8 @@ class Level:
         }
         # Σ_T of each term
         row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})
+        if self.estimator:  # adapt.indicators residual: the estimator of this row's η
+            row["estimator"] = self.estimator
         row["error"] = self.error if self.error is not None else ""
         row["effectivity"] = self.estimate.eta / self.error if self.error else ""
         row.update(
@@ -238,7 +244,8 @@ def adapt(
             ``newton_rtol``.
         kind: the estimator (``residual``, ``equilibrated``, ``equilibrated_rt0``).
         u0: the first level's initial guess (e.g. a load step's previous solution).
-        on_level: called with each :class:`Level` once it is estimated (output as it goes).
+        on_level: called with each :class:`Level` once it is estimated, marked and refined
+            (output as it goes).
         keep: which levels keep their solution once the next level is estimated (and
             ``on_level`` has written it): the others are released (:meth:`Level.release`:
             their rows, iterations, η and errors stay) and the loop's memory follows its
@@ -265,14 +272,18 @@ def adapt(
     knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
     meshes = not isinstance(domain, Domain)  # the builder takes meshes
     level_domain = Domain(domain) if isinstance(domain, dmesh.Mesh) else domain
-    if kind == "residual":  # before the first solve, not after it (refined levels are ghosted)
+    # the residual indicators mark, the guaranteed bound only where it is reported
+    bound = Bound(kind) if opts.indicators == "residual" and stopping is None else None
+    if bound is not None or kind == "residual":  # before the first solve (refined: ghosted)
         check_shared_facets(level_domain.mesh, "domain")
     if solve is None:
         solve = _default_solve(build, knobs, meshes, opts.nested)
     comm = level_domain.comm
     growth = Growth(opts.growth)  # the share of the cells marked, learnt level by level
     out = AdaptResult()
-    start, outputs = time.perf_counter(), 0.0  # the loop's clock, and the outputs' share
+    # the loop's clocks, wall and CPU, and the outputs' shares of them
+    start, outputs = time.perf_counter(), 0.0
+    start_cpu, outputs_cpu = time.process_time(), 0.0
     for index in range(opts.max_levels):
         seconds: dict[str, float] = {}
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
@@ -285,7 +296,7 @@ def adapt(
             seconds,
             f"level {index}",
             solve,
-            kind,
+            kind if bound is None else "residual",
             stopping,
             previous=out.levels[-1] if out.levels else None,
         )
@@ -302,6 +313,8 @@ def adapt(
             imbalance=rank_imbalance(result.u_h.function_space),
             passes=passes,
             elapsed=time.perf_counter() - start - outputs,
+            cpu=time.process_time() - start_cpu - outputs_cpu,
+            estimator="" if bound is None else "residual",
         )
         if make_level is not None:
             level = make_level(level)
@@ -311,64 +324,135 @@ def adapt(
             out.levels[-2].release()
             gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
             return_freed_memory()
+        indicators = est.eta_T  # what marks: the estimator's, or the residual ones
+        eta = est.eta if bound is None else bound.eta(level, opts.tol)
+        out.stop = stop_before_marking(level, eta, opts)
+        child = None
+        if not out.stop:
+            tdim = level_domain.mesh.topology.dim
+            with Timer(seconds, "mark"):
+                fraction = growth.fraction(tdim) if opts.strategy == "dorfler" else 0.0
+                cells = mark(indicators, opts.strategy, opts.theta, fraction)
+            marked = comm.allreduce(len(cells), op=MPI.SUM) / level.cells
+            estimated = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space)
+            if estimated is not None and estimated > opts.max_dofs:  # refining: wasted work
+                out.stop = (
+                    f"the next level would have at least {estimated} DoFs > max_dofs = "
+                    f"{opts.max_dofs}"
+                )
+        if not out.stop:
+            parts: dict[str, float] = {}
+            with Timer(seconds, "refine"):
+                progress.note(f"level {index}: refining the marked cells")
+                child, new_u0 = refine(
+                    level_domain,
+                    cells,
+                    result.u_h if opts.nested else None,
+                    opts.rebalance,
+                    timings=parts,
+                )
+            seconds["refine_mesh"] = parts["mesh"]  # of which dolfinx.mesh.refine
+            # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
+            V_next = (
+                new_u0.function_space
+                if new_u0 is not None
+                else fem.functionspace(child.mesh, result.u_h.function_space.ufl_element())
+            )
+            new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
+            growth.observe(marked, result.dofs, new_dofs)
+            if new_dofs > opts.max_dofs:
+                out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
+            elif budget is not None and new_dofs > budget:  # the memory budget of one solve
+                out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
+        if out.stop:  # the refined mesh, if any, is not needed (nor held during the bound)
+            child = new_u0 = None
+        if bound is not None and out.stop:  # the last level: its bound
+            if result.converged:
+                bound.compute(level)
+            elif index > 0 and not out.levels[-2].released:  # the last that converged
+                bound.compute(out.levels[-2])
         if on_level is not None:
+            cpu = time.process_time()
             with Timer(seconds, "output"):
                 progress.note(f"level {index}: writing its files")
                 on_level(level)
             outputs += seconds["output"]
+            outputs_cpu += time.process_time() - cpu
         if verbose and comm.rank == 0:
             _print_row(level, header=index == 0)
             progress.heard()
-        if not result.converged:
-            out.stop = f"solver did not converge on level {index} ({result.reason})"
+        if out.stop:
             break
-        if est.eta <= opts.tol:
-            out.stop = f"eta = {est.eta:.3e} <= tol = {opts.tol:.3e}"
-            break
-        if index + 1 >= opts.max_levels:
-            out.stop = f"reached max_levels = {opts.max_levels}"
-            break
-        if opts.strategy == "none":
-            out.stop = "strategy none: one solve"
-            break
-        tdim = level_domain.mesh.topology.dim
-        with Timer(seconds, "mark"):
-            fraction = growth.fraction(tdim) if opts.strategy == "dorfler" else 0.0
-            cells = mark(est.eta_T, opts.strategy, opts.theta, fraction)
-        marked = comm.allreduce(len(cells), op=MPI.SUM) / level.cells
-        bound = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space)
-        if bound is not None and bound > opts.max_dofs:  # refining would be wasted work
-            out.stop = (
-                f"the next level would have at least {bound} DoFs > max_dofs = {opts.max_dofs}"
-            )
-            break
-        parts: dict[str, float] = {}
-        with Timer(seconds, "refine"):
-            progress.note(f"level {index}: refining the marked cells")
-            child, new_u0 = refine(
-                level_domain,
-                cells,
-                result.u_h if opts.nested else None,
-                opts.rebalance,
-                timings=parts,
-            )
-        seconds["refine_mesh"] = parts["mesh"]  # of which dolfinx.mesh.refine
-        # DoFs of the next level in the same element as u_h (vector-valued for elasticity)
-        V_next = (
-            new_u0.function_space
-            if new_u0 is not None
-            else fem.functionspace(child.mesh, result.u_h.function_space.ufl_element())
-        )
-        new_dofs = V_next.dofmap.index_map.size_global * V_next.dofmap.index_map_bs
-        growth.observe(marked, result.dofs, new_dofs)
-        if new_dofs > opts.max_dofs:
-            out.stop = f"the next level would have {new_dofs} DoFs > max_dofs = {opts.max_dofs}"
-            break
-        if budget is not None and new_dofs > budget:  # the memory budget of one solve
-            out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
-            break
+        assert child is not None  # refined: the loop goes on
         level_domain, u0 = child, new_u0
     return out
+
+
+def stop_before_marking(level: Level, eta: float, opts: AdaptOptions) -> str:
+    """Why the loop stops at ``level`` before marking (its estimate ``eta``), or ''."""
+    index, result = level.index, level.result
+    if not result.converged:
+        return f"solver did not converge on level {index} ({result.reason})"
+    if eta <= opts.tol:
+        return f"eta = {eta:.3e} <= tol = {opts.tol:.3e}"
+    if index + 1 >= opts.max_levels:
+        return f"reached max_levels = {opts.max_levels}"
+    if opts.strategy == "none":
+        return "strategy none: one solve"
+    return ""
+
+
+#: the bound is computed on a level whose predicted bound is below this multiple of ``tol``
+BOUND_SAFETY = 2.0
+
+
+@dataclass
+class Bound:
+    """The estimator's bound where it is reported, the residual indicators marking.
+
+    With ``adapt.indicators: residual`` every level is estimated by the residual
+    estimator (cheap, DG0 forms), which marks; the estimator the user asked for (``kind``,
+    e.g. the guaranteed bound of an equilibrated flux) is computed on the last level only,
+    and on a level where it may meet ``tol``: where the residual η times the last observed
+    ratio bound/residual (1 before any) is below :data:`BOUND_SAFETY` · tol.  The level's
+    ``estimate`` is then the bound's (its η_T, η, terms) and ``estimator`` names it.
+
+    Attributes:
+        kind: the estimator of the bound (as :func:`contact.estimate` takes it).
+        ratio: η_bound / η_residual on the last level with both, None before.
+    """
+
+    kind: str
+    ratio: float | None = None
+
+    def eta(self, level: Level, tol: float) -> float:
+        """Return the η that the stopping test holds against ``tol``.
+
+        The bound's, computed here on the first level (to learn the ratio) and where it may
+        meet ``tol``; else the residual η scaled by the last ratio (above ``tol``, as the
+        bound's would be); without a tolerance the residual η (the test cannot stop).
+        """
+        if tol <= 0 or not level.result.converged:
+            return level.estimate.eta  # no tolerance to meet (or no solution to bound)
+        if self.ratio is None:  # the first level: learn the ratio
+            return self.compute(level)
+        predicted = level.estimate.eta * self.ratio
+        return self.compute(level) if predicted <= BOUND_SAFETY * tol else predicted
+
+    def compute(self, level: Level) -> float:
+        """Replace the level's residual estimate by the bound's; return its η."""
+        if level.estimator == self.kind:
+            return level.estimate.eta
+        residual = level.estimate.eta
+        wall, cpu = time.perf_counter(), time.process_time()
+        with Timer(level.seconds, "estimate"):
+            level.estimate = estimate(level.problem, level.result, self.kind)
+        level.estimator = self.kind
+        level.elapsed += time.perf_counter() - wall  # the time to this level's bound
+        level.cpu += time.process_time() - cpu
+        if residual > 0:
+            self.ratio = level.estimate.eta / residual
+        return level.estimate.eta
 
 
 def _default_solve(build: Callable, knobs: SolverOptions, meshes: bool, nested: bool) -> LevelSolve:

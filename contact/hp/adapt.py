@@ -1,9 +1,10 @@
 """The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §11).
 
 Each level builds V_hp for the cells' degrees (:class:`.space.HPSpace`), solves the
-Signorini problem in the hp unknowns (:func:`.problem.hp_problem`, the scene's solver),
-estimates (:func:`.estimate.hp_estimate`: the equilibrated bound, or the residual
-estimator with h/p weights), marks by Dörfler and splits the marks into h and p
+Signorini problem in the hp unknowns (:func:`.problem.hp_problem`; an elastic body against a
+rigid plane in V_hp^d, :func:`.elastic.hp_elastic_problem`; the scene's solver), estimates
+(:func:`.estimate.hp_estimate`: the equilibrated bound, or the residual estimator with h/p
+weights — the only one for elasticity), marks by Dörfler and splits the marks into h and p
 (:mod:`.mark`), then refines the h cells' edges (their children keep the degree) and
 raises the p cells' degree.  The previous level's u_h, interpolated onto the new mesh, is
 the next initial guess (nested iteration, also when only degrees changed: V_hp grows, u_h
@@ -26,6 +27,7 @@ from ..adaptivity.mark import mark
 from ..base.errors import ConfigError
 from ..base.timing import Timer
 from ..drivers.adaptive import AdaptResult, check_on_level, rank_imbalance
+from ..models.discrete import Problem
 from ..setup import run as h_adaptive
 from ..setup.run import SceneLevel, adapt_options, refine, scene_domain, solve
 from ..setup.scene import Scene
@@ -41,6 +43,9 @@ from .space import HPSpace
 #: 1e-10 the error stalled at 2.8e-7 and η rose to 5e-7; with these it went on to 1.8e-7,
 #: effectivity 1.28).  The solver's round-off floor keeps them attainable.
 NEWTON_RTOL, NEWTON_ATOL = 1e-14, 1e-15
+#: Dörfler's θ of the hp loop when neither the scene nor the caller gives one: larger than
+#: the h loop's 0.5, as a marked cell gains one degree per level (demos/RESULTS.md §15)
+HP_THETA = 0.7
 
 
 @dataclass
@@ -88,7 +93,8 @@ def adapt_hp(
     front_degree: int | None = 1,
     refine_front: bool = False,
 ) -> AdaptResult:
-    """Run the hp-adaptive loop (module docstring) on a scalar Signorini scene.
+    """Run the hp-adaptive loop (module docstring) on a scalar Signorini scene or an elastic
+    body against a rigid coordinate plane.
 
     Args:
         scene: The first level's scene (its mesh: the coarse mesh).
@@ -99,7 +105,8 @@ def adapt_hp(
         max_dofs: Stop before a level with more hp unknowns.
         max_levels: Stop after this many levels.
         sigma0: The decay rate above which a marked cell is p-refined (:mod:`.mark`).
-        estimator: ``equilibrated`` (the guaranteed bound) or ``residual`` (h/p weights).
+        estimator: ``equilibrated`` (the guaranteed bound, scalar only) or ``residual``
+            (h/p weights).
         on_level: Called with each level once it is estimated.
         verbose: Print a row per level.
         newton_rtol: Newton's relative tolerance (default :data:`NEWTON_RTOL`).
@@ -110,6 +117,12 @@ def adapt_hp(
     comm = scene.comm
     tdim = scene.mesh.topology.dim
     rtol = newton_rtol or NEWTON_RTOL
+    build: Callable[[Scene, HPSpace], Problem] = hp_problem
+    elastic = scene.config.model.type == "elasticity"
+    if elastic:
+        from .elastic import hp_elastic_problem  # a scalar scene never imports elasticity
+
+        build, estimator = hp_elastic_problem, "residual"
     n = scene.mesh.topology.index_map(tdim).size_local
     degrees = np.full(n, min(p_start, p_max), dtype=np.int32)
     out = AdaptResult()
@@ -117,18 +130,18 @@ def adapt_hp(
     for index in range(max_levels):
         seconds: dict[str, float] = {}
         t0 = time.perf_counter()
-        caps = scene.boundary.facets("contact") if tdim == 3 else None
+        caps = scene.boundary.facets("contact") if tdim == 3 or elastic else None
         space = HPSpace(scene.mesh, p_max, degrees, caps=caps)
-        problem = hp_problem(scene, space)
+        problem = build(scene, space)
         seconds["assembly"] = time.perf_counter() - t0
         if u0 is None:
-            u0 = fem.Function(space.V)
+            u0 = fem.Function(problem.V)
         with Timer(seconds, "solve"):
             atol = min(NEWTON_ATOL, scene.config.solver.atol)
             result = solve(
                 scene, problem=problem, u0=u0, verbose=False, rtol=rtol, atol=atol, sequence="off"
             )
-        result.__dict__["dofs"] = space.dimension  # the hp unknowns, not V's DoFs
+        result.__dict__["dofs"] = problem.unknowns()  # the hp unknowns, not V's DoFs
         with Timer(seconds, "estimate"):
             est = hp_estimate(scene, result, space, estimator)
         with Timer(seconds, "error"):
@@ -182,7 +195,8 @@ def adapt_hp(
                 )
             else:  # only degrees change: the same mesh, u_h stays in the larger V_hp
                 new_scene, new_u0, degrees = scene, result.u_h, marks.degrees
-        if comm.allreduce(_next_size(new_scene, degrees, p_max), op=MPI.SUM) > max_dofs:
+        bs = problem.V.dofmap.index_map_bs
+        if bs * comm.allreduce(_next_size(new_scene, degrees, p_max), op=MPI.SUM) > max_dofs:
             out.stop = f"the next level would have more than max_dofs = {max_dofs} unknowns"
             break
         scene, u0 = new_scene, new_u0
@@ -201,7 +215,8 @@ def adapt(
     """Run the adaptive loop SOLVE → ESTIMATE → MARK → REFINE on a scene.
 
     h-refinement (``contact.setup.run.adapt``), or with ``strategy="hp"`` h- or
-    p-refinement of each marked cell (``adapt_hp``, the scalar signorini model).
+    p-refinement of each marked cell (``adapt_hp``: the scalar signorini model, or one
+    linear elastic body against a rigid coordinate plane).
 
     The loop stops when η ≤ ``tol``, before a level would exceed ``max_dofs`` (or the DoF
     budget ``solver.max_dofs`` of the h loop), after ``max_levels`` levels, or when a solve
@@ -221,16 +236,18 @@ def adapt(
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
             maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
             ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the
-            largest degree) and ``p_start`` (every cell's first degree).  The hp loop takes
+            largest degree) and ``p_start`` (every cell's first degree); hp's ``theta`` is
+            :data:`HP_THETA` unless the scene or the call gives one.  The hp loop takes
             the scene's ``estimator`` (``residual``: the h/p-weighted residual estimator;
-            otherwise the guaranteed equilibrated bound).
+            otherwise the guaranteed equilibrated bound; elasticity: always the residual
+            estimator).
 
     Returns:
         The levels (``HPLevel``, with the degrees, for hp) and why the loop stopped.
 
     Raises:
         ConfigError: For an unknown or invalid option, or ``strategy="hp"`` on a model
-            other than signorini (one line naming it).
+            other than signorini and elasticity (one line naming it).
         ValueError: If ``scene`` is not a Scene or ``on_level`` is not callable.
 
     Example:
@@ -250,9 +267,10 @@ def adapt(
     if opts.strategy != "hp":
         return h_adaptive.adapt(scene, method, on_level, verbose, u0, keep=keep, **options)
     check_on_level(on_level)
-    if scene.config.model.type != "signorini":
+    if scene.config.model.type not in ("signorini", "elasticity"):
         raise ConfigError(
-            f"adapt.strategy: hp solves the scalar signorini model, not {scene.config.model.type!r}"
+            "adapt.strategy: hp solves the signorini and elasticity models, "
+            f"not {scene.config.model.type!r}"
         )
     if opts.p_start > opts.p_max:
         raise ConfigError(f"adapt.p_start: must be <= p_max = {opts.p_max}, got {opts.p_start}")
@@ -260,13 +278,21 @@ def adapt(
         scene,
         p_max=opts.p_max,
         p_start=opts.p_start,
-        theta=opts.theta,
+        theta=opts.theta if _theta_given(scene, options) else HP_THETA,
         tol=opts.tol,
         max_dofs=opts.max_dofs,
         max_levels=opts.max_levels,
         estimator="residual" if scene.config.estimator == "residual" else "equilibrated",
         on_level=on_level,
         verbose=scene.config.output.verbose if verbose is None else verbose,
+    )
+
+
+def _theta_given(scene: Scene, options: dict[str, Any]) -> bool:
+    """Whether Dörfler's θ is the caller's or the scene's own (else the hp default)."""
+    section = scene.config.adapt
+    return options.get("theta") is not None or (
+        section is not None and "theta" in section.model_fields_set
     )
 
 

@@ -79,14 +79,19 @@ def _dubiner(d: int, p_max: int) -> tuple[np.ndarray, np.ndarray]:
 
 def decay_rates(u_h: fem.Function, degrees: np.ndarray) -> np.ndarray:
     """σ_T of the owned cells (module docstring): the decay rate of u_h's orthonormal
-    coefficients by degree, nan for p_T = 1."""
+    coefficients by degree, nan for p_T = 1; for a vector u_h, a_k sums the squares of
+    every component's coefficients of degree k."""
     V = u_h.function_space
     d = V.mesh.topology.dim
+    bs = V.dofmap.index_map_bs
     p_max = V.element.basix_element.degree
     n = len(degrees)
     project, degree = _dubiner(d, p_max)
-    coef = u_h.x.array[V.dofmap.list[:n]] @ project.T  # (n, n_poly)
-    a = np.sqrt(np.stack([np.sum(coef[:, degree == k] ** 2, axis=1) for k in range(p_max + 1)], 1))
+    values = u_h.x.array.reshape(-1, bs)[V.dofmap.list[:n]]  # (n, n_pmax, bs)
+    coef = np.einsum("pj,njc->npc", project, values)  # (n, n_poly, bs)
+    a = np.sqrt(
+        np.stack([np.sum(coef[:, degree == k] ** 2, axis=(1, 2)) for k in range(p_max + 1)], 1)
+    )
     sigma = np.full(n, np.nan)
     for p in range(2, p_max + 1):
         rows = np.flatnonzero(degrees == p)
@@ -113,9 +118,9 @@ def front_cells(problem, active_mask: np.ndarray, contact_facets: np.ndarray) ->
     msh = V.mesh
     tdim = msh.topology.dim
     con = problem.constraint
-    status = fem.Function(V)  # 1 inactive, 2 active, 0 unconstrained
-    status.x.array[con.dofs] = np.where(active_mask, 2.0, 1.0)
-    status.x.scatter_forward()
+    status = la.vector(V.dofmap.index_map)  # per node: 1 inactive, 2 active, 0 unconstrained
+    status.array[con.dofs // V.dofmap.index_map_bs] = np.where(active_mask, 2.0, 1.0)
+    status.scatter_forward()
     msh.topology.create_connectivity(tdim - 1, tdim)
     msh.topology.create_connectivity(tdim, tdim - 1)
     msh.topology.create_connectivity(tdim - 1, 0)
@@ -131,7 +136,7 @@ def front_cells(problem, active_mask: np.ndarray, contact_facets: np.ndarray) ->
     for f in np.asarray(contact_facets, dtype=np.int32):
         c = f2c.links(f)[0]
         j = int(np.flatnonzero(c2f[c] == f)[0])
-        vals = status.x.array[V.dofmap.cell_dofs(c)[closure[j]]]
+        vals = status.array[V.dofmap.cell_dofs(c)[closure[j]]]
         verts = f2v.links(f)
         inactive[verts] += int(np.any(vals == 1.0))
         active[verts] += int(np.any(vals == 2.0))

@@ -51,6 +51,13 @@ class HPProblem(Problem):
 
     space: HPSpace
 
+    variable_degree = True
+
+    def unknowns(self) -> int:
+        """The hp unknowns (every component), not V's DoFs: the inactive slots are
+        eliminated rows (which size decides ``solver.linear: auto``)."""
+        return self.space.dimension * self.V.dofmap.index_map_bs
+
     def nodal_output(self, name: str, values: np.ndarray) -> fem.Function:
         """``values`` at the constrained unknowns (0 at the other unknowns), as the function
         Q x of V (λ_h also at the ends of Γ_C)."""
@@ -74,6 +81,44 @@ class HPProblem(Problem):
         """Mask of the DoFs of V on the closure of Γ_C (local, owned and ghost)."""
         assert self.data.contact_mask is not None  # set when built
         return self.data.contact_mask
+
+
+def reduce_system(a: fem.Form, L: fem.Form, Q: PETSc.Mat) -> tuple[PETSc.Mat, PETSc.Vec]:
+    """K_hp = Qᵀ K Q and b_hp = Qᵀ b of the forms a and L assembled in P_{p_max} (no
+    boundary conditions; collective)."""
+    K = dolfinx.fem.petsc.assemble_matrix(a)
+    K.assemble()
+    b = dolfinx.fem.petsc.assemble_vector(L)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
+    K_hp = K.PtAP(Q)  # Qᵀ K Q
+    K.destroy()
+    b_hp = K_hp.createVecRight()
+    Q.multTranspose(b, b_hp)
+    b.destroy()
+    return K_hp, b_hp
+
+
+def eliminate(
+    K: PETSc.Mat, b: PETSc.Vec, inactive: np.ndarray, fixed: np.ndarray, values: fem.Function
+) -> None:
+    """Fix the unknowns ``fixed`` (local, unrolled) of K x = b at ``values`` symmetrically:
+    identity rows and columns, the lifting moved into b.  The rows ``inactive`` (a mask over
+    the owned unknowns) are empty in K: they get a diagonal first, added as a matrix (the
+    merged pattern is built once, where inserting into K's rows reallocates its storage row
+    by row)."""
+    ones = K.createVecRight()
+    ones.array_w[:] = inactive.astype(float)
+    D = PETSc.Mat().createAIJ(K.getSizes(), nnz=1, comm=K.getComm())  # type: ignore[arg-type]
+    D.setDiagonal(ones)
+    D.assemble()
+    K.axpy(1.0, D, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)  # type: ignore[arg-type]
+    D.destroy()
+    ones.destroy()
+    V = values.function_space
+    bs = V.dofmap.index_map_bs
+    owned = fixed[fixed < V.dofmap.index_map.size_local * bs]
+    rows = V.dofmap.index_map.local_to_global(owned // bs) * bs + owned % bs
+    K.zeroRowsColumns(rows.astype(PETSc.IntType), diag=1.0, x=values.x.petsc_vec, b=b)
 
 
 def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
@@ -104,16 +149,8 @@ def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
     tdim = msh.topology.dim
     a, L_form, forms = scalar_forms(scene, V)
     contact_ids = bnd.ids_with_role("contact")
-    K = dolfinx.fem.petsc.assemble_matrix(a)
-    K.assemble()
-    b = dolfinx.fem.petsc.assemble_vector(L_form)
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     Q, Linv = space.matrices()
-    K_hp = K.PtAP(Q)  # Qᵀ K Q
-    K.destroy()
-    b_hp = K_hp.createVecRight()
-    Q.multTranspose(b, b_hp)
-    b.destroy()
+    K_hp, b_hp = reduce_system(a, L_form, Q)
 
     imap = V.dofmap.index_map
     n_owned = imap.size_local
@@ -126,20 +163,7 @@ def hp_problem(scene: Scene, space: HPSpace) -> HPProblem:
     values = fem.Function(V)
     values.x.array[dirichlet] = x_D[dirichlet]
     fixed = np.flatnonzero(fixed_mask).astype(np.int32)
-    # the inactive rows are empty: give them a diagonal before the elimination
-    # (added as a matrix: the merged pattern is built once, where inserting into K_hp's rows
-    # reallocates its storage row by row)
-    ones = K_hp.createVecRight()
-    ones.array_w[:] = (~space.active[:n_owned]).astype(float)
-    D = PETSc.Mat().createAIJ(K_hp.getSizes(), nnz=1, comm=K_hp.getComm())
-    D.setDiagonal(ones)
-    D.assemble()
-    K_hp.axpy(1.0, D, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
-    D.destroy()
-    ones.destroy()
-    owned_fixed = fixed[fixed < n_owned]
-    rows = imap.local_to_global(owned_fixed).astype(PETSc.IntType)
-    K_hp.zeroRowsColumns(rows, diag=1.0, x=values.x.petsc_vec, b=b_hp)
+    eliminate(K_hp, b_hp, ~space.active[:n_owned], fixed, values)
     bcs = [fem.dirichletbc(values, fixed)]
 
     # Γ_C: the nodal constraint at the active slots of the contact facets' closure

@@ -188,6 +188,12 @@ class HPSpace:
         active slots, 0 on the inactive ones)."""
         return self._matrix("Q"), self._matrix("L")
 
+    def vector_matrices(self, bs: int) -> tuple[PETSc.Mat, PETSc.Mat]:
+        """(Q, L) of the vector space V_hp^bs (each component in V_hp) in the blocked layout
+        of P_{p_max}^bs: Q ⊗ I_bs and L ⊗ I_bs, row (i, a) = the scalar row i on the
+        component a's columns (j, a)."""
+        return tuple(_blocked(M, bs) for M in self.matrices())  # type: ignore[return-value]
+
     # ------------------------------------------------------------------ functions
     def interpolate(self, values: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         """The hp interpolant's coefficients x (local array, owned and ghost slots; 0 on
@@ -220,3 +226,30 @@ class HPSpace:
     def owned_dimension(self) -> int:
         """The active slots this rank owns."""
         return int(np.count_nonzero(self.active[: self.V.dofmap.index_map.size_local]))
+
+
+def _blocked(M: PETSc.Mat, bs: int) -> PETSc.Mat:
+    """M ⊗ I_bs for a square AIJ matrix M in V's node layout: entry (i·bs + a, j·bs + a) =
+    M_ij for each component a (consumes M)."""
+    indptr, cols, vals = M.getValuesCSR()
+    n, N = M.getLocalSize()[0], M.getSize()[0]
+    comm = M.getComm()
+    M.destroy()
+    counts = np.diff(indptr)
+    row = np.repeat(np.arange(len(counts)), counts)
+    comp = np.arange(bs)
+    # entries in the order (row i, component a, the row's own order)
+    key_row = (row[None, :] * bs + comp[:, None]).ravel()
+    entry = np.tile(np.arange(len(cols)), bs)
+    order = np.lexsort((entry, key_row))
+    new_cols = (cols[None, :] * bs + comp[:, None]).ravel()[order]
+    new_vals = np.tile(vals, bs)[order]
+    new_ptr = np.concatenate([[0], np.cumsum(np.repeat(counts, bs))]).astype(PETSc.IntType)
+    B = PETSc.Mat().createAIJ(
+        ((n * bs, N * bs), (n * bs, N * bs)),
+        bsize=bs,
+        csr=(new_ptr, new_cols.astype(PETSc.IntType), new_vals),  # type: ignore[arg-type]
+        comm=comm,
+    )
+    B.assemble()
+    return B

@@ -67,7 +67,7 @@ def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     n = np.asarray(p.data.n)
     V = p.V
     nodes = con.dofs[on] // V.dofmap.index_map_bs
-    X = V.tabulate_dof_coordinates()[nodes, : scene.mesh.geometry.dim]
+    X = p.node_coordinates()[on]
     rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     pressure = p.pressure(owned_residual(result))[on]

@@ -52,11 +52,19 @@ def part_reaction(result: Result) -> np.ndarray:
     """The reaction of the Dirichlet boundary on the modelled part, per component (summed
     over all ranks; collective): Σ over the Dirichlet DoFs of the residual a(u_h, v) − L(v),
     in the displacement's own components (with contact pairs the solver's unknowns are
-    rotated; the reaction is not)."""
+    rotated; the reaction is not).  A problem whose test functions are a subspace, u = Q x
+    (``data.reaction_basis`` Q: an hp space), sums Qᵀ(a(u_h, ·) − L) over the Dirichlet
+    unknowns x instead — the residual at the DoFs outside the subspace is no reaction."""
     p = result.problem
     assert p.data.reaction_form is not None  # an elastic scene's
     full = dolfinx.fem.petsc.assemble_vector(p.data.reaction_form)
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
+    basis = p.data.reaction_basis
+    if basis is not None:
+        reduced = basis.createVecRight()
+        basis.multTranspose(full, reduced)
+        full.destroy()
+        full = reduced
     bs = p.V.dofmap.index_map_bs
     n_owned = p.V.dofmap.index_map.size_local * bs
     dofs = (p.data.u_bcs or p.bcs)[0].dof_indices()[0]  # the Dirichlet condition on u

@@ -80,8 +80,8 @@ class ElasticSetting:
     symmetry_axes: tuple[int, ...] = ()  # k of each symmetry part's plane x_k = const
 
 
-def elastic_setting(scene: Scene) -> ElasticSetting:
-    """The space (Lagrange of ``mesh.degree``, gdim components), the load
+def elastic_setting(scene: Scene, degree: int | None = None) -> ElasticSetting:
+    """The space (Lagrange of ``degree``, default ``mesh.degree``, gdim components), the load
     L(v) = ∫ f·v dx + ∫_{Γ_N} t·v ds, u = u_D on Γ_D and u_k = 0 on each symmetry plane
     x_k = const."""
     cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
@@ -92,8 +92,7 @@ def elastic_setting(scene: Scene) -> ElasticSetting:
             raise ConfigError(
                 f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
             )
-    degree = cfg.mesh.degree
-    V = fem.functionspace(msh, ("Lagrange", degree, (gdim,)))
+    V = fem.functionspace(msh, ("Lagrange", degree or cfg.mesh.degree, (gdim,)))
     v = ufl.TestFunction(V)
     f, t = vector(data["f"], scene), vector(data["t"], scene)
     ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)

@@ -381,8 +381,8 @@ def adapt(
         scene: The first level's scene.
         method: The solver method (fb, min, blend, vinewtonrsls, vinewtonssls); default
             the scene's ``solver.method``.
-        on_level: Called with each level (a ``SceneLevel``) once it is estimated (the
-            CLI writes the level's files there).
+        on_level: Called with each level (a ``SceneLevel``) once it is estimated, marked
+            and refined (the CLI writes the level's files there).
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The first level's initial guess (a load step's previous solution).
         keep: Which levels keep their solution once the next level is estimated (and

@@ -82,7 +82,7 @@ from .options import (
     petsc_value,
 )
 from .options import set_from_options as set_options_of
-from .problem import DiscreteProblem
+from .problem import DiscreteProblem, newton_max_it, nodes_across
 from .result import REASONS, Result, close_timings
 from .snes import ROUNDOFF, roundoff_floor
 
@@ -534,6 +534,18 @@ class EnforcedNewton:
         vec.destroy()
         return out
 
+    def max_it(self) -> int:
+        """The Newton step limit (``solver.max_it``; ``auto``: by the contact nodes across
+        the contact set, :func:`~.problem.newton_max_it`; collective)."""
+        if self.opts.max_it != "auto":
+            return int(self.opts.max_it)
+        V = self.space()
+        bs, tdim = V.dofmap.index_map_bs, V.mesh.topology.dim
+        nodes = np.unique(np.flatnonzero(self._weights > 0) // bs)
+        dim = tdim if self.form.contact.measure.integral_type() == "cell" else tdim - 1
+        across = nodes_across(V.tabulate_dof_coordinates()[nodes], dim, self.comm)
+        return newton_max_it(self.opts.max_it, across)
+
     def contact_nodes(self) -> int:
         """Contact nodes in contact at the current u (:meth:`in_contact`; all ranks)."""
         n = len(self._weights)
@@ -575,9 +587,10 @@ class EnforcedNewton:
             total_its, krylov, outer = 0, 0, 0
             uzawa = self.form.method == "augmented_lagrangian"
             reason = 0
+            max_it = self.max_it()
             for outer in range(1, (opts.uzawa_max_it if uzawa else 1) + 1):
                 self._outer = outer
-                snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
+                snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=max_it)
                 # after a multiplier update at least one Newton step: the update may leave
                 # ‖F‖ below atol, and an inner solve that stops at once leaves u — and the
                 # next update's change — as they were (Uzawa creeping by 0.1 % per outer

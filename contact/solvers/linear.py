@@ -5,7 +5,8 @@
   GAMG's interpolation reused across Newton steps, inexact Newton (``solver.inexact``);
 * ``bcgs``   — BiCGStab + GAMG on the assembled H (the generic Krylov path, also for
   non-symmetric laws);
-* ``auto``   — :func:`choose_linear`: MUMPS for small 2D problems, ``gamg`` otherwise.
+* ``auto``   — :func:`choose_linear`: MUMPS for small 2D problems (scalar hp problems: up to
+  :data:`DIRECT_MAX_HP_2D` unknowns), ``gamg`` otherwise.
 
 ``solver.petsc_options`` go to the KSP that does the work: SNES's for ``direct`` / ``bcgs``,
 the reduced system's inner KSP for ``gamg``.  With ``auto``, petsc_options naming a
@@ -25,6 +26,9 @@ from .reduced import ReducedSystem
 DIRECT_MAX_DOFS_2D = 5_000
 #: ... and for 3D problems below this many
 DIRECT_MAX_DOFS_3D = 0
+#: ... and for 2D problems of variable degree (an hp space, whose GAMG iterations grow with
+#: the degree) below this many unknowns (measured: demos/bench/bench_hp_solvers.py)
+DIRECT_MAX_HP_2D = 150_000
 
 
 def choose_linear(
@@ -36,10 +40,11 @@ def choose_linear(
         return linear
     if _user_solver(petsc_options):
         return "direct"  # the user's options on the assembled H, as they always applied
-    V = problem.V
-    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-    limit = DIRECT_MAX_DOFS_2D if V.mesh.geometry.dim == 2 else DIRECT_MAX_DOFS_3D
-    return "direct" if dofs < limit else "gamg"
+    if problem.V.mesh.geometry.dim == 3:
+        limit = DIRECT_MAX_DOFS_3D
+    else:
+        limit = DIRECT_MAX_HP_2D if problem.variable_degree else DIRECT_MAX_DOFS_2D
+    return "direct" if problem.unknowns() < limit else "gamg"
 
 
 def _user_solver(petsc_options: dict | None) -> bool:

@@ -19,6 +19,7 @@ from ..base.errors import ConfigError, petsc_message
 from ..base.validation import (
     FrozenDict,
     at_least_one,
+    auto_or,
     auto_or_positive,
     boolean,
     checked,
@@ -75,7 +76,10 @@ class SolverOptions(BaseModel):
         polish: active-set polishing of fb / blend steps.
         rtol: Newton's tolerance relative to ‖Φ(x_0)‖.
         atol: relative to the force scale ‖Φ(x_D)‖_∞ of the data (dimensionless).
-        max_it: Newton iterations.
+        max_it: the most Newton iterations: a number, or ``auto`` (the default):
+            max(50, n) with n the nodes across the constrained set
+            (``contact.solvers.problem.newton_max_it``), since a cold start's active-set
+            path takes O(1/h) steps.
         linear: direct, gamg, bcgs or auto (``linear``).
         inexact: inexact Newton on the gamg path (Krylov tolerances from a forcing rule).
         forcing: the forcing rule of ``inexact`` for fb / min / blend without friction:
@@ -122,7 +126,7 @@ class SolverOptions(BaseModel):
     polish: Annotated[bool, BeforeValidator(boolean)] = True
     rtol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
     atol: Annotated[float, BeforeValidator(number(nonnegative))] = 1e-12
-    max_it: Annotated[int, BeforeValidator(integer(positive))] = 50
+    max_it: Annotated[Literal["auto"] | int, BeforeValidator(auto_or(integer(positive)))] = "auto"
     linear: Annotated[str, BeforeValidator(one_of(LINEAR))] = "auto"
     inexact: Annotated[bool, BeforeValidator(boolean)] = True
     forcing: Annotated[str, BeforeValidator(one_of(FORCINGS))] = "active_set"
@@ -206,6 +210,8 @@ class FrictionOptions(BaseModel):
 #: the adaptive loop's marking: Dörfler's bulk criterion, the maximum strategy, every cell,
 #: or none (one solve)
 STRATEGIES = ("dorfler", "maximum", "uniform", "none")
+#: the indicators that mark: the estimator's own, or the residual ones (the bound at the end)
+INDICATORS = ("estimator", "residual")
 
 
 class AdaptOptions(BaseModel):
@@ -222,6 +228,12 @@ class AdaptOptions(BaseModel):
             (``contact.adaptivity.mark.Growth``), so the levels are O(log N) and the
             loop costs at most growth/(growth − 1) times its last level; 1 (the default):
             Dörfler's set alone.
+        indicators: what marks the cells: ``estimator`` (the default: the estimator's own
+            η_T, its η on every level) or ``residual`` (the residual estimator's DG0
+            indicators mark every level; an equilibrated estimator's guaranteed bound is
+            computed only on the last level and where it may meet ``tol``, so the other
+            levels' η are the residual estimator's, not bounds; adaptive stopping, which
+            needs the bound on every level, keeps ``estimator``).
         tol: stop at η ≤ tol.
         max_dofs: the most DoFs of a level.
         max_levels: the most levels.
@@ -240,6 +252,7 @@ class AdaptOptions(BaseModel):
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] = "dorfler"
     theta: Annotated[float, BeforeValidator(number(half_open_unit))] = 0.5
     growth: Annotated[float, BeforeValidator(number(at_least_one))] = 1.0
+    indicators: Annotated[str, BeforeValidator(one_of(INDICATORS))] = "estimator"
     tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
     max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
     max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8

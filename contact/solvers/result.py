@@ -57,6 +57,9 @@ class Result:
             1 stick, 2 slip); ``None`` otherwise.
         linear: The linear solver used (direct, gamg, bcgs, gmres).
         krylov_iterations: Krylov iterations of all linear solves (0 for a direct solver).
+        max_it: The Newton step limit of the solve (``solver.max_it``; for ``auto`` and fb,
+            min or blend its floor of 50 unless the solve went that far, then the limit by
+            the mesh).
         sequence: The coarse levels of grid sequencing, coarsest first.
         predictor: A load step's secant predictor: ``None`` (none offered), ``True`` (it
             started the solve) or ``False`` (the previous step's solution did).
@@ -88,6 +91,7 @@ class Result:
     predicted: bool | None = None
     linear: str = ""  # the linear solver used (direct, gamg, bcgs)
     krylov_iterations: int = 0  # Krylov iterations of all linear solves (0 for direct)
+    max_it: int = 0  # the Newton step limit the solve had (solver.max_it, auto resolved)
     krylov_log: list = field(default_factory=list)  # gamg: rtol, iterations, seconds of each solve
     sequence: list = field(default_factory=list)  # coarse levels of grid sequencing (CoarseLevel)
     sequence_note: str = ""  # why there are fewer coarse levels than asked, or none

@@ -26,7 +26,7 @@ from .krylov_curvature import KrylovCurvatureSystem
 from .newton import BlockComplementarity, Complementarity
 from .options import SolverOptions, check_petsc_options, petsc_value, set_from_options
 from .predictor import tangent_predictor
-from .problem import DiscreteProblem, nodal_scaling
+from .problem import DiscreteProblem, newton_max_it, nodal_scaling
 from .reduced import ReducedSystem
 from .result import Result, finish
 from .stopping import STOPPED_REASON, AdaptiveStopping, energy_norm
@@ -170,6 +170,10 @@ class SemismoothNewton:
         self.history: list[dict] = []
         self._prev_active: np.ndarray | None = None  # the active set of the previous iterate
         self.solves = 0  # solves done by this object
+        self.max_it = 0  # the step limit of the current solve (solver.max_it, auto resolved)
+        self._auto_max_it = False  # max_it auto on a Newton solve: the monitor stops it
+        self._auto_resolved = False  # … and has computed the limit by the mesh
+        self._snes_max_it = 0  # SNES's own limit
 
     def solve(
         self,
@@ -225,7 +229,21 @@ class SemismoothNewton:
             chosen = None
             if alternatives and not problem.nonlinear:
                 x, chosen = self._best_guess(x, alternatives)
-            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=opts.max_it)
+            # ``auto``: the floor first; the limit by the nodes across the constrained set is
+            # computed (collectively, from the node coordinates) only if a Newton solve gets
+            # there, and the monitor stops at it; SNES's own limit, which PETSc reads once,
+            # is then the number of constrained nodes, never fewer than the nodes across.
+            # (PETSc's VI solvers: the limit at once)
+            self._auto_max_it = opts.max_it == "auto" and method in ncp.METHODS
+            self._auto_resolved = False
+            self.max_it = newton_max_it(
+                opts.max_it, 0.0 if self._auto_max_it else problem.nodes_across()
+            )
+            self._snes_max_it = self.max_it
+            if self._auto_max_it:
+                nodes = problem.constraint.global_size(self.comm)
+                self._snes_max_it = max(self.max_it, nodes + 1)
+            snes.setTolerances(rtol=opts.rtol, atol=self.atol, stol=0.0, max_it=self._snes_max_it)
             # for the round-off floor of ‖Φ‖
             # the Mat's infinity norm is one float (the stubs: a pair for every norm type)
             self._k_norm: float = problem.K.norm(PETSc.NormType.INFINITY)  # type: ignore[arg-type,assignment]
@@ -291,10 +309,13 @@ class SemismoothNewton:
                 self.stopping.start(cp.active(x))
             if polisher is not None and guess:
                 # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu))
+                # SNES tests its stop at iteration 0 before the monitor raises it to the
+                # round-off floor: the floor is put in here, or a polished guess at the
+                # floor would cost a Newton step and a second polishing solve
+                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu), self._floor(x))
                 polisher.initial(x, stop)
                 self.state["stop"] = stop
-                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=opts.max_it)
+                snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self._snes_max_it)
             snes.solve(None, x)
             reason_code = snes.getConvergedReason()
             result = finish(
@@ -312,6 +333,7 @@ class SemismoothNewton:
                 inexact=self.stopping is not None,
             )
             result.linear = self.linear
+            result.max_it = self.max_it
             if self.stopping is not None:
                 result.stopping = self.stopping
                 result.reason = "converged_adaptive" if self.stopping.stopped else result.reason
@@ -347,22 +369,31 @@ class SemismoothNewton:
             state["t_jac"] = None
         state["dir_norm"] = sol.norm()
 
+    def _floor(self, x: PETSc.Vec) -> float:
+        """The round-off floor of ‖Φ(x)‖ (:func:`roundoff_floor`) that SNES's stopping test
+        never asks to go below, capped at atol · F₁.  It grows with ‖x‖, which the data bound
+        only if no body floats (a body that nothing but frictionless contact holds may drift
+        along a free rigid motion): then 0."""
+        if self.problem.floating:
+            return 0.0
+        return max(
+            min(roundoff_floor(self._k_norm, x), self.opts.atol * self._total),
+            self.cp.gap_roundoff(x),  # gaps of coordinates: bounded by the data, not by x
+        )
+
     def _monitor(self, snes: PETSc.SNES, its: int, fnorm: float) -> None:
         """One row of the history per iterate (‖Φ‖, step length, active set, changes), the
         round-off floor of the stopping test, the verbose line or the progress note."""
         comm, cp, opts, method = self.comm, self.cp, self.opts, self.method
         polisher, system, prev = self.polisher, self.system, self._prev
         xk = snes.getSolution()
-        # the floor grows with ‖x‖, which the data bound only if no body floats (a body that
-        # nothing but frictionless contact holds may drift along a free rigid motion)
-        floor = (
-            0.0
-            if self.problem.floating
-            else max(
-                min(roundoff_floor(self._k_norm, xk), opts.atol * self._total),
-                cp.gap_roundoff(xk),  # gaps of coordinates: bounded by the data, not by x
-            )
-        )
+        if self._auto_max_it and its >= self.max_it:  # max_it auto: the floor reached
+            if not self._auto_resolved:
+                self._auto_resolved = True
+                self.max_it = newton_max_it("auto", self.problem.nodes_across())
+            if its >= self.max_it and snes.getConvergedReason() == 0:
+                snes.setConvergedReason(PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT)  # type: ignore[arg-type]
+        floor = self._floor(xk)
         if floor > snes.getTolerances()[1]:  # atol · F out of reach: stop at the floor
             snes.setTolerances(atol=floor)
             if polisher is not None:

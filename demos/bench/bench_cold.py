@@ -21,8 +21,9 @@ K (rtol 1e-8 from zero, set-up included) measured in the same process just befor
 the CPU ratio of each variant to the first.  CPU seconds are the fair figure on a shared
 machine.  ``--dealii-cpu`` (seconds) adds the ratio to deal.II step-41's CPU time at the
 largest N (measured apart: the tutorial built from Debian's libdeal.ii-doc, see
-demos/RESULTS.md).  Every solve runs to the default tolerances; ``--max-it`` is raised
-above the default 50, which the cold path exceeds from 512² on (75 and 145 steps).
+demos/RESULTS.md).  Every solve runs to the default tolerances and the default step limit
+``solver.max_it: auto`` (the nodes across Ω: 255, 511, 1023; the cold path takes 39, 75
+and 144 steps, above the fixed 50 of before from 512² on); ``--max-it N`` sets a number.
 
     python demos/bench/bench_cold.py --cells 256 512 --out demos/results/cold/step41.csv
     python demos/bench/bench_cold.py --cells 1024 --variants new,old \
@@ -65,7 +66,7 @@ VARIANTS = {
 }
 
 
-def cold_solve(n: int, variant: str, max_it: int, method: str):
+def cold_solve(n: int, variant: str, max_it: int | str, method: str):
     """(wall s, CPU s, Result) of one cold solve on n × n cells with ``variant``'s rule."""
     forcing, warm = VARIANTS[variant]
     overrides = [
@@ -138,7 +139,7 @@ def main() -> None:
     ap.add_argument("--cells", type=int, nargs="+", default=[256, 512, 1024])
     ap.add_argument("--variants", default="new,zero,old", help=f"of {', '.join(VARIANTS)}")
     ap.add_argument("--method", default="min")
-    ap.add_argument("--max-it", type=int, default=400)
+    ap.add_argument("--max-it", default="auto", help="Newton steps: auto or a number")
     ap.add_argument(
         "--dealii-cpu",
         type=float,

@@ -12,6 +12,18 @@ every level.  Writes levels.csv and summary.csv; prints a table.
 
     python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
     python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
+    python demos/bench/bench_hp.py --hertz --out demos/results/hp      (Hertz 2D, elastic)
+    python demos/bench/bench_hp.py --three-d 8 --out demos/results/hp  (3D problem C, 8 levels)
+
+``--three-d``: problem C extruded to the unit cube (u = −(x − ½)₊³ + z², Γ_C = {z = 0},
+u_D = u on the other faces), hp with p_max 3 from the 4 × 4 × 4 box: per level N, the error, η
+and η / error (three_d.csv), the guaranteed bound in 3D.
+
+``--hertz``: the elastic Hertz scene (configs/hertz_2d.yaml) with the h loop (P1, the
+scene's Dörfler θ) and the hp loop (residual estimator with h/p weights), per level the
+contact half-width a and peak pressure p0 against Hertz theory; per method the first level
+with |a/a_H − 1| and |p0/p0_H − 1| both ≤ 0.5 %, its unknowns and CPU seconds, and the
+ratios to P1 measured in the same process (hertz_levels.csv, hertz_summary.csv).
 """
 
 from __future__ import annotations
@@ -36,6 +48,7 @@ PROBLEMS = [
 METHODS = [
     ("hp", [], dict(strategy="hp", p_max=6, p_start=1, max_levels=60)),
     ("hp-start2", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
+    ("hp-theta0.7", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.7, max_levels=60)),
     ("hp-theta0.9", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.9, max_levels=60)),
     ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
     ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
@@ -131,6 +144,165 @@ def p_robust(out: Path, problems: list[str]) -> None:
     write_csv(out / "p_robust.csv", found)
 
 
+#: the Hertz runs: (method, adapt options); the target |error| of a and p0
+HERTZ = "configs/hertz_2d.yaml"
+HERTZ_METHODS = [
+    ("h-P1", dict(strategy="dorfler", max_levels=12, max_dofs=120_000)),
+    ("hp-p4", dict(strategy="hp", p_max=4, max_levels=14, max_dofs=120_000)),
+    ("hp-p6", dict(strategy="hp", p_max=6, max_levels=14, max_dofs=120_000)),
+]
+HERTZ_TARGET = 5e-3
+
+
+def hertz_run(method: str, options: dict) -> list[dict]:
+    """The levels of one Hertz run: unknowns, η, a and p0 against Hertz, and the process's
+    CPU seconds when the level is estimated (the comparisons' own seconds excluded)."""
+    from contact.post.hertz import compare
+
+    scene = contact.load_scene(ROOT / HERTZ, ["output.verbose=false"])
+    rows: list[dict] = []
+    start, excluded = time.process_time(), [0.0]
+
+    def on_level(lv) -> None:
+        now = time.process_time()
+        found = compare(lv.scene, lv.result, lv.scene.config.reference)
+        row = lv.row()
+        rows.append(
+            {
+                "method": method,
+                "level": lv.index,
+                "unknowns": row["dofs"],
+                "cells": row["cells"],
+                "p_max": row.get("p_max", 1),
+                "eta": lv.estimate.eta,
+                "a_error": float(found.errors["a_error"]),
+                "p0_error": float(found.errors["p0_error"]),
+                "cpu_seconds": now - start - excluded[0],
+            }
+        )
+        excluded[0] += time.process_time() - now
+
+    contact.adapt(scene, on_level=on_level, **options)
+    return rows
+
+
+def hertz(out: Path) -> None:
+    """Hertz 2D: hp against h-adaptive P1 (module docstring)."""
+    for method, options in HERTZ_METHODS:  # forms compiled before any timing
+        hertz_run(method, {**options, "max_levels": 2})
+    levels, summary = [], []
+    for method, options in HERTZ_METHODS:
+        rows = hertz_run(method, options)
+        levels += rows
+        hit = next(
+            (
+                r
+                for r in rows
+                if abs(r["a_error"]) <= HERTZ_TARGET and abs(r["p0_error"]) <= HERTZ_TARGET
+            ),
+            None,
+        )
+        last = rows[-1]
+        summary.append(
+            {
+                "method": method,
+                "target": HERTZ_TARGET,
+                "reached": hit is not None,
+                "level": (hit or last)["level"],
+                "unknowns": (hit or last)["unknowns"],
+                "a_error": (hit or last)["a_error"],
+                "p0_error": (hit or last)["p0_error"],
+                "cpu_seconds": (hit or last)["cpu_seconds"],
+                "levels": len(rows),
+            }
+        )
+    p1 = summary[0]
+    for entry in summary:
+        entry["unknowns_ratio_P1"] = p1["unknowns"] / entry["unknowns"]
+        entry["cpu_ratio_P1"] = p1["cpu_seconds"] / entry["cpu_seconds"]
+    write_csv(out / "hertz_levels.csv", levels)
+    write_csv(out / "hertz_summary.csv", summary)
+    print(f"{'method':8}{'level':>6}{'N':>8}{'a err %':>9}{'p0 err %':>9}{'cpu':>8}  (per level)")
+    for r in levels:
+        print(
+            f"{r['method']:8}{r['level']:6d}{r['unknowns']:8d}{100 * r['a_error']:+9.3f}"
+            f"{100 * r['p0_error']:+9.3f}{r['cpu_seconds']:8.2f}"
+        )
+    print(f"first level with |a|, |p0| errors <= {100 * HERTZ_TARGET:g} %:")
+    for e in summary:
+        print(
+            f"{e['method']:8} reached {e['reached']!s:5} level {e['level']:3d} N {e['unknowns']:7d}"
+            f" a {100 * e['a_error']:+.3f} % p0 {100 * e['p0_error']:+.3f} % cpu "
+            f"{e['cpu_seconds']:.2f}  N(P1)/N {e['unknowns_ratio_P1']:.2f}"
+            f"  cpu(P1)/cpu {e['cpu_ratio_P1']:.2f}"
+        )
+
+
+#: problem C in the unit cube (module docstring)
+CUBE = {
+    "name": "signorini_smooth_3d",
+    "mesh": {"type": "box", "corners": [[0, 0, 0], [1, 1, 1]], "cells": [4, 4, 4]},
+    "boundaries": {
+        "contact": {"role": "contact", "where": "z < 1e-10"},
+        # one part per face: a facet of a face has all its vertices on it, and on no other
+        **{
+            name: {"role": "dirichlet", "where": where}
+            for name, where in (
+                ("x0", "x < 1e-10"),
+                ("x1", "x > 1 - 1e-10"),
+                ("y0", "y < 1e-10"),
+                ("y1", "y > 1 - 1e-10"),
+                ("top", "z > 1 - 1e-10"),
+            )
+        },
+    },
+    "model": "signorini",
+    "data": {
+        "f": "6*max(x - 0.5, 0) - 2",
+        "g": "0",
+        "t_C": "max(0.5 - x, 0)**2",
+        "u_D": "-max(x - 0.5, 0)**3 + z**2",
+        "exact": "-max(x - 0.5, 0)**3 + z**2",
+    },
+    "solver": {"method": "fb"},
+    "output": {"verbose": False},
+}
+
+
+def three_d(out: Path, levels: int) -> None:
+    """The hp loop on problem C in 3D (module docstring)."""
+    scene = contact.load_scene(CUBE)
+    rows = []
+    start = time.process_time()
+
+    def on_level(lv) -> None:
+        row = lv.row()
+        rows.append(
+            {
+                "level": lv.index,
+                "unknowns": row["dofs"],
+                "cells": row["cells"],
+                "p_min": row["p_min"],
+                "p_max": row["p_max"],
+                "error": lv.error,
+                "eta": lv.estimate.eta,
+                "effectivity": lv.estimate.eta / lv.error,
+                "cpu_seconds": time.process_time() - start,
+            }
+        )
+        r = rows[-1]
+        print(
+            f"{r['level']:3d} N {r['unknowns']:7d} cells {r['cells']:7d} p {r['p_min']}-"
+            f"{r['p_max']} error {r['error']:.3e} eta {r['eta']:.3e} eta/error "
+            f"{r['effectivity']:.3f} cpu {r['cpu_seconds']:.1f}",
+            flush=True,
+        )
+
+    run = contact.adapt(scene, strategy="hp", p_max=3, max_levels=levels, on_level=on_level)
+    write_csv(out / "three_d.csv", rows)
+    print(run.stop, "| eta >= error on every level:", all(r["eta"] >= r["error"] for r in rows))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="demos/results/hp")
@@ -140,20 +312,34 @@ def main() -> None:
         action="store_true",
         help="only the effectivity of the bound against p_max (p_robust.csv)",
     )
+    parser.add_argument(
+        "--hertz", action="store_true", help="only Hertz 2D: hp against h-adaptive P1"
+    )
+    parser.add_argument(
+        "--methods", default="", help="comma-separated subset of the methods (default: all)"
+    )
+    parser.add_argument("--three-d", type=int, default=0, metavar="LEVELS", help="3D problem C")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.three_d:
+        three_d(out, args.three_d)
+        return
+    if args.hertz:
+        hertz(out)
+        return
     if args.p_robust:
         p_robust(out, args.problems.split(","))
         return
+    methods = [m for m in METHODS if not args.methods or m[0] in args.methods.split(",")]
     levels, summary = [], []
     for problem, path, target, budget in PROBLEMS:
         if problem not in args.problems.split(","):
             continue
         reached = {}
-        for method, sets, options in METHODS:  # the compiled forms loaded before any timing
+        for method, sets, options in methods:  # the compiled forms loaded before any timing
             run(problem, path, target, budget, method, sets, {**options, "max_levels": 2})
-        for method, sets, options in METHODS:
+        for method, sets, options in methods:
             rows, stop = run(problem, path, target, budget, method, sets, options)
             levels += rows
             hit = first_below(rows, target)
