@@ -459,17 +459,31 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
         and its.get((c.replace(" fixed point", " hsw"), m), {}).get("converged")
     ]
     bad_proj, bad_hsw = failed(proj), failed(hsw)
+    n_proj = sum(1 for c in friction if proj(c)) * len(newton)
     return prose(
         "_friction_rows",
         "h_j_coulomb_friction",
         span_hsw=span(hsw),
         f=f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere",
-        span_proj=span(proj),
-        len_bad_proj=len(bad_proj),
-        n_projection_cases=sum(1 for c in friction if proj(c)) * len(newton),
-        join_bad_proj_or_none=", ".join(bad_proj) or "none",
-        projection_cycle=prose("friction_shared", "projection_cycle"),
-        span_cured=span(cured),
+        projection_outcome=prose(
+            "_friction_rows",
+            "projection_fails",
+            span_proj=span(proj),
+            len_bad_proj=len(bad_proj),
+            n_projection_cases=n_proj,
+            join_bad_proj=", ".join(bad_proj),
+            projection_cycle=prose("friction_shared", "projection_cycle"),
+            span_cured=span(cured),
+        )
+        if bad_proj
+        else prose(
+            "_friction_rows",
+            "projection_guarded",
+            span_proj=span(proj),
+            n_projection_cases=n_proj,
+            projection_cycle=prose("friction_shared", "projection_cycle"),
+            span_cured=span(cured),
+        ),
         min_fp_if_fp_else=min(fp) if fp else "–",
         max_fp_if_fp_else=max(fp) if fp else "–",
         span_fixed=span(fixed),
@@ -3559,6 +3573,9 @@ def time_to_accuracy() -> str:
         def med(case: str, key: str) -> float:
             return statistics.median(r[key] for r in start if r["case"] == case)
 
+        tiny = med("tiny run", "cpu")
+        bare, floor = "tiny run, output.png=false", "libraries only"
+
         out += [
             prose(
                 "time_to_accuracy",
@@ -3569,6 +3586,18 @@ def time_to_accuracy() -> str:
                 ),
                 import_seconds=f"{med('import contact', 'importtime_cumulative_s'):.3f}",
                 import_self_seconds=f"{med('import contact', 'importtime_self_s'):.4f}",
+                tiny_cpu=f"{tiny:.2f}",
+                pictures_cpu=f"{tiny - med(bare, 'cpu'):.2f}" if bare in cases else "–",
+                libraries_cpu=f"{med(floor, 'cpu'):.2f}" if floor in cases else "–",
+                libraries_share=f"{100 * med(floor, 'cpu') / tiny:.0f} %"
+                if floor in cases
+                else "–",
+                old_ratios=", ".join(
+                    f"{tiny / med(c, 'cpu'):.2f} × that of the {c.split(', ', 1)[1][:-6]}"
+                    for c in cases
+                    if c.endswith(" (old)")
+                )
+                or "–",
             )
         ]
     return "\n".join(out)

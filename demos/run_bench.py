@@ -371,6 +371,8 @@ STEPS = {
             "demos/bench/bench_startup.py",
             "--repeat",
             "5",
+            "--old-plots",
+            "--old-gc",
             "--old-grid",
             "--out",
             "demos/results/startup.csv",
