@@ -459,17 +459,31 @@ def _friction_rows(its: dict, cases: list[str]) -> str:
         and its.get((c.replace(" fixed point", " hsw"), m), {}).get("converged")
     ]
     bad_proj, bad_hsw = failed(proj), failed(hsw)
+    n_proj = sum(1 for c in friction if proj(c)) * len(newton)
     return prose(
         "_friction_rows",
         "h_j_coulomb_friction",
         span_hsw=span(hsw),
         f=f" (failures: {', '.join(bad_hsw)})" if bad_hsw else " everywhere",
-        span_proj=span(proj),
-        len_bad_proj=len(bad_proj),
-        n_projection_cases=sum(1 for c in friction if proj(c)) * len(newton),
-        join_bad_proj_or_none=", ".join(bad_proj) or "none",
-        projection_cycle=prose("friction_shared", "projection_cycle"),
-        span_cured=span(cured),
+        projection_outcome=prose(
+            "_friction_rows",
+            "projection_fails",
+            span_proj=span(proj),
+            len_bad_proj=len(bad_proj),
+            n_projection_cases=n_proj,
+            join_bad_proj=", ".join(bad_proj),
+            projection_cycle=prose("friction_shared", "projection_cycle"),
+            span_cured=span(cured),
+        )
+        if bad_proj
+        else prose(
+            "_friction_rows",
+            "projection_guarded",
+            span_proj=span(proj),
+            n_projection_cases=n_proj,
+            projection_cycle=prose("friction_shared", "projection_cycle"),
+            span_cured=span(cured),
+        ),
         min_fp_if_fp_else=min(fp) if fp else "–",
         max_fp_if_fp_else=max(fp) if fp else "–",
         span_fixed=span(fixed),
@@ -1841,6 +1855,7 @@ def hyperelastic() -> str:
         _hyper_predictor(),
         _hyper_adaptive(),
         _hyper_ball(),
+        _hyper_ironing(),
     ]
     return "\n".join(out)
 
@@ -2205,6 +2220,71 @@ def _hyper_ball() -> str:
         ),
         "",
     ]
+    return "\n".join(out)
+
+
+def _hyper_ironing() -> str:
+    """§11.8: the ironing benchmark on three meshes (demos/bench/bench_ironing.py)."""
+    out, data = _hyper_open(prose("_hyper_ironing", "the_ironing_benchmark"), "ironing_meshes.csv")
+    if not data:
+        return "\n".join(out)
+
+    def pct(x) -> str:
+        return "–" if x in ("", None) else f"{100 * x:.2g} %"
+
+    body = [
+        [
+            r["cells"],
+            r["dofs"],
+            r["steady_steps"],
+            f"{r['max_rel_dev_Ft_Fn']:.1e}",
+            f"{r['min_Fx_over_Fy']:.3f}–{r['max_Fx_over_Fy']:.3f}",
+            f"{r['max_balance']:.0e}",
+            r["newton_per_step"],
+            f"{r['press_force_y_at_2']:.4f}",
+            pct(r.get("press_force_y_diff_at_2")),
+            f"{r['drag_force_x_at_2']:.4f}",
+            pct(r.get("drag_force_x_diff_at_2")),
+            r["run_seconds"],
+        ]
+        for r in data
+    ]
+    header = [
+        "mesh",
+        "DoFs",
+        "steady steps",
+        "max |F_t/F_n − μ| / μ",
+        "F_x / F_y steady",
+        "balance",
+        "Newton its / step",
+        "F_y at s = 2",
+        "to finer",
+        "F_x at s = 2",
+        "to finer",
+        "wall s",
+    ]
+    out += [prose("_hyper_ironing", "python_demos_bench", table=table(header, body)), ""]
+    if len(data) >= 3 and "press_force_y_order" in data[0]:
+        first, second = data[0], data[1]
+        out += [
+            prose(
+                "_hyper_ironing",
+                "in_steady_sliding",
+                worst_dev=f"{max(r['max_rel_dev_Ft_Fn'] for r in data):.0e}",
+                fx_fy=f"{min(r['min_Fx_over_Fy'] for r in data):.3f}–"
+                f"{max(r['max_Fx_over_Fy'] for r in data):.3f}",
+                dfy=pct(first["press_force_y_diff_at_2"]),
+                dfx=pct(first["drag_force_x_diff_at_2"]),
+                dfy2=pct(second["press_force_y_diff_at_2"]),
+                dfx2=pct(second["drag_force_x_diff_at_2"]),
+                order_y=f"{first['press_force_y_order']:.2f}",
+                order_x=f"{first['drag_force_x_order']:.2f}",
+                pressure_share=pct(
+                    data[-1]["drag_by_pressure_at_2"] / data[-1]["drag_force_x_at_2"]
+                ),
+            ),
+            "",
+        ]
     return "\n".join(out)
 
 
@@ -3493,6 +3573,9 @@ def time_to_accuracy() -> str:
         def med(case: str, key: str) -> float:
             return statistics.median(r[key] for r in start if r["case"] == case)
 
+        tiny = med("tiny run", "cpu")
+        bare, floor = "tiny run, output.png=false", "libraries only"
+
         out += [
             prose(
                 "time_to_accuracy",
@@ -3503,6 +3586,18 @@ def time_to_accuracy() -> str:
                 ),
                 import_seconds=f"{med('import contact', 'importtime_cumulative_s'):.3f}",
                 import_self_seconds=f"{med('import contact', 'importtime_self_s'):.4f}",
+                tiny_cpu=f"{tiny:.2f}",
+                pictures_cpu=f"{tiny - med(bare, 'cpu'):.2f}" if bare in cases else "–",
+                libraries_cpu=f"{med(floor, 'cpu'):.2f}" if floor in cases else "–",
+                libraries_share=f"{100 * med(floor, 'cpu') / tiny:.0f} %"
+                if floor in cases
+                else "–",
+                old_ratios=", ".join(
+                    f"{tiny / med(c, 'cpu'):.2f} × that of the {c.split(', ', 1)[1][:-6]}"
+                    for c in cases
+                    if c.endswith(" (old)")
+                )
+                or "–",
             )
         ]
     return "\n".join(out)

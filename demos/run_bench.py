@@ -35,7 +35,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_hyperelastic.py`` — finite deformation (issue 31): plain Newton against
    the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
    the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls (about
-   15 minutes);
+   15 minutes); ``demos/bench/bench_ironing.py`` — the ironing benchmark in plane strain on
+   three meshes, the die's forces against the sliding distance (about 2 minutes);
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
    ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
@@ -272,7 +273,8 @@ STEPS = {
             ["refinement", "--top", "symmetry"],
             ["adaptive"],
         )
-    ],
+    ]
+    + [[PY, "demos/bench/bench_ironing.py", "--out", "demos/results/hyperelastic"]],
     # RESULTS §12: both estimators per level, the reconstruction's cost, the tolerance each
     # estimator certifies at what cost, adaptive stopping
     "bounds": [
@@ -369,6 +371,8 @@ STEPS = {
             "demos/bench/bench_startup.py",
             "--repeat",
             "5",
+            "--old-plots",
+            "--old-gc",
             "--old-grid",
             "--out",
             "demos/results/startup.csv",

@@ -47,9 +47,11 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_cylinder.yaml": ["mesh.h=0.3", "mesh.h_contact=0.05", "load.steps=2", *SMALL],
     "hyperelastic_drag.yaml": ["mesh.cells=[20,5]", "load.steps=4", *SMALL],
     "hyperelastic_indentation.yaml": ["mesh.cells=[20,10]", "load.steps=2", *SMALL],
+    "hyperelastic_ironing_2d.yaml": ["mesh.cells=[18,8]", "load={times: [0.1, 0.2, 0.3]}", *SMALL],
     "hyperelastic_sphere.yaml": ["mesh.cells=[6,6,4]", "load.steps=2", *SMALL],
     # buckles in the second step (its tangent turns indefinite at t ≈ 1.15 on 40 × 2 cells)
     "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]", *SMALL],
+    "hyperelastic_self_contact_ring.yaml": ["mesh.cells=[64,2]", "load.steps=2", *SMALL],
     "hyperelastic_two_body_patch_2d.yaml": SMALL,
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],

@@ -47,6 +47,7 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_cylinder.yaml": ["mesh.h=0.3", "mesh.h_contact=0.05", "load.steps=2"],
     "hyperelastic_drag.yaml": ["mesh.cells=[20,5]", "load.steps=4"],
     "hyperelastic_indentation.yaml": ["mesh.cells=[20,10]", "load.steps=2"],
+    "hyperelastic_ironing_2d.yaml": ["mesh.cells=[18,8]", "load={times: [0.1, 0.2, 0.3]}"],
     "hyperelastic_sphere.yaml": ["mesh.cells=[6,6,4]", "load.steps=2"],
     "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]"],
     "hyperelastic_two_body_patch_2d.yaml": [],

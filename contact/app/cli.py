@@ -14,7 +14,9 @@ forever; the rules are in :mod:`contact.app.failures`).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import gc
 import os
 import signal
 import sys
@@ -147,6 +149,34 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
+#: the cyclic garbage collector is off while a command loads its modules, configuration and
+#: scene, and what they loaded is then frozen out of its later collections (gc.freeze): they
+#: live until the process ends, and scanning them cost a tiny run about a tenth of its CPU
+#: time (demos/RESULTS.md §14), once per process (a program or a test suite that calls main()
+#: many times freezes only what its first command loaded); False: the collector runs
+#: throughout (the old path)
+FREEZE_LOADED = True
+_frozen: list[bool] = []  # [True] once a command of this process froze what it loaded
+
+
+@contextlib.contextmanager
+def loading():
+    """The collector off in the block (:data:`FREEZE_LOADED`); at its end the objects alive
+    are moved to the collector's permanent generation and the collector is on again (if it
+    was on before).  Cycles that die later among those objects are not collected: they are
+    the modules and the first scene, which the process keeps anyway."""
+    if not FREEZE_LOADED or _frozen or not gc.isenabled():
+        yield
+        return
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        gc.enable()
+        _frozen.append(True)
+
+
 def _handle(signum: int, handler: Any) -> Any:
     """Install ``handler`` for ``signum``; the previous one (None where main() runs outside
     the main thread, which cannot handle signals)."""
@@ -192,34 +222,35 @@ def _fail(comm: MPI.Comm, agree: MPI.Comm | None, code: int, line: str, debug: b
 
 
 def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
-    from .. import solve
-    from ..base import progress
-    from ..output import folder, hdf5
-    from ..output.run_report import files_text, write_run
-    from ..setup.config import load_config
-    from ..setup.posed import posed_of
-    from ..setup.scene import build_scene
-    from ..solvers.result import newton_text, not_converged_text
-    from .dispatch import choose_driver, report_of
+    with loading():  # the modules, the configuration and the scene
+        from .. import solve
+        from ..base import progress
+        from ..output import folder, hdf5
+        from ..output.run_report import files_text, write_run
+        from ..setup.config import load_config
+        from ..setup.posed import posed_of
+        from ..setup.scene import build_scene
+        from ..solvers.result import newton_text, not_converged_text
+        from .dispatch import choose_driver, report_of
 
-    hdf5.silence()  # HDF5's error stacks: a failed write is one line (contact.output.folder)
-    t0 = time.perf_counter()
-    overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
-    cfg = load_config(args.scene, overrides)
-    outdir, label = _output_folder(args.output, cfg)
-    folder.check_output(outdir, label, comm)  # before meshing and solving
-    scene = build_scene(cfg, comm)
-    report = report_of(cfg)  # what the run writes, read once from the configuration
-    if report.verbose:
-        progress.enable(comm)
-    method = scene.config.solver.method
-    _say(
-        comm,
-        f"contact: scene {scene.name!r}, model {scene.config.model.type}, method {method}, "
-        f"{comm.size} MPI rank(s)",
-    )
-    _report_posed(scene, comm)
-    driver = choose_driver(scene.config)
+        hdf5.silence()  # HDF5's error stacks: a failed write is one line (contact.output.folder)
+        t0 = time.perf_counter()
+        overrides = list(args.overrides) + (["output.verbose=false"] if args.quiet else [])
+        cfg = load_config(args.scene, overrides)
+        outdir, label = _output_folder(args.output, cfg)
+        folder.check_output(outdir, label, comm)  # before meshing and solving
+        scene = build_scene(cfg, comm)
+        report = report_of(cfg)  # what the run writes, read once from the configuration
+        if report.verbose:
+            progress.enable(comm)
+        method = scene.config.solver.method
+        _say(
+            comm,
+            f"contact: scene {scene.name!r}, model {scene.config.model.type}, method {method}, "
+            f"{comm.size} MPI rank(s)",
+        )
+        _report_posed(scene, comm)
+        driver = choose_driver(scene.config)
     if driver == "load_path":
         return _run_steps(scene, report, outdir, label, comm, t0)
     if driver == "adapt":
@@ -417,11 +448,12 @@ def _run_steps(scene, report: Report, outdir: Path, label: str, comm: MPI.Comm, 
 
 def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
     """Exit code 0 once study.csv is written, even if some runs failed (they are rows)."""
-    from ..output import hdf5
-    from .study import load_study, run_study
+    with loading():
+        from ..output import hdf5
+        from .study import load_study, run_study
 
-    hdf5.silence()
-    study = load_study(args.study, overrides=args.overrides)
+        hdf5.silence()
+        study = load_study(args.study, overrides=args.overrides)
     given = args.output is not None
     outdir = _output_option(args.output) if given else Path("results") / "studies" / study.name
     label = (

@@ -25,6 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..solvers import solves_text
+from .figures import new_figure, release_figure
 
 
 class Study(Protocol):
@@ -64,15 +65,6 @@ OUTCOME_COLOURS = {
     "inverted": "#984ea3",
 }
 MARKERS = "osD^v<>pPX*h"
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _is_number(v: Any) -> bool:
@@ -133,7 +125,6 @@ def speed_accuracy(
     path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]
 ) -> None:
     """Accuracy (``study.accuracy``) against wall time (left) and DoFs (right), log–log."""
-    plt = _pyplot()
     key = study.accuracy
     good = [
         r
@@ -142,7 +133,7 @@ def speed_accuracy(
     ]
     cat, num = _categorical(study), _numeric(study)
     colour_of, style_of = _encodings(study, cat)
-    fig, (ax_t, ax_n) = plt.subplots(1, 2, figsize=(13, 6.5), sharey=True)
+    fig, (ax_t, ax_n) = new_figure(1, 2, figsize=(13, 6.5), sharey=True)
     for gkey, members in _groups(good, cat).items():
         members.sort(key=lambda r: (tuple(r[a] for a in num), r["run"], r["level"]))
         ls, marker = style_of(gkey)
@@ -195,16 +186,15 @@ def speed_accuracy(
         )
     fig.tight_layout(rect=(0, bottom, 1, 1))
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> None:
     """Rows: the cases (or combinations of the axes other than ``method``); columns: the
     methods.  Colour: :func:`contact.app.study.outcome`; label: Newton iterations (summed over
     the levels of an adaptive run), ``+p`` for p active-set polishing solves."""
-    from matplotlib.patches import Patch
+    from matplotlib.patches import Patch, Rectangle
 
-    plt = _pyplot()
     methods = study.axes.get("method", [None])
     row_keys = (["case"] if study.named_cases else []) + [a for a in study.axes if a != "method"]
     labels: list[tuple] = []
@@ -213,15 +203,13 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
         if k not in labels:
             labels.append(k)
     cells = {(tuple(r[a] for a in row_keys), r.get("method")): r for r in rows if r["repeat"] == 1}
-    fig, ax = plt.subplots(figsize=(1.6 * len(methods) + 4.5, 0.42 * len(labels) + 1.8))
+    fig, ax = new_figure(figsize=(1.6 * len(methods) + 4.5, 0.42 * len(labels) + 1.8))
     for i, lk in enumerate(labels):
         for j, m in enumerate(methods):
             cell = cells.get((lk, m))
             what = cell["outcome"] if cell else "error"
             ax.add_patch(
-                plt.Rectangle(
-                    (j, i), 1, 1, facecolor=OUTCOME_COLOURS[what], edgecolor="white", lw=2
-                )
+                Rectangle((j, i), 1, 1, facecolor=OUTCOME_COLOURS[what], edgecolor="white", lw=2)
             )
             text = "—" if cell is None else _solves_label(cell)
             ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", fontsize=9)
@@ -245,7 +233,7 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
     ax.set_title(f"study {study.name}: outcome and Newton iterations (+ polishing solves)", pad=22)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def _solves_label(r: dict) -> str:
@@ -308,11 +296,10 @@ def iterations(
     get their own marker.  Returns the curves drawn (:func:`_iteration_curves`)."""
     from matplotlib.ticker import MaxNLocator
 
-    plt = _pyplot()
     methods = study.axes.get("method", [None])
     curves = _iteration_curves(study, rows, level_rows)
     combos = sorted({p["marker_key"] for pts in curves.values() for p in pts}, key=str)
-    fig, ax = plt.subplots(figsize=(8, 5.5))
+    fig, ax = new_figure(figsize=(8, 5.5))
     for label, pts in curves.items():
         m = methods.index(pts[0]["method"]) if pts[0]["method"] in methods else 0
         marker = MARKERS[combos.index(pts[0]["marker_key"]) % len(MARKERS)]
@@ -344,7 +331,7 @@ def iterations(
     ax.set_title(f"study {study.name}: iterations per level (× = not converged)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
     return curves
 
 

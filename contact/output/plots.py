@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from dolfinx import fem
 
+from .figures import new_figure, release_figure
 from .vtk import Grid, gather_grid
 
 MAX_EDGES = 20000  # cells above which mesh edges would paint everything black
@@ -336,9 +337,8 @@ def plot_solution(
 
 
 def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
-    plt = _pyplot()
     tri = _triangulation(grid)
-    fig, ax = plt.subplots(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
+    fig, ax = new_figure(figsize=(8.5, 1.5 + 7.0 * _aspect(grid)))
     shade = smooth_shading(ax, tri, _magnitude(grid.point_data[u_h.name]), "viridis")
     if grid.n_cells <= MAX_EDGES:
         ax.triplot(tri, color="k", lw=0.15, alpha=0.5)
@@ -359,7 +359,7 @@ def _solution_2d(path: str | Path, grid, u_h: fem.Function, title: str) -> None:
     _axes_2d(ax, title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def mesh_picture(
@@ -394,9 +394,8 @@ def plot_mesh(
 
 
 def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: int) -> None:
-    plt = _pyplot()
     tri = _triangulation(grid)
-    fig, (ax_m, ax_u) = plt.subplots(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
+    fig, (ax_m, ax_u) = new_figure(1, 2, figsize=(14, 1.5 + 5.5 * _aspect(grid)))
     plan = _raster_plan(tri)  # both panels sample the same pixels
     if grid.n_cells <= max_edges:
         ax_m.triplot(tri, color="k", lw=0.3)
@@ -416,7 +415,7 @@ def _mesh_2d(path: str | Path, grid, u_h: fem.Function, title: str, max_edges: i
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    release_figure(fig)
 
 
 # ------------------------------------------------------------------------------- 3D (pyvista)
@@ -600,10 +599,9 @@ def _save(plotter, path, title: str) -> None:
 
 def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> None:
     """η (and the error, where known) against DoFs on log–log axes with N^{-1/2}, N^{-1/3}."""
-    plt = _pyplot()
     N = np.array([r["dofs"] for r in rows], dtype=float)
     eta = np.array([r["eta"] for r in rows], dtype=float)
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig, ax = new_figure(figsize=(7, 5))
     ax.loglog(N, eta, "o-", label="estimator η")
     errors = [r["error"] for r in rows]
     if all(e != "" for e in errors):
@@ -618,7 +616,7 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def bin_average(
@@ -650,8 +648,7 @@ def plot_pressure(
     (``lambda_exact``).  In 3D the nodal values scatter at one r (the mesh is not symmetric
     about the axis), so the profile drawn through them is their average over bins of r, not
     a line joining them."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    fig, ax = new_figure(figsize=(7.5, 4.8))
     scalar = value != "lambda_n"
     name = (
         f"contact flux −λ ({FLUX_UNIT})" if scalar else f"contact pressure −λ_n ({PRESSURE_UNIT})"
@@ -713,16 +710,7 @@ def plot_pressure(
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    release_figure(fig)
 
 
 #: the most load steps whose curves a traction picture draws (each one in the legend)
@@ -754,17 +742,18 @@ def plot_traction(
     spaced (the title says so).  3D: :func:`plot_traction_map`.
     ``references``: (panel 0 | 1, x, y, label) curves such as the Hertz pressure or an exact
     traction."""
+    from matplotlib import colormaps
+
     table = steps[-1][1]
     if "s" not in table:
         return plot_traction_map(path, table, title, t=steps[-1][0])
-    plt = _pyplot()
     scalar = "lambda_n" not in table  # a scalar model: the flux −λ, no tangential panel
     value = "lambda" if scalar else "lambda_n"
-    fig, grid = plt.subplots(
+    fig, grid = new_figure(
         1 if scalar else 2, 1, figsize=(9.0, 4.5 if scalar else 7.0), sharex=True, squeeze=False
     )
     axes = grid[:, 0]
-    cmap = plt.get_cmap("viridis")
+    cmap = colormaps["viridis"]
     t_max = max(t for t, _ in steps)
     friction = "lambda_t" in table
     shown = drawn_steps(len(steps))
@@ -827,7 +816,7 @@ def plot_traction(
     axes[0].set_title(title, fontsize=10)
     fig.tight_layout(rect=(0, 0, 0.83, 1))
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def plot_force_displacement(
@@ -846,10 +835,9 @@ def plot_force_displacement(
     step k met an indefinite tangent (the energy search acted: a buckle or a snap happens
     there); ``unstable[k]``: K_T has negative eigenvalues at step k's solution (an unstable
     equilibrium).  The marks go on the first curve."""
-    plt = _pyplot()
     curves = force if isinstance(force, Mapping) else {"contact force per step": force}
     x = np.r_[0.0, np.asarray(x, float)]
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig, ax = new_figure(figsize=(7, 5))
     first = None
     for k, (label, values) in enumerate(curves.items()):
         y = np.r_[0.0, np.asarray(values, float)]
@@ -873,7 +861,7 @@ def plot_force_displacement(
     ax.set_title(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float = 1.0) -> None:
@@ -881,12 +869,11 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
     spread dropped), left the pressure −λ_n, right (with friction) the tangential traction
     λ_t as arrows coloured by the status (stick / slip), separated nodes grey.  A
     frictionless table (no λ_t columns) gets the pressure panel alone."""
-    plt = _pyplot()
     X = np.c_[table["x"], table["y"], table["z"]]
     keep = [i for i in range(3) if i != int(np.argmin(np.ptp(X, axis=0)))]
     P = X[:, keep]
     friction = "lambda_t_x" in table
-    fig, axes = plt.subplots(
+    fig, axes = new_figure(
         1, 2 if friction else 1, figsize=(12 if friction else 6.5, 5.5), squeeze=False
     )
     axes = axes[0]
@@ -906,7 +893,7 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    release_figure(fig)
 
 
 def _tangential_arrows(ax, P: np.ndarray, table: dict, keep: list[int], t: float) -> None:

@@ -251,15 +251,19 @@ def table_name(step: int) -> str:
 
 def plot_load_curve(path: Path, rows: list[dict[str, Any]], name: str, dofs: int) -> None:
     """force.png: the contact force of each step against the obstacle's approach if the
-    obstacle moves, else the prescribed displacement if there is one, else the pseudo-time
-    (:mod:`contact.post.load_curve`); steps where the energy search met an indefinite
-    tangent, and unstable solutions, marked.  With friction the normal force −Σ w λ_n
-    and the magnitude of the tangential (friction) force, each a curve."""
-    axes = (
+    obstacle moves along one direction, else the prescribed displacement if there is one,
+    else the pseudo-time (:mod:`contact.post.load_curve`; an obstacle whose translation
+    turns — pressed in, then dragged along the body — is drawn against the pseudo-time);
+    steps where the energy search met an indefinite tangent, and unstable solutions,
+    marked.  With friction the normal force −Σ w λ_n and the magnitude of the tangential
+    (friction) force, each a curve."""
+    axes: tuple[tuple[str, str], ...] = (
         ("obstacle_approach", "obstacle's approach (displacement towards the body)"),
         ("prescribed_displacement", "largest prescribed displacement |u_D|"),
         ("time", "pseudo-time t"),
     )
+    if translation_turns(rows):
+        axes = axes[2:]
     key, label = next(
         (k, lb)
         for k, lb in axes
@@ -274,6 +278,18 @@ def plot_load_curve(path: Path, rows: list[dict[str, Any]], name: str, dofs: int
         indefinite=[row.get("indefinite_newton_steps", 0) > 0 for row in rows],
         unstable=[row.get("tangent_negative_eigenvalues", 0) > 0 for row in rows],
     )
+
+
+def translation_turns(rows: list[dict[str, Any]]) -> bool:
+    """Whether the obstacle's translations (``obstacle_translation`` of the rows) point in
+    more than one direction (to 1e-9)."""
+    moves = np.array([row.get("obstacle_translation") or [0.0] for row in rows], dtype=float)
+    lengths = np.linalg.norm(moves, axis=1)
+    moves = moves[lengths > 1e-12 * max(float(np.max(lengths, initial=0.0)), 1e-300)]
+    if len(moves) < 2:
+        return False
+    directions = moves / np.linalg.norm(moves, axis=1)[:, None]
+    return bool(np.any(directions @ directions[0] < 1.0 - 1e-9))
 
 
 def load_forces(rows: list[dict[str, Any]]) -> dict[str, list[float]]:
@@ -300,7 +316,8 @@ def _flat(row: dict[str, Any]) -> dict[str, Any]:
     out = {}
     for key, value in row.items():
         if isinstance(value, list):
-            names = "xyz" if key.endswith("force") else [str(i) for i in range(len(value))]
+            named = key.endswith(("force", "translation"))
+            names = "xyz" if named else [str(i) for i in range(len(value))]
             out.update({f"{key}_{names[i]}": v for i, v in enumerate(value)})
         else:
             out[key] = value

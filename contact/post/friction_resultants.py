@@ -11,9 +11,11 @@ tangential force Σ w_i λ_t,i (vector), the
 contact force on the body Σ w_i (λ_n,i n_i + λ_t,i) (vector; with no body or Neumann load it
 balances the Dirichlet reaction), the Dirichlet reaction per component
 (:func:`contact.post.resultants.reaction_force`: the force the supports exert on the body or
-bodies), |F_t| / |F_n|, and the node counts and measures Σ w_i of the stick, slip and
-separated sets (of the modelled part); in 2D also the number of stick zones (maximal runs of
-stick nodes along Γ_C) and their extent in s.
+bodies), |F_t| / |F_n|, the friction force along the surface m_n Σ w_i |λ_t,i| and its
+ratio to |F_n| (on a curved surface the tangents turn and |F_t| is shorter than it; where
+every pressed node slips under Coulomb's law it is F |F_n|), and the node counts and
+measures Σ w_i of the stick, slip and separated sets (of the modelled part); in 2D also the
+number of stick zones (maximal runs of stick nodes along Γ_C) and their extent in s.
 """
 
 from __future__ import annotations
@@ -39,11 +41,12 @@ def surface_figures(posed: Posed, result: Result, table: Table | None = None) ->
     if fr is None:
         raise ValueError("friction figures of a frictionless result")
     w, lam_n = fr["w"], fr["lambda_n"]
-    normals = (
-        p.data.normals
-        if p.data.normals is not None
-        else np.tile(np.asarray(p.data.n, float), (len(w), 1))
-    )
+    if "normals" in fr:  # on the current configuration: each node's current normal
+        normals = fr["normals"]
+    elif p.data.normals is not None:
+        normals = p.data.normals
+    else:
+        normals = np.tile(np.asarray(p.data.n, float), (len(w), 1))
 
     def total(values) -> np.ndarray:  # Σ over the nodes of every rank, per column
         values = np.asarray(values, dtype=float)
@@ -60,6 +63,11 @@ def surface_figures(posed: Posed, result: Result, table: Table | None = None) ->
     }
     out["friction_ratio"] = float(
         np.linalg.norm(out["tangential_force"]) / max(abs(out["normal_force"]), 1e-300)
+    )
+    magnitude = float(total(w * np.linalg.norm(np.atleast_2d(fr["lambda_t"]), axis=1))[0])
+    out["surface_friction_force"] = p.copies_along() * magnitude
+    out["surface_friction_ratio"] = out["surface_friction_force"] / max(
+        abs(out["normal_force"]), 1e-300
     )
     for code, name in enumerate(STATUS):
         mine = fr["status"] == code

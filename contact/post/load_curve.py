@@ -9,8 +9,11 @@ t = 0, in the reference gap g_t(X) of the obstacle at the step's pseudo-time t,
 
 the same at every X for a plane translated along its normal (indentation of the
 hyperelastic cylinder, the wall pushing the buckling strip), measured at the first point
-of contact otherwise.  The **prescribed displacement** is the largest |u_i| over the
-Dirichlet DoFs of the step's solution (u = u_D there).
+of contact otherwise.  The obstacle's **translation** is the move of its reference point (a
+plane's point, a circle's or sphere's centre) since t = 0, a vector: an obstacle pressed in
+and then dragged along the body (the ironing die) changes direction, and its tangential
+component is the sliding distance.  The **prescribed displacement** is the largest |u_i|
+over the Dirichlet DoFs of the step's solution (u = u_D there).
 """
 
 from __future__ import annotations
@@ -35,13 +38,16 @@ def prescribed_displacement(result) -> float:
     return p.V.mesh.comm.allreduce(local, op=MPI.MAX)
 
 
-def load_displacements(posed: Posed, result) -> dict[str, float]:
+def load_displacements(posed: Posed, result) -> dict[str, float | list[float]]:
     """{'obstacle_approach': a(t) at the first point of contact (module doc; 0 for a scene
     whose contact is not with one rigid obstacle — bodies against each other, a scalar
-    scene's gap or obstacle function), 'prescribed_displacement': max |u_D|} of a step
-    (collective)."""
+    scene's gap or obstacle function), 'obstacle_translation': its translation since t = 0
+    (a vector; only with one rigid obstacle), 'prescribed_displacement': max |u_D|} of a
+    step (collective)."""
     approach = 0.0
-    if posed.approach is not None:  # one rigid obstacle (posed.approach)
+    out: dict[str, float | list[float]] = {}
+    if posed.approach is not None and posed.translation is not None:  # one rigid obstacle
+        out["obstacle_translation"] = posed.translation()
         p = result.problem
         con = p.constraint
         gdim = posed.mesh.geometry.dim
@@ -49,5 +55,6 @@ def load_displacements(posed: Posed, result) -> dict[str, float]:
         approach = posed.approach(first_contact_point(posed.comm, X, con.sign * con.g))
     return {
         "obstacle_approach": approach,
+        **out,
         "prescribed_displacement": prescribed_displacement(result),
     }

@@ -56,6 +56,8 @@ class Posed(Protocol):
         coefficient: Coulomb's friction coefficient F, else None.
         approach: For a load path against one rigid obstacle, its approach a(t) = g_0(X) −
             g_t(X) at a point X since t = 0 (:mod:`contact.post.load_curve`), else None.
+        translation: Then also the obstacle's translation since t = 0 (gdim components),
+            else None.
         conditions: What the problem poses beyond its parts, for the summary (the exterior
             facets in no part, and where a declared exact solution misses a boundary
             condition); collective.
@@ -86,6 +88,8 @@ class Posed(Protocol):
     def coefficient(self) -> float | None: ...  # noqa: D102
     @property
     def approach(self) -> Callable[[np.ndarray], float] | None: ...  # noqa: D102
+    @property
+    def translation(self) -> Callable[[], list[float]] | None: ...  # noqa: D102
     @property
     def conditions(self) -> Callable[[], dict[str, Any]]: ...  # noqa: D102
 

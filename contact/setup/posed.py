@@ -38,6 +38,7 @@ class PosedProblem:
     reference: Any
     coefficient: float | None
     approach: Callable[[np.ndarray], float] | None = field(default=None, repr=False)
+    translation: Callable[[], list[float]] | None = field(default=None, repr=False)
     conditions: Callable[[], dict[str, Any]] = field(default=dict, repr=False)
 
     @property
@@ -87,6 +88,7 @@ def posed_of(scene: Scene) -> PosedProblem:
         reference=cfg.reference,
         coefficient=None if cfg.friction is None else cfg.friction.coefficient,
         approach=functools.partial(obstacle_approach, scene) if one_obstacle else None,
+        translation=functools.partial(obstacle_translation, scene) if one_obstacle else None,
         conditions=functools.partial(posed_problem, scene),
     )
 
@@ -98,3 +100,11 @@ def obstacle_approach(scene: Scene, point: np.ndarray) -> float:
 
     X = np.asarray(point, dtype=float)[None, : scene.mesh.geometry.dim]
     return float(scene_surface(scene, 0.0).project(X)[0][0] - scene_surface(scene).project(X)[0][0])
+
+
+def obstacle_translation(scene: Scene) -> list[float]:
+    """The rigid obstacle's translation since t = 0 (gdim components,
+    :mod:`contact.post.load_curve`)."""
+    from .obstacle import scene_obstacle
+
+    return (scene_obstacle(scene).position - scene_obstacle(scene, 0.0).position).tolist()

@@ -258,7 +258,8 @@ class GuardedFriction(Guarded):
 def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc.Vec) -> dict:
     """Nodal results of a frictional solve (owned contact nodes): λ_n, λ_t (n, m), ρ, the
     slip increment s (n, m), the status, the gap, the weights w, and λ_t, s as vectors in
-    global axes (n, gdim).  ``cp``: :class:`FrictionalComplementarity`, or
+    global axes (n, gdim); on the current configuration also the nodes' current normals
+    (``normals``, n, gdim), along which λ_n acts.  ``cp``: :class:`FrictionalComplementarity`, or
     :class:`contact.solvers.current.CurrentComplementarity` with friction (its tangents
     those of the last evaluation)."""
     fs = problem.friction
@@ -266,7 +267,8 @@ def friction_fields(problem: DiscreteProblem, cp: BlockComplementarity, x: PETSc
     st = cp.evaluate(x)
     status = cp.status(x, st)
     lam_t = -st["mu_t"]
-    return {
+    out = {} if "geo" not in st else {"normals": st["geo"].frames[:, :, 0]}
+    return out | {
         "lambda_n": -st["mu_n"],
         "lambda_t": lam_t,
         "rho": np.asarray(st["rho"], dtype=float),

@@ -4,19 +4,37 @@ Each measurement is a fresh Python process; its CPU seconds (user + system, from
 ``resource.getrusage(RUSAGE_CHILDREN)``) are what a shared, loaded machine leaves steady,
 and its wall seconds are printed beside them.  The tiny run is ``contact run
 configs/signorini_square.yaml --set mesh.cells=[8,8]`` with its default outputs (pictures
-included); ``--old-grid`` runs alternate with the old output grid
-(``contact.output.vtk.PYVISTA_GRID``: pyvista and VTK imported for every file and
-picture), so the ratio is of one machine state.  Also prints ``python -X importtime``'s
-cumulative microseconds of ``import contact``, and the same tiny run without pictures
-(``output.png=false``) and as one ``contact.solve`` without files: what the pictures and
-the files cost.  Writes CSV.
+included).  Beside it, in the same round so that ratios are of one machine state:
 
-    python demos/bench/bench_startup.py --repeat 5 --out demos/results/startup.csv
+* ``--old-plots``: the pictures drawn through matplotlib.pyplot
+  (``contact.output.figures.PYPLOT``, the old path; the new one draws on Figures of their own);
+* ``--old-gc``: the cyclic garbage collector on while the command loads its modules and scene
+  (``contact.app.cli.FREEZE_LOADED`` False, the old path; the new one keeps it off there and
+  then freezes what was loaded);
+* ``--old-grid``: the old output grid (``contact.output.vtk.PYVISTA_GRID``: pyvista and VTK
+  imported for every file and picture);
+* the tiny run without pictures (``output.png=false``), as one ``contact.solve`` without
+  files, and "libraries only": a process that imports, in the order the tiny run loaded
+  them, the modules other than contact's that the tiny run loads, and does nothing else (the
+  floor that no change in contact's own code goes below).
+
+Also prints ``python -X importtime``'s cumulative microseconds of ``import contact``.
+
+The children compile their bytecode once (an untimed first round) into a cache folder of
+their own (``PYTHONPYCACHEPREFIX``; ``PYTHONDONTWRITEBYTECODE`` dropped), as an installed
+package or a repeated run has it: without that cache every run compiles contact's modules
+again, about 0.1 s CPU.  ``--no-bytecode-cache`` keeps the inherited environment.
+Writes CSV.
+
+    python demos/bench/bench_startup.py --repeat 5 --old-plots --old-gc --old-grid \\
+        --out demos/results/startup.csv
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import re
 import resource
 import statistics
@@ -30,10 +48,19 @@ from common import save_csv
 
 ROOT = Path(__file__).resolve().parents[2]
 RUN = (
-    "import sys; import contact.output.vtk as vtk; vtk.PYVISTA_GRID = {old}\n"
+    "import sys; import contact.output.vtk as vtk; vtk.PYVISTA_GRID = {old_grid}\n"
+    "import contact.output.figures as figures; figures.PYPLOT = {old_plots}\n"
+    "import contact.app.cli as cli; cli.FREEZE_LOADED = not {old_gc}\n"
     "from contact.app.cli import main\n"
-    "sys.exit(main(['run', 'configs/signorini_square.yaml', '--set', 'mesh.cells=[8,8]',\n"
-    "               '--set', 'output.verbose=false', *{sets!r}, '-o', {out!r}]))"
+    "code = main(['run', 'configs/signorini_square.yaml', '--set', 'mesh.cells=[8,8]',\n"
+    "             '--set', 'output.verbose=false', *{sets!r}, '-o', {out!r}])\n"
+    "{after}\n"
+    "sys.exit(code)"
+)
+#: what the tiny run's child prints after it: the modules other than contact's it loaded
+LOADED = (
+    "import json; print(json.dumps([m for m in sys.modules"
+    " if m != 'contact' and not m.startswith(('contact.', '__main__'))]))"
 )
 
 #: the scene solved by the API: the imports and the solve, no files
@@ -43,19 +70,41 @@ SOLVE = (
     "assert contact.solve(scene, verbose=False).converged"
 )
 
+#: imports ``modules`` in order (one that cannot be imported on its own is skipped), with
+#: the cyclic collector off as in the CLI's loading
+LIBRARIES = (
+    "import gc, importlib\n"
+    "gc.disable()\n"
+    "for name in {modules!r}:\n"
+    "    try:\n"
+    "        importlib.import_module(name)\n"
+    "    except Exception:\n"
+    "        pass"
+)
 
-def child(code: str, *flags: str) -> tuple[float, float, str]:
-    """(CPU seconds, wall seconds, stderr) of ``python flags -c code``."""
+
+def child(code: str, env: dict, *flags: str) -> tuple[float, float, str, str]:
+    """(CPU seconds, wall seconds, stdout, stderr) of ``python flags -c code``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, *flags, "-c", code], cwd=ROOT, capture_output=True, text=True
+        [sys.executable, *flags, "-c", code], cwd=ROOT, capture_output=True, text=True, env=env
     )
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     assert proc.returncode == 0, proc.stderr[-2000:]
     cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
-    return cpu, wall, proc.stderr
+    return cpu, wall, proc.stdout, proc.stderr
+
+
+def child_env(cache: str | None) -> dict:
+    """The children's environment: bytecode written to and read from ``cache`` (None: the
+    inherited environment)."""
+    env = dict(os.environ)
+    if cache is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = cache
+    return env
 
 
 def main() -> None:
@@ -64,39 +113,76 @@ def main() -> None:
     )
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--old-grid", action="store_true", help="alternate with the old grid")
+    ap.add_argument("--old-plots", action="store_true", help="alternate with pyplot's pictures")
+    ap.add_argument("--old-gc", action="store_true", help="alternate with the collector on")
+    ap.add_argument(
+        "--no-bytecode-cache", action="store_true", help="keep the inherited environment"
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
-    rows = []
-    for k in range(args.repeat):
-        cpu, wall, err = child("import contact", "-X", "importtime")
-        line = next(x for x in err.splitlines() if re.search(r"\|\s+contact$", x))
-        self_us, cumulative_us = int(line.split("|")[0].split()[-1]), int(line.split("|")[1])
-        rows.append(
-            {
-                "case": "import contact",
-                "repeat": k,
-                "cpu": round(cpu, 3),
-                "wall": round(wall, 3),
-                "importtime_self_s": self_us / 1e6,
-                "importtime_cumulative_s": cumulative_us / 1e6,
-            }
-        )
-        cases = [("tiny run", False, [])]
-        if args.old_grid:
-            cases.append(("tiny run, pyvista grid (old)", True, []))
-        cases.append(("tiny run, output.png=false", False, ["--set", "output.png=false"]))
-        cases.append(("solve only (API, no files)", False, ["--set", "output.png=false"]))
-        for case, old, sets in cases:
-            with tempfile.TemporaryDirectory() as tmp:
-                code = RUN.format(old=old, sets=sets, out=f"{tmp}/tiny")
-                if case.startswith("solve only"):
-                    code = SOLVE
-                cpu, wall, _ = child(code)
-            rows.append({"case": case, "repeat": k, "cpu": round(cpu, 3), "wall": round(wall, 3)})
+    # (case, old grid, old plots, old collector, --set items)
+    cases = [("tiny run", False, False, False, [])]
+    if args.old_plots:
+        cases.append(("tiny run, pictures through pyplot (old)", False, True, False, []))
+    if args.old_gc:
+        cases.append(("tiny run, collector on while loading (old)", False, False, True, []))
+    if args.old_grid:
+        cases.append(("tiny run, pyvista grid (old)", True, False, False, []))
+    png = ["--set", "output.png=false"]
+    cases.append(("tiny run, output.png=false", False, False, False, png))
+    cases.append(("solve only (API, no files)", False, False, False, []))
+    with tempfile.TemporaryDirectory() as cache:
+        env = child_env(None if args.no_bytecode_cache else cache)
+        bytecode = "inherited environment" if args.no_bytecode_cache else "cached"
+        rows = []
+        libraries: list[str] = []
+        for k in range(-1, args.repeat):  # round -1: untimed, compiles the bytecode
+            cpu, wall, _, err = child("import contact", env, "-X", "importtime")
+            line = next(x for x in err.splitlines() if re.search(r"\|\s+contact$", x))
+            self_us, cumulative_us = int(line.split("|")[0].split()[-1]), int(line.split("|")[1])
+            rows.append(
+                {
+                    "case": "import contact",
+                    "repeat": k,
+                    "cpu": round(cpu, 3),
+                    "wall": round(wall, 3),
+                    "importtime_self_s": self_us / 1e6,
+                    "importtime_cumulative_s": cumulative_us / 1e6,
+                }
+            )
+            for case, old_grid, old_plots, old_gc, sets in cases:
+                with tempfile.TemporaryDirectory() as tmp:
+                    code = RUN.format(
+                        old_grid=old_grid,
+                        old_plots=old_plots,
+                        old_gc=old_gc,
+                        sets=sets,
+                        out=f"{tmp}/tiny",
+                        after=LOADED if case == "tiny run" else "",
+                    )
+                    if case.startswith("solve only"):
+                        code = SOLVE
+                    cpu, wall, out, _ = child(code, env)
+                if case == "tiny run":
+                    libraries = json.loads(out.splitlines()[-1])
+                rows.append(
+                    {"case": case, "repeat": k, "cpu": round(cpu, 3), "wall": round(wall, 3)}
+                )
+            cpu, wall, _, _ = child(LIBRARIES.format(modules=libraries), env)
+            rows.append(
+                {
+                    "case": "libraries only",
+                    "repeat": k,
+                    "cpu": round(cpu, 3),
+                    "wall": round(wall, 3),
+                }
+            )
+    rows = [dict(r, bytecode=bytecode) for r in rows if r["repeat"] >= 0]
+    print(f"bytecode: {bytecode}; {len(libraries)} modules other than contact's in a tiny run")
     for case in dict.fromkeys(r["case"] for r in rows):
         mine = [r for r in rows if r["case"] == case]
         text = (
-            f"{case:32s} median CPU {statistics.median(r['cpu'] for r in mine):.3f} s, "
+            f"{case:40s} median CPU {statistics.median(r['cpu'] for r in mine):.3f} s, "
             f"wall {statistics.median(r['wall'] for r in mine):.3f} s"
         )
         if "importtime_cumulative_s" in mine[0]:
@@ -106,10 +192,18 @@ def main() -> None:
                 f"{statistics.median(r['importtime_self_s'] for r in mine):.4f} s)"
             )
         print(text, flush=True)
-    if args.old_grid:
-        new = statistics.median(r["cpu"] for r in rows if r["case"] == "tiny run")
-        old = statistics.median(r["cpu"] for r in rows if "old" in r["case"])
-        print(f"tiny run CPU, new/old grid: {new / old:.2f}")
+
+    def median_cpu(case: str) -> float:
+        return statistics.median(r["cpu"] for r in rows if r["case"] == case)
+
+    for flag, case in (
+        (args.old_plots, "pyplot"),
+        (args.old_gc, "collector"),
+        (args.old_grid, "pyvista grid"),
+    ):
+        if flag:
+            old = next(c for c, *_ in cases if case in c)
+            print(f"tiny run CPU, new/old ({case}): {median_cpu('tiny run') / median_cpu(old):.2f}")
     if args.out:
         save_csv(args.out, rows)
 

@@ -1,0 +1,53 @@
+"""matplotlib figures of their own for the pictures (:mod:`.plots`) and charts (:mod:`.charts`).
+
+A picture is drawn on a :class:`matplotlib.figure.Figure` with an Agg canvas and written
+with ``savefig``: nothing goes through :mod:`matplotlib.pyplot`, so drawing neither imports
+pyplot and its backend machinery nor touches the process's state (pyplot's registry of open
+figures, and the backend a user chose, e.g. in a notebook, which ``matplotlib.use("Agg")``
+would replace).  The pixels are those pyplot draws: the figure takes the same rcParams.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: draw through matplotlib.pyplot (the old path, kept to measure the difference): switches
+#: the process's backend to Agg and registers every figure with pyplot until it is closed
+PYPLOT = False
+
+
+def new_figure(*grid: int, figsize: tuple[float, float], **kw: Any) -> tuple[Any, Any]:
+    """A figure and its axes, as ``matplotlib.pyplot.subplots(*grid, figsize=figsize, **kw)``.
+
+    Args:
+        grid: rows and columns of axes (none: one axes).
+        figsize: width and height in inches.
+        kw: the keywords of :meth:`matplotlib.figure.Figure.subplots` (``sharex``,
+            ``squeeze``, ...).
+
+    Returns:
+        (figure, axes): the axes as ``subplots`` returns them (one, or an array)."""
+    if PYPLOT:
+        return _pyplot().subplots(*grid, figsize=figsize, **kw)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(*grid, **kw)
+
+
+def release_figure(fig: Any) -> None:
+    """Let go of a figure of :func:`new_figure` once it is saved (pyplot's registry holds
+    it on the old path; a figure of its own is freed with its last reference)."""
+    if PYPLOT:
+        _pyplot().close(fig)
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
