@@ -92,8 +92,8 @@ tables = []  # (t, contact table) of every step, for the picture below
 
 
 def show(step):
-    tables.append((step.time, contact_table(step.scene, step.result)))
-    fig = surface_figures(step.scene, step.result)
+    tables.append((step.time, contact_table(step.posed, step.result)))
+    fig = surface_figures(step.posed, step.result)
     say(
         f"{step.index:5d} {step.time:5.2f} {step.result.iterations:7d} {fig['stick_nodes']:7d} "
         f"{fig['slip_nodes']:6d} {fig['friction_ratio']:11.6f}"
@@ -102,7 +102,7 @@ def show(step):
 
 say(" step     t  Newton   stick   slip   F_t / F_n")
 path = contact.run_load_path(scene, on_step=show)
-fig = surface_figures(path.steps[-1].scene, path.steps[-1].result)
+fig = surface_figures(path.steps[-1].posed, path.steps[-1].result)
 say(
     f"at t = 1 every node slides: |F_t| / |F_n| = {fig['friction_ratio']:.10f} (F = 0.3); "
     f"the support's reaction balances the contact force to "

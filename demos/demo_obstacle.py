@@ -29,6 +29,7 @@ import time
 
 import contact
 from contact.post.contact_table import contact_table
+from contact.setup.posed import posed_of
 from contact.solvers import ncp, newton_text
 
 import numpy as np
@@ -139,7 +140,7 @@ say(f"steps the cycle guard shortened: {results['min'].backtracked} (0: every st
 # but needs more steps; the blend lies in between) and the contact set on the mesh (right).
 # The table printed above says the same in numbers.
 
-table = contact_table(scene, results["min"])  # the contact set, gathered on rank 0
+table = contact_table(posed_of(scene), results["min"])  # the contact set, gathered on rank 0
 if comm.rank == 0:
     import matplotlib
 

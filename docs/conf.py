@@ -58,6 +58,8 @@ nitpick_ignore_regex = [
 nitpick_ignore = [
     ("py:class", "contact.setup.scene_config.SceneConfig"),
     ("py:class", "contact.setup.meshes.Boundary"),
+    ("py:class", "contact.setup.posed.PosedProblem"),
+    ("py:class", "PosedProblem"),
     ("py:class", "contact.solvers.problem.DiscreteProblem"),
     ("py:class", "DiscreteProblem"),
     ("py:class", "contact.solvers.stopping.AdaptiveStopping"),

@@ -16,6 +16,7 @@ from contact.models.mortar import master_pressure
 from contact.output.folder import gather_nodal
 from contact.post.interface import resultants
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 from dolfinx import fem
@@ -51,7 +52,7 @@ def main(argv):
     data = {}
     for method in methods:
         r = contact.solve(scene, method=method, problem=problem, verbose=False, max_it=100)
-        res = resultants(scene, r)
+        res = resultants(posed_of(scene), r)
         margin = tie_margin(r)
         lam_m = master_pressure(r)
         S = lam_m.function_space

@@ -23,7 +23,7 @@ def main(argv):
     comm = MPI.COMM_WORLD
     rows = []
     for step in run.steps:
-        v = compare(step.scene, step.result).values
+        v = compare(step.posed, step.result).values
         rows.append(
             [
                 step.result.converged,

@@ -25,7 +25,7 @@ def main(argv):
     run = run_load_path(scene)
     last = run.steps[-1]
     X, u = gather_nodal(last.result.u_h)
-    table = contact_table(last.scene, last.result)
+    table = contact_table(last.posed, last.result)
     if MPI.COMM_WORLD.rank == 0:
         # rank-independent
         order = np.lexsort([np.round(table[c], 12) for c in "zyx" if c in table])

@@ -15,6 +15,7 @@ import sys
 import contact
 from contact.post.interface import resultants
 from contact.post.reference import compare
+from contact.setup.posed import posed_of
 from contact.setup.run import run_load_path
 from contact.solvers.baselines import penetration
 
@@ -62,7 +63,7 @@ def test_two_bodies_converge_with_defaults_and_agree_with_fb(fb_runs, name, meth
     # λ_h the method's own nodal multiplier, ≤ 0 on every slave node
     assert float(np.max(r.problem.multiplier(r.contact_residual), initial=0.0)) <= 0.0
     # action = reaction: the forces on the two bodies through the interface balance
-    assert resultants(scene, r)["interface_balance_error"] < 1e-10
+    assert resultants(posed_of(scene), r)["interface_balance_error"] < 1e-10
 
 
 def _bodies_run(tmp_path, nproc: int, name: str) -> dict:
@@ -116,7 +117,7 @@ def test_cattaneo_mindlin_with_coulomb(cattaneo_min, method) -> None:
     runs = {"min": cattaneo_min, method: cattaneo(method)}
     steps = runs[method].steps
     assert all(s.result.converged for s in steps)
-    values = [compare(s.scene, s.result).values for s in steps]
+    values = [compare(s.posed, s.result).values for s in steps]
     assert abs(values[0]["Q_over_FP"]) < 1e-3
     assert np.allclose([v["Q_over_FP"] for v in values[1:]], [0.25, 0.5, 0.75], atol=0.005)
     assert all(abs(v["c_error"]) < 0.03 for v in values[1:])

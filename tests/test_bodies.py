@@ -14,6 +14,7 @@ from contact.models.mortar import master_pressure
 from contact.post.interface import resultants
 from contact.post.reference import compare
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 import pytest
@@ -65,7 +66,7 @@ def test_patch_2d_pressure_is_exact_at_every_slave_node(patch_2d, method):
     lam_m = master_pressure(r).x.array
     master = np.abs(lam_m) > 0
     assert master.sum() == 11 and np.max(np.abs(lam_m[master] + P)) <= 1e-8 * P
-    res = resultants(scene, r)
+    res = resultants(posed_of(scene), r)
     assert res["interface_balance_error"] < 1e-10
     assert res["contact_force"] == pytest.approx(2 * P, rel=1e-10)  # p × width, mirrored at x = 0
 
@@ -160,7 +161,7 @@ def test_slave_and_master_swapped_agree_within_discretization_error():
     for scene in (base, swapped):
         r = contact.solve(scene, method="min", verbose=False)
         assert r.converged
-        figures.append({**resultants(scene, r), **compare(scene, r).values})
+        figures.append({**resultants(posed_of(scene), r), **compare(posed_of(scene), r).values})
     a, b = figures
     assert abs(b["contact_force"] / a["contact_force"] - 1) < 0.01
     assert abs(b["peak_pressure"] / a["peak_pressure"] - 1) < 0.03
@@ -180,7 +181,7 @@ def test_adaptive_two_bodies_refines_both_and_recouples():
         counts.append(
             [MPI.COMM_WORLD.allreduce(int(np.sum(tags.values[:n_owned] == k))) for k in (1, 2)]
         )
-        res = resultants(lv.scene, lv.result)
+        res = resultants(lv.posed, lv.result)
         assert res["interface_balance_error"] < 1e-10 and res["mortar_coverage"] > 0.999
         # every vertex of the refined arcs lies on its circle (R = 8 about (0, ±8))
         X = lv.scene.mesh.geometry.x[:, :2]
@@ -317,7 +318,7 @@ def test_pair_and_rigid_obstacle_in_one_scene():
     scene = contact.load_scene(STACK, ["output.verbose=false"])
     problem = build_problem(scene)
     ref = contact.solve(scene, method="vinewtonrsls", problem=problem, verbose=False)
-    res = resultants(scene, ref)
+    res = resultants(posed_of(scene), ref)
     F_pair, F_floor, F_top = (
         res["interface_force_slave"][1],
         res["obstacle_force"][1],
@@ -432,7 +433,7 @@ def test_gmsh_file_with_one_physical_surface_per_body(tmp_path):
     assert r.converged and r.n_active == len(lam) > 20  # every slave node pressed by ≈ p: no tie
     # the bottom is clamped (not a roller): the stress is not uniform near the corners, but the
     # total force is p × width and it crosses the interface unchanged
-    res = resultants(scene, r)
+    res = resultants(posed_of(scene), r)
     assert res["interface_force_slave"][1] == pytest.approx(P, rel=1e-10)
     assert res["interface_balance_error"] < 1e-10
 
@@ -549,8 +550,8 @@ def test_reaction_force_of_two_bodies_with_friction_is_the_supports():
     path = contact.run_load_path(scene)
     last = path.steps[-1]
     assert path.converged
-    figures = surface_figures(last.scene, last.result)
-    clamp = interface_resultants(last.scene, last.result)["reactions"]["clamp"]
+    figures = surface_figures(last.posed, last.result)
+    clamp = interface_resultants(last.posed, last.result)["reactions"]["clamp"]
     assert figures["reaction_force"] == pytest.approx(clamp, rel=1e-10)
     F_x = figures["contact_force"][0]
     assert abs(F_x) > 0.5 and figures["reaction_force"][0] == pytest.approx(F_x, rel=1e-8)

@@ -24,7 +24,7 @@ from contact import (
     Tresca,
     Unilateral,
 )
-from contact.models.elasticity import lame
+from contact.models.physics import lame
 
 import numpy as np
 import pytest

@@ -18,6 +18,7 @@ from contact.models.hyperelastic import linearized_problem
 from contact.output.run_report import active_measure
 from contact.post.resultants import contact_resultants, reaction_force
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 from contact.solvers import owned_residual
 from contact.solvers.current import CurrentComplementarity, nodal_geometry
 
@@ -303,7 +304,9 @@ def test_small_indentation_is_the_linear_hertz_scene():
         scene = contact.load_scene(ROOT / "configs" / "indentation_2d.yaml", sets + model)
         r = contact.solve(scene, method="fb")
         assert r.converged
-        figures.append((active_measure(r), contact_resultants(scene, r)["peak_pressure"], r))
+        figures.append(
+            (active_measure(r), contact_resultants(posed_of(scene), r)["peak_pressure"], r)
+        )
     (a, p0, lin), (a_h, p0_h, hyp) = figures
     assert hyp.n_active == lin.n_active >= 4
     assert abs(a_h / a - 1) < 5e-3 and abs(p0_h / p0 - 1) < 5e-3
@@ -440,7 +443,7 @@ def test_the_pressure_per_deformed_area_is_the_cauchy_traction(dim):
     l1, P22 = uniaxial_stretch("neo_hookean", E, NU, 0.7, dim)
     current = current_pressure(r)
     assert len(current) and np.max(np.abs(current / (-P22 / l1 ** (dim - 1)) - 1)) < 1e-8
-    cols = contact_columns(scene, r)
+    cols = contact_columns(posed_of(scene), r)
     assert np.array_equal(cols["pressure_current"], current)
     assert np.max(np.abs(cols["lambda_n"] / P22 - 1)) < 1e-8  # nominal: λ = P₂₂ < 0
 
@@ -471,7 +474,7 @@ def test_cli_sphere_indentation_writes_both_pressures(tmp_path):
     assert "pressure_current" in (tmp_path / "out" / "solution_002.xdmf").read_text()
     loaded = contact.load_scene(scene, sets)
     r = contact.run_load_path(loaded).steps[-1].result
-    res = contact_resultants(loaded, r)
+    res = contact_resultants(posed_of(loaded), r)
     assert res["force_balance_error"] < 1e-8 and r.contact_force == pytest.approx(forces[-1])
 
 

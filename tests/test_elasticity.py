@@ -13,6 +13,7 @@ from contact.post.hertz import hertz
 from contact.post.reference import compare
 from contact.post.resultants import contact_resultants
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 import pytest
@@ -51,11 +52,11 @@ def test_methods_agree_with_vinewtonrsls(scene, reference, method):
 
 def test_force_balance_and_hertz_sanity(scene):
     r = contact.solve(scene, method="min")
-    res = contact_resultants(scene, r)
+    res = contact_resultants(posed_of(scene), r)
     assert res["force_balance_error"] < 1e-8
     assert res["contact_force"] == r.contact_force > 0 and res["symmetric_copies"] == 2
     # Hertz relations hold for the values reported, and a coarse mesh is already close
-    res.update(compare(scene, r).values)
+    res.update(compare(posed_of(scene), r).values)
     a_H, p0_H = hertz(1.0, 1.0, 0.3, res["contact_force"], 2)
     assert np.isclose(a_H, res["hertz_a"]) and np.isclose(p0_H, res["hertz_p0"])
     assert abs(res["a_error"]) < 0.15 and abs(res["p0_error"]) < 0.15
@@ -147,7 +148,7 @@ def test_circular_obstacle_agrees_with_vinewtonrsls(indentation, method):
 def test_circular_obstacle_is_respected_and_balanced(indentation):
     scene, problem, _, _ = indentation
     r = contact.solve(scene, method="min", problem=problem)
-    res = {**contact_resultants(scene, r), **compare(scene, r).values}
+    res = {**contact_resultants(posed_of(scene), r), **compare(posed_of(scene), r).values}
     assert res["min_gap"] >= -1e-10, "no node penetrates the circle"
     assert res["force_balance_error"] < 1e-8
     assert abs(res["a_error"]) < 0.05 and abs(res["p0_error"]) < 0.05
@@ -181,7 +182,7 @@ def test_spherical_obstacle_3d_agrees_with_vinewtonrsls():
         r = contact.solve(scene, method=method, problem=problem)
         assert r.converged and r.n_active > 0
         assert np.max(np.abs(r.u_h.x.array - ref)) <= 1e-8
-        res = contact_resultants(scene, r)
+        res = contact_resultants(posed_of(scene), r)
         assert res["force_balance_error"] < 1e-8 and res["min_gap"] >= -1e-10
 
 

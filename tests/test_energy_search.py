@@ -205,7 +205,7 @@ def svk_moduli(stretch: float) -> np.ndarray:
     """The incremental moduli A_iJkL = ∂P_iJ/∂F_kL of St Venant–Kirchhoff (E, NU) in the
     homogeneous plane-strain compression of the block to ``stretch`` with free sides
     (F = diag(λ₁, stretch), λ₁ the root of P₁₁ = 0): A = δ_ik S_JL + F_iM C_MJNL F_kN."""
-    from contact.models.elasticity import lame
+    from contact.models.physics import lame
 
     mu, lm = lame(1.0, 0.3)
     l1, _ = uniaxial_stretch("saint_venant_kirchhoff", 1.0, 0.3, stretch, 2)

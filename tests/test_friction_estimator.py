@@ -9,9 +9,11 @@ from pathlib import Path
 import contact
 from contact.adaptivity.energy_error import solution_error
 from contact.base import expressions
-from contact.models.elasticity import lame, stress
+from contact.models.elasticity import stress
+from contact.models.physics import lame
 from contact.post.contact_table import contact_table, tangent_2d
 from contact.post.traction_curves import exact_tractions
+from contact.setup.posed import posed_of
 
 import numpy as np
 import pytest
@@ -66,7 +68,7 @@ def test_manufactured_data_are_those_of_the_exact_solution():
 
 
 def _status_exact(scene, result, distance):
-    table = contact_table(scene, result)
+    table = contact_table(posed_of(scene), result)
     if scene.comm.rank != 0:
         return True
     x, status = table["x"], table["status"]
@@ -91,9 +93,11 @@ def test_uniform_refinement_is_order_h_with_exact_stick_slip_zones():
     assert np.all(rates > 0.48), rates  # O(h) = O(N^{-1/2})
     assert errors[-1] < 0.017
     # the nodal multipliers against the exact tractions (the reference curves of traction.png)
-    table = contact_table(scene, r)
+    table = contact_table(posed_of(scene), r)
     if scene.comm.rank == 0:
-        (_, s, p_exact, _), (_, _, t_exact, _) = exact_tractions(scene, table, tangent_2d(r))
+        (_, s, p_exact, _), (_, _, t_exact, _) = exact_tractions(
+            posed_of(scene), table, tangent_2d(r)
+        )
         # the arc length along y = 0
         assert np.allclose(s, table["x"]) and s[0] == pytest.approx(0.0)
         assert np.max(np.abs(p_exact + table["lambda_n"])) < 0.02 * np.max(p_exact)

@@ -62,7 +62,7 @@ def _first_within(method: str, **options) -> tuple[int, float, float]:
     found: list[tuple[int, float, float]] = []
 
     def on_level(lv) -> None:
-        c = compare(lv.scene, lv.result, lv.scene.config.reference)
+        c = compare(lv.posed, lv.result, lv.scene.config.reference)
         found.append((lv.row()["dofs"], c.errors["a_error"], c.errors["p0_error"]))
 
     contact.adapt(scene, strategy=method, on_level=on_level, max_levels=8, **options)

@@ -92,7 +92,7 @@ def test_adaptive_load_path_refines_on_and_balances_forces():
         assert all(d1 > d0 for d0, d1 in zip(dofs, dofs[1:]))
         assert all(e1 < e0 for e0, e1 in zip(etas, etas[1:]))
         for lv in step.levels:
-            res = contact_resultants(lv.scene, lv.result)
+            res = contact_resultants(lv.posed, lv.result)
             assert res["force_balance_error"] <= 1e-8, res
     # the reference: the start mesh refined uniformly 3 times (within 0.05 % of the limit:
     # demos/RESULTS.md §11.6), without adapt

@@ -11,6 +11,7 @@ that sum to the area and a P2 hyperelastic dome and a linear elastic one converg
 from __future__ import annotations
 
 import contact
+from contact.setup.posed import posed_of
 from contact.solvers.krylov_curvature import lanczos_negative
 
 import numpy as np
@@ -174,5 +175,5 @@ def test_p2_contact_on_3d_meshes():
     assert result.converged and result.n_active > 0
     from contact.post.resultants import contact_resultants
 
-    res = contact_resultants(scene, result)
+    res = contact_resultants(posed_of(scene), result)
     assert abs(res["force_balance_error"]) <= 1e-9, res

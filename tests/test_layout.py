@@ -3,7 +3,8 @@ pyproject.toml hold — the layers app > output > post > hp > setup > drivers > 
 > solvers > base (a package imports only the packages below it), no two modules or packages
 importing each other, a core (drivers, adaptivity, models, solvers, base) that never imports
 a scene, a report or the application, writers (output) that import no scene, hp loop or
-application module (they take results and a Report), solvers that never import a model or a
+application module (they take results and a Report), figures (post) that import none of
+them either (they take a Posed record and a result), solvers that never import a model or a
 driver, a scalar model that never imports elasticity. Function-level ("lazy") imports count;
 imports used only for annotations (``if TYPE_CHECKING:``) do not. That a scalar *run* loads
 no elasticity module is test_elasticity.py::test_a_run_imports_only_its_own_model."""
@@ -54,14 +55,16 @@ LAYERS, ACYCLIC = "app > output > post", "no two modules"
 SOLVERS, SCALAR = "the solvers take a problem", "a scalar model imports no elasticity"
 CORE = "the core takes problems and meshes, never a scene"
 OUTPUT = "the writers take results and a report"
+POST = "the figures take a posed record and a result"
 
 # (module, code appended to it, the contracts it breaks: an import up the layers closes a
 # loop too, since the lower package already imports the higher one's dependencies)
 PLANTED = {
+    # the figures use the solvers and models, so a scene read there reaches post too
     "a solver reads a scene (lazy import)": (
         "solvers/ncp.py",
         "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
-        [LAYERS, ACYCLIC, CORE],
+        [LAYERS, ACYCLIC, CORE, POST],
     ),
     "a solver calls a driver": (
         "solvers/result.py",
@@ -77,7 +80,7 @@ PLANTED = {
         "models/physics.py",
         "def _planted():\n    from ..setup.scene_config import SceneConfig\n"
         "    return SceneConfig\n",
-        [LAYERS, ACYCLIC, CORE],
+        [LAYERS, ACYCLIC, CORE, POST],
     ),
     "a writer reads a scene (lazy import)": (
         "output/fields.py",
@@ -89,6 +92,11 @@ PLANTED = {
         "def _planted():\n    from ..app.dispatch import report_of\n    return report_of\n",
         [LAYERS, ACYCLIC, OUTPUT],
     ),
+    "a figure reads a scene (lazy import)": (
+        "post/hertz.py",
+        "def _planted():\n    from ..setup.scene import Scene\n    return Scene\n",
+        [POST],
+    ),
     "two models import each other": (
         "models/basis.py",
         "def _planted():\n    from . import mortar\n    return mortar\n",
@@ -96,7 +104,7 @@ PLANTED = {
     ),
     "a scalar model imports elasticity through another module": (
         "models/problem.py",
-        "def _planted():\n    from .elasticity import lame\n    return lame\n",
+        "def _planted():\n    from .elasticity import von_mises\n    return von_mises\n",
         [SCALAR],
     ),
 }

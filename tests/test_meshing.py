@@ -19,6 +19,7 @@ from contact.post.hertz import patch_average
 from contact.post.reference import compare
 from contact.setup import geometry
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 import pytest
@@ -73,7 +74,7 @@ def test_hxt_mesh_keeps_hertz_accuracy():
     scene = contact.load_scene(SPHERE, overrides)
     result = contact.solve(scene, method="fb", verbose=False)
     assert result.converged
-    values = compare(scene, result).values
+    values = compare(posed_of(scene), result).values
     assert abs(values["a_error"]) < 0.02 and abs(values["p0_error"]) < 0.02, values
 
 
@@ -87,7 +88,7 @@ def test_patch_average_removes_the_scatter_of_refined_tetrahedra():
         scene,
         method="fb",
         verbose=False,
-        on_level=lambda level: values.append(compare(level.scene, level.result).values),
+        on_level=lambda level: values.append(compare(level.posed, level.result).values),
     )
     last = values[-1]
     assert len(values) == 3 and last["p0_nodal_error"] > 0.04, last
@@ -103,7 +104,7 @@ def test_patch_average_of_a_constant_is_the_constant():
         slave = problem.constraint.dofs[: problem.data.pair_nodes]
         nodes = slave // problem.V.dofmap.index_map_bs
         assert len(nodes) > 100
-        averaged = patch_average(scene, problem.V, nodes, np.full(len(nodes), 2.5))
+        averaged = patch_average(posed_of(scene), problem.V, nodes, np.full(len(nodes), 2.5))
         assert np.allclose(averaged, 2.5, rtol=1e-14)
     finally:
         problem.destroy()
@@ -116,13 +117,14 @@ import contact
 from mpi4py import MPI
 from contact.setup import geometry
 from contact.post.reference import compare
+from contact.setup.posed import posed_of
 msh, _, _ = geometry.sphere_on_block(MPI.COMM_WORLD, **json.loads(sys.argv[1]))
 nodes = np.unique(geometry.vertex_nodes(msh)[: msh.topology.index_map(3).size_local])
 X = msh.geometry.x[nodes[nodes < msh.geometry.index_map().size_local]]
 X = np.vstack(msh.comm.gather(X, root=0) or [np.zeros((0, 3))])
 scene = contact.load_scene(sys.argv[2],
                            ["output.verbose=false", "adapt=null", "mesh.h_contact=0.01"])
-values = compare(scene, contact.solve(scene, method="fb", verbose=False)).values
+values = compare(posed_of(scene), contact.solve(scene, method="fb", verbose=False)).values
 if msh.comm.rank == 0:
     np.save(sys.argv[3], X)
     print(json.dumps({"ranks": msh.comm.size, "cells": msh.topology.index_map(3).size_global,

@@ -10,6 +10,7 @@ from pathlib import Path
 import contact
 from contact.output import plots
 from contact.post.contact_table import contact_columns
+from contact.setup.posed import posed_of
 
 import numpy as np
 import pytest
@@ -128,7 +129,7 @@ def test_exact_flux_of_a_declared_solution_is_in_the_table_and_the_picture(figur
         ROOT / "configs" / "signorini_free_boundary.yaml", ["adapt=none", "mesh.cells=[64,32]"]
     )
     result = contact.solve(scene, verbose=False)
-    cols = contact_columns(scene, result)
+    cols = contact_columns(posed_of(scene), result)
     exact = -1.5 * np.sqrt(np.abs(np.minimum(cols["x"], 0.0)))
     inner = np.abs(cols["x"]) > 0.1  # away from the free boundary's root singularity
     assert np.max(np.abs(cols["lambda_exact"] - exact)[inner]) < 2e-3

@@ -9,7 +9,7 @@ import warnings
 from pathlib import Path
 
 import contact
-from contact.post.exact_data import exact_mismatches
+from contact.setup.exact_data import exact_mismatches
 from contact.setup.meshes import NATURAL
 from contact.setup.untagged import untagged_boundary
 
@@ -247,7 +247,7 @@ def test_no_exact_solution_no_check():
 MISMATCH = """
 import json, sys
 import contact
-from contact.post.exact_data import exact_mismatches
+from contact.setup.exact_data import exact_mismatches
 scene = contact.load_scene(sys.argv[1], sys.argv[2:])
 found = exact_mismatches(scene)
 if scene.comm.rank == 0:

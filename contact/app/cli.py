@@ -228,6 +228,7 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         from ..output import folder, hdf5
         from ..output.run_report import files_text, write_run
         from ..setup.config import load_config
+        from ..setup.posed import posed_of
         from ..setup.scene import build_scene
         from ..solvers.result import newton_text, not_converged_text
         from .dispatch import choose_driver, report_of
@@ -266,7 +267,9 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
             comm, f"contact: error: solver {method} {not_converged_text(result)}; nothing written"
         )
         return failures.NOT_CONVERGED
-    info = write_run(outdir, report, scene, result, wall=time.perf_counter() - t0, label=label)
+    info = write_run(
+        outdir, report, posed_of(scene), result, wall=time.perf_counter() - t0, label=label
+    )
     _say(comm, f"contact: wrote {outdir}/ ({files_text(info['files'])})")
     return failures.SOLVED
 
@@ -275,7 +278,7 @@ def _report_posed(scene, comm: MPI.Comm) -> None:
     """One line on the exterior facets in no boundary part (the natural condition they
     carry is then a visible choice), and a warning line per boundary part on which a
     declared exact solution misses the scene's condition (collective)."""
-    from ..post.exact_data import warn_exact_mismatches
+    from ..setup.exact_data import warn_exact_mismatches
     from ..setup.untagged import mark_reported, untagged_boundary
 
     untagged = untagged_boundary(scene.mesh, scene.boundary)

@@ -592,8 +592,9 @@ def _figures(study: Study, scene, result, eta: float | None, error: float | None
     out.update({k: "" for k in study.reference_columns})
     if scene.config.reference is not None:
         from ..post.reference import compare, error_values
+        from ..setup.posed import posed_of
 
-        comparison = compare(scene, result)
+        comparison = compare(posed_of(scene), result)
         assert comparison is not None  # the scene declares a reference
         out.update(error_values(scene.config.reference, comparison))
     out["eta"] = "" if eta is None else eta
@@ -840,7 +841,7 @@ def _run_path(
         study, last.scene, last.result, est.eta, solution_error(last.result.problem, last.result)
     )
     if last.result.friction is not None:
-        surface = surface_figures(last.scene, last.result)
+        surface = surface_figures(last.posed, last.result)
         figures.update({k: surface[k] for k in ("friction_ratio", "stick_measure", "slip_measure")})
         if "fixed_point_iterations" in last.result.friction:
             figures["fixed_point_iterations"] = last.result.friction["fixed_point_iterations"]

@@ -30,8 +30,8 @@ from petsc4py import PETSc
 from ..base.errors import ConfigError
 from ..models.constraints import Plane
 from ..models.discrete import Problem
-from ..models.elasticity import lame, rigid_body_modes
-from ..models.physics import epsilon, stress
+from ..models.elasticity import rigid_body_modes
+from ..models.physics import epsilon, lame, stress
 from ..models.problem import coordinate_scale, lumped_weights
 from ..setup.checks import check_scene_data
 from ..setup.data import vector_numpy

@@ -12,11 +12,6 @@ from petsc4py import PETSc
 from .physics import epsilon, stress
 
 
-def lame(E: float, nu: float) -> tuple[float, float]:
-    """Lamé parameters (μ, λ_L) of Young's modulus E and Poisson's ratio ν."""
-    return E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
-
-
 def rigid_body_modes(
     V: fem.FunctionSpace, rotation: PETSc.Mat | None = None, inverse: PETSc.Mat | None = None
 ) -> PETSc.NullSpace:

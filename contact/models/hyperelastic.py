@@ -64,9 +64,8 @@ from ..solvers.current import nodal_geometry
 from ..solvers.krylov_curvature import lanczos_negative
 from ..solvers.linear import mumps_ksp
 from ..solvers.problem import Constraint, NodeBlockMatrix, Output
-from .elasticity import lame
 from .forms import CurrentResidualProblem, RotatedResidualProblem
-from .physics import deformation_gradient, strain_energy
+from .physics import deformation_gradient, lame, strain_energy
 
 
 def deformed_area(u, v, measure) -> ufl.Form:

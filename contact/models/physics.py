@@ -38,6 +38,11 @@ def epsilon(u: Any) -> Any:
     return ufl.sym(ufl.grad(u))
 
 
+def lame(E: float, nu: float) -> tuple[float, float]:
+    """Lamé parameters (μ, λ_L) of Young's modulus E and Poisson's ratio ν."""
+    return E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+
 def stress(u: Any, mu: Coefficient, lmbda_L: Coefficient) -> Any:
     """σ(u) = 2μ ε(u) + λ_L tr ε(u) I (plane strain when 2D)."""
     eps = epsilon(u)

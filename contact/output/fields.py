@@ -29,7 +29,7 @@ from .vtk import Series, write_vtu
 from .xdmf import XdmfSeries, write_xdmf
 
 if TYPE_CHECKING:
-    from ..setup.meshes import Boundary
+    from ..post.posed import Parts as Boundary
 
 FORMATS = ("xdmf", "vtk")
 

@@ -31,13 +31,11 @@ from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, view_normal
-from ..post.exact_data import posed_problem
 from ..post.interface import resultants
+from ..post.posed import Posed
 from ..post.reference import compare
 from ..post.resultants import current_pressure
 from ..solvers import Result
-from ..solvers.baselines import baseline_figures
-from ..solvers.options import BASELINE_METHODS
 from . import folder, plots
 from .degree import output_fields
 from .fields import FieldFiles
@@ -45,7 +43,6 @@ from .report import Report
 
 if TYPE_CHECKING:
     from ..setup.run import SceneLevel as Level
-    from ..setup.scene import Scene
 
 
 def active_measure(result: Result) -> float:
@@ -110,7 +107,7 @@ def summary(
     """The run's figures: sizes, solver outcome, the contact set (``active_nodes``, and
     ``active_measure`` from :func:`active_measure`: m² for obstacle scenes, m for 2D
     Signorini / elasticity), the contact force, timings (seconds), errors if known, the
-    untagged boundary and the exact solution's mismatches ``posed`` (:func:`posed_problem`),
+    untagged boundary and the exact solution's mismatches ``posed`` (``Posed.conditions``),
     the contact resultants ``res`` of an elasticity run and the values of a declared
     reference."""
     con = result.problem.constraint
@@ -153,8 +150,7 @@ def summary(
     }
     if result.sequence_note:
         out["sequence_note"] = result.sequence_note
-    if result.method in BASELINE_METHODS:
-        out.update(baseline_figures(result))
+    out.update(result.figures)  # a baseline method's own
     out.update(posed or {})
     if res is not None:
         out.update(res)
@@ -241,31 +237,31 @@ def pressure_picture(
 def write_run(
     outdir: str | Path,
     report: Report,
-    scene: Scene,
+    posed: Posed,
     result: Result,
     wall: float | None = None,
     label: str | None = None,
 ) -> dict:
     """Write the complete output folder of ``report`` atomically (``label``: the option that
-    chose it, for messages; ``scene``: what was solved, for its figures); return the summary
+    chose it, for messages; ``posed``: what was solved, for its figures); return the summary
     (with ``files`` and, with pictures, ``pictures``).  The data files are written first,
     the pictures after them, summary.json last."""
     comm = _comm(result)
-    res = resultants(scene, result)
-    comparison = compare(scene, result)
-    info = summary(report, result, wall, res, comparison, posed=posed_problem(scene))
+    res = resultants(posed, result)
+    comparison = compare(posed, result)
+    info = summary(report, result, wall, res, comparison, posed=posed.conditions())
     warn_coarse_zone(result)
     with folder.atomic_folder(outdir, comm, label) as tmp:
         files = FieldFiles(tmp, "solution", report.formats, comm, report.elastic)
-        files.write_one(point_fields(result), cell_fields(result, report.elastic), scene.boundary)
+        files.write_one(point_fields(result), cell_fields(result, report.elastic), posed.boundary)
         info.update(files.timings())
         folder.csv_file(tmp / "history.csv", result.history, comm)
-        table = contact_table(scene, result)
+        table = contact_table(posed, result)
         write_contact(tmp, table, comm)
         if report.png:
             title = f"{report.name}: u_h ({result.method}, {result.dofs} DoFs)"
             pictures = [
-                solution_picture(tmp / "solution.png", result, title, view_normal(scene, result)),
+                solution_picture(tmp / "solution.png", result, title, view_normal(posed, result)),
                 *pressure_picture(tmp, report, result, comparison, table),
             ]
             info["pictures"] = plots.draw_in_turn(pictures, comm)
@@ -338,7 +334,7 @@ class LevelWriter:
             points,
             cells,
             field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
-            boundary=level.scene.boundary,
+            boundary=level.posed.boundary,
         )
 
 
@@ -367,16 +363,15 @@ def write_adaptive(
     shown = picture_levels(adaptive, report.pictures)
     # the final level's figures and the pictures' view directions (contact.post, collective)
     # first, then the files
-    res = resultants(last.scene, last.result)
-    comparison = compare(last.scene, last.result)
-    table = contact_table(last.scene, last.result)
+    posed = last.posed
+    res = resultants(posed, last.result)
+    comparison = compare(posed, last.result)
+    table = contact_table(posed, last.result)
     normals: dict[int, np.ndarray | None] = {}
     if png:
         for lv in (last, *shown):
-            normals[lv.index] = view_normal(lv.scene, lv.result)
-    info = summary(
-        report, last.result, wall, res, comparison, last.error, posed_problem(last.scene)
-    )
+            normals[lv.index] = view_normal(lv.posed, lv.result)
+    info = summary(report, last.result, wall, res, comparison, last.error, posed.conditions())
     if failure is None:  # a failed run's last line is its error
         warn_coarse_zone(last.result)
     info.update(

@@ -40,7 +40,6 @@ from mpi4py import MPI
 from ..adaptivity.estimate import estimate
 from ..drivers.load_path import LoadPath
 from ..post.contact_table import Table, contact_table, view_normal
-from ..post.exact_data import posed_problem
 from ..post.friction_resultants import surface_figures
 from ..post.reference import compare
 from ..post.resultants import pressure_peaks
@@ -80,7 +79,7 @@ class StepWriter:
         self.iterations = [0, 0]  # the Newton iterations of the converged steps: sum, largest
 
     def __call__(self, step: Step) -> None:
-        r, scene, k = step.result, step.scene, step.index
+        r, posed, k = step.result, step.posed, step.index
         # `load_step` beside the Newton rows' own `step` (the step length, as in one solve's
         # history.csv): {"step": k, **h} let the step length overwrite the load step's index
         self.history.add([{"load_step": k, **h} for h in r.history])
@@ -103,15 +102,15 @@ class StepWriter:
             "eta": est.eta,
             "seconds": round(step.seconds, 4),
         }
-        table = contact_table(scene, r)
+        table = contact_table(posed, r)
         if r.friction is not None:
             if "fixed_point_iterations" in r.friction:
                 row["fixed_point_iterations"] = r.friction["fixed_point_iterations"]
-            row.update(surface_figures(scene, r, table))
+            row.update(surface_figures(posed, r, table))
         else:
             row["contact_force"] = r.contact_force
         row.update(pressure_peaks(r))  # a finite-strain body: nominal and per deformed area
-        row.update(load_displacements(scene, r))  # the force–displacement curve
+        row.update(load_displacements(posed, r))  # the force–displacement curve
         if step.negative_eigenvalues is not None:  # hyperelastic: K_T's stability
             from ..solvers.energy_search import tangent_figures
 
@@ -130,7 +129,7 @@ class StepWriter:
                 nodal += surface_functions(r)
             cells = [*cell_fields(r, self.report.elastic), *([est.eta_T] if step.levels else [])]
             self.files.write_step(
-                step.time, nodal, cells, {"step": k, "dofs": r.dofs}, scene.boundary
+                step.time, nodal, cells, {"step": k, "dofs": r.dofs}, posed.boundary
             )
 
     def finish(
@@ -147,10 +146,11 @@ class StepWriter:
         self.history.write_csv(tmp / "history.csv")
         if self.levels.count:
             self.levels.write_csv(tmp / "convergence.csv")
-        comparison = compare(last.scene, r)
+        posed = last.posed
+        comparison = compare(posed, r)
         if failure is None:  # a failed run's last line is its error
             warn_coarse_zone(r)
-        table = contact_table(last.scene, r)
+        table = contact_table(posed, r)
         write_contact(tmp, table, comm)
         friction = report.friction
         rows = list(self.rows.rows()) if comm.rank == 0 else []  # rank 0 writes summary.json
@@ -169,7 +169,7 @@ class StepWriter:
             "time_total": wall if wall is not None else sum(s.seconds for s in path.steps),
             "host": platform.node(),
             **self.files.timings(),
-            **posed_problem(last.scene),
+            **posed.conditions(),
             "steps": rows,
         }
         if path.cuts:  # step cutting (load.cuts): the steps that were halved
@@ -194,8 +194,8 @@ class StepWriter:
             info["reference"] = report.reference
             info.update(comparison.values)
         if report.png:
-            origin, t0 = first_contact(last.scene, r)
-            normal = view_normal(last.scene, r)
+            origin, t0 = first_contact(posed, r)
+            normal = view_normal(posed, r)
             name, dofs = report.name, r.dofs
 
             def traction(_) -> None:  # rank 0: the tables of the steps drawn, read back
@@ -203,7 +203,7 @@ class StepWriter:
                     tmp / "traction.png",
                     self.traction_tables(rows),
                     title=f"{name}: contact tractions ({dofs} DoFs)",
-                    references=reference_curves(last.scene, table, comparison, origin, t0),
+                    references=reference_curves(posed, table, comparison, origin, t0),
                 )
 
             pictures = [

@@ -41,7 +41,7 @@ from mpi4py import MPI
 from .xdmf import XdmfSeries, write_xdmf
 
 if TYPE_CHECKING:
-    from ..setup.meshes import Boundary
+    from ..post.posed import Parts as Boundary
 
 NAME = "contact_surface"
 #: the boundary roles whose facets make the contact surface

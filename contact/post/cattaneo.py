@@ -19,15 +19,16 @@ q_h,i = |λ_t,i|.  Errors: ``c_error`` = (c_h/a_h) / (c/a) − 1 and ``q_error``
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from mpi4py import MPI
 
 from ..models.obstacles import first_contact_point
-from ..setup.scene import Scene
-from ..setup.scene_config import ReferenceConfig
 from ..solvers import Result
 from .comparison import Comparison
 from .hertz import contact_extent, contact_modulus, hertz_values
+from .posed import Posed
 from .resultants import whole_body
 
 
@@ -43,15 +44,15 @@ def traction(rho: np.ndarray, a: float, c: float, p0: float, F: float) -> np.nda
     return outer - inner
 
 
-def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
+def compare(posed: Posed, result: Result, ref: Any) -> Comparison:
     """The partial-slip state against Cattaneo–Mindlin for the computed P and Q (collective)."""
-    comm = scene.comm
+    comm = posed.comm
     p, fr = result.problem, result.friction
     if fr is None:
         raise ValueError("reference cattaneo_mindlin: the solve has no friction")
     con = p.constraint
-    on = slice(0, p.data.pair_nodes) if scene.config.pairs else slice(None)
-    dim = scene.mesh.geometry.dim
+    on = slice(0, p.data.pair_nodes) if posed.pairs else slice(None)
+    dim = posed.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs[on] // p.V.dofmap.index_map_bs, :dim]
     n = np.asarray(p.data.n)
     rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
@@ -62,10 +63,9 @@ def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     Q = float(
         np.linalg.norm(whole_body(p, comm.allreduce((w[:, None] * lam_t).sum(axis=0), op=MPI.SUM)))
     )
-    friction = scene.config.friction
-    assert friction is not None and friction.coefficient is not None  # Coulomb's (load)
-    F = friction.coefficient
-    a_H, p0_H = hertz_values(ref.radius, contact_modulus(scene), P, dim)
+    F = posed.coefficient
+    assert F is not None  # Coulomb's (load)
+    a_H, p0_H = hertz_values(ref.radius, contact_modulus(posed), P, dim)
     ratio = Q / (F * P)
     c_over_a = stick_ratio(min(ratio, 1.0), dim)
     a_h = contact_extent(comm, rho, result.active_mask[on])

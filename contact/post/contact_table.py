@@ -42,32 +42,32 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
+from .posed import Posed
 
 Table = dict[str, np.ndarray]
 STATUS = ("separated", "stick", "slip")
 
 
-def value_name(scene: Scene) -> str:
+def value_name(posed: Posed) -> str:
     """The multiplier column: ``lambda_n`` for elasticity, ``lambda`` for scalar models."""
-    return "lambda_n" if scene.config.elastic else "lambda"
+    return "lambda_n" if posed.elastic else "lambda"
 
 
-def contact_columns(scene: Scene, result: Result) -> Table:
+def contact_columns(posed: Posed, result: Result) -> Table:
     """This rank's rows (owned constrained nodes; the contact set for obstacles) as named
     columns (collective: the 3D position needs global data)."""
     p = result.problem
     con = p.constraint
-    gdim = scene.mesh.geometry.dim
+    gdim = posed.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
     from .resultants import current_pressure, nodal_gap
 
     cols: Table = {name: X[:, i] for i, name in enumerate("xyz"[:gdim])}
     if gdim == 3 and not p.constraint.in_domain:
-        cols.update(_polar(scene, result, X))
-    cols[value_name(scene)] = p.multiplier(owned_residual(result))
-    exact = exact_multiplier(scene, result)
+        cols.update(_polar(posed, result, X))
+    cols[value_name(posed)] = p.multiplier(owned_residual(result))
+    exact = exact_multiplier(posed, result)
     if exact is not None:
         cols["lambda_exact"] = exact
     current = current_pressure(result)
@@ -76,32 +76,28 @@ def contact_columns(scene: Scene, result: Result) -> Table:
     cols["gap"] = nodal_gap(result)
     cols["active"] = result.active_mask.astype(np.int8)
     if result.friction is not None:  # λ_t, bound, slip, status, weight
-        cols.update(friction_columns(scene, result))
+        cols.update(friction_columns(posed, result))
     if p.constraint.in_domain:  # obstacle: the contact set only
         cols = {k: v[result.active_mask] for k, v in cols.items()}
     return cols
 
 
-def exact_multiplier(scene: Scene, result: Result) -> np.ndarray | None:
+def exact_multiplier(posed: Posed, result: Result) -> np.ndarray | None:
     """The exact flux λ = k ∇u·n − t_C of a scalar Signorini scene's declared ``data.exact``
     at this rank's constrained nodes, averaged over each node's support on Γ_C:
     ∫ φ_i λ ds / ∫ φ_i ds (collective; None for other scenes).  The average, not a point
     value, because λ of a free boundary problem has a kink or a root singularity where the
     contact zone ends (problem A: λ = −(3/2)|x|^{1/2} for x < 0)."""
-    from ..base import expressions
-
-    p, cfg = result.problem, scene.config
-    exact = cfg.data.exact
-    if exact is None or cfg.elastic or p.constraint.in_domain:
+    p = result.problem
+    u = posed.exact
+    if u is None or posed.elastic or p.constraint.in_domain:
         return None
-    assert isinstance(exact, str)  # a scalar model's exact solution is one expression
-    msh, V = scene.mesh, p.V
-    u = expressions.to_ufl(exact, msh, cfg.constants, t=scene.time)
+    msh, V = posed.mesh, p.V
     n, v = ufl.FacetNormal(msh), ufl.TestFunction(V)
     degree = 2 * V.element.basix_element.degree + 4
     ds = p.data.ds(metadata={"quadrature_degree": degree})
     flux = p.data.k * ufl.dot(ufl.grad(u), n) - p.data.t_C
-    ids = scene.boundary.ids_with_role("contact")
+    ids = posed.boundary.ids_with_role("contact")
     sums = []
     for integrand in (flux * v, v):
         vec = fem.assemble_vector(fem.form(sum(integrand * ds(i) for i in ids)))
@@ -116,14 +112,14 @@ def tangent_2d(result: Result) -> np.ndarray:
     return np.array([-n[1], n[0]])
 
 
-def friction_columns(scene: Scene, result: Result) -> Table:
+def friction_columns(posed: Posed, result: Result) -> Table:
     """This rank's friction columns, row for row with :func:`contact_columns`."""
     fr = result.friction
     if fr is None:
         raise ValueError("friction columns of a frictionless result")
     lam_t, slip = fr["lambda_t_vec"], fr["slip_vec"]
     cols: Table = {}
-    if scene.mesh.geometry.dim == 2:
+    if posed.mesh.geometry.dim == 2:
         t0 = tangent_2d(result)
         cols.update(lambda_t=lam_t @ t0, slip=slip @ t0)
     else:
@@ -143,20 +139,20 @@ def friction_columns(scene: Scene, result: Result) -> Table:
 POLAR_ROUNDOFF = 1e-12
 
 
-def _polar(scene: Scene, result: Result, X: np.ndarray) -> Table:
+def _polar(posed: Posed, result: Result, X: np.ndarray) -> Table:
     """r, theta about the first point of contact in the plane ⟂ n (collective)."""
     from ..models.obstacles import first_contact_point
 
     p = result.problem
     con = p.constraint
-    n = contact_normal(scene, result)
+    n = contact_normal(posed, result)
     assert n is not None  # polar coordinates are asked for on a contact boundary
-    origin = first_contact_point(scene.comm, X, con.sign * con.g)
+    origin = first_contact_point(posed.comm, X, con.sign * con.g)
     t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(n, t1)
     rel = X - origin
-    extent = scene.comm.allreduce(float(np.max(np.abs(rel), initial=0.0)), op=MPI.MAX)
+    extent = posed.comm.allreduce(float(np.max(np.abs(rel), initial=0.0)), op=MPI.MAX)
     return polar(rel, t1, t2, POLAR_ROUNDOFF * extent)
 
 
@@ -175,47 +171,47 @@ def polar(rel: np.ndarray, t1: np.ndarray, t2: np.ndarray, roundoff: float) -> T
     return {"r": np.hypot(a, b), "theta": np.arctan2(b, a)}
 
 
-def contact_normal(scene: Scene, result: Result) -> np.ndarray | None:
+def contact_normal(posed: Posed, result: Result) -> np.ndarray | None:
     """The unit normal from the body towards the obstacle (collective): elasticity, the
     contact normal at the first point of contact; scalar Signorini, the mean outward normal
     of Γ_C; None for an obstacle in Ω."""
     p = result.problem
     if p.constraint.in_domain:
         return None
-    return np.asarray(p.data.n, dtype=float) if p.data.n is not None else _mean_normal(scene)
+    return np.asarray(p.data.n, dtype=float) if p.data.n is not None else _mean_normal(posed)
 
 
-def view_normal(scene: Scene, result: Result) -> np.ndarray | None:
+def view_normal(posed: Posed, result: Result) -> np.ndarray | None:
     """The direction the pictures of a 3D scene look along, from the obstacle's side:
     :func:`contact_normal` (collective); None in 2D."""
-    return contact_normal(scene, result) if scene.mesh.geometry.dim == 3 else None
+    return contact_normal(posed, result) if posed.mesh.geometry.dim == 3 else None
 
 
-def _mean_normal(scene: Scene) -> np.ndarray:
+def _mean_normal(posed: Posed) -> np.ndarray:
     """∫_{Γ_C} n ds / |∫_{Γ_C} n ds|, the mean outward normal of the contact boundary."""
-    msh = scene.mesh
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=scene.boundary.tags)
+    msh = posed.mesh
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=posed.boundary.tags)
     n = ufl.FacetNormal(msh)
-    measure = ds(scene.boundary.ids_with_role("contact"))
+    measure = ds(posed.boundary.ids_with_role("contact"))
     v = np.array(
         [
-            scene.comm.allreduce(fem.assemble_scalar(fem.form(n[i] * measure)), op=MPI.SUM)
+            posed.comm.allreduce(fem.assemble_scalar(fem.form(n[i] * measure)), op=MPI.SUM)
             for i in range(msh.geometry.dim)
         ]
     )
     return v / np.linalg.norm(v)
 
 
-def contact_table(scene: Scene, result: Result, columns: Table | None = None) -> Table | None:
+def contact_table(posed: Posed, result: Result, columns: Table | None = None) -> Table | None:
     """The whole table on rank 0 (None elsewhere), rows sorted along Γ_C: by arc length s in
     2D, by r in 3D, by coordinates for obstacles.  ``columns`` defaults to
     :func:`contact_columns` (collective)."""
-    columns = contact_columns(scene, result) if columns is None else columns
+    columns = contact_columns(posed, result) if columns is None else columns
     segments = None
-    if scene.mesh.geometry.dim == 2 and not result.problem.constraint.in_domain:
-        segments = _contact_segments(scene)
-    table = gather(columns, scene.comm)
-    if scene.comm.rank != 0:
+    if posed.mesh.geometry.dim == 2 and not result.problem.constraint.in_domain:
+        segments = _contact_segments(posed)
+    table = gather(columns, posed.comm)
+    if posed.comm.rank != 0:
         return None
     assert table is not None  # gathered on rank 0
     if segments is not None:
@@ -244,20 +240,18 @@ def gather(columns: Table, comm: MPI.Comm) -> Table | None:
     return {k: np.concatenate([part[k] for part in parts]) for k in columns}
 
 
-def _contact_segments(scene: Scene) -> np.ndarray | None:
+def _contact_segments(posed: Posed) -> np.ndarray | None:
     """(m, 2, 2) end points of all Γ_C facets (2D) on rank 0, each facet once: the parts
     of role contact and the slave surfaces of contact pairs."""
-    msh = scene.mesh
+    msh = posed.mesh
     tdim = msh.topology.dim
-    facets = scene.boundary.facets("contact")
-    if scene.config.pairs:
+    facets = posed.boundary.facets("contact")
+    if posed.pairs:
         from ..models.mortar import part_facets
 
         facets = np.union1d(
             facets,
-            np.concatenate(
-                [part_facets(scene.boundary, pair.slave) for pair in scene.config.pairs]
-            ),
+            np.concatenate([part_facets(posed.boundary, slave) for slave, _ in posed.pairs]),
         ).astype(np.int32)
     facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]
     nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)[:, :2]

@@ -25,19 +25,19 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from ..setup.scene import Scene
 from ..solvers import Result
 from .contact_table import STATUS, Table, contact_table
+from .posed import Posed
 from .resultants import reaction_force, whole_body
 
 
-def surface_figures(scene: Scene, result: Result, table: Table | None = None) -> dict:
+def surface_figures(posed: Posed, result: Result, table: Table | None = None) -> dict:
     """The resultants and zone measures of the module doc (collective); ``table`` is the
     step's contact table as :func:`contact.post.contact_table.contact_table` returns it (the
     table on rank 0, None elsewhere), if already gathered (for the stick zones in 2D).  Whether to
     gather it is rank 0's decision, broadcast: a collective entered on some ranks only
     would hang the others."""
-    comm, p, fr = scene.comm, result.problem, result.friction
+    comm, p, fr = posed.comm, result.problem, result.friction
     if fr is None:
         raise ValueError("friction figures of a frictionless result")
     w, lam_n = fr["w"], fr["lambda_n"]
@@ -76,9 +76,9 @@ def surface_figures(scene: Scene, result: Result, table: Table | None = None) ->
     out["max_slip"] = comm.allreduce(
         float(np.max(np.linalg.norm(fr["slip_vec"], axis=1), initial=0.0)), op=MPI.MAX
     )
-    if scene.mesh.geometry.dim == 2:
+    if posed.mesh.geometry.dim == 2:
         if comm.bcast(table is None if comm.rank == 0 else None, root=0):
-            table = contact_table(scene, result)
+            table = contact_table(posed, result)
         out.update(comm.bcast(stick_zones(table) if table is not None else None, root=0))
     return out
 

@@ -27,6 +27,8 @@ needs a ≪ R (a/R ≲ 0.1).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from dolfinx import fem, la
 from mpi4py import MPI
@@ -34,10 +36,9 @@ from mpi4py import MPI
 from ..models.mortar import part_facets, surface_facets
 from ..models.obstacles import first_contact_point
 from ..models.overlap import facet_measures
-from ..setup.scene import Scene
-from ..setup.scene_config import ReferenceConfig
 from ..solvers import Result, owned_residual
 from .comparison import Comparison
+from .posed import Posed
 
 
 def hertz(R: float, E: float, nu: float, force: float, dim: int) -> tuple[float, float]:
@@ -54,16 +55,16 @@ def hertz_values(R: float, Es: float, force: float, dim: int) -> tuple[float, fl
     return a, 3.0 * force / (2.0 * np.pi * a**2)
 
 
-def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
+def compare(posed: Posed, result: Result, ref: Any) -> Comparison:
     """Contact half-width / radius and peak pressure against Hertz's for the computed force
     (collective).  With contact pairs: on the slave nodes of the pairs, R the declared
     effective radius and E* of the first pair's two bodies, 1/E* = Σ (1 − ν_k²)/E_k.  The
     peak pressure is max_i p_i in 2D, max_i p̄_i in 3D (:func:`patch_average`; then
     max_i p_i gives ``p0_nodal_error`` beside it)."""
-    comm = scene.comm
+    comm = posed.comm
     p = result.problem
     con = p.constraint
-    on = slice(0, p.data.pair_nodes) if scene.config.pairs else slice(None)
+    on = slice(0, p.data.pair_nodes) if posed.pairs else slice(None)
     n = np.asarray(p.data.n)
     V = p.V
     nodes = con.dofs[on] // V.dofmap.index_map_bs
@@ -72,10 +73,10 @@ def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     pressure = p.pressure(owned_residual(result))[on]
     a = contact_extent(comm, rho, result.active_mask[on])  # the solver's rule: b_i > a_i
-    dim, R = scene.mesh.geometry.dim, ref.radius
+    dim, R = posed.mesh.geometry.dim, ref.radius
     p0_nodal = _largest(comm, pressure)
-    p0 = _largest(comm, patch_average(scene, V, nodes, pressure)) if dim == 3 else p0_nodal
-    a_H, p0_H = hertz_values(R, contact_modulus(scene), result.contact_force, dim)
+    p0 = _largest(comm, patch_average(posed, V, nodes, pressure)) if dim == 3 else p0_nodal
+    a_H, p0_H = hertz_values(R, contact_modulus(posed), result.contact_force, dim)
     errors = {"a_error": a / a_H - 1.0, "p0_error": p0 / p0_H - 1.0}
     values = {
         "contact_half_width" if dim == 2 else "contact_radius": a,
@@ -103,7 +104,7 @@ def compare(scene: Scene, result: Result, ref: ReferenceConfig) -> Comparison:
 
 
 def patch_average(
-    scene: Scene, V: fem.FunctionSpace, nodes: np.ndarray, values: np.ndarray
+    posed: Posed, V: fem.FunctionSpace, nodes: np.ndarray, values: np.ndarray
 ) -> np.ndarray:
     """The patch averages p̄_i of nodal values p_i (a pressure) on the contact surface
     (collective): with Γ_h the contact facets (the slave parts of the scene's pairs, else
@@ -116,10 +117,10 @@ def patch_average(
     of V's DoFs) with ``values`` p_i; a facet node without a value (an end of Γ_C fixed in
     every component) is left out of p̄_F, and a node whose patch has no valued facet keeps
     p_i.  Returns p̄_i at ``nodes``."""
-    bnd, imap = scene.boundary, V.dofmap.index_map
-    pairs = scene.config.pairs or ()
+    bnd, imap = posed.boundary, V.dofmap.index_map
+    pairs = posed.pairs
     facets = (
-        np.concatenate([part_facets(bnd, pair.slave) for pair in pairs])
+        np.concatenate([part_facets(bnd, slave) for slave, _ in pairs])
         if pairs
         else bnd.facets("contact")
     )
@@ -148,18 +149,15 @@ def _largest(comm: MPI.Comm, values: np.ndarray) -> float:
     return comm.allreduce(float(np.max(values, initial=0.0)), op=MPI.MAX)
 
 
-def contact_modulus(scene: Scene) -> float:
+def contact_modulus(posed: Posed) -> float:
     """E* = E / (1 − ν²) of the body against a rigid plane; for contact pairs that of the
     first pair's two bodies, 1/E* = (1 − ν₁²)/E₁ + (1 − ν₂²)/E₂ (docs/theory.md §7)."""
-    if not scene.config.pairs:
-        model = scene.config.model
-        assert model.E is not None  # one body: model.E is required
-        return model.E / (1.0 - model.nu**2)
+    if not posed.pairs:
+        (E, nu), *_ = posed.materials.values()  # one body: model.E is required
+        return E / (1.0 - nu**2)
     from .interface import effective_modulus, pair_bodies
 
-    bodies = scene.config.bodies
-    assert bodies is not None  # pairs join bodies
-    return effective_modulus([(bodies[b].E, bodies[b].nu) for b in pair_bodies(scene, 0)])
+    return effective_modulus([posed.materials[b] for b in pair_bodies(posed, 0)])
 
 
 def contact_extent(comm: MPI.Comm, rho: np.ndarray, active: np.ndarray) -> float:

@@ -21,8 +21,8 @@ from dolfinx import fem, la
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
+from .posed import Posed
 from .resultants import contact_resultants, nodal_gap, whole_body
 
 
@@ -31,27 +31,27 @@ def effective_modulus(materials: list[tuple[float, float]]) -> float:
     return 1.0 / sum((1.0 - nu**2) / E for E, nu in materials)
 
 
-def pair_bodies(scene: Scene, index: int) -> list[str]:
+def pair_bodies(posed: Posed, index: int) -> list[str]:
     """Names of the bodies of pair ``index``'s slave and master surfaces (from the cells
     of their facets)."""
-    msh, bnd, comm = scene.mesh, scene.boundary, scene.comm
-    pairs, bodies = scene.config.pairs, scene.config.bodies
-    assert scene.bodies is not None and pairs and bodies  # a pair joins two bodies
+    msh, bnd, comm = posed.mesh, posed.boundary, posed.comm
+    pairs = posed.pairs
+    assert posed.bodies is not None and pairs and posed.materials  # a pair joins two bodies
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
     f2c = msh.topology.connectivity(tdim - 1, tdim)
-    names = list(bodies)
+    names = list(posed.materials)
     out = []
-    for side in ("slave", "master"):
-        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[getattr(pairs[index], side)]]
+    for part in pairs[index]:  # slave, master
+        facets = bnd.tags.indices[bnd.tags.values == bnd.ids[part]]
         local = (
-            int(scene.bodies.values[f2c.array[f2c.offsets[facets[:1]]]][0]) if len(facets) else 0
+            int(posed.bodies.values[f2c.array[f2c.offsets[facets[:1]]]][0]) if len(facets) else 0
         )
         out.append(names[comm.allreduce(local, op=MPI.MAX) - 1])
     return out
 
 
-def interface_resultants(scene: Scene, result: Result) -> dict:
+def interface_resultants(posed: Posed, result: Result) -> dict:
     """The forces of a multi-body solve, each of the whole bodies when symmetry planes cut
     them (:func:`contact.post.resultants.whole_body`; collective):
 
@@ -67,11 +67,11 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
       ``obstacle_force`` Σ_i w_i λ_i n_i (the obstacle's force on the body, a vector).
 
     The Hertz values come from a declared ``reference`` (:mod:`contact.post.reference`)."""
-    comm = scene.comm
+    comm = posed.comm
     p = result.problem
     V = p.V
     bs = V.dofmap.index_map_bs
-    gdim = scene.mesh.geometry.dim
+    gdim = posed.mesh.geometry.dim
     n_owned = V.dofmap.index_map.size_local
     data = p.data
     assert data.reaction_form is not None and data.u_bcs is not None and data.normals is not None
@@ -89,21 +89,20 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
     from ..models.mortar import part_facets, surface_facets
 
     F_s, F_m = np.zeros(gdim), np.zeros(gdim)
-    for pair in scene.config.pairs or []:
-        for side, F in (("slave", F_s), ("master", F_m)):
-            facets = surface_facets(V, part_facets(scene.boundary, getattr(pair, side)))
+    for pair in posed.pairs:
+        for part, F in zip(pair, (F_s, F_m)):  # slave, master
+            facets = surface_facets(V, part_facets(posed.boundary, part))
             mark = la.vector(V.dofmap.index_map, 1)
             mark.array[np.unique(facets.nodes)] = 1.0
             mark.scatter_reverse(la.InsertMode.add)
             owned = np.flatnonzero(mark.array[:n_owned] > 0)
             F += comm.allreduce(free_res[owned].sum(axis=0), op=MPI.SUM)
     reactions = {}
-    tdim = scene.mesh.topology.dim
-    for name, role in scene.boundary.roles.items():
+    tdim = posed.mesh.topology.dim
+    bnd = posed.boundary
+    for name, role in bnd.roles.items():
         if role == "dirichlet":
-            facets = scene.boundary.tags.indices[
-                scene.boundary.tags.values == scene.boundary.ids[name]
-            ]
+            facets = bnd.tags.indices[bnd.tags.values == bnd.ids[name]]
             dofs = fem.locate_dofs_topological(V, tdim - 1, facets)
             dofs = dofs[dofs < n_owned]
             reactions[name] = whole_body(p, comm.allreduce(residual[dofs].sum(axis=0), op=MPI.SUM))
@@ -124,7 +123,7 @@ def interface_resultants(scene: Scene, result: Result) -> dict:
         "mortar_coverage": min((c.coverage for c in data.couplings or []), default=1.0),
         "min_gap": comm.allreduce(float(gap.min(initial=np.inf)), op=MPI.MIN),
     }
-    if scene.config.obstacle:
+    if posed.obstacle is not None:
         out["obstacle_force"] = whole_body(
             p,
             comm.allreduce((con.w[rigid] * -pressure[rigid]) @ data.normals[rigid], op=MPI.SUM),
@@ -140,12 +139,12 @@ def output_dofs(problem, nodes: np.ndarray) -> np.ndarray:
     return s_of_node[nodes]
 
 
-def resultants(scene: Scene, result: Result) -> dict | None:
+def resultants(posed: Posed, result: Result) -> dict | None:
     """Contact force, reaction, balance, peak pressure of an elasticity run (None for
     scalar models; :mod:`.resultants`; with contact pairs the forces on both sides
     of each interface and the reactions, :func:`interface_resultants`)."""
-    if not scene.config.elastic:
+    if not posed.elastic:
         return None
-    if scene.config.pairs:
-        return interface_resultants(scene, result)
-    return contact_resultants(scene, result)
+    if posed.pairs:
+        return interface_resultants(posed, result)
+    return contact_resultants(posed, result)

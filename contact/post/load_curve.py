@@ -18,21 +18,11 @@ over the Dirichlet DoFs of the step's solution (u = u_D there).
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 from mpi4py import MPI
 
 from ..models.obstacles import first_contact_point
-from ..setup.elastic import obstacle_shape, scene_obstacle
-from ..setup.scene import Scene
-
-
-def obstacle_approach(scene: Scene, point: np.ndarray) -> float:
-    """a(t) = g_0(X) − g_t(X) at ``point`` X (module doc), t the scene's pseudo-time."""
-    X = np.asarray(point, dtype=float)[None, : scene.mesh.geometry.dim]
-    start = dataclasses.replace(scene, time=0.0, _t_constant=None)
-    return float(obstacle_shape(start)[1](X)[0] - obstacle_shape(scene)[1](X)[0])
+from .posed import Posed
 
 
 def prescribed_displacement(result) -> float:
@@ -48,12 +38,7 @@ def prescribed_displacement(result) -> float:
     return p.V.mesh.comm.allreduce(local, op=MPI.MAX)
 
 
-def obstacle_translation(scene: Scene) -> list[float]:
-    """The rigid obstacle's translation since t = 0 (gdim components, module doc)."""
-    return (scene_obstacle(scene).position - scene_obstacle(scene, 0.0).position).tolist()
-
-
-def load_displacements(scene: Scene, result) -> dict[str, float | list[float]]:
+def load_displacements(posed: Posed, result) -> dict[str, float | list[float]]:
     """{'obstacle_approach': a(t) at the first point of contact (module doc; 0 for a scene
     whose contact is not with one rigid obstacle — bodies against each other, a scalar
     scene's gap or obstacle function), 'obstacle_translation': its translation since t = 0
@@ -61,13 +46,13 @@ def load_displacements(scene: Scene, result) -> dict[str, float | list[float]]:
     step (collective)."""
     approach = 0.0
     out: dict[str, float | list[float]] = {}
-    if scene.config.obstacle is not None and not scene.config.pairs:
-        out["obstacle_translation"] = obstacle_translation(scene)
+    if posed.approach is not None and posed.translation is not None:  # one rigid obstacle
+        out["obstacle_translation"] = posed.translation()
         p = result.problem
         con = p.constraint
-        gdim = scene.mesh.geometry.dim
+        gdim = posed.mesh.geometry.dim
         X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-        approach = obstacle_approach(scene, first_contact_point(scene.comm, X, con.sign * con.g))
+        approach = posed.approach(first_contact_point(posed.comm, X, con.sign * con.g))
     return {
         "obstacle_approach": approach,
         **out,

@@ -29,8 +29,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..setup.scene import Scene
 from ..solvers import Result, owned_residual
+from .posed import Posed
 
 
 def whole_body(problem, force) -> list[float]:
@@ -124,9 +124,9 @@ def pressure_peaks(result: Result) -> dict:
     }
 
 
-def contact_resultants(scene: Scene, result: Result) -> dict:
+def contact_resultants(posed: Posed, result: Result) -> dict:
     """Contact force, reaction, force balance, peak pressure and smallest gap (collective)."""
-    comm = scene.comm
+    comm = posed.comm
     p = result.problem
     n = np.asarray(p.data.n)  # contact normal at the first point of contact
     reaction = p.copies_along(n) * abs(float(part_reaction(result) @ n))

@@ -11,10 +11,10 @@ import numpy as np
 from .contact_table import Table, tangent_2d
 
 if TYPE_CHECKING:
-    from ..setup.scene import Scene
+    from .posed import Posed
 
 
-def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
+def first_contact(posed: Posed, result) -> tuple[np.ndarray, np.ndarray | None]:
     """The first point of contact (smallest initial gap, over all ranks; collective) and, in
     2D with a contact normal (elasticity), the tangent t_0 of the position's sign convention
     (None for the scalar models, whose tractions have no tangential part)."""
@@ -22,15 +22,15 @@ def first_contact(scene: Scene, result) -> tuple[np.ndarray, np.ndarray | None]:
 
     p = result.problem
     con = p.constraint
-    gdim = scene.mesh.geometry.dim
+    gdim = posed.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    return first_contact_point(scene.comm, X, con.sign * con.g), (
+    return first_contact_point(posed.comm, X, con.sign * con.g), (
         tangent_2d(result) if gdim == 2 and p.data.n is not None else None
     )
 
 
 def reference_curves(
-    scene: Scene,
+    posed: Posed,
     table: Table | None,
     comparison=None,
     origin: np.ndarray | None = None,
@@ -40,10 +40,10 @@ def reference_curves(
     exact solution (``data.exact``, 2D), or the pressure of a declared reference
     (``reference:``, e.g. Hertz for the computed force) on both sides of the first point of
     contact ``origin`` (2D; in 3D against r)."""
-    if table is None or scene.comm.rank != 0:
+    if table is None or posed.comm.rank != 0:
         return []
-    if scene.config.data.exact is not None:
-        return exact_tractions(scene, table, t0)
+    if posed.exact is not None:
+        return exact_tractions(posed, table, t0)
     if comparison is None or not (comparison.curves or comparison.traction_curves):
         return []
     curves = [(0, *c) for c in comparison.curves] + [(1, *c) for c in comparison.traction_curves]
@@ -58,35 +58,27 @@ def reference_curves(
     ]
 
 
-def exact_tractions(scene: Scene, table: Table, t0: np.ndarray | None, h: float = 1e-6) -> list:
+def exact_tractions(posed: Posed, table: Table, t0: np.ndarray | None, h: float = 1e-6) -> list:
     """2D: −λ_n = −n·σ(u)n and λ_t = t_0·(σ(u)n − λ_n n) of the exact solution at the contact
     nodes of ``table`` (σ by central differences of ``data.exact`` with step h, n the
     obstacle's normal at the node, t_0 of :func:`contact.post.contact_table.tangent_2d`)."""
-    from ..base import expressions
-    from ..models.elasticity import lame
+    from ..models.physics import lame
 
-    cfg = scene.config
-    exact = cfg.data.exact
-    if (
-        scene.mesh.geometry.dim != 2
-        or not isinstance(exact, tuple)
-        or "s" not in table
-        or t0 is None
-    ):
+    u = posed.exact_values  # one function per component of a displacement
+    if posed.mesh.geometry.dim != 2 or len(u) != 2 or "s" not in table or t0 is None:
         return []
     X = np.vstack([table["x"], table["y"], np.zeros(len(table["x"]))])
-    u = [expressions.to_numpy(e, cfg.constants, t=scene.time) for e in exact]
     grad = np.empty((X.shape[1], 2, 2))
     for j in range(2):
         e = np.zeros((3, 1))
         e[j] = h
         for i in range(2):
             grad[:, i, j] = (u[i](X + e) - u[i](X - e)) / (2 * h)
-    assert cfg.model.E is not None and cfg.obstacle is not None  # one body, an obstacle
-    mu, lmbda = lame(cfg.model.E, cfg.model.nu)
+    assert posed.materials and posed.obstacle is not None  # one body, an obstacle
+    mu, lmbda = lame(*posed.materials[""])
     eps = 0.5 * (grad + grad.transpose(0, 2, 1))
     sigma = 2 * mu * eps + lmbda * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(2)
-    obstacle = cfg.obstacle
+    obstacle = posed.obstacle
     if obstacle.type == "plane":
         nu_o = np.asarray(obstacle.normal, float)
         n = np.tile(

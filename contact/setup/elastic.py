@@ -32,17 +32,15 @@ from petsc4py import PETSc
 
 from ..base import expressions
 from ..base.errors import ConfigError
-from ..models.constraints import Ball, Coulomb, MortarPair, Plane, RigidObstacle, Tresca
+from ..models.constraints import Coulomb, MortarPair, RigidObstacle, Tresca
 from ..models.discrete import Problem
-from ..models.elasticity import lame
 from ..models.forms import make_problem
-from ..models.physics import BoundaryData, Elasticity, epsilon, stress
+from ..models.physics import BoundaryData, Elasticity, epsilon, lame, stress
 from ..models.problem import assemble_system
 from ..solvers.problem import ProblemData
 from .checks import check_scene_data
 from .data import vector, vector_numpy
-from .obstacle import RigidObstacle as ObstacleAt
-from .obstacle import rigid_obstacle
+from .obstacle import scene_obstacle, scene_surface
 from .scene import Scene
 from .scene_config import components
 
@@ -150,39 +148,6 @@ def elastic_physics(
         dirichlet_value=setting.data["u_D"],
         exact=exact,
     )
-
-
-def scene_obstacle(scene: Scene, time: float | None = None) -> ObstacleAt:
-    """The scene's rigid obstacle at its pseudo-time (or at ``time``): a plane's point or a
-    circle's centre may be expressions of t, an obstacle moved along a load path."""
-    config = scene.config
-    assert config.obstacle is not None  # an elastic scene with an obstacle (checked at load)
-    return rigid_obstacle(config.obstacle, config.constants, scene.time if time is None else time)
-
-
-def scene_surface(scene: Scene, time: float | None = None) -> Plane | Ball:
-    """The scene's rigid obstacle at its pseudo-time (or at ``time``) as a surface: a
-    :class:`~contact.models.constraints.Plane` through p with the normal ν of the scene, or
-    a :class:`~contact.models.constraints.Ball` (circle in 2D, sphere in 3D).  Coordinates of
-    the wrong length, or a circle in 3D (a sphere in 2D), are a ConfigError naming the key."""
-    config, gdim = scene.config.obstacle, scene.mesh.geometry.dim
-    assert config is not None  # the scene's rigid obstacle
-    obstacle = scene_obstacle(scene, time)
-    if config.type == "plane":
-        assert config.normal is not None  # required for a plane at load
-        plane = Plane(obstacle.position, np.asarray(config.normal, dtype=float))
-        if len(plane.normal) != gdim or len(plane.point) != gdim:
-            raise ConfigError(
-                f"obstacle: point and normal need {gdim} components in a {gdim}D scene"
-            )
-        return plane
-    want = "circle" if gdim == 2 else "sphere"
-    if config.type != want:
-        raise ConfigError(f"obstacle.type: a {gdim}D scene needs a {want}, got {config.type}")
-    assert config.radius is not None  # checked at load
-    if len(obstacle.position) != gdim:
-        raise ConfigError(f"obstacle.center: needs {gdim} components in a {gdim}D scene")
-    return Ball(obstacle.position, float(config.radius))
 
 
 def obstacle_shape(scene: Scene) -> tuple:

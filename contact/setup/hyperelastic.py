@@ -14,7 +14,6 @@ import ufl
 from dolfinx import fem
 
 from ..models.discrete import Problem
-from ..models.elasticity import lame
 from ..models.forms import ResidualProblem, make_problem
 from ..models.hyperelastic import (
     deformed_area,
@@ -22,7 +21,7 @@ from ..models.hyperelastic import (
     jacobian_check,
     quadrature_degree,
 )
-from ..models.physics import piola_and_cauchy
+from ..models.physics import lame, piola_and_cauchy
 from ..solvers.problem import ProblemData
 from .checks import check_scene_data
 from .elastic import elastic_physics, elastic_setting, materials, scene_pairs, scene_rigid

@@ -140,14 +140,19 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
     if key not in built:
         built[key] = build_mesh(cfg, scene.comm)
     msh, tags, cell_tags = built[key]
+    from .surfaces import snapping
+
     bodies = tag_bodies(msh, cfg, cell_tags)
+    boundary = tag_boundaries(msh, cfg, tags, bodies)
     return Scene(
         cfg,
         msh,
-        tag_boundaries(msh, cfg, tags, bodies),
+        boundary,
         time=scene.time,
         bodies=bodies,
         surfaces=tags,
+        snap=snapping(cfg, boundary),
+        budget=scene.budget,
     )
 
 

@@ -37,15 +37,13 @@ from ..solvers.options import BASELINE_METHODS
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import not_unique_text
 from ..solvers.stopping import AdaptiveStopping
-from .budget import max_dofs
 from .build import build_problem
 from .data import interpolate_expression
-from .geometry import builder_surfaces
 from .levels import scene_hierarchy
 from .meshes import Boundary
+from .posed import PosedProblem, posed_of
 from .scene import Scene, require_scene
 from .scene_config import AdaptConfig, SceneConfig
-from .surfaces import boundary_surfaces, warn_undeclared_curves
 from .untagged import warn_untagged
 
 
@@ -102,26 +100,13 @@ def scene_domain(scene: Scene) -> Domain:
     the snapping of curved boundary parts (the declared ``surface`` of a part, the curved
     surfaces of the built-in Hertz meshes).
     """
-    cfg, bnd = scene.config, scene.boundary
-    ids, roles = dict(bnd.ids), dict(bnd.roles)
-
-    def snap(parent: Domain, child: Domain) -> None:
-        assert parent.facets is not None and child.facets is not None  # a scene's boundary
-        boundary = Boundary(parent.facets, ids, roles)
-        warn_undeclared_curves(cfg, parent.mesh, boundary)
-        for surface in boundary_surfaces(cfg, parent.mesh.geometry.dim, boundary):
-            surface.snap(child.mesh, child.facets)
-        # by the mesh's own tags of its curved surfaces
-        for surface in builder_surfaces(cfg.mesh):
-            surface.snap(child.mesh, child.tags["surfaces"])
-
     return Domain(
         scene.mesh,
-        bnd.tags,
+        scene.boundary.tags,
         scene.bodies,
         {} if scene.surfaces is None else {"surfaces": scene.surfaces},
         dict(scene.history),
-        snap,
+        scene.snap,
     )
 
 
@@ -144,6 +129,8 @@ def on_domain(scene: Scene, domain: Domain, parent: Scene | None = None) -> Scen
         bodies=domain.cells,
         surfaces=domain.tags.get("surfaces"),
         parent=None if parent is None or domain.parent is None else (parent, domain.parent[1]),
+        snap=scene.snap,
+        budget=scene.budget,
     )
 
 
@@ -342,10 +329,19 @@ class SceneLevel(Level):
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
+    @functools.cached_property
+    def posed(self) -> PosedProblem:
+        """The record of its scene for the figures, built once.
+
+        The first argument of ``contact.post``'s figures (``contact.setup.posed.posed_of``).
+        """
+        return posed_of(self.scene)
+
     def release(self) -> None:
         """Keep the figures only; the scene is dropped too."""
         super().release()
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
+        self.__dict__.pop("posed", None)
 
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
@@ -448,7 +444,7 @@ def adapt(
         keep=keep,  # type: ignore[arg-type]
         make_level=scene_level,
         solve=level_solve,
-        budget=max_dofs(solver, scene.mesh.geometry.dim),
+        budget=scene.budget,
         stopping=(solver.gamma_lin, solver.gamma_alg) if solver.stopping == "adaptive" else None,
         verbose=verbose,
     )
@@ -468,10 +464,19 @@ class SceneStep(Step):
 
     scene: Scene = None  # type: ignore[assignment]  # always given; None once released
 
+    @functools.cached_property
+    def posed(self) -> PosedProblem:
+        """The record of its scene for the figures, built once.
+
+        The first argument of ``contact.post``'s figures (``contact.setup.posed.posed_of``).
+        """
+        return posed_of(self.scene)
+
     def release(self) -> None:
         """Keep the figures only; the scene is dropped too."""
         super().release()
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
+        self.__dict__.pop("posed", None)
 
 
 def load_times(cfg: SceneConfig) -> list[float]:
@@ -582,6 +587,8 @@ def run_load_path(
             previous_time=None if previous.u is None else previous.time,
             bodies=base.bodies,
             surfaces=base.surfaces,
+            snap=base.snap,
+            budget=base.budget,
         )
 
     def solve_step(t: float, previous: Previous, **extra: Any) -> tuple[Scene, Result]:

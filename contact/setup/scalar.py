@@ -13,6 +13,7 @@ with u in [U], k in [K], lengths in [L], λ is in [K·U/L] on Γ_C and [K·U/L²
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import ufl
 from dolfinx import fem
@@ -27,7 +28,9 @@ from ..models.problem import assemble_system
 from ..solvers.problem import ProblemData
 from .checks import check_scene_data
 from .data import coefficient, interpolate_expression
-from .scene import Scene
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:

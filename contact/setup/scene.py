@@ -43,6 +43,11 @@ class Scene:
         surfaces: The facet tags of a gmsh mesh (file or built-in body), else ``None``.
         parent: The coarser scene this one was refined from and the parent cell of each
             cell, else ``None``.
+        snap: How a refinement of the mesh keeps to the scene's curved surfaces
+            (``contact.setup.surfaces.snapping``, the ``snap`` of its
+            :class:`~contact.adaptivity.refine.Domain`), built with the scene.
+        budget: The DoF budget, ``solver.max_dofs`` (resolved on this machine for
+            ``auto``, ``contact.setup.budget.max_dofs``), built with the scene.
 
     Example:
         >>> import contact
@@ -66,6 +71,8 @@ class Scene:
     #: for a scene made by :func:`contact.refine`: (the scene it was refined from, the parent
     #: cell of each new cell) — the coarser meshes grid sequencing solves on first
     parent: tuple[Scene, np.ndarray] | None = None
+    snap: Callable[[Any, Any], None] | None = field(default=None, repr=False)
+    budget: int = 0
 
     @property
     def t_constant(self):
@@ -180,8 +187,8 @@ def build_scene(cfg: SceneConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     built the DoF budget (from the mesh parameters) and the PETSc options are checked;
     after, the declared boundary surfaces.
     """
-    from .budget import check_parameters
-    from .surfaces import boundary_surfaces
+    from .budget import check_parameters, max_dofs
+    from .surfaces import boundary_surfaces, snapping
 
     gdim = mesh_dimension(cfg)  # None: a gmsh file, known once read
     check_parameters(cfg, gdim)
@@ -191,12 +198,18 @@ def build_scene(cfg: SceneConfig, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     if gdim is None:
         _check_solver(cfg, msh.geometry.dim, comm)
     bodies = tag_bodies(msh, cfg, cell_tags)
-    scene = Scene(
-        cfg, msh, tag_boundaries(msh, cfg, file_tags, bodies), bodies=bodies, surfaces=file_tags
-    )
+    boundary = tag_boundaries(msh, cfg, file_tags, bodies)
     # a declared surface that does not fit the mesh is bad input now, not at the first refinement
-    boundary_surfaces(cfg, msh.geometry.dim, scene.boundary)
-    return scene
+    boundary_surfaces(cfg, msh.geometry.dim, boundary)
+    return Scene(
+        cfg,
+        msh,
+        boundary,
+        bodies=bodies,
+        surfaces=file_tags,
+        snap=snapping(cfg, boundary),
+        budget=max_dofs(cfg.solver, msh.geometry.dim),
+    )
 
 
 def _check_solver(cfg: SceneConfig, gdim: int, comm: MPI.Comm) -> None:

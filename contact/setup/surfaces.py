@@ -18,14 +18,19 @@ scene without a declared surface gets when it is refined.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from dolfinx import mesh as dmesh
 
 from ..base.errors import ConfigError, ContactWarning
-from .geometry import CurvedBoundary, curved_boundary
+from .geometry import CurvedBoundary, builder_surfaces, curved_boundary
 from .meshes import Boundary
 from .scene_config import SceneConfig, SurfaceSpec
+
+if TYPE_CHECKING:
+    from ..adaptivity.refine import Domain
 
 #: a ridge (vertex in 2D, edge in 3D) between two facets bends if their normals differ by more
 BEND = 1e-4  # radians
@@ -70,6 +75,39 @@ def boundary_surfaces(cfg: SceneConfig, gdim: int, boundary: Boundary) -> list[C
         if part.surface is not None:
             out.append(declared_surface(name, part.surface, gdim, boundary.ids[name]))
     return out
+
+
+def snapping(cfg: SceneConfig, boundary: Boundary) -> Callable[[Domain, Domain], None]:
+    """Return how a refinement of the scene's mesh keeps to its curved surfaces.
+
+    The ``snap(parent, child)`` of a :class:`~contact.adaptivity.refine.Domain`: after a
+    refinement it moves the child's new vertices on each part with a declared ``surface``
+    (and on the built-in Hertz meshes' curved tag) onto that surface, and on the surfaces
+    the mesh builder tagged (``child.tags["surfaces"]``) onto theirs; a gmsh contact part
+    that looks curved but declares no surface gets its one warning line.  Built once per
+    scene from its configuration and boundary parts (ids and roles do not change under
+    refinement).
+
+    Args:
+        cfg: The scene's configuration.
+        boundary: The scene's boundary parts (their ids and roles are kept).
+
+    Returns:
+        The snapping, collective.
+    """
+    ids, roles = dict(boundary.ids), dict(boundary.roles)
+    built = builder_surfaces(cfg.mesh)
+
+    def snap(parent: Domain, child: Domain) -> None:
+        assert parent.facets is not None and child.facets is not None  # a scene's boundary
+        tagged = Boundary(parent.facets, ids, roles)
+        warn_undeclared_curves(cfg, parent.mesh, tagged)
+        for surface in boundary_surfaces(cfg, parent.mesh.geometry.dim, tagged):
+            surface.snap(child.mesh, child.facets)
+        for surface in built:  # by the mesh's own tags of its curved surfaces
+            surface.snap(child.mesh, child.tags["surfaces"])
+
+    return snap
 
 
 def ridge_angles(facets: np.ndarray) -> np.ndarray:

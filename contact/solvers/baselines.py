@@ -691,7 +691,7 @@ def result_of(
         friction = friction_fields(problem, F, xa, residual, active)
     history = outcome.history
     comm = problem.V.mesh.comm
-    return Result(
+    result = Result(
         u_h=problem.u_h,
         lmbda_h=lmbda,
         gap=gap,
@@ -714,6 +714,8 @@ def result_of(
         outer_iterations=outcome.outer,
         friction=friction,
     )
+    result.figures = baseline_figures(result)
+    return result
 
 
 def penetration(result: Result) -> float:

@@ -64,6 +64,9 @@ class Result:
         predictor: A load step's secant predictor: ``None`` (none offered), ``True`` (it
             started the solve) or ``False`` (the previous step's solution did).
         hint: For a failed solve, what in the scene makes it hard ("" if nothing known).
+        figures: The method's own figures for the run's summary, measured at the solution
+            (a baseline's parameter, Uzawa's outer iterations and the largest penetration,
+            ``contact.solvers.baselines.baseline_figures``); empty for the NCP methods.
     """
 
     u_h: fem.Function
@@ -112,6 +115,7 @@ class Result:
     #: One row per coupling of the fixed point of mortar pairs at finite strain
     #: (``contact.drivers.recouple``); empty otherwise.
     couplings: list = field(default_factory=list)
+    figures: dict = field(default_factory=dict)
 
     @property
     def linear_solves(self) -> int:

@@ -46,6 +46,7 @@ import contact
 from contact.adaptivity.energy_error import energy_error
 from contact.post.hertz import compare as hertz_compare
 from contact.post.reference import compare as reference_compare
+from contact.setup.posed import posed_of
 from contact.setup.run import run_load_path
 from contact.solvers.baselines import PARAMETERS, penetration
 
@@ -166,7 +167,7 @@ class Mesh:
         """The problem's own figures: Hertz's a and p0 errors."""
         out = {"a_error": float("nan"), "p0_error": float("nan")}
         if r.converged and r.contact_force > 0:
-            errors = hertz_compare(self.scene, r, self.scene.config.reference).errors
+            errors = hertz_compare(posed_of(self.scene), r, self.scene.config.reference).errors
             out["a_error"], out["p0_error"] = errors["a_error"], errors["p0_error"]
         return out if self.hertz else {}
 
@@ -254,7 +255,7 @@ class CattaneoMesh(Mesh):
         r.iterations = sum(s.iterations for s in steps)
         r.outer_iterations = sum(s.outer_iterations for s in steps)
         r.krylov_iterations = sum(s.krylov_iterations for s in steps)
-        values = reference_compare(last.scene, r).values if r.converged else {}
+        values = reference_compare(last.posed, r).values if r.converged else {}
         r.q_error = values.get("q_error", float("nan"))
         r.c_error = values.get("c_error", float("nan"))
         return r

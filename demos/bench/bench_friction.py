@@ -34,6 +34,7 @@ from contact.output.plots import plot_traction
 from contact.post.contact_table import contact_table
 from contact.post.friction_resultants import surface_figures
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 from dolfinx import fem  # after contact, which imports dolfinx_solver first
@@ -236,7 +237,7 @@ def steps(quick: bool) -> list[dict]:
             )
             its = [s.result.iterations for s in path.steps]
             last = path.steps[-1]
-            fig = surface_figures(last.scene, last.result) if path.converged else {}
+            fig = surface_figures(last.posed, last.result) if path.converged else {}
             rows.append(
                 {
                     "scene": label,
@@ -300,7 +301,7 @@ def manufactured(quick: bool) -> tuple[list[dict], dict]:
     eff = [r["effectivity"] for r in ada]
     # stick / slip status on the finest adaptive mesh, away from the transition x0 = 0.5
     lv = run.levels[-1]
-    table = contact_table(lv.scene, lv.result)
+    table = contact_table(lv.posed, lv.result)
     x, status = table["x"], table["status"]
     far = np.abs(x - 0.5) >= 0.1
     wrong = int(
@@ -341,7 +342,7 @@ def acceptance(quick: bool, cvf: list[dict], mms: dict, step_rows: list[dict]) -
 
     cells = ["mesh.cells=[40,10]"] if quick else []
     r = contact.solve(scene("friction_block_2d", "load.steps=1", *cells))
-    fig = surface_figures(scene("friction_block_2d", "load.steps=1", *cells), r)
+    fig = surface_figures(posed_of(scene("friction_block_2d", "load.steps=1", *cells)), r)
     add(
         "full sliding, Coulomb: |F_t/F_n - F| / F",
         abs(fig["friction_ratio"] - 0.3) / 0.3,
@@ -457,7 +458,7 @@ def pictures(out: Path, quick: bool) -> None:
     ):
         sc = scene(name, *sets)
         path = contact.run_load_path(sc, keep_all=True)
-        data = [(s.time, contact_table(s.scene, s.result)) for s in path.steps]
+        data = [(s.time, contact_table(s.posed, s.result)) for s in path.steps]
         target = out / f"traction_{name.removeprefix('friction_')}.png"
         plot_traction(
             target, data, title=f"{name}: contact tractions ({path.steps[-1].result.dofs} DoFs)"

@@ -64,8 +64,8 @@ def main() -> None:
             wall = time.perf_counter() - t0
             for lv in res.levels:
                 h = {
-                    **contact_resultants(lv.scene, lv.result),
-                    **compare(lv.scene, lv.result).values,
+                    **contact_resultants(lv.posed, lv.result),
+                    **compare(lv.posed, lv.result).values,
                 }
                 row = {
                     "scene": name,

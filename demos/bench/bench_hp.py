@@ -165,7 +165,7 @@ def hertz_run(method: str, options: dict) -> list[dict]:
 
     def on_level(lv) -> None:
         now = time.process_time()
-        found = compare(lv.scene, lv.result, lv.scene.config.reference)
+        found = compare(lv.posed, lv.result, lv.scene.config.reference)
         row = lv.row()
         rows.append(
             {

@@ -46,6 +46,7 @@ from contact.post.hertz import patch_average
 from contact.post.reference import compare
 from contact.setup import geometry
 from contact.setup.config import load_config
+from contact.setup.posed import posed_of
 from contact.solvers import owned_residual
 
 import numpy as np
@@ -224,7 +225,7 @@ def sphere_pressures(scene, result) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     nodes = p.constraint.dofs[on] // p.V.dofmap.index_map_bs
     X = p.V.tabulate_dof_coordinates()[nodes]
     pressure = p.pressure(owned_residual(result))[on]
-    smooth = patch_average(scene, p.V, nodes, pressure)
+    smooth = patch_average(posed_of(scene), p.V, nodes, pressure)
     rho = np.hypot(X[:, 0], X[:, 1])
     return tuple(np.concatenate(comm.allgather(v)) for v in (rho, pressure, smooth))
 
@@ -261,7 +262,7 @@ def hertz_part(sizes: list[float], variants: list[str]) -> None:
             t, c = time.perf_counter(), time.process_time()
             r = contact.solve(scene, method="fb", verbose=False)
             solve_wall, solve_cpu = time.perf_counter() - t, time.process_time() - c
-            v = compare(scene, r).values
+            v = compare(posed_of(scene), r).values
             rho, pressure, smooth = sphere_pressures(scene, r)
             gmsh_wall, gmsh_cpu = comm.bcast((clock.wall, clock.cpu), root=0)
             row = {
@@ -299,7 +300,7 @@ def refined_part() -> None:
     scene = contact.load_scene(ROOT / "configs" / "two_body_hertz_3d.yaml", QUIET)
 
     def on_level(level):
-        v = compare(level.scene, level.result).values
+        v = compare(level.posed, level.result).values
         rho, pressure, smooth = sphere_pressures(level.scene, level.result)
         rows.append(
             {

@@ -43,6 +43,7 @@ from contact.models.mortar import master_pressure
 from contact.post.interface import interface_resultants, output_dofs
 from contact.post.reference import compare
 from contact.setup.build import build_problem
+from contact.setup.posed import posed_of
 
 import numpy as np
 from mpi4py import MPI
@@ -149,8 +150,8 @@ def cylinders(max_dofs: int) -> None:
 
     def on_level(level):
         res = {
-            **interface_resultants(level.scene, level.result),
-            **compare(level.scene, level.result).values,
+            **interface_resultants(level.posed, level.result),
+            **compare(level.posed, level.result).values,
         }
         rows.append(
             {
@@ -239,7 +240,7 @@ def swap(label: str, path: Path, mesh: list[str], parts: list[str], csv_name: st
         t0 = time.perf_counter()
         r = contact.solve(scene, method="min", verbose=False)
         seconds = time.perf_counter() - t0
-        res = {**interface_resultants(scene, r), **compare(scene, r).values}
+        res = {**interface_resultants(posed_of(scene), r), **compare(posed_of(scene), r).values}
         X, pressure = slave_pressure(r)
         rho = (
             np.linalg.norm(X[:, :-1], axis=1)
@@ -284,7 +285,7 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
         t0 = time.perf_counter()
         r = contact.solve(scene, method="fb", verbose=False)
         seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-        res = {**interface_resultants(scene, r), **compare(scene, r).values}
+        res = {**interface_resultants(posed_of(scene), r), **compare(posed_of(scene), r).values}
         X, pressure = slave_pressure(r)
         rho = np.hypot(X[:, 0], X[:, 1])
         hertz = res["hertz_p0"] * np.sqrt(np.maximum(0.0, 1 - (rho / res["hertz_a"]) ** 2))
@@ -339,7 +340,7 @@ def cattaneo(sizes: list[float]) -> None:
         seconds = time.perf_counter() - t0
         profiles = []
         for step in path.steps:
-            r, v = step.result, compare(step.scene, step.result).values
+            r, v = step.result, compare(step.posed, step.result).values
             rows.append(
                 {
                     "h_contact": h_contact,

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import ufl
@@ -30,11 +30,13 @@ from mpi4py import MPI
 
 from ..base import expressions
 from ..base.errors import ContactWarning
-from ..models.physics import stress
-from ..setup.meshes import NATURAL
-from ..setup.scene import Scene
-from ..setup.scene_config import components
-from ..setup.untagged import untagged_boundary
+from ..models.physics import lame, stress
+from .meshes import NATURAL
+from .scene_config import components
+from .untagged import untagged_boundary
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 #: relative round-off floor of the test d_P > max(i_P, RTOL (‖B u‖ + ‖b‖))
 RTOL = 1e-8
@@ -110,7 +112,6 @@ def exact_mismatches(scene: Scene) -> list[Mismatch] | None:
     flux = None
     if elastic and not cfg.bodies:
         assert cfg.model.E is not None  # one linear elastic body (checked at load)
-        from ..models.elasticity import lame  # (a scalar scene never loads elasticity)
 
         mu, lmbda_L = lame(cfg.model.E, cfg.model.nu)
         flux = lambda w: stress(w, mu, lmbda_L) * n  # noqa: E731
