@@ -36,7 +36,7 @@ from ..base.lifetime import Owner
 from ..base.timing import Stopwatch, Timer
 from .baselines import EnforcedNewton, nodal_scale, result_of
 from .options import SolverOptions
-from .problem import DiscreteProblem
+from .problem import DiscreteProblem, newton_max_it
 from .result import Result
 from .snes import ROUNDOFF
 
@@ -190,6 +190,13 @@ class NodalNewton(EnforcedNewton):
     def prepare(self, owner: Owner) -> None:
         lo = self.form.contact.K.getOwnershipRange()[0]
         self._lo = lo
+
+    def max_it(self) -> int:
+        """The Newton step limit (``solver.max_it``; ``auto``: by the problem's constrained
+        nodes across the slave surfaces, :meth:`.DiscreteProblem.nodes_across`; collective)."""
+        if self.opts.max_it != "auto":
+            return int(self.opts.max_it)
+        return newton_max_it(self.opts.max_it, self.form.problem.nodes_across())
 
     def _set_iterate(self, x: PETSc.Vec) -> None:
         self.form.x = x.array_r.copy()
