@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import csv
 import json
 import os
 import subprocess
@@ -142,3 +143,27 @@ def h5_field(path: Path, name: str) -> np.ndarray:
             )
         )
     return np.concatenate(found) if found else np.zeros(0)
+
+
+#: the columns of convergence.csv an hp run must repeat exactly on any number of ranks
+HP_LEVEL_KEYS = ("dofs", "cells", "p_min", "p_max", "h_cells", "p_cells")
+
+
+def hp_serial_equals_two_ranks(
+    tmp: Path, scene: str, sets: Sequence[str], levels: int, timeout: float = 300
+) -> tuple[list[dict], list[dict]]:
+    """Run the hp scene ``configs/<scene>`` with ``sets`` serially and on 2 ranks and check
+    that its convergence.csv has ``levels`` rows each time, the same :data:`HP_LEVEL_KEYS`
+    per level and η to 1e-8: the two tables (serial, 2 ranks)."""
+    tables = []
+    for ranks in (0, 2):
+        out, _ = run_scene(tmp, scene, ranks, sets, timeout)
+        with open(out / "convergence.csv", newline="") as f:
+            tables.append(list(csv.DictReader(f)))
+    one, two = tables
+    assert len(one) == len(two) == levels
+    for a, b in zip(one, two):
+        for key in HP_LEVEL_KEYS:
+            assert a[key] == b[key], (key, a, b)
+        assert abs(float(a["eta"]) - float(b["eta"])) <= 1e-8 * float(a["eta"])
+    return one, two

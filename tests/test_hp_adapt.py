@@ -6,7 +6,6 @@ scene key ``adapt.strategy: hp`` runs through the CLI with the same degrees, cel
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import contact
@@ -15,8 +14,7 @@ from contact.hp.adapt import HPLevel
 
 import numpy as np
 import pytest
-from clirun import ROOT, h5_field
-from clirun import contact as cli
+from clirun import ROOT, h5_field, hp_serial_equals_two_ranks
 
 SMOOTH = ROOT / "configs" / "signorini_smooth.yaml"
 
@@ -75,29 +73,13 @@ def test_hp_options_are_checked() -> None:
         contact.adapt(hyper, strategy="hp")
 
 
-def _table(path: Path) -> list[dict]:
-    with open(path) as f:
-        return list(csv.DictReader(f))
-
-
 def test_hp_scene_serial_equals_two_ranks(tmp_path: Path) -> None:
     """``adapt.strategy: hp`` through ``contact run``: the same unknowns, cells, degrees and
     h/p decisions per level on 1 and 2 ranks, η to 1e-8; the last level's ``degree``
     cell field read back from the XDMF's HDF5 file."""
     sets = ["adapt.strategy=hp", "adapt.p_max=3", "adapt.max_levels=5", "output.png=false"]
-    args = [a for s in sets for a in ("--set", s)]
-    tables = []
-    for ranks in (0, 2):
-        out = tmp_path / f"np{ranks}"
-        proc = cli(tmp_path, "run", str(SMOOTH), "-o", str(out), "-q", *args, ranks=ranks)
-        assert proc.returncode == 0, proc.stderr
-        tables.append(_table(out / "convergence.csv"))
-    one, two = tables
-    assert len(one) == len(two) == 5
-    for a, b in zip(one, two):
-        for key in ("dofs", "cells", "p_min", "p_max", "h_cells", "p_cells"):
-            assert a[key] == b[key], (key, a, b)
-        assert abs(float(a["eta"]) - float(b["eta"])) <= 1e-8 * float(a["eta"])
+    one, two = hp_serial_equals_two_ranks(tmp_path, SMOOTH.name, sets, 5)
+    for a in one:
         assert float(a["eta"]) >= float(a["error"])
     degree = h5_field(tmp_path / "np0" / "solution_004.h5", "degree")
     assert len(degree), "no degree field in solution_004.h5"

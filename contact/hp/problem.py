@@ -24,6 +24,7 @@ bound measures that (its feasibility lifting), the solver does not see it.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import dolfinx.fem.petsc
 import numpy as np
@@ -41,6 +42,7 @@ from ..setup.data import interpolate_expression
 from ..setup.scalar import scalar_forms, scalar_physics
 from ..setup.scene import Scene
 from ..solvers.problem import Constraint, Output, ProblemData
+from .precondition import PatchPreconditioner
 from .space import HPSpace
 
 
@@ -57,6 +59,29 @@ class HPProblem(Problem):
         """The hp unknowns (every component), not V's DoFs: the inactive slots are
         eliminated rows (which size decides ``solver.linear: auto``)."""
         return self.space.dimension * self.V.dofmap.index_map_bs
+
+    def patch_preconditioner(self) -> Callable[[PETSc.PC], None]:
+        """The two-level vertex-patch preconditioner of the hp space
+        (:mod:`.precondition`), built once per problem; 2D only (3D is not measured).
+
+        Returns:
+            The :class:`~.precondition.PatchPreconditioner` of the space.
+        """
+        if self.V.mesh.topology.dim != 2:
+            raise ConfigError("solver.linear: hp_patch applies to 2D hp problems only")
+        if self._patch is None:
+            self._patch = PatchPreconditioner(self.space)
+        return self._patch
+
+    def destroy(self) -> None:
+        """Destroy the PETSc objects of the problem and of its preconditioner."""
+        if self._patch is not None:
+            self._patch.destroy()
+            self._patch = None
+        super().destroy()
+
+    #: the patch preconditioner once built (:meth:`patch_preconditioner`)
+    _patch: PatchPreconditioner | None = None
 
     def nodal_output(self, name: str, values: np.ndarray) -> fem.Function:
         """``values`` at the constrained unknowns (0 at the other unknowns), as the function

@@ -5,6 +5,8 @@
   GAMG's interpolation reused across Newton steps, inexact Newton (``solver.inexact``);
 * ``bcgs``   — BiCGStab + GAMG on the assembled H (the generic Krylov path, also for
   non-symmetric laws);
+* ``hp_patch`` — as ``gamg`` with the problem's own p-robust preconditioner
+  (:meth:`.problem.DiscreteProblem.patch_preconditioner`: scalar hp problems in 2D);
 * ``auto``   — :func:`choose_linear`: MUMPS for small 2D problems (scalar hp problems: up to
   :data:`DIRECT_MAX_HP_2D` unknowns), ``gamg`` otherwise.
 
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 from petsc4py import PETSc
 
+from ..base.errors import ConfigError
 from .options import default_options
 from .problem import DiscreteProblem
 from .reduced import ReducedSystem
@@ -63,6 +66,7 @@ def assembled_kind(
     current frames: there BiCGStab + GAMG broke down (a sphere lowered into a 6 × 6 × 3
     block in 3 steps: ``diverged_linear_solve`` at step 3; GMRES + GAMG: 10 000 iterations
     without converging) where MUMPS took 5 Newton steps per load step."""
+    refuse_patch(linear)
     if linear == "direct" or _user_solver(petsc_options):
         return "direct"
     if linear in ("gamg", "bcgs", "gmres"):
@@ -71,6 +75,17 @@ def assembled_kind(
         return "direct"
     elastic_3d = problem.near_nullspace is not None and problem.V.mesh.geometry.dim == 3
     return "bcgs" if elastic_3d else "direct"
+
+
+def refuse_patch(linear: str) -> None:
+    """``hp_patch`` preconditions the symmetric reduced system of a diagonal law only: not
+    an assembled Newton matrix (friction, a finite-strain or current-configuration problem,
+    PETSc's VI solvers, the energy line search)."""
+    if linear == "hp_patch":
+        raise ConfigError(
+            "solver.linear: hp_patch applies to frictionless small-strain scalar hp problems "
+            "solved by fb, min or blend without the energy line search"
+        )
 
 
 #: friction's ``auto`` uses MUMPS on H for 2D problems below this many DoFs, the reduced block
@@ -86,6 +101,7 @@ def friction_kind(
     system, :mod:`.block_system`); ``auto`` (and ``gamg``, the Krylov choice of the
     frictionless path) resolved by size and dimension; the user's ksp/pc options select the
     assembled H with exactly those options."""
+    refuse_patch(linear)
     if linear in ("direct", "bcgs", "gmres"):
         return linear
     if _user_solver(petsc_options):
@@ -228,7 +244,12 @@ class ReducedNewtonSystem(ReducedSystem):
 
 
 def newton_system(problem: DiscreteProblem, kind: str, prefix: str, forcing: bool = True):
-    """The Newton system object of linear solver ``kind`` (``direct``, ``gamg``, ``bcgs``)."""
+    """The Newton system object of linear solver ``kind`` (``direct``, ``gamg``, ``bcgs``,
+    ``hp_patch``)."""
+    if kind == "hp_patch":
+        system = ReducedNewtonSystem(problem, prefix, forcing)
+        system.pc_setup = problem.patch_preconditioner()
+        return system
     if kind == "gamg":
         return ReducedNewtonSystem(problem, prefix, forcing)
     return AssembledSystem(problem)

@@ -44,7 +44,7 @@ BASELINE_METHODS = ("penalty", "augmented_lagrangian", "nitsche")
 #: baseline enforcement
 METHODS = ncp.METHODS + VI_METHODS + BASELINE_METHODS
 LINE_SEARCHES = ("auto", "basic", "bt", "energy")
-LINEAR = ("auto", "direct", "gamg", "bcgs", "gmres")
+LINEAR = ("auto", "direct", "gamg", "bcgs", "gmres", "hp_patch")
 PREDICTORS = ("auto", "tangent", "none")
 #: the forcing rule of inexact Newton on the gamg path (:mod:`.reduced`)
 FORCINGS = ("active_set", "eisenstat_walker")
@@ -80,7 +80,7 @@ class SolverOptions(BaseModel):
             max(50, n) with n the nodes across the constrained set
             (``contact.solvers.problem.newton_max_it``), since a cold start's active-set
             path takes O(1/h) steps.
-        linear: direct, gamg, bcgs or auto (``linear``).
+        linear: direct, gamg, bcgs, gmres, hp_patch or auto (``linear``).
         inexact: inexact Newton on the gamg path (Krylov tolerances from a forcing rule).
         forcing: the forcing rule of ``inexact`` for fb / min / blend without friction:
             ``active_set`` (a step after one that changed statuses is solved loosely, at
@@ -303,6 +303,16 @@ ELASTICITY_3D_PETSC_OPTIONS = {"ksp_type": "bcgs", "pc_type": "gamg", "ksp_rtol"
 #: friction's reduced block system (:mod:`.block_system`): GMRES, right preconditioned so that
 #: its residual norm is the unpreconditioned one the stopping test reads; GAMG as for ``gamg``
 BLOCK_PETSC_OPTIONS = {"ksp_type": "gmres", "ksp_pc_side": "right", "ksp_gmres_restart": 100}
+#: ``hp_patch`` (:mod:`contact.hp.precondition`): CG on the reduced system as for ``gamg``, its
+#: two-level preconditioner set up by the problem (PCMG: the Galerkin coarse matrix, one LU per
+#: vertex patch in the additive Schwarz smoother)
+HP_PATCH_PETSC_OPTIONS = {
+    **{k: v for k, v in REDUCED_PETSC_OPTIONS.items() if not k.startswith("pc_gamg")},
+    "pc_type": "mg",
+    "pc_mg_galerkin": "both",
+    "mg_levels_sub_ksp_type": "preonly",
+    "mg_levels_sub_pc_type": "lu",
+}
 ASSEMBLED_PETSC_OPTIONS: dict[str, dict[str, Any]] = {
     "direct": DEFAULT_PETSC_OPTIONS,
     "bcgs": ELASTICITY_3D_PETSC_OPTIONS,
@@ -357,6 +367,8 @@ def default_options(kind: str, tdim: int, ranks: int = 1) -> dict:
         return {**REDUCED_PETSC_OPTIONS, **extra}
     if kind == "gmres":
         return {**default_options("gamg", tdim, ranks), **BLOCK_PETSC_OPTIONS}
+    if kind == "hp_patch":
+        return dict(HP_PATCH_PETSC_OPTIONS)
     return dict(ASSEMBLED_PETSC_OPTIONS[kind])
 
 

@@ -27,6 +27,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.errors import ConfigError
 from ..base.lifetime import destroy
 from .options import FrictionOptions
 
@@ -300,6 +301,18 @@ class DiscreteProblem:
     #: the unknowns carry polynomials of variable degree (an hp space): Krylov solvers with
     #: GAMG lose their robustness, which ``solver.linear: auto`` takes into account
     variable_degree = False
+
+    def patch_preconditioner(self) -> Callable[[PETSc.PC], None]:
+        """The problem's own p-robust preconditioner of its reduced Newton system
+        (``solver.linear: hp_patch``): a function that sets a PC up as it.  A problem
+        without one refuses.
+
+        Returns:
+            The function of the PC (kept by the problem, destroyed with it).
+        """
+        raise ConfigError(
+            "solver.linear: hp_patch applies to scalar hp problems (adapt.strategy: hp) only"
+        )
 
     def unknowns(self) -> int:
         """The number of unknowns the solver works on (all ranks): V's DoFs, or fewer where

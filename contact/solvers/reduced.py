@@ -76,6 +76,7 @@ assembled system of :mod:`.linear`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -183,6 +184,9 @@ class ReducedSystem:
         self.setups = 0  # GAMG set-ups (fresh solves, rebuilds midway, restarts)
         self.rebuilds = 0  # lagged solves that had to rebuild GAMG midway
         self.restarts = 0  # solves started over with a new GAMG after a breakdown
+        # sets the inner PC up in place of the options' (``solver.linear: hp_patch``), again
+        # after each reset
+        self.pc_setup: Callable[[PETSc.PC], None] | None = None
         self.J = self._jacobian()
 
     def _jacobian(self) -> PETSc.Mat:
@@ -213,6 +217,8 @@ class ReducedSystem:
             )
         self.lag_rule = rule
         self.warm = PETSc.Options(prefix).getBool("reduced_warm_start", True)
+        if self.pc_setup is not None:
+            self.pc_setup(self.ksp.getPC())
         # adaptive stopping measures CG's natural norm, which the lagging's rates do not use
         self.lag = self.lag and self.stopping is None
 
@@ -448,6 +454,8 @@ class ReducedSystem:
         self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         self._built_fixed = self.fixed.copy()
         ksp.getPC().reset()
+        if self.pc_setup is not None:
+            self.pc_setup(ksp.getPC())
         ksp.setOperators(self.A, self.P)
         ksp.getPC().setReusePreconditioner(False)
         ksp.setTolerances(rtol=rtol, atol=atol, max_it=self._max_it)

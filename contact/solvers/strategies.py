@@ -275,7 +275,10 @@ def energy_linear(problem: DiscreteProblem, options: SolverOptions, user: dict) 
     :mod:`.curvature`) where the assembled path would factorize, ``gamg`` (CG + GAMG and
     an indefiniteness test, :mod:`.krylov_curvature`) where it would not — 3D elasticity by
     default, or ``solver.linear: gamg`` —, None for an explicit ``bcgs`` / ``gmres``
-    (BiCGStab / GMRES on the assembled H, plain Newton)."""
+    (BiCGStab / GMRES on the assembled H, plain Newton; also ``hp_patch``, whose problems
+    have no energy search)."""
+    if options.linear == "hp_patch":
+        return None
     kind = assembled_kind(problem, options.linear, user)
     if kind == "direct":
         return "direct"

@@ -16,10 +16,18 @@ steps solve on the inactive set), solved for its right-hand side to a relative r
   Schöberl, Melenk, Pechstein & Zaglmayr (2008) and Pavarino (1994).
 
 Per solver and p: the Krylov iterations, the CPU seconds of setup and solve (the process's,
-measured in the same run, ratios to ``direct``), the unknowns.  Serial (the patches are
-built from the local mesh).  Writes solvers.csv (or ``--csv``).
+measured in the same run, ratios to ``direct``), the unknowns.  Serial.  Writes solvers.csv
+(or ``--csv``).  ``p1-patch`` is the library's ``solver.linear: hp_patch``
+(:mod:`contact.hp.precondition`).
+
+``--loop LEVELS``: the hp loop on problem C instead, LEVELS levels at each p_max of
+``--degrees``, its Newton systems solved with ``solver.linear`` direct, gamg and hp_patch
+(exact Krylov solves, ``solver.inexact: false``): the unknowns and degrees of the last
+level, the most and the total CG iterations, the loop's CPU seconds and their ratio to
+direct's; writes solvers_loop.csv.
 
     python demos/bench/bench_hp_solvers.py --out demos/results/hp
+    python demos/bench/bench_hp_solvers.py --loop 16 --out demos/results/hp
     python demos/bench/bench_hp_solvers.py --refine 3 --degrees 4,6 --csv solvers_refined.csv \
         --out demos/results/hp
 """
@@ -31,75 +39,18 @@ import time
 from pathlib import Path
 
 import contact
+from contact.hp.precondition import PatchPreconditioner, coarse_interpolation
 from contact.hp.problem import hp_problem
 from contact.hp.space import HPSpace
 from contact.output.folder import write_csv
 
-import dolfinx.fem.petsc
 import numpy as np
-from dolfinx import fem
 from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "configs" / "signorini_smooth.yaml"
 SOLVERS = ("direct", "gamg", "p1-jacobi", "p1-patch")
 RTOL = 1e-10
-
-
-def coarse_interpolation(space: HPSpace) -> PETSc.Mat:
-    """P: the P1 coefficients to the hp unknowns, x = L I_1 x_1 (P1 ⊂ V_hp, so exact)."""
-    V1 = fem.functionspace(space.mesh, ("Lagrange", 1))
-    interp = dolfinx.fem.petsc.interpolation_matrix(V1, space.V)
-    interp.assemble()
-    _, L = space.matrices()
-    P = L.matMult(interp)
-    interp.destroy()
-    L.destroy()
-    return P
-
-
-def vertex_patches(space: HPSpace) -> list[PETSc.IS]:
-    """The active unknowns of each vertex patch (module docstring), as index sets."""
-    msh, V = space.mesh, space.V
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim, 0)
-    msh.topology.create_connectivity(tdim, 1)
-    c2v = msh.topology.connectivity(tdim, 0).array.reshape(-1, tdim + 1)
-    layout = V.dofmap.dof_layout
-    edges_of = [
-        [e for e, verts in enumerate(_ref_edges(tdim)) if a in verts] for a in range(tdim + 1)
-    ]
-    local = [
-        np.concatenate(
-            [layout.entity_dofs(0, a)]
-            + [layout.entity_dofs(1, e) for e in edges_of[a]]
-            + ([layout.entity_dofs(2, f) for f in range(4) if f != a] if tdim == 3 else [])
-            + [layout.entity_dofs(tdim, 0)]
-        ).astype(np.int64)
-        for a in range(tdim + 1)
-    ]
-    n_vertices = msh.topology.index_map(0).size_local
-    dofs = V.dofmap.list
-    n_cells = msh.topology.index_map(tdim).size_local
-    members: list[list[np.ndarray]] = [[] for _ in range(n_vertices)]
-    for c in range(n_cells):
-        for a in range(tdim + 1):
-            v = c2v[c, a]
-            if v < n_vertices:
-                members[v].append(dofs[c][local[a]])
-    owned = V.dofmap.index_map.size_local
-    out = []
-    for parts in members:
-        idx = np.unique(np.concatenate(parts))
-        idx = idx[(idx < owned) & space.active[idx]]
-        out.append(PETSc.IS().createGeneral(idx.astype(PETSc.IntType), comm=PETSc.COMM_SELF))
-    return out
-
-
-def _ref_edges(tdim: int) -> list[tuple[int, int]]:
-    return (
-        [(1, 2), (0, 2), (0, 1)] if tdim == 2 else [(2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1)]
-    )
 
 
 def make_ksp(kind: str, K: PETSc.Mat, space: HPSpace) -> PETSc.KSP:
@@ -118,6 +69,13 @@ def make_ksp(kind: str, K: PETSc.Mat, space: HPSpace) -> PETSc.KSP:
     if kind == "gamg":
         pc.setType("gamg")
         return ksp
+    if kind == "p1-patch":  # the library's preconditioner, the coarse matrix Galerkin's
+        pc.setType("mg")
+        PETSc.Options().setValue("pc_mg_galerkin", "both")
+        pc.setFromOptions()
+        PETSc.Options().delValue("pc_mg_galerkin")
+        PatchPreconditioner(space)(pc)
+        return ksp
     pc.setType("mg")
     pc.setMGLevels(2)
     pc.setMGType(PETSc.PC.MGType.MULTIPLICATIVE)
@@ -133,14 +91,7 @@ def make_ksp(kind: str, K: PETSc.Mat, space: HPSpace) -> PETSc.KSP:
     smoother.setOperators(K)
     smoother.setType("chebyshev")  # eigenvalue estimates of the preconditioned K
     smoother.setTolerances(max_it=2)
-    if kind == "p1-jacobi":
-        smoother.getPC().setType("jacobi")
-    else:
-        spc = smoother.getPC()
-        spc.setType("asm")
-        spc.setASMType(PETSc.PC.ASMType.BASIC)
-        spc.setASMOverlap(0)
-        spc.setASMLocalSubdomains(len(patches := vertex_patches(space)), patches)
+    smoother.getPC().setType("jacobi")
     return ksp
 
 
@@ -173,6 +124,52 @@ def measure(kind: str, K: PETSc.Mat, b: PETSc.Vec, space: HPSpace) -> dict:
     return out
 
 
+LOOP_SOLVERS = ("direct", "gamg", "hp_patch")
+
+
+def loop(levels: int, degrees: list[int], out: Path) -> None:
+    """The hp loop with each ``solver.linear`` of :data:`LOOP_SOLVERS` (module docstring)."""
+    rows = []
+    for p_max in degrees:
+        for linear in LOOP_SOLVERS:
+            scene = contact.load_scene(
+                SCENE, ["output.verbose=false", f"solver.linear={linear}", "solver.inexact=false"]
+            )
+            t0 = time.process_time()
+            run = contact.adapt(scene, strategy="hp", p_max=p_max, max_levels=levels)
+            cpu = time.process_time() - t0
+            its = [e["iterations"] for lv in run.levels for e in lv.result.krylov_log]
+            last = run.levels[-1].row()
+            rows.append(
+                {
+                    "p_max": p_max,
+                    "solver": linear,
+                    "levels": len(run.levels),
+                    "unknowns": last["dofs"],
+                    "degree_max": last["p_max"],
+                    "eta": run.levels[-1].estimate.eta,
+                    "most_iterations": max(its, default=0),
+                    "krylov_iterations": sum(its),
+                    "cpu": cpu,
+                }
+            )
+        direct = next(r for r in rows if r["p_max"] == p_max and r["solver"] == "direct")
+        for r in rows:
+            if r["p_max"] == p_max:
+                r["cpu_ratio_direct"] = r["cpu"] / direct["cpu"]
+    write_csv(out / "solvers_loop.csv", rows)
+    print(
+        f"{'p_max':>5} {'solver':9}{'N':>7}{'p':>3}{'eta':>10}{'most':>6}{'its':>7}{'cpu':>8}"
+        f"{'/direct':>8}"
+    )
+    for r in rows:
+        print(
+            f"{r['p_max']:5d} {r['solver']:9}{r['unknowns']:7d}{r['degree_max']:3d}"
+            f"{r['eta']:10.3e}{r['most_iterations']:6d}{r['krylov_iterations']:7d}"
+            f"{r['cpu']:8.2f}{r['cpu_ratio_direct']:8.2f}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="demos/results/hp")
@@ -181,9 +178,13 @@ def main() -> None:
     )
     parser.add_argument("--degrees", default="2,3,4,6", help="comma-separated degrees p")
     parser.add_argument("--csv", default="solvers.csv", help="the CSV's name in --out")
+    parser.add_argument("--loop", type=int, default=0, help="levels of the hp loop (0: none)")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.loop:
+        loop(args.loop, [int(d) for d in args.degrees.split(",")], out)
+        return
     scene = contact.load_scene(SCENE, ["output.verbose=false"])
     for _ in range(args.refine):
         scene, _ = contact.refine(scene, np.arange(scene.mesh.topology.index_map(2).size_local))
