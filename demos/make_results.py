@@ -1533,6 +1533,30 @@ def friction_paths(path_rows: list[dict]) -> list[str]:
     ]
 
 
+def _bar_levels() -> list[str]:
+    """The 1M square's bar by the number of coarse levels (demos/results/cold/
+    bar_levels_1024.csv, ``bench_cost.py scene --sequence auto,3,2``)."""
+    bar = rows(RES / "cold" / "bar_levels_1024.csv") or []
+    if not bar:
+        return []
+    settings = list(dict.fromkeys(r["sequence"] for r in bar))
+    methods = list(dict.fromkeys(r["method"] for r in bar))
+    by = {(r["method"], r["sequence"]): r for r in bar}
+    levels = ", ".join(
+        f"{m} " + " / ".join(g(by[m, s]["ratio_cpu"]) for s in settings if (m, s) in by)
+        for m in methods
+    )
+    levels += " for " + " / ".join(
+        f"`{s}` (coarsest {str(by[methods[0], s]['coarse_dofs']).split()[0]} DoFs)"
+        for s in settings
+    )
+    weighted = " → ".join(g(by[methods[0], s]["weighted_solves"]) for s in settings)
+    return [
+        prose("cost", "the_1m_square_against", levels=levels, weighted=f"{methods[0]} {weighted}"),
+        "",
+    ]
+
+
 def cost() -> str:
     """Section 9: a contact solve in units of one linear solve (demos/bench/bench_cost.py)."""
     out = ["## 9. Cost against one linear solve", ""]
@@ -1607,6 +1631,7 @@ def cost() -> str:
                 g_max_weighted=g(max(weighted)),
             )
         ]
+    out += _bar_levels()
     if path_rows:
         out += friction_paths(path_rows)
     scale = rows(RES / "scale.csv") or []

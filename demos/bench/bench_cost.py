@@ -100,7 +100,8 @@ def max_over_ranks(value: float) -> float:
 def contact_solve(scene, method: str, sequence: str, **options):
     MPI.COMM_WORLD.barrier()
     t0, c0 = time.perf_counter(), time.process_time()
-    r = contact.solve(scene, method=method, sequence=sequence, verbose=False, **options)
+    seq = int(sequence) if sequence.isdigit() else sequence  # a number of coarser levels
+    r = contact.solve(scene, method=method, sequence=seq, verbose=False, **options)
     return max_over_ranks(time.perf_counter() - t0), max_over_ranks(time.process_time() - c0), r
 
 
@@ -359,7 +360,11 @@ def main() -> None:
     )
     ap.add_argument("--cells", type=int, nargs="+", default=[128, 256, 512, 1024])
     ap.add_argument("--methods", default="fb,min")
-    ap.add_argument("--sequence", default="auto,off", help="sequencing settings to compare")
+    ap.add_argument(
+        "--sequence",
+        default="auto,off",
+        help="sequencing settings to compare: auto, off or a number of coarser levels",
+    )
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument(
         "--max-dofs", type=int, default=300000, help="hertz3d: DoF budget of the adaptive loop"
