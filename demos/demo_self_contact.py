@@ -80,7 +80,7 @@ gap = comm.allreduce(gaps.min(initial=1), MPI.MIN)
 # ## What you see: a dogbone, the upper inner face pressed onto the lower one (red), the forces
 # on both faces opposite to round-off, every weighted gap ≥ −1e-9.  The lobes tilt: the pressed
 # walls slide along each other (frictionless), the way the mesh's diagonals lean.
-p, on = result.problem, slice(0, result.problem.data["pair_nodes"])
+p, on = result.problem, slice(0, result.problem.data.pair_nodes)
 pressure = p.pressure(owned_residual(result))[on]  # pressed: > 1e-8 of the largest pressure
 top = comm.allreduce(pressure.max(initial=0), MPI.MAX)
 pressed = p.constraint.dofs[on][pressure > 1e-8 * top] // 2

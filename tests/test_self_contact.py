@@ -54,8 +54,8 @@ def test_inner_faces_touch_and_do_not_interpenetrate(ring):
     assert r.n_active >= 6
     # the pair coupled afresh on the final configuration: its weighted gaps (the contact
     # condition the solver enforced, at the coupling of its own configuration)
-    (pair,) = scene_pairs(scene, p.data["ds"])
-    fixed = np.concatenate([bc.dof_indices()[0] for bc in p.data["u_bcs"]])
+    (pair,) = scene_pairs(scene, p.data.ds)
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in p.data.u_bcs])
     gap = gathered(comm, mortar.couple(p.V, pair, fixed, displacement=u).gap)
     assert gap.min() >= -COUPLING_RTOL and np.sum(np.abs(gap) <= 1e-8) >= 6  # touching
     # independently of the mortar projection: each slave node's signed distance to the

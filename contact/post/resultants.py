@@ -93,7 +93,7 @@ def current_pressure(result: Result) -> np.ndarray | None:
 
     the node's normal contact force w_i p_i (p_i the nominal pressure of
     :meth:`DiscreteProblem.pressure`, force per reference area) over its lumped deformed
-    area w_i^cur = ∫ φ_i da, da = J |F⁻ᵀ N| dA (Nanson; ``data["deformed_area"]``,
+    area w_i^cur = ∫ φ_i da, da = J |F⁻ᵀ N| dA (Nanson; ``data.deformed_area``,
     :func:`contact.models.hyperelastic.deformed_area`): the discrete Cauchy normal traction
     −σn·n on the current surface, the counterpart of the nominal one; Σ_i w_i^cur p_i^cur =
     Σ_i w_i p_i, the same force.  Collective (assembly)."""
