@@ -237,7 +237,7 @@ def adapt(
             maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
             ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the
             largest degree) and ``p_start`` (every cell's first degree); hp's ``theta`` is
-            :data:`HP_THETA` unless the scene or the call gives one.  The hp loop takes
+            ``HP_THETA`` unless the scene or the call gives one.  The hp loop takes
             the scene's ``estimator`` (``residual``: the h/p-weighted residual estimator;
             otherwise the guaranteed equilibrated bound; elasticity: always the residual
             estimator).

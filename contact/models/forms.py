@@ -547,7 +547,7 @@ class ComplementarityProblem:
                 reference configuration.
             coupled_at: :class:`~.constraints.MortarPair` s coupled on the current
                 configuration of these nodal displacements (u's array, owned and ghost
-                entries; finite strain: :func:`contact.drivers.recouple.solve_recoupled`
+                entries; finite strain: ``contact.drivers.recouple.solve_recoupled``
                 iterates the coupling to its fixed point), or None: on the reference
                 configuration.
 
