@@ -69,17 +69,23 @@ class Estimate:
     terms: dict[str, float]
 
 
-def _cellwise(msh):
+def _cellwise(msh, degree: fem.Function | None = None):
     """Return what every indicator form needs.
 
     What every indicator form needs: the DG0 test function w, the facet normal, h_T (cell
-    diameter), h_E (facet size), dx, dS, and a zero form to start sums from.
+    diameter), h_E (facet size), h_S (its mean on interior facets), dx, dS, and a zero form
+    to start sums from.  With the cells' ``degree`` p_T (an hp solution, DG0) the sizes are
+    the p-weighted h_T/p_T, h_E/p_E and h_S/max(p⁺, p⁻).
     """
     w = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
     dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
-    h_E = ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    h_T, h_E = ufl.CellDiameter(msh), ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    h_S = ufl.avg(h_E)  # interior facets
+    if degree is not None:
+        h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
+        h_E = h_E / degree
     zero = fem.Constant(msh, 0.0) * w * dx
-    return w, ufl.FacetNormal(msh), ufl.CellDiameter(msh), h_E, dx, dS, zero
+    return w, ufl.FacetNormal(msh), h_T, h_E, h_S, dx, dS, zero
 
 
 def indicator_terms(
@@ -170,11 +176,7 @@ def scalar_terms(
     loads = boundary.neumann
     g = problem.bound_function()
     ds, natural = natural_facets(boundary, msh, contact)
-    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
-    h_S = ufl.avg(h_E)  # interior facets
-    if degree is not None:
-        h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
-        h_E = h_E / degree
+    w, n, h_T, h_E, h_S, dx, dS, zero = _cellwise(msh, degree)
     sigma = problem.constraint.sign
     flux = physics.flux(u_h)  # k ∇u_h
     obstacle = condition.in_domain
@@ -229,11 +231,7 @@ def elasticity_terms(
     pairs = [c for c in problem.contacts if isinstance(c, MortarPair)]
     held = (*(i for c in rigid for i in c.ids), *(i for c in pairs for i in c.ids + c.master_ids))
     ds, natural = natural_facets(boundary, msh, held)
-    w, n, h_T, h_E, dx, dS, zero = _cellwise(msh)
-    h_S = ufl.avg(h_E)  # interior facets
-    if degree is not None:
-        h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
-        h_E = h_E / degree
+    w, n, h_T, h_E, h_S, dx, dS, zero = _cellwise(msh, degree)
     sigma = physics.flux(u_h)  # σ(u_h), or P(u_h) of a hyperelastic body
     frictional = result.friction is not None
     T = ufl.dot(sigma, n)  # traction σ(u_h) n
