@@ -14,6 +14,7 @@ every level.  Writes levels.csv and summary.csv; prints a table.
     python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
     python demos/bench/bench_hp.py --hertz --out demos/results/hp      (Hertz 2D, elastic)
     python demos/bench/bench_hp.py --three-d 8 --out demos/results/hp  (3D problem C, 8 levels)
+    python demos/bench/bench_hp.py --profile A [--space-degree p_max]  (where a level's CPU goes)
 
 ``--three-d``: problem C extruded to the unit cube (u = −(x − ½)₊³ + z², Γ_C = {z = 0},
 u_D = u on the other faces), hp with p_max 3 from the 4 × 4 × 4 box: per level N, the error, η
@@ -318,6 +319,62 @@ def three_d(out: Path, levels: int) -> None:
     print(run.stop, "| eta >= error on every level:", all(r["eta"] >= r["error"] for r in rows))
 
 
+#: the parts of an hp level the profile reports: (label, module path, function name)
+PROFILED = [
+    ("V_hp and its basis (HPSpace)", "contact/hp/space.py", "__init__"),
+    ("Q and L", "contact/hp/space.py", "matrices"),
+    ("assembly in P_q + QᵀKQ", "contact/hp/problem.py", "reduce_system"),
+    ("hp problem (all of it)", "contact/hp/problem.py", "hp_problem"),
+    ("solve (Newton, MUMPS)", "contact/setup/run.py", "solve"),
+    ("estimate (the bound)", "contact/hp/bound.py", "hp_bound"),
+    ("error (exact solution)", "contact/adaptivity/energy_error.py", "solution_error"),
+    ("smoothness (decay rates)", "contact/hp/mark.py", "decay_rates"),
+    ("free boundary cells", "contact/hp/mark.py", "front_cells"),
+    ("refine + transfer", "contact/setup/run.py", "refine"),
+    ("degree transfer", "contact/hp/mark.py", "child_degrees"),
+    ("u_0 raised to the new degree", "contact/hp/adapt.py", "_raised"),
+    ("form/expression JIT look-ups", "dolfinx/jit.py", "ffcx_jit"),
+]
+
+
+def profile(problem: str, space_degree: str) -> None:
+    """cProfile (CPU seconds) of the hp loop with its default θ on one problem: the
+    cumulative seconds of the parts of a level (:data:`PROFILED`) over the run."""
+    import cProfile
+    import pstats
+
+    from contact.hp.adapt import HP_THETA
+
+    _, path, target, *_ = next(p for p in PROBLEMS if p[0] == problem)
+
+    def go(levels: int):
+        scene = contact.load_scene(ROOT / path, ["output.verbose=false"])
+        return adapt_hp(
+            scene,
+            p_max=6,
+            theta=HP_THETA,
+            tol=target,
+            max_levels=levels,
+            space_degree=space_degree,
+        )
+
+    go(2)  # the forms compiled
+    prof = cProfile.Profile(time.process_time)
+    start = time.process_time()
+    prof.enable()
+    out = go(60)
+    prof.disable()
+    total = time.process_time() - start
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    print(
+        f"problem {problem}, space {space_degree}: {len(out.levels)} levels, "
+        f"{total:.2f} CPU s profiled"
+    )
+    for label, module, name in PROFILED:
+        cum = sum(v[3] for k, v in stats.items() if k[0].endswith(module) and k[2] == name)
+        print(f"  {label:32} {cum:7.3f} s  {100 * cum / total:5.1f} %")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="demos/results/hp")
@@ -334,7 +391,17 @@ def main() -> None:
         "--methods", default="", help="comma-separated subset of the methods (default: all)"
     )
     parser.add_argument("--three-d", type=int, default=0, metavar="LEVELS", help="3D problem C")
+    parser.add_argument(
+        "--profile",
+        default="",
+        metavar="PROBLEM",
+        help="only a CPU profile of the hp loop on problem C or A (with --space-degree)",
+    )
+    parser.add_argument("--space-degree", default="used", choices=("used", "p_max"))
     args = parser.parse_args()
+    if args.profile:
+        profile(args.profile, args.space_degree)
+        return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.three_d:
