@@ -13,7 +13,7 @@ every level.  Writes levels.csv and summary.csv; prints a table.
     python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
     python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
     python demos/bench/bench_hp.py --hertz --out demos/results/hp      (Hertz 2D, elastic)
-    python demos/bench/bench_hp.py --three-d 8 --out demos/results/hp  (3D problem C, 8 levels)
+    python demos/bench/bench_hp.py --three-d 6 --out demos/results/hp  (3D problem C, 6 levels)
     python demos/bench/bench_hp.py --profile A [--space-degree p_max]  (where a level's CPU goes)
 
 ``--three-d``: problem C extruded to the unit cube (u = −(x − ½)₊³ + z², Γ_C = {z = 0},
