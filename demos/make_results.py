@@ -2245,6 +2245,22 @@ def _hyper_ball() -> str:
         ),
         "",
     ]
+    runs = sorted((rows(path) for path in files), key=lambda data: data[-1]["dofs"])
+    if len(runs) >= 2:
+        fine, coarse = runs[-1][-1], runs[-2][-1]  # the two finest meshes' final steps
+        out += [
+            prose(
+                "_hyper_ball",
+                "the_two_finest_meshes",
+                fine_dofs=f"{fine['dofs']:,}",
+                coarse_dofs=f"{coarse['dofs']:,}",
+                change=f"{abs(fine['contact_force'] / coarse['contact_force'] - 1):.1e}",
+                newton=", ".join(str(r["newton_iterations"]) for r in runs[-1]),
+                path_minutes=f"{fine['path_seconds'] / 60:.0f}",
+                rss=fine["peak_rss_mib"],
+            ),
+            "",
+        ]
     return "\n".join(out)
 
 
