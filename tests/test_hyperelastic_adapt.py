@@ -1,7 +1,8 @@
 """The adaptive loop at finite strain: a hyperelastic body against a rigid plane, circle or
-with friction, with ``adapt`` (the residual estimator in the reference configuration, its
-contact terms with the current normal and gap, Dörfler marking at the load steps, u and the
-load step's state prolonged to the refined mesh and the step solved again).
+sphere, frictionless or with Coulomb or Tresca friction, with ``adapt`` (the residual
+estimator in the reference configuration, its contact terms with the current normal and
+gap, Dörfler marking at the load steps, u and the load step's state prolonged to the
+refined mesh and the step solved again).
 
 Checked: in the small-load limit the neo-Hookean estimator is the linear elastic one against
 a plane and against a circle (the same η to 1 % and the same cells marked: the same meshes
@@ -10,8 +11,9 @@ previous step's final mesh, η falls with every level, the refined cells crowd t
 zone and the held corner, the contact force equals the reaction at the held top, and the
 force converges; against a circle pressed to 0.2 R the contact terms on the current
 configuration fall with the levels where those of the reference configuration stall, and
-Dörfler's force converges; with Coulomb friction η falls and the friction terms vanish to
-the solver's tolerance; serial = 2 ranks (the same meshes, η to 1e-8)."""
+Dörfler's force converges; against a sphere in 3D η falls; with Coulomb and Tresca friction
+η falls and the friction bound's term vanishes to the solver's tolerance; serial = 2 ranks
+(the same meshes, η to 1e-8)."""
 
 from __future__ import annotations
 
@@ -56,6 +58,18 @@ def indenter(radius: float, depth: float, cells: int, size: float = 1.0) -> dict
         "adapt": {"strategy": "dorfler", "theta": 0.5, "max_dofs": 400000},
         "output": {"verbose": False},
     }
+
+
+def _last_levels(scene, count: int, **options) -> list:
+    """The levels of the last load step of ``scene``'s load path: converged, ``count`` of
+    them, η falling with every level."""
+    path = contact.run_load_path(scene, verbose=False, **options)
+    assert path.converged, path.stop
+    levels = path.steps[-1].levels
+    assert len(levels) == count
+    etas = [lv.estimate.eta for lv in levels]
+    assert all(e1 < e0 for e0, e1 in zip(etas, etas[1:]))
+    return levels
 
 
 #: the small-load scenes: against a plane (configs/hertz_2d.yaml, the cylinder at 0.001 R on a
@@ -173,10 +187,7 @@ def test_adapt_against_a_circle_uses_the_current_normal_and_gap():
 
     sets = ["mesh.cells=[20,10]", "load.steps=4", "adapt.strategy=dorfler", "adapt.max_levels=4"]
     scene = contact.load_scene(INDENTATION, [*sets, "output.verbose=false"])
-    path = contact.run_load_path(scene, verbose=False, keep_all=True)
-    assert path.converged, path.stop
-    levels = path.steps[-1].levels
-    assert len(levels) == 4
+    levels = _last_levels(scene, 4, keep_all=True)
     current, reference = [], []
     for lv in levels:
         problem = lv.result.problem
@@ -190,8 +201,6 @@ def test_adapt_against_a_circle_uses_the_current_normal_and_gap():
             problem.current = kept
         res = contact_resultants(lv.posed, lv.result)
         assert res["force_balance_error"] <= 1e-8, res
-    etas = [lv.estimate.eta for lv in levels]
-    assert all(e1 < e0 for e0, e1 in zip(etas, etas[1:]))
     assert current[-1]["complementarity"] < current[0]["complementarity"] / 10
     assert current[-1]["tangential"] < current[0]["tangential"] / 10
     assert min(t["complementarity"] for t in reference) > 5e-4
@@ -206,12 +215,7 @@ def test_dorfler_force_converges_against_a_small_indenter():
     force."""
     cfg = indenter(0.05, 0.01, 8)
     cfg["adapt"]["max_levels"] = 10
-    path = contact.run_load_path(contact.load_scene(cfg), verbose=False)
-    assert path.converged, path.stop
-    levels = path.steps[-1].levels
-    assert len(levels) == 10
-    etas = [lv.estimate.eta for lv in levels]
-    assert all(e1 < e0 for e0, e1 in zip(etas, etas[1:]))
+    levels = _last_levels(contact.load_scene(cfg), 10)
     forces = np.array([lv.result.contact_force for lv in levels])
     changes = np.diff(forces[4:])
     assert np.all(changes < 0)
@@ -219,39 +223,61 @@ def test_dorfler_force_converges_against_a_small_indenter():
     assert abs(changes[-1]) < 3e-3 * forces[-1]
 
 
-def test_adapt_with_coulomb_friction():
-    """configs/hyperelastic_drag.yaml (the neo-Hookean block pressed onto a plane and dragged
-    with Coulomb friction, F = 0.3, on the current configuration) and the indentation with
-    Coulomb friction, 4 Dörfler levels at the last step: η falls with every level, the
-    friction bound's term (|λ_t| ≤ F|λ_n| at the nodes, interpolated) stays below 1e-8 of η²
-    and the slip's (ρ|s_t| + λ_t·s_t, zero at the nodes, measured between them) below 1e-3
-    of it, and the force balances the reaction to 1e-8."""
-    cases = [
-        (ROOT / "configs" / "hyperelastic_drag.yaml", ["mesh.cells=[16,4]", "load.steps=5"]),
-        (
-            INDENTATION,
-            [
-                "mesh.cells=[20,10]",
-                "load.steps=4",
-                "friction.law=coulomb",
-                "friction.coefficient=0.3",
-            ],
-        ),
-    ]
-    for source, sets in cases:
-        sets = [*sets, "adapt.strategy=dorfler", "adapt.max_levels=4", "output.verbose=false"]
-        path = contact.run_load_path(contact.load_scene(source, sets), verbose=False)
-        assert path.converged, path.stop
-        levels = path.steps[-1].levels
-        assert len(levels) == 4
-        etas = [lv.estimate.eta for lv in levels]
-        assert all(e1 < e0 for e0, e1 in zip(etas, etas[1:]))
-        for lv in levels:
-            terms = lv.estimate.terms
-            assert terms["friction_bound"] < 1e-8 * lv.estimate.eta**2
-            assert terms["slip"] < 1e-3 * lv.estimate.eta**2
-            res = contact_resultants(lv.posed, lv.result)
-            assert res["force_balance_error"] <= 1e-8, res
+def _drag(law: dict) -> dict:
+    """configs/hyperelastic_drag.yaml from 16 × 4 in 5 steps with the friction ``law``."""
+    cfg = yaml.safe_load((ROOT / "configs" / "hyperelastic_drag.yaml").read_text())
+    return {**cfg, "friction": law, "mesh": {**cfg["mesh"], "cells": [16, 4]}, "load": {"steps": 5}}
+
+
+#: the frictional scenes: the block dragged on a plane (Coulomb, Tresca) and the cylinder
+#: pressed into the block with Coulomb friction
+FRICTIONAL = {
+    "drag_coulomb": lambda: _drag({"law": "coulomb", "coefficient": 0.3}),
+    "drag_tresca": lambda: _drag({"law": "tresca", "threshold": 0.02}),
+    "indentation_coulomb": lambda: {
+        **yaml.safe_load(INDENTATION.read_text()),
+        "mesh": {"type": "rectangle", "corners": [[-1, -1], [1, 0]], "cells": [20, 10]},
+        "load": {"steps": 4},
+        "friction": {"law": "coulomb", "coefficient": 0.3},
+    },
+}
+
+
+@pytest.mark.parametrize("case", FRICTIONAL)
+def test_adapt_with_friction(case):
+    """configs/hyperelastic_drag.yaml (the neo-Hookean block pressed onto a plane and dragged,
+    on the current configuration) with Coulomb (F = 0.3) and Tresca (s = 0.02) friction, and
+    the indentation with Coulomb friction, 4 Dörfler levels at the last step: η falls with
+    every level, the friction bound's term (|λ_t| ≤ ρ at the nodes, interpolated) stays
+    below 1e-8 of η² and the slip's (ρ|s_t| + λ_t·s_t, zero at the nodes, measured between
+    them) below 1e-3 of it, and the force balances the reaction to 1e-8."""
+    cfg = FRICTIONAL[case]() | {
+        "adapt": {"strategy": "dorfler", "max_levels": 4},
+        "output": {"verbose": False},
+    }
+    levels = _last_levels(contact.load_scene(cfg), 4)
+    for lv in levels:
+        terms = lv.estimate.terms
+        assert terms["friction_bound"] < 1e-8 * lv.estimate.eta**2
+        assert terms["slip"] < 1e-3 * lv.estimate.eta**2
+        res = contact_resultants(lv.posed, lv.result)
+        assert res["force_balance_error"] <= 1e-8, res
+
+
+def test_adapt_against_a_sphere_in_3d():
+    """configs/hyperelastic_sphere.yaml (a rigid sphere lowered 0.3 R into the neo-Hookean
+    quarter block) from 6 × 6 × 4 in 3 steps, 3 Dörfler levels at the last: the DoFs grow,
+    η and the complementarity term fall with every level, the force balances the reaction
+    to 1e-8."""
+    sets = ["mesh.cells=[6,6,4]", "load.steps=3", "adapt.strategy=dorfler", "adapt.max_levels=3"]
+    scene = contact.load_scene(ROOT / "configs" / "hyperelastic_sphere.yaml", sets)
+    levels = _last_levels(scene, 3)
+    values = [lv.estimate.terms["complementarity"] for lv in levels]
+    assert all(v1 < v0 for v0, v1 in zip(values, values[1:]))
+    assert all(b.result.dofs > a.result.dofs for a, b in zip(levels, levels[1:]))
+    for lv in levels:
+        res = contact_resultants(lv.posed, lv.result)
+        assert res["force_balance_error"] <= 1e-8, res
 
 
 def _read(path) -> list[dict]:
