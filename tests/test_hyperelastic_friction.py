@@ -4,16 +4,19 @@ step's converged state through the current coupling, the tangents of the current
 Coulomb's bound F λ_n from the current pressure.  Checks: the small-load limit against the
 small-strain Cattaneo–Mindlin run of the same mesh (the gap closing with the load), a block
 dragged over another into full slip (Σ w|λ_t| = F Σ w|λ_n| over the slipping nodes, action =
-reaction, serial = 2 ranks), a re-coupled solve starting from its guess, Tresca's bound."""
+reaction, serial = 2 ranks; and in 3D), a re-coupled solve starting from its guess, Tresca's
+bound, the 3D finite-strain patch test with friction."""
 
 from pathlib import Path
 
 import contact
 from contact.post.reference import compare
+from contact.solvers import owned_residual
 
 import numpy as np
 import pytest
 from test_bodies import run as run_script
+from test_hyperelastic_bodies import PATCH_3D, PATCH_3D_FINITE, P, interface_force, uniaxial
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "tests" / "hyperelastic_friction_run.py"
@@ -168,3 +171,54 @@ def test_tresca_between_hyperelastic_bodies_slides_at_its_threshold():
     fr, on = r.friction, slice(0, r.problem.data.pair_nodes)
     assert np.all(fr["status"][on] == SLIP)
     assert np.max(np.abs(np.linalg.norm(fr["lambda_t"][on], axis=1) / s - 1)) <= 1e-8
+
+
+#: the dragged block in 3D: the 2D scene extruded along z (the upper block half as deep as
+#: the lower one), dragged by 0.3 along x
+DRAG_3D = [
+    "mesh.blocks=[{corners: [[-1, 0, -0.5], [1, 0.5, 0.5]], cells: [8, 2, 4]},"
+    " {corners: [[-0.5, 0.5, -0.25], [0.5, 1, 0.25]], cells: [5, 3, 3]}]",
+    'data.u_D=["drag*max(t - 0.2, 0)/0.8*(y > 0.75)", "-delta*min(t/0.2, 1)*(y > 0.75)", "0"]',
+    "constants.drag=0.3",
+    "load={times: [0.2, 0.4]}",
+    "output.verbose=false",
+]
+
+
+def test_a_block_dragged_over_another_in_3d_slides_at_the_coulomb_bound():
+    """Two tangents per node: pressed, the rim slips and the middle sticks; dragged, every
+    slave node slips with Σ w|λ_t| = F Σ w|λ_n| to 1e-8; action = reaction."""
+    scene = contact.load_scene(DRAG, DRAG_3D)
+    path = contact.run_load_path(scene, verbose=False, keep_all=True)
+    assert path.converged and len(path.steps) == 2
+    for k, step in enumerate(path.steps):
+        r = step.result
+        fr, on = r.friction, slice(0, r.problem.data.pair_nodes)
+        status, w = fr["status"][on], fr["w"][on]
+        slip = status == SLIP
+        assert np.sum(slip) > 0 and (np.all(slip) if k == 1 else np.sum(status == 1) > 0)
+        t_sum = np.sum(w[slip] * np.linalg.norm(fr["lambda_t"][on][slip], axis=1))
+        n_sum = np.sum(w[slip] * np.abs(fr["lambda_n"][on][slip]))
+        assert abs(t_sum / n_sum / F - 1) <= 1e-8
+        slave = interface_force(r, step.scene, "slave")
+        master = interface_force(r, step.scene, "master")
+        assert np.max(np.abs(slave + master)) <= 1e-12 * abs(slave[1])
+    assert abs(slave[0]) > 0.25 * F * slave[1]  # dragged along x
+
+
+def test_the_3d_finite_strain_patch_with_coulomb_friction_stays_exact():
+    """The 3D patch (two non-matching neo-Hookean blocks, 17 % compression) with Coulomb
+    friction: the two blocks stretch alike, nothing slips, λ_t = 0 and the pressure is the
+    exact Cauchy traction at every slave node to 1e-8."""
+    overrides = [*PATCH_3D_FINITE, "friction.law=coulomb", f"friction.coefficient={F}"]
+    scene = contact.load_scene(PATCH_3D, ["output.verbose=false", "solver.method=min", *overrides])
+    path = contact.run_load_path(scene, verbose=False)
+    assert path.converged
+    r = path.steps[-1].result
+    p, fr = r.problem, r.friction
+    on = slice(0, p.data.pair_nodes)
+    l1, _ = uniaxial(3)
+    pressure = p.pressure(owned_residual(r))[on]
+    assert np.max(np.abs(pressure * l1**2 / P - 1)) <= 1e-8
+    assert np.all(fr["status"][on] == 1)
+    assert np.max(np.abs(fr["lambda_t"][on])) <= 1e-10 * P
