@@ -50,6 +50,7 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_ironing_2d.yaml": ["mesh.cells=[18,8]", "load={times: [0.1, 0.2, 0.3]}"],
     "hyperelastic_sphere.yaml": ["mesh.cells=[6,6,4]", "load.steps=2"],
     "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]"],
+    "hyperelastic_two_body_drag_2d.yaml": ["load={times: [0.2, 0.3]}"],
     "hyperelastic_two_body_patch_2d.yaml": [],
     "hyperelastic_self_contact_ring.yaml": ["mesh.cells=[64,2]", "load.steps=2"],
     "indentation_2d.yaml": ["mesh.cells=[20,10]"],

@@ -152,9 +152,9 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
 def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs with
-    friction, an obstacle or the adaptive loop, a reference solution against an obstacle,
-    an exact solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene
-    is hyperelastic (then it solves without grid sequencing)."""
+    an obstacle or the adaptive loop, a reference solution against an obstacle, an exact
+    solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is
+    hyperelastic (then it solves without grid sequencing)."""
     law = config.model.law
     if model != "hyperelastic":
         if law is not None:
@@ -170,11 +170,11 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
         )
     friction = config.friction
     frictional = friction is not None and friction.law != "none"
-    if config.pairs and (frictional or config.obstacle is not None or config.adapt is not None):
-        key = "friction" if frictional else "obstacle" if config.obstacle is not None else "adapt"
+    if config.pairs and (config.obstacle is not None or config.adapt is not None):
+        key = "obstacle" if config.obstacle is not None else "adapt"
         raise ConfigError(
-            f"{key}: hyperelastic bodies in contact through pairs are frictionless, without a "
-            "rigid obstacle and without the adaptive loop (not implemented)"
+            f"{key}: hyperelastic bodies in contact through pairs are without a rigid "
+            "obstacle and without the adaptive loop (not implemented)"
         )
     method = config.solver.method
     obstacle = config.obstacle.type if config.obstacle is not None else "plane"
