@@ -184,6 +184,7 @@ def test_uncovered_slave_nodes_are_out_of_contact_on_a_current_configuration():
     kept, bare = gathered(comm, X[c.nodes]), gathered(comm, X[c.uncovered])
     assert len(kept) >= 5 and len(bare) >= 4
     # the master's last vertices are at |x| = 0.156: a slave node there is half covered
-    assert np.abs(kept[:, 0]).max() < 0.1 < 0.15 < np.abs(bare[:, 0]).min()
+    # (the inner vertices are 0.052 apart in x there): the nodes within reach are kept
+    assert np.abs(kept[:, 0]).max() < 0.12 < 0.15 < np.abs(bare[:, 0]).min()
     assert np.allclose(gathered(comm, c.gap), 1.6, atol=0.01) and c.coverage >= 0.5
     assert comm.allreduce(len(c.nodes) + len(c.uncovered), op=MPI.SUM) == 19
