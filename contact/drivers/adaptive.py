@@ -98,13 +98,24 @@ class Level:
         Its solution's fields and PETSc objects
         (``Result.release``) and the indicator field η_T are
         dropped, and so are its domain and problem, so the loop's memory follows the last
-        level, not the sum of all. The mesh stays while a finer level refers to it (the
-        chain of coarser meshes ``contact.drivers.sequencing`` solves on).
+        level, not the sum of all. The loop also cuts the next level's link to it
+        (:meth:`detach`), so that its mesh goes too.
         """
         _ = self.cells  # cached while the mesh is at hand
         self.result.release()
         self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
         self.released = True
+
+    def detach(self) -> None:
+        """Drop the link of the level's domain to the coarser domain it was refined from.
+
+        The chain of coarser domains (``Domain.parent``) is what grid sequencing solves on
+        when a level has no initial guess; a nested loop's levels after the first always
+        have one (the previous level's solution), so once the coarser level is released
+        the link would only keep its mesh, and through it every mesh before, alive.
+        """
+        if self.domain is not None:
+            self.domain.parent = None
 
     def row(self) -> dict[str, Any]:
         """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
@@ -322,6 +333,8 @@ def adapt(
         # a failed level is dropped by the CLI: the one before it stays whole
         if keep is not None and index > 0 and result.converged and not keep(out.levels[-2]):
             out.levels[-2].release()
+            if opts.nested:  # the coarser meshes are not solved on again: let them go
+                level.detach()
             gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
             return_freed_memory()
         indicators = est.eta_T  # what marks: the estimator's, or the residual ones

@@ -44,7 +44,7 @@ from .meshes import Boundary
 from .posed import PosedProblem, posed_of
 from .scene import Scene, require_scene
 from .scene_config import AdaptConfig, SceneConfig
-from .untagged import warn_untagged
+from .untagged import forget_parent, warn_untagged
 
 
 def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:
@@ -343,6 +343,12 @@ class SceneLevel(Level):
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
         self.__dict__.pop("posed", None)
 
+    def detach(self) -> None:
+        """Drop the links of the level's domain and scene to the coarser ones."""
+        super().detach()
+        if self.scene is not None:
+            forget_parent(self.scene)
+
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
     """Return the scene's ``adapt`` section with keyword overrides, validated.
@@ -409,13 +415,18 @@ def adapt(
     verbose = config.output.verbose if verbose is None else verbose
     solver = config.solver
     root = scene_domain(scene)
-    scenes: dict[int, Scene] = {id(root): scene}
+    # the scenes of the last two domains asked for (a level's and its parent's), no more:
+    # a released level's scene, and its mesh, are not kept here
+    scenes: list[tuple[Domain, Scene]] = [(root, scene)]
 
     def scene_of(domain: Domain) -> Scene:
-        if id(domain) not in scenes:
-            assert domain.parent is not None  # a refinement of the root's
-            scenes[id(domain)] = on_domain(scene, domain, parent=scene_of(domain.parent[0]))
-        return scenes[id(domain)]
+        for known, its in scenes:
+            if known is domain:
+                return its
+        assert domain.parent is not None  # a refinement of the root's
+        made = on_domain(scene, domain, parent=scene_of(domain.parent[0]))
+        scenes[:] = [*scenes[-1:], (domain, made)]
+        return made
 
     def level_solve(problem, domain: Domain, guess, criterion) -> Result:
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
@@ -432,7 +443,9 @@ def adapt(
 
     def scene_level(level: Level) -> SceneLevel:
         fields = {f: getattr(level, f) for f in Level.__dataclass_fields__}
-        return SceneLevel(**fields, scene=scene_of(level.domain))
+        its = scene_of(level.domain)
+        scenes[:] = [(level.domain, its)]  # the next level's parent
+        return SceneLevel(**fields, scene=its)
 
     run = adapt_domain(
         lambda domain: build_problem(scene_of(domain)),

@@ -148,6 +148,16 @@ def mark_reported(scene: Scene) -> None:
     _REPORTED.add(_loaded(scene).mesh)
 
 
+def forget_parent(scene: Scene) -> None:
+    """Drop the link of a refined scene to the scene it was refined from (``parent``).
+
+    Whether the untagged facets of the scene loaded first were reported stays known."""
+    reported = _loaded(scene).mesh in _REPORTED
+    scene.parent = None
+    if reported:
+        mark_reported(scene)
+
+
 def warn_untagged(scene: Scene) -> None:
     """Warn once per scene when exterior facets are in no boundary part.
 
