@@ -148,14 +148,11 @@ def mark_reported(scene: Scene) -> None:
     _REPORTED.add(_loaded(scene).mesh)
 
 
-def forget_parent(scene: Scene) -> None:
-    """Drop the link of a refined scene to the scene it was refined from (``parent``).
-
-    Whether the untagged facets of the scene loaded first were reported stays known."""
-    reported = _loaded(scene).mesh in _REPORTED
-    scene.parent = None
-    if reported:
-        mark_reported(scene)
+def report_as(refined: Scene, scene: Scene) -> None:
+    """Count the untagged facets of ``refined``, a refinement of ``scene`` not linked to it
+    (no ``parent``), as reported where those of ``scene`` were."""
+    if _loaded(scene).mesh in _REPORTED:
+        _REPORTED.add(refined.mesh)
 
 
 def warn_untagged(scene: Scene) -> None:
