@@ -3632,6 +3632,7 @@ def time_to_accuracy() -> str:
                 b_peak_mib=f"{b['peak_mib']:.0f}",
                 per_dof_b=per_dof(b),
                 b_meshes=b["meshes"],
+                a_meshes=a["meshes"],
                 table=table(
                     [
                         "level",
