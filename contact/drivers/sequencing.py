@@ -22,6 +22,7 @@ choice, counted in ``Result.sequence``); the coarse Newton tolerance is
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,6 +33,7 @@ from dolfinx.mesh import MeshTags
 
 from ..adaptivity.transfer import prolong
 from ..base.buckets import box_point_pairs
+from ..base.errors import ContactWarning
 from ..models.discrete import discrete
 from ..solvers.result import Result
 
@@ -189,6 +191,12 @@ def initial_guess(
             continue
         u, prev = solution, level
     if u is None or prev is None:
+        if levels:  # every coarse solve failed (e.g. cells inverted at a large first load)
+            note = (
+                f"grid sequencing: none of the {len(levels)} coarse level(s) converged; cold start"
+            )
+            if comm.rank == 0:
+                warnings.warn(note, ContactWarning, stacklevel=2)
         return None, levels, note
     return h.transfer(u, prev, h.fine, V), levels, note
 
