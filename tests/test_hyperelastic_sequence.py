@@ -5,10 +5,11 @@ from the coarser solution, and the fine Newton iteration starts from the last on
 steps start from the tangent predictor.  Checked on configs/hyperelastic_indentation.yaml
 (a neo-Hookean block indented 0.4 R by a rigid cylinder, met on the current
 configuration): the sequenced and the cold solve reach the same discrete solution (the
-contact force to 1e-8) and the fine mesh takes fewer Newton steps; ``auto`` means off for
-this model (the coarse solves cost about what they save: demos/bench/bench_hyperelastic.py
-sequence); coarse levels that all fail (cells inverted at a large first load) fall back to
-the cold start with a warning; serial = 2 ranks.  Contact pairs at finite strain refuse it.
+contact force to 1e-8) and the fine mesh takes fewer Newton steps; ``auto`` sequences a
+body in 2D from 16k DoFs on (below, the coarse solves cost more than they save:
+demos/bench/bench_hyperelastic.py sequence), in 3D never; coarse levels that all fail
+(cells inverted at a large first load) fall back to the cold start with a warning;
+serial = 2 ranks.  Contact pairs at finite strain refuse it.
 """
 
 from __future__ import annotations
@@ -46,13 +47,29 @@ def indentation(cells: str, steps: int, sequence, *sets: str):
         return contact.run_load_path(scene, verbose=False)
 
 
-def test_auto_is_off_and_a_number_opts_in():
-    """``solver.sequence: auto`` resolves to off for a hyperelastic body; a number is kept."""
-    sets = ["output.verbose=false"]
-    scene = contact.load_scene(INDENTATION, sets)
-    assert scene.config.solver.sequence == "off"
-    scene = contact.load_scene(INDENTATION, [*sets, "solver.sequence=2"])
-    assert scene.config.solver.sequence == 2
+@pytest.mark.parametrize(
+    "config, cells, option, levels",
+    [
+        ("hyperelastic_indentation", "80,40", "auto", 0),  # 6 642 DoFs: below 16k
+        ("hyperelastic_indentation", "160,80", "auto", 2),  # 26 082: 6 642 and 1 722
+        ("hyperelastic_indentation", "80,40", 2, 2),
+        ("hyperelastic_sphere", "24,24,16", "auto", 0),  # 31 875 DoFs in 3D: not measured
+        ("hyperelastic_sphere", "24,24,16", 1, 1),
+    ],
+)
+def test_auto_sequences_a_hyperelastic_body_from_16k_dofs_in_2d(config, cells, option, levels):
+    """``solver.sequence: auto`` plans coarse levels for a hyperelastic body in 2D from
+    16 000 fine DoFs on (as many as keep the coarsest at ≥ 1 000), in 3D none; a number
+    asks for that many."""
+    from contact.setup.levels import plan
+
+    scene = contact.load_scene(
+        ROOT / "configs" / f"{config}.yaml",
+        [f"mesh.cells=[{cells}]", f"solver.sequence={option}", "output.verbose=false"],
+    )
+    assert scene.config.solver.sequence == option
+    builders, note = plan(scene, option, scene.mesh.geometry.dim, 1)
+    assert len(builders) == levels and note == ""
 
 
 @pytest.mark.parametrize("steps", [1, 3])
@@ -93,7 +110,9 @@ def test_coarse_levels_that_all_fail_fall_back_to_the_cold_start_with_a_warning(
 
 def test_pairs_at_finite_strain_refuse_grid_sequencing():
     """Hyperelastic bodies through contact pairs (re-coupled on the current configuration)
-    refuse ``solver.sequence``: one line naming the key."""
+    refuse a number of coarse levels (one line naming the key); ``auto`` is off there."""
+    scene = contact.load_scene(ROOT / "configs" / "hyperelastic_two_body_patch_2d.yaml")
+    assert scene.config.solver.sequence == "off"
     with pytest.raises(ConfigError, match="^solver.sequence: grid sequencing is not available"):
         contact.load_scene(
             ROOT / "configs" / "hyperelastic_two_body_patch_2d.yaml", ["solver.sequence=2"]

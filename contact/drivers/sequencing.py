@@ -39,6 +39,9 @@ from ..solvers.result import Result
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 AUTO_MIN_DOFS = 4_000
+# the same for a nonlinear (hyperelastic) body in 2D, whose coarse solves take as many Newton
+# steps as the fine ones they save (bench_hyperelastic.py sequence)
+AUTO_MIN_DOFS_NONLINEAR = 16_000
 COARSEST_DOFS = 1_000  # auto: the coarsest level keeps at least this many DoFs
 COARSE_RTOL = 1e-6  # Newton's relative tolerance on the coarse levels
 ANCESTOR_RATIO = 4  # a refined mesh's coarse levels: ancestors with ≥ 4× fewer DoFs each
@@ -119,16 +122,19 @@ class Hierarchy:
     replaces_guess: bool = False
 
 
-def levels_wanted(option: str | int, fine_dofs: int) -> int | None:
+def levels_wanted(
+    option: str | int, fine_dofs: int, auto_min_dofs: int | None = AUTO_MIN_DOFS
+) -> int | None:
     """Return how many coarse levels to try for a ``solver.sequence`` option.
 
     Number of coarse levels to try for ``solver.sequence`` = ``option`` (``auto``, ``off``
-    or a number): 0, a number, or None (as many as ``auto`` allows).
+    or a number): 0, a number, or None (as many as ``auto`` allows).  ``auto``
+    sequences from ``auto_min_dofs`` fine DoFs on (None: never).
     """
     if option == "off" or option == 0:
         return 0
     if option == "auto":
-        return None if fine_dofs >= AUTO_MIN_DOFS else 0
+        return None if auto_min_dofs is not None and fine_dofs >= auto_min_dofs else 0
     return int(option)
 
 

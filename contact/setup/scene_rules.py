@@ -57,8 +57,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
             a model that does not use it is an error, not a default).
 
     Returns:
-        The complete config: ``estimator`` resolved, ``pairs`` typed, a hyperelastic
-        body's ``solver.sequence: auto`` off (a number of coarser levels opts in).
+        The complete config: ``estimator`` resolved, ``pairs`` typed, ``solver.sequence``
+        off for hyperelastic bodies through pairs.
 
     Raises:
         ConfigError: the first rule the scene breaks.
@@ -75,8 +75,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
             )
     roles = [p.role for p in parts.values()]
     model = config.model.type
-    if _check_hyperelastic(config, model) and config.solver.sequence == "auto":
-        # the coarse solves of a nonlinear material cost more than the fine steps they save
+    if _check_hyperelastic(config, model) and config.pairs and config.solver.sequence == "auto":
+        # pairs at finite strain are re-coupled per solve: their coarse levels would not be
         updates["solver"] = config.solver.model_copy(update={"sequence": "off"})
     if model == "hyperelastic":  # the rest of the checks: those of an elastic body
         model = "elasticity"
@@ -155,7 +155,7 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs with
     an obstacle, the adaptive loop or grid sequencing, a reference solution against an
     obstacle, an exact solution, Coulomb's fixed point.  Returns whether the scene is
-    hyperelastic (then ``solver.sequence: auto`` means off)."""
+    hyperelastic."""
     law = config.model.law
     if model != "hyperelastic":
         if law is not None:
