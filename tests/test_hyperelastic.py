@@ -426,7 +426,6 @@ def test_small_indentation_of_a_neo_hookean_cylinder_is_the_linear_hertz_scene()
             {"friction": {"law": "coulomb", "coefficient": 0.3, "coulomb": "fixed_point"}},
             "friction.coulomb: fixed_point",
         ),
-        ({"solver": {"method": "fb", "sequence": 2}}, "solver.sequence: grid sequencing"),
         ({"load": {"steps": 2, "cuts": -1}}, "load.cuts:"),
     ],
 )

@@ -22,6 +22,7 @@ choice, counted in ``Result.sequence``); the coarse Newton tolerance is
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,11 +33,15 @@ from dolfinx.mesh import MeshTags
 
 from ..adaptivity.transfer import prolong
 from ..base.buckets import box_point_pairs
+from ..base.errors import ContactWarning
 from ..models.discrete import discrete
 from ..solvers.result import Result
 
 # measured (bench_linear / bench_cost): below this the coarse levels cost more than they save
 AUTO_MIN_DOFS = 4_000
+# the same for a nonlinear (hyperelastic) body in 2D, whose coarse solves take as many Newton
+# steps as the fine ones they save (bench_hyperelastic.py sequence)
+AUTO_MIN_DOFS_NONLINEAR = 16_000
 COARSEST_DOFS = 1_000  # auto: the coarsest level keeps at least this many DoFs
 COARSE_RTOL = 1e-6  # Newton's relative tolerance on the coarse levels
 ANCESTOR_RATIO = 4  # a refined mesh's coarse levels: ancestors with ≥ 4× fewer DoFs each
@@ -117,16 +122,19 @@ class Hierarchy:
     replaces_guess: bool = False
 
 
-def levels_wanted(option: str | int, fine_dofs: int) -> int | None:
+def levels_wanted(
+    option: str | int, fine_dofs: int, auto_min_dofs: int | None = AUTO_MIN_DOFS
+) -> int | None:
     """Return how many coarse levels to try for a ``solver.sequence`` option.
 
     Number of coarse levels to try for ``solver.sequence`` = ``option`` (``auto``, ``off``
-    or a number): 0, a number, or None (as many as ``auto`` allows).
+    or a number): 0, a number, or None (as many as ``auto`` allows).  ``auto``
+    sequences from ``auto_min_dofs`` fine DoFs on (None: never).
     """
     if option == "off" or option == 0:
         return 0
     if option == "auto":
-        return None if fine_dofs >= AUTO_MIN_DOFS else 0
+        return None if auto_min_dofs is not None and fine_dofs >= auto_min_dofs else 0
     return int(option)
 
 
@@ -189,6 +197,12 @@ def initial_guess(
             continue
         u, prev = solution, level
     if u is None or prev is None:
+        if levels:  # every coarse solve failed (e.g. cells inverted at a large first load)
+            note = (
+                f"grid sequencing: none of the {len(levels)} coarse level(s) converged; cold start"
+            )
+            if comm.rank == 0:
+                warnings.warn(note, ContactWarning, stacklevel=2)
         return None, levels, note
     return h.transfer(u, prev, h.fine, V), levels, note
 

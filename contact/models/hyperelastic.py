@@ -46,8 +46,8 @@ again) gives an independent solver of the same problem through PETSc's VI solver
 
 The residual estimator of the adaptive loop (:mod:`contact.adaptivity.estimate`) is written
 in the reference configuration with P(u_h) and, on the current configuration, the contact
-terms measured with the normal and gap of the deformed point.  Not in this model (yet):
-grid sequencing; the configuration refuses it.
+terms measured with the normal and gap of the deformed point.  Grid sequencing
+(:mod:`contact.setup.levels`) solves a load path's first step on coarser meshes first.
 """
 
 from __future__ import annotations

@@ -27,9 +27,12 @@ steps (:func:`_with_mesh`).  A refined scene with history (an adaptive load step
 from the step before.
 
 ``auto`` sequences when the finest level has at least
-:data:`~.sequencing.AUTO_MIN_DOFS` DoFs, with as many levels as keep the coarsest at ≥
-:data:`~.sequencing.COARSEST_DOFS`; an integer N asks for N coarser levels; ``off`` starts
-cold.
+:data:`~.sequencing.AUTO_MIN_DOFS` DoFs (a hyperelastic body in 2D:
+:data:`~.sequencing.AUTO_MIN_DOFS_NONLINEAR`; in 3D, where it is not measured, never), with as
+many levels as keep the coarsest at ≥ :data:`~.sequencing.COARSEST_DOFS`; an integer N asks
+for N coarser levels; ``off`` starts cold.  A hyperelastic load step is sequenced only
+without a previous solution (its first step; the later ones start from the tangent
+predictor).
 """
 
 from __future__ import annotations
@@ -45,6 +48,8 @@ from mpi4py import MPI
 
 from ..drivers.sequencing import (
     ANCESTOR_RATIO,
+    AUTO_MIN_DOFS,
+    AUTO_MIN_DOFS_NONLINEAR,
     COARSE_RTOL,
     COARSEST_DOFS,
     Hierarchy,
@@ -73,7 +78,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     fewer levels than asked / none)."""
     fine_dofs = _dofs(scene, bs)
     dim = scene.mesh.topology.dim
-    wanted = levels_wanted(option, fine_dofs)
+    wanted = levels_wanted(option, fine_dofs, auto_min_dofs(scene.config.model.type, dim))
     if wanted == 0:
         return [], ""
     limit = wanted if wanted is not None else 64
@@ -117,6 +122,14 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
             builders.append(functools.partial(_with_mesh, scene, {"h": h, "h_contact": min(hc, h)}))
         return builders[::-1], ""
     return [], "grid sequencing: a mesh file has no coarser mesh; cold start"
+
+
+def auto_min_dofs(model: str, dim: int) -> int | None:
+    """The fine DoFs from which ``solver.sequence: auto`` sequences a ``model`` scene in
+    ``dim`` dimensions (None: never)."""
+    if model != "hyperelastic":
+        return AUTO_MIN_DOFS
+    return AUTO_MIN_DOFS_NONLINEAR if dim == 2 else None
 
 
 def _same(scene: Scene) -> Scene:

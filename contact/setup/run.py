@@ -269,8 +269,11 @@ def solve(
     coarse = None
     # A frictional load step after the first is sequenced too, its history carried to the
     # coarse levels (.levels): its guess replaces the previous step's solution and the
-    # predictor; without coarse levels the step starts from those
-    frictional_step = bool(scene.history) and problem.friction is not None
+    # predictor; without coarse levels the step starts from those. A hyperelastic body's
+    # later steps start from the tangent predictor alone: sequenced is its first step only
+    frictional_step = (
+        bool(scene.history) and problem.friction is not None and config.model.type != "hyperelastic"
+    )
     if u0 is None or frictional_step:
         coarse = scene_hierarchy(scene, problem.V, opts, solve)
         coarse.replaces_guess = frictional_step

@@ -57,8 +57,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
             a model that does not use it is an error, not a default).
 
     Returns:
-        The complete config: ``estimator`` resolved, ``pairs`` typed, a hyperelastic
-        body's ``solver.sequence`` off.
+        The complete config: ``estimator`` resolved, ``pairs`` typed, ``solver.sequence``
+        off for hyperelastic bodies through pairs.
 
     Raises:
         ConfigError: the first rule the scene breaks.
@@ -75,7 +75,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
             )
     roles = [p.role for p in parts.values()]
     model = config.model.type
-    if _check_hyperelastic(config, model):
+    if _check_hyperelastic(config, model) and config.pairs and config.solver.sequence == "auto":
+        # pairs at finite strain are re-coupled per solve: their coarse levels would not be
         updates["solver"] = config.solver.model_copy(update={"sequence": "off"})
     if model == "hyperelastic":  # the rest of the checks: those of an elastic body
         model = "elasticity"
@@ -152,9 +153,9 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
 def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs with
-    an obstacle or the adaptive loop, a reference solution against an obstacle, an exact
-    solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is
-    hyperelastic (then it solves without grid sequencing)."""
+    an obstacle, the adaptive loop or grid sequencing, a reference solution against an
+    obstacle, an exact solution, Coulomb's fixed point.  Returns whether the scene is
+    hyperelastic."""
     law = config.model.law
     if model != "hyperelastic":
         if law is not None:
@@ -190,10 +191,10 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
         )
     if config.data.exact is not None:
         raise ConfigError("data.exact: not available for model type hyperelastic")
-    if config.solver.sequence not in ("auto", "off", 0):
+    if config.pairs and config.solver.sequence not in ("auto", "off", 0):
         raise ConfigError(
-            "solver.sequence: grid sequencing is not available for model type "
-            "hyperelastic (use off)"
+            "solver.sequence: grid sequencing is not available for hyperelastic bodies in "
+            "contact through pairs (use off)"
         )
     return True
 

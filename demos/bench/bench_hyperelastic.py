@@ -12,6 +12,7 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py adaptive --case indentation  # (curved obstacles)
     mpirun -n 2 python demos/bench/bench_hyperelastic.py ball --mesh-size 0.0135  # 500k DoFs
     python demos/bench/bench_hyperelastic.py recouple      # mortar re-coupling: Aitken vs plain
+    python demos/bench/bench_hyperelastic.py sequence      # grid sequencing of the first step
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -94,6 +95,16 @@ to δ = 0.1 R_c and 0.2 R_c in one step.  Per run: converged, the couplings and 
 iterations of all steps, the largest couplings of a step, CPU seconds, the contact force; the
 ratio of Aitken's couplings and CPU to the plain sequence's, in the same process (the load
 path takes the driver's default, set here for the run).  Writes recouple.csv.
+
+``sequence`` — grid sequencing (``solver.sequence``) of a hyperelastic load path's first
+step: configs/hyperelastic_indentation.yaml on 80 × 40 and 160 × 80 cells, its 5 steps to
+0.4 R and the whole indentation in 1 step, solved with ``sequence: off`` and with
+``--coarse`` (2) coarser levels, each twice, alternating, in this process; per run the first
+step's fine Newton iterations and its coarse levels (DoFs, Newton iterations), the CPU
+seconds to the end of the first step (problem built, coarse levels and fine solve) and of
+the whole path (the smaller of the two runs), the contact force of the first and last steps;
+the ratio sequenced / off of both CPU times.  Writes sequence.csv (``--cells 320x160
+--path-steps 1``: other meshes and paths, sequence_<cells>.csv).
 
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
@@ -769,13 +780,123 @@ def recouple(out: Path) -> None:
     save_csv(out / "recouple.csv", rows)
 
 
+#: the ``sequence`` part: meshes (cells) and load paths (steps to 0.4 R) of the indentation
+SEQUENCE_CELLS = ((80, 40), (160, 80))
+SEQUENCE_STEPS = (5, 1)
+INDENTATION = ROOT / "configs" / "hyperelastic_indentation.yaml"
+
+
+def sequenced_path(cells: tuple[int, int], steps: int, sequence: str | int) -> dict:
+    """One load path of the indentation with ``solver.sequence`` (module doc)."""
+    scene = contact.load_scene(
+        INDENTATION,
+        [
+            f"mesh.cells=[{cells[0]}, {cells[1]}]",
+            f"load.steps={steps}",
+            f"solver.sequence={sequence}",
+            "output.verbose=false",
+        ],
+    )
+    first: dict = {}
+    t0 = time.process_time()
+
+    def on_step(step) -> None:
+        if not first:
+            first["cpu"] = time.process_time() - t0
+            first["result"] = step.result
+
+    path = contact.run_load_path(scene, verbose=False, on_step=on_step)
+    cpu = COMM.allreduce(time.process_time() - t0, op=MPI.MAX)
+    r = first["result"]
+    return {
+        "cells": f"{cells[0]}x{cells[1]}",
+        "steps": steps,
+        "sequence": sequence,
+        "dofs": r.dofs,
+        "converged": path.converged,
+        "cuts": len(path.cuts),
+        "first_newton": r.iterations,
+        "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
+        "coarse_newton": " ".join(str(lv.newton_iterations) for lv in r.sequence),
+        "newton_all_steps": sum(s.result.iterations for s in path.steps),
+        "first_cpu": COMM.allreduce(first["cpu"], op=MPI.MAX),
+        "path_cpu": cpu,
+        "first_force": r.contact_force,
+        "last_force": path.steps[-1].result.contact_force,
+    }
+
+
+def sequence(
+    out: Path,
+    coarse: int,
+    cells_list: tuple = SEQUENCE_CELLS,
+    steps_list: tuple = SEQUENCE_STEPS,
+    repeats: int = 2,
+) -> None:
+    """Grid sequencing of a hyperelastic path's first step against none (module doc)."""
+    rows = []
+    for cells in cells_list:
+        for steps in steps_list:
+            runs: dict = {"off": [], coarse: []}
+            for _ in range(repeats):  # alternating: the machine's load hits both alike
+                for mode in runs:
+                    runs[mode].append(sequenced_path(cells, steps, mode))
+            best = {
+                mode: {
+                    **rs[0],
+                    "first_cpu": min(r["first_cpu"] for r in rs),
+                    "path_cpu": min(r["path_cpu"] for r in rs),
+                }
+                for mode, rs in runs.items()
+            }
+            for mode, row in best.items():
+                row["first_cpu_ratio"] = row["first_cpu"] / best["off"]["first_cpu"]
+                row["path_cpu_ratio"] = row["path_cpu"] / best["off"]["path_cpu"]
+                for key in ("first_cpu", "path_cpu", "first_cpu_ratio", "path_cpu_ratio"):
+                    row[key] = round(row[key], 3)
+                rows.append(row)
+                say(
+                    f"{row['cells']:>7s} {steps} step(s) sequence {mode!s:>3s}: {row['dofs']} "
+                    f"DoFs, first step Newton {row['first_newton']:2d} (coarse "
+                    f"{row['coarse_dofs'] or '-'}: {row['coarse_newton'] or '-'}), CPU first "
+                    f"step {row['first_cpu']:.2f} s ({row['first_cpu_ratio']:.2f}x), path "
+                    f"{row['path_cpu']:.2f} s ({row['path_cpu_ratio']:.2f}x), F "
+                    f"{row['last_force']:.10g}"
+                )
+    name = (
+        "sequence"
+        if cells_list == SEQUENCE_CELLS
+        else "sequence_" + "_".join(f"{a}x{b}" for a, b in cells_list)
+    )
+    save_csv(out / f"{name}.csv", rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument(
         "part",
-        choices=("line_search", "predictor", "strip", "refinement", "adaptive", "ball", "recouple"),
+        choices=(
+            "line_search",
+            "predictor",
+            "strip",
+            "refinement",
+            "adaptive",
+            "ball",
+            "recouple",
+            "sequence",
+        ),
+    )
+    ap.add_argument("--coarse", type=int, default=2, help="sequence: coarser levels (2)")
+    ap.add_argument(
+        "--cells",
+        nargs="+",
+        default=None,
+        help="sequence: meshes NXxNY (80x40 160x80; others write sequence_<cells>.csv)",
+    )
+    ap.add_argument(
+        "--path-steps", type=int, nargs="+", default=None, help="sequence: load paths (5 1)"
     )
     ap.add_argument("--out", type=Path, default=ROOT / "demos" / "results" / "hyperelastic")
     ap.add_argument(
@@ -818,6 +939,14 @@ def main() -> None:
         adaptive(args.out, args.case, args.levels or dorfler, args.uniform_levels or uniform)
     elif args.part == "recouple":
         recouple(args.out)
+    elif args.part == "sequence":
+        cells = tuple(tuple(int(n) for n in c.split("x")) for c in args.cells or ())
+        sequence(
+            args.out,
+            args.coarse,
+            cells or SEQUENCE_CELLS,
+            tuple(args.path_steps or SEQUENCE_STEPS),
+        )
     else:
         refinement(args.out, args.levels or 4, args.steps, args.top)
 
