@@ -1882,6 +1882,7 @@ def hyperelastic() -> str:
         _hyper_ball(),
         _hyper_ironing(),
         _hyper_adaptive_curved(),
+        _hyper_drag(),
     ]
     return "\n".join(out)
 
@@ -2262,6 +2263,61 @@ def _hyper_ball() -> str:
             ),
             "",
         ]
+    return "\n".join(out)
+
+
+def _hyper_drag() -> str:
+    """§11.10: Coulomb friction between two neo-Hookean bodies, 2D and 3D."""
+    out = [prose("_hyper_drag", "title"), ""]
+    data = rows(RES / HYPER / "two_body_drag.csv")
+    if not data:
+        return "\n".join([*out, missing(f"demos/results/{HYPER}/two_body_drag.csv"), ""])
+    body = [
+        [
+            f"{r['dim']}D",
+            r["dofs"],
+            f"{r['t']:g}",
+            f"{r['slide']:.3f}",
+            r["couplings"],
+            r["newton"],
+            f"{r['stick']}/{r['slip']}",
+            f"{r['ratio']:.12f}",
+            f"{r['drag_force']:.5f}",
+            f"{r['press_force']:.5f}",
+            f"{r['balance']:.1e}",
+        ]
+        for r in data
+    ]
+    header = ["", "DoFs", "t", "slide", "couplings", "Newton", "stick/slip", "R"]
+    header += ["drag", "press", "balance"]
+    full = [r for r in data if r["stick"] == 0 and r["separated"] == 0]
+    dims = sorted({r["dim"] for r in data})
+
+    def span(values) -> str:
+        return f"{min(values):g}–{max(values):g}"
+
+    per_dim = "; ".join(
+        f"{d}D from t = {min(r['t'] for r in full if r['dim'] == d):g}" for d in dims
+    )
+    cpu = ", ".join(
+        f"{d}D {next(r['path_cpu_seconds'] for r in data if r['dim'] == d):g} s" for d in dims
+    )
+    out += [
+        prose("_hyper_drag", "intro", table=table(header, body)),
+        "",
+        prose(
+            "_hyper_drag",
+            "summary",
+            full=per_dim,
+            ratio_error=f"{max(r['ratio_error'] for r in data):.0e}",
+            balance=f"{max(r['balance'] for r in data):.0e}",
+            drag_press=span([round(r["drag_force"] / r["press_force"], 3) for r in full]),
+            couplings=span([r["couplings"] for r in data]),
+            newton=span([r["newton"] for r in data]),
+            cpu=cpu,
+        ),
+        "",
+    ]
     return "\n".join(out)
 
 

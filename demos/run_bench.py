@@ -34,9 +34,10 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_bandwidth.py`` on 1 and 2 ranks — the machine's memory-bound speed-up;
    ``demos/bench/bench_hyperelastic.py`` — finite deformation (issue 31): plain Newton against
    the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
-   the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls (about
-   15 minutes); ``demos/bench/bench_ironing.py`` — the ironing benchmark in plane strain on
-   three meshes, the die's forces against the sliding distance (about 2 minutes);
+   the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls, Coulomb
+   friction between two neo-Hookean blocks in 2D and 3D (about 15 minutes);
+   ``demos/bench/bench_ironing.py`` — the ironing benchmark in plane strain on three meshes,
+   the die's forces against the sliding distance (about 2 minutes);
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
    ``bench_estimators.py`` and ``bench_stopping.py`` (1 and 2 ranks) — guaranteed bounds,
    the two estimators, adaptive stopping (issue 30, RESULTS §12; about 40 minutes);
@@ -274,6 +275,7 @@ STEPS = {
             ["adaptive"],
             ["adaptive", "--case", "indenter"],
             ["adaptive", "--case", "indentation"],
+            ["drag"],
         )
     ]
     + [[PY, "demos/bench/bench_ironing.py", "--out", "demos/results/hyperelastic"]],

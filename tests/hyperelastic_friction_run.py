@@ -6,8 +6,9 @@ mpirun).
 
 ``steps`` holds one row per load step: t, converged, couplings, Newton iterations, the stick /
 slip / separated slave nodes, the friction ratio Σ w|λ_t| / Σ w|λ_n| over the slipping slave
-nodes, and the internal forces (x, y) of the slave and of the master part.  ``nodes``: the
-last step's slave nodes (reference x, y, λ_n, λ_t; sorted by coordinate).
+nodes, and the internal forces (all components) of the slave and of the master part.
+``nodes``: the last step's slave nodes (reference coordinates, λ_n, λ_t; sorted by
+coordinate), in 2D and 3D.
 """
 
 import sys
@@ -45,8 +46,8 @@ def step_row(step, scene) -> list[float]:
         r.iterations,
         *counts,
         t_sum / n_sum if n_sum > 0 else np.nan,
-        *slave[:2],
-        *master[:2],
+        *slave,
+        *master,
     ]
 
 
@@ -64,14 +65,16 @@ def main(argv):
     p = r.problem
     on = slice(0, p.data.pair_nodes)
     bs = p.V.dofmap.index_map_bs
-    X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // bs, :2]
-    table = np.c_[X, r.friction["lambda_n"][on], r.friction["lambda_t"][on]]
+    gdim = p.V.mesh.geometry.dim
+    X = p.V.tabulate_dof_coordinates()[p.constraint.dofs[on] // bs, :gdim]
+    lambda_t = r.friction["lambda_t"][on].reshape(len(X), gdim - 1)
+    table = np.c_[X, r.friction["lambda_n"][on], lambda_t]
     comm = MPI.COMM_WORLD
     table = comm.gather(table)
     if comm.rank == 0:
         table = np.concatenate(table)
-        table = table[np.lexsort(np.round(table[:, :2], 12).T[::-1])]
-        np.savez(out, steps=np.array(rows), nodes=table, converged=run.converged)
+        table = table[np.lexsort(np.round(table[:, :gdim], 12).T[::-1])]
+        np.savez(out, steps=np.array(rows), nodes=table, converged=run.converged, gdim=gdim)
 
 
 if __name__ == "__main__":

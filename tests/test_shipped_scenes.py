@@ -51,6 +51,7 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_sphere.yaml": ["mesh.cells=[6,6,4]", "load.steps=2"],
     "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]"],
     "hyperelastic_two_body_drag_2d.yaml": ["load={times: [0.2, 0.3]}"],
+    "hyperelastic_two_body_drag_3d.yaml": ["load={times: [0.2, 0.4]}"],
     "hyperelastic_two_body_patch_2d.yaml": [],
     "hyperelastic_self_contact_ring.yaml": ["mesh.cells=[64,2]", "load.steps=2"],
     "hyperelastic_self_contact_tube.yaml": ["mesh.cells=[2,24,4]", "load.steps=2"],

@@ -13,6 +13,7 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     mpirun -n 2 python demos/bench/bench_hyperelastic.py ball --mesh-size 0.0135  # 500k DoFs
     python demos/bench/bench_hyperelastic.py recouple      # mortar re-coupling: Aitken vs plain
     python demos/bench/bench_hyperelastic.py sequence      # grid sequencing of the first step
+    python demos/bench/bench_hyperelastic.py drag          # Coulomb between bodies, 2D and 3D
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -105,6 +106,14 @@ seconds to the end of the first step (problem built, coarse levels and fine solv
 the whole path (the smaller of the two runs), the contact force of the first and last steps;
 the ratio sequenced / off of both CPU times.  Writes sequence.csv (``--cells 320x160
 --path-steps 1``: other meshes and paths, sequence_<cells>.csv).
+``drag`` — Coulomb friction between two neo-Hookean bodies on the current configuration:
+configs/hyperelastic_two_body_drag_2d.yaml and its 3D extrusion
+configs/hyperelastic_two_body_drag_3d.yaml (a block pressed by 10 % onto a longer one, then
+dragged along it, F = 0.3), each along its shipped load path.  Per load step: the slide of
+the held top, the couplings and Newton iterations, the stick / slip / separated slave nodes,
+Σ w|λ_t| / Σ w|λ_n| over the slipping nodes against F, the slave part's internal force
+(drag and press) and its balance with the master's, |f_slave + f_master| / |f_slave|; CPU
+seconds of the whole path.  Writes two_body_drag.csv.
 
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
@@ -131,6 +140,7 @@ from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))  # the scenes the tests check, measured here too
+import hyperelastic_friction_run  # noqa: E402
 import test_hyperelastic  # noqa: E402
 import test_hyperelastic_adapt  # noqa: E402
 
@@ -871,6 +881,63 @@ def sequence(
     save_csv(out / f"{name}.csv", rows)
 
 
+#: the dragged blocks (the ``drag`` part): dimension -> shipped scene
+DRAGS = {
+    2: ROOT / "configs" / "hyperelastic_two_body_drag_2d.yaml",
+    3: ROOT / "configs" / "hyperelastic_two_body_drag_3d.yaml",
+}
+
+
+def drag(out: Path) -> None:
+    """Coulomb between two neo-Hookean bodies, pressed and dragged (module doc)."""
+    rows = []
+    for gdim, path in DRAGS.items():
+        scene = contact.load_scene(path, ["output.verbose=false"])
+        constants = scene.config.constants
+        figures = []
+
+        def on_step(step, scene=scene, figures=figures) -> None:
+            if step.result.converged:
+                figures.append(hyperelastic_friction_run.step_row(step, scene))
+
+        t0 = time.process_time()
+        run = contact.run_load_path(scene, on_step=on_step, verbose=False)
+        cpu = COMM.allreduce(time.process_time() - t0, op=MPI.SUM)
+        if not run.converged:
+            raise SystemExit(f"bench_hyperelastic: drag {gdim}D: {run.stop}")
+        F = scene.config.friction.coefficient
+        for row in figures:
+            t, _, couplings, newton, stick, slip, separated, ratio = row[:8]
+            slave, master = np.array(row[8 : 8 + gdim]), np.array(row[8 + gdim :])
+            rows.append(
+                {
+                    "scene": path.stem,
+                    "dim": gdim,
+                    "dofs": run.steps[-1].result.problem.V.dofmap.index_map.size_global * gdim,
+                    "t": round(t, 12),
+                    "slide": constants["drag"] * max(t - 0.2, 0) / 0.8,
+                    "couplings": couplings,
+                    "newton": newton,
+                    "stick": stick,
+                    "slip": slip,
+                    "separated": separated,
+                    "ratio": ratio,
+                    "ratio_error": abs(ratio / F - 1),
+                    "drag_force": abs(slave[0]),
+                    "press_force": abs(slave[1]),
+                    "balance": float(np.linalg.norm(slave + master) / np.linalg.norm(slave)),
+                    "path_cpu_seconds": round(cpu, 1),
+                }
+            )
+            say(
+                ", ".join(
+                    f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in rows[-1].items()
+                )
+            )
+    save_csv(out / "two_body_drag.csv", rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -886,6 +953,7 @@ def main() -> None:
             "ball",
             "recouple",
             "sequence",
+            "drag",
         ),
     )
     ap.add_argument("--coarse", type=int, default=2, help="sequence: coarser levels (2)")
@@ -947,6 +1015,8 @@ def main() -> None:
             cells or SEQUENCE_CELLS,
             tuple(args.path_steps or SEQUENCE_STEPS),
         )
+    elif args.part == "drag":
+        drag(args.out)
     else:
         refinement(args.out, args.levels or 4, args.steps, args.top)
 
