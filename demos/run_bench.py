@@ -275,6 +275,7 @@ STEPS = {
             ["adaptive"],
             ["adaptive", "--case", "indenter"],
             ["adaptive", "--case", "indentation"],
+            ["sequence"],
             ["drag"],
         )
     ]
