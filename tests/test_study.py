@@ -494,3 +494,28 @@ def test_a_hyperelastic_stability_map_tells_unstable_answers(tmp_path: Path) -> 
     assert plain["min_det_F"] > 0
     assert by["SVK"]["outcome"] != "converged" or by["SVK"]["tangent_negative_eigenvalues"] == 0
     assert (tmp_path / "out" / "stability.png").stat().st_size > 10_000
+
+
+def test_growth_and_indicators_reach_the_adaptive_runs(tmp_path: Path) -> None:
+    """``growth`` and ``indicators`` are study axes and ``adapt`` keys like ``theta``: with
+    growth 2 every level has at least twice its parent's DoFs, with growth 1 (Dörfler
+    alone, θ = 0.2) some level has fewer; residual indicators keep the same loop running."""
+    from contact.app.study import load_study, run_study
+    from contact.base.errors import ConfigError
+
+    study = {
+        "name": "growth",
+        "scene": str(FREE),
+        "set": ["mesh.cells=[8,4]"],
+        "axes": {"growth": [1, 2]},
+        "adapt": {"strategy": "dorfler", "theta": 0.2, "max_levels": 4, "indicators": "residual"},
+    }
+    rows, levels = run_study(study, tmp_path / "out", verbose=False)
+    assert [r["growth"] for r in rows] == [1, 2]
+    assert all(r["outcome"] == "converged" for r in rows)
+    dofs = {g: [lv["dofs"] for lv in levels if lv["growth"] == g] for g in (1, 2)}
+    assert len(dofs[2]) == 4
+    assert all(b >= 2 * a * 0.9 for a, b in zip(dofs[2], dofs[2][1:]))  # cells ×2 ≈ DoFs ×2
+    assert any(b < 1.5 * a for a, b in zip(dofs[1], dofs[1][1:]))
+    with pytest.raises(ConfigError, match=r"adapt\.indicators"):
+        load_study({**study, "adapt": {"indicators": "gradient"}})

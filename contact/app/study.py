@@ -24,8 +24,10 @@ auto, direct, gamg, bcgs) and ``sequence`` (grid sequencing: auto, off or a numb
 levels) set the scene's ``solver`` keys; ``linear_solver`` puts PETSc options on the
 assembled Newton matrix: ``direct`` (MUMPS LU) or ``gamg`` (BiCGStab + GAMG, ``ksp_rtol``
 1e-10); ``strategy`` is ``none`` (one solve) or an adaptive marking strategy
-(``uniform``, ``dorfler``, ``maximum``) with ``theta`` and ``nested`` (start each level
-from the previous solution, or cold from ``u0``); ``level`` refines the base mesh
+(``uniform``, ``dorfler``, ``maximum``) with ``theta``, ``growth`` (each level at least
+that many times its parent's DoFs), ``indicators`` (``estimator`` or ``residual``: what
+marks the cells) and ``nested`` (start each level from the previous solution, or cold from
+``u0``); ``level`` refines the base mesh
 uniformly that many times before solving (``contact.refine`` with every cell marked, so it
 works for every mesh type, gmsh files included).  Without a ``strategy`` axis a run is
 adaptive when the study's ``adapt.strategy`` or the scene's ``adapt`` section says so.
@@ -75,6 +77,7 @@ from ..base.timing import Stopwatch
 from ..base.validation import (
     Section,
     a_list,
+    at_least_one,
     boolean,
     checked,
     config_error,
@@ -102,7 +105,7 @@ from ..setup.scene_config import (
 )
 from ..solvers import DEFAULT_PETSC_OPTIONS, ELASTICITY_3D_PETSC_OPTIONS, method_variant
 from ..solvers.baselines import PARAMETERS as BASELINE_PARAMETERS
-from ..solvers.options import METHOD_VARIANTS, METHODS
+from ..solvers.options import INDICATORS, METHOD_VARIANTS, METHODS
 from .dispatch import choose_driver
 from .failures import INTERNAL, abort, all_failed, describe, interrupted, one_line
 
@@ -138,6 +141,8 @@ AXES: dict[str, tuple[type[Section], str]] = {
     "linear_solver": (StudyAxes, "linear_solver"),
     "strategy": (StudyAxes, "strategy"),
     "theta": (AdaptConfig, "theta"),
+    "growth": (AdaptConfig, "growth"),
+    "indicators": (AdaptConfig, "indicators"),
     "nested": (AdaptConfig, "nested"),
     "level": (StudyAxes, "level"),
     "friction": (FrictionConfig, "law"),
@@ -151,7 +156,7 @@ AXES: dict[str, tuple[type[Section], str]] = {
     "parameter": (StudyAxes, "parameter"),
 }
 _SOLVER_AXES = ("method", "mu", "c", "kappa", "line_search", "max_it", "u0", "linear", "sequence")
-_ADAPT_AXES = ("theta", "nested")
+_ADAPT_AXES = ("theta", "growth", "indicators", "nested")
 #: the scene sections that decide a run's mesh and boundary parts (:meth:`Study.mesh_key`)
 _MESH_KEYS = ("mesh", "boundaries", "bodies", "pairs", "constants", "model")
 #: friction axes -> keys of the scene's friction section
@@ -202,6 +207,8 @@ class StudyAdapt(Section):
 
     strategy: Annotated[str, BeforeValidator(one_of(STRATEGIES))] | None = None
     theta: Fraction | None = None
+    growth: Annotated[float, BeforeValidator(number(at_least_one))] | None = None
+    indicators: Annotated[str, BeforeValidator(one_of(INDICATORS))] | None = None
     tol: NonNegative | None = None
     max_dofs: Count | None = None
     max_levels: Count | None = None
