@@ -174,8 +174,9 @@ def solve(
 def contact_figures(problem: DiscreteProblem, result: Result) -> None:
     """Put the figures of a solved problem's contact conditions on its result.
 
-    The first point of contact (``Result.first_contact``) and, with mortar pairs, the
-    forces on their surfaces (``Result.interface_forces``).  Collective.
+    The first point of contact (``Result.first_contact``) and, with mortar pairs and the
+    problem's reaction form (``ProblemData.reaction_form``, which a scene's elastic bodies
+    set), the forces on their surfaces (``Result.interface_forces``).  Collective.
 
     Args:
         problem: the problem solved, its displacement at the solution.
@@ -184,7 +185,9 @@ def contact_figures(problem: DiscreteProblem, result: Result) -> None:
     con = problem.constraint
     comm = problem.V.mesh.comm
     result.first_contact = first_contact_point(comm, problem.node_coordinates(), con.sign * con.g)
-    if problem.data.couplings:  # mortar pairs (a scalar problem loads no multi-body module)
+    # mortar pairs with a reaction form, a(u_h, v) − L(v) in u's own components (a scene's
+    # elastic bodies); a scalar problem loads no multi-body module
+    if problem.data.couplings and problem.data.reaction_form is not None:
         from ..models.mortar import interface_forces
 
         result.interface_forces = interface_forces(problem)

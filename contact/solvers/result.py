@@ -74,7 +74,8 @@ class Result:
         interface_forces: With mortar pairs, (F_s, F_m): the forces on the pairs' slave and
             master surfaces, Σ of the residual a(u_h, v) − L(v) over their nodes, the
             Dirichlet DoFs left out (``contact.models.mortar.interface_forces``; of the
-            modelled part, the symmetric copies not counted); None otherwise.
+            modelled part, the symmetric copies not counted); None otherwise, and for a
+            problem without a reaction form (``ProblemData.reaction_form``: a scene's).
     """
 
     u_h: fem.Function
