@@ -1881,6 +1881,7 @@ def hyperelastic() -> str:
         _hyper_adaptive(),
         _hyper_ball(),
         _hyper_ironing(),
+        _hyper_adaptive_curved(),
     ]
     return "\n".join(out)
 
@@ -2245,6 +2246,97 @@ def _hyper_ball() -> str:
         ),
         "",
     ]
+    runs = sorted((rows(path) for path in files), key=lambda data: data[-1]["dofs"])
+    if len(runs) >= 2:
+        fine, coarse = runs[-1][-1], runs[-2][-1]  # the two finest meshes' final steps
+        out += [
+            prose(
+                "_hyper_ball",
+                "the_two_finest_meshes",
+                fine_dofs=f"{fine['dofs']:,}",
+                coarse_dofs=f"{coarse['dofs']:,}",
+                change=f"{abs(fine['contact_force'] / coarse['contact_force'] - 1):.1e}",
+                newton=", ".join(str(r["newton_iterations"]) for r in runs[-1]),
+                path_minutes=f"{fine['path_seconds'] / 60:.0f}",
+                rss=fine["peak_rss_mib"],
+            ),
+            "",
+        ]
+    return "\n".join(out)
+
+
+#: the cases of §11.9 (demos/bench/bench_hyperelastic.py adaptive --case ...) and their titles
+ADAPTIVE_CURVED = {
+    "indenter": "A rigid cylinder R = 0.05 lowered 0.2 R into the unit half block on rollers, "
+    "from 8 × 8 (tests/test_hyperelastic_adapt.py::indenter)",
+    "indentation": "configs/hyperelastic_indentation.yaml: R = 0.5 lowered 0.4 R into the "
+    "clamped block [−1, 1] × [−1, 0], from 20 × 10",
+}
+
+
+def _hyper_adaptive_curved() -> str:
+    """§11.9: Dörfler against uniform refinement against a rigid cylinder."""
+    out = [prose("_hyper_adaptive_curved", "title"), ""]
+    found = [c for c in ADAPTIVE_CURVED if rows(RES / HYPER / f"adaptive_{c}.csv")]
+    if not found:
+        return "\n".join([*out, missing(f"demos/results/{HYPER}/adaptive_<case>.csv"), ""])
+    out += [prose("_hyper_adaptive_curved", "intro"), ""]
+    for case in found:
+        data = rows(RES / HYPER / f"adaptive_{case}.csv") or []
+        summary = rows(RES / HYPER / f"adaptive_{case}_summary.csv") or []
+        lines = []
+        for r in summary:
+            u, d, tol = r["uniform_dofs"], r["dorfler_dofs"], f"{r['tolerance']:.2%}"
+            if r["ratio"] in ("", None):
+                which = "uniform refinement" if u in ("", None) else "Dörfler"
+                line = prose(
+                    "_hyper_adaptive_curved",
+                    "summary_none",
+                    tol=tol,
+                    uniform=g(u),
+                    dorfler=g(d),
+                    which=which,
+                )
+            else:
+                fit = f"{r['uniform_interpolated']:.0f}", f"{r['dorfler_interpolated']:.0f}"
+                line = prose(
+                    "_hyper_adaptive_curved",
+                    "summary_row",
+                    tol=tol,
+                    uniform=u,
+                    dorfler=d,
+                    ratio=f"{r['ratio']:.1f}",
+                    uniform_fit=fit[0],
+                    dorfler_fit=fit[1],
+                    ratio_fit=f"{r['ratio_interpolated']:.1f}",
+                )
+            lines.append(line)
+        body = [
+            [
+                r["strategy"],
+                r["level"],
+                r["dofs"],
+                f"{r['eta']:.4e}",
+                f"{r['contact_force']:.9f}",
+                f"{r['force_above_reference']:+.2e}",
+                r["newton_iterations"],
+            ]
+            for r in data
+        ]
+        header = ["strategy", "level", "DoFs", "η", "F", "F / F_ref − 1", "Newton its"]
+        out += [
+            prose(
+                "_hyper_adaptive_curved",
+                "case",
+                title=ADAPTIVE_CURVED[case],
+                case=case,
+                reference=f"{data[0]['reference_force']:.9f}",
+                table=table(header, body),
+                summary="\n".join(lines),
+            ),
+            "",
+        ]
+    out += [prose("_hyper_adaptive_curved", "closing"), ""]
     return "\n".join(out)
 
 
@@ -3540,6 +3632,7 @@ def time_to_accuracy() -> str:
                 b_peak_mib=f"{b['peak_mib']:.0f}",
                 per_dof_b=per_dof(b),
                 b_meshes=b["meshes"],
+                a_meshes=a["meshes"],
                 table=table(
                     [
                         "level",

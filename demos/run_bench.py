@@ -272,6 +272,8 @@ STEPS = {
             ["refinement", "--levels", "5"],
             ["refinement", "--top", "symmetry"],
             ["adaptive"],
+            ["adaptive", "--case", "indenter"],
+            ["adaptive", "--case", "indentation"],
         )
     ]
     + [[PY, "demos/bench/bench_ironing.py", "--out", "demos/results/hyperelastic"]],

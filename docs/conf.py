@@ -115,6 +115,7 @@ DEMO_ARGS = {
     "torsion": "32",
     "hp": "1e-3",
     "self_contact": "4",
+    "self_contact_tube": "4",
 }
 
 

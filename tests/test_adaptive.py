@@ -279,6 +279,50 @@ def test_released_levels_keep_their_figures_and_free_their_fields():
         adapt(scene, max_levels=1, verbose=False, keep=0)
 
 
+@pytest.mark.parametrize("run", ["scene", "builder"])
+def test_released_levels_free_their_meshes(run):
+    """With every level but the last released, a level's mesh (and its scene) is gone once
+    the loop has moved on: nothing of the loop (the chain of parent domains and scenes,
+    the loop's own records) keeps it alive.  For a scene and for a user's builder
+    (:func:`contact.adapt` on a ``Domain``)."""
+    import gc
+    import weakref
+
+    from contact.drivers.adaptive import adapt as adapt_domain
+    from contact.setup.build import build_problem
+    from contact.setup.run import on_domain, scene_domain
+
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    meshes: list = []  # weak references to each level's mesh
+    alive: list[list[bool]] = []  # in on_level of level k: which earlier meshes live
+
+    def on_level(level):
+        gc.collect()
+        alive.append([ref() is not None for ref in meshes])
+        meshes.append(weakref.ref(level.domain.mesh))
+
+    if run == "scene":
+        loop = adapt(scene, max_levels=5, verbose=False, keep=lambda lv: False, on_level=on_level)
+    else:
+        loop = adapt_domain(
+            lambda domain: build_problem(on_domain(scene, domain)),
+            scene_domain(scene),
+            "fb",
+            max_levels=5,
+            keep=lambda lv: False,
+            on_level=on_level,
+        )
+    assert len(loop.levels) == 5
+    # when level k is written, the meshes of levels 1 … k − 1 are gone (level 0's is the
+    # scene's own, which the caller holds)
+    for k, flags in enumerate(alive):
+        assert flags[1:] == [False] * (k - 1), (k, flags)
+    gc.collect()
+    assert [ref() is not None for ref in meshes] == [True, False, False, False, True]
+
+
 def test_loose_newton_tolerance_does_not_change_the_discretization():
     """adapt.newton_rtol = 1e-6 (the default) against 1e-12: same meshes, and η and the error
     agree far below the discretization error, so the looser algebraic tolerance is safe."""

@@ -52,6 +52,8 @@ SCENES: dict[str, list[str]] = {
     # buckles in the second step (its tangent turns indefinite at t ≈ 1.15 on 40 × 2 cells)
     "hyperelastic_strip.yaml": ["mesh.cells=[40,2]", "load.times=[1.1,1.25]", *SMALL],
     "hyperelastic_self_contact_ring.yaml": ["mesh.cells=[64,2]", "load.steps=2", *SMALL],
+    "hyperelastic_two_body_drag_2d.yaml": ["load={times: [0.2, 0.3]}", *SMALL],
+    "hyperelastic_self_contact_tube.yaml": ["mesh.cells=[2,24,4]", "load.steps=2", *SMALL],
     "hyperelastic_two_body_patch_2d.yaml": SMALL,
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],

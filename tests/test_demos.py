@@ -122,6 +122,15 @@ def test_demo_self_contact(tmp_path):
     assert _number(r"smallest weighted gap (\S+)", out) >= -1e-9
 
 
+def test_demo_self_contact_tube(tmp_path):
+    """The tube pinched in 4 steps: no slave node in contact until the last one, then ≥ 10
+    pressed; the y-forces on the two walls opposite to 1e-12; the picture written."""
+    out = _demo("self_contact_tube", "4", tmp_path)
+    pressed = [int(n) for n in re.findall(r"^t = \S+: (\d+) slave nodes pressed", out, re.M)]
+    assert len(pressed) == 4 and pressed[:-1] == [0, 0, 0] and pressed[-1] >= 10
+    assert _number(r"action = reaction along y to (\S+)", out) < 1e-12
+
+
 def test_demo_curved_indentation(tmp_path):
     """The neo-Hookean block under the rigid cylinder (contact on the current configuration):
     the linear model's force at small indentation (within 2 %), > 5 % stiffer at 0.4 R,

@@ -248,3 +248,28 @@ def test_lowest_order_refuses_what_it_does_not_cover() -> None:
         reconstruct_flux(poisson(2, 2, 2)[0], degree=0)
     with pytest.raises(ValueError, match="P1, degree 1 and rounds >= 0 only"):
         reconstruct_flux(poisson(2, 1, 2)[0], backend="flow", degree=0)
+
+
+@pytest.mark.parametrize(
+    "name,backend",
+    [(n, "compiled") for n in ("A_P1", "A_P2", "ex9", "A_3D")] + [("A_P1", "flow")],
+)
+def test_patches_in_blocks_agree_with_one_table(name: str, backend: str, monkeypatch) -> None:
+    """The compiled patches solved a block of vertices at a time (flux.BLOCK_CELLS: only
+    the block's rows whole) give σ_h, osc_T and η of the whole table to round-off: each
+    patch is solved once, its cells' α summed over the blocks."""
+    from contact.adaptivity.equilibration import flux
+
+    scene, result = _solved(name)
+    out = {}
+    for cells in (None, 7):  # the old path; blocks of ~7 cells: many blocks
+        monkeypatch.setattr(flux, "BLOCK_CELLS", cells)
+        data, multiplier, sign = flux_data(result.problem, result)
+        fl = reconstruct_flux(data, multiplier, sign, backend=backend)
+        eta = guaranteed_bound(result.problem, result, backend=backend).eta
+        out[cells] = (fl, eta)
+    (whole, eta0), (parts, eta1) = out[None], out[7]
+    scale = np.abs(whole.sigma_h.x.array).max()
+    assert np.abs(parts.sigma_h.x.array - whole.sigma_h.x.array).max() <= 1e-12 * scale
+    assert np.array_equal(parts.osc, whole.osc)
+    assert abs(eta1 - eta0) <= 1e-12 * eta0

@@ -3,7 +3,7 @@ configuration (contact/drivers/recouple.py): the finite-strain contact patch tes
 non-matching meshes: the interface pressure is the exact Cauchy traction at every slave node,
 action = reaction), two neo-Hookean cylinders at δ = 0.001 R_c against Hertz, the coupling's
 fixed point at a moderate load, serial = 2 ranks, a load step identical to the previous one,
-and what the scene still refuses."""
+and what the scene still refuses (friction: tests/test_hyperelastic_friction.py)."""
 
 from pathlib import Path
 
@@ -171,7 +171,6 @@ def test_identical_load_step_converges_from_the_solution():
 @pytest.mark.parametrize(
     "overrides, key",
     [
-        (["friction.law=coulomb", "friction.coefficient=0.3"], "friction"),
         (["adapt.strategy=dorfler"], "adapt"),
         (["solver.sequence=2"], "solver.sequence"),
     ],

@@ -219,9 +219,15 @@ def elasticity_terms(
 
         h_E ‖λ_n − T·n_c‖²_E + h_E ‖T − (T·n_c) n_c‖²_E + ‖λ_n⁺‖²_E + ∫_E |min(λ_n, 0)(u_h·n_c − g)|
 
-    (consistency, tangential — frictionless —, sign, complementarity).  With the cells'
-    ``degree`` p_T (an hp solution, DG0) the weights are h_T/p_T and h_E/p_E, as in
-    :func:`scalar_terms`.
+    (consistency, tangential — frictionless —, sign, complementarity).  A hyperelastic
+    body's terms are those of the reference configuration, with the first Piola–Kirchhoff
+    stress P(u_h) for σ and λ_n per reference area; where its contact is met on the current
+    configuration (``problem.current``: a circle or sphere, or friction) n_c is the
+    obstacle's normal at the deformed point x = X + u_h and the complementarity term
+    ∫_E |min(λ_n, 0) g(X + u_h)| (g the obstacle's signed distance), with friction the slip
+    that of the solver (along the current tangents, relative to the obstacle's motion).
+    With the cells' ``degree`` p_T (an hp solution, DG0) the weights are h_T/p_T and
+    h_E/p_E, as in :func:`scalar_terms`.
     """
     physics = _physics(problem, Elasticity)
     msh = problem.V.mesh
@@ -257,8 +263,13 @@ def elasticity_terms(
         from ..solvers.friction import surface_functions
 
         surface_fields = surface_functions(result)[:2]
+    current = problem.current is not None  # contact on the current configuration
+    X = ufl.SpatialCoordinate(msh)
     for obstacle in rigid:  # the rigid obstacle's contact parts
-        n_c, g_c = obstacle.surface.expression(ufl.SpatialCoordinate(msh))
+        # small strain: n_c and the gap g_c of the reference point, the gap u·n_c − g_c;
+        # on the current configuration both at the deformed point x = X + u_h, the gap −g
+        n_c, g_c = obstacle.surface.expression(X + u_h if current else X)
+        gap = -g_c if current else ufl.dot(u_h, n_c) - g_c
         Tn = ufl.dot(T, n_c)
         Tt = T - Tn * n_c
         friction = None
@@ -266,19 +277,20 @@ def elasticity_terms(
             assert surface_fields is not None
             rho = friction_bound(obstacle.friction, problem, lam)
             friction = FrictionFields(surface_fields[0], surface_fields[1], rho)
-            # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms; the slip
-            # s_t = (I − n nᵀ)(u_h − u_prev) of the load step
+            # λ_t − σ_t(u_h) instead of σ_t(u_h), and the friction terms; the slip of the
+            # load step: small strain s_t = (I − n nᵀ)(u_h − u_prev), on the current
+            # configuration the solver's nodal slip (along the current tangents, relative
+            # to the obstacle's own motion)
             du = u_h - problem.u_prev if problem.u_prev is not None else u_h
-            lam_t, slip_t = friction.lam_t, du - ufl.dot(du, n_c) * n_c
+            lam_t = friction.lam_t
+            slip_t = friction.slip if current else du - ufl.dot(du, n_c) * n_c
             Tt = Tt - lam_t
             terms.update(friction_bound=zero, slip=zero)
         for i in obstacle.ids:
             terms["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
             terms["tangential"] += h_E * ufl.inner(Tt, Tt) * w * ds(i)
             terms["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
-            terms["complementarity"] += (
-                abs(ufl.min_value(lam, 0) * (ufl.dot(u_h, n_c) - g_c)) * w * ds(i)
-            )
+            terms["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
             if friction is not None:
                 norm_t = ufl.sqrt(ufl.inner(lam_t, lam_t))
                 terms["friction_bound"] += ufl.max_value(norm_t - rho, 0) ** 2 * w * ds(i)

@@ -98,8 +98,8 @@ class Level:
         Its solution's fields and PETSc objects
         (``Result.release``) and the indicator field η_T are
         dropped, and so are its domain and problem, so the loop's memory follows the last
-        level, not the sum of all. The mesh stays while a finer level refers to it (the
-        chain of coarser meshes ``contact.drivers.sequencing`` solves on).
+        level, not the sum of all. (A loop that releases levels does not link a refined
+        domain to its parent, :func:`adapt`, so the mesh goes too.)
         """
         _ = self.cells  # cached while the mesh is at hand
         self.result.release()
@@ -246,11 +246,13 @@ def adapt(
         u0: the first level's initial guess (e.g. a load step's previous solution).
         on_level: called with each :class:`Level` once it is estimated, marked and refined
             (output as it goes).
-        keep: which levels keep their solution once the next level is estimated (and
+        keep: which levels keep their solution once the next level is solved (and
             ``on_level`` has written it): the others are released (:meth:`Level.release`:
-            their rows, iterations, η and errors stay) and the loop's memory follows its
-            last level. None (the default) keeps every level whole; ``lambda level:
-            False`` releases all but the last.
+            their rows, iterations, η and errors stay) before the next level is estimated,
+            and the loop's memory follows its last level (its refined domains are then not
+            linked to their parents, ``Domain.parent``: the loop never solves on them).
+            None (the default) keeps every level whole; ``lambda level: False`` releases
+            all but the last.
         solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
             of ``contact.drivers.solve.solve``, a first level without a guess sequenced
             over the domain's ancestors).
@@ -286,9 +288,26 @@ def adapt(
     start_cpu, outputs_cpu = time.process_time(), 0.0
     for index in range(opts.max_levels):
         seconds: dict[str, float] = {}
+        previous = out.levels[-1] if out.levels else None
+        if keep is not None and previous is not None and opts.nested:
+            # a refined level solves from the previous solution, never on the coarser
+            # meshes (grid sequencing's chain, Domain.parent): without the link the
+            # previous mesh goes once its level is released
+            level_domain.parent = None
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
+
+        def release_previous(result: Result, previous: Level | None = previous) -> None:
+            # once this level has a solution (a failed one is dropped by the CLI and the
+            # one before it stays whole), before its estimate, the loop's peak
+            if keep is None or previous is None or previous.released or not result.converged:
+                return
+            if not keep(previous):
+                previous.release()
+                gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
+                return_freed_memory()
+
         result, est, passes = solve_level(
             problem,
             level_domain,
@@ -298,7 +317,8 @@ def adapt(
             solve,
             kind if bound is None else "residual",
             stopping,
-            previous=out.levels[-1] if out.levels else None,
+            previous=previous,
+            solved=release_previous,
         )
         with Timer(seconds, "error"):
             error = solution_error(problem, result)
@@ -319,11 +339,6 @@ def adapt(
         if make_level is not None:
             level = make_level(level)
         out.levels.append(level)
-        # a failed level is dropped by the CLI: the one before it stays whole
-        if keep is not None and index > 0 and result.converged and not keep(out.levels[-2]):
-            out.levels[-2].release()
-            gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
-            return_freed_memory()
         indicators = est.eta_T  # what marks: the estimator's, or the residual ones
         eta = est.eta if bound is None else bound.eta(level, opts.tol)
         out.stop = stop_before_marking(level, eta, opts)
@@ -502,6 +517,7 @@ def solve_level(
     kind: str,
     stopping: tuple[float, float] | None,
     previous: Level | None = None,
+    solved: Callable[[Result], None] | None = None,
 ) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE one level.
 
@@ -516,7 +532,8 @@ def solve_level(
     computed at the final iterate, and where the iterate fails either criterion against it
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
-    level, with no η known yet, uses the fixed tolerances.
+    level, with no η known yet, uses the fixed tolerances.  ``solved`` is called with each
+    solve's result before it is estimated.
     """
     adaptive = stopping is not None and previous is not None
     eta = None
@@ -535,6 +552,8 @@ def solve_level(
         with Timer(seconds, "solve"):
             result = solve(problem, domain, u0, criterion)
         progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
+        if solved is not None:
+            solved(result)
         with Timer(seconds, "estimate"):
             est = estimate(problem, result, kind)
         krylov += result.krylov_iterations

@@ -232,7 +232,7 @@ def adapt(
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The h loop's first initial guess (a load step's previous solution).
         keep: Which levels of the h loop keep their solution once the next level is
-            estimated (``contact.drivers.adaptive.adapt``); the hp loop keeps every level.
+            solved (``contact.drivers.adaptive.adapt``); the hp loop keeps every level.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
             maximum, uniform, hp, none), ``theta``, ``tol``, ``max_dofs``, ``max_levels``,
             ``nested``, ``newton_rtol``, ``rebalance``, ``pictures``; for hp ``p_max`` (the

@@ -44,8 +44,10 @@ HSW / projection law on the current tangent plane, the slip the increment of the
 position along it.  :func:`linearized_problem` (the gap linearized at an iterate: a bound
 again) gives an independent solver of the same problem through PETSc's VI solvers.
 
-Not in this model (yet): several bodies, the adaptive loop.  The configuration refuses
-them.
+The residual estimator of the adaptive loop (:mod:`contact.adaptivity.estimate`) is written
+in the reference configuration with P(u_h) and, on the current configuration, the contact
+terms measured with the normal and gap of the deformed point.  Not in this model (yet):
+grid sequencing; the configuration refuses it.
 """
 
 from __future__ import annotations

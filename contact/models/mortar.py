@@ -88,6 +88,8 @@ class Coupling:
     M: PETSc.Mat  # M_ij (scalar, node layout; owned slave rows, global master columns)
     master_weights: la.Vector  # ∫ φ_j^m over Γ_m at the master nodes (node layout)
     ends: np.ndarray  # owned slave nodes fixed in every component (no constraint)
+    # owned slave nodes facing no master facet on the current configuration (no constraint)
+    uncovered: np.ndarray
     coverage: float  # min_i Σ_j M_ij / D_ii over all ranks (1 where fully covered)
     search: float  # the search distance used
     #: the owned nodes of the slave surface and of the master surface (all their nodes, the
@@ -169,8 +171,12 @@ def couple(
     ``displacement`` u (the nodal values of V's function, owned and ghost) the search,
     projection, normals, D and M are those of the current configuration x = X + u and the
     gap is the current one, g_i = n_i · (Σ_j c_ij x_j − x_i) (finite strain; the module
-    doc's formulas with X replaced by x).  Raises ConfigError (one line, every rank) for a
-    slave node without master facet within the search distance."""
+    doc's formulas with X replaced by x).  A slave node facing master facets over less than
+    half of its facets (within the search distance) is an error in the reference
+    configuration (ConfigError, one line, every rank: the slave part reaches beyond the
+    master) but out of contact on a current one (no constraint, gap +∞, listed in
+    ``uncovered``): where a body deforms, a slave node may face no master facet yet, or no
+    longer (the far side of a self-contact, a slave surface slid past the master's end)."""
     comm = V.mesh.comm
     slave = surface_facets(V, measure_facets(pair.slave), displacement)
     master = surface_facets(V, measure_facets(pair.master), displacement)
@@ -225,7 +231,15 @@ def couple(
 
     covered = np.bincount(M_rows, weights=M_vals, minlength=n_owned)[nodes]
     coverage = covered / D_owned[nodes]
-    _no_master(comm, V, nodes[coverage < MIN_COVERAGE], key, pair, search)
+    bare = coverage < MIN_COVERAGE
+    if displacement is None:
+        _no_master(comm, V, nodes[bare], key, pair, search)
+    # on the current configuration a slave node facing no master facet is out of contact:
+    # no constraint (gap +∞), an ordinary node of its body until a coupling finds one
+    uncovered = nodes[bare]
+    nodes, fixed_comp, covered, coverage = (
+        a[~bare] for a in (nodes, fixed_comp, covered, coverage)
+    )
 
     # c_ij = M_ij / Σ_k M_ik for the constrained nodes
     position = np.full(n_owned, -1)
@@ -261,6 +275,7 @@ def couple(
         M=M,
         master_weights=w_master,
         ends=ends.astype(np.int32),
+        uncovered=uncovered.astype(np.int32),
         coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN),
         search=search,
         surfaces=(_owned_nodes(imap, slave.nodes), _owned_nodes(imap, master.nodes)),

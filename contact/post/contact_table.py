@@ -143,7 +143,8 @@ def _polar(posed: Posed, result: Result, X: np.ndarray) -> Table:
     """r, theta about the first point of contact (``Result.first_contact``) in the plane ⟂ n
     (collective)."""
     n = contact_normal(posed, result)
-    assert n is not None  # polar coordinates are asked for on a contact boundary
+    if n is None:  # mortar pairs none of whose slave nodes faces a master facet: no row
+        return {"r": np.zeros(0), "theta": np.zeros(0)}
     origin = result.first_contact
     t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     t1 /= np.linalg.norm(t1)
@@ -171,9 +172,10 @@ def polar(rel: np.ndarray, t1: np.ndarray, t2: np.ndarray, roundoff: float) -> T
 def contact_normal(posed: Posed, result: Result) -> np.ndarray | None:
     """The unit normal from the body towards the obstacle (collective): elasticity, the
     contact normal at the first point of contact; scalar Signorini, the mean outward normal
-    of Γ_C; None for an obstacle in Ω."""
+    of Γ_C; None for an obstacle in Ω, or for mortar pairs none of whose slave nodes faces a
+    master facet (finite strain: all out of contact)."""
     p = result.problem
-    if p.constraint.in_domain:
+    if p.constraint.in_domain or (p.data.n is None and p.data.couplings):
         return None
     return np.asarray(p.data.n, dtype=float) if p.data.n is not None else _mean_normal(posed)
 

@@ -36,7 +36,8 @@ def hyperelastic_problem(scene: Scene, coupled_at: np.ndarray | None = None) -> 
     line search, det F checked for admissibility; the obstacle's bound, rotated bound or
     contact on the current configuration (:func:`~contact.models.contacts.contact_set`),
     with the scene's friction law; the pairs coupled on the current configuration of the
-    nodal displacements ``coupled_at`` (None: the reference one;
+    nodal displacements ``coupled_at`` (None: the reference one, as a current configuration:
+    a slave node facing no master facet is out of contact, not an error;
     :mod:`contact.drivers.recouple` iterates the coupling to its fixed point)."""
     t0 = time.perf_counter()
     check_scene_data(scene)
@@ -78,6 +79,8 @@ def hyperelastic_problem(scene: Scene, coupled_at: np.ndarray | None = None) -> 
     )
     if obstacle is not None:
         data.deformed_area = fem.form(deformed_area(u_h, v, obstacle.measure))
+    if coupled_at is None and config.pairs:
+        coupled_at = np.zeros_like(u_h.x.array)
     return make_problem(
         "residual",
         V,

@@ -44,7 +44,7 @@ from .meshes import Boundary
 from .posed import PosedProblem, posed_of
 from .scene import Scene, require_scene
 from .scene_config import AdaptConfig, SceneConfig
-from .untagged import warn_untagged
+from .untagged import report_as, warn_untagged
 
 
 def estimate(subject: Any, result: Result, kind: str | None = None) -> Estimate:
@@ -381,12 +381,13 @@ def adapt(
             and refined (the CLI writes the level's files there).
         verbose: Print a table row per level (default: the scene's ``output.verbose``).
         u0: The first level's initial guess (a load step's previous solution).
-        keep: Which levels keep their solution once the next level is estimated (and
+        keep: Which levels keep their solution once the next level is solved (and
             ``on_level`` has written it): the others are released
             (:meth:`~contact.drivers.adaptive.Level.release`: their rows, iterations, η
-            and errors stay) and the loop's memory follows its last level. None (the
-            default) keeps every level whole; ``lambda level: False`` releases all but
-            the last.
+            and errors stay) before the next level is estimated, and the loop's memory
+            follows its last level (its refined scenes are then not linked to their
+            parents). None (the default) keeps every level whole; ``lambda level:
+            False`` releases all but the last.
         **options: Overrides of the scene's ``adapt`` section: ``strategy`` (dorfler,
             maximum, uniform, none; hp is :func:`contact.adapt`'s), ``theta``, ``growth``, ``tol``,
             ``max_dofs``, ``max_levels``, ``nested``, ``newton_rtol``, ``rebalance``,
@@ -409,13 +410,21 @@ def adapt(
     verbose = config.output.verbose if verbose is None else verbose
     solver = config.solver
     root = scene_domain(scene)
-    scenes: dict[int, Scene] = {id(root): scene}
+    # the scene of the last domain asked for, no more: a released level's scene, and its
+    # mesh, are not kept here (a refined domain's parent, if linked, is the last one)
+    scenes: list[tuple[Domain, Scene]] = [(root, scene)]
 
     def scene_of(domain: Domain) -> Scene:
-        if id(domain) not in scenes:
-            assert domain.parent is not None  # a refinement of the root's
-            scenes[id(domain)] = on_domain(scene, domain, parent=scene_of(domain.parent[0]))
-        return scenes[id(domain)]
+        for known, its in scenes:
+            if known is domain:
+                return its
+        if domain.parent is None:  # a released loop's level: its scene is not linked
+            made = on_domain(scene, domain)
+            report_as(made, scene)
+        else:
+            made = on_domain(scene, domain, parent=scene_of(domain.parent[0]))
+        scenes[:] = [(domain, made)]
+        return made
 
     def level_solve(problem, domain: Domain, guess, criterion) -> Result:
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced

@@ -152,9 +152,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
 def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs with
-    friction, an obstacle or the adaptive loop, the adaptive loop except against a plane
-    without friction, a reference solution against an obstacle, an exact solution, grid
-    sequencing, Coulomb's fixed point.  Returns whether the scene is
+    an obstacle or the adaptive loop, a reference solution against an obstacle, an exact
+    solution, grid sequencing, Coulomb's fixed point.  Returns whether the scene is
     hyperelastic (then it solves without grid sequencing)."""
     law = config.model.law
     if model != "hyperelastic":
@@ -171,20 +170,14 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
         )
     friction = config.friction
     frictional = friction is not None and friction.law != "none"
-    if config.pairs and (frictional or config.obstacle is not None or config.adapt is not None):
-        key = "friction" if frictional else "obstacle" if config.obstacle is not None else "adapt"
+    if config.pairs and (config.obstacle is not None or config.adapt is not None):
+        key = "obstacle" if config.obstacle is not None else "adapt"
         raise ConfigError(
-            f"{key}: hyperelastic bodies in contact through pairs are frictionless, without a "
-            "rigid obstacle and without the adaptive loop (not implemented)"
+            f"{key}: hyperelastic bodies in contact through pairs are without a rigid "
+            "obstacle and without the adaptive loop (not implemented)"
         )
     method = config.solver.method
     obstacle = config.obstacle.type if config.obstacle is not None else "plane"
-    if config.adapt is not None and (obstacle != "plane" or frictional):
-        raise ConfigError(
-            "adapt: the adaptive loop of model type hyperelastic takes a rigid plane "
-            "without friction (a curved obstacle's or friction's estimator terms on the "
-            "current configuration: not implemented)"
-        )
     if (obstacle != "plane" or frictional) and method not in NCP_METHODS:
         raise ConfigError(
             f"solver.method: {method} needs a gap affine in u (PETSc's VI bounds); a "

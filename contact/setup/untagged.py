@@ -148,6 +148,13 @@ def mark_reported(scene: Scene) -> None:
     _REPORTED.add(_loaded(scene).mesh)
 
 
+def report_as(refined: Scene, scene: Scene) -> None:
+    """Count the untagged facets of ``refined``, a refinement of ``scene`` not linked to it
+    (no ``parent``), as reported where those of ``scene`` were."""
+    if _loaded(scene).mesh in _REPORTED:
+        _REPORTED.add(refined.mesh)
+
+
 def warn_untagged(scene: Scene) -> None:
     """Warn once per scene when exterior facets are in no boundary part.
 

@@ -212,8 +212,10 @@ class FrictionalComplementarity(BlockComplementarity):
     def block_jacobian(
         self, x: PETSc.Vec, H: PETSc.Mat, method: str, mu: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """H = B K + D, the generalized-Jacobian element at x (module doc); returns the
-        blocks of B and D, (local nodes, bs, bs) each."""
+        """H = B K + D, the generalized-Jacobian element at x (module doc), K = K_T(x) the
+        tangent at x (of a nonlinear residual: a hyperelastic pair); returns the blocks of B
+        and D, (local nodes, bs, bs) each."""
+        self.p.linearize(x)
         fs, st = self.fs, self.evaluate(x)
         law = st["law"]
         tau = self.tie_tolerance(st["a"], st["b"])  # kinks of φ and of ρ = F·max(0, ξ)

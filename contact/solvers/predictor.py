@@ -29,6 +29,13 @@ one it is the start of the active-set method from the linearization at a valid s
 start x + δ is taken if it is admissible (no inverted matter, a finite residual), else the
 plain start.  MUMPS LU, one factorization per solve — or, where the Newton steps are
 iterative, CG + GAMG.
+
+With friction the held nodes stick in the predictor: their tangential unknowns keep their
+values (δ_t = 0, the slip increment of the trial state is zero, as the elastic trial of a
+return mapping).  The linearized problem knows no friction law: left free, those rows would
+solve R_t + K_T δ = 0, a frictionless slide that throws away the tangential traction the start
+carries (a start that already solves the problem — a mortar pair re-coupled at its previous
+solution — would be moved back to where a cold start begins).
 """
 
 from __future__ import annotations
@@ -115,12 +122,16 @@ def _solve(
 ) -> None:
     """δ of the linearized problem with the constrained rows of ``active`` held on their
     bounds (module doc): K_T's copy with those rows and the Dirichlet rows eliminated,
-    one MUMPS LU or CG + GAMG solve (``krylov``; from the last δ)."""
+    one MUMPS LU or CG + GAMG solve (``krylov``; from the last δ).  With friction the
+    tangential unknowns of the held nodes are held too, unchanged."""
     fixed = dirichlet.copy()
     values = np.where(dirichlet, -r, 0.0)
     rows = cp.dofs[active]
     values[rows] = cp.g[active] - x.array_r[rows]
     fixed[rows] = True
+    friction = cp.p.friction
+    if friction is not None:  # the held nodes stick (module doc): δ_t = 0
+        fixed[friction.tangent[active]] = True
     delta.array_w[fixed] = values[fixed]
     rhs = x.duplicate()
     rhs.array_w[:] = -r

@@ -6,13 +6,16 @@ DoFs and energy error, the CPU seconds of each phase (assembly, solve, estimate,
 mark, refine, output: the level's files as ``contact run`` writes them, with ``--output``;
 ``other``: the rest of the level, Python between the phases), the level's wall and CPU
 seconds and their running totals, the resident memory after the level (garbage collected)
-and its peak during the level (sampled every 2 ms), and what is still alive of earlier
-levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP, PC).  Writes CSV.
+and its peak during the level (sampled every 2 ms) and during each phase, and what is
+still alive of earlier levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP,
+PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Writes CSV.
+``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep all
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep last --no-trim
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --whole-table
 
 Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_boundary.yaml),
 ``lshape`` (configs/lshape_corner.yaml), ``hertz_2d`` (configs/hertz_2d.yaml) or a path.
@@ -32,7 +35,7 @@ from contact.base import lifetime
 from contact.base.lifetime import petsc_objects, rss_mib
 from contact.setup import run as loop
 
-from common import PHASES, count_phase_cpu, save_csv
+from common import PHASE_MODULES, PHASES, count_phase_cpu, save_csv
 from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -42,6 +45,10 @@ SCENES = {
     "lshape": "configs/lshape_corner.yaml",
     "hertz_2d": "configs/hertz_2d.yaml",
 }
+
+
+#: peak memory per final DoF the loop should stay below (bytes)
+TARGET_BYTES_PER_DOF = 1600
 
 
 class PeakSampler:
@@ -60,6 +67,32 @@ class PeakSampler:
     def reset(self) -> float:
         peak, self.peak = self.peak, rss_mib()
         return peak
+
+
+def count_phase_peaks(sampler: PeakSampler) -> dict[str, float]:
+    """Wrap the loop's phase functions (``common.PHASES``, outside ``count_phase_cpu``'s
+    wrappers) so that the largest resident size during each phase (MiB) is recorded under
+    its name: the memory each phase needs on top of what the loop holds."""
+    import importlib
+
+    peaks: dict[str, float] = {}
+
+    def sampled(fn, key):
+        def call(*args, **kwargs):
+            before = sampler.reset()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                during = sampler.reset()
+                peaks[key] = max(peaks.get(key, 0.0), during)
+                sampler.peak = max(sampler.peak, before, during)  # the level's peak goes on
+
+        return call
+
+    for name, key in PHASES.items():
+        module = importlib.import_module(PHASE_MODULES[name])
+        setattr(module, name, sampled(getattr(module, name), key))
+    return peaks
 
 
 def live_meshes() -> int:
@@ -89,14 +122,25 @@ def main() -> None:
         action="store_true",
         help="released levels' memory stays with the allocator (contact.base.lifetime.TRIM)",
     )
+    ap.add_argument(
+        "--whole-table",
+        action="store_true",
+        help="the equilibrated flux's patch data all at once (flux.BLOCK_CELLS = None)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
     lifetime.TRIM = not args.no_trim
+    if args.whole_table:
+        from contact.adaptivity.equilibration import flux
+
+        flux.BLOCK_CELLS = None
     path = ROOT / SCENES.get(args.scene, args.scene)
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
-    CPU = count_phase_cpu()
+    baseline = rss_mib()
     sampler = PeakSampler()
+    PEAKS = count_phase_peaks(sampler)
+    CPU = count_phase_cpu()
     rows: list[dict] = []
     clock = {"wall": time.perf_counter(), "cpu": time.process_time()}
     start = dict(clock)
@@ -129,6 +173,7 @@ def main() -> None:
             "wall_total": round(wall - start["wall"], 3),
             "rss_mib": round(rss_mib(), 1),
             "peak_mib": round(sampler.reset(), 1),
+            **{f"peak_{k}_mib": round(PEAKS.pop(k, 0.0), 1) for k in PHASES.values()},
             "meshes": live_meshes(),
             **{f"petsc_{k}": v for k, v in sorted(petsc_objects().items())},
         }
@@ -140,7 +185,12 @@ def main() -> None:
             f"{row['wall_level']:.2f} wall, total {row['cpu_total']:.1f} cpu | rss "
             f"{row['rss_mib']:.0f} peak {row['peak_mib']:.0f} MiB "
             f"({row['peak_mib'] * 2**20 / row['dofs']:.0f} B/DoF) meshes {row['meshes']} "
-            f"mats {row.get('petsc_Mat', 0)} vecs {row.get('petsc_Vector', 0)}",
+            f"mats {row.get('petsc_Mat', 0)} vecs {row.get('petsc_Vector', 0)}\n     peak MiB "
+            + " ".join(
+                f"{k} {row[f'peak_{k}_mib']:.0f}"
+                for k in PHASES.values()
+                if row[f"peak_{k}_mib"] > 0
+            ),
             flush=True,
         )
         clock.update(wall=time.perf_counter(), cpu=time.process_time())
@@ -153,6 +203,14 @@ def main() -> None:
         keep=None if args.keep == "all" else (lambda level: False),
     )
     print(f"stop: {result.stop}")
+    last = rows[-1]
+    per_dof = last["peak_mib"] * 2**20 / last["dofs"]
+    print(
+        f"last level {last['dofs']} DoFs: peak {last['peak_mib']:.0f} MiB = {per_dof:.0f} B/DoF "
+        f"({per_dof / TARGET_BYTES_PER_DOF:.2f}x the {TARGET_BYTES_PER_DOF} B/DoF target; the "
+        f"process before the loop {baseline:.0f} MiB = "
+        f"{baseline * 2**20 / last['dofs']:.0f} B/DoF of it)"
+    )
     if args.out:
         keys = sorted(
             {k for r in rows for k in r},

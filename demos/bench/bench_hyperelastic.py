@@ -8,6 +8,8 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py refinement --levels 5   # a level more (50k DoFs)
     python demos/bench/bench_hyperelastic.py refinement --top symmetry  # between two plates
     python demos/bench/bench_hyperelastic.py adaptive      # Dörfler vs uniform refinement
+    python demos/bench/bench_hyperelastic.py adaptive --case indenter     # a rigid cylinder
+    python demos/bench/bench_hyperelastic.py adaptive --case indentation  # (curved obstacles)
     mpirun -n 2 python demos/bench/bench_hyperelastic.py ball --mesh-size 0.0135  # 500k DoFs
     python demos/bench/bench_hyperelastic.py recouple      # mortar re-coupling: Aitken vs plain
 
@@ -62,6 +64,20 @@ both strategies' true errors alike), and the first Dörfler level whose force is
 finest uniform level's (closer to the limit than it, a reference-free comparison).  Writes
 adaptive.csv and adaptive.png.
 
+``adaptive --case indenter`` / ``--case indentation`` — the same comparison against a rigid
+cylinder, met on the current configuration (the estimator's contact terms with the normal
+and gap of the deformed point): ``indenter`` is the Hertz-type scene of
+tests/test_hyperelastic_adapt.py (a cylinder of radius 0.05 lowered 0.2 R into the unit
+neo-Hookean half block on rollers, 4 steps, from 8 × 8: a contact zone a few hundredths of
+the block wide), ``indentation`` the shipped configs/hyperelastic_indentation.yaml (radius
+0.5 lowered 0.4 R into the clamped block, 4 steps, from 20 × 10: a contact zone as wide as
+the radius).  Uniform refinement's force is not monotone here, so the reference F_ref is
+Aitken's Δ² extrapolation of Dörfler's last three forces (which decrease with contracting
+changes); per tolerance, the first level of each strategy from which every later level is
+within it of F_ref, and the DoFs where the log–log segment of |F / F_ref − 1| into that
+level crosses the tolerance (levels come in factors of ~4 for uniform refinement).  Writes
+adaptive_<case>.csv and adaptive_<case>.png.
+
 ``ball`` — configs/hertz_3d.yaml made a neo-Hookean ball (the octant of a unit ball, its
 flat top pushed down, the symmetry planes x = 0, y = 0) pressed onto the rigid plane z = 0
 to δ = 0.2 R in ``--ball-steps`` steps, the gmsh mesh of size ``--mesh-size`` everywhere;
@@ -105,6 +121,7 @@ from mpi4py import MPI
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "tests"))  # the scenes the tests check, measured here too
 import test_hyperelastic  # noqa: E402
+import test_hyperelastic_adapt  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 CYLINDER = ROOT / "configs" / "hyperelastic_cylinder.yaml"
@@ -462,20 +479,72 @@ ADAPTIVE_SETS = [
 ADAPTIVE_TOLERANCES = (5e-3, 1e-3, 5e-4)
 
 
-def adaptive(out: Path, levels: int, uniform_levels: int) -> None:
-    """Dörfler against uniform refinement on the neo-Hookean block (module doc)."""
+INDENTATION = ROOT / "configs" / "hyperelastic_indentation.yaml"
+#: the ``indentation`` case: the shipped scene from 20 × 10, the loop at the last of 4 steps
+INDENTATION_SETS = [
+    "mesh.cells=[20,10]",
+    "load.steps=4",
+    "load.adapt=end",
+    "adapt.theta=0.5",
+    "adapt.max_dofs=400000",
+    "output.verbose=false",
+]
+#: the ``indenter`` case: test_hyperelastic_adapt.indenter(radius, depth, cells)
+INDENTER = (0.05, 0.01, 8)
+#: the adaptive study's cases: (Dörfler levels, uniform levels) by default
+ADAPTIVE_CASES = {"block": (12, 6), "indenter": (16, 6), "indentation": (12, 5)}
+
+
+def adaptive_scene(case: str, strategy: str, levels: int):
+    """The scene of an adaptive ``case`` (module doc) with ``adapt.strategy`` and levels."""
+    if case == "indenter":
+        cfg = test_hyperelastic_adapt.indenter(*INDENTER)
+        cfg["adapt"] = {**cfg["adapt"], "strategy": strategy, "max_levels": levels}
+        return contact.load_scene(cfg)
+    source, sets = (BLOCK, ADAPTIVE_SETS) if case == "block" else (INDENTATION, INDENTATION_SETS)
+    return contact.load_scene(
+        source, [*sets, f"adapt.strategy={strategy}", f"adapt.max_levels={levels}"]
+    )
+
+
+def aitken(forces: list[float]) -> float | None:
+    """Aitken's Δ² limit of the last three terms of a sequence whose changes contract
+    (same sign, shrinking); None otherwise."""
+    f1, f2, f3 = forces[-3:]
+    d1, d2 = f2 - f1, f3 - f2
+    if d1 * d2 <= 0 or abs(d2) >= abs(d1):
+        return None
+    return f3 - d2 * d2 / (d2 - d1)
+
+
+def within(rows: list[dict], tol: float) -> tuple[int | None, float | None]:
+    """(DoFs, interpolated DoFs) of a strategy's levels ``rows``: the first level from which
+    every later level's |F / F_ref − 1| is ≤ tol, and where the log–log segment from the
+    level before it crosses tol (None, None: no such level)."""
+    errors = [abs(r["force_above_reference"]) for r in rows]
+    first = next((i for i in range(len(rows)) if max(errors[i:]) <= tol), None)
+    if first is None:
+        return None, None
+    dofs = rows[first]["dofs"]
+    if first == 0 or errors[first] == 0:
+        return dofs, float(dofs)
+    n0, e0, e1 = rows[first - 1]["dofs"], errors[first - 1], errors[first]
+    slope = math.log(e1 / e0) / math.log(dofs / n0)
+    return dofs, n0 * math.exp(math.log(tol / e0) / slope)
+
+
+def adaptive(out: Path, case: str, levels: int, uniform_levels: int) -> None:
+    """Dörfler against uniform refinement on the adaptive ``case`` (module doc)."""
     runs: dict[str, list] = {}
     rows = []
     for strategy, n in (("uniform", uniform_levels), ("dorfler", levels)):
-        scene = contact.load_scene(
-            BLOCK, [*ADAPTIVE_SETS, f"adapt.strategy={strategy}", f"adapt.max_levels={n}"]
-        )
+        scene = adaptive_scene(case, strategy, n)
         t0 = time.perf_counter()
         path = contact.run_load_path(scene, verbose=False)
         if not path.converged:
-            raise SystemExit(f"bench_hyperelastic: adaptive, {strategy}: {path.stop}")
+            raise SystemExit(f"bench_hyperelastic: adaptive {case}, {strategy}: {path.stop}")
         runs[strategy] = path.steps[-1].levels
-        say(f"{strategy}: {len(runs[strategy])} levels, {time.perf_counter() - t0:.1f} s")
+        say(f"{case}, {strategy}: {len(runs[strategy])} levels, {time.perf_counter() - t0:.1f} s")
         for lv in runs[strategy]:
             rows.append(
                 {
@@ -492,44 +561,69 @@ def adaptive(out: Path, levels: int, uniform_levels: int) -> None:
                 f"  level {lv.index}: {lv.result.dofs} DoFs, eta {lv.estimate.eta:.4e}, "
                 f"F = {lv.result.contact_force:.9f}, Newton {lv.result.iterations}"
             )
-    # both sequences decrease monotonically: the finest force bounds the limit from above
-    reference = min(r["contact_force"] for r in rows)
+    if case == "block":  # both sequences decrease: the finest force bounds the limit above
+        reference = min(r["contact_force"] for r in rows)
+    else:
+        dorfler = [lv.result.contact_force for lv in runs["dorfler"]]
+        extrapolated = aitken(dorfler)
+        if extrapolated is None:
+            raise SystemExit(
+                f"bench_hyperelastic: adaptive {case}: Dörfler's forces do not contract"
+            )
+        reference = extrapolated
+        say(f"F_ref = {reference:.9f} (Aitken's limit of Dörfler's last three levels)")
     for r in rows:
+        r["reference_force"] = reference
         r["force_above_reference"] = r["contact_force"] / reference - 1
+    summary = []
     for tol in ADAPTIVE_TOLERANCES:
-        first = {}
-        for strategy in runs:
-            hit = [
-                r["dofs"]
-                for r in rows
-                if r["strategy"] == strategy and r["force_above_reference"] <= tol
-            ]
-            first[strategy] = min(hit) if hit else None
-        ratio = (
-            f"{first['uniform'] / first['dorfler']:.1f}x fewer"
-            if first["uniform"] and first["dorfler"]
-            else "-"
+        first = {k: within([r for r in rows if r["strategy"] == k], tol) for k in runs}
+        (u, u_fit), (d, d_fit) = first["uniform"], first["dorfler"]
+        summary.append(
+            {
+                "tolerance": tol,
+                "uniform_dofs": u,
+                "dorfler_dofs": d,
+                "ratio": u / d if u and d else None,
+                "uniform_interpolated": u_fit,
+                "dorfler_interpolated": d_fit,
+                "ratio_interpolated": u_fit / d_fit if u_fit and d_fit else None,
+            }
         )
+        ratio = f"{u / d:.1f}x fewer" if u and d else "-"
+        fit = f"; interpolated {u_fit:.0f} vs {d_fit:.0f}" if u_fit and d_fit else ""
         say(
-            f"within {tol:.2%} of F_ref = {reference:.9f}: uniform {first['uniform']} DoFs, "
-            f"dorfler {first['dorfler']} DoFs ({ratio})"
+            f"within {tol:.2%} of F_ref = {reference:.9f} from then on: uniform {u} DoFs, "
+            f"dorfler {d} DoFs ({ratio}{fit})"
         )
     finest = runs["uniform"][-1].result
     below = [
         lv.result.dofs for lv in runs["dorfler"] if lv.result.contact_force <= finest.contact_force
     ]
-    if below:
+    if below and case == "block":
         say(
             f"dorfler's force is below uniform's finest ({finest.dofs} DoFs) from "
             f"{below[0]} DoFs on: {finest.dofs / below[0]:.1f}x fewer"
         )
-    save_csv(out / "adaptive.csv", rows)
+    name = "adaptive" if case == "block" else f"adaptive_{case}"
+    save_csv(out / f"{name}.csv", rows)
+    if case != "block":
+        save_csv(out / f"{name}_summary.csv", summary)
     if COMM.rank == 0:
-        chart_adaptive(out / "adaptive.png", rows, reference)
+        chart_adaptive(out / f"{name}.png", rows, reference, ADAPTIVE_TITLES[case])
 
 
-def chart_adaptive(path: Path, rows: list[dict], reference: float) -> None:
-    """Left: F − F_ref against the DoFs, uniform and Dörfler; right: η against the DoFs."""
+#: the charts' titles
+ADAPTIVE_TITLES = {
+    "block": "neo-Hookean block pressed 10 %",
+    "indenter": "rigid cylinder R = 0.05 pressed 0.2 R (half block)",
+    "indentation": "configs/hyperelastic_indentation.yaml (0.4 R)",
+}
+
+
+def chart_adaptive(path: Path, rows: list[dict], reference: float, title: str) -> None:
+    """Left: |F / F_ref − 1| against the DoFs, uniform and Dörfler; right: η against the
+    DoFs."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -537,16 +631,17 @@ def chart_adaptive(path: Path, rows: list[dict], reference: float) -> None:
 
     fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.8))
     for strategy, style in (("uniform", "s-"), ("dorfler", "o-")):
-        lv = [r for r in rows if r["strategy"] == strategy and r["force_above_reference"] > 0]
+        lv = [r for r in rows if r["strategy"] == strategy and r["force_above_reference"] != 0]
         N = [r["dofs"] for r in lv]
-        left.loglog(N, [r["force_above_reference"] for r in lv], style, ms=4, label=strategy)
+        error = [abs(r["force_above_reference"]) for r in lv]
+        left.loglog(N, error, style, ms=4, label=strategy)
         lv = [r for r in rows if r["strategy"] == strategy]
         right.loglog([r["dofs"] for r in lv], [r["eta"] for r in lv], style, ms=4, label=strategy)
     for tol in ADAPTIVE_TOLERANCES:
         left.axhline(tol, color="k", lw=0.6, ls=":")
     left.set_xlabel("DoFs")
-    left.set_ylabel(f"F / F_ref − 1  (F_ref = {reference:.7f}, the finest)")
-    left.set_title("neo-Hookean block pressed 10 %: contact force")
+    left.set_ylabel(f"|F / F_ref − 1|  (F_ref = {reference:.7f})")
+    left.set_title(f"{title}: contact force")
     right.set_xlabel("DoFs")
     right.set_ylabel("η (residual estimator)")
     right.set_title("estimated error")
@@ -687,9 +782,18 @@ def main() -> None:
         "--levels",
         type=int,
         default=None,
-        help="refinement: mesh levels (4); adaptive: Dörfler levels (12)",
+        help="refinement: mesh levels (4); adaptive: Dörfler levels (12; indenter 16)",
     )
-    ap.add_argument("--uniform-levels", type=int, default=6, help="adaptive: uniform levels")
+    ap.add_argument(
+        "--uniform-levels", type=int, default=None, help="adaptive: uniform levels (6; 5)"
+    )
+    ap.add_argument(
+        "--case",
+        choices=tuple(ADAPTIVE_CASES),
+        default="block",
+        help="adaptive: the neo-Hookean block on a plane, or a rigid cylinder pressed into a "
+        "block (indenter: a small one, indentation: the shipped scene)",
+    )
     ap.add_argument("--mesh-size", type=float, default=0.05, help="ball: the mesh size")
     ap.add_argument("--ball-steps", type=int, default=4, help="ball: load steps to 0.2 R")
     ap.add_argument("--steps", type=int, default=10, help="refinement: load steps to 0.5 R")
@@ -710,7 +814,8 @@ def main() -> None:
     elif args.part == "ball":
         ball(args.out, args.mesh_size, args.ball_steps)
     elif args.part == "adaptive":
-        adaptive(args.out, args.levels or 12, args.uniform_levels)
+        dorfler, uniform = ADAPTIVE_CASES[args.case]
+        adaptive(args.out, args.case, args.levels or dorfler, args.uniform_levels or uniform)
     elif args.part == "recouple":
         recouple(args.out)
     else:

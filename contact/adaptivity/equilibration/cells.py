@@ -131,11 +131,63 @@ def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.
     return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
 
 
+@dataclass
+class BoundaryRows:
+    """The two largest columns of a cell table, ``t`` and ``tau``, computed for given rows
+    only (:meth:`fill`): a table built with ``deferred=True`` has them empty, so that the
+    patches can be solved a block of vertices at a time with only that block's rows whole
+    (:func:`.flux.reconstruct_flux`)."""
+
+    data: FluxData
+    ref: Reference
+    one: fem.Function  # DG0, 1: ties the expressions to the mesh (_at_points)
+    tag: np.ndarray  # (owned cells, d+1) the tag of each FLUX / CONTACT facet, else -1
+
+    def fill(self, rows: CellTable, cells: np.ndarray) -> CellTable:
+        """``rows`` (the table's rows of the owned local ``cells``) with t and τ."""
+        cells = cells.astype(np.int32, copy=False)
+        t, tau = _boundary_columns(self.data, self.ref, self.one, self.tag[cells], cells)
+        rows.t, rows.tau = t, tau
+        return rows
+
+
+def _boundary_columns(
+    data: FluxData, ref: Reference, one: fem.Function, tag: np.ndarray, cells: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The columns t (flux data at the facet points) and τ (the target flux) of ``cells``
+    (owned local indices; ``tag`` their rows of facet tags)."""
+    d = ref.d
+    t = np.zeros((len(cells), d + 1, len(ref.wS)))
+    XF = ref.XF.reshape(-1, d)
+    for values in (data.neumann or {}, data.contact or {}):
+        for v, expr in values.items():
+            rows = np.flatnonzero(np.any(tag == v, axis=1)).astype(np.int32)
+            vals = _at_points(expr, one, XF, cells[rows]).reshape(len(rows), d + 1, len(ref.wS))
+            hit = tag[rows] == v
+            t[rows[:, None].repeat(d + 1, 1)[hit], np.nonzero(hit)[1]] = vals[hit]
+    centroid = np.full((1, d), 1.0 / (d + 1))
+    tau = (
+        np.zeros((len(cells), 0, d))
+        if data.target is None
+        else _at_points(data.target, one, centroid if ref.lowest else ref.X, cells)
+    )
+    return t, tau
+
+
 def local_table(
     data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = None
 ) -> tuple[CellTable, int]:
     """The rows of this rank's owned cells (and their number); ``dg0``: the mesh's DG0 space,
     if the caller has it.  Collective (the data expressions are compiled)."""
+    table, n_owned, _ = deferred_table(data, ref, dg0, deferred=False)
+    return table, n_owned
+
+
+def deferred_table(
+    data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = None, deferred: bool = True
+) -> tuple[CellTable, int, BoundaryRows]:
+    """:func:`local_table` with t and τ left empty (``deferred``), and the
+    :class:`BoundaryRows` that computes them for given rows.  Collective."""
     u_h = data.u_h
     V = u_h.function_space
     msh = V.mesh
@@ -159,31 +211,22 @@ def local_table(
     k = _at_points(data.k, one, ref.X, cells)
     kind, tag = _facet_kinds(msh, data)
     kind, tag = kind[:n_owned], tag[:n_owned]
-    t = np.zeros((n_owned, d + 1, len(ref.wS)))
-    XF = ref.XF.reshape(-1, d)
-    for values in (data.neumann or {}, data.contact or {}):
-        for v, expr in values.items():
-            rows = np.flatnonzero(np.any(tag == v, axis=1)).astype(np.int32)
-            vals = _at_points(expr, one, XF, rows).reshape(len(rows), d + 1, len(ref.wS))
-            hit = tag[rows] == v
-            t[rows[:, None].repeat(d + 1, 1)[hit], np.nonzero(hit)[1]] = vals[hit]
+    boundary = BoundaryRows(data, ref, one, tag)
+    if deferred:
+        t, tau = np.zeros((n_owned, d + 1, 0)), np.zeros((n_owned, 0, d))
+    else:
+        t, tau = _boundary_columns(data, ref, one, tag, cells)
     lam = np.zeros_like(U)
     if data.lmbda_h is not None:
         in_V = fem.Function(V)
         in_V.interpolate(data.lmbda_h)
         lam = in_V.x.array[V.dofmap.list[:n_owned]]
-    centroid = np.full((1, d), 1.0 / (d + 1))
-    tau = (
-        np.zeros((n_owned, 0, d))
-        if data.target is None
-        else _at_points(data.target, one, centroid if ref.lowest else ref.X, cells)
-    )
     cmom = (
         np.zeros((n_owned, 0))
         if data.multiplier_rule is None
         else data.multiplier_rule.moments(cells, kind, ref)
     )
-    return CellTable(
+    table = CellTable(
         gcell.astype(np.int64),
         gvert.astype(np.int64),
         owners[c2v],
@@ -196,7 +239,8 @@ def local_table(
         lam,
         tau,
         cmom,
-    ), n_owned
+    )
+    return table, n_owned, boundary
 
 
 # ---------------------------------------------------------------------------------------

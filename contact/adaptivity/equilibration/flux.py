@@ -25,12 +25,21 @@ from functools import cached_property
 import basix.ufl
 import numpy as np
 from dolfinx import fem
+from mpi4py import MPI
 
-from .cells import CONTACT, CellTable, FluxData, complete, local_table, return_to_owners
+from .cells import (
+    CONTACT,
+    BoundaryRows,
+    CellTable,
+    FluxData,
+    complete,
+    deferred_table,
+    return_to_owners,
+)
 from .compiled import library
 from .multiplier import clipped, shares
 from .operators import cell_rule, facet_rule
-from .patches import solve_patches
+from .patches import PatchOutput, solve_patches
 from .patches_c import solve_patches_compiled
 from .reference import Reference, reference
 
@@ -52,6 +61,11 @@ BACKENDS = ("compiled", "numpy", "flow")
 LOWEST = 0
 #: the default rounds of the "flow" backend (docs/theory.md §9: effectivity against cost)
 FLOW_ROUNDS = 1
+#: serially, the compiled patches are solved a block of vertices at a time, with the cells
+#: of about this many per block whole in the table (the flux data t and the target τ at the
+#: quadrature points are most of its memory, ~300 of its ~430 bytes per cell for P1 in 2D);
+#: None: the whole table at once (the old path, and the parallel one)
+BLOCK_CELLS: int | None = 65536
 
 
 @dataclass
@@ -127,15 +141,29 @@ def reconstruct_flux(
     if multiplier is not None and data.lmbda_h is None:
         raise ValueError("lmbda_h: the discrete multiplier is needed when the flux carries one")
     DG0 = fem.functionspace(msh, ("DG", 0))
-    table, n_owned = local_table(data, ref, DG0)
-    work, source = complete(comm, table, np.full(n_owned, comm.rank))
-    clock.lap("gather")
     vmap = msh.topology.index_map(0)
     # None where the kernel cannot be had (no C compiler, say): the NumPy solver, the same
     # numbers, slower (compiled.load has warned once)
-    kernel = library(comm, ref, table.U.shape[1]) if backend in ("compiled", "flow") else None
+    kernel = library(comm, ref, V.dofmap.list.shape[1]) if backend in ("compiled", "flow") else None
     compiled = kernel is not None
-    if kernel is not None:
+    n_cells = msh.topology.index_map(d).size_local
+    blocks = comm.size == 1 and compiled and BLOCK_CELLS is not None and n_cells > BLOCK_CELLS
+    table, n_owned, boundary = deferred_table(data, ref, DG0, deferred=blocks)
+    work, source = complete(comm, table, np.full(n_owned, comm.rank))
+    clock.lap("gather")
+    if blocks:
+        assert kernel is not None  # blocks: compiled
+        out, osc = _patches_in_blocks(
+            kernel,
+            table,
+            boundary,
+            vmap.local_range,
+            ref,
+            multiplier,
+            sign,
+            rounds if backend == "flow" else -1,
+        )
+    elif kernel is not None:
         out, osc = solve_patches_compiled(
             comm,
             kernel,
@@ -178,6 +206,42 @@ def reconstruct_flux(
         else (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
     )
     return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells)
+
+
+def _patches_in_blocks(
+    kernel,
+    table: CellTable,
+    boundary: BoundaryRows,
+    vertices: tuple[int, int],
+    ref: Reference,
+    multiplier: str | None,
+    sign: float,
+    flow: int,
+) -> tuple[PatchOutput, np.ndarray]:
+    """:func:`.patches_c.solve_patches_compiled` of a serial ``table`` whose t and τ are
+    deferred (:class:`.cells.BoundaryRows`), a block of vertices at a time: the rows of the
+    cells with a vertex in the block are completed and handed to the kernel, which adds
+    each patch's share to α of its cells (α, the balance defect and the counters sum over
+    the blocks; osc_T is a row's own).  The same patches as in one call, so σ_h agrees to
+    round-off."""
+    lo, hi = vertices
+    n = len(table)
+    blocks = max(1, -(-n // (BLOCK_CELLS or n)))
+    alpha, osc = np.zeros((n, ref.m)), np.full(n, np.nan)
+    defect, counters = 0.0, {"cell_evaluations": 0, "work_rows": 0}
+    for b in range(blocks):
+        v0, v1 = lo + (hi - lo) * b // blocks, lo + (hi - lo) * (b + 1) // blocks
+        rows = np.flatnonzero(np.any((table.gvert >= v0) & (table.gvert < v1), axis=1))
+        part = boundary.fill(table.take(rows), rows)
+        out, part_osc = solve_patches_compiled(
+            MPI.COMM_SELF, kernel, part, (v0, v1), ref, multiplier, sign, flow=flow
+        )
+        alpha[rows] += out.alpha
+        osc[rows] = part_osc
+        defect += out.defect
+        counters["cell_evaluations"] += out.stats["cell_evaluations"]
+        counters["work_rows"] = max(counters["work_rows"], out.stats["work_rows"])
+    return PatchOutput(alpha, defect, counters), osc
 
 
 class _Clock:
