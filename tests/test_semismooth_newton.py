@@ -140,3 +140,45 @@ def test_a_sequenced_guess_ends_in_its_polishing_solve(cells):
     assert r.converged and r.linear == "gamg" and len(r.sequence) >= 2, r.reason
     assert (r.iterations, r.polish_solves) == (0, 1), (r.iterations, r.polish_solves)
     assert r.residual <= r.history[0]["residual"]
+
+
+def test_each_iterate_evaluates_the_residual_once():
+    """SNES's Φ, the monitor's active set, the Jacobian's law and min's cycle guard are all
+    taken at the same iterate: a linear residual R(x) = K x − b is computed once per Newton
+    iterate (it was four times), and the iteration is the same as with
+    ``reuse_residual: false``, which computes it at each of them (the deal.II step-41
+    obstacle, cold, min: one step per band of nodes, many iterates)."""
+    scene = contact.load_scene(
+        str(ROOT / "configs" / "peers" / "dealii_step41.yaml"), ["mesh.cells=[48,48]"]
+    )
+    p = build_problem(scene)
+    evaluate, count = p.residual, [0]
+
+    def counted(x, out):
+        count[0] += 1
+        evaluate(x, out)
+
+    p.residual = counted  # type: ignore[method-assign]
+    zero = fem.Function(p.V)
+    runs = {}
+    try:
+        for reuse in (True, False):
+            options = SolverOptions.parse(
+                {"method": "min", "petsc_options": {"reuse_residual": reuse}}
+            )
+            count[0] = 0
+            with SemismoothNewton(p, options) as solver:
+                r = solver.solve(zero)
+            assert r.converged, r.reason
+            runs[reuse] = (r, count[0], r.u_h.x.array.copy())
+    finally:
+        p.destroy()
+    (new, once, u_new), (old, each, u_old) = runs[True], runs[False]
+    steps = new.iterations
+    assert steps >= 8 and old.iterations == steps
+    assert [h["active"] for h in new.history] == [h["active"] for h in old.history]
+    assert [h["residual"] for h in new.history] == [h["residual"] for h in old.history]
+    assert largest(u_new - u_old) == 0.0
+    # one per iterate (steps + 1) and the few of the set-up (scaling, ‖Φ(x_0)‖)
+    assert once <= steps + 4, (once, steps)
+    assert each >= 3 * steps, (each, steps)

@@ -1,6 +1,8 @@
 """The hp-adaptive loop SOLVE → ESTIMATE → MARK (h or p) → REFINE (docs/theory.md §11).
 
-Each level builds V_hp for the cells' degrees (:class:`.space.HPSpace`), solves the
+Each level builds V_hp for the cells' degrees (:class:`.space.HPSpace`, inside the
+Lagrange space of the level's largest degree, not of p_max: a level whose cells are all of
+low degree assembles, solves and estimates at that degree), solves the
 Signorini problem in the hp unknowns (:func:`.problem.hp_problem`; an elastic body against a
 rigid plane in V_hp^d, :func:`.elastic.hp_elastic_problem`; the scene's solver), estimates
 (:func:`.estimate.hp_estimate`: the equilibrated bound, or the residual estimator with h/p
@@ -44,8 +46,12 @@ from .space import HPSpace
 #: effectivity 1.28).  The solver's round-off floor keeps them attainable.
 NEWTON_RTOL, NEWTON_ATOL = 1e-14, 1e-15
 #: Dörfler's θ of the hp loop when neither the scene nor the caller gives one: larger than
-#: the h loop's 0.5, as a marked cell gains one degree per level (demos/RESULTS.md §15)
-HP_THETA = 0.7
+#: the h loop's 0.5, as a marked cell gains one degree per level; the largest θ measured
+#: whose bound kept η / error ≤ 1.5 past the third level on problems A and C
+#: (demos/RESULTS.md §15)
+HP_THETA = 0.85
+#: the choices of the Lagrange space each level assembles in (:func:`adapt_hp`)
+SPACE_DEGREES = ("used", "p_max")
 
 
 @dataclass
@@ -92,6 +98,7 @@ def adapt_hp(
     newton_rtol: float | None = None,
     front_degree: int | None = 1,
     refine_front: bool = False,
+    space_degree: str = "used",
 ) -> AdaptResult:
     """Run the hp-adaptive loop (module docstring) on a scalar Signorini scene or an elastic
     body against a rigid coordinate plane.
@@ -110,10 +117,18 @@ def adapt_hp(
         on_level: Called with each level once it is estimated.
         verbose: Print a row per level.
         newton_rtol: Newton's relative tolerance (default :data:`NEWTON_RTOL`).
+        front_degree: The largest degree of the free boundary's cells (:func:`.mark.hp_mark`).
+        refine_front: h-refine the free boundary's cells on every level (:func:`.mark.hp_mark`).
+        space_degree: The degree of the Lagrange space V ⊇ V_hp each level assembles in:
+            ``used`` (the largest p_T of the level: V_hp ⊂ P_{max p_T}, so a level whose
+            cells are all of low degree assembles, solves and estimates at that degree) or
+            ``p_max`` (P_{p_max} on every level).
 
     Returns:
         The levels (``HPLevel``) and why the loop stopped.
     """
+    if space_degree not in SPACE_DEGREES:
+        raise ValueError(f"space_degree: expected one of {SPACE_DEGREES}, got {space_degree!r}")
     comm = scene.comm
     tdim = scene.mesh.topology.dim
     rtol = newton_rtol or NEWTON_RTOL
@@ -131,11 +146,16 @@ def adapt_hp(
         seconds: dict[str, float] = {}
         t0 = time.perf_counter()
         caps = scene.boundary.facets("contact") if tdim == 3 or elastic else None
-        space = HPSpace(scene.mesh, p_max, degrees, caps=caps)
+        top = p_max
+        if space_degree == "used":
+            top = comm.allreduce(int(degrees.max(initial=1)), op=MPI.MAX)
+        space = HPSpace(scene.mesh, top, degrees, caps=caps)
         problem = build(scene, space)
         seconds["assembly"] = time.perf_counter() - t0
         if u0 is None:
             u0 = fem.Function(problem.V)
+        elif u0.function_space.ufl_element() != problem.V.ufl_element():
+            u0 = _raised(u0, problem.V)
         with Timer(seconds, "solve"):
             atol = min(NEWTON_ATOL, scene.config.solver.atol)
             result = solve(
@@ -294,6 +314,14 @@ def _theta_given(scene: Scene, options: dict[str, Any]) -> bool:
     return options.get("theta") is not None or (
         section is not None and "theta" in section.model_fields_set
     )
+
+
+def _raised(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
+    """``u`` (Lagrange, on V's mesh, of a degree ≤ V's) as a function of V: exact, as
+    interpolation of a polynomial of lower degree is."""
+    out = fem.Function(V)
+    out.interpolate(u)
+    return out
 
 
 def _next_size(scene: Scene, degrees: np.ndarray, p_max: int) -> int:

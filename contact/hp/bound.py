@@ -16,9 +16,10 @@ The equilibrated flux of :mod:`contact.adaptivity.equilibration` with two hp pie
   contact facet; w ∈ V takes there the Bernstein coefficients max(c_β, 0) of u_h − g_h
   (degree p_max), so w ≥ max(u_h − g_h, 0) pointwise, and 0 at every other DoF.
 
-The flux itself lives in RT_q with q = p_max + 1 on every patch: it contains RT_{p_a + 1},
-the patch degree of Braess, Pillwein & Schöberl (2009) and Ern & Vohralík (2015) that makes
-the bound robust in p, so its effectivity is at most theirs; the price is the cost of the
+The flux itself lives in RT_q with q = p + 1 on every patch, p the degree of the space's
+Lagrange space V (the largest p_T of the level, or p_max): it contains RT_{p_a + 1}, the patch
+degree of Braess, Pillwein & Schöberl (2009) and Ern & Vohralík (2015) that makes the bound
+robust in p, so its effectivity is at most theirs; the price is the cost of the level's
 largest degree on every patch.
 """
 

@@ -48,6 +48,17 @@ def lagrange(d: int, p: int) -> basix.finite_element.FiniteElement:
     )
 
 
+@functools.cache
+def lagrange_points(d: int, p: int) -> np.ndarray:
+    """(n, 2d + 1): the Lagrange points of degree p (:func:`lagrange`'s order) in the
+    first d columns, their barycentric coordinates in the other d + 1; read-only (one array
+    shared by every call)."""
+    X = np.asarray(lagrange(d, p).points)
+    out = np.hstack([X, barycentric(X)])
+    out.flags.writeable = False
+    return out
+
+
 def barycentric(X: np.ndarray) -> np.ndarray:
     """(n, d + 1) barycentric coordinates of reference points X (n, d)."""
     return np.column_stack([1.0 - X.sum(axis=1), X])
@@ -126,7 +137,7 @@ def local_basis(
             if a in edge and p >= 2:
                 el = lagrange(d, p)
                 for i in el.entity_dofs[1][e]:
-                    corr.append((p, i, barycentric(np.asarray(el.points)[i : i + 1])[0, a]))
+                    corr.append((p, i, lagrange_points(d, p)[i, d + a]))
         evaluators.append(("vertex", a, corr))
         nodes.append(X[top.entity_dofs[0][a][0]])
         slots.append(top.entity_dofs[0][a][0])
@@ -138,14 +149,15 @@ def local_basis(
                 continue
             el = lagrange(d, p)
             own = np.asarray(el.entity_dofs[dim][e])
-            pts = np.asarray(el.points)[own]
+            el_points = lagrange_points(d, p)[:, :d]
+            pts = el_points[own]
             cand = np.asarray(top.entity_dofs[dim][e])
             if dim < d:  # shared: the canonical order on both sides
                 own = own[canonical(pts, verts, order)]
                 cand = cand[canonical(X[cand], verts, order)]
             for k, node in enumerate(own):
                 evaluators.append(("node", p, int(node)))
-                nodes.append(np.asarray(el.points)[node])
+                nodes.append(el_points[node])
                 slots.append(int(cand[k]))
                 dims.append(dim)
     nodes_arr = np.asarray(nodes)

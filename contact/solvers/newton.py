@@ -45,6 +45,11 @@ class Complementarity:
         con = problem.constraint
         self.dofs, self.g, self.w, self.sign = con.dofs, con.g, con.w, con.sign
         self.s, self.d = problem.b.duplicate(), problem.b.duplicate()  # Jacobian scalings
+        # (:meth:`remember`) the iterate whose (a, b) ``self.R`` and ``_pair`` hold
+        self._memo: np.ndarray | None = None
+        self._pair: tuple[np.ndarray, np.ndarray] | None = None
+        self.remembering = False
+        self.residuals = 0  # evaluations of R (the products K x of a linear residual)
 
     @property
     def c(self) -> np.ndarray | float:
@@ -53,13 +58,34 @@ class Complementarity:
         return self.p.c
 
     def pair(self, x: PETSc.Vec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(a, b, R) at x: gap a = σ(g − u), scaled multiplier b = −σ c R / w, residual R."""
+        """(a, b, R) at x: gap a = σ(g − u), scaled multiplier b = −σ c R / w, residual R.
+
+        While :meth:`remember` is on, an x equal (entry for entry, on every rank) to that of
+        the last call returns that call's arrays: SNES evaluates Φ, the monitor the active
+        set, the Jacobian its law and min's cycle guard the piece, all at the same iterate,
+        and each needs R(x) = K x − b (collective)."""
+        if self.remembering:
+            xa = x.array_r
+            local = self._memo is not None and np.array_equal(self._memo, xa)
+            if self.p.b.getComm().tompi4py().allreduce(local, op=MPI.LAND):
+                assert self._pair is not None
+                return (*self._pair, self.R.array_r)
         self.p.residual(x, self.R)
+        self.residuals += 1
         r = self.R.array_r
         u = x.array_r[self.dofs]
         a = self.sign * (self.g - u)
         b = -self.sign * self.c * r[self.dofs] / self.w
+        if self.remembering:
+            self._memo, self._pair = x.array_r.copy(), (a, b)
         return a, b, r
+
+    def remember(self, on: bool) -> None:
+        """Reuse R(x), a and b while x does not change (:meth:`pair`), or stop (``on``
+        False; the remembered iterate is forgotten either way).  For one SNES solve of a
+        linear residual: K, b, g and c must not change while it is on."""
+        self.remembering = on
+        self._memo = self._pair = None
 
     def tie_tolerance(self, a: np.ndarray, b: np.ndarray) -> float:
         """τ = TIE_RTOL × max(max_i |a_i|, max_i |b_i|, s) over every rank (collective), s the

@@ -316,7 +316,14 @@ class SemismoothNewton:
                 polisher.initial(x, stop)
                 self.state["stop"] = stop
                 snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self._snes_max_it)
-            snes.solve(None, x)
+            # SNES, its monitor, the Jacobian and min's cycle guard all evaluate R at each
+            # iterate: a linear residual's is computed once per iterate (old path:
+            # ``solver.petsc_options.reuse_residual: false``)
+            cp.remember(self._reuse_residual(popts))
+            try:
+                snes.solve(None, x)
+            finally:
+                cp.remember(False)
             reason_code = snes.getConvergedReason()
             result = finish(
                 self.comm,
@@ -358,6 +365,14 @@ class SemismoothNewton:
             for key in self.petsc_options:
                 popts.delValue(prefix + key)
         return result
+
+    def _reuse_residual(self, popts: PETSc.Options) -> bool:
+        """Whether :meth:`Complementarity.pair` may reuse R(x) within this solve: a linear
+        residual (K and b fixed) of a diagonal law, unless ``reuse_residual`` is false."""
+        cp = self.cp
+        if self.problem.nonlinear or isinstance(cp, BlockComplementarity):
+            return False
+        return bool(popts.getBool(self.prefix + "reuse_residual", True))
 
     def _post_solve(self, ksp: PETSc.KSP, rhs: PETSc.Vec, sol: PETSc.Vec) -> None:
         """After each linear solve: its Krylov count and seconds, the direction's norm."""

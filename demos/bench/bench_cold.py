@@ -12,7 +12,9 @@ system, on N × N cells, for each forcing rule of inexact Newton (``--variants``
 * ``zero`` — the same, the Krylov solves from zero (PETSc option ``reduced_warm_start
   false``): what the warm start adds;
 * ``old`` — ``solver.forcing: eisenstat_walker``, the rule before: Eisenstat–Walker's
-  forcing, tightened tenfold after every step that did not halve ‖Φ‖.
+  forcing, tightened tenfold after every step that did not halve ‖Φ‖;
+* ``each`` — ``new`` with the residual K x − b computed at each look at an iterate (PETSc
+  option ``reuse_residual false``, the path before it was computed once per iterate).
 
 Per row: Newton steps, Krylov iterations, GAMG set-ups, the solve's CPU and wall seconds
 (assembly of K included: everything after the mesh exists), the final ‖Φ‖, the largest
@@ -42,6 +44,13 @@ the rows above:
 
     python demos/bench/bench_cold.py --dealii step-41/step-41 --cells 256 512 \
         --out demos/results/cold/dealii_step41.csv
+
+``--pair BINARY`` alternates the two, deal.II's run then ours (rule ``new``, the defaults),
+``--repeat`` pairs per N, and writes each pair's CPU seconds and their ratio: on a shared
+machine the ratio within a pair is the fair figure:
+
+    nice python demos/bench/bench_cold.py --pair step-41/step-41 --cells 512 --repeat 2 \
+        --out demos/results/cold/pair_step41_512.csv
 """
 
 from __future__ import annotations
@@ -63,12 +72,16 @@ VARIANTS = {
     "new": ("active_set", True),
     "zero": ("active_set", False),
     "old": ("eisenstat_walker", False),
+    "each": ("active_set", True),
 }
+#: variant -> PETSc options of its own (``each``: the residual at each of SNES's, the
+#: monitor's, the Jacobian's and the cycle guard's look at an iterate, the path before)
+OPTIONS = {"zero": {"reduced_warm_start": "false"}, "each": {"reuse_residual": "false"}}
 
 
 def cold_solve(n: int, variant: str, max_it: int | str, method: str):
     """(wall s, CPU s, Result) of one cold solve on n × n cells with ``variant``'s rule."""
-    forcing, warm = VARIANTS[variant]
+    forcing = VARIANTS[variant][0]
     overrides = [
         f"mesh.cells=[{n},{n}]",
         "solver.sequence=off",
@@ -77,8 +90,9 @@ def cold_solve(n: int, variant: str, max_it: int | str, method: str):
         f"solver.forcing={forcing}",
         "output.verbose=false",
     ]
-    if not warm:
-        overrides.append("solver.petsc_options={reduced_warm_start: false}")
+    if variant in OPTIONS:
+        given = ", ".join(f"{k}: {v}" for k, v in OPTIONS[variant].items())
+        overrides.append(f"solver.petsc_options={{{given}}}")
     scene = contact.load_scene(SCENE, overrides)
     MPI.COMM_WORLD.barrier()
     t0, c0 = time.perf_counter(), time.process_time()
@@ -88,48 +102,90 @@ def cold_solve(n: int, variant: str, max_it: int | str, method: str):
     return comm.allreduce(wall, op=MPI.MAX), comm.allreduce(cpu, op=MPI.MAX), r
 
 
-def run_dealii(binary: str, cells: list[int], out: str) -> None:
-    """Run deal.II's step-41 ``binary`` once per N of ``cells`` in its folder; its CPU and
-    wall seconds, Newton and CG iterations to ``out`` (module doc)."""
+def dealii_run(binary: str, n: int) -> dict:
+    """One run of deal.II's step-41 ``binary`` (in its folder) on n × n cells: its CPU
+    (user + system of the child) and wall seconds, Newton and CG iterations (module doc)."""
     import re
     import resource
     import subprocess
     from pathlib import Path
 
     exe = Path(binary).resolve()
+    refinements = int(round(np.log2(n)))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(
+        [str(exe), str(refinements)], cwd=exe.parent, capture_output=True, text=True
+    )
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    text = proc.stdout
+    dofs = re.search(r"Number of degrees of freedom: (\d+)", text)
+    newton = re.findall(r"Newton iteration (\d+)", text)
+    cg = [int(k) for k in re.findall(r"in (\d+) CG iterations", text)]
+    row = {
+        "code": "deal.II step-41",
+        "cells": 2**refinements,
+        "dofs": int(dofs.group(1)) if dofs else None,
+        "returncode": proc.returncode,
+        "newton_iterations": len(newton),
+        "cg_iterations": sum(cg),
+        "cpu_s": round(cpu, 2),
+        "wall_s": round(wall, 2),
+    }
+    print(
+        f"deal.II step-41 {row['cells']}²: {row['dofs']} DoFs, {len(newton)} Newton "
+        f"iterations, {sum(cg)} CG iterations, cpu {cpu:.1f} s, wall {wall:.1f} s, "
+        f"exit {proc.returncode}",
+        flush=True,
+    )
+    return row
+
+
+def run_dealii(binary: str, cells: list[int], out: str) -> None:
+    """Run deal.II's step-41 ``binary`` once per N of ``cells``; its rows to ``out``."""
+    save_csv(out, [dealii_run(binary, n) for n in cells])
+
+
+def run_pairs(
+    binary: str, cells: list[int], repeat: int, max_it: int | str, method: str, out: str
+) -> None:
+    """deal.II's step-41 and our cold solve (rule ``new``) alternated, ``repeat`` pairs per
+    N: each pair in the same window of a shared machine, so that the CPU ratio of the pair
+    is the figure (``--pair``; serial)."""
+    cold_solve(16, "new", max_it, method)  # warm-up: forms, first touch
     rows = []
     for n in cells:
-        refinements = int(round(np.log2(n)))
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t0 = time.perf_counter()
-        proc = subprocess.run(
-            [str(exe), str(refinements)], cwd=exe.parent, capture_output=True, text=True
-        )
-        wall = time.perf_counter() - t0
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-        text = proc.stdout
-        dofs = re.search(r"Number of degrees of freedom: (\d+)", text)
-        newton = re.findall(r"Newton iteration (\d+)", text)
-        cg = [int(k) for k in re.findall(r"in (\d+) CG iterations", text)]
-        row = {
-            "code": "deal.II step-41",
-            "cells": 2**refinements,
-            "dofs": int(dofs.group(1)) if dofs else None,
-            "returncode": proc.returncode,
-            "newton_iterations": len(newton),
-            "cg_iterations": sum(cg),
-            "cpu_s": round(cpu, 2),
-            "wall_s": round(wall, 2),
-        }
-        rows.append(row)
-        print(
-            f"deal.II step-41 {row['cells']}²: {row['dofs']} DoFs, {len(newton)} Newton "
-            f"iterations, {sum(cg)} CG iterations, cpu {cpu:.1f} s, wall {wall:.1f} s, "
-            f"exit {proc.returncode}",
-            flush=True,
-        )
-    save_csv(out, rows)
+        for k in range(repeat):
+            peer = dealii_run(binary, n)
+            _, cpu, r = cold_solve(n, "new", max_it, method)
+            row = {
+                "cells": n,
+                "dofs": r.dofs,
+                "pair": k + 1,
+                "method": method,
+                "converged": r.converged,
+                "max_it": r.max_it,
+                "newton": r.iterations,
+                "krylov": r.krylov_iterations,
+                "cpu_s": round(cpu, 2),
+                "dealii_dofs": peer["dofs"],
+                "dealii_returncode": peer["returncode"],
+                "dealii_newton": peer["newton_iterations"],
+                "dealii_cg": peer["cg_iterations"],
+                "dealii_cpu_s": peer["cpu_s"],
+                "ratio_cpu_vs_dealii": round(cpu / peer["cpu_s"], 3),
+            }
+            rows.append(row)
+            print(
+                f"pair {k + 1} {n}²: ours {r.iterations} Newton, {r.krylov_iterations} Krylov, "
+                f"converged {r.converged} (max_it {r.max_it}), cpu {cpu:.1f} s; deal.II "
+                f"{peer['newton_iterations']} Newton, cpu {peer['cpu_s']:.1f} s; "
+                f"ratio {row['ratio_cpu_vs_dealii']:.3f}",
+                flush=True,
+            )
+            save_csv(out, rows)
 
 
 def main() -> None:
@@ -147,10 +203,17 @@ def main() -> None:
         help="deal.II step-41's CPU seconds at the largest N (measured apart)",
     )
     ap.add_argument("--dealii", default=None, help="run this step-41 binary instead (module doc)")
+    ap.add_argument(
+        "--pair", default=None, help="alternate this step-41 binary with our solve (module doc)"
+    )
+    ap.add_argument("--repeat", type=int, default=1, help="--pair: pairs per N")
     ap.add_argument("--out", default="demos/results/cold/step41.csv")
     args = ap.parse_args()
     if args.dealii:
         run_dealii(args.dealii, args.cells, args.out)
+        return
+    if args.pair:
+        run_pairs(args.pair, args.cells, args.repeat, args.max_it, args.method, args.out)
         return
     variants = args.variants.split(",")
     say = MPI.COMM_WORLD.rank == 0

@@ -13,7 +13,8 @@ every level.  Writes levels.csv and summary.csv; prints a table.
     python demos/bench/bench_hp.py --out demos/results/hp          (about 2 minutes on 2 cores)
     python demos/bench/bench_hp.py --p-robust --out demos/results/hp   (η / error against p_max)
     python demos/bench/bench_hp.py --hertz --out demos/results/hp      (Hertz 2D, elastic)
-    python demos/bench/bench_hp.py --three-d 8 --out demos/results/hp  (3D problem C, 8 levels)
+    python demos/bench/bench_hp.py --three-d 6 --out demos/results/hp  (3D problem C, 6 levels)
+    python demos/bench/bench_hp.py --profile A [--space-degree p_max]  (where a level's CPU goes)
 
 ``--three-d``: problem C extruded to the unit cube (u = −(x − ½)₊³ + z², Γ_C = {z = 0},
 u_D = u on the other faces), hp with p_max 3 from the 4 × 4 × 4 box: per level N, the error, η
@@ -34,22 +35,32 @@ import time
 from pathlib import Path
 
 import contact
+from contact.hp.adapt import adapt_hp
 from contact.output.folder import write_csv
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-#: (problem, scene, the target energy error, h runs' DoF budget)
+#: (problem, scene, the target energy error, h-P1's DoF budget, h-P2's DoF budget): P2 reaches
+#: C's 1e-6 at about 4e5 DoFs (error ≈ N^−1), P1 (error ≈ N^−1/2) would need about 1e12
 PROBLEMS = [
-    ("C", "configs/signorini_smooth.yaml", 1e-6, 40_000),
-    ("A", "configs/signorini_free_boundary.yaml", 1e-4, 60_000),
+    ("C", "configs/signorini_smooth.yaml", 1e-6, 40_000, 1_000_000),
+    ("A", "configs/signorini_free_boundary.yaml", 1e-4, 60_000, 60_000),
 ]
 #: (method, scene overrides, adapt options)
 METHODS = [
     ("hp", [], dict(strategy="hp", p_max=6, p_start=1, max_levels=60)),
     ("hp-start2", [], dict(strategy="hp", p_max=6, p_start=2, max_levels=60)),
     ("hp-theta0.7", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.7, max_levels=60)),
+    ("hp-theta0.85", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.85, max_levels=60)),
     ("hp-theta0.9", [], dict(strategy="hp", p_max=6, p_start=1, theta=0.9, max_levels=60)),
+    # the former path: every level assembles, solves and estimates in P_{p_max}, not in
+    # P_{max p_T}
+    (
+        "hp-theta0.85-pmax-space",
+        [],
+        dict(strategy="hp", p_max=6, p_start=1, theta=0.85, max_levels=60, space_degree="p_max"),
+    ),
     ("h-P2", ["mesh.degree=2"], dict(strategy="dorfler", max_levels=40)),
     ("h-P1", [], dict(strategy="dorfler", max_levels=40)),
 ]
@@ -62,13 +73,18 @@ def run(problem: str, path: str, target: float, budget: int, method: str, sets, 
     )
     cpu: list[float] = []  # the process's CPU seconds when each level is estimated
     start = time.process_time()
-    out = contact.adapt(
-        scene,
-        tol=target,
-        max_dofs=200_000 if method.startswith("hp") else budget,
-        on_level=lambda lv: cpu.append(time.process_time() - start),
-        **options,
-    )
+    on_level = lambda lv: cpu.append(time.process_time() - start)  # noqa: E731
+    if "space_degree" in options:  # not a scene key: the hp loop itself
+        hp = {k: v for k, v in options.items() if k != "strategy"}
+        out = adapt_hp(scene, tol=target, max_dofs=200_000, on_level=on_level, **hp)
+    else:
+        out = contact.adapt(
+            scene,
+            tol=target,
+            max_dofs=200_000 if method.startswith("hp") else budget,
+            on_level=on_level,
+            **options,
+        )
     rows, seconds = [], 0.0
     for lv, cpu_seconds in zip(out.levels, cpu):
         seconds += sum(lv.seconds.get(k, 0.0) for k in TIMED)
@@ -115,7 +131,7 @@ def p_robust(out: Path, problems: list[str]) -> None:
     """η / error of the hp bound against p_max: per problem and p_max the largest and the
     median effectivity past level 3 of a run to :data:`P_ROBUST_TARGETS` (p_robust.csv)."""
     found = []
-    for problem, path, _, _ in PROBLEMS:
+    for problem, path, *_ in PROBLEMS:
         if problem not in problems:
             continue
         for p_max in P_MAXES:
@@ -303,6 +319,62 @@ def three_d(out: Path, levels: int) -> None:
     print(run.stop, "| eta >= error on every level:", all(r["eta"] >= r["error"] for r in rows))
 
 
+#: the parts of an hp level the profile reports: (label, module path, function name)
+PROFILED = [
+    ("V_hp and its basis (HPSpace)", "contact/hp/space.py", "__init__"),
+    ("Q and L", "contact/hp/space.py", "matrices"),
+    ("assembly in P_q + QᵀKQ", "contact/hp/problem.py", "reduce_system"),
+    ("hp problem (all of it)", "contact/hp/problem.py", "hp_problem"),
+    ("solve (Newton, MUMPS)", "contact/setup/run.py", "solve"),
+    ("estimate (the bound)", "contact/hp/bound.py", "hp_bound"),
+    ("error (exact solution)", "contact/adaptivity/energy_error.py", "solution_error"),
+    ("smoothness (decay rates)", "contact/hp/mark.py", "decay_rates"),
+    ("free boundary cells", "contact/hp/mark.py", "front_cells"),
+    ("refine + transfer", "contact/setup/run.py", "refine"),
+    ("degree transfer", "contact/hp/mark.py", "child_degrees"),
+    ("u_0 raised to the new degree", "contact/hp/adapt.py", "_raised"),
+    ("form/expression JIT look-ups", "dolfinx/jit.py", "ffcx_jit"),
+]
+
+
+def profile(problem: str, space_degree: str) -> None:
+    """cProfile (CPU seconds) of the hp loop with its default θ on one problem: the
+    cumulative seconds of the parts of a level (:data:`PROFILED`) over the run."""
+    import cProfile
+    import pstats
+
+    from contact.hp.adapt import HP_THETA
+
+    _, path, target, *_ = next(p for p in PROBLEMS if p[0] == problem)
+
+    def go(levels: int):
+        scene = contact.load_scene(ROOT / path, ["output.verbose=false"])
+        return adapt_hp(
+            scene,
+            p_max=6,
+            theta=HP_THETA,
+            tol=target,
+            max_levels=levels,
+            space_degree=space_degree,
+        )
+
+    go(2)  # the forms compiled
+    prof = cProfile.Profile(time.process_time)
+    start = time.process_time()
+    prof.enable()
+    out = go(60)
+    prof.disable()
+    total = time.process_time() - start
+    stats = pstats.Stats(prof).stats  # type: ignore[attr-defined]
+    print(
+        f"problem {problem}, space {space_degree}: {len(out.levels)} levels, "
+        f"{total:.2f} CPU s profiled"
+    )
+    for label, module, name in PROFILED:
+        cum = sum(v[3] for k, v in stats.items() if k[0].endswith(module) and k[2] == name)
+        print(f"  {label:32} {cum:7.3f} s  {100 * cum / total:5.1f} %")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="demos/results/hp")
@@ -319,7 +391,17 @@ def main() -> None:
         "--methods", default="", help="comma-separated subset of the methods (default: all)"
     )
     parser.add_argument("--three-d", type=int, default=0, metavar="LEVELS", help="3D problem C")
+    parser.add_argument(
+        "--profile",
+        default="",
+        metavar="PROBLEM",
+        help="only a CPU profile of the hp loop on problem C or A (with --space-degree)",
+    )
+    parser.add_argument("--space-degree", default="used", choices=("used", "p_max"))
     args = parser.parse_args()
+    if args.profile:
+        profile(args.profile, args.space_degree)
+        return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.three_d:
@@ -333,13 +415,14 @@ def main() -> None:
         return
     methods = [m for m in METHODS if not args.methods or m[0] in args.methods.split(",")]
     levels, summary = [], []
-    for problem, path, target, budget in PROBLEMS:
+    for problem, path, target, p1_budget, p2_budget in PROBLEMS:
         if problem not in args.problems.split(","):
             continue
         reached = {}
         for method, sets, options in methods:  # the compiled forms loaded before any timing
-            run(problem, path, target, budget, method, sets, {**options, "max_levels": 2})
+            run(problem, path, target, p1_budget, method, sets, {**options, "max_levels": 2})
         for method, sets, options in methods:
+            budget = p2_budget if method == "h-P2" else p1_budget
             rows, stop = run(problem, path, target, budget, method, sets, options)
             levels += rows
             hit = first_below(rows, target)
