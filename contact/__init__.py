@@ -25,6 +25,8 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from .base.version import __version__ as __version__
+
 try:  # the PyPI wheel 'dolfinx-solver-real' must set up its libraries before dolfinx/petsc4py
     import dolfinx_solver  # noqa: F401
 except ImportError:  # a conda / Debian DOLFINx needs nothing
@@ -140,7 +142,6 @@ __all__ = [
     "Tresca",
     "Coulomb",
 ]
-__version__ = "0.1.0"
 
 
 #: the subpackages, imported on first use as attributes too (``contact.setup.config`` after

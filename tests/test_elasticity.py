@@ -299,7 +299,7 @@ def test_first_contact_point_breaks_ties_by_coordinates():
     26: the first in row order was taken before).  Gaps within round-off are a tie."""
     import itertools
 
-    from contact.models.obstacles import first_contact_point, first_contact_row
+    from contact.models.problem import first_contact_point, first_contact_row
 
     from mpi4py import MPI
 

@@ -466,7 +466,7 @@ def _study(args: argparse.Namespace, comm: MPI.Comm) -> int:
 
 
 def _version() -> str:
-    from .. import __version__
+    from ..base.version import __version__
 
     return f"contact {__version__}"
 

@@ -16,6 +16,7 @@ from dolfinx import fem
 from ..base.errors import ConfigError
 from ..base.timing import Stopwatch, Timer
 from ..models.discrete import discrete
+from ..models.problem import first_contact_point
 from ..solvers import ncp
 from ..solvers.options import BASELINE_METHODS, SolverOptions
 from ..solvers.problem import DiscreteProblem
@@ -166,7 +167,30 @@ def solve(
             alternatives=() if alternative is None else (alternative,),
         )
     result.sequence, result.sequence_note = levels, note
+    contact_figures(p, result)
     return result
+
+
+def contact_figures(problem: DiscreteProblem, result: Result) -> None:
+    """Put the figures of a solved problem's contact conditions on its result.
+
+    The first point of contact (``Result.first_contact``) and, with mortar pairs and the
+    problem's reaction form (``ProblemData.reaction_form``, which a scene's elastic bodies
+    set), the forces on their surfaces (``Result.interface_forces``).  Collective.
+
+    Args:
+        problem: the problem solved, its displacement at the solution.
+        result: its result.
+    """
+    con = problem.constraint
+    comm = problem.V.mesh.comm
+    result.first_contact = first_contact_point(comm, problem.node_coordinates(), con.sign * con.g)
+    # mortar pairs with a reaction form, a(u_h, v) − L(v) in u's own components (a scene's
+    # elastic bodies); a scalar problem loads no multi-body module
+    if problem.data.couplings and problem.data.reaction_form is not None:
+        from ..models.mortar import interface_forces
+
+        result.interface_forces = interface_forces(problem)
 
 
 def sequence(

@@ -46,12 +46,16 @@ from .discrete import Problem
 from .obstacles import (
     contact_nodes,
     current_contact,
-    first_contact_point,
-    first_contact_row,
     plane_contact,
     rotated_contact,
 )
-from .problem import contact_ends, coordinate_scale, lumped_weights
+from .problem import (
+    contact_ends,
+    coordinate_scale,
+    first_contact_point,
+    first_contact_row,
+    lumped_weights,
+)
 
 
 def contact_set(

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import dolfinx.fem.petsc
 import numpy as np
 from dolfinx import fem, la
 from mpi4py import MPI
@@ -91,6 +92,29 @@ class Coupling:
     uncovered: np.ndarray
     coverage: float  # min_i Σ_j M_ij / D_ii over all ranks (1 where fully covered)
     search: float  # the search distance used
+    #: the owned nodes of the slave surface and of the master surface (all their nodes, the
+    #: constrained ones and the others)
+    surfaces: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+
+    def surface_forces(self, force: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+        """Return the resultants of a nodal force on the pair's slave and master surfaces.
+
+        F_s = Σ_{i ∈ Γ_s} f_i and F_m = Σ_{j ∈ Γ_m} f_j over the surfaces' owned nodes, summed
+        over all ranks (collective).  With f the residual a(u_h, v) − L(v) at the solution
+        (its Dirichlet DoFs left out) they are the forces each body's surface needs from the
+        other, and F_s + F_m = 0 when action equals reaction.
+
+        Args:
+            force: nodal forces f, one row per owned node of V (owned nodes × block size).
+            comm: the mesh's communicator.
+
+        Returns:
+            (F_s, F_m), each a vector of the block size's components.
+        """
+        slave, master = (
+            comm.allreduce(force[nodes].sum(axis=0), op=MPI.SUM) for nodes in self.surfaces
+        )
+        return slave, master
 
 
 def surface_facets(
@@ -254,7 +278,53 @@ def couple(
         uncovered=uncovered.astype(np.int32),
         coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN),
         search=search,
+        surfaces=(_owned_nodes(imap, slave.nodes), _owned_nodes(imap, master.nodes)),
     )
+
+
+def _owned_nodes(imap, nodes: np.ndarray) -> np.ndarray:
+    """The owned nodes among a surface's facet ``nodes`` held on any rank (sorted;
+    collective)."""
+    mark = la.vector(imap, 1)
+    mark.array[np.unique(nodes)] = 1.0
+    mark.scatter_reverse(la.InsertMode.add)
+    return np.flatnonzero(mark.array[: imap.size_local] > 0)
+
+
+def interface_forces(problem) -> tuple[np.ndarray, np.ndarray]:
+    """Return the forces on the slave and master surfaces of a solved problem's pairs.
+
+    F_s and F_m (:meth:`Coupling.surface_forces`) of the residual a(u_h, v) − L(v) at the
+    problem's displacement (``data.reaction_form``), its Dirichlet and symmetry DoFs
+    (``data.u_bcs``) left out, summed over the pairs: the forces of the modelled part, the
+    symmetric copies not counted.  Collective (assembly).
+
+    Args:
+        problem: a :class:`~contact.solvers.problem.DiscreteProblem` with mortar couplings,
+            its displacement at the solution.
+
+    Returns:
+        (F_s, F_m), vectors of gdim components, the same on every rank.
+    """
+    V, data = problem.V, problem.data
+    comm, gdim = V.mesh.comm, V.mesh.geometry.dim
+    bs, n_owned = V.dofmap.index_map_bs, V.dofmap.index_map.size_local
+    assert data.reaction_form is not None and data.u_bcs is not None  # an elastic problem's
+    full = dolfinx.fem.petsc.assemble_vector(data.reaction_form)
+    full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
+    residual = full.array_r.reshape(-1, bs).copy()
+    full.destroy()
+    fixed = np.zeros(n_owned * bs, dtype=bool)
+    for bc in data.u_bcs:
+        dofs = bc.dof_indices()[0]
+        fixed[dofs[dofs < n_owned * bs]] = True
+    free = np.where(fixed.reshape(-1, bs), 0.0, residual)
+    F_s, F_m = np.zeros(gdim), np.zeros(gdim)
+    for coupling in data.couplings or []:
+        slave, master = coupling.surface_forces(free, comm)
+        F_s += slave
+        F_m += master
+    return F_s, F_m
 
 
 def _owned_rows(

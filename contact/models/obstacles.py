@@ -23,14 +23,13 @@ from __future__ import annotations
 import numpy as np
 import ufl
 from dolfinx import fem
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
 from ..solvers.problem import Constraint, NodeBlockMatrix, Output, ProblemData
 from .basis import frame
 from .constraints import ContactSet, Plane, RigidObstacle, measure_facets
-from .problem import coordinate_scale, lumped_weights
+from .problem import coordinate_scale, first_contact_point, first_contact_row, lumped_weights
 
 
 def contact_nodes(V: fem.FunctionSpace, k: int, facets: np.ndarray):
@@ -120,50 +119,6 @@ def rotated_contact(
         b=bt,
         basis=Q,
     )
-
-
-#: initial gaps within TIE_RTOL × (the largest coordinate, at least 1) of the smallest count as
-#: one, and coordinates are compared rounded to TIE_RTOL × the largest (meshes of different
-#: partitions differ in the last bits of their coordinates)
-TIE_RTOL = 1e-9
-
-
-def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """The first point of contact (the same on any number of ranks; collective): of the rows
-    of X (this rank's points) with the smallest ``dist`` over all ranks, the first in
-    coordinate order (smallest x, then y, then z).  Several nodes touching at once (a flat
-    face on a plane, a patch test) are a tie, broken by that order rather than by the rank
-    that holds them; gaps and coordinates are compared to :data:`TIE_RTOL` of the largest
-    coordinate.  None when no rank has a point."""
-    return _first_contact(comm, X, dist, X)[0]
-
-
-def first_contact_row(
-    comm: MPI.Comm, X: np.ndarray, dist: np.ndarray, rows: np.ndarray
-) -> np.ndarray:
-    """The row of ``rows`` (e.g. the nodal normals, row for row with X) at
-    :func:`first_contact_point` (collective)."""
-    return _first_contact(comm, X, dist, rows)[1]
-
-
-def _first_contact(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray, rows: np.ndarray) -> tuple:
-    """(point, row of ``rows``) of :func:`first_contact_point`, as arrays (None, None if no
-    rank has a point)."""
-    lowest = comm.allreduce(float(np.min(dist, initial=np.inf)), op=MPI.MIN)
-    scale = max(
-        comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny
-    )
-    near = np.flatnonzero(dist <= lowest + TIE_RTOL * max(scale, 1.0))
-    local = None
-    if len(near):
-        key = np.round(X[near] / scale, -int(np.log10(TIE_RTOL))) + 0.0  # + 0.0: no −0.0
-        i = np.lexsort(key.T[::-1])[0]  # lexsort: the last key is the primary one
-        local = (key[i].tolist(), X[near[i]].tolist(), np.asarray(rows[near[i]]).tolist())
-    found = [c for c in comm.allgather(local) if c is not None]
-    if not found:
-        return None, None
-    _, point, row = min(found, key=lambda c: c[0])  # lists compare in coordinate order
-    return np.asarray(point), np.asarray(row)
 
 
 def _rotation(

@@ -53,6 +53,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+from ..base.version import __version__
 
 MARKER = ".contact-result"  # the marker file of every folder the tool writes
 
@@ -226,8 +227,6 @@ def _manifest(folder: Path) -> set[str] | None:
 
 
 def _write_marker(folder: Path) -> None:
-    from .. import __version__
-
     info = {
         "tool": "contact",
         "version": __version__,

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from ..models.obstacles import first_contact_point
+from ..models.problem import first_contact_point
 from ..solvers import Result
 from .comparison import Comparison
 from .hertz import contact_extent, contact_modulus, hertz_values

@@ -140,15 +140,12 @@ POLAR_ROUNDOFF = 1e-12
 
 
 def _polar(posed: Posed, result: Result, X: np.ndarray) -> Table:
-    """r, theta about the first point of contact in the plane ⟂ n (collective)."""
-    from ..models.obstacles import first_contact_point
-
-    p = result.problem
-    con = p.constraint
+    """r, theta about the first point of contact (``Result.first_contact``) in the plane ⟂ n
+    (collective)."""
     n = contact_normal(posed, result)
     if n is None:  # mortar pairs none of whose slave nodes faces a master facet: no row
         return {"r": np.zeros(0), "theta": np.zeros(0)}
-    origin = first_contact_point(posed.comm, X, con.sign * con.g)
+    origin = result.first_contact
     t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
     t1 /= np.linalg.norm(t1)
     t2 = np.cross(n, t1)

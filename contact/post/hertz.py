@@ -34,8 +34,8 @@ from dolfinx import fem, la
 from mpi4py import MPI
 
 from ..models.mortar import part_facets, surface_facets
-from ..models.obstacles import first_contact_point
 from ..models.overlap import facet_measures
+from ..models.problem import first_contact_point
 from ..solvers import Result, owned_residual
 from .comparison import Comparison
 from .posed import Posed

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dolfinx.fem.petsc
 import numpy as np
-from dolfinx import fem, la
+from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -55,9 +55,10 @@ def interface_resultants(posed: Posed, result: Result) -> dict:
     """The forces of a multi-body solve, each of the whole bodies when symmetry planes cut
     them (:func:`contact.post.resultants.whole_body`; collective):
 
-    * ``interface_force_slave`` / ``_master``: Σ over the surfaces' owned nodes of the
-      residual a(u_h, v) − L(v) (the force each body's surface needs from the other; the
-      DoFs with a Dirichlet or symmetry condition left out), summed over all pairs; their
+    * ``interface_force_slave`` / ``_master``: the result's ``interface_forces``, Σ over
+      the surfaces' nodes of the residual a(u_h, v) − L(v) (the force each body's surface
+      needs from the other; the DoFs with a Dirichlet or symmetry condition left out,
+      :meth:`contact.models.mortar.Coupling.surface_forces`), summed over all pairs; their
       sum vanishes when action equals reaction: ``interface_balance_error`` =
       |F_s·n + F_m·n| / |F_s·n| along the normal n at the first point of contact;
     * ``reactions``: per Dirichlet part, Σ of the residual over its DoFs (a vector);
@@ -71,32 +72,17 @@ def interface_resultants(posed: Posed, result: Result) -> dict:
     p = result.problem
     V = p.V
     bs = V.dofmap.index_map_bs
-    gdim = posed.mesh.geometry.dim
     n_owned = V.dofmap.index_map.size_local
     data = p.data
-    assert data.reaction_form is not None and data.u_bcs is not None and data.normals is not None
+    assert data.reaction_form is not None and data.normals is not None
+    if result.interface_forces is None:
+        raise ValueError("interface_resultants: a result of contact.solve (interface_forces)")
     full = dolfinx.fem.petsc.assemble_vector(data.reaction_form)
     full.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)  # type: ignore[arg-type]
     residual = full.array_r.reshape(-1, bs).copy()
     full.destroy()
-    fixed = np.zeros(n_owned * bs, dtype=bool)
-    for bc in data.u_bcs:
-        dofs = bc.dof_indices()[0]
-        fixed[dofs[dofs < n_owned * bs]] = True
-    free_res = np.where(fixed.reshape(-1, bs), 0.0, residual)
     n0 = np.asarray(p.data.n)
-
-    from ..models.mortar import part_facets, surface_facets
-
-    F_s, F_m = np.zeros(gdim), np.zeros(gdim)
-    for pair in posed.pairs:
-        for part, F in zip(pair, (F_s, F_m)):  # slave, master
-            facets = surface_facets(V, part_facets(posed.boundary, part))
-            mark = la.vector(V.dofmap.index_map, 1)
-            mark.array[np.unique(facets.nodes)] = 1.0
-            mark.scatter_reverse(la.InsertMode.add)
-            owned = np.flatnonzero(mark.array[:n_owned] > 0)
-            F += comm.allreduce(free_res[owned].sum(axis=0), op=MPI.SUM)
+    F_s, F_m = result.interface_forces
     reactions = {}
     tdim = posed.mesh.topology.dim
     bnd = posed.boundary

@@ -21,7 +21,6 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from ..models.obstacles import first_contact_point
 from .posed import Posed
 
 
@@ -48,11 +47,7 @@ def load_displacements(posed: Posed, result) -> dict[str, float | list[float]]:
     out: dict[str, float | list[float]] = {}
     if posed.approach is not None and posed.translation is not None:  # one rigid obstacle
         out["obstacle_translation"] = posed.translation()
-        p = result.problem
-        con = p.constraint
-        gdim = posed.mesh.geometry.dim
-        X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-        approach = posed.approach(first_contact_point(posed.comm, X, con.sign * con.g))
+        approach = posed.approach(result.first_contact)
     return {
         "obstacle_approach": approach,
         **out,

@@ -15,17 +15,12 @@ if TYPE_CHECKING:
 
 
 def first_contact(posed: Posed, result) -> tuple[np.ndarray, np.ndarray | None]:
-    """The first point of contact (smallest initial gap, over all ranks; collective) and, in
+    """The first point of contact (``Result.first_contact``: the smallest initial gap) and, in
     2D with a contact normal (elasticity), the tangent t_0 of the position's sign convention
     (None for the scalar models, whose tractions have no tangential part)."""
-    from ..models.obstacles import first_contact_point
-
-    p = result.problem
-    con = p.constraint
     gdim = posed.mesh.geometry.dim
-    X = p.V.tabulate_dof_coordinates()[con.dofs // p.V.dofmap.index_map_bs, :gdim]
-    return first_contact_point(posed.comm, X, con.sign * con.g), (
-        tangent_2d(result) if gdim == 2 and p.data.n is not None else None
+    return result.first_contact, (
+        tangent_2d(result) if gdim == 2 and result.problem.data.n is not None else None
     )
 
 

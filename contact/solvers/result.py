@@ -67,6 +67,15 @@ class Result:
         figures: The method's own figures for the run's summary, measured at the solution
             (a baseline's parameter, Uzawa's outer iterations and the largest penetration,
             ``contact.solvers.baselines.baseline_figures``); empty for the NCP methods.
+        first_contact: The first point of contact (gdim coordinates): of the constrained
+            nodes, the one with the smallest initial gap σg, ties broken in coordinate order
+            (``contact.models.problem.first_contact_point``; the same on any number of
+            ranks), or None when no solve filled it in.
+        interface_forces: With mortar pairs, (F_s, F_m): the forces on the pairs' slave and
+            master surfaces, Σ of the residual a(u_h, v) − L(v) over their nodes, the
+            Dirichlet DoFs left out (``contact.models.mortar.interface_forces``; of the
+            modelled part, the symmetric copies not counted); None otherwise, and for a
+            problem without a reaction form (``ProblemData.reaction_form``: a scene's).
     """
 
     u_h: fem.Function
@@ -116,6 +125,8 @@ class Result:
     #: (``contact.drivers.recouple``); empty otherwise.
     couplings: list = field(default_factory=list)
     figures: dict = field(default_factory=dict)
+    first_contact: np.ndarray | None = None
+    interface_forces: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def linear_solves(self) -> int:
