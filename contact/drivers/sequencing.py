@@ -22,7 +22,6 @@ choice, counted in ``Result.sequence``); the coarse Newton tolerance is
 from __future__ import annotations
 
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,7 +32,6 @@ from dolfinx.mesh import MeshTags
 
 from ..adaptivity.transfer import prolong
 from ..base.buckets import box_point_pairs
-from ..base.errors import ContactWarning
 from ..models.discrete import discrete
 from ..solvers.result import Result
 
@@ -201,8 +199,8 @@ def initial_guess(
             note = (
                 f"grid sequencing: none of the {len(levels)} coarse level(s) converged; cold start"
             )
-            if comm.rank == 0:
-                warnings.warn(note, ContactWarning, stacklevel=2)
+            if verbose and comm.rank == 0:
+                print(f"  {note}", flush=True)
         return None, levels, note
     return h.transfer(u, prev, h.fine, V), levels, note
 
