@@ -14,9 +14,6 @@ serial = 2 ranks.  Contact pairs at finite strain refuse it.
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
 import warnings
 
 import contact
@@ -124,7 +121,7 @@ def test_pairs_at_finite_strain_refuse_grid_sequencing():
 
 MPI_RUN = """
 import json, sys, warnings
-sys.path.insert(0, "tests")
+sys.path.insert(0, sys.argv[1])  # the tests folder
 import contact
 from test_hyperelastic_sequence import indentation
 path = indentation("80,40", 2, 2)
@@ -138,24 +135,13 @@ if MPI.COMM_WORLD.rank == 0:
 
 
 @pytest.mark.mpi
-def test_sequenced_path_serial_equals_two_ranks():
+def test_sequenced_path_serial_equals_two_ranks(tmp_path):
     """The sequenced path on 1 and 2 ranks: the same coarse levels, all converged, and the
     same contact force at every step (1e-8)."""
-    from clirun import MPIRUN
+    from clirun import script_json
 
-    out = {}
-    for ranks in (1, 2):
-        proc = subprocess.run(
-            [str(MPIRUN), "-n", str(ranks), sys.executable, "-c", MPI_RUN],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
-        assert proc.returncode == 0, proc.stderr[-2000:]
-        lines = [json.loads(ln) for ln in proc.stdout.splitlines() if ln.startswith("[")]
-        assert len(lines) == 1, proc.stdout
-        out[ranks] = lines[0]
+    tests = str(ROOT / "tests")
+    out = {ranks: script_json(MPI_RUN, tmp_path, tests, ranks=ranks) for ranks in (1, 2)}
     assert out[1][0] and out[2][0]
     assert out[1][1] == out[2][1] == [462, 1722]
     assert all(out[1][2]) and all(out[2][2])
