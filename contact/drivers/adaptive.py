@@ -95,11 +95,10 @@ class Level:
     def release(self) -> None:
         """Keep the level's figures only (its row, iterations, history, η and error).
 
-        Its solution's fields and PETSc objects
-        (``Result.release``) and the indicator field η_T are
-        dropped, and so are its domain and problem, so the loop's memory follows the last
-        level, not the sum of all. (A loop that releases levels does not link a refined
-        domain to its parent, :func:`adapt`, so the mesh goes too.)
+        Its solution's fields and PETSc objects (``Result.release``) and the indicator field
+        η_T are dropped, and so are its domain and problem, so the loop's memory follows the
+        last level, not the sum of all. (A loop that releases levels does not link a refined
+        domain to its parent, so the mesh goes too.)
         """
         _ = self.cells  # cached while the mesh is at hand
         self.result.release()
