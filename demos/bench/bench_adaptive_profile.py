@@ -35,7 +35,7 @@ from contact.base import lifetime
 from contact.base.lifetime import petsc_objects, rss_mib
 from contact.setup import run as loop
 
-from common import PHASE_MODULES, PHASES, count_phase_cpu, save_csv
+from common import PHASES, count_phase_cpu, save_csv, wrap_phases
 from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -73,8 +73,6 @@ def count_phase_peaks(sampler: PeakSampler) -> dict[str, float]:
     """Wrap the loop's phase functions (``common.PHASES``, outside ``count_phase_cpu``'s
     wrappers) so that the largest resident size during each phase (MiB) is recorded under
     its name: the memory each phase needs on top of what the loop holds."""
-    import importlib
-
     peaks: dict[str, float] = {}
 
     def sampled(fn, key):
@@ -89,9 +87,7 @@ def count_phase_peaks(sampler: PeakSampler) -> dict[str, float]:
 
         return call
 
-    for name, key in PHASES.items():
-        module = importlib.import_module(PHASE_MODULES[name])
-        setattr(module, name, sampled(getattr(module, name), key))
+    wrap_phases(sampled)
     return peaks
 
 

@@ -32,11 +32,19 @@ PHASE_MODULES = {
 }
 
 
+def wrap_phases(wrap) -> None:
+    """Replace each of the adaptive loop's phase functions (:data:`PHASES`) in its module by
+    ``wrap(fn, key)``, ``key`` its phase's name."""
+    import importlib
+
+    for name, key in PHASES.items():
+        module = importlib.import_module(PHASE_MODULES[name])
+        setattr(module, name, wrap(getattr(module, name), key))
+
+
 def count_phase_cpu(cpu: dict[str, float] | None = None) -> dict[str, float]:
     """Wrap the adaptive loop's phase functions (:data:`PHASES`) so that their CPU seconds
     add up in ``cpu`` (a new dict if None; keys: the phases' names), which is returned."""
-    import importlib
-
     cpu = collections.defaultdict(float) if cpu is None else cpu
 
     def timed(fn, key):
@@ -49,9 +57,7 @@ def count_phase_cpu(cpu: dict[str, float] | None = None) -> dict[str, float]:
 
         return call
 
-    for name, key in PHASES.items():
-        module = importlib.import_module(PHASE_MODULES[name])
-        setattr(module, name, timed(getattr(module, name), key))
+    wrap_phases(timed)
     return cpu
 
 
