@@ -3,7 +3,16 @@ basis is biorthogonal, clipping gives exact polygons, and the mortar integrals o
 slave facet covered by any master mesh of the same line / plane reproduce constants and
 linear functions exactly (what the contact patch test needs)."""
 
-from contact.models.overlap import DUAL, clip_polygons, facet_measures, facet_normals, mortar_pairs
+from contact.models.overlap import (
+    DUAL,
+    SEGMENT_P2_DUAL,
+    clip_polygons,
+    facet_measures,
+    facet_normals,
+    mortar_pairs,
+    segment_basis,
+    trace_weights,
+)
 
 import numpy as np
 import pytest
@@ -90,6 +99,45 @@ def test_segments_reproduce_linear_functions(tilt):
     assert np.allclose(M.sum(axis=(0, 2)), L / 2, rtol=1e-14)
     moment = np.einsum("pab,pbd->ad", M, Xm)
     assert np.allclose(moment, L / 2 * Xs[0], atol=1e-14)
+
+
+def test_p2_segment_dual_basis_is_biorthogonal():
+    """ψ = A φ on the P2 segment: ∫ ψ_a φ_b = δ_ab ∫ φ_a = δ_ab (1/6, 1/6, 2/3) (Gauss
+    quadrature of degree 5 on the unit segment), Σ_a ψ_a = 1."""
+    g, w = np.polynomial.legendre.leggauss(5)
+    q, w = 0.5 + 0.5 * g, 0.5 * w
+    phi = segment_basis(3, q)
+    mass = np.einsum("k,ka,kb->ab", w, phi, phi)
+    assert np.allclose(np.diag(mass.sum(axis=1)), np.diag(trace_weights(3, 2)), atol=1e-15)
+    assert np.allclose(SEGMENT_P2_DUAL @ mass, np.diag(trace_weights(3, 2)), atol=1e-15)
+    assert np.allclose(SEGMENT_P2_DUAL.sum(axis=0), 1.0)
+
+
+@pytest.mark.parametrize("tilt", [0.0, 0.4])
+def test_p2_segments_reproduce_quadratic_functions(tilt):
+    """A P2 slave segment covered by an unrelated P2 master mesh of the same line: for
+    f = 1, x, x² (which the master's P2 interpolant reproduces) Σ_j M_ij f(x_j) = ∫_S ψ_i f
+    ds (Gauss quadrature on the slave segment), and Σ_j M_ij = D_ii, whatever the tilt."""
+    rng = np.random.default_rng(3)
+    c, s = np.cos(tilt), np.sin(tilt)
+    R = np.array([[c, -s], [s, c]])
+    xs = np.array([0.13, 0.71, 0.42])  # ends, then the midpoint
+    xm = np.sort(np.concatenate([[-0.2, 1.1], rng.random(6)]))
+    ends = np.stack([xm[:-1], xm[1:], 0.5 * (xm[:-1] + xm[1:])], 1)  # (P, 3)
+    line = lambda t: np.stack([t, 0 * t], -1) @ R.T  # noqa: E731
+    Xs, Xm = line(xs)[None], line(ends)
+    n = np.repeat((R @ [0.0, 1.0])[None], len(Xm), 0)
+    M, meas, _ = mortar_pairs(np.repeat(Xs, len(Xm), 0), n, Xm)
+    L = xs[1] - xs[0]
+    assert M.shape == (len(Xm), 3, 3) and meas.sum() == pytest.approx(L, rel=1e-14)
+    g, w = np.polynomial.legendre.leggauss(5)
+    q, w = 0.5 + 0.5 * g, 0.5 * w * L
+    psi = segment_basis(3, q) @ SEGMENT_P2_DUAL.T  # (k, 3)
+    x_q = xs[0] + q * L
+    for k in range(3):
+        exact = np.einsum("k,ka,k->a", w, psi, x_q**k)  # ∫ ψ_a x^k along the line
+        assert np.allclose(np.einsum("pab,pb->a", M, ends**k), exact, atol=1e-14)
+    assert np.allclose(M.sum(axis=(0, 2)), L * trace_weights(3, 2), rtol=1e-13)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -121,8 +121,9 @@ def surface_facets(
     V: fem.FunctionSpace, facets: np.ndarray, displacement: np.ndarray | None = None
 ) -> Facets:
     """The exterior ``facets`` of V's mesh that belong to owned cells, as :class:`Facets`
-    (P1: the facet's vertex nodes), at the positions X + ``displacement`` (the nodal
-    displacements, owned and ghost nodes × gdim; None: the reference positions X)."""
+    (the facet's nodes in the order of its closure DoFs: the vertices, then for P2 the edge
+    midpoints), at the positions X + ``displacement`` (the nodal displacements, owned and
+    ghost nodes × gdim; None: the reference positions X)."""
     msh = V.mesh
     tdim, gdim = msh.topology.dim, msh.geometry.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -178,6 +179,11 @@ def couple(
     ``uncovered``): where a body deforms, a slave node may face no master facet yet, or no
     longer (the far side of a self-contact, a slave surface slid past the master's end)."""
     comm = V.mesh.comm
+    if V.mesh.geometry.dim == 3 and V.element.basix_element.degree != 1:
+        raise ConfigError(
+            f"mesh.degree: contact pairs ({key}) in 3D are implemented for P1 (the vertex "
+            "functions of P2 triangles integrate to zero: no dual basis); use 1"
+        )
     slave = surface_facets(V, measure_facets(pair.slave), displacement)
     master = surface_facets(V, measure_facets(pair.master), displacement)
     gdim = slave.X.shape[2]
@@ -194,9 +200,10 @@ def couple(
     s_idx, m_idx, M_loc = s_idx[keep], m_idx[keep], M_loc[keep]
 
     nv = slave.nodes.shape[1]
-    # nodal sums over the slave facets (D_ii, Σ |F| n_F) and the master facets (∫ φ_j^m)
+    share = overlap.trace_weights(nv, gdim)  # ∫_F φ_a ds / |F|
+    # nodal sums over the slave facets (D_ii = ∫ φ_i, Σ |F| n_F) and the master facets (∫ φ_j^m)
     measure = overlap.facet_measures(slave.X) if len(slave.X) else np.zeros(0)
-    D = _nodal_sum(imap, slave.nodes, np.repeat(measure[:, None] / nv, nv, axis=1))
+    D = _nodal_sum(imap, slave.nodes, measure[:, None] * share)
     nsum = _nodal_sum(
         imap,
         slave.nodes,
@@ -205,7 +212,7 @@ def couple(
     )
     w_master = la.vector(imap, 1)
     m_measure = overlap.facet_measures(master.X) if len(master.X) else np.zeros(0)
-    np.add.at(w_master.array, master.nodes.ravel(), np.repeat(m_measure / nv, nv))
+    np.add.at(w_master.array, master.nodes.ravel(), (m_measure[:, None] * share).ravel())
     w_master.scatter_reverse(la.InsertMode.add)
     w_master.scatter_forward()
     M_rows, cols, M_vals, attrs = _owned_rows(
