@@ -139,7 +139,7 @@ def surface_facets(
     nodes = (
         np.take_along_axis(cell_nodes, closure[local], axis=1)
         if len(cells)
-        else np.zeros((0, tdim), np.int32)
+        else np.zeros((0, closure.shape[1]), np.int32)
     )
     X = positions(V, displacement)
     Xf = X[nodes]
@@ -451,7 +451,7 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
             (master.X[sel], master.gnodes[sel], master.normals[sel], master.vertex_normals[sel])
         )
     recv = comm.alltoall(send)
-    nv = slave.X.shape[1] if len(slave.X) else master.X.shape[1] if len(master.X) else gdim
+    nv = slave.X.shape[1]  # the facets' nodes (held even by an empty surface)
     X = np.concatenate([r[0] for r in recv]).reshape(-1, nv, gdim)
     return Facets(
         X,

@@ -88,7 +88,9 @@ def segment_basis(nv: int, xi: np.ndarray) -> np.ndarray:
     segment at the points ``xi`` (k,) of [0, 1]; (k, nv)."""
     if nv == 2:
         return np.column_stack([1.0 - xi, xi])
-    return np.column_stack([(1.0 - xi) * (1.0 - 2.0 * xi), xi * (2.0 * xi - 1.0), 4.0 * xi * (1.0 - xi)])
+    return np.column_stack(
+        [(1.0 - xi) * (1.0 - 2.0 * xi), xi * (2.0 * xi - 1.0), 4.0 * xi * (1.0 - xi)]
+    )
 
 
 def facet_measures(X: np.ndarray) -> np.ndarray:
