@@ -19,6 +19,7 @@ from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, P, run
 from test_hyperelastic_bodies import PATCH_2D as FINITE_PATCH_2D
 from test_hyperelastic_bodies import P as FINITE_P
 from test_hyperelastic_bodies import interface_force, uniaxial
+from test_hyperelastic_bodies import run as run_finite
 
 P2 = ["mesh.degree=2", "output.verbose=false"]
 
@@ -84,6 +85,18 @@ def test_p2_finite_strain_patch_is_the_exact_cauchy_traction():
     slave, master = interface_force(r, scene, "slave"), interface_force(r, scene, "master")
     assert abs(slave[-1] - FINITE_P) <= 1e-10 * FINITE_P
     assert abs(slave[-1] + master[-1]) <= 1e-12 * FINITE_P
+
+
+@pytest.mark.mpi
+def test_p2_finite_strain_patch_on_two_ranks_equals_serial(tmp_path):
+    s = run_finite(tmp_path, FINITE_PATCH_2D, 1, "mesh.degree=2")
+    p = run_finite(tmp_path, FINITE_PATCH_2D, 2, "mesh.degree=2")
+    l1, _ = uniaxial(2)
+    for res in (s, p):
+        assert res["converged"] and len(res["pressure"]) == 63
+        assert np.max(np.abs(res["pressure"] * l1 / FINITE_P - 1)) <= 1e-8
+    assert np.allclose(s["X"], p["X"], atol=1e-14)
+    assert abs(s["force"] - p["force"]) <= 1e-12 * abs(s["force"])
 
 
 def facet_mean_pressure_error(scene, r) -> float:
