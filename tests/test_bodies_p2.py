@@ -152,9 +152,47 @@ def test_p2_cylinders_serial_equals_two_ranks(tmp_path):
     assert s["min/info"][4] < 1e-10 and p["min/info"][4] < 1e-10  # action = reaction
 
 
-def test_p2_pairs_in_3d_are_refused_in_one_line():
+@pytest.fixture(scope="module")
+def patch_3d():
     scene = contact.load_scene(PATCH_3D, P2)
-    refused = r"^mesh\.degree: contact pairs \(pairs\[0\]\) in 3D"
+    return scene, build_problem(scene)
+
+
+def test_p2_patch_3d_pressure_is_exact_at_every_slave_node(patch_3d):
+    """13 × 13 against 4 × 4 interface cells, P2 tetrahedra: the slave nodes' unknowns are
+    the transformed values (every basis function of a P2 triangle integrating positively),
+    λ_i = −p at all 27² slave nodes (vertices and edges) and λ^m_j = −p at all 9² master
+    nodes to 1e-8, forces balanced, the contact force p × area."""
+    scene, problem = patch_3d
+    r = contact.solve(scene, method="min", problem=problem, verbose=False)
+    assert r.converged
+    lam = r.lmbda_h.x.array[problem.output.nodes]
+    assert len(lam) == 27 * 27 == r.n_active
+    assert np.max(np.abs(lam + P)) <= 1e-8 * P
+    lam_m = master_pressure(r).x.array
+    master = np.abs(lam_m) > 0
+    assert master.sum() == 9 * 9 and np.max(np.abs(lam_m[master] + P)) <= 1e-8 * P
+    res = resultants(posed_of(scene), r)
+    assert res["interface_balance_error"] < 1e-10
+    assert res["contact_force"] == pytest.approx(4 * P, rel=1e-10)  # mirrored at x = 0, y = 0
+
+
+@pytest.mark.mpi
+def test_p2_patch_3d_on_two_ranks_equals_serial(tmp_path):
+    args = ["--methods=min", "--set=mesh.degree=2"]
+    s, p = run(tmp_path, PATCH_3D, 1, *args), run(tmp_path, PATCH_3D, 2, *args)
+    for res in (s, p):
+        assert res["min/info"][0] == 1 and len(res["min/lambda"]) == 27 * 27
+        assert np.max(np.abs(res["min/lambda"] + P)) <= 1e-8 * P
+        assert np.max(np.abs(res["min/lambda_master"] + P)) <= 1e-8 * P
+        assert res["min/info"][4] < 1e-10  # action = reaction
+    assert np.allclose(s["min/Xs"], p["min/Xs"], atol=1e-14)
+    assert np.max(np.abs(s["min/u"] - p["min/u"])) <= 1e-8 * np.max(np.abs(s["min/u"]))
+
+
+def test_p2_friction_in_3d_is_refused_in_one_line():
+    scene = contact.load_scene(PATCH_3D, [*P2, "friction={law: coulomb, coefficient: 0.3}"])
+    refused = r"^mesh\.degree: friction on contact pairs \(pairs\[0\]\) in 3D"
     with pytest.raises(ConfigError, match=refused) as e:
         build_problem(scene)
     assert "\n" not in str(e.value)

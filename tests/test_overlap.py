@@ -6,12 +6,16 @@ linear functions exactly (what the contact patch test needs)."""
 from contact.models.overlap import (
     DUAL,
     SEGMENT_P2_DUAL,
+    TRIANGLE_P2_DUAL,
+    TRIANGLE_P2_TRANSFORM,
     clip_polygons,
+    dual_weights,
     facet_measures,
     facet_normals,
     mortar_pairs,
     segment_basis,
     trace_weights,
+    triangle_basis,
 )
 
 import numpy as np
@@ -166,3 +170,64 @@ def test_triangles_distance_and_partial_overlap():
     # overlap: the triangle (0.5, 0), (1, 0), (0.5, 0.5) of area 1/8
     assert meas[0] == pytest.approx(0.125) and d[0] == pytest.approx(-0.05)
     assert M.sum() == pytest.approx(0.125)
+
+
+def _triangle_rule(order: int = 6):
+    """A Gauss rule on the unit triangle (barycentric points, weights summing to 1/2) from
+    a collapsed tensor product of Gauss–Legendre rules: exact to degree 2 order − 1."""
+    g, w = np.polynomial.legendre.leggauss(order)
+    t, w = 0.5 + 0.5 * g, 0.5 * w
+    x = t[:, None] * np.ones(order)
+    y = (1 - t)[:, None] * t[None, :]
+    W = (w[:, None] * w[None, :]) * (1 - t)[:, None]
+    x, y = x.ravel(), y.ravel()
+    return np.c_[1 - x - y, x, y], W.ravel()
+
+
+def test_p2_triangle_dual_basis_is_biorthogonal_to_the_transformed_basis():
+    """∫ ψ_a φ̃_b = δ_ab ∫ φ̃_a on the unit triangle, ∫ φ̃_a > 0 for all six (the vertex
+    functions φ_a themselves integrate to zero), Σ_a ψ_a = 1."""
+    lam, w = _triangle_rule()
+    phi = triangle_basis(lam)
+    area = 0.5
+    assert np.allclose(phi.T @ w / area, trace_weights(6, 3), atol=1e-15)
+    tilde = phi @ TRIANGLE_P2_TRANSFORM.T
+    assert np.all(tilde.T @ w / area > 0.1)
+    assert np.allclose(tilde.T @ w / area, dual_weights(6, 3), atol=1e-15)
+    psi = phi @ TRIANGLE_P2_DUAL.T
+    assert np.allclose(np.einsum("k,ka,kb->ab", w, psi, tilde) / area, np.diag(dual_weights(6, 3)))
+    assert np.allclose(psi.sum(axis=1), 1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_p2_triangles_reproduce_quadratic_functions(seed):
+    """A P2 slave triangle inside a perturbed P2 master triangulation of its plane: for
+    f = 1, x, y, x², xy (reproduced by the master's P2 interpolant) Σ_j M_ij f(x_j) =
+    ∫_T ψ_i f (quadrature on the slave triangle), to round-off."""
+    rng = np.random.default_rng(seed)
+    master2 = _grid_triangles(rng, -0.5, 1.5, 5)
+    mid = lambda T: 0.5 * (T[:, [1, 0, 0]] + T[:, [2, 2, 1]])  # noqa: E731  edges opposite 0, 1, 2
+    master6 = np.concatenate([master2, mid(master2)], axis=1)
+    slave2 = np.array([[[0.1, 0.05], [0.93, 0.22], [0.35, 0.8]]])
+    slave6 = np.concatenate([slave2, mid(slave2)], axis=1)
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    lift = lambda T: np.concatenate([T, np.zeros(T.shape[:-1] + (1,))], -1) @ Q.T  # noqa: E731
+    Xs, Xm = lift(slave6), lift(master6)
+    n = facet_normals(Xs[:, :3], Xs[:, :3].mean(1) - Q[:, 2])
+    M, meas, _ = mortar_pairs(np.repeat(Xs, len(Xm), 0), np.repeat(n, len(Xm), 0), Xm)
+    area = facet_measures(Xs[:, :3])[0]
+    assert M.shape == (len(Xm), 6, 6) and meas.sum() == pytest.approx(area, rel=1e-13)
+    lam, w = _triangle_rule()
+    psi = triangle_basis(lam) @ TRIANGLE_P2_DUAL.T
+    pts = lam @ slave2[0]  # in-plane coordinates of the quadrature points
+    jac = area / 0.5
+    for f in (
+        lambda p: np.ones(len(p)),
+        lambda p: p[:, 0],
+        lambda p: p[:, 1],
+        lambda p: p[:, 0] ** 2,
+        lambda p: p[:, 0] * p[:, 1],
+    ):
+        exact = jac * np.einsum("k,ka,k->a", w, psi, f(pts))
+        nodal = f(master6.reshape(-1, 2)).reshape(len(Xm), 6)
+        assert np.allclose(np.einsum("pab,pb->a", M, nodal), exact, atol=1e-13)

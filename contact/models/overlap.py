@@ -44,6 +44,42 @@ DUAL = {
 # M_e = [[4, −1, 2], [−1, 4, 2], [2, 2, 16]] / 30 and D_e = diag(1/6, 1/6, 2/3) (|S| = 1)
 SEGMENT_P2_DUAL = np.array([[1.5, 0.5, -0.25], [0.5, 1.5, -0.25], [-1.0, -1.0, 1.5]])
 
+# The transformed P2 triangle basis φ̃ = TRIANGLE_P2_TRANSFORM @ φ (Popp, Wohlmuth, Gee & Wall
+# 2012): φ̃_a = φ_a + α (φ of a's two edges), φ̃_e = (1 − 2α) φ_e, α = 1/5, so that every
+# function integrates positively (|T| (2α/3, (1 − 2α)/3)); nodal values ũ = T⁻ᵀ u: the
+# vertices' unchanged, an edge's ũ_e = (u_e − α (u_a + u_b)) / (1 − 2α)
+TRIANGLE_P2_ALPHA = 0.2
+TRIANGLE_P2_TRANSFORM = np.eye(6)
+for _a in range(3):
+    for _k in range(3):
+        if _k != _a:  # the edge opposite vertex k contains vertex a
+            TRIANGLE_P2_TRANSFORM[_a, 3 + _k] = TRIANGLE_P2_ALPHA
+    TRIANGLE_P2_TRANSFORM[3 + _a, 3 + _a] = 1.0 - 2.0 * TRIANGLE_P2_ALPHA
+# the 6-point Dunavant rule on a triangle (barycentric points, weights summing to 1; exact
+# to degree 4)
+_D1, _D2 = 0.445948490915965, 0.091576213509771
+_DUNAVANT4 = np.array(
+    [[_D1, _D1, 1 - 2 * _D1], [_D1, 1 - 2 * _D1, _D1], [1 - 2 * _D1, _D1, _D1]]
+    + [[_D2, _D2, 1 - 2 * _D2], [_D2, 1 - 2 * _D2, _D2], [1 - 2 * _D2, _D2, _D2]]
+)
+_DUNAVANT4_WEIGHTS = np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)
+
+
+def _triangle_p2_dual() -> np.ndarray:
+    """ψ = A φ̃ = (A T) φ with A = D̃ M̃⁻¹, M̃ = T M Tᵀ the mass matrix of φ̃ on the unit
+    triangle (by the rule above, exact) and D̃ = diag ∫ φ̃."""
+    lam = _DUNAVANT4
+    phi = np.concatenate([lam * (2 * lam - 1), 4 * lam[:, [1, 0, 0]] * lam[:, [2, 2, 1]]], axis=1)
+    mass = np.einsum("k,ka,kb->ab", _DUNAVANT4_WEIGHTS, phi, phi)
+    T = TRIANGLE_P2_TRANSFORM
+    D = np.diag(T @ (phi.T @ _DUNAVANT4_WEIGHTS))
+    return D @ np.linalg.inv(T @ mass @ T.T) @ T
+
+
+# ψ = TRIANGLE_P2_DUAL @ φ on a P2 triangle: dual to the transformed basis φ̃ (∫ ψ_a φ̃_b
+# = δ_ab ∫ φ̃_a)
+TRIANGLE_P2_DUAL = _triangle_p2_dual()
+
 # Gauss–Legendre points and weights on [0, 1]: 2 points (exact to degree 3), 3 (degree 5)
 _GAUSS = {
     2: (np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)]), np.array([0.5, 0.5])),
@@ -69,6 +105,16 @@ def facet_normals(X: np.ndarray, inside: np.ndarray) -> np.ndarray:
     return n
 
 
+def dual_weights(nv: int, gdim: int) -> np.ndarray:
+    """∫_F ψ_a φ̃_a ds / |F| = ∫_F φ̃_a ds / |F|: the diagonal D_e of the dual basis on a
+    facet with ``nv`` nodes, φ̃ the slave trace basis the multiplier is dual to (φ itself,
+    but on a P2 triangle the transformed basis :data:`TRIANGLE_P2_TRANSFORM` φ, whose
+    functions all integrate positively)."""
+    if (nv, gdim) == (6, 3):
+        return TRIANGLE_P2_TRANSFORM @ trace_weights(6, 3)
+    return trace_weights(nv, gdim)
+
+
 def trace_weights(nv: int, gdim: int) -> np.ndarray:
     """∫_F φ_a ds / |F| of the trace basis of a flat facet with ``nv`` nodes in ``gdim``
     dimensions (P1 segment or triangle, P2 segment or triangle; the node order of the
@@ -81,6 +127,14 @@ def trace_weights(nv: int, gdim: int) -> np.ndarray:
         (6, 3): [0.0] * 3 + [1 / 3] * 3,
     }
     return np.array(weights[(nv, gdim)])
+
+
+def triangle_basis(lam: np.ndarray) -> np.ndarray:
+    """The P2 Lagrange basis of a triangle at points of barycentric coordinates ``lam``
+    (k, 3): the vertex functions λ_a (2λ_a − 1), then the edge functions 4 λ_b λ_c of the
+    edges opposite vertices 0, 1, 2 (the order of a facet's closure DoFs); (k, 6)."""
+    edges = 4.0 * np.stack([lam[:, 1] * lam[:, 2], lam[:, 0] * lam[:, 2], lam[:, 0] * lam[:, 1]], 1)
+    return np.concatenate([lam * (2.0 * lam - 1.0), edges], axis=1)
 
 
 def segment_basis(nv: int, xi: np.ndarray) -> np.ndarray:
@@ -112,8 +166,6 @@ def mortar_pairs(
     distance +inf.  ``tol`` is relative to the slave facet's size."""
     if Xs.shape[2] == 2:
         return _segments(Xs, ns, Xm, tol)
-    if Xs.shape[1] != 3:
-        raise ValueError("mortar_pairs: in 3D only P1 triangles have a dual basis here")
     return _triangles(Xs, ns, Xm, tol)
 
 
@@ -152,7 +204,8 @@ def _segments(Xs, ns, Xm, tol):
 
 
 def _triangles(Xs, ns, Xm, tol):
-    P = len(Xs)
+    P, nv = Xs.shape[:2]
+    Xs, Xm = Xs[:, :3], Xm[:, :3]  # the (flat) facets are their vertices' triangles
     # in-plane axes of the slave triangle: e1 along its first edge, e2 = n × e1
     e1 = Xs[:, 1] - Xs[:, 0]
     h = np.linalg.norm(e1, axis=1)
@@ -169,7 +222,7 @@ def _triangles(Xs, ns, Xm, tol):
     area_tol = tol * h**2
     # fan of the convex polygon from its vertex 0: triangles (v0, v_k, v_{k+1}), k = 1 … n−2
     Bs, Bm = _barycentric_maps(s2), _barycentric_maps(m2)
-    M = np.zeros((P, 3, 3))
+    M = np.zeros((P, nv, nv))
     meas = np.zeros(P)
     centroid = np.zeros((P, 2))
     for k in range(1, poly.shape[1] - 1):
@@ -183,10 +236,17 @@ def _triangles(Xs, ns, Xm, tol):
         area = np.where(use, area, 0.0)
         meas += area
         centroid += area[:, None] * (A + B + C) / 3.0
-        for q in (0.5 * (A + B), 0.5 * (B + C), 0.5 * (C + A)):  # exact for quadratics
-            psi = _apply(Bs, q) @ DUAL[3].T
-            phim = _apply(Bm, q)
-            M += (area / 3.0)[:, None, None] * psi[:, :, None] * phim[:, None, :]
+        if nv == 3:
+            for q in (0.5 * (A + B), 0.5 * (B + C), 0.5 * (C + A)):  # exact for quadratics
+                psi = _apply(Bs, q) @ DUAL[3].T
+                phim = _apply(Bm, q)
+                M += (area / 3.0)[:, None, None] * psi[:, :, None] * phim[:, None, :]
+            continue
+        for bary, w in zip(_DUNAVANT4, _DUNAVANT4_WEIGHTS):  # exact for quartics
+            q = bary[0] * A + bary[1] * B + bary[2] * C
+            psi = triangle_basis(_apply(Bs, q)) @ TRIANGLE_P2_DUAL.T
+            phim = triangle_basis(_apply(Bm, q))
+            M += (w * area)[:, None, None] * psi[:, :, None] * phim[:, None, :]
     good = (meas > area_tol) & (
         np.abs(np.linalg.det(np.stack([m2[:, 1] - m2[:, 0], m2[:, 2] - m2[:, 0]], 1))) > area_tol
     )
