@@ -2,9 +2,11 @@
 
 A pair couples a slave surface Γ_s of one body to a master surface Γ_m of another, once,
 in the reference configuration (small deformation).  With the trace basis φ_i on Γ_s (P1,
-or P2 in 2D: every node of a slave segment, its midpoint included), its dual basis ψ_i
-(biorthogonal: ∫ ψ_i φ_k = δ_ik D_ii) and the projection π along the slave facet normals
-onto Γ_m (:mod:`contact.models.overlap`),
+or P2: every node of a slave facet, edge midpoints included; on P2 triangles the
+transformed basis φ̃ = T φ, whose functions all integrate positively, and the slave
+unknowns are the values ũ = T⁻¹ u in it), its dual basis ψ_i (biorthogonal: ∫ ψ_i φ_k =
+δ_ik D_ii) and the projection π along the slave facet normals onto Γ_m
+(:mod:`contact.models.overlap`),
 
     D_ii = ∫_{Γ_s} φ_i ds,       M_ij = ∫_{Γ_s} ψ_i (φ_j^m ∘ π) ds,       c_ij = M_ij / Σ_k M_ik,
 

@@ -1,7 +1,7 @@
 """Overlap of slave and master facets and the exact mortar integrals over it (pure NumPy).
 
 For a pair (S, M) of a slave facet S and a master facet M (straight P1 or P2 segments in
-2D, P1 triangles in 3D) and the projection π along the slave facet's unit normal n_S
+2D, flat P1 or P2 triangles in 3D) and the projection π along the slave facet's unit normal n_S
 (pointing out of the slave body, towards the master), this module computes
 
     M_loc[a, b] = ∫_{S ∩ π⁻¹(M)} ψ_a (φ_b^M ∘ π) ds,
@@ -12,8 +12,10 @@ D_e = diag(∫_S φ_a ds), so ∫_S ψ_a φ_b ds = δ_ab ∫_S φ_a ds.  P1: ψ_
 segment, ψ_a = 3φ_a − φ_b − φ_c on a triangle.  P2 segment (nodes: the two end points,
 then the midpoint; ∫ φ_a = |S| (1/6, 1/6, 2/3), all positive, so A exists):
 ψ_end = (3/2) φ_end + (1/2) φ_other − φ_mid for each end, ψ_mid = −(1/4)(φ_0 + φ_1) +
-(3/2) φ_mid (Lamichhane & Wohlmuth).  P2 triangles are not covered: their vertex
-functions integrate to zero, D_e is singular and no dual basis of this form exists.
+(3/2) φ_mid (Lamichhane & Wohlmuth).  The vertex functions of a P2 triangle integrate to
+zero, so D_e is singular: there ψ is dual to the transformed basis φ̃ = T φ
+(:data:`TRIANGLE_P2_TRANSFORM`, Popp, Wohlmuth, Gee & Wall 2012), ∫ ψ_a φ̃_b = δ_ab ∫ φ̃_a,
+and the slave unknowns are the values in φ̃ (:func:`contact.models.mortar.couple`).
 
 The overlap S ∩ π⁻¹(M) is computed exactly: an interval of the slave segment (2D: the
 master end points projected onto the slave line), or a convex polygon in the slave
@@ -21,7 +23,7 @@ triangle's plane (3D: the projected master triangle clipped by the slave triangl
 Sutherland–Hodgman).  π is affine on a pair of flat facets, so φ_b^M ∘ π has the
 master's degree on the overlap and ψ_a φ_b^M ∘ π twice it: two Gauss points per interval
 (P1; three for P2) / the three edge midpoints of each triangle of a fan of the polygon
-integrate it exactly.  Since
+(P1; the 6-point Dunavant rule for P2) integrate it exactly.  Since
 Σ_b φ_b^M = 1 and Σ_a ψ_a = 1, Σ_b M_loc[a, b] = ∫_{overlap} ψ_a ds and Σ_ab M_loc = |overlap|:
 a slave facet covered by master facets transmits constants exactly (the contact patch
 test).
@@ -68,17 +70,12 @@ _DUNAVANT4_WEIGHTS = np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)
 def _triangle_p2_dual() -> np.ndarray:
     """ψ = A φ̃ = (A T) φ with A = D̃ M̃⁻¹, M̃ = T M Tᵀ the mass matrix of φ̃ on the unit
     triangle (by the rule above, exact) and D̃ = diag ∫ φ̃."""
-    lam = _DUNAVANT4
-    phi = np.concatenate([lam * (2 * lam - 1), 4 * lam[:, [1, 0, 0]] * lam[:, [2, 2, 1]]], axis=1)
+    phi = triangle_basis(_DUNAVANT4)
     mass = np.einsum("k,ka,kb->ab", _DUNAVANT4_WEIGHTS, phi, phi)
     T = TRIANGLE_P2_TRANSFORM
     D = np.diag(T @ (phi.T @ _DUNAVANT4_WEIGHTS))
     return D @ np.linalg.inv(T @ mass @ T.T) @ T
 
-
-# ψ = TRIANGLE_P2_DUAL @ φ on a P2 triangle: dual to the transformed basis φ̃ (∫ ψ_a φ̃_b
-# = δ_ab ∫ φ̃_a)
-TRIANGLE_P2_DUAL = _triangle_p2_dual()
 
 # Gauss–Legendre points and weights on [0, 1]: 2 points (exact to degree 3), 3 (degree 5)
 _GAUSS = {
@@ -135,6 +132,11 @@ def triangle_basis(lam: np.ndarray) -> np.ndarray:
     edges opposite vertices 0, 1, 2 (the order of a facet's closure DoFs); (k, 6)."""
     edges = 4.0 * np.stack([lam[:, 1] * lam[:, 2], lam[:, 0] * lam[:, 2], lam[:, 0] * lam[:, 1]], 1)
     return np.concatenate([lam * (2.0 * lam - 1.0), edges], axis=1)
+
+
+# ψ = TRIANGLE_P2_DUAL @ φ on a P2 triangle: dual to the transformed basis φ̃ (∫ ψ_a φ̃_b
+# = δ_ab ∫ φ̃_a)
+TRIANGLE_P2_DUAL = _triangle_p2_dual()
 
 
 def segment_basis(nv: int, xi: np.ndarray) -> np.ndarray:
