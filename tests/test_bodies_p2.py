@@ -1,7 +1,8 @@
-"""Contact pairs with P2 displacements (2D): the mortar coupling with the quadratic dual
-basis of the slave segments (contact/models/overlap.py).  The contact patch test with
-non-matching meshes (small and finite strain, serial and 2 ranks), two cylinders against
-Hertz beside P1 on the same mesh, action = reaction, and the one-line refusal in 3D."""
+"""Contact pairs with P2 displacements: the mortar coupling with the quadratic dual basis of
+the slave segments (2D) and of the transformed basis of the slave triangles (3D;
+contact/models/overlap.py).  The contact patch test with non-matching meshes (2D and 3D,
+small and finite strain, serial and 2 ranks), two cylinders against Hertz beside P1 on the
+same mesh, action = reaction, and the one-line refusal of friction in 3D."""
 
 import contact
 from contact.base.errors import ConfigError
