@@ -141,11 +141,11 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
         raise ConfigError("mesh.degree: contact pairs (mortar) are implemented for P1; use 1")
     if config.reference is not None:
         updates["reference"] = _check_reference(config)
-    if mesh.degree == 2 and model == "obstacle":
+    if mesh.degree == 2 and model == "obstacle" and estimator == "residual":
         raise ConfigError(
-            "mesh.degree: 2 does not work for an obstacle scene (P2 vertex basis functions "
-            "integrate to ≤ 0 over triangles and tetrahedra, so the lumped weights "
-            "vanish); use 1"
+            "estimator: residual does not converge with a P2 obstacle solution (its volume "
+            "term sees the nodal multiplier, which alternates between the vertices and the "
+            "edge midpoints); use equilibrated"
         )
     return config.model_copy(update=updates)
 
