@@ -76,7 +76,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
     roles = [p.role for p in parts.values()]
     model = config.model.type
     if _check_hyperelastic(config, model) and config.pairs and config.solver.sequence == "auto":
-        # pairs at finite strain: auto does not sequence (not measured); a number opts in
+        # pairs at finite strain: auto does not sequence (the couplings' linear fixed point,
+        # not its start, sets their work); a number of levels opts in
         updates["solver"] = config.solver.model_copy(update={"sequence": "off"})
     if model == "hyperelastic":  # the rest of the checks: those of an elastic body
         model = "elasticity"
