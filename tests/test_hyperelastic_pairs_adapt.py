@@ -12,7 +12,8 @@ represents exactly) has η at round-off, where the reference configuration's nor
 area would leave the consistency term at the stretch's size; the CLI's adaptive load path
 gives the same meshes, η and forces serially and on 2 ranks.  Grid sequencing: each coarse
 level its own fixed point of couplings; the sequenced solve reaches the cold solve's force
-to 1e-8 in fewer fine Newton steps; ``auto`` does not sequence pairs."""
+to 1e-8 in fewer fine Newton steps; ``auto`` does not sequence pairs.  With Coulomb friction
+between sliding bodies η falls and the friction terms stay at the solver's tolerance."""
 
 from __future__ import annotations
 
@@ -88,6 +89,30 @@ def test_dorfler_force_converges_for_two_neo_hookean_cylinders():
     assert np.all(np.abs(changes[1:]) <= 0.7 * np.abs(changes[:-1]))
     assert abs(changes[-1]) < 1e-3 * forces[-1]
     for lv in levels:
+        slave, master = lv.result.interface_forces
+        assert np.linalg.norm(slave + master) <= 1e-8 * np.linalg.norm(slave)
+
+
+def test_adapt_with_coulomb_between_sliding_bodies():
+    """configs/hyperelastic_two_body_drag_2d.yaml (a neo-Hookean block pressed and dragged
+    over another, Coulomb F = 0.3) in 5 steps, 3 Dörfler levels at the last (full slip): η
+    falls; the friction bound's term vanishes (≤ 1e-8 η²) and the slip's stays at the
+    solver's tolerance (≤ 1e-3 η²; measured 6e-8 … 1.5e-7 against η² ≥ 3e-4); the slave and
+    master surface forces cancel to 1e-8 on every level."""
+    drag = ROOT / "configs" / "hyperelastic_two_body_drag_2d.yaml"
+    scene = contact.load_scene(
+        drag,
+        ["output.verbose=false", "load.steps=5", "adapt.strategy=dorfler", "adapt.max_levels=3"],
+    )
+    path = contact.run_load_path(scene, verbose=False)
+    assert path.converged
+    levels = path.steps[-1].levels
+    etas = [lv.estimate.eta for lv in levels]
+    assert len(levels) == 3 and all(b < a for a, b in zip(etas, etas[1:]))
+    for lv in levels:
+        terms, eta2 = lv.estimate.terms, lv.estimate.eta**2
+        assert terms["friction_bound"] <= 1e-8 * eta2
+        assert terms["slip"] <= 1e-3 * eta2
         slave, master = lv.result.interface_forces
         assert np.linalg.norm(slave + master) <= 1e-8 * np.linalg.norm(slave)
 
