@@ -88,6 +88,7 @@ from ...models.constraints import Unilateral
 from ...models.discrete import Problem
 from ...models.physics import Diffusion
 from ...solvers import Result
+from ..cellwise import assemble_terms
 from .flux import Flux, FluxData, reconstruct_flux
 
 if TYPE_CHECKING:
@@ -184,19 +185,19 @@ def guaranteed_bound(
     B_form = lift.complementarity(flux.lmbda)
     q = flux.sigma_h - k * ufl.grad(u_h)
     q_s = q + sigma * k * grad_w  # σ_h − k∇s_h, s_h = u_h − σ w feasible
-    local = {
-        "F": cellwise(ufl.inner(q, q) / k * v * dx),
-        "Fs": cellwise(ufl.inner(q_s, q_s) / k * v * dx),
-        "W2": cellwise(k * ufl.inner(grad_w, grad_w) * v * dx),
-        "B": cellwise(B_form),
-        "D2": _dirichlet(problem, result, v, k),
+    forms = {
+        "F": ufl.inner(q, q) / k * v * dx,
+        "Fs": ufl.inner(q_s, q_s) / k * v * dx,
+        "W2": k * ufl.inner(grad_w, grad_w) * v * dx,
+        "B": B_form,
+        **({} if lift.cross is None else {"X": lift.cross}),
     }
+    n_owned = msh.topology.index_map(msh.topology.dim).size_local
+    local = {name: val[:n_owned] for name, val in assemble_terms(forms).items()}
+    local["D2"] = _dirichlet(problem, result, v, k)
+    cross_T = local.pop("X", None)
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
-    cross = (
-        msh.comm.allreduce(float(np.sum(cellwise(lift.cross))), op=MPI.SUM)
-        if lift.cross
-        else np.inf
-    )
+    cross = np.inf if cross_T is None else msh.comm.allreduce(float(np.sum(cross_T)), op=MPI.SUM)
     A_T, As_T = np.sqrt(local["F"]) + flux.osc, np.sqrt(local["Fs"]) + flux.osc
     comm = msh.comm
     total = {
