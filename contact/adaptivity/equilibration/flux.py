@@ -27,6 +27,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
+from . import multiplier as lagrange
 from .cells import (
     CONTACT,
     BoundaryRows,
@@ -351,6 +352,8 @@ def multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, 
             ]
         )
         for rule, rows in entities:
+            if not rule.edges and lagrange.NONZERO_ONLY:  # P1: κ = 1 and no bubble
+                continue
             _, k, beta = shares(nodal[rows], rule, sign)
             kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
             for e, (_, _, mid) in enumerate(rule.edges):
