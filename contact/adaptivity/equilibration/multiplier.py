@@ -40,10 +40,6 @@ import numpy as np
 
 from .reference import CELLS
 
-#: P1 too: the moments of the entities with a nonzero nodal value only (the others are
-#: zero); False: one product over every entity, the plain path (the same numbers)
-NONZERO_ONLY = True
-
 
 @dataclass(frozen=True)
 class EntityRule:
@@ -97,16 +93,13 @@ def shares(
     Without edge coefficients to remove (P1) λ̃_E = λ_h, κ_E = 1 and the moments are linear
     in the nodal values: one product with :attr:`EntityRule.linear`.  Otherwise an entity
     whose nodal values are all zero (no contact there) has zero moments, κ_E = 1 and β = 0,
-    and only the others are computed (for P1 too, with :data:`NONZERO_ONLY`)."""
+    and only the others are computed."""
     n, D = len(nodal), rule.lam.shape[1]
     kappa, beta = np.ones(n), np.zeros((n, len(rule.edges)))
-    if not rule.edges and not NONZERO_ONLY:
+    if not rule.edges:
         return (nodal @ rule.linear).reshape(n, D, len(rule.basis)), kappa, beta
     mom = np.zeros((n, D, len(rule.basis)))
     rows = np.flatnonzero(np.any(nodal != 0.0, axis=1))
-    if not rule.edges:
-        mom[rows] = (nodal[rows] @ rule.linear).reshape(len(rows), D, len(rule.basis))
-        return mom, kappa, beta
     if len(rows):
         mom[rows], kappa[rows], beta[rows] = _shares(nodal[rows], rule, sign)
     return mom, kappa, beta
