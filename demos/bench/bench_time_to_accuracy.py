@@ -189,6 +189,7 @@ PLAIN = (
     ("contact.adaptivity.equilibration.bound", "DIRICHLET_CELLS"),
     ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
     ("contact.adaptivity.transfer", "TAGGED_PARENTS_ONLY"),
+    ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
 )
 
 
