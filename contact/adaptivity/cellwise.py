@@ -22,19 +22,20 @@ MERGED = True
 
 
 def assemble_terms(terms: dict[str, ufl.Form], merged: bool | None = None) -> dict[str, np.ndarray]:
-    """The vectors of the DG0 forms ``terms`` (each linear in the same DG0 test function w),
+    """The vectors of the DG0 forms ``terms`` (each linear in a DG0 test function w on one mesh),
     interior-facet and ghost contributions summed into their owners: name ↦ the values of
     the owned and ghost cells (ghosts updated).  ``merged``: one assembly of the blocked
     form (default :data:`MERGED`) or one per term.  Collective."""
     merged = MERGED if merged is None else merged
     forms = list(terms.values())
-    if not merged or len(forms) < 2:
+    tests = [form.arguments()[0] for form in forms]  # a DG0 test function each
+    meshes = {id(w.ufl_function_space().mesh) for w in tests}
+    if not merged or len(forms) < 2 or len(meshes) > 1:
         return {name: _assembled(form, 1)[:, 0] for name, form in terms.items()}
-    (w,) = {form.arguments()[0] for form in forms}  # one test function
-    space = w.ufl_function_space()
-    blocked = fem.functionspace(space.mesh, ("DG", 0, (len(forms),)))
+    mesh = tests[0].ufl_function_space().mesh
+    blocked = fem.functionspace(mesh, ("DG", 0, (len(forms),)))
     v = ufl.TestFunction(blocked)
-    total = sum(ufl.replace(form, {w: v[i]}) for i, form in enumerate(forms))
+    total = sum(ufl.replace(form, {w: v[i]}) for i, (w, form) in enumerate(zip(tests, forms)))
     values = _assembled(total, len(forms))
     return {name: values[:, i].copy() for i, name in enumerate(terms)}
 
