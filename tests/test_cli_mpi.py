@@ -55,6 +55,7 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_two_body_drag_2d.yaml": ["load={times: [0.2, 0.3]}", *SMALL],
     "hyperelastic_two_body_drag_3d.yaml": ["load={times: [0.2, 0.4]}", *SMALL],
     "hyperelastic_self_contact_tube.yaml": ["mesh.cells=[2,24,4]", "load.steps=2", *SMALL],
+    "hyperelastic_self_contact_kink.yaml": ["mesh.cells=[2,12,4]", "load.steps=2", *SMALL],
     "hyperelastic_two_body_patch_2d.yaml": SMALL,
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],
