@@ -2331,7 +2331,6 @@ def _hyper_kink() -> str:
     fine_n = max(r["path_steps"] for r in data)
     coarse_n = min(r["path_steps"] for r in data)
     fine = [r for r in data if r["path_steps"] == fine_n]
-    every = max(fine_n // 16, 1)
     body = [
         [
             f"{r['phi']:.3f}",
@@ -2344,8 +2343,7 @@ def _hyper_kink() -> str:
             r["newton"],
             f"{r['min_det_F']:.3f}",
         ]
-        for k, r in enumerate(fine)
-        if (k + 1) % every == 0
+        for r in fine
     ]
     header = ["φ", "M", "E I φ / a", "N", "pressed", "contact force", "couplings", "Newton"]
     header += ["min det F"]
@@ -2368,7 +2366,6 @@ def _hyper_kink() -> str:
             dofs=DOFS_KINK,
             fine=fine_n,
             coarse=coarse_n,
-            every=every,
             table=table(header, body),
         ),
         "",
