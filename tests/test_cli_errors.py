@@ -297,8 +297,18 @@ CASES = {
         {"boundaries.bottom": {"where": "y < 1e-10"}},
     ),
     "overlapping_parts": Case(
-        "boundaries: bottom and sides share",
+        "boundaries: sides and bottom share",
         {"boundaries.sides.where": "x < 1e-10 or x > 1 - 1e-10 or y < 1e-10"},
+        contains="parts must not overlap",
+    ),
+    # Two overlapping pairs (top/bottom, sides/left): the first pair in the file's order is
+    # named, not the first two names in alphabetical order ("bottom and left").
+    "two_overlapping_pairs": Case(
+        "boundaries: top and bottom share",
+        {
+            "boundaries.bottom.where": "y < 1e-10 or y > 1 - 1e-10",
+            "boundaries.left": {"role": "neumann", "where": "x < 1e-10"},
+        },
         contains="parts must not overlap",
     ),
     "no_boundaries": Case("boundaries: at least one boundary part is required", {"boundaries": {}}),
