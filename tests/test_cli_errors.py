@@ -160,11 +160,15 @@ CASES = {
     ),
     "max_it_zero": Case("solver.max_it: must be > 0, got 0", {"solver.max_it": 0}),
     "degree_three": Case("mesh.degree: 3 is not one of 1, 2", {"mesh.degree": 3}),
-    "degree_two_obstacle": Case(
-        "mesh.degree: 2 does not work for an obstacle scene",
+    "residual_p2_obstacle_3d": Case(
+        "estimator: residual does not converge with a P2 obstacle solution in 3D",
         {
             "model": "obstacle",
+            "mesh.type": "box",
+            "mesh.corners": [[0, 0, 0], [1, 1, 1]],
+            "mesh.cells": [2, 2, 2],
             "mesh.degree": 2,
+            "estimator": "residual",
             "boundaries.bottom": DELETE,
             "data.g": DELETE,
             "data.psi": "-1",
