@@ -1033,6 +1033,8 @@ def chart_kink(path: Path, rows: list[dict]) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     print(f"wrote {path}", flush=True)
+
+
 HERTZ_2D = ROOT / "configs" / "two_body_hertz_2d.yaml"
 NEO_HOOKEAN = ["model.type=hyperelastic", "model.law=neo_hookean", "output.verbose=false"]
 #: the sequencing cases of the ``pairs`` part: (δ, the mesh's h_contact or None: shipped)
