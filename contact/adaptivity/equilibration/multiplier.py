@@ -38,7 +38,12 @@ from functools import cached_property
 import basix
 import numpy as np
 
+from ...models.problem import ISO_P2_FRACTIONS
 from .reference import CELLS
+
+#: P1's moments (:func:`shares`) by ``np.einsum`` in one thread; False: the BLAS product, the
+#: plain path (the same numbers to round-off)
+EINSUM = True
 
 
 @dataclass(frozen=True)
@@ -80,7 +85,13 @@ def entity_rule(
         for e, (v0, v1) in enumerate(basix.topology(CELLS[d])[1]):
             if v0 in vertices and v1 in vertices:
                 edges.append((v0, v1, d + 1 + e))
-    return EntityRule(phi, lam, w, basis, w @ phi, hat, np.asarray(vertices), edges)
+    W = w @ phi
+    if p == 2 and len(vertices) > 2:  # a triangle or a tetrahedron: the solve's P1-iso-P2 weights
+        vertex, edge = ISO_P2_FRACTIONS[len(vertices) - 1]
+        W = np.zeros_like(W)
+        W[np.asarray(vertices)] = vertex * w.sum()
+        W[[m for _, _, m in edges]] = edge * w.sum()
+    return EntityRule(phi, lam, w, basis, W, hat, np.asarray(vertices), edges)
 
 
 def shares(
@@ -97,7 +108,10 @@ def shares(
     n, D = len(nodal), rule.lam.shape[1]
     kappa, beta = np.ones(n), np.zeros((n, len(rule.edges)))
     if not rule.edges:
-        return (nodal @ rule.linear).reshape(n, D, len(rule.basis)), kappa, beta
+        # (n, nu) × (nu, D·nk), nu = d + 1: a BLAS product this thin costs its threads'
+        # spinning (8-10× the CPU on a shared 2-core machine), einsum loops in one thread
+        mom = np.einsum("na,am->nm", nodal, rule.linear) if EINSUM else nodal @ rule.linear
+        return mom.reshape(n, D, len(rule.basis)), kappa, beta
     mom = np.zeros((n, D, len(rule.basis)))
     rows = np.flatnonzero(np.any(nodal != 0.0, axis=1))
     if len(rows):
