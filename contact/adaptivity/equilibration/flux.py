@@ -27,7 +27,6 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from ...base.lifetime import return_freed_memory
 from .cells import (
     CONTACT,
     BoundaryRows,
@@ -245,8 +244,7 @@ def _patches_in_blocks(
         defect += out.defect
         counters["cell_evaluations"] += out.stats["cell_evaluations"]
         counters["work_rows"] = max(counters["work_rows"], out.stats["work_rows"])
-        del part, out, part_osc
-        return_freed_memory()
+        del part, out, part_osc  # before the next block's rows are made
     return PatchOutput(alpha, defect, counters), osc
 
 
