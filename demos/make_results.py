@@ -3651,6 +3651,32 @@ def _tta_higher_order(ratios: list[dict]) -> list[str]:
                 for r in found
             ),
         ),
+        *_tta_recommendation(found, p1),
+    ]
+
+
+def _tta_recommendation(found: list[dict], p1: dict[str, float | None]) -> list[str]:
+    """The recommendation for problem A: the fastest of p2 and hp where it is at least 5×
+    faster than uniform P1 at the target, with its speed-up against the fastest uniform
+    run; else the sentence that no variant is."""
+    a = next((r for r in found if r["scene"] == "A"), None)
+    if a is None:
+        return []
+    if a["speedup_cpu"] < 5:
+        return [prose("time_to_accuracy", "no_fivefold_a", speedup=f"{a['speedup_cpu']:.1f}")]
+    vs_best = a.get("speedup_vs_best_cpu") or a["speedup_cpu"]
+    return [
+        prose(
+            "time_to_accuracy",
+            "recommend_a",
+            variant=a["variant"],
+            how=TTA_VARIANTS[a["variant"]],
+            speedup=f"{a['speedup_cpu']:.1f}",
+            target=f"{a['target']:.0e}",
+            p1="–" if p1["A"] is None else f"{p1['A']:.2f}×",
+            best=a.get("best_reference") or "uniform",
+            vs_best=f"{vs_best:.2f}",
+        )
     ]
 
 

@@ -518,6 +518,10 @@ def test_report_time_to_accuracy_holds_degree_two_and_hp_against_every_uniform_r
         "A to 2e-03: `p2` 10.0× faster than uniform P1, 0.40× the fastest uniform run "
         "(uniform_p2); the fastest P1 variant 0.33×" in section
     )
+    # the recommendation: p2 is ≥ 5× faster than uniform P1, and slower than uniform P2
+    assert "**Recommended for a solution like problem A's: `p2`**" in section
+    assert "10.0× faster than uniform P1 to 2e-03 (the fastest P1 variant: 0.33×)" in section
+    assert "(uniform_p2) it is 0.40× (below 1: slower)" in section
     assert (res / "time_to_accuracy.png").read_bytes()[:4] == b"\x89PNG"
 
 
