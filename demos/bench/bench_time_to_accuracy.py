@@ -27,11 +27,20 @@ reference with the ratios; written after each scene).
         --out demos/results/time_to_accuracy.csv
     python demos/bench/bench_time_to_accuracy.py A lshape --variant hp:adapt.strategy=hp \
         --uniform uniform: --uniform uniform_p3:mesh.degree=3
+    python demos/bench/bench_time_to_accuracy.py ex9 --target 1e-2 --variant adaptive: \
+        --variant g3:adapt.growth=3
+    python demos/bench/bench_time_to_accuracy.py ex9 --target 4e-3 --max-dofs 1300000 \
+        --variant res2:adapt.growth=2,adapt.indicators=residual --plain
+
+``--plain`` runs each variant a second time with the plain paths of the estimators and
+refinement (:data:`PLAIN`: one assembly per DG0 term, …), the same numbers, so the gain of
+the default paths is a ratio of one run.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import time
 from pathlib import Path
@@ -198,6 +207,24 @@ UNIFORM = ("uniform:", "uniform_p2:mesh.degree=2")
 WARM_FACTOR, WARM_DOFS = 4.0, 20_000
 
 
+#: the switches of the estimators' and refinement's plain paths (module, name): ``--plain``
+#: runs each variant a second time with all of them False
+PLAIN = (
+    ("contact.adaptivity.cellwise", "MERGED"),
+    ("contact.adaptivity.equilibration.flux", "P1_SHORTCUT"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_CELLS"),
+    ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
+    ("contact.adaptivity.transfer", "TAGGED_PARENTS_ONLY"),
+    ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
+)
+
+
+def plain_paths(on: bool) -> None:
+    """Select the plain paths of :data:`PLAIN` (``on``) or the default ones."""
+    for module, name in PLAIN:
+        setattr(importlib.import_module(module), name, not on)
+
+
 def variant_of(text: str) -> tuple[str, list[str]]:
     """``NAME:KEY=VALUE,KEY=VALUE`` → (name, ``--set`` overrides)."""
     name, _, sets = text.partition(":")
@@ -228,6 +255,12 @@ def main() -> None:
         metavar="NAME:KEY=VALUE,…",
         help=f"a uniform reference (repeatable; default {' '.join(UNIFORM)})",
     )
+    ap.add_argument(
+        "--plain",
+        action="store_true",
+        help="each variant again with the plain paths of the estimators and refinement "
+        "(variant NAME-plain)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     warm = contact.load_scene(ROOT / SCENES["ex9"][0], ["output.verbose=false", "adapt=none"])
@@ -256,10 +289,16 @@ def main() -> None:
             except ConfigError as error:
                 print(f"  {variant}: skipped ({error})", flush=True)
                 continue
-            ada = adaptive(ROOT / file, target, args.max_dofs, sets, variant)
-            rows += [{"scene": name, **r} for r in ada]
-            mine = [ratios(name, variant, target, uni, ada, ref) for ref, uni in references.items()]
-            summary += verdict(name, variant, target, mine)
+            for plain in (False, True) if args.plain else (False,):
+                plain_paths(plain)
+                label = f"{variant}-plain" if plain else variant
+                ada = adaptive(ROOT / file, target, args.max_dofs, sets, label)
+                rows += [{"scene": name, **r} for r in ada]
+                mine = [
+                    ratios(name, label, target, uni, ada, ref) for ref, uni in references.items()
+                ]
+                summary += verdict(name, label, target, mine)
+            plain_paths(False)
         if args.out:  # after each scene: a long run interrupted keeps the scenes done
             save_csv(args.out, rows + summary)
 
