@@ -295,6 +295,8 @@ def adapt(
             # meshes (grid sequencing's chain, Domain.parent): without the link the
             # previous mesh goes once its level is released
             level_domain.parent = None
+        if keep is not None and previous is not None:
+            return_freed_memory()  # what refining freed: the level's solve does not reuse it
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
@@ -464,6 +466,10 @@ class Bound:
             return level.estimate.eta
         residual = level.estimate.eta
         wall, cpu = time.perf_counter(), time.process_time()
+        # the bound's patch data and fields on top of the level are the loop's peak: the heap
+        # that the solve and the residual estimate freed is given back first, or the bound's
+        # arrays of other sizes would add to it instead of reusing it
+        return_freed_memory()
         with Timer(level.seconds, "estimate"):
             level.estimate = estimate(level.problem, level.result, self.kind)
         level.estimator = self.kind

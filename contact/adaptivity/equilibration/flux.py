@@ -244,6 +244,7 @@ def _patches_in_blocks(
         defect += out.defect
         counters["cell_evaluations"] += out.stats["cell_evaluations"]
         counters["work_rows"] = max(counters["work_rows"], out.stats["work_rows"])
+        del part, out, part_osc  # before the next block's rows are made
     return PatchOutput(alpha, defect, counters), osc
 
 
