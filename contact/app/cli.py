@@ -30,6 +30,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+from ..output import picture_process
 from . import failures
 
 if TYPE_CHECKING:
@@ -120,6 +121,16 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = one_line_warning
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
+    if args.command == "run" and comm.rank == 0:
+        # matplotlib is imported there while this process imports DOLFINx and solves
+        picture_process.start()
+    try:
+        return _main(args, comm, debug)
+    finally:
+        picture_process.stop()
+
+
+def _main(args: argparse.Namespace, comm: MPI.Comm, debug: bool) -> int:
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort).  PETSc
     # installs that handler when it starts, so it starts first: ours replaces it.
@@ -241,6 +252,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         folder.check_output(outdir, label, comm)  # before meshing and solving
         scene = build_scene(cfg, comm)
         report = report_of(cfg)  # what the run writes, read once from the configuration
+        if not report.png:
+            picture_process.stop()
         if report.verbose:
             progress.enable(comm)
         method = scene.config.solver.method
