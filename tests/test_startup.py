@@ -225,8 +225,9 @@ print(json.dumps(seen))
 def test_loading_is_frozen_once(tmp_path):
     """The first command of a process runs its loading with the cyclic collector off and
     then freezes what it loaded (objects in the permanent generation, collector on again);
-    a later command freezes nothing more (the count does not grow), and a command that fails while loading (exit 2)
-    leaves the collector on.  With ``FREEZE_LOADED`` False (the old path) nothing is frozen."""
+    a later command freezes nothing more (the count does not grow), and a command that
+    fails while loading (exit 2) leaves the collector on.  With ``FREEZE_LOADED`` False
+    (the old path) nothing is frozen."""
     script = tmp_path / "three.py"
     script.write_text(THREE_COMMANDS)
     seen = {}

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .figures import new_figure, release_figure
+from .figures import new_figure, save_figure
 
 MAX_EDGES = 20000  # cells above which mesh edges would paint everything black
 RASTER_CELLS = 200_000  # cells above which a nodal field is drawn as an image (cells < pixels)
@@ -218,8 +218,7 @@ def solution_2d(grid, *, path: str | Path, name: str, label: str, title: str) ->
     _colorbar(fig, shade, ax, label)
     _axes_2d(ax, title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def mesh_2d(
@@ -248,8 +247,7 @@ def mesh_2d(
     _axes_2d(ax_u, label)
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    release_figure(fig)
+    save_figure(fig, path, dpi=110)
 
 
 # ------------------------------------------------------------------------------- 3D (pyvista)
@@ -273,8 +271,7 @@ def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> Non
     ax.legend()
     ax.set_title(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def bin_average(
@@ -367,8 +364,7 @@ def plot_pressure(
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def convergence_chart(grid: None, *, path: str | Path, rows: list[dict], title: str) -> None:

@@ -31,6 +31,8 @@ import warnings
 from pathlib import Path
 from typing import Any
 
+from . import figures
+
 #: draw the 2D pictures of ``contact run`` in a process of their own (False: in the
 #: command's process, the old path, kept to measure the difference)
 ENABLED = True
@@ -74,18 +76,17 @@ class PictureProcess:
 
     def takes(self, draw: Any, grid: Any) -> bool:
         """Whether the process can draw ``draw(grid)``: a function of :mod:`.drawing` with
-        its keywords bound, on a :class:`~contact.output.grid.Grid` (or none, a chart),
-        :mod:`.figures` on its default path, and the process has taken a picture before or
+        its keywords bound, on a :class:`~contact.output.grid.Grid` (or none, a chart), and
+        the process has taken a picture before or
         still runs (one that ended before its first picture leaves the pictures to the
         command's process; one that ends later fails those it has not drawn)."""
         import functools
 
-        from . import drawing, figures
+        from . import drawing
         from .grid import Grid
 
         return (
             (self.used or self.proc.poll() is None)
-            and not figures.PYPLOT  # the process draws with the defaults
             and isinstance(draw, functools.partial)
             and getattr(draw.func, "__module__", None) == drawing.__name__
             and (grid is None or isinstance(grid, Grid))
@@ -96,7 +97,8 @@ class PictureProcess:
         (a process that has ended fails it there)."""
         self.used = True
         self.pending.append(name)
-        payload = pickle.dumps((draw, grid), protocol=pickle.HIGHEST_PROTOCOL)
+        switches = {name: getattr(figures, name) for name in figures.SWITCHES}
+        payload = pickle.dumps((switches, draw, grid), protocol=pickle.HIGHEST_PROTOCOL)
         try:
             assert self.proc.stdin is not None
             pickle.dump((name, payload), self.proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
@@ -194,8 +196,9 @@ def _category(name: str) -> type[Warning]:
 
 
 def serve() -> None:
-    """The picture process: read (name, pickled (draw, grid)) from stdin until it closes,
-    call ``draw(grid)`` for each and answer (name, error or None, warnings) on stdout."""
+    """The picture process: read (name, pickled (switches, draw, grid)) from stdin until it
+    closes, set the command's switches of :mod:`.figures`, call ``draw(grid)`` for each and
+    answer (name, error or None, warnings) on stdout."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the command's to handle
     replies = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # what a library prints goes to stderr, not into the replies
@@ -209,8 +212,10 @@ def serve() -> None:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("default")
             try:
-                draw, grid = pickle.loads(payload)
+                switches, draw, grid = pickle.loads(payload)
                 del payload
+                for switch, value in switches.items():  # the command's (contact.output.figures)
+                    setattr(figures, switch, value)
                 draw(grid)
                 error = None
             except Exception as err:  # noqa: BLE001 - the picture's failure, sent back

@@ -36,7 +36,7 @@ from .drawing import (
     raster,
     smooth_shading,
 )
-from .figures import new_figure, release_figure
+from .figures import new_figure, save_figure
 from .vtk import Grid, gather_grid
 
 __all__ = [
@@ -553,8 +553,7 @@ def plot_traction(
         title = f"{title}\n{len(shown)} of {len(steps)} load steps drawn, evenly spaced"
     axes[0].set_title(title, fontsize=10)
     fig.tight_layout(rect=(0, 0, 0.83, 1))
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def plot_force_displacement(
@@ -598,8 +597,7 @@ def plot_force_displacement(
     ax.legend(fontsize=8)
     ax.set_title(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float = 1.0) -> None:
@@ -630,8 +628,7 @@ def plot_traction_map(path: str | Path, table: dict, title: str = "", t: float =
         ax.set_ylabel(f"{labels[1]} ({LENGTH})")
     fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def _tangential_arrows(ax, P: np.ndarray, table: dict, keep: list[int], t: float) -> None:

@@ -6,6 +6,8 @@ and its wall seconds are printed beside them.  The tiny run is ``contact run
 configs/signorini_square.yaml --set mesh.cells=[8,8]`` with its default outputs (pictures
 included).  Beside it, in the same round so that ratios are of one machine state:
 
+* ``--old-png``: the PNG files compressed at zlib level 6, matplotlib's default
+  (``contact.output.figures.PNG_LEVEL``; the new level is 1);
 * ``--old-plots``: the pictures drawn through matplotlib.pyplot
   (``contact.output.figures.PYPLOT``, the old path; the new one draws on Figures of their own);
 * ``--old-gc``: the cyclic garbage collector on while the command loads its modules and scene
@@ -30,8 +32,8 @@ package or a repeated run has it: without that cache every run compiles contact'
 again, about 0.1 s CPU.  ``--no-bytecode-cache`` keeps the inherited environment.
 Writes CSV.
 
-    python demos/bench/bench_startup.py --repeat 5 --old-process --old-plots --old-gc \\
-        --old-grid --out demos/results/startup.csv
+    python demos/bench/bench_startup.py --repeat 5 --old-process --old-png --old-plots \\
+        --old-gc --old-grid --out demos/results/startup.csv
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ SWITCHES = {
     "old_plots": "import contact.output.figures as figures; figures.PYPLOT = True\n",
     "old_gc": "import contact.app.cli as cli; cli.FREEZE_LOADED = False\n",
     "old_process": "import contact.output.picture_process as pp; pp.ENABLED = False\n",
+    "old_png": "import contact.output.figures as figures; figures.PNG_LEVEL = 6\n",
 }
 #: what the tiny run's child prints after it: the modules other than contact's it loaded
 LOADED = (
@@ -130,6 +133,7 @@ def main() -> None:
     ap.add_argument(
         "--old-process", action="store_true", help="alternate with the pictures drawn in-process"
     )
+    ap.add_argument("--old-png", action="store_true", help="alternate with PNG zlib level 6")
     ap.add_argument(
         "--no-bytecode-cache", action="store_true", help="keep the inherited environment"
     )
@@ -139,6 +143,8 @@ def main() -> None:
     cases: list[tuple[str, tuple[str, ...], list[str]]] = [("tiny run", (), [])]
     if args.old_process:
         cases.append(("tiny run, pictures in-process (old)", ("old_process",), []))
+    if args.old_png:
+        cases.append(("tiny run, PNG zlib level 6 (old)", ("old_png",), []))
     if args.old_plots:
         cases.append(("tiny run, pictures through pyplot (old)", ("old_plots",), []))
     if args.old_gc:
@@ -222,6 +228,7 @@ def main() -> None:
             f"{median_wall('tiny run') / median_wall(old):.2f}"
         )
     for flag, case in (
+        (args.old_png, "PNG zlib level 6"),
         (args.old_plots, "pyplot"),
         (args.old_gc, "collector"),
         (args.old_grid, "pyvista grid"),
