@@ -110,15 +110,17 @@ def test_adaptive_pictures_of_the_process_have_the_pixels_of_the_command(tmp_pat
 
 
 #: the picture process replaced by one that reads a byte of its first picture and then
-#: exits with code 7 / is killed by SIGKILL / raises in the drawing of solution.png
+#: exits with code 7 / is killed by SIGKILL
 ENDS = "import sys; sys.stdin.buffer.read(1); sys.exit(7)"
 KILLED = "import os, signal, sys; sys.stdin.buffer.read(1); os.kill(os.getpid(), signal.SIGKILL)"
-FAILS = (
+#: the drawing of solution.png raises / kills the child drawing it
+FAILS, DIES = (
     "pp._BOOT = pp._BOOT.replace('from contact.output.picture_process import serve',"
-    " 'import contact.output.drawing as d\\n"
-    'def boom(*args, **kw): raise ValueError("planted")\\n'
+    " 'import os, signal\\nimport contact.output.drawing as d\\n"
+    f"def boom(*args, **kw): {action}\\n"
     "d.solution_2d = boom\\n"
     "from contact.output.picture_process import serve')"
+    for action in ('raise ValueError("planted")', "os.kill(os.getpid(), signal.SIGKILL)")
 )
 
 
@@ -126,8 +128,8 @@ def test_a_picture_process_that_ends_costs_a_warning_per_picture(tmp_path):
     """A picture process that exits or is killed while the command waits for its
     pictures: one warning line per picture naming how it ended, exit code 0, the data
     files and summary.json written (which says the pictures were not), no partial
-    picture and no process left.  A picture that fails in the process: its own warning,
-    the other picture written."""
+    picture and no process left.  A picture that fails in the process, or whose drawing
+    child is killed: its own warning, the other picture written."""
     for name, boot, how in (("ends", ENDS, "exit code 7"), ("killed", KILLED, "signal 9")):
         (code, mpl, pid, alive, children), lines = one_run(
             tmp_path, name, before=f"pp._BOOT = {boot!r}"
@@ -153,13 +155,24 @@ def test_a_picture_process_that_ends_costs_a_warning_per_picture(tmp_path):
         "contact: warning: solution.png not written: ValueError: planted"
     ], lines
     assert [p.name for p in (tmp_path / "fails").glob("*.png")] == ["pressure.png"]
+    (code, _, _, alive, children), lines = one_run(tmp_path, "dies", before=DIES)
+    assert code == 0 and not alive and children == []
+    assert [ln for ln in lines if "not written" in ln] == [
+        "contact: warning: solution.png not written: the process drawing it ended (signal 9)"
+    ], lines
+    assert [p.name for p in (tmp_path / "dies").glob("*.png")] == ["pressure.png"]
 
 
 def test_no_picture_process_is_left_without_pictures_or_after_a_failure(tmp_path):
-    """``output.png=false``: the process started with the command is ended as soon as the
-    scene says so; a run that fails (exit 2, a bad key; exit 1, no convergence) ends it too."""
-    (code, mpl, pid, alive, children), _ = one_run(tmp_path, "bare", "output.png=false")
+    """``--set output.png=false``: no process is started; a scene whose pictures are off in a
+    way the command reads only when it validates the scene (here ``--set output={png:
+    false}``): the process started with the command is ended as soon as the scene is
+    loaded; a run that fails (exit 2, a bad key; exit 1, no convergence) ends it too."""
+    (code, mpl, pid, _, children), _ = one_run(tmp_path, "bare", "output.png=false")
+    assert code == 0 and not mpl and pid is None and children == []
+    (code, mpl, pid, alive, children), _ = one_run(tmp_path, "late", "output={png: false}")
     assert code == 0 and not mpl and pid is not None and not alive and children == []
+    assert not list((tmp_path / "late").glob("*.png"))
     scene = small_scene(tmp_path / "scene.yaml")
     script = (
         "import json, os, sys\n"
