@@ -87,7 +87,7 @@ class PictureProcess:
         with theirs:
             self.proc = subprocess.Popen(
                 [sys.executable, "-P", "-c", _BOOT.format(root=root)],
-                stdin=theirs,
+                stdin=theirs.fileno(),
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,
                 process_group=0,  # with the children it draws in: close() can end them all
