@@ -35,7 +35,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_hyperelastic.py`` — finite deformation (issue 31): plain Newton against
    the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
    the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls, Coulomb
-   friction between two neo-Hookean blocks in 2D and 3D (about 15 minutes);
+   friction between two neo-Hookean blocks in 2D and 3D, adaptivity and grid sequencing of two
+   neo-Hookean cylinders (about 20 minutes);
    ``demos/bench/bench_ironing.py`` — the ironing benchmark in plane strain on three meshes,
    the die's forces against the sliding distance (about 2 minutes);
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
@@ -277,6 +278,7 @@ STEPS = {
             ["adaptive", "--case", "indentation"],
             ["sequence"],
             ["drag"],
+            ["pairs"],
         )
     ]
     + [[PY, "demos/bench/bench_ironing.py", "--out", "demos/results/hyperelastic"]],

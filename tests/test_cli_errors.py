@@ -160,11 +160,15 @@ CASES = {
     ),
     "max_it_zero": Case("solver.max_it: must be > 0, got 0", {"solver.max_it": 0}),
     "degree_three": Case("mesh.degree: 3 is not one of 1, 2", {"mesh.degree": 3}),
-    "degree_two_obstacle": Case(
-        "mesh.degree: 2 does not work for an obstacle scene",
+    "residual_p2_obstacle_3d": Case(
+        "estimator: residual does not converge with a P2 obstacle solution in 3D",
         {
             "model": "obstacle",
+            "mesh.type": "box",
+            "mesh.corners": [[0, 0, 0], [1, 1, 1]],
+            "mesh.cells": [2, 2, 2],
             "mesh.degree": 2,
+            "estimator": "residual",
             "boundaries.bottom": DELETE,
             "data.g": DELETE,
             "data.psi": "-1",
@@ -297,8 +301,18 @@ CASES = {
         {"boundaries.bottom": {"where": "y < 1e-10"}},
     ),
     "overlapping_parts": Case(
-        "boundaries: bottom and sides share",
+        "boundaries: sides and bottom share",
         {"boundaries.sides.where": "x < 1e-10 or x > 1 - 1e-10 or y < 1e-10"},
+        contains="parts must not overlap",
+    ),
+    # Two overlapping pairs (top/bottom, sides/left): the first pair in the file's order is
+    # named, not the first two names in alphabetical order ("bottom and left").
+    "two_overlapping_pairs": Case(
+        "boundaries: top and bottom share",
+        {
+            "boundaries.bottom.where": "y < 1e-10 or y > 1 - 1e-10",
+            "boundaries.left": {"role": "neumann", "where": "x < 1e-10"},
+        },
         contains="parts must not overlap",
     ),
     "no_boundaries": Case("boundaries: at least one boundary part is required", {"boundaries": {}}),

@@ -19,7 +19,9 @@ bound) and ∫_E |ρ |s_t| + λ_t·s_t| ds (slip; ≥ 0 and zero when the law ho
 For the obstacle problem (constraint σ(u − ψ) ≤ 0 in Ω, λ = −div(k∇u) − f) the same
 terms live in the cells: the volume residual is f + λ_h + div(k∇u_h), the sign term is
 h_T² ‖(σλ_h)⁺‖²_T and the complementarity term ∫_T min(σλ_h, 0) σ(u_h − ψ) dx.  h_T is
-the cell diameter, h_E the facet size.  η = (Σ_T η_T²)^{1/2}.
+the cell diameter, h_E the facet size.  η = (Σ_T η_T²)^{1/2}.  A P2 obstacle solution's
+λ_h enters as the P1 density of its reactions (:func:`vertex_density`; 2D only: in 3D the
+residual estimator is refused, :data:`RESIDUAL_P2_OBSTACLE_3D`).
 
 The complementarity integrand is taken in absolute value: it equals
 min(λ_h, 0)(u_h − g) ≥ 0 whenever u_h ≤ g, and stays a non-negative indicator (instead of
@@ -38,12 +40,21 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base.errors import ConfigError
 from ..models.constraints import Friction, MortarPair, RigidObstacle, Unilateral
 from ..models.discrete import Problem
 from ..models.physics import BoundaryData, Diffusion, Elasticity
+from ..models.problem import iso_p2_rule, iso_p2_weights
 from ..solvers import Result
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
+#: the refusal of the residual estimator for a P2 obstacle problem in 3D (also by the scene's
+#: configuration when its mesh shows the dimension): the vertices of a contact zone are
+#: lifted by O(h²) (docs/theory.md §1.2), so div(k∇u_h) oscillates by O(λ) there
+RESIDUAL_P2_OBSTACLE_3D = (
+    "estimator: residual does not converge with a P2 obstacle solution in 3D (its volume "
+    "term sees the vertices lifted off the obstacle in the contact zone); use equilibrated"
+)
 #: the estimators of :func:`estimate`: the residual estimator (this module) and the guaranteed
 #: bounds of an equilibrated flux (:mod:`.equilibration`), σ_h ∈ RT_p or, for a P1 solution,
 #: the lowest-order flux σ_h ∈ RT_0
@@ -180,6 +191,10 @@ def scalar_terms(
     sigma = problem.constraint.sign
     flux = physics.flux(u_h)  # k ∇u_h
     obstacle = condition.in_domain
+    if obstacle and iso_p2_rule(problem.V, ufl.dx) is not None:
+        if msh.topology.dim == 3:
+            raise ConfigError(RESIDUAL_P2_OBSTACLE_3D)
+        lmbda_h = vertex_density(lmbda_h)
 
     residual = f + ufl.div(flux) + (lmbda_h if obstacle else 0)
     terms = {
@@ -207,6 +222,52 @@ def scalar_terms(
             terms["sign"] += ufl.max_value(lmbda_h, 0) ** 2 * w * ds(i)
             terms["complementarity"] += abs(ufl.min_value(lmbda_h, 0) * (u_h - g)) * w * ds(i)
     return terms
+
+
+def vertex_density(lmbda_h: fem.Function) -> fem.Function:
+    """The multiplier of a P2 obstacle solution as a P1 density, for the residual terms.
+
+    The nodal λ_i = R_i / w_i of a P2 solution alternates between the vertices (λ_i ≈ 0:
+    their loads ∫ λ φ_i are O(h²) or negative) and the edge midpoints (≈ 4λ/3 in 2D), an
+    O(λ) oscillation in every cell of a contact zone that the volume residual would measure
+    as error.  Tested with the P1 hats ψ_a instead, the reactions are smooth:
+
+        λ̄_a = R(ψ_a) / ∫ ψ_a,    R(ψ_a) = Σ_i ψ_a(x_i) R_i = Σ_i ψ_a(x_i) w_i λ_i,
+
+    (units of λ: a flux per volume), the nodal rule of the weights w_i
+    (:func:`~contact.models.problem.iso_p2_rule`) integrating ψ_a λ_h to Σ_i w_i λ_i ψ_a(x_i)
+    exactly, and ∫ ψ_a exactly (ψ_a is affine on each cell).  λ̄ ≥ 0 where every λ_i ≥ 0
+    (σ = −1; ≤ 0 for σ = +1): its sign is the multiplier's.  Collective.
+
+    Args:
+        lmbda_h: λ_h on the P2 space of u_h.
+
+    Returns:
+        λ̄_h on the P1 space of the same mesh.
+    """
+    V = lmbda_h.function_space
+    msh = V.mesh
+    points, weights = iso_p2_weights(msh.topology.dim)
+    dx = ufl.dx(
+        domain=msh,
+        metadata={
+            "quadrature_rule": "custom",
+            "quadrature_points": points,
+            "quadrature_weights": weights,
+        },
+    )
+    P1 = fem.functionspace(msh, ("Lagrange", 1))
+    psi = ufl.TestFunction(P1)
+    reaction, area = (
+        fem.assemble_vector(fem.form(form)) for form in (psi * lmbda_h * dx, psi * dx)
+    )
+    for vector in (reaction, area):
+        vector.scatter_reverse(la.InsertMode.add)
+    density = fem.Function(P1, name="lambda_P1")
+    n = P1.dofmap.index_map.size_local
+    density.x.array[:n] = reaction.array[:n] / area.array[:n]
+    density.x.scatter_forward()
+    return density
 
 
 def elasticity_terms(
@@ -352,6 +413,13 @@ def interface_terms(
     over like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
     T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None;
     ``ds`` the measure of the other terms (default: over the boundary parts' tags).
+
+    Hyperelastic bodies (their pairs coupled on the current configuration): T = P(u_h) N is
+    the nominal traction on the reference facet (normal N), n the facet's current normal
+    n = cof F N / |cof F N| and the pressures λ_h, λ^m, λ_t (per current area) enter per
+    reference area, times the stretch da/dA = |cof F N| (Nanson: n da = cof F N dA), so
+    that T = (da/dA) λ n at equilibrium: consistency h_E ((da/dA) λ_h − T·n)², tangential
+    h_E ‖T_t − (da/dA) λ_t‖²; the gap g_h is the current one of the last coupling.
     """
     from ..models.mortar import master_pressure, master_vector
 
@@ -362,6 +430,13 @@ def interface_terms(
     gap = result.gap.copy()  # the nodal gap, NaN off the constrained nodes → 0
     gap.x.array[np.isnan(gap.x.array)] = 0.0
     lam_m = master_pressure(result)
+    stretch = 1.0  # da/dA: the pressures are per current area at finite strain
+    if physics.law is not None:  # pairs coupled on the current configuration
+        u_h = result.u_h
+        F = ufl.Identity(len(u_h)) + ufl.grad(u_h)
+        nanson = ufl.det(F) * ufl.dot(ufl.inv(F).T, n)  # n da/dA (Nanson)
+        stretch = ufl.sqrt(ufl.inner(nanson, nanson))
+        n = nanson / stretch  # the facet's current normal
     Tn = ufl.dot(T, n)
     Tt = T - Tn * n
     zero = fem.Constant(msh, 0.0) * w * ufl.dx(domain=msh)
@@ -373,10 +448,11 @@ def interface_terms(
     # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
     if friction is not None:
         lam_t, slip, rho = friction.lam_t, friction.slip, friction.rho
-        Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
+        Tt_s = Tt - stretch * lam_t
+        Tt_m = Tt + stretch * master_vector(result, lam_t)
         extra.update(friction_bound=zero, slip=zero)
     for i in slave_ids:
-        extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+        extra["consistency"] += h_E * (stretch * lam - Tn) ** 2 * w * ds(i)
         extra["tangential"] += h_E * ufl.inner(Tt_s, Tt_s) * w * ds(i)
         extra["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
         extra["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
@@ -388,7 +464,7 @@ def interface_terms(
                 abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
             )
     for i in master_ids:
-        terms["consistency_master"] += h_E * (lam_m - Tn) ** 2 * w * ds(i)
+        terms["consistency_master"] += h_E * (stretch * lam_m - Tn) ** 2 * w * ds(i)
         extra["tangential"] += h_E * ufl.inner(Tt_m, Tt_m) * w * ds(i)
     return {**extra, **terms}
 

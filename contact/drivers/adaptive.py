@@ -254,7 +254,9 @@ def adapt(
             all but the last.
         solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
             of ``contact.drivers.solve.solve``, a first level without a guess sequenced
-            over the domain's ancestors).
+            over the domain's ancestors); it may solve another problem on the level's
+            domain (its result's ``problem``, e.g. a coupling re-built on the current
+            configuration), which the level then keeps and estimates.
         budget: the most DoFs one solve may have (a memory budget), or None.
         stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
             needs an equilibrated ``kind``), or None: fixed tolerances.
@@ -319,6 +321,9 @@ def adapt(
             previous=previous,
             solved=release_previous,
         )
+        # a level's solve may have solved another problem on its mesh (pairs re-coupled on
+        # the current configuration): the level is that of its result
+        problem = result.problem or problem
         with Timer(seconds, "error"):
             error = solution_error(problem, result)
         level = Level(
@@ -554,7 +559,7 @@ def solve_level(
         if solved is not None:
             solved(result)
         with Timer(seconds, "estimate"):
-            est = estimate(problem, result, kind)
+            est = estimate(result.problem or problem, result, kind)
         krylov += result.krylov_iterations
         passes += 1
         if (

@@ -88,7 +88,9 @@ class Unilateral:
 
     Where it holds: ``measure`` — ``ufl.dx`` (default: every node of Ω, the obstacle
     problem) or ``ds(tag)`` with the facet tags as its ``subdomain_data`` (the nodes of those
-    facets, a Signorini condition); its weights w_i = ∫ φ_i d(measure).  On a vector space
+    facets, a Signorini condition); its weights w_i = ∫ φ_i d(measure) (P2 on triangles and
+    tetrahedra: the P1-iso-P2 lumped mass, positive where ∫ φ_i is not;
+    :func:`~contact.models.problem.lumped_weights`).  On a vector space
     the constraint acts on one ``component`` u_k (e.g. the normal displacement against a
     plane): its DoFs there, and a bound given as a number, values at those DoFs, or a
     scalar f(x).  Or explicit ``dofs`` (owned local indices of V, any components) with
@@ -204,8 +206,8 @@ class Unilateral:
         w = lumped_weights(V, measure, self.component)[dofs]
         if comm.allreduce(bool(np.any(w <= 0)), op=MPI.LOR):
             raise ValueError(
-                "Unilateral.measure: some constrained DoFs have ∫ φ_i = 0 "
-                "(e.g. P2 vertices); use P1 or give dofs and weights"
+                "Unilateral.measure: some constrained DoFs have a lumped weight ≤ 0; "
+                "give dofs and weights"
             )
         return dofs, w
 

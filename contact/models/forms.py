@@ -12,10 +12,11 @@ C, the problem is (SPEC §2)
 
 with R_i(u) = F(u; φ_i), σ = +1 for u ≤ g (``side="upper"``) and −1 for u ≥ g
 (``side="lower"``), lumped weights w_i = ∫ φ_i over the constraint's measure (dx: the
-obstacle problem; ds(tag): a Signorini condition on the tagged facets) or given, and λ_h the
-nodal multiplier density: F(u_h; v) = Σ_i w_i λ_i v_i.  A linear problem is assembled once
-(K, b); a nonlinear one re-assembles R(x) and its tangent K_T(x) = J(x) at every Newton
-iterate (:class:`ResidualProblem`).
+obstacle problem; ds(tag): a Signorini condition on the tagged facets; P2 on triangles and
+tetrahedra: the P1-iso-P2 lumped mass, :func:`~contact.models.problem.lumped_weights`) or
+given, and λ_h the nodal multiplier density: F(u_h; v) = Σ_i w_i λ_i v_i.  A linear problem
+is assembled once (K, b); a nonlinear one re-assembles R(x) and its tangent K_T(x) = J(x)
+at every Newton iterate (:class:`ResidualProblem`).
 
     problem = ComplementarityProblem.from_residual(F, u, Unilateral(psi, side="lower"), [bc])
     result = problem.solve(method="fb")      # result.u_h is u; result.lmbda_h, .active, .history

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import basix
 import dolfinx.fem.petsc
 import numpy as np
 import ufl
@@ -95,16 +96,23 @@ def lumped_weights(
     """w_i = ∫ φ_i over ``measure`` for the owned DoFs (ghost contributions summed); for a
     vector space, of the DoFs of one ``component`` (0 at the others).
 
-    P2 on the triangles of a 3D boundary: ∫ φ_i = 0 at the vertices (the P2 vertex functions
-    integrate to zero over a triangle), so a vertex would carry no weight.  There the weights
-    are those of the P1-iso-P2 lumping instead — the P1 hats of the triangle split into four
-    at its edge midpoints, i.e. the positive rule with the P2 nodes as points and weights
-    |T|/12 (vertices), |T|/4 (edge midpoints), exact for affine functions
-    (:data:`ISO_P2_TRIANGLE`): a uniform pressure p then gives the nodal forces p ∫ φ_i,
-    which vanish at the vertices, so λ_i = R_i / w_i alternates between 0 (vertices) and
-    4p/3 (edge midpoints) of an interior patch while the force Σ R_i is exact."""
-    if _iso_p2_facets(V, measure):
-        points, weights = ISO_P2_TRIANGLE
+    P2 on triangles or tetrahedra (the cells of an obstacle problem, ``dx``; the triangles
+    of a 3D boundary, ``ds``): the P2 vertex functions integrate to 0 over a triangle and to
+    −|T|/20 over a tetrahedron, so a vertex would carry no weight or a negative one.  There
+    w_i is the P1-iso-P2 lumped mass instead: the integral of the P1 hat of node i on the
+    simplex split at its edge midpoints (4 triangles; 8 tetrahedra, the inner octahedron's
+    volume shared equally by its 6 vertices, the mean over its three diagonal splits), i.e.
+    the positive nodal rule of :func:`iso_p2_rule` — |T|/12 at the vertices and |T|/4 at the
+    edge midpoints of a triangle, |T|/32 and 7|T|/48 on a tetrahedron —, exact for affine
+    functions.  Units: those of the measure (area on Γ_C, volume in Ω), so λ_i = R_i / w_i
+    is a density (a pressure, a flux per area or volume).  The discrete solution does not
+    depend on positive weights (R_i ≥ 0, σ(g_i − u_i) ≥ 0, R_i (g_i − u_i) = 0 is the same
+    for any w_i > 0); they give λ_h and the contact measure Σ_{i active} w_i.  A uniform
+    density p gives the nodal forces p ∫ φ_i, so λ_h alternates between the vertices (≤ 0)
+    and the edge midpoints of a patch in full contact, while the total Σ R_i is exact."""
+    rule = iso_p2_rule(V, measure)
+    if rule is not None:
+        points, weights = rule
         measure = measure.reconstruct(
             metadata={
                 "quadrature_rule": "custom",
@@ -112,6 +120,13 @@ def lumped_weights(
                 "quadrature_weights": weights,
             }
         )
+    return _nodal_integrals(V, measure, component)
+
+
+def _nodal_integrals(
+    V: fem.FunctionSpace, measure: ufl.Measure, component: int | None = None
+) -> np.ndarray:
+    """∫ φ_i over ``measure`` (with its quadrature) for the owned DoFs, ghosts summed."""
     v = ufl.TestFunction(V)
     w = dolfinx.fem.petsc.assemble_vector(
         fem.form((v if component is None else v[component]) * measure)
@@ -123,22 +138,71 @@ def lumped_weights(
     return out
 
 
-#: the P1-iso-P2 lumping rule on the reference triangle (area 1/2): the six P2 nodes, weights
-#: 1/12 and 1/4 of the area (:func:`lumped_weights`)
-ISO_P2_TRIANGLE = (
-    np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]]),
-    np.array([1.0 / 24] * 3 + [1.0 / 8] * 3),
-)
+#: the P1-iso-P2 fractions of a simplex's measure that each vertex and each edge midpoint
+#: carries, by the simplex's dimension (:func:`lumped_weights`): on a triangle the P1 hats
+#: of its 4 subtriangles, on a tetrahedron those of its 8 subtetrahedra (the octahedron's
+#: share 1/2 split equally among its 6 vertices); n_vertices · vertex + n_edges · edge = 1
+ISO_P2_FRACTIONS = {2: (1.0 / 12, 1.0 / 4), 3: (1.0 / 32, 7.0 / 48)}
 
 
-def _iso_p2_facets(V: fem.FunctionSpace, measure: ufl.Measure) -> bool:
-    """Whether ``measure`` integrates over the triangles of a tetrahedral mesh's boundary
-    and V is P2 (:func:`lumped_weights`)."""
-    return (
-        measure.integral_type() == "exterior_facet"
-        and V.mesh.topology.cell_name() == "tetrahedron"
-        and V.ufl_element().embedded_superdegree == 2
+def iso_p2_weights(dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """The P1-iso-P2 rule on the reference simplex of dimension ``dim`` (2 or 3): its P2
+    nodes (vertices, then edge midpoints in basix's edge order) and weights (they sum to
+    the reference measure 1/2 or 1/6)."""
+    cell = basix.CellType.triangle if dim == 2 else basix.CellType.tetrahedron
+    vertices = np.asarray(basix.geometry(cell))
+    edges = basix.topology(cell)[1]
+    points = np.vstack([vertices, [0.5 * (vertices[a] + vertices[b]) for a, b in edges]])
+    vertex, edge = ISO_P2_FRACTIONS[dim]
+    volume = 0.5 if dim == 2 else 1.0 / 6
+    weights = volume * np.array([vertex] * len(vertices) + [edge] * len(edges))
+    return points, weights
+
+
+def iso_p2_rule(V: fem.FunctionSpace, measure: ufl.Measure) -> tuple | None:
+    """(points, weights) of :func:`iso_p2_weights` when V is P2 and ``measure`` integrates
+    over triangles or tetrahedra (the cells of a 2D or 3D mesh, the facets of a tetrahedral
+    one), else None (:func:`lumped_weights`)."""
+    if V.ufl_element().embedded_superdegree != 2:
+        return None
+    cell = V.mesh.topology.cell_name()
+    kind = measure.integral_type()
+    if kind == "cell" and cell in ("triangle", "tetrahedron"):
+        return iso_p2_weights(V.mesh.topology.dim)
+    if kind == "exterior_facet" and cell == "tetrahedron":
+        return iso_p2_weights(2)
+    return None
+
+
+def active_weights(V: fem.FunctionSpace) -> np.ndarray:
+    """The measure m_i each owned DoF of V stands for in the measure of an obstacle
+    problem's contact set, |A_h| = Σ_{i ∈ A} m_i over the active nodes A (units of volume:
+    area in 2D).
+
+    P1: m_i = w_i, the lumped weights.  P2 on triangles or tetrahedra: m_i = Σ_{T ∋ i} |T| /
+    n_e at the edge midpoints (n_e = 3 or 6 edges) and 0 at the vertices — so a cell counts
+    with the fraction of its edge midpoints that are active.  For P2 the forces of a contact
+    zone sit on the edge midpoints: an interior vertex's load ∫ λ φ_i is O(h²) of either
+    sign for a smooth density λ (∫ φ_i ≤ 0), so the discrete solution leaves most vertices
+    of the contact zone free, lifted above ψ by O(h³); counting the active nodes with the
+    P1-iso-P2 weights w_i would miss their share (a quarter of the area in 2D) at any h.
+    In 2D m_i = ∫ φ_i (the P2 vertex functions integrate to 0 over a triangle)."""
+    if iso_p2_rule(V, ufl.dx) is None:
+        return lumped_weights(V, ufl.dx(domain=V.mesh))
+    dim = V.mesh.topology.dim
+    points, weights = iso_p2_weights(dim)
+    n_vertices = dim + 1
+    weights = np.zeros_like(weights)
+    weights[n_vertices:] = (0.5 if dim == 2 else 1.0 / 6) / (len(weights) - n_vertices)
+    measure = ufl.dx(
+        domain=V.mesh,
+        metadata={
+            "quadrature_rule": "custom",
+            "quadrature_points": points,
+            "quadrature_weights": weights,
+        },
     )
+    return _nodal_integrals(V, measure)
 
 
 #: initial gaps within TIE_RTOL × (the largest coordinate, at least 1) of the smallest count as

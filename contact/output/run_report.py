@@ -30,6 +30,7 @@ from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
 from ..drivers.adaptive import AdaptResult
+from ..models.problem import active_weights
 from ..post.comparison import Comparison
 from ..post.contact_table import Table, contact_table, view_normal
 from ..post.interface import resultants
@@ -57,9 +58,16 @@ def active_measure(result: Result) -> float:
     elasticity scenes, so it is a length in 2D (m, an area in 3D) — of the modelled part
     only when symmetry planes cut the body.  With every constrained node active it is
     |Ω| (obstacle) or |Γ_C| (Signorini) less the weight of the nodes on the closure of
-    Γ_D, which carry no constraint.  For a contact disc of radius a, sqrt(|A_h|/π) ≈ a."""
+    Γ_D, which carry no constraint.  For a contact disc of radius a, sqrt(|A_h|/π) ≈ a.
+    A P2 obstacle problem counts each cell of Ω with the fraction of its edge midpoints that
+    are active instead (:func:`~contact.models.problem.active_weights`: the vertices of a
+    P2 contact zone are mostly free, lifted by O(h³))."""
     con = result.problem.constraint
-    local = float(np.sum(con.w[result.active_mask]))
+    V = result.u_h.function_space
+    w = con.w
+    if con.in_domain and V.ufl_element().embedded_superdegree == 2:
+        w = active_weights(V)[con.dofs]
+    local = float(np.sum(w[result.active_mask]))
     return result.u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
 
 

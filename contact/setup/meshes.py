@@ -460,10 +460,15 @@ def tag_boundaries(
     uniq, counts = np.unique(all_facets, return_counts=True)
     shared = comm.allreduce(int(np.sum(counts > 1)), op=MPI.SUM)
     if shared:
-        dup = uniq[counts > 1]
-        names = [c[2] for c in chunks if np.isin(c[0], dup).any()] if len(dup) else []
-        names = comm.allreduce(names, op=MPI.SUM)
-        pair = " and ".join(sorted(set(names))[:2]) or "two parts"
+        # The first two parts, in the order of boundaries, that share a facet on any rank.
+        pairs = [
+            (i, j)
+            for i in range(len(chunks))
+            for j in range(i + 1, len(chunks))
+            if np.intersect1d(chunks[i][0], chunks[j][0]).size
+        ]
+        i, j = min(comm.allreduce(pairs, op=MPI.SUM))
+        pair = f"{chunks[i][2]} and {chunks[j][2]}"
         raise ConfigError(f"boundaries: {pair} share {shared} facet(s); parts must not overlap")
     # Exterior facets of no part: the natural condition k ∂u/∂n = 0, tagged so that the
     # estimator sees them as Neumann edges with t = 0.

@@ -14,6 +14,7 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py recouple      # mortar re-coupling: Aitken vs plain
     python demos/bench/bench_hyperelastic.py sequence      # grid sequencing of the first step
     python demos/bench/bench_hyperelastic.py drag          # Coulomb between bodies, 2D and 3D
+    python demos/bench/bench_hyperelastic.py pairs         # adapt and sequencing of two bodies
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -115,6 +116,16 @@ the held top, the couplings and Newton iterations, the stick / slip / separated 
 (drag and press) and its balance with the master's, |f_slave + f_master| / |f_slave|; CPU
 seconds of the whole path.  Writes two_body_drag.csv.
 
+``pairs`` — two neo-Hookean cylinders (configs/two_body_hertz_2d.yaml made hyperelastic,
+re-coupled on the current configuration) pressed to δ = 0.1 R_c in one step: Dörfler
+(θ = 0.5, ``--levels`` 6) and uniform refinement (``--uniform-levels`` 3) from the shipped
+mesh, per level DoFs, η, the contact force, couplings and Newton iterations, and the
+interface forces' balance; then grid sequencing (``solver.sequence: 2`` against off) at
+δ = 0.1 R_c on the shipped mesh and with h_contact = 0.025, and at 0.2 R_c: the fine
+Newton iterations and couplings, the coarse levels, the force, CPU seconds (the smaller of
+two alternating runs in this process) and their ratio.  Writes pairs_adaptive.csv and
+pairs_sequence.csv.
+
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
 
@@ -126,11 +137,13 @@ import functools
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import contact  # noqa: F401  (before petsc4py)
 import contact.setup.run as scene_run
 from contact import refine
+from contact.base.errors import ContactWarning
 from contact.drivers import recouple as recouple_driver
 from contact.models.hyperelastic import min_det_F, negative_eigenvalues
 
@@ -938,6 +951,92 @@ def drag(out: Path) -> None:
     save_csv(out / "two_body_drag.csv", rows)
 
 
+HERTZ_2D = ROOT / "configs" / "two_body_hertz_2d.yaml"
+NEO_HOOKEAN = ["model.type=hyperelastic", "model.law=neo_hookean", "output.verbose=false"]
+#: the sequencing cases of the ``pairs`` part: (δ, the mesh's h_contact or None: shipped)
+PAIRS_SEQUENCE = ((0.8, None), (0.8, 0.025), (1.6, None))
+
+
+def pairs(out: Path, levels: int, uniform_levels: int) -> None:
+    """Adapt and grid sequencing of two neo-Hookean cylinders (module doc)."""
+    # the half-disks' arcs away from the contact carry σn = 0, as shipped
+    warnings.filterwarnings("ignore", "boundary: .* exterior facet", ContactWarning)
+    rows = []
+    for strategy, count in (("dorfler", levels), ("uniform", uniform_levels)):
+        scene = contact.load_scene(
+            HERTZ_2D,
+            [
+                *NEO_HOOKEAN,
+                "constants.delta=0.8",
+                f"adapt.strategy={strategy}",
+                f"adapt.max_levels={count}",
+                "adapt.max_dofs=1000000",
+            ],
+        )
+        run = contact.adapt(scene, verbose=False)
+        for lv in run.levels:
+            r = lv.result
+            slave, master = r.interface_forces
+            rows.append(
+                {
+                    "strategy": strategy,
+                    "level": lv.index,
+                    "dofs": r.dofs,
+                    "eta": lv.estimate.eta,
+                    "force": r.contact_force,
+                    "couplings": len(r.couplings),
+                    "newton": r.iterations,
+                    "balance": float(np.linalg.norm(slave + master) / np.linalg.norm(slave)),
+                    "solve_seconds": round(lv.seconds["solve"], 2),
+                }
+            )
+            say(
+                ", ".join(
+                    f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in rows[-1].items()
+                )
+            )
+    save_csv(out / "pairs_adaptive.csv", rows)
+    rows = []
+    for delta, h_contact in PAIRS_SEQUENCE:
+        sets = [*NEO_HOOKEAN, "adapt=none", f"constants.delta={delta}"]
+        if h_contact is not None:
+            sets.append(f"mesh.h_contact={h_contact}")
+        runs: dict = {"off": [], 2: []}
+        for _ in range(2):  # alternating: the machine's load hits both alike
+            for mode in runs:
+                scene = contact.load_scene(HERTZ_2D, [*sets, f"solver.sequence={mode}"])
+                t0 = time.process_time()
+                r = contact.solve(scene, verbose=False)
+                runs[mode].append((COMM.allreduce(time.process_time() - t0, op=MPI.MAX), r))
+        cold = min(cpu for cpu, _ in runs["off"])
+        for mode, done in runs.items():
+            cpu, r = min(done, key=lambda x: x[0])
+            rows.append(
+                {
+                    "delta": delta,
+                    "h_contact": h_contact or scene.config.mesh.h_contact,
+                    "sequence": mode,
+                    "dofs": r.dofs,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "couplings": len(r.couplings),
+                    "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
+                    "coarse_newton": " ".join(str(lv.newton_iterations) for lv in r.sequence),
+                    "force": r.contact_force,
+                    "cpu": round(cpu, 3),
+                    "cpu_ratio": round(cpu / cold, 3),
+                }
+            )
+            say(
+                ", ".join(
+                    f"{k} {v:.10g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in rows[-1].items()
+                )
+            )
+    save_csv(out / "pairs_sequence.csv", rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -954,6 +1053,7 @@ def main() -> None:
             "recouple",
             "sequence",
             "drag",
+            "pairs",
         ),
     )
     ap.add_argument("--coarse", type=int, default=2, help="sequence: coarser levels (2)")
@@ -1017,6 +1117,8 @@ def main() -> None:
         )
     elif args.part == "drag":
         drag(args.out)
+    elif args.part == "pairs":
+        pairs(args.out, args.levels or 6, args.uniform_levels or 3)
     else:
         refinement(args.out, args.levels or 4, args.steps, args.top)
 

@@ -38,6 +38,7 @@ from functools import cached_property
 import basix
 import numpy as np
 
+from ...models.problem import ISO_P2_FRACTIONS
 from .reference import CELLS
 
 
@@ -80,7 +81,13 @@ def entity_rule(
         for e, (v0, v1) in enumerate(basix.topology(CELLS[d])[1]):
             if v0 in vertices and v1 in vertices:
                 edges.append((v0, v1, d + 1 + e))
-    return EntityRule(phi, lam, w, basis, w @ phi, hat, np.asarray(vertices), edges)
+    W = w @ phi
+    if p == 2 and len(vertices) > 2:  # a triangle or a tetrahedron: the solve's P1-iso-P2 weights
+        vertex, edge = ISO_P2_FRACTIONS[len(vertices) - 1]
+        W = np.zeros_like(W)
+        W[np.asarray(vertices)] = vertex * w.sum()
+        W[[m for _, _, m in edges]] = edge * w.sum()
+    return EntityRule(phi, lam, w, basis, W, hat, np.asarray(vertices), edges)
 
 
 def shares(
