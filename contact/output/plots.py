@@ -418,7 +418,7 @@ def _solution_3d(path, grid, u_h, lmbda, normal, title) -> None:
 
 
 def _vtk_grid(grid):
-    """A pyvista grid of ``grid`` (a :class:`~contact.output.vtk.Grid` or one already)."""
+    """A pyvista grid of ``grid`` (a :class:`~contact.output.grid.Grid` or one already)."""
     return grid.pyvista() if isinstance(grid, Grid) else grid
 
 

@@ -69,14 +69,14 @@ def cell_rows(fn: fem.Function, n_cells: int | None = None) -> np.ndarray:
 
 
 #: gather_grid returns a pyvista grid (True: the old path, which imports pyvista and VTK
-#: for every file and picture) or a :class:`Grid` (False)
+#: for every file and picture) or a :class:`~contact.output.grid.Grid` (False)
 PYVISTA_GRID = False
 
 
 def gather_grid(
     point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0
 ):
-    """The fields on one :class:`Grid` on rank ``root`` (None elsewhere; collective).
+    """The fields on one :class:`~contact.output.grid.Grid` on rank ``root`` (None elsewhere; collective).
 
     All point fields must be Lagrange of one degree on one mesh (scalar or vector valued);
     the grid's points are that space's nodes (in global DoF order), its cells the owned
@@ -173,7 +173,7 @@ def write_vtu(
 
 
 def save_vtu(path: str | Path, grid) -> None:
-    """Write a :class:`Grid` (or a pyvista/VTK unstructured grid) as ``.vtu`` (VTK XML: the
+    """Write a :class:`~contact.output.grid.Grid` (or a pyvista/VTK unstructured grid) as ``.vtu`` (VTK XML: the
     arrays uncompressed in one raw appended block, each as its byte count, UInt64, and its
     little-endian bytes), which VTK's readers (ParaView, pyvista) and meshio read.
 
