@@ -76,7 +76,8 @@ PYVISTA_GRID = False
 def gather_grid(
     point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0
 ):
-    """The fields on one :class:`~contact.output.grid.Grid` on rank ``root`` (None elsewhere; collective).
+    """The fields on one :class:`~contact.output.grid.Grid` on rank ``root`` (None elsewhere;
+    collective).
 
     All point fields must be Lagrange of one degree on one mesh (scalar or vector valued);
     the grid's points are that space's nodes (in global DoF order), its cells the owned
@@ -173,9 +174,10 @@ def write_vtu(
 
 
 def save_vtu(path: str | Path, grid) -> None:
-    """Write a :class:`~contact.output.grid.Grid` (or a pyvista/VTK unstructured grid) as ``.vtu`` (VTK XML: the
-    arrays uncompressed in one raw appended block, each as its byte count, UInt64, and its
-    little-endian bytes), which VTK's readers (ParaView, pyvista) and meshio read.
+    """Write a :class:`~contact.output.grid.Grid` (or a pyvista/VTK unstructured grid) as
+    ``.vtu`` (VTK XML: the arrays uncompressed in one raw appended block, each as its byte
+    count, UInt64, and its little-endian bytes), which VTK's readers (ParaView, pyvista) and
+    meshio read.
 
     The block holds the arrays in the reverse of their order in the XML: meshio 5.3.5
     re-encodes the arrays one by one in block order and looks each up as the first
