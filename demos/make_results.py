@@ -1883,6 +1883,7 @@ def hyperelastic() -> str:
         _hyper_ironing(),
         _hyper_adaptive_curved(),
         _hyper_drag(),
+        _hyper_kink(),
     ]
     return "\n".join(out)
 
@@ -2319,6 +2320,80 @@ def _hyper_drag() -> str:
         "",
     ]
     return "\n".join(out)
+
+
+def _hyper_kink() -> str:
+    """§11.11: a neo-Hookean tube kinked by end rotations until its inner walls touch."""
+    out = [prose("_hyper_kink", "title"), ""]
+    data = rows(RES / HYPER / "kink.csv")
+    if not data:
+        return "\n".join([*out, missing(f"demos/results/{HYPER}/kink.csv"), ""])
+    fine_n = max(r["path_steps"] for r in data)
+    coarse_n = min(r["path_steps"] for r in data)
+    fine = [r for r in data if r["path_steps"] == fine_n]
+    body = [
+        [
+            f"{r['phi']:.3f}",
+            f"{r['moment']:.5f}",
+            f"{r['beam_moment']:.5f}",
+            f"{r['axial_reaction']:+.5f}",
+            r["pressed"],
+            f"{r['contact_force']:.2e}",
+            r["couplings"],
+            r["newton"],
+            f"{r['min_det_F']:.3f}",
+        ]
+        for r in fine
+    ]
+    header = ["φ", "M", "E I φ / a", "N", "pressed", "contact force", "couplings", "Newton"]
+    header += ["min det F"]
+    k = max(range(len(fine)), key=lambda i: fine[i]["moment"])
+    peak, after = fine[k], fine[min(k + 1, len(fine) - 1)]
+    touch = next((r["phi"] for r in fine if r["pressed"] > 0), float("nan"))
+
+    def span(values) -> str:
+        return f"{min(values):g}–{max(values):g}"
+
+    cpu = ", ".join(
+        f"{n} steps {next(r['path_cpu_seconds'] for r in data if r['path_steps'] == n):g} s"
+        for n in (fine_n, coarse_n)
+    )
+    first = next(r for r in fine if r["phi"] >= 0.1 - 1e-12)
+    out += [
+        prose(
+            "_hyper_kink",
+            "intro",
+            dofs=DOFS_KINK,
+            fine=fine_n,
+            coarse=coarse_n,
+            table=table(header, body),
+        ),
+        "",
+        prose(
+            "_hyper_kink",
+            "summary",
+            beam=f"{abs(first['moment'] / first['beam_moment'] - 1):.1%}",
+            first=f"{first['phi']:g}",
+            peak_phi=f"{peak['phi']:g}",
+            peak=f"{peak['moment']:.5f}",
+            peak_ratio=f"{peak['moment'] / peak['beam_moment']:.2f}",
+            drop=f"{after['phi'] - peak['phi']:.3g} rad",
+            drop_ratio=f"{1 - after['moment'] / peak['moment']:.0%}",
+            last=f"{fine[-1]['moment']:.1e}",
+            touch=f"{touch:g}",
+            pressed=fine[-1]["pressed"],
+            couplings=span([r["couplings"] for r in data]),
+            newton=span([r["newton"] for r in data]),
+            det=f"{min(r['min_det_F'] for r in data):.2f}",
+            cpu=cpu,
+        ),
+        "",
+    ]
+    return "\n".join(out)
+
+
+#: the DoFs of configs/hyperelastic_self_contact_kink.yaml (3 × 3 × 25 × 13 nodes)
+DOFS_KINK = 2925
 
 
 #: the cases of §11.9 (demos/bench/bench_hyperelastic.py adaptive --case ...) and their titles

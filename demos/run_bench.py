@@ -36,7 +36,7 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
    the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls, Coulomb
    friction between two neo-Hookean blocks in 2D and 3D, adaptivity and grid sequencing of two
-   neo-Hookean cylinders (about 20 minutes);
+   neo-Hookean cylinders, a tube kinked into self-contact (about 20 minutes);
    ``demos/bench/bench_ironing.py`` — the ironing benchmark in plane strain on three meshes,
    the die's forces against the sliding distance (about 2 minutes);
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
@@ -279,6 +279,7 @@ STEPS = {
             ["sequence"],
             ["drag"],
             ["pairs"],
+            ["kink"],
         )
     ]
     + [[PY, "demos/bench/bench_ironing.py", "--out", "demos/results/hyperelastic"]],

@@ -46,6 +46,7 @@ from ..models.discrete import Problem
 from ..models.physics import BoundaryData, Diffusion, Elasticity
 from ..models.problem import iso_p2_rule, iso_p2_weights
 from ..solvers import Result
+from .cellwise import assemble_terms
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
 #: the refusal of the residual estimator for a P2 obstacle problem in 3D (also by the scene's
@@ -513,13 +514,6 @@ def check_shared_facets(msh: Any, name: str) -> None:
         )
 
 
-def _assemble_cellwise(form: ufl.Form) -> la.Vector:
-    vec = fem.assemble_vector(fem.form(form))
-    vec.scatter_reverse(la.InsertMode.add)  # interior facets on rank boundaries
-    vec.scatter_forward()
-    return vec
-
-
 def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
     """Estimate the error of a solve of ``problem`` (the ESTIMATE step).
 
@@ -571,24 +565,24 @@ def residual_estimate(
 ) -> Estimate:
     """Return the residual estimator of a solve of ``problem``.
 
-    The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
-    term of η_T² assembled once as a DG0 vector, η_T² their sum, each term's total the sum
+    The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): the
+    terms of η_T² assembled together as DG0 vectors (:func:`.cellwise.assemble_terms`), η_T²
+    their sum, each term's total the sum
     of its owned entries; ``degree``: the cells' degrees of an hp solution (DG0: the
     weights h/p of :func:`scalar_terms`).  A distributed mesh without ghost cells across
     the ranks' facets is a ValueError on every rank (:func:`check_shared_facets`).
     """
     check_shared_facets(problem.V.mesh, "problem")
     terms = indicator_terms(problem, result, degree)
-    vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
-    eta_sq = sum(v.array for v in vecs.values())
+    vecs = assemble_terms(terms)
+    eta_sq = sum(vecs.values())
     W = next(iter(terms.values())).arguments()[0].ufl_function_space()  # the DG0 space of w
     eta_T = fem.Function(W, name="eta_T")
     eta_T.x.array[:] = np.sqrt(np.maximum(eta_sq, 0.0))
     comm = problem.V.mesh.comm
     n_owned = W.dofmap.index_map.size_local
     totals = {
-        name: comm.allreduce(float(np.sum(v.array[:n_owned])), op=MPI.SUM)
-        for name, v in vecs.items()
+        name: comm.allreduce(float(np.sum(v[:n_owned])), op=MPI.SUM) for name, v in vecs.items()
     }
     eta = float(np.sqrt(sum(totals.values())))
     return Estimate(eta_T, eta, totals)

@@ -14,6 +14,7 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py recouple      # mortar re-coupling: Aitken vs plain
     python demos/bench/bench_hyperelastic.py sequence      # grid sequencing of the first step
     python demos/bench/bench_hyperelastic.py drag          # Coulomb between bodies, 2D and 3D
+    python demos/bench/bench_hyperelastic.py kink          # a tube kinked into self-contact
     python demos/bench/bench_hyperelastic.py pairs         # adapt and sequencing of two bodies
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
@@ -116,6 +117,15 @@ the held top, the couplings and Newton iterations, the stick / slip / separated 
 (drag and press) and its balance with the master's, |f_slave + f_master| / |f_slave|; CPU
 seconds of the whole path.  Writes two_body_drag.csv.
 
+``kink`` — self-contact after buckling: configs/hyperelastic_self_contact_kink.yaml (a
+neo-Hookean tube, R = 1, r = 0.9, length 4, a quarter) whose end sections are turned by φ
+about the x axis through the middle section, in ``--kink-steps`` (24) equal steps to
+φ = 1.2 and in the scene's own 12.  Per step: φ, the bending moment M the end section carries
+(about its centre, from the reactions: tests/test_self_contact_kink.py), the beam's
+E I φ / a, the end's axial reaction, the pressed slave nodes and the contact force, the
+couplings and Newton iterations, the smallest det F and K_T's negative eigenvalues; CPU
+seconds of each path.  Writes kink.csv and kink.png (M against φ, both paths, the pressed
+nodes on a second axis).
 ``pairs`` — two neo-Hookean cylinders (configs/two_body_hertz_2d.yaml made hyperelastic,
 re-coupled on the current configuration) pressed to δ = 0.1 R_c in one step: Dörfler
 (θ = 0.5, ``--levels`` 6) and uniform refinement (``--uniform-levels`` 3) from the shipped
@@ -156,6 +166,7 @@ sys.path.insert(0, str(ROOT / "tests"))  # the scenes the tests check, measured 
 import hyperelastic_friction_run  # noqa: E402
 import test_hyperelastic  # noqa: E402
 import test_hyperelastic_adapt  # noqa: E402
+import test_self_contact_kink  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 CYLINDER = ROOT / "configs" / "hyperelastic_cylinder.yaml"
@@ -951,6 +962,79 @@ def drag(out: Path) -> None:
     save_csv(out / "two_body_drag.csv", rows)
 
 
+KINK = ROOT / "configs" / "hyperelastic_self_contact_kink.yaml"
+
+
+def kink(out: Path, steps: int) -> None:
+    """A tube kinked by end rotations into self-contact (module doc)."""
+    rows = []
+    for n in (steps, None):
+        sets = [] if n is None else [f"load.steps={n}"]
+        scene = contact.load_scene(KINK, ["output.verbose=false", *sets])
+        c = scene.config.constants
+        figures = []
+
+        def on_step(step, scene=scene, figures=figures, c=c) -> None:
+            r = step.result
+            moment = test_self_contact_kink.end_moment(r, scene, step.time)
+            X = r.problem.V.tabulate_dof_coordinates()
+            _, f = test_self_contact_kink.nodal_forces(
+                r, scene, np.flatnonzero(X[:, 2] > c["a"] - 1e-9)
+            )
+            axial = COMM.allreduce(float(f[:, 2].sum()), op=MPI.SUM)
+            figures.append(
+                {
+                    "path_steps": scene.config.load.steps,
+                    "phi": c["p"] * step.time,
+                    "moment": moment,
+                    "beam_moment": test_self_contact_kink.INERTIA * c["p"] * step.time / c["a"],
+                    "axial_reaction": axial,
+                    "pressed": r.n_active,
+                    "contact_force": r.contact_force,
+                    "couplings": len(r.couplings),
+                    "newton": sum(k["newton"] for k in r.couplings),
+                    "min_det_F": min_det_F(r),
+                }
+            )
+            say(", ".join(f"{k} {v:.4g}" for k, v in figures[-1].items()))
+
+        t0 = time.process_time()
+        run = contact.run_load_path(scene, on_step=on_step, verbose=False)
+        cpu = COMM.allreduce(time.process_time() - t0, op=MPI.SUM)
+        if not run.converged:
+            raise SystemExit(f"bench_hyperelastic: kink: {run.stop}")
+        rows += [{**row, "path_cpu_seconds": round(cpu, 1)} for row in figures]
+    save_csv(out / "kink.csv", rows)
+    if COMM.rank == 0:
+        chart_kink(out / "kink.png", rows)
+
+
+def chart_kink(path: Path, rows: list[dict]) -> None:
+    """The moment against the end rotation (both paths; the beam's E I φ / a dashed), the
+    pressed slave nodes on a second axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    right = ax.twinx()
+    for n, style in zip(sorted({r["path_steps"] for r in rows}, reverse=True), ("o-", "s--")):
+        path_rows = [r for r in rows if r["path_steps"] == n]
+        phi = [0.0] + [r["phi"] for r in path_rows]
+        ax.plot(phi, [0.0] + [r["moment"] for r in path_rows], style, ms=3, label=f"{n} steps")
+        right.plot(phi, [0] + [r["pressed"] for r in path_rows], style, ms=3, color="C3")
+    beam = [r for r in rows if r["phi"] <= 0.2]
+    ax.plot([0, beam[-1]["phi"]], [0, beam[-1]["beam_moment"]], "k:", label="beam E I φ / a")
+    ax.set(xlabel="end rotation φ (rad)", ylabel="bending moment M (quarter model)")
+    right.set_ylabel("pressed slave nodes", color="C3")
+    ax.set_title("neo-Hookean tube kinked by end rotations")
+    ax.legend(loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    print(f"wrote {path}", flush=True)
+
+
 HERTZ_2D = ROOT / "configs" / "two_body_hertz_2d.yaml"
 NEO_HOOKEAN = ["model.type=hyperelastic", "model.law=neo_hookean", "output.verbose=false"]
 #: the sequencing cases of the ``pairs`` part: (δ, the mesh's h_contact or None: shipped)
@@ -1053,6 +1137,7 @@ def main() -> None:
             "recouple",
             "sequence",
             "drag",
+            "kink",
             "pairs",
         ),
     )
@@ -1083,6 +1168,7 @@ def main() -> None:
         help="adaptive: the neo-Hookean block on a plane, or a rigid cylinder pressed into a "
         "block (indenter: a small one, indentation: the shipped scene)",
     )
+    ap.add_argument("--kink-steps", type=int, default=24, help="kink: load steps to φ = 1.2")
     ap.add_argument("--mesh-size", type=float, default=0.05, help="ball: the mesh size")
     ap.add_argument("--ball-steps", type=int, default=4, help="ball: load steps to 0.2 R")
     ap.add_argument("--steps", type=int, default=10, help="refinement: load steps to 0.5 R")
@@ -1117,6 +1203,8 @@ def main() -> None:
         )
     elif args.part == "drag":
         drag(args.out)
+    elif args.part == "kink":
+        kink(args.out, args.kink_steps)
     elif args.part == "pairs":
         pairs(args.out, args.levels or 6, args.uniform_levels or 3)
     else:

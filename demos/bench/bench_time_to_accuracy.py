@@ -22,11 +22,18 @@ or uniform run, then one row per scene and variant with the ratios).
         --out demos/results/time_to_accuracy.csv
     python demos/bench/bench_time_to_accuracy.py ex9 --target 1e-2 --variant adaptive: \
         --variant g3:adapt.growth=3
+    python demos/bench/bench_time_to_accuracy.py ex9 --target 4e-3 --max-dofs 1300000 \
+        --variant res2:adapt.growth=2,adapt.indicators=residual --plain
+
+``--plain`` runs each variant a second time with the plain paths of the estimators and
+refinement (:data:`PLAIN`: one assembly per DG0 term, …), the same numbers, so the gain of
+the default paths is a ratio of one run.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import time
 from pathlib import Path
@@ -174,6 +181,24 @@ VARIANTS = (
 )
 
 
+#: the switches of the estimators' and refinement's plain paths (module, name): ``--plain``
+#: runs each variant a second time with all of them False
+PLAIN = (
+    ("contact.adaptivity.cellwise", "MERGED"),
+    ("contact.adaptivity.equilibration.flux", "P1_SHORTCUT"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_CELLS"),
+    ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
+    ("contact.adaptivity.transfer", "TAGGED_PARENTS_ONLY"),
+    ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
+)
+
+
+def plain_paths(on: bool) -> None:
+    """Select the plain paths of :data:`PLAIN` (``on``) or the default ones."""
+    for module, name in PLAIN:
+        setattr(importlib.import_module(module), name, not on)
+
+
 def variant_of(text: str) -> tuple[str, list[str]]:
     """``NAME:KEY=VALUE,KEY=VALUE`` → (name, ``--set`` overrides)."""
     name, _, sets = text.partition(":")
@@ -196,6 +221,12 @@ def main() -> None:
         metavar="NAME:KEY=VALUE,…",
         help=f"an adaptive run (repeatable; default {' '.join(VARIANTS)})",
     )
+    ap.add_argument(
+        "--plain",
+        action="store_true",
+        help="each variant again with the plain paths of the estimators and refinement "
+        "(variant NAME-plain)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     warm = contact.load_scene(ROOT / SCENES["ex9"][0], ["output.verbose=false", "adapt=none"])
@@ -208,9 +239,14 @@ def main() -> None:
         uni = uniform(ROOT / file, target, args.max_dofs, args.overrides)
         rows += [{"scene": name, **r} for r in uni]
         for variant, sets in map(variant_of, args.variants or VARIANTS):
-            ada = adaptive(ROOT / file, target, args.max_dofs, [*args.overrides, *sets], variant)
-            rows += [{"scene": name, **r} for r in ada]
-            summary.append(ratios(name, variant, target, uni, ada))
+            for plain in (False, True) if args.plain else (False,):
+                plain_paths(plain)
+                label = f"{variant}-plain" if plain else variant
+                overrides = [*args.overrides, *sets]
+                ada = adaptive(ROOT / file, target, args.max_dofs, overrides, label)
+                rows += [{"scene": name, **r} for r in ada]
+                summary.append(ratios(name, label, target, uni, ada))
+            plain_paths(False)
     if args.out:
         save_csv(args.out, rows + summary)
 
