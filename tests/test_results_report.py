@@ -154,7 +154,7 @@ def test_design_measurements_are_in_the_report_and_out_of_the_docstrings() -> No
     assert report.design_measurements() in (ROOT / "demos" / "RESULTS.md").read_text()
     for module in (
         "output/vtk",
-        "output/plots",
+        "output/drawing",
         "adaptivity/refine",
         "adaptivity/energy_error",
         "models/problem",
