@@ -1049,6 +1049,22 @@ def _step41_cold() -> list[str]:
         for r in rows(path) or []
         if r["returncode"] == 0
     }
+    # alternated pairs, deal.II's run then ours in one process (bench_cold.py --pair): where
+    # there are some, deal.II's median CPU of them is the column's reference
+    pairs = [
+        r for path in sorted((RES / "cold").glob("pair_step41_*.csv")) for r in rows(path) or []
+    ]
+    pairs.sort(key=lambda r: (r["cells"], r["pair"]))
+    for dofs in dict.fromkeys(r["dofs"] for r in pairs):
+        mine = [r for r in pairs if r["dofs"] == dofs and r["dealii_returncode"] == 0]
+        if mine:
+            peers[dofs] = {
+                "dofs": dofs,
+                "cells": mine[0]["cells"],
+                "cpu_s": statistics.median(r["dealii_cpu_s"] for r in mine),
+                "newton_iterations": mine[0]["dealii_newton"],
+                "cg_iterations": mine[0]["dealii_cg"],
+            }
     if not data:
         return out + [missing("demos/results/cold (demos/bench/bench_cold.py)")]
     data.sort(key=lambda r: (r["cells"], r["variant"] != "new", r["variant"]))
@@ -1075,13 +1091,28 @@ def _step41_cold() -> list[str]:
     peer_text = prose("_step41_cold", "peer", peer_runs=runs).strip() if peers else ""
     header = ["cells", "DoFs", "rule", "Newton", "Krylov (per step)", "GAMG set-ups", "CPU s"]
     header += ["× one CG+GAMG", "× deal.II", "converged"]
-    return out + [
-        prose("_step41_cold", "intro", peer_text=peer_text),
-        "",
-        table(header, body),
-        "",
-        prose("_step41_cold", "verdict"),
-    ]
+    out += [prose("_step41_cold", "intro", peer_text=peer_text), "", table(header, body), ""]
+    if pairs:
+        out += [
+            prose("_step41_cold", "pairs"),
+            "",
+            table(
+                ["cells", "pair", "ours: Newton, Krylov, CPU s", "deal.II: Newton, CG, CPU s"]
+                + ["ours / deal.II CPU"],
+                [
+                    [
+                        f"{r['cells']}²",
+                        r["pair"],
+                        f"{r['newton']}, {r['krylov']}, {g(r['cpu_s'])}",
+                        f"{r['dealii_newton']}, {r['dealii_cg']}, {g(r['dealii_cpu_s'])}",
+                        g(r["ratio_cpu_vs_dealii"]),
+                    ]
+                    for r in pairs
+                ],
+            ),
+            "",
+        ]
+    return out + [prose("_step41_cold", "verdict")]
 
 
 def friction() -> str:
@@ -1883,6 +1914,7 @@ def hyperelastic() -> str:
         _hyper_ironing(),
         _hyper_adaptive_curved(),
         _hyper_drag(),
+        _hyper_kink(),
     ]
     return "\n".join(out)
 
@@ -2319,6 +2351,80 @@ def _hyper_drag() -> str:
         "",
     ]
     return "\n".join(out)
+
+
+def _hyper_kink() -> str:
+    """§11.11: a neo-Hookean tube kinked by end rotations until its inner walls touch."""
+    out = [prose("_hyper_kink", "title"), ""]
+    data = rows(RES / HYPER / "kink.csv")
+    if not data:
+        return "\n".join([*out, missing(f"demos/results/{HYPER}/kink.csv"), ""])
+    fine_n = max(r["path_steps"] for r in data)
+    coarse_n = min(r["path_steps"] for r in data)
+    fine = [r for r in data if r["path_steps"] == fine_n]
+    body = [
+        [
+            f"{r['phi']:.3f}",
+            f"{r['moment']:.5f}",
+            f"{r['beam_moment']:.5f}",
+            f"{r['axial_reaction']:+.5f}",
+            r["pressed"],
+            f"{r['contact_force']:.2e}",
+            r["couplings"],
+            r["newton"],
+            f"{r['min_det_F']:.3f}",
+        ]
+        for r in fine
+    ]
+    header = ["φ", "M", "E I φ / a", "N", "pressed", "contact force", "couplings", "Newton"]
+    header += ["min det F"]
+    k = max(range(len(fine)), key=lambda i: fine[i]["moment"])
+    peak, after = fine[k], fine[min(k + 1, len(fine) - 1)]
+    touch = next((r["phi"] for r in fine if r["pressed"] > 0), float("nan"))
+
+    def span(values) -> str:
+        return f"{min(values):g}–{max(values):g}"
+
+    cpu = ", ".join(
+        f"{n} steps {next(r['path_cpu_seconds'] for r in data if r['path_steps'] == n):g} s"
+        for n in (fine_n, coarse_n)
+    )
+    first = next(r for r in fine if r["phi"] >= 0.1 - 1e-12)
+    out += [
+        prose(
+            "_hyper_kink",
+            "intro",
+            dofs=DOFS_KINK,
+            fine=fine_n,
+            coarse=coarse_n,
+            table=table(header, body),
+        ),
+        "",
+        prose(
+            "_hyper_kink",
+            "summary",
+            beam=f"{abs(first['moment'] / first['beam_moment'] - 1):.1%}",
+            first=f"{first['phi']:g}",
+            peak_phi=f"{peak['phi']:g}",
+            peak=f"{peak['moment']:.5f}",
+            peak_ratio=f"{peak['moment'] / peak['beam_moment']:.2f}",
+            drop=f"{after['phi'] - peak['phi']:.3g} rad",
+            drop_ratio=f"{1 - after['moment'] / peak['moment']:.0%}",
+            last=f"{fine[-1]['moment']:.1e}",
+            touch=f"{touch:g}",
+            pressed=fine[-1]["pressed"],
+            couplings=span([r["couplings"] for r in data]),
+            newton=span([r["newton"] for r in data]),
+            det=f"{min(r['min_det_F'] for r in data):.2f}",
+            cpu=cpu,
+        ),
+        "",
+    ]
+    return "\n".join(out)
+
+
+#: the DoFs of configs/hyperelastic_self_contact_kink.yaml (3 × 3 × 25 × 13 nodes)
+DOFS_KINK = 2925
 
 
 #: the cases of §11.9 (demos/bench/bench_hyperelastic.py adaptive --case ...) and their titles
@@ -3500,6 +3606,7 @@ def time_to_accuracy_chart(data: list[dict], out: Path) -> Path:
 
     scenes = list(dict.fromkeys(r["scene"] for r in data if r["run"] != "ratio"))
     colours = {name: f"C{i}" for i, name in enumerate(TTA_VARIANTS)}  # one per variant
+    colours.update(TTA_UNIFORM)
     fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.3), squeeze=False)
     for ax, scene in zip(axes[0], scenes):
         mine = [r for r in data if r["scene"] == scene and r["run"] != "ratio"]
@@ -3508,9 +3615,9 @@ def time_to_accuracy_chart(data: list[dict], out: Path) -> Path:
             ax.plot(
                 [r["cpu"] for r in rs],
                 [r["error"] for r in rs],
-                "s-" if run == "uniform" else "o-",
+                "s-" if run in TTA_UNIFORM else "o-",
                 ms=3,
-                color="black" if run == "uniform" else colours.get(run, "grey"),
+                color=colours.get(run, "grey"),
                 label=run,
             )
         ratio = next((r for r in data if r["scene"] == scene and r["run"] == "ratio"), None)
@@ -3539,7 +3646,115 @@ TTA_VARIANTS = {
     "indicators": "`adapt.indicators=residual` (growth 2: the residual indicators mark, the "
     "equilibrated bound is computed on the level that reaches the target only, and charged to it)",
     "indicators_g1": "`adapt.indicators=residual` (growth 1)",
+    "p2": "`mesh.degree=2 adapt.growth=2` (h-adaptive P2)",
+    "hp": "`adapt.strategy=hp adapt.p_max=6 adapt.theta=0.85` (hp, degrees 1 … 6)",
 }
+#: the variants of bench_time_to_accuracy.py of a degree above 1
+TTA_HIGHER = ("p2", "hp")
+#: the uniform references of bench_time_to_accuracy.py (its --uniform names) and their
+#: colours in the chart
+TTA_UNIFORM = {"uniform": "black", "uniform_p2": "dimgrey"}
+
+
+def _tta_reference(ratio: dict) -> str:
+    """The uniform reference of a ratio row (CSVs from before the P2 reference: P1)."""
+    return ratio.get("reference") or "uniform"
+
+
+def _tta_speedups(ratio: dict | None) -> str:
+    """A variant's CPU speed-up at the target against uniform P1 and against the fastest
+    uniform reference (its name), "—" where the CSV has none."""
+    if ratio is None or not ratio.get("speedup_cpu"):
+        return "—"
+    text = f"{ratio['speedup_cpu']:.2f}×"
+    if ratio.get("best_reference") and ratio["best_reference"] != "uniform":
+        text += f" / {ratio['speedup_vs_best_cpu']:.2f}× ({ratio['best_reference']})"
+    return text
+
+
+def _tta_higher_order(ratios: list[dict]) -> list[str]:
+    """The verdict on problem A and the L-shape with degree > 1: per scene the fastest of
+    the variants ``p2`` and ``hp`` against uniform P1 and against the fastest uniform
+    reference (an empty list if the CSV has neither)."""
+    found = []
+    for scene in ("A", "lshape"):
+        mine = [
+            r
+            for r in ratios
+            if r["scene"] == scene
+            and r["variant"] in TTA_HIGHER
+            and _tta_reference(r) == "uniform"
+            and r.get("speedup_cpu")
+        ]
+        if mine:
+            found.append(max(mine, key=lambda r: r["speedup_cpu"]))
+    if not found:
+        return []
+    # the fastest P1 variant's speed-up per scene
+    p1 = {
+        r["scene"]: max(
+            (
+                q["speedup_cpu"]
+                for q in ratios
+                if q["scene"] == r["scene"]
+                and _tta_reference(q) == "uniform"
+                and q["variant"] not in TTA_HIGHER
+                and q.get("speedup_cpu")
+            ),
+            default=None,
+        )
+        for r in found
+    }
+    return [
+        "",
+        prose(
+            "time_to_accuracy",
+            "higher_order",
+            rows="; ".join(
+                f"{r['scene']} to {r['target']:.0e}: `{r['variant']}` "
+                f"{r['speedup_cpu']:.1f}× faster than uniform P1"
+                + (" (extrapolated)" if r.get("extrapolated_cpu") else "")
+                + (
+                    f", {r['speedup_vs_best_cpu']:.2f}× the fastest uniform run "
+                    f"({r['best_reference']})"
+                    if r.get("best_reference") not in (None, "uniform")
+                    else ""
+                )
+                + (
+                    f"; the fastest P1 variant {p1[r['scene']]:.2f}×"
+                    if p1[r["scene"]] is not None
+                    else ""
+                )
+                for r in found
+            ),
+        ),
+        *_tta_recommendation(found, p1),
+    ]
+
+
+def _tta_recommendation(found: list[dict], p1: dict[str, float | None]) -> list[str]:
+    """The recommendation for problem A: the fastest of p2 and hp where it is at least 5×
+    faster than uniform P1 at the target, with its speed-up against the fastest uniform
+    run; else the sentence that no variant is."""
+    a = next((r for r in found if r["scene"] == "A"), None)
+    if a is None:
+        return []
+    if a["speedup_cpu"] < 5:
+        return [prose("time_to_accuracy", "no_fivefold_a", speedup=f"{a['speedup_cpu']:.1f}")]
+    vs_best = a.get("speedup_vs_best_cpu") or a["speedup_cpu"]
+    return [
+        prose(
+            "time_to_accuracy",
+            "recommend_a",
+            variant=a["variant"],
+            how=TTA_VARIANTS[a["variant"]],
+            speedup=f"{a['speedup_cpu']:.1f}",
+            target=f"{a['target']:.0e}",
+            p1="–" if p1["A"] is None else f"{p1['A']:.2f}×",
+            best=a.get("best_reference") or "uniform",
+            vs_best=f"{vs_best:.2f}",
+        )
+    ]
 
 
 def time_to_accuracy() -> str:
@@ -3554,7 +3769,10 @@ def time_to_accuracy() -> str:
     else:
         time_to_accuracy_chart(data, RES / "time_to_accuracy.png")
         out += [prose("time_to_accuracy", "python_demos_bench_bench")]
-        ratios = [r for r in data if r["run"] == "ratio"]
+        every_ratio = [r for r in data if r["run"] == "ratio"]
+        # the tables' ratios and the summary's: against uniform P1; the speed-ups against
+        # the fastest uniform reference are a column of their own
+        ratios = [r for r in every_ratio if _tta_reference(r) == "uniform"]
         for scene in dict.fromkeys(r["scene"] for r in ratios):
             mine = [r for r in data if r["scene"] == scene and r["run"] != "ratio"]
             theirs = [r for r in ratios if r["scene"] == scene]
@@ -3581,6 +3799,7 @@ def time_to_accuracy() -> str:
                         "—"
                         if extrapolated is None
                         else f"{extrapolated:.4f} ({1 / extrapolated:.0f}× faster)",
+                        _tta_speedups(ratio),
                     ]
                 )
             target, error = theirs[0]["target"], theirs[0]["error"]
@@ -3602,6 +3821,7 @@ def time_to_accuracy() -> str:
                             "CPU s to it",
                             "adaptive / uniform CPU (first reaching / interpolated)",
                             "at the target, extrapolated",
+                            "speed-up at the target: × uniform P1 / × fastest uniform",
                         ],
                         body,
                     ),
@@ -3621,16 +3841,18 @@ def time_to_accuracy() -> str:
             for scene in ("ex9", "A")
             if ratio_of(scene, "dorfler") is not None and ratio_of(scene, "adaptive") is not None
         ]
+        # the summary is of the P1 loop; degree 2 and hp have their own paragraph
+        p1_ratios = [r for r in ratios if r["variant"] not in TTA_HIGHER]
         fastest = [
             min(
                 (r["interpolated_cpu"], r["variant"], scene)
-                for r in ratios
+                for r in p1_ratios
                 if r["scene"] == scene and r["error"] == r["target"]
             )
             for scene in ("ex9", "A")
-            if any(r["scene"] == scene and r["error"] == r["target"] for r in ratios)
+            if any(r["scene"] == scene and r["error"] == r["target"] for r in p1_ratios)
         ]
-        singular = [r for r in ratios if r["scene"] == "lshape" and r.get("extrapolated_cpu")]
+        singular = [r for r in p1_ratios if r["scene"] == "lshape" and r.get("extrapolated_cpu")]
         speedups = sorted(1 / r["extrapolated_cpu"] for r in singular)
         out += [
             prose(
@@ -3653,6 +3875,7 @@ def time_to_accuracy() -> str:
                     speedups=f"{speedups[0]:.0f}× to {speedups[-1]:.0f}×",
                 ),
             ),
+            *_tta_higher_order(every_ratio),
             prose(
                 "time_to_accuracy",
                 "variants_line",
@@ -3751,6 +3974,7 @@ def time_to_accuracy() -> str:
 
         tiny = med("tiny run", "cpu")
         bare, floor = "tiny run, output.png=false", "libraries only"
+        inline = "tiny run, pictures in-process (old)"
 
         out += [
             prose(
@@ -3771,9 +3995,15 @@ def time_to_accuracy() -> str:
                 old_ratios=", ".join(
                     f"{tiny / med(c, 'cpu'):.2f} × that of the {c.split(', ', 1)[1][:-6]}"
                     for c in cases
-                    if c.endswith(" (old)")
+                    if c.endswith(" (old)") and c != inline
                 )
                 or "–",
+                process_ratios=(
+                    f"{tiny / med(inline, 'cpu'):.2f} × the CPU seconds and "
+                    f"{med('tiny run', 'wall') / med(inline, 'wall'):.2f} × the wall seconds"
+                    if inline in cases
+                    else "–"
+                ),
             )
         ]
     return "\n".join(out)

@@ -35,7 +35,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_hyperelastic.py`` — finite deformation (issue 31): plain Newton against
    the energy line search on nonconvex and buckling cases, the buckling strip against Euler,
    the neo-Hookean cylinder to 0.5 R under uniform refinement against vinewtonrsls, Coulomb
-   friction between two neo-Hookean blocks in 2D and 3D (about 15 minutes);
+   friction between two neo-Hookean blocks in 2D and 3D, adaptivity and grid sequencing of two
+   neo-Hookean cylinders, a tube kinked into self-contact (about 20 minutes);
    ``demos/bench/bench_ironing.py`` — the ironing benchmark in plane strain on three meshes,
    the die's forces against the sliding distance (about 2 minutes);
    ``demos/bench/bench_equilibrated.py`` (1 and 2 ranks, and its 2D / 3D cost),
@@ -44,10 +45,11 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_baselines.py`` — penalty, augmented Lagrangian and Nitsche against fb
    over their parameters and meshes (issue 44, RESULTS §13; about 25 minutes);
    ``demos/bench/bench_time_to_accuracy.py`` — the adaptive loop against uniform meshes at
-   equal error (ex9, problem A and the L-shape; the loop's variants against the same uniform
-   runs), ``bench_adaptive_profile.py ex9`` with growth 2, with every level kept and with the
-   earlier ones released (the loop's memory), ``bench_startup.py`` — ``import contact`` and a
-   tiny run (issue 41, RESULTS §14; about 30 minutes);
+   equal error (ex9, problem A and the L-shape; the loop's variants, adaptive P2 and hp
+   against the same uniform P1 and P2 runs), ``bench_adaptive_profile.py ex9`` with growth
+   2, with every level kept and with the earlier ones released (the loop's memory),
+   ``bench_startup.py`` — ``import contact`` and a tiny run (issue 41, RESULTS §14; about
+   30 minutes);
    ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §15, minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
@@ -277,6 +279,8 @@ STEPS = {
             ["adaptive", "--case", "indentation"],
             ["sequence"],
             ["drag"],
+            ["pairs"],
+            ["kink"],
         )
     ]
     + [[PY, "demos/bench/bench_ironing.py", "--out", "demos/results/hyperelastic"]],

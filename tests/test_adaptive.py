@@ -323,6 +323,39 @@ def test_released_levels_free_their_meshes(run):
     assert [ref() is not None for ref in meshes] == [True, False, False, False, True]
 
 
+def test_the_bound_and_each_released_level_start_on_a_returned_heap(monkeypatch):
+    """The loop's peaks are a level's solve and its guaranteed bound: what refining, the
+    solve and the residual estimate freed is handed back to the system (``malloc_trim``)
+    before each later level of a releasing loop is assembled and before the bound is
+    computed, so that those phases, whose arrays have other sizes, do not grow the heap
+    around it.  The calls, in order, for ex9 with the residual indicators marking."""
+    from contact.drivers import adaptive as loop
+
+    calls: list[str] = []
+    trim, estimate = loop.return_freed_memory, loop.estimate
+
+    def recorded_trim():
+        calls.append("trim")
+        return trim()
+
+    def recorded_estimate(problem, result, kind="residual"):
+        calls.append(kind)
+        return estimate(problem, result, kind)
+
+    monkeypatch.setattr(loop, "return_freed_memory", recorded_trim)
+    monkeypatch.setattr(loop, "estimate", recorded_estimate)
+    scene = contact.load_scene(
+        ROOT / "configs" / "peers" / "petsc_ex9.yaml",
+        ["output.verbose=false", "adapt.indicators=residual", "adapt.tol=0"],
+    )
+    run = adapt(scene, max_levels=3, verbose=False, keep=lambda lv: False)
+    assert len(run.levels) == 3 and run.levels[-1].estimator == "equilibrated"
+    # the last level: assembled on a returned heap, solved, the previous level released
+    # (trim), the residual estimate, then the bound on a returned heap
+    assert calls[-5:] == ["trim", "trim", "residual", "trim", "equilibrated"], calls
+    assert calls.count("trim") >= 2 * (len(run.levels) - 1) + 1, calls
+
+
 def test_loose_newton_tolerance_does_not_change_the_discretization():
     """adapt.newton_rtol = 1e-6 (the default) against 1e-12: same meshes, and η and the error
     agree far below the discretization error, so the looser algebraic tolerance is safe."""

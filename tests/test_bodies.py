@@ -279,7 +279,7 @@ def _scene(**changes):
                     "body": "upper",
                 },
             },
-            "boundaries: master and slave share",
+            "boundaries: slave and master share",
         ),
     ],
 )

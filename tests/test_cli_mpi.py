@@ -55,6 +55,12 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_two_body_drag_2d.yaml": ["load={times: [0.2, 0.3]}", *SMALL],
     "hyperelastic_two_body_drag_3d.yaml": ["load={times: [0.2, 0.4]}", *SMALL],
     "hyperelastic_self_contact_tube.yaml": ["mesh.cells=[2,24,4]", "load.steps=2", *SMALL],
+    "hyperelastic_self_contact_kink.yaml": [
+        "mesh.cells=[2,12,4]",
+        "load.steps=2",
+        "constants.p=0.6",
+        *SMALL,
+    ],
     "hyperelastic_two_body_patch_2d.yaml": SMALL,
     "indentation_2d.yaml": ["mesh.cells=[20,10]", *SMALL],
     "lshape_corner.yaml": ["adapt.max_levels=2", *SMALL],
@@ -211,6 +217,8 @@ def same_table(a: Path, b: Path) -> None:
     ha, ra = _table(a)
     hb, rb = _table(b)
     assert ha == hb and len(ra) == len(rb), f"{a.name}: {len(ra)} rows against {len(rb)}"
+    if not ra:  # a step with no constrained node (a self-contact pair not yet facing itself)
+        return
     cols = {name: ([r[j] for r in ra], [r[j] for r in rb]) for j, name in enumerate(ha)}
     num = {
         name: ([float(v) for v in x], [float(v) for v in y])

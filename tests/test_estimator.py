@@ -575,3 +575,48 @@ def test_p1_effectivity_is_stable(problem_A):
 def test_p2_effectivity_is_stable(problem_A):
     (eta1, err1, _), (eta2, err2, _) = problem_A[2]
     assert (eta2 / err2) / (eta1 / err1) < 1.05  # observed 15.0 → 18.2 (→ 23.3 → 31.2)
+
+
+@pytest.mark.parametrize(
+    "source,sets",
+    [
+        (FREE, []),  # Signorini: jumps, Neumann and contact facets
+        (FREE, ["mesh.degree=2", "mesh.cells=[8,4]"]),
+        ("configs/peers/petsc_ex9.yaml", ["mesh.cells=[8,8]"]),  # obstacle: cell terms
+    ],
+)
+def test_residual_terms_in_one_assembly_are_the_separate_assemblies(source, sets, monkeypatch):
+    """The residual estimator's terms assembled as one blocked DG0 form
+    (cellwise.MERGED) give η, η_T and every term's total of one assembly per term, bit for
+    bit."""
+    from contact.adaptivity import cellwise
+
+    scene = contact.load_scene(source, [*sets, "output.verbose=false"])
+    result = contact.solve(scene, verbose=False)
+    out = {}
+    for merged in (False, True):
+        monkeypatch.setattr(cellwise, "MERGED", merged)
+        out[merged] = residual_estimate(result.problem, result)
+    plain, one = out[False], out[True]
+    assert one.eta == plain.eta > 0
+    assert np.array_equal(one.eta_T.x.array, plain.eta_T.x.array)
+    assert one.terms == plain.terms and sum(v > 0 for v in one.terms.values()) >= 3
+
+
+def test_facet_tags_of_the_tagged_parents_children_are_every_childs(monkeypatch):
+    """Refinement looks the facet tags up only for the children of parents with a tagged
+    facet (transfer.TAGGED_PARENTS_ONLY): the same tags as looking them up for every
+    child."""
+    from contact.adaptivity import transfer
+
+    scene = contact.load_scene(FREE, ["output.verbose=false", "mesh.cells=[16,8]"])
+    result = contact.solve(scene, verbose=False)
+    cells = mark(residual_estimate(result.problem, result).eta_T, "dorfler", 0.5)
+    out = {}
+    for lean in (False, True):
+        monkeypatch.setattr(transfer, "TAGGED_PARENTS_ONLY", lean)
+        child, _ = refine(scene, cells, result.u_h)
+        out[lean] = child.boundary.tags
+    assert np.array_equal(out[True].indices, out[False].indices)
+    assert np.array_equal(out[True].values, out[False].values)
+    assert len(out[True].indices) > len(scene.boundary.tags.indices)

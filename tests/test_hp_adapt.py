@@ -153,3 +153,26 @@ def test_a_level_assembles_in_its_largest_degree() -> None:
         degree = level.result.u_h.function_space.element.basix_element.degree
         assert degree == level.row()["p_max"] == level.space.p_max
     assert run.levels[-1].row()["p_max"] > run.levels[0].row()["p_max"] == 1
+
+
+def test_hp_levels_carry_the_time_to_accuracy() -> None:
+    """Each hp level records the loop's wall and CPU seconds from its start to the level's
+    solution, estimate and error (``Level.elapsed``, ``Level.cpu``, summary.json's
+    ``seconds_to_error``), growing from level to level, the seconds of ``on_level`` not
+    counted."""
+    import time
+
+    scene = contact.load_scene(SMOOTH, ["output.verbose=false"])
+    pause = 0.3
+    start = time.perf_counter()
+    run = contact.adapt(
+        scene, strategy="hp", p_max=3, max_levels=3, on_level=lambda lv: time.sleep(pause)
+    )
+    total = time.perf_counter() - start
+    elapsed = [lv.elapsed for lv in run.levels]
+    cpu = [lv.cpu for lv in run.levels]
+    assert 0 < elapsed[0] and all(a < b for a, b in zip(elapsed, elapsed[1:])), elapsed
+    assert 0 < cpu[0] and all(a < b for a, b in zip(cpu, cpu[1:])), cpu
+    # the three pauses (0.9 s wall, no CPU) are outputs: the last level's time excludes them
+    assert elapsed[-1] < total - len(elapsed) * pause
+    assert run.levels[-1].row()["seconds_elapsed"] == round(elapsed[-1], 4)

@@ -9,7 +9,7 @@ contact force to 1e-8) and the fine mesh takes fewer Newton steps; ``auto`` sequ
 body in 2D from 16k DoFs on (below, the coarse solves cost more than they save:
 demos/bench/bench_hyperelastic.py sequence), in 3D never; coarse levels that all fail
 (cells inverted at a large first load) fall back to the cold start with a warning;
-serial = 2 ranks.  Contact pairs at finite strain refuse it.
+serial = 2 ranks.  Contact pairs at finite strain take it on request only (``auto``: off).
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ from __future__ import annotations
 import warnings
 
 import contact
-from contact import ConfigError
 from contact.base.errors import ContactWarning
 
 import pytest
@@ -108,15 +107,16 @@ def test_coarse_levels_that_all_fail_fall_back_to_the_cold_start(capsys):
         assert a.result.contact_force == pytest.approx(b.result.contact_force, rel=1e-8)
 
 
-def test_pairs_at_finite_strain_refuse_grid_sequencing():
+def test_pairs_at_finite_strain_sequence_on_request_only():
     """Hyperelastic bodies through contact pairs (re-coupled on the current configuration)
-    refuse a number of coarse levels (one line naming the key); ``auto`` is off there."""
+    take a number of coarse levels (tests/test_hyperelastic_pairs_adapt.py solves them);
+    ``auto`` is off there."""
     scene = contact.load_scene(ROOT / "configs" / "hyperelastic_two_body_patch_2d.yaml")
     assert scene.config.solver.sequence == "off"
-    with pytest.raises(ConfigError, match="^solver.sequence: grid sequencing is not available"):
-        contact.load_scene(
-            ROOT / "configs" / "hyperelastic_two_body_patch_2d.yaml", ["solver.sequence=2"]
-        )
+    scene = contact.load_scene(
+        ROOT / "configs" / "hyperelastic_two_body_patch_2d.yaml", ["solver.sequence=2"]
+    )
+    assert scene.config.solver.sequence == 2
 
 
 MPI_RUN = """

@@ -12,7 +12,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-from contact.output import plots  # noqa: E402
+from contact.output import drawing, plots  # noqa: E402
 
 import matplotlib.tri as mtri  # noqa: E402
 import numpy as np  # noqa: E402
@@ -89,7 +89,7 @@ def test_big_meshes_are_drawn_as_an_image(monkeypatch):
     tri = _lshape(2000)
     v = tri.x + tri.y
     for cells, kind in ((10**9, "TriMesh"), (10, "AxesImage")):
-        monkeypatch.setattr(plots, "RASTER_CELLS", cells)
+        monkeypatch.setattr(drawing, "RASTER_CELLS", cells)
         fig, ax = plt.subplots()
         assert type(plots.smooth_shading(ax, tri, v, "viridis")).__name__ == kind
         plt.close(fig)

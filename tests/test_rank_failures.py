@@ -179,7 +179,7 @@ def test_a_picture_failing_on_one_rank_is_a_warning(tmp_path: Path) -> None:
         adapt={"strategy": "uniform", "max_levels": 2},
     )
     proc, seconds = _planted(
-        tmp_path, "contact.output.plots._mesh_2d", 1, "run", scene.name, "-o", "out", "-q"
+        tmp_path, "contact.output.drawing.mesh_2d", 1, "run", scene.name, "-o", "out", "-q"
     )
     assert seconds <= BOUND and proc.returncode == 0, proc.stderr[-3000:]
     assert (tmp_path / "out" / "summary.json").exists()

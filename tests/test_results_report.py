@@ -40,9 +40,9 @@ def test_report_without_results_says_what_is_missing(tmp_path: Path) -> None:
     # §8, §9 cost, §11's line
     # search, strip, refinement, stability map at finite strain, predictor, adaptivity and
     # the large ball at finite strain, the ironing benchmark, adaptivity against a curved
-    # obstacle, friction between bodies, §12 bounds, §13's baselines and their stability map,
-    # §14 time to accuracy, §15 hp and §16 long paths
-    assert text.count("*Not available:") == 30
+    # obstacle, friction between bodies, the kinking tube, §12 bounds, §13's baselines and
+    # their stability map, §14 time to accuracy, §15 hp and §16 long paths
+    assert text.count("*Not available:") == 31
 
 
 def test_report_stability_section_reads_the_csv(tmp_path: Path) -> None:
@@ -154,7 +154,7 @@ def test_design_measurements_are_in_the_report_and_out_of_the_docstrings() -> No
     assert report.design_measurements() in (ROOT / "demos" / "RESULTS.md").read_text()
     for module in (
         "output/vtk",
-        "output/plots",
+        "output/drawing",
         "adaptivity/refine",
         "adaptivity/energy_error",
         "models/problem",
@@ -460,9 +460,93 @@ def test_report_time_to_accuracy_section_reads_the_csv(tmp_path: Path) -> None:
     section = text.split("## 14.", 1)[1].split("## 15.", 1)[0]
     assert "**lshape** to energy error 2.0e-03 (the uniform meshes stop short" in section
     assert (
-        "| adaptive | 2 | 900 | 1.900e-03 | 1.00 | 0.40 / 0.40 | 0.0112 (89× faster) |" in section
+        "| adaptive | 2 | 900 | 1.900e-03 | 1.00 | 0.40 / 0.40 | 0.0112 (89× faster) | — |"
+        in section
     )
-    assert "| dorfler | 2 | 900 | 1.900e-03 | 1.20 | 0.47 / 0.44 | 0.0101 (99× faster) |" in section
+    assert (
+        "| dorfler | 2 | 900 | 1.900e-03 | 1.20 | 0.47 / 0.44 | 0.0101 (99× faster) | — |"
+        in section
+    )
     assert "would need about 944 s CPU for 2e-3" in section and "89× to 99× faster" in section
     assert "`dorfler` `adapt.growth=1`" in section
     assert (res / "time_to_accuracy.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_report_time_to_accuracy_holds_degree_two_and_hp_against_every_uniform_run(
+    tmp_path: Path,
+) -> None:
+    """§14 with the uniform P2 reference and the variants p2 and hp: the tables' ratios are
+    against uniform P1, a column gives the speed-up against uniform P1 and against the
+    fastest uniform run, and the summary names the fastest of p2 and hp per scene with both
+    speed-ups and the fastest P1 variant's."""
+    res = tmp_path / "res"
+    res.mkdir()
+    head = "scene,run,level,dofs,error,seconds,cpu,variant,reference,target,"
+    head += "first_reaching_seconds,interpolated_seconds,first_reaching_cpu,interpolated_cpu,"
+    head += "speedup_cpu,best_reference,speedup_vs_best_cpu"
+    lines = [head]
+    for run, points in (
+        ("uniform", [(153, 0.087, 0.06), (260281, 0.00195, 2.7)]),
+        ("uniform_p2", [(561, 0.0046, 0.05), (2145, 0.0016, 0.1)]),
+        ("adaptive", [(153, 0.087, 0.08), (260000, 0.00199, 8.1)]),
+        ("p2", [(561, 0.0046, 0.1), (1900, 0.0015, 0.25)]),
+        ("hp", [(153, 0.087, 0.09), (900, 0.0018, 0.54)]),
+    ):
+        for k, (dofs, err, cpu) in enumerate(points):
+            lines.append(f"A,{run},{k},{dofs},{err},{cpu},{cpu}" + "," * 10)
+    for variant, (p1, p2) in {
+        "adaptive": (3.0, 81.0),
+        "p2": (0.1, 2.5),
+        "hp": (0.2, 5.4),
+    }.items():
+        best = 1 / p2
+        for reference, ratio in (("uniform", p1), ("uniform_p2", p2)):
+            lines.append(
+                f"A,ratio,,,0.002,,,{variant},{reference},0.002,{ratio},{ratio},{ratio},{ratio},"
+                f"{1 / ratio:.4g},uniform_p2,{best:.4g}"
+            )
+    (res / "time_to_accuracy.csv").write_text("\n".join(lines) + "\n")
+    text = _report(res, tmp_path / "R.md")
+    section = text.split("## 14.", 1)[1].split("## 15.", 1)[0]
+    # the ratio columns against uniform P1; the speed-ups against P1 and the fastest uniform
+    assert (
+        "| p2 | 2 | 1900 | 1.500e-03 | 0.25 | 0.10 / 0.10 | — | 10.00× / 0.40× (uniform_p2) |"
+        in (section)
+    )
+    assert "| uniform_p2 | 2 | 2145 | 1.600e-03 | 0.10 | — | — | — |" in section
+    assert (
+        "A to 2e-03: `p2` 10.0× faster than uniform P1, 0.40× the fastest uniform run "
+        "(uniform_p2); the fastest P1 variant 0.33×" in section
+    )
+    # the recommendation: p2 is ≥ 5× faster than uniform P1, and slower than uniform P2
+    assert "**Recommended for a solution like problem A's: `p2`**" in section
+    assert "10.0× faster than uniform P1 to 2e-03 (the fastest P1 variant: 0.33×)" in section
+    assert "(uniform_p2) it is 0.40× (below 1: slower)" in section
+    assert (res / "time_to_accuracy.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_report_step41_cold_start_reads_the_alternated_pairs(tmp_path: Path) -> None:
+    """§5's step-41 cold start: the alternated pairs (bench_cold.py --pair) in a table of
+    their own, and deal.II's median CPU of them the reference of the × deal.II column."""
+    res = tmp_path / "res"
+    (res / "cold").mkdir(parents=True)
+    head = "cells,dofs,ranks,method,variant,forcing,warm_start,converged,newton,krylov,"
+    head += "krylov_per_step,gamg_setups,residual,cpu_s,wall_s,cpu_vs_first,ref_its,ref_cpu_s,"
+    head += "ratio_cpu_vs_one_solve,max_diff_vs_first,dealii_cpu_s,ratio_cpu_vs_dealii"
+    (res / "cold" / "step41.csv").write_text(
+        head + "\n256,66049,1,min,new,active_set,True,True,40,96,2.4,18,4e-13,2.0,2.1,1.0,14,"
+        "0.15,13.3,0.0,,\n"
+    )
+    head = "cells,dofs,pair,method,converged,max_it,newton,krylov,cpu_s,dealii_dofs,"
+    head += "dealii_returncode,dealii_newton,dealii_cg,dealii_cpu_s,ratio_cpu_vs_dealii"
+    (res / "cold" / "pair_step41_256.csv").write_text(
+        head + "\n256,66049,1,min,True,50,40,96,1.7,66049,0,36,162,5.5,0.309"
+        "\n256,66049,2,min,True,50,40,96,1.7,66049,0,36,162,4.5,0.378\n"
+    )
+    text = _report(res, tmp_path / "R.md")
+    section = text.split("from a cold start, 66k to 1M DoFs", 1)[1].split("## 6.", 1)[0]
+    assert "256²: 5 s, 36 Newton and 162 CG iterations" in section  # the pairs' median
+    assert "| 256² | 66049 | new (active_set) | 40 | 96 (2.4) | 18 | 2 | 13.3 | 0.4 | True |" in (
+        section
+    )
+    assert "| 256² | 2 | 40, 96, 1.7 | 36, 162, 4.5 | 0.378 |" in section

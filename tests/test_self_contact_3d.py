@@ -79,10 +79,14 @@ def master_triangles(V, scene, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return T, n
 
 
-def signed_distances(points: np.ndarray, T: np.ndarray, n: np.ndarray) -> np.ndarray:
+def signed_distances(
+    points: np.ndarray, T: np.ndarray, n: np.ndarray, slack: float = 1e-12
+) -> np.ndarray:
     """Each point's signed distance (positive outside, along the outward normal) to the
     triangle its projection along that triangle's normal falls into (NaN if none; the one
-    nearest if several)."""
+    nearest if several).  A foot up to ``slack`` (in barycentric coordinates) outside a
+    triangle counts as in it: a point just behind a valley of the surface (where a facet
+    meets its mirror image in a symmetry plane at an angle) projects just outside both."""
     e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     rel = points[:, None] - T[None, :, 0]  # (points, triangles, 3)
     depth = np.einsum("ptd,td->pt", rel, n)
@@ -95,7 +99,7 @@ def signed_distances(points: np.ndarray, T: np.ndarray, n: np.ndarray) -> np.nda
     b2 = np.einsum("ptd,td->pt", foot, e2)
     s = (g2 * b1 - g[:, 1] * b2) / det
     t = (g[:, 0] * b2 - g[:, 1] * b1) / det
-    inside = (s >= -1e-12) & (t >= -1e-12) & (s + t <= 1 + 1e-12)
+    inside = (s >= -slack) & (t >= -slack) & (s + t <= 1 + slack)
     near = np.where(inside, np.abs(depth), np.inf)
     k = np.argmin(near, axis=1)
     out = depth[np.arange(len(points)), k]

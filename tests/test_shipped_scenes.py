@@ -55,6 +55,11 @@ SCENES: dict[str, list[str]] = {
     "hyperelastic_two_body_patch_2d.yaml": [],
     "hyperelastic_self_contact_ring.yaml": ["mesh.cells=[64,2]", "load.steps=2"],
     "hyperelastic_self_contact_tube.yaml": ["mesh.cells=[2,24,4]", "load.steps=2"],
+    "hyperelastic_self_contact_kink.yaml": [
+        "mesh.cells=[2,12,4]",
+        "load.steps=2",
+        "constants.p=0.6",
+    ],
     "indentation_2d.yaml": ["mesh.cells=[20,10]"],
     "lshape_corner.yaml": ["adapt.max_levels=2"],
     "obstacle_membrane.yaml": ["mesh.cells=[8,8]"],

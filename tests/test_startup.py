@@ -225,8 +225,9 @@ print(json.dumps(seen))
 def test_loading_is_frozen_once(tmp_path):
     """The first command of a process runs its loading with the cyclic collector off and
     then freezes what it loaded (objects in the permanent generation, collector on again);
-    a later command freezes nothing more, and a command that fails while loading (exit 2)
-    leaves the collector on.  With ``FREEZE_LOADED`` False (the old path) nothing is frozen."""
+    a later command freezes nothing more (the count does not grow), and a command that
+    fails while loading (exit 2) leaves the collector on.  With ``FREEZE_LOADED`` False
+    (the old path) nothing is frozen."""
     script = tmp_path / "three.py"
     script.write_text(THREE_COMMANDS)
     seen = {}
@@ -242,6 +243,8 @@ def test_loading_is_frozen_once(tmp_path):
         seen[path] = json.loads(proc.stdout.splitlines()[-1])
     (c0, on0, frozen0), (c1, on1, frozen1), (c2, on2, frozen2) = seen["new"]
     assert (c0, c1, c2) == (0, 2, 0) and on0 and on1 and on2, seen
-    assert frozen0 > 10_000 and frozen1 == frozen2 == 0, seen
+    # the count is net: objects frozen by the first command that are freed later (its picture
+    # process's handle, ended with it) lower it
+    assert frozen0 > 10_000 and frozen1 <= 0 and frozen2 <= 0, seen
     assert [row[:2] for row in seen["old"]] == [[0, True], [2, True], [0, True]], seen
     assert [row[2] for row in seen["old"]] == [0, 0, 0], seen

@@ -46,6 +46,7 @@ from ..models.discrete import Problem
 from ..models.physics import BoundaryData, Diffusion, Elasticity
 from ..models.problem import iso_p2_rule, iso_p2_weights
 from ..solvers import Result
+from .cellwise import assemble_terms
 
 TERMS = ("volume", "jump", "neumann", "consistency", "sign", "complementarity")
 #: the refusal of the residual estimator for a P2 obstacle problem in 3D (also by the scene's
@@ -413,6 +414,13 @@ def interface_terms(
     over like the pressure).  T = σ(u_h) n, n the outward normal of the facet's own body,
     T_t = T − (T·n) n; ``friction`` the friction data of a frictional solve, else None;
     ``ds`` the measure of the other terms (default: over the boundary parts' tags).
+
+    Hyperelastic bodies (their pairs coupled on the current configuration): T = P(u_h) N is
+    the nominal traction on the reference facet (normal N), n the facet's current normal
+    n = cof F N / |cof F N| and the pressures λ_h, λ^m, λ_t (per current area) enter per
+    reference area, times the stretch da/dA = |cof F N| (Nanson: n da = cof F N dA), so
+    that T = (da/dA) λ n at equilibrium: consistency h_E ((da/dA) λ_h − T·n)², tangential
+    h_E ‖T_t − (da/dA) λ_t‖²; the gap g_h is the current one of the last coupling.
     """
     from ..models.mortar import master_pressure, master_vector
 
@@ -423,6 +431,13 @@ def interface_terms(
     gap = result.gap.copy()  # the nodal gap, NaN off the constrained nodes → 0
     gap.x.array[np.isnan(gap.x.array)] = 0.0
     lam_m = master_pressure(result)
+    stretch = 1.0  # da/dA: the pressures are per current area at finite strain
+    if physics.law is not None:  # pairs coupled on the current configuration
+        u_h = result.u_h
+        F = ufl.Identity(len(u_h)) + ufl.grad(u_h)
+        nanson = ufl.det(F) * ufl.dot(ufl.inv(F).T, n)  # n da/dA (Nanson)
+        stretch = ufl.sqrt(ufl.inner(nanson, nanson))
+        n = nanson / stretch  # the facet's current normal
     Tn = ufl.dot(T, n)
     Tt = T - Tn * n
     zero = fem.Constant(msh, 0.0) * w * ufl.dx(domain=msh)
@@ -434,10 +449,11 @@ def interface_terms(
     # the tangential traction is λ_t on the slave side, −λ_t^m on the master side
     if friction is not None:
         lam_t, slip, rho = friction.lam_t, friction.slip, friction.rho
-        Tt_s, Tt_m = Tt - lam_t, Tt + master_vector(result, lam_t)
+        Tt_s = Tt - stretch * lam_t
+        Tt_m = Tt + stretch * master_vector(result, lam_t)
         extra.update(friction_bound=zero, slip=zero)
     for i in slave_ids:
-        extra["consistency"] += h_E * (lam - Tn) ** 2 * w * ds(i)
+        extra["consistency"] += h_E * (stretch * lam - Tn) ** 2 * w * ds(i)
         extra["tangential"] += h_E * ufl.inner(Tt_s, Tt_s) * w * ds(i)
         extra["sign"] += ufl.max_value(lam, 0) ** 2 * w * ds(i)
         extra["complementarity"] += abs(ufl.min_value(lam, 0) * gap) * w * ds(i)
@@ -449,7 +465,7 @@ def interface_terms(
                 abs(rho * ufl.sqrt(ufl.inner(slip, slip)) + ufl.inner(lam_t, slip)) * w * ds(i)
             )
     for i in master_ids:
-        terms["consistency_master"] += h_E * (lam_m - Tn) ** 2 * w * ds(i)
+        terms["consistency_master"] += h_E * (stretch * lam_m - Tn) ** 2 * w * ds(i)
         extra["tangential"] += h_E * ufl.inner(Tt_m, Tt_m) * w * ds(i)
     return {**extra, **terms}
 
@@ -496,13 +512,6 @@ def check_shared_facets(msh: Any, name: str) -> None:
             "need: create it with ghost_mode=GhostMode.shared_facet (or partitioner="
             "create_cell_partitioner(GhostMode.shared_facet, 2) for create_mesh, gmsh)"
         )
-
-
-def _assemble_cellwise(form: ufl.Form) -> la.Vector:
-    vec = fem.assemble_vector(fem.form(form))
-    vec.scatter_reverse(la.InsertMode.add)  # interior facets on rank boundaries
-    vec.scatter_forward()
-    return vec
 
 
 def estimate(problem: Any, result: Result, kind: str = "residual") -> Estimate:
@@ -556,24 +565,24 @@ def residual_estimate(
 ) -> Estimate:
     """Return the residual estimator of a solve of ``problem``.
 
-    The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): each
-    term of η_T² assembled once as a DG0 vector, η_T² their sum, each term's total the sum
+    The residual estimator (docs/theory.md §5) of a solve of ``problem`` (collective): the
+    terms of η_T² assembled together as DG0 vectors (:func:`.cellwise.assemble_terms`), η_T²
+    their sum, each term's total the sum
     of its owned entries; ``degree``: the cells' degrees of an hp solution (DG0: the
     weights h/p of :func:`scalar_terms`).  A distributed mesh without ghost cells across
     the ranks' facets is a ValueError on every rank (:func:`check_shared_facets`).
     """
     check_shared_facets(problem.V.mesh, "problem")
     terms = indicator_terms(problem, result, degree)
-    vecs = {name: _assemble_cellwise(form) for name, form in terms.items()}
-    eta_sq = sum(v.array for v in vecs.values())
+    vecs = assemble_terms(terms)
+    eta_sq = sum(vecs.values())
     W = next(iter(terms.values())).arguments()[0].ufl_function_space()  # the DG0 space of w
     eta_T = fem.Function(W, name="eta_T")
     eta_T.x.array[:] = np.sqrt(np.maximum(eta_sq, 0.0))
     comm = problem.V.mesh.comm
     n_owned = W.dofmap.index_map.size_local
     totals = {
-        name: comm.allreduce(float(np.sum(v.array[:n_owned])), op=MPI.SUM)
-        for name, v in vecs.items()
+        name: comm.allreduce(float(np.sum(v[:n_owned])), op=MPI.SUM) for name, v in vecs.items()
     }
     eta = float(np.sqrt(sum(totals.values())))
     return Estimate(eta_T, eta, totals)

@@ -21,6 +21,10 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+#: facet tags: only the children of parents with a tagged facet look their facets up;
+#: False: every child, the plain path (the same tags)
+TAGGED_PARENTS_ONLY = True
+
 
 def creators(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
     """(creating rank, index in that rank's creation list) of every local cell of the
@@ -141,10 +145,20 @@ def transfer_facet_tags(
     pf = np.asarray(parent_facet, dtype=np.int64).reshape(-1, nf)
     old_facets = old_c2f.array.reshape(-1, nf)
 
+    # the parents with a tagged facet: only their children can inherit a tag
+    tagged = np.any(old_value[old_facets] >= 0, axis=1) if TAGGED_PARENTS_ONLY else None
+
     def parent_tags(i: np.ndarray) -> np.ndarray:  # on the creating rank: (n, nf)
-        local = pf[i]
-        facets = np.take_along_axis(old_facets[parent_cell[i]], np.maximum(local, 0), axis=1)
-        return np.where(local >= 0, old_value[facets], -1)
+        if tagged is None:
+            local = pf[i]
+            facets = np.take_along_axis(old_facets[parent_cell[i]], np.maximum(local, 0), axis=1)
+            return np.where(local >= 0, old_value[facets], -1)
+        out = np.full((len(i), nf), -1, dtype=np.int32)
+        hit = np.flatnonzero(tagged[parent_cell[i]])
+        local = pf[i[hit]]
+        facets = np.take_along_axis(old_facets[parent_cell[i[hit]]], np.maximum(local, 0), axis=1)
+        out[hit] = np.where(local >= 0, old_value[facets], -1)
+        return out
 
     n_owned = new.topology.index_map(tdim).size_local
     rank, index = creators(new, len(parent_cell))

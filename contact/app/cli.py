@@ -30,6 +30,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..base.errors import ConfigError
+from ..output import picture_process
 from . import failures
 
 if TYPE_CHECKING:
@@ -120,6 +121,36 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = one_line_warning
     comm = MPI.COMM_WORLD
     debug = args.debug or os.environ.get("CONTACT_DEBUG", "") not in ("", "0")
+    if args.command == "run" and comm.rank == 0 and _asks_for_pictures(args):
+        # matplotlib is imported there while this process imports DOLFINx and solves
+        picture_process.start()
+    try:
+        return _main(args, comm, debug)
+    finally:
+        picture_process.stop()
+
+
+def _asks_for_pictures(args: argparse.Namespace) -> bool:
+    """Whether ``contact run`` will draw pictures, as far as the scene file's ``output.png``
+    and the ``--set output.png=…`` overrides say, read without validating (a file that
+    cannot be read says yes): the picture process is started only for such a run.  The
+    validated scene decides: a process started for a run without pictures is stopped once
+    the scene is loaded, and a run that draws pictures without one draws them itself."""
+    import yaml
+
+    try:
+        scene = yaml.safe_load(Path(args.scene).read_text())
+        png = scene["output"]["png"] if "png" in scene.get("output", {}) else True
+        for item in args.overrides:
+            key, _, value = item.partition("=")
+            if key.strip() == "output.png":
+                png = yaml.safe_load(value)
+    except Exception:  # noqa: BLE001 - bad input is reported when the scene is loaded
+        return True
+    return png is not False
+
+
+def _main(args: argparse.Namespace, comm: MPI.Comm, debug: bool) -> int:
     agree = comm.Dup() if comm.size > 1 else None  # only for agreeing on a failure
     # SIGTERM as Ctrl-C (PETSc's own handler would print its stack and MPI_Abort).  PETSc
     # installs that handler when it starts, so it starts first: ours replaces it.
@@ -241,6 +272,8 @@ def _run(args: argparse.Namespace, comm: MPI.Comm) -> int:
         folder.check_output(outdir, label, comm)  # before meshing and solving
         scene = build_scene(cfg, comm)
         report = report_of(cfg)  # what the run writes, read once from the configuration
+        if not report.png:
+            picture_process.stop()
         if report.verbose:
             progress.enable(comm)
         method = scene.config.solver.method

@@ -254,7 +254,9 @@ def adapt(
             all but the last.
         solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
             of ``contact.drivers.solve.solve``, a first level without a guess sequenced
-            over the domain's ancestors).
+            over the domain's ancestors); it may solve another problem on the level's
+            domain (its result's ``problem``, e.g. a coupling re-built on the current
+            configuration), which the level then keeps and estimates.
         budget: the most DoFs one solve may have (a memory budget), or None.
         stopping: (γ_lin, γ_alg) of adaptive stopping (:mod:`contact.solvers.stopping`;
             needs an equilibrated ``kind``), or None: fixed tolerances.
@@ -293,6 +295,8 @@ def adapt(
             # meshes (grid sequencing's chain, Domain.parent): without the link the
             # previous mesh goes once its level is released
             level_domain.parent = None
+        if keep is not None and previous is not None:
+            return_freed_memory()  # what refining freed: the level's solve does not reuse it
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
@@ -319,6 +323,9 @@ def adapt(
             previous=previous,
             solved=release_previous,
         )
+        # a level's solve may have solved another problem on its mesh (pairs re-coupled on
+        # the current configuration): the level is that of its result
+        problem = result.problem or problem
         with Timer(seconds, "error"):
             error = solution_error(problem, result)
         level = Level(
@@ -459,6 +466,10 @@ class Bound:
             return level.estimate.eta
         residual = level.estimate.eta
         wall, cpu = time.perf_counter(), time.process_time()
+        # the bound's patch data and fields on top of the level are the loop's peak: the heap
+        # that the solve and the residual estimate freed is given back first, or the bound's
+        # arrays of other sizes would add to it instead of reusing it
+        return_freed_memory()
         with Timer(level.seconds, "estimate"):
             level.estimate = estimate(level.problem, level.result, self.kind)
         level.estimator = self.kind
@@ -554,7 +565,7 @@ def solve_level(
         if solved is not None:
             solved(result)
         with Timer(seconds, "estimate"):
-            est = estimate(problem, result, kind)
+            est = estimate(result.problem or problem, result, kind)
         krylov += result.krylov_iterations
         passes += 1
         if (

@@ -73,6 +73,7 @@ def solve_recoupled(
     u0: fem.Function | None = None,
     max_couplings: int = MAX_COUPLINGS,
     relaxation: str = RELAXATION,
+    rtol: float = COUPLING_RTOL,
 ) -> Result:
     """Solve a problem of mortar pairs on the current configuration (module doc).
 
@@ -86,6 +87,8 @@ def solve_recoupled(
         max_couplings: The couplings at most.
         relaxation: ``aitken``: the next coupling at ũ^{k+1} = ũ^k + ω_k (u^{k+1} − ũ^k)
             with Aitken's ω_k (module doc); ``none``: at u^{k+1} (the plain fixed point).
+        rtol: the fixed point's relative displacement error at which the coupling is final
+            (module doc; a looser one for a guess, e.g. a coarse level of grid sequencing).
 
     Returns:
         The last solve's result, with ``couplings``: one row per coupling (its Newton
@@ -133,7 +136,7 @@ def solve_recoupled(
                 "omega": 1.0,  # the relaxation of the next coupling point (below)
             }
         )
-        if not result.converged or (k > 0 and error <= COUPLING_RTOL):
+        if not result.converged or (k > 0 and error <= rtol):
             return _whole(result, log, histories)
         if relaxation == "none" or at is None:
             at = u.copy()

@@ -114,7 +114,8 @@ def adapt_hp(
         sigma0: The decay rate above which a marked cell is p-refined (:mod:`.mark`).
         estimator: ``equilibrated`` (the guaranteed bound, scalar only) or ``residual``
             (h/p weights).
-        on_level: Called with each level once it is estimated.
+        on_level: Called with each level once it is estimated and marked; its seconds are
+            not counted in the levels' ``elapsed`` and ``cpu`` (the time to accuracy).
         verbose: Print a row per level.
         newton_rtol: Newton's relative tolerance (default :data:`NEWTON_RTOL`).
         front_degree: The largest degree of the free boundary's cells (:func:`.mark.hp_mark`).
@@ -142,6 +143,9 @@ def adapt_hp(
     degrees = np.full(n, min(p_start, p_max), dtype=np.int32)
     out = AdaptResult()
     u0: fem.Function | None = None
+    # the loop's clocks, wall and CPU, and the outputs' shares of them (Level.elapsed, .cpu)
+    start, outputs = time.perf_counter(), 0.0
+    start_cpu, outputs_cpu = time.process_time(), 0.0
     for index in range(max_levels):
         seconds: dict[str, float] = {}
         t0 = time.perf_counter()
@@ -178,6 +182,8 @@ def adapt_hp(
             imbalance,
             scene=scene,
             space=space,
+            elapsed=time.perf_counter() - start - outputs,
+            cpu=time.process_time() - start_cpu - outputs_cpu,
         )
         out.levels.append(level)
         stop = _stop(result, est.eta, tol, index, max_levels)
@@ -192,8 +198,11 @@ def adapt_hp(
             level.h_cells = comm.allreduce(len(marks.h))
             level.p_cells = comm.allreduce(len(marks.p))
         if on_level is not None:
+            cpu = time.process_time()
             with Timer(seconds, "output"):
                 on_level(level)
+            outputs += seconds["output"]
+            outputs_cpu += time.process_time() - cpu
         if verbose and comm.rank == 0:
             r = level.row()
             print(

@@ -25,7 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..solvers import solves_text
-from .figures import new_figure, release_figure
+from .figures import new_figure, save_figure
 
 
 class Study(Protocol):
@@ -185,8 +185,7 @@ def speed_accuracy(
             title_fontsize=8,
         )
     fig.tight_layout(rect=(0, bottom, 1, 1))
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list[dict]) -> None:
@@ -232,8 +231,7 @@ def stability(path: str | Path, study: Study, rows: list[dict], level_rows: list
     )
     ax.set_title(f"study {study.name}: outcome and Newton iterations (+ polishing solves)", pad=22)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def _solves_label(r: dict) -> str:
@@ -330,8 +328,7 @@ def iterations(
     ax.legend(fontsize=7, loc="upper left", ncol=2)
     ax.set_title(f"study {study.name}: iterations per level (× = not converged)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    release_figure(fig)
+    save_figure(fig, path, dpi=120)
     return curves
 
 

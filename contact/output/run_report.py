@@ -17,6 +17,7 @@ were written), ``summary.json`` last.
 
 from __future__ import annotations
 
+import functools
 import platform
 import re
 import warnings
@@ -37,7 +38,7 @@ from ..post.posed import Posed
 from ..post.reference import compare
 from ..post.resultants import current_pressure
 from ..solvers import Result
-from . import folder, plots
+from . import drawing, folder, plots
 from .degree import output_fields
 from .fields import FieldFiles
 from .report import Report
@@ -228,18 +229,16 @@ def pressure_picture(
     title = f"{report.name}: along Γ_C ({result.dofs} DoFs, {result.n_active} active nodes)"
     value = "lambda_n" if report.elastic else "lambda"  # the table's column
 
-    def draw(_) -> None:  # rank 0, which holds the table
-        assert table is not None
-        plots.plot_pressure(path, table, value, comparison, title=title)
-
-    return [
-        plots.Picture(
-            [],
-            draw,
-            path,
-            root=True,
-        )
-    ]
+    # rank 0 holds the table: it draws the picture
+    draw = functools.partial(
+        drawing.pressure_chart,
+        path=path,
+        table=table,
+        value=value,
+        comparison=comparison,
+        title=title,
+    )
+    return [plots.Picture([], draw, path, root=True)]
 
 
 def write_run(
@@ -434,7 +433,11 @@ def write_adaptive(
         title = f"{report.name}: adaptive convergence"
         chart = tmp / "convergence.png"
         pictures.append(
-            plots.Picture([], lambda grid: plots.plot_convergence(chart, rows, title), chart)
+            plots.Picture(
+                [],
+                functools.partial(drawing.convergence_chart, path=chart, rows=rows, title=title),
+                chart,
+            )
         )
         pictures += pressure_picture(tmp, report, last.result, comparison, table)
         info["pictures"] = plots.draw_in_turn(pictures, comm)

@@ -27,7 +27,6 @@ Reading back in Python::
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -36,6 +35,7 @@ from dolfinx import cpp, fem
 from mpi4py import MPI
 
 from .folder import Collection, write_on_root
+from .grid import Grid
 
 
 def _degree(V: fem.FunctionSpace) -> int:
@@ -68,67 +68,16 @@ def cell_rows(fn: fem.Function, n_cells: int | None = None) -> np.ndarray:
     return fn.x.array.real.reshape(-1, bs)[V.dofmap.list[:n_cells, 0]]
 
 
-@dataclass
-class Grid:
-    """An unstructured grid of cells of one type with its data, in numpy arrays: what the
-    .vtu writer (:func:`save_vtu`) and the 2D pictures read, with the attribute names of a
-    pyvista grid; :meth:`pyvista` makes one (for the 3D pictures).  Neither pyvista nor VTK
-    is imported to build it: a run that draws in 2D loads neither."""
-
-    points: np.ndarray  # (n_points, 3)
-    connectivity: np.ndarray  # (n_cells, nodes per cell), VTK's node order
-    cell_type: int  # the VTK cell type of every cell
-    point_data: dict[str, np.ndarray] = field(default_factory=dict)
-    cell_data: dict[str, np.ndarray] = field(default_factory=dict)
-    field_data: dict[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def n_points(self) -> int:
-        return len(self.points)
-
-    @property
-    def n_cells(self) -> int:
-        return len(self.connectivity)
-
-    @property
-    def cells_dict(self) -> dict[int, np.ndarray]:
-        return {self.cell_type: self.connectivity}
-
-    @property
-    def cell_connectivity(self) -> np.ndarray:
-        return self.connectivity.ravel()
-
-    @property
-    def cell_offsets(self) -> np.ndarray:
-        per_cell = self.connectivity.shape[1]
-        return np.arange(0, self.n_cells * per_cell + 1, per_cell, dtype=np.int64)
-
-    @property
-    def celltypes(self) -> np.ndarray:
-        return np.full(self.n_cells, self.cell_type, dtype=np.uint8)
-
-    def pyvista(self):
-        """The same grid and data as a ``pyvista.UnstructuredGrid``."""
-        grid = _grid(self.points, self.connectivity, self.cell_type)
-        for ours, theirs in (
-            (self.point_data, grid.point_data),
-            (self.cell_data, grid.cell_data),
-            (self.field_data, grid.field_data),
-        ):
-            for name, values in ours.items():
-                theirs[name] = values
-        return grid
-
-
 #: gather_grid returns a pyvista grid (True: the old path, which imports pyvista and VTK
-#: for every file and picture) or a :class:`Grid` (False)
+#: for every file and picture) or a :class:`~contact.output.grid.Grid` (False)
 PYVISTA_GRID = False
 
 
 def gather_grid(
     point_fields: Sequence[fem.Function], cell_fields: Sequence[fem.Function] = (), root: int = 0
 ):
-    """The fields on one :class:`Grid` on rank ``root`` (None elsewhere; collective).
+    """The fields on one :class:`~contact.output.grid.Grid` on rank ``root`` (None elsewhere;
+    collective).
 
     All point fields must be Lagrange of one degree on one mesh (scalar or vector valued);
     the grid's points are that space's nodes (in global DoF order), its cells the owned
@@ -191,26 +140,6 @@ def _vtk_cell_type(msh, degree: int) -> int:
     return cpp.io.get_vtk_cell_type(msh.topology.cell_type, msh.topology.dim)
 
 
-def _grid(x: np.ndarray, connectivity: np.ndarray, cell_type: int):
-    """A pyvista grid of cells of one type from the (n_cells, nodes per cell) connectivity,
-    handed to VTK as offsets and connectivity arrays (no per-cell count column to parse)."""
-    import pyvista
-    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
-    from vtkmodules.vtkCommonDataModel import vtkCellArray
-
-    n_cells, per_cell = connectivity.shape
-    cells = vtkCellArray()
-    offsets = np.arange(0, n_cells * per_cell + 1, per_cell, dtype=np.int64)
-    cells.SetData(
-        numpy_to_vtkIdTypeArray(offsets, deep=True),
-        numpy_to_vtkIdTypeArray(connectivity.astype(np.int64).ravel(), deep=True),
-    )
-    grid = pyvista.UnstructuredGrid()
-    grid.points = x
-    grid.SetCells(numpy_to_vtk(np.full(n_cells, cell_type, dtype=np.uint8), deep=True), cells)
-    return grid
-
-
 def _gather_rows(a: np.ndarray, comm: MPI.Comm, root: int) -> np.ndarray | None:
     """The rows of every rank's array ``a`` stacked in rank order on ``root`` (None elsewhere;
     collective).  One ``Gatherv`` of the raw buffers: no pickling, which is slow on big
@@ -245,9 +174,10 @@ def write_vtu(
 
 
 def save_vtu(path: str | Path, grid) -> None:
-    """Write a :class:`Grid` (or a pyvista/VTK unstructured grid) as ``.vtu`` (VTK XML: the
-    arrays uncompressed in one raw appended block, each as its byte count, UInt64, and its
-    little-endian bytes), which VTK's readers (ParaView, pyvista) and meshio read.
+    """Write a :class:`~contact.output.grid.Grid` (or a pyvista/VTK unstructured grid) as
+    ``.vtu`` (VTK XML: the arrays uncompressed in one raw appended block, each as its byte
+    count, UInt64, and its little-endian bytes), which VTK's readers (ParaView, pyvista) and
+    meshio read.
 
     The block holds the arrays in the reverse of their order in the XML: meshio 5.3.5
     re-encodes the arrays one by one in block order and looks each up as the first

@@ -32,7 +32,8 @@ from the step before.
 many levels as keep the coarsest at ≥ :data:`~.sequencing.COARSEST_DOFS`; an integer N asks
 for N coarser levels; ``off`` starts cold.  A hyperelastic load step is sequenced only
 without a previous solution (its first step; the later ones start from the tangent
-predictor).
+predictor).  Hyperelastic bodies in contact through pairs solve each coarse level's own
+fixed point of couplings (:func:`contact.setup.run.solve_coupled`).
 """
 
 from __future__ import annotations

@@ -28,9 +28,11 @@ from ..base.errors import ConfigError, ContactWarning
 from ..drivers.adaptive import AdaptResult, Level, check_on_level
 from ..drivers.adaptive import adapt as adapt_domain
 from ..drivers.load_path import LoadPath, Previous, Step, run_steps
-from ..drivers.recouple import solve_recoupled
+from ..drivers.recouple import COUPLING_RTOL, solve_recoupled
+from ..drivers.sequencing import COARSE_RTOL, initial_guess
 from ..drivers.solve import Enforce
 from ..drivers.solve import solve as solve_problem
+from ..models.discrete import Problem
 from ..solvers import Result
 from ..solvers.floating import free_in_contact
 from ..solvers.options import BASELINE_METHODS
@@ -256,12 +258,9 @@ def solve(
     if problem is not None and problem.V.mesh is not scene.mesh:
         raise ValueError("problem: was built for another scene's mesh")
     config = scene.config  # validated at load, immutable: only the call's overrides are checked
-    if problem is None and config.model.type == "hyperelastic" and config.pairs:
+    if problem is None and recoupled(scene):
         # finite strain: the pairs' coupling follows the current configuration
-        def once(built: DiscreteProblem, guess: fem.Function | None) -> Result:
-            return solve(scene, method, built, guess, verbose, criterion, **options)
-
-        return solve_recoupled(functools.partial(build_problem, scene), once, u0)
+        return solve_coupled(scene, method, None, u0, verbose, criterion, **options)
     opts = config.solver.updated(config.constants, method=method, **options)
     verbose = config.output.verbose if verbose is None else verbose
     built_here = problem is None
@@ -302,6 +301,67 @@ def solve(
         )
         if free and scene.comm.rank == 0:
             warnings.warn(not_unique_text(free), ContactWarning, stacklevel=1)
+    return result
+
+
+def recoupled(scene: Scene) -> bool:
+    """Return whether the scene's solves re-couple its pairs on the current configuration.
+
+    Hyperelastic bodies in contact through mortar pairs (:mod:`contact.drivers.recouple`).
+    """
+    return scene.config.model.type == "hyperelastic" and bool(scene.config.pairs)
+
+
+def solve_coupled(
+    scene: Scene,
+    method: str | None,
+    problem: DiscreteProblem | None,
+    u0: fem.Function | None,
+    verbose: bool | None,
+    criterion: AdaptiveStopping | None = None,
+    coupling_rtol: float = COUPLING_RTOL,
+    **options: Any,
+) -> Result:
+    """Solve a scene of hyperelastic bodies in contact through pairs: the coupling's fixed point.
+
+    :func:`contact.drivers.recouple.solve_recoupled`, each coupling one :func:`solve` of the
+    problem coupled on the current configuration of the last solution.  Without a guess the
+    coarse levels of ``solver.sequence`` (:func:`.levels.scene_hierarchy`) are solved first,
+    each its own fixed point of couplings on its own mesh, and the fixed point starts from
+    their solution, its first coupling on that solution's configuration (the levels and
+    their note on ``Result.sequence``); otherwise the first coupling is that of ``u0``'s
+    configuration (the reference one without a guess).  ``problem``: the scene's problem
+    coupled on the reference configuration, if built already (the first coupling of a cold
+    start; destroyed otherwise).  Collective.
+    """
+    opts = scene.config.solver.updated(scene.config.constants, method=method, **options)
+    levels: list = []
+    note = ""
+    if u0 is None:
+        problem = problem or build_problem(scene)
+
+        def coarse_solve(coarse: Scene, problem, u0, verbose) -> Result:
+            return solve_coupled(coarse, None, problem, u0, verbose, coupling_rtol=COARSE_RTOL)
+
+        hierarchy = scene_hierarchy(scene, problem.V, opts, coarse_solve)
+        note = hierarchy.note
+        if hierarchy.levels:
+            loud = scene.config.output.verbose if verbose is None else verbose
+            u0, levels, note = initial_guess(hierarchy, problem.V, loud, opts.method)
+    first: list[Any] = [problem] if problem is not None and u0 is None else []
+    if problem is not None and u0 is not None:
+        problem.destroy()  # the first coupling is that of the guess
+
+    def build(at: np.ndarray | None) -> Problem:
+        return first.pop() if first else build_problem(scene, at)
+
+    def once(built: Problem, guess: fem.Function | None) -> Result:
+        return solve(
+            scene, method, built, guess, verbose, criterion, **{**options, "sequence": "off"}
+        )
+
+    result = solve_recoupled(build, once, u0, rtol=coupling_rtol)
+    result.sequence, result.sequence_note = levels, note
     return result
 
 
@@ -431,7 +491,9 @@ def adapt(
 
     def level_solve(problem, domain: Domain, guess, criterion) -> Result:
         # nested: the previous level's solution; cold (nested: false) means cold, not sequenced
-        return solve(
+        # (pairs at finite strain: the level's fixed point of couplings, its result's problem
+        # that of the last coupling)
+        return (solve_coupled if recoupled(scene) else solve)(
             scene_of(domain),
             method=method,
             problem=problem,

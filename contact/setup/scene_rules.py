@@ -64,8 +64,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
             a model that does not use it is an error, not a default).
 
     Returns:
-        The complete config: ``estimator`` resolved, ``pairs`` typed, ``solver.sequence``
-        off for hyperelastic bodies through pairs.
+        The complete config: ``estimator`` resolved, ``pairs`` typed, ``solver.sequence:
+        auto`` off for hyperelastic bodies through pairs.
 
     Raises:
         ConfigError: the first rule the scene breaks.
@@ -83,7 +83,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
     roles = [p.role for p in parts.values()]
     model = config.model.type
     if _check_hyperelastic(config, model) and config.pairs and config.solver.sequence == "auto":
-        # pairs at finite strain are re-coupled per solve: their coarse levels would not be
+        # pairs at finite strain: auto does not sequence (the couplings' linear fixed point,
+        # not its start, sets their work); a number of levels opts in
         updates["solver"] = config.solver.model_copy(update={"sequence": "off"})
     if model == "hyperelastic":  # the rest of the checks: those of an elastic body
         model = "elasticity"
@@ -154,8 +155,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
 def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
     """``model.law`` only and always for hyperelastic bodies; what the hyperelastic model
     does not do yet (contact/models/hyperelastic.py) is refused by name: contact pairs with
-    an obstacle, the adaptive loop or grid sequencing, a reference solution against an
-    obstacle, an exact solution, Coulomb's fixed point.  Returns whether the scene is
+    an obstacle, a reference solution against an obstacle, an exact solution, Coulomb's
+    fixed point.  Returns whether the scene is
     hyperelastic."""
     law = config.model.law
     if model != "hyperelastic":
@@ -172,11 +173,10 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
         )
     friction = config.friction
     frictional = friction is not None and friction.law != "none"
-    if config.pairs and (config.obstacle is not None or config.adapt is not None):
-        key = "obstacle" if config.obstacle is not None else "adapt"
+    if config.pairs and config.obstacle is not None:
         raise ConfigError(
-            f"{key}: hyperelastic bodies in contact through pairs are without a rigid "
-            "obstacle and without the adaptive loop (not implemented)"
+            "obstacle: hyperelastic bodies in contact through pairs are without a rigid "
+            "obstacle (not implemented)"
         )
     method = config.solver.method
     obstacle = config.obstacle.type if config.obstacle is not None else "plane"
@@ -192,11 +192,6 @@ def _check_hyperelastic(config: SceneConfig, model: str) -> bool:
         )
     if config.data.exact is not None:
         raise ConfigError("data.exact: not available for model type hyperelastic")
-    if config.pairs and config.solver.sequence not in ("auto", "off", 0):
-        raise ConfigError(
-            "solver.sequence: grid sequencing is not available for hyperelastic bodies in "
-            "contact through pairs (use off)"
-        )
     return True
 
 

@@ -98,6 +98,7 @@ class BlockReducedSystem(ReducedSystem):
         pivot = np.where(np.abs(b_ii) >= SCALE_FLOOR * b_row, b_ii, b_row)
         with np.errstate(divide="ignore", invalid="ignore"):
             self.l.array_w[:] = np.where(fixed | (pivot == 0), 1.0, 1.0 / pivot)
+        self._begin_law()
         self.H.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         self.work.pointwiseMult(self.p, self.l)
         self.A.diagonalScale(L=self.work, R=self.p)

@@ -232,7 +232,13 @@ class ReducedNewtonSystem(ReducedSystem):
         :meth:`.reduced.ReducedSystem.solve`.  The Newton law stays the one the matrix-free J
         applies; the next Newton step rebuilds its own A."""
         s_newton, d_newton = self.s.copy(), self.d.copy()
-        self.set_law(s, d)
+        # an exact solve on a new law sets GAMG up afresh (:meth:`solve`): A need not be kept
+        # apart from the lagged hierarchy's matrix meanwhile
+        self.exact_law = not resume
+        try:
+            self.set_law(s, d)
+        finally:
+            self.exact_law = False
         self.solve(F, y, rtol=rtol, resume=resume)
         s_newton.copy(self.s)
         d_newton.copy(self.d)

@@ -18,7 +18,9 @@ eliminated couplings are stored zeros), so it is rebuilt each Newton step by one
 one ``MatDiagonalScale`` and one ``MatDiagonalSet``, and an algebraic multigrid
 preconditioner can keep its hierarchy: CG + GAMG (with the rigid-body near-nullspace for
 elasticity) and ``pc_gamg_reuse_interpolation``, so that later Newton steps only recompute
-the Galerkin coarse operators.
+the Galerkin coarse operators.  A is stored in the matrix P that GAMG is built from: one copy
+of K's pattern beside K, and a second only while a lagged hierarchy (below) needs P's values
+and the new A at once (``reduced_share_matrix false``: A and P apart throughout).
 
 A hierarchy may also be kept across Newton steps (lagged, ``reduced_lag_pc``): by the
 rule ``active_set`` (``reduced_lag_rule``, the default) only while A has the fixed rows it
@@ -137,11 +139,15 @@ class ReducedSystem:
     ):
         self.K = K
         pattern = K if pattern is None else pattern  # the pattern of H (block laws: B K's)
-        self.A = pattern.duplicate(copy=True)  # the reduced operator
-        # the matrix GAMG was last built from (= A, or an earlier A)
+        # the matrix GAMG was last built from: the same object for the KSP's life (GAMG's
+        # reused interpolation keeps the finest level's matrix object)
         self.P = pattern.duplicate(copy=True)
         if near_nullspace is not None:
             self.P.setNearNullSpace(near_nullspace)
+        # the reduced operator: P itself (one matrix) unless a lagged GAMG needs P's values
+        # while A takes a new law (``reduced_share_matrix``, :meth:`_begin_law`)
+        self.A = self.P
+        self.share = self.SHARE
         self.Kdiag = K.getDiagonal()
         self.s, self.d = K.createVecLeft(), K.createVecLeft()
         self.p, self.y_fixed, self.r, self.work = (K.createVecLeft() for _ in range(4))
@@ -178,6 +184,7 @@ class ReducedSystem:
         self.last_reason: int = 0
         self.lag = True
         self.lag_rule = self.LAG_RULES[0]
+        self.exact_law = False  # the next law is solved exactly (polishing): no lagging
         self._built_fixed: np.ndarray | None = None  # the fixed rows GAMG's P was built with
         self._fresh_rate: float | None = None
         self._lag_ok, self._lagged = False, False
@@ -198,6 +205,9 @@ class ReducedSystem:
 
     #: lag GAMG across Newton steps unless ``reduced_lag_pc`` says otherwise
     LAG = True
+    #: A is stored in P's matrix except while GAMG lags (``reduced_share_matrix false``: A
+    #: and P are two copies of K's pattern throughout, the path before)
+    SHARE = True
     #: when a lagged GAMG is kept (``reduced_lag_rule``): ``active_set`` — while the fixed
     #: rows are those it was built with and the rate test holds; ``rate`` — the rate test
     #: alone (:meth:`_krylov`)
@@ -217,6 +227,9 @@ class ReducedSystem:
             )
         self.lag_rule = rule
         self.warm = PETSc.Options(prefix).getBool("reduced_warm_start", True)
+        self.share = PETSc.Options(prefix).getBool("reduced_share_matrix", self.SHARE)
+        if not self.share and self.A is self.P:  # the path before: A and P stored apart
+            self.A = self.P.duplicate(copy=True)
         if self.pc_setup is not None:
             self.pc_setup(self.ksp.getPC())
         # adaptive stopping measures CG's natural norm, which the lagging's rates do not use
@@ -247,6 +260,7 @@ class ReducedSystem:
         self.fixed_rows = int(fixed.sum())
         p = self.p.array_w
         p[:] = np.where(fixed, 0.0, 1.0)
+        self._begin_law()
         self.K.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
         self.A.diagonalScale(L=self.p, R=self.p)
         diag = self.work.array_w
@@ -255,22 +269,39 @@ class ReducedSystem:
         self.A.setDiagonal(self.work, addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
         self._operator_changed()
 
-    def _operator_changed(self) -> None:
-        """After A changed: lag the preconditioner or rebuild it."""
-        # lag the preconditioner (GAMG of an earlier A, kept in P) while it converges well —
-        # and, by the rule ``active_set``, while the fixed rows are those P was built with
-        self._lagged = self.lag and self._fresh_rate is not None and self._lag_ok
+    def _begin_law(self) -> None:
+        """Before A takes a new law (``fixed`` set, collective): whether the preconditioner
+        lags — GAMG of an earlier A, kept in P, while it converges well and, by the rule
+        ``active_set``, while the fixed rows are those P was built with.  A lagged step needs
+        P's values and the new A at once: A then gets storage of its own (P's pattern)."""
+        self._lagged = (
+            self.lag and not self.exact_law and self._fresh_rate is not None and self._lag_ok
+        )
         if self._lagged and self.lag_rule == "active_set":
             same = self._built_fixed is not None and np.array_equal(self.fixed, self._built_fixed)
             self._lagged = bool(self.K.getComm().tompi4py().allreduce(same, op=MPI.LAND))
+        if self._lagged and self.A is self.P:
+            self.A = self.P.duplicate(copy=False)
+
+    def _operator_changed(self) -> None:
+        """After A changed (:meth:`_begin_law` first): lag the preconditioner or rebuild it."""
         if not self._lagged:
             self._rebuild()
         self.ksp.setOperators(self.A, self.P)
 
+    def _take_operator(self) -> None:
+        """P = A, and A stored in P again (shared): the matrix GAMG is built from next."""
+        if self.A is self.P:
+            return
+        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
+        if self.share:
+            self.A.destroy()
+            self.A = self.P
+
     def _rebuild(self) -> None:
         """P = A: GAMG is set up again at the next solve (Galerkin products; the
         interpolation is reused with ``pc_gamg_reuse_interpolation``)."""
-        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
+        self._take_operator()
         self._built_fixed = self.fixed.copy()
         self.ksp.setOperators(self.A, self.P)
         self.ksp.getPC().setReusePreconditioner(False)
@@ -451,7 +482,7 @@ class ReducedSystem:
         interpolation and smoother bounds no longer fit A), set GAMG up from scratch — new
         aggregates, interpolation and Chebyshev bounds — and solve again from zero."""
         ksp = self.ksp
-        self.A.copy(self.P, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
+        self._take_operator()
         self._built_fixed = self.fixed.copy()
         ksp.getPC().reset()
         if self.pc_setup is not None:
@@ -511,8 +542,9 @@ class ReducedSystem:
         return eta
 
     def destroy(self) -> None:
+        if self.A is not self.P:
+            self.A.destroy()
         for obj in (
-            self.A,
             self.P,
             self.Kdiag,
             self.s,

@@ -14,6 +14,8 @@ buckling strip against Euler, and the refinement study of the neo-Hookean cylind
     python demos/bench/bench_hyperelastic.py recouple      # mortar re-coupling: Aitken vs plain
     python demos/bench/bench_hyperelastic.py sequence      # grid sequencing of the first step
     python demos/bench/bench_hyperelastic.py drag          # Coulomb between bodies, 2D and 3D
+    python demos/bench/bench_hyperelastic.py kink          # a tube kinked into self-contact
+    python demos/bench/bench_hyperelastic.py pairs         # adapt and sequencing of two bodies
 
 ``line_search`` — St Venant–Kirchhoff (SVK) bodies solved with ``line_search: basic`` (plain
 Newton, MUMPS LU: the behaviour before the energy search) and ``energy`` (the default for
@@ -115,6 +117,25 @@ the held top, the couplings and Newton iterations, the stick / slip / separated 
 (drag and press) and its balance with the master's, |f_slave + f_master| / |f_slave|; CPU
 seconds of the whole path.  Writes two_body_drag.csv.
 
+``kink`` — self-contact after buckling: configs/hyperelastic_self_contact_kink.yaml (a
+neo-Hookean tube, R = 1, r = 0.9, length 4, a quarter) whose end sections are turned by φ
+about the x axis through the middle section, in ``--kink-steps`` (24) equal steps to
+φ = 1.2 and in the scene's own 12.  Per step: φ, the bending moment M the end section carries
+(about its centre, from the reactions: tests/test_self_contact_kink.py), the beam's
+E I φ / a, the end's axial reaction, the pressed slave nodes and the contact force, the
+couplings and Newton iterations, the smallest det F and K_T's negative eigenvalues; CPU
+seconds of each path.  Writes kink.csv and kink.png (M against φ, both paths, the pressed
+nodes on a second axis).
+``pairs`` — two neo-Hookean cylinders (configs/two_body_hertz_2d.yaml made hyperelastic,
+re-coupled on the current configuration) pressed to δ = 0.1 R_c in one step: Dörfler
+(θ = 0.5, ``--levels`` 6) and uniform refinement (``--uniform-levels`` 3) from the shipped
+mesh, per level DoFs, η, the contact force, couplings and Newton iterations, and the
+interface forces' balance; then grid sequencing (``solver.sequence: 2`` against off) at
+δ = 0.1 R_c on the shipped mesh and with h_contact = 0.025, and at 0.2 R_c: the fine
+Newton iterations and couplings, the coarse levels, the force, CPU seconds (the smaller of
+two alternating runs in this process) and their ratio.  Writes pairs_adaptive.csv and
+pairs_sequence.csv.
+
 Writes CSV under demos/results/hyperelastic/ (``--out``).
 """
 
@@ -126,11 +147,13 @@ import functools
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import contact  # noqa: F401  (before petsc4py)
 import contact.setup.run as scene_run
 from contact import refine
+from contact.base.errors import ContactWarning
 from contact.drivers import recouple as recouple_driver
 from contact.models.hyperelastic import min_det_F, negative_eigenvalues
 
@@ -143,6 +166,7 @@ sys.path.insert(0, str(ROOT / "tests"))  # the scenes the tests check, measured 
 import hyperelastic_friction_run  # noqa: E402
 import test_hyperelastic  # noqa: E402
 import test_hyperelastic_adapt  # noqa: E402
+import test_self_contact_kink  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 CYLINDER = ROOT / "configs" / "hyperelastic_cylinder.yaml"
@@ -938,6 +962,165 @@ def drag(out: Path) -> None:
     save_csv(out / "two_body_drag.csv", rows)
 
 
+KINK = ROOT / "configs" / "hyperelastic_self_contact_kink.yaml"
+
+
+def kink(out: Path, steps: int) -> None:
+    """A tube kinked by end rotations into self-contact (module doc)."""
+    rows = []
+    for n in (steps, None):
+        sets = [] if n is None else [f"load.steps={n}"]
+        scene = contact.load_scene(KINK, ["output.verbose=false", *sets])
+        c = scene.config.constants
+        figures = []
+
+        def on_step(step, scene=scene, figures=figures, c=c) -> None:
+            r = step.result
+            moment = test_self_contact_kink.end_moment(r, scene, step.time)
+            X = r.problem.V.tabulate_dof_coordinates()
+            _, f = test_self_contact_kink.nodal_forces(
+                r, scene, np.flatnonzero(X[:, 2] > c["a"] - 1e-9)
+            )
+            axial = COMM.allreduce(float(f[:, 2].sum()), op=MPI.SUM)
+            figures.append(
+                {
+                    "path_steps": scene.config.load.steps,
+                    "phi": c["p"] * step.time,
+                    "moment": moment,
+                    "beam_moment": test_self_contact_kink.INERTIA * c["p"] * step.time / c["a"],
+                    "axial_reaction": axial,
+                    "pressed": r.n_active,
+                    "contact_force": r.contact_force,
+                    "couplings": len(r.couplings),
+                    "newton": sum(k["newton"] for k in r.couplings),
+                    "min_det_F": min_det_F(r),
+                }
+            )
+            say(", ".join(f"{k} {v:.4g}" for k, v in figures[-1].items()))
+
+        t0 = time.process_time()
+        run = contact.run_load_path(scene, on_step=on_step, verbose=False)
+        cpu = COMM.allreduce(time.process_time() - t0, op=MPI.SUM)
+        if not run.converged:
+            raise SystemExit(f"bench_hyperelastic: kink: {run.stop}")
+        rows += [{**row, "path_cpu_seconds": round(cpu, 1)} for row in figures]
+    save_csv(out / "kink.csv", rows)
+    if COMM.rank == 0:
+        chart_kink(out / "kink.png", rows)
+
+
+def chart_kink(path: Path, rows: list[dict]) -> None:
+    """The moment against the end rotation (both paths; the beam's E I φ / a dashed), the
+    pressed slave nodes on a second axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    right = ax.twinx()
+    for n, style in zip(sorted({r["path_steps"] for r in rows}, reverse=True), ("o-", "s--")):
+        path_rows = [r for r in rows if r["path_steps"] == n]
+        phi = [0.0] + [r["phi"] for r in path_rows]
+        ax.plot(phi, [0.0] + [r["moment"] for r in path_rows], style, ms=3, label=f"{n} steps")
+        right.plot(phi, [0] + [r["pressed"] for r in path_rows], style, ms=3, color="C3")
+    beam = [r for r in rows if r["phi"] <= 0.2]
+    ax.plot([0, beam[-1]["phi"]], [0, beam[-1]["beam_moment"]], "k:", label="beam E I φ / a")
+    ax.set(xlabel="end rotation φ (rad)", ylabel="bending moment M (quarter model)")
+    right.set_ylabel("pressed slave nodes", color="C3")
+    ax.set_title("neo-Hookean tube kinked by end rotations")
+    ax.legend(loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    print(f"wrote {path}", flush=True)
+
+
+HERTZ_2D = ROOT / "configs" / "two_body_hertz_2d.yaml"
+NEO_HOOKEAN = ["model.type=hyperelastic", "model.law=neo_hookean", "output.verbose=false"]
+#: the sequencing cases of the ``pairs`` part: (δ, the mesh's h_contact or None: shipped)
+PAIRS_SEQUENCE = ((0.8, None), (0.8, 0.025), (1.6, None))
+
+
+def pairs(out: Path, levels: int, uniform_levels: int) -> None:
+    """Adapt and grid sequencing of two neo-Hookean cylinders (module doc)."""
+    # the half-disks' arcs away from the contact carry σn = 0, as shipped
+    warnings.filterwarnings("ignore", "boundary: .* exterior facet", ContactWarning)
+    rows = []
+    for strategy, count in (("dorfler", levels), ("uniform", uniform_levels)):
+        scene = contact.load_scene(
+            HERTZ_2D,
+            [
+                *NEO_HOOKEAN,
+                "constants.delta=0.8",
+                f"adapt.strategy={strategy}",
+                f"adapt.max_levels={count}",
+                "adapt.max_dofs=1000000",
+            ],
+        )
+        run = contact.adapt(scene, verbose=False)
+        for lv in run.levels:
+            r = lv.result
+            slave, master = r.interface_forces
+            rows.append(
+                {
+                    "strategy": strategy,
+                    "level": lv.index,
+                    "dofs": r.dofs,
+                    "eta": lv.estimate.eta,
+                    "force": r.contact_force,
+                    "couplings": len(r.couplings),
+                    "newton": r.iterations,
+                    "balance": float(np.linalg.norm(slave + master) / np.linalg.norm(slave)),
+                    "solve_seconds": round(lv.seconds["solve"], 2),
+                }
+            )
+            say(
+                ", ".join(
+                    f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in rows[-1].items()
+                )
+            )
+    save_csv(out / "pairs_adaptive.csv", rows)
+    rows = []
+    for delta, h_contact in PAIRS_SEQUENCE:
+        sets = [*NEO_HOOKEAN, "adapt=none", f"constants.delta={delta}"]
+        if h_contact is not None:
+            sets.append(f"mesh.h_contact={h_contact}")
+        runs: dict = {"off": [], 2: []}
+        for _ in range(2):  # alternating: the machine's load hits both alike
+            for mode in runs:
+                scene = contact.load_scene(HERTZ_2D, [*sets, f"solver.sequence={mode}"])
+                t0 = time.process_time()
+                r = contact.solve(scene, verbose=False)
+                runs[mode].append((COMM.allreduce(time.process_time() - t0, op=MPI.MAX), r))
+        cold = min(cpu for cpu, _ in runs["off"])
+        for mode, done in runs.items():
+            cpu, r = min(done, key=lambda x: x[0])
+            rows.append(
+                {
+                    "delta": delta,
+                    "h_contact": h_contact or scene.config.mesh.h_contact,
+                    "sequence": mode,
+                    "dofs": r.dofs,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "couplings": len(r.couplings),
+                    "coarse_dofs": " ".join(str(lv.dofs) for lv in r.sequence),
+                    "coarse_newton": " ".join(str(lv.newton_iterations) for lv in r.sequence),
+                    "force": r.contact_force,
+                    "cpu": round(cpu, 3),
+                    "cpu_ratio": round(cpu / cold, 3),
+                }
+            )
+            say(
+                ", ".join(
+                    f"{k} {v:.10g}" if isinstance(v, float) else f"{k} {v}"
+                    for k, v in rows[-1].items()
+                )
+            )
+    save_csv(out / "pairs_sequence.csv", rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -954,6 +1137,8 @@ def main() -> None:
             "recouple",
             "sequence",
             "drag",
+            "kink",
+            "pairs",
         ),
     )
     ap.add_argument("--coarse", type=int, default=2, help="sequence: coarser levels (2)")
@@ -983,6 +1168,7 @@ def main() -> None:
         help="adaptive: the neo-Hookean block on a plane, or a rigid cylinder pressed into a "
         "block (indenter: a small one, indentation: the shipped scene)",
     )
+    ap.add_argument("--kink-steps", type=int, default=24, help="kink: load steps to φ = 1.2")
     ap.add_argument("--mesh-size", type=float, default=0.05, help="ball: the mesh size")
     ap.add_argument("--ball-steps", type=int, default=4, help="ball: load steps to 0.2 R")
     ap.add_argument("--steps", type=int, default=10, help="refinement: load steps to 0.5 R")
@@ -1017,6 +1203,10 @@ def main() -> None:
         )
     elif args.part == "drag":
         drag(args.out)
+    elif args.part == "kink":
+        kink(args.out, args.kink_steps)
+    elif args.part == "pairs":
+        pairs(args.out, args.levels or 6, args.uniform_levels or 3)
     else:
         refinement(args.out, args.levels or 4, args.steps, args.top)
 

@@ -111,7 +111,7 @@ def picture(cells: int) -> list[dict]:
     import matplotlib
 
     matplotlib.use("Agg")
-    from contact.output import plots
+    from contact.output import drawing, plots
 
     import matplotlib.pyplot as plt
     import matplotlib.tri as mtri
@@ -123,7 +123,7 @@ def picture(cells: int) -> list[dict]:
     out = []
     with tempfile.TemporaryDirectory() as tmp:
         for path, limit in (("gouraud", 10**12), ("raster", 0)):
-            plots.RASTER_CELLS = limit
+            drawing.RASTER_CELLS = limit
             fig, ax = plt.subplots(figsize=(8.5, 5))
             t0 = time.perf_counter()
             plots.smooth_shading(ax, tri, values, "viridis")

@@ -6,11 +6,17 @@ and its wall seconds are printed beside them.  The tiny run is ``contact run
 configs/signorini_square.yaml --set mesh.cells=[8,8]`` with its default outputs (pictures
 included).  Beside it, in the same round so that ratios are of one machine state:
 
+* ``--old-png``: the PNG files compressed at zlib level 6, matplotlib's default
+  (``contact.output.figures.PNG_LEVEL``; the new level is 1);
 * ``--old-plots``: the pictures drawn through matplotlib.pyplot
   (``contact.output.figures.PYPLOT``, the old path; the new one draws on Figures of their own);
 * ``--old-gc``: the cyclic garbage collector on while the command loads its modules and scene
   (``contact.app.cli.FREEZE_LOADED`` False, the old path; the new one keeps it off there and
   then freezes what was loaded);
+* ``--old-process``: the pictures drawn in the command's process
+  (``contact.output.picture_process.ENABLED`` False, the old path; the new one draws them
+  in a process started before DOLFINx is imported, which imports matplotlib meanwhile: its
+  CPU seconds are counted with the run's);
 * ``--old-grid``: the old output grid (``contact.output.vtk.PYVISTA_GRID``: pyvista and VTK
   imported for every file and picture);
 * the tiny run without pictures (``output.png=false``), as one ``contact.solve`` without
@@ -26,8 +32,8 @@ package or a repeated run has it: without that cache every run compiles contact'
 again, about 0.1 s CPU.  ``--no-bytecode-cache`` keeps the inherited environment.
 Writes CSV.
 
-    python demos/bench/bench_startup.py --repeat 5 --old-plots --old-gc --old-grid \\
-        --out demos/results/startup.csv
+    python demos/bench/bench_startup.py --repeat 5 --old-process --old-png --old-plots \\
+        --old-gc --old-grid --out demos/results/startup.csv
 """
 
 from __future__ import annotations
@@ -48,15 +54,24 @@ from common import save_csv
 
 ROOT = Path(__file__).resolve().parents[2]
 RUN = (
-    "import sys; import contact.output.vtk as vtk; vtk.PYVISTA_GRID = {old_grid}\n"
-    "import contact.output.figures as figures; figures.PYPLOT = {old_plots}\n"
-    "import contact.app.cli as cli; cli.FREEZE_LOADED = not {old_gc}\n"
+    "import sys\n"
+    "{flags}"
     "from contact.app.cli import main\n"
     "code = main(['run', 'configs/signorini_square.yaml', '--set', 'mesh.cells=[8,8]',\n"
     "             '--set', 'output.verbose=false', *{sets!r}, '-o', {out!r}])\n"
     "{after}\n"
     "sys.exit(code)"
 )
+#: the old paths' switches, each set before main() only when it is on: setting one imports
+#: its module, and the output modules import DOLFINx, which must not be loaded before main()
+#: starts the picture process
+SWITCHES = {
+    "old_grid": "import contact.output.vtk as vtk; vtk.PYVISTA_GRID = True\n",
+    "old_plots": "import contact.output.figures as figures; figures.PYPLOT = True\n",
+    "old_gc": "import contact.app.cli as cli; cli.FREEZE_LOADED = False\n",
+    "old_process": "import contact.output.picture_process as pp; pp.ENABLED = False\n",
+    "old_png": "import contact.output.figures as figures; figures.PNG_LEVEL = 6\n",
+}
 #: what the tiny run's child prints after it: the modules other than contact's it loaded
 LOADED = (
     "import json; print(json.dumps([m for m in sys.modules"
@@ -116,21 +131,29 @@ def main() -> None:
     ap.add_argument("--old-plots", action="store_true", help="alternate with pyplot's pictures")
     ap.add_argument("--old-gc", action="store_true", help="alternate with the collector on")
     ap.add_argument(
+        "--old-process", action="store_true", help="alternate with the pictures drawn in-process"
+    )
+    ap.add_argument("--old-png", action="store_true", help="alternate with PNG zlib level 6")
+    ap.add_argument(
         "--no-bytecode-cache", action="store_true", help="keep the inherited environment"
     )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
-    # (case, old grid, old plots, old collector, --set items)
-    cases = [("tiny run", False, False, False, [])]
+    # (case, old paths switched on, --set items)
+    cases: list[tuple[str, tuple[str, ...], list[str]]] = [("tiny run", (), [])]
+    if args.old_process:
+        cases.append(("tiny run, pictures in-process (old)", ("old_process",), []))
+    if args.old_png:
+        cases.append(("tiny run, PNG zlib level 6 (old)", ("old_png",), []))
     if args.old_plots:
-        cases.append(("tiny run, pictures through pyplot (old)", False, True, False, []))
+        cases.append(("tiny run, pictures through pyplot (old)", ("old_plots",), []))
     if args.old_gc:
-        cases.append(("tiny run, collector on while loading (old)", False, False, True, []))
+        cases.append(("tiny run, collector on while loading (old)", ("old_gc",), []))
     if args.old_grid:
-        cases.append(("tiny run, pyvista grid (old)", True, False, False, []))
+        cases.append(("tiny run, pyvista grid (old)", ("old_grid",), []))
     png = ["--set", "output.png=false"]
-    cases.append(("tiny run, output.png=false", False, False, False, png))
-    cases.append(("solve only (API, no files)", False, False, False, []))
+    cases.append(("tiny run, output.png=false", (), png))
+    cases.append(("solve only (API, no files)", (), []))
     with tempfile.TemporaryDirectory() as cache:
         env = child_env(None if args.no_bytecode_cache else cache)
         bytecode = "inherited environment" if args.no_bytecode_cache else "cached"
@@ -150,12 +173,10 @@ def main() -> None:
                     "importtime_cumulative_s": cumulative_us / 1e6,
                 }
             )
-            for case, old_grid, old_plots, old_gc, sets in cases:
+            for case, switches, sets in cases:
                 with tempfile.TemporaryDirectory() as tmp:
                     code = RUN.format(
-                        old_grid=old_grid,
-                        old_plots=old_plots,
-                        old_gc=old_gc,
+                        flags="".join(SWITCHES[name] for name in switches),
                         sets=sets,
                         out=f"{tmp}/tiny",
                         after=LOADED if case == "tiny run" else "",
@@ -196,7 +217,18 @@ def main() -> None:
     def median_cpu(case: str) -> float:
         return statistics.median(r["cpu"] for r in rows if r["case"] == case)
 
+    def median_wall(case: str) -> float:
+        return statistics.median(r["wall"] for r in rows if r["case"] == case)
+
+    if args.old_process:
+        old = "tiny run, pictures in-process (old)"
+        print(
+            f"tiny run, new/old (picture process): CPU "
+            f"{median_cpu('tiny run') / median_cpu(old):.2f}, wall "
+            f"{median_wall('tiny run') / median_wall(old):.2f}"
+        )
     for flag, case in (
+        (args.old_png, "PNG zlib level 6"),
         (args.old_plots, "pyplot"),
         (args.old_gc, "collector"),
         (args.old_grid, "pyvista grid"),

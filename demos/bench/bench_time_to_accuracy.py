@@ -1,38 +1,53 @@
 """Time to accuracy: the adaptive loop against uniform meshes, at equal energy error.
 
 For each scene with an exact solution: the adaptive loop in each variant (``--variant
-NAME:KEY=VALUE,…``: the scene's ``adapt`` section with those overrides; by default
-``adapt.growth=2``, the defaults (Dörfler's set alone) and the two cheaper estimators with
-growth 2) records the wall and CPU seconds from its start to each level's energy error
-(``Level.elapsed``, outputs not counted); the uniform reference solves the scene once on
-meshes 1, 2, 4, … times finer than the scene's (``mesh.cells`` scaled, ``adapt=none``,
-grid sequencing as by default), the last one the mesh the observed rate predicts to reach
-the target, and records the seconds of each such run: mesh, solve and error — the run a
-user who knew the mesh needed would make.  All in this process, the uniform runs first,
-after one warm-up solve (the JIT cache), so the ratios adaptive/uniform are of one
-machine state.  At the target error e*:
-the seconds of the first adaptive level with error ≤ e* against those of the first uniform
-mesh with error ≤ e*, and the same at e* exactly (log-log interpolation of seconds against
-error between the levels around it); if the uniform meshes stop short of e*
-(``--max-dofs``), at the smallest error both reached, and against the uniform CPU seconds
-extrapolated to e* from the last two meshes.  Prints a table, writes CSV (one row per level
-or uniform run, then one row per scene and variant with the ratios).
+NAME:KEY=VALUE,…``: the scene's ``adapt`` section, or any scene key, with those overrides;
+by default growth 2, Dörfler's set alone, the residual indicators marking, h-adaptive P2
+and hp) records the wall and CPU seconds from its start to each level's energy error
+(``Level.elapsed``, ``Level.cpu``; outputs not counted); each uniform reference
+(``--uniform NAME:KEY=VALUE,…``; by default P1 and P2 on the scene's mesh) solves the scene
+once on meshes 1, 2, 4, … times finer than the scene's (``mesh.cells`` scaled,
+``adapt=none``, grid sequencing as by default), the last one the mesh the observed rate
+predicts to reach the target, and records the seconds of each such run: mesh, solve and
+error — the run a user who knew the mesh needed would make.  A variant or reference the
+scene does not take (P2 or hp on an obstacle scene: a ConfigError) is skipped, said so.
+All in this process, the uniform runs first; each run is preceded by an untimed one of the
+same kind to a 4× looser error or 20,000 DoFs (its forms compiled or loaded), so the ratios
+adaptive/uniform are of one machine state.  At the target error e*: the seconds of the
+first adaptive level with error ≤ e* against those of the first uniform mesh with
+error ≤ e*, and the same at e* exactly (log-log interpolation of seconds against error
+between the levels around it); if the uniform meshes stop short of e* (``--max-dofs``), at
+the smallest error both reached, and against the uniform CPU seconds extrapolated to e* from
+the last two meshes.  Per scene and variant, the speed-up (uniform / adaptive CPU seconds
+at e*) against each uniform reference and against the fastest of them.  Prints a table,
+writes CSV (one row per level or uniform run, then one row per scene, variant and uniform
+reference with the ratios; written after each scene).
 
     python demos/bench/bench_time_to_accuracy.py --max-dofs 1400000 \
         --out demos/results/time_to_accuracy.csv
+    python demos/bench/bench_time_to_accuracy.py A lshape --variant hp:adapt.strategy=hp \
+        --uniform uniform: --uniform uniform_p3:mesh.degree=3
     python demos/bench/bench_time_to_accuracy.py ex9 --target 1e-2 --variant adaptive: \
         --variant g3:adapt.growth=3
+    python demos/bench/bench_time_to_accuracy.py ex9 --target 4e-3 --max-dofs 1300000 \
+        --variant res2:adapt.growth=2,adapt.indicators=residual --plain
+
+``--plain`` runs each variant a second time with the plain paths of the estimators and
+refinement (:data:`PLAIN`: one assembly per DG0 term, …), the same numbers, so the gain of
+the default paths is a ratio of one run.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 import time
 from pathlib import Path
 
 import contact
 from contact.adaptivity.energy_error import solution_error
+from contact.base.errors import ConfigError
 
 from common import save_csv
 
@@ -53,12 +68,19 @@ def scaled_cells(scene: contact.Scene, factor: int) -> str:
     return f"mesh.cells=[{', '.join(str(c * factor) for c in cells)}]"
 
 
-def uniform(path: Path, target: float, max_dofs: int, sets: list[str]) -> list[dict]:
+def uniform(
+    path: Path,
+    target: float,
+    max_dofs: int,
+    sets: list[str],
+    name: str = "uniform",
+    echo: bool = True,
+) -> list[dict]:
     """Single solves on meshes 1, 2, 4, … times finer until one reaches ``target`` (or the
     next would exceed ``max_dofs``): a row each with its wall and CPU seconds (mesh + solve
-    + error).  Where the next doubling would pass the target, the last mesh is the one the
-    observed rate error ∝ h^r predicts to reach it (1 % finer): the run a user who knew the
-    mesh needed would make."""
+    + error; ``run``: the reference's ``name``).  Where the next doubling would pass the
+    target, the last mesh is the one the observed rate error ∝ h^r predicts to reach it (1 %
+    finer): the run a user who knew the mesh needed would make."""
     sets = [s for s in sets if not s.startswith("adapt.")]  # the loop's options
     base = contact.load_scene(path, ["output.verbose=false", "adapt=none", *sets])
     dim = base.mesh.topology.dim
@@ -72,13 +94,14 @@ def uniform(path: Path, target: float, max_dofs: int, sets: list[str]) -> list[d
         error = solution_error(result.problem, result)
         seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
         assert result.converged and error is not None, (path, factor)
-        rows.append({"run": "uniform", "level": factor, "dofs": result.dofs, "error": error})
+        rows.append({"run": name, "level": factor, "dofs": result.dofs, "error": error})
         rows[-1].update(seconds=round(seconds, 4), cpu=round(cpu, 4))
-        print(
-            f"  uniform ×{factor:<4d} {result.dofs:9d} DoFs  error {error:.3e}  "
-            f"{seconds:7.2f} s wall {cpu:7.2f} s CPU",
-            flush=True,
-        )
+        if echo:
+            print(
+                f"  {name} ×{factor:<4d} {result.dofs:9d} DoFs  error {error:.3e}  "
+                f"{seconds:7.2f} s wall {cpu:7.2f} s CPU",
+                flush=True,
+            )
         result.release()
         if error <= target:
             return rows
@@ -99,7 +122,12 @@ class Reached(Exception):
 
 
 def adaptive(
-    path: Path, target: float, max_dofs: int, sets: list[str], variant: str = "adaptive"
+    path: Path,
+    target: float,
+    max_dofs: int,
+    sets: list[str],
+    variant: str = "adaptive",
+    echo: bool = True,
 ) -> list[dict]:
     """The adaptive loop until a level reaches ``target`` (earlier levels released as it
     goes): a row per level with the loop's wall and CPU seconds up to it (``Level.elapsed``,
@@ -121,12 +149,13 @@ def adaptive(
         rows.append({"run": variant, "level": level.index, "dofs": level.result.dofs})
         rows[-1].update(error=level.error, seconds=round(wall, 4), cpu=round(cpu, 4))
         rows[-1]["bound_cpu"] = round(bound, 4)
-        print(
-            f"  {variant} L{level.index:<3d} {level.result.dofs:8d} DoFs  error "
-            f"{level.error:.3e}  {wall:7.2f} s wall {cpu:7.2f} s CPU"
-            + (f" (of it the bound {bound:.2f})" if bound else ""),
-            flush=True,
-        )
+        if echo:
+            print(
+                f"  {variant} L{level.index:<3d} {level.result.dofs:8d} DoFs  error "
+                f"{level.error:.3e}  {wall:7.2f} s wall {cpu:7.2f} s CPU"
+                + (f" (of it the bound {bound:.2f})" if bound else ""),
+                flush=True,
+            )
         if level.error <= target:  # reached: no finer level
             raise Reached
 
@@ -160,18 +189,40 @@ def at_error(rows: list[dict], target: float, clock: str = "seconds") -> float:
     return first_reaching(rows[:1], target, clock)
 
 
-#: the loop's variants compared by default, each against the same uniform runs: the
-#: scene's defaults, the old marking (Dörfler's set alone: ~1.7× the DoFs per level), and
-#: the two cheaper estimators (the guaranteed bound of the lowest-order flux; the residual
-#: estimator, a bound up to an unknown constant), and the residual indicators marking with
-#: the equilibrated bound on the last level only
+#: the loop's variants compared by default, each against the same uniform runs: growth 2
+#: (the loop refines until the DoFs double), the old marking (Dörfler's set alone: ~1.7× the
+#: DoFs per level), the residual indicators marking with the equilibrated bound on the last
+#: level only, h-adaptive P2, and hp (degrees 1 … 6, Dörfler's θ of the hp loop)
 VARIANTS = (
     "adaptive:adapt.growth=2",
     "dorfler:adapt.growth=1",
-    "rt0:adapt.growth=2,estimator=equilibrated_rt0",
-    "residual:adapt.growth=2,estimator=residual",
     "indicators:adapt.growth=2,adapt.indicators=residual",
+    "p2:mesh.degree=2,adapt.growth=2",
+    "hp:adapt.strategy=hp,adapt.p_max=6,adapt.theta=0.85",
 )
+#: the uniform references: P1 and P2 on meshes 1, 2, 4, … times finer than the scene's
+UNIFORM = ("uniform:", "uniform_p2:mesh.degree=2")
+#: the untimed run before each timed one stops at this multiple of the target error, or
+#: before this many DoFs
+WARM_FACTOR, WARM_DOFS = 4.0, 20_000
+
+
+#: the switches of the estimators' and refinement's plain paths (module, name): ``--plain``
+#: runs each variant a second time with all of them False
+PLAIN = (
+    ("contact.adaptivity.cellwise", "MERGED"),
+    ("contact.adaptivity.equilibration.flux", "P1_SHORTCUT"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_CELLS"),
+    ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
+    ("contact.adaptivity.transfer", "TAGGED_PARENTS_ONLY"),
+    ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
+)
+
+
+def plain_paths(on: bool) -> None:
+    """Select the plain paths of :data:`PLAIN` (``on``) or the default ones."""
+    for module, name in PLAIN:
+        setattr(importlib.import_module(module), name, not on)
 
 
 def variant_of(text: str) -> tuple[str, list[str]]:
@@ -196,6 +247,20 @@ def main() -> None:
         metavar="NAME:KEY=VALUE,…",
         help=f"an adaptive run (repeatable; default {' '.join(VARIANTS)})",
     )
+    ap.add_argument(
+        "--uniform",
+        dest="uniforms",
+        action="append",
+        default=None,
+        metavar="NAME:KEY=VALUE,…",
+        help=f"a uniform reference (repeatable; default {' '.join(UNIFORM)})",
+    )
+    ap.add_argument(
+        "--plain",
+        action="store_true",
+        help="each variant again with the plain paths of the estimators and refinement "
+        "(variant NAME-plain)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     warm = contact.load_scene(ROOT / SCENES["ex9"][0], ["output.verbose=false", "adapt=none"])
@@ -205,33 +270,68 @@ def main() -> None:
         file, default_target = SCENES[name]
         target = args.target or default_target
         print(f"{name}: to energy error {target:.1e}")
-        uni = uniform(ROOT / file, target, args.max_dofs, args.overrides)
-        rows += [{"scene": name, **r} for r in uni]
+        references: dict[str, list[dict]] = {}
+        for reference, sets in map(variant_of, args.uniforms or UNIFORM):
+            sets = [*args.overrides, *sets]
+            try:  # untimed first: the reference's forms compiled or loaded
+                uniform(ROOT / file, WARM_FACTOR * target, WARM_DOFS, sets, echo=False)
+            except ConfigError as error:
+                print(f"  {reference}: skipped ({error})", flush=True)
+                continue
+            references[reference] = uniform(
+                ROOT / file, target, args.max_dofs, sets, reference or "uniform"
+            )
+            rows += [{"scene": name, **r} for r in references[reference]]
         for variant, sets in map(variant_of, args.variants or VARIANTS):
-            ada = adaptive(ROOT / file, target, args.max_dofs, [*args.overrides, *sets], variant)
-            rows += [{"scene": name, **r} for r in ada]
-            summary.append(ratios(name, variant, target, uni, ada))
-    if args.out:
-        save_csv(args.out, rows + summary)
+            sets = [*args.overrides, *sets]
+            try:
+                adaptive(ROOT / file, WARM_FACTOR * target, WARM_DOFS, sets, echo=False)
+            except ConfigError as error:
+                print(f"  {variant}: skipped ({error})", flush=True)
+                continue
+            for plain in (False, True) if args.plain else (False,):
+                plain_paths(plain)
+                label = f"{variant}-plain" if plain else variant
+                ada = adaptive(ROOT / file, target, args.max_dofs, sets, label)
+                rows += [{"scene": name, **r} for r in ada]
+                mine = [
+                    ratios(name, label, target, uni, ada, ref) for ref, uni in references.items()
+                ]
+                summary += verdict(name, label, target, mine)
+            plain_paths(False)
+        if args.out:  # after each scene: a long run interrupted keeps the scenes done
+            save_csv(args.out, rows + summary)
 
 
-def ratios(name: str, variant: str, target: float, uni: list[dict], ada: list[dict]) -> dict:
+def ratios(
+    name: str,
+    variant: str,
+    target: float,
+    uni: list[dict],
+    ada: list[dict],
+    reference: str = "uniform",
+) -> dict:
     """The row of adaptive / uniform seconds at the target error, or at the smallest error
-    both reached (the uniform meshes stop before ``--max-dofs``)."""
+    both reached (the uniform meshes stop before ``--max-dofs``); ``speedup_cpu``: uniform /
+    adaptive CPU seconds at the target (interpolated, or against the uniform seconds
+    extrapolated to it)."""
     error = max(target, *(min(r["error"] for r in run) for run in (uni, ada)))
-    ratio = {"scene": name, "run": "ratio", "variant": variant, "target": target, "error": error}
+    ratio = {"scene": name, "run": "ratio", "variant": variant, "reference": reference}
+    ratio.update(target=target, error=error)
     for clock in ("seconds", "cpu"):
         first = first_reaching(ada, error, clock) / first_reaching(uni, error, clock)
         exact = at_error(ada, error, clock) / at_error(uni, error, clock)
         ratio[f"first_reaching_{clock}"] = round(first, 3)
         ratio[f"interpolated_{clock}"] = round(exact, 3)
         print(
-            f"{name} {variant}: adaptive/uniform {'wall' if clock == 'seconds' else 'CPU'} "
-            f"seconds at error {error:.2e}: {first:.2f} (first level reaching it), {exact:.2f} "
+            f"{name} {variant} / {reference}: {'wall' if clock == 'seconds' else 'CPU'} "
+            f"seconds at error {error:.2e}: {first:.3f} (first level reaching it), {exact:.3f} "
             "(interpolated to it)",
             flush=True,
         )
-    if error > target and len(uni) > 1 and min(r["error"] for r in ada) <= target:
+    if error == target:
+        ratio["speedup_cpu"] = round(1 / ratio["interpolated_cpu"], 3)
+    elif len(uni) > 1 and min(r["error"] for r in ada) <= target:
         # the uniform meshes stop short: their CPU seconds at the target extrapolated from
         # the last two (error and seconds power laws in the DoFs)
         a, b = uni[-2], uni[-1]
@@ -239,12 +339,32 @@ def ratios(name: str, variant: str, target: float, uni: list[dict], ada: list[di
         extrapolated = math.exp((1 - s) * math.log(a["cpu"]) + s * math.log(b["cpu"]))
         ratio["uniform_extrapolated_cpu"] = round(extrapolated, 3)
         ratio["extrapolated_cpu"] = round(at_error(ada, target, "cpu") / extrapolated, 5)
+        ratio["speedup_cpu"] = round(1 / ratio["extrapolated_cpu"], 3)
         print(
-            f"{name} {variant}: uniform CPU seconds at error {target:.1e} extrapolated "
-            f"{extrapolated:.1f} s; adaptive/uniform {ratio['extrapolated_cpu']:.4f}",
+            f"{name} {variant} / {reference}: uniform CPU seconds at error {target:.1e} "
+            f"extrapolated {extrapolated:.1f} s; adaptive/uniform {ratio['extrapolated_cpu']:.4f}",
             flush=True,
         )
     return ratio
+
+
+def verdict(name: str, variant: str, target: float, mine: list[dict]) -> list[dict]:
+    """Print the variant's speed-up at the target against each uniform reference and the
+    fastest one (``best_reference`` and ``speedup_vs_best_cpu`` on each row)."""
+    known = [r for r in mine if "speedup_cpu" in r]
+    if not known:
+        return mine
+    best = min(known, key=lambda r: r["speedup_cpu"])  # the fastest uniform run
+    for r in mine:
+        r["best_reference"] = best["reference"]
+        r["speedup_vs_best_cpu"] = best["speedup_cpu"]
+    print(
+        f"{name} {variant} to {target:.1e}: CPU speed-up "
+        + ", ".join(f"{r['speedup_cpu']:.2f}× against {r['reference']}" for r in known)
+        + f"; against the fastest uniform ({best['reference']}) {best['speedup_cpu']:.2f}×",
+        flush=True,
+    )
+    return mine
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ send back what it computed for them (:func:`return_to_owners`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -115,20 +115,38 @@ def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
     return facet_kind[c2f], facet_tag[c2f]
 
 
-def _at_points(expr, one: fem.Function, X: np.ndarray, cells: np.ndarray) -> np.ndarray:
+#: compile each data expression of a table once (:class:`BoundaryRows` keeps them for its
+#: blocks); False: once per block, the plain path (the same numbers)
+KEEP_EXPRESSIONS = True
+
+
+def _at_points(
+    expr, one: fem.Function, X: np.ndarray, cells: np.ndarray, compiled: dict | None = None
+) -> np.ndarray:
     """The UFL expression at the reference points X of ``cells``: (len(cells), len(X), …).
     The expression is multiplied by ``one``, a DG0 function 1, so that DOLFINx ties it to
     the mesh even when it is constant after differentiation (e.g. −div ∇ of a linear
-    function)."""
+    function).  ``compiled``: the ``fem.Expression`` of (expr, X) is kept there and taken
+    from there (None: compiled here)."""
     if isinstance(expr, fem.Constant | int | float):  # the same on every rank: no compile
         value = np.asarray(expr.value if isinstance(expr, fem.Constant) else expr, np.float64)
         return np.broadcast_to(value, (len(cells), len(X)) + value.shape)  # read-only, no memory
     msh = one.function_space.mesh
-    expr = one * ufl.as_ufl(expr)  # collective: the expression is compiled (also for no cells)
-    if isinstance(expr, ufl.constantvalue.Zero):  # UFL's zero: nothing left to tie to the mesh
-        return np.zeros((len(cells), len(X)) + tuple(expr.ufl_shape))
-    values = np.asarray(fem.Expression(expr, X).eval(msh, cells))
-    return values.reshape((len(cells), len(X)) + tuple(expr.ufl_shape))
+    key = (id(expr), X.tobytes())
+    if compiled is None or key not in compiled:
+        product = one * ufl.as_ufl(expr)  # collective: compiled (also for no cells)
+        shape = tuple(product.ufl_shape)
+        # UFL's zero: nothing left to tie to the mesh
+        zero = isinstance(product, ufl.constantvalue.Zero)
+        made = (None if zero else fem.Expression(product, X), shape)
+        if compiled is None:
+            compiled = {}
+        compiled[key] = made
+    kernel, shape = compiled[key]
+    if kernel is None:
+        return np.zeros((len(cells), len(X)) + shape)
+    values = np.asarray(kernel.eval(msh, cells))
+    return values.reshape((len(cells), len(X)) + shape)
 
 
 @dataclass
@@ -142,34 +160,44 @@ class BoundaryRows:
     ref: Reference
     one: fem.Function  # DG0, 1: ties the expressions to the mesh (_at_points)
     tag: np.ndarray  # (owned cells, d+1) the tag of each FLUX / CONTACT facet, else -1
+    #: the compiled expressions, kept for the next rows (:func:`_at_points`)
+    compiled: dict = field(default_factory=dict)
 
     def fill(self, rows: CellTable, cells: np.ndarray) -> CellTable:
         """``rows`` (the table's rows of the owned local ``cells``) with t and τ."""
         cells = cells.astype(np.int32, copy=False)
-        t, tau = _boundary_columns(self.data, self.ref, self.one, self.tag[cells], cells)
+        keep = self.compiled if KEEP_EXPRESSIONS else None
+        t, tau = _boundary_columns(self.data, self.ref, self.one, self.tag[cells], cells, keep)
         rows.t, rows.tau = t, tau
         return rows
 
 
 def _boundary_columns(
-    data: FluxData, ref: Reference, one: fem.Function, tag: np.ndarray, cells: np.ndarray
+    data: FluxData,
+    ref: Reference,
+    one: fem.Function,
+    tag: np.ndarray,
+    cells: np.ndarray,
+    compiled: dict | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The columns t (flux data at the facet points) and τ (the target flux) of ``cells``
-    (owned local indices; ``tag`` their rows of facet tags)."""
+    (owned local indices; ``tag`` their rows of facet tags; ``compiled``: of
+    :func:`_at_points`)."""
     d = ref.d
     t = np.zeros((len(cells), d + 1, len(ref.wS)))
     XF = ref.XF.reshape(-1, d)
     for values in (data.neumann or {}, data.contact or {}):
         for v, expr in values.items():
             rows = np.flatnonzero(np.any(tag == v, axis=1)).astype(np.int32)
-            vals = _at_points(expr, one, XF, cells[rows]).reshape(len(rows), d + 1, len(ref.wS))
+            vals = _at_points(expr, one, XF, cells[rows], compiled)
+            vals = vals.reshape(len(rows), d + 1, len(ref.wS))
             hit = tag[rows] == v
             t[rows[:, None].repeat(d + 1, 1)[hit], np.nonzero(hit)[1]] = vals[hit]
     centroid = np.full((1, d), 1.0 / (d + 1))
     tau = (
         np.zeros((len(cells), 0, d))
         if data.target is None
-        else _at_points(data.target, one, centroid if ref.lowest else ref.X, cells)
+        else _at_points(data.target, one, centroid if ref.lowest else ref.X, cells, compiled)
     )
     return t, tau
 

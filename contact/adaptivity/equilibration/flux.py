@@ -66,6 +66,9 @@ FLOW_ROUNDS = 1
 #: quadrature points are most of its memory, ~300 of its ~430 bytes per cell for P1 in 2D);
 #: None: the whole table at once (the old path, and the parallel one)
 BLOCK_CELLS: int | None = 65536
+#: P1 (no edge coefficients to remove): κ = 1 and no bubble set directly, as :func:`.shares`
+#: returns them; False: through :func:`.shares` over every contact entity, the plain path
+P1_SHORTCUT = True
 
 
 @dataclass
@@ -241,6 +244,7 @@ def _patches_in_blocks(
         defect += out.defect
         counters["cell_evaluations"] += out.stats["cell_evaluations"]
         counters["work_rows"] = max(counters["work_rows"], out.stats["work_rows"])
+        del part, out, part_osc  # before the next block's rows are made
     return PatchOutput(alpha, defect, counters), osc
 
 
@@ -351,6 +355,8 @@ def multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, 
             ]
         )
         for rule, rows in entities:
+            if not rule.edges and P1_SHORTCUT:  # P1: κ = 1 and no bubble (shares' rule)
+                continue
             _, k, beta = shares(nodal[rows], rule, sign)
             kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
             for e, (_, _, mid) in enumerate(rule.edges):

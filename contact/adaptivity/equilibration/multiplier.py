@@ -41,6 +41,10 @@ import numpy as np
 from ...models.problem import ISO_P2_FRACTIONS
 from .reference import CELLS
 
+#: P1's moments (:func:`shares`) by ``np.einsum`` in one thread; False: the BLAS product, the
+#: plain path (the same numbers to round-off)
+EINSUM = True
+
 
 @dataclass(frozen=True)
 class EntityRule:
@@ -104,7 +108,10 @@ def shares(
     n, D = len(nodal), rule.lam.shape[1]
     kappa, beta = np.ones(n), np.zeros((n, len(rule.edges)))
     if not rule.edges:
-        return (nodal @ rule.linear).reshape(n, D, len(rule.basis)), kappa, beta
+        # (n, nu) × (nu, D·nk), nu = d + 1: a BLAS product this thin costs its threads'
+        # spinning (8-10× the CPU on a shared 2-core machine), einsum loops in one thread
+        mom = np.einsum("na,am->nm", nodal, rule.linear) if EINSUM else nodal @ rule.linear
+        return mom.reshape(n, D, len(rule.basis)), kappa, beta
     mom = np.zeros((n, D, len(rule.basis)))
     rows = np.flatnonzero(np.any(nodal != 0.0, axis=1))
     if len(rows):
