@@ -47,7 +47,8 @@ def main(argv):
             overrides.append(arg.split("=", 1)[1] if arg.startswith("--set=") else arg)
     scene = contact.load_scene(rest[0], overrides)
     problem = build_problem(scene)
-    nodal_body = fem.Function(fem.functionspace(scene.mesh, ("Lagrange", 1)))
+    degree = problem.V.element.basix_element.degree
+    nodal_body = fem.Function(fem.functionspace(scene.mesh, ("Lagrange", degree)))
     nodal_body.interpolate(problem.data.body)
     data = {}
     for method in methods:

@@ -240,3 +240,14 @@ def test_refined_two_body_scene_sequences_through_its_ancestors():
     assert cold.converged and seq.converged and seq.sequence_note == ""
     assert len(seq.sequence) == 1 and seq.sequence[0].dofs * 4 <= seq.dofs
     assert np.max(np.abs(seq.u_h.x.array - cold.u_h.x.array)) <= 1e-8
+
+
+def test_p2_gmsh_scene_starts_cold_and_says_so():
+    """The transfers between gmsh levels interpolate P1: a P2 scene on a gmsh-built mesh
+    starts cold with the note (it had crashed in the transfer)."""
+    scene = contact.load_scene(
+        "configs/two_body_hertz_2d.yaml",
+        ["adapt=null", "mesh.h=2.0", "mesh.h_contact=0.1", "mesh.zone=1.0", "mesh.degree=2"],
+    )
+    r = _solve(scene, method="min", sequence=2)
+    assert r.converged and r.sequence == [] and "needs P1" in r.sequence_note

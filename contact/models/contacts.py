@@ -208,6 +208,10 @@ def mortar_set(
         np.concatenate([c.c for c in couplings] + [np.zeros(0)]),
     )
     Q, Q_inv = change_of_basis(V, K, nodes, frames, coupling, projectors)
+    for c in couplings:  # a transformed slave basis: u = T ũ, ũ = Q x
+        if c.transform is not None:
+            T, T_inv = c.transform
+            Q, Q_inv = T.matMult(Q), Q_inv.matMult(T_inv)
     if coupled_at is not None:  # the current gap as a bound on the total unknowns
         for c, relative in zip(couplings, _relative_normal(V, b, Q_inv, coupled_at, couplings)):
             c.gap = c.gap + relative

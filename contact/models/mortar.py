@@ -1,9 +1,12 @@
 """Mortar coupling of a contact pair with dual Lagrange multipliers (Wohlmuth; docs/theory.md §1.5).
 
 A pair couples a slave surface Γ_s of one body to a master surface Γ_m of another, once,
-in the reference configuration (small deformation).  With the P1 trace basis φ_i on Γ_s,
-its dual basis ψ_i (biorthogonal: ∫ ψ_i φ_k = δ_ik D_ii) and the projection π along the
-slave facet normals onto Γ_m (:mod:`contact.models.overlap`),
+in the reference configuration (small deformation).  With the trace basis φ_i on Γ_s (P1,
+or P2: every node of a slave facet, edge midpoints included; on P2 triangles the
+transformed basis φ̃ = T φ, whose functions all integrate positively, and the slave
+unknowns are the values ũ = T⁻¹ u in it), its dual basis ψ_i (biorthogonal: ∫ ψ_i φ_k =
+δ_ik D_ii) and the projection π along the slave facet normals onto Γ_m
+(:mod:`contact.models.overlap`),
 
     D_ii = ∫_{Γ_s} φ_i ds,       M_ij = ∫_{Γ_s} ψ_i (φ_j^m ∘ π) ds,       c_ij = M_ij / Σ_k M_ik,
 
@@ -85,8 +88,10 @@ class Coupling:
     rows: np.ndarray  # coupling entries: index into ``nodes`` …
     cols: np.ndarray  # … global master node …
     c: np.ndarray  # … and c_ij
-    M: PETSc.Mat  # M_ij (scalar, node layout; owned slave rows, global master columns)
-    master_weights: la.Vector  # ∫ φ_j^m over Γ_m at the master nodes (node layout)
+    # M_ij (scalar, node layout; owned slave rows, global master columns; on P2 triangles
+    # against the master's transformed basis φ̃_j^m, whose functions integrate positively)
+    M: PETSc.Mat
+    master_weights: la.Vector  # ∫ φ_j^m (φ̃_j^m) over Γ_m at the master nodes (node layout)
     ends: np.ndarray  # owned slave nodes fixed in every component (no constraint)
     # owned slave nodes facing no master facet on the current configuration (no constraint)
     uncovered: np.ndarray
@@ -95,6 +100,9 @@ class Coupling:
     #: the owned nodes of the slave surface and of the master surface (all their nodes, the
     #: constrained ones and the others)
     surfaces: tuple[np.ndarray, np.ndarray] = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    #: (T, T⁻¹) of a transformed slave basis (P2 triangles: u = T ũ, the slave unknowns
+    #: are ũ), or None
+    transform: tuple[PETSc.Mat, PETSc.Mat] | None = None
 
     def surface_forces(self, force: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
         """Return the resultants of a nodal force on the pair's slave and master surfaces.
@@ -121,8 +129,9 @@ def surface_facets(
     V: fem.FunctionSpace, facets: np.ndarray, displacement: np.ndarray | None = None
 ) -> Facets:
     """The exterior ``facets`` of V's mesh that belong to owned cells, as :class:`Facets`
-    (P1: the facet's vertex nodes), at the positions X + ``displacement`` (the nodal
-    displacements, owned and ghost nodes × gdim; None: the reference positions X)."""
+    (the facet's nodes in the order of its closure DoFs: the vertices, then for P2 the edge
+    midpoints), at the positions X + ``displacement`` (the nodal displacements, owned and
+    ghost nodes × gdim; None: the reference positions X)."""
     msh = V.mesh
     tdim, gdim = msh.topology.dim, msh.geometry.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -138,7 +147,7 @@ def surface_facets(
     nodes = (
         np.take_along_axis(cell_nodes, closure[local], axis=1)
         if len(cells)
-        else np.zeros((0, tdim), np.int32)
+        else np.zeros((0, closure.shape[1]), np.int32)
     )
     X = positions(V, displacement)
     Xf = X[nodes]
@@ -178,6 +187,10 @@ def couple(
     ``uncovered``): where a body deforms, a slave node may face no master facet yet, or no
     longer (the far side of a self-contact, a slave surface slid past the master's end)."""
     comm = V.mesh.comm
+    if V.mesh.geometry.dim == 3 and V.element.basix_element.degree != 1 and pair.friction:
+        raise ConfigError(
+            f"mesh.degree: friction on contact pairs ({key}) in 3D is implemented for P1; use 1"
+        )
     slave = surface_facets(V, measure_facets(pair.slave), displacement)
     master = surface_facets(V, measure_facets(pair.master), displacement)
     gdim = slave.X.shape[2]
@@ -194,9 +207,10 @@ def couple(
     s_idx, m_idx, M_loc = s_idx[keep], m_idx[keep], M_loc[keep]
 
     nv = slave.nodes.shape[1]
-    # nodal sums over the slave facets (D_ii, Σ |F| n_F) and the master facets (∫ φ_j^m)
+    share = overlap.trace_weights(nv, gdim)  # ∫_F φ_a ds / |F|
+    # nodal sums over the slave facets (D_ii = ∫ φ̃_i, Σ |F| n_F) and the master facets (∫ φ_j^m)
     measure = overlap.facet_measures(slave.X) if len(slave.X) else np.zeros(0)
-    D = _nodal_sum(imap, slave.nodes, np.repeat(measure[:, None] / nv, nv, axis=1))
+    D = _nodal_sum(imap, slave.nodes, measure[:, None] * overlap.dual_weights(nv, gdim))
     nsum = _nodal_sum(
         imap,
         slave.nodes,
@@ -205,7 +219,7 @@ def couple(
     )
     w_master = la.vector(imap, 1)
     m_measure = overlap.facet_measures(master.X) if len(master.X) else np.zeros(0)
-    np.add.at(w_master.array, master.nodes.ravel(), np.repeat(m_measure / nv, nv))
+    np.add.at(w_master.array, master.nodes.ravel(), (m_measure[:, None] * share).ravel())
     w_master.scatter_reverse(la.InsertMode.add)
     w_master.scatter_forward()
     M_rows, cols, M_vals, attrs = _owned_rows(
@@ -247,7 +261,11 @@ def couple(
     use = position[M_rows] >= 0
     rows, cols_c = position[M_rows[use]], cols[use]
     c = M_vals[use] / covered[rows]
-    Xs = positions(V, displacement)[:n_owned][nodes]
+    transform = None
+    X_all = positions(V, displacement)
+    if (nv, gdim) == (6, 3):  # the slave unknowns are the transformed values ũ = T⁻¹ u
+        transform, X_all = _transform(V, slave.nodes, X_all)
+    Xs = X_all[:n_owned][nodes]
     target = np.zeros((len(nodes), gdim))
     np.add.at(target, rows, c[:, None] * X_of[use])  # Σ_j c_ij X_j
     n_master = np.zeros((len(nodes), gdim))
@@ -261,6 +279,18 @@ def couple(
     )
     gap = np.einsum("nd,nd->n", normals, target - Xs)
     M = _node_matrix(V, M_rows, cols, M_vals)
+    if transform is not None:  # λ^m in the master's transformed basis too: ∫ φ̃_j^m > 0
+        alpha = overlap.TRIANGLE_P2_ALPHA
+        T_m = edge_matrix(comm, imap, master.nodes, 1, 1 - 2 * alpha, alpha)
+        M_t = M.matMult(T_m)  # Σ_i M̃_ij v_i = Σ_k T_kj Σ_i M_ik v_i
+        w, w_t = T_m.createVecRight(), T_m.createVecRight()
+        w.array_w[:] = w_master.array[:n_owned]
+        T_m.multTranspose(w, w_t)
+        w_master.array[:n_owned] = w_t.array_r
+        w_master.scatter_forward()
+        for obj in (M, T_m, w, w_t):
+            obj.destroy()
+        M = M_t
     return Coupling(
         nodes=nodes.astype(np.int32),
         D=D_owned[nodes],
@@ -279,7 +309,78 @@ def couple(
         coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN),
         search=search,
         surfaces=(_owned_nodes(imap, slave.nodes), _owned_nodes(imap, master.nodes)),
+        transform=transform,
     )
+
+
+def _transform(
+    V: fem.FunctionSpace, nodes: np.ndarray, X: np.ndarray
+) -> tuple[tuple[PETSc.Mat, PETSc.Mat], np.ndarray]:
+    """The slave basis transformation of P2 triangles (:data:`overlap.TRIANGLE_P2_TRANSFORM`)
+    on V: (T, T⁻¹) with u = T ũ — u_e = (1 − 2α) ũ_e + α (ũ_a + ũ_b) at every edge node e of
+    the slave facets (``nodes``, local, (F, 6)), a, b its edge's vertices, every other DoF
+    unchanged — and the nodal positions ``X`` transformed the same way, X̃ = T⁻¹ X (owned
+    and ghost nodes; equal to X on straight edges)."""
+    imap, bs = V.dofmap.index_map, V.dofmap.index_map_bs
+    alpha = overlap.TRIANGLE_P2_ALPHA
+    edge, a, b = _edges(nodes)
+    gdim = X.shape[1]
+    # X̃_e on the owner of e (each facet holding the edge gives the same value: averaged)
+    Xt = la.vector(imap, gdim + 1)
+    arr = Xt.array.reshape(-1, gdim + 1)
+    moved = (X[edge] - alpha * (X[a] + X[b])) / (1 - 2 * alpha)
+    np.add.at(arr, edge, np.c_[moved, np.ones(len(edge))])
+    Xt.scatter_reverse(la.InsertMode.add)
+    Xt.scatter_forward()
+    on_edge = arr[:, gdim] > 0
+    X = X.copy()
+    X[on_edge] = arr[on_edge, :gdim] / arr[on_edge, gdim:]
+    T = edge_matrix(V.mesh.comm, imap, nodes, bs, 1 - 2 * alpha, alpha)
+    T_inv = edge_matrix(V.mesh.comm, imap, nodes, bs, 1 / (1 - 2 * alpha), -alpha / (1 - 2 * alpha))
+    return (T, T_inv), X
+
+
+def _edges(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(edge node, vertex a, vertex b) of every edge of P2 triangles ``nodes`` (F, 6): the
+    edge opposite vertex k is node 3 + k, between vertices k + 1 and k + 2 (mod 3)."""
+    return tuple(  # type: ignore[return-value]
+        np.concatenate([nodes[:, (3 + k, (k + 1) % 3, (k + 2) % 3)[j]] for k in range(3)])
+        for j in range(3)
+    )
+
+
+def edge_matrix(
+    comm: MPI.Comm, imap, nodes: np.ndarray, bs: int, own: float, side: float
+) -> PETSc.Mat:
+    """The AIJ matrix (``bs`` components per node; owned rows, global columns) that is the
+    identity except at the edge nodes e of P2 triangles ``nodes`` (local, (F, 6), held on
+    any rank): row e·bs + k has ``own`` at e and ``side`` at the edge's two vertices."""
+    edge, a, b = _edges(nodes)
+    to_global = lambda n: imap.local_to_global(n.astype(np.int32)) if len(n) else n  # noqa: E731
+    e_g, a_g, b_g = _to_owners(comm, imap, edge, to_global(a), to_global(b))
+    triples = np.unique(np.c_[e_g, np.sort(np.c_[a_g, b_g], axis=1)], axis=0)
+    n_owned, first = imap.size_local, imap.local_range[0]
+    nodes_g = first + np.arange(n_owned)
+    plain = np.ones(n_owned, dtype=bool)
+    plain[triples[:, 0] - first] = False
+    comps = np.arange(bs)
+    # entries (local row DoF, global column DoF, value)
+    rows = [(nodes_g[plain] - first)[:, None] * bs + comps]
+    cols = [nodes_g[plain][:, None] * bs + comps]
+    vals = [np.ones((plain.sum(), bs))]
+    for column, value in ((0, own), (1, side), (2, side)):
+        rows.append((triples[:, 0] - first)[:, None] * bs + comps)
+        cols.append(triples[:, column][:, None] * bs + comps)
+        vals.append(np.full((len(triples), bs), value))
+    r, c, v = (np.concatenate([x.ravel() for x in arrays]) for arrays in (rows, cols, vals))
+    order = np.lexsort((c, r))
+    r, c, v = r[order], c[order], v[order]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=n_owned * bs))])
+    size = (n_owned * bs, imap.size_global * bs)
+    csr = (indptr.astype(PETSc.IntType), c.astype(PETSc.IntType), v)
+    T = PETSc.Mat().createAIJ((size, size), comm=comm, csr=csr)  # type: ignore[arg-type]
+    T.assemble()
+    return T
 
 
 def _owned_nodes(imap, nodes: np.ndarray) -> np.ndarray:
@@ -444,7 +545,7 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
             (master.X[sel], master.gnodes[sel], master.normals[sel], master.vertex_normals[sel])
         )
     recv = comm.alltoall(send)
-    nv = slave.X.shape[1] if len(slave.X) else master.X.shape[1] if len(master.X) else gdim
+    nv = slave.X.shape[1]  # the facets' nodes (held even by an empty surface)
     X = np.concatenate([r[0] for r in recv]).reshape(-1, nv, gdim)
     return Facets(
         X,

@@ -1,21 +1,29 @@
 """Overlap of slave and master facets and the exact mortar integrals over it (pure NumPy).
 
-For a pair (S, M) of a slave facet S and a master facet M (P1 segments in 2D, P1
-triangles in 3D) and the projection π along the slave facet's unit normal n_S (pointing
-out of the slave body, towards the master), this module computes
+For a pair (S, M) of a slave facet S and a master facet M (straight P1 or P2 segments in
+2D, flat P1 or P2 triangles in 3D) and the projection π along the slave facet's unit normal n_S
+(pointing out of the slave body, towards the master), this module computes
 
     M_loc[a, b] = ∫_{S ∩ π⁻¹(M)} ψ_a (φ_b^M ∘ π) ds,
 
-a, b the local vertices of S and M, with the slave dual basis ψ biorthogonal to the slave
-trace basis φ (Wohlmuth): ψ_a = 2φ_a − φ_b on a segment, ψ_a = 3φ_a − φ_b − φ_c on a
-triangle, so ∫_S ψ_a φ_b ds = δ_ab ∫_S φ_a ds.
+a, b the local nodes of S and M, with the slave dual basis ψ biorthogonal to the slave
+trace basis φ (Wohlmuth): ψ = A φ with A = D_e M_e⁻¹, M_e the facet's mass matrix and
+D_e = diag(∫_S φ_a ds), so ∫_S ψ_a φ_b ds = δ_ab ∫_S φ_a ds.  P1: ψ_a = 2φ_a − φ_b on a
+segment, ψ_a = 3φ_a − φ_b − φ_c on a triangle.  P2 segment (nodes: the two end points,
+then the midpoint; ∫ φ_a = |S| (1/6, 1/6, 2/3), all positive, so A exists):
+ψ_end = (3/2) φ_end + (1/2) φ_other − φ_mid for each end, ψ_mid = −(1/4)(φ_0 + φ_1) +
+(3/2) φ_mid (Lamichhane & Wohlmuth).  The vertex functions of a P2 triangle integrate to
+zero, so D_e is singular: there ψ is dual to the transformed basis φ̃ = T φ
+(:data:`TRIANGLE_P2_TRANSFORM`, Popp, Wohlmuth, Gee & Wall 2012), ∫ ψ_a φ̃_b = δ_ab ∫ φ̃_a,
+and the slave unknowns are the values in φ̃ (:func:`contact.models.mortar.couple`).
 
 The overlap S ∩ π⁻¹(M) is computed exactly: an interval of the slave segment (2D: the
 master end points projected onto the slave line), or a convex polygon in the slave
 triangle's plane (3D: the projected master triangle clipped by the slave triangle,
-Sutherland–Hodgman).  π is affine on a pair of flat facets, so φ_b^M ∘ π is linear on
-the overlap and ψ_a φ_b^M ∘ π quadratic: two Gauss points per interval / the three edge
-midpoints of each triangle of a fan of the polygon integrate it exactly.  Since
+Sutherland–Hodgman).  π is affine on a pair of flat facets, so φ_b^M ∘ π has the
+master's degree on the overlap and ψ_a φ_b^M ∘ π twice it: two Gauss points per interval
+(P1; three for P2) / the three edge midpoints of each triangle of a fan of the polygon
+(P1; the 6-point Dunavant rule for P2) integrate it exactly.  Since
 Σ_b φ_b^M = 1 and Σ_a ψ_a = 1, Σ_b M_loc[a, b] = ∫_{overlap} ψ_a ds and Σ_ab M_loc = |overlap|:
 a slave facet covered by master facets transmits constants exactly (the contact patch
 test).
@@ -29,13 +37,54 @@ from __future__ import annotations
 
 import numpy as np
 
-# ψ = DUAL[nv] @ φ on a facet with nv vertices (rows: ψ_a, columns: φ_b)
+# ψ = DUAL[nv] @ φ on a P1 facet with nv vertices (rows: ψ_a, columns: φ_b)
 DUAL = {
     2: np.array([[2.0, -1.0], [-1.0, 2.0]]),
     3: np.array([[3.0, -1.0, -1.0], [-1.0, 3.0, -1.0], [-1.0, -1.0, 3.0]]),
 }
+# ψ = SEGMENT_P2_DUAL @ φ on a P2 segment (nodes: end 0, end 1, midpoint): D_e M_e⁻¹ with
+# M_e = [[4, −1, 2], [−1, 4, 2], [2, 2, 16]] / 30 and D_e = diag(1/6, 1/6, 2/3) (|S| = 1)
+SEGMENT_P2_DUAL = np.array([[1.5, 0.5, -0.25], [0.5, 1.5, -0.25], [-1.0, -1.0, 1.5]])
 
-_GAUSS2 = (0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0))  # 2-point Gauss on [0, 1]
+# The transformed P2 triangle basis φ̃ = TRIANGLE_P2_TRANSFORM @ φ (Popp, Wohlmuth, Gee & Wall
+# 2012): φ̃_a = φ_a + α (φ of a's two edges), φ̃_e = (1 − 2α) φ_e, α = 1/5, so that every
+# function integrates positively (|T| (2α/3, (1 − 2α)/3)); nodal values ũ = T⁻ᵀ u: the
+# vertices' unchanged, an edge's ũ_e = (u_e − α (u_a + u_b)) / (1 − 2α)
+TRIANGLE_P2_ALPHA = 0.2
+TRIANGLE_P2_TRANSFORM = np.eye(6)
+for _a in range(3):
+    for _k in range(3):
+        if _k != _a:  # the edge opposite vertex k contains vertex a
+            TRIANGLE_P2_TRANSFORM[_a, 3 + _k] = TRIANGLE_P2_ALPHA
+    TRIANGLE_P2_TRANSFORM[3 + _a, 3 + _a] = 1.0 - 2.0 * TRIANGLE_P2_ALPHA
+# the 6-point Dunavant rule on a triangle (barycentric points, weights summing to 1; exact
+# to degree 4)
+_D1, _D2 = 0.445948490915965, 0.091576213509771
+_DUNAVANT4 = np.array(
+    [[_D1, _D1, 1 - 2 * _D1], [_D1, 1 - 2 * _D1, _D1], [1 - 2 * _D1, _D1, _D1]]
+    + [[_D2, _D2, 1 - 2 * _D2], [_D2, 1 - 2 * _D2, _D2], [1 - 2 * _D2, _D2, _D2]]
+)
+_DUNAVANT4_WEIGHTS = np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)
+
+
+def _triangle_p2_dual() -> np.ndarray:
+    """ψ = A φ̃ = (A T) φ with A = D̃ M̃⁻¹, M̃ = T M Tᵀ the mass matrix of φ̃ on the unit
+    triangle (by the rule above, exact) and D̃ = diag ∫ φ̃."""
+    phi = triangle_basis(_DUNAVANT4)
+    mass = np.einsum("k,ka,kb->ab", _DUNAVANT4_WEIGHTS, phi, phi)
+    T = TRIANGLE_P2_TRANSFORM
+    D = np.diag(T @ (phi.T @ _DUNAVANT4_WEIGHTS))
+    return D @ np.linalg.inv(T @ mass @ T.T) @ T
+
+
+# Gauss–Legendre points and weights on [0, 1]: 2 points (exact to degree 3), 3 (degree 5)
+_GAUSS = {
+    2: (np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)]), np.array([0.5, 0.5])),
+    3: (
+        np.array([0.5 - 0.5 * np.sqrt(0.6), 0.5, 0.5 + 0.5 * np.sqrt(0.6)]),
+        np.array([5.0, 8.0, 5.0]) / 18.0,
+    ),
+}
 MAX_POLYGON = 8  # vertices of a triangle clipped by a triangle: at most 6 (+ slack)
 
 
@@ -53,6 +102,53 @@ def facet_normals(X: np.ndarray, inside: np.ndarray) -> np.ndarray:
     return n
 
 
+def dual_weights(nv: int, gdim: int) -> np.ndarray:
+    """∫_F ψ_a φ̃_a ds / |F| = ∫_F φ̃_a ds / |F|: the diagonal D_e of the dual basis on a
+    facet with ``nv`` nodes, φ̃ the slave trace basis the multiplier is dual to (φ itself,
+    but on a P2 triangle the transformed basis :data:`TRIANGLE_P2_TRANSFORM` φ, whose
+    functions all integrate positively)."""
+    if (nv, gdim) == (6, 3):
+        return TRIANGLE_P2_TRANSFORM @ trace_weights(6, 3)
+    return trace_weights(nv, gdim)
+
+
+def trace_weights(nv: int, gdim: int) -> np.ndarray:
+    """∫_F φ_a ds / |F| of the trace basis of a flat facet with ``nv`` nodes in ``gdim``
+    dimensions (P1 segment or triangle, P2 segment or triangle; the node order of the
+    facet's closure DoFs: vertices, then edge midpoints): the diagonal D_e of the dual
+    basis and the nodal weights ∫ φ_i ds (zero at a P2 triangle's vertices)."""
+    weights = {
+        (2, 2): [0.5, 0.5],
+        (3, 2): [1 / 6, 1 / 6, 2 / 3],
+        (3, 3): [1 / 3] * 3,
+        (6, 3): [0.0] * 3 + [1 / 3] * 3,
+    }
+    return np.array(weights[(nv, gdim)])
+
+
+def triangle_basis(lam: np.ndarray) -> np.ndarray:
+    """The P2 Lagrange basis of a triangle at points of barycentric coordinates ``lam``
+    (k, 3): the vertex functions λ_a (2λ_a − 1), then the edge functions 4 λ_b λ_c of the
+    edges opposite vertices 0, 1, 2 (the order of a facet's closure DoFs); (k, 6)."""
+    edges = 4.0 * np.stack([lam[:, 1] * lam[:, 2], lam[:, 0] * lam[:, 2], lam[:, 0] * lam[:, 1]], 1)
+    return np.concatenate([lam * (2.0 * lam - 1.0), edges], axis=1)
+
+
+# ψ = TRIANGLE_P2_DUAL @ φ on a P2 triangle: dual to the transformed basis φ̃ (∫ ψ_a φ̃_b
+# = δ_ab ∫ φ̃_a)
+TRIANGLE_P2_DUAL = _triangle_p2_dual()
+
+
+def segment_basis(nv: int, xi: np.ndarray) -> np.ndarray:
+    """The P1 (``nv`` = 2) or P2 (``nv`` = 3: end 0, end 1, midpoint) Lagrange basis of a
+    segment at the points ``xi`` (k,) of [0, 1]; (k, nv)."""
+    if nv == 2:
+        return np.column_stack([1.0 - xi, xi])
+    return np.column_stack(
+        [(1.0 - xi) * (1.0 - 2.0 * xi), xi * (2.0 * xi - 1.0), 4.0 * xi * (1.0 - xi)]
+    )
+
+
 def facet_measures(X: np.ndarray) -> np.ndarray:
     """Length (2D) or area (3D) of facets X (F, nv, gdim)."""
     if X.shape[2] == 2:
@@ -66,36 +162,39 @@ def mortar_pairs(
     """M_loc (P, nv, nv), the overlap measure (P,) and the signed normal distance (P,) from
     the slave facet to the master facet at the overlap's centroid (> 0: a gap, < 0:
     penetration), for slave facets Xs (P, nv, gdim) with unit normals ns (P, gdim) and
-    master facets Xm (P, nv, gdim).  Pairs without overlap (or whose master facet is
-    parallel to n_S) give zeros and distance +inf.  ``tol`` is relative to the slave
-    facet's size."""
+    master facets Xm (P, nv, gdim) (nv nodes per facet: P1 segments or triangles, or P2
+    segments, their vertices first; the facets are straight, defined by their vertices).
+    Pairs without overlap (or whose master facet is parallel to n_S) give zeros and
+    distance +inf.  ``tol`` is relative to the slave facet's size."""
     if Xs.shape[2] == 2:
         return _segments(Xs, ns, Xm, tol)
     return _triangles(Xs, ns, Xm, tol)
 
 
 def _segments(Xs, ns, Xm, tol):
-    P = len(Xs)
+    P, nv = Xs.shape[:2]
     t = Xs[:, 1] - Xs[:, 0]
     L = np.linalg.norm(t, axis=1)
     tau = t / L[:, None]
     # slave coordinate ξ ∈ [0, 1] of the master end points projected along n_S
-    xi = np.einsum("pkd,pd->pk", Xm - Xs[:, :1], tau) / L[:, None]
+    xi = np.einsum("pkd,pd->pk", Xm[:, :2] - Xs[:, :1], tau) / L[:, None]
     lo = np.maximum(0.0, xi.min(axis=1))
     hi = np.minimum(1.0, xi.max(axis=1))
     dxi = xi[:, 1] - xi[:, 0]
     ok = (hi - lo > tol) & (np.abs(dxi) > tol)
-    M = np.zeros((P, 2, 2))
+    M = np.zeros((P, nv, nv))
     dist = np.full(P, np.inf)
     if not ok.any():
         return M, np.zeros(P), dist
     Xs, ns, Xm, L, xi, lo, hi, dxi = (a[ok] for a in (Xs, ns, Xm, L, xi, lo, hi, dxi))
-    for g in _GAUSS2:
+    dual = DUAL[2] if nv == 2 else SEGMENT_P2_DUAL
+    points, weights = _GAUSS[nv]
+    for g, w in zip(points, weights):
         q = lo + g * (hi - lo)  # slave coordinate of the Gauss point
         eta = (q - xi[:, 0]) / dxi  # master coordinate of its projection
-        psi = np.column_stack([1.0 - q, q]) @ DUAL[2].T
-        phim = np.column_stack([1.0 - eta, eta])
-        M[ok] += 0.5 * ((hi - lo) * L)[:, None, None] * psi[:, :, None] * phim[:, None, :]
+        psi = segment_basis(nv, q) @ dual.T
+        phim = segment_basis(nv, eta)
+        M[ok] += w * ((hi - lo) * L)[:, None, None] * psi[:, :, None] * phim[:, None, :]
     qc = 0.5 * (lo + hi)
     etac = (qc - xi[:, 0]) / dxi
     xs = Xs[:, 0] + qc[:, None] * (Xs[:, 1] - Xs[:, 0])
@@ -107,7 +206,8 @@ def _segments(Xs, ns, Xm, tol):
 
 
 def _triangles(Xs, ns, Xm, tol):
-    P = len(Xs)
+    P, nv = Xs.shape[:2]
+    Xs, Xm = Xs[:, :3], Xm[:, :3]  # the (flat) facets are their vertices' triangles
     # in-plane axes of the slave triangle: e1 along its first edge, e2 = n × e1
     e1 = Xs[:, 1] - Xs[:, 0]
     h = np.linalg.norm(e1, axis=1)
@@ -124,7 +224,7 @@ def _triangles(Xs, ns, Xm, tol):
     area_tol = tol * h**2
     # fan of the convex polygon from its vertex 0: triangles (v0, v_k, v_{k+1}), k = 1 … n−2
     Bs, Bm = _barycentric_maps(s2), _barycentric_maps(m2)
-    M = np.zeros((P, 3, 3))
+    M = np.zeros((P, nv, nv))
     meas = np.zeros(P)
     centroid = np.zeros((P, 2))
     for k in range(1, poly.shape[1] - 1):
@@ -138,10 +238,17 @@ def _triangles(Xs, ns, Xm, tol):
         area = np.where(use, area, 0.0)
         meas += area
         centroid += area[:, None] * (A + B + C) / 3.0
-        for q in (0.5 * (A + B), 0.5 * (B + C), 0.5 * (C + A)):  # exact for quadratics
-            psi = _apply(Bs, q) @ DUAL[3].T
-            phim = _apply(Bm, q)
-            M += (area / 3.0)[:, None, None] * psi[:, :, None] * phim[:, None, :]
+        if nv == 3:
+            for q in (0.5 * (A + B), 0.5 * (B + C), 0.5 * (C + A)):  # exact for quadratics
+                psi = _apply(Bs, q) @ DUAL[3].T
+                phim = _apply(Bm, q)
+                M += (area / 3.0)[:, None, None] * psi[:, :, None] * phim[:, None, :]
+            continue
+        for bary, w in zip(_DUNAVANT4, _DUNAVANT4_WEIGHTS):  # exact for quartics
+            q = bary[0] * A + bary[1] * B + bary[2] * C
+            psi = triangle_basis(_apply(Bs, q)) @ TRIANGLE_P2_DUAL.T
+            phim = triangle_basis(_apply(Bm, q))
+            M += (w * area)[:, None, None] * psi[:, :, None] * phim[:, None, :]
     good = (meas > area_tol) & (
         np.abs(np.linalg.det(np.stack([m2[:, 1] - m2[:, 0], m2[:, 2] - m2[:, 0]], 1))) > area_tol
     )

@@ -96,7 +96,7 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
         return [], (
             f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; cold start"
         )
-    if degree != 1 and kind in BUILT_IN:
+    if degree != 1:  # the transfers between levels interpolate P1 (point_transfer)
         return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
         cells = list(_grid_axes(scene.config.mesh))

@@ -145,8 +145,6 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
         if "symmetry" in roles or "interface" in roles:
             role = "symmetry" if "symmetry" in roles else "interface"
             raise ConfigError(f"boundaries: role {role} is for elasticity scenes")
-    if mesh.degree == 2 and config.pairs:
-        raise ConfigError("mesh.degree: contact pairs (mortar) are implemented for P1; use 1")
     if config.reference is not None:
         updates["reference"] = _check_reference(config)
     if mesh.degree == 2 and model == "obstacle" and estimator == "residual" and _is_3d(mesh):
