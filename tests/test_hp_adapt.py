@@ -176,3 +176,20 @@ def test_hp_levels_carry_the_time_to_accuracy() -> None:
     # the three pauses (0.9 s wall, no CPU) are outputs: the last level's time excludes them
     assert elapsed[-1] < total - len(elapsed) * pause
     assert run.levels[-1].row()["seconds_elapsed"] == round(elapsed[-1], 4)
+
+
+def test_hp_started_at_degree_two_does_not_lose_accuracy() -> None:
+    """Problem A (r^{3/2} at the free boundary's end) from P2 everywhere: the free boundary's
+    cells keep degree 2 (lowered to 1 and split once they lost accuracy, the error of the
+    next level grew 3.6×), so the error does not grow over the first levels and η bounds it."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    run = contact.adapt(scene, strategy="hp", p_max=6, p_start=2, max_levels=4)
+    levels = _levels(run)
+    assert len(levels) == 4
+    assert all(eta >= error for _, error, eta in levels)
+    assert all(lv.row()["p_min"] >= 2 for lv in run.levels)
+    errors = [error for _, error, _ in levels]
+    assert all(b <= 1.05 * a for a, b in zip(errors, errors[1:], strict=False)), errors
+    assert errors[-1] < 0.5 * errors[0], errors

@@ -106,7 +106,8 @@ def adapt_hp(
     Args:
         scene: The first level's scene (its mesh: the coarse mesh).
         p_max: The largest degree (V_hp ⊂ P_{p_max}).
-        p_start: The first level's degree of every cell.
+        p_start: The first level's degree of every cell, and the smallest degree the loop
+            lowers a cell to.
         theta: Dörfler's θ.
         tol: Stop when η ≤ tol.
         max_dofs: Stop before a level with more hp unknowns.
@@ -118,7 +119,11 @@ def adapt_hp(
             not counted in the levels' ``elapsed`` and ``cpu`` (the time to accuracy).
         verbose: Print a row per level.
         newton_rtol: Newton's relative tolerance (default :data:`NEWTON_RTOL`).
-        front_degree: The largest degree of the free boundary's cells (:func:`.mark.hp_mark`).
+        front_degree: The largest degree of the free boundary's cells (:func:`.mark.hp_mark`),
+            raised to ``p_start``: lowering a cell below the first level's degree, with one
+            split, discards accuracy the first level had (u ∈ H^{5/2−ε} there: the energy
+            error of P_2 on h is of order h^{3/2}, of P_1 on h/2 of order h/2), and the
+            error would grow from one level to the next.
         refine_front: h-refine the free boundary's cells on every level (:func:`.mark.hp_mark`).
         space_degree: The degree of the Lagrange space V ⊇ V_hp each level assembles in:
             ``used`` (the largest p_T of the level: V_hp ⊂ P_{max p_T}, so a level whose
@@ -141,6 +146,8 @@ def adapt_hp(
         build, estimator = hp_elastic_problem, "residual"
     n = scene.mesh.topology.index_map(tdim).size_local
     degrees = np.full(n, min(p_start, p_max), dtype=np.int32)
+    if front_degree is not None:
+        front_degree = max(front_degree, min(p_start, p_max))
     out = AdaptResult()
     u0: fem.Function | None = None
     # the loop's clocks, wall and CPU, and the outputs' shares of them (Level.elapsed, .cpu)

@@ -2,8 +2,9 @@
 chosen cell is refined in h or in p.
 
 * Cells touching the free boundary — a vertex of Γ_C around which the solver's contact
-  nodes are both active and inactive — are h-refined, and kept at degree 1 (the solution is
-  only H^{5/2−ε} across the free boundary: h is the right tool there).
+  nodes are both active and inactive — are h-refined, and kept at degree 1, or at the
+  first level's degree if that is higher (the solution is only H^{5/2−ε} across the free
+  boundary: h is the right tool there).
 * Every other marked cell is p-refined if u_h looks analytic on it: with u_h|_T expanded in
   the L²(T̂)-orthonormal Dubiner basis of the reference cell (basix's Legendre polynomials,
   ordered by degree) and a_k the norm of its coefficients of degree k, the least-squares
