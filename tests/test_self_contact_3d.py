@@ -134,12 +134,16 @@ def test_contact_force_balances_on_the_pair(tube):
     """The nodal forces on the slave part are those on the master part, reversed, to 1e-8
     along y (the pressing direction; no node of either part has y fixed).  Along x and z
     the symmetry planes' reactions at the parts' nodes on them enter the sums too, so only
-    y is an exact balance of the pair."""
+    y is an exact balance of the pair.  The scalar contact force is that of the whole tube
+    along y."""
     scene, run = tube
     r = run.steps[-1].result
     slave, master = (interface_force(r, scene, part) for part in ("inner_top", "inner_bottom"))
     assert slave[1] > 0.01
     assert abs(slave[1] + master[1]) <= 1e-8 * abs(slave[1])
+    # the scalar contact force: the whole tube's, 4 times the quarter's y-force (both
+    # mirror planes contain y; the quarter's x- and z-forces cancel against its images)
+    assert abs(r.contact_force - 4 * slave[1]) <= 1e-8 * 4 * slave[1]
 
 
 @pytest.mark.mpi

@@ -145,6 +145,21 @@ def test_the_pair_forces_balance_without_a_moment(kink):
     assert np.all(np.abs(moments) <= 1e-4 * abs(slave[1]))
 
 
+def test_the_contact_force_is_the_whole_tubes_y_force(kink):
+    """The scalar contact force is the size of the whole tube's normal contact force: 4 times
+    the quarter's y-force on the slave wall (the mirror planes x = 0 and z = 0 both contain
+    the pressing direction y; the quarter's x-force cancels against its mirror image), to
+    1e-8.  The pressed nodes lie on the plane z = 0 and lean in x, away from any single
+    node's normal: a force along one slave node's normal (the first point of contact) is
+    not this."""
+    scene, run, _ = kink
+    r = run.steps[-1].result
+    _, f = nodal_forces(r, scene, part_nodes(r, scene, "inner_top"))
+    slave = scene.comm.allreduce(f.sum(axis=0), op=MPI.SUM)
+    assert slave[1] > 1e-4
+    assert abs(r.contact_force - 4 * slave[1]) <= 1e-8 * 4 * slave[1]
+
+
 @pytest.mark.mpi
 def test_two_ranks_equal_serial(tmp_path):
     """The scene on a coarser mesh in 6 load steps (walls pressed at the end): the same slave

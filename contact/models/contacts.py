@@ -358,10 +358,19 @@ class BodiesProblem(Problem):
     nodes' pressures; an obstacle's nodes, if any, are left out)."""
 
     def contact_force(self, r: np.ndarray) -> float:
-        """F = m_n Σ_{slave i} D_ii p_i (n_i · n) over all ranks (collective): p_i = −λ_i
-        the interface pressure, n the normal at the first point of contact, m_n the mirror
-        images pressing along n (:meth:`DiscreteProblem.copies_along`;
-        :meth:`DiscreteProblem.contact_force` over all nodes without pairs)."""
+        """The force the pairs transmit, of the whole body (collective):
+
+            N = Σ_{slave i} D_ii p_i n_i,    F = m_n N · n,   n = N̄ / |N̄|,
+
+        p_i = −λ_i the interface pressure, n_i the slave nodes' normals, N the modelled
+        part's normal contact resultant (summed over all ranks) and N̄ that of the whole
+        body: N with its components normal to the symmetry planes set to 0 (they cancel
+        between mirror images); m_n the mirror images pressing along n
+        (:meth:`DiscreteProblem.copies_along`).  So F = |N̄| times the copies: the size
+        of the whole body's normal contact force, whatever the shape of the contact zone
+        and wherever it touched first (for a zone symmetric about n, Σ D_ii p_i (n_i · n)).
+        Only when N̄ vanishes (N normal to a mirror plane) is n = N / |N|.  Without pairs:
+        :meth:`DiscreteProblem.contact_force` over all nodes."""
         data = self.data
         if not data.couplings:
             return super().contact_force(r)
@@ -369,10 +378,16 @@ class BodiesProblem(Problem):
         if data.n is None:  # no slave node faces the master on any rank: nothing transmitted
             return 0.0
         on = slice(0, data.pair_nodes)
-        local = float(
-            np.sum(self.constraint.w[on] * self.pressure(r)[on] * (data.normals[on] @ data.n))
-        )
-        return self.copies_along() * self.V.mesh.comm.allreduce(local, op=MPI.SUM)
+        local = (self.constraint.w[on] * self.pressure(r)[on]) @ data.normals[on]
+        part = np.asarray(self.V.mesh.comm.allreduce(local, op=MPI.SUM), dtype=float)
+        whole = part.copy()
+        whole[list(self.symmetry.axes)] = 0.0
+        size = float(np.linalg.norm(part))
+        if size == 0.0:
+            return 0.0
+        n = whole if np.linalg.norm(whole) > 1e-12 * size else part
+        n = n / np.linalg.norm(n)
+        return self.copies_along(n) * float(part @ n)
 
 
 def mirror_axes(

@@ -62,8 +62,10 @@ def interface_resultants(posed: Posed, result: Result) -> dict:
       sum vanishes when action equals reaction: ``interface_balance_error`` =
       |F_s·n + F_m·n| / |F_s·n| along the normal n at the first point of contact;
     * ``reactions``: per Dirichlet part, Σ of the residual over its DoFs (a vector);
-    * ``contact_force`` (:attr:`Result.contact_force`: m Σ_i D_ii p_i (n_i·n), m the
-      symmetric copies), ``peak_pressure`` max_i p_i on the slave nodes, ``min_gap``,
+    * ``contact_force`` (:attr:`Result.contact_force`: the size of the whole bodies'
+      normal contact force on the slave side, |N̄| m with N = Σ_i D_ii p_i n_i,
+      :meth:`contact.models.contacts.BodiesProblem.contact_force`), ``peak_pressure``
+      max_i p_i on the slave nodes, ``min_gap``,
       ``mortar_coverage`` (min_i Σ_j M_ij / D_ii) and, with a rigid obstacle too,
       ``obstacle_force`` Σ_i w_i λ_i n_i (the obstacle's force on the body, a vector).
 

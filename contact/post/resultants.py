@@ -2,7 +2,9 @@
 
 * contact force  F = m_n Σ_i w_i p_i (n_i · n)  (``Result.contact_force``: p_i = −λ_n,i the
   nodal pressure, w_i the lumped weights, n_i the nodal normals, n the normal at the first
-  point of contact, m_n the mirror images pressing along n, below);
+  point of contact, m_n the mirror images pressing along n, below; with contact pairs n
+  is the direction of the whole bodies' normal contact force on the slave side, so that F
+  is its size: :meth:`contact.models.contacts.BodiesProblem.contact_force`);
 * reaction on the Dirichlet boundary along n: the sum of the residual a(u_h, v) − L(v) over
   its DoFs, times m_n — equal to F at equilibrium (``force_balance_error`` = |R − F| / F);
 * peak pressure max_i p_i and the smallest gap min_i (g_i − u_i·n_i) (≥ 0: no penetration).
