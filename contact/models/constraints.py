@@ -90,7 +90,7 @@ class Unilateral:
     problem) or ``ds(tag)`` with the facet tags as its ``subdomain_data`` (the nodes of those
     facets, a Signorini condition); its weights w_i = ∫ φ_i d(measure) (P2 on triangles and
     tetrahedra: the P1-iso-P2 lumped mass, positive where ∫ φ_i is not;
-    :func:`~contact.models.problem.lumped_weights`).  On a vector space
+    ``lumped_weights`` of ``contact.models.problem``).  On a vector space
     the constraint acts on one ``component`` u_k (e.g. the normal displacement against a
     plane): its DoFs there, and a bound given as a number, values at those DoFs, or a
     scalar f(x).  Or explicit ``dofs`` (owned local indices of V, any components) with
