@@ -57,18 +57,25 @@ def test_patch_2d_pressure_is_exact_at_every_slave_node(patch_2d, method):
     """Non-matching meshes (31 against 10 interface cells), two materials: λ_i = −p at every
     slave node and λ^m_j = −p at every master node to 1e-8 relative, forces balance."""
     scene, problem = patch_2d
+    check_patch_2d(scene, problem, method, slave=32, master=11)
+
+
+def check_patch_2d(scene, problem, method: str, slave: int, master: int) -> None:
+    """Solve the 2D contact patch with ``method``: every one of the ``slave`` slave nodes
+    pressed by p (no tie, no rounding can move it), λ_i = −p there and λ^m_j = −p at the
+    ``master`` master nodes to 1e-8 relative, the interface forces balance and the contact
+    force is p × width, mirrored at x = 0."""
     r = contact.solve(scene, method=method, problem=problem, verbose=False)
     assert r.converged
     lam = r.lmbda_h.x.array[problem.output.nodes]
-    # every node pressed by p: no tie, no rounding can move it
-    assert len(lam) == 32 and r.n_active == 32
+    assert len(lam) == slave and r.n_active == slave
     assert np.max(np.abs(lam + P)) <= 1e-8 * P
     lam_m = master_pressure(r).x.array
-    master = np.abs(lam_m) > 0
-    assert master.sum() == 11 and np.max(np.abs(lam_m[master] + P)) <= 1e-8 * P
+    pressed = np.abs(lam_m) > 0
+    assert pressed.sum() == master and np.max(np.abs(lam_m[pressed] + P)) <= 1e-8 * P
     res = resultants(posed_of(scene), r)
     assert res["interface_balance_error"] < 1e-10
-    assert res["contact_force"] == pytest.approx(2 * P, rel=1e-10)  # p × width, mirrored at x = 0
+    assert res["contact_force"] == pytest.approx(2 * P, rel=1e-10)
 
 
 def test_patch_2d_estimator_vanishes(patch_2d):

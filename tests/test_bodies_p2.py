@@ -16,7 +16,7 @@ from contact.solvers import owned_residual
 
 import numpy as np
 import pytest
-from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, P, run
+from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, P, check_patch_2d, run
 from test_hyperelastic_bodies import PATCH_2D as FINITE_PATCH_2D
 from test_hyperelastic_bodies import P as FINITE_P
 from test_hyperelastic_bodies import interface_force, uniaxial
@@ -37,17 +37,7 @@ def test_p2_patch_pressure_is_exact_at_every_slave_node(patch, method):
     (vertices and midpoints) and λ^m_j = −p at all 21 master nodes to 1e-8 relative, the
     interface forces balance and the contact force is p × width."""
     scene, problem = patch
-    r = contact.solve(scene, method=method, problem=problem, verbose=False)
-    assert r.converged
-    lam = r.lmbda_h.x.array[problem.output.nodes]
-    assert len(lam) == 63 and r.n_active == 63  # uniform p: no node near a tie
-    assert np.max(np.abs(lam + P)) <= 1e-8 * P
-    lam_m = master_pressure(r).x.array
-    master = np.abs(lam_m) > 0
-    assert master.sum() == 21 and np.max(np.abs(lam_m[master] + P)) <= 1e-8 * P
-    res = resultants(posed_of(scene), r)
-    assert res["interface_balance_error"] < 1e-10
-    assert res["contact_force"] == pytest.approx(2 * P, rel=1e-10)
+    check_patch_2d(scene, problem, method, slave=63, master=21)
 
 
 @pytest.mark.mpi
