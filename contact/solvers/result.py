@@ -170,11 +170,12 @@ class Result:
         this to a level it will release once the next level is solved, before that solve,
         the loop's peak (:func:`contact.adapt`).  Collective.
         """
-        if self.problem is None or not self.problem.K.handle:
+        K = None if self.problem is None else self.problem.K
+        if K is None or not K.handle:
             return
         if self.contact_residual is None:
             self.contact_residual = owned_residual(self)
-        self.problem.K.destroy()
+        K.destroy()
 
     def release(self) -> None:
         """Keep the figures only, and release the memory that grows with the mesh.
