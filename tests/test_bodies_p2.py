@@ -260,17 +260,20 @@ def test_friction_patch_3d_is_exact_at_every_slave_node(friction_patches, degree
     assert resultants(posed_of(scene), r)["interface_balance_error"] < 1e-10
 
 
+#: the frictional 3D patch on 4 × 4 against 3 × 3 interface cells, one cell thick
+COARSE_BLOCKS = (
+    "mesh.blocks=[{corners: [[0, 0, 0], [1, 1, 0.5]], cells: [3, 3, 1]},"
+    " {corners: [[0, 0, 0.5], [1, 1, 1]], cells: [4, 4, 1]}]"
+)
+
+
 def test_p2_friction_patch_3d_slides_at_finite_strain():
     """The frictional 3D patch with neo-Hookean blocks (4 × 4 against 3 × 3 interface cells,
     P2, re-coupled on the current configuration): dragged, every slave node still facing
     the master slides on the Coulomb bound |λ_t| = F |λ_n| to 1e-10, and the slave and
     master surface forces cancel; the slave's tangential force is F × its normal force to
     1 % (measured 0.2 %: the nodes slid past the master's edge carry nothing)."""
-    blocks = (
-        "mesh.blocks=[{corners: [[0, 0, 0], [1, 1, 0.5]], cells: [3, 3, 1]},"
-        " {corners: [[0, 0, 0.5], [1, 1, 1]], cells: [4, 4, 1]}]"
-    )
-    scene = contact.load_scene(FRICTION_PATCH_3D, [*P2, *HYPERELASTIC, blocks])
+    scene = contact.load_scene(FRICTION_PATCH_3D, [*P2, *HYPERELASTIC, COARSE_BLOCKS])
     path = contact.run_load_path(scene, verbose=False)
     assert path.converged
     r = path.steps[-1].result
@@ -316,6 +319,27 @@ def test_p2_friction_patch_3d_cli_on_two_ranks_equals_serial(tmp_path):
     for name in tables[0].dtype.names:
         if name != "status":
             assert np.allclose(tables[0][name], tables[1][name], rtol=0, atol=1e-10), name
+
+
+@pytest.mark.mpi
+def test_p2_friction_patch_3d_at_finite_strain_on_two_ranks_equals_serial(tmp_path):
+    """The neo-Hookean frictional P2 patch (coarse blocks) through the command line, serially
+    and on 2 ranks: the same slave nodes, all slipping, the contact tables' columns equal to
+    1e-10 of their unit's scale — lengths (coordinates, gap, slip) of the blocks' size 1,
+    tractions of the largest |λ_n| — (measured 2.4e-14 for λ_n)."""
+    sets = ["mesh.degree=2", *HYPERELASTIC, COARSE_BLOCKS, "output.png=false"]
+    s, p = (
+        friction_table(run_scene(tmp_path, FRICTION_PATCH_3D.name, n, sets, 300)[0]) for n in (0, 2)
+    )
+    assert len(s) == len(p) >= 9 * 9 - 9
+    assert set(s["status"]) == set(p["status"]) == {"slip"}
+    traction = np.max(np.abs(s["lambda_n"]))
+    for name in s.dtype.names:
+        if name != "status":
+            length = name in ("x", "y", "z", "r", "gap") or name.startswith("slip")
+            pulls = name.startswith("lambda") or name == "bound"
+            scale = 1.0 if length else traction if pulls else np.max(np.abs(s[name]))
+            assert np.max(np.abs(s[name] - p[name])) <= 1e-10 * scale, name
 
 
 def nodal_deviation(scene, r) -> tuple[float, float]:
