@@ -252,14 +252,19 @@ def half_disks(
     h_contact: float,
     zone: float,
     overlap: float = 0.0,
+    order: int = 1,
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """Two half-disks touching at the origin, meshed independently (2D triangles): the upper
     one {|x − (0, R1)| ≤ R1, y ≤ R1} (cell tag 1; arc tag 1, top y = R1 tag 2) and the lower
     one {|x − (0, d − R2)| ≤ R2, y ≥ d − R2} (cell tag 2; arc tag 3, bottom tag 4), moved up
     by d = ``overlap`` (≥ 0: the bodies interpenetrate by d at x = 0, an interference that
     loads them without a prescribed displacement).  The mesh size is ``h_contact`` within
-    ``zone`` of the contact point, ``h`` far from it (lengths in the scene's unit).  Returns
-    (mesh, facet tags, cell tags)."""
+    ``zone`` of the contact point, ``h`` far from it (lengths in the scene's unit).  With
+    ``order`` 2 the cells are gmsh's quadratic triangles (a coordinate element of degree 2):
+    the midpoint of every edge on an arc lies on the circle (at the arc's parameter
+    midpoint), the other midpoints halfway along their straight edges, so the P2 surfaces
+    are curved and the normal gap between them is the circles' to O(h³).  Returns (mesh,
+    facet tags, cell tags)."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
     radius2, *_ = _check(radius2, h, h_contact, zone, "radius2")
     if not (
@@ -295,6 +300,8 @@ def half_disks(
         gmsh.model.addPhysicalGroup(2, [surfaces[1]], SECOND_BODY, name="lower")
         _size_field(gmsh, contacts, h, h_contact, zone)
         _generate(gmsh, 2)
+        if order > 1:
+            gmsh.model.mesh.setOrder(order)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
 
