@@ -1475,6 +1475,41 @@ def two_bodies() -> str:
                 ),
             )
         ]
+    curved = rows(folder / "cylinders_p2.csv") or []
+    if curved:
+        out += [
+            prose(
+                "two_bodies",
+                "p2_on_straight_and",
+                table=table(
+                    [
+                        "h_contact",
+                        "degree",
+                        "cells",
+                        "DoFs",
+                        "nodal max error",
+                        "peak error",
+                        "force",
+                        "a error",
+                        "force balance",
+                    ],
+                    [
+                        [
+                            r["h_contact"],
+                            f"P{r['degree']}",
+                            r["cells"],
+                            r["dofs"],
+                            f"{100 * r['nodal_max_error']:.2f} %",
+                            pct(r["peak_error"]),
+                            g(r["force"], 6),
+                            pct(r["a_error"]),
+                            g(r["balance"], 2),
+                        ]
+                        for r in curved
+                    ],
+                ),
+            )
+        ]
     cm = rows(folder / "cattaneo.csv") or []
     if cm:
         out += [

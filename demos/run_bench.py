@@ -106,7 +106,8 @@ STEPS = {
         ],
     ],
     "two_bodies": [
-        [PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")
+        [PY, "demos/bench/bench_two_bodies.py", part]
+        for part in ("patch", "cylinders", "cattaneo", "p2")
     ]
     + [
         [

@@ -4,6 +4,7 @@
     python demos/bench/bench_two_bodies.py cylinders             # two cylinders, adaptive, methods,
     slave/master mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005
     ...] python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
+    python demos/bench/bench_two_bodies.py p2 [--h-contact 0.1 0.05 0.025]   # P2, curved cells
 
 Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
 
@@ -27,7 +28,12 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
   ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
   tangential traction; ``cattaneo_traction.csv`` and ``cattaneo_traction.png`` the computed
-  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh.
+  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh;
+* ``cylinders_p2.csv`` — the two cylinders (``mesh.h`` = 2, ``zone`` = 1, method min) on
+  gmsh meshes of decreasing ``h_contact``, P1, P2 on straight cells and P2 on curved cells
+  (``mesh.geometry_degree: 2``): DoFs, the largest deviation of a slave node's pressure from
+  Hertz's within 0.8 a and the peak's (both over p0), the contact force, a's error and the
+  interface balance.
 """
 
 from __future__ import annotations
@@ -426,9 +432,52 @@ def cattaneo(sizes: list[float]) -> None:
         print(f"wrote {OUT / 'cattaneo_traction.png'}", flush=True)
 
 
+def p2_cylinders(sizes: list[float]) -> None:
+    """P1, P2 on straight cells and P2 on curved cells of the same gmsh meshes."""
+    rows = []
+    for h_contact in sizes:
+        for degree, geometry in ((1, 1), (2, 1), (2, 2)):
+            overrides = [
+                *QUIET,
+                "mesh.h=2.0",
+                "mesh.zone=1.0",
+                f"mesh.h_contact={h_contact}",
+                f"mesh.degree={degree}",
+                f"mesh.geometry_degree={geometry}",
+            ]
+            scene = contact.load_scene(ROOT / "configs" / "two_body_hertz_2d.yaml", overrides)
+            t0 = time.perf_counter()
+            r = contact.solve(scene, method="min", verbose=False)
+            seconds = time.perf_counter() - t0
+            posed = posed_of(scene)
+            res = {**interface_resultants(posed, r), **compare(posed, r).values}
+            X, pressure = slave_pressure(r)
+            a, p0 = res["hertz_a"], res["hertz_p0"]
+            inner = np.abs(X[:, 0]) < 0.8 * a
+            hertz = p0 * np.sqrt(1 - (X[inner, 0] / a) ** 2)
+            rows.append(
+                {
+                    "h_contact": h_contact,
+                    "degree": degree,
+                    "cells": "curved" if geometry == 2 else "straight",
+                    "dofs": r.dofs,
+                    "converged": r.converged,
+                    "nodal_max_error": float(np.max(np.abs(pressure[inner] - hertz)) / p0),
+                    "peak_error": float(np.max(pressure) / p0 - 1),
+                    "force": res["contact_force"],
+                    "a_error": res["a_error"],
+                    "balance": res["interface_balance_error"],
+                    "seconds": round(seconds, 2),
+                }
+            )
+    say("two cylinders: P1, P2 on straight cells, P2 on curved cells (min)")
+    table(rows)
+    write("cylinders_p2.csv", rows)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("part", choices=("patch", "cylinders", "sphere", "cattaneo"))
+    parser.add_argument("part", choices=("patch", "cylinders", "sphere", "cattaneo", "p2"))
     parser.add_argument(
         "--max-dofs", type=int, default=100000, help="cylinders: DoF budget of the adaptive run"
     )
@@ -437,7 +486,8 @@ def main(argv=None) -> None:
         type=float,
         nargs="+",
         default=None,
-        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01): "
+        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01) / p2 "
+        "(default 0.1 0.05 0.025): "
         "gmsh mesh sizes at the contact point",
     )
     parser.add_argument(
@@ -450,6 +500,8 @@ def main(argv=None) -> None:
         cylinders(args.max_dofs)
     elif args.part == "cattaneo":
         cattaneo(args.h_contact or [0.02, 0.01])
+    elif args.part == "p2":
+        p2_cylinders(args.h_contact or [0.1, 0.05, 0.025])
     else:
         sphere(args.h_contact or [0.01, 0.005, 0.0035], args.swap)
 
