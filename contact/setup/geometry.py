@@ -313,13 +313,16 @@ def sphere_on_block(
     h: float,
     h_contact: float,
     zone: float,
+    order: int = 1,
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """A sphere of radius R resting on an elastic block at the origin, the quarter x, y ≥ 0
     of both (3D tetrahedra, meshed independently): the octant of the sphere's lower half
     (cell tag 1; spherical surface tag 1, top z = R tag 2) and the block [0, W]² × [−H, 0]
     for ``block`` = [W, H] (cell tag 2; top z = 0 tag 3, bottom z = −H tag 4, sides x = W and
     y = W tag 7); the symmetry planes x = 0 (tag 5) and y = 0 (tag 6) of both bodies.  Mesh
-    size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it."""
+    size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it.  With
+    ``order`` 2 the cells are gmsh's quadratic tetrahedra: the midpoint of every edge on
+    the sphere lies on it, the other edges stay straight."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
     if problem := block_pair(block):
         raise ConfigError(f"mesh.block: {problem}")
@@ -375,6 +378,8 @@ def sphere_on_block(
             raise RuntimeError("the sphere and the block need a vertex each at the contact point")
         _size_field(gmsh, origin, h, h_contact, zone)
         _generate(gmsh, 3)
+        if order > 1:
+            gmsh.model.mesh.setOrder(order)
 
     return gmsh_to_mesh(
         comm, build, "mesh: gmsh cannot build the sphere_on_block", gdim=3, cells=True

@@ -104,7 +104,7 @@ MESH_KEYS = {
     "sphere_octant": {"radius", "h", "h_contact", "zone"},
     "blocks": {"blocks", "diagonal"},
     "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap", "geometry_degree"},
-    "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"},
+    "sphere_on_block": {"radius", "block", "h", "h_contact", "zone", "geometry_degree"},
     "ring": {"radius", "inner_radius", "cells", "diagonal"},
 }
 #: the mesh types whose boundary parts may be gmsh tags
@@ -525,8 +525,9 @@ class MeshConfig(Section):
     radius2: Float | None = None
     #: half_disks: the lower disk moved up by this much (an interference load)
     overlap: Float | None = None
-    #: half_disks: the degree of the coordinate element, 2 for curved (isoparametric P2)
-    #: cells whose boundary edges' midpoints lie on the arcs (needs ``degree`` 2)
+    #: half_disks / sphere_on_block: the degree of the coordinate element, 2 for curved
+    #: (isoparametric P2) cells whose boundary edges' midpoints lie on the arcs / the
+    #: sphere (needs ``degree`` 2)
     geometry_degree: Annotated[int, BeforeValidator(integer(among((1, 2))))] = 1
     #: ring: the radius of the hole (``radius`` the outer one)
     inner_radius: Positive | None = None
