@@ -1475,12 +1475,17 @@ def two_bodies() -> str:
                 ),
             )
         ]
-    curved = rows(folder / "cylinders_p2.csv") or []
-    if curved:
+    for csv_name, block in (
+        ("cylinders_p2.csv", "p2_on_straight_and"),
+        ("sphere_p2.csv", "p2_sphere"),
+    ):
+        curved = rows(folder / csv_name) or []
+        if not curved:
+            continue
         out += [
             prose(
                 "two_bodies",
-                "p2_on_straight_and",
+                block,
                 table=table(
                     [
                         "h_contact",
@@ -1488,6 +1493,7 @@ def two_bodies() -> str:
                         "cells",
                         "DoFs",
                         "nodal max error",
+                        "nodal rms error",
                         "peak error",
                         "force",
                         "a error",
@@ -1500,6 +1506,7 @@ def two_bodies() -> str:
                             r["cells"],
                             r["dofs"],
                             f"{100 * r['nodal_max_error']:.2f} %",
+                            f"{100 * r['nodal_rms_error']:.2f} %",
                             pct(r["peak_error"]),
                             g(r["force"], 6),
                             pct(r["a_error"]),

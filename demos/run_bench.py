@@ -107,7 +107,7 @@ STEPS = {
     ],
     "two_bodies": [
         [PY, "demos/bench/bench_two_bodies.py", part]
-        for part in ("patch", "cylinders", "cattaneo", "p2")
+        for part in ("patch", "cylinders", "cattaneo", "p2", "p2sphere")
     ]
     + [
         [
