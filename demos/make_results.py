@@ -1509,6 +1509,47 @@ def two_bodies() -> str:
                 ),
             )
         ]
+    degrees = rows(folder / "sphere_degrees.csv") or []
+    if degrees:
+        out += [
+            prose(
+                "two_bodies",
+                "the_sphere_with_p2",
+                force=g(degrees[0]["force_reference"], 5),
+                energy=g(degrees[0]["energy_reference"], 5),
+                table=table(
+                    [
+                        "run",
+                        "degree",
+                        "level",
+                        "DoFs",
+                        "force",
+                        "force error",
+                        "a error",
+                        "p0 error",
+                        "energy error",
+                        "η",
+                        "η / error",
+                    ],
+                    [
+                        [
+                            r["run"] if r["run"] == "dorfler" else f"gmsh {r['h_contact']}",
+                            f"P{r['degree']}",
+                            r["level"],
+                            r["dofs"],
+                            g(r["force"], 5),
+                            pct(r["force_error"]),
+                            pct(r["a_error"]),
+                            pct(r["p0_error"]),
+                            g(r["energy_error"]),
+                            g(r["eta"]) if r["run"] == "dorfler" else "–",
+                            g(r["eta_over_error"]) if r["run"] == "dorfler" else "–",
+                        ]
+                        for r in degrees
+                    ],
+                ),
+            )
+        ]
     cylinders_p2 = rows(folder / "cylinders_p2.csv") or []
     if cylinders_p2:
         out += [prose("two_bodies", "p2_on_straight_and", table=p2_table(cylinders_p2))]

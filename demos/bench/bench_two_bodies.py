@@ -1,9 +1,10 @@
 """Two bodies in contact (mortar coupling with dual multipliers): the figures of issue 13.
 
-    python demos/bench/bench_two_bodies.py patch                 # patch tests 2D / 3D, every method
-    python demos/bench/bench_two_bodies.py cylinders             # two cylinders, adaptive, methods,
-    slave/master mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005
-    ...] python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
+    python demos/bench/bench_two_bodies.py patch           # patch tests 2D / 3D, every method
+    python demos/bench/bench_two_bodies.py cylinders       # two cylinders: adaptive, slave/master
+    mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
+    python demos/bench/bench_two_bodies.py sphere_degrees  # the sphere with P1 and P2, η
+    python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
     python demos/bench/bench_two_bodies.py p2 [--h-contact 0.1 0.05 0.025]   # P2, curved cells
     python demos/bench/bench_two_bodies.py p2sphere [--h-contact 0.04 0.02]   # the same in 3D
 
@@ -25,6 +26,11 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   refined ones), on the ranks it runs on: DoFs, Newton iterations, seconds, a and p0
   errors, and the rms deviation of the nodal pressure from Hertz's within 0.8 a (rows are
   merged by mesh size and rank count, so a run of one more size keeps the others);
+* ``sphere_degrees.csv`` — the sphere on a block with P1 and with P2 (``run`` gmsh: one
+  solve on gmsh meshes of decreasing ``h_contact``; ``run`` dorfler: the adaptive loop from
+  h_contact = 0.05 with the residual estimator): DoFs, force, strain energy E_h, η, the a
+  and p0 errors against Hertz, the force's error against the limit of the P2 gmsh
+  sequence and the energy error √(2 |E_h − E|) against that sequence's limit E, η over it;
 * ``cattaneo.csv`` — two cylinders with Coulomb friction F = 0.3, the load path of
   ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
   ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
@@ -334,6 +340,105 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
         )
 
 
+def strain_energy(result) -> float:
+    """½ ∫ σ(u_h) : ε(u_h) dx of the solution (both bodies; collective)."""
+    import ufl
+    from dolfinx import fem
+
+    u = result.u_h
+    sigma = result.problem.physics.flux(u)
+    form = fem.form(0.5 * ufl.inner(sigma, ufl.sym(ufl.grad(u))) * ufl.dx)
+    return comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
+
+
+def aitken(values: list[float]) -> float:
+    """The limit of a sequence from its last three terms (Aitken's Δ²)."""
+    a, b, c = values[-3:]
+    return c - (c - b) ** 2 / ((c - b) - (b - a))
+
+
+def sphere_degrees(p2_sizes: list[float], p1_sizes: list[float], max_dofs: int) -> None:
+    """P1 and P2 on the sphere on a block: gmsh meshes of decreasing h_contact (the far field
+    h = 0.25 of the scene), then Dörfler's loop at each degree from h_contact = 0.05.  The
+    references are the limits of the P2 gmsh sequence (Aitken's Δ² on its last three
+    forces and strain energies); the loop's error is √(2 |E_h − E|), E the strain energy."""
+    path = ROOT / "configs" / "two_body_hertz_3d.yaml"
+    rows = []
+    for degree, sizes in ((2, p2_sizes), (1, p1_sizes)):
+        for h_contact in sizes:
+            scene = contact.load_scene(
+                path, QUIET + ["adapt=null", f"mesh.degree={degree}", f"mesh.h_contact={h_contact}"]
+            )
+            t0 = time.perf_counter()
+            r = contact.solve(scene, method="fb", verbose=False)
+            seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+            res = {**interface_resultants(posed_of(scene), r), **compare(posed_of(scene), r).values}
+            rows.append(
+                {
+                    "run": "gmsh",
+                    "degree": degree,
+                    "h_contact": h_contact,
+                    "level": 0,
+                    "dofs": r.dofs,
+                    "ranks": comm.size,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "seconds": round(seconds, 1),
+                    "force": r.contact_force,
+                    "energy": strain_energy(r),
+                    "eta": float("nan"),
+                    "a_error": res["a_error"],
+                    "p0_error": res["p0_error"],
+                    "p0_nodal_error": res["p0_nodal_error"],
+                    "balance": res["interface_balance_error"],
+                }
+            )
+            say(f"P{degree} h_contact {h_contact}: {r.dofs} DoFs, {seconds:.1f} s")
+    p2 = [r for r in rows if r["degree"] == 2]
+    force, energy = aitken([r["force"] for r in p2]), aitken([r["energy"] for r in p2])
+    for degree in (2, 1):
+        scene = contact.load_scene(
+            path,
+            QUIET
+            + [f"mesh.degree={degree}", "mesh.h_contact=0.05", f"adapt.max_dofs={max_dofs}"]
+            + ["adapt.max_levels=8"],
+        )
+
+        def on_level(level, degree=degree):
+            r = level.result
+            res = {**interface_resultants(level.posed, r), **compare(level.posed, r).values}
+            rows.append(
+                {
+                    "run": "dorfler",
+                    "degree": degree,
+                    "h_contact": 0.05,
+                    "level": level.index,
+                    "dofs": r.dofs,
+                    "ranks": comm.size,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "seconds": round(comm.allreduce(level.elapsed, op=MPI.MAX), 1),
+                    "force": r.contact_force,
+                    "energy": strain_energy(r),
+                    "eta": level.estimate.eta,
+                    "a_error": res["a_error"],
+                    "p0_error": res["p0_error"],
+                    "p0_nodal_error": res["p0_nodal_error"],
+                    "balance": res["interface_balance_error"],
+                }
+            )
+            say(f"P{degree} Dörfler: {r.dofs} DoFs, η {level.estimate.eta:.3g}")
+
+        contact.adapt(scene, method="fb", verbose=False, on_level=on_level)
+    for r in rows:
+        r["force_error"] = r["force"] / force - 1.0
+        r["energy_error"] = float(np.sqrt(2.0 * abs(r["energy"] - energy)))
+        r["eta_over_error"] = r["eta"] / r["energy_error"]
+        r["force_reference"], r["energy_reference"] = force, energy
+    table(rows)
+    write("sphere_degrees.csv", rows)
+
+
 def cattaneo(sizes: list[float]) -> None:
     from contact.post.cattaneo import traction
     from contact.setup.run import run_load_path
@@ -483,19 +588,30 @@ def p2_cells(scene_file: str, sizes: list[float], mesh: list[str], csv_name: str
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument(
-        "part", choices=("patch", "cylinders", "sphere", "cattaneo", "p2", "p2sphere")
+        "part",
+        choices=("patch", "cylinders", "sphere", "sphere_degrees", "cattaneo", "p2", "p2sphere"),
     )
     parser.add_argument(
-        "--max-dofs", type=int, default=100000, help="cylinders: DoF budget of the adaptive run"
+        "--max-dofs",
+        type=int,
+        default=100000,
+        help="cylinders, sphere_degrees: DoF budget of the adaptive runs",
     )
     parser.add_argument(
         "--h-contact",
         type=float,
         nargs="+",
         default=None,
-        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01) / p2 "
-        "(default 0.1 0.05 0.025) / p2sphere (default 0.04 0.02): "
-        "gmsh mesh sizes at the contact point",
+        help="sphere (default 0.01 0.005 0.0035) / sphere_degrees (P2, default 0.1 0.05 0.025 "
+        "0.0125) / cattaneo (default 0.02 0.01) / p2 (default 0.1 0.05 0.025) / p2sphere "
+        "(default 0.04 0.02): gmsh mesh sizes at the contact point",
+    )
+    parser.add_argument(
+        "--h-contact-p1",
+        type=float,
+        nargs="+",
+        default=None,
+        help="sphere_degrees: the P1 mesh sizes (default 0.025 0.0125 0.009 0.00625)",
     )
     parser.add_argument(
         "--swap", type=float, default=None, help="sphere: h_contact of the slave/master comparison"
@@ -507,6 +623,12 @@ def main(argv=None) -> None:
         cylinders(args.max_dofs)
     elif args.part == "cattaneo":
         cattaneo(args.h_contact or [0.02, 0.01])
+    elif args.part == "sphere_degrees":
+        sphere_degrees(
+            args.h_contact or [0.1, 0.05, 0.025, 0.0125],
+            args.h_contact_p1 or [0.025, 0.0125, 0.009, 0.00625],
+            args.max_dofs,
+        )
     elif args.part == "p2":
         p2_cells(
             "two_body_hertz_2d.yaml",
