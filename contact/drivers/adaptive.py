@@ -50,6 +50,11 @@ from . import sequencing
 from .solve import options_of
 from .solve import solve as solve_problem
 
+#: a level the loop will release destroys its operator K before the next level's solve (its
+#: nodal contact force kept, :meth:`~contact.solvers.result.Result.shed_operator`); False:
+#: it stays whole until the next level is solved, the old path
+SHED_PREVIOUS = True
+
 
 @dataclass
 class Level:
@@ -300,6 +305,10 @@ def adapt(
             # previous mesh goes once its level is released
             level_domain.parent = None
         if keep is not None and previous is not None:
+            if SHED_PREVIOUS and not previous.released and not keep(previous):
+                # to be released once this level is solved: only its files may still be
+                # written (this level fails), for which its operator is not needed
+                previous.result.shed_operator()
             return_freed_memory()  # what refining freed: the level's solve does not reuse it
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time

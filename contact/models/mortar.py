@@ -191,10 +191,6 @@ def couple(
     ``uncovered``): where a body deforms, a slave node may face no master facet yet, or no
     longer (the far side of a self-contact, a slave surface slid past the master's end)."""
     comm = V.mesh.comm
-    if V.mesh.geometry.dim == 3 and V.element.basix_element.degree != 1 and pair.friction:
-        raise ConfigError(
-            f"mesh.degree: friction on contact pairs ({key}) in 3D is implemented for P1; use 1"
-        )
     slave = surface_facets(V, measure_facets(pair.slave), displacement)
     master = surface_facets(V, measure_facets(pair.master), displacement)
     gdim = slave.X.shape[2]
