@@ -287,9 +287,9 @@ def test_to_ufl_interpolated_into_p2_matches_to_numpy_at_dofs(mesh2d):
 def test_to_ufl_condition_used_as_a_number_is_one_or_zero(mesh2d):
     """``2*(x > 0.5) - 1`` is a step of ±1 in both back ends, also inside an assembled form
     (UFL's degree estimation had no degree for a bare condition: an internal error)."""
+    import ufl
     from dolfinx import fem
     from mpi4py import MPI
-    import ufl
 
     texts = ["2*(x > 0.1) - 1", "-(y < 0.2)", "sin(x > 0) + (x < y)*x", "(x > 0) if y > 0 else 0.5"]
     got, want, _ = _ufl_vs_numpy(mesh2d, REF_POINTS_2D, texts, {})
