@@ -359,7 +359,7 @@ def to_numpy(
             ast.GtE: np.greater_equal,
         },
         number=np.float64,
-        value=lambda v: v.astype(float) if getattr(v, "dtype", None) == np.dtype(bool) else v,
+        value=lambda v: v.astype(float) if getattr(v, "dtype", np.dtype(float)).kind == "b" else v,
     )
 
     names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}

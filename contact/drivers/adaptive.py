@@ -36,8 +36,9 @@ from mpi4py import MPI
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, check_shared_facets, estimate
 from ..adaptivity.mark import Growth, mark
-from ..adaptivity.refine import Domain, next_dofs_bound, refine
+from ..adaptivity.refine import CURVED_CELLS, Domain, next_dofs_bound, refine
 from ..base import progress
+from ..base.errors import ConfigError
 from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models.discrete import discrete
@@ -277,6 +278,9 @@ def adapt(
     if keep is not None and not callable(keep):
         raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
     opts = (options or AdaptOptions()).updated(**overrides)
+    first_mesh = domain if isinstance(domain, dmesh.Mesh) else domain.mesh
+    if opts.max_levels > 1 and first_mesh.geometry.cmaps[0].degree > 1:
+        raise ConfigError(CURVED_CELLS)  # before the first level is solved
     knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
     meshes = not isinstance(domain, Domain)  # the builder takes meshes
     level_domain = Domain(domain) if isinstance(domain, dmesh.Mesh) else domain
