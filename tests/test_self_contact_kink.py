@@ -151,7 +151,7 @@ def test_the_contact_force_is_the_whole_tubes_y_force(kink):
 @pytest.mark.mpi
 def test_two_ranks_equal_serial(tmp_path):
     """The scene on a coarser mesh in 6 load steps (walls pressed at the end): the same slave
-    nodes, pressures to 1e-8, force to 1e-8."""
+    nodes, pressures to 1e-8, force to 1e-8, the first point of contact and its normal."""
     small = ["mesh.cells=[2,24,6]", "load.steps=6"]
     s, p = (run_script(tmp_path, KINK, n, *small, script=SCRIPT) for n in (1, 2))
     for res in (s, p):
@@ -161,3 +161,6 @@ def test_two_ranks_equal_serial(tmp_path):
     assert s["X"].shape == p["X"].shape and np.allclose(s["X"], p["X"], atol=1e-14)
     assert abs(s["force"] - p["force"]) <= 1e-8 * abs(s["force"])
     assert np.max(np.abs(s["pressure"] - p["pressure"])) <= 1e-8 * np.max(s["pressure"])
+    # the first point of contact (a pressed node, ranked by the current gap) and its normal
+    assert np.allclose(s["first_contact"], p["first_contact"], rtol=0, atol=1e-14)
+    assert np.allclose(s["n"], p["n"], rtol=0, atol=1e-8)
