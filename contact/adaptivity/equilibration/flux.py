@@ -263,7 +263,8 @@ def block_rows(gvert: np.ndarray, bounds: np.ndarray) -> list[np.ndarray]:
     increasing order (as a scan of ``gvert`` per block finds them): one stable sort of the
     (cell, vertex) pairs by block, a cell listed once per block."""
     blocks = len(bounds) - 1
-    block = (np.searchsorted(bounds, gvert.ravel(), side="right") - 1).astype(np.int32)
+    small = np.int16 if blocks < np.iinfo(np.int16).max else np.int32  # int16: a radix sort
+    block = (np.searchsorted(bounds, gvert.ravel(), side="right") - 1).astype(small)
     order = np.argsort(block, kind="stable")  # by block, then by cell
     cell, block = order // gvert.shape[1], block[order]
     first = np.ones(len(order), dtype=bool)  # a cell's first pair in its block
