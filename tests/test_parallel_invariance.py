@@ -33,7 +33,7 @@ if MPI.COMM_WORLD.rank == 0:
 """
 
 
-def _run_script(tmp_path: Path, source: str, scene: str, ranks: tuple[int, ...]) -> dict:
+def run_script(tmp_path: Path, source: str, scene: str, ranks: tuple[int, ...]) -> dict:
     """Run ``source`` on ``configs/<scene>`` under mpirun on each number of ranks: the JSON
     its rank 0 prints last, by number of ranks."""
     script = tmp_path / "script.py"
@@ -97,7 +97,7 @@ def test_hertz_2d_newton_path_identical_on_1_and_2_ranks(tmp_path: Path) -> None
     is compared: every kink is decided with the tie tolerance τ = 10⁻¹² × the problem's
     scale, and no (a_i, b_i) of this scene lands within round-off of τ, so the path does not
     depend on rounding."""
-    runs = _run_script(tmp_path, HERTZ_FIRST_SOLVE, "hertz_2d.yaml", (1, 2))
+    runs = run_script(tmp_path, HERTZ_FIRST_SOLVE, "hertz_2d.yaml", (1, 2))
     assert runs[1] == runs[2]
     assert runs[1]["history"][0] == [1, 0]  # the node at the origin touches: in contact everywhere
 
@@ -126,7 +126,7 @@ def test_two_body_first_iterate_identical_on_1_and_3_ranks(tmp_path: Path) -> No
     there.  Now τ is relative to the coordinates' size as well (Constraint.scale): every
     one of the 38 contact nodes is at the biactive point (|a_i| ≤ 1e-15 ≪ τ = 1e-12, b_i = 0)
     and in contact at iteration 0 on any partition, and the whole path is the same."""
-    runs = _run_script(tmp_path, STACK_SOLVES, "two_body_stack_2d.yaml", (1, 3))
+    runs = run_script(tmp_path, STACK_SOLVES, "two_body_stack_2d.yaml", (1, 3))
     for method in ("fb", "min"):
         one, three = runs[1][method], runs[3][method]
         assert one["converged"] and three["converged"]
@@ -164,7 +164,7 @@ def test_next_dofs_bound_identical_on_any_number_of_ranks(tmp_path: Path) -> Non
     each marked edge once on its owning rank.  Before, an edge owned by one rank but marked
     only through another rank's cells was missed (problem A at 1.23M DoFs: 1919257 serially,
     1919249 on 2 ranks)."""
-    runs = _run_script(tmp_path, NEXT_DOFS, "lshape_corner.yaml", (1, 3))
+    runs = run_script(tmp_path, NEXT_DOFS, "lshape_corner.yaml", (1, 3))
     assert runs[1] == runs[3]
     # a lower bound of the refined mesh's DoFs
     assert all(bound <= dofs for bound, dofs in runs[1])
@@ -206,7 +206,7 @@ def test_sequencing_through_a_rebalanced_refinement_chain(tmp_path: Path) -> Non
     node's value from the rank that created its cell) carries a P1 function from the first
     mesh to the last unchanged (the same ∫ u² to 1e-12), and grid sequencing gives the cold direct
     answer, with the serial run's meshes and norm."""
-    runs = _run_script(tmp_path, SEQUENCE_CHAIN, "signorini_free_boundary.yaml", (1, 2, 3))
+    runs = run_script(tmp_path, SEQUENCE_CHAIN, "signorini_free_boundary.yaml", (1, 2, 3))
     for n, run in runs.items():
         # an ancestor several levels up
         assert run["levels"] and run["levels"][-1] * 4 <= run["dofs"], run
@@ -236,7 +236,7 @@ def test_two_body_grid_sequencing_same_answer_on_1_2_and_3_ranks(tmp_path: Path)
     """two_body_hertz_2d sequenced (a coarser gmsh mesh first, each body's points carried in
     that body's coarse cells, gathered on every rank): the same levels and, to solver
     tolerance, the same force, contact half-width and peak pressure on 1, 2 and 3 ranks."""
-    runs = _run_script(tmp_path, TWO_BODY_SEQUENCED, "two_body_hertz_2d.yaml", (1, 2, 3))
+    runs = run_script(tmp_path, TWO_BODY_SEQUENCED, "two_body_hertz_2d.yaml", (1, 2, 3))
     serial = runs[1]
     assert serial["converged"] and len(serial["levels"]) >= 1
     for n in (2, 3):
@@ -319,7 +319,7 @@ def test_refinement_of_tied_faces_identical_on_1_2_and_3_ranks(tmp_path: Path) -
     DoFs (level 2: 67,464 on 1 rank, 67,461 on 2).  Now the longest edge of a tied face is
     chosen by the coordinates (contact.adaptivity.longest_edge): the same vertices, cells and
     body tags on 1, 2 and 3 ranks."""
-    runs = _run_script(tmp_path, TIED_REFINEMENT, "two_body_hertz_3d.yaml", (1, 2, 3))
+    runs = run_script(tmp_path, TIED_REFINEMENT, "two_body_hertz_3d.yaml", (1, 2, 3))
     serial = runs[1]
     assert [row[1] > 0 for row in serial] == [True] * 3  # tied faces at every level
     assert serial[2][0][1] > 4 * serial[0][0][1]  # refined cells around the origin
@@ -348,7 +348,7 @@ def test_two_body_adaptive_meshes_identical_on_1_2_and_3_ranks(tmp_path: Path) -
     """two_body_hertz_2d through the adaptive loop (two bodies, mortar pairs, body and
     interface tags carried to each refined mesh): per level the same DoFs, vertices, cells
     and body tags on 1, 2 and 3 ranks, and η and the contact force to solver tolerance."""
-    runs = _run_script(tmp_path, TWO_BODY_ADAPTIVE, "two_body_hertz_2d.yaml", (1, 2, 3))
+    runs = run_script(tmp_path, TWO_BODY_ADAPTIVE, "two_body_hertz_2d.yaml", (1, 2, 3))
     serial = runs[1]
     assert len(serial) == 4 and all(row["converged"] for row in serial)
     assert serial[-1]["dofs"] > 2 * serial[0]["dofs"]
@@ -387,7 +387,7 @@ def test_newton_path_on_any_number_of_ranks_when_steps_are_exact(tmp_path: Path)
     do too (on the scene's own mesh: 9 Newton steps + 2 polishing solves on one rank, 8 + 1
     on two).  What holds there is the answer: the same active set and contact force to
     solver tolerance."""
-    runs = _run_script(tmp_path, NEWTON_3D, "two_body_hertz_3d.yaml", (1, 3))
+    runs = run_script(tmp_path, NEWTON_3D, "two_body_hertz_3d.yaml", (1, 3))
     for name in ("direct", "gamg_exact"):
         _same_newton_path(runs[1][name], runs[3][name])
     _same_newton_path(runs[1]["direct"], runs[1]["gamg_exact"])

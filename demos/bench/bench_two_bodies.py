@@ -1,9 +1,12 @@
 """Two bodies in contact (mortar coupling with dual multipliers): the figures of issue 13.
 
-    python demos/bench/bench_two_bodies.py patch                 # patch tests 2D / 3D, every method
-    python demos/bench/bench_two_bodies.py cylinders             # two cylinders, adaptive, methods,
-    slave/master mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005
-    ...] python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
+    python demos/bench/bench_two_bodies.py patch           # patch tests 2D / 3D, every method
+    python demos/bench/bench_two_bodies.py cylinders       # two cylinders: adaptive, slave/master
+    mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
+    python demos/bench/bench_two_bodies.py sphere_degrees  # the sphere with P1 and P2, η
+    python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
+    python demos/bench/bench_two_bodies.py p2 [--h-contact 0.1 0.05 0.025]   # P2, curved cells
+    python demos/bench/bench_two_bodies.py p2sphere [--h-contact 0.04 0.02]   # the same in 3D
 
 Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
 
@@ -23,11 +26,22 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   refined ones), on the ranks it runs on: DoFs, Newton iterations, seconds, a and p0
   errors, and the rms deviation of the nodal pressure from Hertz's within 0.8 a (rows are
   merged by mesh size and rank count, so a run of one more size keeps the others);
+* ``sphere_degrees.csv`` — the sphere on a block with P1 and with P2 (``run`` gmsh: one
+  solve on gmsh meshes of decreasing ``h_contact``; ``run`` dorfler: the adaptive loop from
+  h_contact = 0.05 with the residual estimator): DoFs, force, strain energy E_h, η, the a
+  and p0 errors against Hertz, the force's error against the limit of the P2 gmsh
+  sequence and the energy error √(2 |E_h − E|) against that sequence's limit E, η over it;
 * ``cattaneo.csv`` — two cylinders with Coulomb friction F = 0.3, the load path of
   ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
   ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
   tangential traction; ``cattaneo_traction.csv`` and ``cattaneo_traction.png`` the computed
-  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh.
+  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh;
+* ``cylinders_p2.csv`` — the two cylinders (``mesh.h`` = 2, ``zone`` = 1, method min) on
+  gmsh meshes of decreasing ``h_contact``, P1, P2 on straight cells and P2 on curved cells
+  (``mesh.geometry_degree: 2``): DoFs, the largest deviation of a slave node's pressure from
+  Hertz's within 0.8 a and the peak's (both over p0), the contact force, a's error and the
+  interface balance; ``sphere_p2.csv`` the same for the sphere on a block
+  (``configs/two_body_hertz_3d.yaml``), with the rms deviation within 0.8 a too.
 """
 
 from __future__ import annotations
@@ -326,6 +340,105 @@ def sphere(sizes: list[float], swap_size: float | None) -> None:
         )
 
 
+def strain_energy(result) -> float:
+    """½ ∫ σ(u_h) : ε(u_h) dx of the solution (both bodies; collective)."""
+    import ufl
+    from dolfinx import fem
+
+    u = result.u_h
+    sigma = result.problem.physics.flux(u)
+    form = fem.form(0.5 * ufl.inner(sigma, ufl.sym(ufl.grad(u))) * ufl.dx)
+    return comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
+
+
+def aitken(values: list[float]) -> float:
+    """The limit of a sequence from its last three terms (Aitken's Δ²)."""
+    a, b, c = values[-3:]
+    return c - (c - b) ** 2 / ((c - b) - (b - a))
+
+
+def sphere_degrees(p2_sizes: list[float], p1_sizes: list[float], max_dofs: int) -> None:
+    """P1 and P2 on the sphere on a block: gmsh meshes of decreasing h_contact (the far field
+    h = 0.25 of the scene), then Dörfler's loop at each degree from h_contact = 0.05.  The
+    references are the limits of the P2 gmsh sequence (Aitken's Δ² on its last three
+    forces and strain energies); the loop's error is √(2 |E_h − E|), E the strain energy."""
+    path = ROOT / "configs" / "two_body_hertz_3d.yaml"
+    rows = []
+    for degree, sizes in ((2, p2_sizes), (1, p1_sizes)):
+        for h_contact in sizes:
+            scene = contact.load_scene(
+                path, QUIET + ["adapt=null", f"mesh.degree={degree}", f"mesh.h_contact={h_contact}"]
+            )
+            t0 = time.perf_counter()
+            r = contact.solve(scene, method="fb", verbose=False)
+            seconds = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+            res = {**interface_resultants(posed_of(scene), r), **compare(posed_of(scene), r).values}
+            rows.append(
+                {
+                    "run": "gmsh",
+                    "degree": degree,
+                    "h_contact": h_contact,
+                    "level": 0,
+                    "dofs": r.dofs,
+                    "ranks": comm.size,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "seconds": round(seconds, 1),
+                    "force": r.contact_force,
+                    "energy": strain_energy(r),
+                    "eta": float("nan"),
+                    "a_error": res["a_error"],
+                    "p0_error": res["p0_error"],
+                    "p0_nodal_error": res["p0_nodal_error"],
+                    "balance": res["interface_balance_error"],
+                }
+            )
+            say(f"P{degree} h_contact {h_contact}: {r.dofs} DoFs, {seconds:.1f} s")
+    p2 = [r for r in rows if r["degree"] == 2]
+    force, energy = aitken([r["force"] for r in p2]), aitken([r["energy"] for r in p2])
+    for degree in (2, 1):
+        scene = contact.load_scene(
+            path,
+            QUIET
+            + [f"mesh.degree={degree}", "mesh.h_contact=0.05", f"adapt.max_dofs={max_dofs}"]
+            + ["adapt.max_levels=8"],
+        )
+
+        def on_level(level, degree=degree):
+            r = level.result
+            res = {**interface_resultants(level.posed, r), **compare(level.posed, r).values}
+            rows.append(
+                {
+                    "run": "dorfler",
+                    "degree": degree,
+                    "h_contact": 0.05,
+                    "level": level.index,
+                    "dofs": r.dofs,
+                    "ranks": comm.size,
+                    "converged": r.converged,
+                    "newton": r.iterations,
+                    "seconds": round(comm.allreduce(level.elapsed, op=MPI.MAX), 1),
+                    "force": r.contact_force,
+                    "energy": strain_energy(r),
+                    "eta": level.estimate.eta,
+                    "a_error": res["a_error"],
+                    "p0_error": res["p0_error"],
+                    "p0_nodal_error": res["p0_nodal_error"],
+                    "balance": res["interface_balance_error"],
+                }
+            )
+            say(f"P{degree} Dörfler: {r.dofs} DoFs, η {level.estimate.eta:.3g}")
+
+        contact.adapt(scene, method="fb", verbose=False, on_level=on_level)
+    for r in rows:
+        r["force_error"] = r["force"] / force - 1.0
+        r["energy_error"] = float(np.sqrt(2.0 * abs(r["energy"] - energy)))
+        r["eta_over_error"] = r["eta"] / r["energy_error"]
+        r["force_reference"], r["energy_reference"] = force, energy
+    table(rows)
+    write("sphere_degrees.csv", rows)
+
+
 def cattaneo(sizes: list[float]) -> None:
     from contact.post.cattaneo import traction
     from contact.setup.run import run_load_path
@@ -426,19 +539,79 @@ def cattaneo(sizes: list[float]) -> None:
         print(f"wrote {OUT / 'cattaneo_traction.png'}", flush=True)
 
 
+def p2_cells(scene_file: str, sizes: list[float], mesh: list[str], csv_name: str) -> None:
+    """P1, P2 on straight cells and P2 on curved cells of the same gmsh meshes of
+    ``scene_file`` (``mesh``: its other mesh overrides), method min: the slave nodes'
+    deviation from Hertz's pressure within 0.8 a (largest and rms, over p0) and the peak's."""
+    rows = []
+    for h_contact in sizes:
+        for degree, geometry in ((1, 1), (2, 1), (2, 2)):
+            overrides = [
+                *QUIET,
+                *mesh,
+                f"mesh.h_contact={h_contact}",
+                f"mesh.degree={degree}",
+                f"mesh.geometry_degree={geometry}",
+            ]
+            scene = contact.load_scene(ROOT / "configs" / scene_file, overrides)
+            t0 = time.perf_counter()
+            r = contact.solve(scene, method="min", verbose=False)
+            seconds = time.perf_counter() - t0
+            posed = posed_of(scene)
+            res = {**interface_resultants(posed, r), **compare(posed, r).values}
+            X, pressure = slave_pressure(r)
+            a, p0 = res["hertz_a"], res["hertz_p0"]
+            radius = np.linalg.norm(X[:, : X.shape[1] - 1], axis=1)  # from the axis
+            inner = radius < 0.8 * a
+            error = (pressure[inner] - p0 * np.sqrt(1 - (radius[inner] / a) ** 2)) / p0
+            rows.append(
+                {
+                    "h_contact": h_contact,
+                    "degree": degree,
+                    "cells": "curved" if geometry == 2 else "straight",
+                    "dofs": r.dofs,
+                    "converged": r.converged,
+                    "nodal_max_error": float(np.max(np.abs(error))),
+                    "nodal_rms_error": float(np.sqrt(np.mean(error**2))),
+                    "peak_error": float(np.max(pressure) / p0 - 1),
+                    "force": res["contact_force"],
+                    "a_error": res["a_error"],
+                    "balance": res["interface_balance_error"],
+                    "seconds": round(seconds, 2),
+                }
+            )
+    say(f"{scene_file}: P1, P2 on straight cells, P2 on curved cells (min)")
+    table(rows)
+    write(csv_name, rows)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("part", choices=("patch", "cylinders", "sphere", "cattaneo"))
     parser.add_argument(
-        "--max-dofs", type=int, default=100000, help="cylinders: DoF budget of the adaptive run"
+        "part",
+        choices=("patch", "cylinders", "sphere", "sphere_degrees", "cattaneo", "p2", "p2sphere"),
+    )
+    parser.add_argument(
+        "--max-dofs",
+        type=int,
+        default=100000,
+        help="cylinders, sphere_degrees: DoF budget of the adaptive runs",
     )
     parser.add_argument(
         "--h-contact",
         type=float,
         nargs="+",
         default=None,
-        help="sphere (default 0.01 0.005 0.0035) / cattaneo (default 0.02 0.01): "
-        "gmsh mesh sizes at the contact point",
+        help="sphere (default 0.01 0.005 0.0035) / sphere_degrees (P2, default 0.1 0.05 0.025 "
+        "0.0125) / cattaneo (default 0.02 0.01) / p2 (default 0.1 0.05 0.025) / p2sphere "
+        "(default 0.04 0.02): gmsh mesh sizes at the contact point",
+    )
+    parser.add_argument(
+        "--h-contact-p1",
+        type=float,
+        nargs="+",
+        default=None,
+        help="sphere_degrees: the P1 mesh sizes (default 0.025 0.0125 0.009 0.00625)",
     )
     parser.add_argument(
         "--swap", type=float, default=None, help="sphere: h_contact of the slave/master comparison"
@@ -450,6 +623,21 @@ def main(argv=None) -> None:
         cylinders(args.max_dofs)
     elif args.part == "cattaneo":
         cattaneo(args.h_contact or [0.02, 0.01])
+    elif args.part == "sphere_degrees":
+        sphere_degrees(
+            args.h_contact or [0.1, 0.05, 0.025, 0.0125],
+            args.h_contact_p1 or [0.025, 0.0125, 0.009, 0.00625],
+            args.max_dofs,
+        )
+    elif args.part == "p2":
+        p2_cells(
+            "two_body_hertz_2d.yaml",
+            args.h_contact or [0.1, 0.05, 0.025],
+            ["mesh.h=2.0", "mesh.zone=1.0"],
+            "cylinders_p2.csv",
+        )
+    elif args.part == "p2sphere":
+        p2_cells("two_body_hertz_3d.yaml", args.h_contact or [0.04, 0.02], [], "sphere_p2.csv")
     else:
         sphere(args.h_contact or [0.01, 0.005, 0.0035], args.swap)
 
