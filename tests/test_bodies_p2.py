@@ -18,12 +18,12 @@ from contact.solvers import owned_residual
 import numpy as np
 import pytest
 from clirun import run_scene
+from scene_runs import read_folder
 from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, ROOT, P, check_patch_2d, run
 from test_hyperelastic_bodies import PATCH_2D as FINITE_PATCH_2D
 from test_hyperelastic_bodies import PATCH_3D_FINITE, interface_force, uniaxial
 from test_hyperelastic_bodies import P as FINITE_P
 from test_hyperelastic_bodies import run as run_finite
-from test_shipped_scenes import read_folder
 
 P2 = ["mesh.degree=2", "output.verbose=false"]
 FRICTION_PATCH_3D = ROOT / "configs" / "two_body_friction_patch_3d.yaml"

@@ -28,9 +28,9 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from readback import read_xdmf
+from scene_runs import read_folder
 from test_bodies import run as run_script
 from test_hyperelastic_bodies import interface_force
-from test_shipped_scenes import read_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 RING = ROOT / "configs" / "hyperelastic_self_contact_ring.yaml"
