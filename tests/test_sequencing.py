@@ -12,6 +12,7 @@ from contact.setup.levels import transfer
 import numpy as np
 import pytest
 from conftest import make_square_msh
+from test_parallel_invariance import run_script
 from ties import tie_margin
 
 
@@ -315,3 +316,27 @@ def test_p2_frictional_load_step_restricts_its_history_through_p1():
             assert all(len(s.result.sequence) == 1 for s in steps)
         ends[seq] = steps[-1].result
     assert _same_answer(ends[1], ends["off"], 1e-8)
+
+
+P2_FROM_P1 = """
+import json, sys
+from mpi4py import MPI
+import contact
+sets = ["adapt=null", "mesh.h=2.0", "mesh.h_contact=0.1", "mesh.zone=1.0", "mesh.degree=2",
+        "output.verbose=false"]
+scene = contact.load_scene(sys.argv[1], sets)
+r = contact.solve(scene, verbose=False, method="fb", sequence=2)
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps({"levels": [lv.dofs for lv in r.sequence], "converged": bool(r.converged),
+                      "force": r.contact_force, "dofs": r.dofs}))
+"""
+
+
+@pytest.mark.mpi
+def test_p2_from_p1_same_answer_on_1_and_2_ranks(tmp_path):
+    """P2 two bodies sequenced through P1 (a coarser gmsh mesh, then P1 on the same mesh):
+    the same levels and force to 1e-8 on 1 and 2 ranks."""
+    runs = run_script(tmp_path, P2_FROM_P1, "two_body_hertz_2d.yaml", (1, 2))
+    assert runs[1]["converged"] and runs[2]["converged"] and len(runs[1]["levels"]) == 2
+    assert runs[2]["levels"] == runs[1]["levels"] and runs[2]["dofs"] == runs[1]["dofs"]
+    assert runs[2]["force"] == pytest.approx(runs[1]["force"], rel=1e-8)
