@@ -275,6 +275,17 @@ def test_p2_gmsh_scene_starts_from_p1_on_its_mesh():
     assert _same_answer(p1, cold) and _same_answer(two, cold)
 
 
+def test_p2_floating_patch_auto_keeps_the_cold_start():
+    """The P2 contact patch (the upper block held by contact alone): P1's solution is P2's,
+    so from it ‖Φ‖ starts at round-off, above atol · F, and the floating body's stopping test
+    has no round-off floor: ``auto`` leaves the P1 level out there and converges cold."""
+    scene = contact.load_scene(
+        "configs/two_body_patch_2d.yaml", ["mesh.degree=2", "output.verbose=false"]
+    )
+    r = _solve(scene, method="fb")
+    assert r.converged and r.dofs >= 4_000 and r.sequence == [] and r.sequence_note == ""
+
+
 def test_p2_mesh_file_scene_starts_from_p1_on_its_mesh(tmp_path):
     """A user's .msh at P2: no coarser mesh, but P1 on the same mesh (which starts cold,
     as the note says) is the P2 solve's guess; the cold P2 answer to 1e-10."""
