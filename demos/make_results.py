@@ -1298,6 +1298,40 @@ def friction() -> str:
     return "\n".join(out) + "\n"
 
 
+def p2_table(curved: list[dict]) -> str:
+    """The table of P1, P2 on straight and P2 on curved cells (bench_two_bodies.py p2 /
+    p2sphere): the nodal deviations from Hertz, the peak's, the force, a and the balance."""
+    return table(
+        [
+            "h_contact",
+            "degree",
+            "cells",
+            "DoFs",
+            "nodal max error",
+            "nodal rms error",
+            "peak error",
+            "force",
+            "a error",
+            "force balance",
+        ],
+        [
+            [
+                r["h_contact"],
+                f"P{r['degree']}",
+                r["cells"],
+                r["dofs"],
+                f"{100 * r['nodal_max_error']:.2f} %",
+                f"{100 * r['nodal_rms_error']:.2f} %",
+                pct(r["peak_error"]),
+                g(r["force"], 6),
+                pct(r["a_error"]),
+                g(r["balance"], 2),
+            ]
+            for r in curved
+        ],
+    )
+
+
 def two_bodies() -> str:
     """Section 8: two deformable bodies, mortar coupling (demos/bench/bench_two_bodies.py)."""
     out = [prose("two_bodies", "two_bodies_in_contact")]
@@ -1516,6 +1550,12 @@ def two_bodies() -> str:
                 ),
             )
         ]
+    cylinders_p2 = rows(folder / "cylinders_p2.csv") or []
+    if cylinders_p2:
+        out += [prose("two_bodies", "p2_on_straight_and", table=p2_table(cylinders_p2))]
+    sphere_p2 = rows(folder / "sphere_p2.csv") or []
+    if sphere_p2:
+        out += [prose("two_bodies", "p2_sphere", table=p2_table(sphere_p2))]
     cm = rows(folder / "cattaneo.csv") or []
     if cm:
         out += [

@@ -515,3 +515,41 @@ def test_residual_indicators_mark_and_the_bound_is_computed_where_reported():
     assert stopped.stop.startswith("eta =") and last["estimator"] == "equilibrated"
     assert last["eta"] <= tol < stopped.rows[-2]["eta"]
     assert stopped.rows[0]["estimator"] == "equilibrated"
+
+
+def test_a_level_to_be_released_sheds_its_operator_before_the_next_solve(monkeypatch):
+    """A releasing loop keeps the level before the one being solved only so that its files
+    can be written if this solve fails: its operator K is destroyed before the solve (the
+    loop's peak), its nodal contact force K x − b kept as it was (what the files read
+    through K), and the levels' figures are those of the old path (SHED_PREVIOUS False,
+    where K lives until the solve is done)."""
+    from contact.drivers import adaptive as loop
+    from contact.solvers.result import owned_residual
+
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+    solve_level = loop.solve_level
+    runs = {}
+    for shed in (False, True):
+        monkeypatch.setattr(loop, "SHED_PREVIOUS", shed)
+        alive, forces, kept = [], {}, {}
+
+        def spied(*args, alive=alive, kept=kept, **kwargs):
+            previous = kwargs["previous"]
+            if previous is not None:  # the level the loop will release after this solve
+                alive.append(bool(previous.result.problem.K.handle))
+                kept[previous.index] = owned_residual(previous.result)
+            return solve_level(*args, **kwargs)
+
+        def on_level(level, forces=forces):  # K x − b while the level is whole
+            forces[level.index] = owned_residual(level.result)
+
+        monkeypatch.setattr(loop, "solve_level", spied)
+        run = adapt(scene, max_levels=4, verbose=False, keep=lambda lv: False, on_level=on_level)
+        assert len(run.levels) == 4
+        assert alive == [not shed] * 3
+        for index, force in kept.items():
+            assert np.array_equal(force, forces[index]), index
+        runs[shed] = [(r["dofs"], r["eta"], r["error"]) for r in run.rows]
+    assert runs[True] == runs[False]

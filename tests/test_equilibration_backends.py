@@ -275,6 +275,49 @@ def test_patches_in_blocks_agree_with_one_table(name: str, backend: str, monkeyp
     assert abs(eta1 - eta0) <= 1e-12 * eta0
 
 
+@pytest.mark.parametrize(
+    "name,degree",
+    [("A_P1", None), ("A_P1", 0), ("A_P2", None), ("ex9", None), ("ex9", 0)] + [("A_3D", None)],
+)
+def test_a_table_made_in_blocks_is_never_whole(name: str, degree, monkeypatch) -> None:
+    """With blocks, the cell table is made a block of cells at a time (flux.BLOCK_TABLE:
+    for the patches, for λ̃_h's functions and for the multiplier's oscillation, RT_0's):
+    no table of all cells is ever made, and σ_h, λ̃_h, κ, osc_T, η and η_T are bit for bit
+    those of the deferred table's blocks (the old path, BLOCK_TABLE False)."""
+    from contact.adaptivity.equilibration import cells, flux
+
+    scene, result = _solved(name)
+    made: list[int] = []
+
+    class Recorded(cells.CellTable):  # the size of every table (or block of one) made
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(len(self))
+
+    monkeypatch.setattr(cells, "CellTable", Recorded)
+    msh = result.u_h.function_space.mesh
+    n = msh.topology.index_map(msh.topology.dim).size_local
+    monkeypatch.setattr(flux, "BLOCK_CELLS", max(1, n // 8))
+    out = {}
+    for whole in (True, False):
+        monkeypatch.setattr(flux, "BLOCK_TABLE", not whole)
+        made.clear()
+        data, multiplier, sign = flux_data(result.problem, result)
+        fl = reconstruct_flux(data, multiplier, sign, degree=degree)
+        bound = guaranteed_bound(result.problem, result, degree=degree)
+        out[whole] = (fl, bound, max(made))
+    (old, old_bound, old_rows), (new, new_bound, new_rows) = out[True], out[False]
+    assert old_rows == n  # the deferred table: every cell at once
+    assert new_rows <= n // 2  # a block of cells and the cells around it
+    for attr in ("sigma_h", "lmbda_clip", "bubble", "kappa"):
+        assert np.array_equal(getattr(new, attr).x.array, getattr(old, attr).x.array), attr
+    assert np.array_equal(new.osc, old.osc)
+    assert new.defect == old.defect
+    assert new_bound.eta == old_bound.eta
+    assert np.array_equal(new_bound.eta_T.x.array, old_bound.eta_T.x.array)
+    assert np.array_equal(new.sigma_cells.x.array, old.sigma_cells.x.array)
+
+
 #: the switches of the bound's plain paths (module, name), each the same numbers
 PLAIN_PATHS = (
     ("contact.adaptivity.cellwise", "MERGED"),

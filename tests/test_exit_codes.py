@@ -256,3 +256,52 @@ def test_readme_documents_the_exit_codes() -> None:
     assert "interrupted (Ctrl-C" in rows[str(failures.INTERRUPTED)]
     assert "terminated (SIGTERM" in rows[str(failures.TERMINATED)]
     assert "--debug" in text and "CONTACT_DEBUG=1" in text
+
+
+@pytest.mark.parametrize("ranks", [0, 2])
+def test_the_level_kept_for_a_failing_last_level_is_written_as_if_it_were_last(
+    tmp_path: Path, ranks: int
+) -> None:
+    """With ``output.levels: last`` a run failing on level 2 writes level 1's files after
+    the loop, from the level kept through level 2's solve (its operator already destroyed,
+    contact.drivers.adaptive.SHED_PREVIOUS): the files are those of a run that stops at
+    level 1, but for the failure's marks and the clocks."""
+    import csv
+    import json
+
+    import h5py
+    import numpy as np
+
+    for name, levels in (("failing", 4), ("stopping", 2)):
+        small_scene(
+            tmp_path / f"{name}.yaml",
+            cells=4,
+            solver__max_it=4,
+            output__levels="last",
+            adapt={"strategy": "uniform", "max_levels": levels, "nested": False},
+        )
+        proc = contact(tmp_path, "run", f"{name}.yaml", "-o", name, "-q", ranks=ranks)
+        assert proc.returncode == (1 if name == "failing" else 0), proc.stderr
+    failing, stopping = tmp_path / "failing", tmp_path / "stopping"
+    assert sorted(p.name for p in failing.iterdir()) == sorted(p.name for p in stopping.iterdir())
+    assert (failing / "contact.csv").read_bytes() == (stopping / "contact.csv").read_bytes()
+    rows = [list(csv.DictReader(open(f / "convergence.csv"))) for f in (failing, stopping)]
+    assert [r["dofs"] for r in rows[0]] == [r["dofs"] for r in rows[1]] == ["25", "81"]
+
+    def figures(folder: Path) -> dict:
+        info = json.loads((folder / "summary.json").read_text())
+        clocks = ("time", "seconds", "wall", "stop", "converged", "failed")
+        return {k: v for k, v in info.items() if not k.startswith(clocks)}
+
+    assert figures(failing) == figures(stopping)
+    summary = json.loads((failing / "summary.json").read_text())
+    assert summary["failed_level"] == 2 and summary["converged"] is False
+    for h5 in sorted(stopping.glob("*.h5")):
+        with h5py.File(h5) as a, h5py.File(failing / h5.name) as b:
+            keys: list[str] = []
+            a.visititems(
+                lambda k, o, keys=keys: keys.append(k) if isinstance(o, h5py.Dataset) else None
+            )
+            assert keys
+            for key in keys:
+                assert np.array_equal(a[key][()], b[key][()], equal_nan=True), (h5.name, key)

@@ -36,8 +36,9 @@ from mpi4py import MPI
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, check_shared_facets, estimate
 from ..adaptivity.mark import Growth, mark
-from ..adaptivity.refine import Domain, next_dofs_bound, refine
+from ..adaptivity.refine import CURVED_CELLS, Domain, next_dofs_bound, refine
 from ..base import progress
+from ..base.errors import ConfigError
 from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models.discrete import discrete
@@ -48,6 +49,11 @@ from ..solvers.stopping import AdaptiveStopping
 from . import sequencing
 from .solve import options_of
 from .solve import solve as solve_problem
+
+#: a level the loop will release destroys its operator K before the next level's solve (its
+#: nodal contact force kept, :meth:`~contact.solvers.result.Result.shed_operator`); False:
+#: it stays whole until the next level is solved, the old path
+SHED_PREVIOUS = True
 
 
 @dataclass
@@ -272,6 +278,9 @@ def adapt(
     if keep is not None and not callable(keep):
         raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
     opts = (options or AdaptOptions()).updated(**overrides)
+    first_mesh = domain if isinstance(domain, dmesh.Mesh) else domain.mesh
+    if opts.max_levels > 1 and first_mesh.geometry.cmaps[0].degree > 1:
+        raise ConfigError(CURVED_CELLS)  # before the first level is solved
     knobs = options_of(solver, method, {"rtol": opts.newton_rtol})
     meshes = not isinstance(domain, Domain)  # the builder takes meshes
     level_domain = Domain(domain) if isinstance(domain, dmesh.Mesh) else domain
@@ -296,6 +305,10 @@ def adapt(
             # previous mesh goes once its level is released
             level_domain.parent = None
         if keep is not None and previous is not None:
+            if SHED_PREVIOUS and not previous.released and not keep(previous):
+                # to be released once this level is solved: only its files may still be
+                # written (this level fails), for which its operator is not needed
+                previous.result.shed_operator()
             return_freed_memory()  # what refining freed: the level's solve does not reuse it
         problem = discrete(build(level_domain.mesh if meshes else level_domain))
         seconds["assembly"] = problem.assembly_time

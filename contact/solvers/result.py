@@ -160,6 +160,23 @@ class Result:
         V = self.u_h.function_space
         return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
 
+    def shed_operator(self) -> None:
+        """Destroy the problem's operator K, keeping what the result's files are made of.
+
+        The result's nodal contact force, which the output reads as K x − b
+        (:func:`owned_residual`), is computed first and kept (``contact_residual``); the
+        functions, the problem's forms, b and the change of basis stay, so the result can
+        still be written, estimated and reported, but not solved on.  The adaptive loop does
+        this to a level it will release once the next level is solved, before that solve,
+        the loop's peak (:func:`contact.adapt`).  Collective.
+        """
+        K = None if self.problem is None else self.problem.K
+        if K is None or not K.handle:
+            return
+        if self.contact_residual is None:
+            self.contact_residual = owned_residual(self)
+        K.destroy()
+
     def release(self) -> None:
         """Keep the figures only, and release the memory that grows with the mesh.
 

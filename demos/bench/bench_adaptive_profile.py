@@ -9,13 +9,16 @@ seconds and their running totals, the resident memory after the level (garbage c
 and its peak during the level (sampled every 2 ms) and during each phase, and what is
 still alive of earlier levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP,
 PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Writes CSV.
-``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once).
+``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once),
+``--table-once`` that of its cell table (whole but for two columns before the blocks),
+``--keep-operator`` that of the level before the last (whole during the last solve).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep all
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --keep last --no-trim
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --whole-table
+    python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 300000 --table-once
 
 Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_boundary.yaml),
 ``lshape`` (configs/lshape_corner.yaml), ``hertz_2d`` (configs/hertz_2d.yaml) or a path.
@@ -123,6 +126,18 @@ def main() -> None:
         action="store_true",
         help="the equilibrated flux's patch data all at once (flux.BLOCK_CELLS = None)",
     )
+    ap.add_argument(
+        "--table-once",
+        action="store_true",
+        help="the flux's cell table made whole (but for t and τ) before its blocks "
+        "(flux.BLOCK_TABLE = False)",
+    )
+    ap.add_argument(
+        "--keep-operator",
+        action="store_true",
+        help="a level to be released keeps its operator K during the next level's solve "
+        "(contact.drivers.adaptive.SHED_PREVIOUS = False)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
@@ -131,6 +146,14 @@ def main() -> None:
         from contact.adaptivity.equilibration import flux
 
         flux.BLOCK_CELLS = None
+    if args.keep_operator:
+        from contact.drivers import adaptive
+
+        adaptive.SHED_PREVIOUS = False
+    if args.table_once:
+        from contact.adaptivity.equilibration import flux
+
+        flux.BLOCK_TABLE = False
     path = ROOT / SCENES.get(args.scene, args.scene)
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
     baseline = rss_mib()

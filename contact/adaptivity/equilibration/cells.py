@@ -216,59 +216,110 @@ def deferred_table(
 ) -> tuple[CellTable, int, BoundaryRows]:
     """:func:`local_table` with t and τ left empty (``deferred``), and the
     :class:`BoundaryRows` that computes them for given rows.  Collective."""
+    source = cell_source(data, ref, dg0)
+    n_owned = len(source)
+    table = source.rows(np.arange(n_owned, dtype=np.int32), boundary=not deferred, whole=True)
+    return table, n_owned, source.boundary
+
+
+@dataclass
+class CellSource:
+    """The rows of this rank's owned cells, made for given cells when asked (:meth:`rows`):
+    what a whole :class:`CellTable` holds for every cell at once (the data at the quadrature
+    points, the coordinates, the coefficients of u_h and λ_h: ~200 bytes per cell for P1 in
+    2D) is then only ever whole for one block of cells.  It keeps per cell only the local
+    vertices and the facet kinds and tags."""
+
+    data: FluxData
+    ref: Reference
+    boundary: BoundaryRows  # t and τ of given rows (its ``one`` ties expressions to the mesh)
+    c2v: np.ndarray  # (owned cells, d+1) local vertex indices
+    owners: np.ndarray  # (local vertices,) the rank owning each
+    kind: np.ndarray  # (owned cells, d+1) facet kinds
+    lam: fem.Function | None  # λ_h interpolated into the element of u_h, or None
+
+    def __len__(self) -> int:
+        return len(self.c2v)
+
+    def rows(
+        self, cells: np.ndarray, boundary: bool = True, whole: bool = False, points: bool = True
+    ) -> CellTable:
+        """The table's rows of the owned local ``cells`` (with t and τ unless not
+        ``boundary``: then empty, as :func:`deferred_table` leaves them; f and k at the
+        points unless not ``points``: then empty).  The data at the points are contiguous
+        arrays, as rows taken from a whole table are, unless ``whole`` (the whole table: a
+        constant's is a read-only broadcast view, no memory)."""
+        data, ref = self.data, self.ref
+        V = data.u_h.function_space
+        msh = V.mesh
+        d = msh.topology.dim
+        cells = np.asarray(cells, dtype=np.int32)
+        c2v = self.c2v[cells]
+        vmap = msh.topology.index_map(0)
+        gvert = vmap.local_to_global(c2v.ravel()).reshape(c2v.shape)
+        gcell = msh.topology.index_map(d).local_to_global(cells)
+        x = msh.geometry.x[:, :d][msh.geometry.dofmaps[0][cells]]  # (n, d+1, d), contiguous
+        dofs = V.dofmap.list[cells]
+        U = data.u_h.x.array[dofs]
+        keep = self.boundary.compiled if KEEP_EXPRESSIONS else None
+        one = self.boundary.one
+        if points:
+            f = _at_points(data.f, one, ref.X, cells, keep)
+            k = _at_points(data.k, one, ref.X, cells, keep)
+            if not whole:  # the patch kernels' NumPy sums see the strides
+                f, k = np.ascontiguousarray(f), np.ascontiguousarray(k)
+        else:
+            f = k = np.zeros((len(cells), 0))
+        kind = self.kind[cells]
+        if boundary:
+            t, tau = _boundary_columns(data, ref, one, self.boundary.tag[cells], cells, keep)
+        else:
+            t, tau = np.zeros((len(cells), d + 1, 0)), np.zeros((len(cells), 0, d))
+        lam = np.zeros_like(U) if self.lam is None else self.lam.x.array[dofs]
+        cmom = (
+            np.zeros((len(cells), 0))
+            if data.multiplier_rule is None
+            else data.multiplier_rule.moments(cells, kind, ref)
+        )
+        return CellTable(
+            gcell.astype(np.int64),
+            gvert.astype(np.int64),
+            self.owners[c2v],
+            x,
+            U,
+            f,
+            k,
+            kind,
+            t,
+            lam,
+            tau,
+            cmom,
+        )
+
+
+def cell_source(data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = None) -> CellSource:
+    """The :class:`CellSource` of this rank's owned cells.  Collective (λ_h is interpolated
+    into the element of u_h)."""
     u_h = data.u_h
     V = u_h.function_space
     msh = V.mesh
     d = msh.topology.dim
     n_owned = msh.topology.index_map(d).size_local
-    cells = np.arange(n_owned, dtype=np.int32)
-    nodes = msh.geometry.dofmaps[0]
-    if nodes.shape[1] != d + 1:
+    if msh.geometry.dofmaps[0].shape[1] != d + 1:
         raise ValueError("the equilibrated estimator needs affine (P1-geometry) simplex meshes")
     msh.topology.create_connectivity(d, 0)
     c2v = msh.topology.connectivity(d, 0).array.reshape(-1, d + 1)[:n_owned]
     vmap = msh.topology.index_map(0)
-    gvert = vmap.local_to_global(c2v.ravel().astype(np.int32)).reshape(c2v.shape)
     owners = np.concatenate([np.full(vmap.size_local, msh.comm.rank, dtype=np.int32), vmap.owners])
-    gcell = msh.topology.index_map(d).local_to_global(cells)
-    x = msh.geometry.x[:, :d][nodes[:n_owned]]  # (n, d+1, d), contiguous
-    U = u_h.x.array[V.dofmap.list[:n_owned]]
     one = fem.Function(dg0 or fem.functionspace(msh, ("DG", 0)))
     one.x.array[:] = 1.0
-    f = _at_points(data.f, one, ref.X, cells)
-    k = _at_points(data.k, one, ref.X, cells)
     kind, tag = _facet_kinds(msh, data)
     kind, tag = kind[:n_owned], tag[:n_owned]
-    boundary = BoundaryRows(data, ref, one, tag)
-    if deferred:
-        t, tau = np.zeros((n_owned, d + 1, 0)), np.zeros((n_owned, 0, d))
-    else:
-        t, tau = _boundary_columns(data, ref, one, tag, cells)
-    lam = np.zeros_like(U)
+    lam = None
     if data.lmbda_h is not None:
-        in_V = fem.Function(V)
-        in_V.interpolate(data.lmbda_h)
-        lam = in_V.x.array[V.dofmap.list[:n_owned]]
-    cmom = (
-        np.zeros((n_owned, 0))
-        if data.multiplier_rule is None
-        else data.multiplier_rule.moments(cells, kind, ref)
-    )
-    table = CellTable(
-        gcell.astype(np.int64),
-        gvert.astype(np.int64),
-        owners[c2v],
-        x,
-        U,
-        f,
-        k,
-        kind,
-        t,
-        lam,
-        tau,
-        cmom,
-    )
-    return table, n_owned, boundary
+        lam = fem.Function(V)
+        lam.interpolate(data.lmbda_h)
+    return CellSource(data, ref, BoundaryRows(data, ref, one, tag), c2v, owners, kind, lam)
 
 
 # ---------------------------------------------------------------------------------------

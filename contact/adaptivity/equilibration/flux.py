@@ -29,9 +29,9 @@ from mpi4py import MPI
 
 from .cells import (
     CONTACT,
-    BoundaryRows,
     CellTable,
     FluxData,
+    cell_source,
     complete,
     deferred_table,
     return_to_owners,
@@ -66,6 +66,10 @@ FLOW_ROUNDS = 1
 #: quadrature points are most of its memory, ~300 of its ~430 bytes per cell for P1 in 2D);
 #: None: the whole table at once (the old path, and the parallel one)
 BLOCK_CELLS: int | None = 65536
+#: with blocks, the table itself is made a block at a time (:class:`.cells.CellSource`: no
+#: column for every cell at once; λ̃_h's functions and osc_T also a block at a time); False:
+#: the table whole but for t and τ, the old path (the same numbers)
+BLOCK_TABLE = True
 #: P1 (no edge coefficients to remove): κ = 1 and no bubble set directly, as :func:`.shares`
 #: returns them; False: through :func:`.shares` over every contact entity, the plain path
 P1_SHORTCUT = True
@@ -151,6 +155,9 @@ def reconstruct_flux(
     compiled = kernel is not None
     n_cells = msh.topology.index_map(d).size_local
     blocks = comm.size == 1 and compiled and BLOCK_CELLS is not None and n_cells > BLOCK_CELLS
+    if blocks and BLOCK_TABLE:
+        assert kernel is not None  # blocks: compiled
+        return _flux_in_blocks(data, kernel, ref, multiplier, sign, rounds, backend, DG0, clock)
     table, n_owned, boundary = deferred_table(data, ref, DG0, deferred=blocks)
     work, source = complete(comm, table, np.full(n_owned, comm.rank))
     clock.lap("gather")
@@ -158,8 +165,8 @@ def reconstruct_flux(
         assert kernel is not None  # blocks: compiled
         out, osc = _patches_in_blocks(
             kernel,
-            table,
-            boundary,
+            lambda rows: boundary.fill(table.take(rows), rows),
+            table.gvert,
             vmap.local_range,
             ref,
             multiplier,
@@ -194,12 +201,7 @@ def reconstruct_flux(
     if data.multiplier_rule is None:
         lmbda_clip, bubble, kappa = multiplier_functions(V, table, ref, multiplier, sign, DG0)
     else:  # the rule's λ̃_h itself: κ = 1, no bubble
-        lmbda_clip, bubble, kappa = (
-            data.multiplier_rule.function(),
-            fem.Function(V),
-            fem.Function(DG0),
-        )
-        kappa.x.array[:] = 1.0
+        lmbda_clip, bubble, kappa = _rule_functions(data, V, DG0)
     osc = osc + _multiplier_oscillation(table, ref, multiplier, sign)
     clock.lap("assemble")
     defect = comm.allreduce(out.defect)
@@ -213,29 +215,30 @@ def reconstruct_flux(
 
 def _patches_in_blocks(
     kernel,
-    table: CellTable,
-    boundary: BoundaryRows,
+    rows_of: Callable[[np.ndarray], CellTable],
+    gvert: np.ndarray,
     vertices: tuple[int, int],
     ref: Reference,
     multiplier: str | None,
     sign: float,
     flow: int,
 ) -> tuple[PatchOutput, np.ndarray]:
-    """:func:`.patches_c.solve_patches_compiled` of a serial ``table`` whose t and τ are
-    deferred (:class:`.cells.BoundaryRows`), a block of vertices at a time: the rows of the
-    cells with a vertex in the block are completed and handed to the kernel, which adds
-    each patch's share to α of its cells (α, the balance defect and the counters sum over
-    the blocks; osc_T is a row's own).  The same patches as in one call, so σ_h agrees to
+    """:func:`.patches_c.solve_patches_compiled` of a serial table, a block of vertices at a
+    time: the rows of the cells with a vertex in the block (``gvert``: the cells' global
+    vertices) are made whole by ``rows_of`` (:meth:`.cells.BoundaryRows.fill` of a deferred
+    table, or :meth:`.cells.CellSource.rows`) and handed to the kernel, which adds each
+    patch's share to α of its cells (α, the balance defect and the counters sum over the
+    blocks; osc_T is a row's own).  The same patches as in one call, so σ_h agrees to
     round-off."""
     lo, hi = vertices
-    n = len(table)
+    n = len(gvert)
     blocks = max(1, -(-n // (BLOCK_CELLS or n)))
     alpha, osc = np.zeros((n, ref.m)), np.full(n, np.nan)
     defect, counters = 0.0, {"cell_evaluations": 0, "work_rows": 0}
     for b in range(blocks):
         v0, v1 = lo + (hi - lo) * b // blocks, lo + (hi - lo) * (b + 1) // blocks
-        rows = np.flatnonzero(np.any((table.gvert >= v0) & (table.gvert < v1), axis=1))
-        part = boundary.fill(table.take(rows), rows)
+        rows = np.flatnonzero(np.any((gvert >= v0) & (gvert < v1), axis=1))
+        part = rows_of(rows)
         out, part_osc = solve_patches_compiled(
             MPI.COMM_SELF, kernel, part, (v0, v1), ref, multiplier, sign, flow=flow
         )
@@ -246,6 +249,89 @@ def _patches_in_blocks(
         counters["work_rows"] = max(counters["work_rows"], out.stats["work_rows"])
         del part, out, part_osc  # before the next block's rows are made
     return PatchOutput(alpha, defect, counters), osc
+
+
+def _flux_in_blocks(
+    data: FluxData,
+    kernel,
+    ref: Reference,
+    multiplier: str | None,
+    sign: float,
+    rounds: int,
+    backend: str,
+    DG0: fem.FunctionSpace,
+    clock: _Clock,
+) -> Flux:
+    """:func:`reconstruct_flux` of a serial compiled run whose table is never whole: its rows
+    are made a block at a time (:class:`.cells.CellSource`) for the patches, for λ̃_h's
+    functions and for the multiplier's oscillation, each of which works row by row, so the
+    numbers are those of the deferred table's blocks."""
+    V = data.u_h.function_space
+    msh = V.mesh
+    source = cell_source(data, ref, DG0)
+    n = len(source)
+    clock.lap("gather")
+    # serially the global vertex indices are the local ones
+    lo, hi = msh.topology.index_map(0).local_range
+    out, osc = _patches_in_blocks(
+        kernel,
+        source.rows,
+        source.c2v.astype(np.int64) + lo if lo else source.c2v,
+        (lo, hi),
+        ref,
+        multiplier,
+        sign,
+        rounds if backend == "flow" else -1,
+    )
+    clock.lap("patches")
+    sigma_h = rt_function(msh, ref, out.alpha)  # transforms alpha in place
+    if data.multiplier_rule is None:
+        lmbda_clip, bubble = fem.Function(V, name="lambda_h"), fem.Function(V)
+        kappa = np.ones(n)
+    else:  # the rule's λ̃_h itself: κ = 1, no bubble
+        lmbda_clip, bubble, kap = _rule_functions(data, V, DG0)
+    step = BLOCK_CELLS or n
+    points = multiplier is not None and ref.lowest  # k for the multiplier's oscillation
+    for start in range(0, n, step):
+        cells = np.arange(start, min(start + step, n), dtype=np.int32)
+        part = source.rows(cells, boundary=False, points=points)
+        if data.multiplier_rule is None:
+            kappa[cells] = _multiplier_rows(
+                V, part, cells, ref, multiplier, sign, lmbda_clip, bubble
+            )
+        osc[cells] += _multiplier_oscillation(part, ref, multiplier, sign)
+        del part
+    if data.multiplier_rule is None:
+        for fn in (lmbda_clip, bubble):
+            fn.x.scatter_forward()
+        kap = fem.Function(DG0, name="kappa")
+        kap.x.array[:n] = kappa
+        kap.x.scatter_forward()
+    clock.lap("assemble")
+    return Flux(
+        sigma_h,
+        lmbda_clip,
+        bubble,
+        kap,
+        osc,
+        out.defect,
+        clock.seconds,
+        lambda: cellwise(
+            msh,
+            ref,
+            source.rows(np.arange(n, dtype=np.int32), boundary=False),
+            rt_coefficients(sigma_h, n),
+        ),
+    )
+
+
+def _rule_functions(
+    data: FluxData, V: fem.FunctionSpace, DG0: fem.FunctionSpace
+) -> tuple[fem.Function, fem.Function, fem.Function]:
+    """λ̃_h, the bubble and κ of a multiplier rule: its λ̃_h itself, κ = 1, no bubble."""
+    kappa = fem.Function(DG0)
+    kappa.x.array[:] = 1.0
+    return data.multiplier_rule.function(), fem.Function(V), kappa
 
 
 class _Clock:
@@ -339,35 +425,44 @@ def _rt_element(d: int, p: int):
 def multiplier_functions(V, table: CellTable, ref: Reference, multiplier, sign, DG0):
     """λ_h clipped, the Bernstein bubble and κ (:class:`Flux`) from the owned rows."""
     n = len(table)
-    nodal = clipped(table.lam, sign)
-    dofs = V.dofmap.list[:n]
     lmbda_clip, bubble = fem.Function(V, name="lambda_h"), fem.Function(V)
-    lmbda_clip.x.array[dofs] = nodal
-    kappa = np.ones(n)
-    if multiplier is not None:
-        kappa[:] = 0.0 if multiplier == "facets" else 1.0
-        entities = (
-            [(cell_rule(ref), np.arange(n))]
-            if multiplier == "cells"
-            else [
-                (facet_rule(ref, j), np.flatnonzero(table.kind[:, j] == CONTACT))
-                for j in range(ref.d + 1)
-            ]
-        )
-        for rule, rows in entities:
-            if not rule.edges and P1_SHORTCUT:  # P1: κ = 1 and no bubble (shares' rule)
-                continue
-            _, k, beta = shares(nodal[rows], rule, sign)
-            kappa[rows] = np.maximum(kappa[rows], k) if multiplier == "facets" else k
-            for e, (_, _, mid) in enumerate(rule.edges):
-                bubble.x.array[dofs[rows, mid]] = beta[:, e]
-        kappa[kappa == 0.0] = 1.0
+    kappa = _multiplier_rows(V, table, np.arange(n), ref, multiplier, sign, lmbda_clip, bubble)
     for fn in (lmbda_clip, bubble):
         fn.x.scatter_forward()
     kap = fem.Function(DG0, name="kappa")
     kap.x.array[:n] = kappa
     kap.x.scatter_forward()
     return lmbda_clip, bubble, kap
+
+
+def _multiplier_rows(
+    V, rows: CellTable, cells: np.ndarray, ref: Reference, multiplier, sign, lmbda_clip, bubble
+) -> np.ndarray:
+    """Set λ_h clipped and the Bernstein bubble of :func:`multiplier_functions` on the owned
+    ``cells`` (``rows``: their rows of the table; no scatter) and return their κ."""
+    nodal = clipped(rows.lam, sign)
+    dofs = V.dofmap.list[cells]
+    lmbda_clip.x.array[dofs] = nodal
+    kappa = np.ones(len(rows))
+    if multiplier is not None:
+        kappa[:] = 0.0 if multiplier == "facets" else 1.0
+        entities = (
+            [(cell_rule(ref), np.arange(len(rows)))]
+            if multiplier == "cells"
+            else [
+                (facet_rule(ref, j), np.flatnonzero(rows.kind[:, j] == CONTACT))
+                for j in range(ref.d + 1)
+            ]
+        )
+        for rule, where in entities:
+            if not rule.edges and P1_SHORTCUT:  # P1: κ = 1 and no bubble (shares' rule)
+                continue
+            _, k, beta = shares(nodal[where], rule, sign)
+            kappa[where] = np.maximum(kappa[where], k) if multiplier == "facets" else k
+            for e, (_, _, mid) in enumerate(rule.edges):
+                bubble.x.array[dofs[where, mid]] = beta[:, e]
+        kappa[kappa == 0.0] = 1.0
+    return kappa
 
 
 def oscillation(table: CellTable, ref: Reference) -> np.ndarray:
