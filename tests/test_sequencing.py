@@ -286,6 +286,18 @@ def test_p2_floating_patch_auto_keeps_the_cold_start():
     assert r.converged and r.dofs >= 4_000 and r.sequence == [] and r.sequence_note == ""
 
 
+def test_p2_on_curved_cells_starts_cold_and_says_so():
+    """Curved cells (``mesh.geometry_degree: 2``) carry isoparametric P2 alone: no P1 level,
+    a cold start with the note."""
+    scene = contact.load_scene(
+        "configs/two_body_hertz_2d.yaml",
+        ["adapt=null", "mesh.h=2.0", "mesh.h_contact=0.1", "mesh.zone=1.0", "mesh.degree=2"]
+        + ["mesh.geometry_degree=2", "output.verbose=false"],
+    )
+    r = _solve(scene, method="fb", sequence=2)
+    assert r.converged and r.sequence == [] and "curved cells" in r.sequence_note
+
+
 def test_p2_mesh_file_scene_starts_from_p1_on_its_mesh(tmp_path):
     """A user's .msh at P2: no coarser mesh, but P1 on the same mesh (which starts cold,
     as the note says) is the P2 solve's guess; the cold P2 answer to 1e-10."""

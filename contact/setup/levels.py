@@ -16,7 +16,8 @@ docs/theory.md §8, :mod:`.sequencing`), coarsest first:
   the exact prolongation of nested refinement (:func:`~.sequencing.prolong_chain`);
 * a scene of degree p > 1 (``mesh.degree``): the same scene at P1 on the same mesh (about
   p^dim times fewer DoFs; P1's own coarse levels above before it), its solution
-  interpolated exactly into P_p — the only level where the mesh has no coarser one;
+  interpolated exactly into P_p — the only level where the mesh has no coarser one (not
+  on curved cells, ``mesh.geometry_degree: 2``, which carry P2 alone: a cold start);
 * a user's ``.msh`` file, several bodies on any other mesh (at P1): no coarser mesh — a
   cold start, reported in ``Result.sequence_note``.
 
@@ -103,6 +104,8 @@ def plan(
         chain = ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [functools.partial(_same, s) for s in reversed(chain)], ""
     if degree != 1:
+        if scene.config.mesh.geometry_degree != 1:  # curved cells carry isoparametric P2 only
+            return [], "grid sequencing: curved cells (mesh.geometry_degree 2) need P2; cold start"
         if floating and option == "auto":
             return [], ""
         return _degree_plan(scene, wanted, bs)
