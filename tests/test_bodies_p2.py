@@ -6,6 +6,7 @@ same mesh, action = reaction, and Coulomb and Tresca friction on the 3D friction
 (P1 and P2 alike, serial and 2 ranks through the command line)."""
 
 import contact
+from contact.models.hyperelastic import negative_eigenvalues
 from contact.models.mortar import master_pressure, part_facets, surface_facets
 from contact.models.overlap import trace_weights
 from contact.post.interface import resultants
@@ -19,8 +20,8 @@ import pytest
 from clirun import run_scene
 from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, ROOT, P, check_patch_2d, run
 from test_hyperelastic_bodies import PATCH_2D as FINITE_PATCH_2D
+from test_hyperelastic_bodies import PATCH_3D_FINITE, interface_force, uniaxial
 from test_hyperelastic_bodies import P as FINITE_P
-from test_hyperelastic_bodies import interface_force, uniaxial
 from test_hyperelastic_bodies import run as run_finite
 from test_shipped_scenes import read_folder
 
@@ -190,6 +191,59 @@ def test_p2_patch_3d_on_two_ranks_equals_serial(tmp_path):
         assert res["min/info"][4] < 1e-10  # action = reaction
     assert np.allclose(s["min/Xs"], p["min/Xs"], atol=1e-14)
     assert np.max(np.abs(s["min/u"] - p["min/u"])) <= 1e-8 * np.max(np.abs(s["min/u"]))
+
+
+#: the 3D finite-strain patch at P2 on coarse non-matching blocks (3 × 3 slave triangles' squares
+#: on 2 × 2 master ones) and at the nominal pressure 0.15: at 0.2, the 2D and P1 tests' load, the
+#: P2 tangent on the free unknowns has a negative eigenvalue at the homogeneous solution (the
+#: column with its frictionless slip plane is unstable there), the energy line search follows
+#: the direction of negative curvature off it and the load path returns to it after tens of
+#: Newton steps
+FINITE_P_3D = 0.15
+FINITE_PATCH_3D_P2 = [
+    *PATCH_3D_FINITE,
+    f"constants.p={FINITE_P_3D}",
+    "mesh.degree=2",
+    "mesh.blocks=[{corners: [[0, 0, 0], [1, 1, 0.5]], cells: [2, 2, 2]},"
+    " {corners: [[0, 0, 0.5], [1, 1, 1]], cells: [3, 3, 3]}]",
+]
+
+
+def test_p2_finite_strain_patch_3d_is_the_exact_cauchy_traction():
+    """The neo-Hookean 3D patch at P2 (non-matching, re-coupled on the current
+    configuration, the slave triangles' transformed basis): every one of the 7² slave
+    nodes carries P/λ₁² to 1e-8 (8 % off nominal), u = (λ − 1) X at every node, the slave
+    and master surface forces cancel, and the solution is a stable equilibrium."""
+    scene = contact.load_scene(PATCH_3D, ["output.verbose=false", *FINITE_PATCH_3D_P2])
+    run_ = contact.run_load_path(scene, verbose=False)
+    assert run_.converged
+    r = run_.steps[-1].result
+    assert r.couplings[-1]["change"] <= 1e-12
+    l1, l2 = uniaxial(3, FINITE_P_3D)
+    p = r.problem
+    pressure = p.pressure(owned_residual(r))[: p.data.pair_nodes]
+    assert len(pressure) == 7 * 7
+    exact = FINITE_P_3D / l1**2
+    assert np.max(np.abs(pressure / exact - 1)) <= 1e-8 and abs(exact / FINITE_P_3D - 1) > 0.05
+    X = p.V.tabulate_dof_coordinates()
+    u = r.u_h.x.array.reshape(-1, 3)
+    assert np.max(np.abs(u - X * np.r_[l1 - 1, l1 - 1, l2 - 1])) <= 1e-8 * (1 - l2)
+    slave, master = interface_force(r, scene, "slave"), interface_force(r, scene, "master")
+    assert abs(slave[-1] - FINITE_P_3D) <= 1e-10 * FINITE_P_3D
+    assert abs(slave[-1] + master[-1]) <= 1e-12 * FINITE_P_3D
+    assert negative_eigenvalues(r) == 0
+
+
+@pytest.mark.mpi
+def test_p2_finite_strain_patch_3d_on_two_ranks_equals_serial(tmp_path):
+    s = run_finite(tmp_path, PATCH_3D, 1, *FINITE_PATCH_3D_P2)
+    p = run_finite(tmp_path, PATCH_3D, 2, *FINITE_PATCH_3D_P2)
+    l1, _ = uniaxial(3, FINITE_P_3D)
+    for res in (s, p):
+        assert res["converged"] and len(res["pressure"]) == 7 * 7
+        assert np.max(np.abs(res["pressure"] * l1**2 / FINITE_P_3D - 1)) <= 1e-8
+    assert np.allclose(s["X"], p["X"], atol=1e-14)
+    assert abs(s["force"] - p["force"]) <= 1e-12 * abs(s["force"])
 
 
 #: the frictional 3D patch (configs/two_body_friction_patch_3d.yaml): pressure, Coulomb F,
