@@ -1556,6 +1556,43 @@ def two_bodies() -> str:
     sphere_p2 = rows(folder / "sphere_p2.csv") or []
     if sphere_p2:
         out += [prose("two_bodies", "p2_sphere", table=p2_table(sphere_p2))]
+    p1_start = rows(folder / "p1_start.csv") or []
+    if p1_start:
+        out += [
+            prose(
+                "two_bodies",
+                "p2_from_the_p1",
+                table=table(
+                    [
+                        "scene",
+                        "h_contact",
+                        "P2 DoFs",
+                        "levels (DoFs:steps)",
+                        "cold n+p",
+                        "P1 start n+p",
+                        "cold s",
+                        "P1 start s",
+                        "cold / P1 start",
+                        "max difference",
+                    ],
+                    [
+                        [
+                            r["scene"],
+                            r["h_contact"],
+                            r["dofs"],
+                            r["levels"],
+                            r["cold_newton"],
+                            r["p1_start_newton"],
+                            g(r["cold_seconds"]),
+                            g(r["p1_start_seconds"]),
+                            f"{float(r['ratio']):.2f}",
+                            f"{float(r['difference']):.1e}",
+                        ]
+                        for r in p1_start
+                    ],
+                ),
+            )
+        ]
     cm = rows(folder / "cattaneo.csv") or []
     if cm:
         out += [
