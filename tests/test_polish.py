@@ -112,6 +112,40 @@ def test_polisher_lands_on_the_active_set_solution(scene):
     pol.destroy()
 
 
+def test_the_polisher_solves_for_its_step_in_the_vector_of_phi_at_the_trial_point(scene):
+    """Once the step is solved for, Φ at the Newton point W is needed only through its
+    norm: the step takes that vector, so the polisher holds three vectors (W, Φ(W) then the
+    step, Φ_min), not four, through the solver's life — one vector fewer during the exact
+    solve that ends an adaptive level.  It still lands on the active-set solution
+    (:func:`test_polisher_lands_on_the_active_set_solution`) and a rejected step leaves the
+    Newton step alone."""
+    from contact.base.lifetime import petsc_objects
+
+    PETSc.Log.begin()
+    problem, cp, pol, x = _state(scene)
+    before = petsc_objects().get("Vector", 0)
+    one = problem.b.duplicate()  # (a ghosted vector is two PETSc objects)
+    per_vector = petsc_objects().get("Vector", 0) - before
+    one.destroy()
+    before = petsc_objects().get("Vector", 0)
+    again = Polisher(cp, "fb", 0.5, pol.system, {"solve": 0.0, "assembly": 0.0})
+    assert petsc_objects().get("Vector", 0) - before == 3 * per_vector
+    # a Newton point whose polished step raises ‖Φ‖: x = 0 with the step −x_ref (W = x_ref)
+    # is the solution itself; polishing from the origin with y = 0 is rejected or accepted
+    # by ‖Φ‖ alone, and y is only ever replaced by the polished step
+    y = problem.b.duplicate()
+    y.set(0.0)
+    again(x, y)
+    if not again.accepted:
+        assert y.norm() == 0.0
+    else:
+        assert again.taken == pytest.approx(y.norm(), rel=1e-14)
+    again.system = None  # shared with pol
+    for obj in (again.W, again.FW, again.FP):
+        obj.destroy()
+    pol.destroy()
+
+
 def test_no_polishing_when_the_newton_point_already_converged(scene):
     """A Newton point with ‖Φ‖ below SNES's stopping value is not polished (no wasted solve)."""
     ref = contact.solve(scene, method="min")
