@@ -186,3 +186,43 @@ def test_staged_initial_polish_resumes_only_on_the_same_active_set():
     assert far.converged and far.iterations > 0
     assert far.krylov_log[0]["rtol"] == STAGE_RTOL and not any(e["resume"] for e in far.krylov_log)
     assert np.abs(far.u_h.x.array - exact.u_h.x.array).max() < 1e-8
+
+
+def test_a_guess_polished_before_newton_keeps_no_law_for_the_jacobian(monkeypatch):
+    """Polishing solves on a law of its own and gives the Newton law back to the
+    matrix-free Jacobian J afterwards; before the first Newton step of a solve (a guess
+    polished first, the first — and largest — GAMG set-up of an adaptive level) J applies no
+    law yet, so no copy of one is made: the solve holds two vectors fewer there.  After a
+    Newton step the law is kept and given back as before, and the solution is the cold
+    solve's (problem A, fb on the CG + GAMG path, the solution plus a small bump)."""
+    from contact.base.lifetime import petsc_objects
+    from contact.solvers import reduced
+    from contact.solvers.linear import ReducedNewtonSystem
+
+    PETSc.Log.begin()
+    scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["mesh.cells=[64,32]"])
+    exact = contact.solve(scene, method="fb", verbose=False, linear="gamg", sequence="off")
+    assert exact.converged
+    solve_law, krylov = ReducedNewtonSystem.solve_law, reduced.ReducedSystem._krylov
+    calls: list[list] = []
+
+    def spied_solve_law(system, *args, **kwargs):
+        calls.append([system.newton_law, petsc_objects().get("Vector", 0), None])
+        return solve_law(system, *args, **kwargs)
+
+    def spied_krylov(system, *args):
+        if calls and calls[-1][2] is None:
+            calls[-1][2] = petsc_objects().get("Vector", 0) - calls[-1][1]
+        return krylov(system, *args)
+
+    monkeypatch.setattr(ReducedNewtonSystem, "solve_law", spied_solve_law)
+    monkeypatch.setattr(reduced.ReducedSystem, "_krylov", spied_krylov)
+    u0 = exact.u_h.copy()
+    u0.interpolate(lambda x: 1e-3 * x[1] * (1 - x[1]) * (1 - x[0] ** 2))
+    u0.x.array[:] += exact.u_h.x.array
+    r = contact.solve(scene, method="fb", verbose=False, linear="gamg", u0=u0)
+    assert r.converged and r.polish_solves >= 1 and calls
+    first_law, _, made = calls[0]
+    assert first_law is False and made == 0, calls
+    assert all(made == 0 for law, _, made in calls if not law), calls
+    assert np.abs(r.u_h.x.array - exact.u_h.x.array).max() < 1e-8

@@ -187,6 +187,8 @@ class ReducedSystem:
         self.lag = True
         self.lag_rule = self.LAG_RULES[0]
         self.exact_law = False  # the next law is solved exactly (polishing): no lagging
+        self.polishing = False  # the law being set is a polishing solve's, not J's
+        self.newton_law = False  # J has applied a Newton step's law since :meth:`restart`
         self._built_fixed: np.ndarray | None = None  # the fixed rows GAMG's P was built with
         self._fresh_rate: float | None = None
         self._lag_ok, self._lagged = False, False
@@ -250,6 +252,7 @@ class ReducedSystem:
     def set_law(self, s: PETSc.Vec, d: PETSc.Vec) -> None:
         """Build A for the law (s, d) (the Newton step's or a polishing step's).  A law
         equal to the one A holds leaves A, and so GAMG's setup, untouched."""
+        self.newton_law = self.newton_law or not self.polishing
         s.copy(self.s)
         d.copy(self.d)
         sa, da = self.s.array_r, self.d.array_r
@@ -383,6 +386,7 @@ class ReducedSystem:
         self.changed = None
         self.previous = None
         self._newton = None
+        self.newton_law = False
         self._rises = self._forced = 0
         self._loose = False
         if self._direction is not None:
