@@ -1298,6 +1298,40 @@ def friction() -> str:
     return "\n".join(out) + "\n"
 
 
+def p2_table(curved: list[dict]) -> str:
+    """The table of P1, P2 on straight and P2 on curved cells (bench_two_bodies.py p2 /
+    p2sphere): the nodal deviations from Hertz, the peak's, the force, a and the balance."""
+    return table(
+        [
+            "h_contact",
+            "degree",
+            "cells",
+            "DoFs",
+            "nodal max error",
+            "nodal rms error",
+            "peak error",
+            "force",
+            "a error",
+            "force balance",
+        ],
+        [
+            [
+                r["h_contact"],
+                f"P{r['degree']}",
+                r["cells"],
+                r["dofs"],
+                f"{100 * r['nodal_max_error']:.2f} %",
+                f"{100 * r['nodal_rms_error']:.2f} %",
+                pct(r["peak_error"]),
+                g(r["force"], 6),
+                pct(r["a_error"]),
+                g(r["balance"], 2),
+            ]
+            for r in curved
+        ],
+    )
+
+
 def two_bodies() -> str:
     """Section 8: two deformable bodies, mortar coupling (demos/bench/bench_two_bodies.py)."""
     out = [prose("two_bodies", "two_bodies_in_contact")]
@@ -1516,6 +1550,12 @@ def two_bodies() -> str:
                 ),
             )
         ]
+    cylinders_p2 = rows(folder / "cylinders_p2.csv") or []
+    if cylinders_p2:
+        out += [prose("two_bodies", "p2_on_straight_and", table=p2_table(cylinders_p2))]
+    sphere_p2 = rows(folder / "sphere_p2.csv") or []
+    if sphere_p2:
+        out += [prose("two_bodies", "p2_sphere", table=p2_table(sphere_p2))]
     cm = rows(folder / "cattaneo.csv") or []
     if cm:
         out += [
@@ -3815,6 +3855,85 @@ def _tta_last_level() -> str:
     )
 
 
+def _tta_ex9_growth() -> list[str]:
+    """ex9 to 4e-3 with the residual indicators at growth 2, 3 and 4
+    (demos/results/adaptive_cost/time_to_accuracy_ex9_growth.csv) and what bounds the loop's
+    time: its phases summed over the levels of a profile to 1.1M DoFs
+    (demos/results/adaptive_cost/profile_ex9_res2_1M.csv) against the uniform run."""
+    data = rows(RES / "adaptive_cost" / "time_to_accuracy_ex9_growth.csv")
+    prof = rows(RES / "adaptive_cost" / "profile_ex9_res2_1M.csv")
+    if not data or not prof:
+        return [missing("demos/results/adaptive_cost/time_to_accuracy_ex9_growth.csv")]
+    uni = [r for r in data if r["run"] == "uniform"]
+    ratio = {
+        r["variant"]: r for r in data if r["run"] == "ratio" and _tta_reference(r) == "uniform"
+    }
+    body, uniform_like = [], []
+    runs = dict.fromkeys(r["run"] for r in data if r["run"] != "ratio")
+    for run in [r for r in runs if not r.startswith("uniform")]:
+        rs = [r for r in data if r["run"] == run]
+        last = rs[-1]
+        if [r["dofs"] for r in rs] == [r["dofs"] for r in uni[: len(rs)]]:
+            uniform_like.append(f"`{run}`")  # every cell marked: the uniform meshes
+        body.append(
+            [
+                f"`{run}`",
+                len(rs),
+                f"{last['dofs']:,}",
+                f"{last['error']:.3e}",
+                f"{last['cpu']:.1f}",
+                f"{ratio[run]['first_reaching_cpu']:.2f}" if run in ratio else "not reached",
+                f"{ratio[run]['interpolated_cpu']:.2f}" if run in ratio else "–",
+            ]
+        )
+    last_dofs = max(
+        (r["dofs"] for r in data if r["run"] in (u[1:-1] for u in uniform_like)), default=0
+    )
+    target = next(iter(ratio.values()))["target"]
+    u = next(r for r in uni if r["error"] <= target)
+    last, before = prof[-1], prof[-2]
+    total = prof[-1]["cpu_total"]
+
+    def summed(phase: str) -> float:
+        return sum(r[f"cpu_{phase}"] for r in prof)
+
+    floor = last["cpu_solve"] + last["cpu_assembly"] + before["cpu_refine"]
+    return [
+        prose(
+            "time_to_accuracy",
+            "ex9_growth",
+            table=table(
+                [
+                    "variant",
+                    "levels",
+                    "final DoFs",
+                    "error",
+                    "loop CPU s",
+                    "adaptive/uniform CPU (first reaching)",
+                    "(interpolated)",
+                ],
+                body,
+            ),
+            uniform_dofs=f"{u['dofs']:,}",
+            uniform_cpu=f"{u['cpu']:.1f}",
+            dofs=f"{last['dofs']:,}",
+            total=f"{total:.1f}",
+            refine=f"{summed('refine'):.1f}",
+            solve=f"{summed('solve'):.1f}",
+            assembly=f"{summed('assembly'):.1f}",
+            estimate=f"{summed('estimate'):.1f}",
+            last_estimate=f"{last['cpu_estimate']:.1f}",
+            last_solve=f"{last['cpu_solve']:.1f}",
+            floor=f"{floor:.1f}",
+            floor_share=f"{floor / u['cpu']:.2f}",
+            uniform_like=" and ".join(uniform_like) or "none",
+            next_uniform=next(
+                (f"{r['dofs']:,} DoFs, {r['error']:.2e}" for r in uni if r["dofs"] > last_dofs), "–"
+            ),
+        )
+    ]
+
+
 def time_to_accuracy() -> str:
     """Section 14: the adaptive loop against uniform meshes at equal error
     (demos/bench/bench_time_to_accuracy.py, with its chart), the loop's memory with earlier
@@ -3945,6 +4064,7 @@ def time_to_accuracy() -> str:
                 ),
             ),
         ]
+        out += _tta_ex9_growth()
     keep = {
         mode: rows(RES / "adaptive_cost" / f"profile_ex9_keep_{mode}.csv")
         for mode in ("all", "last_notrim", "last")

@@ -15,7 +15,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    ``demos/bench/bench_two_bodies.py`` — two bodies (issue 13): patch tests, two cylinders,
    Cattaneo–Mindlin, and the sphere on a block on 2 MPI ranks (about 8 minutes; its
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes), and with
-   P1 and P2 serially (``sphere_degrees``, about 12 minutes on a loaded machine);
+   P1 and P2 serially (``sphere_degrees``, about 12 minutes on a loaded machine), P2 on
+   straight and on curved cells (``p2``, ``p2sphere``: about 1.5 + 2.5 minutes);
    ``demos/bench/bench_newton_min_cycle.py`` — plain Newton-min cycling on a P-matrix LCP
    (the stability map's case (p), under a second);
    ``demos/bench/bench_cold.py`` — deal.II's step-41 from a cold start at 256² and 512², by
@@ -107,7 +108,8 @@ STEPS = {
         ],
     ],
     "two_bodies": [
-        [PY, "demos/bench/bench_two_bodies.py", part] for part in ("patch", "cylinders", "cattaneo")
+        [PY, "demos/bench/bench_two_bodies.py", part]
+        for part in ("patch", "cylinders", "cattaneo", "p2", "p2sphere")
     ]
     + [
         [

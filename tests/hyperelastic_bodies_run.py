@@ -4,8 +4,9 @@ finite-strain two-body tests compare between rank counts (run under mpirun).
     python tests/hyperelastic_bodies_run.py OUT.npz SCENE.yaml [overrides ...]
 
 The npz holds the last step's slave nodes' coordinates and interface pressures (sorted by
-coordinate), the contact force, the couplings of each step's fixed point (Newton iterations,
-the displacement change and the error estimate) and converged.
+coordinate), the contact force, the first point of contact and the normal there, the
+couplings of each step's fixed point (Newton iterations, the displacement change and the
+error estimate) and converged.
 """
 
 import sys
@@ -41,6 +42,8 @@ def main(argv):
             X=X[order],
             pressure=pressure[order],
             force=r.contact_force,
+            first_contact=r.first_contact,
+            n=p.data.n,
             couplings=np.array(couplings),
             converged=run.converged,
         )

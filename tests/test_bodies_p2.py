@@ -2,10 +2,11 @@
 the slave segments (2D) and of the transformed basis of the slave triangles (3D;
 contact/models/overlap.py).  The contact patch test with non-matching meshes (2D and 3D,
 small and finite strain, serial and 2 ranks), two cylinders against Hertz beside P1 on the
-same mesh, action = reaction, and the one-line refusal of friction in 3D."""
+same mesh, action = reaction, and Coulomb and Tresca friction on the 3D frictional patch
+(P1 and P2 alike, serial and 2 ranks through the command line)."""
 
 import contact
-from contact.base.errors import ConfigError
+from contact.models.hyperelastic import negative_eigenvalues
 from contact.models.mortar import master_pressure, part_facets, surface_facets
 from contact.models.overlap import trace_weights
 from contact.post.interface import resultants
@@ -16,13 +17,18 @@ from contact.solvers import owned_residual
 
 import numpy as np
 import pytest
-from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, P, check_patch_2d, run
+from clirun import run_scene
+from scene_runs import read_folder
+from test_bodies import COARSE_2D, HERTZ_2D, PATCH_2D, PATCH_3D, ROOT, P, check_patch_2d, run
 from test_hyperelastic_bodies import PATCH_2D as FINITE_PATCH_2D
+from test_hyperelastic_bodies import PATCH_3D_FINITE, interface_force, uniaxial
 from test_hyperelastic_bodies import P as FINITE_P
-from test_hyperelastic_bodies import interface_force, uniaxial
 from test_hyperelastic_bodies import run as run_finite
 
 P2 = ["mesh.degree=2", "output.verbose=false"]
+FRICTION_PATCH_3D = ROOT / "configs" / "two_body_friction_patch_3d.yaml"
+HYPERELASTIC = ["model.type=hyperelastic", "model.law=neo_hookean"]
+STICK, SLIP = 1, 2  # friction statuses (contact.solvers.newton)
 
 
 @pytest.fixture(scope="module")
@@ -130,7 +136,13 @@ def test_p2_cylinders_carry_hertz_pressure_closer_than_p1_on_the_same_mesh():
 
 @pytest.mark.mpi
 def test_p2_cylinders_serial_equals_two_ranks(tmp_path):
-    args = ["--methods=min", "--set=mesh.degree=2", *(f"--set={o}" for o in COARSE_2D)]
+    check_cylinders_serial_equals_two_ranks(tmp_path, [*COARSE_2D, "mesh.degree=2"])
+
+
+def check_cylinders_serial_equals_two_ranks(tmp_path, overrides: list[str]) -> None:
+    """The Hertz cylinders with ``overrides``, method min, on 1 and 2 ranks: the same active
+    set, coordinates, displacements and pressures (to 1e-8), action = reaction on both."""
+    args = ["--methods=min", *(f"--set={o}" for o in overrides)]
     s, p = run(tmp_path, HERTZ_2D, 1, *args), run(tmp_path, HERTZ_2D, 2, *args)
     assert s["min/info"][0] == p["min/info"][0] == 1
     assert min(s["min/info"][5], p["min/info"][5]) >= 1e-6  # no node near a tie
@@ -181,12 +193,213 @@ def test_p2_patch_3d_on_two_ranks_equals_serial(tmp_path):
     assert np.max(np.abs(s["min/u"] - p["min/u"])) <= 1e-8 * np.max(np.abs(s["min/u"]))
 
 
-def test_p2_friction_in_3d_is_refused_in_one_line():
-    scene = contact.load_scene(PATCH_3D, [*P2, "friction={law: coulomb, coefficient: 0.3}"])
-    refused = r"^mesh\.degree: friction on contact pairs \(pairs\[0\]\) in 3D"
-    with pytest.raises(ConfigError, match=refused) as e:
-        build_problem(scene)
-    assert "\n" not in str(e.value)
+#: the 3D finite-strain patch at P2 on coarse non-matching blocks (3 × 3 slave triangles' squares
+#: on 2 × 2 master ones) and at the nominal pressure 0.15: at 0.2, the 2D and P1 tests' load, the
+#: P2 tangent on the free unknowns has a negative eigenvalue at the homogeneous solution (the
+#: column with its frictionless slip plane is unstable there), the energy line search follows
+#: the direction of negative curvature off it and the load path returns to it after tens of
+#: Newton steps
+FINITE_P_3D = 0.15
+FINITE_PATCH_3D_P2 = [
+    *PATCH_3D_FINITE,
+    f"constants.p={FINITE_P_3D}",
+    "mesh.degree=2",
+    "mesh.blocks=[{corners: [[0, 0, 0], [1, 1, 0.5]], cells: [2, 2, 2]},"
+    " {corners: [[0, 0, 0.5], [1, 1, 1]], cells: [3, 3, 3]}]",
+]
+
+
+def test_p2_finite_strain_patch_3d_is_the_exact_cauchy_traction():
+    """The neo-Hookean 3D patch at P2 (non-matching, re-coupled on the current
+    configuration, the slave triangles' transformed basis): every one of the 7² slave
+    nodes carries P/λ₁² to 1e-8 (8 % off nominal), u = (λ − 1) X at every node, the slave
+    and master surface forces cancel, and the solution is a stable equilibrium."""
+    scene = contact.load_scene(PATCH_3D, ["output.verbose=false", *FINITE_PATCH_3D_P2])
+    run_ = contact.run_load_path(scene, verbose=False)
+    assert run_.converged
+    r = run_.steps[-1].result
+    assert r.couplings[-1]["change"] <= 1e-12
+    l1, l2 = uniaxial(3, FINITE_P_3D)
+    p = r.problem
+    pressure = p.pressure(owned_residual(r))[: p.data.pair_nodes]
+    assert len(pressure) == 7 * 7
+    exact = FINITE_P_3D / l1**2
+    assert np.max(np.abs(pressure / exact - 1)) <= 1e-8 and abs(exact / FINITE_P_3D - 1) > 0.05
+    X = p.V.tabulate_dof_coordinates()
+    u = r.u_h.x.array.reshape(-1, 3)
+    assert np.max(np.abs(u - X * np.r_[l1 - 1, l1 - 1, l2 - 1])) <= 1e-8 * (1 - l2)
+    slave, master = interface_force(r, scene, "slave"), interface_force(r, scene, "master")
+    assert abs(slave[-1] - FINITE_P_3D) <= 1e-10 * FINITE_P_3D
+    assert abs(slave[-1] + master[-1]) <= 1e-12 * FINITE_P_3D
+    assert negative_eigenvalues(r) == 0
+
+
+@pytest.mark.mpi
+def test_p2_finite_strain_patch_3d_on_two_ranks_equals_serial(tmp_path):
+    s = run_finite(tmp_path, PATCH_3D, 1, *FINITE_PATCH_3D_P2)
+    p = run_finite(tmp_path, PATCH_3D, 2, *FINITE_PATCH_3D_P2)
+    l1, _ = uniaxial(3, FINITE_P_3D)
+    for res in (s, p):
+        assert res["converged"] and len(res["pressure"]) == 7 * 7
+        assert np.max(np.abs(res["pressure"] * l1**2 / FINITE_P_3D - 1)) <= 1e-8
+    assert np.allclose(s["X"], p["X"], atol=1e-14)
+    assert abs(s["force"] - p["force"]) <= 1e-12 * abs(s["force"])
+
+
+#: the frictional 3D patch (configs/two_body_friction_patch_3d.yaml): pressure, Coulomb F,
+#: the top's drag and the blocks' shear compliance Σ h/G (ν = 0, G = E/2)
+FRICTION_P, FRICTION_F, DRAG, COMPLIANCE = 0.015, 0.3, 0.02, 0.5 / 1.5 + 0.5 / 0.5
+#: case -> (overrides, |λ_t| at every slave node, slip increment along x)
+FRICTION_CASES = {
+    "coulomb slides": ([], FRICTION_F * FRICTION_P, DRAG - FRICTION_F * FRICTION_P * COMPLIANCE),
+    "tresca slides": (
+        [
+            "friction={law: tresca, threshold: 0.004}",
+            "constants.tau=0.004",
+        ],
+        0.004,
+        DRAG - 0.004 * COMPLIANCE,
+    ),
+    "coulomb sticks": (["constants.drag=0.003", "constants.tau=0.00225"], 0.003 / COMPLIANCE, 0),
+}
+
+
+def exact_friction_patch(V, drag: float, tau: float) -> np.ndarray:
+    """The friction patch's displacement at the nodes of V: simple shear tau / G and
+    compression p / E in each block (lower: E = 1, clamped at z = 0; upper: E = 3, its top
+    moved by (drag, 0, −δ)); a node's block is that of its cells (the interface nodes of
+    both blocks share their coordinates)."""
+    X = V.tabulate_dof_coordinates()
+    cells = V.dofmap.list
+    lower = np.zeros(len(X), dtype=bool)
+    lower[cells[X[cells, 2].mean(axis=1) < 0.5].ravel()] = True
+    z = X[:, 2]
+    ux = np.where(lower, tau * z / 0.5, drag - tau * (1 - z) / 1.5)
+    uz = np.where(lower, -FRICTION_P * z, -0.01 + FRICTION_P * (1 - z) / 3)
+    return np.c_[ux, np.zeros_like(z), uz]
+
+
+@pytest.fixture(scope="module")
+def friction_patches():
+    """The frictional 3D patch at P1 and P2, each case solved once."""
+    out = {}
+    for degree in (1, 2):
+        for case, (sets, _, _) in FRICTION_CASES.items():
+            scene = contact.load_scene(
+                FRICTION_PATCH_3D, ["output.verbose=false", f"mesh.degree={degree}", *sets]
+            )
+            path = contact.run_load_path(scene, verbose=False)
+            assert path.converged
+            out[degree, case] = scene, path.steps[-1].result
+    return out
+
+
+@pytest.mark.parametrize("case", sorted(FRICTION_CASES))
+@pytest.mark.parametrize("degree", [1, 2])
+def test_friction_patch_3d_is_exact_at_every_slave_node(friction_patches, degree, case):
+    """Two non-matching blocks (7 × 7 against 4 × 4 interface cells) pressed and sheared:
+    at every slave node (P2: vertices and edge nodes, the transformed basis) λ_n = −p and the
+    tangential traction is (−τ, 0, 0) with τ = F p (Coulomb, sliding), the threshold
+    (Tresca, sliding) or the elastic shear (sticking, below F p) to 1e-10 relative; the slip
+    increment is the drag less the blocks' shear (sliding) or zero (sticking); every node
+    of both bodies has the exact displacement, so P1 and P2 give the same solution."""
+    scene, r = friction_patches[degree, case]
+    _, traction, slip = FRICTION_CASES[case]
+    p, fr = r.problem, r.friction
+    on = slice(0, p.data.pair_nodes)
+    assert p.data.pair_nodes == {1: 8 * 8, 2: 15 * 15}[degree]
+    assert np.all(fr["status"][on] == (SLIP if slip else STICK))
+    assert np.max(np.abs(fr["lambda_n"][on] / FRICTION_P + 1)) <= 1e-10
+    expected = np.array([-traction, 0, 0])
+    assert np.max(np.abs(fr["lambda_t_vec"][on] - expected)) <= 1e-10 * traction
+    assert np.max(np.abs(np.linalg.norm(fr["lambda_t"][on], axis=1) / traction - 1)) <= 1e-10
+    assert np.max(np.abs(fr["slip_vec"][on] - [slip, 0, 0])) <= 1e-10 * DRAG
+    drag = 0.003 if "sticks" in case else DRAG
+    u = r.u_h.x.array.reshape(-1, 3)
+    assert np.max(np.abs(u - exact_friction_patch(p.V, drag, traction))) <= 1e-10 * DRAG
+    assert resultants(posed_of(scene), r)["interface_balance_error"] < 1e-10
+
+
+#: the frictional 3D patch on 4 × 4 against 3 × 3 interface cells, one cell thick
+COARSE_BLOCKS = (
+    "mesh.blocks=[{corners: [[0, 0, 0], [1, 1, 0.5]], cells: [3, 3, 1]},"
+    " {corners: [[0, 0, 0.5], [1, 1, 1]], cells: [4, 4, 1]}]"
+)
+
+
+def test_p2_friction_patch_3d_slides_at_finite_strain():
+    """The frictional 3D patch with neo-Hookean blocks (4 × 4 against 3 × 3 interface cells,
+    P2, re-coupled on the current configuration): dragged, every slave node still facing
+    the master slides on the Coulomb bound |λ_t| = F |λ_n| to 1e-10, and the slave and
+    master surface forces cancel; the slave's tangential force is F × its normal force to
+    1 % (measured 0.2 %: the nodes slid past the master's edge carry nothing)."""
+    scene = contact.load_scene(FRICTION_PATCH_3D, [*P2, *HYPERELASTIC, COARSE_BLOCKS])
+    path = contact.run_load_path(scene, verbose=False)
+    assert path.converged
+    r = path.steps[-1].result
+    p, fr = r.problem, r.friction
+    on = slice(0, p.data.pair_nodes)
+    assert p.data.pair_nodes >= 9 * 9 - 9  # the slave's far edge has slid past the master's
+    assert np.all(fr["status"][on] == SLIP)
+    bound = FRICTION_F * np.abs(fr["lambda_n"][on])
+    assert np.max(np.abs(np.linalg.norm(fr["lambda_t"][on], axis=1) / bound - 1)) <= 1e-10
+    slave, master = interface_force(r, scene, "slave"), interface_force(r, scene, "master")
+    assert np.max(np.abs(slave + master)) <= 1e-10 * np.max(np.abs(slave))
+    # the friction force against the drag: F × the normal force but for the uncovered edge
+    assert slave[2] > 0 and -slave[0] == pytest.approx(FRICTION_F * slave[2], rel=0.01)
+
+
+def friction_table(folder) -> np.ndarray:
+    """contact.csv of a run (a structured array, rows sorted by coordinates)."""
+    table = np.genfromtxt(
+        folder / "contact.csv", delimiter=",", names=True, dtype=None, encoding=None
+    )
+    return table[np.lexsort([np.round(table[c], 10) for c in "zyx"])]
+
+
+@pytest.mark.mpi
+def test_p2_friction_patch_3d_cli_on_two_ranks_equals_serial(tmp_path):
+    """``contact run configs/two_body_friction_patch_3d.yaml --set mesh.degree=2`` serially
+    and on 2 ranks, every output file read back: the contact tables have λ_n = −p,
+    λ_t = (−F p, 0, 0), the bound F p and the slip of the exact solution at all 225 slave
+    nodes, all slipping, to 1e-10, and the two runs' tables agree to 1e-10."""
+    tables = []
+    for ranks in (0, 2):
+        out, _ = run_scene(tmp_path, FRICTION_PATCH_3D.name, ranks, ["mesh.degree=2"], 300)
+        read_folder(out)
+        t = friction_table(out)
+        tau, slip = FRICTION_F * FRICTION_P, DRAG - FRICTION_F * FRICTION_P * COMPLIANCE
+        assert len(t) == 15 * 15 and set(t["status"]) == {"slip"}
+        assert np.max(np.abs(t["lambda_n"] + FRICTION_P)) <= 1e-10 * FRICTION_P
+        for name, value in (("lambda_t_x", -tau), ("lambda_t_norm", tau), ("bound", tau)):
+            assert np.max(np.abs(t[name] - value)) <= 1e-10 * tau, name
+        assert np.max(np.abs(t["lambda_t_y"])) <= 1e-10 * tau
+        assert np.max(np.abs(t["slip_x"] - slip)) <= 1e-10 * DRAG
+        tables.append(t)
+    for name in tables[0].dtype.names:
+        if name != "status":
+            assert np.allclose(tables[0][name], tables[1][name], rtol=0, atol=1e-10), name
+
+
+@pytest.mark.mpi
+def test_p2_friction_patch_3d_at_finite_strain_on_two_ranks_equals_serial(tmp_path):
+    """The neo-Hookean frictional P2 patch (coarse blocks) through the command line, serially
+    and on 2 ranks: the same slave nodes, all slipping, the contact tables' columns equal to
+    1e-10 of their unit's scale — lengths (coordinates, gap, slip) of the blocks' size 1,
+    tractions of the largest |λ_n| — (measured 2.4e-14 for λ_n)."""
+    sets = ["mesh.degree=2", *HYPERELASTIC, COARSE_BLOCKS, "output.png=false"]
+    s, p = (
+        friction_table(run_scene(tmp_path, FRICTION_PATCH_3D.name, n, sets, 300)[0]) for n in (0, 2)
+    )
+    assert len(s) == len(p) >= 9 * 9 - 9
+    assert set(s["status"]) == set(p["status"]) == {"slip"}
+    traction = np.max(np.abs(s["lambda_n"]))
+    for name in s.dtype.names:
+        if name != "status":
+            length = name in ("x", "y", "z", "r", "gap") or name.startswith("slip")
+            pulls = name.startswith("lambda") or name == "bound"
+            scale = 1.0 if length else traction if pulls else np.max(np.abs(s[name]))
+            assert np.max(np.abs(s[name] - p[name])) <= 1e-10 * scale, name
 
 
 def nodal_deviation(scene, r) -> tuple[float, float]:

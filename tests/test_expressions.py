@@ -284,6 +284,26 @@ def test_to_ufl_interpolated_into_p2_matches_to_numpy_at_dofs(mesh2d):
     np.testing.assert_allclose(u_np.x.array, E.to_numpy(text, CONSTS)(x), rtol=1e-14, atol=1e-14)
 
 
+def test_to_ufl_condition_used_as_a_number_is_one_or_zero(mesh2d):
+    """``2*(x > 0.5) - 1`` is a step of ±1 in both back ends, also inside an assembled form
+    (UFL's degree estimation had no degree for a bare condition: an internal error)."""
+    import ufl
+    from dolfinx import fem
+    from mpi4py import MPI
+
+    texts = ["2*(x > 0.1) - 1", "-(y < 0.2)", "sin(x > 0) + (x < y)*x", "(x > 0) if y > 0 else 0.5"]
+    got, want, _ = _ufl_vs_numpy(mesh2d, REF_POINTS_2D, texts, {})
+    for text, g, w in zip(texts, got, want):
+        np.testing.assert_allclose(g, w, rtol=1e-14, atol=1e-14, err_msg=text)
+    assert set(np.unique(want[0])) == {-1.0, 1.0}
+    # ∫ (2·[x > 0] − 1) dx over [-1, 0.5] × [0, 1], x = 0 a mesh line: 0.5 − 1 exactly
+    from dolfinx import mesh
+
+    msh = mesh.create_rectangle(MPI.COMM_SELF, [[-1.0, 0.0], [0.5, 1.0]], [6, 2])
+    step = fem.assemble_scalar(fem.form(E.to_ufl("2*(x > 0) - 1", msh) * ufl.dx(domain=msh)))
+    assert abs(step - (0.5 - 1.0)) < 1e-13
+
+
 def test_to_ufl_z_is_zero_on_2d_mesh(mesh2d):
     got, want, X = _ufl_vs_numpy(mesh2d, REF_POINTS_2D, ["z", "x + z"], {})
     assert np.all(got[0] == 0.0)

@@ -48,14 +48,14 @@ def run(tmp_path, scene, nproc, *overrides):
     return run_script(tmp_path, scene, nproc, *overrides, script=SCRIPT)
 
 
-def uniaxial(gdim: int) -> tuple[float, float]:
+def uniaxial(gdim: int, p: float = P) -> tuple[float, float]:
     """(λ_1, λ_2) of homogeneous uniaxial compression of the neo-Hookean material under the
-    nominal stress P_22 = −P (secant iteration on the stretch λ_2)."""
+    nominal stress P_22 = −p (secant iteration on the stretch λ_2)."""
     a, b = 0.7, 0.95
-    fa, fb = (uniaxial_stretch("neo_hookean", E, NU, s, gdim)[1] + P for s in (a, b))
+    fa, fb = (uniaxial_stretch("neo_hookean", E, NU, s, gdim)[1] + p for s in (a, b))
     for _ in range(60):
         a, b, fa = b, b - fb * (b - a) / (fb - fa), fb
-        fb = uniaxial_stretch("neo_hookean", E, NU, b, gdim)[1] + P
+        fb = uniaxial_stretch("neo_hookean", E, NU, b, gdim)[1] + p
         if abs(b - a) <= 1e-15:
             break
     return uniaxial_stretch("neo_hookean", E, NU, b, gdim)[0], b

@@ -15,14 +15,20 @@ from contact.drivers import recouple
 from contact.drivers.recouple import COUPLING_RTOL, solve_recoupled
 from contact.models import mortar
 from contact.models.mortar import part_facets, surface_facets
+from contact.models.problem import TOUCH_RTOL
+from contact.output.run_report import UNFACED_NOTE
 from contact.setup.elastic import scene_pairs
+from contact.solvers import owned_residual
 
 import numpy as np
 import pytest
 import ufl
+from clirun import run_scene
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
+from readback import read_xdmf
+from scene_runs import read_folder
 from test_bodies import run as run_script
 from test_hyperelastic_bodies import interface_force
 
@@ -87,6 +93,32 @@ def test_contact_force_balances_on_the_pair(ring):
     assert abs(r.contact_force - np.linalg.norm(slave)) <= 1e-8 * np.linalg.norm(slave)
 
 
+def test_first_contact_is_a_node_that_touches(ring):
+    """On a current configuration the first point of contact is ranked by the current gap
+    (then by the bound, then by coordinates), not by the bound g^k + x_n(u^k) alone: the
+    node ``Result.first_contact`` and ``ProblemData.n`` name is pressed, its gap on the final
+    configuration is 0 to the coupling's tolerance and no slave node's is smaller by more
+    than the ties' tolerance; n is that node's normal.  (Ranked by the bound it was a node
+    off the contact zone, (−0.444, 0.665), with no pressure.)"""
+    scene, r = ring
+    p, comm = r.problem, scene.comm
+    on = slice(0, p.data.pair_nodes)
+    X, normals = (gathered(comm, a[on]) for a in (p.node_coordinates(), p.data.normals))
+    current = gathered(comm, p.data.current_gap[on])
+    pressure = gathered(comm, p.pressure(owned_residual(r))[on])
+    (i,) = np.flatnonzero(np.all(np.abs(X - r.first_contact) <= 1e-14, axis=1))
+    assert pressure[i] > 0 and abs(current[i]) <= 1e-8
+    assert current[i] <= current.min() + TOUCH_RTOL
+    assert np.allclose(p.data.n, normals[i], rtol=0, atol=1e-14)
+    # the pair coupled afresh on the final configuration: the node touches there too
+    (pair,) = scene_pairs(scene, p.data.ds)
+    fixed = np.concatenate([bc.dof_indices()[0] for bc in p.data.u_bcs])
+    c = mortar.couple(p.V, pair, fixed, displacement=r.u_h.x.array)
+    Xc = gathered(comm, p.V.tabulate_dof_coordinates()[c.nodes, :2])
+    gap = gathered(comm, c.gap)
+    assert abs(gap[np.all(np.abs(Xc - r.first_contact) <= 1e-14, axis=1)][0]) <= 1e-8
+
+
 @pytest.mark.mpi
 def test_two_ranks_equal_serial(tmp_path):
     s, p = (run_script(tmp_path, RING, n, script=SCRIPT) for n in (1, 2))
@@ -95,6 +127,45 @@ def test_two_ranks_equal_serial(tmp_path):
     assert np.allclose(s["X"], p["X"], atol=1e-14)
     assert abs(s["force"] - p["force"]) <= 1e-10 * abs(s["force"])
     assert np.max(np.abs(s["pressure"] - p["pressure"])) <= 1e-8 * np.max(s["pressure"])
+    assert np.allclose(s["first_contact"], p["first_contact"], rtol=0, atol=1e-14)
+    assert np.allclose(s["n"], p["n"], rtol=0, atol=1e-8)
+
+
+def apart(tmp_path: Path) -> Path:
+    """The ring squeezed by 2 × 0.05 in two steps, its pair searching 0.1 along the normals:
+    the inner faces, 1.5 apart, never face each other within reach."""
+    text = RING.read_text()
+    for old, new in (
+        (
+            "{slave: inner_top, master: inner_bottom}",
+            "{slave: inner_top, master: inner_bottom, search: 0.1}",
+        ),
+        ("constants: {d: 0.83}", "constants: {d: 0.05}"),
+        ("load: {steps: 8}", "load: {steps: 2}"),
+    ):
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / "ring_apart.yaml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("ranks", [0, pytest.param(2, marks=pytest.mark.mpi)])
+def test_a_pair_facing_nowhere_writes_readable_outputs(tmp_path, ranks):
+    """A self-contact pair none of whose slave nodes faces the master: no node constrained,
+    contact force 0, every file read back; the gap (NaN off the constrained nodes) is
+    undefined at every node and contact.csv has its header only, which summary.json notes
+    (``unfaced_steps``, ``unfaced_note``) — before, nothing said so and the all-NaN gap
+    failed the readback."""
+    out, _ = run_scene(tmp_path, str(apart(tmp_path)), ranks, [], 300)
+    summary = read_folder(out)
+    assert summary["unfaced_steps"] == [1, 2] and summary["unfaced_note"] == UNFACED_NOTE
+    assert [s["contact_force"] for s in summary["steps"]] == [0.0, 0.0]
+    with open(out / "contact.csv") as fh:
+        assert fh.read().splitlines() == ["x,y,s,lambda_n,gap,active"]
+    gaps = [read_xdmf(out / "contact_surface.xdmf")[-1], read_xdmf(out / "solution.xdmf")[-1]]
+    assert all(np.isnan(g["point"]["gap"]).all() for g in gaps)
+    assert all(np.isfinite(g["point"]["u_h"]).all() for g in gaps)
 
 
 def fixed_point(A: np.ndarray, b: np.ndarray, relaxation: str, max_couplings: int = 60):

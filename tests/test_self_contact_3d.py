@@ -156,7 +156,7 @@ def test_contact_force_balances_on_the_pair(tube):
 def test_two_ranks_equal_serial(tmp_path):
     """The scene on a coarser mesh in two load steps (the whole scene takes minutes on two
     ranks of a loaded machine; measured equal to 1e-14 in force): the same slave nodes,
-    pressures to 1e-8, force to 1e-8."""
+    pressures to 1e-8, force to 1e-8, the first point of contact and its normal."""
     small = ["mesh.cells=[2,24,4]", "load.steps=2"]
     s, p = (run_script(tmp_path, TUBE, n, *small, script=SCRIPT) for n in (1, 2))
     for res in (s, p):
@@ -168,6 +168,9 @@ def test_two_ranks_equal_serial(tmp_path):
     assert s["X"].shape == p["X"].shape and np.allclose(s["X"], p["X"], atol=1e-14)
     assert abs(s["force"] - p["force"]) <= 1e-8 * abs(s["force"])
     assert np.max(np.abs(s["pressure"] - p["pressure"])) <= 1e-8 * np.max(s["pressure"])
+    # the first point of contact (a pressed node, ranked by the current gap) and its normal
+    assert np.allclose(s["first_contact"], p["first_contact"], rtol=0, atol=1e-14)
+    assert np.allclose(s["n"], p["n"], rtol=0, atol=1e-8)
 
 
 def test_uncovered_slave_nodes_are_out_of_contact_on_a_current_configuration():

@@ -39,6 +39,7 @@ import ufl
 from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
+from ufl.geometry import FacetJacobianDeterminant
 
 from ..base.errors import ConfigError
 from ..models.constraints import Friction, MortarPair, RigidObstacle, Unilateral
@@ -91,13 +92,45 @@ def _cellwise(msh, degree: fem.Function | None = None):
     """
     w = ufl.TestFunction(fem.functionspace(msh, ("DG", 0)))
     dx, dS = ufl.Measure("dx", domain=msh), ufl.Measure("dS", domain=msh)
-    h_T, h_E = ufl.CellDiameter(msh), ufl.FacetArea(msh) ** (1.0 / (msh.topology.dim - 1))
+    h_T, h_E = cell_sizes(msh, w.ufl_function_space())
     h_S = ufl.avg(h_E)  # interior facets
     if degree is not None:
         h_T, h_S = h_T / degree, h_S / ufl.max_value(degree("+"), degree("-"))
         h_E = h_E / degree
     zero = fem.Constant(msh, 0.0) * w * dx
     return w, ufl.FacetNormal(msh), h_T, h_E, h_S, dx, dS, zero
+
+
+def cell_sizes(msh: dmesh.Mesh, dg0: fem.FunctionSpace) -> tuple[Any, Any]:
+    """Return h_T (the cell diameter) and h_E (the facet size |E|^{1/(d−1)}) as UFL expressions.
+
+    On a mesh of affine cells they are UFL's own CellDiameter and FacetArea^{1/(d−1)}.  On
+    curved cells (a coordinate element of degree > 1, for which UFL computes neither) h_T
+    is the diameter of the cell's vertex simplex, a DG0 function on every local cell
+    (ghosts included), and h_E = (|det J_E| |Ê|)^{1/(d−1)} with J_E the facet's Jacobian
+    and |Ê| the reference facet's measure (1 for the unit interval, 1/2 for the unit
+    triangle): the facet's measure where it is flat, pointwise on a curved facet.  Both
+    equal the affine values on straight cells and differ from them by O(h/R) relative on
+    a boundary of curvature radius R.
+
+    Args:
+        msh: the mesh (lengths in its unit).
+        dg0: the DG0 space of ``msh`` that carries h_T on curved cells.
+
+    Returns:
+        (h_T, h_E), lengths.
+    """
+    tdim = msh.topology.dim
+    if msh.geometry.cmaps[0].degree == 1:
+        return ufl.CellDiameter(msh), ufl.FacetArea(msh) ** (1.0 / (tdim - 1))
+    n_all = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    P = msh.geometry.x[msh.geometry.dofmaps[0][:n_all, : tdim + 1]]
+    i, j = np.triu_indices(tdim + 1, 1)
+    h_T = fem.Function(dg0)
+    h_T.x.array[dg0.dofmap.list[:n_all, 0]] = np.linalg.norm(P[:, i] - P[:, j], axis=2).max(axis=1)
+    reference = 1.0 if tdim == 2 else 0.5  # |Ê|: the unit interval, the unit triangle
+    h_E = (ufl.algebra.Abs(FacetJacobianDeterminant(msh)) * reference) ** (1.0 / (tdim - 1))
+    return h_T, h_E
 
 
 def indicator_terms(

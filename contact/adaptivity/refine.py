@@ -63,6 +63,14 @@ class Domain:
         return self.mesh.comm
 
 
+#: the refusal to refine curved cells: dolfinx's refinement splits the vertex simplices
+#: and knows nothing of the edge nodes of a quadratic geometry
+CURVED_CELLS = (
+    "adapt.max_levels: curved cells (mesh.geometry_degree: 2) are not refined; use 1 "
+    "(a single level) or mesh.geometry_degree: 1"
+)
+
+
 def refine(
     domain: Domain,
     cells: np.ndarray,
@@ -97,8 +105,11 @@ def refine(
 
     Returns:
         (the refined domain, u_h on it or None).  Cells that are not owned indices, or a
-        ``u_h`` on another mesh, are a ValueError (on every rank).
+        ``u_h`` on another mesh, are a ValueError (on every rank), and so is a mesh of
+        curved cells (a coordinate element of degree > 1: :data:`CURVED_CELLS`).
     """
+    if domain.mesh.geometry.cmaps[0].degree > 1:
+        raise ValueError(CURVED_CELLS)
     cells = _owned_cells(domain, cells)
     if u_h is not None and (
         not isinstance(u_h, fem.Function) or u_h.function_space.mesh is not domain.mesh

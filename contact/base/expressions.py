@@ -12,7 +12,8 @@ A checked expression is then *translated* to one of two back ends:
 Grammar: numbers, the names ``x y z r theta t pi e`` and user constants, ``+ - * / **``,
 unary ``-``/``+``, comparisons ``< <= > >=``, ``and``/``or``/``not``, the conditional
 ``a if cond else b``, and the functions ``sin cos tan exp log sqrt atan2 abs min max
-sinh cosh tanh asinh``.  ``r = sqrt(x² + y²)`` and ``theta = atan2(y, x) ∈ (-π, π]``
+sinh cosh tanh asinh``; a comparison used as a number (``2*(x > 0.5) - 1``) is 1 or 0.
+``r = sqrt(x² + y²)`` and ``theta = atan2(y, x) ∈ (-π, π]``
 are polar helpers about the origin.  ``t`` is the pseudo-time of a quasi-static load path
 (``load:`` section; t = 1 at the end of the path and for a scene without one): the back
 ends take its value (a number, or a UFL object such as a ``fem.Constant`` so that a form
@@ -268,12 +269,18 @@ class _Backend:
         logic: dict[type, Callable],
         compare: dict[type, Callable],
         number: Callable = float,
+        value: Callable = lambda v: v,
     ):
         self.ops, self.cond, self.logic, self.compare = ops, cond, logic, compare
         self.number = number
+        # a condition where a number is expected (``2*(x > 0.5)``) counts as 1 or 0
+        self.value = value
 
 
 def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -> Any:
+    def num(node: ast.AST) -> Any:
+        return be.value(go(node))
+
     def go(node: ast.AST) -> Any:
         if isinstance(node, ast.Expression):
             return go(node.body)
@@ -284,12 +291,12 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
                 raise ExpressionError(f"{node.id!r} is a function, call it with arguments")
             return symbols[node.id]
         if isinstance(node, ast.UnaryOp):
-            v = go(node.operand)
             if isinstance(node.op, ast.Not):
-                return be.logic[ast.Not](v)
+                return be.logic[ast.Not](go(node.operand))
+            v = num(node.operand)
             return -v if isinstance(node.op, ast.USub) else v
         if isinstance(node, ast.BinOp):
-            a, b = go(node.left), go(node.right)
+            a, b = num(node.left), num(node.right)
             return {
                 ast.Add: lambda: a + b,
                 ast.Sub: lambda: a - b,
@@ -312,12 +319,12 @@ def _translate(tree: ast.Expression, symbols: Mapping[str, Any], be: _Backend) -
                 left = right
             return out
         if isinstance(node, ast.IfExp):
-            return be.cond(go(node.test), go(node.body), go(node.orelse))
+            return be.cond(go(node.test), num(node.body), num(node.orelse))
         if isinstance(node, ast.Call):
-            return be.ops[cast(ast.Name, node.func).id](*[go(a) for a in node.args])
+            return be.ops[cast(ast.Name, node.func).id](*[num(a) for a in node.args])
         raise ExpressionError(f"unsupported node {type(node).__name__}")  # pragma: no cover
 
-    return go(tree)
+    return num(tree)
 
 
 def to_numpy(
@@ -352,6 +359,7 @@ def to_numpy(
             ast.GtE: np.greater_equal,
         },
         number=np.float64,
+        value=lambda v: v.astype(float) if getattr(v, "dtype", np.dtype(float)).kind == "b" else v,
     )
 
     names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
@@ -410,6 +418,7 @@ def to_ufl(text: str | float, mesh: Any, constants: Mapping[str, float] = {}, t:
         cond=ufl.conditional,
         logic={ast.And: ufl.And, ast.Or: ufl.Or, ast.Not: ufl.Not},
         compare={ast.Lt: ufl.lt, ast.LtE: ufl.le, ast.Gt: ufl.gt, ast.GtE: ufl.ge},
+        value=lambda v: ufl.conditional(v, 1.0, 0.0) if isinstance(v, ufl.classes.Condition) else v,
     )
     value = _translate(tree, symbols, be)
     return ufl.as_ufl(value)

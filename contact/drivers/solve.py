@@ -182,9 +182,10 @@ def contact_figures(problem: DiscreteProblem, result: Result) -> None:
         problem: the problem solved, its displacement at the solution.
         result: its result.
     """
-    con = problem.constraint
     comm = problem.V.mesh.comm
-    result.first_contact = first_contact_point(comm, problem.node_coordinates(), con.sign * con.g)
+    result.first_contact = first_contact_point(
+        comm, problem.node_coordinates(), problem.contact_gaps()
+    )
     # mortar pairs with a reaction form, a(u_h, v) − L(v) in u's own components (a scene's
     # elastic bodies); a scalar problem loads no multi-body module
     if problem.data.couplings and problem.data.reaction_form is not None:

@@ -212,7 +212,9 @@ def mortar_set(
         if c.transform is not None:
             T, T_inv = c.transform
             Q, Q_inv = T.matMult(Q), Q_inv.matMult(T_inv)
+    current_gap = None
     if coupled_at is not None:  # the current gap as a bound on the total unknowns
+        current_gap = np.concatenate([c.gap for c in sets])
         for c, relative in zip(couplings, _relative_normal(V, b, Q_inv, coupled_at, couplings)):
             c.gap = c.gap + relative
     Kt = K.PtAP(Q)  # K̃ = Qᵀ K Q
@@ -248,14 +250,18 @@ def mortar_set(
     pair_nodes = int(offsets[-1])  # the first pair_nodes constrained nodes are slave nodes
     X = V.tabulate_dof_coordinates()[nodes, : msh.geometry.dim]
     on_pairs = slice(0, pair_nodes) if couplings else slice(None)
+    ranking = gap if current_gap is None else np.c_[current_gap, gap]
     data = replace(
         rigid.data if rigid is not None else ProblemData(),
         u_bcs=bcs,
         couplings=couplings,
         normals=normals,
         pair_nodes=pair_nodes,
-        # the contact normal at the first point of contact (of the pairs, if any)
-        n=first_contact_row(msh.comm, X[on_pairs], gap[on_pairs], normals[on_pairs]),
+        current_gap=current_gap,
+        # the contact normal at the first point of contact (of the pairs, if any): the
+        # smallest gap; on a current configuration the current gap, not the bound, then
+        # the bound among the nodes that touch (DiscreteProblem.contact_gaps)
+        n=first_contact_row(msh.comm, X[on_pairs], ranking[on_pairs], normals[on_pairs]),
         contact_nodes=X[on_pairs],  # the pairs' slave nodes (this rank's): their mirrors
     )
     output = Output(

@@ -30,6 +30,11 @@ Two bodies.  The tangential unknowns are read in the solver's unknowns x of the 
 basis u = Q x, and the frames from Q's diagonal node blocks; with the mortar basis of
 docs/theory.md §1.5, whose slave unknowns are relative displacements (slave minus the
 mortar-projected master), x_t − x_t^prev is the relative slip and the same rows apply unchanged.
+On P2 triangles the slave unknowns are the transformed values ũ = T⁻¹ u (u = T Q x): x_t is
+the relative slip in the transformed basis φ̃, λ_t = R̃_t / D̃_ii the tangential multiplier in
+its dual basis (as λ_n), and Coulomb's bound acts node by node on the pair (λ_n, λ_t) of the
+same dual function.  T scales the node block of an edge node by 1 − 2α (its other entries sit
+on the edge's vertices), so the frames are the blocks' columns made unit.
 
 Symmetry planes.  A contact node on a symmetry plane x_k = const has u_k = 0: that
 tangential component is not free, it sticks by symmetry, and friction acts on the node's
@@ -70,9 +75,10 @@ def friction_set(
         n_comp = int(np.asarray(problem.data.n).nonzero()[0][0])
         t_comps = np.array([j for j in range(bs) if j != n_comp], dtype=np.int32)
         frames = np.broadcast_to(np.eye(gdim)[:, t_comps], (len(nodes), gdim, len(t_comps))).copy()
-    else:  # rotated frames [n t (t2)]: the columns of Q's node blocks
+    else:  # rotated frames [n t (t2)]: the columns of Q's node blocks, made unit
         n_comp, t_comps = 0, np.arange(1, bs, dtype=np.int32)
         frames = node_blocks(problem.basis, bs)[nodes][:, :, t_comps]
+        frames /= np.linalg.norm(frames, axis=1, keepdims=True)
     tangent = (nodes[:, None] * bs + t_comps[None, :]).astype(np.int32)
     fixed = np.concatenate([bc.dof_indices()[0] for bc in problem.bcs])
     free = ~np.isin(tangent, fixed)

@@ -21,11 +21,15 @@ of the order of the approach times x/R, which friction would resist) — and the
 
     g_i = n_i · (Σ_j c_ij X_j − X_i)     (X the reference coordinates),
 
-and its unknowns become the displacement relative to the master, in a frame R_i = [n_i t …]
-(:mod:`contact.models.basis`): x_i = R_iᵀ (u_i − Σ_j c_ij P_i u_j).  Non-penetration is the
-bound x_{i,n} ≤ g_i on one unknown, the interface pressure is λ_i = R̃_i / D_ii (≤ 0 in
-compression; R̃ = Qᵀ R) and Qᵀ hands the slave force to the master nodes through the same
-c_ij (action = reaction).  The tangential unknowns are the relative slip.
+(on curved cells, a coordinate element of degree 2, the positions X are those of the curved
+P2 nodes while the search, the normals, the overlap and its quadrature use the segments'
+chords: the weighted gap of the curved surfaces at the chords' quadrature points,
+docs/theory.md §1.5), and its unknowns become the displacement relative to the master, in a
+frame R_i = [n_i t …] (:mod:`contact.models.basis`): x_i = R_iᵀ (u_i − Σ_j c_ij P_i u_j).
+Non-penetration is the bound x_{i,n} ≤ g_i on one unknown, the interface pressure is
+λ_i = R̃_i / D_ii (≤ 0 in compression; R̃ = Qᵀ R) and Qᵀ hands the slave force to the
+master nodes through the same c_ij (action = reaction).  The tangential unknowns are the
+relative slip.
 
 Components fixed by a symmetry condition at a slave node stay absolute unknowns (their
 frame axis is the coordinate axis, the normal loses that component: the mirror image
@@ -187,10 +191,6 @@ def couple(
     ``uncovered``): where a body deforms, a slave node may face no master facet yet, or no
     longer (the far side of a self-contact, a slave surface slid past the master's end)."""
     comm = V.mesh.comm
-    if V.mesh.geometry.dim == 3 and V.element.basix_element.degree != 1 and pair.friction:
-        raise ConfigError(
-            f"mesh.degree: friction on contact pairs ({key}) in 3D is implemented for P1; use 1"
-        )
     slave = surface_facets(V, measure_facets(pair.slave), displacement)
     master = surface_facets(V, measure_facets(pair.master), displacement)
     gdim = slave.X.shape[2]

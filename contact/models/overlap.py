@@ -163,7 +163,8 @@ def mortar_pairs(
     the slave facet to the master facet at the overlap's centroid (> 0: a gap, < 0:
     penetration), for slave facets Xs (P, nv, gdim) with unit normals ns (P, gdim) and
     master facets Xm (P, nv, gdim) (nv nodes per facet: P1 segments or triangles, or P2
-    segments, their vertices first; the facets are straight, defined by their vertices).
+    segments, their vertices first; the facets are straight, defined by their vertices: on
+    curved cells their chords).
     Pairs without overlap (or whose master facet is parallel to n_S) give zeros and
     distance +inf.  ``tol`` is relative to the slave facet's size."""
     if Xs.shape[2] == 2:

@@ -209,6 +209,10 @@ def active_weights(V: fem.FunctionSpace) -> np.ndarray:
 #: one, and coordinates are compared rounded to TIE_RTOL × the largest (meshes of different
 #: partitions differ in the last bits of their coordinates)
 TIE_RTOL = 1e-9
+#: current gaps within TOUCH_RTOL × (the largest coordinate, at least 1) of the smallest count
+#: as one: the nodes that touch on a current configuration, whose gaps at the coupling point
+#: are those of the coupling's fixed point (a relative 1e-9 of the displacement), not 0
+TOUCH_RTOL = 1e-6
 
 
 def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -217,7 +221,10 @@ def first_contact_point(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray) -> np.n
     coordinate order (smallest x, then y, then z).  Several nodes touching at once (a flat
     face on a plane, a patch test) are a tie, broken by that order rather than by the rank
     that holds them; gaps and coordinates are compared to :data:`TIE_RTOL` of the largest
-    coordinate.  None when no rank has a point."""
+    coordinate.  A ``dist`` of two columns, the current gaps on a current configuration and
+    the bounds (:meth:`~contact.solvers.problem.DiscreteProblem.contact_gaps`), ranks by the
+    first, current gaps within :data:`TOUCH_RTOL` tied (the nodes that touch), then by the
+    second.  None when no rank has a point."""
     return _first_contact(comm, X, dist, X)[0]
 
 
@@ -232,11 +239,16 @@ def first_contact_row(
 def _first_contact(comm: MPI.Comm, X: np.ndarray, dist: np.ndarray, rows: np.ndarray) -> tuple:
     """(point, row of ``rows``) of :func:`first_contact_point`, as arrays (None, None if no
     rank has a point)."""
-    lowest = comm.allreduce(float(np.min(dist, initial=np.inf)), op=MPI.MIN)
     scale = max(
         comm.allreduce(float(np.max(np.abs(X), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny
     )
-    near = np.flatnonzero(dist <= lowest + TIE_RTOL * max(scale, 1.0))
+    keys = np.asarray(dist, dtype=float)
+    keys = keys if keys.ndim == 2 else keys[:, None]
+    near = np.arange(len(X))
+    ties = (TIE_RTOL,) if keys.shape[1] == 1 else (TOUCH_RTOL, TIE_RTOL)
+    for key, tie in zip(keys.T, ties, strict=True):  # the rows tied in one, ranked by the next
+        lowest = comm.allreduce(float(np.min(key[near], initial=np.inf)), op=MPI.MIN)
+        near = near[key[near] <= lowest + tie * max(scale, 1.0)]
     local = None
     if len(near):
         key = np.round(X[near] / scale, -int(np.log10(TIE_RTOL))) + 0.0  # + 0.0: no −0.0

@@ -159,6 +159,8 @@ def summary(
     }
     if result.sequence_note:
         out["sequence_note"] = result.sequence_note
+    if unfaced(result):
+        out["unfaced_note"] = UNFACED_NOTE
     out.update(result.figures)  # a baseline method's own
     out.update(posed or {})
     if res is not None:
@@ -171,6 +173,24 @@ def summary(
     if error is not None:
         out["error_energy"] = error
     return out
+
+
+#: summary.json's note on a solve whose contact pairs have no slave node facing a master
+UNFACED_NOTE = (
+    "no slave node of the contact pairs faces a master surface within its search distance: "
+    "no node is constrained, the gap field is undefined (NaN) at every node and the contact "
+    "table has no rows"
+)
+
+
+def unfaced(result: Result) -> bool:
+    """Whether ``result``'s contact pairs constrain no node on any rank (collective): on a
+    current configuration a slave node facing no master facet is out of contact
+    (:func:`contact.models.mortar.couple`), e.g. a self-contact pair whose faces have not
+    turned towards each other.  Its gap (NaN off the constrained nodes) is then undefined
+    everywhere and contact.csv has its header only, which summary.json notes."""
+    p = result.problem
+    return bool(p.data.couplings) and p.constraint.global_size(_comm(result)) == 0
 
 
 def point_fields(result: Result) -> list:

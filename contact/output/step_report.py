@@ -48,10 +48,12 @@ from . import folder, plots
 from .fields import FieldFiles
 from .report import Report
 from .run_report import (
+    UNFACED_NOTE,
     cell_fields,
     point_fields,
     pressure_picture,
     solution_picture,
+    unfaced,
     warn_coarse_zone,
     write_contact,
     write_summary,
@@ -77,6 +79,7 @@ class StepWriter:
         self.levels = folder.RowLog(tmp / ".levels.jsonl", comm)
         self.history = folder.RowLog(tmp / ".history.jsonl", comm)
         self.iterations = [0, 0]  # the Newton iterations of the converged steps: sum, largest
+        self.unfaced: list[int] = []  # the steps whose pairs constrain no node (run_report)
 
     def __call__(self, step: Step) -> None:
         r, posed, k = step.result, step.posed, step.index
@@ -118,6 +121,8 @@ class StepWriter:
             row["min_det_F"] = step.min_det_F
             row.update(tangent_figures(r.tangent_log))
         self.rows.add([row])
+        if unfaced(r):
+            self.unfaced.append(k)
         self.iterations = [self.iterations[0] + r.iterations, max(self.iterations[1], r.iterations)]
         self.levels.add([{"step": k, "time": step.time, **lv.row()} for lv in step.levels])
         folder.table_file(self.tmp / table_name(k), table, self.comm)
@@ -172,6 +177,9 @@ class StepWriter:
             **posed.conditions(),
             "steps": rows,
         }
+        if self.unfaced:  # steps with an undefined gap and contact tables without rows
+            info["unfaced_steps"] = self.unfaced
+            info["unfaced_note"] = UNFACED_NOTE
         if path.cuts:  # step cutting (load.cuts): the steps that were halved
             info["step_cuts"] = path.cuts
         if path.indefinite:

@@ -55,7 +55,7 @@ def compare(posed: Posed, result: Result, ref: Any) -> Comparison:
     dim = posed.mesh.geometry.dim
     X = p.V.tabulate_dof_coordinates()[con.dofs[on] // p.V.dofmap.index_map_bs, :dim]
     n = np.asarray(p.data.n)
-    rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
+    rel = X - first_contact_point(comm, X, p.contact_gaps()[on])
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     w, lam_t = fr["w"][on], fr["lambda_t_vec"][on]
     stick = fr["status"][on] == 1

@@ -69,7 +69,7 @@ def compare(posed: Posed, result: Result, ref: Any) -> Comparison:
     V = p.V
     nodes = con.dofs[on] // V.dofmap.index_map_bs
     X = p.node_coordinates()[on]
-    rel = X - first_contact_point(comm, X, (con.g * con.sign)[on])
+    rel = X - first_contact_point(comm, X, p.contact_gaps()[on])
     rho = np.linalg.norm(rel - np.outer(rel @ n, n), axis=1)
     pressure = p.pressure(owned_residual(result))[on]
     a = contact_extent(comm, rho, result.active_mask[on])  # the solver's rule: b_i > a_i

@@ -252,14 +252,19 @@ def half_disks(
     h_contact: float,
     zone: float,
     overlap: float = 0.0,
+    order: int = 1,
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """Two half-disks touching at the origin, meshed independently (2D triangles): the upper
     one {|x − (0, R1)| ≤ R1, y ≤ R1} (cell tag 1; arc tag 1, top y = R1 tag 2) and the lower
     one {|x − (0, d − R2)| ≤ R2, y ≥ d − R2} (cell tag 2; arc tag 3, bottom tag 4), moved up
     by d = ``overlap`` (≥ 0: the bodies interpenetrate by d at x = 0, an interference that
     loads them without a prescribed displacement).  The mesh size is ``h_contact`` within
-    ``zone`` of the contact point, ``h`` far from it (lengths in the scene's unit).  Returns
-    (mesh, facet tags, cell tags)."""
+    ``zone`` of the contact point, ``h`` far from it (lengths in the scene's unit).  With
+    ``order`` 2 the cells are gmsh's quadratic triangles (a coordinate element of degree 2):
+    the midpoint of every edge on an arc lies on the circle (at the arc's parameter
+    midpoint), the other midpoints halfway along their straight edges, so the P2 surfaces
+    are curved and the normal gap between them is the circles' to O(h³).  Returns (mesh,
+    facet tags, cell tags)."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
     radius2, *_ = _check(radius2, h, h_contact, zone, "radius2")
     if not (
@@ -295,6 +300,8 @@ def half_disks(
         gmsh.model.addPhysicalGroup(2, [surfaces[1]], SECOND_BODY, name="lower")
         _size_field(gmsh, contacts, h, h_contact, zone)
         _generate(gmsh, 2)
+        if order > 1:
+            gmsh.model.mesh.setOrder(order)
 
     return gmsh_to_mesh(comm, build, "mesh: gmsh cannot build the half_disks", gdim=2, cells=True)
 
@@ -306,13 +313,16 @@ def sphere_on_block(
     h: float,
     h_contact: float,
     zone: float,
+    order: int = 1,
 ) -> tuple[dmesh.Mesh, dmesh.MeshTags, dmesh.MeshTags]:
     """A sphere of radius R resting on an elastic block at the origin, the quarter x, y ≥ 0
     of both (3D tetrahedra, meshed independently): the octant of the sphere's lower half
     (cell tag 1; spherical surface tag 1, top z = R tag 2) and the block [0, W]² × [−H, 0]
     for ``block`` = [W, H] (cell tag 2; top z = 0 tag 3, bottom z = −H tag 4, sides x = W and
     y = W tag 7); the symmetry planes x = 0 (tag 5) and y = 0 (tag 6) of both bodies.  Mesh
-    size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it."""
+    size ``h_contact`` within ``zone`` of the contact point, ``h`` far from it.  With
+    ``order`` 2 the cells are gmsh's quadratic tetrahedra: the midpoint of every edge on
+    the sphere lies on it, the other edges stay straight."""
     radius, h, h_contact, zone = _check(radius, h, h_contact, zone)
     if problem := block_pair(block):
         raise ConfigError(f"mesh.block: {problem}")
@@ -368,6 +378,8 @@ def sphere_on_block(
             raise RuntimeError("the sphere and the block need a vertex each at the contact point")
         _size_field(gmsh, origin, h, h_contact, zone)
         _generate(gmsh, 3)
+        if order > 1:
+            gmsh.model.mesh.setOrder(order)
 
     return gmsh_to_mesh(
         comm, build, "mesh: gmsh cannot build the sphere_on_block", gdim=3, cells=True

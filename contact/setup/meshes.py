@@ -188,9 +188,9 @@ def _built_mesh(cfg: SceneConfig, comm: MPI.Comm) -> tuple[dmesh.Mesh, Tags, Tag
         return (*build(comm, radius, h, h_contact, zone), None)
     if kind == "half_disks":
         radius2, overlap = m.radius2 or radius, m.overlap or 0.0
-        return half_disks(comm, radius, radius2, h, h_contact, zone, overlap)
+        return half_disks(comm, radius, radius2, h, h_contact, zone, overlap, m.geometry_degree)
     assert m.block is not None  # sphere_on_block's (checked at load)
-    return sphere_on_block(comm, radius, m.block, h, h_contact, zone)
+    return sphere_on_block(comm, radius, m.block, h, h_contact, zone, m.geometry_degree)
 
 
 def _sizes(m: MeshConfig) -> tuple[float, float, float, float]:

@@ -103,8 +103,8 @@ MESH_KEYS = {
     "quarter_disk": {"radius", "h", "h_contact", "zone"},
     "sphere_octant": {"radius", "h", "h_contact", "zone"},
     "blocks": {"blocks", "diagonal"},
-    "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap"},
-    "sphere_on_block": {"radius", "block", "h", "h_contact", "zone"},
+    "half_disks": {"radius", "radius2", "h", "h_contact", "zone", "overlap", "geometry_degree"},
+    "sphere_on_block": {"radius", "block", "h", "h_contact", "zone", "geometry_degree"},
     "ring": {"radius", "inner_radius", "cells", "diagonal"},
 }
 #: the mesh types whose boundary parts may be gmsh tags
@@ -525,6 +525,10 @@ class MeshConfig(Section):
     radius2: Float | None = None
     #: half_disks: the lower disk moved up by this much (an interference load)
     overlap: Float | None = None
+    #: half_disks / sphere_on_block: the degree of the coordinate element, 2 for curved
+    #: (isoparametric P2) cells whose boundary edges' midpoints lie on the arcs / the
+    #: sphere (needs ``degree`` 2)
+    geometry_degree: Annotated[int, BeforeValidator(integer(among((1, 2))))] = 1
     #: ring: the radius of the hole (``radius`` the outer one)
     inner_radius: Positive | None = None
     #: sphere_on_block: [half-width, depth] of the block
@@ -607,6 +611,12 @@ class MeshConfig(Section):
         if self.map is not None and len(self.map) != dims:
             raise rule(
                 f"expected {dims} expressions for a {dims}D mesh, got {len(self.map)}", key="map"
+            )
+        if self.geometry_degree > self.degree:
+            raise rule(
+                f"curved cells of degree {self.geometry_degree} carry isoparametric "
+                f"displacements; needs mesh.degree {self.geometry_degree}",
+                key="geometry_degree",
             )
         if self.type in CURVED_MESHES:
             for key in ("radius", "h", "h_contact", "zone") + (

@@ -126,7 +126,8 @@ class ProblemData:
         stresses: u ↦ (P, σ) of a hyperelastic law.
         body: the body number of each cell (DG0) of several bodies in one mesh.
         g_h: the bound on V of a unilateral condition.
-        n: the contact normal at the first point of contact (gdim,).
+        n: the contact normal at the first point of contact (gdim,): at the constrained
+            node that :meth:`DiscreteProblem.contact_gaps` ranks first.
         n_ufl: the rigid obstacle's normal as UFL of the spatial coordinate.
         g_ufl: the rigid obstacle's initial gap as UFL of the spatial coordinate.
         normals: the contact normal of each constrained node (nodes, gdim).
@@ -135,6 +136,9 @@ class ProblemData:
         couplings: the mortar couplings of the pairs (:class:`contact.models.mortar.Coupling`),
             or None: no pair.
         pair_nodes: the first ``pair_nodes`` constrained nodes are the pairs' slave nodes.
+        current_gap: the current gap of each constrained node (row for row with the
+            constraint) where the bound g is not one: pairs coupled on the current
+            configuration of u^k bound the unknowns by g_i^k + x_{i,n}(u^k).
         u_bcs: the Dirichlet conditions on u where the problem's own ``bcs`` act on the
             unknowns of a change of basis.
         reaction_form: the residual form whose value on Γ_D is the reaction force.
@@ -161,6 +165,7 @@ class ProblemData:
     contact_mask: np.ndarray | None = None
     couplings: list | None = None
     pair_nodes: int | None = None
+    current_gap: np.ndarray | None = None
     u_bcs: list | None = None
     reaction_form: fem.Form | None = None
     reaction_basis: PETSc.Mat | None = None
@@ -325,6 +330,19 @@ class DiscreteProblem:
         V = self.V
         nodes = self.constraint.dofs // V.dofmap.index_map_bs
         return V.tabulate_dof_coordinates()[nodes, : V.mesh.geometry.dim]
+
+    def contact_gaps(self) -> np.ndarray:
+        """What the constrained nodes rank by for the first point of contact
+        (``contact.models.problem.first_contact_point``; units of length): σ g, the initial
+        gap; for pairs coupled on the current configuration two columns, the current gap
+        (``ProblemData.current_gap``), then, among the nodes it ties (those touching), the
+        bound g_i^k + x_{i,n}(u^k) = n_i · (Σ_j c_ij X_j − X_i): the reference distance to
+        the node's current projection along its current normal, the initial gap of bodies
+        that have not slid (the centre of a Hertz contact, not its edge)."""
+        con = self.constraint
+        if self.data.current_gap is None:
+            return con.sign * con.g
+        return np.c_[self.data.current_gap, con.sign * con.g]
 
     def nodal_gap(self, x: np.ndarray) -> np.ndarray:
         """σ(g_i − x_i) on the constrained DoFs (owned unknowns ``x``): ≥ 0 when feasible."""

@@ -70,7 +70,10 @@ class Result:
         first_contact: The first point of contact (gdim coordinates): of the constrained
             nodes, the one with the smallest initial gap σg, ties broken in coordinate order
             (``contact.models.problem.first_contact_point``; the same on any number of
-            ranks), or None when no solve filled it in.
+            ranks); with pairs coupled on the current configuration, of the nodes that touch
+            (the smallest current gap) the one of smallest bound
+            (:meth:`~contact.solvers.problem.DiscreteProblem.contact_gaps`); None when no
+            solve filled it in or no node is constrained.
         interface_forces: With mortar pairs, (F_s, F_m): the forces on the pairs' slave and
             master surfaces, Σ of the residual a(u_h, v) − L(v) over their nodes, the
             Dirichlet DoFs left out (``contact.models.mortar.interface_forces``; of the

@@ -5,6 +5,8 @@
     mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
     python demos/bench/bench_two_bodies.py sphere_degrees  # the sphere with P1 and P2, η
     python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
+    python demos/bench/bench_two_bodies.py p2 [--h-contact 0.1 0.05 0.025]   # P2, curved cells
+    python demos/bench/bench_two_bodies.py p2sphere [--h-contact 0.04 0.02]   # the same in 3D
 
 Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
 
@@ -33,7 +35,13 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
   ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
   tangential traction; ``cattaneo_traction.csv`` and ``cattaneo_traction.png`` the computed
-  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh.
+  and the analytic traction at Q/(F P) = 0.25, 0.5, 0.75 on the finest mesh;
+* ``cylinders_p2.csv`` — the two cylinders (``mesh.h`` = 2, ``zone`` = 1, method min) on
+  gmsh meshes of decreasing ``h_contact``, P1, P2 on straight cells and P2 on curved cells
+  (``mesh.geometry_degree: 2``): DoFs, the largest deviation of a slave node's pressure from
+  Hertz's within 0.8 a and the peak's (both over p0), the contact force, a's error and the
+  interface balance; ``sphere_p2.csv`` the same for the sphere on a block
+  (``configs/two_body_hertz_3d.yaml``), with the rms deviation within 0.8 a too.
 """
 
 from __future__ import annotations
@@ -531,10 +539,57 @@ def cattaneo(sizes: list[float]) -> None:
         print(f"wrote {OUT / 'cattaneo_traction.png'}", flush=True)
 
 
+def p2_cells(scene_file: str, sizes: list[float], mesh: list[str], csv_name: str) -> None:
+    """P1, P2 on straight cells and P2 on curved cells of the same gmsh meshes of
+    ``scene_file`` (``mesh``: its other mesh overrides), method min: the slave nodes'
+    deviation from Hertz's pressure within 0.8 a (largest and rms, over p0) and the peak's."""
+    rows = []
+    for h_contact in sizes:
+        for degree, geometry in ((1, 1), (2, 1), (2, 2)):
+            overrides = [
+                *QUIET,
+                *mesh,
+                f"mesh.h_contact={h_contact}",
+                f"mesh.degree={degree}",
+                f"mesh.geometry_degree={geometry}",
+            ]
+            scene = contact.load_scene(ROOT / "configs" / scene_file, overrides)
+            t0 = time.perf_counter()
+            r = contact.solve(scene, method="min", verbose=False)
+            seconds = time.perf_counter() - t0
+            posed = posed_of(scene)
+            res = {**interface_resultants(posed, r), **compare(posed, r).values}
+            X, pressure = slave_pressure(r)
+            a, p0 = res["hertz_a"], res["hertz_p0"]
+            radius = np.linalg.norm(X[:, : X.shape[1] - 1], axis=1)  # from the axis
+            inner = radius < 0.8 * a
+            error = (pressure[inner] - p0 * np.sqrt(1 - (radius[inner] / a) ** 2)) / p0
+            rows.append(
+                {
+                    "h_contact": h_contact,
+                    "degree": degree,
+                    "cells": "curved" if geometry == 2 else "straight",
+                    "dofs": r.dofs,
+                    "converged": r.converged,
+                    "nodal_max_error": float(np.max(np.abs(error))),
+                    "nodal_rms_error": float(np.sqrt(np.mean(error**2))),
+                    "peak_error": float(np.max(pressure) / p0 - 1),
+                    "force": res["contact_force"],
+                    "a_error": res["a_error"],
+                    "balance": res["interface_balance_error"],
+                    "seconds": round(seconds, 2),
+                }
+            )
+    say(f"{scene_file}: P1, P2 on straight cells, P2 on curved cells (min)")
+    table(rows)
+    write(csv_name, rows)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument(
-        "part", choices=("patch", "cylinders", "sphere", "sphere_degrees", "cattaneo")
+        "part",
+        choices=("patch", "cylinders", "sphere", "sphere_degrees", "cattaneo", "p2", "p2sphere"),
     )
     parser.add_argument(
         "--max-dofs",
@@ -548,7 +603,8 @@ def main(argv=None) -> None:
         nargs="+",
         default=None,
         help="sphere (default 0.01 0.005 0.0035) / sphere_degrees (P2, default 0.1 0.05 0.025 "
-        "0.0125) / cattaneo (default 0.02 0.01): gmsh mesh sizes at the contact point",
+        "0.0125) / cattaneo (default 0.02 0.01) / p2 (default 0.1 0.05 0.025) / p2sphere "
+        "(default 0.04 0.02): gmsh mesh sizes at the contact point",
     )
     parser.add_argument(
         "--h-contact-p1",
@@ -573,6 +629,15 @@ def main(argv=None) -> None:
             args.h_contact_p1 or [0.025, 0.0125, 0.009, 0.00625],
             args.max_dofs,
         )
+    elif args.part == "p2":
+        p2_cells(
+            "two_body_hertz_2d.yaml",
+            args.h_contact or [0.1, 0.05, 0.025],
+            ["mesh.h=2.0", "mesh.zone=1.0"],
+            "cylinders_p2.csv",
+        )
+    elif args.part == "p2sphere":
+        p2_cells("two_body_hertz_3d.yaml", args.h_contact or [0.04, 0.02], [], "sphere_p2.csv")
     else:
         sphere(args.h_contact or [0.01, 0.005, 0.0035], args.swap)
 
