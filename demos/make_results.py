@@ -1556,6 +1556,43 @@ def two_bodies() -> str:
     sphere_p2 = rows(folder / "sphere_p2.csv") or []
     if sphere_p2:
         out += [prose("two_bodies", "p2_sphere", table=p2_table(sphere_p2))]
+    p1_start = rows(folder / "p1_start.csv") or []
+    if p1_start:
+        out += [
+            prose(
+                "two_bodies",
+                "p2_from_the_p1",
+                table=table(
+                    [
+                        "scene",
+                        "h_contact",
+                        "P2 DoFs",
+                        "levels (DoFs:steps)",
+                        "cold n+p",
+                        "P1 start n+p",
+                        "cold s",
+                        "P1 start s",
+                        "cold / P1 start",
+                        "max difference",
+                    ],
+                    [
+                        [
+                            r["scene"],
+                            r["h_contact"],
+                            r["dofs"],
+                            r["levels"],
+                            r["cold_newton"],
+                            r["p1_start_newton"],
+                            g(r["cold_seconds"]),
+                            g(r["p1_start_seconds"]),
+                            f"{float(r['ratio']):.2f}",
+                            f"{float(r['difference']):.1e}",
+                        ]
+                        for r in p1_start
+                    ],
+                ),
+            )
+        ]
     cm = rows(folder / "cattaneo.csv") or []
     if cm:
         out += [
@@ -3855,6 +3892,85 @@ def _tta_last_level() -> str:
     )
 
 
+def _tta_ex9_growth() -> list[str]:
+    """ex9 to 4e-3 with the residual indicators at growth 2, 3 and 4
+    (demos/results/adaptive_cost/time_to_accuracy_ex9_growth.csv) and what bounds the loop's
+    time: its phases summed over the levels of a profile to 1.1M DoFs
+    (demos/results/adaptive_cost/profile_ex9_res2_1M.csv) against the uniform run."""
+    data = rows(RES / "adaptive_cost" / "time_to_accuracy_ex9_growth.csv")
+    prof = rows(RES / "adaptive_cost" / "profile_ex9_res2_1M.csv")
+    if not data or not prof:
+        return [missing("demos/results/adaptive_cost/time_to_accuracy_ex9_growth.csv")]
+    uni = [r for r in data if r["run"] == "uniform"]
+    ratio = {
+        r["variant"]: r for r in data if r["run"] == "ratio" and _tta_reference(r) == "uniform"
+    }
+    body, uniform_like = [], []
+    runs = dict.fromkeys(r["run"] for r in data if r["run"] != "ratio")
+    for run in [r for r in runs if not r.startswith("uniform")]:
+        rs = [r for r in data if r["run"] == run]
+        last = rs[-1]
+        if [r["dofs"] for r in rs] == [r["dofs"] for r in uni[: len(rs)]]:
+            uniform_like.append(f"`{run}`")  # every cell marked: the uniform meshes
+        body.append(
+            [
+                f"`{run}`",
+                len(rs),
+                f"{last['dofs']:,}",
+                f"{last['error']:.3e}",
+                f"{last['cpu']:.1f}",
+                f"{ratio[run]['first_reaching_cpu']:.2f}" if run in ratio else "not reached",
+                f"{ratio[run]['interpolated_cpu']:.2f}" if run in ratio else "–",
+            ]
+        )
+    last_dofs = max(
+        (r["dofs"] for r in data if r["run"] in (u[1:-1] for u in uniform_like)), default=0
+    )
+    target = next(iter(ratio.values()))["target"]
+    u = next(r for r in uni if r["error"] <= target)
+    last, before = prof[-1], prof[-2]
+    total = prof[-1]["cpu_total"]
+
+    def summed(phase: str) -> float:
+        return sum(r[f"cpu_{phase}"] for r in prof)
+
+    floor = last["cpu_solve"] + last["cpu_assembly"] + before["cpu_refine"]
+    return [
+        prose(
+            "time_to_accuracy",
+            "ex9_growth",
+            table=table(
+                [
+                    "variant",
+                    "levels",
+                    "final DoFs",
+                    "error",
+                    "loop CPU s",
+                    "adaptive/uniform CPU (first reaching)",
+                    "(interpolated)",
+                ],
+                body,
+            ),
+            uniform_dofs=f"{u['dofs']:,}",
+            uniform_cpu=f"{u['cpu']:.1f}",
+            dofs=f"{last['dofs']:,}",
+            total=f"{total:.1f}",
+            refine=f"{summed('refine'):.1f}",
+            solve=f"{summed('solve'):.1f}",
+            assembly=f"{summed('assembly'):.1f}",
+            estimate=f"{summed('estimate'):.1f}",
+            last_estimate=f"{last['cpu_estimate']:.1f}",
+            last_solve=f"{last['cpu_solve']:.1f}",
+            floor=f"{floor:.1f}",
+            floor_share=f"{floor / u['cpu']:.2f}",
+            uniform_like=" and ".join(uniform_like) or "none",
+            next_uniform=next(
+                (f"{r['dofs']:,} DoFs, {r['error']:.2e}" for r in uni if r["dofs"] > last_dofs), "–"
+            ),
+        )
+    ]
+
+
 def time_to_accuracy() -> str:
     """Section 14: the adaptive loop against uniform meshes at equal error
     (demos/bench/bench_time_to_accuracy.py, with its chart), the loop's memory with earlier
@@ -3985,6 +4101,7 @@ def time_to_accuracy() -> str:
                 ),
             ),
         ]
+        out += _tta_ex9_growth()
     keep = {
         mode: rows(RES / "adaptive_cost" / f"profile_ex9_keep_{mode}.csv")
         for mode in ("all", "last_notrim", "last")

@@ -517,6 +517,47 @@ def test_residual_indicators_mark_and_the_bound_is_computed_where_reported():
     assert stopped.rows[0]["estimator"] == "equilibrated"
 
 
+def test_the_bound_skipped_where_it_cannot_stop_the_loop_and_the_last_level_certified(
+    monkeypatch,
+):
+    """adapt.indicators = residual on ex9 with a tolerance: the bound is computed on the first
+    level (the ratio bound/residual) and on a level whose residual η times that ratio is at
+    most BOUND_SAFETY · tol. The loop stops on the same level, with the same η, as with the
+    earlier rule (2 tol), computing the bound on fewer levels; the last level's η is the
+    bound, ≤ tol and ≥ the energy error; every level it skipped has a bound above tol (the
+    skip cost no level). tol = 0.045 lies 15 % above the stopping level's bound and 18 %
+    below the one before (0.0381, 0.0547), whose prediction is 16 % above 1.1 tol."""
+    from contact.drivers import adaptive
+
+    scene = contact.load_scene(
+        ROOT / "configs" / "peers" / "petsc_ex9.yaml", ["output.verbose=false"]
+    )
+    tol = 0.045
+    runs = {}
+    for safety in (2.0, adaptive.BOUND_SAFETY):
+        monkeypatch.setattr(adaptive, "BOUND_SAFETY", safety)
+        runs[safety] = adapt(
+            scene, tol=tol, growth=2, indicators="residual", max_levels=12, verbose=False
+        )
+    earlier, tight = runs[2.0], runs[adaptive.BOUND_SAFETY]
+    assert adaptive.BOUND_SAFETY < 2.0
+
+    def computed(out):
+        return [r["level"] for r in out.rows if r["estimator"] == "equilibrated"]
+
+    last = tight.rows[-1]
+    assert tight.stop.startswith("eta =") and last["estimator"] == "equilibrated"
+    assert last["error"] <= last["eta"] <= tol  # certified by the bound
+    assert [r["dofs"] for r in tight.rows] == [r["dofs"] for r in earlier.rows]
+    assert last["eta"] == pytest.approx(earlier.rows[-1]["eta"], rel=1e-12)
+    assert computed(tight)[0] == 0 and computed(tight)[-1] == last["level"]
+    assert set(computed(tight)) < set(computed(earlier))
+    for level in tight.levels[1:-1]:
+        if level.estimator == "residual":  # skipped: its bound would not have stopped the loop
+            bound = contact.estimate(level.problem, level.result, "equilibrated").eta
+            assert bound > tol, level.index
+
+
 def test_a_level_to_be_released_sheds_its_operator_before_the_next_solve(monkeypatch):
     """A releasing loop keeps the level before the one being solved only so that its files
     can be written if this solve fails: its operator K is destroyed before the solve (the

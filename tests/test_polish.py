@@ -112,6 +112,40 @@ def test_polisher_lands_on_the_active_set_solution(scene):
     pol.destroy()
 
 
+def test_the_polisher_solves_for_its_step_in_the_vector_of_phi_at_the_trial_point(scene):
+    """Once the step is solved for, Φ at the Newton point W is needed only through its
+    norm: the step takes that vector, so the polisher holds three vectors (W, Φ(W) then the
+    step, Φ_min), not four, through the solver's life — one vector fewer during the exact
+    solve that ends an adaptive level.  It still lands on the active-set solution
+    (:func:`test_polisher_lands_on_the_active_set_solution`) and a rejected step leaves the
+    Newton step alone."""
+    from contact.base.lifetime import petsc_objects
+
+    PETSc.Log.begin()
+    problem, cp, pol, x = _state(scene)
+    before = petsc_objects().get("Vector", 0)
+    one = problem.b.duplicate()  # (a ghosted vector is two PETSc objects)
+    per_vector = petsc_objects().get("Vector", 0) - before
+    one.destroy()
+    before = petsc_objects().get("Vector", 0)
+    again = Polisher(cp, "fb", 0.5, pol.system, {"solve": 0.0, "assembly": 0.0})
+    assert petsc_objects().get("Vector", 0) - before == 3 * per_vector
+    # a Newton point whose polished step raises ‖Φ‖: x = 0 with the step −x_ref (W = x_ref)
+    # is the solution itself; polishing from the origin with y = 0 is rejected or accepted
+    # by ‖Φ‖ alone, and y is only ever replaced by the polished step
+    y = problem.b.duplicate()
+    y.set(0.0)
+    again(x, y)
+    if not again.accepted:
+        assert y.norm() == 0.0
+    else:
+        assert again.taken == pytest.approx(y.norm(), rel=1e-14)
+    again.system = None  # shared with pol
+    for obj in (again.W, again.FW, again.FP):
+        obj.destroy()
+    pol.destroy()
+
+
 def test_no_polishing_when_the_newton_point_already_converged(scene):
     """A Newton point with ‖Φ‖ below SNES's stopping value is not polished (no wasted solve)."""
     ref = contact.solve(scene, method="min")
@@ -152,3 +186,43 @@ def test_staged_initial_polish_resumes_only_on_the_same_active_set():
     assert far.converged and far.iterations > 0
     assert far.krylov_log[0]["rtol"] == STAGE_RTOL and not any(e["resume"] for e in far.krylov_log)
     assert np.abs(far.u_h.x.array - exact.u_h.x.array).max() < 1e-8
+
+
+def test_a_guess_polished_before_newton_keeps_no_law_for_the_jacobian(monkeypatch):
+    """Polishing solves on a law of its own and gives the Newton law back to the
+    matrix-free Jacobian J afterwards; before the first Newton step of a solve (a guess
+    polished first, the first — and largest — GAMG set-up of an adaptive level) J applies no
+    law yet, so no copy of one is made: the solve holds two vectors fewer there.  After a
+    Newton step the law is kept and given back as before, and the solution is the cold
+    solve's (problem A, fb on the CG + GAMG path, the solution plus a small bump)."""
+    from contact.base.lifetime import petsc_objects
+    from contact.solvers import reduced
+    from contact.solvers.linear import ReducedNewtonSystem
+
+    PETSc.Log.begin()
+    scene = contact.load_scene("configs/signorini_free_boundary.yaml", ["mesh.cells=[64,32]"])
+    exact = contact.solve(scene, method="fb", verbose=False, linear="gamg", sequence="off")
+    assert exact.converged
+    solve_law, krylov = ReducedNewtonSystem.solve_law, reduced.ReducedSystem._krylov
+    calls: list[list] = []
+
+    def spied_solve_law(system, *args, **kwargs):
+        calls.append([system.newton_law, petsc_objects().get("Vector", 0), None])
+        return solve_law(system, *args, **kwargs)
+
+    def spied_krylov(system, *args):
+        if calls and calls[-1][2] is None:
+            calls[-1][2] = petsc_objects().get("Vector", 0) - calls[-1][1]
+        return krylov(system, *args)
+
+    monkeypatch.setattr(ReducedNewtonSystem, "solve_law", spied_solve_law)
+    monkeypatch.setattr(reduced.ReducedSystem, "_krylov", spied_krylov)
+    u0 = exact.u_h.copy()
+    u0.interpolate(lambda x: 1e-3 * x[1] * (1 - x[1]) * (1 - x[0] ** 2))
+    u0.x.array[:] += exact.u_h.x.array
+    r = contact.solve(scene, method="fb", verbose=False, linear="gamg", u0=u0)
+    assert r.converged and r.polish_solves >= 1 and calls
+    first_law, _, made = calls[0]
+    assert first_law is False and made == 0, calls
+    assert all(made == 0 for law, _, made in calls if not law), calls
+    assert np.abs(r.u_h.x.array - exact.u_h.x.array).max() < 1e-8

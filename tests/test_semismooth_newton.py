@@ -182,3 +182,58 @@ def test_each_iterate_evaluates_the_residual_once():
     # one per iterate (steps + 1) and the few of the set-up (scaling, ‖Φ(x_0)‖)
     assert once <= steps + 4, (once, steps)
     assert each >= 3 * steps, (each, steps)
+
+
+def test_the_gamg_path_keeps_digests_of_laws_and_iterates_not_copies(monkeypatch):
+    """What the CG + GAMG path remembers across Newton steps — the law A was built from,
+    the last Newton step's law, the iterate whose residual it holds — it only compares
+    later arrays with: it keeps a 32-byte digest of each, not a copy (five vectors at the
+    last level of an adaptive run).  The iteration is that of copies
+    (``lifetime.DIGESTS = False``, the path before): the same Newton steps, GAMG set-ups,
+    Krylov tolerances and iterations, and the same solution to the last bit (the deal.II
+    step-41 obstacle, fb, cold, lagged hierarchy)."""
+    from contact.base import lifetime
+    from contact.solvers import reduced
+
+    scene = contact.load_scene(
+        str(ROOT / "configs" / "peers" / "dealii_step41.yaml"), ["mesh.cells=[48,48]"]
+    )
+    p = build_problem(scene)
+    n = p.b.getLocalSize()
+    options = SolverOptions.parse({"method": "fb", "linear": "gamg"})
+    krylov, records, solvers = reduced.ReducedSystem._krylov, [], []
+
+    def spied(system, *args):
+        records.append((system._held, system._newton, solvers[-1].cp._memo))
+        return krylov(system, *args)
+
+    monkeypatch.setattr(reduced.ReducedSystem, "_krylov", spied)
+
+    def size(record) -> int:
+        if record is None:
+            return 0
+        if isinstance(record, bytes):
+            return len(record)
+        return sum(np.asarray(a).nbytes for a in record)
+
+    runs = {}
+    try:
+        for digests in (True, False):
+            monkeypatch.setattr(lifetime, "DIGESTS", digests)
+            records.clear()
+            with SemismoothNewton(p, options) as solver:
+                solvers.append(solver)
+                r = solver.solve(fem.Function(p.V))
+            assert r.converged and r.linear == "gamg", r.reason
+            largest = [max(size(rec[k]) for rec in records) for k in range(3)]
+            runs[digests] = (r, largest, r.u_h.x.array.copy())
+    finally:
+        p.destroy()
+    (new, new_sizes, new_u), (old, old_sizes, old_u) = runs[True], runs[False]
+    assert new_sizes == [32, 32, 32], new_sizes
+    assert old_sizes == [16 * n, 16 * n, 8 * n], (old_sizes, n)
+    assert new.iterations == old.iterations >= 2
+    assert [(e["rtol"], e["iterations"], e["setups"]) for e in new.krylov_log] == [
+        (e["rtol"], e["iterations"], e["setups"]) for e in old.krylov_log
+    ]
+    assert np.array_equal(new_u, old_u)

@@ -22,11 +22,13 @@ each finished step (``Result.release``, ``Step.release``).  Before, a path ended
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import re
 import tempfile
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -132,3 +134,54 @@ def return_freed_memory() -> bool:
         return False
     trim(0)
     return True
+
+
+#: :func:`record` keeps a digest of the arrays (False: a copy of them, the path before)
+DIGESTS = True
+
+
+def record(*arrays: Any) -> bytes | tuple[Any, ...]:
+    """A record of the arrays' values that :func:`matches` compares later arrays with.
+
+    A solver that skips work while its input has not changed (the law a preconditioner was
+    built from, the iterate a residual was evaluated at) needs to know whether new arrays
+    equal old ones, not the old values themselves.  With :data:`DIGESTS` the record is a
+    32-byte BLAKE2b digest of the arrays' bytes, dtypes and shapes instead of a copy: at
+    10⁶ DoFs a copy of a vector is 8 MB, and a solver holds several such records through
+    its whole solve.  Equal bytes give equal digests; different ones give the same digest
+    with probability 2⁻²⁵⁶.  (Bytes, not values: −0.0 and 0.0 differ, so a record errs
+    only towards "changed", i.e. towards doing the work again.)
+
+    Args:
+        arrays: NumPy arrays (or objects :func:`numpy.asarray` takes).
+
+    Returns:
+        The digest (:data:`DIGESTS`), or a tuple of copies of the arrays.
+    """
+    if not DIGESTS:
+        return tuple(np.array(a, copy=True) for a in arrays)
+    digest = hashlib.blake2b(digest_size=32)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(memoryview(a).cast("B"))
+    return digest.digest()
+
+
+def matches(old: bytes | tuple[Any, ...] | None, *arrays: Any) -> bool:
+    """Whether ``arrays`` equal those of the :func:`record` ``old`` (None: no record, False).
+
+    Args:
+        old: a record made by :func:`record`, or None.
+        arrays: the arrays to compare, in the order of the record's.
+
+    Returns:
+        True if every array equals its recorded one (a digest: its bytes; copies: its values).
+    """
+    if old is None:
+        return False
+    if isinstance(old, bytes):
+        return old == record(*arrays) if DIGESTS else False
+    return len(old) == len(arrays) and all(
+        np.array_equal(a, b) for a, b in zip(old, arrays, strict=True)
+    )

@@ -14,8 +14,12 @@ docs/theory.md §8, :mod:`.sequencing`), coarsest first:
 * a scene made by :func:`contact.refine`: the scenes it was refined from (those whose
   DoFs fall by ≥ 4× from one chosen level to the next), carried over by
   the exact prolongation of nested refinement (:func:`~.sequencing.prolong_chain`);
-* a user's ``.msh`` file (and P2 on a built-in mesh), several bodies on any other mesh:
-  no coarser mesh — a cold start, reported in ``Result.sequence_note``.
+* a scene of degree p > 1 (``mesh.degree``): the same scene at P1 on the same mesh (about
+  p^dim times fewer DoFs; P1's own coarse levels above before it), its solution
+  interpolated exactly into P_p — the only level where the mesh has no coarser one (not
+  on curved cells, ``mesh.geometry_degree: 2``, which carry P2 alone: a cold start);
+* a user's ``.msh`` file, several bodies on any other mesh (at P1): no coarser mesh — a
+  cold start, reported in ``Result.sequence_note``.
 
 A frictional load step after the first carries its history to the coarse levels: the
 previous step's displacement u_prev (from which the slip increments are measured) is
@@ -74,11 +78,19 @@ def _dofs(scene: Scene, bs: int) -> int:
     return scene.mesh.geometry.index_map().size_global * bs
 
 
-def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], Scene]], str]:
+def plan(
+    scene: Scene, option, bs: int, degree: int, floating: bool = False
+) -> tuple[list[Callable[[], Scene]], str]:
     """Builders of the coarse scenes (coarsest first) and a note ('' or why there are
-    fewer levels than asked / none)."""
-    fine_dofs = _dofs(scene, bs)
+    fewer levels than asked / none).
+
+    At degree p > 1 the finest coarse level is the scene at P1 on the same mesh (about
+    p^dim times fewer DoFs), itself after P1's own coarse levels (:func:`_degree_plan`);
+    ``auto`` leaves it out where a body is ``floating`` (held by contact alone): there the
+    stopping test has no round-off floor, and a P1 guess that is P_p's solution already (a
+    patch test) leaves ‖Φ‖ at round-off above atol · F."""
     dim = scene.mesh.topology.dim
+    fine_dofs = _dofs(scene, bs) * degree**dim  # P1 DoFs × p^dim ≈ the P_p DoFs
     wanted = levels_wanted(option, fine_dofs, auto_min_dofs(scene.config.model.type, dim))
     if wanted == 0:
         return [], ""
@@ -91,13 +103,17 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
     if scene.parent is not None:  # adaptive hierarchies grow slowly: every 4× in DoFs
         chain = ancestors(scene, ANCESTOR_RATIO, floor, bs)[:limit]
         return [functools.partial(_same, s) for s in reversed(chain)], ""
+    if degree != 1:
+        if scene.config.mesh.geometry_degree != 1:  # curved cells carry isoparametric P2 only
+            return [], "grid sequencing: curved cells (mesh.geometry_degree 2) need P2; cold start"
+        if floating and option == "auto":
+            return [], ""
+        return _degree_plan(scene, wanted, bs)
     kind = scene.config.mesh.type
     if scene.bodies is not None and kind not in GMSH_BUILT:
         return [], (
             f"grid sequencing: several bodies on a {kind} mesh have no coarser mesh; cold start"
         )
-    if degree != 1:  # the transfers between levels interpolate P1 (point_transfer)
-        return [], "grid sequencing needs P1 (mesh.degree: 1); cold start"
     if kind in BUILT_IN:
         cells = list(_grid_axes(scene.config.mesh))
         builders: list[Callable[[], Scene]] = []
@@ -123,6 +139,31 @@ def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], 
             builders.append(functools.partial(_with_mesh, scene, {"h": h, "h_contact": min(hc, h)}))
         return builders[::-1], ""
     return [], "grid sequencing: a mesh file has no coarser mesh; cold start"
+
+
+def _degree_plan(
+    scene: Scene, wanted: int | None, bs: int
+) -> tuple[list[Callable[[], Scene]], str]:
+    """The coarse levels of a scene of degree p > 1: P1's coarse levels, then P1 on the
+    scene's own mesh.
+
+    A P1 solution interpolates exactly into P_p on the same mesh (:func:`transfer`), so the
+    P_p Newton iteration starts from the P1 active set and displacement and has only the
+    local corrections of the higher degree left (where no coarser mesh exists — a mesh
+    file, several bodies on a built-in mesh — this is the only level).  ``wanted``: the
+    number of coarse levels asked (None: ``auto``); the P1 levels below the same-mesh one
+    follow P1's own ``auto`` rule on the mesh's P1 DoFs.
+    """
+    p1 = _with_degree(scene, 1)
+    below, note = plan(p1, "auto" if wanted is None else wanted - 1, bs, 1)
+    if note.endswith("; cold start"):  # only the P1 level on the same mesh starts cold
+        note = note.removesuffix("; cold start") + "; P1 on the same mesh starts cold"
+    return [*below, functools.partial(_same, p1)], note
+
+
+def _with_degree(scene: Scene, degree: int) -> Scene:
+    """The scene with another ``mesh.degree`` on the same mesh (its tags and bodies)."""
+    return dataclasses.replace(scene, config=scene.config.with_mesh(degree=degree))
 
 
 def auto_min_dofs(model: str, dim: int) -> int | None:
@@ -171,19 +212,22 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
 
 
 def scene_hierarchy(
-    scene: Scene, V: fem.FunctionSpace, opts: SolverConfig, solve: Callable
+    scene: Scene, V: fem.FunctionSpace, opts: SolverConfig, solve: Callable, floating: bool = False
 ) -> Hierarchy:
     """The coarse levels of ``opts.sequence`` (``opts``: the fine solve's solver section with
     its call's overrides) as a :class:`~.sequencing.Hierarchy`: each a scene on a coarser mesh
     whose solver section has no sequencing and :data:`~.sequencing.COARSE_RTOL`, solved by
     ``solve`` (:func:`contact.setup.run.solve`), a load step's history restricted to it
     (its coarsest level starts from the previous step's solution, and the levels' solution
-    replaces a frictional step's guess)."""
+    replaces a frictional step's guess); ``floating``: a body of the problem is held by
+    contact alone (:func:`plan`)."""
     bs = V.dofmap.index_map_bs
     degree = V.element.basix_element.degree
-    builders, note = plan(scene, opts.sequence, bs, degree)
+    builders, note = plan(scene, opts.sequence, bs, degree, floating)
     coarse_solver = opts.model_copy(update={"sequence": "off", "rtol": COARSE_RTOL})
     u_prev = scene.history.get("u_prev")
+    if u_prev is not None and degree != 1:  # the coarse levels are P1: restrict through P1
+        u_prev = _on_space(u_prev, fem.functionspace(scene.mesh, ("Lagrange", 1, V.value_shape)))
 
     def level(build: Callable[[], Scene]) -> tuple[Scene, DiscreteProblem]:
         coarse = build()
@@ -217,6 +261,8 @@ def transfer(
 ) -> fem.Function:
     """The coarse solution ``u`` on the fine scene's space (same element)."""
     V = V or fem.functionspace(fine.mesh, u.function_space.ufl_element())
+    if coarse.mesh is fine.mesh:  # a lower degree on the same mesh: nested spaces
+        return _on_space(u, V)
     if fine.parent is not None:
         return prolong_chain(u, coarse, fine, V)
     if fine.config.mesh.type in BUILT_IN:
@@ -230,9 +276,18 @@ def restrict(u: fem.Function, fine: Scene, coarse: Scene) -> fem.Function:
     grid (:class:`GridTransfer`: exact), on gmsh meshes the coarse points are located in
     the fine cells (:func:`point_transfer`)."""
     V = fem.functionspace(coarse.mesh, u.function_space.ufl_element())
+    if coarse.mesh is fine.mesh:
+        return _on_space(u, V)
     if fine.config.mesh.type in BUILT_IN:
         return GridTransfer(fine).apply(u, coarse, V)
     return point_transfer(u, V, fine.bodies, coarse.bodies)
+
+
+def _on_space(u: fem.Function, V: fem.FunctionSpace) -> fem.Function:
+    """``u`` interpolated into V, a Lagrange space on u's mesh (exact from a lower degree)."""
+    out = fem.Function(V)
+    out.interpolate(u)
+    return out
 
 
 class GridTransfer:

@@ -325,7 +325,8 @@ class SolverConfig(SolverOptions, Section):
     """A scene's ``solver`` section: the solver's knobs (:class:`SolverOptions`, what the
     solver receives: :meth:`knobs`) and the driver's: ``u0`` — the initial guess, an
     expression (every component) or one per component; ``sequence`` — grid sequencing of
-    a single solve, ``auto``, ``off`` or the number of coarser levels; ``max_dofs`` — the
+    a single solve, ``auto``, ``off`` or the number of coarser levels (at ``mesh.degree``
+    2 the finest of them is P1 on the same mesh); ``max_dofs`` — the
     DoF budget of one solve, ``auto`` (:mod:`contact.setup.budget`) or a number;
     ``stopping`` — ``fixed`` or ``adaptive`` (:mod:`contact.solvers.stopping`) with its
     ``gamma_lin``, ``gamma_alg``."""

@@ -68,6 +68,7 @@ class BlockReducedSystem(ReducedSystem):
             dirichlet=problem.dirichlet_rows(),
         )
         self.l = self.K.createVecLeft()  # L: the free rows' scaling
+        self.p = self.K.createVecLeft()  # P = diag(free)
         self._d_fixed = np.ones(self.fixed.shape)  # D_ii on the fixed rows (1 elsewhere)
         self._blocks: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros(0))
 
@@ -126,3 +127,4 @@ class BlockReducedSystem(ReducedSystem):
     def destroy(self) -> None:
         super().destroy()  # destroys H as J
         self.l.destroy()
+        self.p.destroy()

@@ -230,20 +230,22 @@ class ReducedNewtonSystem(ReducedSystem):
     ) -> None:
         """y = H⁻¹ F for another law (polishing); ``rtol`` and ``resume`` as in
         :meth:`.reduced.ReducedSystem.solve`.  The Newton law stays the one the matrix-free J
-        applies; the next Newton step rebuilds its own A."""
-        s_newton, d_newton = self.s.copy(), self.d.copy()
+        applies; the next Newton step rebuilds its own A.  (Before the first Newton step of a
+        solve — a guess polished first — J applies no law yet and none is kept.)"""
+        kept = (self.s.copy(), self.d.copy()) if self.newton_law else None
         # an exact solve on a new law sets GAMG up afresh (:meth:`solve`): A need not be kept
         # apart from the lagged hierarchy's matrix meanwhile
-        self.exact_law = not resume
+        self.exact_law, self.polishing = not resume, True
         try:
             self.set_law(s, d)
         finally:
-            self.exact_law = False
+            self.exact_law, self.polishing = False, False
         self.solve(F, y, rtol=rtol, resume=resume)
-        s_newton.copy(self.s)
-        d_newton.copy(self.d)
-        s_newton.destroy()
-        d_newton.destroy()
+        if kept is not None:
+            kept[0].copy(self.s)
+            kept[1].copy(self.d)
+            for vec in kept:
+                vec.destroy()
 
     def count(self, ksp: PETSc.KSP) -> None:
         """The inner solves count themselves."""

@@ -32,6 +32,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base.lifetime import matches, record
 from . import ncp
 from .problem import DiscreteProblem, NodeBlockMatrix
 
@@ -46,7 +47,8 @@ class Complementarity:
         self.dofs, self.g, self.w, self.sign = con.dofs, con.g, con.w, con.sign
         self.s, self.d = problem.b.duplicate(), problem.b.duplicate()  # Jacobian scalings
         # (:meth:`remember`) the iterate whose (a, b) ``self.R`` and ``_pair`` hold
-        self._memo: np.ndarray | None = None
+        # (a record, :func:`~contact.base.lifetime.record`: a digest, not a copy)
+        self._memo: bytes | tuple | None = None
         self._pair: tuple[np.ndarray, np.ndarray] | None = None
         self.remembering = False
         self.residuals = 0  # evaluations of R (the products K x of a linear residual)
@@ -65,8 +67,7 @@ class Complementarity:
         set, the Jacobian its law and min's cycle guard the piece, all at the same iterate,
         and each needs R(x) = K x − b (collective)."""
         if self.remembering:
-            xa = x.array_r
-            local = self._memo is not None and np.array_equal(self._memo, xa)
+            local = matches(self._memo, x.array_r)
             if self.p.b.getComm().tompi4py().allreduce(local, op=MPI.LAND):
                 assert self._pair is not None
                 return (*self._pair, self.R.array_r)
@@ -77,7 +78,7 @@ class Complementarity:
         a = self.sign * (self.g - u)
         b = -self.sign * self.c * r[self.dofs] / self.w
         if self.remembering:
-            self._memo, self._pair = x.array_r.copy(), (a, b)
+            self._memo, self._pair = record(x.array_r), (a, b)
         return a, b, r
 
     def remember(self, on: bool) -> None:

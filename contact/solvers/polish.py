@@ -42,7 +42,9 @@ class Polisher:
     def __init__(self, cp: Complementarity, method: str, mu: float, system, timers: dict):
         problem = cp.p
         self.cp, self.method, self.mu, self.system, self.timers = cp, method, mu, system, timers
-        self.W, self.FW, self.FP, self.dP = (problem.b.duplicate() for _ in range(4))
+        # the trial point, Φ there (then the step: only ‖Φ‖ is needed once it is solved
+        # for, so the step takes its vector), Φ_min at x (then at the polished point)
+        self.W, self.FW, self.FP = (problem.b.duplicate() for _ in range(3))
         self.solves, self.accepted = 0, False
         self.taken: float | None = None  # ‖step‖ of the last attempt, None if none was made
         self.initial_accepted = False
@@ -58,23 +60,23 @@ class Polisher:
             a_w, b_w = cp.phi(W, self.FW, self.method, self.mu)  # one residual per point
             a, b = cp.phi(x, self.FP, "min", self.mu)
             same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
-            if (
-                not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND)
-                or norm2(self.FW) <= self.done
-            ):
+            f_w = norm2(self.FW)
+            if not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND) or f_w <= self.done:
                 return
+            del a_w, b_w  # not held through the solve
             self.taken = norm2(y)
             s, d = cp.law(a, b, "min", self.mu)
+        step = self.FW
         with solve:
-            self.system.solve_law(s, d, self.FP, self.dP)
+            self.system.solve_law(s, d, self.FP, step)
         self.solves += 1
         with assembly:
             x.copy(W)
-            W.axpy(-1.0, self.dP)  # W = P
+            W.axpy(-1.0, step)  # W = P
             cp.phi(W, self.FP, self.method, self.mu)
-            if norm2(self.FP) < norm2(self.FW):
-                self.dP.copy(y)
-                self.accepted, self.taken = True, norm2(self.dP)
+            if norm2(self.FP) < f_w:
+                step.copy(y)
+                self.accepted, self.taken = True, norm2(step)
 
     def initial(self, x: PETSc.Vec, stop: float) -> float:
         """Polish the initial guess x itself (a nested or sequenced guess already has nearly
@@ -100,21 +102,23 @@ class Polisher:
             cp.phi(x, self.FP, "min", self.mu)
             s, d = cp.law(a, b, "min", self.mu)
             self.system.stop = stop
+        step = self.FW  # Φ(x) is needed no more: its norm is f0
         with solve:  # (the staged solve's look at the active set counts as solving)
             if self.system.resumable:  # a first look at the step, finished if it keeps the set
-                self.system.solve_law(s, d, self.FP, self.dP, rtol=STAGE_RTOL)
+                self.system.solve_law(s, d, self.FP, step, rtol=STAGE_RTOL)
                 x.copy(self.W)
-                self.W.axpy(-1.0, self.dP)
-                a_w, b_w = cp.phi(self.W, self.FW, "min", self.mu)
+                self.W.axpy(-1.0, step)
+                a_w, b_w, _ = cp.pair(self.W)
                 same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
+                del a_w, b_w  # not held through the solve
                 if x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND):
-                    self.system.solve_law(s, d, self.FP, self.dP, resume=True)
+                    self.system.solve_law(s, d, self.FP, step, resume=True)
             else:
-                self.system.solve_law(s, d, self.FP, self.dP)
+                self.system.solve_law(s, d, self.FP, step)
         self.solves += 1
         with assembly:
             x.copy(self.W)
-            self.W.axpy(-1.0, self.dP)
+            self.W.axpy(-1.0, step)
             cp.phi(self.W, self.FP, self.method, self.mu)
             if norm2(self.FP) < f0:
                 self.W.copy(x)
@@ -122,6 +126,6 @@ class Polisher:
         return f0
 
     def destroy(self) -> None:
-        for obj in (self.W, self.FW, self.FP, self.dP):
+        for obj in (self.W, self.FW, self.FP):
             obj.destroy()
         self.system = self.cp = None  # type: ignore[assignment]  # released: unused after destroy

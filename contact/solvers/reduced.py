@@ -86,6 +86,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..base.errors import ConfigError
+from ..base.lifetime import matches, record
 from ..base.norms import norm2
 from ..base.timing import Stopwatch
 
@@ -150,7 +151,7 @@ class ReducedSystem:
         self.share = self.SHARE
         self.Kdiag = K.getDiagonal()
         self.s, self.d = K.createVecLeft(), K.createVecLeft()
-        self.p, self.y_fixed, self.r, self.work = (K.createVecLeft() for _ in range(4))
+        self.y_fixed, self.r, self.work = (K.createVecLeft() for _ in range(3))
         self.ksp = PETSc.KSP().create(K.getComm())
         self.ksp.setOptionsPrefix(prefix)
         self.ksp.setOperators(self.A, self.P)
@@ -169,9 +170,10 @@ class ReducedSystem:
         self.guess = False  # the iteration starts from a guess: first step exact
         # adaptive stopping (.stopping): the Krylov tolerance
         self.stopping: AdaptiveStopping | None = None
-        # the law A holds, the law of the last Newton solve: (s, d)
-        self._held: tuple[np.ndarray, np.ndarray] | None = None
-        self._newton: tuple[np.ndarray, np.ndarray] | None = None
+        # the law A holds, the law of the last Newton solve: records of (s, d)
+        # (:func:`~contact.base.lifetime.record`: digests, not copies)
+        self._held: bytes | tuple | None = None
+        self._newton: bytes | tuple | None = None
         self.krylov_iterations = 0
         self.log: list[dict] = []  # one entry per inner solve: rtol, iterations, seconds
         self.fixed_rows = 0
@@ -185,6 +187,8 @@ class ReducedSystem:
         self.lag = True
         self.lag_rule = self.LAG_RULES[0]
         self.exact_law = False  # the next law is solved exactly (polishing): no lagging
+        self.polishing = False  # the law being set is a polishing solve's, not J's
+        self.newton_law = False  # J has applied a Newton step's law since :meth:`restart`
         self._built_fixed: np.ndarray | None = None  # the fixed rows GAMG's P was built with
         self._fresh_rate: float | None = None
         self._lag_ok, self._lagged = False, False
@@ -248,22 +252,22 @@ class ReducedSystem:
     def set_law(self, s: PETSc.Vec, d: PETSc.Vec) -> None:
         """Build A for the law (s, d) (the Newton step's or a polishing step's).  A law
         equal to the one A holds leaves A, and so GAMG's setup, untouched."""
+        self.newton_law = self.newton_law or not self.polishing
         s.copy(self.s)
         d.copy(self.d)
         sa, da = self.s.array_r, self.d.array_r
         if self._same(self._held, sa, da):
             return
-        self._held = (sa.copy(), da.copy())
+        self._held = record(sa, da)
         fixed = sa <= FIXED * da / np.maximum(np.abs(self.Kdiag.array_r), np.finfo(float).tiny)
         fixed |= self.dirichlet
         self.fixed = fixed
         self.fixed_rows = int(fixed.sum())
-        p = self.p.array_w
-        p[:] = np.where(fixed, 0.0, 1.0)
         self._begin_law()
         self.K.copy(self.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)  # type: ignore[arg-type]
-        self.A.diagonalScale(L=self.p, R=self.p)
         diag = self.work.array_w
+        diag[:] = np.where(fixed, 0.0, 1.0)  # P = diag(free), in the work vector
+        self.A.diagonalScale(L=self.work, R=self.work)
         with np.errstate(divide="ignore", invalid="ignore"):
             diag[:] = np.where(fixed, 1.0, da / np.where(fixed, 1.0, sa))
         self.A.setDiagonal(self.work, addv=PETSc.InsertMode.ADD_VALUES)  # type: ignore[arg-type]
@@ -330,7 +334,7 @@ class ReducedSystem:
             law = self._law()
             same = self._same(self._newton, *law)
             rtol = self._rtol if same else self._forcing(norm2(F))
-            self._newton = (law[0].copy(), law[1].copy())
+            self._newton = record(*law)
         atol = 0.05 * self.stop  # ‖Φ_new‖ ≤ 2 ‖r_A‖ (s ≤ 2)
         if self.stopping is not None:  # natural norm: η_alg ≤ γ_alg (η_disc + η_lin)
             atol = self.stopping.krylov_atol()
@@ -382,6 +386,7 @@ class ReducedSystem:
         self.changed = None
         self.previous = None
         self._newton = None
+        self.newton_law = False
         self._rises = self._forced = 0
         self._loose = False
         if self._direction is not None:
@@ -507,8 +512,8 @@ class ReducedSystem:
         self._lag_ok = self._fresh_rate is not None
 
     def _same(self, law, sa: np.ndarray, da: np.ndarray) -> bool:
-        """Whether (sa, da) equals ``law`` on every rank (collective)."""
-        local = law is not None and np.array_equal(law[0], sa) and np.array_equal(law[1], da)
+        """Whether (sa, da) equals the recorded ``law`` on every rank (collective)."""
+        local = matches(law, sa, da)
         return bool(self.K.getComm().tompi4py().allreduce(local, op=MPI.LAND))
 
     def _forcing(self, fnorm: float) -> float:
@@ -549,7 +554,6 @@ class ReducedSystem:
             self.Kdiag,
             self.s,
             self.d,
-            self.p,
             self.y_fixed,
             self.r,
             self.work,

@@ -11,7 +11,8 @@ still alive of earlier levels: dolfinx meshes and PETSc objects (matrices, vecto
 PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Writes CSV.
 ``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once),
 ``--table-once`` that of its cell table (whole but for two columns before the blocks),
-``--keep-operator`` that of the level before the last (whole during the last solve).
+``--keep-operator`` that of the level before the last (whole during the last solve),
+``--copies`` that of the solver's records of laws and iterates (copies, not digests).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
@@ -138,10 +139,17 @@ def main() -> None:
         help="a level to be released keeps its operator K during the next level's solve "
         "(contact.drivers.adaptive.SHED_PREVIOUS = False)",
     )
+    ap.add_argument(
+        "--copies",
+        action="store_true",
+        help="the CG + GAMG path keeps copies of its laws and iterate, not digests "
+        "(contact.base.lifetime.DIGESTS = False)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
     lifetime.TRIM = not args.no_trim
+    lifetime.DIGESTS = not args.copies
     if args.whole_table:
         from contact.adaptivity.equilibration import flux
 

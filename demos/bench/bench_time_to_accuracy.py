@@ -216,6 +216,7 @@ PLAIN = (
     ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
     ("contact.adaptivity.transfer", "TAGGED_PARENTS_ONLY"),
     ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
+    ("contact.adaptivity.equilibration.flux", "SORTED_BLOCKS"),
 )
 
 

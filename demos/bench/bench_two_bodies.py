@@ -4,6 +4,7 @@
     python demos/bench/bench_two_bodies.py cylinders       # two cylinders: adaptive, slave/master
     mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
     python demos/bench/bench_two_bodies.py sphere_degrees  # the sphere with P1 and P2, η
+    python demos/bench/bench_two_bodies.py p1_start [--h-contact 0.1 0.05]  # P2 cold / from P1
     python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
     python demos/bench/bench_two_bodies.py p2 [--h-contact 0.1 0.05 0.025]   # P2, curved cells
     python demos/bench/bench_two_bodies.py p2sphere [--h-contact 0.04 0.02]   # the same in 3D
@@ -31,6 +32,11 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   h_contact = 0.05 with the residual estimator): DoFs, force, strain energy E_h, η, the a
   and p0 errors against Hertz, the force's error against the limit of the P2 gmsh
   sequence and the energy error √(2 |E_h − E|) against that sequence's limit E, η over it;
+* ``p1_start.csv`` — P2 pairs started cold (``solver.sequence: off``) and from P1 on the
+  same mesh (``auto``): the sphere on a block at the given ``h_contact`` and the 2D Hertz
+  pair at 0.05, fb; Newton steps + polishing solves and seconds of each (the coarse levels
+  included), their ratio cold / P1-start, and the largest nodal difference of the two
+  answers relative to the largest displacement;
 * ``cattaneo.csv`` — two cylinders with Coulomb friction F = 0.3, the load path of
   ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
   ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
@@ -439,6 +445,45 @@ def sphere_degrees(p2_sizes: list[float], p1_sizes: list[float], max_dofs: int) 
     write("sphere_degrees.csv", rows)
 
 
+def p1_start(sizes: list[float]) -> None:
+    """P2 pairs cold and started from P1 on the same mesh, in one process."""
+    cases = [("two_body_hertz_3d", h) for h in sizes] + [("two_body_hertz_2d", 0.05)]
+    rows = []
+    for name, h_contact in cases:
+        scene = contact.load_scene(
+            ROOT / "configs" / f"{name}.yaml",
+            QUIET + ["adapt=null", "mesh.degree=2", f"mesh.h_contact={h_contact}"],
+        )
+        runs = {}
+        for sequence in ("off", "auto"):
+            t0 = time.perf_counter()
+            r = contact.solve(scene, method="fb", verbose=False, sequence=sequence)
+            runs[sequence] = (r, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
+        (cold, t_cold), (warm, t_warm) = runs["off"], runs["auto"]
+        u = cold.u_h.x.array
+        diff = comm.allreduce(float(np.max(np.abs(warm.u_h.x.array - u))), op=MPI.MAX)
+        scale = comm.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
+        rows.append(
+            {
+                "scene": name,
+                "h_contact": h_contact,
+                "dofs": cold.dofs,
+                "ranks": comm.size,
+                "converged": cold.converged and warm.converged,
+                "cold_newton": f"{cold.iterations}+{cold.polish_solves}",
+                "p1_start_newton": f"{warm.iterations}+{warm.polish_solves}",
+                "levels": " ".join(f"{lv.dofs}:{lv.newton_iterations}" for lv in warm.sequence),
+                "cold_seconds": round(t_cold, 2),
+                "p1_start_seconds": round(t_warm, 2),
+                "ratio": t_cold / t_warm,
+                "difference": diff / scale,
+            }
+        )
+        say(f"{name} P2 h_contact {h_contact}: cold / P1-start {t_cold / t_warm:.2f}")
+    table(rows)
+    write("p1_start.csv", rows)
+
+
 def cattaneo(sizes: list[float]) -> None:
     from contact.post.cattaneo import traction
     from contact.setup.run import run_load_path
@@ -589,7 +634,16 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument(
         "part",
-        choices=("patch", "cylinders", "sphere", "sphere_degrees", "cattaneo", "p2", "p2sphere"),
+        choices=(
+            "patch",
+            "cylinders",
+            "sphere",
+            "sphere_degrees",
+            "p1_start",
+            "cattaneo",
+            "p2",
+            "p2sphere",
+        ),
     )
     parser.add_argument(
         "--max-dofs",
@@ -603,8 +657,9 @@ def main(argv=None) -> None:
         nargs="+",
         default=None,
         help="sphere (default 0.01 0.005 0.0035) / sphere_degrees (P2, default 0.1 0.05 0.025 "
-        "0.0125) / cattaneo (default 0.02 0.01) / p2 (default 0.1 0.05 0.025) / p2sphere "
-        "(default 0.04 0.02): gmsh mesh sizes at the contact point",
+        "0.0125) / p1_start (3D, default 0.1 0.05) / cattaneo (default 0.02 0.01) / p2 "
+        "(default 0.1 0.05 0.025) / p2sphere (default 0.04 0.02): gmsh mesh sizes at the "
+        "contact point",
     )
     parser.add_argument(
         "--h-contact-p1",
@@ -623,6 +678,8 @@ def main(argv=None) -> None:
         cylinders(args.max_dofs)
     elif args.part == "cattaneo":
         cattaneo(args.h_contact or [0.02, 0.01])
+    elif args.part == "p1_start":
+        p1_start(args.h_contact or [0.1, 0.05])
     elif args.part == "sphere_degrees":
         sphere_degrees(
             args.h_contact or [0.1, 0.05, 0.025, 0.0125],

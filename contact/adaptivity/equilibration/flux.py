@@ -66,6 +66,10 @@ FLOW_ROUNDS = 1
 #: quadrature points are most of its memory, ~300 of its ~430 bytes per cell for P1 in 2D);
 #: None: the whole table at once (the old path, and the parallel one)
 BLOCK_CELLS: int | None = 65536
+#: the rows of each block of vertices found by one stable sort of the table's vertices by
+#: block (linear in the cells); False: a pass over the whole table per block (the plain path,
+#: quadratic in the cells: the blocks are ~cells / :data:`BLOCK_CELLS`); the same rows
+SORTED_BLOCKS = True
 #: with blocks, the table itself is made a block at a time (:class:`.cells.CellSource`: no
 #: column for every cell at once; λ̃_h's functions and osc_T also a block at a time); False:
 #: the table whole but for t and τ, the old path (the same numbers)
@@ -233,11 +237,17 @@ def _patches_in_blocks(
     lo, hi = vertices
     n = len(gvert)
     blocks = max(1, -(-n // (BLOCK_CELLS or n)))
+    bounds = lo + (hi - lo) * np.arange(blocks + 1) // blocks  # block b: bounds[b] … [b + 1]
+    found = block_rows(gvert, bounds) if SORTED_BLOCKS else None
     alpha, osc = np.zeros((n, ref.m)), np.full(n, np.nan)
     defect, counters = 0.0, {"cell_evaluations": 0, "work_rows": 0}
     for b in range(blocks):
-        v0, v1 = lo + (hi - lo) * b // blocks, lo + (hi - lo) * (b + 1) // blocks
-        rows = np.flatnonzero(np.any((gvert >= v0) & (gvert < v1), axis=1))
+        v0, v1 = int(bounds[b]), int(bounds[b + 1])
+        rows = (
+            found[b]
+            if found is not None
+            else np.flatnonzero(np.any((gvert >= v0) & (gvert < v1), axis=1))
+        )
         part = rows_of(rows)
         out, part_osc = solve_patches_compiled(
             MPI.COMM_SELF, kernel, part, (v0, v1), ref, multiplier, sign, flow=flow
@@ -249,6 +259,22 @@ def _patches_in_blocks(
         counters["work_rows"] = max(counters["work_rows"], out.stats["work_rows"])
         del part, out, part_osc  # before the next block's rows are made
     return PatchOutput(alpha, defect, counters), osc
+
+
+def block_rows(gvert: np.ndarray, bounds: np.ndarray) -> list[np.ndarray]:
+    """The rows of the cells with a vertex in each block [bounds[b], bounds[b + 1]), in
+    increasing order (as a scan of ``gvert`` per block finds them): one stable sort of the
+    (cell, vertex) pairs by block, a cell listed once per block."""
+    blocks = len(bounds) - 1
+    small = np.int16 if blocks < np.iinfo(np.int16).max else np.int32  # int16: a radix sort
+    block = (np.searchsorted(bounds, gvert.ravel(), side="right") - 1).astype(small)
+    order = np.argsort(block, kind="stable")  # by block, then by cell
+    cell, block = order // gvert.shape[1], block[order]
+    first = np.ones(len(order), dtype=bool)  # a cell's first pair in its block
+    first[1:] = (cell[1:] != cell[:-1]) | (block[1:] != block[:-1])
+    cell, block = cell[first], block[first]
+    starts = np.searchsorted(block, np.arange(blocks + 1))  # vertices outside: left out
+    return [cell[starts[b] : starts[b + 1]] for b in range(blocks)]
 
 
 def _flux_in_blocks(
