@@ -32,7 +32,8 @@ def test_the_newton_factorization_counts_the_negative_eigenvalues_and_finds_thei
     material's limit point): the LDLᵀ factorization of the reduced Newton matrix of min's
     law at the solution has as many negative eigenvalues as the independent count of K_T on
     the free unknowns (> 0); the shift τ D makes it definite; and the inverse iteration's
-    v satisfies A v = μ₁ D v (residual ≤ 1e-6 ‖A v‖) with μ₁ < 0."""
+    v satisfies A v = μ₁ D v (residual ≤ 1e-6 ‖A v‖) with μ₁ < 0, the same v and μ₁ (to
+    1e-8, 1e-10) as the iteration run on A_τ gathered onto rank 0."""
     cfg = block("saint_venant_kirchhoff")
     cfg["obstacle"]["point"] = [0, "1 - 0.5*t"]
     scene = contact.load_scene({**cfg, "load": {"steps": 5}})
@@ -71,6 +72,12 @@ def test_the_newton_factorization_counts_the_negative_eigenvalues_and_finds_thei
         res = Av.copy()
         res.axpy(-system.curvature, Dv)
         assert res.norm() <= 1e-6 * Av.norm()
+        # the same iteration on A_τ gathered onto rank 0 (what more than one rank runs)
+        vg, mu = system.gathered_direction()
+        assert mu == pytest.approx(system.curvature, rel=1e-10)
+        vg.axpy(-1.0, v)
+        assert vg.norm() <= 1e-8 * v.norm()
+        vg.destroy()
         for obj in (x, Av, Dv, res):
             obj.destroy()
         cp.destroy()

@@ -31,6 +31,12 @@ step: 30–50 iterations).  Then (:class:`CurvatureSystem`):
    otherwise stay straight).  Its sign is fixed by the data alone: the sign of the energy
    slope R·v, or where that is round-off (a symmetric saddle), of v's projection on a
    fixed generic field of the DoF coordinates — the same on any number of ranks.
+   Up to :data:`GATHERED_DIRECTION_SIZE` unknowns A_τ is gathered once onto rank 0 and the
+   iteration runs there on its dense inverse (then v is scattered back): the same
+   iteration and stopping test, without the distributed solve, products and norms of each
+   iteration — messages that cost more than the arithmetic of so small a system on more
+   than one rank.  Above that size (or with the attribute ``gather_direction`` False) each
+   iteration solves with the distributed factorization.
 
 The inertia is the count of :func:`contact.models.hyperelastic.negative_eigenvalues` at an
 iterate (with the law's diagonal on the contact rows), so no extra factorization is made
@@ -51,6 +57,9 @@ TAU_GROWTH = 10.0  # the shift grows by this factor until the inertia is right
 MAX_SHIFTS = 12  # τ up to TAU_MIN · 10¹¹: beyond it the step is a scaled gradient step anyway
 INVERSE_ITERATIONS = 60  # most; stops when the residual of the pencil ...
 EIGEN_RTOL = 1e-8  # ... ‖A v − μ D v‖ ≤ EIGEN_RTOL ‖A_τ v‖
+#: most unknowns for which the inverse iteration runs on rank 0 on A_τ gathered and
+#: inverted densely (module doc, 2.); 0: always the distributed factorization
+GATHERED_DIRECTION_SIZE = 2000
 
 #: PETSc options of the LDLᵀ factorization (the user's ``solver.petsc_options`` may add to them)
 CURVATURE_PETSC_OPTIONS = {
@@ -67,6 +76,10 @@ class CurvatureSystem(ReducedNewtonSystem):
     Newton step's A, the shift that makes it positive definite and, on request, the
     direction of negative curvature (module doc).  After each Newton law: ``negative``
     (n₋ + n₀ of the unshifted A), ``shift`` (τ, 0 if none), ``factorizations`` (this law's)."""
+
+    #: the direction's inverse iteration on A_τ gathered onto rank 0 when it is small
+    #: (:data:`GATHERED_DIRECTION_SIZE`); False: always with the distributed factorization
+    gather_direction = True
 
     def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = False):
         super().__init__(problem, prefix, forcing=forcing)
@@ -143,6 +156,14 @@ class CurvatureSystem(ReducedNewtonSystem):
             return None
         if self._direction is not None:
             return self._direction
+        if self._gathers():
+            v, mu = self.gathered_direction()
+            self.curvature = mu
+            if not mu < 0:
+                v.destroy()
+                return None
+            self._direction = v
+            return v
         v, w, Dv = self.D.duplicate(), self.D.duplicate(), self.D.duplicate()
         v.pointwiseMult(self.D, self.z)  # a generic start in the rows D acts on
         mu = np.nan
@@ -172,6 +193,40 @@ class CurvatureSystem(ReducedNewtonSystem):
         self._direction = v
         return v
 
+    def _gathers(self) -> bool:
+        """Whether the direction is computed on A_τ gathered onto rank 0 (module doc, 2.):
+        on more than one rank, up to :data:`GATHERED_DIRECTION_SIZE` unknowns."""
+        size = self.D.getSize()
+        return (
+            self.gather_direction and self.D.getComm().size > 1 and size <= GATHERED_DIRECTION_SIZE
+        )
+
+    def gathered_direction(self) -> tuple[PETSc.Vec, float]:
+        """v and μ₁ of :meth:`negative_direction` by the same inverse iteration, run on rank 0
+        on A_τ gathered in the global row order and inverted densely; v scattered back
+        (collective: one gather, one broadcast and one scatter)."""
+        comm = self.D.getComm().tompi4py()
+        indptr, indices, values = self.A.getValuesCSR()
+        parts = comm.gather((indptr, indices, values, self.D.array_r.copy(), self.z.array_r.copy()))
+        lo, hi = self.D.getOwnershipRange()
+        result = None
+        if comm.rank == 0:
+            assert parts is not None
+            n = self.D.getSize()
+            A = np.zeros((n, n))
+            start = 0
+            for ip, ind, val, Dl, _ in parts:
+                rows = np.repeat(np.arange(start, start + len(Dl)), np.diff(ip))
+                A[rows, ind] = val
+                start += len(Dl)
+            D = np.concatenate([p[3] for p in parts])
+            z = np.concatenate([p[4] for p in parts])
+            result = _inverse_iteration(A, D, z, self.shift)
+        v_all, mu, self.inverse_iterations = comm.bcast(result if comm.rank == 0 else None)
+        v = self.D.duplicate()
+        v.array_w[:] = v_all[lo:hi]
+        return v, mu
+
     def orientation(self, v: PETSc.Vec) -> float:
         """vᵀ z: v's projection on the fixed generic field (sign of a direction on a saddle)."""
         return float(v.dot(self.z).real)
@@ -199,3 +254,29 @@ class CurvatureSystem(ReducedNewtonSystem):
         for obj in (self.D, self.z, self._direction):
             if obj is not None:
                 obj.destroy()
+
+
+def _inverse_iteration(
+    A: np.ndarray, D: np.ndarray, z: np.ndarray, shift: float
+) -> tuple[np.ndarray, float, int]:
+    """The inverse iteration of :meth:`CurvatureSystem.negative_direction` on a dense A_τ:
+    (v, μ₁, iterations), v D-normalized (μ₁ NaN if vᵀ D v vanished at once)."""
+    inverse = np.linalg.inv(A)
+    v = D * z
+    mu, iterations = np.nan, 0
+    for iterations in range(1, INVERSE_ITERATIONS + 1):  # noqa: B007  (the count is returned)
+        v = inverse @ (D * v)
+        Dv = D * v
+        vDv = float(v @ Dv)
+        if not vDv > 0:
+            break
+        v /= np.sqrt(vDv)
+        Dv /= np.sqrt(vDv)
+        w = A @ v
+        size = float(np.linalg.norm(w))
+        w -= shift * Dv
+        mu = float(v @ w)
+        w -= mu * Dv
+        if np.linalg.norm(w) <= EIGEN_RTOL * size:
+            break
+    return v, mu, iterations

@@ -82,6 +82,7 @@ class KrylovCurvatureSystem(CurvatureSystem):
     the factorized system: ``negative`` (1 when the test fired, else 0), ``shift`` (τ),
     ``factorizations`` (here: the CG solves of the step, one per shift tried)."""
 
+    gather_direction = False  # each application of A_τ⁻¹ a CG solve (negative_direction)
     resumable = True  # a polishing solve may be staged (.polish)
 
     def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = True):
