@@ -17,6 +17,7 @@ import json
 import contact
 from contact import ConfigError
 from contact.models.hyperelastic import min_det_F, uniaxial_stretch
+from contact.solvers import curvature
 from contact.solvers.curvature import CurvatureSystem
 from contact.solvers.newton import Complementarity
 
@@ -27,7 +28,9 @@ from petsc4py import PETSc
 from test_hyperelastic import arch, block
 
 
-def test_the_newton_factorization_counts_the_negative_eigenvalues_and_finds_their_direction():
+def test_the_newton_factorization_counts_the_negative_eigenvalues_and_finds_their_direction(
+    monkeypatch,
+):
     """The SVK block pressed to 50 % (5 steps, plain Newton: the homogeneous state, past the
     material's limit point): the LDLᵀ factorization of the reduced Newton matrix of min's
     law at the solution has as many negative eigenvalues as the independent count of K_T on
@@ -78,6 +81,15 @@ def test_the_newton_factorization_counts_the_negative_eigenvalues_and_finds_thei
         vg.axpy(-1.0, v)
         assert vg.norm() <= 1e-8 * v.norm()
         vg.destroy()
+        # rank 0's dense inverse failing is an error on every rank, raised after the bcast
+
+        def singular(*args):
+            raise np.linalg.LinAlgError("Singular matrix")
+
+        with monkeypatch.context() as m:
+            m.setattr(curvature, "_inverse_iteration", singular)
+            with pytest.raises(np.linalg.LinAlgError, match="gathered A_τ"):
+                system.gathered_direction()
         for obj in (x, Av, Dv, res):
             obj.destroy()
         cp.destroy()

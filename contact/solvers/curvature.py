@@ -204,12 +204,13 @@ class CurvatureSystem(ReducedNewtonSystem):
     def gathered_direction(self) -> tuple[PETSc.Vec, float]:
         """v and μ₁ of :meth:`negative_direction` by the same inverse iteration, run on rank 0
         on A_τ gathered in the global row order and inverted densely; v scattered back
-        (collective: one gather, one broadcast and one scatter)."""
+        (collective: one gather, one broadcast and one scatter; a singular A_τ is a
+        LinAlgError on every rank)."""
         comm = self.D.getComm().tompi4py()
         indptr, indices, values = self.A.getValuesCSR()
         parts = comm.gather((indptr, indices, values, self.D.array_r.copy(), self.z.array_r.copy()))
         lo, hi = self.D.getOwnershipRange()
-        result = None
+        result: tuple[np.ndarray, float, int] | np.linalg.LinAlgError | None = None
         if comm.rank == 0:
             assert parts is not None
             n = self.D.getSize()
@@ -221,8 +222,14 @@ class CurvatureSystem(ReducedNewtonSystem):
                 start += len(Dl)
             D = np.concatenate([p[3] for p in parts])
             z = np.concatenate([p[4] for p in parts])
-            result = _inverse_iteration(A, D, z, self.shift)
-        v_all, mu, self.inverse_iterations = comm.bcast(result if comm.rank == 0 else None)
+            try:
+                result = _inverse_iteration(A, D, z, self.shift)
+            except np.linalg.LinAlgError as exc:  # every rank raises it, none waits in bcast
+                result = exc
+        result = comm.bcast(result if comm.rank == 0 else None)
+        if isinstance(result, np.linalg.LinAlgError):
+            raise np.linalg.LinAlgError(f"the gathered A_τ of the curvature direction: {result}")
+        v_all, mu, self.inverse_iterations = result
         v = self.D.duplicate()
         v.array_w[:] = v_all[lo:hi]
         return v, mu
