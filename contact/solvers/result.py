@@ -72,7 +72,7 @@ class Result:
             (``contact.models.problem.first_contact_point``; the same on any number of
             ranks); with pairs coupled on the current configuration, of the nodes that touch
             (the smallest current gap) the one of smallest bound
-            (:meth:`~contact.solvers.problem.DiscreteProblem.contact_gaps`); None when no
+            (``DiscreteProblem.contact_gaps``); None when no
             solve filled it in or no node is constrained.
         interface_forces: With mortar pairs, (F_s, F_m): the forces on the pairs' slave and
             master surfaces, Σ of the residual a(u_h, v) − L(v) over their nodes, the
@@ -167,7 +167,7 @@ class Result:
         """Destroy the problem's operator K, keeping what the result's files are made of.
 
         The result's nodal contact force, which the output reads as K x − b
-        (:func:`owned_residual`), is computed first and kept (``contact_residual``); the
+        (``owned_residual``), is computed first and kept (``contact_residual``); the
         functions, the problem's forms, b and the change of basis stay, so the result can
         still be written, estimated and reported, but not solved on.  The adaptive loop does
         this to a level it will release once the next level is solved, before that solve,
