@@ -84,6 +84,7 @@ import ufl
 from dolfinx import fem, la
 from mpi4py import MPI
 
+from ...base.lifetime import return_freed_memory
 from ...models.constraints import Unilateral
 from ...models.discrete import Problem
 from ...models.physics import Diffusion
@@ -98,6 +99,14 @@ TERMS = ("flux", "oscillation", "complementarity", "feasibility", "dirichlet")
 #: D_T² of the Dirichlet lifting e_D integrated over the cells with a DoF of e_D only (zero
 #: elsewhere); False: over every cell, the plain path (the same numbers)
 DIRICHLET_CELLS = True
+#: the DG0 terms' cell integrals assembled this many cells at a time (their packed coefficients,
+#: ~18 numbers per cell for P1, are a block's, not the whole mesh's); None: all at once (the
+#: old path; the same numbers)
+TERMS_BLOCK: int | None = 2**17
+#: D_T² (whose P2 space and data are a transient of ~220 B per cell) before the flux, not on
+#: top of it, and the heap the flux's patch data freed given back before the terms are
+#: assembled; False: D_T² after the terms, the heap kept (the old path; the same numbers)
+FREE_EARLY = True
 
 
 @dataclass
@@ -172,10 +181,13 @@ def guaranteed_bound(
     u_h, k = result.u_h, data.k
     DG0 = fem.functionspace(msh, ("DG", 0))
     v = ufl.TestFunction(DG0)
+    D2 = _dirichlet(problem, result, v, k) if FREE_EARLY else None
     lift = _feasibility(problem, result, sigma, k, v, lifting)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
     flux = reconstruct_flux(data, multiplier, sign, backend=backend, degree=degree)
+    if FREE_EARLY:  # the patch data's arrays are freed: the terms' transients reuse no heap
+        return_freed_memory()
     seconds["flux"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     p = _degree(u_h)
@@ -196,8 +208,9 @@ def guaranteed_bound(
         **({} if lift.cross is None else {"X": lift.cross}),
     }
     n_owned = msh.topology.index_map(msh.topology.dim).size_local
-    local = {name: val[:n_owned] for name, val in assemble_terms(forms).items()}
-    local["D2"] = _dirichlet(problem, result, v, k)
+    assembled = assemble_terms(forms, block=TERMS_BLOCK)
+    local = {name: val[:n_owned] for name, val in assembled.items()}
+    local["D2"] = _dirichlet(problem, result, v, k) if D2 is None else D2
     cross_T = local.pop("X", None)
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
     cross = np.inf if cross_T is None else msh.comm.allreduce(float(np.sum(cross_T)), op=MPI.SUM)
