@@ -1,8 +1,8 @@
 """What is alive during the guaranteed bound of an adaptive loop's last level.
 
-1. The bound's DG0 terms are assembled a block of cells at a time (bound.TERMS_BLOCK; a
-   Signorini scene's facet terms after them, whole) and its Dirichlet term before the flux,
-   the flux's freed heap given back before the terms (bound.FREE_EARLY): no assembly of the
+1. The estimators' DG0 terms are assembled a block of cells at a time (cellwise.BLOCK_CELLS;
+   facet terms after them, whole), the bound's Dirichlet term before the flux and the
+   flux's freed heap given back before the terms (bound.FREE_EARLY): no assembly of the
    terms packs more than a block of cells, and η, η_T, the terms and the parts are bit for
    bit those of the old paths.
 2. A releasing loop destroys the last level's operator K before its bound
@@ -49,7 +49,7 @@ def _cells_of(form: ufl.Form, owned: int) -> int:
 def test_the_bounds_terms_are_assembled_in_blocks_after_its_dirichlet_term(
     name: str, monkeypatch
 ) -> None:
-    """The bound's terms a block of cells at a time (TERMS_BLOCK = owned cells / 5), its
+    """The bound's terms a block of cells at a time (cellwise.BLOCK_CELLS = owned cells / 5), its
     Dirichlet term before the flux and the freed heap given back after it (FREE_EARLY): each
     assembly of the merged terms integrates at most a block of cells, every cell once (one
     assembly of every cell on the old path), and η, η_T, the terms and the parts are bit
@@ -84,7 +84,7 @@ def test_the_bounds_terms_are_assembled_in_blocks_after_its_dirichlet_term(
     monkeypatch.setattr(cellwise.fem, "form", form)
     out = {}
     for new in (False, True):
-        monkeypatch.setattr(bound, "TERMS_BLOCK", block if new else None)
+        monkeypatch.setattr(cellwise, "BLOCK_CELLS", block if new else None)
         monkeypatch.setattr(bound, "FREE_EARLY", new)
         calls.clear()
         packed.clear()
@@ -138,7 +138,7 @@ def test_blocks_of_cells_give_a_forms_vector_with_its_facet_terms(monkeypatch) -
         "jump": h("+") * jump**2 * ufl.avg(w) * ufl.dS,
     }
     for merged in (True, False):
-        whole = cellwise.assemble_terms(terms, merged=merged)
+        whole = cellwise.assemble_terms(terms, merged=merged, block=0)
         blocks = cellwise.assemble_terms(terms, merged=merged, block=7)
         for key in terms:
             assert np.array_equal(blocks[key], whole[key]), (merged, key)
@@ -153,6 +153,42 @@ SETS = (
     "output.levels=last",
     "output.png=false",
 )
+
+
+@pytest.mark.parametrize("name", ["A_P1", "A_P2", "ex9"])
+def test_the_residual_estimate_in_blocks_of_cells_is_one_assembly(name: str, monkeypatch) -> None:
+    """The residual estimator's terms (cells, and the jumps on interior facets after them)
+    with cellwise.BLOCK_CELLS = owned cells / 5: each assembly of cell terms over every
+    cell integrates at most a block, and η, η_T and the terms are those of one assembly
+    (BLOCK_CELLS None), bit for bit."""
+    from contact.adaptivity.estimate import residual_estimate
+
+    path, sets = SCENES[name]
+    scene = contact.load_scene(ROOT / "configs" / path, [*sets, "output.verbose=false"])
+    result = contact.solve(scene, verbose=False)
+    msh = result.u_h.function_space.mesh
+    n = msh.topology.index_map(msh.topology.dim).size_local
+    packed: list[int] = []
+    real_form = fem.form
+
+    def form(ufl_form, *args, **kwargs):
+        if isinstance(ufl_form, ufl.Form) and ufl_form.integrals_by_type("cell"):
+            packed.append(_cells_of(ufl_form, n))
+        return real_form(ufl_form, *args, **kwargs)
+
+    monkeypatch.setattr(cellwise.fem, "form", form)
+    out = {}
+    for block in (None, max(1, n // 5)):
+        monkeypatch.setattr(cellwise, "BLOCK_CELLS", block)
+        packed.clear()
+        out[block] = residual_estimate(result.problem, result)
+        assert max(packed) == n if block is None else max(packed) <= block < n
+    old, new = out.values()
+    assert new.eta == old.eta > 0
+    assert np.array_equal(new.eta_T.x.array, old.eta_T.x.array)
+    assert new.terms == old.terms
+
+
 WRAPPER = """
 import sys
 import contact, contact.app.cli

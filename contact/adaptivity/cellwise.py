@@ -9,12 +9,13 @@ replaced by the i-th component of a test function of the blocked space DG0^n, so
 over the cells (one kernel per integral type and quadrature rule) fills all n columns.
 Each column is the same integral as its own assembly, in the same quadrature.
 
-The assembly packs the coefficients of every cell at once (one row of their DoF values per
+An assembly packs the coefficients of every cell at once (one row of their DoF values per
 cell: ~18 numbers per cell for the guaranteed bound's terms of a P1 solution), a transient
-that outgrows what the mesh itself holds.  With ``block`` its cell integrals are assembled a
-block of cells at a time into one vector, so that only a block's coefficients are packed; its
-facet integrals after them, whole, as the one assembly adds them (each cell gets the same
-contributions in the same order: the same numbers).
+that outgrows what the mesh itself holds.  The cell integrals over every cell are therefore
+assembled :data:`BLOCK_CELLS` cells at a time into one vector, so that only a block's
+coefficients are packed, and the other integrals (facets, tagged cells) after them, whole,
+as one assembly adds them: each cell gets the same contributions in the same order, the
+same numbers.
 """
 
 from __future__ import annotations
@@ -27,7 +28,10 @@ from mpi4py import MPI
 #: assemble an estimator's terms as one form (:func:`assemble_terms`); False: one assembly
 #: per term, the plain path (the same numbers to round-off; kept to measure the gain)
 MERGED = True
-#: the subdomain id of a block of cells (:func:`assemble_terms` with ``block``)
+#: the cell integrals over every cell assembled this many cells at a time (their packed
+#: coefficients a block's); None: every cell at once, the old path (the same numbers)
+BLOCK_CELLS: int | None = 2**17
+#: the subdomain id of a block of cells
 BLOCK_ID = 1
 
 
@@ -38,9 +42,10 @@ def assemble_terms(
     interior-facet and ghost contributions summed into their owners: name ↦ the values of
     the owned and ghost cells (ghosts updated).  ``merged``: one assembly of the blocked
     form (default :data:`MERGED`) or one per term; ``block``: the cell integrals over every
-    cell assembled this many cells at a time (None: all at once; the same numbers).
+    cell assembled this many cells at a time (default :data:`BLOCK_CELLS`; 0: all at once).
     Collective."""
     merged = MERGED if merged is None else merged
+    block = BLOCK_CELLS if block is None else block
     forms = list(terms.values())
     tests = [form.arguments()[0] for form in forms]  # a DG0 test function each
     meshes = {id(w.ufl_function_space().mesh) for w in tests}
@@ -54,9 +59,9 @@ def assemble_terms(
     return {name: values[:, i].copy() for i, name in enumerate(terms)}
 
 
-def _assembled(form: ufl.Form, columns: int, block: int | None = None) -> np.ndarray:
+def _assembled(form: ufl.Form, columns: int, block: int | None) -> np.ndarray:
     """(local cells, columns): the DG0 vector of ``form``, reverse-scattered and updated;
-    ``block``: as :func:`assemble_terms` takes it."""
+    ``block``: cells per block (None or 0: all at once)."""
     space = form.arguments()[0].ufl_function_space()
     msh = space.mesh
     n = msh.topology.index_map(msh.topology.dim).size_local
@@ -66,7 +71,7 @@ def _assembled(form: ufl.Form, columns: int, block: int | None = None) -> np.nda
         if i.integral_type() == "cell" and i.subdomain_id() in ("everywhere", "otherwise")
     ]
     # as many blocks on every rank: a form is compiled collectively
-    blocks = 1 if block is None or not everywhere else msh.comm.allreduce(-(-n // block), MPI.MAX)
+    blocks = 1 if not block or not everywhere else msh.comm.allreduce(-(-n // block), MPI.MAX)
     if blocks <= 1:
         vec = fem.assemble_vector(fem.form(form))
     else:

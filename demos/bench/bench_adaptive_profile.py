@@ -15,7 +15,7 @@ PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Wr
 ``--keep-operator`` that of the level before the last (whole during the last solve),
 ``--copies`` that of the solver's records of laws and iterates (copies, not digests),
 ``--keep-bound-operator`` that of the last level (whole during its bound), ``--terms-whole``
-that of the bound's DG0 terms (every cell's coefficients packed at once), ``--free-late`` that
+that of the estimators' DG0 terms (every cell's coefficients packed at once), ``--free-late`` that
 of the bound's order (its Dirichlet term after the flux, the flux's heap kept).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
@@ -163,8 +163,8 @@ def main() -> None:
     ap.add_argument(
         "--terms-whole",
         action="store_true",
-        help="the bound's DG0 terms assembled over every cell at once "
-        "(contact.adaptivity.equilibration.bound.TERMS_BLOCK = None)",
+        help="the estimators' DG0 terms assembled over every cell at once "
+        "(contact.adaptivity.cellwise.BLOCK_CELLS = None)",
     )
     ap.add_argument(
         "--free-late",
@@ -189,11 +189,14 @@ def main() -> None:
         flux.BLOCK_TABLE = False
     if args.keep_bound_operator:
         adaptive.SHED_BOUND = False
-    if args.terms_whole or args.free_late:
+    if args.terms_whole:
+        from contact.adaptivity import cellwise
+
+        cellwise.BLOCK_CELLS = None
+    if args.free_late:
         from contact.adaptivity.equilibration import bound
 
-        bound.TERMS_BLOCK = None if args.terms_whole else bound.TERMS_BLOCK
-        bound.FREE_EARLY = not args.free_late
+        bound.FREE_EARLY = False
     path = ROOT / SCENES.get(args.scene, args.scene)
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
     baseline = rss_mib()

@@ -99,10 +99,6 @@ TERMS = ("flux", "oscillation", "complementarity", "feasibility", "dirichlet")
 #: D_T² of the Dirichlet lifting e_D integrated over the cells with a DoF of e_D only (zero
 #: elsewhere); False: over every cell, the plain path (the same numbers)
 DIRICHLET_CELLS = True
-#: the DG0 terms' cell integrals assembled this many cells at a time (their packed coefficients,
-#: ~18 numbers per cell for P1, are a block's, not the whole mesh's); None: all at once (the
-#: old path; the same numbers)
-TERMS_BLOCK: int | None = 2**17
 #: D_T² (whose P2 space and data are a transient of ~220 B per cell) before the flux, not on
 #: top of it, and the heap the flux's patch data freed given back before the terms are
 #: assembled; False: D_T² after the terms, the heap kept (the old path; the same numbers)
@@ -208,8 +204,7 @@ def guaranteed_bound(
         **({} if lift.cross is None else {"X": lift.cross}),
     }
     n_owned = msh.topology.index_map(msh.topology.dim).size_local
-    assembled = assemble_terms(forms, block=TERMS_BLOCK)
-    local = {name: val[:n_owned] for name, val in assembled.items()}
+    local = {name: val[:n_owned] for name, val in assemble_terms(forms).items()}
     local["D2"] = _dirichlet(problem, result, v, k) if D2 is None else D2
     cross_T = local.pop("X", None)
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
