@@ -11,7 +11,8 @@ still alive of earlier levels: dolfinx meshes and PETSc objects (matrices, vecto
 PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Writes CSV.
 ``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once),
 ``--table-once`` that of its cell table (whole but for two columns before the blocks),
-``--keep-operator`` that of the level before the last (whole during the last solve),
+``--keep-level`` that of the level before the last (whole but for its operator during the
+last solve, not stowed), ``--keep-operator`` the one before (whole, operator included),
 ``--copies`` that of the solver's records of laws and iterates (copies, not digests).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
@@ -134,6 +135,12 @@ def main() -> None:
         "(flux.BLOCK_TABLE = False)",
     )
     ap.add_argument(
+        "--keep-level",
+        action="store_true",
+        help="a level to be released stays whole (its operator K aside) during the next "
+        "level's solve, not stowed (contact.drivers.adaptive.STOW_PREVIOUS = False)",
+    )
+    ap.add_argument(
         "--keep-operator",
         action="store_true",
         help="a level to be released keeps its operator K during the next level's solve "
@@ -154,10 +161,11 @@ def main() -> None:
         from contact.adaptivity.equilibration import flux
 
         flux.BLOCK_CELLS = None
-    if args.keep_operator:
+    if args.keep_level or args.keep_operator:
         from contact.drivers import adaptive
 
-        adaptive.SHED_PREVIOUS = False
+        adaptive.STOW_PREVIOUS = False
+        adaptive.SHED_PREVIOUS = not args.keep_operator
     if args.table_once:
         from contact.adaptivity.equilibration import flux
 
