@@ -9,7 +9,8 @@ min and blend, H = diag(s) K_T + diag(d), is equivalent to the symmetric system 
     A y = r,     A = P K_T P + diag(d/s on the free rows, 1 on the fixed rows),
 
 K_T on the free rows plus the law's non-negative diagonal.  Factorized by LDLᵀ (MUMPS,
-``ICNTL(13) = 1``: the inertia of the whole matrix on any number of ranks) its inertia
+``ICNTL(13) = 1``: the inertia of the whole matrix on any number of ranks; a small one on
+several ranks gathered whole onto every rank, :class:`.linear.GatheredFactor`) its inertia
 (n₋, n₀, n₊) comes with the solve.  With n₋ = n₀ = 0 the Newton step is a descent direction
 of Π on the free rows; with n₋ > 0 — St Venant–Kirchhoff in strong compression, a strip
 past its buckling load — Newton's method heads for a saddle of Π (an unstable equilibrium)
