@@ -52,7 +52,6 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from ..base import spaces
 from ..models.discrete import Problem
 from ..solvers.result import Result
 
@@ -110,7 +109,7 @@ def solve_recoupled(
         problem = build(at)
         guess = None
         if at is not None:  # from the last solution (the coupling point when not relaxed)
-            guess = spaces.zero_function(problem.V)
+            guess = fem.Function(problem.V)
             guess.x.array[:] = at if result is None else result.u_h.x.array
         if result is not None:
             result.problem.destroy()
