@@ -82,6 +82,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import ufl
 from dolfinx import fem, la
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ...models.constraints import Unilateral
@@ -98,6 +99,10 @@ TERMS = ("flux", "oscillation", "complementarity", "feasibility", "dirichlet")
 #: D_T² of the Dirichlet lifting e_D integrated over the cells with a DoF of e_D only (zero
 #: elsewhere); False: over every cell, the plain path (the same numbers)
 DIRICHLET_CELLS = True
+#: with :data:`DIRICHLET_CELLS` and a P1 solution, u_D evaluated at the DoFs of those cells
+#: only (the P2 space of their submesh: the same points, one DoF per edge), not at every DoF
+#: of the mesh's P2 space; False: at every DoF, the plain path (the same values)
+DIRICHLET_SUBMESH = True
 
 
 @dataclass
@@ -396,6 +401,30 @@ def _dirichlet(problem: Problem, result: Result, w_test, k) -> np.ndarray:
     else:
         u2.interpolate(u_h)
     if physics.dirichlet_value is not None:
-        e_D.x.array[dofs] = physics.dirichlet_value(V2).x.array[dofs] - u2.x.array[dofs]
+        if DIRICHLET_CELLS and DIRICHLET_SUBMESH and _degree(u_h) == 1:
+            u_D = _on_cells(physics.dirichlet_value, V2, cells)
+        else:
+            u_D = physics.dirichlet_value(V2).x.array
+        e_D.x.array[dofs] = u_D[dofs] - u2.x.array[dofs]
     e_D.x.scatter_forward()
     return cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)
+
+
+def _on_cells(value: Callable, V2: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
+    """The values of ``value`` (u_D interpolated into a given P2 space, the physics'
+    ``dirichlet_value``) at the DoFs of V2 in ``cells`` (0 elsewhere), computed on the P2 space
+    of the submesh of these cells (collective).  A submesh cell has its parent's vertices in
+    the same order, so its local DoF j lies at its parent's DoF j: the same points (P2 has
+    one DoF per edge, which no edge orientation moves)."""
+    msh = V2.mesh
+    tdim = msh.topology.dim
+    sub, cell_map, _, _ = dmesh.create_submesh(msh, tdim, cells)
+    W = fem.functionspace(sub, ("Lagrange", 2))
+    cmap = sub.topology.index_map(tdim)
+    local = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
+    parent = cell_map.sub_topology_to_topology(local, inverse=False)
+    out = np.zeros(
+        (V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts) * V2.dofmap.index_map_bs
+    )
+    out[V2.dofmap.list[parent]] = value(W).x.array[W.dofmap.list[local]]
+    return out

@@ -77,6 +77,12 @@ BLOCK_TABLE = True
 #: P1 (no edge coefficients to remove): κ = 1 and no bubble set directly, as :func:`.shares`
 #: returns them; False: through :func:`.shares` over every contact entity, the plain path
 P1_SHORTCUT = True
+#: with blocks, P1 and the multiplier's rule of :func:`.shares` (κ = 1, no bubble) and a flux
+#: of u_h's degree (no multiplier oscillation): λ_h clipped set on the whole array of its
+#: nodal values at once (the clipping is nodewise), with no second pass over the blocks'
+#: rows; False: the rows made again a block at a time for it (the plain path, the same
+#: numbers)
+NODAL_MULTIPLIER = True
 
 
 @dataclass
@@ -318,7 +324,17 @@ def _flux_in_blocks(
         lmbda_clip, bubble, kap = _rule_functions(data, V, DG0)
     step = BLOCK_CELLS or n
     points = multiplier is not None and ref.lowest  # k for the multiplier's oscillation
-    for start in range(0, n, step):
+    nodal = (
+        NODAL_MULTIPLIER
+        and P1_SHORTCUT
+        and ref.pu == 1
+        and data.multiplier_rule is None
+        and not points
+    )
+    if nodal:  # what the rows would give: κ = 1, no bubble, no multiplier oscillation
+        if source.lam is not None:
+            lmbda_clip.x.array[:] = clipped(source.lam.x.array, sign)
+    for start in range(0, 0 if nodal else n, step):
         cells = np.arange(start, min(start + step, n), dtype=np.int32)
         part = source.rows(cells, boundary=False, points=points)
         if data.multiplier_rule is None:
