@@ -83,6 +83,10 @@ P1_SHORTCUT = True
 #: rows; False: the rows made again a block at a time for it (the plain path, the same
 #: numbers)
 NODAL_MULTIPLIER = True
+#: where κ = 1 and there is no bubble (P1, the rule of :func:`.shares`), :attr:`Flux.lmbda` is
+#: λ_h clipped itself, so the bound's forms pack neither κ nor the bubble (κ (λ − ½·0) with
+#: κ = 1 is λ exactly); False: κ (λ_h clipped − ½ bubble) always, the plain path
+UNIT_KAPPA = True
 
 
 @dataclass
@@ -107,6 +111,7 @@ class Flux:
     defect: float
     seconds: dict = field(default_factory=dict)
     cells: Callable[[], fem.Function] | None = field(default=None, repr=False)
+    unit: bool = False  # κ = 1 and no bubble on every cell (P1, the rule of .shares)
 
     @cached_property
     def sigma_cells(self) -> fem.Function:
@@ -116,7 +121,10 @@ class Flux:
     @property
     def lmbda(self):
         """λ̃_h = κ (λ_h − ½ Σ_e β_e φ_{m_e}) as UFL on the contact entities (Γ_C facets or Ω;
-        on a cell with two contact facets an upper bound of |λ̃_h|)."""
+        on a cell with two contact facets an upper bound of |λ̃_h|; λ_h clipped itself where κ = 1
+        and there is no bubble, with :data:`UNIT_KAPPA`)."""
+        if self.unit and UNIT_KAPPA:
+            return self.lmbda_clip
         return self.kappa * (self.lmbda_clip - 0.5 * self.bubble)
 
 
@@ -220,7 +228,8 @@ def reconstruct_flux(
         if sigma_cells is not None
         else (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
     )
-    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells)
+    unit = data.multiplier_rule is None and P1_SHORTCUT and ref.pu == 1
+    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells, unit)
 
 
 def _patches_in_blocks(
@@ -364,6 +373,7 @@ def _flux_in_blocks(
             source.rows(np.arange(n, dtype=np.int32), boundary=False),
             rt_coefficients(sigma_h, n),
         ),
+        data.multiplier_rule is None and P1_SHORTCUT and ref.pu == 1,
     )
 
 
