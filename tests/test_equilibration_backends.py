@@ -326,16 +326,23 @@ PLAIN_PATHS = (
     ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
     ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
     ("contact.adaptivity.equilibration.flux", "SORTED_BLOCKS"),
+    ("contact.adaptivity.equilibration.flux", "NODAL_MULTIPLIER"),
+    ("contact.adaptivity.equilibration.cells", "VERTEX_NODES"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
+    ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
 )
 
 
 #: the switches of the bound's paths that give the plain path's numbers bit for bit (module,
 #: name): P1's λ_h clipped on the whole nodal array, the coordinates through each vertex's
-#: geometry node, u_D on the submesh of the Dirichlet cells, λ̃_h = λ_h clipped where κ = 1
+#: geometry node, u_D (and serially the whole Dirichlet term) on the submesh of the Dirichlet
+#: cells, λ̃_h = λ_h clipped where κ = 1
 SAME_BITS = (
     ("contact.adaptivity.equilibration.flux", "NODAL_MULTIPLIER"),
     ("contact.adaptivity.equilibration.cells", "VERTEX_NODES"),
     ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
     ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
 )
 

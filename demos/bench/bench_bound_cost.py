@@ -38,6 +38,7 @@ SWITCHES = (
     ("contact.adaptivity.equilibration.flux", "NODAL_MULTIPLIER"),
     ("contact.adaptivity.equilibration.cells", "VERTEX_NODES"),
     ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
     ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
 )
 
