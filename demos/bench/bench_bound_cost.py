@@ -6,7 +6,8 @@ loop of the time-to-accuracy runs) up to ``--max-dofs``, then computes the equil
 of its last level ``--repeat`` times with the plain paths (each switch of :data:`SWITCHES`
 False) and with the default ones, alternately, and prints the CPU seconds of each, their
 ratio (default / plain, median of the pairs) and the ratio to the CPU seconds of the level's
-solve in the loop.  The bounds must agree bit for bit (η, η_T, the terms; else exit 1).
+solve in the loop, and the resident memory the bound adds at its peak (sampled every 2 ms,
+above the process's before it).  The bounds must agree bit for bit (η, η_T, the terms; else exit 1).
 Writes CSV.
 
     python demos/bench/bench_bound_cost.py --max-dofs 300000 \\
@@ -21,11 +22,13 @@ import argparse
 import importlib
 import statistics
 import sys
+import threading
 import time
 from pathlib import Path
 
 import contact
 from contact.adaptivity.equilibration.bound import guaranteed_bound
+from contact.base.lifetime import return_freed_memory, rss_mib
 from contact.setup import run as loop
 
 import numpy as np
@@ -41,6 +44,27 @@ SWITCHES = (
     ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
     ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
 )
+
+
+class Peak:
+    """The largest resident set size (MiB) while ``with`` it, sampled by a thread."""
+
+    def __enter__(self) -> Peak:
+        self.before = self.peak = rss_mib()
+        self.running = True
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+        return self
+
+    def _run(self) -> None:
+        while self.running:
+            self.peak = max(self.peak, rss_mib())
+            time.sleep(0.002)
+
+    def __exit__(self, *exc) -> None:
+        self.running = False
+        self.thread.join()
+        self.peak = max(self.peak, rss_mib())
 
 
 def switch(on: bool) -> None:
@@ -86,9 +110,11 @@ def main() -> None:
     for r in range(args.repeat):
         for path_name, on in (("plain", False), ("default", True)):
             switch(on)
-            c = time.process_time()
-            bound = guaranteed_bound(problem, result)
-            seconds = time.process_time() - c
+            return_freed_memory()  # as the loop does before its bound
+            with Peak() as peak:
+                c = time.process_time()
+                bound = guaranteed_bound(problem, result)
+                seconds = time.process_time() - c
             key = (bound.eta, bound.eta_T.x.array.copy(), dict(bound.terms))
             del bound
             if first is None:
@@ -101,13 +127,15 @@ def main() -> None:
                     "run": r,
                     "path": path_name,
                     "bound_cpu": round(seconds, 3),
+                    "peak_added_mib": round(peak.peak - peak.before, 1),
                     "solve_cpu": round(solve_cpu[-1], 3),
                     "eta": key[0],
                     "same_as_first": same,
                 }
             )
             print(
-                f"  run {r} {path_name:7s} bound {seconds:.2f} s CPU, eta {key[0]!r}"
+                f"  run {r} {path_name:7s} bound {seconds:.2f} s CPU, peak +"
+                f"{peak.peak - peak.before:.0f} MiB, eta {key[0]!r}"
                 f"{'' if same else '  DIFFERS'}",
                 flush=True,
             )
