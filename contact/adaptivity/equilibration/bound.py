@@ -482,59 +482,6 @@ def _dirichlet_on_submesh(physics: Diffusion, condition: Unilateral, u_h, k) -> 
         return np.unique(sub_c2f[sub_of[c], j]).astype(np.int32)
 
     W = fem.functionspace(sub, ("Lagrange", 2))
-    cmap = sub.topology.index_map(tdim)
-    local = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
-    parent = cell_map.sub_topology_to_topology(local, inverse=False)
-    out = np.zeros(
-        (V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts) * V2.dofmap.index_map_bs
-    )
-    out[V2.dofmap.list[parent]] = value(W).x.array[W.dofmap.list[local]]
-    return out
-
-
-def _dirichlet_on_submesh(physics: Diffusion, condition: Unilateral, u_h, k) -> np.ndarray:
-    """D_T² of :func:`_dirichlet` for a P1 u_h and a constant k on one rank, computed on the
-    submesh of the cells with a vertex on a Dirichlet facet (every cell with a DoF of e_D, and
-    every contact facet through such a vertex; D_T² = 0 on the others, and on the submesh's
-    cells without a DoF of e_D, where e_D = 0).  A submesh cell has its parent's vertices in
-    the same order: the same local facets, P2 DoFs at the same points, I_2 u_h there from the
-    same P1 coefficients (the interpolation weights are 0, ½ and 1: the same sums in any order)
-    and so the same kernel of the same values: D_T² bit for bit."""
-    msh = u_h.function_space.mesh
-    tdim = msh.topology.dim
-    boundary = physics.boundary
-    n = msh.topology.index_map(tdim).size_local
-    out = np.zeros(n)
-    dirichlet = boundary.facets(boundary.dirichlet)
-    msh.topology.create_connectivity(tdim - 1, 0)
-    msh.topology.create_connectivity(0, tdim)
-    f2v = msh.topology.connectivity(tdim - 1, 0)
-    v2c = msh.topology.connectivity(0, tdim)
-    vertices = np.unique(np.concatenate([f2v.links(f) for f in dirichlet] or [np.zeros(0)]))
-    cells = np.unique(np.concatenate([v2c.links(v) for v in vertices.astype(np.int32)] or [[]]))
-    cells = cells.astype(np.int32)
-    msh.topology.create_connectivity(tdim - 1, tdim)
-    sub, cell_map, _, _ = dmesh.create_submesh(msh, tdim, cells)
-    ns = sub.topology.index_map(tdim).size_local
-    parent = cell_map.sub_topology_to_topology(np.arange(ns, dtype=np.int32), inverse=False)
-    # the submesh facets of parent facets: local facet j of a cell is opposite its vertex j
-    sub.topology.create_connectivity(tdim, tdim - 1)
-    sub.topology.create_connectivity(tdim - 1, tdim)
-    f2c = msh.topology.connectivity(tdim - 1, tdim)
-    c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
-    sub_c2f = sub.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
-    sub_of = np.full(msh.topology.index_map(tdim).size_local, -1, dtype=np.int64)
-    sub_of[parent] = np.arange(ns)
-
-    def sub_facets(facets: np.ndarray) -> np.ndarray:
-        found = []
-        for f in facets:
-            c = next((c for c in f2c.links(f) if sub_of[c] >= 0), None)
-            if c is not None:
-                found.append(sub_c2f[sub_of[c], np.flatnonzero(c2f[c] == f)[0]])
-        return np.unique(np.array(found, dtype=np.int32))
-
-    W = fem.functionspace(sub, ("Lagrange", 2))
     dofs = np.setdiff1d(
         fem.locate_dofs_topological(W, tdim - 1, sub_facets(dirichlet)),
         fem.locate_dofs_topological(W, tdim - 1, sub_facets(boundary.facets(condition.ids))),
