@@ -571,6 +571,7 @@ def test_a_level_to_be_released_sheds_its_operator_before_the_next_solve(monkeyp
         ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
     )
     solve_level = loop.solve_level
+    monkeypatch.setattr(loop, "STOW_PREVIOUS", False)  # the level kept whole but for K
     runs = {}
     for shed in (False, True):
         monkeypatch.setattr(loop, "SHED_PREVIOUS", shed)
@@ -594,3 +595,59 @@ def test_a_level_to_be_released_sheds_its_operator_before_the_next_solve(monkeyp
             assert np.array_equal(force, forces[index]), index
         runs[shed] = [(r["dofs"], r["eta"], r["error"]) for r in run.rows]
     assert runs[True] == runs[False]
+
+
+def check_restored(record: dict) -> None:
+    """The record of tests/restore_level.py on one path: level 3 failed, level 2 is restored
+    whole (its scene on its domain, its problem its result's), and every one of its fields
+    equals the level's while it was whole, bit for bit, on every rank."""
+    assert record["levels"] == 4 and record["kept"] == 2
+    assert record["stop"].startswith("solver did not converge on level 3")
+    assert record["whole"] and record["same_scene"]
+    assert set(record["equal"]) == set(record["fields"]) and len(record["fields"]) >= 8
+    assert all(record["equal"].values()), record["equal"]
+
+
+def test_a_level_to_be_released_is_stowed_before_the_next_solve_and_restored_if_it_fails():
+    """A releasing loop keeps the level before the one being solved only so that its files
+    can be written if this solve fails: before the solve (the loop's peak) it is stowed —
+    its problem, functions and scene dropped, its mesh reduced to its vertices and cells,
+    the values kept —; if the solve fails, the level is restored, its mesh's entities
+    computed again and its problem built again: every field, the nodal contact force, the
+    mesh's connectivities and tags are those of the level while it was whole, bit for bit,
+    and so are the guaranteed bound and the levels' figures against the old path
+    (STOW_PREVIOUS False, the level kept whole but for its operator)."""
+    from restore_level import run
+
+    old, new = run(False), run(True)
+    for record in (old, new):
+        check_restored(record)
+    bare = [[0, 0], [2, 0]]  # the vertices and the cells' vertices only
+    assert len(new["held"]) == len(old["held"]) == 3
+    for held in new["held"]:
+        assert held == {"problem": False, "u_h": False, "scene": False, "mesh": bare}
+    for held in old["held"]:
+        assert held["problem"] and held["u_h"] and held["scene"] and [1, 2] in held["mesh"]
+    assert (new["rows"], new["bound"]) == (old["rows"], old["bound"])
+
+
+def test_a_stowed_level_is_restored_on_two_ranks_as_it_was(tmp_path):
+    """On 2 ranks (ghosted meshes, shared facets) the stowed level is restored bit for bit
+    on each rank, and its rows and bound are the serial ones to solver tolerance."""
+    out = tmp_path / "restore.json"
+    cmd = [str(MPIRUN), "-n", "2", sys.executable, str(ROOT / "tests" / "restore_level.py")]
+    subprocess.run([*cmd, str(out)], check=True, cwd=ROOT, timeout=600, env=ENV)
+    record = json.loads(out.read_text())
+    from restore_level import run
+
+    serial = run(True)
+    for path in ("False", "True"):
+        check_restored(record[path])
+        rows = record[path]["rows"]
+        assert [r[0] for r in rows] == [r[0] for r in serial["rows"]]
+        for r, s in zip(rows, serial["rows"], strict=True):
+            assert r[1] == pytest.approx(s[1], rel=1e-8) and r[2] == pytest.approx(s[2], rel=1e-8)
+        assert record[path]["bound"] == pytest.approx(serial["bound"], rel=1e-8)
+    assert [(h["problem"], h["mesh"]) for h in record["True"]["held"]] == [
+        (False, [[0, 0], [2, 0]])
+    ] * 3

@@ -263,9 +263,10 @@ def test_the_level_kept_for_a_failing_last_level_is_written_as_if_it_were_last(
     tmp_path: Path, ranks: int
 ) -> None:
     """With ``output.levels: last`` a run failing on level 2 writes level 1's files after
-    the loop, from the level kept through level 2's solve (its operator already destroyed,
-    contact.drivers.adaptive.SHED_PREVIOUS): the files are those of a run that stops at
-    level 1, but for the failure's marks and the clocks."""
+    the loop, from the level kept through level 2's solve (stowed: its mesh and nodal values
+    only, its problem built again once level 2 has failed, contact.drivers.adaptive.restore):
+    the files are those of a run that stops at level 1, but for the failure's marks and the
+    clocks."""
     import csv
     import json
 

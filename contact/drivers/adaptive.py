@@ -29,10 +29,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..adaptivity.bare import BareDomain, bare
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, check_shared_facets, estimate
 from ..adaptivity.mark import Growth, mark
@@ -54,6 +56,31 @@ from .solve import solve as solve_problem
 #: nodal contact force kept, :meth:`~contact.solvers.result.Result.shed_operator`); False:
 #: it stays whole until the next level is solved, the old path
 SHED_PREVIOUS = True
+#: a level the loop will release is stowed before the next level's solve
+#: (:meth:`Level.stow`: its mesh and nodal values kept, its problem, functions and scene
+#: dropped, all built again should the next level fail); False: it stays whole but for its
+#: operator (:data:`SHED_PREVIOUS`), the old path
+STOW_PREVIOUS = True
+
+
+@dataclass
+class Stowed:
+    """What a stowed level (:meth:`Level.stow`) is restored from.
+
+    Attributes:
+        result: The values of its result's functions (``Result.stow``).
+        eta_T: The values of its indicator field η_T.
+        element: η_T's element (DG0), to make its space again on the level's mesh.
+        name: η_T's name.
+        domain: Its domain with the mesh's cells only (:func:`~contact.adaptivity.bare.bare`),
+            or None: the level keeps its domain whole.
+    """
+
+    result: dict[str, np.ndarray]
+    eta_T: np.ndarray
+    element: Any
+    name: str
+    domain: BareDomain | None = None
 
 
 @dataclass
@@ -91,6 +118,8 @@ class Level:
     cpu: float = 0.0  # this process's CPU seconds likewise
     released: bool = False  # the solution's fields and η_T dropped (release)
     estimator: str = ""  # the estimator of ``estimate`` where it is not the loop's (Bound)
+    rebuildable: bool = False  # ``problem`` is the builder's on ``domain`` (stow may drop it)
+    stowed: Stowed | None = None  # its problem and fields dropped, their values kept (stow)
 
     @functools.cached_property
     def cells(self) -> int:
@@ -109,7 +138,42 @@ class Level:
         _ = self.cells  # cached while the mesh is at hand
         self.result.release()
         self.domain = self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
-        self.released = True
+        self.released, self.stowed = True, None
+
+    def stow(self, mesh: bool = True) -> bool:
+        """Keep the level's cells and the values of its fields, dropping what they live on.
+
+        The problem (forms, function spaces, PETSc objects), the result's functions and η_T are
+        dropped, their values kept (:class:`Stowed`); with ``mesh`` the domain keeps its cells,
+        vertices and geometry only (:func:`~contact.adaptivity.bare.bare`: the mesh's other entities
+        and connectivities, about two thirds of it, go; not for a domain with functions or a
+        parent), else it stays whole.  :func:`restore` makes the domain whole again, the same entity
+        for entity, builds the problem again on it, whose DoF layout is then the same, and gives
+        every field its values back bit for bit.  The adaptive loop stows a level it will release
+        before it solves the next level, the loop's peak; the level is needed whole again only if
+        that solve fails (its files are then written and its bound computed).  A subclass drops what
+        it adds that is built on the domain.  Returns whether the level was stowed: not if its
+        problem is not the builder's (``rebuildable``, e.g. a coupling built on the solution) or its
+        result's fields are not the problem's outputs (``Result.stow``).  Collective.
+        """
+        if not self.rebuildable or self.released or self.stowed is not None:
+            return False
+        _ = self.cells  # cached while the mesh is at hand
+        values = self.result.stow()
+        if values is None:
+            return False
+        eta_T = self.estimate.eta_T
+        self.stowed = Stowed(
+            values,
+            eta_T.x.array.copy(),
+            eta_T.function_space.ufl_element(),
+            eta_T.name,
+            bare(self.domain) if mesh else None,
+        )
+        self.problem = self.estimate.eta_T = None  # type: ignore[assignment]
+        if self.stowed.domain is not None:
+            self.domain = None  # type: ignore[assignment]  # stowed: made whole on restore
+        return True
 
     def row(self) -> dict[str, Any]:
         """Return the level's row of ``convergence.csv`` (DoFs, cells, η, its terms, …)."""
@@ -304,13 +368,27 @@ def adapt(
             # meshes (grid sequencing's chain, Domain.parent): without the link the
             # previous mesh goes once its level is released
             level_domain.parent = None
+        # the level before, to be released once this level is solved: only its files may
+        # still be written (this level fails), for which its operator is not needed
+        leaving = (
+            previous
+            if keep is not None
+            and previous is not None
+            and not previous.released
+            and not keep(previous)
+            else None
+        )
+        if leaving is not None and SHED_PREVIOUS:
+            leaving.result.shed_operator()
         if keep is not None and previous is not None:
-            if SHED_PREVIOUS and not previous.released and not keep(previous):
-                # to be released once this level is solved: only its files may still be
-                # written (this level fails), for which its operator is not needed
-                previous.result.shed_operator()
             return_freed_memory()  # what refining freed: the level's solve does not reuse it
-        problem = discrete(build(level_domain.mesh if meshes else level_domain))
+        built = problem = discrete(build(level_domain.mesh if meshes else level_domain))
+        # … nor, once this level is built (a scene's builder drops the level's scene from its
+        # cache), its forms, spaces and mesh entities: its values and cells are enough (its
+        # mesh stays whole where the refined mesh is linked to it: not nested)
+        if leaving is not None and STOW_PREVIOUS and leaving.stow(mesh=opts.nested):
+            gc.collect()  # the dropped forms and spaces sit in reference cycles
+            return_freed_memory()
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
 
@@ -354,10 +432,14 @@ def adapt(
             elapsed=time.perf_counter() - start - outputs,
             cpu=time.process_time() - start_cpu - outputs_cpu,
             estimator="" if bound is None else "residual",
+            rebuildable=problem is built,
         )
         if make_level is not None:
             level = make_level(level)
         out.levels.append(level)
+        if not result.converged and index > 0 and out.levels[-2].stowed is not None:
+            # the level before is the last that converged, written and bounded as the last
+            out.levels[-2] = restore(out.levels[-2], build, meshes, make_level)
         indicators = est.eta_T  # what marks: the estimator's, or the residual ones
         eta = est.eta if bound is None else bound.eta(level, opts.tol)
         out.stop = stop_before_marking(level, eta, opts)
@@ -418,8 +500,34 @@ def adapt(
         if out.stop:
             break
         assert child is not None  # refined: the loop goes on
+        # the level's record holds what is kept of its estimate (Level.stow drops η_T)
+        del est, indicators
         level_domain, u0 = child, new_u0
     return out
+
+
+def restore(
+    level: Level,
+    build: Callable[[Any], Any],
+    meshes: bool,
+    make_level: Callable[[Level], Level] | None = None,
+) -> Level:
+    """Return a stowed level (:meth:`Level.stow`) whole again.
+
+    Its problem is built again by ``build`` on its domain (its mesh when ``meshes``), its
+    result's functions and η_T get their values back, and ``make_level`` makes the
+    level's record again (a scene's level: its scene on the domain).  Collective.
+    """
+    stowed = level.stowed
+    assert stowed is not None  # only a stowed level is restored
+    if stowed.domain is not None:
+        level.domain = stowed.domain.whole()
+    problem = discrete(build(level.domain.mesh if meshes else level.domain))
+    level.result.restore(problem, stowed.result)
+    eta_T = fem.Function(fem.functionspace(level.domain.mesh, stowed.element), name=stowed.name)
+    eta_T.x.array[:] = stowed.eta_T
+    level.estimate.eta_T, level.problem, level.stowed = eta_T, problem, None
+    return level if make_level is None else make_level(level)
 
 
 def stop_before_marking(level: Level, eta: float, opts: AdaptOptions) -> str:

@@ -406,6 +406,18 @@ class SceneLevel(Level):
         self.scene = None  # type: ignore[assignment]  # released: unused afterwards
         self.__dict__.pop("posed", None)
 
+    def stow(self, mesh: bool = True) -> bool:
+        """Stow the level; the scene is dropped too.
+
+        :meth:`~contact.drivers.adaptive.Level.stow`; the loop's ``make_level`` makes the
+        scene again on the restored domain.
+        """
+        if not super().stow(mesh):
+            return False
+        self.scene = None  # type: ignore[assignment]  # stowed: made again on restore
+        self.__dict__.pop("posed", None)
+        return True
+
 
 def adapt_options(scene: Scene, **overrides: Any) -> AdaptConfig:
     """Return the scene's ``adapt`` section with keyword overrides, validated.

@@ -18,6 +18,10 @@ from ..base.timing import Stopwatch
 from .problem import DiscreteProblem
 from .stopping import AdaptiveStopping
 
+#: the functions of a result that :meth:`Result.stow` keeps the values of, u_h first
+STOWED = ("u_h", "lmbda_h", "gap", "active")
+#: the names of the output functions among them (``DiscreteProblem.outputs``)
+OUTPUT_NAMES = ("lambda_h", "gap", "active")
 REASONS = {v: k.lower() for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
 
 
@@ -180,6 +184,52 @@ class Result:
             self.contact_residual = owned_residual(self)
         K.destroy()
 
+    def stow(self) -> dict[str, np.ndarray] | None:
+        """Drop the problem and the functions, keeping their values to restore them from.
+
+        The values of u_h, λ_h, the gap and the active set (each rank's part, ghosts
+        included) are returned, and the problem's PETSc objects destroyed and the problem
+        and functions dropped (None), after the nodal contact force K x − b is kept
+        (:meth:`shed_operator`); the nodal arrays (``active_mask``, friction's fields) and
+        every figure stay.  :meth:`restore` gives the functions back on the same problem
+        built again on the same mesh: its DoF layout is the same, so the values are the
+        same bit for bit.  Returns None, and changes nothing, unless u_h is the problem's
+        and the other three live on its output space (what :meth:`restore` rebuilds).
+        Collective.
+        """
+        p = self.problem
+        if p is None or self.u_h is not p.u_h:
+            return None
+        S = p.output.space or p.V
+        if any(
+            getattr(self, attr).function_space is not S or getattr(self, attr).name != name
+            for attr, name in zip(STOWED[1:], OUTPUT_NAMES, strict=True)
+        ):
+            return None
+        self.shed_operator()
+        _ = self.dofs  # cached while u_h is there
+        values = {name: getattr(self, name).x.array.copy() for name in STOWED}
+        p.destroy()
+        self.u_h = self.lmbda_h = self.gap = self.active = None  # type: ignore[assignment]
+        self.problem = None  # type: ignore[assignment]
+        return values
+
+    def restore(self, problem: DiscreteProblem, values: dict[str, np.ndarray]) -> None:
+        """Give a stowed result (:meth:`stow`) its problem and functions back.
+
+        ``problem`` is the stowed one built again on the same mesh (the same DoF layout);
+        ``values`` what :meth:`stow` returned.  u_h is the problem's own function, λ_h, the
+        gap and the active set new functions on its output space.
+        """
+        S = problem.output.space or problem.V
+        functions = [problem.u_h] + [fem.Function(S, name=n) for n in OUTPUT_NAMES]
+        for name, fn in zip(STOWED, functions, strict=True):
+            if fn.x.array.shape != values[name].shape:
+                raise RuntimeError(f"restoring {name}: the rebuilt problem's DoFs differ")
+            fn.x.array[:] = values[name]
+            setattr(self, name, fn)
+        self.problem = problem
+
     def release(self) -> None:
         """Keep the figures only, and release the memory that grows with the mesh.
 
@@ -187,12 +237,11 @@ class Result:
         arrays (``active_mask``, friction's fields) dropped (None; ``friction`` keeps its
         numbers). What stays — iterations, residual, history, timings, contact force, DoFs
         — takes no memory that grows with the mesh. A load path releases each step's result
-        once the next step is done.
+        once the next step is done; a stowed result (:meth:`stow`) drops its nodal arrays.
         """
-        if self.problem is None:
-            return
-        _ = self.dofs  # cached while u_h is there
-        self.problem.destroy()
+        if self.problem is not None:
+            _ = self.dofs  # cached while u_h is there
+            self.problem.destroy()
         # released (the doc above): these fields are None from here on
         self.u_h = self.lmbda_h = self.gap = self.active = None  # type: ignore[assignment]
         self.problem = self.active_mask = None  # type: ignore[assignment]

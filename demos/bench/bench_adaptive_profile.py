@@ -6,12 +6,14 @@ DoFs and energy error, the CPU seconds of each phase (assembly, solve, estimate,
 mark, refine, output: the level's files as ``contact run`` writes them, with ``--output``;
 ``other``: the rest of the level, Python between the phases), the level's wall and CPU
 seconds and their running totals, the resident memory after the level (garbage collected)
-and its peak during the level (sampled every 2 ms) and during each phase, and what is
+and its peak during the level (the kernel's high-water mark, reset per phase; sampled every
+2 ms where it cannot be reset) and during each phase, and what is
 still alive of earlier levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP,
 PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Writes CSV.
 ``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once),
 ``--table-once`` that of its cell table (whole but for two columns before the blocks),
-``--keep-operator`` that of the level before the last (whole during the last solve),
+``--keep-level`` that of the level before the last (whole but for its operator during the
+last solve, not stowed), ``--keep-operator`` the one before (whole, operator included),
 ``--copies`` that of the solver's records of laws and iterates (copies, not digests).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
@@ -56,12 +58,20 @@ TARGET_BYTES_PER_DOF = 1600
 
 
 class PeakSampler:
-    """The largest resident set size since :meth:`reset` (MiB), sampled by a thread."""
+    """The largest resident set size since :meth:`reset` (MiB).
+
+    The kernel's high-water mark (``VmHWM``), reset through ``/proc/self/clear_refs``: exact,
+    where a thread sampling ``VmRSS`` misses the peaks inside C calls that hold the GIL (a
+    Krylov solve, an assembly); where the mark cannot be reset, sampled every ``interval``
+    seconds by a thread.
+    """
 
     def __init__(self, interval: float = 0.002):
         self.peak = rss_mib()
         self.interval = interval
-        threading.Thread(target=self._run, daemon=True).start()
+        self.exact = clear_high_water_mark()
+        if not self.exact:
+            threading.Thread(target=self._run, daemon=True).start()
 
     def _run(self) -> None:
         while True:
@@ -69,8 +79,28 @@ class PeakSampler:
             time.sleep(self.interval)
 
     def reset(self) -> float:
+        if self.exact:
+            self.peak = max(self.peak, high_water_mark_mib())
+            clear_high_water_mark()
         peak, self.peak = self.peak, rss_mib()
         return peak
+
+
+def high_water_mark_mib() -> float:
+    """The peak resident set size of this process since its last reset (MiB, ``VmHWM``)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def clear_high_water_mark() -> bool:
+    """Reset ``VmHWM`` to the current resident size (Linux ≥ 4.0); whether it could."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        return False
+    return True
 
 
 def count_phase_peaks(sampler: PeakSampler) -> dict[str, float]:
@@ -134,6 +164,12 @@ def main() -> None:
         "(flux.BLOCK_TABLE = False)",
     )
     ap.add_argument(
+        "--keep-level",
+        action="store_true",
+        help="a level to be released stays whole (its operator K aside) during the next "
+        "level's solve, not stowed (contact.drivers.adaptive.STOW_PREVIOUS = False)",
+    )
+    ap.add_argument(
         "--keep-operator",
         action="store_true",
         help="a level to be released keeps its operator K during the next level's solve "
@@ -154,10 +190,11 @@ def main() -> None:
         from contact.adaptivity.equilibration import flux
 
         flux.BLOCK_CELLS = None
-    if args.keep_operator:
+    if args.keep_level or args.keep_operator:
         from contact.drivers import adaptive
 
-        adaptive.SHED_PREVIOUS = False
+        adaptive.STOW_PREVIOUS = False
+        adaptive.SHED_PREVIOUS = not args.keep_operator
     if args.table_once:
         from contact.adaptivity.equilibration import flux
 
