@@ -1556,7 +1556,9 @@ def two_bodies() -> str:
     sphere_p2 = rows(folder / "sphere_p2.csv") or []
     if sphere_p2:
         out += [prose("two_bodies", "p2_sphere", table=p2_table(sphere_p2))]
-    p1_start = rows(folder / "p1_start.csv") or []
+    p1_start = (rows(folder / "p1_start.csv") or []) + (
+        rows(folder / "p1_start_floating.csv") or []
+    )
     if p1_start:
         out += [
             prose(

@@ -17,7 +17,8 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    508k-DoF row: ``mpirun -n 2 … sphere --h-contact 0.0025``, 9 more minutes), and with
    P1 and P2 serially (``sphere_degrees``, about 12 minutes on a loaded machine), P2 on
    straight and on curved cells (``p2``, ``p2sphere``: about 1.5 + 2.5 minutes), P2 cold
-   against the start from P1 (``p1_start``, about 3 minutes);
+   against the start from P1 (``p1_start``, about 3 minutes; ``p1_start_floating``, the P2
+   patch tests, under a minute);
    ``demos/bench/bench_newton_min_cycle.py`` — plain Newton-min cycling on a P-matrix LCP
    (the stability map's case (p), under a second);
    ``demos/bench/bench_cold.py`` — deal.II's step-41 from a cold start at 256² and 512², by
@@ -129,6 +130,7 @@ STEPS = {
         ],
         [PY, "demos/bench/bench_two_bodies.py", "sphere_degrees", "--max-dofs", "60000"],
         [PY, "demos/bench/bench_two_bodies.py", "p1_start", "--h-contact", "0.1", "0.05", "0.025"],
+        [PY, "demos/bench/bench_two_bodies.py", "p1_start_floating"],
     ],
     "cycle": [
         [PY, "demos/bench/bench_newton_min_cycle.py", "--out", "demos/results/newton_min_cycle.csv"]

@@ -326,7 +326,64 @@ PLAIN_PATHS = (
     ("contact.adaptivity.equilibration.cells", "KEEP_EXPRESSIONS"),
     ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
     ("contact.adaptivity.equilibration.flux", "SORTED_BLOCKS"),
+    ("contact.adaptivity.equilibration.flux", "NODAL_MULTIPLIER"),
+    ("contact.adaptivity.equilibration.cells", "VERTEX_NODES"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
+    ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
 )
+
+
+#: the switches of the bound's paths that give the plain path's numbers bit for bit (module,
+#: name): P1's λ_h clipped on the whole nodal array, the coordinates through each vertex's
+#: geometry node, u_D (and serially the whole Dirichlet term) on the submesh of the Dirichlet
+#: cells, λ̃_h = λ_h clipped where κ = 1
+SAME_BITS = (
+    ("contact.adaptivity.equilibration.flux", "NODAL_MULTIPLIER"),
+    ("contact.adaptivity.equilibration.cells", "VERTEX_NODES"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
+    ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
+)
+
+
+@pytest.mark.parametrize("name", ["A_P1", "A_P2", "ex9", "A_3D"])
+def test_fast_paths_give_the_bound_bit_for_bit(name: str, monkeypatch) -> None:
+    """Each of :data:`SAME_BITS` switched off alone (the plain path) gives σ_h, λ̃_h's
+    functions, κ, osc_T, η, η_T and the terms of the default bound bit for bit, in blocks
+    of ~7 cells (many blocks, serially) and in one table; on 2 ranks too
+    (:func:`test_fast_paths_on_two_ranks`)."""
+    import importlib
+
+    from contact.adaptivity.equilibration import flux
+
+    scene, result = _solved(name)
+    for cells in (None, 7):
+        monkeypatch.setattr(flux, "BLOCK_CELLS", cells)
+        default = guaranteed_bound(result.problem, result)
+        for module, switch in SAME_BITS:
+            monkeypatch.setattr(importlib.import_module(module), switch, False)
+            plain = guaranteed_bound(result.problem, result)
+            monkeypatch.setattr(importlib.import_module(module), switch, True)
+            assert plain.eta > 0 and plain.eta == default.eta, switch
+            assert np.array_equal(plain.eta_T.x.array, default.eta_T.x.array), switch
+            assert plain.terms == default.terms, switch
+            for attr in ("sigma_h", "lmbda_clip", "bubble", "kappa"):
+                new, old = getattr(default.flux, attr), getattr(plain.flux, attr)
+                assert np.array_equal(new.x.array, old.x.array), (switch, attr)
+            assert np.array_equal(plain.flux.osc, default.flux.osc), switch
+
+
+@pytest.mark.mpi
+def test_fast_paths_on_two_ranks() -> None:
+    """:func:`test_fast_paths_give_the_bound_bit_for_bit` on each of 2 MPI ranks (a
+    partitioned mesh: no blocks, the geometry nodes and the submesh of the Dirichlet cells
+    with ghosts)."""
+    from clirun import pytest_on_ranks
+
+    proc = pytest_on_ranks(__file__, "bit_for_bit")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert proc.stdout.count("4 passed") == 2 and " failed" not in proc.stdout
 
 
 def test_block_rows_are_those_of_a_scan_per_block() -> None:

@@ -275,15 +275,20 @@ def test_p2_gmsh_scene_starts_from_p1_on_its_mesh():
     assert _same_answer(p1, cold) and _same_answer(two, cold)
 
 
-def test_p2_floating_patch_auto_keeps_the_cold_start():
-    """The P2 contact patch (the upper block held by contact alone): P1's solution is P2's,
-    so from it ‖Φ‖ starts at round-off, above atol · F, and the floating body's stopping test
-    has no round-off floor: ``auto`` leaves the P1 level out there and converges cold."""
+def test_p2_floating_patch_auto_starts_from_p1():
+    """The P2 contact patch (the upper block held by contact alone): ``auto`` solves P1 on
+    the same mesh first; P1's solution is P2's there, so ‖Φ‖ starts at round-off and the P2
+    solve stops at once (no Newton step), with the cold answer.  The floating body's
+    stopping test had no round-off floor: from this guess it ran to max_it, and ``auto``
+    kept the cold start on floating scenes."""
     scene = contact.load_scene(
         "configs/two_body_patch_2d.yaml", ["mesh.degree=2", "output.verbose=false"]
     )
+    cold = _solve(scene, method="fb", sequence="off")
     r = _solve(scene, method="fb")
-    assert r.converged and r.dofs >= 4_000 and r.sequence == [] and r.sequence_note == ""
+    assert r.converged and cold.converged and r.dofs >= 4_000 and r.sequence_note == ""
+    assert [lv.dofs for lv in r.sequence] == [1_156] and r.iterations == 0
+    assert _same_answer(r, cold)
 
 
 def test_p2_on_curved_cells_starts_cold_and_says_so():

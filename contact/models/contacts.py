@@ -24,11 +24,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import ufl
-from dolfinx import fem, la
+from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import spaces
 from ..base.errors import ConfigError
 from ..solvers.problem import Constraint, Output, ProblemData
 from . import mortar
@@ -223,16 +224,16 @@ def mortar_set(
     on_unknowns = dirichlet_on_unknowns(
         V, bcs, nodes, frames, [a for c in sets for a in c.absolute], Kt, bt
     )
-    S, collapsed = V.sub(0).collapse()
+    S, collapsed = spaces.collapsed(V, 0)
     s_to_v = np.asarray(collapsed, dtype=np.int32).ravel()
     v_to_s = np.empty(len(s_to_v), dtype=np.int32)
     v_to_s[s_to_v // bs] = np.arange(len(s_to_v), dtype=np.int32)
     gap = np.concatenate([c.gap for c in sets])
-    on = la.vector(V.dofmap.index_map, 2)  # (slave marker, bound) per node
+    on = spaces.zero_vector(V, 2)  # (slave marker, bound) per node
     on.array.reshape(-1, 2)[nodes] = np.c_[np.ones(len(nodes)), gap]
     on.scatter_forward()
     marker, bound_nodes = on.array.reshape(-1, 2).T
-    bound = fem.Function(S, name="bound")
+    bound = spaces.zero_function(S, "bound")
     bound.x.array[:] = bound_nodes[s_to_v // bs]
     slave_nodes = np.flatnonzero(marker > 0)
     ends = np.concatenate([c.ends for c in sets]).astype(np.int32)
@@ -313,7 +314,7 @@ def dirichlet_on_unknowns(
     (Q's row there is the identity).  Only owned DoFs are listed."""
     bs = V.dofmap.index_map_bs
     n_owned = V.dofmap.index_map.size_local * bs
-    values = fem.Function(V)
+    values = spaces.zero_function(V)
     for bc in bcs:
         bc.set(values.x.array)
     fixed = np.unique(np.concatenate([bc.dof_indices()[0] for bc in bcs]))
@@ -348,13 +349,13 @@ def _component_bc(
     """x_j = values[j] on the (unrolled, owned) DoFs ``dofs`` of component k, as a DirichletBC
     on V.sub(k): ``fem.dirichletbc(g, dofs)`` on the blocked V would read the indices as
     node (block) numbers and fix other DoFs."""
-    S, collapsed = V.sub(k).collapse()
+    S, collapsed = spaces.collapsed(V, k)
     imap = V.dofmap.index_map
     n = (imap.size_local + imap.num_ghosts) * V.dofmap.index_map_bs
     v_to_s = np.full(n, -1, dtype=np.int32)
     s_to_v = np.asarray(collapsed, dtype=np.int32).ravel()
     v_to_s[s_to_v] = np.arange(len(s_to_v), dtype=np.int32)
-    g = fem.Function(S)
+    g = spaces.zero_function(S)
     g.x.array[v_to_s[dofs]] = values[dofs]
     return fem.dirichletbc(g, [dofs.astype(np.int32), v_to_s[dofs]], V.sub(k))  # type: ignore[arg-type]
 

@@ -64,7 +64,7 @@ from petsc4py import PETSc
 
 from ..solvers.current import nodal_geometry
 from ..solvers.krylov_curvature import lanczos_negative
-from ..solvers.linear import mumps_ksp
+from ..solvers.linear import factor_inertia, mumps_ksp
 from ..solvers.problem import Constraint, NodeBlockMatrix, Output
 from .forms import CurrentResidualProblem, RotatedResidualProblem
 from .physics import deformation_gradient, lame, strain_energy
@@ -207,7 +207,7 @@ def negative_eigenvalues(result) -> int:
     try:
         pc = ksp.getPC()
         pc.setUp()
-        negative, _, _ = pc.getFactorMatrix().getInertia()
+        negative, _, _ = factor_inertia(pc)
     finally:
         ksp.destroy()
         A.destroy()

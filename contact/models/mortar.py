@@ -52,6 +52,7 @@ from dolfinx import fem, la
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import spaces
 from ..base.buckets import box_point_pairs
 from ..base.errors import ConfigError
 from ..solvers.result import Result
@@ -196,7 +197,7 @@ def couple(
     gdim = slave.X.shape[2]
     search = pair.search or _diameter(comm, slave, master)
     imap = V.dofmap.index_map
-    master.vertex_normals = _vertex_normals(imap, master, gdim)
+    master.vertex_normals = _vertex_normals(V, master, gdim)
     remote = _gather_master(comm, slave, master, search)
 
     # pairs (slave facet, master facet) whose overlap is non-empty, facing and within reach
@@ -210,14 +211,14 @@ def couple(
     share = overlap.trace_weights(nv, gdim)  # ∫_F φ_a ds / |F|
     # nodal sums over the slave facets (D_ii = ∫ φ̃_i, Σ |F| n_F) and the master facets (∫ φ_j^m)
     measure = overlap.facet_measures(slave.X) if len(slave.X) else np.zeros(0)
-    D = _nodal_sum(imap, slave.nodes, measure[:, None] * overlap.dual_weights(nv, gdim))
+    D = _nodal_sum(V, slave.nodes, measure[:, None] * overlap.dual_weights(nv, gdim))
     nsum = _nodal_sum(
-        imap,
+        V,
         slave.nodes,
         np.repeat((measure[:, None] * slave.normals)[:, None, :], nv, axis=1),
         gdim,
     )
-    w_master = la.vector(imap, 1)
+    w_master = spaces.zero_vector(V, 1)
     m_measure = overlap.facet_measures(master.X) if len(master.X) else np.zeros(0)
     np.add.at(w_master.array, master.nodes.ravel(), (m_measure[:, None] * share).ravel())
     w_master.scatter_reverse(la.InsertMode.add)
@@ -308,7 +309,7 @@ def couple(
         uncovered=uncovered.astype(np.int32),
         coverage=comm.allreduce(float(coverage.min(initial=1.0)), op=MPI.MIN),
         search=search,
-        surfaces=(_owned_nodes(imap, slave.nodes), _owned_nodes(imap, master.nodes)),
+        surfaces=(_owned_nodes(V, slave.nodes), _owned_nodes(V, master.nodes)),
         transform=transform,
     )
 
@@ -383,13 +384,13 @@ def edge_matrix(
     return T
 
 
-def _owned_nodes(imap, nodes: np.ndarray) -> np.ndarray:
+def _owned_nodes(V: fem.FunctionSpace, nodes: np.ndarray) -> np.ndarray:
     """The owned nodes among a surface's facet ``nodes`` held on any rank (sorted;
     collective)."""
-    mark = la.vector(imap, 1)
+    mark = spaces.zero_vector(V, 1)
     mark.array[np.unique(nodes)] = 1.0
     mark.scatter_reverse(la.InsertMode.add)
-    return np.flatnonzero(mark.array[: imap.size_local] > 0)
+    return np.flatnonzero(mark.array[: V.dofmap.index_map.size_local] > 0)
 
 
 def interface_forces(problem) -> tuple[np.ndarray, np.ndarray]:
@@ -477,7 +478,7 @@ def check_disjoint(
     owned = np.zeros((imap.size_local, 3), dtype=int)
 
     def count(column: int, facets: np.ndarray) -> None:
-        flag = la.vector(imap, 1)
+        flag = spaces.zero_vector(V, 1)
         flag.array[np.unique(surface_facets(V, facets).nodes)] = 1.0
         flag.scatter_reverse(la.InsertMode.add)
         owned[:, column] += flag.array[: imap.size_local] > 0
@@ -556,13 +557,13 @@ def _gather_master(comm: MPI.Comm, slave: Facets, master: Facets, search: float)
     )
 
 
-def _vertex_normals(imap, side: Facets, gdim: int) -> np.ndarray:
+def _vertex_normals(V: fem.FunctionSpace, side: Facets, gdim: int) -> np.ndarray:
     """The surface's unit nodal normals (measure-weighted facet normals summed over all
     ranks) at the vertices of its facets, (F, nv, gdim)."""
     nv = side.nodes.shape[1]
     measure = overlap.facet_measures(side.X) if len(side.X) else np.zeros(0)
     nsum = _nodal_sum(
-        imap, side.nodes, np.repeat((measure[:, None] * side.normals)[:, None, :], nv, axis=1), gdim
+        V, side.nodes, np.repeat((measure[:, None] * side.normals)[:, None, :], nv, axis=1), gdim
     )
     N = nsum.reshape(-1, gdim)[side.nodes]
     return N / np.maximum(np.linalg.norm(N, axis=-1, keepdims=True), 1e-300)
@@ -632,10 +633,12 @@ def _clipped_boxes(
     return np.minimum(p0, p1) - reach[:, None], np.maximum(p0, p1) + reach[:, None], live
 
 
-def _nodal_sum(imap, nodes: np.ndarray, values: np.ndarray, bs: int = 1) -> np.ndarray:
+def _nodal_sum(
+    V: fem.FunctionSpace, nodes: np.ndarray, values: np.ndarray, bs: int = 1
+) -> np.ndarray:
     """Σ over facets of per-vertex ``values`` at their local ``nodes``, summed on the owners
     (owned and ghost entries, ghosts updated)."""
-    vec = la.vector(imap, bs)
+    vec = spaces.zero_vector(V, bs)
     arr = vec.array.reshape(-1, bs)
     np.add.at(arr, nodes.ravel(), values.reshape(-1, bs))
     vec.scatter_reverse(la.InsertMode.add)

@@ -30,7 +30,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from ..base import expressions
+from ..base import expressions, spaces
 from ..base.errors import ConfigError
 from ..models.constraints import Coulomb, MortarPair, RigidObstacle, Tresca
 from ..models.discrete import Problem
@@ -90,7 +90,7 @@ def elastic_setting(scene: Scene, degree: int | None = None) -> ElasticSetting:
             raise ConfigError(
                 f"data.{key}: a {gdim}D elasticity scene needs {gdim} components, got {len(texts)}"
             )
-    V = fem.functionspace(msh, ("Lagrange", degree or cfg.mesh.degree, (gdim,)))
+    V = spaces.functionspace(msh, ("Lagrange", degree or cfg.mesh.degree, (gdim,)))
     v = ufl.TestFunction(V)
     f, t = vector(data["f"], scene), vector(data["t"], scene)
     ds = ufl.Measure("ds", domain=msh, subdomain_data=bnd.tags)
@@ -100,7 +100,7 @@ def elastic_setting(scene: Scene, degree: int | None = None) -> ElasticSetting:
         L_ufl += ufl.inner(t, v) * ds(i)
 
     # Dirichlet: u = u_D on Γ_D;  symmetry: u_k = 0 on a plane x_k = const.
-    u_D = fem.Function(V)
+    u_D = spaces.zero_function(V)
     u_D.interpolate(vector_numpy(data["u_D"], scene))
     bcs = [fem.dirichletbc(u_D, fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet")))]
     axes = []
@@ -275,8 +275,8 @@ def materials(scene: Scene) -> tuple[fem.Function, fem.Function, fem.Function]:
     in the order of the bodies section; the output tells the bodies apart by it)."""
     msh, tags = scene.mesh, scene.bodies
     assert tags is not None  # a scene of several bodies has its body tags
-    W = fem.functionspace(msh, ("DG", 0))
-    mu, lmbda_L, body = (fem.Function(W, name=name) for name in ("mu", "lmbda_L", "body"))
+    W = spaces.functionspace(msh, ("DG", 0))
+    mu, lmbda_L, body = (spaces.zero_function(W, name) for name in ("mu", "lmbda_L", "body"))
     bodies = scene.config.bodies
     assert bodies is not None  # a scene with bodies
     values = [lame(b.E, b.nu) for b in bodies.values()]

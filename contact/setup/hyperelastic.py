@@ -13,6 +13,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
+from ..base import spaces
 from ..models.discrete import Problem
 from ..models.forms import ResidualProblem, make_problem
 from ..models.hyperelastic import (
@@ -54,7 +55,7 @@ def hyperelastic_problem(scene: Scene, coupled_at: np.ndarray | None = None) -> 
         mu, lmbda_L = lame(model.E, model.nu)
     s = elastic_setting(scene)
     V = s.V
-    u_h = fem.Function(V, name="u_h")
+    u_h = spaces.zero_function(V, "u_h")
     v = ufl.TestFunction(V)
     # P1: F is constant per cell, one point is exact; P2: degree 2p for the nonpolynomial ψ
     degree = quadrature_degree(scene.config.mesh.degree)

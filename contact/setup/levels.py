@@ -78,17 +78,12 @@ def _dofs(scene: Scene, bs: int) -> int:
     return scene.mesh.geometry.index_map().size_global * bs
 
 
-def plan(
-    scene: Scene, option, bs: int, degree: int, floating: bool = False
-) -> tuple[list[Callable[[], Scene]], str]:
+def plan(scene: Scene, option, bs: int, degree: int) -> tuple[list[Callable[[], Scene]], str]:
     """Builders of the coarse scenes (coarsest first) and a note ('' or why there are
     fewer levels than asked / none).
 
     At degree p > 1 the finest coarse level is the scene at P1 on the same mesh (about
-    p^dim times fewer DoFs), itself after P1's own coarse levels (:func:`_degree_plan`);
-    ``auto`` leaves it out where a body is ``floating`` (held by contact alone): there the
-    stopping test has no round-off floor, and a P1 guess that is P_p's solution already (a
-    patch test) leaves ‖Φ‖ at round-off above atol · F."""
+    p^dim times fewer DoFs), itself after P1's own coarse levels (:func:`_degree_plan`)."""
     dim = scene.mesh.topology.dim
     fine_dofs = _dofs(scene, bs) * degree**dim  # P1 DoFs × p^dim ≈ the P_p DoFs
     wanted = levels_wanted(option, fine_dofs, auto_min_dofs(scene.config.model.type, dim))
@@ -106,8 +101,6 @@ def plan(
     if degree != 1:
         if scene.config.mesh.geometry_degree != 1:  # curved cells carry isoparametric P2 only
             return [], "grid sequencing: curved cells (mesh.geometry_degree 2) need P2; cold start"
-        if floating and option == "auto":
-            return [], ""
         return _degree_plan(scene, wanted, bs)
     kind = scene.config.mesh.type
     if scene.bodies is not None and kind not in GMSH_BUILT:
@@ -212,18 +205,17 @@ def _with_mesh(scene: Scene, changes: dict) -> Scene:
 
 
 def scene_hierarchy(
-    scene: Scene, V: fem.FunctionSpace, opts: SolverConfig, solve: Callable, floating: bool = False
+    scene: Scene, V: fem.FunctionSpace, opts: SolverConfig, solve: Callable
 ) -> Hierarchy:
     """The coarse levels of ``opts.sequence`` (``opts``: the fine solve's solver section with
     its call's overrides) as a :class:`~.sequencing.Hierarchy`: each a scene on a coarser mesh
     whose solver section has no sequencing and :data:`~.sequencing.COARSE_RTOL`, solved by
     ``solve`` (:func:`contact.setup.run.solve`), a load step's history restricted to it
     (its coarsest level starts from the previous step's solution, and the levels' solution
-    replaces a frictional step's guess); ``floating``: a body of the problem is held by
-    contact alone (:func:`plan`)."""
+    replaces a frictional step's guess)."""
     bs = V.dofmap.index_map_bs
     degree = V.element.basix_element.degree
-    builders, note = plan(scene, opts.sequence, bs, degree, floating)
+    builders, note = plan(scene, opts.sequence, bs, degree)
     coarse_solver = opts.model_copy(update={"sequence": "off", "rtol": COARSE_RTOL})
     u_prev = scene.history.get("u_prev")
     if u_prev is not None and degree != 1:  # the coarse levels are P1: restrict through P1

@@ -274,7 +274,7 @@ def solve(
         bool(scene.history) and problem.friction is not None and config.model.type != "hyperelastic"
     )
     if u0 is None or frictional_step:
-        coarse = scene_hierarchy(scene, problem.V, opts, solve, bool(problem.floating))
+        coarse = scene_hierarchy(scene, problem.V, opts, solve)
         coarse.replaces_guess = frictional_step
 
     def start(V: fem.FunctionSpace) -> fem.Function:
@@ -343,7 +343,7 @@ def solve_coupled(
         def coarse_solve(coarse: Scene, problem, u0, verbose) -> Result:
             return solve_coupled(coarse, None, problem, u0, verbose, coupling_rtol=COARSE_RTOL)
 
-        hierarchy = scene_hierarchy(scene, problem.V, opts, coarse_solve, bool(problem.floating))
+        hierarchy = scene_hierarchy(scene, problem.V, opts, coarse_solve)
         note = hierarchy.note
         if hierarchy.levels:
             loud = scene.config.output.verbose if verbose is None else verbose

@@ -9,7 +9,8 @@ min and blend, H = diag(s) K_T + diag(d), is equivalent to the symmetric system 
     A y = r,     A = P K_T P + diag(d/s on the free rows, 1 on the fixed rows),
 
 K_T on the free rows plus the law's non-negative diagonal.  Factorized by LDLᵀ (MUMPS,
-``ICNTL(13) = 1``: the inertia of the whole matrix on any number of ranks) its inertia
+``ICNTL(13) = 1``: the inertia of the whole matrix on any number of ranks; a small one on
+several ranks gathered whole onto every rank, :class:`.linear.GatheredFactor`) its inertia
 (n₋, n₀, n₊) comes with the solve.  With n₋ = n₀ = 0 the Newton step is a descent direction
 of Π on the free rows; with n₋ > 0 — St Venant–Kirchhoff in strong compression, a strip
 past its buckling load — Newton's method heads for a saddle of Π (an unstable equilibrium)
@@ -49,7 +50,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..base.norms import norm2
-from .linear import ReducedNewtonSystem
+from .linear import ReducedNewtonSystem, factor_inertia, gather_factor, gathers
 from .problem import DiscreteProblem
 
 TAU_MIN = 1e-6  # the first shift, relative to diag(K)
@@ -104,9 +105,18 @@ class CurvatureSystem(ReducedNewtonSystem):
         self.curvature = np.nan  # μ₁ of the current law (the Rayleigh quotient of v)
         self.inverse_iterations = 0  # of the last direction
 
+    #: a small system on several ranks factorized whole on every rank
+    #: (:class:`.linear.GatheredFactor`, :data:`.linear.GATHERED_FACTOR_SIZE`) when the options
+    #: ask for MUMPS's LDLᵀ; False: MUMPS across the ranks
+    gather_factor = True
+
     def set_options(self) -> None:
         super().set_options()
         self.lag = False  # a factorization, not a preconditioner to lag
+        pc = self.ksp.getPC()
+        mumps = pc.getType() == "cholesky" and pc.getFactorSolverType() == "mumps"
+        if self.gather_factor and mumps and gathers(self.A):
+            gather_factor(pc, "cholesky")
 
     def set_law(self, s: PETSc.Vec, d: PETSc.Vec) -> None:
         """A for the law (s, d) at the current K_T, factorized; the Newton step's law (not a
@@ -253,7 +263,7 @@ class CurvatureSystem(ReducedNewtonSystem):
         self.ksp.setOperators(self.A, self.A)  # new values: a new numerical factorization
         self.ksp.setUp()
         self.total_factorizations += 1
-        negative, zero, _ = pc.getFactorMatrix().getInertia()
+        negative, zero, _ = factor_inertia(pc)
         return int(negative) + int(zero)
 
     def destroy(self) -> None:

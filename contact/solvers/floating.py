@@ -23,6 +23,8 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base import spaces
+
 FREE_RTOL = 1e-10
 
 
@@ -65,7 +67,7 @@ def free_in_contact(
     )
     held = held[held < n_owned * gdim].astype(np.int64)
     floating = dict(problem.floating)
-    m, x = fem.Function(V), problem.b.duplicate()
+    m, x = spaces.zero_function(V), problem.b.duplicate()
     X, comp = _coordinates(V), np.arange(n_owned * gdim) % gdim
     out = []
     for name, on, centre, size in _units(V, bodies, names):
@@ -102,7 +104,7 @@ def _units(V: fem.FunctionSpace, bodies: dmesh.MeshTags | None, names: list[str]
         body = np.zeros(len(cells), dtype=np.int32)
         body[bodies.indices] = bodies.values
         for k in range(len(names)):  # the owned nodes of body k's cells, on any rank
-            flag = la.vector(imap)
+            flag = spaces.zero_vector(V)
             flag.array[cells[body == k + 1].ravel()] = 1.0
             flag.scatter_reverse(la.InsertMode.add)
             member[k] = flag.array[:n_owned] > 0

@@ -126,14 +126,110 @@ def petsc_defaults(problem: DiscreteProblem, kind: str) -> dict:
     return default_options(kind, problem.V.mesh.topology.dim, problem.V.mesh.comm.size)
 
 
+#: most unknowns of a factorized system that on more than one rank is gathered whole onto
+#: every rank and factorized there (:class:`GatheredFactor`); 0: always MUMPS across the ranks
+GATHERED_FACTOR_SIZE = 2000
+
+
+def gathers(A: PETSc.Mat) -> bool:
+    """Whether a factorization of A is made whole on every rank (:class:`GatheredFactor`): on
+    more than one rank, up to :data:`GATHERED_FACTOR_SIZE` unknowns."""
+    return A.getComm().size > 1 and A.getSize()[0] <= GATHERED_FACTOR_SIZE
+
+
+class GatheredFactor:
+    """Python PC context: the operator gathered whole onto every rank (one
+    ``MatCreateRedundantMatrix``) and factorized there by serial MUMPS (``lu``, or
+    ``cholesky`` = LDLᵀ with null pivots detected); a solve gathers the right-hand side
+    onto every rank (one scatter), solves and keeps the owned slice.
+
+    Why: a distributed MUMPS factorization and solve exchange many small messages; for a
+    system of a few hundred unknowns, above all on ranks that share cores, waiting for them
+    costs far more than the arithmetic, which every rank can then afford whole.  Every rank
+    factorizes the same matrix with the same serial code, so the inertia
+    (:func:`factor_inertia`) and the solution are the same on every rank; they equal the
+    distributed factorization's to round-off."""
+
+    def __init__(self, factor: str = "lu"):
+        self.factor = factor
+        self.R: PETSc.Mat | None = None  # the gathered operator (sequential, every rank)
+        self.ksp: PETSc.KSP | None = None  # its serial factorization
+        self.scatter: PETSc.Scatter | None = None  # the right-hand side onto every rank
+        self.full: PETSc.Vec | None = None
+        self.sol: PETSc.Vec | None = None
+
+    def setUp(self, pc: PETSc.PC) -> None:  # noqa: N802  (petsc4py's name)
+        """Gather the operator's current values and factorize them (collective)."""
+        _, A = pc.getOperators()
+        for obj in (self.R, self.ksp):  # a new factorization (its analysis is cheap serially)
+            if obj is not None:
+                obj.destroy()
+        self.R = A.getRedundantMatrix(A.getComm().size, PETSc.COMM_SELF)
+        self.ksp = ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+        ksp.setType("preonly")
+        ksp.setOperators(self.R)
+        inner = ksp.getPC()
+        inner.setType(self.factor)
+        inner.setFactorSolverType("mumps")
+        if self.factor == "cholesky":
+            inner.setFactorSetUpSolverType()
+            inner.getFactorMatrix().setMumpsIcntl(24, 1)  # a null pivot is a zero eigenvalue
+        ksp.setUp()
+        if self.scatter is None:
+            x = A.createVecRight()
+            self.scatter, self.full = PETSc.Scatter.toAll(x)
+            self.sol = self.full.duplicate()
+            x.destroy()
+
+    def apply(self, pc: PETSc.PC, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = A⁻¹ x: x gathered, solved on every rank, y's owned slice kept."""
+        full, sol, ksp = self.full, self.sol, self.ksp
+        assert self.scatter is not None and full is not None and sol is not None and ksp
+        self.scatter.scatter(x, full, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)  # type: ignore[arg-type]
+        ksp.solve(full, sol)
+        if ksp.getConvergedReason() < 0:  # type: ignore[operator]  # the outer solve: a failed PC
+            pc.setFailedReason(PETSc.PC.FailedReason.SUBPC_ERROR)  # type: ignore[arg-type]
+        lo, hi = y.getOwnershipRange()
+        y.array_w[:] = sol.array_r[lo:hi]
+
+    def inertia(self) -> tuple[int, int, int]:
+        """(n₋, n₀, n₊) of the factorized operator (``cholesky``)."""
+        assert self.ksp is not None, "inertia after setUp"
+        return self.ksp.getPC().getFactorMatrix().getInertia()
+
+    def destroy(self, pc: PETSc.PC | None = None) -> None:
+        for obj in (self.R, self.ksp, self.scatter, self.full, self.sol):
+            if obj is not None:
+                obj.destroy()
+        self.R = self.ksp = self.scatter = self.full = self.sol = None
+
+
+def gather_factor(pc: PETSc.PC, factor: str) -> None:
+    """Make ``pc`` a :class:`GatheredFactor` of ``factor`` (``lu`` or ``cholesky``)."""
+    pc.setType(PETSc.PC.Type.PYTHON)
+    pc.setPythonContext(GatheredFactor(factor))
+
+
+def factor_inertia(pc: PETSc.PC) -> tuple[int, int, int]:
+    """(n₋, n₀, n₊) of the LDLᵀ factorization ``pc`` holds (set up): MUMPS's across the ranks
+    or that of a :class:`GatheredFactor`."""
+    if pc.getType() == PETSc.PC.Type.PYTHON:
+        return pc.getPythonContext().inertia()
+    return pc.getFactorMatrix().getInertia()
+
+
 def mumps_ksp(A: PETSc.Mat, factor: str = "lu") -> PETSc.KSP:
     """A KSP solving with A by one MUMPS factorization (``lu``, or ``cholesky`` = LDLᵀ for a
-    symmetric A, set up so that the factor's ``getInertia`` counts over all ranks and a null
-    pivot counts as a zero eigenvalue), its operators set; the caller destroys it."""
+    symmetric A, set up so that its inertia (:func:`factor_inertia`) counts over all ranks and
+    a null pivot counts as a zero eigenvalue), its operators set; the caller destroys it.
+    A small A on several ranks is factorized whole on every rank (:func:`gathers`)."""
     ksp = PETSc.KSP().create(A.getComm())
     ksp.setOperators(A)
     ksp.setType("preonly")
     pc = ksp.getPC()
+    if gathers(A):
+        gather_factor(pc, factor)
+        return ksp
     pc.setType(factor)
     pc.setFactorSolverType("mumps")
     if factor == "cholesky":

@@ -27,7 +27,8 @@ x: the small-strain contact of the step's increment, which a load step from a po
 would flatten the cells around it.  For a linear problem δ is the whole step; for a nonlinear
 one it is the start of the active-set method from the linearization at a valid state.  The
 start x + δ is taken if it is admissible (no inverted matter, a finite residual), else the
-plain start.  MUMPS LU, one factorization per solve — or, where the Newton steps are
+plain start.  MUMPS LU, one factorization per solve (a small system on several ranks
+factorized whole on every rank, :func:`.linear.mumps_ksp`) — or, where the Newton steps are
 iterative, CG + GAMG.
 
 With friction the held nodes stick in the predictor: their tangential unknowns keep their

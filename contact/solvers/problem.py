@@ -27,6 +27,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import spaces
 from ..base.errors import ConfigError
 from ..base.lifetime import destroy
 from .options import FrictionOptions
@@ -384,14 +385,14 @@ class DiscreteProblem:
         and 0 elsewhere (λ_h also at the ends of Γ_C, :meth:`_extend_to_ends`)."""
         V = self.V
         fn, where = self.unknowns_function(name, values), self.output
-        out = fem.Function(where.space or V, name=name)
+        out = spaces.zero_function(where.space or V, name)
         out.x.array[:] = fn.x.array if where.map is None else fn.x.array[where.map]
         return out
 
     def unknowns_function(self, name: str, values: np.ndarray) -> fem.Function:
         """A function of V holding ``values`` at the constrained unknowns and 0 at the others
         (λ_h also at the ends of Γ_C, :meth:`_extend_to_ends`): the unknowns x, before Q."""
-        fn = fem.Function(self.V)
+        fn = spaces.zero_function(self.V)
         fn.x.array[self.constraint.dofs] = values
         fn.x.scatter_forward()
         if name == "lambda_h":
@@ -404,11 +405,11 @@ class DiscreteProblem:
         it is ψ − u everywhere.  ``x``: the owned unknowns."""
         V, con, where = self.V, self.constraint, self.output
         S = where.space or V
-        unknowns = fem.Function(V)
+        unknowns = spaces.zero_function(V)
         unknowns.x.array[: len(x)] = x
         unknowns.x.scatter_forward()
         u = unknowns.x.array if where.map is None else unknowns.x.array[where.map]
-        gap = fem.Function(S, name="gap")
+        gap = spaces.zero_function(S, "gap")
         gap.x.array[:] = con.sign * (self.bound_function().x.array - u)
         if not con.in_domain:
             on = self.nodal_output("on", np.ones(len(con.dofs)))

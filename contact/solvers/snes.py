@@ -307,15 +307,18 @@ class SemismoothNewton:
                 system.guess = guess and polisher is None and problem.friction is None
             if self.stopping is not None:
                 self.stopping.start(cp.active(x))
+            # SNES tests its stop at iteration 0 before the monitor raises it to the round-off
+            # floor: the floor is put in here, or a start at the floor (a converged guess, a
+            # polished one) would cost a Newton step (and a second polishing solve)
+            floor = self._floor(x)
             if polisher is not None and guess:
                 # polish the guess first; SNES's relative tolerance still refers to the guess's ‖Φ‖
-                # SNES tests its stop at iteration 0 before the monitor raises it to the
-                # round-off floor: the floor is put in here, or a polished guess at the
-                # floor would cost a Newton step and a second polishing solve
-                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu), self._floor(x))
+                stop = max(self.atol, opts.rtol * cp_norm(cp, x, method, opts.mu), floor)
                 polisher.initial(x, stop)
                 self.state["stop"] = stop
                 snes.setTolerances(rtol=0.0, atol=stop, stol=0.0, max_it=self._snes_max_it)
+            elif floor > snes.getTolerances()[1]:
+                snes.setTolerances(atol=floor)
             # SNES, its monitor, the Jacobian and min's cycle guard all evaluate R at each
             # iterate: a linear residual's is computed once per iterate (old path:
             # ``solver.petsc_options.reuse_residual: false``)
@@ -386,11 +389,14 @@ class SemismoothNewton:
 
     def _floor(self, x: PETSc.Vec) -> float:
         """The round-off floor of ‖Φ(x)‖ (:func:`roundoff_floor`) that SNES's stopping test
-        never asks to go below, capped at atol · F₁.  It grows with ‖x‖, which the data bound
-        only if no body floats (a body that nothing but frictionless contact holds may drift
-        along a free rigid motion): then 0."""
-        if self.problem.floating:
-            return 0.0
+        never asks to go below, capped at atol · F₁ (F₁ the total force of the data).
+
+        Also where a body floats (nothing but contact holds it): ‖x‖ may grow there along a
+        free rigid motion r, but then so does the round-off of K x − b (K r = 0 holds only
+        to ε ‖K‖ ‖x‖), and the cap keeps the test at a fraction atol of the data's force, so
+        a drifting iterate is never accepted for its size.  The floor decides where atol · F
+        (F the largest nodal force, ∝ h^d) lies below the round-off of ‖Φ‖: fine meshes, P2's
+        small nodal forces, and a start that is the discrete solution already."""
         return max(
             min(roundoff_floor(self._k_norm, x), self.opts.atol * self._total),
             self.cp.gap_roundoff(x),  # gaps of coordinates: bounded by the data, not by x

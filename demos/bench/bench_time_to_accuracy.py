@@ -217,6 +217,11 @@ PLAIN = (
     ("contact.adaptivity.transfer", "TAGGED_PARENTS_ONLY"),
     ("contact.adaptivity.equilibration.multiplier", "EINSUM"),
     ("contact.adaptivity.equilibration.flux", "SORTED_BLOCKS"),
+    ("contact.adaptivity.equilibration.flux", "NODAL_MULTIPLIER"),
+    ("contact.adaptivity.equilibration.cells", "VERTEX_NODES"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
+    ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
+    ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
 )
 
 

@@ -5,6 +5,7 @@
     mpirun -n 2 python demos/bench/bench_two_bodies.py sphere [--h-contact 0.01 0.005 ...]
     python demos/bench/bench_two_bodies.py sphere_degrees  # the sphere with P1 and P2, η
     python demos/bench/bench_two_bodies.py p1_start [--h-contact 0.1 0.05]  # P2 cold / from P1
+    python demos/bench/bench_two_bodies.py p1_start_floating  # the same, P2 patch tests
     python demos/bench/bench_two_bodies.py cattaneo [--h-contact 0.02 0.01]   # partial slip
     python demos/bench/bench_two_bodies.py p2 [--h-contact 0.1 0.05 0.025]   # P2, curved cells
     python demos/bench/bench_two_bodies.py p2sphere [--h-contact 0.04 0.02]   # the same in 3D
@@ -36,7 +37,10 @@ Each part prints its table and writes CSV to demos/results/two_bodies/ (rank 0):
   same mesh (``auto``): the sphere on a block at the given ``h_contact`` and the 2D Hertz
   pair at 0.05, fb; Newton steps + polishing solves and seconds of each (the coarse levels
   included), their ratio cold / P1-start, and the largest nodal difference of the two
-  answers relative to the largest displacement;
+  answers relative to the largest displacement, and the CPU seconds (summed over ranks)
+  and their ratio; ``p1_start_floating.csv`` the same for the contact patch tests
+  (``configs/two_body_patch_2d.yaml``, ``two_body_patch_3d.yaml``) at P2, whose upper block
+  contact alone holds and whose P1 solution is P2's;
 * ``cattaneo.csv`` — two cylinders with Coulomb friction F = 0.3, the load path of
   ``configs/two_body_cattaneo_2d.yaml`` (P, then Q as a body force) on meshes of decreasing
   ``h_contact``: per step Q/(F P), c/a against √(1 − Q/(F P)) and the L² error of the
@@ -448,40 +452,57 @@ def sphere_degrees(p2_sizes: list[float], p1_sizes: list[float], max_dofs: int) 
 def p1_start(sizes: list[float]) -> None:
     """P2 pairs cold and started from P1 on the same mesh, in one process."""
     cases = [("two_body_hertz_3d", h) for h in sizes] + [("two_body_hertz_2d", 0.05)]
-    rows = []
-    for name, h_contact in cases:
-        scene = contact.load_scene(
-            ROOT / "configs" / f"{name}.yaml",
-            QUIET + ["adapt=null", "mesh.degree=2", f"mesh.h_contact={h_contact}"],
-        )
-        runs = {}
-        for sequence in ("off", "auto"):
-            t0 = time.perf_counter()
-            r = contact.solve(scene, method="fb", verbose=False, sequence=sequence)
-            runs[sequence] = (r, comm.allreduce(time.perf_counter() - t0, op=MPI.MAX))
-        (cold, t_cold), (warm, t_warm) = runs["off"], runs["auto"]
-        u = cold.u_h.x.array
-        diff = comm.allreduce(float(np.max(np.abs(warm.u_h.x.array - u))), op=MPI.MAX)
-        scale = comm.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
-        rows.append(
-            {
-                "scene": name,
-                "h_contact": h_contact,
-                "dofs": cold.dofs,
-                "ranks": comm.size,
-                "converged": cold.converged and warm.converged,
-                "cold_newton": f"{cold.iterations}+{cold.polish_solves}",
-                "p1_start_newton": f"{warm.iterations}+{warm.polish_solves}",
-                "levels": " ".join(f"{lv.dofs}:{lv.newton_iterations}" for lv in warm.sequence),
-                "cold_seconds": round(t_cold, 2),
-                "p1_start_seconds": round(t_warm, 2),
-                "ratio": t_cold / t_warm,
-                "difference": diff / scale,
-            }
-        )
-        say(f"{name} P2 h_contact {h_contact}: cold / P1-start {t_cold / t_warm:.2f}")
+    rows = [cold_and_p1_start(name, h, ["adapt=null", f"mesh.h_contact={h}"]) for name, h in cases]
     table(rows)
     write("p1_start.csv", rows)
+
+
+def p1_start_floating() -> None:
+    """The contact patch tests at P2 (the upper block held by contact alone), cold and
+    started from P1 on the same mesh, whose solution is P2's there."""
+    rows = [cold_and_p1_start(name, "", []) for name in ("two_body_patch_2d", "two_body_patch_3d")]
+    table(rows)
+    write("p1_start_floating.csv", rows)
+
+
+def cold_and_p1_start(name: str, h_contact, overrides: list[str]) -> dict:
+    """One row of p1_start.csv: ``configs/<name>.yaml`` at P2 with ``overrides``, fb, cold
+    (``solver.sequence: off``) and then ``auto``: steps, wall and CPU seconds (CPU: summed
+    over ranks), their ratios and the largest nodal difference of the answers."""
+    scene = contact.load_scene(
+        ROOT / "configs" / f"{name}.yaml", QUIET + ["mesh.degree=2", *overrides]
+    )
+    runs = {}
+    for sequence in ("off", "auto"):
+        t0, c0 = time.perf_counter(), time.process_time()
+        r = contact.solve(scene, method="fb", verbose=False, sequence=sequence)
+        wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+        runs[sequence] = (r, wall, comm.allreduce(time.process_time() - c0, op=MPI.SUM))
+    (cold, t_cold, c_cold), (warm, t_warm, c_warm) = runs["off"], runs["auto"]
+    u = cold.u_h.x.array
+    diff = comm.allreduce(float(np.max(np.abs(warm.u_h.x.array - u))), op=MPI.MAX)
+    scale = comm.allreduce(float(np.max(np.abs(u))), op=MPI.MAX)
+    say(
+        f"{name} P2 {h_contact}: cold / P1-start {t_cold / t_warm:.2f} (wall), "
+        f"{c_cold / c_warm:.2f} (CPU)"
+    )
+    return {
+        "scene": name,
+        "h_contact": h_contact,
+        "dofs": cold.dofs,
+        "ranks": comm.size,
+        "converged": cold.converged and warm.converged,
+        "cold_newton": f"{cold.iterations}+{cold.polish_solves}",
+        "p1_start_newton": f"{warm.iterations}+{warm.polish_solves}",
+        "levels": " ".join(f"{lv.dofs}:{lv.newton_iterations}" for lv in warm.sequence),
+        "cold_seconds": round(t_cold, 2),
+        "p1_start_seconds": round(t_warm, 2),
+        "ratio": t_cold / t_warm,
+        "difference": diff / scale,
+        "cold_cpu": round(c_cold, 2),
+        "p1_start_cpu": round(c_warm, 2),
+        "cpu_ratio": c_cold / c_warm,
+    }
 
 
 def cattaneo(sizes: list[float]) -> None:
@@ -640,6 +661,7 @@ def main(argv=None) -> None:
             "sphere",
             "sphere_degrees",
             "p1_start",
+            "p1_start_floating",
             "cattaneo",
             "p2",
             "p2sphere",
@@ -680,6 +702,8 @@ def main(argv=None) -> None:
         cattaneo(args.h_contact or [0.02, 0.01])
     elif args.part == "p1_start":
         p1_start(args.h_contact or [0.1, 0.05])
+    elif args.part == "p1_start_floating":
+        p1_start_floating()
     elif args.part == "sphere_degrees":
         sphere_degrees(
             args.h_contact or [0.1, 0.05, 0.025, 0.0125],

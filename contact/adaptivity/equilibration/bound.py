@@ -82,6 +82,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import ufl
 from dolfinx import fem, la
+from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from ...base.lifetime import return_freed_memory
@@ -99,9 +100,18 @@ TERMS = ("flux", "oscillation", "complementarity", "feasibility", "dirichlet")
 #: D_T² of the Dirichlet lifting e_D integrated over the cells with a DoF of e_D only (zero
 #: elsewhere); False: over every cell, the plain path (the same numbers)
 DIRICHLET_CELLS = True
-#: D_T² (whose P2 space and data are a transient of ~220 B per cell) before the flux, not on
-#: top of it, and the heap the flux's patch data freed given back before the terms are
-#: assembled; False: D_T² after the terms, the heap kept (the old path; the same numbers)
+#: with :data:`DIRICHLET_CELLS` and a P1 solution, u_D evaluated at the DoFs of those cells
+#: only (the P2 space of their submesh: the same points, one DoF per edge), not at every DoF
+#: of the mesh's P2 space; False: at every DoF, the plain path (the same values)
+DIRICHLET_SUBMESH = True
+#: serially, with :data:`DIRICHLET_SUBMESH` and a constant k, the whole Dirichlet term (e_D,
+#: I_2 u_h and D_T²) on the submesh of the cells with a vertex on Γ_D: no P2 space of the
+#: whole mesh; False: e_D in the P2 space of the mesh (the same D_T² bit for bit)
+DIRICHLET_ON_SUBMESH = True
+#: D_T² before the flux, not on top of it (its transient: data and P2 functions near Γ_D, or
+#: of the whole mesh on the plain Dirichlet paths), and the heap the flux's patch data freed
+#: given back before the terms are assembled; False: D_T² after the terms, the heap kept (the
+#: old path; the same numbers)
 FREE_EARLY = True
 
 
@@ -386,6 +396,10 @@ def _dirichlet(problem: Problem, result: Result, w_test, k) -> np.ndarray:
     msh = problem.V.mesh
     tdim = msh.topology.dim
     boundary = physics.boundary
+    constant = isinstance(k, fem.Constant | int | float)
+    serial = msh.comm.size == 1 and _degree(u_h) == 1 and constant
+    if DIRICHLET_CELLS and DIRICHLET_SUBMESH and DIRICHLET_ON_SUBMESH and serial:
+        return _dirichlet_on_submesh(physics, condition, u_h, k)
     V2 = fem.functionspace(msh, ("Lagrange", _degree(u_h) + 1))
     dofs = np.setdiff1d(
         fem.locate_dofs_topological(V2, tdim - 1, boundary.facets(boundary.dirichlet)),
@@ -404,6 +418,101 @@ def _dirichlet(problem: Problem, result: Result, w_test, k) -> np.ndarray:
     else:
         u2.interpolate(u_h)
     if physics.dirichlet_value is not None:
-        e_D.x.array[dofs] = physics.dirichlet_value(V2).x.array[dofs] - u2.x.array[dofs]
+        if DIRICHLET_CELLS and DIRICHLET_SUBMESH and _degree(u_h) == 1:
+            u_D = _on_cells(physics.dirichlet_value, V2, cells)
+        else:
+            u_D = physics.dirichlet_value(V2).x.array
+        e_D.x.array[dofs] = u_D[dofs] - u2.x.array[dofs]
     e_D.x.scatter_forward()
     return cellwise(k * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w_test * dx)
+
+
+def _on_cells(value: Callable, V2: fem.FunctionSpace, cells: np.ndarray) -> np.ndarray:
+    """The values of ``value`` (u_D interpolated into a given P2 space, the physics'
+    ``dirichlet_value``) at the DoFs of V2 in ``cells`` (0 elsewhere), computed on the P2 space
+    of the submesh of these cells (collective).  A submesh cell has its parent's vertices in
+    the same order, so its local DoF j lies at its parent's DoF j: the same points (P2 has
+    one DoF per edge, which no edge orientation moves)."""
+    msh = V2.mesh
+    tdim = msh.topology.dim
+    sub, cell_map, _, _ = dmesh.create_submesh(msh, tdim, cells)
+    W = fem.functionspace(sub, ("Lagrange", 2))
+    cmap = sub.topology.index_map(tdim)
+    local = np.arange(cmap.size_local + cmap.num_ghosts, dtype=np.int32)
+    parent = cell_map.sub_topology_to_topology(local, inverse=False)
+    out = np.zeros(
+        (V2.dofmap.index_map.size_local + V2.dofmap.index_map.num_ghosts) * V2.dofmap.index_map_bs
+    )
+    out[V2.dofmap.list[parent]] = value(W).x.array[W.dofmap.list[local]]
+    return out
+
+
+def _dirichlet_on_submesh(physics: Diffusion, condition: Unilateral, u_h, k) -> np.ndarray:
+    """D_T² of :func:`_dirichlet` for a P1 u_h and a constant k on one rank, computed on the
+    submesh of the cells with a vertex on a Dirichlet facet (every cell with a DoF of e_D, and
+    every contact facet through such a vertex; D_T² = 0 on the others, and on the submesh's
+    cells without a DoF of e_D, where e_D = 0).  A submesh cell has its parent's vertices in
+    the same order: the same local facets, P2 DoFs at the same points, I_2 u_h there from the
+    same P1 coefficients (the interpolation weights are 0, ½ and 1: the same sums in any order)
+    and so the same kernel of the same values: D_T² bit for bit."""
+    msh = u_h.function_space.mesh
+    tdim = msh.topology.dim
+    boundary = physics.boundary
+    n = msh.topology.index_map(tdim).size_local
+    out = np.zeros(n)
+    dirichlet = boundary.facets(boundary.dirichlet)
+    msh.topology.create_connectivity(tdim - 1, 0)
+    msh.topology.create_connectivity(0, tdim)
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    f2v = msh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)  # simplices
+    vertices = np.unique(f2v[dirichlet])
+    cells = np.unique(_links(msh.topology.connectivity(0, tdim), vertices)).astype(np.int32)
+    if not len(cells) or physics.dirichlet_value is None:
+        return out  # e_D = 0
+    msh.topology.create_connectivity(tdim, tdim - 1)
+    sub, cell_map, _, _ = dmesh.create_submesh(msh, tdim, cells)
+    ns = sub.topology.index_map(tdim).size_local
+    parent = cell_map.sub_topology_to_topology(np.arange(ns, dtype=np.int32), inverse=False)
+    # the submesh facets of parent facets: local facet j of a cell is opposite its vertex j
+    sub.topology.create_connectivity(tdim, tdim - 1)
+    sub.topology.create_connectivity(tdim - 1, tdim)
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    c2f = msh.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
+    sub_c2f = sub.topology.connectivity(tdim, tdim - 1).array.reshape(-1, tdim + 1)
+    sub_of = np.full(n, -1, dtype=np.int64)
+    sub_of[parent] = np.arange(ns)
+
+    def sub_facets(facets: np.ndarray) -> np.ndarray:
+        # a facet through a vertex on Γ_D has all its cells in the submesh (the others carry
+        # no DoF of e_D): its first cell will do
+        c = f2c.array[f2c.offsets[facets]]
+        facets, c = facets[sub_of[c] >= 0], c[sub_of[c] >= 0]
+        j = np.argmax(c2f[c] == facets[:, None], axis=1)
+        return np.unique(sub_c2f[sub_of[c], j]).astype(np.int32)
+
+    W = fem.functionspace(sub, ("Lagrange", 2))
+    dofs = np.setdiff1d(
+        fem.locate_dofs_topological(W, tdim - 1, sub_facets(dirichlet)),
+        fem.locate_dofs_topological(W, tdim - 1, sub_facets(boundary.facets(condition.ids))),
+    )
+    u1 = fem.Function(fem.functionspace(sub, ("Lagrange", 1)))
+    u1.x.array[u1.function_space.dofmap.list] = u_h.x.array[u_h.function_space.dofmap.list[parent]]
+    u2 = fem.Function(W)
+    u2.interpolate(u1)
+    e_D = fem.Function(W)
+    e_D.x.array[dofs] = physics.dirichlet_value(W).x.array[dofs] - u2.x.array[dofs]
+    ks = fem.Constant(sub, k.value) if isinstance(k, fem.Constant) else float(k)
+    w = ufl.TestFunction(fem.functionspace(sub, ("DG", 0)))
+    dx = ufl.Measure("dx", domain=sub)
+    out[parent] = cellwise(ks * ufl.inner(ufl.grad(e_D), ufl.grad(e_D)) * w * dx)
+    return out
+
+
+def _links(adjacency, nodes: np.ndarray) -> np.ndarray:
+    """The links of ``nodes`` in a DOLFINx adjacency list, concatenated."""
+    if not len(nodes):
+        return np.zeros(0, dtype=adjacency.array.dtype)
+    start, end = adjacency.offsets[nodes], adjacency.offsets[nodes + 1]
+    counts = end - start
+    first = np.repeat(start - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    return adjacency.array[first + np.arange(counts.sum())]

@@ -115,6 +115,11 @@ def _facet_kinds(msh: dmesh.Mesh, data: FluxData) -> tuple[np.ndarray, dict]:
     return facet_kind[c2f], facet_tag[c2f]
 
 
+#: a block's vertex coordinates through the geometry node of each vertex (kept by
+#: :class:`CellSource`, one int per vertex); False: through the geometry's cell dofmap, which
+#: DOLFINx copies whole on every access (the plain path, the same coordinates)
+VERTEX_NODES = True
+
 #: compile each data expression of a table once (:class:`BoundaryRows` keeps them for its
 #: blocks); False: once per block, the plain path (the same numbers)
 KEEP_EXPRESSIONS = True
@@ -237,6 +242,9 @@ class CellSource:
     owners: np.ndarray  # (local vertices,) the rank owning each
     kind: np.ndarray  # (owned cells, d+1) facet kinds
     lam: fem.Function | None  # λ_h interpolated into the element of u_h, or None
+    #: (local vertices,) the geometry node of each (affine cells: node j of a cell is its
+    #: vertex j), or None: read from the geometry's dofmap (:data:`VERTEX_NODES`)
+    nodes: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.c2v)
@@ -258,7 +266,8 @@ class CellSource:
         vmap = msh.topology.index_map(0)
         gvert = vmap.local_to_global(c2v.ravel()).reshape(c2v.shape)
         gcell = msh.topology.index_map(d).local_to_global(cells)
-        x = msh.geometry.x[:, :d][msh.geometry.dofmaps[0][cells]]  # (n, d+1, d), contiguous
+        nodes = msh.geometry.dofmaps[0][cells] if self.nodes is None else self.nodes[c2v]
+        x = msh.geometry.x[:, :d][nodes]  # (n, d+1, d), contiguous
         dofs = V.dofmap.list[cells]
         U = data.u_h.x.array[dofs]
         keep = self.boundary.compiled if KEEP_EXPRESSIONS else None
@@ -305,11 +314,17 @@ def cell_source(data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = 
     msh = V.mesh
     d = msh.topology.dim
     n_owned = msh.topology.index_map(d).size_local
-    if msh.geometry.dofmaps[0].shape[1] != d + 1:
+    geometry = msh.geometry.dofmaps[0]
+    if geometry.shape[1] != d + 1:
         raise ValueError("the equilibrated estimator needs affine (P1-geometry) simplex meshes")
     msh.topology.create_connectivity(d, 0)
     c2v = msh.topology.connectivity(d, 0).array.reshape(-1, d + 1)[:n_owned]
     vmap = msh.topology.index_map(0)
+    nodes = None
+    if VERTEX_NODES:
+        nodes = np.zeros(vmap.size_local + vmap.num_ghosts, dtype=geometry.dtype)
+        nodes[c2v] = geometry[:n_owned]
+    del geometry
     owners = np.concatenate([np.full(vmap.size_local, msh.comm.rank, dtype=np.int32), vmap.owners])
     one = fem.Function(dg0 or fem.functionspace(msh, ("DG", 0)))
     one.x.array[:] = 1.0
@@ -319,7 +334,7 @@ def cell_source(data: FluxData, ref: Reference, dg0: fem.FunctionSpace | None = 
     if data.lmbda_h is not None:
         lam = fem.Function(V)
         lam.interpolate(data.lmbda_h)
-    return CellSource(data, ref, BoundaryRows(data, ref, one, tag), c2v, owners, kind, lam)
+    return CellSource(data, ref, BoundaryRows(data, ref, one, tag), c2v, owners, kind, lam, nodes)
 
 
 # ---------------------------------------------------------------------------------------

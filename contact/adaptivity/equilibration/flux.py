@@ -77,6 +77,16 @@ BLOCK_TABLE = True
 #: P1 (no edge coefficients to remove): κ = 1 and no bubble set directly, as :func:`.shares`
 #: returns them; False: through :func:`.shares` over every contact entity, the plain path
 P1_SHORTCUT = True
+#: with blocks, P1 and the multiplier's rule of :func:`.shares` (κ = 1, no bubble) and a flux
+#: of u_h's degree (no multiplier oscillation): λ_h clipped set on the whole array of its
+#: nodal values at once (the clipping is nodewise), with no second pass over the blocks'
+#: rows; False: the rows made again a block at a time for it (the plain path, the same
+#: numbers)
+NODAL_MULTIPLIER = True
+#: where κ = 1 and there is no bubble (P1, the rule of :func:`.shares`), :attr:`Flux.lmbda` is
+#: λ_h clipped itself, so the bound's forms pack neither κ nor the bubble (κ (λ − ½·0) with
+#: κ = 1 is λ exactly); False: κ (λ_h clipped − ½ bubble) always, the plain path
+UNIT_KAPPA = True
 
 
 @dataclass
@@ -101,6 +111,7 @@ class Flux:
     defect: float
     seconds: dict = field(default_factory=dict)
     cells: Callable[[], fem.Function] | None = field(default=None, repr=False)
+    unit: bool = False  # κ = 1 and no bubble on every cell (P1, the rule of .shares)
 
     @cached_property
     def sigma_cells(self) -> fem.Function:
@@ -110,7 +121,10 @@ class Flux:
     @property
     def lmbda(self):
         """λ̃_h = κ (λ_h − ½ Σ_e β_e φ_{m_e}) as UFL on the contact entities (Γ_C facets or Ω;
-        on a cell with two contact facets an upper bound of |λ̃_h|)."""
+        on a cell with two contact facets an upper bound of |λ̃_h|; λ_h clipped itself where κ = 1
+        and there is no bubble, with :data:`UNIT_KAPPA`)."""
+        if self.unit and UNIT_KAPPA:
+            return self.lmbda_clip
         return self.kappa * (self.lmbda_clip - 0.5 * self.bubble)
 
 
@@ -214,7 +228,8 @@ def reconstruct_flux(
         if sigma_cells is not None
         else (lambda: cellwise(msh, ref, table, rt_coefficients(sigma_h, n_owned)))
     )
-    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells)
+    unit = data.multiplier_rule is None and P1_SHORTCUT and ref.pu == 1
+    return Flux(sigma_h, lmbda_clip, bubble, kappa, osc, defect, clock.seconds, cells, unit)
 
 
 def _patches_in_blocks(
@@ -318,7 +333,17 @@ def _flux_in_blocks(
         lmbda_clip, bubble, kap = _rule_functions(data, V, DG0)
     step = BLOCK_CELLS or n
     points = multiplier is not None and ref.lowest  # k for the multiplier's oscillation
-    for start in range(0, n, step):
+    nodal = (
+        NODAL_MULTIPLIER
+        and P1_SHORTCUT
+        and ref.pu == 1
+        and data.multiplier_rule is None
+        and not points
+    )
+    if nodal:  # what the rows would give: κ = 1, no bubble, no multiplier oscillation
+        if source.lam is not None:
+            lmbda_clip.x.array[:] = clipped(source.lam.x.array, sign)
+    for start in range(0, 0 if nodal else n, step):
         cells = np.arange(start, min(start + step, n), dtype=np.int32)
         part = source.rows(cells, boundary=False, points=points)
         if data.multiplier_rule is None:
@@ -348,6 +373,7 @@ def _flux_in_blocks(
             source.rows(np.arange(n, dtype=np.int32), boundary=False),
             rt_coefficients(sigma_h, n),
         ),
+        data.multiplier_rule is None and P1_SHORTCUT and ref.pu == 1,
     )
 
 
