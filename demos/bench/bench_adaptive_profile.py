@@ -17,8 +17,7 @@ PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Wr
 last solve, not stowed), ``--keep-operator`` the one before (whole, operator included),
 ``--copies`` that of the solver's records of laws and iterates (copies, not digests),
 ``--keep-bound-operator`` that of the last level (whole during its bound), ``--terms-whole``
-that of the estimators' DG0 terms (every cell's coefficients packed at once), ``--free-late``
-that of the bound's order (its Dirichlet term after the flux, the flux's heap kept).
+that of the estimators' DG0 terms (every cell's coefficients packed at once).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
@@ -202,12 +201,6 @@ def main() -> None:
         help="the estimators' DG0 terms assembled over every cell at once "
         "(contact.adaptivity.cellwise.BLOCK_CELLS = None)",
     )
-    ap.add_argument(
-        "--free-late",
-        action="store_true",
-        help="the bound's Dirichlet term after the flux, the flux's freed heap kept "
-        "(contact.adaptivity.equilibration.bound.FREE_EARLY = False)",
-    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
@@ -230,10 +223,6 @@ def main() -> None:
         from contact.adaptivity import cellwise
 
         cellwise.BLOCK_CELLS = None
-    if args.free_late:
-        from contact.adaptivity.equilibration import bound
-
-        bound.FREE_EARLY = False
     path = ROOT / SCENES.get(args.scene, args.scene)
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
     baseline = rss_mib()

@@ -85,7 +85,6 @@ from dolfinx import fem, la
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ...base.lifetime import return_freed_memory
 from ...models.constraints import Unilateral
 from ...models.discrete import Problem
 from ...models.physics import Diffusion
@@ -108,11 +107,6 @@ DIRICHLET_SUBMESH = True
 #: I_2 u_h and D_T²) on the submesh of the cells with a vertex on Γ_D: no P2 space of the
 #: whole mesh; False: e_D in the P2 space of the mesh (the same D_T² bit for bit)
 DIRICHLET_ON_SUBMESH = True
-#: D_T² before the flux, not on top of it (its transient: data and P2 functions near Γ_D, or
-#: of the whole mesh on the plain Dirichlet paths), and the heap the flux's patch data freed
-#: given back before the terms are assembled; False: D_T² after the terms, the heap kept (the
-#: old path; the same numbers)
-FREE_EARLY = True
 
 
 @dataclass
@@ -187,13 +181,10 @@ def guaranteed_bound(
     u_h, k = result.u_h, data.k
     DG0 = fem.functionspace(msh, ("DG", 0))
     v = ufl.TestFunction(DG0)
-    D2 = _dirichlet(problem, result, v, k) if FREE_EARLY else None
     lift = _feasibility(problem, result, sigma, k, v, lifting)
     grad_w = lift.grad
     data.target = k * (ufl.grad(u_h) - sigma * grad_w)  # k∇s_h: fit σ_h to the feasible s_h
     flux = reconstruct_flux(data, multiplier, sign, backend=backend, degree=degree)
-    if FREE_EARLY:  # the patch data's arrays are freed: the terms' transients reuse no heap
-        return_freed_memory()
     seconds["flux"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     p = _degree(u_h)
@@ -215,7 +206,7 @@ def guaranteed_bound(
     }
     n_owned = msh.topology.index_map(msh.topology.dim).size_local
     local = {name: val[:n_owned] for name, val in assemble_terms(forms).items()}
-    local["D2"] = _dirichlet(problem, result, v, k) if D2 is None else D2
+    local["D2"] = _dirichlet(problem, result, v, k)
     cross_T = local.pop("X", None)
     local = {name: np.maximum(val, 0.0) for name, val in local.items()}
     cross = np.inf if cross_T is None else msh.comm.allreduce(float(np.sum(cross_T)), op=MPI.SUM)
