@@ -56,6 +56,10 @@ from .solve import solve as solve_problem
 #: nodal contact force kept, :meth:`~contact.solvers.result.Result.shed_operator`); False:
 #: it stays whole until the next level is solved, the old path
 SHED_PREVIOUS = True
+#: with ``keep`` given, the last level destroys its operator K before its guaranteed bound
+#: (its nodal contact force kept, as for :data:`SHED_PREVIOUS`): the bound and the level's
+#: files need neither K nor the solver; False: K stays until the level is dropped, the old path
+SHED_BOUND = True
 #: a level the loop will release is stowed before the next level's solve
 #: (:meth:`Level.stow`: its mesh and nodal values kept, its problem, functions and scene
 #: dropped, all built again should the next level fail); False: it stays whole but for its
@@ -321,7 +325,9 @@ def adapt(
             and the loop's memory follows its last level (its refined domains are then not
             linked to their parents, ``Domain.parent``: the loop never solves on them).
             None (the default) keeps every level whole; ``lambda level: False`` releases
-            all but the last.
+            all but the last.  With ``keep`` given, the last level is not solved on again:
+            its operator K is destroyed before its guaranteed bound (its nodal contact
+            force kept, :meth:`~contact.solvers.result.Result.shed_operator`).
         solve: a level's solve, ``solve(problem, domain, u0, criterion)`` (default: one solve
             of ``contact.drivers.solve.solve``, a first level without a guess sequenced
             over the domain's ancestors); it may solve another problem on the level's
@@ -484,6 +490,8 @@ def adapt(
             child = new_u0 = None
         if bound is not None and out.stop:  # the last level: its bound
             if result.converged:
+                if SHED_BOUND and keep is not None and level.estimator != bound.kind:
+                    result.shed_operator()  # nothing solves on it again: the bound's peak
                 bound.compute(level)
             elif index > 0 and not out.levels[-2].released:  # the last that converged
                 bound.compute(out.levels[-2])

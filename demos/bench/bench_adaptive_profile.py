@@ -7,14 +7,17 @@ mark, refine, output: the level's files as ``contact run`` writes them, with ``-
 ``other``: the rest of the level, Python between the phases), the level's wall and CPU
 seconds and their running totals, the resident memory after the level (garbage collected)
 and its peak during the level (the kernel's high-water mark, reset per phase; sampled every
-2 ms where it cannot be reset) and during each phase, and what is
+2 ms where it cannot be reset) and during each phase (``bound``: the guaranteed bound's,
+within the estimate), and what is
 still alive of earlier levels: dolfinx meshes and PETSc objects (matrices, vectors, KSP,
 PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Writes CSV.
 ``--whole-table`` selects the old path of the equilibrated flux's patch data (all at once),
 ``--table-once`` that of its cell table (whole but for two columns before the blocks),
 ``--keep-level`` that of the level before the last (whole but for its operator during the
 last solve, not stowed), ``--keep-operator`` the one before (whole, operator included),
-``--copies`` that of the solver's records of laws and iterates (copies, not digests).
+``--copies`` that of the solver's records of laws and iterates (copies, not digests),
+``--keep-bound-operator`` that of the last level (whole during its bound), ``--terms-whole``
+that of the estimators' DG0 terms (every cell's coefficients packed at once).
 
     python demos/bench/bench_adaptive_profile.py ex9 --max-dofs 1300000 \\
         --out demos/results/adaptive_cost/profile_ex9.csv
@@ -39,6 +42,7 @@ from pathlib import Path
 import contact
 from contact.base import lifetime
 from contact.base.lifetime import petsc_objects, rss_mib
+from contact.drivers import adaptive
 from contact.setup import run as loop
 
 from common import PHASES, count_phase_cpu, save_csv, wrap_phases
@@ -53,6 +57,8 @@ SCENES = {
 }
 
 
+#: the phases whose peaks are recorded: the loop's, and the bound's within the estimate
+PEAKS = (*PHASES.values(), "bound")
 #: peak memory per final DoF the loop should stay below (bytes)
 TARGET_BYTES_PER_DOF = 1600
 
@@ -122,6 +128,8 @@ def count_phase_peaks(sampler: PeakSampler) -> dict[str, float]:
         return call
 
     wrap_phases(sampled)
+    # the guaranteed bound where it is reported (adapt.indicators: residual), within estimate
+    adaptive.Bound.compute = sampled(adaptive.Bound.compute, "bound")  # type: ignore[method-assign]
     return peaks
 
 
@@ -181,6 +189,18 @@ def main() -> None:
         help="the CG + GAMG path keeps copies of its laws and iterate, not digests "
         "(contact.base.lifetime.DIGESTS = False)",
     )
+    ap.add_argument(
+        "--keep-bound-operator",
+        action="store_true",
+        help="the last level keeps its operator K during its bound "
+        "(contact.drivers.adaptive.SHED_BOUND = False)",
+    )
+    ap.add_argument(
+        "--terms-whole",
+        action="store_true",
+        help="the estimators' DG0 terms assembled over every cell at once "
+        "(contact.adaptivity.cellwise.BLOCK_CELLS = None)",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     PETSc.Log.begin()  # petsc_objects counts from here
@@ -191,19 +211,23 @@ def main() -> None:
 
         flux.BLOCK_CELLS = None
     if args.keep_level or args.keep_operator:
-        from contact.drivers import adaptive
-
         adaptive.STOW_PREVIOUS = False
         adaptive.SHED_PREVIOUS = not args.keep_operator
     if args.table_once:
         from contact.adaptivity.equilibration import flux
 
         flux.BLOCK_TABLE = False
+    if args.keep_bound_operator:
+        adaptive.SHED_BOUND = False
+    if args.terms_whole:
+        from contact.adaptivity import cellwise
+
+        cellwise.BLOCK_CELLS = None
     path = ROOT / SCENES.get(args.scene, args.scene)
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
     baseline = rss_mib()
     sampler = PeakSampler()
-    PEAKS = count_phase_peaks(sampler)
+    peaks = count_phase_peaks(sampler)
     CPU = count_phase_cpu()
     rows: list[dict] = []
     clock = {"wall": time.perf_counter(), "cpu": time.process_time()}
@@ -237,7 +261,7 @@ def main() -> None:
             "wall_total": round(wall - start["wall"], 3),
             "rss_mib": round(rss_mib(), 1),
             "peak_mib": round(sampler.reset(), 1),
-            **{f"peak_{k}_mib": round(PEAKS.pop(k, 0.0), 1) for k in PHASES.values()},
+            **{f"peak_{k}_mib": round(peaks.pop(k, 0.0), 1) for k in PEAKS},
             "meshes": live_meshes(),
             **{f"petsc_{k}": v for k, v in sorted(petsc_objects().items())},
         }
@@ -251,9 +275,7 @@ def main() -> None:
             f"({row['peak_mib'] * 2**20 / row['dofs']:.0f} B/DoF) meshes {row['meshes']} "
             f"mats {row.get('petsc_Mat', 0)} vecs {row.get('petsc_Vector', 0)}\n     peak MiB "
             + " ".join(
-                f"{k} {row[f'peak_{k}_mib']:.0f}"
-                for k in PHASES.values()
-                if row[f"peak_{k}_mib"] > 0
+                f"{k} {row[f'peak_{k}_mib']:.0f}" for k in PEAKS if row[f"peak_{k}_mib"] > 0
             ),
             flush=True,
         )
