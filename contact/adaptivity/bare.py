@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import ufl
 from dolfinx import cpp
 from dolfinx import mesh as dmesh
 
@@ -108,7 +109,8 @@ def bare(domain: Domain) -> BareDomain | None:
 
     The bare mesh shares the original's cells, index maps and geometry; once the original
     mesh is dropped, the memory of its other entities and connectivities is free.  None for
-    a domain that carries functions (``Domain.functions``: they live on the original mesh)
+    a domain that carries functions (``Domain.functions``: they live on the original mesh),
+    whose mesh has no UFL domain
     or is linked to a parent (grid sequencing may solve on it). Collective.
     """
     if domain.functions or domain.parent is not None:
@@ -135,7 +137,13 @@ def bare(domain: Domain) -> BareDomain | None:
     mesh_type: Any = (
         cpp.mesh.Mesh_float32 if msh.geometry.x.dtype == np.float32 else cpp.mesh.Mesh_float64
     )
-    copy = dmesh.Mesh(mesh_type(msh.comm, cells, msh._cpp_object.geometry), msh.ufl_domain())
+    # a UFL domain of its own: dolfinx points a UFL domain at the mesh made with it (its
+    # cargo), and forms on the original mesh must still find the original
+    original = msh.ufl_domain()
+    if original is None:  # a mesh without a UFL domain builds no forms: nothing to restore
+        return None
+    domain_ufl = ufl.Mesh(original.ufl_coordinate_element())
+    copy = dmesh.Mesh(mesh_type(msh.comm, cells, msh._cpp_object.geometry), domain_ufl)
     return BareDomain(
         copy,
         kept,
