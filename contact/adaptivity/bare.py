@@ -110,8 +110,8 @@ def bare(domain: Domain) -> BareDomain | None:
     The bare mesh shares the original's cells, index maps and geometry; once the original
     mesh is dropped, the memory of its other entities and connectivities is free.  None for
     a domain that carries functions (``Domain.functions``: they live on the original mesh),
-    whose mesh has no UFL domain
-    or is linked to a parent (grid sequencing may solve on it). Collective.
+    is linked to a parent (grid sequencing may solve on it) or whose mesh has no UFL domain
+    (it builds no forms).  The copy has a UFL domain of its own.  Collective.
     """
     if domain.functions or domain.parent is not None:
         return None
