@@ -447,19 +447,20 @@ def certified(target: float, uni: list[dict], ada: list[dict]) -> dict:
     """Adaptive / uniform CPU seconds at equal certification (``--uniform-bound``).
 
     The adaptive run's certified level: its first level whose bound η (``estimator`` not
-    ``residual``) is ≤ ``target``, or, if none, its last bounded level, at that level's η
-    (the tolerance it certifies).  Against the uniform meshes certifying that η: the first
-    mesh with η ≤ it, its solve and its bound (``uniform_bound_last_cpu``: a user who knew
-    the mesh; also log-log interpolated in η, ``…_interp_cpu``), and the meshes of the
-    η-driven sequence whose η is above it, each with its bound, plus that mesh
-    (``uniform_bound_every_cpu``: a user who refines until the bound certifies).  Where the
-    uniform meshes stop short of that η, the last mesh's seconds are extrapolated from the
-    last two (``uniform_extrapolated``).  Empty if the adaptive run has no bounded level or
-    the uniform rows no η."""
+    ``residual``) is ≤ ``target``, or, if none, its level of the smallest bound, at that η
+    (the tolerance it certifies: a bound need not decrease level by level).  Against the
+    uniform meshes certifying that η: the first mesh with η ≤ it, its solve and its bound
+    (``uniform_bound_last_cpu``: a user who knew the mesh; also log-log interpolated in η,
+    ``…_interp_cpu``), and the meshes of the η-driven sequence whose η is above it, each
+    with its bound, plus that mesh (``uniform_bound_every_cpu``: a user who refines until
+    the bound certifies).  Where the uniform meshes stop short of that η, the last mesh's
+    seconds are extrapolated from the last two (``uniform_extrapolated``).  Empty if the
+    adaptive run has no bounded level or the uniform rows no η."""
     bounded = [r for r in ada if r.get("estimator", "residual") != "residual"]
     if not bounded or len(uni) < 2 or "eta" not in uni[0]:
         return {}
-    level = next((r for r in bounded if r["eta"] <= target), bounded[-1])
+    smallest = min(bounded, key=lambda r: r["eta"])  # the first of the smallest bound
+    level = next((r for r in bounded if r["eta"] <= target), smallest)
     eta = max(target, level["eta"])
     out = {"certified_eta": eta, "adaptive_certified_dofs": level["dofs"]}
     out.update(adaptive_certified_error=level["error"], adaptive_certified_cpu=level["cpu"])
