@@ -101,6 +101,9 @@ def test_certified_ratios_at_the_eta_both_certify(bench) -> None:
     out = bench.certified(0.1, uni, ada)
     assert out["certified_eta"] == 0.15 and out["uniform_certified_dofs"] == 900
     assert out["uniform_bound_every_cpu"] == 1.5 + 3.0 + 4.5
+    uni.append(_uniform_row(5, 2500, 0.16, 10.0, True))  # a bound rising on a finer mesh
+    assert bench.certified(0.1, uni, ada)["uniform_bound_every_cpu"] == 1.5 + 3.0 + 4.5
+    uni.pop()
     ada.append(dict(dofs=1500, error=0.05, eta=0.18, cpu=3.0, estimator="equilibrated"))
     assert bench.certified(0.1, uni, ada)["adaptive_certified_dofs"] == 700  # the smallest η
     ada.pop()

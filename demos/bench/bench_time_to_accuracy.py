@@ -451,8 +451,8 @@ def certified(target: float, uni: list[dict], ada: list[dict]) -> dict:
     (the tolerance it certifies: a bound need not decrease level by level).  Against the
     uniform meshes certifying that η: the first mesh with η ≤ it, its solve and its bound
     (``uniform_bound_last_cpu``: a user who knew the mesh; also log-log interpolated in η,
-    ``…_interp_cpu``), and the meshes of the η-driven sequence whose η is above it, each
-    with its bound, plus that mesh (``uniform_bound_every_cpu``: a user who refines until
+    ``…_interp_cpu``), and the coarser meshes of the η-driven sequence whose η is above
+    it, each with its bound, plus that mesh (``uniform_bound_every_cpu``: a user who refines until
     the bound certifies).  Where the uniform meshes stop short of that η, the last mesh's
     seconds are extrapolated from the last two (``uniform_extrapolated``).  Empty if the
     adaptive run has no bounded level or the uniform rows no η."""
@@ -474,7 +474,8 @@ def certified(target: float, uni: list[dict], ada: list[dict]) -> dict:
         s = math.log(a["error"] / eta) / math.log(a["error"] / b["error"])
         last = interp = math.exp((1 - s) * math.log(a["cpu"]) + s * math.log(b["cpu"]))
         out["uniform_extrapolated"] = True
-    before = [r for r in uni if r["certified"] and r["eta"] > eta]
+    finest = math.inf if reach is None else reach["dofs"]
+    before = [r for r in uni if r["certified"] and r["eta"] > eta and r["dofs"] < finest]
     every = sum(r["cpu"] + r["bound_cpu"] for r in before) + last
     out.update(uniform_bound_last_cpu=round(last, 4))
     out.update(uniform_bound_last_interp_cpu=round(interp, 4))
