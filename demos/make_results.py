@@ -3894,6 +3894,17 @@ def _tta_last_level() -> str:
     )
 
 
+#: the phases of a level whose peaks bench_adaptive_profile.py writes (peak_<phase>_mib)
+PHASES = {
+    "assembly": "assembly",
+    "solve": "solve",
+    "estimate": "estimate",
+    "error": "error computation",
+    "mark": "marking",
+    "refine": "refinement",
+}
+
+
 def _tta_ex9_growth() -> list[str]:
     """ex9 to 4e-3 with the residual indicators at growth 2, 3 and 4
     (demos/results/adaptive_cost/time_to_accuracy_ex9_growth.csv) and what bounds the loop's
@@ -3965,6 +3976,10 @@ def _tta_ex9_growth() -> list[str]:
             last_solve=f"{last['cpu_solve']:.1f}",
             floor=f"{floor:.1f}",
             floor_share=f"{floor / u['cpu']:.2f}",
+            peak=f"{last['peak_mib']:,.0f}",
+            per_dof=f"{last['peak_mib'] * 2**20 / last['dofs']:,.0f}",
+            peak_phase=PHASES[max(PHASES, key=lambda k: last.get(f"peak_{k}_mib") or 0.0)],
+            bound_peak=f"{last['peak_bound_mib']:,.0f}" if last.get("peak_bound_mib") else "–",
             uniform_like=" and ".join(uniform_like) or "none",
             next_uniform=next(
                 (f"{r['dofs']:,} DoFs, {r['error']:.2e}" for r in uni if r["dofs"] > last_dofs), "–"
