@@ -32,6 +32,21 @@ reference with the ratios; written after each scene).
     python demos/bench/bench_time_to_accuracy.py ex9 --target 4e-3 --max-dofs 1300000 \
         --variant res2:adapt.growth=2,adapt.indicators=residual --plain
 
+``--uniform-bound`` compares at equal certification too: a user without the exact solution
+must bound the error to know the target is reached.  Each uniform mesh's solution is given
+the guaranteed bound the loop certifies with (the scene's estimator), timed apart, and the
+meshes go on, driven by that bound, until it is ≤ the target (it is ≥ the error: finer
+meshes than the exact stop's).  A variant with its own ``adapt.tol`` then stops where the
+loop does (its bound ≤ tol, or ``--max-dofs``), its bounds in its seconds.  Per variant and
+reference, the adaptive CPU seconds to its certified level (the first whose bound is ≤ the
+target, else its last bounded one, at its η) over the uniform ones to certify the same η:
+on the mesh that does (solve and bound), and on every mesh a user refining until the bound
+certifies makes (each solved and bounded).
+
+    python demos/bench/bench_time_to_accuracy.py ex9 --target 4e-3 --max-dofs 1400000 \
+        --variant res3:adapt.growth=3,adapt.indicators=residual,adapt.tol=4e-3 \
+        --variant p2:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3 --uniform-bound
+
 ``--plain`` runs each variant a second time with the plain paths of the estimators and
 refinement (:data:`PLAIN`: one assembly per DG0 term, …), the same numbers, so the gain of
 the default paths is a ratio of one run.
@@ -75,17 +90,27 @@ def uniform(
     sets: list[str],
     name: str = "uniform",
     echo: bool = True,
+    bound: bool = False,
 ) -> list[dict]:
     """Single solves on meshes 1, 2, 4, … times finer until one reaches ``target`` (or the
     next would exceed ``max_dofs``): a row each with its wall and CPU seconds (mesh + solve
     + error; ``run``: the reference's ``name``).  Where the next doubling would pass the
     target, the last mesh is the one the observed rate error ∝ h^r predicts to reach it (1 %
-    finer): the run a user who knew the mesh needed would make."""
+    finer): the run a user who knew the mesh needed would make.
+
+    With ``bound``, each mesh's solution is also given the guaranteed bound the adaptive
+    loop certifies with (the scene's estimator, ``contact.estimate``), timed apart
+    (``bound_seconds``, ``bound_cpu``; its η in ``eta``), and the meshes go on as a user
+    without the exact solution would refine: the same sequence driven by η instead of the
+    error, until η ≤ ``target`` (η ≥ error: it may need finer meshes than the exact stop).
+    ``certified`` marks the rows of that η-driven sequence (a mesh the exact sequence
+    predicted from the error and η's would not have made is not on it).  Rows in mesh order."""
     sets = [s for s in sets if not s.startswith("adapt.")]  # the loop's options
     base = contact.load_scene(path, ["output.verbose=false", "adapt=none", *sets])
     dim = base.mesh.topology.dim
-    rows, factor = [], 1
-    while True:
+    runs: dict[int, dict] = {}
+
+    def run(factor: int) -> dict:
         t0, c0 = time.perf_counter(), time.process_time()
         scene = contact.load_scene(
             path, ["output.verbose=false", "adapt=none", *sets, scaled_cells(base, factor)]
@@ -94,27 +119,50 @@ def uniform(
         error = solution_error(result.problem, result)
         seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
         assert result.converged and error is not None, (path, factor)
-        rows.append({"run": name, "level": factor, "dofs": result.dofs, "error": error})
-        rows[-1].update(seconds=round(seconds, 4), cpu=round(cpu, 4))
+        row = {"run": name, "level": factor, "dofs": result.dofs, "error": error}
+        row.update(seconds=round(seconds, 4), cpu=round(cpu, 4))
+        if bound:
+            t0, c0 = time.perf_counter(), time.process_time()
+            eta = contact.estimate(result.problem, result, scene.config.estimator).eta
+            row.update(bound_seconds=round(time.perf_counter() - t0, 4))
+            row.update(bound_cpu=round(time.process_time() - c0, 4), eta=eta)
+            row.update(estimator=scene.config.estimator, certified=False)
         if echo:
             print(
                 f"  {name} ×{factor:<4d} {result.dofs:9d} DoFs  error {error:.3e}  "
-                f"{seconds:7.2f} s wall {cpu:7.2f} s CPU",
+                f"{seconds:7.2f} s wall {cpu:7.2f} s CPU"
+                + (f"  eta {row['eta']:.3e} bound {row['bound_cpu']:.2f} s CPU" if bound else ""),
                 flush=True,
             )
         result.release()
-        if error <= target:
-            return rows
-        rate = (
-            math.log(rows[-2]["error"] / error) / math.log(factor / rows[-2]["level"])
-            if len(rows) > 1
-            else 1.0
-        )
-        reaching = math.ceil(factor * (1.01 * error / target) ** (1 / max(rate, 0.1)))
-        after = min(2 * factor, reaching)
-        if result.dofs * (after / factor) ** dim > max_dofs:
-            return rows
-        factor = after
+        return row
+
+    def sequence(key: str) -> list[dict]:
+        """The meshes a user stopping on ``key`` ≤ target makes (the runs made once)."""
+        made, factor = [], 1
+        while True:
+            if factor not in runs:
+                runs[factor] = run(factor)
+            made.append(runs[factor])
+            value = made[-1][key]
+            if value <= target:
+                return made
+            rate = (
+                math.log(made[-2][key] / value) / math.log(factor / made[-2]["level"])
+                if len(made) > 1
+                else 1.0
+            )
+            reaching = math.ceil(factor * (1.01 * value / target) ** (1 / max(rate, 0.1)))
+            after = min(2 * factor, reaching)
+            if made[-1]["dofs"] * (after / factor) ** dim > max_dofs:
+                return made
+            factor = after
+
+    sequence("error")
+    if bound:
+        for row in sequence("eta"):
+            row["certified"] = True
+    return [runs[f] for f in sorted(runs)]
 
 
 class Reached(Exception):
@@ -128,41 +176,54 @@ def adaptive(
     sets: list[str],
     variant: str = "adaptive",
     echo: bool = True,
+    bound: bool = False,
 ) -> list[dict]:
     """The adaptive loop until a level reaches ``target`` (earlier levels released as it
     goes): a row per level with the loop's wall and CPU seconds up to it (``Level.elapsed``,
     ``Level.cpu``; ``run``: the variant's name).  With ``adapt.indicators=residual`` the
     level that reaches ``target`` is charged the scene's estimator too (``bound_cpu``), as
-    the loop computes it on its last level."""
+    the loop computes it on its last level.  A variant with its own ``adapt.tol`` runs until
+    the loop stops (η ≤ tol on its bound, or ``max_dofs``): each level's seconds hold the
+    bounds the loop computed, and the last level's error may lie above or below ``target``.
+    With ``bound`` each row has the level's η (``eta``) and the estimator of it
+    (``estimator``: the scene's bound, or ``residual`` where the residual indicators
+    marked)."""
     scene = contact.load_scene(path, ["output.verbose=false", *sets])
+    kind = scene.config.estimator
+    certified = any(s.startswith("adapt.tol=") for s in sets)
     rows: list[dict] = []
 
     def on_level(level) -> None:
-        wall, cpu, bound = level.elapsed, level.cpu, 0.0
-        if level.error <= target and level.estimator not in ("", scene.config.estimator):
+        wall, cpu, charged = level.elapsed, level.cpu, 0.0
+        eta, estimator = level.estimate.eta, level.estimator or kind
+        reached = level.error <= target and not certified
+        if reached and estimator != kind:
             # adapt.indicators residual: the loop would compute the bound on its last level
             c0 = time.process_time()
             t0 = time.perf_counter()
-            contact.estimate(level.problem, level.result, scene.config.estimator)
-            bound = time.process_time() - c0
-            wall, cpu = wall + time.perf_counter() - t0, cpu + bound
+            eta, estimator = contact.estimate(level.problem, level.result, kind).eta, kind
+            charged = time.process_time() - c0
+            wall, cpu = wall + time.perf_counter() - t0, cpu + charged
         rows.append({"run": variant, "level": level.index, "dofs": level.result.dofs})
         rows[-1].update(error=level.error, seconds=round(wall, 4), cpu=round(cpu, 4))
-        rows[-1]["bound_cpu"] = round(bound, 4)
+        rows[-1]["bound_cpu"] = round(charged, 4)
+        if bound:
+            rows[-1].update(eta=eta, estimator=estimator)
         if echo:
             print(
                 f"  {variant} L{level.index:<3d} {level.result.dofs:8d} DoFs  error "
                 f"{level.error:.3e}  {wall:7.2f} s wall {cpu:7.2f} s CPU"
-                + (f" (of it the bound {bound:.2f})" if bound else ""),
+                + (f" (of it the bound {charged:.2f})" if charged else "")
+                + (f"  eta {eta:.3e} ({estimator})" if bound else ""),
                 flush=True,
             )
-        if level.error <= target:  # reached: no finer level
+        if reached:  # no finer level
             raise Reached
 
     try:
         contact.adapt(
             scene,
-            tol=0.0,
+            tol=None if certified else 0.0,  # None: the variant's own
             max_levels=80,
             max_dofs=max_dofs,
             keep=lambda lv: False,
@@ -267,6 +328,12 @@ def main() -> None:
         help="each variant again with the plain paths of the estimators and refinement "
         "(variant NAME-plain)",
     )
+    ap.add_argument(
+        "--uniform-bound",
+        action="store_true",
+        help="bound each uniform mesh's solution as the loop certifies (timed apart), refine "
+        "on until that bound meets the target, and compare at equal certification",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     warm = contact.load_scene(ROOT / SCENES["ex9"][0], ["output.verbose=false", "adapt=none"])
@@ -280,12 +347,18 @@ def main() -> None:
         for reference, sets in map(variant_of, args.uniforms or UNIFORM):
             sets = [*args.overrides, *sets]
             try:  # untimed first: the reference's forms compiled or loaded
-                uniform(ROOT / file, WARM_FACTOR * target, WARM_DOFS, sets, echo=False)
+                loose = WARM_FACTOR * target
+                uniform(ROOT / file, loose, WARM_DOFS, sets, echo=False, bound=args.uniform_bound)
             except ConfigError as error:
                 print(f"  {reference}: skipped ({error})", flush=True)
                 continue
             references[reference] = uniform(
-                ROOT / file, target, args.max_dofs, sets, reference or "uniform"
+                ROOT / file,
+                target,
+                args.max_dofs,
+                sets,
+                reference or "uniform",
+                bound=args.uniform_bound,
             )
             rows += [{"scene": name, **r} for r in references[reference]]
         for variant, sets in map(variant_of, args.variants or VARIANTS):
@@ -298,7 +371,9 @@ def main() -> None:
             for plain in (False, True) if args.plain else (False,):
                 plain_paths(plain)
                 label = f"{variant}-plain" if plain else variant
-                ada = adaptive(ROOT / file, target, args.max_dofs, sets, label)
+                ada = adaptive(
+                    ROOT / file, target, args.max_dofs, sets, label, bound=args.uniform_bound
+                )
                 rows += [{"scene": name, **r} for r in ada]
                 mine = [
                     ratios(name, label, target, uni, ada, ref) for ref, uni in references.items()
@@ -351,7 +426,63 @@ def ratios(
             f"extrapolated {extrapolated:.1f} s; adaptive/uniform {ratio['extrapolated_cpu']:.4f}",
             flush=True,
         )
+    cert = certified(target, uni, ada)
+    if "certified_last_cpu" in cert:
+        print(
+            f"{name} {variant} / {reference}: certified η ≤ {cert['certified_eta']:.3e}: "
+            f"adaptive {cert['adaptive_certified_cpu']:.2f} s CPU "
+            f"({cert['adaptive_certified_dofs']} DoFs) against uniform with its bound "
+            f"{cert['uniform_bound_last_cpu']:.2f} s on the mesh certifying it "
+            f"({cert.get('uniform_certified_dofs', 'extrapolated')} DoFs; ratio "
+            f"{cert['certified_last_cpu']:.3f}, interpolated "
+            f"{cert['certified_last_interp_cpu']:.3f}), {cert['uniform_bound_every_cpu']:.2f} s "
+            f"bounding every mesh (ratio {cert['certified_every_cpu']:.3f})",
+            flush=True,
+        )
+    ratio.update(cert)
     return ratio
+
+
+def certified(target: float, uni: list[dict], ada: list[dict]) -> dict:
+    """Adaptive / uniform CPU seconds at equal certification (``--uniform-bound``).
+
+    The adaptive run's certified level: its first level whose bound η (``estimator`` not
+    ``residual``) is ≤ ``target``, or, if none, its level of the smallest bound, at that η
+    (the tolerance it certifies: a bound need not decrease level by level).  Against the
+    uniform meshes certifying that η: the first mesh with η ≤ it, its solve and its bound
+    (``uniform_bound_last_cpu``: a user who knew the mesh; also log-log interpolated in η,
+    ``…_interp_cpu``), and the coarser meshes of the η-driven sequence whose η is above
+    it, each with its bound, plus that mesh (``uniform_bound_every_cpu``: a user who refines until
+    the bound certifies).  Where the uniform meshes stop short of that η, the last mesh's
+    seconds are extrapolated from the last two (``uniform_extrapolated``).  Empty if the
+    adaptive run has no bounded level or the uniform rows no η."""
+    bounded = [r for r in ada if r.get("estimator", "residual") != "residual"]
+    if not bounded or len(uni) < 2 or "eta" not in uni[0]:
+        return {}
+    smallest = min(bounded, key=lambda r: r["eta"])  # the first of the smallest bound
+    level = next((r for r in bounded if r["eta"] <= target), smallest)
+    eta = max(target, level["eta"])
+    out = {"certified_eta": eta, "adaptive_certified_dofs": level["dofs"]}
+    out.update(adaptive_certified_error=level["error"], adaptive_certified_cpu=level["cpu"])
+    cost = [{"error": r["eta"], "cpu": r["cpu"] + r["bound_cpu"]} for r in uni]
+    reach = next((r for r in uni if r["eta"] <= eta), None)
+    if reach is not None:
+        last, interp = first_reaching(cost, eta, "cpu"), at_error(cost, eta, "cpu")
+        out["uniform_certified_dofs"] = reach["dofs"]
+    else:  # the meshes stop short (max_dofs): power laws from the last two
+        a, b = cost[-2], cost[-1]
+        s = math.log(a["error"] / eta) / math.log(a["error"] / b["error"])
+        last = interp = math.exp((1 - s) * math.log(a["cpu"]) + s * math.log(b["cpu"]))
+        out["uniform_extrapolated"] = True
+    finest = math.inf if reach is None else reach["dofs"]
+    before = [r for r in uni if r["certified"] and r["eta"] > eta and r["dofs"] < finest]
+    every = sum(r["cpu"] + r["bound_cpu"] for r in before) + last
+    out.update(uniform_bound_last_cpu=round(last, 4))
+    out.update(uniform_bound_last_interp_cpu=round(interp, 4))
+    out["uniform_bound_every_cpu"] = round(every, 4)
+    for key, seconds in (("last", last), ("last_interp", interp), ("every", every)):
+        out[f"certified_{key}_cpu"] = round(level["cpu"] / seconds, 3)
+    return out
 
 
 def verdict(name: str, variant: str, target: float, mine: list[dict]) -> list[dict]:

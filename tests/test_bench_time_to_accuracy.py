@@ -1,0 +1,119 @@
+"""demos/bench/bench_time_to_accuracy.py at equal certification (``--uniform-bound``): the
+uniform meshes bounded as the adaptive loop certifies, driven by that bound, and the
+adaptive / uniform CPU ratios at the η both certify.  Small meshes of PETSc's ex9 (its exact
+solution known); the figures are the bench's."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+EX9 = ROOT / "configs" / "peers" / "petsc_ex9.yaml"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    """The bench script imported as a module (demos/bench is not a package)."""
+    sys.path.insert(0, str(ROOT / "demos" / "bench"))  # its ``common``
+    try:
+        spec = importlib.util.spec_from_file_location(
+            "bench_time_to_accuracy", ROOT / "demos" / "bench" / "bench_time_to_accuracy.py"
+        )
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(ROOT / "demos" / "bench"))
+    return module
+
+
+def test_uniform_bound_refines_until_the_bound_meets_the_target(bench) -> None:
+    """Every uniform mesh's bound is ≥ its energy error; the bound-driven meshes end at the
+    first with η ≤ target, finer than the exact stop's (whose η is above it); without the
+    flag the meshes, DoFs and errors are those of the exact sequence alone."""
+    target = 5e-2
+    plain = bench.uniform(EX9, target, 30_000, [], echo=False)
+    rows = bench.uniform(EX9, target, 30_000, [], echo=False, bound=True)
+    assert all("eta" not in r for r in plain) and plain[-1]["error"] <= target
+    assert all(r["eta"] >= r["error"] for r in rows)  # guaranteed
+    assert all(r["bound_cpu"] > 0 and r["estimator"] == "equilibrated" for r in rows)
+    by_level = {r["level"]: r for r in rows}
+    for r in plain:  # the exact sequence unchanged
+        assert by_level[r["level"]]["dofs"] == r["dofs"]
+        assert by_level[r["level"]]["error"] == pytest.approx(r["error"], rel=1e-9)
+    path = [r for r in rows if r["certified"]]
+    assert path[-1]["eta"] <= target < min(r["eta"] for r in path[:-1])
+    assert by_level[plain[-1]["level"]]["eta"] > target  # the exact stop does not certify
+    assert path[-1]["level"] > plain[-1]["level"]
+    assert [r["level"] for r in rows] == sorted(by_level)
+
+
+def test_certified_variant_stops_where_the_loop_certifies(bench) -> None:
+    """A variant with its own ``adapt.tol`` runs past the level reaching the target error
+    and stops on its first bound ≤ tol (residual indicators marking, the bound where it may
+    meet tol), each row with the η of its estimator."""
+    sets = ["adapt.growth=3", "adapt.indicators=residual", "adapt.tol=3e-2"]
+    rows = bench.adaptive(EX9, 5e-2, 60_000, sets, echo=False, bound=True)
+    first = next(k for k, r in enumerate(rows) if r["error"] <= 5e-2)
+    assert first < len(rows) - 1  # not stopped on the error
+    last = rows[-1]
+    assert last["estimator"] == "equilibrated" and last["error"] <= last["eta"] <= 3e-2
+    assert all(r["eta"] > 3e-2 for r in rows[:-1])
+    assert rows[0]["estimator"] == "equilibrated"  # the first level learns the ratio
+    assert {r["estimator"] for r in rows[1:-1]} == {"residual"}
+
+
+def _uniform_row(level: int, dofs: int, eta: float, cpu: float, path: bool) -> dict:
+    """A uniform mesh's row: its error 1/1.1 of its bound, the bound half its solve's CPU."""
+    row = dict(level=level, dofs=dofs, error=eta / 1.1, eta=eta, cpu=cpu, bound_cpu=cpu / 2)
+    return row | {"certified": path}
+
+
+def test_certified_ratios_at_the_eta_both_certify(bench) -> None:
+    """The adaptive CPU to its first bound ≤ target over the uniform CPU (solve + bound) on
+    the first mesh certifying it, and over every bound-driven mesh up to it; at the
+    adaptive's smallest bound where it never meets the target; extrapolated where the
+    uniform meshes stop short."""
+    uni = [
+        _uniform_row(1, 100, 0.4, 1.0, True),
+        _uniform_row(2, 400, 0.2, 2.0, True),
+        _uniform_row(3, 900, 0.13, 3.0, False),  # the exact stop's mesh, not on the path
+        _uniform_row(4, 1600, 0.1, 4.0, True),
+    ]
+    ada = [
+        dict(dofs=100, error=0.3, eta=0.4, cpu=0.5, estimator="equilibrated"),
+        dict(dofs=300, error=0.12, eta=0.3, cpu=1.0, estimator="residual"),
+        dict(dofs=700, error=0.09, eta=0.1, cpu=2.0, estimator="equilibrated"),
+    ]
+    out = bench.certified(0.1, uni, ada)
+    assert out["certified_eta"] == 0.1 and out["adaptive_certified_dofs"] == 700
+    assert out["uniform_certified_dofs"] == 1600
+    assert out["uniform_bound_last_cpu"] == 6.0  # 4 + its bound 2
+    assert out["uniform_bound_every_cpu"] == 1.5 + 3.0 + 6.0  # the path: ×1, ×2, ×4
+    assert out["certified_last_cpu"] == round(2.0 / 6.0, 3)
+    assert out["certified_every_cpu"] == round(2.0 / 10.5, 3)
+    # never certified at the target: at its last bound's η, which the exact stop's mesh meets
+    ada[-1]["eta"] = 0.15
+    out = bench.certified(0.1, uni, ada)
+    assert out["certified_eta"] == 0.15 and out["uniform_certified_dofs"] == 900
+    assert out["uniform_bound_every_cpu"] == 1.5 + 3.0 + 4.5
+    uni.append(_uniform_row(5, 2500, 0.16, 10.0, True))  # a bound rising on a finer mesh
+    assert bench.certified(0.1, uni, ada)["uniform_bound_every_cpu"] == 1.5 + 3.0 + 4.5
+    uni.pop()
+    ada.append(dict(dofs=1500, error=0.05, eta=0.18, cpu=3.0, estimator="equilibrated"))
+    assert bench.certified(0.1, uni, ada)["adaptive_certified_dofs"] == 700  # the smallest η
+    ada.pop()
+    # the uniform meshes stop short: the last two extrapolated (power law in η)
+    ada[-1]["eta"] = 0.05
+    out = bench.certified(0.05, uni, ada)
+    assert out["uniform_extrapolated"] and "uniform_certified_dofs" not in out
+    s = math.log(0.13 / 0.05) / math.log(0.13 / 0.1)  # 0.05 on the line through ×3, ×4
+    assert out["uniform_bound_last_cpu"] == pytest.approx(4.5 * (6.0 / 4.5) ** s, rel=1e-3)
+    assert out["uniform_bound_every_cpu"] == pytest.approx(
+        1.5 + 3.0 + 6.0 + 4.5 * (6 / 4.5) ** s, rel=1e-3
+    )
+    assert bench.certified(0.1, uni, ada[1:2]) == {}  # no bounded level
