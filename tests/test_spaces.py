@@ -31,7 +31,8 @@ COMM = MPI.COMM_WORLD
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 
-def test_a_space_its_components_and_zero_fields_are_made_once():
+def test_a_space_its_components_and_zero_fields_are_made_once(monkeypatch):
+    monkeypatch.setattr(spaces, "CACHE", True)  # off by default (the module's CACHE)
     msh = mesh.create_unit_square(COMM, 6, 4)
     V = spaces.functionspace(msh, ("Lagrange", 1, (2,)))
     assert spaces.functionspace(msh, ("Lagrange", 1, (2,))) is V
