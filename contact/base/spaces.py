@@ -26,7 +26,10 @@ from dolfinx import fem, la, mesh
 #: build afresh.  Off because with it on the two-body Cattaneo–Mindlin load path on 2 ranks
 #: (configs/two_body_cattaneo_2d.yaml, tests/test_bodies.py) waits forever in the creation of
 #: a ghosted PETSc vector while assembling a grid-sequencing level: the ranks' collective
-#: calls no longer match, for a reason not yet found
+#: calls no longer match.  With Python's cyclic collector off the run completes, so the
+#: likely cause is PETSc objects on the cached spaces' communicators freed by the collector
+#: at different moments on different ranks (PETSc's inner communicator then freed and
+#: duplicated again, a collective call, on one rank only)
 CACHE = False
 
 
