@@ -661,6 +661,11 @@ def test_a_scene_adapted_twice_gives_the_same_levels() -> None:
     from contact.adaptivity.bare import bare
     from contact.adaptivity.refine import Domain
 
+    import ufl
+    from dolfinx import fem
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
     scene = contact.load_scene(
         str(ROOT / "configs" / "peers" / "petsc_ex9.yaml"),
         ["output.verbose=false", "adapt.indicators=residual", "mesh.cells=[8,8]"],
@@ -668,10 +673,6 @@ def test_a_scene_adapted_twice_gives_the_same_levels() -> None:
     runs = [adapt(scene, max_levels=3, keep=lambda level: False) for _ in range(2)]
     first, second = ([(r["dofs"], r["eta"]) for r in run.rows] for run in runs)
     assert len(first) == 3 and first == second
-
-    from dolfinx import fem
-    from dolfinx import mesh as dmesh
-    from mpi4py import MPI
 
     msh = dmesh.create_unit_square(MPI.COMM_WORLD, 4, 4)
     copy = bare(Domain(msh))
@@ -681,7 +682,5 @@ def test_a_scene_adapted_twice_gives_the_same_levels() -> None:
     V = fem.functionspace(msh, ("Lagrange", 1))
     u = fem.Function(V)
     u.x.array[:] = 1.0
-    import ufl
-
     area = fem.assemble_scalar(fem.form(u * ufl.dx))
     assert abs(area - 1.0) < 1e-12
