@@ -64,6 +64,7 @@ nitpick_ignore = [
     ("py:class", "DiscreteProblem"),
     ("py:class", "contact.solvers.stopping.AdaptiveStopping"),
     ("py:class", "contact.solvers.options.FrictionOptions"),
+    ("py:class", "contact.drivers.adaptive.Stowed"),
 ]
 # The validators of the typed options' fields (Annotated[..., BeforeValidator(...)]), which
 # autodoc shows with each field's type: functions and constants of contact.base.validation

@@ -148,10 +148,10 @@ class Level:
         """Keep the level's cells and the values of its fields, dropping what they live on.
 
         The problem (forms, function spaces, PETSc objects), the result's functions and η_T are
-        dropped, their values kept (:class:`Stowed`); with ``mesh`` the domain keeps its cells,
-        vertices and geometry only (:func:`~contact.adaptivity.bare.bare`: the mesh's other entities
+        dropped, their values kept (``Stowed``); with ``mesh`` the domain keeps its cells,
+        vertices and geometry only (``contact.adaptivity.bare.bare``: the mesh's other entities
         and connectivities, about two thirds of it, go; not for a domain with functions or a
-        parent), else it stays whole.  :func:`restore` makes the domain whole again, the same entity
+        parent), else it stays whole.  ``restore`` makes the domain whole again, the same entity
         for entity, builds the problem again on it, whose DoF layout is then the same, and gives
         every field its values back bit for bit.  The adaptive loop stows a level it will release
         before it solves the next level, the loop's peak; the level is needed whole again only if
