@@ -81,6 +81,10 @@ class CurvatureSystem(ReducedNewtonSystem):
     #: the direction's inverse iteration on A_τ gathered onto rank 0 when it is small
     #: (:data:`GATHERED_DIRECTION_SIZE`); False: always with the distributed factorization
     gather_direction = True
+    #: a small system on several ranks factorized whole on every rank
+    #: (:class:`.linear.GatheredFactor`, :data:`.linear.GATHERED_FACTOR_SIZE`) when the options
+    #: ask for MUMPS's LDLᵀ; False: MUMPS across the ranks
+    gather_factor = True
 
     def __init__(self, problem: DiscreteProblem, prefix: str, forcing: bool = False):
         super().__init__(problem, prefix, forcing=forcing)
@@ -104,11 +108,6 @@ class CurvatureSystem(ReducedNewtonSystem):
         self._direction: PETSc.Vec | None = None  # v of the current law, once computed
         self.curvature = np.nan  # μ₁ of the current law (the Rayleigh quotient of v)
         self.inverse_iterations = 0  # of the last direction
-
-    #: a small system on several ranks factorized whole on every rank
-    #: (:class:`.linear.GatheredFactor`, :data:`.linear.GATHERED_FACTOR_SIZE`) when the options
-    #: ask for MUMPS's LDLᵀ; False: MUMPS across the ranks
-    gather_factor = True
 
     def set_options(self) -> None:
         super().set_options()
