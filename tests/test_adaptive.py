@@ -731,10 +731,11 @@ def test_serial_transfers_answer_in_place_with_the_exchanges_values(monkeypatch)
 
 
 def test_the_loop_runs_on_a_frozen_heap_with_the_same_levels(monkeypatch):
-    """The loop freezes the objects alive at its start (``FREEZE_HEAP``: its collections
-    then walk only its own) and unfreezes the heap on return; the levels are the same as with
-    the old path."""
+    """The loop collects the garbage at its start and freezes the objects alive
+    (``FREEZE_HEAP``: its collections then walk only its own), and unfreezes the heap on
+    return; the levels are the same as with the old path."""
     import gc
+    import weakref
 
     from contact.drivers import adaptive
 
@@ -742,22 +743,34 @@ def test_the_loop_runs_on_a_frozen_heap_with_the_same_levels(monkeypatch):
         ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
     )
 
+    class Garbage:
+        pass
+
     def run(freeze):
         monkeypatch.setattr(adaptive, "FREEZE_HEAP", freeze)
         gc.unfreeze()
         frozen: list[int] = []
-        loop = adapt(
-            scene,
-            max_levels=3,
-            verbose=False,
-            keep=lambda lv: False,
-            on_level=lambda level: frozen.append(gc.get_freeze_count()),
-        )
+        garbage = Garbage()
+        garbage.cycle = garbage  # type: ignore[attr-defined]
+        dead = weakref.ref(garbage)
+        del garbage  # a cycle: only the collector frees it (off until the loop has begun)
+        gc.disable()
+        try:
+            loop = adapt(
+                scene,
+                max_levels=3,
+                verbose=False,
+                keep=lambda lv: False,
+                on_level=lambda level: frozen.append(gc.get_freeze_count()),
+            )
+            freed = dead() is None  # before the loop's unfreeze reached it
+        finally:
+            gc.enable()
         rows = [{k: v for k, v in r.items() if not k.startswith("seconds")} for r in loop.rows]
-        return rows, frozen, gc.get_freeze_count()
+        return rows, frozen, gc.get_freeze_count(), freed
 
     # (the interpreter keeps a few hundred objects of its own in the frozen generation)
-    rows, frozen, after = run(True)
-    assert len(rows) == 3 and min(frozen) > 5000 and after < 1000
-    old_rows, old_frozen, _ = run(False)
+    rows, frozen, after, freed = run(True)
+    assert len(rows) == 3 and min(frozen) > 5000 and after < 1000 and freed
+    old_rows, old_frozen, _, _ = run(False)
     assert max(old_frozen) < 1000 and rows == old_rows

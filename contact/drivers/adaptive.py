@@ -65,9 +65,9 @@ SHED_BOUND = True
 #: dropped, all built again should the next level fail); False: it stays whole but for its
 #: operator (:data:`SHED_PREVIOUS`), the old path
 STOW_PREVIOUS = True
-#: the loop runs with the objects alive at its start frozen (``gc.freeze``: the cycle
-#: collector, called at every level to free the released levels' cycles, then walks only
-#: the loop's own objects, not every module, form and scene made before it: 30 ms a
+#: the loop collects the garbage alive at its start and freezes the rest (``gc.freeze``: the
+#: cycle collector, called at every level to free the released levels' cycles, then walks
+#: only the loop's own objects, not every module, form and scene made before it: 30 ms a
 #: collection on ex9) and unfreezes the heap when it returns (what was frozen before it, e.g.
 #: the CLI's loaded modules, is then collected as any other object again).  False: every
 #: collection walks everything, the old path
@@ -293,6 +293,7 @@ def frozen_heap[**P](loop: Callable[P, AdaptResult]) -> Callable[P, AdaptResult]
     def run(*args: P.args, **kwargs: P.kwargs) -> AdaptResult:
         if not FREEZE_HEAP:
             return loop(*args, **kwargs)
+        gc.collect()  # garbage frozen would live until the loop returns
         gc.freeze()
         try:
             return loop(*args, **kwargs)
