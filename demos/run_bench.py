@@ -354,6 +354,23 @@ STEPS = {
             "--out",
             "demos/results/time_to_accuracy.csv",
         ],
+        # ex9 at equal certification: the uniform meshes bounded too (RESULTS §14)
+        [
+            PY,
+            "demos/bench/bench_time_to_accuracy.py",
+            "ex9",
+            "--target",
+            "4e-3",
+            "--max-dofs",
+            "1400000",
+            "--variant",
+            "res3:adapt.growth=3,adapt.indicators=residual,adapt.tol=4e-3",
+            "--variant",
+            "p2tol:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3",
+            "--uniform-bound",
+            "--out",
+            "demos/results/adaptive_cost/time_to_accuracy_ex9_certified.csv",
+        ],
         [
             PY,
             "demos/bench/bench_adaptive_profile.py",

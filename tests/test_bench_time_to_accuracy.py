@@ -5,9 +5,7 @@ solution known); the figures are the bench's."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
 
 import pytest
@@ -18,17 +16,10 @@ EX9 = ROOT / "configs" / "peers" / "petsc_ex9.yaml"
 
 @pytest.fixture(scope="module")
 def bench():
-    """The bench script imported as a module (demos/bench is not a package)."""
-    sys.path.insert(0, str(ROOT / "demos" / "bench"))  # its ``common``
-    try:
-        spec = importlib.util.spec_from_file_location(
-            "bench_time_to_accuracy", ROOT / "demos" / "bench" / "bench_time_to_accuracy.py"
-        )
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(ROOT / "demos" / "bench"))
-    return module
+    """The bench script imported as a module."""
+    from bench_scripts import load
+
+    return load("bench_time_to_accuracy")
 
 
 def test_uniform_bound_refines_until_the_bound_meets_the_target(bench) -> None:

@@ -550,3 +550,43 @@ def test_report_step41_cold_start_reads_the_alternated_pairs(tmp_path: Path) -> 
         section
     )
     assert "| 256² | 2 | 40, 96, 1.7 | 36, 162, 4.5 | 0.378 |" in section
+
+
+def test_report_ex9_at_equal_certification_reads_the_csv(tmp_path: Path) -> None:
+    """§14's ex9 at equal certification (bench_time_to_accuracy.py --uniform-bound): per
+    variant its certified level and the three ratios against uniform P1, and whether the
+    uniform exact stop's bound certifies the target, from the CSV."""
+    res = tmp_path / "res"
+    (res / "adaptive_cost").mkdir(parents=True)
+    lshape = "scene,run,level,dofs,error,seconds,cpu,variant,target\n"
+    lshape += "lshape,uniform,1,65,0.19,0.04,0.04,,\nlshape,adaptive,0,65,0.19,0.1,0.1,,\n"
+    (res / "time_to_accuracy.csv").write_text(lshape)
+    cols = (
+        "scene,run,level,dofs,error,cpu,bound_cpu,eta,estimator,certified,variant,reference,"
+        "target,first_reaching_cpu,interpolated_cpu,certified_eta,adaptive_certified_dofs,"
+        "adaptive_certified_error,adaptive_certified_cpu,uniform_certified_dofs,"
+        "uniform_bound_last_cpu,uniform_bound_last_interp_cpu,uniform_bound_every_cpu,"
+        "certified_last_cpu,certified_last_interp_cpu,certified_every_cpu"
+    )
+    tail = "," * 16
+    lines = [
+        cols,
+        f"ex9,uniform,1,1000,0.005,1.0,0.5,0.0055,equilibrated,True{tail}",
+        f"ex9,uniform,2,4000,0.0035,4.0,1.5,0.0038,equilibrated,True{tail}",
+        f"ex9,res3,0,500,0.01,0.5,0.0,0.02,residual,{tail}",
+        f"ex9,res3,1,3000,0.0039,5.0,0.0,0.0039,equilibrated,{tail}",
+        "ex9,ratio,,,0.004,,,,,,res3,uniform,0.004,1.25,1.2,0.004,3000,0.0039,5.0,4000,5.5,"
+        "5.25,7.5,0.909,0.952,0.667",
+        "ex9,ratio,,,0.004,,,,,,res3,uniform_p2,0.004,0.5,0.5,0.004,3000,0.0039,5.0,100,0.2,"
+        "0.2,0.3,25.0,25.0,16.7",
+    ]
+    (res / "adaptive_cost" / "time_to_accuracy_ex9_certified.csv").write_text(
+        "\n".join(lines) + "\n"
+    )
+    text = _report(res, tmp_path / "R.md")
+    section = text.split("**ex9 at equal certification**", 1)[1].split("**Memory", 1)[0]
+    assert "The exact stop is 4,000 DoFs (error 3.500e-03, 4.00 s CPU)" in section
+    assert "3.800e-03 (1.50 s more), certifies it already." in section
+    row = "| `res3` | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 1.25 / 1.20 | 4,000 | 5.50 |"
+    assert row + " 0.91 / 0.95 | 7.50 | 0.67 |" in section
+    assert section.count("| `res3` |") == 1  # the uniform P1 reference only
