@@ -11,6 +11,7 @@ distributed MUMPS's inertia and solution (to 1e-12).  Serially and on 2 and 3 ra
 
 from __future__ import annotations
 
+import gc
 from pathlib import Path
 
 import contact
@@ -31,8 +32,8 @@ COMM = MPI.COMM_WORLD
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 
-def test_a_space_its_components_and_zero_fields_are_made_once(monkeypatch):
-    monkeypatch.setattr(spaces, "CACHE", True)  # off by default (the module's CACHE)
+def test_a_space_its_components_and_zero_fields_are_made_once():
+    assert spaces.CACHE  # on by default
     msh = mesh.create_unit_square(COMM, 6, 4)
     V = spaces.functionspace(msh, ("Lagrange", 1, (2,)))
     assert spaces.functionspace(msh, ("Lagrange", 1, (2,))) is V
@@ -61,6 +62,35 @@ def test_a_space_its_components_and_zero_fields_are_made_once(monkeypatch):
     a.array[:] = 1.0
     b = spaces.zero_vector(V, 2)
     assert b.array.shape == a.array.shape and not np.any(b.array)
+
+
+def test_a_function_freed_by_the_cycle_collector_on_one_rank_keeps_the_communicator():
+    """A cached space's last function, in a reference cycle, freed by the cyclic collector
+    on rank 0 only (as the collector runs at moments of its own on each rank): the next
+    PETSc vector on the space is made on every rank without waiting.  Before the space kept
+    PETSc's inner communicator (the module doc), rank 0 duplicated it again — a collective
+    call rank 1 did not make — and the ranks waited for each other forever (the 2-rank
+    Cattaneo run of tests/test_bodies.py did)."""
+    assert spaces.CACHE  # on by default
+    msh = mesh.create_unit_square(COMM, 8, 8)
+    V = spaces.functionspace(msh, ("Lagrange", 1, (2,)))
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        f = spaces.zero_function(V)
+        f.x.petsc_vec.set(1.0)  # the only PETSc vector on V's communicator
+        cycle: list = [f]
+        cycle.append(cycle)
+        del f, cycle
+        if COMM.rank == 0:
+            gc.collect()  # f's vector destroyed here, on rank 0 only
+        g = spaces.zero_function(V)
+        g.x.petsc_vec.set(2.0)
+        assert g.x.petsc_vec.norm(PETSc.NormType.NORM_1) == 2.0 * g.x.petsc_vec.getSize()
+    finally:
+        gc.collect()
+        if enabled:
+            gc.enable()
 
 
 def test_without_the_cache_everything_is_made_afresh(monkeypatch):
@@ -146,7 +176,7 @@ def test_on_two_and_three_ranks():
         pytest.skip("this test starts the others on 2 and 3 ranks")
     proc = pytest_on_ranks("test_spaces.py", "not ranks", ranks=2)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "5 passed" in proc.stdout
+    assert "6 passed" in proc.stdout
     proc = pytest_on_ranks("test_spaces.py", "not ranks and not recoupled", ranks=3)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "4 passed" in proc.stdout
+    assert "5 passed" in proc.stdout

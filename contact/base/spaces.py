@@ -13,6 +13,20 @@ is a copy of one zero function per space (:func:`zero_function`; a nodal vector 
 
 The caches live on the mesh and space objects themselves (attributes ``_contact_spaces`` and
 ``_contact_cache``), so they go with them; ``CACHE = False`` makes every call build afresh.
+
+**PETSc's inner communicator.**  The PETSc vectors of a space's functions (``x.petsc_vec``,
+assembled vectors) live on the communicator of the space's index map.  PETSc attaches to it
+an inner communicator, duplicated (a collective call) when the first PETSc object on it is
+made and freed when the last one is destroyed.  A function's vector is destroyed when its
+wrapper dies (``dolfinx.la.Vector.__del__``), and a function dies when Python's cyclic
+collector frees a cycle it is in — UFL's algorithms leave such cycles behind (a
+``MultiFunction`` holds its own bound methods; ``ufl.action``'s replacer holds the
+function) — at moments that differ from rank to rank.  A space that lives across problems
+(this cache) can so lose its inner communicator on one rank and not on the other: the next
+vector on it duplicates the communicator on that rank only, and the ranks wait for each
+other forever.  So each cached space holds one empty PETSc vector on its index map's
+communicator for as long as it lives (made with the cache, at the same program point on
+every rank): the inner communicator is made once and never freed while the space is in use.
 """
 
 from __future__ import annotations
@@ -21,16 +35,10 @@ from typing import Any
 
 import numpy as np
 from dolfinx import fem, la, mesh
+from petsc4py import PETSc
 
-#: reuse spaces, collapsed components and zero functions (module doc); False (the default):
-#: build afresh.  Off because with it on the two-body Cattaneo–Mindlin load path on 2 ranks
-#: (configs/two_body_cattaneo_2d.yaml, tests/test_bodies.py) waits forever in the creation of
-#: a ghosted PETSc vector while assembling a grid-sequencing level: the ranks' collective
-#: calls no longer match.  With Python's cyclic collector off the run completes, so the
-#: likely cause is PETSc objects on the cached spaces' communicators freed by the collector
-#: at different moments on different ranks (PETSc's inner communicator then freed and
-#: duplicated again, a collective call, on one rank only)
-CACHE = False
+#: reuse spaces, collapsed components and zero functions (module doc); False: build afresh
+CACHE = True
 
 
 def functionspace(msh: mesh.Mesh, element: Any) -> fem.FunctionSpace:
@@ -50,6 +58,7 @@ def functionspace(msh: mesh.Mesh, element: Any) -> fem.FunctionSpace:
     spaces = msh.__dict__.setdefault("_contact_spaces", {})
     if element not in spaces:
         spaces[element] = fem.functionspace(msh, element)
+        _cache(spaces[element])  # its communicator kept (module doc)
     return spaces[element]
 
 
@@ -70,6 +79,7 @@ def collapsed(V: fem.FunctionSpace, k: int) -> tuple[fem.FunctionSpace, np.ndarr
     cache = _cache(V)
     if ("sub", k) not in cache:
         S, dofs = V.sub(k).collapse()
+        _cache(S)  # its communicator kept (module doc)
         cache[("sub", k)] = (S, np.asarray(dofs))
     return cache[("sub", k)]
 
@@ -117,7 +127,27 @@ def zero_vector(V: fem.FunctionSpace, bs: int = 1) -> la.Vector:
 
 
 def _cache(V: fem.FunctionSpace) -> dict:
-    return V.__dict__.setdefault("_contact_cache", {})
+    """V's cache, made on first use with a :class:`_Communicator` of V's index map (module
+    doc).  Collective when made."""
+    cache = V.__dict__.get("_contact_cache")
+    if cache is None:
+        cache = V.__dict__["_contact_cache"] = {
+            "communicator": _Communicator(V.dofmap.index_map.comm)
+        }
+    return cache
+
+
+class _Communicator:
+    """An empty PETSc vector on ``comm``: PETSc's inner communicator of ``comm`` is
+    duplicated when this is made (collective) and kept while this lives; destroyed
+    explicitly (at once, not queued for a collective clean-up) when this dies, with the
+    space whose cache holds it."""
+
+    def __init__(self, comm: Any) -> None:
+        self.vec = PETSc.Vec().createMPI((0, PETSc.DECIDE), comm=comm)
+
+    def __del__(self) -> None:
+        self.vec.destroy()
 
 
 def _hashable(key: Any) -> bool:

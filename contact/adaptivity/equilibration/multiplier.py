@@ -122,28 +122,34 @@ def shares(
 def _shares(
     nodal: np.ndarray, rule: EntityRule, sign: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`shares` of entities with a nonzero nodal value."""
-    lam_q = nodal @ rule.phi.T  # (n, nq)
+    """:func:`shares` of entities with a nonzero nodal value.
+
+    Every product is an ``np.einsum`` loop, not BLAS: a row's result must not depend on how
+    many rows are computed together (the bound made a block of cells at a time is the
+    bound made at once, bit for bit), and a BLAS product's rounding can depend on the
+    number of rows on some CPUs (OpenBLAS kernels and blocking)."""
+    lam_q = np.einsum("na,qa->nq", nodal, rule.phi)  # (n, nq)
     beta = np.zeros((len(nodal), len(rule.edges)))
     bminus = lam_q.copy()
     for e, (v0, v1, m) in enumerate(rule.edges):
         coef = 2 * nodal[:, m] - 0.5 * (nodal[:, v0] + nodal[:, v1])
         beta[:, e] = np.where(sign * coef < 0, coef, 0.0)
         bminus -= beta[:, e][:, None] * (2 * rule.lam[:, v0] * rule.lam[:, v1])[None]
-    total = nodal @ rule.W
-    integral = bminus @ rule.w
-    tiny = 1e-14 * (np.abs(nodal) @ rule.W) + 1e-300
+    total = np.einsum("na,a->n", nodal, rule.W)
+    integral = np.einsum("nq,q->n", bminus, rule.w)
+    tiny = 1e-14 * np.einsum("na,a->n", np.abs(nodal), rule.W) + 1e-300
     kappa = np.where(np.abs(integral) > tiny, total / np.where(integral == 0, 1, integral), 1.0)
     lt = kappa[:, None] * bminus  # λ̃_E at the points
-    m = (nodal * rule.W[None]) @ rule.hat  # m_a (n, D)
-    own = lt @ (rule.w[:, None] * rule.lam)  # ∫ ψ_a λ̃_E
+    m = np.einsum("na,ad->nd", nodal * rule.W[None], rule.hat)  # m_a (n, D)
+    own = np.einsum("nq,qd->nd", lt, rule.w[:, None] * rule.lam)  # ∫ ψ_a λ̃_E
     g = m - own
     bubble = np.prod(rule.lam[:, rule.vertices], axis=1)
     bub_mom = rule.basis @ (rule.w * bubble) / (rule.w @ bubble)  # (nk,)
     nq, D = rule.lam.shape
     # ∫ ψ_a λ̃_E b̂_k by quadrature: one product with the (q, a·k) table
     table = np.einsum("kq,q,qa->qak", rule.basis, rule.w, rule.lam).reshape(nq, -1)
-    mom = (lt @ table).reshape(len(lt), D, -1) + g[:, :, None] * bub_mom[None, None]
+    mom = np.einsum("nq,qm->nm", lt, table).reshape(len(lt), D, -1)
+    mom += g[:, :, None] * bub_mom[None, None]
     return mom, kappa, beta
 
 
