@@ -684,3 +684,93 @@ def test_a_scene_adapted_twice_gives_the_same_levels() -> None:
     u.x.array[:] = 1.0
     area = fem.assemble_scalar(fem.form(u * ufl.dx))
     assert abs(area - 1.0) < 1e-12
+
+
+def test_serial_transfers_answer_in_place_with_the_exchanges_values(monkeypatch):
+    """On one rank ``transfer.pull`` answers the requests in place (``LOCAL_PULL``): the
+    prolonged functions (scalar P1, P2, vector P1) and the carried facet and cell tags are
+    those of the two ``Alltoallv`` exchanges, bit for bit."""
+    from contact.adaptivity import transfer
+
+    from dolfinx import fem, mesh
+    from mpi4py import MPI
+
+    msh = mesh.create_unit_square(MPI.COMM_SELF, 9, 7)
+    msh.topology.create_entities(1)
+    msh.topology.create_connectivity(2, 1)
+    n = msh.topology.index_map(2).size_local
+    mid = mesh.compute_midpoints(msh, 2, np.arange(n, dtype=np.int32))
+    cells = np.flatnonzero(mid[:, 0] + 0.5 * mid[:, 1] < 0.6).astype(np.int32)
+    edges = mesh.compute_incident_entities(msh.topology, cells, 2, 1)
+    new, parent_cell, parent_facet = mesh.refine(
+        msh, edges, partitioner=None, option=mesh.RefinementOption.parent_cell_and_facet
+    )
+    new.topology.create_entities(1)
+    boundary = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0] * x[1], 0))
+    facet_tags = mesh.meshtags(msh, 1, boundary, (boundary % 3 + 1).astype(np.int32))
+    cell_tags = mesh.meshtags(msh, 2, np.arange(n, dtype=np.int32), np.arange(n, dtype=np.int32))
+    functions = []
+    for element in (("Lagrange", 1), ("Lagrange", 2), ("Lagrange", 1, (2,))):
+        u = fem.Function(fem.functionspace(msh, element))
+        u.x.array[:] = np.sin(np.arange(len(u.x.array)))
+        functions.append(u)
+
+    def carried(local):
+        monkeypatch.setattr(transfer, "LOCAL_PULL", local)
+        arrays = [transfer.prolong(u, new, parent_cell).x.array for u in functions]
+        ft = transfer.transfer_facet_tags(facet_tags, new, parent_cell, parent_facet)
+        ct = transfer.transfer_cell_tags(cell_tags, new, parent_cell)
+        return [*arrays, ft.indices, ft.values, ct.indices, ct.values]
+
+    in_place, exchanged = carried(True), carried(False)
+    assert len(in_place[3]) > 10 and len(set(in_place[4])) == 3  # tagged facets carried
+    for a, b in zip(in_place, exchanged, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)
+    empty = transfer.pull(MPI.COMM_SELF, np.zeros(0, np.int64), [np.zeros(0)], abs, (2,), float)
+    assert empty.shape == (0, 2)
+
+
+def test_the_loop_runs_on_a_frozen_heap_with_the_same_levels(monkeypatch):
+    """The loop collects the garbage at its start and freezes the objects alive
+    (``FREEZE_HEAP``: its collections then walk only its own), and unfreezes the heap on
+    return; the levels are the same as with the old path."""
+    import gc
+    import weakref
+
+    from contact.drivers import adaptive
+
+    scene = contact.load_scene(
+        ROOT / "configs" / "signorini_free_boundary.yaml", ["output.verbose=false"]
+    )
+
+    class Garbage:
+        pass
+
+    def run(freeze):
+        monkeypatch.setattr(adaptive, "FREEZE_HEAP", freeze)
+        gc.unfreeze()
+        frozen: list[int] = []
+        garbage = Garbage()
+        garbage.cycle = garbage  # type: ignore[attr-defined]
+        dead = weakref.ref(garbage)
+        del garbage  # a cycle: only the collector frees it (off until the loop has begun)
+        gc.disable()
+        try:
+            loop = adapt(
+                scene,
+                max_levels=3,
+                verbose=False,
+                keep=lambda lv: False,
+                on_level=lambda level: frozen.append(gc.get_freeze_count()),
+            )
+            freed = dead() is None  # before the loop's unfreeze reached it
+        finally:
+            gc.enable()
+        rows = [{k: v for k, v in r.items() if not k.startswith("seconds")} for r in loop.rows]
+        return rows, frozen, gc.get_freeze_count(), freed
+
+    # (the interpreter keeps a few hundred objects of its own in the frozen generation)
+    rows, frozen, after, freed = run(True)
+    assert len(rows) == 3 and min(frozen) > 5000 and after < 1000 and freed
+    old_rows, old_frozen, _, _ = run(False)
+    assert max(old_frozen) < 1000 and rows == old_rows

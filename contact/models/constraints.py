@@ -36,6 +36,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
+from ..base import indices
 from ..solvers.options import FrictionOptions
 from ..solvers.problem import Constraint, Output, ProblemData
 from . import form_checks as checks
@@ -200,7 +201,7 @@ class Unilateral:
             return dofs[keep], w[keep]
         measure = self.measure if self.measure is not None else ufl.dx(domain=V.mesh)
         dofs = _dofs_of(V, measure, self.component)
-        dofs = np.setdiff1d(dofs[dofs < n_owned], fixed).astype(np.int32)
+        dofs = indices.setdiff(dofs[dofs < n_owned], fixed).astype(np.int32)
         if not allow_empty:
             checks.check_constrained(comm, dofs, by_dofs=False)
         w = lumped_weights(V, measure, self.component)[dofs]

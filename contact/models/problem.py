@@ -14,6 +14,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..base import indices
+
 
 def coordinate_scale(msh: Any) -> float:
     """max |X| over the vertex coordinates of every rank (the same on any partition)."""
@@ -27,7 +29,7 @@ def contact_ends(
     """Owned contact DoFs that are Dirichlet DoFs too, and for each the nearest contact DoF
     that is not (owned or ghost).  A loop over the few ends only."""
     ends = np.intersect1d(owned, dirichlet).astype(np.int32)
-    free = np.setdiff1d(candidates, dirichlet)
+    free = indices.setdiff(candidates, dirichlet)
     if len(ends) == 0 or len(free) == 0:
         return np.zeros(0, np.int32), np.zeros(0, np.int32)
     X = V.tabulate_dof_coordinates()

@@ -24,7 +24,7 @@ import numpy as np
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from ..base import expressions
+from ..base import expressions, indices
 from ..base.errors import ConfigError
 from .scene_config import SceneConfig
 
@@ -113,7 +113,7 @@ def _nodes(scene, role: str | None, n_owned: int) -> np.ndarray:
     facets = scene.boundary.facets(role)
     if len(facets) == 0:
         return np.zeros(0, dtype=np.int32)
-    return np.unique(dmesh.entities_to_geometry(msh, msh.topology.dim - 1, facets).ravel()).astype(
+    return indices.unique(dmesh.entities_to_geometry(msh, msh.topology.dim - 1, facets)).astype(
         np.int32
     )
 
