@@ -585,8 +585,10 @@ def test_report_ex9_at_equal_certification_reads_the_csv(tmp_path: Path) -> None
     )
     text = _report(res, tmp_path / "R.md")
     section = text.split("**ex9 at equal certification**", 1)[1].split("**Memory", 1)[0]
-    assert "The exact stop is 4,000 DoFs (error 3.500e-03, 4.00 s CPU)" in section
+    stop = "Uniform P1 stops on the exact error at 4,000 DoFs (error 3.500e-03, 4.00 s CPU)"
+    assert stop in section
     assert "3.800e-03 (1.50 s more), certifies it already." in section
-    row = "| `res3` | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 1.25 / 1.20 | 4,000 | 5.50 |"
-    assert row + " 0.91 / 0.95 | 7.50 | 0.67 |" in section
-    assert section.count("| `res3` |") == 1  # the uniform P1 reference only
+    row = "| `res3` | uniform P1 | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 1.25 / 1.20 | 4,000 |"
+    assert row + " 5.50 | 0.91 / 0.95 | 7.50 | 0.67 |" in section
+    row = "| `res3` | uniform P2 | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 0.50 / 0.50 | 100 |"
+    assert row + " 0.20 | 25.00 / 25.00 | 0.30 | 16.70 |" in section
