@@ -3,6 +3,7 @@ how fast FB / blend Newton converges, never what it converges to."""
 
 from __future__ import annotations
 
+import gc
 from pathlib import Path
 
 import contact
@@ -123,13 +124,18 @@ def test_the_polisher_solves_for_its_step_in_the_vector_of_phi_at_the_trial_poin
 
     PETSc.Log.begin()
     problem, cp, pol, x = _state(scene)
-    before = petsc_objects().get("Vector", 0)
-    one = problem.b.duplicate()  # (a ghosted vector is two PETSc objects)
-    per_vector = petsc_objects().get("Vector", 0) - before
-    one.destroy()
-    before = petsc_objects().get("Vector", 0)
-    again = Polisher(cp, "fb", 0.5, pol.system, {"solve": 0.0, "assembly": 0.0})
-    assert petsc_objects().get("Vector", 0) - before == 3 * per_vector
+    gc.collect()
+    gc.disable()  # counted: no earlier test's vectors freed by the collector in between
+    try:
+        before = petsc_objects().get("Vector", 0)
+        one = problem.b.duplicate()  # (a ghosted vector is two PETSc objects)
+        per_vector = petsc_objects().get("Vector", 0) - before
+        one.destroy()
+        before = petsc_objects().get("Vector", 0)
+        again = Polisher(cp, "fb", 0.5, pol.system, {"solve": 0.0, "assembly": 0.0})
+        assert petsc_objects().get("Vector", 0) - before == 3 * per_vector
+    finally:
+        gc.enable()
     # a Newton point whose polished step raises ‖Φ‖: x = 0 with the step −x_ref (W = x_ref)
     # is the solution itself; polishing from the origin with y = 0 is rejected or accepted
     # by ‖Φ‖ alone, and y is only ever replaced by the polished step
@@ -220,7 +226,12 @@ def test_a_guess_polished_before_newton_keeps_no_law_for_the_jacobian(monkeypatc
     u0 = exact.u_h.copy()
     u0.interpolate(lambda x: 1e-3 * x[1] * (1 - x[1]) * (1 - x[0] ** 2))
     u0.x.array[:] += exact.u_h.x.array
-    r = contact.solve(scene, method="fb", verbose=False, linear="gamg", u0=u0)
+    gc.collect()
+    gc.disable()  # counted: no earlier test's vectors freed by the collector in between
+    try:
+        r = contact.solve(scene, method="fb", verbose=False, linear="gamg", u0=u0)
+    finally:
+        gc.enable()
     assert r.converged and r.polish_solves >= 1 and calls
     first_law, _, made = calls[0]
     assert first_law is False and made == 0, calls

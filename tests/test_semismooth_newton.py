@@ -81,7 +81,10 @@ def test_close_destroys_what_the_solver_made(problem):
     del result
     gc.collect()
     after = petsc_objects()
-    grown = {k: v - before.get(k, 0) for k, v in after.items() if v != before.get(k, 0)}
+    # only growth is the solver's: a class may also shrink, when objects of earlier tests in
+    # this process (the vectors of spaces cached on their meshes, contact.base.spaces) become
+    # garbage during this one and the collector frees them
+    grown = {k: v - before.get(k, 0) for k, v in after.items() if v > before.get(k, 0)}
     assert not grown, grown
     assert problem.K.handle != 0 and problem.b.handle != 0
 
