@@ -67,10 +67,10 @@ SHED_BOUND = True
 STOW_PREVIOUS = True
 #: the loop collects the garbage alive at its start and freezes the rest (``gc.freeze``: the
 #: cycle collector, called at every level to free the released levels' cycles, then walks
-#: only the loop's own objects, not every module, form and scene made before it: 30 ms a
-#: collection on ex9) and unfreezes the heap when it returns (what was frozen before it, e.g.
-#: the CLI's loaded modules, is then collected as any other object again).  False: every
-#: collection walks everything, the old path
+#: only the loop's own objects, not every module, form and scene made before it) and
+#: unfreezes the heap when it returns (what was frozen before it, e.g. the CLI's loaded
+#: modules, is then collected as any other object again).  False: every collection walks
+#: everything, the old path
 FREEZE_HEAP = True
 
 
