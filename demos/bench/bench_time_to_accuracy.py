@@ -47,9 +47,9 @@ certifies makes (each solved and bounded).
         --variant res3:adapt.growth=3,adapt.indicators=residual,adapt.tol=4e-3 \
         --variant p2:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3 --uniform-bound
 
-``--plain`` runs each variant a second time with the plain paths of the estimators and
-refinement (:data:`PLAIN`: one assembly per DG0 term, …), the same numbers, so the gain of
-the default paths is a ratio of one run.
+``--plain`` runs each variant a second time with the plain paths of the estimators, the
+refinement and the loop (:data:`PLAIN`: one assembly per DG0 term, NumPy's ``np.unique``,
+…), the same numbers, so the gain of the default paths is a ratio of one run.
 """
 
 from __future__ import annotations
@@ -283,6 +283,9 @@ PLAIN = (
     ("contact.adaptivity.equilibration.bound", "DIRICHLET_SUBMESH"),
     ("contact.adaptivity.equilibration.bound", "DIRICHLET_ON_SUBMESH"),
     ("contact.adaptivity.equilibration.flux", "UNIT_KAPPA"),
+    ("contact.base.indices", "SORTED"),
+    ("contact.adaptivity.transfer", "LOCAL_PULL"),
+    ("contact.drivers.adaptive", "FREEZE_HEAP"),
 )
 
 
