@@ -196,7 +196,7 @@ def test_on_two_and_three_ranks():
         pytest.skip("this test starts the others on 2 and 3 ranks")
     proc = pytest_on_ranks("test_spaces.py", "not ranks", ranks=2)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "6 passed" in proc.stdout
+    assert "8 passed" in proc.stdout
     proc = pytest_on_ranks("test_spaces.py", "not ranks and not recoupled", ranks=3)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "5 passed" in proc.stdout
+    assert "7 passed" in proc.stdout
