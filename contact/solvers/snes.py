@@ -271,10 +271,10 @@ class SemismoothNewton:
         """Project a guess onto the bound: x_i ← g_i on the constrained nodes with a
         negative gap σ (g_i − x_i) < 0 (:data:`ADMISSIBLE_GUESS`), the Dirichlet values
         kept.  Only where the constraint is a bound on one body's x (not on the current
-        configuration, no friction, no mortar pairs: their gap rows couple two bodies'
-        displacements, and moving one side's nodes to the bound moved a sequenced guess of
-        two_body_hertz_2d off its solution) and the residual linear (a nonlinear body's cells
-        may not be moved)."""
+        configuration, no friction, no mortar pairs: a pair's gap couples two bodies'
+        displacements, and a node moved onto the bound on one side spoils a coupled guess
+        that was already balanced) and the residual linear (a nonlinear body's cells may not
+        be moved)."""
         problem, cp = self.problem, self.cp
         if (
             not ADMISSIBLE_GUESS
@@ -285,9 +285,8 @@ class SemismoothNewton:
         ):
             return
         dofs, g = cp.dofs, np.broadcast_to(cp.g, cp.dofs.shape)
-        values = x.array_w  # the owned entries, written in place
-        below = cp.sign * (g - values[dofs]) < 0
-        values[dofs[below]] = g[below]
+        below = cp.sign * (g - x.array_r[dofs]) < 0
+        x.array_w[dofs[below]] = g[below]
         set_dirichlet(x, problem.bcs)
 
     def _best_guess(
@@ -632,9 +631,9 @@ FORCE_SCALE_HALVINGS = 20
 #: a load step's) is made admissible on a bound constraint before the solve, u ← max(u, ψ)
 #: (min(u, g) for an upper bound) node by node: prolonged onto refined cells, a solution
 #: resting on a concave obstacle lies below it at the new nodes (the chord under the arc) and
-#: there, with a gap < 0, even a node with a negative multiplier starts active; from the
-#: projected guess the first active-set step finds the contact set nearly at once (ex9's
-#: 963,277-DoF level 2+2 linear solves instead of 4+2).  False: the guess as given (old path)
+#: there, with a gap < 0, even a node with a negative multiplier starts active, and the free
+#: boundary recedes a ring of nodes per Newton step; from the projected guess the first
+#: active-set step finds the contact set nearly at once.  False: the guess as given (old path)
 ADMISSIBLE_GUESS = True
 ROUNDOFF = 16.0  # the floor below: measured 0.7 ε ‖K‖_∞ ‖x‖ reached at 256² (Laplace, P1)
 
