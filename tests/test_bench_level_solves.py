@@ -41,3 +41,34 @@ def test_levels_and_uniform_run_report_their_solves(bench) -> None:
     assert fine["run"] == "uniform" and fine["dofs"] == (16 * 8 + 1) ** 2
     assert [r["run"] for r in coarse] == ["sequence"] * len(coarse) and coarse
     assert all(r["dofs"] < fine["dofs"] for r in coarse)
+
+
+def test_a_switch_is_measured_old_against_new(bench) -> None:
+    """``--switch``: the loop runs with the switch off, then on, and the pair's figures say
+    whether both made the same levels and how far their errors differ.  The projected guess
+    (``contact.solvers.snes.ADMISSIBLE_GUESS``) takes ex9's levels with fewer linear solves
+    to the same errors; the switch is left on; a name that is no switch is refused."""
+    import argparse
+
+    from contact.solvers import snes
+
+    sets = ["output.verbose=false", "adapt.growth=3", "adapt.indicators=residual"]
+    scene = contact.load_scene(EX9, sets)
+    args = argparse.Namespace(
+        pairs=1,
+        max_dofs=12_000,
+        uniform=0,
+        switch="contact.solvers.snes.ADMISSIBLE_GUESS",
+        krylov=False,
+        history=True,
+        overrides=sets[1:],
+    )
+    rows = bench.switch_runs(args, EX9, scene)
+    pair = rows[-1]
+    assert pair["run"] == "pair" and pair["same_levels"], pair
+    assert pair["error_rel_diff"] < 1e-10, pair
+    assert pair["solves_new"] < pair["solves_old"], pair
+    assert {r["run"] for r in rows[:-1]} == {"loop-old", "loop-new"}
+    assert snes.ADMISSIBLE_GUESS is True
+    with pytest.raises(SystemExit):
+        bench.set_switch("contact.solvers.snes.ROUNDOFF", True)

@@ -240,3 +240,36 @@ def test_the_gamg_path_keeps_digests_of_laws_and_iterates_not_copies(monkeypatch
         (e["rtol"], e["iterations"], e["setups"]) for e in old.krylov_log
     ]
     assert np.array_equal(new_u, old_u)
+
+
+EX9 = str(ROOT / "configs" / "peers" / "petsc_ex9.yaml")
+
+
+@pytest.mark.parametrize("admissible", [True, False])
+def test_a_guess_below_the_obstacle_is_projected_onto_it(monkeypatch, admissible):
+    """A guess is made admissible before the solve (``snes.ADMISSIBLE_GUESS``): the discrete
+    solution of ex9 pushed 0.05 below ψ on its contact set is projected back onto ψ there,
+    which is that solution again, so the solve stops at iteration 0 without a linear solve;
+    given as it is (the old path) the same guess costs Newton steps, to the same solution."""
+    from contact.solvers import snes
+
+    monkeypatch.setattr(snes, "ADMISSIBLE_GUESS", admissible)
+    scene = contact.load_scene(EX9, ["output.verbose=false"])
+    exact = contact.solve(scene, problem=build_problem(scene), sequence="off")
+    assert exact.converged and exact.n_active > 0
+    problem = build_problem(scene)
+    guess = fem.Function(problem.V)
+    guess.x.array[:] = exact.u_h.x.array
+    owned = problem.constraint.dofs
+    gap = exact.u_h.x.array[owned] - problem.constraint.g  # u − ψ ≥ 0
+    contact_set = owned[gap <= 1e-12]
+    assert MPI.COMM_WORLD.allreduce(len(contact_set), op=MPI.SUM) == exact.n_active
+    guess.x.array[contact_set] -= 0.05
+    guess.x.scatter_forward()
+    r = contact.solve(scene, problem=problem, u0=guess, sequence="off")
+    assert r.converged
+    assert largest(r.u_h.x.array - exact.u_h.x.array) < 1e-10
+    if admissible:
+        assert (r.iterations, r.polish_solves) == (0, 0), (r.iterations, r.polish_solves)
+    else:
+        assert r.iterations + r.polish_solves >= 2, (r.iterations, r.polish_solves)

@@ -7,12 +7,24 @@ level of the uniform run): the DoFs, the linear solver, the Newton steps and pol
 solves, ‖Φ‖ at the start (after prolongation: the nested or sequenced guess) and at the
 end, and the seconds of the solve (wall), of its Krylov solves and how many GAMG set-ups
 they made; with ``--krylov`` every Krylov solve (its relative tolerance, iterations,
-seconds, set-ups).  Writes CSV (one row per level and per sequencing level).
+seconds, set-ups); with ``--history`` every Newton step (‖Φ‖, active nodes, how many
+changed state, whether the step was polished).  Writes CSV (one row per level and per
+sequencing level).
+
+``--switch MODULE.NAME`` measures a module-level switch (``NAME = True`` the new path,
+``False`` the old one): the loop (and the uniform run, if any) runs ``--pairs`` times with
+the switch off, then on, alternating in this process, and prints per pair the loop's CPU
+seconds to its last level old/new, whether both made the same levels, and the largest
+relative difference of their energy errors.
 
     python demos/bench/bench_level_solves.py ex9 --max-dofs 1400000 --uniform 64 \\
         --set adapt.growth=3 adapt.indicators=residual adapt.tol=4e-3
     python demos/bench/bench_level_solves.py ex9 --max-dofs 400000 --uniform 0 \\
         --set adapt.growth=3 adapt.indicators=residual adapt.tol=4e-3 --krylov
+
+    python demos/bench/bench_level_solves.py ex9 --max-dofs 1400000 --pairs 2 \\
+        --set adapt.growth=3 adapt.indicators=residual adapt.tol=4e-3 \\
+        --switch contact.solvers.snes.ADMISSIBLE_GUESS
 
 Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_boundary.yaml),
 ``lshape`` (configs/lshape_corner.yaml) or a path.
@@ -21,6 +33,7 @@ Scenes: ``ex9`` (configs/peers/petsc_ex9.yaml), ``A`` (configs/signorini_free_bo
 from __future__ import annotations
 
 import argparse
+import importlib
 import time
 from pathlib import Path
 
@@ -80,22 +93,40 @@ def show(row: dict, krylov: list[dict] | None = None) -> None:
         print(f"      rtol {rtol:.1e} its {its:3d} {seconds:.3f} s set-ups {setups} fixed {fixed}")
 
 
-def adaptive_run(scene: contact.Scene, max_dofs: int, label: str, krylov: bool) -> list[dict]:
+def show_history(result) -> None:
+    """Print a solve's Newton steps: ‖Φ‖, active nodes, changes, polished."""
+    for h in result.history:
+        polished = " polished" if h["polished"] else ""
+        print(
+            f"      it {h['iteration']:2d} |Phi| {h['residual']:.3e} active {h['active']:8d} "
+            f"changed {h['changed']:6d}{polished}",
+            flush=True,
+        )
+
+
+def adaptive_run(
+    scene: contact.Scene, max_dofs: int, label: str, krylov: bool, history: bool = False
+) -> list[dict]:
     """The loop's levels, a row each (earlier levels released as it goes)."""
     rows: list[dict] = []
 
     def on_level(level) -> None:
         row = solve_row(label, level.index, level.result, level.error, level.seconds["solve"])
         row["cpu_cumulative"] = round(level.cpu, 4)
+        row["eta"] = level.estimate.eta
         rows.append(row)
         show(row, level.result.krylov_log if krylov else None)
+        if history:
+            show_history(level.result)
 
     out = loop.adapt(scene, on_level=on_level, max_dofs=max_dofs, keep=lambda level: False)
     print(f"  {label}: {out.stop}", flush=True)
     return rows
 
 
-def uniform_run(path: Path, factor: int, sets: list[str], krylov: bool) -> list[dict]:
+def uniform_run(
+    path: Path, factor: int, sets: list[str], krylov: bool, history: bool = False, label: str = ""
+) -> list[dict]:
     """The uniform run on a mesh ``factor`` times finer: its sequencing levels and its solve."""
     base = contact.load_scene(path, ["output.verbose=false", "adapt=none", *sets])
     cells = base.config.mesh.cells
@@ -119,11 +150,13 @@ def uniform_run(path: Path, factor: int, sets: list[str], krylov: bool) -> list[
             flush=True,
         )
     timings = result.timings
-    row = solve_row("uniform", factor, result, error, timings["solve"])
+    row = solve_row(f"uniform{label}", factor, result, error, timings["solve"])
     row["cpu_cumulative"] = round(cpu, 4)
     row["seconds_coarse"] = round(timings.get("coarse", 0.0), 4)
     rows.append(row)
     show(row, result.krylov_log if krylov else None)
+    if history:
+        show_history(result)
     print(
         f"  uniform ×{factor}: {time.perf_counter() - wall:.2f} s wall {cpu:.2f} s CPU "
         f"(assembly {timings['assembly']:.2f}, coarse levels {timings.get('coarse', 0):.2f}, "
@@ -131,6 +164,66 @@ def uniform_run(path: Path, factor: int, sets: list[str], krylov: bool) -> list[
         flush=True,
     )
     result.release()
+    return rows
+
+
+def set_switch(name: str, value: bool) -> None:
+    """Set the module-level switch ``name`` (``package.module.NAME``), which must exist."""
+    module, _, attr = name.rpartition(".")
+    mod = importlib.import_module(module)
+    if not isinstance(getattr(mod, attr, None), bool):
+        raise SystemExit(f"--switch: {name} is not a module-level True/False switch")
+    setattr(mod, attr, value)
+
+
+def compare(old: list[dict], new: list[dict]) -> dict:
+    """One pair's figures: the loop's CPU seconds to its last level old and new and their
+    ratio, whether both made the same levels (their DoFs), the largest relative difference of
+    their energy errors and of their η, and each run's linear solves (Newton + polishing)."""
+    same = [r["dofs"] for r in old] == [r["dofs"] for r in new]
+
+    def rel(key: str) -> float:
+        pairs = [(a[key], b[key]) for a, b in zip(old, new) if a[key] != "" and b[key] != ""]
+        return max((abs(a - b) / abs(a) for a, b in pairs if a), default=0.0)
+
+    def solves(rows: list[dict]) -> int:
+        return sum(r["newton_iterations"] + r["polish_solves"] for r in rows)
+
+    cpu_old, cpu_new = old[-1]["cpu_cumulative"], new[-1]["cpu_cumulative"]
+    return {
+        "cpu_old": cpu_old,
+        "cpu_new": cpu_new,
+        "ratio": cpu_old / cpu_new if cpu_new else float("nan"),
+        "same_levels": same,
+        "error_rel_diff": rel("error") if same else float("nan"),
+        "eta_rel_diff": rel("eta") if same else float("nan"),
+        "solves_old": solves(old),
+        "solves_new": solves(new),
+    }
+
+
+def switch_runs(args, path: Path, scene: contact.Scene) -> list[dict]:
+    """The loop (and the uniform run) with ``args.switch`` off and on, alternating."""
+    rows: list[dict] = []
+    for pair in range(args.pairs):
+        runs = {}
+        for value, tag in ((False, "old"), (True, "new")):
+            set_switch(args.switch, value)
+            runs[tag] = adaptive_run(scene, args.max_dofs, f"loop-{tag}", args.krylov, args.history)
+            rows += runs[tag]
+            if args.uniform:
+                sets = [s for s in args.overrides if not s.startswith("adapt.")]
+                rows += uniform_run(path, args.uniform, sets, args.krylov, args.history, f"-{tag}")
+        c = compare(runs["old"], runs["new"])
+        print(
+            f"  pair {pair}: loop CPU old {c['cpu_old']:.2f} s new {c['cpu_new']:.2f} s, "
+            f"old/new {c['ratio']:.3f}; linear solves {c['solves_old']} -> {c['solves_new']}; "
+            f"same levels {c['same_levels']}, errors differ by {c['error_rel_diff']:.1e}, "
+            f"eta by {c['eta_rel_diff']:.1e} (relative)",
+            flush=True,
+        )
+        rows.append({"run": "pair", "level": pair, **c})
+    set_switch(args.switch, True)
     return rows
 
 
@@ -145,6 +238,11 @@ def main() -> None:
         "--uniform", type=int, default=0, help="the uniform mesh's factor (0: no uniform run)"
     )
     ap.add_argument("--krylov", action="store_true", help="print every Krylov solve")
+    ap.add_argument("--history", action="store_true", help="print every Newton step")
+    ap.add_argument(
+        "--switch", default=None, metavar="MODULE.NAME", help="a switch to measure old/new"
+    )
+    ap.add_argument("--pairs", type=int, default=2, help="old/new pairs with --switch")
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     path = ROOT / SCENES.get(args.scene, args.scene)
@@ -152,10 +250,14 @@ def main() -> None:
     warm = contact.load_scene(path, ["output.verbose=false", "adapt=none"])
     contact.solve(warm, verbose=False).release()  # JIT cache and first-call costs
     scene = contact.load_scene(path, ["output.verbose=false", *args.overrides])
-    rows += adaptive_run(scene, args.max_dofs, "loop", args.krylov)
-    if args.uniform:
-        sets = [s for s in args.overrides if not s.startswith("adapt.")]
-        rows += uniform_run(path, args.uniform, sets, args.krylov)
+    if args.switch:
+        set_switch(args.switch, True)  # checked before any run
+        rows += switch_runs(args, path, scene)
+    else:
+        rows += adaptive_run(scene, args.max_dofs, "loop", args.krylov, args.history)
+        if args.uniform:
+            sets = [s for s in args.overrides if not s.startswith("adapt.")]
+            rows += uniform_run(path, args.uniform, sets, args.krylov, args.history)
     if args.out:
         save_csv(args.out, rows)
 
