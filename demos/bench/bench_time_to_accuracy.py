@@ -286,6 +286,7 @@ PLAIN = (
     ("contact.base.indices", "SORTED"),
     ("contact.adaptivity.transfer", "LOCAL_PULL"),
     ("contact.drivers.adaptive", "FREEZE_HEAP"),
+    ("contact.drivers.adaptive", "PREDICT_BOUND"),
 )
 
 
