@@ -4013,6 +4013,9 @@ def _tta_ex9_certified() -> list[str]:
                 f"{r['certified_eta']:.3e}",
                 f"{r['adaptive_certified_cpu']:.2f}",
                 f"{r['first_reaching_cpu']:.2f} / {r['interpolated_cpu']:.2f}",
+                f"{r['budget_first_reaching_cpu']:.2f} / {r['budget_interpolated_cpu']:.2f}"
+                if r.get("budget_first_reaching_cpu")
+                else "–",
                 f"{r['uniform_certified_dofs']:,}"
                 if r.get("uniform_certified_dofs")
                 else "past the last mesh (s extrapolated)",
@@ -4038,6 +4041,7 @@ def _tta_ex9_certified() -> list[str]:
                     "certified η",
                     "CPU s",
                     "/ uniform, exact stop (first / interpolated)",
+                    "… on a level budget",
                     "uniform DoFs certifying η",
                     "its solve + bound CPU s",
                     "/ it (first / interpolated)",

@@ -88,6 +88,7 @@ VOLATILE = {
     "time_sequence",
     "seconds",
     "seconds_to_error",
+    "seconds_to_solution",
     "host",
     "mpi_ranks",
     "newton_iterations",

@@ -198,6 +198,12 @@ def test_cli_writes_adaptive_folder(tmp_path):
     assert 0 < elapsed[0] and all(a < b for a, b in zip(elapsed, elapsed[1:]))
     outputs = sum(float(r["seconds_output"]) for r in rows[:-1])
     assert elapsed[-1] < summary["time_total"] - outputs
+    # … and up to each level's solution and error only: its estimate is what lies between
+    solved = [float(r["seconds_solved"]) for r in rows]
+    assert summary["seconds_to_solution"] == solved
+    for r, s, e in zip(rows, solved, elapsed):
+        assert 0 < s < e and e - s >= float(r["seconds_estimate"]) - 2e-4  # 4 decimals each
+    assert all(e < s for e, s in zip(elapsed, solved[1:]))
     assert summary["error_per_level"] == pytest.approx([float(r["error"]) for r in rows])
     assert summary["eta_per_level"] == pytest.approx(eta)
 

@@ -58,6 +58,26 @@ def test_certified_variant_stops_where_the_loop_certifies(bench) -> None:
     assert {r["estimator"] for r in rows[1:-1]} == {"residual"}
 
 
+def test_budget_stop_counts_no_estimate_of_the_last_level(bench) -> None:
+    """Each level's seconds to its solution (``solved_cpu``: a loop stopping there on a level
+    budget) leave out its estimate and the bound charged to the level reaching the target,
+    and come after the level before it was estimated; the budget ratios divide them by the
+    uniform run's seconds (which estimate nothing)."""
+    sets = ["adapt.growth=3", "adapt.indicators=residual"]
+    rows = bench.adaptive(EX9, 5e-2, 60_000, sets, echo=False)
+    last = rows[-1]
+    assert last["error"] <= 5e-2 and last["bound_cpu"] > 0  # the bound charged to it
+    assert all(0 < r["solved_cpu"] <= r["cpu"] - r["bound_cpu"] for r in rows)
+    assert last["solved_cpu"] < last["cpu"] - last["bound_cpu"]  # its residual estimate
+    assert all(a["cpu"] < b["solved_cpu"] for a, b in zip(rows, rows[1:]))
+    assert all(0 < r["solved_seconds"] < r["seconds"] for r in rows)
+    uni = [dict(error=0.08, seconds=1.0, cpu=1.0), dict(error=0.04, seconds=3.0, cpu=3.0)]
+    ratio = bench.ratios("ex9", "res3", 5e-2, uni, rows)
+    assert ratio["budget_first_reaching_cpu"] == round(last["solved_cpu"] / 3.0, 3)
+    assert ratio["first_reaching_cpu"] == round(last["cpu"] / 3.0, 3)
+    assert ratio["budget_first_reaching_cpu"] < ratio["first_reaching_cpu"]
+
+
 def _uniform_row(level: int, dofs: int, eta: float, cpu: float, path: bool) -> dict:
     """A uniform mesh's row: its error 1/1.1 of its bound, the bound half its solve's CPU."""
     row = dict(level=level, dofs=dofs, error=eta / 1.1, eta=eta, cpu=cpu, bound_cpu=cpu / 2)

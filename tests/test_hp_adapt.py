@@ -159,7 +159,8 @@ def test_hp_levels_carry_the_time_to_accuracy() -> None:
     """Each hp level records the loop's wall and CPU seconds from its start to the level's
     solution, estimate and error (``Level.elapsed``, ``Level.cpu``, summary.json's
     ``seconds_to_error``), growing from level to level, the seconds of ``on_level`` not
-    counted."""
+    counted; and up to its solution and error only (``Level.solved_elapsed``,
+    ``Level.solved_cpu``: a loop stopping there on a level budget)."""
     import time
 
     scene = contact.load_scene(SMOOTH, ["output.verbose=false"])
@@ -176,6 +177,11 @@ def test_hp_levels_carry_the_time_to_accuracy() -> None:
     # the three pauses (0.9 s wall, no CPU) are outputs: the last level's time excludes them
     assert elapsed[-1] < total - len(elapsed) * pause
     assert run.levels[-1].row()["seconds_elapsed"] == round(elapsed[-1], 4)
+    # up to each level's solution and error: its estimate (the rest of elapsed) not counted
+    for lv in run.levels:
+        assert 0 < lv.solved_elapsed < lv.elapsed - lv.seconds["estimate"] + 1e-9
+        assert 0 < lv.solved_cpu < lv.cpu
+    assert all(a.elapsed < b.solved_elapsed for a, b in zip(run.levels, run.levels[1:]))
 
 
 def test_hp_started_at_degree_two_does_not_lose_accuracy() -> None:

@@ -566,9 +566,10 @@ def test_report_ex9_at_equal_certification_reads_the_csv(tmp_path: Path) -> None
         "target,first_reaching_cpu,interpolated_cpu,certified_eta,adaptive_certified_dofs,"
         "adaptive_certified_error,adaptive_certified_cpu,uniform_certified_dofs,"
         "uniform_bound_last_cpu,uniform_bound_last_interp_cpu,uniform_bound_every_cpu,"
-        "certified_last_cpu,certified_last_interp_cpu,certified_every_cpu"
+        "certified_last_cpu,certified_last_interp_cpu,certified_every_cpu,"
+        "budget_first_reaching_cpu,budget_interpolated_cpu"
     )
-    tail = "," * 16
+    tail = "," * 18
     lines = [
         cols,
         f"ex9,uniform,1,1000,0.005,1.0,0.5,0.0055,equilibrated,True{tail}",
@@ -576,9 +577,9 @@ def test_report_ex9_at_equal_certification_reads_the_csv(tmp_path: Path) -> None
         f"ex9,res3,0,500,0.01,0.5,0.0,0.02,residual,{tail}",
         f"ex9,res3,1,3000,0.0039,5.0,0.0,0.0039,equilibrated,{tail}",
         "ex9,ratio,,,0.004,,,,,,res3,uniform,0.004,1.25,1.2,0.004,3000,0.0039,5.0,4000,5.5,"
-        "5.25,7.5,0.909,0.952,0.667",
+        "5.25,7.5,0.909,0.952,0.667,1.05,1.02",
         "ex9,ratio,,,0.004,,,,,,res3,uniform_p2,0.004,0.5,0.5,0.004,3000,0.0039,5.0,100,0.2,"
-        "0.2,0.3,25.0,25.0,16.7",
+        "0.2,0.3,25.0,25.0,16.7,,",
     ]
     (res / "adaptive_cost" / "time_to_accuracy_ex9_certified.csv").write_text(
         "\n".join(lines) + "\n"
@@ -588,7 +589,11 @@ def test_report_ex9_at_equal_certification_reads_the_csv(tmp_path: Path) -> None
     stop = "Uniform P1 stops on the exact error at 4,000 DoFs (error 3.500e-03, 4.00 s CPU)"
     assert stop in section
     assert "3.800e-03 (1.50 s more), certifies it already." in section
-    row = "| `res3` | uniform P1 | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 1.25 / 1.20 | 4,000 |"
+    row = (
+        "| `res3` | uniform P1 | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 1.25 / 1.20 | "
+        "1.05 / 1.02 | 4,000 |"
+    )
     assert row + " 5.50 | 0.91 / 0.95 | 7.50 | 0.67 |" in section
-    row = "| `res3` | uniform P2 | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 0.50 / 0.50 | 100 |"
+    row = "| `res3` | uniform P2 | 2 | 3,000 | 3.900e-03 | 4.000e-03 | 5.00 | 0.50 / 0.50 | – |"
+    row += " 100 |"
     assert row + " 0.20 | 25.00 / 25.00 | 0.30 | 16.70 |" in section

@@ -119,6 +119,11 @@ class Level:
             ``error`` (the first level's includes its grid-sequencing solves; with
             ``adapt.indicators: residual`` the last level's includes its bound).
         cpu: The CPU seconds of this process likewise.
+        solved_elapsed: Wall seconds from the start of the loop to this level's solution and
+            its error, its estimate not counted (nor its bound): the time to reach ``error``
+            of a loop that knew this level would be its last, as one stopping on a level
+            budget needs no estimate of its last level.
+        solved_cpu: The CPU seconds of this process likewise.
     """
 
     index: int
@@ -132,6 +137,8 @@ class Level:
     passes: int = 1  # solves of this level (adaptive stopping may solve on: solve_level)
     elapsed: float = 0.0  # wall seconds of the loop up to this level, outputs not counted
     cpu: float = 0.0  # this process's CPU seconds likewise
+    solved_elapsed: float = 0.0  # wall seconds up to its solution and error, no estimate
+    solved_cpu: float = 0.0  # this process's CPU seconds likewise
     released: bool = False  # the solution's fields and η_T dropped (release)
     estimator: str = ""  # the estimator of ``estimate`` where it is not the loop's (Bound)
     rebuildable: bool = False  # ``problem`` is the builder's on ``domain`` (stow may drop it)
@@ -217,6 +224,7 @@ class Level:
         row.update(self.errors())
         row.update({f"seconds_{k}": round(v, 4) for k, v in self.seconds.items()})
         row["seconds_elapsed"] = round(self.elapsed, 4)
+        row["seconds_solved"] = round(self.solved_elapsed, 4)
         return row
 
     def errors(self) -> dict[str, Any]:
@@ -428,15 +436,19 @@ def adapt(
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
 
-        def release_previous(result: Result, previous: Level | None = previous) -> None:
+        solved: dict[str, float] = {}  # the clocks when the level's last solve is done
+
+        def release_previous(
+            result: Result, previous: Level | None = previous, solved: dict = solved
+        ) -> None:
             # once this level has a solution (a failed one is dropped by the CLI and the
             # one before it stays whole), before its estimate, the loop's peak
-            if keep is None or previous is None or previous.released or not result.converged:
-                return
-            if not keep(previous):
-                previous.release()
-                gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
-                return_freed_memory()
+            if keep is not None and previous is not None and not previous.released:
+                if result.converged and not keep(previous):
+                    previous.release()
+                    gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
+                    return_freed_memory()
+            solved.update(wall=time.perf_counter(), cpu=time.process_time())
 
         # the bound alone where it will be computed anyway (adapt.indicators residual): on
         # the last level (its operator K then shed first, as before the bound of Bound) …
@@ -450,7 +462,7 @@ def adapt(
             bound is not None and PREDICT_BOUND and bound.predicts(problem.V, opts.tol)
         )
 
-        def solved(
+        def on_solved(
             result: Result,
             bounded: bool = bound_only,
             shed: bool = bool(last) and SHED_BOUND and keep is not None,
@@ -471,14 +483,16 @@ def adapt(
             kind if bound is None else "residual",
             stopping,
             previous=previous,
-            solved=solved,
+            solved=on_solved,
             bound_kind=bound.kind if bound_only and bound is not None else None,
         )
         # a level's solve may have solved another problem on its mesh (pairs re-coupled on
         # the current configuration): the level is that of its result
         problem = result.problem or problem
+        error_cpu = time.process_time()
         with Timer(seconds, "error"):
             error = solution_error(problem, result)
+        error_cpu = time.process_time() - error_cpu
         level = Level(
             index,
             level_domain,
@@ -491,6 +505,8 @@ def adapt(
             passes=passes,
             elapsed=time.perf_counter() - start - outputs,
             cpu=time.process_time() - start_cpu - outputs_cpu,
+            solved_elapsed=solved["wall"] - start - outputs + seconds["error"],
+            solved_cpu=solved["cpu"] - start_cpu - outputs_cpu + error_cpu,
             estimator=""
             if bound is None
             else bound.kind

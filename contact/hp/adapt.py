@@ -173,10 +173,13 @@ def adapt_hp(
                 scene, problem=problem, u0=u0, verbose=False, rtol=rtol, atol=atol, sequence="off"
             )
         result.__dict__["dofs"] = problem.unknowns()  # the hp unknowns, not V's DoFs
+        solved_wall, solved_cpu = time.perf_counter(), time.process_time()
         with Timer(seconds, "estimate"):
             est = hp_estimate(scene, result, space, estimator)
+        error_cpu = time.process_time()
         with Timer(seconds, "error"):
             error = solution_error(problem, result)
+        error_cpu = time.process_time() - error_cpu
         imbalance = rank_imbalance(space.V)
         level = HPLevel(
             index,
@@ -191,6 +194,8 @@ def adapt_hp(
             space=space,
             elapsed=time.perf_counter() - start - outputs,
             cpu=time.process_time() - start_cpu - outputs_cpu,
+            solved_elapsed=solved_wall - start - outputs + seconds["error"],
+            solved_cpu=solved_cpu - start_cpu - outputs_cpu + error_cpu,
         )
         out.levels.append(level)
         stop = _stop(result, est.eta, tol, index, max_levels)

@@ -411,6 +411,9 @@ def write_adaptive(
             # time to accuracy: the loop's wall seconds up to level k (outputs not counted)
             # and the energy error (None without data.exact) and η reached there
             "seconds_to_error": [round(lv.elapsed, 4) for lv in adaptive.levels],
+            # … and up to its solution and error only (a loop that stops there on a level
+            # budget needs no estimate of its last level)
+            "seconds_to_solution": [round(lv.solved_elapsed, 4) for lv in adaptive.levels],
             "error_per_level": [lv.error for lv in adaptive.levels],
             "eta_per_level": [lv.estimate.eta for lv in adaptive.levels],
             "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
