@@ -652,11 +652,14 @@ class Bound:
 
     With ``PREDICT_BOUND`` the loop decides before estimating a level whether its bound
     will be computed (``predicts``, ``certainly_last``) and then computes the bound
-    alone: its η_T mark the level should the loop go on (an equilibrated bound is an
-    estimator with local indicators, reliable and locally efficient, and Dörfler marking
-    by such indicators converges at the optimal rate as the residual one does: Cascón &
-    Nochetto, IMA J. Numer. Anal. 32, 2012).  Such a level teaches no ratio (it has no
-    residual η); its residual η is taken as its bound over the ratio.
+    alone: its η_T mark the level should the loop go on.  An equilibrated bound is an
+    estimator with local indicators ‖k^{-1/2}(σ_h − k∇u_h)‖_T (docs/theory.md §9),
+    reliable and locally efficient, and for the Poisson problem Dörfler marking by them
+    converges at the optimal rate as by the residual ones (Cascón & Nochetto, IMA J. Numer.
+    Anal. 32, 2012; Chaumont-Frelet, Dong, Gantner & Vohralík, arXiv:2603.08887); for
+    contact the meshes they give are compared with the residual ones in the changelog.
+    Such a level teaches no ratio (it has no residual η); its residual η is taken as its
+    bound over the ratio.
 
     Attributes:
         kind: the estimator of the bound (as :func:`contact.estimate` takes it).
