@@ -13,6 +13,7 @@ from pathlib import Path
 
 import contact
 from contact.post.reference import compare
+from contact.setup.build import build_problem
 from contact.setup.run import adapt
 
 import numpy as np
@@ -846,3 +847,92 @@ def test_the_loop_runs_on_a_frozen_heap_with_the_same_levels(monkeypatch):
     assert len(rows) == 3 and min(frozen) > 5000 and after < 1000 and freed
     old_rows, old_frozen, _, _ = run(False)
     assert max(old_frozen) < 1000 and rows == old_rows
+
+
+def _refine_and_build(scene, cells, u_h, new, monkeypatch):
+    """REFINE then the next level's build, as the loop does them (the DoF bound first), with
+    the refinement's shared space, DoF points and marked edges (``new``) or the old paths;
+    the number of times the marked cells' edges were found."""
+    from contact.adaptivity import refine as refine_module
+    from contact.adaptivity import transfer
+    from contact.base import spaces
+    from contact.drivers import adaptive
+    from contact.setup import checks, data, scalar
+    from contact.setup.build import build_problem
+
+    for module, name in [
+        (refine_module, "EDGES_ONCE"),
+        (transfer, "SHARED_SPACE"),
+        (spaces, "ELEMENT_KEYS"),
+        (data, "SHARED_POINTS"),
+        (scalar, "SHARED_SPACE"),
+        (scalar, "DIRICHLET_NODES"),
+        (checks, "POINTS_ONCE"),
+    ]:
+        monkeypatch.setattr(module, name, new)
+    found = []
+    incident = refine_module.dmesh.compute_incident_entities
+    monkeypatch.setattr(
+        refine_module.dmesh,
+        "compute_incident_entities",
+        lambda *args: found.append(1) or incident(*args),
+    )
+    bound = adaptive.next_dofs_bound(scene.mesh, cells, u_h.function_space)
+    child, u0 = contact.refine(scene, cells, u_h)
+    problem = build_problem(child)
+    return bound, child, u0, problem, len(found)
+
+
+@pytest.mark.parametrize("scene_file", ["peers/petsc_ex9.yaml", "signorini_free_boundary.yaml"])
+def test_the_refined_level_is_built_on_the_space_of_the_prolonged_guess(monkeypatch, scene_file):
+    """REFINE and the next level's build share their work: the guess is prolonged into the
+    space the level's problem is built on (one space, its DoF points tabulated once), the
+    marked cells' edges are found once for the DoF bound and the refinement, u_D is evaluated
+    at the Dirichlet DoFs only; the refined mesh, tags, guess and assembled problem are the
+    old path's bit for bit (obstacle and Signorini)."""
+    from contact.base import spaces
+
+    from dolfinx import mesh as dmesh
+
+    scene = contact.load_scene(ROOT / "configs" / scene_file, ["output.verbose=false"])
+    V = build_problem(scene).V
+    u_h = spaces.zero_function(V)
+    u_h.x.array[:] = np.sin(np.arange(len(u_h.x.array)))
+    n = scene.mesh.topology.index_map(2).size_local
+    mid = dmesh.compute_midpoints(scene.mesh, 2, np.arange(n, dtype=np.int32))
+    cells = np.flatnonzero(np.abs(mid[:, 0]) + np.abs(mid[:, 1]) < 1.2).astype(np.int32)
+    runs = {new: _refine_and_build(scene, cells, u_h, new, monkeypatch) for new in (True, False)}
+
+    bound, child, u0, problem, found = runs[True]
+    assert found == 1 and runs[False][4] == 2  # the edges found once, against twice
+    assert u0.function_space is problem.V  # one space: the guess's is the problem's
+    assert spaces.dof_coordinates(problem.V) is spaces.dof_coordinates(problem.V)
+    _, old_child, old_u0, old_problem, _ = runs[False]
+    assert old_u0.function_space is not old_problem.V
+    assert bound == runs[False][0] and bound <= problem.V.dofmap.index_map.size_global
+
+    def arrays(child, u0, problem):
+        tags = child.boundary.tags
+        K = problem.K.getValuesCSR()
+        con = problem.constraint
+        bc = problem.bcs[0]
+        dofs = bc.dof_indices()[0]
+        return [
+            child.mesh.geometry.x,
+            child.mesh.geometry.dofmaps[0],
+            tags.indices,
+            tags.values,
+            u0.x.array,
+            *K,
+            problem.b.array,
+            con.dofs,
+            con.g,
+            con.w,
+            dofs,
+            bc.g.x.array[dofs],
+        ]
+
+    new, old = arrays(child, u0, problem), arrays(old_child, old_u0, old_problem)
+    assert len(new[2]) > 0 and len(new[-2]) > 0
+    for a, b in zip(new, old, strict=True):
+        assert a.dtype == b.dtype and np.array_equal(a, b)

@@ -9,6 +9,7 @@ from pathlib import Path
 import contact as ct
 from contact.setup.build import build_problem
 
+import numpy as np
 import pytest
 from clirun import ROOT, contact, error_lines, small_scene
 
@@ -79,6 +80,33 @@ def test_scalar_data_checked_where_used(data: dict, expect: str | None) -> None:
         match="^" + expect.replace("(", r"\(").replace(")", r"\)").replace("*", r"\*"),
     ):
         build_problem(scene)
+
+
+@pytest.mark.parametrize("once", [True, False])
+def test_the_points_of_a_role_are_gathered_once(monkeypatch, once: bool) -> None:
+    """The data of a role are evaluated at its vertices gathered once (every vertex: a
+    read-only view of the geometry; ``POINTS_ONCE``) or copied per datum (the old path):
+    the same reports, the geometry untouched."""
+    from contact.setup import checks
+
+    monkeypatch.setattr(checks, "POINTS_ONCE", once)
+    seen: list = []
+    to_numpy = checks.expressions.to_numpy
+
+    def spy(*args, **kwargs):
+        f = to_numpy(*args, **kwargs)
+        return lambda x: seen.append(x) or f(x)
+
+    monkeypatch.setattr(checks.expressions, "to_numpy", spy)
+    scene = ct.load_scene(_square(f="x*y", k="1/(x - 0.5)"))
+    x = scene.mesh.geometry.x.copy()
+    with pytest.raises(ct.ConfigError, match=r"^data\.k: not a finite number at 5 of 25 nodes"):
+        checks.check_scene_data(scene)
+    assert np.array_equal(scene.mesh.geometry.x, x)
+    everywhere = [p for p in seen if p.shape[1] == 25]  # f and k at every vertex
+    assert len(everywhere) == 2 and np.array_equal(everywhere[0], everywhere[1])
+    shared = np.shares_memory(everywhere[0], scene.mesh.geometry.x)
+    assert shared == once and (everywhere[0] is everywhere[1]) == once
 
 
 def test_obstacle_psi_checked_everywhere() -> None:

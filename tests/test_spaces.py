@@ -93,6 +93,25 @@ def test_a_function_freed_by_the_cycle_collector_on_one_rank_keeps_the_communica
             gc.enable()
 
 
+@pytest.mark.parametrize("shape", [(), (2,)])
+def test_a_space_named_by_a_tuple_is_the_space_of_its_element(monkeypatch, shape):
+    """``("Lagrange", 1)`` and the UFL element ``fem.functionspace`` makes of it name one
+    space (refinement's prolongation asks by element, a scene's builder by tuple); its DoF
+    points are tabulated once, read-only, equal to ``tabulate_dof_coordinates``."""
+    msh = mesh.create_unit_square(COMM, 5, 3)
+    V = spaces.functionspace(msh, ("Lagrange", 1, shape))
+    assert spaces.functionspace(msh, V.ufl_element()) is V
+    assert spaces.functionspace(msh, ("Lagrange", 2, shape)).ufl_element() != V.ufl_element()
+    X = spaces.dof_coordinates(V)
+    assert spaces.dof_coordinates(V) is X and not X.flags.writeable
+    assert np.array_equal(X, V.tabulate_dof_coordinates())
+    monkeypatch.setattr(spaces, "ELEMENT_KEYS", False)  # the old path: cached by the key given
+    other = mesh.create_unit_square(COMM, 5, 3)
+    V = spaces.functionspace(other, ("Lagrange", 1, shape))
+    W = spaces.functionspace(other, V.ufl_element())
+    assert W is not V and W.ufl_element() == V.ufl_element()
+
+
 def test_without_the_cache_everything_is_made_afresh(monkeypatch):
     monkeypatch.setattr(spaces, "CACHE", False)
     msh = mesh.create_unit_square(COMM, 4, 4)
@@ -100,6 +119,7 @@ def test_without_the_cache_everything_is_made_afresh(monkeypatch):
     assert spaces.functionspace(msh, ("Lagrange", 1, (2,))) is not V
     assert spaces.collapsed(V, 0)[0] is not spaces.collapsed(V, 0)[0]
     assert not np.any(spaces.zero_function(V).x.array)
+    assert spaces.dof_coordinates(V) is not spaces.dof_coordinates(V)
 
 
 def _indefinite_matrix(n: int) -> tuple[PETSc.Mat, mesh.Mesh]:
@@ -176,7 +196,7 @@ def test_on_two_and_three_ranks():
         pytest.skip("this test starts the others on 2 and 3 ranks")
     proc = pytest_on_ranks("test_spaces.py", "not ranks", ranks=2)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "6 passed" in proc.stdout
+    assert "8 passed" in proc.stdout
     proc = pytest_on_ranks("test_spaces.py", "not ranks and not recoupled", ranks=3)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert "5 passed" in proc.stdout
+    assert "7 passed" in proc.stdout

@@ -8,6 +8,7 @@ their exact surfaces), and the refined mesh's partition.
 from __future__ import annotations
 
 import time
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -61,6 +62,39 @@ class Domain:
     def comm(self) -> MPI.Comm:
         """The mesh's communicator."""
         return self.mesh.comm
+
+
+#: the marked cells' edges are found once for :func:`next_dofs_bound` and :func:`refine` of
+#: the same cells (the last ones kept, the mesh weakly); False: each finds them, the old path
+EDGES_ONCE = True
+_found: list[tuple[weakref.ref, np.ndarray, np.ndarray]] = []  # (mesh, cells, their edges)
+
+
+def incident_edges(msh: dmesh.Mesh, cells: np.ndarray) -> np.ndarray:
+    """Return the local edges of the local cells ``cells``.
+
+    ``compute_incident_entities``, the mesh's edges made if need be; for the same mesh and
+    cells as the last call, the last answer (:data:`EDGES_ONCE`).
+
+    Args:
+        msh: the mesh.
+        cells: local cell indices.
+
+    Returns:
+        The local indices of the edges of these cells, each once (int32).
+    """
+    cells = np.asarray(cells, dtype=np.int32)
+    if EDGES_ONCE and _found:
+        mesh_ref, known, edges = _found[0]
+        if mesh_ref() is msh and np.array_equal(known, cells):
+            return edges
+    tdim = msh.topology.dim
+    msh.topology.create_entities(1)
+    edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
+    if EDGES_ONCE:
+        edges.flags.writeable = False
+        _found[:] = [(weakref.ref(msh), cells.copy(), edges)]
+    return edges
 
 
 #: the refusal to refine curved cells: dolfinx's refinement splits the vertex simplices
@@ -120,8 +154,8 @@ def refine(
     msh = domain.mesh
     tdim = msh.topology.dim
     clock = [time.perf_counter()]  # the start, then the end of each part
-    msh.topology.create_entities(1)
-    edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
+    edges = incident_edges(msh, cells)
+    _found.clear()  # nothing kept once refined
     new, parent_cell, parent_facet = longest_edge.refine(
         msh, edges, refine_partitioner(msh, rebalance)
     )
@@ -160,9 +194,7 @@ def next_dofs_bound(msh: dmesh.Mesh, cells: np.ndarray, V: fem.FunctionSpace) ->
     """
     if V.element.basix_element.degree != 1:
         return None
-    tdim = msh.topology.dim
-    msh.topology.create_entities(1)
-    edges = dmesh.compute_incident_entities(msh.topology, cells.astype(np.int32), tdim, 1)
+    edges = incident_edges(msh, cells)
     imap = msh.topology.index_map(1)
     marked = la.vector(imap, dtype=np.int32)
     marked.array[edges] = 1

@@ -21,12 +21,18 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..base import spaces
+
 #: facet tags: only the children of parents with a tagged facet look their facets up;
 #: False: every child, the plain path (the same tags)
 TAGGED_PARENTS_ONLY = True
 #: on one rank ``pull`` answers the requests in place (every creating rank is this one);
 #: False: through the two ``Alltoallv`` as on many ranks, the old path (the same replies)
 LOCAL_PULL = True
+#: ``prolong`` takes its space and DoF points from ``contact.base.spaces`` (made once per
+#: mesh: the level built next on the refined mesh finds them); False: a space and points of
+#: its own, the old path (the same values)
+SHARED_SPACE = True
 
 
 def creators(new: dmesh.Mesh, n_created: int) -> tuple[np.ndarray, np.ndarray]:
@@ -84,7 +90,8 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     exact for the nested Lagrange spaces of refinement (u0 = u_h as functions), with no
     point search.  Each owned DoF asks once, through one local cell (ghosts
     included) that holds it (any one: only a continuous space shares DoFs between cells)."""
-    V = fem.functionspace(new, u_h.function_space.ufl_element())
+    element = u_h.function_space.ufl_element()
+    V = spaces.functionspace(new, element) if SHARED_SPACE else fem.functionspace(new, element)
     u0 = fem.Function(V, name="u0")
     rank, index = creators(new, len(parent_cell))
     cell_dofs = V.dofmap.list
@@ -103,7 +110,10 @@ def prolong(u_h: fem.Function, new: dmesh.Mesh, parent_cell: np.ndarray) -> fem.
     values = pull(
         new.comm,
         rank[cell],
-        [index[cell], V.tabulate_dof_coordinates()[dofs]],
+        [
+            index[cell],
+            (spaces.dof_coordinates(V) if SHARED_SPACE else V.tabulate_dof_coordinates())[dofs],
+        ],
         evaluate,
         (bs,),
         np.float64,

@@ -7,9 +7,11 @@ functions on them.  Each of these is collective — a new dof map and index map,
 function a new ghost scatter, whose neighbourhood communicator MPI builds with a collective
 call.  On ranks that share cores every such call waits for the others' time slices, and
 costs hundreds of times a copy of a function.  So a space is made once per mesh and element
-(:func:`functionspace`), a component once per space (:func:`collapsed`), and a zero function
-is a copy of one zero function per space (:func:`zero_function`; a nodal vector likewise,
-:func:`zero_vector`), whose ghost scatter it shares.
+(:func:`functionspace`; an element named by a tuple such as ``("Lagrange", 1)`` and the same
+element given as a UFL element are one space), a component once per space
+(:func:`collapsed`), its DoF coordinates once per space (:func:`dof_coordinates`), and a zero
+function is a copy of one zero function per space (:func:`zero_function`; a nodal vector
+likewise, :func:`zero_vector`), whose ghost scatter it shares.
 
 The caches live on the mesh and space objects themselves (attributes ``_contact_spaces`` and
 ``_contact_cache``), so they go with them; ``CACHE = False`` makes every call build afresh.
@@ -33,12 +35,17 @@ from __future__ import annotations
 
 from typing import Any
 
+import basix.ufl
 import numpy as np
 from dolfinx import fem, la, mesh
 from petsc4py import PETSc
 
 #: reuse spaces, collapsed components and zero functions (module doc); False: build afresh
 CACHE = True
+#: a space asked for by a tuple (``("Lagrange", 1)``) is the one asked for by the equal UFL
+#: element (refinement's prolongation asks by element, a scene's builder by tuple); False:
+#: cached by the key as given, the old path (two spaces)
+ELEMENT_KEYS = True
 
 
 def functionspace(msh: mesh.Mesh, element: Any) -> fem.FunctionSpace:
@@ -55,6 +62,8 @@ def functionspace(msh: mesh.Mesh, element: Any) -> fem.FunctionSpace:
     """
     if not CACHE or not _hashable(element):
         return fem.functionspace(msh, element)
+    if ELEMENT_KEYS and isinstance(element, tuple):
+        element = _ufl_element(msh, element)
     spaces = msh.__dict__.setdefault("_contact_spaces", {})
     if element not in spaces:
         spaces[element] = fem.functionspace(msh, element)
@@ -82,6 +91,25 @@ def collapsed(V: fem.FunctionSpace, k: int) -> tuple[fem.FunctionSpace, np.ndarr
         _cache(S)  # its communicator kept (module doc)
         cache[("sub", k)] = (S, np.asarray(dofs))
     return cache[("sub", k)]
+
+
+def dof_coordinates(V: fem.FunctionSpace) -> np.ndarray:
+    """``V.tabulate_dof_coordinates()``, computed once per space (not writable; not
+    collective).
+
+    Args:
+        V: The space.
+
+    Returns:
+        The coordinates of V's DoF points, local ones with ghosts, shape (n, 3).
+    """
+    if not CACHE:
+        return V.tabulate_dof_coordinates()
+    X = V.__dict__.get("_contact_coordinates")
+    if X is None:
+        X = V.__dict__["_contact_coordinates"] = V.tabulate_dof_coordinates()
+        X.flags.writeable = False
+    return X
 
 
 def zero_function(V: fem.FunctionSpace, name: str | None = None) -> fem.Function:
@@ -148,6 +176,19 @@ class _Communicator:
 
     def __del__(self) -> None:
         self.vec.destroy()
+
+
+def _ufl_element(msh: mesh.Mesh, element: tuple) -> Any:
+    """The UFL element ``fem.functionspace(msh, element)`` makes of the tuple ``element``."""
+    e = fem.ElementMetaData(*element)
+    return basix.ufl.element(
+        e.family,
+        msh.basix_cell(),
+        e.degree,
+        shape=e.shape,
+        symmetry=e.symmetry,
+        dtype=msh.geometry.x.dtype,
+    )
 
 
 def _hashable(key: Any) -> bool:

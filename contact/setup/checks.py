@@ -28,6 +28,10 @@ from ..base import expressions, indices
 from ..base.errors import ConfigError
 from .scene_config import SceneConfig
 
+#: the points of a role are gathered once for all its data, every vertex's as a view of
+#: the geometry; False: copied for each datum, the old path (the same check)
+POINTS_ONCE = True
+
 
 @dataclass(frozen=True)
 class Datum:
@@ -87,12 +91,18 @@ def check_data(scene, items: Iterable[Datum]) -> None:
     n_owned = imap.size_local
     X = msh.geometry.x
     nodes_of: dict[str | None, np.ndarray] = {}
+    points_of: dict[str | None, np.ndarray] = {}
     for item in items:
         if item.role not in nodes_of:
             nodes_of[item.role] = _nodes(scene, item.role, n_owned)
+            if POINTS_ONCE:  # every vertex: the owned ones are the first n_owned
+                points = (X[:n_owned] if item.role is None else X[nodes_of[item.role]]).T
+                points.flags.writeable = False  # the geometry's own coordinates
+                points_of[item.role] = points
         nodes = nodes_of[item.role]
+        points = points_of[item.role] if POINTS_ONCE else X[nodes].T
         constants = scene.config.constants
-        values = expressions.to_numpy(item.text, constants, t=scene.time)(X[nodes].T)
+        values = expressions.to_numpy(item.text, constants, t=scene.time)(points)
         if expressions.uses_time(item.text, constants):  # name the load step's time
             item = Datum(f"{item.key} (at t = {scene.time:g})", item.text, item.role, item.positive)
         with np.errstate(invalid="ignore"):

@@ -12,10 +12,15 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from ..base import expressions
+from ..base import expressions, spaces
 from ..base.errors import ConfigError
 from .checks import check_data, data_items
 from .scene import Scene
+
+#: :func:`interpolate_expression` evaluates at the space's DoF points tabulated once per
+#: space (``contact.base.spaces.dof_coordinates``, shared with the refinement's
+#: prolongation and the other data); False: tabulated at each call, the old path
+SHARED_POINTS = True
 
 
 def coefficient(text: str, scene: Scene) -> Any:
@@ -29,7 +34,11 @@ def coefficient(text: str, scene: Scene) -> Any:
 
 
 def interpolate_expression(
-    V: fem.FunctionSpace, text: str | Sequence[str], scene: Scene, key: str | None = None
+    V: fem.FunctionSpace,
+    text: str | Sequence[str],
+    scene: Scene,
+    key: str | None = None,
+    nodes: np.ndarray | None = None,
 ) -> fem.Function:
     """``text`` interpolated into the Lagrange space V at the scene's pseudo-time; for a
     vector space one expression is every component, a tuple gives one per component.
@@ -37,7 +46,9 @@ def interpolate_expression(
     once per DoF point (not once per cell and point, as ``Function.interpolate`` does), and
     a constant is just assigned.  With a scene ``key`` (``solver.u0``) the expressions are
     first checked finite at the mesh vertices (:func:`contact.setup.checks.check_data`:
-    a ConfigError naming the key)."""
+    a ConfigError naming the key).  With ``nodes`` (local node indices of V, ghosts
+    included) only these nodes are given their values, the others are zero (a Dirichlet
+    condition reads its nodes only)."""
     if key is not None:
         check_data(scene, data_items(key, text if isinstance(text, str) else tuple(text)))
     fn = fem.Function(V)
@@ -49,14 +60,17 @@ def interpolate_expression(
             f"solver.u0: expected {bs} expressions (one per component), got {len(texts)}"
         )
     values = fn.x.array.reshape(-1, bs)
+    rows = slice(None) if nodes is None else np.asarray(nodes)
     points = None
     for c, t in enumerate(texts):
         f = expressions.to_numpy(t, consts, t=scene.time)
         if expressions.is_constant(t, consts):
-            values[:, c] = f(np.zeros((3, 1)))[0]
+            values[rows, c] = f(np.zeros((3, 1)))[0]
         else:
-            points = V.tabulate_dof_coordinates().T if points is None else points
-            values[:, c] = f(points)
+            if points is None:
+                X = spaces.dof_coordinates(V) if SHARED_POINTS else V.tabulate_dof_coordinates()
+                points = X[rows].T
+            values[rows, c] = f(points)
     return fn
 
 

@@ -19,7 +19,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from ..base import expressions
+from ..base import expressions, spaces
 from ..base.errors import ConfigError
 from ..models.constraints import Unilateral
 from ..models.discrete import Problem
@@ -32,6 +32,14 @@ from .data import coefficient, interpolate_expression
 if TYPE_CHECKING:
     from .scene import Scene
 
+#: the space comes from ``contact.base.spaces`` (made once per mesh: on a refined mesh, the
+#: space the previous solution was prolonged to); False: a space of the problem's own, the
+#: old path (the same problem)
+SHARED_SPACE = True
+#: u_D is evaluated at the Dirichlet DoFs only (the condition reads no other; zero
+#: elsewhere); False: at every DoF, the old path (the same problem)
+DIRICHLET_NODES = True
+
 
 def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     """Assemble the scalar Signorini or obstacle problem of ``scene`` (docs/theory.md
@@ -43,7 +51,8 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     cfg, msh, bnd = scene.config, scene.mesh, scene.boundary
     degree = degree or cfg.mesh.degree
     data = cfg.data
-    V = fem.functionspace(msh, ("Lagrange", degree))
+    element = ("Lagrange", degree)
+    V = spaces.functionspace(msh, element) if SHARED_SPACE else fem.functionspace(msh, element)
     tdim = msh.topology.dim
     a, L, forms = scalar_forms(scene, V)
     k, f, t, t_C, ds = (forms[key] for key in ("k", "f", "t", "t_C", "ds"))
@@ -51,8 +60,10 @@ def scalar_problem(scene: Scene, degree: int | None = None) -> Problem:
     signorini = cfg.model.type == "signorini"
 
     # u = u_D on Γ_D (every DoF on the closure of the Dirichlet facets)
-    u_D = interpolate_expression(V, data.u_D, scene)
     dirichlet_dofs = fem.locate_dofs_topological(V, tdim - 1, bnd.facets("dirichlet"))
+    u_D = interpolate_expression(
+        V, data.u_D, scene, nodes=dirichlet_dofs if DIRICHLET_NODES else None
+    )
     bcs = [fem.dirichletbc(u_D, dirichlet_dofs)]
 
     K, b = assemble_system(a, L, bcs)
