@@ -330,13 +330,18 @@ def test_released_levels_free_their_meshes(run):
     assert [ref() is not None for ref in meshes] == [True, False, False, False, True]
 
 
-def test_the_bound_and_each_released_level_start_on_a_returned_heap(monkeypatch):
+@pytest.mark.parametrize("predict", [True, False])
+def test_the_bound_and_each_released_level_start_on_a_returned_heap(monkeypatch, predict):
     """The loop's peaks are a level's solve and its guaranteed bound: what refining, the
     solve and the residual estimate freed is handed back to the system (``malloc_trim``)
     before each later level of a releasing loop is assembled and before the bound is
     computed, so that those phases, whose arrays have other sizes, do not grow the heap
-    around it.  The calls, in order, for ex9 with the residual indicators marking."""
+    around it.  The calls, in order, for ex9 with the residual indicators marking; the last
+    level (max_levels) is estimated by the bound alone (PREDICT_BOUND), or by the residual
+    indicators and then the bound (the old path)."""
     from contact.drivers import adaptive as loop
+
+    monkeypatch.setattr(loop, "PREDICT_BOUND", predict)
 
     calls: list[str] = []
     trim, estimate = loop.return_freed_memory, loop.estimate
@@ -358,9 +363,67 @@ def test_the_bound_and_each_released_level_start_on_a_returned_heap(monkeypatch)
     run = adapt(scene, max_levels=3, verbose=False, keep=lambda lv: False)
     assert len(run.levels) == 3 and run.levels[-1].estimator == "equilibrated"
     # the last level: assembled on a returned heap, solved, the previous level released
-    # (trim), the residual estimate, then the bound on a returned heap
-    assert calls[-5:] == ["trim", "trim", "residual", "trim", "equilibrated"], calls
+    # (trim), the residual estimate (the old path), then the bound on a returned heap
+    last = ["trim", "trim"] + ([] if predict else ["residual"]) + ["trim", "equilibrated"]
+    assert calls[-len(last) :] == last, calls
+    assert calls.count("residual") == len(run.levels) - predict, calls
     assert calls.count("trim") >= 2 * (len(run.levels) - 1) + 1, calls
+
+
+def _estimates(monkeypatch, predict: bool, scene, **options):
+    """The loop's rows and the (DoFs, estimator) of each estimate it computed."""
+    from contact.adaptivity.estimate import estimate
+    from contact.drivers import adaptive as loop
+
+    calls: list[tuple[int, str]] = []
+
+    def recorded(problem, result, kind="residual"):
+        calls.append((result.dofs, kind))
+        return estimate(problem, result, kind)
+
+    monkeypatch.setattr(loop, "PREDICT_BOUND", predict)
+    monkeypatch.setattr(loop, "estimate", recorded)
+    run = adapt(scene, indicators="residual", verbose=False, **options)
+    return run, calls
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        # the stopping level predicted to meet tol (its bound 0.0381 ≤ tol; not the last by
+        # max_levels nor by max_dofs)
+        dict(tol=0.045, growth=2, max_levels=12),
+        # the last level by max_dofs: its next level has ≥ 1.5 · the marked share of its
+        # cells more vertices than max_dofs allows whatever the indicators
+        dict(tol=1e-3, growth=3, max_dofs=20000),
+    ],
+    ids=["predicted", "last"],
+)
+def test_the_bound_alone_where_it_will_be_computed(monkeypatch, options):
+    """adapt.indicators = residual on ex9: a level whose bound will be computed anyway (the
+    last, or predicted to meet tol from the previous level's residual η at the optimal rate)
+    is estimated by the bound alone (PREDICT_BOUND); the loop stops on the same level with
+    the same η as the old path (residual indicators, then the bound), its other levels
+    estimated alike, and one residual estimate fewer."""
+    scene = contact.load_scene(
+        ROOT / "configs" / "peers" / "petsc_ex9.yaml", ["output.verbose=false"]
+    )
+    old, old_calls = _estimates(monkeypatch, False, scene, **options)
+    new, new_calls = _estimates(monkeypatch, True, scene, **options)
+    last = new.rows[-1]
+    assert [r["dofs"] for r in new.rows] == [r["dofs"] for r in old.rows]
+    assert [r["eta"] for r in new.rows] == [r["eta"] for r in old.rows]  # the same levels
+    assert [r["estimator"] for r in new.rows] == [r["estimator"] for r in old.rows]
+    assert last["estimator"] == "equilibrated" and last["error"] <= last["eta"]
+    if "max_dofs" in options:
+        assert "DoFs > max_dofs" in old.stop and "DoFs > max_dofs" in new.stop
+    else:
+        assert new.stop == old.stop and last["eta"] <= options["tol"]
+        assert len(new.rows) < options["max_levels"]
+    # the last level: the residual indicators and the bound (old), the bound alone (new)
+    assert [k for d, k in old_calls if d == last["dofs"]] == ["residual", "equilibrated"]
+    assert [k for d, k in new_calls if d == last["dofs"]] == ["equilibrated"]
+    assert new_calls == [c for c in old_calls if c != (last["dofs"], "residual")]
 
 
 def test_loose_newton_tolerance_does_not_change_the_discretization():
@@ -533,9 +596,12 @@ def test_the_bound_skipped_where_it_cannot_stop_the_loop_and_the_last_level_cert
     earlier rule (2 tol), computing the bound on fewer levels; the last level's η is the
     bound, ≤ tol and ≥ the energy error; every level it skipped has a bound above tol (the
     skip cost no level). tol = 0.045 lies 15 % above the stopping level's bound and 18 %
-    below the one before (0.0381, 0.0547), whose prediction is 16 % above 1.1 tol."""
+    below the one before (0.0381, 0.0547), whose prediction is 16 % above 1.1 tol.  Each
+    level is estimated by the residual indicators first (PREDICT_BOUND off: the rule on its
+    own; with it, a level predicted by the earlier rule is marked by its bound)."""
     from contact.drivers import adaptive
 
+    monkeypatch.setattr(adaptive, "PREDICT_BOUND", False)
     scene = contact.load_scene(
         ROOT / "configs" / "peers" / "petsc_ex9.yaml", ["output.verbose=false"]
     )

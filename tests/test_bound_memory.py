@@ -4,8 +4,10 @@
    facet terms after them, whole): no assembly of the terms packs more than a block of
    cells, and η, η_T, the terms and the parts are bit for bit those of the old path.
 2. A releasing loop destroys the last level's operator K before its bound
-   (adaptive.SHED_BOUND): no PETSc matrix is alive when the bound runs, and the figures are
-   those of the old path; the files ``contact run`` writes of that level are the same.
+   (adaptive.SHED_BOUND), whether the bound follows the residual indicators or is the
+   level's only estimate (adaptive.PREDICT_BOUND): no PETSc matrix is alive when the bound
+   runs, and the figures are those of the old path; the files ``contact run`` writes of
+   that level are the same.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 import contact
 from contact.adaptivity import cellwise
 from contact.adaptivity.equilibration import bound
+from contact.adaptivity.estimate import estimate
 from contact.drivers import adaptive
 
 import numpy as np
@@ -171,27 +174,32 @@ import contact, contact.app.cli
 from contact.drivers import adaptive
 
 adaptive.SHED_BOUND = sys.argv[1] == "shed"
-compute = adaptive.Bound.compute
+estimate = adaptive.estimate
 
-def spied(self, level):  # whether K is alive at each bound, in bound.txt
-    with open("bound.txt", "a") as out:
-        out.write(f"{sys.argv[1]} {level.index} {bool(level.problem.K.handle)}\\n")
-    return compute(self, level)
+def spied(problem, result, kind="residual"):  # whether K is alive at each bound, in bound.txt
+    if kind != "residual":
+        with open("bound.txt", "a") as out:
+            out.write(f"{sys.argv[1]} {result.dofs} {bool(problem.K.handle)}\\n")
+    return estimate(problem, result, kind)
 
-adaptive.Bound.compute = spied
+adaptive.estimate = spied
 sys.exit(contact.app.cli.main(sys.argv[2:]))
 """
 
 
-def test_the_last_level_sheds_its_operator_before_its_bound(tmp_path: Path, monkeypatch) -> None:
+@pytest.mark.parametrize("predict", [True, False])
+def test_the_last_level_sheds_its_operator_before_its_bound(
+    tmp_path: Path, monkeypatch, predict: bool
+) -> None:
     """ex9 with the residual indicators (the bound on the last level only), releasing: K of
     the last level is destroyed when its bound runs (alive on the old path) and no PETSc
     matrix is left; its nodal contact force K x − b is kept as it was, and η, the error and
-    the rows are those of the old path."""
+    the rows are those of the old path.  The last level's bound follows its residual
+    indicators, or is its only estimate (``predict``: PREDICT_BOUND)."""
     from contact.setup import run as loop
     from contact.solvers.result import owned_residual
 
-    compute = adaptive.Bound.compute
+    monkeypatch.setattr(adaptive, "PREDICT_BOUND", predict)
     runs = {}
     for shed in (False, True):
         scene = contact.load_scene(  # a scene per run: the loop stows its first level's mesh
@@ -201,19 +209,21 @@ def test_the_last_level_sheds_its_operator_before_its_bound(tmp_path: Path, monk
         monkeypatch.setattr(adaptive, "SHED_BOUND", shed)
         seen: dict = {}
 
-        def spied(self, level, seen=seen):
-            if level.index:  # the first level's bound learns the ratio: it is refined on
-                seen["K"] = bool(level.problem.K.handle)
+        def spied(problem, result, kind="residual", seen=seen):
+            if kind != "residual":  # the bound (no tol: on the last level only)
+                seen["dofs"] = result.dofs
+                seen["K"] = bool(problem.K.handle)
                 seen["mats"] = _live_matrices()
-                seen["force"] = owned_residual(level.result)
-            return compute(self, level)
+                seen["force"] = owned_residual(result)
+            return estimate(problem, result, kind)
 
         def on_level(level, seen=seen):  # K x − b while the level is whole, or as kept
             seen[level.index] = owned_residual(level.result)
 
-        monkeypatch.setattr(adaptive.Bound, "compute", spied)
+        monkeypatch.setattr(adaptive, "estimate", spied)
         run = loop.adapt(scene, max_levels=3, keep=lambda lv: False, on_level=on_level)
         assert len(run.levels) == 3 and run.levels[-1].estimator == "equilibrated"
+        assert seen["dofs"] == run.levels[-1].result.dofs
         assert seen["K"] is not shed
         assert (seen["mats"] == 0) is shed
         assert np.array_equal(seen["force"], seen[2])
@@ -255,8 +265,9 @@ def test_the_files_of_a_last_level_shed_before_its_bound_are_the_same(tmp_path: 
         env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"}
         proc = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, env=env)
         assert proc.returncode == 0, proc.stderr
-    bounds = (tmp_path / "bound.txt").read_text().split("\n")
-    assert "shed 2 False" in bounds and "keep 2 True" in bounds  # the last level's K
+    bounds = (tmp_path / "bound.txt").read_text().split()
+    assert bounds[0::3] == ["shed", "keep"]  # one bound per run, the last level's
+    assert bounds[2::3] == ["False", "True"]  # its K
     shed, keep = (tmp_path / m for m in ("shed", "keep"))
     names = sorted(p.name for p in shed.iterdir())
     assert names == sorted(p.name for p in keep.iterdir())

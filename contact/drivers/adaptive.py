@@ -72,6 +72,11 @@ STOW_PREVIOUS = True
 #: modules, is then collected as any other object again).  False: every collection walks
 #: everything, the old path
 FREEZE_HEAP = True
+#: with ``adapt.indicators: residual``, a level whose guaranteed bound will be computed anyway
+#: — the last level (``certainly_last``), or one whose bound is predicted to meet ``tol``
+#: (``Bound.predicts``) — is estimated by the bound alone, which marks it should the loop
+#: go on; False: every level is estimated by the residual indicators first, the old path
+PREDICT_BOUND = True
 
 
 @dataclass
@@ -445,6 +450,29 @@ def adapt(
                     return_freed_memory()
             solved.update(wall=time.perf_counter(), cpu=time.process_time())
 
+        # the bound alone where it will be computed anyway (adapt.indicators residual): on
+        # the last level (its operator K then shed first, as before the bound of Bound) …
+        last = (
+            certainly_last(index, problem.V, opts, growth, budget)
+            if bound is not None and PREDICT_BOUND
+            else ""
+        )
+        # … or where it is predicted to meet tol
+        bound_only = bool(last) or (
+            bound is not None and PREDICT_BOUND and bound.predicts(problem.V, opts.tol)
+        )
+
+        def on_solved(
+            result: Result,
+            bounded: bool = bound_only,
+            shed: bool = bool(last) and SHED_BOUND and keep is not None,
+        ) -> None:
+            release_previous(result)
+            if bounded and result.converged:  # the bound follows: its peak, as in Bound
+                if shed:
+                    result.shed_operator()  # nothing solves on the last level again
+                return_freed_memory()
+
         result, est, passes = solve_level(
             problem,
             level_domain,
@@ -455,7 +483,8 @@ def adapt(
             kind if bound is None else "residual",
             stopping,
             previous=previous,
-            solved=release_previous,
+            solved=on_solved,
+            bound_kind=bound.kind if bound_only and bound is not None else None,
         )
         # a level's solve may have solved another problem on its mesh (pairs re-coupled on
         # the current configuration): the level is that of its result
@@ -478,7 +507,11 @@ def adapt(
             cpu=time.process_time() - start_cpu - outputs_cpu,
             solved_elapsed=solved["wall"] - start - outputs + seconds["error"],
             solved_cpu=solved["cpu"] - start_cpu - outputs_cpu + error_cpu,
-            estimator="" if bound is None else "residual",
+            estimator=""
+            if bound is None
+            else bound.kind
+            if bound_only and result.converged
+            else "residual",
             rebuildable=problem is built,
         )
         if make_level is not None:
@@ -487,9 +520,13 @@ def adapt(
         if not result.converged and index > 0 and out.levels[-2].stowed is not None:
             # the level before is the last that converged, written and bounded as the last
             out.levels[-2] = restore(out.levels[-2], build, meshes, make_level)
-        indicators = est.eta_T  # what marks: the estimator's, or the residual ones
+        # what marks: the estimator's, the residual ones, or the bound's where it alone was
+        # computed (a bound is an estimator with local indicators like the residual one)
+        indicators = est.eta_T
         eta = est.eta if bound is None else bound.eta(level, opts.tol)
-        out.stop = stop_before_marking(level, eta, opts)
+        # a level certainly the last stops before marking (its next level's DoFs bounded
+        # below without it: certainly_last)
+        out.stop = stop_before_marking(level, eta, opts) or last
         child = None
         if not out.stop:
             tdim = level_domain.mesh.topology.dim
@@ -613,21 +650,57 @@ class Bound:
     ratio bound/residual (1 before any) is below :data:`BOUND_SAFETY` · tol.  The level's
     ``estimate`` is then the bound's (its η_T, η, terms) and ``estimator`` names it.
 
+    With ``PREDICT_BOUND`` the loop decides before estimating a level whether its bound
+    will be computed (``predicts``, ``certainly_last``) and then computes the bound
+    alone: its η_T mark the level should the loop go on.  An equilibrated bound is an
+    estimator with local indicators ‖k^{-1/2}(σ_h − k∇u_h)‖_T (docs/theory.md §9),
+    reliable and locally efficient, and for the Poisson problem Dörfler marking by them
+    converges at the optimal rate as by the residual ones (Cascón & Nochetto, IMA J. Numer.
+    Anal. 32, 2012, for estimators equivalent to the residual one); for contact no such
+    proof is known, and the meshes they give are compared with the residual ones in the
+    changelog.
+    Such a level teaches no ratio (it has no residual η); its residual η is taken as its
+    bound over the ratio.
+
     Attributes:
         kind: the estimator of the bound (as :func:`contact.estimate` takes it).
         ratio: η_bound / η_residual on the last level with both, None before.
+        last: (residual η, DoFs) of the last level seen by ``eta`` (its bound over the
+            ratio where it has no residual η), None before.
     """
 
     kind: str
     ratio: float | None = None
+    last: tuple[float, int] | None = None
+
+    def predicts(self, V: fem.FunctionSpace, tol: float) -> bool:
+        """Whether the bound of the next level (its space ``V``) is predicted to meet ``tol``.
+
+        The last level's residual η times (N_last / N)^{p/d} (the optimal rate, as
+        adaptive stopping predicts a level's η_disc: ``solve_level``) times the ratio
+        bound/residual, against ``BOUND_SAFETY`` · tol, the test ``eta`` makes with
+        the level's own residual η.  False before the ratio and a last level are known and
+        without a tolerance.
+        """
+        if tol <= 0 or self.ratio is None or self.last is None:
+            return False
+        residual, dofs = self.last
+        predicted = self.ratio * residual * (dofs / global_dofs(V)) ** optimal_rate(V)
+        return predicted <= BOUND_SAFETY * tol
 
     def eta(self, level: Level, tol: float) -> float:
         """Return the η that the stopping test holds against ``tol``.
 
         The bound's, computed here on the first level (to learn the ratio) and where it may
         meet ``tol``; else the residual η scaled by the last ratio (above ``tol``, as the
-        bound's would be); without a tolerance the residual η (the test cannot stop).
+        bound's would be); without a tolerance the residual η (the test cannot stop).  A
+        level estimated by the bound alone (``PREDICT_BOUND``) gives its bound.
         """
+        if level.estimator == self.kind:  # the bound alone: the level's residual η predicted
+            residual = None if self.ratio is None else level.estimate.eta / self.ratio
+            self.last = None if residual is None else (residual, level.result.dofs)
+            return level.estimate.eta
+        self.last = (level.estimate.eta, level.result.dofs)
         if tol <= 0 or not level.result.converged:
             return level.estimate.eta  # no tolerance to meet (or no solution to bound)
         if self.ratio is None:  # the first level: learn the ratio
@@ -653,6 +726,52 @@ class Bound:
         if residual > 0:
             self.ratio = level.estimate.eta / residual
         return level.estimate.eta
+
+
+def certainly_last(
+    index: int, V: fem.FunctionSpace, opts: AdaptOptions, growth: Growth, budget: int | None
+) -> str:
+    """Why the loop stops at level ``index`` (its space ``V``) whatever its estimate, or ''.
+
+    The level budget (``max_levels``) or strategy ``none``; or, for P1 on triangles with
+    ``dorfler`` (≥ ⌈f N⌉ of the N cells marked, f the ``growth`` share) or ``uniform``
+    marking, a next level certainly above ``max_dofs`` (or the solver's ``budget``): m
+    marked triangles have at least 3m/2 edges (an edge lies in at most two), each of which
+    refinement splits, so the next level has at least bs (vertices + ⌈3m/2⌉) DoFs, at most
+    the loop's own lower bound after marking (``next_dofs_bound``).  Collective (global
+    counts).
+    """
+    if index + 1 >= opts.max_levels:
+        return f"reached max_levels = {opts.max_levels}"
+    if opts.strategy == "none":
+        return "strategy none: one solve"
+    msh = V.mesh
+    if V.element.basix_element.degree != 1 or msh.topology.cell_type != dmesh.CellType.triangle:
+        return ""
+    cells = msh.topology.index_map(2).size_global
+    if opts.strategy == "uniform":
+        marked = cells
+    elif opts.strategy == "dorfler":
+        marked = math.ceil(growth.fraction(2) * cells)
+    else:
+        return ""
+    vertices = msh.topology.index_map(0).size_global
+    least = V.dofmap.index_map_bs * (vertices + math.ceil(1.5 * marked))
+    if least > opts.max_dofs:
+        return f"the next level would have at least {least} DoFs > max_dofs = {opts.max_dofs}"
+    if budget is not None and least > budget:
+        return f"the next level would have at least {least} DoFs > solver.max_dofs = {budget}"
+    return ""
+
+
+def global_dofs(V: fem.FunctionSpace) -> int:
+    """The DoFs of ``V`` over all ranks (blocks counted)."""
+    return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+
+def optimal_rate(V: fem.FunctionSpace) -> float:
+    """p/d: η ∝ N^{-p/d} on optimally graded meshes of the degree p of ``V``."""
+    return V.element.basix_element.degree / V.mesh.geometry.dim
 
 
 def _default_solve(build: Callable, knobs: SolverOptions, meshes: bool, nested: bool) -> LevelSolve:
@@ -703,6 +822,7 @@ def solve_level(
     stopping: tuple[float, float] | None,
     previous: Level | None = None,
     solved: Callable[[Result], None] | None = None,
+    bound_kind: str | None = None,
 ) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE one level.
 
@@ -718,16 +838,20 @@ def solve_level(
     (the prediction was too large), the level is solved on from there with η_disc — at most
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
     level, with no η known yet, uses the fixed tolerances.  ``solved`` is called with each
-    solve's result before it is estimated.
+    solve's result before it is estimated; a converged one is estimated by ``bound_kind``
+    where given (the loop's bound alone, ``PREDICT_BOUND``), else by ``kind``.
     """
     adaptive = stopping is not None and previous is not None
     eta = None
     if adaptive:
         assert previous is not None  # adaptive needs the previous level's η
         V = problem.V
-        dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-        rate = V.element.basix_element.degree / V.mesh.geometry.dim
-        eta = PREDICTION_SAFETY * previous.estimate.eta * (previous.result.dofs / dofs) ** rate
+        rate = optimal_rate(V)
+        eta = (
+            PREDICTION_SAFETY
+            * previous.estimate.eta
+            * (previous.result.dofs / global_dofs(V)) ** rate
+        )
     seconds["solve"] = seconds["estimate"] = 0.0
     krylov, passes = 0, 0
     while True:
@@ -740,7 +864,8 @@ def solve_level(
         if solved is not None:
             solved(result)
         with Timer(seconds, "estimate"):
-            est = estimate(result.problem or problem, result, kind)
+            which = bound_kind if bound_kind is not None and result.converged else kind
+            est = estimate(result.problem or problem, result, which)
         krylov += result.krylov_iterations
         passes += 1
         if (

@@ -289,6 +289,7 @@ PLAIN = (
     ("contact.base.indices", "SORTED"),
     ("contact.adaptivity.transfer", "LOCAL_PULL"),
     ("contact.drivers.adaptive", "FREEZE_HEAP"),
+    ("contact.drivers.adaptive", "PREDICT_BOUND"),
     ("contact.adaptivity.refine", "EDGES_ONCE"),
     ("contact.adaptivity.transfer", "SHARED_SPACE"),
     ("contact.base.spaces", "ELEMENT_KEYS"),
