@@ -90,17 +90,23 @@ def test_polisher_waits_while_the_active_set_moves(scene):
     pol.destroy()
 
 
-def test_polisher_lands_on_the_active_set_solution(scene):
-    """From an iterate with the final active set, the polished step hits the solution."""
+def _near_solution(scene):
+    """The min solution, and the state of :func:`_state` with x the solution perturbed
+    slightly off the contact nodes only (its active set the final one)."""
     ref = contact.solve(scene, method="min")
     problem, cp, pol, x = _state(scene)
-    # perturb the solution slightly, off the contact nodes only: the active set stays
     u = ref.u_h.copy()
     free = np.setdiff1d(np.arange(u.x.array.size), cp.dofs)
     u.x.array[free] *= 1.0 + 1e-3
     problem.to_unknowns(u.x.petsc_vec, x)
     set_dirichlet(x, problem.bcs)
     assert np.array_equal(cp.active(x), ref.active_mask)
+    return ref, problem, cp, pol, x
+
+
+def test_polisher_lands_on_the_active_set_solution(scene):
+    """From an iterate with the final active set, the polished step hits the solution."""
+    ref, problem, cp, pol, x = _near_solution(scene)
     y = problem.b.duplicate()
     y.set(0.0)  # a Newton step that goes nowhere: W = x
     pol(x, y)
@@ -149,6 +155,45 @@ def test_the_polisher_solves_for_its_step_in_the_vector_of_phi_at_the_trial_poin
     again.system = None  # shared with pol
     for obj in (again.W, again.FW, again.FP):
         obj.destroy()
+    pol.destroy()
+
+
+@pytest.mark.parametrize("few", [True, False])
+def test_a_step_that_changes_a_handful_of_statuses_is_polished_on_the_set_it_reaches(
+    scene, monkeypatch, few
+):
+    """A Newton step x → W that changes the status of a handful of nodes (the last ring of a
+    receding free boundary) is polished on the active set W reaches: one exact solve from W,
+    taken as the step x → P when it lowers ‖Φ‖, lands on the solution where W's set is the
+    final one.  The old path (``POLISH_FEW = False``) polishes only a step that keeps x's
+    set and leaves this one alone."""
+    from contact.solvers import polish
+
+    monkeypatch.setattr(polish, "POLISH_FEW", few)
+    monkeypatch.setattr(polish, "FEW_CHANGES", 0.1)  # 41 active nodes here: a handful is 4
+    ref, problem, cp, pol, W = _near_solution(scene)  # W's active set: the final one
+    final = cp.active(W)
+    # x: W with one contact node pushed in, which turns one to four nodes' statuses
+    x = W.copy()
+    for k in np.flatnonzero(final):
+        W.copy(x)
+        x.array_w[cp.dofs[k]] -= 1e-2
+        if 1 <= np.count_nonzero(cp.active(x) != final) <= 4:
+            break
+    assert 1 <= np.count_nonzero(cp.active(x) != final) <= 4
+    y = x - W
+    before = y.array.copy()
+    pol(x, y)
+    if not few:
+        assert pol.solves == 0 and not pol.accepted
+        assert np.array_equal(y.array, before)
+    else:
+        assert pol.solves == 1 and pol.accepted
+        P = x.copy()
+        P.axpy(-1.0, y)
+        n = ref.u_h.x.petsc_vec.getLocalSize()
+        assert np.max(np.abs(P.array_r[:n] - ref.u_h.x.array[:n])) <= 1e-10
+        assert pol.taken == pytest.approx(y.norm(), rel=1e-14)
     pol.destroy()
 
 

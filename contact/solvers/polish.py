@@ -18,6 +18,12 @@ if TYPE_CHECKING:
 #: the first look at a polishing step from a guess: the Krylov solve stops at this relative
 #: residual, and goes on to the exact one only if the step keeps the guess's active set
 STAGE_RTOL = 1e-3
+#: a Newton step that changes the status of at most this fraction of the active nodes (and
+#: of at least one) is polished on the active set it reaches (:meth:`Polisher.__call__`)
+FEW_CHANGES = 1e-3
+#: True: polish a step that changes a handful of statuses on the set it reaches; False: only
+#: a step that keeps the active set (old path)
+POLISH_FEW = True
 
 
 class Polisher:
@@ -32,11 +38,12 @@ class Polisher:
     |b| = a/2, a Newton step of φ_FB on one node only shrinks b to 0.15 b).  The idea is the
     active-set identification of Facchinei, Fischer and Kanzow (SIAM J. Optim. 9, 1998),
     and the solution polishing of QP solvers (OSQP).  Φ, and so the solution, are those of
-    φ; each attempt costs one linear solve, counted in ``solves``.  No attempt is made when
-    W already meets SNES's stopping test (``done``).  The solve is the Newton system's
-    (:mod:`.linear`) with the law of φ_min: the assembled path borrows SNES's KSP and gives
-    it back its operators (one factorization alive at a time), the reduced path rebuilds
-    its SPD operator.
+    φ; each attempt costs one linear solve, counted in ``solves``.  A step that changes the
+    status of a handful of nodes is polished on the set W reaches, from W (``_where``).  No
+    attempt is made when W already meets SNES's stopping test (``done``).  The solve is the
+    Newton system's (:mod:`.linear`) with the law of φ_min: the assembled path borrows
+    SNES's KSP and gives it back its operators (one factorization alive at a time), the
+    reduced path rebuilds its SPD operator.
     """
 
     def __init__(self, cp: Complementarity, method: str, mu: float, system, timers: dict):
@@ -59,10 +66,13 @@ class Polisher:
         with assembly:
             a_w, b_w = cp.phi(W, self.FW, self.method, self.mu)  # one residual per point
             a, b = cp.phi(x, self.FP, "min", self.mu)
-            same = np.array_equal(cp.active_set(a, b), cp.active_set(a_w, b_w))
             f_w = norm2(self.FW)
-            if not x.getComm().tompi4py().allreduce(bool(same), op=MPI.LAND) or f_w <= self.done:
+            where = self._where(cp.active_set(a, b), cp.active_set(a_w, b_w), x)
+            if where is None or f_w <= self.done:
                 return
+            if where == "reached":  # the set W reaches: the step solved from W
+                del a, b
+                a, b = cp.phi(W, self.FP, "min", self.mu)
             del a_w, b_w  # not held through the solve
             self.taken = norm2(y)
             s, d = cp.law(a, b, "min", self.mu)
@@ -71,12 +81,37 @@ class Polisher:
             self.system.solve_law(s, d, self.FP, step)
         self.solves += 1
         with assembly:
+            if where == "reached":  # x → P = W − step, a step y + step
+                step.axpy(1.0, y)
             x.copy(W)
             W.axpy(-1.0, step)  # W = P
             cp.phi(W, self.FP, self.method, self.mu)
             if norm2(self.FP) < f_w:
                 step.copy(y)
                 self.accepted, self.taken = True, norm2(step)
+
+    def _where(self, at_x: np.ndarray, at_w: np.ndarray, x: PETSc.Vec) -> str | None:
+        """Which active set the step x → W is polished on (collective): ``"kept"`` — the
+        step keeps x's; ``"reached"`` — it changes the status of a handful of nodes
+        (at most :data:`FEW_CHANGES` of the active ones, :data:`POLISH_FEW`; a linear
+        residual, whose K is W's tangent too), the set W reaches; None — no polishing (the
+        active set still moves).
+
+        A handful of changes is the end of a receding (or advancing) free boundary: a
+        nested guess's polishing step leaves the last ring of nodes that the finer mesh
+        releases, one Newton step releases them, and the set it reaches is the final one
+        more often than not.  Polished on it at once, the solve ends there, where otherwise
+        a further Newton step (with its own preconditioner set-up) would be spent to confirm
+        the set; where the set still moves, the polished point is taken only if it lowers
+        ‖Φ‖ below W's, and else its exact solve is lost."""
+        comm = x.getComm().tompi4py()
+        if comm.allreduce(bool(np.array_equal(at_x, at_w)), op=MPI.LAND):
+            return "kept"
+        if not POLISH_FEW or self.cp.p.nonlinear:  # (the tangent is x's, not W's)
+            return None
+        counts = np.array([np.count_nonzero(at_x != at_w), np.count_nonzero(at_x)])
+        changed, total = comm.allreduce(counts, op=MPI.SUM)
+        return "reached" if changed <= FEW_CHANGES * total else None
 
     def initial(self, x: PETSc.Vec, stop: float) -> float:
         """Polish the initial guess x itself (a nested or sequenced guess already has nearly
