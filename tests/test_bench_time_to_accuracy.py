@@ -128,3 +128,42 @@ def test_certified_ratios_at_the_eta_both_certify(bench) -> None:
         1.5 + 3.0 + 6.0 + 4.5 * (6 / 4.5) ** s, rel=1e-3
     )
     assert bench.certified(0.1, uni, ada[1:2]) == {}  # no bounded level
+
+
+def test_repeated_runs_take_the_median_of_each_clock(bench) -> None:
+    """``--repeat``: each row's clocks are the medians of its repeats, its DoFs and errors
+    those of the runs; repeats that made other meshes are refused."""
+    runs = [
+        [dict(dofs=10, error=0.2, cpu=c, seconds=c + 1), dict(dofs=40, error=0.1, cpu=2 * c)]
+        for c in (3.0, 1.0, 2.0)
+    ]
+    rows = bench.median_rows(runs)
+    assert rows == [
+        dict(dofs=10, error=0.2, cpu=2.0, seconds=3.0, repeats=3),
+        dict(dofs=40, error=0.1, cpu=4.0, repeats=3),
+    ]
+    assert bench.median_rows(runs[:1]) == runs[0]  # one run: its rows as they are
+    runs[1][1]["dofs"] = 41
+    with pytest.raises(AssertionError, match="other meshes"):
+        bench.median_rows(runs)
+
+
+def test_bench_repeats_every_run_and_writes_the_medians(bench, tmp_path, monkeypatch) -> None:
+    """The script end to end with ``--repeat 2``: every uniform mesh and level twice, the CSV
+    rows marked with their repeats and the ratio row made of the medians."""
+    import csv
+    import sys
+
+    out = tmp_path / "tta.csv"
+    argv = ["bench_time_to_accuracy.py", "ex9", "--target", "5e-2", "--max-dofs", "20000"]
+    argv += ["--variant", "g3:adapt.growth=3", "--uniform", "uniform:", "--repeat", "2"]
+    monkeypatch.setattr(sys, "argv", [*argv, "--out", str(out)])
+    bench.main()
+    with open(out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    runs = [r for r in rows if r["run"] in ("uniform", "g3")]
+    assert runs and all(r["repeats"] == "2" for r in runs)
+    ratio = next(r for r in rows if r["run"] == "ratio")
+    uni = next(r for r in runs if r["run"] == "uniform" and float(r["error"]) <= 5e-2)
+    ada = next(r for r in runs if r["run"] == "g3" and float(r["error"]) <= 5e-2)
+    assert float(ratio["first_reaching_cpu"]) == round(float(ada["cpu"]) / float(uni["cpu"]), 3)

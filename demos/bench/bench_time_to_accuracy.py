@@ -47,6 +47,10 @@ certifies makes (each solved and bounded).
         --variant res3:adapt.growth=3,adapt.indicators=residual,adapt.tol=4e-3 \
         --variant p2:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3 --uniform-bound
 
+``--repeat N`` runs every reference and variant N times, the references then the variants in
+each repeat, and takes each row's clocks as the medians of its repeats (the runs of one process
+vary by ±5 % at 1M DoFs, with the memory the runs before left behind).
+
 ``--plain`` runs each variant a second time with the plain paths of the estimators, the
 refinement and the loop (:data:`PLAIN`: one assembly per DG0 term, NumPy's ``np.unique``,
 …), the same numbers, so the gain of the default paths is a ratio of one run.
@@ -57,6 +61,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import statistics
 import time
 from pathlib import Path
 
@@ -348,6 +353,13 @@ def main() -> None:
         help="bound each uniform mesh's solution as the loop certifies (timed apart), refine "
         "on until that bound meets the target, and compare at equal certification",
     )
+    ap.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        help="run every reference and variant this many times, alternating, each clock the "
+        "median of the repeats",
+    )
     ap.add_argument("--out", default=None, help="CSV file")
     args = ap.parse_args()
     warm = contact.load_scene(ROOT / SCENES["ex9"][0], ["output.verbose=false", "adapt=none"])
@@ -357,7 +369,7 @@ def main() -> None:
         file, default_target = SCENES[name]
         target = args.target or default_target
         print(f"{name}: to energy error {target:.1e}")
-        references: dict[str, list[dict]] = {}
+        references: dict[str, list[str]] = {}
         for reference, sets in map(variant_of, args.uniforms or UNIFORM):
             sets = [*args.overrides, *sets]
             try:  # untimed first: the reference's forms compiled or loaded
@@ -366,15 +378,8 @@ def main() -> None:
             except ConfigError as error:
                 print(f"  {reference}: skipped ({error})", flush=True)
                 continue
-            references[reference] = uniform(
-                ROOT / file,
-                target,
-                args.max_dofs,
-                sets,
-                reference or "uniform",
-                bound=args.uniform_bound,
-            )
-            rows += [{"scene": name, **r} for r in references[reference]]
+            references[reference] = sets
+        variants: dict[str, list[str]] = {}
         for variant, sets in map(variant_of, args.variants or VARIANTS):
             sets = [*args.overrides, *sets]
             try:
@@ -382,20 +387,74 @@ def main() -> None:
             except ConfigError as error:
                 print(f"  {variant}: skipped ({error})", flush=True)
                 continue
-            for plain in (False, True) if args.plain else (False,):
-                plain_paths(plain)
-                label = f"{variant}-plain" if plain else variant
-                ada = adaptive(
-                    ROOT / file, target, args.max_dofs, sets, label, bound=args.uniform_bound
+            variants[variant] = sets
+        # each repeat runs every reference, then every variant: the runs of one kind alternate
+        # with the others', and each row's clocks are the medians of its repeats
+        uni_runs: dict[str, list[list[dict]]] = {reference: [] for reference in references}
+        ada_runs: dict[str, list[list[dict]]] = {}
+        for repeat in range(args.repeat):
+            if args.repeat > 1:
+                print(f"  repeat {repeat + 1} of {args.repeat}", flush=True)
+            for reference, sets in references.items():
+                uni_runs[reference].append(
+                    uniform(
+                        ROOT / file,
+                        target,
+                        args.max_dofs,
+                        sets,
+                        reference or "uniform",
+                        bound=args.uniform_bound,
+                    )
                 )
-                rows += [{"scene": name, **r} for r in ada]
-                mine = [
-                    ratios(name, label, target, uni, ada, ref) for ref, uni in references.items()
-                ]
-                summary += verdict(name, label, target, mine)
-            plain_paths(False)
+            for variant, sets in variants.items():
+                for plain in (False, True) if args.plain else (False,):
+                    plain_paths(plain)
+                    label = f"{variant}-plain" if plain else variant
+                    ada_runs.setdefault(label, []).append(
+                        adaptive(
+                            ROOT / file,
+                            target,
+                            args.max_dofs,
+                            sets,
+                            label,
+                            bound=args.uniform_bound,
+                        )
+                    )
+                plain_paths(False)
+        uniforms = {reference: median_rows(runs) for reference, runs in uni_runs.items()}
+        for uni in uniforms.values():
+            rows += [{"scene": name, **r} for r in uni]
+        for label, runs in ada_runs.items():
+            ada = median_rows(runs)
+            rows += [{"scene": name, **r} for r in ada]
+            mine = [ratios(name, label, target, uni, ada, ref) for ref, uni in uniforms.items()]
+            summary += verdict(name, label, target, mine)
         if args.out:  # after each scene: a long run interrupted keeps the scenes done
             save_csv(args.out, rows + summary)
+
+
+#: the clocks of a row, the medians of its repeats (``median_rows``)
+CLOCKS = ("seconds", "cpu", "bound_seconds", "bound_cpu", "solved_seconds", "solved_cpu")
+
+
+def median_rows(runs: list[list[dict]]) -> list[dict]:
+    """The rows of repeated runs of one reference or variant, each clock (:data:`CLOCKS`) the
+    median of its repeats (``repeats``: how many, where more than one).  The repeats must
+    have made the same meshes (serially they do: the same DoFs level by level)."""
+    first = runs[0]
+    for other in runs[1:]:
+        dofs = [r["dofs"] for r in other]
+        assert dofs == [r["dofs"] for r in first], f"a repeat made other meshes: {dofs}"
+    out = []
+    for k, row in enumerate(first):
+        row = dict(row)
+        for clock in CLOCKS:
+            if clock in row:
+                row[clock] = round(statistics.median(run[k][clock] for run in runs), 4)
+        if len(runs) > 1:
+            row["repeats"] = len(runs)
+        out.append(row)
+    return out
 
 
 def ratios(
