@@ -368,6 +368,8 @@ STEPS = {
             "--variant",
             "p2tol:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3",
             "--uniform-bound",
+            "--repeat",
+            "3",
             "--out",
             "demos/results/adaptive_cost/time_to_accuracy_ex9_certified.csv",
         ],
