@@ -851,8 +851,9 @@ def test_the_loop_runs_on_a_frozen_heap_with_the_same_levels(monkeypatch):
 
 def _refine_and_build(scene, cells, u_h, new, monkeypatch):
     """REFINE then the next level's build, as the loop does them (the DoF bound first), with
-    the refinement's shared space, DoF points and marked edges (``new``) or the old paths;
-    the number of times the marked cells' edges were found."""
+    the refinement's shared space, DoF points and marked edges (``new``: found once, handed
+    to the bound and the refinement, as the loop's EDGES_ONCE does) or the old paths; the
+    number of times the marked cells' edges were found."""
     from contact.adaptivity import refine as refine_module
     from contact.adaptivity import transfer
     from contact.base import spaces
@@ -861,7 +862,6 @@ def _refine_and_build(scene, cells, u_h, new, monkeypatch):
     from contact.setup.build import build_problem
 
     for module, name in [
-        (refine_module, "EDGES_ONCE"),
         (transfer, "SHARED_SPACE"),
         (spaces, "ELEMENT_KEYS"),
         (data, "SHARED_POINTS"),
@@ -877,8 +877,9 @@ def _refine_and_build(scene, cells, u_h, new, monkeypatch):
         "compute_incident_entities",
         lambda *args: found.append(1) or incident(*args),
     )
-    bound = adaptive.next_dofs_bound(scene.mesh, cells, u_h.function_space)
-    child, u0 = contact.refine(scene, cells, u_h)
+    edges = refine_module.incident_edges(scene.mesh, cells) if new else None
+    bound = adaptive.next_dofs_bound(scene.mesh, cells, u_h.function_space, edges)
+    child, u0 = contact.refine(scene, cells, u_h, edges=edges)
     problem = build_problem(child)
     return bound, child, u0, problem, len(found)
 
@@ -936,3 +937,27 @@ def test_the_refined_level_is_built_on_the_space_of_the_prolonged_guess(monkeypa
     assert len(new[2]) > 0 and len(new[-2]) > 0
     for a, b in zip(new, old, strict=True):
         assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("once", [True, False])
+def test_the_loop_finds_the_marked_edges_once_per_refinement(monkeypatch, once):
+    """The loop hands the marked cells' edges to the next level's DoF bound and to its
+    refinement (EDGES_ONCE): found once per refined level, twice on the old path, the same
+    levels either way."""
+    from contact.adaptivity import refine as refine_module
+    from contact.drivers import adaptive as loop
+
+    monkeypatch.setattr(loop, "EDGES_ONCE", once)
+    found = []
+    incident = refine_module.dmesh.compute_incident_entities
+    monkeypatch.setattr(
+        refine_module.dmesh,
+        "compute_incident_entities",
+        lambda *args: found.append(1) or incident(*args),
+    )
+    scene = contact.load_scene(
+        ROOT / "configs" / "peers" / "petsc_ex9.yaml", ["output.verbose=false"]
+    )
+    run = adapt(scene, max_levels=3, verbose=False)
+    assert len(run.levels) == 3
+    assert len(found) == (1 if once else 2) * (len(run.levels) - 1)

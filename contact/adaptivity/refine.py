@@ -8,7 +8,6 @@ their exact surfaces), and the refined mesh's partition.
 from __future__ import annotations
 
 import time
-import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -64,17 +63,11 @@ class Domain:
         return self.mesh.comm
 
 
-#: the marked cells' edges are found once for :func:`next_dofs_bound` and :func:`refine` of
-#: the same cells (the last ones kept, the mesh weakly); False: each finds them, the old path
-EDGES_ONCE = True
-_found: list[tuple[weakref.ref, np.ndarray, np.ndarray]] = []  # (mesh, cells, their edges)
-
-
 def incident_edges(msh: dmesh.Mesh, cells: np.ndarray) -> np.ndarray:
-    """Return the local edges of the local cells ``cells``.
+    """Return the local edges of the local cells ``cells``, the mesh's edges made if need be.
 
-    ``compute_incident_entities``, the mesh's edges made if need be; for the same mesh and
-    cells as the last call, the last answer (:data:`EDGES_ONCE`).
+    What :func:`refine` splits and :func:`next_dofs_bound` counts: a caller that needs both
+    (the adaptive loop) finds them once and hands them to each.
 
     Args:
         msh: the mesh.
@@ -83,18 +76,9 @@ def incident_edges(msh: dmesh.Mesh, cells: np.ndarray) -> np.ndarray:
     Returns:
         The local indices of the edges of these cells, each once (int32).
     """
-    cells = np.asarray(cells, dtype=np.int32)
-    if EDGES_ONCE and _found:
-        mesh_ref, known, edges = _found[0]
-        if mesh_ref() is msh and np.array_equal(known, cells):
-            return edges
-    tdim = msh.topology.dim
     msh.topology.create_entities(1)
-    edges = dmesh.compute_incident_entities(msh.topology, cells, tdim, 1)
-    if EDGES_ONCE:
-        edges.flags.writeable = False
-        _found[:] = [(weakref.ref(msh), cells.copy(), edges)]
-    return edges
+    cells = np.asarray(cells, dtype=np.int32)
+    return dmesh.compute_incident_entities(msh.topology, cells, msh.topology.dim, 1)
 
 
 #: the refusal to refine curved cells: dolfinx's refinement splits the vertex simplices
@@ -112,6 +96,7 @@ def refine(
     rebalance: bool = True,
     *,
     timings: dict[str, float] | None = None,
+    edges: np.ndarray | None = None,
 ) -> tuple[Domain, fem.Function | None]:
     """Refine the marked cells and carry the domain over (the REFINE step).
 
@@ -136,6 +121,8 @@ def refine(
         timings: if given, receives the seconds of the parts: ``mesh`` (the marked edges
             and ``dolfinx.mesh.refine`` with the redistribution and the ghost layer),
             ``transfer`` (tags and functions carried over) and ``snap``.
+        edges: the marked cells' edges, :func:`incident_edges` of ``cells``, where the
+            caller has found them already (else found here).
 
     Returns:
         (the refined domain, u_h on it or None).  Cells that are not owned indices, or a
@@ -154,8 +141,8 @@ def refine(
     msh = domain.mesh
     tdim = msh.topology.dim
     clock = [time.perf_counter()]  # the start, then the end of each part
-    edges = incident_edges(msh, cells)
-    _found.clear()  # nothing kept once refined
+    if edges is None:
+        edges = incident_edges(msh, cells)
     new, parent_cell, parent_facet = longest_edge.refine(
         msh, edges, refine_partitioner(msh, rebalance)
     )
@@ -185,16 +172,20 @@ def refine(
     return child, u0
 
 
-def next_dofs_bound(msh: dmesh.Mesh, cells: np.ndarray, V: fem.FunctionSpace) -> int | None:
+def next_dofs_bound(
+    msh: dmesh.Mesh, cells: np.ndarray, V: fem.FunctionSpace, edges: np.ndarray | None = None
+) -> int | None:
     """Return a lower bound of the DoFs after refining ``cells``.
 
     P1: one new vertex per marked edge (refinement may split more edges for conformity);
     None for P2.  An edge counts once, on its owning rank, whichever rank's cells marked it
-    (the same bound on any number of ranks).
+    (the same bound on any number of ranks).  ``edges``: the cells' edges
+    (:func:`incident_edges`) where the caller has found them already.
     """
     if V.element.basix_element.degree != 1:
         return None
-    edges = incident_edges(msh, cells)
+    if edges is None:
+        edges = incident_edges(msh, cells)
     imap = msh.topology.index_map(1)
     marked = la.vector(imap, dtype=np.int32)
     marked.array[edges] = 1

@@ -38,7 +38,7 @@ from ..adaptivity.bare import BareDomain, bare
 from ..adaptivity.energy_error import solution_error
 from ..adaptivity.estimate import Estimate, check_shared_facets, estimate
 from ..adaptivity.mark import Growth, mark
-from ..adaptivity.refine import CURVED_CELLS, Domain, next_dofs_bound, refine
+from ..adaptivity.refine import CURVED_CELLS, Domain, incident_edges, next_dofs_bound, refine
 from ..base import progress
 from ..base.errors import ConfigError
 from ..base.lifetime import return_freed_memory
@@ -72,6 +72,9 @@ STOW_PREVIOUS = True
 #: modules, is then collected as any other object again).  False: every collection walks
 #: everything, the old path
 FREEZE_HEAP = True
+#: the marked cells' edges are found once, for the DoF bound of the next level
+#: (``next_dofs_bound``) and its refinement; False: each finds them, the old path
+EDGES_ONCE = True
 #: with ``adapt.indicators: residual``, a level whose guaranteed bound will be computed anyway
 #: — the last level (``certainly_last``), or one whose bound is predicted to meet ``tol``
 #: (``Bound.predicts``) — is estimated by the bound alone, which marks it should the loop
@@ -534,7 +537,8 @@ def adapt(
                 fraction = growth.fraction(tdim) if opts.strategy == "dorfler" else 0.0
                 cells = mark(indicators, opts.strategy, opts.theta, fraction)
             marked = comm.allreduce(len(cells), op=MPI.SUM) / level.cells
-            estimated = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space)
+            edges = incident_edges(level_domain.mesh, cells) if EDGES_ONCE else None
+            estimated = next_dofs_bound(level_domain.mesh, cells, result.u_h.function_space, edges)
             if estimated is not None and estimated > opts.max_dofs:  # refining: wasted work
                 out.stop = (
                     f"the next level would have at least {estimated} DoFs > max_dofs = "
@@ -550,6 +554,7 @@ def adapt(
                     result.u_h if opts.nested else None,
                     opts.rebalance,
                     timings=parts,
+                    edges=edges,
                 )
             seconds["refine_mesh"] = parts["mesh"]  # of which dolfinx.mesh.refine
             # DoFs of the next level in the same element as u_h (vector-valued for elasticity)

@@ -143,6 +143,7 @@ def refine(
     rebalance: bool | None = None,
     *,
     timings: dict[str, float] | None = None,
+    edges: np.ndarray | None = None,
 ) -> tuple[Scene, fem.Function | None]:
     """Refine the marked cells and carry the scene over (the REFINE step).
 
@@ -165,6 +166,8 @@ def refine(
             depend on it.
         timings: If given, receives the seconds of the parts: ``mesh``, ``transfer`` and
             ``snap``.
+        edges: The marked cells' edges (``contact.adaptivity.refine.incident_edges``),
+            where the caller has found them already.
 
     Returns:
         The refined scene (its ``parent`` the scene and the parent cells) and ``u_h``
@@ -194,7 +197,9 @@ def refine(
     if rebalance is None:
         adapt = scene.config.adapt
         rebalance = adapt.rebalance if adapt is not None else True
-    child, u0 = refine_domain(scene_domain(scene), cells, u_h, rebalance, timings=timings)
+    child, u0 = refine_domain(
+        scene_domain(scene), cells, u_h, rebalance, timings=timings, edges=edges
+    )
     return on_domain(scene, child, parent=scene), u0
 
 

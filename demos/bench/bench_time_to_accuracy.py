@@ -295,7 +295,7 @@ PLAIN = (
     ("contact.adaptivity.transfer", "LOCAL_PULL"),
     ("contact.drivers.adaptive", "FREEZE_HEAP"),
     ("contact.drivers.adaptive", "PREDICT_BOUND"),
-    ("contact.adaptivity.refine", "EDGES_ONCE"),
+    ("contact.drivers.adaptive", "EDGES_ONCE"),
     ("contact.adaptivity.transfer", "SHARED_SPACE"),
     ("contact.base.spaces", "ELEMENT_KEYS"),
     ("contact.setup.data", "SHARED_POINTS"),
