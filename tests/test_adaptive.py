@@ -849,6 +849,20 @@ def test_the_loop_runs_on_a_frozen_heap_with_the_same_levels(monkeypatch):
     assert max(old_frozen) < 1000 and rows == old_rows
 
 
+def _count_edge_searches(monkeypatch) -> list:
+    """A list that grows by one at each search of cells' edges (compute_incident_entities)."""
+    from contact.adaptivity import refine as refine_module
+
+    found: list[int] = []
+    incident = refine_module.dmesh.compute_incident_entities
+    monkeypatch.setattr(
+        refine_module.dmesh,
+        "compute_incident_entities",
+        lambda *args: found.append(1) or incident(*args),
+    )
+    return found
+
+
 def _refine_and_build(scene, cells, u_h, new, monkeypatch):
     """REFINE then the next level's build, as the loop does them (the DoF bound first), with
     the refinement's shared space, DoF points and marked edges (``new``: found once, handed
@@ -870,13 +884,7 @@ def _refine_and_build(scene, cells, u_h, new, monkeypatch):
         (checks, "POINTS_ONCE"),
     ]:
         monkeypatch.setattr(module, name, new)
-    found = []
-    incident = refine_module.dmesh.compute_incident_entities
-    monkeypatch.setattr(
-        refine_module.dmesh,
-        "compute_incident_entities",
-        lambda *args: found.append(1) or incident(*args),
-    )
+    found = _count_edge_searches(monkeypatch)
     edges = refine_module.incident_edges(scene.mesh, cells) if new else None
     bound = adaptive.next_dofs_bound(scene.mesh, cells, u_h.function_space, edges)
     child, u0 = contact.refine(scene, cells, u_h, edges=edges)
@@ -944,17 +952,10 @@ def test_the_loop_finds_the_marked_edges_once_per_refinement(monkeypatch, once):
     """The loop hands the marked cells' edges to the next level's DoF bound and to its
     refinement (EDGES_ONCE): found once per refined level, twice on the old path, the same
     levels either way."""
-    from contact.adaptivity import refine as refine_module
     from contact.drivers import adaptive as loop
 
     monkeypatch.setattr(loop, "EDGES_ONCE", once)
-    found = []
-    incident = refine_module.dmesh.compute_incident_entities
-    monkeypatch.setattr(
-        refine_module.dmesh,
-        "compute_incident_entities",
-        lambda *args: found.append(1) or incident(*args),
-    )
+    found = _count_edge_searches(monkeypatch)
     scene = contact.load_scene(
         ROOT / "configs" / "peers" / "petsc_ex9.yaml", ["output.verbose=false"]
     )
