@@ -127,6 +127,40 @@ def test_adapt(square):
     assert run.stop == ref.stop == "reached max_levels = 3"
 
 
+def test_adapt_on_a_level_budget_ends_with_the_last_solution(square):
+    """``estimate_last=False``: the builder's loop solves the same levels as with its last
+    estimate (the same meshes and solutions) and ends with the last level's solution: that
+    level has no η, η_T or effectivity, and its time to accuracy is its time to the
+    solution (no estimate in it); the levels before keep their η."""
+    scene, _ = square
+    ids = scene.boundary.ids
+
+    def run(estimate_last: bool):
+        return contact.adapt(
+            lambda domain: signorini(domain, ids),
+            Domain(scene.mesh, scene.boundary.tags),
+            kind=scene.config.estimator,
+            max_levels=3,
+            newton_rtol=1e-12,
+            estimate_last=estimate_last,
+        )
+
+    full, budget = run(True), run(False)
+    assert budget.stop == full.stop == "reached max_levels = 3"
+    assert [lv.result.dofs for lv in budget.levels] == [lv.result.dofs for lv in full.levels]
+    for mine, theirs in zip(budget.levels, full.levels):
+        assert close(mine.result.u_h.x.array, theirs.result.u_h.x.array, 1e-12)
+    for mine, theirs in zip(budget.levels[:-1], full.levels[:-1]):
+        assert mine.eta == pytest.approx(theirs.eta, rel=1e-10) and mine.estimate.computed
+    last = budget.levels[-1]
+    assert not last.estimate.computed and last.estimate.eta_T is None and last.eta is None
+    assert full.levels[-1].eta > 0 and full.levels[-1].estimate.eta_T is not None
+    row = last.row()
+    assert row["eta"] == row["effectivity"] == row["eta_disc"] == ""
+    assert last.seconds["estimate"] == 0.0 < full.levels[-1].seconds["estimate"]
+    assert last.elapsed - last.solved_elapsed < 0.5 * full.levels[-1].seconds["estimate"]
+
+
 def test_sequencing():
     """contact.sequence of the builder on 8², 16², 32² meshes: the solution of the scene
     sequenced over the same meshes (solver.sequence: 2), its coarse levels and the fine mesh's

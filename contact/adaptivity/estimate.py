@@ -31,6 +31,7 @@ that did not converge.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -75,11 +76,19 @@ class Estimate:
         terms: The global total Σ_T of each term of η_T² (residual: ``volume``, ``jump``,
             ``neumann``, ``consistency``, ``sign``, ``complementarity``, plus the friction
             and pair terms where they apply; equilibrated: the parts of the bound).
+        computed: False for a solve the adaptive loop leaves unestimated (its last level
+            with ``adapt.estimate_last`` false, :meth:`skipped`: no η_T, η NaN, no terms).
     """
 
-    eta_T: fem.Function
+    eta_T: fem.Function | None
     eta: float
     terms: dict[str, float]
+    computed: bool = True
+
+    @classmethod
+    def skipped(cls) -> Estimate:
+        """Return the estimate of a solve left unestimated: no η_T, η NaN, no terms."""
+        return cls(None, math.nan, {}, computed=False)
 
 
 def _cellwise(msh, degree: fem.Function | None = None):

@@ -212,6 +212,7 @@ class StudyAdapt(Section):
     tol: NonNegative | None = None
     max_dofs: Count | None = None
     max_levels: Count | None = None
+    estimate_last: Switch | None = None
     nested: Switch | None = None
     newton_rtol: Positive | None = None
 
@@ -730,7 +731,7 @@ def run_one(
                     "reason": lv.result.reason,
                 }
                 row.update(
-                    _figures(study, lv.scene, lv.result, lv.estimate.eta, lv.error)
+                    _figures(study, lv.scene, lv.result, lv.eta, lv.error)
                     if lv.result.converged
                     else _empty_figures(study)
                 )
@@ -845,7 +846,11 @@ def _run_path(
         return seconds, f"{path.stop}, last |Phi| = {last.result.residual:.3e}", last.scene
     est = last.levels[-1].estimate if last.levels else estimate(last.scene, last.result)
     figures = _figures(
-        study, last.scene, last.result, est.eta, solution_error(last.result.problem, last.result)
+        study,
+        last.scene,
+        last.result,
+        est.eta if est.computed else None,
+        solution_error(last.result.problem, last.result),
     )
     if last.result.friction is not None:
         surface = surface_figures(last.posed, last.result)

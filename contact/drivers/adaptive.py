@@ -44,7 +44,7 @@ from ..base.errors import ConfigError
 from ..base.lifetime import return_freed_memory
 from ..base.timing import Timer
 from ..models.discrete import discrete
-from ..solvers.options import AdaptOptions, SolverOptions
+from ..solvers.options import NO_LAST_ESTIMATE_STOPPING, AdaptOptions, SolverOptions
 from ..solvers.problem import DiscreteProblem
 from ..solvers.result import Result, solves_text
 from ..solvers.stopping import AdaptiveStopping
@@ -153,6 +153,11 @@ class Level:
         msh = self.domain.mesh
         return msh.topology.index_map(msh.topology.dim).size_global
 
+    @property
+    def eta(self) -> float | None:
+        """The level's η, None where it was not estimated (``adapt.estimate_last`` false)."""
+        return self.estimate.eta if self.estimate.computed else None
+
     def release(self) -> None:
         """Keep the level's figures only (its row, iterations, history, η and error).
 
@@ -189,6 +194,8 @@ class Level:
         if values is None:
             return False
         eta_T = self.estimate.eta_T
+        if eta_T is None:  # not estimated: the loop's last level, never stowed
+            return False
         self.stowed = Stowed(
             values,
             eta_T.x.array.copy(),
@@ -207,14 +214,14 @@ class Level:
             "level": self.index,
             "dofs": self.result.dofs,
             "cells": self.cells,
-            "eta": self.estimate.eta,
+            "eta": self.eta if self.eta is not None else "",  # '' where not estimated
         }
         # Σ_T of each term
         row.update({f"eta2_{k}": float(v) for k, v in self.estimate.terms.items()})
         if self.estimator:  # adapt.indicators residual: the estimator of this row's η
             row["estimator"] = self.estimator
         row["error"] = self.error if self.error is not None else ""
-        row["effectivity"] = self.estimate.eta / self.error if self.error else ""
+        row["effectivity"] = self.eta / self.error if self.error and self.eta is not None else ""
         row.update(
             {
                 "newton_iterations": self.result.iterations,
@@ -243,7 +250,7 @@ class Level:
 
         return {
             "stopping": "adaptive" if st is not None else "fixed",
-            "eta_disc": self.estimate.eta,
+            "eta_disc": self.eta if self.eta is not None else "",
             "eta_lin": finite(st.eta_lin if st else 0.0),
             "eta_alg": finite(st.eta_alg if st else 0.0),
             "krylov_iterations": self.result.krylov_iterations,
@@ -389,6 +396,8 @@ def adapt(
     if keep is not None and not callable(keep):
         raise ValueError(f"keep: expected a function of one Level, got {type(keep).__name__}")
     opts = (options or AdaptOptions()).updated(**overrides)
+    if not opts.estimate_last and stopping is not None:
+        raise ConfigError(NO_LAST_ESTIMATE_STOPPING)
     first_mesh = domain if isinstance(domain, dmesh.Mesh) else domain.mesh
     if opts.max_levels > 1 and first_mesh.geometry.cmaps[0].degree > 1:
         raise ConfigError(CURVED_CELLS)  # before the first level is solved
@@ -453,16 +462,21 @@ def adapt(
                     return_freed_memory()
             solved.update(wall=time.perf_counter(), cpu=time.process_time())
 
-        # the bound alone where it will be computed anyway (adapt.indicators residual): on
-        # the last level (its operator K then shed first, as before the bound of Bound) …
+        # a level the loop knows to be its last before estimating it (the level budget …)
         last = (
             certainly_last(index, problem.V, opts, growth, budget)
-            if bound is not None and PREDICT_BOUND
+            if (bound is not None and PREDICT_BOUND) or not opts.estimate_last
             else ""
         )
+        # … is not estimated at all with adapt.estimate_last false: the loop ends with its
+        # solution, as a uniform run does
+        unestimated = bool(last) and not opts.estimate_last
+        # the bound alone where it will be computed anyway (adapt.indicators residual): on
+        # the last level (its operator K then shed first, as before the bound of Bound) …
         # … or where it is predicted to meet tol
-        bound_only = bool(last) or (
-            bound is not None and PREDICT_BOUND and bound.predicts(problem.V, opts.tol)
+        bound_only = not unestimated and (
+            (bool(last) and bound is not None and PREDICT_BOUND)
+            or (bound is not None and PREDICT_BOUND and bound.predicts(problem.V, opts.tol))
         )
 
         def on_solved(
@@ -488,6 +502,7 @@ def adapt(
             previous=previous,
             solved=on_solved,
             bound_kind=bound.kind if bound_only and bound is not None else None,
+            estimated=not unestimated,
         )
         # a level's solve may have solved another problem on its mesh (pairs re-coupled on
         # the current configuration): the level is that of its result
@@ -511,7 +526,7 @@ def adapt(
             solved_elapsed=solved["wall"] - start - outputs + seconds["error"],
             solved_cpu=solved["cpu"] - start_cpu - outputs_cpu + error_cpu,
             estimator=""
-            if bound is None
+            if bound is None or unestimated
             else bound.kind
             if bound_only and result.converged
             else "residual",
@@ -526,7 +541,7 @@ def adapt(
         # what marks: the estimator's, the residual ones, or the bound's where it alone was
         # computed (a bound is an estimator with local indicators like the residual one)
         indicators = est.eta_T
-        eta = est.eta if bound is None else bound.eta(level, opts.tol)
+        eta = est.eta if bound is None or unestimated else bound.eta(level, opts.tol)
         # a level certainly the last stops before marking (its next level's DoFs bounded
         # below without it: certainly_last)
         out.stop = stop_before_marking(level, eta, opts) or last
@@ -535,6 +550,7 @@ def adapt(
             tdim = level_domain.mesh.topology.dim
             with Timer(seconds, "mark"):
                 fraction = growth.fraction(tdim) if opts.strategy == "dorfler" else 0.0
+                assert indicators is not None  # an unestimated level is the last
                 cells = mark(indicators, opts.strategy, opts.theta, fraction)
             marked = comm.allreduce(len(cells), op=MPI.SUM) / level.cells
             edges = incident_edges(level_domain.mesh, cells) if EDGES_ONCE else None
@@ -572,7 +588,9 @@ def adapt(
         if out.stop:  # the refined mesh, if any, is not needed (nor held during the bound)
             child = new_u0 = None
         if bound is not None and out.stop:  # the last level: its bound
-            if result.converged:
+            if result.converged and unestimated:
+                pass  # adapt.estimate_last false: no estimate of it
+            elif result.converged:
                 if SHED_BOUND and keep is not None and level.estimator != bound.kind:
                     result.shed_operator()  # nothing solves on it again: the bound's peak
                 bound.compute(level)
@@ -828,6 +846,7 @@ def solve_level(
     previous: Level | None = None,
     solved: Callable[[Result], None] | None = None,
     bound_kind: str | None = None,
+    estimated: bool = True,
 ) -> tuple[Result, Estimate, int]:
     """SOLVE and ESTIMATE one level.
 
@@ -844,7 +863,9 @@ def solve_level(
     :data:`MAX_PASSES` solves; the Krylov iterations of all of them are counted.  The first
     level, with no η known yet, uses the fixed tolerances.  ``solved`` is called with each
     solve's result before it is estimated; a converged one is estimated by ``bound_kind``
-    where given (the loop's bound alone, ``PREDICT_BOUND``), else by ``kind``.
+    where given (the loop's bound alone, ``PREDICT_BOUND``), else by ``kind``; not
+    ``estimated``, the solve is left unestimated (``Estimate.skipped``: the loop's last level
+    with ``adapt.estimate_last`` false).
     """
     adaptive = stopping is not None and previous is not None
     eta = None
@@ -868,6 +889,10 @@ def solve_level(
         progress.note(f"{label}: solved ({result.dofs} DoFs), {seconds['solve']:.0f} s; estimating")
         if solved is not None:
             solved(result)
+        if not estimated:
+            est = Estimate.skipped()
+            passes += 1
+            break
         with Timer(seconds, "estimate"):
             which = bound_kind if bound_kind is not None and result.converged else kind
             est = estimate(result.problem or problem, result, which)
@@ -900,11 +925,12 @@ def _header() -> str:
 
 
 def _format(r: dict) -> str:
+    eta = f"{r['eta']:11.4e}" if r["eta"] != "" else f"{'-':>11s}"
     err = f"{r['error']:11.4e}" if r["error"] != "" else f"{'-':>11s}"
     eff = f"{r['effectivity']:6.2f}" if r["effectivity"] != "" else f"{'-':>6s}"
     its = solves_text(r["newton_iterations"], r["polish_solves"])
     return (
-        f"{r['level']:5d} {r['dofs']:9d} {r['eta']:11.4e} {err} {eff} {its:>6s} "
+        f"{r['level']:5d} {r['dofs']:9d} {eta} {err} {eff} {its:>6s} "
         f"{r['active_nodes']:7d} {r.get('seconds_solve', 0):8.2f}"
     )
 

@@ -25,6 +25,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from ..adaptivity.energy_error import solution_error
+from ..adaptivity.estimate import Estimate
 from ..adaptivity.mark import mark
 from ..base.errors import ConfigError
 from ..base.timing import Timer
@@ -99,6 +100,7 @@ def adapt_hp(
     front_degree: int | None = 1,
     refine_front: bool = False,
     space_degree: str = "used",
+    estimate_last: bool = True,
 ) -> AdaptResult:
     """Run the hp-adaptive loop (module docstring) on a scalar Signorini scene or an elastic
     body against a rigid coordinate plane.
@@ -129,6 +131,8 @@ def adapt_hp(
             ``used`` (the largest p_T of the level: V_hp ⊂ P_{max p_T}, so a level whose
             cells are all of low degree assembles, solves and estimates at that degree) or
             ``p_max`` (P_{p_max} on every level).
+        estimate_last: False: the level ``max_levels`` is solved and not estimated (no η,
+            η_T or effectivity): the loop ends with its solution.
 
     Returns:
         The levels (``HPLevel``) and why the loop stopped.
@@ -174,8 +178,11 @@ def adapt_hp(
             )
         result.__dict__["dofs"] = problem.unknowns()  # the hp unknowns, not V's DoFs
         solved_wall, solved_cpu = time.perf_counter(), time.process_time()
-        with Timer(seconds, "estimate"):
-            est = hp_estimate(scene, result, space, estimator)
+        if estimate_last or index + 1 < max_levels:
+            with Timer(seconds, "estimate"):
+                est = hp_estimate(scene, result, space, estimator)
+        else:  # the last level, known before its estimate
+            est, seconds["estimate"] = Estimate.skipped(), 0.0
         error_cpu = time.process_time()
         with Timer(seconds, "error"):
             error = solution_error(problem, result)
@@ -200,6 +207,7 @@ def adapt_hp(
         out.levels.append(level)
         stop = _stop(result, est.eta, tol, index, max_levels)
         if not stop:
+            assert est.eta_T is not None  # an unestimated level is the last
             with Timer(seconds, "mark"):
                 marked = mark(est.eta_T, "dorfler", theta)
                 front = front_cells(problem, result.active_mask, scene.boundary.facets("contact"))
@@ -219,7 +227,8 @@ def adapt_hp(
             r = level.row()
             print(
                 f"{index:3d} {r['dofs']:8d} {r['cells']:7d} p {r['p_min']}-{r['p_max']} "
-                f"eta {r['eta']:.3e} err {r['error'] if r['error'] != '' else '-'} "
+                f"eta {'-' if r['eta'] == '' else format(r['eta'], '.3e')} "
+                f"err {r['error'] if r['error'] != '' else '-'} "
                 f"h {level.h_cells} p {level.p_cells} solve {seconds['solve']:.2f} "
                 f"est {seconds['estimate']:.2f}",
                 flush=True,
@@ -323,6 +332,7 @@ def adapt(
         tol=opts.tol,
         max_dofs=opts.max_dofs,
         max_levels=opts.max_levels,
+        estimate_last=opts.estimate_last,
         estimator="residual" if scene.config.estimator == "residual" else "equilibrated",
         on_level=on_level,
         verbose=scene.config.output.verbose if verbose is None else verbose,

@@ -254,16 +254,25 @@ def mesh_2d(
 
 
 def plot_convergence(path: str | Path, rows: list[dict], title: str = "") -> None:
-    """η (and the error, where known) against DoFs on log–log axes with N^{-1/2}, N^{-1/3}."""
+    """η (and the error, where known) against DoFs on log–log axes with N^{-1/2}, N^{-1/3}.
+
+    A level without η (``eta`` '': the last with ``adapt.estimate_last`` false) has no η
+    point; the reference lines start at the first η, else at the first error.
+    """
     N = np.array([r["dofs"] for r in rows], dtype=float)
-    eta = np.array([r["eta"] for r in rows], dtype=float)
+    estimated = np.array([r["eta"] != "" for r in rows])
+    eta = np.array([r["eta"] for r in rows if r["eta"] != ""], dtype=float)
     fig, ax = new_figure(figsize=(7, 5))
-    ax.loglog(N, eta, "o-", label="estimator η")
+    ax.loglog(N[estimated], eta, "o-", label="estimator η")
     errors = [r["error"] for r in rows]
+    start = (N[estimated][0], eta[0]) if len(eta) else None
     if all(e != "" for e in errors):
         ax.loglog(N, np.array(errors, dtype=float), "s-", label="error ‖u − u_h‖_E")
+        start = start or (N[0], float(errors[0]))
     for p, style in ((0.5, "k--"), (1.0 / 3.0, "k:")):
-        ref = eta[0] * (N / N[0]) ** (-p)
+        if start is None:  # neither η nor an error: no line to start from
+            break
+        ref = start[1] * (N / start[0]) ** (-p)
         ax.loglog(N, ref, style, lw=1, label=f"N^(-{'1/2' if p == 0.5 else '1/3'})")
     ax.set_xlabel("degrees of freedom N (a count)")
     ax.set_ylabel("energy norm ‖·‖_E (scene units)")

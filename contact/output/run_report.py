@@ -350,7 +350,8 @@ class LevelWriter:
     def __call__(self, level: Level) -> None:
         r = level.result
         est = level.estimate
-        cells = [est.eta_T, *cell_fields(r, self.elastic)]
+        # η_T where the level was estimated (not the last with adapt.estimate_last false)
+        cells = [*([est.eta_T] if est.eta_T is not None else []), *cell_fields(r, self.elastic)]
         points = point_fields(r)
         space = getattr(level, "space", None)  # an hp level's degrees
         if space is not None:
@@ -360,7 +361,11 @@ class LevelWriter:
             level.index,
             points,
             cells,
-            field_data={"level": level.index, "dofs": r.dofs, "eta": est.eta},
+            field_data={
+                "level": level.index,
+                "dofs": r.dofs,
+                **({"eta": est.eta} if est.computed else {}),
+            },
             boundary=level.posed.boundary,
         )
 
@@ -405,7 +410,7 @@ def write_adaptive(
         {
             "levels": len(rows),
             "stop": adaptive.stop,
-            "eta": last.estimate.eta,
+            "eta": last.eta,  # None where not estimated (adapt.estimate_last false)
             "strategy": report.strategy,
             "dofs_per_level": [lv.result.dofs for lv in adaptive.levels],
             # time to accuracy: the loop's wall seconds up to level k (outputs not counted)
@@ -415,7 +420,7 @@ def write_adaptive(
             # budget needs no estimate of its last level)
             "seconds_to_solution": [round(lv.solved_elapsed, 4) for lv in adaptive.levels],
             "error_per_level": [lv.error for lv in adaptive.levels],
-            "eta_per_level": [lv.estimate.eta for lv in adaptive.levels],
+            "eta_per_level": [lv.eta for lv in adaptive.levels],
             "newton_iterations_per_level": [lv.result.iterations for lv in adaptive.levels],
             "polish_solves_per_level": [lv.result.polish_solves for lv in adaptive.levels],
             "newton_iterations_total": sum(lv.result.iterations for lv in adaptive.levels),

@@ -102,7 +102,7 @@ class StepWriter:
             "newton_iterations": r.iterations,
             "converged": r.converged,
             "reason": r.reason,
-            "eta": est.eta,
+            "eta": est.eta if est.computed else "",  # adapt.estimate_last false: none
             "seconds": round(step.seconds, 4),
         }
         table = contact_table(posed, r)
@@ -132,7 +132,9 @@ class StepWriter:
                 from ..solvers.friction import surface_functions
 
                 nodal += surface_functions(r)
-            cells = [*cell_fields(r, self.report.elastic), *([est.eta_T] if step.levels else [])]
+            cells = cell_fields(r, self.report.elastic)
+            if step.levels and est.eta_T is not None:  # the last level estimated
+                cells.append(est.eta_T)
             self.files.write_step(
                 step.time, nodal, cells, {"step": k, "dofs": r.dofs}, posed.boundary
             )

@@ -21,7 +21,7 @@ from pydantic import ValidationError
 from ..base import expressions
 from ..base.errors import ConfigError
 from ..base.validation import config_error
-from ..solvers.options import BASELINE_METHODS
+from ..solvers.options import BASELINE_METHODS, NO_LAST_ESTIMATE_STOPPING
 from .scene_config import (
     CURVED_MESHES,
     ELASTIC_MODELS,
@@ -135,6 +135,8 @@ def complete(config: SceneConfig, data: Mapping[str, Any]) -> SceneConfig:
             "solver.stopping: adaptive needs estimator: equilibrated (the "
             "discretization error it balances against)"
         )
+    if config.solver.stopping == "adaptive" and config.adapt and not config.adapt.estimate_last:
+        raise ConfigError(NO_LAST_ESTIMATE_STOPPING)
     if model == "elasticity":
         updates["pairs"] = _check_bodies(config)
         _check_elasticity(config)

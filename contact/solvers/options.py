@@ -214,6 +214,13 @@ STRATEGIES = ("dorfler", "maximum", "uniform", "none")
 INDICATORS = ("estimator", "residual")
 
 
+#: adaptive stopping balances each solve against its level's estimate: it needs every one
+NO_LAST_ESTIMATE_STOPPING = (
+    "adapt.estimate_last: false does not go with solver.stopping: adaptive (which estimates "
+    "every solve of every level)"
+)
+
+
 class AdaptOptions(BaseModel):
     """The knobs of an adaptive loop (docs/theory.md §6), validated once and immutable.
 
@@ -237,6 +244,11 @@ class AdaptOptions(BaseModel):
         tol: stop at η ≤ tol.
         max_dofs: the most DoFs of a level.
         max_levels: the most levels.
+        estimate_last: estimate the last level (the default).  False: a level the loop
+            knows to be its last before estimating it — ``max_levels`` reached, strategy
+            ``none``, or (P1 on triangles) a next level certainly above ``max_dofs`` — is
+            solved and not estimated: a loop run on a level budget then ends with its last
+            solution, as a uniform run does, and that level has no η, η_T or effectivity.
         nested: each level starts from the previous solution.
         rebalance: repartition refined meshes.
         newton_rtol: Newton's relative tolerance inside the loop.
@@ -256,6 +268,7 @@ class AdaptOptions(BaseModel):
     tol: Annotated[float, BeforeValidator(number(nonnegative))] = 0.0
     max_dofs: Annotated[int, BeforeValidator(integer(positive))] = 200000
     max_levels: Annotated[int, BeforeValidator(integer(positive))] = 8
+    estimate_last: Annotated[bool, BeforeValidator(boolean)] = True
     nested: Annotated[bool, BeforeValidator(boolean)] = True
     rebalance: Annotated[bool, BeforeValidator(boolean)] = True
     newton_rtol: Annotated[float, BeforeValidator(number(positive))] = 1e-10

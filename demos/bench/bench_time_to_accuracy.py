@@ -47,6 +47,14 @@ certifies makes (each solved and bounded).
         --variant res3:adapt.growth=3,adapt.indicators=residual,adapt.tol=4e-3 \
         --variant p2:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3 --uniform-bound
 
+A variant on a level budget (``adapt.max_levels`` given) stops there; with
+``adapt.estimate_last=false`` its last level is not estimated, and its seconds are those of
+a loop that ends with its last solution, as the uniform run does:
+
+    python demos/bench/bench_time_to_accuracy.py ex9 --target 4e-3 --max-dofs 1400000 \
+        --set adapt.growth=3 adapt.indicators=residual \
+        --variant budget3:adapt.max_levels=8,adapt.estimate_last=false
+
 ``--repeat N`` runs every reference and variant N times, the references then the variants in
 each repeat, and takes each row's clocks as the medians of its repeats (the runs of one process
 vary by ±5 % at 1M DoFs, with the memory the runs before left behind).
@@ -190,6 +198,11 @@ def adaptive(
     the loop computes it on its last level.  A variant with its own ``adapt.tol`` runs until
     the loop stops (η ≤ tol on its bound, or ``max_dofs``): each level's seconds hold the
     bounds the loop computed, and the last level's error may lie above or below ``target``.
+    A variant with its own ``adapt.max_levels`` runs on that level budget; with
+    ``adapt.estimate_last=false`` its last level is solved and not estimated (no bound charged
+    to it: ``estimator`` ``none``, ``eta`` None), the run a user who knew the level the target
+    needs would make.  The last row also has the seconds of the ``contact.adapt`` call from its
+    start to its return (``call_seconds``, ``call_cpu``: the wall time the user sees).
     With ``bound`` each row has the level's η (``eta``) and the estimator of it
     (``estimator``: the scene's bound, or ``residual`` where the residual indicators
     marked)."""
@@ -201,8 +214,10 @@ def adaptive(
     def on_level(level) -> None:
         wall, cpu, charged = level.elapsed, level.cpu, 0.0
         eta, estimator = level.estimate.eta, level.estimator or kind
+        if not level.estimate.computed:  # adapt.estimate_last false: the last level
+            eta, estimator = None, "none"
         reached = level.error <= target and not certified
-        if reached and estimator != kind:
+        if reached and estimator not in (kind, "none"):
             # adapt.indicators residual: the loop would compute the bound on its last level
             c0 = time.process_time()
             t0 = time.perf_counter()
@@ -222,23 +237,34 @@ def adaptive(
                 f"  {variant} L{level.index:<3d} {level.result.dofs:8d} DoFs  error "
                 f"{level.error:.3e}  {wall:7.2f} s wall {cpu:7.2f} s CPU"
                 + (f" (of it the bound {charged:.2f})" if charged else "")
-                + (f"  eta {eta:.3e} ({estimator})" if bound else ""),
+                + (f"  eta {eta:.3e} ({estimator})" if bound and eta is not None else ""),
                 flush=True,
             )
         if reached:  # no finer level
             raise Reached
 
+    budget = any(s.startswith("adapt.max_levels=") for s in sets)
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         contact.adapt(
             scene,
             tol=None if certified else 0.0,  # None: the variant's own
-            max_levels=80,
+            max_levels=None if budget else 80,  # None: the variant's level budget
             max_dofs=max_dofs,
             keep=lambda lv: False,
             on_level=on_level,
         )
     except Reached:
         pass
+    if rows:  # the call as a user makes it, from its start to its return (outputs: echo)
+        rows[-1]["call_seconds"] = round(time.perf_counter() - t0, 4)
+        rows[-1]["call_cpu"] = round(time.process_time() - c0, 4)
+        if echo:
+            print(
+                f"  {variant}: contact.adapt returned after {rows[-1]['call_seconds']:.2f} s "
+                f"wall, {rows[-1]['call_cpu']:.2f} s CPU",
+                flush=True,
+            )
     return rows
 
 
@@ -434,7 +460,16 @@ def main() -> None:
 
 
 #: the clocks of a row, the medians of its repeats (``median_rows``)
-CLOCKS = ("seconds", "cpu", "bound_seconds", "bound_cpu", "solved_seconds", "solved_cpu")
+CLOCKS = (
+    "seconds",
+    "cpu",
+    "bound_seconds",
+    "bound_cpu",
+    "solved_seconds",
+    "solved_cpu",
+    "call_seconds",
+    "call_cpu",
+)
 
 
 def median_rows(runs: list[list[dict]]) -> list[dict]:
@@ -536,7 +571,7 @@ def certified(target: float, uni: list[dict], ada: list[dict]) -> dict:
     the bound certifies).  Where the uniform meshes stop short of that η, the last mesh's
     seconds are extrapolated from the last two (``uniform_extrapolated``).  Empty if the
     adaptive run has no bounded level or the uniform rows no η."""
-    bounded = [r for r in ada if r.get("estimator", "residual") != "residual"]
+    bounded = [r for r in ada if r.get("estimator", "residual") not in ("residual", "none")]
     if not bounded or len(uni) < 2 or "eta" not in uni[0]:
         return {}
     smallest = min(bounded, key=lambda r: r["eta"])  # the first of the smallest bound
