@@ -78,6 +78,26 @@ def test_budget_stop_counts_no_estimate_of_the_last_level(bench) -> None:
     assert ratio["budget_first_reaching_cpu"] < ratio["first_reaching_cpu"]
 
 
+def test_a_level_budget_variant_runs_as_the_user_does(bench) -> None:
+    """A variant with its own ``adapt.max_levels`` and ``adapt.estimate_last=false``: the
+    loop stops on its level budget, its last level (the one reaching the target) is not
+    estimated and nothing is charged to it — its seconds are its seconds to the solution —
+    and the ``contact.adapt`` call's clock covers every level; the levels are those of the
+    loop with its last estimate.  At equal certification it has no bounded level."""
+    sets = ["adapt.growth=3", "adapt.indicators=residual"]
+    full = bench.adaptive(EX9, 5e-2, 60_000, sets, echo=False)
+    budget = [*sets, f"adapt.max_levels={len(full)}", "adapt.estimate_last=false"]
+    rows = bench.adaptive(EX9, 5e-2, 60_000, budget, echo=False, bound=True)
+    assert [r["dofs"] for r in rows] == [r["dofs"] for r in full]
+    last = rows[-1]
+    assert last["estimator"] == "none" and last["eta"] is None and last["bound_cpu"] == 0
+    assert last["seconds"] - last["solved_seconds"] < 0.1 * last["seconds"]
+    assert full[-1]["bound_cpu"] > 0 and "estimator" not in full[-1]
+    assert last["call_seconds"] >= last["seconds"] and last["call_cpu"] >= last["cpu"]
+    assert all("call_seconds" not in r for r in rows[:-1])
+    assert bench.certified(5e-2, [_uniform_row(1, 289, 0.3, 1.0, True)] * 2, rows) == {}
+
+
 def _uniform_row(level: int, dofs: int, eta: float, cpu: float, path: bool) -> dict:
     """A uniform mesh's row: its error 1/1.1 of its bound, the bound half its solve's CPU."""
     row = dict(level=level, dofs=dofs, error=eta / 1.1, eta=eta, cpu=cpu, bound_cpu=cpu / 2)
