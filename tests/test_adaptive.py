@@ -330,18 +330,24 @@ def test_released_levels_free_their_meshes(run):
     assert [ref() is not None for ref in meshes] == [True, False, False, False, True]
 
 
+@pytest.mark.parametrize("bounds_only", [True, False])
 @pytest.mark.parametrize("predict", [True, False])
-def test_the_bound_and_each_released_level_start_on_a_returned_heap(monkeypatch, predict):
+def test_the_bound_starts_on_a_returned_heap(monkeypatch, predict, bounds_only):
     """The loop's peaks are a level's solve and its guaranteed bound: what refining, the
     solve and the residual estimate freed is handed back to the system (``malloc_trim``)
-    before each later level of a releasing loop is assembled and before the bound is
-    computed, so that those phases, whose arrays have other sizes, do not grow the heap
-    around it.  The calls, in order, for ex9 with the residual indicators marking; the last
-    level (max_levels) is estimated by the bound alone (PREDICT_BOUND), or by the residual
-    indicators and then the bound (the old path)."""
+    before the bound is computed, so that the bound's arrays, of other sizes, do not grow the
+    heap around it — and nowhere else (``TRIM_BEFORE_BOUNDS``: a solve or a residual estimate
+    reuses the freed heap, which, handed back, it would fault in again); the old path also
+    hands it back before each later level of a releasing loop is assembled and once the
+    level before is released.  The calls, in order, for ex9 with the residual indicators
+    marking; the last level (max_levels) is estimated by the bound alone (PREDICT_BOUND), or
+    by the residual indicators and then the bound (the old path).  With the bound marking
+    every level (``indicators: estimator``) the heap is handed back before each level's bound
+    but the first (nothing released before it)."""
     from contact.drivers import adaptive as loop
 
     monkeypatch.setattr(loop, "PREDICT_BOUND", predict)
+    monkeypatch.setattr(loop, "TRIM_BEFORE_BOUNDS", bounds_only)
 
     calls: list[str] = []
     trim, estimate = loop.return_freed_memory, loop.estimate
@@ -356,18 +362,29 @@ def test_the_bound_and_each_released_level_start_on_a_returned_heap(monkeypatch,
 
     monkeypatch.setattr(loop, "return_freed_memory", recorded_trim)
     monkeypatch.setattr(loop, "estimate", recorded_estimate)
+    ex9 = ROOT / "configs" / "peers" / "petsc_ex9.yaml"
     scene = contact.load_scene(
-        ROOT / "configs" / "peers" / "petsc_ex9.yaml",
-        ["output.verbose=false", "adapt.indicators=residual", "adapt.tol=0"],
+        ex9, ["output.verbose=false", "adapt.indicators=residual", "adapt.tol=0"]
     )
     run = adapt(scene, max_levels=3, verbose=False, keep=lambda lv: False)
     assert len(run.levels) == 3 and run.levels[-1].estimator == "equilibrated"
-    # the last level: assembled on a returned heap, solved, the previous level released
-    # (trim), the residual estimate (the old path), then the bound on a returned heap
-    last = ["trim", "trim"] + ([] if predict else ["residual"]) + ["trim", "equilibrated"]
-    assert calls[-len(last) :] == last, calls
     assert calls.count("residual") == len(run.levels) - predict, calls
-    assert calls.count("trim") >= 2 * (len(run.levels) - 1) + 1, calls
+    if bounds_only:
+        # the last level: solved, the residual estimate (the old path), then the bound on a
+        # returned heap; no trim before a solve or a residual estimate
+        last = ([] if predict else ["residual"]) + ["trim", "equilibrated"]
+        assert calls[-len(last) :] == last, calls
+        assert all(b == "equilibrated" for a, b in zip(calls, calls[1:]) if a == "trim"), calls
+        calls.clear()
+        bounded = contact.load_scene(ex9, ["output.verbose=false"])
+        adapt(bounded, max_levels=3, verbose=False, keep=lambda lv: False)
+        assert calls == ["equilibrated", "trim", "equilibrated", "trim", "equilibrated"], calls
+    else:
+        # the last level: assembled on a returned heap, solved, the previous level released
+        # (trim), the residual estimate (the old path), then the bound on a returned heap
+        last = ["trim", "trim"] + ([] if predict else ["residual"]) + ["trim", "equilibrated"]
+        assert calls[-len(last) :] == last, calls
+        assert calls.count("trim") >= 2 * (len(run.levels) - 1) + 1, calls
 
 
 def _estimates(monkeypatch, predict: bool, scene, **options):

@@ -80,6 +80,13 @@ EDGES_ONCE = True
 #: (``Bound.predicts``) — is estimated by the bound alone, which marks it should the loop
 #: go on; False: every level is estimated by the residual indicators first, the old path
 PREDICT_BOUND = True
+#: the heap freed by refining, stowing and releasing levels is given back to the system
+#: (``malloc_trim``: ``return_freed_memory``) only before a guaranteed bound, whose arrays of
+#: other sizes would grow the heap around it (the loop's peak where it is computed); a solve
+#: or a residual estimate reuses the freed heap, which, given back, it would fault in again
+#: page by page.  False: also at each level's start, once the level before is stowed and once
+#: it is released, the old path
+TRIM_BEFORE_BOUNDS = True
 
 
 @dataclass
@@ -436,22 +443,28 @@ def adapt(
         )
         if leaving is not None and SHED_PREVIOUS:
             leaving.result.shed_operator()
-        if keep is not None and previous is not None:
-            return_freed_memory()  # what refining freed: the level's solve does not reuse it
+        if keep is not None and previous is not None and not TRIM_BEFORE_BOUNDS:
+            return_freed_memory()  # what refining freed (the old path)
         built = problem = discrete(build(level_domain.mesh if meshes else level_domain))
         # … nor, once this level is built (a scene's builder drops the level's scene from its
         # cache), its forms, spaces and mesh entities: its values and cells are enough (its
         # mesh stays whole where the refined mesh is linked to it: not nested)
         if leaving is not None and STOW_PREVIOUS and leaving.stow(mesh=opts.nested):
             gc.collect()  # the dropped forms and spaces sit in reference cycles
-            return_freed_memory()
+            if not TRIM_BEFORE_BOUNDS:
+                return_freed_memory()
         seconds["assembly"] = problem.assembly_time
         progress.note(f"level {index}: assembled, {problem.assembly_time:.0f} s")
 
         solved: dict[str, float] = {}  # the clocks when the level's last solve is done
+        # a level estimated by a guaranteed bound (the estimator's own, marking every level)
+        bounded_level = bound is None and kind != "residual"
 
         def release_previous(
-            result: Result, previous: Level | None = previous, solved: dict = solved
+            result: Result,
+            previous: Level | None = previous,
+            solved: dict = solved,
+            trim: bool = bounded_level or not TRIM_BEFORE_BOUNDS,
         ) -> None:
             # once this level has a solution (a failed one is dropped by the CLI and the
             # one before it stays whole), before its estimate, the loop's peak
@@ -459,7 +472,8 @@ def adapt(
                 if result.converged and not keep(previous):
                     previous.release()
                     gc.collect()  # the released fields sit in reference cycles (UFL, dolfinx)
-                    return_freed_memory()
+                    if trim:
+                        return_freed_memory()
             solved.update(wall=time.perf_counter(), cpu=time.process_time())
 
         # a level the loop knows to be its last before estimating it (the level budget …)

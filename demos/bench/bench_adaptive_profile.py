@@ -15,6 +15,8 @@ PC); at the end the last level's peak per DoF against the 1.6 KB/DoF target.  Wr
 ``--table-once`` that of its cell table (whole but for two columns before the blocks),
 ``--keep-level`` that of the level before the last (whole but for its operator during the
 last solve, not stowed), ``--keep-operator`` the one before (whole, operator included),
+``--trim-each-level`` that of the heap given back (the loop's trims before each
+level and after the level before is stowed and released, not only before a bound),
 ``--copies`` that of the solver's records of laws and iterates (copies, not digests),
 ``--keep-bound-operator`` that of the last level (whole during its bound), ``--terms-whole``
 that of the estimators' DG0 terms (every cell's coefficients packed at once).
@@ -161,6 +163,13 @@ def main() -> None:
         help="released levels' memory stays with the allocator (contact.base.lifetime.TRIM)",
     )
     ap.add_argument(
+        "--trim-each-level",
+        action="store_true",
+        help="the freed heap given back at each level's start and once the level before is "
+        "stowed and released, not only before a bound "
+        "(contact.drivers.adaptive.TRIM_BEFORE_BOUNDS = False)",
+    )
+    ap.add_argument(
         "--whole-table",
         action="store_true",
         help="the equilibrated flux's patch data all at once (flux.BLOCK_CELLS = None)",
@@ -206,6 +215,7 @@ def main() -> None:
     PETSc.Log.begin()  # petsc_objects counts from here
     lifetime.TRIM = not args.no_trim
     lifetime.DIGESTS = not args.copies
+    adaptive.TRIM_BEFORE_BOUNDS = not args.trim_each_level
     if args.whole_table:
         from contact.adaptivity.equilibration import flux
 
