@@ -4062,6 +4062,89 @@ def _tta_ex9_certified() -> list[str]:
     ]
 
 
+def _tta_ex9_budget() -> list[str]:
+    """ex9 to 4e-3 on a level budget (demos/results/adaptive_cost/
+    time_to_accuracy_ex9_certified.csv, its variant without a certified level: the last
+    level not estimated): the loop's wall and CPU seconds to its last level against uniform
+    P1's at the exact stop."""
+    data = rows(RES / "adaptive_cost" / "time_to_accuracy_ex9_certified.csv") or []
+    ratio = next(
+        (
+            r
+            for r in data
+            if r["run"] == "ratio"
+            and _tta_reference(r) == "uniform"
+            and not r.get("certified_last_cpu")
+            and any(x["run"] == r["variant"] and x.get("estimator") == "none" for x in data)
+        ),
+        None,
+    )
+    if ratio is None:
+        return []
+    levels = [x for x in data if x["run"] == ratio["variant"]]
+    uni = [x for x in data if x["run"] == "uniform"]
+    reach = next(x for x in uni if x["error"] <= ratio["error"])
+    last = next(x for x in levels if x["error"] <= ratio["error"])
+    return [
+        prose(
+            "time_to_accuracy",
+            "ex9_budget",
+            variant=ratio["variant"],
+            levels=len(levels),
+            dofs=f"{last['dofs']:,}",
+            error=f"{last['error']:.3e}",
+            wall=f"{last['seconds']:.2f}",
+            cpu=f"{last['cpu']:.2f}",
+            call_wall=f"{levels[-1]['call_seconds']:.2f}"
+            if levels[-1].get("call_seconds")
+            else "–",
+            uni_wall=f"{reach['seconds']:.2f}",
+            uni_cpu=f"{reach['cpu']:.2f}",
+            uni_dofs=f"{reach['dofs']:,}",
+            uni_error=f"{reach['error']:.3e}",
+            ratio_wall=f"{ratio['first_reaching_seconds']:.3f}",
+            ratio_cpu=f"{ratio['first_reaching_cpu']:.3f}",
+            interp_wall=f"{ratio['interpolated_seconds']:.3f}",
+            interp_cpu=f"{ratio['interpolated_cpu']:.3f}",
+        )
+    ]
+
+
+def _tta_ex9_run_wall() -> list[str]:
+    """``contact run`` of ex9 on a level budget against the uniform run, whole processes in
+    turn (demos/bench/bench_run_wall.py, demos/results/adaptive_cost/run_wall_ex9.csv)."""
+    data = rows(RES / "adaptive_cost" / "run_wall_ex9.csv") or []
+    m = next((r for r in data if r["run"] == "median"), None)
+    if m is None:
+        return [missing("demos/results/adaptive_cost/run_wall_ex9.csv")]
+    return [
+        prose(
+            "time_to_accuracy",
+            "ex9_run_wall",
+            pairs=m["pairs"],
+            a_sets=m["a_sets"],
+            b_sets=m["b_sets"],
+            **{
+                f"{k}_{what}": text
+                for k in ("a", "b")
+                for what, text in (
+                    ("wall", f"{m[f'{k.upper()}_wall']:.2f}"),
+                    ("cpu", f"{m[f'{k.upper()}_cpu']:.2f}"),
+                    ("peak", f"{m[f'{k.upper()}_peak_mib']:,.0f}"),
+                    ("per_dof", f"{m[f'{k.upper()}_peak_b_per_dof']:,}"),
+                    ("dofs", f"{m[f'{k.upper()}_dofs']:,}"),
+                    ("error", f"{m[f'{k.upper()}_error']:.3e}"),
+                )
+            },
+            ratio_wall=f"{m['ratio_wall']:.3f}",
+            ratio_min=f"{m['ratio_wall_min']:.3f}",
+            ratio_max=f"{m['ratio_wall_max']:.3f}",
+            ratio_cpu=f"{m['ratio_cpu']:.3f}",
+            ratio_peak=f"{m['ratio_peak_mib']:.2f}",
+        )
+    ]
+
+
 def time_to_accuracy() -> str:
     """Section 14: the adaptive loop against uniform meshes at equal error
     (demos/bench/bench_time_to_accuracy.py, with its chart), the loop's memory with earlier
@@ -4194,6 +4277,8 @@ def time_to_accuracy() -> str:
         ]
         out += _tta_ex9_growth()
         out += _tta_ex9_certified()
+        out += _tta_ex9_budget()
+        out += _tta_ex9_run_wall()
     keep = {
         mode: rows(RES / "adaptive_cost" / f"profile_ex9_keep_{mode}.csv")
         for mode in ("all", "last_notrim", "last")

@@ -52,8 +52,9 @@ chart goes to demos/results/ (committed with the report, so its numbers can be c
    equal error (ex9, problem A and the L-shape; the loop's variants, adaptive P2 and hp
    against the same uniform P1 and P2 runs), ``bench_adaptive_profile.py ex9`` with growth
    2, with every level kept and with the earlier ones released (the loop's memory),
-   ``bench_startup.py`` — ``import contact`` and a tiny run (issue 41, RESULTS §14; about
-   30 minutes);
+   ``bench_run_wall.py`` — ``contact run`` of ex9 on a level budget against the uniform run,
+   whole processes in turn, ``bench_startup.py`` — ``import contact`` and a tiny run
+   (issue 41, RESULTS §14; about 35 minutes);
    ``demos/bench/bench_hp.py`` — hp against h-adaptive P1 and P2 (RESULTS §15, minutes);
 4. ``contact study configs/studies/<name>.yaml -o demos/results/<name>`` for every study
    file (speed against accuracy, stability map and its 1024² part ``stability_scale``, about 30
@@ -367,11 +368,24 @@ STEPS = {
             "res3:adapt.growth=3,adapt.indicators=residual,adapt.tol=4e-3",
             "--variant",
             "p2tol:mesh.degree=2,adapt.growth=2,adapt.tol=4e-3",
+            # … and on a level budget, its last level (the first reaching 4e-3) not estimated
+            "--variant",
+            "budget3:adapt.growth=3,adapt.indicators=residual,adapt.max_levels=8,"
+            "adapt.estimate_last=false",
             "--uniform-bound",
             "--repeat",
             "3",
             "--out",
             "demos/results/adaptive_cost/time_to_accuracy_ex9_certified.csv",
+        ],
+        # ex9 on a level budget against the uniform run: `contact run` as whole processes
+        [
+            PY,
+            "demos/bench/bench_run_wall.py",
+            "--pairs",
+            "5",
+            "--out",
+            "demos/results/adaptive_cost/run_wall_ex9.csv",
         ],
         [
             PY,

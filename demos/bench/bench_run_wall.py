@@ -18,7 +18,7 @@ without pictures:
     python demos/bench/bench_run_wall.py --pairs 5 \\
         --out demos/results/adaptive_cost/run_wall_ex9.csv
     python demos/bench/bench_run_wall.py configs/lshape_corner.yaml --pairs 3 \\
-        --a adapt.max_levels=10 --b adapt=none "mesh.cells=[64,64]"
+        --a adapt.max_levels=10 --b adapt=none mesh.cells=64
 """
 
 from __future__ import annotations
@@ -115,6 +115,8 @@ def main() -> None:
         b = [r[key] for r in rows if r["run"] == "B"]
         ratios = [x / y for x, y in zip(a, b)]
         medians[f"ratio_{key}"] = round(statistics.median(ratios), 4)
+        medians[f"ratio_{key}_min"] = round(min(ratios), 4)
+        medians[f"ratio_{key}_max"] = round(max(ratios), 4)
         print(
             f"{key}: A {medians[f'A_{key}']:.2f}, B {medians[f'B_{key}']:.2f} (medians); A/B "
             f"{medians[f'ratio_{key}']:.3f} (median of the pairs, {min(ratios):.3f} … "
@@ -128,6 +130,7 @@ def main() -> None:
             medians[f"{name}_peak_mib"] * 2**20 / last["dofs"]
         )
     medians["a_sets"], medians["b_sets"] = " ".join(commands["A"]), " ".join(commands["B"])
+    medians["pairs"] = args.pairs
     rows.append(medians)
     print(
         f"A: {medians['A_dofs']} DoFs, error {medians['A_error']}; "
