@@ -118,7 +118,8 @@ class Level:
         domain: The level's domain (its mesh and tags).
         problem: The problem built on it.
         result: The solve on this level.
-        estimate: The error estimate of that solve.
+        estimate: The error estimate of that solve (``Estimate.skipped``: the last level of a
+            loop with ``adapt.estimate_last`` false; :attr:`eta` is then None).
         error: The energy error against the physics' exact solution, None without one.
         seconds: Seconds spent per phase (``assembly``, ``solve``, ``estimate``, ``error``,
             ``mark``, ``refine``, ``output``).
@@ -486,11 +487,13 @@ def adapt(
         # solution, as a uniform run does
         unestimated = bool(last) and not opts.estimate_last
         # the bound alone where it will be computed anyway (adapt.indicators residual): on
-        # the last level (its operator K then shed first, as before the bound of Bound) …
-        # … or where it is predicted to meet tol
-        bound_only = not unestimated and (
-            (bool(last) and bound is not None and PREDICT_BOUND)
-            or (bound is not None and PREDICT_BOUND and bound.predicts(problem.V, opts.tol))
+        # the last level (its operator K then shed first, as before the bound of Bound) or
+        # where it is predicted to meet tol
+        bound_only = (
+            not unestimated
+            and bound is not None
+            and PREDICT_BOUND
+            and (bool(last) or bound.predicts(problem.V, opts.tol))
         )
 
         def on_solved(
@@ -601,14 +604,12 @@ def adapt(
                 out.stop = f"the next level would have {new_dofs} DoFs > solver.max_dofs = {budget}"
         if out.stop:  # the refined mesh, if any, is not needed (nor held during the bound)
             child = new_u0 = None
-        if bound is not None and out.stop:  # the last level: its bound
-            if result.converged and unestimated:
-                pass  # adapt.estimate_last false: no estimate of it
-            elif result.converged:
+        if bound is not None and out.stop:  # the last level: its bound (unestimated: none)
+            if result.converged and not unestimated:
                 if SHED_BOUND and keep is not None and level.estimator != bound.kind:
                     result.shed_operator()  # nothing solves on it again: the bound's peak
                 bound.compute(level)
-            elif index > 0 and not out.levels[-2].released:  # the last that converged
+            elif not result.converged and index > 0 and not out.levels[-2].released:
                 bound.compute(out.levels[-2])
         if on_level is not None:
             cpu = time.process_time()
