@@ -350,8 +350,9 @@ class LevelWriter:
     def __call__(self, level: Level) -> None:
         r = level.result
         est = level.estimate
-        # η_T where the level was estimated (not the last with adapt.estimate_last false)
-        cells = [*([est.eta_T] if est.eta_T is not None else []), *cell_fields(r, self.elastic)]
+        cells = cell_fields(r, self.elastic)
+        if est.eta_T is not None:  # estimated: not the last level of estimate_last false
+            cells.insert(0, est.eta_T)
         points = point_fields(r)
         space = getattr(level, "space", None)  # an hp level's degrees
         if space is not None:

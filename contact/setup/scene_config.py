@@ -395,9 +395,9 @@ Switch = Annotated[bool, BeforeValidator(boolean)]
 class AdaptConfig(AdaptOptions, Section):
     """A scene's ``adapt`` section (docs/theory.md §6): the loop's knobs
     (:class:`~contact.solvers.options.AdaptOptions`: ``strategy``, ``theta``, ``growth``, ``tol``,
-    ``max_dofs``, ``max_levels``, ``estimate_last``, ``nested``, ``rebalance``, ``newton_rtol``),
-    ``strategy``
-    also hp (Dörfler, then h or p per marked cell: :mod:`contact.hp`), ``pictures`` —
+    ``max_dofs``, ``max_levels``, ``estimate_last``, ``nested``, ``rebalance``,
+    ``newton_rtol``), ``strategy`` also hp (Dörfler, then h or p per marked cell:
+    :mod:`contact.hp`), ``pictures`` —
     levels drawn; ``p_max``, ``p_start`` — with ``hp``, the largest degree and every
     cell's first degree."""
 
