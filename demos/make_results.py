@@ -4117,6 +4117,19 @@ def _tta_ex9_run_wall() -> list[str]:
     m = next((r for r in data if r["run"] == "median"), None)
     if m is None:
         return [missing("demos/results/adaptive_cost/run_wall_ex9.csv")]
+
+    def side(name: str) -> dict[str, str]:
+        """Command ``name``'s medians as the paragraph writes them."""
+        return {
+            "wall": f"{m[f'{name}_wall']:.2f}",
+            "cpu": f"{m[f'{name}_cpu']:.2f}",
+            "peak": f"{m[f'{name}_peak_mib']:,.0f}",
+            "per_dof": f"{m[f'{name}_peak_b_per_dof']:,}",
+            "dofs": f"{m[f'{name}_dofs']:,}",
+            "error": f"{m[f'{name}_error']:.3e}",
+        }
+
+    a, b = side("A"), side("B")
     return [
         prose(
             "time_to_accuracy",
@@ -4124,18 +4137,18 @@ def _tta_ex9_run_wall() -> list[str]:
             pairs=m["pairs"],
             a_sets=m["a_sets"],
             b_sets=m["b_sets"],
-            **{
-                f"{k}_{what}": text
-                for k in ("a", "b")
-                for what, text in (
-                    ("wall", f"{m[f'{k.upper()}_wall']:.2f}"),
-                    ("cpu", f"{m[f'{k.upper()}_cpu']:.2f}"),
-                    ("peak", f"{m[f'{k.upper()}_peak_mib']:,.0f}"),
-                    ("per_dof", f"{m[f'{k.upper()}_peak_b_per_dof']:,}"),
-                    ("dofs", f"{m[f'{k.upper()}_dofs']:,}"),
-                    ("error", f"{m[f'{k.upper()}_error']:.3e}"),
-                )
-            },
+            a_wall=a["wall"],
+            a_cpu=a["cpu"],
+            a_peak=a["peak"],
+            a_per_dof=a["per_dof"],
+            a_dofs=a["dofs"],
+            a_error=a["error"],
+            b_wall=b["wall"],
+            b_cpu=b["cpu"],
+            b_peak=b["peak"],
+            b_per_dof=b["per_dof"],
+            b_dofs=b["dofs"],
+            b_error=b["error"],
             ratio_wall=f"{m['ratio_wall']:.3f}",
             ratio_min=f"{m['ratio_wall_min']:.3f}",
             ratio_max=f"{m['ratio_wall_max']:.3f}",
